@@ -1,0 +1,32 @@
+// Run-time choice of index for the command line and scene files: one of the SpatialIndex types.
+#pragma once
+
+#include "rayscan/brute_force.hpp"
+#include "rayscan/kdtree.hpp"
+#include "rayscan/octree.hpp"
+
+#include <string>
+#include <variant>
+
+namespace rayscan {
+
+/// Any of the library's indexes; use std::visit to call a query template on it.
+using AnyIndex = std::variant<Octree, KdTree, BruteForceIndex>;
+
+/// Index build options shared by the CLI and scene files.
+struct IndexOptions {
+  std::string type = "octree-adaptive";  ///< octree-adaptive|octree-layered|octree-fixed|kdtree|brute
+  std::uint32_t capacity = 32;   ///< octree node capacity / kd-tree leaf size (points)
+  unsigned depth = 6;            ///< octree-fixed leaf depth
+  unsigned max_depth = 21;       ///< octree-adaptive/layered maximum depth
+  bool insertion = false;        ///< octree: build by insertion instead of bulk loading
+};
+
+/// Build the index named by opts.type over `positions`. Throws std::invalid_argument for an unknown
+/// type (naming the allowed ones) or invalid parameters.
+AnyIndex make_index(std::span<const Vec3> positions, const IndexOptions& opts);
+
+/// Bytes the index holds (positions copy, ids, nodes).
+std::size_t index_memory_bytes(const AnyIndex& index);
+
+}  // namespace rayscan

@@ -1,0 +1,139 @@
+// Octree over raw points after Warren & Salmon (1993), as customised in paper section 4.1: node ids
+// of depth + Morton code, lazily built per-level index maps, and three data organisations.
+#pragma once
+
+#include "rayscan/morton.hpp"
+#include "rayscan/point_cloud.hpp"
+#include "rayscan/spatial_index.hpp"
+
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace rayscan {
+
+/// Data organisation of an octree (paper section 4.1).
+enum class OctreeLayout {
+  layered,   ///< every node keeps up to `capacity` points (the first inserted, i.e. the smallest
+             ///< original indices) and passes the rest down: each level is a subsample (LOD)
+  fixed,     ///< all points in the leaves at depth `depth`: a regular grid
+  adaptive   ///< a leaf splits when it holds more than `capacity` points, up to `max_depth`
+};
+
+/// Parses "layered" | "fixed" | "adaptive"; throws std::invalid_argument otherwise.
+OctreeLayout parse_octree_layout(const std::string& s);
+/// The name parse_octree_layout accepts.
+const char* to_string(OctreeLayout layout);
+
+/// Octree build parameters.
+struct OctreeConfig {
+  OctreeLayout layout = OctreeLayout::adaptive;
+  std::uint32_t capacity = 32;  ///< points per node (layered) / per leaf before a split (adaptive)
+  unsigned max_depth = 21;      ///< deepest level for layered and adaptive (<= 21)
+  unsigned depth = 6;           ///< leaf depth for fixed (<= 21)
+  /// Throws std::invalid_argument for capacity 0 or a depth above 21.
+  void validate() const;
+};
+
+/// An octree index satisfying SpatialIndex.
+///
+/// Storage: positions are copied into one contiguous array in depth-first traversal order, so each
+/// node's own points and each subtree's points are contiguous; ids() maps a slot back to the
+/// caller's original point index. Children of a node are contiguous in the node array. Node bounds
+/// are the tight boxes of the points below the node (tighter than the node's cell, so pruning is
+/// stronger; the cell itself is available from cell_bounds()).
+///
+/// Cells: the root cell is the cube of edge max_extent (grown by 1e-9 relative so the maximum point
+/// falls inside) anchored at the cloud's minimum corner; a point's cell at depth D is given by the
+/// top D levels of its 21-bit-per-axis Morton code. Duplicate points never split endlessly: an
+/// adaptive leaf whose points all share one 21-bit Morton code is not split.
+///
+/// Build by insertion (build_by_insertion, as the paper measures) and by bulk loading (build_bulk,
+/// sort by Morton code) produce the identical node array, slot order and ids.
+class Octree {
+ public:
+  using Node = std::uint32_t;
+
+  /// Bulk load: Morton-sort the points, then split ranges top-down. O(N log N).
+  /// Throws std::invalid_argument for a bad config or non-finite position, std::length_error above
+  /// 2^32 - 2 points.
+  static Octree build_bulk(std::span<const Vec3> positions, const OctreeConfig& config = {});
+  /// Insert points one at a time in index order into a pointer-based tree, splitting leaves as they
+  /// overflow, then compact it. Same errors as build_bulk; same resulting tree.
+  static Octree build_by_insertion(std::span<const Vec3> positions, const OctreeConfig& config = {});
+
+  // SpatialIndex concept ---------------------------------------------------------------------
+  [[nodiscard]] bool empty() const { return pos_.empty(); }
+  [[nodiscard]] Node root() const { return 0; }
+  [[nodiscard]] const AABB& node_bounds(Node n) const { return nodes_[n].box; }
+  [[nodiscard]] SlotRange node_points(Node n) const {
+    return {nodes_[n].own_begin, nodes_[n].own_end};
+  }
+  [[nodiscard]] unsigned child_count(Node n) const { return nodes_[n].child_count; }
+  [[nodiscard]] Node child(Node n, unsigned i) const { return nodes_[n].first_child + i; }
+  [[nodiscard]] std::span<const Vec3> positions() const { return pos_; }
+  [[nodiscard]] std::span<const PointIndex> ids() const { return ids_; }
+  /// All slots of the subtree rooted at n (its own points and every descendant's): contiguous.
+  [[nodiscard]] SlotRange subtree_points(Node n) const {
+    return {nodes_[n].own_begin, nodes_[n].subtree_end};
+  }
+
+  // Octree specifics ---------------------------------------------------------------------------
+  /// The Warren & Salmon id (depth + Morton code) of node n.
+  [[nodiscard]] OctreeNodeId node_id(Node n) const { return OctreeNodeId::from_bits(nodes_[n].key); }
+  /// The node with id `id`, or nullopt. Uses the per-level index map of id.depth(), built lazily on
+  /// first use (thread-safe) as a sorted (Morton code -> node) table (paper section 4.1).
+  [[nodiscard]] std::optional<Node> find(OctreeNodeId id) const;
+  /// The deepest existing node whose cell contains p (nullopt outside the root cell).
+  [[nodiscard]] std::optional<Node> locate(const Vec3& p) const;
+  /// The cubic cell of node n (not the tight bounds).
+  [[nodiscard]] AABB cell_bounds(Node n) const;
+  /// The root cell (a cube).
+  [[nodiscard]] const AABB& root_cell() const { return cell_; }
+  /// Number of nodes.
+  [[nodiscard]] std::size_t node_count() const { return nodes_.size(); }
+  /// Depth of the deepest node.
+  [[nodiscard]] unsigned depth() const { return depth_; }
+  /// Build parameters.
+  [[nodiscard]] const OctreeConfig& config() const { return config_; }
+  /// Bytes held: reordered positions, ids and nodes (level maps excluded until built).
+  [[nodiscard]] std::size_t memory_bytes() const;
+  /// True when both trees have the same cell, node array, slot order and ids (used to show that
+  /// insertion and bulk builds agree).
+  [[nodiscard]] bool same_structure(const Octree& other) const;
+
+  Octree(Octree&&) noexcept;
+  Octree& operator=(Octree&&) noexcept;
+  Octree(const Octree&) = delete;
+  Octree& operator=(const Octree&) = delete;
+  ~Octree();
+
+  /// Node record (public for the builders in octree.cpp; not part of the API contract).
+  struct NodeRec {
+    AABB box;                     ///< tight bounds of the subtree's points
+    std::uint64_t key = 1;        ///< Warren & Salmon id bits
+    std::uint32_t first_child = 0;
+    std::uint32_t own_begin = 0, own_end = 0, subtree_end = 0;
+    std::uint8_t child_count = 0;
+  };
+
+ private:
+  Octree() = default;
+  friend struct OctreeBuilder;
+
+  struct LevelMaps;
+  OctreeConfig config_;
+  AABB cell_;                       // root cube
+  unsigned depth_ = 0;
+  std::vector<NodeRec> nodes_;
+  std::vector<Vec3> pos_;
+  std::vector<PointIndex> ids_;
+  std::unique_ptr<LevelMaps> levels_;  // lazily filled per level
+};
+
+static_assert(SpatialIndex<Octree>);
+
+}  // namespace rayscan

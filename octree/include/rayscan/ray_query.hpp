@@ -1,0 +1,335 @@
+// The ray query of the paper (Teuscher et al., "Ray Queries On Raw Point Clouds", Algorithm 1 and
+// sections 3.1-3.3), written once against the SpatialIndex concept.
+#pragma once
+
+#include "rayscan/distance.hpp"
+#include "rayscan/ray.hpp"
+#include "rayscan/spatial_index.hpp"
+
+#include <algorithm>
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace rayscan {
+
+/// "k not set" (Algorithm 1: k <- inf): return every point that satisfies the other predicates.
+inline constexpr std::size_t kAllPoints = std::numeric_limits<std::size_t>::max();
+
+/// The measure a ray query orders (and k-limits) its results by (paper section 3.1).
+enum class RayOrder {
+  ray,        ///< orthogonal distance to the ray line, eq. 1 ("kNN to the ray")
+  time,       ///< t_p of the projection on the ray, eq. 2 with n = d ("kNN along the ray")
+  sphere_hit  ///< entry parameter t_p - sqrt(r^2 - d^2) into the sphere of radius r around the
+              ///< point: the exact first hit a renderer needs. Requires a finite radius.
+};
+
+/// Which node-to-ray minimum distance prunes nodes (paper section 3.3, "Ray Minimum Distance").
+enum class NodeDistance {
+  exact,  ///< exact box-to-segment distance (segment_box_distance2); tightest pruning
+  eq3     ///< the paper's conservative eq. 3 (centre distance minus half diagonal); cheaper, weaker
+};
+
+/// A half-space constraint {p : dist_plane(point, normal, p) <= 0} (paper eq. 2/6). A list of them
+/// is a convex "frustum" query; the time interval is the special case of two planes with normals
+/// -d and +d.
+struct Plane {
+  Vec3 point;   ///< a point on the plane (world coordinates)
+  Vec3 normal;  ///< outward normal (need not be unit); points with positive distance are rejected
+};
+
+/// Parameters of a ray query (paper Algorithm 1). Every parameter is optional; the set ones form a
+/// logical conjunction (section 3.1).
+struct RayQuery {
+  std::size_t k = kAllPoints;  ///< at most k results, the k smallest by `order` (kAllPoints = unset)
+  double radius = kInf;        ///< keep points with orthogonal distance <= radius (world units)
+  double t_min = -kInf;        ///< keep results whose t >= t_min (t: see RayHit::t)
+  double t_max = kInf;         ///< keep results whose t <= t_max
+  RayOrder order = RayOrder::ray;           ///< ordering measure, see RayOrder
+  std::span<const Plane> planes{};          ///< extra half-space constraints (not owned)
+  NodeDistance node_distance = NodeDistance::exact;  ///< node pruning bound, see NodeDistance
+
+  /// Throws std::invalid_argument when t_min > t_max, a value is NaN, radius < 0, or order is
+  /// sphere_hit without a finite radius, or a plane normal is zero or non-finite.
+  void validate() const;
+};
+
+/// One result of a ray query.
+struct RayHit {
+  PointIndex index;  ///< the point's index in the caller's original cloud
+  double t;          ///< ray parameter: t_p of the projection (orders ray, time) or the sphere
+                     ///< entry parameter (order sphere_hit); world units along the unit direction
+  double distance;   ///< orthogonal distance of the point to the ray line (eq. 1), not squared
+  double key;        ///< the ordering measure: distance (ray) or t (time, sphere_hit)
+};
+
+/// Work counters of one query: the "query cost" a renderer shows as an AOV.
+struct RayQueryStats {
+  std::uint64_t nodes_visited = 0;  ///< nodes whose points were evaluated
+  std::uint64_t points_tested = 0;  ///< point predicates evaluated
+};
+
+/// Projection terms of point p on a ray (o, unit d): t_p = d.(p - o) (eq. 2 with n = d) and the
+/// squared orthogonal distance |(p - o) - t_p d|^2 (eq. 1 squared). Every index and the tests use
+/// this one function, so their per-point values agree to the bit.
+struct RayPointTerms {
+  double t;   ///< t_p
+  double d2;  ///< squared orthogonal distance
+};
+[[nodiscard]] inline RayPointTerms ray_point_terms(const Vec3& o, const Vec3& d, const Vec3& p) {
+  const Vec3 v = p - o;
+  const double t = glm::dot(v, d);
+  const Vec3 w = v - t * d;
+  return {t, glm::dot(w, w)};
+}
+
+/// Entry parameter of the ray into the sphere of radius r around a point with terms (t, d2), for
+/// d2 <= r^2: t - sqrt(r^2 - d2) (the near root of the ray/sphere quadratic, written in the
+/// numerically stable projected form; cf. pbrt-v4 section 6.2.2 and RTIOW section 6).
+[[nodiscard]] inline double sphere_entry(double t, double d2, double r) {
+  return t - std::sqrt(std::max(0.0, r * r - d2));
+}
+
+namespace detail {
+
+struct Candidate {
+  double key;
+  PointIndex id;
+  double t;
+  double d2;
+};
+inline bool cand_less(const Candidate& a, const Candidate& b) {
+  return a.key < b.key || (a.key == b.key && a.id < b.id);
+}
+
+template <class Node>
+struct NodeEntry {
+  double lb;  // lower bound of the ordering key of any result inside the node
+  Node node;
+};
+
+/// Reusable per-thread scratch so that a query allocates nothing once warm.
+template <class Node>
+struct RayScratch {
+  std::vector<NodeEntry<Node>> nodes;
+  std::vector<Candidate> cands;
+};
+
+template <class Node>
+RayScratch<Node>& ray_scratch() {
+  thread_local RayScratch<Node> s;
+  return s;
+}
+
+}  // namespace detail
+
+/// Ray query (paper Algorithm 1) over any SpatialIndex; results are appended to `out` (cleared
+/// first), sorted by (key, original index) ascending.
+///
+/// Semantics: a point p with terms (t_p, d) is a candidate when d <= radius, every plane gives
+/// dist_plane <= 0, and its t lies in [t_min, t_max], where t = t_p for orders ray/time and
+/// t = sphere_entry(t_p, d^2, radius) for sphere_hit. The k smallest candidates by key are kept.
+///
+/// Pruning (section 3.3): a node is skipped when its minimum distance to the ray segment exceeds
+/// the radius (exact distance or eq. 3, see NodeDistance), when its projected time interval (eq. 4,
+/// or the slab interval of the box grown by r, which is tighter) misses [t_min, t_max], when a plane
+/// has the whole box on its positive side, and, once k candidates are held, when its lower bound on
+/// the key exceeds the worst kept key (dynamic k filter: it tightens r for order ray, t_max for
+/// orders time and sphere_hit). With k set, nodes are visited best-first (nearest lower bound
+/// first) so the k filter tightens early and the search stops at the first node that cannot improve
+/// the result; without k, a depth-first stack is used. Bounds carry a tolerance of 1e-9 of the
+/// scene's magnitude so rounding never prunes a qualifying point.
+///
+/// Throws std::invalid_argument (from RayQuery::validate) for inconsistent parameters.
+/// Thread-safe for concurrent calls on one index (per-thread scratch).
+template <SpatialIndex I>
+void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<RayHit>& out,
+               RayQueryStats* stats = nullptr) {
+  using Node = typename I::Node;
+  q.validate();
+  out.clear();
+  if (index.empty() || q.k == 0) return;
+
+  const Vec3 o = ray.origin();
+  const Vec3 d = ray.direction();
+  const Vec3 inv_d = 1.0 / d;
+  const std::span<const Vec3> pos = index.positions();
+  const std::span<const PointIndex> ids = index.ids();
+  const bool bounded = q.k != kAllPoints;
+  const bool sphere = q.order == RayOrder::sphere_hit;
+  const double radius = q.radius;
+  const double r2 = radius * radius;
+
+  const AABB root_box = index.node_bounds(index.root());
+  const double tol = 1e-9 * (glm::length(o - root_box.center()) + root_box.max_extent()) + 1e-300;
+
+  // Current bounds, tightened by the dynamic k filter.
+  double r_cur = radius;    // order ray
+  double tmax_cur = q.t_max;  // orders time, sphere_hit (on the key t)
+  double worst = kInf;      // worst kept key once k candidates are held
+
+  auto& scratch = detail::ray_scratch<Node>();
+  auto& nodes = scratch.nodes;
+  auto& cands = scratch.cands;
+  nodes.clear();
+  cands.clear();
+
+  // Node test: returns false to prune; on success writes a lower bound of the key.
+  auto test_node = [&](const AABB& b, double& lb) -> bool {
+    // Projected time interval of the node: sphere_hit keys are <= t_p <= key + r.
+    const double t_lo = q.t_min - tol;
+    const double t_hi = (sphere ? tmax_cur + radius : tmax_cur) + tol;
+    const double pad = (q.order == RayOrder::ray ? r_cur : radius);
+    Interval iv;
+    if (pad < kInf) {
+      iv = slab_interval(o, inv_d, b, pad + tol, t_lo, t_hi);
+    } else {
+      iv = dist_plane_bounds(o, d, b);  // eq. 4 via eq. 2
+      iv.lo = std::max(iv.lo, t_lo);
+      iv.hi = std::min(iv.hi, t_hi);
+    }
+    if (iv.empty()) return false;
+    for (const Plane& pl : q.planes)
+      if (dist_plane_bounds(pl.point, pl.normal, b).lo > tol) return false;
+    if (q.order == RayOrder::ray || pad < kInf) {
+      double dmin;
+      if (q.node_distance == NodeDistance::exact)
+        dmin = std::sqrt(segment_box_distance2(o, d, iv.lo, iv.hi, b));
+      else
+        dmin = node_ray_distance_eq3(o, d, b);
+      if (dmin > pad + tol) return false;
+      lb = q.order == RayOrder::ray ? dmin : std::max(iv.lo, q.t_min);
+    } else {
+      lb = std::max(iv.lo, q.t_min);
+    }
+    return !(bounded && lb > worst + tol);
+  };
+
+  auto push_candidate = [&](const detail::Candidate& c) {
+    if (!bounded) {
+      cands.push_back(c);
+      return;
+    }
+    if (cands.size() < q.k) {
+      cands.push_back(c);
+      std::push_heap(cands.begin(), cands.end(), detail::cand_less);
+    } else if (detail::cand_less(c, cands.front())) {
+      std::pop_heap(cands.begin(), cands.end(), detail::cand_less);
+      cands.back() = c;
+      std::push_heap(cands.begin(), cands.end(), detail::cand_less);
+    } else {
+      return;
+    }
+    if (cands.size() == q.k) {  // dynamic k filter (Algorithm 1, step 2)
+      worst = cands.front().key;
+      if (q.order == RayOrder::ray) r_cur = std::min(radius, worst);
+      else tmax_cur = std::min(q.t_max, worst);
+    }
+  };
+
+  auto eval_points = [&](Node n) {
+    const SlotRange sr = index.node_points(n);
+    if (stats) {
+      ++stats->nodes_visited;
+      stats->points_tested += sr.size();
+    }
+    for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+      const RayPointTerms pt = ray_point_terms(o, d, pos[s]);
+      if (pt.d2 > r2) continue;
+      double t = pt.t;
+      if (sphere) t = sphere_entry(pt.t, pt.d2, radius);
+      if (t < q.t_min || t > q.t_max) continue;
+      bool inside = true;
+      for (const Plane& pl : q.planes)
+        if (dist_plane(pl.point, pl.normal, pos[s]) > 0.0) { inside = false; break; }
+      if (!inside) continue;
+      const double key = q.order == RayOrder::ray ? std::sqrt(pt.d2) : t;
+      if (bounded && key > worst) continue;
+      push_candidate({key, ids[s], t, pt.d2});
+    }
+  };
+
+  auto node_greater = [](const detail::NodeEntry<Node>& a, const detail::NodeEntry<Node>& b) {
+    return a.lb > b.lb;
+  };
+
+  double lb0 = 0;
+  if (test_node(root_box, lb0)) nodes.push_back({lb0, index.root()});
+  while (!nodes.empty()) {
+    detail::NodeEntry<Node> e;
+    if (bounded) {
+      std::pop_heap(nodes.begin(), nodes.end(), node_greater);
+      e = nodes.back();
+      nodes.pop_back();
+      if (e.lb > worst + tol) break;  // nothing left can enter the k best
+    } else {
+      e = nodes.back();
+      nodes.pop_back();
+    }
+    eval_points(e.node);
+    const unsigned nc = index.child_count(e.node);
+    for (unsigned i = 0; i < nc; ++i) {
+      const Node c = index.child(e.node, i);
+      double lb;
+      if (!test_node(index.node_bounds(c), lb)) continue;
+      nodes.push_back({lb, c});
+      if (bounded) std::push_heap(nodes.begin(), nodes.end(), node_greater);
+    }
+  }
+
+  std::sort(cands.begin(), cands.end(), detail::cand_less);
+  out.reserve(cands.size());
+  for (const detail::Candidate& c : cands) out.push_back({c.id, c.t, std::sqrt(c.d2), c.key});
+}
+
+/// Convenience overload returning a new vector; see the overload above.
+template <SpatialIndex I>
+[[nodiscard]] std::vector<RayHit> ray_query(const I& index, const Ray& ray, const RayQuery& q,
+                                            RayQueryStats* stats = nullptr) {
+  std::vector<RayHit> out;
+  ray_query(index, ray, q, out, stats);
+  return out;
+}
+
+/// Convex "frustum" query (paper section 3.1, "Time Range"): every point with
+/// dist_plane(plane.point, plane.normal, p) <= 0 for all planes, as original indices in ascending
+/// order. No ray is needed; nodes are pruned with dist_plane_bounds.
+template <SpatialIndex I>
+[[nodiscard]] std::vector<PointIndex> frustum_query(const I& index, std::span<const Plane> planes) {
+  std::vector<PointIndex> out;
+  if (index.empty()) return out;
+  for (const Plane& pl : planes) {
+    const double len = glm::length(pl.normal);
+    if (!(len > 0) || !std::isfinite(len) || !std::isfinite(glm::length(pl.point)))
+      throw std::invalid_argument("frustum_query: plane normal must be non-zero and finite");
+  }
+  const AABB root_box = index.node_bounds(index.root());
+  const double tol = 1e-9 * (root_box.max_extent() + glm::length(root_box.center())) + 1e-300;
+  const std::span<const Vec3> pos = index.positions();
+  const std::span<const PointIndex> ids = index.ids();
+  std::vector<typename I::Node> stack{index.root()};
+  while (!stack.empty()) {
+    const auto n = stack.back();
+    stack.pop_back();
+    const AABB b = index.node_bounds(n);
+    bool pruned = false;
+    for (const Plane& pl : planes)
+      if (dist_plane_bounds(pl.point, pl.normal, b).lo > tol) { pruned = true; break; }
+    if (pruned) continue;
+    const SlotRange sr = index.node_points(n);
+    for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+      bool inside = true;
+      for (const Plane& pl : planes)
+        if (dist_plane(pl.point, pl.normal, pos[s]) > 0.0) { inside = false; break; }
+      if (inside) out.push_back(ids[s]);
+    }
+    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) stack.push_back(index.child(n, i));
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+}  // namespace rayscan

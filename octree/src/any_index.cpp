@@ -1,0 +1,29 @@
+#include "rayscan/any_index.hpp"
+
+#include <stdexcept>
+
+namespace rayscan {
+
+AnyIndex make_index(std::span<const Vec3> positions, const IndexOptions& opts) {
+  const std::string& t = opts.type;
+  if (t.rfind("octree-", 0) == 0) {
+    OctreeConfig c;
+    c.layout = parse_octree_layout(t.substr(7));
+    c.capacity = opts.capacity;
+    c.depth = opts.depth;
+    c.max_depth = opts.max_depth;
+    return opts.insertion ? Octree::build_by_insertion(positions, c)
+                          : Octree::build_bulk(positions, c);
+  }
+  if (t == "kdtree") return KdTree(positions, opts.capacity);
+  if (t == "brute") return BruteForceIndex(positions);
+  throw std::invalid_argument("index type '" + t +
+                              "': expected octree-adaptive, octree-layered, octree-fixed, kdtree or "
+                              "brute");
+}
+
+std::size_t index_memory_bytes(const AnyIndex& index) {
+  return std::visit([](const auto& i) { return i.memory_bytes(); }, index);
+}
+
+}  // namespace rayscan

@@ -1,0 +1,356 @@
+#include "rayscan/octree.hpp"
+
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <stdexcept>
+
+namespace rayscan {
+
+OctreeLayout parse_octree_layout(const std::string& s) {
+  if (s == "layered") return OctreeLayout::layered;
+  if (s == "fixed") return OctreeLayout::fixed;
+  if (s == "adaptive") return OctreeLayout::adaptive;
+  throw std::invalid_argument("octree layout '" + s + "': expected layered, fixed or adaptive");
+}
+
+const char* to_string(OctreeLayout layout) {
+  switch (layout) {
+    case OctreeLayout::layered: return "layered";
+    case OctreeLayout::fixed: return "fixed";
+    case OctreeLayout::adaptive: return "adaptive";
+  }
+  return "?";
+}
+
+void OctreeConfig::validate() const {
+  if (capacity == 0) throw std::invalid_argument("octree: capacity must be >= 1");
+  if (max_depth > kMortonBits)
+    throw std::invalid_argument("octree: max_depth must be <= 21, got " + std::to_string(max_depth));
+  if (depth > kMortonBits)
+    throw std::invalid_argument("octree: depth must be <= 21, got " + std::to_string(depth));
+}
+
+struct Octree::LevelMaps {
+  std::array<std::once_flag, kMortonBits + 1> once;
+  std::array<std::vector<std::pair<std::uint64_t, Node>>, kMortonBits + 1> table;
+};
+
+Octree::~Octree() = default;
+Octree::Octree(Octree&&) noexcept = default;
+Octree& Octree::operator=(Octree&&) noexcept = default;
+
+namespace {
+
+constexpr std::uint32_t kCells = 1u << kMortonBits;
+
+struct Quantizer {
+  Vec3 lo;
+  double scale;  // cells per world unit
+  std::uint64_t code(const Vec3& p) const {
+    auto q = [&](double v, double l) {
+      const double f = std::floor((v - l) * scale);
+      if (!(f >= 0.0)) return std::uint32_t{0};
+      if (f >= kCells - 1) return kCells - 1;
+      return static_cast<std::uint32_t>(f);
+    };
+    return morton_encode(q(p.x, lo.x), q(p.y, lo.y), q(p.z, lo.z));
+  }
+};
+
+// Octant digit of a 63-bit Morton code when descending from `depth` to depth + 1.
+inline unsigned octant(std::uint64_t code, unsigned depth) {
+  return static_cast<unsigned>((code >> (3 * (kMortonBits - depth - 1))) & 7u);
+}
+
+}  // namespace
+
+// Shared by both builders: validation, the root cell and the Morton codes.
+struct OctreeBuilder {
+  static void prepare(Octree& t, std::span<const Vec3> pts, const OctreeConfig& cfg,
+                      std::vector<std::uint64_t>& codes) {
+    cfg.validate();
+    if (pts.size() >= 0xFFFFFFFFull) throw std::length_error("octree: more than 2^32 - 2 points");
+    t.config_ = cfg;
+    t.levels_ = std::make_unique<Octree::LevelMaps>();
+    AABB b;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const Vec3& p = pts[i];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        throw std::invalid_argument("octree: point " + std::to_string(i) +
+                                    " has a non-finite coordinate");
+      b.expand(p);
+    }
+    if (b.empty()) b = AABB{Vec3(0.0), Vec3(0.0)};
+    double side = b.max_extent();
+    side = side > 0.0 ? side * (1.0 + 1e-9) : 1.0;
+    t.cell_ = AABB{b.lo, b.lo + Vec3(side)};
+    const Quantizer qz{b.lo, kCells / side};
+    codes.resize(pts.size());
+    for (std::size_t i = 0; i < pts.size(); ++i) codes[i] = qz.code(pts[i]);
+  }
+
+  static bool splits(const OctreeConfig& c, unsigned depth, std::size_t count, bool all_same) {
+    switch (c.layout) {
+      case OctreeLayout::fixed: return depth < c.depth;
+      case OctreeLayout::adaptive: return count > c.capacity && depth < c.max_depth && !all_same;
+      case OctreeLayout::layered: return count > c.capacity && depth < c.max_depth;
+    }
+    return false;
+  }
+
+  // Append the points `idx` (already in (code, index) order) as the own points of node n.
+  static void emit_points(Octree& t, std::span<const Vec3> pts, Octree::Node n,
+                          std::span<const std::uint32_t> idx) {
+    auto& rec = t.nodes_[n];
+    rec.own_begin = static_cast<std::uint32_t>(t.pos_.size());
+    for (std::uint32_t i : idx) {
+      t.pos_.push_back(pts[i]);
+      t.ids_.push_back(i);
+      rec.box.expand(pts[i]);
+    }
+    rec.own_end = static_cast<std::uint32_t>(t.pos_.size());
+  }
+
+  static void close_node(Octree& t, Octree::Node n, unsigned depth) {
+    auto& rec = t.nodes_[n];
+    rec.subtree_end = static_cast<std::uint32_t>(t.pos_.size());
+    for (unsigned c = 0; c < rec.child_count; ++c) rec.box.expand(t.nodes_[rec.first_child + c].box);
+    t.depth_ = std::max(t.depth_, depth);
+  }
+
+  // ---- bulk -------------------------------------------------------------------------------
+  struct Item {
+    std::uint64_t code;
+    std::uint32_t idx;
+    bool operator<(const Item& o) const { return code < o.code || (code == o.code && idx < o.idx); }
+  };
+
+  static void bulk(Octree& t, std::span<const Vec3> pts, std::vector<Item>& items,
+                   std::vector<std::uint32_t>& scratch, Octree::Node n, unsigned depth,
+                   std::size_t b, std::size_t e) {
+    const OctreeConfig& c = t.config_;
+    const std::size_t count = e - b;
+    const bool same = count == 0 || items[b].code == items[e - 1].code;
+    std::size_t rest = e;  // items [b, rest) are this node's own points
+    if (splits(c, depth, count, same)) {
+      rest = b;
+      if (c.layout == OctreeLayout::layered) {
+        // Keep the `capacity` smallest original indices (the first inserted); stable partition keeps
+        // Morton order on both sides.
+        scratch.clear();
+        for (std::size_t i = b; i < e; ++i) scratch.push_back(items[i].idx);
+        std::nth_element(scratch.begin(), scratch.begin() + (c.capacity - 1), scratch.end());
+        const std::uint32_t thr = scratch[c.capacity - 1];
+        std::stable_partition(items.begin() + b, items.begin() + e,
+                              [thr](const Item& it) { return it.idx <= thr; });
+        rest = b + c.capacity;
+      }
+    }
+    scratch.clear();
+    for (std::size_t i = b; i < rest; ++i) scratch.push_back(items[i].idx);
+    emit_points(t, pts, n, scratch);
+    if (rest < e) {
+      // Children: contiguous runs of equal octant digit (items are Morton-sorted).
+      std::array<std::size_t, 9> start{};
+      unsigned nchild = 0;
+      std::array<unsigned, 8> oct{};
+      std::size_t i = rest;
+      while (i < e) {
+        const unsigned o = octant(items[i].code, depth);
+        std::size_t j = i;
+        while (j < e && octant(items[j].code, depth) == o) ++j;
+        start[nchild] = i;
+        oct[nchild] = o;
+        ++nchild;
+        i = j;
+      }
+      start[nchild] = e;
+      const auto first = static_cast<Octree::Node>(t.nodes_.size());
+      const std::uint64_t key = t.nodes_[n].key;
+      t.nodes_.resize(t.nodes_.size() + nchild);
+      t.nodes_[n].first_child = first;
+      t.nodes_[n].child_count = static_cast<std::uint8_t>(nchild);
+      for (unsigned k = 0; k < nchild; ++k) {
+        t.nodes_[first + k].key = (key << 3) | oct[k];
+        bulk(t, pts, items, scratch, first + k, depth + 1, start[k], start[k + 1]);
+      }
+    }
+    close_node(t, n, depth);
+  }
+
+  // ---- insertion --------------------------------------------------------------------------
+  struct DynNode {
+    std::array<std::int32_t, 8> child;
+    std::vector<std::uint32_t> pts;
+    bool internal = false;
+    bool same = true;  // all pts share one Morton code (adaptive duplicate guard)
+    DynNode() { child.fill(-1); }
+  };
+
+  struct Inserter {
+    const OctreeConfig& c;
+    const std::vector<std::uint64_t>& codes;
+    std::vector<DynNode> dn;
+
+    std::int32_t child_of(std::int32_t n, unsigned o) {
+      if (dn[n].child[o] < 0) {
+        dn[n].child[o] = static_cast<std::int32_t>(dn.size());
+        dn.emplace_back();
+      }
+      return dn[n].child[o];
+    }
+
+    void insert(std::int32_t n, unsigned depth, std::uint32_t i) {
+      for (;;) {
+        DynNode& node = dn[n];
+        if (!node.internal) {
+          const bool stays = c.layout != OctreeLayout::layered ||
+                             node.pts.size() < c.capacity || depth >= c.max_depth;
+          if (c.layout == OctreeLayout::fixed && depth < c.depth) {
+            node.internal = true;  // fixed: interior nodes never hold points
+          } else if (stays) {
+            if (!node.pts.empty() && codes[node.pts.front()] != codes[i]) node.same = false;
+            node.pts.push_back(i);
+            if (c.layout == OctreeLayout::adaptive &&
+                splits(c, depth, node.pts.size(), node.same)) {
+              std::vector<std::uint32_t> moved;
+              moved.swap(dn[n].pts);
+              dn[n].internal = true;
+              for (std::uint32_t m : moved) insert(child_of(n, octant(codes[m], depth)), depth + 1, m);
+            }
+            return;
+          } else {
+            node.internal = true;  // layered node full: this point and later ones pass down
+          }
+        }
+        n = child_of(n, octant(codes[i], depth));
+        ++depth;
+      }
+    }
+  };
+
+  static void compact(Octree& t, std::span<const Vec3> pts, Inserter& ins, std::int32_t dnode,
+                      Octree::Node n, unsigned depth) {
+    DynNode& d = ins.dn[dnode];
+    std::sort(d.pts.begin(), d.pts.end(), [&](std::uint32_t a, std::uint32_t b) {
+      return ins.codes[a] < ins.codes[b] || (ins.codes[a] == ins.codes[b] && a < b);
+    });
+    emit_points(t, pts, n, d.pts);
+    unsigned nchild = 0;
+    for (std::int32_t ch : d.child) nchild += ch >= 0;
+    if (nchild) {
+      const auto first = static_cast<Octree::Node>(t.nodes_.size());
+      const std::uint64_t key = t.nodes_[n].key;
+      t.nodes_.resize(t.nodes_.size() + nchild);
+      t.nodes_[n].first_child = first;
+      t.nodes_[n].child_count = static_cast<std::uint8_t>(nchild);
+      unsigned k = 0;
+      for (unsigned o = 0; o < 8; ++o) {
+        const std::int32_t ch = ins.dn[dnode].child[o];
+        if (ch < 0) continue;
+        t.nodes_[first + k].key = (key << 3) | o;
+        compact(t, pts, ins, ch, first + k, depth + 1);
+        ++k;
+      }
+    }
+    close_node(t, n, depth);
+  }
+};
+
+Octree Octree::build_bulk(std::span<const Vec3> positions, const OctreeConfig& config) {
+  Octree t;
+  std::vector<std::uint64_t> codes;
+  OctreeBuilder::prepare(t, positions, config, codes);
+  std::vector<OctreeBuilder::Item> items(positions.size());
+  for (std::size_t i = 0; i < items.size(); ++i)
+    items[i] = {codes[i], static_cast<std::uint32_t>(i)};
+  std::vector<std::uint64_t>().swap(codes);
+  tbb::parallel_sort(items.begin(), items.end());
+  t.pos_.reserve(positions.size());
+  t.ids_.reserve(positions.size());
+  t.nodes_.emplace_back();
+  std::vector<std::uint32_t> scratch;
+  OctreeBuilder::bulk(t, positions, items, scratch, 0, 0, 0, items.size());
+  t.nodes_.shrink_to_fit();
+  return t;
+}
+
+Octree Octree::build_by_insertion(std::span<const Vec3> positions, const OctreeConfig& config) {
+  Octree t;
+  std::vector<std::uint64_t> codes;
+  OctreeBuilder::prepare(t, positions, config, codes);
+  OctreeBuilder::Inserter ins{t.config_, codes, {}};
+  ins.dn.emplace_back();
+  for (std::size_t i = 0; i < positions.size(); ++i)
+    ins.insert(0, 0, static_cast<std::uint32_t>(i));
+  t.pos_.reserve(positions.size());
+  t.ids_.reserve(positions.size());
+  t.nodes_.emplace_back();
+  OctreeBuilder::compact(t, positions, ins, 0, 0, 0);
+  t.nodes_.shrink_to_fit();
+  return t;
+}
+
+std::optional<Octree::Node> Octree::find(OctreeNodeId id) const {
+  const unsigned d = id.depth();
+  if (d > kMortonBits || nodes_.empty()) return std::nullopt;
+  std::call_once(levels_->once[d], [&] {
+    auto& tab = levels_->table[d];
+    for (Node n = 0; n < nodes_.size(); ++n) {
+      const OctreeNodeId nid = node_id(n);
+      if (nid.depth() == d) tab.emplace_back(nid.morton(), n);
+    }
+    std::sort(tab.begin(), tab.end());
+  });
+  const auto& tab = levels_->table[d];
+  const auto it = std::lower_bound(tab.begin(), tab.end(), std::make_pair(id.morton(), Node{0}));
+  if (it == tab.end() || it->first != id.morton()) return std::nullopt;
+  return it->second;
+}
+
+std::optional<Octree::Node> Octree::locate(const Vec3& p) const {
+  if (nodes_.empty() || !cell_.contains(p)) return std::nullopt;
+  const Quantizer qz{cell_.lo, kCells / (cell_.hi.x - cell_.lo.x)};
+  const std::uint64_t code = qz.code(p);
+  Node best = 0;
+  for (unsigned d = 1; d <= depth_; ++d) {
+    const auto n = find(OctreeNodeId(d, code >> (3 * (kMortonBits - d))));
+    if (!n) break;
+    best = *n;
+  }
+  return best;
+}
+
+AABB Octree::cell_bounds(Node n) const {
+  const OctreeNodeId id = node_id(n);
+  const unsigned d = id.depth();
+  const std::uint64_t m = id.morton();
+  const double side = (cell_.hi.x - cell_.lo.x) / static_cast<double>(1u << d);
+  const Vec3 ijk(static_cast<double>(morton_compact(m)), static_cast<double>(morton_compact(m >> 1)),
+                 static_cast<double>(morton_compact(m >> 2)));
+  const Vec3 lo = cell_.lo + ijk * side;
+  return {lo, lo + Vec3(side)};
+}
+
+std::size_t Octree::memory_bytes() const {
+  return pos_.capacity() * sizeof(Vec3) + ids_.capacity() * sizeof(PointIndex) +
+         nodes_.capacity() * sizeof(NodeRec);
+}
+
+bool Octree::same_structure(const Octree& o) const {
+  if (nodes_.size() != o.nodes_.size() || ids_ != o.ids_) return false;
+  if (cell_.lo != o.cell_.lo || cell_.hi != o.cell_.hi) return false;
+  for (std::size_t i = 0; i < nodes_.size(); ++i) {
+    const NodeRec &a = nodes_[i], &b = o.nodes_[i];
+    if (a.key != b.key || a.first_child != b.first_child || a.own_begin != b.own_begin ||
+        a.own_end != b.own_end || a.subtree_end != b.subtree_end ||
+        a.child_count != b.child_count || a.box.lo != b.box.lo || a.box.hi != b.box.hi)
+      return false;
+  }
+  return true;
+}
+
+}  // namespace rayscan

@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# Installs rayscan's build and test dependencies from Debian 12 packages when any is missing.
+# Idempotent; needs root (or sudo) only when something must be installed.
+set -euo pipefail
+PKGS=(
+  build-essential cmake ninja-build pkg-config
+  libglm-dev libtbb-dev nlohmann-json3-dev libcli11-dev
+  libopenimageio-dev openimageio-tools libopenexr-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  libnanoflann-dev libboost-dev libembree-dev
+  liblzf-dev libgdal-dev gdal-bin
+)
+missing=()
+for p in "${PKGS[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#PKGS[@]} packages present"
+  exit 0
+fi
+echo "install-deps: installing ${missing[*]}"
+SUDO=""
+[ "$(id -u)" -eq 0 ] || SUDO="sudo"
+$SUDO apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -1,0 +1,40 @@
+// The `rayscan` command line: one program, PDAL-style subcommands.
+#include "commands.hpp"
+
+#include <cstdio>
+#include <exception>
+#include <iostream>
+#include <utility>
+#include <vector>
+
+int main(int argc, char** argv) {
+  CLI::App app{"rayscan: ray queries, rendering and analysis of raw point clouds "
+               "(after Teuscher et al., \"Ray Queries On Raw Point Clouds\")"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "rayscan 0.1.0");
+
+  std::vector<std::pair<CLI::App*, rayscan::cli::Runner>> commands;
+  auto reg = [&](rayscan::cli::Runner (*add)(CLI::App&)) {
+    const std::size_t before = app.get_subcommands({}).size();
+    rayscan::cli::Runner run = add(app);
+    commands.emplace_back(app.get_subcommands({})[before], std::move(run));
+  };
+  reg(rayscan::cli::add_query_command);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? 0 : 2;
+  }
+  for (auto& [sub, run] : commands) {
+    if (!sub->parsed()) continue;
+    try {
+      return run();
+    } catch (const std::exception& e) {
+      std::cerr << "rayscan " << sub->get_name() << ": " << e.what() << "\n";
+      return 2;
+    }
+  }
+  return 2;
+}
