@@ -72,6 +72,21 @@ namespace rayscan {
   return std::max(0.0, dc - half_diag);
 }
 
+/// Separating-axis lower bound of the box-to-line distance: with c the box centre, e its half
+/// extents, w the unit vector from the line towards c orthogonal to u (unit), every box point p
+/// has dist_ray >= w.(p - o) >= |c - c'| - sum_i |w_i| e_i. It is never below eq. 3 (Cauchy-Schwarz:
+/// sum |w_i| e_i <= |e|) and costs one square root; rayscan uses it to reject nodes before the exact
+/// distance. Returns 0 when the centre lies on the line.
+[[nodiscard]] inline double node_ray_distance_sat(const Vec3& o, const Vec3& u, const AABB& b) {
+  const Vec3 e = 0.5 * (b.hi - b.lo);
+  const Vec3 v = b.center() - o;
+  const Vec3 w = v - glm::dot(v, u) * u;
+  const double dc = glm::length(w);
+  if (!(dc > 0.0)) return 0.0;
+  const Vec3 aw = glm::abs(w);
+  return std::max(0.0, dc - (aw.x * e.x + aw.y * e.y + aw.z * e.z) / dc);
+}
+
 /// Slab test (Kay & Kajiya 1986; pbrt-v4 section 6.1.2) of the line o + t u against box b
 /// grown by `pad` on every side, clipped to [t0, t1]. inv_u = 1/u component-wise (inf for a zero
 /// component is fine). Returns the [t_near, t_far] interval inside the box, empty when the line
@@ -81,16 +96,14 @@ namespace rayscan {
                                             double pad, double t0, double t1) {
   double tn = t0, tf = t1;
   for (int i = 0; i < 3; ++i) {
-    const double lo = b.lo[i] - pad, hi = b.hi[i] + pad;
-    if (std::isinf(inv_u[i])) {  // parallel to this slab pair
-      if (o[i] < lo || o[i] > hi) return {};
-      continue;
-    }
-    double ta = (lo - o[i]) * inv_u[i];
-    double tb = (hi - o[i]) * inv_u[i];
+    // For u_i = 0, inv_u is +-inf: the products are +-inf (line outside the slab: empty result)
+    // or NaN (line exactly on a slab plane); a NaN fails both comparisons below and leaves the
+    // interval unchanged, which keeps the touching line (conservative).
+    double ta = (b.lo[i] - pad - o[i]) * inv_u[i];
+    double tb = (b.hi[i] + pad - o[i]) * inv_u[i];
     if (ta > tb) std::swap(ta, tb);
-    tn = std::max(tn, ta);
-    tf = std::min(tf, tb);
+    tn = ta > tn ? ta : tn;
+    tf = tb < tf ? tb : tf;
   }
   return {tn, tf};
 }
