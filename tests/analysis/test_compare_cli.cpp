@@ -283,3 +283,21 @@ TEST_F(CompareCli, ChannelByName) {
   EXPECT_EQ(j["ssim"]["signal"], "depth");
   EXPECT_EQ(compare_json(pa, pb)["rmse"].get<double>(), 0.0);  // colour channels untouched
 }
+
+TEST_F(CompareCli, UnsignedIndexAovMissIsAllOnes) {
+  // A uint32 index channel stores a miss as 0xFFFFFFFF (the bits of int32 -1). oiiotool writes a
+  // checker of 0 and 1.0, which OpenImageIO converts to 0 and 0xFFFFFFFF.
+  if (run("command -v oiiotool").code != 0) GTEST_SKIP() << "oiiotool (openimageio-tools) not installed";
+  const fs::path idx = dir_ / "idx.exr";
+  ASSERT_EQ(run("oiiotool --pattern checker:width=1:height=1:color1=0:color2=1 6x4 1 --chnames index "
+                "-d uint32 -o " + q(idx)).code, 0);
+  int w = 0, h = 0;
+  const std::vector<std::uint8_t> miss = read_index_misses(idx.string(), "index", w, h);
+  ASSERT_EQ(w, 6);
+  ASSERT_EQ(h, 4);
+  // OIIO's checker starts with color1 at the origin.
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 6; ++x) EXPECT_EQ(miss[y * 6 + x], (x + y) % 2 == 1) << x << "," << y;
+  const fs::path a = write("a.exr", make_image(6, 4, {"R", "G", "B"}, 0.5f));
+  EXPECT_EQ(compare_json(a, a, "--mask-index " + q(idx))["pixels_ignored"].get<int>(), 12);
+}
