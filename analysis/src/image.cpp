@@ -146,6 +146,9 @@ void write_image(const Image& img, const std::string& path, PixelFormat format,
   if (!out) throw std::runtime_error(path + ": " + OIIO::geterror());
   OIIO::ImageSpec spec = spec_of(img, to_oiio(format));
   if (!description.empty()) spec.attribute("ImageDescription", description);
+  // zlib level 3 instead of OpenImageIO's 6: a 3840x2160 heat map writes several times faster
+  // for a few percent more bytes.
+  spec.attribute("png:compressionLevel", 3);
   const std::string tmp = path + ".tmp." + std::to_string(::getpid());
   auto fail = [&](const std::string& why) {
     std::error_code ec;
