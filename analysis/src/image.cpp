@@ -1,0 +1,227 @@
+// Image I/O through OpenImageIO (https://openimageio.readthedocs.io, "ImageInput"/"ImageOutput"
+// and ImageBufAlgo::resize).
+#include "rayscan/analysis/image.hpp"
+
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/imageio.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <stdexcept>
+#include <unistd.h>
+
+namespace rayscan::analysis {
+
+namespace {
+
+OIIO::TypeDesc to_oiio(PixelFormat f) {
+  switch (f) {
+    case PixelFormat::uint8: return OIIO::TypeDesc::UINT8;
+    case PixelFormat::uint16: return OIIO::TypeDesc::UINT16;
+    case PixelFormat::half: return OIIO::TypeDesc::HALF;
+    case PixelFormat::float32: return OIIO::TypeDesc::FLOAT;
+  }
+  return OIIO::TypeDesc::FLOAT;
+}
+
+std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) {
+    std::string why = OIIO::geterror();
+    if (why.empty()) why = "cannot open image";
+    throw std::runtime_error(path + ": " + why);
+  }
+  const OIIO::ImageSpec& s = in->spec();
+  if (s.depth > 1) throw std::runtime_error(path + ": volumetric images (depth > 1) are not supported");
+  if (s.width <= 0 || s.height <= 0 || s.nchannels <= 0)
+    throw std::runtime_error(path + ": empty image (" + std::to_string(s.width) + "x" +
+                             std::to_string(s.height) + ", " + std::to_string(s.nchannels) +
+                             " channels)");
+  const double samples = double(s.width) * double(s.height) * double(s.nchannels);
+  if (samples > double(std::numeric_limits<int>::max()))
+    throw std::runtime_error(path + ": image too large (" + std::to_string(s.width) + "x" +
+                             std::to_string(s.height) + "x" + std::to_string(s.nchannels) +
+                             " samples exceeds 2^31)");
+  return in;
+}
+
+OIIO::ImageSpec spec_of(const Image& img, OIIO::TypeDesc format) {
+  OIIO::ImageSpec spec(img.width, img.height, img.nchannels(), format);
+  spec.channelnames = img.channels;
+  spec.alpha_channel = img.alpha_channel;
+  return spec;
+}
+
+}  // namespace
+
+int Image::channel_index(std::string_view name) const {
+  for (std::size_t i = 0; i < channels.size(); ++i)
+    if (channels[i] == name) return static_cast<int>(i);
+  return -1;
+}
+
+Image make_image(int width, int height, std::vector<std::string> channels, float value) {
+  if (width < 0 || height < 0) throw std::invalid_argument("make_image: negative size");
+  if (channels.empty()) throw std::invalid_argument("make_image: no channels");
+  Image img;
+  img.width = width;
+  img.height = height;
+  img.channels = std::move(channels);
+  for (std::size_t c = 0; c < img.channels.size(); ++c)
+    if (img.channels[c] == "A" || img.channels[c] == "Alpha") img.alpha_channel = static_cast<int>(c);
+  img.pixels.assign(img.npixels() * img.channels.size(), value);
+  return img;
+}
+
+Image read_image(const std::string& path) {
+  auto in = open_input(path);
+  const OIIO::ImageSpec& s = in->spec();
+  Image img;
+  img.width = s.width;
+  img.height = s.height;
+  img.x0 = s.x;
+  img.y0 = s.y;
+  img.channels = s.channelnames;
+  img.alpha_channel = s.alpha_channel;
+  img.source = path;
+  img.pixels.resize(img.npixels() * static_cast<std::size_t>(s.nchannels));
+  if (!in->read_image(0, 0, 0, s.nchannels, OIIO::TypeDesc::FLOAT, img.pixels.data()))
+    throw std::runtime_error(path + ": " + in->geterror());
+  in->close();
+  return img;
+}
+
+Image select_channels(const Image& img, const std::vector<int>& indices) {
+  Image out;
+  out.width = img.width;
+  out.height = img.height;
+  out.x0 = img.x0;
+  out.y0 = img.y0;
+  out.source = img.source;
+  for (std::size_t k = 0; k < indices.size(); ++k) {
+    const int c = indices[k];
+    if (c < 0 || c >= img.nchannels())
+      throw std::out_of_range("select_channels: channel index " + std::to_string(c) +
+                              " outside 0.." + std::to_string(img.nchannels() - 1));
+    out.channels.push_back(img.channels[static_cast<std::size_t>(c)]);
+    if (c == img.alpha_channel) out.alpha_channel = static_cast<int>(k);
+  }
+  const std::size_t n = img.npixels(), src_nc = img.channels.size(), nc = indices.size();
+  out.pixels.resize(n * nc);
+  for (std::size_t p = 0; p < n; ++p)
+    for (std::size_t k = 0; k < nc; ++k)
+      out.pixels[p * nc + k] = img.pixels[p * src_nc + static_cast<std::size_t>(indices[k])];
+  return out;
+}
+
+Image resize_image(const Image& img, int width, int height, const std::string& filter) {
+  if (width <= 0 || height <= 0)
+    throw std::invalid_argument("resize_image: target size must be positive");
+  OIIO::ImageSpec spec = spec_of(img, OIIO::TypeDesc::FLOAT);
+  // ImageBuf wraps (does not copy) the caller's buffer; resize only reads it.
+  OIIO::ImageBuf src(spec, const_cast<float*>(img.pixels.data()));
+  OIIO::ROI roi(0, width, 0, height, 0, 1, 0, img.nchannels());
+  OIIO::ImageBuf dst = OIIO::ImageBufAlgo::resize(src, filter, 0.0f, roi);
+  if (dst.has_error() || !dst.initialized())
+    throw std::runtime_error("resize with filter '" + filter + "': " + dst.geterror());
+  Image out = img;
+  out.width = width;
+  out.height = height;
+  out.x0 = out.y0 = 0;
+  out.pixels.assign(out.npixels() * img.channels.size(), 0.0f);
+  if (!dst.get_pixels(roi, OIIO::TypeDesc::FLOAT, out.pixels.data()))
+    throw std::runtime_error("resize with filter '" + filter + "': " + dst.geterror());
+  return out;
+}
+
+void write_image(const Image& img, const std::string& path, PixelFormat format,
+                 const std::string& description) {
+  if (img.pixels.size() != img.npixels() * img.channels.size() || img.channels.empty())
+    throw std::invalid_argument(path + ": write_image: pixel buffer does not match the image size");
+  // The plugin is chosen from the final name; the data goes to a temporary sibling.
+  auto out = OIIO::ImageOutput::create(path);
+  if (!out) throw std::runtime_error(path + ": " + OIIO::geterror());
+  OIIO::ImageSpec spec = spec_of(img, to_oiio(format));
+  if (!description.empty()) spec.attribute("ImageDescription", description);
+  // zlib level 3 instead of OpenImageIO's 6: a 3840x2160 heat map writes several times faster
+  // for a few percent more bytes.
+  spec.attribute("png:compressionLevel", 3);
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  auto fail = [&](const std::string& why) {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw std::runtime_error(path + ": " + why);
+  };
+  if (!out->open(tmp, spec)) fail(out->geterror());
+  if (!out->write_image(OIIO::TypeDesc::FLOAT, img.pixels.data())) {
+    const std::string why = out->geterror();
+    out->close();
+    fail(why);
+  }
+  if (!out->close()) fail(out->geterror());
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) fail("cannot rename temporary file into place: " + ec.message());
+}
+
+std::vector<std::uint8_t> read_index_misses(const std::string& path, const std::string& channel,
+                                            int& width, int& height) {
+  auto in = open_input(path);
+  const OIIO::ImageSpec& s = in->spec();
+  int c = -1;
+  if (channel.empty()) {
+    if (s.nchannels != 1)
+      throw std::runtime_error(path + ": expected a single point-index channel, found " +
+                               std::to_string(s.nchannels));
+    c = 0;
+  } else {
+    for (int i = 0; i < s.nchannels; ++i)
+      if (std::string(s.channel_name(i)) == channel) c = i;
+    if (c < 0) {
+      if (s.nchannels == 1) {
+        c = 0;  // a separate index file with one channel under another name
+      } else {
+        std::string names;
+        for (int i = 0; i < s.nchannels; ++i) {
+          if (i) names += ',';
+          names += s.channel_name(i);
+        }
+        throw std::runtime_error(path + ": no point-index channel '" + channel + "' (channels: " +
+                                 names + ")");
+      }
+    }
+  }
+  width = s.width;
+  height = s.height;
+  const std::size_t n = static_cast<std::size_t>(s.width) * static_cast<std::size_t>(s.height);
+  const OIIO::TypeDesc t = s.channelformat(c);
+  std::vector<std::uint8_t> miss(n, 0);
+  auto read_as = [&](OIIO::TypeDesc type, auto* buf) {
+    if (!in->read_image(0, 0, c, c + 1, type, buf))
+      throw std::runtime_error(path + ": channel '" + std::string(s.channel_name(c)) + "': " + in->geterror());
+  };
+  if (t.basetype == OIIO::TypeDesc::UINT32 || t.basetype == OIIO::TypeDesc::UINT16 ||
+      t.basetype == OIIO::TypeDesc::UINT8) {
+    std::vector<std::uint32_t> v(n);
+    read_as(OIIO::TypeDesc::UINT32, v.data());  // same-width or widening: values preserved
+    // OIIO widens unsigned integers by scaling to the full range, so an all-ones uint8/uint16
+    // sample also arrives as 0xFFFFFFFF.
+    for (std::size_t i = 0; i < n; ++i) miss[i] = v[i] == 0xFFFFFFFFu;
+  } else if (t.basetype == OIIO::TypeDesc::INT32 || t.basetype == OIIO::TypeDesc::INT16 ||
+             t.basetype == OIIO::TypeDesc::INT8) {
+    std::vector<std::int32_t> v(n);
+    read_as(OIIO::TypeDesc::INT32, v.data());
+    for (std::size_t i = 0; i < n; ++i) miss[i] = v[i] < 0;
+  } else {
+    std::vector<double> v(n);
+    read_as(OIIO::TypeDesc::DOUBLE, v.data());
+    for (std::size_t i = 0; i < n; ++i) miss[i] = !(v[i] >= 0.0);  // negative or NaN
+  }
+  in->close();
+  return miss;
+}
+
+}  // namespace rayscan::analysis

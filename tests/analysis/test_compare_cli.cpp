@@ -1,0 +1,303 @@
+// `rayscan compare` end to end: exit codes, errors, heat map, mask, and agreement with
+// OpenImageIO's `idiff` (the reference tool) on the same files.
+#include "rayscan/analysis/image.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <random>
+#include <regex>
+#include <string>
+#include <sys/wait.h>
+
+using namespace rayscan::analysis;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct RunResult {
+  int code = -1;
+  std::string out;
+};
+
+/// Run a shell command, capturing stdout (and stderr when `merge`).
+RunResult run(const std::string& cmd, bool merge = false) {
+  RunResult r;
+  FILE* p = ::popen((cmd + (merge ? " 2>&1" : " 2>/dev/null")).c_str(), "r");
+  if (!p) return r;
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int st = ::pclose(p);
+  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+
+std::string q(const fs::path& p) {
+  std::string s(1, '\'');
+  s += p.string();
+  s += '\'';
+  return s;
+}
+
+RunResult compare(const fs::path& a, const fs::path& b, const std::string& opts = "", bool merge = false) {
+  return run(std::string(RAYSCAN_BIN) + " compare " + q(a) + " " + q(b) + " " + opts, merge);
+}
+
+nlohmann::json compare_json(const fs::path& a, const fs::path& b, const std::string& opts = "") {
+  const RunResult r = compare(a, b, "--json " + opts);
+  EXPECT_TRUE(r.code == 0 || r.code == 1) << r.out;
+  return nlohmann::json::parse(r.out);
+}
+
+Image noise_image(int W, int H, std::vector<std::string> ch, unsigned seed, float lo, float hi) {
+  Image img = make_image(W, H, std::move(ch));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> d(lo, hi);
+  for (float& f : img.pixels) f = d(rng);
+  return img;
+}
+
+float& px(Image& img, int x, int y, int c) {
+  return img.pixels[(static_cast<std::size_t>(y) * img.width + x) * img.channels.size() + c];
+}
+
+class CompareCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("rayscan_compare_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path write(const std::string& name, const Image& img, PixelFormat f = PixelFormat::float32) {
+    const fs::path p = dir_ / name;
+    write_image(img, p.string(), f);
+    return p;
+  }
+  fs::path dir_;
+};
+
+/// Value of "<label> = <number>" in idiff's report.
+double idiff_value(const std::string& out, const std::string& label) {
+  const std::regex re(label + R"(\s*=\s*([-+0-9.eEinfa]+))");
+  std::smatch m;
+  if (!std::regex_search(out, m, re)) {
+    ADD_FAILURE() << "no '" << label << "' in idiff output:\n" << out;
+    return std::nan("");
+  }
+  return std::stod(m[1].str());
+}
+
+/// idiff prints with std::cout's default 6 significant digits: half a unit in the 6th digit.
+double printed_tolerance(double v) {
+  if (v == 0.0) return 1e-12;
+  return 0.5 * std::pow(10.0, std::floor(std::log10(std::fabs(v))) - 5) * (1 + 1e-9);
+}
+
+}  // namespace
+
+TEST_F(CompareCli, IdenticalImagesPassWithInfinitePsnr) {
+  const fs::path a = write("a.png", noise_image(48, 32, {"R", "G", "B"}, 1, 0, 1), PixelFormat::uint8);
+  const RunResult r = compare(a, a);
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("PASS"), std::string::npos) << r.out;
+  const nlohmann::json j = compare_json(a, a);
+  EXPECT_EQ(j["psnr_db"], "inf");
+  EXPECT_EQ(j["rmse"].get<double>(), 0.0);
+  EXPECT_EQ(j["ssim"]["value"].get<double>(), 1.0);
+  EXPECT_EQ(j["verdict"], "pass");
+}
+
+TEST_F(CompareCli, ExitCodesFollowThresholds) {
+  const Image a = noise_image(40, 30, {"R", "G", "B"}, 2, 0.25f, 0.375f);
+  Image b = a;
+  for (int x = 0; x < 40; ++x) px(b, x, 10, 0) += 0.125f;  // 40 of 1200 pixels (3.33 %) off by 0.125
+  const fs::path pa = write("a.exr", a), pb = write("b.exr", b);
+  EXPECT_EQ(compare(pa, pb).code, 1);                                     // idiff default: any pixel > 1e-6
+  EXPECT_EQ(compare(pa, pb, "--fail 0.2").code, 0);
+  EXPECT_EQ(compare(pa, pb, "--fail 0.1 --fail-percent 5").code, 0);
+  EXPECT_EQ(compare(pa, pb, "--fail 0.1 --fail-percent 3").code, 1);
+  EXPECT_EQ(compare(pa, pb, "--fail-max 0.1").code, 1);
+  // RMSE = 0.125 sqrt(40 / 3600) exactly (values in [0.25, 0.375) + 0.125 are exact in float)
+  const double psnr = -20 * std::log10(0.125 * std::sqrt(40.0 / 3600.0));
+  EXPECT_EQ(compare(pa, pb, "--fail-psnr " + std::to_string(psnr - 0.01)).code, 0);
+  EXPECT_EQ(compare(pa, pb, "--fail-psnr " + std::to_string(psnr + 0.01)).code, 1);
+  EXPECT_EQ(compare(pa, pb, "--fail-ssim 0.999999").code, 1);
+  EXPECT_EQ(compare(pa, pb, "--fail-ssim 0.5").code, 0);
+  const RunResult w = compare(pa, pb, "--fail 0.2 --warn 0.1");
+  EXPECT_EQ(w.code, 0);
+  EXPECT_NE(w.out.find("WARNING"), std::string::npos) << w.out;
+  const nlohmann::json j = compare_json(pa, pb, "--fail 0.2");
+  EXPECT_NEAR(j["psnr_db"].get<double>(), psnr, 1e-9);
+  EXPECT_EQ(j["over_threshold"]["warn"]["pixels"].get<int>(), 40);
+  EXPECT_EQ(j["max_error"]["channel"], "R");
+  EXPECT_EQ(j["max_error"]["y"].get<int>(), 10);
+  // Errors: exit 2 with a one-line message naming the file.
+  const RunResult missing = compare(pa, dir_ / "nope.png", "", true);
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_NE(missing.out.find("nope.png"), std::string::npos) << missing.out;
+  EXPECT_EQ(compare(pa, pb, "--fail -1").code, 2);
+  EXPECT_EQ(compare(pa, pb, "--fail-ssim 0.5 --channel nosuch").code, 2);
+}
+
+TEST_F(CompareCli, SizeMismatchIsAnErrorUnlessResized) {
+  const fs::path a = write("a.exr", make_image(40, 30, {"R", "G", "B"}, 0.5f));
+  const fs::path b = write("b.exr", make_image(20, 15, {"R", "G", "B"}, 0.5f));
+  const RunResult r = compare(a, b, "", true);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("sizes differ"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("40x30"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("20x15"), std::string::npos) << r.out;
+  // A constant image resized is the same constant: identical within float rounding.
+  const nlohmann::json j = compare_json(a, b, "--resize --fail 1e-5");
+  EXPECT_EQ(j["verdict"], "pass");
+  EXPECT_EQ(j["resized"]["from"], "20x15");
+  EXPECT_EQ(j["resized"]["filter"], "lanczos3");
+  EXPECT_EQ(j["width"].get<int>(), 40);
+  // Channel counts differ: RGB against greyscale.
+  const fs::path g = write("g.exr", make_image(40, 30, {"Y"}, 0.5f));
+  const RunResult c = compare(a, g, "", true);
+  EXPECT_EQ(c.code, 2);
+  EXPECT_NE(c.out.find("channel counts differ"), std::string::npos) << c.out;
+}
+
+TEST_F(CompareCli, AgreesWithIdiff) {
+  if (run("command -v idiff").code != 0) GTEST_SKIP() << "idiff (openimageio-tools) not installed";
+  struct Case {
+    std::string name, opts;
+    Image a, b;
+    PixelFormat fmt;
+  };
+  std::vector<Case> cases;
+  {  // 8-bit RGB PNGs: a random image and a noisy copy
+    Image a = noise_image(64, 48, {"R", "G", "B"}, 21, 0, 1), b = a;
+    std::mt19937 rng(22);
+    std::normal_distribution<float> n(0.0f, 0.05f);
+    for (float& v : b.pixels) v = std::clamp(v + n(rng), 0.0f, 1.0f);
+    cases.push_back({"png", "", a, b, PixelFormat::uint8});
+  }
+  {  // HDR float RGBA EXRs (values up to 2: PSNR peak above 1), alpha included as idiff does
+    Image a = noise_image(37, 29, {"R", "G", "B", "A"}, 31, 0, 2), b = a;
+    std::mt19937 rng(32);
+    std::normal_distribution<float> n(0.0f, 0.2f);
+    for (float& v : b.pixels) v += n(rng);
+    cases.push_back({"exr", "--alpha", a, b, PixelFormat::float32});
+  }
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const std::string ext = c.fmt == PixelFormat::uint8 ? ".png" : ".exr";
+    const fs::path pa = write("a" + ext, c.a, c.fmt), pb = write("b" + ext, c.b, c.fmt);
+    const RunResult id = run("idiff -v " + q(pa) + " " + q(pb));
+    ASSERT_EQ(id.code, 2) << id.out;  // idiff: 2 = FAILURE (pixels differ)
+    const nlohmann::json j = compare_json(pa, pb, c.opts);
+    const double rms = idiff_value(id.out, "RMS error"), mean = idiff_value(id.out, "Mean error"),
+                 psnr = idiff_value(id.out, "Peak SNR"), maxe = idiff_value(id.out, "Max error");
+    EXPECT_NEAR(j["rmse"].get<double>(), rms, 1e-6) << id.out;
+    EXPECT_NEAR(j["mae"].get<double>(), mean, 1e-6) << id.out;
+    // idiff prints 6 significant digits, so PSNR (tens of dB) can only be checked to that.
+    EXPECT_NEAR(j["psnr_db"].get<double>(), psnr, std::max(1e-6, printed_tolerance(psnr))) << id.out;
+    EXPECT_NEAR(j["max_error"]["value"].get<double>(), maxe, std::max(1e-6, printed_tolerance(maxe)));
+    std::smatch at;
+    const std::string out = id.out;
+    ASSERT_TRUE(std::regex_search(out, at, std::regex(R"(@ \((\d+), (\d+), (\w+)\))"))) << id.out;
+    EXPECT_EQ(j["max_error"]["x"].get<int>(), std::stoi(at[1].str()));
+    EXPECT_EQ(j["max_error"]["y"].get<int>(), std::stoi(at[2].str()));
+    EXPECT_EQ(j["max_error"]["channel"], at[3].str());
+    if (c.name == "exr") {
+      EXPECT_GT(j["psnr_peak"].get<double>(), 1.0);
+    }
+  }
+}
+
+TEST_F(CompareCli, DiffHeatMapAndLegend) {
+  Image a = make_image(30, 20, {"R", "G", "B"}, 0.5f), b = a;
+  px(b, 4, 5, 1) = 0.75f;   // max error 0.25 -> white
+  px(b, 10, 3, 0) = 0.5f + 0.25f / 3.0f;  // a third of the max -> red
+  const fs::path pa = write("a.exr", a), pb = write("b.exr", b), diff = dir_ / "diff.png";
+  const RunResult r = compare(pa, pb, "--diff " + q(diff));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("white 0.25"), std::string::npos) << r.out;
+  const Image h = read_image(diff.string());
+  ASSERT_EQ(h.width, 30);
+  ASSERT_EQ(h.nchannels(), 3);
+  EXPECT_EQ(h.at(4, 5, 0) + h.at(4, 5, 1) + h.at(4, 5, 2), 3.0f);
+  EXPECT_NEAR(h.at(10, 3, 0), 1.0f, 1.0f / 255);
+  EXPECT_NEAR(h.at(10, 3, 1), 0.0f, 1.0f / 255);
+  EXPECT_EQ(h.at(0, 0, 0) + h.at(0, 0, 1) + h.at(0, 0, 2), 0.0f);
+  for (const auto& e : fs::directory_iterator(dir_))
+    EXPECT_EQ(e.path().string().find(".tmp."), std::string::npos) << e.path();
+  // An unwritable destination is an error and leaves nothing behind.
+  EXPECT_EQ(compare(pa, pb, "--diff " + q(dir_ / "no_dir" / "d.png")).code, 2);
+}
+
+TEST_F(CompareCli, MaskIgnoresMissesAndTransparentReference) {
+  // Render with a point-index AOV: -1 (miss) exactly where it disagrees with the reference.
+  Image ref = noise_image(32, 24, {"R", "G", "B"}, 41, 0, 1);
+  Image render = make_image(32, 24, {"R", "G", "B", "index"});
+  int misses = 0;
+  for (int y = 0; y < 24; ++y)
+    for (int x = 0; x < 32; ++x) {
+      const bool miss = (x * 7 + y * 3) % 5 == 0;
+      misses += miss;
+      for (int c = 0; c < 3; ++c) px(render, x, y, c) = miss ? 0.0f : px(ref, x, y, c);
+      px(render, x, y, 3) = miss ? -1.0f : float(y * 32 + x);
+    }
+  const fs::path pr = write("ref.exr", ref), pi = write("render.exr", render);
+  EXPECT_EQ(compare(pr, pi).code, 1);
+  const nlohmann::json j = compare_json(pr, pi, "--mask");
+  EXPECT_EQ(j["verdict"], "pass");
+  EXPECT_EQ(j["pixels_ignored"].get<int>(), misses);
+  EXPECT_EQ(j["psnr_db"], "inf");
+  // The same AOV as a separate file.
+  Image index_only = select_channels(render, {3});
+  const fs::path pidx = write("index.exr", index_only);
+  const fs::path prgb = write("render_rgb.exr", select_channels(render, {0, 1, 2}));
+  EXPECT_EQ(compare_json(pr, prgb, "--mask-index " + q(pidx))["pixels_ignored"].get<int>(), misses);
+  EXPECT_EQ(compare(pr, prgb, "--mask").code, 2);  // no alpha, no index channel: error
+  // Reference alpha = 0 where the render is wrong.
+  Image ref_a = make_image(32, 24, {"R", "G", "B", "A"}, 1.0f);
+  for (int y = 0; y < 24; ++y)
+    for (int x = 0; x < 32; ++x) {
+      for (int c = 0; c < 3; ++c) px(ref_a, x, y, c) = px(ref, x, y, c);
+      if ((x * 7 + y * 3) % 5 == 0) px(ref_a, x, y, 3) = 0.0f;
+    }
+  const fs::path pa = write("ref_alpha.exr", ref_a);
+  const nlohmann::json ja = compare_json(pa, prgb, "--mask");
+  EXPECT_EQ(ja["verdict"], "pass");
+  EXPECT_EQ(ja["pixels_ignored"].get<int>(), misses);
+}
+
+TEST_F(CompareCli, ChannelByName) {
+  Image a = noise_image(20, 20, {"R", "G", "B", "depth"}, 51, 1, 10), b = a;
+  for (int x = 0; x < 20; ++x) px(b, x, 0, 3) += 0.5f;  // 20 of 400 depth samples off by 0.5
+  const fs::path pa = write("a.exr", a), pb = write("b.exr", b);
+  const nlohmann::json j = compare_json(pa, pb, "--channel depth");
+  ASSERT_EQ(j["channels"].size(), 1u);
+  EXPECT_EQ(j["channels"][0], "depth");
+  EXPECT_NEAR(j["rmse"].get<double>(), 0.5 * std::sqrt(20.0 / 400.0), 2e-6);
+  EXPECT_EQ(j["ssim"]["signal"], "depth");
+  EXPECT_EQ(compare_json(pa, pb)["rmse"].get<double>(), 0.0);  // colour channels untouched
+}
+
+TEST_F(CompareCli, UnsignedIndexAovMissIsAllOnes) {
+  // A uint32 index channel stores a miss as 0xFFFFFFFF (the bits of int32 -1). oiiotool writes a
+  // checker of 0 and 1.0, which OpenImageIO converts to 0 and 0xFFFFFFFF.
+  if (run("command -v oiiotool").code != 0) GTEST_SKIP() << "oiiotool (openimageio-tools) not installed";
+  const fs::path idx = dir_ / "idx.exr";
+  ASSERT_EQ(run("oiiotool --pattern checker:width=1:height=1:color1=0:color2=1 6x4 1 --chnames index "
+                "-d uint32 -o " + q(idx)).code, 0);
+  int w = 0, h = 0;
+  const std::vector<std::uint8_t> miss = read_index_misses(idx.string(), "index", w, h);
+  ASSERT_EQ(w, 6);
+  ASSERT_EQ(h, 4);
+  // OIIO's checker starts with color1 at the origin.
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 6; ++x) EXPECT_EQ(miss[y * 6 + x], (x + y) % 2 == 1) << x << "," << y;
+  const fs::path a = write("a.exr", make_image(6, 4, {"R", "G", "B"}, 0.5f));
+  EXPECT_EQ(compare_json(a, a, "--mask-index " + q(idx))["pixels_ignored"].get<int>(), 12);
+}
