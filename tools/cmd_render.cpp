@@ -122,7 +122,7 @@ int run_render(const RenderCliOptions& o) {
   ropt.threads = o.threads;
   ropt.progress = &progress;
   Framebuffer fb;
-  const RenderStats st = rayscan::render::render(index, settings, fb, ropt);
+  const RenderStats st = rayscan::render::render_image(index, settings, fb, ropt);
 
   auto num = [](double v) {
     char b[64];

@@ -126,7 +126,11 @@ std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const Outp
   if (fb.width == 0 || fb.height == 0 || fb.beauty.size() != std::size_t(fb.width) * fb.height)
     throw std::invalid_argument("write_image: empty or inconsistent framebuffer");
   const std::filesystem::path dir = out.image.parent_path();
-  if (!dir.empty()) std::filesystem::create_directories(dir);
+  if (!dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec) throw std::runtime_error(out.image.string() + ": cannot create folder " + dir.string() + " (" + ec.message() + ")");
+  }
   ImageMetadata meta = metadata;
   meta.emplace_back("Software", "rayscan 0.1.0");
   if (!fb.position.empty()) {

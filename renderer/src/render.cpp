@@ -21,6 +21,7 @@ RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
   s.integrator.albedo = albedo;
   s.integrator.radius = radius;
   s.integrator.hit = scene.hit;
+  s.integrator.node_distance = scene.node_distance;
   s.integrator.max_depth = scene.max_depth;
   s.integrator.rr_depth = scene.russian_roulette_depth;
   s.integrator.ray_offset = scene.ray_offset;
@@ -111,7 +112,7 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
 
 }  // namespace
 
-RenderStats render(const AnyIndex& index, const RenderSettings& s, Framebuffer& fb,
+RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebuffer& fb,
                    const RenderOptions& opt) {
   const std::uint32_t W = s.camera.width(), H = s.camera.height();
   const std::size_t n = std::size_t(W) * H;

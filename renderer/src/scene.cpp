@@ -221,11 +221,13 @@ Camera parse_camera(const json& j, const std::string& file, const std::string& p
   }
 }
 
-IndexOptions parse_index(Obj& parent, const std::string& key) {
+IndexOptions parse_index(Obj& parent, const std::string& key, NodeDistance& nd) {
   IndexOptions opt;
   opt.type = "octree-adaptive";
   if (!parent.has(key)) return opt;
   Obj o(parent.at(key), parent.file(), parent.ptr(key));
+  nd = o.string("node_distance", "exact", {"exact", "eq3"}) == "exact" ? NodeDistance::exact
+                                                                       : NodeDistance::eq3;
   const std::string type = o.string("type", "octree", {"octree", "kdtree", "brute"});
   if (type == "octree") {
     opt.type = "octree-" + o.string("layout", "adaptive", {"adaptive", "layered", "fixed"});
@@ -391,7 +393,7 @@ Scene load_scene(const std::filesystem::path& file) {
   s.auto_radius_factor = o.number("auto_radius_factor", 1.0, 0.0, 100.0, true, false);
   s.hit = o.string("hit", "sphere", {"sphere", "closest_point"}) == "sphere" ? HitMode::sphere
                                                                              : HitMode::closest_point;
-  s.index = parse_index(o, "index");
+  s.index = parse_index(o, "index", s.node_distance);
   s.material = parse_material(o);
   s.up = glm::normalize(o.vec3("up", Vec3(0, 0, 1), true));
   s.background = parse_background(o);

@@ -22,6 +22,7 @@ struct IntegratorInputs {
   std::span<const Color> albedo;    ///< per-point albedo, linear [0,1]
   double radius = 1.0;              ///< sphere radius r, world units (> 0)
   HitMode hit = HitMode::sphere;
+  NodeDistance node_distance = NodeDistance::exact;  ///< node pruning bound of the ray query
   std::uint32_t max_depth = 4;      ///< rays per path (camera ray + bounces; shadow rays not
                                     ///< counted), as RTIOW's max_depth: 1 = sun light only
   std::uint32_t rr_depth = 0;       ///< Russian roulette from this depth on; 0 = off
@@ -55,6 +56,7 @@ class PathTracer {
     query_.k = 1;
     query_.radius = in.radius;
     query_.t_min = 0.0;
+    query_.node_distance = in.node_distance;
     query_.order = in.hit == HitMode::sphere ? RayOrder::sphere_hit : RayOrder::time;
     query_.validate();
   }

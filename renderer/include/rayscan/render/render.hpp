@@ -72,7 +72,7 @@ double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions,
 /// Render into `fb` (resized to the camera). Pixels are traced in 16x16 tiles by tbb::parallel_for;
 /// sample j of pixel (x, y) uses Sampler(seed, x, y, j) only, so the image is bit-identical for
 /// any thread count. `index` must be built over settings.integrator.centers.
-RenderStats render(const AnyIndex& index, const RenderSettings& settings, Framebuffer& fb,
+RenderStats render_image(const AnyIndex& index, const RenderSettings& settings, Framebuffer& fb,
                    const RenderOptions& options = {});
 
 }  // namespace rayscan::render

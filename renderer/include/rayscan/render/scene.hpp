@@ -2,6 +2,7 @@
 #pragma once
 
 #include "rayscan/any_index.hpp"
+#include "rayscan/ray_query.hpp"
 #include "rayscan/render/camera.hpp"
 #include "rayscan/render/color.hpp"
 
@@ -77,6 +78,7 @@ struct Scene {
   double auto_radius_factor = 1.0;            ///< "auto": radius = factor x median NN spacing
   HitMode hit = HitMode::sphere;
   IndexOptions index;                         ///< index type and organisation
+  NodeDistance node_distance = NodeDistance::exact;  ///< node pruning bound of the ray query
   MaterialDesc material;
   BackgroundDesc background;
   SunDesc sun;
