@@ -21,5 +21,6 @@ struct UsageError : std::runtime_error {
 using Runner = std::function<int()>;
 
 Runner add_query_command(CLI::App& app);
+Runner add_info_command(CLI::App& app);
 
 }  // namespace rayscan::cli

@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
     commands.emplace_back(app.get_subcommands({})[before], std::move(run));
   };
   reg(rayscan::cli::add_query_command);
+  reg(rayscan::cli::add_info_command);
 
   try {
     app.parse(argc, argv);
