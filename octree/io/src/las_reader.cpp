@@ -269,11 +269,12 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
     std::string wkt(reinterpret_cast<const char*>(wkt_vlr), wkt_len);
     while (!wkt.empty() && (wkt.back() == '\0' || std::isspace(static_cast<unsigned char>(wkt.back()))))
       wkt.pop_back();
-    if (!wkt.empty()) {
+    // A WKT CRS is KEYWORD[...]; anything else (empty, "''") carries no CRS.
+    if (wkt.find('[') != std::string::npos) {
       pc.crs_wkt = wkt;
       info.crs_source = "WKT VLR";
     } else {
-      info.notes.push_back("OGC WKT VLR is empty");
+      info.notes.push_back("OGC WKT VLR holds no WKT ('" + wkt.substr(0, 40) + "'): ignored");
     }
   }
   if (geokeys != nullptr) {
