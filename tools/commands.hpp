@@ -22,5 +22,6 @@ using Runner = std::function<int()>;
 
 Runner add_query_command(CLI::App& app);
 Runner add_render_command(CLI::App& app);
+Runner add_info_command(CLI::App& app);
 
 }  // namespace rayscan::cli

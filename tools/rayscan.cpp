@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   };
   reg(rayscan::cli::add_query_command);
   reg(rayscan::cli::add_render_command);
+  reg(rayscan::cli::add_info_command);
 
   try {
     app.parse(argc, argv);
