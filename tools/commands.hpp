@@ -21,6 +21,8 @@ struct UsageError : std::runtime_error {
 using Runner = std::function<int()>;
 
 Runner add_query_command(CLI::App& app);
+Runner add_render_command(CLI::App& app);
+Runner add_info_command(CLI::App& app);
 Runner add_compare_command(CLI::App& app);
 
 }  // namespace rayscan::cli

@@ -20,6 +20,8 @@ int main(int argc, char** argv) {
     commands.emplace_back(app.get_subcommands({})[before], std::move(run));
   };
   reg(rayscan::cli::add_query_command);
+  reg(rayscan::cli::add_render_command);
+  reg(rayscan::cli::add_info_command);
   reg(rayscan::cli::add_compare_command);
 
   try {

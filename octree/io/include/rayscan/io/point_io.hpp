@@ -1,24 +1,86 @@
-// Reading and writing point cloud files. Format readers follow their published specifications
-// (see docs/formats.md); this header is the single entry point the tools use.
+// Reading and writing point cloud files: the single entry point the tools use. Each format reader
+// follows its published specification (docs/formats.md lists the versions and sections).
 #pragma once
 
+#include "rayscan/io/file_info.hpp"
 #include "rayscan/point_cloud.hpp"
 
+#include <cstdint>
 #include <filesystem>
+#include <span>
 #include <stdexcept>
 #include <string>
 
 namespace rayscan::io {
 
-/// A malformed or unreadable input file. what() is one line naming the file, the byte offset or
-/// line, and what was expected: "cloud.las: byte 227: point data offset 9000 past end of file (8000)".
+/// A malformed, unsupported or unreadable input file. what() is one line naming the file, the
+/// byte offset or line, and what was expected:
+/// "cloud.las: byte 96: point data offset 9000 past end of file (size 8000)".
 struct FormatError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Read any supported point cloud file, dispatching on the extension (case-insensitive):
-/// .f64 (headerless little-endian float64 x,y,z triples) and .csv/.xyz/.txt (text columns).
-/// Throws FormatError for unreadable or malformed files.
-PointCloud read_point_cloud(const std::filesystem::path& path);
+/// File formats rayscan reads.
+enum class Format { las, ply, pcd, text, f64 };
+
+/// What a reader keeps besides positions.
+struct ReadOptions {
+  /// Keep attributes that have no dedicated PointCloud field as named ScalarFields (8 bytes per
+  /// point each): LAS return_number, number_of_returns, scan_angle (degrees), user_data,
+  /// point_source_id, nir and Extra Bytes fields; PLY/PCD properties such as "confidence".
+  /// Turn off for very large clouds when only positions, colour, intensity, classification,
+  /// GPS time and normals are needed.
+  bool scalars = true;
+};
+
+/// The format of `path` from its extension (case-insensitive): .las .laz .copc → las; .ply;
+/// .pcd; .xyz .csv .txt .pts → text; .f64 (headerless little-endian float64 x,y,z triples).
+/// Throws FormatError for any other extension.
+Format format_from_extension(const std::filesystem::path& path);
+
+/// Reads any supported point cloud file (format from format_from_extension). The file is memory
+/// mapped; pages already decoded are released while reading, so peak memory is the output
+/// arrays plus a bounded window. Fills `info` when non-null. Positions are finite doubles in the
+/// file's own world frame and units; the cloud satisfies PointCloud::validate().
+/// Throws FormatError (one line: file, byte offset or line, what was expected) for unreadable,
+/// malformed or unsupported (LAZ/COPC) files.
+PointCloud read_point_cloud(const std::filesystem::path& path, const ReadOptions& options = {},
+                            FileInfo* info = nullptr);
+
+/// Reads a point cloud from bytes already in memory (the libFuzzer entry point). `name` is used
+/// in error messages. Same contract as read_point_cloud().
+PointCloud read_point_cloud(std::span<const std::uint8_t> bytes, Format format,
+                            const std::string& name, const ReadOptions& options = {},
+                            FileInfo* info = nullptr);
+
+/// Options of write_las().
+struct LasWriteOptions {
+  /// LAS scale factors (x, y, z); 0 = choose: 0.001 (millimetre in metre units), coarsened by
+  /// powers of ten until the cloud's extent fits 32-bit integers.
+  Vec3 scale{0.0};
+  /// LAS offsets; used only when `has_offset`, otherwise the bounding box minimum rounded down
+  /// to a whole multiple of 1000 * scale.
+  Vec3 offset{0.0};
+  bool has_offset = false;
+  std::string system_id = "rayscan";  ///< header System Identifier (max 32 characters)
+};
+
+/// Writes `cloud` as ASPRS LAS 1.4 R15: point data record format 6 (7 with rgb, 8 with rgb and a
+/// scalar called "nir"). Scalars named return_number, number_of_returns, scan_angle (degrees),
+/// user_data, point_source_id go to their standard fields; every other ScalarField becomes a
+/// float64 extra byte described in an Extra Bytes VLR (section 2.5.6); crs_wkt becomes an OGC WKT
+/// VLR (2112). Positions are quantised to the scale: a point read from LAS and written back with
+/// the same scale and offset is bit-exact. Written to "<path>.tmp.<pid>" and renamed into place.
+/// Throws std::invalid_argument for a cloud failing validate() or coordinates that do not fit the
+/// 32-bit integer grid, std::runtime_error for I/O failures (no partial file is left).
+void write_las(const std::filesystem::path& path, const PointCloud& cloud,
+               const LasWriteOptions& options = {});
+
+/// Writes `cloud` as PLY 1.0 binary_little_endian, one "vertex" element: double x y z, then
+/// float nx ny nz, uchar red green blue (16-bit colour rounded to 8 bit), ushort intensity,
+/// uchar classification, double gps_time, and one double property per ScalarField (name with
+/// characters other than [A-Za-z0-9_] replaced by '_'). Written via temp file + rename.
+/// Throws std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
+void write_ply(const std::filesystem::path& path, const PointCloud& cloud);
 
 }  // namespace rayscan::io

@@ -1,0 +1,98 @@
+// Render benchmark (issue 4, section 5): the paper's workload shape, 600x400 pixels at 50 spp,
+// on the bundled Autzen scan and on a ~10 million point scene made by tiling it. Reports the time,
+// ray queries per second (total and per thread) and the cost split between the ray query and the
+// rest (camera, shading, sampling), measured by timing every ray_query call.
+//
+// Usage: bench_render [SCENE.json] [--tiles N] [--spp S] [--threads T] [--no-timing]
+//   default scene: scenes/autzen_overview.json; --tiles N renders an N x N tiling of the cloud
+//   (N = 9 gives 8.9 million points for autzen_trim), seen by a camera scaled to cover it.
+#include "rayscan/io/point_io.hpp"
+#include "rayscan/render/material.hpp"
+#include "rayscan/render/render.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+using namespace rayscan;
+using namespace rayscan::render;
+
+int main(int argc, char** argv) {
+  std::string scene_path = RAYSCAN_SCENES_DIR "/autzen_overview.json";
+  int tiles = 1;
+  unsigned spp = 50, threads = 0;
+  bool timing = true;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--tiles") && i + 1 < argc) tiles = std::atoi(argv[++i]);
+    else if (!std::strcmp(argv[i], "--spp") && i + 1 < argc) spp = unsigned(std::atoi(argv[++i]));
+    else if (!std::strcmp(argv[i], "--threads") && i + 1 < argc) threads = unsigned(std::atoi(argv[++i]));
+    else if (!std::strcmp(argv[i], "--no-timing")) timing = false;
+    else scene_path = argv[i];
+  }
+  try {
+    Scene scene = load_scene(scene_path);
+    scene.spp = spp;
+    PointCloud cloud = io::read_point_cloud(scene.cloud);
+    std::vector<Color> albedo = compute_albedo(cloud, scene.material, scene.up);
+    const AABB b = cloud.bounds();
+    if (tiles > 1) {
+      // Tile the cloud tiles x tiles times in x and y, mirrored so neighbouring tiles join.
+      const std::size_t n = cloud.size();
+      std::vector<Vec3> pos;
+      std::vector<Color> alb;
+      pos.reserve(n * tiles * tiles);
+      alb.reserve(n * tiles * tiles);
+      const Vec3 e = b.extent();
+      for (int ty = 0; ty < tiles; ++ty)
+        for (int tx = 0; tx < tiles; ++tx)
+          for (std::size_t i = 0; i < n; ++i) {
+            Vec3 p = cloud.positions[i];
+            if (tx % 2) p.x = b.lo.x + b.hi.x - p.x;
+            if (ty % 2) p.y = b.lo.y + b.hi.y - p.y;
+            pos.push_back(p + Vec3(tx * e.x, ty * e.y, 0.0));
+            alb.push_back(albedo[i]);
+          }
+      cloud.positions = std::move(pos);
+      albedo = std::move(alb);
+      // Camera: same direction, pulled back so the tiled site fills the view.
+      const Vec3 c0 = b.center();
+      const Vec3 c1 = c0 + Vec3((tiles - 1) * e.x / 2, (tiles - 1) * e.y / 2, 0.0);
+      const Vec3 eye = scene.camera->center();
+      LookAtParams la;
+      la.look_at = c1;
+      la.position = c1 + (eye - c0) * double(tiles);
+      la.vfov_deg = 42.0;
+      scene.camera = Camera::look_at(la, scene.camera->width(), scene.camera->height());
+    }
+    auto t0 = std::chrono::steady_clock::now();
+    const AnyIndex index = make_index(cloud.positions, scene.index);
+    const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double radius = scene.radius ? *scene.radius
+                                       : scene.auto_radius_factor * median_nn_spacing(index, cloud.positions);
+    RenderOptions opt;
+    opt.threads = threads;
+    opt.time_queries = timing;
+    Framebuffer fb;
+    const RenderStats st = render_image(index, make_settings(scene, cloud.positions, albedo, radius), fb, opt);
+    const double qps = double(st.queries) / st.seconds;
+    std::printf("scene %s, tiles %dx%d: %zu points, %s build %.2f s, radius %.4g\n", scene_path.c_str(),
+                tiles, tiles, cloud.size(), scene.index.type.c_str(), build_s, radius);
+    std::printf("%ux%u px, %u spp, %u threads: %.2f s, %llu primary rays, %llu ray queries\n",
+                fb.width, fb.height, scene.spp, st.threads, st.seconds,
+                (unsigned long long)st.primary_rays, (unsigned long long)st.queries);
+    std::printf("ray queries/s: %.3g total, %.3g per thread; nodes visited/query %.1f, points tested/query %.1f\n",
+                qps, qps / st.threads, double(st.nodes_visited) / double(st.queries),
+                double(st.points_tested) / double(st.queries));
+    if (timing) {
+      const double busy = st.seconds * st.threads;
+      std::printf("cost split (thread time): ray query %.1f%%, rest (camera, shading, sampling, "
+                  "timer overhead) %.1f%%\n",
+                  100.0 * st.query_seconds / busy, 100.0 * (1.0 - st.query_seconds / busy));
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_render: %s\n", e.what());
+    return 2;
+  }
+  return 0;
+}

@@ -1,0 +1,72 @@
+// Internal: a binary output file written to "<path>.tmp.<pid>" through a large buffer and renamed
+// into place by commit(); destroyed without commit() it removes the temporary, so a failed write
+// never leaves a partial file at `path`.
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <unistd.h>
+#include <vector>
+
+namespace rayscan::io::detail {
+
+class AtomicWriter {
+ public:
+  explicit AtomicWriter(const std::filesystem::path& path)
+      : path_(path), tmp_(path.string() + ".tmp." + std::to_string(::getpid())) {
+    f_ = std::fopen(tmp_.c_str(), "wb");
+    if (f_ == nullptr) throw std::runtime_error(path.string() + ": cannot create output file");
+    buf_.reserve(kBuffer);
+  }
+  AtomicWriter(const AtomicWriter&) = delete;
+  AtomicWriter& operator=(const AtomicWriter&) = delete;
+  ~AtomicWriter() {
+    if (f_ != nullptr) std::fclose(f_);
+    if (!committed_) std::remove(tmp_.c_str());
+  }
+  void write(const void* p, std::size_t n) {
+    const auto* b = static_cast<const std::uint8_t*>(p);
+    buf_.insert(buf_.end(), b, b + n);
+    if (buf_.size() >= kBuffer) flush();
+  }
+  template <class T>
+  void put(T v) {
+    write(&v, sizeof(T));
+  }
+  /// Writes `s` into a fixed-width NUL-padded field of `n` bytes (truncating).
+  void put_fixed(const std::string& s, std::size_t n) {
+    std::vector<char> f(n, '\0');
+    std::memcpy(f.data(), s.data(), std::min(n, s.size()));
+    write(f.data(), n);
+  }
+  void commit() {
+    flush();
+    if (std::fflush(f_) != 0 || std::ferror(f_))
+      throw std::runtime_error(path_.string() + ": write failed");
+    std::fclose(f_);
+    f_ = nullptr;
+    std::error_code ec;
+    std::filesystem::rename(tmp_, path_, ec);
+    if (ec) throw std::runtime_error(path_.string() + ": cannot rename temporary file: " + ec.message());
+    committed_ = true;
+  }
+
+ private:
+  static constexpr std::size_t kBuffer = 4u << 20;
+  void flush() {
+    if (!buf_.empty() && std::fwrite(buf_.data(), 1, buf_.size(), f_) != buf_.size())
+      throw std::runtime_error(path_.string() + ": write failed (disk full?)");
+    buf_.clear();
+  }
+  std::filesystem::path path_;
+  std::string tmp_;
+  std::FILE* f_ = nullptr;
+  std::vector<std::uint8_t> buf_;
+  bool committed_ = false;
+};
+
+}  // namespace rayscan::io::detail

@@ -1,0 +1,103 @@
+// Internal: bounds-checked access to a file's bytes and the one-line error format of all readers.
+#pragma once
+
+#include "rayscan/io/point_io.hpp"
+
+#include <bit>
+#include <cstdint>
+#include <cstring>
+#include <functional>
+#include <span>
+#include <string>
+#include <string_view>
+
+namespace rayscan::io::detail {
+
+/// Throws FormatError "<name>: byte <offset>: <what>".
+[[noreturn]] inline void fail_at(const std::string& name, std::uint64_t offset,
+                                 const std::string& what) {
+  throw FormatError(name + ": byte " + std::to_string(offset) + ": " + what);
+}
+/// Throws FormatError "<name>: line <line>: <what>".
+[[noreturn]] inline void fail_line(const std::string& name, std::uint64_t line,
+                                   const std::string& what) {
+  throw FormatError(name + ": line " + std::to_string(line) + ": " + what);
+}
+
+/// The bytes of one input file plus its name (for errors). `release(upto)` tells the source that
+/// bytes before `upto` will not be read again (a memory map then drops those pages from the
+/// process's resident set, keeping peak memory bounded on multi-GB files).
+struct Input {
+  std::span<const std::uint8_t> bytes;
+  std::string name;
+  std::function<void(std::uint64_t)> release;
+
+  [[nodiscard]] std::uint64_t size() const { return bytes.size(); }
+  /// Throws unless [off, off + n) lies inside the file; `what` names the field being read.
+  void need(std::uint64_t off, std::uint64_t n, std::string_view what) const {
+    if (off > bytes.size() || n > bytes.size() - off)
+      fail_at(name, off,
+              "file ends (size " + std::to_string(bytes.size()) + ") inside " + std::string(what) +
+                  " (needs " + std::to_string(n) + " bytes)");
+  }
+  void done(std::uint64_t upto) const {
+    if (release) release(upto);
+  }
+};
+
+/// Unaligned little-endian load (the host is little-endian; checked at compile time).
+template <class T>
+inline T load_le(const std::uint8_t* p) {
+  static_assert(std::endian::native == std::endian::little);
+  T v;
+  std::memcpy(&v, p, sizeof(T));
+  return v;
+}
+
+/// Unaligned big-endian load.
+template <class T>
+inline T load_be(const std::uint8_t* p) {
+  std::uint8_t tmp[sizeof(T)];
+  for (std::size_t i = 0; i < sizeof(T); ++i) tmp[i] = p[sizeof(T) - 1 - i];
+  T v;
+  std::memcpy(&v, tmp, sizeof(T));
+  return v;
+}
+
+/// A fixed-width, NUL-padded character field as a string (trailing NULs and spaces removed).
+inline std::string fixed_string(const std::uint8_t* p, std::size_t n) {
+  std::size_t len = 0;
+  while (len < n && p[len] != 0) ++len;
+  std::string s(reinterpret_cast<const char*>(p), len);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
+  for (char& c : s)
+    if (static_cast<unsigned char>(c) < 32 || static_cast<unsigned char>(c) > 126) c = '?';
+  return s;
+}
+
+/// Lower-case copy of an ASCII string.
+inline std::string lower(std::string s) {
+  for (char& c : s)
+    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  return s;
+}
+
+/// Normalise raw colour channel values to 16 bit (0..65535), the rule of docs/formats.md:
+/// `max_value` is the largest value the file holds over all three channels and `is_float`
+/// whether the source type is floating point. Returns the multiplier to apply and describes the
+/// choice in `note` ("" when values are used as they are).
+inline double colour_scale(double max_value, bool is_float, std::string& note) {
+  if (is_float && max_value <= 1.0) {
+    note = "floating-point colour in 0..1: scaled by 65535";
+    return 65535.0;
+  }
+  if (max_value <= 255.0) {
+    note = "colour values <= 255 (8 bit): scaled by 257 to 16 bit";
+    return 257.0;
+  }
+  if (max_value <= 65535.0) return 1.0;
+  note = "colour values up to " + std::to_string(max_value) + ": scaled to 0..65535";
+  return 65535.0 / max_value;
+}
+
+}  // namespace rayscan::io::detail

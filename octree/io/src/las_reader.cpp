@@ -1,0 +1,389 @@
+// ASPRS LAS reader: LAS Specification 1.4 R15 (2019), which also defines versions 1.0-1.3.
+// Header: section 2.4 (table 3, fields added in 1.3/1.4 noted); VLRs: 2.5; EVLRs: 2.7;
+// point data record formats 0-10: 2.6 (tables 7-17); Extra Bytes VLR: 2.5.6 (table 24);
+// CRS: 2.5.1 (OGC WKT VLR 2112) and 2.5.2 (GeoKeyDirectoryTag 34735).
+#include "readers.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace rayscan::io::detail {
+
+namespace {
+
+/// Byte length of the fields a point data record format defines (section 2.6).
+int pdrf_length(int f) {
+  static constexpr int len[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
+  return f >= 0 && f <= 10 ? len[f] : -1;
+}
+bool pdrf_has_gps(int f) { return f != 0 && f != 2; }
+bool pdrf_has_rgb(int f) { return f == 2 || f == 3 || f == 5 || f == 7 || f == 8 || f == 10; }
+/// Offset of Red within the record, or -1.
+int pdrf_rgb_offset(int f) {
+  switch (f) {
+    case 2: return 20;
+    case 3: case 5: return 28;
+    case 7: case 8: case 10: return 30;
+    default: return -1;
+  }
+}
+
+/// One field of the Extra Bytes VLR (section 2.5.6, table 24) that rayscan exposes as a scalar.
+struct ExtraField {
+  std::string name;
+  int type = 0;       // 1..10 (base type); 11..30 deprecated arrays use their base type
+  int size = 0;       // bytes of one element
+  int offset = 0;     // offset inside the record
+  double scale = 1.0, add = 0.0;
+};
+
+double load_typed(const std::uint8_t* p, int type) {
+  switch (type) {
+    case 1: return load_le<std::uint8_t>(p);
+    case 2: return load_le<std::int8_t>(p);
+    case 3: return load_le<std::uint16_t>(p);
+    case 4: return load_le<std::int16_t>(p);
+    case 5: return load_le<std::uint32_t>(p);
+    case 6: return load_le<std::int32_t>(p);
+    case 7: return static_cast<double>(load_le<std::uint64_t>(p));
+    case 8: return static_cast<double>(load_le<std::int64_t>(p));
+    case 9: return load_le<float>(p);
+    case 10: return load_le<double>(p);
+    default: return 0.0;
+  }
+}
+
+bool is_laszip_vlr(const std::string& user, std::uint16_t id) {
+  return (user == "laszip encoded" && id == 22204) || (user == "copc" && id == 1);
+}
+
+[[noreturn]] void refuse_compressed(const Input& in, std::uint64_t off, const std::string& why) {
+  fail_at(in.name, off,
+          why + ": LAZ/COPC compressed point data is not supported; convert it first, e.g. "
+                "`pdal translate in.laz out.las` or `laszip -i in.laz -o out.las`");
+}
+
+}  // namespace
+
+PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
+  const std::uint8_t* d = in.bytes.data();
+  const std::string& nm = in.name;
+  in.need(0, 227, "LAS public header block (227 bytes for LAS 1.0-1.2)");
+  if (std::memcmp(d, "LASF", 4) != 0) fail_at(nm, 0, "expected file signature \"LASF\"");
+  info.format = "LAS";
+  const int vmaj = d[24], vmin = d[25];
+  info.version = std::to_string(vmaj) + "." + std::to_string(vmin);
+  if (vmaj != 1 || vmin > 4)
+    fail_at(nm, 24, "unsupported LAS version " + info.version + " (expected 1.0 to 1.4)");
+  info.global_encoding = load_le<std::uint16_t>(d + 6);
+  info.system_id = fixed_string(d + 26, 32);
+  info.software = fixed_string(d + 58, 32);
+  info.creation_day = load_le<std::uint16_t>(d + 90);
+  info.creation_year = load_le<std::uint16_t>(d + 92);
+  const std::uint16_t header_size = load_le<std::uint16_t>(d + 94);
+  const std::uint32_t point_offset = load_le<std::uint32_t>(d + 96);
+  const std::uint32_t n_vlr = load_le<std::uint32_t>(d + 100);
+  const std::uint8_t pdrf_raw = d[104];
+  const std::uint16_t rec_len = load_le<std::uint16_t>(d + 105);
+  std::uint64_t count = load_le<std::uint32_t>(d + 107);
+  const Vec3 scale(load_le<double>(d + 131), load_le<double>(d + 139), load_le<double>(d + 147));
+  const Vec3 offset(load_le<double>(d + 155), load_le<double>(d + 163), load_le<double>(d + 171));
+  AABB hb;
+  hb.hi = Vec3(load_le<double>(d + 179), load_le<double>(d + 195), load_le<double>(d + 211));
+  hb.lo = Vec3(load_le<double>(d + 187), load_le<double>(d + 203), load_le<double>(d + 219));
+  info.header_bounds = hb;
+  info.scale = scale;
+  info.offset = offset;
+
+  const std::uint16_t min_header = vmin <= 2 ? 227 : (vmin == 3 ? 235 : 375);
+  if (header_size < min_header)
+    fail_at(nm, 94, "header size " + std::to_string(header_size) + " smaller than the " +
+                        std::to_string(min_header) + " bytes LAS " + info.version + " requires");
+  in.need(0, header_size, "LAS public header block");
+  std::uint64_t evlr_start = 0;
+  std::uint32_t n_evlr = 0;
+  if (vmin >= 4) {
+    evlr_start = load_le<std::uint64_t>(d + 235);
+    n_evlr = load_le<std::uint32_t>(d + 243);
+    const std::uint64_t count64 = load_le<std::uint64_t>(d + 247);
+    if (count64 != 0 || count == 0) count = count64;
+  }
+  info.header_point_count = count;
+  const int pdrf = pdrf_raw & 0x3F;
+  info.point_format = pdrf;
+  info.record_length = rec_len;
+
+  // VLRs (section 2.5): 54-byte headers, between the public header and the point data.
+  if (point_offset < header_size)
+    fail_at(nm, 96, "offset to point data " + std::to_string(point_offset) +
+                        " is inside the " + std::to_string(header_size) + "-byte header");
+  if (point_offset > in.size())
+    fail_at(nm, 96, "offset to point data " + std::to_string(point_offset) +
+                        " past end of file (size " + std::to_string(in.size()) + ")");
+  std::uint64_t pos = header_size;
+  const std::uint8_t* wkt_vlr = nullptr;
+  std::uint64_t wkt_len = 0;
+  const std::uint8_t* geokeys = nullptr;
+  std::uint64_t geokeys_len = 0;
+  const std::uint8_t* extra_vlr = nullptr;
+  std::uint64_t extra_len = 0;
+  bool laszip = false;
+  auto note_vlr = [&](const VlrInfo& v, const std::uint8_t* payload) {
+    info.vlrs.push_back(v);
+    if (is_laszip_vlr(v.user_id, v.record_id)) laszip = true;
+    if (v.user_id == "LASF_Projection" && v.record_id == 2112) {
+      wkt_vlr = payload;
+      wkt_len = v.length;
+    }
+    if (v.user_id == "LASF_Projection" && v.record_id == 34735) {
+      geokeys = payload;
+      geokeys_len = v.length;
+    }
+    if (v.user_id == "LASF_Spec" && v.record_id == 4) {
+      extra_vlr = payload;
+      extra_len = v.length;
+    }
+  };
+  for (std::uint32_t i = 0; i < n_vlr; ++i) {
+    if (pos + 54 > point_offset)
+      fail_at(nm, pos, "VLR " + std::to_string(i) + " of " + std::to_string(n_vlr) +
+                           ": header runs past the start of point data at byte " +
+                           std::to_string(point_offset));
+    VlrInfo v;
+    v.offset = pos;
+    v.user_id = fixed_string(d + pos + 2, 16);
+    v.record_id = load_le<std::uint16_t>(d + pos + 18);
+    v.length = load_le<std::uint16_t>(d + pos + 20);
+    v.description = fixed_string(d + pos + 22, 32);
+    if (pos + 54 + v.length > point_offset)
+      fail_at(nm, pos + 20, "VLR " + std::to_string(i) + " (" + v.user_id + " " +
+                                std::to_string(v.record_id) + ") of " + std::to_string(v.length) +
+                                " bytes runs past the start of point data at byte " +
+                                std::to_string(point_offset));
+    note_vlr(v, d + pos + 54);
+    pos += 54 + v.length;
+  }
+  // EVLRs (section 2.7, LAS 1.4): 60-byte headers after the point data.
+  if (n_evlr > 0) {
+    if (evlr_start > in.size() || n_evlr > (in.size() - evlr_start) / 60)
+      fail_at(nm, 235, "EVLR start " + std::to_string(evlr_start) + " with " +
+                           std::to_string(n_evlr) + " EVLRs lies past end of file (size " +
+                           std::to_string(in.size()) + ")");
+    std::uint64_t ep = evlr_start;
+    for (std::uint32_t i = 0; i < n_evlr; ++i) {
+      in.need(ep, 60, "EVLR " + std::to_string(i) + " header");
+      VlrInfo v;
+      v.offset = ep;
+      v.extended = true;
+      v.user_id = fixed_string(d + ep + 2, 16);
+      v.record_id = load_le<std::uint16_t>(d + ep + 18);
+      v.length = load_le<std::uint64_t>(d + ep + 20);
+      v.description = fixed_string(d + ep + 28, 32);
+      if (v.length > in.size() - ep - 60)
+        fail_at(nm, ep + 20, "EVLR " + std::to_string(i) + " (" + v.user_id + ") of " +
+                                 std::to_string(v.length) + " bytes runs past end of file (size " +
+                                 std::to_string(in.size()) + ")");
+      note_vlr(v, d + ep + 60);
+      ep += 60 + v.length;
+    }
+  }
+  // LAZ (LASzip sets bit 7, historically also bit 6, of the PDRF byte) and COPC are refused.
+  if ((pdrf_raw & 0xC0) != 0)
+    refuse_compressed(in, 104, "point data record format byte " + std::to_string(pdrf_raw) +
+                                   " has the compression bit set");
+  if (laszip) refuse_compressed(in, header_size, "file has a LASzip/COPC VLR");
+  if (pdrf > 10)
+    fail_at(nm, 104, "point data record format " + std::to_string(pdrf) + " (expected 0 to 10)");
+  const int need_len = pdrf_length(pdrf);
+  if (rec_len < need_len)
+    fail_at(nm, 105, "point record length " + std::to_string(rec_len) + " smaller than the " +
+                         std::to_string(need_len) + " bytes point data record format " +
+                         std::to_string(pdrf) + " needs");
+  info.extra_bytes_per_point = rec_len - need_len;
+  for (int k = 0; k < 3; ++k) {
+    if (!std::isfinite(scale[k]) || scale[k] == 0.0)
+      fail_at(nm, 131 + 8 * k, std::string("scale factor ") + "XYZ"[k] + " is " +
+                                   std::to_string(scale[k]) + " (expected a finite non-zero number)");
+    if (!std::isfinite(offset[k]))
+      fail_at(nm, 155 + 8 * k, std::string("offset ") + "XYZ"[k] + " is not finite");
+  }
+  // Point count against the file size: never allocate from an unchecked count.
+  std::uint64_t data_end = in.size();
+  if (n_evlr > 0 && evlr_start >= point_offset) data_end = std::min<std::uint64_t>(data_end, evlr_start);
+  const std::uint64_t avail = data_end - point_offset;
+  if (count > avail / rec_len)
+    fail_at(nm, vmin >= 4 ? 247 : 107,
+            "header announces " + std::to_string(count) + " points of " + std::to_string(rec_len) +
+                " bytes from byte " + std::to_string(point_offset) + " but only " +
+                std::to_string(avail) + " bytes of point data follow (room for " +
+                std::to_string(avail / rec_len) + ")");
+
+  // Extra Bytes VLR descriptors (192 bytes each).
+  std::vector<ExtraField> extras;
+  if (extra_vlr != nullptr && opt.scalars) {
+    int off = need_len;
+    for (std::uint64_t k = 0; k + 192 <= extra_len; k += 192) {
+      const std::uint8_t* e = extra_vlr + k;
+      const int type = e[2];
+      const int options = e[3];
+      static constexpr int base_size[11] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 4, 8};
+      int base = type, n = 1;
+      if (type >= 11 && type <= 30) {
+        base = (type - 1) % 10 + 1;
+        n = type <= 20 ? 2 : 3;
+      }
+      const int width = type == 0 ? options : base_size[base] * n;
+      const std::string name = fixed_string(e + 4, 32);
+      if (off + width > rec_len) {
+        info.notes.push_back("Extra Bytes VLR field '" + name + "' runs past the " +
+                             std::to_string(rec_len) + "-byte record: extra bytes ignored");
+        extras.clear();
+        break;
+      }
+      if (type != 0) {
+        for (int j = 0; j < n; ++j) {
+          ExtraField f;
+          f.name = n == 1 ? name : name + "[" + std::to_string(j) + "]";
+          f.type = base;
+          f.size = base_size[base];
+          f.offset = off + j * f.size;
+          if (options & 0x08) f.scale = load_le<double>(e + 112 + 8 * std::min(j, 2));
+          if (options & 0x10) f.add = load_le<double>(e + 136 + 8 * std::min(j, 2));
+          if (!std::isfinite(f.scale) || !std::isfinite(f.add)) f.scale = 1.0, f.add = 0.0;
+          extras.push_back(f);
+        }
+      }
+      off += width;
+    }
+  }
+  if (info.extra_bytes_per_point > 0 && extras.empty())
+    info.notes.push_back(std::to_string(info.extra_bytes_per_point) +
+                         " extra bytes per record " +
+                         (extra_vlr ? std::string("not kept") : "not described by an Extra Bytes VLR") +
+                         ": skipped");
+
+  // CRS: the OGC WKT VLR when it holds text, else the GeoKeys.
+  PointCloud pc;
+  if (wkt_vlr != nullptr) {
+    std::string wkt(reinterpret_cast<const char*>(wkt_vlr), wkt_len);
+    while (!wkt.empty() && (wkt.back() == '\0' || std::isspace(static_cast<unsigned char>(wkt.back()))))
+      wkt.pop_back();
+    // A WKT CRS is KEYWORD[...]; anything else (empty, "''") carries no CRS.
+    if (wkt.find('[') != std::string::npos) {
+      pc.crs_wkt = wkt;
+      info.crs_source = "WKT VLR";
+    } else {
+      info.notes.push_back("OGC WKT VLR holds no WKT ('" + wkt.substr(0, 40) + "'): ignored");
+    }
+  }
+  if (geokeys != nullptr) {
+    std::string wkt = crs_from_geokeys(geokeys, geokeys_len, info);
+    if (pc.crs_wkt.empty() && (!wkt.empty() || info.epsg != 0)) {
+      pc.crs_wkt = wkt;
+      info.crs_source = "GeoKeys";
+    }
+  }
+  if (info.epsg == 0 && !pc.crs_wkt.empty()) info.epsg = epsg_from_wkt(pc.crs_wkt);
+
+  info.fields = {"X", "Y", "Z", "intensity", "return_number", "number_of_returns", "classification",
+                 "scan_angle", "user_data", "point_source_id"};
+  const std::size_t n = static_cast<std::size_t>(count);
+  pc.positions.resize(n);
+  pc.intensity.resize(n);
+  pc.classification.resize(n);
+  const bool has_gps = pdrf_has_gps(pdrf);
+  const bool has_rgb = pdrf_has_rgb(pdrf);
+  const bool has_nir = pdrf == 8 || pdrf == 10;
+  if (has_gps) pc.gps_time.resize(n), info.fields.push_back("gps_time");
+  if (has_rgb) pc.rgb.resize(n), info.fields.insert(info.fields.end(), {"red", "green", "blue"});
+  if (has_nir) info.fields.push_back("nir");
+  std::vector<double>*ret = nullptr, *nret = nullptr, *angle = nullptr, *udata = nullptr,
+  *psid = nullptr, *nir = nullptr;
+  std::vector<std::vector<double>*> extra_out;
+  if (opt.scalars) {
+    auto add = [&](const std::string& name) {
+      pc.scalars.push_back({name, std::vector<double>(n)});
+      return &pc.scalars.back().values;
+    };
+    pc.scalars.reserve(6 + extras.size());
+    ret = add("return_number");
+    nret = add("number_of_returns");
+    angle = add("scan_angle");
+    udata = add("user_data");
+    psid = add("point_source_id");
+    if (has_nir) nir = add("nir");
+    for (const ExtraField& f : extras) {
+      extra_out.push_back(add(f.name));
+      info.fields.push_back(f.name);
+    }
+  }
+  const int rgb_off = pdrf_rgb_offset(pdrf);
+  const int gps_off = pdrf >= 6 ? 22 : 20;
+  const bool legacy = pdrf < 6;
+  std::uint16_t rgb_max = 0;
+  const std::uint8_t* base = d + point_offset;
+  constexpr std::uint64_t kReleaseEvery = 1u << 16;  // points between page releases
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint8_t* r = base + i * rec_len;
+    const double x = load_le<std::int32_t>(r) * scale.x + offset.x;
+    const double y = load_le<std::int32_t>(r + 4) * scale.y + offset.y;
+    const double z = load_le<std::int32_t>(r + 8) * scale.z + offset.z;
+    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
+      fail_at(nm, point_offset + i * rec_len,
+              "point " + std::to_string(i) + ": coordinate overflows to infinity (scale/offset)");
+    pc.positions[i] = Vec3(x, y, z);
+    pc.intensity[i] = load_le<std::uint16_t>(r + 12);
+    if (legacy) {
+      pc.classification[i] = r[15] & 0x1F;
+    } else {
+      pc.classification[i] = r[16];
+    }
+    if (has_gps) pc.gps_time[i] = load_le<double>(r + gps_off);
+    if (has_rgb) {
+      Rgb16 c{load_le<std::uint16_t>(r + rgb_off), load_le<std::uint16_t>(r + rgb_off + 2),
+              load_le<std::uint16_t>(r + rgb_off + 4)};
+      rgb_max = std::max({rgb_max, c.r, c.g, c.b});
+      pc.rgb[i] = c;
+    }
+    if (ret != nullptr) {
+      if (legacy) {
+        (*ret)[i] = r[14] & 0x07;
+        (*nret)[i] = (r[14] >> 3) & 0x07;
+        (*angle)[i] = static_cast<std::int8_t>(r[16]);
+        (*udata)[i] = r[17];
+        (*psid)[i] = load_le<std::uint16_t>(r + 18);
+      } else {
+        (*ret)[i] = r[14] & 0x0F;
+        (*nret)[i] = r[14] >> 4;
+        (*angle)[i] = load_le<std::int16_t>(r + 18) * 0.006;
+        (*udata)[i] = r[17];
+        (*psid)[i] = load_le<std::uint16_t>(r + 20);
+      }
+      if (nir != nullptr) (*nir)[i] = load_le<std::uint16_t>(r + 36);
+      for (std::size_t k = 0; k < extras.size(); ++k)
+        (*extra_out[k])[i] = load_typed(r + extras[k].offset, extras[k].type) * extras[k].scale +
+                             extras[k].add;
+    }
+    if ((i + 1) % kReleaseEvery == 0) in.done(point_offset + (i + 1) * rec_len);
+  }
+  // Colour normalisation (docs/formats.md): 8-bit values stored in the 16-bit fields are scaled
+  // by 257; a colour format whose channels are all zero carries no colour and is dropped.
+  if (has_rgb && n > 0) {
+    if (rgb_max == 0) {
+      pc.rgb.clear();
+      info.notes.push_back("RGB fields present but all zero: colour dropped");
+    } else if (rgb_max <= 255) {
+      for (Rgb16& c : pc.rgb) {
+        c.r = static_cast<std::uint16_t>(c.r * 257);
+        c.g = static_cast<std::uint16_t>(c.g * 257);
+        c.b = static_cast<std::uint16_t>(c.b * 257);
+      }
+      info.notes.push_back("RGB stored as 8-bit values (max " + std::to_string(rgb_max) +
+                           ") in 16-bit fields: scaled by 257");
+    }
+  }
+  return pc;
+}
+
+}  // namespace rayscan::io::detail

@@ -1,0 +1,76 @@
+// PLY 1.0 writer, binary_little_endian (PLY format description, G. Turk 1994): one "vertex"
+// element with double positions so UTM-sized coordinates survive, read by CloudCompare, PDAL,
+// MeshLab and Open3D.
+#include "rayscan/io/point_io.hpp"
+
+#include "atomic_writer.hpp"
+
+#include <algorithm>
+#include <set>
+
+namespace rayscan::io {
+
+namespace {
+std::string property_name(const std::string& name, std::set<std::string>& used) {
+  std::string s = name.empty() ? "scalar" : name;
+  for (char& c : s)
+    if (!((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_')) c = '_';
+  std::string out = s;
+  for (int k = 1; used.count(out) != 0; ++k) out = s + "_" + std::to_string(k);
+  used.insert(out);
+  return out;
+}
+}  // namespace
+
+void write_ply(const std::filesystem::path& path, const PointCloud& cloud) {
+  try {
+    cloud.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(path.string() + ": " + e.what());
+  }
+  const std::size_t n = cloud.size();
+  std::set<std::string> used = {"x", "y", "z"};
+  std::string h = "ply\nformat binary_little_endian 1.0\ncomment written by rayscan 0.1.0\n";
+  if (!cloud.crs_wkt.empty()) {
+    std::string one_line = cloud.crs_wkt;
+    std::replace(one_line.begin(), one_line.end(), '\n', ' ');
+    std::replace(one_line.begin(), one_line.end(), '\r', ' ');
+    h += "comment crs " + one_line + "\n";
+  }
+  h += "element vertex " + std::to_string(n) + "\n";
+  h += "property double x\nproperty double y\nproperty double z\n";
+  if (!cloud.normals.empty()) h += "property float nx\nproperty float ny\nproperty float nz\n", used.insert({"nx", "ny", "nz"});
+  if (!cloud.rgb.empty())
+    h += "property uchar red\nproperty uchar green\nproperty uchar blue\n", used.insert({"red", "green", "blue"});
+  if (!cloud.intensity.empty()) h += "property ushort intensity\n", used.insert("intensity");
+  if (!cloud.classification.empty()) h += "property uchar classification\n", used.insert("classification");
+  if (!cloud.gps_time.empty()) h += "property double gps_time\n", used.insert("gps_time");
+  for (const ScalarField& f : cloud.scalars) h += "property double " + property_name(f.name, used) + "\n";
+  h += "end_header\n";
+
+  detail::AtomicWriter w(path);
+  w.write(h.data(), h.size());
+  auto to8 = [](std::uint16_t v) { return static_cast<std::uint8_t>((v + 128u) / 257u); };
+  for (std::size_t i = 0; i < n; ++i) {
+    w.put(cloud.positions[i].x);
+    w.put(cloud.positions[i].y);
+    w.put(cloud.positions[i].z);
+    if (!cloud.normals.empty()) {
+      w.put(cloud.normals[i].x);
+      w.put(cloud.normals[i].y);
+      w.put(cloud.normals[i].z);
+    }
+    if (!cloud.rgb.empty()) {
+      w.put(to8(cloud.rgb[i].r));
+      w.put(to8(cloud.rgb[i].g));
+      w.put(to8(cloud.rgb[i].b));
+    }
+    if (!cloud.intensity.empty()) w.put(cloud.intensity[i]);
+    if (!cloud.classification.empty()) w.put(cloud.classification[i]);
+    if (!cloud.gps_time.empty()) w.put(cloud.gps_time[i]);
+    for (const ScalarField& f : cloud.scalars) w.put(f.values[i]);
+  }
+  w.commit();
+}
+
+}  // namespace rayscan::io

@@ -1,0 +1,32 @@
+// Writing rendered images and AOVs through OpenImageIO (PNG/JPEG/TIFF with the sRGB transfer at
+// 8/16 bit; OpenEXR linear half/float with AOVs as extra channels).
+#pragma once
+
+#include "rayscan/render/render.hpp"
+#include "rayscan/render/scene.hpp"
+
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace rayscan::render {
+
+/// Key/value metadata stored in the image header (PNG tEXt, TIFF/EXR string attributes), e.g.
+/// {"rayscan:scene", "scenes/x.json"}.
+using ImageMetadata = std::vector<std::pair<std::string, std::string>>;
+
+/// Write `fb` to `out.image`:
+///  - .png/.tif/.tiff: RGB, sRGB transfer (IEC 61966-2-1), out.bit_depth 8 or 16 bit;
+///    .jpg/.jpeg: 8 bit, quality 95. AOVs, if any, go to "<stem>.aovs.exr" next to the image.
+///  - .exr: linear RGB (half or float per out.exr_half) plus AOV channels: depth "Z" (float),
+///    normal "N.X N.Y N.Z", position "P.X P.Y P.Z" (float; relative to fb.position_origin, which is
+///    recorded as "rayscan:position_origin"), index "id" (uint32, 0xFFFFFFFF for a miss), albedo
+///    "albedo.R albedo.G albedo.B", cost "cost" (float).
+/// Pixel values are scaled by 2^out.exposure first. Each file is written to a temporary sibling
+/// and renamed into place, so no half-written file is ever left. Returns the files written.
+/// Throws std::runtime_error naming the file when OpenImageIO cannot create or write it.
+std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const OutputDesc& out,
+                                               const ImageMetadata& metadata);
+
+}  // namespace rayscan::render

@@ -1,0 +1,78 @@
+// Rendering a scene: load the cloud, build the index, choose the radius, then trace every pixel
+// in parallel over image tiles (TBB) with the PathTracer (integrator.hpp).
+#pragma once
+
+#include "rayscan/any_index.hpp"
+#include "rayscan/point_cloud.hpp"
+#include "rayscan/render/camera.hpp"
+#include "rayscan/render/integrator.hpp"
+#include "rayscan/render/progress.hpp"
+#include "rayscan/render/scene.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace rayscan::render {
+
+/// The rendered image and its AOVs, row-major from the top-left pixel. AOV vectors are empty
+/// unless requested. AOVs describe the ray through the pixel centre (lens centre), not averaged
+/// over samples, so they are exact per pixel; `cost` is averaged over all samples.
+struct Framebuffer {
+  std::uint32_t width = 0, height = 0;
+  std::vector<Color> beauty;            ///< mean radiance over spp samples (linear)
+  std::vector<float> depth;             ///< t of the first hit (world units), +inf for a miss
+  std::vector<glm::vec3> normal;        ///< unit normal of the first hit, (0,0,0) for a miss
+  std::vector<glm::vec3> position;      ///< first hit minus position_origin (float), 0 for a miss
+  Vec3 position_origin{0.0};            ///< double origin subtracted from `position` (camera centre)
+  std::vector<std::uint32_t> index;     ///< original point index hit, 0xFFFFFFFF (= -1) for a miss
+  std::vector<Color> albedo;            ///< albedo at the first hit, 0 for a miss
+  std::vector<float> cost;              ///< index nodes visited per sample (all rays of the path)
+};
+
+/// Knobs of one render call that are not part of the scene.
+struct RenderOptions {
+  unsigned threads = 0;         ///< worker threads; 0 = all cores (the result is identical)
+  unsigned tile_size = 16;      ///< tile edge, pixels
+  bool time_queries = false;    ///< measure time inside ray_query (bench: cost split)
+  Progress* progress = nullptr; ///< optional progress bar
+};
+
+/// Totals of one render.
+struct RenderStats {
+  double seconds = 0.0;             ///< wall time of the pixel loop
+  std::uint64_t primary_rays = 0;   ///< camera rays (spp per pixel + 1 AOV ray when AOVs are on)
+  std::uint64_t queries = 0;        ///< all ray queries (camera, bounce, shadow)
+  std::uint64_t nodes_visited = 0;
+  std::uint64_t points_tested = 0;
+  double query_seconds = 0.0;       ///< summed over threads; only with RenderOptions::time_queries
+  unsigned threads = 0;             ///< threads used
+};
+
+/// Per-render constants: camera, light, sampling. Built from a Scene by make_settings().
+struct RenderSettings {
+  Camera camera;
+  IntegratorInputs integrator;
+  BackgroundDesc background;
+  SunDesc sun;
+  Vec3 up{0.0, 0.0, 1.0};
+  std::uint32_t spp = 16;
+  std::uint64_t seed = 0;
+  std::vector<Aov> aovs;
+};
+
+/// The scene's settings for a loaded cloud, albedo and radius (spans must outlive the render).
+RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
+                             std::span<const Color> albedo, double radius);
+
+/// Median distance from a point to its nearest other point, over an evenly spaced sample of at
+/// most `max_samples` points (deterministic). World units; 0 for fewer than 2 distinct points.
+double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions,
+                         std::size_t max_samples = 20000);
+
+/// Render into `fb` (resized to the camera). Pixels are traced in 16x16 tiles by tbb::parallel_for;
+/// sample j of pixel (x, y) uses Sampler(seed, x, y, j) only, so the image is bit-identical for
+/// any thread count. `index` must be built over settings.integrator.centers.
+RenderStats render_image(const AnyIndex& index, const RenderSettings& settings, Framebuffer& fb,
+                   const RenderOptions& options = {});
+
+}  // namespace rayscan::render

@@ -1,0 +1,107 @@
+// Scene and camera files: the JSON description of a render (schema in scenes/README.md).
+#pragma once
+
+#include "rayscan/any_index.hpp"
+#include "rayscan/ray_query.hpp"
+#include "rayscan/render/camera.hpp"
+#include "rayscan/render/color.hpp"
+
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace rayscan::render {
+
+/// A malformed scene or camera file. what() is one line: "<file>: <JSON pointer>: <what was
+/// expected>", e.g. "scenes/x.json: /camera/vfov_deg: expected a number in (0, 180)".
+struct SceneError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// How a ray hits the point spheres (paper section 5.3 and issue 4, 1.1).
+enum class HitMode {
+  sphere,        ///< exact: the sphere with the smallest entry parameter (RayOrder::sphere_hit)
+  closest_point  ///< the paper's naive mode: the point with the smallest t within r
+                 ///< (RayOrder::time), then the entry into that point's sphere
+};
+
+/// Where a point's albedo comes from.
+enum class ColorMode { rgb, intensity, elevation, classification, constant };
+
+/// Lambertian material of every point.
+struct MaterialDesc {
+  ColorMode mode = ColorMode::rgb;
+  Color constant{0.7f};               ///< albedo for ColorMode::constant, linear, each in [0,1]
+  Ramp ramp = Ramp::viridis;          ///< ramp for intensity and elevation
+  std::optional<std::array<double, 2>> range;  ///< scalar range mapped to [0,1]; default: 2nd-98th percentile
+  float albedo_scale = 1.0f;          ///< multiplies every albedo (then clamped to [0,1])
+};
+
+/// Environment radiance for rays that leave the scene.
+struct BackgroundDesc {
+  bool gradient = true;              ///< RTIOW sky gradient (true) or a constant colour
+  Color horizon{1.0f, 1.0f, 1.0f};   ///< gradient colour at and below the horizon (linear)
+  Color zenith{0.5f, 0.7f, 1.0f};    ///< gradient colour straight up (linear)
+  Color color{1.0f};                 ///< constant radiance when !gradient
+  float intensity = 1.0f;            ///< multiplies the background radiance
+};
+
+/// A distant sun: a disk of given angular diameter, sampled with shadow rays.
+struct SunDesc {
+  bool enabled = false;
+  Vec3 direction{0.0, 0.0, 1.0};      ///< unit vector from the scene towards the sun
+  double angular_diameter_deg = 0.53; ///< apparent diameter of the disk, degrees, in [0, 20]
+  float irradiance = 3.0f;            ///< irradiance on a surface facing the sun (relative units)
+  Color color{1.0f, 0.95f, 0.85f};    ///< tint multiplying the irradiance (linear)
+};
+
+/// Arbitrary output variables written next to the beauty image (issue 4, 3.2).
+enum class Aov { depth, normal, position, index, albedo, cost };
+
+/// Output file(s).
+struct OutputDesc {
+  std::filesystem::path image;        ///< beauty image; format from the extension (.png .jpg .tif .exr)
+  unsigned bit_depth = 8;             ///< PNG/TIFF: 8 or 16 (JPEG: 8)
+  bool exr_half = true;               ///< OpenEXR pixel type: half (true) or float
+  std::vector<Aov> aovs;              ///< extra outputs
+  double exposure = 0.0;              ///< stops: pixel values are multiplied by 2^exposure
+};
+
+/// A fully parsed render description. Paths are absolute or relative to the working directory
+/// (already resolved against the scene file's folder).
+struct Scene {
+  std::filesystem::path file;                 ///< the scene file ("" when built in code)
+  std::filesystem::path cloud;                ///< point cloud file
+  std::optional<double> radius;               ///< sphere radius (world units); nullopt = "auto"
+  double auto_radius_factor = 1.0;            ///< "auto": radius = factor x median NN spacing
+  HitMode hit = HitMode::sphere;
+  IndexOptions index;                         ///< index type and organisation
+  NodeDistance node_distance = NodeDistance::exact;  ///< node pruning bound of the ray query
+  MaterialDesc material;
+  BackgroundDesc background;
+  SunDesc sun;
+  Vec3 up{0.0, 0.0, 1.0};                     ///< world up: sky gradient axis, sun elevation axis
+  std::optional<Camera> camera;               ///< required in files
+  std::filesystem::path camera_file;          ///< where the camera came from ("" = inline)
+  std::uint32_t spp = 16;                     ///< samples per pixel
+  std::uint32_t max_depth = 4;                ///< path vertices: 1 = direct light only
+  std::uint32_t russian_roulette_depth = 0;   ///< start RR at this depth; 0 = off
+  std::uint64_t seed = 0;
+  double ray_offset = 1e-3;                   ///< bounce-ray origin offset along n, fraction of r
+  OutputDesc output;
+};
+
+/// Parse a scene file. Relative paths in it (cloud, camera, output) resolve against its folder.
+/// Throws SceneError (file unreadable, JSON syntax, wrong type/range, unknown key) naming the
+/// file and the JSON pointer of the offending value.
+Scene load_scene(const std::filesystem::path& file);
+
+/// Parse a camera file (schema in scenes/README.md: look-at or K/[R|t]). Throws SceneError.
+Camera load_camera(const std::filesystem::path& file);
+
+/// The name of an AOV as used in files and channel names ("depth", "normal", ...).
+const char* to_string(Aov aov);
+
+}  // namespace rayscan::render

@@ -1,0 +1,152 @@
+#include "rayscan/render/render.hpp"
+
+#include "rayscan/point_query.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <mutex>
+
+namespace rayscan::render {
+
+RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
+                             std::span<const Color> albedo, double radius) {
+  if (!scene.camera) throw std::invalid_argument("render: the scene has no camera");
+  RenderSettings s{*scene.camera, {}, scene.background, scene.sun, scene.up, scene.spp, scene.seed,
+                   scene.output.aovs};
+  s.integrator.centers = centers;
+  s.integrator.albedo = albedo;
+  s.integrator.radius = radius;
+  s.integrator.hit = scene.hit;
+  s.integrator.node_distance = scene.node_distance;
+  s.integrator.max_depth = scene.max_depth;
+  s.integrator.rr_depth = scene.russian_roulette_depth;
+  s.integrator.ray_offset = scene.ray_offset;
+  return s;
+}
+
+double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions,
+                         std::size_t max_samples) {
+  if (positions.size() < 2 || max_samples == 0) return 0.0;
+  const std::size_t n = std::min(max_samples, positions.size());
+  std::vector<double> d(n, 0.0);
+  std::visit(
+      [&](const auto& idx) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& r) {
+          std::vector<Neighbor> nb;
+          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const std::size_t p = i * positions.size() / n;
+            // Nearest point at a non-zero distance (duplicates are common in scans).
+            knn_query(idx, positions[p], 8, kInf, nb);
+            double best = 0.0;
+            for (const Neighbor& x : nb)
+              if (x.distance > 0.0) { best = x.distance; break; }
+            d[i] = best;
+          }
+        });
+      },
+      index);
+  std::erase(d, 0.0);
+  if (d.empty()) return 0.0;
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
+namespace {
+
+template <class I>
+void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const RenderOptions& opt,
+                  RenderStats& stats) {
+  const Sky sky(s.background, s.sun, s.up);
+  const PathTracer<I> tracer(idx, s.integrator, sky, opt.time_queries);
+  const std::uint32_t W = fb.width, H = fb.height, T = std::max(1u, opt.tile_size);
+  const std::uint32_t tiles_x = (W + T - 1) / T, tiles_y = (H + T - 1) / T;
+  const bool any_aov = !s.aovs.empty();
+  const bool want_cost = !fb.cost.empty();
+  const Camera& cam = s.camera;
+  std::mutex stats_mutex;
+
+  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, tiles_x * tiles_y, 1), [&](const auto& range) {
+    std::vector<RayHit> hits;
+    hits.reserve(4);
+    TraceCounters c;
+    for (std::uint32_t tile = range.begin(); tile != range.end(); ++tile) {
+      const std::uint64_t q_before = c.queries;
+      const std::uint32_t x0 = (tile % tiles_x) * T, y0 = (tile / tiles_x) * T;
+      const std::uint32_t x1 = std::min(W, x0 + T), y1 = std::min(H, y0 + T);
+      for (std::uint32_t y = y0; y < y1; ++y)
+        for (std::uint32_t x = x0; x < x1; ++x) {
+          const std::size_t p = std::size_t(y) * W + x;
+          const std::uint64_t nodes_before = c.nodes_visited;
+          Color sum(0.0f);
+          for (std::uint32_t j = 0; j < s.spp; ++j) {
+            Sampler smp(s.seed, x, y, j);
+            const double u = x + smp.uniform() - 0.5, v = y + smp.uniform() - 0.5;
+            const double lu = smp.uniform(), lv = smp.uniform();
+            sum += tracer.trace(cam.generate_ray(u, v, lu, lv), smp, hits, c);
+          }
+          fb.beauty[p] = sum / float(s.spp);
+          if (want_cost) fb.cost[p] = float(double(c.nodes_visited - nodes_before) / s.spp);
+          if (!any_aov) continue;
+          SurfaceHit h;  // the AOV ray (after the cost AOV was taken, so not part of it)
+          const bool hit = tracer.intersect(cam.generate_ray(x, y), h, hits, c);
+          if (!fb.depth.empty()) fb.depth[p] = hit ? float(h.t) : std::numeric_limits<float>::infinity();
+          if (!fb.normal.empty()) fb.normal[p] = hit ? glm::vec3(h.normal) : glm::vec3(0.0f);
+          if (!fb.position.empty())
+            fb.position[p] = hit ? glm::vec3(h.position - fb.position_origin) : glm::vec3(0.0f);
+          if (!fb.index.empty()) fb.index[p] = hit ? h.index : 0xFFFFFFFFu;
+          if (!fb.albedo.empty()) fb.albedo[p] = hit ? s.integrator.albedo[h.index] : Color(0.0f);
+        }
+      if (opt.progress) opt.progress->tile_done(c.queries - q_before);
+    }
+    std::lock_guard lock(stats_mutex);
+    stats.queries += c.queries;
+    stats.nodes_visited += c.nodes_visited;
+    stats.points_tested += c.points_tested;
+    stats.query_seconds += double(c.query_ns) * 1e-9;
+  });
+}
+
+}  // namespace
+
+RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebuffer& fb,
+                   const RenderOptions& opt) {
+  const std::uint32_t W = s.camera.width(), H = s.camera.height();
+  const std::size_t n = std::size_t(W) * H;
+  fb = Framebuffer{};
+  fb.width = W;
+  fb.height = H;
+  fb.beauty.assign(n, Color(0.0f));
+  fb.position_origin = s.camera.center();
+  for (Aov a : s.aovs) switch (a) {
+      case Aov::depth: fb.depth.assign(n, 0.0f); break;
+      case Aov::normal: fb.normal.assign(n, glm::vec3(0.0f)); break;
+      case Aov::position: fb.position.assign(n, glm::vec3(0.0f)); break;
+      case Aov::index: fb.index.assign(n, 0xFFFFFFFFu); break;
+      case Aov::albedo: fb.albedo.assign(n, Color(0.0f)); break;
+      case Aov::cost: fb.cost.assign(n, 0.0f); break;
+    }
+  const std::size_t npts = std::visit([](const auto& i) { return i.positions().size(); }, index);
+  if (npts != s.integrator.centers.size() || s.integrator.albedo.size() != s.integrator.centers.size())
+    throw std::invalid_argument("render: index, centres and albedo sizes differ");
+  if (s.spp == 0) throw std::invalid_argument("render: spp must be >= 1");
+
+  RenderStats stats;
+  const unsigned threads = opt.threads ? opt.threads
+                                       : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
+  stats.threads = threads;
+  tbb::task_arena arena(static_cast<int>(threads));
+  const auto t0 = std::chrono::steady_clock::now();
+  arena.execute([&] {
+    std::visit([&](const auto& idx) { render_tiles(idx, s, fb, opt, stats); }, index);
+  });
+  stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  stats.primary_rays = std::uint64_t(n) * (s.spp + (s.aovs.empty() ? 0 : 1));
+  if (opt.progress) opt.progress->finish();
+  return stats;
+}
+
+}  // namespace rayscan::render

@@ -1,0 +1,47 @@
+// Paths to the real data files the io tests read, and small helpers.
+#pragma once
+
+#include "rayscan/io/point_io.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <unistd.h>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+namespace rayscan::test {
+
+namespace fs = std::filesystem;
+
+/// A file of the shared data set (path relative to ../shared/data, e.g. "las/autzen_trim.las"):
+/// the copy in tests/data or scenes/data when the repository has one, else ../shared/data when
+/// that folder exists beside the repository (CI), else "" (the caller skips).
+inline fs::path data_file(const std::string& rel) {
+  const fs::path name = fs::path(rel).filename();
+  const std::string sub = fs::path(rel).begin()->string();  // las | pcd | ply
+  for (const fs::path& p : {fs::path(RAYSCAN_TEST_DATA) / sub / name, fs::path(RAYSCAN_SCENE_DATA) / name})
+    if (fs::exists(p)) return p;
+  const fs::path shared = fs::path(RAYSCAN_SHARED_DATA) / rel;
+  if (fs::exists(shared)) return shared;
+  return {};
+}
+
+#define RAYSCAN_REQUIRE_FILE(var, rel)                                                   \
+  const std::filesystem::path var = ::rayscan::test::data_file(rel);                     \
+  if (var.empty()) GTEST_SKIP() << rel << " is not in tests/data and ../shared/data is absent"
+
+inline std::vector<std::uint8_t> slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+inline fs::path temp_dir() {
+  const fs::path d = fs::temp_directory_path() / ("rayscan_io_tests_" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+}  // namespace rayscan::test

@@ -1,0 +1,108 @@
+// write_las / write_ply round trips: what is written reads back equal (LAS coordinates bit-exact
+// when written with the source's scale and offset, otherwise within half a scale unit).
+#include "io_test_util.hpp"
+
+#include <cmath>
+#include <random>
+
+namespace rayscan::test {
+namespace {
+
+TEST(Writers, LasRoundTripOfAutzenIsBitExactWithTheSourceScaleAndOffset) {
+  RAYSCAN_REQUIRE_FILE(p, "las/autzen_trim.las");
+  io::FileInfo info;
+  PointCloud src = io::read_point_cloud(p, {}, &info);
+  src.scalars.push_back({"visibility count", std::vector<double>(src.size())});
+  for (std::size_t i = 0; i < src.size(); ++i) src.scalars.back().values[i] = static_cast<double>(i % 97) + 0.25;
+  io::LasWriteOptions opt;
+  opt.scale = *info.scale;
+  opt.offset = *info.offset;
+  opt.has_offset = true;
+  const fs::path out = temp_dir() / "autzen_rt.las";
+  io::write_las(out, src, opt);
+  io::FileInfo back_info;
+  const PointCloud back = io::read_point_cloud(out, {}, &back_info);
+  EXPECT_EQ(back_info.version, "1.4");
+  EXPECT_EQ(back_info.point_format, 7);
+  ASSERT_EQ(back.size(), src.size());
+  EXPECT_EQ(back.positions, src.positions);
+  EXPECT_EQ(back.rgb, src.rgb);
+  EXPECT_EQ(back.intensity, src.intensity);
+  EXPECT_EQ(back.classification, src.classification);
+  EXPECT_EQ(back.gps_time, src.gps_time);
+  for (const char* s : {"return_number", "number_of_returns", "user_data", "point_source_id"})
+    EXPECT_EQ(back.scalar(s)->values, src.scalar(s)->values) << s;
+  // LAS 1.2 stores whole degrees, PDRF 6-10 units of 0.006 degrees: within half a unit.
+  const auto& a0 = back.scalar("scan_angle")->values;
+  const auto& a1 = src.scalar("scan_angle")->values;
+  for (std::size_t i = 0; i < a0.size(); ++i) ASSERT_NEAR(a0[i], a1[i], 0.003 + 1e-12) << i;
+  ASSERT_NE(back.scalar("visibility count"), nullptr);  // through the Extra Bytes VLR
+  EXPECT_EQ(back.scalar("visibility count")->values, src.scalar("visibility count")->values);
+  EXPECT_EQ(back.crs_wkt, src.crs_wkt);
+  EXPECT_EQ(back_info.crs_source, "WKT VLR");
+  EXPECT_FALSE(fs::exists(out.string() + ".tmp." + std::to_string(::getpid())));
+  fs::remove(out);
+}
+
+TEST(Writers, LasAutomaticScaleKeepsCoordinatesWithinHalfAUnit) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1000.0);
+  PointCloud pc;
+  for (int i = 0; i < 5000; ++i) pc.positions.emplace_back(4.9e6 + u(rng), 5.1e5 + u(rng), u(rng) - 500);
+  const fs::path out = temp_dir() / "auto.las";
+  io::write_las(out, pc);
+  io::FileInfo info;
+  const PointCloud back = io::read_point_cloud(out, {}, &info);
+  ASSERT_EQ(back.size(), pc.size());
+  for (std::size_t i = 0; i < pc.size(); ++i)
+    for (int k = 0; k < 3; ++k) ASSERT_LE(std::abs(back.positions[i][k] - pc.positions[i][k]), 0.5 * (*info.scale)[k] + 1e-9);
+  EXPECT_EQ(info.point_format, 6);
+  // Header bounds written from the quantised points: they agree with the recomputed box.
+  EXPECT_EQ(info.header_bounds->lo, back.bounds().lo);
+  EXPECT_EQ(info.header_bounds->hi, back.bounds().hi);
+  fs::remove(out);
+}
+
+TEST(Writers, PlyRoundTripKeepsDoublesNormalsScalarsAndEightBitColour) {
+  RAYSCAN_REQUIRE_FILE(p, "las/autzen_trim.las");
+  PointCloud src = io::read_point_cloud(p);
+  src.normals.assign(src.size(), glm::vec3(0.f, 0.6f, 0.8f));
+  const fs::path out = temp_dir() / "autzen_rt.ply";
+  io::write_ply(out, src);
+  const PointCloud back = io::read_point_cloud(out);
+  ASSERT_EQ(back.size(), src.size());
+  EXPECT_EQ(back.positions, src.positions);  // double properties: exact
+  EXPECT_EQ(back.rgb, src.rgb);              // 8-bit source colour survives the uchar round trip
+  EXPECT_EQ(back.normals, src.normals);
+  EXPECT_EQ(back.intensity, src.intensity);
+  EXPECT_EQ(back.classification, src.classification);
+  EXPECT_EQ(back.gps_time, src.gps_time);
+  for (const ScalarField& f : src.scalars) {
+    ASSERT_NE(back.scalar(f.name), nullptr) << f.name;
+    EXPECT_EQ(back.scalar(f.name)->values, f.values) << f.name;
+  }
+  fs::remove(out);
+}
+
+TEST(Writers, FailedWriteLeavesNoFile) {
+  PointCloud pc;
+  pc.positions = {Vec3(0, 0, 0), Vec3(1, 1, 1)};
+  pc.intensity = {1};  // wrong length: validate() fails
+  const fs::path out = temp_dir() / "bad.las";
+  EXPECT_THROW(io::write_las(out, pc), std::invalid_argument);
+  EXPECT_THROW(io::write_ply(out, pc), std::invalid_argument);
+  EXPECT_FALSE(fs::exists(out));
+  pc.intensity.clear();
+  EXPECT_THROW(io::write_ply("/nonexistent-dir/x.ply", pc), std::runtime_error);
+  io::LasWriteOptions opt;
+  opt.scale = Vec3(1e-9);  // 1 unit = 1e-9: coordinates of 1 do not fit 32-bit integers
+  opt.has_offset = true;
+  pc.positions[1] = Vec3(10, 10, 10);
+  EXPECT_THROW(io::write_las(out, pc, opt), std::invalid_argument);
+  EXPECT_FALSE(fs::exists(out));
+  for (const auto& de : fs::directory_iterator(temp_dir()))
+    EXPECT_EQ(de.path().string().find(".tmp."), std::string::npos) << de.path();
+}
+
+}  // namespace
+}  // namespace rayscan::test

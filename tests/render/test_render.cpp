@@ -1,0 +1,226 @@
+// Rendering real data: determinism across thread counts (issue 4, 4.2), depth AOV against a
+// brute-force ray/sphere oracle (4.3), image files through OpenImageIO, and every scene in
+// scenes/ renders at reduced size (4.4).
+#include "rayscan/io/point_io.hpp"
+#include "rayscan/render/image_output.hpp"
+#include "rayscan/render/material.hpp"
+#include "rayscan/render/render.hpp"
+
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <unistd.h>
+
+using namespace rayscan;
+using namespace rayscan::render;
+namespace fs = std::filesystem;
+
+namespace {
+
+const PointCloud& subset() {
+  static const PointCloud pc = io::read_point_cloud(fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz");
+  return pc;
+}
+
+// Oblique view of the 60 x 60 ft autzen subset (trees and ground), with a sun.
+Scene subset_scene(std::uint32_t w, std::uint32_t h) {
+  const AABB b = subset().bounds();
+  LookAtParams la;
+  la.position = b.center() + Vec3(-45.0, -60.0, 50.0);
+  la.look_at = b.center();
+  la.vfov_deg = 50.0;
+  Scene s;
+  s.camera = Camera::look_at(la, w, h);
+  s.sun.enabled = true;
+  s.sun.direction = glm::normalize(Vec3(0.5, -0.3, 0.8));
+  s.spp = 3;
+  s.max_depth = 3;
+  s.seed = 12345;
+  return s;
+}
+
+fs::path temp_dir() {
+  const fs::path d = fs::temp_directory_path() / ("rayscan_render_test_" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+}  // namespace
+
+TEST(Render, BitIdenticalForAnyThreadCount) {
+  const PointCloud& pc = subset();
+  const std::vector<Color> albedo(pc.size(), Color(0.6f, 0.5f, 0.4f));
+  const AnyIndex index = make_index(pc.positions, IndexOptions{});
+  Scene s = subset_scene(64, 48);
+  s.output.aovs = {Aov::depth, Aov::cost};
+  const RenderSettings set = make_settings(s, pc.positions, albedo, 0.8);
+  Framebuffer one, many;
+  RenderOptions o1, o3;
+  o1.threads = 1;
+  o3.threads = 3;
+  o3.tile_size = 7;  // different tiling too
+  render_image(index, set, one, o1);
+  render_image(index, set, many, o3);
+  ASSERT_EQ(one.beauty.size(), many.beauty.size());
+  EXPECT_EQ(std::memcmp(one.beauty.data(), many.beauty.data(), one.beauty.size() * sizeof(Color)), 0);
+  EXPECT_EQ(std::memcmp(one.depth.data(), many.depth.data(), one.depth.size() * sizeof(float)), 0);
+  EXPECT_EQ(std::memcmp(one.cost.data(), many.cost.data(), one.cost.size() * sizeof(float)), 0);
+  // And the seed matters.
+  Scene s2 = s;
+  s2.seed = 1;
+  Framebuffer other;
+  render_image(index, make_settings(s2, pc.positions, albedo, 0.8), other, o1);
+  EXPECT_NE(std::memcmp(one.beauty.data(), other.beauty.data(), one.beauty.size() * sizeof(Color)), 0);
+}
+
+class DepthOracle : public ::testing::TestWithParam<std::string> {};
+
+TEST_P(DepthOracle, DepthAovMatchesBruteForceRaySphere) {
+  const PointCloud& pc = subset();
+  const double r = 0.8;  // feet; median spacing of the subset is ~1.3 ft
+  const std::vector<Color> albedo(pc.size(), Color(0.5f));
+  IndexOptions io;
+  io.type = GetParam();
+  const AnyIndex index = make_index(pc.positions, io);
+  Scene s = subset_scene(48, 36);
+  s.spp = 1;
+  s.output.aovs = {Aov::depth, Aov::index};
+  Framebuffer fb;
+  render_image(index, make_settings(s, pc.positions, albedo, r), fb);
+  int hits = 0;
+  for (std::uint32_t y = 0; y < fb.height; ++y)
+    for (std::uint32_t x = 0; x < fb.width; ++x) {
+      // Oracle: the textbook quadratic |o + t d - c|^2 = r^2 (RTIOW section 6.2), every point.
+      const Ray ray = s.camera->generate_ray(x, y);
+      double best = kInf;
+      for (const Vec3& c : pc.positions) {
+        const Vec3 oc = ray.origin() - c;
+        const double hb = glm::dot(oc, ray.direction());
+        const double disc = hb * hb - (glm::dot(oc, oc) - r * r);
+        if (disc < 0.0) continue;
+        const double t = -hb - std::sqrt(disc);
+        if (t >= 0.0) best = std::min(best, t);
+      }
+      const std::size_t p = std::size_t(y) * fb.width + x;
+      if (std::isinf(best)) {
+        EXPECT_TRUE(std::isinf(fb.depth[p])) << x << "," << y;
+        EXPECT_EQ(fb.index[p], 0xFFFFFFFFu);
+      } else {
+        ++hits;
+        EXPECT_NEAR(fb.depth[p], best, 1e-6 * best) << x << "," << y;
+        // The reported point's own sphere is entered at that depth.
+        ASSERT_LT(fb.index[p], pc.size());
+        const Vec3 oc = ray.origin() - pc.positions[fb.index[p]];
+        const double hb = glm::dot(oc, ray.direction());
+        EXPECT_NEAR(-hb - std::sqrt(hb * hb - (glm::dot(oc, oc) - r * r)), best, 1e-6 * best);
+      }
+    }
+  EXPECT_GT(hits, int(fb.width * fb.height / 8));
+}
+
+INSTANTIATE_TEST_SUITE_P(Indexes, DepthOracle,
+                         ::testing::Values("octree-adaptive", "octree-layered", "kdtree"));
+
+TEST(ImageOutput, ExrHoldsBeautyAndAovChannelsAndMetadata) {
+  const PointCloud& pc = subset();
+  MaterialDesc mat;
+  mat.mode = ColorMode::elevation;
+  const std::vector<Color> albedo = compute_albedo(pc, mat, Vec3(0, 0, 1));
+  const AnyIndex index = make_index(pc.positions, IndexOptions{});
+  Scene s = subset_scene(32, 24);
+  s.spp = 1;
+  s.output.aovs = {Aov::depth, Aov::normal, Aov::position, Aov::index, Aov::albedo, Aov::cost};
+  Framebuffer fb;
+  render_image(index, make_settings(s, pc.positions, albedo, 0.8), fb);
+  OutputDesc out;
+  out.image = temp_dir() / "img.exr";
+  out.exr_half = false;
+  const auto files = write_image(fb, out, {{"rayscan:spp", "1"}});
+  ASSERT_EQ(files.size(), 1u);
+  auto in = OIIO::ImageInput::open(out.image.string());
+  ASSERT_TRUE(in);
+  const OIIO::ImageSpec& spec = in->spec();
+  EXPECT_EQ(spec.width, 32);
+  EXPECT_EQ(spec.get_string_attribute("rayscan:spp"), "1");
+  int zc = -1, idc = -1;
+  for (int c = 0; c < spec.nchannels; ++c) {
+    if (spec.channelnames[c] == "Z") zc = c;
+    if (spec.channelnames[c] == "id") idc = c;
+  }
+  ASSERT_GE(zc, 0);
+  ASSERT_GE(idc, 0);
+  EXPECT_EQ(spec.nchannels, 3 + 1 + 3 + 3 + 3 + 1 + 1);
+  EXPECT_EQ(spec.channelformat(idc), OIIO::TypeDesc::UINT);
+  std::vector<float> z(32 * 24);
+  std::vector<std::uint32_t> ids(32 * 24);
+  ASSERT_TRUE(in->read_image(0, 0, zc, zc + 1, OIIO::TypeDesc::FLOAT, z.data()));
+  ASSERT_TRUE(in->read_image(0, 0, idc, idc + 1, OIIO::TypeDesc::UINT, ids.data()));
+  for (std::size_t i = 0; i < z.size(); ++i) {
+    EXPECT_EQ(z[i], fb.depth[i]);
+    EXPECT_EQ(ids[i], fb.index[i]);
+  }
+  // Nothing temporary is left next to the image.
+  for (const auto& e : fs::directory_iterator(temp_dir()))
+    EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
+}
+
+TEST(ImageOutput, PngIsSrgbEncodedAt16Bit) {
+  Framebuffer fb;
+  fb.width = 2;
+  fb.height = 1;
+  fb.beauty = {Color(0.5f), Color(0.0031308f, 1.0f, 2.0f)};
+  OutputDesc out;
+  out.image = temp_dir() / "img16.png";
+  out.bit_depth = 16;
+  write_image(fb, out, {});
+  auto in = OIIO::ImageInput::open(out.image.string());
+  ASSERT_TRUE(in);
+  EXPECT_EQ(in->spec().format, OIIO::TypeDesc::UINT16);
+  std::vector<std::uint16_t> px(6);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT16, px.data()));
+  // sRGB(0.5) = 1.055 * 0.5^(1/2.4) - 0.055 = 0.735357...
+  EXPECT_EQ(px[0], std::lround(0.7353569830524495 * 65535));
+  EXPECT_EQ(px[3], std::lround(0.0031308 * 12.92 * 65535));
+  EXPECT_EQ(px[4], 65535);
+  EXPECT_EQ(px[5], 65535);  // clamped
+}
+
+TEST(ImageOutput, UnwritableFolderIsAnErrorNamingTheFile) {
+  Framebuffer fb;
+  fb.width = fb.height = 1;
+  fb.beauty = {Color(0.5f)};
+  OutputDesc out;
+  out.image = "/proc/rayscan_no_such_dir/x.png";
+  try {
+    write_image(fb, out, {});
+    FAIL() << "expected an error";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("x.png"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Scenes, EverySceneRendersAtReducedSize) {
+  int count = 0;
+  for (const auto& e : fs::directory_iterator(RAYSCAN_SCENES_DIR)) {
+    if (e.path().extension() != ".json") continue;
+    SCOPED_TRACE(e.path().string());
+    ++count;
+    Scene s = load_scene(e.path());
+    const PointCloud pc = io::read_point_cloud(s.cloud);
+    ASSERT_FALSE(pc.empty());
+    const std::vector<Color> albedo = compute_albedo(pc, s.material, s.up);
+    const AnyIndex index = make_index(pc.positions, s.index);
+    const double r = s.radius ? *s.radius : s.auto_radius_factor * median_nn_spacing(index, pc.positions, 2000);
+    s.camera = s.camera->resized(48, 32);
+    s.spp = 1;
+    s.output.aovs = {Aov::index};
+    Framebuffer fb;
+    render_image(index, make_settings(s, pc.positions, albedo, r), fb);
+    // The camera sees the cloud: a good share of the pixels hit a point.
+    const auto hit = std::count_if(fb.index.begin(), fb.index.end(), [](std::uint32_t i) { return i != 0xFFFFFFFFu; });
+    EXPECT_GT(hit, 48 * 32 / 5);
+  }
+  EXPECT_GE(count, 4);
+}

@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# The main job on bundled real data: builds rayscan (installing Debian packages when missing) and
+# renders the Autzen scan (scenes/data/autzen_trim.las, 110,000 coloured airborne LiDAR points)
+# from scenes/autzen_overview.json to out/autzen_overview.png.
+# Usage: tools/demo.sh [BUILD_DIR]   (default: build)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BUILD="${1:-build}"
+./tools/build.sh "$BUILD"
+mkdir -p out
+"$BUILD/tools/rayscan" render scenes/autzen_overview.json --out out/autzen_overview.png
+echo "demo: the rendered site is $(pwd)/out/autzen_overview.png"
