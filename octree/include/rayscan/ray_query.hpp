@@ -184,7 +184,7 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
 
   // Node test (section 3.3): false prunes the node; otherwise lb receives a lower bound of the key
   // of any result inside it.
-  auto test_node = [&](const AABB& b, double& lb) -> bool {
+  auto test_node = [&](const AABB& b, double& lb) __attribute__((always_inline)) -> bool {
     Interval iv;
     if (pad < kInf) {
       // Slab test of the box grown by pad: every qualifying point projects inside [tn, tf].
