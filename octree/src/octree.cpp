@@ -1,5 +1,6 @@
 #include "rayscan/octree.hpp"
 
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
@@ -52,7 +53,7 @@ struct Quantizer {
   double scale;  // cells per world unit
   std::uint64_t code(const Vec3& p) const {
     auto q = [&](double v, double l) {
-      const double f = std::floor((v - l) * scale);
+      const double f = (v - l) * scale;  // truncation == floor for f >= 0
       if (!(f >= 0.0)) return std::uint32_t{0};
       if (f >= kCells - 1) return kCells - 1;
       return static_cast<std::uint32_t>(f);
@@ -90,7 +91,10 @@ struct OctreeBuilder {
     t.cell_ = AABB{b.lo, b.lo + Vec3(side)};
     const Quantizer qz{b.lo, kCells / side};
     codes.resize(pts.size());
-    for (std::size_t i = 0; i < pts.size(); ++i) codes[i] = qz.code(pts[i]);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pts.size(), 1 << 16),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                        for (std::size_t i = r.begin(); i != r.end(); ++i) codes[i] = qz.code(pts[i]);
+                      });
   }
 
   static bool splits(const OctreeConfig& c, unsigned depth, std::size_t count, bool all_same) {
@@ -176,15 +180,19 @@ struct OctreeBuilder {
     for (std::size_t i = b; i < rest; ++i) scratch.push_back(items[i].idx);
     emit_points(t, pts, n, scratch);
     if (rest < e) {
-      // Children: contiguous runs of equal octant digit (items are Morton-sorted).
+      // Children: contiguous runs of equal octant digit (items are Morton-sorted and share the
+      // digits above this level), found by binary search on the digit.
       std::array<std::size_t, 9> start{};
       unsigned nchild = 0;
       std::array<unsigned, 8> oct{};
       std::size_t i = rest;
       while (i < e) {
         const unsigned o = octant(items[i].code, depth);
-        std::size_t j = i;
-        while (j < e && octant(items[j].code, depth) == o) ++j;
+        const std::size_t j = static_cast<std::size_t>(
+            std::partition_point(items.begin() + static_cast<std::ptrdiff_t>(i),
+                                 items.begin() + static_cast<std::ptrdiff_t>(e),
+                                 [&](const Item& it) { return octant(it.code, depth) == o; }) -
+            items.begin());
         start[nchild] = i;
         oct[nchild] = o;
         ++nchild;
@@ -288,8 +296,11 @@ Octree Octree::build_bulk(std::span<const Vec3> positions, const OctreeConfig& c
   std::vector<std::uint64_t> codes;
   OctreeBuilder::prepare(t, positions, config, codes);
   std::vector<OctreeBuilder::Item> items(positions.size());
-  for (std::size_t i = 0; i < items.size(); ++i)
-    items[i] = {codes[i], static_cast<std::uint32_t>(i)};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, items.size(), 1 << 16),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t i = r.begin(); i != r.end(); ++i)
+                        items[i] = {codes[i], static_cast<std::uint32_t>(i)};
+                    });
   std::vector<std::uint64_t>().swap(codes);
   tbb::parallel_sort(items.begin(), items.end());
   t.pos_.reserve(positions.size());

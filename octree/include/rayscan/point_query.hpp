@@ -31,8 +31,10 @@ void for_subtree(const I& index, typename I::Node n, F&& f) {
 }  // namespace detail
 
 /// Box range query: the original indices of all points p with box.lo <= p <= box.hi (inclusive on
-/// every side), in ascending index order. Nodes inside the box are taken whole (contiguous slots)
-/// without per-point tests. An empty box (lo > hi on an axis) returns nothing.
+/// every side), in the index's storage order (deterministic; sort the result if ascending indices
+/// are needed: the peers Boost.Geometry rtree and nanoflann also return tree order). Nodes inside
+/// the box are taken whole (contiguous slots) without per-point tests. An empty box (lo > hi on an
+/// axis) returns nothing.
 template <SpatialIndex I>
 void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
   out.clear();
@@ -56,7 +58,6 @@ void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
       if (box.contains(pos[s])) out.push_back(ids[s]);
     for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) stack.push_back(index.child(n, i));
   }
-  std::sort(out.begin(), out.end());
 }
 
 /// kNN with optional radius: the at most k points nearest to q with distance <= radius (inclusive),
