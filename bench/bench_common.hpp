@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <fstream>
 #include <random>
 #include <string>
@@ -28,6 +29,23 @@ class Stopwatch {
 
  private:
   std::chrono::steady_clock::time_point t0_;
+};
+
+/// CPU time of the calling thread (clock_gettime(CLOCK_THREAD_CPUTIME_ID)), milliseconds. On a
+/// shared, loaded machine this excludes the time the thread waits for a core, so single-threaded
+/// figures stay comparable between runs (cache interference from other processes remains).
+class ThreadCpuStopwatch {
+ public:
+  ThreadCpuStopwatch() : t0_(now()) {}
+  [[nodiscard]] double ms() const { return now() - t0_; }
+
+ private:
+  static double now() {
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+  }
+  double t0_;
 };
 
 /// Median of a sample (the upper median for an even count); NaN for an empty sample.
@@ -112,6 +130,14 @@ inline void keep(const T& v) {
       return c == std::string::npos ? line : line.substr(c + 2);
     }
   return "unknown";
+}
+
+/// The first three fields of /proc/loadavg (1, 5, 15 minute load): other work on the machine.
+[[nodiscard]] inline std::string loadavg() {
+  std::ifstream in("/proc/loadavg");
+  std::string a, b, c;
+  in >> a >> b >> c;
+  return a + " " + b + " " + c;
 }
 
 }  // namespace rayscan::bench
