@@ -1,25 +1,13 @@
-# Convenience entry points; the build itself is CMake (see CMakeLists.txt).
+# Convenience aliases for the scripts in tools/ (the README's commands need no make).
 BUILD ?= build
-JOBS ?= $(shell nproc)
-
-.PHONY: deps build demo test bench clean
-
-deps:
-	./tools/install-deps.sh
-
-build: deps
-	cmake -S . -B $(BUILD) -G Ninja -DCMAKE_BUILD_TYPE=Release
-	cmake --build $(BUILD) -j $(JOBS)
-
-# The main job on bundled real data.
-demo: build
+.PHONY: build demo test bench clean
+build:
+	./tools/build.sh $(BUILD)
+demo:
 	./tools/demo.sh $(BUILD)
-
-test: build
-	ctest --test-dir $(BUILD) --output-on-failure -j $(JOBS)
-
+test:
+	./tools/test.sh $(BUILD)
 bench: build
 	./bench/run.sh $(BUILD)
-
 clean:
 	rm -rf $(BUILD)

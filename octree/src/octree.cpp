@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace rayscan {
@@ -109,15 +110,37 @@ struct OctreeBuilder {
     for (std::uint32_t i : idx) {
       t.pos_.push_back(pts[i]);
       t.ids_.push_back(i);
-      rec.box.expand(pts[i]);
     }
     rec.own_end = static_cast<std::uint32_t>(t.pos_.size());
   }
 
+  // A float bound strictly below (up = false) or above (up = true) the double offset `off`: round to
+  // float, then step one float ulp outwards, which is far more than the double rounding of the
+  // offset and of adding it back to the corner, so the stored box always contains the points.
+  static float to_float_bound(double off, bool up) {
+    if (off == 0.0) return 0.0f;
+    const float f = static_cast<float>(off);
+    return std::nextafter(f, up ? std::numeric_limits<float>::infinity()
+                                : -std::numeric_limits<float>::infinity());
+  }
+
+  // Bounds of the node's own points and children (children are closed first).
   static void close_node(Octree& t, Octree::Node n, unsigned depth) {
     auto& rec = t.nodes_[n];
-    rec.subtree_end = static_cast<std::uint32_t>(t.pos_.size());
-    for (unsigned c = 0; c < rec.child_count; ++c) rec.box.expand(t.nodes_[rec.first_child + c].box);
+    AABB own;
+    for (std::uint32_t s = rec.own_begin; s < rec.own_end; ++s) own.expand(t.pos_[s]);
+    glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+    if (!own.empty())
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = to_float_bound(own.lo[a] - t.cell_.lo[a], false);
+        hi[a] = to_float_bound(own.hi[a] - t.cell_.lo[a], true);
+      }
+    for (unsigned c = 0; c < rec.child_count; ++c) {
+      lo = glm::min(lo, t.nodes_[rec.first_child + c].lo);
+      hi = glm::max(hi, t.nodes_[rec.first_child + c].hi);
+    }
+    rec.lo = lo;
+    rec.hi = hi;
     t.depth_ = std::max(t.depth_, depth);
   }
 
@@ -346,8 +369,7 @@ bool Octree::same_structure(const Octree& o) const {
   for (std::size_t i = 0; i < nodes_.size(); ++i) {
     const NodeRec &a = nodes_[i], &b = o.nodes_[i];
     if (a.key != b.key || a.first_child != b.first_child || a.own_begin != b.own_begin ||
-        a.own_end != b.own_end || a.subtree_end != b.subtree_end ||
-        a.child_count != b.child_count || a.box.lo != b.box.lo || a.box.hi != b.box.hi)
+        a.own_end != b.own_end || a.child_count != b.child_count || a.lo != b.lo || a.hi != b.hi)
       return false;
   }
   return true;

@@ -44,7 +44,9 @@ struct OctreeConfig {
 /// node's own points and each subtree's points are contiguous; ids() maps a slot back to the
 /// caller's original point index. Children of a node are contiguous in the node array. Node bounds
 /// are the tight boxes of the points below the node (tighter than the node's cell, so pruning is
-/// stronger; the cell itself is available from cell_bounds()).
+/// stronger; the cell itself is available from cell_bounds()), stored as float offsets from the
+/// root cell's corner rounded outwards (so they still contain every point), which keeps a node at
+/// 48 bytes and the whole index under 40 bytes per point.
 ///
 /// Cells: the root cell is the cube of edge max_extent (grown by 1e-9 relative so the maximum point
 /// falls inside) anchored at the cloud's minimum corner; a point's cell at depth D is given by the
@@ -68,7 +70,10 @@ class Octree {
   // SpatialIndex concept ---------------------------------------------------------------------
   [[nodiscard]] bool empty() const { return pos_.empty(); }
   [[nodiscard]] Node root() const { return 0; }
-  [[nodiscard]] const AABB& node_bounds(Node n) const { return nodes_[n].box; }
+  [[nodiscard]] AABB node_bounds(Node n) const {
+    const NodeRec& r = nodes_[n];
+    return {cell_.lo + Vec3(r.lo), cell_.lo + Vec3(r.hi)};
+  }
   [[nodiscard]] SlotRange node_points(Node n) const {
     return {nodes_[n].own_begin, nodes_[n].own_end};
   }
@@ -78,7 +83,9 @@ class Octree {
   [[nodiscard]] std::span<const PointIndex> ids() const { return ids_; }
   /// All slots of the subtree rooted at n (its own points and every descendant's): contiguous.
   [[nodiscard]] SlotRange subtree_points(Node n) const {
-    return {nodes_[n].own_begin, nodes_[n].subtree_end};
+    Node last = n;
+    while (nodes_[last].child_count) last = nodes_[last].first_child + nodes_[last].child_count - 1;
+    return {nodes_[n].own_begin, nodes_[last].own_end};
   }
 
   // Octree specifics ---------------------------------------------------------------------------
@@ -113,10 +120,11 @@ class Octree {
 
   /// Node record (public for the builders in octree.cpp; not part of the API contract).
   struct NodeRec {
-    AABB box;                     ///< tight bounds of the subtree's points
-    std::uint64_t key = 1;        ///< Warren & Salmon id bits
+    glm::vec3 lo{0.0f}, hi{0.0f};  ///< bounds of the subtree's points relative to root_cell().lo,
+                                   ///< rounded outwards to float
+    std::uint64_t key = 1;         ///< Warren & Salmon id bits
     std::uint32_t first_child = 0;
-    std::uint32_t own_begin = 0, own_end = 0, subtree_end = 0;
+    std::uint32_t own_begin = 0, own_end = 0;
     std::uint8_t child_count = 0;
   };
 

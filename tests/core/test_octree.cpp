@@ -1,0 +1,200 @@
+// Octree structure (paper section 4.1): insertion == bulk, the three organisations' invariants,
+// Warren & Salmon ids and the lazy per-level maps, duplicates, storage order and permutation.
+#include "test_util.hpp"
+
+#include "rayscan/octree.hpp"
+
+#include <gtest/gtest.h>
+
+#include <numeric>
+
+using namespace rayscan;
+using namespace rayscan::test;
+
+namespace {
+
+struct Cfg {
+  OctreeLayout layout;
+  std::uint32_t capacity;
+  unsigned depth;
+  unsigned max_depth;
+};
+
+std::vector<Cfg> configs() {
+  return {{OctreeLayout::adaptive, 1, 6, 21}, {OctreeLayout::adaptive, 16, 6, 21},
+          {OctreeLayout::adaptive, 16, 6, 3}, {OctreeLayout::layered, 4, 6, 21},
+          {OctreeLayout::layered, 32, 6, 2},  {OctreeLayout::fixed, 16, 0, 21},
+          {OctreeLayout::fixed, 16, 5, 21}};
+}
+
+OctreeConfig to_config(const Cfg& c) {
+  OctreeConfig o;
+  o.layout = c.layout;
+  o.capacity = c.capacity;
+  o.depth = c.depth;
+  o.max_depth = c.max_depth;
+  return o;
+}
+
+// Checks every structural invariant the header documents.
+void check_invariants(const Octree& t, std::span<const Vec3> pts, const OctreeConfig& c) {
+  ASSERT_EQ(t.positions().size(), pts.size());
+  // ids is a permutation and positions are the reordered input.
+  std::vector<PointIndex> ids(t.ids().begin(), t.ids().end());
+  for (std::size_t s = 0; s < ids.size(); ++s) ASSERT_EQ(t.positions()[s], pts[ids[s]]);
+  std::sort(ids.begin(), ids.end());
+  for (std::size_t i = 0; i < ids.size(); ++i) ASSERT_EQ(ids[i], i);
+  if (pts.empty()) return;
+  // Walk: subtree slots contiguous, children tile the subtree after own points, boxes tight.
+  std::vector<std::pair<Octree::Node, unsigned>> stack{{t.root(), 0}};
+  std::size_t visited = 0;
+  while (!stack.empty()) {
+    auto [n, depth] = stack.back();
+    stack.pop_back();
+    ++visited;
+    EXPECT_EQ(t.node_id(n).depth(), depth);
+    const SlotRange own = t.node_points(n);
+    const SlotRange sub = t.subtree_points(n);
+    EXPECT_EQ(own.begin, sub.begin);
+    // Bounds contain every subtree point and are tight up to float rounding of the offsets.
+    AABB tight;
+    for (std::uint32_t s = sub.begin; s < sub.end; ++s) tight.expand(t.positions()[s]);
+    const AABB nb = t.node_bounds(n);
+    const double slack = 1e-6 * std::max(t.root_cell().max_extent(), 1.0);
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_LE(nb.lo[a], tight.lo[a]);
+      EXPECT_GE(nb.hi[a], tight.hi[a]);
+      EXPECT_LE(tight.lo[a] - nb.lo[a], slack);
+      EXPECT_LE(nb.hi[a] - tight.hi[a], slack);
+    }
+    // Every point of the subtree lies in the node's cell (up to the cell's rounding).
+    const AABB cell = t.cell_bounds(n);
+    const double eps = 1e-9 * t.root_cell().max_extent();
+    for (std::uint32_t s = sub.begin; s < sub.end; ++s) {
+      const Vec3& p = t.positions()[s];
+      EXPECT_TRUE(p.x >= cell.lo.x - eps && p.x <= cell.hi.x + eps && p.y >= cell.lo.y - eps &&
+                  p.y <= cell.hi.y + eps && p.z >= cell.lo.z - eps && p.z <= cell.hi.z + eps);
+    }
+    std::uint32_t next = own.end;
+    for (unsigned i = 0; i < t.child_count(n); ++i) {
+      const auto ch = t.child(n, i);
+      EXPECT_EQ(t.subtree_points(ch).begin, next);
+      next = t.subtree_points(ch).end;
+      EXPECT_EQ(t.node_id(ch).parent(), t.node_id(n));
+      EXPECT_GT(t.subtree_points(ch).size(), 0u) << "empty child";
+      stack.push_back({ch, depth + 1});
+    }
+    EXPECT_EQ(next, sub.end);
+    const bool leaf = t.child_count(n) == 0;
+    switch (c.layout) {
+      case OctreeLayout::fixed:
+        if (leaf) {
+          EXPECT_EQ(depth, c.depth);
+        } else {
+          EXPECT_EQ(own.size(), 0u);
+        }
+        break;
+      case OctreeLayout::layered:
+        if (!leaf) {
+          EXPECT_EQ(own.size(), c.capacity);
+        } else if (depth < c.max_depth) {
+          EXPECT_LE(own.size(), c.capacity);
+        }
+        break;
+      case OctreeLayout::adaptive:
+        if (!leaf) {
+          EXPECT_EQ(own.size(), 0u);
+        } else if (depth < c.max_depth && own.size() > c.capacity) {
+          // Only an all-duplicate leaf may exceed the capacity.
+          for (std::uint32_t s = own.begin; s < own.end; ++s)
+            EXPECT_EQ(t.positions()[s], t.positions()[own.begin]);
+        }
+        break;
+    }
+  }
+  EXPECT_EQ(visited, t.node_count());
+}
+
+TEST(Octree, InsertionAndBulkBuildIdenticalTrees) {
+  for (Dist d : {Dist::uniform, Dist::clustered, Dist::identical, Dist::grid, Dist::utm_mm})
+    for (std::size_t n : {0u, 1u, 2u, 1000u, 20000u})
+      for (const Cfg& cfg : configs()) {
+        const auto pts = make_points(n, d, 17);
+        const OctreeConfig c = to_config(cfg);
+        const Octree bulk = Octree::build_bulk(pts, c);
+        const Octree ins = Octree::build_by_insertion(pts, c);
+        SCOPED_TRACE(std::string(name(d)) + " n=" + std::to_string(n) + " " + to_string(c.layout) +
+                     " cap=" + std::to_string(c.capacity));
+        EXPECT_TRUE(bulk.same_structure(ins));
+        check_invariants(bulk, pts, c);
+        if (::testing::Test::HasFailure()) return;
+      }
+}
+
+TEST(Octree, DuplicatesDoNotSplitEndlessly) {
+  std::vector<Vec3> pts(50000, Vec3(1.5, -2.0, 3.25));
+  pts.emplace_back(1.0, 1.0, 1.0);  // one distinct point forces a real root split
+  OctreeConfig c;
+  c.capacity = 8;
+  const Octree t = Octree::build_bulk(pts, c);
+  EXPECT_LT(t.node_count(), 50u);  // a chain to the depth where the two separate, nothing more
+  check_invariants(t, pts, c);
+}
+
+TEST(Octree, LayeredKeepsFirstInsertedPointsPerLevel) {
+  const auto pts = make_points(5000, Dist::uniform, 4);
+  OctreeConfig c;
+  c.layout = OctreeLayout::layered;
+  c.capacity = 10;
+  const Octree t = Octree::build_by_insertion(pts, c);
+  // The root keeps points 0..9, the first ten inserted: a subsample.
+  std::vector<PointIndex> root_ids;
+  for (std::uint32_t s = t.node_points(t.root()).begin; s < t.node_points(t.root()).end; ++s)
+    root_ids.push_back(t.ids()[s]);
+  std::sort(root_ids.begin(), root_ids.end());
+  std::vector<PointIndex> first(10);
+  std::iota(first.begin(), first.end(), 0u);
+  EXPECT_EQ(root_ids, first);
+}
+
+TEST(Octree, LevelMapsFindEveryNodeAndLocateFindsTheDeepestCell) {
+  const auto pts = make_points(3000, Dist::clustered, 8);
+  const Octree t = Octree::build_bulk(pts, OctreeConfig{OctreeLayout::adaptive, 4, 21, 6});
+  for (Octree::Node n = 0; n < t.node_count(); ++n) {
+    const auto found = t.find(t.node_id(n));
+    ASSERT_TRUE(found.has_value());
+    EXPECT_EQ(*found, n);
+  }
+  EXPECT_FALSE(t.find(OctreeNodeId(21, 12345)).has_value());
+  for (std::size_t i = 0; i < pts.size(); i += 37) {
+    const auto n = t.locate(pts[i]);
+    ASSERT_TRUE(n.has_value());
+    EXPECT_EQ(t.child_count(*n), 0u);  // adaptive: the deepest node holding p is a leaf
+    const SlotRange sr = t.node_points(*n);
+    bool holds = false;
+    for (std::uint32_t s = sr.begin; s < sr.end; ++s) holds = holds || t.ids()[s] == i;
+    EXPECT_TRUE(holds) << "point " << i;
+  }
+  EXPECT_FALSE(t.locate(Vec3(100, 100, 100)).has_value());
+}
+
+TEST(Octree, RejectsBadInput) {
+  std::vector<Vec3> pts = {Vec3(0.0), Vec3(std::nan(""), 0, 0)};
+  EXPECT_THROW(Octree::build_bulk(pts), std::invalid_argument);
+  EXPECT_THROW(Octree::build_by_insertion(pts), std::invalid_argument);
+  OctreeConfig c;
+  c.capacity = 0;
+  EXPECT_THROW(Octree::build_bulk(std::span<const Vec3>{}, c), std::invalid_argument);
+  c = {};
+  c.max_depth = 22;
+  EXPECT_THROW(Octree::build_bulk(std::span<const Vec3>{}, c), std::invalid_argument);
+  EXPECT_THROW(parse_octree_layout("grid"), std::invalid_argument);
+}
+
+TEST(Octree, MemoryStaysUnderFortyBytesPerPoint) {
+  const auto pts = make_points(200000, Dist::uniform, 2);
+  const Octree t = Octree::build_bulk(pts);  // default config
+  EXPECT_LE(static_cast<double>(t.memory_bytes()) / pts.size(), 40.0);
+}
+
+}  // namespace

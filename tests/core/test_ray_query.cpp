@@ -1,0 +1,288 @@
+// Ray query (paper Algorithm 1) against the independent brute-force oracle, for every modality of
+// section 3.1, every index and organisation, several sizes and distributions.
+#include "test_util.hpp"
+
+#include "rayscan/batch.hpp"
+#include "rayscan/brute_force.hpp"
+
+#include <gtest/gtest.h>
+
+#include <sstream>
+
+using namespace rayscan;
+using namespace rayscan::test;
+
+namespace {
+
+std::string describe(const RayQuery& q) {
+  std::ostringstream s;
+  s << "k=" << (q.k == kAllPoints ? -1.0 : static_cast<double>(q.k)) << " r=" << q.radius
+    << " t=[" << q.t_min << "," << q.t_max << "] order=" << static_cast<int>(q.order)
+    << " planes=" << q.planes.size();
+  return s.str();
+}
+
+void expect_same(const std::vector<RayHit>& got, const std::vector<RayHit>& want,
+                 const std::string& ctx) {
+  ASSERT_EQ(got.size(), want.size()) << ctx;
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    ASSERT_EQ(got[i].index, want[i].index) << ctx << " rank " << i;
+    ASSERT_EQ(got[i].t, want[i].t) << ctx << " rank " << i;
+    ASSERT_EQ(got[i].distance, want[i].distance) << ctx << " rank " << i;
+  }
+}
+
+// The query modalities of paper section 3.1 (and combinations), scaled to the cloud's extent s.
+std::vector<RayQuery> modalities(double s, std::size_t n) {
+  std::vector<RayQuery> qs;
+  RayQuery q;
+  q.k = 8;  // kNN to the ray
+  qs.push_back(q);
+  q = {};
+  q.k = 5;  // kNN along the ray (closest by t)
+  q.order = RayOrder::time;
+  qs.push_back(q);
+  q = {};
+  q.radius = 0.05 * s;  // radius: the infinite cylinder
+  qs.push_back(q);
+  q = {};
+  q.t_min = 0.2 * s;  // time range: the slab between two planes
+  q.t_max = 0.6 * s;
+  q.order = RayOrder::time;
+  qs.push_back(q);
+  q = {};
+  q.k = 1;  // "closest": ray-marching emulation, k = 1 by time within r
+  q.radius = 0.03 * s;
+  q.order = RayOrder::time;
+  qs.push_back(q);
+  q = {};
+  q.k = 1;  // first sphere hit
+  q.radius = 0.02 * s;
+  q.t_min = 0.0;
+  q.order = RayOrder::sphere_hit;
+  qs.push_back(q);
+  q = {};
+  q.k = 3;  // combination: k + r + time, ordered by ray distance
+  q.radius = 0.1 * s;
+  q.t_min = -0.5 * s;
+  q.t_max = 1.5 * s;
+  qs.push_back(q);
+  q = {};
+  q.k = 4;  // sphere_hit, several hits, bounded time
+  q.radius = 0.05 * s;
+  q.t_min = 0.1 * s;
+  q.t_max = 3.0 * s;
+  q.order = RayOrder::sphere_hit;
+  qs.push_back(q);
+  q = {};
+  q.k = n + 7;  // k > N
+  qs.push_back(q);
+  q = {};
+  q.radius = 0.0;  // r = 0: only points exactly on the line
+  qs.push_back(q);
+  q = {};
+  q.k = 3;  // eq. 3 node bound instead of the exact distance: same answers
+  q.radius = 0.2 * s;
+  q.node_distance = NodeDistance::eq3;
+  qs.push_back(q);
+  return qs;
+}
+
+struct Case {
+  std::size_t n;
+  Dist dist;
+};
+
+class RayQueryProperty : public ::testing::TestWithParam<Case> {};
+
+TEST_P(RayQueryProperty, MatchesBruteForceOracleOnEveryIndex) {
+  const Case c = GetParam();
+  const std::vector<Vec3> pts = make_points(c.n, c.dist, 3);
+  AABB box;
+  for (const Vec3& p : pts) box.expand(p);
+  if (box.empty()) box = AABB{Vec3(0.0), Vec3(1.0)};
+  const double s = std::max(box.max_extent(), 1e-3);
+  std::mt19937_64 rng(42 + c.n);
+  std::vector<Ray> rays;
+  const int nrays = c.n >= 100000 ? 6 : 24;
+  for (int i = 0; i < nrays; ++i) rays.push_back(random_ray(rng, box, i % 3 == 0));
+  // Rays parallel to each axis, through a data point (so r = 0 and ties are exercised).
+  for (int a = 0; a < 3; ++a) {
+    Vec3 d(0.0);
+    d[a] = (a == 1) ? -1.0 : 1.0;
+    const Vec3 through = pts.empty() ? box.center() : pts[pts.size() / 2];
+    rays.emplace_back(through - 2.0 * s * d, d);
+  }
+  const auto qs = modalities(s, c.n);
+  std::vector<std::size_t> nonempty(qs.size(), 0);  // guards against a vacuous comparison
+  for (const IndexOptions& opt : all_index_options()) {
+    if (c.n >= 100000 && opt.insertion && opt.type != "octree-adaptive") continue;  // time budget
+    const AnyIndex index = make_index(pts, opt);
+    for (std::size_t qi = 0; qi < qs.size(); ++qi) {
+      const RayQuery& q = qs[qi];
+      for (std::size_t r = 0; r < rays.size(); ++r) {
+        const auto want = oracle_ray_query(pts, rays[r], q);
+        nonempty[qi] += !want.empty();
+        const auto got = std::visit([&](const auto& idx) { return ray_query(idx, rays[r], q); }, index);
+        expect_same(got, want,
+                    std::string(name(c.dist)) + " n=" + std::to_string(c.n) + " " + label(opt) +
+                        " ray " + std::to_string(r) + " " + describe(q));
+        if (::testing::Test::HasFatalFailure()) return;
+      }
+    }
+  }
+  if (c.n >= 1000) {
+    for (std::size_t qi = 0; qi < qs.size(); ++qi)
+      EXPECT_GT(nonempty[qi], 0u) << "modality " << describe(qs[qi]) << " never returned a point";
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Sizes, RayQueryProperty,
+    ::testing::Values(Case{0, Dist::uniform}, Case{1, Dist::uniform}, Case{2, Dist::uniform},
+                      Case{1000, Dist::uniform}, Case{1000, Dist::clustered},
+                      Case{500, Dist::identical}, Case{1000, Dist::grid}, Case{1000, Dist::utm_mm},
+                      Case{100000, Dist::uniform}, Case{100000, Dist::clustered}),
+    [](const ::testing::TestParamInfo<Case>& i) {
+      return std::string(name(i.param.dist)) + "_" + std::to_string(i.param.n);
+    });
+
+TEST(RayQuery, StatsCountWorkAndPruningVisitsFewNodes) {
+  const auto pts = make_points(100000, Dist::uniform, 12);
+  const Octree tree = Octree::build_bulk(pts);
+  RayQuery q;
+  q.k = 1;
+  q.radius = 0.005;
+  q.order = RayOrder::sphere_hit;
+  RayQueryStats st;
+  const auto hits = ray_query(tree, Ray(Vec3(-1, 0.5, 0.5), Vec3(1, 0.01, 0.02)), q, &st);
+  ASSERT_EQ(hits.size(), 1u);
+  EXPECT_GT(st.nodes_visited, 0u);
+  // The first hit lies near the entry face: pruning must skip almost all of the tree.
+  EXPECT_LT(st.nodes_visited, tree.node_count() / 20);
+}
+
+TEST(RayQuery, FrustumPlanesCombineWithRayPredicates) {
+  const auto pts = make_points(3000, Dist::uniform, 9);
+  // A box-shaped frustum [0.2, 0.7]^3 as six planes, plus an oblique plane.
+  const std::vector<Plane> planes = {
+      {Vec3(0.2), Vec3(-1, 0, 0)}, {Vec3(0.7), Vec3(1, 0, 0)}, {Vec3(0.2), Vec3(0, -1, 0)},
+      {Vec3(0.7), Vec3(0, 1, 0)},  {Vec3(0.2), Vec3(0, 0, -1)}, {Vec3(0.7), Vec3(0, 0, 1)},
+      {Vec3(0.5), Vec3(1, 1, 1)}};
+  const Ray ray(Vec3(-1, 0.45, 0.4), Vec3(1, 0.05, 0.1));
+  for (const IndexOptions& opt : all_index_options()) {
+    const AnyIndex index = make_index(pts, opt);
+    RayQuery q;
+    q.planes = planes;
+    q.radius = 0.2;
+    q.k = 20;
+    const auto want = oracle_ray_query(pts, ray, q);
+    ASSERT_FALSE(want.empty());
+    const auto got = std::visit([&](const auto& idx) { return ray_query(idx, ray, q); }, index);
+    expect_same(got, want, label(opt));
+    // Standalone frustum query == oracle filter.
+    std::vector<PointIndex> fwant;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      bool in = true;
+      for (const Plane& pl : planes) in = in && dist_plane(pl.point, pl.normal, pts[i]) <= 0.0;
+      if (in) fwant.push_back(static_cast<PointIndex>(i));
+    }
+    const auto fgot = std::visit([&](const auto& idx) { return frustum_query(idx, planes); }, index);
+    EXPECT_EQ(fgot, fwant) << label(opt);
+  }
+}
+
+TEST(RayQuery, TimeRangeEqualsTwoPlaneFrustum) {
+  // Section 3.1: the time interval is the slab between two planes with normals -d and +d.
+  const auto pts = make_points(2000, Dist::clustered, 5);
+  const Ray ray(Vec3(-0.5, 0.3, 0.2), Vec3(1, 0.2, 0.3));
+  const Octree tree = Octree::build_bulk(pts);
+  RayQuery slab;
+  slab.t_min = 0.4;
+  slab.t_max = 0.9;
+  slab.order = RayOrder::time;
+  std::vector<PointIndex> a;
+  for (const RayHit& h : ray_query(tree, ray, slab)) a.push_back(h.index);
+  std::sort(a.begin(), a.end());
+  const std::vector<Plane> planes = {{ray.at(0.4), -ray.direction()}, {ray.at(0.9), ray.direction()}};
+  const auto b = frustum_query(tree, planes);
+  // Points within rounding of a plane may fall either way; there are none at this seed.
+  EXPECT_EQ(a, b);
+  EXPECT_FALSE(a.empty());
+}
+
+TEST(RayQuery, InvalidParametersThrow) {
+  const Octree tree = Octree::build_bulk(make_points(10, Dist::uniform));
+  const Ray ray(Vec3(0.0), Vec3(1, 0, 0));
+  RayQuery q;
+  q.t_min = 2;
+  q.t_max = 1;
+  EXPECT_THROW((void)ray_query(tree, ray, q), std::invalid_argument);
+  q = {};
+  q.radius = -1;
+  EXPECT_THROW((void)ray_query(tree, ray, q), std::invalid_argument);
+  q = {};
+  q.order = RayOrder::sphere_hit;  // needs a radius
+  EXPECT_THROW((void)ray_query(tree, ray, q), std::invalid_argument);
+  q = {};
+  q.t_max = std::nan("");
+  EXPECT_THROW((void)ray_query(tree, ray, q), std::invalid_argument);
+  EXPECT_THROW(Ray(Vec3(0.0), Vec3(0.0)), std::invalid_argument);
+  EXPECT_THROW(Ray(Vec3(0.0), Vec3(std::nan(""), 0, 0)), std::invalid_argument);
+}
+
+TEST(RayQuery, SphereHitIsAnalyticEntryPoint) {
+  // One point at (5, 0.3, 0) with r = 0.5 seen along +x from the origin: the entry parameter is
+  // 5 - sqrt(0.25 - 0.09) = 4.6 exactly (analytic ray/sphere intersection).
+  const std::vector<Vec3> pts = {Vec3(5, 0.3, 0), Vec3(9, 0, 0)};
+  const Octree tree = Octree::build_bulk(pts);
+  RayQuery q;
+  q.k = 1;
+  q.radius = 0.5;
+  q.order = RayOrder::sphere_hit;
+  const auto hits = ray_query(tree, Ray(Vec3(0.0), Vec3(1, 0, 0)), q);
+  ASSERT_EQ(hits.size(), 1u);
+  EXPECT_EQ(hits[0].index, 0u);
+  EXPECT_NEAR(hits[0].t, 4.6, 1e-12);
+  EXPECT_NEAR(hits[0].distance, 0.3, 1e-12);
+}
+
+TEST(RayQuery, BatchEqualsSingleRayCalls) {
+  const auto pts = make_points(20000, Dist::clustered, 11);
+  const Octree tree = Octree::build_bulk(pts);
+  AABB box;
+  for (const Vec3& p : pts) box.expand(p);
+  std::mt19937_64 rng(7);
+  std::vector<Ray> rays;
+  for (int i = 0; i < 500; ++i) rays.push_back(random_ray(rng, box, i % 2 == 0));
+  RayQuery q;
+  q.k = 4;
+  q.radius = 0.02;
+  q.order = RayOrder::sphere_hit;
+  const auto batch = ray_query_batch(tree, std::span<const Ray>(rays), q);
+  ASSERT_EQ(batch.size(), rays.size());
+  for (std::size_t i = 0; i < rays.size(); ++i)
+    expect_same(batch[i], ray_query(tree, rays[i], q), "ray " + std::to_string(i));
+}
+
+TEST(RayQuery, UtmMagnitudeKeepsMillimetres) {
+  // Points 1 mm apart at x ~ 6e5, y ~ 5.3e6: a ray along x through the middle row must return
+  // exactly that row's points for r = 0.4 mm, ordered by t with 1 mm steps.
+  std::vector<Vec3> pts;
+  for (int i = 0; i < 10; ++i)
+    for (int j = 0; j < 10; ++j) pts.emplace_back(600000.0 + i * 0.001, 5300000.0 + j * 0.001, 100.0);
+  const Octree tree = Octree::build_bulk(pts);
+  RayQuery q;
+  q.radius = 0.0004;
+  q.order = RayOrder::time;
+  const Ray ray(Vec3(599999.0, 5300000.004, 100.0), Vec3(1, 0, 0));
+  const auto hits = ray_query(tree, ray, q);
+  ASSERT_EQ(hits.size(), 10u);  // only row j = 4; rows 3 and 5 are 1 mm away
+  for (std::size_t i = 0; i < hits.size(); ++i) {
+    EXPECT_EQ(hits[i].index, static_cast<PointIndex>(i * 10 + 4));
+    EXPECT_NEAR(hits[i].t, 1.0 + 0.001 * static_cast<double>(i), 1e-6);
+    EXPECT_LT(hits[i].distance, 1e-6);
+  }
+}
+
+}  // namespace

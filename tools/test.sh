@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Sets up (Debian packages, build) and runs the whole test suite with CTest.
+# Usage: tools/test.sh [BUILD_DIR]   (default: build)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BUILD="${1:-build}"
+./tools/build.sh "$BUILD"
+ctest --test-dir "$BUILD" --output-on-failure -j "$(nproc)"
