@@ -528,6 +528,12 @@ int main(int argc, char** argv) {
   std::printf("Embree %d.%d.%d, RTC_GEOMETRY_TYPE_SPHERE_POINT (float4), rtcIntersect1 per ray, "
               "default build quality; rayscan: double precision, per-thread result vectors\n",
               RTC_VERSION_MAJOR, RTC_VERSION_MINOR, RTC_VERSION_PATCH);
+  {
+    const rayscan::IndexOptions d;
+    std::printf("rayscan indexes from make_index with its defaults: capacity %u (octree node capacity, "
+                "kd-tree leaf size), bulk build; queries use t_min = 0\n",
+                d.capacity);
+  }
   std::printf("load average: %s\n", rb::loadavg().c_str());
   std::fflush(stdout);
 
