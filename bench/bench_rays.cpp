@@ -1,0 +1,715 @@
+// bench_rays: ray-query throughput of rayscan (paper Algorithm 1) on uniform points in the unit cube,
+// with the first-hit query side by side with Embree 3 (RTC_GEOMETRY_TYPE_SPHERE_POINT, same radius,
+// same rays, rtcIntersect1 per ray), a per-ray cross-check of the first hit against Embree's, index
+// build time against Embree's rtcCommitScene, and resident memory per point of every index, each
+// built in a fresh child process (this program re-executed with --mem-child).
+//
+// Queries (issue 2, section 8.2), all with t_min = 0 like Embree's tnear = 0:
+//   knn8      k = 8, order ray            (kNN to the ray)
+//   radius    radius r, no k, order ray   (every point of the cylinder, sorted by distance)
+//   closest   k = 1, order time, radius r (ray-marching emulation)
+//   sphere    k = 1, order sphere_hit, radius r (exact first hit of the spheres of radius r)
+// Rays: (a) a 600 x 400 pinhole camera looking at the cube from outside, (b) random rays through
+// the cube (origin on a sphere of radius 2 around the cube centre, aimed at a uniform point in the
+// cube). Every timed configuration runs once per round, rounds interleave all contenders (the first
+// one rotating), and the median of the rounds is reported.
+#include "bench_common.hpp"
+
+#include "rayscan/any_index.hpp"
+#include "rayscan/ray_query.hpp"
+
+#include <CLI/CLI.hpp>
+#include <embree3/rtcore.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
+#include <array>
+#include <atomic>
+#include <cinttypes>
+#include <cstdio>
+#include <iostream>
+#include <malloc.h>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <tuple>
+#include <string>
+#include <thread>
+#include <unistd.h>
+#include <variant>
+#include <vector>
+
+using rayscan::PointIndex;
+using rayscan::Ray;
+using rayscan::RayHit;
+using rayscan::RayQuery;
+using rayscan::Vec3;
+namespace rb = rayscan::bench;
+
+namespace {
+
+constexpr PointIndex kNoHit = 0xFFFFFFFFu;
+
+// ---- rays ---------------------------------------------------------------------------------------
+
+/// Pinhole camera rays through pixel centres, row-major from the top-left pixel.
+std::vector<Ray> camera_rays(int width, int height) {
+  const Vec3 target(0.5, 0.5, 0.5);
+  const Vec3 eye(1.9, 1.3, -1.6);
+  const double vfov = 30.0 * 3.14159265358979323846 / 180.0;
+  const Vec3 fwd = glm::normalize(target - eye);
+  const Vec3 right = glm::normalize(glm::cross(fwd, Vec3(0, 1, 0)));
+  const Vec3 up = glm::cross(right, fwd);
+  const double h = std::tan(vfov / 2), w = h * width / height;
+  std::vector<Ray> rays;
+  rays.reserve(static_cast<std::size_t>(width) * height);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      const double u = (2.0 * (x + 0.5) / width - 1.0) * w;
+      const double v = (1.0 - 2.0 * (y + 0.5) / height) * h;
+      rays.emplace_back(eye, fwd + u * right + v * up);
+    }
+  return rays;
+}
+
+/// Random rays through the cube: origin on the sphere of radius 2 around the centre (outside the
+/// cube), aimed at a uniform point inside it.
+std::vector<Ray> random_rays(std::size_t n, std::uint64_t seed) {
+  rb::Rng rng(seed);
+  const Vec3 c(0.5);
+  std::vector<Ray> rays;
+  rays.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 o = c + 2.0 * rng.unit_vector();
+    const Vec3 t = rng.point_in_unit_cube();
+    rays.emplace_back(o, t - o);
+  }
+  return rays;
+}
+
+// ---- Embree -------------------------------------------------------------------------------------
+
+void embree_error(void*, RTCError code, const char* str) {
+  std::fprintf(stderr, "Embree error %d: %s\n", static_cast<int>(code), str ? str : "");
+  std::exit(4);
+}
+
+/// Embree device + scene of one RTC_GEOMETRY_TYPE_SPHERE_POINT geometry (float4 x, y, z, r in a
+/// buffer Embree owns), default build quality (medium) and scene flags.
+struct EmbreeScene {
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  double commit_ms = 0;  // rtcCommitScene only
+  double fill_ms = 0;    // creating the geometry and filling its vertex buffer
+
+  EmbreeScene(const std::vector<Vec3>& pts, double radius) {
+    device = rtcNewDevice(nullptr);
+    if (!device) {
+      std::fprintf(stderr, "Embree: rtcNewDevice failed\n");
+      std::exit(4);
+    }
+    rtcSetDeviceErrorFunction(device, embree_error, nullptr);
+    rb::Stopwatch sw;
+    scene = rtcNewScene(device);
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
+                                                          4 * sizeof(float), pts.size()));
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      v[4 * i + 0] = static_cast<float>(pts[i].x);
+      v[4 * i + 1] = static_cast<float>(pts[i].y);
+      v[4 * i + 2] = static_cast<float>(pts[i].z);
+      v[4 * i + 3] = static_cast<float>(radius);
+    }
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(scene, g);
+    rtcReleaseGeometry(g);
+    fill_ms = sw.ms();
+    rb::Stopwatch sc;
+    rtcCommitScene(scene);
+    commit_ms = sc.ms();
+  }
+  ~EmbreeScene() {
+    if (scene) rtcReleaseScene(scene);
+    if (device) rtcReleaseDevice(device);
+  }
+  EmbreeScene(const EmbreeScene&) = delete;
+  EmbreeScene& operator=(const EmbreeScene&) = delete;
+
+  /// First hit of one ray with tnear = 0: primitive id (kNoHit on a miss) and t.
+  std::pair<PointIndex, float> intersect(const Ray& r) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRayHit rh{};
+    rh.ray.org_x = static_cast<float>(r.origin().x);
+    rh.ray.org_y = static_cast<float>(r.origin().y);
+    rh.ray.org_z = static_cast<float>(r.origin().z);
+    rh.ray.dir_x = static_cast<float>(r.direction().x);
+    rh.ray.dir_y = static_cast<float>(r.direction().y);
+    rh.ray.dir_z = static_cast<float>(r.direction().z);
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = std::numeric_limits<float>::infinity();
+    rh.ray.mask = 0xFFFFFFFFu;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene, &ctx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return {kNoHit, 0.0f};
+    return {rh.hit.primID, rh.ray.tfar};
+  }
+};
+
+// ---- rayscan queries ----------------------------------------------------------------------------
+
+enum class Q { knn8, radius, closest, sphere };
+constexpr std::array<Q, 4> kQueries{Q::knn8, Q::radius, Q::closest, Q::sphere};
+const char* qname(Q q) {
+  switch (q) {
+    case Q::knn8: return "kNN k=8";
+    case Q::radius: return "radius";
+    case Q::closest: return "closest";
+    case Q::sphere: return "sphere_hit";
+  }
+  return "?";
+}
+
+RayQuery make_query(Q q, double r) {
+  RayQuery rq;
+  rq.t_min = 0.0;
+  switch (q) {
+    case Q::knn8: rq.k = 8; break;
+    case Q::radius: rq.radius = r; break;
+    case Q::closest:
+      rq.k = 1;
+      rq.radius = r;
+      rq.order = rayscan::RayOrder::time;
+      break;
+    case Q::sphere:
+      rq.k = 1;
+      rq.radius = r;
+      rq.order = rayscan::RayOrder::sphere_hit;
+      break;
+  }
+  return rq;
+}
+
+/// Runs query q over rays[0, n) in parallel (current TBB parallelism); per ray it records the
+/// result count and the first result's id and t. Returns the total result count.
+struct RayResults {
+  std::vector<std::uint32_t> count;
+  std::vector<PointIndex> first;
+  std::vector<double> first_t;
+  explicit RayResults(std::size_t n) : count(n), first(n), first_t(n) {}
+};
+
+std::uint64_t run_rayscan(const rayscan::AnyIndex& index, std::span<const Ray> rays, const RayQuery& rq,
+                          RayResults& res) {
+  return std::visit(
+      [&](const auto& idx) {
+        std::atomic<std::uint64_t> total{0};
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 64),
+                          [&](const tbb::blocked_range<std::size_t>& br) {
+                            thread_local std::vector<RayHit> out;
+                            std::uint64_t local = 0;
+                            for (std::size_t i = br.begin(); i != br.end(); ++i) {
+                              rayscan::ray_query(idx, rays[i], rq, out);
+                              res.count[i] = static_cast<std::uint32_t>(out.size());
+                              res.first[i] = out.empty() ? kNoHit : out.front().index;
+                              res.first_t[i] = out.empty() ? 0.0 : out.front().t;
+                              local += out.size();
+                            }
+                            total += local;
+                          });
+        return total.load();
+      },
+      index);
+}
+
+std::uint64_t run_embree(const EmbreeScene& es, std::span<const Ray> rays, RayResults& res) {
+  std::atomic<std::uint64_t> total{0};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 64),
+                    [&](const tbb::blocked_range<std::size_t>& br) {
+                      std::uint64_t local = 0;
+                      for (std::size_t i = br.begin(); i != br.end(); ++i) {
+                        const auto [id, t] = es.intersect(rays[i]);
+                        res.first[i] = id;
+                        res.first_t[i] = t;
+                        res.count[i] = id != kNoHit;
+                        local += id != kNoHit;
+                      }
+                      total += local;
+                    });
+  return total.load();
+}
+
+rayscan::IndexOptions index_options(const std::string& type) {
+  rayscan::IndexOptions o;
+  o.type = type;
+  return o;
+}
+
+// ---- memory probe (child process) ---------------------------------------------------------------
+
+/// In a fresh process: RSS before the input exists, generate the input, reset the peak, build,
+/// record the peak, free the input, record the resident size. Prints one "MEM ..." line.
+int memory_child(const std::string& type, std::size_t n, std::uint64_t seed, double radius) {
+  const std::uint64_t rss_empty = rb::rss_bytes();
+  auto pts = rb::uniform_cube(n, seed);
+  const std::uint64_t rss_input = rb::rss_bytes();
+  if (!rb::reset_peak_rss()) {
+    std::printf("MEM-ERROR cannot reset VmHWM\n");
+    return 1;
+  }
+  std::size_t api = 0;
+  std::unique_ptr<EmbreeScene> es;
+  std::optional<rayscan::AnyIndex> idx;
+  if (type == "embree") {
+    es = std::make_unique<EmbreeScene>(pts, radius);
+  } else {
+    idx.emplace(rayscan::make_index(pts, index_options(type)));
+    api = rayscan::index_memory_bytes(*idx);
+  }
+  const std::uint64_t peak = rb::peak_rss_bytes();
+  std::vector<Vec3>().swap(pts);
+  // Give freed build temporaries back to the OS: glibc keeps freed heap blocks below its dynamic
+  // mmap threshold (up to 32 MiB), which would otherwise be counted as index memory.
+  malloc_trim(0);
+  const std::uint64_t steady = rb::rss_bytes();
+  std::printf("MEM %s %zu steady=%" PRIu64 " peak_extra=%" PRIu64 " api=%zu\n", type.c_str(), n,
+              steady - rss_empty, peak - rss_input, api);
+  return 0;
+}
+
+struct MemFigure {
+  double steady = 0, peak_extra = 0, api = 0;  // bytes per point
+  bool ok = false;
+};
+
+MemFigure probe_memory(const std::string& self, const std::string& type, std::size_t n,
+                       std::uint64_t seed, double radius) {
+  const std::string cmd = "'" + self + "' --mem-child " + type + " --points " + std::to_string(n) +
+                          " --seed " + std::to_string(seed) + " --radius " + std::to_string(radius);
+  MemFigure m;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return m;
+  char line[512];
+  while (std::fgets(line, sizeof line, p)) {
+    char t[64];
+    std::size_t nn = 0;
+    unsigned long long s = 0, pk = 0, api = 0;
+    if (std::sscanf(line, "MEM %63s %zu steady=%llu peak_extra=%llu api=%llu", t, &nn, &s, &pk, &api) == 5) {
+      m.steady = static_cast<double>(s) / n;
+      m.peak_extra = static_cast<double>(pk) / n;
+      m.api = static_cast<double>(api) / n;
+      m.ok = true;
+    }
+  }
+  pclose(p);
+  return m;
+}
+
+// ---- cross-check against Embree ------------------------------------------------------------------
+
+/// Compares rayscan's exact (double) first sphere hit with Embree's (float) per ray and explains
+/// each mismatch with the double-precision geometry of the two candidate points.
+struct HitCheck {
+  std::size_t rays = 0, both_hit_same = 0, both_miss = 0;
+  std::size_t diff_near_tie = 0;    // different point, entry t within tie_eps (float resolution)
+  std::size_t grazing = 0;          // hit vs miss where the point's distance to the ray ~ r
+  std::size_t unexplained = 0;
+  double max_dt_same = 0;           // max |t_rayscan - t_embree| when both hit the same point
+  double max_gap_diff = 0;          // max entry-t gap for the "near tie" mismatches
+};
+
+HitCheck check_hits(const std::vector<Vec3>& pts, std::span<const Ray> rays, const RayResults& rs,
+                    const RayResults& em, double radius) {
+  HitCheck h;
+  // Prints the double-precision geometry of an unexplained mismatch (at most a few per set).
+  auto explain = [&](std::size_t i) {
+    if (h.unexplained > 3) return;
+    std::printf("  unexplained mismatch, ray %zu:", i);
+    for (const auto& [who, id, t] : {std::tuple{"rayscan", rs.first[i], rs.first_t[i]},
+                                     std::tuple{"Embree", em.first[i], em.first_t[i]}}) {
+      if (id == kNoHit) {
+        std::printf(" %s miss;", who);
+        continue;
+      }
+      const auto pt = rayscan::ray_point_terms(rays[i].origin(), rays[i].direction(), pts[id]);
+      std::printf(" %s point %u t %.9f (double: t_p %.9f, d/r %.9f, entry %.9f);", who, id, t, pt.t,
+                  std::sqrt(pt.d2) / radius,
+                  pt.d2 <= radius * radius ? rayscan::sphere_entry(pt.t, pt.d2, radius) : NAN);
+    }
+    std::printf("\n");
+  };
+  h.rays = rays.size();
+  // Float32 tolerances: Embree rounds point, origin and direction to float (spacing 1.2e-7 for
+  // coordinates in [1, 2), 2.4e-7 in [2, 4); the camera sits at |x| ~ 2 and t reaches ~3.5), so
+  // the distance of a point to the ray is uncertain by a few 1e-7 world units, about 1e-4 of
+  // r = 0.0046, and entry parameters of two spheres closer than ~1e-5 may swap order.
+  const double tie_eps = 1e-5;    // entry-t gap a float sphere test can misorder
+  const double graze_eps = 1e-4;  // relative |d - r| / r where float hit/miss can flip
+  auto terms = [&](std::size_t i, PointIndex id) {
+    return rayscan::ray_point_terms(rays[i].origin(), rays[i].direction(), pts[id]);
+  };
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    const PointIndex a = rs.first[i], b = em.first[i];
+    if (a == kNoHit && b == kNoHit) {
+      ++h.both_miss;
+    } else if (a == b) {
+      ++h.both_hit_same;
+      h.max_dt_same = std::max(h.max_dt_same, std::abs(rs.first_t[i] - em.first_t[i]));
+    } else if (a != kNoHit && b != kNoHit) {
+      const auto tb = terms(i, b);
+      const double db = std::sqrt(tb.d2);
+      if (db > radius) {  // Embree hit a sphere that double geometry says the ray misses
+        if ((db - radius) / radius < graze_eps) {
+          ++h.grazing;
+        } else {
+          ++h.unexplained;
+          explain(i);
+        }
+        continue;
+      }
+      const double gap = rayscan::sphere_entry(tb.t, tb.d2, radius) - rs.first_t[i];
+      const double da = std::sqrt(terms(i, a).d2);
+      if (std::abs(gap) < tie_eps) {
+        ++h.diff_near_tie;
+        h.max_gap_diff = std::max(h.max_gap_diff, std::abs(gap));
+      } else if ((radius - da) / radius < graze_eps || (radius - db) / radius < graze_eps) {
+        ++h.grazing;  // one of the two barely touches its sphere: float misses it
+      } else {
+        ++h.unexplained;
+        explain(i);
+      }
+    } else {
+      const PointIndex id = a != kNoHit ? a : b;
+      const double d = std::sqrt(terms(i, id).d2);
+      if (std::abs(d - radius) / radius < graze_eps) {
+        ++h.grazing;
+      } else {
+        ++h.unexplained;
+        explain(i);
+      }
+    }
+  }
+  return h;
+}
+
+// ---- report helpers -----------------------------------------------------------------------------
+
+std::string mrays(double rays_per_s) {
+  char b[32];
+  if (rays_per_s >= 1e6) std::snprintf(b, sizeof b, "%.2f M", rays_per_s / 1e6);
+  else std::snprintf(b, sizeof b, "%.0f k", rays_per_s / 1e3);
+  return b;
+}
+
+std::vector<std::string> split_list(const std::string& s) {
+  std::vector<std::string> v;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ','))
+    if (!item.empty()) v.push_back(item);
+  return v;
+}
+
+struct RaySet {
+  std::string name;
+  std::vector<Ray> rays;
+  std::vector<Ray> slow;  // even-stride subset for the kNN / radius queries
+};
+
+/// m rays at an even stride over `rays` (all of them when m is 0 or >= rays.size()).
+std::vector<Ray> stride_subset(const std::vector<Ray>& rays, std::size_t m) {
+  if (m == 0 || m >= rays.size()) return rays;
+  std::vector<Ray> out;
+  out.reserve(m);
+  for (std::size_t i = 0; i < m; ++i) out.push_back(rays[i * rays.size() / m]);
+  return out;
+}
+
+Q parse_q(const std::string& s) {
+  if (s == "knn8") return Q::knn8;
+  if (s == "radius") return Q::radius;
+  if (s == "closest") return Q::closest;
+  return Q::sphere;
+}
+
+/// Work counters per ray (RayQueryStats) of one query, serially over `rays`.
+std::pair<double, double> work_per_ray(const rayscan::AnyIndex& index, std::span<const Ray> rays,
+                                       const RayQuery& rq) {
+  rayscan::RayQueryStats st;
+  std::vector<RayHit> out;
+  std::visit([&](const auto& idx) { for (const Ray& r : rays) rayscan::ray_query(idx, r, rq, out, &st); }, index);
+  const double n = static_cast<double>(std::max<std::size_t>(1, rays.size()));
+  return {static_cast<double>(st.nodes_visited) / n, static_cast<double>(st.points_tested) / n};
+}
+
+/// --profile: one query only, one thread, each ray set once (kNN/radius on the slow subset), with
+/// RayQueryStats, so a profiler (valgrind --tool=callgrind) sees nothing else of interest.
+void profile(const std::string& which, const std::vector<Vec3>& pts, const std::vector<std::string>& indexes,
+             const std::vector<RaySet>& sets, double radius) {
+  tbb::global_control gc(tbb::global_control::max_allowed_parallelism, 1);
+  if (which == "embree") {
+    const EmbreeScene es(pts, radius);
+    for (const RaySet& set : sets) {
+      RayResults res(set.rays.size());
+      rb::Stopwatch sw;
+      const auto hits = run_embree(es, set.rays, res);
+      std::printf("profile embree %s: %zu rays, %" PRIu64 " hits, %.1f ms\n", set.name.c_str(), set.rays.size(),
+                  hits, sw.ms());
+    }
+    return;
+  }
+  const Q q = parse_q(which);
+  for (const auto& type : indexes) {
+    const auto idx = rayscan::make_index(pts, index_options(type));
+    for (const RaySet& set : sets) {
+      const auto& rays = (q == Q::knn8 || q == Q::radius) ? set.slow : set.rays;
+      RayResults res(rays.size());
+      rb::Stopwatch sw;
+      const auto total = run_rayscan(idx, rays, make_query(q, radius), res);
+      const double ms = sw.ms();
+      const auto [nodes, points] = work_per_ray(idx, rays, make_query(q, radius));
+      std::printf("profile %s %s %s: %zu rays, %" PRIu64 " results, %.1f ms; per ray %.1f nodes visited, "
+                  "%.1f points tested\n",
+                  type.c_str(), qname(q), set.name.c_str(), rays.size(), total, ms, nodes, points);
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"rayscan benchmark: ray-query throughput, first hit vs Embree 3, build time, memory"};
+  std::string points_list = "1000000,10000000", threads_list = "1,2";
+  std::string index_list = "octree-adaptive,kdtree";
+  std::string mem_child;
+  int width = 600, height = 400;
+  std::size_t random_n = 50000, slow_rays = 5000, reps = 5, build_reps = 3;
+  std::size_t points_child = 0;
+  double radius = 0.0046;
+  std::uint64_t seed = 20240601;
+  bool no_memory = false, no_build = false;
+  std::string profile_query;
+  app.add_option("--points-list", points_list, "comma-separated cloud sizes")->capture_default_str();
+  app.add_option("--indexes", index_list,
+                 "comma-separated rayscan indexes: octree-adaptive, octree-layered, octree-fixed, kdtree")
+      ->capture_default_str();
+  app.add_option("--threads", threads_list, "comma-separated thread counts (tbb::global_control)")
+      ->capture_default_str();
+  app.add_option("--width", width, "camera image width, pixels")->capture_default_str();
+  app.add_option("--height", height, "camera image height, pixels")->capture_default_str();
+  app.add_option("--random-rays", random_n, "number of random rays through the cube")->capture_default_str();
+  app.add_option("--slow-rays", slow_rays,
+                 "rays (an even stride over each set) timed for the kNN and radius queries; 0 = all")
+      ->capture_default_str();
+  app.add_option("--radius", radius, "r of radius, closest and sphere_hit (and Embree's spheres), world units")
+      ->capture_default_str();
+  app.add_option("--reps", reps, "interleaved rounds per throughput figure (median reported)")->capture_default_str();
+  app.add_option("--build-reps", build_reps, "interleaved rounds of the build-time comparison")->capture_default_str();
+  app.add_option("--seed", seed, "seed of points and random rays")->capture_default_str();
+  app.add_flag("--no-memory", no_memory, "skip the per-index memory probes");
+  app.add_flag("--no-build", no_build, "skip the build-time comparison");
+  app.add_option("--profile", profile_query,
+                 "run only this query (knn8|radius|closest|sphere|embree) once per ray set on one thread, "
+                 "with work counters; for callgrind/perf")
+      ->check(CLI::IsMember({"knn8", "radius", "closest", "sphere", "embree"}));
+  app.add_option("--mem-child", mem_child, "internal: run one memory probe in this process")->group("");
+  app.add_option("--points", points_child, "internal: size of the --mem-child cloud")->group("");
+  CLI11_PARSE(app, argc, argv);
+  if (!mem_child.empty()) return memory_child(mem_child, points_child, seed, radius);
+
+  std::vector<std::size_t> sizes;
+  for (const auto& s : split_list(points_list)) sizes.push_back(std::stoull(s));
+  std::vector<int> threads;
+  for (const auto& s : split_list(threads_list)) threads.push_back(std::stoi(s));
+  const std::vector<std::string> indexes = split_list(index_list);
+  const int hw = static_cast<int>(std::thread::hardware_concurrency());
+  char self[4096];
+  const ssize_t len = readlink("/proc/self/exe", self, sizeof self - 1);
+  self[len > 0 ? len : 0] = 0;
+
+  std::printf("bench_rays: CPU %s, %d hardware threads; r = %g; rounds interleaved, median of %zu\n",
+              rb::cpu_model().c_str(), hw, radius, reps);
+  std::printf("Embree %d.%d.%d, RTC_GEOMETRY_TYPE_SPHERE_POINT (float4), rtcIntersect1 per ray, "
+              "default build quality; rayscan: double precision, per-thread result vectors\n",
+              RTC_VERSION_MAJOR, RTC_VERSION_MINOR, RTC_VERSION_PATCH);
+  {
+    const rayscan::IndexOptions d;
+    std::printf("rayscan indexes from make_index with its defaults: capacity %u (octree node capacity, "
+                "kd-tree leaf size), bulk build; queries use t_min = 0\n",
+                d.capacity);
+  }
+  std::printf("load average: %s\n", rb::loadavg().c_str());
+  std::fflush(stdout);
+
+  std::vector<RaySet> sets;
+  sets.push_back({"camera " + std::to_string(width) + "x" + std::to_string(height), camera_rays(width, height), {}});
+  sets.push_back({"random " + std::to_string(random_n), random_rays(random_n, seed + 7), {}});
+  for (auto& s : sets) s.slow = stride_subset(s.rays, slow_rays);
+
+  for (const std::size_t n : sizes) {
+    std::printf("\n=== %zu uniform points in the unit cube ===\n", n);
+    std::fflush(stdout);
+    const std::vector<Vec3> pts = rb::uniform_cube(n, seed);
+
+    if (!profile_query.empty()) {
+      profile(profile_query, pts, indexes, sets, radius);
+      continue;
+    }
+
+    // -- build time, all hardware threads (2 here) --------------------------------------------
+    if (!no_build) {
+      std::vector<std::vector<double>> t(indexes.size() + 1);
+      std::vector<double> fill;
+      for (std::size_t r = 0; r < build_reps; ++r)
+        for (std::size_t j = 0; j <= indexes.size(); ++j) {
+          const std::size_t c = (j + r) % (indexes.size() + 1);
+          if (c == indexes.size()) {
+            EmbreeScene es(pts, radius);
+            t[c].push_back(es.commit_ms);
+            fill.push_back(es.fill_ms);
+          } else {
+            rb::Stopwatch sw;
+            auto idx = rayscan::make_index(pts, index_options(indexes[c]));
+            t[c].push_back(sw.ms());
+            rb::keep(idx);
+          }
+        }
+      const double em = rb::median(t.back());
+      std::printf("\nbuild, %d threads, median of %zu interleaved rounds:\n", hw, build_reps);
+      std::printf("| index | build ms | speed-up vs Embree rtcCommitScene (goal >= 5x) |\n|---|---:|---:|\n");
+      for (std::size_t c = 0; c < indexes.size(); ++c)
+        std::printf("| rayscan %s (bulk) | %.0f | %.2fx |\n", indexes[c].c_str(), rb::median(t[c]),
+                    em / rb::median(t[c]));
+      std::printf("| Embree rtcCommitScene | %.0f | 1 |\n", em);
+      std::printf("(Embree geometry creation + float4 buffer fill, not included above: %.0f ms)\n",
+                  rb::median(fill));
+      std::fflush(stdout);
+    }
+
+    // -- memory, each index in a fresh child process ------------------------------------------
+    if (!no_memory) {
+      std::printf("\nmemory per point, each index built in a fresh process (%s --mem-child):\n", self);
+      std::printf("| index | index + coordinates B/pt (RSS after build, input freed, malloc_trim) | "
+                  "build peak B/pt above input | index's own count B/pt |\n|---|---:|---:|---:|\n");
+      std::vector<std::string> all = indexes;
+      all.push_back("embree");
+      for (const auto& type : all) {
+        const MemFigure m = probe_memory(self, type, n, seed, radius);
+        if (!m.ok) {
+          std::printf("| %s | probe failed | | |\n", type.c_str());
+          continue;
+        }
+        std::printf("| %s | %.1f | %.1f | %s |\n", type == "embree" ? "Embree 3 (float4 + BVH)" : type.c_str(),
+                    m.steady, m.peak_extra, type == "embree" ? "n/a" : std::to_string(m.api).substr(0, 5).c_str());
+        std::fflush(stdout);
+      }
+    }
+
+    // -- throughput ----------------------------------------------------------------------------
+    std::vector<rayscan::AnyIndex> built;
+    for (const auto& type : indexes) built.push_back(rayscan::make_index(pts, index_options(type)));
+    const EmbreeScene es(pts, radius);
+
+    for (const RaySet& set : sets) {
+      // Cross-check first (all threads): every index must agree exactly on every query; the first
+      // sphere hit is compared with Embree's.
+      std::vector<std::array<std::uint64_t, 4>> totals(built.size());
+      RayResults first_hits(set.rays.size());
+      for (std::size_t b = 0; b < built.size(); ++b)
+        for (Q q : kQueries) {
+          const auto& rays = (q == Q::knn8 || q == Q::radius) ? set.slow : set.rays;
+          RayResults res(rays.size());
+          totals[b][static_cast<int>(q)] = run_rayscan(built[b], rays, make_query(q, radius), res);
+          if (q == Q::sphere) {
+            if (b == 0) first_hits = res;
+            else if (res.first != first_hits.first)
+              rb::fail(set.name + ": sphere_hit first hits of " + indexes[b] + " differ from " + indexes[0]);
+          }
+          if (totals[b][static_cast<int>(q)] != totals[0][static_cast<int>(q)])
+            rb::fail(set.name + ": " + qname(q) + " result count of " + indexes[b] + " differs from " +
+                     indexes[0]);
+        }
+      RayResults em_hits(set.rays.size());
+      const std::uint64_t em_total = run_embree(es, set.rays, em_hits);
+      const HitCheck hc = check_hits(pts, set.rays, first_hits, em_hits, radius);
+      const std::size_t mismatches = hc.rays - hc.both_hit_same - hc.both_miss;
+      std::printf("\n-- %zu points, %s rays --\n", n, set.name.c_str());
+      std::printf("first-hit cross-check vs Embree on %zu rays: rayscan hits %" PRIu64 ", Embree hits %" PRIu64
+                  "; same point %zu, both miss %zu, mismatches %zu (%.4f%%): %zu different point with "
+                  "entry t within 1e-5 (max gap %.2e), %zu grazing (|d - r| < 1e-4 r), %zu unexplained; "
+                  "max |t_rayscan - t_embree| on agreeing hits %.2e\n",
+                  hc.rays, totals[0][3], em_total, hc.both_hit_same, hc.both_miss, mismatches,
+                  100.0 * static_cast<double>(mismatches) / static_cast<double>(hc.rays), hc.diff_near_tie,
+                  hc.max_gap_diff, hc.grazing, hc.unexplained, hc.max_dt_same);
+      if (hc.unexplained * 1000 > hc.rays)
+        rb::fail(set.name + ": more than 0.1% of first hits differ from Embree without a float explanation");
+
+      // Work per ray (RayQueryStats) on 1000 rays at an even stride: where the time goes.
+      const std::vector<Ray> sample = stride_subset(set.rays, 1000);
+      std::printf("work per ray (RayQueryStats, %zu rays at an even stride; nodes whose points were "
+                  "evaluated / points tested):\n| index |", sample.size());
+      for (Q q : kQueries) std::printf(" %s |", qname(q));
+      std::printf("\n|---|---:|---:|---:|---:|\n");
+      for (std::size_t b = 0; b < built.size(); ++b) {
+        std::printf("| %s |", indexes[b].c_str());
+        for (Q q : kQueries) {
+          const auto [nodes, points] = work_per_ray(built[b], sample, make_query(q, radius));
+          std::printf(" %.1f / %.0f |", nodes, points);
+        }
+        std::printf("\n");
+      }
+      std::fflush(stdout);
+
+      for (const int nt : threads) {
+        tbb::global_control gc(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(nt));
+        // Contenders: (index, query) pairs plus Embree; one round runs each once.
+        struct Run {
+          std::size_t b;  // index into built, or built.size() for Embree
+          Q q;
+          std::vector<double> ms;
+        };
+        std::vector<Run> runs;
+        for (std::size_t b = 0; b < built.size(); ++b)
+          for (Q q : kQueries) runs.push_back({b, q, {}});
+        runs.push_back({built.size(), Q::sphere, {}});
+        for (std::size_t r = 0; r < reps; ++r)
+          for (std::size_t j = 0; j < runs.size(); ++j) {
+            Run& run = runs[(j + r) % runs.size()];
+            const auto& rays = (run.q == Q::knn8 || run.q == Q::radius) ? set.slow : set.rays;
+            RayResults res(rays.size());
+            rb::Stopwatch sw;
+            rb::ThreadCpuStopwatch cpu;
+            const std::uint64_t tot = run.b == built.size() ? run_embree(es, rays, res)
+                                                            : run_rayscan(built[run.b], rays, make_query(run.q, radius), res);
+            // One thread: TBB runs everything on this thread, so its CPU time is the cost free of
+            // waiting for a core on the shared machine; more threads: wall time.
+            run.ms.push_back(nt == 1 ? cpu.ms() : sw.ms());
+            const std::uint64_t want = run.b == built.size() ? em_total : totals[run.b][static_cast<int>(run.q)];
+            if (tot != want) rb::fail(set.name + ": result count changed between runs");
+          }
+        const double em_rps = static_cast<double>(set.rays.size()) / (rb::median(runs.back().ms) / 1e3);
+        std::printf("\n%d thread%s, rays/s (%s; kNN and radius timed on %zu of the rays):\n", nt,
+                    nt > 1 ? "s" : "", nt == 1 ? "per CPU-second of the one thread" : "wall clock",
+                    set.slow.size());
+        std::printf("| index | kNN k=8 | radius r | closest | sphere_hit | sphere_hit / Embree (goal >= 0.5) |\n");
+        std::printf("|---|---:|---:|---:|---:|---:|\n");
+        for (std::size_t b = 0; b < built.size(); ++b) {
+          std::printf("| rayscan %s", indexes[b].c_str());
+          double sphere_rps = 0;
+          for (Q q : kQueries) {
+            const Run& run = runs[b * kQueries.size() + static_cast<std::size_t>(q)];
+            const auto& rays = (q == Q::knn8 || q == Q::radius) ? set.slow : set.rays;
+            const double rps = static_cast<double>(rays.size()) / (rb::median(run.ms) / 1e3);
+            if (q == Q::sphere) sphere_rps = rps;
+            std::printf(" | %s", mrays(rps).c_str());
+          }
+          std::printf(" | %.2fx |\n", sphere_rps / em_rps);
+        }
+        std::printf("| Embree 3 first hit (rtcIntersect1) | | | | %s | 1 |\n", mrays(em_rps).c_str());
+        std::fflush(stdout);
+      }
+    }
+  }
+  std::printf("\nload average at the end: %s\n", rb::loadavg().c_str());
+  return 0;
+}

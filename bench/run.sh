@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Runs every benchmark program that exists in BUILD_DIR/bench and prints its figures (see
+# bench/README.md for what each measures and the figures of the reference machine).
+#   bench/run.sh BUILD_DIR           full run (bench_rays at 1e6 and 1e7 points: several minutes)
+#   bench/run.sh BUILD_DIR --quick   smaller sizes and fewer rounds (about a minute)
+# Extra benchmark programs (bench_io, bench_render, ...) are run with their default arguments.
+set -euo pipefail
+if [ $# -lt 1 ] || [ ! -d "$1" ]; then
+  echo "usage: $0 BUILD_DIR [--quick]" >&2
+  exit 2
+fi
+dir="$1/bench"
+quick=0
+[ "${2:-}" = "--quick" ] && quick=1
+if [ ! -d "$dir" ]; then
+  echo "run.sh: $dir does not exist (configure with -DRAYSCAN_BUILD_BENCH=ON and build)" >&2
+  exit 2
+fi
+
+echo "# rayscan benchmarks, $(date -u +%Y-%m-%dT%H:%MZ), $(nproc) CPUs: $(lscpu | sed -n 's/^Model name: *//p')"
+echo "# load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
+ran=0
+run() {
+  local prog="$1"
+  shift
+  if [ -x "$dir/$prog" ]; then
+    echo
+    echo "## $prog $*"
+    "$dir/$prog" "$@"
+    ran=$((ran + 1))
+  fi
+}
+if [ $quick -eq 1 ]; then
+  run bench_table1 --reps 3
+  run bench_rays --points-list 1000000 --reps 3 --build-reps 2
+else
+  run bench_table1
+  run bench_rays
+fi
+for prog in "$dir"/bench_*; do
+  name=$(basename "$prog")
+  case "$name" in bench_table1 | bench_rays) continue ;; esac
+  [ -f "$prog" ] && [ -x "$prog" ] && run "$name"
+done
+echo
+echo "# load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
+if [ $ran -eq 0 ]; then
+  echo "run.sh: no benchmark program found in $dir" >&2
+  exit 1
+fi
