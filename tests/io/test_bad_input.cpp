@@ -128,6 +128,38 @@ TEST(BadInput, FileThatDoesNotExistOrHasAnUnknownExtension) {
   EXPECT_THROW(io::read_point_cloud(data_file("las/conformance/point10.las").replace_extension(".e57")), io::FormatError);
 }
 
+TEST(BadInput, ExtraBytesDescriptorWithReservedTypeIsSkippedWithANote) {
+  // Found by fuzz_las (tests/fuzz/regressions/las/extra-bytes-reserved-type.las): data type 50
+  // indexed past the type-size table.
+  auto b = slurp(data_file("las/conformance/extrabytes.las"));
+  const std::string s(b.begin(), b.end());
+  const std::size_t vlr = s.find("LASF_Spec");
+  ASSERT_NE(vlr, std::string::npos);
+  b[vlr - 2 + 54 + 2] = 50;  // data type of the first descriptor
+  io::FileInfo info;
+  const PointCloud pc = io::read_point_cloud(b, io::Format::las, "eb.las", {}, &info);
+  EXPECT_EQ(pc.size(), 1065u);
+  EXPECT_EQ(pc.scalars.size(), 5u);  // only the standard ones
+  bool noted = false;
+  for (const std::string& n : info.notes) noted |= n.find("reserved data type 50") != std::string::npos;
+  EXPECT_TRUE(noted);
+}
+
+TEST(BadInput, CheckedInFuzzerFindingsReadOrFailCleanly) {
+  const std::pair<const char*, io::Format> dirs[] = {
+      {"las", io::Format::las}, {"ply", io::Format::ply}, {"pcd", io::Format::pcd}, {"text", io::Format::text}};
+  for (const auto& [dir, fmt] : dirs) {
+    const fs::path d = fs::path(RAYSCAN_FUZZ_REGRESSIONS) / dir;
+    if (!fs::exists(d)) continue;
+    for (const auto& de : fs::directory_iterator(d)) {
+      try {
+        io::read_point_cloud(slurp(de.path()), fmt, de.path().filename().string()).validate();
+      } catch (const io::FormatError&) {
+      }
+    }
+  }
+}
+
 /// Deterministic mutation sweep over real files of every format: truncations and byte flips must
 /// either read or raise FormatError (the libFuzzer targets in tests/fuzz do this at scale).
 TEST(BadInput, TruncatedAndCorruptedRealFilesNeverCrash) {

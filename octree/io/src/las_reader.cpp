@@ -228,13 +228,18 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
       const int type = e[2];
       const int options = e[3];
       static constexpr int base_size[11] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 4, 8};
+      const std::string name = fixed_string(e + 4, 32);
+      if (type > 30) {  // reserved data types (table 25): the layout is unknown from here on
+        info.notes.push_back("Extra Bytes VLR field '" + name + "' has reserved data type " +
+                             std::to_string(type) + ": it and later extra bytes are skipped");
+        break;
+      }
       int base = type, n = 1;
       if (type >= 11 && type <= 30) {
         base = (type - 1) % 10 + 1;
         n = type <= 20 ? 2 : 3;
       }
       const int width = type == 0 ? options : base_size[base] * n;
-      const std::string name = fixed_string(e + 4, 32);
       if (off + width > rec_len) {
         info.notes.push_back("Extra Bytes VLR field '" + name + "' runs past the " +
                              std::to_string(rec_len) + "-byte record: extra bytes ignored");
