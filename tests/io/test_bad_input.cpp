@@ -123,6 +123,21 @@ TEST(BadInput, TextNonNumberAndMissingColumns) {
   expect_one_line(error_of(std::string("1 2 inf\n"), io::Format::text), "line 1: non-finite coordinate");
 }
 
+TEST(BadInput, DuplicateColumnsAndProperties) {
+  // Found by fuzz_text (tests/fuzz/regressions/text/): "i" and "intensity" both filled intensity.
+  expect_one_line(error_of(std::string("x,y,z,i,intensity\n1,2,3,4,5\n"), io::Format::text),
+                  "line 1: columns 4 and 5 ('i', 'intensity') name the same attribute");
+  // PLY: the second property with the same role stays a named scalar.
+  const std::string ply = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                          "property float z\nproperty ushort intensity\nproperty ushort scalar_intensity\n"
+                          "end_header\n1 2 3 4 5\n6 7 8 9 10\n";
+  const PointCloud pc = io::read_point_cloud(std::vector<std::uint8_t>(ply.begin(), ply.end()), io::Format::ply, "d.ply");
+  pc.validate();
+  EXPECT_EQ(pc.intensity, (std::vector<std::uint16_t>{4, 9}));
+  ASSERT_NE(pc.scalar("scalar_intensity"), nullptr);
+  EXPECT_EQ(pc.scalar("scalar_intensity")->values, (std::vector<double>{5, 10}));
+}
+
 TEST(BadInput, FileThatDoesNotExistOrHasAnUnknownExtension) {
   EXPECT_THROW(io::read_point_cloud("/nonexistent/x.las"), io::FormatError);
   EXPECT_THROW(io::read_point_cloud(data_file("las/conformance/point10.las").replace_extension(".e57")), io::FormatError);

@@ -242,8 +242,15 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
   bool rgb_float = false;
   std::vector<std::size_t> scalar_idx(np, 0);
   std::size_t nscalars = 0;
+  std::vector<bool> taken(static_cast<std::size_t>(Role::scalar) + 1, false);
   for (std::size_t k = 0; k < np; ++k) {
     roles[k] = role_of(vertex->props[k]);
+    // A second property with the same role (e.g. "intensity" and "scalar_intensity") stays a
+    // named scalar so that every attribute vector gets exactly one value per vertex.
+    if (roles[k] != Role::skip && roles[k] != Role::scalar) {
+      if (taken[static_cast<std::size_t>(roles[k])]) roles[k] = Role::scalar;
+      else taken[static_cast<std::size_t>(roles[k])] = true;
+    }
     has_n |= roles[k] == Role::nx;
     has_rgb |= roles[k] == Role::r;
     if (roles[k] == Role::r || roles[k] == Role::g || roles[k] == Role::b)

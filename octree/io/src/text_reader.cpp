@@ -56,6 +56,11 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
       else if (n == "g" || n == "green") c = Col::g;
       else if (n == "b" || n == "blue") c = Col::b;
       else if (n == "i" || n == "intensity") c = Col::intensity;
+      if (c != Col::scalar)
+        for (std::size_t j = 0; j < i; ++j)
+          if (cols[j] == c)
+            fail_line(nm, lineno, "columns " + std::to_string(j + 1) + " and " + std::to_string(i + 1) +
+                                      " ('" + names[j] + "', '" + names[i] + "') name the same attribute");
       if (c == Col::scalar) {
         if (!opt.scalars) c = Col::skip;
         else {
