@@ -1,7 +1,7 @@
 // bench_io: read throughput and peak memory of the LAS reader on a synthetic 10-million-point
 // LAS 1.4 file (point data record format 7, 36-byte records, about 360 MB).
 //
-// Usage: bench_io [POINTS (default 10000000)] [DIR (default /tmp)]
+// Usage: bench_io [POINTS (default 10000000)] [DIR (default /tmp)] [--keep (keep the LAS file)]
 // Each read runs in a forked child so that its peak resident set (getrusage of the child) counts
 // only that read. "cold" reads first evict the file from the page cache with
 // posix_fadvise(POSIX_FADV_DONTNEED) (only this file; nothing system-wide is dropped); "warm"
@@ -169,6 +169,7 @@ int main(int argc, char** argv) {
                   r.peak_rss_kb / 1024.0 - r.bytes_out / 1048576.0, r.start_rss_kb / 1024.0);
     }
   }
-  std::filesystem::remove(las);
+  if (argc > 3 && std::string(argv[3]) == "--keep") std::printf("kept %s\n", las.c_str());
+  else std::filesystem::remove(las);
   return 0;
 }

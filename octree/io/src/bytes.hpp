@@ -10,6 +10,9 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
+
+#include <sys/mman.h>
 
 namespace rayscan::io::detail {
 
@@ -98,6 +101,20 @@ inline double colour_scale(double max_value, bool is_float, std::string& note) {
   if (max_value <= 65535.0) return 1.0;
   note = "colour values up to " + std::to_string(max_value) + ": scaled to 0..65535";
   return 65535.0 / max_value;
+}
+
+/// v.resize(n), first asking the kernel for transparent huge pages on the new storage
+/// (madvise MADV_HUGEPAGE): a 10-million-point cloud then takes a few hundred page faults instead
+/// of ~100,000, which is most of the system time of a large read. A no-op where THP is disabled.
+template <class T>
+void resize_huge(std::vector<T>& v, std::size_t n) {
+  v.reserve(n);
+  constexpr std::uintptr_t kHuge = 2u << 20;
+  const auto b = reinterpret_cast<std::uintptr_t>(v.data());
+  const std::uintptr_t lo = (b + kHuge - 1) & ~(kHuge - 1);
+  const std::uintptr_t hi = (b + n * sizeof(T)) & ~(kHuge - 1);
+  if (hi > lo) ::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
+  v.resize(n);
 }
 
 }  // namespace rayscan::io::detail
