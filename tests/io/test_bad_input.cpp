@@ -113,6 +113,10 @@ TEST(BadInput, PcdDataBeforeFieldsAndCountsBeyondTheFile) {
                            "HEIGHT 1\nPOINTS 100000\nDATA binary_compressed\n\x10\0\0\0\x80\x4f\x12\0abcdefghijklmnop"s,
                            io::Format::pcd),
                   "impossible for 16 bytes of LZF data");
+  expect_one_line(error_of(std::string("VERSION .7\nFIELDS x y z h\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 900000\n"
+                                       "WIDTH 1\nPOINTS 1\nDATA ascii\n"),
+                           io::Format::pcd),
+                  "line 8: FIELDS/COUNT declare 900003 values per point");
   expect_one_line(error_of(std::string("VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F Q\nDATA ascii\n"), io::Format::pcd),
                   "line 4: TYPE 'Q'");
 }

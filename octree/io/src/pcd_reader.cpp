@@ -183,10 +183,19 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
       fail_line(nm, line, "field '" + f.name + "' TYPE F with SIZE " + std::to_string(f.size) + " (expected 4 or 8)");
     f.offset = point_size;
     point_size += static_cast<std::uint64_t>(f.size) * f.count;
-    info.fields.push_back(f.name + ":" + f.type + std::to_string(f.size) +
-                          (f.count > 1 ? "x" + std::to_string(f.count) : ""));
+    std::string desc = f.name;  // "x:F4", "fpfh:F4x33"
+    desc += ':';
+    desc += f.type;
+    desc += std::to_string(f.size);
+    if (f.count > 1) desc += 'x' + std::to_string(f.count);
+    info.fields.push_back(desc);
   }
 
+  std::uint64_t values_per_point = 0;
+  for (const PcdField& f : fields) values_per_point += f.count;
+  if (values_per_point > 65536)
+    fail_line(nm, line, "FIELDS/COUNT declare " + std::to_string(values_per_point) +
+                            " values per point (at most 65536 supported)");
   // Roles.
   const std::size_t nf = fields.size();
   std::vector<Role> roles(nf, Role::skip);
