@@ -16,21 +16,27 @@ mkdir -p "$OUT/obj" "$OUT/crashes"
 FLAGS=(-std=c++20 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined
        -fno-sanitize-recover=undefined -Ioctree/include -Ioctree/io/include -I/usr/include/liblzf)
 SOURCES=(octree/src/point_cloud.cpp octree/io/src/*.cpp)
+JOBS="${FUZZ_JOBS:-2}"
 objs=()
+running=0
 for s in "${SOURCES[@]}"; do
   o="$OUT/obj/$(echo "$s" | tr '/' '_').o"
   if [ ! -f "$o" ] || [ "$s" -nt "$o" ] || [ -n "$(find octree/io/src octree/io/include octree/include -newer "$o" -name '*.hpp' 2>/dev/null)" ]; then
     echo "fuzz: compiling $s"
-    "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer-no-link -c "$s" -o "$o"
+    "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer-no-link -c "$s" -o "$o.tmp" && mv "$o.tmp" "$o" &
+    running=$((running + 1))
+    if [ "$running" -ge "$JOBS" ]; then wait -n; running=$((running - 1)); fi
   fi
   objs+=("$o")
 done
+wait
+for o in "${objs[@]}"; do [ -f "$o" ] || { echo "fuzz: compiling $o failed"; exit 1; }; done
 
 status=0
 for fmt in las ply pcd text; do
   exe="$OUT/fuzz_$fmt"
   echo "fuzz: linking $exe"
-  "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer "tests/fuzz/fuzz_$fmt.cpp" "${objs[@]}" -lgdal -llzf -o "$exe"
+  "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer "tests/fuzz/fuzz_$fmt.cpp" "${objs[@]}" -lgdal -llzf -ltbb -o "$exe"
   corpus="$OUT/corpus/$fmt"
   mkdir -p "$corpus" "tests/fuzz/regressions/$fmt"
   case "$fmt" in

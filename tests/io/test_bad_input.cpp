@@ -142,6 +142,21 @@ TEST(BadInput, DuplicateColumnsAndProperties) {
   EXPECT_EQ(pc.scalar("scalar_intensity")->values, (std::vector<double>{5, 10}));
 }
 
+TEST(BadInput, OutOfRangeAttributeValuesAreClampedNotUndefined) {
+  // Found by fuzz_ply (tests/fuzz/regressions/ply/): "nan" in an ascii uchar intensity was cast
+  // to an integer; huge doubles were cast to float (both undefined behaviour).
+  const std::string ply = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                          "property float z\nproperty uchar intensity\nproperty double nx\nproperty double ny\n"
+                          "property double nz\nproperty double red\nproperty double green\nproperty double blue\n"
+                          "end_header\n0 0 0 nan 1e300 0 0 1e300 0 0\n1 1 1 300 0 1 0 0 0 1e300\n";
+  const PointCloud pc = io::read_point_cloud(std::vector<std::uint8_t>(ply.begin(), ply.end()), io::Format::ply, "r.ply");
+  pc.validate();
+  EXPECT_EQ(pc.intensity, (std::vector<std::uint16_t>{0, 300}));
+  EXPECT_EQ(pc.normals[1], glm::vec3(0, 1, 0));
+  EXPECT_GT(pc.normals[0].x, 3e38f);
+  EXPECT_EQ(pc.rgb[0].r, pc.rgb[1].b);  // both channels hold the (clamped) maximum
+}
+
 TEST(BadInput, FileThatDoesNotExistOrHasAnUnknownExtension) {
   EXPECT_THROW(io::read_point_cloud("/nonexistent/x.las"), io::FormatError);
   EXPECT_THROW(io::read_point_cloud(data_file("las/conformance/point10.las").replace_extension(".e57")), io::FormatError);

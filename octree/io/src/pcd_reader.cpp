@@ -324,9 +324,9 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
       return false;
     }
     pc.positions.emplace_back(x, y, z);
-    if (has_n) pc.normals.emplace_back(n3[0], n3[1], n3[2]);
+    if (has_n) pc.normals.emplace_back(to_f32(n3[0]), to_f32(n3[1]), to_f32(n3[2]));
     if (has_packed) packed.push_back(pk);
-    if (has_ch) ch.insert(ch.end(), {static_cast<float>(c3[0]), static_cast<float>(c3[1]), static_cast<float>(c3[2])});
+    if (has_ch) ch.insert(ch.end(), {to_f32(c3[0]), to_f32(c3[1]), to_f32(c3[2])});
     for (std::size_t s = 0; s < scalar_src.size(); ++s)
       pc.scalars[s].values.push_back(vals[first[scalar_src[s].first] + scalar_src[s].second]);
     return true;
@@ -367,7 +367,7 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
             if (tok.find_first_of(".eEnN") == std::string_view::npos && v >= 0 && v <= 4294967295.0) {
               packed_bits[k] = static_cast<std::uint32_t>(v);
             } else {
-              const float f = static_cast<float>(v);
+              const float f = to_f32(v);
               std::memcpy(&packed_bits[k], &f, 4);
             }
           }
@@ -416,7 +416,7 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
     if (!note.empty()) info.notes.push_back(note);
     pc.rgb.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
-      auto q = [&](float c) { return static_cast<std::uint16_t>(std::lround(std::clamp(c * s, 0.0, 65535.0))); };
+      auto q = [&](float c) { return to_u16(c * s); };
       pc.rgb[i] = Rgb16{q(ch[3 * i]), q(ch[3 * i + 1]), q(ch[3 * i + 2])};
     }
   }
