@@ -64,9 +64,16 @@ std::string num(double v) {
   std::snprintf(buf, sizeof buf, "%.10g", v);
   return buf;
 }
-std::string fixed3(double v) {
+/// A coordinate printed to the file's resolution: the decimals of the LAS scale, else 10
+/// significant digits.
+std::string coord(double v, const std::optional<Vec3>& scale, int axis) {
   char buf[64];
-  std::snprintf(buf, sizeof buf, "%.3f", v);
+  if (scale && (*scale)[axis] > 0) {
+    const int dec = std::clamp(static_cast<int>(std::ceil(-std::log10((*scale)[axis]) - 1e-9)), 0, 12);
+    std::snprintf(buf, sizeof buf, "%.*f", dec, v);
+  } else {
+    std::snprintf(buf, sizeof buf, "%.10g", v);
+  }
   return buf;
 }
 
@@ -174,8 +181,10 @@ Runner add_info_command(CLI::App& app) {
       o << "(tx ty tz qw qx qy qz; reported, not applied)\n";
     }
     if (!pc.empty()) {
-      o << "bounds min:        " << fixed3(box.lo.x) << " " << fixed3(box.lo.y) << " " << fixed3(box.lo.z) << "\n";
-      o << "bounds max:        " << fixed3(box.hi.x) << " " << fixed3(box.hi.y) << " " << fixed3(box.hi.z) << "\n";
+      o << "bounds min:        " << coord(box.lo.x, info.scale, 0) << " " << coord(box.lo.y, info.scale, 1) << " "
+        << coord(box.lo.z, info.scale, 2) << "\n";
+      o << "bounds max:        " << coord(box.hi.x, info.scale, 0) << " " << coord(box.hi.y, info.scale, 1) << " "
+        << coord(box.hi.z, info.scale, 2) << "\n";
     }
     if (header_differs) {
       const AABB& h = *info.header_bounds;

@@ -113,6 +113,10 @@ TEST(BadInput, PcdDataBeforeFieldsAndCountsBeyondTheFile) {
                            "HEIGHT 1\nPOINTS 100000\nDATA binary_compressed\n\x10\0\0\0\x80\x4f\x12\0abcdefghijklmnop"s,
                            io::Format::pcd),
                   "impossible for 16 bytes of LZF data");
+  expect_one_line(error_of(std::string("VERSION .7\nFIELDS x y z h\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 900000\n"
+                                       "WIDTH 1\nPOINTS 1\nDATA ascii\n"),
+                           io::Format::pcd),
+                  "line 8: FIELDS/COUNT declare 900003 values per point");
   expect_one_line(error_of(std::string("VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F Q\nDATA ascii\n"), io::Format::pcd),
                   "line 4: TYPE 'Q'");
 }
@@ -123,9 +127,71 @@ TEST(BadInput, TextNonNumberAndMissingColumns) {
   expect_one_line(error_of(std::string("1 2 inf\n"), io::Format::text), "line 1: non-finite coordinate");
 }
 
+TEST(BadInput, DuplicateColumnsAndProperties) {
+  // Found by fuzz_text (tests/fuzz/regressions/text/): "i" and "intensity" both filled intensity.
+  expect_one_line(error_of(std::string("x,y,z,i,intensity\n1,2,3,4,5\n"), io::Format::text),
+                  "line 1: columns 4 and 5 ('i', 'intensity') name the same attribute");
+  // PLY: the second property with the same role stays a named scalar.
+  const std::string ply = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                          "property float z\nproperty ushort intensity\nproperty ushort scalar_intensity\n"
+                          "end_header\n1 2 3 4 5\n6 7 8 9 10\n";
+  const PointCloud pc = io::read_point_cloud(std::vector<std::uint8_t>(ply.begin(), ply.end()), io::Format::ply, "d.ply");
+  pc.validate();
+  EXPECT_EQ(pc.intensity, (std::vector<std::uint16_t>{4, 9}));
+  ASSERT_NE(pc.scalar("scalar_intensity"), nullptr);
+  EXPECT_EQ(pc.scalar("scalar_intensity")->values, (std::vector<double>{5, 10}));
+}
+
+TEST(BadInput, OutOfRangeAttributeValuesAreClampedNotUndefined) {
+  // Found by fuzz_ply (tests/fuzz/regressions/ply/): "nan" in an ascii uchar intensity was cast
+  // to an integer; huge doubles were cast to float (both undefined behaviour).
+  const std::string ply = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                          "property float z\nproperty uchar intensity\nproperty double nx\nproperty double ny\n"
+                          "property double nz\nproperty double red\nproperty double green\nproperty double blue\n"
+                          "end_header\n0 0 0 nan 1e300 0 0 1e300 0 0\n1 1 1 300 0 1 0 0 0 1e300\n";
+  const PointCloud pc = io::read_point_cloud(std::vector<std::uint8_t>(ply.begin(), ply.end()), io::Format::ply, "r.ply");
+  pc.validate();
+  EXPECT_EQ(pc.intensity, (std::vector<std::uint16_t>{0, 300}));
+  EXPECT_EQ(pc.normals[1], glm::vec3(0, 1, 0));
+  EXPECT_GT(pc.normals[0].x, 3e38f);
+  EXPECT_EQ(pc.rgb[0].r, pc.rgb[1].b);  // both channels hold the (clamped) maximum
+}
+
 TEST(BadInput, FileThatDoesNotExistOrHasAnUnknownExtension) {
   EXPECT_THROW(io::read_point_cloud("/nonexistent/x.las"), io::FormatError);
   EXPECT_THROW(io::read_point_cloud(data_file("las/conformance/point10.las").replace_extension(".e57")), io::FormatError);
+}
+
+TEST(BadInput, ExtraBytesDescriptorWithReservedTypeIsSkippedWithANote) {
+  // Found by fuzz_las (tests/fuzz/regressions/las/extra-bytes-reserved-type.las): data type 50
+  // indexed past the type-size table.
+  auto b = slurp(data_file("las/conformance/extrabytes.las"));
+  const std::string s(b.begin(), b.end());
+  const std::size_t vlr = s.find("LASF_Spec");
+  ASSERT_NE(vlr, std::string::npos);
+  b[vlr - 2 + 54 + 2] = 50;  // data type of the first descriptor
+  io::FileInfo info;
+  const PointCloud pc = io::read_point_cloud(b, io::Format::las, "eb.las", {}, &info);
+  EXPECT_EQ(pc.size(), 1065u);
+  EXPECT_EQ(pc.scalars.size(), 5u);  // only the standard ones
+  bool noted = false;
+  for (const std::string& n : info.notes) noted |= n.find("reserved data type 50") != std::string::npos;
+  EXPECT_TRUE(noted);
+}
+
+TEST(BadInput, CheckedInFuzzerFindingsReadOrFailCleanly) {
+  const std::pair<const char*, io::Format> dirs[] = {
+      {"las", io::Format::las}, {"ply", io::Format::ply}, {"pcd", io::Format::pcd}, {"text", io::Format::text}};
+  for (const auto& [dir, fmt] : dirs) {
+    const fs::path d = fs::path(RAYSCAN_FUZZ_REGRESSIONS) / dir;
+    if (!fs::exists(d)) continue;
+    for (const auto& de : fs::directory_iterator(d)) {
+      try {
+        io::read_point_cloud(slurp(de.path()), fmt, de.path().filename().string()).validate();
+      } catch (const io::FormatError&) {
+      }
+    }
+  }
 }
 
 /// Deterministic mutation sweep over real files of every format: truncations and byte flips must

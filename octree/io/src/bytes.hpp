@@ -4,12 +4,16 @@
 #include "rayscan/io/point_io.hpp"
 
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <functional>
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
+
+#include <sys/mman.h>
 
 namespace rayscan::io::detail {
 
@@ -98,6 +102,38 @@ inline double colour_scale(double max_value, bool is_float, std::string& note) {
   if (max_value <= 65535.0) return 1.0;
   note = "colour values up to " + std::to_string(max_value) + ": scaled to 0..65535";
   return 65535.0 / max_value;
+}
+
+/// `v` rounded and clamped to [0, hi]; NaN gives 0 (values from text files may be anything).
+inline double clamp_round(double v, double hi) {
+  if (!(v > 0)) return 0;  // also NaN
+  if (v >= hi) return hi;
+  return std::nearbyint(v);
+}
+inline std::uint16_t to_u16(double v) { return static_cast<std::uint16_t>(clamp_round(v, 65535.0)); }
+inline std::uint8_t to_u8(double v) { return static_cast<std::uint8_t>(clamp_round(v, 255.0)); }
+
+/// `v` as float without undefined behaviour: finite values beyond the float range are clamped to
+/// +-FLT_MAX (NaN and infinities convert as they are).
+inline float to_f32(double v) {
+  constexpr double kMax = 3.4028234663852886e38;
+  if (v > kMax && v != HUGE_VAL) return static_cast<float>(kMax);
+  if (v < -kMax && v != -HUGE_VAL) return static_cast<float>(-kMax);
+  return static_cast<float>(v);
+}
+
+/// v.resize(n), first asking the kernel for transparent huge pages on the new storage
+/// (madvise MADV_HUGEPAGE): a 10-million-point cloud then takes a few hundred page faults instead
+/// of ~100,000, which is most of the system time of a large read. A no-op where THP is disabled.
+template <class T>
+void resize_huge(std::vector<T>& v, std::size_t n) {
+  v.reserve(n);
+  constexpr std::uintptr_t kHuge = 2u << 20;
+  const auto b = reinterpret_cast<std::uintptr_t>(v.data());
+  const std::uintptr_t lo = (b + kHuge - 1) & ~(kHuge - 1);
+  const std::uintptr_t hi = (b + n * sizeof(T)) & ~(kHuge - 1);
+  if (hi > lo) ::madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
+  v.resize(n);
 }
 
 }  // namespace rayscan::io::detail

@@ -8,6 +8,9 @@
 #include <cmath>
 #include <limits>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 namespace rayscan::io::detail {
 
 namespace {
@@ -51,6 +54,71 @@ double load_typed(const std::uint8_t* p, int type) {
     case 9: return load_le<float>(p);
     case 10: return load_le<double>(p);
     default: return 0.0;
+  }
+}
+
+/// Output arrays of the point decoder (null when the attribute is not kept).
+struct Out {
+  Vec3* pos = nullptr;
+  std::uint16_t* intensity = nullptr;
+  std::uint8_t* cls = nullptr;
+  double* gps = nullptr;
+  Rgb16* rgb = nullptr;
+  double *ret = nullptr, *nret = nullptr, *angle = nullptr, *udata = nullptr, *psid = nullptr, *nir = nullptr;
+  std::vector<double*> extra;
+};
+struct Decoder {
+  const std::uint8_t* base;
+  std::size_t rec_len;
+  Vec3 scale, offset;
+  int gps_off, rgb_off;
+  const std::vector<ExtraField>* extras;
+  Out out;
+};
+struct Reduction {
+  std::uint16_t rgb_max = 0;
+  std::size_t first_bad = std::numeric_limits<std::size_t>::max();
+};
+
+/// Decodes records [i0, i1) (section 2.6; tables 7-12 for Legacy = PDRF 0-5, 13-17 for 6-10).
+template <bool Legacy, bool HasGps, bool HasRgb>
+void decode(const Decoder& dc, std::size_t i0, std::size_t i1, Reduction& red) {
+  const Out& o = dc.out;
+  for (std::size_t i = i0; i < i1; ++i) {
+    const std::uint8_t* r = dc.base + i * dc.rec_len;
+    const double x = load_le<std::int32_t>(r) * dc.scale.x + dc.offset.x;
+    const double y = load_le<std::int32_t>(r + 4) * dc.scale.y + dc.offset.y;
+    const double z = load_le<std::int32_t>(r + 8) * dc.scale.z + dc.offset.z;
+    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) red.first_bad = std::min(red.first_bad, i);
+    o.pos[i] = Vec3(x, y, z);
+    o.intensity[i] = load_le<std::uint16_t>(r + 12);
+    o.cls[i] = Legacy ? (r[15] & 0x1F) : r[16];
+    if constexpr (HasGps) o.gps[i] = load_le<double>(r + dc.gps_off);
+    if constexpr (HasRgb) {
+      const Rgb16 c{load_le<std::uint16_t>(r + dc.rgb_off), load_le<std::uint16_t>(r + dc.rgb_off + 2),
+                    load_le<std::uint16_t>(r + dc.rgb_off + 4)};
+      red.rgb_max = std::max({red.rgb_max, c.r, c.g, c.b});
+      o.rgb[i] = c;
+    }
+    if (o.ret != nullptr) {
+      if constexpr (Legacy) {
+        o.ret[i] = r[14] & 0x07;
+        o.nret[i] = (r[14] >> 3) & 0x07;
+        o.angle[i] = static_cast<std::int8_t>(r[16]);
+        o.udata[i] = r[17];
+        o.psid[i] = load_le<std::uint16_t>(r + 18);
+      } else {
+        o.ret[i] = r[14] & 0x0F;
+        o.nret[i] = r[14] >> 4;
+        o.angle[i] = load_le<std::int16_t>(r + 18) * 0.006;
+        o.udata[i] = r[17];
+        o.psid[i] = load_le<std::uint16_t>(r + 20);
+      }
+      if (o.nir != nullptr) o.nir[i] = load_le<std::uint16_t>(r + 36);
+      const std::vector<ExtraField>& ex = *dc.extras;
+      for (std::size_t k = 0; k < ex.size(); ++k)
+        o.extra[k][i] = load_typed(r + ex[k].offset, ex[k].type) * ex[k].scale + ex[k].add;
+    }
   }
 }
 
@@ -228,13 +296,18 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
       const int type = e[2];
       const int options = e[3];
       static constexpr int base_size[11] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 4, 8};
+      const std::string name = fixed_string(e + 4, 32);
+      if (type > 30) {  // reserved data types (table 25): the layout is unknown from here on
+        info.notes.push_back("Extra Bytes VLR field '" + name + "' has reserved data type " +
+                             std::to_string(type) + ": it and later extra bytes are skipped");
+        break;
+      }
       int base = type, n = 1;
       if (type >= 11 && type <= 30) {
         base = (type - 1) % 10 + 1;
         n = type <= 20 ? 2 : 3;
       }
       const int width = type == 0 ? options : base_size[base] * n;
-      const std::string name = fixed_string(e + 4, 32);
       if (off + width > rec_len) {
         info.notes.push_back("Extra Bytes VLR field '" + name + "' runs past the " +
                              std::to_string(rec_len) + "-byte record: extra bytes ignored");
@@ -289,21 +362,22 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
   info.fields = {"X", "Y", "Z", "intensity", "return_number", "number_of_returns", "classification",
                  "scan_angle", "user_data", "point_source_id"};
   const std::size_t n = static_cast<std::size_t>(count);
-  pc.positions.resize(n);
-  pc.intensity.resize(n);
-  pc.classification.resize(n);
+  resize_huge(pc.positions, n);
+  resize_huge(pc.intensity, n);
+  resize_huge(pc.classification, n);
   const bool has_gps = pdrf_has_gps(pdrf);
   const bool has_rgb = pdrf_has_rgb(pdrf);
   const bool has_nir = pdrf == 8 || pdrf == 10;
-  if (has_gps) pc.gps_time.resize(n), info.fields.push_back("gps_time");
-  if (has_rgb) pc.rgb.resize(n), info.fields.insert(info.fields.end(), {"red", "green", "blue"});
+  if (has_gps) resize_huge(pc.gps_time, n), info.fields.push_back("gps_time");
+  if (has_rgb) resize_huge(pc.rgb, n), info.fields.insert(info.fields.end(), {"red", "green", "blue"});
   if (has_nir) info.fields.push_back("nir");
   std::vector<double>*ret = nullptr, *nret = nullptr, *angle = nullptr, *udata = nullptr,
   *psid = nullptr, *nir = nullptr;
   std::vector<std::vector<double>*> extra_out;
   if (opt.scalars) {
     auto add = [&](const std::string& name) {
-      pc.scalars.push_back({name, std::vector<double>(n)});
+      pc.scalars.push_back({name, {}});
+      resize_huge(pc.scalars.back().values, n);
       return &pc.scalars.back().values;
     };
     pc.scalars.reserve(6 + extras.size());
@@ -318,54 +392,52 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
       info.fields.push_back(f.name);
     }
   }
-  const int rgb_off = pdrf_rgb_offset(pdrf);
-  const int gps_off = pdrf >= 6 ? 22 : 20;
-  const bool legacy = pdrf < 6;
+  Out out;
+  out.pos = pc.positions.data();
+  out.intensity = pc.intensity.data();
+  out.cls = pc.classification.data();
+  out.gps = has_gps ? pc.gps_time.data() : nullptr;
+  out.rgb = has_rgb ? pc.rgb.data() : nullptr;
+  if (ret != nullptr) {
+    out.ret = ret->data();
+    out.nret = nret->data();
+    out.angle = angle->data();
+    out.udata = udata->data();
+    out.psid = psid->data();
+    out.nir = nir != nullptr ? nir->data() : nullptr;
+    for (auto* v : extra_out) out.extra.push_back(v->data());
+  }
+  Decoder dec{d + point_offset, rec_len, scale, offset, pdrf >= 6 ? 22 : 20, pdrf_rgb_offset(pdrf), &extras, out};
+  using DecodeFn = void (*)(const Decoder&, std::size_t, std::size_t, Reduction&);
+  DecodeFn fn = nullptr;
+  if (pdrf < 6) {
+    fn = has_gps ? (has_rgb ? &decode<true, true, true> : &decode<true, true, false>)
+                 : (has_rgb ? &decode<true, false, true> : &decode<true, false, false>);
+  } else {
+    fn = has_rgb ? &decode<false, true, true> : &decode<false, true, false>;
+  }
+  // Blocks of ~16 MB of records, decoded in parallel (TBB); the pages of each finished block are
+  // released, so the resident part of the file stays bounded.
+  const std::size_t block = std::max<std::size_t>(1, (16u << 20) / rec_len);
   std::uint16_t rgb_max = 0;
-  const std::uint8_t* base = d + point_offset;
-  constexpr std::uint64_t kReleaseEvery = 1u << 16;  // points between page releases
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint8_t* r = base + i * rec_len;
-    const double x = load_le<std::int32_t>(r) * scale.x + offset.x;
-    const double y = load_le<std::int32_t>(r + 4) * scale.y + offset.y;
-    const double z = load_le<std::int32_t>(r + 8) * scale.z + offset.z;
-    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
-      fail_at(nm, point_offset + i * rec_len,
-              "point " + std::to_string(i) + ": coordinate overflows to infinity (scale/offset)");
-    pc.positions[i] = Vec3(x, y, z);
-    pc.intensity[i] = load_le<std::uint16_t>(r + 12);
-    if (legacy) {
-      pc.classification[i] = r[15] & 0x1F;
-    } else {
-      pc.classification[i] = r[16];
-    }
-    if (has_gps) pc.gps_time[i] = load_le<double>(r + gps_off);
-    if (has_rgb) {
-      Rgb16 c{load_le<std::uint16_t>(r + rgb_off), load_le<std::uint16_t>(r + rgb_off + 2),
-              load_le<std::uint16_t>(r + rgb_off + 4)};
-      rgb_max = std::max({rgb_max, c.r, c.g, c.b});
-      pc.rgb[i] = c;
-    }
-    if (ret != nullptr) {
-      if (legacy) {
-        (*ret)[i] = r[14] & 0x07;
-        (*nret)[i] = (r[14] >> 3) & 0x07;
-        (*angle)[i] = static_cast<std::int8_t>(r[16]);
-        (*udata)[i] = r[17];
-        (*psid)[i] = load_le<std::uint16_t>(r + 18);
-      } else {
-        (*ret)[i] = r[14] & 0x0F;
-        (*nret)[i] = r[14] >> 4;
-        (*angle)[i] = load_le<std::int16_t>(r + 18) * 0.006;
-        (*udata)[i] = r[17];
-        (*psid)[i] = load_le<std::uint16_t>(r + 20);
-      }
-      if (nir != nullptr) (*nir)[i] = load_le<std::uint16_t>(r + 36);
-      for (std::size_t k = 0; k < extras.size(); ++k)
-        (*extra_out[k])[i] = load_typed(r + extras[k].offset, extras[k].type) * extras[k].scale +
-                             extras[k].add;
-    }
-    if ((i + 1) % kReleaseEvery == 0) in.done(point_offset + (i + 1) * rec_len);
+  for (std::size_t b0 = 0; b0 < n; b0 += block) {
+    const std::size_t b1 = std::min(n, b0 + block);
+    const Reduction r = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(b0, b1, 8192), Reduction{},
+        [&](const tbb::blocked_range<std::size_t>& rg, Reduction acc) {
+          fn(dec, rg.begin(), rg.end(), acc);
+          return acc;
+        },
+        [](Reduction x, const Reduction& y) {
+          x.rgb_max = std::max(x.rgb_max, y.rgb_max);
+          x.first_bad = std::min(x.first_bad, y.first_bad);
+          return x;
+        });
+    if (r.first_bad != Reduction{}.first_bad)
+      fail_at(nm, point_offset + r.first_bad * rec_len,
+              "point " + std::to_string(r.first_bad) + ": coordinate overflows to infinity (scale/offset)");
+    rgb_max = std::max(rgb_max, r.rgb_max);
+    in.done(point_offset + b1 * rec_len);
   }
   // Colour normalisation (docs/formats.md): 8-bit values stored in the 16-bit fields are scaled
   // by 257; a colour format whose channels are all zero carries no colour and is dropped.

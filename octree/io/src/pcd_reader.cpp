@@ -183,10 +183,19 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
       fail_line(nm, line, "field '" + f.name + "' TYPE F with SIZE " + std::to_string(f.size) + " (expected 4 or 8)");
     f.offset = point_size;
     point_size += static_cast<std::uint64_t>(f.size) * f.count;
-    info.fields.push_back(f.name + ":" + f.type + std::to_string(f.size) +
-                          (f.count > 1 ? "x" + std::to_string(f.count) : ""));
+    std::string desc = f.name;  // "x:F4", "fpfh:F4x33"
+    desc += ':';
+    desc += f.type;
+    desc += std::to_string(f.size);
+    if (f.count > 1) desc += 'x' + std::to_string(f.count);
+    info.fields.push_back(desc);
   }
 
+  std::uint64_t values_per_point = 0;
+  for (const PcdField& f : fields) values_per_point += f.count;
+  if (values_per_point > 65536)
+    fail_line(nm, line, "FIELDS/COUNT declare " + std::to_string(values_per_point) +
+                            " values per point (at most 65536 supported)");
   // Roles.
   const std::size_t nf = fields.size();
   std::vector<Role> roles(nf, Role::skip);
@@ -315,9 +324,9 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
       return false;
     }
     pc.positions.emplace_back(x, y, z);
-    if (has_n) pc.normals.emplace_back(n3[0], n3[1], n3[2]);
+    if (has_n) pc.normals.emplace_back(to_f32(n3[0]), to_f32(n3[1]), to_f32(n3[2]));
     if (has_packed) packed.push_back(pk);
-    if (has_ch) ch.insert(ch.end(), {static_cast<float>(c3[0]), static_cast<float>(c3[1]), static_cast<float>(c3[2])});
+    if (has_ch) ch.insert(ch.end(), {to_f32(c3[0]), to_f32(c3[1]), to_f32(c3[2])});
     for (std::size_t s = 0; s < scalar_src.size(); ++s)
       pc.scalars[s].values.push_back(vals[first[scalar_src[s].first] + scalar_src[s].second]);
     return true;
@@ -358,7 +367,7 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
             if (tok.find_first_of(".eEnN") == std::string_view::npos && v >= 0 && v <= 4294967295.0) {
               packed_bits[k] = static_cast<std::uint32_t>(v);
             } else {
-              const float f = static_cast<float>(v);
+              const float f = to_f32(v);
               std::memcpy(&packed_bits[k], &f, 4);
             }
           }
@@ -407,7 +416,7 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
     if (!note.empty()) info.notes.push_back(note);
     pc.rgb.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
-      auto q = [&](float c) { return static_cast<std::uint16_t>(std::lround(std::clamp(c * s, 0.0, 65535.0))); };
+      auto q = [&](float c) { return to_u16(c * s); };
       pc.rgb[i] = Rgb16{q(ch[3 * i]), q(ch[3 * i + 1]), q(ch[3 * i + 2])};
     }
   }

@@ -242,8 +242,15 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
   bool rgb_float = false;
   std::vector<std::size_t> scalar_idx(np, 0);
   std::size_t nscalars = 0;
+  std::vector<bool> taken(static_cast<std::size_t>(Role::scalar) + 1, false);
   for (std::size_t k = 0; k < np; ++k) {
     roles[k] = role_of(vertex->props[k]);
+    // A second property with the same role (e.g. "intensity" and "scalar_intensity") stays a
+    // named scalar so that every attribute vector gets exactly one value per vertex.
+    if (roles[k] != Role::skip && roles[k] != Role::scalar) {
+      if (taken[static_cast<std::size_t>(roles[k])]) roles[k] = Role::scalar;
+      else taken[static_cast<std::size_t>(roles[k])] = true;
+    }
     has_n |= roles[k] == Role::nx;
     has_rgb |= roles[k] == Role::r;
     if (roles[k] == Role::r || roles[k] == Role::g || roles[k] == Role::b)
@@ -290,8 +297,8 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
         case Role::r: c3[0] = a; break;
         case Role::g: c3[1] = a; break;
         case Role::b: c3[2] = a; break;
-        case Role::intensity: pc.intensity.push_back(static_cast<std::uint16_t>(std::clamp(a, 0.0, 65535.0))); break;
-        case Role::classification: pc.classification.push_back(static_cast<std::uint8_t>(a)); break;
+        case Role::intensity: pc.intensity.push_back(to_u16(a)); break;
+        case Role::classification: pc.classification.push_back(to_u8(a)); break;
         case Role::gps: pc.gps_time.push_back(a); break;
         case Role::scalar: pc.scalars[scalar_idx[k]].values.push_back(a); break;
         case Role::skip: break;
@@ -304,8 +311,8 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
       fail_at(nm, where, what);
     }
     pc.positions.emplace_back(x, y, z);
-    if (has_n) pc.normals.emplace_back(n3[0], n3[1], n3[2]);
-    if (has_rgb) col.insert(col.end(), {static_cast<float>(c3[0]), static_cast<float>(c3[1]), static_cast<float>(c3[2])});
+    if (has_n) pc.normals.emplace_back(to_f32(n3[0]), to_f32(n3[1]), to_f32(n3[2]));
+    if (has_rgb) col.insert(col.end(), {to_f32(c3[0]), to_f32(c3[1]), to_f32(c3[2])});
     ++vertex_index;
   };
 
@@ -389,7 +396,7 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
     if (!note.empty()) info.notes.push_back(note);
     pc.rgb.resize(pc.positions.size());
     for (std::size_t i = 0; i < pc.rgb.size(); ++i) {
-      auto q = [&](float c) { return static_cast<std::uint16_t>(std::lround(std::clamp(c * s, 0.0, 65535.0))); };
+      auto q = [&](float c) { return to_u16(c * s); };
       pc.rgb[i] = Rgb16{q(col[3 * i]), q(col[3 * i + 1]), q(col[3 * i + 2])};
     }
   }

@@ -56,6 +56,11 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
       else if (n == "g" || n == "green") c = Col::g;
       else if (n == "b" || n == "blue") c = Col::b;
       else if (n == "i" || n == "intensity") c = Col::intensity;
+      if (c != Col::scalar)
+        for (std::size_t j = 0; j < i; ++j)
+          if (cols[j] == c)
+            fail_line(nm, lineno, "columns " + std::to_string(j + 1) + " and " + std::to_string(i + 1) +
+                                      " ('" + names[j] + "', '" + names[i] + "') name the same attribute");
       if (c == Col::scalar) {
         if (!opt.scalars) c = Col::skip;
         else {
@@ -119,7 +124,7 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
         case Col::r: c3[0] = v; colour_float |= f[k].find('.') != std::string_view::npos; break;
         case Col::g: c3[1] = v; colour_float |= f[k].find('.') != std::string_view::npos; break;
         case Col::b: c3[2] = v; colour_float |= f[k].find('.') != std::string_view::npos; break;
-        case Col::intensity: pc.intensity.push_back(static_cast<std::uint16_t>(std::clamp(v, 0.0, 65535.0))); break;
+        case Col::intensity: pc.intensity.push_back(to_u16(v)); break;
         case Col::scalar: pc.scalars[scalar_of[k]].values.push_back(v); break;
         case Col::skip: break;
       }
@@ -127,7 +132,7 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
     if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
       fail_line(nm, lineno, "non-finite coordinate (expected finite x, y, z)");
     pc.positions.emplace_back(x, y, z);
-    if (has_rgb) colour.insert(colour.end(), {static_cast<float>(c3[0]), static_cast<float>(c3[1]), static_cast<float>(c3[2])});
+    if (has_rgb) colour.insert(colour.end(), {to_f32(c3[0]), to_f32(c3[1]), to_f32(c3[2])});
   }
   info.header_point_count = pc.positions.size();
   if (has_rgb) {
@@ -138,7 +143,7 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
     if (!note.empty()) info.notes.push_back(note);
     pc.rgb.resize(pc.positions.size());
     for (std::size_t i = 0; i < pc.rgb.size(); ++i) {
-      auto q = [&](float c) { return static_cast<std::uint16_t>(std::lround(std::clamp(c * s, 0.0, 65535.0))); };
+      auto q = [&](float c) { return to_u16(c * s); };
       pc.rgb[i] = Rgb16{q(colour[3 * i]), q(colour[3 * i + 1]), q(colour[3 * i + 2])};
     }
   }

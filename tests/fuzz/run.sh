@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets (one per reader: las, ply, pcd, text) with clang++
+# -fsanitize=fuzzer,address and runs each for a bounded time on a corpus seeded from tests/data
+# (plus the checked-in regression inputs in tests/fuzz/regressions/<format>/).
+# Usage: tests/fuzz/run.sh [SECONDS_PER_TARGET (default 60)] [BUILD_DIR (default build-fuzz)]
+# Exit status: 0 when no target crashed, 1 otherwise. Crashing inputs are written to
+# BUILD_DIR/crashes/<format>-crash-*; copy them to tests/fuzz/regressions/<format>/ after fixing.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+SECONDS_PER_TARGET="${1:-60}"
+OUT="${2:-build-fuzz}"
+CXX="${FUZZ_CXX:-clang++}"
+command -v "$CXX" >/dev/null || { echo "fuzz: $CXX not found (Debian package clang)"; exit 2; }
+mkdir -p "$OUT/obj" "$OUT/crashes"
+
+FLAGS=(-std=c++20 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined
+       -fno-sanitize-recover=undefined -Ioctree/include -Ioctree/io/include -I/usr/include/liblzf)
+SOURCES=(octree/src/point_cloud.cpp octree/io/src/*.cpp)
+JOBS="${FUZZ_JOBS:-2}"
+objs=()
+running=0
+for s in "${SOURCES[@]}"; do
+  o="$OUT/obj/$(echo "$s" | tr '/' '_').o"
+  if [ ! -f "$o" ] || [ "$s" -nt "$o" ] || [ -n "$(find octree/io/src octree/io/include octree/include -newer "$o" -name '*.hpp' 2>/dev/null)" ]; then
+    echo "fuzz: compiling $s"
+    "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer-no-link -c "$s" -o "$o.tmp" && mv "$o.tmp" "$o" &
+    running=$((running + 1))
+    if [ "$running" -ge "$JOBS" ]; then wait -n; running=$((running - 1)); fi
+  fi
+  objs+=("$o")
+done
+wait
+for o in "${objs[@]}"; do [ -f "$o" ] || { echo "fuzz: compiling $o failed"; exit 1; }; done
+
+status=0
+for fmt in las ply pcd text; do
+  exe="$OUT/fuzz_$fmt"
+  echo "fuzz: linking $exe"
+  "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer "tests/fuzz/fuzz_$fmt.cpp" "${objs[@]}" -lgdal -llzf -ltbb -o "$exe"
+  corpus="$OUT/corpus/$fmt"
+  mkdir -p "$corpus" "tests/fuzz/regressions/$fmt"
+  case "$fmt" in
+    las) seeds=(tests/data/las/*.las) ;;
+    ply) seeds=(tests/data/ply/*.ply) ;;
+    pcd) seeds=(tests/data/pcd/*.pcd) ;;
+    text) seeds=() ;;
+  esac
+  for f in "${seeds[@]}"; do
+    # Seeds over 256 KiB are cut to their head (libFuzzer's -max_len); small ones are whole.
+    head -c 262144 "$f" > "$corpus/seed-$(basename "$f")"
+  done
+  if [ "$fmt" = text ]; then
+    printf 'x,y,z,red,green,blue,intensity\n1.5,2.5,3.5,255,0,10,7\n' > "$corpus/seed-header.csv"
+    head -n 50 tests/data/pcd/lamppost.pcd | tail -n 30 > "$corpus/seed-xyz.txt"
+    head -n 40 tests/data/pcd/utm17_space.pcd | tail -n 10 > "$corpus/seed-utm.xyz"
+  fi
+  echo "fuzz: running $exe for ${SECONDS_PER_TARGET}s"
+  # LeakSanitizer off: GDAL/PROJ keep process-lifetime caches that it would report.
+  if ! ASAN_OPTIONS=detect_leaks=0 "$exe" -max_total_time="$SECONDS_PER_TARGET" -max_len=262144 \
+        -timeout=20 -rss_limit_mb=3072 -print_final_stats=1 -dict="tests/fuzz/$fmt.dict" \
+        -artifact_prefix="$OUT/crashes/$fmt-" "$corpus" "tests/fuzz/regressions/$fmt" \
+        > "$OUT/fuzz_$fmt.log" 2>&1; then
+    echo "fuzz: $fmt FAILED (see $OUT/fuzz_$fmt.log and $OUT/crashes/)"
+    tail -n 40 "$OUT/fuzz_$fmt.log"
+    status=1
+  else
+    echo "fuzz: $fmt ok: $(grep -E 'stat::number_of_executed_units' "$OUT/fuzz_$fmt.log" | awk '{print $2}') runs"
+  fi
+done
+exit $status
