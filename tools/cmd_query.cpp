@@ -107,7 +107,7 @@ int run_query(const QueryOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
-  const PointCloud cloud = io::read_point_cloud(o.cloud);
+  const PointCloud cloud = io::read_point_cloud(o.cloud, io::ReadOptions{.scalars = false});
   const std::vector<Ray> rays = read_rays(o.rays);
   const AnyIndex index = make_index(cloud.positions, o.index);
   const auto results =

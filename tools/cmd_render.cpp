@@ -79,7 +79,8 @@ int run_render(const RenderCliOptions& o) {
     if (!o.quiet) std::cerr << "rayscan render: " << s << "\n";
   };
   auto t0 = std::chrono::steady_clock::now();
-  const PointCloud cloud = io::read_point_cloud(scene.cloud);
+  // Only positions, colour, intensity and classification are used: skip the other scalars.
+  const PointCloud cloud = io::read_point_cloud(scene.cloud, io::ReadOptions{.scalars = false});
   if (cloud.empty()) throw UsageError(scene.cloud.string() + ": the point cloud has no points");
   char buf[512];
   std::snprintf(buf, sizeof buf, "read %zu points from %s in %.2f s", cloud.size(),
