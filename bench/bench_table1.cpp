@@ -413,27 +413,8 @@ int main(int argc, char** argv) {
               w.boxes.size(), w.knn_q.size());
   std::fflush(stdout);
 
-  // rayscan's box_query returns ids in ascending order (its documented contract); the peers return
-  // them in tree order. To show what that costs, the same rounds also time std::sort over the
-  // unsorted answers of nanoflann (the same 1000 result sets).
-  std::vector<std::vector<PointIndex>> unsorted;
-  {
-    Contender& nano = cs.back();
-    nano.build_bulk();
-    for (const AABB& b : w.boxes) unsorted.push_back(nano.box_ids(b));
-    nano.release();
-  }
-  std::vector<double> t_sort;
-
   std::uint64_t box_ref = 0, knn_ref = 0;
   for (std::size_t r = 0; r < reps; ++r) {
-    {
-      std::vector<std::vector<PointIndex>> copy = unsorted;
-      rb::ThreadCpuStopwatch sw;
-      for (auto& v : copy) std::sort(v.begin(), v.end());
-      t_sort.push_back(sw.ms());
-      rb::keep(copy);
-    }
     for (std::size_t j = 0; j < cs.size(); ++j) {
       Contender& c = cs[(j + r) % cs.size()];
       if (c.build_insert) {
@@ -492,9 +473,8 @@ int main(int argc, char** argv) {
                   fmt(x.box).c_str(), ratio(x.box, peer.box).c_str(), fmt(x.knn).c_str(),
                   ratio(x.knn, peer.knn).c_str());
   }
-  std::printf("\nOf each rayscan box figure, %s ms is sorting the results by index (box_query's "
-              "ascending-order contract; std::sort of the same %zu result lists, median).\n",
-              fmt(rb::median(t_sort)).c_str(), w.boxes.size());
+  // box_query returns storage order, like the peers' tree order: no sort is timed.
+
   std::printf("(x) = rayscan time / fastest peer's time in the same column (goal: <= 1). "
               "Peers' bulk: Boost packing constructor, nanoflann buildIndex; insertion: Boost R* "
               "insert (nanoflann has none). nanoflann's box query is our traversal of its tree.\n");

@@ -1,55 +1,45 @@
-// Output files are written to a temporary sibling and renamed into place on success, so a failed
-// or interrupted run never leaves a half-written file.
+// Text output of the tools: a file written through rayscan::AtomicFile (temporary + rename), or
+// standard output.
 #pragma once
 
-#include <filesystem>
+#include "rayscan/atomic_file.hpp"
+
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <stdexcept>
 #include <string>
-#include <unistd.h>
 
 namespace rayscan::cli {
 
-/// A text output stream bound to `path` ("" or "-" = standard output). Data goes to
-/// "<path>.tmp.<pid>" and commit() renames it to `path`; destruction without commit() removes the
-/// temporary. Throws std::runtime_error when the file cannot be created or written.
+/// A text output stream bound to `path` ("" or "-" = standard output). commit() moves the finished
+/// file into place; destruction without commit() leaves no file behind. Throws std::runtime_error
+/// when the file cannot be created or written.
 class AtomicOutput {
  public:
-  explicit AtomicOutput(const std::string& path) : path_(path) {
+  explicit AtomicOutput(const std::string& path) {
     if (path.empty() || path == "-") return;
-    tmp_ = path + ".tmp." + std::to_string(::getpid());
-    file_.open(tmp_, std::ios::binary | std::ios::trunc);
-    if (!file_) throw std::runtime_error(path + ": cannot create output file");
-  }
-  AtomicOutput(const AtomicOutput&) = delete;
-  AtomicOutput& operator=(const AtomicOutput&) = delete;
-  ~AtomicOutput() {
-    if (!tmp_.empty() && !committed_) {
-      file_.close();
-      std::error_code ec;
-      std::filesystem::remove(tmp_, ec);
-    }
+    file_ = std::make_unique<AtomicFile>(path);
+    out_.open(file_->temp(), std::ios::binary | std::ios::trunc);
+    if (!out_) throw std::runtime_error(path + ": cannot create output file");
   }
   /// The stream to write to.
-  std::ostream& stream() { return tmp_.empty() ? std::cout : file_; }
-  /// Flush and move the temporary into place.
+  std::ostream& stream() { return file_ ? out_ : std::cout; }
+  /// Flush and move the finished file into place.
   void commit() {
-    if (tmp_.empty()) {
+    if (!file_) {
       std::cout.flush();
       return;
     }
-    file_.flush();
-    if (!file_) throw std::runtime_error(path_ + ": write failed");
-    file_.close();
-    std::filesystem::rename(tmp_, path_);
-    committed_ = true;
+    out_.flush();
+    if (!out_) throw std::runtime_error(file_->path().string() + ": write failed");
+    out_.close();
+    file_->commit();
   }
 
  private:
-  std::string path_, tmp_;
-  std::ofstream file_;
-  bool committed_ = false;
+  std::unique_ptr<AtomicFile> file_;
+  std::ofstream out_;
 };
 
 }  // namespace rayscan::cli

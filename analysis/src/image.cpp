@@ -2,6 +2,8 @@
 // and ImageBufAlgo::resize).
 #include "rayscan/analysis/image.hpp"
 
+#include "rayscan/atomic_file.hpp"
+
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
@@ -11,7 +13,6 @@
 #include <filesystem>
 #include <limits>
 #include <stdexcept>
-#include <unistd.h>
 
 namespace rayscan::analysis {
 
@@ -149,12 +150,9 @@ void write_image(const Image& img, const std::string& path, PixelFormat format,
   // zlib level 3 instead of OpenImageIO's 6: a 3840x2160 heat map writes several times faster
   // for a few percent more bytes.
   spec.attribute("png:compressionLevel", 3);
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  auto fail = [&](const std::string& why) {
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error(path + ": " + why);
-  };
+  AtomicFile file(path);
+  const std::string tmp = file.temp().string();
+  auto fail = [&](const std::string& why) { throw std::runtime_error(path + ": " + why); };
   if (!out->open(tmp, spec)) fail(out->geterror());
   if (!out->write_image(OIIO::TypeDesc::FLOAT, img.pixels.data())) {
     const std::string why = out->geterror();
@@ -162,9 +160,7 @@ void write_image(const Image& img, const std::string& path, PixelFormat format,
     fail(why);
   }
   if (!out->close()) fail(out->geterror());
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) fail("cannot rename temporary file into place: " + ec.message());
+  file.commit();
 }
 
 std::vector<std::uint8_t> read_index_misses(const std::string& path, const std::string& channel,

@@ -1,12 +1,13 @@
 #include "rayscan/render/image_output.hpp"
 
+#include "rayscan/atomic_file.hpp"
+
 #include <OpenImageIO/half.h>
 #include <OpenImageIO/imageio.h>
 
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
-#include <unistd.h>
 
 namespace rayscan::render {
 
@@ -74,26 +75,13 @@ void write_file(const std::filesystem::path& path, std::uint32_t w, std::uint32_
       }
     }
 
-  std::string tmp_name = ".";
-  tmp_name.append(path.filename().string()).append(".tmp.").append(std::to_string(::getpid()));
-  const std::filesystem::path tmp = path.parent_path() / tmp_name;
-  if (!out->open(tmp.string(), spec))
+  AtomicFile file(path);
+  if (!out->open(file.temp().string(), spec))
     throw std::runtime_error(path.string() + ": cannot create output file (" + out->geterror() + ")");
   const bool ok = out->write_image(mixed ? TypeDesc::UNKNOWN : chans[0].type, buf.data()) && out->close();
-  if (!ok) {
-    const std::string err = out->geterror();
-    out.reset();
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error(path.string() + ": write failed (" + err + ")");
-  }
+  if (!ok) throw std::runtime_error(path.string() + ": write failed (" + out->geterror() + ")");
   out.reset();
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw std::runtime_error(path.string() + ": cannot move the finished file into place");
-  }
+  file.commit();
 }
 
 // Channel name "<prefix><c>" (built by append: GCC 12 warns falsely on operator+ here).

@@ -1,7 +1,8 @@
-// Internal: a binary output file written to "<path>.tmp.<pid>" through a large buffer and renamed
-// into place by commit(); destroyed without commit() it removes the temporary, so a failed write
-// never leaves a partial file at `path`.
+// Internal: a binary output file written through a large buffer to rayscan::AtomicFile's temporary
+// and renamed into place by commit(); a failed write never leaves a partial file at `path`.
 #pragma once
+
+#include "rayscan/atomic_file.hpp"
 
 #include <cstdint>
 #include <cstdio>
@@ -16,9 +17,8 @@ namespace rayscan::io::detail {
 
 class AtomicWriter {
  public:
-  explicit AtomicWriter(const std::filesystem::path& path)
-      : path_(path), tmp_(path.string() + ".tmp." + std::to_string(::getpid())) {
-    f_ = std::fopen(tmp_.c_str(), "wb");
+  explicit AtomicWriter(const std::filesystem::path& path) : path_(path), file_(path) {
+    f_ = std::fopen(file_.temp().c_str(), "wb");
     if (f_ == nullptr) throw std::runtime_error(path.string() + ": cannot create output file");
     buf_.reserve(kBuffer);
   }
@@ -26,7 +26,6 @@ class AtomicWriter {
   AtomicWriter& operator=(const AtomicWriter&) = delete;
   ~AtomicWriter() {
     if (f_ != nullptr) std::fclose(f_);
-    if (!committed_) std::remove(tmp_.c_str());
   }
   void write(const void* p, std::size_t n) {
     const auto* b = static_cast<const std::uint8_t*>(p);
@@ -49,10 +48,7 @@ class AtomicWriter {
       throw std::runtime_error(path_.string() + ": write failed");
     std::fclose(f_);
     f_ = nullptr;
-    std::error_code ec;
-    std::filesystem::rename(tmp_, path_, ec);
-    if (ec) throw std::runtime_error(path_.string() + ": cannot rename temporary file: " + ec.message());
-    committed_ = true;
+    file_.commit();
   }
 
  private:
@@ -63,10 +59,9 @@ class AtomicWriter {
     buf_.clear();
   }
   std::filesystem::path path_;
-  std::string tmp_;
+  AtomicFile file_;
   std::FILE* f_ = nullptr;
   std::vector<std::uint8_t> buf_;
-  bool committed_ = false;
 };
 
 }  // namespace rayscan::io::detail
