@@ -32,7 +32,7 @@ struct VisibilityCli {
   std::string cloud, out, observers_file, radius = "auto", raster, preview, camera, raster_value;
   std::string sky_weighting = "uniform", index_type = "octree-adaptive";
   std::vector<std::string> observer_args;
-  std::optional<double> height, ground_radius, tolerance, max_distance, cell, sky_lift;
+  std::optional<double> height, ground_radius, tolerance, target_height, max_distance, cell, sky_lift;
   std::vector<double> azimuth, elevation;
   double radius_factor = 1.0;
   std::uint32_t sky_rays = 0;
@@ -154,6 +154,7 @@ int run_visibility(const VisibilityCli& o) {
       throw UsageError("--radius '" + o.radius + "': expected a number > 0 or auto");
   }
   const double tolerance = o.tolerance.value_or(2.0 * radius);
+  const double target_height = o.target_height.value_or(radius);
   const double max_distance = o.max_distance.value_or(kInf);
 
   nlohmann::json report;
@@ -176,6 +177,7 @@ int run_visibility(const VisibilityCli& o) {
     an::VisibilityOptions vo;
     vo.radius = radius;
     vo.tolerance = tolerance;
+    vo.target_height = target_height;
     vo.max_distance = max_distance;
     vo.threads = o.threads;
     vo.progress = !o.quiet;
@@ -190,6 +192,7 @@ int run_visibility(const VisibilityCli& o) {
                   static_cast<unsigned long long>(seen), 100.0 * double(seen) / double(cloud.size()));
     log(buf);
     report["tolerance"] = tolerance;
+    report["target_height"] = target_height;
     report["max_distance"] = std::isfinite(max_distance) ? nlohmann::json(max_distance) : nlohmann::json("inf");
     report["seconds"]["line_of_sight"] = vis.seconds;
     report["points_per_second"] = double(vis.pairs) / vis.seconds;
@@ -317,7 +320,10 @@ int run_visibility(const VisibilityCli& o) {
     go.metadata = {{"RAYSCAN_VALUE", value},
                    {"RAYSCAN_SOURCE", o.cloud},
                    {"RAYSCAN_RADIUS", std::to_string(radius)}};
-    if (have_observers) go.metadata.emplace_back("RAYSCAN_TOLERANCE", std::to_string(tolerance));
+    if (have_observers) {
+      go.metadata.emplace_back("RAYSCAN_TOLERANCE", std::to_string(tolerance));
+      go.metadata.emplace_back("RAYSCAN_TARGET_HEIGHT", std::to_string(target_height));
+    }
     an::write_geotiff(o.raster, raster, go);
     written.push_back(o.raster);
     if (cloud.crs_wkt.empty()) log("the cloud has no CRS; the GeoTIFF has a geotransform but no CRS");
@@ -380,6 +386,10 @@ Runner add_visibility_command(CLI::App& app) {
   c->add_option("--tolerance", o->tolerance,
                 "A point counts as seen when the first sphere the ray meets lies at most this far before "
                 "it along the ray (default 2 x radius)")
+      ->check(CLI::NonNegativeNumber);
+  c->add_option("--target-height", o->target_height,
+                "Rays aim this far above each point (GIS target height; keeps grazing views of level "
+                "ground open; default 1 x radius, 0 = aim at the point)")
       ->check(CLI::NonNegativeNumber);
   c->add_option("--max-distance", o->max_distance, "Maximum viewing distance (world units; default unlimited)")
       ->check(CLI::NonNegativeNumber);

@@ -41,20 +41,23 @@ bool line_of_sight(const I& idx, std::span<const Vec3> positions, const Observer
   if ((obs.azimuth || obs.elevation) && !within_angle_limits(obs, v)) return false;
   const double r = opts.radius;
   if (D <= r) return true;
-  const Ray ray(obs.position, v);
+  const Vec3 aim = v + Vec3(0.0, 0.0, opts.target_height);  // towards P' = P + h_t z
+  const double Da = glm::length(aim);
+  if (Da <= r) return true;
+  const Ray ray(obs.position, aim);
   RayQuery q;
   q.k = 1;
   q.radius = r;
   q.order = RayOrder::sphere_hit;
   q.t_min = 0.0;
-  q.t_max = D - r;
+  q.t_max = Da - r;
   ray_query(idx, ray, q, hits);
   queried = true;
   if (hits.empty()) return true;
   const RayHit& h = hits.front();
   if (h.index == i) return true;
   const double tj = ray_point_terms(ray.origin(), ray.direction(), positions[h.index]).t;
-  return tj >= D - opts.tolerance;
+  return tj >= Da - opts.tolerance;
 }
 
 void check(const VisibilityOptions& o) {
@@ -62,6 +65,8 @@ void check(const VisibilityOptions& o) {
     throw std::invalid_argument("visibility: sphere radius must be a finite number > 0");
   if (!(o.tolerance >= 0.0)) throw std::invalid_argument("visibility: tolerance must be >= 0");
   if (!(o.max_distance >= 0.0)) throw std::invalid_argument("visibility: max distance must be >= 0");
+  if (!(o.target_height >= 0.0) || !std::isfinite(o.target_height))
+    throw std::invalid_argument("visibility: target height must be a finite number >= 0");
 }
 
 }  // namespace

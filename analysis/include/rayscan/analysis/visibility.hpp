@@ -22,6 +22,7 @@ namespace rayscan::analysis {
 struct VisibilityOptions {
   double radius = 1.0;        ///< sphere radius r of every point, world units (> 0)
   double tolerance = 2.0;     ///< along-ray tolerance tau, world units (>= 0); see is_visible()
+  double target_height = 0.0; ///< the ray aims at P + (0, 0, h_t), world units (>= 0); see is_visible()
   double max_distance = kInf; ///< observers see no farther than this (each may override), world units
   unsigned threads = 0;       ///< worker threads; 0 = all cores (results are identical)
   bool progress = false;      ///< draw a progress bar on stderr (only if stderr is a terminal)
@@ -38,18 +39,25 @@ struct VisibilityResult {
   unsigned threads = 0;        ///< threads used
 };
 
-/// Line-of-sight rule (issue 5, 2.2). Point i at P with distance D = |P - O| from the eye O is
-/// visible from the observer when all of:
+/// Line-of-sight rule (issue 5, 2.2). Point i at P, distance D = |P - O| from the eye O, is visible
+/// from the observer when all of:
 ///  1. D <= max distance (the observer's own max_distance, else opts.max_distance);
 ///  2. the direction P - O lies inside the observer's azimuth/elevation limits (within_angle_limits);
-///  3. D <= r (the eye is inside the point's sphere), or the first sphere hit of the ray from O
-///     towards P -- ray_query with k = 1, order sphere_hit, radius r, t in [0, D - r] -- is
-///     (a) absent, (b) point i itself, or (c) a point j whose centre projects onto the ray at
-///     t_j >= D - tau (j lies at most tau before P along the ray: the same surface as P).
+///  3. D <= r or D' <= r (the eye is inside the point's sphere), or the first sphere hit of the ray
+///     from O towards the aim point P' = P + (0, 0, h_t) at distance D' = |P' - O| -- ray_query
+///     with k = 1, order sphere_hit, radius r, t in [0, D' - r] -- is (a) absent, (b) point i
+///     itself, or (c) a point j whose centre projects onto the ray at t_j >= D' - tau (j lies at
+///     most tau before the aim point along the ray: the same surface as P).
 /// Spheres containing the eye have a negative entry parameter and are ignored (an eye inside a
 /// tree crown is not blinded by the leaf it touches). Ties in entry parameter go to the lower point
-/// index (the ray query's order). The tolerance matters at grazing angles: a ray meeting a surface
-/// at elevation angle a first touches the sphere of a surface point about r / tan(a) before P.
+/// index (the ray query's order).
+///
+/// Why h_t (the "target height" of GIS viewsheds, gdal_viewshed -tz, ArcGIS OFFSETB): a ray that
+/// meets a sampled surface at a grazing elevation angle a passes within r of the surface's other
+/// points for about r / tan(a) before P, so with h_t = 0 flat ground seen from eye height is
+/// hidden by itself beyond a few metres unless tau >= r / tan(a). Aiming at the top of P's sphere
+/// (h_t = r) keeps the ray above a flat, level neighbourhood (it stays more than r above the
+/// neighbours' centres) while any real obstacle still blocks it. h_t = 0 is the plain rule.
 /// `index` must be built over `positions`; i < positions.size(); `scratch` is caller-owned.
 bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Observer& observer,
                 PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch);
