@@ -186,16 +186,17 @@ int run_visibility(const VisibilityCli& o) {
     for (std::uint32_t c : vis.count) seen += c > 0;
     std::snprintf(buf, sizeof buf,
                   "line of sight: %zu points x %zu observers in %.2f s (%u threads): %.4g points/s, "
-                  "%.4g ray queries/s; %llu points (%.1f %%) seen by at least one observer",
+                  "%.4g observer-point pairs/s; %llu points (%.1f %%) seen by at least one observer",
                   cloud.size(), observers.size(), vis.seconds, vis.threads,
-                  double(vis.pairs) / vis.seconds, double(vis.queries) / vis.seconds,
+                  double(cloud.size()) / vis.seconds, double(vis.pairs) / vis.seconds,
                   static_cast<unsigned long long>(seen), 100.0 * double(seen) / double(cloud.size()));
     log(buf);
     report["tolerance"] = tolerance;
     report["target_height"] = target_height;
     report["max_distance"] = std::isfinite(max_distance) ? nlohmann::json(max_distance) : nlohmann::json("inf");
     report["seconds"]["line_of_sight"] = vis.seconds;
-    report["points_per_second"] = double(vis.pairs) / vis.seconds;
+    report["points_per_second"] = double(cloud.size()) / vis.seconds;
+    report["pairs_per_second"] = double(vis.pairs) / vis.seconds;
     report["visible_points"] = seen;
     nlohmann::json arr = nlohmann::json::array();
     for (std::size_t k = 0; k < observers.size(); ++k) {
