@@ -9,6 +9,7 @@ PKGS=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libnanoflann-dev libboost-dev libembree-dev
   liblzf-dev libgdal-dev gdal-bin
+  fonts-dejavu-core
 )
 missing=()
 for p in "${PKGS[@]}"; do

@@ -255,6 +255,8 @@ TEST(Visibility, EqualsBruteForceOracleOnRealScan) {
   }
   EXPECT_EQ(mismatches, 0u);
   EXPECT_LE(close_calls, 2u);
+  std::printf("oracle: %zu points x %zu observers, %zu visible, %zu close calls\n", pts.size(), obs.size(),
+              visible, close_calls);
   // The oracle's answers are not degenerate: some points seen, most not.
   EXPECT_GT(visible, pts.size() / 20);
   EXPECT_LT(visible, pts.size() * obs.size() * 9 / 10);
