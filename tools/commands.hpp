@@ -24,5 +24,6 @@ Runner add_query_command(CLI::App& app);
 Runner add_render_command(CLI::App& app);
 Runner add_info_command(CLI::App& app);
 Runner add_compare_command(CLI::App& app);
+Runner add_visibility_command(CLI::App& app);
 
 }  // namespace rayscan::cli

@@ -10,6 +10,7 @@ PKGS=(
   libnanoflann-dev libboost-dev libembree-dev
   liblzf-dev libgdal-dev gdal-bin
   clang libclang-rt-14-dev
+  fonts-dejavu-core
 )
 missing=()
 for p in "${PKGS[@]}"; do

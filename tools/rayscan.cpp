@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   reg(rayscan::cli::add_render_command);
   reg(rayscan::cli::add_info_command);
   reg(rayscan::cli::add_compare_command);
+  reg(rayscan::cli::add_visibility_command);
 
   try {
     app.parse(argc, argv);

@@ -1,0 +1,30 @@
+// Georeferenced GeoTIFF output of a Raster through GDAL's GTiff driver (issue 5, 2.3).
+#pragma once
+
+#include "rayscan/analysis/raster.hpp"
+
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace rayscan::analysis {
+
+/// Options of write_geotiff().
+struct GeoTiffOptions {
+  std::string crs_wkt;   ///< the cloud's CRS (PointCloud::crs_wkt, WKT1 or WKT2); "" = none written
+  double nodata = -9999.0;  ///< value stored for NaN cells and declared as the band's NoData value
+  std::vector<std::pair<std::string, std::string>> metadata;  ///< dataset metadata items (key, value)
+};
+
+/// Writes `raster` as a single-band Float32 GeoTIFF: geotransform from raster.grid (north-up,
+/// pixel-is-area), the CRS from options.crs_wkt (GDALDataset::SetSpatialRef after
+/// OGRSpatialReference::importFromWkt, traditional GIS axis order), NaN cells as options.nodata
+/// (declared with GDALRasterBand::SetNoDataValue), raster.name as the band description, DEFLATE
+/// compression with floating-point predictor (3) and 256 x 256 tiles. Written to a temporary
+/// sibling "<path>.tmp.<pid>" and renamed into place, so a failure never leaves a partial file.
+/// Throws std::runtime_error "<path>: <GDAL's message>" on failure, std::invalid_argument
+/// "crs: ..." when the WKT cannot be parsed.
+void write_geotiff(const std::filesystem::path& path, const Raster& raster, const GeoTiffOptions& options);
+
+}  // namespace rayscan::analysis

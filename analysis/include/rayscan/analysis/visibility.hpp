@@ -1,0 +1,123 @@
+// Per-point visibility over the paper's ray query (Teuscher et al., Algorithm 1, order sphere_hit):
+// line of sight from observers, sky view factor, and the points a camera sees (issue 5 section 2).
+//
+// Surface model: every point is a sphere of radius r (the renderer's model, paper section 5.3).
+// All functions run on TBB over the points (or pixels) in the index's storage order (spatially
+// coherent), each result depends only on its own point, so results are identical for any thread
+// count.
+#pragma once
+
+#include "rayscan/analysis/observer.hpp"
+#include "rayscan/any_index.hpp"
+#include "rayscan/ray_query.hpp"
+#include "rayscan/render/camera.hpp"
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace rayscan::analysis {
+
+/// Parameters of the line-of-sight test.
+struct VisibilityOptions {
+  double radius = 1.0;        ///< sphere radius r of every point, world units (> 0)
+  double tolerance = 2.0;     ///< along-ray tolerance tau, world units (>= 0); see is_visible()
+  double target_height = 0.0; ///< the ray aims at P + (0, 0, h_t), world units (>= 0); see is_visible()
+  double max_distance = kInf; ///< observers see no farther than this (each may override), world units
+  unsigned threads = 0;       ///< worker threads; 0 = all cores (results are identical)
+  bool progress = false;      ///< draw a progress bar on stderr (only if stderr is a terminal)
+};
+
+/// Per-point results of compute_visibility(), indexed like the cloud's positions.
+struct VisibilityResult {
+  std::vector<std::uint32_t> count;       ///< number of observers that see the point
+  std::vector<double> nearest;            ///< distance to the nearest observer that sees it; -1 if none
+  std::vector<std::uint64_t> per_observer;  ///< number of points each observer sees
+  std::uint64_t pairs = 0;     ///< observer-point pairs considered (points x observers)
+  std::uint64_t queries = 0;   ///< ray queries issued (pairs inside range and angle limits)
+  double seconds = 0.0;        ///< wall time of the parallel loop
+  unsigned threads = 0;        ///< threads used
+};
+
+/// Line-of-sight rule (issue 5, 2.2). Point i at P, distance D = |P - O| from the eye O, is visible
+/// from the observer when all of:
+///  1. D <= max distance (the observer's own max_distance, else opts.max_distance);
+///  2. the direction P - O lies inside the observer's azimuth/elevation limits (within_angle_limits);
+///  3. D <= r or D' <= r (the eye is inside the point's sphere), or the first sphere hit of the ray
+///     from O towards the aim point P' = P + (0, 0, h_t) at distance D' = |P' - O| -- ray_query
+///     with k = 1, order sphere_hit, radius r, t in [0, D' - r] -- is (a) absent, (b) point i
+///     itself, or (c) a point j whose centre projects onto the ray at t_j >= D' - tau (j lies at
+///     most tau before the aim point along the ray: the same surface as P).
+/// Spheres containing the eye have a negative entry parameter and are ignored (an eye inside a
+/// tree crown is not blinded by the leaf it touches). Ties in entry parameter go to the lower point
+/// index (the ray query's order).
+///
+/// Why h_t (the "target height" of GIS viewsheds, gdal_viewshed -tz, ArcGIS OFFSETB): a ray that
+/// meets a sampled surface at a grazing elevation angle a passes within r of the surface's other
+/// points for about r / tan(a) before P, so with h_t = 0 flat ground seen from eye height is
+/// hidden by itself beyond a few metres unless tau >= r / tan(a). Aiming at the top of P's sphere
+/// (h_t = r) keeps the ray above a flat, level neighbourhood (it stays more than r above the
+/// neighbours' centres) while any real obstacle still blocks it. h_t = 0 is the plain rule.
+/// `index` must be built over `positions`; i < positions.size(); `scratch` is caller-owned.
+bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Observer& observer,
+                PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch);
+
+/// is_visible() for every point and observer. Observers must have a resolved z (place_observers).
+/// Throws std::invalid_argument for radius <= 0, a negative or NaN tolerance or max distance, or an
+/// index whose size differs from positions.
+VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3> positions,
+                                    std::span<const Observer> observers, const VisibilityOptions& opts);
+
+/// Hemisphere sampling of the sky view factor.
+enum class SkyWeighting {
+  uniform,  ///< equal solid angle: the fraction of the upper hemisphere that is open (issue 5, 2.4)
+  cosine    ///< cosine-weighted (Lambert): the fraction of diffuse sky irradiance on a horizontal
+            ///< surface, the "sky view factor" of urban climatology and ambient occlusion
+};
+
+/// Parameters of the sky view estimate.
+struct SkyViewOptions {
+  std::uint32_t rays = 64;     ///< directions per point, N >= 1
+  SkyWeighting weighting = SkyWeighting::uniform;
+  double radius = 1.0;         ///< sphere radius r (> 0), world units
+  double lift = 2.0;           ///< rays start this far above the point (+z), world units (>= 0);
+                               ///< >= r keeps a point's own flat neighbourhood from closing its sky
+  double max_distance = kInf;  ///< obstacles farther than this along a ray are ignored
+  std::uint64_t seed = 0;      ///< varies the per-point rotation of the direction set
+  unsigned threads = 0;
+  bool progress = false;
+};
+
+/// Direction k of the N-direction set (+z up, unit length): a spherical Fibonacci lattice
+/// (Gonzalez 2010, "Measurement of areas on a sphere using Fibonacci and latitude-longitude
+/// lattices"; Keinert et al. 2015) on the upper hemisphere. Uniform: z_k = 1 - (k + 0.5) / N
+/// (equal-area bands, Archimedes' hat-box theorem); cosine: z_k = sqrt(1 - (k + 0.5) / N) (Malley's
+/// method: the same lattice on the unit disk projected up); azimuth phi_k = 2 pi k / golden ratio
+/// + rotation. Requires k < n.
+Vec3 sky_direction(std::uint32_t k, std::uint32_t n, double rotation, SkyWeighting weighting);
+
+/// The rotation (radians, [0, 2 pi)) of point i's direction set: a hash (SplitMix64) of (seed, i),
+/// so neighbouring points use different directions yet every run gives the same answer.
+double sky_rotation(std::uint64_t seed, std::uint64_t i);
+
+/// Sky view of every point: the fraction of its N rays, origin P + (0, 0, lift) and directions
+/// sky_direction(k, N, sky_rotation(seed, i)), with no sphere entry in [0, max_distance] (ray_query
+/// k = 1, sphere_hit; spheres containing the origin are ignored). Values are multiples of 1/N in
+/// [0, 1]. Throws std::invalid_argument for rays == 0, radius <= 0, negative lift or max distance.
+std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3> positions,
+                                     const SkyViewOptions& opts, std::uint64_t* queries = nullptr);
+
+/// The point each pixel of `camera` sees: the first sphere hit (ray_query k = 1, sphere_hit,
+/// t in [0, max_distance]) of the ray through the pixel centre and lens centre,
+/// camera.generate_ray(x, y) -- the ray of the renderer's point-index AOV, so the result equals
+/// `rayscan render --aov index` for the same radius. Row-major from the top-left pixel;
+/// 0xFFFFFFFF for a miss. Throws std::invalid_argument for radius <= 0.
+std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const render::Camera& camera,
+                                             double radius, double max_distance = kInf,
+                                             unsigned threads = 0, bool progress = false);
+
+/// Number of pixels whose first hit is each point (`npoints` entries) from camera_first_hits()'s
+/// output. Throws std::out_of_range for an index >= npoints other than the miss value.
+std::vector<std::uint32_t> count_pixel_hits(std::span<const std::uint32_t> pixel_hits, std::size_t npoints);
+
+}  // namespace rayscan::analysis

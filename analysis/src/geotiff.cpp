@@ -1,0 +1,101 @@
+#include "rayscan/analysis/geotiff.hpp"
+
+#include <cpl_conv.h>
+#include <cpl_error.h>
+#include <cpl_string.h>
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
+#include <cmath>
+#include <mutex>
+#include <stdexcept>
+#include <system_error>
+#include <unistd.h>
+
+namespace rayscan::analysis {
+
+namespace {
+
+// Collects GDAL's error messages instead of letting it print them, for the duration of a scope.
+class QuietGdal {
+ public:
+  QuietGdal() {
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    CPLErrorReset();
+  }
+  ~QuietGdal() { CPLPopErrorHandler(); }
+  QuietGdal(const QuietGdal&) = delete;
+  QuietGdal& operator=(const QuietGdal&) = delete;
+  static std::string last() {
+    const char* m = CPLGetLastErrorMsg();
+    return m && *m ? m : "GDAL reported a failure without a message";
+  }
+};
+
+}  // namespace
+
+void write_geotiff(const std::filesystem::path& path, const Raster& raster, const GeoTiffOptions& options) {
+  static std::once_flag registered;
+  std::call_once(registered, [] { GDALAllRegister(); });
+  const GridSpec& g = raster.grid;
+  if (g.cols == 0 || g.rows == 0 || raster.values.size() != std::size_t(g.cols) * g.rows)
+    throw std::invalid_argument(path.string() + ": raster size does not match its grid");
+  if (g.cols > 0x7fffffffu || g.rows > 0x7fffffffu)
+    throw std::invalid_argument(path.string() + ": raster too large for GDAL (int dimensions)");
+
+  QuietGdal quiet;
+  OGRSpatialReference srs;
+  const bool has_crs = !options.crs_wkt.empty();
+  if (has_crs) {
+    if (srs.importFromWkt(options.crs_wkt.c_str()) != OGRERR_NONE)
+      throw std::invalid_argument("crs: GDAL cannot parse the cloud's WKT (" + QuietGdal::last() + ")");
+    srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  }
+
+  GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
+  if (!drv) throw std::runtime_error(path.string() + ": GDAL has no GTiff driver");
+  const std::string tmp = path.string() + ".tmp." + std::to_string(::getpid());
+  CPLStringList co;
+  co.SetNameValue("COMPRESS", "DEFLATE");
+  co.SetNameValue("PREDICTOR", "3");
+  co.SetNameValue("TILED", "YES");
+  co.SetNameValue("BLOCKXSIZE", "256");
+  co.SetNameValue("BLOCKYSIZE", "256");
+  co.SetNameValue("BIGTIFF", "IF_SAFER");
+  auto fail = [&](const std::string& what) {
+    VSIUnlink(tmp.c_str());
+    throw std::runtime_error(path.string() + ": " + what + ": " + QuietGdal::last());
+  };
+  GDALDataset* ds = drv->Create(tmp.c_str(), int(g.cols), int(g.rows), 1, GDT_Float32, co.List());
+  if (!ds) fail("cannot create GeoTIFF");
+  bool ok = true;
+  std::array<double, 6> gt = g.geotransform();
+  ok = ok && ds->SetGeoTransform(gt.data()) == CE_None;
+  if (has_crs) ok = ok && ds->SetSpatialRef(&srs) == CE_None;
+  ds->SetMetadataItem("AREA_OR_POINT", "Area");
+  for (const auto& [k, v] : options.metadata) ds->SetMetadataItem(k.c_str(), v.c_str());
+  GDALRasterBand* band = ds->GetRasterBand(1);
+  ok = ok && band->SetNoDataValue(options.nodata) == CE_None;
+  band->SetDescription(raster.name.c_str());
+  std::vector<float> data(raster.values);
+  const float nd = static_cast<float>(options.nodata);
+  for (float& v : data)
+    if (std::isnan(v)) v = nd;
+  ok = ok && band->RasterIO(GF_Write, 0, 0, int(g.cols), int(g.rows), data.data(), int(g.cols), int(g.rows),
+                            GDT_Float32, 0, 0) == CE_None;
+  if (!ok) {
+    GDALClose(ds);
+    fail("writing GeoTIFF failed");
+  }
+  CPLErrorReset();
+  GDALClose(ds);  // flushes and writes the directory
+  if (CPLGetLastErrorType() >= CE_Failure) fail("closing GeoTIFF failed");
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    VSIUnlink(tmp.c_str());
+    throw std::runtime_error(path.string() + ": cannot rename the finished file into place: " + ec.message());
+  }
+}
+
+}  // namespace rayscan::analysis

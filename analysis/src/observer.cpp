@@ -1,0 +1,309 @@
+#include "rayscan/analysis/observer.hpp"
+
+#include "rayscan/point_query.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+namespace rayscan::analysis {
+
+namespace {
+
+std::string trim(std::string_view s) {
+  std::size_t a = 0, b = s.size();
+  while (a < b && std::isspace(static_cast<unsigned char>(s[a]))) ++a;
+  while (b > a && std::isspace(static_cast<unsigned char>(s[b - 1]))) --b;
+  return std::string(s.substr(a, b - a));
+}
+
+std::vector<std::string> split(std::string_view s, char sep) {
+  std::vector<std::string> out;
+  std::size_t start = 0;
+  for (std::size_t i = 0; i <= s.size(); ++i)
+    if (i == s.size() || s[i] == sep) {
+      out.push_back(trim(s.substr(start, i - start)));
+      start = i + 1;
+    }
+  return out;
+}
+
+// Parses the whole string as a finite double; nullopt otherwise.
+std::optional<double> to_number(const std::string& s) {
+  if (s.empty()) return std::nullopt;
+  double v = 0;
+  const char* b = s.data();
+  const char* e = b + s.size();
+  if (*b == '+') ++b;
+  const auto r = std::from_chars(b, e, v);
+  if (r.ec != std::errc() || r.ptr != e || !std::isfinite(v)) return std::nullopt;
+  return v;
+}
+
+bool angle_ok(double a) { return a >= 0.0 && a <= 360.0; }
+
+Observer from_json(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_object()) throw ObserverError(where + ": expected an object with \"position\"");
+  Observer o;
+  auto number = [&](const nlohmann::json& v, const std::string& ptr) {
+    if (!v.is_number()) throw ObserverError(where + "/" + ptr + ": expected a number");
+    const double d = v.get<double>();
+    if (!std::isfinite(d)) throw ObserverError(where + "/" + ptr + ": expected a finite number");
+    return d;
+  };
+  auto pair = [&](const nlohmann::json& v, const std::string& ptr) {
+    if (!v.is_array() || v.size() != 2)
+      throw ObserverError(where + "/" + ptr + ": expected an array of two numbers [lo, hi] in degrees");
+    return AngleRange{number(v[0], ptr + "/0"), number(v[1], ptr + "/1")};
+  };
+  for (const auto& [key, v] : j.items()) {
+    if (key == "name") {
+      if (!v.is_string()) throw ObserverError(where + "/name: expected a string");
+      o.name = v.get<std::string>();
+    } else if (key == "position") {
+      if (!v.is_array() || v.size() < 2 || v.size() > 3)
+        throw ObserverError(where + "/position: expected [x, y, z] or [x, y] (with \"height\")");
+      o.position.x = number(v[0], "position/0");
+      o.position.y = number(v[1], "position/1");
+      if (v.size() == 3) {
+        o.position.z = number(v[2], "position/2");
+        o.has_z = true;
+      }
+    } else if (key == "height") {
+      o.height = number(v, "height");
+    } else if (key == "azimuth") {
+      o.azimuth = pair(v, "azimuth");
+    } else if (key == "elevation") {
+      o.elevation = pair(v, "elevation");
+    } else if (key == "max_distance") {
+      o.max_distance = number(v, "max_distance");
+    } else {
+      throw ObserverError(where + "/" + key +
+                          ": unknown key (expected name, position, height, azimuth, elevation, max_distance)");
+    }
+  }
+  if (!j.contains("position")) throw ObserverError(where + "/position: missing");
+  validate_observer(o, where);
+  return o;
+}
+
+std::vector<Observer> read_json(const std::filesystem::path& path, const std::string& text) {
+  nlohmann::json doc;
+  try {
+    doc = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw ObserverError(path.string() + ": JSON syntax error at byte " + std::to_string(e.byte) +
+                        ": expected an observer list");
+  }
+  std::string base;
+  const nlohmann::json* list = &doc;
+  if (doc.is_object()) {
+    if (!doc.contains("observers") || doc.size() != 1)
+      throw ObserverError(path.string() + ": expected an array of observers or {\"observers\": [...]}");
+    list = &doc["observers"];
+    base = "/observers";
+  }
+  if (!list->is_array())
+    throw ObserverError(path.string() + ":" + (base.empty() ? std::string(" /") : " " + base) +
+                        ": expected an array of observers");
+  std::vector<Observer> out;
+  for (std::size_t i = 0; i < list->size(); ++i)
+    out.push_back(from_json((*list)[i], path.string() + ": " + base + "/" + std::to_string(i)));
+  return out;
+}
+
+std::vector<Observer> read_csv(const std::filesystem::path& path, const std::string& text) {
+  static const char* known[] = {"x", "y", "z", "height", "name", "azimuth_from", "azimuth_to",
+                                "elevation_min", "elevation_max", "max_distance"};
+  std::istringstream in(text);
+  std::string line;
+  std::vector<std::string> header;
+  std::vector<Observer> out;
+  std::size_t lineno = 0;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const std::string t = trim(line);
+    if (t.empty() || t[0] == '#') continue;
+    const std::string where = path.string() + ": line " + std::to_string(lineno);
+    std::vector<std::string> cells = split(t, ',');
+    if (header.empty()) {
+      for (std::string& c : cells) {
+        std::transform(c.begin(), c.end(), c.begin(), [](unsigned char ch) { return std::tolower(ch); });
+        if (std::find(std::begin(known), std::end(known), c) == std::end(known))
+          throw ObserverError(where + ": unknown column '" + c +
+                              "' (expected x, y, z, height, name, azimuth_from, azimuth_to, "
+                              "elevation_min, elevation_max, max_distance)");
+        if (std::count(cells.begin(), cells.end(), c) > 1)
+          throw ObserverError(where + ": column '" + c + "' appears twice");
+      }
+      header = cells;
+      if (std::find(header.begin(), header.end(), "x") == header.end() ||
+          std::find(header.begin(), header.end(), "y") == header.end())
+        throw ObserverError(where + ": the header line must name columns x and y");
+      continue;
+    }
+    if (cells.size() != header.size())
+      throw ObserverError(where + ": expected " + std::to_string(header.size()) + " columns, got " +
+                          std::to_string(cells.size()));
+    std::map<std::string, std::string> row;
+    for (std::size_t c = 0; c < header.size(); ++c) row[header[c]] = cells[c];
+    auto num = [&](const char* col) -> std::optional<double> {
+      const auto it = row.find(col);
+      if (it == row.end() || it->second.empty()) return std::nullopt;
+      const auto v = to_number(it->second);
+      if (!v)
+        throw ObserverError(where + ": column '" + col + "': expected a finite number, got '" +
+                            it->second + "'");
+      return v;
+    };
+    Observer o;
+    const auto x = num("x"), y = num("y"), z = num("z");
+    if (!x || !y) throw ObserverError(where + ": columns x and y must not be empty");
+    o.position = Vec3(*x, *y, z.value_or(0.0));
+    o.has_z = z.has_value();
+    o.height = num("height");
+    if (row.count("name")) o.name = row["name"];
+    const auto a0 = num("azimuth_from"), a1 = num("azimuth_to");
+    if (a0.has_value() != a1.has_value())
+      throw ObserverError(where + ": give both azimuth_from and azimuth_to, or neither");
+    if (a0) o.azimuth = AngleRange{*a0, *a1};
+    const auto e0 = num("elevation_min"), e1 = num("elevation_max");
+    if (e0.has_value() != e1.has_value())
+      throw ObserverError(where + ": give both elevation_min and elevation_max, or neither");
+    if (e0) o.elevation = AngleRange{*e0, *e1};
+    o.max_distance = num("max_distance");
+    validate_observer(o, where);
+    out.push_back(std::move(o));
+  }
+  if (header.empty()) throw ObserverError(path.string() + ": empty file: expected a header line (x,y,z,...)");
+  return out;
+}
+
+}  // namespace
+
+void validate_observer(const Observer& o, const std::string& where) {
+  if (!std::isfinite(o.position.x) || !std::isfinite(o.position.y) || !std::isfinite(o.position.z))
+    throw ObserverError(where + ": position must be finite");
+  if (o.has_z && o.height)
+    throw ObserverError(where + ": give either z (absolute eye position) or height (above the local "
+                        "ground), not both");
+  if (o.height && !std::isfinite(*o.height)) throw ObserverError(where + ": height must be finite");
+  if (o.azimuth && (!angle_ok(o.azimuth->lo) || !angle_ok(o.azimuth->hi)))
+    throw ObserverError(where + ": azimuth: expected degrees in [0, 360] (clockwise from north, +Y)");
+  if (o.elevation && !(o.elevation->lo >= -90.0 && o.elevation->hi <= 90.0 &&
+                       o.elevation->lo <= o.elevation->hi))
+    throw ObserverError(where + ": elevation: expected -90 <= min <= max <= 90 degrees");
+  if (o.max_distance && !(*o.max_distance >= 0.0))
+    throw ObserverError(where + ": max_distance: expected a number >= 0");
+}
+
+std::vector<Observer> read_observers(const std::filesystem::path& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw ObserverError(path.string() + ": cannot open the observer file");
+  std::ostringstream ss;
+  ss << f.rdbuf();
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::vector<Observer> out;
+  if (ext == ".json")
+    out = read_json(path, ss.str());
+  else if (ext == ".csv" || ext == ".txt")
+    out = read_csv(path, ss.str());
+  else
+    throw ObserverError(path.string() + ": unknown observer file type '" + ext +
+                        "' (expected .json, .csv or .txt)");
+  if (out.empty()) throw ObserverError(path.string() + ": the file lists no observer");
+  return out;
+}
+
+Observer parse_observer(std::string_view text) {
+  const std::vector<std::string> parts = split(text, ',');
+  const std::string where = "--observer '" + std::string(text) + "'";
+  if (parts.size() < 2 || parts.size() > 3)
+    throw ObserverError(where + ": expected X,Y,Z (absolute) or X,Y (eye at --height above the ground)");
+  Observer o;
+  for (std::size_t i = 0; i < parts.size(); ++i) {
+    const auto v = to_number(parts[i]);
+    if (!v) throw ObserverError(where + ": '" + parts[i] + "' is not a finite number");
+    o.position[static_cast<int>(i)] = *v;
+  }
+  o.has_z = parts.size() == 3;
+  return o;
+}
+
+double local_ground(const AnyIndex& index, const PointCloud& cloud, double x, double y, double radius) {
+  if (cloud.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const AABB b = cloud.bounds();
+  const AABB cyl{Vec3(x - radius, y - radius, b.lo.z), Vec3(x + radius, y + radius, b.hi.z)};
+  std::vector<PointIndex> ids;
+  std::visit([&](const auto& idx) { box_query(idx, cyl, ids); }, index);
+  const bool classified = cloud.classification.size() == cloud.size();
+  const double r2 = radius * radius;
+  double lowest_any = kInf, lowest_ground = kInf;
+  for (const PointIndex i : ids) {
+    const Vec3& p = cloud.positions[i];
+    if ((p.x - x) * (p.x - x) + (p.y - y) * (p.y - y) > r2) continue;
+    if (classified) {
+      const std::uint8_t c = cloud.classification[i];
+      if (c == 7 || c == 18) continue;
+      if (c == 2) lowest_ground = std::min(lowest_ground, p.z);
+    }
+    lowest_any = std::min(lowest_any, p.z);
+  }
+  if (lowest_ground < kInf) return lowest_ground;
+  if (lowest_any < kInf) return lowest_any;
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+void place_observers(std::vector<Observer>& observers, const AnyIndex& index, const PointCloud& cloud,
+                     const GroundOptions& options) {
+  if (!(options.radius > 0.0) || !std::isfinite(options.radius))
+    throw ObserverError("ground radius must be a finite number > 0");
+  for (std::size_t k = 0; k < observers.size(); ++k) {
+    Observer& o = observers[k];
+    if (o.has_z) continue;
+    const std::optional<double> h = o.height ? o.height : options.default_height;
+    if (!h)
+      throw ObserverError(observer_label(o, k + 1) +
+                          ": no z and no height; give z, a height, or a default height (--height)");
+    const double g = local_ground(index, cloud, o.position.x, o.position.y, options.radius);
+    if (std::isnan(g)) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, ": no point within the ground radius %.6g of (%.6f, %.6f) to put the "
+                    "eye above; move it or raise --ground-radius", options.radius, o.position.x, o.position.y);
+      throw ObserverError(observer_label(o, k + 1) + buf);
+    }
+    o.ground_z = g;
+    o.height = *h;
+    o.position.z = g + *h;
+  }
+}
+
+bool within_angle_limits(const Observer& o, const Vec3& dir) {
+  const double horiz = std::hypot(dir.x, dir.y);
+  if (o.elevation) {
+    const double el = std::atan2(dir.z, horiz) * (180.0 / 3.14159265358979323846);
+    if (el < o.elevation->lo || el > o.elevation->hi) return false;
+  }
+  if (o.azimuth && horiz > 0.0) {
+    const double span = std::fmod(o.azimuth->hi - o.azimuth->lo + 720.0, 360.0);
+    if (span == 0.0 && o.azimuth->hi != o.azimuth->lo) return true;  // full circle
+    double az = std::atan2(dir.x, dir.y) * (180.0 / 3.14159265358979323846);  // clockwise from +Y
+    const double rel = std::fmod(az - o.azimuth->lo + 720.0, 360.0);
+    if (rel > span) return false;
+  }
+  return true;
+}
+
+std::string observer_label(const Observer& o, std::size_t number) {
+  return o.name.empty() ? "observer " + std::to_string(number) : "observer '" + o.name + "'";
+}
+
+}  // namespace rayscan::analysis

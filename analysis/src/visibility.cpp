@@ -1,0 +1,275 @@
+#include "rayscan/analysis/visibility.hpp"
+
+#include "rayscan/render/progress.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+namespace rayscan::analysis {
+
+namespace {
+
+constexpr std::uint32_t kChunk = 512;  // points (or pixel rows' worth of pixels) per work item
+
+std::size_t index_size(const AnyIndex& index) {
+  return std::visit([](const auto& i) { return i.positions().size(); }, index);
+}
+
+unsigned resolve_threads(unsigned t) {
+  return t ? t : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
+}
+
+// One line-of-sight decision (see is_visible in the header). `queried` is set when a ray query
+// was issued; `dist` receives D.
+template <class I>
+bool line_of_sight(const I& idx, std::span<const Vec3> positions, const Observer& obs, double max_d,
+                   const Vec3& p, PointIndex i, const VisibilityOptions& opts,
+                   std::vector<RayHit>& hits, bool& queried, double& dist) {
+  queried = false;
+  const Vec3 v = p - obs.position;
+  const double D = glm::length(v);
+  dist = D;
+  if (!(D <= max_d)) return false;
+  if ((obs.azimuth || obs.elevation) && !within_angle_limits(obs, v)) return false;
+  const double r = opts.radius;
+  if (D <= r) return true;
+  const Vec3 aim = v + Vec3(0.0, 0.0, opts.target_height);  // towards P' = P + h_t z
+  const double Da = glm::length(aim);
+  if (Da <= r) return true;
+  const Ray ray(obs.position, aim);
+  RayQuery q;
+  q.k = 1;
+  q.radius = r;
+  q.order = RayOrder::sphere_hit;
+  q.t_min = 0.0;
+  q.t_max = Da - r;
+  ray_query(idx, ray, q, hits);
+  queried = true;
+  if (hits.empty()) return true;
+  const RayHit& h = hits.front();
+  if (h.index == i) return true;
+  const double tj = ray_point_terms(ray.origin(), ray.direction(), positions[h.index]).t;
+  return tj >= Da - opts.tolerance;
+}
+
+void check(const VisibilityOptions& o) {
+  if (!(o.radius > 0.0) || !std::isfinite(o.radius))
+    throw std::invalid_argument("visibility: sphere radius must be a finite number > 0");
+  if (!(o.tolerance >= 0.0)) throw std::invalid_argument("visibility: tolerance must be >= 0");
+  if (!(o.max_distance >= 0.0)) throw std::invalid_argument("visibility: max distance must be >= 0");
+  if (!(o.target_height >= 0.0) || !std::isfinite(o.target_height))
+    throw std::invalid_argument("visibility: target height must be a finite number >= 0");
+}
+
+}  // namespace
+
+bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Observer& observer,
+                PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch) {
+  check(opts);
+  if (i >= positions.size()) throw std::out_of_range("is_visible: point index out of range");
+  const double max_d = observer.max_distance.value_or(opts.max_distance);
+  bool queried;
+  double dist;
+  return std::visit(
+      [&](const auto& idx) {
+        return line_of_sight(idx, positions, observer, max_d, positions[i], i, opts, scratch, queried, dist);
+      },
+      index);
+}
+
+VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3> positions,
+                                    std::span<const Observer> observers, const VisibilityOptions& opts) {
+  check(opts);
+  if (index_size(index) != positions.size())
+    throw std::invalid_argument("visibility: the index was not built over these positions");
+  const std::size_t n = positions.size(), m = observers.size();
+  VisibilityResult res;
+  res.count.assign(n, 0);
+  res.nearest.assign(n, -1.0);
+  res.per_observer.assign(m, 0);
+  res.pairs = std::uint64_t(n) * m;
+  res.threads = resolve_threads(opts.threads);
+  if (n == 0 || m == 0) return res;
+  std::vector<double> max_d(m);
+  for (std::size_t k = 0; k < m; ++k) max_d[k] = observers[k].max_distance.value_or(opts.max_distance);
+
+  const std::size_t chunks = (n + kChunk - 1) / kChunk;
+  render::Progress progress(chunks, opts.progress && render::Progress::stderr_is_terminal());
+  struct Local {
+    std::vector<std::uint64_t> seen;
+    std::uint64_t queries = 0;
+    std::vector<RayHit> hits;
+  };
+  tbb::enumerable_thread_specific<Local> locals([m] { return Local{std::vector<std::uint64_t>(m, 0), 0, {}}; });
+  tbb::task_arena arena(static_cast<int>(res.threads));
+  const auto t0 = std::chrono::steady_clock::now();
+  arena.execute([&] {
+    std::visit(
+        [&](const auto& idx) {
+          const std::span<const Vec3> pos = idx.positions();
+          const std::span<const PointIndex> ids = idx.ids();
+          tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const auto& range) {
+            Local& L = locals.local();
+            for (std::size_t c = range.begin(); c != range.end(); ++c) {
+              const std::uint64_t q0 = L.queries;
+              const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
+              // Observer-major inside a chunk: consecutive rays share most of their nodes.
+              for (std::size_t k = 0; k < m; ++k)
+                for (std::size_t s = s0; s < s1; ++s) {
+                  const PointIndex i = ids[s];
+                  bool queried;
+                  double dist;
+                  const bool vis = line_of_sight(idx, positions, observers[k], max_d[k], pos[s], i, opts,
+                                                 L.hits, queried, dist);
+                  L.queries += queried;
+                  if (!vis) continue;
+                  ++res.count[i];
+                  ++L.seen[k];
+                  if (res.nearest[i] < 0.0 || dist < res.nearest[i]) res.nearest[i] = dist;
+                }
+              progress.tile_done(L.queries - q0);
+            }
+          });
+        },
+        index);
+  });
+  res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  progress.finish();
+  for (const Local& L : locals) {
+    res.queries += L.queries;
+    for (std::size_t k = 0; k < m; ++k) res.per_observer[k] += L.seen[k];
+  }
+  return res;
+}
+
+Vec3 sky_direction(std::uint32_t k, std::uint32_t n, double rotation, SkyWeighting weighting) {
+  const double u = (double(k) + 0.5) / double(n);  // in (0, 1)
+  const double z = weighting == SkyWeighting::uniform ? 1.0 - u : std::sqrt(1.0 - u);
+  const double s = std::sqrt(std::max(0.0, 1.0 - z * z));
+  // 2 pi k / golden ratio = 2 pi k (phi - 1), taken modulo 2 pi on the fractional part first.
+  const double frac = std::fmod(double(k) * (std::numbers::phi - 1.0), 1.0);
+  const double phi = 2.0 * std::numbers::pi * frac + rotation;
+  return {s * std::cos(phi), s * std::sin(phi), z};
+}
+
+double sky_rotation(std::uint64_t seed, std::uint64_t i) {
+  // SplitMix64 (Steele, Lea, Flood 2014) of the combined key.
+  std::uint64_t z = seed * 0x9E3779B97F4A7C15ull + i + 0x632BE59BD9B4E019ull;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  z ^= z >> 31;
+  return 2.0 * std::numbers::pi * (double(z >> 11) * 0x1.0p-53);
+}
+
+std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3> positions,
+                                     const SkyViewOptions& opts, std::uint64_t* queries) {
+  if (opts.rays == 0) throw std::invalid_argument("sky view: the number of rays must be >= 1");
+  if (!(opts.radius > 0.0) || !std::isfinite(opts.radius))
+    throw std::invalid_argument("sky view: sphere radius must be a finite number > 0");
+  if (!(opts.lift >= 0.0) || !std::isfinite(opts.lift))
+    throw std::invalid_argument("sky view: lift must be a finite number >= 0");
+  if (!(opts.max_distance >= 0.0)) throw std::invalid_argument("sky view: max distance must be >= 0");
+  if (index_size(index) != positions.size())
+    throw std::invalid_argument("sky view: the index was not built over these positions");
+  const std::size_t n = positions.size();
+  std::vector<double> out(n, 0.0);
+  if (n == 0) return out;
+  const std::size_t chunks = (n + kChunk - 1) / kChunk;
+  render::Progress progress(chunks, opts.progress && render::Progress::stderr_is_terminal());
+  std::atomic<std::uint64_t> total{0};
+  RayQuery q;
+  q.k = 1;
+  q.radius = opts.radius;
+  q.order = RayOrder::sphere_hit;
+  q.t_min = 0.0;
+  q.t_max = opts.max_distance;
+  tbb::task_arena arena(static_cast<int>(resolve_threads(opts.threads)));
+  arena.execute([&] {
+    std::visit(
+        [&](const auto& idx) {
+          const std::span<const Vec3> pos = idx.positions();
+          const std::span<const PointIndex> ids = idx.ids();
+          tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const auto& range) {
+            std::vector<RayHit> hits;
+            for (std::size_t c = range.begin(); c != range.end(); ++c) {
+              const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
+              for (std::size_t s = s0; s < s1; ++s) {
+                const PointIndex i = ids[s];
+                const Vec3 origin = pos[s] + Vec3(0.0, 0.0, opts.lift);
+                const double rot = sky_rotation(opts.seed, i);
+                std::uint32_t open = 0;
+                for (std::uint32_t k = 0; k < opts.rays; ++k) {
+                  ray_query(idx, Ray(origin, sky_direction(k, opts.rays, rot, opts.weighting)), q, hits);
+                  open += hits.empty();
+                }
+                out[i] = double(open) / double(opts.rays);
+              }
+              const std::uint64_t nq = std::uint64_t(s1 - s0) * opts.rays;
+              total += nq;
+              progress.tile_done(nq);
+            }
+          });
+        },
+        index);
+  });
+  progress.finish();
+  if (queries) *queries = total.load();
+  return out;
+}
+
+std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const render::Camera& camera,
+                                             double radius, double max_distance, unsigned threads,
+                                             bool progress_bar) {
+  if (!(radius > 0.0) || !std::isfinite(radius))
+    throw std::invalid_argument("camera visibility: sphere radius must be a finite number > 0");
+  if (!(max_distance >= 0.0)) throw std::invalid_argument("camera visibility: max distance must be >= 0");
+  const std::uint32_t W = camera.width(), H = camera.height();
+  std::vector<std::uint32_t> out(std::size_t(W) * H, 0xFFFFFFFFu);
+  if (out.empty() || index_size(index) == 0) return out;
+  RayQuery q;
+  q.k = 1;
+  q.radius = radius;
+  q.order = RayOrder::sphere_hit;
+  q.t_min = 0.0;
+  q.t_max = max_distance;
+  render::Progress progress(H, progress_bar && render::Progress::stderr_is_terminal());
+  tbb::task_arena arena(static_cast<int>(resolve_threads(threads)));
+  arena.execute([&] {
+    std::visit(
+        [&](const auto& idx) {
+          tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, H, 1), [&](const auto& range) {
+            std::vector<RayHit> hits;
+            for (std::uint32_t y = range.begin(); y != range.end(); ++y) {
+              for (std::uint32_t x = 0; x < W; ++x) {
+                ray_query(idx, camera.generate_ray(x, y), q, hits);
+                if (!hits.empty()) out[std::size_t(y) * W + x] = hits.front().index;
+              }
+              progress.tile_done(W);
+            }
+          });
+        },
+        index);
+  });
+  progress.finish();
+  return out;
+}
+
+std::vector<std::uint32_t> count_pixel_hits(std::span<const std::uint32_t> pixel_hits, std::size_t npoints) {
+  std::vector<std::uint32_t> count(npoints, 0);
+  for (const std::uint32_t i : pixel_hits) {
+    if (i == 0xFFFFFFFFu) continue;
+    if (i >= npoints) throw std::out_of_range("camera visibility: pixel hit index out of range");
+    ++count[i];
+  }
+  return count;
+}
+
+}  // namespace rayscan::analysis

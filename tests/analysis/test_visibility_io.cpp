@@ -1,0 +1,432 @@
+// Visibility inputs and outputs: observer files, local ground, raster grid and reductions, the
+// GeoTIFF read back through GDAL (geotransform, CRS, NoData, values), the PNG preview, and
+// `rayscan visibility` end to end (fields in LAS/PLY, exit codes, no partial files).
+#include "rayscan/analysis/geotiff.hpp"
+#include "rayscan/analysis/image.hpp"
+#include "rayscan/analysis/observer.hpp"
+#include "rayscan/analysis/raster.hpp"
+#include "rayscan/analysis/raster_preview.hpp"
+#include "rayscan/analysis/visibility.hpp"
+#include "rayscan/io/point_io.hpp"
+#include "rayscan/render/scene.hpp"
+
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sys/wait.h>
+#include <unistd.h>
+
+using namespace rayscan;
+using namespace rayscan::analysis;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path tmpdir() {
+  static const fs::path d = [] {
+    fs::path p = fs::temp_directory_path() / ("rayscan_vis_test_" + std::to_string(::getpid()));
+    fs::create_directories(p);
+    return p;
+  }();
+  return d;
+}
+
+fs::path write_text(const std::string& name, const std::string& text) {
+  const fs::path p = tmpdir() / name;
+  std::ofstream(p) << text;
+  return p;
+}
+
+std::string error_of(const fs::path& p) {
+  try {
+    read_observers(p);
+  } catch (const ObserverError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+struct RunResult {
+  int code = -1;
+  std::string out;
+};
+
+RunResult run(const std::string& cmd) {
+  RunResult r;
+  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
+  if (!p) return r;
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
+  const int st = ::pclose(p);
+  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+
+// Removes the temporary folder when the test program ends.
+class RemoveTmp : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(tmpdir(), ec);
+  }
+};
+[[maybe_unused]] ::testing::Environment* const remove_tmp = ::testing::AddGlobalTestEnvironment(new RemoveTmp);
+
+bool has_temp_files(const fs::path& dir) {
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().filename().string().find(".tmp.") != std::string::npos) return true;
+  return false;
+}
+
+}  // namespace
+
+TEST(Observers, JsonAndCsv) {
+  const fs::path j = write_text("obs.json", R"({"observers": [
+    {"name": "mast", "position": [10, 20, 30], "azimuth": [315, 45], "elevation": [-10, 20]},
+    {"position": [1.5, -2], "height": 1.7, "max_distance": 500}]})");
+  const std::vector<Observer> o = read_observers(j);
+  ASSERT_EQ(o.size(), 2u);
+  EXPECT_EQ(o[0].name, "mast");
+  EXPECT_EQ(o[0].position, Vec3(10, 20, 30));
+  EXPECT_TRUE(o[0].has_z);
+  EXPECT_EQ(o[0].azimuth->lo, 315);
+  EXPECT_EQ(o[0].elevation->hi, 20);
+  EXPECT_FALSE(o[1].has_z);
+  EXPECT_EQ(*o[1].height, 1.7);
+  EXPECT_EQ(*o[1].max_distance, 500);
+  EXPECT_EQ(read_observers(write_text("bare.json", R"([{"position": [1, 2, 3]}])")).size(), 1u);
+
+  const fs::path c = write_text("obs.csv",
+                                "# eyes\nname,x,y,z,height,azimuth_from,azimuth_to\n"
+                                "a,1,2,3,,,\n\nb,4,5,,1.5,90,180\r\n");
+  const std::vector<Observer> oc = read_observers(c);
+  ASSERT_EQ(oc.size(), 2u);
+  EXPECT_EQ(oc[0].position, Vec3(1, 2, 3));
+  EXPECT_TRUE(oc[0].has_z);
+  EXPECT_FALSE(oc[0].azimuth);
+  EXPECT_EQ(oc[1].name, "b");
+  EXPECT_FALSE(oc[1].has_z);
+  EXPECT_EQ(*oc[1].height, 1.5);
+  EXPECT_EQ(oc[1].azimuth->hi, 180);
+
+  const Observer p = parse_observer("636480.5, 849020,12");
+  EXPECT_EQ(p.position, Vec3(636480.5, 849020, 12));
+  EXPECT_TRUE(p.has_z);
+  EXPECT_FALSE(parse_observer("1,2").has_z);
+}
+
+TEST(Observers, ErrorsNameFileAndPlace) {
+  auto err = [](const char* name, const char* text) { return error_of(write_text(name, text)); };
+  EXPECT_NE(err("e1.csv", "x,y,z\n1,2,3\n1,abc,3\n").find("e1.csv: line 3: column 'y': expected a finite number, got 'abc'"),
+            std::string::npos);
+  EXPECT_NE(err("e2.csv", "x,y,zz\n").find("unknown column 'zz'"), std::string::npos);
+  EXPECT_NE(err("e3.csv", "x,y,z\n1,2\n").find("line 2: expected 3 columns, got 2"), std::string::npos);
+  EXPECT_NE(err("e4.csv", "x,y,z,height\n1,2,3,4\n").find("not both"), std::string::npos);
+  EXPECT_NE(err("e5.json", R"([{"position": [1, 2, 3], "heigth": 2}])").find("/0/heigth: unknown key"),
+            std::string::npos);
+  EXPECT_NE(err("e6.json", R"([{"position": [1, 2, 3], "azimuth": [0, 400]}])").find("azimuth"), std::string::npos);
+  EXPECT_NE(err("e7.json", R"([{"position": [1, 2, 3], "elevation": [30, 10]}])").find("elevation"),
+            std::string::npos);
+  EXPECT_NE(err("e8.json", "[{\"position\": [1, 2, 3]}").find("JSON syntax error"), std::string::npos);
+  EXPECT_NE(err("e9.json", "[]").find("lists no observer"), std::string::npos);
+  EXPECT_NE(err("e10.json", R"([{"position": [1]}])").find("/0/position: expected"), std::string::npos);
+  EXPECT_NE(err("e11.txt", "").find("empty file"), std::string::npos);
+  EXPECT_NE(err("e12.yaml", "x").find("unknown observer file type"), std::string::npos);
+  EXPECT_NE(error_of(tmpdir() / "missing.json").find("cannot open"), std::string::npos);
+  EXPECT_THROW(parse_observer("1,2,3,4"), ObserverError);
+  EXPECT_THROW(parse_observer("1,nan"), ObserverError);
+}
+
+TEST(Observers, LocalGroundPrefersClassTwoAndSkipsNoise) {
+  PointCloud c;
+  c.positions = {{0, 0, 10}, {1, 0, 8}, {0, 1, 5}, {3, 0, 1}, {0.5, 0.5, 12}};
+  c.classification = {2, 2, 7, 2, 5};  // the 5 is low noise; (3,0) is outside a radius of 2
+  const AnyIndex idx = make_index(c.positions, IndexOptions{});
+  EXPECT_EQ(local_ground(idx, c, 0, 0, 2.0), 8.0);
+  c.classification = {1, 1, 7, 1, 5};  // no class 2 in reach: the lowest non-noise point
+  EXPECT_EQ(local_ground(idx, c, 0, 0, 2.0), 8.0);
+  c.classification.clear();  // unclassified: the lowest point
+  EXPECT_EQ(local_ground(idx, c, 0, 0, 2.0), 5.0);
+  EXPECT_TRUE(std::isnan(local_ground(idx, c, 50, 50, 2.0)));
+
+  std::vector<Observer> obs{parse_observer("0,0"), parse_observer("0,0,100")};
+  obs[0].height = 1.5;
+  place_observers(obs, idx, c, GroundOptions{2.0, std::nullopt});
+  EXPECT_EQ(obs[0].position.z, 6.5);
+  EXPECT_EQ(obs[0].ground_z, 5.0);
+  EXPECT_EQ(obs[1].position.z, 100.0);
+  std::vector<Observer> far{parse_observer("50,50")};
+  try {
+    place_observers(far, idx, c, GroundOptions{2.0, 1.7});
+    FAIL() << "expected ObserverError";
+  } catch (const ObserverError& e) {
+    EXPECT_NE(std::string(e.what()).find("observer 1: no point within the ground radius"), std::string::npos);
+  }
+  std::vector<Observer> no_height{parse_observer("0,0")};
+  EXPECT_THROW(place_observers(no_height, idx, c, GroundOptions{2.0, std::nullopt}), ObserverError);
+}
+
+TEST(Raster, GridSnapsToCellMultiplesAndReduces) {
+  const AABB box{Vec3(10.3, 20.1, 0), Vec3(14.9, 23.0, 5)};
+  const GridSpec g = grid_over(box, 2.0);
+  EXPECT_EQ(g.x0, 10.0);
+  EXPECT_EQ(g.y_top, 24.0);  // floor(23 / 2) = 11 -> north edge 24; a point at y = 23 is in row 0
+  EXPECT_EQ(g.cols, 3u);     // columns 10-12, 12-14, 14-16
+  EXPECT_EQ(g.rows, 2u);     // rows 22-24, 20-22
+  EXPECT_EQ(g.geotransform(), (std::array<double, 6>{10, 2, 0, 24, 0, -2}));
+  const std::vector<Vec3> pts{{10.3, 23.0, 0}, {11.9, 22.0, 0}, {12.0, 21.9, 0}, {14.9, 20.1, 0}, {14.0, 20.5, 0}};
+  const std::vector<double> v{1, 3, 5, 2, std::nan("")};
+  Raster r = rasterize(pts, v, g, CellReduce::mean, "t");
+  // (10.3,23) and (11.9,22) -> row 0 col 0; (12,21.9) -> row 1 col 1; (14.9,20.1), (14,20.5) -> row 1 col 2.
+  EXPECT_EQ(r.values[0], 2.0f);
+  EXPECT_TRUE(std::isnan(r.values[1]));
+  EXPECT_TRUE(std::isnan(r.values[2]));
+  EXPECT_EQ(r.values[4], 5.0f);
+  EXPECT_EQ(r.values[5], 2.0f);  // NaN values are skipped
+  EXPECT_EQ(rasterize(pts, v, g, CellReduce::max, "t").values[0], 3.0f);
+  EXPECT_EQ(rasterize(pts, v, g, CellReduce::min, "t").values[0], 1.0f);
+  EXPECT_THROW(grid_over(box, 0.0), std::invalid_argument);
+  EXPECT_THROW(grid_over(box, 1e-6), std::invalid_argument);  // 4.6e6 x 2.9e6 cells
+  EXPECT_THROW(rasterize(pts, std::vector<double>{1}, g, CellReduce::mean, "t"), std::invalid_argument);
+}
+
+TEST(GeoTiff, ReopensWithGeotransformCrsNoDataAndValues) {
+  const PointCloud cloud = io::read_point_cloud(std::string(RAYSCAN_TEST_DATA) + "/las/autzen_trim.las");
+  ASSERT_FALSE(cloud.crs_wkt.empty());
+  const GridSpec g = grid_over(cloud.bounds(), 25.0);
+  std::vector<double> z(cloud.size());
+  for (std::size_t i = 0; i < z.size(); ++i) z[i] = cloud.positions[i].z;
+  const Raster r = rasterize(cloud.positions, z, g, CellReduce::max, "highest z");
+  const fs::path out = tmpdir() / "z.tif";
+  GeoTiffOptions go;
+  go.crs_wkt = cloud.crs_wkt;
+  go.metadata = {{"RAYSCAN_VALUE", "z"}};
+  write_geotiff(out, r, go);
+  EXPECT_FALSE(has_temp_files(tmpdir()));
+
+  GDALAllRegister();
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(out.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  ASSERT_TRUE(ds);
+  EXPECT_STREQ(ds->GetDriverName(), "GTiff");
+  EXPECT_EQ(ds->GetRasterXSize(), int(g.cols));
+  EXPECT_EQ(ds->GetRasterYSize(), int(g.rows));
+  double gt[6];
+  ASSERT_EQ(ds->GetGeoTransform(gt), CE_None);
+  // autzen: x 636001.76..637179.22, y 848935.20..849497.90 ft -> snapped to 25 ft cells.
+  EXPECT_EQ(gt[0], 636000.0);
+  EXPECT_EQ(gt[1], 25.0);
+  EXPECT_EQ(gt[2], 0.0);
+  EXPECT_EQ(gt[3], 849500.0);
+  EXPECT_EQ(gt[4], 0.0);
+  EXPECT_EQ(gt[5], -25.0);
+  EXPECT_EQ(g.cols, 48u);  // 636000..637200
+  EXPECT_EQ(g.rows, 23u);  // 848925..849500
+  // GeoTIFF stores a CRS as GeoKeys (EPSG codes and projection parameters), so the datum comes
+  // back under its EPSG name ("NAD83 (High Accuracy Reference Network)" for the file's
+  // "NAD83_High_Accuracy_Regional_Network", both EPSG:6152): compare what defines the CRS.
+  const OGRSpatialReference* srs = ds->GetSpatialRef();
+  ASSERT_TRUE(srs);
+  OGRSpatialReference expect;
+  ASSERT_EQ(expect.importFromWkt(cloud.crs_wkt.c_str()), OGRERR_NONE);
+  ASSERT_TRUE(srs->IsProjected());
+  EXPECT_STREQ(srs->GetAttrValue("PROJECTION"), expect.GetAttrValue("PROJECTION"));
+  EXPECT_STREQ(srs->GetAttrValue("PROJECTION"), "Lambert_Conformal_Conic_2SP");
+  for (const char* parm : {SRS_PP_STANDARD_PARALLEL_1, SRS_PP_STANDARD_PARALLEL_2, SRS_PP_LATITUDE_OF_ORIGIN,
+                           SRS_PP_CENTRAL_MERIDIAN, SRS_PP_FALSE_EASTING, SRS_PP_FALSE_NORTHING})
+    EXPECT_NEAR(srs->GetProjParm(parm, -1), expect.GetProjParm(parm, -2), 1e-9 * (1 + std::abs(expect.GetProjParm(parm)))) << parm;
+  EXPECT_EQ(srs->GetLinearUnits(), 0.3048);  // international foot, as in the LAS file's WKT
+  EXPECT_EQ(srs->GetLinearUnits(), expect.GetLinearUnits());
+  EXPECT_STREQ(srs->GetAuthorityCode("GEOGCS|DATUM"), "6152");
+  EXPECT_STREQ(srs->GetAuthorityCode("GEOGCS|DATUM"), expect.GetAuthorityCode("GEOGCS|DATUM"));
+  EXPECT_NEAR(srs->GetSemiMajor(), expect.GetSemiMajor(), 1e-6);
+  EXPECT_NEAR(srs->GetInvFlattening(), expect.GetInvFlattening(), 1e-9);
+  EXPECT_EQ(srs->GetPrimeMeridian(), expect.GetPrimeMeridian());
+  EXPECT_STREQ(ds->GetMetadataItem("RAYSCAN_VALUE"), "z");
+  GDALRasterBand* band = ds->GetRasterBand(1);
+  EXPECT_EQ(band->GetRasterDataType(), GDT_Float32);
+  int has_nd = 0;
+  EXPECT_EQ(band->GetNoDataValue(&has_nd), -9999.0);
+  EXPECT_TRUE(has_nd);
+  EXPECT_STREQ(band->GetDescription(), "highest z");
+  std::vector<float> back(std::size_t(g.cols) * g.rows);
+  ASSERT_EQ(band->RasterIO(GF_Read, 0, 0, int(g.cols), int(g.rows), back.data(), int(g.cols), int(g.rows),
+                           GDT_Float32, 0, 0),
+            CE_None);
+  std::size_t nodata = 0;
+  for (std::size_t k = 0; k < back.size(); ++k) {
+    if (std::isnan(r.values[k])) {
+      EXPECT_EQ(back[k], -9999.0f);
+      ++nodata;
+    } else {
+      EXPECT_EQ(back[k], r.values[k]);
+    }
+  }
+  EXPECT_GT(nodata, 0u);  // the trimmed site is not rectangular
+  // The cell of the highest point holds its z (independent check of the row/column mapping).
+  const auto top = std::max_element(z.begin(), z.end()) - z.begin();
+  const Vec3 p = cloud.positions[std::size_t(top)];
+  const int col = int(std::floor((p.x - gt[0]) / gt[1])), row = int(std::floor((p.y - gt[3]) / gt[5]));
+  EXPECT_EQ(back[std::size_t(row) * g.cols + std::size_t(col)], float(p.z));
+
+  // No CRS: geotransform only. A bad WKT is an error and leaves no file.
+  write_geotiff(tmpdir() / "nocrs.tif", r, GeoTiffOptions{});
+  std::unique_ptr<GDALDataset> d2(GDALDataset::Open((tmpdir() / "nocrs.tif").c_str(), GDAL_OF_RASTER));
+  ASSERT_TRUE(d2);
+  EXPECT_EQ(d2->GetSpatialRef(), nullptr);
+  GeoTiffOptions bad;
+  bad.crs_wkt = "PROJCS[garbage";
+  EXPECT_THROW(write_geotiff(tmpdir() / "bad.tif", r, bad), std::invalid_argument);
+  EXPECT_FALSE(fs::exists(tmpdir() / "bad.tif"));
+  EXPECT_THROW(write_geotiff(tmpdir() / "no_such_dir" / "x.tif", r, go), std::runtime_error);
+  EXPECT_FALSE(has_temp_files(tmpdir()));
+}
+
+TEST(RasterPreview, ColoursFollowTheRampAndNoData) {
+  GridSpec g;
+  g.cols = 3;
+  g.rows = 2;
+  g.cell = 1;
+  Raster r{g, {0.0f, 0.5f, 1.0f, std::nanf(""), 2.0f, -1.0f}, "t"};
+  const fs::path out = tmpdir() / "p.png";
+  const std::string legend = write_raster_preview(out, r, 0.0, 1.0, "test");
+  EXPECT_NE(legend.find("black 0"), std::string::npos);
+  const Image img = read_image(out.string());
+  const int s = 1024 / 3;  // px per cell
+  EXPECT_EQ(img.height, 2 * s + 70);
+  auto px = [&](int col, int row, int ch) { return img.at(col * s + s / 2, row * s + s / 2, ch); };
+  EXPECT_EQ(px(0, 0, 0), 0.0f);                                  // 0 -> black
+  EXPECT_NEAR(px(1, 0, 0), 1.0f, 1 / 255.0);                     // 0.5 -> between red and yellow
+  EXPECT_NEAR(px(1, 0, 1), 0.5f, 1 / 255.0);
+  EXPECT_EQ(px(2, 0, 2), 1.0f);                                  // 1 -> white
+  EXPECT_NEAR(px(0, 1, 2), kNoDataRgb[2], 1 / 255.0);            // no data -> blue
+  EXPECT_EQ(px(1, 1, 2), 1.0f);                                  // above the range clamps to white
+  EXPECT_EQ(px(2, 1, 0), 0.0f);                                  // below clamps to black
+  EXPECT_THROW(write_raster_preview(out, r, 1.0, 0.0, "t"), std::invalid_argument);
+}
+
+// ---- `rayscan visibility` end to end.
+
+class VisibilityCli : public ::testing::Test {
+ protected:
+  static std::string bin() { return RAYSCAN_BIN; }
+  // A small scene as a PLY: 21 x 21 ground at spacing 1 (z = 0) and a 3-high wall at x = 5.
+  static fs::path scene() {
+    static const fs::path p = [] {
+      PointCloud c;
+      for (int x = -10; x <= 10; ++x)
+        for (int y = -10; y <= 10; ++y) c.positions.push_back(Vec3(x, y, 0));
+      for (int y = -10; y <= 10; ++y)
+        for (int z = 1; z <= 3; ++z) c.positions.push_back(Vec3(5, y, z));
+      const fs::path out = tmpdir() / "scene.ply";
+      io::write_ply(out, c);
+      return out;
+    }();
+    return p;
+  }
+};
+
+TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
+  const fs::path csv = write_text("cli_obs.csv", "x,y,height\n0,0,1.7\n-8,8,1.7\n");
+  const fs::path las = tmpdir() / "out.las", ply = tmpdir() / "out.ply", tif = tmpdir() / "vis.tif";
+  const std::string common = bin() + " visibility " + scene().string() + " --observers " + csv.string() +
+                             " --radius 0.8 --distance --sky-view 16 -q";
+  RunResult r = run(common + " -o " + las.string() + " --raster " + tif.string() + " --cell 2 --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("\"visible_points\""), std::string::npos) << r.out;
+  r = run(common + " -o " + ply.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_TRUE(fs::exists(tmpdir() / "vis.png"));
+  EXPECT_FALSE(has_temp_files(tmpdir()));
+
+  // The library on the same input: ground under the eyes, then the line of sight.
+  const PointCloud in = io::read_point_cloud(scene());
+  const AnyIndex idx = make_index(in.positions, IndexOptions{});
+  std::vector<Observer> obs = read_observers(csv);
+  place_observers(obs, idx, in, GroundOptions{4.0, std::nullopt});
+  EXPECT_EQ(obs[0].position.z, 1.7);
+  VisibilityOptions vo;
+  vo.radius = 0.8;
+  vo.tolerance = 1.6;
+  vo.target_height = 0.8;
+  const VisibilityResult res = compute_visibility(idx, in.positions, obs, vo);
+  // Known answer: ground behind the 3-high wall (x > 6, |y| < 3) is hidden from the eye at the
+  // origin, 1.7 above the ground.
+  const VisibilityResult first = compute_visibility(idx, in.positions, std::span(obs.data(), 1), vo);
+  for (std::size_t i = 0; i < in.size(); ++i)
+    if (in.positions[i].z == 0 && in.positions[i].x > 6 && std::abs(in.positions[i].y) < 3) {
+      EXPECT_EQ(first.count[i], 0u) << in.positions[i].x << "," << in.positions[i].y;
+    }
+  for (const fs::path& f : {las, ply}) {
+    const PointCloud out = io::read_point_cloud(f);
+    ASSERT_EQ(out.size(), in.size()) << f;
+    const ScalarField* cnt = out.scalar("visible_count");
+    const ScalarField* dist = out.scalar("visible_distance");
+    const ScalarField* sky = out.scalar("sky_view");
+    ASSERT_TRUE(cnt && dist && sky) << f;
+    std::size_t hidden = 0;
+    for (std::size_t i = 0; i < in.size(); ++i) {
+      EXPECT_EQ(cnt->values[i], res.count[i]) << f << " point " << i;
+      EXPECT_DOUBLE_EQ(dist->values[i], res.nearest[i]) << f << " point " << i;
+      EXPECT_GE(sky->values[i], 0.0);
+      hidden += res.count[i] == 0;
+    }
+    EXPECT_GT(hidden, 0u);
+  }
+}
+
+TEST_F(VisibilityCli, UserErrorsExitTwoAndWriteNothing) {
+  const fs::path out = tmpdir() / "never.las";
+  auto expect_error = [&](const std::string& args, const std::string& msg) {
+    const RunResult r = run(bin() + " visibility " + args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(msg), std::string::npos) << args << "\n" << r.out;
+    EXPECT_FALSE(fs::exists(out));
+  };
+  const std::string s = scene().string();
+  expect_error(s + " -o " + out.string(), "nothing to compute");
+  expect_error(s + " --observer 0,0,2 -o " + (tmpdir() / "x.xyz").string(), "expected a file name ending in .las or .ply");
+  expect_error(s + " --observer 0,0 -o " + out.string(), "no z and no height");
+  expect_error(s + " --observer 50,50 --height 2 -o " + out.string(), "no point within the ground radius");
+  expect_error(s + " --observer 0,0,x -o " + out.string(), "is not a finite number");
+  expect_error(s + " --observer 0,0,2 --raster " + (tmpdir() / "m.tif").string() + " -o " + out.string(), "--cell");
+  expect_error(s + " --observer 0,0,2 --raster-value sky --raster " + (tmpdir() / "m.tif").string() +
+                   " --cell 1 -o " + out.string(),
+               "needs --sky-view");
+  expect_error(s + " --observer 0,0,2 --radius -3 -o " + out.string(), "--radius '-3'");
+  expect_error((tmpdir() / "missing.las").string() + " --observer 0,0,2 -o " + out.string(), "missing.las");
+  expect_error(s + " --from-camera " + (tmpdir() / "nocam.json").string() + " -o " + out.string(), "nocam.json");
+  EXPECT_FALSE(fs::exists(tmpdir() / "m.tif"));
+}
+
+TEST_F(VisibilityCli, FromCameraMarksThePointsItSees) {
+  const fs::path cam = write_text("cam.json", R"({"width": 64, "height": 48, "position": [-9, 0, 4],
+    "look_at": [5, 0, 1], "up": [0, 0, 1], "vfov_deg": 50})");
+  const fs::path out = tmpdir() / "cam.ply";
+  const RunResult r = run(bin() + " visibility " + scene().string() + " --from-camera " + cam.string() +
+                          " --radius 0.6 -q -o " + out.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  const PointCloud in = io::read_point_cloud(scene());
+  const PointCloud pc = io::read_point_cloud(out);
+  const ScalarField* hits = pc.scalar("camera_hits");
+  ASSERT_TRUE(hits);
+  const AnyIndex idx = make_index(in.positions, IndexOptions{});
+  const std::vector<std::uint32_t> expect =
+      count_pixel_hits(camera_first_hits(idx, render::load_camera(cam), 0.6), in.size());
+  double total = 0;
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    EXPECT_EQ(hits->values[i], expect[i]) << i;
+    total += hits->values[i];
+    // Nothing behind the wall (x > 5.5, low) is seen.
+    if (in.positions[i].x > 5.5 && std::abs(in.positions[i].y) < 2) {
+      EXPECT_EQ(hits->values[i], 0.0);
+    }
+  }
+  EXPECT_GT(total, 64 * 48 / 4);
+}
