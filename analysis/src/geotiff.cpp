@@ -1,5 +1,7 @@
 #include "rayscan/analysis/geotiff.hpp"
 
+#include "rayscan/atomic_file.hpp"
+
 #include <cpl_conv.h>
 #include <cpl_error.h>
 #include <cpl_string.h>
@@ -10,7 +12,6 @@
 #include <mutex>
 #include <stdexcept>
 #include <system_error>
-#include <unistd.h>
 
 namespace rayscan::analysis {
 
@@ -54,7 +55,8 @@ void write_geotiff(const std::filesystem::path& path, const Raster& raster, cons
 
   GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
   if (!drv) throw std::runtime_error(path.string() + ": GDAL has no GTiff driver");
-  const std::string tmp = path.string() + ".tmp." + std::to_string(::getpid());
+  AtomicFile file(path);  // removes the temporary unless committed
+  const std::string tmp = file.temp().string();
   CPLStringList co;
   co.SetNameValue("COMPRESS", "DEFLATE");
   co.SetNameValue("PREDICTOR", "3");
@@ -63,7 +65,6 @@ void write_geotiff(const std::filesystem::path& path, const Raster& raster, cons
   co.SetNameValue("BLOCKYSIZE", "256");
   co.SetNameValue("BIGTIFF", "IF_SAFER");
   auto fail = [&](const std::string& what) {
-    VSIUnlink(tmp.c_str());
     throw std::runtime_error(path.string() + ": " + what + ": " + QuietGdal::last());
   };
   GDALDataset* ds = drv->Create(tmp.c_str(), int(g.cols), int(g.rows), 1, GDT_Float32, co.List());
@@ -90,12 +91,7 @@ void write_geotiff(const std::filesystem::path& path, const Raster& raster, cons
   CPLErrorReset();
   GDALClose(ds);  // flushes and writes the directory
   if (CPLGetLastErrorType() >= CE_Failure) fail("closing GeoTIFF failed");
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    VSIUnlink(tmp.c_str());
-    throw std::runtime_error(path.string() + ": cannot rename the finished file into place: " + ec.message());
-  }
+  file.commit();
 }
 
 }  // namespace rayscan::analysis
