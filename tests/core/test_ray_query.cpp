@@ -162,6 +162,39 @@ TEST(RayQuery, StatsCountWorkAndPruningVisitsFewNodes) {
   EXPECT_LT(st.nodes_visited, tree.node_count() / 20);
 }
 
+TEST(RayQuery, AnyHitFindsACandidateExactlyWhenOneExists) {
+  const auto pts = make_points(20000, Dist::clustered, 13);
+  AABB box;
+  for (const Vec3& p : pts) box.expand(p);
+  for (const IndexOptions& opt : all_index_options()) {
+    std::mt19937_64 rng(17);  // the same rays for every index
+    const AnyIndex index = make_index(pts, opt);
+    std::size_t found = 0;
+    for (int i = 0; i < 200; ++i) {
+      const Ray ray = random_ray(rng, box, i % 4 == 0);
+      for (RayOrder order : {RayOrder::sphere_hit, RayOrder::time, RayOrder::ray}) {
+        RayQuery all;
+        all.radius = 0.01;
+        all.t_min = 0.0;
+        all.order = order;
+        const auto want = oracle_ray_query(pts, ray, all);  // every candidate
+        RayQuery any = all;
+        any.any_hit = true;
+        const auto got = std::visit([&](const auto& idx) { return ray_query(idx, ray, any); }, index);
+        ASSERT_EQ(got.empty(), want.empty()) << label(opt) << " ray " << i;
+        if (got.empty()) continue;
+        ++found;
+        ASSERT_EQ(got.size(), 1u);
+        const bool member = std::any_of(want.begin(), want.end(), [&](const RayHit& h) {
+          return h.index == got[0].index && h.t == got[0].t && h.distance == got[0].distance;
+        });
+        EXPECT_TRUE(member) << label(opt) << " ray " << i;
+      }
+    }
+    EXPECT_GT(found, 20u) << label(opt);  // guards against a vacuous comparison
+  }
+}
+
 TEST(RayQuery, FrustumPlanesCombineWithRayPredicates) {
   const auto pts = make_points(3000, Dist::uniform, 9);
   // A box-shaped frustum [0.2, 0.7]^3 as six planes, plus an oblique plane.

@@ -51,6 +51,10 @@ struct RayQuery {
   RayOrder order = RayOrder::ray;           ///< ordering measure, see RayOrder
   std::span<const Plane> planes{};          ///< extra half-space constraints (not owned)
   NodeDistance node_distance = NodeDistance::exact;  ///< node pruning bound, see NodeDistance
+  /// Occlusion mode: stop at the first candidate the traversal meets and return it alone (it
+  /// satisfies every predicate but need not have the smallest key). For shadow rays and
+  /// line-of-sight tests that only ask "is anything there?" (cf. Embree's rtcOccluded1).
+  bool any_hit = false;
 
   /// Throws std::invalid_argument when t_min > t_max, a value is NaN, radius < 0, or order is
   /// sphere_hit without a finite radius, or a plane normal is zero or non-finite.
@@ -226,7 +230,13 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
     return !(bounded && lb > worst + tol);
   };
 
+  bool done = false;  // any_hit: a candidate was found
   auto push_candidate = [&](const detail::Candidate& c) {
+    if (q.any_hit) {
+      cands.push_back(c);
+      done = true;
+      return;
+    }
     if (!bounded) {
       cands.push_back(c);
       return;
@@ -273,6 +283,7 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
       const double key = ray_order ? std::sqrt(pt.d2) : t;
       if (key > worst) continue;
       push_candidate({key, ids[s], t, pt.d2});
+      if (done) return;
     }
   };
 
@@ -287,6 +298,7 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
     nodes.pop_back();
     if (bounded && e.lb > worst + tol) continue;
     eval_points(e.node);
+    if (done) break;
     const unsigned nc = index.child_count(e.node);
     unsigned nk = 0;
     for (unsigned i = 0; i < nc; ++i) {

@@ -59,6 +59,18 @@ class PathTracer {
     query_.node_distance = in.node_distance;
     query_.order = in.hit == HitMode::sphere ? RayOrder::sphere_hit : RayOrder::time;
     query_.validate();
+    shadow_query_ = query_;
+    shadow_query_.any_hit = true;  // a shadow ray only asks whether anything blocks the sun
+  }
+
+  /// True when any sphere blocks `ray` at t >= 0 (shadow rays; the core's any_hit mode).
+  bool occluded(const Ray& ray, std::vector<RayHit>& hits, TraceCounters& c) const {
+    RayQueryStats st;
+    ray_query(index_, ray, shadow_query_, hits, &st);
+    ++c.queries;
+    c.nodes_visited += st.nodes_visited;
+    c.points_tested += st.points_tested;
+    return !hits.empty();
   }
 
   /// First hit along `ray` with t >= 0 (see HitMode). `hits` is caller-owned scratch.
@@ -113,8 +125,7 @@ class PathTracer {
         const Vec3 l = sky_.sample_sun(s.uniform(), s.uniform());
         const double cos_l = glm::dot(l, h.normal);
         if (cos_l > 0.0) {
-          SurfaceHit sh;
-          if (!intersect(Ray(origin, l), sh, hits, c))
+          if (!occluded(Ray(origin, l), hits, c))
             L += beta * a * sky_.sun_irradiance() * float(cos_l / std::numbers::pi);
         }
       }
@@ -151,6 +162,7 @@ class PathTracer {
   const Sky& sky_;
   bool time_;
   RayQuery query_;
+  RayQuery shadow_query_;
 };
 
 }  // namespace rayscan::render
