@@ -22,6 +22,7 @@ struct QueryOptions {
   IndexOptions index;
   long long k = -1;
   double radius = kInf, t_min = -kInf, t_max = kInf;
+  bool depth_given = false;
 };
 
 bool parse_num(const std::string& s, double& v) {
@@ -96,6 +97,10 @@ RayOrder parse_order(const std::string& s) {
 }
 
 int run_query(const QueryOptions& o) {
+  if (o.depth_given && o.index.type != "octree-fixed")
+    throw UsageError("--depth applies to --index octree-fixed only (got --index " + o.index.type + ")");
+  if (o.index.insertion && o.index.type.rfind("octree-", 0) != 0)
+    throw UsageError("--insertion applies to the octree indexes only (got --index " + o.index.type + ")");
   RayQuery q;
   q.order = parse_order(o.order);
   if (o.k >= 0) q.k = static_cast<std::size_t>(o.k);
@@ -107,8 +112,9 @@ int run_query(const QueryOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
-  const PointCloud cloud = io::read_point_cloud(o.cloud, io::ReadOptions{.scalars = false});
+  // Rays first: a malformed rays file is reported before a large cloud is read.
   const std::vector<Ray> rays = read_rays(o.rays);
+  const PointCloud cloud = io::read_point_cloud(o.cloud, io::ReadOptions{.scalars = false});
   const AnyIndex index = make_index(cloud.positions, o.index);
   const auto results =
       std::visit([&](const auto& idx) { return ray_query_batch(idx, rays, q); }, index);
@@ -157,13 +163,16 @@ Runner add_query_command(CLI::App& app) {
                 "Octree node capacity / kd-tree leaf size, points")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  c->add_option("--depth", o->index.depth, "octree-fixed leaf depth (0..21)")
+  CLI::Option* depth_opt = c->add_option("--depth", o->index.depth, "Leaf depth of octree-fixed (0..21; other indexes: an error)")
       ->capture_default_str()
       ->check(CLI::Range(0, 21));
   c->add_flag("--insertion", o->index.insertion,
-              "Build the octree by point insertion instead of Morton bulk loading");
+              "Build the octree by point insertion instead of Morton bulk loading (octrees only)");
   c->add_option("--out", o->out, "Output CSV (default: standard output)");
-  return [o] { return run_query(*o); };
+  return [o, depth_opt] {
+    o->depth_given = depth_opt->count() > 0;
+    return run_query(*o);
+  };
 }
 
 }  // namespace rayscan::cli

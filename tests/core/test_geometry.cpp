@@ -3,6 +3,9 @@
 #include "rayscan/distance.hpp"
 #include "rayscan/morton.hpp"
 #include "rayscan/ray.hpp"
+#include "rayscan/ray_query.hpp"
+
+#include <limits>
 
 #include <gtest/gtest.h>
 
@@ -139,6 +142,38 @@ TEST(Morton, WarrenSalmonNodeIdEncodesDepthAndCode) {
   const OctreeNodeId deep(21, (std::uint64_t{1} << 63) - 1);
   EXPECT_EQ(deep.depth(), 21u);
   EXPECT_EQ(deep.morton(), (std::uint64_t{1} << 63) - 1);
+}
+
+TEST(Distance, RayPointKernelMatchesTextbookFormulas) {
+  // ray_point_terms / sphere_entry are shared by the traversal and the brute-force oracle, so they
+  // are checked here against independent formulas: t = d.(p - o) / |d|, eq. 1 via the cross
+  // product, and the near root of the ray/sphere quadratic |o + t d - p|^2 = r^2.
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> u(-5, 5);
+  for (int i = 0; i < 2000; ++i) {
+    const Ray ray(Vec3(u(rng), u(rng), u(rng)), Vec3(u(rng), u(rng), u(rng)));
+    const Vec3 p(u(rng), u(rng), u(rng));
+    const Vec3 o = ray.origin(), d = ray.direction();
+    const RayPointTerms pt = ray_point_terms(o, d, p);
+    EXPECT_NEAR(pt.t, glm::dot(p - o, d), 1e-12);
+    const double cross = glm::length(glm::cross(p - o, d));
+    EXPECT_NEAR(std::sqrt(pt.d2), cross, 1e-9);
+    const double r = std::sqrt(pt.d2) + std::abs(u(rng)) * 0.2;  // the ray meets this sphere
+    // Quadratic t^2 + 2 b t + c = 0 with b = d.(o - p), c = |o - p|^2 - r^2; near root.
+    const double b = glm::dot(d, o - p), c = glm::dot(o - p, o - p) - r * r;
+    const double disc = b * b - c;
+    ASSERT_GE(disc, -1e-9);
+    const double t_near = -b - std::sqrt(std::max(0.0, disc));
+    EXPECT_NEAR(sphere_entry(pt.t, pt.d2, r), t_near, 1e-7);
+  }
+}
+
+TEST(Ray, HugeFiniteDirectionIsAccepted) {
+  const Ray r(Vec3(0.0), Vec3(1e300, 1e300, 1.0));
+  EXPECT_NEAR(glm::length(r.direction()), 1.0, 1e-15);
+  EXPECT_NEAR(r.direction().x, std::sqrt(0.5), 1e-15);
+  EXPECT_THROW(Ray(Vec3(0.0), Vec3(std::numeric_limits<double>::infinity(), 0, 0)),
+               std::invalid_argument);
 }
 
 TEST(Ray, DirectionIsNormalised) {

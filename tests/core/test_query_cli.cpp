@@ -171,6 +171,9 @@ TEST_F(QueryCli, BadInputExitsTwoWithOneLineError) {
   EXPECT_EQ(r.code, 2);  // sphere_hit needs --radius
   r = run("query --cloud " + cloud + " --rays " + rays + " --k -1");
   EXPECT_EQ(r.code, 2);
+  r = run("query --cloud " + cloud + " --rays " + rays + " --index kdtree --depth 3");
+  EXPECT_EQ(r.code, 2);  // --depth belongs to octree-fixed
+  EXPECT_NE(r.out.find("--depth"), std::string::npos) << r.out;
   // A failed run leaves no output file behind.
   r = run("query --cloud " + cloud + " --rays " + (dir_ / "bad_rays.csv").string() + " --out " +
           (dir_ / "never.csv").string());

@@ -4,6 +4,8 @@
 
 #include "rayscan/geometry.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -19,10 +21,12 @@ class Ray {
   Ray(const Vec3& origin, const Vec3& direction) : o_(origin) {
     if (!std::isfinite(origin.x) || !std::isfinite(origin.y) || !std::isfinite(origin.z))
       throw std::invalid_argument("Ray: origin must be finite");
-    const double len = glm::length(direction);
-    if (!(len > 0.0) || !std::isfinite(len))
+    // Scale by the largest component first so huge finite directions do not overflow the length.
+    const double m = std::max({std::abs(direction.x), std::abs(direction.y), std::abs(direction.z)});
+    if (!(m > 0.0) || !std::isfinite(m))
       throw std::invalid_argument("Ray: direction must be non-zero and finite");
-    d_ = direction / len;
+    const Vec3 u = direction / m;
+    d_ = u / glm::length(u);
   }
 
   /// Ray origin o (world coordinates).

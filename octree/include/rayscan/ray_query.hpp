@@ -142,9 +142,11 @@ RayScratch<Node>& ray_scratch() {
 /// or the slab interval of the box grown by r, which is tighter) misses [t_min, t_max], when a plane
 /// has the whole box on its positive side, and, once k candidates are held, when its lower bound on
 /// the key exceeds the worst kept key (dynamic k filter: it tightens r for order ray, t_max for
-/// orders time and sphere_hit). With k set, nodes are visited best-first (nearest lower bound
-/// first) so the k filter tightens early and the search stops at the first node that cannot improve
-/// the result; without k, a depth-first stack is used. Bounds carry a tolerance of 1e-9 of the
+/// orders time and sphere_hit). With k set, the traversal is depth-first with each node's children
+/// visited nearest lower bound first, so the k filter tightens early, and every node whose lower
+/// bound exceeds the current k-bound is skipped when it is popped (a global best-first heap was
+/// measured slower for the k = 1 queries a renderer issues); without k, a plain depth-first stack
+/// is used. Bounds carry a tolerance of 1e-9 of the
 /// scene's magnitude so rounding never prunes a qualifying point.
 ///
 /// Throws std::invalid_argument (from RayQuery::validate) for inconsistent parameters.
