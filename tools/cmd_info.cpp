@@ -77,7 +77,7 @@ std::string coord(double v, const std::optional<Vec3>& scale, int axis) {
   return buf;
 }
 
-nlohmann::json vec_json(const Vec3& v) { return {v.x, v.y, v.z}; }
+nlohmann::ordered_json vec_json(const Vec3& v) { return {v.x, v.y, v.z}; }
 
 bool same_box(const AABB& a, const AABB& b, const std::optional<Vec3>& scale) {
   for (int k = 0; k < 3; ++k) {
@@ -107,7 +107,7 @@ Runner add_info_command(CLI::App& app) {
     for (std::uint8_t c : pc.classification) ++classes[c];
 
     if (*json) {
-      nlohmann::json j;
+      nlohmann::ordered_json j;
       j["filename"] = *file;
       j["format"] = info.format;
       if (!info.version.empty()) j["version"] = info.version;
@@ -133,22 +133,22 @@ Runner add_info_command(CLI::App& app) {
       if (info.offset) j["offset"] = vec_json(*info.offset);
       if (info.width != 0) j["width"] = info.width, j["height"] = info.height;
       if (info.viewpoint) j["viewpoint"] = *info.viewpoint;
-      nlohmann::json crs = nlohmann::json::object();
+      nlohmann::ordered_json crs = nlohmann::ordered_json::object();
       if (!info.crs_source.empty()) crs["source"] = info.crs_source;
       if (info.epsg != 0) crs["epsg"] = info.epsg;
       if (info.vertical_epsg != 0) crs["vertical_epsg"] = info.vertical_epsg;
       crs["wkt"] = pc.crs_wkt;
       j["crs"] = crs;
-      nlohmann::json attrs = nlohmann::json::array();
+      nlohmann::ordered_json attrs = nlohmann::ordered_json::array();
       for (const Range& r : ranges) attrs.push_back({{"name", r.name}, {"min", r.lo}, {"max", r.hi}});
       j["attributes"] = attrs;
       if (!classes.empty()) {
-        nlohmann::json cj = nlohmann::json::object();
+        nlohmann::ordered_json cj = nlohmann::ordered_json::object();
         for (auto [c, n] : classes) cj[std::to_string(c)] = n;
         j["classification_counts"] = cj;
       }
       j["fields"] = info.fields;
-      nlohmann::json vl = nlohmann::json::array();
+      nlohmann::ordered_json vl = nlohmann::ordered_json::array();
       for (const io::VlrInfo& v : info.vlrs)
         vl.push_back({{"user_id", v.user_id}, {"record_id", v.record_id}, {"description", v.description},
                       {"length", v.length}, {"offset", v.offset}, {"extended", v.extended}});

@@ -7,6 +7,7 @@
 #include <string>
 #include <system_error>
 
+#include <fcntl.h>
 #include <unistd.h>
 
 namespace rayscan {
@@ -34,8 +35,14 @@ class AtomicFile {
   [[nodiscard]] const std::filesystem::path& path() const { return path_; }
   /// Where to write the data.
   [[nodiscard]] const std::filesystem::path& temp() const { return tmp_; }
-  /// Move the finished temporary into place.
+  /// Flush the finished temporary to disk (fsync) and move it into place, so that after a crash
+  /// or power loss `path` holds the old or the complete new file, never an empty one.
   void commit() {
+    const int fd = ::open(tmp_.c_str(), O_RDONLY);
+    if (fd >= 0) {
+      ::fsync(fd);
+      ::close(fd);
+    }
     std::error_code ec;
     std::filesystem::rename(tmp_, path_, ec);
     if (ec)

@@ -164,6 +164,7 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
   std::string l;
   if (!next_line(l) || l != "ply") fail_line(nm, 1, "expected the magic line \"ply\"");
   std::vector<Element> elems;
+  std::string crs_wkt;
   int format = -1;  // 0 ascii, 1 little, 2 big
   bool ended = false;
   while (next_line(l)) {
@@ -171,6 +172,8 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
     if (w.empty()) continue;
     if (w[0] == "comment" || w[0] == "obj_info") {
       info.comments.push_back(l);
+      // "comment crs <WKT>": the convention rayscan's PLY writer uses to carry the CRS.
+      if (w[0] == "comment" && w.size() > 2 && w[1] == "crs") crs_wkt = l.substr(l.find("crs") + 4);
     } else if (w[0] == "format") {
       if (w.size() != 3) fail_line(nm, line, "expected \"format <encoding> 1.0\", got '" + l + "'");
       if (w[1] == "ascii") format = 0;
@@ -400,6 +403,8 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
       pc.rgb[i] = Rgb16{q(col[3 * i]), q(col[3 * i + 1]), q(col[3 * i + 2])};
     }
   }
+  pc.crs_wkt = crs_wkt;
+  if (!crs_wkt.empty()) info.crs_source = "PLY comment crs";
   return pc;
 }
 
