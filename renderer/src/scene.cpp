@@ -52,6 +52,9 @@ class Obj {
     seen_.insert(k);
     return j_.contains(k);
   }
+  /// Whether `k` is present, without making it an allowed key (finish() still rejects it unless
+  /// a getter asks for it).
+  bool present(const std::string& k) const { return j_.contains(k); }
   const json& at(const std::string& k) { seen_.insert(k); return j_.at(k); }
   std::string ptr(const std::string& k) const { return ptr_ + "/" + escape_key(k); }
   const std::string& file() const { return file_; }
@@ -179,7 +182,9 @@ Camera parse_camera(const json& j, const std::string& file, const std::string& p
   const auto height = static_cast<std::uint32_t>(o.integer("height", 0, 1, 65536));
   if (!o.has("width")) fail(file, o.ptr("width"), "required: image width in pixels (integer in [1, 65536])");
   if (!o.has("height")) fail(file, o.ptr("height"), "required: image height in pixels (integer in [1, 65536])");
-  const bool is_pinhole = o.has("K");
+  // `K` only selects the default model; it is an allowed key only when the model is pinhole, so
+  // a look-at camera with K/R/t is rejected by finish() as an unknown key.
+  const bool is_pinhole = o.present("K");
   const std::string model =
       o.string("model", is_pinhole ? "pinhole" : "look_at", {"look_at", "pinhole"});
   try {

@@ -114,3 +114,35 @@ TEST(Scene, BadFieldsNameFileAndJsonPointer) {
 
   EXPECT_NE(error_of(temp_dir() / "missing.json").find("missing.json: cannot open file"), std::string::npos);
 }
+
+TEST(Scene, LookAtCameraRejectsPinholeKeys) {
+  // K/R/t are pinhole keys: with an explicit look-at model they must not be silently ignored.
+  const fs::path p = write("la_k.json", R"({"cloud": "x.xyz", "camera": {"model": "look_at", "width": 60,
+    "height": 40, "position": [0, -10, 2], "look_at": [0, 0, 0], "K": [[100, 0, 30], [0, 100, 20], [0, 0, 1]]}})");
+  const std::string e = error_of(p);
+  EXPECT_EQ(e.rfind(p.string() + ": /camera/K: unknown key (allowed here:", 0), 0u) << e;
+  EXPECT_EQ(e.find("K,"), std::string::npos) << e;  // K is not in the allowed list
+
+  const fs::path pt = write("la_t.json", R"({"cloud": "x.xyz", "camera": {"model": "look_at", "width": 60,
+    "height": 40, "position": [0, -10, 2], "look_at": [0, 0, 0], "t": [0, 0, 1]}})");
+  EXPECT_EQ(error_of(pt).rfind(pt.string() + ": /camera/t: unknown key", 0), 0u) << error_of(pt);
+
+  // Camera files too, with the JSON pointer from the file's root.
+  const fs::path c = write("la_cam.json", R"({"model": "look_at", "width": 60, "height": 40,
+    "position": [0, -10, 2], "look_at": [0, 0, 0], "R": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]})");
+  try {
+    load_camera(c);
+    ADD_FAILURE() << "no error";
+  } catch (const SceneError& err) {
+    EXPECT_EQ(std::string(err.what()).rfind(c.string() + ": /R: unknown key", 0), 0u) << err.what();
+  }
+
+  // Without "model", K still selects the pinhole model; and a pinhole camera rejects look-at keys.
+  const fs::path ok = write("ph.json", R"({"cloud": "x.xyz", "camera": {"width": 60, "height": 40,
+    "K": [[100, 0, 30], [0, 100, 20], [0, 0, 1]], "R": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "t": [0, 0, 0]}})");
+  EXPECT_EQ(error_of(ok), "(no error)");
+  const fs::path pp = write("ph_pos.json", R"({"cloud": "x.xyz", "camera": {"width": 60, "height": 40,
+    "K": [[100, 0, 30], [0, 100, 20], [0, 0, 1]], "R": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "t": [0, 0, 0],
+    "position": [0, 0, 0]}})");
+  EXPECT_EQ(error_of(pp).rfind(pp.string() + ": /camera/position: unknown key", 0), 0u) << error_of(pp);
+}
