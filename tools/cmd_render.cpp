@@ -45,8 +45,7 @@ int run_render(const RenderCliOptions& o) {
   if (o.spp) scene.spp = *o.spp;
   if (o.seed) scene.seed = *o.seed;
   if (!o.out.empty()) {
-    const std::string ext = std::filesystem::path(o.out).extension().string();
-    if (ext.empty()) throw UsageError("--out '" + o.out + "': expected a file name ending in .png, .jpg, .tif or .exr");
+    if (!is_image_file_name(o.out)) throw UsageError("--out '" + o.out + "': " + image_file_name_expected());
     scene.output.image = o.out;
   }
   if (scene.output.image.empty())
@@ -160,7 +159,7 @@ Runner add_render_command(CLI::App& app) {
       "a sphere hit through the octree ray query; writes PNG/JPEG/TIFF/EXR with optional AOVs.");
   c->add_option("scene", o->scene, "Scene file (JSON)")->required();
   c->add_option("--camera", o->camera, "Camera file (JSON), replaces the scene's camera");
-  c->add_option("--out", o->out, "Output image (.png .jpg .tif .exr), replaces /output/image");
+  c->add_option("--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image");
   c->add_option("--spp", o->spp, "Samples per pixel")->check(CLI::Range(1u, 1u << 20));
   c->add_option("--seed", o->seed, "Random seed (the image is a pure function of it)");
   c->add_option("--threads", o->threads, "Worker threads (default: all cores; output is identical)")

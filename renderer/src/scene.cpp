@@ -331,12 +331,7 @@ OutputDesc parse_output(Obj& parent, const std::filesystem::path& scene_file) {
   Obj o(parent.at("output"), parent.file(), parent.ptr("output"));
   if (o.has("image")) {
     const std::string img = o.string("image", "");
-    const std::string ext = std::filesystem::path(img).extension().string();
-    std::string lext;
-    for (char c : ext) lext += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    if (lext != ".png" && lext != ".jpg" && lext != ".jpeg" && lext != ".tif" && lext != ".tiff" &&
-        lext != ".exr")
-      fail(o.file(), o.ptr("image"), "expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr");
+    if (!is_image_file_name(img)) fail(o.file(), o.ptr("image"), image_file_name_expected());
     out.image = resolve(scene_file, img);
   }
   out.bit_depth = static_cast<unsigned>(o.integer("bit_depth", 8, 8, 16));
@@ -361,6 +356,26 @@ OutputDesc parse_output(Obj& parent, const std::filesystem::path& scene_file) {
 }
 
 }  // namespace
+
+const std::vector<std::string>& image_extensions() {
+  static const std::vector<std::string> exts{".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr"};
+  return exts;
+}
+
+bool is_image_file_name(const std::filesystem::path& file) {
+  std::string ext;
+  for (char c : file.extension().string()) ext += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const auto& exts = image_extensions();
+  return std::find(exts.begin(), exts.end(), ext) != exts.end();
+}
+
+std::string image_file_name_expected() {
+  const auto& exts = image_extensions();
+  std::string s = "expected a file name ending in ";
+  for (std::size_t i = 0; i < exts.size(); ++i)
+    s += (i == 0 ? "" : i + 1 == exts.size() ? " or " : ", ") + exts[i];
+  return s;
+}
 
 const char* to_string(Aov aov) {
   switch (aov) {

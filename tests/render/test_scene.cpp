@@ -146,3 +146,17 @@ TEST(Scene, LookAtCameraRejectsPinholeKeys) {
     "position": [0, 0, 0]}})");
   EXPECT_EQ(error_of(pp).rfind(pp.string() + ": /camera/position: unknown key", 0), 0u) << error_of(pp);
 }
+
+TEST(Scene, ImageExtensionsAreOneList) {
+  // The scene parser and `--out` share is_image_file_name(); check it against the list itself.
+  for (const std::string& e : image_extensions()) {
+    EXPECT_TRUE(is_image_file_name("a/b" + e)) << e;
+    std::string upper;
+    for (char c : e) upper += static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    EXPECT_TRUE(is_image_file_name("b" + upper)) << upper;
+    EXPECT_NE(image_file_name_expected().find(e), std::string::npos) << e;
+  }
+  for (const char* bad : {"x.bmp", "x", "x.png.txt", "x.gif", ".png/x"}) EXPECT_FALSE(is_image_file_name(bad)) << bad;
+  const fs::path p = write("bmp.json", std::string(R"({"cloud": "x.xyz", "output": {"image": "o.bmp"}, )") + kCam + "}");
+  EXPECT_EQ(error_of(p), p.string() + ": /output/image: " + image_file_name_expected());
+}

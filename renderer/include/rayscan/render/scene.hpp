@@ -101,6 +101,17 @@ Scene load_scene(const std::filesystem::path& file);
 /// Parse a camera file (schema in scenes/README.md: look-at or K/[R|t]). Throws SceneError.
 Camera load_camera(const std::filesystem::path& file);
 
+/// The image file extensions write_image() accepts (lower case, with the dot): .png .jpg .jpeg
+/// .tif .tiff .exr. The one list behind `output.image` in scene files and `rayscan render --out`.
+const std::vector<std::string>& image_extensions();
+
+/// True when `file` ends in one of image_extensions() (case-insensitive).
+bool is_image_file_name(const std::filesystem::path& file);
+
+/// The error text for a name failing is_image_file_name():
+/// "expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr".
+std::string image_file_name_expected();
+
 /// The name of an AOV as used in files and channel names ("depth", "normal", ...).
 const char* to_string(Aov aov);
 
