@@ -265,6 +265,15 @@ MaterialDesc parse_material(Obj& parent) {
                                   : ColorMode::classification;
     }
   }
+  // ramp and range only shape the scalar modes; anywhere else they would be silently unused.
+  if (m.mode != ColorMode::intensity && m.mode != ColorMode::elevation) {
+    const std::string color = !o.present("color") ? "\"rgb\" (the default)"
+                              : o.at("color").is_array() ? "a constant [r, g, b]"
+                                                         : "\"" + o.at("color").get<std::string>() + "\"";
+    for (const char* k : {"ramp", "range"})
+      if (o.present(k))
+        fail(o.file(), o.ptr(k), std::string("only used with color \"intensity\" or \"elevation\"; color is ") + color);
+  }
   if (o.has("ramp")) m.ramp = parse_ramp(o.string("ramp", "viridis", {"viridis", "terrain", "grey"}));
   if (o.has("range")) {
     const json& r = o.at("range");

@@ -160,3 +160,27 @@ TEST(Scene, ImageExtensionsAreOneList) {
   const fs::path p = write("bmp.json", std::string(R"({"cloud": "x.xyz", "output": {"image": "o.bmp"}, )") + kCam + "}");
   EXPECT_EQ(error_of(p), p.string() + ": /output/image: " + image_file_name_expected());
 }
+
+TEST(Scene, RampAndRangeOnlyWithScalarColorModes) {
+  auto scene = [](const std::string& name, const std::string& material) {
+    return write(name, std::string(R"({"cloud": "x.xyz", "material": )") + material + ", " + kCam + "}");
+  };
+  const fs::path p1 = scene("rr1.json", R"({"color": "rgb", "ramp": "terrain"})");
+  EXPECT_EQ(error_of(p1), p1.string() +
+            ": /material/ramp: only used with color \"intensity\" or \"elevation\"; color is \"rgb\"");
+  const fs::path p2 = scene("rr2.json", R"({"color": "classification", "range": [0, 10]})");
+  EXPECT_EQ(error_of(p2), p2.string() +
+            ": /material/range: only used with color \"intensity\" or \"elevation\"; color is \"classification\"");
+  const fs::path p3 = scene("rr3.json", R"({"range": [0, 10]})");
+  EXPECT_NE(error_of(p3).find(": /material/range: only used with"), std::string::npos) << error_of(p3);
+  const fs::path p4 = scene("rr4.json", R"({"color": [0.5, 0.5, 0.5], "ramp": "grey"})");
+  EXPECT_NE(error_of(p4).find(": /material/ramp: only used with"), std::string::npos) << error_of(p4);
+
+  for (const char* mode : {"intensity", "elevation"}) {
+    const Scene s = load_scene(scene(std::string("rr_ok_") + mode + ".json",
+                                     std::string(R"({"color": ")") + mode + R"(", "ramp": "grey", "range": [2, 5]})"));
+    EXPECT_EQ(s.material.ramp, Ramp::grey) << mode;
+    ASSERT_TRUE(s.material.range.has_value()) << mode;
+    EXPECT_EQ((*s.material.range)[1], 5.0) << mode;
+  }
+}
