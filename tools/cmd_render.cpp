@@ -79,8 +79,13 @@ int run_render(const RenderCliOptions& o) {
   };
   auto t0 = std::chrono::steady_clock::now();
   // Only positions, colour, intensity and classification are used: skip the other scalars.
-  const PointCloud cloud = io::read_point_cloud(scene.cloud, io::ReadOptions{.scalars = false});
-  if (cloud.empty()) throw UsageError(scene.cloud.string() + ": the point cloud has no points");
+  const PointCloud cloud = [&] {
+    try {
+      return load_cloud(scene, io::ReadOptions{.scalars = false});
+    } catch (const SceneError& e) {
+      throw UsageError(e.what());
+    }
+  }();
   char buf[512];
   std::snprintf(buf, sizeof buf, "read %zu points from %s in %.2f s", cloud.size(),
                 scene.cloud.string().c_str(), seconds_since(t0));

@@ -366,6 +366,18 @@ OutputDesc parse_output(Obj& parent, const std::filesystem::path& scene_file) {
 
 }  // namespace
 
+PointCloud load_cloud(const Scene& scene, const io::ReadOptions& options) {
+  const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
+  PointCloud cloud;
+  try {
+    cloud = io::read_point_cloud(scene.cloud, options);
+  } catch (const std::exception& e) {
+    fail(f, "/cloud", e.what());
+  }
+  if (cloud.empty()) fail(f, "/cloud", scene.cloud.string() + ": the point cloud has no points");
+  return cloud;
+}
+
 const std::vector<std::string>& image_extensions() {
   static const std::vector<std::string> exts{".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr"};
   return exts;

@@ -2,6 +2,8 @@
 // reported with the file and its JSON pointer (issue 4, 2.3).
 #include "rayscan/render/scene.hpp"
 
+#include "rayscan/io/point_io.hpp"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -183,4 +185,38 @@ TEST(Scene, RampAndRangeOnlyWithScalarColorModes) {
     ASSERT_TRUE(s.material.range.has_value()) << mode;
     EXPECT_EQ((*s.material.range)[1], 5.0) << mode;
   }
+}
+
+TEST(Scene, CloudErrorsNameTheSceneAndPointer) {
+  const fs::path p = write("nocloud.json", std::string(R"({"cloud": "data/nonexist.las", )") + kCam + "}");
+  const Scene s = load_scene(p);
+  // Oracle: the reader's own message for the same file, prefixed with the scene context.
+  std::string reader_msg;
+  try {
+    io::read_point_cloud(s.cloud);
+  } catch (const std::exception& e) {
+    reader_msg = e.what();
+  }
+  ASSERT_FALSE(reader_msg.empty());
+  try {
+    load_cloud(s);
+    ADD_FAILURE() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()), p.string() + ": /cloud: " + reader_msg);
+  }
+
+  write("empty.xyz", "");
+  const Scene se = load_scene(write("empty.json", std::string(R"({"cloud": "empty.xyz", )") + kCam + "}"));
+  try {
+    load_cloud(se);
+    ADD_FAILURE() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()), se.file.string() + ": /cloud: " + se.cloud.string() + ": the point cloud has no points");
+  }
+
+  write("three.xyz", "0 0 0\n1 0 0\n0 1 0\n");
+  const Scene s3 = load_scene(write("three.json", std::string(R"({"cloud": "three.xyz", )") + kCam + "}"));
+  const PointCloud c = load_cloud(s3);
+  ASSERT_EQ(c.size(), 3u);
+  EXPECT_EQ(c.positions[1], Vec3(1, 0, 0));
 }

@@ -5,6 +5,7 @@
 #include "rayscan/ray_query.hpp"
 #include "rayscan/render/camera.hpp"
 #include "rayscan/render/color.hpp"
+#include "rayscan/io/point_io.hpp"
 
 #include <filesystem>
 #include <optional>
@@ -97,6 +98,11 @@ struct Scene {
 /// Throws SceneError (file unreadable, JSON syntax, wrong type/range, unknown key) naming the
 /// file and the JSON pointer of the offending value.
 Scene load_scene(const std::filesystem::path& file);
+
+/// Read the scene's point cloud (io::read_point_cloud with `options`). Throws SceneError
+/// "<scene file>: /cloud: <reader's message>" when the file is missing, unreadable or malformed,
+/// and "<scene file>: /cloud: <cloud file>: the point cloud has no points" when it is empty.
+PointCloud load_cloud(const Scene& scene, const io::ReadOptions& options = {});
 
 /// Parse a camera file (schema in scenes/README.md: look-at or K/[R|t]). Throws SceneError.
 Camera load_camera(const std::filesystem::path& file);
