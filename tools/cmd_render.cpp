@@ -165,13 +165,17 @@ Runner add_render_command(CLI::App& app) {
   c->add_option("scene", o->scene, "Scene file (JSON)")->required();
   c->add_option("--camera", o->camera, "Camera file (JSON), replaces the scene's camera");
   c->add_option("--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image");
-  c->add_option("--spp", o->spp, "Samples per pixel")->check(CLI::Range(1u, 1u << 20));
-  c->add_option("--seed", o->seed, "Random seed (the image is a pure function of it)");
-  c->add_option("--threads", o->threads, "Worker threads (default: all cores; output is identical)")
+  c->add_option("--spp", o->spp, "Samples per pixel, integer in [1, 1048576] (default: the scene's value, 16 if unset)")->check(CLI::Range(1u, 1u << 20));
+  c->add_option("--seed", o->seed, "Random seed, unsigned 64-bit integer; the image is a pure function of it "
+                "(default: the scene's value, 0 if unset)");
+  c->add_option("--threads", o->threads, "Worker threads, 0 = all cores; the image is identical for any count "
+                "(default: all cores)")
       ->check(CLI::Range(0u, 1024u));
-  c->add_option("--width", o->width, "Image width in pixels (keeps the field of view)")
+  c->add_option("--width", o->width, "Image width in pixels, in [1, 65536]; keeps the field of view, and the height "
+                "follows the aspect ratio unless given (default: the camera's size)")
       ->check(CLI::Range(1u, 65536u));
-  c->add_option("--height", o->height, "Image height in pixels (keeps the field of view)")
+  c->add_option("--height", o->height, "Image height in pixels, in [1, 65536]; keeps the field of view, and the width "
+                "follows the aspect ratio unless given (default: the camera's size)")
       ->check(CLI::Range(1u, 65536u));
   c->add_option("--aov", o->aovs, "Extra output: depth, normal, position, index, albedo, cost (repeatable)");
   c->add_flag("--quiet,-q", o->quiet, "No log lines or progress bar on stderr");
