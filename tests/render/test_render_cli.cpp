@@ -41,7 +41,7 @@ fs::path temp_dir() {
 fs::path small_scene() {
   const fs::path d = temp_dir();
   std::ofstream(d / "c.xyz") << "0 0 0\n1 0 0\n0 1 0\n";
-  std::ofstream(d / "s.json") << R"({"cloud": "c.xyz", "radius": 0.5, "spp": 1,
+  std::ofstream(d / "s.json") << R"({"cloud": "c.xyz", "radius": 0.5, "spp": 1, "material": {"color": [0.5, 0.5, 0.5]},
     "camera": {"width": 8, "height": 6, "position": [0, -10, 2], "look_at": [0, 0, 0]}})";
   return d / "s.json";
 }
