@@ -45,8 +45,7 @@ int run_render(const RenderCliOptions& o) {
   if (o.spp) scene.spp = *o.spp;
   if (o.seed) scene.seed = *o.seed;
   if (!o.out.empty()) {
-    const std::string ext = std::filesystem::path(o.out).extension().string();
-    if (ext.empty()) throw UsageError("--out '" + o.out + "': expected a file name ending in .png, .jpg, .tif or .exr");
+    if (!is_image_file_name(o.out)) throw UsageError("--out '" + o.out + "': " + image_file_name_expected());
     scene.output.image = o.out;
   }
   if (scene.output.image.empty())
@@ -80,8 +79,13 @@ int run_render(const RenderCliOptions& o) {
   };
   auto t0 = std::chrono::steady_clock::now();
   // Only positions, colour, intensity and classification are used: skip the other scalars.
-  const PointCloud cloud = io::read_point_cloud(scene.cloud, io::ReadOptions{.scalars = false});
-  if (cloud.empty()) throw UsageError(scene.cloud.string() + ": the point cloud has no points");
+  const PointCloud cloud = [&] {
+    try {
+      return load_cloud(scene, io::ReadOptions{.scalars = false});
+    } catch (const SceneError& e) {
+      throw UsageError(e.what());
+    }
+  }();
   char buf[512];
   std::snprintf(buf, sizeof buf, "read %zu points from %s in %.2f s", cloud.size(),
                 scene.cloud.string().c_str(), seconds_since(t0));
@@ -160,14 +164,18 @@ Runner add_render_command(CLI::App& app) {
       "a sphere hit through the octree ray query; writes PNG/JPEG/TIFF/EXR with optional AOVs.");
   c->add_option("scene", o->scene, "Scene file (JSON)")->required();
   c->add_option("--camera", o->camera, "Camera file (JSON), replaces the scene's camera");
-  c->add_option("--out", o->out, "Output image (.png .jpg .tif .exr), replaces /output/image");
-  c->add_option("--spp", o->spp, "Samples per pixel")->check(CLI::Range(1u, 1u << 20));
-  c->add_option("--seed", o->seed, "Random seed (the image is a pure function of it)");
-  c->add_option("--threads", o->threads, "Worker threads (default: all cores; output is identical)")
+  c->add_option("--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image");
+  c->add_option("--spp", o->spp, "Samples per pixel, integer in [1, 1048576] (default: the scene's value, 16 if unset)")->check(CLI::Range(1u, 1u << 20));
+  c->add_option("--seed", o->seed, "Random seed, unsigned 64-bit integer; the image is a pure function of it "
+                "(default: the scene's value, 0 if unset)");
+  c->add_option("--threads", o->threads, "Worker threads, 0 = all cores; the image is identical for any count "
+                "(default: all cores)")
       ->check(CLI::Range(0u, 1024u));
-  c->add_option("--width", o->width, "Image width in pixels (keeps the field of view)")
+  c->add_option("--width", o->width, "Image width in pixels, in [1, 65536]; keeps the field of view, and the height "
+                "follows the aspect ratio unless given (default: the camera's size)")
       ->check(CLI::Range(1u, 65536u));
-  c->add_option("--height", o->height, "Image height in pixels (keeps the field of view)")
+  c->add_option("--height", o->height, "Image height in pixels, in [1, 65536]; keeps the field of view, and the width "
+                "follows the aspect ratio unless given (default: the camera's size)")
       ->check(CLI::Range(1u, 65536u));
   c->add_option("--aov", o->aovs, "Extra output: depth, normal, position, index, albedo, cost (repeatable)");
   c->add_flag("--quiet,-q", o->quiet, "No log lines or progress bar on stderr");

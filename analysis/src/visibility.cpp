@@ -102,7 +102,8 @@ VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3>
   for (std::size_t k = 0; k < m; ++k) max_d[k] = observers[k].max_distance.value_or(opts.max_distance);
 
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
-  render::Progress progress(chunks, opts.progress && render::Progress::stderr_is_terminal());
+  render::Progress progress(chunks, opts.progress && render::Progress::stderr_is_terminal(),
+                            render::ProgressUnits{"chunks", "points/s", 1.0, 0});
   struct Local {
     std::vector<std::uint64_t> seen;
     std::uint64_t queries = 0;
@@ -119,7 +120,6 @@ VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3>
           tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const auto& range) {
             Local& L = locals.local();
             for (std::size_t c = range.begin(); c != range.end(); ++c) {
-              const std::uint64_t q0 = L.queries;
               const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
               // Observer-major inside a chunk: consecutive rays share most of their nodes.
               for (std::size_t k = 0; k < m; ++k)
@@ -135,7 +135,7 @@ VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3>
                   ++L.seen[k];
                   if (res.nearest[i] < 0.0 || dist < res.nearest[i]) res.nearest[i] = dist;
                 }
-              progress.tile_done(L.queries - q0);
+              progress.tile_done(s1 - s0);  // points of the chunk, each against every observer
             }
           });
         },
@@ -183,7 +183,8 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
   std::vector<double> out(n, 0.0);
   if (n == 0) return out;
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
-  render::Progress progress(chunks, opts.progress && render::Progress::stderr_is_terminal());
+  render::Progress progress(chunks, opts.progress && render::Progress::stderr_is_terminal(),
+                            render::ProgressUnits{"chunks", "points/s", 1.0, 0});
   std::atomic<std::uint64_t> total{0};
   RayQuery q;
   q.k = 1;
@@ -214,7 +215,7 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
               }
               const std::uint64_t nq = std::uint64_t(s1 - s0) * opts.rays;
               total += nq;
-              progress.tile_done(nq);
+              progress.tile_done(s1 - s0);
             }
           });
         },
@@ -240,7 +241,8 @@ std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const render
   q.order = RayOrder::sphere_hit;
   q.t_min = 0.0;
   q.t_max = max_distance;
-  render::Progress progress(H, progress_bar && render::Progress::stderr_is_terminal());
+  render::Progress progress(H, progress_bar && render::Progress::stderr_is_terminal(),
+                            render::ProgressUnits{"rows", "M rays/s", 1e-6, 2});
   tbb::task_arena arena(static_cast<int>(resolve_threads(threads)));
   arena.execute([&] {
     std::visit(

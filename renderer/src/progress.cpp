@@ -1,12 +1,16 @@
 #include "rayscan/render/progress.hpp"
 
 #include <cstdio>
+#include <utility>
 #include <unistd.h>
 
 namespace rayscan::render {
 
-Progress::Progress(std::uint64_t total_tiles, bool enabled)
-    : total_(total_tiles ? total_tiles : 1), enabled_(enabled), start_(std::chrono::steady_clock::now()) {}
+Progress::Progress(std::uint64_t total_items, bool enabled, ProgressUnits units)
+    : total_(total_items ? total_items : 1),
+      enabled_(enabled),
+      units_(std::move(units)),
+      start_(std::chrono::steady_clock::now()) {}
 
 bool Progress::stderr_is_terminal() { return ::isatty(2) == 1; }
 
@@ -32,9 +36,10 @@ void Progress::draw(std::uint64_t done, std::uint64_t queries, double elapsed) {
   bar[width] = 0;
   const double rate = elapsed > 0 ? double(queries) / elapsed : 0.0;
   const double eta = frac > 0 ? elapsed * (1.0 - frac) / frac : 0.0;
-  std::fprintf(stderr, "\r[%s] %llu/%llu tiles %5.1f%%  %.2f M rays/s  ETA %.0f s   ", bar,
+  std::fprintf(stderr, "\r[%s] %llu/%llu %s %5.1f%%  %.*f %s  ETA %.0f s   ", bar,
                static_cast<unsigned long long>(done), static_cast<unsigned long long>(total_),
-               100.0 * frac, rate * 1e-6, eta);
+               units_.item.c_str(), 100.0 * frac, units_.decimals, rate * units_.rate_scale,
+               units_.rate.c_str(), eta);
   std::fflush(stderr);
   drawn_ = true;
 }

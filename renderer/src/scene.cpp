@@ -52,6 +52,9 @@ class Obj {
     seen_.insert(k);
     return j_.contains(k);
   }
+  /// Whether `k` is present, without making it an allowed key (finish() still rejects it unless
+  /// a getter asks for it).
+  bool present(const std::string& k) const { return j_.contains(k); }
   const json& at(const std::string& k) { seen_.insert(k); return j_.at(k); }
   std::string ptr(const std::string& k) const { return ptr_ + "/" + escape_key(k); }
   const std::string& file() const { return file_; }
@@ -179,7 +182,9 @@ Camera parse_camera(const json& j, const std::string& file, const std::string& p
   const auto height = static_cast<std::uint32_t>(o.integer("height", 0, 1, 65536));
   if (!o.has("width")) fail(file, o.ptr("width"), "required: image width in pixels (integer in [1, 65536])");
   if (!o.has("height")) fail(file, o.ptr("height"), "required: image height in pixels (integer in [1, 65536])");
-  const bool is_pinhole = o.has("K");
+  // `K` only selects the default model; it is an allowed key only when the model is pinhole, so
+  // a look-at camera with K/R/t is rejected by finish() as an unknown key.
+  const bool is_pinhole = o.present("K");
   const std::string model =
       o.string("model", is_pinhole ? "pinhole" : "look_at", {"look_at", "pinhole"});
   try {
@@ -260,6 +265,15 @@ MaterialDesc parse_material(Obj& parent) {
                                   : ColorMode::classification;
     }
   }
+  // ramp and range only shape the scalar modes; anywhere else they would be silently unused.
+  if (m.mode != ColorMode::intensity && m.mode != ColorMode::elevation) {
+    const std::string color = !o.present("color") ? "\"rgb\" (the default)"
+                              : o.at("color").is_array() ? "a constant [r, g, b]"
+                                                         : "\"" + o.at("color").get<std::string>() + "\"";
+    for (const char* k : {"ramp", "range"})
+      if (o.present(k))
+        fail(o.file(), o.ptr(k), std::string("only used with color \"intensity\" or \"elevation\"; color is ") + color);
+  }
   if (o.has("ramp")) m.ramp = parse_ramp(o.string("ramp", "viridis", {"viridis", "terrain", "grey"}));
   if (o.has("range")) {
     const json& r = o.at("range");
@@ -326,12 +340,7 @@ OutputDesc parse_output(Obj& parent, const std::filesystem::path& scene_file) {
   Obj o(parent.at("output"), parent.file(), parent.ptr("output"));
   if (o.has("image")) {
     const std::string img = o.string("image", "");
-    const std::string ext = std::filesystem::path(img).extension().string();
-    std::string lext;
-    for (char c : ext) lext += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    if (lext != ".png" && lext != ".jpg" && lext != ".jpeg" && lext != ".tif" && lext != ".tiff" &&
-        lext != ".exr")
-      fail(o.file(), o.ptr("image"), "expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr");
+    if (!is_image_file_name(img)) fail(o.file(), o.ptr("image"), image_file_name_expected());
     out.image = resolve(scene_file, img);
   }
   out.bit_depth = static_cast<unsigned>(o.integer("bit_depth", 8, 8, 16));
@@ -356,6 +365,38 @@ OutputDesc parse_output(Obj& parent, const std::filesystem::path& scene_file) {
 }
 
 }  // namespace
+
+PointCloud load_cloud(const Scene& scene, const io::ReadOptions& options) {
+  const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
+  PointCloud cloud;
+  try {
+    cloud = io::read_point_cloud(scene.cloud, options);
+  } catch (const std::exception& e) {
+    fail(f, "/cloud", e.what());
+  }
+  if (cloud.empty()) fail(f, "/cloud", scene.cloud.string() + ": the point cloud has no points");
+  return cloud;
+}
+
+const std::vector<std::string>& image_extensions() {
+  static const std::vector<std::string> exts{".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr"};
+  return exts;
+}
+
+bool is_image_file_name(const std::filesystem::path& file) {
+  std::string ext;
+  for (char c : file.extension().string()) ext += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const auto& exts = image_extensions();
+  return std::find(exts.begin(), exts.end(), ext) != exts.end();
+}
+
+std::string image_file_name_expected() {
+  const auto& exts = image_extensions();
+  std::string s = "expected a file name ending in ";
+  for (std::size_t i = 0; i < exts.size(); ++i)
+    s += (i == 0 ? "" : i + 1 == exts.size() ? " or " : ", ") + exts[i];
+  return s;
+}
 
 const char* to_string(Aov aov) {
   switch (aov) {

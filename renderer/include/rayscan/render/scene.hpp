@@ -5,6 +5,7 @@
 #include "rayscan/ray_query.hpp"
 #include "rayscan/render/camera.hpp"
 #include "rayscan/render/color.hpp"
+#include "rayscan/io/point_io.hpp"
 
 #include <filesystem>
 #include <optional>
@@ -98,8 +99,24 @@ struct Scene {
 /// file and the JSON pointer of the offending value.
 Scene load_scene(const std::filesystem::path& file);
 
+/// Read the scene's point cloud (io::read_point_cloud with `options`). Throws SceneError
+/// "<scene file>: /cloud: <reader's message>" when the file is missing, unreadable or malformed,
+/// and "<scene file>: /cloud: <cloud file>: the point cloud has no points" when it is empty.
+PointCloud load_cloud(const Scene& scene, const io::ReadOptions& options = {});
+
 /// Parse a camera file (schema in scenes/README.md: look-at or K/[R|t]). Throws SceneError.
 Camera load_camera(const std::filesystem::path& file);
+
+/// The image file extensions write_image() accepts (lower case, with the dot): .png .jpg .jpeg
+/// .tif .tiff .exr. The one list behind `output.image` in scene files and `rayscan render --out`.
+const std::vector<std::string>& image_extensions();
+
+/// True when `file` ends in one of image_extensions() (case-insensitive).
+bool is_image_file_name(const std::filesystem::path& file);
+
+/// The error text for a name failing is_image_file_name():
+/// "expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr".
+std::string image_file_name_expected();
 
 /// The name of an AOV as used in files and channel names ("depth", "normal", ...).
 const char* to_string(Aov aov);

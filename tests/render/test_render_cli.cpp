@@ -1,0 +1,67 @@
+// `rayscan render` end to end for its argument checks: user errors exit with code 2, print one
+// line naming the option or file, and write no output file.
+#include "rayscan/render/scene.hpp"
+
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct RunResult {
+  int code;
+  std::string out;
+};
+
+RunResult run(const std::string& args) {
+  const std::string cmd = std::string(RAYSCAN_BIN) + " " + args + " 2>&1";
+  FILE* p = ::popen(cmd.c_str(), "r");
+  std::string out;
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
+  const int st = ::pclose(p);
+  return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out};
+}
+
+fs::path temp_dir() {
+  const fs::path d = fs::temp_directory_path() / ("rayscan_render_cli_" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+// A valid scene over a 3-point cloud.
+fs::path small_scene() {
+  const fs::path d = temp_dir();
+  std::ofstream(d / "c.xyz") << "0 0 0\n1 0 0\n0 1 0\n";
+  std::ofstream(d / "s.json") << R"({"cloud": "c.xyz", "radius": 0.5, "spp": 1, "material": {"color": [0.5, 0.5, 0.5]},
+    "camera": {"width": 8, "height": 6, "position": [0, -10, 2], "look_at": [0, 0, 0]}})";
+  return d / "s.json";
+}
+
+}  // namespace
+
+TEST(RenderCli, OutRejectsExtensionsTheSceneFileRejects) {
+  const fs::path scene = small_scene();
+  const fs::path out = temp_dir() / "x.bmp";
+  const RunResult r = run("render -q " + scene.string() + " --out " + out.string());
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out, "rayscan render: --out '" + out.string() + "': " + rayscan::render::image_file_name_expected() + "\n");
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(RenderCli, OutAcceptsEveryImageExtension) {
+  // Positive control for the test above: the same command with a listed extension succeeds.
+  const fs::path scene = small_scene();
+  const fs::path out = temp_dir() / "x.PNG";
+  const RunResult r = run("render -q " + scene.string() + " --out " + out.string());
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_TRUE(fs::exists(out));
+}
