@@ -105,7 +105,7 @@ int run_visibility(const VisibilityCli& o) {
       an::Observer& ob = observers[k];
       if (!ob.azimuth && !o.azimuth.empty()) ob.azimuth = an::AngleRange{o.azimuth[0], o.azimuth[1]};
       if (!ob.elevation && !o.elevation.empty()) ob.elevation = an::AngleRange{o.elevation[0], o.elevation[1]};
-      an::validate_observer(ob, an::observer_label(ob, k + 1));
+      an::validate_observer(ob, an::observer_where(ob, k + 1));
     }
   } catch (const an::ObserverError& e) {
     throw UsageError(e.what());
