@@ -18,6 +18,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -76,6 +77,25 @@ int run_visibility(const VisibilityCli& o) {
   } else if (o.cell || !o.raster_value.empty() || !o.preview.empty()) {
     throw UsageError("--cell, --raster-value and --preview need --raster OUT.tif");
   }
+  // Output folders must exist before the (possibly long) computation; outputs are written to a
+  // temporary sibling and renamed there, so a missing folder would only fail at the very end.
+  auto check_output_folder = [](const char* option, const std::string& path) {
+    if (path.empty()) return;
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::is_directory(fs::status(path, ec)))
+      throw UsageError(std::string(option) + " '" + path + "': is a folder, expected a file name");
+    const fs::path dir = fs::path(path).parent_path();
+    if (dir.empty()) return;  // the current folder
+    const fs::file_status st = fs::status(dir, ec);
+    if (!fs::exists(st))
+      throw UsageError(std::string(option) + " '" + path + "': folder '" + dir.string() + "' does not exist");
+    if (!fs::is_directory(st))
+      throw UsageError(std::string(option) + " '" + path + "': '" + dir.string() + "' is not a folder");
+  };
+  check_output_folder("--out", o.out);
+  check_output_folder("--raster", o.raster);
+  if (!o.no_preview) check_output_folder("--preview", o.preview);  // default: next to --raster
   const bool have_observers = !o.observers_file.empty() || !o.observer_args.empty();
   if (!have_observers && o.sky_rays == 0 && o.camera.empty())
     throw UsageError("nothing to compute: give observers (--observers FILE or --observer X,Y[,Z]), "

@@ -422,6 +422,31 @@ TEST_F(VisibilityCli, UserErrorsExitTwoAndWriteNothing) {
   EXPECT_FALSE(fs::exists(tmpdir() / "m.tif"));
 }
 
+TEST_F(VisibilityCli, OutputFoldersAreCheckedBeforeComputing) {
+  const std::string s = scene().string();
+  const fs::path missing = tmpdir() / "no_such_folder";
+  fs::remove_all(missing);
+  const fs::path file = write_text("plain_file.txt", "x");  // a file where a folder is expected
+  auto expect_error = [&](const std::string& args, const std::string& msg) {
+    // --sky-view 20000 on 500 points would take a while: the error must come first, and
+    // "rayscan visibility:" progress lines must not appear.
+    const RunResult r = run(bin() + " visibility " + s + " --sky-view 20000 " + args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(msg), std::string::npos) << args << "\n" << r.out;
+    EXPECT_EQ(r.out.find("sky view"), std::string::npos) << args << "\n" << r.out;
+  };
+  expect_error("-o " + (missing / "v.las").string(), "--out '" + (missing / "v.las").string() + "': folder '" +
+                                                          missing.string() + "' does not exist");
+  expect_error("-o " + (file / "v.las").string(), "is not a folder");
+  fs::create_directories(tmpdir() / "a_folder.las");
+  expect_error("-o " + (tmpdir() / "a_folder.las").string(), "is a folder, expected a file name");
+  expect_error("--raster " + (missing / "m.tif").string() + " --cell 1", "--raster '");
+  expect_error("--raster " + (tmpdir() / "m2.tif").string() + " --cell 1 --preview " + (missing / "p.png").string(),
+               "--preview '" + (missing / "p.png").string() + "': folder");
+  EXPECT_FALSE(fs::exists(missing));
+  EXPECT_FALSE(fs::exists(tmpdir() / "m2.tif"));
+}
+
 TEST_F(VisibilityCli, FromCameraMarksThePointsItSees) {
   const fs::path cam = write_text("cam.json", R"({"width": 64, "height": 48, "position": [-9, 0, 4],
     "look_at": [5, 0, 1], "up": [0, 0, 1], "vfov_deg": 50})");
