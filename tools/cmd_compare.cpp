@@ -26,7 +26,7 @@ struct CompareCli {
   std::string reference, image;
   std::vector<std::string> channels;
   bool alpha = false, json = false, mask = false, resize = false;
-  std::string mask_channel = "index", mask_index, resize_filter = "lanczos3", diff;
+  std::string mask_channel = "id", mask_index, resize_filter = "lanczos3", diff;
   std::optional<double> diff_max;
   std::optional<double> fail_t, fail_pct, fail_max, fail_psnr, fail_ssim;
   std::optional<double> warn_t, warn_pct, warn_max, warn_psnr, warn_ssim;
@@ -48,14 +48,16 @@ int alpha_index(const Image& img) {
 }
 
 /// The colour channels compared by default: R,G,B when all three exist, else Y (greyscale), else
-/// every channel that is neither alpha nor the point-index AOV.
+/// every channel that is neither alpha nor the point-index AOV (`index_channel`, or its renderer
+/// alias).
 std::vector<int> colour_channels(const Image& img, const std::string& index_channel) {
+  const int index_c = find_channel(img.channels, index_channel);
   const int r = img.channel_index("R"), g = img.channel_index("G"), b = img.channel_index("B");
   if (r >= 0 && g >= 0 && b >= 0) return {r, g, b};
   if (const int y = img.channel_index("Y"); y >= 0) return {y};
   std::vector<int> out;
   for (int c = 0; c < img.nchannels(); ++c)
-    if (c != alpha_index(img) && img.channels[static_cast<std::size_t>(c)] != index_channel)
+    if (c != alpha_index(img) && c != index_c)
       out.push_back(c);
   return out;
 }
@@ -70,10 +72,14 @@ std::vector<int> pick_channels(const Image& img, const CompareCli& o) {
   std::vector<int> idx;
   if (!o.channels.empty()) {
     for (const std::string& name : o.channels) {
-      const int c = img.channel_index(name);
-      if (c < 0)
-        throw UsageError(img.source + ": no channel '" + name + "' (channels: " +
-                         join(img.channels) + ")");
+      // The literal name first, then the renderer's EXR name (depth -> Z, index -> id).
+      const int c = find_channel(img.channels, name);
+      if (c < 0) {
+        const std::string_view alias = renderer_channel_alias(name);
+        throw UsageError(img.source + ": no channel '" + name + "'" +
+                         (alias != name ? " (nor its renderer name '" + std::string(alias) + "')" : "") +
+                         " (channels: " + join(img.channels) + ")");
+      }
       idx.push_back(c);
     }
   } else {
@@ -148,7 +154,7 @@ int run_compare(const CompareCli& o) {
     }
     std::string index_file;
     if (!o.mask_index.empty()) index_file = o.mask_index;
-    else if (test.channel_index(o.mask_channel) >= 0) index_file = o.image;
+    else if (find_channel(test.channels, o.mask_channel) >= 0) index_file = o.image;
     if (!index_file.empty()) {
       int iw = 0, ih = 0;
       std::vector<std::uint8_t> miss;
@@ -170,7 +176,10 @@ int run_compare(const CompareCli& o) {
         }
       }
       if (!mask_sources.empty()) mask_sources += " or ";
-      mask_sources += index_file + ":" + o.mask_channel + " miss (-1)";
+      const int mc = index_file == o.image ? find_channel(test.channels, o.mask_channel) : -1;
+      mask_sources += index_file + ":" +
+                      (mc >= 0 ? test.channels[static_cast<std::size_t>(mc)] : o.mask_channel) +
+                      " miss (-1)";
     }
     if (mask_sources.empty())
       throw UsageError("--mask: " + o.reference + " has no alpha channel and " + o.image +
@@ -315,13 +324,14 @@ Runner add_compare_command(CLI::App& app) {
   sub->add_option("image", o->image, "Image to check (e.g. a render)")->required();
   sub->add_option("--channel", o->channels,
                   "Compare these channels by name (repeat or comma-separate, e.g. --channel depth) "
-                  "instead of the colour channels (R,G,B, or Y)")
+                  "instead of the colour channels (R,G,B, or Y). A name the file lacks is looked "
+                  "up under the renderer's EXR name: depth -> Z, index -> id")
       ->delimiter(',');
   sub->add_flag("--alpha", o->alpha, "Also compare the alpha channel");
   sub->add_flag("--mask", o->mask,
                 "Ignore pixels where the reference's alpha is 0 or the image's point-index AOV "
-                "channel is a miss (-1)");
-  sub->add_option("--mask-channel", o->mask_channel, "Name of the point-index AOV channel")
+                "channel (--mask-channel) is a miss (-1; 0xFFFFFFFF in the renderer's uint32 'id')");
+  sub->add_option("--mask-channel", o->mask_channel, "Name of the point-index AOV channel ('index' also finds the renderer's 'id')")
       ->capture_default_str();
   sub->add_option("--mask-index", o->mask_index,
                   "Read the point-index AOV from this file (implies --mask)");
@@ -334,17 +344,17 @@ Runner add_compare_command(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--fail-percent", o->fail_pct, "Fail if more than this % of pixels exceed --fail (default 0)")
       ->check(CLI::Range(0.0, 100.0));
-  sub->add_option("--fail-max", o->fail_max, "Fail if any pixel error exceeds this (idiff -hardfail)")
+  sub->add_option("--fail-max", o->fail_max, "Fail if any pixel error exceeds this (idiff -hardfail; default: off)")
       ->check(CLI::NonNegativeNumber);
-  sub->add_option("--fail-psnr", o->fail_psnr, "Fail if PSNR is below this many dB");
-  sub->add_option("--fail-ssim", o->fail_ssim, "Fail if SSIM is below this")->check(CLI::Range(-1.0, 1.0));
+  sub->add_option("--fail-psnr", o->fail_psnr, "Fail if PSNR is below this many dB (default: off)");
+  sub->add_option("--fail-ssim", o->fail_ssim, "Fail if SSIM is below this (default: off)")->check(CLI::Range(-1.0, 1.0));
   sub->add_option("--warn", o->warn_t, "Pixel error threshold for a warning (default 1e-6)")
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--warn-percent", o->warn_pct, "Warn if more than this % of pixels exceed --warn (default 0)")
       ->check(CLI::Range(0.0, 100.0));
-  sub->add_option("--warn-max", o->warn_max, "Warn if any pixel error exceeds this")->check(CLI::NonNegativeNumber);
-  sub->add_option("--warn-psnr", o->warn_psnr, "Warn if PSNR is below this many dB");
-  sub->add_option("--warn-ssim", o->warn_ssim, "Warn if SSIM is below this")->check(CLI::Range(-1.0, 1.0));
+  sub->add_option("--warn-max", o->warn_max, "Warn if any pixel error exceeds this (default: off)")->check(CLI::NonNegativeNumber);
+  sub->add_option("--warn-psnr", o->warn_psnr, "Warn if PSNR is below this many dB (default: off)");
+  sub->add_option("--warn-ssim", o->warn_ssim, "Warn if SSIM is below this (default: off)")->check(CLI::Range(-1.0, 1.0));
   sub->add_option("--ssim-range", o->ssim_range,
                   "Dynamic range L of the SSIM signal (C1 = (0.01 L)^2, C2 = (0.03 L)^2)")
       ->capture_default_str()

@@ -18,6 +18,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -76,6 +77,25 @@ int run_visibility(const VisibilityCli& o) {
   } else if (o.cell || !o.raster_value.empty() || !o.preview.empty()) {
     throw UsageError("--cell, --raster-value and --preview need --raster OUT.tif");
   }
+  // Output folders must exist before the (possibly long) computation; outputs are written to a
+  // temporary sibling and renamed there, so a missing folder would only fail at the very end.
+  auto check_output_folder = [](const char* option, const std::string& path) {
+    if (path.empty()) return;
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::is_directory(fs::status(path, ec)))
+      throw UsageError(std::string(option) + " '" + path + "': is a folder, expected a file name");
+    const fs::path dir = fs::path(path).parent_path();
+    if (dir.empty()) return;  // the current folder
+    const fs::file_status st = fs::status(dir, ec);
+    if (!fs::exists(st))
+      throw UsageError(std::string(option) + " '" + path + "': folder '" + dir.string() + "' does not exist");
+    if (!fs::is_directory(st))
+      throw UsageError(std::string(option) + " '" + path + "': '" + dir.string() + "' is not a folder");
+  };
+  check_output_folder("--out", o.out);
+  check_output_folder("--raster", o.raster);
+  if (!o.no_preview) check_output_folder("--preview", o.preview);  // default: next to --raster
   const bool have_observers = !o.observers_file.empty() || !o.observer_args.empty();
   if (!have_observers && o.sky_rays == 0 && o.camera.empty())
     throw UsageError("nothing to compute: give observers (--observers FILE or --observer X,Y[,Z]), "
@@ -105,7 +125,7 @@ int run_visibility(const VisibilityCli& o) {
       an::Observer& ob = observers[k];
       if (!ob.azimuth && !o.azimuth.empty()) ob.azimuth = an::AngleRange{o.azimuth[0], o.azimuth[1]};
       if (!ob.elevation && !o.elevation.empty()) ob.elevation = an::AngleRange{o.elevation[0], o.elevation[1]};
-      an::validate_observer(ob, an::observer_label(ob, k + 1));
+      an::validate_observer(ob, an::observer_where(ob, k + 1));
     }
   } catch (const an::ObserverError& e) {
     throw UsageError(e.what());
@@ -371,10 +391,12 @@ Runner add_visibility_command(CLI::App& app) {
   c->add_option("-o,--out", o->out, "Write the cloud with the result fields here (.las or .ply)");
   c->add_option("--observers", o->observers_file, "Observer list (.json or .csv; see analysis/README.md)");
   c->add_option("--observer", o->observer_args,
-                "An observer X,Y,Z (absolute eye) or X,Y (eye at --height above the local ground); repeatable")
+                "An observer X,Y,Z (absolute eye) or X,Y (eye at --height above the local ground); world units "
+                "(the cloud's coordinates); repeatable")
       ->expected(1)
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
-  c->add_option("--height", o->height, "Eye height above the local ground for observers without z")
+  c->add_option("--height", o->height, "Eye height above the local ground for observers without z (world units; default: none, so "
+                "such observers need their own height)")
       ->check(CLI::Range(-1e9, 1e9));
   c->add_option("--ground-radius", o->ground_radius,
                 "Local ground = lowest (class-2 if classified) point within this horizontal distance "
@@ -396,15 +418,16 @@ Runner add_visibility_command(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   c->add_option("--azimuth", o->azimuth,
                 "Horizontal limit FROM,TO for observers without one: degrees clockwise from north (+Y), "
-                "may wrap (315,45)")
+                "may wrap (315,45); default: no limit")
       ->delimiter(',')
       ->expected(2);
   c->add_option("--elevation", o->elevation,
-                "Vertical limit MIN,MAX for observers without one: degrees above the horizontal (-90..90)")
+                "Vertical limit MIN,MAX for observers without one: degrees above the horizontal (-90..90); "
+                "default: no limit")
       ->delimiter(',')
       ->expected(2);
   c->add_flag("--distance", o->distance, "Add the field visible_distance (nearest observer that sees the point, -1 none)");
-  c->add_option("--sky-view", o->sky_rays, "Sky view factor with N rays per point (field sky_view)")
+  c->add_option("--sky-view", o->sky_rays, "Sky view factor with N rays per point (field sky_view; default: off)")
       ->check(CLI::Range(1u, 1u << 20));
   c->add_option("--sky-weighting", o->sky_weighting, "uniform (solid angle) or cosine (irradiance)")
       ->capture_default_str();
@@ -415,7 +438,7 @@ Runner add_visibility_command(CLI::App& app) {
                 "Camera file (JSON, scenes/README.md): count the pixels whose centre ray first hits each "
                 "point (field camera_hits)");
   c->add_option("--raster", o->raster, "Write a top-down GeoTIFF map here (.tif)");
-  c->add_option("--cell", o->cell, "Raster cell size (world units)")->check(CLI::PositiveNumber);
+  c->add_option("--cell", o->cell, "Raster cell size (world units; required with --raster)")->check(CLI::PositiveNumber);
   c->add_option("--raster-value", o->raster_value,
                 "fraction | viewshed | count | distance | sky | camera (default: fraction with observers, "
                 "else sky, else camera)");

@@ -64,6 +64,19 @@ int Image::channel_index(std::string_view name) const {
   return -1;
 }
 
+std::string_view renderer_channel_alias(std::string_view name) {
+  if (name == "depth") return "Z";
+  if (name == "index") return "id";
+  return name;
+}
+
+int find_channel(const std::vector<std::string>& names, std::string_view name) {
+  for (const std::string_view n : {name, renderer_channel_alias(name)})
+    for (std::size_t i = 0; i < names.size(); ++i)
+      if (names[i] == n) return static_cast<int>(i);
+  return -1;
+}
+
 Image make_image(int width, int height, std::vector<std::string> channels, float value) {
   if (width < 0 || height < 0) throw std::invalid_argument("make_image: negative size");
   if (channels.empty()) throw std::invalid_argument("make_image: no channels");
@@ -174,8 +187,9 @@ std::vector<std::uint8_t> read_index_misses(const std::string& path, const std::
                                std::to_string(s.nchannels));
     c = 0;
   } else {
-    for (int i = 0; i < s.nchannels; ++i)
-      if (std::string(s.channel_name(i)) == channel) c = i;
+    std::vector<std::string> names;
+    for (int i = 0; i < s.nchannels; ++i) names.emplace_back(s.channel_name(i));
+    c = find_channel(names, channel);
     if (c < 0) {
       if (s.nchannels == 1) {
         c = 0;  // a separate index file with one channel under another name

@@ -90,6 +90,7 @@ Observer from_json(const nlohmann::json& j, const std::string& where) {
   }
   if (!j.contains("position")) throw ObserverError(where + "/position: missing");
   validate_observer(o, where);
+  o.source = where;
   return o;
 }
 
@@ -180,6 +181,7 @@ std::vector<Observer> read_csv(const std::filesystem::path& path, const std::str
     if (e0) o.elevation = AngleRange{*e0, *e1};
     o.max_distance = num("max_distance");
     validate_observer(o, where);
+    o.source = where;
     out.push_back(std::move(o));
   }
   if (header.empty()) throw ObserverError(path.string() + ": empty file: expected a header line (x,y,z,...)");
@@ -235,6 +237,7 @@ Observer parse_observer(std::string_view text) {
     o.position[static_cast<int>(i)] = *v;
   }
   o.has_z = parts.size() == 3;
+  o.source = where;
   return o;
 }
 
@@ -271,14 +274,14 @@ void place_observers(std::vector<Observer>& observers, const AnyIndex& index, co
     if (o.has_z) continue;
     const std::optional<double> h = o.height ? o.height : options.default_height;
     if (!h)
-      throw ObserverError(observer_label(o, k + 1) +
+      throw ObserverError(observer_where(o, k + 1) +
                           ": no z and no height; give z, a height, or a default height (--height)");
     const double g = local_ground(index, cloud, o.position.x, o.position.y, options.radius);
     if (std::isnan(g)) {
       char buf[160];
       std::snprintf(buf, sizeof buf, ": no point within the ground radius %.6g of (%.6f, %.6f) to put the "
                     "eye above; move it or raise --ground-radius", options.radius, o.position.x, o.position.y);
-      throw ObserverError(observer_label(o, k + 1) + buf);
+      throw ObserverError(observer_where(o, k + 1) + buf);
     }
     o.ground_z = g;
     o.height = *h;
@@ -304,6 +307,10 @@ bool within_angle_limits(const Observer& o, const Vec3& dir) {
 
 std::string observer_label(const Observer& o, std::size_t number) {
   return o.name.empty() ? "observer " + std::to_string(number) : "observer '" + o.name + "'";
+}
+
+std::string observer_where(const Observer& o, std::size_t number) {
+  return o.source.empty() ? observer_label(o, number) : o.source + ": " + observer_label(o, number);
 }
 
 }  // namespace rayscan::analysis

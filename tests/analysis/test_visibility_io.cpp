@@ -171,6 +171,23 @@ TEST(Observers, LocalGroundPrefersClassTwoAndSkipsNoise) {
   }
   std::vector<Observer> no_height{parse_observer("0,0")};
   EXPECT_THROW(place_observers(no_height, idx, c, GroundOptions{2.0, std::nullopt}), ObserverError);
+
+  // Errors found while placing name the observer's file and JSON pointer / CSV line.
+  auto place_error = [&](std::vector<Observer> v, std::optional<double> height) {
+    try {
+      place_observers(v, idx, c, GroundOptions{2.0, height});
+    } catch (const ObserverError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const fs::path pj = write_text("place.json", R"({"observers": [{"position": [0, 0, 9]}, {"position": [0, 0]}]})");
+  EXPECT_EQ(place_error(read_observers(pj), std::nullopt).rfind(pj.string() + ": /observers/1: observer 2: no z and no height", 0), 0u)
+      << place_error(read_observers(pj), std::nullopt);
+  const fs::path pc = write_text("place.csv", "# eyes\nname,x,y,z\ntop,0,0,9\n\ntree,50,50,\n");
+  EXPECT_EQ(place_error(read_observers(pc), 1.7).rfind(pc.string() + ": line 5: observer 'tree': no point within the ground radius", 0), 0u)
+      << place_error(read_observers(pc), 1.7);
+  EXPECT_EQ(place_error({parse_observer("0,0")}, std::nullopt).rfind("--observer '0,0': observer 1: no z and no height", 0), 0u);
 }
 
 TEST(Raster, GridSnapsToCellMultiplesAndReduces) {
@@ -392,7 +409,7 @@ TEST_F(VisibilityCli, UserErrorsExitTwoAndWriteNothing) {
   const std::string s = scene().string();
   expect_error(s + " -o " + out.string(), "nothing to compute");
   expect_error(s + " --observer 0,0,2 -o " + (tmpdir() / "x.xyz").string(), "expected a file name ending in .las or .ply");
-  expect_error(s + " --observer 0,0 -o " + out.string(), "no z and no height");
+  expect_error(s + " --observer 0,0 -o " + out.string(), "--observer '0,0': observer 1: no z and no height");
   expect_error(s + " --observer 50,50 --height 2 -o " + out.string(), "no point within the ground radius");
   expect_error(s + " --observer 0,0,x -o " + out.string(), "is not a finite number");
   expect_error(s + " --observer 0,0,2 --raster " + (tmpdir() / "m.tif").string() + " -o " + out.string(), "--cell");
@@ -403,6 +420,31 @@ TEST_F(VisibilityCli, UserErrorsExitTwoAndWriteNothing) {
   expect_error((tmpdir() / "missing.las").string() + " --observer 0,0,2 -o " + out.string(), "missing.las");
   expect_error(s + " --from-camera " + (tmpdir() / "nocam.json").string() + " -o " + out.string(), "nocam.json");
   EXPECT_FALSE(fs::exists(tmpdir() / "m.tif"));
+}
+
+TEST_F(VisibilityCli, OutputFoldersAreCheckedBeforeComputing) {
+  const std::string s = scene().string();
+  const fs::path missing = tmpdir() / "no_such_folder";
+  fs::remove_all(missing);
+  const fs::path file = write_text("plain_file.txt", "x");  // a file where a folder is expected
+  auto expect_error = [&](const std::string& args, const std::string& msg) {
+    // --sky-view 20000 on 500 points would take a while: the error must come first, and
+    // "rayscan visibility:" progress lines must not appear.
+    const RunResult r = run(bin() + " visibility " + s + " --sky-view 20000 " + args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(msg), std::string::npos) << args << "\n" << r.out;
+    EXPECT_EQ(r.out.find("sky view"), std::string::npos) << args << "\n" << r.out;
+  };
+  expect_error("-o " + (missing / "v.las").string(), "--out '" + (missing / "v.las").string() + "': folder '" +
+                                                          missing.string() + "' does not exist");
+  expect_error("-o " + (file / "v.las").string(), "is not a folder");
+  fs::create_directories(tmpdir() / "a_folder.las");
+  expect_error("-o " + (tmpdir() / "a_folder.las").string(), "is a folder, expected a file name");
+  expect_error("--raster " + (missing / "m.tif").string() + " --cell 1", "--raster '");
+  expect_error("--raster " + (tmpdir() / "m2.tif").string() + " --cell 1 --preview " + (missing / "p.png").string(),
+               "--preview '" + (missing / "p.png").string() + "': folder");
+  EXPECT_FALSE(fs::exists(missing));
+  EXPECT_FALSE(fs::exists(tmpdir() / "m2.tif"));
 }
 
 TEST_F(VisibilityCli, FromCameraMarksThePointsItSees) {

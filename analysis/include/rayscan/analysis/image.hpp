@@ -38,6 +38,15 @@ struct Image {
   }
 };
 
+/// The channel name `rayscan render` gives an AOV in an EXR (renderer/src/image_output.cpp):
+/// "depth" -> "Z", "index" -> "id"; any other name is returned unchanged.
+std::string_view renderer_channel_alias(std::string_view name);
+
+/// Index into `names` of the channel `name` (exact, case-sensitive), or, when no channel has that
+/// literal name, of its renderer alias (renderer_channel_alias: depth -> Z, index -> id); -1 when
+/// neither exists. Lets `--channel depth` find the renderer's `Z` channel.
+int find_channel(const std::vector<std::string>& names, std::string_view name);
+
 /// Make an image of the given size and channel names filled with `value`.
 /// Throws std::invalid_argument for a negative size or no channels.
 Image make_image(int width, int height, std::vector<std::string> channels, float value = 0.0f);
@@ -71,7 +80,9 @@ void write_image(const Image& img, const std::string& path, PixelFormat format,
 /// of the point hit, with -1 where the primary ray hit nothing. The channel is read in its stored
 /// type: a miss is any negative value or NaN for float/half/signed-integer channels, and the
 /// all-ones value (0xFFFFFFFF, the bits of int32 -1) for unsigned channels. `channel` empty means
-/// "the only channel" (the file must then have exactly one). Returns a width*height vector, row
+/// "the only channel" (the file must then have exactly one); otherwise the channel is looked up
+/// with find_channel (so "index" finds the renderer's "id"), and a file with a single channel
+/// under another name uses that channel. Returns a width*height vector, row
 /// major, top row first, and sets `width`/`height`. Throws std::runtime_error naming the file and
 /// channel when it is missing or unreadable.
 std::vector<std::uint8_t> read_index_misses(const std::string& path, const std::string& channel,

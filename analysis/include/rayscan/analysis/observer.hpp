@@ -43,6 +43,9 @@ struct Observer {
   std::optional<AngleRange> azimuth;    ///< horizontal limit (see AngleRange); unset = 360 degrees
   std::optional<AngleRange> elevation;  ///< vertical limit (see AngleRange); unset = -90..90
   std::optional<double> max_distance;   ///< this observer's range; unset = the run's maximum distance
+  /// Where it was defined, for error messages: "<file>: /<i>" (JSON pointer), "<file>: line <n>"
+  /// (CSV), "--observer '<text>'" (command line); empty when built in code.
+  std::string source;
 };
 
 /// Read an observer list; the format is chosen by extension: .json, or .csv/.txt.
@@ -100,5 +103,9 @@ bool within_angle_limits(const Observer& o, const Vec3& dir);
 
 /// The observer's label: its name, or "observer <number>" (1-based `number`).
 std::string observer_label(const Observer& o, std::size_t number);
+
+/// observer_label prefixed with the observer's source when known, for error messages:
+/// "obs.json: /1: observer 2", "obs.csv: line 3: observer 2", or just "observer 2".
+std::string observer_where(const Observer& o, std::size_t number);
 
 }  // namespace rayscan::analysis
