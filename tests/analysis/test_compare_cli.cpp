@@ -2,6 +2,8 @@
 // OpenImageIO's `idiff` (the reference tool) on the same files.
 #include "rayscan/analysis/image.hpp"
 
+#include "../common/run_command.hpp"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -18,22 +20,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct RunResult {
-  int code = -1;
-  std::string out;
-};
+using RunResult = rayscan::test::CommandResult;
 
 /// Run a shell command, capturing stdout (and stderr when `merge`).
 RunResult run(const std::string& cmd, bool merge = false) {
-  RunResult r;
-  FILE* p = ::popen((cmd + (merge ? " 2>&1" : " 2>/dev/null")).c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = ::pclose(p);
-  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
+  return rayscan::test::run_command(cmd, merge);
 }
 
 std::string q(const fs::path& p) {

@@ -13,6 +13,8 @@
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
+#include "../common/run_command.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -52,22 +54,10 @@ std::string error_of(const fs::path& p) {
   return "";
 }
 
-struct RunResult {
-  int code = -1;
-  std::string out;
-};
+using RunResult = rayscan::test::CommandResult;
 
-RunResult run(const std::string& cmd) {
-  RunResult r;
-  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  if (!p) return r;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) r.out.append(buf, n);
-  const int st = ::pclose(p);
-  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
-}
+/// Runs a shell command, capturing standard output and error.
+RunResult run(const std::string& cmd) { return rayscan::test::run_command(cmd); }
 
 // Removes the temporary folder when the test program ends.
 class RemoveTmp : public ::testing::Environment {

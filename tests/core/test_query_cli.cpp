@@ -4,6 +4,8 @@
 #include "rayscan/brute_force.hpp"
 #include "rayscan/ray_query.hpp"
 
+#include "../common/run_command.hpp"
+
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -19,20 +21,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct RunResult {
-  int code;
-  std::string out;
-};
+using RunResult = rayscan::test::CommandResult;
 
+/// Runs `rayscan ARGS`, capturing standard output and error.
 RunResult run(const std::string& args) {
-  const std::string cmd = std::string(RAYSCAN_BIN) + " " + args + " 2>&1";
-  FILE* p = ::popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int st = ::pclose(p);
-  return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out};
+  return rayscan::test::run_command(std::string(RAYSCAN_BIN) + " " + args);
 }
 
 class QueryCli : public ::testing::Test {

@@ -2,6 +2,8 @@
 // line naming the option or file, and write no output file.
 #include "rayscan/render/scene.hpp"
 
+#include "../common/run_command.hpp"
+
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -15,20 +17,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct RunResult {
-  int code;
-  std::string out;
-};
+using RunResult = rayscan::test::CommandResult;
 
+/// Runs `rayscan ARGS`, capturing standard output and error.
 RunResult run(const std::string& args) {
-  const std::string cmd = std::string(RAYSCAN_BIN) + " " + args + " 2>&1";
-  FILE* p = ::popen(cmd.c_str(), "r");
-  std::string out;
-  char buf[4096];
-  std::size_t n;
-  while ((n = std::fread(buf, 1, sizeof buf, p)) > 0) out.append(buf, n);
-  const int st = ::pclose(p);
-  return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out};
+  return rayscan::test::run_command(std::string(RAYSCAN_BIN) + " " + args);
 }
 
 fs::path temp_dir() {
