@@ -40,12 +40,6 @@ namespace rayscan {
   return {mn.x + mn.y + mn.z, mx.x + mx.y + mx.z};
 }
 
-/// Squared distance from the line point o + t u to box b, for unit u.
-[[nodiscard]] inline double line_point_box_distance2(const Vec3& o, const Vec3& u, double t,
-                                                     const AABB& b) {
-  return distance2_point_box(o + t * u, b);
-}
-
 /// Exact squared minimum distance between box b and the ray segment {o + t u : t in [t0, t1]}
 /// (u unit; t0/t1 may be infinite: [-inf, inf] is the whole line). This is the "accurate measure
 /// of the shortest distance between an axis-aligned cube and a ray" that paper section 3.3 names
@@ -87,25 +81,33 @@ namespace rayscan {
   return std::max(0.0, dc - (aw.x * e.x + aw.y * e.y + aw.z * e.z) / dc);
 }
 
-/// Slab test (Kay & Kajiya 1986; pbrt-v4 section 6.1.2) of the line o + t u against box b
-/// grown by `pad` on every side, clipped to [t0, t1]. inv_u = 1/u component-wise (inf for a zero
-/// component is fine). Returns the [t_near, t_far] interval inside the box, empty when the line
-/// misses it. Every point p of b with dist_ray <= pad and t_p in [t0, t1] has its projection
-/// t_p inside the returned interval, so the interval is a conservative time bound for the node.
-[[nodiscard]] inline Interval slab_interval(const Vec3& o, const Vec3& inv_u, const AABB& b,
-                                            double pad, double t0, double t1) {
+/// Slab test (Kay & Kajiya 1986; pbrt-v4 section 6.1.2) of the line o + t u against box b grown
+/// by `pad` on every side, clipped to [t0, t1], with the per-ray constants precomputed:
+/// o_plus = o + pad, o_minus = o - pad (component-wise) and inv_u = 1/u (inf for a zero component
+/// is fine). Returns the [t_near, t_far] interval inside the grown box, empty when the line misses
+/// it. Every point p of b with dist_ray <= pad and t_p in [t0, t1] projects inside the returned
+/// interval, so it is a conservative time bound for the node (paper section 3.3).
+[[nodiscard]] __attribute__((always_inline)) inline Interval slab_interval_grown(
+    const Vec3& o_plus, const Vec3& o_minus, const Vec3& inv_u, const AABB& b, double t0,
+    double t1) {
   double tn = t0, tf = t1;
   for (int i = 0; i < 3; ++i) {
     // For u_i = 0, inv_u is +-inf: the products are +-inf (line outside the slab: empty result)
     // or NaN (line exactly on a slab plane); a NaN fails both comparisons below and leaves the
     // interval unchanged, which keeps the touching line (conservative).
-    double ta = (b.lo[i] - pad - o[i]) * inv_u[i];
-    double tb = (b.hi[i] + pad - o[i]) * inv_u[i];
+    double ta = (b.lo[i] - o_plus[i]) * inv_u[i];
+    double tb = (b.hi[i] - o_minus[i]) * inv_u[i];
     if (ta > tb) std::swap(ta, tb);
     tn = ta > tn ? ta : tn;
     tf = tb < tf ? tb : tf;
   }
   return {tn, tf};
+}
+
+/// slab_interval_grown for a ray origin o and pad (computes o +- pad itself).
+[[nodiscard]] inline Interval slab_interval(const Vec3& o, const Vec3& inv_u, const AABB& b,
+                                            double pad, double t0, double t1) {
+  return slab_interval_grown(o + pad, o - pad, inv_u, b, t0, t1);
 }
 
 }  // namespace rayscan

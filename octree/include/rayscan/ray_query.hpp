@@ -193,17 +193,9 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
   auto test_node = [&](const AABB& b, double& lb) __attribute__((always_inline)) -> bool {
     Interval iv;
     if (pad < kInf) {
-      // Slab test of the box grown by pad: every qualifying point projects inside [tn, tf].
-      double tn = t_lo, tf = t_hi;
-      for (int i = 0; i < 3; ++i) {
-        double ta = (b.lo[i] - o_plus[i]) * inv_d[i];
-        double tb = (b.hi[i] - o_minus[i]) * inv_d[i];
-        if (ta > tb) std::swap(ta, tb);
-        tn = ta > tn ? ta : tn;  // a NaN (ray on a slab plane) leaves the bound unchanged
-        tf = tb < tf ? tb : tf;
-      }
-      if (tn > tf) return false;
-      iv = {tn, tf};
+      // Slab test of the box grown by pad: every qualifying point projects inside iv.
+      iv = slab_interval_grown(o_plus, o_minus, inv_d, b, t_lo, t_hi);
+      if (iv.empty()) return false;
     } else {
       iv = dist_plane_bounds(o, d, b);  // projected time interval, eq. 4 via eq. 2
       iv.lo = std::max(iv.lo, t_lo);
