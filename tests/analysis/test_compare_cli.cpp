@@ -1,6 +1,7 @@
 // `rayscan compare` end to end: exit codes, errors, heat map, mask, and agreement with
 // OpenImageIO's `idiff` (the reference tool) on the same files.
 #include "rayscan/analysis/image.hpp"
+#include "image_test_util.hpp"
 
 #include "../common/run_command.hpp"
 
@@ -44,17 +45,8 @@ nlohmann::json compare_json(const fs::path& a, const fs::path& b, const std::str
   return nlohmann::json::parse(r.out);
 }
 
-Image noise_image(int W, int H, std::vector<std::string> ch, unsigned seed, float lo, float hi) {
-  Image img = make_image(W, H, std::move(ch));
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> d(lo, hi);
-  for (float& f : img.pixels) f = d(rng);
-  return img;
-}
-
-float& px(Image& img, int x, int y, int c) {
-  return img.pixels[(static_cast<std::size_t>(y) * img.width + x) * img.channels.size() + c];
-}
+using rayscan::analysis::test::noise_image;
+using rayscan::analysis::test::px;
 
 class CompareCli : public ::testing::Test {
  protected:

@@ -1,6 +1,7 @@
 // Comparison metrics against analytic values of constructed perturbations.
 #include "rayscan/analysis/color_ramp.hpp"
 #include "rayscan/analysis/image.hpp"
+#include "image_test_util.hpp"
 #include "rayscan/analysis/image_compare.hpp"
 
 #include <gtest/gtest.h>
@@ -14,17 +15,8 @@ using namespace rayscan::analysis;
 
 namespace {
 
-Image noise_image(int W, int H, std::vector<std::string> ch, unsigned seed, float lo, float hi) {
-  Image img = make_image(W, H, std::move(ch));
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> d(lo, hi);
-  for (float& f : img.pixels) f = d(rng);
-  return img;
-}
-
-float& px(Image& img, int x, int y, int c) {
-  return img.pixels[(static_cast<std::size_t>(y) * img.width + x) * img.channels.size() + c];
-}
+using rayscan::analysis::test::noise_image;
+using rayscan::analysis::test::px;
 
 }  // namespace
 
