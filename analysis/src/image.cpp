@@ -2,7 +2,10 @@
 // and ImageBufAlgo::resize).
 #include "rayscan/analysis/image.hpp"
 
+#include "rayscan/aov.hpp"
+
 #include "rayscan/atomic_file.hpp"
+#include "rayscan/spatial_index.hpp"
 
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
@@ -65,8 +68,8 @@ int Image::channel_index(std::string_view name) const {
 }
 
 std::string_view renderer_channel_alias(std::string_view name) {
-  if (name == "depth") return "Z";
-  if (name == "index") return "id";
+  // Single-channel AOVs have one file channel (rayscan/aov.hpp): depth -> Z, index -> id, cost.
+  if (const std::optional<Aov> a = parse_aov(name); a && aov_channels(*a).size() == 1) return aov_channels(*a)[0];
   return name;
 }
 
@@ -219,7 +222,7 @@ std::vector<std::uint8_t> read_index_misses(const std::string& path, const std::
     read_as(OIIO::TypeDesc::UINT32, v.data());  // same-width or widening: values preserved
     // OIIO widens unsigned integers by scaling to the full range, so an all-ones uint8/uint16
     // sample also arrives as 0xFFFFFFFF.
-    for (std::size_t i = 0; i < n; ++i) miss[i] = v[i] == 0xFFFFFFFFu;
+    for (std::size_t i = 0; i < n; ++i) miss[i] = v[i] == kNoPoint;
   } else if (t.basetype == OIIO::TypeDesc::INT32 || t.basetype == OIIO::TypeDesc::INT16 ||
              t.basetype == OIIO::TypeDesc::INT8) {
     std::vector<std::int32_t> v(n);

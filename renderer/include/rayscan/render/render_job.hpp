@@ -5,7 +5,7 @@
 
 #include "rayscan/job.hpp"
 #include "rayscan/point_cloud.hpp"
-#include "rayscan/render/aov.hpp"
+#include "rayscan/aov.hpp"
 #include "rayscan/render/image_output.hpp"
 #include "rayscan/render/render.hpp"
 #include "rayscan/render/scene.hpp"

@@ -1,5 +1,7 @@
-// Arbitrary output variables (AOVs, issue 4 section 3.2): the one list of their names, used by
-// scene files, `rayscan render --aov`, the EXR channel names and the Python module.
+// Arbitrary output variables (AOVs, issue 4 section 3.2): the one list of their names and file
+// channel names, used by scene files, `rayscan render --aov`, the renderer's EXR writer, the
+// compare job's channel aliases and the Python module. In the core so that analysis needs no
+// renderer to read a render's channels.
 #pragma once
 
 #include <optional>
@@ -7,7 +9,7 @@
 #include <string_view>
 #include <vector>
 
-namespace rayscan::render {
+namespace rayscan {
 
 /// Extra per-pixel outputs of a render, written next to the beauty image.
 enum class Aov { depth, normal, position, index, albedo, cost };
@@ -29,4 +31,4 @@ std::string aov_names_expected();
 /// {"albedo.R","albedo.G","albedo.B"}, cost {"cost"}.
 const std::vector<std::string>& aov_channels(Aov aov);
 
-}  // namespace rayscan::render
+}  // namespace rayscan
