@@ -17,7 +17,9 @@ Runner add_info_command(CLI::App& app) {
   sub->add_option("FILE", *file, "point cloud file (.las .ply .pcd .xyz .csv .txt .f64)")->required();
   sub->add_flag("--json", *json, "print one JSON object instead of text");
   return [file, json]() -> int {
-    const io::InfoJobResult r = io::run_info({.file = *file});
+    io::InfoJobOptions job;
+    job.file = *file;
+    const io::InfoJobResult r = io::run_info(job);
     std::cout << (*json ? io::info_report_json(r) + "\n" : io::info_report_text(r));
     return 0;
   };

@@ -108,7 +108,9 @@ TEST(QueryJob, InMemoryCloudMatchesBruteForce) {
 }
 
 TEST(InfoJob, CountsAndBoundsOfATestFile) {
-  const InfoJobResult r = run_info({.file = rayscan::test::data_file("las/autzen_trim.las")});
+  InfoJobOptions o;
+  o.file = rayscan::test::data_file("las/autzen_trim.las");
+  const InfoJobResult r = run_info(o);
   const PointCloud pc = read_point_cloud(rayscan::test::data_file("las/autzen_trim.las"));
   EXPECT_EQ(r.info.format, "LAS");
   EXPECT_EQ(r.count, pc.size());

@@ -128,8 +128,11 @@ TEST(RenderJob, OverridesCheckEachValue) {
   EXPECT_EQ(s.camera->height(), 60u);
   EXPECT_EQ(s.spp, 5u);
   EXPECT_EQ(s.output.aovs, (std::vector<Aov>{Aov::index, Aov::depth, Aov::normal}));
-  EXPECT_EQ(what_of([&] { apply_overrides(s, {.aovs = {"colour"}}); }),
+  SceneOverrides bad_aov, bad_out;
+  bad_aov.aovs = {"colour"};
+  bad_out.out = "x.bmp";
+  EXPECT_EQ(what_of([&] { apply_overrides(s, bad_aov); }),
             "--aov 'colour': expected depth, normal, position, index, albedo or cost");
-  EXPECT_EQ(what_of([&] { apply_overrides(s, {.out = "x.bmp"}); }),
+  EXPECT_EQ(what_of([&] { apply_overrides(s, bad_out); }),
             "--out 'x.bmp': expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr");
 }

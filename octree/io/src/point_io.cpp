@@ -1,6 +1,8 @@
 // read_point_cloud(): memory-maps the file and dispatches to the format reader.
 #include "rayscan/io/point_io.hpp"
 
+#include "rayscan/file_names.hpp"
+
 #include "readers.hpp"
 
 #include <fcntl.h>
@@ -117,7 +119,7 @@ void promote_scalars(PointCloud& pc, const ReadOptions& opt, FileInfo& info) {
 }  // namespace
 
 Format format_from_extension(const std::filesystem::path& path) {
-  const std::string e = detail::lower(path.extension().string());
+  const std::string e = lower_extension(path);
   if (e == ".las" || e == ".laz" || e == ".copc") return Format::las;
   if (e == ".ply") return Format::ply;
   if (e == ".pcd") return Format::pcd;
