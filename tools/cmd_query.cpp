@@ -3,10 +3,12 @@
 
 #include "rayscan/any_index.hpp"
 #include "rayscan/batch.hpp"
+#include "rayscan/input_file.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "atomic_file.hpp"
 
 #include <charconv>
+#include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -46,20 +48,18 @@ std::vector<Ray> read_rays(const std::string& path) {
     }
   };
   if (path.size() > 4 && path.substr(path.size() - 4) == ".f64") {
-    std::ifstream in(path, std::ios::binary | std::ios::ate);
-    if (!in) throw UsageError(path + ": cannot open rays file");
-    const auto size = static_cast<std::uint64_t>(in.tellg());
+    const InputFile f(path);  // the input policy: regular file, reads bounded by its size
+    const std::uint64_t size = f.size();
     if (size % 48)
       throw UsageError(path + ": byte " + std::to_string(size - size % 48) + ": size " +
                        std::to_string(size) + " is not a multiple of 48 (6 float64 per ray)");
-    in.seekg(0);
+    const std::vector<std::uint8_t> bytes = f.read_all();
     std::vector<double> v(size / 8);
-    in.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(size));
+    if (size > 0) std::memcpy(v.data(), bytes.data(), size);
     for (std::size_t i = 0; i < v.size() / 6; ++i) make(&v[6 * i], "ray " + std::to_string(i));
     return rays;
   }
-  std::ifstream in(path);
-  if (!in) throw UsageError(path + ": cannot open rays file");
+  std::istringstream in(read_text_file(path));  // the input policy: regular file, size cap
   std::string line;
   if (!std::getline(in, line)) throw UsageError(path + ": line 1: expected header ox,oy,oz,dx,dy,dz");
   std::string hdr;
@@ -147,7 +147,7 @@ Runner add_query_command(CLI::App& app) {
                 "Rays: CSV with header ox,oy,oz,dx,dy,dz, or .f64 (6 little-endian float64 per ray)")
       ->required();
   c->add_option("--k", o->k, "Keep the k best results per ray (default: all)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   c->add_option("--radius", o->radius,
                 "Max orthogonal distance to the ray line, world units (default: infinite)");
   c->add_option("--t-min", o->t_min, "Lower end of the time interval, world units (default: -inf)");
@@ -162,7 +162,7 @@ Runner add_query_command(CLI::App& app) {
   c->add_option("--capacity", o->index.capacity,
                 "Octree node capacity / kd-tree leaf size, points")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   CLI::Option* depth_opt = c->add_option("--depth", o->index.depth, "Leaf depth of octree-fixed (0..21; other indexes: an error)")
       ->capture_default_str()
       ->check(CLI::Range(0, 21));

@@ -8,6 +8,8 @@
 #include "rayscan/render/scene.hpp"
 
 #include <chrono>
+#include <cmath>
+#include <utility>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -64,14 +66,18 @@ int run_render(const RenderCliOptions& o) {
       throw UsageError("--aov '" + a + "': expected depth, normal, position, index, albedo or cost");
   }
   if (o.width || o.height) {
+    // In double, then checked: a 1x65536 camera with --width 65536 asks for a height of 2^32,
+    // which must be an error, not a wrapped 32-bit integer (issue 8).
     const Camera& c = *scene.camera;
-    const std::uint32_t w = o.width ? *o.width
-                                    : std::max(1u, static_cast<std::uint32_t>(std::lround(
-                                                       double(c.width()) * *o.height / c.height())));
-    const std::uint32_t h = o.height ? *o.height
-                                     : std::max(1u, static_cast<std::uint32_t>(std::lround(
-                                                        double(c.height()) * *o.width / c.width())));
-    scene.camera = c.resized(w, h);
+    const double w = o.width ? double(*o.width) : std::round(double(c.width()) * *o.height / c.height());
+    const double h = o.height ? double(*o.height) : std::round(double(c.height()) * *o.width / c.width());
+    for (const auto& [v, name] : {std::pair{w, "width"}, std::pair{h, "height"}})
+      if (!(v >= 1.0 && v <= 65536.0))
+        throw UsageError("the camera's aspect ratio " + std::to_string(c.width()) + ":" +
+                         std::to_string(c.height()) + " gives an image " + name + " of " +
+                         std::to_string(static_cast<long long>(std::min(v, 1e18))) +
+                         " pixels, expected 1 to 65536; give both --width and --height");
+    scene.camera = c.resized(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h));
   }
 
   auto log = [&](const std::string& s) {
@@ -138,8 +144,9 @@ int run_render(const RenderCliOptions& o) {
                      {"rayscan:cloud", scene.cloud.string()},
                      {"rayscan:spp", std::to_string(scene.spp)},
                      {"rayscan:seed", std::to_string(scene.seed)},
-                     {"rayscan:radius", num(radius)},
-                     {"rayscan:render_time_s", num(st.seconds)}};
+                     {"rayscan:radius", num(radius)}};
+  // No render time in the file (issue 8): two renders of the same scene and seed are identical
+  // byte for byte (`cmp`); the time is logged on stderr.
   if (!scene.camera_file.empty()) meta.emplace_back("rayscan:camera", scene.camera_file.string());
   const auto files = write_image(fb, scene.output, meta);
 
@@ -167,7 +174,12 @@ Runner add_render_command(CLI::App& app) {
   c->add_option("--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image");
   c->add_option("--spp", o->spp, "Samples per pixel, integer in [1, 1048576] (default: the scene's value, 16 if unset)")->check(CLI::Range(1u, 1u << 20));
   c->add_option("--seed", o->seed, "Random seed, unsigned 64-bit integer; the image is a pure function of it "
-                "(default: the scene's value, 0 if unset)");
+                "(default: the scene's value, 0 if unset)")
+      ->check([](const std::string& v) {  // CLI11 would wrap "-1" to 2^64-1
+        return v.find_first_not_of("0123456789") == std::string::npos && !v.empty()
+                   ? std::string()
+                   : "expected an unsigned 64-bit integer, got '" + v + "'";
+      });
   c->add_option("--threads", o->threads, "Worker threads, 0 = all cores; the image is identical for any count "
                 "(default: all cores)")
       ->check(CLI::Range(0u, 1024u));

@@ -4,6 +4,7 @@
 #include "commands.hpp"
 
 #include "rayscan/analysis/geotiff.hpp"
+#include "rayscan/atomic_file.hpp"
 #include "rayscan/analysis/observer.hpp"
 #include "rayscan/analysis/raster.hpp"
 #include "rayscan/analysis/raster_preview.hpp"
@@ -70,6 +71,9 @@ int run_visibility(const VisibilityCli& o) {
   // ---- Check every option before any work.
   if (!o.out.empty() && lower_ext(o.out) != ".las" && lower_ext(o.out) != ".ply")
     throw UsageError("--out '" + o.out + "': expected a file name ending in .las or .ply");
+  // The output policy up front: every output path must be absent or a regular file.
+  for (const std::string& f : {o.out, o.raster, o.preview})
+    if (!f.empty()) require_replaceable_output(f);
   if (!o.raster.empty()) {
     if (lower_ext(o.raster) != ".tif" && lower_ext(o.raster) != ".tiff")
       throw UsageError("--raster '" + o.raster + "': expected a file name ending in .tif (GeoTIFF)");
@@ -281,7 +285,8 @@ int run_visibility(const VisibilityCli& o) {
     set_scalar(cloud, "camera_hits", std::vector<double>(cam_hits.begin(), cam_hits.end()));
   }
 
-  // ---- Outputs.
+  // ---- Outputs: one transaction (issue 8), so a failing raster leaves the old --out intact.
+  OutputTransaction tx;
   nlohmann::json written = nlohmann::json::array();
   if (!o.out.empty()) {
     if (lower_ext(o.out) == ".las") {
@@ -359,6 +364,7 @@ int run_visibility(const VisibilityCli& o) {
       written.push_back(pv);
     }
   }
+  tx.commit();
   report["written"] = written;
   if (o.json) {
     std::cout << report.dump(2) << "\n";
@@ -397,25 +403,25 @@ Runner add_visibility_command(CLI::App& app) {
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   c->add_option("--height", o->height, "Eye height above the local ground for observers without z (world units; default: none, so "
                 "such observers need their own height)")
-      ->check(CLI::Range(-1e9, 1e9));
+      ->check(finite_number(-1e9, 1e9));
   c->add_option("--ground-radius", o->ground_radius,
                 "Local ground = lowest (class-2 if classified) point within this horizontal distance "
                 "(default 5 x radius)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   c->add_option("--radius", o->radius, "Sphere radius of each point (world units) or auto")->capture_default_str();
   c->add_option("--radius-factor", o->radius_factor, "auto radius = factor x median nearest-neighbour spacing")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   c->add_option("--tolerance", o->tolerance,
                 "A point counts as seen when the first sphere the ray meets lies at most this far before "
                 "it along the ray (default 2 x radius)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   c->add_option("--target-height", o->target_height,
                 "Rays aim this far above each point (GIS target height; keeps grazing views of level "
                 "ground open; default 1 x radius, 0 = aim at the point)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   c->add_option("--max-distance", o->max_distance, "Maximum viewing distance (world units; default unlimited)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   c->add_option("--azimuth", o->azimuth,
                 "Horizontal limit FROM,TO for observers without one: degrees clockwise from north (+Y), "
                 "may wrap (315,45); default: no limit")
@@ -432,13 +438,13 @@ Runner add_visibility_command(CLI::App& app) {
   c->add_option("--sky-weighting", o->sky_weighting, "uniform (solid angle) or cosine (irradiance)")
       ->capture_default_str();
   c->add_option("--sky-lift", o->sky_lift, "Sky rays start this far above the point (default 2 x radius)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   c->add_option("--seed", o->seed, "Seed of the per-point rotation of the sky directions")->capture_default_str();
   c->add_option("--from-camera", o->camera,
                 "Camera file (JSON, scenes/README.md): count the pixels whose centre ray first hits each "
                 "point (field camera_hits)");
   c->add_option("--raster", o->raster, "Write a top-down GeoTIFF map here (.tif)");
-  c->add_option("--cell", o->cell, "Raster cell size (world units; required with --raster)")->check(CLI::PositiveNumber);
+  c->add_option("--cell", o->cell, "Raster cell size (world units; required with --raster)")->check(positive());
   c->add_option("--raster-value", o->raster_value,
                 "fraction | viewshed | count | distance | sky | camera (default: fraction with observers, "
                 "else sky, else camera)");
