@@ -67,7 +67,7 @@ Runner add_query_command(CLI::App& app) {
                 "Rays: CSV with header ox,oy,oz,dx,dy,dz, or .f64 (6 little-endian float64 per ray)")
       ->required();
   c->add_option("--k", o->k, "Keep the k best results per ray (default: all)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   c->add_option("--radius", o->radius,
                 "Max orthogonal distance to the ray line, world units (default: infinite)");
   c->add_option("--t-min", o->t_min, "Lower end of the time interval, world units (default: -inf)");
@@ -82,7 +82,7 @@ Runner add_query_command(CLI::App& app) {
   c->add_option("--capacity", o->index.capacity,
                 "Octree node capacity / kd-tree leaf size, points")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   CLI::Option* depth_opt = c->add_option("--depth", o->index.depth, "Leaf depth of octree-fixed (0..21; other indexes: an error)")
       ->capture_default_str()
       ->check(CLI::Range(0, 21));

@@ -55,7 +55,12 @@ Runner add_render_command(CLI::App& app) {
   c->add_option("--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image");
   c->add_option("--spp", o->spp, "Samples per pixel, integer in [1, 1048576] (default: the scene's value, 16 if unset)")->check(CLI::Range(1u, 1u << 20));
   c->add_option("--seed", o->seed, "Random seed, unsigned 64-bit integer; the image is a pure function of it "
-                "(default: the scene's value, 0 if unset)");
+                "(default: the scene's value, 0 if unset)")
+      ->check([](const std::string& v) {  // CLI11 would wrap "-1" to 2^64-1
+        return v.find_first_not_of("0123456789") == std::string::npos && !v.empty()
+                   ? std::string()
+                   : "expected an unsigned 64-bit integer, got '" + v + "'";
+      });
   c->add_option("--threads", o->threads, "Worker threads, 0 = all cores; the image is identical for any count "
                 "(default: all cores)")
       ->check(CLI::Range(0u, 1024u));

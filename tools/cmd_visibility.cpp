@@ -95,25 +95,25 @@ Runner add_visibility_command(CLI::App& app) {
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   c->add_option("--height", o->job.height, "Eye height above the local ground for observers without z (world units; default: none, so "
                 "such observers need their own height)")
-      ->check(CLI::Range(-1e9, 1e9));
+      ->check(finite_number(-1e9, 1e9));
   c->add_option("--ground-radius", o->job.ground_radius,
                 "Local ground = lowest (class-2 if classified) point within this horizontal distance "
                 "(default 5 x radius)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   c->add_option("--radius", o->radius, "Sphere radius of each point (world units) or auto")->capture_default_str();
   c->add_option("--radius-factor", o->job.radius_factor, "auto radius = factor x median nearest-neighbour spacing")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   c->add_option("--tolerance", o->job.tolerance,
                 "A point counts as seen when the first sphere the ray meets lies at most this far before "
                 "it along the ray (default 2 x radius)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   c->add_option("--target-height", o->job.target_height,
                 "Rays aim this far above each point (GIS target height; keeps grazing views of level "
                 "ground open; default 1 x radius, 0 = aim at the point)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   c->add_option("--max-distance", o->job.max_distance, "Maximum viewing distance (world units; default unlimited)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   c->add_option("--azimuth", o->azimuth,
                 "Horizontal limit FROM,TO for observers without one: degrees clockwise from north (+Y), "
                 "may wrap (315,45); default: no limit")
@@ -130,13 +130,13 @@ Runner add_visibility_command(CLI::App& app) {
   c->add_option("--sky-weighting", o->sky_weighting, "uniform (solid angle) or cosine (irradiance)")
       ->capture_default_str();
   c->add_option("--sky-lift", o->job.sky_lift, "Sky rays start this far above the point (default 2 x radius)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   c->add_option("--seed", o->job.seed, "Seed of the per-point rotation of the sky directions")->capture_default_str();
   c->add_option("--from-camera", o->camera,
                 "Camera file (JSON, scenes/README.md): count the pixels whose centre ray first hits each "
                 "point (field camera_hits)");
   c->add_option("--raster", o->raster, "Write a top-down GeoTIFF map here (.tif)");
-  c->add_option("--cell", o->job.cell, "Raster cell size (world units; required with --raster)")->check(CLI::PositiveNumber);
+  c->add_option("--cell", o->job.cell, "Raster cell size (world units; required with --raster)")->check(positive());
   c->add_option("--raster-value", o->job.raster_value,
                 "fraction | viewshed | count | distance | sky | camera (default: fraction with observers, "
                 "else sky, else camera)");

@@ -11,6 +11,7 @@ PKGS=(
   liblzf-dev libgdal-dev gdal-bin
   clang libclang-rt-14-dev
   fonts-dejavu-core
+  cloudcompare xvfb xauth python3-open3d python3-numpy
 )
 missing=()
 for p in "${PKGS[@]}"; do

@@ -125,6 +125,7 @@ std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const Outp
   const bool has_aovs = !fb.depth.empty() || !fb.normal.empty() || !fb.position.empty() ||
                         !fb.albedo.empty() || !fb.cost.empty() || !fb.index.empty();
   std::vector<std::filesystem::path> written;
+  OutputTransaction tx;  // the image and its AOV file: all or nothing (issue 8)
   if (ext == ".exr") {
     const TypeDesc ct = out.exr_half ? TypeDesc::HALF : TypeDesc::FLOAT;
     std::vector<Channel> ch;
@@ -132,6 +133,7 @@ std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const Outp
     add_aov_channels(fb, ct, ch);
     write_file(out.image, fb.width, fb.height, ch, meta);
     written.push_back(out.image);
+    tx.commit();
     return written;
   }
   const bool jpeg = ext == ".jpg" || ext == ".jpeg";
@@ -140,16 +142,19 @@ std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const Outp
   std::vector<Channel> ch;
   for (int k = 0; k < 3; ++k) ch.push_back({std::string(1, "RGB"[k]), t, &px[0][k], nullptr, 3});
   meta.emplace_back("oiio:ColorSpace", "sRGB");
+  std::filesystem::path aov = out.image;
+  aov.replace_extension(".aovs.exr");
+  require_replaceable_output(out.image);
+  if (has_aovs) require_replaceable_output(aov);  // both checked before either is written
   write_file(out.image, fb.width, fb.height, ch, meta, jpeg ? 95 : 0);
   written.push_back(out.image);
   if (has_aovs) {
-    std::filesystem::path aov = out.image;
-    aov.replace_extension(".aovs.exr");
     std::vector<Channel> ach;
     add_aov_channels(fb, TypeDesc::HALF, ach);
     write_file(aov, fb.width, fb.height, ach, meta);
     written.push_back(aov);
   }
+  tx.commit();
   return written;
 }
 
