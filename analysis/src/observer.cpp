@@ -1,5 +1,7 @@
 #include "rayscan/analysis/observer.hpp"
 
+#include "rayscan/file_names.hpp"
+
 #include "rayscan/input_file.hpp"
 #include "rayscan/point_query.hpp"
 
@@ -214,8 +216,7 @@ std::vector<Observer> read_observers(const std::filesystem::path& path) {
   } catch (const InputFileError& e) {
     throw ObserverError(e.what());
   }
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  const std::string ext = lower_extension(path);
   std::vector<Observer> out;
   if (ext == ".json")
     out = read_json(path, text);

@@ -4,6 +4,7 @@
 
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/analysis/raster_preview.hpp"
+#include "rayscan/atomic_file.hpp"
 #include "rayscan/file_names.hpp"
 #include "rayscan/io/camera_file.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -65,6 +66,9 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   // ---- Check every option before any work.
   if (!o.out.empty() && !has_extension(o.out, kCloudOutputs))
     throw invalid_argument("--out '" + o.out.string() + "': " + extensions_expected(kCloudOutputs));
+  // The output policy up front: every output path must be absent or a regular file.
+  for (const std::filesystem::path& f : {o.out, o.raster, o.preview})
+    if (!f.empty()) require_replaceable_output(f);
   if (!o.raster.empty()) {
     if (!has_extension(o.raster, kRasterOutputs))
       throw invalid_argument("--raster '" + o.raster.string() + "': expected a file name ending in .tif (GeoTIFF)");
@@ -210,7 +214,8 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     set_scalar(cloud, "camera_hits", std::vector<double>(r.camera_hits.begin(), r.camera_hits.end()));
   }
 
-  // ---- Outputs.
+  // ---- Outputs: one transaction (issue 8), so a failing raster leaves the old --out intact.
+  OutputTransaction tx;
   if (!o.out.empty()) {
     if (lower_extension(o.out) == ".las") {
       io::LasWriteOptions lo;
@@ -286,6 +291,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
       r.written.push_back(pv);
     }
   }
+  tx.commit();
   return r;
 }
 

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 namespace rayscan::render {
 
@@ -48,14 +49,18 @@ void apply_overrides(Scene& scene, const SceneOverrides& o) {
   }
   if (o.width || o.height) {
     if (!scene.camera) throw std::invalid_argument("--width/--height: the scene has no camera");
+    // In double, then checked: a 1x65536 camera with --width 65536 asks for a height of 2^32,
+    // which must be an error, not a wrapped 32-bit integer (issue 8).
     const Camera& c = *scene.camera;
-    const std::uint32_t w = o.width ? *o.width
-                                    : std::max(1u, static_cast<std::uint32_t>(std::lround(
-                                                       double(c.width()) * *o.height / c.height())));
-    const std::uint32_t h = o.height ? *o.height
-                                     : std::max(1u, static_cast<std::uint32_t>(std::lround(
-                                                        double(c.height()) * *o.width / c.width())));
-    scene.camera = c.resized(w, h);
+    const double w = o.width ? double(*o.width) : std::round(double(c.width()) * *o.height / c.height());
+    const double h = o.height ? double(*o.height) : std::round(double(c.height()) * *o.width / c.width());
+    for (const auto& [v, name] : {std::pair{w, "width"}, std::pair{h, "height"}})
+      if (!(v >= 1.0 && v <= 65536.0))
+        throw std::invalid_argument("the camera's aspect ratio " + std::to_string(c.width()) + ":" +
+                                    std::to_string(c.height()) + " gives an image " + name + " of " +
+                                    std::to_string(static_cast<long long>(std::min(v, 1e18))) +
+                                    " pixels, expected 1 to 65536; give both --width and --height");
+    scene.camera = c.resized(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h));
   }
 }
 
@@ -123,8 +128,9 @@ RenderJobResult run_render(const RenderJobOptions& o) {
                 {"rayscan:cloud", o.cloud ? std::string("(memory)") : scene.cloud.string()},
                 {"rayscan:spp", std::to_string(scene.spp)},
                 {"rayscan:seed", std::to_string(scene.seed)},
-                {"rayscan:radius", num17(r.radius.radius)},
-                {"rayscan:render_time_s", num17(r.stats.seconds)}};
+                {"rayscan:radius", num17(r.radius.radius)}};
+  // No render time in the file (issue 8): two renders of the same scene and seed are identical
+  // byte for byte (`cmp`); the time is in RenderJobResult::stats and the log.
   if (!scene.camera_file.empty()) r.metadata.emplace_back("rayscan:camera", scene.camera_file.string());
   if (o.write && !scene.output.image.empty()) r.written = write_image(r.image, scene.output, r.metadata);
 

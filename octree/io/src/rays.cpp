@@ -2,9 +2,11 @@
 #include "rayscan/io/rays.hpp"
 
 #include "rayscan/file_names.hpp"
+#include "rayscan/input_file.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <charconv>
+#include <cstring>
 #include <cstdint>
 #include <fstream>
 #include <sstream>
@@ -38,27 +40,20 @@ std::vector<Ray> read_rays(const std::filesystem::path& file) {
     }
   };
   if (lower_extension(file) == ".f64") {
-    std::ifstream in(file, std::ios::binary | std::ios::ate);
-    if (!in) throw FormatError(path + ": cannot open rays file");
-    const auto size = static_cast<std::uint64_t>(in.tellg());
+    const InputFile f(file);  // the input policy: regular file, reads bounded by its size
+    const std::uint64_t size = f.size();
     if (size % 48)
       throw FormatError(path + ": byte " + std::to_string(size - size % 48) + ": size " +
                         std::to_string(size) + " is not a multiple of 48 (6 float64 per ray)");
-    in.seekg(0);
-    // Read in blocks: the ray vector grows with the bytes actually read, never from the size alone.
-    double v[6 * 1024];
-    std::uint64_t left = size / 48, index = 0;
-    while (left > 0) {
-      const std::uint64_t n = std::min<std::uint64_t>(left, 1024);
-      in.read(reinterpret_cast<char*>(v), static_cast<std::streamsize>(n * 48));
-      if (!in) throw FormatError(path + ": byte " + std::to_string(index * 48) + ": read failed");
-      for (std::uint64_t i = 0; i < n; ++i, ++index) make(&v[6 * i], "ray " + std::to_string(index));
-      left -= n;
+    const std::vector<std::uint8_t> bytes = f.read_all();
+    double v[6];
+    for (std::uint64_t i = 0; i < size / 48; ++i) {
+      std::memcpy(v, bytes.data() + 48 * i, 48);
+      make(v, "ray " + std::to_string(i));
     }
     return rays;
   }
-  std::ifstream in(file);
-  if (!in) throw FormatError(path + ": cannot open rays file");
+  std::istringstream in(read_text_file(file));  // the input policy: regular file, size cap
   std::string line;
   if (!std::getline(in, line)) throw FormatError(path + ": line 1: expected header ox,oy,oz,dx,dy,dz");
   std::string hdr;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "rayscan/geometry.hpp"
+#include "rayscan/input_file.hpp"
 
 #include <glm/vec3.hpp>
 #include <nlohmann/json.hpp>
@@ -45,15 +46,30 @@ inline std::string escape_key(const std::string& k) {  // RFC 6901 escaping
 }
 
 inline json parse_json_file(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw JsonFileError(file.string() + ": cannot open file");
-  std::stringstream ss;
-  ss << in.rdbuf();
+  std::string text;
   try {
-    return json::parse(ss.str());
+    text = read_text_file(file);  // the input policy: regular file, size cap
+  } catch (const InputFileError& e) {
+    throw JsonFileError(e.what());
+  }
+  try {
+    return json::parse(text);
   } catch (const json::parse_error& e) {
     throw JsonFileError(file.string() + ": byte " + std::to_string(e.byte) +
-                     ": invalid JSON (" + std::string(e.what()) + ")");
+                        ": invalid JSON (" + std::string(e.what()) + ")");
+  } catch (const json::out_of_range& e) {
+    // nlohmann reports a number beyond double (406 "number overflow parsing '1e400'") without a
+    // position: find the token to name its byte offset.
+    std::string what = e.what();
+    const std::size_t q0 = what.find('\''), q1 = what.rfind('\'');
+    std::string where = "/";
+    if (q0 != std::string::npos && q1 > q0) {
+      const std::size_t at = text.find(what.substr(q0 + 1, q1 - q0 - 1));
+      if (at != std::string::npos) where = "byte " + std::to_string(at);
+    }
+    if (what.rfind("[json.exception", 0) == 0 && what.find("] ") != std::string::npos)
+      what = what.substr(what.find("] ") + 2);
+    throw JsonFileError(file.string() + ": " + where + ": " + what + " (expected a finite number)");
   }
 }
 
