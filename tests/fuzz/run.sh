@@ -15,7 +15,7 @@ mkdir -p "$OUT/obj" "$OUT/crashes"
 
 FLAGS=(-std=c++20 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined
        -fno-sanitize-recover=undefined -Ioctree/include -Ioctree/io/include -I/usr/include/liblzf)
-SOURCES=(octree/src/point_cloud.cpp octree/io/src/*.cpp)
+SOURCES=(octree/src/point_cloud.cpp octree/src/input_file.cpp octree/src/atomic_file.cpp octree/io/src/*.cpp)
 JOBS="${FUZZ_JOBS:-2}"
 objs=()
 running=0
