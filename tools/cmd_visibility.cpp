@@ -71,9 +71,6 @@ int run_visibility(const VisibilityCli& o) {
   // ---- Check every option before any work.
   if (!o.out.empty() && lower_ext(o.out) != ".las" && lower_ext(o.out) != ".ply")
     throw UsageError("--out '" + o.out + "': expected a file name ending in .las or .ply");
-  // The output policy up front: every output path must be absent or a regular file.
-  for (const std::string& f : {o.out, o.raster, o.preview})
-    if (!f.empty()) require_replaceable_output(f);
   if (!o.raster.empty()) {
     if (lower_ext(o.raster) != ".tif" && lower_ext(o.raster) != ".tiff")
       throw UsageError("--raster '" + o.raster + "': expected a file name ending in .tif (GeoTIFF)");
@@ -100,6 +97,9 @@ int run_visibility(const VisibilityCli& o) {
   check_output_folder("--out", o.out);
   check_output_folder("--raster", o.raster);
   if (!o.no_preview) check_output_folder("--preview", o.preview);  // default: next to --raster
+  // The output policy up front: every output path must be absent or a regular file.
+  for (const std::string& f : {o.out, o.raster, o.preview})
+    if (!f.empty()) require_replaceable_output(f);
   const bool have_observers = !o.observers_file.empty() || !o.observer_args.empty();
   if (!have_observers && o.sky_rays == 0 && o.camera.empty())
     throw UsageError("nothing to compute: give observers (--observers FILE or --observer X,Y[,Z]), "
