@@ -66,9 +66,6 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   // ---- Check every option before any work.
   if (!o.out.empty() && !has_extension(o.out, kCloudOutputs))
     throw invalid_argument("--out '" + o.out.string() + "': " + extensions_expected(kCloudOutputs));
-  // The output policy up front: every output path must be absent or a regular file.
-  for (const std::filesystem::path& f : {o.out, o.raster, o.preview})
-    if (!f.empty()) require_replaceable_output(f);
   if (!o.raster.empty()) {
     if (!has_extension(o.raster, kRasterOutputs))
       throw invalid_argument("--raster '" + o.raster.string() + "': expected a file name ending in .tif (GeoTIFF)");
@@ -80,6 +77,9 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   check_output_folder("--out", o.out);
   check_output_folder("--raster", o.raster);
   if (o.write_preview) check_output_folder("--preview", o.preview);  // default: next to --raster
+  // The output policy up front: every output path must be absent or a regular file.
+  for (const std::filesystem::path& f : {o.out, o.raster, o.preview})
+    if (!f.empty()) require_replaceable_output(f);
   const bool have_observers = !o.observers_file.empty() || !o.observers.empty();
   const bool have_camera = o.camera || !o.camera_file.empty();
   if (!have_observers && o.sky_rays == 0 && !have_camera)
