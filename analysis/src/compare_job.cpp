@@ -115,10 +115,12 @@ Limits Criteria::limits() const {
 
 CompareJobResult run_compare(const CompareJobOptions& o) {
   CompareJobResult res;
-  const Image ref = o.reference ? *o.reference : read_image(o.reference_file);
-  const Image test = o.image ? *o.image : read_image(o.image_file);
-  res.reference_name = o.reference ? (ref.source.empty() ? "(memory)" : ref.source) : o.reference_file;
-  res.image_name = o.image ? (test.source.empty() ? "(memory)" : test.source) : o.image_file;
+  Image ref = o.reference ? *o.reference : read_image(o.reference_file);
+  Image test = o.image ? *o.image : read_image(o.image_file);
+  if (ref.source.empty()) ref.source = "(memory)";  // names in messages for in-memory images
+  if (test.source.empty()) test.source = "(memory)";
+  res.reference_name = o.reference ? ref.source : o.reference_file;
+  res.image_name = o.image ? test.source : o.image_file;
 
   const std::vector<int> rc = pick_channels(ref, o), tc = pick_channels(test, o);
   if (rc.size() != tc.size())
