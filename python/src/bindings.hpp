@@ -1,0 +1,13 @@
+// The parts of the `rayscan._rayscan` extension module, one function per area.
+#pragma once
+
+#include <pybind11/pybind11.h>
+
+namespace rayscan::python {
+
+/// rayscan.read and the PointCloud class (bind_io.cpp).
+void bind_io(pybind11::module_& m);
+/// Octree, KdTree, BruteForce and their batch queries (bind_index.cpp).
+void bind_index(pybind11::module_& m);
+
+}  // namespace rayscan::python
