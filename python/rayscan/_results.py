@@ -31,8 +31,7 @@ class _CsrResult:
         a = getattr(self, field)
         if fill is None:
             fill = -1 if a.dtype.kind in "iu" else np.nan
-        out = np.full(len(self), fill, dtype=a.dtype if a.dtype.kind == "f" or fill == -1 else
-                      np.result_type(a.dtype, np.asarray(fill).dtype))
+        out = np.full(len(self), fill, dtype=np.result_type(a.dtype, np.min_scalar_type(fill)))
         has = self.offsets[1:] > self.offsets[:-1]
         out[has] = a[self.offsets[:-1][has]]
         return out
