@@ -53,7 +53,7 @@ class _QueriesMixin:
     """The query methods shared by every index class."""
 
     def ray_query(self, origins, directions, k=None, radius=_INF, t_min=-_INF, t_max=_INF,
-                  order="ray", any_hit=False):
+                  order="ray", any_hit=False, threads=0):
         """Ray query (paper Algorithm 1) for M rays o + t d.
 
         origins, directions: (M, 3) (or (3,), broadcast); directions need not be unit length.
@@ -62,6 +62,7 @@ class _QueriesMixin:
         [t_min, t_max]. order: 'ray' (distance to the ray line, eq. 1), 'time' (t along the ray,
         eq. 2) or 'sphere_hit' (entry into the sphere of `radius` around the point: the first
         surface hit; needs a finite radius). any_hit: stop at the first candidate (occlusion).
+        threads: worker threads (0 = all cores); the result does not depend on it.
 
         Returns a RayQueryResult (CSR): ray i's hits are indices[offsets[i]:offsets[i+1]],
         ranked best first, with t (projection parameter, or sphere entry for 'sphere_hit') and
@@ -70,26 +71,26 @@ class _QueriesMixin:
         a negative radius or 'sphere_hit' without a radius. Same as `rayscan query`.
         """
         return RayQueryResult(**self._ray_query(origins, directions, k, radius, t_min, t_max,
-                                                order, any_hit))
+                                                order, any_hit, threads))
 
-    def knn(self, points, k, radius=_INF):
+    def knn(self, points, k, radius=_INF, threads=0):
         """The k nearest points (within `radius` when given) of each of the Q query points
         ((Q, 3) or (3,)). Returns a NeighborResult (CSR: offsets (Q+1,), indices, distance),
-        each query's neighbours sorted by (distance, index)."""
+        each query's neighbours sorted by (distance, index). threads: as in ray_query."""
         if k is None:
             raise ValueError("knn: k must be an integer >= 0 (use radius() for all points within r)")
-        return NeighborResult(**self._knn(points, k, radius))
+        return NeighborResult(**self._knn(points, k, radius, threads))
 
-    def radius(self, points, r):
+    def radius(self, points, r, threads=0):
         """Every point within distance r (inclusive) of each query point; NeighborResult sorted by
         (distance, index) per query."""
-        return NeighborResult(**self._knn(points, None, r))
+        return NeighborResult(**self._knn(points, None, r, threads))
 
-    def box(self, lo, hi):
+    def box(self, lo, hi, threads=0):
         """Points p with lo <= p <= hi (closed box) for each of the B boxes (lo, hi: (B, 3) or
         (3,)). Returns a BoxResult (CSR: offsets (B+1,), indices in the index's storage order;
         sort a slice for ascending indices). An empty box (lo > hi on an axis) matches nothing."""
-        return BoxResult(**self._box(lo, hi))
+        return BoxResult(**self._box(lo, hi, threads))
 
 
 class Octree(_QueriesMixin, _rayscan._Octree):

@@ -8,6 +8,7 @@
 #include "rayscan/batch.hpp"
 
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <cmath>
 #include <optional>
@@ -53,6 +54,21 @@ PyIndex build(py::handle xyz, const IndexOptions& opts) {
   return out;
 }
 
+/// Run f() on `threads` worker threads (0 = all cores) in its own TBB arena; the results do not
+/// depend on the thread count (each query is answered alone).
+template <class F>
+auto with_threads(long long threads, F&& f) {
+  if (threads == 0) return f();
+  tbb::task_arena arena(static_cast<int>(threads));
+  return arena.execute(std::forward<F>(f));
+}
+
+long long parse_threads(long long threads) {
+  if (threads < 0 || threads > 4096)
+    throw py::value_error("threads must be 0 (all cores) or a positive count, got " + std::to_string(threads));
+  return threads;
+}
+
 /// Row i of a broadcast pair: a one-row array repeats.
 inline const Vec3& row(std::span<const Vec3> a, std::size_t i) { return a.size() == 1 ? a[0] : a[i]; }
 
@@ -90,7 +106,8 @@ void csr_fill(const std::vector<std::vector<T>>& r, const std::vector<std::int64
 
 py::dict ray_query(const PyIndex& self, py::handle origins, py::handle directions,
                    const py::object& k, double radius, double t_min, double t_max,
-                   const std::string& order, bool any_hit) {
+                   const std::string& order, bool any_hit, long long threads) {
+  parse_threads(threads);
   RayQuery q;
   q.k = parse_k(k);
   q.radius = radius;
@@ -116,7 +133,9 @@ py::dict ray_query(const PyIndex& self, py::handle origins, py::handle direction
         throw std::invalid_argument("ray " + std::to_string(i) + ": " + e.what());
       }
     }
-    const auto res = std::visit([&](const auto& ix) { return ray_query_batch(ix, rays, q); }, self.index);
+    const auto res = with_threads(threads, [&] {
+      return std::visit([&](const auto& ix) { return ray_query_batch(ix, rays, q); }, self.index);
+    });
     off = csr_offsets(res);
     const auto n = static_cast<std::size_t>(off.back());
     idx.resize(n);
@@ -136,15 +155,18 @@ py::dict ray_query(const PyIndex& self, py::handle origins, py::handle direction
   return out;
 }
 
-py::dict knn(const PyIndex& self, py::handle points, const py::object& k, double radius) {
+py::dict knn(const PyIndex& self, py::handle points, const py::object& k, double radius,
+             long long threads) {
+  parse_threads(threads);
   const std::size_t kk = parse_k(k);
   const Vec3Rows p = as_vec3_rows(points, "points", true);
   std::vector<std::int64_t> off, idx;
   std::vector<double> dist;
   {
     py::gil_scoped_release nogil;
-    const auto res =
-        std::visit([&](const auto& ix) { return knn_query_batch(ix, p.rows, kk, radius); }, self.index);
+    const auto res = with_threads(threads, [&] {
+      return std::visit([&](const auto& ix) { return knn_query_batch(ix, p.rows, kk, radius); }, self.index);
+    });
     off = csr_offsets(res);
     const auto n = static_cast<std::size_t>(off.back());
     idx.resize(n);
@@ -161,7 +183,8 @@ py::dict knn(const PyIndex& self, py::handle points, const py::object& k, double
   return out;
 }
 
-py::dict box(const PyIndex& self, py::handle lo, py::handle hi) {
+py::dict box(const PyIndex& self, py::handle lo, py::handle hi, long long threads) {
+  parse_threads(threads);
   const Vec3Rows l = as_vec3_rows(lo, "lo", true);
   const Vec3Rows h = as_vec3_rows(hi, "hi", true);
   const std::size_t m = broadcast_count(l, "lo", h, "hi");
@@ -175,7 +198,9 @@ py::dict box(const PyIndex& self, py::handle lo, py::handle hi) {
         throw std::invalid_argument("box " + std::to_string(i) + ": lo and hi must not be NaN");
       boxes[i] = AABB{a, b};
     }
-    const auto res = std::visit([&](const auto& ix) { return box_query_batch(ix, boxes); }, self.index);
+    const auto res = with_threads(threads, [&] {
+      return std::visit([&](const auto& ix) { return box_query_batch(ix, boxes); }, self.index);
+    });
     off = csr_offsets(res);
     idx.resize(static_cast<std::size_t>(off.back()));
     csr_fill(res, off, [&](PointIndex v, std::size_t i) { idx[i] = v; });
@@ -201,9 +226,10 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
                              "Index type name as in `rayscan query --index`.")
       .def("_ray_query", &ray_query, py::arg("origins"), py::arg("directions"), py::arg("k") = py::none(),
            py::arg("radius") = kInf, py::arg("t_min") = -kInf, py::arg("t_max") = kInf,
-           py::arg("order") = "ray", py::arg("any_hit") = false)
-      .def("_knn", &knn, py::arg("points"), py::arg("k") = py::none(), py::arg("radius") = kInf)
-      .def("_box", &box, py::arg("lo"), py::arg("hi"));
+           py::arg("order") = "ray", py::arg("any_hit") = false, py::arg("threads") = 0)
+      .def("_knn", &knn, py::arg("points"), py::arg("k") = py::none(), py::arg("radius") = kInf,
+           py::arg("threads") = 0)
+      .def("_box", &box, py::arg("lo"), py::arg("hi"), py::arg("threads") = 0);
 
   struct PyOctree : PyIndex {};
   py::class_<PyOctree, PyIndex>(m, "_Octree")

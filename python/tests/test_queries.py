@@ -190,3 +190,16 @@ def test_bad_arguments_raise_value_error(uniform_cloud):
         assert message in str(e.value), (message, str(e.value))
     # numpy integer types are valid k values
     assert tree.ray_query(o, d, k=np.int64(2), radius=0.1).counts.max() <= 2
+
+
+def test_thread_count_does_not_change_results(uniform_cloud, random_rays):
+    o, d = random_rays
+    tree = rayscan.Octree(uniform_cloud)
+    for threads in (1, 2, 3):
+        a = tree.ray_query(o, d, k=4, radius=0.05, threads=threads)
+        b = tree.ray_query(o, d, k=4, radius=0.05)
+        np.testing.assert_array_equal(a.indices, b.indices)
+        np.testing.assert_array_equal(a.t, b.t)
+        np.testing.assert_array_equal(tree.knn(o, 3, threads=threads).indices, tree.knn(o, 3).indices)
+    with pytest.raises(ValueError, match="threads must be"):
+        tree.box([0, 0, 0], [1, 1, 1], threads=-1)
