@@ -7,8 +7,9 @@
 3. kNN (k = 8) next to Open3D: KDTreeFlann.search_knn_vector_3d (one call per query, the API
    Python users reach for) and open3d.core.nns.NearestNeighborSearch.knn_search (batch).
 Every contender runs once per round, rounds interleave them, medians are reported; answers are
-cross-checked before timing (exit 3 on a mismatch). Wall clock: on a shared machine the ratios
-are the figures to read.
+cross-checked before timing (exit 3 on a mismatch). Each call is timed by the wall clock and by
+the process CPU time (all threads, time.process_time / std::clock): on a loaded shared machine the
+CPU-time ratios are the figures to read (waiting for a core is excluded, cache interference is not).
 
 Usage: /usr/bin/python3 bench/bench_python.py BUILD_DIR [--quick] [--rounds R] [--scratch DIR]
 """
@@ -35,9 +36,11 @@ def cube_rays(rng, m):
 
 
 def timed(f):
-    t0 = time.perf_counter()
+    """(wall ms, process CPU ms, f())."""
+    c0, t0 = time.process_time(), time.perf_counter()
     r = f()
-    return (time.perf_counter() - t0) * 1e3, r
+    t1, c1 = time.perf_counter(), time.process_time()
+    return (t1 - t0) * 1e3, (c1 - c0) * 1e3, r
 
 
 def fail(msg):
@@ -87,13 +90,14 @@ def main():
         tree = rayscan.Octree(xyz, capacity=32)
         print(f"\n## 1. ray query batch, {n_points} uniform points, {n_rays} rays, octree adaptive 32, "
               "t_min = 0; Python call (arrays in, CSR arrays out) vs rayscan::ray_query_batch")
-        print("| query | C++ batch ms | Python batch ms | Python M rays/s | ratio Python/C++ throughput |")
+        print("| query | C++ batch ms wall / CPU | Python batch ms wall / CPU | Python k rays per CPU-s | "
+              "ratio Python / C++ throughput, wall / CPU |")
         print("|---|---:|---:|---:|---:|")
         for name, k, radius, order in [("sphere (k=1, r=0.002, sphere_hit)", 1, 0.002, "sphere_hit"),
                                        ("knn8 (k=8, order ray)", 8, float("inf"), "ray")]:
             py = lambda: tree.ray_query(o, d, k=k, radius=radius, t_min=0.0, order=order)
             res = py()  # warm-up and answer for the cross-check
-            cpp_ms, py_ms = [], []
+            cpp_ms, py_ms, cpp_cpu, py_cpu = [], [], [], []
             for rnd in range(rounds):
                 def cpp():
                     out = subprocess.run([str(peer), str(scratch / "cloud.f64"), str(scratch / "rays.f64"),
@@ -107,14 +111,19 @@ def main():
                     if who == "cpp":
                         out = f()
                         cpp_ms.append(float(out[0].split()[1]))
+                        cpp_cpu.append(float(out[0].split()[2]))
                         chk = out[1].split()
                         if (int(chk[1]) != len(res.indices) or float(chk[2]) != float(res.indices.sum())
                                 or not np.isclose(float(chk[3]), res.t.sum(), rtol=1e-12)):
                             fail(f"{name}: C++ {chk[1:]} vs Python {len(res.indices)} {res.indices.sum()} {res.t.sum()}")
                     else:
-                        py_ms.append(timed(f)[0])
+                        w, c, _ = timed(f)
+                        py_ms.append(w)
+                        py_cpu.append(c)
             c, p = statistics.median(cpp_ms), statistics.median(py_ms)
-            print(f"| {name} | {c:.1f} | {p:.1f} | {n_rays / p / 1e3:.2f} | {c / p:.3f}x |")
+            cc, pc = statistics.median(cpp_cpu), statistics.median(py_cpu)
+            print(f"| {name} | {c:.1f} / {cc:.1f} | {p:.1f} / {pc:.1f} | {n_rays / pc:.1f} | "
+                  f"{c / p:.3f}x / {cc / pc:.3f}x |")
     finally:
         shutil.rmtree(scratch)
 
@@ -131,17 +140,20 @@ def main():
         bi, bt = brute_first_hit(pts, o[i], d[i], r)
         if bi != first[i] or (bi >= 0 and not np.isclose(bt, first_t[i], rtol=1e-12)):
             fail(f"brute force ray {i}: {bi} {bt} vs {first[i]} {first_t[i]}")
-    ours, brute = [], []
+    ours, ours1, brute = [], [], []
     for _ in range(rounds):
-        ours.append(timed(lambda: small.ray_query(o, d, k=1, radius=r, t_min=0.0, order="sphere_hit"))[0]
+        ours.append(timed(lambda: small.ray_query(o, d, k=1, radius=r, t_min=0.0, order="sphere_hit"))[1]
                     / len(o))
-        brute.append(timed(lambda: [brute_first_hit(pts, o[i], d[i], r) for i in range(nb)])[0] / nb)
-    us, bf = statistics.median(ours), statistics.median(brute)
+        ours1.append(timed(lambda: small.ray_query(o, d, k=1, radius=r, t_min=0.0, order="sphere_hit",
+                                                   threads=1))[1] / len(o))
+        brute.append(timed(lambda: [brute_first_hit(pts, o[i], d[i], r) for i in range(nb)])[1] / nb)
+    us, us1, bf = statistics.median(ours), statistics.median(ours1), statistics.median(brute)
     print(f"\n## 2. first hit (k=1, sphere_hit, r={r}) on {n} uniform points: rayscan batch "
           f"({len(o)} rays) vs NumPy brute force ({nb} rays, one vectorised pass over the points per ray)")
-    print("| contender | us per ray | rays/s | factor |")
+    print("| contender | CPU us per ray | rays per CPU-s | factor |")
     print("|---|---:|---:|---:|")
-    print(f"| rayscan Octree.ray_query (TBB, {os.cpu_count()} threads) | {us * 1e3:.2f} | {1e3 / us:,.0f} | {bf / us:,.0f}x |")
+    print(f"| rayscan Octree.ray_query (threads=1) | {us1 * 1e3:.2f} | {1e3 / us1:,.0f} | {bf / us1:,.0f}x |")
+    print(f"| rayscan Octree.ray_query (all {os.cpu_count()} threads) | {us * 1e3:.2f} | {1e3 / us:,.0f} | {bf / us:,.0f}x |")
     print(f"| NumPy brute force (1 thread) | {bf * 1e3:.1f} | {1e3 / bf:,.0f} | 1x |")
 
     # 3. kNN next to Open3D ----------------------------------------------------------------------
@@ -170,21 +182,27 @@ def main():
         if not np.allclose(np.sqrt(np.asarray(fd2)), d_ours[i], rtol=1e-9, atol=1e-12):
             fail(f"kNN query {i}: distances differ from KDTreeFlann")
     t = {"octree": [], "kdtree": [], "nns": [], "flann": []}
+    w = {key: [] for key in t}
     for _ in range(rounds):
-        t["octree"].append(timed(lambda: small.knn(queries, k))[0])
-        t["kdtree"].append(timed(lambda: kd_tree.knn(queries, k))[0])
-        t["nns"].append(timed(lambda: nns.knn_search(t_queries, k))[0])
-        t["flann"].append(timed(lambda: [flann.search_knn_vector_3d(q, k) for q in queries[:nq_flann]])[0]
-                          * nq / nq_flann)
+        for key, f, scale in [("octree", lambda: small.knn(queries, k), 1),
+                              ("kdtree", lambda: kd_tree.knn(queries, k), 1),
+                              ("nns", lambda: nns.knn_search(t_queries, k), 1),
+                              ("flann", lambda: [flann.search_knn_vector_3d(q, k) for q in queries[:nq_flann]],
+                               nq / nq_flann)]:
+            wall, cpu, _ = timed(f)
+            w[key].append(wall * scale)
+            t[key].append(cpu * scale)
     med = {key: statistics.median(v) for key, v in t.items()}
+    medw = {key: statistics.median(v) for key, v in w.items()}
     print(f"\n## 3. kNN, k = {k}, {nq} random queries on the same {n} points (answers checked equal)")
-    print("| contender | ms for all queries | us per query | ratio rayscan octree / contender |")
-    print("|---|---:|---:|---:|")
+    print("| contender | ms wall | ms CPU (all threads) | CPU us per query | ratio of CPU time, rayscan octree / contender |")
+    print("|---|---:|---:|---:|---:|")
     labels = {"octree": "rayscan Octree.knn (batch, TBB)", "kdtree": "rayscan KdTree.knn (batch, TBB)",
               "nns": "Open3D core.nns.NearestNeighborSearch.knn_search (batch)",
               "flann": f"Open3D KDTreeFlann.search_knn_vector_3d (Python loop{', scaled from ' + str(nq_flann) if nq_flann != nq else ''})"}
     for key in ["octree", "kdtree", "nns", "flann"]:
-        print(f"| {labels[key]} | {med[key]:.1f} | {med[key] * 1e3 / nq:.2f} | {med['octree'] / med[key]:.2f}x |")
+        print(f"| {labels[key]} | {medw[key]:.1f} | {med[key]:.1f} | {med[key] * 1e3 / nq:.2f} | "
+              f"{med['octree'] / med[key]:.2f}x |")
 
 
 if __name__ == "__main__":
