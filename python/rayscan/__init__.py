@@ -128,3 +128,89 @@ class BruteForce(_QueriesMixin, _rayscan._BruteForce):
 
     def __repr__(self):
         return f"<rayscan.BruteForce {len(self)} points>"
+
+
+# ---- Jobs: render, visibility, compare (the library's job calls, docs/library.md) ------------
+
+def _scene_file(scene, tmpdir):
+    """A scene file path for `scene`: a path as is, or a dict written as JSON into tmpdir with its
+    relative file names (cloud, camera, output.image) made absolute against the working directory,
+    so that a dict means what the same JSON file in the working directory would mean."""
+    import json
+    import os
+    if not isinstance(scene, dict):
+        return os.fspath(scene)
+    scene = dict(scene)
+    for key in ("cloud", "camera"):
+        if isinstance(scene.get(key), (str, os.PathLike)):
+            scene[key] = os.path.abspath(scene[key])
+    if isinstance(scene.get("output"), dict) and isinstance(scene["output"].get("image"), str):
+        scene["output"] = dict(scene["output"], image=os.path.abspath(scene["output"]["image"]))
+    path = os.path.join(tmpdir, "scene.json")
+    with open(path, "w") as f:
+        json.dump(scene, f)
+    return path
+
+
+def render(scene, cloud=None, width=None, height=None, spp=None, seed=None, aovs=(), camera=None,
+           threads=0):
+    """Path-trace a scene (paper section 5.3; schema in scenes/README.md) like `rayscan render`,
+    without writing files: render::run_render.
+
+    scene: a scene file path, or the same JSON as a dict (relative paths: from the working
+    directory). cloud: a PointCloud to render instead of the scene's "cloud" file. width/height
+    (the other follows the camera's aspect), spp, seed, camera (a camera file) override the scene.
+    aovs: names from "depth", "normal", "position", "index", "albedo", "cost".
+
+    Returns a dict of arrays, row 0 at the top: "beauty" (H, W, 3) float32 linear radiance, and
+    per requested AOV "depth" (H, W) float32 (t of the first hit, inf = miss), "normal" and
+    "albedo" (H, W, 3) float32, "position" (H, W, 3) float32 relative to "position_origin" (3,)
+    float64, "index" (H, W) int64 (-1 = miss), "cost" (H, W) float32 (nodes visited per sample);
+    plus "radius" (the sphere radius used), "points" and "stats" (dict).
+    Raises ValueError for a bad scene or option (file and JSON pointer named), OSError for an
+    unreadable cloud.
+    """
+    import tempfile
+    with tempfile.TemporaryDirectory(prefix="rayscan-scene.") as tmp:
+        return _rayscan._render(_scene_file(scene, tmp), cloud, width, height, spp, seed, list(aovs),
+                                "" if camera is None else str(camera), threads)
+
+
+def visibility(cloud, observers=None, radius=None, height=None, max_distance=None, tolerance=None,
+               target_height=None, sky_rays=0, camera=None, distance=False, threads=0):
+    """Per-point visibility like `rayscan visibility` (analysis::run_visibility; rule in
+    analysis/README.md), without writing files.
+
+    cloud: a file path or a PointCloud. observers: a .json/.csv observer file, an (K, 3) array of
+    eye positions, or (K, 2) positions whose eyes stand `height` above the local ground.
+    radius: sphere radius (None = auto from the point spacing). sky_rays > 0 adds the sky view
+    factor; camera (a camera file) adds the pixels whose first hit is each point.
+
+    Returns a dict: "visible_count" (N,) (observers that see each point), "visible_distance" (N,)
+    (with distance=True; -1 = unseen), "sky_view" (N,), "camera_hits" (N,) when asked, as float64;
+    "radius", "tolerance", "target_height" used, "observers" (K, 3) placed eyes and "per_observer"
+    (K,) uint64 points each observer sees.
+    """
+    return _rayscan._visibility(cloud, observers, radius, height, max_distance, tolerance,
+                                target_height, sky_rays, "" if camera is None else str(camera),
+                                distance, threads)
+
+
+def compare(reference, image, channels=(), mask=False, alpha=False, resize=False, fail=None,
+            fail_percent=None, fail_psnr=None, fail_ssim=None, warn=None):
+    """Compare `image` against `reference` like `rayscan compare` (analysis::run_compare;
+    definitions in analysis/README.md). Each is an image file (anything OpenImageIO reads) or an
+    (H, W) / (H, W, C) array (channels Y / R,G,B / R,G,B,A; values as given, e.g. linear floats).
+
+    Returns a dict of metrics: "mae", "rmse", "psnr" (dB, as idiff), "max_error", "max_pixel"
+    (x, y, c), "ssim", "percent_over_fail", "pixels_compared", "per_channel" {name: {...}},
+    "verdict" ("pass", "warn", "fail") and "reasons".
+    """
+    return _rayscan._compare(reference, image, list(channels), mask, alpha, resize, fail,
+                             fail_percent, fail_psnr, fail_ssim, warn)
+
+
+if not hasattr(_rayscan, "_render"):  # built without the library's job API
+    del render, visibility, compare
+else:
+    __all__ += ["render", "visibility", "compare"]

@@ -3,6 +3,10 @@
 #include "bindings.hpp"
 
 #include "rayscan/io/point_io.hpp"
+#ifdef RAYSCAN_PYTHON_JOBS
+#include "rayscan/analysis/observer.hpp"
+#include "rayscan/render/scene.hpp"
+#endif
 
 namespace py = pybind11;
 
@@ -19,4 +23,17 @@ PYBIND11_MODULE(_rayscan, m) {
   });
   rayscan::python::bind_io(m);
   rayscan::python::bind_index(m);
+#ifdef RAYSCAN_PYTHON_JOBS
+  rayscan::python::bind_jobs(m);
+  // Scene and observer files: malformed content is a ValueError like a bad option.
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const rayscan::render::SceneError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const rayscan::analysis::ObserverError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    }
+  });
+#endif
 }
