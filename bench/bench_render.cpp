@@ -68,8 +68,7 @@ int main(int argc, char** argv) {
     auto t0 = std::chrono::steady_clock::now();
     const AnyIndex index = make_index(cloud.positions, scene.index);
     const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const double radius = scene.radius ? *scene.radius
-                                       : scene.auto_radius_factor * median_nn_spacing(index, cloud.positions);
+    const double radius = choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor).radius;
     RenderOptions opt;
     opt.threads = threads;
     opt.time_queries = timing;

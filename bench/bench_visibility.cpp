@@ -11,7 +11,7 @@
 #include "rayscan/analysis/observer.hpp"
 #include "rayscan/analysis/visibility.hpp"
 #include "rayscan/io/point_io.hpp"
-#include "rayscan/render/render.hpp"
+#include "rayscan/spacing.hpp"
 
 #include <sys/resource.h>
 
@@ -49,7 +49,7 @@ int main(int argc, char** argv) {
     auto t0 = std::chrono::steady_clock::now();
     const AnyIndex index = make_index(cloud.positions, IndexOptions{});
     const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const double radius = render::median_nn_spacing(index, cloud.positions);
+    const double radius = median_nn_spacing(index, cloud.positions);
     const AABB b = cloud.bounds();
 
     // Observers: a 4 x 2 grid at eye height, then masts at 1/3 and 2/3 of the diagonal.

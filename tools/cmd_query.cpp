@@ -1,17 +1,11 @@
-// `rayscan query`: the paper's ray query (Algorithm 1) from the command line.
+// `rayscan query`: the paper's ray query (Algorithm 1) from the command line; the job is
+// io::run_query (rayscan/io/query_job.hpp).
 #include "commands.hpp"
 
-#include "rayscan/any_index.hpp"
-#include "rayscan/batch.hpp"
-#include "rayscan/io/point_io.hpp"
+#include "rayscan/io/query_job.hpp"
 #include "atomic_file.hpp"
 
-#include <charconv>
-#include <cstdio>
-#include <fstream>
-#include <iostream>
 #include <memory>
-#include <sstream>
 
 namespace rayscan::cli {
 
@@ -24,70 +18,6 @@ struct QueryOptions {
   double radius = kInf, t_min = -kInf, t_max = kInf;
   bool depth_given = false;
 };
-
-bool parse_num(const std::string& s, double& v) {
-  const char* b = s.data();
-  const char* e = b + s.size();
-  while (b < e && (*b == ' ' || *b == '\t')) ++b;
-  while (e > b && (e[-1] == ' ' || e[-1] == '\t' || e[-1] == '\r')) --e;
-  if (b < e && *b == '+') ++b;
-  auto [p, ec] = std::from_chars(b, e, v);
-  return ec == std::errc() && p == e && b != e;
-}
-
-/// RAYS: a CSV with header ox,oy,oz,dx,dy,dz, or a headerless little-endian float64 file (.f64).
-std::vector<Ray> read_rays(const std::string& path) {
-  std::vector<Ray> rays;
-  auto make = [&](const double* v, const std::string& where) {
-    try {
-      rays.emplace_back(Vec3(v[0], v[1], v[2]), Vec3(v[3], v[4], v[5]));
-    } catch (const std::invalid_argument& e) {
-      throw UsageError(path + ": " + where + ": " + e.what());
-    }
-  };
-  if (path.size() > 4 && path.substr(path.size() - 4) == ".f64") {
-    std::ifstream in(path, std::ios::binary | std::ios::ate);
-    if (!in) throw UsageError(path + ": cannot open rays file");
-    const auto size = static_cast<std::uint64_t>(in.tellg());
-    if (size % 48)
-      throw UsageError(path + ": byte " + std::to_string(size - size % 48) + ": size " +
-                       std::to_string(size) + " is not a multiple of 48 (6 float64 per ray)");
-    in.seekg(0);
-    std::vector<double> v(size / 8);
-    in.read(reinterpret_cast<char*>(v.data()), static_cast<std::streamsize>(size));
-    for (std::size_t i = 0; i < v.size() / 6; ++i) make(&v[6 * i], "ray " + std::to_string(i));
-    return rays;
-  }
-  std::ifstream in(path);
-  if (!in) throw UsageError(path + ": cannot open rays file");
-  std::string line;
-  if (!std::getline(in, line)) throw UsageError(path + ": line 1: expected header ox,oy,oz,dx,dy,dz");
-  std::string hdr;
-  for (char c : line)
-    if (c != ' ' && c != '\r' && c != '\t') hdr.push_back(c);
-  if (hdr != "ox,oy,oz,dx,dy,dz")
-    throw UsageError(path + ": line 1: expected header ox,oy,oz,dx,dy,dz, got '" + line + "'");
-  std::size_t lineno = 1;
-  while (std::getline(in, line)) {
-    ++lineno;
-    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    std::stringstream ss(line);
-    std::string cell;
-    double v[6];
-    int n = 0;
-    while (std::getline(ss, cell, ',')) {
-      if (n == 6 || !parse_num(cell, v[n]))
-        throw UsageError(path + ": line " + std::to_string(lineno) +
-                         ": expected 6 comma-separated numbers ox,oy,oz,dx,dy,dz, got '" + line + "'");
-      ++n;
-    }
-    if (n != 6)
-      throw UsageError(path + ": line " + std::to_string(lineno) + ": expected 6 values, got " +
-                       std::to_string(n));
-    make(v, "line " + std::to_string(lineno));
-  }
-  return rays;
-}
 
 RayOrder parse_order(const std::string& s) {
   if (s == "ray") return RayOrder::ray;
@@ -112,24 +42,14 @@ int run_query(const QueryOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
-  // Rays first: a malformed rays file is reported before a large cloud is read.
-  const std::vector<Ray> rays = read_rays(o.rays);
-  const PointCloud cloud = io::read_point_cloud(o.cloud, io::ReadOptions{.scalars = false});
-  const AnyIndex index = make_index(cloud.positions, o.index);
-  const auto results =
-      std::visit([&](const auto& idx) { return ray_query_batch(idx, rays, q); }, index);
-
+  io::QueryJobOptions job;
+  job.cloud_file = o.cloud;
+  job.rays_file = o.rays;
+  job.query = q;
+  job.index = o.index;
+  const io::QueryJobResult r = io::run_query(job);
   AtomicOutput out(o.out);
-  std::ostream& os = out.stream();
-  os.precision(17);
-  os << "ray,rank,index,x,y,z,t,distance\n";
-  for (std::size_t r = 0; r < results.size(); ++r)
-    for (std::size_t k = 0; k < results[r].size(); ++k) {
-      const RayHit& h = results[r][k];
-      const Vec3& p = cloud.positions[h.index];
-      os << r << ',' << k << ',' << h.index << ',' << p.x << ',' << p.y << ',' << p.z << ','
-         << h.t << ',' << h.distance << '\n';
-    }
+  io::write_hits_csv(out.stream(), r.cloud.positions, r.hits);
   out.commit();
   return 0;
 }
@@ -147,7 +67,7 @@ Runner add_query_command(CLI::App& app) {
                 "Rays: CSV with header ox,oy,oz,dx,dy,dz, or .f64 (6 little-endian float64 per ray)")
       ->required();
   c->add_option("--k", o->k, "Keep the k best results per ray (default: all)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative());
   c->add_option("--radius", o->radius,
                 "Max orthogonal distance to the ray line, world units (default: infinite)");
   c->add_option("--t-min", o->t_min, "Lower end of the time interval, world units (default: -inf)");
@@ -162,7 +82,7 @@ Runner add_query_command(CLI::App& app) {
   c->add_option("--capacity", o->index.capacity,
                 "Octree node capacity / kd-tree leaf size, points")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   CLI::Option* depth_opt = c->add_option("--depth", o->index.depth, "Leaf depth of octree-fixed (0..21; other indexes: an error)")
       ->capture_default_str()
       ->check(CLI::Range(0, 21));

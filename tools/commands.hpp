@@ -4,7 +4,11 @@
 
 #include <CLI/CLI.hpp>
 
+#include <charconv>
+#include <cmath>
 #include <functional>
+#include <limits>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -15,6 +19,36 @@ namespace rayscan::cli {
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+/// A CLI11 validator for a finite number in [lo, hi] (open at `lo` when lo_open). Rejects nan,
+/// inf and out-of-range values with one short line ("expected a finite number > 0, got 'nan'"),
+/// where CLI::PositiveNumber would accept nan and print DBL_MAX with 300 digits.
+inline CLI::Validator finite_number(double lo, double hi, bool lo_open = false) {
+  std::string want = "a finite number";
+  const bool has_hi = hi < std::numeric_limits<double>::max();
+  auto g = [](double v) {
+    std::ostringstream s;
+    s << v;
+    return s.str();
+  };
+  if (has_hi) want += std::string(" in ") + (lo_open ? "(" : "[") + g(lo) + ", " + g(hi) + "]";
+  else want += (lo_open ? " > " : " >= ") + g(lo);
+  return CLI::Validator(
+      [=](const std::string& s) {
+        double v = 0;
+        const char* b = s.data();
+        const char* e = b + s.size();
+        if (b < e && *b == '+') ++b;
+        const auto [p, ec] = std::from_chars(b, e, v);
+        const bool ok = ec == std::errc() && p == e && std::isfinite(v) && (lo_open ? v > lo : v >= lo) && v <= hi;
+        return ok ? std::string() : "expected " + want + ", got '" + s + "'";
+      },
+      want, "FINITE");
+}
+/// finite_number(0, max): a finite number >= 0 (replaces CLI::NonNegativeNumber).
+inline CLI::Validator non_negative() { return finite_number(0.0, std::numeric_limits<double>::max()); }
+/// finite_number(0, max, open): a finite number > 0 (replaces CLI::PositiveNumber).
+inline CLI::Validator positive() { return finite_number(0.0, std::numeric_limits<double>::max(), true); }
 
 /// Registers a subcommand on `app` and returns the callable that runs it after parsing.
 /// The callable returns the process exit code (0 success; 1 "failed a check", e.g. compare).

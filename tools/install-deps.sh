@@ -11,6 +11,7 @@ PKGS=(
   liblzf-dev libgdal-dev gdal-bin
   clang libclang-rt-14-dev
   fonts-dejavu-core
+  cloudcompare xvfb xauth
   python3-dev pybind11-dev python3-numpy python3-pytest python3-matplotlib python3-open3d
 )
 missing=()

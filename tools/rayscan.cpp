@@ -1,6 +1,8 @@
 // The `rayscan` command line: one program, PDAL-style subcommands.
 #include "commands.hpp"
 
+#include "rayscan/input_file.hpp"
+
 #include <cstdio>
 #include <exception>
 #include <iostream>
@@ -28,15 +30,21 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
+    // One line, "rayscan <command>: <message>" like every other error (issue 8).
+    std::string where = "rayscan";
+    for (auto& [sub, run] : commands)
+      if (sub->parsed()) where += " " + sub->get_name();
+    std::cerr << where << ": " << rayscan::one_line(e.what()) << " (see --help)\n";
+    return 2;
   }
   for (auto& [sub, run] : commands) {
     if (!sub->parsed()) continue;
     try {
       return run();
     } catch (const std::exception& e) {
-      std::cerr << "rayscan " << sub->get_name() << ": " << e.what() << "\n";
+      // One line per error (issue 8): control characters in paths or values are escaped.
+      std::cerr << "rayscan " << sub->get_name() << ": " << rayscan::one_line(e.what()) << "\n";
       return 2;
     }
   }

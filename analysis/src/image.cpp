@@ -2,7 +2,11 @@
 // and ImageBufAlgo::resize).
 #include "rayscan/analysis/image.hpp"
 
+#include "rayscan/aov.hpp"
+
 #include "rayscan/atomic_file.hpp"
+#include "rayscan/spatial_index.hpp"
+#include "rayscan/input_file.hpp"
 
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
@@ -10,6 +14,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <unistd.h>
 #include <filesystem>
 #include <limits>
 #include <stdexcept>
@@ -28,10 +33,69 @@ OIIO::TypeDesc to_oiio(PixelFormat f) {
   return OIIO::TypeDesc::FLOAT;
 }
 
+/// Redirects file descriptor 2 to a temporary file while alive (libpng, called inside
+/// OpenImageIO, prints its warnings and errors straight to stderr); text() returns what was
+/// printed, so that it becomes part of rayscan's one-line error instead of extra lines.
+class StderrCapture {
+ public:
+  StderrCapture() {
+    std::fflush(stderr);
+    tmp_ = std::tmpfile();
+    saved_ = ::dup(2);
+    if (tmp_ != nullptr && saved_ >= 0) ::dup2(::fileno(tmp_), 2);
+  }
+  StderrCapture(const StderrCapture&) = delete;
+  StderrCapture& operator=(const StderrCapture&) = delete;
+  ~StderrCapture() { restore(); if (tmp_ != nullptr) std::fclose(tmp_); }
+  /// Restores stderr and returns the captured text as one line ("" when nothing was printed).
+  std::string text() {
+    restore();
+    std::string out;
+    if (tmp_ == nullptr) return out;
+    std::rewind(tmp_);
+    char buf[512];
+    std::size_t n;
+    while ((n = std::fread(buf, 1, sizeof buf, tmp_)) > 0 && out.size() < 4096) out.append(buf, n);
+    while (!out.empty() && (out.back() == '\n' || out.back() == ' ')) out.pop_back();
+    for (char& c : out)
+      if (c == '\n') c = ';';
+    return out;
+  }
+
+ private:
+  void restore() {
+    if (saved_ >= 0) {
+      std::fflush(stderr);
+      ::dup2(saved_, 2);
+      ::close(saved_);
+      saved_ = -1;
+    }
+  }
+  std::FILE* tmp_ = nullptr;
+  int saved_ = -1;
+};
+
+/// Cap on one decoded image: 2^28 samples (1 GiB as float; e.g. 8192 x 8192 RGBA).
+constexpr double kMaxImageSamples = double(1u << 28);
+/// Largest plausible ratio of decoded bytes to file bytes (deflate, used by PNG and the EXR ZIP
+/// codecs, expands at most ~1032:1; RFC 1951 section 3.2.5 with 258-byte matches), plus a
+/// constant for headers. A header claiming more than this is lying about its size.
+constexpr double kMaxExpansion = 1100.0;
+
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
+  std::uint64_t file_size = 0;
+  try {
+    const InputFile f(path);  // the input policy: regular files only, never a blocking open
+    file_size = f.size();
+  } catch (const InputFileError& e) {
+    throw std::runtime_error(e.what());
+  }
+  StderrCapture capture;
   auto in = OIIO::ImageInput::open(path);
+  const std::string printed = capture.text();
   if (!in) {
     std::string why = OIIO::geterror();
+    if (why.empty()) why = printed;
     if (why.empty()) why = "cannot open image";
     throw std::runtime_error(path + ": " + why);
   }
@@ -41,11 +105,19 @@ std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
     throw std::runtime_error(path + ": empty image (" + std::to_string(s.width) + "x" +
                              std::to_string(s.height) + ", " + std::to_string(s.nchannels) +
                              " channels)");
+  // Checked against a fixed cap and against the file's size before any pixel buffer is
+  // allocated (issue 8: a 249-byte PNG claiming 10000x10000 must not allocate 1.5 GB).
   const double samples = double(s.width) * double(s.height) * double(s.nchannels);
-  if (samples > double(std::numeric_limits<int>::max()))
-    throw std::runtime_error(path + ": image too large (" + std::to_string(s.width) + "x" +
-                             std::to_string(s.height) + "x" + std::to_string(s.nchannels) +
-                             " samples exceeds 2^31)");
+  const std::string dims = std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
+                           std::to_string(s.nchannels);
+  if (samples > kMaxImageSamples)
+    throw std::runtime_error(path + ": image too large (" + dims + " samples exceeds the 2^28 limit)");
+  const double decoded = samples * double(s.format.size());
+  if (decoded > kMaxExpansion * double(file_size) + 65536.0)
+    throw std::runtime_error(path + ": header claims " + dims + " samples (" +
+                             std::to_string(static_cast<std::uint64_t>(decoded)) +
+                             " bytes) but the file has only " + std::to_string(file_size) +
+                             " bytes (more than any compression allows)");
   return in;
 }
 
@@ -65,8 +137,8 @@ int Image::channel_index(std::string_view name) const {
 }
 
 std::string_view renderer_channel_alias(std::string_view name) {
-  if (name == "depth") return "Z";
-  if (name == "index") return "id";
+  // Single-channel AOVs have one file channel (rayscan/aov.hpp): depth -> Z, index -> id, cost.
+  if (const std::optional<Aov> a = parse_aov(name); a && aov_channels(*a).size() == 1) return aov_channels(*a)[0];
   return name;
 }
 
@@ -102,8 +174,14 @@ Image read_image(const std::string& path) {
   img.alpha_channel = s.alpha_channel;
   img.source = path;
   img.pixels.resize(img.npixels() * static_cast<std::size_t>(s.nchannels));
-  if (!in->read_image(0, 0, 0, s.nchannels, OIIO::TypeDesc::FLOAT, img.pixels.data()))
-    throw std::runtime_error(path + ": " + in->geterror());
+  StderrCapture capture;
+  const bool ok = in->read_image(0, 0, 0, s.nchannels, OIIO::TypeDesc::FLOAT, img.pixels.data());
+  const std::string printed = capture.text();
+  if (!ok) {
+    std::string why = in->geterror();
+    if (why.empty()) why = printed.empty() ? "cannot decode the pixels" : printed;
+    throw std::runtime_error(path + ": " + why);
+  }
   in->close();
   return img;
 }
@@ -219,7 +297,7 @@ std::vector<std::uint8_t> read_index_misses(const std::string& path, const std::
     read_as(OIIO::TypeDesc::UINT32, v.data());  // same-width or widening: values preserved
     // OIIO widens unsigned integers by scaling to the full range, so an all-ones uint8/uint16
     // sample also arrives as 0xFFFFFFFF.
-    for (std::size_t i = 0; i < n; ++i) miss[i] = v[i] == 0xFFFFFFFFu;
+    for (std::size_t i = 0; i < n; ++i) miss[i] = v[i] == kNoPoint;
   } else if (t.basetype == OIIO::TypeDesc::INT32 || t.basetype == OIIO::TypeDesc::INT16 ||
              t.basetype == OIIO::TypeDesc::INT8) {
     std::vector<std::int32_t> v(n);

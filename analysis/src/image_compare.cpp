@@ -203,7 +203,7 @@ Image error_heatmap(std::span<const float> errors, int width, int height, double
   if (errors.size() != img.npixels())
     throw std::invalid_argument("heat map: error buffer does not match the image size");
   for (std::size_t p = 0; p < errors.size(); ++p) {
-    const Rgb c = std::isnan(errors[p]) ? Rgb{0.0f, 0.0f, 1.0f} : heat_ramp(errors[p] / vmax);
+    const Rgb c = std::isnan(errors[p]) ? Rgb(0.0f, 0.0f, 1.0f) : heat_ramp(errors[p] / vmax);
     img.pixels[3 * p] = c.r;
     img.pixels[3 * p + 1] = c.g;
     img.pixels[3 * p + 2] = c.b;

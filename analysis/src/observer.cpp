@@ -1,5 +1,8 @@
 #include "rayscan/analysis/observer.hpp"
 
+#include "rayscan/file_names.hpp"
+
+#include "rayscan/input_file.hpp"
 #include "rayscan/point_query.hpp"
 
 #include <nlohmann/json.hpp>
@@ -207,17 +210,18 @@ void validate_observer(const Observer& o, const std::string& where) {
 }
 
 std::vector<Observer> read_observers(const std::filesystem::path& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw ObserverError(path.string() + ": cannot open the observer file");
-  std::ostringstream ss;
-  ss << f.rdbuf();
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::string text;
+  try {
+    text = read_text_file(path);  // the input policy: regular file, size cap
+  } catch (const InputFileError& e) {
+    throw ObserverError(e.what());
+  }
+  const std::string ext = lower_extension(path);
   std::vector<Observer> out;
   if (ext == ".json")
-    out = read_json(path, ss.str());
+    out = read_json(path, text);
   else if (ext == ".csv" || ext == ".txt")
-    out = read_csv(path, ss.str());
+    out = read_csv(path, text);
   else
     throw ObserverError(path.string() + ": unknown observer file type '" + ext +
                         "' (expected .json, .csv or .txt)");

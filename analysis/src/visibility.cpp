@@ -1,6 +1,7 @@
 #include "rayscan/analysis/visibility.hpp"
 
-#include "rayscan/render/progress.hpp"
+#include "rayscan/progress.hpp"
+#include "rayscan/threads.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -21,10 +22,6 @@ constexpr std::uint32_t kChunk = 512;  // points (or pixel rows' worth of pixels
 
 std::size_t index_size(const AnyIndex& index) {
   return std::visit([](const auto& i) { return i.positions().size(); }, index);
-}
-
-unsigned resolve_threads(unsigned t) {
-  return t ? t : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
 }
 
 // One line-of-sight decision (see is_visible in the header). `queried` is set when a ray query
@@ -102,8 +99,8 @@ VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3>
   for (std::size_t k = 0; k < m; ++k) max_d[k] = observers[k].max_distance.value_or(opts.max_distance);
 
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
-  render::Progress progress(chunks, opts.progress && render::Progress::stderr_is_terminal(),
-                            render::ProgressUnits{"chunks", "points/s", 1.0, 0});
+  Progress progress(chunks, opts.progress && Progress::stderr_is_terminal(),
+                            ProgressUnits{"chunks", "points/s", 1.0, 0});
   struct Local {
     std::vector<std::uint64_t> seen;
     std::uint64_t queries = 0;
@@ -183,8 +180,8 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
   std::vector<double> out(n, 0.0);
   if (n == 0) return out;
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
-  render::Progress progress(chunks, opts.progress && render::Progress::stderr_is_terminal(),
-                            render::ProgressUnits{"chunks", "points/s", 1.0, 0});
+  Progress progress(chunks, opts.progress && Progress::stderr_is_terminal(),
+                            ProgressUnits{"chunks", "points/s", 1.0, 0});
   std::atomic<std::uint64_t> total{0};
   RayQuery q;
   q.k = 1;
@@ -226,14 +223,14 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
   return out;
 }
 
-std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const render::Camera& camera,
+std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const Camera& camera,
                                              double radius, double max_distance, unsigned threads,
                                              bool progress_bar) {
   if (!(radius > 0.0) || !std::isfinite(radius))
     throw std::invalid_argument("camera visibility: sphere radius must be a finite number > 0");
   if (!(max_distance >= 0.0)) throw std::invalid_argument("camera visibility: max distance must be >= 0");
   const std::uint32_t W = camera.width(), H = camera.height();
-  std::vector<std::uint32_t> out(std::size_t(W) * H, 0xFFFFFFFFu);
+  std::vector<std::uint32_t> out(std::size_t(W) * H, kNoPoint);
   if (out.empty() || index_size(index) == 0) return out;
   RayQuery q;
   q.k = 1;
@@ -241,8 +238,8 @@ std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const render
   q.order = RayOrder::sphere_hit;
   q.t_min = 0.0;
   q.t_max = max_distance;
-  render::Progress progress(H, progress_bar && render::Progress::stderr_is_terminal(),
-                            render::ProgressUnits{"rows", "M rays/s", 1e-6, 2});
+  Progress progress(H, progress_bar && Progress::stderr_is_terminal(),
+                            ProgressUnits{"rows", "M rays/s", 1e-6, 2});
   tbb::task_arena arena(static_cast<int>(resolve_threads(threads)));
   arena.execute([&] {
     std::visit(
@@ -267,7 +264,7 @@ std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const render
 std::vector<std::uint32_t> count_pixel_hits(std::span<const std::uint32_t> pixel_hits, std::size_t npoints) {
   std::vector<std::uint32_t> count(npoints, 0);
   for (const std::uint32_t i : pixel_hits) {
-    if (i == 0xFFFFFFFFu) continue;
+    if (i == kNoPoint) continue;
     if (i >= npoints) throw std::out_of_range("camera visibility: pixel hit index out of range");
     ++count[i];
   }

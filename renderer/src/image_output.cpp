@@ -1,6 +1,8 @@
 #include "rayscan/render/image_output.hpp"
 
+#include "rayscan/aov.hpp"
 #include "rayscan/atomic_file.hpp"
+#include "rayscan/file_names.hpp"
 
 #include <OpenImageIO/half.h>
 #include <OpenImageIO/imageio.h>
@@ -24,12 +26,6 @@ struct Channel {
   std::size_t stride = 1;  // in elements
 };
 
-std::string lower_ext(const std::filesystem::path& p) {
-  std::string e = p.extension().string();
-  for (char& c : e) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return e;
-}
-
 /// Write channels to `path` atomically (temporary sibling + rename).
 void write_file(const std::filesystem::path& path, std::uint32_t w, std::uint32_t h,
                 const std::vector<Channel>& chans, const ImageMetadata& meta, int quality = 0) {
@@ -49,7 +45,7 @@ void write_file(const std::filesystem::path& path, std::uint32_t w, std::uint32_
   spec.alpha_channel = -1;
   for (const auto& [k, v] : meta) spec.attribute(k, v);
   if (quality > 0) spec.attribute("Compression", "jpeg:" + std::to_string(quality));
-  if (lower_ext(path) == ".exr") spec.attribute("compression", "zip");
+  if (lower_extension(path) == ".exr") spec.attribute("compression", "zip");
 
   // Pack pixels in the channels' native formats.
   const std::size_t n = std::size_t(w) * h;
@@ -84,26 +80,20 @@ void write_file(const std::filesystem::path& path, std::uint32_t w, std::uint32_
   file.commit();
 }
 
-// Channel name "<prefix><c>" (built by append: GCC 12 warns falsely on operator+ here).
-std::string chan_name(const char* prefix, char c) {
-  std::string s(prefix);
-  s.push_back(c);
-  return s;
-}
-
 void add_aov_channels(const Framebuffer& fb, TypeDesc color_type, std::vector<Channel>& ch) {
-  if (!fb.depth.empty()) ch.push_back({"Z", TypeDesc::FLOAT, fb.depth.data(), nullptr, 1});
+  // Channel names: rayscan/aov.hpp (aov_channels), the one list the compare job also reads.
+  if (!fb.depth.empty()) ch.push_back({aov_channels(Aov::depth)[0], TypeDesc::FLOAT, fb.depth.data(), nullptr, 1});
   if (!fb.normal.empty())
     for (int k = 0; k < 3; ++k)
-      ch.push_back({chan_name("N.", "XYZ"[k]), TypeDesc::FLOAT, &fb.normal[0][k], nullptr, 3});
+      ch.push_back({aov_channels(Aov::normal)[k], TypeDesc::FLOAT, &fb.normal[0][k], nullptr, 3});
   if (!fb.position.empty())
     for (int k = 0; k < 3; ++k)
-      ch.push_back({chan_name("P.", "XYZ"[k]), TypeDesc::FLOAT, &fb.position[0][k], nullptr, 3});
+      ch.push_back({aov_channels(Aov::position)[k], TypeDesc::FLOAT, &fb.position[0][k], nullptr, 3});
   if (!fb.albedo.empty())
     for (int k = 0; k < 3; ++k)
-      ch.push_back({chan_name("albedo.", "RGB"[k]), color_type, &fb.albedo[0][k], nullptr, 3});
-  if (!fb.cost.empty()) ch.push_back({"cost", TypeDesc::FLOAT, fb.cost.data(), nullptr, 1});
-  if (!fb.index.empty()) ch.push_back({"id", TypeDesc::UINT, nullptr, fb.index.data(), 1});
+      ch.push_back({aov_channels(Aov::albedo)[k], color_type, &fb.albedo[0][k], nullptr, 3});
+  if (!fb.cost.empty()) ch.push_back({aov_channels(Aov::cost)[0], TypeDesc::FLOAT, fb.cost.data(), nullptr, 1});
+  if (!fb.index.empty()) ch.push_back({aov_channels(Aov::index)[0], TypeDesc::UINT, nullptr, fb.index.data(), 1});
 }
 
 }  // namespace
@@ -131,10 +121,11 @@ std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const Outp
   const std::size_t n = fb.beauty.size();
   std::vector<Color> px(n);
   for (std::size_t i = 0; i < n; ++i) px[i] = fb.beauty[i] * scale;
-  const std::string ext = lower_ext(out.image);
+  const std::string ext = lower_extension(out.image);
   const bool has_aovs = !fb.depth.empty() || !fb.normal.empty() || !fb.position.empty() ||
                         !fb.albedo.empty() || !fb.cost.empty() || !fb.index.empty();
   std::vector<std::filesystem::path> written;
+  OutputTransaction tx;  // the image and its AOV file: all or nothing (issue 8)
   if (ext == ".exr") {
     const TypeDesc ct = out.exr_half ? TypeDesc::HALF : TypeDesc::FLOAT;
     std::vector<Channel> ch;
@@ -142,6 +133,7 @@ std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const Outp
     add_aov_channels(fb, ct, ch);
     write_file(out.image, fb.width, fb.height, ch, meta);
     written.push_back(out.image);
+    tx.commit();
     return written;
   }
   const bool jpeg = ext == ".jpg" || ext == ".jpeg";
@@ -150,16 +142,19 @@ std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const Outp
   std::vector<Channel> ch;
   for (int k = 0; k < 3; ++k) ch.push_back({std::string(1, "RGB"[k]), t, &px[0][k], nullptr, 3});
   meta.emplace_back("oiio:ColorSpace", "sRGB");
+  std::filesystem::path aov = out.image;
+  aov.replace_extension(".aovs.exr");
+  require_replaceable_output(out.image);
+  if (has_aovs) require_replaceable_output(aov);  // both checked before either is written
   write_file(out.image, fb.width, fb.height, ch, meta, jpeg ? 95 : 0);
   written.push_back(out.image);
   if (has_aovs) {
-    std::filesystem::path aov = out.image;
-    aov.replace_extension(".aovs.exr");
     std::vector<Channel> ach;
     add_aov_channels(fb, TypeDesc::HALF, ach);
     write_file(aov, fb.width, fb.height, ach, meta);
     written.push_back(aov);
   }
+  tx.commit();
   return written;
 }
 

@@ -55,7 +55,7 @@ std::vector<Color> compute_albedo(const PointCloud& cloud, const MaterialDesc& m
       const auto range = m.range ? *m.range : percentile_range(v);
       const double inv = 1.0 / (range[1] - range[0]);
       for (std::size_t i = 0; i < n; ++i)
-        albedo[i] = eval_ramp(m.ramp, static_cast<float>((v[i] - range[0]) * inv));
+        albedo[i] = ramp_linear(m.ramp, static_cast<float>((v[i] - range[0]) * inv));
       break;
     }
   }

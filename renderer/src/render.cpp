@@ -1,6 +1,7 @@
 #include "rayscan/render/render.hpp"
 
 #include "rayscan/point_query.hpp"
+#include "rayscan/threads.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -26,33 +27,6 @@ RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
   s.integrator.rr_depth = scene.russian_roulette_depth;
   s.integrator.ray_offset = scene.ray_offset;
   return s;
-}
-
-double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions,
-                         std::size_t max_samples) {
-  if (positions.size() < 2 || max_samples == 0) return 0.0;
-  const std::size_t n = std::min(max_samples, positions.size());
-  std::vector<double> d(n, 0.0);
-  std::visit(
-      [&](const auto& idx) {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& r) {
-          std::vector<Neighbor> nb;
-          for (std::size_t i = r.begin(); i != r.end(); ++i) {
-            const std::size_t p = i * positions.size() / n;
-            // Nearest point at a non-zero distance (duplicates are common in scans).
-            knn_query(idx, positions[p], 8, kInf, nb);
-            double best = 0.0;
-            for (const Neighbor& x : nb)
-              if (x.distance > 0.0) { best = x.distance; break; }
-            d[i] = best;
-          }
-        });
-      },
-      index);
-  std::erase(d, 0.0);
-  if (d.empty()) return 0.0;
-  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
-  return d[d.size() / 2];
 }
 
 namespace {
@@ -97,7 +71,7 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
           if (!fb.normal.empty()) fb.normal[p] = hit ? glm::vec3(h.normal) : glm::vec3(0.0f);
           if (!fb.position.empty())
             fb.position[p] = hit ? glm::vec3(h.position - fb.position_origin) : glm::vec3(0.0f);
-          if (!fb.index.empty()) fb.index[p] = hit ? h.index : 0xFFFFFFFFu;
+          if (!fb.index.empty()) fb.index[p] = hit ? h.index : kNoPoint;
           if (!fb.albedo.empty()) fb.albedo[p] = hit ? s.integrator.albedo[h.index] : Color(0.0f);
         }
       if (opt.progress) opt.progress->tile_done(c.queries - q_before);
@@ -125,7 +99,7 @@ RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebu
       case Aov::depth: fb.depth.assign(n, 0.0f); break;
       case Aov::normal: fb.normal.assign(n, glm::vec3(0.0f)); break;
       case Aov::position: fb.position.assign(n, glm::vec3(0.0f)); break;
-      case Aov::index: fb.index.assign(n, 0xFFFFFFFFu); break;
+      case Aov::index: fb.index.assign(n, kNoPoint); break;
       case Aov::albedo: fb.albedo.assign(n, Color(0.0f)); break;
       case Aov::cost: fb.cost.assign(n, 0.0f); break;
     }
@@ -135,8 +109,7 @@ RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebu
   if (s.spp == 0) throw std::invalid_argument("render: spp must be >= 1");
 
   RenderStats stats;
-  const unsigned threads = opt.threads ? opt.threads
-                                       : static_cast<unsigned>(tbb::this_task_arena::max_concurrency());
+  const unsigned threads = resolve_threads(opt.threads);
   stats.threads = threads;
   tbb::task_arena arena(static_cast<int>(threads));
   const auto t0 = std::chrono::steady_clock::now();

@@ -2,6 +2,10 @@
 // what it reads so that an error names the exact field, and rejects keys it was not asked about.
 #include "rayscan/render/scene.hpp"
 
+#include "rayscan/file_names.hpp"
+#include "rayscan/io/camera_file.hpp"
+#include "rayscan/io/json_object.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <cmath>
@@ -15,215 +19,18 @@ namespace {
 
 using nlohmann::json;
 
+using Obj = io::JsonObject;
+
 [[noreturn]] void fail(const std::string& file, const std::string& ptr, const std::string& what) {
-  throw SceneError(file + ": " + (ptr.empty() ? "/" : ptr) + ": " + what);
+  io::json_fail(file, ptr, what);
 }
 
-std::string escape_key(const std::string& k) {  // RFC 6901 escaping
-  std::string s;
-  for (char c : k) {
-    if (c == '~') s += "~0";
-    else if (c == '/') s += "~1";
-    else s += c;
-  }
-  return s;
-}
-
-json parse_file(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw SceneError(file.string() + ": cannot open file");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  try {
-    return json::parse(ss.str());
-  } catch (const json::parse_error& e) {
-    throw SceneError(file.string() + ": byte " + std::to_string(e.byte) +
-                     ": invalid JSON (" + std::string(e.what()) + ")");
-  }
-}
-
-/// A JSON object being read: typed getters with range checks, and finish() to reject unknown keys.
-class Obj {
- public:
-  Obj(const json& j, std::string file, std::string ptr) : j_(j), file_(std::move(file)), ptr_(std::move(ptr)) {
-    if (!j_.is_object()) fail(file_, ptr_, "expected an object");
-  }
-  bool has(const std::string& k) {
-    seen_.insert(k);
-    return j_.contains(k);
-  }
-  /// Whether `k` is present, without making it an allowed key (finish() still rejects it unless
-  /// a getter asks for it).
-  bool present(const std::string& k) const { return j_.contains(k); }
-  const json& at(const std::string& k) { seen_.insert(k); return j_.at(k); }
-  std::string ptr(const std::string& k) const { return ptr_ + "/" + escape_key(k); }
-  const std::string& file() const { return file_; }
-
-  double number(const std::string& k, double def, double lo, double hi, bool lo_open, bool hi_open) {
-    if (!has(k)) return def;
-    return number_at(j_.at(k), ptr(k), lo, hi, lo_open, hi_open);
-  }
-  double number_at(const json& v, const std::string& p, double lo, double hi, bool lo_open,
-                   bool hi_open) const {
-    const bool ok = v.is_number() && std::isfinite(v.get<double>()) &&
-                    (lo_open ? v.get<double>() > lo : v.get<double>() >= lo) &&
-                    (hi_open ? v.get<double>() < hi : v.get<double>() <= hi);
-    if (!ok) fail(file_, p, "expected a number in " + range_text(lo, hi, lo_open, hi_open));
-    return v.get<double>();
-  }
-  std::uint64_t integer(const std::string& k, std::uint64_t def, std::uint64_t lo, std::uint64_t hi) {
-    if (!has(k)) return def;
-    const json& v = j_.at(k);
-    if (!v.is_number_integer() || (v.is_number_integer() && !v.is_number_unsigned() && v.get<std::int64_t>() < 0) ||
-        v.get<std::uint64_t>() < lo || v.get<std::uint64_t>() > hi)
-      fail(file_, ptr(k), "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
-    return v.get<std::uint64_t>();
-  }
-  bool boolean(const std::string& k, bool def) {
-    if (!has(k)) return def;
-    if (!j_.at(k).is_boolean()) fail(file_, ptr(k), "expected true or false");
-    return j_.at(k).get<bool>();
-  }
-  std::string string(const std::string& k, const std::string& def, const std::vector<std::string>& allowed = {}) {
-    if (!has(k)) return def;
-    return string_at(j_.at(k), ptr(k), allowed);
-  }
-  std::string string_at(const json& v, const std::string& p, const std::vector<std::string>& allowed) const {
-    std::string list;
-    for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + ("\"" + a + "\"");
-    if (!v.is_string()) fail(file_, p, allowed.empty() ? "expected a string" : "expected one of " + list);
-    const std::string s = v.get<std::string>();
-    if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), s) == allowed.end())
-      fail(file_, p, "expected one of " + list + ", got \"" + s + "\"");
-    return s;
-  }
-  Vec3 vec3(const std::string& k, const Vec3& def, bool nonzero = false) {
-    if (!has(k)) return def;
-    return vec3_at(j_.at(k), ptr(k), nonzero);
-  }
-  Vec3 vec3_at(const json& v, const std::string& p, bool nonzero) const {
-    const char* what = nonzero ? "expected an array of 3 finite numbers, not all zero"
-                               : "expected an array of 3 finite numbers";
-    if (!v.is_array() || v.size() != 3) fail(file_, p, what);
-    Vec3 r;
-    for (int i = 0; i < 3; ++i) {
-      if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) fail(file_, p + "/" + std::to_string(i), what);
-      r[i] = v[i].get<double>();
-    }
-    if (nonzero && r == Vec3(0.0)) fail(file_, p, what);
-    return r;
-  }
-  Color color(const std::string& k, const Color& def, float hi) {
-    if (!has(k)) return def;
-    return color_at(j_.at(k), ptr(k), hi);
-  }
-  Color color_at(const json& v, const std::string& p, float hi) const {
-    const std::string what = "expected an array of 3 numbers (linear RGB) in [0, " + num(hi) + "]";
-    if (!v.is_array() || v.size() != 3) fail(file_, p, what);
-    Color c;
-    for (int i = 0; i < 3; ++i) {
-      if (!v[i].is_number() || !(v[i].get<double>() >= 0.0) || !(v[i].get<double>() <= hi))
-        fail(file_, p + "/" + std::to_string(i), what);
-      c[i] = v[i].get<float>();
-    }
-    return c;
-  }
-  /// Rejects keys that no getter asked about.
-  void finish() const {
-    for (auto it = j_.begin(); it != j_.end(); ++it) {
-      if (seen_.count(it.key())) continue;
-      std::string list;
-      for (const auto& s : seen_) list += (list.empty() ? "" : ", ") + s;
-      fail(file_, ptr(it.key()), "unknown key (allowed here: " + list + ")");
-    }
-  }
-
-  static std::string num(double v) {
-    std::ostringstream os;
-    os << v;
-    return os.str();
-  }
-  static std::string range_text(double lo, double hi, bool lo_open, bool hi_open) {
-    auto s = [](double v) { return std::isinf(v) ? (v > 0 ? std::string("inf") : std::string("-inf")) : num(v); };
-    return std::string(lo_open ? "(" : "[") + s(lo) + ", " + s(hi) + (hi_open ? ")" : "]");
-  }
-
- private:
-  const json& j_;
-  std::string file_, ptr_;
-  std::set<std::string> seen_;
-};
+json parse_file(const std::filesystem::path& file) { return io::parse_json_file(file); }
 
 std::filesystem::path resolve(const std::filesystem::path& base_file, const std::string& p) {
   std::filesystem::path path(p);
   if (path.is_relative()) path = base_file.parent_path() / path;
   return path.lexically_normal();
-}
-
-std::array<std::array<double, 3>, 3> mat3_at(const Obj& o, const json& v, const std::string& p) {
-  const char* what = "expected a 3x3 array of finite numbers (row-major)";
-  if (!v.is_array() || v.size() != 3) fail(o.file(), p, what);
-  std::array<std::array<double, 3>, 3> m{};
-  for (int r = 0; r < 3; ++r) {
-    const std::string pr = p + "/" + std::to_string(r);
-    if (!v[r].is_array() || v[r].size() != 3) fail(o.file(), pr, what);
-    for (int c = 0; c < 3; ++c) {
-      if (!v[r][c].is_number() || !std::isfinite(v[r][c].get<double>()))
-        fail(o.file(), pr + "/" + std::to_string(c), what);
-      m[r][c] = v[r][c].get<double>();
-    }
-  }
-  return m;
-}
-
-Camera parse_camera(const json& j, const std::string& file, const std::string& ptr) {
-  Obj o(j, file, ptr);
-  const auto width = static_cast<std::uint32_t>(o.integer("width", 0, 1, 65536));
-  const auto height = static_cast<std::uint32_t>(o.integer("height", 0, 1, 65536));
-  if (!o.has("width")) fail(file, o.ptr("width"), "required: image width in pixels (integer in [1, 65536])");
-  if (!o.has("height")) fail(file, o.ptr("height"), "required: image height in pixels (integer in [1, 65536])");
-  // `K` only selects the default model; it is an allowed key only when the model is pinhole, so
-  // a look-at camera with K/R/t is rejected by finish() as an unknown key.
-  const bool is_pinhole = o.present("K");
-  const std::string model =
-      o.string("model", is_pinhole ? "pinhole" : "look_at", {"look_at", "pinhole"});
-  try {
-    if (model == "pinhole") {
-      if (!o.has("K")) fail(file, o.ptr("K"), "required for model \"pinhole\": 3x3 intrinsic matrix in pixels");
-      if (!o.has("R")) fail(file, o.ptr("R"), "required for model \"pinhole\": 3x3 world-to-camera rotation");
-      if (!o.has("t")) fail(file, o.ptr("t"), "required for model \"pinhole\": world-to-camera translation");
-      PinholeParams p;
-      p.K = mat3_at(o, o.at("K"), o.ptr("K"));
-      p.R = mat3_at(o, o.at("R"), o.ptr("R"));
-      p.t = o.vec3("t", Vec3(0.0));
-      o.finish();
-      try {
-        return Camera::pinhole(p, width, height);
-      } catch (const std::invalid_argument& e) {
-        const std::string w = e.what();
-        fail(file, o.ptr(w.find("R ") != std::string::npos ? "R" : "K"), w.substr(w.find(':') + 2));
-      }
-    }
-    LookAtParams p;
-    if (!o.has("position")) fail(file, o.ptr("position"), "required: camera position [x, y, z] (world units)");
-    if (!o.has("look_at")) fail(file, o.ptr("look_at"), "required: point looked at [x, y, z] (world units)");
-    p.position = o.vec3("position", Vec3(0.0));
-    p.look_at = o.vec3("look_at", Vec3(0.0));
-    if (p.look_at == p.position) fail(file, o.ptr("look_at"), "expected a point different from /position");
-    p.up = o.vec3("up", Vec3(0, 0, 1), true);
-    p.vfov_deg = o.number("vfov_deg", 40.0, 0.0, 180.0, true, true);
-    p.aperture = o.number("aperture", 0.0, 0.0, kInf, false, true);
-    p.focus_distance = o.number("focus_distance", 0.0, 0.0, kInf, false, true);
-    o.finish();
-    try {
-      return Camera::look_at(p, width, height);
-    } catch (const std::invalid_argument& e) {
-      const std::string w = e.what();
-      fail(file, o.ptr("up"), w.substr(w.find(':') + 2));
-    }
-  } catch (const SceneError&) {
-    throw;
-  }
 }
 
 IndexOptions parse_index(Obj& parent, const std::string& key, NodeDistance& nd) {
@@ -274,7 +81,7 @@ MaterialDesc parse_material(Obj& parent) {
       if (o.present(k))
         fail(o.file(), o.ptr(k), std::string("only used with color \"intensity\" or \"elevation\"; color is ") + color);
   }
-  if (o.has("ramp")) m.ramp = parse_ramp(o.string("ramp", "viridis", {"viridis", "terrain", "grey"}));
+  if (o.has("ramp")) m.ramp = parse_ramp(o.string("ramp", "viridis", ramp_names()));
   if (o.has("range")) {
     const json& r = o.at("range");
     if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
@@ -351,10 +158,10 @@ OutputDesc parse_output(Obj& parent, const std::filesystem::path& scene_file) {
     const json& a = o.at("aovs");
     if (!a.is_array()) fail(o.file(), o.ptr("aovs"), "expected an array of AOV names");
     for (std::size_t i = 0; i < a.size(); ++i) {
-      const std::string s = o.string_at(a[i], o.ptr("aovs") + "/" + std::to_string(i),
-                                        {"depth", "normal", "position", "index", "albedo", "cost"});
-      const Aov v = s == "depth" ? Aov::depth : s == "normal" ? Aov::normal : s == "position" ? Aov::position
-                    : s == "index" ? Aov::index : s == "albedo" ? Aov::albedo : Aov::cost;
+      std::vector<std::string> names;
+      for (Aov x : all_aovs()) names.emplace_back(to_string(x));
+      const std::string s = o.string_at(a[i], o.ptr("aovs") + "/" + std::to_string(i), names);
+      const Aov v = *parse_aov(s);
       if (std::find(out.aovs.begin(), out.aovs.end(), v) != out.aovs.end())
         fail(o.file(), o.ptr("aovs") + "/" + std::to_string(i), "duplicate AOV \"" + s + "\"");
       out.aovs.push_back(v);
@@ -383,37 +190,9 @@ const std::vector<std::string>& image_extensions() {
   return exts;
 }
 
-bool is_image_file_name(const std::filesystem::path& file) {
-  std::string ext;
-  for (char c : file.extension().string()) ext += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  const auto& exts = image_extensions();
-  return std::find(exts.begin(), exts.end(), ext) != exts.end();
-}
+bool is_image_file_name(const std::filesystem::path& file) { return has_extension(file, image_extensions()); }
 
-std::string image_file_name_expected() {
-  const auto& exts = image_extensions();
-  std::string s = "expected a file name ending in ";
-  for (std::size_t i = 0; i < exts.size(); ++i)
-    s += (i == 0 ? "" : i + 1 == exts.size() ? " or " : ", ") + exts[i];
-  return s;
-}
-
-const char* to_string(Aov aov) {
-  switch (aov) {
-    case Aov::depth: return "depth";
-    case Aov::normal: return "normal";
-    case Aov::position: return "position";
-    case Aov::index: return "index";
-    case Aov::albedo: return "albedo";
-    case Aov::cost: return "cost";
-  }
-  return "?";
-}
-
-Camera load_camera(const std::filesystem::path& file) {
-  const json j = parse_file(file);
-  return parse_camera(j, file.string(), "");
-}
+std::string image_file_name_expected() { return extensions_expected(image_extensions()); }
 
 Scene load_scene(const std::filesystem::path& file) {
   const json j = parse_file(file);
@@ -446,7 +225,7 @@ Scene load_scene(const std::filesystem::path& file) {
     s.camera_file = resolve(file, cam.get<std::string>());
     s.camera = load_camera(s.camera_file);
   } else if (cam.is_object()) {
-    s.camera = parse_camera(cam, f, "/camera");
+    s.camera = io::parse_camera(cam, f, "/camera");
   } else {
     fail(f, "/camera", "expected a camera file name or a camera object");
   }

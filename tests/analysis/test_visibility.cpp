@@ -358,11 +358,11 @@ TEST(SkyView, EqualsBruteForceOracleOnRealScan) {
 TEST(CameraVisibility, FirstHitsEqualBruteForce) {
   const std::vector<Vec3> pts = autzen_crop();
   const AnyIndex idx = octree(pts);
-  render::LookAtParams lp;
+  LookAtParams lp;
   lp.position = Vec3(636470, 849000, 440);
   lp.look_at = Vec3(636500, 849060, 420);
   lp.vfov_deg = 60;
-  const render::Camera cam = render::Camera::look_at(lp, 48, 32);
+  const Camera cam = Camera::look_at(lp, 48, 32);
   const double r = 1.3;
   const std::vector<std::uint32_t> px = camera_first_hits(idx, cam, r, kInf, 2);
   ASSERT_EQ(px.size(), 48u * 32u);
@@ -371,8 +371,8 @@ TEST(CameraVisibility, FirstHitsEqualBruteForce) {
     for (std::uint32_t x = 0; x < 48; ++x) {
       const Ray ray = cam.generate_ray(x, y);
       const OracleHit h = oracle_first_hit(pts, ray.origin(), ray.direction(), r, kInf);
-      const std::uint32_t expect = h.entry == kInf ? 0xFFFFFFFFu : std::uint32_t(h.j);
-      hits += expect != 0xFFFFFFFFu;
+      const std::uint32_t expect = h.entry == kInf ? kNoPoint : std::uint32_t(h.j);
+      hits += expect != kNoPoint;
       if (px[std::size_t(y) * 48 + x] != expect && h.margin > 1e-9) ++mismatches;
     }
   EXPECT_EQ(mismatches, 0u);
@@ -384,7 +384,7 @@ TEST(CameraVisibility, FirstHitsEqualBruteForce) {
   EXPECT_EQ(camera_first_hits(idx, cam, r, kInf, 1), px);
   // A range shorter than the eye's distance to everything sees nothing.
   const std::vector<std::uint32_t> none = camera_first_hits(idx, cam, r, 1.0);
-  EXPECT_TRUE(std::all_of(none.begin(), none.end(), [](auto v) { return v == 0xFFFFFFFFu; }));
+  EXPECT_TRUE(std::all_of(none.begin(), none.end(), [](auto v) { return v == kNoPoint; }));
 }
 
 TEST(Visibility, BadOptionsThrow) {

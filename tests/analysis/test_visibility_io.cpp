@@ -8,7 +8,7 @@
 #include "rayscan/analysis/raster_preview.hpp"
 #include "rayscan/analysis/visibility.hpp"
 #include "rayscan/io/point_io.hpp"
-#include "rayscan/render/scene.hpp"
+#include "rayscan/io/camera_file.hpp"
 
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
@@ -450,7 +450,7 @@ TEST_F(VisibilityCli, FromCameraMarksThePointsItSees) {
   ASSERT_TRUE(hits);
   const AnyIndex idx = make_index(in.positions, IndexOptions{});
   const std::vector<std::uint32_t> expect =
-      count_pixel_hits(camera_first_hits(idx, render::load_camera(cam), 0.6), in.size());
+      count_pixel_hits(camera_first_hits(idx, io::load_camera(cam), 0.6), in.size());
   double total = 0;
   for (std::size_t i = 0; i < pc.size(); ++i) {
     EXPECT_EQ(hits->values[i], expect[i]) << i;

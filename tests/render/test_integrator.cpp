@@ -53,7 +53,7 @@ TEST_P(HeadOn, CentrePixelDepthIsTheExactSphereDepth) {
   EXPECT_EQ(fb.depth[c], 9.5f);  // |camera - centre| - r, exactly representable
   EXPECT_EQ(fb.index[c], 0u);
   EXPECT_NEAR(fb.normal[c].y, -1.0f, 1e-6f);
-  EXPECT_EQ(fb.index[0], 0xFFFFFFFFu);  // the corner ray misses (sphere spans ~3 degrees of 20)
+  EXPECT_EQ(fb.index[0], rayscan::kNoPoint);  // the corner ray misses (sphere spans ~3 degrees of 20)
   EXPECT_TRUE(std::isinf(fb.depth[0]));
 }
 
@@ -102,7 +102,7 @@ TEST(Integrator, WhiteFurnaceGivesOne) {
   const RenderStats st = render_image(g.index, make_settings(s, g.centers, g.albedo, 0.2), fb);
   int hits = 0;
   for (std::size_t i = 0; i < fb.beauty.size(); ++i) {
-    hits += fb.index[i] != 0xFFFFFFFFu;
+    hits += fb.index[i] != rayscan::kNoPoint;
     EXPECT_LE(fb.beauty[i].g, 1.0f + 1e-6f);
     EXPECT_GE(fb.beauty[i].g, 0.99f);
   }

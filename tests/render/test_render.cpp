@@ -106,7 +106,7 @@ TEST_P(DepthOracle, DepthAovMatchesBruteForceRaySphere) {
       const std::size_t p = std::size_t(y) * fb.width + x;
       if (std::isinf(best)) {
         EXPECT_TRUE(std::isinf(fb.depth[p])) << x << "," << y;
-        EXPECT_EQ(fb.index[p], 0xFFFFFFFFu);
+        EXPECT_EQ(fb.index[p], rayscan::kNoPoint);
       } else {
         ++hits;
         EXPECT_NEAR(fb.depth[p], best, 1e-6 * best) << x << "," << y;
@@ -219,7 +219,7 @@ TEST(Scenes, EverySceneRendersAtReducedSize) {
     Framebuffer fb;
     render_image(index, make_settings(s, pc.positions, albedo, r), fb);
     // The camera sees the cloud: a good share of the pixels hit a point.
-    const auto hit = std::count_if(fb.index.begin(), fb.index.end(), [](std::uint32_t i) { return i != 0xFFFFFFFFu; });
+    const auto hit = std::count_if(fb.index.begin(), fb.index.end(), [](std::uint32_t i) { return i != rayscan::kNoPoint; });
     EXPECT_GT(hit, 48 * 32 / 5);
   }
   EXPECT_GE(count, 4);

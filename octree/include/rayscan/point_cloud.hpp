@@ -39,6 +39,10 @@ struct PointCloud {
   std::vector<glm::vec3> normals;            ///< optional unit normals (PLY nx ny nz, PCD normal_*)
   std::vector<ScalarField> scalars;          ///< further named scalar attributes
   std::string crs_wkt;                       ///< coordinate reference system as WKT, "" if unknown
+  /// True when the LAS reader found 8-bit values (all <= 255) in the 16-bit colour fields and
+  /// scaled them by 257 (docs/formats.md); io::write_las divides by 257 again, so a LAS file
+  /// derived from such a source keeps its colour values unchanged (issue 8).
+  bool rgb_from_8bit_las = false;
 
   /// Number of points.
   [[nodiscard]] std::size_t size() const { return positions.size(); }

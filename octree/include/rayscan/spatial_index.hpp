@@ -14,6 +14,11 @@ namespace rayscan {
 /// Index of a point in the caller's original PointCloud order (max 2^32 - 1 points).
 using PointIndex = std::uint32_t;
 
+/// The "no point" value of a PointIndex: a ray that hits nothing, an empty pixel of the renderer's
+/// point-index AOV (stored as uint32 0xFFFFFFFF, the bits of int32 -1). Indexes hold at most
+/// kNoPoint - 1 points, so it never names a real point.
+inline constexpr PointIndex kNoPoint = 0xFFFFFFFFu;
+
 /// Half-open range [begin, end) of storage slots: positions in an index's reordered point array.
 struct SlotRange {
   std::uint32_t begin = 0;

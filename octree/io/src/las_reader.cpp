@@ -65,6 +65,7 @@ struct Out {
   double* gps = nullptr;
   Rgb16* rgb = nullptr;
   double *ret = nullptr, *nret = nullptr, *angle = nullptr, *udata = nullptr, *psid = nullptr, *nir = nullptr;
+  double *cflags = nullptr, *channel = nullptr, *scan_dir = nullptr, *edge = nullptr;
   std::vector<double*> extra;
 };
 struct Decoder {
@@ -104,12 +105,20 @@ void decode(const Decoder& dc, std::size_t i0, std::size_t i1, Reduction& red) {
       if constexpr (Legacy) {
         o.ret[i] = r[14] & 0x07;
         o.nret[i] = (r[14] >> 3) & 0x07;
+        o.scan_dir[i] = (r[14] >> 6) & 1;
+        o.edge[i] = r[14] >> 7;
+        o.cflags[i] = r[15] >> 5;  // synthetic, key-point, withheld (table 8) = flag bits 0-2
+        o.channel[i] = 0;
         o.angle[i] = static_cast<std::int8_t>(r[16]);
         o.udata[i] = r[17];
         o.psid[i] = load_le<std::uint16_t>(r + 18);
       } else {
         o.ret[i] = r[14] & 0x0F;
         o.nret[i] = r[14] >> 4;
+        o.cflags[i] = r[15] & 0x0F;  // synthetic, key-point, withheld, overlap (table 15)
+        o.channel[i] = (r[15] >> 4) & 3;
+        o.scan_dir[i] = (r[15] >> 6) & 1;
+        o.edge[i] = r[15] >> 7;
         o.angle[i] = load_le<std::int16_t>(r + 18) * 0.006;
         o.udata[i] = r[17];
         o.psid[i] = load_le<std::uint16_t>(r + 20);
@@ -360,7 +369,8 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
   if (info.epsg == 0 && !pc.crs_wkt.empty()) info.epsg = epsg_from_wkt(pc.crs_wkt);
 
   info.fields = {"X", "Y", "Z", "intensity", "return_number", "number_of_returns", "classification",
-                 "scan_angle", "user_data", "point_source_id"};
+                 "classification_flags", "scanner_channel", "scan_direction_flag",
+                 "edge_of_flight_line", "scan_angle", "user_data", "point_source_id"};
   const std::size_t n = static_cast<std::size_t>(count);
   resize_huge(pc.positions, n);
   resize_huge(pc.intensity, n);
@@ -372,7 +382,7 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
   if (has_rgb) resize_huge(pc.rgb, n), info.fields.insert(info.fields.end(), {"red", "green", "blue"});
   if (has_nir) info.fields.push_back("nir");
   std::vector<double>*ret = nullptr, *nret = nullptr, *angle = nullptr, *udata = nullptr,
-  *psid = nullptr, *nir = nullptr;
+  *psid = nullptr, *nir = nullptr, *cflags = nullptr, *channel = nullptr, *scan_dir = nullptr, *edge = nullptr;
   std::vector<std::vector<double>*> extra_out;
   if (opt.scalars) {
     auto add = [&](const std::string& name) {
@@ -380,12 +390,17 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
       resize_huge(pc.scalars.back().values, n);
       return &pc.scalars.back().values;
     };
-    pc.scalars.reserve(6 + extras.size());
+    pc.scalars.reserve(10 + extras.size());
     ret = add("return_number");
     nret = add("number_of_returns");
     angle = add("scan_angle");
     udata = add("user_data");
     psid = add("point_source_id");
+    // Flag bits, kept so that a derived LAS file carries them unchanged (issue 8).
+    cflags = add("classification_flags");
+    channel = add("scanner_channel");
+    scan_dir = add("scan_direction_flag");
+    edge = add("edge_of_flight_line");
     if (has_nir) nir = add("nir");
     for (const ExtraField& f : extras) {
       extra_out.push_back(add(f.name));
@@ -404,6 +419,10 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
     out.angle = angle->data();
     out.udata = udata->data();
     out.psid = psid->data();
+    out.cflags = cflags->data();
+    out.channel = channel->data();
+    out.scan_dir = scan_dir->data();
+    out.edge = edge->data();
     out.nir = nir != nullptr ? nir->data() : nullptr;
     for (auto* v : extra_out) out.extra.push_back(v->data());
   }
@@ -451,6 +470,7 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
         c.g = static_cast<std::uint16_t>(c.g * 257);
         c.b = static_cast<std::uint16_t>(c.b * 257);
       }
+      pc.rgb_from_8bit_las = true;  // write_las divides by 257 again: derived files keep the values
       info.notes.push_back("RGB stored as 8-bit values (max " + std::to_string(rgb_max) +
                            ") in 16-bit fields: scaled by 257");
     }

@@ -24,6 +24,10 @@ struct Standard {
   const std::vector<double>* udata = nullptr;
   const std::vector<double>* psid = nullptr;
   const std::vector<double>* nir = nullptr;
+  const std::vector<double>* cflags = nullptr;
+  const std::vector<double>* channel = nullptr;
+  const std::vector<double>* scan_dir = nullptr;
+  const std::vector<double>* edge = nullptr;
 };
 
 template <class T>
@@ -52,6 +56,10 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
     else if (f.name == "scan_angle") st.angle = &f.values;
     else if (f.name == "user_data") st.udata = &f.values;
     else if (f.name == "point_source_id") st.psid = &f.values;
+    else if (f.name == "classification_flags") st.cflags = &f.values;
+    else if (f.name == "scanner_channel") st.channel = &f.values;
+    else if (f.name == "scan_direction_flag") st.scan_dir = &f.values;
+    else if (f.name == "edge_of_flight_line") st.edge = &f.values;
     else if (f.name == "nir" && !cloud.rgb.empty()) st.nir = &f.values;
     else extra.push_back(&f);
   }
@@ -188,7 +196,10 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
     const int ret = st.ret ? std::clamp(static_cast<int>((*st.ret)[i]), 0, 15) : 1;
     const int nret = st.nret ? std::clamp(static_cast<int>((*st.nret)[i]), 0, 15) : 1;
     r[14] = static_cast<std::uint8_t>(ret | (nret << 4));
-    r[15] = 0;
+    // Classification flags, scanner channel, scan direction, edge of flight line (table 13).
+    auto bits = [&](const std::vector<double>* v, int mask) { return v ? (clamp_to<int>((*v)[i]) & mask) : 0; };
+    r[15] = static_cast<std::uint8_t>(bits(st.cflags, 15) | (bits(st.channel, 3) << 4) |
+                                      (bits(st.scan_dir, 1) << 6) | (bits(st.edge, 1) << 7));
     r[16] = cloud.classification.empty() ? 0 : cloud.classification[i];
     r[17] = st.udata ? clamp_to<std::uint8_t>((*st.udata)[i]) : 0;
     const std::int16_t angle = st.angle ? clamp_to<std::int16_t>((*st.angle)[i] / 0.006) : 0;
@@ -198,7 +209,10 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
     const double t = cloud.gps_time.empty() ? 0.0 : cloud.gps_time[i];
     std::memcpy(r + 22, &t, 8);
     if (rgb) {
-      const Rgb16 c = cloud.rgb[i];
+      Rgb16 c = cloud.rgb[i];
+      if (cloud.rgb_from_8bit_las)  // back to the source's 8-bit values (the reader scaled by 257)
+        c = Rgb16{static_cast<std::uint16_t>(c.r / 257), static_cast<std::uint16_t>(c.g / 257),
+                  static_cast<std::uint16_t>(c.b / 257)};
       std::memcpy(r + 30, &c.r, 2);
       std::memcpy(r + 32, &c.g, 2);
       std::memcpy(r + 34, &c.b, 2);

@@ -16,6 +16,7 @@ extern "C" {
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 
 namespace rayscan::io::detail {
 
@@ -356,8 +357,15 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
           if (*tb == '+') ++tb;
           double v = 0;
           auto [q, ec] = std::from_chars(tb, te, v);
-          if (ec == std::errc::result_out_of_range && q == te) v = 0;  // denormal packed colours
-          else if (ec != std::errc() || q != te)
+          if (ec == std::errc::result_out_of_range && q == te) {
+            // Underflow (denormal packed colours) reads as 0; overflow (1e400) is an error, as
+            // in the other readers, never a silent 0.
+            if (std::isinf(std::strtod(std::string(tb, te).c_str(), nullptr)))
+              fail_line(nm, ln, "field '" + fields[k].name + "': value '" +
+                                    std::string(d + b, std::min<std::uint64_t>(p - b, 40)) +
+                                    "' is out of the range of a double");
+            v = 0;
+          } else if (ec != std::errc() || q != te)
             fail_line(nm, ln, "field '" + fields[k].name + "': expected a number, got '" +
                                   std::string(d + b, std::min<std::uint64_t>(p - b, 40)) + "'");
           vals[first[k] + j] = v;

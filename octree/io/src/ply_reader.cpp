@@ -280,7 +280,10 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
   if (has_rgb) col.reserve(static_cast<std::size_t>(cap) * 3);
   for (std::size_t k = 0; k < np; ++k)
     if (roles[k] == Role::scalar) {
-      pc.scalars.push_back({vertex->props[k].name, {}});
+      // CloudCompare's "scalar_" prefix (docs/formats.md) is not part of the field's name.
+      std::string name = vertex->props[k].name;
+      if (name.size() > 7 && lower(name.substr(0, 7)) == "scalar_") name = name.substr(7);
+      pc.scalars.push_back({name, {}});
       pc.scalars.back().values.reserve(static_cast<std::size_t>(cap));
     }
 
@@ -323,6 +326,14 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
     AsciiCursor cur{in, body, line + 1};
     for (const Element& e : elems) {
       const bool is_vertex = &e == vertex;
+      // Loops bounded by the file's size, not by the header's count (issue 8): an element
+      // without properties holds no data, and every item of one with properties takes at
+      // least one byte.
+      if (e.props.empty()) continue;
+      if (e.count > in.size() - std::min<std::uint64_t>(cur.pos, in.size()))
+        fail_line(nm, cur.line, "element '" + e.name + "' announces " + std::to_string(e.count) +
+                                    " items but only " + std::to_string(in.size() - cur.pos) +
+                                    " bytes remain");
       for (std::uint64_t i = 0; i < e.count; ++i) {
         for (std::size_t k = 0; k < e.props.size(); ++k) {
           const Property& p = e.props[k];

@@ -11,8 +11,10 @@
 namespace rayscan::io {
 
 namespace {
+/// "scalar_<name>" (docs/formats.md "PLY property names"): CloudCompare loads extra properties
+/// only under this prefix (and shows them without it); Open3D takes any name.
 std::string property_name(const std::string& name, std::set<std::string>& used) {
-  std::string s = name.empty() ? "scalar" : name;
+  std::string s = "scalar_" + (name.empty() ? std::string("field") : name);
   for (char& c : s)
     if (!((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_')) c = '_';
   std::string out = s;
@@ -42,9 +44,10 @@ void write_ply(const std::filesystem::path& path, const PointCloud& cloud) {
   if (!cloud.normals.empty()) h += "property float nx\nproperty float ny\nproperty float nz\n", used.insert({"nx", "ny", "nz"});
   if (!cloud.rgb.empty())
     h += "property uchar red\nproperty uchar green\nproperty uchar blue\n", used.insert({"red", "green", "blue"});
-  if (!cloud.intensity.empty()) h += "property ushort intensity\n", used.insert("intensity");
-  if (!cloud.classification.empty()) h += "property uchar classification\n", used.insert("classification");
-  if (!cloud.gps_time.empty()) h += "property double gps_time\n", used.insert("gps_time");
+  // Types both CloudCompare and Open3D (0.16: uchar, float, double; not ushort) load.
+  if (!cloud.intensity.empty()) h += "property float " + property_name("intensity", used) + "\n";
+  if (!cloud.classification.empty()) h += "property uchar " + property_name("classification", used) + "\n";
+  if (!cloud.gps_time.empty()) h += "property double " + property_name("gps_time", used) + "\n";
   for (const ScalarField& f : cloud.scalars) h += "property double " + property_name(f.name, used) + "\n";
   h += "end_header\n";
 
@@ -65,7 +68,7 @@ void write_ply(const std::filesystem::path& path, const PointCloud& cloud) {
       w.put(to8(cloud.rgb[i].g));
       w.put(to8(cloud.rgb[i].b));
     }
-    if (!cloud.intensity.empty()) w.put(cloud.intensity[i]);
+    if (!cloud.intensity.empty()) w.put(static_cast<float>(cloud.intensity[i]));  // exact: < 2^24
     if (!cloud.classification.empty()) w.put(cloud.classification[i]);
     if (!cloud.gps_time.empty()) w.put(cloud.gps_time[i]);
     for (const ScalarField& f : cloud.scalars) w.put(f.values[i]);

@@ -1,7 +1,11 @@
 // read_point_cloud(): memory-maps the file and dispatches to the format reader.
 #include "rayscan/io/point_io.hpp"
 
+#include "rayscan/file_names.hpp"
+
 #include "readers.hpp"
+
+#include "rayscan/input_file.hpp"
 
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -21,14 +25,15 @@ namespace {
 class MappedFile {
  public:
   explicit MappedFile(const std::filesystem::path& path) {
-    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd_ < 0) throw FormatError(path.string() + ": cannot open file: " + std::strerror(errno));
-    struct stat st {};
-    if (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {
-      ::close(fd_);
-      throw FormatError(path.string() + ": not a regular file");
+    // The input policy (rayscan/input_file.hpp): regular files only, opened without blocking.
+    try {
+      InputFile f(path);
+      size_ = static_cast<std::size_t>(f.size());
+      fd_ = ::dup(f.fd());
+    } catch (const InputFileError& e) {
+      throw FormatError(e.what());
     }
-    size_ = static_cast<std::size_t>(st.st_size);
+    if (fd_ < 0) throw FormatError(path.string() + ": cannot open file: " + std::strerror(errno));
     if (size_ > 0) {
       void* p = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd_, 0);
       if (p == MAP_FAILED) {
@@ -117,7 +122,7 @@ void promote_scalars(PointCloud& pc, const ReadOptions& opt, FileInfo& info) {
 }  // namespace
 
 Format format_from_extension(const std::filesystem::path& path) {
-  const std::string e = detail::lower(path.extension().string());
+  const std::string e = lower_extension(path);
   if (e == ".las" || e == ".laz" || e == ".copc") return Format::las;
   if (e == ".ply") return Format::ply;
   if (e == ".pcd") return Format::pcd;
@@ -147,8 +152,6 @@ PointCloud dispatch(const detail::Input& in, Format format, const ReadOptions& o
 
 PointCloud read_point_cloud(const std::filesystem::path& path, const ReadOptions& options, FileInfo* info) {
   const Format format = format_from_extension(path);
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw FormatError(path.string() + ": no such file");
   MappedFile map(path);
   detail::Input in{map.bytes(), path.string(), [&map](std::uint64_t upto) { map.release(upto); }};
   return dispatch(in, format, options, info);

@@ -10,7 +10,7 @@
 #include "rayscan/analysis/observer.hpp"
 #include "rayscan/any_index.hpp"
 #include "rayscan/ray_query.hpp"
-#include "rayscan/render/camera.hpp"
+#include "rayscan/camera.hpp"
 
 #include <cstdint>
 #include <span>
@@ -111,8 +111,8 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
 /// t in [0, max_distance]) of the ray through the pixel centre and lens centre,
 /// camera.generate_ray(x, y) -- the ray of the renderer's point-index AOV, so the result equals
 /// `rayscan render --aov index` for the same radius. Row-major from the top-left pixel;
-/// 0xFFFFFFFF for a miss. Throws std::invalid_argument for radius <= 0.
-std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const render::Camera& camera,
+/// kNoPoint for a miss. Throws std::invalid_argument for radius <= 0.
+std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const Camera& camera,
                                              double radius, double max_distance = kInf,
                                              unsigned threads = 0, bool progress = false);
 

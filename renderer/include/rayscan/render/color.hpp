@@ -1,6 +1,8 @@
-// Linear RGB colour, the sRGB transfer function and the colour ramps used to turn scalar point
-// attributes (elevation, intensity) into albedo.
+// Linear RGB colour and the classification colours of the renderer's albedo; the sRGB transfer
+// and the colour ramps come from the core (rayscan/color_ramp.hpp).
 #pragma once
+
+#include "rayscan/color_ramp.hpp"
 
 #include <glm/vec3.hpp>
 
@@ -12,26 +14,13 @@ namespace rayscan::render {
 /// Linear-light RGB (Rec. 709 primaries), single precision. Radiance, albedo and pixel values.
 using Color = glm::vec3;
 
-/// sRGB opto-electronic transfer function (IEC 61966-2-1, section 5.2): linear [0,1] -> encoded
-/// [0,1]. Inputs are clamped to [0,1] first.
-[[nodiscard]] float linear_to_srgb(float v);
-/// Inverse of linear_to_srgb: encoded [0,1] -> linear [0,1] (used for 8/16-bit point colours,
-/// which LAS and PCD store sRGB-encoded).
-[[nodiscard]] float srgb_to_linear(float v);
-
-/// Named colour ramps for scalar attributes. Each is a piecewise-linear ramp over [0,1] with the
-/// stops listed in scenes/README.md, interpolated in linear light.
-enum class Ramp {
-  viridis,  ///< perceptually uniform blue-green-yellow (van der Walt & Smith, matplotlib; 9 stops)
-  terrain,  ///< hypsometric: dark green, light green, tan, brown, white (elevation tints)
-  grey      ///< black to white
-};
-
-/// Parses "viridis" | "terrain" | "grey"; throws std::invalid_argument naming the allowed values.
-Ramp parse_ramp(const std::string& s);
-
-/// The ramp's linear-light colour at u (clamped to [0,1]).
-[[nodiscard]] Color eval_ramp(Ramp ramp, float u);
+/// The sRGB transfer function and the colour ramps are defined once in the core
+/// (rayscan/color_ramp.hpp): linear_to_srgb, srgb_to_linear, Ramp, parse_ramp, ramp_linear.
+using rayscan::linear_to_srgb;
+using rayscan::parse_ramp;
+using rayscan::Ramp;
+using rayscan::ramp_linear;
+using rayscan::srgb_to_linear;
 
 /// Display colour of an ASPRS classification code (LAS 1.4 R15 Table 17: 2 ground, 3-5
 /// vegetation, 6 building, 9 water, ...), linear light; unknown codes are mid grey.

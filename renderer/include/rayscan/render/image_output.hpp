@@ -23,8 +23,10 @@ using ImageMetadata = std::vector<std::pair<std::string, std::string>>;
 ///    normal "N.X N.Y N.Z", position "P.X P.Y P.Z" (float; relative to fb.position_origin, which is
 ///    recorded as "rayscan:position_origin"), index "id" (uint32, 0xFFFFFFFF for a miss), albedo
 ///    "albedo.R albedo.G albedo.B", cost "cost" (float).
-/// Pixel values are scaled by 2^out.exposure first. Each file is written to a temporary sibling
-/// and renamed into place, so no half-written file is ever left. Returns the files written.
+/// Pixel values are scaled by 2^out.exposure first. Each file is written to a temporary sibling;
+/// the image and its AOV file form one OutputTransaction (rayscan/atomic_file.hpp): both are
+/// renamed into place only when both were written, so a failure leaves the old files intact.
+/// Paths that are not regular files (device, FIFO, directory, symlink) are refused. Returns the files written.
 /// Throws std::runtime_error naming the file when OpenImageIO cannot create or write it.
 std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const OutputDesc& out,
                                                const ImageMetadata& metadata);

@@ -8,6 +8,7 @@
 #include "rayscan/render/integrator.hpp"
 #include "rayscan/render/progress.hpp"
 #include "rayscan/render/scene.hpp"
+#include "rayscan/spacing.hpp"
 
 #include <cstdint>
 #include <vector>
@@ -24,7 +25,7 @@ struct Framebuffer {
   std::vector<glm::vec3> normal;        ///< unit normal of the first hit, (0,0,0) for a miss
   std::vector<glm::vec3> position;      ///< first hit minus position_origin (float), 0 for a miss
   Vec3 position_origin{0.0};            ///< double origin subtracted from `position` (camera centre)
-  std::vector<std::uint32_t> index;     ///< original point index hit, 0xFFFFFFFF (= -1) for a miss
+  std::vector<std::uint32_t> index;     ///< original point index hit, kNoPoint (0xFFFFFFFF, = -1) for a miss
   std::vector<Color> albedo;            ///< albedo at the first hit, 0 for a miss
   std::vector<float> cost;              ///< index nodes visited per sample (all rays of the path)
 };
@@ -64,10 +65,8 @@ struct RenderSettings {
 RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
                              std::span<const Color> albedo, double radius);
 
-/// Median distance from a point to its nearest other point, over an evenly spaced sample of at
-/// most `max_samples` points (deterministic). World units; 0 for fewer than 2 distinct points.
-double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions,
-                         std::size_t max_samples = 20000);
+/// The auto radius lives in the core (rayscan/spacing.hpp); this keeps render::median_nn_spacing.
+using rayscan::median_nn_spacing;
 
 /// Render into `fb` (resized to the camera). Pixels are traced in 16x16 tiles by tbb::parallel_for;
 /// sample j of pixel (x, y) uses Sampler(seed, x, y, j) only, so the image is bit-identical for

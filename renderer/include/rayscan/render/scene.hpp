@@ -2,9 +2,12 @@
 #pragma once
 
 #include "rayscan/any_index.hpp"
+#include "rayscan/aov.hpp"
 #include "rayscan/ray_query.hpp"
 #include "rayscan/render/camera.hpp"
 #include "rayscan/render/color.hpp"
+#include "rayscan/io/camera_file.hpp"
+#include "rayscan/io/json_object.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <filesystem>
@@ -17,9 +20,8 @@ namespace rayscan::render {
 
 /// A malformed scene or camera file. what() is one line: "<file>: <JSON pointer>: <what was
 /// expected>", e.g. "scenes/x.json: /camera/vfov_deg: expected a number in (0, 180)".
-struct SceneError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+/// The JSON file error of the io library (rayscan/io/json_object.hpp), shared with camera files.
+using SceneError = io::JsonFileError;
 
 /// How a ray hits the point spheres (paper section 5.3 and issue 4, 1.1).
 enum class HitMode {
@@ -58,8 +60,12 @@ struct SunDesc {
   Color color{1.0f, 0.95f, 0.85f};    ///< tint multiplying the irradiance (linear)
 };
 
-/// Arbitrary output variables written next to the beauty image (issue 4, 3.2).
-enum class Aov { depth, normal, position, index, albedo, cost };
+/// Arbitrary output variables (issue 4, 3.2): defined once in the core, rayscan/aov.hpp.
+using rayscan::Aov;
+using rayscan::all_aovs;
+using rayscan::aov_channels;
+using rayscan::parse_aov;
+using rayscan::to_string;
 
 /// Output file(s).
 struct OutputDesc {
@@ -105,7 +111,9 @@ Scene load_scene(const std::filesystem::path& file);
 PointCloud load_cloud(const Scene& scene, const io::ReadOptions& options = {});
 
 /// Parse a camera file (schema in scenes/README.md: look-at or K/[R|t]). Throws SceneError.
-Camera load_camera(const std::filesystem::path& file);
+/// Defined in the io library (rayscan/io/camera_file.hpp) so analysis reads cameras without the
+/// renderer.
+using io::load_camera;
 
 /// The image file extensions write_image() accepts (lower case, with the dot): .png .jpg .jpeg
 /// .tif .tiff .exr. The one list behind `output.image` in scene files and `rayscan render --out`.
@@ -118,7 +126,5 @@ bool is_image_file_name(const std::filesystem::path& file);
 /// "expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr".
 std::string image_file_name_expected();
 
-/// The name of an AOV as used in files and channel names ("depth", "normal", ...).
-const char* to_string(Aov aov);
 
 }  // namespace rayscan::render

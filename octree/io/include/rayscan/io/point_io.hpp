@@ -26,7 +26,8 @@ enum class Format { las, ply, pcd, text, f64 };
 /// What a reader keeps besides positions.
 struct ReadOptions {
   /// Keep attributes that have no dedicated PointCloud field as named ScalarFields (8 bytes per
-  /// point each): LAS return_number, number_of_returns, scan_angle (degrees), user_data,
+  /// point each): LAS return_number, number_of_returns, classification_flags, scanner_channel,
+  /// scan_direction_flag, edge_of_flight_line, scan_angle (degrees), user_data,
   /// point_source_id, nir and Extra Bytes fields; PLY/PCD properties such as "confidence".
   /// Turn off for very large clouds when only positions, colour, intensity, classification,
   /// GPS time and normals are needed.
@@ -66,8 +67,10 @@ struct LasWriteOptions {
 };
 
 /// Writes `cloud` as ASPRS LAS 1.4 R15: point data record format 6 (7 with rgb, 8 with rgb and a
-/// scalar called "nir"). Scalars named return_number, number_of_returns, scan_angle (degrees),
-/// user_data, point_source_id go to their standard fields; every other ScalarField becomes a
+/// scalar called "nir"). Scalars named return_number, number_of_returns, classification_flags,
+/// scanner_channel, scan_direction_flag, edge_of_flight_line, scan_angle (degrees), user_data,
+/// point_source_id go to their standard fields; colour read as 8-bit LAS values
+/// (PointCloud::rgb_from_8bit_las) is written back as those values; every other ScalarField becomes a
 /// float64 extra byte described in an Extra Bytes VLR (section 2.5.6); crs_wkt becomes an OGC WKT
 /// VLR (2112). Positions are quantised to the scale: a point read from LAS and written back with
 /// the same scale and offset is bit-exact. Written to "<dir>/.<name>.tmp.<pid>" (rayscan::AtomicFile) and renamed into place.
@@ -77,9 +80,12 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud,
                const LasWriteOptions& options = {});
 
 /// Writes `cloud` as PLY 1.0 binary_little_endian, one "vertex" element: double x y z, then
-/// float nx ny nz, uchar red green blue (16-bit colour rounded to 8 bit), ushort intensity,
-/// uchar classification, double gps_time, and one double property per ScalarField (name with
-/// characters other than [A-Za-z0-9_] replaced by '_'). Written via temp file + rename.
+/// float nx ny nz, uchar red green blue (16-bit colour rounded to 8 bit), float
+/// scalar_intensity, uchar scalar_classification, double scalar_gps_time, and one double
+/// property "scalar_<name>" per ScalarField (characters other than [A-Za-z0-9_] replaced by '_').
+/// The names and types are the ones CloudCompare (scalar_ prefix) and Open3D (uchar, float,
+/// double) both load (docs/formats.md, "PLY property names"); read_point_cloud strips the prefix
+/// again. Written via temp file + rename.
 /// Throws std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
 void write_ply(const std::filesystem::path& path, const PointCloud& cloud);
 

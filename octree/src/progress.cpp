@@ -1,10 +1,10 @@
-#include "rayscan/render/progress.hpp"
+#include "rayscan/progress.hpp"
 
 #include <cstdio>
 #include <utility>
 #include <unistd.h>
 
-namespace rayscan::render {
+namespace rayscan {
 
 Progress::Progress(std::uint64_t total_items, bool enabled, ProgressUnits units)
     : total_(total_items ? total_items : 1),
@@ -53,4 +53,4 @@ void Progress::finish() {
   }
 }
 
-}  // namespace rayscan::render
+}  // namespace rayscan

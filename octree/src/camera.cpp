@@ -1,4 +1,4 @@
-#include "rayscan/render/camera.hpp"
+#include "rayscan/camera.hpp"
 
 #include <glm/matrix.hpp>
 
@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <string>
 
-namespace rayscan::render {
+namespace rayscan {
 
 namespace {
 void check_size(std::uint32_t w, std::uint32_t h) {
@@ -114,4 +114,4 @@ Camera Camera::resized(std::uint32_t width, std::uint32_t height) const {
   return c;
 }
 
-}  // namespace rayscan::render
+}  // namespace rayscan

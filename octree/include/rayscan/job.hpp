@@ -1,0 +1,26 @@
+// What every library job (render, visibility, compare, query, ...) shares: how many threads it
+// may use, whether it draws a progress bar, and where its log lines go. Each job is one call
+// `Result run_<job>(const <Job>Options&)` in the library of its area; the CLI only parses, calls
+// and prints (docs/library.md).
+#pragma once
+
+#include <functional>
+#include <string>
+
+namespace rayscan {
+
+/// Run-time controls of a job that never change its result.
+struct JobControl {
+  unsigned threads = 0;   ///< worker threads; 0 = all cores (resolve_threads); results are identical
+  bool progress = false;  ///< draw a progress bar on stderr (only when stderr is a terminal)
+  /// Receives one human-readable line per stage ("read 1000 points from x.las in 0.01 s");
+  /// empty = silent.
+  std::function<void(const std::string&)> log;
+
+  /// Send `line` to `log` when set.
+  void info(const std::string& line) const {
+    if (log) log(line);
+  }
+};
+
+}  // namespace rayscan

@@ -1,0 +1,45 @@
+// The ray-query job (paper Algorithm 1 over a file or an in-memory cloud): what `rayscan query`
+// runs, as one library call.
+#pragma once
+
+#include "rayscan/any_index.hpp"
+#include "rayscan/io/point_io.hpp"
+#include "rayscan/job.hpp"
+#include "rayscan/ray_query.hpp"
+
+#include <filesystem>
+#include <ostream>
+#include <vector>
+
+namespace rayscan::io {
+
+/// Inputs of run_query().
+struct QueryJobOptions {
+  std::filesystem::path cloud_file;      ///< point cloud to read (any format read_point_cloud reads)
+  const PointCloud* cloud = nullptr;     ///< in-memory points instead of cloud_file (not copied)
+  std::filesystem::path rays_file;       ///< rays to read (read_rays) when `rays` is empty
+  std::vector<Ray> rays;                 ///< rays given in memory
+  RayQuery query;                        ///< k, radius, t interval, order (RayQuery::validate rules)
+  IndexOptions index;                    ///< index type and parameters
+  JobControl control;                    ///< threads, log
+};
+
+/// Output of run_query().
+struct QueryJobResult {
+  PointCloud cloud;                          ///< the cloud read from cloud_file (empty for in-memory input)
+  std::vector<Ray> rays;                     ///< the rays answered
+  std::vector<std::vector<RayHit>> hits;     ///< hits[r]: the results of ray r, best first
+};
+
+/// Reads the rays (first, so a malformed rays file is reported before a large cloud is read) and
+/// the cloud, builds the index and answers every ray (ray_query_batch: TBB, identical for any
+/// thread count). Throws std::invalid_argument for an invalid query or index option (e.g. depth
+/// with another index than octree-fixed), io::FormatError for a malformed input file.
+QueryJobResult run_query(const QueryJobOptions& options);
+
+/// Writes the hits as CSV "ray,rank,index,x,y,z,t,distance" (17 significant digits) to `out`;
+/// `positions` are the positions of the cloud queried (to print x, y, z).
+void write_hits_csv(std::ostream& out, std::span<const Vec3> positions,
+                    const std::vector<std::vector<RayHit>>& hits);
+
+}  // namespace rayscan::io

@@ -1,0 +1,216 @@
+// The info job (rayscan/io/info_job.hpp): what `pdal info` reports for a point cloud file.
+#include "rayscan/io/info_job.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace rayscan::io {
+
+namespace {
+
+template <class V, class F>
+AttributeRange range_of(const std::string& name, const V& v, F get) {
+  AttributeRange r{name, 0, 0};
+  if (v.empty()) return r;
+  r.lo = r.hi = static_cast<double>(get(v[0]));
+  for (const auto& e : v) {
+    const double x = static_cast<double>(get(e));
+    r.lo = std::min(r.lo, x);
+    r.hi = std::max(r.hi, x);
+  }
+  return r;
+}
+
+std::vector<AttributeRange> attribute_ranges(const PointCloud& pc) {
+  std::vector<AttributeRange> out;
+  if (pc.empty()) return out;
+  out.push_back(range_of("X", pc.positions, [](const Vec3& p) { return p.x; }));
+  out.push_back(range_of("Y", pc.positions, [](const Vec3& p) { return p.y; }));
+  out.push_back(range_of("Z", pc.positions, [](const Vec3& p) { return p.z; }));
+  if (!pc.intensity.empty()) out.push_back(range_of("intensity", pc.intensity, [](auto v) { return v; }));
+  if (!pc.classification.empty())
+    out.push_back(range_of("classification", pc.classification, [](auto v) { return v; }));
+  if (!pc.gps_time.empty()) out.push_back(range_of("gps_time", pc.gps_time, [](auto v) { return v; }));
+  if (!pc.rgb.empty()) {
+    out.push_back(range_of("red", pc.rgb, [](const Rgb16& c) { return c.r; }));
+    out.push_back(range_of("green", pc.rgb, [](const Rgb16& c) { return c.g; }));
+    out.push_back(range_of("blue", pc.rgb, [](const Rgb16& c) { return c.b; }));
+  }
+  if (!pc.normals.empty()) {
+    out.push_back(range_of("normal_x", pc.normals, [](const glm::vec3& n) { return n.x; }));
+    out.push_back(range_of("normal_y", pc.normals, [](const glm::vec3& n) { return n.y; }));
+    out.push_back(range_of("normal_z", pc.normals, [](const glm::vec3& n) { return n.z; }));
+  }
+  for (const ScalarField& f : pc.scalars) out.push_back(range_of(f.name, f.values, [](double v) { return v; }));
+  return out;
+}
+
+std::string num(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+/// A coordinate printed to the file's resolution: the decimals of the LAS scale, else 10
+/// significant digits.
+std::string coord(double v, const std::optional<Vec3>& scale, int axis) {
+  char buf[64];
+  if (scale && (*scale)[axis] > 0) {
+    const int dec = std::clamp(static_cast<int>(std::ceil(-std::log10((*scale)[axis]) - 1e-9)), 0, 12);
+    std::snprintf(buf, sizeof buf, "%.*f", dec, v);
+  } else {
+    std::snprintf(buf, sizeof buf, "%.10g", v);
+  }
+  return buf;
+}
+
+nlohmann::ordered_json vec_json(const Vec3& v) { return {v.x, v.y, v.z}; }
+
+bool same_box(const AABB& a, const AABB& b, const std::optional<Vec3>& scale) {
+  for (int k = 0; k < 3; ++k) {
+    const double tol = scale ? 0.5 * std::abs((*scale)[k]) : 1e-9 * std::max(1.0, std::abs(a.hi[k]));
+    if (std::abs(a.lo[k] - b.lo[k]) > tol || std::abs(a.hi[k] - b.hi[k]) > tol) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+InfoJobResult run_info(const InfoJobOptions& options) {
+  InfoJobResult r;
+  r.file = options.file.string();
+  const PointCloud pc = read_point_cloud(options.file, ReadOptions{}, &r.info);
+  r.count = pc.size();
+  r.bounds = pc.bounds();
+  r.attributes = attribute_ranges(pc);
+  r.header_differs = r.info.header_bounds && !pc.empty() && !same_box(*r.info.header_bounds, r.bounds, r.info.scale);
+  for (std::uint8_t c : pc.classification) ++r.classes[c];
+  r.crs_wkt = pc.crs_wkt;
+  return r;
+}
+
+std::string info_report_json(const InfoJobResult& r) {
+  nlohmann::ordered_json j;
+  j["filename"] = r.file;
+  j["format"] = r.info.format;
+  if (!r.info.version.empty()) j["version"] = r.info.version;
+  if (!r.info.encoding.empty()) j["encoding"] = r.info.encoding;
+  if (r.info.point_format >= 0) {
+    j["point_data_record_format"] = r.info.point_format;
+    j["point_record_length"] = r.info.record_length;
+    j["extra_bytes_per_point"] = r.info.extra_bytes_per_point;
+    j["global_encoding"] = r.info.global_encoding;
+    j["system_id"] = r.info.system_id;
+    j["software"] = r.info.software;
+    j["creation"] = {{"year", r.info.creation_year}, {"day_of_year", r.info.creation_day}};
+  }
+  j["count"] = r.count;
+  j["header_count"] = r.info.header_point_count;
+  j["dropped_nonfinite"] = r.info.dropped_nonfinite;
+  if (r.count != 0) j["bounds"] = {{"min", vec_json(r.bounds.lo)}, {"max", vec_json(r.bounds.hi)}};
+  if (r.info.header_bounds)
+    j["header_bounds"] = {{"min", vec_json(r.info.header_bounds->lo)},
+                          {"max", vec_json(r.info.header_bounds->hi)},
+                          {"differs", r.header_differs}};
+  if (r.info.scale) j["scale"] = vec_json(*r.info.scale);
+  if (r.info.offset) j["offset"] = vec_json(*r.info.offset);
+  if (r.info.width != 0) j["width"] = r.info.width, j["height"] = r.info.height;
+  if (r.info.viewpoint) j["viewpoint"] = *r.info.viewpoint;
+  nlohmann::ordered_json crs = nlohmann::ordered_json::object();
+  if (!r.info.crs_source.empty()) crs["source"] = r.info.crs_source;
+  if (r.info.epsg != 0) crs["epsg"] = r.info.epsg;
+  if (r.info.vertical_epsg != 0) crs["vertical_epsg"] = r.info.vertical_epsg;
+  crs["wkt"] = r.crs_wkt;
+  j["crs"] = crs;
+  nlohmann::ordered_json attrs = nlohmann::ordered_json::array();
+  for (const AttributeRange& a : r.attributes) attrs.push_back({{"name", a.name}, {"min", a.lo}, {"max", a.hi}});
+  j["attributes"] = attrs;
+  if (!r.classes.empty()) {
+    nlohmann::ordered_json cj = nlohmann::ordered_json::object();
+    for (auto [c, n] : r.classes) cj[std::to_string(c)] = n;
+    j["classification_counts"] = cj;
+  }
+  j["fields"] = r.info.fields;
+  nlohmann::ordered_json vl = nlohmann::ordered_json::array();
+  for (const io::VlrInfo& v : r.info.vlrs)
+    vl.push_back({{"user_id", v.user_id}, {"record_id", v.record_id}, {"description", v.description},
+                  {"length", v.length}, {"offset", v.offset}, {"extended", v.extended}});
+  if (r.info.format == "LAS") j["vlrs"] = vl;
+  j["comments"] = r.info.comments;
+  j["notes"] = r.info.notes;
+  return j.dump(2);
+}
+
+std::string info_report_text(const InfoJobResult& r) {
+  std::ostringstream o;
+  o << "file:              " << r.file << "\n";
+  o << "format:            " << r.info.format;
+  if (!r.info.version.empty()) o << " " << r.info.version;
+  if (!r.info.encoding.empty()) o << " (" << r.info.encoding << ")";
+  o << "\n";
+  if (r.info.point_format >= 0) {
+    o << "point format:      " << r.info.point_format << " (" << r.info.record_length << "-byte records, "
+      << r.info.extra_bytes_per_point << " extra bytes)\n";
+    o << "system / software: " << r.info.system_id << " / " << r.info.software << "\n";
+    o << "created:           day " << r.info.creation_day << " of " << r.info.creation_year << "\n";
+  }
+  o << "points:            " << r.count;
+  if (r.info.header_point_count != r.count) o << " (header: " << r.info.header_point_count << ")";
+  o << "\n";
+  if (r.info.dropped_nonfinite > 0) o << "dropped:           " << r.info.dropped_nonfinite << " non-finite points\n";
+  if (r.info.width != 0) o << "width x height:    " << r.info.width << " x " << r.info.height << "\n";
+  if (r.info.viewpoint) {
+    o << "viewpoint:         ";
+    for (double v : *r.info.viewpoint) o << num(v) << " ";
+    o << "(tx ty tz qw qx qy qz; reported, not applied)\n";
+  }
+  if (r.count != 0) {
+    o << "bounds min:        " << coord(r.bounds.lo.x, r.info.scale, 0) << " " << coord(r.bounds.lo.y, r.info.scale, 1) << " "
+      << coord(r.bounds.lo.z, r.info.scale, 2) << "\n";
+    o << "bounds max:        " << coord(r.bounds.hi.x, r.info.scale, 0) << " " << coord(r.bounds.hi.y, r.info.scale, 1) << " "
+      << coord(r.bounds.hi.z, r.info.scale, 2) << "\n";
+  }
+  if (r.header_differs) {
+    const AABB& h = *r.info.header_bounds;
+    o << "header bounds min: " << num(h.lo.x) << " " << num(h.lo.y) << " " << num(h.lo.z) << "  (differs)\n";
+    o << "header bounds max: " << num(h.hi.x) << " " << num(h.hi.y) << " " << num(h.hi.z) << "\n";
+  }
+  if (r.info.scale) o << "scale:             " << num(r.info.scale->x) << " " << num(r.info.scale->y) << " " << num(r.info.scale->z) << "\n";
+  if (r.info.offset) o << "offset:            " << num(r.info.offset->x) << " " << num(r.info.offset->y) << " " << num(r.info.offset->z) << "\n";
+  o << "CRS:               ";
+  if (r.info.crs_source.empty()) o << "none";
+  else {
+    o << (r.info.epsg ? "EPSG:" + std::to_string(r.info.epsg) : std::string("(no EPSG code)"));
+    if (r.info.vertical_epsg) o << " + EPSG:" << r.info.vertical_epsg << " (vertical)";
+    o << " from " << r.info.crs_source;
+  }
+  o << "\n";
+  if (!r.crs_wkt.empty()) o << "WKT:               " << r.crs_wkt.substr(0, 100) << (r.crs_wkt.size() > 100 ? "..." : "") << "\n";
+  if (!r.attributes.empty()) {
+    o << "attributes:\n";
+    for (const AttributeRange& a : r.attributes) {
+      char line[256];
+      std::snprintf(line, sizeof line, "  %-20s %18s %18s\n", a.name.c_str(), num(a.lo).c_str(), num(a.hi).c_str());
+      o << line;
+    }
+  }
+  if (!r.classes.empty()) {
+    o << "r.classes:          ";
+    for (auto [c, n] : r.classes) o << " " << c << ":" << n;
+    o << "\n";
+  }
+  if (!r.info.vlrs.empty()) {
+    o << "VLRs:\n";
+    for (const io::VlrInfo& v : r.info.vlrs)
+      o << "  " << (v.extended ? "EVLR " : "VLR  ") << v.user_id << " " << v.record_id << " \"" << v.description
+        << "\" " << v.length << " bytes\n";
+  }
+  for (const std::string& c : r.info.comments) o << "comment:           " << c << "\n";
+  for (const std::string& n : r.info.notes) o << "note:              " << n << "\n";
+  return o.str();
+}
+
+}  // namespace rayscan::io

@@ -1,0 +1,64 @@
+// The render job: a scene (file or built in code) and its cloud (file or in memory) to an image
+// with AOVs, as one library call (paper section 5.3). `rayscan render` and the Python module's
+// rayscan.render() are thin wrappers over run_render().
+#pragma once
+
+#include "rayscan/job.hpp"
+#include "rayscan/point_cloud.hpp"
+#include "rayscan/aov.hpp"
+#include "rayscan/render/image_output.hpp"
+#include "rayscan/render/render.hpp"
+#include "rayscan/render/scene.hpp"
+#include "rayscan/spacing.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <vector>
+
+namespace rayscan::render {
+
+/// Inputs of run_render(). Start from load_scene(file) or a Scene built in code (then set
+/// scene.camera, and scene.cloud or `cloud`).
+struct RenderJobOptions {
+  Scene scene;                         ///< the render description (scenes/README.md)
+  const PointCloud* cloud = nullptr;   ///< in-memory points instead of scene.cloud (not copied)
+  bool write = true;                   ///< write scene.output.image (+ AOVs) when it is set
+  JobControl control;                  ///< threads, progress bar, log lines
+};
+
+/// Output of run_render().
+struct RenderJobResult {
+  Framebuffer image;                   ///< beauty + requested AOVs (Framebuffer)
+  RenderStats stats;                   ///< rays, queries, seconds, threads
+  RadiusChoice radius;                 ///< the sphere radius used and how it was chosen
+  std::size_t points = 0;              ///< points in the cloud
+  double read_seconds = 0.0;           ///< reading the cloud (0 for an in-memory cloud)
+  double index_seconds = 0.0;          ///< building the index
+  ImageMetadata metadata;              ///< what was (or would be) stored in the image header
+  std::vector<std::filesystem::path> written;  ///< files written (beauty first)
+};
+
+/// Renders `options.scene`: reads the cloud (skipping unused scalar fields), computes the albedo,
+/// builds the index, chooses the radius (choose_radius with the scene's auto factor), traces the
+/// image (render_image) and, when `write` and scene.output.image are set, writes it (write_image).
+/// Throws SceneError "<scene file>: <JSON pointer>: <what was expected>" for a missing camera or
+/// cloud, an unreadable or empty cloud, a bad material range or index option, or an impossible
+/// auto radius; std::runtime_error naming the file when an image cannot be written.
+RenderJobResult run_render(const RenderJobOptions& options);
+
+/// Applies the usual command-line overrides to a loaded scene, checking each: a camera file
+/// (replaces the camera), samples per pixel, seed, output image (must pass is_image_file_name),
+/// extra AOVs by name (parse_aov; duplicates ignored) and an image size (one of width/height
+/// given: the other follows the camera's aspect ratio; the field of view is kept). Throws
+/// SceneError (camera file) or std::invalid_argument naming the option ("--aov 'x': expected ...").
+struct SceneOverrides {
+  std::filesystem::path camera_file;
+  std::optional<std::uint32_t> spp, width, height;
+  std::optional<std::uint64_t> seed;
+  std::filesystem::path out;
+  std::vector<std::string> aovs;
+};
+void apply_overrides(Scene& scene, const SceneOverrides& overrides);
+
+}  // namespace rayscan::render

@@ -1,0 +1,148 @@
+// The render job (rayscan/render/render_job.hpp): what `rayscan render` and rayscan.render() run.
+#include "rayscan/render/render_job.hpp"
+
+#include "rayscan/io/camera_file.hpp"
+#include "rayscan/render/material.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <utility>
+
+namespace rayscan::render {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::string num17(double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.17g", v);
+  return b;
+}
+
+}  // namespace
+
+void apply_overrides(Scene& scene, const SceneOverrides& o) {
+  if (!o.camera_file.empty()) {
+    scene.camera = io::load_camera(o.camera_file);
+    scene.camera_file = o.camera_file;
+  }
+  if (o.spp) {
+    if (*o.spp < 1 || *o.spp > (1u << 20)) throw std::invalid_argument("--spp: expected an integer in [1, 1048576]");
+    scene.spp = *o.spp;
+  }
+  if (o.seed) scene.seed = *o.seed;
+  if (!o.out.empty()) {
+    if (!is_image_file_name(o.out))
+      throw std::invalid_argument("--out '" + o.out.string() + "': " + image_file_name_expected());
+    scene.output.image = o.out;
+  }
+  for (const std::string& a : o.aovs) {
+    const std::optional<Aov> v = parse_aov(a);
+    if (!v) throw std::invalid_argument("--aov '" + a + "': " + aov_names_expected());
+    if (std::find(scene.output.aovs.begin(), scene.output.aovs.end(), *v) == scene.output.aovs.end())
+      scene.output.aovs.push_back(*v);
+  }
+  if (o.width || o.height) {
+    if (!scene.camera) throw std::invalid_argument("--width/--height: the scene has no camera");
+    // In double, then checked: a 1x65536 camera with --width 65536 asks for a height of 2^32,
+    // which must be an error, not a wrapped 32-bit integer (issue 8).
+    const Camera& c = *scene.camera;
+    const double w = o.width ? double(*o.width) : std::round(double(c.width()) * *o.height / c.height());
+    const double h = o.height ? double(*o.height) : std::round(double(c.height()) * *o.width / c.width());
+    for (const auto& [v, name] : {std::pair{w, "width"}, std::pair{h, "height"}})
+      if (!(v >= 1.0 && v <= 65536.0))
+        throw std::invalid_argument("the camera's aspect ratio " + std::to_string(c.width()) + ":" +
+                                    std::to_string(c.height()) + " gives an image " + name + " of " +
+                                    std::to_string(static_cast<long long>(std::min(v, 1e18))) +
+                                    " pixels, expected 1 to 65536; give both --width and --height");
+    scene.camera = c.resized(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h));
+  }
+}
+
+RenderJobResult run_render(const RenderJobOptions& o) {
+  const Scene& scene = o.scene;
+  const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
+  if (!scene.camera) throw SceneError(f + ": /camera: not set; give a camera in the scene or a camera file");
+  if (o.write && scene.output.image.empty())
+    throw SceneError(f + ": /output/image: not set; give it in the scene or with --out");
+  const JobControl& ctl = o.control;
+  RenderJobResult r;
+  char buf[512];
+
+  // Only positions, colour, intensity and classification are used: skip the other scalars.
+  auto t0 = std::chrono::steady_clock::now();
+  PointCloud owned;
+  if (!o.cloud) owned = load_cloud(scene, io::ReadOptions{.scalars = false});
+  else if (o.cloud->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
+  const PointCloud& cloud = o.cloud ? *o.cloud : owned;
+  r.points = cloud.size();
+  if (!o.cloud) {
+    r.read_seconds = seconds_since(t0);
+    std::snprintf(buf, sizeof buf, "read %zu points from %s in %.2f s", cloud.size(), scene.cloud.string().c_str(),
+                  r.read_seconds);
+    ctl.info(buf);
+  }
+  std::vector<Color> albedo;
+  try {
+    albedo = compute_albedo(cloud, scene.material, scene.up);
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(f + ": /material/color: " + e.what());
+  }
+  t0 = std::chrono::steady_clock::now();
+  AnyIndex index = [&] {
+    try {
+      return make_index(cloud.positions, scene.index);
+    } catch (const std::invalid_argument& e) {
+      throw SceneError(f + ": /index: " + e.what());
+    }
+  }();
+  r.index_seconds = seconds_since(t0);
+  std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), r.index_seconds);
+  ctl.info(buf);
+  try {
+    r.radius = choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor);
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(f + ": /radius: " + e.what());
+  }
+  if (r.radius.automatic) {
+    std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x factor %.3g = %.6g",
+                  r.radius.spacing, r.radius.factor, r.radius.radius);
+    ctl.info(buf);
+  }
+
+  const RenderSettings settings = make_settings(scene, cloud.positions, albedo, r.radius.radius);
+  const Camera& cam = settings.camera;
+  const std::uint64_t tiles = std::uint64_t((cam.width() + 15) / 16) * ((cam.height() + 15) / 16);
+  Progress progress(tiles, ctl.progress && Progress::stderr_is_terminal());
+  RenderOptions ropt;
+  ropt.threads = ctl.threads;
+  ropt.progress = &progress;
+  r.stats = render_image(index, settings, r.image, ropt);
+
+  r.metadata = {{"rayscan:scene", scene.file.string()},
+                {"rayscan:cloud", o.cloud ? std::string("(memory)") : scene.cloud.string()},
+                {"rayscan:spp", std::to_string(scene.spp)},
+                {"rayscan:seed", std::to_string(scene.seed)},
+                {"rayscan:radius", num17(r.radius.radius)}};
+  // No render time in the file (issue 8): two renders of the same scene and seed are identical
+  // byte for byte (`cmp`); the time is in RenderJobResult::stats and the log.
+  if (!scene.camera_file.empty()) r.metadata.emplace_back("rayscan:camera", scene.camera_file.string());
+  if (o.write && !scene.output.image.empty()) r.written = write_image(r.image, scene.output, r.metadata);
+
+  const RenderStats& st = r.stats;
+  std::snprintf(buf, sizeof buf,
+                "%.2f s, %u threads, %llux%llu px, %u spp, %llu primary rays, %llu ray queries, "
+                "%.3g queries/s (%.3g per thread)",
+                st.seconds, st.threads, (unsigned long long)cam.width(), (unsigned long long)cam.height(),
+                scene.spp, (unsigned long long)st.primary_rays, (unsigned long long)st.queries,
+                double(st.queries) / st.seconds, double(st.queries) / st.seconds / st.threads);
+  ctl.info(buf);
+  return r;
+}
+
+}  // namespace rayscan::render

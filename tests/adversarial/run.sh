@@ -1,0 +1,110 @@
+#!/usr/bin/env bash
+# The adversarial corpus (issue 8): hostile but realistic inputs and output paths for every
+# command. Each case must exit with code 2, print exactly one line on stderr that names the
+# offending file (or option) and the place (byte, line, field or option), never hang (each run
+# has a 60 s timeout and a 2 GiB address-space limit, so unbounded reads fail the case), and
+# leave every pre-existing output byte-identical.
+# Usage: tests/adversarial/run.sh RAYSCAN_EXE   (run by CTest as "adversarial_corpus")
+set -u
+RAYSCAN="$1"
+HERE="$(cd "$(dirname "$0")" && pwd)"
+DATA="$HERE/../data"
+W="$(mktemp -d)"
+trap 'rm -rf "$W"' EXIT
+fails=0
+cases=0
+
+# expect_error NAME WANT1 [WANT2] -- ARGS...: rayscan ARGS exits 2 with one stderr line holding
+# WANT1 (and WANT2), nothing half-written, outputs under $W/old* unchanged.
+expect_error() {
+  local name="$1"; shift
+  local wants=()
+  while [ "$1" != "--" ]; do wants+=("$1"); shift; done
+  shift
+  cases=$((cases + 1))
+  for f in "$W"/old*; do [ -f "$f" ] && printf 'OLD %s\n' "$f" > "$f"; done
+  local err code
+  err="$( ([ -n "${RAYSCAN_SANITIZED:-}" ] || ulimit -v 2097152; timeout 60 "$RAYSCAN" "$@") 2>&1 >/dev/null)"
+  code=$?
+  local ok=1 why=""
+  [ "$code" -eq 2 ] || { ok=0; why="exit code $code, expected 2"; }
+  local lines
+  lines=$(printf '%s' "$err" | awk 'END{print NR}')
+  [ "$lines" -eq 1 ] || { ok=0; why="$why; $lines stderr lines, expected 1"; }
+  for w in "${wants[@]}"; do
+    [[ "$err" == *"$w"* ]] || { ok=0; why="$why; message lacks '$w'"; }
+  done
+  [[ "$err" == "rayscan "* ]] || { ok=0; why="$why; message does not start with 'rayscan '"; }
+  for f in "$W"/old*; do
+    [ -f "$f" ] || continue
+    [ "$(cat "$f")" = "OLD $f" ] || { ok=0; why="$why; $f was changed"; }
+  done
+  [ -z "$(find "$W" -name '.*.tmp.*' 2>/dev/null)" ] || { ok=0; why="$why; a temporary file was left"; }
+  if [ "$ok" -eq 1 ]; then
+    echo "ok   $name"
+  else
+    echo "FAIL $name: $why"
+    echo "     stderr: $err"
+    fails=$((fails + 1))
+  fi
+}
+
+# ---- Fixtures: a tiny cloud, scene and camera; old outputs that must survive.
+printf '0 0 0\n1 0 0\n0 1 0\n1 1 0.5\n' > "$W/c.xyz"
+cat > "$W/cam.json" <<'J'
+{"width": 8, "height": 6, "position": [0.5, -10, 2], "look_at": [0.5, 0.5, 0]}
+J
+cat > "$W/s.json" <<'J'
+{"cloud": "c.xyz", "radius": 0.5, "spp": 1, "material": {"color": [0.5, 0.5, 0.5]},
+ "camera": "cam.json"}
+J
+cat > "$W/tall.json" <<'J'
+{"width": 1, "height": 65536, "position": [0.5, -10, 2], "look_at": [0.5, 0.5, 0]}
+J
+sed 's/"radius": 0.5/"radius": 1e400/' "$W/s.json" > "$W/s_huge_radius.json"
+touch "$W/old.png" "$W/old.las"
+mkfifo "$W/fifo.pcd" "$W/fifo.png" "$W/fifo.json"
+ln -s /dev/zero "$W/observers.csv"
+ln -s /dev/zero "$W/rays.csv"
+ln -s "$W/old.png" "$W/link.png"
+mkdir "$W/old.aovs.exr"
+printf 'ox,oy,oz,dx,dy,dz\n0,0,5,0,0,-1\n' > "$W/rays_ok.csv"
+NL="$W/new
+line.xyz"
+printf '0 0 0\n' > "$NL"
+
+# ---- Special files as inputs (never read, never block).
+expect_error camera-dev-zero "/dev/zero" "character device" -- render -q "$W/s.json" --camera /dev/zero --out "$W/old.png"
+expect_error scene-dev-zero "/dev/zero" "character device" -- render -q /dev/zero --out "$W/old.png"
+expect_error scene-fifo "fifo.json" "FIFO" -- render -q "$W/fifo.json" --out "$W/old.png"
+expect_error visibility-camera-dev-zero "/dev/zero" "character device" -- visibility -q "$W/c.xyz" --from-camera /dev/zero -o "$W/old.las"
+expect_error observers-symlink-dev-zero "observers.csv" "character device" -- visibility -q "$W/c.xyz" --observers "$W/observers.csv" -o "$W/old.las"
+expect_error rays-symlink-dev-zero "rays.csv" "character device" -- query --cloud "$W/c.xyz" --rays "$W/rays.csv" --out "$W/old.csv"
+expect_error info-fifo "fifo.pcd" "FIFO" -- info "$W/fifo.pcd"
+expect_error compare-dev-zero "/dev/zero" "character device" -- compare /dev/zero "$W/old.png"
+# ---- Huge counts and lying sizes.
+expect_error ply-2e40-items-no-properties "huge_count_no_properties.ply" "line" -- info "$HERE/huge_count_no_properties.ply"
+expect_error ply-2e63-items "huge_count.ply" "line" "9223372036854775807" -- info "$HERE/huge_count.ply"
+expect_error las-truncated "truncated.las" "byte" "header announces" -- info "$HERE/truncated.las"
+expect_error png-header-claims-10000x10000 "huge_header.png" "10000x10000" -- compare "$HERE/huge_header.png" "$HERE/huge_header.png"
+# ---- NaN / inf / out-of-range numbers, wrapping integers.
+expect_error pcd-1e400 "out_of_range.pcd" "line 13" "1e400" -- info "$HERE/out_of_range.pcd"
+expect_error scene-radius-1e400 "s_huge_radius.json" "byte" "1e400" -- render -q "$W/s_huge_radius.json" --out "$W/old.png"
+expect_error width-wraps-height "--width" "65536" -- render -q "$W/s.json" --camera "$W/tall.json" --width 65536 --out "$W/old.png"
+expect_error seed-negative "--seed" "-1" -- render -q "$W/s.json" --seed -1 --out "$W/old.png"
+expect_error fail-nan "--fail" "nan" -- compare "$W/old.png" "$W/old.png" --fail nan
+expect_error radius-dbl-max "--radius" "finite" -- query --cloud "$W/c.xyz" --rays "$W/rays_ok.csv" --radius -1
+expect_error spp-zero "--spp" -- render -q "$W/s.json" --spp 0 --out "$W/old.png"
+expect_error newline-in-path 'new\nline.xyz' -- render -q "$W/s.json" --camera "$NL" --out "$W/old.png"
+# ---- Outputs over special files; multi-file outputs all or nothing.
+expect_error out-fifo "fifo.png" "FIFO" -- render -q "$W/s.json" --out "$W/fifo.png"
+expect_error out-symlink "link.png" "symbolic link" -- render -q "$W/s.json" --out "$W/link.png"
+expect_error out-dev-null "/dev/null" "character device" -- render -q "$W/s.json" --out /dev/null
+expect_error aov-over-directory "old.aovs.exr" "directory" -- render -q "$W/s.json" --aov depth --out "$W/old.png"
+expect_error visibility-raster-in-proc "x.tif" -- visibility -q "$W/c.xyz" --observer 0.5,0.5,3 -o "$W/old.las" --raster /proc/x.tif --cell 1 --no-preview
+[ -p "$W/fifo.png" ] || { echo "FAIL the FIFO output path was replaced"; fails=$((fails + 1)); }
+[ -L "$W/link.png" ] || { echo "FAIL the symlink output path was replaced"; fails=$((fails + 1)); }
+[ -c /dev/null ] || { echo "FAIL /dev/null is no longer a character device"; fails=$((fails + 1)); }
+
+echo "adversarial corpus: $((cases - fails)) of $cases cases passed"
+[ "$fails" -eq 0 ]

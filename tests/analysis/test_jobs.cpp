@@ -1,0 +1,142 @@
+// The compare and visibility jobs as library calls (compare_job.hpp, visibility_job.hpp).
+// Oracles: hand-computed errors of constructed images, the lower-level compute_visibility and
+// compute_sky_view calls, and the geometry of an open plane.
+#include "rayscan/analysis/compare_job.hpp"
+#include "rayscan/analysis/visibility_job.hpp"
+
+#include "image_test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+
+using namespace rayscan;
+using namespace rayscan::analysis;
+using rayscan::analysis::test::px;
+
+namespace {
+
+std::string what_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+PointCloud plane_with_wall() {
+  // A 4 x 4 m ground grid (0.1 m) and a 2 m wall at x = 2 from y = 1 to y = 3.
+  PointCloud pc;
+  for (int i = 0; i <= 40; ++i)
+    for (int j = 0; j <= 40; ++j) pc.positions.emplace_back(0.1 * i, 0.1 * j, 0.0);
+  for (int j = 10; j <= 30; ++j)
+    for (int k = 1; k <= 20; ++k) pc.positions.emplace_back(2.0, 0.1 * j, 0.1 * k);
+  return pc;
+}
+
+}  // namespace
+
+TEST(CompareJob, InMemoryImagesMetricsVerdictAndMask) {
+  Image ref = make_image(16, 16, {"R", "G", "B", "A"}, 0.25f);
+  Image img = make_image(16, 16, {"R", "G", "B"}, 0.25f);
+  ref.alpha_channel = 3;
+  px(img, 3, 5, 1) = 0.75f;  // one sample off by 0.5
+  CompareJobOptions o;
+  o.reference = &ref;
+  o.image = &img;
+  CompareJobResult r = run_compare(o);
+  EXPECT_EQ(r.metrics.channels, (std::vector<std::string>{"R", "G", "B"}));
+  EXPECT_FLOAT_EQ(r.metrics.max_error, 0.5f);
+  EXPECT_EQ(r.metrics.max_x, 3);
+  EXPECT_EQ(r.metrics.max_y, 5);
+  EXPECT_NEAR(r.metrics.mae, 0.5 / (16 * 16 * 3), 1e-12);
+  EXPECT_EQ(r.metrics.over_fail, 1u);
+  EXPECT_EQ(r.judgement.verdict, Verdict::fail);  // idiff default: any pixel over 1e-6
+  EXPECT_NE(compare_report_text(r).find("FAILURE"), std::string::npos);
+
+  o.fail.threshold = 0.6;  // a given criterion replaces the default
+  o.warn.threshold = 0.1;
+  r = run_compare(o);
+  EXPECT_EQ(r.judgement.verdict, Verdict::warn);
+  EXPECT_NE(compare_report_json(r).find("\"verdict\": \"warn\""), std::string::npos);
+
+  o.fail = {};
+  o.warn = {};
+  px(ref, 3, 5, 3) = 0.0f;  // reference alpha 0 there: masked
+  o.mask = true;
+  r = run_compare(o);
+  EXPECT_EQ(r.judgement.verdict, Verdict::pass);
+  EXPECT_EQ(r.metrics.pixels_ignored, 1u);
+  EXPECT_EQ(r.mask_sources, "(memory):A == 0");
+
+  o.channels = {"depth"};
+  EXPECT_EQ(what_of([&] { (void)run_compare(o); }),
+            "(memory): no channel 'depth' (nor its renderer name 'Z') (channels: R,G,B,A)");
+  o.channels = {};
+  Image small = make_image(8, 8, {"R", "G", "B"}, 0.25f);
+  o.image = &small;
+  o.mask = false;
+  EXPECT_EQ(what_of([&] { (void)run_compare(o); }),
+            "image sizes differ: (memory) is 16x16, (memory) is 8x8 (use --resize to compare at the reference's size)");
+}
+
+TEST(VisibilityJob, InMemoryCloudEqualsTheLowerLevelCalls) {
+  const PointCloud pc = plane_with_wall();
+  VisibilityJobOptions o;
+  o.cloud = &pc;
+  o.radius = 0.08;
+  Observer eye;
+  eye.position = Vec3(0.5, 2.0, 1.7);
+  eye.has_z = true;
+  o.observers = {eye};
+  o.sky_rays = 16;
+  o.control.threads = 2;
+  const VisibilityJobResult r = run_visibility(o);
+
+  const AnyIndex index = make_index(pc.positions, IndexOptions{});
+  VisibilityOptions vo;
+  vo.radius = 0.08;
+  vo.tolerance = 0.16;     // default 2 x radius
+  vo.target_height = 0.08; // default 1 x radius
+  const VisibilityResult want = compute_visibility(index, pc.positions, r.observers, vo);
+  EXPECT_EQ(r.line_of_sight.count, want.count);
+  SkyViewOptions so;
+  so.rays = 16;
+  so.radius = 0.08;
+  so.lift = 0.16;
+  EXPECT_EQ(r.sky_view, compute_sky_view(index, pc.positions, so));
+  // Geometry: ground right behind the wall (x = 2.5, y = 2) is hidden from the eye at x = 0.5, and
+  // ground in front of it (x = 1, y = 2) is seen.
+  const std::size_t behind = 25 * 41 + 20, front = 10 * 41 + 20;
+  EXPECT_EQ(pc.positions[behind], Vec3(2.5, 2.0, 0.0));
+  EXPECT_EQ(r.line_of_sight.count[behind], 0u);
+  EXPECT_EQ(r.line_of_sight.count[front], 1u);
+  const ScalarField* f = r.cloud.scalar("visible_count");
+  ASSERT_NE(f, nullptr);
+  EXPECT_EQ(f->values[front], 1.0);
+  EXPECT_NE(r.cloud.scalar("sky_view"), nullptr);
+  EXPECT_NE(visibility_report_json(r).find("\"visible_points\""), std::string::npos);
+}
+
+TEST(VisibilityJob, OptionErrorsComeBeforeAnyWork) {
+  const PointCloud pc = plane_with_wall();
+  VisibilityJobOptions o;
+  o.cloud = &pc;
+  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }).rfind("nothing to compute", 0), 0u);
+  o.sky_rays = 4;
+  o.raster = "map.png";
+  o.cell = 1.0;
+  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }),
+            "--raster 'map.png': expected a file name ending in .tif (GeoTIFF)");
+  o.raster = "";
+  o.cell.reset();
+  o.out = "x.xyz";
+  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "--out 'x.xyz': expected a file name ending in .las or .ply");
+  o.out = "";
+  o.raster_value = "count";
+  o.raster = "m.tif";
+  o.cell = 1.0;
+  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "--raster-value count needs observers");
+}

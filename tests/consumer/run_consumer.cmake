@@ -1,0 +1,52 @@
+# ctest consumer_package / core_only_package: install a rayscan build into a fresh prefix, then
+# configure, build and run tests/consumer/ against it. Variables: BUILD_DIR (the build to install),
+# SOURCE_DIR (tests/consumer), WORK_DIR, ONLY_CORE, GENERATOR, CXX_COMPILER, COMPILER_LAUNCHER;
+# with CORE_SOURCE (the rayscan source tree) the script first configures and builds that tree with
+# -DRAYSCAN_ONLY_CORE=ON (no OpenImageIO, GDAL, nlohmann_json, CLI11) into WORK_DIR/rayscan and
+# installs that build instead.
+set(prefix ${WORK_DIR}/prefix)
+set(build ${WORK_DIR}/build)
+file(REMOVE_RECURSE ${prefix} ${build})
+file(MAKE_DIRECTORY ${WORK_DIR})
+
+function(run)
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "failed (${rc}): ${ARGN}\n${out}\n${err}")
+  endif()
+  message("${out}")
+endfunction()
+
+set(launcher)
+if(COMPILER_LAUNCHER)
+  set(launcher -DCMAKE_CXX_COMPILER_LAUNCHER=${COMPILER_LAUNCHER})
+endif()
+if(CORE_SOURCE)
+  set(BUILD_DIR ${WORK_DIR}/rayscan)
+  run(${CMAKE_COMMAND} -S ${CORE_SOURCE} -B ${BUILD_DIR} -G ${GENERATOR} -DCMAKE_BUILD_TYPE=Release
+      -DCMAKE_CXX_COMPILER=${CXX_COMPILER} ${launcher} -DRAYSCAN_ONLY_CORE=ON -DRAYSCAN_BUILD_TESTS=OFF
+      -DRAYSCAN_BUILD_BENCH=OFF)
+  run(${CMAKE_COMMAND} --build ${BUILD_DIR})
+  set(ONLY_CORE ON)
+endif()
+run(${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
+foreach(f lib/cmake/rayscan/rayscanConfig.cmake lib/cmake/rayscan/rayscanConfigVersion.cmake
+          include/rayscan/octree.hpp)
+  if(NOT EXISTS ${prefix}/${f})
+    message(FATAL_ERROR "install lacks ${f}")
+  endif()
+endforeach()
+run(${CMAKE_COMMAND} -S ${SOURCE_DIR} -B ${build} -G ${GENERATOR} -DCMAKE_BUILD_TYPE=Release
+    -DCMAKE_CXX_COMPILER=${CXX_COMPILER} ${launcher} -DCMAKE_PREFIX_PATH=${prefix}
+    -DCONSUMER_ONLY_CORE=${ONLY_CORE})
+run(${CMAKE_COMMAND} --build ${build})
+run(${build}/consumer_query)
+if(NOT ONLY_CORE)
+  run(${build}/consumer_jobs)
+else()
+  # A core-only package must not offer the targets that need OpenImageIO or GDAL.
+  file(READ ${prefix}/lib/cmake/rayscan/rayscanTargets.cmake targets)
+  if(targets MATCHES "rayscan::(io|render|analysis)")
+    message(FATAL_ERROR "core-only package exports more than rayscan::octree")
+  endif()
+endif()

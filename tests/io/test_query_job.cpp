@@ -1,0 +1,123 @@
+// The ray-query job and ray files as library calls (rayscan/io/query_job.hpp, rays.hpp); oracle:
+// the brute-force index and the bytes written by the test itself.
+#include "rayscan/brute_force.hpp"
+#include "rayscan/io/info_job.hpp"
+#include "rayscan/io/query_job.hpp"
+#include "rayscan/io/rays.hpp"
+
+#include "io_test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+using namespace rayscan;
+using namespace rayscan::io;
+using rayscan::test::temp_dir;
+
+namespace {
+
+std::string error_of(const std::filesystem::path& p) {
+  try {
+    (void)read_rays(p);
+  } catch (const FormatError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(RayFile, CsvAndF64GiveTheSameRays) {
+  const auto dir = temp_dir();
+  const double v[2][6] = {{1.5, -2.0, 3.25, 0.0, 0.0, 2.0}, {0.0, 0.0, 0.0, 1.0, 1.0, 0.0}};
+  {
+    std::ofstream csv(dir / "r.csv");
+    csv << "ox, oy, oz, dx, dy, dz\r\n\n1.5,-2,3.25,0,0,2\n +0 ,0,0,1,1,0\n";
+    std::ofstream f64(dir / "r.F64", std::ios::binary);
+    f64.write(reinterpret_cast<const char*>(v), sizeof v);
+  }
+  const auto a = read_rays(dir / "r.csv"), b = read_rays(dir / "r.F64");
+  ASSERT_EQ(a.size(), 2u);
+  ASSERT_EQ(b.size(), 2u);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ(a[i].origin(), Vec3(v[i][0], v[i][1], v[i][2]));
+    EXPECT_EQ(a[i].origin(), b[i].origin());
+    EXPECT_EQ(a[i].direction(), b[i].direction());
+  }
+  EXPECT_DOUBLE_EQ(a[1].direction().x, std::sqrt(0.5));  // unit length
+}
+
+TEST(RayFile, ErrorsNameFileAndPlace) {
+  const auto dir = temp_dir();
+  {
+    std::ofstream(dir / "h.csv") << "x,y,z\n";
+    std::ofstream(dir / "n.csv") << "ox,oy,oz,dx,dy,dz\n1,2,3,4,5,6\n1,2,3,4,5\n";
+    std::ofstream(dir / "z.csv") << "ox,oy,oz,dx,dy,dz\n1,2,3,0,0,0\n";
+    std::ofstream(dir / "s.f64", std::ios::binary) << std::string(50, '\0');
+  }
+  EXPECT_EQ(error_of(dir / "h.csv"), (dir / "h.csv").string() + ": line 1: expected header ox,oy,oz,dx,dy,dz, got 'x,y,z'");
+  EXPECT_EQ(error_of(dir / "n.csv"), (dir / "n.csv").string() + ": line 3: expected 6 values, got 5");
+  EXPECT_EQ(error_of(dir / "z.csv").rfind((dir / "z.csv").string() + ": line 2: ", 0), 0u);
+  EXPECT_EQ(error_of(dir / "s.f64"), (dir / "s.f64").string() + ": byte 48: size 50 is not a multiple of 48 (6 float64 per ray)");
+  EXPECT_NE(error_of(dir / "missing.csv").find("cannot open"), std::string::npos);
+}
+
+TEST(QueryJob, InMemoryCloudMatchesBruteForce) {
+  PointCloud cloud;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-5.0, 5.0);
+  for (int i = 0; i < 3000; ++i) cloud.positions.emplace_back(u(rng), u(rng), u(rng));
+  QueryJobOptions o;
+  o.cloud = &cloud;
+  for (int i = 0; i < 40; ++i) o.rays.emplace_back(Vec3(u(rng), u(rng), -10.0), Vec3(0.1 * u(rng), 0.1 * u(rng), 1.0));
+  o.query.k = 4;
+  o.query.radius = 0.4;
+  o.query.order = RayOrder::sphere_hit;
+  o.index.type = "octree-layered";
+  o.control.threads = 2;
+  const QueryJobResult r = run_query(o);
+  ASSERT_EQ(r.hits.size(), o.rays.size());
+  EXPECT_TRUE(r.cloud.empty());  // the in-memory cloud is not copied
+  const BruteForceIndex brute(cloud.positions);
+  std::size_t total = 0;
+  for (std::size_t i = 0; i < o.rays.size(); ++i) {
+    const auto want = ray_query(brute, o.rays[i], o.query);
+    ASSERT_EQ(r.hits[i].size(), want.size()) << "ray " << i;
+    for (std::size_t k = 0; k < want.size(); ++k) EXPECT_EQ(r.hits[i][k].index, want[k].index);
+    total += want.size();
+  }
+  EXPECT_GT(total, 20u);
+
+  std::ostringstream csv;
+  write_hits_csv(csv, cloud.positions, r.hits);
+  std::istringstream in(csv.str());
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "ray,rank,index,x,y,z,t,distance");
+  std::size_t rows = 0;
+  while (std::getline(in, line)) ++rows;
+  EXPECT_EQ(rows, total);
+
+  o.query.k = 0;
+  o.query.radius = -1.0;
+  EXPECT_THROW((void)run_query(o), std::invalid_argument);
+}
+
+TEST(InfoJob, CountsAndBoundsOfATestFile) {
+  InfoJobOptions o;
+  o.file = rayscan::test::data_file("las/autzen_trim.las");
+  const InfoJobResult r = run_info(o);
+  const PointCloud pc = read_point_cloud(rayscan::test::data_file("las/autzen_trim.las"));
+  EXPECT_EQ(r.info.format, "LAS");
+  EXPECT_EQ(r.count, pc.size());
+  EXPECT_EQ(r.bounds.lo, pc.bounds().lo);
+  ASSERT_FALSE(r.attributes.empty());
+  EXPECT_EQ(r.attributes[0].name, "X");
+  EXPECT_EQ(r.attributes[0].lo, pc.bounds().lo.x);
+  EXPECT_NE(info_report_text(r).find("points:            " + std::to_string(pc.size())), std::string::npos);
+  EXPECT_NE(info_report_json(r).find("\"count\": " + std::to_string(pc.size())), std::string::npos);
+}
