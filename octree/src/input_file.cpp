@@ -56,7 +56,7 @@ InputFile::InputFile(const std::filesystem::path& path) : path_(path) {
   fd_ = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
   if (fd_ < 0) {
     const int e = errno;
-    refuse(path, e == ENOENT ? std::string("no such file") : std::string("cannot open file: ") + std::strerror(e));
+    refuse(path, std::string("cannot open file: ") + std::strerror(e));
   }
   struct stat st {};
   if (::fstat(fd_, &st) != 0) {

@@ -44,6 +44,10 @@ void write_file(const std::filesystem::path& path, std::uint32_t w, std::uint32_
   if (!mixed) spec.channelformats.clear();
   spec.alpha_channel = -1;
   for (const auto& [k, v] : meta) spec.attribute(k, v);
+  // No wall-clock time in the file (issue 8, requirement 5): OpenImageIO stamps "DateTime" with
+  // the current time unless it is set, so it is set to a fixed value; `cmp` then confirms that
+  // two renders of one scene and seed are identical.
+  spec.attribute("DateTime", "");
   if (quality > 0) spec.attribute("Compression", "jpeg:" + std::to_string(quality));
   if (lower_extension(path) == ".exr") spec.attribute("compression", "zip");
 

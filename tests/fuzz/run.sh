@@ -15,7 +15,8 @@ mkdir -p "$OUT/obj" "$OUT/crashes"
 
 FLAGS=(-std=c++20 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined
        -fno-sanitize-recover=undefined -Ioctree/include -Ioctree/io/include -I/usr/include/liblzf)
-# The whole core and io: io sources (camera files, the query job) call into the core.
+# The whole core and io: io sources (camera files, the query job, the input policy) call into
+# the core.
 SOURCES=(octree/src/*.cpp octree/io/src/*.cpp)
 JOBS="${FUZZ_JOBS:-2}"
 objs=()

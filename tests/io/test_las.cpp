@@ -150,7 +150,7 @@ TEST(Las, RecordLengthFromTheHeaderAndExtraBytesExposed) {
   ASSERT_EQ(a.size(), b.size());
   EXPECT_TRUE(std::equal(a.positions.begin(), a.positions.end(), b.positions.begin()));
   // The Extra Bytes VLR describes the 27 bytes: they appear as named scalars.
-  const std::size_t standard = 5;  // return_number, number_of_returns, scan_angle, user_data, point_source_id
+  const std::size_t standard = 9;  // return_number, number_of_returns, scan_angle, user_data, point_source_id, 4 flag fields
   EXPECT_GT(a.scalars.size(), standard);
   const auto with_scalars_off = io::read_point_cloud(p, io::ReadOptions{false});
   EXPECT_TRUE(with_scalars_off.scalars.empty());

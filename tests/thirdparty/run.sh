@@ -27,7 +27,7 @@ b=open('$SRC','rb').read()
 mx,mn,my,ny_,mz,nz=struct.unpack('<6d',b[179:227])
 print(f'{(mx+mn)/2},{(my+ny_)/2},{mz+10}')")
 "$RAYSCAN" visibility -q "$SRC" --observer "$obs" --distance -o "$W/v.ply" || exit 1
-(cd "$W" && timeout 120 xvfb-run -a CloudCompare -SILENT -O v.ply -C_EXPORT_FMT ASC -ADD_HEADER -SAVE_CLOUDS > cc.log 2>&1)
+(cd "$W" && timeout 120 xvfb-run -a CloudCompare -SILENT -O -GLOBAL_SHIFT AUTO v.ply -C_EXPORT_FMT ASC -ADD_HEADER -SAVE_CLOUDS > cc.log 2>&1)
 asc=$(ls "$W"/v_*.asc 2>/dev/null | head -n 1)
 [ -n "$asc" ] || { echo "FAIL: CloudCompare wrote no ASC export"; cat "$W/cc.log"; exit 1; }
 "$PY" "$HERE/check_ply.py" "$W/v.ply" "$asc"

@@ -280,9 +280,12 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
   if (has_rgb) col.reserve(static_cast<std::size_t>(cap) * 3);
   for (std::size_t k = 0; k < np; ++k)
     if (roles[k] == Role::scalar) {
-      // CloudCompare's "scalar_" prefix (docs/formats.md) is not part of the field's name.
+      // CloudCompare's "scalar_" prefix (docs/formats.md) is not part of the field's name,
+      // unless the property is a second one for a dedicated field ("scalar_intensity" beside
+      // "intensity"), which keeps its full name.
       std::string name = vertex->props[k].name;
-      if (name.size() > 7 && lower(name.substr(0, 7)) == "scalar_") name = name.substr(7);
+      if (name.size() > 7 && lower(name.substr(0, 7)) == "scalar_" && role_of(vertex->props[k]) == Role::scalar)
+        name = name.substr(7);
       pc.scalars.push_back({name, {}});
       pc.scalars.back().values.reserve(static_cast<std::size_t>(cap));
     }
