@@ -42,6 +42,17 @@ for prog in "$dir"/bench_*; do
   case "$name" in bench_table1 | bench_rays) continue ;; esac
   [ -f "$prog" ] && [ -x "$prog" ] && run "$name"
 done
+# The Python module (issue 14): Python batch vs C++ batch, NumPy brute force, Open3D kNN.
+if [ -f "$1/python/rayscan/__init__.py" ] && [ -x "$dir/python_batch_peer" ]; then
+  echo
+  echo "## bench_python.py"
+  if [ $quick -eq 1 ]; then
+    /usr/bin/python3 "$(dirname "$0")/bench_python.py" "$1" --quick
+  else
+    /usr/bin/python3 "$(dirname "$0")/bench_python.py" "$1"
+  fi
+  ran=$((ran + 1))
+fi
 echo
 echo "# load average after: $(cut -d' ' -f1-3 /proc/loadavg)"
 if [ $ran -eq 0 ]; then

@@ -11,7 +11,8 @@ PKGS=(
   liblzf-dev libgdal-dev gdal-bin
   clang libclang-rt-14-dev
   fonts-dejavu-core
-  cloudcompare xvfb xauth python3-open3d python3-numpy
+  cloudcompare xvfb xauth
+  python3-dev pybind11-dev python3-numpy python3-pytest python3-matplotlib python3-open3d
 )
 missing=()
 for p in "${PKGS[@]}"; do

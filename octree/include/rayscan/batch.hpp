@@ -1,6 +1,8 @@
-// Batch ray queries: many rays answered in parallel with TBB; each result equals the single-ray call.
+// Batch queries: many rays (or query points, boxes) answered in parallel with TBB; each result
+// equals the single call.
 #pragma once
 
+#include "rayscan/point_query.hpp"
 #include "rayscan/ray_query.hpp"
 
 #include <tbb/parallel_for.h>
@@ -23,6 +25,44 @@ template <SpatialIndex I>
                     [&](const tbb::blocked_range<std::size_t>& r) {
                       for (std::size_t i = r.begin(); i != r.end(); ++i)
                         ray_query(index, rays[i], q, result[i]);
+                    });
+  return result;
+}
+
+/// kNN / radius query for every point of `queries` in parallel: result[i] = knn_query(index,
+/// queries[i], k, radius) (k = kAllPoints: no limit; radius = kInf: none). Identical to the single
+/// calls for any thread count. Throws std::invalid_argument (before any work) for a NaN or
+/// negative radius or a non-finite query point (naming its position in `queries`).
+template <SpatialIndex I>
+[[nodiscard]] std::vector<std::vector<Neighbor>> knn_query_batch(const I& index,
+                                                                 std::span<const Vec3> queries,
+                                                                 std::size_t k, double radius) {
+  if (std::isnan(radius) || radius < 0.0)
+    throw std::invalid_argument("knn query: radius must be >= 0");
+  for (std::size_t i = 0; i < queries.size(); ++i) {
+    const Vec3& q = queries[i];
+    if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z))
+      throw std::invalid_argument("knn query: query point " + std::to_string(i) + " is not finite");
+  }
+  std::vector<std::vector<Neighbor>> result(queries.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, queries.size(), 64),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t i = r.begin(); i != r.end(); ++i)
+                        knn_query(index, queries[i], k, radius, result[i]);
+                    });
+  return result;
+}
+
+/// Box range query for every box in parallel: result[i] = box_query(index, boxes[i]) (original
+/// indices in the index's storage order). Identical to the single calls for any thread count.
+template <SpatialIndex I>
+[[nodiscard]] std::vector<std::vector<PointIndex>> box_query_batch(const I& index,
+                                                                   std::span<const AABB> boxes) {
+  std::vector<std::vector<PointIndex>> result(boxes.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, boxes.size(), 16),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t i = r.begin(); i != r.end(); ++i)
+                        box_query(index, boxes[i], result[i]);
                     });
   return result;
 }

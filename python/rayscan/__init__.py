@@ -1,0 +1,216 @@
+"""rayscan on NumPy: ray queries on raw point clouds (Teuscher et al., "Ray Queries On Raw Point
+Clouds", Algorithm 1), point queries and the point cloud readers of the rayscan C++ library.
+
+    >>> import numpy as np, rayscan
+    >>> pc = rayscan.read("tests/data/las/autzen_10k.las")       # doctest: +SKIP
+    >>> tree = rayscan.Octree(pc.xyz, layout="adaptive", capacity=32)
+    >>> hits = tree.ray_query(origin, directions, k=1, radius=0.5, order="sphere_hit")
+    >>> hits.first("t")                                          # depth of each ray, NaN = miss
+
+Conventions (the C++ library's, see README.md "The library"):
+  * Arrays of points, origins and directions are (N, 3) array-likes of real numbers; float64
+    C-contiguous arrays are used without a copy, anything else is converted once. A (3,) array
+    is one row and broadcasts against the other argument.
+  * Coordinates are double precision in the cloud's own world frame (its CRS's units); `t` and
+    distances are in the same units (ray directions are normalised).
+  * Batch queries run on all cores (TBB) with the GIL released; every result equals the
+    single-query C++ call bit for bit (and the brute force).
+  * Bad arguments raise ValueError, unreadable or malformed files raise OSError, with the C++
+    library's one-line messages (file, byte offset or row, what was expected).
+"""
+
+from . import _rayscan
+from ._results import NeighborResult, RayQueryResult, BoxResult
+
+__all__ = ["read", "PointCloud", "Octree", "KdTree", "BruteForce", "RayQueryResult",
+           "NeighborResult", "BoxResult"]
+
+PointCloud = _rayscan.PointCloud
+_INF = float("inf")
+
+
+def read(path, attributes=None):
+    """Read a point cloud file: LAS 1.0-1.4 (PDRF 0-10), PLY, PCD, XYZ/CSV/TXT or .f64
+    (docs/formats.md); the format comes from the extension.
+
+    attributes: None (everything the file has) or a list of names to keep, from "xyz", "rgb",
+    "intensity", "classification", "gps_time", "normals" and the file's scalar fields (see
+    PointCloud.attributes). Asking for an attribute the file lacks raises ValueError. Leaving
+    the scalar fields out saves 8 bytes per point and field.
+
+    Returns a PointCloud whose arrays (.xyz (N, 3) float64, .rgb (N, 3) uint16, .intensity,
+    .classification, .gps_time, .normals, .scalars, .crs) are views of the reader's memory.
+    Raises OSError for a missing, unreadable or malformed file (the reader's one-line message).
+    """
+    return _rayscan._read(str(path), attributes)
+
+
+def _xyz(points):
+    return points.xyz if isinstance(points, PointCloud) else points
+
+
+class _QueriesMixin:
+    """The query methods shared by every index class."""
+
+    def ray_query(self, origins, directions, k=None, radius=_INF, t_min=-_INF, t_max=_INF,
+                  order="ray", any_hit=False, threads=0):
+        """Ray query (paper Algorithm 1) for M rays o + t d.
+
+        origins, directions: (M, 3) (or (3,), broadcast); directions need not be unit length.
+        k: keep the k best results per ray (None: all). radius: keep points whose orthogonal
+        distance to the ray line is <= radius (world units). t_min, t_max: keep results with t in
+        [t_min, t_max]. order: 'ray' (distance to the ray line, eq. 1), 'time' (t along the ray,
+        eq. 2) or 'sphere_hit' (entry into the sphere of `radius` around the point: the first
+        surface hit; needs a finite radius). any_hit: stop at the first candidate (occlusion).
+        threads: worker threads (0 = all cores); the result does not depend on it.
+
+        Returns a RayQueryResult (CSR): ray i's hits are indices[offsets[i]:offsets[i+1]],
+        ranked best first, with t (projection parameter, or sphere entry for 'sphere_hit') and
+        distance (orthogonal distance to the ray line, not squared).
+        Raises ValueError for bad shapes/dtypes, non-finite rays (naming the ray), t_min > t_max,
+        a negative radius or 'sphere_hit' without a radius. Same as `rayscan query`.
+        """
+        return RayQueryResult(**self._ray_query(origins, directions, k, radius, t_min, t_max,
+                                                order, any_hit, threads))
+
+    def knn(self, points, k, radius=_INF, threads=0):
+        """The k nearest points (within `radius` when given) of each of the Q query points
+        ((Q, 3) or (3,)). Returns a NeighborResult (CSR: offsets (Q+1,), indices, distance),
+        each query's neighbours sorted by (distance, index). threads: as in ray_query."""
+        if k is None:
+            raise ValueError("knn: k must be an integer >= 0 (use radius() for all points within r)")
+        return NeighborResult(**self._knn(points, k, radius, threads))
+
+    def radius(self, points, r, threads=0):
+        """Every point within distance r (inclusive) of each query point; NeighborResult sorted by
+        (distance, index) per query."""
+        return NeighborResult(**self._knn(points, None, r, threads))
+
+    def box(self, lo, hi, threads=0):
+        """Points p with lo <= p <= hi (closed box) for each of the B boxes (lo, hi: (B, 3) or
+        (3,)). Returns a BoxResult (CSR: offsets (B+1,), indices in the index's storage order;
+        sort a slice for ascending indices). An empty box (lo > hi on an axis) matches nothing."""
+        return BoxResult(**self._box(lo, hi, threads))
+
+
+class Octree(_QueriesMixin, _rayscan._Octree):
+    """Octree after Warren & Salmon (paper section 4.1) over the (N, 3) points `xyz` (or a
+    PointCloud). layout: 'adaptive' (split a leaf above `capacity` points, up to max_depth),
+    'layered' (every node keeps up to `capacity` points: a level-of-detail subsample) or 'fixed'
+    (all points in leaves at `depth`). insertion=True builds by point insertion as the paper
+    measures (same tree as the default Morton bulk load). Raises ValueError for a non-finite
+    point (naming it), a bad layout or capacity < 1."""
+
+    def __init__(self, xyz, layout="adaptive", capacity=32, depth=6, max_depth=21, insertion=False):
+        super().__init__(_xyz(xyz), layout, capacity, depth, max_depth, insertion)
+
+    def __repr__(self):
+        return (f"<rayscan.Octree {len(self)} points, layout={self.layout}, "
+                f"capacity={self.capacity}, {self.node_count} nodes, depth {self.depth}>")
+
+
+class KdTree(_QueriesMixin, _rayscan._KdTree):
+    """kd-tree (median split on the widest axis) over the (N, 3) points `xyz`, at most
+    `capacity` points per leaf. Same queries and results as Octree."""
+
+    def __init__(self, xyz, capacity=32):
+        super().__init__(_xyz(xyz), capacity)
+
+    def __repr__(self):
+        return f"<rayscan.KdTree {len(self)} points, capacity={self.capacity}, {self.node_count} nodes>"
+
+
+class BruteForce(_QueriesMixin, _rayscan._BruteForce):
+    """Exhaustive scan (the C++ test oracle): same queries and results as the trees."""
+
+    def __init__(self, xyz):
+        super().__init__(_xyz(xyz))
+
+    def __repr__(self):
+        return f"<rayscan.BruteForce {len(self)} points>"
+
+
+# ---- Jobs: render, visibility, compare (the library's job calls, docs/library.md) ------------
+
+def _scene_file(scene, tmpdir):
+    """A scene file path for `scene`: a path as is, or a dict written as JSON into tmpdir with its
+    relative file names (cloud, camera, output.image) made absolute against the working directory,
+    so that a dict means what the same JSON file in the working directory would mean."""
+    import json
+    import os
+    if not isinstance(scene, dict):
+        return os.fspath(scene)
+    scene = dict(scene)
+    for key in ("cloud", "camera"):
+        if isinstance(scene.get(key), (str, os.PathLike)):
+            scene[key] = os.path.abspath(scene[key])
+    if isinstance(scene.get("output"), dict) and isinstance(scene["output"].get("image"), str):
+        scene["output"] = dict(scene["output"], image=os.path.abspath(scene["output"]["image"]))
+    path = os.path.join(tmpdir, "scene.json")
+    with open(path, "w") as f:
+        json.dump(scene, f)
+    return path
+
+
+def render(scene, cloud=None, width=None, height=None, spp=None, seed=None, aovs=(), camera=None,
+           threads=0):
+    """Path-trace a scene (paper section 5.3; schema in scenes/README.md) like `rayscan render`,
+    without writing files: render::run_render.
+
+    scene: a scene file path, or the same JSON as a dict (relative paths: from the working
+    directory). cloud: a PointCloud to render instead of the scene's "cloud" file. width/height
+    (the other follows the camera's aspect), spp, seed, camera (a camera file) override the scene.
+    aovs: names from "depth", "normal", "position", "index", "albedo", "cost".
+
+    Returns a dict of arrays, row 0 at the top: "beauty" (H, W, 3) float32 linear radiance, and
+    per requested AOV "depth" (H, W) float32 (t of the first hit, inf = miss), "normal" and
+    "albedo" (H, W, 3) float32, "position" (H, W, 3) float32 relative to "position_origin" (3,)
+    float64, "index" (H, W) int64 (-1 = miss), "cost" (H, W) float32 (nodes visited per sample);
+    plus "radius" (the sphere radius used), "points" and "stats" (dict).
+    Raises ValueError for a bad scene or option (file and JSON pointer named), OSError for an
+    unreadable cloud.
+    """
+    import tempfile
+    with tempfile.TemporaryDirectory(prefix="rayscan-scene.") as tmp:
+        return _rayscan._render(_scene_file(scene, tmp), cloud, width, height, spp, seed, list(aovs),
+                                "" if camera is None else str(camera), threads)
+
+
+def visibility(cloud, observers=None, radius=None, height=None, max_distance=None, tolerance=None,
+               target_height=None, sky_rays=0, camera=None, distance=False, threads=0):
+    """Per-point visibility like `rayscan visibility` (analysis::run_visibility; rule in
+    analysis/README.md), without writing files.
+
+    cloud: a file path or a PointCloud. observers: a .json/.csv observer file, an (K, 3) array of
+    eye positions, or (K, 2) positions whose eyes stand `height` above the local ground.
+    radius: sphere radius (None = auto from the point spacing). sky_rays > 0 adds the sky view
+    factor; camera (a camera file) adds the pixels whose first hit is each point.
+
+    Returns a dict: "visible_count" (N,) (observers that see each point), "visible_distance" (N,)
+    (with distance=True; -1 = unseen), "sky_view" (N,), "camera_hits" (N,) when asked, as float64;
+    "radius", "tolerance", "target_height" used, "observers" (K, 3) placed eyes and "per_observer"
+    (K,) uint64 points each observer sees.
+    """
+    return _rayscan._visibility(cloud, observers, radius, height, max_distance, tolerance,
+                                target_height, sky_rays, "" if camera is None else str(camera),
+                                distance, threads)
+
+
+def compare(reference, image, channels=(), mask=False, alpha=False, resize=False, fail=None,
+            fail_percent=None, fail_psnr=None, fail_ssim=None, warn=None):
+    """Compare `image` against `reference` like `rayscan compare` (analysis::run_compare;
+    definitions in analysis/README.md). Each is an image file (anything OpenImageIO reads) or an
+    (H, W) / (H, W, C) array (channels Y / R,G,B / R,G,B,A; values as given, e.g. linear floats).
+
+    Returns a dict of metrics: "mae", "rmse", "psnr" (dB, as idiff), "max_error", "max_pixel"
+    (x, y, c), "ssim", "percent_over_fail", "pixels_compared", "per_channel" {name: {...}},
+    "verdict" ("pass", "warn", "fail") and "reasons".
+    """
+    return _rayscan._compare(reference, image, list(channels), mask, alpha, resize, fail,
+                             fail_percent, fail_psnr, fail_ssim, warn)
+
+
+if not hasattr(_rayscan, "_render"):  # built without the library's job API
+    del render, visibility, compare
+else:
+    __all__ += ["render", "visibility", "compare"]

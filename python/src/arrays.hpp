@@ -1,0 +1,65 @@
+// NumPy <-> C++ conversions shared by every binding: validated (N, 3) float64 row views of Python
+// arrays, vectors moved into NumPy arrays without a copy, and the CSR (offsets + flat arrays)
+// layout of batch query results.
+#pragma once
+
+#include "rayscan/geometry.hpp"
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace rayscan::python {
+
+namespace py = pybind11;
+
+static_assert(sizeof(Vec3) == 3 * sizeof(double), "glm::dvec3 must be three packed doubles");
+
+/// Rows of an (N, 3) array as Vec3, borrowed from a float64 C-contiguous NumPy array.
+/// `keep` owns the memory (the caller's array itself when it already was float64 C-contiguous:
+/// zero-copy; otherwise a converted copy).
+struct Vec3Rows {
+  py::array keep;
+  std::span<const Vec3> rows;
+};
+
+/// View `obj` (anything numpy.asarray accepts) as (N, 3) float64 rows. Integer and floating
+/// dtypes are accepted (converted to float64 when needed), any other dtype, another shape or a
+/// ragged sequence raises ValueError "<name>: expected ...". With `allow_single`, a shape (3,)
+/// array is accepted as one row. Values are not checked for finiteness here (the callee names
+/// the bad row).
+Vec3Rows as_vec3_rows(py::handle obj, const std::string& name, bool allow_single = false);
+
+/// Move `v` into a new NumPy array of the given shape (no copy: the array owns the vector).
+template <class T>
+py::array_t<T> to_numpy(std::vector<T>&& v, std::vector<py::ssize_t> shape) {
+  auto* owned = new std::vector<T>(std::move(v));
+  py::capsule owner(owned, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+  return py::array_t<T>(shape, owned->data(), owner);
+}
+
+/// Move `v` into a new one-dimensional NumPy array.
+template <class T>
+py::array_t<T> to_numpy(std::vector<T>&& v) {
+  const auto n = static_cast<py::ssize_t>(v.size());
+  return to_numpy(std::move(v), {n});
+}
+
+/// A NumPy view (no copy) of `n` rows of `cols` values of type T at `data`, kept alive by `base`.
+/// cols == 0 gives a one-dimensional array.
+template <class T>
+py::array view_rows(const T* data, std::size_t n, std::size_t cols, py::handle base) {
+  std::vector<py::ssize_t> shape{static_cast<py::ssize_t>(n)};
+  if (cols) shape.push_back(static_cast<py::ssize_t>(cols));
+  return py::array_t<T>(shape, data, base);
+}
+
+/// Check that a Python int `k` (None = no limit) is a valid result count; returns kAllPoints for
+/// None. Raises ValueError "k must be None or an integer >= 0".
+std::size_t parse_k(const py::object& k);
+
+}  // namespace rayscan::python

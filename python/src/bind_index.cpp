@@ -1,0 +1,275 @@
+// rayscan.Octree / KdTree / BruteForce and their batch queries (ray, kNN, radius, box) on NumPy
+// arrays. Every batch call converts its arguments while holding the GIL, then releases it and runs
+// the core's TBB batch API (rayscan/batch.hpp); results are flattened into CSR arrays.
+#include "arrays.hpp"
+#include "bindings.hpp"
+
+#include "rayscan/any_index.hpp"
+#include "rayscan/batch.hpp"
+
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <cmath>
+#include <optional>
+
+namespace rayscan::python {
+
+namespace {
+
+/// The index object behind every Python index class.
+struct PyIndex {
+  AnyIndex index;
+  IndexOptions options;
+  std::size_t size = 0;
+};
+
+RayOrder parse_order(const std::string& s) {
+  if (s == "ray") return RayOrder::ray;
+  if (s == "time") return RayOrder::time;
+  if (s == "sphere_hit") return RayOrder::sphere_hit;
+  throw py::value_error("order '" + s + "': expected 'ray', 'time' or 'sphere_hit'");
+}
+
+std::uint32_t parse_count(long long v, const char* name) {
+  if (v < 1 || v > 0xFFFFFFFFll)
+    throw py::value_error(std::string(name) + " must be an integer in [1, 2^32 - 1], got " +
+                          std::to_string(v));
+  return static_cast<std::uint32_t>(v);
+}
+
+unsigned parse_depth(long long v, const char* name) {
+  if (v < 0 || v > 21)
+    throw py::value_error(std::string(name) + " must be in [0, 21], got " + std::to_string(v));
+  return static_cast<unsigned>(v);
+}
+
+PyIndex build(py::handle xyz, const IndexOptions& opts) {
+  const Vec3Rows pts = as_vec3_rows(xyz, "xyz");
+  PyIndex out{BruteForceIndex(std::span<const Vec3>{}), opts, pts.rows.size()};
+  {
+    py::gil_scoped_release nogil;
+    out.index = make_index(pts.rows, opts);
+  }
+  return out;
+}
+
+/// Run f() on `threads` worker threads (0 = all cores) in its own TBB arena; the results do not
+/// depend on the thread count (each query is answered alone).
+template <class F>
+auto with_threads(long long threads, F&& f) {
+  if (threads == 0) return f();
+  tbb::task_arena arena(static_cast<int>(threads));
+  return arena.execute(std::forward<F>(f));
+}
+
+long long parse_threads(long long threads) {
+  if (threads < 0 || threads > 4096)
+    throw py::value_error("threads must be 0 (all cores) or a positive count, got " + std::to_string(threads));
+  return threads;
+}
+
+/// Row i of a broadcast pair: a one-row array repeats.
+inline const Vec3& row(std::span<const Vec3> a, std::size_t i) { return a.size() == 1 ? a[0] : a[i]; }
+
+/// Number of queries of two broadcast (M, 3) / (3,) arguments; ValueError when they disagree.
+std::size_t broadcast_count(const Vec3Rows& a, const char* an, const Vec3Rows& b, const char* bn) {
+  const std::size_t m = std::max(a.rows.size(), b.rows.size());
+  if ((a.rows.size() != m && a.rows.size() != 1) || (b.rows.size() != m && b.rows.size() != 1))
+    throw py::value_error(std::string(an) + " has " + std::to_string(a.rows.size()) + " rows but " +
+                          bn + " has " + std::to_string(b.rows.size()) +
+                          " (expected equal counts, or one row to broadcast)");
+  if (a.rows.empty() || b.rows.empty()) return 0;
+  return m;
+}
+
+/// Prefix sums of the per-query result counts: offsets (M + 1,).
+template <class T>
+std::vector<std::int64_t> csr_offsets(const std::vector<std::vector<T>>& r) {
+  std::vector<std::int64_t> off(r.size() + 1, 0);
+  for (std::size_t i = 0; i < r.size(); ++i)
+    off[i + 1] = off[i] + static_cast<std::int64_t>(r[i].size());
+  return off;
+}
+
+/// Fill the flat arrays from per-query vectors in parallel: f(hit, flat position).
+template <class T, class F>
+void csr_fill(const std::vector<std::vector<T>>& r, const std::vector<std::int64_t>& off, F&& f) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, r.size(), 256),
+                    [&](const tbb::blocked_range<std::size_t>& b) {
+                      for (std::size_t i = b.begin(); i != b.end(); ++i) {
+                        auto pos = static_cast<std::size_t>(off[i]);
+                        for (const T& h : r[i]) f(h, pos++);
+                      }
+                    });
+}
+
+py::dict ray_query(const PyIndex& self, py::handle origins, py::handle directions,
+                   const py::object& k, double radius, double t_min, double t_max,
+                   const std::string& order, bool any_hit, long long threads) {
+  parse_threads(threads);
+  RayQuery q;
+  q.k = parse_k(k);
+  q.radius = radius;
+  q.t_min = t_min;
+  q.t_max = t_max;
+  q.order = parse_order(order);
+  q.any_hit = any_hit;
+  q.validate();
+  const Vec3Rows o = as_vec3_rows(origins, "origins", true);
+  const Vec3Rows d = as_vec3_rows(directions, "directions", true);
+  const std::size_t m = broadcast_count(o, "origins", d, "directions");
+  std::vector<std::int64_t> off;
+  std::vector<std::int64_t> idx;
+  std::vector<double> t, dist;
+  {
+    py::gil_scoped_release nogil;
+    std::vector<Ray> rays;
+    rays.reserve(m);
+    for (std::size_t i = 0; i < m; ++i) {
+      try {
+        rays.emplace_back(row(o.rows, i), row(d.rows, i));
+      } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument("ray " + std::to_string(i) + ": " + e.what());
+      }
+    }
+    const auto res = with_threads(threads, [&] {
+      return std::visit([&](const auto& ix) { return ray_query_batch(ix, rays, q); }, self.index);
+    });
+    off = csr_offsets(res);
+    const auto n = static_cast<std::size_t>(off.back());
+    idx.resize(n);
+    t.resize(n);
+    dist.resize(n);
+    csr_fill(res, off, [&](const RayHit& h, std::size_t p) {
+      idx[p] = h.index;
+      t[p] = h.t;
+      dist[p] = h.distance;
+    });
+  }
+  py::dict out;
+  out["offsets"] = to_numpy(std::move(off));
+  out["indices"] = to_numpy(std::move(idx));
+  out["t"] = to_numpy(std::move(t));
+  out["distance"] = to_numpy(std::move(dist));
+  return out;
+}
+
+py::dict knn(const PyIndex& self, py::handle points, const py::object& k, double radius,
+             long long threads) {
+  parse_threads(threads);
+  const std::size_t kk = parse_k(k);
+  const Vec3Rows p = as_vec3_rows(points, "points", true);
+  std::vector<std::int64_t> off, idx;
+  std::vector<double> dist;
+  {
+    py::gil_scoped_release nogil;
+    const auto res = with_threads(threads, [&] {
+      return std::visit([&](const auto& ix) { return knn_query_batch(ix, p.rows, kk, radius); }, self.index);
+    });
+    off = csr_offsets(res);
+    const auto n = static_cast<std::size_t>(off.back());
+    idx.resize(n);
+    dist.resize(n);
+    csr_fill(res, off, [&](const Neighbor& h, std::size_t i) {
+      idx[i] = h.index;
+      dist[i] = h.distance;
+    });
+  }
+  py::dict out;
+  out["offsets"] = to_numpy(std::move(off));
+  out["indices"] = to_numpy(std::move(idx));
+  out["distance"] = to_numpy(std::move(dist));
+  return out;
+}
+
+py::dict box(const PyIndex& self, py::handle lo, py::handle hi, long long threads) {
+  parse_threads(threads);
+  const Vec3Rows l = as_vec3_rows(lo, "lo", true);
+  const Vec3Rows h = as_vec3_rows(hi, "hi", true);
+  const std::size_t m = broadcast_count(l, "lo", h, "hi");
+  std::vector<std::int64_t> off, idx;
+  {
+    py::gil_scoped_release nogil;
+    std::vector<AABB> boxes(m);
+    for (std::size_t i = 0; i < m; ++i) {
+      const Vec3 a = row(l.rows, i), b = row(h.rows, i);
+      if (std::isnan(a.x + a.y + a.z + b.x + b.y + b.z))
+        throw std::invalid_argument("box " + std::to_string(i) + ": lo and hi must not be NaN");
+      boxes[i] = AABB{a, b};
+    }
+    const auto res = with_threads(threads, [&] {
+      return std::visit([&](const auto& ix) { return box_query_batch(ix, boxes); }, self.index);
+    });
+    off = csr_offsets(res);
+    idx.resize(static_cast<std::size_t>(off.back()));
+    csr_fill(res, off, [&](PointIndex v, std::size_t i) { idx[i] = v; });
+  }
+  py::dict out;
+  out["offsets"] = to_numpy(std::move(off));
+  out["indices"] = to_numpy(std::move(idx));
+  return out;
+}
+
+}  // namespace
+
+void bind_index(py::module_& m) {
+  auto base = py::class_<PyIndex>(m, "_Index", R"doc(
+Base of the spatial indexes (Octree, KdTree, BruteForce). Built over an (N, 3) float64 copy of
+the points (positions are copied and reordered; the input array is not kept). Queries run on all
+cores (TBB) with the GIL released; results use original point indices 0..N-1.)doc");
+  base.def("__len__", [](const PyIndex& s) { return s.size; })
+      .def_property_readonly("memory_bytes",
+                             [](const PyIndex& s) { return index_memory_bytes(s.index); },
+                             "Bytes the index holds (positions copy, ids, nodes).")
+      .def_property_readonly("type", [](const PyIndex& s) { return s.options.type; },
+                             "Index type name as in `rayscan query --index`.")
+      .def("_ray_query", &ray_query, py::arg("origins"), py::arg("directions"), py::arg("k") = py::none(),
+           py::arg("radius") = kInf, py::arg("t_min") = -kInf, py::arg("t_max") = kInf,
+           py::arg("order") = "ray", py::arg("any_hit") = false, py::arg("threads") = 0)
+      .def("_knn", &knn, py::arg("points"), py::arg("k") = py::none(), py::arg("radius") = kInf,
+           py::arg("threads") = 0)
+      .def("_box", &box, py::arg("lo"), py::arg("hi"), py::arg("threads") = 0);
+
+  struct PyOctree : PyIndex {};
+  py::class_<PyOctree, PyIndex>(m, "_Octree")
+      .def(py::init([](py::handle xyz, const std::string& layout, long long capacity, long long depth,
+                       long long max_depth, bool insertion) {
+             IndexOptions o;
+             o.type = "octree-" + std::string(to_string(parse_octree_layout(layout)));
+             o.capacity = parse_count(capacity, "capacity");
+             o.depth = parse_depth(depth, "depth");
+             o.max_depth = parse_depth(max_depth, "max_depth");
+             o.insertion = insertion;
+             return PyOctree{build(xyz, o)};
+           }),
+           py::arg("xyz"), py::arg("layout") = "adaptive", py::arg("capacity") = 32,
+           py::arg("depth") = 6, py::arg("max_depth") = 21, py::arg("insertion") = false)
+      .def_property_readonly("layout", [](const PyOctree& s) { return s.options.type.substr(7); })
+      .def_property_readonly("capacity", [](const PyOctree& s) { return s.options.capacity; })
+      .def_property_readonly("node_count",
+                             [](const PyOctree& s) { return std::get<Octree>(s.index).node_count(); })
+      .def_property_readonly("depth", [](const PyOctree& s) { return std::get<Octree>(s.index).depth(); });
+
+  struct PyKdTree : PyIndex {};
+  py::class_<PyKdTree, PyIndex>(m, "_KdTree")
+      .def(py::init([](py::handle xyz, long long capacity) {
+             IndexOptions o;
+             o.type = "kdtree";
+             o.capacity = parse_count(capacity, "capacity");
+             return PyKdTree{build(xyz, o)};
+           }),
+           py::arg("xyz"), py::arg("capacity") = 32)
+      .def_property_readonly("capacity", [](const PyKdTree& s) { return s.options.capacity; })
+      .def_property_readonly("node_count",
+                             [](const PyKdTree& s) { return std::get<KdTree>(s.index).node_count(); });
+
+  struct PyBrute : PyIndex {};
+  py::class_<PyBrute, PyIndex>(m, "_BruteForce").def(py::init([](py::handle xyz) {
+    IndexOptions o;
+    o.type = "brute";
+    return PyBrute{build(xyz, o)};
+  }), py::arg("xyz"));
+}
+
+}  // namespace rayscan::python

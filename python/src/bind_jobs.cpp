@@ -1,0 +1,266 @@
+// rayscan.render / visibility / compare: the library's job calls (docs/library.md: one options
+// struct in, one result out; render::run_render, analysis::run_visibility, analysis::run_compare)
+// with NumPy arrays out. Each call converts its arguments with the GIL held, then releases it for
+// the job (TBB inside).
+#include "arrays.hpp"
+#include "bindings.hpp"
+#include "cloud.hpp"
+
+#include "rayscan/analysis/compare_job.hpp"
+#include "rayscan/analysis/visibility_job.hpp"
+#include "rayscan/render/render_job.hpp"
+
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include <optional>
+
+namespace rayscan::python {
+
+namespace {
+
+static_assert(sizeof(glm::vec3) == 3 * sizeof(float));
+
+/// Move a vector of U (U = N packed T) into a NumPy array of T with the given shape.
+template <class T, class U>
+py::array_t<T> own_as(std::vector<U>&& v, std::vector<py::ssize_t> shape) {
+  static_assert(sizeof(U) % sizeof(T) == 0);
+  auto* owned = new std::vector<U>(std::move(v));
+  py::capsule owner(owned, [](void* p) { delete static_cast<std::vector<U>*>(p); });
+  return py::array_t<T>(shape, reinterpret_cast<const T*>(owned->data()), owner);
+}
+
+/// Point indices (uint32 with kNoPoint for a miss) as int64 with -1 for a miss, like
+/// RayQueryResult.first().
+py::array_t<std::int64_t> point_ids(const std::vector<std::uint32_t>& v, std::vector<py::ssize_t> shape) {
+  std::vector<std::int64_t> out(v.size());
+  for (std::size_t i = 0; i < v.size(); ++i) out[i] = v[i] == kNoPoint ? -1 : static_cast<std::int64_t>(v[i]);
+  return to_numpy(std::move(out), std::move(shape));
+}
+
+unsigned parse_threads(long long threads) {
+  if (threads < 0 || threads > 4096)
+    throw py::value_error("threads must be 0 (all cores) or a positive count, got " + std::to_string(threads));
+  return static_cast<unsigned>(threads);
+}
+
+const PointCloud* in_memory_cloud(const py::object& cloud) {
+  if (cloud.is_none()) return nullptr;
+  if (!py::isinstance<PyCloud>(cloud))
+    throw py::value_error("cloud: expected a rayscan.PointCloud (from rayscan.read) or None");
+  return &cloud.cast<const PyCloud&>().cloud;
+}
+
+py::dict render(const std::string& scene_file, const py::object& cloud, std::optional<std::uint32_t> width,
+                std::optional<std::uint32_t> height, std::optional<std::uint32_t> spp,
+                std::optional<std::uint64_t> seed, const std::vector<std::string>& aovs,
+                const std::string& camera, long long threads) {
+  render::RenderJobOptions o;
+  o.cloud = in_memory_cloud(cloud);
+  o.write = false;
+  o.control.threads = parse_threads(threads);
+  render::RenderJobResult r;
+  {
+    py::gil_scoped_release nogil;
+    o.scene = render::load_scene(scene_file);
+    render::SceneOverrides ov;
+    ov.camera_file = camera;
+    ov.spp = spp;
+    ov.width = width;
+    ov.height = height;
+    ov.seed = seed;
+    ov.aovs = aovs;
+    render::apply_overrides(o.scene, ov);
+    r = render::run_render(o);
+  }
+  render::Framebuffer& fb = r.image;
+  const auto h = static_cast<py::ssize_t>(fb.height), w = static_cast<py::ssize_t>(fb.width);
+  py::dict out;
+  out["beauty"] = own_as<float>(std::move(fb.beauty), {h, w, 3});
+  if (!fb.depth.empty()) out["depth"] = own_as<float>(std::move(fb.depth), {h, w});
+  if (!fb.normal.empty()) out["normal"] = own_as<float>(std::move(fb.normal), {h, w, 3});
+  if (!fb.position.empty()) {
+    out["position"] = own_as<float>(std::move(fb.position), {h, w, 3});
+    out["position_origin"] = to_numpy(std::vector<double>{fb.position_origin.x, fb.position_origin.y,
+                                                          fb.position_origin.z});
+  }
+  if (!fb.index.empty()) out["index"] = point_ids(fb.index, {h, w});
+  if (!fb.albedo.empty()) out["albedo"] = own_as<float>(std::move(fb.albedo), {h, w, 3});
+  if (!fb.cost.empty()) out["cost"] = own_as<float>(std::move(fb.cost), {h, w});
+  out["radius"] = r.radius.radius;
+  out["points"] = r.points;
+  py::dict stats;
+  stats["seconds"] = r.stats.seconds;
+  stats["primary_rays"] = r.stats.primary_rays;
+  stats["queries"] = r.stats.queries;
+  stats["nodes_visited"] = r.stats.nodes_visited;
+  stats["points_tested"] = r.stats.points_tested;
+  stats["threads"] = r.stats.threads;
+  stats["index_seconds"] = r.index_seconds;
+  stats["read_seconds"] = r.read_seconds;
+  out["stats"] = stats;
+  return out;
+}
+
+/// An (H, W) or (H, W, C) array as an analysis::Image: channels Y (C = 1), R G B (3), R G B A (4),
+/// else c0, c1, ...; float32 samples.
+analysis::Image to_image(py::handle obj, const std::string& name) {
+  py::module_ np = py::module_::import("numpy");
+  py::array a = np.attr("asarray")(obj);
+  const char kind = a.dtype().kind();
+  if ((kind != 'f' && kind != 'i' && kind != 'u' && kind != 'b') || (a.ndim() != 2 && a.ndim() != 3))
+    throw py::value_error(name + ": expected a file name or an (H, W) or (H, W, C) array of numbers");
+  auto f = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
+  if (!f) throw py::error_already_set();
+  analysis::Image img;
+  img.height = static_cast<int>(f.shape(0));
+  img.width = static_cast<int>(f.shape(1));
+  const int c = a.ndim() == 3 ? static_cast<int>(f.shape(2)) : 1;
+  if (img.width == 0 || img.height == 0 || c == 0) throw py::value_error(name + ": the image is empty");
+  if (c == 1) img.channels = {"Y"};
+  else if (c == 3) img.channels = {"R", "G", "B"};
+  else if (c == 4) {
+    img.channels = {"R", "G", "B", "A"};
+    img.alpha_channel = 3;
+  } else
+    for (int i = 0; i < c; ++i) img.channels.push_back("c" + std::to_string(i));
+  img.pixels.assign(f.data(), f.data() + f.size());
+  img.source = name;
+  return img;
+}
+
+py::dict compare(const py::object& a, const py::object& b, const std::vector<std::string>& channels,
+                 bool mask, bool alpha, bool resize, std::optional<double> fail,
+                 std::optional<double> fail_percent, std::optional<double> fail_psnr,
+                 std::optional<double> fail_ssim, std::optional<double> warn) {
+  analysis::CompareJobOptions o;
+  std::optional<analysis::Image> ia, ib;
+  if (py::isinstance<py::str>(a) || py::hasattr(a, "__fspath__"))
+    o.reference_file = py::str(a).cast<std::string>();
+  else
+    o.reference = &ia.emplace(to_image(a, "reference"));
+  if (py::isinstance<py::str>(b) || py::hasattr(b, "__fspath__"))
+    o.image_file = py::str(b).cast<std::string>();
+  else
+    o.image = &ib.emplace(to_image(b, "image"));
+  o.channels = channels;
+  o.mask = mask;
+  o.alpha = alpha;
+  o.resize = resize;
+  o.fail.threshold = fail;
+  o.fail.percent = fail_percent;
+  o.fail.min_psnr = fail_psnr;
+  o.fail.min_ssim = fail_ssim;
+  o.warn.threshold = warn;
+  analysis::CompareJobResult r;
+  {
+    py::gil_scoped_release nogil;
+    r = analysis::run_compare(o);
+  }
+  const analysis::CompareMetrics& m = r.metrics;
+  py::dict d;
+  d["width"] = m.width;
+  d["height"] = m.height;
+  d["channels"] = m.channels;
+  d["pixels_compared"] = m.pixels_compared;
+  d["pixels_ignored"] = m.pixels_ignored;
+  d["mae"] = m.mae;
+  d["rmse"] = m.rmse;
+  d["psnr"] = m.psnr;
+  d["peak"] = m.peak;
+  d["max_error"] = m.max_error;
+  d["max_pixel"] = py::make_tuple(m.max_x, m.max_y, m.max_c);
+  d["ssim"] = m.ssim;
+  d["ssim_signal"] = m.ssim_signal;
+  d["fail_threshold"] = m.fail_threshold;
+  d["percent_over_fail"] = m.percent_over_fail();
+  d["warn_threshold"] = m.warn_threshold;
+  d["percent_over_warn"] = m.percent_over_warn();
+  d["nonfinite_mismatches"] = m.nonfinite_mismatches;
+  py::dict per;
+  for (const analysis::ChannelStats& c : m.per_channel) {
+    py::dict s;
+    s["mae"] = c.mae;
+    s["rmse"] = c.rmse;
+    s["max_error"] = c.max_error;
+    per[py::str(c.name)] = s;
+  }
+  d["per_channel"] = per;
+  d["verdict"] = std::string(analysis::to_string(r.judgement.verdict));
+  d["reasons"] = r.judgement.reasons;
+  return d;
+}
+
+py::dict visibility(const py::object& cloud, const py::object& observers, std::optional<double> radius,
+                    std::optional<double> height, std::optional<double> max_distance,
+                    std::optional<double> tolerance, std::optional<double> target_height,
+                    std::uint32_t sky_rays, const std::string& camera, bool distance, long long threads) {
+  analysis::VisibilityJobOptions o;
+  if (py::isinstance<PyCloud>(cloud))
+    o.cloud = &cloud.cast<const PyCloud&>().cloud;
+  else
+    o.cloud_file = py::str(cloud).cast<std::string>();
+  if (!observers.is_none()) {
+    if (py::isinstance<py::str>(observers) || py::hasattr(observers, "__fspath__")) {
+      o.observers_file = py::str(observers).cast<std::string>();
+    } else {
+      py::module_ np = py::module_::import("numpy");
+      py::array a = np.attr("asarray")(observers);
+      const bool xy = a.ndim() == 2 && a.shape(1) == 2;
+      if (xy) a = np.attr("hstack")(py::make_tuple(a, np.attr("zeros")(py::make_tuple(a.shape(0), 1))));
+      const Vec3Rows rows = as_vec3_rows(a, "observers", true);
+      for (std::size_t i = 0; i < rows.rows.size(); ++i) {
+        analysis::Observer ob;
+        ob.position = rows.rows[i];
+        ob.has_z = !xy;
+        ob.source = "observers[" + std::to_string(i) + "]";
+        o.observers.push_back(ob);
+      }
+    }
+  }
+  o.radius = radius;
+  o.height = height;
+  o.max_distance = max_distance;
+  o.tolerance = tolerance;
+  o.target_height = target_height;
+  o.sky_rays = sky_rays;
+  o.camera_file = camera;
+  o.distance = distance;
+  o.control.threads = parse_threads(threads);
+  analysis::VisibilityJobResult r;
+  {
+    py::gil_scoped_release nogil;
+    r = analysis::run_visibility(o);
+  }
+  py::dict d;
+  for (ScalarField& f : r.cloud.scalars)
+    if (f.name == "visible_count" || f.name == "visible_distance" || f.name == "sky_view" ||
+        f.name == "camera_hits")
+      d[py::str(f.name)] = to_numpy(std::move(f.values));
+  d["radius"] = r.radius.radius;
+  d["tolerance"] = r.tolerance;
+  d["target_height"] = r.target_height;
+  std::vector<double> obs;
+  for (const analysis::Observer& ob : r.observers) obs.insert(obs.end(), {ob.position.x, ob.position.y, ob.position.z});
+  d["observers"] = to_numpy(std::move(obs), {static_cast<py::ssize_t>(r.observers.size()), 3});
+  d["per_observer"] = to_numpy(std::vector<std::uint64_t>(r.line_of_sight.per_observer));
+  return d;
+}
+
+}  // namespace
+
+void bind_jobs(py::module_& m) {
+  m.def("_render", &render, py::arg("scene"), py::arg("cloud") = py::none(), py::arg("width") = py::none(),
+        py::arg("height") = py::none(), py::arg("spp") = py::none(), py::arg("seed") = py::none(),
+        py::arg("aovs") = std::vector<std::string>{}, py::arg("camera") = "", py::arg("threads") = 0);
+  m.def("_compare", &compare, py::arg("reference"), py::arg("image"),
+        py::arg("channels") = std::vector<std::string>{}, py::arg("mask") = false, py::arg("alpha") = false,
+        py::arg("resize") = false, py::arg("fail") = py::none(), py::arg("fail_percent") = py::none(),
+        py::arg("fail_psnr") = py::none(), py::arg("fail_ssim") = py::none(), py::arg("warn") = py::none());
+  m.def("_visibility", &visibility, py::arg("cloud"), py::arg("observers") = py::none(),
+        py::arg("radius") = py::none(), py::arg("height") = py::none(), py::arg("max_distance") = py::none(),
+        py::arg("tolerance") = py::none(), py::arg("target_height") = py::none(), py::arg("sky_rays") = 0,
+        py::arg("camera") = "", py::arg("distance") = false, py::arg("threads") = 0);
+}
+
+}  // namespace rayscan::python

@@ -1,0 +1,39 @@
+// The `rayscan._rayscan` extension module (issue 14): the C++ library on NumPy arrays. The public
+// Python API (docstrings, result classes) is the package python/rayscan/__init__.py.
+#include "bindings.hpp"
+
+#include "rayscan/io/point_io.hpp"
+#ifdef RAYSCAN_PYTHON_JOBS
+#include "rayscan/analysis/observer.hpp"
+#include "rayscan/render/scene.hpp"
+#endif
+
+namespace py = pybind11;
+
+PYBIND11_MODULE(_rayscan, m) {
+  m.doc() = "rayscan C++ core (use the `rayscan` package)";
+  // Library errors keep their one-line messages: bad arguments raise ValueError (pybind11 maps
+  // std::invalid_argument and std::length_error), unreadable or malformed files raise OSError.
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const rayscan::io::FormatError& e) {
+      PyErr_SetString(PyExc_OSError, e.what());
+    }
+  });
+  rayscan::python::bind_io(m);
+  rayscan::python::bind_index(m);
+#ifdef RAYSCAN_PYTHON_JOBS
+  rayscan::python::bind_jobs(m);
+  // Scene and observer files: malformed content is a ValueError like a bad option.
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const rayscan::render::SceneError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const rayscan::analysis::ObserverError& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    }
+  });
+#endif
+}

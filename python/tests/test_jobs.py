@@ -1,0 +1,93 @@
+"""rayscan.render / visibility / compare (the library's job calls) against independent oracles:
+the ray query (render's index/depth AOVs), NumPy (compare's metrics) and analytic geometry
+(visibility behind a wall)."""
+
+import numpy as np
+import pytest
+
+import rayscan
+from conftest import SOURCE
+
+pytestmark = pytest.mark.skipif(not hasattr(rayscan, "render"),
+                                reason="module built without the library's job API")
+
+
+def test_render_aovs_agree_with_the_ray_query():
+    scene = SOURCE / "scenes" / "autzen_overview.json"
+    out = rayscan.render(scene, width=96, spp=1, aovs=["depth", "index", "position"])
+    h, w = out["depth"].shape
+    assert w == 96 and out["beauty"].shape == (h, w, 3) and out["beauty"].dtype == np.float32
+    assert out["index"].dtype == np.int64 and out["position"].shape == (h, w, 3)
+    idx = out["index"]
+    hit = idx >= 0
+    assert 0.2 < hit.mean() <= 1.0
+    assert np.all(np.isinf(out["depth"][~hit]))
+    r = out["radius"]
+    pc = rayscan.read(SOURCE / "scenes" / "data" / "autzen_trim.las")
+    origin = out["position_origin"]
+    rel = out["position"][hit].astype(np.float64)
+    # The hit lies on the sphere of radius r around the point it reports.
+    dist = np.linalg.norm(origin + rel - pc.xyz[idx[hit]], axis=1)
+    np.testing.assert_allclose(dist, r, rtol=1e-3, atol=1e-3 * r)
+    # depth = distance from the camera centre along the (unit) pixel ray.
+    np.testing.assert_allclose(out["depth"][hit], np.linalg.norm(rel, axis=1), rtol=1e-5)
+    # The same rays through the Python ray query find the same first points.
+    tree = rayscan.Octree(pc)
+    res = tree.ray_query(origin, rel, k=1, radius=r, t_min=0.0, order="sphere_hit")
+    assert np.mean(res.first() == idx[hit]) > 0.99
+
+
+def test_render_from_dict_and_memory_cloud(tmp_path, monkeypatch):
+    monkeypatch.chdir(SOURCE / "scenes")
+    import json
+    scene = json.loads((SOURCE / "scenes" / "autzen_overview.json").read_text())
+    a = rayscan.render(scene, width=48, spp=2, seed=3)
+    b = rayscan.render(SOURCE / "scenes" / "autzen_overview.json", width=48, spp=2, seed=3,
+                       cloud=rayscan.read(SOURCE / "scenes" / "data" / "autzen_trim.las"))
+    np.testing.assert_array_equal(a["beauty"], b["beauty"])  # deterministic for a seed
+    with pytest.raises(ValueError, match="aov"):
+        rayscan.render(scene, width=48, spp=1, aovs=["nope"])
+
+
+def test_compare_metrics_equal_numpy():
+    rng = np.random.default_rng(5)
+    ref = rng.random((40, 50, 3)).astype(np.float32)
+    img = np.clip(ref + rng.normal(0, 0.05, ref.shape), 0, 1).astype(np.float32)
+    m = rayscan.compare(ref, img)
+    e = img.astype(np.float64) - ref
+    assert m["mae"] == pytest.approx(np.abs(e).mean(), rel=1e-6)
+    assert m["rmse"] == pytest.approx(np.sqrt((e * e).mean()), rel=1e-6)
+    assert m["psnr"] == pytest.approx(20 * np.log10(1.0 / np.sqrt((e * e).mean())), rel=1e-6)
+    assert m["max_error"] == pytest.approx(np.abs(e).max(), rel=1e-6)
+    assert m["verdict"] == "fail" and m["width"] == 50 and m["height"] == 40
+    same = rayscan.compare(ref, ref)
+    assert same["rmse"] == 0 and same["psnr"] == float("inf") and same["verdict"] == "pass"
+    with pytest.raises(ValueError, match="reference: expected"):
+        rayscan.compare(np.zeros(5), ref)
+    with pytest.raises(ValueError):
+        rayscan.compare(ref, ref[:20])  # size mismatch
+
+
+def test_visibility_behind_a_wall():
+    """A flat ground grid (spacing 0.5) and a 6 m wall at x = 10; an eye at (2, 10, 1.7): ground
+    beyond the wall is hidden, ground in front of it is seen."""
+    g = np.arange(0, 20, 0.5)
+    gx, gy = np.meshgrid(g, g)
+    ground = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+    wy, wz = np.meshgrid(np.arange(-5, 25, 0.25), np.arange(0, 6, 0.25))
+    wall = np.column_stack([np.full(wy.size, 10.0), wy.ravel(), wz.ravel()])
+    xyz = np.vstack([ground, wall])
+    path = pytest.importorskip("tempfile").mkdtemp()
+    f = f"{path}/scene.f64"
+    xyz.astype("<f8").tofile(f)
+    out = rayscan.visibility(f, observers=[[2.0, 10.0, 1.7]], radius=0.3)
+    count = out["visible_count"]
+    assert count.shape == (len(xyz),) and out["radius"] == 0.3
+    n = len(ground)
+    behind = ground[:, 0] > 10.5
+    front = (ground[:, 0] < 9.0) & (np.abs(ground[:, 1] - 10) < 8)
+    assert np.all(count[:n][behind] == 0)
+    assert np.mean(count[:n][front] == 1) > 0.9
+    assert out["per_observer"][0] == int(count.sum())
+    with pytest.raises(ValueError):
+        rayscan.visibility(f, observers=[[2.0, 10.0, np.nan]], radius=0.3)

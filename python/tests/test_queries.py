@@ -1,0 +1,205 @@
+"""Batch queries of rayscan.Octree / KdTree / BruteForce against NumPy brute force (the C++
+formulas in the same operation order, so equality is exact) and against the C++ `rayscan query`."""
+
+import csv
+import subprocess
+
+import numpy as np
+import pytest
+
+import rayscan
+from conftest import brute_ray_query
+
+INDEXES = [
+    lambda x: rayscan.Octree(x),
+    lambda x: rayscan.Octree(x, layout="layered", capacity=8),
+    lambda x: rayscan.Octree(x, layout="fixed", depth=4),
+    lambda x: rayscan.Octree(x, capacity=4, insertion=True),
+    lambda x: rayscan.KdTree(x, capacity=5),
+    lambda x: rayscan.BruteForce(x),
+]
+QUERIES = [
+    dict(k=8, order="ray"),
+    dict(radius=0.05, order="ray"),
+    dict(k=3, radius=0.04, order="time", t_min=0.0),
+    dict(k=1, radius=0.02, order="sphere_hit", t_min=0.0),
+    dict(radius=0.03, order="sphere_hit", t_min=1.0, t_max=2.5),
+]
+
+
+def check_against_brute(res, xyz, o, d, q):
+    assert res.offsets.dtype == np.int64 and res.indices.dtype == np.int64
+    assert res.offsets.shape == (len(o) + 1,) and res.offsets[0] == 0
+    assert res.offsets[-1] == len(res.indices) == len(res.t) == len(res.distance)
+    total = 0
+    for i in range(len(o)):
+        idx, t, dist = brute_ray_query(xyz, o[i], d[i], **q)
+        s = slice(res.offsets[i], res.offsets[i + 1])
+        np.testing.assert_array_equal(res.indices[s], idx)
+        np.testing.assert_array_equal(res.t[s], t)
+        np.testing.assert_array_equal(res.distance[s], dist)
+        total += len(idx)
+    return total
+
+
+@pytest.mark.parametrize("make", INDEXES)
+@pytest.mark.parametrize("q", QUERIES)
+def test_ray_query_equals_brute_force(make, q, uniform_cloud, random_rays):
+    o, d = random_rays
+    res = make(uniform_cloud).ray_query(o, d, **q)
+    total = check_against_brute(res, uniform_cloud, o, d, q)
+    assert total > 0  # the workload really returns hits
+
+
+def test_ray_query_equals_cli(cli, tmp_path, uniform_cloud, random_rays):
+    """Same points, same rays: the Python batch equals `rayscan query` row for row (17 digits)."""
+    o, d = random_rays
+    cloud = tmp_path / "cloud.f64"
+    rays = tmp_path / "rays.f64"
+    uniform_cloud.astype("<f8").tofile(cloud)
+    np.hstack([o, d]).astype("<f8").tofile(rays)
+    for q, args in [(dict(k=4, radius=0.05, order="sphere_hit"), ["--k", "4", "--radius", "0.05", "--order", "sphere_hit"]),
+                    (dict(k=6, order="ray", t_min=0.5), ["--k", "6", "--t-min", "0.5"]),
+                    (dict(radius=0.03, order="time"), ["--radius", "0.03", "--order", "time"])]:
+        out = tmp_path / "hits.csv"
+        subprocess.run([cli, "query", "--cloud", str(cloud), "--rays", str(rays), "--out", str(out)] + args,
+                       check=True)
+        with open(out) as f:
+            rows = list(csv.DictReader(f))
+        res = rayscan.Octree(uniform_cloud).ray_query(o, d, **q)
+        assert len(rows) == len(res.indices) > 0
+        ray = np.array([int(r["ray"]) for r in rows])
+        np.testing.assert_array_equal(np.bincount(ray, minlength=len(o)), res.counts)
+        np.testing.assert_array_equal([int(r["index"]) for r in rows], res.indices)
+        np.testing.assert_array_equal([float(r["t"]) for r in rows], res.t)
+        np.testing.assert_array_equal([float(r["distance"]) for r in rows], res.distance)
+
+
+def test_broadcast_origin_and_first(uniform_cloud):
+    """One origin (3,) against M directions; first() gives the best hit per ray, -1/NaN for misses."""
+    tree = rayscan.Octree(uniform_cloud)
+    o = np.array([0.5, 0.5, 0.5])
+    d = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], dtype=np.float32)
+    res = tree.ray_query(o, d, k=1, radius=0.01, order="sphere_hit", t_min=0.0, t_max=0.2)
+    assert len(res) == 4
+    for i in range(4):
+        idx, t, _ = brute_ray_query(uniform_cloud, o, d[i].astype(np.float64), k=1, radius=0.01,
+                                    order="sphere_hit", t_min=0.0, t_max=0.2)
+        assert res.first()[i] == (idx[0] if len(idx) else -1)
+        if len(idx):
+            assert res.first("t")[i] == t[0]
+            np.testing.assert_array_equal(res[i], idx)
+        else:
+            assert np.isnan(res.first("t")[i])
+
+
+def test_knn_and_radius_equal_brute_force(uniform_cloud):
+    rng = np.random.default_rng(3)
+    qs = rng.random((50, 3))
+    qs[0] = uniform_cloud[0]  # a query on a duplicated point: ties at distance 0
+    for make in INDEXES:
+        tree = make(uniform_cloud)
+        knn = tree.knn(qs, k=12)
+        rad = tree.radius(qs, 0.08)
+        both = tree.knn(qs, k=5, radius=0.05)
+        for i, q in enumerate(qs):
+            v = uniform_cloud - q
+            d2 = v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2]
+            order = np.lexsort((np.arange(len(d2)), d2))
+            np.testing.assert_array_equal(knn[i], order[:12])
+            np.testing.assert_array_equal(knn.distance[knn.offsets[i]:knn.offsets[i + 1]], np.sqrt(d2[order[:12]]))
+            within = order[d2[order] <= 0.08 * 0.08]
+            np.testing.assert_array_equal(rad[i], within)
+            np.testing.assert_array_equal(both[i], order[d2[order] <= 0.05 * 0.05][:5])
+        assert rad.counts.sum() > 0
+
+
+def test_box_equals_numpy_mask(uniform_cloud):
+    rng = np.random.default_rng(4)
+    lo = rng.random((20, 3)) * 0.7
+    hi = lo + rng.random((20, 3)) * 0.4
+    for make in INDEXES:
+        res = make(uniform_cloud).box(lo, hi)
+        for i in range(20):
+            mask = np.all((uniform_cloud >= lo[i]) & (uniform_cloud <= hi[i]), axis=1)
+            np.testing.assert_array_equal(np.sort(res[i]), np.nonzero(mask)[0])
+        assert res.counts.sum() > 0
+    empty = rayscan.Octree(uniform_cloud).box([0.6, 0, 0], [0.4, 1, 1])  # lo > hi: empty box
+    assert empty.counts.tolist() == [0]
+
+
+def test_non_contiguous_and_other_dtypes_equal_contiguous(uniform_cloud, random_rays):
+    o, d = random_rays
+    big = np.zeros((len(uniform_cloud), 6))
+    big[:, ::2] = uniform_cloud  # strided columns
+    ref = rayscan.Octree(uniform_cloud).ray_query(o, d, k=5, radius=0.05)
+    for xyz in (big[:, ::2], np.asfortranarray(uniform_cloud), uniform_cloud.tolist()):
+        res = rayscan.Octree(xyz).ray_query(np.asfortranarray(o), d[:, [0, 1, 2]], k=5, radius=0.05)
+        np.testing.assert_array_equal(res.indices, ref.indices)
+        np.testing.assert_array_equal(res.t, ref.t)
+    ints = np.array([[0, 0, 0], [1, 1, 1], [2, 2, 2]], dtype=np.int32)
+    assert rayscan.KdTree(ints).knn([1.1, 1, 1], k=1).indices.tolist() == [1]
+
+
+def test_empty_inputs():
+    tree = rayscan.Octree(np.zeros((0, 3)))
+    assert len(tree) == 0
+    res = tree.ray_query([0, 0, 0], [1, 0, 0], k=1)
+    assert res.offsets.tolist() == [0, 0] and len(res.indices) == 0
+    tree = rayscan.Octree(np.random.default_rng(1).random((10, 3)))
+    res = tree.ray_query(np.zeros((0, 3)), np.zeros((0, 3)))
+    assert res.offsets.tolist() == [0]
+    assert tree.knn(np.zeros((0, 3)), k=2).offsets.tolist() == [0]
+
+
+def test_bad_arguments_raise_value_error(uniform_cloud):
+    tree = rayscan.Octree(uniform_cloud)
+    o = np.zeros((4, 3))
+    d = np.ones((4, 3))
+    cases = [
+        (lambda: rayscan.Octree(np.zeros((5, 2))), "xyz: expected shape (N, 3), got (5, 2)"),
+        (lambda: rayscan.Octree(np.zeros((2, 3, 1))), "xyz: expected shape (N, 3)"),
+        (lambda: rayscan.Octree(np.array([["a", "b", "c"]])), "xyz: expected an array of real numbers"),
+        (lambda: rayscan.Octree(np.zeros((3, 3), dtype=complex)), "expected an array of real numbers"),
+        (lambda: rayscan.Octree(np.array([[0, 0, 0], [1, np.nan, 0.0]])), "point 1"),
+        (lambda: rayscan.KdTree(np.array([[0, np.inf, 0.0]])), "point 0"),
+        (lambda: rayscan.Octree(uniform_cloud, layout="sparse"), "octree layout 'sparse'"),
+        (lambda: rayscan.Octree(uniform_cloud, capacity=0), "capacity must be"),
+        (lambda: rayscan.Octree(uniform_cloud, capacity=-5), "capacity must be"),
+        (lambda: rayscan.Octree(uniform_cloud, layout="fixed", depth=22), "depth must be in [0, 21]"),
+        (lambda: tree.ray_query(o, np.zeros((4, 3))), "ray 0: Ray: direction must be non-zero"),
+        (lambda: tree.ray_query(np.array([[0, 0, 0], [np.nan, 0, 0]]), d[:2]), "ray 1: Ray: origin must be finite"),
+        (lambda: tree.ray_query(o, np.ones((3, 3))), "origins has 4 rows but directions has 3"),
+        (lambda: tree.ray_query(o, d, order="closest"), "order 'closest'"),
+        (lambda: tree.ray_query(o, d, order="sphere_hit"), "sphere_hit requires a finite radius"),
+        (lambda: tree.ray_query(o, d, radius=-1.0), "radius must be >= 0"),
+        (lambda: tree.ray_query(o, d, radius=float("nan")), "must not be NaN"),
+        (lambda: tree.ray_query(o, d, t_min=2.0, t_max=1.0), "t_min"),
+        (lambda: tree.ray_query(o, d, k=-1), "k must be None or an integer >= 0"),
+        (lambda: tree.ray_query(o, d, k=1.5), "k must be None or an integer >= 0"),
+        (lambda: tree.ray_query(o, [[1, 2], [3, 4]]), "directions: expected shape"),
+        (lambda: tree.ray_query(o, [[1, 2, 3], [1, 2]]), ""),  # ragged: NumPy's own ValueError
+        (lambda: tree.knn([[0, 0, np.nan]], k=1), "query point 0 is not finite"),
+        (lambda: tree.knn(o, k=None), "k must be an integer"),
+        (lambda: tree.radius(o, -0.5), "radius must be >= 0"),
+        (lambda: tree.box([0, 0, np.nan], [1, 1, 1]), "box 0: lo and hi must not be NaN"),
+    ]
+    for call, message in cases:
+        with pytest.raises(ValueError) as e:
+            call()
+        assert message in str(e.value), (message, str(e.value))
+    # numpy integer types are valid k values
+    assert tree.ray_query(o, d, k=np.int64(2), radius=0.1).counts.max() <= 2
+
+
+def test_thread_count_does_not_change_results(uniform_cloud, random_rays):
+    o, d = random_rays
+    tree = rayscan.Octree(uniform_cloud)
+    for threads in (1, 2, 3):
+        a = tree.ray_query(o, d, k=4, radius=0.05, threads=threads)
+        b = tree.ray_query(o, d, k=4, radius=0.05)
+        np.testing.assert_array_equal(a.indices, b.indices)
+        np.testing.assert_array_equal(a.t, b.t)
+        np.testing.assert_array_equal(tree.knn(o, 3, threads=threads).indices, tree.knn(o, 3).indices)
+    with pytest.raises(ValueError, match="threads must be"):
+        tree.box([0, 0, 0], [1, 1, 1], threads=-1)
