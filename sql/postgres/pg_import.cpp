@@ -33,6 +33,12 @@ struct Conn {
     PQclear(r);
     if (st != PGRES_COMMAND_OK && st != PGRES_TUPLES_OK) fail(sql.substr(0, 60));
   }
+  void copy_in(const std::string& sql) {
+    PGresult* r = PQexec(c, sql.c_str());
+    const auto st = PQresultStatus(r);
+    PQclear(r);
+    if (st != PGRES_COPY_IN) fail(sql);
+  }
 };
 
 void append_double(std::string& s, double v) {
@@ -83,7 +89,7 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
           "first_row bigint NOT NULL, count int NOT NULL)");
   db.exec("CREATE TABLE " + table + "_sources (source int PRIMARY KEY, path text NOT NULL, "
           "point_count bigint NOT NULL)");
-  db.exec("COPY " + table + " FROM STDIN");
+  db.copy_in("COPY " + table + " FROM STDIN");
   std::string buf;
   auto flush = [&](bool force) {
     if (buf.size() < (1u << 20) && !force) return;
@@ -119,7 +125,7 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
     if (!ok) db.fail("COPY points");
   }
   // Chunk boxes in double: exact, no outward rounding needed.
-  db.exec("COPY " + table + "_chunks FROM STDIN");
+  db.copy_in("COPY " + table + "_chunks FROM STDIN");
   for (std::size_t ci = 0; ci < layout.chunks.size(); ++ci) {
     const Chunk& c = layout.chunks[ci];
     buf += std::to_string(ci) + "\t(";

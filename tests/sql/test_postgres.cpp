@@ -29,6 +29,7 @@ struct Pg {
   Pg() {
     c = PQconnectdb(conninfo().c_str());
     EXPECT_EQ(PQstatus(c), CONNECTION_OK) << PQerrorMessage(c);
+    PQsetNoticeProcessor(c, [](void*, const char*) {}, nullptr);
   }
   ~Pg() { PQfinish(c); }
   /// Rows of a query as text cells; fails the test on an error.
@@ -188,7 +189,7 @@ TEST_F(Postgres, GistPrunedRadiusAndTimeSlabEqualBruteForce) {
       q.t_max = t1;
       for (const RayHit& h : ray_query(BruteForceIndex(*cloud_), ray, q)) want.insert(h.index);
       EXPECT_EQ(got, want);
-      if (!slab) EXPECT_FALSE(want.empty());
+      if (!slab) { EXPECT_FALSE(want.empty()); }
       std::string plan;
       for (const auto& row : pg.rows("EXPLAIN " + sql)) plan += row[0] + "\n";
       EXPECT_NE(plan.find("autzen_chunks_box"), std::string::npos) << plan;
