@@ -11,6 +11,7 @@ PKGS=(
   liblzf-dev libgdal-dev gdal-bin
   clang libclang-rt-14-dev
   fonts-dejavu-core
+  libsqlite3-dev sqlite3 libpq-dev postgresql-15 postgresql-server-dev-15 postgresql-15-pointcloud
 )
 missing=()
 for p in "${PKGS[@]}"; do
