@@ -9,12 +9,15 @@
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/octree.hpp"
 #include "rayscan/ray_query.hpp"
+#include "rayscan/sql/import.hpp"
 
 #include <CLI/CLI.hpp>
 #include <libpq-fe.h>
 #include <sqlite3.h>
 
 #include <chrono>
+#include <filesystem>
+#include <unistd.h>
 #include <cstdio>
 #include <iostream>
 #include <random>
@@ -27,10 +30,11 @@ static double secs(Clock::time_point a) { return std::chrono::duration<double>(C
 
 int main(int argc, char** argv) {
   CLI::App app{"bench_sql: SQL ray queries (SQLite, PostgreSQL, full scan) vs the in-memory octree"};
-  std::string cloud_path, db_path, conninfo, table = "points";
+  std::string cloud_path = RAYSCAN_DEFAULT_CLOUD, db_path, conninfo, table = "points";
   int nrays = 1000, full_rays = 20, k = 10;
-  app.add_option("--cloud", cloud_path, "Point cloud (the one imported)")->required();
-  app.add_option("--sqlite", db_path, "SQLite database from `rayscan db import`")->required();
+  app.add_option("--cloud", cloud_path, "Point cloud (the one imported)")->capture_default_str();
+  app.add_option("--sqlite", db_path, "SQLite database from `rayscan db import` of --cloud "
+                                      "(default: imported here into a temporary file, chunk 4096)");
   app.add_option("--postgres", conninfo, "libpq conninfo of a database imported with --postgres");
   app.add_option("--table", table, "PostgreSQL table");
   app.add_option("--rays", nrays, "Camera rays");
@@ -52,6 +56,14 @@ int main(int argc, char** argv) {
     rays.emplace_back(tmp.origin(), tmp.direction());
   }
 
+  std::filesystem::path tmp_db;
+  if (db_path.empty()) {
+    tmp_db = std::filesystem::temp_directory_path() / ("bench_sql." + std::to_string(::getpid()) + ".sqlite");
+    const auto t0 = Clock::now();
+    sql::import_sqlite({cloud_path}, tmp_db, {});
+    std::printf("imported %s into SQLite in %.2f s\n", cloud_path.c_str(), secs(t0));
+    db_path = tmp_db.string();
+  }
   sqlite3* db;
   if (sqlite3_open_v2(db_path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK) return 2;
   sqlite3_enable_load_extension(db, 1);
@@ -160,5 +172,6 @@ int main(int argc, char** argv) {
   sqlite3_finalize(q_sql); sqlite3_finalize(stats); sqlite3_finalize(full);
   sqlite3_close(db);
   if (pg) PQfinish(pg);
+  if (!tmp_db.empty()) std::filesystem::remove(tmp_db);
   return 0;
 }
