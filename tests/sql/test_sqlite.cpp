@@ -70,6 +70,15 @@ const fs::path& tmpdir() {
   return d;
 }
 
+/// Removes this process's scratch directory after the tests.
+struct ScratchCleanup : ::testing::Environment {
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(fs::temp_directory_path() / ("rayscan-sqltest-" + std::to_string(::getpid())), ec);
+  }
+};
+[[maybe_unused]] const auto* const kCleanup = ::testing::AddGlobalTestEnvironment(new ScratchCleanup);
+
 Site* site(const std::string& name) {
   static std::map<std::string, std::unique_ptr<Site>> cache;
   auto it = cache.find(name);
