@@ -1,0 +1,177 @@
+// bench_sql (issue 13, section 6): ray queries through SQL against the in-memory octree, in one
+// interleaved run. Per camera ray: radius query (r = point spacing) and kNN to the ray (k = 10) on
+//   octree    rayscan::ray_query over Octree::build_bulk (what `rayscan query` runs);
+//   sqlite    ray_query(...) of rayscan_sqlite.so (R*Tree pruning callback + dynamic k filter);
+//   full      SELECT ... FROM points WHERE dist_ray(...) <= r: no pruning (first --full-rays rays);
+//   postgres  chunk GiST (&& ray_within) join + dist_ray <= r, and kNN with ORDER BY ... LIMIT k
+//             inside radius 3r (only with --postgres).
+// Prints time per query and chunks touched / total, and counts result mismatches vs the octree.
+#include "rayscan/io/point_io.hpp"
+#include "rayscan/octree.hpp"
+#include "rayscan/ray_query.hpp"
+#include "rayscan/sql/import.hpp"
+
+#include <CLI/CLI.hpp>
+#include <libpq-fe.h>
+#include <sqlite3.h>
+
+#include <chrono>
+#include <filesystem>
+#include <unistd.h>
+#include <cstdio>
+#include <iostream>
+#include <random>
+#include <string>
+
+using namespace rayscan;
+using Clock = std::chrono::steady_clock;
+
+static double secs(Clock::time_point a) { return std::chrono::duration<double>(Clock::now() - a).count(); }
+
+int main(int argc, char** argv) {
+  CLI::App app{"bench_sql: SQL ray queries (SQLite, PostgreSQL, full scan) vs the in-memory octree"};
+  std::string cloud_path = RAYSCAN_DEFAULT_CLOUD, db_path, conninfo, table = "points";
+  int nrays = 1000, full_rays = 20, k = 10;
+  app.add_option("--cloud", cloud_path, "Point cloud (the one imported)")->capture_default_str();
+  app.add_option("--sqlite", db_path, "SQLite database from `rayscan db import` of --cloud "
+                                      "(default: imported here into a temporary file, chunk 4096)");
+  app.add_option("--postgres", conninfo, "libpq conninfo of a database imported with --postgres");
+  app.add_option("--table", table, "PostgreSQL table");
+  app.add_option("--rays", nrays, "Camera rays");
+  app.add_option("--full-rays", full_rays, "Rays for the unpruned full scan (slow)");
+  CLI11_PARSE(app, argc, argv);
+
+  const PointCloud cloud = io::read_point_cloud(cloud_path, io::ReadOptions{.scalars = false});
+  const Octree oct = Octree::build_bulk(cloud.positions);
+  const AABB b = cloud.bounds();
+  const Vec3 e = b.extent();
+  const double r = std::sqrt(std::max(e.x * e.y, 1e-12) / double(cloud.size()));
+  std::mt19937_64 rng(42);
+  std::uniform_int_distribution<std::size_t> pick(0, cloud.size() - 1);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Ray> rays;
+  for (int i = 0; i < nrays; ++i) {
+    const Vec3 o(b.lo.x + u(rng) * e.x, b.lo.y + u(rng) * e.y, b.hi.z + 0.3 * b.max_extent());
+    const Ray tmp(o, cloud.positions[pick(rng)] - o);
+    rays.emplace_back(tmp.origin(), tmp.direction());
+  }
+
+  std::filesystem::path tmp_db;
+  if (db_path.empty()) {
+    tmp_db = std::filesystem::temp_directory_path() / ("bench_sql." + std::to_string(::getpid()) + ".sqlite");
+    const auto t0 = Clock::now();
+    sql::import_sqlite({cloud_path}, tmp_db, {});
+    std::printf("imported %s into SQLite in %.2f s\n", cloud_path.c_str(), secs(t0));
+    db_path = tmp_db.string();
+  }
+  sqlite3* db;
+  if (sqlite3_open_v2(db_path.c_str(), &db, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK) return 2;
+  sqlite3_enable_load_extension(db, 1);
+  char* err = nullptr;
+  if (sqlite3_load_extension(db, RAYSCAN_SQLITE_EXT, nullptr, &err) != SQLITE_OK) {
+    std::cerr << err << "\n";
+    return 2;
+  }
+  sqlite3_stmt *q_sql, *stats, *full;
+  sqlite3_prepare_v2(db, "SELECT point_index FROM ray_query(?1,?2,?3,?4,?5,?6,?7,?8,NULL,NULL,'ray')", -1, &q_sql, nullptr);
+  sqlite3_prepare_v2(db, "SELECT json_extract(s,'$.chunks_visited'), json_extract(s,'$.chunks_total') FROM (SELECT rayscan_stats() AS s)", -1, &stats, nullptr);
+  sqlite3_prepare_v2(db, "SELECT count(*) FROM points WHERE dist_ray(?1,?2,?3,?4,?5,?6,x,y,z) <= ?7", -1, &full, nullptr);
+
+  PGconn* pg = nullptr;
+  if (!conninfo.empty()) {
+    pg = PQconnectdb(conninfo.c_str());
+    if (PQstatus(pg) != CONNECTION_OK) {
+      std::cerr << PQerrorMessage(pg);
+      return 2;
+    }
+    PQclear(PQexec(pg, "SET max_parallel_workers_per_gather = 0"));
+  }
+  auto pg_count = [&](const std::string& sql) {
+    PGresult* res = PQexec(pg, sql.c_str());
+    const int n = PQresultStatus(res) == PGRES_TUPLES_OK ? PQntuples(res) : -1;
+    PQclear(res);
+    return n;
+  };
+  auto num = [](double v) { char s[40]; std::snprintf(s, sizeof s, "%.17g", v); return std::string(s); };
+
+  struct Acc { double t = 0; long long n = 0, visited = 0, total = 0, mismatch = 0; };
+  Acc oct_r, oct_k, sq_r, sq_k, full_r, pg_r, pg_k;
+  std::vector<RayHit> hits;
+  for (int i = 0; i < nrays; ++i) {
+    const Ray& ray = rays[i];
+    const Vec3 o = ray.origin(), d = ray.direction();
+    RayQuery qr; qr.radius = r;
+    RayQuery qk; qk.k = k;
+    auto t0 = Clock::now();
+    ray_query(oct, Ray(o, d), qr, hits);
+    oct_r.t += secs(t0); ++oct_r.n;
+    const std::size_t want_r = hits.size();
+    t0 = Clock::now();
+    ray_query(oct, Ray(o, d), qk, hits);
+    oct_k.t += secs(t0); ++oct_k.n;
+    const std::size_t want_k = hits.size();
+    for (int mode = 0; mode < 2; ++mode) {
+      Acc& a = mode ? sq_k : sq_r;
+      t0 = Clock::now();
+      for (int j = 0; j < 3; ++j) sqlite3_bind_double(q_sql, j + 1, o[j]), sqlite3_bind_double(q_sql, j + 4, d[j]);
+      if (mode) { sqlite3_bind_int(q_sql, 7, k); sqlite3_bind_null(q_sql, 8); }
+      else { sqlite3_bind_null(q_sql, 7); sqlite3_bind_double(q_sql, 8, r); }
+      std::size_t n = 0;
+      while (sqlite3_step(q_sql) == SQLITE_ROW) ++n;
+      sqlite3_reset(q_sql);
+      a.t += secs(t0); ++a.n;
+      if (n != (mode ? want_k : want_r)) ++a.mismatch;
+      sqlite3_step(stats);
+      a.visited += sqlite3_column_int64(stats, 0);
+      a.total += sqlite3_column_int64(stats, 1);
+      sqlite3_reset(stats);
+    }
+    if (i < full_rays) {
+      t0 = Clock::now();
+      for (int j = 0; j < 3; ++j) sqlite3_bind_double(full, j + 1, o[j]), sqlite3_bind_double(full, j + 4, d[j]);
+      sqlite3_bind_double(full, 7, r);
+      sqlite3_step(full);
+      const auto n = (std::size_t)sqlite3_column_int64(full, 0);
+      sqlite3_reset(full);
+      full_r.t += secs(t0); ++full_r.n;
+      if (n != want_r) ++full_r.mismatch;
+    }
+    if (pg) {
+      const std::string od = num(o.x) + "," + num(o.y) + "," + num(o.z) + "," + num(d.x) + "," + num(d.y) + "," + num(d.z);
+      t0 = Clock::now();
+      const int n = pg_count("SELECT p.point_index FROM " + table + "_chunks c JOIN " + table + " p ON p.chunk = c.chunk "
+                             "WHERE c.box && ray_within(" + od + "," + num(r) + ") AND dist_ray(" + od + ",p.x,p.y,p.z) <= " + num(r));
+      pg_r.t += secs(t0); ++pg_r.n;
+      if (n != (int)want_r) ++pg_r.mismatch;
+      t0 = Clock::now();
+      const int m = pg_count("SELECT p.point_index FROM " + table + "_chunks c JOIN " + table + " p ON p.chunk = c.chunk "
+                             "WHERE c.box && ray_within(" + od + "," + num(3 * r) + ") AND dist_ray(" + od + ",p.x,p.y,p.z) <= " +
+                             num(3 * r) + " ORDER BY dist_ray(" + od + ",p.x,p.y,p.z), 1 LIMIT " + std::to_string(k));
+      pg_k.t += secs(t0); ++pg_k.n;
+      RayQuery q3; q3.k = k; q3.radius = 3 * r;
+      ray_query(oct, Ray(o, d), q3, hits);
+      if (m != (int)hits.size()) ++pg_k.mismatch;
+    }
+  }
+  std::printf("cloud %s: %zu points, r = %.4g (point spacing), k = %d, %d rays\n", cloud_path.c_str(), cloud.size(), r, k, nrays);
+  std::printf("%-28s %12s %10s %14s %10s\n", "engine / query", "us/query", "x octree", "chunks touched", "mismatch");
+  auto row = [&](const char* name, const Acc& a, const Acc& ref) {
+    if (!a.n) return;
+    const double us = 1e6 * a.t / a.n;
+    char ch[32] = "-";
+    if (a.total) std::snprintf(ch, sizeof ch, "%.3f%%", 100.0 * a.visited / a.total);
+    std::printf("%-28s %12.1f %10.1f %14s %10lld\n", name, us, us / (1e6 * ref.t / ref.n), ch, a.mismatch);
+  };
+  row("octree radius", oct_r, oct_r);
+  row("sqlite ray_query radius", sq_r, oct_r);
+  row("sqlite full scan radius", full_r, oct_r);
+  row("postgres gist radius", pg_r, oct_r);
+  row("octree kNN (k)", oct_k, oct_k);
+  row("sqlite ray_query kNN", sq_k, oct_k);
+  row("postgres gist kNN in 3r", pg_k, oct_k);
+  sqlite3_finalize(q_sql); sqlite3_finalize(stats); sqlite3_finalize(full);
+  sqlite3_close(db);
+  if (pg) PQfinish(pg);
+  if (!tmp_db.empty()) std::filesystem::remove(tmp_db);
+  return 0;
+}

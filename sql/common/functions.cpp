@@ -1,0 +1,139 @@
+// The shared SQL function semantics (see rayscan/sql/functions.h): argument checks in one place,
+// values from the core so that SQLite, PostgreSQL and `rayscan query` agree to the last bit.
+#include "rayscan/sql/functions.h"
+
+#include "rayscan/distance.hpp"
+#include "rayscan/ray.hpp"
+#include "rayscan/ray_query.hpp"
+
+#include <cmath>
+#include <cstdio>
+
+namespace {
+
+using rayscan::AABB;
+using rayscan::Interval;
+using rayscan::Vec3;
+
+constexpr const char* kNames[3] = {"dist_ray", "ray_time", "dist_plane"};
+constexpr const char* kArgs[3][12] = {
+    {"ox", "oy", "oz", "dx", "dy", "dz", "x", "y", "z", "xmax", "ymax", "zmax"},
+    {"ox", "oy", "oz", "dx", "dy", "dz", "x", "y", "z", "xmax", "ymax", "zmax"},
+    {"px", "py", "pz", "nx", "ny", "nz", "x", "y", "z", "xmax", "ymax", "zmax"}};
+constexpr const char* kBoxArgs[6] = {"xmin", "ymin", "zmin", "xmax", "ymax", "zmax"};
+
+
+// Every argument finite; the direction/normal (a[3..5]) non-zero.
+const char* check(rs_function f, const double* a, int n, bool box, char* err) {
+  for (int i = 0; i < n; ++i)
+    if (!std::isfinite(a[i])) {
+      const char* name = (box && i >= 6) ? kBoxArgs[i - 6] : kArgs[f][i];
+      std::snprintf(err, RS_ERRBUF, "%s%s: argument %d (%s) is %s; expected a finite number",
+                    kNames[f], box ? "_bounds" : "", i + 1, name,
+                    std::isnan(a[i]) ? "NaN" : "infinite");
+      return err;
+    }
+  if (a[3] == 0.0 && a[4] == 0.0 && a[5] == 0.0) {
+    std::snprintf(err, RS_ERRBUF, "%s: %s (%s,%s,%s) is zero; expected a non-zero vector",
+                  kNames[f], f == RS_DIST_PLANE ? "normal" : "direction", kArgs[f][3], kArgs[f][4],
+                  kArgs[f][5]);
+    return err;
+  }
+  return nullptr;
+}
+
+// Tolerance of the pruning tests: the core ray query's (ray_query.hpp), 1e-9 of the magnitude.
+double tolerance(const Vec3& o, const AABB& b) {
+  return 1e-9 * (glm::length(o - b.center()) + b.max_extent()) + 1e-300;
+}
+
+AABB make_box(const double* b) { return {Vec3(b[0], b[1], b[2]), Vec3(b[3], b[4], b[5])}; }
+
+}  // namespace
+
+extern "C" const char* rs_function_name(rs_function f) { return kNames[f]; }
+
+extern "C" const char* rs_eval(rs_function f, const double a[9], double* out, char err[RS_ERRBUF]) {
+  if (const char* e = check(f, a, 9, false, err)) return e;
+  const Vec3 o(a[0], a[1], a[2]), d(a[3], a[4], a[5]), p(a[6], a[7], a[8]);
+  switch (f) {
+    case RS_DIST_RAY: *out = rayscan::dist_ray(o, d, p); break;
+    // The t of `rayscan query`: the projection on the ray's unit direction, normalised as the
+    // core Ray does, through the one per-point function every index uses.
+    case RS_RAY_TIME: *out = rayscan::ray_point_terms(o, rayscan::Ray(o, d).direction(), p).t; break;
+    case RS_DIST_PLANE: *out = rayscan::dist_plane(o, d, p); break;
+  }
+  return nullptr;
+}
+
+extern "C" const char* rs_eval_bounds(rs_function f, const double a[12], double* lo, double* hi,
+                                      char err[RS_ERRBUF]) {
+  if (const char* e = check(f, a, 12, true, err)) return e;
+  for (int i = 0; i < 3; ++i)
+    if (a[6 + i] > a[9 + i]) {
+      std::snprintf(err, RS_ERRBUF, "%s_bounds: box %s > %s; expected min <= max on every axis",
+                    kNames[f], kBoxArgs[i], kBoxArgs[i + 3]);
+      return err;
+    }
+  const Vec3 o(a[0], a[1], a[2]), d(a[3], a[4], a[5]);
+  const AABB b = make_box(a + 6);
+  // ray_time's t is dist_plane with p0 = o, n = d (eq. 4: the projected time interval).
+  const Interval iv = f == RS_DIST_RAY ? rayscan::dist_ray_bounds(o, d, b)
+                                       : rayscan::dist_plane_bounds(o, d, b);
+  *lo = iv.lo;
+  *hi = iv.hi;
+  return nullptr;
+}
+
+extern "C" const char* rs_check_ray(const char* fn, const double o[3], const double d[3], double r,
+                                    double t_min, double t_max, char err[RS_ERRBUF]) {
+  static const char* names[6] = {"ox", "oy", "oz", "dx", "dy", "dz"};
+  for (int i = 0; i < 6; ++i) {
+    const double v = i < 3 ? o[i] : d[i - 3];
+    if (!std::isfinite(v)) {
+      std::snprintf(err, RS_ERRBUF, "%s: %s is %s; expected a finite number", fn, names[i],
+                    std::isnan(v) ? "NaN" : "infinite");
+      return err;
+    }
+  }
+  if (d[0] == 0.0 && d[1] == 0.0 && d[2] == 0.0) {
+    std::snprintf(err, RS_ERRBUF, "%s: direction (dx,dy,dz) is zero; expected a non-zero vector", fn);
+    return err;
+  }
+  if (std::isnan(r) || r < 0.0) {
+    std::snprintf(err, RS_ERRBUF, "%s: radius r is %s; expected a number >= 0 (NULL: unbounded)",
+                  fn, std::isnan(r) ? "NaN" : "negative");
+    return err;
+  }
+  if (std::isnan(t_min) || std::isnan(t_max) || t_min > t_max) {
+    std::snprintf(err, RS_ERRBUF, "%s: t_min/t_max (%g, %g): expected t_min <= t_max, not NaN", fn,
+                  t_min, t_max);
+    return err;
+  }
+  return nullptr;
+}
+
+extern "C" rs_within rs_ray_box_test(const double o_[3], const double d_[3], double r, double t_min,
+                                     double t_max, int order_time, const double box[6],
+                                     double* score) {
+  const Vec3 o(o_[0], o_[1], o_[2]), d(d_[0], d_[1], d_[2]);
+  const AABB b = make_box(box);
+  const double tol = tolerance(o, b);
+  const Interval dr = rayscan::dist_ray_bounds(o, d, b);
+  const Interval tb = rayscan::dist_plane_bounds(o, d, b);
+  *score = order_time ? std::max(tb.lo, t_min) : dr.lo;
+  if (dr.empty() || dr.lo > r + tol || tb.hi < t_min - tol || tb.lo > t_max + tol)
+    return RS_NOT_WITHIN;
+  if (dr.hi <= r - tol && tb.lo >= t_min + tol && tb.hi <= t_max - tol) return RS_FULLY_WITHIN;
+  return RS_PARTLY_WITHIN;
+}
+
+extern "C" rs_within rs_plane_box_test(const double p0_[3], const double n_[3], const double box[6]) {
+  const Vec3 p0(p0_[0], p0_[1], p0_[2]), n(n_[0], n_[1], n_[2]);
+  const AABB b = make_box(box);
+  const double tol = tolerance(p0, b);
+  const Interval iv = rayscan::dist_plane_bounds(p0, n, b);
+  if (iv.empty() || iv.lo > tol) return RS_NOT_WITHIN;
+  if (iv.hi <= -tol) return RS_FULLY_WITHIN;
+  return RS_PARTLY_WITHIN;
+}

@@ -1,0 +1,57 @@
+#include "rayscan/sql/import.hpp"
+
+#include <stdexcept>
+
+namespace rayscan::sql {
+
+namespace {
+bool is_identifier(const std::string& s) {
+  if (s.empty() || s.size() > 63) return false;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const char c = s[i];
+    const bool alpha = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_';
+    if (!alpha && !(i > 0 && c >= '0' && c <= '9')) return false;
+  }
+  return true;
+}
+}  // namespace
+
+std::vector<AttributeColumn> resolve_attributes(const std::vector<std::string>& names,
+                                                const std::vector<std::filesystem::path>& paths,
+                                                const std::vector<PointCloud>& clouds) {
+  std::vector<AttributeColumn> cols;
+  auto need = [&](const std::string& name, auto has) {
+    for (std::size_t i = 0; i < clouds.size(); ++i)
+      if (!clouds[i].empty() && !has(clouds[i]))
+        throw std::invalid_argument(paths[i].string() + ": attribute '" + name +
+                                    "' requested but the file has none");
+  };
+  for (const std::string& n : names) {
+    if (!is_identifier(n))
+      throw std::invalid_argument("attribute '" + n + "': expected an SQL identifier [A-Za-z_][A-Za-z0-9_]*");
+    static const char* reserved[] = {"point_index", "source", "chunk", "x", "y", "z"};
+    for (const char* r : reserved)
+      if (n == r) throw std::invalid_argument("attribute '" + n + "' is a built-in column");
+    if (n == "intensity") {
+      need(n, [](const PointCloud& c) { return !c.intensity.empty(); });
+      cols.push_back({n, true, [](const PointCloud& c, std::size_t i) { return double(c.intensity[i]); }});
+    } else if (n == "classification") {
+      need(n, [](const PointCloud& c) { return !c.classification.empty(); });
+      cols.push_back({n, true, [](const PointCloud& c, std::size_t i) { return double(c.classification[i]); }});
+    } else if (n == "gps_time") {
+      need(n, [](const PointCloud& c) { return !c.gps_time.empty(); });
+      cols.push_back({n, false, [](const PointCloud& c, std::size_t i) { return c.gps_time[i]; }});
+    } else if (n == "rgb") {
+      need(n, [](const PointCloud& c) { return !c.rgb.empty(); });
+      cols.push_back({"red", true, [](const PointCloud& c, std::size_t i) { return double(c.rgb[i].r); }});
+      cols.push_back({"green", true, [](const PointCloud& c, std::size_t i) { return double(c.rgb[i].g); }});
+      cols.push_back({"blue", true, [](const PointCloud& c, std::size_t i) { return double(c.rgb[i].b); }});
+    } else {
+      need(n, [&](const PointCloud& c) { return c.scalar(n) != nullptr; });
+      cols.push_back({n, false, [n](const PointCloud& c, std::size_t i) { return c.scalar(n)->values[i]; }});
+    }
+  }
+  return cols;
+}
+
+}  // namespace rayscan::sql

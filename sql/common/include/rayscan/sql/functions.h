@@ -1,0 +1,62 @@
+/* The paper's SQL user-defined functions (Teuscher et al., "Ray Queries On Raw Point Clouds",
+ * section 4.2, eqs. 5 and 6) and their bounds evaluation over a chunk box, with the argument rules
+ * both database engines share (SQLite extension sql/sqlite, PostgreSQL extension sql/postgres).
+ * A plain C interface so that the PostgreSQL glue can stay C; the values come from the core
+ * (octree/include/rayscan/distance.hpp, ray_query.hpp), so both engines agree with `rayscan query`
+ * to the last bit. No function throws; none allocates. */
+#ifndef RAYSCAN_SQL_FUNCTIONS_H
+#define RAYSCAN_SQL_FUNCTIONS_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** The three point functions of issue 13 (all take 9 arguments: 3-vector, 3-vector, point). */
+typedef enum rs_function {
+  RS_DIST_RAY = 0,  /**< dist_ray(ox,oy,oz, dx,dy,dz, x,y,z): distance to the ray line, eq. 5 */
+  RS_RAY_TIME = 1,  /**< ray_time(ox,oy,oz, dx,dy,dz, x,y,z): t of the projection, world units */
+  RS_DIST_PLANE = 2 /**< dist_plane(px,py,pz, nx,ny,nz, x,y,z): signed distance, eq. 6 */
+} rs_function;
+
+/** Size of the message buffer the functions below write an error into. */
+#define RS_ERRBUF 192
+
+/** SQL name of f ("dist_ray", "ray_time", "dist_plane"). */
+const char* rs_function_name(rs_function f);
+
+/** Evaluates f at a[0..8] into *out. Returns NULL on success, else a one-line message in err
+ * (e.g. "dist_ray: argument 7 (x) is NaN; expected a finite number",
+ * "dist_ray: direction (dx,dy,dz) is zero; expected a non-zero vector"). */
+const char* rs_eval(rs_function f, const double a[9], double* out, char err[RS_ERRBUF]);
+
+/** Bounds evaluation (section 4.2) of f over the box a[6..11] = (xmin,ymin,zmin,xmax,ymax,zmax)
+ * with a[0..5] as in rs_eval: [*lo, *hi] holds every value f takes for a point of the box (exact
+ * up to rounding; pruning adds rs_tolerance). SQL names: <name>_min / <name>_max. Errors as
+ * rs_eval, plus a box with min > max on an axis. */
+const char* rs_eval_bounds(rs_function f, const double a[12], double* lo, double* hi,
+                           char err[RS_ERRBUF]);
+
+/** Outcome of testing a chunk box against a ray predicate (SQLite's R*Tree eWithin values). */
+typedef enum rs_within { RS_NOT_WITHIN = 0, RS_PARTLY_WITHIN = 1, RS_FULLY_WITHIN = 2 } rs_within;
+
+/** The chunk pruning test of the paper's section 4.2 for the predicate
+ * dist_ray(o,d,p) <= r AND t_min <= ray_time(o,d,p) <= t_max over box[6] = (xmin,ymin,zmin,
+ * xmax,ymax,zmax): NOT_WITHIN when the bounds exclude every point (with tolerance, so rounding
+ * never prunes a qualifying point), FULLY_WITHIN when they admit every point, else PARTLY_WITHIN.
+ * *score receives a lower bound of the distance (order_time = 0) or of the time (order_time = 1)
+ * of any qualifying point: the "nearest first" key. Arguments must have passed rs_check_ray. */
+rs_within rs_ray_box_test(const double o[3], const double d[3], double r, double t_min,
+                          double t_max, int order_time, const double box[6], double* score);
+
+/** Half-space test {p : dist_plane(p0, n, p) <= 0} over a box (a frustum is a set of them). */
+rs_within rs_plane_box_test(const double p0[3], const double n[3], const double box[6]);
+
+/** Checks query arguments: origin and direction finite, direction non-zero, r >= 0 and not NaN,
+ * t_min <= t_max, neither NaN. `fn` names the SQL function in the message. NULL when valid. */
+const char* rs_check_ray(const char* fn, const double o[3], const double d[3], double r,
+                         double t_min, double t_max, char err[RS_ERRBUF]);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,64 @@
+// `rayscan db import`: clouds into a database as Morton-ordered chunks (issue 13, sections 2.1 and
+// 3.3). Library code; tools/cmd_db.cpp only parses options and prints.
+#pragma once
+
+#include "rayscan/point_cloud.hpp"
+#include "rayscan/sql/chunking.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace rayscan::sql {
+
+/// Options shared by both engines.
+struct ImportOptions {
+  std::uint32_t chunk_size = 4096;      ///< points per chunk (>= 1)
+  std::vector<std::string> attributes;  ///< extra columns: intensity, classification, gps_time,
+                                        ///< rgb (red, green, blue) or any scalar field's name
+};
+
+/// One extra column of the points table.
+struct AttributeColumn {
+  std::string name;  ///< column name (an SQL identifier: [A-Za-z_][A-Za-z0-9_]*)
+  bool integer;      ///< INTEGER (true) or REAL / double precision
+  /// Value of point i of a cloud (integers are exact in a double).
+  std::function<double(const PointCloud&, std::size_t)> value;
+};
+
+/// Resolves the requested attribute names against every cloud. Throws std::invalid_argument
+/// ("<file>: attribute 'gps_time' requested but the file has none") when a cloud lacks one or a
+/// name is not an SQL identifier.
+[[nodiscard]] std::vector<AttributeColumn> resolve_attributes(
+    const std::vector<std::string>& names, const std::vector<std::filesystem::path>& paths,
+    const std::vector<PointCloud>& clouds);
+
+/// What an import wrote.
+struct ImportSummary {
+  std::uint64_t points = 0;  ///< rows in the points table
+  std::uint64_t chunks = 0;  ///< chunks (R*Tree / chunk table rows)
+};
+
+/// Imports `clouds` into a new SQLite file `out` (replaced atomically: a temporary file renamed
+/// into place, so a failed import leaves the old file or none). Schema (docs/sql.md):
+///   points(point_index, source, chunk, x, y, z, <attributes>), rowid = 1 + row in Morton order;
+///   chunks: R*Tree (id, min_x, max_x, min_y, max_y, min_z, max_z, +first_row, +count) whose
+///   float32 boxes SQLite rounds outwards, so they stay conservative;
+///   sources(source, path, point_count, crs_wkt); rayscan_meta(key, value).
+/// Throws io::FormatError for unreadable clouds, std::invalid_argument for bad options and
+/// std::runtime_error ("site.sqlite: sqlite: <message>") for database errors.
+ImportSummary import_sqlite(const std::vector<std::filesystem::path>& clouds,
+                            const std::filesystem::path& out, const ImportOptions& options);
+
+/// Imports `clouds` into PostgreSQL (libpq CONNINFO) as plain rows in one transaction:
+///   <table>(point_index bigint, source int, chunk int, x, y, z float8, <attributes>) and
+///   <table>_chunks(chunk int primary key, box rs_box, first_row bigint, count int) with a GiST
+///   index on box (extension rayscan). A failure rolls the transaction back: no half table.
+/// Throws as import_sqlite; std::runtime_error ("postgres: <message>") for server errors.
+ImportSummary import_postgres(const std::vector<std::filesystem::path>& clouds,
+                              const std::string& conninfo, const std::string& table,
+                              const ImportOptions& options);
+
+}  // namespace rayscan::sql

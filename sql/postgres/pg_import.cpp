@@ -1,0 +1,163 @@
+// import_postgres (rayscan/sql/import.hpp): plain rows through COPY in one transaction.
+// Plain rows rather than pgpointcloud patches: the SQL functions take x, y, z as float8 columns and
+// must see the reader's exact doubles (pcpatch dimensions are scaled integers or float32 unless a
+// double schema is declared, and every query would first unpack patches with PC_Explode); the chunk
+// boxes live in <table>_chunks with a GiST index whose consistent/distance are the bounds evaluation.
+#include "rayscan/sql/import.hpp"
+
+#include "rayscan/io/point_io.hpp"
+
+#include <libpq-fe.h>
+
+#include <charconv>
+#include <stdexcept>
+#include <string>
+
+namespace rayscan::sql {
+
+namespace {
+
+struct Conn {
+  PGconn* c = nullptr;
+  ~Conn() { PQfinish(c); }
+  [[noreturn]] void fail(const std::string& what) const {
+    std::string m = c ? PQerrorMessage(c) : "out of memory";
+    while (!m.empty() && (m.back() == '\n' || m.back() == ' ')) m.pop_back();
+    for (char& ch : m)
+      if (ch == '\n') ch = ' ';
+    throw std::runtime_error("postgres: " + what + ": " + m);
+  }
+  void exec(const std::string& sql) {
+    PGresult* r = PQexec(c, sql.c_str());
+    const auto st = PQresultStatus(r);
+    PQclear(r);
+    if (st != PGRES_COMMAND_OK && st != PGRES_TUPLES_OK) fail(sql.substr(0, 60));
+  }
+  void copy_in(const std::string& sql) {
+    PGresult* r = PQexec(c, sql.c_str());
+    const auto st = PQresultStatus(r);
+    PQclear(r);
+    if (st != PGRES_COPY_IN) fail(sql);
+  }
+};
+
+void append_double(std::string& s, double v) {
+  char buf[32];
+  auto [p, ec] = std::to_chars(buf, buf + sizeof buf, v);  // shortest round-trip form: exact
+  s.append(buf, p);
+}
+
+bool is_identifier(const std::string& s) {
+  if (s.empty() || s.size() > 50) return false;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const char ch = s[i];
+    const bool ok = (ch >= 'a' && ch <= 'z') || ch == '_' || (i > 0 && ch >= '0' && ch <= '9');
+    if (!ok) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
+                              const std::string& conninfo, const std::string& table,
+                              const ImportOptions& options) {
+  if (paths.empty()) throw std::invalid_argument("no input cloud given");
+  if (!is_identifier(table))
+    throw std::invalid_argument("--table '" + table + "': expected a lower-case SQL identifier [a-z_][a-z0-9_]* (max 50)");
+  if (options.chunk_size == 0) throw std::invalid_argument("--chunk must be at least 1 point");
+  std::vector<PointCloud> clouds;
+  for (const auto& p : paths)
+    clouds.push_back(io::read_point_cloud(p, io::ReadOptions{.scalars = !options.attributes.empty()}));
+  const std::vector<AttributeColumn> cols = resolve_attributes(options.attributes, paths, clouds);
+  std::vector<const PointCloud*> ptrs;
+  for (const auto& c : clouds) ptrs.push_back(&c);
+  const ChunkLayout layout = make_chunk_layout(ptrs, options.chunk_size);
+
+  Conn db;
+  db.c = PQconnectdb(conninfo.c_str());
+  if (PQstatus(db.c) != CONNECTION_OK) db.fail("cannot connect");
+  db.exec("SET client_min_messages = warning");
+  db.exec("BEGIN");  // all or nothing: a failure (or the server going away) leaves no half table
+  db.exec("CREATE EXTENSION IF NOT EXISTS rayscan");
+  std::string create = "CREATE TABLE " + table +
+                       " (point_index bigint NOT NULL, source int NOT NULL, chunk int NOT NULL, "
+                       "x float8 NOT NULL, y float8 NOT NULL, z float8 NOT NULL";
+  for (const auto& c : cols) create += ", " + c.name + (c.integer ? " bigint" : " float8");
+  db.exec(create + ")");
+  db.exec("CREATE TABLE " + table + "_chunks (chunk int PRIMARY KEY, box rs_box NOT NULL, "
+          "first_row bigint NOT NULL, count int NOT NULL)");
+  db.exec("CREATE TABLE " + table + "_sources (source int PRIMARY KEY, path text NOT NULL, "
+          "point_count bigint NOT NULL)");
+  db.copy_in("COPY " + table + " FROM STDIN");
+  std::string buf;
+  auto flush = [&](bool force) {
+    if (buf.size() < (1u << 20) && !force) return;
+    if (PQputCopyData(db.c, buf.data(), static_cast<int>(buf.size())) != 1) db.fail("COPY points");
+    buf.clear();
+  };
+  for (std::size_t ci = 0; ci < layout.chunks.size(); ++ci) {
+    const Chunk& c = layout.chunks[ci];
+    for (std::uint64_t r = c.first; r < c.first + c.count; ++r) {
+      const PointRef ref = layout.order[r];
+      const PointCloud& cloud = clouds[ref.source];
+      const Vec3& p = cloud.positions[ref.index];
+      buf += std::to_string(ref.index) + '\t' + std::to_string(ref.source) + '\t' + std::to_string(ci);
+      for (double v : {p.x, p.y, p.z}) {
+        buf += '\t';
+        append_double(buf, v);
+      }
+      for (const auto& col : cols) {
+        buf += '\t';
+        const double v = col.value(cloud, ref.index);
+        if (col.integer) buf += std::to_string(static_cast<long long>(v));
+        else append_double(buf, v);
+      }
+      buf += '\n';
+      flush(false);
+    }
+  }
+  flush(true);
+  if (PQputCopyEnd(db.c, nullptr) != 1) db.fail("COPY points");
+  for (PGresult* r; (r = PQgetResult(db.c));) {
+    const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
+    PQclear(r);
+    if (!ok) db.fail("COPY points");
+  }
+  // Chunk boxes in double: exact, no outward rounding needed.
+  db.copy_in("COPY " + table + "_chunks FROM STDIN");
+  for (std::size_t ci = 0; ci < layout.chunks.size(); ++ci) {
+    const Chunk& c = layout.chunks[ci];
+    buf += std::to_string(ci) + "\t(";
+    const double v[6] = {c.box.lo.x, c.box.lo.y, c.box.lo.z, c.box.hi.x, c.box.hi.y, c.box.hi.z};
+    for (int i = 0; i < 6; ++i) {
+      if (i) buf += ',';
+      append_double(buf, v[i]);
+    }
+    buf += ")\t" + std::to_string(c.first) + '\t' + std::to_string(c.count) + '\n';
+  }
+  flush(true);
+  if (PQputCopyEnd(db.c, nullptr) != 1) db.fail("COPY chunks");
+  for (PGresult* r; (r = PQgetResult(db.c));) {
+    const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
+    PQclear(r);
+    if (!ok) db.fail("COPY chunks");
+  }
+  for (std::size_t i = 0; i < paths.size(); ++i) {
+    const std::string p = paths[i].string();
+    const std::string n = std::to_string(i), cnt = std::to_string(clouds[i].size());
+    const char* vals[3] = {n.c_str(), p.c_str(), cnt.c_str()};
+    PGresult* r = PQexecParams(db.c, ("INSERT INTO " + table + "_sources VALUES($1,$2,$3)").c_str(), 3,
+                               nullptr, vals, nullptr, nullptr, 0);
+    const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
+    PQclear(r);
+    if (!ok) db.fail("insert source");
+  }
+  db.exec("CREATE INDEX " + table + "_chunk_idx ON " + table + " (chunk)");
+  db.exec("CREATE INDEX " + table + "_chunks_box ON " + table + "_chunks USING gist (box)");
+  db.exec("COMMIT");
+  db.exec("ANALYZE " + table + "; ANALYZE " + table + "_chunks");
+  return {layout.order.size(), layout.chunks.size()};
+}
+
+}  // namespace rayscan::sql

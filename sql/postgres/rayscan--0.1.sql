@@ -1,0 +1,79 @@
+-- rayscan 0.1: paper section 4.2 (Teuscher et al., "Ray Queries On Raw Point Clouds").
+\echo Use "CREATE EXTENSION rayscan" to load this file. \quit
+
+CREATE FUNCTION dist_ray(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, x float8, y float8, z float8) RETURNS float8
+  AS 'MODULE_PATHNAME', 'rs_dist_ray'
+  LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+COMMENT ON FUNCTION dist_ray(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, x float8, y float8, z float8) IS 'Orthogonal distance of (x,y,z) to the ray line (paper eq. 5); d need not be unit';
+CREATE FUNCTION ray_time(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, x float8, y float8, z float8) RETURNS float8
+  AS 'MODULE_PATHNAME', 'rs_ray_time'
+  LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+COMMENT ON FUNCTION ray_time(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, x float8, y float8, z float8) IS 't of the projection of (x,y,z) on the ray, world units along the unit direction (as rayscan query)';
+CREATE FUNCTION dist_plane(px float8, py float8, pz float8, nx float8, ny float8, nz float8, x float8, y float8, z float8) RETURNS float8
+  AS 'MODULE_PATHNAME', 'rs_dist_plane'
+  LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+COMMENT ON FUNCTION dist_plane(px float8, py float8, pz float8, nx float8, ny float8, nz float8, x float8, y float8, z float8) IS 'Signed distance of (x,y,z) to the plane (paper eq. 6), positive on the normal side';
+CREATE FUNCTION dist_ray_min(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) RETURNS float8
+  AS 'MODULE_PATHNAME', 'rs_dist_ray_min'
+  LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+COMMENT ON FUNCTION dist_ray_min(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) IS 'Bounds evaluation (section 4.2): the minimum of dist_ray over the box';
+CREATE FUNCTION dist_ray_max(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) RETURNS float8
+  AS 'MODULE_PATHNAME', 'rs_dist_ray_max'
+  LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+COMMENT ON FUNCTION dist_ray_max(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) IS 'Bounds evaluation (section 4.2): the maximum of dist_ray over the box';
+CREATE FUNCTION ray_time_min(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) RETURNS float8
+  AS 'MODULE_PATHNAME', 'rs_ray_time_min'
+  LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+COMMENT ON FUNCTION ray_time_min(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) IS 'Bounds evaluation (section 4.2): the minimum of ray_time over the box';
+CREATE FUNCTION ray_time_max(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) RETURNS float8
+  AS 'MODULE_PATHNAME', 'rs_ray_time_max'
+  LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+COMMENT ON FUNCTION ray_time_max(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) IS 'Bounds evaluation (section 4.2): the maximum of ray_time over the box';
+CREATE FUNCTION dist_plane_min(px float8, py float8, pz float8, nx float8, ny float8, nz float8, xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) RETURNS float8
+  AS 'MODULE_PATHNAME', 'rs_dist_plane_min'
+  LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+COMMENT ON FUNCTION dist_plane_min(px float8, py float8, pz float8, nx float8, ny float8, nz float8, xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) IS 'Bounds evaluation (section 4.2): the minimum of dist_plane over the box';
+CREATE FUNCTION dist_plane_max(px float8, py float8, pz float8, nx float8, ny float8, nz float8, xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) RETURNS float8
+  AS 'MODULE_PATHNAME', 'rs_dist_plane_max'
+  LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+COMMENT ON FUNCTION dist_plane_max(px float8, py float8, pz float8, nx float8, ny float8, nz float8, xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) IS 'Bounds evaluation (section 4.2): the maximum of dist_plane over the box';
+
+-- Chunk box (xmin,ymin,zmin,xmax,ymax,zmax), float8.
+CREATE TYPE rs_box;
+CREATE FUNCTION rs_box_in(cstring) RETURNS rs_box AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE FUNCTION rs_box_out(rs_box) RETURNS cstring AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE TYPE rs_box (INPUT = rs_box_in, OUTPUT = rs_box_out, INTERNALLENGTH = 48, ALIGNMENT = double);
+CREATE FUNCTION rs_box(xmin float8, ymin float8, zmin float8, xmax float8, ymax float8, zmax float8) RETURNS rs_box
+  AS 'MODULE_PATHNAME', 'rs_box_make' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+
+-- Ray predicate: dist_ray <= r AND t_min <= ray_time <= t_max.
+CREATE TYPE rs_ray;
+CREATE FUNCTION rs_ray_in(cstring) RETURNS rs_ray AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE FUNCTION rs_ray_out(rs_ray) RETURNS cstring AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE TYPE rs_ray (INPUT = rs_ray_in, OUTPUT = rs_ray_out, INTERNALLENGTH = 72, ALIGNMENT = double);
+CREATE FUNCTION ray_within(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, r float8) RETURNS rs_ray
+  AS 'MODULE_PATHNAME', 'rs_ray_make' LANGUAGE C IMMUTABLE PARALLEL SAFE;
+CREATE FUNCTION ray_within(ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, r float8, t_min float8, t_max float8) RETURNS rs_ray
+  AS 'MODULE_PATHNAME', 'rs_ray_make' LANGUAGE C IMMUTABLE PARALLEL SAFE;
+
+CREATE FUNCTION rs_box_admits(rs_box, rs_ray) RETURNS bool AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE FUNCTION rs_box_distance(rs_box, rs_ray) RETURNS float8 AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE OPERATOR && (LEFTARG = rs_box, RIGHTARG = rs_ray, FUNCTION = rs_box_admits, RESTRICT = areasel, JOIN = areajoinsel);
+CREATE OPERATOR <-> (LEFTARG = rs_box, RIGHTARG = rs_ray, FUNCTION = rs_box_distance);
+
+CREATE FUNCTION rs_gist_consistent(internal, rs_ray, int2, oid, internal) RETURNS bool AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE FUNCTION rs_gist_distance(internal, rs_ray, int2, oid, internal) RETURNS float8 AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE FUNCTION rs_gist_union(internal, internal) RETURNS rs_box AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE FUNCTION rs_gist_penalty(internal, internal, internal) RETURNS internal AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE FUNCTION rs_gist_picksplit(internal, internal) RETURNS internal AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE FUNCTION rs_gist_same(rs_box, rs_box, internal) RETURNS internal AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+
+CREATE OPERATOR CLASS rs_box_ops DEFAULT FOR TYPE rs_box USING gist AS
+  OPERATOR 1 && (rs_box, rs_ray),
+  OPERATOR 15 <-> (rs_box, rs_ray) FOR ORDER BY pg_catalog.float_ops,
+  FUNCTION 1 rs_gist_consistent(internal, rs_ray, int2, oid, internal),
+  FUNCTION 2 rs_gist_union(internal, internal),
+  FUNCTION 5 rs_gist_penalty(internal, internal, internal),
+  FUNCTION 6 rs_gist_picksplit(internal, internal),
+  FUNCTION 7 rs_gist_same(rs_box, rs_box, internal),
+  FUNCTION 8 rs_gist_distance(internal, rs_ray, int2, oid, internal);

@@ -1,0 +1,334 @@
+/* PostgreSQL 15 extension `rayscan` (issue 13; paper section 4.2): the functions dist_ray,
+ * ray_time, dist_plane and their bounds evaluation <name>_min / <name>_max, the chunk box type
+ * rs_box, the ray predicate rs_ray (ray_within(...)), the operators
+ *   rs_box && rs_ray   (the box may hold a point with dist_ray <= r and t in [t_min, t_max])
+ *   rs_box <-> rs_ray  (lower bound of dist_ray over the box: index-ordered kNN of chunks)
+ * and a GiST operator class rs_box_ops whose consistent and distance methods are that bounds
+ * evaluation. Values come from the core through rayscan/sql/functions.h (C interface over the C++
+ * core), so they equal the SQLite extension and `rayscan query` to the last bit.
+ * GiST interface: PostgreSQL 15 documentation, chapter 68.3 "Extensibility". */
+#include "postgres.h"
+
+#include "access/gist.h"
+#include "access/stratnum.h"
+#include "fmgr.h"
+#include "utils/builtins.h"
+#include "utils/float.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+#include "rayscan/sql/functions.h"
+
+PG_MODULE_MAGIC;
+
+/* A chunk box: (xmin, ymin, zmin, xmax, ymax, zmax), the layout rs_ray_box_test expects. */
+typedef struct RsBox {
+  double v[6];
+} RsBox;
+
+/* A ray predicate: dist_ray(o, d, p) <= r AND t_min <= ray_time(o, d, p) <= t_max. */
+typedef struct RsRay {
+  double o[3], d[3], r, t_min, t_max;
+} RsRay;
+
+#define RS_STRATEGY_ADMITS 1   /* && */
+#define RS_STRATEGY_DISTANCE 15 /* <-> (RTKNNSearchStrategyNumber) */
+
+static void raise(const char* msg) {
+  ereport(ERROR, (errcode(ERRCODE_INVALID_PARAMETER_VALUE), errmsg("%s", msg)));
+}
+
+/* ---- scalar functions -------------------------------------------------------------------- */
+
+static Datum point_fn(FunctionCallInfo fcinfo, rs_function f) {
+  double a[9], v;
+  char err[RS_ERRBUF];
+  const char* e;
+  int i;
+  for (i = 0; i < 9; ++i) a[i] = PG_GETARG_FLOAT8(i);
+  e = rs_eval(f, a, &v, err);
+  if (e) raise(e);
+  PG_RETURN_FLOAT8(v);
+}
+
+static Datum bounds_fn(FunctionCallInfo fcinfo, rs_function f, int want_max) {
+  double a[12], lo, hi;
+  char err[RS_ERRBUF];
+  const char* e;
+  int i;
+  for (i = 0; i < 12; ++i) a[i] = PG_GETARG_FLOAT8(i);
+  e = rs_eval_bounds(f, a, &lo, &hi, err);
+  if (e) raise(e);
+  PG_RETURN_FLOAT8(want_max ? hi : lo);
+}
+
+PG_FUNCTION_INFO_V1(rs_dist_ray);
+Datum rs_dist_ray(PG_FUNCTION_ARGS) { return point_fn(fcinfo, RS_DIST_RAY); }
+PG_FUNCTION_INFO_V1(rs_ray_time);
+Datum rs_ray_time(PG_FUNCTION_ARGS) { return point_fn(fcinfo, RS_RAY_TIME); }
+PG_FUNCTION_INFO_V1(rs_dist_plane);
+Datum rs_dist_plane(PG_FUNCTION_ARGS) { return point_fn(fcinfo, RS_DIST_PLANE); }
+PG_FUNCTION_INFO_V1(rs_dist_ray_min);
+Datum rs_dist_ray_min(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_DIST_RAY, 0); }
+PG_FUNCTION_INFO_V1(rs_dist_ray_max);
+Datum rs_dist_ray_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_DIST_RAY, 1); }
+PG_FUNCTION_INFO_V1(rs_ray_time_min);
+Datum rs_ray_time_min(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_RAY_TIME, 0); }
+PG_FUNCTION_INFO_V1(rs_ray_time_max);
+Datum rs_ray_time_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_RAY_TIME, 1); }
+PG_FUNCTION_INFO_V1(rs_dist_plane_min);
+Datum rs_dist_plane_min(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_DIST_PLANE, 0); }
+PG_FUNCTION_INFO_V1(rs_dist_plane_max);
+Datum rs_dist_plane_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_DIST_PLANE, 1); }
+
+/* ---- rs_box and rs_ray types ------------------------------------------------------------- */
+
+/* Parses "(v1,...,vn)" into n finite doubles; raises a one-line error naming the type. */
+static void parse_tuple(const char* s, double* v, int n, const char* type) {
+  const char* p = s;
+  int i;
+  char* end;
+  while (*p == ' ') ++p;
+  if (*p++ != '(') goto bad;
+  for (i = 0; i < n; ++i) {
+    v[i] = strtod(p, &end);
+    if (end == p) goto bad;
+    p = end;
+    while (*p == ' ') ++p;
+    if (*p++ != (i + 1 < n ? ',' : ')')) goto bad;
+  }
+  while (*p == ' ') ++p;
+  if (*p) goto bad;
+  return;
+bad:
+  ereport(ERROR, (errcode(ERRCODE_INVALID_TEXT_REPRESENTATION),
+                  errmsg("invalid input syntax for type %s: \"%s\" (expected %d comma-separated "
+                         "numbers in parentheses)", type, s, n)));
+}
+
+static char* format_tuple(const double* v, int n) {
+  StringInfoData s;
+  int i;
+  initStringInfo(&s);
+  appendStringInfoChar(&s, '(');
+  for (i = 0; i < n; ++i) {
+    char* f = float8out_internal(v[i]);
+    if (i) appendStringInfoChar(&s, ',');
+    appendStringInfoString(&s, f);
+    pfree(f);
+  }
+  appendStringInfoChar(&s, ')');
+  return s.data;
+}
+
+static void check_box(const RsBox* b) {
+  int i;
+  for (i = 0; i < 6; ++i)
+    if (isnan(b->v[i])) raise("rs_box: a coordinate is NaN; expected numbers");
+  for (i = 0; i < 3; ++i)
+    if (b->v[i] > b->v[i + 3]) raise("rs_box: min > max on an axis; expected (xmin,ymin,zmin,xmax,ymax,zmax)");
+}
+
+static void check_ray(RsRay* q) {
+  char err[RS_ERRBUF];
+  const char* e = rs_check_ray("ray_within", q->o, q->d, q->r, q->t_min, q->t_max, err);
+  if (e) raise(e);
+}
+
+PG_FUNCTION_INFO_V1(rs_box_in);
+Datum rs_box_in(PG_FUNCTION_ARGS) {
+  RsBox* b = palloc(sizeof(RsBox));
+  parse_tuple(PG_GETARG_CSTRING(0), b->v, 6, "rs_box");
+  check_box(b);
+  PG_RETURN_POINTER(b);
+}
+PG_FUNCTION_INFO_V1(rs_box_out);
+Datum rs_box_out(PG_FUNCTION_ARGS) {
+  PG_RETURN_CSTRING(format_tuple(((RsBox*)PG_GETARG_POINTER(0))->v, 6));
+}
+PG_FUNCTION_INFO_V1(rs_box_make);
+Datum rs_box_make(PG_FUNCTION_ARGS) {
+  RsBox* b = palloc(sizeof(RsBox));
+  int i;
+  for (i = 0; i < 6; ++i) b->v[i] = PG_GETARG_FLOAT8(i);
+  check_box(b);
+  PG_RETURN_POINTER(b);
+}
+PG_FUNCTION_INFO_V1(rs_ray_in);
+Datum rs_ray_in(PG_FUNCTION_ARGS) {
+  RsRay* q = palloc(sizeof(RsRay));
+  double v[9];
+  parse_tuple(PG_GETARG_CSTRING(0), v, 9, "rs_ray");
+  memcpy(q, v, sizeof v);
+  check_ray(q);
+  PG_RETURN_POINTER(q);
+}
+PG_FUNCTION_INFO_V1(rs_ray_out);
+Datum rs_ray_out(PG_FUNCTION_ARGS) {
+  PG_RETURN_CSTRING(format_tuple((const double*)PG_GETARG_POINTER(0), 9));
+}
+/* ray_within(ox,oy,oz, dx,dy,dz, r [, t_min, t_max]); NULL r / t keep the default (inf). */
+PG_FUNCTION_INFO_V1(rs_ray_make);
+Datum rs_ray_make(PG_FUNCTION_ARGS) {
+  RsRay* q = palloc(sizeof(RsRay));
+  int i;
+  for (i = 0; i < 6; ++i) {
+    if (PG_ARGISNULL(i)) PG_RETURN_NULL();
+    (i < 3 ? q->o : q->d)[i % 3] = PG_GETARG_FLOAT8(i);
+  }
+  q->r = PG_NARGS() > 6 && !PG_ARGISNULL(6) ? PG_GETARG_FLOAT8(6) : get_float8_infinity();
+  q->t_min = PG_NARGS() > 7 && !PG_ARGISNULL(7) ? PG_GETARG_FLOAT8(7) : -get_float8_infinity();
+  q->t_max = PG_NARGS() > 8 && !PG_ARGISNULL(8) ? PG_GETARG_FLOAT8(8) : get_float8_infinity();
+  check_ray(q);
+  PG_RETURN_POINTER(q);
+}
+
+/* ---- operators --------------------------------------------------------------------------- */
+
+static rs_within test(const RsBox* b, const RsRay* q, double* score) {
+  return rs_ray_box_test(q->o, q->d, q->r, q->t_min, q->t_max, 0, b->v, score);
+}
+
+PG_FUNCTION_INFO_V1(rs_box_admits);
+Datum rs_box_admits(PG_FUNCTION_ARGS) {
+  double score;
+  PG_RETURN_BOOL(test((RsBox*)PG_GETARG_POINTER(0), (RsRay*)PG_GETARG_POINTER(1), &score) !=
+                 RS_NOT_WITHIN);
+}
+PG_FUNCTION_INFO_V1(rs_box_distance);
+Datum rs_box_distance(PG_FUNCTION_ARGS) {
+  double score;
+  test((RsBox*)PG_GETARG_POINTER(0), (RsRay*)PG_GETARG_POINTER(1), &score);
+  PG_RETURN_FLOAT8(score);
+}
+
+/* ---- GiST support ------------------------------------------------------------------------ */
+
+PG_FUNCTION_INFO_V1(rs_gist_consistent);
+Datum rs_gist_consistent(PG_FUNCTION_ARGS) {
+  GISTENTRY* entry = (GISTENTRY*)PG_GETARG_POINTER(0);
+  const RsRay* q = (const RsRay*)PG_GETARG_POINTER(1);
+  StrategyNumber strategy = (StrategyNumber)PG_GETARG_UINT16(2);
+  bool* recheck = (bool*)PG_GETARG_POINTER(4);
+  double score;
+  if (strategy != RS_STRATEGY_ADMITS) elog(ERROR, "rs_box_ops: unknown strategy %d", strategy);
+  /* Leaf: the same bounds test as the operator itself, so the answer is exact. */
+  *recheck = false;
+  PG_RETURN_BOOL(test((const RsBox*)DatumGetPointer(entry->key), q, &score) != RS_NOT_WITHIN);
+}
+
+PG_FUNCTION_INFO_V1(rs_gist_distance);
+Datum rs_gist_distance(PG_FUNCTION_ARGS) {
+  GISTENTRY* entry = (GISTENTRY*)PG_GETARG_POINTER(0);
+  const RsRay* q = (const RsRay*)PG_GETARG_POINTER(1);
+  bool* recheck = (bool*)PG_GETARG_POINTER(4);
+  double score;
+  *recheck = false;
+  test((const RsBox*)DatumGetPointer(entry->key), q, &score);
+  PG_RETURN_FLOAT8(score);
+}
+
+PG_FUNCTION_INFO_V1(rs_gist_union);
+Datum rs_gist_union(PG_FUNCTION_ARGS) {
+  GistEntryVector* ev = (GistEntryVector*)PG_GETARG_POINTER(0);
+  int* sizep = (int*)PG_GETARG_POINTER(1);
+  RsBox* u = palloc(sizeof(RsBox));
+  int i, j;
+  *u = *(RsBox*)DatumGetPointer(ev->vector[0].key);
+  for (i = 1; i < ev->n; ++i) {
+    const RsBox* b = (const RsBox*)DatumGetPointer(ev->vector[i].key);
+    for (j = 0; j < 3; ++j) {
+      u->v[j] = Min(u->v[j], b->v[j]);
+      u->v[j + 3] = Max(u->v[j + 3], b->v[j + 3]);
+    }
+  }
+  *sizep = sizeof(RsBox);
+  PG_RETURN_POINTER(u);
+}
+
+static double box_measure(const RsBox* b) {
+  /* volume plus half the surface "margin", so flat boxes still have a size */
+  const double ex = b->v[3] - b->v[0], ey = b->v[4] - b->v[1], ez = b->v[5] - b->v[2];
+  return ex * ey * ez + (ex + ey + ez);
+}
+
+PG_FUNCTION_INFO_V1(rs_gist_penalty);
+Datum rs_gist_penalty(PG_FUNCTION_ARGS) {
+  const RsBox* a = (const RsBox*)DatumGetPointer(((GISTENTRY*)PG_GETARG_POINTER(0))->key);
+  const RsBox* b = (const RsBox*)DatumGetPointer(((GISTENTRY*)PG_GETARG_POINTER(1))->key);
+  float* penalty = (float*)PG_GETARG_POINTER(2);
+  RsBox u;
+  int j;
+  for (j = 0; j < 3; ++j) {
+    u.v[j] = Min(a->v[j], b->v[j]);
+    u.v[j + 3] = Max(a->v[j + 3], b->v[j + 3]);
+  }
+  *penalty = (float)(box_measure(&u) - box_measure(a));
+  PG_RETURN_POINTER(penalty);
+}
+
+typedef struct SplitItem {
+  double c;
+  OffsetNumber off;
+} SplitItem;
+static int split_cmp(const void* x, const void* y) {
+  const double a = ((const SplitItem*)x)->c, b = ((const SplitItem*)y)->c;
+  return a < b ? -1 : a > b ? 1 : 0;
+}
+
+/* Split at the median of the box centres along the axis of largest spread. */
+PG_FUNCTION_INFO_V1(rs_gist_picksplit);
+Datum rs_gist_picksplit(PG_FUNCTION_ARGS) {
+  GistEntryVector* ev = (GistEntryVector*)PG_GETARG_POINTER(0);
+  GIST_SPLITVEC* v = (GIST_SPLITVEC*)PG_GETARG_POINTER(1);
+  const OffsetNumber maxoff = ev->n - 1;
+  const int n = maxoff - FirstOffsetNumber + 1;
+  SplitItem* items = palloc(sizeof(SplitItem) * n);
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  int axis = 0, i, j;
+  RsBox *l = palloc(sizeof(RsBox)), *r = palloc(sizeof(RsBox));
+  for (i = 0; i < n; ++i) {
+    const RsBox* b = (const RsBox*)DatumGetPointer(ev->vector[FirstOffsetNumber + i].key);
+    for (j = 0; j < 3; ++j) {
+      const double c = 0.5 * (b->v[j] + b->v[j + 3]);
+      lo[j] = Min(lo[j], c);
+      hi[j] = Max(hi[j], c);
+    }
+  }
+  for (j = 1; j < 3; ++j)
+    if (hi[j] - lo[j] > hi[axis] - lo[axis]) axis = j;
+  for (i = 0; i < n; ++i) {
+    const RsBox* b = (const RsBox*)DatumGetPointer(ev->vector[FirstOffsetNumber + i].key);
+    items[i].c = 0.5 * (b->v[axis] + b->v[axis + 3]);
+    items[i].off = FirstOffsetNumber + i;
+  }
+  qsort(items, n, sizeof(SplitItem), split_cmp);
+  v->spl_left = palloc(sizeof(OffsetNumber) * (n + 1));
+  v->spl_right = palloc(sizeof(OffsetNumber) * (n + 1));
+  v->spl_nleft = v->spl_nright = 0;
+  for (i = 0; i < n; ++i) {
+    const RsBox* b = (const RsBox*)DatumGetPointer(ev->vector[items[i].off].key);
+    const bool left = i < n / 2;
+    RsBox* u = left ? l : r;
+    if ((left ? v->spl_nleft : v->spl_nright) == 0) *u = *b;
+    for (j = 0; j < 3; ++j) {
+      u->v[j] = Min(u->v[j], b->v[j]);
+      u->v[j + 3] = Max(u->v[j + 3], b->v[j + 3]);
+    }
+    if (left) v->spl_left[v->spl_nleft++] = items[i].off;
+    else v->spl_right[v->spl_nright++] = items[i].off;
+  }
+  v->spl_ldatum = PointerGetDatum(l);
+  v->spl_rdatum = PointerGetDatum(r);
+  PG_RETURN_POINTER(v);
+}
+
+PG_FUNCTION_INFO_V1(rs_gist_same);
+Datum rs_gist_same(PG_FUNCTION_ARGS) {
+  const RsBox* a = (const RsBox*)PG_GETARG_POINTER(0);
+  const RsBox* b = (const RsBox*)PG_GETARG_POINTER(1);
+  bool* result = (bool*)PG_GETARG_POINTER(2);
+  *result = memcmp(a, b, sizeof(RsBox)) == 0;
+  PG_RETURN_POINTER(result);
+}

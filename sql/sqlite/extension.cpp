@@ -1,0 +1,487 @@
+// rayscan_sqlite: the SQLite loadable extension of issue 13 (paper section 4.2).
+//   .load ./rayscan_sqlite          (sqlite3 shell)      conn.load_extension("rayscan_sqlite")
+// Registers
+//   * dist_ray, ray_time, dist_plane (9 arguments) and their bounds evaluation over a box,
+//     <name>_min / <name>_max (12 arguments: the 6 of the ray or plane, xmin,ymin,zmin,xmax,ymax,zmax);
+//   * the R*Tree query callbacks ray_prune(ox,oy,oz, dx,dy,dz, r [, t_min, t_max]) and
+//     plane_prune(px,py,pz, nx,ny,nz) for `chunks.id MATCH ...` (https://sqlite.org/rtree.html,
+//     section 7.1 "Custom R*Tree queries"): the bounds evaluation applied to R*Tree nodes and chunk
+//     boxes (prune / fully inside / partly inside), rScore = the lower bound (nearest first);
+//   * the table-valued function ray_query(ox,oy,oz, dx,dy,dz, k, r, t_min, t_max, ord): kNN to
+//     (ord 'ray') or along (ord 'time') the ray over the chunks, nearest chunk first, with the
+//     paper's dynamic k filter (Algorithm 1, step 2); the same rows as `rayscan query`;
+//   * rayscan_stats(): JSON counters of the connection's last ray_query.
+// Values come from the core through rayscan/sql/functions.h, so they equal `rayscan query` and the
+// PostgreSQL extension to the last bit.
+#include <sqlite3ext.h>
+SQLITE_EXTENSION_INIT1
+
+#include "rayscan/sql/functions.h"
+
+#include "rayscan/ray.hpp"
+#include "rayscan/ray_query.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace {
+
+using rayscan::Vec3;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// ---- scalar functions --------------------------------------------------------------------------
+
+const char* type_name(int t) {
+  switch (t) {
+    case SQLITE_TEXT: return "text";
+    case SQLITE_BLOB: return "blob";
+    default: return "null";
+  }
+}
+
+// Reads n numeric arguments; false (result already set) on NULL (-> NULL) or a non-number.
+bool numeric_args(sqlite3_context* ctx, const char* fn, int n, sqlite3_value** argv, double* a) {
+  for (int i = 0; i < n; ++i) {
+    const int t = sqlite3_value_type(argv[i]);
+    if (t == SQLITE_NULL) {
+      sqlite3_result_null(ctx);
+      return false;
+    }
+    if (t != SQLITE_INTEGER && t != SQLITE_FLOAT) {
+      char msg[RS_ERRBUF];
+      std::snprintf(msg, sizeof msg, "%s: argument %d has type %s; expected a number", fn, i + 1,
+                    type_name(t));
+      sqlite3_result_error(ctx, msg, -1);
+      return false;
+    }
+    a[i] = sqlite3_value_double(argv[i]);
+  }
+  return true;
+}
+
+void point_fn(sqlite3_context* ctx, int argc, sqlite3_value** argv) {
+  const auto f = static_cast<rs_function>(reinterpret_cast<std::intptr_t>(sqlite3_user_data(ctx)));
+  double a[9];
+  if (argc != 9 || !numeric_args(ctx, rs_function_name(f), 9, argv, a)) return;
+  double v;
+  char err[RS_ERRBUF];
+  if (const char* e = rs_eval(f, a, &v, err)) return sqlite3_result_error(ctx, e, -1);
+  sqlite3_result_double(ctx, v);
+}
+
+template <bool kMax>
+void bounds_fn(sqlite3_context* ctx, int argc, sqlite3_value** argv) {
+  const auto f = static_cast<rs_function>(reinterpret_cast<std::intptr_t>(sqlite3_user_data(ctx)));
+  const std::string name = std::string(rs_function_name(f)) + (kMax ? "_max" : "_min");
+  double a[12];
+  if (argc != 12 || !numeric_args(ctx, name.c_str(), 12, argv, a)) return;
+  double lo, hi;
+  char err[RS_ERRBUF];
+  if (const char* e = rs_eval_bounds(f, a, &lo, &hi, err)) return sqlite3_result_error(ctx, e, -1);
+  sqlite3_result_double(ctx, kMax ? hi : lo);
+}
+
+// ---- R*Tree query callbacks --------------------------------------------------------------------
+
+// Box of an R*Tree node or entry: aCoord = (min_x, max_x, min_y, max_y, min_z, max_z).
+bool rtree_box(const sqlite3_rtree_query_info* p, double box[6]) {
+  if (p->nCoord != 6) return false;
+  box[0] = p->aCoord[0];
+  box[3] = p->aCoord[1];
+  box[1] = p->aCoord[2];
+  box[4] = p->aCoord[3];
+  box[2] = p->aCoord[4];
+  box[5] = p->aCoord[5];
+  return true;
+}
+
+// Parameter i, with NULL (or absent) mapped to `dflt`.
+double param(const sqlite3_rtree_query_info* p, int i, double dflt) {
+  if (i >= p->nParam) return dflt;
+  if (p->apSqlParam && sqlite3_value_type(p->apSqlParam[i]) == SQLITE_NULL) return dflt;
+  return p->aParam[i];
+}
+
+int ray_prune(sqlite3_rtree_query_info* p) {
+  double box[6];
+  if ((p->nParam != 7 && p->nParam != 9) || !rtree_box(p, box)) return SQLITE_ERROR;
+  const double o[3] = {p->aParam[0], p->aParam[1], p->aParam[2]};
+  const double d[3] = {p->aParam[3], p->aParam[4], p->aParam[5]};
+  const double r = param(p, 6, kInf), t0 = param(p, 7, -kInf), t1 = param(p, 8, kInf);
+  char err[RS_ERRBUF];
+  if (rs_check_ray("ray_prune", o, d, r, t0, t1, err)) return SQLITE_ERROR;
+  double score;
+  const rs_within w = rs_ray_box_test(o, d, r, t0, t1, 0, box, &score);
+  p->eWithin = w == RS_NOT_WITHIN ? NOT_WITHIN : w == RS_FULLY_WITHIN ? FULLY_WITHIN : PARTLY_WITHIN;
+  p->rScore = std::max(0.0, score);
+  return SQLITE_OK;
+}
+
+int plane_prune(sqlite3_rtree_query_info* p) {
+  double box[6];
+  if (p->nParam != 6 || !rtree_box(p, box)) return SQLITE_ERROR;
+  const double o[3] = {p->aParam[0], p->aParam[1], p->aParam[2]};
+  const double n[3] = {p->aParam[3], p->aParam[4], p->aParam[5]};
+  char err[RS_ERRBUF];
+  if (rs_check_ray("plane_prune", o, n, 0.0, 0.0, 0.0, err)) return SQLITE_ERROR;
+  const rs_within w = rs_plane_box_test(o, n, box);
+  p->eWithin = w == RS_NOT_WITHIN ? NOT_WITHIN : w == RS_FULLY_WITHIN ? FULLY_WITHIN : PARTLY_WITHIN;
+  // Keep R*Tree order (the parent's score); planes give no "nearest" key.
+  p->rScore = p->rParentScore;
+  return SQLITE_OK;
+}
+
+// ---- ray_query table-valued function -----------------------------------------------------------
+
+// Counters of the last ray_query on a connection (rayscan_stats()).
+struct Stats {
+  long long chunks_total = 0;      // rows of `chunks`
+  long long chunks_candidate = 0;  // chunks the R*Tree callback admitted
+  long long chunks_visited = 0;    // chunks whose points were read (after the dynamic k filter)
+  long long points_tested = 0;
+};
+
+enum Col {
+  kPointIndex, kSource, kX, kY, kZ, kT, kDistance, kRank,
+  kOx, kOy, kOz, kDx, kDy, kDz, kK, kR, kTMin, kTMax, kOrd, kNumCols
+};
+constexpr int kFirstArg = kOx;
+constexpr int kNumArgs = kNumCols - kOx;
+constexpr const char* kArgNames[kNumArgs] = {"ox", "oy", "oz", "dx", "dy", "dz", "k", "r", "t_min", "t_max", "ord"};
+
+struct Hit {
+  double key, t, d2;
+  long long point_index, source;
+  double x, y, z;
+};
+bool hit_less(const Hit& a, const Hit& b) {
+  if (a.key != b.key) return a.key < b.key;
+  if (a.source != b.source) return a.source < b.source;
+  return a.point_index < b.point_index;
+}
+
+struct VTab {
+  sqlite3_vtab base{};
+  sqlite3* db = nullptr;
+  Stats* stats = nullptr;
+};
+
+struct Cursor {
+  sqlite3_vtab_cursor base{};
+  std::vector<Hit> hits;
+  std::size_t pos = 0;
+};
+
+int vt_connect(sqlite3* db, void* aux, int, const char* const*, sqlite3_vtab** out, char**) {
+  const int rc = sqlite3_declare_vtab(
+      db, "CREATE TABLE x(point_index INTEGER, source INTEGER, x REAL, y REAL, z REAL, t REAL, "
+          "distance REAL, rank INTEGER, ox HIDDEN, oy HIDDEN, oz HIDDEN, dx HIDDEN, dy HIDDEN, "
+          "dz HIDDEN, k HIDDEN, r HIDDEN, t_min HIDDEN, t_max HIDDEN, ord HIDDEN)");
+  if (rc != SQLITE_OK) return rc;
+  auto* v = new VTab;
+  v->db = db;
+  v->stats = static_cast<Stats*>(aux);
+  *out = &v->base;
+  sqlite3_vtab_config(db, SQLITE_VTAB_INNOCUOUS);
+  return SQLITE_OK;
+}
+
+int vt_disconnect(sqlite3_vtab* v) {
+  delete reinterpret_cast<VTab*>(v);
+  return SQLITE_OK;
+}
+
+// Every usable equality constraint on a hidden argument column becomes an xFilter argument; the
+// bitmask of present arguments is idxNum.
+int vt_best_index(sqlite3_vtab*, sqlite3_index_info* info) {
+  int slot[kNumArgs];
+  std::fill(slot, slot + kNumArgs, -1);
+  for (int i = 0; i < info->nConstraint; ++i) {
+    const auto& c = info->aConstraint[i];
+    if (c.iColumn < kFirstArg || c.op != SQLITE_INDEX_CONSTRAINT_EQ) continue;
+    if (!c.usable) return SQLITE_CONSTRAINT;  // arguments must be available: ask for another plan
+    slot[c.iColumn - kFirstArg] = i;
+  }
+  int mask = 0, argv = 0;
+  for (int a = 0; a < kNumArgs; ++a)
+    if (slot[a] >= 0) {
+      mask |= 1 << a;
+      info->aConstraintUsage[slot[a]].argvIndex = ++argv;
+      info->aConstraintUsage[slot[a]].omit = 1;
+    }
+  info->idxNum = mask;
+  info->estimatedCost = 1000;
+  // Rows come out ordered by (key, source, point_index) and rank; tell the planner for rank.
+  if (info->nOrderBy == 1 && info->aOrderBy[0].iColumn == kRank && !info->aOrderBy[0].desc)
+    info->orderByConsumed = 1;
+  return SQLITE_OK;
+}
+
+int vt_open(sqlite3_vtab*, sqlite3_vtab_cursor** out) {
+  auto* c = new Cursor;
+  *out = &c->base;
+  return SQLITE_OK;
+}
+int vt_close(sqlite3_vtab_cursor* c) {
+  delete reinterpret_cast<Cursor*>(c);
+  return SQLITE_OK;
+}
+
+int vt_error(sqlite3_vtab* v, const std::string& msg) {
+  sqlite3_free(v->zErrMsg);
+  v->zErrMsg = sqlite3_mprintf("%s", msg.c_str());
+  return SQLITE_ERROR;
+}
+
+struct Stmt {
+  sqlite3_stmt* s = nullptr;
+  ~Stmt() { sqlite3_finalize(s); }
+};
+
+int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3_value** argv) {
+  auto* c = reinterpret_cast<Cursor*>(cur);
+  auto* vt = reinterpret_cast<VTab*>(cur->pVtab);
+  c->hits.clear();
+  c->pos = 0;
+  // Arguments: defaults, then the given ones (NULL keeps the default: k all, r inf, t +-inf).
+  double a[kNumArgs] = {0, 0, 0, 0, 0, 0, -1, kInf, -kInf, kInf, 0};
+  bool time_order = false;
+  long long kval = -1;  // -1: k not set (all points)
+  int ai = 0;
+  for (int i = 0; i < kNumArgs && ai < argc; ++i) {
+    if (!(mask & (1 << i))) {
+      if (i < 6) return vt_error(&vt->base, std::string("ray_query: argument ") + kArgNames[i] +
+                                                " is missing; expected ray_query(ox,oy,oz, dx,dy,dz"
+                                                " [, k, r, t_min, t_max, ord])");
+      continue;
+    }
+    sqlite3_value* v = argv[ai++];
+    const int t = sqlite3_value_type(v);
+    if (t == SQLITE_NULL) {
+      if (i < 6) return SQLITE_OK;  // NULL ray: no rows (NULL in, NULL out)
+      continue;
+    }
+    if (i == kOrd - kFirstArg) {
+      const char* s = reinterpret_cast<const char*>(sqlite3_value_text(v));
+      if (t != SQLITE_TEXT || !s || (std::strcmp(s, "ray") && std::strcmp(s, "time")))
+        return vt_error(&vt->base, "ray_query: ord must be 'ray' (kNN to the ray) or 'time' "
+                                   "(kNN along the ray)");
+      time_order = std::strcmp(s, "time") == 0;
+      continue;
+    }
+    if (t != SQLITE_INTEGER && t != SQLITE_FLOAT)
+      return vt_error(&vt->base, std::string("ray_query: argument ") + kArgNames[i] + " has type " +
+                                     type_name(t) + "; expected a number");
+    a[i] = sqlite3_value_double(v);
+    if (i == kK - kFirstArg) {
+      if (t != SQLITE_INTEGER || sqlite3_value_int64(v) < 0)
+        return vt_error(&vt->base, "ray_query: k must be an integer >= 0 (NULL: all points)");
+      kval = sqlite3_value_int64(v);
+    }
+  }
+  if (!(mask & 0x3f)) return vt_error(&vt->base, "ray_query: expected ray_query(ox,oy,oz, dx,dy,dz [, k, r, t_min, t_max, ord])");
+  const double o3[3] = {a[0], a[1], a[2]}, d3[3] = {a[3], a[4], a[5]};
+  const double r = a[7], t_min = a[8], t_max = a[9];
+  char err[RS_ERRBUF];
+  if (const char* e = rs_check_ray("ray_query", o3, d3, r, t_min, t_max, err))
+    return vt_error(&vt->base, e);
+  const bool bounded = kval >= 0;
+  const auto k = bounded ? static_cast<std::size_t>(kval) : std::size_t(-1);
+
+  Stats st;
+  // Chunk candidates from the R*Tree with the pruning callback.
+  {
+    Stmt s;
+    if (sqlite3_prepare_v2(vt->db, "SELECT count(*) FROM main.chunks", -1, &s.s, nullptr) != SQLITE_OK)
+      return vt_error(&vt->base, std::string("ray_query: the database has no chunk index (R*Tree "
+                                             "'chunks'): import it with `rayscan db import` (") +
+                                     sqlite3_errmsg(vt->db) + ")");
+    if (sqlite3_step(s.s) == SQLITE_ROW) st.chunks_total = sqlite3_column_int64(s.s, 0);
+  }
+  struct Cand {
+    double score, tol;
+    long long first, count;
+  };
+  std::vector<Cand> cands;
+  {
+    Stmt s;
+    if (sqlite3_prepare_v2(vt->db,
+                           "SELECT min_x, min_y, min_z, max_x, max_y, max_z, first_row, count FROM "
+                           "main.chunks WHERE id MATCH ray_prune(?1,?2,?3,?4,?5,?6,?7,?8,?9)",
+                           -1, &s.s, nullptr) != SQLITE_OK)
+      return vt_error(&vt->base, std::string("ray_query: cannot read the chunk index: ") + sqlite3_errmsg(vt->db));
+    for (int i = 0; i < 6; ++i) sqlite3_bind_double(s.s, i + 1, a[i]);
+    sqlite3_bind_double(s.s, 7, r);
+    sqlite3_bind_double(s.s, 8, t_min);
+    sqlite3_bind_double(s.s, 9, t_max);
+    int rc;
+    while ((rc = sqlite3_step(s.s)) == SQLITE_ROW) {
+      double box[6];
+      for (int i = 0; i < 6; ++i) box[i] = sqlite3_column_double(s.s, i);
+      double score;
+      rs_ray_box_test(o3, d3, r, t_min, t_max, time_order, box, &score);
+      const Vec3 o(a[0], a[1], a[2]);
+      const rayscan::AABB b{Vec3(box[0], box[1], box[2]), Vec3(box[3], box[4], box[5])};
+      const double tol = 1e-9 * (glm::length(o - b.center()) + b.max_extent()) + 1e-300;
+      cands.push_back({score, tol, sqlite3_column_int64(s.s, 6), sqlite3_column_int64(s.s, 7)});
+    }
+    if (rc != SQLITE_DONE)
+      return vt_error(&vt->base, std::string("ray_query: reading the chunk index: ") + sqlite3_errmsg(vt->db));
+  }
+  st.chunks_candidate = static_cast<long long>(cands.size());
+  std::sort(cands.begin(), cands.end(), [](const Cand& x, const Cand& y) { return x.score < y.score; });
+
+  // Points: the core's per-point terms (ray_point_terms) on the unit direction of the core Ray,
+  // the candidate rule and keys of rayscan::ray_query (orders ray and time).
+  const rayscan::Ray ray(Vec3(a[0], a[1], a[2]), Vec3(a[3], a[4], a[5]));
+  const double r2 = r * r;
+  Stmt pts;
+  if (sqlite3_prepare_v2(vt->db, "SELECT point_index, source, x, y, z FROM main.points WHERE rowid BETWEEN ?1 AND ?2",
+                         -1, &pts.s, nullptr) != SQLITE_OK)
+    return vt_error(&vt->base, std::string("ray_query: cannot read table 'points': ") + sqlite3_errmsg(vt->db));
+  std::vector<Hit>& heap = c->hits;
+  double worst = kInf;
+  if (k != 0)
+    for (const Cand& ch : cands) {
+      if (bounded && heap.size() == k && ch.score > worst + ch.tol) break;  // dynamic k filter
+      ++st.chunks_visited;
+      sqlite3_bind_int64(pts.s, 1, ch.first);
+      sqlite3_bind_int64(pts.s, 2, ch.first + ch.count - 1);
+      int rc;
+      while ((rc = sqlite3_step(pts.s)) == SQLITE_ROW) {
+        ++st.points_tested;
+        Hit h;
+        h.point_index = sqlite3_column_int64(pts.s, 0);
+        h.source = sqlite3_column_int64(pts.s, 1);
+        h.x = sqlite3_column_double(pts.s, 2);
+        h.y = sqlite3_column_double(pts.s, 3);
+        h.z = sqlite3_column_double(pts.s, 4);
+        const rayscan::RayPointTerms pt =
+            rayscan::ray_point_terms(ray.origin(), ray.direction(), Vec3(h.x, h.y, h.z));
+        if (pt.d2 > r2) continue;
+        if (pt.t < t_min || pt.t > t_max) continue;
+        h.t = pt.t;
+        h.d2 = pt.d2;
+        h.key = time_order ? pt.t : std::sqrt(pt.d2);
+        if (!bounded) {
+          heap.push_back(h);
+        } else if (heap.size() < k) {
+          heap.push_back(h);
+          std::push_heap(heap.begin(), heap.end(), hit_less);
+        } else if (hit_less(h, heap.front())) {
+          std::pop_heap(heap.begin(), heap.end(), hit_less);
+          heap.back() = h;
+          std::push_heap(heap.begin(), heap.end(), hit_less);
+        }
+        if (bounded && heap.size() == k) worst = heap.front().key;
+      }
+      sqlite3_reset(pts.s);
+      if (rc != SQLITE_DONE)
+        return vt_error(&vt->base, std::string("ray_query: reading table 'points': ") + sqlite3_errmsg(vt->db));
+    }
+  std::sort(heap.begin(), heap.end(), hit_less);
+  *vt->stats = st;
+  return SQLITE_OK;
+}
+
+int vt_next(sqlite3_vtab_cursor* cur) {
+  ++reinterpret_cast<Cursor*>(cur)->pos;
+  return SQLITE_OK;
+}
+int vt_eof(sqlite3_vtab_cursor* cur) {
+  auto* c = reinterpret_cast<Cursor*>(cur);
+  return c->pos >= c->hits.size();
+}
+int vt_column(sqlite3_vtab_cursor* cur, sqlite3_context* ctx, int col) {
+  auto* c = reinterpret_cast<Cursor*>(cur);
+  const Hit& h = c->hits[c->pos];
+  switch (col) {
+    case kPointIndex: sqlite3_result_int64(ctx, h.point_index); break;
+    case kSource: sqlite3_result_int64(ctx, h.source); break;
+    case kX: sqlite3_result_double(ctx, h.x); break;
+    case kY: sqlite3_result_double(ctx, h.y); break;
+    case kZ: sqlite3_result_double(ctx, h.z); break;
+    case kT: sqlite3_result_double(ctx, h.t); break;
+    case kDistance: sqlite3_result_double(ctx, std::sqrt(h.d2)); break;
+    case kRank: sqlite3_result_int64(ctx, static_cast<sqlite3_int64>(c->pos)); break;
+    default: sqlite3_result_null(ctx); break;  // hidden argument columns
+  }
+  return SQLITE_OK;
+}
+int vt_rowid(sqlite3_vtab_cursor* cur, sqlite_int64* rowid) {
+  *rowid = static_cast<sqlite_int64>(reinterpret_cast<Cursor*>(cur)->pos);
+  return SQLITE_OK;
+}
+
+sqlite3_module make_module() {
+  sqlite3_module m{};
+  m.iVersion = 0;
+  m.xCreate = nullptr;  // eponymous-only: a table-valued function, never CREATE VIRTUAL TABLE
+  m.xConnect = vt_connect;
+  m.xBestIndex = vt_best_index;
+  m.xDisconnect = vt_disconnect;
+  m.xDestroy = vt_disconnect;
+  m.xOpen = vt_open;
+  m.xClose = vt_close;
+  m.xFilter = vt_filter;
+  m.xNext = vt_next;
+  m.xEof = vt_eof;
+  m.xColumn = vt_column;
+  m.xRowid = vt_rowid;
+  return m;
+}
+const sqlite3_module kModule = make_module();
+
+void stats_fn(sqlite3_context* ctx, int, sqlite3_value**) {
+  const Stats* s = static_cast<const Stats*>(sqlite3_user_data(ctx));
+  char buf[256];
+  std::snprintf(buf, sizeof buf,
+                "{\"chunks_total\":%lld,\"chunks_candidate\":%lld,\"chunks_visited\":%lld,"
+                "\"points_tested\":%lld}",
+                s->chunks_total, s->chunks_candidate, s->chunks_visited, s->points_tested);
+  sqlite3_result_text(ctx, buf, -1, SQLITE_TRANSIENT);
+}
+
+}  // namespace
+
+/// Entry point (SQLite derives "sqlite3_rayscansqlite_init" from the file name rayscan_sqlite.so).
+/// Returns an SQLite error code with *err set when a registration fails.
+extern "C" __attribute__((visibility("default"))) int sqlite3_rayscansqlite_init(
+    sqlite3* db, char** err, const sqlite3_api_routines* api) {
+  SQLITE_EXTENSION_INIT2(api);
+  const int flags = SQLITE_UTF8 | SQLITE_DETERMINISTIC | SQLITE_INNOCUOUS;
+  int rc = SQLITE_OK;
+  for (int f = RS_DIST_RAY; f <= RS_DIST_PLANE && rc == SQLITE_OK; ++f) {
+    void* ud = reinterpret_cast<void*>(static_cast<std::intptr_t>(f));
+    const std::string name = rs_function_name(static_cast<rs_function>(f));
+    rc = sqlite3_create_function(db, name.c_str(), 9, flags, ud, point_fn, nullptr, nullptr);
+    if (rc == SQLITE_OK)
+      rc = sqlite3_create_function(db, (name + "_min").c_str(), 12, flags, ud, bounds_fn<false>, nullptr, nullptr);
+    if (rc == SQLITE_OK)
+      rc = sqlite3_create_function(db, (name + "_max").c_str(), 12, flags, ud, bounds_fn<true>, nullptr, nullptr);
+  }
+  // The R*Tree callbacks live in libsqlite3 itself (not in the extension API table): this library
+  // links libsqlite3.so.0, as the Debian sqlite3 shell and Python's sqlite3 module do.
+  if (rc == SQLITE_OK) rc = sqlite3_rtree_query_callback(db, "ray_prune", ray_prune, nullptr, nullptr);
+  if (rc == SQLITE_OK) rc = sqlite3_rtree_query_callback(db, "plane_prune", plane_prune, nullptr, nullptr);
+  auto* stats = new Stats;
+  if (rc == SQLITE_OK)
+    rc = sqlite3_create_module_v2(db, "ray_query", &kModule, stats, [](void* p) { delete static_cast<Stats*>(p); });
+  else
+    delete stats;
+  if (rc == SQLITE_OK)
+    rc = sqlite3_create_function(db, "rayscan_stats", 0, SQLITE_UTF8, stats, stats_fn, nullptr, nullptr);
+  if (rc != SQLITE_OK && err) *err = sqlite3_mprintf("rayscan_sqlite: registration failed: %s", sqlite3_errmsg(db));
+  return rc;
+}
+
+/// Generic entry point name, for hosts that call sqlite3_extension_init.
+extern "C" __attribute__((visibility("default"))) int sqlite3_extension_init(
+    sqlite3* db, char** err, const sqlite3_api_routines* api) {
+  return sqlite3_rayscansqlite_init(db, err, api);
+}

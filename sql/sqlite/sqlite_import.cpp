@@ -1,0 +1,150 @@
+// import_sqlite (rayscan/sql/import.hpp): Morton-ordered chunks plus an R*Tree of chunk bounds.
+#include "rayscan/sql/import.hpp"
+
+#include "rayscan/atomic_file.hpp"
+#include "rayscan/io/point_io.hpp"
+
+#include <sqlite3.h>
+
+#include <memory>
+#include <stdexcept>
+
+namespace rayscan::sql {
+
+namespace {
+
+struct Db {
+  sqlite3* db = nullptr;
+  std::string name;
+  ~Db() { sqlite3_close(db); }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw std::runtime_error(name + ": sqlite: " + what + ": " + (db ? sqlite3_errmsg(db) : "out of memory"));
+  }
+  void exec(const std::string& sql) {
+    if (sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr) != SQLITE_OK) fail(sql.substr(0, 40));
+  }
+};
+
+struct Stmt {
+  sqlite3_stmt* s = nullptr;
+  ~Stmt() { sqlite3_finalize(s); }
+};
+
+}  // namespace
+
+ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
+                            const std::filesystem::path& out, const ImportOptions& options) {
+  if (paths.empty()) throw std::invalid_argument("no input cloud given");
+  if (options.chunk_size == 0) throw std::invalid_argument("--chunk must be at least 1 point");
+  // Read every cloud (issue 10's chunked readers would stream here; see make_chunk_layout).
+  std::vector<PointCloud> clouds;
+  for (const auto& p : paths)
+    clouds.push_back(io::read_point_cloud(p, io::ReadOptions{.scalars = !options.attributes.empty()}));
+  const std::vector<AttributeColumn> cols = resolve_attributes(options.attributes, paths, clouds);
+  std::vector<const PointCloud*> ptrs;
+  for (const auto& c : clouds) ptrs.push_back(&c);
+  const ChunkLayout layout = make_chunk_layout(ptrs, options.chunk_size);
+
+  AtomicFile file(out);
+  std::filesystem::remove(file.temp());
+  ImportSummary sum;
+  {
+    Db db;
+    db.name = out.string();
+    if (sqlite3_open_v2(file.temp().c_str(), &db.db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE,
+                        nullptr) != SQLITE_OK)
+      db.fail("cannot create");
+    // The temporary file is renamed into place only when complete: no journal needed.
+    db.exec("PRAGMA journal_mode=OFF; PRAGMA synchronous=OFF; PRAGMA page_size=8192;");
+    db.exec("BEGIN");
+    db.exec("CREATE TABLE rayscan_meta(key TEXT PRIMARY KEY, value TEXT) WITHOUT ROWID");
+    db.exec("CREATE TABLE sources(source INTEGER PRIMARY KEY, path TEXT NOT NULL, "
+            "point_count INTEGER NOT NULL, crs_wkt TEXT)");
+    std::string create = "CREATE TABLE points(point_index INTEGER NOT NULL, source INTEGER NOT NULL, "
+                         "chunk INTEGER NOT NULL, x REAL NOT NULL, y REAL NOT NULL, z REAL NOT NULL";
+    std::string insert = "INSERT INTO points(rowid, point_index, source, chunk, x, y, z";
+    std::string values = "VALUES(?,?,?,?,?,?,?";
+    for (const auto& c : cols) {
+      create += ", \"" + c.name + "\" " + (c.integer ? "INTEGER" : "REAL");
+      insert += ", \"" + c.name + "\"";
+      values += ",?";
+    }
+    db.exec(create + ")");
+    // R*Tree of chunk bounds (https://sqlite.org/rtree.html, section 3.1: auxiliary columns).
+    db.exec("CREATE VIRTUAL TABLE chunks USING rtree(id, min_x, max_x, min_y, max_y, min_z, max_z, "
+            "+first_row INTEGER, +count INTEGER)");
+    {
+      Stmt m;
+      if (sqlite3_prepare_v2(db.db, "INSERT INTO rayscan_meta VALUES(?,?)", -1, &m.s, nullptr)) db.fail("prepare");
+      auto meta = [&](const char* k, const std::string& v) {
+        sqlite3_bind_text(m.s, 1, k, -1, SQLITE_STATIC);
+        sqlite3_bind_text(m.s, 2, v.c_str(), -1, SQLITE_TRANSIENT);
+        if (sqlite3_step(m.s) != SQLITE_DONE) db.fail("insert meta");
+        sqlite3_reset(m.s);
+      };
+      meta("format", "rayscan-sqlite 1");
+      meta("chunk_size", std::to_string(options.chunk_size));
+      meta("order", "morton");
+      Stmt s;
+      if (sqlite3_prepare_v2(db.db, "INSERT INTO sources VALUES(?,?,?,?)", -1, &s.s, nullptr)) db.fail("prepare");
+      for (std::size_t i = 0; i < paths.size(); ++i) {
+        const std::string p = paths[i].string();
+        sqlite3_bind_int64(s.s, 1, static_cast<sqlite3_int64>(i));
+        sqlite3_bind_text(s.s, 2, p.c_str(), -1, SQLITE_TRANSIENT);
+        sqlite3_bind_int64(s.s, 3, static_cast<sqlite3_int64>(clouds[i].size()));
+        if (clouds[i].crs_wkt.empty()) sqlite3_bind_null(s.s, 4);
+        else sqlite3_bind_text(s.s, 4, clouds[i].crs_wkt.c_str(), -1, SQLITE_TRANSIENT);
+        if (sqlite3_step(s.s) != SQLITE_DONE) db.fail("insert source");
+        sqlite3_reset(s.s);
+      }
+    }
+    Stmt ins, rt;
+    if (sqlite3_prepare_v2(db.db, (insert + ") " + values + ")").c_str(), -1, &ins.s, nullptr))
+      db.fail("prepare");
+    if (sqlite3_prepare_v2(db.db, "INSERT INTO chunks VALUES(?,?,?,?,?,?,?,?,?)", -1, &rt.s, nullptr))
+      db.fail("prepare");
+    for (std::size_t ci = 0; ci < layout.chunks.size(); ++ci) {
+      const Chunk& c = layout.chunks[ci];
+      for (std::uint64_t r = c.first; r < c.first + c.count; ++r) {
+        const PointRef ref = layout.order[r];
+        const PointCloud& cloud = clouds[ref.source];
+        const Vec3& p = cloud.positions[ref.index];
+        sqlite3_bind_int64(ins.s, 1, static_cast<sqlite3_int64>(r + 1));
+        sqlite3_bind_int64(ins.s, 2, static_cast<sqlite3_int64>(ref.index));
+        sqlite3_bind_int64(ins.s, 3, ref.source);
+        sqlite3_bind_int64(ins.s, 4, static_cast<sqlite3_int64>(ci));
+        sqlite3_bind_double(ins.s, 5, p.x);
+        sqlite3_bind_double(ins.s, 6, p.y);
+        sqlite3_bind_double(ins.s, 7, p.z);
+        for (std::size_t a = 0; a < cols.size(); ++a) {
+          const double v = cols[a].value(cloud, ref.index);
+          if (cols[a].integer) sqlite3_bind_int64(ins.s, int(8 + a), static_cast<sqlite3_int64>(v));
+          else sqlite3_bind_double(ins.s, int(8 + a), v);
+        }
+        if (sqlite3_step(ins.s) != SQLITE_DONE) db.fail("insert point");
+        sqlite3_reset(ins.s);
+      }
+      // SQLite's R*Tree stores float32 and rounds lower bounds down and upper bounds up
+      // (rtreeValueDown / rtreeValueUp), so the stored box contains the exact double box.
+      sqlite3_bind_int64(rt.s, 1, static_cast<sqlite3_int64>(ci));
+      sqlite3_bind_double(rt.s, 2, c.box.lo.x);
+      sqlite3_bind_double(rt.s, 3, c.box.hi.x);
+      sqlite3_bind_double(rt.s, 4, c.box.lo.y);
+      sqlite3_bind_double(rt.s, 5, c.box.hi.y);
+      sqlite3_bind_double(rt.s, 6, c.box.lo.z);
+      sqlite3_bind_double(rt.s, 7, c.box.hi.z);
+      sqlite3_bind_int64(rt.s, 8, static_cast<sqlite3_int64>(c.first + 1));
+      sqlite3_bind_int64(rt.s, 9, c.count);
+      if (sqlite3_step(rt.s) != SQLITE_DONE) db.fail("insert chunk");
+      sqlite3_reset(rt.s);
+    }
+    db.exec("CREATE INDEX points_source_index ON points(source, point_index)");
+    db.exec("COMMIT");
+    sum.points = layout.order.size();
+    sum.chunks = layout.chunks.size();
+  }
+  file.commit();
+  return sum;
+}
+
+}  // namespace rayscan::sql

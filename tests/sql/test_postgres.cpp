@@ -1,0 +1,256 @@
+// PostgreSQL side of issue 13: CREATE EXTENSION rayscan on a private server that CTest starts
+// (pg_server.sh: initdb in a temporary directory, Unix socket only, unprivileged user) and stops.
+// Checked against the core (bit for bit), the brute-force oracle and the SQLite extension's rules.
+#include "sql_test_util.hpp"
+
+#include "rayscan/distance.hpp"
+#include "rayscan/sql/functions.h"
+
+#include <libpq-fe.h>
+
+#include <cmath>
+#include <fstream>
+#include <set>
+
+namespace rayscan::sqltest {
+namespace {
+
+std::string server_dir() {
+  std::ifstream f(RAYSCAN_PG_STATE);
+  std::string d;
+  std::getline(f, d);
+  return d;
+}
+
+std::string conninfo() { return "host=" + server_dir() + " port=5432 user=postgres dbname=postgres"; }
+
+struct Pg {
+  PGconn* c = nullptr;
+  Pg() {
+    c = PQconnectdb(conninfo().c_str());
+    EXPECT_EQ(PQstatus(c), CONNECTION_OK) << PQerrorMessage(c);
+    PQsetNoticeProcessor(c, [](void*, const char*) {}, nullptr);
+  }
+  ~Pg() { PQfinish(c); }
+  /// Rows of a query as text cells; fails the test on an error.
+  std::vector<std::vector<std::string>> rows(const std::string& sql) {
+    PGresult* r = PQexec(c, sql.c_str());
+    std::vector<std::vector<std::string>> out;
+    const auto st = PQresultStatus(r);
+    EXPECT_TRUE(st == PGRES_TUPLES_OK || st == PGRES_COMMAND_OK) << sql << ": " << PQerrorMessage(c);
+    for (int i = 0; i < PQntuples(r); ++i) {
+      out.emplace_back();
+      for (int j = 0; j < PQnfields(r); ++j)
+        out.back().push_back(PQgetisnull(r, i, j) ? "NULL" : PQgetvalue(r, i, j));
+    }
+    PQclear(r);
+    return out;
+  }
+  /// The primary error message of `sql` ("" when it succeeds).
+  std::string error_of(const std::string& sql) {
+    PGresult* r = PQexec(c, sql.c_str());
+    std::string m;
+    if (PQresultStatus(r) == PGRES_FATAL_ERROR) {
+      const char* p = PQresultErrorField(r, PG_DIAG_MESSAGE_PRIMARY);
+      m = p ? p : "?";
+    }
+    PQclear(r);
+    return m;
+  }
+};
+
+std::string num(double v) {
+  char b[40];
+  std::snprintf(b, sizeof b, "%.17g", v);
+  return std::string("'") + b + "'::float8";
+}
+std::string vec(const Vec3& v) { return num(v.x) + "," + num(v.y) + "," + num(v.z); }
+double dbl(const std::string& s) { return std::strtod(s.c_str(), nullptr); }
+
+class Postgres : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (server_dir().empty()) return;
+    cloud_ = new PointCloud(io::read_point_cloud(scan_path("autzen"), io::ReadOptions{.scalars = false}));
+    Pg pg;
+    pg.rows("DROP TABLE IF EXISTS autzen, autzen_chunks, autzen_sources");
+    imported_ = run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() +
+                    "' --postgres '" + conninfo() + "' --table autzen --chunk 512 > /dev/null") == 0;
+  }
+  static void TearDownTestSuite() {
+    delete cloud_;
+    cloud_ = nullptr;
+  }
+  void SetUp() override {
+    if (server_dir().empty()) GTEST_SKIP() << "no test server (pg_server.sh could not start PostgreSQL 15)";
+    ASSERT_TRUE(imported_);
+  }
+  static inline PointCloud* cloud_ = nullptr;
+  static inline bool imported_ = false;
+};
+
+TEST_F(Postgres, ExtensionFunctionsAreImmutableParallelSafeStrict) {
+  Pg pg;
+  const auto r = pg.rows("SELECT proname, provolatile, proparallel, proisstrict FROM pg_proc WHERE proname IN "
+                         "('dist_ray','ray_time','dist_plane','dist_ray_min','dist_ray_max','ray_time_min',"
+                         "'ray_time_max','dist_plane_min','dist_plane_max') ORDER BY 1");
+  ASSERT_EQ(r.size(), 9u);
+  for (const auto& row : r) {
+    EXPECT_EQ(row[1], "i") << row[0];
+    EXPECT_EQ(row[2], "s") << row[0];
+    EXPECT_EQ(row[3], "t") << row[0];
+  }
+}
+
+TEST_F(Postgres, ImportKeepsExactDoublesAndChunkBoxes) {
+  Pg pg;
+  const auto r = pg.rows("SELECT point_index, x, y, z FROM autzen WHERE point_index % 101 = 0");
+  ASSERT_EQ(r.size(), (cloud_->size() + 100) / 101);
+  for (const auto& row : r) {
+    const Vec3& p = cloud_->positions[std::stoull(row[0])];
+    ASSERT_EQ(Vec3(dbl(row[1]), dbl(row[2]), dbl(row[3])), p);
+  }
+  // Every point lies in its chunk's box (boxes are exact doubles: no rounding).
+  const auto bad = pg.rows("SELECT count(*) FROM autzen p JOIN autzen_chunks c USING (chunk) "
+                           "WHERE NOT (rs_box(p.x,p.y,p.z,p.x,p.y,p.z) && ray_within(p.x,p.y,p.z,1,0,0,0)) "
+                           "OR NOT (c.box && ray_within(p.x,p.y,p.z,1,0,0,0))");
+  EXPECT_EQ(bad[0][0], "0");
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM autzen")[0][0], std::to_string(cloud_->size()));
+}
+
+TEST_F(Postgres, FunctionsEqualTheCoreBitForBit) {
+  Pg pg;
+  const auto rays = query_rays(*cloud_, 4, 11);
+  for (const Ray& ray : rays) {
+    const Vec3 o = ray.origin(), d = ray.direction() * 3.0;
+    const auto r = pg.rows("SELECT point_index, dist_ray(" + vec(o) + "," + vec(d) + ",x,y,z), ray_time(" + vec(o) + "," +
+                           vec(d) + ",x,y,z), dist_plane(" + vec(o) + "," + vec(d) + ",x,y,z) FROM autzen WHERE point_index % 211 = 0");
+    ASSERT_FALSE(r.empty());
+    for (const auto& row : r) {
+      const Vec3& p = cloud_->positions[std::stoull(row[0])];
+      ASSERT_EQ(dbl(row[1]), dist_ray(o, d, p));
+      ASSERT_EQ(dbl(row[2]), ray_point_terms(o, Ray(o, d).direction(), p).t);
+      ASSERT_EQ(dbl(row[3]), dist_plane(o, d, p));
+    }
+    const AABB box = cloud_->bounds();
+    const std::string b = vec(box.lo) + "," + vec(box.hi);
+    const auto bb = pg.rows("SELECT dist_ray_min(" + vec(o) + "," + vec(d) + "," + b + "), dist_ray_max(" + vec(o) + "," +
+                            vec(d) + "," + b + "), dist_plane_min(" + vec(o) + "," + vec(d) + "," + b + ")");
+    EXPECT_EQ(dbl(bb[0][0]), dist_ray_bounds(o, d, box).lo);
+    EXPECT_EQ(dbl(bb[0][1]), dist_ray_bounds(o, d, box).hi);
+    EXPECT_EQ(dbl(bb[0][2]), dist_plane_bounds(o, d, box).lo);
+  }
+}
+
+TEST_F(Postgres, NullInNullOutAndTheSameErrorsAsSqlite) {
+  Pg pg;
+  const auto n = pg.rows("SELECT dist_ray(NULL,0,0,1,0,0,1,1,1) IS NULL, dist_plane_max(0,0,0,0,0,1,0,0,0,1,1,NULL) IS NULL");
+  EXPECT_EQ(n[0][0], "t");
+  EXPECT_EQ(n[0][1], "t");
+  EXPECT_EQ(pg.error_of("SELECT dist_ray(0,0,0, 0,0,0, 1,2,3)"),
+            "dist_ray: direction (dx,dy,dz) is zero; expected a non-zero vector");
+  EXPECT_EQ(pg.error_of("SELECT dist_plane(0,0,0, 0,0,0, 1,2,3)"),
+            "dist_plane: normal (nx,ny,nz) is zero; expected a non-zero vector");
+  EXPECT_EQ(pg.error_of("SELECT dist_ray(0,0,0, 1,0,0, 'infinity',2,3)"),
+            "dist_ray: argument 7 (x) is infinite; expected a finite number");
+  EXPECT_EQ(pg.error_of("SELECT dist_ray(0,0,0, 1,0,0, 'NaN',2,3)"),
+            "dist_ray: argument 7 (x) is NaN; expected a finite number");
+  EXPECT_EQ(pg.error_of("SELECT dist_ray_min(0,0,0, 1,0,0, 2,0,0, 1,1,1)"),
+            "dist_ray_bounds: box xmin > xmax; expected min <= max on every axis");
+  EXPECT_NE(pg.error_of("SELECT dist_ray(0,0,0, 1,0,0, 1,2)"), "");      // no such function
+  EXPECT_NE(pg.error_of("SELECT dist_ray(0,0,0, 1,0,0, 'a',2,3)"), "");  // invalid float8
+  EXPECT_EQ(pg.error_of("SELECT ray_within(0,0,0, 1,0,0, -1)"),
+            "ray_within: radius r is negative; expected a number >= 0 (NULL: unbounded)");
+  EXPECT_EQ(pg.error_of("SELECT '(1,2,3)'::rs_box").rfind("invalid input syntax for type rs_box", 0), 0u);
+}
+
+// The pruned form of the paper's query uses the GiST index on chunk boxes (consistent = bounds
+// evaluation) and returns exactly the brute-force set; radius and time slab.
+TEST_F(Postgres, GistPrunedRadiusAndTimeSlabEqualBruteForce) {
+  Pg pg;
+  pg.rows("SET enable_seqscan = off");
+  const double r = 2.0 * spacing(*cloud_);
+  for (const Ray& ray : query_rays(*cloud_, 6, 7)) {
+    const Vec3 o = ray.origin(), d = ray.direction();
+    const double tc = glm::length(cloud_->bounds().center() - o);
+    for (int slab = 0; slab < 2; ++slab) {
+      const double t0 = slab ? tc - 100 : -kInf, t1 = slab ? tc + 100 : kInf;
+      const std::string pred = slab ? "ray_within(" + vec(o) + "," + vec(d) + "," + num(r) + "," + num(t0) + "," + num(t1) + ")"
+                                    : "ray_within(" + vec(o) + "," + vec(d) + "," + num(r) + ")";
+      const std::string sql =
+          "SELECT p.point_index FROM autzen_chunks c JOIN autzen p ON p.chunk = c.chunk WHERE c.box && " + pred +
+          " AND dist_ray(" + vec(o) + "," + vec(d) + ",p.x,p.y,p.z) <= " + num(r) +
+          (slab ? " AND ray_time(" + vec(o) + "," + vec(d) + ",p.x,p.y,p.z) BETWEEN " + num(t0) + " AND " + num(t1) : "");
+      std::set<std::size_t> got, want;
+      for (const auto& row : pg.rows(sql)) got.insert(std::stoull(row[0]));
+      RayQuery q;
+      q.radius = r;
+      q.t_min = t0;
+      q.t_max = t1;
+      for (const RayHit& h : ray_query(BruteForceIndex(*cloud_), ray, q)) want.insert(h.index);
+      EXPECT_EQ(got, want);
+      if (!slab) { EXPECT_FALSE(want.empty()); }
+      std::string plan;
+      for (const auto& row : pg.rows("EXPLAIN " + sql)) plan += row[0] + "\n";
+      EXPECT_NE(plan.find("autzen_chunks_box"), std::string::npos) << plan;
+    }
+  }
+}
+
+// ORDER BY box <-> ray LIMIT k runs as an index-ordered kNN scan over chunks (GiST distance =
+// lower bound of dist_ray); nearest-chunk-first plus the exact point kNN equals the brute force.
+TEST_F(Postgres, IndexOrderedKnnEqualsBruteForce) {
+  Pg pg;
+  pg.rows("SET enable_seqscan = off");
+  const double r = 3.0 * spacing(*cloud_);
+  for (const Ray& ray : query_rays(*cloud_, 6, 3)) {
+    const Vec3 o = ray.origin(), d = ray.direction();
+    const std::string rw = "ray_within(" + vec(o) + "," + vec(d) + ", NULL)";
+    const std::string knn_chunks = "SELECT chunk, box <-> " + rw + " FROM autzen_chunks ORDER BY box <-> " + rw + " LIMIT 5";
+    std::string plan;
+    for (const auto& row : pg.rows("EXPLAIN " + knn_chunks)) plan += row[0] + "\n";
+    EXPECT_NE(plan.find("Index Scan using autzen_chunks_box"), std::string::npos) << plan;
+    EXPECT_NE(plan.find("Order By"), std::string::npos) << plan;
+    // The 5 chunks come out in increasing lower bound, equal to sorting every chunk's bound.
+    const auto got = pg.rows(knn_chunks);
+    const auto all = pg.rows("SELECT box <-> " + rw + " FROM autzen_chunks");
+    std::vector<double> bounds;
+    for (const auto& row : all) bounds.push_back(dbl(row[0]));
+    std::sort(bounds.begin(), bounds.end());
+    ASSERT_EQ(got.size(), 5u);
+    for (int i = 0; i < 5; ++i) EXPECT_EQ(dbl(got[i][1]), bounds[i]);
+    // kNN of points to the ray within r, through the index, equals the core on the brute force.
+    const std::string kq =
+        "SELECT p.point_index, dist_ray(" + vec(o) + "," + vec(d) + ",p.x,p.y,p.z) AS dist FROM autzen_chunks c "
+        "JOIN autzen p ON p.chunk = c.chunk WHERE c.box && ray_within(" + vec(o) + "," + vec(d) + "," + num(r) +
+        ") AND dist_ray(" + vec(o) + "," + vec(d) + ",p.x,p.y,p.z) <= " + num(r) + " ORDER BY 2, 1 LIMIT 7";
+    RayQuery q;
+    q.k = 7;
+    q.radius = r;
+    const auto want = ray_query(BruteForceIndex(*cloud_), ray, q);
+    const auto rows = pg.rows(kq);
+    ASSERT_EQ(rows.size(), want.size());
+    for (std::size_t i = 0; i < rows.size(); ++i) EXPECT_EQ(std::stoull(rows[i][0]), want[i].index) << i;
+  }
+}
+
+TEST_F(Postgres, FailedImportLeavesNoHalfTable) {
+  Pg pg;
+  pg.rows("DROP TABLE IF EXISTS half, half_chunks, half_sources");
+  // A table that collides with the import's last CREATE: the import fails after writing the
+  // points and chunks, and the transaction must take them back.
+  pg.rows("CREATE TABLE half_sources (x int)");
+  const int rc = run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() + "' --postgres '" +
+                     conninfo() + "' --table half 2>/dev/null >/dev/null");
+  EXPECT_EQ(rc, 2);
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM pg_class WHERE relname IN ('half', 'half_chunks')")[0][0], "0");
+  pg.rows("DROP TABLE half_sources");
+  // A server that is not there: one-line error, exit 2.
+  EXPECT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() +
+                "' --postgres 'host=/nonexistent port=5432' --table x 2>/dev/null"), 2);
+  EXPECT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() + "' --postgres '" +
+                conninfo() + "' --table 'Bad-Name' 2>/dev/null"), 2);
+}
+
+}  // namespace
+}  // namespace rayscan::sqltest

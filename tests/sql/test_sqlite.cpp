@@ -1,0 +1,428 @@
+// SQLite side of issue 13: the loadable extension rayscan_sqlite.so on databases written by the
+// real `rayscan db import`, checked against the core (bit for bit) and the brute-force oracle.
+#include "sql_test_util.hpp"
+
+#include "rayscan/distance.hpp"
+#include "rayscan/sql/functions.h"
+
+#include <sqlite3.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <set>
+
+namespace rayscan::sqltest {
+namespace {
+
+struct Db {
+  sqlite3* db = nullptr;
+  explicit Db(const fs::path& p, bool load = true) {
+    EXPECT_EQ(sqlite3_open_v2(p.c_str(), &db, SQLITE_OPEN_READWRITE, nullptr), SQLITE_OK);
+    if (!load) return;
+    sqlite3_enable_load_extension(db, 1);
+    char* err = nullptr;
+    EXPECT_EQ(sqlite3_load_extension(db, RAYSCAN_SQLITE_EXT, nullptr, &err), SQLITE_OK) << (err ? err : "");
+    sqlite3_free(err);
+  }
+  ~Db() { sqlite3_close(db); }
+  Db(const Db&) = delete;
+};
+
+struct Stmt {
+  sqlite3_stmt* s = nullptr;
+  Stmt(sqlite3* db, const std::string& sql) {
+    EXPECT_EQ(sqlite3_prepare_v2(db, sql.c_str(), -1, &s, nullptr), SQLITE_OK) << sql << ": " << sqlite3_errmsg(db);
+  }
+  ~Stmt() { sqlite3_finalize(s); }
+  Stmt& bind(int i, double v) { sqlite3_bind_double(s, i, v); return *this; }
+  bool step() { return sqlite3_step(s) == SQLITE_ROW; }
+  double d(int i) { return sqlite3_column_double(s, i); }
+  long long i64(int i) { return sqlite3_column_int64(s, i); }
+};
+
+/// The error message of running `sql` (empty when it succeeds).
+std::string error_of(sqlite3* db, const std::string& sql) {
+  sqlite3_stmt* s = nullptr;
+  std::string msg;
+  if (sqlite3_prepare_v2(db, sql.c_str(), -1, &s, nullptr) != SQLITE_OK) return sqlite3_errmsg(db);
+  int rc;
+  while ((rc = sqlite3_step(s)) == SQLITE_ROW) {}
+  if (rc != SQLITE_DONE) msg = sqlite3_errmsg(db);
+  sqlite3_finalize(s);
+  return msg;
+}
+
+/// One imported scan, shared by the tests of a file.
+struct Site {
+  PointCloud cloud;
+  fs::path db;
+  double r = 0;
+  std::vector<Ray> rays;
+};
+
+const fs::path& tmpdir() {
+  static const fs::path d = [] {
+    fs::path p = fs::temp_directory_path() / ("rayscan-sqltest-" + std::to_string(::getpid()));
+    fs::create_directories(p);
+    return p;
+  }();
+  return d;
+}
+
+/// Removes this process's scratch directory after the tests.
+struct ScratchCleanup : ::testing::Environment {
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(fs::temp_directory_path() / ("rayscan-sqltest-" + std::to_string(::getpid())), ec);
+  }
+};
+[[maybe_unused]] const auto* const kCleanup = ::testing::AddGlobalTestEnvironment(new ScratchCleanup);
+
+Site* site(const std::string& name) {
+  static std::map<std::string, std::unique_ptr<Site>> cache;
+  auto it = cache.find(name);
+  if (it != cache.end()) return it->second.get();
+  const fs::path p = scan_path(name);
+  if (p.empty()) return nullptr;
+  auto s = std::make_unique<Site>();
+  s->cloud = io::read_point_cloud(p, io::ReadOptions{.scalars = false});
+  // Imported once per build of `rayscan` (CTest runs every test in its own process); a newer
+  // binary re-imports. Concurrent imports are safe: each writes a temporary and renames it.
+  s->db = fs::path(RAYSCAN_SQL_TEST_CACHE) / (name + ".sqlite");
+  fs::create_directories(s->db.parent_path());
+  std::error_code ec;
+  const bool fresh = fs::exists(s->db) && fs::last_write_time(s->db, ec) > fs::last_write_time(RAYSCAN_BIN) &&
+                     fs::last_write_time(s->db, ec) > fs::last_write_time(p);
+  // A chunk of 512 points gives hundreds of chunks even on the small files.
+  if (!fresh) {
+    EXPECT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + p.string() + "' -o '" + s->db.string() +
+                  "' --chunk 512 > /dev/null"), 0);
+  }
+  s->r = 2.0 * spacing(s->cloud);
+  // The oracle's rays are built from the same direction values the SQL receives (Ray normalises
+  // once, as `rayscan query` does for a rays file).
+  for (const Ray& r : query_rays(s->cloud, 12, 7)) s->rays.emplace_back(r.origin(), r.direction());
+  return (cache[name] = std::move(s)).get();
+}
+
+class SqliteScan : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override {
+    s_ = site(GetParam());
+    if (!s_) GTEST_SKIP() << GetParam() << ": ../shared/data absent";
+  }
+  Site* s_ = nullptr;
+};
+
+TEST_P(SqliteScan, ImportKeepsEveryPointExactlyWithConservativeChunkBoxes) {
+  Db db(s_->db);
+  const auto& pos = s_->cloud.positions;
+  std::vector<int> seen(pos.size(), 0);
+  // Every point appears once with the reader's exact doubles, inside its chunk's float32 box.
+  Stmt st(db.db, "SELECT p.point_index, p.x, p.y, p.z, c.min_x, c.max_x, c.min_y, c.max_y, c.min_z, c.max_z "
+                 "FROM points p JOIN chunks c ON c.id = p.chunk");
+  std::size_t n = 0;
+  while (st.step()) {
+    const long long i = st.i64(0);
+    ASSERT_GE(i, 0);
+    ASSERT_LT(i, (long long)pos.size());
+    ++seen[i];
+    const Vec3 p(st.d(1), st.d(2), st.d(3));
+    ASSERT_EQ(p, pos[i]) << "point " << i;
+    ASSERT_TRUE(st.d(4) <= p.x && p.x <= st.d(5) && st.d(6) <= p.y && p.y <= st.d(7) &&
+                st.d(8) <= p.z && p.z <= st.d(9)) << "point " << i << " outside its chunk box";
+    ++n;
+  }
+  EXPECT_EQ(n, pos.size());
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), (long)pos.size());
+  // Rows of a chunk are the R*Tree's [first_row, first_row + count).
+  Stmt c(db.db, "SELECT count(*) FROM chunks c JOIN points p ON p.chunk = c.id "
+                "WHERE p.rowid < c.first_row OR p.rowid >= c.first_row + c.count");
+  ASSERT_TRUE(c.step());
+  EXPECT_EQ(c.i64(0), 0);
+}
+
+TEST_P(SqliteScan, FunctionsEqualTheCoreBitForBit) {
+  Db db(s_->db);
+  for (const Ray& ray : s_->rays) {
+    const Vec3 o = ray.origin(), d = ray.direction() * 3.0;  // a non-unit direction
+    Stmt st(db.db, "SELECT point_index, dist_ray(?1,?2,?3,?4,?5,?6,x,y,z), ray_time(?1,?2,?3,?4,?5,?6,x,y,z), "
+                   "dist_plane(?1,?2,?3,?4,?5,?6,x,y,z) FROM points WHERE rowid % 97 = 0");
+    for (int i = 0; i < 3; ++i) st.bind(i + 1, o[i]).bind(i + 4, d[i]);
+    int n = 0;
+    while (st.step()) {
+      const Vec3& p = s_->cloud.positions[st.i64(0)];
+      ASSERT_EQ(st.d(1), dist_ray(o, d, p));
+      ASSERT_EQ(st.d(2), ray_point_terms(o, Ray(o, d).direction(), p).t);
+      ASSERT_EQ(st.d(3), dist_plane(o, d, p));
+      ++n;
+    }
+    EXPECT_GT(n, 0);
+    // Bounds evaluation over every chunk box equals the core's and contains the chunk's values.
+    Stmt b(db.db, "SELECT min_x,min_y,min_z,max_x,max_y,max_z, "
+                  "dist_ray_min(?1,?2,?3,?4,?5,?6,min_x,min_y,min_z,max_x,max_y,max_z), "
+                  "dist_ray_max(?1,?2,?3,?4,?5,?6,min_x,min_y,min_z,max_x,max_y,max_z), "
+                  "dist_plane_min(?1,?2,?3,?4,?5,?6,min_x,min_y,min_z,max_x,max_y,max_z), "
+                  "dist_plane_max(?1,?2,?3,?4,?5,?6,min_x,min_y,min_z,max_x,max_y,max_z), "
+                  "(SELECT min(dist_ray(?1,?2,?3,?4,?5,?6,x,y,z)) FROM points WHERE rowid >= first_row AND rowid < first_row + count), "
+                  "(SELECT max(dist_ray(?1,?2,?3,?4,?5,?6,x,y,z)) FROM points WHERE rowid >= first_row AND rowid < first_row + count) "
+                  "FROM chunks WHERE id % 7 = 0");
+    for (int i = 0; i < 3; ++i) b.bind(i + 1, o[i]).bind(i + 4, d[i]);
+    while (b.step()) {
+      const AABB box{Vec3(b.d(0), b.d(1), b.d(2)), Vec3(b.d(3), b.d(4), b.d(5))};
+      const Interval dr = dist_ray_bounds(o, d, box), dp = dist_plane_bounds(o, d, box);
+      ASSERT_EQ(b.d(6), dr.lo);
+      ASSERT_EQ(b.d(7), dr.hi);
+      ASSERT_EQ(b.d(8), dp.lo);
+      ASSERT_EQ(b.d(9), dp.hi);
+      const double tol = 1e-9 * (glm::length(o - box.center()) + box.max_extent());
+      EXPECT_LE(b.d(6), b.d(10) + tol);
+      EXPECT_GE(b.d(7), b.d(11) - tol);
+    }
+  }
+}
+
+// The paper's query `WHERE dist_ray(...) <= r` in the documented pruned form touches only chunks
+// whose bounds admit the predicate and returns exactly the brute-force set.
+TEST_P(SqliteScan, PaperQueryWithPruningCallbackEqualsBruteForce) {
+  Db db(s_->db);
+  Stmt total(db.db, "SELECT count(*) FROM chunks");
+  ASSERT_TRUE(total.step());
+  const long long chunks = total.i64(0);
+  long long touched_sum = 0;
+  for (const Ray& ray : s_->rays) {
+    const Vec3 o = ray.origin(), d = ray.direction();
+    Stmt q(db.db, "SELECT p.point_index FROM chunks c JOIN points p "
+                  "ON p.rowid >= c.first_row AND p.rowid < c.first_row + c.count "
+                  "WHERE c.id MATCH ray_prune(?1,?2,?3,?4,?5,?6,?7) AND dist_ray(?1,?2,?3,?4,?5,?6,p.x,p.y,p.z) <= ?7");
+    for (int i = 0; i < 3; ++i) q.bind(i + 1, o[i]).bind(i + 4, d[i]);
+    q.bind(7, s_->r);
+    std::set<long long> got;
+    while (q.step()) got.insert(q.i64(0));
+    std::set<long long> want;
+    for (std::size_t i = 0; i < s_->cloud.size(); ++i)
+      if (dist_ray(o, d, s_->cloud.positions[i]) <= s_->r) want.insert((long long)i);
+    EXPECT_EQ(got, want);
+    EXPECT_FALSE(want.empty());
+    // Chunks the callback admits = chunks whose stored box passes the bounds test; they include
+    // every chunk holding a result.
+    Stmt m(db.db, "SELECT id, min_x,min_y,min_z,max_x,max_y,max_z FROM chunks WHERE id MATCH ray_prune(?1,?2,?3,?4,?5,?6,?7)");
+    for (int i = 0; i < 3; ++i) m.bind(i + 1, o[i]).bind(i + 4, d[i]);
+    m.bind(7, s_->r);
+    std::set<long long> admitted;
+    while (m.step()) admitted.insert(m.i64(0));
+    Stmt all(db.db, "SELECT id, min_x,min_y,min_z,max_x,max_y,max_z FROM chunks");
+    std::set<long long> expect_admitted;
+    while (all.step()) {
+      const double box[6] = {all.d(1), all.d(2), all.d(3), all.d(4), all.d(5), all.d(6)};
+      const double o3[3] = {o.x, o.y, o.z}, d3[3] = {d.x, d.y, d.z};
+      double score;
+      if (rs_ray_box_test(o3, d3, s_->r, -kInf, kInf, 0, box, &score) != RS_NOT_WITHIN)
+        expect_admitted.insert(all.i64(0));
+    }
+    EXPECT_EQ(admitted, expect_admitted);
+    Stmt hit(db.db, "SELECT DISTINCT chunk FROM points WHERE dist_ray(?1,?2,?3,?4,?5,?6,x,y,z) <= ?7");
+    for (int i = 0; i < 3; ++i) hit.bind(i + 1, o[i]).bind(i + 4, d[i]);
+    hit.bind(7, s_->r);
+    while (hit.step()) EXPECT_TRUE(admitted.count(hit.i64(0))) << "chunk " << hit.i64(0) << " wrongly pruned";
+    touched_sum += (long long)admitted.size();
+  }
+  // Pruning is real: far fewer chunks than the whole site on average.
+  EXPECT_LT(touched_sum, chunks * (long long)s_->rays.size() * 3 / 4);
+}
+
+// ray_query (radius, time slab, kNN to and along the ray) equals the core ray query over the
+// brute-force oracle and over the octree `rayscan query` uses: same points, same order, same bits.
+TEST_P(SqliteScan, RayQueryEqualsCoreAndBruteForce) {
+  Db db(s_->db);
+  const BruteForceIndex brute(s_->cloud);
+  const Octree octree = Octree::build_bulk(s_->cloud.positions);
+  struct Case { const char* name; long long k; double r, t0, t1; const char* ord; };
+  for (const Ray& ray : s_->rays) {
+    const double t_hit = glm::length(s_->cloud.bounds().center() - ray.origin());
+    const Case cases[] = {
+        {"radius", -1, s_->r, -kInf, kInf, "ray"},
+        {"time slab", -1, 4 * s_->r, t_hit - 20 * s_->r, t_hit + 20 * s_->r, "time"},
+        {"kNN to the ray", 10, kInf, -kInf, kInf, "ray"},
+        {"kNN to the ray within r", 5, s_->r, -kInf, kInf, "ray"},
+        {"kNN along the ray", 8, s_->r, -kInf, kInf, "time"},
+    };
+    for (const Case& c : cases) {
+      RayQuery q;
+      if (c.k >= 0) q.k = (std::size_t)c.k;
+      q.radius = c.r;
+      q.t_min = c.t0;
+      q.t_max = c.t1;
+      q.order = std::string(c.ord) == "time" ? RayOrder::time : RayOrder::ray;
+      const Ray same(ray.origin(), ray.direction());  // what ray_query(...) builds from its arguments
+      const auto want = ray_query(brute, same, q);
+      const auto oct = ray_query(octree, same, q);
+      ASSERT_EQ(want.size(), oct.size());
+      Stmt st(db.db, "SELECT point_index, t, distance, rank FROM ray_query(?1,?2,?3,?4,?5,?6,?7,?8,?9,?10,?11)");
+      const Vec3 o = ray.origin(), d = ray.direction();
+      for (int i = 0; i < 3; ++i) st.bind(i + 1, o[i]).bind(i + 4, d[i]);
+      if (c.k >= 0) sqlite3_bind_int64(st.s, 7, c.k);
+      if (std::isfinite(c.r)) st.bind(8, c.r);
+      if (std::isfinite(c.t0)) st.bind(9, c.t0).bind(10, c.t1);
+      sqlite3_bind_text(st.s, 11, c.ord, -1, SQLITE_STATIC);
+      std::size_t i = 0;
+      while (st.step()) {
+        ASSERT_LT(i, want.size()) << c.name;
+        EXPECT_EQ(st.i64(0), (long long)want[i].index) << c.name << " rank " << i;
+        EXPECT_EQ(st.i64(0), (long long)oct[i].index) << c.name << " rank " << i;
+        EXPECT_EQ(st.d(1), want[i].t) << c.name;
+        EXPECT_EQ(st.d(2), want[i].distance) << c.name;
+        EXPECT_EQ(st.i64(3), (long long)i);
+        ++i;
+      }
+      EXPECT_EQ(i, want.size()) << c.name;
+      if (c.k > 0 && !std::isfinite(c.r)) { EXPECT_EQ(want.size(), (std::size_t)c.k) << c.name; }
+      if (c.k > 0) { EXPECT_LE(want.size(), (std::size_t)c.k) << c.name; }
+    }
+  }
+  // The dynamic k filter visits few chunks for kNN.
+  Stmt st(db.db, "SELECT count(*) FROM ray_query(?1,?2,?3,?4,?5,?6, 1)");
+  const Vec3 o = s_->rays[0].origin(), d = s_->rays[0].direction();
+  for (int i = 0; i < 3; ++i) st.bind(i + 1, o[i]).bind(i + 4, d[i]);
+  ASSERT_TRUE(st.step());
+  EXPECT_EQ(st.i64(0), 1);
+  Stmt stats(db.db, "SELECT json_extract(rayscan_stats(), '$.chunks_visited'), json_extract(rayscan_stats(), '$.chunks_total')");
+  ASSERT_TRUE(stats.step());
+  EXPECT_LT(stats.i64(0), stats.i64(1));
+}
+
+// A frustum (four planes around a ray): plane_prune on the R*Tree plus dist_plane <= 0 per point
+// equals the brute-force set.
+TEST_P(SqliteScan, FrustumWithPlanePruningEqualsBruteForce) {
+  Db db(s_->db);
+  const Ray& ray = s_->rays[0];
+  const Vec3 o = ray.origin(), d = ray.direction();
+  const Vec3 a = glm::normalize(glm::cross(d, std::abs(d.z) < 0.9 ? Vec3(0, 0, 1) : Vec3(1, 0, 0)));
+  const Vec3 b = glm::cross(d, a);
+  const double w = 10 * s_->r;
+  const std::vector<Plane> planes = {{o + w * a, a}, {o - w * a, -a}, {o + w * b, b}, {o - w * b, -b}};
+  std::string sql = "SELECT p.point_index FROM chunks c JOIN points p ON p.chunk = c.id WHERE ";
+  for (std::size_t i = 0; i < planes.size(); ++i) {
+    const Plane& pl = planes[i];
+    char buf[512];
+    std::snprintf(buf, sizeof buf, "%.17g,%.17g,%.17g,%.17g,%.17g,%.17g", pl.point.x, pl.point.y,
+                  pl.point.z, pl.normal.x, pl.normal.y, pl.normal.z);
+    sql += std::string(i ? " AND " : "") + "c.id MATCH plane_prune(" + buf + ") AND dist_plane(" + buf + ", p.x, p.y, p.z) <= 0";
+  }
+  Stmt st(db.db, sql);
+  std::set<long long> got, want;
+  while (st.step()) got.insert(st.i64(0));
+  for (std::size_t i = 0; i < s_->cloud.size(); ++i) {
+    bool in = true;
+    for (const Plane& pl : planes) in = in && dist_plane(pl.point, pl.normal, s_->cloud.positions[i]) <= 0;
+    if (in) want.insert((long long)i);
+  }
+  EXPECT_EQ(got, want);
+  EXPECT_FALSE(want.empty());
+}
+
+INSTANTIATE_TEST_SUITE_P(Scans, SqliteScan, ::testing::ValuesIn(scan_names()),
+                         [](const auto& i) { return i.param; });
+
+TEST(SqliteFunctions, NullInNullOutAndClearErrors) {
+  Db db(site("autzen")->db);
+  Stmt n(db.db, "SELECT dist_ray(NULL,0,0,1,0,0,1,1,1) IS NULL, ray_time(0,0,0,1,0,0,1,1,NULL) IS NULL, "
+                "dist_plane_min(0,0,0,0,0,1,NULL,0,0,1,1,1) IS NULL, "
+                "(SELECT count(*) FROM ray_query(NULL,0,0,1,0,0))");
+  ASSERT_TRUE(n.step());
+  EXPECT_EQ(n.i64(0), 1);
+  EXPECT_EQ(n.i64(1), 1);
+  EXPECT_EQ(n.i64(2), 1);
+  EXPECT_EQ(n.i64(3), 0);
+  EXPECT_EQ(error_of(db.db, "SELECT dist_ray(0,0,0, 0,0,0, 1,2,3)"),
+            "dist_ray: direction (dx,dy,dz) is zero; expected a non-zero vector");
+  EXPECT_EQ(error_of(db.db, "SELECT dist_plane(0,0,0, 0,0,0, 1,2,3)"),
+            "dist_plane: normal (nx,ny,nz) is zero; expected a non-zero vector");
+  EXPECT_EQ(error_of(db.db, "SELECT dist_ray(0,0,0, 1,0,0, 9e999,2,3)"),
+            "dist_ray: argument 7 (x) is infinite; expected a finite number");
+  EXPECT_EQ(error_of(db.db, "SELECT dist_ray(0,0,0, 1,0,0, 'a',2,3)"),
+            "dist_ray: argument 7 has type text; expected a number");
+  EXPECT_EQ(error_of(db.db, "SELECT dist_ray(0,0,0, 1,0,0, 1,2)"), "wrong number of arguments to function dist_ray()");
+  EXPECT_EQ(error_of(db.db, "SELECT dist_ray_min(0,0,0, 1,0,0, 2,0,0, 1,1,1)"),
+            "dist_ray_bounds: box xmin > xmax; expected min <= max on every axis");
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(0,0,0, 1,0,0, -1)"),
+            "ray_query: k must be an integer >= 0 (NULL: all points)");
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(0,0,0, 1,0,0, 1, -2)"),
+            "ray_query: radius r is negative; expected a number >= 0 (NULL: unbounded)");
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(0,0,0, 1,0,0, 1, 1, 5, 2)"),
+            "ray_query: t_min/t_max (5, 2): expected t_min <= t_max, not NaN");
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(0,0,0, 1,0,0, 1, 1, 0, 2, 'x')"),
+            "ray_query: ord must be 'ray' (kNN to the ray) or 'time' (kNN along the ray)");
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(0,0,0, 0,0,0)"),
+            "ray_query: direction (dx,dy,dz) is zero; expected a non-zero vector");
+  EXPECT_NE(error_of(db.db, "SELECT * FROM ray_query(0,0,0)"), "");
+  EXPECT_NE(error_of(db.db, "SELECT id FROM chunks WHERE id MATCH ray_prune(0,0,0, 0,0,0, 1)"), "");
+  EXPECT_NE(error_of(db.db, "SELECT id FROM chunks WHERE id MATCH ray_prune(0,0,0, 1,0,0)"), "");
+}
+
+TEST(SqliteFunctions, DatabaseWithoutChunkIndexIsAnError) {
+  const fs::path p = tmpdir() / "plain.sqlite";
+  fs::remove(p);
+  sqlite3* raw;
+  ASSERT_EQ(sqlite3_open(p.c_str(), &raw), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(raw, "CREATE TABLE points(point_index, source, chunk, x, y, z)", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(raw);
+  Db db(p);
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(0,0,0, 1,0,0, 3)").rfind(
+                "ray_query: the database has no chunk index (R*Tree 'chunks')", 0), 0u)
+      << error_of(db.db, "SELECT * FROM ray_query(0,0,0, 1,0,0, 3)");
+}
+
+TEST(SqliteFunctions, CorruptedDatabaseGivesAnErrorNotACrash) {
+  const fs::path src = site("autzen")->db, p = tmpdir() / "corrupt.sqlite";
+  fs::copy_file(src, p, fs::copy_options::overwrite_existing);
+  {  // overwrite pages in the middle of the file (R*Tree and points b-tree pages)
+    std::fstream f(p, std::ios::in | std::ios::out | std::ios::binary);
+    const auto size = fs::file_size(p);
+    for (std::uintmax_t off = 8192; off < size; off += 8192 * 7) {
+      f.seekp((std::streamoff)off + 100);
+      const std::string junk(3000, '\xA5');
+      f.write(junk.data(), (std::streamsize)junk.size());
+    }
+  }
+  Db db(p);
+  const std::string e1 = error_of(db.db, "SELECT * FROM ray_query(636500,849000,600, 0,0,-1, 5)");
+  const std::string e2 = error_of(db.db, "SELECT count(*) FROM chunks WHERE id MATCH ray_prune(636500,849000,600, 0,0,-1, 3)");
+  const std::string e3 = error_of(db.db, "SELECT sum(dist_ray(0,0,0,1,0,0,x,y,z)) FROM points");
+  EXPECT_TRUE(!e1.empty() || !e2.empty() || !e3.empty()) << "corruption went unnoticed";
+}
+
+TEST(SqliteImportCli, BadInputExitsTwoWithOneLineAndLeavesNoFile) {
+  const fs::path out = tmpdir() / "bad.sqlite";
+  const std::string bin = RAYSCAN_BIN;
+  EXPECT_EQ(run(bin + " db import /nonexistent.las -o " + out.string() + " 2>/dev/null"), 2);
+  EXPECT_EQ(run(bin + " db import " + scan_path("autzen").string() + " -o " + out.string() + " --chunk 0 2>/dev/null"), 2);
+  EXPECT_EQ(run(bin + " db import " + scan_path("autzen").string() + " -o " + out.string() +
+                " --attributes nir 2>/dev/null"), 2);
+  EXPECT_EQ(run(bin + " db import " + scan_path("autzen").string() + " 2>/dev/null"), 2);
+  EXPECT_FALSE(fs::exists(out));
+  for (const auto& e : fs::directory_iterator(tmpdir()))
+    EXPECT_EQ(e.path().filename().string().find(".bad.sqlite.tmp"), std::string::npos);
+  // Attributes are stored as asked.
+  const fs::path good = tmpdir() / "attrs.sqlite";
+  ASSERT_EQ(run(bin + " db import " + scan_path("autzen").string() + " -o " + good.string() +
+                " --attributes intensity,classification,gps_time,rgb > /dev/null"), 0);
+  const PointCloud c = io::read_point_cloud(scan_path("autzen"));
+  Db db(good, false);
+  Stmt st(db.db, "SELECT point_index, intensity, classification, gps_time, red, green, blue FROM points WHERE rowid % 101 = 0");
+  int n = 0;
+  while (st.step()) {
+    const auto i = (std::size_t)st.i64(0);
+    EXPECT_EQ(st.i64(1), c.intensity[i]);
+    EXPECT_EQ(st.i64(2), c.classification[i]);
+    EXPECT_EQ(st.d(3), c.gps_time[i]);
+    EXPECT_EQ(st.i64(4), c.rgb[i].r);
+    EXPECT_EQ(st.i64(6), c.rgb[i].b);
+    ++n;
+  }
+  EXPECT_GT(n, 100);
+}
+
+}  // namespace
+}  // namespace rayscan::sqltest

@@ -1,0 +1,64 @@
+// `rayscan db import`: clouds into SQLite (default) or PostgreSQL as Morton-ordered chunks with an
+// index of chunk bounds (issue 13; paper section 4.2). Parsing and printing only: the work is in
+// sql/ (rayscan/sql/import.hpp).
+#include "commands.hpp"
+
+#include "rayscan/sql/import.hpp"
+
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+namespace rayscan::cli {
+
+namespace {
+
+struct DbImportOptions {
+  std::vector<std::string> clouds;
+  std::string out, postgres, table = "points", attributes;
+  std::uint32_t chunk = 4096;
+};
+
+int run_import(const DbImportOptions& o) {
+  if (o.postgres.empty() == o.out.empty())
+    throw UsageError("give exactly one of -o FILE.sqlite and --postgres CONNINFO");
+  sql::ImportOptions opt;
+  opt.chunk_size = o.chunk;
+  std::stringstream ss(o.attributes);
+  for (std::string a; std::getline(ss, a, ',');)
+    if (!a.empty()) opt.attributes.push_back(a);
+  std::vector<std::filesystem::path> paths(o.clouds.begin(), o.clouds.end());
+  sql::ImportSummary s;
+  try {
+    s = o.postgres.empty() ? sql::import_sqlite(paths, o.out, opt)
+                           : sql::import_postgres(paths, o.postgres, o.table, opt);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  std::cout << "{\"points\": " << s.points << ", \"chunks\": " << s.chunks << ", \"chunk_size\": "
+            << o.chunk << "}\n";
+  return 0;
+}
+
+}  // namespace
+
+Runner add_db_command(CLI::App& app) {
+  auto o = std::make_shared<DbImportOptions>();
+  CLI::App* db = app.add_subcommand("db", "Databases: import clouds for the SQL functions "
+                                          "dist_ray / dist_plane (paper section 4.2)");
+  db->require_subcommand(1);
+  CLI::App* c = db->add_subcommand(
+      "import", "Write clouds as Morton-ordered chunks plus an index of chunk bounds: SQLite "
+                "(points table + R*Tree 'chunks') or PostgreSQL (TABLE + TABLE_chunks with GiST)");
+  c->add_option("CLOUD", o->clouds, "Point cloud files (one world frame)")->required();
+  c->add_option("-o,--out", o->out, "Output SQLite file (replaced atomically)");
+  c->add_option("--postgres", o->postgres, "libpq connection string (instead of -o)");
+  c->add_option("--table", o->table, "PostgreSQL table name")->capture_default_str();
+  c->add_option("--chunk", o->chunk, "Points per chunk")->capture_default_str()->check(CLI::Range(1u, 1u << 24));
+  c->add_option("--attributes", o->attributes,
+                "Comma-separated extra columns: intensity, classification, gps_time, rgb or a "
+                "scalar field name");
+  return [o] { return run_import(*o); };
+}
+
+}  // namespace rayscan::cli
