@@ -95,6 +95,28 @@ unsigned child_slab_sse2(const ChildBoxesF& b, const SlabRayF& r, float* entry) 
   return mask & ((1u << b.count) - 1u);
 }
 
+void child_dist2_sse2(const ChildBoxesF& b, const float* q, float margin, float* lb2) {
+  alignas(16) float lo[3][8] = {}, hi[3][8] = {};
+  for (unsigned i = 0; i < b.count; ++i) {
+    const float* p = b.base + static_cast<std::size_t>(i) * b.stride;
+    for (int a = 0; a < 3; ++a) {
+      lo[a][i] = p[a];
+      hi[a][i] = p[3 + a];
+    }
+  }
+  const __m128 m = _mm_set1_ps(margin), zero = _mm_setzero_ps(), shrink = _mm_set1_ps(1.0f - kRelSlack);
+  for (unsigned h = 0; h < 8 && h < b.count; h += 4) {
+    __m128 d2 = zero;
+    for (int a = 0; a < 3; ++a) {
+      const __m128 qa = _mm_set1_ps(q[a]);
+      const __m128 g = _mm_max_ps(_mm_sub_ps(_mm_load_ps(lo[a] + h), qa), _mm_sub_ps(qa, _mm_load_ps(hi[a] + h)));
+      const __m128 gm = _mm_max_ps(_mm_sub_ps(g, m), zero);
+      d2 = _mm_add_ps(d2, _mm_mul_ps(gm, gm));
+    }
+    _mm_storeu_ps(lb2 + h, _mm_mul_ps(d2, shrink));
+  }
+}
+
 unsigned point_filter_sse2(const double* xyz, unsigned count, const PointFilterD& f, std::uint32_t* out) {
   const __m128d ox = _mm_set1_pd(f.o[0]), oy = _mm_set1_pd(f.o[1]), oz = _mm_set1_pd(f.o[2]);
   const __m128d dx = _mm_set1_pd(f.d[0]), dy = _mm_set1_pd(f.d[1]), dz = _mm_set1_pd(f.d[2]);
@@ -148,6 +170,24 @@ __attribute__((target("avx2,fma"))) unsigned child_slab_avx2(const ChildBoxesF& 
   const unsigned mask = static_cast<unsigned>(_mm256_movemask_ps(_mm256_and_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ), valid)));
   _mm256_storeu_ps(entry, tn);
   return mask;
+}
+
+__attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, const float* q, float margin,
+                                                           float* lb2) {
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i idx = _mm256_mullo_epi32(lane, _mm256_set1_epi32(static_cast<int>(b.stride)));
+  const __m256 valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(b.count)), lane));
+  const __m256 m = _mm256_set1_ps(margin), zero = _mm256_setzero_ps();
+  __m256 d2 = zero;
+  for (int a = 0; a < 3; ++a) {
+    const __m256 lo = _mm256_mask_i32gather_ps(zero, b.base + a, idx, valid, 4);
+    const __m256 hi = _mm256_mask_i32gather_ps(zero, b.base + 3 + a, idx, valid, 4);
+    const __m256 qa = _mm256_set1_ps(q[a]);
+    const __m256 g = _mm256_max_ps(_mm256_sub_ps(lo, qa), _mm256_sub_ps(qa, hi));
+    const __m256 gm = _mm256_max_ps(_mm256_sub_ps(g, m), zero);
+    d2 = _mm256_fmadd_ps(gm, gm, d2);
+  }
+  _mm256_storeu_ps(lb2, _mm256_mul_ps(d2, _mm256_set1_ps(1.0f - kRelSlack)));
 }
 
 __attribute__((target("avx2,fma"))) unsigned point_filter_avx2(const double* xyz, unsigned count,
@@ -225,11 +265,11 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx51
 #endif
 
 const Kernels& kernels_for(SimdPath p) {
-  static const Kernels k_scalar{SimdPath::scalar, nullptr, nullptr};
+  static const Kernels k_scalar{SimdPath::scalar, nullptr, nullptr, nullptr};
 #if RAYSCAN_X86
-  static const Kernels k_sse2{SimdPath::sse2, child_slab_sse2, point_filter_sse2};
-  static const Kernels k_avx2{SimdPath::avx2, child_slab_avx2, point_filter_avx2};
-  static const Kernels k_avx512{SimdPath::avx512, child_slab_avx2, point_filter_avx512};
+  static const Kernels k_sse2{SimdPath::sse2, child_slab_sse2, point_filter_sse2, child_dist2_sse2};
+  static const Kernels k_avx2{SimdPath::avx2, child_slab_avx2, point_filter_avx2, child_dist2_avx2};
+  static const Kernels k_avx512{SimdPath::avx512, child_slab_avx2, point_filter_avx512, child_dist2_avx2};
   switch (p) {
     case SimdPath::scalar: return k_scalar;
     case SimdPath::sse2: return k_sse2;

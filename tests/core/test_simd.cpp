@@ -7,6 +7,7 @@
 #include "rayscan/brute_force.hpp"
 #include "rayscan/distance.hpp"
 #include "rayscan/octree.hpp"
+#include "rayscan/point_query.hpp"
 #include "rayscan/simd.hpp"
 
 #include <gtest/gtest.h>
@@ -105,6 +106,76 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
   }
   EXPECT_GT(accepted, 1000u);
   EXPECT_GT(rejected, 1000u);  // the test also prunes, or it would be vacuous
+}
+
+TEST(Simd, ChildDist2IsALowerBoundOfTheExactMindist) {
+  PathGuard guard;
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::size_t positive = 0;
+  for (SimdPath path : supported_paths()) {
+    set_simd_path(path);
+    const simd::Kernels& k = simd::active_kernels();
+    if (!k.child_dist2) continue;
+    for (int trial = 0; trial < 3000; ++trial) {
+      const unsigned n = 1 + static_cast<unsigned>(trial % 8);
+      std::vector<float> rec(n * 12);
+      std::vector<AABB> boxes(n);
+      for (unsigned i = 0; i < n; ++i) {
+        const Vec3 c(u(rng), u(rng), u(rng));
+        const double h = 0.2 * u(rng);
+        for (int a = 0; a < 3; ++a) {
+          rec[i * 12 + a] = static_cast<float>(c[a] - h);
+          rec[i * 12 + 3 + a] = static_cast<float>(c[a] + h);
+          boxes[i].lo[a] = rec[i * 12 + a];
+          boxes[i].hi[a] = rec[i * 12 + 3 + a];
+        }
+      }
+      const Vec3 q(3 * u(rng) - 1, 3 * u(rng) - 1, 3 * u(rng) - 1);
+      const float qf[3] = {static_cast<float>(q.x), static_cast<float>(q.y), static_cast<float>(q.z)};
+      float lb2[8];
+      k.child_dist2({rec.data(), 12, n}, qf, static_cast<float>(0x1p-20 * 3.0), lb2);
+      for (unsigned i = 0; i < n; ++i) {
+        const double exact = distance2_point_box(q, boxes[i]);
+        positive += lb2[i] > 0.5 * exact && exact > 0;
+        ASSERT_LE(lb2[i], exact) << to_string(path) << " trial " << trial << " box " << i;
+      }
+    }
+  }
+  EXPECT_GT(positive, 1000u);  // the bound is also tight enough to prune
+}
+
+TEST(Simd, KnnIsBitIdenticalOnEveryPath) {
+  PathGuard guard;
+  const std::vector<Vec3> pts = make_points(20000, Dist::utm_mm, 4);
+  std::mt19937_64 rng(5);
+  std::uniform_int_distribution<std::size_t> pick(0, pts.size() - 1);
+  for (const OctreeLayout layout : {OctreeLayout::layered, OctreeLayout::adaptive}) {
+    OctreeConfig cfg;
+    cfg.layout = layout;
+    const Octree tree = Octree::build_bulk(pts, cfg);
+    for (int i = 0; i < 50; ++i) {
+      const Vec3 q = pts[pick(rng)] + Vec3(0.0004, -0.0003, 0.0002);
+      // Oracle: every point, sorted by (squared distance, index).
+      std::vector<std::pair<double, PointIndex>> all(pts.size());
+      for (std::size_t j = 0; j < pts.size(); ++j) {
+        const Vec3 v = pts[j] - q;
+        all[j] = {glm::dot(v, v), static_cast<PointIndex>(j)};
+      }
+      std::partial_sort(all.begin(), all.begin() + 8, all.end());
+      std::vector<Neighbor> want;
+      for (int j = 0; j < 8; ++j) want.push_back({all[j].second, std::sqrt(all[j].first)});
+      for (SimdPath path : supported_paths()) {
+        set_simd_path(path);
+        const auto got = knn(tree, q, 8);
+        ASSERT_EQ(got.size(), want.size()) << to_string(path);
+        for (std::size_t j = 0; j < got.size(); ++j) {
+          ASSERT_EQ(got[j].index, want[j].index) << to_string(path) << " rank " << j;
+          ASSERT_EQ(got[j].distance, want[j].distance) << to_string(path) << " rank " << j;
+        }
+      }
+    }
+  }
 }
 
 TEST(Simd, PointFilterNeverDropsAPointThatPasses) {

@@ -249,14 +249,15 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
       if (kern.child_slab && pad < kInf) {
         // Position-space margin: float rounding of the slab origins and of box - origin
         // differences (each <= 2^-24 of the magnitudes involved); 2^-20 of their sum covers both.
-        // Larger o_plus / smaller o_minus grow the box, so they are rounded outwards too.
+        // The margin is 16x the rounding of o_plus / o_minus to float, so plain casts stay
+        // outside the grown box; t_lo / t_hi are pushed out by 2^-22 relative before rounding.
         const double margin = 0x1p-20 * (mag + pad) + tol;
         for (int a = 0; a < 3; ++a) {
-          sr.o_plus[a] = detail::round_float_up(o_rel[a] + (pad + margin));
-          sr.o_minus[a] = detail::round_float_down(o_rel[a] - (pad + margin));
+          sr.o_plus[a] = static_cast<float>(o_rel[a] + (pad + margin));
+          sr.o_minus[a] = static_cast<float>(o_rel[a] - (pad + margin));
         }
-        sr.t_lo = detail::round_float_down(t_lo);
-        sr.t_hi = detail::round_float_up(t_hi);
+        sr.t_lo = static_cast<float>(t_lo - 0x1p-22 * std::abs(t_lo));
+        sr.t_hi = static_cast<float>(t_hi + 0x1p-22 * std::abs(t_hi));
       }
     }
   };

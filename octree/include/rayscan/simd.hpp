@@ -71,11 +71,17 @@ using ChildSlabFn = unsigned (*)(const ChildBoxesF& boxes, const SlabRayF& r, fl
 using PointFilterFn = unsigned (*)(const double* xyz, unsigned count, const PointFilterD& f,
                                    std::uint32_t* out);
 
+/// Lower bounds of the squared distance (MINDIST^2) from q (relative to the boxes' origin) to up to
+/// 8 child boxes: each axis gap is shrunk by `margin` (position space, covering the float rounding
+/// of q and of the differences) and the sum scaled down by 2^-20 relative. Writes lb2[0..count).
+using ChildDist2Fn = void (*)(const ChildBoxesF& boxes, const float* q, float margin, float* lb2);
+
 /// The kernels of one path.
 struct Kernels {
   SimdPath path;
-  ChildSlabFn child_slab;   ///< nullptr for the scalar path
-  PointFilterFn point_filter;  ///< nullptr for the scalar path
+  ChildSlabFn child_slab;      ///< nullptr for the scalar path
+  PointFilterFn point_filter;  ///< nullptr for the scalar path (with d = 0 it filters |p - o|^2)
+  ChildDist2Fn child_dist2;    ///< nullptr for the scalar path
 };
 
 /// The kernels of the active path (simd_path()).
