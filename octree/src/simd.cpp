@@ -148,16 +148,22 @@ unsigned point_filter_sse2(const double* xyz, unsigned count, const PointFilterD
 
 __attribute__((target("avx2,fma"))) unsigned child_slab_avx2(const ChildBoxesF& b, const SlabRayF& r,
                                                              float* entry) {
+  // Boxes to SoA with plain loads (measured: 6 masked gathers per node were slower than scalar).
+  alignas(32) float lo_s[3][8] = {}, hi_s[3][8] = {};
+  for (unsigned i = 0; i < b.count; ++i) {
+    const float* p = b.base + static_cast<std::size_t>(i) * b.stride;
+    for (int a = 0; a < 3; ++a) {
+      lo_s[a][i] = p[a];
+      hi_s[a][i] = p[3 + a];
+    }
+  }
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-  const __m256i idx = _mm256_mullo_epi32(lane, _mm256_set1_epi32(static_cast<int>(b.stride)));
   const __m256 valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(b.count)), lane));
   const __m256 eps = _mm256_set1_ps(kRelSlack);
   const __m256 sign = _mm256_set1_ps(-0.0f);
   __m256 tn = _mm256_set1_ps(r.t_lo), tf = _mm256_set1_ps(r.t_hi);
   for (int a = 0; a < 3; ++a) {
-    // Masked gathers: lanes >= count read nothing (no access past the node array).
-    const __m256 lo = _mm256_mask_i32gather_ps(_mm256_setzero_ps(), b.base + a, idx, valid, 4);
-    const __m256 hi = _mm256_mask_i32gather_ps(_mm256_setzero_ps(), b.base + 3 + a, idx, valid, 4);
+    const __m256 lo = _mm256_load_ps(lo_s[a]), hi = _mm256_load_ps(hi_s[a]);
     const __m256 inv = _mm256_set1_ps(r.inv_d[a]);
     const __m256 ta = _mm256_mul_ps(_mm256_sub_ps(lo, _mm256_set1_ps(r.o_plus[a])), inv);
     const __m256 tb = _mm256_mul_ps(_mm256_sub_ps(hi, _mm256_set1_ps(r.o_minus[a])), inv);
