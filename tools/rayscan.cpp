@@ -2,6 +2,7 @@
 #include "commands.hpp"
 
 #include "rayscan/input_file.hpp"
+#include "rayscan/simd.hpp"
 
 #include <cstdio>
 #include <exception>
@@ -13,7 +14,7 @@ int main(int argc, char** argv) {
   CLI::App app{"rayscan: ray queries, rendering and analysis of raw point clouds "
                "(after Teuscher et al., \"Ray Queries On Raw Point Clouds\")"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "rayscan 0.1.0");
+  app.set_version_flag("--version", std::string("rayscan 0.1.0, ") + rayscan::simd_description());
 
   std::vector<std::pair<CLI::App*, rayscan::cli::Runner>> commands;
   auto reg = [&](rayscan::cli::Runner (*add)(CLI::App&)) {

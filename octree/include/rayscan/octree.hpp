@@ -4,6 +4,7 @@
 
 #include "rayscan/morton.hpp"
 #include "rayscan/point_cloud.hpp"
+#include "rayscan/simd.hpp"
 #include "rayscan/spatial_index.hpp"
 
 #include <memory>
@@ -88,6 +89,17 @@ class Octree {
     return {nodes_[n].own_begin, nodes_[last].own_end};
   }
 
+  // Optional SIMD extension of the concept (issue 12; see ray_query) ----------------------------
+  /// The float boxes of n's children (contiguous in the node array), relative to float_origin().
+  [[nodiscard]] simd::ChildBoxesF child_boxes_f(Node n) const {
+    const NodeRec& r = nodes_[n];
+    return {&nodes_[r.first_child].lo.x, sizeof(NodeRec) / sizeof(float), r.child_count};
+  }
+  /// The origin the float boxes are relative to (the root cell's minimum corner), and the largest
+  /// magnitude of a float box coordinate (the root cell's edge).
+  [[nodiscard]] const Vec3& float_origin() const { return cell_.lo; }
+  [[nodiscard]] double float_extent() const { return cell_.max_extent(); }
+
   // Octree specifics ---------------------------------------------------------------------------
   /// The Warren & Salmon id (depth + Morton code) of node n.
   [[nodiscard]] OctreeNodeId node_id(Node n) const { return OctreeNodeId::from_bits(nodes_[n].key); }
@@ -127,6 +139,7 @@ class Octree {
     std::uint32_t own_begin = 0, own_end = 0;
     std::uint8_t child_count = 0;
   };
+  static_assert(sizeof(NodeRec) % sizeof(float) == 0);
 
  private:
   Octree() = default;

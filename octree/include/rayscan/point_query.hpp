@@ -64,6 +64,10 @@ void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
 /// sorted by (squared distance, index). k = kAllPoints means no k limit (a pure radius query);
 /// radius = kInf means no radius. Ordering and pruning use squared distances; Neighbor::distance is
 /// their square root. Best-first search over node MINDIST (Hjaltason & Samet 1999).
+/// SIMD (issue 12, the same policies as ray_query): on the active simd_path() an index with
+/// detail::FloatChildBoxes bounds all children's MINDIST at once in float (lower bounds, rounded
+/// down), and each node's points pass a SIMD distance filter with a widened bound before the exact
+/// double test, so the answers are bit-identical on every path.
 /// Throws std::invalid_argument for a NaN/negative radius or a non-finite q.
 template <SpatialIndex I>
 void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
@@ -90,7 +94,21 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
   };
   // A node is kept when its squared MINDIST is within the (relative-tolerance) bound.
   auto within = [](double lb, double bound) { return lb <= bound * (1.0 + 1e-12); };
-  nodes.push_back({distance2_point_box(q, index.node_bounds(index.root())), index.root()});
+  const AABB root_box = index.node_bounds(index.root());
+  nodes.push_back({distance2_point_box(q, root_box), index.root()});
+  // SIMD policies (simd.hpp): see ray_query for the margins.
+  const simd::Kernels& kern = simd::active_kernels();
+  const double vmax = glm::length(q - root_box.center()) + 0.5 * glm::length(root_box.hi - root_box.lo);
+  const double slack_d2 = 1e-12 * vmax * vmax + 1e-300;
+  simd::PointFilterD pf{{q.x, q.y, q.z}, {0.0, 0.0, 0.0}, 0.0, -kInf, kInf};  // d = 0: |p - q|^2
+  [[maybe_unused]] float qf[3] = {0, 0, 0};
+  [[maybe_unused]] float margin_f = 0;
+  if constexpr (detail::FloatChildBoxes<I>) {
+    const Vec3 q_rel = q - index.float_origin();
+    for (int a = 0; a < 3; ++a) qf[a] = static_cast<float>(q_rel[a]);
+    const double mag = std::max({std::abs(q_rel.x), std::abs(q_rel.y), std::abs(q_rel.z)}) + index.float_extent();
+    margin_f = detail::round_float_up(0x1p-20 * mag);
+  }
   while (!nodes.empty()) {
     detail::NodeEntry<Node> e;
     if (bounded) {
@@ -104,10 +122,10 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
     }
     if (!within(e.lb, r2)) continue;
     const SlotRange sr = index.node_points(e.node);
-    for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+    auto eval_slot = [&](std::uint32_t s) __attribute__((always_inline)) {
       const Vec3 v = pos[s] - q;
       const double d2 = glm::dot(v, v);
-      if (d2 > r2 || d2 > worst) continue;
+      if (d2 > r2 || d2 > worst) return;
       const detail::Candidate c{d2, ids[s], 0.0, d2};
       if (!bounded) {
         cands.push_back(c);
@@ -121,8 +139,31 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
         std::push_heap(cands.begin(), cands.end(), detail::cand_less);
         worst = cands.front().key;
       }
+    };
+    if (kern.point_filter && sr.size() >= 4) {
+      pf.d2_max = std::min(r2, worst) * (1.0 + 1e-12) + slack_d2;
+      auto& sel = scratch.sel;
+      if (sel.size() < sr.size()) sel.resize(sr.size());
+      const unsigned n = kern.point_filter(&pos[sr.begin].x, sr.size(), pf, sel.data());
+      for (unsigned j = 0; j < n; ++j) eval_slot(sr.begin + sel[j]);
+    } else {
+      for (std::uint32_t s = sr.begin; s < sr.end; ++s) eval_slot(s);
     }
-    for (unsigned i = 0, nc = index.child_count(e.node); i < nc; ++i) {
+    const unsigned nc = index.child_count(e.node);
+    if constexpr (detail::FloatChildBoxes<I>) {
+      if (kern.child_dist2 && nc <= 8) {
+        float lb2[8];
+        kern.child_dist2(index.child_boxes_f(e.node), qf, margin_f, lb2);
+        for (unsigned i = 0; i < nc; ++i) {
+          const double lb = lb2[i];
+          if (!within(lb, r2) || !within(lb, worst)) continue;
+          nodes.push_back({lb, index.child(e.node, i)});
+          if (bounded) std::push_heap(nodes.begin(), nodes.end(), greater);
+        }
+        continue;
+      }
+    }
+    for (unsigned i = 0; i < nc; ++i) {
       const Node ch = index.child(e.node, i);
       const double lb = distance2_point_box(q, index.node_bounds(ch));
       if (!within(lb, r2) || !within(lb, worst)) continue;

@@ -4,6 +4,7 @@
 
 #include "rayscan/distance.hpp"
 #include "rayscan/ray.hpp"
+#include "rayscan/simd.hpp"
 #include "rayscan/spatial_index.hpp"
 
 #include <algorithm>
@@ -120,7 +121,29 @@ template <class Node>
 struct RayScratch {
   std::vector<NodeEntry<Node>> nodes;
   std::vector<Candidate> cands;
+  std::vector<std::uint32_t> sel;  // survivors of the SIMD point filter (local slot offsets)
 };
+
+/// An index that exposes its children's float boxes for the SIMD child test (simd.hpp): the
+/// optional extension of SpatialIndex (the Octree has it; others use the scalar node test).
+template <class I>
+concept FloatChildBoxes = requires(const I& idx, typename I::Node n) {
+  { idx.child_boxes_f(n) } -> std::convertible_to<simd::ChildBoxesF>;
+  { idx.float_origin() } -> std::convertible_to<Vec3>;
+  { idx.float_extent() } -> std::convertible_to<double>;
+};
+
+/// Rounds x to float towards -inf (down) or +inf (up).
+inline float round_float_down(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) > x) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return f;
+}
+inline float round_float_up(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
 
 template <class Node>
 RayScratch<Node>& ray_scratch() {
@@ -148,6 +171,12 @@ RayScratch<Node>& ray_scratch() {
 /// measured slower for the k = 1 queries a renderer issues); without k, a plain depth-first stack
 /// is used. Bounds carry a tolerance of 1e-9 of the
 /// scene's magnitude so rounding never prunes a qualifying point.
+///
+/// SIMD (issue 12): on the active simd_path(), an index with FloatChildBoxes tests all children
+/// of a node at once on their float boxes (slabs grown by a margin that covers every float rounding,
+/// so no box holding a qualifying point is rejected), and each node's points go through a SIMD
+/// filter with widened bounds before the exact scalar test. Both are policies of this one traversal
+/// and only filter: every answer is bit-identical to the scalar path (RAYSCAN_SIMD=scalar).
 ///
 /// Throws std::invalid_argument (from RayQuery::validate) for inconsistent parameters.
 /// Thread-safe for concurrent calls on one index (per-thread scratch).
@@ -187,6 +216,54 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
   auto& cands = scratch.cands;
   nodes.clear();
   cands.clear();
+
+  // SIMD policies (simd.hpp). Point filter: bounds widened by far more than the difference between
+  // the SIMD (possibly fused) and the scalar evaluation of t_p and d^2 (a few ulps of |p - o| and
+  // |p - o|^2; |p - o| <= vmax for every point in the root box).
+  const simd::Kernels& kern = simd::active_kernels();
+  const double vmax = glm::length(o - root_box.center()) + 0.5 * glm::length(root_box.hi - root_box.lo);
+  const double slack_t = 1e-12 * vmax + 1e-300, slack_d2 = 1e-12 * vmax * vmax + 1e-300;
+  simd::PointFilterD pf{{o.x, o.y, o.z}, {d.x, d.y, d.z}, 0, 0, 0};
+  // Child test: float slabs relative to the index's float origin; rays with a direction component
+  // whose float reciprocal is not finite keep the scalar node test.
+  simd::SlabRayF sr{};
+  bool simd_children = false;
+  [[maybe_unused]] Vec3 o_rel{0.0};
+  [[maybe_unused]] double mag = 0;
+  if constexpr (detail::FloatChildBoxes<I>) {
+    if (kern.child_slab) {
+      o_rel = o - index.float_origin();
+      const float fx = static_cast<float>(inv_d.x), fy = static_cast<float>(inv_d.y),
+                  fz = static_cast<float>(inv_d.z);
+      simd_children = std::isfinite(fx) && std::isfinite(fy) && std::isfinite(fz);
+      sr.inv_d[0] = fx, sr.inv_d[1] = fy, sr.inv_d[2] = fz;
+      mag = std::max({std::abs(o_rel.x), std::abs(o_rel.y), std::abs(o_rel.z)}) + index.float_extent();
+    }
+  }
+  // Refreshes the per-ray SIMD constants after pad or t_hi changed (dynamic k filter).
+  auto update_simd = [&]() {
+    pf.d2_max = (ray_order ? std::min(r2, worst * worst * (1.0 + 1e-12)) : r2) + slack_d2;
+    pf.t_lo = t_lo - slack_t;
+    pf.t_hi = t_hi + slack_t;
+    if constexpr (detail::FloatChildBoxes<I>) {
+      if (kern.child_slab && pad < kInf) {
+        // Position-space margin: float rounding of the slab origins and of box - origin
+        // differences (each <= 2^-24 of the magnitudes involved); 2^-20 of their sum covers both.
+        // The margin is 16x the rounding of o_plus / o_minus to float, so plain casts stay
+        // outside the grown box; t_lo / t_hi are pushed out by 2^-22 relative before rounding.
+        const double margin = 0x1p-20 * (mag + pad) + tol;
+        for (int a = 0; a < 3; ++a) {
+          sr.o_plus[a] = static_cast<float>(o_rel[a] + (pad + margin));
+          sr.o_minus[a] = static_cast<float>(o_rel[a] - (pad + margin));
+        }
+        sr.t_lo = static_cast<float>(t_lo - 0x1p-22 * std::abs(t_lo));
+        sr.t_hi = static_cast<float>(t_hi + 0x1p-22 * std::abs(t_hi));
+      }
+    }
+  };
+  update_simd();
+  // Children whose SIMD slab result is final (else it only prefilters the scalar test).
+  const bool slab_is_final = !ray_order && !has_planes;
 
   // Node test (section 3.3): false prunes the node; otherwise lb receives a lower bound of the key
   // of any result inside it.
@@ -254,6 +331,7 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
       } else {
         t_hi = (sphere ? std::min(q.t_max, worst) + radius : std::min(q.t_max, worst)) + tol;
       }
+      update_simd();
     }
   };
 
@@ -263,20 +341,34 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
       ++stats->nodes_visited;
       stats->points_tested += sr.size();
     }
-    for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+    auto eval_slot = [&](std::uint32_t s) __attribute__((always_inline)) {
       const RayPointTerms pt = ray_point_terms(o, d, pos[s]);
-      if (pt.d2 > r2) continue;
+      if (pt.d2 > r2) return;
       const double t = sphere ? sphere_entry(pt.t, pt.d2, radius) : pt.t;
-      if (t < q.t_min || t > q.t_max) continue;
+      if (t < q.t_min || t > q.t_max) return;
       if (has_planes) {
         bool inside = true;
         for (const Plane& pl : q.planes)
           if (dist_plane(pl.point, pl.normal, pos[s]) > 0.0) { inside = false; break; }
-        if (!inside) continue;
+        if (!inside) return;
       }
       const double key = ray_order ? std::sqrt(pt.d2) : t;
-      if (key > worst) continue;
+      if (key > worst) return;
       push_candidate({key, ids[s], t, pt.d2});
+    };
+    if (kern.point_filter && sr.size() >= 4) {
+      // SIMD filter, then the exact test on the survivors only (in slot order, as below).
+      auto& sel = scratch.sel;
+      if (sel.size() < sr.size()) sel.resize(sr.size());
+      const unsigned n = kern.point_filter(&pos[sr.begin].x, sr.size(), pf, sel.data());
+      for (unsigned j = 0; j < n; ++j) {
+        eval_slot(sr.begin + sel[j]);
+        if (done) return;
+      }
+      return;
+    }
+    for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+      eval_slot(s);
       if (done) return;
     }
   };
@@ -295,13 +387,10 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
     if (done) break;
     const unsigned nc = index.child_count(e.node);
     unsigned nk = 0;
-    for (unsigned i = 0; i < nc; ++i) {
-      const Node c = index.child(e.node, i);
-      double lb;
-      if (!test_node(index.node_bounds(c), lb)) continue;
+    auto take = [&](const Node c, double lb) __attribute__((always_inline)) {
       if (!bounded || nc > 8) {
         nodes.push_back({lb, c});
-        continue;
+        return;
       }
       // Insertion sort into kids[] by descending lb (at most 8 children).
       unsigned j = nk++;
@@ -310,6 +399,34 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
         --j;
       }
       kids[j] = {lb, c};
+    };
+    if constexpr (detail::FloatChildBoxes<I>) {
+      if (simd_children && pad < kInf && nc <= 8) {
+        // SIMD node test policy: all children at once on their float boxes.
+        float entry[8];
+        unsigned m = kern.child_slab(index.child_boxes_f(e.node), sr, entry);
+        while (m) {
+          const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+          m &= m - 1;
+          const Node c = index.child(e.node, i);
+          double lb;
+          if (slab_is_final) {
+            lb = std::max(static_cast<double>(entry[i]), q.t_min);
+            if (bounded && lb > worst + tol) continue;
+          } else if (!test_node(index.node_bounds(c), lb)) {
+            continue;
+          }
+          take(c, lb);
+        }
+        for (unsigned j = 0; j < nk; ++j) nodes.push_back(kids[j]);
+        continue;
+      }
+    }
+    for (unsigned i = 0; i < nc; ++i) {
+      const Node c = index.child(e.node, i);
+      double lb;
+      if (!test_node(index.node_bounds(c), lb)) continue;
+      take(c, lb);
     }
     for (unsigned j = 0; j < nk; ++j) nodes.push_back(kids[j]);
   }

@@ -1,0 +1,91 @@
+// Runtime-dispatched SIMD kernels of the one traversal (issue 12): the node test of all children
+// of a node at once on their float boxes, and a conservative point filter on a leaf's double
+// positions. Both are *filters*: the traversal confirms every survivor with the exact scalar double
+// code, so answers are bit-identical on every path (the property tests run once per forced path).
+//
+// Paths: scalar (the reference), sse2 (x86-64 baseline), avx2 (+FMA), avx512 (F+VL). The best path
+// the CPU supports is chosen once at start-up with __builtin_cpu_supports; the environment variable
+// RAYSCAN_SIMD=scalar|sse2|avx2|avx512 or set_simd_path() forces one (tests, benchmarks).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace rayscan {
+
+/// A code path of the SIMD kernels (ordered: each needs the instruction sets of the ones before).
+enum class SimdPath : std::uint8_t { scalar = 0, sse2 = 1, avx2 = 2, avx512 = 3 };
+
+/// "scalar" | "sse2" | "avx2" | "avx512".
+const char* to_string(SimdPath p);
+/// Parses a name of to_string; nullopt for anything else.
+std::optional<SimdPath> parse_simd_path(const std::string& s);
+/// The best path this CPU supports (__builtin_cpu_supports: avx512f+avx512vl, avx2+fma, sse2).
+SimdPath best_simd_path();
+/// True when this CPU can run path p.
+bool simd_path_supported(SimdPath p);
+/// The active path: RAYSCAN_SIMD if set and supported (an unsupported or unknown value is reported
+/// once on stderr and ignored), else best_simd_path(); changed by set_simd_path.
+SimdPath simd_path();
+/// Forces path p for all later queries of the process (not thread-safe against running queries).
+/// Returns false (and changes nothing) when the CPU cannot run p.
+bool set_simd_path(SimdPath p);
+/// One line for `rayscan --version`: the active path and what the CPU supports.
+std::string simd_description();
+
+namespace simd {
+
+/// Per-ray constants of the child slab test in float, relative to the index's float origin.
+/// The caller (the traversal) grows the slabs by the pad plus a margin covering every float
+/// rounding of positions, so the float test never rejects a box the double test accepts.
+struct SlabRayF {
+  float o_plus[3];   ///< origin + (pad + margin), relative to the origin of the float boxes
+  float o_minus[3];  ///< origin - (pad + margin)
+  float inv_d[3];    ///< 1 / direction (finite: rays with a zero component use the scalar test)
+  float t_lo, t_hi;  ///< parameter interval the slab interval must meet (already widened)
+};
+
+/// Float boxes of n <= 8 sibling nodes stored with a fixed stride: box i has lo at
+/// base[i * stride + 0..2] and hi at base[i * stride + 3..5].
+struct ChildBoxesF {
+  const float* base = nullptr;
+  unsigned stride = 0;  ///< in floats
+  unsigned count = 0;   ///< number of children (<= 8)
+};
+
+/// Per-ray constants of the point filter (double, world coordinates).
+struct PointFilterD {
+  double o[3];       ///< ray origin
+  double d[3];       ///< unit direction
+  double d2_max;     ///< keep points whose squared orthogonal distance <= d2_max (already widened)
+  double t_lo, t_hi; ///< keep points whose projection t_p lies in [t_lo, t_hi] (already widened)
+};
+
+/// Slab test of up to 8 child boxes: bit i of the result is set when box i grown as in `r`
+/// meets [t_lo, t_hi] (conservatively); entry[i] receives a lower bound of its entry parameter.
+using ChildSlabFn = unsigned (*)(const ChildBoxesF& boxes, const SlabRayF& r, float* entry);
+/// Point filter over positions xyz[0..count) (AoS doubles, 3 per point): writes the local
+/// indices of the points that may pass to out (capacity count) and returns how many. The
+/// filter may keep points that fail (never drops one that passes).
+using PointFilterFn = unsigned (*)(const double* xyz, unsigned count, const PointFilterD& f,
+                                   std::uint32_t* out);
+
+/// Lower bounds of the squared distance (MINDIST^2) from q (relative to the boxes' origin) to up to
+/// 8 child boxes: each axis gap is shrunk by `margin` (position space, covering the float rounding
+/// of q and of the differences) and the sum scaled down by 2^-20 relative. Writes lb2[0..count).
+using ChildDist2Fn = void (*)(const ChildBoxesF& boxes, const float* q, float margin, float* lb2);
+
+/// The kernels of one path.
+struct Kernels {
+  SimdPath path;
+  ChildSlabFn child_slab;      ///< nullptr for the scalar path
+  PointFilterFn point_filter;  ///< nullptr for the scalar path (with d = 0 it filters |p - o|^2)
+  ChildDist2Fn child_dist2;    ///< nullptr for the scalar path
+};
+
+/// The kernels of the active path (simd_path()).
+const Kernels& active_kernels();
+
+}  // namespace simd
+}  // namespace rayscan

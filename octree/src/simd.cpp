@@ -1,0 +1,341 @@
+// SIMD kernels of the traversal and their runtime dispatch (see simd.hpp). Every kernel is a
+// conservative filter; the traversal confirms survivors with the exact scalar double code.
+//
+// The wider paths are compiled with GCC's function-level target attributes (not per-file -m flags,
+// which could leak AVX code into inline functions shared with baseline code), so one binary runs
+// on any x86-64 and uses what the CPU has.
+#include "rayscan/simd.hpp"
+
+#include <cstdio>
+#include <cstdlib>
+
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#define RAYSCAN_X86 1
+#else
+#define RAYSCAN_X86 0
+#endif
+
+namespace rayscan {
+
+const char* to_string(SimdPath p) {
+  switch (p) {
+    case SimdPath::scalar: return "scalar";
+    case SimdPath::sse2: return "sse2";
+    case SimdPath::avx2: return "avx2";
+    case SimdPath::avx512: return "avx512";
+  }
+  return "scalar";
+}
+
+std::optional<SimdPath> parse_simd_path(const std::string& s) {
+  for (SimdPath p : {SimdPath::scalar, SimdPath::sse2, SimdPath::avx2, SimdPath::avx512})
+    if (s == to_string(p)) return p;
+  return std::nullopt;
+}
+
+bool simd_path_supported(SimdPath p) {
+#if RAYSCAN_X86
+  __builtin_cpu_init();
+  switch (p) {
+    case SimdPath::scalar: return true;
+    case SimdPath::sse2: return __builtin_cpu_supports("sse2");
+    case SimdPath::avx2: return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    case SimdPath::avx512:
+      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+             __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl");
+  }
+  return false;
+#else
+  return p == SimdPath::scalar;
+#endif
+}
+
+SimdPath best_simd_path() {
+  for (SimdPath p : {SimdPath::avx512, SimdPath::avx2, SimdPath::sse2})
+    if (simd_path_supported(p)) return p;
+  return SimdPath::scalar;
+}
+
+namespace simd {
+namespace {
+
+constexpr float kRelSlack = 0x1p-20f;  // > 3 float roundings (sub, 1/d, mul) of a slab parameter
+
+#if RAYSCAN_X86
+// ---- SSE2 (x86-64 baseline) ----------------------------------------------------------------
+
+unsigned child_slab_sse2(const ChildBoxesF& b, const SlabRayF& r, float* entry) {
+  alignas(16) float lo[3][8] = {}, hi[3][8] = {};
+  for (unsigned i = 0; i < b.count; ++i) {
+    const float* p = b.base + static_cast<std::size_t>(i) * b.stride;
+    for (int a = 0; a < 3; ++a) {
+      lo[a][i] = p[a];
+      hi[a][i] = p[3 + a];
+    }
+  }
+  const __m128 eps = _mm_set1_ps(kRelSlack);
+  const __m128 sign = _mm_set1_ps(-0.0f);
+  unsigned mask = 0;
+  for (unsigned h = 0; h < 8 && h < b.count; h += 4) {
+    __m128 tn = _mm_set1_ps(r.t_lo), tf = _mm_set1_ps(r.t_hi);
+    for (int a = 0; a < 3; ++a) {
+      const __m128 inv = _mm_set1_ps(r.inv_d[a]);
+      const __m128 ta = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(lo[a] + h), _mm_set1_ps(r.o_plus[a])), inv);
+      const __m128 tb = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(hi[a] + h), _mm_set1_ps(r.o_minus[a])), inv);
+      __m128 t0 = _mm_min_ps(ta, tb), t1 = _mm_max_ps(ta, tb);
+      t0 = _mm_sub_ps(t0, _mm_mul_ps(_mm_andnot_ps(sign, t0), eps));
+      t1 = _mm_add_ps(t1, _mm_mul_ps(_mm_andnot_ps(sign, t1), eps));
+      tn = _mm_max_ps(t0, tn);  // a NaN in t0/t1 keeps the accumulator (conservative)
+      tf = _mm_min_ps(t1, tf);
+    }
+    mask |= static_cast<unsigned>(_mm_movemask_ps(_mm_cmple_ps(tn, tf))) << h;
+    _mm_storeu_ps(entry + h, tn);
+  }
+  return mask & ((1u << b.count) - 1u);
+}
+
+[[maybe_unused]] void child_dist2_sse2(const ChildBoxesF& b, const float* q, float margin, float* lb2) {
+  alignas(16) float lo[3][8] = {}, hi[3][8] = {};
+  for (unsigned i = 0; i < b.count; ++i) {
+    const float* p = b.base + static_cast<std::size_t>(i) * b.stride;
+    for (int a = 0; a < 3; ++a) {
+      lo[a][i] = p[a];
+      hi[a][i] = p[3 + a];
+    }
+  }
+  const __m128 m = _mm_set1_ps(margin), zero = _mm_setzero_ps(), shrink = _mm_set1_ps(1.0f - kRelSlack);
+  for (unsigned h = 0; h < 8 && h < b.count; h += 4) {
+    __m128 d2 = zero;
+    for (int a = 0; a < 3; ++a) {
+      const __m128 qa = _mm_set1_ps(q[a]);
+      const __m128 g = _mm_max_ps(_mm_sub_ps(_mm_load_ps(lo[a] + h), qa), _mm_sub_ps(qa, _mm_load_ps(hi[a] + h)));
+      const __m128 gm = _mm_max_ps(_mm_sub_ps(g, m), zero);
+      d2 = _mm_add_ps(d2, _mm_mul_ps(gm, gm));
+    }
+    _mm_storeu_ps(lb2 + h, _mm_mul_ps(d2, shrink));
+  }
+}
+
+unsigned point_filter_sse2(const double* xyz, unsigned count, const PointFilterD& f, std::uint32_t* out) {
+  const __m128d ox = _mm_set1_pd(f.o[0]), oy = _mm_set1_pd(f.o[1]), oz = _mm_set1_pd(f.o[2]);
+  const __m128d dx = _mm_set1_pd(f.d[0]), dy = _mm_set1_pd(f.d[1]), dz = _mm_set1_pd(f.d[2]);
+  const __m128d d2max = _mm_set1_pd(f.d2_max), tlo = _mm_set1_pd(f.t_lo), thi = _mm_set1_pd(f.t_hi);
+  unsigned i = 0, n = 0;
+  for (; i + 2 <= count; i += 2) {
+    const double* p = xyz + 3 * static_cast<std::size_t>(i);
+    const __m128d a = _mm_loadu_pd(p), b = _mm_loadu_pd(p + 2), c = _mm_loadu_pd(p + 4);
+    const __m128d vx = _mm_sub_pd(_mm_shuffle_pd(a, b, 0b10), ox);
+    const __m128d vy = _mm_sub_pd(_mm_shuffle_pd(a, c, 0b01), oy);
+    const __m128d vz = _mm_sub_pd(_mm_shuffle_pd(b, c, 0b10), oz);
+    const __m128d t = _mm_add_pd(_mm_add_pd(_mm_mul_pd(vx, dx), _mm_mul_pd(vy, dy)), _mm_mul_pd(vz, dz));
+    const __m128d wx = _mm_sub_pd(vx, _mm_mul_pd(t, dx));
+    const __m128d wy = _mm_sub_pd(vy, _mm_mul_pd(t, dy));
+    const __m128d wz = _mm_sub_pd(vz, _mm_mul_pd(t, dz));
+    const __m128d d2 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(wx, wx), _mm_mul_pd(wy, wy)), _mm_mul_pd(wz, wz));
+    const __m128d ok = _mm_and_pd(_mm_cmple_pd(d2, d2max), _mm_and_pd(_mm_cmpge_pd(t, tlo), _mm_cmple_pd(t, thi)));
+    unsigned m = static_cast<unsigned>(_mm_movemask_pd(ok));
+    while (m) {
+      out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
+      m &= m - 1;
+    }
+  }
+  for (; i < count; ++i) out[n++] = i;  // tail: left to the exact test
+  return n;
+}
+
+// ---- AVX2 + FMA: all 8 children in one register -------------------------------------------------
+
+__attribute__((target("avx2,fma"))) unsigned child_slab_avx2(const ChildBoxesF& b, const SlabRayF& r,
+                                                             float* entry) {
+  // Boxes to SoA with plain loads (measured: 6 masked gathers per node were slower than scalar).
+  alignas(32) float lo_s[3][8] = {}, hi_s[3][8] = {};
+  for (unsigned i = 0; i < b.count; ++i) {
+    const float* p = b.base + static_cast<std::size_t>(i) * b.stride;
+    for (int a = 0; a < 3; ++a) {
+      lo_s[a][i] = p[a];
+      hi_s[a][i] = p[3 + a];
+    }
+  }
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256 valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(b.count)), lane));
+  const __m256 eps = _mm256_set1_ps(kRelSlack);
+  const __m256 sign = _mm256_set1_ps(-0.0f);
+  __m256 tn = _mm256_set1_ps(r.t_lo), tf = _mm256_set1_ps(r.t_hi);
+  for (int a = 0; a < 3; ++a) {
+    const __m256 lo = _mm256_load_ps(lo_s[a]), hi = _mm256_load_ps(hi_s[a]);
+    const __m256 inv = _mm256_set1_ps(r.inv_d[a]);
+    const __m256 ta = _mm256_mul_ps(_mm256_sub_ps(lo, _mm256_set1_ps(r.o_plus[a])), inv);
+    const __m256 tb = _mm256_mul_ps(_mm256_sub_ps(hi, _mm256_set1_ps(r.o_minus[a])), inv);
+    __m256 t0 = _mm256_min_ps(ta, tb), t1 = _mm256_max_ps(ta, tb);
+    t0 = _mm256_fnmadd_ps(_mm256_andnot_ps(sign, t0), eps, t0);
+    t1 = _mm256_fmadd_ps(_mm256_andnot_ps(sign, t1), eps, t1);
+    tn = _mm256_max_ps(t0, tn);
+    tf = _mm256_min_ps(t1, tf);
+  }
+  const unsigned mask = static_cast<unsigned>(_mm256_movemask_ps(_mm256_and_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ), valid)));
+  _mm256_storeu_ps(entry, tn);
+  return mask;
+}
+
+[[maybe_unused]] __attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, const float* q, float margin,
+                                                           float* lb2) {
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i idx = _mm256_mullo_epi32(lane, _mm256_set1_epi32(static_cast<int>(b.stride)));
+  const __m256 valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(b.count)), lane));
+  const __m256 m = _mm256_set1_ps(margin), zero = _mm256_setzero_ps();
+  __m256 d2 = zero;
+  for (int a = 0; a < 3; ++a) {
+    const __m256 lo = _mm256_mask_i32gather_ps(zero, b.base + a, idx, valid, 4);
+    const __m256 hi = _mm256_mask_i32gather_ps(zero, b.base + 3 + a, idx, valid, 4);
+    const __m256 qa = _mm256_set1_ps(q[a]);
+    const __m256 g = _mm256_max_ps(_mm256_sub_ps(lo, qa), _mm256_sub_ps(qa, hi));
+    const __m256 gm = _mm256_max_ps(_mm256_sub_ps(g, m), zero);
+    d2 = _mm256_fmadd_ps(gm, gm, d2);
+  }
+  _mm256_storeu_ps(lb2, _mm256_mul_ps(d2, _mm256_set1_ps(1.0f - kRelSlack)));
+}
+
+__attribute__((target("avx2,fma"))) unsigned point_filter_avx2(const double* xyz, unsigned count,
+                                                               const PointFilterD& f, std::uint32_t* out) {
+  const __m256d ox = _mm256_set1_pd(f.o[0]), oy = _mm256_set1_pd(f.o[1]), oz = _mm256_set1_pd(f.o[2]);
+  const __m256d dx = _mm256_set1_pd(f.d[0]), dy = _mm256_set1_pd(f.d[1]), dz = _mm256_set1_pd(f.d[2]);
+  const __m256d d2max = _mm256_set1_pd(f.d2_max), tlo = _mm256_set1_pd(f.t_lo), thi = _mm256_set1_pd(f.t_hi);
+  unsigned i = 0, n = 0;
+  for (; i + 4 <= count; i += 4) {
+    // 4 AoS points (12 doubles) to SoA: P = x0 y0 x2 y2, Q = z0 x1 z2 x3, R = y1 z1 y3 z3.
+    const double* p = xyz + 3 * static_cast<std::size_t>(i);
+    const __m256d a = _mm256_loadu_pd(p), b = _mm256_loadu_pd(p + 4), c = _mm256_loadu_pd(p + 8);
+    const __m256d P = _mm256_blend_pd(a, b, 0b1100);
+    const __m256d Q = _mm256_permute2f128_pd(a, c, 0x21);
+    const __m256d R = _mm256_blend_pd(b, c, 0b1100);
+    const __m256d vx = _mm256_sub_pd(_mm256_shuffle_pd(P, Q, 0b1010), ox);
+    const __m256d vy = _mm256_sub_pd(_mm256_shuffle_pd(P, R, 0b0101), oy);
+    const __m256d vz = _mm256_sub_pd(_mm256_shuffle_pd(Q, R, 0b1010), oz);
+    const __m256d t = _mm256_fmadd_pd(vz, dz, _mm256_fmadd_pd(vy, dy, _mm256_mul_pd(vx, dx)));
+    const __m256d wx = _mm256_fnmadd_pd(t, dx, vx);
+    const __m256d wy = _mm256_fnmadd_pd(t, dy, vy);
+    const __m256d wz = _mm256_fnmadd_pd(t, dz, vz);
+    const __m256d d2 = _mm256_fmadd_pd(wz, wz, _mm256_fmadd_pd(wy, wy, _mm256_mul_pd(wx, wx)));
+    const __m256d ok = _mm256_and_pd(_mm256_cmp_pd(d2, d2max, _CMP_LE_OQ),
+                                     _mm256_and_pd(_mm256_cmp_pd(t, tlo, _CMP_GE_OQ), _mm256_cmp_pd(t, thi, _CMP_LE_OQ)));
+    unsigned m = static_cast<unsigned>(_mm256_movemask_pd(ok));
+    while (m) {
+      out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
+      m &= m - 1;
+    }
+  }
+  for (; i < count; ++i) out[n++] = i;
+  return n;
+}
+
+// ---- AVX-512: 8 points per step (the child test stays 8-wide: an octree node has 8 children) ----
+
+__attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx512(const double* xyz, unsigned count,
+                                                                                 const PointFilterD& f,
+                                                                                 std::uint32_t* out) {
+  const __m512d ox = _mm512_set1_pd(f.o[0]), oy = _mm512_set1_pd(f.o[1]), oz = _mm512_set1_pd(f.o[2]);
+  const __m512d dx = _mm512_set1_pd(f.d[0]), dy = _mm512_set1_pd(f.d[1]), dz = _mm512_set1_pd(f.d[2]);
+  const __m512d d2max = _mm512_set1_pd(f.d2_max), tlo = _mm512_set1_pd(f.t_lo), thi = _mm512_set1_pd(f.t_hi);
+  // 8 AoS points = 24 doubles in a, b, c; x_j sits at 3j, y_j at 3j+1, z_j at 3j+2.
+  const __m512i ix1 = _mm512_setr_epi64(0, 3, 6, 9, 12, 15, 0, 0), ix2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 10, 13);
+  const __m512i iy1 = _mm512_setr_epi64(1, 4, 7, 10, 13, 0, 0, 0), iy2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 8, 11, 14);
+  const __m512i iz1 = _mm512_setr_epi64(2, 5, 8, 11, 14, 0, 0, 0), iz2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 9, 12, 15);
+  unsigned i = 0, n = 0;
+  for (; i + 8 <= count; i += 8) {
+    const double* p = xyz + 3 * static_cast<std::size_t>(i);
+    const __m512d a = _mm512_loadu_pd(p), b = _mm512_loadu_pd(p + 8), c = _mm512_loadu_pd(p + 16);
+    const __m512d vx = _mm512_sub_pd(_mm512_permutex2var_pd(_mm512_permutex2var_pd(a, ix1, b), ix2, c), ox);
+    const __m512d vy = _mm512_sub_pd(_mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iy1, b), iy2, c), oy);
+    const __m512d vz = _mm512_sub_pd(_mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iz1, b), iz2, c), oz);
+    const __m512d t = _mm512_fmadd_pd(vz, dz, _mm512_fmadd_pd(vy, dy, _mm512_mul_pd(vx, dx)));
+    const __m512d wx = _mm512_fnmadd_pd(t, dx, vx);
+    const __m512d wy = _mm512_fnmadd_pd(t, dy, vy);
+    const __m512d wz = _mm512_fnmadd_pd(t, dz, vz);
+    const __m512d d2 = _mm512_fmadd_pd(wz, wz, _mm512_fmadd_pd(wy, wy, _mm512_mul_pd(wx, wx)));
+    unsigned m = _mm512_cmp_pd_mask(d2, d2max, _CMP_LE_OQ) & _mm512_cmp_pd_mask(t, tlo, _CMP_GE_OQ) &
+                 _mm512_cmp_pd_mask(t, thi, _CMP_LE_OQ);
+    while (m) {
+      out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
+      m &= m - 1;
+    }
+  }
+  // The rest (< 8) through the 4-wide kernel.
+  if (i < count) {
+    const unsigned k = point_filter_avx2(xyz + 3 * static_cast<std::size_t>(i), count - i, f, out + n);
+    for (unsigned j = 0; j < k; ++j) out[n + j] += i;
+    n += k;
+  }
+  return n;
+}
+#endif
+
+const Kernels& kernels_for(SimdPath p) {
+  // child_dist2 is off on every path: the gathered float MINDIST of 8 children measured 1.35x
+  // slower than the scalar test on Table 1 kNN on the reference machine (bench/README.md, issue
+  // 12), so knn_query keeps its scalar child test. The kernels stay for the next attempt (with a
+  // transposed SoA node layout instead of gathers) and are checked by test_simd.cpp.
+  static const Kernels k_scalar{SimdPath::scalar, nullptr, nullptr, nullptr};
+#if RAYSCAN_X86
+  static const Kernels k_sse2{SimdPath::sse2, child_slab_sse2, point_filter_sse2, nullptr};
+  static const Kernels k_avx2{SimdPath::avx2, child_slab_avx2, point_filter_avx2, nullptr};
+  static const Kernels k_avx512{SimdPath::avx512, child_slab_avx2, point_filter_avx512, nullptr};
+  switch (p) {
+    case SimdPath::scalar: return k_scalar;
+    case SimdPath::sse2: return k_sse2;
+    case SimdPath::avx2: return k_avx2;
+    case SimdPath::avx512: return k_avx512;
+  }
+#else
+  (void)p;
+#endif
+  return k_scalar;
+}
+
+SimdPath initial_path() {
+  if (const char* env = std::getenv("RAYSCAN_SIMD"); env && *env) {
+    const std::optional<SimdPath> p = parse_simd_path(env);
+    if (p && simd_path_supported(*p)) return *p;
+    std::fprintf(stderr, "rayscan: RAYSCAN_SIMD=%s is %s; using %s\n", env,
+                 p ? "not supported by this CPU" : "not one of scalar|sse2|avx2|avx512",
+                 to_string(best_simd_path()));
+  }
+  return best_simd_path();
+}
+
+const Kernels*& active() {
+  static const Kernels* k = &kernels_for(initial_path());
+  return k;
+}
+
+}  // namespace
+
+const Kernels& active_kernels() { return *active(); }
+
+ChildDist2Fn child_dist2_kernel(SimdPath p) {
+#if RAYSCAN_X86
+  if (p == SimdPath::sse2) return child_dist2_sse2;
+  if (p == SimdPath::avx2 || p == SimdPath::avx512) return child_dist2_avx2;
+#endif
+  (void)p;
+  return nullptr;
+}
+
+}  // namespace simd
+
+SimdPath simd_path() { return simd::active_kernels().path; }
+
+bool set_simd_path(SimdPath p) {
+  if (!simd_path_supported(p)) return false;
+  simd::active() = &simd::kernels_for(p);
+  return true;
+}
+
+std::string simd_description() {
+  std::string s = std::string("SIMD path ") + to_string(simd_path()) + " (CPU supports:";
+  for (SimdPath p : {SimdPath::sse2, SimdPath::avx2, SimdPath::avx512})
+    if (simd_path_supported(p)) s += std::string(" ") + to_string(p);
+  return s + "; force with RAYSCAN_SIMD=scalar|sse2|avx2|avx512)";
+}
+
+}  // namespace rayscan
