@@ -17,4 +17,4 @@ export ASAN_OPTIONS="detect_leaks=0:abort_on_error=0:hard_rss_limit_mb=4096"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 export RAYSCAN_SANITIZED=1
 # The third-party group runs CloudCompare/Open3D, which are not built here: the normal suite has it.
-ctest --test-dir "$BUILD" --output-on-failure -j "$(nproc)" -LE thirdparty
+ctest --test-dir "$BUILD" --output-on-failure -j "$(nproc)" --timeout 900 -LE thirdparty
