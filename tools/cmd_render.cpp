@@ -6,6 +6,7 @@
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/render.hpp"
 #include "rayscan/render/scene.hpp"
+#include "rayscan/render/surfel_setup.hpp"
 
 #include <chrono>
 #include <cstdio>
@@ -23,6 +24,7 @@ struct RenderCliOptions {
   std::optional<std::uint64_t> seed;
   unsigned threads = 0;
   std::vector<std::string> aovs;
+  std::string primitive;
   bool quiet = false;
 };
 
@@ -42,6 +44,8 @@ int run_render(const RenderCliOptions& o) {
   } catch (const SceneError& e) {
     throw UsageError(e.what());
   }
+  if (!o.primitive.empty())
+    scene.primitive = o.primitive == "surfel" ? Primitive::surfel : Primitive::sphere;
   if (o.spp) scene.spp = *o.spp;
   if (o.seed) scene.seed = *o.seed;
   if (!o.out.empty()) {
@@ -107,7 +111,25 @@ int run_render(const RenderCliOptions& o) {
   std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), seconds_since(t0));
   log(buf);
   double radius;
-  if (scene.radius) {
+  SurfelAttributes surfels;
+  if (scene.primitive == Primitive::surfel) {
+    t0 = std::chrono::steady_clock::now();
+    try {
+      surfels = scene_surfels(scene, index, cloud);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(o.scene + ": /surfel: " + e.what());
+    }
+    radius = surfels.median_radius;
+    std::snprintf(buf, sizeof buf,
+                  "surfels: normals %s, radius %.3g x distance to neighbour %u: median %.6g, max %.6g "
+                  "(clamped to %.3g x median), in %.2f s",
+                  cloud.normals.empty() ? ("by PCA over " + std::to_string(scene.surfel.k_normal) +
+                                           " neighbours").c_str()
+                                        : "from the file",
+                  scene.surfel.radius_factor, scene.surfel.k_radius, surfels.median_radius,
+                  surfels.max_radius, scene.surfel.max_radius_factor, seconds_since(t0));
+    log(buf);
+  } else if (scene.radius) {
     radius = *scene.radius;
   } else {
     const double spacing = median_nn_spacing(index, cloud.positions);
@@ -119,7 +141,8 @@ int run_render(const RenderCliOptions& o) {
     log(buf);
   }
 
-  const RenderSettings settings = make_settings(scene, cloud.positions, albedo, radius);
+  RenderSettings settings = make_settings(scene, cloud.positions, albedo, radius);
+  if (scene.primitive == Primitive::surfel) use_surfels(settings, surfels);
   const Camera& cam = settings.camera;
   const std::uint64_t tiles = std::uint64_t((cam.width() + 15) / 16) * ((cam.height() + 15) / 16);
   Progress progress(tiles, !o.quiet && Progress::stderr_is_terminal());
@@ -139,6 +162,7 @@ int run_render(const RenderCliOptions& o) {
                      {"rayscan:spp", std::to_string(scene.spp)},
                      {"rayscan:seed", std::to_string(scene.seed)},
                      {"rayscan:radius", num(radius)},
+                     {"rayscan:primitive", scene.primitive == Primitive::surfel ? "surfel" : "sphere"},
                      {"rayscan:render_time_s", num(st.seconds)}};
   if (!scene.camera_file.empty()) meta.emplace_back("rayscan:camera", scene.camera_file.string());
   const auto files = write_image(fb, scene.output, meta);
@@ -178,6 +202,10 @@ Runner add_render_command(CLI::App& app) {
                 "follows the aspect ratio unless given (default: the camera's size)")
       ->check(CLI::Range(1u, 65536u));
   c->add_option("--aov", o->aovs, "Extra output: depth, normal, position, index, albedo, cost (repeatable)");
+  c->add_option("--primitive", o->primitive, "Geometry of each point: sphere (the paper's model, one "
+                "radius) or surfel (oriented disc with a PCA normal and a radius from the local "
+                "spacing); replaces /primitive")
+      ->check(CLI::IsMember({"sphere", "surfel"}));
   c->add_flag("--quiet,-q", o->quiet, "No log lines or progress bar on stderr");
   return [o] { return run_render(*o); };
 }
