@@ -1,7 +1,10 @@
 // `rayscan render`: path-trace a scanned site from a JSON scene (paper section 5.3).
 #include "commands.hpp"
 
+#include "rayscan/analysis/geotiff.hpp"
+#include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/render/colmap.hpp"
 #include "rayscan/render/image_output.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/render.hpp"
@@ -25,6 +28,9 @@ struct RenderCliOptions {
   unsigned threads = 0;
   std::vector<std::string> aovs;
   std::string primitive;
+  std::string colmap_dir, colmap_image;
+  std::optional<double> ortho_res;
+  std::string dsm;
   bool quiet = false;
 };
 
@@ -41,8 +47,23 @@ int run_render(const RenderCliOptions& o) {
       scene.camera = load_camera(o.camera);
       scene.camera_file = o.camera;
     }
+    if (!o.colmap_dir.empty()) {
+      if (o.colmap_image.empty()) throw UsageError("--colmap: give the photo with --image NAME");
+      scene.camera = load_colmap_camera(o.colmap_dir, o.colmap_image);
+      scene.camera_file = std::filesystem::path(o.colmap_dir) / "images.txt";
+    }
   } catch (const SceneError& e) {
     throw UsageError(e.what());
+  }
+  if (o.ortho_res) {
+    const std::string ext = std::filesystem::path(o.out).extension().string();
+    if (o.out.empty() || (ext != ".tif" && ext != ".tiff")) throw UsageError("--ortho-map: --out must name a GeoTIFF (.tif, .tiff)");
+    if (o.width || o.height || !o.colmap_dir.empty())
+      throw UsageError("--ortho-map: the map's size comes from RES; do not give --width, --height or --colmap");
+    if (std::find(scene.output.aovs.begin(), scene.output.aovs.end(), Aov::depth) == scene.output.aovs.end())
+      scene.output.aovs.push_back(Aov::depth);
+  } else if (!o.dsm.empty()) {
+    throw UsageError("--dsm: needs --ortho-map RES");
   }
   if (!o.primitive.empty())
     scene.primitive = o.primitive == "surfel" ? Primitive::surfel : Primitive::sphere;
@@ -67,7 +88,7 @@ int run_render(const RenderCliOptions& o) {
     if (!found)
       throw UsageError("--aov '" + a + "': expected depth, normal, position, index, albedo or cost");
   }
-  if (o.width || o.height) {
+  if ((o.width || o.height) && !o.ortho_res) {
     const Camera& c = *scene.camera;
     const std::uint32_t w = o.width ? *o.width
                                     : std::max(1u, static_cast<std::uint32_t>(std::lround(
@@ -94,6 +115,18 @@ int run_render(const RenderCliOptions& o) {
   std::snprintf(buf, sizeof buf, "read %zu points from %s in %.2f s", cloud.size(),
                 scene.cloud.string().c_str(), seconds_since(t0));
   log(buf);
+  std::optional<analysis::OrthoMap> ortho;
+  if (o.ortho_res) {
+    try {
+      ortho = analysis::ortho_map(cloud.bounds(), *o.ortho_res);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--ortho-map: ") + e.what());
+    }
+    scene.camera = ortho->camera;
+    std::snprintf(buf, sizeof buf, "ortho map: %u x %u cells of %.6g, top-down", ortho->grid.cols,
+                  ortho->grid.rows, *o.ortho_res);
+    log(buf);
+  }
   std::vector<Color> albedo;
   try {
     albedo = compute_albedo(cloud, scene.material, scene.up);
@@ -165,7 +198,24 @@ int run_render(const RenderCliOptions& o) {
                      {"rayscan:primitive", scene.primitive == Primitive::surfel ? "surfel" : "sphere"},
                      {"rayscan:render_time_s", num(st.seconds)}};
   if (!scene.camera_file.empty()) meta.emplace_back("rayscan:camera", scene.camera_file.string());
-  const auto files = write_image(fb, scene.output, meta);
+  std::vector<std::filesystem::path> files;
+  if (ortho) {
+    try {
+      analysis::write_ortho_geotiff(scene.output.image, *ortho, fb.beauty, scene.output.exposure, cloud.crs_wkt);
+      files.push_back(scene.output.image);
+      if (!o.dsm.empty()) {
+        analysis::GeoTiffOptions go;
+        go.crs_wkt = cloud.crs_wkt;
+        go.metadata = meta;
+        analysis::write_geotiff(o.dsm, analysis::dsm_from_depth(*ortho, fb.depth), go);
+        files.push_back(o.dsm);
+      }
+    } catch (const std::exception& e) {
+      throw UsageError(e.what());
+    }
+  } else {
+    files = write_image(fb, scene.output, meta);
+  }
 
   std::snprintf(buf, sizeof buf,
                 "%.2f s, %u threads, %llux%llu px, %u spp, %llu primary rays, %llu ray queries, "
@@ -206,6 +256,14 @@ Runner add_render_command(CLI::App& app) {
                 "radius) or surfel (oriented disc with a PCA normal and a radius from the local "
                 "spacing); replaces /primitive")
       ->check(CLI::IsMember({"sphere", "surfel"}));
+  c->add_option("--colmap", o->colmap_dir, "COLMAP text model folder (cameras.txt, images.txt): render the "
+                "view of the photo given with --image (PINHOLE, SIMPLE_PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV)");
+  c->add_option("--image", o->colmap_image, "Image NAME in the COLMAP model's images.txt (with --colmap)");
+  c->add_option("--ortho-map", o->ortho_res, "Top-down orthophoto over the cloud's XY extent at RES world "
+                "units per pixel, written as a georeferenced RGB GeoTIFF (--out .tif) with the cloud's CRS")
+      ->check(CLI::PositiveNumber);
+  c->add_option("--dsm", o->dsm, "With --ortho-map: also write the digital surface model (elevation of the "
+                "first surface per cell, NoData where the ray missed) as a Float32 GeoTIFF");
   c->add_flag("--quiet,-q", o->quiet, "No log lines or progress bar on stderr");
   return [o] { return run_render(*o); };
 }

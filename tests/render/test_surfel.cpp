@@ -73,7 +73,7 @@ TEST(FirstSurfelHit, MatchesBruteForceOverEveryDisc) {
       std::vector<RayHit> scratch;
       RayQueryStats st;
       const SurfelHit h = std::visit(
-          [&](const auto& ix) { return first_surfel_hit(ix, d.view(), ray, 0.0, kInf, nullptr, false, scratch, st, 4); },
+          [&](const auto& ix) { return first_surfel_hit(ix, d.view(), ray, 0.0, kInf, nullptr, false, scratch, st); },
           idx);
       ASSERT_EQ(h.t, bt) << type << " ray " << k;
       if (bt < kInf) {

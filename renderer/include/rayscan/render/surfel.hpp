@@ -74,43 +74,55 @@ struct LeavingSurface {
 struct SurfelHit {
   double t = kInf;       ///< ray parameter of the hit, kInf for a miss
   PointIndex index = 0;  ///< the disc hit
-  std::uint32_t queries = 0;  ///< ray queries issued (batches)
+  std::uint32_t queries = 0;  ///< ray queries issued
 };
 
 /// The first disc hit along `ray` with t in [t_min, t_max] (or, with any_hit, some disc hit in it),
-/// ignoring the discs of `from` when given. The candidates come from ray_query with order
-/// sphere_hit and the maximum radius R, in batches of `batch`: a disc of radius r <= R around c lies
-/// inside the sphere of radius R, so its hit is never before that sphere's entry key, and the
-/// search stops once the next key exceeds the best hit. `hits` is caller-owned scratch; `stats`
-/// accumulates the query's counters.
+/// ignoring the discs of `from` when given. Candidates come from ray_query with order sphere_hit
+/// and the maximum radius R: a disc of radius r <= R around c lies inside the sphere of radius R
+/// around c, so its hit is never before that sphere's entry key. The search alternates a k = 1
+/// probe (the next key a, as the sphere renderer's query) with a query of every candidate whose key
+/// lies in the window [a, a + 2R], tested exactly in key order; it stops once the best hit is not
+/// after the window's end. `hits` is caller-owned scratch (on return it holds the last window's
+/// candidates, used by blended_normal); `stats` accumulates the query counters.
 template <SpatialIndex I>
 SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, double t_min,
                            double t_max, const LeavingSurface* from, bool any_hit,
-                           std::vector<RayHit>& hits, RayQueryStats& stats,
-                           std::size_t batch = 8) {
+                           std::vector<RayHit>& hits, RayQueryStats& stats) {
   SurfelHit best;
   const double R = s.max_radius;
-  RayQuery q;
-  q.order = RayOrder::sphere_hit;
-  q.radius = R;
-  q.k = batch;
+  const double W = 2.0 * R;
+  RayQuery probe;
+  probe.order = RayOrder::sphere_hit;
+  probe.radius = R;
+  probe.k = 1;
   // A hit at t >= t_min has t_p >= t_min - r, so its sphere key is >= t_min - 2R.
-  q.t_min = t_min - 2.0 * R;
-  q.t_max = t_max;
+  probe.t_min = t_min - 2.0 * R;
+  probe.t_max = t_max;
+  RayQuery window = probe;
+  window.k = kAllPoints;
   const Vec3& o = ray.origin();
   const Vec3& d = ray.direction();
-  // Ids already tested whose key equals the current q.t_min (ties across batches).
+  // Ids already tested whose key equals the last window's end (ties across windows).
   thread_local std::vector<PointIndex> tied;
   tied.clear();
+  double done_to = -kInf;  // keys <= done_to were tested (except ties not in `tied`)
   for (;;) {
     RayQueryStats st;
-    ray_query(index, ray, q, hits, &st);
+    ray_query(index, ray, probe, hits, &st);
+    ++best.queries;
+    if (hits.empty()) break;
+    const double a = hits.front().key;
+    if (a > best.t) break;
+    window.t_min = a;
+    window.t_max = std::min(t_max, a + W);
+    ray_query(index, ray, window, hits, &st);
     ++best.queries;
     stats.nodes_visited += st.nodes_visited;
     stats.points_tested += st.points_tested;
     for (const RayHit& h : hits) {
-      if (h.key > best.t) return best;  // every later disc starts after the best hit
-      if (h.key == q.t_min && std::find(tied.begin(), tied.end(), h.index) != tied.end()) continue;
+      if (h.key > best.t) break;
+      if (h.key == done_to && std::find(tied.begin(), tied.end(), h.index) != tied.end()) continue;
       const Vec3& c = s.centers[h.index];
       const double r = s.radii[h.index];
       const Vec3 n(s.normals[h.index]);
@@ -122,18 +134,15 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
         if (any_hit) return best;
       }
     }
-    if (hits.size() < q.k) return best;  // no further candidates
-    const double last = hits.back().key;
-    if (last > best.t) return best;
-    if (last == q.t_min) {
-      q.k *= 2;  // a batch of equal keys: widen it (rare; duplicate points)
-      continue;
-    }
+    const double end = window.t_max;
+    if (best.t <= end || end >= t_max) break;
     tied.clear();
     for (const RayHit& h : hits)
-      if (h.key == last) tied.push_back(h.index);
-    q.t_min = last;
+      if (h.key == end) tied.push_back(h.index);
+    done_to = end;
+    probe.t_min = end;
   }
+  return best;
 }
 
 /// Shading normal at hit point x of disc `hit`: the normals of the discs among `candidates` (the
