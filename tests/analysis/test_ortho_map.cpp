@@ -84,7 +84,7 @@ TEST(OrthoMap, CliWritesOrthophotoAndDsm) {
   for (int j = 0; j <= 60; ++j)
     for (int i = 0; i <= 60; ++i) pc.positions.push_back(Vec3(100.0 + 0.25 * i, 200.0 + 0.25 * j, 5.0 + 0.025 * i));
   io::write_ply(dir / "plane.ply", pc);
-  std::ofstream(dir / "scene.json") << R"({"cloud": "plane.ply", "spp": 1, "max_depth": 1,
+  std::ofstream(dir / "scene.json") << R"({"cloud": "plane.ply", "spp": 1, "max_depth": 1, "material": {"color": "elevation"},
     "camera": {"width": 8, "height": 8, "position": [107, 180, 20], "look_at": [107, 207, 5]}})";
   const std::string base = std::string(RAYSCAN_BIN) + " render " + (dir / "scene.json").string() + " -q";
   const auto r = rayscan::test::run_command(base + " --primitive surfel --ortho-map 1 --out " +
