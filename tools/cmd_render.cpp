@@ -1,9 +1,14 @@
 // `rayscan render`: path-trace a scanned site from a JSON scene (paper section 5.3); the job is
-// render::run_render (rayscan/render/render_job.hpp).
+// render::run_render (rayscan/render/render_job.hpp); --ortho-map renders through
+// analysis::ortho_map's camera and writes with analysis::write_ortho_map.
 #include "commands.hpp"
 
+#include "rayscan/analysis/geotiff.hpp"
+#include "rayscan/analysis/ortho_map.hpp"
+#include "rayscan/file_names.hpp"
 #include "rayscan/render/render_job.hpp"
 
+#include <algorithm>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -18,6 +23,8 @@ struct RenderCliOptions {
   std::optional<std::uint64_t> seed;
   unsigned threads = 0;
   std::vector<std::string> aovs;
+  std::string primitive, colmap_dir, colmap_image, dsm;
+  std::optional<double> ortho_res;
   bool quiet = false;
 };
 
@@ -33,11 +40,42 @@ int run_render(const RenderCliOptions& o) {
   ov.seed = o.seed;
   ov.out = o.out;
   ov.aovs = o.aovs;
+  ov.primitive = o.primitive;
+  ov.colmap_dir = o.colmap_dir;
+  ov.colmap_image = o.colmap_image;
   apply_overrides(job.scene, ov);
   job.control.threads = o.threads;
   job.control.progress = !o.quiet;
   if (!o.quiet) job.control.log = [](const std::string& s) { std::cerr << "rayscan render: " << s << "\n"; };
-  const RenderJobResult r = run_render(job);
+  std::optional<analysis::OrthoMap> map;
+  if (o.ortho_res) {
+    if (!analysis::is_geotiff_name(job.scene.output.image))
+      throw UsageError("--ortho-map: --out '" + job.scene.output.image.string() + "': " +
+                       extensions_expected(analysis::geotiff_extensions()) + " (GeoTIFF)");
+    if (o.width || o.height || !o.colmap_dir.empty() || !o.camera.empty())
+      throw UsageError("--ortho-map: the map's size comes from RES; do not give --width, --height, --camera or --colmap");
+    if (!o.dsm.empty() && !analysis::is_geotiff_name(o.dsm))
+      throw UsageError("--dsm '" + o.dsm + "': " + extensions_expected(analysis::geotiff_extensions()));
+    job.write = false;
+    if (std::find(job.scene.output.aovs.begin(), job.scene.output.aovs.end(), Aov::depth) == job.scene.output.aovs.end())
+      job.scene.output.aovs.push_back(Aov::depth);
+    job.camera_for_cloud = [&](const PointCloud& cloud) {
+      try {
+        map = analysis::ortho_map(cloud.bounds(), *o.ortho_res);
+      } catch (const std::invalid_argument& e) {
+        throw UsageError(std::string("--ortho-map: ") + e.what());
+      }
+      job.control.info("ortho map: " + std::to_string(map->grid.cols) + " x " + std::to_string(map->grid.rows) +
+                       " cells, top-down");
+      return map->camera;
+    };
+  } else if (!o.dsm.empty()) {
+    throw UsageError("--dsm: needs --ortho-map RES");
+  }
+  RenderJobResult r = run_render(job);
+  if (map)
+    r.written = analysis::write_ortho_map(*map, r.image.beauty, r.image.depth, job.scene.output.exposure, r.crs_wkt,
+                                          job.scene.output.image, o.dsm, r.metadata);
   for (const auto& f : r.written) std::cout << "wrote " << f.string() << "\n";
   return 0;
 }
@@ -71,6 +109,18 @@ Runner add_render_command(CLI::App& app) {
                 "follows the aspect ratio unless given (default: the camera's size)")
       ->check(CLI::Range(1u, 65536u));
   c->add_option("--aov", o->aovs, "Extra output: depth, normal, position, index, albedo, cost (repeatable)");
+  c->add_option("--primitive", o->primitive, "Geometry of each point: sphere (the paper's model, one "
+                "radius) or surfel (oriented disc with a PCA normal and a radius from the local "
+                "spacing); replaces /primitive")
+      ->check(CLI::IsMember({"sphere", "surfel"}));
+  c->add_option("--colmap", o->colmap_dir, "COLMAP text model folder (cameras.txt, images.txt): render the "
+                "view of the photo given with --image (PINHOLE, SIMPLE_PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV)");
+  c->add_option("--image", o->colmap_image, "Image NAME in the COLMAP model's images.txt (with --colmap)");
+  c->add_option("--ortho-map", o->ortho_res, "Top-down orthophoto over the cloud's XY extent at RES world "
+                "units per pixel, written as a georeferenced RGB GeoTIFF (--out .tif) with the cloud's CRS")
+      ->check(CLI::PositiveNumber);
+  c->add_option("--dsm", o->dsm, "With --ortho-map: also write the digital surface model (elevation of the "
+                "first surface per cell, NoData where the ray missed) as a Float32 GeoTIFF");
   c->add_flag("--quiet,-q", o->quiet, "No log lines or progress bar on stderr");
   return [o] { return run_render(*o); };
 }

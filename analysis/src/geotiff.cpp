@@ -94,4 +94,9 @@ void write_geotiff(const std::filesystem::path& path, const Raster& raster, cons
   file.commit();
 }
 
+const std::vector<std::string>& geotiff_extensions() {
+  static const std::vector<std::string> exts{".tif", ".tiff"};
+  return exts;
+}
+
 }  // namespace rayscan::analysis

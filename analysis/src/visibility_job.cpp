@@ -55,7 +55,6 @@ void check_output_folder(const char* option, const std::filesystem::path& path) 
 }
 
 const std::vector<std::string> kCloudOutputs{".las", ".ply"};
-const std::vector<std::string> kRasterOutputs{".tif", ".tiff"};
 
 }  // namespace
 
@@ -67,7 +66,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   if (!o.out.empty() && !has_extension(o.out, kCloudOutputs))
     throw invalid_argument("--out '" + o.out.string() + "': " + extensions_expected(kCloudOutputs));
   if (!o.raster.empty()) {
-    if (!has_extension(o.raster, kRasterOutputs))
+    if (!has_extension(o.raster, geotiff_extensions()))
       throw invalid_argument("--raster '" + o.raster.string() + "': expected a file name ending in .tif (GeoTIFF)");
     if (!o.cell) throw invalid_argument("--raster needs --cell SIZE (cell edge in the cloud's units)");
     if (!(*o.cell > 0.0) || !std::isfinite(*o.cell)) throw invalid_argument("--cell: expected a number > 0");

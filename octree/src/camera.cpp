@@ -85,6 +85,7 @@ Camera Camera::pinhole(const PinholeParams& p, std::uint32_t width, std::uint32_
 }
 
 Ray Camera::generate_ray(double u, double v, double lens_u, double lens_v) const {
+  if (projection_ != Projection::perspective || distortion_.any()) return generate_special(u, v);
   const Vec3 d = pixel_to_dir_ * Vec3(u, v, 1.0);
   if (lens_radius_ <= 0.0) return Ray(center_, d);
   // Thin lens (RTIOW section 12; pbrt-v4 section 5.2.3): the point at depth focus_distance along
@@ -96,6 +97,40 @@ Ray Camera::generate_ray(double u, double v, double lens_u, double lens_v) const
   const double phi = 2.0 * std::numbers::pi * lens_v;
   const Vec3 o = center_ + rad * (std::cos(phi) * lens_x_ + std::sin(phi) * lens_y_);
   return Ray(o, focus - o);
+}
+
+Camera Camera::pinhole_distorted(const PinholeParams& p, const LensDistortion& k, std::uint32_t width,
+                                 std::uint32_t height) {
+  Camera c = pinhole(p, width, height);
+  glm::dmat3 K, R;
+  for (int r = 0; r < 3; ++r)
+    for (int col = 0; col < 3; ++col) {
+      K[col][r] = p.K[r][col];
+      R[col][r] = p.R[r][col];
+    }
+  c.k_inv_ = glm::inverse(K);
+  c.r_t_ = glm::transpose(R);
+  c.distortion_ = k;
+  return c;
+}
+
+Ray Camera::generate_special(double u, double v) const {
+  switch (projection_) {
+    case Projection::orthographic:
+      return Ray(origin00_ + u * step_u_ + v * step_v_, forward_);
+    case Projection::equirectangular: {
+      // Pixel centres at longitude 2 pi ((u + 0.5) / W - 0.5), latitude pi (0.5 - (v + 0.5) / H).
+      const double lon = 2.0 * std::numbers::pi * ((u + 0.5) / double(width_) - 0.5);
+      const double lat = std::numbers::pi * (0.5 - (v + 0.5) / double(height_));
+      const Vec3 d = std::cos(lat) * (std::cos(lon) * forward_ + std::sin(lon) * right_) + std::sin(lat) * up_;
+      return Ray(center_, d);
+    }
+    case Projection::perspective: break;
+  }
+  // Distorted pinhole: K^-1 gives distorted normalised coordinates; undistort, then rotate.
+  const Vec3 xd = k_inv_ * Vec3(u, v, 1.0);
+  const glm::dvec2 x = undistort(distortion_, glm::dvec2(xd.x / xd.z, xd.y / xd.z));
+  return Ray(center_, r_t_ * Vec3(x.x, x.y, 1.0));
 }
 
 Camera Camera::resized(std::uint32_t width, std::uint32_t height) const {
@@ -111,6 +146,11 @@ Camera Camera::resized(std::uint32_t width, std::uint32_t height) const {
   c.width_ = width;
   c.height_ = height;
   c.pixel_to_dir_ = pixel_to_dir_ * Ainv;
+  c.k_inv_ = k_inv_ * Ainv;
+  // Orthographic: the same plane in the new pixel grid (origin of pixel (0, 0) and steps).
+  c.origin00_ = origin00_ + step_u_ * Ainv[2][0] + step_v_ * Ainv[2][1];
+  c.step_u_ = step_u_ / sx;
+  c.step_v_ = step_v_ / sy;
   return c;
 }
 

@@ -2,7 +2,9 @@
 #include "rayscan/render/render_job.hpp"
 
 #include "rayscan/io/camera_file.hpp"
+#include "rayscan/render/colmap.hpp"
 #include "rayscan/render/material.hpp"
+#include "rayscan/render/surfel_setup.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -30,6 +32,18 @@ void apply_overrides(Scene& scene, const SceneOverrides& o) {
   if (!o.camera_file.empty()) {
     scene.camera = io::load_camera(o.camera_file);
     scene.camera_file = o.camera_file;
+  }
+  if (!o.colmap_dir.empty()) {
+    if (o.colmap_image.empty()) throw std::invalid_argument("--colmap: give the photo with --image NAME");
+    scene.camera = load_colmap_camera(o.colmap_dir, o.colmap_image);
+    scene.camera_file = o.colmap_dir / "images.txt";
+  } else if (!o.colmap_image.empty()) {
+    throw std::invalid_argument("--image: needs --colmap DIR");
+  }
+  if (!o.primitive.empty()) {
+    if (o.primitive != "sphere" && o.primitive != "surfel")
+      throw std::invalid_argument("--primitive '" + o.primitive + "': expected sphere or surfel");
+    scene.primitive = o.primitive == "surfel" ? Primitive::surfel : Primitive::sphere;
   }
   if (o.spp) {
     if (*o.spp < 1 || *o.spp > (1u << 20)) throw std::invalid_argument("--spp: expected an integer in [1, 1048576]");
@@ -65,9 +79,9 @@ void apply_overrides(Scene& scene, const SceneOverrides& o) {
 }
 
 RenderJobResult run_render(const RenderJobOptions& o) {
-  const Scene& scene = o.scene;
+  Scene scene = o.scene;  // small: the camera may be replaced by camera_for_cloud
   const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
-  if (!scene.camera) throw SceneError(f + ": /camera: not set; give a camera in the scene or a camera file");
+  if (!scene.camera && !o.camera_for_cloud) throw SceneError(f + ": /camera: not set; give a camera in the scene or a camera file");
   if (o.write && scene.output.image.empty())
     throw SceneError(f + ": /output/image: not set; give it in the scene or with --out");
   const JobControl& ctl = o.control;
@@ -87,6 +101,8 @@ RenderJobResult run_render(const RenderJobOptions& o) {
                   r.read_seconds);
     ctl.info(buf);
   }
+  r.crs_wkt = cloud.crs_wkt;
+  if (o.camera_for_cloud) scene.camera = o.camera_for_cloud(cloud);
   std::vector<Color> albedo;
   try {
     albedo = compute_albedo(cloud, scene.material, scene.up);
@@ -104,18 +120,39 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   r.index_seconds = seconds_since(t0);
   std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), r.index_seconds);
   ctl.info(buf);
-  try {
-    r.radius = choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor);
-  } catch (const std::invalid_argument& e) {
-    throw SceneError(f + ": /radius: " + e.what());
-  }
-  if (r.radius.automatic) {
-    std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x factor %.3g = %.6g",
-                  r.radius.spacing, r.radius.factor, r.radius.radius);
+  SurfelAttributes surfels;
+  if (scene.primitive == Primitive::surfel) {
+    t0 = std::chrono::steady_clock::now();
+    try {
+      surfels = scene_surfels(scene, index, cloud);
+    } catch (const std::invalid_argument& e) {
+      throw SceneError(f + ": /surfel: " + e.what());
+    }
+    r.radius.radius = surfels.median_radius;
+    const std::string normals = cloud.normals.empty()
+                                    ? "by PCA over " + std::to_string(scene.surfel.k_normal) + " neighbours"
+                                    : std::string("from the file");
+    std::snprintf(buf, sizeof buf,
+                  "surfels: normals %s, radius %.3g x distance to neighbour %u: median %.6g, max %.6g "
+                  "(clamped to %.3g x median), in %.2f s",
+                  normals.c_str(), scene.surfel.radius_factor, scene.surfel.k_radius, surfels.median_radius,
+                  surfels.max_radius, scene.surfel.max_radius_factor, seconds_since(t0));
     ctl.info(buf);
+  } else {
+    try {
+      r.radius = choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor);
+    } catch (const std::invalid_argument& e) {
+      throw SceneError(f + ": /radius: " + e.what());
+    }
+    if (r.radius.automatic) {
+      std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x factor %.3g = %.6g",
+                    r.radius.spacing, r.radius.factor, r.radius.radius);
+      ctl.info(buf);
+    }
   }
 
-  const RenderSettings settings = make_settings(scene, cloud.positions, albedo, r.radius.radius);
+  RenderSettings settings = make_settings(scene, cloud.positions, albedo, r.radius.radius);
+  if (scene.primitive == Primitive::surfel) use_surfels(settings, surfels);
   const Camera& cam = settings.camera;
   const std::uint64_t tiles = std::uint64_t((cam.width() + 15) / 16) * ((cam.height() + 15) / 16);
   Progress progress(tiles, ctl.progress && Progress::stderr_is_terminal());
@@ -128,7 +165,8 @@ RenderJobResult run_render(const RenderJobOptions& o) {
                 {"rayscan:cloud", o.cloud ? std::string("(memory)") : scene.cloud.string()},
                 {"rayscan:spp", std::to_string(scene.spp)},
                 {"rayscan:seed", std::to_string(scene.seed)},
-                {"rayscan:radius", num17(r.radius.radius)}};
+                {"rayscan:radius", num17(r.radius.radius)},
+                {"rayscan:primitive", scene.primitive == Primitive::surfel ? "surfel" : "sphere"}};
   // No render time in the file (issue 8): two renders of the same scene and seed are identical
   // byte for byte (`cmp`); the time is in RenderJobResult::stats and the log.
   if (!scene.camera_file.empty()) r.metadata.emplace_back("rayscan:camera", scene.camera_file.string());

@@ -33,6 +33,28 @@ std::filesystem::path resolve(const std::filesystem::path& base_file, const std:
   return path.lexically_normal();
 }
 
+/// "surfel": {"k_normal", "k_radius", "radius_factor", "max_radius_factor", "orient"} (issue 16).
+void parse_surfel(Obj& parent, Scene& s) {
+  if (!parent.has("surfel")) return;
+  Obj o(parent.at("surfel"), parent.file(), parent.ptr("surfel"));
+  SurfelOptions& so = s.surfel;
+  so.k_normal = static_cast<unsigned>(o.integer("k_normal", so.k_normal, 3, 256));
+  so.k_radius = static_cast<unsigned>(o.integer("k_radius", so.k_radius, 1, 256));
+  so.radius_factor = o.number("radius_factor", so.radius_factor, 0.0, 100.0, true, false);
+  so.max_radius_factor = o.number("max_radius_factor", so.max_radius_factor, 0.0, 1000.0, true, false);
+  if (o.has("orient")) {
+    const json& v = o.at("orient");
+    if (v.is_array()) {
+      so.orientation.viewpoint = o.vec3_at(v, o.ptr("orient"), false);
+      s.surfel_orient_camera = false;
+    } else {
+      const std::string m = o.string_at(v, o.ptr("orient"), {"camera", "up"});
+      s.surfel_orient_camera = m == "camera";
+    }
+  }
+  o.finish();
+}
+
 IndexOptions parse_index(Obj& parent, const std::string& key, NodeDistance& nd) {
   IndexOptions opt;
   opt.type = "octree-adaptive";
@@ -213,6 +235,9 @@ Scene load_scene(const std::filesystem::path& file) {
   s.auto_radius_factor = o.number("auto_radius_factor", 1.0, 0.0, 100.0, true, false);
   s.hit = o.string("hit", "sphere", {"sphere", "closest_point"}) == "sphere" ? HitMode::sphere
                                                                              : HitMode::closest_point;
+  s.primitive = o.string("primitive", "sphere", {"sphere", "surfel"}) == "surfel" ? Primitive::surfel
+                                                                                 : Primitive::sphere;
+  parse_surfel(o, s);
   s.index = parse_index(o, "index", s.node_distance);
   s.material = parse_material(o);
   s.up = glm::normalize(o.vec3("up", Vec3(0, 0, 1), true));

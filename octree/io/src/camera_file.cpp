@@ -32,6 +32,28 @@ Camera parse_camera(const json& j, const std::string& file, const std::string& p
   if (!o.has("height")) json_fail(file, o.ptr("height"), "required: image height in pixels (integer in [1, 65536])");
   // `K` only selects the default model; it is an allowed key only when the model is pinhole, so
   // a look-at camera with K/R/t is rejected by finish() as an unknown key.
+  const std::string type = o.string("type", "pinhole", {"pinhole", "orthographic", "equirectangular"});
+  if (type != "pinhole") {
+    if (!o.has("position")) json_fail(file, o.ptr("position"), "required: camera position [x, y, z] (world units)");
+    if (!o.has("look_at")) json_fail(file, o.ptr("look_at"), "required: point looked at [x, y, z] (world units)");
+    const Vec3 pos = o.vec3("position", Vec3(0.0)), at = o.vec3("look_at", Vec3(0.0));
+    if (at == pos) json_fail(file, o.ptr("look_at"), "expected a point different from /position");
+    const Vec3 up = o.vec3("up", Vec3(0, 0, 1), true);
+    try {
+      if (type == "orthographic") {
+        if (!o.has("view_height"))
+          json_fail(file, o.ptr("view_height"), "required for type \"orthographic\": image height in world units");
+        const double vh = o.number("view_height", 1.0, 0.0, kInf, true, true);
+        o.finish();
+        return Camera::orthographic(OrthographicParams{pos, at, up, vh}, width, height);
+      }
+      o.finish();
+      return Camera::equirectangular(EquirectangularParams{pos, at - pos, up}, width, height);
+    } catch (const std::invalid_argument& e) {
+      const std::string w = e.what();
+      json_fail(file, o.ptr("up"), w.substr(w.find(':') + 2));
+    }
+  }
   const bool is_pinhole = o.present("K");
   const std::string model =
       o.string("model", is_pinhole ? "pinhole" : "look_at", {"look_at", "pinhole"});
@@ -44,8 +66,18 @@ Camera parse_camera(const json& j, const std::string& file, const std::string& p
       p.K = mat3_at(o, o.at("K"), o.ptr("K"));
       p.R = mat3_at(o, o.at("R"), o.ptr("R"));
       p.t = o.vec3("t", Vec3(0.0));
+      LensDistortion k;
+      if (o.has("distortion")) {
+        const json& dv = o.at("distortion");
+        const char* what = "expected [k1, k2, p1, p2, k3] (OpenCV order, finite numbers)";
+        if (!dv.is_array() || dv.size() != 5) json_fail(file, o.ptr("distortion"), what);
+        double c[5];
+        for (int i = 0; i < 5; ++i) c[i] = o.number_at(dv[i], o.ptr("distortion") + "/" + std::to_string(i), -kInf, kInf, true, true);
+        k = LensDistortion{c[0], c[1], c[2], c[3], c[4]};
+      }
       o.finish();
       try {
+        if (k.any()) return Camera::pinhole_distorted(p, k, width, height);
         return Camera::pinhole(p, width, height);
       } catch (const std::invalid_argument& e) {
         const std::string w = e.what();

@@ -27,4 +27,8 @@ struct GeoTiffOptions {
 /// "crs: ..." when the WKT cannot be parsed.
 void write_geotiff(const std::filesystem::path& path, const Raster& raster, const GeoTiffOptions& options);
 
+/// The file name extensions of a GeoTIFF output, lower case with the dot: {".tif", ".tiff"} (for
+/// has_extension / extensions_expected in rayscan/file_names.hpp).
+const std::vector<std::string>& geotiff_extensions();
+
 }  // namespace rayscan::analysis

@@ -6,6 +6,9 @@
 
 namespace rayscan::render {
 using rayscan::Camera;
+using rayscan::EquirectangularParams;
 using rayscan::LookAtParams;
+using rayscan::OrthographicParams;
 using rayscan::PinholeParams;
+using rayscan::Projection;
 }  // namespace rayscan::render

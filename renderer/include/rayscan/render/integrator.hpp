@@ -7,6 +7,7 @@
 #include "rayscan/render/sampler.hpp"
 #include "rayscan/render/scene.hpp"
 #include "rayscan/render/sky.hpp"
+#include "rayscan/render/surfel.hpp"
 
 #include <chrono>
 #include <numbers>
@@ -27,6 +28,8 @@ struct IntegratorInputs {
                                     ///< counted), as RTIOW's max_depth: 1 = sun light only
   std::uint32_t rr_depth = 0;       ///< Russian roulette from this depth on; 0 = off
   double ray_offset = 1e-3;         ///< offset of secondary ray origins along n, fraction of r
+  Primitive primitive = Primitive::sphere;  ///< spheres of `radius` or the discs of `surfels`
+  SurfelView surfels;               ///< per-point discs (Primitive::surfel only; centres = centers)
 };
 
 /// Per-thread work counters (summed by the renderer).
@@ -42,7 +45,8 @@ struct SurfaceHit {
   double t = kInf;        ///< ray parameter of the hit (world units along the unit direction)
   PointIndex index = 0;   ///< original index of the point whose sphere was hit
   Vec3 position{0.0};     ///< world position of the hit
-  Vec3 normal{0.0};       ///< unit normal (hit - centre) / r, facing the ray
+  Vec3 normal{0.0};       ///< unit normal (hit - centre) / r, or the disc normal, facing the ray
+  double radius = 0.0;    ///< radius of the sphere or disc hit, world units
 };
 
 /// Path tracer over one index type (a template so the hot loop has no virtual calls).
@@ -53,6 +57,10 @@ class PathTracer {
   PathTracer(const I& index, const IntegratorInputs& in, const Sky& sky, bool time_queries = false)
       : index_(index), in_(in), sky_(sky), time_(time_queries) {
     if (!(in.radius > 0.0)) throw std::invalid_argument("render: sphere radius must be > 0");
+    if (in.primitive == Primitive::surfel &&
+        (in.surfels.normals.size() != in.centers.size() || in.surfels.radii.size() != in.centers.size() ||
+         !(in.surfels.max_radius > 0.0)))
+      throw std::invalid_argument("render: surfel mode needs a normal and a radius > 0 per point");
     query_.k = 1;
     query_.radius = in.radius;
     query_.t_min = 0.0;
@@ -64,8 +72,17 @@ class PathTracer {
   }
 
   /// True when any sphere blocks `ray` at t >= 0 (shadow rays; the core's any_hit mode).
-  bool occluded(const Ray& ray, std::vector<RayHit>& hits, TraceCounters& c) const {
+  /// `from`: the surface the ray leaves, whose own discs are ignored (surfel mode).
+  bool occluded(const Ray& ray, std::vector<RayHit>& hits, TraceCounters& c,
+                const LeavingSurface* from = nullptr) const {
     RayQueryStats st;
+    if (in_.primitive == Primitive::surfel) {
+      const SurfelHit sh = first_surfel_hit(index_, in_.surfels, ray, 0.0, kInf, from, true, hits, st);
+      c.queries += sh.queries;
+      c.nodes_visited += st.nodes_visited;
+      c.points_tested += st.points_tested;
+      return sh.t < kInf;
+    }
     ray_query(index_, ray, shadow_query_, hits, &st);
     ++c.queries;
     c.nodes_visited += st.nodes_visited;
@@ -74,8 +91,11 @@ class PathTracer {
   }
 
   /// First hit along `ray` with t >= 0 (see HitMode). `hits` is caller-owned scratch.
-  bool intersect(const Ray& ray, SurfaceHit& h, std::vector<RayHit>& hits, TraceCounters& c) const {
+  /// `from`: the surface the ray leaves, whose own discs are ignored (surfel mode).
+  bool intersect(const Ray& ray, SurfaceHit& h, std::vector<RayHit>& hits, TraceCounters& c,
+                 const LeavingSurface* from = nullptr) const {
     RayQueryStats st;
+    if (in_.primitive == Primitive::surfel) return intersect_surfel(ray, h, hits, c, from);
     if (time_) {
       const auto t0 = std::chrono::steady_clock::now();
       ray_query(index_, ray, query_, hits, &st);
@@ -100,6 +120,33 @@ class PathTracer {
     const double len = glm::length(n);
     h.normal = len > 0.0 ? n / len : -ray.direction();
     if (glm::dot(h.normal, ray.direction()) > 0.0) h.normal = -h.normal;
+    h.radius = r;
+    return true;
+  }
+
+  /// First disc hit (see first_surfel_hit); the normal is the disc's, facing the ray.
+  bool intersect_surfel(const Ray& ray, SurfaceHit& h, std::vector<RayHit>& hits, TraceCounters& c,
+                        const LeavingSurface* from) const {
+    RayQueryStats st;
+    SurfelHit sh;
+    if (time_) {
+      const auto t0 = std::chrono::steady_clock::now();
+      sh = first_surfel_hit(index_, in_.surfels, ray, 0.0, kInf, from, false, hits, st);
+      c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
+                        std::chrono::steady_clock::now() - t0).count();
+    } else {
+      sh = first_surfel_hit(index_, in_.surfels, ray, 0.0, kInf, from, false, hits, st);
+    }
+    c.queries += sh.queries;
+    c.nodes_visited += st.nodes_visited;
+    c.points_tested += st.points_tested;
+    if (!(sh.t < kInf)) return false;
+    h.t = sh.t;
+    h.index = sh.index;
+    h.position = ray.at(sh.t);
+    h.normal = blended_normal(in_.surfels, hits, sh.index, h.position);
+    if (glm::dot(h.normal, ray.direction()) > 0.0) h.normal = -h.normal;
+    h.radius = in_.surfels.radii[sh.index];
     return true;
   }
 
@@ -108,10 +155,11 @@ class PathTracer {
   Color trace(Ray ray, Sampler& s, std::vector<RayHit>& hits, TraceCounters& c,
               SurfaceHit* first = nullptr) const {
     Color L(0.0f), beta(1.0f);
-    const double eps = in_.ray_offset * in_.radius;
+    const bool surfel = in_.primitive == Primitive::surfel;
+    LeavingSurface from;
     for (std::uint32_t depth = 0;; ++depth) {
       SurfaceHit h;
-      if (!intersect(ray, h, hits, c)) {
+      if (!intersect(ray, h, hits, c, depth > 0 && surfel ? &from : nullptr)) {
         L += beta * sky_.background(ray.direction());
         if (depth == 0) L += sky_.sun_disk(ray.direction());
         if (first && depth == 0) first->t = kInf;
@@ -119,13 +167,15 @@ class PathTracer {
       }
       if (first && depth == 0) *first = h;
       const Color a = in_.albedo[h.index];
-      const Vec3 origin = h.position + eps * h.normal;
+      const Vec3 origin = h.position + (in_.ray_offset * h.radius) * h.normal;
+      from = {h.index, h.position, h.normal, h.radius};
+      const LeavingSurface* leaving = surfel ? &from : nullptr;
       // Next-event estimation of the sun: Lambertian f = a/pi, times E cos(theta).
       if (sky_.has_sun()) {
         const Vec3 l = sky_.sample_sun(s.uniform(), s.uniform());
         const double cos_l = glm::dot(l, h.normal);
         if (cos_l > 0.0) {
-          if (!occluded(Ray(origin, l), hits, c))
+          if (!occluded(Ray(origin, l), hits, c, leaving))
             L += beta * a * sky_.sun_irradiance() * float(cos_l / std::numbers::pi);
         }
       }

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -24,6 +25,10 @@ struct RenderJobOptions {
   Scene scene;                         ///< the render description (scenes/README.md)
   const PointCloud* cloud = nullptr;   ///< in-memory points instead of scene.cloud (not copied)
   bool write = true;                   ///< write scene.output.image (+ AOVs) when it is set
+  /// When set, called once the cloud is read; the camera it returns replaces scene.camera (the
+  /// scene then needs no camera). E.g. a top-down map over the cloud's extent (analysis::ortho_map,
+  /// `rayscan render --ortho-map`). Exceptions it throws propagate unchanged.
+  std::function<Camera(const PointCloud&)> camera_for_cloud;
   JobControl control;                  ///< threads, progress bar, log lines
 };
 
@@ -31,7 +36,9 @@ struct RenderJobOptions {
 struct RenderJobResult {
   Framebuffer image;                   ///< beauty + requested AOVs (Framebuffer)
   RenderStats stats;                   ///< rays, queries, seconds, threads
-  RadiusChoice radius;                 ///< the sphere radius used and how it was chosen
+  RadiusChoice radius;                 ///< the sphere radius used and how it was chosen (surfels:
+                                       ///< the median disc radius, automatic = false)
+  std::string crs_wkt;                 ///< the cloud's CRS (PointCloud::crs_wkt), "" if unknown
   std::size_t points = 0;              ///< points in the cloud
   double read_seconds = 0.0;           ///< reading the cloud (0 for an in-memory cloud)
   double index_seconds = 0.0;          ///< building the index
@@ -40,20 +47,26 @@ struct RenderJobResult {
 };
 
 /// Renders `options.scene`: reads the cloud (skipping unused scalar fields), computes the albedo,
-/// builds the index, chooses the radius (choose_radius with the scene's auto factor), traces the
+/// builds the index, chooses the radius (choose_radius with the scene's auto factor) or, for
+/// scene.primitive surfel, the per-point normals and disc radii (scene_surfels), traces the
 /// image (render_image) and, when `write` and scene.output.image are set, writes it (write_image).
 /// Throws SceneError "<scene file>: <JSON pointer>: <what was expected>" for a missing camera or
 /// cloud, an unreadable or empty cloud, a bad material range or index option, or an impossible
-/// auto radius; std::runtime_error naming the file when an image cannot be written.
+/// auto radius, "<scene file>: /surfel: ..." when surfels cannot be estimated; std::runtime_error naming the file when an image cannot be written.
 RenderJobResult run_render(const RenderJobOptions& options);
 
 /// Applies the usual command-line overrides to a loaded scene, checking each: a camera file
 /// (replaces the camera), samples per pixel, seed, output image (must pass is_image_file_name),
-/// extra AOVs by name (parse_aov; duplicates ignored) and an image size (one of width/height
-/// given: the other follows the camera's aspect ratio; the field of view is kept). Throws
-/// SceneError (camera file) or std::invalid_argument naming the option ("--aov 'x': expected ...").
+/// extra AOVs by name (parse_aov; duplicates ignored), the primitive ("sphere" | "surfel"), the
+/// camera of a COLMAP photo (load_colmap_camera(colmap_dir, colmap_image), issue 16 section 3.3)
+/// and an image size (one of width/height given: the other follows the camera's aspect ratio; the
+/// field of view is kept). Throws SceneError (camera file, COLMAP model) or std::invalid_argument
+/// naming the option ("--aov 'x': expected ...").
 struct SceneOverrides {
   std::filesystem::path camera_file;
+  std::filesystem::path colmap_dir;  ///< COLMAP text model folder (cameras.txt, images.txt)
+  std::string colmap_image;          ///< NAME of the photo in images.txt (required with colmap_dir)
+  std::string primitive;             ///< "sphere" | "surfel"; "" keeps the scene's
   std::optional<std::uint32_t> spp, width, height;
   std::optional<std::uint64_t> seed;
   std::filesystem::path out;

@@ -8,6 +8,8 @@
 #include "rayscan/render/color.hpp"
 #include "rayscan/io/camera_file.hpp"
 #include "rayscan/io/json_object.hpp"
+#include "rayscan/normals.hpp"
+#include "rayscan/render/surfel.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <filesystem>
@@ -84,6 +86,10 @@ struct Scene {
   std::optional<double> radius;               ///< sphere radius (world units); nullopt = "auto"
   double auto_radius_factor = 1.0;            ///< "auto": radius = factor x median NN spacing
   HitMode hit = HitMode::sphere;
+  Primitive primitive = Primitive::sphere;    ///< "primitive": "sphere" (the paper's) or "surfel"
+  SurfelOptions surfel;                       ///< "surfel": {k_normal, k_radius, radius_factor, ...}
+  bool surfel_orient_camera = true;           ///< "surfel"/"orient": "camera" (default) flips normals
+                                              ///< towards the camera centre; "up" or [x,y,z] otherwise
   IndexOptions index;                         ///< index type and organisation
   NodeDistance node_distance = NodeDistance::exact;  ///< node pruning bound of the ray query
   MaterialDesc material;

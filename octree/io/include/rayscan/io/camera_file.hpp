@@ -1,5 +1,6 @@
-// Camera files: the JSON description of a camera (schema in scenes/README.md: look-at or
-// K/[R|t]), read by scene files, `rayscan render --camera` and `rayscan visibility --from-camera`.
+// Camera files: the JSON description of a camera (schema in scenes/README.md: look-at, K/[R|t]
+// with optional OpenCV "distortion", or "type" orthographic / equirectangular), read by scene
+// files, `rayscan render --camera` and `rayscan visibility --from-camera`.
 #pragma once
 
 #include "rayscan/camera.hpp"

@@ -1,0 +1,111 @@
+#include "rayscan/analysis/ortho_map.hpp"
+
+#include "rayscan/atomic_file.hpp"
+#include "rayscan/color_ramp.hpp"
+#include "rayscan/file_names.hpp"
+#include "rayscan/analysis/geotiff.hpp"
+
+#include <cpl_error.h>
+#include <cpl_string.h>
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
+#include <cmath>
+#include <mutex>
+#include <stdexcept>
+
+namespace rayscan::analysis {
+
+OrthoMap ortho_map(const AABB& bounds, double res) {
+  const GridSpec g = grid_over(bounds, res);
+  if (g.cols > 65536 || g.rows > 65536)
+    throw std::invalid_argument("ortho map: " + std::to_string(g.cols) + " x " + std::to_string(g.rows) +
+                                " pixels; at most 65536 per side (use a larger resolution)");
+  const double z_top = bounds.hi.z + 0.01 * bounds.max_extent() + res;
+  const Vec3 o00(g.x0 + 0.5 * g.cell, g.y_top - 0.5 * g.cell, z_top);
+  return {g, Camera::orthographic_grid(o00, Vec3(g.cell, 0, 0), Vec3(0, -g.cell, 0), Vec3(0, 0, -1),
+                                               g.cols, g.rows),
+          z_top};
+}
+
+Raster dsm_from_depth(const OrthoMap& map, std::span<const float> depth) {
+  const std::size_t n = std::size_t(map.grid.cols) * map.grid.rows;
+  if (depth.size() != n) throw std::invalid_argument("dsm: depth AOV size differs from the grid");
+  Raster r{map.grid, std::vector<float>(n), "elevation"};
+  for (std::size_t i = 0; i < n; ++i)
+    r.values[i] = std::isfinite(depth[i]) ? float(map.z_top - double(depth[i])) : std::nanf("");
+  return r;
+}
+
+void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
+                         std::span<const glm::vec3> beauty, double exposure, const std::string& crs_wkt) {
+  static std::once_flag registered;
+  std::call_once(registered, [] { GDALAllRegister(); });
+  const GridSpec& g = map.grid;
+  const std::size_t n = std::size_t(g.cols) * g.rows;
+  if (beauty.size() != n) throw std::invalid_argument(path.string() + ": image size differs from the grid");
+  CPLPushErrorHandler(CPLQuietErrorHandler);
+  struct Pop { ~Pop() { CPLPopErrorHandler(); } } pop;
+  auto fail = [&](const std::string& what) {
+    const char* m = CPLGetLastErrorMsg();
+    throw std::runtime_error(path.string() + ": " + what + ": " + (m && *m ? m : "GDAL failure"));
+  };
+  OGRSpatialReference srs;
+  if (!crs_wkt.empty()) {
+    if (srs.importFromWkt(crs_wkt.c_str()) != OGRERR_NONE)
+      throw std::invalid_argument("crs: GDAL cannot parse the cloud's WKT");
+    srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  }
+  GDALDriver* drv = GetGDALDriverManager()->GetDriverByName("GTiff");
+  if (!drv) throw std::runtime_error(path.string() + ": GDAL has no GTiff driver");
+  AtomicFile file(path);
+  CPLStringList co;
+  co.SetNameValue("COMPRESS", "DEFLATE");
+  co.SetNameValue("PHOTOMETRIC", "RGB");
+  co.SetNameValue("TILED", "YES");
+  GDALDataset* ds = drv->Create(file.temp().string().c_str(), int(g.cols), int(g.rows), 3, GDT_Byte, co.List());
+  if (!ds) fail("cannot create GeoTIFF");
+  std::array<double, 6> gt = g.geotransform();
+  bool ok = ds->SetGeoTransform(gt.data()) == CE_None;
+  if (!crs_wkt.empty()) ok = ok && ds->SetSpatialRef(&srs) == CE_None;
+  ds->SetMetadataItem("AREA_OR_POINT", "Area");
+  const float scale = float(std::exp2(exposure));
+  std::vector<std::uint8_t> band(n);
+  for (int b = 0; b < 3 && ok; ++b) {
+    for (std::size_t i = 0; i < n; ++i)
+      band[i] = std::uint8_t(std::lround(255.0f * linear_to_srgb(beauty[i][b] * scale)));
+    ok = ds->GetRasterBand(b + 1)->RasterIO(GF_Write, 0, 0, int(g.cols), int(g.rows), band.data(), int(g.cols),
+                                            int(g.rows), GDT_Byte, 0, 0) == CE_None;
+  }
+  if (!ok) {
+    GDALClose(ds);
+    fail("writing GeoTIFF failed");
+  }
+  CPLErrorReset();
+  GDALClose(ds);
+  if (CPLGetLastErrorType() >= CE_Failure) fail("closing GeoTIFF failed");
+  file.commit();
+}
+
+std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, std::span<const glm::vec3> beauty,
+                                                   std::span<const float> depth, double exposure,
+                                                   const std::string& crs_wkt,
+                                                   const std::filesystem::path& image,
+                                                   const std::filesystem::path& dsm,
+                                                   const std::vector<std::pair<std::string, std::string>>& metadata) {
+  std::vector<std::filesystem::path> written;
+  write_ortho_geotiff(image, map, beauty, exposure, crs_wkt);
+  written.push_back(image);
+  if (!dsm.empty()) {
+    GeoTiffOptions go;
+    go.crs_wkt = crs_wkt;
+    go.metadata = metadata;
+    write_geotiff(dsm, dsm_from_depth(map, depth), go);
+    written.push_back(dsm);
+  }
+  return written;
+}
+
+bool is_geotiff_name(const std::filesystem::path& path) { return has_extension(path, geotiff_extensions()); }
+
+}  // namespace rayscan::analysis

@@ -1,0 +1,129 @@
+// Surfels (issue 16, 1.3-1.4): the ray-disc test against hand-computed cases and the ray-query
+// search against a brute-force loop over every disc.
+#include "rayscan/render/surfel.hpp"
+
+#include "rayscan/any_index.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+using namespace rayscan;
+using namespace rayscan::render;
+
+TEST(RayDisc, HandComputedCases) {
+  const Vec3 c(1.0, 2.0, 3.0), n(0.0, 0.0, 1.0);
+  // Straight down onto the centre from 10 above: t = 10.
+  EXPECT_EQ(ray_disc_t(Vec3(1, 2, 13), Vec3(0, 0, -1), c, n, 0.5, 0.0, kInf), 10.0);
+  // 45 degrees through the plane at (1.3, 2, 3): inside r = 0.5 (distance 0.3), t = 10 sqrt 2.
+  const Vec3 d = glm::normalize(Vec3(1, 0, -1));
+  EXPECT_NEAR(ray_disc_t(Vec3(-8.7, 2, 13), d, c, n, 0.5, 0.0, kInf), 10.0 * std::sqrt(2.0), 1e-12);
+  // Same ray, r = 0.29: misses.
+  EXPECT_EQ(ray_disc_t(Vec3(-8.7, 2, 13), d, c, n, 0.29, 0.0, kInf), kInf);
+  // Behind the origin or beyond t_max: misses; parallel to the plane: misses.
+  EXPECT_EQ(ray_disc_t(Vec3(1, 2, 13), Vec3(0, 0, 1), c, n, 0.5, 0.0, kInf), kInf);
+  EXPECT_EQ(ray_disc_t(Vec3(1, 2, 13), Vec3(0, 0, -1), c, n, 0.5, 0.0, 9.0), kInf);
+  EXPECT_EQ(ray_disc_t(Vec3(0, 2, 3), Vec3(1, 0, 0), c, n, 0.5, 0.0, kInf), kInf);
+  // From below (back face): hit too.
+  EXPECT_EQ(ray_disc_t(Vec3(1, 2, 1), Vec3(0, 0, 1), c, n, 0.5, 0.0, kInf), 2.0);
+}
+
+namespace {
+
+struct Discs {
+  std::vector<Vec3> c;
+  std::vector<glm::vec3> n;
+  std::vector<float> r;
+  double rmax = 0.0;
+  SurfelView view() const { return {c, n, r, rmax}; }
+};
+
+Discs random_discs(std::size_t count, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Discs d;
+  for (std::size_t i = 0; i < count; ++i) {
+    d.c.push_back(Vec3(u(rng), u(rng), u(rng)));
+    d.n.push_back(glm::normalize(glm::vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5)));
+    d.r.push_back(float(0.01 + 0.05 * u(rng)));
+    d.rmax = std::max(d.rmax, double(d.r.back()));
+  }
+  return d;
+}
+
+}  // namespace
+
+TEST(FirstSurfelHit, MatchesBruteForceOverEveryDisc) {
+  const Discs d = random_discs(3000, 5);
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (const char* type : {"octree-adaptive", "kdtree", "brute"}) {
+    const AnyIndex idx = make_index(d.c, IndexOptions{type});
+    int hits = 0;
+    for (int k = 0; k < 400; ++k) {
+      const Vec3 o(u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2);
+      const Ray ray(o, Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5));
+      // Oracle: every disc.
+      double bt = kInf;
+      PointIndex bi = 0;
+      for (std::size_t i = 0; i < d.c.size(); ++i) {
+        const double t = ray_disc_t(ray.origin(), ray.direction(), d.c[i], Vec3(d.n[i]), d.r[i], 0.0, kInf);
+        if (t < bt) { bt = t; bi = PointIndex(i); }
+      }
+      std::vector<RayHit> scratch;
+      RayQueryStats st;
+      const SurfelHit h = std::visit(
+          [&](const auto& ix) { return first_surfel_hit(ix, d.view(), ray, 0.0, kInf, nullptr, false, scratch, st); },
+          idx);
+      ASSERT_EQ(h.t, bt) << type << " ray " << k;
+      if (bt < kInf) {
+        EXPECT_EQ(h.index, bi);
+        ++hits;
+        const SurfelHit any = std::visit(
+            [&](const auto& ix) { return first_surfel_hit(ix, d.view(), ray, 0.0, kInf, nullptr, true, scratch, st); },
+            idx);
+        EXPECT_LT(any.t, kInf);
+      }
+    }
+    EXPECT_GT(hits, 100) << type;  // the sample exercises hits, not only misses
+  }
+}
+
+TEST(FirstSurfelHit, LeavingAFlatSurfaceIgnoresItsOwnDiscsOnly) {
+  // A noisy-free plane z = 0 of overlapping discs (spacing 1, radius 1.2) and a blocker disc 5
+  // above. A shadow ray leaving the plane at 10 degrees elevation would clip neighbouring tilted
+  // discs; with the leaving surface it finds only the blocker.
+  Discs d;
+  for (int i = -10; i <= 10; ++i)
+    for (int j = -10; j <= 10; ++j) {
+      d.c.push_back(Vec3(i, j, 0.0));
+      // Tilt alternate discs by 3 degrees (PCA noise).
+      const double a = ((i + j) % 2 ? 3.0 : -3.0) * std::numbers::pi / 180.0;
+      d.n.push_back(glm::vec3(float(std::sin(a)), 0.0f, float(std::cos(a))));
+      d.r.push_back(1.2f);
+    }
+  d.rmax = 1.2;
+  const AnyIndex idx = make_index(d.c, IndexOptions{});
+  const auto& oct = std::get<Octree>(idx);
+  const PointIndex left = 10 * 21 + 10;  // (0, 0, 0)
+  LeavingSurface from{left, Vec3(0.3, 0.2, 0.0), Vec3(0, 0, 1), 1.2};
+  const double el = 10.0 * std::numbers::pi / 180.0;
+  const Ray shadow(from.position, Vec3(std::cos(el), 0.0, std::sin(el)));
+  std::vector<RayHit> scratch;
+  RayQueryStats st;
+  EXPECT_LT(first_surfel_hit(oct, d.view(), shadow, 0.0, kInf, nullptr, true, scratch, st).t, kInf)
+      << "without the leaving surface the tilted neighbours shadow the plane (acne)";
+  EXPECT_EQ(first_surfel_hit(oct, d.view(), shadow, 0.0, kInf, &from, true, scratch, st).t, kInf);
+  // A wall 3 units away along the ray is still hit.
+  Discs w = d;
+  for (int k = 0; k < 6; ++k) {
+    w.c.push_back(Vec3(3.0, 0.0, 0.25 * k));
+    w.n.push_back(glm::vec3(-1.0f, 0.0f, 0.0f));
+    w.r.push_back(0.3f);
+  }
+  const AnyIndex widx = make_index(w.c, IndexOptions{});
+  const SurfelHit h = first_surfel_hit(std::get<Octree>(widx), w.view(), shadow, 0.0, kInf, &from, false, scratch, st);
+  ASSERT_LT(h.t, kInf);
+  EXPECT_GE(h.index, PointIndex(d.c.size()));
+  EXPECT_NEAR(h.t, 2.7 / std::cos(el), 1e-9);
+}
