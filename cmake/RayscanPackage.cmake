@@ -1,6 +1,6 @@
 # The CMake package of rayscan (issue 9 section 2): `cmake --install build --prefix P` installs
 # the public headers, the libraries and P/lib/cmake/rayscan/rayscanConfig.cmake (+ version file)
-# with the targets rayscan::octree, rayscan::io, rayscan::render, rayscan::analysis.
+# with the targets rayscan::octree, rayscan::io, rayscan::image, rayscan::render, rayscan::analysis.
 include(CMakePackageConfigHelpers)
 
 set(RAYSCAN_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/rayscan)
@@ -13,7 +13,7 @@ endfunction()
 # Install and export the library targets that exist, then the package files.
 function(rayscan_install_package)
   set(targets)
-  foreach(t rayscan_octree rayscan_io rayscan_renderer rayscan_analysis)
+  foreach(t rayscan_octree rayscan_io rayscan_image rayscan_renderer rayscan_analysis)
     if(TARGET ${t})
       list(APPEND targets ${t})
     endif()

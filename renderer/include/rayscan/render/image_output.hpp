@@ -1,7 +1,9 @@
-// Writing rendered images and AOVs through OpenImageIO (PNG/JPEG/TIFF with the sRGB transfer at
-// 8/16 bit; OpenEXR linear half/float with AOVs as extra channels).
+// Writing a render (Framebuffer) and its AOVs: the framebuffer becomes rayscan::Image values that
+// the one image writer (rayscan/image/image_file.hpp) stores (PNG/JPEG/TIFF with the sRGB
+// transfer at 8/16 bit; OpenEXR linear half/float with AOVs as extra channels).
 #pragma once
 
+#include "rayscan/image/image_file.hpp"
 #include "rayscan/render/render.hpp"
 #include "rayscan/render/scene.hpp"
 
@@ -12,9 +14,8 @@
 
 namespace rayscan::render {
 
-/// Key/value metadata stored in the image header (PNG tEXt, TIFF/EXR string attributes), e.g.
-/// {"rayscan:scene", "scenes/x.json"}.
-using ImageMetadata = std::vector<std::pair<std::string, std::string>>;
+/// Key/value metadata stored in the image header; the image module's type (rayscan/image/image_file.hpp).
+using rayscan::ImageMetadata;
 
 /// Write `fb` to `out.image`:
 ///  - .png/.tif/.tiff: RGB, sRGB transfer (IEC 61966-2-1), out.bit_depth 8 or 16 bit;
@@ -23,10 +24,11 @@ using ImageMetadata = std::vector<std::pair<std::string, std::string>>;
 ///    normal "N.X N.Y N.Z", position "P.X P.Y P.Z" (float; relative to fb.position_origin, which is
 ///    recorded as "rayscan:position_origin"), index "id" (uint32, 0xFFFFFFFF for a miss), albedo
 ///    "albedo.R albedo.G albedo.B", cost "cost" (float).
-/// Pixel values are scaled by 2^out.exposure first. Each file is written to a temporary sibling;
-/// the image and its AOV file form one OutputTransaction (rayscan/atomic_file.hpp): both are
-/// renamed into place only when both were written, so a failure leaves the old files intact.
-/// Paths that are not regular files (device, FIFO, directory, symlink) are refused. Returns the files written.
+/// Pixel values are scaled by 2^out.exposure first. Each file is written by rayscan::write_image
+/// to a temporary sibling; the image and its AOV file form one OutputTransaction
+/// (rayscan/atomic_file.hpp): both are renamed into place only when both were written, so a
+/// failure leaves the old files intact. Paths that are not regular files (device, FIFO,
+/// directory, symlink) are refused. Returns the files written.
 /// Throws std::runtime_error naming the file when OpenImageIO cannot create or write it.
 std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const OutputDesc& out,
                                                const ImageMetadata& metadata);

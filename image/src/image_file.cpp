@@ -1,25 +1,27 @@
-// Image I/O through OpenImageIO (https://openimageio.readthedocs.io, "ImageInput"/"ImageOutput"
-// and ImageBufAlgo::resize).
-#include "rayscan/analysis/image.hpp"
-
-#include "rayscan/aov.hpp"
+// Image files through OpenImageIO (https://openimageio.readthedocs.io, "ImageInput"/"ImageOutput"
+// and ImageBufAlgo::resize): the one reader and writer of rayscan::Image.
+#include "rayscan/image/image_file.hpp"
 
 #include "rayscan/atomic_file.hpp"
+#include "rayscan/file_names.hpp"
 #include "rayscan/spatial_index.hpp"
 #include "rayscan/input_file.hpp"
 
+#include <OpenImageIO/half.h>
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <unistd.h>
 #include <filesystem>
 #include <limits>
 #include <stdexcept>
 
-namespace rayscan::analysis {
+namespace rayscan {
 
 namespace {
 
@@ -130,38 +132,6 @@ OIIO::ImageSpec spec_of(const Image& img, OIIO::TypeDesc format) {
 
 }  // namespace
 
-int Image::channel_index(std::string_view name) const {
-  for (std::size_t i = 0; i < channels.size(); ++i)
-    if (channels[i] == name) return static_cast<int>(i);
-  return -1;
-}
-
-std::string_view renderer_channel_alias(std::string_view name) {
-  // Single-channel AOVs have one file channel (rayscan/aov.hpp): depth -> Z, index -> id, cost.
-  if (const std::optional<Aov> a = parse_aov(name); a && aov_channels(*a).size() == 1) return aov_channels(*a)[0];
-  return name;
-}
-
-int find_channel(const std::vector<std::string>& names, std::string_view name) {
-  for (const std::string_view n : {name, renderer_channel_alias(name)})
-    for (std::size_t i = 0; i < names.size(); ++i)
-      if (names[i] == n) return static_cast<int>(i);
-  return -1;
-}
-
-Image make_image(int width, int height, std::vector<std::string> channels, float value) {
-  if (width < 0 || height < 0) throw std::invalid_argument("make_image: negative size");
-  if (channels.empty()) throw std::invalid_argument("make_image: no channels");
-  Image img;
-  img.width = width;
-  img.height = height;
-  img.channels = std::move(channels);
-  for (std::size_t c = 0; c < img.channels.size(); ++c)
-    if (img.channels[c] == "A" || img.channels[c] == "Alpha") img.alpha_channel = static_cast<int>(c);
-  img.pixels.assign(img.npixels() * img.channels.size(), value);
-  return img;
-}
-
 Image read_image(const std::string& path) {
   auto in = open_input(path);
   const OIIO::ImageSpec& s = in->spec();
@@ -186,29 +156,6 @@ Image read_image(const std::string& path) {
   return img;
 }
 
-Image select_channels(const Image& img, const std::vector<int>& indices) {
-  Image out;
-  out.width = img.width;
-  out.height = img.height;
-  out.x0 = img.x0;
-  out.y0 = img.y0;
-  out.source = img.source;
-  for (std::size_t k = 0; k < indices.size(); ++k) {
-    const int c = indices[k];
-    if (c < 0 || c >= img.nchannels())
-      throw std::out_of_range("select_channels: channel index " + std::to_string(c) +
-                              " outside 0.." + std::to_string(img.nchannels() - 1));
-    out.channels.push_back(img.channels[static_cast<std::size_t>(c)]);
-    if (c == img.alpha_channel) out.alpha_channel = static_cast<int>(k);
-  }
-  const std::size_t n = img.npixels(), src_nc = img.channels.size(), nc = indices.size();
-  out.pixels.resize(n * nc);
-  for (std::size_t p = 0; p < n; ++p)
-    for (std::size_t k = 0; k < nc; ++k)
-      out.pixels[p * nc + k] = img.pixels[p * src_nc + static_cast<std::size_t>(indices[k])];
-  return out;
-}
-
 Image resize_image(const Image& img, int width, int height, const std::string& filter) {
   if (width <= 0 || height <= 0)
     throw std::invalid_argument("resize_image: target size must be positive");
@@ -229,29 +176,88 @@ Image resize_image(const Image& img, int width, int height, const std::string& f
   return out;
 }
 
+void write_image(const Image& img, const std::filesystem::path& path, const ImageWriteOptions& o) {
+  const std::string name = path.string();
+  const std::size_t n = img.npixels(), nf = img.channels.size(), ni = img.id_channels.size();
+  if (img.width <= 0 || img.height <= 0 || nf + ni == 0 || img.pixels.size() != n * nf ||
+      img.ids.size() != n * ni)
+    throw std::invalid_argument(name + ": write_image: pixel buffer does not match the image size");
+  if (o.formats.size() > 1 && o.formats.size() != nf)
+    throw std::invalid_argument(name + ": write_image: " + std::to_string(o.formats.size()) +
+                                " sample formats for " + std::to_string(nf) + " float channels");
+  // The plugin is chosen from the final name; the data goes to a temporary sibling.
+  auto out = OIIO::ImageOutput::create(name);
+  if (!out) throw std::runtime_error(name + ": cannot create image writer (" + OIIO::geterror() + ")");
+  std::vector<OIIO::TypeDesc> types;
+  for (std::size_t c = 0; c < nf; ++c)
+    types.push_back(o.formats.empty() ? OIIO::TypeDesc::FLOAT : to_oiio(o.formats[o.formats.size() == 1 ? 0 : c]));
+  types.insert(types.end(), ni, OIIO::TypeDesc::UINT);
+  OIIO::ImageSpec spec(img.width, img.height, static_cast<int>(nf + ni), types[0]);
+  spec.channelnames = img.channels;
+  spec.channelnames.insert(spec.channelnames.end(), img.id_channels.begin(), img.id_channels.end());
+  bool mixed = false;
+  std::size_t pixel_bytes = 0;
+  for (const OIIO::TypeDesc& t : types) {
+    mixed |= t != types[0];
+    pixel_bytes += t.size();
+  }
+  if (mixed) spec.channelformats = types;
+  spec.alpha_channel = img.alpha_channel;
+  for (const auto& [k, v] : o.metadata) spec.attribute(k, v);
+  // No wall-clock time in the file (issue 8, requirement 5): OpenImageIO stamps "DateTime" with
+  // the current time unless it is set, so it is set to a fixed value; `cmp` then confirms that
+  // two renders of one scene and seed are identical.
+  spec.attribute("DateTime", "");
+  if (o.jpeg_quality > 0) spec.attribute("Compression", "jpeg:" + std::to_string(o.jpeg_quality));
+  if (lower_extension(path) == ".exr") spec.attribute("compression", "zip");
+  if (o.png_compression >= 0) spec.attribute("png:compressionLevel", o.png_compression);
+
+  // Pack the samples in their file types (one code path for every format, so the quantisation
+  // does not depend on the OpenImageIO version).
+  std::vector<unsigned char> buf(n * pixel_bytes);
+  unsigned char* dst = buf.data();
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t c = 0; c < nf; ++c) {
+      const float v = img.pixels[i * nf + c];
+      const OIIO::TypeDesc t = types[c];
+      if (t == OIIO::TypeDesc::FLOAT) {
+        std::memcpy(dst, &v, 4);
+        dst += 4;
+      } else if (t == OIIO::TypeDesc::HALF) {
+        const half hv(v);
+        std::memcpy(dst, &hv, 2);
+        dst += 2;
+      } else if (t == OIIO::TypeDesc::UINT8) {
+        *dst++ = std::isnan(v) ? 0 : static_cast<std::uint8_t>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f));
+      } else {  // UINT16
+        const auto q = std::isnan(v) ? std::uint16_t{0}
+                                     : static_cast<std::uint16_t>(std::lround(std::clamp(v, 0.0f, 1.0f) * 65535.0f));
+        std::memcpy(dst, &q, 2);
+        dst += 2;
+      }
+    }
+    if (ni > 0) {
+      std::memcpy(dst, &img.ids[i * ni], 4 * ni);
+      dst += 4 * ni;
+    }
+  }
+
+  AtomicFile file(path);
+  if (!out->open(file.temp().string(), spec))
+    throw std::runtime_error(name + ": cannot create output file (" + out->geterror() + ")");
+  const bool ok = out->write_image(mixed ? OIIO::TypeDesc::UNKNOWN : types[0], buf.data()) && out->close();
+  if (!ok) throw std::runtime_error(name + ": write failed (" + out->geterror() + ")");
+  out.reset();
+  file.commit();
+}
+
 void write_image(const Image& img, const std::string& path, PixelFormat format,
                  const std::string& description) {
-  if (img.pixels.size() != img.npixels() * img.channels.size() || img.channels.empty())
-    throw std::invalid_argument(path + ": write_image: pixel buffer does not match the image size");
-  // The plugin is chosen from the final name; the data goes to a temporary sibling.
-  auto out = OIIO::ImageOutput::create(path);
-  if (!out) throw std::runtime_error(path + ": " + OIIO::geterror());
-  OIIO::ImageSpec spec = spec_of(img, to_oiio(format));
-  if (!description.empty()) spec.attribute("ImageDescription", description);
-  // zlib level 3 instead of OpenImageIO's 6: a 3840x2160 heat map writes several times faster
-  // for a few percent more bytes.
-  spec.attribute("png:compressionLevel", 3);
-  AtomicFile file(path);
-  const std::string tmp = file.temp().string();
-  auto fail = [&](const std::string& why) { throw std::runtime_error(path + ": " + why); };
-  if (!out->open(tmp, spec)) fail(out->geterror());
-  if (!out->write_image(OIIO::TypeDesc::FLOAT, img.pixels.data())) {
-    const std::string why = out->geterror();
-    out->close();
-    fail(why);
-  }
-  if (!out->close()) fail(out->geterror());
-  file.commit();
+  ImageWriteOptions o;
+  o.formats = {format};
+  if (!description.empty()) o.metadata.emplace_back("ImageDescription", description);
+  o.png_compression = 3;
+  write_image(img, std::filesystem::path(path), o);
 }
 
 std::vector<std::uint8_t> read_index_misses(const std::string& path, const std::string& channel,
@@ -312,4 +318,4 @@ std::vector<std::uint8_t> read_index_misses(const std::string& path, const std::
   return miss;
 }
 
-}  // namespace rayscan::analysis
+}  // namespace rayscan
