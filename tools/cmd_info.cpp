@@ -3,7 +3,9 @@
 // bounds (and the header's where they differ), attributes with their ranges, scale/offset, CRS.
 #include "commands.hpp"
 
+#include "rayscan/io/cloud_stats.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/io/point_reader.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -16,48 +18,6 @@
 namespace rayscan::cli {
 
 namespace {
-
-struct Range {
-  std::string name;
-  double lo = 0, hi = 0;
-};
-
-template <class V, class F>
-Range range_of(const std::string& name, const V& v, F get) {
-  Range r{name, 0, 0};
-  if (v.empty()) return r;
-  r.lo = r.hi = static_cast<double>(get(v[0]));
-  for (const auto& e : v) {
-    const double x = static_cast<double>(get(e));
-    r.lo = std::min(r.lo, x);
-    r.hi = std::max(r.hi, x);
-  }
-  return r;
-}
-
-std::vector<Range> attribute_ranges(const PointCloud& pc) {
-  std::vector<Range> out;
-  if (pc.empty()) return out;
-  out.push_back(range_of("X", pc.positions, [](const Vec3& p) { return p.x; }));
-  out.push_back(range_of("Y", pc.positions, [](const Vec3& p) { return p.y; }));
-  out.push_back(range_of("Z", pc.positions, [](const Vec3& p) { return p.z; }));
-  if (!pc.intensity.empty()) out.push_back(range_of("intensity", pc.intensity, [](auto v) { return v; }));
-  if (!pc.classification.empty())
-    out.push_back(range_of("classification", pc.classification, [](auto v) { return v; }));
-  if (!pc.gps_time.empty()) out.push_back(range_of("gps_time", pc.gps_time, [](auto v) { return v; }));
-  if (!pc.rgb.empty()) {
-    out.push_back(range_of("red", pc.rgb, [](const Rgb16& c) { return c.r; }));
-    out.push_back(range_of("green", pc.rgb, [](const Rgb16& c) { return c.g; }));
-    out.push_back(range_of("blue", pc.rgb, [](const Rgb16& c) { return c.b; }));
-  }
-  if (!pc.normals.empty()) {
-    out.push_back(range_of("normal_x", pc.normals, [](const glm::vec3& n) { return n.x; }));
-    out.push_back(range_of("normal_y", pc.normals, [](const glm::vec3& n) { return n.y; }));
-    out.push_back(range_of("normal_z", pc.normals, [](const glm::vec3& n) { return n.z; }));
-  }
-  for (const ScalarField& f : pc.scalars) out.push_back(range_of(f.name, f.values, [](double v) { return v; }));
-  return out;
-}
 
 std::string num(double v) {
   char buf[64];
@@ -97,14 +57,21 @@ Runner add_info_command(CLI::App& app) {
   sub->add_option("FILE", *file, "point cloud file (.las .ply .pcd .xyz .csv .txt .f64)")->required();
   sub->add_flag("--json", *json, "print one JSON object instead of text");
   return [file, json]() -> int {
-    io::FileInfo info;
-    const PointCloud pc = io::read_point_cloud(*file, io::ReadOptions{}, &info);
-    const AABB box = pc.bounds();
-    const auto ranges = attribute_ranges(pc);
+    // Streaming: one chunk in memory at a time, whatever the file size.
+    const auto reader = io::open_point_reader(*file);
+    const io::CloudStats stats = io::scan_point_cloud(*reader);
+    const io::FileInfo& info = reader->info();
+    struct {
+      std::uint64_t n;
+      const std::string& crs_wkt;
+      [[nodiscard]] std::uint64_t size() const { return n; }
+      [[nodiscard]] bool empty() const { return n == 0; }
+    } pc{stats.count, reader->crs_wkt()};
+    const AABB box = stats.bounds;
+    const auto& ranges = stats.ranges;
     const bool header_differs =
         info.header_bounds && !pc.empty() && !same_box(*info.header_bounds, box, info.scale);
-    std::map<int, std::uint64_t> classes;
-    for (std::uint8_t c : pc.classification) ++classes[c];
+    const auto& classes = stats.classification_counts;
 
     if (*json) {
       nlohmann::ordered_json j;
@@ -140,7 +107,7 @@ Runner add_info_command(CLI::App& app) {
       crs["wkt"] = pc.crs_wkt;
       j["crs"] = crs;
       nlohmann::ordered_json attrs = nlohmann::ordered_json::array();
-      for (const Range& r : ranges) attrs.push_back({{"name", r.name}, {"min", r.lo}, {"max", r.hi}});
+      for (const io::AttributeRange& r : ranges) attrs.push_back({{"name", r.name}, {"min", r.lo}, {"max", r.hi}});
       j["attributes"] = attrs;
       if (!classes.empty()) {
         nlohmann::ordered_json cj = nlohmann::ordered_json::object();
@@ -204,7 +171,7 @@ Runner add_info_command(CLI::App& app) {
     if (!pc.crs_wkt.empty()) o << "WKT:               " << pc.crs_wkt.substr(0, 100) << (pc.crs_wkt.size() > 100 ? "..." : "") << "\n";
     if (!ranges.empty()) {
       o << "attributes:\n";
-      for (const Range& r : ranges) {
+      for (const io::AttributeRange& r : ranges) {
         char line[256];
         std::snprintf(line, sizeof line, "  %-20s %18s %18s\n", r.name.c_str(), num(r.lo).c_str(), num(r.hi).c_str());
         o << line;
