@@ -4,6 +4,7 @@
 #include "commands.hpp"
 
 #include "rayscan/io/cloud_stats.hpp"
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/io/point_reader.hpp"
 
@@ -47,6 +48,58 @@ bool same_box(const AABB& a, const AABB& b, const std::optional<Vec3>& scale) {
   return true;
 }
 
+/// `rayscan info SITE.rsi`: the index file's tree and sources.
+int index_info(const std::string& file, bool json, bool verify) {
+  io::IndexOpenOptions oo;
+  if (verify) oo.verify = io::IndexOpenOptions::Verify::always;
+  const io::MappedIndex m = io::MappedIndex::open(file, oo);
+  const auto levels = m.points_per_level();
+  const double bpp = m.empty() ? 0.0 : static_cast<double>(m.file_bytes()) / static_cast<double>(m.positions().size());
+  nlohmann::ordered_json j;
+  j["filename"] = file;
+  j["format"] = "rayscan index";
+  j["count"] = m.positions().size();
+  j["layout"] = to_string(m.config().layout);
+  j["capacity"] = m.config().capacity;
+  j["nodes"] = m.node_count();
+  j["depth"] = m.depth();
+  j["points_per_level"] = levels;
+  j["file_bytes"] = m.file_bytes();
+  j["bytes_per_point"] = bpp;
+  j["attributes"] = m.attributes().to_string();
+  j["root_cell"] = {{"min", vec_json(m.root_cell().lo)}, {"max", vec_json(m.root_cell().hi)}};
+  if (!m.empty()) {
+    const AABB b = m.node_bounds(m.root());
+    j["bounds"] = {{"min", vec_json(b.lo)}, {"max", vec_json(b.hi)}};
+  }
+  j["checksums"] = verify || m.file_bytes() <= (256u << 20) ? "all sections verified" : "header, nodes and metadata verified";
+  nlohmann::ordered_json src = nlohmann::ordered_json::array();
+  for (const io::IndexSource& s : m.sources())
+    src.push_back({{"path", s.path}, {"format", s.format}, {"points", s.points}, {"first_id", s.first_id}, {"bytes", s.size}});
+  j["sources"] = src;
+  j["crs"] = {{"wkt", m.crs_wkt()}};
+  if (json) {
+    std::cout << j.dump(2) << "\n";
+    return 0;
+  }
+  std::ostream& o = std::cout;
+  o << "file:              " << file << "\n";
+  o << "format:            rayscan index (" << to_string(m.config().layout) << " octree, capacity " << m.config().capacity << ")\n";
+  o << "points:            " << m.positions().size() << "\n";
+  o << "nodes:             " << m.node_count() << ", depth " << m.depth() << "\n";
+  o << "points per level: ";
+  for (std::size_t d = 0; d < levels.size(); ++d)
+    if (levels[d]) o << " " << d << ":" << levels[d];
+  o << "\n";
+  o << "file size:         " << m.file_bytes() << " bytes (" << num(bpp) << " bytes/point)\n";
+  o << "attributes:        " << (m.attributes().bits ? m.attributes().to_string() : std::string("positions only")) << "\n";
+  o << "checksums:         " << j["checksums"].get<std::string>() << "\n";
+  o << "CRS:               " << (m.crs_wkt().empty() ? std::string("none") : m.crs_wkt().substr(0, 100)) << "\n";
+  for (const io::IndexSource& s : m.sources())
+    o << "source:            " << s.path << " (" << s.format << ", " << s.points << " points)\n";
+  return 0;
+}
+
 }  // namespace
 
 Runner add_info_command(CLI::App& app) {
@@ -54,9 +107,12 @@ Runner add_info_command(CLI::App& app) {
                                          "counts, recomputed bounds, attributes and their ranges, CRS");
   auto file = std::make_shared<std::string>();
   auto json = std::make_shared<bool>(false);
-  sub->add_option("FILE", *file, "point cloud file (.las .ply .pcd .xyz .csv .txt .f64)")->required();
+  sub->add_option("FILE", *file, "point cloud file (.las .ply .pcd .xyz .csv .txt .f64) or index file (.rsi)")->required();
   sub->add_flag("--json", *json, "print one JSON object instead of text");
-  return [file, json]() -> int {
+  auto verify = std::make_shared<bool>(false);
+  sub->add_flag("--verify", *verify, "index files: verify the checksum of every section");
+  return [file, json, verify]() -> int {
+    if (io::is_index_file(*file)) return index_info(*file, *json, *verify);
     // Streaming: one chunk in memory at a time, whatever the file size.
     const auto reader = io::open_point_reader(*file);
     const io::CloudStats stats = io::scan_point_cloud(*reader);

@@ -160,6 +160,10 @@ class MappedIndex {
 
 static_assert(SpatialIndex<MappedIndex>);
 
+/// Parses a byte size "4G", "512M", "1.5G", "65536" (K/M/G/T binary multiples, optional "B" or
+/// "iB"). Throws std::invalid_argument naming the text for anything else.
+std::uint64_t parse_byte_size(const std::string& text);
+
 /// True when `path` names an index file (extension .rsi, case-insensitive).
 bool is_index_file(const std::filesystem::path& path);
 
