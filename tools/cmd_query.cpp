@@ -3,10 +3,13 @@
 
 #include "rayscan/any_index.hpp"
 #include "rayscan/batch.hpp"
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "atomic_file.hpp"
 
 #include <charconv>
+#include <functional>
+#include <unordered_map>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -114,10 +117,28 @@ int run_query(const QueryOptions& o) {
   }
   // Rays first: a malformed rays file is reported before a large cloud is read.
   const std::vector<Ray> rays = read_rays(o.rays);
-  const PointCloud cloud = io::read_point_cloud(o.cloud, io::ReadOptions{.scalars = false});
-  const AnyIndex index = make_index(cloud.positions, o.index);
-  const auto results =
-      std::visit([&](const auto& idx) { return ray_query_batch(idx, rays, q); }, index);
+  std::vector<std::vector<RayHit>> results;
+  PointCloud cloud;
+  std::function<Vec3(PointIndex)> position;
+  std::unordered_map<PointIndex, Vec3> hit_pos;
+  if (io::is_index_file(o.cloud)) {
+    // An index file: queries run on the memory map; positions of the hits are looked up by one
+    // sequential scan of the ids (no inverse permutation in memory).
+    const io::MappedIndex idx = io::MappedIndex::open(o.cloud);
+    results = ray_query_batch(idx, rays, q);
+    for (const auto& r : results)
+      for (const RayHit& h : r) hit_pos.emplace(h.index, Vec3(0.0));
+    const auto ids = idx.ids();
+    const auto pos = idx.positions();
+    for (std::size_t s = 0; s < ids.size() && !hit_pos.empty(); ++s)
+      if (auto it = hit_pos.find(ids[s]); it != hit_pos.end()) it->second = pos[s];
+    position = [&hit_pos](PointIndex i) { return hit_pos.at(i); };
+  } else {
+    cloud = io::read_point_cloud(o.cloud, io::ReadOptions{.scalars = false});
+    const AnyIndex index = make_index(cloud.positions, o.index);
+    results = std::visit([&](const auto& idx) { return ray_query_batch(idx, rays, q); }, index);
+    position = [&cloud](PointIndex i) { return cloud.positions[i]; };
+  }
 
   AtomicOutput out(o.out);
   std::ostream& os = out.stream();
@@ -126,7 +147,7 @@ int run_query(const QueryOptions& o) {
   for (std::size_t r = 0; r < results.size(); ++r)
     for (std::size_t k = 0; k < results[r].size(); ++k) {
       const RayHit& h = results[r][k];
-      const Vec3& p = cloud.positions[h.index];
+      const Vec3 p = position(h.index);
       os << r << ',' << k << ',' << h.index << ',' << p.x << ',' << p.y << ',' << p.z << ','
          << h.t << ',' << h.distance << '\n';
     }
@@ -142,7 +163,7 @@ Runner add_query_command(CLI::App& app) {
       "query", "Ray query (paper Algorithm 1): points near rays, ordered by distance to the ray, "
                "time along it, or first sphere hit. Writes CSV ray,rank,index,x,y,z,t,distance; t is "
                "the projection parameter (orders ray/time) or the sphere entry (sphere_hit).");
-  c->add_option("--cloud", o->cloud, "Point cloud file (any supported format)")->required();
+  c->add_option("--cloud", o->cloud, "Point cloud file (any supported format) or index file (.rsi; --index options then come from the file)")->required();
   c->add_option("--rays", o->rays,
                 "Rays: CSV with header ox,oy,oz,dx,dy,dz, or .f64 (6 little-endian float64 per ray)")
       ->required();

@@ -79,7 +79,12 @@ int run_render(const RenderCliOptions& o) {
   };
   auto t0 = std::chrono::steady_clock::now();
   // Only positions, colour, intensity and classification are used: skip the other scalars.
+  // An index file (.rsi): the tree is mapped, not built; centres and colours come from its
+  // stored points in original order.
+  std::optional<io::MappedIndex> mapped;
+  if (io::is_index_file(scene.cloud)) mapped.emplace(io::MappedIndex::open(scene.cloud));
   const PointCloud cloud = [&] {
+    if (mapped) return mapped->to_point_cloud();
     try {
       return load_cloud(scene, io::ReadOptions{.scalars = false});
     } catch (const SceneError& e) {
@@ -98,19 +103,23 @@ int run_render(const RenderCliOptions& o) {
   }
   t0 = std::chrono::steady_clock::now();
   AnyIndex index = [&] {
+    if (mapped) return AnyIndex(BruteForceIndex(std::span<const Vec3>{}));  // unused
     try {
       return make_index(cloud.positions, scene.index);
     } catch (const std::invalid_argument& e) {
       throw UsageError(o.scene + ": /index: " + e.what());
     }
   }();
-  std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), seconds_since(t0));
+  if (mapped)
+    std::snprintf(buf, sizeof buf, "mapped index file %s (%zu nodes)", scene.cloud.string().c_str(), mapped->node_count());
+  else
+    std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), seconds_since(t0));
   log(buf);
   double radius;
   if (scene.radius) {
     radius = *scene.radius;
   } else {
-    const double spacing = median_nn_spacing(index, cloud.positions);
+    const double spacing = mapped ? median_nn_spacing(*mapped, cloud.positions) : median_nn_spacing(index, cloud.positions);
     if (!(spacing > 0.0))
       throw UsageError(o.scene + ": /radius: \"auto\" needs at least two distinct points; give a number");
     radius = scene.auto_radius_factor * spacing;
@@ -127,7 +136,8 @@ int run_render(const RenderCliOptions& o) {
   ropt.threads = o.threads;
   ropt.progress = &progress;
   Framebuffer fb;
-  const RenderStats st = rayscan::render::render_image(index, settings, fb, ropt);
+  const RenderStats st = mapped ? rayscan::render::render_image(*mapped, settings, fb, ropt)
+                                : rayscan::render::render_image(index, settings, fb, ropt);
 
   auto num = [](double v) {
     char b[64];

@@ -28,13 +28,13 @@ RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
   return s;
 }
 
-double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions,
-                         std::size_t max_samples) {
+namespace {
+template <class I>
+double median_nn_spacing_impl(const I& index, std::span<const Vec3> positions, std::size_t max_samples) {
   if (positions.size() < 2 || max_samples == 0) return 0.0;
   const std::size_t n = std::min(max_samples, positions.size());
   std::vector<double> d(n, 0.0);
-  std::visit(
-      [&](const auto& idx) {
+  [&](const auto& idx) {
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& r) {
           std::vector<Neighbor> nb;
           for (std::size_t i = r.begin(); i != r.end(); ++i) {
@@ -47,12 +47,20 @@ double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions,
             d[i] = best;
           }
         });
-      },
-      index);
+      }(index);
   std::erase(d, 0.0);
   if (d.empty()) return 0.0;
   std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
   return d[d.size() / 2];
+}
+}  // namespace
+
+double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions, std::size_t max_samples) {
+  return std::visit([&](const auto& idx) { return median_nn_spacing_impl(idx, positions, max_samples); }, index);
+}
+
+double median_nn_spacing(const io::MappedIndex& index, std::span<const Vec3> positions, std::size_t max_samples) {
+  return median_nn_spacing_impl(index, positions, max_samples);
 }
 
 namespace {
@@ -112,8 +120,10 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
 
 }  // namespace
 
-RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebuffer& fb,
-                   const RenderOptions& opt) {
+namespace {
+template <class I>
+RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuffer& fb,
+                              const RenderOptions& opt) {
   const std::uint32_t W = s.camera.width(), H = s.camera.height();
   const std::size_t n = std::size_t(W) * H;
   fb = Framebuffer{};
@@ -129,7 +139,7 @@ RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebu
       case Aov::albedo: fb.albedo.assign(n, Color(0.0f)); break;
       case Aov::cost: fb.cost.assign(n, 0.0f); break;
     }
-  const std::size_t npts = std::visit([](const auto& i) { return i.positions().size(); }, index);
+  const std::size_t npts = index.positions().size();
   if (npts != s.integrator.centers.size() || s.integrator.albedo.size() != s.integrator.centers.size())
     throw std::invalid_argument("render: index, centres and albedo sizes differ");
   if (s.spp == 0) throw std::invalid_argument("render: spp must be >= 1");
@@ -141,12 +151,24 @@ RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebu
   tbb::task_arena arena(static_cast<int>(threads));
   const auto t0 = std::chrono::steady_clock::now();
   arena.execute([&] {
-    std::visit([&](const auto& idx) { render_tiles(idx, s, fb, opt, stats); }, index);
+    render_tiles(index, s, fb, opt, stats);
   });
   stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   stats.primary_rays = std::uint64_t(n) * (s.spp + (s.aovs.empty() ? 0 : 1));
   if (opt.progress) opt.progress->finish();
   return stats;
+}
+
+}  // namespace
+
+RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebuffer& fb,
+                         const RenderOptions& opt) {
+  return std::visit([&](const auto& idx) { return render_image_impl(idx, s, fb, opt); }, index);
+}
+
+RenderStats render_image(const io::MappedIndex& index, const RenderSettings& s, Framebuffer& fb,
+                         const RenderOptions& opt) {
+  return render_image_impl(index, s, fb, opt);
 }
 
 }  // namespace rayscan::render
