@@ -12,6 +12,8 @@
 #include "rayscan/point_query.hpp"
 #include "rayscan/ray_query.hpp"
 
+#include <sys/wait.h>
+
 #include <cstring>
 #include <fstream>
 #include <random>
@@ -253,6 +255,53 @@ TEST(IndexFileBadInput, TruncatedCorruptedVersionChangedSource) {
     const std::string e = open_error(good);
     EXPECT_NE(e.find("changed since the index was built"), std::string::npos) << e;
   }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rayscan::test
+
+namespace rayscan::test {
+namespace {
+
+int run_cli(const std::string& args, const fs::path& out) {
+  const std::string cmd = std::string(RAYSCAN_EXE) + " " + args + " > '" + out.string() + "' 2>&1";
+  const int rc = std::system(cmd.c_str());
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+std::string text(const fs::path& p) {
+  std::ifstream f(p);
+  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+}
+
+TEST(IndexFileCli, IndexThenQueryEqualsQueryOnTheCloudAndInfoDescribesIt) {
+  RAYSCAN_REQUIRE_FILE(las, "las/autzen_trim.las");
+  const fs::path dir = temp_dir() / "cli";
+  fs::create_directories(dir);
+  const fs::path rsi = dir / "autzen.rsi", log = dir / "log.txt";
+  ASSERT_EQ(run_cli("index -q '" + las.string() + "' -o '" + rsi.string() + "' --attributes rgb --memory 2M", log), 0) << text(log);
+  {
+    std::ofstream r(dir / "rays.csv");
+    r << "ox,oy,oz,dx,dy,dz\n637000,851300,500,0.2,0.1,-1\n636700,850000,480,0.05,1,-0.3\n";
+  }
+  const std::string q = " --rays '" + (dir / "rays.csv").string() + "' --radius 3 --k 20 --order sphere_hit";
+  ASSERT_EQ(run_cli("query --cloud '" + las.string() + "'" + q, dir / "a.csv"), 0) << text(dir / "a.csv");
+  ASSERT_EQ(run_cli("query --cloud '" + rsi.string() + "'" + q, dir / "b.csv"), 0) << text(dir / "b.csv");
+  EXPECT_EQ(text(dir / "a.csv"), text(dir / "b.csv"));
+  const std::string a = text(dir / "a.csv");
+  EXPECT_GT(std::count(a.begin(), a.end(), '\n'), 10);  // the rays hit points
+  ASSERT_EQ(run_cli("info --verify '" + rsi.string() + "'", log), 0) << text(log);
+  EXPECT_NE(text(log).find("points:            110000"), std::string::npos) << text(log);
+  EXPECT_NE(text(log).find("all sections verified"), std::string::npos) << text(log);
+  // Bad input: exit 2, one line naming the file; a failed build leaves nothing behind.
+  {
+    std::ofstream(dir / "junk.rsi") << "not an index";
+  }
+  EXPECT_EQ(run_cli("info '" + (dir / "junk.rsi").string() + "'", log), 2);
+  EXPECT_NE(text(log).find("junk.rsi: byte"), std::string::npos) << text(log);
+  EXPECT_EQ(run_cli("index -q '" + (dir / "missing.las").string() + "' -o '" + (dir / "x.rsi").string() + "'", log), 2);
+  EXPECT_FALSE(fs::exists(dir / "x.rsi"));
+  EXPECT_EQ(run_cli("index -q '" + las.string() + "' -o '" + (dir / "x.rsi").string() + "' --memory 10Q", log), 2);
   fs::remove_all(dir);
 }
 

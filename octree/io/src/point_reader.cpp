@@ -46,6 +46,9 @@ MappedFile::~MappedFile() {
 void MappedFile::release(std::uint64_t upto) {
   const std::uint64_t page = static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
   const std::uint64_t end = std::min<std::uint64_t>(upto, size_) / page * page;
+  // A second pass over the file (the LAS colour scan at open, then the decode) starts again from
+  // the beginning: its pages are released afresh.
+  if (end < released_) released_ = 0;
   if (end > released_) {
     ::madvise(const_cast<std::uint8_t*>(data_) + released_, end - released_, MADV_DONTNEED);
     released_ = end;

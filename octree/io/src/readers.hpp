@@ -18,7 +18,8 @@ class MappedFile {
   MappedFile& operator=(const MappedFile&) = delete;
   ~MappedFile();
   [[nodiscard]] std::span<const std::uint8_t> bytes() const { return {data_, size_}; }
-  /// Drops the pages of [0, upto) from the resident set (they stay in the page cache).
+  /// Drops the pages of [0, upto) from the resident set (they stay in the page cache). A call
+  /// with a smaller `upto` than before starts a new pass.
   void release(std::uint64_t upto);
 
  private:
