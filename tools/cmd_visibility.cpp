@@ -8,6 +8,7 @@
 #include "rayscan/analysis/raster.hpp"
 #include "rayscan/analysis/raster_preview.hpp"
 #include "rayscan/analysis/visibility.hpp"
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/render.hpp"
 #include "rayscan/render/scene.hpp"
@@ -142,7 +143,10 @@ int run_visibility(const VisibilityCli& o) {
   // ---- Cloud, index, radius.
   auto t0 = std::chrono::steady_clock::now();
   io::FileInfo info;
-  PointCloud cloud = io::read_point_cloud(o.cloud, {}, &info);
+  // An index file gives its points in the sources' original order (tiles concatenated in build
+  // order), so the per-point fields line up with the sources; the tree is rebuilt in memory.
+  PointCloud cloud = io::is_index_file(o.cloud) ? io::MappedIndex::open(o.cloud).to_point_cloud()
+                                                : io::read_point_cloud(o.cloud, {}, &info);
   if (cloud.empty()) throw UsageError(o.cloud + ": the point cloud has no points");
   std::snprintf(buf, sizeof buf, "read %zu points from %s in %.2f s", cloud.size(), o.cloud.c_str(),
                 seconds_since(t0));

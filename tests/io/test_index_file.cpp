@@ -281,8 +281,15 @@ TEST(IndexFileCli, IndexThenQueryEqualsQueryOnTheCloudAndInfoDescribesIt) {
   const fs::path rsi = dir / "autzen.rsi", log = dir / "log.txt";
   ASSERT_EQ(run_cli("index -q '" + las.string() + "' -o '" + rsi.string() + "' --attributes rgb --memory 2M", log), 0) << text(log);
   {
+    // Rays straight down onto three of the cloud's points (so they hit).
+    const PointCloud pc = io::read_point_cloud(las);
     std::ofstream r(dir / "rays.csv");
-    r << "ox,oy,oz,dx,dy,dz\n637000,851300,500,0.2,0.1,-1\n636700,850000,480,0.05,1,-0.3\n";
+    r.precision(17);
+    r << "ox,oy,oz,dx,dy,dz\n";
+    for (std::size_t i : {std::size_t{10}, pc.size() / 2, pc.size() - 7}) {
+      const Vec3& p = pc.positions[i];
+      r << p.x + 0.3 << ',' << p.y << ',' << p.z + 200 << ",0.001,0,-1\n";
+    }
   }
   const std::string q = " --rays '" + (dir / "rays.csv").string() + "' --radius 3 --k 20 --order sphere_hit";
   ASSERT_EQ(run_cli("query --cloud '" + las.string() + "'" + q, dir / "a.csv"), 0) << text(dir / "a.csv");
