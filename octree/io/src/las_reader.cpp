@@ -3,6 +3,7 @@
 // point data record formats 0-10: 2.6 (tables 7-17); Extra Bytes VLR: 2.5.6 (table 24);
 // CRS: 2.5.1 (OGC WKT VLR 2112) and 2.5.2 (GeoKeyDirectoryTag 34735).
 #include "readers.hpp"
+#include "laz/laz.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -122,15 +123,13 @@ void decode(const Decoder& dc, std::size_t i0, std::size_t i1, Reduction& red) {
   }
 }
 
+/// The LASzip VLR (LASzip laszip.cpp; docs/formats.md "LAZ"): its presence, not the file
+/// extension, makes a file LAZ.
 bool is_laszip_vlr(const std::string& user, std::uint16_t id) {
-  return (user == "laszip encoded" && id == 22204) || (user == "copc" && id == 1);
+  return user == "laszip encoded" && id == 22204;
 }
-
-[[noreturn]] void refuse_compressed(const Input& in, std::uint64_t off, const std::string& why) {
-  fail_at(in.name, off,
-          why + ": LAZ/COPC compressed point data is not supported; convert it first, e.g. "
-                "`pdal translate in.laz out.las` or `laszip -i in.laz -o out.las`");
-}
+/// The COPC info VLR (COPC 1.0 specification, "copc" record 1).
+bool is_copc_vlr(const std::string& user, std::uint16_t id) { return user == "copc" && id == 1; }
 
 }  // namespace
 
@@ -196,10 +195,18 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
   std::uint64_t geokeys_len = 0;
   const std::uint8_t* extra_vlr = nullptr;
   std::uint64_t extra_len = 0;
-  bool laszip = false;
+  bool laszip = false, copc = false;
+  const std::uint8_t* laszip_payload = nullptr;
+  std::uint64_t laszip_len = 0, laszip_at = 0;
   auto note_vlr = [&](const VlrInfo& v, const std::uint8_t* payload) {
     info.vlrs.push_back(v);
-    if (is_laszip_vlr(v.user_id, v.record_id)) laszip = true;
+    if (is_laszip_vlr(v.user_id, v.record_id) && !v.extended) {
+      laszip = true;
+      laszip_payload = payload;
+      laszip_len = v.length;
+      laszip_at = v.offset + 54;
+    }
+    if (is_copc_vlr(v.user_id, v.record_id)) copc = true;
     if (v.user_id == "LASF_Projection" && v.record_id == 2112) {
       wkt_vlr = payload;
       wkt_len = v.length;
@@ -256,11 +263,14 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
       ep += 60 + v.length;
     }
   }
-  // LAZ (LASzip sets bit 7, historically also bit 6, of the PDRF byte) and COPC are refused.
-  if ((pdrf_raw & 0xC0) != 0)
-    refuse_compressed(in, 104, "point data record format byte " + std::to_string(pdrf_raw) +
-                                   " has the compression bit set");
-  if (laszip) refuse_compressed(in, header_size, "file has a LASzip/COPC VLR");
+  // LAZ: the LASzip VLR decides (LASzip also sets bit 7, historically bit 6, of the PDRF byte).
+  if ((pdrf_raw & 0xC0) != 0 && !laszip)
+    fail_at(nm, 104, "point data record format byte " + std::to_string(pdrf_raw) +
+                         " has the LAZ compression bit set but the file has no LASzip VLR "
+                         "(\"laszip encoded\", record 22204)");
+  if (laszip && (pdrf_raw & 0xC0) == 0)
+    info.notes.push_back("LASzip VLR present but the compression bits of the PDRF byte are clear: read as LAZ");
+  if (laszip) info.format = copc ? "COPC" : "LAZ";
   if (pdrf > 10)
     fail_at(nm, 104, "point data record format " + std::to_string(pdrf) + " (expected 0 to 10)");
   const int need_len = pdrf_length(pdrf);
@@ -280,7 +290,13 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
   std::uint64_t data_end = in.size();
   if (n_evlr > 0 && evlr_start >= point_offset) data_end = std::min<std::uint64_t>(data_end, evlr_start);
   const std::uint64_t avail = data_end - point_offset;
-  if (count > avail / rec_len)
+  std::vector<std::uint8_t> laz_records;  // decompressed point records (LAZ only)
+  if (laszip) {
+    const laz::LaszipVlr lv = laz::parse_laszip_vlr(laszip_payload, laszip_len, nm, laszip_at, pdrf, rec_len);
+    const std::vector<laz::Chunk> chunks = laz::read_chunk_table(in, lv, point_offset, data_end, count, info.notes);
+    laz_records.resize(static_cast<std::size_t>(count) * rec_len);
+    laz::decompress_all(in, lv, chunks, laz_records.data());
+  } else if (count > avail / rec_len)
     fail_at(nm, vmin >= 4 ? 247 : 107,
             "header announces " + std::to_string(count) + " points of " + std::to_string(rec_len) +
                 " bytes from byte " + std::to_string(point_offset) + " but only " +
@@ -407,7 +423,7 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
     out.nir = nir != nullptr ? nir->data() : nullptr;
     for (auto* v : extra_out) out.extra.push_back(v->data());
   }
-  Decoder dec{d + point_offset, rec_len, scale, offset, pdrf >= 6 ? 22 : 20, pdrf_rgb_offset(pdrf), &extras, out};
+  Decoder dec{laszip ? laz_records.data() : d + point_offset, rec_len, scale, offset, pdrf >= 6 ? 22 : 20, pdrf_rgb_offset(pdrf), &extras, out};
   using DecodeFn = void (*)(const Decoder&, std::size_t, std::size_t, Reduction&);
   DecodeFn fn = nullptr;
   if (pdrf < 6) {
@@ -437,7 +453,7 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
       fail_at(nm, point_offset + r.first_bad * rec_len,
               "point " + std::to_string(r.first_bad) + ": coordinate overflows to infinity (scale/offset)");
     rgb_max = std::max(rgb_max, r.rgb_max);
-    in.done(point_offset + b1 * rec_len);
+    if (!laszip) in.done(point_offset + b1 * rec_len);
   }
   // Colour normalisation (docs/formats.md): 8-bit values stored in the 16-bit fields are scaled
   // by 257; a colour format whose channels are all zero carries no colour and is dropped.
