@@ -25,5 +25,6 @@ Runner add_render_command(CLI::App& app);
 Runner add_info_command(CLI::App& app);
 Runner add_compare_command(CLI::App& app);
 Runner add_visibility_command(CLI::App& app);
+Runner add_translate_command(CLI::App& app);
 
 }  // namespace rayscan::cli

@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   reg(rayscan::cli::add_info_command);
   reg(rayscan::cli::add_compare_command);
   reg(rayscan::cli::add_visibility_command);
+  reg(rayscan::cli::add_translate_command);
 
   try {
     app.parse(argc, argv);

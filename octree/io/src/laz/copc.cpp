@@ -8,9 +8,7 @@
 
 #include "laz.hpp"
 
-#include <fcntl.h>
 #include <sys/mman.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -143,46 +141,12 @@ CopcInfo read_copc_info(std::span<const std::uint8_t> bytes, const std::string& 
 
 // ---------------------------------------------------------------------------------------------
 
-namespace {
-/// Read-only memory map of the COPC file (pages are read on first touch by the kernel).
-struct FileMap {
-  int fd = -1;
-  const std::uint8_t* data = nullptr;
-  std::size_t size = 0;
-  explicit FileMap(const std::filesystem::path& p) {
-    fd = ::open(p.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0) throw FormatError(p.string() + ": cannot open file: " + std::strerror(errno));
-    struct stat st {};
-    if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-      ::close(fd);
-      throw FormatError(p.string() + ": not a regular file");
-    }
-    size = static_cast<std::size_t>(st.st_size);
-    if (size > 0) {
-      void* m = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
-      if (m == MAP_FAILED) {
-        ::close(fd);
-        throw FormatError(p.string() + ": cannot memory-map file");
-      }
-      data = static_cast<const std::uint8_t*>(m);
-      ::madvise(m, size, MADV_RANDOM);
-    }
-  }
-  ~FileMap() {
-    if (data != nullptr) ::munmap(const_cast<std::uint8_t*>(data), size);
-    if (fd >= 0) ::close(fd);
-  }
-  FileMap(const FileMap&) = delete;
-  FileMap& operator=(const FileMap&) = delete;
-};
-}  // namespace
-
-struct CopcIndex::Map : FileMap {
-  using FileMap::FileMap;
+struct CopcIndex::Map : laz::FileMap {
+  using laz::FileMap::FileMap;
 };
 
 CopcInfo read_copc_info(const std::filesystem::path& path) {
-  const FileMap m(path);
+  const laz::FileMap m(path);
   return read_copc_info({m.data, m.size}, path.string());
 }
 

@@ -109,10 +109,8 @@ LasRecords read_las_records(std::span<const std::uint8_t> bytes, const std::stri
 }
 
 LasRecords read_las_records(const std::filesystem::path& path, std::uint32_t layers) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw FormatError(path.string() + ": cannot open file");
-  const std::vector<std::uint8_t> bytes{std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
-  return read_las_records(bytes, path.string(), layers);
+  const laz::FileMap m(path);
+  return read_las_records({m.data, m.size}, path.string(), layers);
 }
 
 }  // namespace rayscan::io

@@ -6,6 +6,14 @@
 
 #include <tbb/parallel_for.h>
 
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
 namespace rayscan::io::laz {
 
 namespace {
@@ -420,6 +428,29 @@ std::vector<Chunk> read_chunk_table(const Input& in, const LaszipVlr& vlr, std::
   if (vlr.variable_chunks()) fail_at(nm, point_offset, "LAZ with variable chunk sizes: " + problem);
   notes.push_back("LAZ " + problem + ": chunks located by decoding them in sequence (no parallel decode)");
   return walk_chunks(in, vlr, first, data_end, point_count);
+}
+
+FileMap::FileMap(const std::filesystem::path& p) {
+  fd = ::open(p.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw FormatError(p.string() + ": cannot open file: " + std::strerror(errno));
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    throw FormatError(p.string() + ": not a regular file");
+  }
+  size = static_cast<std::size_t>(st.st_size);
+  if (size > 0) {
+    void* m = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
+    if (m == MAP_FAILED) {
+      ::close(fd);
+      throw FormatError(p.string() + ": cannot memory-map file: " + std::strerror(errno));
+    }
+    data = static_cast<const std::uint8_t*>(m);
+  }
+}
+FileMap::~FileMap() {
+  if (data != nullptr) ::munmap(const_cast<std::uint8_t*>(data), size);
+  if (fd >= 0) ::close(fd);
 }
 
 void decompress_all(const Input& in, const LaszipVlr& vlr, const std::vector<Chunk>& chunks,

@@ -9,6 +9,7 @@
 #include "items_v3.hpp"
 
 #include <cstdint>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -112,6 +113,18 @@ struct LasHeaderLite {
 };
 /// Parses and bounds-checks the header, VLR and EVLR headers. Throws FormatError.
 LasHeaderLite parse_header_lite(const Input& in);
+
+/// Read-only memory map of a whole file (POSIX mmap); throws FormatError when it cannot be
+/// opened or mapped. Pages are read by the kernel on first touch.
+struct FileMap {
+  int fd = -1;
+  const std::uint8_t* data = nullptr;
+  std::size_t size = 0;
+  explicit FileMap(const std::filesystem::path& p);
+  ~FileMap();
+  FileMap(const FileMap&) = delete;
+  FileMap& operator=(const FileMap&) = delete;
+};
 
 /// Decompresses all `count` records of a LAZ file into `out` (count * record_length bytes),
 /// chunks in parallel (TBB; the output is identical for any thread count).
