@@ -271,18 +271,26 @@ struct ChunkDecoder::Impl {
     }
   }
 
-  void finish() const {
+  /// A well-formed stream is consumed exactly up to its end, give or take the encoder's zero
+  /// padding (LASzip ArithmeticEncoder::done writes 2-3 bytes the decoder may not read): reading
+  /// past the end, or leaving more than kSlack bytes unread, means the stream is corrupted.
+  static constexpr std::uint64_t kSlack = 8;
+  void check_stream(const ArithmeticDecoder& d, std::uint64_t end, const std::string& what, bool strict) const {
+    if (d.overrun > 0)
+      fail(end, what + " needs " + std::to_string(d.overrun) + " bytes past its end (corrupted or truncated chunk)");
+    const auto used = static_cast<std::uint64_t>(d.position() - base);
+    if (strict && end - used > kSlack)
+      fail(used, what + " decoded all points with " + std::to_string(end - used) +
+                     " bytes left before byte " + std::to_string(end) + " (corrupted chunk or wrong point count)");
+  }
+  void finish(bool strict) const {
     if (points <= 1) return;
     if (!vlr.layered()) {
-      if (dec.overrun > 0)
-        fail(dec_end, "compressed stream ends " + std::to_string(dec.overrun) +
-                          " bytes early (corrupted or truncated chunk)");
+      check_stream(dec, dec_end, "compressed stream", strict);
       return;
     }
     for (std::size_t k = 0; k < streams.size(); ++k)
-      if (streams[k].active && streams[k].dec.overrun > 0)
-        fail(stream_end[k], "layer " + std::to_string(k) + " ends " + std::to_string(streams[k].dec.overrun) +
-                                " bytes early (corrupted or truncated chunk)");
+      if (streams[k].active) check_stream(streams[k].dec, stream_end[k], "layer " + std::to_string(k), strict);
   }
 };
 
@@ -293,7 +301,7 @@ void ChunkDecoder::start(const Input& in, std::size_t index, const Chunk& chunk,
   impl_->start(in, index, chunk, limit);
 }
 void ChunkDecoder::next(std::size_t n, std::uint8_t* out) { impl_->next(n, out); }
-void ChunkDecoder::finish() { impl_->finish(); }
+void ChunkDecoder::finish(bool strict) { impl_->finish(strict); }
 std::uint64_t ChunkDecoder::consumed_end() const {
   return static_cast<std::uint64_t>(impl_->dec.position() - impl_->base);
 }
@@ -334,7 +342,7 @@ std::vector<Chunk> walk_chunks(const Input& in, const LaszipVlr& vlr, std::uint6
       dec.start(in, chunks.size(), c, data_end);
       scratch.resize(static_cast<std::size_t>(c.points) * rec);
       dec.next(static_cast<std::size_t>(c.points), scratch.data());
-      dec.finish();
+      dec.finish(false);
       c.bytes = dec.consumed_end() - pos;
     }
     pos += c.bytes;

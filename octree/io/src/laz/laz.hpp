@@ -87,9 +87,10 @@ class ChunkDecoder {
   void start(const Input& in, std::size_t index, const Chunk& chunk, std::uint64_t limit);
   /// Decodes the next `n` records of the chunk into `out` (n * record_length bytes).
   void next(std::size_t n, std::uint8_t* out);
-  /// Checks that the streams of the finished chunk did not run past their bytes (a corrupted
-  /// stream); throws FormatError naming the chunk and the byte offset of the stream's end.
-  void finish();
+  /// Checks that the streams of the finished chunk were consumed up to their end: reading past
+  /// it, or (when `strict`) leaving more than a few padding bytes unread, means a corrupted
+  /// stream; throws FormatError naming the chunk and the byte offset.
+  void finish(bool strict = true);
   /// File offset just past the bytes the pointwise decoder consumed (to walk chunks without a
   /// table).
   [[nodiscard]] std::uint64_t consumed_end() const;
