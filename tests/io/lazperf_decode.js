@@ -1,7 +1,7 @@
 // Independent LAZ decoder for the tests and benchmarks: the npm package laz-perf (WASM, hobu),
 // run under Node. Usage: node lazperf_decode.js <node_modules dir> <in.laz> [<out.records>]
 // Decodes every point with laz-perf's LASZip reader, writes the raw point records to
-// out.records (when given) and prints "<count> <record length> <decode milliseconds>".
+// out.records (when given) and prints "<count> <record length> <decode wall ms> <decode CPU ms>".
 const fs = require('fs');
 const path = require('path');
 const [modules, input, output] = process.argv.slice(2);
@@ -14,6 +14,7 @@ const { createLazPerf } = require(path.join(modules, 'laz-perf'));
   lp.HEAPU8.set(file, filePtr);
   const laszip = new lp.LASZip();
   const t0 = process.hrtime.bigint();
+  const c0 = process.cpuUsage();
   laszip.open(filePtr, file.length);
   const count = laszip.getCount();
   const len = laszip.getPointLength();
@@ -24,8 +25,10 @@ const { createLazPerf } = require(path.join(modules, 'laz-perf'));
     if (out) out.set(lp.HEAPU8.subarray(pt, pt + len), i * len);
   }
   const ms = Number(process.hrtime.bigint() - t0) / 1e6;
+  const cpu = process.cpuUsage(c0);
+  const cpuMs = (cpu.user + cpu.system) / 1e3;
   if (out) fs.writeFileSync(output, out);
-  console.log(`${count} ${len} ${ms.toFixed(1)}`);
+  console.log(`${count} ${len} ${ms.toFixed(1)} ${cpuMs.toFixed(1)}`);
   laszip.delete();
   lp._free(pt);
   lp._free(filePtr);
