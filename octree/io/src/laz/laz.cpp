@@ -158,6 +158,8 @@ struct ChunkDecoder::Impl {
     const std::uint64_t end = c.bytes != 0 ? c.offset + c.bytes : limit;
     if (end > in.size() || c.offset > end) fail(c.offset, "chunk runs past the end of the file");
     if (c.points == 0) return;
+    if (c.points / kMaxPointsPerByte > end - c.offset)
+      fail(c.offset, std::to_string(c.points) + " points cannot be coded in " + std::to_string(end - c.offset) + " bytes");
     if (end - c.offset < rec_len)
       fail(c.offset, "chunk of " + std::to_string(end - c.offset) + " bytes cannot hold its first " +
                          std::to_string(rec_len) + "-byte record");
