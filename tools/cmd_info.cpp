@@ -5,6 +5,7 @@
 
 #include "rayscan/io/cloud_stats.hpp"
 #include "rayscan/io/index_file.hpp"
+#include "rayscan/io/copc.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/io/point_reader.hpp"
 
@@ -107,7 +108,7 @@ Runner add_info_command(CLI::App& app) {
                                          "counts, recomputed bounds, attributes and their ranges, CRS");
   auto file = std::make_shared<std::string>();
   auto json = std::make_shared<bool>(false);
-  sub->add_option("FILE", *file, "point cloud file (.las .ply .pcd .xyz .csv .txt .f64) or index file (.rsi)")->required();
+  sub->add_option("FILE", *file, "point cloud file (.las .laz .copc.laz .ply .pcd .xyz .csv .txt .f64) or index file (.rsi)")->required();
   sub->add_flag("--json", *json, "print one JSON object instead of text");
   auto verify = std::make_shared<bool>(false);
   sub->add_flag("--verify", *verify, "index files: verify the checksum of every section");
@@ -175,7 +176,15 @@ Runner add_info_command(CLI::App& app) {
       for (const io::VlrInfo& v : info.vlrs)
         vl.push_back({{"user_id", v.user_id}, {"record_id", v.record_id}, {"description", v.description},
                       {"length", v.length}, {"offset", v.offset}, {"extended", v.extended}});
-      if (info.format == "LAS") j["vlrs"] = vl;
+      if (info.format == "LAS" || info.format == "LAZ" || info.format == "COPC") j["vlrs"] = vl;
+      if (info.format == "COPC") {
+        const io::CopcInfo c = io::read_copc_info(*file);
+        const AABB cube = c.node_cube(io::CopcNode{});
+        j["copc"] = {{"root_cube", {{"min", vec_json(cube.lo)}, {"max", vec_json(cube.hi)}}},
+                     {"spacing", c.spacing}, {"depth", c.depth}, {"nodes", c.nodes.size()},
+                     {"hierarchy_pages", c.hierarchy_pages}, {"nodes_per_level", c.nodes_per_level},
+                     {"points_per_level", c.points_per_level}};
+      }
       j["comments"] = info.comments;
       j["notes"] = info.notes;
       std::cout << j.dump(2) << "\n";
@@ -243,6 +252,15 @@ Runner add_info_command(CLI::App& app) {
       for (const io::VlrInfo& v : info.vlrs)
         o << "  " << (v.extended ? "EVLR " : "VLR  ") << v.user_id << " " << v.record_id << " \"" << v.description
           << "\" " << v.length << " bytes\n";
+    }
+    if (info.format == "COPC") {
+      const io::CopcInfo c = io::read_copc_info(*file);
+      const AABB cube = c.node_cube(io::CopcNode{});
+      o << "COPC octree:       root cube " << num(cube.lo.x) << " " << num(cube.lo.y) << " " << num(cube.lo.z) << " / "
+        << num(cube.hi.x) << " " << num(cube.hi.y) << " " << num(cube.hi.z) << ", spacing " << num(c.spacing)
+        << ", depth " << c.depth << ", " << c.nodes.size() << " nodes in " << c.hierarchy_pages << " hierarchy page(s)\n";
+      for (std::size_t l = 0; l < c.nodes_per_level.size(); ++l)
+        o << "  level " << l << ": " << c.nodes_per_level[l] << " nodes, " << c.points_per_level[l] << " points\n";
     }
     for (const std::string& c : info.comments) o << "comment:           " << c << "\n";
     for (const std::string& n : info.notes) o << "note:              " << n << "\n";

@@ -290,7 +290,7 @@ int run_visibility(const VisibilityCli& o) {
   if (!o.out.empty()) {
     if (lower_ext(o.out) == ".las") {
       io::LasWriteOptions lo;
-      if (info.format == "LAS" && info.scale && info.offset) {  // keep the source's integer grid
+      if ((info.format == "LAS" || info.format == "LAZ" || info.format == "COPC") && info.scale && info.offset) {  // keep the source's integer grid
         lo.scale = *info.scale;
         lo.offset = *info.offset;
         lo.has_offset = true;

@@ -26,5 +26,6 @@ Runner add_info_command(CLI::App& app);
 Runner add_compare_command(CLI::App& app);
 Runner add_visibility_command(CLI::App& app);
 Runner add_index_command(CLI::App& app);
+Runner add_translate_command(CLI::App& app);
 
 }  // namespace rayscan::cli

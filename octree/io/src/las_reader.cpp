@@ -3,12 +3,14 @@
 // point data record formats 0-10: 2.6 (tables 7-17); Extra Bytes VLR: 2.5.6 (table 24);
 // CRS: 2.5.1 (OGC WKT VLR 2112) and 2.5.2 (GeoKeyDirectoryTag 34735).
 #include "readers.hpp"
+#include "laz/laz.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 namespace rayscan::io::detail {
@@ -122,14 +124,27 @@ void decode(const Decoder& dc, std::size_t i0, std::size_t i1, Reduction& red) {
   }
 }
 
+/// The LASzip VLR (LASzip laszip.cpp; docs/formats.md "LAZ"): its presence, not the file
+/// extension, makes a file LAZ.
 bool is_laszip_vlr(const std::string& user, std::uint16_t id) {
-  return (user == "laszip encoded" && id == 22204) || (user == "copc" && id == 1);
+  return user == "laszip encoded" && id == 22204;
 }
+/// The COPC info VLR (COPC 1.0 specification, "copc" record 1).
+bool is_copc_vlr(const std::string& user, std::uint16_t id) { return user == "copc" && id == 1; }
 
-[[noreturn]] void refuse_compressed(const Input& in, std::uint64_t off, const std::string& why) {
-  fail_at(in.name, off,
-          why + ": LAZ/COPC compressed point data is not supported; convert it first, e.g. "
-                "`pdal translate in.laz out.las` or `laszip -i in.laz -o out.las`");
+/// LAZ layers (laz::kLayer*) a chunk decoder must decode for the attributes a reader delivers:
+/// X, Y, Z always; the rest only when asked (issue 11 section 1.3: xyz must not pay for RGB,
+/// GPS time or extra bytes). Layered chunks (PDRF 6-10) honour this; pointwise ones decode all.
+std::uint32_t laz_layers(AttributeSet a) {
+  std::uint32_t l = laz::kLayerZ;
+  if (a.has(Attribute::rgb)) l |= laz::kLayerRgb;
+  if (a.has(Attribute::intensity)) l |= laz::kLayerIntensity;
+  if (a.has(Attribute::classification)) l |= laz::kLayerClassification;
+  if (a.has(Attribute::gps_time)) l |= laz::kLayerGpsTime;
+  if (a.has(Attribute::scalars))
+    l |= laz::kLayerFlags | laz::kLayerScanAngle | laz::kLayerUserData | laz::kLayerPointSource |
+         laz::kLayerNir | laz::kLayerExtraBytes;
+  return l;
 }
 
 }  // namespace
@@ -137,7 +152,10 @@ bool is_laszip_vlr(const std::string& user, std::uint16_t id) {
 namespace {
 
 /// The chunked LAS reader: the header, VLRs, EVLRs and Extra Bytes descriptors are parsed and
-/// validated at open (parse() below); read() decodes the next block of records in parallel.
+/// validated at open (parse() below); read() decodes the next block of records in parallel. LAZ
+/// (LASzip VLR): read() first decompresses the chunks holding the block into a window of records
+/// (laz::ChunkDecoder, chunks in parallel, only the layers the attributes need), then decodes
+/// the records as for LAS; memory is the window, about max_points records plus one chunk.
 class LasReader final : public PointReader {
  public:
   LasReader(std::shared_ptr<Source> src, AttributeSet attrs, const ReadOptions& opt)
@@ -157,6 +175,9 @@ class LasReader final : public PointReader {
  private:
   void parse(const Input& in, const ReadOptions& opt);
   void setup(AttributeSet attrs, const ReadOptions& opt);
+  /// LAZ: makes records [first, first + n) available (decoding whole chunks into window_, in
+  /// parallel over chunks) and returns a pointer to record `first`; n <= points of the window.
+  const std::uint8_t* laz_records(std::uint64_t first, std::size_t n, std::uint32_t layers);
 
   std::shared_ptr<Source> src_;
   FileInfo info_;
@@ -171,7 +192,59 @@ class LasReader final : public PointReader {
   std::vector<std::string> scalar_names_;
   bool scalars_ = false, has_gps_ = false, has_rgb_ = false, has_nir_ = false;
   std::uint16_t rgb_mul_ = 1;  // 257 when the file stores 8-bit colour
+  // LAZ (LASzip VLR present): chunks are decoded on demand into a window of records.
+  bool laszip_ = false;
+  laz::LaszipVlr lazvlr_;
+  std::vector<laz::Chunk> chunks_;
+  std::vector<std::uint8_t> window_;         // decoded records of chunks [win_c0_, win_c1_)
+  std::size_t win_c0_ = 0, win_c1_ = 0;
+  std::uint64_t win_first_ = 0, win_points_ = 0;
+  std::uint32_t win_layers_ = 0;
 };
+
+const std::uint8_t* LasReader::laz_records(std::uint64_t first, std::size_t n, std::uint32_t layers) {
+  const bool hit = win_layers_ == layers && win_c1_ > win_c0_ && first >= win_first_ &&
+                   first + n <= win_first_ + win_points_;
+  if (!hit) {
+    // The chunk holding `first` (chunks are in file order, first_point increasing).
+    auto it = std::upper_bound(chunks_.begin(), chunks_.end(), first,
+                               [](std::uint64_t v, const laz::Chunk& c) { return v < c.first_point; });
+    std::size_t c0 = static_cast<std::size_t>(it - chunks_.begin()) - 1;
+    std::size_t c1 = c0;
+    std::uint64_t pts = 0;
+    while (c1 < chunks_.size() && chunks_[c0].first_point + pts < first + n) pts += chunks_[c1++].points;
+    const std::size_t rec = rec_len_;
+    const std::uint64_t base = chunks_[c0].first_point;
+    // Chunks already decoded at the end of the previous window (a read ending inside a chunk)
+    // move to the front instead of being decoded again.
+    std::size_t have = c0;
+    if (win_layers_ == layers && c0 >= win_c0_ && c0 < win_c1_) {
+      const std::size_t keep = static_cast<std::size_t>(win_first_ + win_points_ - base) * rec;
+      std::memmove(window_.data(), window_.data() + (base - win_first_) * rec, keep);
+      have = win_c1_;
+    }
+    win_c0_ = win_c1_ = 0;  // the window is invalid until the decode below succeeds
+    resize_huge(window_, static_cast<std::size_t>(pts) * rec);
+    std::vector<std::string> errors(c1 - c0);
+    const Input& in = src_->in;
+    tbb::parallel_for(std::max(have, c0), c1, [&](std::size_t i) {
+      try {
+        laz::ChunkDecoder dec(lazvlr_, layers);
+        const laz::Chunk& c = chunks_[i];
+        dec.start(in, i, c, c.offset + c.bytes);
+        dec.next(static_cast<std::size_t>(c.points), window_.data() + (c.first_point - base) * rec);
+        dec.finish();
+      } catch (const FormatError& e) {
+        errors[i - c0] = e.what();
+      }
+    });
+    for (const std::string& e : errors)  // the first failing chunk in file order
+      if (!e.empty()) throw FormatError(e);
+    in.done(chunks_[c1 - 1].offset + chunks_[c1 - 1].bytes);
+    win_c0_ = c0, win_c1_ = c1, win_first_ = base, win_points_ = pts, win_layers_ = layers;
+  }
+  return window_.data() + (first - win_first_) * rec_len_;
+}
 
 void LasReader::parse(const Input& in, const ReadOptions& opt) {
   FileInfo& info = info_;
@@ -236,10 +309,18 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
   std::uint64_t geokeys_len = 0;
   const std::uint8_t* extra_vlr = nullptr;
   std::uint64_t extra_len = 0;
-  bool laszip = false;
+  bool laszip = false, copc = false;
+  const std::uint8_t* laszip_payload = nullptr;
+  std::uint64_t laszip_len = 0, laszip_at = 0;
   auto note_vlr = [&](const VlrInfo& v, const std::uint8_t* payload) {
     info.vlrs.push_back(v);
-    if (is_laszip_vlr(v.user_id, v.record_id)) laszip = true;
+    if (is_laszip_vlr(v.user_id, v.record_id) && !v.extended) {
+      laszip = true;
+      laszip_payload = payload;
+      laszip_len = v.length;
+      laszip_at = v.offset + 54;
+    }
+    if (is_copc_vlr(v.user_id, v.record_id)) copc = true;
     if (v.user_id == "LASF_Projection" && v.record_id == 2112) {
       wkt_vlr = payload;
       wkt_len = v.length;
@@ -296,11 +377,14 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
       ep += 60 + v.length;
     }
   }
-  // LAZ (LASzip sets bit 7, historically also bit 6, of the PDRF byte) and COPC are refused.
-  if ((pdrf_raw & 0xC0) != 0)
-    refuse_compressed(in, 104, "point data record format byte " + std::to_string(pdrf_raw) +
-                                   " has the compression bit set");
-  if (laszip) refuse_compressed(in, header_size, "file has a LASzip/COPC VLR");
+  // LAZ: the LASzip VLR decides (LASzip also sets bit 7, historically bit 6, of the PDRF byte).
+  if ((pdrf_raw & 0xC0) != 0 && !laszip)
+    fail_at(nm, 104, "point data record format byte " + std::to_string(pdrf_raw) +
+                         " has the LAZ compression bit set but the file has no LASzip VLR "
+                         "(\"laszip encoded\", record 22204)");
+  if (laszip && (pdrf_raw & 0xC0) == 0)
+    info.notes.push_back("LASzip VLR present but the compression bits of the PDRF byte are clear: read as LAZ");
+  if (laszip) info.format = copc ? "COPC" : "LAZ";
   if (pdrf > 10)
     fail_at(nm, 104, "point data record format " + std::to_string(pdrf) + " (expected 0 to 10)");
   const int need_len = pdrf_length(pdrf);
@@ -320,7 +404,13 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
   std::uint64_t data_end = in.size();
   if (n_evlr > 0 && evlr_start >= point_offset) data_end = std::min<std::uint64_t>(data_end, evlr_start);
   const std::uint64_t avail = data_end - point_offset;
-  if (count > avail / rec_len)
+  if (laszip) {
+    // LAZ: the chunk table bounds the count (chunk point counts must add up to it, each checked
+    // against its bytes before decoding); chunks are decoded on demand by read().
+    lazvlr_ = laz::parse_laszip_vlr(laszip_payload, laszip_len, nm, laszip_at, pdrf, rec_len);
+    chunks_ = laz::read_chunk_table(in, lazvlr_, point_offset, data_end, count, info.notes);
+    laszip_ = true;
+  } else if (count > avail / rec_len)
     fail_at(nm, vmin >= 4 ? 247 : 107,
             "header announces " + std::to_string(count) + " points of " + std::to_string(rec_len) +
                 " bytes from byte " + std::to_string(point_offset) + " but only " +
@@ -434,7 +524,35 @@ void LasReader::setup(AttributeSet want, const ReadOptions& opt) {
   // Colour normalisation (docs/formats.md) is a whole-file decision: 8-bit values stored in the
   // 16-bit fields are scaled by 257; a colour format whose channels are all zero carries no
   // colour and is dropped. A streaming reader therefore scans the colour fields once at open.
-  if (attrs_.has(Attribute::rgb) && count_ > 0) {
+  if (attrs_.has(Attribute::rgb) && count_ > 0 && laszip_) {
+    // LAZ: one pass over the chunks decoding only X/Y/RGB (layered chunks), stopped as soon as a
+    // value above 255 shows the colour is 16-bit (usually in the first window).
+    const int off = pdrf_rgb_offset(pdrf_);
+    std::uint16_t mx = 0;
+    const std::size_t step = std::max<std::size_t>(1, (16u << 20) / rec_len_);
+    for (std::uint64_t p = 0; p < count_ && mx <= 255;) {
+      const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(step, count_ - p));
+      const std::uint8_t* base = laz_records(p, n, laz::kLayerRgb);
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::uint8_t* r = base + i * rec_len_ + off;
+        mx = std::max({mx, load_le<std::uint16_t>(r), load_le<std::uint16_t>(r + 2),
+                       load_le<std::uint16_t>(r + 4)});
+      }
+      p += n;
+    }
+    window_.clear();
+    window_.shrink_to_fit();
+    win_c0_ = win_c1_ = 0;
+    win_points_ = 0;
+    if (mx == 0) {
+      attrs_ = AttributeSet{attrs_.bits & ~static_cast<std::uint32_t>(Attribute::rgb)};
+      info_.notes.push_back("RGB fields present but all zero: colour dropped");
+    } else if (mx <= 255) {
+      rgb_mul_ = 257;
+      info_.notes.push_back("RGB stored as 8-bit values (max " + std::to_string(mx) +
+                            ") in 16-bit fields: scaled by 257");
+    }
+  } else if (attrs_.has(Attribute::rgb) && count_ > 0) {
     const std::uint8_t* base = src_->in.bytes.data() + point_offset_;
     const int off = pdrf_rgb_offset(pdrf_);
     const std::size_t block = std::max<std::size_t>(1, (16u << 20) / rec_len_);
@@ -507,7 +625,9 @@ std::size_t LasReader::read(PointCloud& pc, std::size_t max_points) {
   // Records [next_, next_ + n) decoded into chunk slots [0, n): the decoder's base pointer is the
   // first record of the chunk.
   const Input& in = src_->in;
-  Decoder dec{in.bytes.data() + point_offset_ + next_ * rec_len_, rec_len_, scale_, offset_,
+  const std::uint8_t* first_rec = laszip_ ? laz_records(next_, n, laz_layers(attrs_))
+                                          : in.bytes.data() + point_offset_ + next_ * rec_len_;
+  Decoder dec{first_rec, rec_len_, scale_, offset_,
               pdrf_ >= 6 ? 22 : 20, pdrf_rgb_offset(pdrf_), &extras_, out};
   using DecodeFn = void (*)(const Decoder&, std::size_t, std::size_t, Reduction&);
   DecodeFn fn = nullptr;
@@ -538,7 +658,7 @@ std::size_t LasReader::read(PointCloud& pc, std::size_t max_points) {
       fail_at(in.name, point_offset_ + (next_ + r.first_bad) * rec_len_,
               "point " + std::to_string(next_ + r.first_bad) +
                   ": coordinate overflows to infinity (scale/offset)");
-    in.done(point_offset_ + (next_ + b1) * rec_len_);
+    if (!laszip_) in.done(point_offset_ + (next_ + b1) * rec_len_);
   }
   if (rgb_mul_ != 1)
     for (Rgb16& c : pc.rgb) {

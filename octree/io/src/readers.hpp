@@ -35,7 +35,8 @@ struct Source {
   Input in;
 };
 
-/// ASPRS LAS 1.0-1.4 (R15) chunked reader; refuses LAZ/COPC. See las_reader.cpp.
+/// ASPRS LAS 1.0-1.4 (R15) chunked reader, also for LAZ and COPC (LASzip VLR present): LAZ
+/// chunks are decoded on demand, only the layers the attributes need. See las_reader.cpp.
 std::unique_ptr<PointReader> open_las(std::shared_ptr<Source> src, AttributeSet attrs,
                                       const ReadOptions& opt);
 /// PLY 1.0 ascii / binary_little_endian / binary_big_endian. See ply_reader.cpp.

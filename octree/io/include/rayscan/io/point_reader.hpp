@@ -71,9 +71,9 @@ struct AttributeSet {
 ///  - Errors: read() and open throw FormatError, one line naming the file and the byte offset or
 ///    line. After an exception the reader must not be used again.
 ///
-/// Implementing a new format (e.g. LAZ/COPC): derive from PointReader, parse the header in the
-/// constructor, decode lazily in read(), and add the extension to format_from_extension() and a
-/// case in open_point_reader() (point_reader.cpp). Not thread-safe; one reader per thread.
+/// LAZ/COPC go through the LAS reader (las_reader.cpp). A new format: derive from PointReader,
+/// parse the header in the constructor, decode lazily in read(), add the extension to
+/// format_from_extension() and a case in open_point_reader(). Not thread-safe; one per thread.
 class PointReader {
  public:
   virtual ~PointReader() = default;
