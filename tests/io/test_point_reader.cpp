@@ -83,6 +83,20 @@ TEST(PointReader, ChunksOfAnySizeEqualTheWholeRead) {
   }
 }
 
+// LAZ through the LAS reader, chunk by chunk (reads crossing LAZ chunk boundaries): every value
+// equals the plain LAS file holding the same records (shared data README: autzen_trim.laz is
+// autzen_trim.las compressed).
+TEST(PointReader, LazChunksEqualTheSameLas) {
+  RAYSCAN_REQUIRE_FILE(las, "las/autzen_trim.las");
+  RAYSCAN_REQUIRE_FILE(laz, "laz/autzen_trim.laz");
+  const PointCloud whole = io::read_point_cloud(las);
+  for (std::size_t chunk : {std::size_t{4093}, std::size_t{70001}}) {
+    auto r = io::open_point_reader(laz);
+    EXPECT_EQ(r->info().format, "LAZ");
+    expect_same(read_chunked(*r, chunk), whole, "autzen_trim.laz chunk " + std::to_string(chunk));
+  }
+}
+
 TEST(PointReader, AttributeSubsetKeepsPositionsAndOnlyTheAskedAttributes) {
   for (const fs::path& p : all_data_files()) {
     const PointCloud whole = io::read_point_cloud(p);
