@@ -2,12 +2,14 @@
 #include "rayscan/render/render_job.hpp"
 
 #include "rayscan/io/camera_file.hpp"
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/render/material.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <utility>
 
 namespace rayscan::render {
@@ -77,7 +79,16 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   // Only positions, colour, intensity and classification are used: skip the other scalars.
   auto t0 = std::chrono::steady_clock::now();
   PointCloud owned;
-  if (!o.cloud) owned = load_cloud(scene, io::ReadOptions{.scalars = false});
+  // An index file (.rsi): the tree is mapped, not built; centres and colours come from its stored
+  // points in original order (MappedIndex::to_point_cloud).
+  std::optional<io::MappedIndex> mapped;
+  if (!o.cloud && io::is_index_file(scene.cloud)) {
+    mapped.emplace(io::MappedIndex::open(scene.cloud));
+    owned = mapped->to_point_cloud();
+    if (owned.empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
+  } else if (!o.cloud) {
+    owned = load_cloud(scene, io::ReadOptions{.scalars = false});
+  }
   else if (o.cloud->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
   const PointCloud& cloud = o.cloud ? *o.cloud : owned;
   r.points = cloud.size();
@@ -95,6 +106,7 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   }
   t0 = std::chrono::steady_clock::now();
   AnyIndex index = [&] {
+    if (mapped) return AnyIndex(BruteForceIndex(std::span<const Vec3>{}));  // unused: the mapped tree is
     try {
       return make_index(cloud.positions, scene.index);
     } catch (const std::invalid_argument& e) {
@@ -102,10 +114,16 @@ RenderJobResult run_render(const RenderJobOptions& o) {
     }
   }();
   r.index_seconds = seconds_since(t0);
-  std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), r.index_seconds);
+  if (mapped)
+    std::snprintf(buf, sizeof buf, "mapped index file %s (%zu nodes)", scene.cloud.string().c_str(),
+                  static_cast<std::size_t>(mapped->node_count()));
+  else
+    std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), r.index_seconds);
   ctl.info(buf);
   try {
-    r.radius = choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor);
+    r.radius = mapped ? choose_radius(scene.radius, scene.auto_radius_factor,
+                                      [&] { return median_nn_spacing_of(*mapped, cloud.positions); })
+                      : choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor);
   } catch (const std::invalid_argument& e) {
     throw SceneError(f + ": /radius: " + e.what());
   }
@@ -122,7 +140,7 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   RenderOptions ropt;
   ropt.threads = ctl.threads;
   ropt.progress = &progress;
-  r.stats = render_image(index, settings, r.image, ropt);
+  r.stats = mapped ? render_image(*mapped, settings, r.image, ropt) : render_image(index, settings, r.image, ropt);
 
   r.metadata = {{"rayscan:scene", scene.file.string()},
                 {"rayscan:cloud", o.cloud ? std::string("(memory)") : scene.cloud.string()},
