@@ -1,5 +1,6 @@
 // The index file (.rsi): external-memory build and memory-mapped open. Layout: docs/index-format.md.
 #include "rayscan/io/index_file.hpp"
+#include "rayscan/input_file.hpp"
 
 #include "rayscan/atomic_file.hpp"
 #include "readers.hpp"
@@ -751,11 +752,16 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   x.path_ = path;
   x.map_ = std::make_unique<Map>();
   Map& m = *x.map_;
-  m.fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  // The input policy (rayscan/input_file.hpp): regular files only, opened without blocking.
+  std::uint64_t size = 0;
+  try {
+    InputFile in(path);
+    size = in.size();
+    m.fd = ::dup(in.fd());
+  } catch (const InputFileError& e) {
+    throw IndexError(e.what());
+  }
   if (m.fd < 0) throw IndexError(nm + ": cannot open index file: " + std::strerror(errno));
-  struct stat st {};
-  if (::fstat(m.fd, &st) != 0 || !S_ISREG(st.st_mode)) throw IndexError(nm + ": not a regular file");
-  const std::uint64_t size = static_cast<std::uint64_t>(st.st_size);
   if (size < kHeaderBytes)
     fail(size, "file of " + std::to_string(size) + " bytes is shorter than the " + std::to_string(kHeaderBytes) +
                    "-byte index header (truncated or not an index)");
