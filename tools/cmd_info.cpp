@@ -1,5 +1,6 @@
-// `rayscan info FILE [--json]`: what `pdal info` reports for a point cloud file. The job is
-// io::run_info (rayscan/io/info_job.hpp); this file parses options and prints.
+// `rayscan info FILE [--json] [--verify]`: what `pdal info` reports for a point cloud file (streamed
+// chunk by chunk) or an index file (.rsi). The job is io::run_info (rayscan/io/info_job.hpp); this
+// file parses options and prints.
 #include "commands.hpp"
 
 #include "rayscan/io/info_job.hpp"
@@ -14,11 +15,16 @@ Runner add_info_command(CLI::App& app) {
                                          "counts, recomputed bounds, attributes and their ranges, CRS");
   auto file = std::make_shared<std::string>();
   auto json = std::make_shared<bool>(false);
-  sub->add_option("FILE", *file, "point cloud file (.las .ply .pcd .xyz .csv .txt .f64)")->required();
+  auto verify = std::make_shared<bool>(false);
+  sub->add_option("FILE", *file,
+                  "point cloud file (.las .laz .copc.laz .ply .pcd .xyz .csv .txt .f64) or index file (.rsi)")
+      ->required();
   sub->add_flag("--json", *json, "print one JSON object instead of text");
-  return [file, json]() -> int {
+  sub->add_flag("--verify", *verify, "index files: verify the checksum of every section");
+  return [file, json, verify]() -> int {
     io::InfoJobOptions job;
     job.file = *file;
+    job.verify = *verify;
     const io::InfoJobResult r = io::run_info(job);
     std::cout << (*json ? io::info_report_json(r) + "\n" : io::info_report_text(r));
     return 0;

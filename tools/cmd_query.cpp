@@ -49,7 +49,7 @@ int run_query(const QueryOptions& o) {
   job.index = o.index;
   const io::QueryJobResult r = io::run_query(job);
   AtomicOutput out(o.out);
-  io::write_hits_csv(out.stream(), r.cloud.positions, r.hits);
+  io::write_hits_csv(out.stream(), r);
   out.commit();
   return 0;
 }
@@ -62,7 +62,7 @@ Runner add_query_command(CLI::App& app) {
       "query", "Ray query (paper Algorithm 1): points near rays, ordered by distance to the ray, "
                "time along it, or first sphere hit. Writes CSV ray,rank,index,x,y,z,t,distance; t is "
                "the projection parameter (orders ray/time) or the sphere entry (sphere_hit).");
-  c->add_option("--cloud", o->cloud, "Point cloud file (any supported format)")->required();
+  c->add_option("--cloud", o->cloud, "Point cloud file (any supported format) or index file (.rsi; --index options then come from the file)")->required();
   c->add_option("--rays", o->rays,
                 "Rays: CSV with header ox,oy,oz,dx,dy,dz, or .f64 (6 little-endian float64 per ray)")
       ->required();

@@ -8,7 +8,7 @@ PKGS=(
   libopenimageio-dev openimageio-tools libopenexr-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libnanoflann-dev libboost-dev libembree-dev
-  liblzf-dev libgdal-dev gdal-bin
+  liblzf-dev libgdal-dev gdal-bin zlib1g-dev
   clang libclang-rt-14-dev
   fonts-dejavu-core
   cloudcompare xvfb xauth

@@ -7,6 +7,7 @@
 #include "rayscan/atomic_file.hpp"
 #include "rayscan/file_names.hpp"
 #include "rayscan/io/camera_file.hpp"
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <nlohmann/json.hpp>
@@ -113,6 +114,9 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   auto t0 = std::chrono::steady_clock::now();
   r.source = o.cloud ? std::string("(memory)") : o.cloud_file.string();
   if (o.cloud) r.cloud = *o.cloud;
+  // An index file (.rsi) gives its points in the sources' original order (tiles concatenated in
+  // build order), so the per-point fields line up with the sources; the tree is rebuilt in memory.
+  else if (io::is_index_file(o.cloud_file)) r.cloud = io::MappedIndex::open(o.cloud_file).to_point_cloud();
   else r.cloud = io::read_point_cloud(o.cloud_file, {}, &r.info);
   PointCloud& cloud = r.cloud;
   if (cloud.empty()) throw invalid_argument(r.source + ": the point cloud has no points");
@@ -218,7 +222,8 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   if (!o.out.empty()) {
     if (lower_extension(o.out) == ".las") {
       io::LasWriteOptions lo;
-      if (r.info.format == "LAS" && r.info.scale && r.info.offset) {  // keep the source's integer grid
+      if ((r.info.format == "LAS" || r.info.format == "LAZ" || r.info.format == "COPC") && r.info.scale &&
+          r.info.offset) {  // keep the source's integer grid
         lo.scale = *r.info.scale;
         lo.offset = *r.info.offset;
         lo.has_offset = true;

@@ -47,27 +47,41 @@ Octree& Octree::operator=(Octree&&) noexcept = default;
 namespace {
 
 constexpr std::uint32_t kCells = 1u << kMortonBits;
-
-struct Quantizer {
-  Vec3 lo;
-  double scale;  // cells per world unit
-  std::uint64_t code(const Vec3& p) const {
-    auto q = [&](double v, double l) {
-      const double f = (v - l) * scale;  // truncation == floor for f >= 0
-      if (!(f >= 0.0)) return std::uint32_t{0};
-      if (f >= kCells - 1) return kCells - 1;
-      return static_cast<std::uint32_t>(f);
-    };
-    return morton_encode(q(p.x, lo.x), q(p.y, lo.y), q(p.z, lo.z));
-  }
-};
-
-// Octant digit of a 63-bit Morton code when descending from `depth` to depth + 1.
-inline unsigned octant(std::uint64_t code, unsigned depth) {
-  return static_cast<unsigned>((code >> (3 * (kMortonBits - depth - 1))) & 7u);
-}
+using Quantizer = OctreeRules::Quantizer;
+inline unsigned octant(std::uint64_t code, unsigned depth) { return OctreeRules::octant(code, depth); }
 
 }  // namespace
+
+double OctreeRules::root_side(const AABB& bounds) {
+  if (bounds.empty()) return 1.0;
+  const double side = bounds.max_extent();
+  return side > 0.0 ? side * (1.0 + 1e-9) : 1.0;
+}
+
+AABB OctreeRules::root_cell(const AABB& bounds) {
+  const Vec3 lo = bounds.empty() ? Vec3(0.0) : bounds.lo;
+  return AABB{lo, lo + Vec3(root_side(bounds))};
+}
+
+OctreeRules::Quantizer::Quantizer(const Vec3& corner, double side) : lo(corner), scale(kCells / side) {}
+
+bool OctreeRules::splits(const OctreeConfig& c, unsigned depth, std::size_t count, bool all_same) {
+  switch (c.layout) {
+    case OctreeLayout::fixed: return depth < c.depth;
+    case OctreeLayout::adaptive: return count > c.capacity && depth < c.max_depth && !all_same;
+    case OctreeLayout::layered: return count > c.capacity && depth < c.max_depth;
+  }
+  return false;
+}
+
+// Round to float, then step one float ulp outwards, which is far more than the double rounding of
+// the offset and of adding it back to the corner, so the stored box always contains the points.
+float OctreeRules::float_bound(double off, bool up) {
+  if (off == 0.0) return 0.0f;
+  const float f = static_cast<float>(off);
+  return std::nextafter(f, up ? std::numeric_limits<float>::infinity()
+                              : -std::numeric_limits<float>::infinity());
+}
 
 // Shared by both builders: validation, the root cell and the Morton codes.
 struct OctreeBuilder {
@@ -85,11 +99,8 @@ struct OctreeBuilder {
                                     " has a non-finite coordinate");
       b.expand(p);
     }
-    if (b.empty()) b = AABB{Vec3(0.0), Vec3(0.0)};
-    double side = b.max_extent();
-    side = side > 0.0 ? side * (1.0 + 1e-9) : 1.0;
-    t.cell_ = AABB{b.lo, b.lo + Vec3(side)};
-    const Quantizer qz{b.lo, kCells / side};
+    t.cell_ = OctreeRules::root_cell(b);
+    const Quantizer qz(t.cell_.lo, OctreeRules::root_side(b));
     codes.resize(pts.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pts.size(), 1 << 16),
                       [&](const tbb::blocked_range<std::size_t>& r) {
@@ -98,12 +109,7 @@ struct OctreeBuilder {
   }
 
   static bool splits(const OctreeConfig& c, unsigned depth, std::size_t count, bool all_same) {
-    switch (c.layout) {
-      case OctreeLayout::fixed: return depth < c.depth;
-      case OctreeLayout::adaptive: return count > c.capacity && depth < c.max_depth && !all_same;
-      case OctreeLayout::layered: return count > c.capacity && depth < c.max_depth;
-    }
-    return false;
+    return OctreeRules::splits(c, depth, count, all_same);
   }
 
   // Append the points `idx` (already in (code, index) order) as the own points of node n.
@@ -121,12 +127,7 @@ struct OctreeBuilder {
   // A float bound strictly below (up = false) or above (up = true) the double offset `off`: round to
   // float, then step one float ulp outwards, which is far more than the double rounding of the
   // offset and of adding it back to the corner, so the stored box always contains the points.
-  static float to_float_bound(double off, bool up) {
-    if (off == 0.0) return 0.0f;
-    const float f = static_cast<float>(off);
-    return std::nextafter(f, up ? std::numeric_limits<float>::infinity()
-                                : -std::numeric_limits<float>::infinity());
-  }
+  static float to_float_bound(double off, bool up) { return OctreeRules::float_bound(off, up); }
 
   // Bounds of the node's own points and children (children are closed first).
   static void close_node(Octree& t, Octree::Node n, unsigned depth) {
@@ -347,7 +348,7 @@ std::optional<Octree::Node> Octree::find(OctreeNodeId id) const {
 
 std::optional<Octree::Node> Octree::locate(const Vec3& p) const {
   if (nodes_.empty() || !cell_.contains(p)) return std::nullopt;
-  const Quantizer qz{cell_.lo, kCells / (cell_.hi.x - cell_.lo.x)};
+  const Quantizer qz(cell_.lo, cell_.hi.x - cell_.lo.x);
   const std::uint64_t code = qz.code(p);
   Node best = 0;
   for (unsigned d = 1; d <= depth_; ++d) {

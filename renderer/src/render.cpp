@@ -29,6 +29,10 @@ RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
   return s;
 }
 
+double median_nn_spacing(const io::MappedIndex& index, std::span<const Vec3> positions, std::size_t max_samples) {
+  return median_nn_spacing_of(index, positions, max_samples);
+}
+
 namespace {
 
 template <class I>
@@ -86,8 +90,10 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
 
 }  // namespace
 
-RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebuffer& fb,
-                   const RenderOptions& opt) {
+namespace {
+template <class I>
+RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuffer& fb,
+                              const RenderOptions& opt) {
   const std::uint32_t W = s.camera.width(), H = s.camera.height();
   const std::size_t n = std::size_t(W) * H;
   fb = Framebuffer{};
@@ -103,7 +109,7 @@ RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebu
       case Aov::albedo: fb.albedo.assign(n, Color(0.0f)); break;
       case Aov::cost: fb.cost.assign(n, 0.0f); break;
     }
-  const std::size_t npts = std::visit([](const auto& i) { return i.positions().size(); }, index);
+  const std::size_t npts = index.positions().size();
   if (npts != s.integrator.centers.size() || s.integrator.albedo.size() != s.integrator.centers.size())
     throw std::invalid_argument("render: index, centres and albedo sizes differ");
   if (s.spp == 0) throw std::invalid_argument("render: spp must be >= 1");
@@ -114,12 +120,24 @@ RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebu
   tbb::task_arena arena(static_cast<int>(threads));
   const auto t0 = std::chrono::steady_clock::now();
   arena.execute([&] {
-    std::visit([&](const auto& idx) { render_tiles(idx, s, fb, opt, stats); }, index);
+    render_tiles(index, s, fb, opt, stats);
   });
   stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   stats.primary_rays = std::uint64_t(n) * (s.spp + (s.aovs.empty() ? 0 : 1));
   if (opt.progress) opt.progress->finish();
   return stats;
+}
+
+}  // namespace
+
+RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebuffer& fb,
+                         const RenderOptions& opt) {
+  return std::visit([&](const auto& idx) { return render_image_impl(idx, s, fb, opt); }, index);
+}
+
+RenderStats render_image(const io::MappedIndex& index, const RenderSettings& s, Framebuffer& fb,
+                         const RenderOptions& opt) {
+  return render_image_impl(index, s, fb, opt);
 }
 
 }  // namespace rayscan::render

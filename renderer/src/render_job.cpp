@@ -3,6 +3,7 @@
 
 #include "rayscan/io/camera_file.hpp"
 #include "rayscan/render/colmap.hpp"
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/surfel_setup.hpp"
 
@@ -10,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <utility>
 
 namespace rayscan::render {
@@ -91,7 +93,16 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   // Only positions, colour, intensity and classification are used: skip the other scalars.
   auto t0 = std::chrono::steady_clock::now();
   PointCloud owned;
-  if (!o.cloud) owned = load_cloud(scene, io::ReadOptions{.scalars = false});
+  // An index file (.rsi): the tree is mapped, not built; centres and colours come from its stored
+  // points in original order (MappedIndex::to_point_cloud).
+  std::optional<io::MappedIndex> mapped;
+  if (!o.cloud && io::is_index_file(scene.cloud)) {
+    mapped.emplace(io::MappedIndex::open(scene.cloud));
+    owned = mapped->to_point_cloud();
+    if (owned.empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
+  } else if (!o.cloud) {
+    owned = load_cloud(scene, io::ReadOptions{.scalars = false});
+  }
   else if (o.cloud->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
   const PointCloud& cloud = o.cloud ? *o.cloud : owned;
   r.points = cloud.size();
@@ -111,6 +122,7 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   }
   t0 = std::chrono::steady_clock::now();
   AnyIndex index = [&] {
+    if (mapped) return AnyIndex(BruteForceIndex(std::span<const Vec3>{}));  // unused: the mapped tree is
     try {
       return make_index(cloud.positions, scene.index);
     } catch (const std::invalid_argument& e) {
@@ -118,10 +130,18 @@ RenderJobResult run_render(const RenderJobOptions& o) {
     }
   }();
   r.index_seconds = seconds_since(t0);
-  std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), r.index_seconds);
+  if (mapped)
+    std::snprintf(buf, sizeof buf, "mapped index file %s (%zu nodes)", scene.cloud.string().c_str(),
+                  static_cast<std::size_t>(mapped->node_count()));
+  else
+    std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), r.index_seconds);
   ctl.info(buf);
   SurfelAttributes surfels;
   if (scene.primitive == Primitive::surfel) {
+    // Surfel normals and radii need kNN over the built in-memory index (scene_surfels).
+    if (mapped)
+      throw SceneError(f + ": /primitive: \"surfel\" is not supported with an index file (.rsi) yet; "
+                       "render the source cloud, or use \"sphere\"");
     t0 = std::chrono::steady_clock::now();
     try {
       surfels = scene_surfels(scene, index, cloud);
@@ -140,7 +160,9 @@ RenderJobResult run_render(const RenderJobOptions& o) {
     ctl.info(buf);
   } else {
     try {
-      r.radius = choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor);
+      r.radius = mapped ? choose_radius(scene.radius, scene.auto_radius_factor,
+                                        [&] { return median_nn_spacing_of(*mapped, cloud.positions); })
+                        : choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor);
     } catch (const std::invalid_argument& e) {
       throw SceneError(f + ": /radius: " + e.what());
     }
@@ -159,7 +181,7 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   RenderOptions ropt;
   ropt.threads = ctl.threads;
   ropt.progress = &progress;
-  r.stats = render_image(index, settings, r.image, ropt);
+  r.stats = mapped ? render_image(*mapped, settings, r.image, ropt) : render_image(index, settings, r.image, ropt);
 
   r.metadata = {{"rayscan:scene", scene.file.string()},
                 {"rayscan:cloud", o.cloud ? std::string("(memory)") : scene.cloud.string()},

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (one per reader: las, ply, pcd, text) with clang++
+# Builds the libFuzzer targets (one per reader: las, ply, pcd, text, laz, copc) with clang++
 # -fsanitize=fuzzer,address and runs each for a bounded time on a corpus seeded from tests/data
 # (plus the checked-in regression inputs in tests/fuzz/regressions/<format>/).
 # Usage: tests/fuzz/run.sh [SECONDS_PER_TARGET (default 60)] [BUILD_DIR (default build-fuzz)]
@@ -17,7 +17,7 @@ FLAGS=(-std=c++20 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined
        -fno-sanitize-recover=undefined -Ioctree/include -Ioctree/io/include -I/usr/include/liblzf)
 # The whole core and io: io sources (camera files, the query job, the input policy) call into
 # the core.
-SOURCES=(octree/src/*.cpp octree/io/src/*.cpp)
+SOURCES=(octree/src/*.cpp octree/io/src/*.cpp octree/io/src/laz/*.cpp)
 JOBS="${FUZZ_JOBS:-2}"
 objs=()
 running=0
@@ -35,10 +35,10 @@ wait
 for o in "${objs[@]}"; do [ -f "$o" ] || { echo "fuzz: compiling $o failed"; exit 1; }; done
 
 status=0
-for fmt in las ply pcd text; do
+for fmt in las ply pcd text laz copc; do
   exe="$OUT/fuzz_$fmt"
   echo "fuzz: linking $exe"
-  "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer "tests/fuzz/fuzz_$fmt.cpp" "${objs[@]}" -lgdal -llzf -ltbb -o "$exe"
+  "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer "tests/fuzz/fuzz_$fmt.cpp" "${objs[@]}" -lgdal -llzf -lz -ltbb -o "$exe"
   corpus="$OUT/corpus/$fmt"
   mkdir -p "$corpus" "tests/fuzz/regressions/$fmt"
   case "$fmt" in
@@ -46,6 +46,8 @@ for fmt in las ply pcd text; do
     ply) seeds=(tests/data/ply/*.ply) ;;
     pcd) seeds=(tests/data/pcd/*.pcd) ;;
     text) seeds=() ;;
+    laz) seeds=(tests/data/laz/append-bug.laz) ;;  # + the small LAZ files in regressions/laz
+    copc) seeds=(); for f in ../shared/data/laz/*.copc.laz; do [ -f "$f" ] && seeds+=("$f"); done ;;
   esac
   for f in "${seeds[@]}"; do
     # Seeds over 256 KiB are cut to their head (libFuzzer's -max_len); small ones are whole.

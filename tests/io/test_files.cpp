@@ -1,4 +1,4 @@
-// Every non-LAZ file of the shared data set is read with the point count and the recomputed
+// Every file of the shared data set (LAZ and COPC included) is read with the point count and the recomputed
 // bounding box that ../shared/data/README.md gives for it (values copied from that README, which
 // computed them by reading every point with an independent reader; rounded to the decimals shown).
 #include "io_test_util.hpp"
@@ -45,6 +45,11 @@ const Expect kFiles[] = {
     {"las/derived/lone-star.las", 518862, 0, {515368.602, 4918340.364, 2322.896}, {515401.043, 4918381.124, 2338.575}, 3},
     {"las/derived/append-bug.las", 37805, 0, {698000.00, 6259242.79, 11.72}, {699000.00, 6260000.00, 266.03}, 2},
     {"las/derived/las_with_several_extra_byte_bloc.las", 697721, 0, {484649.36, 6632629.73, 99.65}, {484999.99, 6632999.99, 120.42}, 2},
+    {"laz/autzen_trim.laz", 110000, 0, {636001.76, 848935.20, 406.26}, {637179.22, 849497.90, 520.51}, 2},
+    {"laz/lone-star.laz", 518862, 0, {515368.602, 4918340.364, 2322.896}, {515401.043, 4918381.124, 2338.575}, 3},
+    {"laz/lone-star.copc.laz", 518862, 0, {515368.602, 4918340.364, 2322.896}, {515401.043, 4918381.124, 2338.576}, 3},
+    {"laz/append-bug.laz", 37805, 0, {698000.00, 6259242.79, 11.72}, {699000.00, 6260000.00, 266.03}, 2},
+    {"laz/las_with_several_extra_byte_bloc.laz", 697721, 0, {484649.36, 6632629.73, 99.65}, {484999.99, 6632999.99, 120.42}, 2},
     {"pcd/table_scene_lms400.pcd", 460400, 0, {-1.1263, -0.6922, -1.9211}, {0.9297, 0.5333, -1.0252}, 4},
     {"pcd/table_scene_mug_stereo_textured.pcd", 209280, 307200 - 209280, {-0.4564, -0.5107, 0.6900}, {0.7152, 0.1792, 2.5927}, 4},
     {"pcd/milk_cartoon_all_small_clorox.pcd", 241407, 307200 - 241407, {-1.0608, -0.2197, -2.0630}, {1.1525, 0.8692, -0.5010}, 4},
@@ -88,19 +93,21 @@ TEST_P(RealFile, CountAndRecomputedBoundsMatchTheDataReadme) {
 }
 
 INSTANTIATE_TEST_SUITE_P(SharedData, RealFile, ::testing::ValuesIn(kFiles), [](const auto& info) {
-  std::string s = std::filesystem::path(info.param.rel).stem().string();
+  const std::filesystem::path rel(info.param.rel);
+  std::string s = rel.stem().string();
+  if (rel.extension() == ".laz") s += "_laz";
   for (char& c : s)
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   return s;
 });
 
-TEST(RealFile, TableCoversEveryNonLazFileOfTheSharedData) {
+TEST(RealFile, TableCoversEveryFileOfTheSharedData) {
   const std::filesystem::path root(RAYSCAN_SHARED_DATA);
   if (!std::filesystem::exists(root)) GTEST_SKIP() << "../shared/data absent";
   std::size_t n = 0;
   for (const auto& de : std::filesystem::recursive_directory_iterator(root)) {
     const std::string ext = de.path().extension().string();
-    if (ext != ".las" && ext != ".ply" && ext != ".pcd") continue;
+    if (ext != ".las" && ext != ".laz" && ext != ".ply" && ext != ".pcd") continue;
     ++n;
     const std::string rel = std::filesystem::relative(de.path(), root).string();
     bool found = false;

@@ -5,6 +5,8 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdlib>
+#include <cstring>
+#include <map>
 #include <sys/wait.h>
 
 namespace rayscan::test {
@@ -19,6 +21,36 @@ int run(const std::string& args, const fs::path& out, const fs::path& err) {
 std::string text_of(const fs::path& p) {
   const auto b = slurp(p);
   return {b.begin(), b.end()};
+}
+
+TEST(InfoCli, CopcReportsTheOctreeFromItsHierarchy) {
+  // Oracle: the hierarchy EVLR itself, walked by an independent few lines here (32-byte entries:
+  // level, x, y, z, offset, byte size, point count; one page in this file).
+  RAYSCAN_REQUIRE_FILE(p, "laz/lone-star.copc.laz");
+  const fs::path out = temp_dir() / "copc.json", err = temp_dir() / "copc.err";
+  ASSERT_EQ(run("info --json '" + p.string() + "'", out, err), 0) << text_of(err);
+  const auto j = nlohmann::json::parse(text_of(out));
+  EXPECT_EQ(j["format"], "COPC");
+  EXPECT_EQ(j["count"], 518862);
+  std::uint64_t hier_off = 0, hier_len = 0;
+  for (const auto& v : j["vlrs"])
+    if (v["user_id"] == "copc" && v["record_id"] == 1000) hier_off = v["offset"].get<std::uint64_t>() + 60, hier_len = v["length"];
+  ASSERT_GT(hier_len, 0u);
+  const auto bytes = slurp(p);
+  std::map<int, std::pair<std::uint64_t, std::uint64_t>> per_level;
+  for (std::uint64_t e = hier_off; e < hier_off + hier_len; e += 32) {
+    std::int32_t level, count;
+    std::memcpy(&level, bytes.data() + e, 4);
+    std::memcpy(&count, bytes.data() + e + 28, 4);
+    ASSERT_GE(count, 0) << "test assumes a single hierarchy page";
+    ++per_level[level].first;
+    per_level[level].second += static_cast<std::uint64_t>(count);
+  }
+  ASSERT_EQ(j["copc"]["depth"], per_level.size());
+  for (const auto& [l, np] : per_level) {
+    EXPECT_EQ(j["copc"]["nodes_per_level"][l], np.first) << "level " << l;
+    EXPECT_EQ(j["copc"]["points_per_level"][l], np.second) << "level " << l;
+  }
 }
 
 TEST(InfoCli, JsonReportsFormatCountsBoundsAttributesAndCrs) {

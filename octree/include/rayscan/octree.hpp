@@ -39,6 +39,45 @@ struct OctreeConfig {
   void validate() const;
 };
 
+/// The construction rules every builder of the octree shares, defined once: the in-memory builders
+/// below and the external-memory index file build (rayscan/io/index_file.hpp) call these, so
+/// their trees are identical node for node.
+struct OctreeRules {
+  /// The root cell of points whose bounding box is `bounds`: the cube of edge max_extent grown by
+  /// 1e-9 relative (edge 1 for a single point or an empty box) anchored at bounds.lo.
+  static AABB root_cell(const AABB& bounds);
+  /// The edge length of root_cell(bounds) as computed before adding it to the corner.
+  static double root_side(const AABB& bounds);
+  /// Quantises positions to the 2^21 cells per axis of a root cell and returns their 63-bit
+  /// Morton code (coordinates are truncated; outside points clamp to the border cells).
+  struct Quantizer {
+    Vec3 lo;
+    double scale;  ///< cells per world unit
+    /// Cells of the root cell with corner `lo` and edge `side` (root_side()).
+    Quantizer(const Vec3& lo, double side);
+    [[nodiscard]] std::uint64_t code(const Vec3& p) const {
+      constexpr std::uint32_t kCells = 1u << kMortonBits;
+      auto q = [&](double v, double l) {
+        const double f = (v - l) * scale;  // truncation == floor for f >= 0
+        if (!(f >= 0.0)) return std::uint32_t{0};
+        if (f >= kCells - 1) return kCells - 1;
+        return static_cast<std::uint32_t>(f);
+      };
+      return morton_encode(q(p.x, lo.x), q(p.y, lo.y), q(p.z, lo.z));
+    }
+  };
+  /// Whether a node at `depth` holding `count` points (all with one Morton code when `all_same`)
+  /// is split (layout rules of paper section 4.1; the adaptive duplicate guard).
+  static bool splits(const OctreeConfig& c, unsigned depth, std::size_t count, bool all_same);
+  /// A float bound strictly below (up = false) or above (up = true) the double offset `off`
+  /// from the root cell corner, so that a stored float box always contains the points.
+  static float float_bound(double off, bool up);
+  /// Octant digit of a 63-bit Morton code when descending from `depth` to depth + 1.
+  static unsigned octant(std::uint64_t code, unsigned depth) {
+    return static_cast<unsigned>((code >> (3 * (kMortonBits - depth - 1))) & 7u);
+  }
+};
+
 /// An octree index satisfying SpatialIndex.
 ///
 /// Storage: positions are copied into one contiguous array in depth-first traversal order, so each

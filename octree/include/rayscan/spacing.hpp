@@ -3,8 +3,16 @@
 #pragma once
 
 #include "rayscan/any_index.hpp"
+#include "rayscan/point_query.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <vector>
 
 #include <cstddef>
+#include <functional>
 #include <optional>
 #include <span>
 
@@ -16,6 +24,36 @@ namespace rayscan {
 /// `positions`.
 [[nodiscard]] double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions,
                                        std::size_t max_samples = 20000);
+
+/// The same over any index satisfying SpatialIndex (e.g. io::MappedIndex, an index file): the
+/// median over up to `max_samples` evenly spaced positions of the distance to the nearest point
+/// at a non-zero distance (world units); 0 when fewer than two distinct points.
+template <class I>
+[[nodiscard]] double median_nn_spacing_of(const I& index, std::span<const Vec3> positions,
+                                          std::size_t max_samples = 20000) {
+  if (positions.size() < 2 || max_samples == 0) return 0.0;
+  const std::size_t n = std::min(max_samples, positions.size());
+  std::vector<double> d(n, 0.0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& r) {
+    std::vector<Neighbor> nb;
+    for (std::size_t i = r.begin(); i != r.end(); ++i) {
+      const std::size_t p = i * positions.size() / n;
+      // Nearest point at a non-zero distance (duplicates are common in scans).
+      knn_query(index, positions[p], 8, kInf, nb);
+      double best = 0.0;
+      for (const Neighbor& x : nb)
+        if (x.distance > 0.0) {
+          best = x.distance;
+          break;
+        }
+      d[i] = best;
+    }
+  });
+  std::erase(d, 0.0);
+  if (d.empty()) return 0.0;
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
 
 /// The sphere radius a job used and how it was chosen.
 struct RadiusChoice {
@@ -31,5 +69,10 @@ struct RadiusChoice {
 /// a non-positive radius or factor.
 [[nodiscard]] RadiusChoice choose_radius(const AnyIndex& index, std::span<const Vec3> positions,
                                          std::optional<double> radius, double factor = 1.0);
+
+/// The same rule with the spacing supplied by the caller (called only when `radius` is unset),
+/// e.g. median_nn_spacing_of over an index file. Same errors.
+[[nodiscard]] RadiusChoice choose_radius(std::optional<double> radius, double factor,
+                                         const std::function<double()>& spacing);
 
 }  // namespace rayscan

@@ -1,6 +1,8 @@
 // The info job (rayscan/io/info_job.hpp): what `pdal info` reports for a point cloud file.
 #include "rayscan/io/info_job.hpp"
 
+#include "rayscan/io/point_reader.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -11,43 +13,6 @@
 namespace rayscan::io {
 
 namespace {
-
-template <class V, class F>
-AttributeRange range_of(const std::string& name, const V& v, F get) {
-  AttributeRange r{name, 0, 0};
-  if (v.empty()) return r;
-  r.lo = r.hi = static_cast<double>(get(v[0]));
-  for (const auto& e : v) {
-    const double x = static_cast<double>(get(e));
-    r.lo = std::min(r.lo, x);
-    r.hi = std::max(r.hi, x);
-  }
-  return r;
-}
-
-std::vector<AttributeRange> attribute_ranges(const PointCloud& pc) {
-  std::vector<AttributeRange> out;
-  if (pc.empty()) return out;
-  out.push_back(range_of("X", pc.positions, [](const Vec3& p) { return p.x; }));
-  out.push_back(range_of("Y", pc.positions, [](const Vec3& p) { return p.y; }));
-  out.push_back(range_of("Z", pc.positions, [](const Vec3& p) { return p.z; }));
-  if (!pc.intensity.empty()) out.push_back(range_of("intensity", pc.intensity, [](auto v) { return v; }));
-  if (!pc.classification.empty())
-    out.push_back(range_of("classification", pc.classification, [](auto v) { return v; }));
-  if (!pc.gps_time.empty()) out.push_back(range_of("gps_time", pc.gps_time, [](auto v) { return v; }));
-  if (!pc.rgb.empty()) {
-    out.push_back(range_of("red", pc.rgb, [](const Rgb16& c) { return c.r; }));
-    out.push_back(range_of("green", pc.rgb, [](const Rgb16& c) { return c.g; }));
-    out.push_back(range_of("blue", pc.rgb, [](const Rgb16& c) { return c.b; }));
-  }
-  if (!pc.normals.empty()) {
-    out.push_back(range_of("normal_x", pc.normals, [](const glm::vec3& n) { return n.x; }));
-    out.push_back(range_of("normal_y", pc.normals, [](const glm::vec3& n) { return n.y; }));
-    out.push_back(range_of("normal_z", pc.normals, [](const glm::vec3& n) { return n.z; }));
-  }
-  for (const ScalarField& f : pc.scalars) out.push_back(range_of(f.name, f.values, [](double v) { return v; }));
-  return out;
-}
 
 std::string num(double v) {
   char buf[64];
@@ -82,17 +47,96 @@ bool same_box(const AABB& a, const AABB& b, const std::optional<Vec3>& scale) {
 InfoJobResult run_info(const InfoJobOptions& options) {
   InfoJobResult r;
   r.file = options.file.string();
-  const PointCloud pc = read_point_cloud(options.file, ReadOptions{}, &r.info);
-  r.count = pc.size();
-  r.bounds = pc.bounds();
-  r.attributes = attribute_ranges(pc);
-  r.header_differs = r.info.header_bounds && !pc.empty() && !same_box(*r.info.header_bounds, r.bounds, r.info.scale);
-  for (std::uint8_t c : pc.classification) ++r.classes[c];
-  r.crs_wkt = pc.crs_wkt;
+  if (is_index_file(options.file)) {
+    IndexOpenOptions oo;
+    if (options.verify) oo.verify = IndexOpenOptions::Verify::always;
+    const MappedIndex m = MappedIndex::open(options.file, oo);
+    IndexFileSummary x;
+    x.layout = to_string(m.config().layout);
+    x.capacity = static_cast<std::uint32_t>(m.config().capacity);
+    x.nodes = m.node_count();
+    x.depth = m.depth();
+    x.points_per_level = m.points_per_level();
+    x.file_bytes = m.file_bytes();
+    x.bytes_per_point =
+        m.empty() ? 0.0 : static_cast<double>(m.file_bytes()) / static_cast<double>(m.positions().size());
+    x.attributes = m.attributes().to_string();
+    x.root_cell = m.root_cell();
+    x.checksums = options.verify || m.file_bytes() <= (256u << 20) ? "all sections verified"
+                                                                    : "header, nodes and metadata verified";
+    x.sources = m.sources();
+    r.index = std::move(x);
+    r.info.format = "rayscan index";
+    r.count = m.positions().size();
+    if (!m.empty()) r.bounds = m.node_bounds(m.root());
+    r.crs_wkt = m.crs_wkt();
+    return r;
+  }
+  // Streaming: one chunk in memory at a time, whatever the file size (cloud_stats.hpp).
+  const auto reader = open_point_reader(options.file);
+  CloudStats stats = scan_point_cloud(*reader);
+  r.info = reader->info();
+  r.count = stats.count;
+  r.bounds = stats.bounds;
+  r.attributes = std::move(stats.ranges);
+  r.classes = std::move(stats.classification_counts);
+  r.header_differs = r.info.header_bounds && r.count != 0 && !same_box(*r.info.header_bounds, r.bounds, r.info.scale);
+  r.crs_wkt = reader->crs_wkt();
+  if (r.info.format == "COPC") r.copc = read_copc_info(options.file);
   return r;
 }
 
+namespace {
+
+std::string index_report_json(const InfoJobResult& r) {
+  const IndexFileSummary& x = *r.index;
+  nlohmann::ordered_json j;
+  j["filename"] = r.file;
+  j["format"] = "rayscan index";
+  j["count"] = r.count;
+  j["layout"] = x.layout;
+  j["capacity"] = x.capacity;
+  j["nodes"] = x.nodes;
+  j["depth"] = x.depth;
+  j["points_per_level"] = x.points_per_level;
+  j["file_bytes"] = x.file_bytes;
+  j["bytes_per_point"] = x.bytes_per_point;
+  j["attributes"] = x.attributes;
+  j["root_cell"] = {{"min", vec_json(x.root_cell.lo)}, {"max", vec_json(x.root_cell.hi)}};
+  if (r.count != 0) j["bounds"] = {{"min", vec_json(r.bounds.lo)}, {"max", vec_json(r.bounds.hi)}};
+  j["checksums"] = x.checksums;
+  nlohmann::ordered_json src = nlohmann::ordered_json::array();
+  for (const IndexSource& s : x.sources)
+    src.push_back({{"path", s.path}, {"format", s.format}, {"points", s.points}, {"first_id", s.first_id}, {"bytes", s.size}});
+  j["sources"] = src;
+  j["crs"] = {{"wkt", r.crs_wkt}};
+  return j.dump(2);
+}
+
+std::string index_report_text(const InfoJobResult& r) {
+  const IndexFileSummary& x = *r.index;
+  std::ostringstream o;
+  o << "file:              " << r.file << "\n";
+  o << "format:            rayscan index (" << x.layout << " octree, capacity " << x.capacity << ")\n";
+  o << "points:            " << r.count << "\n";
+  o << "nodes:             " << x.nodes << ", depth " << x.depth << "\n";
+  o << "points per level: ";
+  for (std::size_t d = 0; d < x.points_per_level.size(); ++d)
+    if (x.points_per_level[d]) o << " " << d << ":" << x.points_per_level[d];
+  o << "\n";
+  o << "file size:         " << x.file_bytes << " bytes (" << num(x.bytes_per_point) << " bytes/point)\n";
+  o << "attributes:        " << (x.attributes.empty() ? std::string("positions only") : x.attributes) << "\n";
+  o << "checksums:         " << x.checksums << "\n";
+  o << "CRS:               " << (r.crs_wkt.empty() ? std::string("none") : r.crs_wkt.substr(0, 100)) << "\n";
+  for (const IndexSource& s : x.sources)
+    o << "source:            " << s.path << " (" << s.format << ", " << s.points << " points)\n";
+  return o.str();
+}
+
+}  // namespace
+
 std::string info_report_json(const InfoJobResult& r) {
+  if (r.index) return index_report_json(r);
   nlohmann::ordered_json j;
   j["filename"] = r.file;
   j["format"] = r.info.format;
@@ -138,13 +182,22 @@ std::string info_report_json(const InfoJobResult& r) {
   for (const io::VlrInfo& v : r.info.vlrs)
     vl.push_back({{"user_id", v.user_id}, {"record_id", v.record_id}, {"description", v.description},
                   {"length", v.length}, {"offset", v.offset}, {"extended", v.extended}});
-  if (r.info.format == "LAS") j["vlrs"] = vl;
+  if (r.info.format == "LAS" || r.info.format == "LAZ" || r.info.format == "COPC") j["vlrs"] = vl;
+  if (r.copc) {
+    const CopcInfo& c = *r.copc;
+    const AABB cube = c.node_cube(CopcNode{});
+    j["copc"] = {{"root_cube", {{"min", vec_json(cube.lo)}, {"max", vec_json(cube.hi)}}},
+                 {"spacing", c.spacing}, {"depth", c.depth}, {"nodes", c.nodes.size()},
+                 {"hierarchy_pages", c.hierarchy_pages}, {"nodes_per_level", c.nodes_per_level},
+                 {"points_per_level", c.points_per_level}};
+  }
   j["comments"] = r.info.comments;
   j["notes"] = r.info.notes;
   return j.dump(2);
 }
 
 std::string info_report_text(const InfoJobResult& r) {
+  if (r.index) return index_report_text(r);
   std::ostringstream o;
   o << "file:              " << r.file << "\n";
   o << "format:            " << r.info.format;
@@ -198,7 +251,7 @@ std::string info_report_text(const InfoJobResult& r) {
     }
   }
   if (!r.classes.empty()) {
-    o << "r.classes:          ";
+    o << "classes:          ";
     for (auto [c, n] : r.classes) o << " " << c << ":" << n;
     o << "\n";
   }
@@ -207,6 +260,15 @@ std::string info_report_text(const InfoJobResult& r) {
     for (const io::VlrInfo& v : r.info.vlrs)
       o << "  " << (v.extended ? "EVLR " : "VLR  ") << v.user_id << " " << v.record_id << " \"" << v.description
         << "\" " << v.length << " bytes\n";
+  }
+  if (r.copc) {
+    const CopcInfo& c = *r.copc;
+    const AABB cube = c.node_cube(CopcNode{});
+    o << "COPC octree:       root cube " << num(cube.lo.x) << " " << num(cube.lo.y) << " " << num(cube.lo.z) << " / "
+      << num(cube.hi.x) << " " << num(cube.hi.y) << " " << num(cube.hi.z) << ", spacing " << num(c.spacing)
+      << ", depth " << c.depth << ", " << c.nodes.size() << " nodes in " << c.hierarchy_pages << " hierarchy page(s)\n";
+    for (std::size_t l = 0; l < c.nodes_per_level.size(); ++l)
+      o << "  level " << l << ": " << c.nodes_per_level[l] << " nodes, " << c.points_per_level[l] << " points\n";
   }
   for (const std::string& c : r.info.comments) o << "comment:           " << c << "\n";
   for (const std::string& n : r.info.notes) o << "note:              " << n << "\n";

@@ -3,12 +3,14 @@
 // point data record formats 0-10: 2.6 (tables 7-17); Extra Bytes VLR: 2.5.6 (table 24);
 // CRS: 2.5.1 (OGC WKT VLR 2112) and 2.5.2 (GeoKeyDirectoryTag 34735).
 #include "readers.hpp"
+#include "laz/laz.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 namespace rayscan::io::detail {
@@ -92,8 +94,8 @@ void decode(const Decoder& dc, std::size_t i0, std::size_t i1, Reduction& red) {
     const double z = load_le<std::int32_t>(r + 8) * dc.scale.z + dc.offset.z;
     if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) red.first_bad = std::min(red.first_bad, i);
     o.pos[i] = Vec3(x, y, z);
-    o.intensity[i] = load_le<std::uint16_t>(r + 12);
-    o.cls[i] = Legacy ? (r[15] & 0x1F) : r[16];
+    if (o.intensity != nullptr) o.intensity[i] = load_le<std::uint16_t>(r + 12);
+    if (o.cls != nullptr) o.cls[i] = Legacy ? (r[15] & 0x1F) : r[16];
     if constexpr (HasGps) o.gps[i] = load_le<double>(r + dc.gps_off);
     if constexpr (HasRgb) {
       const Rgb16 c{load_le<std::uint16_t>(r + dc.rgb_off), load_le<std::uint16_t>(r + dc.rgb_off + 2),
@@ -131,19 +133,130 @@ void decode(const Decoder& dc, std::size_t i0, std::size_t i1, Reduction& red) {
   }
 }
 
+/// The LASzip VLR (LASzip laszip.cpp; docs/formats.md "LAZ"): its presence, not the file
+/// extension, makes a file LAZ.
 bool is_laszip_vlr(const std::string& user, std::uint16_t id) {
-  return (user == "laszip encoded" && id == 22204) || (user == "copc" && id == 1);
+  return user == "laszip encoded" && id == 22204;
 }
+/// The COPC info VLR (COPC 1.0 specification, "copc" record 1).
+bool is_copc_vlr(const std::string& user, std::uint16_t id) { return user == "copc" && id == 1; }
 
-[[noreturn]] void refuse_compressed(const Input& in, std::uint64_t off, const std::string& why) {
-  fail_at(in.name, off,
-          why + ": LAZ/COPC compressed point data is not supported; convert it first, e.g. "
-                "`pdal translate in.laz out.las` or `laszip -i in.laz -o out.las`");
+/// LAZ layers (laz::kLayer*) a chunk decoder must decode for the attributes a reader delivers:
+/// X, Y, Z always; the rest only when asked (issue 11 section 1.3: xyz must not pay for RGB,
+/// GPS time or extra bytes). Layered chunks (PDRF 6-10) honour this; pointwise ones decode all.
+std::uint32_t laz_layers(AttributeSet a) {
+  std::uint32_t l = laz::kLayerZ;
+  if (a.has(Attribute::rgb)) l |= laz::kLayerRgb;
+  if (a.has(Attribute::intensity)) l |= laz::kLayerIntensity;
+  if (a.has(Attribute::classification)) l |= laz::kLayerClassification;
+  if (a.has(Attribute::gps_time)) l |= laz::kLayerGpsTime;
+  if (a.has(Attribute::scalars))
+    l |= laz::kLayerFlags | laz::kLayerScanAngle | laz::kLayerUserData | laz::kLayerPointSource |
+         laz::kLayerNir | laz::kLayerExtraBytes;
+  return l;
 }
 
 }  // namespace
 
-PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
+namespace {
+
+/// The chunked LAS reader: the header, VLRs, EVLRs and Extra Bytes descriptors are parsed and
+/// validated at open (parse() below); read() decodes the next block of records in parallel. LAZ
+/// (LASzip VLR): read() first decompresses the chunks holding the block into a window of records
+/// (laz::ChunkDecoder, chunks in parallel, only the layers the attributes need), then decodes
+/// the records as for LAS; memory is the window, about max_points records plus one chunk.
+class LasReader final : public PointReader {
+ public:
+  LasReader(std::shared_ptr<Source> src, AttributeSet attrs, const ReadOptions& opt)
+      : src_(std::move(src)) {
+    parse(src_->in, opt);
+    setup(attrs, opt);
+  }
+  const FileInfo& info() const override { return info_; }
+  const std::string& crs_wkt() const override { return crs_; }
+  std::uint64_t point_count() const override { return count_; }
+  AttributeSet attributes() const override { return attrs_; }
+  std::optional<std::pair<Vec3, Vec3>> integer_grid() const override {
+    return std::make_pair(scale_, offset_);
+  }
+  std::size_t read(PointCloud& chunk, std::size_t max_points) override;
+
+ private:
+  void parse(const Input& in, const ReadOptions& opt);
+  void setup(AttributeSet attrs, const ReadOptions& opt);
+  /// LAZ: makes records [first, first + n) available (decoding whole chunks into window_, in
+  /// parallel over chunks) and returns a pointer to record `first`; n <= points of the window.
+  const std::uint8_t* laz_records(std::uint64_t first, std::size_t n, std::uint32_t layers);
+
+  std::shared_ptr<Source> src_;
+  FileInfo info_;
+  std::string crs_;
+  AttributeSet attrs_;
+  std::uint64_t count_ = 0, next_ = 0;
+  std::uint64_t point_offset_ = 0;
+  std::uint16_t rec_len_ = 0;
+  int pdrf_ = 0;
+  Vec3 scale_, offset_;
+  std::vector<ExtraField> extras_;
+  std::vector<std::string> scalar_names_;
+  bool scalars_ = false, has_gps_ = false, has_rgb_ = false, has_nir_ = false;
+  std::uint16_t rgb_mul_ = 1;  // 257 when the file stores 8-bit colour
+  // LAZ (LASzip VLR present): chunks are decoded on demand into a window of records.
+  bool laszip_ = false;
+  laz::LaszipVlr lazvlr_;
+  std::vector<laz::Chunk> chunks_;
+  std::vector<std::uint8_t> window_;         // decoded records of chunks [win_c0_, win_c1_)
+  std::size_t win_c0_ = 0, win_c1_ = 0;
+  std::uint64_t win_first_ = 0, win_points_ = 0;
+  std::uint32_t win_layers_ = 0;
+};
+
+const std::uint8_t* LasReader::laz_records(std::uint64_t first, std::size_t n, std::uint32_t layers) {
+  const bool hit = win_layers_ == layers && win_c1_ > win_c0_ && first >= win_first_ &&
+                   first + n <= win_first_ + win_points_;
+  if (!hit) {
+    // The chunk holding `first` (chunks are in file order, first_point increasing).
+    auto it = std::upper_bound(chunks_.begin(), chunks_.end(), first,
+                               [](std::uint64_t v, const laz::Chunk& c) { return v < c.first_point; });
+    std::size_t c0 = static_cast<std::size_t>(it - chunks_.begin()) - 1;
+    std::size_t c1 = c0;
+    std::uint64_t pts = 0;
+    while (c1 < chunks_.size() && chunks_[c0].first_point + pts < first + n) pts += chunks_[c1++].points;
+    const std::size_t rec = rec_len_;
+    const std::uint64_t base = chunks_[c0].first_point;
+    // Chunks already decoded at the end of the previous window (a read ending inside a chunk)
+    // move to the front instead of being decoded again.
+    std::size_t have = c0;
+    if (win_layers_ == layers && c0 >= win_c0_ && c0 < win_c1_) {
+      const std::size_t keep = static_cast<std::size_t>(win_first_ + win_points_ - base) * rec;
+      std::memmove(window_.data(), window_.data() + (base - win_first_) * rec, keep);
+      have = win_c1_;
+    }
+    win_c0_ = win_c1_ = 0;  // the window is invalid until the decode below succeeds
+    resize_huge(window_, static_cast<std::size_t>(pts) * rec);
+    std::vector<std::string> errors(c1 - c0);
+    const Input& in = src_->in;
+    tbb::parallel_for(std::max(have, c0), c1, [&](std::size_t i) {
+      try {
+        laz::ChunkDecoder dec(lazvlr_, layers);
+        const laz::Chunk& c = chunks_[i];
+        dec.start(in, i, c, c.offset + c.bytes);
+        dec.next(static_cast<std::size_t>(c.points), window_.data() + (c.first_point - base) * rec);
+        dec.finish();
+      } catch (const FormatError& e) {
+        errors[i - c0] = e.what();
+      }
+    });
+    for (const std::string& e : errors)  // the first failing chunk in file order
+      if (!e.empty()) throw FormatError(e);
+    in.done(chunks_[c1 - 1].offset + chunks_[c1 - 1].bytes);
+    win_c0_ = c0, win_c1_ = c1, win_first_ = base, win_points_ = pts, win_layers_ = layers;
+  }
+  return window_.data() + (first - win_first_) * rec_len_;
+}
+
+void LasReader::parse(const Input& in, const ReadOptions& opt) {
+  FileInfo& info = info_;
   const std::uint8_t* d = in.bytes.data();
   const std::string& nm = in.name;
   in.need(0, 227, "LAS public header block (227 bytes for LAS 1.0-1.2)");
@@ -205,10 +318,18 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
   std::uint64_t geokeys_len = 0;
   const std::uint8_t* extra_vlr = nullptr;
   std::uint64_t extra_len = 0;
-  bool laszip = false;
+  bool laszip = false, copc = false;
+  const std::uint8_t* laszip_payload = nullptr;
+  std::uint64_t laszip_len = 0, laszip_at = 0;
   auto note_vlr = [&](const VlrInfo& v, const std::uint8_t* payload) {
     info.vlrs.push_back(v);
-    if (is_laszip_vlr(v.user_id, v.record_id)) laszip = true;
+    if (is_laszip_vlr(v.user_id, v.record_id) && !v.extended) {
+      laszip = true;
+      laszip_payload = payload;
+      laszip_len = v.length;
+      laszip_at = v.offset + 54;
+    }
+    if (is_copc_vlr(v.user_id, v.record_id)) copc = true;
     if (v.user_id == "LASF_Projection" && v.record_id == 2112) {
       wkt_vlr = payload;
       wkt_len = v.length;
@@ -265,11 +386,14 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
       ep += 60 + v.length;
     }
   }
-  // LAZ (LASzip sets bit 7, historically also bit 6, of the PDRF byte) and COPC are refused.
-  if ((pdrf_raw & 0xC0) != 0)
-    refuse_compressed(in, 104, "point data record format byte " + std::to_string(pdrf_raw) +
-                                   " has the compression bit set");
-  if (laszip) refuse_compressed(in, header_size, "file has a LASzip/COPC VLR");
+  // LAZ: the LASzip VLR decides (LASzip also sets bit 7, historically bit 6, of the PDRF byte).
+  if ((pdrf_raw & 0xC0) != 0 && !laszip)
+    fail_at(nm, 104, "point data record format byte " + std::to_string(pdrf_raw) +
+                         " has the LAZ compression bit set but the file has no LASzip VLR "
+                         "(\"laszip encoded\", record 22204)");
+  if (laszip && (pdrf_raw & 0xC0) == 0)
+    info.notes.push_back("LASzip VLR present but the compression bits of the PDRF byte are clear: read as LAZ");
+  if (laszip) info.format = copc ? "COPC" : "LAZ";
   if (pdrf > 10)
     fail_at(nm, 104, "point data record format " + std::to_string(pdrf) + " (expected 0 to 10)");
   const int need_len = pdrf_length(pdrf);
@@ -289,7 +413,13 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
   std::uint64_t data_end = in.size();
   if (n_evlr > 0 && evlr_start >= point_offset) data_end = std::min<std::uint64_t>(data_end, evlr_start);
   const std::uint64_t avail = data_end - point_offset;
-  if (count > avail / rec_len)
+  if (laszip) {
+    // LAZ: the chunk table bounds the count (chunk point counts must add up to it, each checked
+    // against its bytes before decoding); chunks are decoded on demand by read().
+    lazvlr_ = laz::parse_laszip_vlr(laszip_payload, laszip_len, nm, laszip_at, pdrf, rec_len);
+    chunks_ = laz::read_chunk_table(in, lazvlr_, point_offset, data_end, count, info.notes);
+    laszip_ = true;
+  } else if (count > avail / rec_len)
     fail_at(nm, vmin >= 4 ? 247 : 107,
             "header announces " + std::to_string(count) + " points of " + std::to_string(rec_len) +
                 " bytes from byte " + std::to_string(point_offset) + " but only " +
@@ -346,7 +476,7 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
                          ": skipped");
 
   // CRS: the OGC WKT VLR when it holds text, else the GeoKeys.
-  PointCloud pc;
+  struct { std::string crs_wkt; } pc;
   if (wkt_vlr != nullptr) {
     std::string wkt(reinterpret_cast<const char*>(wkt_vlr), wkt_len);
     while (!wkt.empty() && (wkt.back() == '\0' || std::isspace(static_cast<unsigned char>(wkt.back()))))
@@ -368,77 +498,166 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
   }
   if (info.epsg == 0 && !pc.crs_wkt.empty()) info.epsg = epsg_from_wkt(pc.crs_wkt);
 
+  crs_ = std::move(pc.crs_wkt);
+  count_ = count;
+  point_offset_ = point_offset;
+  rec_len_ = rec_len;
+  pdrf_ = pdrf;
+  scale_ = scale;
+  offset_ = offset;
+  extras_ = std::move(extras);
   info.fields = {"X", "Y", "Z", "intensity", "return_number", "number_of_returns", "classification",
                  "classification_flags", "scanner_channel", "scan_direction_flag",
                  "edge_of_flight_line", "scan_angle", "user_data", "point_source_id"};
-  const std::size_t n = static_cast<std::size_t>(count);
-  resize_huge(pc.positions, n);
-  resize_huge(pc.intensity, n);
-  resize_huge(pc.classification, n);
-  const bool has_gps = pdrf_has_gps(pdrf);
-  const bool has_rgb = pdrf_has_rgb(pdrf);
-  const bool has_nir = pdrf == 8 || pdrf == 10;
-  if (has_gps) resize_huge(pc.gps_time, n), info.fields.push_back("gps_time");
-  if (has_rgb) resize_huge(pc.rgb, n), info.fields.insert(info.fields.end(), {"red", "green", "blue"});
-  if (has_nir) info.fields.push_back("nir");
-  std::vector<double>*ret = nullptr, *nret = nullptr, *angle = nullptr, *udata = nullptr,
-  *psid = nullptr, *nir = nullptr, *cflags = nullptr, *channel = nullptr, *scan_dir = nullptr, *edge = nullptr;
-  std::vector<std::vector<double>*> extra_out;
-  if (opt.scalars) {
-    auto add = [&](const std::string& name) {
-      pc.scalars.push_back({name, {}});
-      resize_huge(pc.scalars.back().values, n);
-      return &pc.scalars.back().values;
-    };
-    pc.scalars.reserve(10 + extras.size());
-    ret = add("return_number");
-    nret = add("number_of_returns");
-    angle = add("scan_angle");
-    udata = add("user_data");
-    psid = add("point_source_id");
-    // Flag bits, kept so that a derived LAS file carries them unchanged (issue 8).
-    cflags = add("classification_flags");
-    channel = add("scanner_channel");
-    scan_dir = add("scan_direction_flag");
-    edge = add("edge_of_flight_line");
-    if (has_nir) nir = add("nir");
-    for (const ExtraField& f : extras) {
-      extra_out.push_back(add(f.name));
-      info.fields.push_back(f.name);
+  has_gps_ = pdrf_has_gps(pdrf);
+  has_rgb_ = pdrf_has_rgb(pdrf);
+  has_nir_ = pdrf == 8 || pdrf == 10;
+  if (has_gps_) info.fields.push_back("gps_time");
+  if (has_rgb_) info.fields.insert(info.fields.end(), {"red", "green", "blue"});
+  if (has_nir_) info.fields.push_back("nir");
+  for (const ExtraField& f : extras_) info.fields.push_back(f.name);
+}
+
+void LasReader::setup(AttributeSet want, const ReadOptions& opt) {
+  AttributeSet have = AttributeSet::none();
+  have.add(Attribute::intensity).add(Attribute::classification);
+  if (has_gps_) have.add(Attribute::gps_time);
+  if (has_rgb_) have.add(Attribute::rgb);
+  if (opt.scalars) have.add(Attribute::scalars);
+  attrs_ = want & have;
+  scalars_ = attrs_.has(Attribute::scalars);
+  if (scalars_) {
+    // Flag bits (indices 5-8), kept so that a derived LAS file carries them unchanged (issue 8).
+    scalar_names_ = {"return_number", "number_of_returns", "scan_angle", "user_data", "point_source_id",
+                     "classification_flags", "scanner_channel", "scan_direction_flag", "edge_of_flight_line"};
+    if (has_nir_) scalar_names_.push_back("nir");
+    for (const ExtraField& f : extras_) scalar_names_.push_back(f.name);
+  }
+  // Colour normalisation (docs/formats.md) is a whole-file decision: 8-bit values stored in the
+  // 16-bit fields are scaled by 257; a colour format whose channels are all zero carries no
+  // colour and is dropped. A streaming reader therefore scans the colour fields once at open.
+  if (attrs_.has(Attribute::rgb) && count_ > 0 && laszip_) {
+    // LAZ: one pass over the chunks decoding only X/Y/RGB (layered chunks), stopped as soon as a
+    // value above 255 shows the colour is 16-bit (usually in the first window).
+    const int off = pdrf_rgb_offset(pdrf_);
+    std::uint16_t mx = 0;
+    const std::size_t step = std::max<std::size_t>(1, (16u << 20) / rec_len_);
+    for (std::uint64_t p = 0; p < count_ && mx <= 255;) {
+      const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(step, count_ - p));
+      const std::uint8_t* base = laz_records(p, n, laz::kLayerRgb);
+      for (std::size_t i = 0; i < n; ++i) {
+        const std::uint8_t* r = base + i * rec_len_ + off;
+        mx = std::max({mx, load_le<std::uint16_t>(r), load_le<std::uint16_t>(r + 2),
+                       load_le<std::uint16_t>(r + 4)});
+      }
+      p += n;
+    }
+    window_.clear();
+    window_.shrink_to_fit();
+    win_c0_ = win_c1_ = 0;
+    win_points_ = 0;
+    if (mx == 0) {
+      attrs_ = AttributeSet{attrs_.bits & ~static_cast<std::uint32_t>(Attribute::rgb)};
+      info_.notes.push_back("RGB fields present but all zero: colour dropped");
+    } else if (mx <= 255) {
+      rgb_mul_ = 257;
+      info_.notes.push_back("RGB stored as 8-bit values (max " + std::to_string(mx) +
+                            ") in 16-bit fields: scaled by 257");
+    }
+  } else if (attrs_.has(Attribute::rgb) && count_ > 0) {
+    const std::uint8_t* base = src_->in.bytes.data() + point_offset_;
+    const int off = pdrf_rgb_offset(pdrf_);
+    const std::size_t block = std::max<std::size_t>(1, (16u << 20) / rec_len_);
+    std::uint16_t mx = 0;
+    for (std::size_t b0 = 0; b0 < count_ && mx <= 255; b0 += block) {
+      const std::size_t b1 = std::min<std::size_t>(count_, b0 + block);
+      mx = std::max(mx, tbb::parallel_reduce(
+          tbb::blocked_range<std::size_t>(b0, b1, 8192), std::uint16_t{0},
+          [&](const tbb::blocked_range<std::size_t>& rg, std::uint16_t m) {
+            for (std::size_t i = rg.begin(); i < rg.end(); ++i) {
+              const std::uint8_t* r = base + i * rec_len_ + off;
+              m = std::max({m, load_le<std::uint16_t>(r), load_le<std::uint16_t>(r + 2),
+                            load_le<std::uint16_t>(r + 4)});
+            }
+            return m;
+          },
+          [](std::uint16_t a, std::uint16_t b) { return std::max(a, b); }));
+      src_->in.done(point_offset_ + b1 * rec_len_);
+    }
+    if (mx == 0) {
+      attrs_ = AttributeSet{attrs_.bits & ~static_cast<std::uint32_t>(Attribute::rgb)};
+      info_.notes.push_back("RGB fields present but all zero: colour dropped");
+    } else if (mx <= 255) {
+      rgb_mul_ = 257;
+      info_.notes.push_back("RGB stored as 8-bit values (max " + std::to_string(mx) +
+                            ") in 16-bit fields: scaled by 257");
     }
   }
+}
+
+std::size_t LasReader::read(PointCloud& pc, std::size_t max_points) {
+  const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(max_points, count_ - next_));
+  resize_huge(pc.positions, n);
+  auto fit = [n](auto& v, bool keep) {
+    if (keep) resize_huge(v, n);
+    else v.clear();
+  };
+  fit(pc.intensity, attrs_.has(Attribute::intensity));
+  fit(pc.classification, attrs_.has(Attribute::classification));
+  fit(pc.gps_time, attrs_.has(Attribute::gps_time));
+  fit(pc.rgb, attrs_.has(Attribute::rgb));
+  pc.normals.clear();
+  pc.crs_wkt.clear();
+  if (scalars_) {
+    pc.scalars.resize(scalar_names_.size());
+    for (std::size_t k = 0; k < scalar_names_.size(); ++k) {
+      pc.scalars[k].name = scalar_names_[k];
+      resize_huge(pc.scalars[k].values, n);
+    }
+  } else {
+    pc.scalars.clear();
+  }
+  if (n == 0) return 0;
   Out out;
   out.pos = pc.positions.data();
-  out.intensity = pc.intensity.data();
-  out.cls = pc.classification.data();
-  out.gps = has_gps ? pc.gps_time.data() : nullptr;
-  out.rgb = has_rgb ? pc.rgb.data() : nullptr;
-  if (ret != nullptr) {
-    out.ret = ret->data();
-    out.nret = nret->data();
-    out.angle = angle->data();
-    out.udata = udata->data();
-    out.psid = psid->data();
-    out.cflags = cflags->data();
-    out.channel = channel->data();
-    out.scan_dir = scan_dir->data();
-    out.edge = edge->data();
-    out.nir = nir != nullptr ? nir->data() : nullptr;
-    for (auto* v : extra_out) out.extra.push_back(v->data());
+  out.intensity = pc.intensity.empty() ? nullptr : pc.intensity.data();
+  out.cls = pc.classification.empty() ? nullptr : pc.classification.data();
+  out.gps = pc.gps_time.empty() ? nullptr : pc.gps_time.data();
+  out.rgb = pc.rgb.empty() ? nullptr : pc.rgb.data();
+  if (scalars_) {
+    out.ret = pc.scalars[0].values.data();
+    out.nret = pc.scalars[1].values.data();
+    out.angle = pc.scalars[2].values.data();
+    out.udata = pc.scalars[3].values.data();
+    out.psid = pc.scalars[4].values.data();
+    out.cflags = pc.scalars[5].values.data();
+    out.channel = pc.scalars[6].values.data();
+    out.scan_dir = pc.scalars[7].values.data();
+    out.edge = pc.scalars[8].values.data();
+    const std::size_t first_extra = has_nir_ ? 10 : 9;
+    out.nir = has_nir_ ? pc.scalars[9].values.data() : nullptr;
+    for (std::size_t k = first_extra; k < pc.scalars.size(); ++k) out.extra.push_back(pc.scalars[k].values.data());
   }
-  Decoder dec{d + point_offset, rec_len, scale, offset, pdrf >= 6 ? 22 : 20, pdrf_rgb_offset(pdrf), &extras, out};
+  // Records [next_, next_ + n) decoded into chunk slots [0, n): the decoder's base pointer is the
+  // first record of the chunk.
+  const Input& in = src_->in;
+  const std::uint8_t* first_rec = laszip_ ? laz_records(next_, n, laz_layers(attrs_))
+                                          : in.bytes.data() + point_offset_ + next_ * rec_len_;
+  Decoder dec{first_rec, rec_len_, scale_, offset_,
+              pdrf_ >= 6 ? 22 : 20, pdrf_rgb_offset(pdrf_), &extras_, out};
   using DecodeFn = void (*)(const Decoder&, std::size_t, std::size_t, Reduction&);
   DecodeFn fn = nullptr;
-  if (pdrf < 6) {
-    fn = has_gps ? (has_rgb ? &decode<true, true, true> : &decode<true, true, false>)
-                 : (has_rgb ? &decode<true, false, true> : &decode<true, false, false>);
+  const bool gps = out.gps != nullptr, rgb = out.rgb != nullptr;
+  if (pdrf_ < 6) {
+    fn = gps ? (rgb ? &decode<true, true, true> : &decode<true, true, false>)
+             : (rgb ? &decode<true, false, true> : &decode<true, false, false>);
   } else {
-    fn = has_rgb ? &decode<false, true, true> : &decode<false, true, false>;
+    fn = gps ? (rgb ? &decode<false, true, true> : &decode<false, true, false>)
+             : (rgb ? &decode<false, false, true> : &decode<false, false, false>);
   }
   // Blocks of ~16 MB of records, decoded in parallel (TBB); the pages of each finished block are
   // released, so the resident part of the file stays bounded.
-  const std::size_t block = std::max<std::size_t>(1, (16u << 20) / rec_len);
-  std::uint16_t rgb_max = 0;
+  const std::size_t block = std::max<std::size_t>(1, (16u << 20) / rec_len_);
   for (std::size_t b0 = 0; b0 < n; b0 += block) {
     const std::size_t b1 = std::min(n, b0 + block);
     const Reduction r = tbb::parallel_reduce(
@@ -448,34 +667,33 @@ PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info) {
           return acc;
         },
         [](Reduction x, const Reduction& y) {
-          x.rgb_max = std::max(x.rgb_max, y.rgb_max);
           x.first_bad = std::min(x.first_bad, y.first_bad);
           return x;
         });
     if (r.first_bad != Reduction{}.first_bad)
-      fail_at(nm, point_offset + r.first_bad * rec_len,
-              "point " + std::to_string(r.first_bad) + ": coordinate overflows to infinity (scale/offset)");
-    rgb_max = std::max(rgb_max, r.rgb_max);
-    in.done(point_offset + b1 * rec_len);
+      fail_at(in.name, point_offset_ + (next_ + r.first_bad) * rec_len_,
+              "point " + std::to_string(next_ + r.first_bad) +
+                  ": coordinate overflows to infinity (scale/offset)");
+    if (!laszip_) in.done(point_offset_ + (next_ + b1) * rec_len_);
   }
-  // Colour normalisation (docs/formats.md): 8-bit values stored in the 16-bit fields are scaled
-  // by 257; a colour format whose channels are all zero carries no colour and is dropped.
-  if (has_rgb && n > 0) {
-    if (rgb_max == 0) {
-      pc.rgb.clear();
-      info.notes.push_back("RGB fields present but all zero: colour dropped");
-    } else if (rgb_max <= 255) {
-      for (Rgb16& c : pc.rgb) {
-        c.r = static_cast<std::uint16_t>(c.r * 257);
-        c.g = static_cast<std::uint16_t>(c.g * 257);
-        c.b = static_cast<std::uint16_t>(c.b * 257);
-      }
-      pc.rgb_from_8bit_las = true;  // write_las divides by 257 again: derived files keep the values
-      info.notes.push_back("RGB stored as 8-bit values (max " + std::to_string(rgb_max) +
-                           ") in 16-bit fields: scaled by 257");
+  // Colour normalisation (docs/formats.md), decided at open (setup()).
+  if (rgb_mul_ != 1) {
+    for (Rgb16& c : pc.rgb) {
+      c.r = static_cast<std::uint16_t>(c.r * rgb_mul_);
+      c.g = static_cast<std::uint16_t>(c.g * rgb_mul_);
+      c.b = static_cast<std::uint16_t>(c.b * rgb_mul_);
     }
+    pc.rgb_from_8bit_las = true;  // write_las divides by 257 again: derived files keep the values
   }
-  return pc;
+  next_ += n;
+  return n;
+}
+
+}  // namespace
+
+std::unique_ptr<PointReader> open_las(std::shared_ptr<Source> src, AttributeSet attrs,
+                                      const ReadOptions& opt) {
+  return std::make_unique<LasReader>(std::move(src), attrs, opt);
 }
 
 }  // namespace rayscan::io::detail

@@ -2,6 +2,7 @@
 #include "rayscan/io/query_job.hpp"
 
 #include "rayscan/batch.hpp"
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/io/rays.hpp"
 #include "rayscan/threads.hpp"
 
@@ -9,6 +10,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <unordered_map>
 
 namespace rayscan::io {
 
@@ -18,6 +20,23 @@ QueryJobResult run_query(const QueryJobOptions& o) {
   // Rays first: a malformed rays file is reported before a large cloud is read.
   r.rays = o.rays.empty() && !o.rays_file.empty() ? read_rays(o.rays_file) : o.rays;
   const auto t0 = std::chrono::steady_clock::now();
+  if (!o.cloud && is_index_file(o.cloud_file)) {
+    // An index file: queries run on the memory map; positions of the hits are looked up by one
+    // sequential scan of the ids (no inverse permutation in memory).
+    const MappedIndex idx = MappedIndex::open(o.cloud_file);
+    tbb::task_arena arena(static_cast<int>(resolve_threads(o.control.threads)));
+    arena.execute([&] { r.hits = ray_query_batch(idx, r.rays, o.query); });
+    std::unordered_map<PointIndex, Vec3> hit_pos;
+    for (const auto& h : r.hits)
+      for (const RayHit& x : h) hit_pos.emplace(x.index, Vec3(0.0));
+    const auto ids = idx.ids();
+    const auto pos = idx.positions();
+    for (std::size_t s = 0; s < ids.size() && !hit_pos.empty(); ++s)
+      if (auto it = hit_pos.find(ids[s]); it != hit_pos.end()) it->second = pos[s];
+    for (const auto& h : r.hits)
+      for (const RayHit& x : h) r.hit_positions.push_back(hit_pos.at(x.index));
+    return r;
+  }
   if (!o.cloud) r.cloud = read_point_cloud(o.cloud_file, ReadOptions{.scalars = false});
   const PointCloud& cloud = o.cloud ? *o.cloud : r.cloud;
   char buf[256];
@@ -41,6 +60,22 @@ void write_hits_csv(std::ostream& os, std::span<const Vec3> positions,
       const RayHit& h = hits[r][k];
       const Vec3& p = positions[h.index];
       os << r << ',' << k << ',' << h.index << ',' << p.x << ',' << p.y << ',' << p.z << ',' << h.t << ','
+         << h.distance << '\n';
+    }
+  os.precision(precision);
+}
+
+void write_hits_csv(std::ostream& os, const QueryJobResult& r) {
+  if (r.hit_positions.empty()) return write_hits_csv(os, r.cloud.positions, r.hits);
+  // Index-file input: hit_positions follows hits flattened (ray by ray, best first).
+  const auto precision = os.precision(17);
+  os << "ray,rank,index,x,y,z,t,distance\n";
+  std::size_t slot = 0;
+  for (std::size_t k = 0; k < r.hits.size(); ++k)
+    for (std::size_t j = 0; j < r.hits[k].size(); ++j) {
+      const RayHit& h = r.hits[k][j];
+      const Vec3& p = r.hit_positions[slot++];
+      os << k << ',' << j << ',' << h.index << ',' << p.x << ',' << p.y << ',' << p.z << ',' << h.t << ','
          << h.distance << '\n';
     }
   os.precision(precision);

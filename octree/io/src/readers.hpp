@@ -3,11 +3,42 @@
 #pragma once
 
 #include "bytes.hpp"
+#include "rayscan/io/point_reader.hpp"
+
+#include <memory>
 
 namespace rayscan::io::detail {
 
-/// ASPRS LAS 1.0-1.4 (R15); refuses LAZ/COPC. See las_reader.cpp.
-PointCloud read_las(const Input& in, const ReadOptions& opt, FileInfo& info);
+/// Read-only memory map of a whole file (POSIX mmap). Empty files map to an empty span. Throws
+/// FormatError when the file cannot be opened, is not a regular file or cannot be mapped.
+class MappedFile {
+ public:
+  explicit MappedFile(const std::filesystem::path& path);
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+  ~MappedFile();
+  [[nodiscard]] std::span<const std::uint8_t> bytes() const { return {data_, size_}; }
+  /// Drops the pages of [0, upto) from the resident set (they stay in the page cache). A call
+  /// with a smaller `upto` than before starts a new pass.
+  void release(std::uint64_t upto);
+
+ private:
+  int fd_ = -1;
+  const std::uint8_t* data_ = nullptr;
+  std::size_t size_ = 0;
+  std::uint64_t released_ = 0;
+};
+
+/// The bytes a chunked reader decodes: a mapped file (owned) or caller memory, as an Input.
+struct Source {
+  std::unique_ptr<MappedFile> map;  ///< null for caller memory
+  Input in;
+};
+
+/// ASPRS LAS 1.0-1.4 (R15) chunked reader, also for LAZ and COPC (LASzip VLR present): LAZ
+/// chunks are decoded on demand, only the layers the attributes need. See las_reader.cpp.
+std::unique_ptr<PointReader> open_las(std::shared_ptr<Source> src, AttributeSet attrs,
+                                      const ReadOptions& opt);
 /// PLY 1.0 ascii / binary_little_endian / binary_big_endian. See ply_reader.cpp.
 PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info);
 /// PCD 0.6/0.7 ascii / binary / binary_compressed. See pcd_reader.cpp.

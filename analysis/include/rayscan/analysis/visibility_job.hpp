@@ -26,7 +26,7 @@ namespace rayscan::analysis {
 /// (field `raster_value` is `--raster-value`), so one message serves the CLI and the library.
 struct VisibilityJobOptions {
   // ---- Input cloud.
-  std::filesystem::path cloud_file;     ///< point cloud to read (LAS, PLY, PCD, text)
+  std::filesystem::path cloud_file;     ///< point cloud to read (LAS, LAZ, COPC, PLY, PCD, text) or index file (.rsi)
   const PointCloud* cloud = nullptr;    ///< in-memory points instead of cloud_file (copied into the result)
   IndexOptions index;                   ///< index type (default octree-adaptive)
   std::optional<double> radius;         ///< sphere radius, world units; nullopt = auto

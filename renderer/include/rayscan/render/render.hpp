@@ -3,6 +3,7 @@
 #pragma once
 
 #include "rayscan/any_index.hpp"
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/point_cloud.hpp"
 #include "rayscan/render/camera.hpp"
 #include "rayscan/render/integrator.hpp"
@@ -73,5 +74,13 @@ using rayscan::median_nn_spacing;
 /// any thread count. `index` must be built over settings.integrator.centers.
 RenderStats render_image(const AnyIndex& index, const RenderSettings& settings, Framebuffer& fb,
                    const RenderOptions& options = {});
+
+/// The same over a memory-mapped index file (settings.integrator.centers must be its points in
+/// original order, MappedIndex::to_point_cloud()).
+RenderStats render_image(const io::MappedIndex& index, const RenderSettings& settings, Framebuffer& fb,
+                         const RenderOptions& options = {});
+/// median_nn_spacing over a memory-mapped index file.
+double median_nn_spacing(const io::MappedIndex& index, std::span<const Vec3> positions,
+                         std::size_t max_samples = 20000);
 
 }  // namespace rayscan::render

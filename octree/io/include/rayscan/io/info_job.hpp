@@ -4,13 +4,17 @@
 // `rayscan info` prints its reports.
 #pragma once
 
+#include "rayscan/io/cloud_stats.hpp"
+#include "rayscan/io/copc.hpp"
 #include "rayscan/io/file_info.hpp"
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/job.hpp"
 
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,16 +23,25 @@ namespace rayscan::io {
 /// Inputs of run_info().
 struct InfoJobOptions {
   std::filesystem::path file;  ///< point cloud file (any format read_point_cloud reads)
+  bool verify = false;         ///< index files: verify every section's checksum (CLI --verify)
   JobControl control;          ///< unused today (the reader is single-threaded)
 };
 
-/// The range of one attribute over all points.
-struct AttributeRange {
-  std::string name;  ///< X, Y, Z, intensity, classification, gps_time, red..., normal_x..., scalar names
-  double lo = 0, hi = 0;
+/// Output of run_info().
+/// What `rayscan info` reports for an index file (.rsi, rayscan/io/index_file.hpp).
+struct IndexFileSummary {
+  std::string layout;                          ///< octree organisation ("adaptive", ...)
+  std::uint32_t capacity = 0;                  ///< points per leaf
+  std::uint64_t nodes = 0, depth = 0;
+  std::vector<std::uint64_t> points_per_level;  ///< points stored at each octree depth
+  std::uint64_t file_bytes = 0;
+  double bytes_per_point = 0;
+  std::string attributes;                      ///< AttributeSet::to_string() ("" = positions only)
+  AABB root_cell;                              ///< the octree's root cube (world units)
+  std::string checksums;                       ///< which sections were verified
+  std::vector<IndexSource> sources;            ///< the files the index was built from
 };
 
-/// Output of run_info().
 struct InfoJobResult {
   std::string file;                          ///< the file described
   FileInfo info;                             ///< what the reader found
@@ -38,6 +51,8 @@ struct InfoJobResult {
   std::vector<AttributeRange> attributes;    ///< every attribute present, in a fixed order
   std::map<int, std::uint64_t> classes;      ///< points per ASPRS class code
   std::string crs_wkt;                       ///< the cloud's CRS as WKT ("" = none)
+  std::optional<IndexFileSummary> index;     ///< set for an index file (.rsi); then info is mostly empty
+  std::optional<CopcInfo> copc;              ///< set for a COPC file: its octree (hierarchy)
 };
 
 /// Reads `file` (read_point_cloud with all scalars) and summarises it. Throws io::FormatError for a

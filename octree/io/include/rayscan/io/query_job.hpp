@@ -15,7 +15,8 @@ namespace rayscan::io {
 
 /// Inputs of run_query().
 struct QueryJobOptions {
-  std::filesystem::path cloud_file;      ///< point cloud to read (any format read_point_cloud reads)
+  std::filesystem::path cloud_file;      ///< point cloud to read (any format read_point_cloud reads), or an
+                                         ///< index file (.rsi: queried on its memory map; `index` is ignored)
   const PointCloud* cloud = nullptr;     ///< in-memory points instead of cloud_file (not copied)
   std::filesystem::path rays_file;       ///< rays to read (read_rays) when `rays` is empty
   std::vector<Ray> rays;                 ///< rays given in memory
@@ -29,6 +30,9 @@ struct QueryJobResult {
   PointCloud cloud;                          ///< the cloud read from cloud_file (empty for in-memory input)
   std::vector<Ray> rays;                     ///< the rays answered
   std::vector<std::vector<RayHit>> hits;     ///< hits[r]: the results of ray r, best first
+  /// Index-file input (.rsi, rayscan/io/index_file.hpp): the position of every hit, in the order
+  /// of `hits` flattened (ray by ray, best first); `cloud` then stays empty. Empty otherwise.
+  std::vector<Vec3> hit_positions;
 };
 
 /// Reads the rays (first, so a malformed rays file is reported before a large cloud is read) and
@@ -41,5 +45,10 @@ QueryJobResult run_query(const QueryJobOptions& options);
 /// `positions` are the positions of the cloud queried (to print x, y, z).
 void write_hits_csv(std::ostream& out, std::span<const Vec3> positions,
                     const std::vector<std::vector<RayHit>>& hits);
+
+/// The same for a job's result: positions from `result.cloud`, or `result.hit_positions` for an
+/// index-file input. (For in-memory input, use the overload above with the caller's positions.)
+void write_hits_csv(std::ostream& out, const QueryJobResult& result);
+
 
 }  // namespace rayscan::io

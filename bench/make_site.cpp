@@ -1,0 +1,92 @@
+// make_site OUT.las N [SOURCE.las]: the issue-10 benchmark site, generated (never committed): the
+// bundled autzen scan (LAS 1.2 PDRF 3) tiled 4 x 4, then repeated with +-0.5 m xy jitter until N
+// points, written as LAS 1.2 PDRF 3 (34 bytes per point: check free disk first, delete after).
+#include <algorithm>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iostream>
+#include <random>
+#include <string>
+#include <vector>
+
+int main(int argc, char** argv) {
+  if (argc < 3) {
+    std::cerr << "usage: make_site OUT.las N [SOURCE.las]\n";
+    return 2;
+  }
+  const std::string out = argv[1];
+  const auto n = static_cast<std::uint64_t>(std::stod(argv[2]));
+  const std::string src_path = argc > 3 ? argv[3] : std::string(RAYSCAN_SOURCE_DIR) + "/scenes/data/autzen_trim.las";
+  std::ifstream in(src_path, std::ios::binary);
+  std::vector<char> src((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  auto u32 = [&](std::size_t o) { std::uint32_t v; std::memcpy(&v, src.data() + o, 4); return v; };
+  auto u16 = [&](std::size_t o) { std::uint16_t v; std::memcpy(&v, src.data() + o, 2); return v; };
+  auto f64 = [&](std::size_t o) { double v; std::memcpy(&v, src.data() + o, 8); return v; };
+  if (src.size() < 227 || (src[104] & 0x3F) != 3 || u16(105) != 34) {
+    std::cerr << src_path << ": expected LAS PDRF 3 with 34-byte records\n";
+    return 2;
+  }
+  const std::uint32_t off = u32(96), count = u32(107);
+  const char* recs = src.data() + off;
+  std::int32_t lo[3] = {INT32_MAX, INT32_MAX, INT32_MAX}, hi[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
+  for (std::uint32_t i = 0; i < count; ++i)
+    for (int k = 0; k < 3; ++k) {
+      std::int32_t v;
+      std::memcpy(&v, recs + i * 34 + 4 * k, 4);
+      lo[k] = std::min(lo[k], v), hi[k] = std::max(hi[k], v);
+    }
+  const std::int64_t ext[2] = {std::int64_t(hi[0]) - lo[0] + 1, std::int64_t(hi[1]) - lo[1] + 1};
+  const int jit = static_cast<int>(0.5 / f64(131));
+  std::mt19937 rng(1);
+  std::uniform_int_distribution<int> J(-jit, jit);
+  const std::string tmp = out + ".tmp";
+  std::FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (!f) return 2;
+  std::vector<char> hdr(src.begin(), src.begin() + 227);
+  std::fwrite(hdr.data(), 1, 227, f);
+  std::vector<char> block(static_cast<std::size_t>(count) * 34);
+  std::int64_t blo[3] = {INT64_MAX, INT64_MAX, INT64_MAX}, bhi[3] = {INT64_MIN, INT64_MIN, INT64_MIN};
+  std::uint64_t done = 0;
+  for (std::uint64_t rep = 0; done < n; ++rep) {
+    const std::uint64_t m = std::min<std::uint64_t>(count, n - done);
+    const int t = static_cast<int>(rep % 16);
+    for (std::uint64_t i = 0; i < m; ++i) {
+      char* r = block.data() + i * 34;
+      std::memcpy(r, recs + i * 34, 34);
+      std::int32_t xyz[3];
+      std::memcpy(xyz, r, 12);
+      std::int64_t x = xyz[0] + (t % 4) * ext[0], y = xyz[1] + (t / 4) * ext[1];
+      if (rep >= 16) x += J(rng), y += J(rng);
+      xyz[0] = static_cast<std::int32_t>(x), xyz[1] = static_cast<std::int32_t>(y);
+      for (int k = 0; k < 3; ++k) blo[k] = std::min<std::int64_t>(blo[k], xyz[k]), bhi[k] = std::max<std::int64_t>(bhi[k], xyz[k]);
+      std::memcpy(r, xyz, 12);
+    }
+    if (std::fwrite(block.data(), 34, m, f) != m) {
+      std::perror(tmp.c_str());
+      std::fclose(f);
+      std::remove(tmp.c_str());
+      return 1;
+    }
+    done += m;
+  }
+  const std::uint32_t zero = 0, n32 = static_cast<std::uint32_t>(n), off227 = 227;
+  std::memcpy(hdr.data() + 96, &off227, 4);
+  std::memcpy(hdr.data() + 100, &zero, 4);
+  std::memcpy(hdr.data() + 107, &n32, 4);
+  const std::uint32_t by_return[5] = {n32, 0, 0, 0, 0};
+  std::memcpy(hdr.data() + 111, by_return, 20);
+  for (int k = 0; k < 3; ++k) {
+    const double s = f64(131 + 8 * k), o = f64(155 + 8 * k);
+    const double mx = static_cast<double>(bhi[k]) * s + o, mn = static_cast<double>(blo[k]) * s + o;
+    std::memcpy(hdr.data() + 179 + 16 * k, &mx, 8);
+    std::memcpy(hdr.data() + 187 + 16 * k, &mn, 8);
+  }
+  std::fseek(f, 0, SEEK_SET);
+  std::fwrite(hdr.data(), 1, 227, f);
+  if (std::fclose(f) != 0) return 1;
+  std::rename(tmp.c_str(), out.c_str());
+  std::cout << out << ": " << n << " points\n";
+  return 0;
+}

@@ -1,0 +1,127 @@
+// Cloud Optimized Point Cloud (COPC 1.0, https://copc.io): a LAZ 1.4 file whose variable-size
+// chunks are the nodes of an octree described by a hierarchy EVLR. Its hierarchy is exactly the
+// paper's *layered* organisation (section 4: every node holds a subsample of its subtree), so
+// CopcIndex satisfies the SpatialIndex concept and the one ray query (Algorithm 1) runs on the
+// file directly: opening reads the header and the hierarchy, nodes are decompressed on first
+// touch and kept in a bounded cache.
+#pragma once
+
+#include "rayscan/geometry.hpp"
+#include "rayscan/spatial_index.hpp"
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace rayscan::io {
+
+/// One hierarchy entry (COPC 1.0 "Hierarchy entry", 32 bytes): the voxel key, the byte range of
+/// the node's LAZ chunk and its point count.
+struct CopcNode {
+  std::int32_t level = 0, x = 0, y = 0, z = 0;  ///< VoxelKey (depth and integer cell)
+  std::uint64_t offset = 0;                     ///< file offset of the node's compressed chunk
+  std::int32_t byte_size = 0;                   ///< bytes of the chunk
+  std::int32_t point_count = 0;                 ///< points stored in the node itself
+};
+
+/// The COPC info VLR (user "copc", record 1, 160 bytes) and the parsed hierarchy.
+struct CopcInfo {
+  Vec3 center{0.0};          ///< centre of the root cube (file units)
+  double halfsize = 0;       ///< half the root cube's edge length
+  double spacing = 0;        ///< the root node's point spacing
+  std::uint64_t root_hier_offset = 0, root_hier_size = 0;  ///< first hierarchy page
+  double gps_min = 0, gps_max = 0;
+  Vec3 scale{1.0}, offset{0.0};  ///< LAS header scale and offset
+  std::uint64_t point_count = 0;  ///< header point count
+  int pdrf = 6;
+  std::uint16_t record_length = 0;
+  std::vector<CopcNode> nodes;  ///< every node with a chunk or children, hierarchy order
+  int depth = 0;                ///< deepest level + 1
+  std::vector<std::uint64_t> nodes_per_level, points_per_level;
+  std::uint64_t hierarchy_pages = 0;
+
+  /// Cube of a voxel key (COPC 1.0: level 0 is the root cube; each level halves the edge).
+  [[nodiscard]] AABB node_cube(const CopcNode& n) const;
+};
+
+/// Reads the COPC info VLR and walks the hierarchy EVLR pages (record 1000) from the root page.
+/// Throws FormatError naming the file and byte offset for: no COPC VLR, a page or chunk range
+/// past the end of the file, a page visited twice (cycle), a duplicate or out-of-range key, a
+/// node without its parent, a negative point count other than the -1 page marker.
+CopcInfo read_copc_info(std::span<const std::uint8_t> bytes, const std::string& name);
+/// Same for a file (reads only the header, VLRs and hierarchy pages).
+CopcInfo read_copc_info(const std::filesystem::path& path);
+
+/// A COPC file as a SpatialIndex (layered octree). Node 0 is the root; a node's children are
+/// the existing keys one level down. Slots: each node owns a contiguous slot range (aligned to
+/// 1024 slots so that its pages can be released on eviction); ids() are the points' indices in
+/// file order, the order read_point_cloud() returns them in. positions() spans reserved virtual
+/// memory: a node's slots are filled by node_points() on first touch (thread-safe), which
+/// decodes only the node's X, Y and Z layers. Coordinates: x = X * scale + offset in double,
+/// exactly as read_point_cloud(). Node bounds are the COPC voxel cubes, grown by one scale step
+/// (points on a face may be rounded outside by the LAS quantisation).
+class CopcIndex {
+ public:
+  using Node = std::uint32_t;
+
+  /// Opens `path` (memory-mapped) and reads its header and hierarchy. `cache_bytes` bounds the
+  /// decoded positions and ids kept resident by trim_cache(). Throws FormatError.
+  explicit CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes = std::size_t{2} << 30);
+  ~CopcIndex();
+  CopcIndex(const CopcIndex&) = delete;
+  CopcIndex& operator=(const CopcIndex&) = delete;
+
+  [[nodiscard]] bool empty() const { return nodes_.empty() || info_.point_count == 0; }
+  [[nodiscard]] Node root() const { return 0; }
+  [[nodiscard]] AABB node_bounds(Node n) const { return nodes_[n].box; }
+  /// Decodes node n on first touch (throws FormatError for a corrupted chunk).
+  [[nodiscard]] SlotRange node_points(Node n) const;
+  [[nodiscard]] unsigned child_count(Node n) const { return nodes_[n].child_count; }
+  [[nodiscard]] Node child(Node n, unsigned i) const { return nodes_[n].children[i]; }
+  [[nodiscard]] std::span<const Vec3> positions() const { return {pos_, slots_}; }
+  [[nodiscard]] std::span<const PointIndex> ids() const { return {ids_, slots_}; }
+
+  [[nodiscard]] const CopcInfo& info() const { return info_; }
+  [[nodiscard]] std::size_t node_count() const { return nodes_.size(); }
+  /// Nodes decoded so far (including re-decodes after eviction) and nodes resident now.
+  [[nodiscard]] std::uint64_t decodes() const { return decodes_.load(); }
+  [[nodiscard]] std::size_t resident_nodes() const;
+  /// Releases least recently touched nodes until the resident positions+ids fit the cache
+  /// budget; returns the nodes evicted. Must not run concurrently with queries on this index
+  /// (call it between batches, e.g. between render tiles).
+  std::size_t trim_cache();
+
+ private:
+  struct NodeData {
+    AABB box;
+    SlotRange slots;
+    std::uint32_t entry = 0;       // index into info_.nodes
+    std::uint64_t first_id = 0;    // file-order index of the node's first point
+    Node children[8] = {};
+    unsigned child_count = 0;
+  };
+  void load(Node n) const;
+
+  CopcInfo info_;
+  std::string name_;
+  struct Map;
+  std::unique_ptr<Map> map_;
+  std::vector<NodeData> nodes_;
+  std::size_t slots_ = 0;
+  Vec3* pos_ = nullptr;
+  PointIndex* ids_ = nullptr;
+  std::size_t cache_bytes_;
+  mutable std::unique_ptr<std::atomic<std::uint8_t>[]> loaded_;
+  mutable std::unique_ptr<std::atomic<std::uint64_t>[]> touched_;
+  mutable std::atomic<std::uint64_t> clock_{0}, decodes_{0};
+  mutable std::mutex locks_[32];
+};
+
+static_assert(SpatialIndex<CopcIndex>);
+
+}  // namespace rayscan::io

@@ -1,0 +1,43 @@
+// Lossless LAS <-> LAZ conversion (`rayscan translate`, like `laszip -i in -o out` or
+// `pdal translate`): same header fields, VLRs and EVLRs (the LASzip VLR added or removed, COPC
+// VLRs dropped since the output is no longer a COPC file) and byte-identical point records.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+
+namespace rayscan::io {
+
+/// Output compression of translate_las().
+enum class LasCompression {
+  by_extension,  ///< LAZ when the output path ends in .laz (case-insensitive), else LAS
+  las,           ///< plain LAS
+  laz,           ///< LAZ
+};
+
+/// Options of translate_las().
+struct TranslateOptions {
+  LasCompression compression = LasCompression::by_extension;
+  std::uint32_t chunk_size = 50000;  ///< points per LAZ chunk (LASzip's default)
+};
+
+/// What translate_las() did.
+struct TranslateResult {
+  std::uint64_t points = 0;
+  std::uint64_t chunks = 0;  ///< LAZ chunks written (0 for LAS output)
+  bool compressed = false;   ///< the output is LAZ
+  std::uint64_t in_bytes = 0, out_bytes = 0;
+};
+
+/// Converts the LAS or LAZ file `in` (LAZ recognised by its LASzip VLR) to `out`, streaming one
+/// chunk at a time (memory independent of the file size). LAZ output uses the pointwise-chunked
+/// compressor with LASzip item version 2 (POINT10, GPSTIME11, RGB12, BYTE), which covers point
+/// data record formats 0-5 without waveform packets (PDRF 0-3 + extra bytes). Writes through a
+/// temporary file renamed into place (AtomicFile). Throws FormatError for malformed input,
+/// std::invalid_argument for an unsupported conversion (LAZ output of PDRF 4-10, chunk_size 0),
+/// std::runtime_error for I/O failures. Sources: ASPRS LAS 1.4 R15 sections 2.4-2.7; LASzip
+/// (docs/formats.md "LAZ" sections 4-5).
+TranslateResult translate_las(const std::filesystem::path& in, const std::filesystem::path& out,
+                              const TranslateOptions& options = {});
+
+}  // namespace rayscan::io

@@ -1,0 +1,952 @@
+// The index file (.rsi): external-memory build and memory-mapped open. Layout: docs/index-format.md.
+#include "rayscan/io/index_file.hpp"
+#include "rayscan/input_file.hpp"
+
+#include "rayscan/atomic_file.hpp"
+#include "readers.hpp"
+
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zlib.h>
+
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstddef>
+#include <cstring>
+#include <limits>
+#include <queue>
+#include <sstream>
+
+namespace rayscan::io {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// ---- format constants (docs/index-format.md) ----------------------------------------------------
+constexpr char kMagic[8] = {'R', 'S', 'I', 'N', 'D', 'E', 'X', '\0'};
+constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kEndianMarker = 0x01020304;
+constexpr std::uint64_t kHeaderBytes = 4096;
+constexpr std::uint64_t kAlign = 4096;
+constexpr std::uint32_t kMaxSections = 16;
+constexpr std::size_t kTableOffset = 128;
+constexpr std::size_t kEntryBytes = 32;
+constexpr std::size_t kNodeBytes = 48;
+constexpr std::size_t kCrcOffset = 120;
+
+enum SectionId : std::uint32_t {
+  kSources = 1, kCrs = 2, kPositions = 3, kIds = 4, kRgb = 5, kIntensity = 6,
+  kClassification = 7, kGpsTime = 8, kNodes = 9
+};
+const char* section_name(std::uint32_t id) {
+  switch (id) {
+    case kSources: return "sources";
+    case kCrs: return "crs";
+    case kPositions: return "positions";
+    case kIds: return "ids";
+    case kRgb: return "rgb";
+    case kIntensity: return "intensity";
+    case kClassification: return "classification";
+    case kGpsTime: return "gps_time";
+    case kNodes: return "nodes";
+  }
+  return "unknown";
+}
+/// Bytes per element of a per-point or per-node section; 1 for byte sections.
+std::uint32_t elem_size(std::uint32_t id) {
+  switch (id) {
+    case kPositions: return 24;
+    case kIds: return 4;
+    case kRgb: return 6;
+    case kIntensity: return 2;
+    case kClassification: return 1;
+    case kGpsTime: return 8;
+    case kNodes: return kNodeBytes;
+    default: return 1;
+  }
+}
+
+static_assert(sizeof(Vec3) == 24 && alignof(Vec3) <= 8, "positions section is an array of 3 float64");
+static_assert(sizeof(Rgb16) == 6, "rgb section is an array of 3 uint16");
+static_assert(sizeof(Octree::NodeRec) == kNodeBytes);
+static_assert(offsetof(Octree::NodeRec, lo) == 0 && offsetof(Octree::NodeRec, hi) == 12 &&
+              offsetof(Octree::NodeRec, key) == 24 && offsetof(Octree::NodeRec, first_child) == 32 &&
+              offsetof(Octree::NodeRec, own_begin) == 36 && offsetof(Octree::NodeRec, own_end) == 40 &&
+              offsetof(Octree::NodeRec, child_count) == 44,
+              "the nodes section is read in place as Octree::NodeRec");
+static_assert(std::endian::native == std::endian::little, "the index file is little-endian");
+
+std::uint64_t align_up(std::uint64_t v) { return (v + kAlign - 1) / kAlign * kAlign; }
+
+std::uint32_t crc32_of(const void* p, std::size_t n, std::uint32_t crc = 0) {
+  const auto* b = static_cast<const Bytef*>(p);
+  while (n > 0) {  // crc32_z takes z_size_t; chunk anyway to keep progress bounded
+    const std::size_t k = std::min<std::size_t>(n, std::size_t{1} << 30);
+    crc = static_cast<std::uint32_t>(::crc32_z(crc, b, k));
+    b += k;
+    n -= k;
+  }
+  return crc;
+}
+
+std::string hex32(std::uint32_t v) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "%08x", v);
+  return buf;
+}
+
+[[noreturn]] void io_fail(const fs::path& p, const std::string& what) {
+  throw std::runtime_error(p.string() + ": " + what + ": " + std::strerror(errno));
+}
+
+/// An owned file descriptor with full-length pwrite/pread that throw on failure (ENOSPC etc.).
+class Fd {
+ public:
+  Fd(const fs::path& p, int flags, mode_t mode = 0644) : path_(p) {
+    fd_ = ::open(p.c_str(), flags | O_CLOEXEC, mode);
+    if (fd_ < 0) io_fail(p, "cannot open");
+  }
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+  ~Fd() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  void pwrite_all(const void* data, std::size_t n, std::uint64_t off) {
+    const auto* p = static_cast<const char*>(data);
+    while (n > 0) {
+      const ssize_t w = ::pwrite(fd_, p, n, static_cast<off_t>(off));
+      if (w < 0 && errno == EINTR) continue;
+      if (w <= 0) {
+        if (w == 0) errno = ENOSPC;
+        io_fail(path_, "write of " + std::to_string(n) + " bytes at byte " + std::to_string(off) + " failed");
+      }
+      p += w;
+      n -= static_cast<std::size_t>(w);
+      off += static_cast<std::uint64_t>(w);
+    }
+  }
+  /// Reads up to n bytes at off; returns bytes read (less only at end of file).
+  std::size_t pread_some(void* data, std::size_t n, std::uint64_t off) {
+    auto* p = static_cast<char*>(data);
+    std::size_t got = 0;
+    while (got < n) {
+      const ssize_t r = ::pread(fd_, p + got, n - got, static_cast<off_t>(off + got));
+      if (r < 0 && errno == EINTR) continue;
+      if (r < 0) io_fail(path_, "read failed at byte " + std::to_string(off + got));
+      if (r == 0) break;
+      got += static_cast<std::size_t>(r);
+    }
+    return got;
+  }
+  [[nodiscard]] int get() const { return fd_; }
+
+ private:
+  int fd_ = -1;
+  fs::path path_;
+};
+
+/// Sequential buffered writer into one region of a file, with a running CRC-32.
+class SectionWriter {
+ public:
+  SectionWriter(Fd& fd, std::uint64_t offset, std::size_t buffer_bytes)
+      : fd_(&fd), off_(offset) {
+    buf_.reserve(buffer_bytes);
+  }
+  void write(const void* p, std::size_t n) {
+    const auto* b = static_cast<const std::uint8_t*>(p);
+    if (buf_.size() + n > buf_.capacity()) flush();
+    if (n >= buf_.capacity()) {
+      emit(b, n);
+      return;
+    }
+    buf_.insert(buf_.end(), b, b + n);
+  }
+  void flush() {
+    if (!buf_.empty()) emit(buf_.data(), buf_.size());
+    buf_.clear();
+  }
+  [[nodiscard]] std::uint32_t crc() const { return crc_; }
+  [[nodiscard]] std::uint64_t written() const { return written_; }
+
+ private:
+  void emit(const std::uint8_t* p, std::size_t n) {
+    fd_->pwrite_all(p, n, off_ + written_);
+    crc_ = crc32_of(p, n, crc_);
+    written_ += n;
+  }
+  Fd* fd_;
+  std::uint64_t off_;
+  std::uint64_t written_ = 0;
+  std::uint32_t crc_ = 0;
+  std::vector<std::uint8_t> buf_;
+};
+
+struct SectionEntry {
+  std::uint32_t id = 0, elem = 0;
+  std::uint64_t offset = 0, size = 0;
+  std::uint32_t crc = 0;
+};
+
+/// The fixed header (docs/index-format.md, "Header").
+struct Header {
+  std::uint64_t points = 0, nodes = 0;
+  AABB cell;
+  OctreeConfig config;
+  std::uint32_t depth = 0;
+  std::uint32_t attributes = 0;
+  std::vector<SectionEntry> sections;
+};
+
+template <class T>
+void put(std::uint8_t* b, std::size_t off, T v) {
+  std::memcpy(b + off, &v, sizeof(T));
+}
+template <class T>
+T get(const std::uint8_t* b, std::size_t off) {
+  T v;
+  std::memcpy(&v, b + off, sizeof(T));
+  return v;
+}
+
+std::vector<std::uint8_t> encode_header(const Header& h) {
+  std::vector<std::uint8_t> b(kHeaderBytes, 0);
+  std::memcpy(b.data(), kMagic, 8);
+  put<std::uint32_t>(b.data(), 8, kVersion);
+  put<std::uint32_t>(b.data(), 12, static_cast<std::uint32_t>(kHeaderBytes));
+  put<std::uint32_t>(b.data(), 16, kEndianMarker);
+  put<std::uint32_t>(b.data(), 20, static_cast<std::uint32_t>(h.sections.size()));
+  put<std::uint64_t>(b.data(), 24, h.points);
+  put<std::uint64_t>(b.data(), 32, h.nodes);
+  for (int k = 0; k < 3; ++k) {
+    put<double>(b.data(), 40 + 8 * k, h.cell.lo[k]);
+    put<double>(b.data(), 64 + 8 * k, h.cell.hi[k]);
+  }
+  put<std::uint32_t>(b.data(), 88, static_cast<std::uint32_t>(h.config.layout));
+  put<std::uint32_t>(b.data(), 92, h.config.capacity);
+  put<std::uint32_t>(b.data(), 96, h.config.max_depth);
+  put<std::uint32_t>(b.data(), 100, h.config.depth);
+  put<std::uint32_t>(b.data(), 104, h.depth);
+  put<std::uint32_t>(b.data(), 108, h.attributes);
+  for (std::size_t i = 0; i < h.sections.size(); ++i) {
+    const SectionEntry& s = h.sections[i];
+    const std::size_t o = kTableOffset + i * kEntryBytes;
+    put<std::uint32_t>(b.data(), o, s.id);
+    put<std::uint32_t>(b.data(), o + 4, s.elem);
+    put<std::uint64_t>(b.data(), o + 8, s.offset);
+    put<std::uint64_t>(b.data(), o + 16, s.size);
+    put<std::uint32_t>(b.data(), o + 24, s.crc);
+  }
+  put<std::uint32_t>(b.data(), kCrcOffset, crc32_of(b.data(), b.size()));
+  return b;
+}
+
+std::string encode_sources(const std::vector<IndexSource>& src) {
+  std::string out;
+  for (const IndexSource& s : src)
+    out += std::to_string(s.size) + "\t" + std::to_string(s.mtime_ns) + "\t" + std::to_string(s.points) +
+           "\t" + std::to_string(s.first_id) + "\t" + s.format + "\t" + s.path + "\n";
+  return out;
+}
+
+std::int64_t mtime_ns(const fs::path& p) {
+  struct stat st {};
+  if (::stat(p.c_str(), &st) != 0) return 0;
+  return static_cast<std::int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec;
+}
+
+// ---- build ---------------------------------------------------------------------------------------
+
+/// Layout of one sort record: Morton code, id, position, then the stored attributes.
+struct RecordLayout {
+  bool rgb = false, intensity = false, cls = false, gps = false;
+  std::size_t bytes = 36, rgb_off = 0, int_off = 0, cls_off = 0, gps_off = 0;
+  explicit RecordLayout(AttributeSet a)
+      : rgb(a.has(Attribute::rgb)), intensity(a.has(Attribute::intensity)),
+        cls(a.has(Attribute::classification)), gps(a.has(Attribute::gps_time)) {
+    if (gps) gps_off = bytes, bytes += 8;
+    if (rgb) rgb_off = bytes, bytes += 6;
+    if (intensity) int_off = bytes, bytes += 2;
+    if (cls) cls_off = bytes, bytes += 1;
+  }
+};
+
+struct SortKey {
+  std::uint64_t code;
+  std::uint32_t id;
+  std::uint32_t slot;  // record position in the run buffer
+  bool operator<(const SortKey& o) const { return code < o.code || (code == o.code && id < o.id); }
+};
+
+/// A folder of temporary files removed (with its contents) on destruction.
+struct TempDir {
+  fs::path path;
+  explicit TempDir(fs::path p) : path(std::move(p)) {
+    std::error_code ec;
+    fs::create_directories(path, ec);
+    if (ec) throw std::runtime_error(path.string() + ": cannot create the temporary folder: " + ec.message());
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+/// Sequential reader of one sorted run file with a fixed buffer.
+class RunReader {
+ public:
+  RunReader(const fs::path& p, std::size_t rec, std::size_t buffer_bytes)
+      : fd_(p, O_RDONLY), rec_(rec) {
+    buf_.resize(std::max(rec, buffer_bytes / rec * rec));
+    refill();
+  }
+  [[nodiscard]] bool done() const { return pos_ >= len_; }
+  [[nodiscard]] const std::uint8_t* cur() const { return buf_.data() + pos_; }
+  void next() {
+    pos_ += rec_;
+    if (pos_ >= len_) refill();
+  }
+
+ private:
+  void refill() {
+    len_ = fd_.pread_some(buf_.data(), buf_.size(), off_) / rec_ * rec_;
+    off_ += len_;
+    pos_ = 0;
+  }
+  Fd fd_;
+  std::size_t rec_;
+  std::vector<std::uint8_t> buf_;
+  std::size_t pos_ = 0, len_ = 0;
+  std::uint64_t off_ = 0;
+};
+
+/// Node construction over the Morton-sorted codes and positions (both memory-mapped), following
+/// Octree::build_bulk for the adaptive and fixed layouts: same split rule, child order, node
+/// numbering and float bounds (OctreeRules), hence the identical node array.
+struct NodeBuilder {
+  const OctreeConfig& cfg;
+  const std::uint64_t* codes;
+  const Vec3* pos;
+  Vec3 cell_lo;
+  std::vector<Octree::NodeRec> nodes;
+  unsigned depth = 0;
+  IndexProgress progress;
+  std::uint64_t total = 0, emitted = 0, next_report = 0;
+
+  void build(std::uint32_t n, unsigned d, std::size_t b, std::size_t e) {
+    const std::size_t count = e - b;
+    const bool same = count == 0 || codes[b] == codes[e - 1];
+    const bool split = OctreeRules::splits(cfg, d, count, same);
+    const std::size_t rest = split ? b : e;
+    nodes[n].own_begin = static_cast<std::uint32_t>(b);
+    nodes[n].own_end = static_cast<std::uint32_t>(rest);
+    if (rest < e) {
+      std::array<std::size_t, 9> start{};
+      std::array<unsigned, 8> oct{};
+      unsigned nchild = 0;
+      std::size_t i = rest;
+      while (i < e) {
+        const unsigned o = OctreeRules::octant(codes[i], d);
+        const std::size_t j = static_cast<std::size_t>(
+            std::partition_point(codes + i, codes + e,
+                                 [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; }) -
+            codes);
+        start[nchild] = i;
+        oct[nchild] = o;
+        ++nchild;
+        i = j;
+      }
+      start[nchild] = e;
+      const auto first = static_cast<std::uint32_t>(nodes.size());
+      const std::uint64_t key = nodes[n].key;
+      nodes.resize(nodes.size() + nchild);
+      nodes[n].first_child = first;
+      nodes[n].child_count = static_cast<std::uint8_t>(nchild);
+      for (unsigned k = 0; k < nchild; ++k) {
+        nodes[first + k].key = (key << 3) | oct[k];
+        build(first + k, d + 1, start[k], start[k + 1]);
+      }
+    }
+    // Close: bounds of the own points, then of the children (Octree's close_node).
+    Octree::NodeRec& rec = nodes[n];
+    AABB own;
+    for (std::uint32_t s = rec.own_begin; s < rec.own_end; ++s) own.expand(pos[s]);
+    glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
+    if (!own.empty())
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = OctreeRules::float_bound(own.lo[a] - cell_lo[a], false);
+        hi[a] = OctreeRules::float_bound(own.hi[a] - cell_lo[a], true);
+      }
+    for (unsigned c = 0; c < rec.child_count; ++c) {
+      lo = glm::min(lo, nodes[rec.first_child + c].lo);
+      hi = glm::max(hi, nodes[rec.first_child + c].hi);
+    }
+    rec.lo = lo;
+    rec.hi = hi;
+    depth = std::max(depth, d);
+    emitted += rec.own_end - rec.own_begin;
+    if (progress && emitted >= next_report) {
+      progress("nodes", emitted, total);
+      next_report = emitted + (std::uint64_t{1} << 23);
+    }
+  }
+};
+
+/// Read-only map of a file region (for the codes temp file and the output's positions).
+struct ReadMap {
+  void* p = nullptr;
+  std::size_t n = 0;
+  ReadMap(int fd, std::size_t bytes, const fs::path& name) : n(bytes) {
+    if (n == 0) return;
+    p = ::mmap(nullptr, n, PROT_READ, MAP_SHARED, fd, 0);
+    if (p == MAP_FAILED) {
+      p = nullptr;
+      io_fail(name, "cannot memory-map");
+    }
+  }
+  ReadMap(const ReadMap&) = delete;
+  ReadMap& operator=(const ReadMap&) = delete;
+  ~ReadMap() {
+    if (p != nullptr) ::munmap(p, n);
+  }
+};
+
+bool same_crs(const PointReader& a, const PointReader& b) {
+  if (a.info().epsg != 0 && b.info().epsg != 0) return a.info().epsg == b.info().epsg;
+  return a.crs_wkt() == b.crs_wkt();
+}
+std::string crs_label(const PointReader& r) {
+  if (r.info().epsg != 0) return "EPSG:" + std::to_string(r.info().epsg);
+  if (r.crs_wkt().empty()) return "no CRS";
+  return "WKT \"" + r.crs_wkt().substr(0, 40) + "...\"";
+}
+
+}  // namespace
+
+std::uint64_t parse_byte_size(const std::string& text) {
+  std::size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  std::string unit = detail::lower(text.substr(used));
+  if (unit.size() >= 2 && unit.substr(unit.size() - 2) == "ib") unit.resize(unit.size() - 2);
+  else if (!unit.empty() && unit.back() == 'b') unit.pop_back();
+  double mul = 0;
+  if (unit.empty()) mul = 1;
+  else if (unit == "k") mul = 1024.0;
+  else if (unit == "m") mul = 1024.0 * 1024;
+  else if (unit == "g") mul = 1024.0 * 1024 * 1024;
+  else if (unit == "t") mul = 1024.0 * 1024 * 1024 * 1024;
+  if (used == 0 || mul == 0 || !(v > 0) || !std::isfinite(v) || v * mul > 1e18)
+    throw std::invalid_argument("size '" + text + "': expected a positive number with an optional K, M, G or T suffix");
+  return static_cast<std::uint64_t>(v * mul);
+}
+
+bool is_index_file(const std::filesystem::path& path) { return detail::lower(path.extension().string()) == ".rsi"; }
+
+IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::path& output,
+                                 const IndexBuildOptions& opt) {
+  opt.config.validate();
+  if (opt.config.layout == OctreeLayout::layered)
+    throw std::invalid_argument("--layout layered: not supported by the external-memory index build "
+                                "(use adaptive or fixed)");
+  if (inputs.empty()) throw std::invalid_argument("rayscan index: no input file");
+  if (opt.memory_bytes < (std::uint64_t{1} << 20))
+    throw std::invalid_argument("--memory " + std::to_string(opt.memory_bytes) + " bytes: at least 1M");
+  const AttributeSet storable = AttributeSet::parse("rgb,intensity,classification,gps_time");
+  if ((opt.attributes & storable) != opt.attributes)
+    throw std::invalid_argument("--attributes " + opt.attributes.to_string() +
+                                ": an index stores rgb, intensity, classification, gps_time");
+  IndexBuildStats stats;
+
+  // Pass 1: bounds, counts, CRS agreement (positions only).
+  AABB bounds;
+  std::vector<IndexSource> sources;
+  AttributeSet stored = opt.attributes;
+  std::string crs;
+  std::uint64_t total = 0;
+  {
+    std::unique_ptr<PointReader> first;
+    PointCloud chunk;
+    for (const fs::path& in : inputs) {
+      auto r = open_point_reader(in, opt.attributes, ReadOptions{.scalars = false});
+      if (first && !same_crs(*first, *r))
+        throw IndexError(in.string() + ": CRS " + crs_label(*r) + " differs from " + crs_label(*first) +
+                         " of " + inputs.front().string() + " (an index holds one coordinate system)");
+      const AttributeSet lacking{opt.attributes.bits & ~r->attributes().bits};
+      if (lacking.bits != 0 && (stored.bits & lacking.bits) != 0) {
+        stats.notes.push_back(in.string() + " has no " + lacking.to_string() + ": not stored");
+        stored = AttributeSet{stored.bits & ~lacking.bits};
+      }
+      auto pr = open_point_reader(in, AttributeSet::none(), ReadOptions{.scalars = false});
+      IndexSource s;
+      s.path = fs::absolute(in).lexically_normal().string();
+      s.size = fs::file_size(in);
+      s.mtime_ns = mtime_ns(in);
+      s.first_id = total;
+      s.format = r->info().format + (r->info().version.empty() ? "" : " " + r->info().version);
+      while (pr->read(chunk, kDefaultChunkPoints) > 0) {
+        for (const Vec3& p : chunk.positions) bounds.expand(p);
+        s.points += chunk.size();
+        if (opt.progress) opt.progress("scan", total + s.points, 0);
+      }
+      total += s.points;
+      if (total >= 0xFFFFFFFFull) throw std::length_error("rayscan index: more than 2^32 - 2 points");
+      sources.push_back(s);
+      if (!first) {
+        crs = r->crs_wkt();
+        first = std::move(r);
+      }
+    }
+  }
+  const AABB cell = OctreeRules::root_cell(bounds);
+  const OctreeRules::Quantizer qz(cell.lo, OctreeRules::root_side(bounds));
+  const RecordLayout L(stored);
+
+  AtomicFile out(output);
+  fs::path tmp_dir = opt.temp_dir.empty() ? output.parent_path() : opt.temp_dir;
+  if (tmp_dir.empty()) tmp_dir = ".";
+  TempDir runs_dir(tmp_dir / ("." + output.filename().string() + ".runs." + std::to_string(::getpid())));
+
+  // Pass 2: sorted runs within the memory budget (records + 16-byte sort keys per point).
+  const std::size_t run_cap = std::max<std::size_t>(
+      1024, static_cast<std::size_t>(opt.memory_bytes * 3 / 4 / (L.bytes + sizeof(SortKey))));
+  std::vector<fs::path> run_files;
+  {
+    std::vector<std::uint8_t> recs;
+    std::vector<SortKey> keys;
+    recs.reserve(std::min<std::uint64_t>(run_cap, total) * L.bytes);
+    keys.reserve(std::min<std::uint64_t>(run_cap, total));
+    std::uint64_t id = 0;
+    auto flush_run = [&] {
+      if (keys.empty()) return;
+      tbb::parallel_sort(keys.begin(), keys.end());
+      const fs::path rp = runs_dir.path / ("run" + std::to_string(run_files.size()));
+      Fd fd(rp, O_WRONLY | O_CREAT | O_TRUNC);
+      SectionWriter w(fd, 0, 8 << 20);
+      std::vector<std::uint8_t> tmp(L.bytes);
+      for (const SortKey& k : keys) w.write(recs.data() + static_cast<std::size_t>(k.slot) * L.bytes, L.bytes);
+      w.flush();
+      run_files.push_back(rp);
+      keys.clear();
+      recs.clear();
+    };
+    PointCloud c;
+    for (const fs::path& in : inputs) {
+      auto r = open_point_reader(in, stored, ReadOptions{.scalars = false});
+      std::size_t n;
+      while ((n = r->read(c, kDefaultChunkPoints)) > 0) {
+        std::size_t i0 = 0;
+        while (i0 < n) {
+          const std::size_t take = std::min(n - i0, run_cap - keys.size());
+          const std::size_t k0 = keys.size();
+          keys.resize(k0 + take);
+          recs.resize((k0 + take) * L.bytes);
+          tbb::parallel_for(tbb::blocked_range<std::size_t>(0, take, 1 << 14),
+                            [&](const tbb::blocked_range<std::size_t>& rg) {
+                              for (std::size_t j = rg.begin(); j < rg.end(); ++j) {
+                                const std::size_t i = i0 + j, slot = k0 + j;
+                                const Vec3& p = c.positions[i];
+                                const std::uint64_t code = qz.code(p);
+                                const auto pid = static_cast<std::uint32_t>(id + i);
+                                keys[slot] = {code, pid, static_cast<std::uint32_t>(slot)};
+                                std::uint8_t* rec = recs.data() + slot * L.bytes;
+                                std::memcpy(rec, &code, 8);
+                                std::memcpy(rec + 8, &pid, 4);
+                                std::memcpy(rec + 12, &p, 24);
+                                if (L.gps) std::memcpy(rec + L.gps_off, &c.gps_time[i], 8);
+                                if (L.rgb) std::memcpy(rec + L.rgb_off, &c.rgb[i], 6);
+                                if (L.intensity) std::memcpy(rec + L.int_off, &c.intensity[i], 2);
+                                if (L.cls) rec[L.cls_off] = c.classification[i];
+                              }
+                            });
+          i0 += take;
+          if (keys.size() == run_cap) flush_run();
+        }
+        id += n;
+        if (opt.progress) opt.progress("sort", id, total);
+      }
+    }
+    if (id != total)
+      throw std::runtime_error(inputs.front().string() + ": the inputs changed during the build (" +
+                               std::to_string(id) + " points, first pass read " + std::to_string(total) + ")");
+    flush_run();
+  }
+  stats.runs = run_files.size();
+
+  // Section placement: sources, crs, per-point sections, then nodes (size known after the build).
+  Header h;
+  h.points = total;
+  h.cell = cell;
+  h.config = opt.config;
+  h.attributes = stored.bits;
+  const std::string src_text = encode_sources(sources);
+  std::uint64_t off = kHeaderBytes;
+  auto place = [&](std::uint32_t id, std::uint64_t size) {
+    SectionEntry e{id, elem_size(id), off, size, 0};
+    h.sections.push_back(e);
+    off = align_up(off + size);
+    return h.sections.size() - 1;
+  };
+  const std::size_t s_src = place(kSources, src_text.size());
+  const std::size_t s_crs = place(kCrs, crs.size());
+  const std::size_t s_pos = place(kPositions, total * 24);
+  const std::size_t s_ids = place(kIds, total * 4);
+  std::size_t s_rgb = 0, s_int = 0, s_cls = 0, s_gps = 0;
+  if (L.rgb) s_rgb = place(kRgb, total * 6);
+  if (L.intensity) s_int = place(kIntensity, total * 2);
+  if (L.cls) s_cls = place(kClassification, total);
+  if (L.gps) s_gps = place(kGpsTime, total * 8);
+
+  Fd fd(out.temp(), O_RDWR | O_CREAT | O_TRUNC);
+  {
+    const std::vector<std::uint8_t> zero(kHeaderBytes, 0);  // header slot, written last
+    fd.pwrite_all(zero.data(), zero.size(), 0);
+  }
+  auto write_blob = [&](std::size_t s, const std::string& text) {
+    if (!text.empty()) fd.pwrite_all(text.data(), text.size(), h.sections[s].offset);
+    h.sections[s].crc = crc32_of(text.data(), text.size());
+  };
+  write_blob(s_src, src_text);
+  write_blob(s_crs, crs);
+
+  // Merge: k-way by (code, id) into the point sections; codes go to a temporary file.
+  const fs::path codes_path = runs_dir.path / "codes";
+  {
+    Fd codes_fd(codes_path, O_WRONLY | O_CREAT | O_TRUNC);
+    const std::size_t wbuf = 4 << 20;
+    SectionWriter w_codes(codes_fd, 0, wbuf), w_pos(fd, h.sections[s_pos].offset, wbuf),
+        w_ids(fd, h.sections[s_ids].offset, wbuf);
+    std::optional<SectionWriter> w_rgb, w_int, w_cls, w_gps;
+    if (L.rgb) w_rgb.emplace(fd, h.sections[s_rgb].offset, wbuf);
+    if (L.intensity) w_int.emplace(fd, h.sections[s_int].offset, wbuf);
+    if (L.cls) w_cls.emplace(fd, h.sections[s_cls].offset, wbuf);
+    if (L.gps) w_gps.emplace(fd, h.sections[s_gps].offset, wbuf);
+    const std::size_t rbuf = std::clamp<std::size_t>(
+        static_cast<std::size_t>(opt.memory_bytes / 2 / std::max<std::size_t>(1, run_files.size())),
+        std::size_t{1} << 16, std::size_t{64} << 20);
+    std::vector<std::unique_ptr<RunReader>> readers;
+    for (const fs::path& rp : run_files) readers.push_back(std::make_unique<RunReader>(rp, L.bytes, rbuf));
+    struct Head {
+      std::uint64_t code;
+      std::uint32_t id;
+      std::uint32_t run;
+      bool operator>(const Head& o) const { return code > o.code || (code == o.code && id > o.id); }
+    };
+    std::priority_queue<Head, std::vector<Head>, std::greater<>> heap;
+    auto push = [&](std::uint32_t r) {
+      if (readers[r]->done()) return;
+      heap.push({get<std::uint64_t>(readers[r]->cur(), 0), get<std::uint32_t>(readers[r]->cur(), 8), r});
+    };
+    for (std::uint32_t r = 0; r < readers.size(); ++r) push(r);
+    std::uint64_t merged = 0;
+    while (!heap.empty()) {
+      const Head top = heap.top();
+      heap.pop();
+      const std::uint8_t* rec = readers[top.run]->cur();
+      w_codes.write(rec, 8);
+      w_ids.write(rec + 8, 4);
+      w_pos.write(rec + 12, 24);
+      if (L.gps) w_gps->write(rec + L.gps_off, 8);
+      if (L.rgb) w_rgb->write(rec + L.rgb_off, 6);
+      if (L.intensity) w_int->write(rec + L.int_off, 2);
+      if (L.cls) w_cls->write(rec + L.cls_off, 1);
+      readers[top.run]->next();
+      push(top.run);
+      if (opt.progress && (++merged & ((1u << 22) - 1)) == 0) opt.progress("merge", merged, total);
+    }
+    for (SectionWriter* w : {&w_codes, &w_pos, &w_ids}) w->flush();
+    h.sections[s_pos].crc = w_pos.crc();
+    h.sections[s_ids].crc = w_ids.crc();
+    if (L.rgb) w_rgb->flush(), h.sections[s_rgb].crc = w_rgb->crc();
+    if (L.intensity) w_int->flush(), h.sections[s_int].crc = w_int->crc();
+    if (L.cls) w_cls->flush(), h.sections[s_cls].crc = w_cls->crc();
+    if (L.gps) w_gps->flush(), h.sections[s_gps].crc = w_gps->crc();
+    if (opt.progress) opt.progress("merge", total, total);
+  }
+  for (const fs::path& rp : run_files) fs::remove(rp);
+
+  // Nodes from the sorted codes and positions (both mapped; their pages are file cache).
+  {
+    Fd codes_fd(codes_path, O_RDONLY);
+    ReadMap codes(codes_fd.get(), total * 8, codes_path);
+    ReadMap file(fd.get(), h.sections[s_pos].offset + total * 24, out.temp());
+    NodeBuilder nb{opt.config,
+                   static_cast<const std::uint64_t*>(codes.p),
+                   reinterpret_cast<const Vec3*>(static_cast<const std::uint8_t*>(file.p) + h.sections[s_pos].offset),
+                   cell.lo, {}, 0, opt.progress, total, 0, 0};
+    if (total > 0) {
+      nb.nodes.emplace_back();
+      nb.build(0, 0, 0, total);
+    }
+    const std::size_t s_nodes = place(kNodes, nb.nodes.size() * kNodeBytes);
+    SectionWriter w(fd, h.sections[s_nodes].offset, 8 << 20);
+    std::uint8_t rec[kNodeBytes];
+    for (const Octree::NodeRec& r : nb.nodes) {
+      std::memset(rec, 0, sizeof rec);
+      std::memcpy(rec, &r.lo, 12);
+      std::memcpy(rec + 12, &r.hi, 12);
+      std::memcpy(rec + 24, &r.key, 8);
+      std::memcpy(rec + 32, &r.first_child, 4);
+      std::memcpy(rec + 36, &r.own_begin, 4);
+      std::memcpy(rec + 40, &r.own_end, 4);
+      rec[44] = r.child_count;
+      w.write(rec, sizeof rec);
+    }
+    w.flush();
+    h.sections[s_nodes].crc = w.crc();
+    h.nodes = nb.nodes.size();
+    h.depth = nb.depth;
+    off = h.sections[s_nodes].offset + h.sections[s_nodes].size;  // the file ends with the nodes
+  }
+  const std::vector<std::uint8_t> hb = encode_header(h);
+  fd.pwrite_all(hb.data(), hb.size(), 0);
+  if (::ftruncate(fd.get(), static_cast<off_t>(off)) != 0) io_fail(out.temp(), "cannot set the file size");
+  if (::fsync(fd.get()) != 0) io_fail(out.temp(), "fsync failed");
+  out.commit();
+
+  stats.points = total;
+  stats.nodes = h.nodes;
+  stats.depth = h.depth;
+  stats.attributes = stored;
+  stats.file_bytes = off;
+  return stats;
+}
+
+// ---- open ------------------------------------------------------------------------------------------
+
+struct MappedIndex::Map {
+  int fd = -1;
+  void* p = nullptr;
+  std::size_t n = 0;
+  ~Map() {
+    if (p != nullptr) ::munmap(p, n);
+    if (fd >= 0) ::close(fd);
+  }
+};
+
+MappedIndex::MappedIndex(MappedIndex&&) noexcept = default;
+MappedIndex& MappedIndex::operator=(MappedIndex&&) noexcept = default;
+MappedIndex::~MappedIndex() = default;
+
+std::uint64_t MappedIndex::file_bytes() const { return map_ ? map_->n : 0; }
+
+MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt) {
+  const std::string nm = path.string();
+  auto fail = [&nm](std::uint64_t off, const std::string& what) -> void {
+    throw IndexError(nm + ": byte " + std::to_string(off) + ": " + what);
+  };
+  MappedIndex x;
+  x.path_ = path;
+  x.map_ = std::make_unique<Map>();
+  Map& m = *x.map_;
+  // The input policy (rayscan/input_file.hpp): regular files only, opened without blocking.
+  std::uint64_t size = 0;
+  try {
+    InputFile in(path);
+    size = in.size();
+    m.fd = ::dup(in.fd());
+  } catch (const InputFileError& e) {
+    throw IndexError(e.what());
+  }
+  if (m.fd < 0) throw IndexError(nm + ": cannot open index file: " + std::strerror(errno));
+  if (size < kHeaderBytes)
+    fail(size, "file of " + std::to_string(size) + " bytes is shorter than the " + std::to_string(kHeaderBytes) +
+                   "-byte index header (truncated or not an index)");
+  m.n = static_cast<std::size_t>(size);
+  m.p = ::mmap(nullptr, m.n, PROT_READ, MAP_SHARED, m.fd, 0);
+  if (m.p == MAP_FAILED) {
+    m.p = nullptr;
+    throw IndexError(nm + ": cannot memory-map: " + std::strerror(errno));
+  }
+  const auto* b = static_cast<const std::uint8_t*>(m.p);
+  if (std::memcmp(b, kMagic, 8) != 0) fail(0, "expected the signature \"RSINDEX\" (not a rayscan index file)");
+  const auto version = get<std::uint32_t>(b, 8);
+  if (version != kVersion)
+    fail(8, "index format version " + std::to_string(version) + "; this rayscan reads version " +
+                std::to_string(kVersion) + " (rebuild the index with `rayscan index`)");
+  if (get<std::uint32_t>(b, 12) != kHeaderBytes) fail(12, "header size must be 4096");
+  if (get<std::uint32_t>(b, 16) != kEndianMarker) fail(16, "byte-order marker 0x01020304 expected (little-endian)");
+  {
+    std::vector<std::uint8_t> hb(b, b + kHeaderBytes);
+    put<std::uint32_t>(hb.data(), kCrcOffset, 0);
+    const std::uint32_t want = get<std::uint32_t>(b, kCrcOffset), have = crc32_of(hb.data(), hb.size());
+    if (want != have) fail(kCrcOffset, "header checksum " + hex32(have) + ", expected " + hex32(want) + " (corrupted)");
+  }
+  const auto nsec = get<std::uint32_t>(b, 20);
+  if (nsec > kMaxSections) fail(20, "section count " + std::to_string(nsec) + " above 16");
+  x.points_ = get<std::uint64_t>(b, 24);
+  x.node_count_ = get<std::uint64_t>(b, 32);
+  for (int k = 0; k < 3; ++k) {
+    x.cell_.lo[k] = get<double>(b, 40 + 8 * k);
+    x.cell_.hi[k] = get<double>(b, 64 + 8 * k);
+  }
+  const auto layout = get<std::uint32_t>(b, 88);
+  if (layout > 2) fail(88, "layout " + std::to_string(layout) + " (expected 0..2)");
+  x.config_.layout = static_cast<OctreeLayout>(layout);
+  x.config_.capacity = get<std::uint32_t>(b, 92);
+  x.config_.max_depth = get<std::uint32_t>(b, 96);
+  x.config_.depth = get<std::uint32_t>(b, 100);
+  x.depth_ = get<std::uint32_t>(b, 104);
+  x.attrs_ = AttributeSet{get<std::uint32_t>(b, 108)};
+  if (x.points_ >= 0xFFFFFFFFull) fail(24, "point count " + std::to_string(x.points_) + " above 2^32 - 2");
+  const bool verify_all = opt.verify == IndexOpenOptions::Verify::always ||
+                          (opt.verify == IndexOpenOptions::Verify::automatic && size <= (std::uint64_t{256} << 20));
+  std::array<const SectionEntry*, 10> by_id{};
+  std::vector<SectionEntry> secs(nsec);
+  for (std::uint32_t i = 0; i < nsec; ++i) {
+    const std::size_t o = kTableOffset + i * kEntryBytes;
+    SectionEntry& e = secs[i];
+    e.id = get<std::uint32_t>(b, o);
+    e.elem = get<std::uint32_t>(b, o + 4);
+    e.offset = get<std::uint64_t>(b, o + 8);
+    e.size = get<std::uint64_t>(b, o + 16);
+    e.crc = get<std::uint32_t>(b, o + 24);
+    if (e.id < kSources || e.id > kNodes) fail(o, "unknown section id " + std::to_string(e.id));
+    const std::string sn = std::string("section ") + section_name(e.id);
+    if (by_id[e.id] != nullptr) fail(o, sn + " appears twice");
+    by_id[e.id] = &e;
+    if (e.elem != elem_size(e.id)) fail(o + 4, sn + ": element size " + std::to_string(e.elem) + ", expected " + std::to_string(elem_size(e.id)));
+    if (e.offset % kAlign != 0 || e.offset < kHeaderBytes)
+      fail(o + 8, sn + ": offset " + std::to_string(e.offset) + " not a multiple of 4096 after the header");
+    if (e.offset > size || e.size > size - e.offset)
+      fail(o + 16, sn + " [" + std::to_string(e.offset) + ", " + std::to_string(e.offset + e.size) +
+                       ") runs past the end of the file (size " + std::to_string(size) + "; truncated)");
+    std::uint64_t expect = e.size;
+    if (e.id >= kPositions && e.id <= kGpsTime) expect = x.points_ * e.elem;
+    if (e.id == kNodes) expect = x.node_count_ * e.elem;
+    if (e.size != expect) fail(o + 16, sn + ": " + std::to_string(e.size) + " bytes, expected " + std::to_string(expect));
+    const bool meta = e.id == kSources || e.id == kCrs || e.id == kNodes;
+    if (verify_all || meta) {
+      const std::uint32_t have = crc32_of(b + e.offset, e.size);
+      if (have != e.crc)
+        throw IndexError(nm + ": " + sn + " (byte " + std::to_string(e.offset) + "): checksum " + hex32(have) +
+                         ", expected " + hex32(e.crc) + " (corrupted)");
+    }
+  }
+  for (std::uint32_t id : {kSources, kCrs, kPositions, kIds, kNodes})
+    if (by_id[id] == nullptr) fail(kTableOffset, std::string("missing section ") + section_name(id));
+  const std::pair<Attribute, std::uint32_t> attr_sec[] = {{Attribute::rgb, kRgb}, {Attribute::intensity, kIntensity},
+                                                           {Attribute::classification, kClassification},
+                                                           {Attribute::gps_time, kGpsTime}};
+  for (const auto& [a, id] : attr_sec)
+    if (x.attrs_.has(a) != (by_id[id] != nullptr))
+      fail(108, std::string("attribute set and sections disagree on ") + section_name(id));
+  if ((x.points_ > 0) != (x.node_count_ > 0)) fail(32, "node count " + std::to_string(x.node_count_) + " for " + std::to_string(x.points_) + " points");
+  if (x.node_count_ >= 0xFFFFFFFFull) fail(32, "node count above 2^32 - 2");
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(x.cell_.lo[k]) || !std::isfinite(x.cell_.hi[k]) || !(x.cell_.hi[k] > x.cell_.lo[k]))
+      fail(40, "root cell is not a finite box");
+  auto at = [&](std::uint32_t id) { return b + by_id[id]->offset; };
+  x.nodes_ = reinterpret_cast<const Octree::NodeRec*>(at(kNodes));
+  x.pos_ = reinterpret_cast<const Vec3*>(at(kPositions));
+  x.ids_ = reinterpret_cast<const PointIndex*>(at(kIds));
+  if (by_id[kRgb]) x.rgb_ = {reinterpret_cast<const Rgb16*>(at(kRgb)), x.points_};
+  if (by_id[kIntensity]) x.intensity_ = {reinterpret_cast<const std::uint16_t*>(at(kIntensity)), x.points_};
+  if (by_id[kClassification]) x.classification_ = {at(kClassification), x.points_};
+  if (by_id[kGpsTime]) x.gps_ = {reinterpret_cast<const double*>(at(kGpsTime)), x.points_};
+  x.crs_.assign(reinterpret_cast<const char*>(at(kCrs)), by_id[kCrs]->size);
+
+  // Node ranges: every later access stays inside the mapping.
+  const std::uint64_t node_off = by_id[kNodes]->offset;
+  for (std::size_t n = 0; n < x.node_count_; ++n) {
+    const Octree::NodeRec& r = x.nodes_[n];
+    const std::uint64_t o = node_off + n * kNodeBytes;
+    if (r.own_begin > r.own_end || r.own_end > x.points_)
+      fail(o + 36, "node " + std::to_string(n) + ": point range [" + std::to_string(r.own_begin) + ", " +
+                       std::to_string(r.own_end) + ") outside the " + std::to_string(x.points_) + " points");
+    if (r.child_count > 8 || (r.child_count > 0 && (r.first_child <= n || r.first_child + std::uint64_t{r.child_count} > x.node_count_)))
+      fail(o + 32, "node " + std::to_string(n) + ": children [" + std::to_string(r.first_child) + ", +" +
+                       std::to_string(r.child_count) + ") outside the " + std::to_string(x.node_count_) + " nodes");
+    for (int k = 0; k < 3; ++k)
+      if (std::isnan(r.lo[k]) || std::isnan(r.hi[k])) fail(o, "node " + std::to_string(n) + ": NaN bounds");
+  }
+  if (x.node_count_ > 0 && x.nodes_[0].key != 1) fail(node_off + 24, "root node key must be 1");
+
+  // Sources: "size \t mtime_ns \t points \t first_id \t format \t path" lines.
+  {
+    std::istringstream in(std::string(reinterpret_cast<const char*>(at(kSources)), by_id[kSources]->size));
+    std::string line;
+    std::uint64_t sum = 0;
+    while (std::getline(in, line)) {
+      IndexSource s;
+      std::istringstream ls(line);
+      std::string f[6];
+      for (int k = 0; k < 5; ++k) std::getline(ls, f[k], '\t');
+      std::getline(ls, f[5]);
+      try {
+        s.size = std::stoull(f[0]);
+        s.mtime_ns = std::stoll(f[1]);
+        s.points = std::stoull(f[2]);
+        s.first_id = std::stoull(f[3]);
+      } catch (const std::exception&) {
+        fail(by_id[kSources]->offset, "section sources: malformed line '" + line.substr(0, 60) + "'");
+      }
+      s.format = f[4];
+      s.path = f[5];
+      sum += s.points;
+      x.sources_.push_back(s);
+    }
+    if (sum != x.points_)
+      fail(by_id[kSources]->offset, "section sources: " + std::to_string(sum) + " points, header says " + std::to_string(x.points_));
+  }
+  if (opt.check_sources)
+    for (const IndexSource& s : x.sources_) {
+      std::error_code ec;
+      if (!fs::exists(s.path, ec)) continue;  // a moved index is self-contained
+      const std::uint64_t sz = fs::file_size(s.path, ec);
+      const std::int64_t mt = mtime_ns(s.path);
+      if (!ec && (sz != s.size || mt != s.mtime_ns))
+        throw IndexError(nm + ": source " + s.path + " changed since the index was built (size " + std::to_string(s.size) +
+                         " -> " + std::to_string(sz) + ", mtime " + std::to_string(s.mtime_ns) + " -> " +
+                         std::to_string(mt) + " ns): rebuild it with `rayscan index`");
+    }
+  ::madvise(m.p, m.n, MADV_RANDOM);
+  return x;
+}
+
+std::vector<std::uint64_t> MappedIndex::points_per_level() const {
+  std::vector<std::uint64_t> out(depth_ + 1, 0);
+  for (std::size_t n = 0; n < node_count_; ++n) {
+    const unsigned d = node_id(static_cast<Node>(n)).depth();
+    if (d >= out.size()) out.resize(d + 1, 0);
+    out[d] += nodes_[n].own_end - nodes_[n].own_begin;
+  }
+  return out;
+}
+
+PointCloud MappedIndex::to_point_cloud() const {
+  PointCloud pc;
+  pc.crs_wkt = crs_;
+  pc.positions.resize(points_);
+  if (!rgb_.empty()) pc.rgb.resize(points_);
+  if (!intensity_.empty()) pc.intensity.resize(points_);
+  if (!classification_.empty()) pc.classification.resize(points_);
+  if (!gps_.empty()) pc.gps_time.resize(points_);
+  for (std::size_t s = 0; s < points_; ++s) {
+    const PointIndex i = ids_[s];
+    if (i >= points_)
+      throw IndexError(path_.string() + ": section ids: slot " + std::to_string(s) + " holds id " + std::to_string(i) +
+                       " outside the " + std::to_string(points_) + " points (corrupted)");
+    pc.positions[i] = pos_[s];
+    if (!rgb_.empty()) pc.rgb[i] = rgb_[s];
+    if (!intensity_.empty()) pc.intensity[i] = intensity_[s];
+    if (!classification_.empty()) pc.classification[i] = classification_[s];
+    if (!gps_.empty()) pc.gps_time[i] = gps_[s];
+  }
+  return pc;
+}
+
+}  // namespace rayscan::io

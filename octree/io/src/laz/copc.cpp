@@ -1,0 +1,301 @@
+// COPC info, hierarchy and the lazily decoded CopcIndex; see rayscan/io/copc.hpp.
+// Format: COPC 1.0 specification (copc.io): info VLR (user "copc", record 1: center_x/y/z,
+// halfsize, spacing, root_hier_offset, root_hier_size, gpstime_minimum/maximum, 11 reserved
+// uint64), hierarchy EVLR (record 1000) of pages of 32-byte entries (VoxelKey level/x/y/z int32,
+// offset uint64, byteSize int32, pointCount int32; pointCount -1 = a child hierarchy page).
+// Reference read (not copied): copc-lib cpp/include/copc-lib/copc/info.hpp, hierarchy/entry.hpp.
+#include "rayscan/io/copc.hpp"
+
+#include "laz.hpp"
+
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <map>
+#include <set>
+#include <tuple>
+
+namespace rayscan::io {
+
+namespace {
+
+using Key = std::tuple<std::int32_t, std::int32_t, std::int32_t, std::int32_t>;
+
+CopcInfo parse_copc(const detail::Input& in, const laz::LasHeaderLite& h) {
+  using detail::fail_at;
+  using detail::load_le;
+  const std::string& nm = in.name;
+  const std::uint8_t* d = in.bytes.data();
+  if (!h.copc_info.present) fail_at(nm, h.header_size, "no COPC info VLR (user id \"copc\", record 1)");
+  if (h.copc_info.len < 160)
+    fail_at(nm, h.copc_info.at, "COPC info VLR of " + std::to_string(h.copc_info.len) + " bytes (expected 160)");
+  if (!h.laszip.present) fail_at(nm, h.header_size, "COPC file without a LASzip VLR");
+  if (h.pdrf < 6 || h.pdrf > 8)
+    fail_at(nm, 104, "COPC point data record format " + std::to_string(h.pdrf) + " (expected 6, 7 or 8)");
+  CopcInfo c;
+  const std::uint8_t* v = d + h.copc_info.at;
+  c.center = Vec3(load_le<double>(v), load_le<double>(v + 8), load_le<double>(v + 16));
+  c.halfsize = load_le<double>(v + 24);
+  c.spacing = load_le<double>(v + 32);
+  c.root_hier_offset = load_le<std::uint64_t>(v + 40);
+  c.root_hier_size = load_le<std::uint64_t>(v + 48);
+  c.gps_min = load_le<double>(v + 56);
+  c.gps_max = load_le<double>(v + 64);
+  c.scale = h.scale;
+  c.offset = h.offset;
+  c.point_count = h.count;
+  c.pdrf = h.pdrf;
+  c.record_length = h.record_length;
+  if (!(c.halfsize > 0) || !std::isfinite(c.halfsize) || !std::isfinite(c.center.x) ||
+      !std::isfinite(c.center.y) || !std::isfinite(c.center.z))
+    fail_at(nm, h.copc_info.at + 24, "COPC root cube has halfsize " + std::to_string(c.halfsize) + " (expected > 0, finite)");
+  // Walk the hierarchy pages breadth-first from the root page.
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> todo{{c.root_hier_offset, c.root_hier_size}};
+  std::set<std::uint64_t> seen_pages;
+  std::map<Key, std::size_t> by_key;
+  const std::uint64_t max_entries = in.size() / 32;
+  for (std::size_t t = 0; t < todo.size(); ++t) {
+    const auto [off, size] = todo[t];
+    if (off > in.size() || size > in.size() - off)
+      fail_at(nm, off, "COPC hierarchy page of " + std::to_string(size) + " bytes at byte " + std::to_string(off) +
+                           " runs past the end of the file (size " + std::to_string(in.size()) + ")");
+    if (size % 32 != 0) fail_at(nm, off, "COPC hierarchy page size " + std::to_string(size) + " is not a multiple of 32");
+    if (!seen_pages.insert(off).second)
+      fail_at(nm, off, "COPC hierarchy page at byte " + std::to_string(off) + " is referenced twice (cycle)");
+    ++c.hierarchy_pages;
+    for (std::uint64_t e = off; e < off + size; e += 32) {
+      CopcNode n;
+      n.level = load_le<std::int32_t>(d + e);
+      n.x = load_le<std::int32_t>(d + e + 4);
+      n.y = load_le<std::int32_t>(d + e + 8);
+      n.z = load_le<std::int32_t>(d + e + 12);
+      n.offset = load_le<std::uint64_t>(d + e + 16);
+      n.byte_size = load_le<std::int32_t>(d + e + 24);
+      n.point_count = load_le<std::int32_t>(d + e + 28);
+      if (n.level < 0 || n.level > 30 || n.x < 0 || n.y < 0 || n.z < 0 || (n.x >> n.level) != 0 ||
+          (n.y >> n.level) != 0 || (n.z >> n.level) != 0)
+        fail_at(nm, e, "COPC hierarchy entry with invalid key " + std::to_string(n.level) + "-" + std::to_string(n.x) +
+                           "-" + std::to_string(n.y) + "-" + std::to_string(n.z));
+      if (n.point_count == -1) {
+        if (n.byte_size < 0) fail_at(nm, e + 24, "COPC hierarchy page reference with negative size");
+        todo.emplace_back(n.offset, static_cast<std::uint64_t>(n.byte_size));
+        continue;
+      }
+      if (n.point_count < -1 || n.byte_size < 0)
+        fail_at(nm, e + 24, "COPC hierarchy entry with byte size " + std::to_string(n.byte_size) + " and point count " +
+                                std::to_string(n.point_count));
+      if (n.point_count > 0 &&
+          (n.byte_size == 0 || n.offset < h.point_offset || n.offset > h.data_end ||
+           static_cast<std::uint64_t>(n.byte_size) > h.data_end - n.offset))
+        fail_at(nm, e + 16, "COPC node " + std::to_string(n.level) + "-" + std::to_string(n.x) + "-" +
+                                std::to_string(n.y) + "-" + std::to_string(n.z) + " chunk [" + std::to_string(n.offset) +
+                                ", +" + std::to_string(n.byte_size) + ") lies outside the point data (ends at byte " +
+                                std::to_string(h.data_end) + ")");
+      if (!by_key.emplace(Key{n.level, n.x, n.y, n.z}, c.nodes.size()).second)
+        fail_at(nm, e, "COPC hierarchy lists key " + std::to_string(n.level) + "-" + std::to_string(n.x) + "-" +
+                           std::to_string(n.y) + "-" + std::to_string(n.z) + " twice");
+      if (c.nodes.size() >= max_entries) fail_at(nm, e, "COPC hierarchy has more entries than the file has bytes / 32");
+      c.nodes.push_back(n);
+    }
+  }
+  std::uint64_t total = 0;
+  for (const CopcNode& n : c.nodes) {
+    if (n.level > 0 && by_key.find(Key{n.level - 1, n.x / 2, n.y / 2, n.z / 2}) == by_key.end())
+      fail_at(nm, c.root_hier_offset, "COPC node " + std::to_string(n.level) + "-" + std::to_string(n.x) + "-" +
+                                          std::to_string(n.y) + "-" + std::to_string(n.z) + " has no parent in the hierarchy");
+    c.depth = std::max(c.depth, n.level + 1);
+    total += static_cast<std::uint64_t>(n.point_count);
+  }
+  c.nodes_per_level.assign(static_cast<std::size_t>(c.depth), 0);
+  c.points_per_level.assign(static_cast<std::size_t>(c.depth), 0);
+  for (const CopcNode& n : c.nodes) {
+    ++c.nodes_per_level[static_cast<std::size_t>(n.level)];
+    c.points_per_level[static_cast<std::size_t>(n.level)] += static_cast<std::uint64_t>(n.point_count);
+  }
+  if (total != c.point_count)
+    fail_at(nm, c.root_hier_offset, "COPC hierarchy node point counts add up to " + std::to_string(total) +
+                                        " but the header announces " + std::to_string(c.point_count));
+  if (!c.nodes.empty() && by_key.find(Key{0, 0, 0, 0}) == by_key.end())
+    fail_at(nm, c.root_hier_offset, "COPC hierarchy has no root node 0-0-0-0");
+  return c;
+}
+
+}  // namespace
+
+AABB CopcInfo::node_cube(const CopcNode& n) const {
+  const double edge = 2.0 * halfsize / std::ldexp(1.0, n.level);
+  const Vec3 lo = center - Vec3(halfsize) + Vec3(n.x * edge, n.y * edge, n.z * edge);
+  AABB b;
+  b.lo = lo;
+  b.hi = lo + Vec3(edge);
+  return b;
+}
+
+CopcInfo read_copc_info(std::span<const std::uint8_t> bytes, const std::string& name) {
+  const detail::Input in{bytes, name, {}};
+  return parse_copc(in, laz::parse_header_lite(in));
+}
+
+// ---------------------------------------------------------------------------------------------
+
+/// The mapped COPC file: nodes are touched in query order, so the sequential read-ahead hint of
+/// the streaming readers' mapping is replaced by the default one.
+struct CopcIndex::Map : laz::FileMap {
+  explicit Map(const std::filesystem::path& p) : laz::FileMap(p) {
+    if (!bytes().empty())
+      ::madvise(const_cast<std::uint8_t*>(bytes().data()), bytes().size(), MADV_NORMAL);
+  }
+};
+
+CopcInfo read_copc_info(const std::filesystem::path& path) {
+  const laz::FileMap m(path);
+  return read_copc_info(m.bytes(), path.string());
+}
+
+namespace {
+constexpr std::size_t kSlotAlign = 1024;  // 1024 * 24 B and 1024 * 4 B are whole 4 KiB pages
+void* reserve(std::size_t bytes) {
+  if (bytes == 0) return nullptr;
+  void* p = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+  if (p == MAP_FAILED) throw std::bad_alloc();
+  return p;
+}
+}  // namespace
+
+CopcIndex::CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes)
+    : name_(path.string()), map_(std::make_unique<Map>(path)), cache_bytes_(cache_bytes) {
+  const detail::Input in{map_->bytes(), name_, {}};
+  const laz::LasHeaderLite h = laz::parse_header_lite(in);
+  info_ = parse_copc(in, h);
+  // the LASzip VLR must describe layered POINT14 chunks
+  (void)laz::parse_laszip_vlr(map_->bytes().data() + h.laszip.at, h.laszip.len, name_, h.laszip.at, h.pdrf, h.record_length);
+  if (info_.nodes.empty()) return;
+  // Nodes in breadth-first order from the root: node id = position in nodes_.
+  std::map<Key, std::uint32_t> entry_of;
+  for (std::uint32_t i = 0; i < info_.nodes.size(); ++i) {
+    const CopcNode& n = info_.nodes[i];
+    entry_of[Key{n.level, n.x, n.y, n.z}] = i;
+  }
+  // file-order ids: nodes sorted by chunk offset
+  std::vector<std::uint32_t> by_offset(info_.nodes.size());
+  for (std::uint32_t i = 0; i < by_offset.size(); ++i) by_offset[i] = i;
+  std::sort(by_offset.begin(), by_offset.end(),
+            [&](std::uint32_t a, std::uint32_t b) { return info_.nodes[a].offset < info_.nodes[b].offset; });
+  std::vector<std::uint64_t> first_id(info_.nodes.size());
+  std::uint64_t acc = 0;
+  for (std::uint32_t i : by_offset) {
+    first_id[i] = acc;
+    acc += static_cast<std::uint64_t>(info_.nodes[i].point_count);
+  }
+  if (acc > 0xFFFFFFFFull) throw FormatError(name_ + ": COPC file of " + std::to_string(acc) + " points exceeds 2^32 - 1");
+  nodes_.reserve(info_.nodes.size());
+  std::vector<std::uint32_t> queue{entry_of.at(Key{0, 0, 0, 0})};
+  const Vec3 grow = Vec3(std::abs(info_.scale.x), std::abs(info_.scale.y), std::abs(info_.scale.z));
+  for (std::size_t q = 0; q < queue.size(); ++q) {
+    const CopcNode& n = info_.nodes[queue[q]];
+    NodeData nd;
+    nd.entry = queue[q];
+    nd.first_id = first_id[queue[q]];
+    nd.box = info_.node_cube(n);
+    nd.box.lo = nd.box.lo - grow;
+    nd.box.hi = nd.box.hi + grow;
+    nd.slots.begin = static_cast<std::uint32_t>(slots_);
+    nd.slots.end = static_cast<std::uint32_t>(slots_ + static_cast<std::size_t>(n.point_count));
+    slots_ = (nd.slots.end + kSlotAlign - 1) / kSlotAlign * kSlotAlign;
+    if (slots_ > 0xFFFFFFFFull) throw FormatError(name_ + ": COPC slot space exceeds 2^32");
+    for (int c = 0; c < 8; ++c) {
+      auto it = entry_of.find(Key{n.level + 1, 2 * n.x + (c & 1), 2 * n.y + ((c >> 1) & 1), 2 * n.z + (c >> 2)});
+      if (it == entry_of.end()) continue;
+      nd.children[nd.child_count++] = static_cast<Node>(queue.size());
+      queue.push_back(it->second);
+    }
+    nodes_.push_back(nd);
+  }
+  pos_ = static_cast<Vec3*>(reserve(slots_ * sizeof(Vec3)));
+  ids_ = static_cast<PointIndex*>(reserve(slots_ * sizeof(PointIndex)));
+  loaded_ = std::make_unique<std::atomic<std::uint8_t>[]>(nodes_.size());
+  touched_ = std::make_unique<std::atomic<std::uint64_t>[]>(nodes_.size());
+  for (std::size_t i = 0; i < nodes_.size(); ++i) loaded_[i].store(0), touched_[i].store(0);
+}
+
+CopcIndex::~CopcIndex() {
+  if (pos_ != nullptr) ::munmap(pos_, slots_ * sizeof(Vec3));
+  if (ids_ != nullptr) ::munmap(ids_, slots_ * sizeof(PointIndex));
+}
+
+SlotRange CopcIndex::node_points(Node n) const {
+  touched_[n].store(++clock_, std::memory_order_relaxed);
+  if (loaded_[n].load(std::memory_order_acquire) == 0) load(n);
+  return nodes_[n].slots;
+}
+
+void CopcIndex::load(Node n) const {
+  std::lock_guard<std::mutex> lock(locks_[n % 32]);
+  if (loaded_[n].load(std::memory_order_acquire) != 0) return;
+  const NodeData& nd = nodes_[n];
+  const CopcNode& e = info_.nodes[nd.entry];
+  if (e.point_count > 0) {
+    const detail::Input in{map_->bytes(), name_, {}};
+    // the LASzip VLR was validated at open; parse again here (cheap) to keep no reference state
+    const laz::LasHeaderLite h = laz::parse_header_lite(in);
+    const laz::LaszipVlr v =
+        laz::parse_laszip_vlr(map_->bytes().data() + h.laszip.at, h.laszip.len, name_, h.laszip.at, h.pdrf, h.record_length);
+    laz::ChunkDecoder dec(v, laz::kLayerZ);
+    laz::Chunk c{e.offset, static_cast<std::uint64_t>(e.byte_size), nd.first_id, static_cast<std::uint64_t>(e.point_count)};
+    const std::size_t rec = info_.record_length;
+    std::vector<std::uint8_t> buf(static_cast<std::size_t>(e.point_count) * rec);
+    dec.start(in, n, c, e.offset + static_cast<std::uint64_t>(e.byte_size));
+    dec.next(static_cast<std::size_t>(e.point_count), buf.data());
+    dec.finish();
+    for (std::int32_t i = 0; i < e.point_count; ++i) {
+      const std::uint8_t* r = buf.data() + static_cast<std::size_t>(i) * rec;
+      pos_[nd.slots.begin + static_cast<std::uint32_t>(i)] =
+          Vec3(detail::load_le<std::int32_t>(r) * info_.scale.x + info_.offset.x,
+               detail::load_le<std::int32_t>(r + 4) * info_.scale.y + info_.offset.y,
+               detail::load_le<std::int32_t>(r + 8) * info_.scale.z + info_.offset.z);
+      ids_[nd.slots.begin + static_cast<std::uint32_t>(i)] = static_cast<PointIndex>(nd.first_id + static_cast<std::uint64_t>(i));
+    }
+  }
+  decodes_.fetch_add(1);
+  loaded_[n].store(1, std::memory_order_release);
+}
+
+std::size_t CopcIndex::resident_nodes() const {
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < nodes_.size(); ++i) k += loaded_[i].load() != 0;
+  return k;
+}
+
+std::size_t CopcIndex::trim_cache() {
+  std::vector<Node> resident;
+  std::size_t bytes = 0;
+  for (Node i = 0; i < nodes_.size(); ++i)
+    if (loaded_[i].load() != 0) {
+      resident.push_back(i);
+      bytes += nodes_[i].slots.size() * (sizeof(Vec3) + sizeof(PointIndex));
+    }
+  if (bytes <= cache_bytes_) return 0;
+  std::sort(resident.begin(), resident.end(), [&](Node a, Node b) { return touched_[a].load() < touched_[b].load(); });
+  std::size_t evicted = 0;
+  const std::size_t page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+  for (Node i : resident) {
+    if (bytes <= cache_bytes_) break;
+    const SlotRange s = nodes_[i].slots;
+    auto drop = [&](void* base, std::size_t elem) {
+      const auto b = reinterpret_cast<std::uintptr_t>(base) + s.begin * elem;
+      const auto e = (reinterpret_cast<std::uintptr_t>(base) + s.end * elem + page - 1) / page * page;
+      if (e > b) ::madvise(reinterpret_cast<void*>(b), e - b, MADV_DONTNEED);
+    };
+    drop(pos_, sizeof(Vec3));
+    drop(ids_, sizeof(PointIndex));
+    loaded_[i].store(0);
+    bytes -= s.size() * (sizeof(Vec3) + sizeof(PointIndex));
+    ++evicted;
+  }
+  return evicted;
+}
+
+}  // namespace rayscan::io

@@ -1,0 +1,68 @@
+// COPC: the info VLR and hierarchy of the shared COPC file, and CopcIndex (the layered octree read
+// straight from the file) against the brute-force oracle on the same decoded points.
+#include "io_test_util.hpp"
+
+#include "rayscan/brute_force.hpp"
+#include "rayscan/io/copc.hpp"
+#include "rayscan/ray_query.hpp"
+
+#include <random>
+
+namespace rayscan::test {
+namespace {
+
+TEST(Copc, InfoAndHierarchyAreConsistentWithTheHeader) {
+  RAYSCAN_REQUIRE_FILE(p, "laz/lone-star.copc.laz");
+  const io::CopcInfo c = io::read_copc_info(p);
+  EXPECT_EQ(c.point_count, 518862u);  // shared data README
+  EXPECT_EQ(c.pdrf, 6);
+  std::uint64_t pts = 0, nodes = 0;
+  for (std::size_t l = 0; l < c.points_per_level.size(); ++l) pts += c.points_per_level[l], nodes += c.nodes_per_level[l];
+  EXPECT_EQ(pts, c.point_count);
+  EXPECT_EQ(nodes, c.nodes.size());
+  EXPECT_EQ(c.nodes_per_level.at(0), 1u);
+  EXPECT_GT(c.depth, 1);
+  // The README's recomputed bounds (3 decimals) lie inside the root cube.
+  const AABB root = c.node_cube(io::CopcNode{});
+  const double tol = 5e-4;
+  EXPECT_LE(root.lo.x, 515368.602 + tol);
+  EXPECT_GE(root.hi.x, 515401.043 - tol);
+  EXPECT_LE(root.lo.y, 4918340.364 + tol);
+  EXPECT_GE(root.hi.y, 4918381.124 - tol);
+  EXPECT_LE(root.lo.z, 2322.896 + tol);
+  EXPECT_GE(root.hi.z, 2338.576 - tol);
+}
+
+TEST(Copc, IndexRayQueriesEqualBruteForceAndDecodeLazily) {
+  RAYSCAN_REQUIRE_FILE(p, "laz/lone-star.copc.laz");
+  io::CopcIndex idx(p, std::size_t{4} << 20);  // a 4 MB cache: forces evictions below
+  EXPECT_EQ(idx.decodes(), 0u);  // opening decodes nothing
+  const PointCloud pc = io::read_point_cloud(p);
+  ASSERT_EQ(pc.size(), 518862u);
+  const BruteForceIndex bf(pc);
+  const AABB b = pc.bounds();
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<RayHit> got, want;
+  for (int q = 0; q < 40; ++q) {
+    const Vec3 o = b.lo + Vec3(u(rng), u(rng), u(rng)) * (b.hi - b.lo);
+    Vec3 d(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+    RayQuery rq;
+    rq.radius = 0.05 + 0.2 * u(rng);
+    if (q % 2 == 0) rq.k = 5;
+    else rq.t_min = 0;
+    ray_query(idx, Ray(o, d), rq, got);
+    ray_query(bf, Ray(o, d), rq, want);
+    ASSERT_EQ(got.size(), want.size()) << "query " << q;
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      EXPECT_EQ(got[i].index, want[i].index) << "query " << q;
+      EXPECT_EQ(got[i].t, want[i].t);
+    }
+    if (q == 0) EXPECT_LT(idx.resident_nodes(), idx.node_count()) << "a single narrow ray touched every node";
+    if (q % 10 == 9) idx.trim_cache();  // evicted nodes are decoded again on the next touch
+  }
+  EXPECT_GT(idx.decodes(), 0u);
+}
+
+}  // namespace
+}  // namespace rayscan::test

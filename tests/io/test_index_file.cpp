@@ -1,0 +1,373 @@
+// The index file (index_file.hpp): the external-memory build (several sorted runs, several input
+// tiles) gives the node array, slot order and ids of Octree::build_bulk over the concatenated
+// points, and the mmap'd index answers ray, kNN, radius, box and batch queries exactly like the
+// in-memory octree and the brute-force oracle. Bad files: truncated, corrupted, wrong version,
+// changed source, each a one-line IndexError naming the file.
+#include "io_test_util.hpp"
+
+#include "rayscan/batch.hpp"
+#include "rayscan/brute_force.hpp"
+#include "rayscan/io/index_file.hpp"
+#include "rayscan/io/point_reader.hpp"
+#include "rayscan/point_query.hpp"
+#include "rayscan/ray_query.hpp"
+
+#include <sys/wait.h>
+
+#include <cstring>
+#include <fstream>
+#include <random>
+
+namespace rayscan::test {
+namespace {
+
+/// Writes positions as a headerless float64 file (.f64, read exactly by the f64 reader).
+void write_f64(const fs::path& p, std::span<const Vec3> pts) {
+  std::ofstream f(p, std::ios::binary);
+  f.write(reinterpret_cast<const char*>(pts.data()), static_cast<std::streamsize>(pts.size() * sizeof(Vec3)));
+}
+
+/// Clustered points with exact duplicates (the adaptive duplicate guard) and a far outlier.
+std::vector<Vec3> make_points(std::size_t n, unsigned seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Vec3> p;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (i % 97 == 5 && !p.empty()) {
+      p.push_back(p[i / 2]);
+      continue;
+    }
+    const double c = (i % 3) * 40.0;
+    p.emplace_back(4.0e5 + c + 5 * g(rng), 5.2e6 + 10 * u(rng), 100 + g(rng));
+  }
+  p.emplace_back(4.0e5 + 900, 5.2e6 - 300, 150);
+  return p;
+}
+
+struct Site {
+  fs::path dir, index;
+  std::vector<Vec3> all;
+};
+
+Site build_site(const std::string& name, OctreeConfig cfg, std::uint64_t memory) {
+  Site s;
+  s.dir = temp_dir() / name;
+  fs::create_directories(s.dir);
+  std::vector<fs::path> tiles;
+  for (unsigned t = 0; t < 3; ++t) {
+    const auto pts = make_points(9000 + 1000 * t, 7 + t);
+    tiles.push_back(s.dir / ("tile" + std::to_string(t) + ".f64"));
+    write_f64(tiles.back(), pts);
+    s.all.insert(s.all.end(), pts.begin(), pts.end());
+  }
+  s.index = s.dir / "site.rsi";
+  io::IndexBuildOptions o;
+  o.config = cfg;
+  o.memory_bytes = memory;
+  const io::IndexBuildStats st = io::build_index_file(tiles, s.index, o);
+  EXPECT_EQ(st.points, s.all.size());
+  if (memory < (1u << 21)) {
+    EXPECT_GT(st.runs, 1u);  // the merge of several runs is exercised
+  }
+  return s;
+}
+
+void expect_same_tree(const io::MappedIndex& m, const Octree& t) {
+  ASSERT_EQ(m.node_count(), t.node_count());
+  ASSERT_EQ(m.depth(), t.depth());
+  EXPECT_TRUE(m.root_cell().lo == t.root_cell().lo && m.root_cell().hi == t.root_cell().hi);
+  for (std::uint32_t n = 0; n < t.node_count(); ++n) {
+    ASSERT_EQ(m.node_id(n).bits(), t.node_id(n).bits()) << n;
+    ASSERT_EQ(m.child_count(n), t.child_count(n)) << n;
+    if (t.child_count(n)) {
+      ASSERT_EQ(m.child(n, 0), t.child(n, 0)) << n;
+    }
+    ASSERT_EQ(m.node_points(n).begin, t.node_points(n).begin) << n;
+    ASSERT_EQ(m.node_points(n).end, t.node_points(n).end) << n;
+    const AABB a = m.node_bounds(n), b = t.node_bounds(n);
+    ASSERT_TRUE(a.lo == b.lo && a.hi == b.hi) << n;  // bit-identical bounds
+  }
+  ASSERT_EQ(m.positions().size(), t.positions().size());
+  EXPECT_EQ(0, std::memcmp(m.positions().data(), t.positions().data(), t.positions().size() * sizeof(Vec3)));
+  EXPECT_TRUE(std::equal(m.ids().begin(), m.ids().end(), t.ids().begin(), t.ids().end()));
+}
+
+bool same_hits(const std::vector<RayHit>& a, const std::vector<RayHit>& b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    if (a[i].index != b[i].index || a[i].t != b[i].t || a[i].distance != b[i].distance || a[i].key != b[i].key)
+      return false;
+  return true;
+}
+
+class IndexFile : public ::testing::TestWithParam<OctreeLayout> {};
+
+TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
+  OctreeConfig cfg;
+  cfg.layout = GetParam();
+  cfg.capacity = 16;
+  cfg.depth = 5;
+  const Site s = build_site(std::string("site_") + to_string(cfg.layout), cfg, 1 << 20);
+  const io::MappedIndex m = io::MappedIndex::open(s.index);
+  const Octree t = Octree::build_bulk(s.all, cfg);
+  expect_same_tree(m, t);
+  const BruteForceIndex bf(s.all);
+
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Ray> rays;
+  for (int i = 0; i < 60; ++i) {
+    const Vec3 o(4.0e5 - 50 + 10 * u(rng), 5.2e6 + 5 + 20 * u(rng), 100 + 5 * u(rng));
+    rays.emplace_back(o, Vec3(1.0, 0.1 * u(rng), 0.05 * u(rng)));
+  }
+  std::size_t hits = 0;
+  for (RayOrder order : {RayOrder::ray, RayOrder::time, RayOrder::sphere_hit}) {
+    RayQuery q;
+    q.order = order;
+    q.radius = 0.5;
+    q.k = order == RayOrder::time ? kAllPoints : 8;
+    const auto mb = ray_query_batch(m, rays, q), tb = ray_query_batch(t, rays, q), bb = ray_query_batch(bf, rays, q);
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+      EXPECT_TRUE(same_hits(mb[i], tb[i])) << "ray " << i;
+      EXPECT_TRUE(same_hits(mb[i], bb[i])) << "ray " << i;
+      hits += mb[i].size();
+    }
+  }
+  EXPECT_GT(hits, 500u);  // the comparison is not vacuous
+  for (int i = 0; i < 40; ++i) {
+    const Vec3 q = s.all[static_cast<std::size_t>(i) * 613 % s.all.size()] + Vec3(0.01 * u(rng));
+    const auto a = knn(m, q, 10), b = knn(bf, q, 10);
+    ASSERT_EQ(a.size(), b.size());
+    for (std::size_t j = 0; j < a.size(); ++j) EXPECT_TRUE(a[j].index == b[j].index && a[j].distance == b[j].distance);
+    const auto ra = radius_search(m, q, 0.7), rb = radius_search(bf, q, 0.7);
+    ASSERT_EQ(ra.size(), rb.size());
+    for (std::size_t j = 0; j < ra.size(); ++j) EXPECT_EQ(ra[j].index, rb[j].index);
+  }
+  // Original order back from the ids: exactly the concatenated tiles.
+  const PointCloud back = m.to_point_cloud();
+  ASSERT_EQ(back.size(), s.all.size());
+  EXPECT_EQ(0, std::memcmp(back.positions.data(), s.all.data(), s.all.size() * sizeof(Vec3)));
+  ASSERT_EQ(m.sources().size(), 3u);
+  EXPECT_EQ(m.sources()[1].first_id, 9001u);
+  fs::remove_all(s.dir);
+}
+
+INSTANTIATE_TEST_SUITE_P(Layouts, IndexFile, ::testing::Values(OctreeLayout::adaptive, OctreeLayout::fixed));
+
+TEST(IndexFileBuild, LasAttributesAreStoredExactlyBySlot) {
+  RAYSCAN_REQUIRE_FILE(p, "las/autzen_trim.las");
+  const fs::path dir = temp_dir() / "las_site";
+  fs::create_directories(dir);
+  io::IndexBuildOptions o;
+  o.attributes = io::AttributeSet::parse("rgb,intensity,classification,gps_time");
+  o.memory_bytes = 4 << 20;
+  const fs::path out = dir / "autzen.rsi";
+  const auto st = io::build_index_file({p}, out, o);
+  const io::MappedIndex m = io::MappedIndex::open(out);
+  const PointCloud src = io::read_point_cloud(p);
+  ASSERT_EQ(m.positions().size(), src.size());
+  EXPECT_EQ(m.attributes(), st.attributes);
+  EXPECT_EQ(m.crs_wkt(), src.crs_wkt);
+  const PointCloud back = m.to_point_cloud();
+  EXPECT_EQ(0, std::memcmp(back.positions.data(), src.positions.data(), src.size() * sizeof(Vec3)));
+  EXPECT_TRUE(back.rgb == src.rgb);
+  EXPECT_TRUE(back.intensity == src.intensity);
+  EXPECT_TRUE(back.classification == src.classification);
+  EXPECT_TRUE(back.gps_time == src.gps_time);
+  expect_same_tree(m, Octree::build_bulk(src.positions, OctreeConfig{}));
+  fs::remove_all(dir);
+}
+
+// LAZ input goes through the same chunked reader (LasReader decoding LAZ chunks on demand): the
+// index of autzen_trim.laz equals the index of autzen_trim.las (the same records uncompressed;
+// shared data README), node for node, and answers ray and kNN queries identically.
+TEST(IndexFileBuild, LazInputGivesTheIndexOfTheSameLas) {
+  RAYSCAN_REQUIRE_FILE(las, "las/autzen_trim.las");
+  RAYSCAN_REQUIRE_FILE(laz, "laz/autzen_trim.laz");
+  const fs::path dir = temp_dir() / "laz_site";
+  fs::create_directories(dir);
+  io::IndexBuildOptions o;
+  o.attributes = io::AttributeSet::parse("rgb,intensity,classification,gps_time");
+  o.memory_bytes = 4 << 20;  // several sorted runs
+  const auto st_las = io::build_index_file({las}, dir / "las.rsi", o);
+  const auto st_laz = io::build_index_file({laz}, dir / "laz.rsi", o);
+  EXPECT_EQ(st_laz.points, st_las.points);
+  EXPECT_EQ(st_laz.attributes, st_las.attributes);
+  const io::MappedIndex a = io::MappedIndex::open(dir / "las.rsi"), b = io::MappedIndex::open(dir / "laz.rsi");
+  ASSERT_GT(a.positions().size(), 10000u);
+  ASSERT_EQ(a.node_count(), b.node_count());
+  for (std::uint32_t n = 0; n < a.node_count(); ++n) {
+    ASSERT_EQ(a.node_id(n).bits(), b.node_id(n).bits()) << n;
+    ASSERT_EQ(a.node_points(n).begin, b.node_points(n).begin) << n;
+    ASSERT_EQ(a.node_points(n).end, b.node_points(n).end) << n;
+  }
+  ASSERT_EQ(a.positions().size(), b.positions().size());
+  EXPECT_EQ(0, std::memcmp(a.positions().data(), b.positions().data(), a.positions().size() * sizeof(Vec3)));
+  EXPECT_TRUE(std::equal(a.ids().begin(), a.ids().end(), b.ids().begin(), b.ids().end()));
+  EXPECT_TRUE(std::equal(a.rgb().begin(), a.rgb().end(), b.rgb().begin(), b.rgb().end()));
+  EXPECT_TRUE(std::equal(a.intensity().begin(), a.intensity().end(), b.intensity().begin(), b.intensity().end()));
+  EXPECT_TRUE(std::equal(a.gps_time().begin(), a.gps_time().end(), b.gps_time().begin(), b.gps_time().end()));
+  EXPECT_TRUE(std::equal(a.classification().begin(), a.classification().end(), b.classification().begin(),
+                         b.classification().end()));
+  // Query results: rays from above aimed at stored points, and kNN around them.
+  std::vector<Ray> rays;
+  const auto pts = a.positions();
+  for (std::size_t i = 0; i < 40; ++i) {
+    const Vec3 target = pts[i * 7919 % pts.size()];
+    rays.emplace_back(target + Vec3(3.0, 2.0, 50.0), Vec3(-3.0, -2.0, -50.0));
+  }
+  RayQuery q;
+  q.radius = 1.0;
+  q.k = 16;
+  const auto ha = ray_query_batch(a, rays, q), hb = ray_query_batch(b, rays, q);
+  std::size_t hits = 0;
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    EXPECT_TRUE(same_hits(ha[i], hb[i])) << "ray " << i;
+    hits += ha[i].size();
+  }
+  EXPECT_GT(hits, 40u);  // not vacuous
+  for (std::size_t i = 0; i < 20; ++i) {
+    const Vec3 c = pts[i * 104729 % pts.size()];
+    const auto ka = knn(a, c, 8), kb = knn(b, c, 8);
+    ASSERT_EQ(ka.size(), kb.size());
+    for (std::size_t j = 0; j < ka.size(); ++j) EXPECT_TRUE(ka[j].index == kb[j].index && ka[j].distance == kb[j].distance);
+  }
+  fs::remove_all(dir);
+}
+
+TEST(IndexFileBuild, RefusesLayeredAndDisagreeingCrsAndLeavesNoFile) {
+  RAYSCAN_REQUIRE_FILE(a, "las/autzen_trim.las");
+  RAYSCAN_REQUIRE_FILE(b, "las/Haystack_Rock.las");
+  const fs::path dir = temp_dir() / "refuse";
+  fs::create_directories(dir);
+  io::IndexBuildOptions o;
+  o.config.layout = OctreeLayout::layered;
+  EXPECT_THROW(io::build_index_file({a}, dir / "x.rsi", o), std::invalid_argument);
+  o.config.layout = OctreeLayout::adaptive;
+  try {
+    io::build_index_file({a, b}, dir / "x.rsi", o);
+    FAIL() << "tiles with different CRS accepted";
+  } catch (const io::IndexError& e) {
+    EXPECT_NE(std::string(e.what()).find("Haystack_Rock.las"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(fs::is_empty(dir));  // no output, no temporary, no runs
+  fs::remove_all(dir);
+}
+
+/// A small valid index to corrupt.
+fs::path small_index(const fs::path& dir) {
+  fs::create_directories(dir);
+  const auto pts = make_points(3000, 11);
+  write_f64(dir / "a.f64", pts);
+  io::build_index_file({dir / "a.f64"}, dir / "a.rsi", {});
+  return dir / "a.rsi";
+}
+
+std::string open_error(const fs::path& p) {
+  try {
+    io::MappedIndex::open(p);
+  } catch (const io::IndexError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(IndexFileBadInput, TruncatedCorruptedVersionChangedSource) {
+  const fs::path dir = temp_dir() / "bad";
+  const fs::path good = small_index(dir);
+  const auto bytes = slurp(good);
+  auto write = [&](const std::vector<std::uint8_t>& b) {
+    const fs::path p = dir / "m.rsi";
+    std::ofstream(p, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+    return p;
+  };
+  EXPECT_EQ(open_error(good), "");
+  // Truncated anywhere: inside the header, inside a section.
+  for (std::size_t len : {std::size_t{0}, std::size_t{100}, std::size_t{4096}, bytes.size() / 2, bytes.size() - 1}) {
+    const std::string e = open_error(write({bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(len)}));
+    EXPECT_NE(e.find("m.rsi: "), std::string::npos) << len << ": " << e;
+    EXPECT_EQ(e.find('\n'), std::string::npos);
+  }
+  // A flipped byte in every 4 KiB block (header, table, sections): a checksum or field error.
+  for (std::size_t off = 0; off < bytes.size(); off += 4096 + 7) {
+    auto b = bytes;
+    b[off] ^= 0x5A;
+    const std::string e = open_error(write(b));
+    EXPECT_NE(e, "") << "flip at " << off << " not detected";
+  }
+  {
+    auto b = bytes;
+    b[8] = 2;  // version 2
+    EXPECT_NE(open_error(write(b)).find("version 2"), std::string::npos);
+  }
+  {
+    auto b = bytes;
+    b[bytes.size() - 10] ^= 1;  // in the nodes section
+    EXPECT_NE(open_error(write(b)).find("checksum"), std::string::npos);
+  }
+  // The source changes after the build.
+  {
+    std::ofstream(dir / "a.f64", std::ios::app | std::ios::binary).write("\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0", 24);
+    const std::string e = open_error(good);
+    EXPECT_NE(e.find("changed since the index was built"), std::string::npos) << e;
+  }
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rayscan::test
+
+namespace rayscan::test {
+namespace {
+
+int run_cli(const std::string& args, const fs::path& out) {
+  const std::string cmd = std::string(RAYSCAN_EXE) + " " + args + " > '" + out.string() + "' 2>&1";
+  const int rc = std::system(cmd.c_str());
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+std::string text(const fs::path& p) {
+  std::ifstream f(p);
+  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+}
+
+TEST(IndexFileCli, IndexThenQueryEqualsQueryOnTheCloudAndInfoDescribesIt) {
+  RAYSCAN_REQUIRE_FILE(las, "las/autzen_trim.las");
+  const fs::path dir = temp_dir() / "cli";
+  fs::create_directories(dir);
+  const fs::path rsi = dir / "autzen.rsi", log = dir / "log.txt";
+  ASSERT_EQ(run_cli("index -q '" + las.string() + "' -o '" + rsi.string() + "' --attributes rgb --memory 2M", log), 0) << text(log);
+  {
+    // Rays straight down onto three of the cloud's points (so they hit).
+    const PointCloud pc = io::read_point_cloud(las);
+    std::ofstream r(dir / "rays.csv");
+    r.precision(17);
+    r << "ox,oy,oz,dx,dy,dz\n";
+    for (std::size_t i : {std::size_t{10}, pc.size() / 2, pc.size() - 7}) {
+      const Vec3& p = pc.positions[i];
+      r << p.x + 0.3 << ',' << p.y << ',' << p.z + 200 << ",0.001,0,-1\n";
+    }
+  }
+  const std::string q = " --rays '" + (dir / "rays.csv").string() + "' --radius 3 --k 20 --order sphere_hit";
+  ASSERT_EQ(run_cli("query --cloud '" + las.string() + "'" + q, dir / "a.csv"), 0) << text(dir / "a.csv");
+  ASSERT_EQ(run_cli("query --cloud '" + rsi.string() + "'" + q, dir / "b.csv"), 0) << text(dir / "b.csv");
+  EXPECT_EQ(text(dir / "a.csv"), text(dir / "b.csv"));
+  const std::string a = text(dir / "a.csv");
+  EXPECT_GT(std::count(a.begin(), a.end(), '\n'), 10);  // the rays hit points
+  ASSERT_EQ(run_cli("info --verify '" + rsi.string() + "'", log), 0) << text(log);
+  EXPECT_NE(text(log).find("points:            110000"), std::string::npos) << text(log);
+  EXPECT_NE(text(log).find("all sections verified"), std::string::npos) << text(log);
+  // Bad input: exit 2, one line naming the file; a failed build leaves nothing behind.
+  {
+    std::ofstream(dir / "junk.rsi") << "not an index";
+  }
+  EXPECT_EQ(run_cli("info '" + (dir / "junk.rsi").string() + "'", log), 2);
+  EXPECT_NE(text(log).find("junk.rsi: byte"), std::string::npos) << text(log);
+  EXPECT_EQ(run_cli("index -q '" + (dir / "missing.las").string() + "' -o '" + (dir / "x.rsi").string() + "'", log), 2);
+  EXPECT_FALSE(fs::exists(dir / "x.rsi"));
+  EXPECT_EQ(run_cli("index -q '" + las.string() + "' -o '" + (dir / "x.rsi").string() + "' --memory 10Q", log), 2);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rayscan::test

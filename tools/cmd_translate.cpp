@@ -1,0 +1,38 @@
+// `rayscan translate IN OUT`: lossless LAS <-> LAZ conversion (a thin kernel over
+// io::translate_las; see rayscan/io/translate.hpp).
+#include "commands.hpp"
+
+#include "rayscan/io/translate.hpp"
+
+#include <iostream>
+#include <memory>
+
+namespace rayscan::cli {
+
+Runner add_translate_command(CLI::App& app) {
+  auto* sub = app.add_subcommand("translate", "Convert LAS <-> LAZ losslessly (like `laszip` / `pdal translate`): "
+                                              "same header, VLRs/EVLRs and byte-identical point records");
+  auto in = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto format = std::make_shared<std::string>("auto");
+  auto chunk = std::make_shared<std::uint32_t>(50000);
+  sub->add_option("IN", *in, "input .las or .laz (LAZ recognised by its LASzip VLR)")->required();
+  sub->add_option("OUT", *out, "output file")->required();
+  sub->add_option("--format", *format, "output: auto (by OUT's extension), las or laz")
+      ->check(CLI::IsMember({"auto", "las", "laz"}));
+  sub->add_option("--chunk-size", *chunk, "points per LAZ chunk")->check(CLI::Range(1u, 0xFFFFFFFEu));
+  return [in, out, format, chunk]() -> int {
+    io::TranslateOptions o;
+    o.compression = *format == "las" ? io::LasCompression::las
+                    : *format == "laz" ? io::LasCompression::laz : io::LasCompression::by_extension;
+    o.chunk_size = *chunk;
+    const io::TranslateResult r = io::translate_las(*in, *out, o);
+    std::cout << *out << ": " << r.points << " points, " << (r.compressed ? "LAZ" : "LAS") << ", " << r.out_bytes
+              << " bytes";
+    if (r.compressed) std::cout << " in " << r.chunks << " chunks";
+    std::cout << " (input " << r.in_bytes << " bytes)\n";
+    return 0;
+  };
+}
+
+}  // namespace rayscan::cli
