@@ -7,6 +7,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "file_kind.hpp"
+
 #include <cerrno>
 #include <cstring>
 
@@ -20,23 +22,13 @@ thread_local OutputTransaction* g_current = nullptr;
   throw OutputFileError(one_line(path.string()) + ": " + why);
 }
 
-std::string kind_of(mode_t m) {
-  if (S_ISLNK(m)) return "a symbolic link";
-  if (S_ISDIR(m)) return "a directory";
-  if (S_ISFIFO(m)) return "a FIFO";
-  if (S_ISCHR(m)) return "a character device";
-  if (S_ISBLK(m)) return "a block device";
-  if (S_ISSOCK(m)) return "a socket";
-  return "not a regular file";
-}
-
 }  // namespace
 
 void require_replaceable_output(const std::filesystem::path& path) {
   struct stat st {};
   if (::lstat(path.c_str(), &st) == 0) {
     if (!S_ISREG(st.st_mode))
-      refuse(path, "is " + kind_of(st.st_mode) +
+      refuse(path, "is " + detail::file_kind_name(st.st_mode) +
                        "; refusing to replace it (outputs go to a new path or over a regular file)");
     return;
   }

@@ -5,6 +5,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "file_kind.hpp"
+
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -14,21 +16,12 @@ namespace rayscan {
 
 namespace {
 
-std::string kind_of(mode_t m) {
-  if (S_ISDIR(m)) return "a directory";
-  if (S_ISFIFO(m)) return "a FIFO";
-  if (S_ISCHR(m)) return "a character device";
-  if (S_ISBLK(m)) return "a block device";
-  if (S_ISSOCK(m)) return "a socket";
-  return "not a regular file";
-}
-
 [[noreturn]] void refuse(const std::filesystem::path& path, const std::string& why) {
   throw InputFileError(one_line(path.string()) + ": " + why);
 }
 
 std::string not_regular(mode_t m) {
-  return "is " + kind_of(m) + ", not a regular file (rayscan reads regular files only)";
+  return "is " + detail::file_kind_name(m) + ", not a regular file (rayscan reads regular files only)";
 }
 
 }  // namespace
