@@ -184,6 +184,9 @@ class LasReader final : public PointReader {
  private:
   void parse(const Input& in, const ReadOptions& opt);
   void setup(AttributeSet attrs, const ReadOptions& opt);
+  // From the largest R/G/B value of the whole file: all zero drops colour; <= 255 means 8-bit
+  // colour in 16-bit fields (LAS 1.4 R15 section 2.6 says 16-bit), scaled by 257 (rgb_mul_).
+  void decide_colour_scale(std::uint16_t max_rgb);
   /// LAZ: makes records [first, first + n) available (decoding whole chunks into window_, in
   /// parallel over chunks) and returns a pointer to record `first`; n <= points of the window.
   const std::uint8_t* laz_records(std::uint64_t first, std::size_t n, std::uint32_t layers);
@@ -518,6 +521,17 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
   for (const ExtraField& f : extras_) info.fields.push_back(f.name);
 }
 
+void LasReader::decide_colour_scale(std::uint16_t mx) {
+  if (mx == 0) {
+    attrs_ = AttributeSet{attrs_.bits & ~static_cast<std::uint32_t>(Attribute::rgb)};
+    info_.notes.push_back("RGB fields present but all zero: colour dropped");
+  } else if (mx <= 255) {
+    rgb_mul_ = 257;
+    info_.notes.push_back("RGB stored as 8-bit values (max " + std::to_string(mx) +
+                          ") in 16-bit fields: scaled by 257");
+  }
+}
+
 void LasReader::setup(AttributeSet want, const ReadOptions& opt) {
   AttributeSet have = AttributeSet::none();
   have.add(Attribute::intensity).add(Attribute::classification);
@@ -556,14 +570,7 @@ void LasReader::setup(AttributeSet want, const ReadOptions& opt) {
     window_.shrink_to_fit();
     win_c0_ = win_c1_ = 0;
     win_points_ = 0;
-    if (mx == 0) {
-      attrs_ = AttributeSet{attrs_.bits & ~static_cast<std::uint32_t>(Attribute::rgb)};
-      info_.notes.push_back("RGB fields present but all zero: colour dropped");
-    } else if (mx <= 255) {
-      rgb_mul_ = 257;
-      info_.notes.push_back("RGB stored as 8-bit values (max " + std::to_string(mx) +
-                            ") in 16-bit fields: scaled by 257");
-    }
+    decide_colour_scale(mx);
   } else if (attrs_.has(Attribute::rgb) && count_ > 0) {
     const std::uint8_t* base = src_->in.bytes.data() + point_offset_;
     const int off = pdrf_rgb_offset(pdrf_);
@@ -584,14 +591,7 @@ void LasReader::setup(AttributeSet want, const ReadOptions& opt) {
           [](std::uint16_t a, std::uint16_t b) { return std::max(a, b); }));
       src_->in.done(point_offset_ + b1 * rec_len_);
     }
-    if (mx == 0) {
-      attrs_ = AttributeSet{attrs_.bits & ~static_cast<std::uint32_t>(Attribute::rgb)};
-      info_.notes.push_back("RGB fields present but all zero: colour dropped");
-    } else if (mx <= 255) {
-      rgb_mul_ = 257;
-      info_.notes.push_back("RGB stored as 8-bit values (max " + std::to_string(mx) +
-                            ") in 16-bit fields: scaled by 257");
-    }
+    decide_colour_scale(mx);
   }
 }
 
