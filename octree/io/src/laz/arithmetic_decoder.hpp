@@ -13,6 +13,16 @@
 
 namespace rayscan::io::laz {
 
+/// Two's-complement wrapping add of 64-bit integers: LASzip's GPS-time sequences (I64 += I32)
+/// wrap on hostile data instead of overflowing (signed overflow is undefined in C++).
+inline std::int64_t wrap_add(std::int64_t a, std::int64_t b) {
+  return static_cast<std::int64_t>(static_cast<std::uint64_t>(a) + static_cast<std::uint64_t>(b));
+}
+/// Two's-complement wrapping difference a - b (the encoder's GPS-time deltas).
+inline std::int64_t wrap_sub(std::int64_t a, std::int64_t b) {
+  return static_cast<std::int64_t>(static_cast<std::uint64_t>(a) - static_cast<std::uint64_t>(b));
+}
+
 inline constexpr std::uint32_t kMinLength = 0x01000000u;  ///< AC__MinLength
 inline constexpr std::uint32_t kMaxLength = 0xFFFFFFFFu;  ///< AC__MaxLength
 inline constexpr int kBitShift = 13;                      ///< BM__LengthShift

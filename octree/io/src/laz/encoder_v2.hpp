@@ -246,7 +246,7 @@ class GpsTime11V2Enc {
           enc.encode_symbol(m_0diff_, 0);
           return;
         }
-        const std::int64_t d64 = t - last_time_[last_];
+        const std::int64_t d64 = wrap_sub(t, last_time_[last_]);
         if (d64 == static_cast<std::int32_t>(d64)) {
           enc.encode_symbol(m_0diff_, 1);
           ic_.compress(enc, 0, static_cast<std::int32_t>(d64), 0);
@@ -269,7 +269,7 @@ class GpsTime11V2Enc {
         enc.encode_symbol(m_multi_, GpsTime11V2::kUnchanged);
         return;
       }
-      const std::int64_t d64 = t - last_time_[last_];
+      const std::int64_t d64 = wrap_sub(t, last_time_[last_]);
       if (d64 == static_cast<std::int32_t>(d64)) {
         const auto d = static_cast<std::int32_t>(d64);
         const float mf = static_cast<float>(d) / static_cast<float>(last_diff_[last_]);
@@ -323,7 +323,7 @@ class GpsTime11V2Enc {
   }
   int other_sequence(std::int64_t t) const {
     for (int i = 1; i < 4; ++i) {
-      const std::int64_t d = t - last_time_[(last_ + static_cast<std::uint32_t>(i)) & 3];
+      const std::int64_t d = wrap_sub(t, last_time_[(last_ + static_cast<std::uint32_t>(i)) & 3]);
       if (d == static_cast<std::int32_t>(d)) return i;
     }
     return 0;

@@ -169,7 +169,7 @@ class GpsTime11V2 {
         const std::uint32_t multi = dec.decode_symbol(m_0diff_);
         if (multi == 1) {
           last_diff_[last_] = ic_.decompress(dec, 0, 0);
-          last_time_[last_] += last_diff_[last_];
+          last_time_[last_] = wrap_add(last_time_[last_], last_diff_[last_]);
           extreme_[last_] = 0;
         } else if (multi == 2) {
           full(dec);
@@ -180,7 +180,7 @@ class GpsTime11V2 {
       } else {
         int multi = static_cast<int>(dec.decode_symbol(m_multi_));
         if (multi == 1) {
-          last_time_[last_] += ic_.decompress(dec, last_diff_[last_], 1);
+          last_time_[last_] = wrap_add(last_time_[last_], ic_.decompress(dec, last_diff_[last_], 1));
           extreme_[last_] = 0;
         } else if (multi < kUnchanged) {
           std::int32_t d;
@@ -201,7 +201,7 @@ class GpsTime11V2 {
               bump(d);
             }
           }
-          last_time_[last_] += d;
+          last_time_[last_] = wrap_add(last_time_[last_], d);
         } else if (multi == kCodeFull) {
           full(dec);
         } else if (multi > kCodeFull) {

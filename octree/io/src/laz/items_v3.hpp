@@ -277,7 +277,7 @@ class Point14V3 {
         const std::uint32_t multi = dec.decode_symbol(c.m_gps_0diff);
         if (multi == 0) {
           c.gps_diff[last] = c.ic_gps.decompress(dec, 0, 0);
-          c.gps_time[last] += c.gps_diff[last];
+          c.gps_time[last] = wrap_add(c.gps_time[last], c.gps_diff[last]);
           c.gps_extreme[last] = 0;
         } else if (multi == 1) {
           full(c, dec);
@@ -288,7 +288,7 @@ class Point14V3 {
       } else {
         int multi = static_cast<int>(dec.decode_symbol(c.m_gps_multi));
         if (multi == 1) {
-          c.gps_time[last] += c.ic_gps.decompress(dec, c.gps_diff[last], 1);
+          c.gps_time[last] = wrap_add(c.gps_time[last], c.ic_gps.decompress(dec, c.gps_diff[last], 1));
           c.gps_extreme[last] = 0;
         } else if (multi < kCodeFull) {
           std::int32_t d;
@@ -309,7 +309,7 @@ class Point14V3 {
               bump(c, d);
             }
           }
-          c.gps_time[last] += d;
+          c.gps_time[last] = wrap_add(c.gps_time[last], d);
         } else if (multi == kCodeFull) {
           full(c, dec);
         } else {
