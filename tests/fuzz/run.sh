@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (one per reader: las, ply, pcd, text, laz, copc) with clang++
+# Builds the libFuzzer targets (one per reader: las, ply, pcd, text, laz, copc, and rsi for the
+# index file) with clang++
 # -fsanitize=fuzzer,address and runs each for a bounded time on a corpus seeded from tests/data
 # (plus the checked-in regression inputs in tests/fuzz/regressions/<format>/).
 # Usage: tests/fuzz/run.sh [SECONDS_PER_TARGET (default 60)] [BUILD_DIR (default build-fuzz)]
@@ -37,7 +38,7 @@ wait
 for o in "${objs[@]}"; do [ -f "$o" ] || { echo "fuzz: compiling $o failed"; exit 1; }; done
 
 status=0
-for fmt in ${FUZZ_TARGETS:-las ply pcd text laz copc}; do
+for fmt in ${FUZZ_TARGETS:-las ply pcd text laz copc rsi}; do
   exe="$OUT/fuzz_$fmt"
   echo "fuzz: linking $exe"
   "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer "tests/fuzz/fuzz_$fmt.cpp" "${objs[@]}" -lgdal -llzf -lz -ltbb -o "$exe"
@@ -49,6 +50,7 @@ for fmt in ${FUZZ_TARGETS:-las ply pcd text laz copc}; do
     pcd) seeds=(tests/data/pcd/*.pcd) ;;
     text) seeds=() ;;
     laz) seeds=(tests/data/laz/append-bug.laz) ;;  # + the small LAZ files in regressions/laz
+    rsi) seeds=() ;;  # the small index files in regressions/rsi (built by `rayscan index`)
     copc) seeds=(); for f in ../shared/data/laz/*.copc.laz; do [ -f "$f" ] && seeds+=("$f"); done ;;
   esac
   for f in "${seeds[@]}"; do

@@ -800,6 +800,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   x.config_.max_depth = get<std::uint32_t>(b, 96);
   x.config_.depth = get<std::uint32_t>(b, 100);
   x.depth_ = get<std::uint32_t>(b, 104);
+  if (x.depth_ > 21) fail(104, "depth " + std::to_string(x.depth_) + " (expected 0..21, the Morton code depth)");
   x.attrs_ = AttributeSet{get<std::uint32_t>(b, 108)};
   if (x.points_ >= 0xFFFFFFFFull) fail(24, "point count " + std::to_string(x.points_) + " above 2^32 - 2");
   const bool verify_all = opt.verify == IndexOpenOptions::Verify::always ||
@@ -874,6 +875,27 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
       if (std::isnan(r.lo[k]) || std::isnan(r.hi[k])) fail(o, "node " + std::to_string(n) + ": NaN bounds");
   }
   if (x.node_count_ > 0 && x.nodes_[0].key != 1) fail(node_off + 24, "root node key must be 1");
+  // Keys (Warren & Salmon): every node but the root is the child of exactly one node, its key is
+  // the parent's key shifted by 3 plus its octant, octants increase within a family, and no node
+  // is deeper than the header's depth; so every key has its sentinel bit (never 0).
+  {
+    std::vector<std::uint8_t> referenced(x.node_count_, 0);
+    for (std::size_t n = 0; n < x.node_count_; ++n) {  // parents come before their children
+      const Octree::NodeRec& r = x.nodes_[n];
+      if (n > 0 && !referenced[n])
+        fail(node_off + n * kNodeBytes, "node " + std::to_string(n) + ": not the child of any earlier node");
+      if (r.child_count > 0 && OctreeNodeId::from_bits(r.key).depth() >= x.depth_)
+        fail(node_off + n * kNodeBytes + 24, "node " + std::to_string(n) + ": children below the deepest level " +
+                                                 std::to_string(x.depth_) + " of the header");
+      for (unsigned c = 0; c < r.child_count; ++c) {
+        const std::size_t k = r.first_child + c;
+        const std::uint64_t ck = x.nodes_[k].key;
+        if (referenced[k]++ || (ck >> 3) != r.key || (c > 0 && (ck & 7) <= (x.nodes_[k - 1].key & 7)))
+          fail(node_off + k * kNodeBytes + 24, "node " + std::to_string(k) + ": key " + std::to_string(ck) +
+                                                   " is not a child key of node " + std::to_string(n));
+      }
+    }
+  }
 
   // Sources: "size \t mtime_ns \t points \t first_id \t format \t path" lines.
   {
