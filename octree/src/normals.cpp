@@ -37,8 +37,10 @@ std::optional<Vec3> smallest_eigenvector(double a00, double a01, double a02, dou
   return best / std::sqrt(dbest);
 }
 
-SurfelAttributes estimate_surfels(const AnyIndex& index, std::span<const Vec3> positions,
-                                  const SurfelOptions& o, std::span<const glm::vec3> file_normals) {
+namespace detail {
+
+void check_surfel_arguments(std::size_t index_points, std::span<const Vec3> positions, const SurfelOptions& o,
+                            std::span<const glm::vec3> file_normals) {
   const std::size_t n = positions.size();
   if (o.k_normal < 3) throw std::invalid_argument("surfels: k_normal must be >= 3");
   if (o.k_radius < 1) throw std::invalid_argument("surfels: k_radius must be >= 1");
@@ -47,67 +49,41 @@ SurfelAttributes estimate_surfels(const AnyIndex& index, std::span<const Vec3> p
   if (!file_normals.empty() && file_normals.size() != n)
     throw std::invalid_argument("surfels: the file's normals and positions differ in size");
   if (n < 2) throw std::invalid_argument("surfels: need at least 2 points");
-  const std::size_t idx_n = std::visit([](const auto& i) { return i.positions().size(); }, index);
-  if (idx_n != n) throw std::invalid_argument("surfels: the index was built over another cloud");
+  if (index_points != n) throw std::invalid_argument("surfels: the index was built over another cloud");
+}
 
-  SurfelAttributes out;
-  out.normals.assign(n, glm::vec3(0.0f, 0.0f, 1.0f));
-  out.radii.assign(n, 0.0f);
-  const bool estimate = file_normals.empty();
-  const std::size_t k = std::max<std::size_t>(estimate ? o.k_normal : 0, o.k_radius + 1);
+glm::vec3 surfel_normal(const Vec3& p, std::span<const Neighbor> nb, std::span<const Vec3> positions,
+                        const SurfelOptions& o, bool estimate, const glm::vec3& file) {
   const Vec3 up = glm::length(o.orientation.up) > 0.0 ? glm::normalize(o.orientation.up) : Vec3(0, 0, 1);
+  Vec3 nrm = up;
+  if (estimate) {
+    // Covariance about the neighbourhood mean, in coordinates relative to p (no cancellation at
+    // UTM magnitudes).
+    const std::size_t m = std::min<std::size_t>(o.k_normal, nb.size());
+    Vec3 mean(0.0);
+    for (std::size_t j = 0; j < m; ++j) mean += positions[nb[j].index] - p;
+    mean /= double(m);
+    double c00 = 0, c01 = 0, c02 = 0, c11 = 0, c12 = 0, c22 = 0;
+    for (std::size_t j = 0; j < m; ++j) {
+      const Vec3 v = positions[nb[j].index] - p - mean;
+      c00 += v.x * v.x; c01 += v.x * v.y; c02 += v.x * v.z;
+      c11 += v.y * v.y; c12 += v.y * v.z; c22 += v.z * v.z;
+    }
+    const double tr = c00 + c11 + c22;
+    if (tr > 0.0) {
+      const double s_ = 1.0 / tr;  // scale-free eigen problem
+      if (auto e = smallest_eigenvector(c00 * s_, c01 * s_, c02 * s_, c11 * s_, c12 * s_, c22 * s_)) nrm = *e;
+    }
+  } else {
+    const double len = glm::length(glm::dvec3(file));
+    if (len > 0.0 && std::isfinite(len)) nrm = glm::dvec3(file) / len;
+  }
+  const Vec3 toward = o.orientation.viewpoint ? *o.orientation.viewpoint - p : up;
+  if (glm::dot(nrm, toward) < 0.0) nrm = -nrm;
+  return glm::vec3(nrm);
+}
 
-  auto orient = [&](Vec3 nrm, const Vec3& p) {
-    const Vec3 toward = o.orientation.viewpoint ? *o.orientation.viewpoint - p : up;
-    if (glm::dot(nrm, toward) < 0.0) nrm = -nrm;
-    return nrm;
-  };
-
-  std::visit(
-      [&](const auto& idx) {
-        const auto pos = idx.positions();
-        const auto ids = idx.ids();
-        // Storage order: consecutive slots are spatial neighbours, so the kNN stays in cache.
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
-          std::vector<Neighbor> nb;
-          for (std::size_t s = range.begin(); s != range.end(); ++s) {
-            const Vec3& p = pos[s];
-            const PointIndex id = ids[s];
-            knn_query(idx, p, k, kInf, nb);
-            // Radius: the k_radius-th neighbour other than the point (nb[0] is the point or a duplicate).
-            const std::size_t rk = std::min<std::size_t>(o.k_radius, nb.size() - 1);
-            out.radii[id] = float(nb[rk].distance * o.radius_factor);
-            Vec3 nrm = up;
-            if (estimate) {
-              // Covariance about the neighbourhood mean, in coordinates relative to p (no
-              // cancellation at UTM magnitudes).
-              const std::size_t m = std::min<std::size_t>(o.k_normal, nb.size());
-              Vec3 mean(0.0);
-              for (std::size_t j = 0; j < m; ++j) mean += positions[nb[j].index] - p;
-              mean /= double(m);
-              double c00 = 0, c01 = 0, c02 = 0, c11 = 0, c12 = 0, c22 = 0;
-              for (std::size_t j = 0; j < m; ++j) {
-                const Vec3 v = positions[nb[j].index] - p - mean;
-                c00 += v.x * v.x; c01 += v.x * v.y; c02 += v.x * v.z;
-                c11 += v.y * v.y; c12 += v.y * v.z; c22 += v.z * v.z;
-              }
-              const double tr = c00 + c11 + c22;
-              if (tr > 0.0) {
-                const double s_ = 1.0 / tr;  // scale-free eigen problem
-                if (auto e = smallest_eigenvector(c00 * s_, c01 * s_, c02 * s_, c11 * s_, c12 * s_, c22 * s_))
-                  nrm = *e;
-              }
-            } else {
-              const glm::vec3 f = file_normals[id];
-              const double len = glm::length(glm::dvec3(f));
-              if (len > 0.0 && std::isfinite(len)) nrm = glm::dvec3(f) / len;
-            }
-            out.normals[id] = glm::vec3(orient(nrm, p));
-          }
-        });
-      },
-      index);
-
+void finish_surfel_radii(SurfelAttributes& out, const SurfelOptions& o) {
   // Clamp radii to a factor of their median so isolated points do not grow huge discs (which
   // would also widen every ray query's candidate cylinder). Zero radii (duplicates only) get the
   // median.
@@ -124,7 +100,13 @@ SurfelAttributes estimate_surfels(const AnyIndex& index, std::span<const Vec3> p
     mx = std::max(mx, double(r));
   }
   out.max_radius = mx;
-  return out;
+}
+
+}  // namespace detail
+
+SurfelAttributes estimate_surfels(const AnyIndex& index, std::span<const Vec3> positions,
+                                  const SurfelOptions& o, std::span<const glm::vec3> file_normals) {
+  return std::visit([&](const auto& idx) { return estimate_surfels_over(idx, positions, o, file_normals); }, index);
 }
 
 }  // namespace rayscan

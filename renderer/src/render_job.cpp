@@ -138,13 +138,10 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   ctl.info(buf);
   SurfelAttributes surfels;
   if (scene.primitive == Primitive::surfel) {
-    // Surfel normals and radii need kNN over the built in-memory index (scene_surfels).
-    if (mapped)
-      throw SceneError(f + ": /primitive: \"surfel\" is not supported with an index file (.rsi) yet; "
-                       "render the source cloud, or use \"sphere\"");
+    // Surfel normals and radii: kNN over the mapped or the built in-memory index (scene_surfels).
     t0 = std::chrono::steady_clock::now();
     try {
-      surfels = scene_surfels(scene, index, cloud);
+      surfels = mapped ? scene_surfels(scene, *mapped, cloud) : scene_surfels(scene, index, cloud);
     } catch (const std::invalid_argument& e) {
       throw SceneError(f + ": /surfel: " + e.what());
     }

@@ -2,11 +2,22 @@
 
 namespace rayscan::render {
 
-SurfelAttributes scene_surfels(const Scene& scene, const AnyIndex& index, const PointCloud& cloud) {
+namespace {
+/// The scene's surfel options with its up axis and, when asked, the camera centre as viewpoint.
+SurfelOptions surfel_options(const Scene& scene) {
   SurfelOptions o = scene.surfel;
   o.orientation.up = scene.up;
   if (scene.surfel_orient_camera && scene.camera) o.orientation.viewpoint = scene.camera->center();
-  return estimate_surfels(index, cloud.positions, o, cloud.normals);
+  return o;
+}
+}  // namespace
+
+SurfelAttributes scene_surfels(const Scene& scene, const AnyIndex& index, const PointCloud& cloud) {
+  return estimate_surfels(index, cloud.positions, surfel_options(scene), cloud.normals);
+}
+
+SurfelAttributes scene_surfels(const Scene& scene, const io::MappedIndex& index, const PointCloud& cloud) {
+  return estimate_surfels_over(index, cloud.positions, surfel_options(scene), cloud.normals);
 }
 
 void use_surfels(RenderSettings& s, const SurfelAttributes& a) {

@@ -1,6 +1,7 @@
 // The render job as a library call (rayscan/render/render_job.hpp). Oracles: the lower-level
 // calls it composes (compute_albedo, make_index, median_nn_spacing, render_image) run by hand,
 // and the files' own bytes read back through OpenImageIO.
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/render_job.hpp"
 
@@ -135,4 +136,38 @@ TEST(RenderJob, OverridesCheckEachValue) {
             "--aov 'colour': expected depth, normal, position, index, albedo or cost");
   EXPECT_EQ(what_of([&] { apply_overrides(s, bad_out); }),
             "--out 'x.bmp': expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr");
+}
+
+// Issue 10: rendering the index file (.rsi) of a cloud gives the image of the cloud itself, bit
+// for bit, for spheres and for surfels (normals and radii by kNN over the mapped tree): the ray
+// queries are exact, so the tree the hits come from must not show. Oracle: the render of the
+// source file through the in-memory index.
+TEST(RenderJob, IndexFileRendersLikeTheSourceCloud) {
+  const fs::path dir = fs::temp_directory_path() / ("rayscan_render_rsi_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path src = fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz", rsi = dir / "subset.rsi";
+  io::IndexBuildOptions bo;
+  bo.config.capacity = 16;  // a different tree from the scene's in-memory one
+  io::build_index_file({src}, rsi, bo);
+  for (Primitive prim : {Primitive::sphere, Primitive::surfel}) {
+    SCOPED_TRACE(prim == Primitive::surfel ? "surfel" : "sphere");
+    RenderJobResult r[2];
+    for (int k = 0; k < 2; ++k) {
+      RenderJobOptions o;
+      o.scene = small_scene();
+      o.scene.primitive = prim;
+      o.scene.cloud = k == 0 ? src : rsi;
+      o.write = false;
+      o.control.threads = 2;
+      r[k] = run_render(o);
+    }
+    ASSERT_EQ(r[0].image.beauty.size(), r[1].image.beauty.size());
+    EXPECT_EQ(std::memcmp(r[0].image.beauty.data(), r[1].image.beauty.data(), r[0].image.beauty.size() * sizeof(Color)), 0);
+    EXPECT_EQ(r[0].image.index, r[1].image.index);
+    EXPECT_EQ(r[0].radius.radius, r[1].radius.radius);
+    std::size_t hit = 0;
+    for (auto id : r[0].image.index) hit += id != kNoPoint;
+    EXPECT_GT(hit, r[0].image.index.size() / 4);  // the comparison is not vacuous
+  }
+  fs::remove_all(dir);
 }

@@ -10,6 +10,10 @@
 #include "rayscan/point_query.hpp"
 
 #include <glm/vec3.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
 
 #include <optional>
 #include <span>
@@ -61,5 +65,55 @@ std::optional<Vec3> smallest_eigenvector(double a00, double a01, double a02, dou
 SurfelAttributes estimate_surfels(const AnyIndex& index, std::span<const Vec3> positions,
                                   const SurfelOptions& options = {},
                                   std::span<const glm::vec3> file_normals = {});
+
+/// estimate_surfels over any SpatialIndex (e.g. the mapped index file, io::MappedIndex), with the
+/// same results as the AnyIndex overload for the same points: the work runs over the index's slots
+/// (storage order: consecutive slots are spatial neighbours, so the kNN stays in cache) and
+/// writes by original id. `positions` are the points in original id order.
+template <SpatialIndex I>
+SurfelAttributes estimate_surfels_over(const I& index, std::span<const Vec3> positions,
+                                       const SurfelOptions& options = {},
+                                       std::span<const glm::vec3> file_normals = {});
+
+namespace detail {
+/// Argument checks of estimate_surfels (throws std::invalid_argument, see there).
+void check_surfel_arguments(std::size_t index_points, std::span<const Vec3> positions, const SurfelOptions& o,
+                            std::span<const glm::vec3> file_normals);
+/// The normal of point `p` from its neighbours `nb` (ascending distance, original ids into
+/// `positions`): PCA, or the file normal `file` when `estimate` is false; then oriented.
+glm::vec3 surfel_normal(const Vec3& p, std::span<const Neighbor> nb, std::span<const Vec3> positions,
+                        const SurfelOptions& o, bool estimate, const glm::vec3& file);
+/// Median of the non-zero radii, zero radii set to it, clamp to max_radius_factor x median,
+/// max_radius. Throws std::invalid_argument when every radius is zero.
+void finish_surfel_radii(SurfelAttributes& a, const SurfelOptions& o);
+}  // namespace detail
+
+template <SpatialIndex I>
+SurfelAttributes estimate_surfels_over(const I& index, std::span<const Vec3> positions, const SurfelOptions& o,
+                                       std::span<const glm::vec3> file_normals) {
+  detail::check_surfel_arguments(index.positions().size(), positions, o, file_normals);
+  const std::size_t n = positions.size();
+  SurfelAttributes out;
+  out.normals.assign(n, glm::vec3(0.0f, 0.0f, 1.0f));
+  out.radii.assign(n, 0.0f);
+  const bool estimate = file_normals.empty();
+  const std::size_t k = std::max<std::size_t>(estimate ? o.k_normal : 0, o.k_radius + 1);
+  const auto pos = index.positions();
+  const auto ids = index.ids();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
+    std::vector<Neighbor> nb;
+    for (std::size_t s = range.begin(); s != range.end(); ++s) {
+      const Vec3& p = pos[s];
+      const PointIndex id = ids[s];
+      knn_query(index, p, k, kInf, nb);
+      // Radius: the k_radius-th neighbour other than the point (nb[0] is the point or a duplicate).
+      const std::size_t rk = std::min<std::size_t>(o.k_radius, nb.size() - 1);
+      out.radii[id] = float(nb[rk].distance * o.radius_factor);
+      out.normals[id] = detail::surfel_normal(p, nb, positions, o, estimate, estimate ? glm::vec3() : file_normals[id]);
+    }
+  });
+  detail::finish_surfel_radii(out, o);
+  return out;
+}
 
 }  // namespace rayscan
