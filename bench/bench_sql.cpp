@@ -2,6 +2,8 @@
 // interleaved run. Per camera ray: radius query (r = point spacing) and kNN to the ray (k = 10) on
 //   octree    rayscan::ray_query over Octree::build_bulk (what `rayscan query` runs);
 //   sqlite    ray_query(...) of rayscan_sqlite.so (R*Tree pruning callback + dynamic k filter);
+//   baseline  optional (--baseline-ext): the same ray_query through another build of the extension
+//             (e.g. the one before an optimisation) on a second connection, interleaved per ray;
 //   full      SELECT ... FROM points WHERE dist_ray(...) <= r: no pruning (first --full-rays rays);
 //   postgres  chunk GiST (&& ray_within) join + dist_ray <= r, and kNN with ORDER BY ... LIMIT k
 //             inside radius 3r (only with --postgres).
@@ -32,6 +34,7 @@ int main(int argc, char** argv) {
   CLI::App app{"bench_sql: SQL ray queries (SQLite, PostgreSQL, full scan) vs the in-memory octree"};
   std::string cloud_path = RAYSCAN_DEFAULT_CLOUD, db_path, conninfo, table = "points";
   int nrays = 1000, full_rays = 20, k = 10;
+  std::string baseline_ext;
   app.add_option("--cloud", cloud_path, "Point cloud (the one imported)")->capture_default_str();
   app.add_option("--sqlite", db_path, "SQLite database from `rayscan db import` of --cloud "
                                       "(default: imported here into a temporary file, chunk 4096)");
@@ -39,6 +42,7 @@ int main(int argc, char** argv) {
   app.add_option("--table", table, "PostgreSQL table");
   app.add_option("--rays", nrays, "Camera rays");
   app.add_option("--full-rays", full_rays, "Rays for the unpruned full scan (slow)");
+  app.add_option("--baseline-ext", baseline_ext, "Another rayscan_sqlite.so to run interleaved (before/after)");
   CLI11_PARSE(app, argc, argv);
 
   const PointCloud cloud = io::read_point_cloud(cloud_path, io::ReadOptions{.scalars = false});
@@ -72,6 +76,18 @@ int main(int argc, char** argv) {
     std::cerr << err << "\n";
     return 2;
   }
+  sqlite3* db_base = nullptr;
+  sqlite3_stmt *q_base = nullptr, *stats_base = nullptr;
+  if (!baseline_ext.empty()) {
+    if (sqlite3_open_v2(db_path.c_str(), &db_base, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK) return 2;
+    sqlite3_enable_load_extension(db_base, 1);
+    if (sqlite3_load_extension(db_base, baseline_ext.c_str(), "sqlite3_extension_init", &err) != SQLITE_OK) {
+      std::cerr << err << "\n";
+      return 2;
+    }
+    sqlite3_prepare_v2(db_base, "SELECT point_index FROM ray_query(?1,?2,?3,?4,?5,?6,?7,?8,NULL,NULL,'ray')", -1, &q_base, nullptr);
+    sqlite3_prepare_v2(db_base, "SELECT json_extract(s,'$.chunks_visited'), json_extract(s,'$.chunks_total') FROM (SELECT rayscan_stats() AS s)", -1, &stats_base, nullptr);
+  }
   sqlite3_stmt *q_sql, *stats, *full;
   sqlite3_prepare_v2(db, "SELECT point_index FROM ray_query(?1,?2,?3,?4,?5,?6,?7,?8,NULL,NULL,'ray')", -1, &q_sql, nullptr);
   sqlite3_prepare_v2(db, "SELECT json_extract(s,'$.chunks_visited'), json_extract(s,'$.chunks_total') FROM (SELECT rayscan_stats() AS s)", -1, &stats, nullptr);
@@ -95,7 +111,7 @@ int main(int argc, char** argv) {
   auto num = [](double v) { char s[40]; std::snprintf(s, sizeof s, "%.17g", v); return std::string(s); };
 
   struct Acc { double t = 0; long long n = 0, visited = 0, total = 0, mismatch = 0; };
-  Acc oct_r, oct_k, sq_r, sq_k, full_r, pg_r, pg_k;
+  Acc oct_r, oct_k, sq_r, sq_k, full_r, pg_r, pg_k, base_r, base_k;
   std::vector<RayHit> hits;
   for (int i = 0; i < nrays; ++i) {
     const Ray& ray = rays[i];
@@ -110,21 +126,25 @@ int main(int argc, char** argv) {
     ray_query(oct, Ray(o, d), qk, hits);
     oct_k.t += secs(t0); ++oct_k.n;
     const std::size_t want_k = hits.size();
-    for (int mode = 0; mode < 2; ++mode) {
-      Acc& a = mode ? sq_k : sq_r;
+    for (int mode = 0; mode < 4; ++mode) {
+      const bool base = mode >= 2;
+      if (base && !q_base) break;
+      Acc& a = base ? (mode & 1 ? base_k : base_r) : (mode & 1 ? sq_k : sq_r);
+      sqlite3_stmt* q = base ? q_base : q_sql;
+      sqlite3_stmt* qs = base ? stats_base : stats;
       t0 = Clock::now();
-      for (int j = 0; j < 3; ++j) sqlite3_bind_double(q_sql, j + 1, o[j]), sqlite3_bind_double(q_sql, j + 4, d[j]);
-      if (mode) { sqlite3_bind_int(q_sql, 7, k); sqlite3_bind_null(q_sql, 8); }
-      else { sqlite3_bind_null(q_sql, 7); sqlite3_bind_double(q_sql, 8, r); }
+      for (int j = 0; j < 3; ++j) sqlite3_bind_double(q, j + 1, o[j]), sqlite3_bind_double(q, j + 4, d[j]);
+      if (mode & 1) { sqlite3_bind_int(q, 7, k); sqlite3_bind_null(q, 8); }
+      else { sqlite3_bind_null(q, 7); sqlite3_bind_double(q, 8, r); }
       std::size_t n = 0;
-      while (sqlite3_step(q_sql) == SQLITE_ROW) ++n;
-      sqlite3_reset(q_sql);
+      while (sqlite3_step(q) == SQLITE_ROW) ++n;
+      sqlite3_reset(q);
       a.t += secs(t0); ++a.n;
-      if (n != (mode ? want_k : want_r)) ++a.mismatch;
-      sqlite3_step(stats);
-      a.visited += sqlite3_column_int64(stats, 0);
-      a.total += sqlite3_column_int64(stats, 1);
-      sqlite3_reset(stats);
+      if (n != (mode & 1 ? want_k : want_r)) ++a.mismatch;
+      sqlite3_step(qs);
+      a.visited += sqlite3_column_int64(qs, 0);
+      a.total += sqlite3_column_int64(qs, 1);
+      sqlite3_reset(qs);
     }
     if (i < full_rays) {
       t0 = Clock::now();
@@ -164,13 +184,17 @@ int main(int argc, char** argv) {
   };
   row("octree radius", oct_r, oct_r);
   row("sqlite ray_query radius", sq_r, oct_r);
+  row("sqlite baseline radius", base_r, oct_r);
   row("sqlite full scan radius", full_r, oct_r);
   row("postgres gist radius", pg_r, oct_r);
   row("octree kNN (k)", oct_k, oct_k);
   row("sqlite ray_query kNN", sq_k, oct_k);
+  row("sqlite baseline kNN", base_k, oct_k);
   row("postgres gist kNN in 3r", pg_k, oct_k);
   sqlite3_finalize(q_sql); sqlite3_finalize(stats); sqlite3_finalize(full);
   sqlite3_close(db);
+  sqlite3_finalize(q_base); sqlite3_finalize(stats_base);
+  if (db_base) sqlite3_close(db_base);
   if (pg) PQfinish(pg);
   if (!tmp_db.empty()) std::filesystem::remove(tmp_db);
   return 0;

@@ -46,6 +46,8 @@ struct ImportSummary {
 ///   points(point_index, source, chunk, x, y, z, <attributes>), rowid = 1 + row in Morton order;
 ///   chunks: R*Tree (id, min_x, max_x, min_y, max_y, min_z, max_z, +first_row, +count) whose
 ///   float32 boxes SQLite rounds outwards, so they stay conservative;
+///   chunk_points(id = chunk, data BLOB): the chunk's points packed as PackedPoint (what ray_query
+///   reads: one b-tree lookup per chunk instead of one row per point);
 ///   sources(source, path, point_count, crs_wkt); rayscan_meta(key, value).
 /// Throws io::FormatError for unreadable clouds, std::invalid_argument for bad options and
 /// std::runtime_error ("site.sqlite: sqlite: <message>") for database errors.
