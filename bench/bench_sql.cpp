@@ -18,6 +18,7 @@
 #include <sqlite3.h>
 
 #include <chrono>
+#include <ctime>
 #include <filesystem>
 #include <unistd.h>
 #include <cstdio>
@@ -29,6 +30,18 @@ using namespace rayscan;
 using Clock = std::chrono::steady_clock;
 
 static double secs(Clock::time_point a) { return std::chrono::duration<double>(Clock::now() - a).count(); }
+// Thread CPU time (s): on the shared 2-core machine wall time mostly measures preemption by other
+// processes; the CPU time of this thread is what the query costs (SQLite and the octree run in
+// this thread; PostgreSQL runs in its server, so only its wall time is reported).
+static double thread_cpu() {
+  timespec ts;
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+}
+struct Tick {
+  Clock::time_point wall = Clock::now();
+  double cpu = thread_cpu();
+};
 
 int main(int argc, char** argv) {
   CLI::App app{"bench_sql: SQL ray queries (SQLite, PostgreSQL, full scan) vs the in-memory octree"};
@@ -63,9 +76,9 @@ int main(int argc, char** argv) {
   std::filesystem::path tmp_db;
   if (db_path.empty()) {
     tmp_db = std::filesystem::temp_directory_path() / ("bench_sql." + std::to_string(::getpid()) + ".sqlite");
-    const auto t0 = Clock::now();
+    const auto t0 = Tick();
     sql::import_sqlite({cloud_path}, tmp_db, {});
-    std::printf("imported %s into SQLite in %.2f s\n", cloud_path.c_str(), secs(t0));
+    std::printf("imported %s into SQLite in %.2f s\n", cloud_path.c_str(), secs(t0.wall));
     db_path = tmp_db.string();
   }
   sqlite3* db;
@@ -110,7 +123,11 @@ int main(int argc, char** argv) {
   };
   auto num = [](double v) { char s[40]; std::snprintf(s, sizeof s, "%.17g", v); return std::string(s); };
 
-  struct Acc { double t = 0; long long n = 0, visited = 0, total = 0, mismatch = 0; };
+  struct Acc {
+    double t = 0, cpu = 0;
+    long long n = 0, visited = 0, total = 0, mismatch = 0;
+    void add(const Tick& t0) { t += secs(t0.wall); cpu += thread_cpu() - t0.cpu; ++n; }
+  };
   Acc oct_r, oct_k, sq_r, sq_k, full_r, pg_r, pg_k, base_r, base_k;
   std::vector<RayHit> hits;
   for (int i = 0; i < nrays; ++i) {
@@ -118,13 +135,13 @@ int main(int argc, char** argv) {
     const Vec3 o = ray.origin(), d = ray.direction();
     RayQuery qr; qr.radius = r;
     RayQuery qk; qk.k = k;
-    auto t0 = Clock::now();
+    Tick t0;
     ray_query(oct, Ray(o, d), qr, hits);
-    oct_r.t += secs(t0); ++oct_r.n;
+    oct_r.add(t0);
     const std::size_t want_r = hits.size();
-    t0 = Clock::now();
+    t0 = Tick();
     ray_query(oct, Ray(o, d), qk, hits);
-    oct_k.t += secs(t0); ++oct_k.n;
+    oct_k.add(t0);
     const std::size_t want_k = hits.size();
     for (int mode = 0; mode < 4; ++mode) {
       const bool base = mode >= 2;
@@ -132,14 +149,14 @@ int main(int argc, char** argv) {
       Acc& a = base ? (mode & 1 ? base_k : base_r) : (mode & 1 ? sq_k : sq_r);
       sqlite3_stmt* q = base ? q_base : q_sql;
       sqlite3_stmt* qs = base ? stats_base : stats;
-      t0 = Clock::now();
+      t0 = Tick();
       for (int j = 0; j < 3; ++j) sqlite3_bind_double(q, j + 1, o[j]), sqlite3_bind_double(q, j + 4, d[j]);
       if (mode & 1) { sqlite3_bind_int(q, 7, k); sqlite3_bind_null(q, 8); }
       else { sqlite3_bind_null(q, 7); sqlite3_bind_double(q, 8, r); }
       std::size_t n = 0;
       while (sqlite3_step(q) == SQLITE_ROW) ++n;
       sqlite3_reset(q);
-      a.t += secs(t0); ++a.n;
+      a.add(t0);
       if (n != (mode & 1 ? want_k : want_r)) ++a.mismatch;
       sqlite3_step(qs);
       a.visited += sqlite3_column_int64(qs, 0);
@@ -147,50 +164,56 @@ int main(int argc, char** argv) {
       sqlite3_reset(qs);
     }
     if (i < full_rays) {
-      t0 = Clock::now();
+      t0 = Tick();
       for (int j = 0; j < 3; ++j) sqlite3_bind_double(full, j + 1, o[j]), sqlite3_bind_double(full, j + 4, d[j]);
       sqlite3_bind_double(full, 7, r);
       sqlite3_step(full);
       const auto n = (std::size_t)sqlite3_column_int64(full, 0);
       sqlite3_reset(full);
-      full_r.t += secs(t0); ++full_r.n;
+      full_r.add(t0);
       if (n != want_r) ++full_r.mismatch;
     }
     if (pg) {
       const std::string od = num(o.x) + "," + num(o.y) + "," + num(o.z) + "," + num(d.x) + "," + num(d.y) + "," + num(d.z);
-      t0 = Clock::now();
+      t0 = Tick();
       const int n = pg_count("SELECT p.point_index FROM " + table + "_chunks c JOIN " + table + " p ON p.chunk = c.chunk "
                              "WHERE c.box && ray_within(" + od + "," + num(r) + ") AND dist_ray(" + od + ",p.x,p.y,p.z) <= " + num(r));
-      pg_r.t += secs(t0); ++pg_r.n;
+      pg_r.add(t0);
       if (n != (int)want_r) ++pg_r.mismatch;
-      t0 = Clock::now();
+      t0 = Tick();
       const int m = pg_count("SELECT p.point_index FROM " + table + "_chunks c JOIN " + table + " p ON p.chunk = c.chunk "
                              "WHERE c.box && ray_within(" + od + "," + num(3 * r) + ") AND dist_ray(" + od + ",p.x,p.y,p.z) <= " +
                              num(3 * r) + " ORDER BY dist_ray(" + od + ",p.x,p.y,p.z), 1 LIMIT " + std::to_string(k));
-      pg_k.t += secs(t0); ++pg_k.n;
+      pg_k.add(t0);
       RayQuery q3; q3.k = k; q3.radius = 3 * r;
       ray_query(oct, Ray(o, d), q3, hits);
       if (m != (int)hits.size()) ++pg_k.mismatch;
     }
   }
   std::printf("cloud %s: %zu points, r = %.4g (point spacing), k = %d, %d rays\n", cloud_path.c_str(), cloud.size(), r, k, nrays);
-  std::printf("%-28s %12s %10s %14s %10s\n", "engine / query", "us/query", "x octree", "chunks touched", "mismatch");
-  auto row = [&](const char* name, const Acc& a, const Acc& ref) {
+  std::printf("%-28s %10s %10s %10s %10s %14s %9s\n", "engine / query", "wall us/q", "x octree", "cpu us/q",
+              "x octree", "chunks touched", "mismatch");
+  auto row = [&](const char* name, const Acc& a, const Acc& ref, bool cpu = true) {
     if (!a.n) return;
-    const double us = 1e6 * a.t / a.n;
-    char ch[32] = "-";
+    const double us = 1e6 * a.t / a.n, cu = 1e6 * a.cpu / a.n;
+    char ch[32] = "-", c1[32] = "-", c2[32] = "-";
     if (a.total) std::snprintf(ch, sizeof ch, "%.3f%%", 100.0 * a.visited / a.total);
-    std::printf("%-28s %12.1f %10.1f %14s %10lld\n", name, us, us / (1e6 * ref.t / ref.n), ch, a.mismatch);
+    if (cpu) {
+      std::snprintf(c1, sizeof c1, "%.1f", cu);
+      std::snprintf(c2, sizeof c2, "%.1f", cu / (1e6 * ref.cpu / ref.n));
+    }
+    std::printf("%-28s %10.1f %10.1f %10s %10s %14s %9lld\n", name, us, us / (1e6 * ref.t / ref.n), c1, c2, ch,
+                a.mismatch);
   };
   row("octree radius", oct_r, oct_r);
   row("sqlite ray_query radius", sq_r, oct_r);
   row("sqlite baseline radius", base_r, oct_r);
   row("sqlite full scan radius", full_r, oct_r);
-  row("postgres gist radius", pg_r, oct_r);
+  row("postgres gist radius", pg_r, oct_r, false);
   row("octree kNN (k)", oct_k, oct_k);
   row("sqlite ray_query kNN", sq_k, oct_k);
   row("sqlite baseline kNN", base_k, oct_k);
-  row("postgres gist kNN in 3r", pg_k, oct_k);
+  row("postgres gist kNN in 3r", pg_k, oct_k, false);
   sqlite3_finalize(q_sql); sqlite3_finalize(stats); sqlite3_finalize(full);
   sqlite3_close(db);
   sqlite3_finalize(q_base); sqlite3_finalize(stats_base);

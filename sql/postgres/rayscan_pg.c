@@ -248,9 +248,12 @@ static rs_within test(const RsBox* b, const RsRay* q, double* score) {
 
 PG_FUNCTION_INFO_V1(rs_box_admits);
 Datum rs_box_admits(PG_FUNCTION_ARGS) {
+  const RsBox* b = (const RsBox*)PG_GETARG_POINTER(0);
+  const RsRay* q = (const RsRay*)PG_GETARG_POINTER(1);
   double score;
-  PG_RETURN_BOOL(test((RsBox*)PG_GETARG_POINTER(0), (RsRay*)PG_GETARG_POINTER(1), &score) !=
-                 RS_NOT_WITHIN);
+  /* The same two steps as the GiST consistent method, so index and operator agree exactly. */
+  if (rs_ray_box_misses(q->o, q->d, q->r, q->t_min, q->t_max, b->v)) PG_RETURN_BOOL(false);
+  PG_RETURN_BOOL(test(b, q, &score) != RS_NOT_WITHIN);
 }
 PG_FUNCTION_INFO_V1(rs_box_admits_plane);
 Datum rs_box_admits_plane(PG_FUNCTION_ARGS) {
@@ -282,6 +285,8 @@ Datum rs_gist_consistent(PG_FUNCTION_ARGS) {
                    RS_NOT_WITHIN);
   }
   if (strategy != RS_STRATEGY_ADMITS) elog(ERROR, "rs_box_ops: unknown strategy %d", strategy);
+  if (rs_ray_box_misses(q->o, q->d, q->r, q->t_min, q->t_max, ((const RsBox*)DatumGetPointer(entry->key))->v))
+    PG_RETURN_BOOL(false);
   PG_RETURN_BOOL(test((const RsBox*)DatumGetPointer(entry->key), q, &score) != RS_NOT_WITHIN);
 }
 

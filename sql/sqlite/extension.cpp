@@ -116,6 +116,10 @@ int ray_prune(sqlite3_rtree_query_info* p) {
   const double r = param(p, 6, kInf), t0 = param(p, 7, -kInf), t1 = param(p, 8, kInf);
   char err[RS_ERRBUF];
   if (rs_check_ray("ray_prune", o, d, r, t0, t1, err)) return SQLITE_ERROR;
+  if (rs_ray_box_misses(o, d, r, t0, t1, box)) {  // most entries of an expanded node: cheap
+    p->eWithin = NOT_WITHIN;
+    return SQLITE_OK;
+  }
   double score;
   const rs_within w = rs_ray_box_test(o, d, r, t0, t1, 0, box, &score);
   p->eWithin = w == RS_NOT_WITHIN ? NOT_WITHIN : w == RS_FULLY_WITHIN ? FULLY_WITHIN : PARTLY_WITHIN;
@@ -361,9 +365,9 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
   const double r2 = r * r;
   std::vector<Hit>& heap = c->hits;
   double worst = kInf;
-  auto consider = [&](double x, double y, double z, long long point_index, long long source) {
-    const rayscan::RayPointTerms pt = rayscan::ray_point_terms(ro, rd, Vec3(x, y, z));
-    if (pt.d2 > r2 || pt.t < t_min || pt.t > t_max) return;
+  // Survivors of the per-point test below (few): the heap of rayscan::ray_query's candidate rule.
+  auto keep = [&](const rayscan::RayPointTerms& pt, double x, double y, double z, long long point_index,
+                  long long source) __attribute__((noinline)) {
     const Hit h{time_order ? pt.t : std::sqrt(pt.d2), pt.t, pt.d2, point_index, source, x, y, z};
     if (!bounded) {
       heap.push_back(h);
@@ -376,6 +380,12 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
       std::push_heap(heap.begin(), heap.end(), hit_less);
     }
     if (bounded && heap.size() == k) worst = heap.front().key;
+  };
+  auto consider = [&](double x, double y, double z, long long point_index, long long source)
+                      __attribute__((always_inline)) {
+    const rayscan::RayPointTerms pt = rayscan::ray_point_terms(ro, rd, Vec3(x, y, z));
+    if (pt.d2 > r2 || pt.t < t_min || pt.t > t_max) return;
+    keep(pt, x, y, z, point_index, source);
   };
   struct Cand {
     double score, tol;
