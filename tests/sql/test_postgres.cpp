@@ -331,6 +331,53 @@ TEST_F(Postgres, FrustumWithPlanePruningEqualsBruteForce) {
             "plane_below: normal (nx,ny,nz) is zero; expected a non-zero vector");
 }
 
+// pgpointcloud: `db import --pcpatch` writes one pcpatch per chunk (double X/Y/Z schema in
+// pointcloud_formats) with its rs_box; pgpointcloud's own PC_Explode / PC_Get read back the
+// reader's exact doubles and point indices, every box is exactly its patch's min/max, and the
+// paper's radius query over patches (ray_dwithin on the box GiST index, then dist_ray on the
+// exploded points) equals the brute force.
+TEST_F(Postgres, PcpatchImportAndPrunedRadiusQueryEqualBruteForce) {
+  Pg pg;
+  if (pg.rows("SELECT count(*) FROM pg_available_extensions WHERE name = 'pointcloud'")[0][0] == "0")
+    GTEST_SKIP() << "pgpointcloud (postgresql-15-pointcloud) not installed";
+  pg.rows("DROP TABLE IF EXISTS autzen_pc, autzen_pc_sources");
+  ASSERT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() + "' --postgres '" + conninfo() +
+                "' --table autzen_pc --chunk 512 --pcpatch > /dev/null"), 0);
+  const auto n = pg.rows("SELECT count(*), sum(PC_NumPoints(pa)) FROM autzen_pc");
+  EXPECT_EQ(n[0][0], std::to_string((cloud_->size() + 511) / 512));
+  EXPECT_EQ(n[0][1], std::to_string(cloud_->size()));
+  // Exact doubles and indices through pgpointcloud's own accessors.
+  const auto pts = pg.rows("SELECT (PC_Get(pt))[4]::bigint, (PC_Get(pt))[1], (PC_Get(pt))[2], (PC_Get(pt))[3] "
+                           "FROM autzen_pc, PC_Explode(pa) pt WHERE chunk % 9 = 0");
+  ASSERT_GT(pts.size(), 1000u);
+  for (const auto& row : pts)
+    ASSERT_EQ(Vec3(dbl(row[1]), dbl(row[2]), dbl(row[3])), cloud_->positions[std::stoull(row[0])]);
+  // Each box is exactly the min/max of its patch's points.
+  const auto bad = pg.rows("SELECT count(*) FROM autzen_pc c WHERE c.chunk % 4 = 0 AND c.box::text <> (SELECT rs_box(min((PC_Get(pt))[1]), "
+                           "min((PC_Get(pt))[2]), min((PC_Get(pt))[3]), max((PC_Get(pt))[1]), max((PC_Get(pt))[2]), "
+                           "max((PC_Get(pt))[3]))::text FROM PC_Explode(c.pa) pt)");
+  EXPECT_EQ(bad[0][0], "0");
+  pg.rows("SET enable_seqscan = off");
+  const double r = 2.0 * spacing(*cloud_);
+  for (const Ray& ray : query_rays(*cloud_, 4, 13)) {
+    const Vec3 o = ray.origin(), d = ray.direction();
+    const std::string od = vec(o) + "," + vec(d);
+    const std::string sql = "SELECT (PC_Get(pt))[4]::bigint FROM autzen_pc, PC_Explode(pa) pt WHERE ray_dwithin(box, " + od +
+                            "," + num(r) + ") AND dist_ray(" + od + ", (PC_Get(pt))[1], (PC_Get(pt))[2], (PC_Get(pt))[3]) <= " +
+                            num(r);
+    std::string plan;
+    for (const auto& row : pg.rows("EXPLAIN " + sql)) plan += row[0] + "\n";
+    EXPECT_NE(plan.find("autzen_pc_box"), std::string::npos) << plan;
+    std::set<std::size_t> got, want;
+    for (const auto& row : pg.rows(sql)) got.insert(std::stoull(row[0]));
+    for (std::size_t i = 0; i < cloud_->size(); ++i)
+      if (dist_ray(o, d, cloud_->positions[i]) <= r) want.insert(i);
+    EXPECT_EQ(got, want);
+    EXPECT_FALSE(want.empty());
+  }
+  EXPECT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() + "' -o /tmp/x.sqlite --pcpatch 2>/dev/null"), 2);
+}
+
 TEST_F(Postgres, FailedImportLeavesNoHalfTable) {
   Pg pg;
   pg.rows("DROP TABLE IF EXISTS half, half_chunks, half_sources");
