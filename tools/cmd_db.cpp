@@ -17,6 +17,7 @@ struct DbImportOptions {
   std::vector<std::string> clouds;
   std::string out, postgres, table = "points", attributes;
   std::uint32_t chunk = 4096;
+  bool pcpatch = false;
 };
 
 int run_import(const DbImportOptions& o) {
@@ -24,6 +25,8 @@ int run_import(const DbImportOptions& o) {
     throw UsageError("give exactly one of -o FILE.sqlite and --postgres CONNINFO");
   sql::ImportOptions opt;
   opt.chunk_size = o.chunk;
+  opt.pcpatch = o.pcpatch;
+  if (o.pcpatch && o.postgres.empty()) throw UsageError("--pcpatch needs --postgres CONNINFO");
   std::stringstream ss(o.attributes);
   for (std::string a; std::getline(ss, a, ',');)
     if (!a.empty()) opt.attributes.push_back(a);
@@ -55,6 +58,9 @@ Runner add_db_command(CLI::App& app) {
   c->add_option("--postgres", o->postgres, "libpq connection string (instead of -o)");
   c->add_option("--table", o->table, "PostgreSQL table name")->capture_default_str();
   c->add_option("--chunk", o->chunk, "Points per chunk")->capture_default_str()->check(CLI::Range(1u, 1u << 24));
+  c->add_flag("--pcpatch", o->pcpatch,
+              "PostgreSQL: one pgpointcloud patch (pcpatch, double X/Y/Z) per chunk in TABLE, with "
+              "its box, instead of rows");
   c->add_option("--attributes", o->attributes,
                 "Comma-separated extra columns: intensity, classification, gps_time, rgb or a "
                 "scalar field name");

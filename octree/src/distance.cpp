@@ -59,7 +59,10 @@ Interval dist_ray_bounds(const Vec3& o, const Vec3& dir, const AABB& b) {
     const Vec3 w = v - glm::dot(v, u) * u;
     hi2 = std::max(hi2, glm::dot(w, w));
   }
-  return {lo, std::sqrt(hi2)};
+  // lo (closest point of the line to the box) and hi (farthest corner) are computed by different
+  // formulas; for a degenerate (point) box rounding can put hi a few ulps below lo, which would
+  // read as an empty interval and prune a qualifying point. Both bound the same value: keep lo <= hi.
+  return {lo, std::max(lo, std::sqrt(hi2))};
 }
 
 }  // namespace rayscan

@@ -6,6 +6,7 @@
 #include "rayscan/ray.hpp"
 #include "rayscan/ray_query.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -136,4 +137,30 @@ extern "C" rs_within rs_plane_box_test(const double p0_[3], const double n_[3], 
   if (iv.empty() || iv.lo > tol) return RS_NOT_WITHIN;
   if (iv.hi <= -tol) return RS_FULLY_WITHIN;
   return RS_PARTLY_WITHIN;
+}
+
+extern "C" int rs_ray_box_misses(const double o_[3], const double d_[3], double r, double t_min,
+                                 double t_max, const double box[6]) {
+  if (!std::isfinite(r)) return 0;
+  const Vec3 o(o_[0], o_[1], o_[2]);
+  const Vec3 u = rayscan::Ray(o, Vec3(d_[0], d_[1], d_[2])).direction();  // the core's unit direction
+  const AABB b = make_box(box);
+  // A qualifying point p lies within r of the line point o + t_p u (t_p in [t_min, t_max]), so
+  // that line point lies in the box grown by r (+ the pruning tolerance) on every axis: if the
+  // line segment misses the grown box (slab test), no point of the box qualifies.
+  const double g = r + tolerance(o, b);
+  double t0 = t_min - g, t1 = t_max + g;
+  for (int i = 0; i < 3; ++i) {
+    const double lo = b.lo[i] - g, hi = b.hi[i] + g;
+    if (u[i] == 0.0) {
+      if (o[i] < lo || o[i] > hi) return 1;
+      continue;
+    }
+    double ta = (lo - o[i]) / u[i], tb = (hi - o[i]) / u[i];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    if (t0 > t1) return 1;
+  }
+  return 0;
 }

@@ -1,4 +1,5 @@
-// import_postgres (rayscan/sql/import.hpp): plain rows through COPY in one transaction.
+// import_postgres (rayscan/sql/import.hpp): plain rows (default) or pgpointcloud patches
+// (--pcpatch) through COPY in one transaction.
 // Plain rows rather than pgpointcloud patches: the SQL functions take x, y, z as float8 columns and
 // must see the reader's exact doubles (pcpatch dimensions are scaled integers or float32 unless a
 // double schema is declared, and every query would first unpack patches with PC_Explode); the chunk
@@ -10,6 +11,7 @@
 #include <libpq-fe.h>
 
 #include <charconv>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -47,6 +49,18 @@ void append_double(std::string& s, double v) {
   s.append(buf, p);
 }
 
+// Hex digits of little-endian bytes of v (uncompressed pcpatch WKB is written in NDR order).
+template <class T>
+void append_hex(std::string& s, T v) {
+  static const char* kHex = "0123456789ABCDEF";
+  unsigned char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof v);
+  for (unsigned char c : b) {
+    s += kHex[c >> 4];
+    s += kHex[c & 15];
+  }
+}
+
 bool is_identifier(const std::string& s) {
   if (s.empty() || s.size() > 50) return false;
   for (std::size_t i = 0; i < s.size(); ++i) {
@@ -55,6 +69,21 @@ bool is_identifier(const std::string& s) {
     if (!ok) return false;
   }
   return true;
+}
+
+// Rows of <table>_sources: each input file's path and point count.
+void insert_sources(Conn& db, const std::string& table, const std::vector<std::filesystem::path>& paths,
+                    const std::vector<PointCloud>& clouds) {
+  for (std::size_t i = 0; i < paths.size(); ++i) {
+    const std::string p = paths[i].string();
+    const std::string n = std::to_string(i), cnt = std::to_string(clouds[i].size());
+    const char* vals[3] = {n.c_str(), p.c_str(), cnt.c_str()};
+    PGresult* r = PQexecParams(db.c, ("INSERT INTO " + table + "_sources VALUES($1,$2,$3)").c_str(), 3,
+                               nullptr, vals, nullptr, nullptr, 0);
+    const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
+    PQclear(r);
+    if (!ok) db.fail("insert source");
+  }
 }
 
 }  // namespace
@@ -80,6 +109,91 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
   db.exec("SET client_min_messages = warning");
   db.exec("BEGIN");  // all or nothing: a failure (or the server going away) leaves no half table
   db.exec("CREATE EXTENSION IF NOT EXISTS rayscan");
+  if (options.pcpatch) {
+    // pgpointcloud: a schema of double X/Y/Z (scale 1: the reader's exact doubles), the point's
+    // index and source, then the attributes; one uncompressed patch per chunk.
+    db.exec("CREATE EXTENSION IF NOT EXISTS pointcloud");
+    db.exec("LOCK TABLE pointcloud_formats IN SHARE ROW EXCLUSIVE MODE");  // a unique new pcid
+    PGresult* r = PQexec(db.c, "SELECT coalesce(max(pcid), 0) + 1 FROM pointcloud_formats");
+    const bool ok = PQresultStatus(r) == PGRES_TUPLES_OK && PQntuples(r) == 1;
+    const int pcid = ok ? std::atoi(PQgetvalue(r, 0, 0)) : 0;
+    PQclear(r);
+    if (!ok) db.fail("pointcloud_formats");
+    if (pcid >= 65536) throw std::runtime_error("postgres: pointcloud_formats is full (pcid 65535 in use)");
+    struct Dim {
+      std::string name, type;
+      int size;
+    };
+    std::vector<Dim> dims = {{"X", "double", 8}, {"Y", "double", 8}, {"Z", "double", 8},
+                             {"PointIndex", "uint64_t", 8}, {"Source", "uint32_t", 4}};
+    for (const auto& c : cols) dims.push_back({c.name, c.integer ? "int64_t" : "double", 8});
+    std::string xml = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<pc:PointCloudSchema "
+                      "xmlns:pc=\"http://pointcloud.org/schemas/PC/1.1\" "
+                      "xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\">";
+    for (std::size_t i = 0; i < dims.size(); ++i)
+      xml += "<pc:dimension><pc:position>" + std::to_string(i + 1) + "</pc:position><pc:size>" +
+             std::to_string(dims[i].size) + "</pc:size><pc:name>" + dims[i].name +
+             "</pc:name><pc:interpretation>" + dims[i].type + "</pc:interpretation><pc:scale>1</pc:scale></pc:dimension>";
+    xml += "<pc:metadata><Metadata name=\"compression\">none</Metadata></pc:metadata></pc:PointCloudSchema>";
+    const std::string id = std::to_string(pcid);
+    const char* vals[2] = {id.c_str(), xml.c_str()};
+    r = PQexecParams(db.c, "INSERT INTO pointcloud_formats (pcid, srid, schema) VALUES ($1, 0, $2)", 2, nullptr, vals,
+                     nullptr, nullptr, 0);
+    const bool ins = PQresultStatus(r) == PGRES_COMMAND_OK;
+    PQclear(r);
+    if (!ins) db.fail("insert pointcloud_formats schema");
+    db.exec("CREATE TABLE " + table + " (chunk int PRIMARY KEY, pa pcpatch(" + id + ") NOT NULL, box rs_box NOT NULL)");
+    db.exec("CREATE TABLE " + table + "_sources (source int PRIMARY KEY, path text NOT NULL, point_count bigint NOT NULL)");
+    db.copy_in("COPY " + table + " FROM STDIN");
+    std::string buf;
+    for (std::size_t ci = 0; ci < layout.chunks.size(); ++ci) {
+      const Chunk& c = layout.chunks[ci];
+      buf += std::to_string(ci) + '\t';
+      // Patch WKB: byte order 1 (NDR), uint32 pcid, uint32 compression 0 (none), uint32 npoints,
+      // then the points in schema order (pgpointcloud README, "Binary Formats").
+      buf += "01";
+      append_hex(buf, static_cast<std::uint32_t>(pcid));
+      append_hex(buf, std::uint32_t{0});
+      append_hex(buf, static_cast<std::uint32_t>(c.count));
+      for (std::uint64_t row = c.first; row < c.first + c.count; ++row) {
+        const PointRef ref = layout.order[row];
+        const PointCloud& cloud = clouds[ref.source];
+        const Vec3& p = cloud.positions[ref.index];
+        append_hex(buf, p.x);
+        append_hex(buf, p.y);
+        append_hex(buf, p.z);
+        append_hex(buf, static_cast<std::uint64_t>(ref.index));
+        append_hex(buf, static_cast<std::uint32_t>(ref.source));
+        for (const auto& col : cols) {
+          const double v = col.value(cloud, ref.index);
+          if (col.integer) append_hex(buf, static_cast<std::int64_t>(v));
+          else append_hex(buf, v);
+        }
+      }
+      buf += "\t(";
+      const double v[6] = {c.box.lo.x, c.box.lo.y, c.box.lo.z, c.box.hi.x, c.box.hi.y, c.box.hi.z};
+      for (int i = 0; i < 6; ++i) {
+        if (i) buf += ',';
+        append_double(buf, v[i]);
+      }
+      buf += ")\n";
+      if (buf.size() >= (1u << 20) || ci + 1 == layout.chunks.size()) {
+        if (PQputCopyData(db.c, buf.data(), static_cast<int>(buf.size())) != 1) db.fail("COPY patches");
+        buf.clear();
+      }
+    }
+    if (PQputCopyEnd(db.c, nullptr) != 1) db.fail("COPY patches");
+    for (PGresult* res; (res = PQgetResult(db.c));) {
+      const bool good = PQresultStatus(res) == PGRES_COMMAND_OK;
+      PQclear(res);
+      if (!good) db.fail("COPY patches");
+    }
+    insert_sources(db, table, paths, clouds);
+    db.exec("CREATE INDEX " + table + "_box ON " + table + " USING gist (box)");
+    db.exec("COMMIT");
+    db.exec("ANALYZE " + table);
+    return {layout.order.size(), layout.chunks.size()};
+  }
   std::string create = "CREATE TABLE " + table +
                        " (point_index bigint NOT NULL, source int NOT NULL, chunk int NOT NULL, "
                        "x float8 NOT NULL, y float8 NOT NULL, z float8 NOT NULL";
@@ -143,16 +257,7 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
     PQclear(r);
     if (!ok) db.fail("COPY chunks");
   }
-  for (std::size_t i = 0; i < paths.size(); ++i) {
-    const std::string p = paths[i].string();
-    const std::string n = std::to_string(i), cnt = std::to_string(clouds[i].size());
-    const char* vals[3] = {n.c_str(), p.c_str(), cnt.c_str()};
-    PGresult* r = PQexecParams(db.c, ("INSERT INTO " + table + "_sources VALUES($1,$2,$3)").c_str(), 3,
-                               nullptr, vals, nullptr, nullptr, 0);
-    const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
-    PQclear(r);
-    if (!ok) db.fail("insert source");
-  }
+  insert_sources(db, table, paths, clouds);
   db.exec("CREATE INDEX " + table + "_chunk_idx ON " + table + " (chunk)");
   db.exec("CREATE INDEX " + table + "_chunks_box ON " + table + "_chunks USING gist (box)");
   db.exec("COMMIT");

@@ -61,6 +61,31 @@ CREATE FUNCTION rs_box_distance(rs_box, rs_ray) RETURNS float8 AS 'MODULE_PATHNA
 CREATE OPERATOR && (LEFTARG = rs_box, RIGHTARG = rs_ray, FUNCTION = rs_box_admits, RESTRICT = areasel, JOIN = areajoinsel);
 CREATE OPERATOR <-> (LEFTARG = rs_box, RIGHTARG = rs_ray, FUNCTION = rs_box_distance);
 
+-- rs_box(x,y,z): the point as a degenerate box, the key of a points-table GiST index:
+--   CREATE INDEX ON points USING gist (rs_box(x, y, z));
+CREATE FUNCTION rs_box(x float8, y float8, z float8) RETURNS rs_box
+  AS 'MODULE_PATHNAME', 'rs_point_box' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+
+-- Half-space dist_plane(p, n, .) <= 0 (eq. 6); a frustum is an AND of  box && plane_below(...).
+CREATE TYPE rs_plane;
+CREATE FUNCTION rs_plane_in(cstring) RETURNS rs_plane AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE FUNCTION rs_plane_out(rs_plane) RETURNS cstring AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE TYPE rs_plane (INPUT = rs_plane_in, OUTPUT = rs_plane_out, INTERNALLENGTH = 48, ALIGNMENT = double);
+CREATE FUNCTION plane_below(px float8, py float8, pz float8, nx float8, ny float8, nz float8) RETURNS rs_plane
+  AS 'MODULE_PATHNAME', 'rs_plane_make' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+COMMENT ON FUNCTION plane_below(float8, float8, float8, float8, float8, float8) IS 'Half-space {p : dist_plane(p0, n, p) <= 0} (paper eq. 6), for box && plane_below(...)';
+CREATE FUNCTION rs_box_admits_plane(rs_box, rs_plane) RETURNS bool AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE OPERATOR && (LEFTARG = rs_box, RIGHTARG = rs_plane, FUNCTION = rs_box_admits_plane, RESTRICT = areasel, JOIN = areajoinsel);
+
+-- ray_dwithin(box, o, d, r): dist_ray <= r for a point box, dist_ray_min <= r for a chunk box;
+-- its planner support function derives  box && ray_within(o, d, r)  on a GiST rs_box_ops index
+-- (the PostGIS ST_DWithin pattern), so  WHERE ray_dwithin(rs_box(x,y,z), o..., d..., r)  is
+-- exact and index-pruned without a hand-written bounds clause.
+CREATE FUNCTION rs_ray_dwithin_support(internal) RETURNS internal AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
+CREATE FUNCTION ray_dwithin(b rs_box, ox float8, oy float8, oz float8, dx float8, dy float8, dz float8, r float8) RETURNS bool
+  AS 'MODULE_PATHNAME', 'rs_ray_dwithin' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE SUPPORT rs_ray_dwithin_support;
+COMMENT ON FUNCTION ray_dwithin(rs_box, float8, float8, float8, float8, float8, float8, float8) IS 'dist_ray(o,d,p) <= r for a point box, dist_ray_min over the box <= r otherwise (section 4.2); index-pruned through its support function';
+
 CREATE FUNCTION rs_gist_consistent(internal, rs_ray, int2, oid, internal) RETURNS bool AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
 CREATE FUNCTION rs_gist_distance(internal, rs_ray, int2, oid, internal) RETURNS float8 AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
 CREATE FUNCTION rs_gist_union(internal, internal) RETURNS rs_box AS 'MODULE_PATHNAME' LANGUAGE C IMMUTABLE STRICT PARALLEL SAFE;
@@ -70,6 +95,7 @@ CREATE FUNCTION rs_gist_same(rs_box, rs_box, internal) RETURNS internal AS 'MODU
 
 CREATE OPERATOR CLASS rs_box_ops DEFAULT FOR TYPE rs_box USING gist AS
   OPERATOR 1 && (rs_box, rs_ray),
+  OPERATOR 3 && (rs_box, rs_plane),
   OPERATOR 15 <-> (rs_box, rs_ray) FOR ORDER BY pg_catalog.float_ops,
   FUNCTION 1 rs_gist_consistent(internal, rs_ray, int2, oid, internal),
   FUNCTION 2 rs_gist_union(internal, internal),

@@ -11,9 +11,18 @@
 
 #include "access/gist.h"
 #include "access/stratnum.h"
+#include "catalog/namespace.h"
+#include "catalog/pg_type.h"
 #include "fmgr.h"
+#include "nodes/makefuncs.h"
+#include "nodes/pathnodes.h"
+#include "nodes/supportnodes.h"
+#include "optimizer/optimizer.h"
+#include "parser/parse_func.h"
 #include "utils/builtins.h"
 #include "utils/float.h"
+#include "utils/lsyscache.h"
+#include "utils/syscache.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -32,7 +41,13 @@ typedef struct RsRay {
   double o[3], d[3], r, t_min, t_max;
 } RsRay;
 
+/* A half-space {p : dist_plane(p0, n, p) <= 0} (paper eq. 6); a frustum is an AND of them. */
+typedef struct RsPlane {
+  double p[3], n[3];
+} RsPlane;
+
 #define RS_STRATEGY_ADMITS 1   /* && */
+#define RS_STRATEGY_PLANE 3    /* && (rs_box, rs_plane) */
 #define RS_STRATEGY_DISTANCE 15 /* <-> (RTKNNSearchStrategyNumber) */
 
 static void raise(const char* msg) {
@@ -184,6 +199,47 @@ Datum rs_ray_make(PG_FUNCTION_ARGS) {
   PG_RETURN_POINTER(q);
 }
 
+/* rs_box(x,y,z): the degenerate box of one point (what a points-table GiST index stores). */
+PG_FUNCTION_INFO_V1(rs_point_box);
+Datum rs_point_box(PG_FUNCTION_ARGS) {
+  RsBox* b = palloc(sizeof(RsBox));
+  int i;
+  for (i = 0; i < 3; ++i) b->v[i] = b->v[i + 3] = PG_GETARG_FLOAT8(i);
+  check_box(b);
+  PG_RETURN_POINTER(b);
+}
+
+static void check_plane(const RsPlane* h) {
+  int i;
+  for (i = 0; i < 3; ++i)
+    if (!isfinite(h->p[i]) || !isfinite(h->n[i]))
+      raise("plane_below: a coordinate is NaN or infinite; expected finite numbers");
+  if (h->n[0] == 0 && h->n[1] == 0 && h->n[2] == 0)
+    raise("plane_below: normal (nx,ny,nz) is zero; expected a non-zero vector");
+}
+PG_FUNCTION_INFO_V1(rs_plane_in);
+Datum rs_plane_in(PG_FUNCTION_ARGS) {
+  RsPlane* h = palloc(sizeof(RsPlane));
+  double v[6];
+  parse_tuple(PG_GETARG_CSTRING(0), v, 6, "rs_plane");
+  memcpy(h, v, sizeof v);
+  check_plane(h);
+  PG_RETURN_POINTER(h);
+}
+PG_FUNCTION_INFO_V1(rs_plane_out);
+Datum rs_plane_out(PG_FUNCTION_ARGS) {
+  PG_RETURN_CSTRING(format_tuple((const double*)PG_GETARG_POINTER(0), 6));
+}
+/* plane_below(px,py,pz, nx,ny,nz): the half-space dist_plane(p, n, .) <= 0. */
+PG_FUNCTION_INFO_V1(rs_plane_make);
+Datum rs_plane_make(PG_FUNCTION_ARGS) {
+  RsPlane* h = palloc(sizeof(RsPlane));
+  int i;
+  for (i = 0; i < 6; ++i) (i < 3 ? h->p : h->n)[i % 3] = PG_GETARG_FLOAT8(i);
+  check_plane(h);
+  PG_RETURN_POINTER(h);
+}
+
 /* ---- operators --------------------------------------------------------------------------- */
 
 static rs_within test(const RsBox* b, const RsRay* q, double* score) {
@@ -192,10 +248,19 @@ static rs_within test(const RsBox* b, const RsRay* q, double* score) {
 
 PG_FUNCTION_INFO_V1(rs_box_admits);
 Datum rs_box_admits(PG_FUNCTION_ARGS) {
+  const RsBox* b = (const RsBox*)PG_GETARG_POINTER(0);
+  const RsRay* q = (const RsRay*)PG_GETARG_POINTER(1);
   double score;
-  PG_RETURN_BOOL(test((RsBox*)PG_GETARG_POINTER(0), (RsRay*)PG_GETARG_POINTER(1), &score) !=
-                 RS_NOT_WITHIN);
+  /* The same two steps as the GiST consistent method, so index and operator agree exactly. */
+  if (rs_ray_box_misses(q->o, q->d, q->r, q->t_min, q->t_max, b->v)) PG_RETURN_BOOL(false);
+  PG_RETURN_BOOL(test(b, q, &score) != RS_NOT_WITHIN);
 }
+PG_FUNCTION_INFO_V1(rs_box_admits_plane);
+Datum rs_box_admits_plane(PG_FUNCTION_ARGS) {
+  const RsPlane* h = (const RsPlane*)PG_GETARG_POINTER(1);
+  PG_RETURN_BOOL(rs_plane_box_test(h->p, h->n, ((RsBox*)PG_GETARG_POINTER(0))->v) != RS_NOT_WITHIN);
+}
+
 PG_FUNCTION_INFO_V1(rs_box_distance);
 Datum rs_box_distance(PG_FUNCTION_ARGS) {
   double score;
@@ -212,9 +277,16 @@ Datum rs_gist_consistent(PG_FUNCTION_ARGS) {
   StrategyNumber strategy = (StrategyNumber)PG_GETARG_UINT16(2);
   bool* recheck = (bool*)PG_GETARG_POINTER(4);
   double score;
-  if (strategy != RS_STRATEGY_ADMITS) elog(ERROR, "rs_box_ops: unknown strategy %d", strategy);
   /* Leaf: the same bounds test as the operator itself, so the answer is exact. */
   *recheck = false;
+  if (strategy == RS_STRATEGY_PLANE) {
+    const RsPlane* h = (const RsPlane*)PG_GETARG_POINTER(1);
+    PG_RETURN_BOOL(rs_plane_box_test(h->p, h->n, ((const RsBox*)DatumGetPointer(entry->key))->v) !=
+                   RS_NOT_WITHIN);
+  }
+  if (strategy != RS_STRATEGY_ADMITS) elog(ERROR, "rs_box_ops: unknown strategy %d", strategy);
+  if (rs_ray_box_misses(q->o, q->d, q->r, q->t_min, q->t_max, ((const RsBox*)DatumGetPointer(entry->key))->v))
+    PG_RETURN_BOOL(false);
   PG_RETURN_BOOL(test((const RsBox*)DatumGetPointer(entry->key), q, &score) != RS_NOT_WITHIN);
 }
 
@@ -331,4 +403,84 @@ Datum rs_gist_same(PG_FUNCTION_ARGS) {
   bool* result = (bool*)PG_GETARG_POINTER(2);
   *result = memcmp(a, b, sizeof(RsBox)) == 0;
   PG_RETURN_POINTER(result);
+}
+
+/* ---- ray_dwithin and its planner support function ---------------------------------------- */
+
+/* ray_dwithin(b, ox,oy,oz, dx,dy,dz, r): may a point of box b lie within distance r of the ray
+ * line? For a point box (rs_box(x,y,z)) this is exactly dist_ray(o, d, p) <= r (the core's value);
+ * for a larger box it is dist_ray_min(o, d, b) <= r (paper section 4.2, bounds evaluation). The
+ * PostGIS ST_DWithin pattern: the support function below turns it into an index condition. */
+PG_FUNCTION_INFO_V1(rs_ray_dwithin);
+Datum rs_ray_dwithin(PG_FUNCTION_ARGS) {
+  const RsBox* b = (const RsBox*)PG_GETARG_POINTER(0);
+  double a[12], v, lo, hi;
+  char err[RS_ERRBUF];
+  const char* e;
+  int i;
+  const double r = PG_GETARG_FLOAT8(7);
+  if (isnan(r) || r < 0) raise("ray_dwithin: radius r is negative or NaN; expected a number >= 0");
+  for (i = 0; i < 6; ++i) a[i] = PG_GETARG_FLOAT8(i + 1);
+  if (b->v[0] == b->v[3] && b->v[1] == b->v[4] && b->v[2] == b->v[5]) {
+    for (i = 0; i < 3; ++i) a[6 + i] = b->v[i];
+    e = rs_eval(RS_DIST_RAY, a, &v, err);
+    if (e) raise(e);
+    PG_RETURN_BOOL(v <= r);
+  }
+  for (i = 0; i < 6; ++i) a[6 + i] = b->v[i];
+  e = rs_eval_bounds(RS_DIST_RAY, a, &lo, &hi, err);
+  if (e) raise(e);
+  PG_RETURN_BOOL(lo <= r);
+}
+
+/* Planner support for ray_dwithin (PostgreSQL 15 src/include/nodes/supportnodes.h,
+ * SupportRequestIndexCondition; the pattern of PostGIS's postgis_index_supportfn): when the
+ * first argument is the key of a GiST index in the rs_box_ops family, derive the lossy index
+ * condition  b && ray_within(ox,oy,oz, dx,dy,dz, r)  (consistent = the bounds evaluation); the
+ * executor rechecks ray_dwithin itself. SupportRequestSelectivity: the selectivity of && (areasel).
+ * NOTE: a bare `dist_ray(...) <= r` cannot be given an index condition by any support function:
+ * PostgreSQL consults support functions only for a boolean function or operator whose direct
+ * argument is the index key (indxpath.c, match_funcclause_to_indexcol / match_opclause_to_indexcol),
+ * and dist_ray <= r is the built-in float8le over a computed value. */
+PG_FUNCTION_INFO_V1(rs_ray_dwithin_support);
+Datum rs_ray_dwithin_support(PG_FUNCTION_ARGS) {
+  Node* rawreq = (Node*)PG_GETARG_POINTER(0);
+  if (IsA(rawreq, SupportRequestSelectivity)) {
+    SupportRequestSelectivity* req = (SupportRequestSelectivity*)rawreq;
+    req->selectivity = 0.005; /* areasel, as for the && index condition */
+    PG_RETURN_POINTER(req);
+  }
+  if (IsA(rawreq, SupportRequestIndexCondition)) {
+    SupportRequestIndexCondition* req = (SupportRequestIndexCondition*)rawreq;
+    FuncExpr* call;
+    List* ray_args;
+    Oid nsp, box_type, ray_type, op, ray_fn, argtypes[7];
+    char* nspname;
+    int i;
+    if (!IsA(req->node, FuncExpr) || req->indexarg != 0) PG_RETURN_POINTER(NULL);
+    call = (FuncExpr*)req->node;
+    if (list_length(call->args) != 8) PG_RETURN_POINTER(NULL);
+    /* Our types and ray_within live in ray_dwithin's schema (the extension is relocatable). */
+    nsp = get_func_namespace(req->funcid);
+    nspname = get_namespace_name(nsp);
+    box_type = GetSysCacheOid2(TYPENAMENSP, Anum_pg_type_oid, CStringGetDatum("rs_box"), ObjectIdGetDatum(nsp));
+    ray_type = GetSysCacheOid2(TYPENAMENSP, Anum_pg_type_oid, CStringGetDatum("rs_ray"), ObjectIdGetDatum(nsp));
+    if (!OidIsValid(box_type) || !OidIsValid(ray_type) || !nspname) PG_RETURN_POINTER(NULL);
+    op = get_opfamily_member(req->opfamily, box_type, ray_type, RS_STRATEGY_ADMITS);
+    if (!OidIsValid(op)) PG_RETURN_POINTER(NULL); /* not an rs_box_ops index */
+    for (i = 0; i < 7; ++i) argtypes[i] = FLOAT8OID;
+    ray_fn = LookupFuncName(list_make2(makeString(nspname), makeString("ray_within")), 7, argtypes, true);
+    if (!OidIsValid(ray_fn)) PG_RETURN_POINTER(NULL);
+    ray_args = list_copy_tail(call->args, 1);
+    /* The ray must be known before the scan: no column of the indexed table, nothing volatile. */
+    if (bms_is_member(req->index->rel->relid, pull_varnos(req->root, (Node*)ray_args)) ||
+        contain_volatile_functions((Node*)ray_args))
+      PG_RETURN_POINTER(NULL);
+    req->lossy = true;
+    PG_RETURN_POINTER(list_make1(make_opclause(
+        op, BOOLOID, false, (Expr*)linitial(call->args),
+        (Expr*)makeFuncExpr(ray_fn, ray_type, ray_args, InvalidOid, InvalidOid, COERCE_EXPLICIT_CALL),
+        InvalidOid, InvalidOid)));
+  }
+  PG_RETURN_POINTER(NULL);
 }

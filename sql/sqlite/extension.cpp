@@ -16,6 +16,7 @@
 #include <sqlite3ext.h>
 SQLITE_EXTENSION_INIT1
 
+#include "rayscan/sql/chunking.hpp"
 #include "rayscan/sql/functions.h"
 
 #include "rayscan/ray.hpp"
@@ -115,6 +116,10 @@ int ray_prune(sqlite3_rtree_query_info* p) {
   const double r = param(p, 6, kInf), t0 = param(p, 7, -kInf), t1 = param(p, 8, kInf);
   char err[RS_ERRBUF];
   if (rs_check_ray("ray_prune", o, d, r, t0, t1, err)) return SQLITE_ERROR;
+  if (rs_ray_box_misses(o, d, r, t0, t1, box)) {  // most entries of an expanded node: cheap
+    p->eWithin = NOT_WITHIN;
+    return SQLITE_OK;
+  }
   double score;
   const rs_within w = rs_ray_box_test(o, d, r, t0, t1, 0, box, &score);
   p->eWithin = w == RS_NOT_WITHIN ? NOT_WITHIN : w == RS_FULLY_WITHIN ? FULLY_WITHIN : PARTLY_WITHIN;
@@ -141,7 +146,7 @@ int plane_prune(sqlite3_rtree_query_info* p) {
 // Counters of the last ray_query on a connection (rayscan_stats()).
 struct Stats {
   long long chunks_total = 0;      // rows of `chunks`
-  long long chunks_candidate = 0;  // chunks the R*Tree callback admitted
+  long long chunks_candidate = 0;  // chunks the R*Tree callback admitted and ray_query read from it
   long long chunks_visited = 0;    // chunks whose points were read (after the dynamic k filter)
   long long points_tested = 0;
 };
@@ -165,10 +170,27 @@ bool hit_less(const Hit& a, const Hit& b) {
   return a.point_index < b.point_index;
 }
 
+// Statements ray_query runs, prepared once per connection (preparing costs more than a whole
+// small query; bench/README.md) and finalized in xDisconnect.
+struct Cached {
+  sqlite3_stmt* match = nullptr;   // R*Tree candidates with ray_prune
+  sqlite3_stmt* blob = nullptr;    // chunk_points.data of one chunk (NULL: table absent)
+  sqlite3_stmt* rows = nullptr;    // points rows of one chunk (databases without chunk_points)
+  long long chunks_total = -1;     // rows of `chunks`
+  void clear() {
+    sqlite3_finalize(match);
+    sqlite3_finalize(blob);
+    sqlite3_finalize(rows);
+    *this = Cached{};
+  }
+};
+
 struct VTab {
   sqlite3_vtab base{};
   sqlite3* db = nullptr;
   Stats* stats = nullptr;
+  Cached st;
+  bool ready = false;
 };
 
 struct Cursor {
@@ -192,6 +214,7 @@ int vt_connect(sqlite3* db, void* aux, int, const char* const*, sqlite3_vtab** o
 }
 
 int vt_disconnect(sqlite3_vtab* v) {
+  reinterpret_cast<VTab*>(v)->st.clear();
   delete reinterpret_cast<VTab*>(v);
   return SQLITE_OK;
 }
@@ -242,6 +265,45 @@ struct Stmt {
   sqlite3_stmt* s = nullptr;
   ~Stmt() { sqlite3_finalize(s); }
 };
+
+// Prepares the cached statements on first use (kept only when all succeed, so a database that
+// gains its tables later is picked up). chunk_points is optional (older imports): rows then.
+int prepare(VTab* vt) {
+  if (vt->ready) return SQLITE_OK;
+  Cached& c = vt->st;
+  c.clear();
+  {
+    Stmt s;
+    if (sqlite3_prepare_v2(vt->db, "SELECT count(*) FROM main.chunks", -1, &s.s, nullptr) != SQLITE_OK)
+      return vt_error(&vt->base, std::string("ray_query: the database has no chunk index (R*Tree "
+                                             "'chunks'): import it with `rayscan db import` (") +
+                                     sqlite3_errmsg(vt->db) + ")");
+    const int rc = sqlite3_step(s.s);
+    if (rc != SQLITE_ROW)
+      return vt_error(&vt->base, std::string("ray_query: reading the chunk index: ") + sqlite3_errmsg(vt->db));
+    c.chunks_total = sqlite3_column_int64(s.s, 0);
+  }
+  if (sqlite3_prepare_v2(vt->db,
+                         "SELECT min_x, min_y, min_z, max_x, max_y, max_z, first_row, count, id FROM "
+                         "main.chunks WHERE id MATCH ray_prune(?1,?2,?3,?4,?5,?6,?7,?8,?9)",
+                         -1, &c.match, nullptr) != SQLITE_OK) {
+    const std::string e = sqlite3_errmsg(vt->db);
+    c.clear();
+    return vt_error(&vt->base, "ray_query: cannot read the chunk index: " + e);
+  }
+  if (sqlite3_prepare_v2(vt->db, "SELECT data FROM main.chunk_points WHERE id = ?1", -1, &c.blob, nullptr) != SQLITE_OK) {
+    sqlite3_finalize(c.blob);
+    c.blob = nullptr;
+    if (sqlite3_prepare_v2(vt->db, "SELECT point_index, source, x, y, z FROM main.points WHERE rowid BETWEEN ?1 AND ?2",
+                           -1, &c.rows, nullptr) != SQLITE_OK) {
+      const std::string e = sqlite3_errmsg(vt->db);
+      c.clear();
+      return vt_error(&vt->base, "ray_query: cannot read table 'points': " + e);
+    }
+  }
+  vt->ready = true;
+  return SQLITE_OK;
+}
 
 int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3_value** argv) {
   auto* c = reinterpret_cast<Cursor*>(cur);
@@ -294,96 +356,128 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
   const auto k = bounded ? static_cast<std::size_t>(kval) : std::size_t(-1);
 
   Stats st;
-  // Chunk candidates from the R*Tree with the pruning callback.
-  {
-    Stmt s;
-    if (sqlite3_prepare_v2(vt->db, "SELECT count(*) FROM main.chunks", -1, &s.s, nullptr) != SQLITE_OK)
-      return vt_error(&vt->base, std::string("ray_query: the database has no chunk index (R*Tree "
-                                             "'chunks'): import it with `rayscan db import` (") +
-                                     sqlite3_errmsg(vt->db) + ")");
-    if (sqlite3_step(s.s) == SQLITE_ROW) st.chunks_total = sqlite3_column_int64(s.s, 0);
-  }
-  struct Cand {
-    double score, tol;
-    long long first, count;
-  };
-  std::vector<Cand> cands;
-  {
-    Stmt s;
-    if (sqlite3_prepare_v2(vt->db,
-                           "SELECT min_x, min_y, min_z, max_x, max_y, max_z, first_row, count FROM "
-                           "main.chunks WHERE id MATCH ray_prune(?1,?2,?3,?4,?5,?6,?7,?8,?9)",
-                           -1, &s.s, nullptr) != SQLITE_OK)
-      return vt_error(&vt->base, std::string("ray_query: cannot read the chunk index: ") + sqlite3_errmsg(vt->db));
-    for (int i = 0; i < 6; ++i) sqlite3_bind_double(s.s, i + 1, a[i]);
-    sqlite3_bind_double(s.s, 7, r);
-    sqlite3_bind_double(s.s, 8, t_min);
-    sqlite3_bind_double(s.s, 9, t_max);
-    int rc;
-    while ((rc = sqlite3_step(s.s)) == SQLITE_ROW) {
-      double box[6];
-      for (int i = 0; i < 6; ++i) box[i] = sqlite3_column_double(s.s, i);
-      double score;
-      rs_ray_box_test(o3, d3, r, t_min, t_max, time_order, box, &score);
-      const Vec3 o(a[0], a[1], a[2]);
-      const rayscan::AABB b{Vec3(box[0], box[1], box[2]), Vec3(box[3], box[4], box[5])};
-      const double tol = 1e-9 * (glm::length(o - b.center()) + b.max_extent()) + 1e-300;
-      cands.push_back({score, tol, sqlite3_column_int64(s.s, 6), sqlite3_column_int64(s.s, 7)});
-    }
-    if (rc != SQLITE_DONE)
-      return vt_error(&vt->base, std::string("ray_query: reading the chunk index: ") + sqlite3_errmsg(vt->db));
-  }
-  st.chunks_candidate = static_cast<long long>(cands.size());
-  std::sort(cands.begin(), cands.end(), [](const Cand& x, const Cand& y) { return x.score < y.score; });
-
+  if (const int rc = prepare(vt); rc != SQLITE_OK) return rc;
+  st.chunks_total = vt->st.chunks_total;
   // Points: the core's per-point terms (ray_point_terms) on the unit direction of the core Ray,
   // the candidate rule and keys of rayscan::ray_query (orders ray and time).
   const rayscan::Ray ray(Vec3(a[0], a[1], a[2]), Vec3(a[3], a[4], a[5]));
+  const Vec3 ro = ray.origin(), rd = ray.direction();
   const double r2 = r * r;
-  Stmt pts;
-  if (sqlite3_prepare_v2(vt->db, "SELECT point_index, source, x, y, z FROM main.points WHERE rowid BETWEEN ?1 AND ?2",
-                         -1, &pts.s, nullptr) != SQLITE_OK)
-    return vt_error(&vt->base, std::string("ray_query: cannot read table 'points': ") + sqlite3_errmsg(vt->db));
   std::vector<Hit>& heap = c->hits;
   double worst = kInf;
-  if (k != 0)
-    for (const Cand& ch : cands) {
-      if (bounded && heap.size() == k && ch.score > worst + ch.tol) break;  // dynamic k filter
-      ++st.chunks_visited;
-      sqlite3_bind_int64(pts.s, 1, ch.first);
-      sqlite3_bind_int64(pts.s, 2, ch.first + ch.count - 1);
-      int rc;
-      while ((rc = sqlite3_step(pts.s)) == SQLITE_ROW) {
-        ++st.points_tested;
-        Hit h;
-        h.point_index = sqlite3_column_int64(pts.s, 0);
-        h.source = sqlite3_column_int64(pts.s, 1);
-        h.x = sqlite3_column_double(pts.s, 2);
-        h.y = sqlite3_column_double(pts.s, 3);
-        h.z = sqlite3_column_double(pts.s, 4);
-        const rayscan::RayPointTerms pt =
-            rayscan::ray_point_terms(ray.origin(), ray.direction(), Vec3(h.x, h.y, h.z));
-        if (pt.d2 > r2) continue;
-        if (pt.t < t_min || pt.t > t_max) continue;
-        h.t = pt.t;
-        h.d2 = pt.d2;
-        h.key = time_order ? pt.t : std::sqrt(pt.d2);
-        if (!bounded) {
-          heap.push_back(h);
-        } else if (heap.size() < k) {
-          heap.push_back(h);
-          std::push_heap(heap.begin(), heap.end(), hit_less);
-        } else if (hit_less(h, heap.front())) {
-          std::pop_heap(heap.begin(), heap.end(), hit_less);
-          heap.back() = h;
-          std::push_heap(heap.begin(), heap.end(), hit_less);
-        }
-        if (bounded && heap.size() == k) worst = heap.front().key;
-      }
-      sqlite3_reset(pts.s);
-      if (rc != SQLITE_DONE)
-        return vt_error(&vt->base, std::string("ray_query: reading table 'points': ") + sqlite3_errmsg(vt->db));
+  // Survivors of the per-point test below (few): the heap of rayscan::ray_query's candidate rule.
+  auto keep = [&](const rayscan::RayPointTerms& pt, double x, double y, double z, long long point_index,
+                  long long source) __attribute__((noinline)) {
+    const Hit h{time_order ? pt.t : std::sqrt(pt.d2), pt.t, pt.d2, point_index, source, x, y, z};
+    if (!bounded) {
+      heap.push_back(h);
+    } else if (heap.size() < k) {
+      heap.push_back(h);
+      std::push_heap(heap.begin(), heap.end(), hit_less);
+    } else if (hit_less(h, heap.front())) {
+      std::pop_heap(heap.begin(), heap.end(), hit_less);
+      heap.back() = h;
+      std::push_heap(heap.begin(), heap.end(), hit_less);
     }
+    if (bounded && heap.size() == k) worst = heap.front().key;
+  };
+  auto consider = [&](double x, double y, double z, long long point_index, long long source)
+                      __attribute__((always_inline)) {
+    const rayscan::RayPointTerms pt = rayscan::ray_point_terms(ro, rd, Vec3(x, y, z));
+    if (pt.d2 > r2 || pt.t < t_min || pt.t > t_max) return;
+    keep(pt, x, y, z, point_index, source);
+  };
+  struct Cand {
+    double score, tol;
+    long long id, first, count;
+  };
+  // Reads one chunk's points: the packed BLOB when the database has chunk_points, else its rows.
+  auto visit = [&](const Cand& ch) -> int {
+    ++st.chunks_visited;
+    st.points_tested += ch.count;
+    if (sqlite3_stmt* b = vt->st.blob) {
+      // Packed chunk (rayscan/sql/chunking.hpp PackedPoint): one lookup, then a tight loop.
+      sqlite3_bind_int64(b, 1, ch.id);
+      const int rc = sqlite3_step(b);
+      const auto* data = static_cast<const unsigned char*>(sqlite3_column_blob(b, 0));
+      const auto bytes = static_cast<std::size_t>(sqlite3_column_bytes(b, 0));
+      if (rc != SQLITE_ROW || bytes != std::size_t(ch.count) * sizeof(rayscan::sql::PackedPoint) ||
+          (bytes && !data)) {
+        const std::string msg = rc == SQLITE_ROW || rc == SQLITE_DONE
+                                    ? "chunk " + std::to_string(ch.id) + ": chunk_points has " +
+                                          (rc == SQLITE_ROW ? std::to_string(bytes) + " bytes" : "no row") +
+                                          "; expected " + std::to_string(ch.count) +
+                                          " points of 40 bytes (corrupted database?)"
+                                    : std::string(sqlite3_errmsg(vt->db));
+        sqlite3_reset(b);
+        return vt_error(&vt->base, "ray_query: reading table 'chunk_points': " + msg);
+      }
+      for (std::size_t i = 0; i < std::size_t(ch.count); ++i) {
+        rayscan::sql::PackedPoint p;
+        std::memcpy(&p, data + i * sizeof p, sizeof p);
+        consider(p.x, p.y, p.z, p.point_index, p.source);
+      }
+      sqlite3_reset(b);
+      return SQLITE_OK;
+    }
+    sqlite3_stmt* pts = vt->st.rows;
+    sqlite3_bind_int64(pts, 1, ch.first);
+    sqlite3_bind_int64(pts, 2, ch.first + ch.count - 1);
+    int rc;
+    while ((rc = sqlite3_step(pts)) == SQLITE_ROW)
+      consider(sqlite3_column_double(pts, 2), sqlite3_column_double(pts, 3), sqlite3_column_double(pts, 4),
+               sqlite3_column_int64(pts, 0), sqlite3_column_int64(pts, 1));
+    sqlite3_reset(pts);
+    if (rc != SQLITE_DONE)
+      return vt_error(&vt->base, std::string("ray_query: reading table 'points': ") + sqlite3_errmsg(vt->db));
+    return SQLITE_OK;
+  };
+
+  // Chunk candidates from the R*Tree with the pruning callback. Its rScore (the lower bound of
+  // dist_ray) makes the R*Tree return chunks nearest first from a priority queue
+  // (sqlite.org/rtree.html section 7.3), so kNN to the ray consumes them as they come and stops
+  // at the first chunk the dynamic k filter rejects: the R*Tree never expands the far nodes.
+  // kNN along the ray (ord 'time') has another key: all candidates, sorted by the time bound.
+  std::vector<Cand> cands;
+  {
+    sqlite3_stmt* s = vt->st.match;
+    for (int i = 0; i < 6; ++i) sqlite3_bind_double(s, i + 1, a[i]);
+    sqlite3_bind_double(s, 7, r);
+    sqlite3_bind_double(s, 8, t_min);
+    sqlite3_bind_double(s, 9, t_max);
+    const Vec3 o(a[0], a[1], a[2]);
+    int rc = SQLITE_DONE;
+    while (k != 0 && (rc = sqlite3_step(s)) == SQLITE_ROW) {
+      double box[6];
+      for (int i = 0; i < 6; ++i) box[i] = sqlite3_column_double(s, i);
+      double score;
+      rs_ray_box_test(o3, d3, r, t_min, t_max, time_order, box, &score);
+      const rayscan::AABB b{Vec3(box[0], box[1], box[2]), Vec3(box[3], box[4], box[5])};
+      const double tol = 1e-9 * (glm::length(o - b.center()) + b.max_extent()) + 1e-300;
+      const Cand ch{score, tol, sqlite3_column_int64(s, 8), sqlite3_column_int64(s, 6), sqlite3_column_int64(s, 7)};
+      ++st.chunks_candidate;
+      if (time_order) {
+        cands.push_back(ch);
+        continue;
+      }
+      if (bounded && heap.size() == k && ch.score > worst + ch.tol) {  // dynamic k filter
+        rc = SQLITE_DONE;
+        break;
+      }
+      if (const int e = visit(ch); e != SQLITE_OK) {
+        sqlite3_reset(s);
+        return e;
+      }
+    }
+    sqlite3_reset(s);
+    if (rc != SQLITE_DONE)
+      return vt_error(&vt->base, std::string("ray_query: reading the chunk index: ") + sqlite3_errmsg(vt->db));
+  }
+  std::sort(cands.begin(), cands.end(), [](const Cand& x, const Cand& y) { return x.score < y.score; });
+  for (const Cand& ch : cands) {
+    if (bounded && heap.size() == k && ch.score > worst + ch.tol) break;  // dynamic k filter
+    if (const int e = visit(ch); e != SQLITE_OK) return e;
+  }
   std::sort(heap.begin(), heap.end(), hit_less);
   *vt->stats = st;
   return SQLITE_OK;
@@ -449,10 +543,10 @@ void stats_fn(sqlite3_context* ctx, int, sqlite3_value**) {
 
 }  // namespace
 
-/// Entry point (SQLite derives "sqlite3_rayscansqlite_init" from the file name rayscan_sqlite.so).
-/// Returns an SQLite error code with *err set when a registration fails.
-extern "C" __attribute__((visibility("default"))) int sqlite3_rayscansqlite_init(
-    sqlite3* db, char** err, const sqlite3_api_routines* api) {
+namespace {
+// The registration behind both entry points; internal, so that another build of this library
+// loaded into the same process (SQLite dlopens with RTLD_GLOBAL) cannot interpose it.
+int init_rayscan(sqlite3* db, char** err, const sqlite3_api_routines* api) {
   SQLITE_EXTENSION_INIT2(api);
   const int flags = SQLITE_UTF8 | SQLITE_DETERMINISTIC | SQLITE_INNOCUOUS;
   int rc = SQLITE_OK;
@@ -479,9 +573,17 @@ extern "C" __attribute__((visibility("default"))) int sqlite3_rayscansqlite_init
   if (rc != SQLITE_OK && err) *err = sqlite3_mprintf("rayscan_sqlite: registration failed: %s", sqlite3_errmsg(db));
   return rc;
 }
+}  // namespace
+
+/// Entry point (SQLite derives "sqlite3_rayscansqlite_init" from the file name rayscan_sqlite.so).
+/// Returns an SQLite error code with *err set when a registration fails.
+extern "C" __attribute__((visibility("default"))) int sqlite3_rayscansqlite_init(
+    sqlite3* db, char** err, const sqlite3_api_routines* api) {
+  return init_rayscan(db, err, api);
+}
 
 /// Generic entry point name, for hosts that call sqlite3_extension_init.
 extern "C" __attribute__((visibility("default"))) int sqlite3_extension_init(
     sqlite3* db, char** err, const sqlite3_api_routines* api) {
-  return sqlite3_rayscansqlite_init(db, err, api);
+  return init_rayscan(db, err, api);
 }

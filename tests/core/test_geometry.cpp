@@ -103,6 +103,23 @@ TEST(Distance, BoundsEvaluationEnclosesAndIsTight) {
   }
 }
 
+// A point box (what a GiST index of points stores): lo and hi come from different formulas, and
+// rounding once put hi below lo, an "empty" interval that pruned the point (found by the
+// PostgreSQL ray_dwithin test). The interval must never be empty and must hold dist_ray.
+TEST(Distance, DistRayBoundsOfAPointBoxIsNeverEmpty) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> c(-1e3, 1e3), dir(-1, 1);
+  const Vec3 base(636267.02826426388, 848956.8609175015, 873.74799999998879);
+  for (int i = 0; i < 20000; ++i) {
+    const Vec3 p = base + Vec3(c(rng), c(rng), c(rng) * 0.1 - 440);
+    const Vec3 d(dir(rng), dir(rng), dir(rng) - 1.5);
+    const Interval iv = dist_ray_bounds(base, d, AABB{p, p});
+    ASSERT_FALSE(iv.empty()) << i;
+    ASSERT_LE(iv.lo, iv.hi);
+    EXPECT_NEAR(iv.lo, dist_ray(base, d, p), 1e-9 * (1 + glm::length(p - base)));
+  }
+}
+
 TEST(Distance, SegmentBoxDistanceRespectsTimeInterval) {
   // Unit box, line along x at height 2 above it: distance 1 from the box on t in [1, 2] (x in [0,1]).
   const AABB b{Vec3(0.0), Vec3(1.0)};

@@ -234,6 +234,150 @@ TEST_F(Postgres, IndexOrderedKnnEqualsBruteForce) {
   }
 }
 
+// No hand-written bounds clause: ray_dwithin(rs_box(x,y,z), o, d, r) on the points table alone.
+// Its planner support function (SupportRequestIndexCondition) derives the GiST condition
+// rs_box(x,y,z) && ray_within(o, d, r) on the points' rs_box_ops index (bounds evaluation on every
+// GiST page box); the plan must show that Index Cond, and the rows equal the brute force. The same
+// function on the chunk table prunes chunks exactly as dist_ray_min <= r.
+TEST_F(Postgres, RayDwithinSupportFunctionUsesTheGistIndex) {
+  Pg pg;
+  pg.rows("CREATE INDEX IF NOT EXISTS autzen_pt ON autzen USING gist (rs_box(x, y, z))");
+  pg.rows("ANALYZE autzen");
+  const double r = 2.0 * spacing(*cloud_);
+  for (const Ray& ray : query_rays(*cloud_, 4, 5)) {
+    const Vec3 o = ray.origin(), d = ray.direction();
+    const std::string od = vec(o) + "," + vec(d);
+    const std::string sql = "SELECT point_index FROM autzen WHERE ray_dwithin(rs_box(x, y, z), " + od + "," + num(r) + ")";
+    std::string plan;
+    for (const auto& row : pg.rows("EXPLAIN " + sql)) plan += row[0] + "\n";
+    EXPECT_NE(plan.find("autzen_pt"), std::string::npos) << plan;
+    EXPECT_NE(plan.find("ray_within("), std::string::npos) << plan;  // the derived Index Cond
+    std::set<std::size_t> got, want;
+    for (const auto& row : pg.rows(sql)) got.insert(std::stoull(row[0]));
+    for (std::size_t i = 0; i < cloud_->size(); ++i)
+      if (dist_ray(o, d, cloud_->positions[i]) <= r) want.insert(i);
+    EXPECT_EQ(got, want) << sql << "\n" << plan;
+    EXPECT_FALSE(want.empty());
+    // Chunk table: index-pruned chunks equal the chunks whose dist_ray_min <= r (sequential scan).
+    const std::string cq = "SELECT chunk FROM autzen_chunks WHERE ray_dwithin(box, " + od + "," + num(r) + ") ORDER BY 1";
+    plan.clear();
+    pg.rows("SET enable_seqscan = off");
+    for (const auto& row : pg.rows("EXPLAIN " + cq)) plan += row[0] + "\n";
+    EXPECT_NE(plan.find("autzen_chunks_box"), std::string::npos) << plan;
+    std::vector<std::string> chunks, oracle;
+    for (const auto& row : pg.rows(cq)) chunks.push_back(row[0]);
+    pg.rows("RESET enable_seqscan");
+    // Oracle: the core's dist_ray_bounds over each stored box, in C++.
+    for (const auto& row : pg.rows("SELECT chunk, box FROM autzen_chunks ORDER BY 1")) {
+      double v[6];
+      ASSERT_EQ(std::sscanf(row[1].c_str(), "(%lf,%lf,%lf,%lf,%lf,%lf)", v, v + 1, v + 2, v + 3, v + 4, v + 5), 6);
+      if (dist_ray_bounds(o, d, AABB{Vec3(v[0], v[1], v[2]), Vec3(v[3], v[4], v[5])}).lo <= r) oracle.push_back(row[0]);
+    }
+    EXPECT_EQ(chunks, oracle);
+    EXPECT_FALSE(chunks.empty());
+  }
+  // Index-ordered kNN of points: ORDER BY rs_box(x,y,z) <-> ray LIMIT k walks the points' GiST
+  // index by the bounds lower bound (for a point: its dist_ray); the rows equal the brute-force kNN.
+  for (const Ray& ray : query_rays(*cloud_, 3, 8)) {
+    const Vec3 o = ray.origin(), d = ray.direction();
+    const std::string sql = "SELECT point_index FROM autzen ORDER BY rs_box(x, y, z) <-> ray_within(" + vec(o) + "," +
+                            vec(d) + ", NULL) LIMIT 7";
+    std::string plan;
+    for (const auto& row : pg.rows("EXPLAIN " + sql)) plan += row[0] + "\n";
+    EXPECT_NE(plan.find("Index Scan using autzen_pt"), std::string::npos) << plan;
+    EXPECT_NE(plan.find("Order By"), std::string::npos) << plan;
+    RayQuery q;
+    q.k = 7;
+    std::set<std::size_t> got, want;
+    for (const auto& row : pg.rows(sql)) got.insert(std::stoull(row[0]));
+    for (const RayHit& h : ray_query(BruteForceIndex(*cloud_), ray, q)) want.insert(h.index);
+    EXPECT_EQ(got, want);
+  }
+  // A ray from a column of the same table cannot become an index condition: still correct.
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM autzen WHERE ray_dwithin(rs_box(x, y, z), x, y, z, 1, 0, 0, 0)")[0][0],
+            std::to_string(cloud_->size()));
+}
+
+// A frustum (four half-spaces around a ray): box && plane_below(...) on the chunk GiST index plus
+// dist_plane <= 0 per point equals the brute-force set (issue 13 section 4, as in SQLite).
+TEST_F(Postgres, FrustumWithPlanePruningEqualsBruteForce) {
+  Pg pg;
+  pg.rows("SET enable_seqscan = off");
+  for (const Ray& ray : query_rays(*cloud_, 3, 9)) {
+    const Vec3 o = ray.origin(), d = ray.direction();
+    const Vec3 a = glm::normalize(glm::cross(d, std::abs(d.z) < 0.9 ? Vec3(0, 0, 1) : Vec3(1, 0, 0)));
+    const Vec3 b = glm::cross(d, a);
+    const double w = 10 * spacing(*cloud_);
+    const std::vector<Plane> planes = {{o + w * a, a}, {o - w * a, -a}, {o + w * b, b}, {o - w * b, -b}};
+    std::string sql = "SELECT p.point_index FROM autzen_chunks c JOIN autzen p ON p.chunk = c.chunk WHERE ";
+    for (std::size_t i = 0; i < planes.size(); ++i) {
+      const std::string pl = vec(planes[i].point) + "," + vec(planes[i].normal);
+      sql += std::string(i ? " AND " : "") + "c.box && plane_below(" + pl + ") AND dist_plane(" + pl + ", p.x, p.y, p.z) <= 0";
+    }
+    std::set<std::size_t> got, want;
+    for (const auto& row : pg.rows(sql)) got.insert(std::stoull(row[0]));
+    for (std::size_t i = 0; i < cloud_->size(); ++i) {
+      bool in = true;
+      for (const Plane& pl : planes) in = in && dist_plane(pl.point, pl.normal, cloud_->positions[i]) <= 0;
+      if (in) want.insert(i);
+    }
+    EXPECT_EQ(got, want);
+    EXPECT_FALSE(want.empty());
+    std::string plan;
+    for (const auto& row : pg.rows("EXPLAIN " + sql)) plan += row[0] + "\n";
+    EXPECT_NE(plan.find("autzen_chunks_box"), std::string::npos) << plan;
+  }
+  EXPECT_EQ(pg.error_of("SELECT plane_below(0,0,0, 0,0,0)"),
+            "plane_below: normal (nx,ny,nz) is zero; expected a non-zero vector");
+}
+
+// pgpointcloud: `db import --pcpatch` writes one pcpatch per chunk (double X/Y/Z schema in
+// pointcloud_formats) with its rs_box; pgpointcloud's own PC_Explode / PC_Get read back the
+// reader's exact doubles and point indices, every box is exactly its patch's min/max, and the
+// paper's radius query over patches (ray_dwithin on the box GiST index, then dist_ray on the
+// exploded points) equals the brute force.
+TEST_F(Postgres, PcpatchImportAndPrunedRadiusQueryEqualBruteForce) {
+  Pg pg;
+  if (pg.rows("SELECT count(*) FROM pg_available_extensions WHERE name = 'pointcloud'")[0][0] == "0")
+    GTEST_SKIP() << "pgpointcloud (postgresql-15-pointcloud) not installed";
+  pg.rows("DROP TABLE IF EXISTS autzen_pc, autzen_pc_sources");
+  ASSERT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() + "' --postgres '" + conninfo() +
+                "' --table autzen_pc --chunk 512 --pcpatch > /dev/null"), 0);
+  const auto n = pg.rows("SELECT count(*), sum(PC_NumPoints(pa)) FROM autzen_pc");
+  EXPECT_EQ(n[0][0], std::to_string((cloud_->size() + 511) / 512));
+  EXPECT_EQ(n[0][1], std::to_string(cloud_->size()));
+  // Exact doubles and indices through pgpointcloud's own accessors.
+  const auto pts = pg.rows("SELECT (PC_Get(pt))[4]::bigint, (PC_Get(pt))[1], (PC_Get(pt))[2], (PC_Get(pt))[3] "
+                           "FROM autzen_pc, PC_Explode(pa) pt WHERE chunk % 9 = 0");
+  ASSERT_GT(pts.size(), 1000u);
+  for (const auto& row : pts)
+    ASSERT_EQ(Vec3(dbl(row[1]), dbl(row[2]), dbl(row[3])), cloud_->positions[std::stoull(row[0])]);
+  // Each box is exactly the min/max of its patch's points.
+  const auto bad = pg.rows("SELECT count(*) FROM autzen_pc c WHERE c.chunk % 4 = 0 AND c.box::text <> (SELECT rs_box(min((PC_Get(pt))[1]), "
+                           "min((PC_Get(pt))[2]), min((PC_Get(pt))[3]), max((PC_Get(pt))[1]), max((PC_Get(pt))[2]), "
+                           "max((PC_Get(pt))[3]))::text FROM PC_Explode(c.pa) pt)");
+  EXPECT_EQ(bad[0][0], "0");
+  pg.rows("SET enable_seqscan = off");
+  const double r = 2.0 * spacing(*cloud_);
+  for (const Ray& ray : query_rays(*cloud_, 4, 13)) {
+    const Vec3 o = ray.origin(), d = ray.direction();
+    const std::string od = vec(o) + "," + vec(d);
+    const std::string sql = "SELECT (PC_Get(pt))[4]::bigint FROM autzen_pc, PC_Explode(pa) pt WHERE ray_dwithin(box, " + od +
+                            "," + num(r) + ") AND dist_ray(" + od + ", (PC_Get(pt))[1], (PC_Get(pt))[2], (PC_Get(pt))[3]) <= " +
+                            num(r);
+    std::string plan;
+    for (const auto& row : pg.rows("EXPLAIN " + sql)) plan += row[0] + "\n";
+    EXPECT_NE(plan.find("autzen_pc_box"), std::string::npos) << plan;
+    std::set<std::size_t> got, want;
+    for (const auto& row : pg.rows(sql)) got.insert(std::stoull(row[0]));
+    for (std::size_t i = 0; i < cloud_->size(); ++i)
+      if (dist_ray(o, d, cloud_->positions[i]) <= r) want.insert(i);
+    EXPECT_EQ(got, want);
+    EXPECT_FALSE(want.empty());
+  }
+  EXPECT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() + "' -o /tmp/x.sqlite --pcpatch 2>/dev/null"), 2);
+}
+
 TEST_F(Postgres, FailedImportLeavesNoHalfTable) {
   Pg pg;
   pg.rows("DROP TABLE IF EXISTS half, half_chunks, half_sources");

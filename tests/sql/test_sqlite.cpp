@@ -374,6 +374,56 @@ TEST(SqliteFunctions, DatabaseWithoutChunkIndexIsAnError) {
       << error_of(db.db, "SELECT * FROM ray_query(0,0,0, 1,0,0, 3)");
 }
 
+// ray_query reads each chunk from its packed BLOB (chunk_points); a database without that table
+// (an older import) is read row by row with the same answers, and a BLOB of the wrong size (a
+// corrupted file) is an SQL error naming the chunk, not a read past the BLOB. The connection
+// closes cleanly although ray_query keeps prepared statements (finalized in xDisconnect).
+TEST(SqliteFunctions, PackedChunksEqualRowsAndBadBlobsAreErrors) {
+  const fs::path src = site("autzen")->db, p = tmpdir() / "rows.sqlite";
+  fs::copy_file(src, p, fs::copy_options::overwrite_existing);
+  const Site& s = *site("autzen");
+  auto answers = [&](sqlite3* db) {
+    std::vector<std::vector<long long>> out;
+    for (const Ray& ray : s.rays) {
+      for (const char* q : {"SELECT point_index FROM ray_query(?1,?2,?3,?4,?5,?6, 8, NULL, NULL, NULL, 'ray')",
+                            "SELECT point_index FROM ray_query(?1,?2,?3,?4,?5,?6, 6, ?7, NULL, NULL, 'time')",
+                            "SELECT point_index FROM ray_query(?1,?2,?3,?4,?5,?6, NULL, ?7)"}) {
+        Stmt st(db, q);
+        for (int i = 0; i < 3; ++i) st.bind(i + 1, ray.origin()[i]).bind(i + 4, ray.direction()[i]);
+        st.bind(7, s.r);
+        out.emplace_back();
+        while (st.step()) out.back().push_back(st.i64(0));
+      }
+    }
+    return out;
+  };
+  std::vector<std::vector<long long>> packed;
+  {
+    Db db(src);
+    packed = answers(db.db);
+  }
+  {
+    Db db(p);
+    ASSERT_EQ(sqlite3_exec(db.db, "DROP TABLE chunk_points", nullptr, nullptr, nullptr), SQLITE_OK);
+  }
+  {
+    Db db(p);
+    EXPECT_EQ(answers(db.db), packed);
+    ASSERT_EQ(sqlite3_close(db.db), SQLITE_OK);  // cached statements do not keep it busy
+    db.db = nullptr;
+  }
+  fs::copy_file(src, p, fs::copy_options::overwrite_existing);
+  Db db(p);
+  ASSERT_EQ(sqlite3_exec(db.db, "UPDATE chunk_points SET data = x'0011'", nullptr, nullptr, nullptr), SQLITE_OK);
+  const Ray& ray = s.rays[0];
+  char sql[512];
+  std::snprintf(sql, sizeof sql, "SELECT * FROM ray_query(%.17g,%.17g,%.17g,%.17g,%.17g,%.17g, 3)", ray.origin().x,
+                ray.origin().y, ray.origin().z, ray.direction().x, ray.direction().y, ray.direction().z);
+  const std::string e = error_of(db.db, sql);
+  EXPECT_EQ(e.rfind("ray_query: reading table 'chunk_points': chunk ", 0), 0u) << e;
+  EXPECT_NE(e.find("has 2 bytes; expected"), std::string::npos) << e;
+}
+
 TEST(SqliteFunctions, CorruptedDatabaseGivesAnErrorNotACrash) {
   const fs::path src = site("autzen")->db, p = tmpdir() / "corrupt.sqlite";
   fs::copy_file(src, p, fs::copy_options::overwrite_existing);

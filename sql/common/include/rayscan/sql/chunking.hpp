@@ -6,6 +6,7 @@
 #include "rayscan/geometry.hpp"
 #include "rayscan/point_cloud.hpp"
 
+#include <bit>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -33,6 +34,20 @@ struct ChunkLayout {
   std::vector<PointRef> order;
   std::vector<Chunk> chunks;
 };
+
+/// One point of a chunk's packed BLOB (SQLite `chunk_points.data`: `count` of these, 40 bytes each,
+/// little-endian, no padding): the exact double position, the point's index in its source file
+/// and the source's position on the import command line. Read with memcpy (a BLOB need not be
+/// 8-byte aligned). The `rayscan_meta` key "chunk_points" names this layout.
+struct PackedPoint {
+  double x, y, z;            ///< world coordinates as the reader produced them
+  std::int64_t point_index;  ///< the `point_index` column
+  std::int64_t source;       ///< the `source` column
+};
+static_assert(sizeof(PackedPoint) == 40, "PackedPoint must have no padding");
+static_assert(std::endian::native == std::endian::little, "chunk_points BLOBs are little-endian");
+/// Value of rayscan_meta "chunk_points" for the PackedPoint layout.
+inline constexpr const char* kChunkPointsLayout = "x,y,z f64le; point_index,source i64le (40 bytes)";
 
 /// Builds the layout for `clouds` (all in one world frame). Throws std::invalid_argument when
 /// chunk_size is 0. Memory: 24 bytes per point besides the clouds.

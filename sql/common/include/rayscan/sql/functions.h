@@ -48,6 +48,14 @@ typedef enum rs_within { RS_NOT_WITHIN = 0, RS_PARTLY_WITHIN = 1, RS_FULLY_WITHI
 rs_within rs_ray_box_test(const double o[3], const double d[3], double r, double t_min,
                           double t_max, int order_time, const double box[6], double* score);
 
+/** Cheap conservative reject for rs_ray_box_test's predicate (finite r only): 1 when the line
+ * segment {o + t u : t in [t_min - g, t_max + g]} (u = d / |d|) misses the box grown by
+ * g = r + tolerance on every axis (slab test; Kay & Kajiya 1986, pbrt-v4 section 6.1.2), which
+ * implies that no point of the box has dist_ray <= r with ray_time in [t_min, t_max]; else 0.
+ * Used before the exact bounds evaluation on R*Tree / GiST nodes. Arguments as rs_ray_box_test. */
+int rs_ray_box_misses(const double o[3], const double d[3], double r, double t_min, double t_max,
+                      const double box[6]);
+
 /** Half-space test {p : dist_plane(p0, n, p) <= 0} over a box (a frustum is a set of them). */
 rs_within rs_plane_box_test(const double p0[3], const double n[3], const double box[6]);
 

@@ -18,6 +18,7 @@ struct ImportOptions {
   std::uint32_t chunk_size = 4096;      ///< points per chunk (>= 1)
   std::vector<std::string> attributes;  ///< extra columns: intensity, classification, gps_time,
                                         ///< rgb (red, green, blue) or any scalar field's name
+  bool pcpatch = false;  ///< PostgreSQL only: one pgpointcloud patch per chunk instead of rows
 };
 
 /// One extra column of the points table.
@@ -46,6 +47,8 @@ struct ImportSummary {
 ///   points(point_index, source, chunk, x, y, z, <attributes>), rowid = 1 + row in Morton order;
 ///   chunks: R*Tree (id, min_x, max_x, min_y, max_y, min_z, max_z, +first_row, +count) whose
 ///   float32 boxes SQLite rounds outwards, so they stay conservative;
+///   chunk_points(id = chunk, data BLOB): the chunk's points packed as PackedPoint (what ray_query
+///   reads: one b-tree lookup per chunk instead of one row per point);
 ///   sources(source, path, point_count, crs_wkt); rayscan_meta(key, value).
 /// Throws io::FormatError for unreadable clouds, std::invalid_argument for bad options and
 /// std::runtime_error ("site.sqlite: sqlite: <message>") for database errors.
@@ -56,6 +59,11 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& clouds,
 ///   <table>(point_index bigint, source int, chunk int, x, y, z float8, <attributes>) and
 ///   <table>_chunks(chunk int primary key, box rs_box, first_row bigint, count int) with a GiST
 ///   index on box (extension rayscan). A failure rolls the transaction back: no half table.
+/// With options.pcpatch: pgpointcloud instead of rows (extension `pointcloud`): a new schema in
+///   pointcloud_formats (dimensions X, Y, Z double, PointIndex uint64_t, Source uint32_t, then the
+///   attributes as double / int64_t; scale 1, uncompressed) and
+///   <table>(chunk int primary key, pa pcpatch(pcid), box rs_box) with a GiST index on box: one
+///   patch per chunk, written as uncompressed patch WKB (pgpointcloud README, "Binary Formats").
 /// Throws as import_sqlite; std::runtime_error ("postgres: <message>") for server errors.
 ImportSummary import_postgres(const std::vector<std::filesystem::path>& clouds,
                               const std::string& conninfo, const std::string& table,
