@@ -3,6 +3,7 @@
 
 #include "rayscan/file_names.hpp"
 #include "rayscan/io/json_object.hpp"
+#include "rayscan/io/point_io.hpp"
 #include "scene_json.hpp"
 
 #include <nlohmann/json.hpp>
@@ -64,7 +65,14 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
   namespace fs = std::filesystem;
   ResolvedScene res;
   json j;
-  const bool is_scene = lower_extension(input) == ".json";
+  // A point cloud by its extension (io::format_from_extension); anything else is read as a scene,
+  // so its errors (not JSON, a device, missing) are the scene file's.
+  bool is_scene = false;
+  try {
+    (void)io::format_from_extension(input);
+  } catch (const io::FormatError&) {
+    is_scene = true;
+  }
   const fs::path base = fs::absolute(input);
   if (is_scene) {
     j = io::parse_json_file(input);
@@ -91,25 +99,13 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
     j["radius"] = "auto";
     j["material"] = {{"color", pc.rgb.empty() ? "elevation" : "rgb"}};
   }
-  // Overrides into the JSON (apply_overrides below applies and checks them on the scene too).
+  // A camera file replaces the scene's camera before parsing (a scene may have none); the other
+  // overrides are applied (and checked, with their own messages) by apply_overrides on the parsed
+  // scene and written into the JSON afterwards.
   if (!ov.camera_file.empty()) j["camera"] = fs::absolute(ov.camera_file).lexically_normal().string();
-  if (!ov.primitive.empty()) j["primitive"] = ov.primitive;
-  if (ov.spp) j["spp"] = *ov.spp;
-  if (ov.seed) j["seed"] = *ov.seed;
-  if (!ov.out.empty()) {
-    if (!j.contains("output") || !j["output"].is_object()) j["output"] = json::object();
-    j["output"]["image"] = fs::absolute(ov.out).lexically_normal().string();
-  }
-  if (!ov.aovs.empty()) {
-    if (!j.contains("output") || !j["output"].is_object()) j["output"] = json::object();
-    json& a = j["output"]["aovs"];
-    if (!a.is_array()) a = json::array();
-    for (const std::string& name : ov.aovs)
-      if (std::find(a.begin(), a.end(), json(name)) == a.end()) a.push_back(name);
-  }
   SceneOverrides rest = ov;  // what is left for apply_overrides
   bool printable = ov.colmap_dir.empty();  // a COLMAP view is not a camera JSON
-  if (!j.contains("camera") && ov.colmap_dir.empty()) {
+  if (!j.contains("camera")) {  // (a COLMAP view replaces it in apply_overrides)
     std::uint32_t w = kOverviewWidth, h = kOverviewHeight;
     if (ov.width && ov.height) {
       w = *ov.width;
@@ -152,6 +148,19 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
   res.scene = parse_scene_json(j, as_file);
   if (!is_scene) res.scene.file = fs::path();
   apply_overrides(res.scene, rest);
+  if (!ov.primitive.empty()) j["primitive"] = ov.primitive;
+  if (ov.spp) j["spp"] = *ov.spp;
+  if (ov.seed) j["seed"] = *ov.seed;
+  if (!ov.out.empty() || !ov.aovs.empty()) {
+    if (!j.contains("output") || !j["output"].is_object()) j["output"] = json::object();
+    if (!ov.out.empty()) j["output"]["image"] = fs::absolute(ov.out).lexically_normal().string();
+    if (!ov.aovs.empty()) {
+      json& a = j["output"]["aovs"];
+      if (!a.is_array()) a = json::array();
+      for (const std::string& name : ov.aovs)
+        if (std::find(a.begin(), a.end(), json(name)) == a.end()) a.push_back(name);
+    }
+  }
   res.json = printable ? j.dump(2) : std::string();
   return res;
 }

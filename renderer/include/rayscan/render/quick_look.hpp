@@ -39,8 +39,8 @@ struct ResolvedScene {
   bool overview = false;  ///< the camera is the automatic overview camera
 };
 
-/// Resolve a command line's scene. `input` is a scene file (.json) or a point cloud file (any
-/// format the io library reads); for a cloud the scene is {"cloud": input, "radius": "auto",
+/// Resolve a command line's scene. `input` is a point cloud file when its extension is one the io
+/// library reads (io::format_from_extension), else a scene file; for a cloud the scene is {"cloud": input, "radius": "auto",
 /// "material": {"color": "rgb" if the cloud has colours else "elevation"}} with the default sky
 /// and sun. When the scene has no camera (a cloud, or a scene file without "camera"), the camera
 /// is overview_view() of the cloud's bounds at --width x --height (default 600 x 400; one of them
