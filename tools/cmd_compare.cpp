@@ -23,9 +23,12 @@ struct CompareCli {
   bool alpha = false, json = false, mask = false, resize = false;
   std::string mask_channel = "id", mask_index, resize_filter = "lanczos3", diff;
   std::optional<double> diff_max;
-  std::optional<double> fail_t, fail_pct, fail_max, fail_psnr, fail_ssim;
-  std::optional<double> warn_t, warn_pct, warn_max, warn_psnr, warn_ssim;
+  std::optional<double> fail_t, fail_pct, fail_max, fail_psnr, fail_ssim, fail_flip;
+  std::optional<double> warn_t, warn_pct, warn_max, warn_psnr, warn_ssim, warn_flip;
   double ssim_range = 1.0;
+  bool no_flip = false;
+  std::string flip_map;
+  std::optional<double> flip_ppd;
 };
 
 int run_compare(const CompareCli& o) {
@@ -39,8 +42,13 @@ int run_compare(const CompareCli& o) {
   job.mask_index = o.mask_index;
   job.resize = o.resize;
   job.resize_filter = o.resize_filter;
-  job.fail = {o.fail_t, o.fail_pct, o.fail_max, o.fail_psnr, o.fail_ssim};
-  job.warn = {o.warn_t, o.warn_pct, o.warn_max, o.warn_psnr, o.warn_ssim};
+  job.fail = {o.fail_t, o.fail_pct, o.fail_max, o.fail_psnr, o.fail_ssim, o.fail_flip};
+  job.warn = {o.warn_t, o.warn_pct, o.warn_max, o.warn_psnr, o.warn_ssim, o.warn_flip};
+  job.flip = !o.no_flip;
+  if (o.no_flip && (!o.flip_map.empty() || o.fail_flip || o.warn_flip))
+    throw UsageError("--no-flip: cannot be combined with --flip-map, --fail-flip or --warn-flip");
+  job.flip_map = o.flip_map;
+  if (o.flip_ppd) job.flip_ppd = *o.flip_ppd;
   job.ssim_range = o.ssim_range;
   job.diff = o.diff;
   job.diff_max = o.diff_max;
@@ -56,8 +64,8 @@ Runner add_compare_command(CLI::App& app) {
   auto o = std::make_shared<CompareCli>();
   CLI::App* sub = app.add_subcommand(
       "compare",
-      "Compare an image against a reference: MAE, RMSE, PSNR, max error, SSIM, pixels over a "
-      "threshold; idiff-style pass/fail. Exit 0 pass (or warning), 1 fail, 2 error.");
+      "Compare an image against a reference: MAE, RMSE, PSNR, max error, SSIM, mean LDR-FLIP, "
+      "pixels over a threshold; idiff-style pass/fail. Exit 0 pass (or warning), 1 fail, 2 error.");
   sub->add_option("reference", o->reference, "Reference image (any format OpenImageIO reads)")->required();
   sub->add_option("image", o->image, "Image to check (e.g. a render)")->required();
   sub->add_option("--channel", o->channels,
@@ -100,6 +108,17 @@ Runner add_compare_command(CLI::App& app) {
   sub->add_option("--diff", o->diff, "Write a heat map of the per-pixel error here (PNG, TIFF, EXR, ...)");
   sub->add_option("--diff-max", o->diff_max, "Error mapped to white in --diff (default: the max error)")
       ->check(positive());
+  sub->add_option("--fail-flip", o->fail_flip, "Fail if the mean LDR-FLIP exceeds this (default: off)")
+      ->check(finite_number(0.0, 1.0));
+  sub->add_option("--warn-flip", o->warn_flip, "Warn if the mean LDR-FLIP exceeds this (default: off)")
+      ->check(finite_number(0.0, 1.0));
+  sub->add_option("--flip-map", o->flip_map,
+                  "Write the per-pixel LDR-FLIP error map (NVIDIA FLIP, Andersson et al. 2020) here as a heat "
+                  "map over [0, 1] (PNG, TIFF, EXR, ...)");
+  sub->add_option("--flip-ppd", o->flip_ppd,
+                  "FLIP observer's pixels per degree (default 67.02: 0.7 m from a 0.7 m wide 3840-pixel monitor)")
+      ->check(positive());
+  sub->add_flag("--no-flip", o->no_flip, "Skip the FLIP computation");
   sub->add_flag("--json", o->json, "Print the report as JSON instead of a table");
   return [o] { return run_compare(*o); };
 }

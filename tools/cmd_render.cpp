@@ -6,6 +6,8 @@
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/file_names.hpp"
+#include "rayscan/io/point_io.hpp"
+#include "rayscan/render/quick_look.hpp"
 #include "rayscan/render/render_job.hpp"
 
 #include <algorithm>
@@ -25,13 +27,12 @@ struct RenderCliOptions {
   std::vector<std::string> aovs;
   std::string primitive, colmap_dir, colmap_image, dsm;
   std::optional<double> ortho_res;
-  bool quiet = false;
+  bool quiet = false, print_scene = false;
 };
 
 int run_render(const RenderCliOptions& o) {
   using namespace rayscan::render;
   RenderJobOptions job;
-  job.scene = load_scene(o.scene);
   SceneOverrides ov;
   ov.camera_file = o.camera;
   ov.spp = o.spp;
@@ -43,10 +44,31 @@ int run_render(const RenderCliOptions& o) {
   ov.primitive = o.primitive;
   ov.colmap_dir = o.colmap_dir;
   ov.colmap_image = o.colmap_image;
-  apply_overrides(job.scene, ov);
+  // A cloud instead of a scene, or a scene without a camera: read the points once, here.
+  std::optional<PointCloud> points;
+  const ResolvedScene rs = resolve_scene(o.scene, ov, [&](const std::filesystem::path& f) -> const PointCloud& {
+    if (!points) points = io::read_point_cloud(f, io::ReadOptions{.scalars = false});
+    if (points->empty()) throw UsageError(f.string() + ": the point cloud has no points");
+    return *points;
+  });
+  if (o.print_scene) {
+    if (o.ortho_res) throw UsageError("--print-scene: not with --ortho-map (the map camera is not a scene camera)");
+    if (rs.json.empty())
+      throw UsageError("--print-scene: this camera (a COLMAP view, or a resized K/[R|t] camera) cannot be written as scene JSON");
+    std::cout << rs.json << "\n";
+    return 0;
+  }
+  job.scene = rs.scene;
+  if (points) job.cloud = &*points;
   job.control.threads = o.threads;
   job.control.progress = !o.quiet;
   if (!o.quiet) job.control.log = [](const std::string& s) { std::cerr << "rayscan render: " << s << "\n"; };
+  if (rs.overview && !o.ortho_res) {
+    const Camera& c = *job.scene.camera;
+    job.control.info("no camera given: overview camera " + std::to_string(c.width()) + "x" +
+                     std::to_string(c.height()) + " from the south-west, 35 degrees down, framing the whole cloud "
+                     "(--print-scene prints it as a scene to edit)");
+  }
   std::optional<analysis::OrthoMap> map;
   if (o.ortho_res) {
     if (!analysis::is_geotiff_name(job.scene.output.image))
@@ -86,9 +108,12 @@ Runner add_render_command(CLI::App& app) {
   auto o = std::make_shared<RenderCliOptions>();
   CLI::App* c = app.add_subcommand(
       "render",
-      "Path-trace a point cloud described by a JSON scene (schema: scenes/README.md). Each point is "
-      "a sphere hit through the octree ray query; writes PNG/JPEG/TIFF/EXR with optional AOVs.");
-  c->add_option("scene", o->scene, "Scene file (JSON)")->required();
+      "Path-trace a point cloud described by a JSON scene (schema: scenes/README.md), or a point cloud "
+      "file directly (automatic overview camera). Each point is a sphere or surfel hit through the "
+      "octree ray query; writes PNG/JPEG/TIFF/EXR with optional AOVs.");
+  c->add_option("scene", o->scene, "Scene file (.json), or a point cloud file (LAS, LAZ, PLY, PCD, ...) for a quick "
+                "look: radius auto, colour from RGB if present else elevation, default sky and sun, and (as for a "
+                "scene without a camera) an overview camera framing the whole cloud")->required();
   c->add_option("--camera", o->camera, "Camera file (JSON), replaces the scene's camera");
   c->add_option("--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image");
   c->add_option("--spp", o->spp, "Samples per pixel, integer in [1, 1048576] (default: the scene's value, 16 if unset)")->check(CLI::Range(1u, 1u << 20));
@@ -121,6 +146,8 @@ Runner add_render_command(CLI::App& app) {
       ->check(CLI::PositiveNumber);
   c->add_option("--dsm", o->dsm, "With --ortho-map: also write the digital surface model (elevation of the "
                 "first surface per cell, NoData where the ray missed) as a Float32 GeoTIFF");
+  c->add_flag("--print-scene", o->print_scene, "Print the effective scene (after every flag, with the automatic "
+              "camera when there is none) as JSON on stdout and exit without rendering; `rayscan render` reads it back");
   c->add_flag("--quiet,-q", o->quiet, "No log lines or progress bar on stderr");
   return [o] { return run_render(*o); };
 }

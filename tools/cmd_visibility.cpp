@@ -104,13 +104,20 @@ Runner add_visibility_command(CLI::App& app) {
   c->add_option("--radius-factor", o->job.radius_factor, "auto radius = factor x median nearest-neighbour spacing")
       ->capture_default_str()
       ->check(positive());
+  c->add_option("--primitive", o->job.primitive,
+                "Geometry of each point for line of sight: sphere (the paper's model, one radius) or surfel "
+                "(oriented disc, PCA normal, radius from the local spacing; with target height 0 the "
+                "GIS viewshed of the sampled surface, see analysis/README.md); sky view and camera "
+                "marks use spheres")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"sphere", "surfel"}));
   c->add_option("--tolerance", o->job.tolerance,
                 "A point counts as seen when the first sphere the ray meets lies at most this far before "
-                "it along the ray (default 2 x radius)")
+                "it along the ray (default 2 x radius; surfels: 0)")
       ->check(non_negative());
   c->add_option("--target-height", o->job.target_height,
                 "Rays aim this far above each point (GIS target height; keeps grazing views of level "
-                "ground open; default 1 x radius, 0 = aim at the point)")
+                "ground open; default 1 x radius, surfels 0; 0 = aim at the point)")
       ->check(non_negative());
   c->add_option("--max-distance", o->job.max_distance, "Maximum viewing distance (world units; default unlimited)")
       ->check(non_negative());

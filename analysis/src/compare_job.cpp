@@ -3,6 +3,7 @@
 #include "rayscan/analysis/compare_job.hpp"
 
 #include "rayscan/analysis/color_ramp.hpp"
+#include "rayscan/analysis/flip.hpp"
 #include "rayscan/file_names.hpp"
 
 #include <nlohmann/json.hpp>
@@ -83,6 +84,31 @@ std::vector<int> pick_channels(const Image& img, const CompareJobOptions& o) {
   return idx;
 }
 
+/// Whether a file's samples are scene-referred linear values (float formats) rather than
+/// display-encoded sRGB: EXR and Radiance HDR.
+bool stored_linear(const std::string& file) {
+  const std::string ext = lower_extension(file);
+  return ext == ".exr" || ext == ".hdr";
+}
+
+/// The RGB samples FLIP takes (sRGB-encoded, interleaved) from an image holding R,G,B or Y
+/// (first `colour` channels of `img`, as selected); `linear` values are encoded with the sRGB
+/// transfer function (IEC 61966-2-1) first.
+std::vector<float> flip_input(const Image& img, int colour, bool linear) {
+  std::vector<float> rgb(img.npixels() * 3);
+  const auto nc = static_cast<std::size_t>(img.nchannels());
+  for (std::size_t p = 0; p < img.npixels(); ++p)
+    for (std::size_t k = 0; k < 3; ++k) {
+      float v = img.pixels[p * nc + (colour == 3 ? k : 0)];
+      if (linear) {
+        const double c = std::clamp(static_cast<double>(v), 0.0, 1.0);
+        v = static_cast<float>(c <= 0.0031308 ? 12.92 * c : 1.055 * std::pow(c, 1.0 / 2.4) - 0.055);
+      }
+      rgb[p * 3 + k] = v;
+    }
+  return rgb;
+}
+
 std::string size_of(const Image& img) { return std::to_string(img.width) + "x" + std::to_string(img.height); }
 
 nlohmann::ordered_json num(double v) {
@@ -101,7 +127,7 @@ std::string g(double v, int prec = 9) {
 
 Limits Criteria::limits() const {
   Limits l;
-  const bool any = threshold || percent || max_error || min_psnr || min_ssim;
+  const bool any = threshold || percent || max_error || min_psnr || min_ssim || max_flip;
   // The idiff default (fail on any pixel differing by more than 1e-6) applies when no criterion
   // of this level is given; otherwise only the given criteria apply.
   l.pixel_test = threshold || percent || !any;
@@ -110,6 +136,7 @@ Limits Criteria::limits() const {
   if (max_error) l.max_error = *max_error;
   if (min_psnr) l.min_psnr = *min_psnr;
   if (min_ssim) l.min_ssim = *min_ssim;
+  if (max_flip) l.max_flip = *max_flip;
   return l;
 }
 
@@ -195,6 +222,39 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
   res.used.warn_threshold = warn.threshold;
   res.used.ssim.dynamic_range = o.ssim_range;
   res.metrics = compare_images(r, t, ignore, res.used);
+
+  // FLIP on R,G,B (or Y as grey) of the selected channels.
+  if (o.flip) {
+    const auto& ch = r.channels;
+    const int colour = ch.size() >= 3 && ch[0] == "R" && ch[1] == "G" && ch[2] == "B" ? 3
+                       : !ch.empty() && ch[0] == "Y"                               ? 1
+                                                                                   : 0;
+    const bool ref_linear = !o.reference && stored_linear(o.reference_file);
+    const bool img_linear = !o.image && stored_linear(o.image_file);
+    if (colour == 0) {
+      res.metrics.flip_signal = "not computed: FLIP needs R,G,B or Y channels";
+    } else {
+      if (!(o.flip_ppd > 0) || !std::isfinite(o.flip_ppd))
+        throw invalid_argument("--flip-ppd: expected a finite number > 0");
+      FlipOptions fo;
+      fo.pixels_per_degree = o.flip_ppd;
+      const FlipResult fr = flip(flip_input(r, colour, ref_linear), flip_input(t, colour, img_linear), r.width,
+                                 r.height, fo, ignore);
+      res.metrics.flip = fr.mean;
+      res.metrics.flip_signal = std::string(colour == 3 ? "R,G,B" : "Y as grey") + "; reference " +
+                                (ref_linear ? "linear" : "sRGB") + ", image " + (img_linear ? "linear" : "sRGB");
+      res.flip_ppd = o.flip_ppd;
+      if (!o.flip_map.empty()) {
+        const Image heat = error_heatmap(fr.error, r.width, r.height, 1.0);
+        write_image(heat, o.flip_map, lower_extension(o.flip_map) == ".exr" ? PixelFormat::half : PixelFormat::uint8,
+                    "rayscan compare LDR-FLIP error map (Andersson et al. 2020): " + heat_ramp_legend(0.0, 1.0) +
+                        "; masked pixels blue");
+        res.flip_map = o.flip_map;
+      }
+    }
+    if (colour == 0 && !o.flip_map.empty())
+      throw invalid_argument("--flip-map: FLIP needs R,G,B or Y channels (compared: " + join(r.channels) + ")");
+  }
   res.judgement = judge(res.metrics, fail, warn);  // std::invalid_argument for an SSIM limit without SSIM
 
   // Heat map of the per-pixel error.
@@ -252,6 +312,9 @@ std::string compare_report_json(const CompareJobResult& res) {
   out["over_threshold"] = {
       {"fail", {{"threshold", m.fail_threshold}, {"pixels", m.over_fail}, {"percent", m.percent_over_fail()}}},
       {"warn", {{"threshold", m.warn_threshold}, {"pixels", m.over_warn}, {"percent", m.percent_over_warn()}}}};
+  out["flip"] = {{"mean", num(m.flip)}, {"signal", m.flip_signal},
+                 {"pixels_per_degree", res.flip_ppd > 0 ? num(res.flip_ppd) : nlohmann::ordered_json(nullptr)},
+                 {"map", res.flip_map.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(res.flip_map)}};
   out["nonfinite_mismatches"] = m.nonfinite_mismatches;
   if (!res.diff.empty())
     out["diff"] = {{"path", res.diff}, {"range", {0.0, res.diff_max}}, {"ramp", heat_ramp_legend(0.0, res.diff_max)},
@@ -282,6 +345,12 @@ std::string compare_report_text(const CompareJobResult& res) {
   s << "  SSIM            " << (std::isnan(m.ssim) ? std::string("n/a (image smaller than 11x11)") : g(m.ssim)) << " ("
     << m.ssim_signal << (m.ssim_signal == "luminance" ? " 0.2126 R + 0.7152 G + 0.0722 B" : "")
     << "; 11x11 Gaussian sigma 1.5, K1 0.01, K2 0.03, L " << g(res.used.ssim.dynamic_range) << ")\n";
+  s << "  FLIP            " << (std::isnan(m.flip) ? std::string("n/a") : g(m.flip, 6)) << " (mean LDR-FLIP; "
+    << m.flip_signal;
+  if (res.flip_ppd > 0) s << "; " << g(res.flip_ppd, 6) << " pixels per degree";
+  s << ")\n";
+  if (!res.flip_map.empty())
+    s << "  FLIP map        " << res.flip_map << ": " << heat_ramp_legend(0.0, 1.0) << "; masked pixels blue\n";
   if (m.per_channel.size() > 1)
     for (const ChannelStats& c : m.per_channel)
       s << "  channel " << c.name << std::string(c.name.size() < 8 ? 8 - c.name.size() : 0, ' ') << "MAE "

@@ -235,6 +235,11 @@ bool triggered(const CompareMetrics& m, const Limits& l, double over_percent,
           "every window centre masked)");
     if (m.ssim < l.min_ssim) reasons.push_back(fmt("SSIM %.6g < %.6g", m.ssim, l.min_ssim));
   }
+  if (l.max_flip < std::numeric_limits<double>::infinity()) {
+    if (std::isnan(m.flip))
+      throw std::invalid_argument("FLIP criterion given but FLIP is undefined (" + m.flip_signal + ")");
+    if (m.flip > l.max_flip) reasons.push_back(fmt("mean FLIP %.6g > %.6g", m.flip, l.max_flip));
+  }
   return reasons.size() > before;
 }
 

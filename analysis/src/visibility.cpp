@@ -1,6 +1,7 @@
 #include "rayscan/analysis/visibility.hpp"
 
 #include "rayscan/progress.hpp"
+#include "rayscan/render/surfel.hpp"
 #include "rayscan/threads.hpp"
 
 #include <tbb/blocked_range.h>
@@ -42,6 +43,17 @@ bool line_of_sight(const I& idx, std::span<const Vec3> positions, const Observer
   const double Da = glm::length(aim);
   if (Da <= r) return true;
   const Ray ray(obs.position, aim);
+  if (opts.surfels) {
+    // Surfel rule (header): no disc before the aim point except those of P's own surface.
+    const SurfelAttributes& sa = *opts.surfels;
+    const render::SurfelView view{positions, sa.normals, sa.radii, sa.max_radius};
+    const render::LeavingSurface target{i, p, Vec3(sa.normals[i]), sa.radii[i]};
+    RayQueryStats st;
+    const render::SurfelHit h =
+        render::first_surfel_hit(idx, view, ray, 0.0, Da - opts.tolerance, &target, true, hits, st);
+    queried = true;
+    return !(h.t < kInf);
+  }
   RayQuery q;
   q.k = 1;
   q.radius = r;
@@ -64,6 +76,8 @@ void check(const VisibilityOptions& o) {
   if (!(o.max_distance >= 0.0)) throw std::invalid_argument("visibility: max distance must be >= 0");
   if (!(o.target_height >= 0.0) || !std::isfinite(o.target_height))
     throw std::invalid_argument("visibility: target height must be a finite number >= 0");
+  if (o.surfels && o.surfels->radii.size() != o.surfels->normals.size())
+    throw std::invalid_argument("visibility: surfel normals and radii differ in count");
 }
 
 }  // namespace
@@ -72,6 +86,8 @@ bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Ob
                 PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch) {
   check(opts);
   if (i >= positions.size()) throw std::out_of_range("is_visible: point index out of range");
+  if (opts.surfels && opts.surfels->radii.size() != positions.size())
+    throw std::invalid_argument("visibility: surfel attributes were not computed for these positions");
   const double max_d = observer.max_distance.value_or(opts.max_distance);
   bool queried;
   double dist;
@@ -87,6 +103,8 @@ VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3>
   check(opts);
   if (index_size(index) != positions.size())
     throw std::invalid_argument("visibility: the index was not built over these positions");
+  if (opts.surfels && opts.surfels->radii.size() != positions.size())
+    throw std::invalid_argument("visibility: surfel attributes were not computed for these positions");
   const std::size_t n = positions.size(), m = observers.size();
   VisibilityResult res;
   res.count.assign(n, 0);

@@ -86,6 +86,8 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     throw invalid_argument("nothing to compute: give observers (--observers FILE or --observer X,Y[,Z]), "
                            "--sky-view N or --from-camera CAMERA.json");
   if (o.distance && !have_observers) throw invalid_argument("--distance needs observers");
+  if (o.primitive != "sphere" && o.primitive != "surfel")
+    throw invalid_argument("--primitive '" + o.primitive + "': expected sphere or surfel");
   std::string value = o.raster_value;
   if (value.empty()) value = have_observers ? "fraction" : o.sky_rays ? "sky" : "camera";
   static const char* values[] = {"fraction", "viewshed", "count", "distance", "sky", "camera"};
@@ -146,8 +148,25 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
                   r.radius.spacing, r.radius.factor, radius);
     ctl.info(buf);
   }
-  r.tolerance = o.tolerance.value_or(2.0 * radius);
-  r.target_height = o.target_height.value_or(radius);
+  const bool surfel = o.primitive == "surfel";
+  r.primitive = o.primitive;
+  r.tolerance = o.tolerance.value_or(surfel ? 0.0 : 2.0 * radius);
+  r.target_height = o.target_height.value_or(surfel ? 0.0 : radius);
+  SurfelAttributes surfels;
+  if (surfel) {
+    t0 = std::chrono::steady_clock::now();
+    try {
+      surfels = estimate_surfels(index, cloud.positions, o.surfel, cloud.normals);
+    } catch (const std::invalid_argument& e) {
+      throw invalid_argument(std::string("--primitive surfel: ") + e.what());
+    }
+    r.surfel_median_radius = surfels.median_radius;
+    r.surfel_max_radius = surfels.max_radius;
+    std::snprintf(buf, sizeof buf, "surfels: %s normals, median disc radius %.6g, max %.6g, in %.2f s",
+                  cloud.normals.empty() ? "PCA" : "file", surfels.median_radius, surfels.max_radius,
+                  seconds_since(t0));
+    ctl.info(buf);
+  }
   r.max_distance = o.max_distance.value_or(kInf);
 
   // ---- Observers.
@@ -162,6 +181,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     vo.tolerance = r.tolerance;
     vo.target_height = r.target_height;
     vo.max_distance = r.max_distance;
+    if (surfel) vo.surfels = &surfels;
     vo.threads = ctl.threads;
     vo.progress = ctl.progress;
     vis = compute_visibility(index, cloud.positions, observers, vo);
@@ -309,6 +329,9 @@ std::string visibility_report_json(const VisibilityJobResult& r) {
   if (!vis.count.empty()) {
     std::uint64_t seen = 0;
     for (std::uint32_t c : vis.count) seen += c > 0;
+    report["primitive"] = r.primitive;
+    if (r.primitive == "surfel")
+      report["surfel_radius"] = {{"median", r.surfel_median_radius}, {"max", r.surfel_max_radius}};
     report["tolerance"] = r.tolerance;
     report["target_height"] = r.target_height;
     report["max_distance"] = std::isfinite(r.max_distance) ? nlohmann::json(r.max_distance) : nlohmann::json("inf");

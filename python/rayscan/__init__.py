@@ -203,7 +203,8 @@ def compare(reference, image, channels=(), mask=False, alpha=False, resize=False
     (H, W) / (H, W, C) array (channels Y / R,G,B / R,G,B,A; values as given, e.g. linear floats).
 
     Returns a dict of metrics: "mae", "rmse", "psnr" (dB, as idiff), "max_error", "max_pixel"
-    (x, y, c), "ssim", "percent_over_fail", "pixels_compared", "per_channel" {name: {...}},
+    (x, y, c), "ssim", "flip" (mean LDR-FLIP; NaN unless R,G,B or Y), "percent_over_fail",
+    "pixels_compared", "per_channel" {name: {...}},
     "verdict" ("pass", "warn", "fail") and "reasons".
     """
     return _rayscan._compare(reference, image, list(channels), mask, alpha, resize, fail,

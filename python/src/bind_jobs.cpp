@@ -172,6 +172,7 @@ py::dict compare(const py::object& a, const py::object& b, const std::vector<std
   d["max_pixel"] = py::make_tuple(m.max_x, m.max_y, m.max_c);
   d["ssim"] = m.ssim;
   d["ssim_signal"] = m.ssim_signal;
+  d["flip"] = m.flip;  // mean LDR-FLIP (analysis/flip.hpp), NaN when not computed
   d["fail_threshold"] = m.fail_threshold;
   d["percent_over_fail"] = m.percent_over_fail();
   d["warn_threshold"] = m.warn_threshold;

@@ -1,6 +1,7 @@
 // Scene/camera JSON parsing. Every value is read through Obj, which records the JSON pointer of
 // what it reads so that an error names the exact field, and rejects keys it was not asked about.
 #include "rayscan/render/scene.hpp"
+#include "scene_json.hpp"
 
 #include "rayscan/file_names.hpp"
 #include "rayscan/io/camera_file.hpp"
@@ -216,8 +217,9 @@ bool is_image_file_name(const std::filesystem::path& file) { return has_extensio
 
 std::string image_file_name_expected() { return extensions_expected(image_extensions()); }
 
-Scene load_scene(const std::filesystem::path& file) {
-  const json j = parse_file(file);
+Scene load_scene(const std::filesystem::path& file) { return parse_scene_json(parse_file(file), file); }
+
+Scene parse_scene_json(const nlohmann::json& j, const std::filesystem::path& file) {
   const std::string f = file.string();
   Obj o(j, f, "");
   Scene s;

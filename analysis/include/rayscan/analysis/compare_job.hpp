@@ -20,6 +20,7 @@ struct Criteria {
   std::optional<double> max_error;  ///< any pixel error above this triggers (-hardfail)
   std::optional<double> min_psnr;   ///< PSNR below this (dB) triggers
   std::optional<double> min_ssim;   ///< SSIM below this triggers
+  std::optional<double> max_flip;   ///< mean FLIP above this triggers
   /// The Limits these criteria mean (see above).
   [[nodiscard]] Limits limits() const;
 };
@@ -41,6 +42,9 @@ struct CompareJobOptions {
   double ssim_range = 1.0;                     ///< SSIM dynamic range L
   std::string diff;                            ///< write the error heat map here ("" = no)
   std::optional<double> diff_max;              ///< error mapped to white (default: the max error)
+  bool flip = true;                            ///< compute mean LDR-FLIP (flip.hpp) for R,G,B or Y images
+  double flip_ppd = 67.02064327658226;         ///< FLIP observer's pixels per degree (flip_pixels_per_degree())
+  std::string flip_map;                        ///< write the FLIP error map here (heat ramp over [0, 1]; "" = no)
 };
 
 /// Output of run_compare().
@@ -56,10 +60,14 @@ struct CompareJobResult {
   std::string resize_filter;                   ///< filter used when resized
   double diff_max = 0.0;                       ///< heat-map range top (when diff was written)
   std::string diff;                            ///< heat map written ("" = none)
+  double flip_ppd = 0.0;                       ///< pixels per degree FLIP used (when computed)
+  std::string flip_map;                        ///< FLIP map written ("" = none)
 };
 
 /// Reads both images, picks channels, builds the mask, resizes if asked, computes the metrics
-/// (compare_images), judges them (judge) and writes the heat map. Throws std::invalid_argument
+/// (compare_images) and mean FLIP (flip(); R,G,B or Y channels only: PNG/JPEG/TIFF samples are
+/// taken as sRGB-encoded, EXR/HDR ones as linear and encoded first), judges them (judge) and
+/// writes the heat map and the FLIP map. Throws std::invalid_argument
 /// for a user error (missing channel, size mismatch without resize, bad mask, SSIM limit on a tiny
 /// image; one line), std::runtime_error "<file>: <reason>" for unreadable or unwritable files.
 CompareJobResult run_compare(const CompareJobOptions& options);

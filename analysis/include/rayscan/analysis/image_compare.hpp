@@ -51,6 +51,8 @@ struct CompareMetrics {
   std::vector<ChannelStats> per_channel;
   double ssim = 0;                     ///< NaN when the image is smaller than the SSIM window
   std::string ssim_signal;             ///< "luminance", or the channel(s) averaged
+  double flip = std::numeric_limits<double>::quiet_NaN();  ///< mean LDR-FLIP (flip.hpp); NaN when not computed
+  std::string flip_signal;             ///< why/how FLIP was computed ("RGB, sRGB-encoded", "Y as grey", or why not)
   double fail_threshold = 0, warn_threshold = 0;  ///< the pixel-error thresholds counted
   std::size_t over_fail = 0, over_warn = 0;       ///< pixels whose error exceeds them
   [[nodiscard]] double percent_over_fail() const { return percent(over_fail); }
@@ -95,7 +97,7 @@ Image error_heatmap(std::span<const float> errors, int width, int height, double
 /// One level (fail or warn) of idiff-style criteria. A level triggers when ANY enabled test
 /// does: the pixel test (more than `percent` % of compared pixels have an error above
 /// `threshold`), any pixel error above `max_error` (idiff -hardfail), PSNR below `min_psnr`,
-/// SSIM below `min_ssim`.
+/// SSIM below `min_ssim`, mean FLIP above `max_flip`.
 struct Limits {
   bool pixel_test = true;
   double threshold = 1e-6;
@@ -103,6 +105,7 @@ struct Limits {
   double max_error = std::numeric_limits<double>::infinity();
   double min_psnr = -std::numeric_limits<double>::infinity();
   double min_ssim = -std::numeric_limits<double>::infinity();
+  double max_flip = std::numeric_limits<double>::infinity();  ///< mean FLIP above this triggers
 };
 
 enum class Verdict { pass, warn, fail };
@@ -115,7 +118,8 @@ struct Judgement {
 
 /// Apply fail then warn limits to `m` (whose fail/warn thresholds must be those of the limits'
 /// pixel tests). Throws std::invalid_argument when a min_ssim is set but SSIM is undefined
-/// (image smaller than the window) or was not computed.
+/// (image smaller than the window) or was not computed, or a max_flip is set but FLIP was not
+/// computed (channels other than RGB or Y).
 Judgement judge(const CompareMetrics& m, const Limits& fail, const Limits& warn);
 
 /// "pass", "warn" or "fail".

@@ -11,6 +11,7 @@
 #include "rayscan/any_index.hpp"
 #include "rayscan/ray_query.hpp"
 #include "rayscan/camera.hpp"
+#include "rayscan/normals.hpp"
 
 #include <cstdint>
 #include <span>
@@ -26,6 +27,10 @@ struct VisibilityOptions {
   double max_distance = kInf; ///< observers see no farther than this (each may override), world units
   unsigned threads = 0;       ///< worker threads; 0 = all cores (results are identical)
   bool progress = false;      ///< draw a progress bar on stderr (only if stderr is a terminal)
+  /// Surfel mode (issue 16, section 5): when set, every point is the oriented disc of these
+  /// attributes (indexed like the positions; estimate_surfels) instead of a sphere of `radius`,
+  /// and is_visible() uses the surfel rule. Must outlive the call.
+  const SurfelAttributes* surfels = nullptr;
 };
 
 /// Per-point results of compute_visibility(), indexed like the cloud's positions.
@@ -63,8 +68,8 @@ bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Ob
                 PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch);
 
 /// is_visible() for every point and observer. Observers must have a resolved z (place_observers).
-/// Throws std::invalid_argument for radius <= 0, a negative or NaN tolerance or max distance, or an
-/// index whose size differs from positions.
+/// Throws std::invalid_argument for radius <= 0, a negative or NaN tolerance or max distance, an
+/// index whose size differs from positions, or surfel attributes of another size.
 VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3> positions,
                                     std::span<const Observer> observers, const VisibilityOptions& opts);
 

@@ -31,6 +31,9 @@ struct VisibilityJobOptions {
   IndexOptions index;                   ///< index type (default octree-adaptive)
   std::optional<double> radius;         ///< sphere radius, world units; nullopt = auto
   double radius_factor = 1.0;           ///< auto radius = factor x median NN spacing (choose_radius)
+  std::string primitive = "sphere";     ///< "sphere" (the paper's model) or "surfel" (oriented discs:
+                                        ///< PCA normals, per-point radii; estimate_surfels with `surfel`)
+  SurfelOptions surfel;                 ///< surfel normals and radii (orientation: +z up unless set)
 
   // ---- Observers (line of sight, VisibilityOptions / is_visible).
   std::vector<Observer> observers;      ///< given in code or parsed with parse_observer()
@@ -39,8 +42,8 @@ struct VisibilityJobOptions {
   std::optional<double> ground_radius;  ///< local-ground search radius (default 5 x radius)
   std::optional<AngleRange> azimuth;    ///< limit for observers without one
   std::optional<AngleRange> elevation;  ///< limit for observers without one
-  std::optional<double> tolerance;      ///< along-ray tolerance (default 2 x radius)
-  std::optional<double> target_height;  ///< aim height above each point (default 1 x radius)
+  std::optional<double> tolerance;      ///< along-ray tolerance (default 2 x radius; surfels: 0)
+  std::optional<double> target_height;  ///< aim height above each point (default 1 x radius; surfels: 0)
   std::optional<double> max_distance;   ///< viewing range (default unlimited)
   bool distance = false;                ///< add the field visible_distance
 
@@ -71,7 +74,10 @@ struct VisibilityJobResult {
                                         ///< sky_view, camera_hits (those computed)
   io::FileInfo info;                    ///< what the reader found (format, scale, offset) for cloud_file
   std::string source;                   ///< cloud_file, or "(memory)"
-  RadiusChoice radius;                  ///< radius used
+  RadiusChoice radius;                  ///< radius used (spheres; with surfels the ground search and sky lift scale)
+  std::string primitive = "sphere";     ///< "sphere" or "surfel"
+  double surfel_median_radius = 0.0;    ///< median disc radius (surfels)
+  double surfel_max_radius = 0.0;       ///< largest disc radius (surfels)
   double tolerance = 0.0, target_height = 0.0, max_distance = kInf;  ///< line-of-sight values used
   std::vector<Observer> observers;      ///< placed on the ground (z resolved)
   VisibilityResult line_of_sight;       ///< per point / per observer counts (empty without observers)
