@@ -6,6 +6,8 @@
 
 #include "atomic_writer.hpp"
 #include "bytes.hpp"
+#include "rayscan/file_names.hpp"
+#include "rayscan/io/translate.hpp"
 
 #include <algorithm>
 #include <array>
@@ -40,7 +42,40 @@ T clamp_to(double v) {
 
 }  // namespace
 
+namespace {
+void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options);
+}  // namespace
+
 void write_las(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options) {
+  if (lower_extension(path) != ".laz") {
+    write_las_records(path, cloud, options);
+    return;
+  }
+  // LAZ: the LAS bytes go to a hidden sibling file, then translate_las compresses them (layered
+  // encoder for PDRF 6-8) into `path` through its own AtomicFile; the sibling is always removed.
+  const std::filesystem::path plain =
+      path.parent_path() / ("." + path.filename().string() + ".las.tmp." + std::to_string(::getpid()));
+  struct Remove {
+    std::filesystem::path p;
+    ~Remove() {
+      std::error_code ec;
+      std::filesystem::remove(p, ec);
+    }
+  } guard{plain};
+  try {
+    write_las_records(plain, cloud, options);
+  } catch (const std::invalid_argument& e) {  // name the file the caller asked for
+    std::string what = e.what();
+    if (what.rfind(plain.string(), 0) == 0) what = path.string() + what.substr(plain.string().size());
+    throw std::invalid_argument(what);
+  }
+  TranslateOptions t;
+  t.compression = LasCompression::laz;
+  translate_las(plain, path, t);
+}
+
+namespace {
+void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options) {
   try {
     cloud.validate();
   } catch (const std::invalid_argument& e) {
@@ -234,5 +269,7 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
   }
   w.commit();
 }
+
+}  // namespace
 
 }  // namespace rayscan::io
