@@ -43,7 +43,8 @@ T clamp_to(double v) {
 }  // namespace
 
 namespace {
-void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options);
+void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options,
+                       bool direct = false);
 }  // namespace
 
 void write_las(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options) {
@@ -51,7 +52,8 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
     write_las_records(path, cloud, options);
     return;
   }
-  // LAZ: the LAS bytes go to a hidden sibling file, then translate_las compresses them (layered
+  // LAZ: the LAS bytes go to a hidden sibling file (written directly: inside an OutputTransaction
+  // an AtomicFile's rename would be deferred), then translate_las compresses them (layered
   // encoder for PDRF 6-8) into `path` through its own AtomicFile; the sibling is always removed.
   const std::filesystem::path plain =
       path.parent_path() / ("." + path.filename().string() + ".las.tmp." + std::to_string(::getpid()));
@@ -63,7 +65,7 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
     }
   } guard{plain};
   try {
-    write_las_records(plain, cloud, options);
+    write_las_records(plain, cloud, options, true);
   } catch (const std::invalid_argument& e) {  // name the file the caller asked for
     std::string what = e.what();
     if (what.rfind(plain.string(), 0) == 0) what = path.string() + what.substr(plain.string().size());
@@ -75,7 +77,9 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
 }
 
 namespace {
-void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options) {
+/// The LAS writer proper; `direct` writes `path` without a temporary (see AtomicWriter).
+void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options,
+                       bool direct) {
   try {
     cloud.validate();
   } catch (const std::invalid_argument& e) {
@@ -157,7 +161,7 @@ void write_las_records(const std::filesystem::path& path, const PointCloud& clou
     throw std::invalid_argument(path.string() + ": VLRs too large for a LAS header");
   const std::uint64_t evlr_start = wkt_evlr ? point_offset + static_cast<std::uint64_t>(rec_len) * n : 0;
 
-  detail::AtomicWriter w(path);
+  detail::AtomicWriter w(path, direct);
   // Public header block (table 3).
   w.write("LASF", 4);
   w.put<std::uint16_t>(0);                         // file source id
