@@ -453,6 +453,7 @@ class Byte14V3Enc {
 /// item in item order). Reusable across chunks (the buffers keep their capacity).
 class LayeredChunkEncoder {
  public:
+  /// Encoder for point data record format `pdrf` (6, 7 or 8) with `extra` bytes per record.
   LayeredChunkEncoder(int pdrf, std::size_t extra) : pdrf_(pdrf), extra_(extra) {
     std::size_t n = Point14V3Enc::kLayers;
     if (pdrf == 7) n += 1;
@@ -463,6 +464,8 @@ class LayeredChunkEncoder {
     if (extra > 0) bytes_.emplace(extra);
   }
 
+  /// Appends the chunk of records recs[0, n * rec) (n >= 1, rec = 30/36/38 + extra bytes) to
+  /// `out`. Never throws for any field values (all coder arithmetic wraps in unsigned).
   void encode(const std::uint8_t* recs, std::size_t n, std::size_t rec, std::vector<std::uint8_t>& out) {
     out.insert(out.end(), recs, recs + rec);
     for (LayerSink& s : sinks_) s.reset();
