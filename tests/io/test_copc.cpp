@@ -60,7 +60,9 @@ TEST(Copc, IndexRayQueriesEqualBruteForceAndDecodeLazily) {
       EXPECT_EQ(got[i].index, want[i].index) << "query " << q;
       EXPECT_EQ(got[i].t, want[i].t);
     }
-    if (q == 0) EXPECT_LT(idx.resident_nodes(), idx.node_count()) << "a single narrow ray touched every node";
+    if (q == 0) {
+      EXPECT_LT(idx.resident_nodes(), idx.node_count()) << "a single narrow ray touched every node";
+    }
     if (q % 10 == 9) idx.trim_cache();  // evicted nodes are decoded again on the next touch
   }
   EXPECT_GT(idx.decodes(), 0u);

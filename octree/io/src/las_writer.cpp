@@ -55,8 +55,11 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
   // LAZ: the LAS bytes go to a hidden sibling file (written directly: inside an OutputTransaction
   // an AtomicFile's rename would be deferred), then translate_las compresses them (layered
   // encoder for PDRF 6-8) into `path` through its own AtomicFile; the sibling is always removed.
-  const std::filesystem::path plain =
-      path.parent_path() / ("." + path.filename().string() + ".las.tmp." + std::to_string(::getpid()));
+  std::string plain_name = ".";  // built by appending (GCC 12 -Wrestrict false positive on "." + s)
+  plain_name += path.filename().string();
+  plain_name += ".las.tmp.";
+  plain_name += std::to_string(::getpid());
+  const std::filesystem::path plain = path.parent_path() / plain_name;
   struct Remove {
     std::filesystem::path p;
     ~Remove() {
