@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # LAZ decode throughput: rayscan (1 and 2 threads) interleaved with laz-perf (npm, WASM) under
-# Node on the same files, ROUNDS rounds; then encode throughput/ratio and COPC time to first ray.
+# Node on the same files, ROUNDS rounds; then encode throughput/ratio (pointwise PDRF 3 and
+# layered PDRF 8 against LASzip's size) and COPC time to first ray.
 # Usage: bench/laz.sh [BUILD_DIR (default build)] [ROUNDS (default 3)]
 # laz-perf is installed with npm into ${RAYSCAN_NPM_CACHE:-$HOME/.cache/rayscan-npm} (outside
 # the repository); without npm/node the laz-perf rows are skipped.
@@ -25,6 +26,14 @@ for f in las_with_several_extra_byte_bloc.laz lone-star.laz autzen_trim.laz; do
   done
 done
 tmp=$(mktemp -d)
-for r in $(seq "$ROUNDS"); do "$B" encode ../shared/data/las/autzen_trim.las "$tmp/a.laz"; done
+for r in $(seq "$ROUNDS"); do
+  "$B" encode ../shared/data/las/autzen_trim.las "$tmp/a.laz"  # PDRF 3: pointwise-chunked, v2 items
+  # PDRF 8 + extra bytes: layered-chunked, v3 items; compare with LASzip's file of the same records
+  le=../shared/data/las/derived/las_with_several_extra_byte_bloc.las
+  if [ -f "$le" ]; then
+    "$B" encode "$le" "$tmp/b.laz"
+    echo "layered size: rayscan $(stat -c %s "$tmp/b.laz") bytes, LASzip $(stat -c %s "$DATA/las_with_several_extra_byte_bloc.laz") bytes"
+  fi
+done
 rm -rf "$tmp"
 [ -f "$DATA/lone-star.copc.laz" ] && for r in $(seq "$ROUNDS"); do "$B" copc "$DATA/lone-star.copc.laz"; done

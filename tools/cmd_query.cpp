@@ -2,6 +2,7 @@
 // io::run_query (rayscan/io/query_job.hpp).
 #include "commands.hpp"
 
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/io/query_job.hpp"
 #include "atomic_file.hpp"
 
@@ -12,7 +13,7 @@ namespace rayscan::cli {
 namespace {
 
 struct QueryOptions {
-  std::string cloud, rays, out, order = "ray";
+  std::string cloud, rays, out, order = "ray", cache = "2G";
   IndexOptions index;
   long long k = -1;
   double radius = kInf, t_min = -kInf, t_max = kInf;
@@ -47,6 +48,11 @@ int run_query(const QueryOptions& o) {
   job.rays_file = o.rays;
   job.query = q;
   job.index = o.index;
+  try {
+    job.cache_bytes = static_cast<std::size_t>(io::parse_byte_size(o.cache));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--cache: ") + e.what());
+  }
   const io::QueryJobResult r = io::run_query(job);
   AtomicOutput out(o.out);
   io::write_hits_csv(out.stream(), r);
@@ -89,6 +95,10 @@ Runner add_query_command(CLI::App& app) {
   c->add_flag("--insertion", o->index.insertion,
               "Build the octree by point insertion instead of Morton bulk loading (octrees only)");
   c->add_option("--out", o->out, "Output CSV (default: standard output)");
+  c->add_option("--cache", o->cache,
+                "COPC input: bound on decoded node data kept in memory (LRU; e.g. 2G, 512M). A COPC file is "
+                "queried on its own hierarchy, decoding only the nodes the rays reach")
+      ->capture_default_str();
   return [o, depth_opt] {
     o->depth_given = depth_opt->count() > 0;
     return run_query(*o);

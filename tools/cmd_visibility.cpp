@@ -86,7 +86,7 @@ Runner add_visibility_command(CLI::App& app) {
       "sight through the point spheres), sky view factor, points seen by a camera; written as "
       "scalar fields to LAS/PLY and as a GeoTIFF map with a PNG preview (analysis/README.md).");
   c->add_option("cloud", o->cloud, "Point cloud (LAS, PLY, PCD, text)")->required();
-  c->add_option("-o,--out", o->out, "Write the cloud with the result fields here (.las or .ply)");
+  c->add_option("-o,--out", o->out, "Write the cloud with the result fields here (.las, .laz or .ply)");
   c->add_option("--observers", o->observers_file, "Observer list (.json or .csv; see analysis/README.md)");
   c->add_option("--observer", o->observer_args,
                 "An observer X,Y,Z (absolute eye) or X,Y (eye at --height above the local ground); world units "

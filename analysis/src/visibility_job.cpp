@@ -55,7 +55,7 @@ void check_output_folder(const char* option, const std::filesystem::path& path) 
     throw invalid_argument(std::string(option) + " '" + path.string() + "': '" + dir.string() + "' is not a folder");
 }
 
-const std::vector<std::string> kCloudOutputs{".las", ".ply"};
+const std::vector<std::string> kCloudOutputs{".las", ".laz", ".ply"};
 
 }  // namespace
 
@@ -240,7 +240,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   // ---- Outputs: one transaction (issue 8), so a failing raster leaves the old --out intact.
   OutputTransaction tx;
   if (!o.out.empty()) {
-    if (lower_extension(o.out) == ".las") {
+    if (lower_extension(o.out) != ".ply") {  // .las or .laz (write_las compresses .laz)
       io::LasWriteOptions lo;
       if ((r.info.format == "LAS" || r.info.format == "LAZ" || r.info.format == "COPC") && r.info.scale &&
           r.info.offset) {  // keep the source's integer grid

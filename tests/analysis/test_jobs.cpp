@@ -133,7 +133,7 @@ TEST(VisibilityJob, OptionErrorsComeBeforeAnyWork) {
   o.raster = "";
   o.cell.reset();
   o.out = "x.xyz";
-  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "--out 'x.xyz': expected a file name ending in .las or .ply");
+  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "--out 'x.xyz': expected a file name ending in .las, .laz or .ply");
   o.out = "";
   o.raster_value = "count";
   o.raster = "m.tif";

@@ -9,6 +9,7 @@
 #include "rayscan/analysis/visibility.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/io/camera_file.hpp"
+#include "rayscan/io/las_records.hpp"
 
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
@@ -349,6 +350,18 @@ TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
   EXPECT_NE(r.out.find("\"visible_points\""), std::string::npos) << r.out;
   r = run(common + " -o " + ply.string());
   ASSERT_EQ(r.code, 0) << r.out;
+  // -o .laz: the same LAS records through the LAZ (layered, LASzip 3) writer
+  const fs::path laz = tmpdir() / "out.laz";
+  r = run(common + " -o " + laz.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  {
+    const io::LasRecords zl = io::read_las_records(laz), pl = io::read_las_records(las);
+    EXPECT_TRUE(zl.compressed);
+    EXPECT_FALSE(pl.compressed);
+    EXPECT_EQ(zl.pdrf, pl.pdrf);
+    EXPECT_TRUE(zl.records == pl.records);
+    EXPECT_LT(fs::file_size(laz), fs::file_size(las));
+  }
   EXPECT_TRUE(fs::exists(tmpdir() / "vis.png"));
   EXPECT_FALSE(has_temp_files(tmpdir()));
 
@@ -370,7 +383,7 @@ TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
     if (in.positions[i].z == 0 && in.positions[i].x > 6 && std::abs(in.positions[i].y) < 3) {
       EXPECT_EQ(first.count[i], 0u) << in.positions[i].x << "," << in.positions[i].y;
     }
-  for (const fs::path& f : {las, ply}) {
+  for (const fs::path& f : {las, ply, laz}) {
     const PointCloud out = io::read_point_cloud(f);
     ASSERT_EQ(out.size(), in.size()) << f;
     const ScalarField* cnt = out.scalar("visible_count");
@@ -398,7 +411,7 @@ TEST_F(VisibilityCli, UserErrorsExitTwoAndWriteNothing) {
   };
   const std::string s = scene().string();
   expect_error(s + " -o " + out.string(), "nothing to compute");
-  expect_error(s + " --observer 0,0,2 -o " + (tmpdir() / "x.xyz").string(), "expected a file name ending in .las or .ply");
+  expect_error(s + " --observer 0,0,2 -o " + (tmpdir() / "x.xyz").string(), "expected a file name ending in .las, .laz or .ply");
   expect_error(s + " --observer 0,0 -o " + out.string(), "--observer '0,0': observer 1: no z and no height");
   expect_error(s + " --observer 50,50 --height 2 -o " + out.string(), "no point within the ground radius");
   expect_error(s + " --observer 0,0,x -o " + out.string(), "is not a finite number");

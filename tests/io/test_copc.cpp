@@ -4,9 +4,11 @@
 
 #include "rayscan/brute_force.hpp"
 #include "rayscan/io/copc.hpp"
+#include "rayscan/io/query_job.hpp"
 #include "rayscan/ray_query.hpp"
 
 #include <random>
+#include <sstream>
 
 namespace rayscan::test {
 namespace {
@@ -58,10 +60,61 @@ TEST(Copc, IndexRayQueriesEqualBruteForceAndDecodeLazily) {
       EXPECT_EQ(got[i].index, want[i].index) << "query " << q;
       EXPECT_EQ(got[i].t, want[i].t);
     }
-    if (q == 0) EXPECT_LT(idx.resident_nodes(), idx.node_count()) << "a single narrow ray touched every node";
+    if (q == 0) {
+      EXPECT_LT(idx.resident_nodes(), idx.node_count()) << "a single narrow ray touched every node";
+    }
     if (q % 10 == 9) idx.trim_cache();  // evicted nodes are decoded again on the next touch
   }
   EXPECT_GT(idx.decodes(), 0u);
+}
+
+TEST(Copc, QueryJobRunsOnTheHierarchyAndEqualsTheWholeFilePath) {
+  // run_query on a COPC file goes through CopcIndex (decoding only the nodes the rays reach); the
+  // same rays on the whole decoded cloud with the brute-force index are the oracle.
+  RAYSCAN_REQUIRE_FILE(p, "laz/lone-star.copc.laz");
+  EXPECT_TRUE(io::is_copc_file(p));
+  const PointCloud pc = io::read_point_cloud(p, io::ReadOptions{.scalars = false});
+  const AABB b = pc.bounds();
+  // A ray grazing one corner of the bounding box: it must reach only a few nodes.
+  const Vec3 corner = b.lo + (b.hi - b.lo) * 0.02;
+  io::QueryJobOptions copc;
+  copc.cloud_file = p;
+  copc.query.radius = 0.5;
+  copc.cache_bytes = std::size_t{8} << 20;
+  copc.rays = {Ray(corner - Vec3(0, 0, 100), Vec3(0, 0, 1))};
+  const io::QueryJobResult one = io::run_query(copc);
+  EXPECT_EQ(one.copc_nodes, io::CopcIndex(p).node_count());
+  EXPECT_GT(one.copc_decodes, 0u);
+  EXPECT_LT(one.copc_decodes, one.copc_nodes) << "a corner ray decoded every node";
+  // Many rays: hits and hit positions equal the whole-file path.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(0, 1);
+  copc.rays.clear();
+  for (int q = 0; q < 30; ++q)
+    copc.rays.emplace_back(b.lo + Vec3(u(rng), u(rng), u(rng)) * (b.hi - b.lo),
+                           Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5));
+  copc.query.k = 4;
+  copc.query.radius = 0.3;
+  io::QueryJobOptions whole = copc;
+  whole.cloud = &pc;
+  whole.index.type = "brute";
+  const io::QueryJobResult a = io::run_query(copc), w = io::run_query(whole);
+  ASSERT_EQ(a.hits.size(), w.hits.size());
+  std::size_t flat = 0, total = 0;
+  for (std::size_t r = 0; r < a.hits.size(); ++r) {
+    ASSERT_EQ(a.hits[r].size(), w.hits[r].size()) << "ray " << r;
+    for (std::size_t k = 0; k < a.hits[r].size(); ++k, ++flat) {
+      EXPECT_EQ(a.hits[r][k].index, w.hits[r][k].index) << "ray " << r;
+      EXPECT_EQ(a.hits[r][k].t, w.hits[r][k].t);
+      EXPECT_EQ(a.hit_positions[flat], pc.positions[a.hits[r][k].index]);
+    }
+    total += a.hits[r].size();
+  }
+  EXPECT_GT(total, 0u);
+  // the CSV of a COPC query prints the positions (as for an index file)
+  std::ostringstream csv;
+  io::write_hits_csv(csv, a);
+  EXPECT_NE(csv.str().find("ray,rank,index"), std::string::npos);
 }
 
 }  // namespace

@@ -2,6 +2,8 @@
 // when written with the source's scale and offset, otherwise within half a scale unit).
 #include "io_test_util.hpp"
 
+#include "rayscan/io/las_records.hpp"
+
 #include <cmath>
 #include <random>
 
@@ -43,6 +45,28 @@ TEST(Writers, LasRoundTripOfAutzenIsBitExactWithTheSourceScaleAndOffset) {
   for (const auto& de : fs::directory_iterator(out.parent_path()))  // no temporary left behind
     EXPECT_EQ(de.path().filename().string().find(".tmp."), std::string::npos) << de.path();
   fs::remove(out);
+}
+
+TEST(Writers, LazPathWritesTheSameRecordsCompressed) {
+  // write_las to a .laz path: the records of the .las written from the same cloud, through the
+  // layered LAZ encoder (PDRF 7 here, plus one float64 extra byte field), no temporary left.
+  RAYSCAN_REQUIRE_FILE(p, "las/autzen_trim.las");
+  PointCloud src = io::read_point_cloud(p);
+  src.scalars.push_back({"score", std::vector<double>(src.size())});
+  for (std::size_t i = 0; i < src.size(); ++i) src.scalars.back().values[i] = static_cast<double>(i % 13) * 0.5;
+  const fs::path dir = temp_dir() / "lazw";
+  fs::create_directories(dir);
+  io::write_las(dir / "a.las", src);
+  io::write_las(dir / "a.LAZ", src);
+  const io::LasRecords las = io::read_las_records(dir / "a.las"), laz = io::read_las_records(dir / "a.LAZ");
+  EXPECT_FALSE(las.compressed);
+  EXPECT_TRUE(laz.compressed);
+  EXPECT_EQ(laz.pdrf, 7);
+  EXPECT_TRUE(laz.records == las.records);
+  EXPECT_LT(fs::file_size(dir / "a.LAZ"), fs::file_size(dir / "a.las") / 3);
+  for (const auto& de : fs::directory_iterator(dir))
+    EXPECT_EQ(de.path().filename().string().find(".tmp."), std::string::npos) << de.path();
+  fs::remove_all(dir);
 }
 
 TEST(Writers, LasAutomaticScaleKeepsCoordinatesWithinHalfAUnit) {

@@ -8,8 +8,10 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <fcntl.h>
 #include <unistd.h>
 #include <vector>
 
@@ -17,8 +19,18 @@ namespace rayscan::io::detail {
 
 class AtomicWriter {
  public:
-  explicit AtomicWriter(const std::filesystem::path& path) : path_(path), file_(path) {
-    f_ = std::fopen(file_.temp().c_str(), "wb");
+  /// `direct`: write straight to `path` (no temporary, no rename; for an intermediate file the
+  /// caller removes itself, e.g. the plain LAS that write_las compresses into a .laz output).
+  explicit AtomicWriter(const std::filesystem::path& path, bool direct = false) : path_(path) {
+    if (!direct) {
+      file_.emplace(path);
+      f_ = std::fopen(file_->temp().c_str(), "wb");
+    } else {  // created exclusively, never through a planted link (as AtomicFile's temporary)
+      std::error_code ec;
+      std::filesystem::remove(path, ec);
+      const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+      if (fd >= 0 && (f_ = ::fdopen(fd, "wb")) == nullptr) ::close(fd);
+    }
     if (f_ == nullptr) throw std::runtime_error(path.string() + ": cannot create output file");
     buf_.reserve(kBuffer);
   }
@@ -48,7 +60,7 @@ class AtomicWriter {
       throw std::runtime_error(path_.string() + ": write failed");
     std::fclose(f_);
     f_ = nullptr;
-    file_.commit();
+    if (file_) file_->commit();
   }
 
  private:
@@ -59,7 +71,7 @@ class AtomicWriter {
     buf_.clear();
   }
   std::filesystem::path path_;
-  AtomicFile file_;
+  std::optional<AtomicFile> file_;
   std::FILE* f_ = nullptr;
   std::vector<std::uint8_t> buf_;
 };

@@ -6,6 +6,8 @@
 
 #include "atomic_writer.hpp"
 #include "bytes.hpp"
+#include "rayscan/file_names.hpp"
+#include "rayscan/io/translate.hpp"
 
 #include <algorithm>
 #include <array>
@@ -40,7 +42,47 @@ T clamp_to(double v) {
 
 }  // namespace
 
+namespace {
+void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options,
+                       bool direct = false);
+}  // namespace
+
 void write_las(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options) {
+  if (lower_extension(path) != ".laz") {
+    write_las_records(path, cloud, options);
+    return;
+  }
+  // LAZ: the LAS bytes go to a hidden sibling file (written directly: inside an OutputTransaction
+  // an AtomicFile's rename would be deferred), then translate_las compresses them (layered
+  // encoder for PDRF 6-8) into `path` through its own AtomicFile; the sibling is always removed.
+  std::string plain_name = ".";  // built by appending (GCC 12 -Wrestrict false positive on "." + s)
+  plain_name += path.filename().string();
+  plain_name += ".las.tmp.";
+  plain_name += std::to_string(::getpid());
+  const std::filesystem::path plain = path.parent_path() / plain_name;
+  struct Remove {
+    std::filesystem::path p;
+    ~Remove() {
+      std::error_code ec;
+      std::filesystem::remove(p, ec);
+    }
+  } guard{plain};
+  try {
+    write_las_records(plain, cloud, options, true);
+  } catch (const std::invalid_argument& e) {  // name the file the caller asked for
+    std::string what = e.what();
+    if (what.rfind(plain.string(), 0) == 0) what = path.string() + what.substr(plain.string().size());
+    throw std::invalid_argument(what);
+  }
+  TranslateOptions t;
+  t.compression = LasCompression::laz;
+  translate_las(plain, path, t);
+}
+
+namespace {
+/// The LAS writer proper; `direct` writes `path` without a temporary (see AtomicWriter).
+void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options,
+                       bool direct) {
   try {
     cloud.validate();
   } catch (const std::invalid_argument& e) {
@@ -122,7 +164,7 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
     throw std::invalid_argument(path.string() + ": VLRs too large for a LAS header");
   const std::uint64_t evlr_start = wkt_evlr ? point_offset + static_cast<std::uint64_t>(rec_len) * n : 0;
 
-  detail::AtomicWriter w(path);
+  detail::AtomicWriter w(path, direct);
   // Public header block (table 3).
   w.write("LASF", 4);
   w.put<std::uint16_t>(0);                         // file source id
@@ -234,5 +276,7 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
   }
   w.commit();
 }
+
+}  // namespace
 
 }  // namespace rayscan::io

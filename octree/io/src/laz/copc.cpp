@@ -7,6 +7,7 @@
 #include "rayscan/io/copc.hpp"
 
 #include "laz.hpp"
+#include "rayscan/io/point_io.hpp"
 
 #include <sys/mman.h>
 #include <unistd.h>
@@ -16,6 +17,7 @@
 #include <cmath>
 #include <map>
 #include <set>
+#include <stdexcept>
 #include <tuple>
 
 namespace rayscan::io {
@@ -155,6 +157,17 @@ CopcInfo read_copc_info(const std::filesystem::path& path) {
   return read_copc_info(m.bytes(), path.string());
 }
 
+bool is_copc_file(const std::filesystem::path& path) {
+  try {
+    if (format_from_extension(path) != Format::las) return false;
+    const laz::FileMap m(path);
+    const detail::Input in{m.bytes(), path.string(), {}};
+    return laz::parse_header_lite(in).copc_info.present;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
 namespace {
 constexpr std::size_t kSlotAlign = 1024;  // 1024 * 24 B and 1024 * 4 B are whole 4 KiB pages
 void* reserve(std::size_t bytes) {
@@ -214,6 +227,10 @@ CopcIndex::CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes)
     }
     nodes_.push_back(nd);
   }
+  for (Node i = 0; i < nodes_.size(); ++i)
+    if (nodes_[i].slots.size() > 0) by_first_id_.push_back(i);
+  std::sort(by_first_id_.begin(), by_first_id_.end(),
+            [&](Node a, Node b) { return nodes_[a].first_id < nodes_[b].first_id; });
   pos_ = static_cast<Vec3*>(reserve(slots_ * sizeof(Vec3)));
   ids_ = static_cast<PointIndex*>(reserve(slots_ * sizeof(PointIndex)));
   loaded_ = std::make_unique<std::atomic<std::uint8_t>[]>(nodes_.size());
@@ -261,6 +278,17 @@ void CopcIndex::load(Node n) const {
   }
   decodes_.fetch_add(1);
   loaded_[n].store(1, std::memory_order_release);
+}
+
+Vec3 CopcIndex::position_of(PointIndex id) const {
+  auto it = std::upper_bound(by_first_id_.begin(), by_first_id_.end(), static_cast<std::uint64_t>(id),
+                             [&](std::uint64_t v, Node n) { return v < nodes_[n].first_id; });
+  if (it == by_first_id_.begin()) throw std::out_of_range(name_ + ": no point " + std::to_string(id));
+  const Node n = *--it;
+  const SlotRange s = node_points(n);
+  const std::uint64_t k = static_cast<std::uint64_t>(id) - nodes_[n].first_id;
+  if (k >= s.size()) throw std::out_of_range(name_ + ": no point " + std::to_string(id));
+  return pos_[s.begin + k];
 }
 
 std::size_t CopcIndex::resident_nodes() const {

@@ -13,6 +13,16 @@
 
 namespace rayscan::io::laz {
 
+/// LASzip's GPS-time multiplier: round(d / last_diff) in float (I32_QUANTIZE), clamped first so
+/// the float-to-int conversion never overflows (values past +-1e6 code the same symbol as 500
+/// or -10 anyway). Reference: laswriteitemcompressed_v2.cpp/_v3.cpp write_gps_time.
+inline std::int32_t gps_multiplier(std::int32_t d, std::int32_t last_diff) {
+  float mf = static_cast<float>(d) / static_cast<float>(last_diff);
+  if (mf > 1e6f) mf = 1e6f;
+  if (mf < -1e6f) mf = -1e6f;
+  return static_cast<std::int32_t>(mf >= 0 ? mf + 0.5f : mf - 0.5f);
+}
+
 /// Range encoder writing into a growing byte vector.
 class ArithmeticEncoder {
  public:
@@ -70,10 +80,12 @@ class ArithmeticEncoder {
     write_short(sym & 0xFFFFu);
     write_short(sym >> 16);
   }
-  /// Flushes the final bytes and three zero bytes (so a decoder never needs bytes beyond).
+  /// Flushes the final one or two bytes and then three or two zero bytes, four in all, exactly
+  /// the bytes a decoder reads past the last renormalisation (LASzip ArithmeticEncoder::done).
   void done() {
     const std::uint32_t init = base_;
-    if (length_ > 2 * kMinLength) {
+    const bool another_byte = length_ > 2 * kMinLength;
+    if (another_byte) {
       base_ += kMinLength;
       length_ = kMinLength >> 1;
     } else {
@@ -84,7 +96,7 @@ class ArithmeticEncoder {
     renorm();
     out_.push_back(0);
     out_.push_back(0);
-    out_.push_back(0);
+    if (another_byte) out_.push_back(0);
   }
 
  private:
@@ -272,8 +284,7 @@ class GpsTime11V2Enc {
       const std::int64_t d64 = wrap_sub(t, last_time_[last_]);
       if (d64 == static_cast<std::int32_t>(d64)) {
         const auto d = static_cast<std::int32_t>(d64);
-        const float mf = static_cast<float>(d) / static_cast<float>(last_diff_[last_]);
-        const auto multi = static_cast<std::int32_t>(mf >= 0 ? mf + 0.5f : mf - 0.5f);
+        const std::int32_t multi = gps_multiplier(d, last_diff_[last_]);
         constexpr int M = GpsTime11V2::kMulti, MM = GpsTime11V2::kMultiMinus;
         if (multi == 1) {
           enc.encode_symbol(m_multi_, 1);

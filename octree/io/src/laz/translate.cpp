@@ -2,6 +2,7 @@
 #include "rayscan/io/translate.hpp"
 
 #include "encoder_v2.hpp"
+#include "encoder_v3.hpp"
 #include "laz.hpp"
 #include "rayscan/atomic_file.hpp"
 
@@ -79,19 +80,30 @@ class RecordSource {
   std::uint64_t left_ = 0, done_ = 0;
 };
 
-/// LASzip VLR payload for pointwise-chunked v2 items of `pdrf` with `extra` bytes.
-std::vector<std::uint8_t> laszip_vlr_v2(int pdrf, std::size_t extra, std::uint32_t chunk_size) {
+/// LASzip VLR payload (laszip.cpp LASzip::pack): pointwise-chunked with version 2 items for
+/// `pdrf` 0-3 (LASzip 2.2), layered-chunked with version 3 items for `pdrf` 6-8 (LASzip 3.4 r3,
+/// what laszip and laz-perf write for LAS 1.4 formats), `extra` bytes as a BYTE/BYTE14 item.
+std::vector<std::uint8_t> laszip_vlr(int pdrf, std::size_t extra, std::uint32_t chunk_size) {
+  const bool layered = pdrf >= 6;
+  const std::uint16_t iv = layered ? 3 : 2;
   std::vector<std::uint16_t> items;  // type, size pairs
-  items.insert(items.end(), {laz::kPoint10, 20});
-  if (pdrf == 1 || pdrf == 3) items.insert(items.end(), {laz::kGpsTime11, 8});
-  if (pdrf == 2 || pdrf == 3) items.insert(items.end(), {laz::kRgb12, 6});
-  if (extra > 0) items.insert(items.end(), {laz::kByte, static_cast<std::uint16_t>(extra)});
+  if (!layered) {
+    items.insert(items.end(), {laz::kPoint10, 20});
+    if (pdrf == 1 || pdrf == 3) items.insert(items.end(), {laz::kGpsTime11, 8});
+    if (pdrf == 2 || pdrf == 3) items.insert(items.end(), {laz::kRgb12, 6});
+    if (extra > 0) items.insert(items.end(), {laz::kByte, static_cast<std::uint16_t>(extra)});
+  } else {
+    items.insert(items.end(), {laz::kPoint14, 30});
+    if (pdrf == 7) items.insert(items.end(), {laz::kRgb14, 6});
+    if (pdrf == 8) items.insert(items.end(), {laz::kRgbNir14, 8});
+    if (extra > 0) items.insert(items.end(), {laz::kByte14, static_cast<std::uint16_t>(extra)});
+  }
   std::vector<std::uint8_t> v;
-  append_le<std::uint16_t>(v, 2);  // compressor: pointwise-chunked
-  append_le<std::uint16_t>(v, 0);  // coder: arithmetic
-  v.push_back(2);                  // LASzip version 2.2 r0 (the item versions it wrote)
-  v.push_back(2);
-  append_le<std::uint16_t>(v, 0);
+  append_le<std::uint16_t>(v, layered ? 3 : 2);  // compressor: layered-chunked / pointwise-chunked
+  append_le<std::uint16_t>(v, 0);                // coder: arithmetic
+  v.push_back(layered ? 3 : 2);                  // LASzip version of the item coders
+  v.push_back(layered ? 4 : 2);
+  append_le<std::uint16_t>(v, layered ? 3 : 0);
   append_le<std::uint32_t>(v, 0);  // options
   append_le<std::uint32_t>(v, chunk_size);
   append_le<std::int64_t>(v, -1);  // number of special EVLRs
@@ -100,7 +112,7 @@ std::vector<std::uint8_t> laszip_vlr_v2(int pdrf, std::size_t extra, std::uint32
   for (std::size_t i = 0; i < items.size(); i += 2) {
     append_le<std::uint16_t>(v, items[i]);
     append_le<std::uint16_t>(v, items[i + 1]);
-    append_le<std::uint16_t>(v, 2);
+    append_le<std::uint16_t>(v, iv);
   }
   return v;
 }
@@ -148,9 +160,9 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
     detail::fail_at(in.name, 105, "point record length " + std::to_string(rec) + " smaller than PDRF " +
                                       std::to_string(h.pdrf) + " needs (" + std::to_string(kLen[h.pdrf]) + ")");
   const std::size_t extra = rec - static_cast<std::size_t>(kLen[h.pdrf]);
-  if (to_laz && h.pdrf > 3)
+  if (to_laz && (h.pdrf == 4 || h.pdrf == 5 || h.pdrf > 8))
     throw std::invalid_argument("translate: LAZ output of point data record format " + std::to_string(h.pdrf) +
-                                " is not implemented (the writer covers PDRF 0-3 with extra bytes)");
+                                " (waveform packets) is not implemented (the writer covers PDRF 0-3 and 6-8 with extra bytes)");
   std::vector<std::string> notes;
   RecordSource src(in, h, notes);
 
@@ -172,12 +184,13 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
   }
   head.insert(head.end(), d + pos, d + h.point_offset);  // bytes between the VLRs and the points
   if (to_laz) {
-    const std::vector<std::uint8_t> payload = laszip_vlr_v2(h.pdrf, extra, opt.chunk_size);
+    const std::vector<std::uint8_t> payload = laszip_vlr(h.pdrf, extra, opt.chunk_size);
     std::vector<std::uint8_t> vh(54, 0);
     std::memcpy(vh.data() + 2, "laszip encoded", 14);
     store_le<std::uint16_t>(vh, 18, 22204);
     store_le<std::uint16_t>(vh, 20, static_cast<std::uint16_t>(payload.size()));
-    std::memcpy(vh.data() + 22, "by rayscan (LASzip 2.2 items)", 29);
+    const char* desc = h.pdrf >= 6 ? "by rayscan (LASzip 3.4 items)" : "by rayscan (LASzip 2.2 items)";
+    std::memcpy(vh.data() + 22, desc, 29);
     // insert before the trailing user bytes: right after the last kept VLR
     const std::size_t at = head.size() - (h.point_offset - pos);
     head.insert(head.begin() + static_cast<std::ptrdiff_t>(at), payload.begin(), payload.end());
@@ -209,10 +222,13 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
     written += 8;
     std::vector<std::uint32_t> sizes;
     std::vector<std::uint8_t> chunk;
+    std::optional<laz::LayeredChunkEncoder> layered;
+    if (h.pdrf >= 6) layered.emplace(h.pdrf, extra);
     for (std::uint64_t i = 0; i < h.count; i += opt.chunk_size) {
       const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(opt.chunk_size, h.count - i));
       chunk.clear();
-      encode_chunk_v2(src.next(n), n, rec, h.pdrf, extra, chunk);
+      if (layered) layered->encode(src.next(n), n, rec, chunk);
+      else encode_chunk_v2(src.next(n), n, rec, h.pdrf, extra, chunk);
       f.write(reinterpret_cast<const char*>(chunk.data()), static_cast<std::streamsize>(chunk.size()));
       sizes.push_back(static_cast<std::uint32_t>(chunk.size()));
       written += chunk.size();

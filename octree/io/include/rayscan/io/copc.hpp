@@ -57,6 +57,11 @@ CopcInfo read_copc_info(std::span<const std::uint8_t> bytes, const std::string& 
 /// Same for a file (reads only the header, VLRs and hierarchy pages).
 CopcInfo read_copc_info(const std::filesystem::path& path);
 
+/// True when `path` is a LAS/LAZ file (by extension .las/.laz/.copc) whose header carries the COPC
+/// info VLR (user "copc", record 1; COPC 1.0 section "Info VLR"). Reads only the header and VLR
+/// headers; false for any other or unreadable file (the caller's reader reports why).
+bool is_copc_file(const std::filesystem::path& path);
+
 /// A COPC file as a SpatialIndex (layered octree). Node 0 is the root; a node's children are
 /// the existing keys one level down. Slots: each node owns a contiguous slot range (aligned to
 /// 1024 slots so that its pages can be released on eviction); ids() are the points' indices in
@@ -91,6 +96,10 @@ class CopcIndex {
   /// Nodes decoded so far (including re-decodes after eviction) and nodes resident now.
   [[nodiscard]] std::uint64_t decodes() const { return decodes_.load(); }
   [[nodiscard]] std::size_t resident_nodes() const;
+  /// Position of the point with file-order index `id` (the RayHit::index of a query on this
+  /// index), decoding its node if needed. Throws std::out_of_range for id >= the point count,
+  /// FormatError for a corrupted chunk.
+  [[nodiscard]] Vec3 position_of(PointIndex id) const;
   /// Releases least recently touched nodes until the resident positions+ids fit the cache
   /// budget; returns the nodes evicted. Must not run concurrently with queries on this index
   /// (call it between batches, e.g. between render tiles).
@@ -112,6 +121,7 @@ class CopcIndex {
   struct Map;
   std::unique_ptr<Map> map_;
   std::vector<NodeData> nodes_;
+  std::vector<Node> by_first_id_;  // nodes holding points, by first_id
   std::size_t slots_ = 0;
   Vec3* pos_ = nullptr;
   PointIndex* ids_ = nullptr;

@@ -74,6 +74,8 @@ struct LasWriteOptions {
 /// float64 extra byte described in an Extra Bytes VLR (section 2.5.6); crs_wkt becomes an OGC WKT
 /// VLR (2112). Positions are quantised to the scale: a point read from LAS and written back with
 /// the same scale and offset is bit-exact. Written to "<dir>/.<name>.tmp.<pid>" (rayscan::AtomicFile) and renamed into place.
+/// A path ending in .laz (case-insensitive) is written as LAZ: the same records compressed by
+/// translate_las (LASzip layered-chunked compressor, item version 3; docs/formats.md "LAZ" 5).
 /// Throws std::invalid_argument for a cloud failing validate() or coordinates that do not fit the
 /// 32-bit integer grid, std::runtime_error for I/O failures (no partial file is left).
 void write_las(const std::filesystem::path& path, const PointCloud& cloud,

@@ -22,6 +22,10 @@ struct QueryJobOptions {
   std::vector<Ray> rays;                 ///< rays given in memory
   RayQuery query;                        ///< k, radius, t interval, order (RayQuery::validate rules)
   IndexOptions index;                    ///< index type and parameters
+  /// COPC input (a LAZ file with the COPC info VLR): the bound on decoded node data kept by the
+  /// CopcIndex LRU cache, bytes (`--cache`). The query runs on the file's own hierarchy
+  /// (io::CopcIndex, the paper's layered organisation); `index` is then ignored.
+  std::size_t cache_bytes = std::size_t{2} << 30;
   JobControl control;                    ///< threads, log
 };
 
@@ -33,6 +37,9 @@ struct QueryJobResult {
   /// Index-file input (.rsi, rayscan/io/index_file.hpp): the position of every hit, in the order
   /// of `hits` flattened (ray by ray, best first); `cloud` then stays empty. Empty otherwise.
   std::vector<Vec3> hit_positions;
+  /// COPC input: node chunks decoded (CopcIndex::decodes()) and nodes in the hierarchy; the
+  /// hit positions are in `hit_positions` as for an index file. Both 0 otherwise.
+  std::uint64_t copc_decodes = 0, copc_nodes = 0;
 };
 
 /// Reads the rays (first, so a malformed rays file is reported before a large cloud is read) and

@@ -30,13 +30,14 @@ struct TranslateResult {
 };
 
 /// Converts the LAS or LAZ file `in` (LAZ recognised by its LASzip VLR) to `out`, streaming one
-/// chunk at a time (memory independent of the file size). LAZ output uses the pointwise-chunked
-/// compressor with LASzip item version 2 (POINT10, GPSTIME11, RGB12, BYTE), which covers point
-/// data record formats 0-5 without waveform packets (PDRF 0-3 + extra bytes). Writes through a
-/// temporary file renamed into place (AtomicFile). Throws FormatError for malformed input,
-/// std::invalid_argument for an unsupported conversion (LAZ output of PDRF 4-10, chunk_size 0),
-/// std::runtime_error for I/O failures. Sources: ASPRS LAS 1.4 R15 sections 2.4-2.7; LASzip
-/// (docs/formats.md "LAZ" sections 4-5).
+/// chunk at a time (memory independent of the file size). LAZ output uses, for point data record
+/// formats 0-3 (+ extra bytes), the pointwise-chunked compressor with LASzip item version 2
+/// (POINT10, GPSTIME11, RGB12, BYTE), and for formats 6-8 (+ extra bytes) the layered-chunked
+/// compressor with item version 3 (POINT14, RGB14, RGBNIR14, BYTE14; one arithmetic coder per
+/// layer). Writes through a temporary file renamed into place (AtomicFile). Throws FormatError
+/// for malformed input, std::invalid_argument for an unsupported conversion (LAZ output of the
+/// waveform formats 4, 5, 9, 10; chunk_size 0), std::runtime_error for I/O failures. Sources:
+/// ASPRS LAS 1.4 R15 sections 2.4-2.7; LASzip (docs/formats.md "LAZ" sections 4-5).
 TranslateResult translate_las(const std::filesystem::path& in, const std::filesystem::path& out,
                               const TranslateOptions& options = {});
 
