@@ -1,6 +1,7 @@
 // `rayscan query`: the paper's ray query (Algorithm 1) from the command line; the job is
 // io::run_query (rayscan/io/query_job.hpp).
 #include "commands.hpp"
+#include "processes.hpp"
 
 #include "rayscan/io/query_job.hpp"
 #include "atomic_file.hpp"
@@ -17,6 +18,7 @@ struct QueryOptions {
   long long k = -1;
   double radius = kInf, t_min = -kInf, t_max = kInf;
   bool depth_given = false;
+  unsigned threads = 0;
 };
 
 RayOrder parse_order(const std::string& s) {
@@ -47,7 +49,10 @@ int run_query(const QueryOptions& o) {
   job.rays_file = o.rays;
   job.query = q;
   job.index = o.index;
+  job.control.distributor = distributor();
+  job.control.threads = o.threads;  // MPI: blocks of rays over the ranks (docs/mpi.md)
   const io::QueryJobResult r = io::run_query(job);
+  if (!is_root()) return 0;  // only rank 0 holds every hit and writes
   AtomicOutput out(o.out);
   io::write_hits_csv(out.stream(), r);
   out.commit();
@@ -89,6 +94,8 @@ Runner add_query_command(CLI::App& app) {
   c->add_flag("--insertion", o->index.insertion,
               "Build the octree by point insertion instead of Morton bulk loading (octrees only)");
   c->add_option("--out", o->out, "Output CSV (default: standard output)");
+  c->add_option("--threads", o->threads, "Worker threads, 0 = all cores; the hits are identical for any count")
+      ->check(CLI::Range(0u, 1024u));
   return [o, depth_opt] {
     o->depth_given = depth_opt->count() > 0;
     return run_query(*o);

@@ -2,6 +2,7 @@
 // render::run_render (rayscan/render/render_job.hpp); --ortho-map renders through
 // analysis::ortho_map's camera and writes with analysis::write_ortho_map.
 #include "commands.hpp"
+#include "processes.hpp"
 
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/analysis/ortho_map.hpp"
@@ -23,7 +24,7 @@ struct RenderCliOptions {
   std::optional<std::uint64_t> seed;
   unsigned threads = 0;
   std::vector<std::string> aovs;
-  std::string primitive, colmap_dir, colmap_image, dsm;
+  std::string primitive, colmap_dir, colmap_image, dsm, frames;
   std::optional<double> ortho_res;
   bool quiet = false;
 };
@@ -45,8 +46,30 @@ int run_render(const RenderCliOptions& o) {
   ov.colmap_image = o.colmap_image;
   apply_overrides(job.scene, ov);
   job.control.threads = o.threads;
-  job.control.progress = !o.quiet;
-  if (!o.quiet) job.control.log = [](const std::string& s) { std::cerr << "rayscan render: " << s << "\n"; };
+  // MPI (docs/mpi.md): tiles or frames over the ranks; only rank 0 logs, prints and writes.
+  job.control.distributor = distributor();
+  const bool talk = !o.quiet && is_root();
+  job.control.progress = talk;
+  if (talk) job.control.log = [](const std::string& s) { std::cerr << "rayscan render: " << s << "\n"; };
+  if (!o.frames.empty()) {
+    if (o.ortho_res || !o.colmap_dir.empty() || !o.camera.empty())
+      throw UsageError("--frames: the cameras come from the list; do not give --camera, --colmap or --ortho-map");
+    std::vector<Camera> cams = load_camera_list(o.frames);
+    if (o.width || o.height)
+      for (Camera& c : cams) {
+        Scene one = job.scene;
+        one.camera = c;
+        SceneOverrides size;
+        size.width = o.width;
+        size.height = o.height;
+        apply_overrides(one, size);
+        c = *one.camera;
+      }
+    const RenderFramesResult fr = run_render_frames(job, cams);
+    if (is_root())
+      for (const auto& f : fr.job.written) std::cout << "wrote " << f.string() << "\n";
+    return 0;
+  }
   std::optional<analysis::OrthoMap> map;
   if (o.ortho_res) {
     if (!analysis::is_geotiff_name(job.scene.output.image))
@@ -73,6 +96,7 @@ int run_render(const RenderCliOptions& o) {
     throw UsageError("--dsm: needs --ortho-map RES");
   }
   RenderJobResult r = run_render(job);
+  if (!is_root()) return 0;
   if (map)
     r.written = analysis::write_ortho_map(*map, r.image.beauty, r.image.depth, job.scene.output.exposure, r.crs_wkt,
                                           job.scene.output.image, o.dsm, r.metadata);
@@ -121,6 +145,9 @@ Runner add_render_command(CLI::App& app) {
       ->check(CLI::PositiveNumber);
   c->add_option("--dsm", o->dsm, "With --ortho-map: also write the digital surface model (elevation of the "
                 "first surface per cell, NoData where the ray missed) as a Float32 GeoTIFF");
+  c->add_option("--frames", o->frames, "Camera list (JSON array of camera objects or camera files, e.g. a "
+                "fly-through): render one image per camera, written as <out stem>_0000<ext>, _0001, ...; "
+                "under mpirun whole frames are distributed when there are more frames than ranks");
   c->add_flag("--quiet,-q", o->quiet, "No log lines or progress bar on stderr");
   return [o] { return run_render(*o); };
 }

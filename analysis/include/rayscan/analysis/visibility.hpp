@@ -11,6 +11,7 @@
 #include "rayscan/any_index.hpp"
 #include "rayscan/ray_query.hpp"
 #include "rayscan/camera.hpp"
+#include "rayscan/work_distributor.hpp"
 
 #include <cstdint>
 #include <span>
@@ -26,6 +27,9 @@ struct VisibilityOptions {
   double max_distance = kInf; ///< observers see no farther than this (each may override), world units
   unsigned threads = 0;       ///< worker threads; 0 = all cores (results are identical)
   bool progress = false;      ///< draw a progress bar on stderr (only if stderr is a terminal)
+  /// Spreads the point chunks over processes (rayscan::mpi, docs/mpi.md); nullptr = all here.
+  /// With several processes, only the root's result is complete (per_observer, queries summed).
+  WorkDistributor* distributor = nullptr;
 };
 
 /// Per-point results of compute_visibility(), indexed like the cloud's positions.
@@ -84,8 +88,11 @@ struct SkyViewOptions {
                                ///< >= r keeps a point's own flat neighbourhood from closing its sky
   double max_distance = kInf;  ///< obstacles farther than this along a ray are ignored
   std::uint64_t seed = 0;      ///< varies the per-point rotation of the direction set
-  unsigned threads = 0;
-  bool progress = false;
+  unsigned threads = 0;        ///< worker threads; 0 = all cores (results are identical)
+  bool progress = false;       ///< progress bar on stderr (only if stderr is a terminal)
+  /// Spreads the point chunks over processes (rayscan::mpi); nullptr = all here. With several,
+  /// only the root's values (and query count) are complete.
+  WorkDistributor* distributor = nullptr;
 };
 
 /// Direction k of the N-direction set (+z up, unit length): a spherical Fibonacci lattice
@@ -111,10 +118,12 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
 /// t in [0, max_distance]) of the ray through the pixel centre and lens centre,
 /// camera.generate_ray(x, y) -- the ray of the renderer's point-index AOV, so the result equals
 /// `rayscan render --aov index` for the same radius. Row-major from the top-left pixel;
-/// kNoPoint for a miss. Throws std::invalid_argument for radius <= 0.
+/// kNoPoint for a miss. With a `distributor` of several processes (MPI) the rows are handed out
+/// by it and only the root's result is complete. Throws std::invalid_argument for radius <= 0.
 std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const Camera& camera,
                                              double radius, double max_distance = kInf,
-                                             unsigned threads = 0, bool progress = false);
+                                             unsigned threads = 0, bool progress = false,
+                                             WorkDistributor* distributor = nullptr);
 
 /// Number of pixels whose first hit is each point (`npoints` entries) from camera_first_hits()'s
 /// output. Throws std::out_of_range for an index >= npoints other than the miss value.

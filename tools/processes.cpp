@@ -1,0 +1,33 @@
+// The process group of a `rayscan` run (processes.hpp); the MPI session itself lives in main().
+#include "processes.hpp"
+
+#include "commands.hpp"
+
+#ifdef RAYSCAN_HAVE_MPI
+#include "rayscan/mpi/session.hpp"
+#endif
+
+namespace rayscan::cli {
+
+#ifdef RAYSCAN_HAVE_MPI
+mpi::Session* g_session = nullptr;  // set by main()
+WorkDistributor* distributor() { return g_session ? g_session->distributor() : nullptr; }
+bool is_root() { return !g_session || g_session->is_root(); }
+int process_count() { return g_session ? g_session->size() : 1; }
+void set_command_name(const std::string& name) {
+  if (g_session && g_session->distributor()) g_session->distributor()->set_error_prefix(name);
+}
+#else
+WorkDistributor* distributor() { return nullptr; }
+bool is_root() { return true; }
+int process_count() { return 1; }
+void set_command_name(const std::string&) {}
+#endif
+
+void require_single_process(const std::string& command) {
+  if (process_count() > 1)
+    throw UsageError("runs in one process; only render, visibility and query run under mpirun -n " +
+                     std::to_string(process_count()) + " (run '" + command + "' without mpirun or with -n 1)");
+}
+
+}  // namespace rayscan::cli
