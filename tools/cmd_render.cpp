@@ -66,6 +66,7 @@ int run_render(const RenderCliOptions& o) {
         c = *one.camera;
       }
     const RenderFramesResult fr = run_render_frames(job, cams);
+    if (talk && !traffic_summary().empty()) std::cerr << "rayscan render: " << traffic_summary() << "\n";
     if (is_root())
       for (const auto& f : fr.job.written) std::cout << "wrote " << f.string() << "\n";
     return 0;
@@ -97,6 +98,7 @@ int run_render(const RenderCliOptions& o) {
   }
   RenderJobResult r = run_render(job);
   if (!is_root()) return 0;
+  if (talk && !traffic_summary().empty()) std::cerr << "rayscan render: " << traffic_summary() << "\n";
   if (map)
     r.written = analysis::write_ortho_map(*map, r.image.beauty, r.image.depth, job.scene.output.exposure, r.crs_wkt,
                                           job.scene.output.image, o.dsm, r.metadata);

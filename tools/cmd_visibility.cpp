@@ -63,6 +63,7 @@ int run_visibility(VisibilityCli& o) {
 
   const an::VisibilityJobResult r = an::run_visibility(job);
   if (!is_root()) return 0;
+  if (talk && !traffic_summary().empty()) std::cerr << "rayscan visibility: " << traffic_summary() << "\n";
   if (o.json) {
     std::cout << an::visibility_report_json(r) << "\n";
     return 0;

@@ -18,6 +18,10 @@ int process_count();
 /// Refuses (UsageError) a command that cannot be distributed when there is more than one rank:
 /// N copies would write the same outputs.
 void require_single_process(const std::string& command);
+/// Under MPI with several ranks, on the root: one line with the traffic of the run so far
+/// ("mpi: 2 ranks, 412 messages, 1.23 MB (1.2 MB results), rank 0 computed 97 of 204 items");
+/// "" otherwise.
+std::string traffic_summary();
 /// Names the command in the distributor's fault messages ("rayscan render").
 void set_command_name(const std::string& name);
 

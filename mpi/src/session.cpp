@@ -39,7 +39,9 @@ Session::Session(int& argc, char**& argv, double timeout_seconds) : timeout_(tim
   }
   MPI_Comm_size(MPI_COMM_WORLD, &size_);
   MPI_Comm_rank(MPI_COMM_WORLD, &rank_);
-  if (size_ > 1) queue_ = std::make_unique<QueueDistributor>(rank_, size_, timeout_);
+  const char* rc = std::getenv("RAYSCAN_MPI_ROOT_COMPUTES");
+  const bool root_computes = !(rc && std::string(rc) == "0");
+  if (size_ > 1) queue_ = std::make_unique<QueueDistributor>(rank_, size_, timeout_, root_computes);
 }
 
 Session::~Session() {

@@ -40,8 +40,8 @@ std::string silent_message(const std::string& prefix, int rank, int size, double
 
 }  // namespace
 
-QueueDistributor::QueueDistributor(int rank, int size, double timeout_seconds)
-    : rank_(rank), size_(size), timeout_(timeout_seconds) {}
+QueueDistributor::QueueDistributor(int rank, int size, double timeout_seconds, bool root_computes)
+    : rank_(rank), size_(size), timeout_(timeout_seconds), root_computes_(root_computes) {}
 
 void QueueDistributor::abort_with(const std::string& line) const {
   std::fprintf(stderr, "%s\n", line.c_str());
@@ -124,7 +124,7 @@ void QueueDistributor::run(const WorkStage& stage) {
   std::exception_ptr local_error;
   std::thread local([&] {
     try {
-      for (;;) {
+      while (root_computes_) {
         std::uint64_t f = 0;
         const std::uint64_t c = take(want, f);
         if (c == 0) break;

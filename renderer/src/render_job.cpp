@@ -320,6 +320,7 @@ RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const 
   const int ranks = dist ? dist->size() : 1;
   const bool root = is_root(ctl);
   fr.frames = cameras.size();
+  if (!o.write && root) fr.images.resize(cameras.size());
   std::mutex write_mutex;
   const auto t0 = std::chrono::steady_clock::now();
   // Writes frame f (root only) and accumulates its statistics.
@@ -330,7 +331,11 @@ RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const 
     r.stats.points_tested += st.points_tested;
     r.stats.primary_rays += st.primary_rays;
     r.stats.threads = st.threads;
-    if (!root || !o.write) return;
+    if (!root) return;
+    if (!o.write) {
+      fr.images[f] = fb;
+      return;
+    }
     OutputDesc out = scene.output;
     out.image = frame_file_name(scene.output.image, f);
     ImageMetadata m = render_metadata(o, scene, r, {});

@@ -22,7 +22,8 @@ class Session {
  public:
   /// Initialises MPI when launched_by_mpi(). `timeout_seconds` bounds every wait for another
   /// rank (a rank that stays silent that long ends the job, see QueueDistributor); the environment
-  /// variable RAYSCAN_MPI_TIMEOUT (seconds, > 0) overrides it. Throws std::runtime_error when MPI
+  /// variable RAYSCAN_MPI_TIMEOUT (seconds, > 0) overrides it. RAYSCAN_MPI_ROOT_COMPUTES=0 makes
+  /// rank 0 a dedicated master that computes no items (QueueDistributor). Throws std::runtime_error when MPI
   /// cannot be initialised or does not offer MPI_THREAD_FUNNELED.
   Session(int& argc, char**& argv, double timeout_seconds = 600.0);
   Session(const Session&) = delete;

@@ -40,7 +40,9 @@ class QueueDistributor final : public WorkDistributor {
   /// `timeout_seconds`: the longest the root waits for a message from a rank that owes one (its
   /// first request, the results of a batch, a sum), and a worker for its next assignment, before
   /// it ends the job with "<prefix>: rank R sent nothing for T s" and MPI_Abort.
-  QueueDistributor(int rank, int size, double timeout_seconds);
+  /// `root_computes` = false makes rank 0 only serve the queue (a dedicated master, as on a
+  /// cluster's login-node rank; tests use it to force every item through the messages).
+  QueueDistributor(int rank, int size, double timeout_seconds, bool root_computes = true);
   [[nodiscard]] int size() const override { return size_; }
   [[nodiscard]] int rank() const override { return rank_; }
   /// The work queue of one stage (see the file comment). Throws std::runtime_error for a
@@ -65,6 +67,7 @@ class QueueDistributor final : public WorkDistributor {
  private:
   int rank_, size_;
   double timeout_;
+  bool root_computes_;
   std::uint64_t seq_ = 0;  // collective operations so far: the stage number in messages and tags
   std::string prefix_ = "rayscan";
   TrafficStats traffic_;

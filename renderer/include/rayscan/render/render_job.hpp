@@ -62,6 +62,8 @@ struct RenderFramesResult {
                            ///< `image` is the last frame when frames were rendered one by one
                            ///< (empty when whole frames were distributed); `written` every file
   std::size_t frames = 0;  ///< frames rendered
+  /// Every frame in camera order, only when options.write is false (in-memory use; on the root).
+  std::vector<Framebuffer> images;
 };
 
 /// Renders one image per camera over one prepared scene (the cloud is read, the index built and
