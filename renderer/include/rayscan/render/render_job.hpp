@@ -54,6 +54,9 @@ struct RenderJobResult {
 /// Throws SceneError "<scene file>: <JSON pointer>: <what was expected>" for a missing camera or
 /// cloud, an unreadable or empty cloud, a bad material range or index option, or an impossible
 /// auto radius, "<scene file>: /surfel: ..." when surfels cannot be estimated; std::runtime_error naming the file when an image cannot be written.
+/// With options.control.distributor over several processes (MPI, docs/mpi.md) every process calls
+/// it with the same options; the tiles are handed out by the distributor, only the root's `image`
+/// is complete and only the root writes (stats: ray queries summed over the processes).
 RenderJobResult run_render(const RenderJobOptions& options);
 
 /// Output of run_render_frames().
