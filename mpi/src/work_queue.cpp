@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <cstring>
 #include <exception>
+#include <limits>
 #include <mutex>
 #include <stdexcept>
 #include <thread>
@@ -106,6 +107,9 @@ void QueueDistributor::run(const WorkStage& stage) {
       msg.resize(sizeof head);
       std::memcpy(msg.data(), head, sizeof head);
       msg.insert(msg.end(), res.begin(), res.end());
+      if (msg.size() > std::size_t(std::numeric_limits<int>::max()))
+        throw std::runtime_error("MPI work queue: a result message of " + std::to_string(msg.size()) +
+                                 " bytes exceeds MPI's 2 GiB message limit (fewer AOVs, or tiles instead of whole frames)");
     }
   }
 
