@@ -4,6 +4,7 @@
 // exit code 0 = pass (or warning), 1 = fail, 2 = error. The job is analysis::run_compare
 // (rayscan/analysis/compare_job.hpp); this file parses options and prints.
 #include "commands.hpp"
+#include "processes.hpp"
 
 #include "rayscan/analysis/compare_job.hpp"
 
@@ -120,7 +121,10 @@ Runner add_compare_command(CLI::App& app) {
       ->check(positive());
   sub->add_flag("--no-flip", o->no_flip, "Skip the FLIP computation");
   sub->add_flag("--json", o->json, "Print the report as JSON instead of a table");
-  return [o] { return run_compare(*o); };
+  return [o] {
+    require_single_process("rayscan compare");
+    return run_compare(*o);
+  };
 }
 
 }  // namespace rayscan::cli

@@ -2,6 +2,7 @@
 // index of chunk bounds (issue 13; paper section 4.2). Parsing and printing only: the work is in
 // sql/ (rayscan/sql/import.hpp).
 #include "commands.hpp"
+#include "processes.hpp"
 
 #include "rayscan/sql/import.hpp"
 
@@ -64,7 +65,10 @@ Runner add_db_command(CLI::App& app) {
   c->add_option("--attributes", o->attributes,
                 "Comma-separated extra columns: intensity, classification, gps_time, rgb or a "
                 "scalar field name");
-  return [o] { return run_import(*o); };
+  return [o] {
+    require_single_process("rayscan db");
+    return run_import(*o);
+  };
 }
 
 }  // namespace rayscan::cli

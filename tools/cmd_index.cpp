@@ -2,6 +2,7 @@
 // (a site delivered as tiles is one index) out of core. Parsing and printing only; the build is
 // rayscan::io::build_index_file (index_file.hpp).
 #include "commands.hpp"
+#include "processes.hpp"
 
 #include "rayscan/io/index_file.hpp"
 
@@ -36,6 +37,7 @@ Runner add_index_command(CLI::App& app) {
   sub->add_option("--temp-dir", o->temp_dir, "folder for the sort runs (default: the output's folder)");
   sub->add_flag("-q,--quiet", o->quiet, "no progress on stderr");
   return [o]() -> int {
+    require_single_process("rayscan index");
     io::IndexBuildOptions opt;
     try {
       opt.config.layout = parse_octree_layout(o->layout);

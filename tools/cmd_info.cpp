@@ -2,6 +2,7 @@
 // chunk by chunk) or an index file (.rsi). The job is io::run_info (rayscan/io/info_job.hpp); this
 // file parses options and prints.
 #include "commands.hpp"
+#include "processes.hpp"
 
 #include "rayscan/io/info_job.hpp"
 
@@ -22,6 +23,7 @@ Runner add_info_command(CLI::App& app) {
   sub->add_flag("--json", *json, "print one JSON object instead of text");
   sub->add_flag("--verify", *verify, "index files: verify the checksum of every section");
   return [file, json, verify]() -> int {
+    require_single_process("rayscan info");
     io::InfoJobOptions job;
     job.file = *file;
     job.verify = *verify;

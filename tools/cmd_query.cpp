@@ -1,6 +1,7 @@
 // `rayscan query`: the paper's ray query (Algorithm 1) from the command line; the job is
 // io::run_query (rayscan/io/query_job.hpp).
 #include "commands.hpp"
+#include "processes.hpp"
 
 #include "rayscan/io/index_file.hpp"
 #include "rayscan/io/query_job.hpp"
@@ -18,6 +19,7 @@ struct QueryOptions {
   long long k = -1;
   double radius = kInf, t_min = -kInf, t_max = kInf;
   bool depth_given = false;
+  unsigned threads = 0;
 };
 
 RayOrder parse_order(const std::string& s) {
@@ -53,7 +55,10 @@ int run_query(const QueryOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--cache: ") + e.what());
   }
+  job.control.distributor = distributor();
+  job.control.threads = o.threads;  // MPI: blocks of rays over the ranks (docs/mpi.md)
   const io::QueryJobResult r = io::run_query(job);
+  if (!is_root()) return 0;  // only rank 0 holds every hit and writes
   AtomicOutput out(o.out);
   io::write_hits_csv(out.stream(), r);
   out.commit();
@@ -99,6 +104,8 @@ Runner add_query_command(CLI::App& app) {
                 "COPC input: bound on decoded node data kept in memory (LRU; e.g. 2G, 512M). A COPC file is "
                 "queried on its own hierarchy, decoding only the nodes the rays reach")
       ->capture_default_str();
+  c->add_option("--threads", o->threads, "Worker threads, 0 = all cores; the hits are identical for any count")
+      ->check(CLI::Range(0u, 1024u));
   return [o, depth_opt] {
     o->depth_given = depth_opt->count() > 0;
     return run_query(*o);

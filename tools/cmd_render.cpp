@@ -2,6 +2,7 @@
 // render::run_render (rayscan/render/render_job.hpp); --ortho-map renders through
 // analysis::ortho_map's camera and writes with analysis::write_ortho_map.
 #include "commands.hpp"
+#include "processes.hpp"
 
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/analysis/ortho_map.hpp"
@@ -25,7 +26,7 @@ struct RenderCliOptions {
   std::optional<std::uint64_t> seed;
   unsigned threads = 0;
   std::vector<std::string> aovs;
-  std::string primitive, colmap_dir, colmap_image, dsm;
+  std::string primitive, colmap_dir, colmap_image, dsm, frames;
   std::optional<double> ortho_res;
   bool quiet = false, print_scene = false;
 };
@@ -61,13 +62,36 @@ int run_render(const RenderCliOptions& o) {
   job.scene = rs.scene;
   if (points) job.cloud = &*points;
   job.control.threads = o.threads;
-  job.control.progress = !o.quiet;
-  if (!o.quiet) job.control.log = [](const std::string& s) { std::cerr << "rayscan render: " << s << "\n"; };
+  // MPI (docs/mpi.md): tiles or frames over the ranks; only rank 0 logs, prints and writes.
+  job.control.distributor = distributor();
+  const bool talk = !o.quiet && is_root();
+  job.control.progress = talk;
+  if (talk) job.control.log = [](const std::string& s) { std::cerr << "rayscan render: " << s << "\n"; };
   if (rs.overview && !o.ortho_res) {
     const Camera& c = *job.scene.camera;
     job.control.info("no camera given: overview camera " + std::to_string(c.width()) + "x" +
                      std::to_string(c.height()) + " from the south-west, 35 degrees down, framing the whole cloud "
                      "(--print-scene prints it as a scene to edit)");
+  }
+  if (!o.frames.empty()) {
+    if (o.ortho_res || !o.colmap_dir.empty() || !o.camera.empty())
+      throw UsageError("--frames: the cameras come from the list; do not give --camera, --colmap or --ortho-map");
+    std::vector<Camera> cams = load_camera_list(o.frames);
+    if (o.width || o.height)
+      for (Camera& c : cams) {
+        Scene one = job.scene;
+        one.camera = c;
+        SceneOverrides size;
+        size.width = o.width;
+        size.height = o.height;
+        apply_overrides(one, size);
+        c = *one.camera;
+      }
+    const RenderFramesResult fr = run_render_frames(job, cams);
+    if (talk && !traffic_summary().empty()) std::cerr << "rayscan render: " << traffic_summary() << "\n";
+    if (is_root())
+      for (const auto& f : fr.job.written) std::cout << "wrote " << f.string() << "\n";
+    return 0;
   }
   std::optional<analysis::OrthoMap> map;
   if (o.ortho_res) {
@@ -95,6 +119,8 @@ int run_render(const RenderCliOptions& o) {
     throw UsageError("--dsm: needs --ortho-map RES");
   }
   RenderJobResult r = run_render(job);
+  if (!is_root()) return 0;
+  if (talk && !traffic_summary().empty()) std::cerr << "rayscan render: " << traffic_summary() << "\n";
   if (map)
     r.written = analysis::write_ortho_map(*map, r.image.beauty, r.image.depth, job.scene.output.exposure, r.crs_wkt,
                                           job.scene.output.image, o.dsm, r.metadata);
@@ -148,6 +174,9 @@ Runner add_render_command(CLI::App& app) {
                 "first surface per cell, NoData where the ray missed) as a Float32 GeoTIFF");
   c->add_flag("--print-scene", o->print_scene, "Print the effective scene (after every flag, with the automatic "
               "camera when there is none) as JSON on stdout and exit without rendering; `rayscan render` reads it back");
+  c->add_option("--frames", o->frames, "Camera list (JSON array of camera objects or camera files, e.g. a "
+                "fly-through): render one image per camera, written as <out stem>_0000<ext>, _0001, ...; "
+                "under mpirun whole frames are distributed when there are more frames than ranks");
   c->add_flag("--quiet,-q", o->quiet, "No log lines or progress bar on stderr");
   return [o] { return run_render(*o); };
 }

@@ -1,6 +1,7 @@
 // `rayscan translate IN OUT`: lossless LAS <-> LAZ conversion (a thin kernel over
 // io::translate_las; see rayscan/io/translate.hpp).
 #include "commands.hpp"
+#include "processes.hpp"
 
 #include "rayscan/io/translate.hpp"
 
@@ -22,6 +23,7 @@ Runner add_translate_command(CLI::App& app) {
       ->check(CLI::IsMember({"auto", "las", "laz"}));
   sub->add_option("--chunk-size", *chunk, "points per LAZ chunk")->check(CLI::Range(1u, 0xFFFFFFFEu));
   return [in, out, format, chunk]() -> int {
+    require_single_process("rayscan translate");
     io::TranslateOptions o;
     o.compression = *format == "las" ? io::LasCompression::las
                     : *format == "laz" ? io::LasCompression::laz : io::LasCompression::by_extension;

@@ -3,6 +3,7 @@
 // the cloud, and a top-down GeoTIFF map with a PNG preview. The job is analysis::run_visibility
 // (rayscan/analysis/visibility_job.hpp); this file parses options and prints.
 #include "commands.hpp"
+#include "processes.hpp"
 
 #include "rayscan/analysis/visibility_job.hpp"
 
@@ -54,10 +55,15 @@ int run_visibility(VisibilityCli& o) {
   job.raster = o.raster;
   job.preview = o.preview;
   job.write_preview = !o.no_preview;
-  job.control.progress = !o.quiet;
-  if (!o.quiet) job.control.log = [](const std::string& s) { std::cerr << "rayscan visibility: " << s << "\n"; };
+  // MPI (docs/mpi.md): point chunks over the ranks; only rank 0 logs, prints and writes.
+  job.control.distributor = distributor();
+  const bool talk = !o.quiet && is_root();
+  job.control.progress = talk;
+  if (talk) job.control.log = [](const std::string& s) { std::cerr << "rayscan visibility: " << s << "\n"; };
 
   const an::VisibilityJobResult r = an::run_visibility(job);
+  if (!is_root()) return 0;
+  if (talk && !traffic_summary().empty()) std::cerr << "rayscan visibility: " << traffic_summary() << "\n";
   if (o.json) {
     std::cout << an::visibility_report_json(r) << "\n";
     return 0;

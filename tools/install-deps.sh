@@ -14,6 +14,7 @@ PKGS=(
   cloudcompare xvfb xauth
   python3-dev pybind11-dev python3-numpy python3-pytest python3-matplotlib python3-open3d
   libsqlite3-dev sqlite3 libpq-dev postgresql-15 postgresql-server-dev-15 postgresql-15-pointcloud
+  libopenmpi-dev openmpi-bin
 )
 missing=()
 for p in "${PKGS[@]}"; do

@@ -1,5 +1,6 @@
 // The `rayscan` command line: one program, PDAL-style subcommands.
 #include "commands.hpp"
+#include "processes.hpp"
 
 #include "rayscan/input_file.hpp"
 #include "rayscan/simd.hpp"
@@ -7,10 +8,47 @@
 #include <cstdio>
 #include <exception>
 #include <iostream>
+#include <optional>
+#include <string>
 #include <utility>
 #include <vector>
 
+#ifdef RAYSCAN_HAVE_MPI
+#include "rayscan/mpi/session.hpp"
+namespace rayscan::cli {
+extern mpi::Session* g_session;
+}
+#endif
+
+namespace {
+
+// One process: print the line, exit 2. Under MPI: the root prints one line and every rank ends
+// (rayscan::mpi::Session::fail; does not return).
+int fail(const std::string& line) {
+#ifdef RAYSCAN_HAVE_MPI
+  if (rayscan::cli::g_session) {
+    rayscan::cli::g_session->fail(line);
+    return 2;
+  }
+#endif
+  std::cerr << line << "\n";
+  return 2;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+#ifdef RAYSCAN_HAVE_MPI
+  // Under mpirun (and only then) MPI is initialised; without a launcher this is one process.
+  std::optional<rayscan::mpi::Session> session;
+  try {
+    session.emplace(argc, argv);
+  } catch (const std::exception& e) {
+    std::cerr << "rayscan: " << rayscan::one_line(e.what()) << "\n";
+    return 2;
+  }
+  rayscan::cli::g_session = &*session;
+#endif
   CLI::App app{"rayscan: ray queries, rendering and analysis of raw point clouds "
                "(after Teuscher et al., \"Ray Queries On Raw Point Clouds\")"};
   app.require_subcommand(1);
@@ -39,17 +77,20 @@ int main(int argc, char** argv) {
     std::string where = "rayscan";
     for (auto& [sub, run] : commands)
       if (sub->parsed()) where += " " + sub->get_name();
-    std::cerr << where << ": " << rayscan::one_line(e.what()) << " (see --help)\n";
-    return 2;
+    return fail(where + ": " + rayscan::one_line(e.what()) + " (see --help)");
   }
   for (auto& [sub, run] : commands) {
     if (!sub->parsed()) continue;
     try {
-      return run();
+      rayscan::cli::set_command_name("rayscan " + sub->get_name());
+      const int code = run();
+#ifdef RAYSCAN_HAVE_MPI
+      session->finish();
+#endif
+      return code;
     } catch (const std::exception& e) {
       // One line per error (issue 8): control characters in paths or values are escaped.
-      std::cerr << "rayscan " << sub->get_name() << ": " << rayscan::one_line(e.what()) << "\n";
-      return 2;
+      return fail("rayscan " + sub->get_name() + ": " + rayscan::one_line(e.what()));
     }
   }
   return 2;

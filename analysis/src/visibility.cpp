@@ -127,40 +127,77 @@ VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3>
   tbb::enumerable_thread_specific<Local> locals([m] { return Local{std::vector<std::uint64_t>(m, 0), 0, {}}; });
   tbb::task_arena arena(static_cast<int>(res.threads));
   const auto t0 = std::chrono::steady_clock::now();
-  arena.execute([&] {
-    std::visit(
-        [&](const auto& idx) {
-          const std::span<const Vec3> pos = idx.positions();
-          const std::span<const PointIndex> ids = idx.ids();
-          tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const auto& range) {
-            Local& L = locals.local();
-            for (std::size_t c = range.begin(); c != range.end(); ++c) {
-              const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
-              // Observer-major inside a chunk: consecutive rays share most of their nodes.
-              for (std::size_t k = 0; k < m; ++k)
-                for (std::size_t s = s0; s < s1; ++s) {
-                  const PointIndex i = ids[s];
-                  bool queried;
-                  double dist;
-                  const bool vis = line_of_sight(idx, positions, observers[k], max_d[k], pos[s], i, opts,
-                                                 L.hits, queried, dist);
-                  L.queries += queried;
-                  if (!vis) continue;
-                  ++res.count[i];
-                  ++L.seen[k];
-                  if (res.nearest[i] < 0.0 || dist < res.nearest[i]) res.nearest[i] = dist;
-                }
-              progress.tile_done(s1 - s0);  // points of the chunk, each against every observer
-            }
-          });
-        },
-        index);
-  });
+  // Chunks [c0, c1) of kChunk points in the index's storage order.
+  auto run_chunks = [&](std::size_t c0, std::size_t c1) {
+    arena.execute([&] {
+      std::visit(
+          [&](const auto& idx) {
+            const std::span<const Vec3> pos = idx.positions();
+            const std::span<const PointIndex> ids = idx.ids();
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
+              Local& L = locals.local();
+              for (std::size_t c = range.begin(); c != range.end(); ++c) {
+                const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
+                // Observer-major inside a chunk: consecutive rays share most of their nodes.
+                for (std::size_t k = 0; k < m; ++k)
+                  for (std::size_t s = s0; s < s1; ++s) {
+                    const PointIndex i = ids[s];
+                    bool queried;
+                    double dist;
+                    const bool vis = line_of_sight(idx, positions, observers[k], max_d[k], pos[s], i, opts,
+                                                   L.hits, queried, dist);
+                    L.queries += queried;
+                    if (!vis) continue;
+                    ++res.count[i];
+                    ++L.seen[k];
+                    if (res.nearest[i] < 0.0 || dist < res.nearest[i]) res.nearest[i] = dist;
+                  }
+                progress.tile_done(s1 - s0);  // points of the chunk, each against every observer
+              }
+            });
+          },
+          index);
+    });
+  };
+  WorkDistributor* dist = opts.distributor;
+  if (!dist || dist->size() <= 1) {
+    run_chunks(0, chunks);
+  } else {
+    // Point chunks handed out by the distributor; per-point count and distance gathered to the root.
+    const std::span<const PointIndex> ids = std::visit([](const auto& i) { return i.ids(); }, index);
+    WorkStage stage;
+    stage.items = chunks;
+    stage.batch = res.threads;
+    stage.compute = [&](std::uint64_t first, std::uint64_t count) { run_chunks(first, first + count); };
+    stage.pack = [&](std::uint64_t first, std::uint64_t count) {
+      std::vector<std::byte> out;
+      const std::size_t s0 = first * kChunk, s1 = std::min<std::size_t>(n, (first + count) * kChunk);
+      out.reserve((s1 - s0) * (sizeof(std::uint32_t) + sizeof(double)));
+      for (std::size_t s = s0; s < s1; ++s) append_bytes(out, std::span<const std::uint32_t>(&res.count[ids[s]], 1));
+      for (std::size_t s = s0; s < s1; ++s) append_bytes(out, std::span<const double>(&res.nearest[ids[s]], 1));
+      return out;
+    };
+    stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
+      std::size_t off = 0;
+      const std::size_t s0 = first * kChunk, s1 = std::min<std::size_t>(n, (first + count) * kChunk);
+      for (std::size_t s = s0; s < s1; ++s) read_values(bytes, off, std::span<std::uint32_t>(&res.count[ids[s]], 1));
+      for (std::size_t s = s0; s < s1; ++s) read_values(bytes, off, std::span<double>(&res.nearest[ids[s]], 1));
+      if (off != bytes.size()) throw std::runtime_error("visibility: chunk message has trailing bytes");
+      progress.tile_done(s1 - s0);
+    };
+    dist->run(stage);
+  }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   progress.finish();
   for (const Local& L : locals) {
     res.queries += L.queries;
     for (std::size_t k = 0; k < m; ++k) res.per_observer[k] += L.seen[k];
+  }
+  if (opts.distributor && opts.distributor->size() > 1) {
+    res.per_observer.push_back(res.queries);
+    opts.distributor->sum_to_root(res.per_observer);
+    res.queries = res.per_observer.back();
+    res.per_observer.pop_back();
   }
   return res;
 }
@@ -207,35 +244,65 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
   q.order = RayOrder::sphere_hit;
   q.t_min = 0.0;
   q.t_max = opts.max_distance;
-  tbb::task_arena arena(static_cast<int>(resolve_threads(opts.threads)));
-  arena.execute([&] {
-    std::visit(
-        [&](const auto& idx) {
-          const std::span<const Vec3> pos = idx.positions();
-          const std::span<const PointIndex> ids = idx.ids();
-          tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const auto& range) {
-            std::vector<RayHit> hits;
-            for (std::size_t c = range.begin(); c != range.end(); ++c) {
-              const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
-              for (std::size_t s = s0; s < s1; ++s) {
-                const PointIndex i = ids[s];
-                const Vec3 origin = pos[s] + Vec3(0.0, 0.0, opts.lift);
-                const double rot = sky_rotation(opts.seed, i);
-                std::uint32_t open = 0;
-                for (std::uint32_t k = 0; k < opts.rays; ++k) {
-                  ray_query(idx, Ray(origin, sky_direction(k, opts.rays, rot, opts.weighting)), q, hits);
-                  open += hits.empty();
+  const unsigned threads = resolve_threads(opts.threads);
+  tbb::task_arena arena(static_cast<int>(threads));
+  auto run_chunks = [&](std::size_t c0, std::size_t c1) {
+    arena.execute([&] {
+      std::visit(
+          [&](const auto& idx) {
+            const std::span<const Vec3> pos = idx.positions();
+            const std::span<const PointIndex> ids = idx.ids();
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
+              std::vector<RayHit> hits;
+              for (std::size_t c = range.begin(); c != range.end(); ++c) {
+                const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
+                for (std::size_t s = s0; s < s1; ++s) {
+                  const PointIndex i = ids[s];
+                  const Vec3 origin = pos[s] + Vec3(0.0, 0.0, opts.lift);
+                  const double rot = sky_rotation(opts.seed, i);
+                  std::uint32_t open = 0;
+                  for (std::uint32_t k = 0; k < opts.rays; ++k) {
+                    ray_query(idx, Ray(origin, sky_direction(k, opts.rays, rot, opts.weighting)), q, hits);
+                    open += hits.empty();
+                  }
+                  out[i] = double(open) / double(opts.rays);
                 }
-                out[i] = double(open) / double(opts.rays);
+                const std::uint64_t nq = std::uint64_t(s1 - s0) * opts.rays;
+                total += nq;
+                progress.tile_done(s1 - s0);
               }
-              const std::uint64_t nq = std::uint64_t(s1 - s0) * opts.rays;
-              total += nq;
-              progress.tile_done(s1 - s0);
-            }
-          });
-        },
-        index);
-  });
+            });
+          },
+          index);
+    });
+  };
+  WorkDistributor* dist = opts.distributor;
+  if (!dist || dist->size() <= 1) {
+    run_chunks(0, chunks);
+  } else {
+    const std::span<const PointIndex> ids = std::visit([](const auto& i) { return i.ids(); }, index);
+    WorkStage stage;
+    stage.items = chunks;
+    stage.batch = threads;
+    stage.compute = [&](std::uint64_t first, std::uint64_t count) { run_chunks(first, first + count); };
+    stage.pack = [&](std::uint64_t first, std::uint64_t count) {
+      std::vector<std::byte> bytes;
+      const std::size_t s0 = first * kChunk, s1 = std::min<std::size_t>(n, (first + count) * kChunk);
+      for (std::size_t s = s0; s < s1; ++s) append_bytes(bytes, std::span<const double>(&out[ids[s]], 1));
+      return bytes;
+    };
+    stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
+      std::size_t off = 0;
+      const std::size_t s0 = first * kChunk, s1 = std::min<std::size_t>(n, (first + count) * kChunk);
+      for (std::size_t s = s0; s < s1; ++s) read_values(bytes, off, std::span<double>(&out[ids[s]], 1));
+      if (off != bytes.size()) throw std::runtime_error("sky view: chunk message has trailing bytes");
+      progress.tile_done(s1 - s0);
+    };
+    dist->run(stage);
+    std::uint64_t t = total.load();
+    dist->sum_to_root(std::span<std::uint64_t>(&t, 1));
+    total = t;
+  }
   progress.finish();
   if (queries) *queries = total.load();
   return out;
@@ -243,7 +310,7 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
 
 std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const Camera& camera,
                                              double radius, double max_distance, unsigned threads,
-                                             bool progress_bar) {
+                                             bool progress_bar, WorkDistributor* distributor) {
   if (!(radius > 0.0) || !std::isfinite(radius))
     throw std::invalid_argument("camera visibility: sphere radius must be a finite number > 0");
   if (!(max_distance >= 0.0)) throw std::invalid_argument("camera visibility: max distance must be >= 0");
@@ -258,23 +325,49 @@ std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const Camera
   q.t_max = max_distance;
   Progress progress(H, progress_bar && Progress::stderr_is_terminal(),
                             ProgressUnits{"rows", "M rays/s", 1e-6, 2});
-  tbb::task_arena arena(static_cast<int>(resolve_threads(threads)));
-  arena.execute([&] {
-    std::visit(
-        [&](const auto& idx) {
-          tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, H, 1), [&](const auto& range) {
-            std::vector<RayHit> hits;
-            for (std::uint32_t y = range.begin(); y != range.end(); ++y) {
-              for (std::uint32_t x = 0; x < W; ++x) {
-                ray_query(idx, camera.generate_ray(x, y), q, hits);
-                if (!hits.empty()) out[std::size_t(y) * W + x] = hits.front().index;
+  const unsigned nthreads = resolve_threads(threads);
+  tbb::task_arena arena(static_cast<int>(nthreads));
+  auto run_rows = [&](std::uint32_t y0, std::uint32_t y1) {
+    arena.execute([&] {
+      std::visit(
+          [&](const auto& idx) {
+            tbb::parallel_for(tbb::blocked_range<std::uint32_t>(y0, y1, 1), [&](const auto& range) {
+              std::vector<RayHit> hits;
+              for (std::uint32_t y = range.begin(); y != range.end(); ++y) {
+                for (std::uint32_t x = 0; x < W; ++x) {
+                  ray_query(idx, camera.generate_ray(x, y), q, hits);
+                  if (!hits.empty()) out[std::size_t(y) * W + x] = hits.front().index;
+                }
+                progress.tile_done(W);
               }
-              progress.tile_done(W);
-            }
-          });
-        },
-        index);
-  });
+            });
+          },
+          index);
+    });
+  };
+  if (!distributor || distributor->size() <= 1) {
+    run_rows(0, H);
+  } else {
+    // Image rows handed out by the distributor; the first hit per pixel gathered to the root.
+    WorkStage stage;
+    stage.items = H;
+    stage.batch = nthreads;
+    stage.compute = [&](std::uint64_t first, std::uint64_t count) {
+      run_rows(std::uint32_t(first), std::uint32_t(first + count));
+    };
+    stage.pack = [&](std::uint64_t first, std::uint64_t count) {
+      std::vector<std::byte> bytes;
+      append_bytes(bytes, std::span<const std::uint32_t>(out).subspan(first * W, count * W));
+      return bytes;
+    };
+    stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
+      std::size_t off = 0;
+      read_values(bytes, off, std::span<std::uint32_t>(out).subspan(first * W, count * W));
+      if (off != bytes.size()) throw std::runtime_error("camera visibility: row message has trailing bytes");
+      progress.tile_done(count * W);
+    };
+    distributor->run(stage);
+  }
   progress.finish();
   return out;
 }

@@ -9,6 +9,7 @@
 #include "rayscan/io/camera_file.hpp"
 #include "rayscan/io/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/work_distributor.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -184,6 +185,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     if (surfel) vo.surfels = &surfels;
     vo.threads = ctl.threads;
     vo.progress = ctl.progress;
+    vo.distributor = ctl.distributor;
     vis = compute_visibility(index, cloud.positions, observers, vo);
     std::uint64_t seen = 0;
     for (std::uint32_t c : vis.count) seen += c > 0;
@@ -209,6 +211,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     so.seed = o.seed;
     so.threads = ctl.threads;
     so.progress = ctl.progress;
+    so.distributor = ctl.distributor;
     t0 = std::chrono::steady_clock::now();
     r.sky_view = compute_sky_view(index, cloud.positions, so, &r.sky_queries);
     r.sky_seconds = seconds_since(t0);
@@ -226,7 +229,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   if (camera) {
     t0 = std::chrono::steady_clock::now();
     const std::vector<std::uint32_t> px =
-        camera_first_hits(index, *camera, radius, r.max_distance, ctl.threads, ctl.progress);
+        camera_first_hits(index, *camera, radius, r.max_distance, ctl.threads, ctl.progress, ctl.distributor);
     r.camera_hits = count_pixel_hits(px, cloud.size());
     r.camera_seconds = seconds_since(t0);
     std::uint64_t seen = 0;
@@ -238,6 +241,8 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   }
 
   // ---- Outputs: one transaction (issue 8), so a failing raster leaves the old --out intact.
+  // Over several processes (MPI) only the root holds the gathered fields and writes.
+  if (ctl.distributor && !ctl.distributor->is_root()) return r;
   OutputTransaction tx;
   if (!o.out.empty()) {
     if (lower_extension(o.out) != ".ply") {  // .las or .laz (write_las compresses .laz)

@@ -8,6 +8,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <mutex>
 
@@ -35,19 +36,20 @@ double median_nn_spacing(const io::MappedIndex& index, std::span<const Vec3> pos
 
 namespace {
 
+// Tiles [first, last) of the T x T tile grid (row-major tile order).
 template <class I>
 void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const RenderOptions& opt,
-                  RenderStats& stats) {
+                  RenderStats& stats, std::uint32_t first, std::uint32_t last) {
   const Sky sky(s.background, s.sun, s.up);
   const PathTracer<I> tracer(idx, s.integrator, sky, opt.time_queries);
   const std::uint32_t W = fb.width, H = fb.height, T = std::max(1u, opt.tile_size);
-  const std::uint32_t tiles_x = (W + T - 1) / T, tiles_y = (H + T - 1) / T;
+  const std::uint32_t tiles_x = (W + T - 1) / T;
   const bool any_aov = !s.aovs.empty();
   const bool want_cost = !fb.cost.empty();
   const Camera& cam = s.camera;
   std::mutex stats_mutex;
 
-  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, tiles_x * tiles_y, 1), [&](const auto& range) {
+  tbb::parallel_for(tbb::blocked_range<std::uint32_t>(first, last, 1), [&](const auto& range) {
     std::vector<RayHit> hits;
     hits.reserve(4);
     TraceCounters c;
@@ -88,20 +90,71 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
   });
 }
 
+// Calls f(channel bytes span) for every channel vector of fb that is in use, in a fixed order.
+template <class F>
+void for_each_channel(Framebuffer& fb, F&& f) {
+  f(std::as_writable_bytes(std::span(fb.beauty)), sizeof(Color));
+  f(std::as_writable_bytes(std::span(fb.depth)), sizeof(float));
+  f(std::as_writable_bytes(std::span(fb.normal)), sizeof(glm::vec3));
+  f(std::as_writable_bytes(std::span(fb.position)), sizeof(glm::vec3));
+  f(std::as_writable_bytes(std::span(fb.index)), sizeof(std::uint32_t));
+  f(std::as_writable_bytes(std::span(fb.albedo)), sizeof(Color));
+  f(std::as_writable_bytes(std::span(fb.cost)), sizeof(float));
+}
+
+// The pixel rectangle of tile t: x0, y0, x1, y1.
+std::array<std::uint32_t, 4> tile_rect(const Framebuffer& fb, std::uint32_t T, std::uint64_t t) {
+  const std::uint32_t tiles_x = (fb.width + T - 1) / T;
+  const std::uint32_t x0 = std::uint32_t(t % tiles_x) * T, y0 = std::uint32_t(t / tiles_x) * T;
+  return {x0, y0, std::min(fb.width, x0 + T), std::min(fb.height, y0 + T)};
+}
+
 }  // namespace
 
-namespace {
-template <class I>
-RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuffer& fb,
-                              const RenderOptions& opt) {
-  const std::uint32_t W = s.camera.width(), H = s.camera.height();
+std::vector<std::byte> pack_tiles(Framebuffer& fb, unsigned tile_size, std::uint64_t first, std::uint64_t count) {
+  std::vector<std::byte> out;
+  const std::uint32_t T = std::max(1u, tile_size);
+  for (std::uint64_t t = first; t < first + count; ++t) {
+    const auto [x0, y0, x1, y1] = tile_rect(fb, T, t);
+    for_each_channel(fb, [&](std::span<std::byte> ch, std::size_t px) {
+      if (ch.empty()) return;
+      for (std::uint32_t y = y0; y < y1; ++y) {
+        const std::size_t a = (std::size_t(y) * fb.width + x0) * px, b = (std::size_t(y) * fb.width + x1) * px;
+        out.insert(out.end(), ch.begin() + a, ch.begin() + b);
+      }
+    });
+  }
+  return out;
+}
+
+void unpack_tiles(Framebuffer& fb, unsigned tile_size, std::uint64_t first, std::uint64_t count,
+                  std::span<const std::byte> bytes) {
+  const std::uint32_t T = std::max(1u, tile_size);
+  std::size_t off = 0;
+  for (std::uint64_t t = first; t < first + count; ++t) {
+    const auto [x0, y0, x1, y1] = tile_rect(fb, T, t);
+    for_each_channel(fb, [&](std::span<std::byte> ch, std::size_t px) {
+      if (ch.empty()) return;
+      for (std::uint32_t y = y0; y < y1; ++y) {
+        const std::size_t a = (std::size_t(y) * fb.width + x0) * px;
+        read_bytes(bytes, off, ch.subspan(a, std::size_t(x1 - x0) * px));
+      }
+    });
+  }
+  if (off != bytes.size())
+    throw std::runtime_error("render: tile message of " + std::to_string(bytes.size()) + " bytes, expected " +
+                             std::to_string(off));
+}
+
+Framebuffer empty_framebuffer(const Camera& camera, std::span<const Aov> aovs) {
+  const std::uint32_t W = camera.width(), H = camera.height();
   const std::size_t n = std::size_t(W) * H;
-  fb = Framebuffer{};
+  Framebuffer fb;
   fb.width = W;
   fb.height = H;
   fb.beauty.assign(n, Color(0.0f));
-  fb.position_origin = s.camera.center();
-  for (Aov a : s.aovs) switch (a) {
+  fb.position_origin = camera.center();
+  for (Aov a : aovs) switch (a) {
       case Aov::depth: fb.depth.assign(n, 0.0f); break;
       case Aov::normal: fb.normal.assign(n, glm::vec3(0.0f)); break;
       case Aov::position: fb.position.assign(n, glm::vec3(0.0f)); break;
@@ -109,6 +162,16 @@ RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuff
       case Aov::albedo: fb.albedo.assign(n, Color(0.0f)); break;
       case Aov::cost: fb.cost.assign(n, 0.0f); break;
     }
+  return fb;
+}
+
+namespace {
+template <class I>
+RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuffer& fb,
+                              const RenderOptions& opt) {
+  const std::uint32_t W = s.camera.width(), H = s.camera.height();
+  const std::size_t n = std::size_t(W) * H;
+  fb = empty_framebuffer(s.camera, s.aovs);
   const std::size_t npts = index.positions().size();
   if (npts != s.integrator.centers.size() || s.integrator.albedo.size() != s.integrator.centers.size())
     throw std::invalid_argument("render: index, centres and albedo sizes differ");
@@ -119,9 +182,34 @@ RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuff
   stats.threads = threads;
   tbb::task_arena arena(static_cast<int>(threads));
   const auto t0 = std::chrono::steady_clock::now();
-  arena.execute([&] {
-    render_tiles(index, s, fb, opt, stats);
-  });
+  const std::uint32_t T = std::max(1u, opt.tile_size);
+  const std::uint32_t tiles = ((W + T - 1) / T) * ((H + T - 1) / T);
+  WorkDistributor* dist = opt.distributor;
+  if (!dist || dist->size() <= 1) {
+    arena.execute([&] { render_tiles(index, s, fb, opt, stats, 0, tiles); });
+  } else {
+    // Tiles handed out by the distributor (rayscan::mpi's work queue); the root gathers them.
+    WorkStage stage;
+    stage.items = tiles;
+    stage.batch = threads;
+    stage.compute = [&](std::uint64_t first, std::uint64_t count) {
+      arena.execute([&] {
+        render_tiles(index, s, fb, opt, stats, std::uint32_t(first), std::uint32_t(first + count));
+      });
+    };
+    stage.pack = [&](std::uint64_t first, std::uint64_t count) { return pack_tiles(fb, T, first, count); };
+    stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
+      unpack_tiles(fb, T, first, count, bytes);
+      if (opt.progress)
+        for (std::uint64_t k = 0; k < count; ++k) opt.progress->tile_done(0);
+    };
+    dist->run(stage);
+    std::uint64_t totals[3] = {stats.queries, stats.nodes_visited, stats.points_tested};
+    dist->sum_to_root(totals);
+    stats.queries = totals[0];
+    stats.nodes_visited = totals[1];
+    stats.points_tested = totals[2];
+  }
   stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   stats.primary_rays = std::uint64_t(n) * (s.spp + (s.aovs.empty() ? 0 : 1));
   if (opt.progress) opt.progress->finish();

@@ -6,11 +6,17 @@
 #include "rayscan/io/index_file.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/surfel_setup.hpp"
+#include "rayscan/work_distributor.hpp"
+
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <utility>
 
@@ -80,22 +86,39 @@ void apply_overrides(Scene& scene, const SceneOverrides& o) {
   }
 }
 
-RenderJobResult run_render(const RenderJobOptions& o) {
-  Scene scene = o.scene;  // small: the camera may be replaced by camera_for_cloud
+namespace {
+
+// What every frame of a render job shares: the scene, the cloud, its index, albedo and radius.
+// Heap-allocated (spans into `owned` and `albedo` must not move).
+struct Prepared {
+  Scene scene;
+  std::optional<io::MappedIndex> mapped;
+  PointCloud owned;
+  const PointCloud* cloud = nullptr;
+  std::vector<Color> albedo;
+  AnyIndex index = AnyIndex(BruteForceIndex(std::span<const Vec3>{}));
+  SurfelAttributes surfels;
+};
+
+// Reads the cloud (or maps the index file), computes the albedo, builds the index and chooses
+// the radius; fills r.points, read/index seconds, radius, crs. (run_render's first half.)
+std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r) {
+  auto P = std::make_unique<Prepared>();
+  P->scene = o.scene;  // small: the camera may be replaced by camera_for_cloud
+  Scene& scene = P->scene;
   const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
   if (!scene.camera && !o.camera_for_cloud) throw SceneError(f + ": /camera: not set; give a camera in the scene or a camera file");
   if (o.write && scene.output.image.empty())
     throw SceneError(f + ": /output/image: not set; give it in the scene or with --out");
   const JobControl& ctl = o.control;
-  RenderJobResult r;
   char buf[512];
 
   // Only positions, colour, intensity and classification are used: skip the other scalars.
   auto t0 = std::chrono::steady_clock::now();
-  PointCloud owned;
+  PointCloud& owned = P->owned;
   // An index file (.rsi): the tree is mapped, not built; centres and colours come from its stored
   // points in original order (MappedIndex::to_point_cloud).
-  std::optional<io::MappedIndex> mapped;
+  std::optional<io::MappedIndex>& mapped = P->mapped;
   if (!o.cloud && io::is_index_file(scene.cloud)) {
     mapped.emplace(io::MappedIndex::open(scene.cloud));
     owned = mapped->to_point_cloud();
@@ -104,7 +127,8 @@ RenderJobResult run_render(const RenderJobOptions& o) {
     owned = load_cloud(scene, io::ReadOptions{.scalars = false});
   }
   else if (o.cloud->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
-  const PointCloud& cloud = o.cloud ? *o.cloud : owned;
+  P->cloud = o.cloud ? o.cloud : &owned;
+  const PointCloud& cloud = *P->cloud;
   r.points = cloud.size();
   if (!o.cloud) {
     r.read_seconds = seconds_since(t0);
@@ -114,14 +138,14 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   }
   r.crs_wkt = cloud.crs_wkt;
   if (o.camera_for_cloud) scene.camera = o.camera_for_cloud(cloud);
-  std::vector<Color> albedo;
+  std::vector<Color>& albedo = P->albedo;
   try {
     albedo = compute_albedo(cloud, scene.material, scene.up);
   } catch (const std::invalid_argument& e) {
     throw SceneError(f + ": /material/color: " + e.what());
   }
   t0 = std::chrono::steady_clock::now();
-  AnyIndex index = [&] {
+  P->index = [&] {
     if (mapped) return AnyIndex(BruteForceIndex(std::span<const Vec3>{}));  // unused: the mapped tree is
     try {
       return make_index(cloud.positions, scene.index);
@@ -136,7 +160,8 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   else
     std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), r.index_seconds);
   ctl.info(buf);
-  SurfelAttributes surfels;
+  AnyIndex& index = P->index;
+  SurfelAttributes& surfels = P->surfels;
   if (scene.primitive == Primitive::surfel) {
     // Surfel normals and radii: kNN over the mapped or the built in-memory index (scene_surfels).
     t0 = std::chrono::steady_clock::now();
@@ -170,36 +195,217 @@ RenderJobResult run_render(const RenderJobOptions& o) {
     }
   }
 
-  RenderSettings settings = make_settings(scene, cloud.positions, albedo, r.radius.radius);
-  if (scene.primitive == Primitive::surfel) use_surfels(settings, surfels);
+  return P;
+}
+
+// Traces one camera's image over the prepared scene (run_render's second half).
+RenderStats render_camera(const Prepared& P, const Camera& camera, const JobControl& ctl, double radius,
+                          Framebuffer& image, bool distribute) {
+  Scene scene = P.scene;
+  scene.camera = camera;
+  RenderSettings settings = make_settings(scene, P.cloud->positions, P.albedo, radius);
+  if (scene.primitive == Primitive::surfel) use_surfels(settings, P.surfels);
   const Camera& cam = settings.camera;
   const std::uint64_t tiles = std::uint64_t((cam.width() + 15) / 16) * ((cam.height() + 15) / 16);
   Progress progress(tiles, ctl.progress && Progress::stderr_is_terminal());
   RenderOptions ropt;
   ropt.threads = ctl.threads;
   ropt.progress = &progress;
-  r.stats = mapped ? render_image(*mapped, settings, r.image, ropt) : render_image(index, settings, r.image, ropt);
+  ropt.distributor = distribute ? ctl.distributor : nullptr;
+  return P.mapped ? render_image(*P.mapped, settings, image, ropt) : render_image(P.index, settings, image, ropt);
+}
 
-  r.metadata = {{"rayscan:scene", scene.file.string()},
-                {"rayscan:cloud", o.cloud ? std::string("(memory)") : scene.cloud.string()},
-                {"rayscan:spp", std::to_string(scene.spp)},
-                {"rayscan:seed", std::to_string(scene.seed)},
-                {"rayscan:radius", num17(r.radius.radius)},
-                {"rayscan:primitive", scene.primitive == Primitive::surfel ? "surfel" : "sphere"}};
+ImageMetadata render_metadata(const RenderJobOptions& o, const Scene& scene, const RenderJobResult& r,
+                              const std::filesystem::path& camera_file) {
+  ImageMetadata m = {{"rayscan:scene", scene.file.string()},
+                     {"rayscan:cloud", o.cloud ? std::string("(memory)") : scene.cloud.string()},
+                     {"rayscan:spp", std::to_string(scene.spp)},
+                     {"rayscan:seed", std::to_string(scene.seed)},
+                     {"rayscan:radius", num17(r.radius.radius)},
+                     {"rayscan:primitive", scene.primitive == Primitive::surfel ? "surfel" : "sphere"}};
   // No render time in the file (issue 8): two renders of the same scene and seed are identical
   // byte for byte (`cmp`); the time is in RenderJobResult::stats and the log.
-  if (!scene.camera_file.empty()) r.metadata.emplace_back("rayscan:camera", scene.camera_file.string());
-  if (o.write && !scene.output.image.empty()) r.written = write_image(r.image, scene.output, r.metadata);
+  if (!camera_file.empty()) m.emplace_back("rayscan:camera", camera_file.string());
+  return m;
+}
 
-  const RenderStats& st = r.stats;
+void log_stats(const JobControl& ctl, const RenderStats& st, const Camera& cam, std::uint32_t spp, const char* what) {
+  char buf[512];
   std::snprintf(buf, sizeof buf,
-                "%.2f s, %u threads, %llux%llu px, %u spp, %llu primary rays, %llu ray queries, "
+                "%s%.2f s, %u threads, %llux%llu px, %u spp, %llu primary rays, %llu ray queries, "
                 "%.3g queries/s (%.3g per thread)",
-                st.seconds, st.threads, (unsigned long long)cam.width(), (unsigned long long)cam.height(),
-                scene.spp, (unsigned long long)st.primary_rays, (unsigned long long)st.queries,
-                double(st.queries) / st.seconds, double(st.queries) / st.seconds / st.threads);
+                what, st.seconds, st.threads, (unsigned long long)cam.width(), (unsigned long long)cam.height(), spp,
+                (unsigned long long)st.primary_rays, (unsigned long long)st.queries, double(st.queries) / st.seconds,
+                double(st.queries) / st.seconds / st.threads);
   ctl.info(buf);
+}
+
+bool is_root(const JobControl& ctl) { return !ctl.distributor || ctl.distributor->is_root(); }
+
+}  // namespace
+
+RenderJobResult run_render(const RenderJobOptions& o) {
+  RenderJobResult r;
+  const std::unique_ptr<Prepared> P = prepare(o, r);
+  const Scene& scene = P->scene;
+  const JobControl& ctl = o.control;
+  r.stats = render_camera(*P, *scene.camera, ctl, r.radius.radius, r.image, true);
+  r.metadata = render_metadata(o, scene, r, scene.camera_file);
+  if (o.write && !scene.output.image.empty() && is_root(ctl))
+    r.written = write_image(r.image, scene.output, r.metadata);
+  log_stats(ctl, r.stats, *scene.camera, scene.spp, "");
   return r;
+}
+
+std::vector<Camera> load_camera_list(const std::filesystem::path& file) {
+  const std::string f = file.string();
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw SceneError(f + ": cannot open the camera list");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw SceneError(f + ": byte " + std::to_string(e.byte) + ": expected JSON (a list of cameras)");
+  }
+  std::string base;
+  if (j.is_object()) {
+    if (j.size() != 1 || !j.contains("cameras"))
+      throw SceneError(f + ": expected an array of cameras or {\"cameras\": [...]}");
+    j = j["cameras"];
+    base = "/cameras";
+  }
+  if (!j.is_array() || j.empty()) throw SceneError(f + ": " + (base.empty() ? "" : base + ": ") + "expected a non-empty array of cameras");
+  if (j.size() > 1000000) throw SceneError(f + ": more than 1000000 cameras");
+  std::vector<Camera> cams;
+  cams.reserve(j.size());
+  for (std::size_t k = 0; k < j.size(); ++k) {
+    const std::string ptr = base + "/" + std::to_string(k);
+    if (j[k].is_string()) {
+      std::filesystem::path p = j[k].get<std::string>();
+      if (p.is_relative()) p = file.parent_path() / p;
+      cams.push_back(io::load_camera(p));
+    } else if (j[k].is_object()) {
+      cams.push_back(io::parse_camera(j[k], f, ptr));
+    } else {
+      throw SceneError(f + ": " + ptr + ": expected a camera object or a camera file name");
+    }
+  }
+  return cams;
+}
+
+std::filesystem::path frame_file_name(const std::filesystem::path& image, std::size_t frame) {
+  char num[32];
+  std::snprintf(num, sizeof num, "_%04zu", frame);
+  std::filesystem::path p = image;
+  p.replace_filename(image.stem().string() + num + image.extension().string());
+  return p;
+}
+
+RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const Camera> cameras) {
+  if (cameras.empty()) throw std::invalid_argument("--frames: the camera list is empty");
+  if (o.write && o.scene.output.image.empty())
+    throw SceneError((o.scene.file.empty() ? std::string("(scene)") : o.scene.file.string()) +
+                     ": /output/image: not set; give it in the scene or with --out");
+  RenderJobOptions first = o;
+  if (!first.scene.camera) first.scene.camera = cameras.front();  // prepare() needs a camera
+  RenderFramesResult fr;
+  RenderJobResult& r = fr.job;
+  const std::unique_ptr<Prepared> P = prepare(first, r);
+  const Scene& scene = P->scene;
+  const JobControl& ctl = o.control;
+  WorkDistributor* dist = ctl.distributor;
+  const int ranks = dist ? dist->size() : 1;
+  const bool root = is_root(ctl);
+  fr.frames = cameras.size();
+  if (!o.write && root) fr.images.resize(cameras.size());
+  std::mutex write_mutex;
+  const auto t0 = std::chrono::steady_clock::now();
+  // Writes frame f (root only) and accumulates its statistics.
+  auto finish_frame = [&](std::size_t f, const Framebuffer& fb, const RenderStats& st) {
+    std::lock_guard lock(write_mutex);
+    r.stats.queries += st.queries;
+    r.stats.nodes_visited += st.nodes_visited;
+    r.stats.points_tested += st.points_tested;
+    r.stats.primary_rays += st.primary_rays;
+    r.stats.threads = st.threads;
+    if (!root) return;
+    if (!o.write) {
+      fr.images[f] = fb;
+      return;
+    }
+    OutputDesc out = scene.output;
+    out.image = frame_file_name(scene.output.image, f);
+    ImageMetadata m = render_metadata(o, scene, r, {});
+    m.emplace_back("rayscan:frame", std::to_string(f));
+    const auto w = write_image(fb, out, m);
+    fr.job.written.insert(fr.job.written.end(), w.begin(), w.end());
+  };
+  if (cameras.size() > std::size_t(ranks) && ranks > 1) {
+    // More frames than ranks: whole frames are the work items (one frame per request).
+    JobControl quiet = ctl;
+    quiet.progress = false;
+    std::vector<Framebuffer> pending(cameras.size());  // a worker's frame until it is packed
+    std::vector<RenderStats> stats(cameras.size());
+    WorkStage stage;
+    stage.items = cameras.size();
+    stage.batch = 1;
+    stage.compute = [&](std::uint64_t first_f, std::uint64_t count) {
+      for (std::uint64_t f = first_f; f < first_f + count; ++f) {
+        stats[f] = render_camera(*P, cameras[f], quiet, r.radius.radius, pending[f], false);
+        if (root) {
+          finish_frame(f, pending[f], stats[f]);
+          pending[f] = Framebuffer{};
+        }
+      }
+    };
+    stage.pack = [&](std::uint64_t first_f, std::uint64_t count) {
+      std::vector<std::byte> out;
+      for (std::uint64_t f = first_f; f < first_f + count; ++f) {
+        const std::uint64_t st[4] = {stats[f].queries, stats[f].nodes_visited, stats[f].points_tested,
+                                     stats[f].primary_rays};
+        append_bytes(out, std::span<const std::uint64_t>(st));
+        const std::vector<std::byte> px = pack_tiles(pending[f], 1u << 30, 0, 1);  // one tile = the frame
+        append_bytes(out, std::span<const std::byte>(px));
+        pending[f] = Framebuffer{};
+      }
+      return out;
+    };
+    stage.unpack = [&](std::uint64_t first_f, std::uint64_t count, std::span<const std::byte> bytes) {
+      std::size_t off = 0;
+      for (std::uint64_t f = first_f; f < first_f + count; ++f) {
+        std::uint64_t st[4];
+        read_values(bytes, off, std::span<std::uint64_t>(st));
+        Framebuffer fb = empty_framebuffer(cameras[f], scene.output.aovs);
+        const std::size_t need = pack_tiles(fb, 1u << 30, 0, 1).size();
+        if (bytes.size() - off < need) throw std::runtime_error("render --frames: short frame message");
+        unpack_tiles(fb, 1u << 30, 0, 1, bytes.subspan(off, need));
+        off += need;
+        RenderStats s;
+        s.queries = st[0];
+        s.nodes_visited = st[1];
+        s.points_tested = st[2];
+        s.primary_rays = st[3];
+        s.threads = r.stats.threads;
+        finish_frame(f, fb, s);
+      }
+    };
+    dist->run(stage);
+  } else {
+    // As many ranks as frames or more (or one process): frame after frame, tiles distributed.
+    for (std::size_t f = 0; f < cameras.size(); ++f) {
+      Framebuffer fb;
+      const RenderStats st = render_camera(*P, cameras[f], ctl, r.radius.radius, fb, true);
+      finish_frame(f, fb, st);
+      if (f + 1 == cameras.size()) r.image = std::move(fb);
+    }
+  }
+  r.stats.seconds = seconds_since(t0);
+  r.metadata = render_metadata(o, scene, r, {});
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%zu frames in %.2f s (%.3g frames/s), %llu ray queries", cameras.size(),
+                r.stats.seconds, double(cameras.size()) / r.stats.seconds, (unsigned long long)r.stats.queries);
+  ctl.info(buf);
+  return fr;
 }
 
 }  // namespace rayscan::render

@@ -9,6 +9,8 @@
 
 namespace rayscan {
 
+class WorkDistributor;  // rayscan/work_distributor.hpp
+
 /// Run-time controls of a job that never change its result.
 struct JobControl {
   unsigned threads = 0;   ///< worker threads; 0 = all cores (resolve_threads); results are identical
@@ -16,6 +18,10 @@ struct JobControl {
   /// Receives one human-readable line per stage ("read 1000 points from x.las in 0.01 s");
   /// empty = silent.
   std::function<void(const std::string&)> log;
+  /// Spreads the job's parallel stages over processes (MPI ranks; rayscan::mpi, docs/mpi.md);
+  /// nullptr = this process computes everything. Every process then runs the same job; only the
+  /// root (rank 0) gets complete results and writes outputs. Not owned.
+  WorkDistributor* distributor = nullptr;
 
   /// Send `line` to `log` when set.
   void info(const std::string& line) const {

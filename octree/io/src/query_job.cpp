@@ -6,6 +6,10 @@
 #include "rayscan/io/index_file.hpp"
 #include "rayscan/io/rays.hpp"
 #include "rayscan/threads.hpp"
+#include "rayscan/work_distributor.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <tbb/task_arena.h>
 
@@ -14,6 +18,66 @@
 #include <unordered_map>
 
 namespace rayscan::io {
+
+namespace {
+
+constexpr std::uint64_t kRaysPerItem = 256;  // rays per work item of the distributed batch
+
+// ray_query_batch over TBB, or, with a distributor of several processes, blocks of kRaysPerItem
+// rays handed out by it and gathered to the root (hit lists serialised as count + RayHits).
+template <class I>
+void answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, const JobControl& ctl,
+                 std::vector<std::vector<RayHit>>& hits) {
+  const unsigned threads = resolve_threads(ctl.threads);
+  tbb::task_arena arena(static_cast<int>(threads));
+  WorkDistributor* dist = ctl.distributor;
+  if (!dist || dist->size() <= 1) {
+    arena.execute([&] { hits = ray_query_batch(idx, rays, q); });
+    return;
+  }
+  q.validate();
+  hits.assign(rays.size(), {});
+  const std::uint64_t n = rays.size();
+  WorkStage stage;
+  stage.items = (n + kRaysPerItem - 1) / kRaysPerItem;
+  stage.batch = threads;
+  auto range = [&](std::uint64_t first, std::uint64_t count) {
+    return std::pair{first * kRaysPerItem, std::min(n, (first + count) * kRaysPerItem)};
+  };
+  stage.compute = [&](std::uint64_t first, std::uint64_t count) {
+    const auto [a, b] = range(first, count);
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<std::uint64_t>(a, b, 64), [&](const auto& br) {
+        for (std::uint64_t i = br.begin(); i != br.end(); ++i) ray_query(idx, rays[i], q, hits[i]);
+      });
+    });
+  };
+  stage.pack = [&](std::uint64_t first, std::uint64_t count) {
+    const auto [a, b] = range(first, count);
+    std::vector<std::byte> out;
+    for (std::uint64_t i = a; i < b; ++i) {
+      const std::uint64_t k = hits[i].size();
+      append_bytes(out, std::span<const std::uint64_t>(&k, 1));
+      append_bytes(out, std::span<const RayHit>(hits[i]));
+    }
+    return out;
+  };
+  stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
+    const auto [a, b] = range(first, count);
+    std::size_t off = 0;
+    for (std::uint64_t i = a; i < b; ++i) {
+      std::uint64_t k = 0;
+      read_values(bytes, off, std::span<std::uint64_t>(&k, 1));
+      if (k > (bytes.size() - off) / sizeof(RayHit)) throw std::runtime_error("query: ray block message is short");
+      hits[i].resize(k);
+      read_values(bytes, off, std::span<RayHit>(hits[i]));
+    }
+    if (off != bytes.size()) throw std::runtime_error("query: ray block message has trailing bytes");
+  };
+  dist->run(stage);
+}
+
+}  // namespace
 
 QueryJobResult run_query(const QueryJobOptions& o) {
   o.query.validate();
@@ -26,7 +90,8 @@ QueryJobResult run_query(const QueryJobOptions& o) {
     // sequential scan of the ids (no inverse permutation in memory).
     const MappedIndex idx = MappedIndex::open(o.cloud_file);
     tbb::task_arena arena(static_cast<int>(resolve_threads(o.control.threads)));
-    arena.execute([&] { r.hits = ray_query_batch(idx, r.rays, o.query); });
+    answer_rays(idx, r.rays, o.query, o.control, r.hits);
+    if (o.control.distributor && !o.control.distributor->is_root()) return r;
     std::unordered_map<PointIndex, Vec3> hit_pos;
     for (const auto& h : r.hits)
       for (const RayHit& x : h) hit_pos.emplace(x.index, Vec3(0.0));
@@ -61,10 +126,7 @@ QueryJobResult run_query(const QueryJobOptions& o) {
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   o.control.info(buf);
   const AnyIndex index = make_index(cloud.positions, o.index);
-  tbb::task_arena arena(static_cast<int>(resolve_threads(o.control.threads)));
-  arena.execute([&] {
-    r.hits = std::visit([&](const auto& idx) { return ray_query_batch(idx, r.rays, o.query); }, index);
-  });
+  std::visit([&](const auto& idx) { answer_rays(idx, r.rays, o.query, o.control, r.hits); }, index);
   return r;
 }
 

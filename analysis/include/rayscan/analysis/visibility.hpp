@@ -12,6 +12,7 @@
 #include "rayscan/ray_query.hpp"
 #include "rayscan/camera.hpp"
 #include "rayscan/normals.hpp"
+#include "rayscan/work_distributor.hpp"
 
 #include <cstdint>
 #include <span>
@@ -31,6 +32,9 @@ struct VisibilityOptions {
   /// attributes (indexed like the positions; estimate_surfels) instead of a sphere of `radius`,
   /// and is_visible() uses the surfel rule. Must outlive the call.
   const SurfelAttributes* surfels = nullptr;
+  /// Spreads the point chunks over processes (rayscan::mpi, docs/mpi.md); nullptr = all here.
+  /// With several processes, only the root's result is complete (per_observer, queries summed).
+  WorkDistributor* distributor = nullptr;
 };
 
 /// Per-point results of compute_visibility(), indexed like the cloud's positions.
@@ -89,8 +93,11 @@ struct SkyViewOptions {
                                ///< >= r keeps a point's own flat neighbourhood from closing its sky
   double max_distance = kInf;  ///< obstacles farther than this along a ray are ignored
   std::uint64_t seed = 0;      ///< varies the per-point rotation of the direction set
-  unsigned threads = 0;
-  bool progress = false;
+  unsigned threads = 0;        ///< worker threads; 0 = all cores (results are identical)
+  bool progress = false;       ///< progress bar on stderr (only if stderr is a terminal)
+  /// Spreads the point chunks over processes (rayscan::mpi); nullptr = all here. With several,
+  /// only the root's values (and query count) are complete.
+  WorkDistributor* distributor = nullptr;
 };
 
 /// Direction k of the N-direction set (+z up, unit length): a spherical Fibonacci lattice
@@ -116,10 +123,12 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
 /// t in [0, max_distance]) of the ray through the pixel centre and lens centre,
 /// camera.generate_ray(x, y) -- the ray of the renderer's point-index AOV, so the result equals
 /// `rayscan render --aov index` for the same radius. Row-major from the top-left pixel;
-/// kNoPoint for a miss. Throws std::invalid_argument for radius <= 0.
+/// kNoPoint for a miss. With a `distributor` of several processes (MPI) the rows are handed out
+/// by it and only the root's result is complete. Throws std::invalid_argument for radius <= 0.
 std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const Camera& camera,
                                              double radius, double max_distance = kInf,
-                                             unsigned threads = 0, bool progress = false);
+                                             unsigned threads = 0, bool progress = false,
+                                             WorkDistributor* distributor = nullptr);
 
 /// Number of pixels whose first hit is each point (`npoints` entries) from camera_first_hits()'s
 /// output. Throws std::out_of_range for an index >= npoints other than the miss value.

@@ -96,6 +96,9 @@ struct VisibilityJobResult {
 /// the outputs. A LAS output keeps the source's scale and offset. Throws std::invalid_argument
 /// (bad option, message naming it), ObserverError, SceneError (camera file), io::FormatError
 /// (cloud), std::runtime_error (I/O).
+/// With options.control.distributor over several processes (MPI, docs/mpi.md) every process calls
+/// it with the same options; point chunks (and camera rows) are handed out by the distributor,
+/// and only the root's result is complete and only the root writes the outputs.
 VisibilityJobResult run_visibility(const VisibilityJobOptions& options);
 
 /// The pdal-info-style JSON report of a run (cloud, points, radius, seconds, observers, sky view,

@@ -10,6 +10,7 @@
 #include "rayscan/render/progress.hpp"
 #include "rayscan/render/scene.hpp"
 #include "rayscan/spacing.hpp"
+#include "rayscan/work_distributor.hpp"
 
 #include <cstdint>
 #include <vector>
@@ -37,6 +38,9 @@ struct RenderOptions {
   unsigned tile_size = 16;      ///< tile edge, pixels
   bool time_queries = false;    ///< measure time inside ray_query (bench: cost split)
   Progress* progress = nullptr; ///< optional progress bar
+  /// Spreads the tiles over processes (rayscan::mpi's work queue, docs/mpi.md); nullptr or a
+  /// single process = all tiles here. With several, only the root's framebuffer is complete.
+  WorkDistributor* distributor = nullptr;
 };
 
 /// Totals of one render.
@@ -79,6 +83,21 @@ RenderStats render_image(const AnyIndex& index, const RenderSettings& settings, 
 /// original order, MappedIndex::to_point_cloud()).
 RenderStats render_image(const io::MappedIndex& index, const RenderSettings& settings, Framebuffer& fb,
                          const RenderOptions& options = {});
+/// A framebuffer of the camera's size with beauty and the channels of `aovs` allocated and
+/// cleared (misses: kNoPoint in `index`), position_origin = the camera centre.
+Framebuffer empty_framebuffer(const Camera& camera, std::span<const Aov> aovs);
+
+/// The pixels of tiles [first, first + count) of `fb` (tile grid of edge `tile_size`, row-major
+/// tile order, as render_image traces them): for each tile, each channel in use (beauty, depth,
+/// normal, position, index, albedo, cost) row by row, native byte order. The tile message of the
+/// MPI work queue (docs/mpi.md: 12 bytes per pixel for beauty alone).
+std::vector<std::byte> pack_tiles(Framebuffer& fb, unsigned tile_size, std::uint64_t first, std::uint64_t count);
+
+/// Writes pack_tiles()'s bytes back into `fb` (same size and channels). Throws std::runtime_error
+/// when `bytes` has not exactly the expected size.
+void unpack_tiles(Framebuffer& fb, unsigned tile_size, std::uint64_t first, std::uint64_t count,
+                  std::span<const std::byte> bytes);
+
 /// median_nn_spacing over a memory-mapped index file.
 double median_nn_spacing(const io::MappedIndex& index, std::span<const Vec3> positions,
                          std::size_t max_samples = 20000);

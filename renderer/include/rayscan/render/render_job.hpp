@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <span>
 #include <vector>
 
 namespace rayscan::render {
@@ -53,7 +54,39 @@ struct RenderJobResult {
 /// Throws SceneError "<scene file>: <JSON pointer>: <what was expected>" for a missing camera or
 /// cloud, an unreadable or empty cloud, a bad material range or index option, or an impossible
 /// auto radius, "<scene file>: /surfel: ..." when surfels cannot be estimated; std::runtime_error naming the file when an image cannot be written.
+/// With options.control.distributor over several processes (MPI, docs/mpi.md) every process calls
+/// it with the same options; the tiles are handed out by the distributor, only the root's `image`
+/// is complete and only the root writes (stats: ray queries summed over the processes).
 RenderJobResult run_render(const RenderJobOptions& options);
+
+/// Output of run_render_frames().
+struct RenderFramesResult {
+  RenderJobResult job;     ///< shared values (points, radius, metadata); stats summed over frames;
+                           ///< `image` is the last frame when frames were rendered one by one
+                           ///< (empty when whole frames were distributed); `written` every file
+  std::size_t frames = 0;  ///< frames rendered
+  /// Every frame in camera order, only when options.write is false (in-memory use; on the root).
+  std::vector<Framebuffer> images;
+};
+
+/// Renders one image per camera over one prepared scene (the cloud is read, the index built and
+/// the radius chosen once): an animation or fly-through, `rayscan render --frames CAMERAS.json`.
+/// Frame f is written to frame_file_name(scene.output.image, f). With a distributor
+/// (JobControl::distributor, MPI) of N processes: more frames than processes -> whole frames are
+/// the work items of the queue (each rank renders a frame with its own threads, the root writes
+/// it as it arrives); otherwise frame after frame with tiles distributed. Images are identical to
+/// run_render() with each camera. Throws like run_render(), and std::invalid_argument for an empty
+/// camera list.
+RenderFramesResult run_render_frames(const RenderJobOptions& options, std::span<const Camera> cameras);
+
+/// Reads a camera list (a fly-through): a JSON array whose elements are camera objects (the
+/// camera file schema, scenes/README.md) or camera file names (relative to the list's folder), or
+/// {"cameras": [...]} of the same. Throws SceneError "<file>: <JSON pointer>: <expected>".
+std::vector<Camera> load_camera_list(const std::filesystem::path& file);
+
+/// The output name of frame `frame`: "<stem>_<frame, 4+ digits><extension>" beside `image`
+/// (out.png -> out_0000.png, out_0001.png, ...).
+std::filesystem::path frame_file_name(const std::filesystem::path& image, std::size_t frame);
 
 /// Applies the usual command-line overrides to a loaded scene, checking each: a camera file
 /// (replaces the camera), samples per pixel, seed, output image (must pass is_image_file_name),

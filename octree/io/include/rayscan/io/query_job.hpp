@@ -46,6 +46,9 @@ struct QueryJobResult {
 /// the cloud, builds the index and answers every ray (ray_query_batch: TBB, identical for any
 /// thread count). Throws std::invalid_argument for an invalid query or index option (e.g. depth
 /// with another index than octree-fixed), io::FormatError for a malformed input file.
+/// With options.control.distributor over several processes (MPI, docs/mpi.md), every process
+/// calls it; blocks of 256 rays are handed out by the distributor and only the root's `hits`
+/// (and `hit_positions`) are complete.
 QueryJobResult run_query(const QueryJobOptions& options);
 
 /// Writes the hits as CSV "ray,rank,index,x,y,z,t,distance" (17 significant digits) to `out`;

@@ -1,0 +1,225 @@
+// `mpirun -n N rayscan ...` end to end (issue 15): images, per-point fields and query hits are
+// the same bytes as a single-process run (the oracle: the file written by one process), for 2
+// and 3 ranks and 1 or 2 threads; a rank that cannot open the index or dies ends the job with an
+// error and no output. Loopback only: the shared-memory transport (btl self,vader), no network.
+#include "../common/run_command.hpp"
+
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using rayscan::test::run_command;
+using rayscan::test::CommandResult;
+
+const std::string kBin = RAYSCAN_BIN;
+
+// mpirun on this machine only: shared memory between the ranks, no binding (so a rank may use
+// more than one core), oversubscription allowed (3 ranks on 2 cores), root allowed in CI
+// containers. `root_computes` = false forces every item through the messages (rank 0 serves only).
+std::string mpirun(int n, bool root_computes = true) {
+  std::string c = std::string(RAYSCAN_MPIEXEC) + " -n " + std::to_string(n) +
+                  " --oversubscribe --bind-to none --mca btl self,vader --mca btl_vader_single_copy_mechanism none"
+                  " -x RAYSCAN_MPI_TIMEOUT=60";
+  if (::geteuid() == 0) c += " --allow-run-as-root";
+  if (!root_computes) c += " -x RAYSCAN_MPI_ROOT_COMPUTES=0";
+  return c + " ";
+}
+
+// Number of lines of `out` equal to `line`. mpirun forwards the ranks' stderr and prints its own
+// MPI_ABORT banner; the two may interleave in either order, so the tests look for the line, once.
+int lines_equal(const std::string& out, const std::string& line) {
+  int n = 0;
+  std::size_t a = 0;
+  while (a < out.size()) {
+    std::size_t b = out.find('\n', a);
+    if (b == std::string::npos) b = out.size();
+    n += out.compare(a, b - a, line) == 0;
+    a = b + 1;
+  }
+  return n;
+}
+
+std::string bytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+// Byte-compares two files (both must exist and be non-empty).
+void expect_same_file(const fs::path& a, const fs::path& b) {
+  ASSERT_TRUE(fs::exists(a)) << a;
+  ASSERT_TRUE(fs::exists(b)) << b;
+  const std::string x = bytes(a), y = bytes(b);
+  EXPECT_FALSE(x.empty()) << a;
+  EXPECT_TRUE(x == y) << a << " and " << b << " differ (" << x.size() << " vs " << y.size() << " bytes)";
+}
+
+class Mpi : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("rayscan_mpi_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+            std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    fs::copy_file(fs::path(RAYSCAN_TEST_DATA) / "las" / "autzen_trim.las", dir_ / "autzen.las");
+    // A 64 x 40 view of the autzen scene's overview camera, 2 spp (tiles of 16: 12 tiles).
+    std::ofstream(dir_ / "scene.json") << R"({"cloud": "autzen.las", "radius": "auto", "material": {"color": "rgb"},
+      "spp": 2, "seed": 7, "max_depth": 2, "output": {"image": "out.png"},
+      "camera": {"width": 64, "height": 40, "position": [636300.0, 848450.0, 1050.0],
+                 "look_at": [636600.0, 849230.0, 420.0], "vfov_deg": 42}})";
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  // Runs a command line in the test folder.
+  CommandResult run(const std::string& cmd) const { return run_command("cd " + dir_.string() + " && " + cmd); }
+  fs::path dir_;
+};
+
+TEST_F(Mpi, RenderImageAndAovsAreTheSameBytesForAnyRankAndThreadCount) {
+  const std::string args = " render -q scene.json --aov depth --aov index --aov cost --aov normal";
+  CommandResult r = run(kBin + args + " --out one.png");
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run(mpirun(2, false) + kBin + args + " --threads 1 --out two.png");  // every tile by rank 1
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run(mpirun(3) + kBin + args + " --threads 2 --out three.png");
+  ASSERT_EQ(r.code, 0) << r.out;
+  expect_same_file(dir_ / "one.png", dir_ / "two.png");
+  expect_same_file(dir_ / "one.aovs.exr", dir_ / "two.aovs.exr");
+  expect_same_file(dir_ / "one.png", dir_ / "three.png");
+  expect_same_file(dir_ / "one.aovs.exr", dir_ / "three.aovs.exr");
+  // Only rank 0 writes: one line per file on stdout, no stray temporaries.
+  EXPECT_EQ(r.out, "wrote three.png\nwrote three.aovs.exr\n");
+}
+
+TEST_F(Mpi, RenderReportsTheTrafficAndTheWorkersShare) {
+  const CommandResult r = run(mpirun(2, false) + kBin + " render scene.json --threads 1 --out two.png");
+  ASSERT_EQ(r.code, 0) << r.out;
+  // 64 x 40 px beauty = 12 bytes per pixel of results, all from rank 1; rank 0 rendered none.
+  EXPECT_NE(r.out.find("mpi: 2 ranks"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(30720 bytes of results), rank 0 computed 0 items"), std::string::npos) << r.out;
+}
+
+TEST_F(Mpi, FramesFromAnIndexFileAreTheSameBytesWholeFramesOrTiles) {
+  ASSERT_EQ(run(kBin + " index -q autzen.las -o site.rsi --attributes rgb").code, 0);
+  std::ofstream(dir_ / "scene_rsi.json") << R"({"cloud": "site.rsi", "radius": 1.5, "material": {"color": "rgb"},
+      "spp": 1, "seed": 3, "max_depth": 2, "output": {"image": "f.png"},
+      "camera": {"width": 8, "height": 8, "position": [636300, 848450, 1050], "look_at": [636600, 849230, 420]}})";
+  std::ofstream(dir_ / "cams.json") << R"([
+      {"width": 40, "height": 24, "position": [636300, 848450, 1050], "look_at": [636600, 849230, 420]},
+      {"width": 40, "height": 24, "position": [636400, 848450, 1000], "look_at": [636600, 849230, 420]},
+      {"width": 40, "height": 24, "position": [636500, 848450, 950], "look_at": [636600, 849230, 420]},
+      {"width": 40, "height": 24, "position": [636600, 848450, 900], "look_at": [636600, 849230, 420]}])";
+  const std::string args = " render -q scene_rsi.json --frames cams.json --aov index";
+  ASSERT_EQ(run(kBin + args + " --out one.png").code, 0);
+  // 4 frames > 3 ranks: whole frames are the work items; 4 frames on 4 ranks: tiles per frame.
+  CommandResult r = run(mpirun(3, false) + kBin + args + " --threads 1 --out three.png");
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run(mpirun(4, false) + kBin + args + " --threads 1 --out four.png");
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (int f = 0; f < 4; ++f) {
+    const std::string k = "_000" + std::to_string(f);
+    expect_same_file(dir_ / ("one" + k + ".png"), dir_ / ("three" + k + ".png"));
+    expect_same_file(dir_ / ("one" + k + ".aovs.exr"), dir_ / ("three" + k + ".aovs.exr"));
+    expect_same_file(dir_ / ("one" + k + ".png"), dir_ / ("four" + k + ".png"));
+  }
+}
+
+TEST_F(Mpi, VisibilityFieldsAreTheSameBytes) {
+  // 1438 points of autzen (3 chunks of 512 points), so the runs stay short.
+  fs::copy_file(fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz", dir_ / "subset.xyz");
+  std::ofstream(dir_ / "cam.json") << R"({"width": 48, "height": 32, "position": [636540, 849150, 480],
+      "look_at": [636590, 849216, 420]})";
+  const std::string args =
+      " visibility -q subset.xyz --observer 636580,849200 --observer 636600,849230 --height 2 --distance"
+      " --sky-view 16 --from-camera cam.json --threads 1";
+  ASSERT_EQ(run(kBin + args + " --out one.las").code, 0);
+  CommandResult r = run(mpirun(2, false) + kBin + args + " --out two.las");
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run(mpirun(3) + kBin + args + " --out three.las");
+  ASSERT_EQ(r.code, 0) << r.out;
+  expect_same_file(dir_ / "one.las", dir_ / "two.las");
+  expect_same_file(dir_ / "one.las", dir_ / "three.las");
+  // Per-observer counts are summed over the ranks: the printed summary is the same too.
+  EXPECT_EQ(run(kBin + args + " --out one.las | head -2").out, run(mpirun(2, false) + kBin + args + " --out two.las | head -2").out);
+}
+
+TEST_F(Mpi, QueryHitsAreTheSameBytes) {
+  ASSERT_EQ(run(kBin + " index -q autzen.las -o site.rsi").code, 0);
+  {
+    std::ofstream rays(dir_ / "rays.csv");
+    rays << "ox,oy,oz,dx,dy,dz\n";
+    for (int i = 0; i < 700; ++i)  // a grid of slanted rays from above the site: 3 blocks of 256
+      rays << 636010 + (i % 35) * 33 << ',' << 848940 + (i / 35) * 27 << ",600," << (i % 7 - 3) * 0.05 << ','
+           << (i % 5 - 2) * 0.05 << ",-1\n";
+  }
+  const std::string args = " query --cloud site.rsi --rays rays.csv --k 2 --radius 1.5 --order sphere_hit --threads 1";
+  ASSERT_EQ(run(kBin + args + " --out one.csv").code, 0);
+  const CommandResult r = run(mpirun(3, false) + kBin + args + " --out three.csv");
+  ASSERT_EQ(r.code, 0) << r.out;
+  expect_same_file(dir_ / "one.csv", dir_ / "three.csv");
+  EXPECT_GT(bytes(dir_ / "one.csv").size(), 20000u);  // hits were found (not just a header)
+}
+
+TEST_F(Mpi, ARankThatCannotOpenTheIndexEndsTheJobWithOneLineAndNoOutput) {
+  // Two "nodes": rank 1's folder lacks the index file (a shared file system not mounted there).
+  ASSERT_EQ(run(kBin + " index -q autzen.las -o site.rsi").code, 0);
+  fs::create_directories(dir_ / "a");
+  fs::create_directories(dir_ / "b");
+  fs::rename(dir_ / "site.rsi", dir_ / "a" / "site.rsi");
+  for (const char* d : {"a", "b"})
+    std::ofstream(dir_ / d / "s.json") << R"({"cloud": "site.rsi", "radius": 1.5, "spp": 1, "material": {"color": [0.5, 0.5, 0.5]},
+        "camera": {"width": 32, "height": 24, "position": [636300, 848450, 1050], "look_at": [636600, 849230, 420]}})";
+  const fs::path out = dir_ / "never.png";
+  std::string m = mpirun(1);  // MPMD: -n 1 ... : -n 1 ...
+  const std::string cmd = m + "-wdir " + (dir_ / "a").string() + " " + kBin + " render -q s.json --out " + out.string() +
+                          " : -n 1 -wdir " + (dir_ / "b").string() + " " + kBin + " render -q s.json --out " + out.string();
+  const CommandResult r = run(cmd);
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(lines_equal(r.out, "rayscan render: site.rsi: cannot open file: No such file or directory (rank 1 of 2)"), 1)
+      << r.out;
+  EXPECT_EQ(r.out.find("rayscan render:"), r.out.rfind("rayscan render:")) << r.out;  // one line of ours
+  EXPECT_FALSE(fs::exists(out));
+  for (const auto& e : fs::directory_iterator(dir_)) EXPECT_EQ(e.path().filename().string().find(".never"), std::string::npos);
+}
+
+TEST_F(Mpi, ARankThatDiesEndsTheJobWithoutOutputAndWithoutHanging) {
+  const fs::path out = dir_ / "never.png";
+  const CommandResult r = run(mpirun(1) + kBin + " render -q scene.json --out " + out.string() + " : -n 1 sh -c 'kill -9 $$'");
+  EXPECT_NE(r.code, 0) << r.out;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST_F(Mpi, ASilentRankEndsTheJobAfterTheTimeout) {
+  // Rank 1 stands for a hung rank: the same job but 65536 samples per pixel, so its first tile
+  // takes minutes; rank 0 (a dedicated master here) waits RAYSCAN_MPI_TIMEOUT = 2 s for the results.
+  const fs::path out = dir_ / "never.png";
+  std::string m = mpirun(1, false);
+  m.replace(m.find("RAYSCAN_MPI_TIMEOUT=60"), 22, "RAYSCAN_MPI_TIMEOUT=2");
+  const CommandResult r = run(m + kBin + " render -q scene.json --out " + out.string() + " : -n 1 " + kBin +
+                              " render -q scene.json --spp 65536 --out " + out.string());
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(lines_equal(r.out, "rayscan render: rank 1 of 2 sent nothing for 2 s while owing work-queue results "
+                                "(dead, hung, or slower than RAYSCAN_MPI_TIMEOUT)"),
+            1)
+      << r.out;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST_F(Mpi, CommandsThatCannotBeDistributedAreRefused) {
+  const CommandResult r = run(mpirun(2) + kBin + " info autzen.las");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(lines_equal(r.out, "rayscan info: runs in one process; only render, visibility and query run under "
+                                "mpirun -n 2 (run 'rayscan info' without mpirun or with -n 1)"),
+            1)
+      << r.out;
+}
+
+}  // namespace
