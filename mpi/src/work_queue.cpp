@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -215,6 +216,18 @@ void QueueDistributor::sum_to_root(std::span<std::uint64_t> values) {
     traffic_.bytes += msg.size() * sizeof(std::uint64_t);
     return;
   }
+  receive_from_every_worker(tag, "owing a sum", [&](int source, int n) {
+    if (n != int(msg.size() * sizeof(std::uint64_t)))
+      throw std::runtime_error("MPI work queue: sum of the wrong size from rank " + std::to_string(source));
+    MPI_Recv(msg.data(), n, MPI_BYTE, source, tag, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    ++traffic_.messages;
+    traffic_.bytes += std::size_t(n);
+    for (std::size_t k = 0; k < values.size(); ++k) values[k] += msg[k + 1];
+  });
+}
+
+void QueueDistributor::receive_from_every_worker(int tag, const char* what,
+                                                 const std::function<void(int source, int bytes)>& receive) {
   std::vector<char> got(std::size_t(size_), 0);
   const auto t0 = Clock::now();
   for (int received = 0; received < size_ - 1;) {
@@ -225,20 +238,15 @@ void QueueDistributor::sum_to_root(std::span<std::uint64_t> values) {
     if (!flag) {
       if (seconds_since(t0) > timeout_)
         for (int r = 1; r < size_; ++r)
-          if (!got[std::size_t(r)]) abort_with(silent_message(prefix_, r, size_, timeout_, "owing a sum"));
+          if (!got[std::size_t(r)]) abort_with(silent_message(prefix_, r, size_, timeout_, what));
       nap();
       continue;
     }
     int n = 0;
     MPI_Get_count(&st, MPI_BYTE, &n);
-    if (n != int(msg.size() * sizeof(std::uint64_t)))
-      throw std::runtime_error("MPI work queue: sum of the wrong size from rank " + std::to_string(st.MPI_SOURCE));
-    MPI_Recv(msg.data(), n, MPI_BYTE, st.MPI_SOURCE, tag, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-    ++traffic_.messages;
-    traffic_.bytes += std::size_t(n);
+    receive(st.MPI_SOURCE, n);
     got[std::size_t(st.MPI_SOURCE)] = 1;
     ++received;
-    for (std::size_t k = 0; k < values.size(); ++k) values[k] += msg[k + 1];
   }
 }
 
@@ -248,28 +256,13 @@ void QueueDistributor::finish() {
     MPI_Send(&seq, int(sizeof seq), MPI_BYTE, 0, kTagBye, MPI_COMM_WORLD);
     return;
   }
-  std::vector<char> got(std::size_t(size_), 0);
-  const auto t0 = Clock::now();
-  for (int received = 0; received < size_ - 1;) {
-    check_failures();
-    int flag = 0;
-    MPI_Status st;
-    MPI_Iprobe(MPI_ANY_SOURCE, kTagBye, MPI_COMM_WORLD, &flag, &st);
-    if (!flag) {
-      if (seconds_since(t0) > timeout_)
-        for (int r = 1; r < size_; ++r)
-          if (!got[std::size_t(r)]) abort_with(silent_message(prefix_, r, size_, timeout_, "finishing"));
-      nap();
-      continue;
-    }
+  receive_from_every_worker(kTagBye, "finishing", [&](int source, int) {
     std::uint64_t s = 0;
-    MPI_Recv(&s, int(sizeof s), MPI_BYTE, st.MPI_SOURCE, kTagBye, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    MPI_Recv(&s, int(sizeof s), MPI_BYTE, source, kTagBye, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
     if (s != seq)
-      abort_with(prefix_ + ": rank " + std::to_string(st.MPI_SOURCE) + " ran " + std::to_string(s) +
+      abort_with(prefix_ + ": rank " + std::to_string(source) + " ran " + std::to_string(s) +
                  " collective steps, rank 0 ran " + std::to_string(seq) + " (the ranks ran different jobs)");
-    got[std::size_t(st.MPI_SOURCE)] = 1;
-    ++received;
-  }
+  });
 }
 
 }  // namespace rayscan::mpi

@@ -63,6 +63,10 @@ class QueueDistributor final : public WorkDistributor {
   [[noreturn]] void abort_with(const std::string& line) const;
   /// Root: a pending fail message from any worker -> abort_with; returns otherwise.
   void check_failures();
+  /// Root: waits for one message with `tag` from every worker rank, calling `receive(source,
+  /// bytes)` once a message is probed (the callback receives it with MPI_Recv); aborts naming the
+  /// silent rank (`what`, e.g. "owing a sum") after the timeout, and on a rank's failure message.
+  void receive_from_every_worker(int tag, const char* what, const std::function<void(int source, int bytes)>& receive);
 
  private:
   int rank_, size_;
