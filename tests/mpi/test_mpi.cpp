@@ -183,7 +183,10 @@ TEST_F(Mpi, ARankThatCannotOpenTheIndexEndsTheJobWithOneLineAndNoOutput) {
                           " : -n 1 -wdir " + (dir_ / "b").string() + " " + kBin + " render -q s.json --out " + out.string();
   const CommandResult r = run(cmd);
   EXPECT_EQ(r.code, 2) << r.out;
-  EXPECT_EQ(lines_equal(r.out, "rayscan render: site.rsi: cannot open file: No such file or directory (rank 1 of 2)"), 1)
+  // The scene's relative cloud path is resolved against the scene file's folder (rank 1's "b").
+  EXPECT_EQ(lines_equal(r.out, "rayscan render: " + (dir_ / "b" / "site.rsi").string() +
+                                   ": cannot open file: No such file or directory (rank 1 of 2)"),
+            1)
       << r.out;
   EXPECT_EQ(r.out.find("rayscan render:"), r.out.rfind("rayscan render:")) << r.out;  // one line of ours
   EXPECT_FALSE(fs::exists(out));
