@@ -45,9 +45,9 @@ void answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, 
     return std::pair{first * kRaysPerItem, std::min(n, (first + count) * kRaysPerItem)};
   };
   stage.compute = [&](std::uint64_t first, std::uint64_t count) {
-    const auto [a, b] = range(first, count);
+    const auto ab = range(first, count);  // not a structured binding: clang 14 cannot capture those
     arena.execute([&] {
-      tbb::parallel_for(tbb::blocked_range<std::uint64_t>(a, b, 64), [&](const auto& br) {
+      tbb::parallel_for(tbb::blocked_range<std::uint64_t>(ab.first, ab.second, 64), [&](const auto& br) {
         for (std::uint64_t i = br.begin(); i != br.end(); ++i) ray_query(idx, rays[i], q, hits[i]);
       });
     });
