@@ -9,7 +9,7 @@ BUILD=${1:?build dir}
 WORK=${2:?work dir}
 ROUNDS=${3:-3}
 SCENE=${4:-$(cd "$(dirname "$0")/.." && pwd)/scenes/autzen_overview.json}
-shift 4 || true
+shift $(( $# < 4 ? $# : 4 ))  # the optional ones too, when given
 EXTRA=("$@")
 R="$BUILD/tools/rayscan"
 mkdir -p "$WORK"

@@ -33,6 +33,15 @@ double seconds_since(Clock::time_point t) { return std::chrono::duration<double>
 // Sleep between polls: short against a tile's milliseconds, long enough not to steal a core.
 void nap() { std::this_thread::sleep_for(std::chrono::microseconds(50)); }
 
+// The master's poll interval backs off while no request arrives (50, 100, 200, 400 µs), and starts
+// again at 50 µs after each request. A fixed 50 µs made ~18,000 wake-ups and probes per second,
+// which on a 2-core machine took ~10% of the core that rank 0's compute thread needs (bench/mpi.sh:
+// 2 ranks x 1 thread were 1.11x the wall of 1 rank x 2 threads; see bench/README.md).
+void nap_backoff(unsigned& idle) {
+  std::this_thread::sleep_for(std::chrono::microseconds(50u << idle));
+  if (idle < 3) ++idle;
+}
+
 std::string silent_message(const std::string& prefix, int rank, int size, double timeout, const char* what) {
   char b[256];
   std::snprintf(b, sizeof b, ": rank %d of %d sent nothing for %.0f s while %s (dead, hung, or slower than "
@@ -154,6 +163,7 @@ void QueueDistributor::run(const WorkStage& stage) {
     std::vector<Clock::time_point> heard(std::size_t(size_), Clock::now());
     std::vector<char> finished(std::size_t(size_), 0);
     std::vector<std::byte> buf;
+    unsigned idle = 0;  // polls without a request since the last one (nap_backoff)
     while (open > 0 || !local_done) {
       if (local_done && local_error) break;
       check_failures();
@@ -164,9 +174,10 @@ void QueueDistributor::run(const WorkStage& stage) {
         for (int r = 1; r < size_; ++r)
           if (!finished[std::size_t(r)] && seconds_since(heard[std::size_t(r)]) > timeout_)
             abort_with(silent_message(prefix_, r, size_, timeout_, "owing work-queue results"));
-        nap();
+        nap_backoff(idle);
         continue;
       }
+      idle = 0;
       int n = 0;
       MPI_Get_count(&st, MPI_BYTE, &n);
       buf.resize(std::size_t(std::max(n, 0)));
