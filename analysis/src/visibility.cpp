@@ -14,6 +14,8 @@
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 namespace rayscan::analysis {
 
@@ -78,6 +80,45 @@ void check(const VisibilityOptions& o) {
     throw std::invalid_argument("visibility: target height must be a finite number >= 0");
   if (o.surfels && o.surfels->radii.size() != o.surfels->normals.size())
     throw std::invalid_argument("visibility: surfel normals and radii differ in count");
+}
+
+/// Runs `run_chunks(c0, c1)` over the `chunks` point chunks (kChunk slots each, in the index's
+/// storage order `ids`) through the distributor (MPI, docs/mpi.md): chunks are handed out in
+/// batches of `batch`, and the per-point result fields `fields...` (vectors indexed by original
+/// point id) of each batch's slots travel back to the root, field after field. `what` names the
+/// job in the error for a malformed message. Progress counts points.
+template <class RunChunks, class... Field>
+void distribute_point_chunks(WorkDistributor& dist, std::size_t n, std::size_t chunks, unsigned batch,
+                             std::span<const PointIndex> ids, RunChunks& run_chunks, Progress& progress,
+                             const char* what, std::vector<Field>&... fields) {
+  auto slots = [n](std::uint64_t first, std::uint64_t count) {
+    return std::pair{std::size_t(first * kChunk), std::min<std::size_t>(n, (first + count) * kChunk)};
+  };
+  WorkStage stage;
+  stage.items = chunks;
+  stage.batch = batch;
+  stage.compute = [&](std::uint64_t first, std::uint64_t count) { run_chunks(first, first + count); };
+  stage.pack = [&](std::uint64_t first, std::uint64_t count) {
+    const auto [s0, s1] = slots(first, count);
+    std::vector<std::byte> out;
+    out.reserve((s1 - s0) * (sizeof(Field) + ... + 0));
+    auto pack_field = [&, s0 = s0, s1 = s1](const auto& f) {
+      for (std::size_t s = s0; s < s1; ++s) append_bytes(out, std::span(&f[ids[s]], 1));
+    };
+    (pack_field(fields), ...);
+    return out;
+  };
+  stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
+    const auto [s0, s1] = slots(first, count);
+    std::size_t off = 0;
+    auto unpack_field = [&, s0 = s0, s1 = s1](auto& f) {
+      for (std::size_t s = s0; s < s1; ++s) read_values(bytes, off, std::span(&f[ids[s]], 1));
+    };
+    (unpack_field(fields), ...);
+    if (off != bytes.size()) throw std::runtime_error(std::string(what) + ": chunk message has trailing bytes");
+    progress.tile_done(s1 - s0);
+  };
+  dist.run(stage);
 }
 
 }  // namespace
@@ -165,27 +206,8 @@ VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3>
   } else {
     // Point chunks handed out by the distributor; per-point count and distance gathered to the root.
     const std::span<const PointIndex> ids = std::visit([](const auto& i) { return i.ids(); }, index);
-    WorkStage stage;
-    stage.items = chunks;
-    stage.batch = res.threads;
-    stage.compute = [&](std::uint64_t first, std::uint64_t count) { run_chunks(first, first + count); };
-    stage.pack = [&](std::uint64_t first, std::uint64_t count) {
-      std::vector<std::byte> out;
-      const std::size_t s0 = first * kChunk, s1 = std::min<std::size_t>(n, (first + count) * kChunk);
-      out.reserve((s1 - s0) * (sizeof(std::uint32_t) + sizeof(double)));
-      for (std::size_t s = s0; s < s1; ++s) append_bytes(out, std::span<const std::uint32_t>(&res.count[ids[s]], 1));
-      for (std::size_t s = s0; s < s1; ++s) append_bytes(out, std::span<const double>(&res.nearest[ids[s]], 1));
-      return out;
-    };
-    stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
-      std::size_t off = 0;
-      const std::size_t s0 = first * kChunk, s1 = std::min<std::size_t>(n, (first + count) * kChunk);
-      for (std::size_t s = s0; s < s1; ++s) read_values(bytes, off, std::span<std::uint32_t>(&res.count[ids[s]], 1));
-      for (std::size_t s = s0; s < s1; ++s) read_values(bytes, off, std::span<double>(&res.nearest[ids[s]], 1));
-      if (off != bytes.size()) throw std::runtime_error("visibility: chunk message has trailing bytes");
-      progress.tile_done(s1 - s0);
-    };
-    dist->run(stage);
+    distribute_point_chunks(*dist, n, chunks, res.threads, ids, run_chunks, progress, "visibility", res.count,
+                            res.nearest);
   }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   progress.finish();
@@ -281,24 +303,7 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
     run_chunks(0, chunks);
   } else {
     const std::span<const PointIndex> ids = std::visit([](const auto& i) { return i.ids(); }, index);
-    WorkStage stage;
-    stage.items = chunks;
-    stage.batch = threads;
-    stage.compute = [&](std::uint64_t first, std::uint64_t count) { run_chunks(first, first + count); };
-    stage.pack = [&](std::uint64_t first, std::uint64_t count) {
-      std::vector<std::byte> bytes;
-      const std::size_t s0 = first * kChunk, s1 = std::min<std::size_t>(n, (first + count) * kChunk);
-      for (std::size_t s = s0; s < s1; ++s) append_bytes(bytes, std::span<const double>(&out[ids[s]], 1));
-      return bytes;
-    };
-    stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
-      std::size_t off = 0;
-      const std::size_t s0 = first * kChunk, s1 = std::min<std::size_t>(n, (first + count) * kChunk);
-      for (std::size_t s = s0; s < s1; ++s) read_values(bytes, off, std::span<double>(&out[ids[s]], 1));
-      if (off != bytes.size()) throw std::runtime_error("sky view: chunk message has trailing bytes");
-      progress.tile_done(s1 - s0);
-    };
-    dist->run(stage);
+    distribute_point_chunks(*dist, n, chunks, threads, ids, run_chunks, progress, "sky view", out);
     std::uint64_t t = total.load();
     dist->sum_to_root(std::span<std::uint64_t>(&t, 1));
     total = t;
