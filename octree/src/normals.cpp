@@ -52,9 +52,12 @@ void check_surfel_arguments(std::size_t index_points, std::span<const Vec3> posi
   if (index_points != n) throw std::invalid_argument("surfels: the index was built over another cloud");
 }
 
+Vec3 surfel_up(const SurfelOptions& o) {
+  return glm::length(o.orientation.up) > 0.0 ? glm::normalize(o.orientation.up) : Vec3(0, 0, 1);
+}
+
 glm::vec3 surfel_normal(const Vec3& p, std::span<const Neighbor> nb, std::span<const Vec3> positions,
-                        const SurfelOptions& o, bool estimate, const glm::vec3& file) {
-  const Vec3 up = glm::length(o.orientation.up) > 0.0 ? glm::normalize(o.orientation.up) : Vec3(0, 0, 1);
+                        const SurfelOptions& o, const Vec3& up, bool estimate, const glm::vec3& file) {
   Vec3 nrm = up;
   if (estimate) {
     // Covariance about the neighbourhood mean, in coordinates relative to p (no cancellation at

@@ -79,10 +79,13 @@ namespace detail {
 /// Argument checks of estimate_surfels (throws std::invalid_argument, see there).
 void check_surfel_arguments(std::size_t index_points, std::span<const Vec3> positions, const SurfelOptions& o,
                             std::span<const glm::vec3> file_normals);
+/// The unit up axis of `o.orientation` ((0, 0, 1) when it is zero), computed once per estimate.
+Vec3 surfel_up(const SurfelOptions& o);
 /// The normal of point `p` from its neighbours `nb` (ascending distance, original ids into
-/// `positions`): PCA, or the file normal `file` when `estimate` is false; then oriented.
+/// `positions`): PCA, or the file normal `file` when `estimate` is false; then oriented towards
+/// `o.orientation.viewpoint`, or along `up` (surfel_up) without one. Unit length, world frame.
 glm::vec3 surfel_normal(const Vec3& p, std::span<const Neighbor> nb, std::span<const Vec3> positions,
-                        const SurfelOptions& o, bool estimate, const glm::vec3& file);
+                        const SurfelOptions& o, const Vec3& up, bool estimate, const glm::vec3& file);
 /// Median of the non-zero radii, zero radii set to it, clamp to max_radius_factor x median,
 /// max_radius. Throws std::invalid_argument when every radius is zero.
 void finish_surfel_radii(SurfelAttributes& a, const SurfelOptions& o);
@@ -98,6 +101,7 @@ SurfelAttributes estimate_surfels_over(const I& index, std::span<const Vec3> pos
   out.radii.assign(n, 0.0f);
   const bool estimate = file_normals.empty();
   const std::size_t k = std::max<std::size_t>(estimate ? o.k_normal : 0, o.k_radius + 1);
+  const Vec3 up = detail::surfel_up(o);
   const auto pos = index.positions();
   const auto ids = index.ids();
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
@@ -109,7 +113,7 @@ SurfelAttributes estimate_surfels_over(const I& index, std::span<const Vec3> pos
       // Radius: the k_radius-th neighbour other than the point (nb[0] is the point or a duplicate).
       const std::size_t rk = std::min<std::size_t>(o.k_radius, nb.size() - 1);
       out.radii[id] = float(nb[rk].distance * o.radius_factor);
-      out.normals[id] = detail::surfel_normal(p, nb, positions, o, estimate, estimate ? glm::vec3() : file_normals[id]);
+      out.normals[id] = detail::surfel_normal(p, nb, positions, o, up, estimate, estimate ? glm::vec3() : file_normals[id]);
     }
   });
   detail::finish_surfel_radii(out, o);
