@@ -49,7 +49,9 @@ TEST(OrthoMap, DsmOfATiltedPlaneIsItsAnalyticElevation) {
       const double x = map.grid.x0 + (c + 0.5), y = map.grid.y_top - (r + 0.5);
       const float z = dsm.values[r * map.grid.cols + c];
       if (x > 115.0 || y > 215.0 || y < 200.0) {
-        if (x > 116.0 || y > 216.0) EXPECT_TRUE(std::isnan(z)) << c << "," << r;
+        if (x > 116.0 || y > 216.0) {
+          EXPECT_TRUE(std::isnan(z)) << c << "," << r;
+        }
         continue;
       }
       EXPECT_NEAR(z, 5.0 + 0.1 * (x - 100.0), 1e-4) << c << "," << r;
