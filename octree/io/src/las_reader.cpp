@@ -2,6 +2,7 @@
 // Header: section 2.4 (table 3, fields added in 1.3/1.4 noted); VLRs: 2.5; EVLRs: 2.7;
 // point data record formats 0-10: 2.6 (tables 7-17); Extra Bytes VLR: 2.5.6 (table 24);
 // CRS: 2.5.1 (OGC WKT VLR 2112) and 2.5.2 (GeoKeyDirectoryTag 34735).
+#include "las_header.hpp"
 #include "readers.hpp"
 #include "laz/laz.hpp"
 
@@ -17,11 +18,6 @@ namespace rayscan::io::detail {
 
 namespace {
 
-/// Byte length of the fields a point data record format defines (section 2.6).
-int pdrf_length(int f) {
-  static constexpr int len[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
-  return f >= 0 && f <= 10 ? len[f] : -1;
-}
 bool pdrf_has_gps(int f) { return f != 0 && f != 2; }
 bool pdrf_has_rgb(int f) { return f == 2 || f == 3 || f == 5 || f == 7 || f == 8 || f == 10; }
 /// Offset of Red within the record, or -1.
@@ -132,14 +128,6 @@ void decode(const Decoder& dc, std::size_t i0, std::size_t i1, Reduction& red) {
     }
   }
 }
-
-/// The LASzip VLR (LASzip laszip.cpp; docs/formats.md "LAZ"): its presence, not the file
-/// extension, makes a file LAZ.
-bool is_laszip_vlr(const std::string& user, std::uint16_t id) {
-  return user == "laszip encoded" && id == 22204;
-}
-/// The COPC info VLR (COPC 1.0 specification, "copc" record 1).
-bool is_copc_vlr(const std::string& user, std::uint16_t id) { return user == "copc" && id == 1; }
 
 /// LAZ layers (laz::kLayer*) a chunk decoder must decode for the attributes a reader delivers:
 /// X, Y, Z always; the rest only when asked (issue 11 section 1.3: xyz must not pay for RGB,
@@ -260,167 +248,39 @@ const std::uint8_t* LasReader::laz_records(std::uint64_t first, std::size_t n, s
 
 void LasReader::parse(const Input& in, const ReadOptions& opt) {
   FileInfo& info = info_;
-  const std::uint8_t* d = in.bytes.data();
   const std::string& nm = in.name;
-  in.need(0, 227, "LAS public header block (227 bytes for LAS 1.0-1.2)");
-  if (std::memcmp(d, "LASF", 4) != 0) fail_at(nm, 0, "expected file signature \"LASF\"");
-  info.format = "LAS";
-  const int vmaj = d[24], vmin = d[25];
-  info.version = std::to_string(vmaj) + "." + std::to_string(vmin);
-  if (vmaj != 1 || vmin > 4)
-    fail_at(nm, 24, "unsupported LAS version " + info.version + " (expected 1.0 to 1.4)");
-  info.global_encoding = load_le<std::uint16_t>(d + 6);
-  info.system_id = fixed_string(d + 26, 32);
-  info.software = fixed_string(d + 58, 32);
-  info.creation_day = load_le<std::uint16_t>(d + 90);
-  info.creation_year = load_le<std::uint16_t>(d + 92);
-  const std::uint16_t header_size = load_le<std::uint16_t>(d + 94);
-  const std::uint32_t point_offset = load_le<std::uint32_t>(d + 96);
-  const std::uint32_t n_vlr = load_le<std::uint32_t>(d + 100);
-  const std::uint8_t pdrf_raw = d[104];
-  const std::uint16_t rec_len = load_le<std::uint16_t>(d + 105);
-  std::uint64_t count = load_le<std::uint32_t>(d + 107);
-  const Vec3 scale(load_le<double>(d + 131), load_le<double>(d + 139), load_le<double>(d + 147));
-  const Vec3 offset(load_le<double>(d + 155), load_le<double>(d + 163), load_le<double>(d + 171));
-  AABB hb;
-  hb.hi = Vec3(load_le<double>(d + 179), load_le<double>(d + 195), load_le<double>(d + 211));
-  hb.lo = Vec3(load_le<double>(d + 187), load_le<double>(d + 203), load_le<double>(d + 219));
-  info.header_bounds = hb;
-  info.scale = scale;
-  info.offset = offset;
-
-  const std::uint16_t min_header = vmin <= 2 ? 227 : (vmin == 3 ? 235 : 375);
-  if (header_size < min_header)
-    fail_at(nm, 94, "header size " + std::to_string(header_size) + " smaller than the " +
-                        std::to_string(min_header) + " bytes LAS " + info.version + " requires");
-  in.need(0, header_size, "LAS public header block");
-  std::uint64_t evlr_start = 0;
-  std::uint32_t n_evlr = 0;
-  if (vmin >= 4) {
-    evlr_start = load_le<std::uint64_t>(d + 235);
-    n_evlr = load_le<std::uint32_t>(d + 243);
-    const std::uint64_t count64 = load_le<std::uint64_t>(d + 247);
-    if (count64 != 0 || count == 0) count = count64;
-  }
-  info.header_point_count = count;
-  const int pdrf = pdrf_raw & 0x3F;
-  info.point_format = pdrf;
-  info.record_length = rec_len;
-
-  // VLRs (section 2.5): 54-byte headers, between the public header and the point data.
-  if (point_offset < header_size)
-    fail_at(nm, 96, "offset to point data " + std::to_string(point_offset) +
-                        " is inside the " + std::to_string(header_size) + "-byte header");
-  if (point_offset > in.size())
-    fail_at(nm, 96, "offset to point data " + std::to_string(point_offset) +
-                        " past end of file (size " + std::to_string(in.size()) + ")");
-  std::uint64_t pos = header_size;
-  const std::uint8_t* wkt_vlr = nullptr;
-  std::uint64_t wkt_len = 0;
-  const std::uint8_t* geokeys = nullptr;
-  std::uint64_t geokeys_len = 0;
-  const std::uint8_t* extra_vlr = nullptr;
-  std::uint64_t extra_len = 0;
-  bool laszip = false, copc = false;
-  const std::uint8_t* laszip_payload = nullptr;
-  std::uint64_t laszip_len = 0, laszip_at = 0;
-  auto note_vlr = [&](const VlrInfo& v, const std::uint8_t* payload) {
-    info.vlrs.push_back(v);
-    if (is_laszip_vlr(v.user_id, v.record_id) && !v.extended) {
-      laszip = true;
-      laszip_payload = payload;
-      laszip_len = v.length;
-      laszip_at = v.offset + 54;
-    }
-    if (is_copc_vlr(v.user_id, v.record_id)) copc = true;
-    if (v.user_id == "LASF_Projection" && v.record_id == 2112) {
-      wkt_vlr = payload;
-      wkt_len = v.length;
-    }
-    if (v.user_id == "LASF_Projection" && v.record_id == 34735) {
-      geokeys = payload;
-      geokeys_len = v.length;
-    }
-    if (v.user_id == "LASF_Spec" && v.record_id == 4) {
-      extra_vlr = payload;
-      extra_len = v.length;
-    }
-  };
-  for (std::uint32_t i = 0; i < n_vlr; ++i) {
-    if (pos + 54 > point_offset)
-      fail_at(nm, pos, "VLR " + std::to_string(i) + " of " + std::to_string(n_vlr) +
-                           ": header runs past the start of point data at byte " +
-                           std::to_string(point_offset));
-    VlrInfo v;
-    v.offset = pos;
-    v.user_id = fixed_string(d + pos + 2, 16);
-    v.record_id = load_le<std::uint16_t>(d + pos + 18);
-    v.length = load_le<std::uint16_t>(d + pos + 20);
-    v.description = fixed_string(d + pos + 22, 32);
-    if (pos + 54 + v.length > point_offset)
-      fail_at(nm, pos + 20, "VLR " + std::to_string(i) + " (" + v.user_id + " " +
-                                std::to_string(v.record_id) + ") of " + std::to_string(v.length) +
-                                " bytes runs past the start of point data at byte " +
-                                std::to_string(point_offset));
-    note_vlr(v, d + pos + 54);
-    pos += 54 + v.length;
-  }
-  // EVLRs (section 2.7, LAS 1.4): 60-byte headers after the point data.
-  if (n_evlr > 0) {
-    if (evlr_start > in.size() || n_evlr > (in.size() - evlr_start) / 60)
-      fail_at(nm, 235, "EVLR start " + std::to_string(evlr_start) + " with " +
-                           std::to_string(n_evlr) + " EVLRs lies past end of file (size " +
-                           std::to_string(in.size()) + ")");
-    std::uint64_t ep = evlr_start;
-    for (std::uint32_t i = 0; i < n_evlr; ++i) {
-      in.need(ep, 60, "EVLR " + std::to_string(i) + " header");
-      VlrInfo v;
-      v.offset = ep;
-      v.extended = true;
-      v.user_id = fixed_string(d + ep + 2, 16);
-      v.record_id = load_le<std::uint16_t>(d + ep + 18);
-      v.length = load_le<std::uint64_t>(d + ep + 20);
-      v.description = fixed_string(d + ep + 28, 32);
-      if (v.length > in.size() - ep - 60)
-        fail_at(nm, ep + 20, "EVLR " + std::to_string(i) + " (" + v.user_id + ") of " +
-                                 std::to_string(v.length) + " bytes runs past end of file (size " +
-                                 std::to_string(in.size()) + ")");
-      note_vlr(v, d + ep + 60);
-      ep += 60 + v.length;
-    }
-  }
-  // LAZ: the LASzip VLR decides (LASzip also sets bit 7, historically bit 6, of the PDRF byte).
-  if ((pdrf_raw & 0xC0) != 0 && !laszip)
-    fail_at(nm, 104, "point data record format byte " + std::to_string(pdrf_raw) +
-                         " has the LAZ compression bit set but the file has no LASzip VLR "
-                         "(\"laszip encoded\", record 22204)");
-  if (laszip && (pdrf_raw & 0xC0) == 0)
-    info.notes.push_back("LASzip VLR present but the compression bits of the PDRF byte are clear: read as LAZ");
-  if (laszip) info.format = copc ? "COPC" : "LAZ";
-  if (pdrf > 10)
-    fail_at(nm, 104, "point data record format " + std::to_string(pdrf) + " (expected 0 to 10)");
+  // The public header and (E)VLR headers, parsed and bounds-checked once (las_header.cpp).
+  LasHeader h = parse_las_header(in);
+  const std::uint8_t* d = in.bytes.data();
+  info.format = h.laszip.present ? (h.copc_info.present ? "COPC" : "LAZ") : "LAS";
+  info.version = "1." + std::to_string(h.version_minor);
+  info.global_encoding = h.global_encoding;
+  info.system_id = h.system_id;
+  info.software = h.software;
+  info.creation_day = h.creation_day;
+  info.creation_year = h.creation_year;
+  info.header_bounds = h.header_bounds;
+  info.scale = h.scale;
+  info.offset = h.offset;
+  info.header_point_count = h.count;
+  info.point_format = h.pdrf;
+  info.record_length = h.record_length;
+  info.vlrs = std::move(h.vlrs);
+  info.notes.insert(info.notes.end(), h.notes.begin(), h.notes.end());
+  const int pdrf = h.pdrf, vmin = h.version_minor;
+  const std::uint16_t rec_len = h.record_length;
+  const std::uint64_t count = h.count, point_offset = h.point_offset;
   const int need_len = pdrf_length(pdrf);
-  if (rec_len < need_len)
-    fail_at(nm, 105, "point record length " + std::to_string(rec_len) + " smaller than the " +
-                         std::to_string(need_len) + " bytes point data record format " +
-                         std::to_string(pdrf) + " needs");
   info.extra_bytes_per_point = rec_len - need_len;
-  for (int k = 0; k < 3; ++k) {
-    if (!std::isfinite(scale[k]) || scale[k] == 0.0)
-      fail_at(nm, 131 + 8 * k, std::string("scale factor ") + "XYZ"[k] + " is " +
-                                   std::to_string(scale[k]) + " (expected a finite non-zero number)");
-    if (!std::isfinite(offset[k]))
-      fail_at(nm, 155 + 8 * k, std::string("offset ") + "XYZ"[k] + " is not finite");
-  }
+  const std::uint8_t* extra_vlr = h.extra_bytes.present ? d + h.extra_bytes.at : nullptr;
+  const std::uint64_t extra_len = h.extra_bytes.len;
   // Point count against the file size: never allocate from an unchecked count.
-  std::uint64_t data_end = in.size();
-  if (n_evlr > 0 && evlr_start >= point_offset) data_end = std::min<std::uint64_t>(data_end, evlr_start);
-  const std::uint64_t avail = data_end - point_offset;
-  if (laszip) {
+  const std::uint64_t avail = h.data_end - point_offset;
+  if (h.laszip.present) {
     // LAZ: the chunk table bounds the count (chunk point counts must add up to it, each checked
     // against its bytes before decoding); chunks are decoded on demand by read().
-    lazvlr_ = laz::parse_laszip_vlr(laszip_payload, laszip_len, nm, laszip_at, pdrf, rec_len);
-    chunks_ = laz::read_chunk_table(in, lazvlr_, point_offset, data_end, count, info.notes);
+    lazvlr_ = laz::parse_laszip_vlr(d + h.laszip.at, h.laszip.len, nm, h.laszip.at, pdrf, rec_len);
+    chunks_ = laz::read_chunk_table(in, lazvlr_, point_offset, h.data_end, count, info.notes);
     laszip_ = true;
   } else if (count > avail / rec_len)
     fail_at(nm, vmin >= 4 ? 247 : 107,
@@ -480,8 +340,8 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
 
   // CRS: the OGC WKT VLR when it holds text, else the GeoKeys.
   struct { std::string crs_wkt; } pc;
-  if (wkt_vlr != nullptr) {
-    std::string wkt(reinterpret_cast<const char*>(wkt_vlr), wkt_len);
+  if (h.wkt.present) {
+    std::string wkt(reinterpret_cast<const char*>(d + h.wkt.at), h.wkt.len);
     while (!wkt.empty() && (wkt.back() == '\0' || std::isspace(static_cast<unsigned char>(wkt.back()))))
       wkt.pop_back();
     // A WKT CRS is KEYWORD[...]; anything else (empty, "''") carries no CRS.
@@ -492,8 +352,8 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
       info.notes.push_back("OGC WKT VLR holds no WKT ('" + wkt.substr(0, 40) + "'): ignored");
     }
   }
-  if (geokeys != nullptr) {
-    std::string wkt = crs_from_geokeys(geokeys, geokeys_len, info);
+  if (h.geokeys.present) {
+    std::string wkt = crs_from_geokeys(d + h.geokeys.at, h.geokeys.len, info);
     if (pc.crs_wkt.empty() && (!wkt.empty() || info.epsg != 0)) {
       pc.crs_wkt = wkt;
       info.crs_source = "GeoKeys";
@@ -506,8 +366,8 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
   point_offset_ = point_offset;
   rec_len_ = rec_len;
   pdrf_ = pdrf;
-  scale_ = scale;
-  offset_ = offset;
+  scale_ = h.scale;
+  offset_ = h.offset;
   extras_ = std::move(extras);
   info.fields = {"X", "Y", "Z", "intensity", "return_number", "number_of_returns", "classification",
                  "classification_flags", "scanner_channel", "scan_direction_flag",

@@ -7,6 +7,7 @@
 #include "rayscan/io/copc.hpp"
 
 #include "laz.hpp"
+#include "../las_header.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <sys/mman.h>
@@ -26,7 +27,7 @@ namespace {
 
 using Key = std::tuple<std::int32_t, std::int32_t, std::int32_t, std::int32_t>;
 
-CopcInfo parse_copc(const detail::Input& in, const laz::LasHeaderLite& h) {
+CopcInfo parse_copc(const detail::Input& in, const detail::LasHeader& h) {
   using detail::fail_at;
   using detail::load_le;
   const std::string& nm = in.name;
@@ -138,7 +139,7 @@ AABB CopcInfo::node_cube(const CopcNode& n) const {
 
 CopcInfo read_copc_info(std::span<const std::uint8_t> bytes, const std::string& name) {
   const detail::Input in{bytes, name, {}};
-  return parse_copc(in, laz::parse_header_lite(in));
+  return parse_copc(in, detail::parse_las_header(in));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -162,7 +163,7 @@ bool is_copc_file(const std::filesystem::path& path) {
     if (format_from_extension(path) != Format::las) return false;
     const laz::FileMap m(path);
     const detail::Input in{m.bytes(), path.string(), {}};
-    return laz::parse_header_lite(in).copc_info.present;
+    return detail::parse_las_header(in).copc_info.present;
   } catch (const std::exception&) {
     return false;
   }
@@ -181,7 +182,7 @@ void* reserve(std::size_t bytes) {
 CopcIndex::CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes)
     : name_(path.string()), map_(std::make_unique<Map>(path)), cache_bytes_(cache_bytes) {
   const detail::Input in{map_->bytes(), name_, {}};
-  const laz::LasHeaderLite h = laz::parse_header_lite(in);
+  const detail::LasHeader h = detail::parse_las_header(in);
   info_ = parse_copc(in, h);
   // the LASzip VLR must describe layered POINT14 chunks
   (void)laz::parse_laszip_vlr(map_->bytes().data() + h.laszip.at, h.laszip.len, name_, h.laszip.at, h.pdrf, h.record_length);
@@ -257,7 +258,7 @@ void CopcIndex::load(Node n) const {
   if (e.point_count > 0) {
     const detail::Input in{map_->bytes(), name_, {}};
     // the LASzip VLR was validated at open; parse again here (cheap) to keep no reference state
-    const laz::LasHeaderLite h = laz::parse_header_lite(in);
+    const detail::LasHeader h = detail::parse_las_header(in);
     const laz::LaszipVlr v =
         laz::parse_laszip_vlr(map_->bytes().data() + h.laszip.at, h.laszip.len, name_, h.laszip.at, h.pdrf, h.record_length);
     laz::ChunkDecoder dec(v, laz::kLayerZ);

@@ -101,20 +101,6 @@ class ChunkDecoder {
   std::unique_ptr<Impl> impl_;
 };
 
-/// What the LAZ/COPC code needs of a LAS header (ASPRS LAS 1.4 R15 section 2.4 table 3) and
-/// its VLRs (2.5) and EVLRs (2.7): the LASzip VLR, the COPC info VLR, the COPC hierarchy EVLR.
-struct LasHeaderLite {
-  int version_minor = 0, pdrf = 0;
-  std::uint8_t pdrf_raw = 0;
-  std::uint16_t header_size = 0, record_length = 0;
-  std::uint64_t count = 0, point_offset = 0, data_end = 0;
-  Vec3 scale{1.0}, offset{0.0};
-  /// payload position and length of a found (E)VLR; len 0 when absent
-  struct Found { std::uint64_t at = 0, len = 0; bool present = false; };
-  Found laszip, copc_info, copc_hierarchy;
-};
-/// Parses and bounds-checks the header, VLR and EVLR headers. Throws FormatError.
-LasHeaderLite parse_header_lite(const Input& in);
 
 /// Read-only memory map of a whole file: the streaming readers' detail::MappedFile
 /// (readers.hpp), one mapping class for the LAS, LAZ and COPC code.

@@ -4,6 +4,7 @@
 #include "encoder_v2.hpp"
 #include "encoder_v3.hpp"
 #include "laz.hpp"
+#include "../las_header.hpp"
 #include "rayscan/atomic_file.hpp"
 
 #include <fstream>
@@ -30,7 +31,7 @@ void append_le(std::vector<std::uint8_t>& b, T v) {
 /// Sequential source of raw records: from the map (LAS) or decoded chunk by chunk (LAZ).
 class RecordSource {
  public:
-  RecordSource(const detail::Input& in, const laz::LasHeaderLite& h, std::vector<std::string>& notes) : in_(in), h_(h) {
+  RecordSource(const detail::Input& in, const detail::LasHeader& h, std::vector<std::string>& notes) : in_(in), h_(h) {
     if (h.laszip.present) {
       vlr_ = laz::parse_laszip_vlr(in.bytes.data() + h.laszip.at, h.laszip.len, in.name, h.laszip.at, h.pdrf,
                                    h.record_length);
@@ -71,7 +72,7 @@ class RecordSource {
 
  private:
   const detail::Input& in_;
-  const laz::LasHeaderLite& h_;
+  const detail::LasHeader& h_;
   std::optional<laz::LaszipVlr> vlr_;
   std::vector<laz::Chunk> chunks_;
   std::unique_ptr<laz::ChunkDecoder> dec_;
@@ -149,7 +150,7 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
   if (opt.chunk_size == 0) throw std::invalid_argument("translate: chunk size must be at least 1");
   const laz::FileMap map(in_path);
   const detail::Input in{map.bytes(), in_path.string(), {}};
-  const laz::LasHeaderLite h = laz::parse_header_lite(in);
+  const detail::LasHeader h = detail::parse_las_header(in);
   const std::uint8_t* d = map.bytes().data();
   bool to_laz = false;
   if (opt.compression == LasCompression::laz) to_laz = true;

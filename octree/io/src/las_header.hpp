@@ -1,0 +1,58 @@
+// The LAS public header block, VLR and EVLR headers, parsed and bounds-checked once for every
+// reader of the LAS family (the LAS reader, LAZ decoding, COPC, translate, read_las_records).
+// ASPRS LAS Specification 1.4 R15: header section 2.4 (table 3), VLRs 2.5, EVLRs 2.7.
+#pragma once
+
+#include "readers.hpp"
+#include "rayscan/io/file_info.hpp"
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace rayscan::io::detail {
+
+/// Byte length of the fields point data record format `f` defines (section 2.6, tables 7-17);
+/// -1 outside 0..10.
+int pdrf_length(int f);
+
+/// What the LAS-family code needs of a file's header (section 2.4) and its (E)VLR headers.
+/// Offsets are bytes from the start of the file; counts as stored (64-bit count for LAS 1.4).
+struct LasHeader {
+  int version_minor = 0;         ///< 0..4 (the major version is checked to be 1)
+  std::uint16_t global_encoding = 0;
+  std::string system_id, software;
+  std::uint16_t creation_day = 0, creation_year = 0;
+  std::uint16_t header_size = 0;  ///< public header block size (>= 227/235/375 by version)
+  std::uint64_t point_offset = 0; ///< offset to point data, in [header_size, file size]
+  std::uint8_t pdrf_raw = 0;      ///< the PDRF byte as stored (bits 6-7: LAZ compression)
+  int pdrf = 0;                   ///< point data record format 0..10
+  std::uint16_t record_length = 0;///< >= pdrf_length(pdrf)
+  std::uint64_t count = 0;        ///< point count (legacy 32-bit, or the 1.4 64-bit one when set)
+  Vec3 scale{1.0}, offset{0.0};   ///< finite, scale non-zero
+  AABB header_bounds;             ///< max/min x, y, z as stored (never trusted)
+  std::uint64_t data_end = 0;     ///< end of the point data: the EVLR start, else the file size
+  std::vector<VlrInfo> vlrs;      ///< VLRs in file order, then EVLRs (payload at offset + 54 / + 60)
+  /// Payload position and length of an (E)VLR the readers use; present = false when absent.
+  struct Found {
+    std::uint64_t at = 0, len = 0;
+    bool present = false;
+  };
+  Found laszip;          ///< "laszip encoded" 22204 (a VLR; its presence makes the file LAZ)
+  Found copc_info;       ///< "copc" 1 (COPC 1.0 info VLR)
+  Found copc_hierarchy;  ///< "copc" 1000 (COPC 1.0 hierarchy EVLR)
+  Found wkt;             ///< "LASF_Projection" 2112 (OGC WKT, section 2.5.1)
+  Found geokeys;         ///< "LASF_Projection" 34735 (GeoKeyDirectoryTag, section 2.5.2)
+  Found extra_bytes;     ///< "LASF_Spec" 4 (Extra Bytes descriptors, section 2.5.6)
+  std::vector<std::string> notes;  ///< tolerated oddities (e.g. LASzip VLR without compression bits)
+};
+
+/// Parses the public header and walks the VLR and EVLR headers of `in` without reading past it.
+/// Throws FormatError "file: byte N: what was expected" on a bad signature or version, a header
+/// smaller than its version requires, a point offset outside [header size, file size], an (E)VLR
+/// running past its region, the compression bits set without a LASzip VLR, a PDRF outside 0..10,
+/// a record length shorter than the PDRF's fields, or a non-finite/zero scale or offset. The point
+/// count is not checked against the file size here (LAZ bounds it by its chunk table).
+LasHeader parse_las_header(const Input& in);
+
+}  // namespace rayscan::io::detail
