@@ -5,9 +5,13 @@
 # with CORE_SOURCE (the rayscan source tree) the script first configures and builds that tree with
 # -DRAYSCAN_ONLY_CORE=ON (no OpenImageIO, GDAL, nlohmann_json, CLI11) into WORK_DIR/rayscan and
 # installs that build instead.
-set(prefix ${WORK_DIR}/prefix)
+# The install is staged with DESTDIR: rules with an absolute destination (the PostgreSQL module
+# into `pg_config --pkglibdir` and --sharedir, as PGXS does) land under WORK_DIR/stage too, so the
+# test writes nothing into system directories.
+set(stage ${WORK_DIR}/stage)
+set(prefix ${stage}/prefix)
 set(build ${WORK_DIR}/build)
-file(REMOVE_RECURSE ${prefix} ${build})
+file(REMOVE_RECURSE ${stage} ${WORK_DIR}/prefix ${build})
 file(MAKE_DIRECTORY ${WORK_DIR})
 
 function(run)
@@ -34,7 +38,17 @@ endif()
 if(NOT MPI)
   set(MPI OFF)
 endif()
-run(${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
+set(ENV{DESTDIR} ${stage})
+run(${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix /prefix)
+unset(ENV{DESTDIR})
+if(NOT ONLY_CORE)
+  # `CREATE EXTENSION rayscan` files: staged under the PostgreSQL paths, not in the system's.
+  file(GLOB_RECURSE pg_module ${stage}/*/rayscan.so)
+  file(GLOB_RECURSE pg_control ${stage}/*/extension/rayscan.control)
+  if(NOT pg_module OR NOT pg_control)
+    message(FATAL_ERROR "install lacks the PostgreSQL extension (rayscan.so, rayscan.control) under ${stage}")
+  endif()
+endif()
 foreach(f lib/cmake/rayscan/rayscanConfig.cmake lib/cmake/rayscan/rayscanConfigVersion.cmake
           include/rayscan/octree.hpp)
   if(NOT EXISTS ${prefix}/${f})

@@ -378,6 +378,16 @@ TEST_F(Postgres, PcpatchImportAndPrunedRadiusQueryEqualBruteForce) {
   EXPECT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() + "' -o /tmp/x.sqlite --pcpatch 2>/dev/null"), 2);
 }
 
+// The functions were loaded from the build tree (tests/sql/pg_server.sh, rayscan_build_tree.sql),
+// not from an extension installed into the system's PostgreSQL directories.
+TEST_F(Postgres, FunctionsComeFromTheBuildTreeNotASystemInstall) {
+  Pg pg;
+  const auto r = pg.rows("SELECT DISTINCT probin FROM pg_proc WHERE proname IN ('dist_ray', 'ray_within', 'rs_box_in')");
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0][0], RAYSCAN_PG_MODULE);
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM pg_extension WHERE extname = 'rayscan'")[0][0], "0");
+}
+
 // Issue 13 section 4 on the other real scans: lone-star (terrestrial, 0.5 M points, y ~ 4.9e6 at a
 // 0.25 mm scale; from ../shared) and the PDRF 8 file append-bug (bundled as LAZ). Radius, time slab,
 // kNN to the ray, kNN along the ray and a frustum through the chunk GiST index equal the core's ray
