@@ -48,15 +48,17 @@ int main(int argc, char** argv) {
   CLI::App app{"bench_sql: SQL ray queries (SQLite, PostgreSQL, full scan) vs the in-memory octree"};
   std::string cloud_path = RAYSCAN_DEFAULT_CLOUD, db_path, conninfo, table = "points";
   int nrays = 1000, full_rays = 20, k = 10;
-  std::string baseline_ext;
+  std::string baseline_ext, only;
   app.add_option("--cloud", cloud_path, "Point cloud (the one imported)")->capture_default_str();
   app.add_option("--sqlite", db_path, "SQLite database from `rayscan db import` of --cloud "
-                                      "(default: imported here into a temporary file, chunk 4096)");
+                                      "(default: imported here into a temporary file, default chunk size)");
   app.add_option("--postgres", conninfo, "libpq conninfo of a database imported with --postgres");
   app.add_option("--table", table, "PostgreSQL table");
   app.add_option("--rays", nrays, "Camera rays");
   app.add_option("--full-rays", full_rays, "Rays for the unpruned full scan (slow)");
   app.add_option("--baseline-ext", baseline_ext, "Another rayscan_sqlite.so to run interleaved (before/after)");
+  app.add_option("--only", only, "Run only the radius or only the kNN queries (for profiling one case)")
+      ->check(CLI::IsMember({"radius", "knn"}));
   CLI11_PARSE(app, argc, argv);
 
   const PointCloud cloud = io::read_point_cloud(cloud_path, io::ReadOptions{.scalars = false});
@@ -152,6 +154,7 @@ int main(int argc, char** argv) {
     for (int mode = 0; mode < 4; ++mode) {
       const bool base = mode >= 2;
       if (base && !q_base) break;
+      if ((only == "radius" && (mode & 1)) || (only == "knn" && !(mode & 1))) continue;
       Acc& a = base ? (mode & 1 ? base_k : base_r) : (mode & 1 ? sq_k : sq_r);
       sqlite3_stmt* q = base ? q_base : q_sql;
       sqlite3_stmt* qs = base ? stats_base : stats;

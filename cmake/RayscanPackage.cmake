@@ -1,6 +1,7 @@
 # The CMake package of rayscan (issue 9 section 2): `cmake --install build --prefix P` installs
 # the public headers, the libraries and P/lib/cmake/rayscan/rayscanConfig.cmake (+ version file)
-# with the targets rayscan::octree, rayscan::io, rayscan::image, rayscan::render, rayscan::analysis.
+# with the targets rayscan::octree, rayscan::io, rayscan::image, rayscan::render, rayscan::analysis,
+# and rayscan::mpi (component `mpi`) when built with RAYSCAN_MPI.
 include(CMakePackageConfigHelpers)
 
 set(RAYSCAN_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/rayscan)
@@ -13,7 +14,7 @@ endfunction()
 # Install and export the library targets that exist, then the package files.
 function(rayscan_install_package)
   set(targets)
-  foreach(t rayscan_octree rayscan_io rayscan_image rayscan_renderer rayscan_analysis)
+  foreach(t rayscan_octree rayscan_io rayscan_image rayscan_renderer rayscan_analysis rayscan_mpi)
     if(TARGET ${t})
       list(APPEND targets ${t})
     endif()
@@ -24,6 +25,10 @@ function(rayscan_install_package)
           INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
   install(EXPORT rayscanTargets NAMESPACE rayscan:: DESTINATION ${RAYSCAN_INSTALL_CMAKEDIR})
   set(RAYSCAN_PACKAGE_ONLY_CORE ${RAYSCAN_ONLY_CORE})
+  set(RAYSCAN_PACKAGE_MPI OFF)
+  if(TARGET rayscan_mpi)
+    set(RAYSCAN_PACKAGE_MPI ON)
+  endif()
   configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/rayscanConfig.cmake.in
                                 ${PROJECT_BINARY_DIR}/rayscanConfig.cmake
                                 INSTALL_DESTINATION ${RAYSCAN_INSTALL_CMAKEDIR})

@@ -17,7 +17,7 @@ namespace {
 struct DbImportOptions {
   std::vector<std::string> clouds;
   std::string out, postgres, table = "points", attributes;
-  std::uint32_t chunk = 4096;
+  std::uint32_t chunk = sql::ImportOptions::kDefaultChunkSize;
   bool pcpatch = false;
 };
 

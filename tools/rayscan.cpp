@@ -9,6 +9,7 @@
 #include <exception>
 #include <iostream>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -69,16 +70,37 @@ int main(int argc, char** argv) {
   reg(rayscan::cli::add_index_command);
   reg(rayscan::cli::add_translate_command);
 
+  // The outcome of parsing: go on, or end now (--help, --version: exit 0; a usage error: exit 2).
+  // Under mpirun every rank parses; only rank 0 prints (Session::agree_on_start).
+  bool end = false;
+  int end_code = 0;
+  std::string end_out, end_err;
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
-    // One line, "rayscan <command>: <message>" like every other error (issue 8).
-    std::string where = "rayscan";
-    for (auto& [sub, run] : commands)
-      if (sub->parsed()) where += " " + sub->get_name();
-    return fail(where + ": " + rayscan::one_line(e.what()) + " (see --help)");
+    end = true;
+    if (e.get_exit_code() == 0) {  // --help, --version
+      std::ostringstream out, err;
+      end_code = app.exit(e, out, err);
+      end_out = out.str() + err.str();
+    } else {
+      // One line, "rayscan <command>: <message>" like every other error (issue 8).
+      std::string where = "rayscan";
+      for (auto& [sub, run] : commands)
+        if (sub->parsed()) where += " " + sub->get_name();
+      end_code = 2;
+      end_err = where + ": " + rayscan::one_line(e.what()) + " (see --help)";
+    }
   }
+#ifdef RAYSCAN_HAVE_MPI
+  if (const std::optional<int> code = session->agree_on_start({end, end_code, end_out, end_err})) return *code;
+#else
+  if (end) {
+    std::cout << end_out << std::flush;
+    if (!end_err.empty()) std::cerr << end_err << "\n";
+    return end_code;
+  }
+#endif
   for (auto& [sub, run] : commands) {
     if (!sub->parsed()) continue;
     try {

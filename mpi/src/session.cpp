@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <vector>
 
 namespace rayscan::mpi {
 
@@ -46,6 +47,77 @@ Session::Session(int& argc, char**& argv, double timeout_seconds) : timeout_(tim
 
 Session::~Session() {
   if (initialised_) MPI_Finalize();
+}
+
+namespace {
+
+constexpr int kTagStart = 3;  // a worker's start outcome text for rank 0 (work_queue.cpp uses 1, 2, >= 16)
+
+void print_outcome(const std::string& out, const std::string& err) {
+  std::fwrite(out.data(), 1, out.size(), stdout);
+  std::fflush(stdout);
+  if (!err.empty()) std::fprintf(stderr, "%s\n", err.c_str());
+  std::fflush(stderr);
+}
+
+// Receives one string with `tag` from `source` (length from MPI_Probe).
+std::string recv_text(int source, int tag) {
+  MPI_Status st;
+  MPI_Probe(source, tag, MPI_COMM_WORLD, &st);
+  int n = 0;
+  MPI_Get_count(&st, MPI_CHAR, &n);
+  std::string text(std::size_t(std::max(n, 0)), '\0');
+  MPI_Recv(text.data(), n, MPI_CHAR, source, tag, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+  return text;
+}
+
+}  // namespace
+
+std::optional<int> Session::agree_on_start(const StartOutcome& mine) {
+  if (!queue_) {
+    if (!mine.end) return std::nullopt;
+    print_outcome(mine.out, mine.err);
+    return mine.code;
+  }
+  // Every rank's (strength, code): 0 go on, 1 help/version, 2 usage error. Non-blocking so that a
+  // rank that never gets here ends the job after the timeout instead of hanging it.
+  const int strength = !mine.end ? 0 : (mine.code == 0 ? 1 : 2);
+  const int own[2] = {strength, mine.code};
+  std::vector<int> all(2 * std::size_t(size_));
+  MPI_Request rq;
+  MPI_Iallgather(own, 2, MPI_INT, all.data(), 2, MPI_INT, MPI_COMM_WORLD, &rq);
+  const auto t0 = std::chrono::steady_clock::now();
+  for (int done = 0;;) {
+    MPI_Test(&rq, &done, MPI_STATUS_IGNORE);
+    if (done) break;
+    if (std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > timeout_) {
+      char b[160];
+      std::snprintf(b, sizeof b, "rayscan: rank %d of %d: another rank did not start within %.0f s "
+                    "(RAYSCAN_MPI_TIMEOUT)", rank_, size_, timeout_);
+      queue_->abort_with(b);
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  }
+  int who = 0;
+  for (int r = 1; r < size_; ++r)
+    if (all[2 * std::size_t(r)] > all[2 * std::size_t(who)]) who = r;
+  if (all[2 * std::size_t(who)] == 0) return std::nullopt;
+  const int code = all[2 * std::size_t(who) + 1];
+  if (who == 0) {
+    if (rank_ == 0) print_outcome(mine.out, mine.err);
+    return code;
+  }
+  // A worker's outcome (MPMD launches with different arguments per rank): rank 0 prints it.
+  if (rank_ == who) {
+    MPI_Send(mine.out.data(), int(mine.out.size()), MPI_CHAR, 0, kTagStart, MPI_COMM_WORLD);
+    MPI_Send(mine.err.data(), int(mine.err.size()), MPI_CHAR, 0, kTagStart, MPI_COMM_WORLD);
+  } else if (rank_ == 0) {
+    const std::string out = recv_text(who, kTagStart);
+    std::string err = recv_text(who, kTagStart);
+    if (!err.empty()) err += " (rank " + std::to_string(who) + " of " + std::to_string(size_) + ")";
+    print_outcome(out, err);
+  }
+  return code;
 }
 
 void Session::finish() {

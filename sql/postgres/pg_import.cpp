@@ -108,7 +108,16 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
   if (PQstatus(db.c) != CONNECTION_OK) db.fail("cannot connect");
   db.exec("SET client_min_messages = warning");
   db.exec("BEGIN");  // all or nothing: a failure (or the server going away) leaves no half table
-  db.exec("CREATE EXTENSION IF NOT EXISTS rayscan");
+  // The functions come from `CREATE EXTENSION rayscan` (an installed build), or were loaded from a
+  // build tree with rayscan_build_tree.sql (docs/sql.md); create the extension only when absent.
+  {
+    PGresult* r = PQexec(db.c, "SELECT to_regtype('rs_box') IS NOT NULL");
+    const bool ok = PQresultStatus(r) == PGRES_TUPLES_OK && PQntuples(r) == 1;
+    const bool present = ok && std::string(PQgetvalue(r, 0, 0)) == "t";
+    PQclear(r);
+    if (!ok) db.fail("to_regtype");
+    if (!present) db.exec("CREATE EXTENSION IF NOT EXISTS rayscan");
+  }
   if (options.pcpatch) {
     // pgpointcloud: a schema of double X/Y/Z (scale 1: the reader's exact doubles), the point's
     // index and source, then the attributes; one uncompressed patch per chunk.

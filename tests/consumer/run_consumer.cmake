@@ -1,12 +1,17 @@
 # ctest consumer_package / core_only_package: install a rayscan build into a fresh prefix, then
 # configure, build and run tests/consumer/ against it. Variables: BUILD_DIR (the build to install),
-# SOURCE_DIR (tests/consumer), WORK_DIR, ONLY_CORE, GENERATOR, CXX_COMPILER, COMPILER_LAUNCHER;
+# SOURCE_DIR (tests/consumer), WORK_DIR, ONLY_CORE, MPI (built with RAYSCAN_MPI), MPIEXEC, GENERATOR,
+# CXX_COMPILER, COMPILER_LAUNCHER;
 # with CORE_SOURCE (the rayscan source tree) the script first configures and builds that tree with
 # -DRAYSCAN_ONLY_CORE=ON (no OpenImageIO, GDAL, nlohmann_json, CLI11) into WORK_DIR/rayscan and
 # installs that build instead.
-set(prefix ${WORK_DIR}/prefix)
+# The install is staged with DESTDIR: rules with an absolute destination (the PostgreSQL module
+# into `pg_config --pkglibdir` and --sharedir, as PGXS does) land under WORK_DIR/stage too, so the
+# test writes nothing into system directories.
+set(stage ${WORK_DIR}/stage)
+set(prefix ${stage}/prefix)
 set(build ${WORK_DIR}/build)
-file(REMOVE_RECURSE ${prefix} ${build})
+file(REMOVE_RECURSE ${stage} ${WORK_DIR}/prefix ${build})
 file(MAKE_DIRECTORY ${WORK_DIR})
 
 function(run)
@@ -28,8 +33,24 @@ if(CORE_SOURCE)
       -DRAYSCAN_BUILD_BENCH=OFF)
   run(${CMAKE_COMMAND} --build ${BUILD_DIR})
   set(ONLY_CORE ON)
+  set(MPI OFF)
 endif()
-run(${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
+if(NOT MPI)
+  set(MPI OFF)
+endif()
+set(ENV{DESTDIR} ${stage})
+run(${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix /prefix)
+unset(ENV{DESTDIR})
+if(NOT ONLY_CORE)
+  # `CREATE EXTENSION rayscan` files: staged under the PostgreSQL paths, not in the system's.
+  execute_process(COMMAND pg_config --pkglibdir OUTPUT_VARIABLE pg_lib OUTPUT_STRIP_TRAILING_WHITESPACE)
+  execute_process(COMMAND pg_config --sharedir OUTPUT_VARIABLE pg_share OUTPUT_STRIP_TRAILING_WHITESPACE)
+  foreach(f ${pg_lib}/rayscan.so ${pg_share}/extension/rayscan.control)
+    if(NOT EXISTS ${stage}${f})
+      message(FATAL_ERROR "install lacks the PostgreSQL extension file ${stage}${f}")
+    endif()
+  endforeach()
+endif()
 foreach(f lib/cmake/rayscan/rayscanConfig.cmake lib/cmake/rayscan/rayscanConfigVersion.cmake
           include/rayscan/octree.hpp)
   if(NOT EXISTS ${prefix}/${f})
@@ -38,9 +59,24 @@ foreach(f lib/cmake/rayscan/rayscanConfig.cmake lib/cmake/rayscan/rayscanConfigV
 endforeach()
 run(${CMAKE_COMMAND} -S ${SOURCE_DIR} -B ${build} -G ${GENERATOR} -DCMAKE_BUILD_TYPE=Release
     -DCMAKE_CXX_COMPILER=${CXX_COMPILER} ${launcher} -DCMAKE_PREFIX_PATH=${prefix}
-    -DCONSUMER_ONLY_CORE=${ONLY_CORE})
+    -DCONSUMER_ONLY_CORE=${ONLY_CORE} -DCONSUMER_MPI=${MPI})
 run(${CMAKE_COMMAND} --build ${build})
 run(${build}/consumer_query)
+if(MPI)
+  # rayscan::mpi from the package: alone, then under the real mpirun (loopback, 2 ranks).
+  run(${build}/consumer_mpi)
+  set(mpirun_args -n 2 --oversubscribe --bind-to none --mca btl self,vader --mca btl_vader_single_copy_mechanism none)
+  execute_process(COMMAND id -u OUTPUT_VARIABLE uid OUTPUT_STRIP_TRAILING_WHITESPACE)
+  if(uid STREQUAL "0")
+    list(APPEND mpirun_args --allow-run-as-root)
+  endif()
+  run(${MPIEXEC} ${mpirun_args} ${build}/consumer_mpi)
+else()
+  file(READ ${prefix}/lib/cmake/rayscan/rayscanTargets.cmake targets)
+  if(targets MATCHES "rayscan::mpi")
+    message(FATAL_ERROR "a package built without RAYSCAN_MPI exports rayscan::mpi")
+  endif()
+endif()
 if(NOT ONLY_CORE)
   run(${build}/consumer_jobs)
 else()

@@ -8,9 +8,11 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <utility>
 #include <string>
 
 namespace fs = std::filesystem;
@@ -214,6 +216,39 @@ TEST_F(Mpi, ASilentRankEndsTheJobAfterTheTimeout) {
             1)
       << r.out;
   EXPECT_FALSE(fs::exists(out));
+}
+
+// Help, version and usage errors: every rank parses the same command line, but only rank 0 prints,
+// once, exactly what a single process prints; every rank ends with the same code (no MPI_Abort).
+// The oracle is the same binary run alone.
+TEST_F(Mpi, HelpAndUsageErrorsArePrintedOnceByRankZero) {
+  // (Each mpirun start costs seconds on a loaded machine: one launch per case.)
+  for (const auto& [args, n] : {std::pair<std::string, int>{" --help", 3}, {" render --help", 2}}) {
+    const CommandResult one = rayscan::test::run_command(kBin + args, false);
+    ASSERT_EQ(one.code, 0) << args;
+    ASSERT_FALSE(one.out.empty()) << args;
+    const CommandResult r = rayscan::test::run_command(mpirun(n) + kBin + args);  // stdout + stderr
+    EXPECT_EQ(r.code, 0) << args << " -n " << n << "\n" << r.out;
+    EXPECT_EQ(r.out, one.out) << args << " -n " << n;
+  }
+  const std::string bad = " render scene.json --no-such-option";
+  const CommandResult one = run(kBin + bad);
+  ASSERT_EQ(one.code, 2);
+  ASSERT_EQ(std::count(one.out.begin(), one.out.end(), '\n'), 1) << one.out;
+  const std::string line = one.out.substr(0, one.out.size() - 1);
+  EXPECT_EQ(line.rfind("rayscan render: ", 0), 0u) << line;
+  {
+    const CommandResult r = run(mpirun(3) + kBin + bad);
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_EQ(lines_equal(r.out, line), 1) << r.out;
+    EXPECT_EQ(r.out.find("rayscan"), r.out.rfind("rayscan render:")) << r.out;  // nothing else of ours
+    EXPECT_EQ(r.out.find("MPI_ABORT"), std::string::npos) << r.out;           // a clean end, not an abort
+  }
+  // Different arguments per rank (MPMD): rank 1's usage error ends the job; rank 0 prints it.
+  const CommandResult r = run(mpirun(1) + kBin + " render -q scene.json --out never.png : -n 1 " + kBin + bad);
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(lines_equal(r.out, line + " (rank 1 of 2)"), 1) << r.out;
+  EXPECT_FALSE(fs::exists(dir_ / "never.png"));
 }
 
 TEST_F(Mpi, CommandsThatCannotBeDistributedAreRefused) {

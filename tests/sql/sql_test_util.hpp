@@ -19,8 +19,9 @@ namespace rayscan::sqltest {
 
 namespace fs = std::filesystem;
 
-/// The real scans of issue 13 section 4: autzen (tests/data), lone-star and the PDRF 8 file
-/// append-bug (../shared/data/las/derived, skipped when absent).
+/// The real scans of issue 13 section 4: autzen (tests/data), lone-star (../shared/data/las/derived,
+/// skipped when absent) and the PDRF 8 file append-bug (the decompressed LAS from ../shared when
+/// present, else the same points from the bundled tests/data/laz/append-bug.laz).
 inline std::vector<std::string> scan_names() { return {"autzen", "lone_star", "pdrf8_append_bug"}; }
 
 /// Path of a scan, or "" when it is not available.
@@ -28,7 +29,10 @@ inline fs::path scan_path(const std::string& name) {
   fs::path p;
   if (name == "autzen") p = fs::path(RAYSCAN_TEST_DATA) / "las/autzen_trim.las";
   else if (name == "lone_star") p = fs::path(RAYSCAN_SHARED_DATA) / "las/derived/lone-star.las";
-  else p = fs::path(RAYSCAN_SHARED_DATA) / "las/derived/append-bug.las";
+  else {
+    p = fs::path(RAYSCAN_SHARED_DATA) / "las/derived/append-bug.las";
+    if (!fs::exists(p)) p = fs::path(RAYSCAN_TEST_DATA) / "laz/append-bug.laz";
+  }
   return fs::exists(p) ? p : fs::path();
 }
 

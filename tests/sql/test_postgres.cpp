@@ -378,6 +378,118 @@ TEST_F(Postgres, PcpatchImportAndPrunedRadiusQueryEqualBruteForce) {
   EXPECT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() + "' -o /tmp/x.sqlite --pcpatch 2>/dev/null"), 2);
 }
 
+// The functions were loaded from the build tree (tests/sql/pg_server.sh, rayscan_build_tree.sql),
+// not from an extension installed into the system's PostgreSQL directories.
+TEST_F(Postgres, FunctionsComeFromTheBuildTreeNotASystemInstall) {
+  Pg pg;
+  const auto r = pg.rows("SELECT DISTINCT probin FROM pg_proc WHERE proname IN ('dist_ray', 'ray_within', 'rs_box_in')");
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0][0], RAYSCAN_PG_MODULE);
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM pg_extension WHERE extname = 'rayscan'")[0][0], "0");
+}
+
+// Issue 13 section 4 on the other real scans: lone-star (terrestrial, 0.5 M points, y ~ 4.9e6 at a
+// 0.25 mm scale; from ../shared) and the PDRF 8 file append-bug (bundled as LAZ). Radius, time slab,
+// kNN to the ray, kNN along the ray and a frustum through the chunk GiST index equal the core's ray
+// query over the brute-force oracle (same point sets; same order for kNN).
+class PostgresScan : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override {
+    if (server_dir().empty()) GTEST_SKIP() << "no test server (pg_server.sh could not start PostgreSQL 15)";
+    path_ = scan_path(GetParam());
+    if (path_.empty()) GTEST_SKIP() << GetParam() << ": ../shared/data absent";
+    cloud_ = io::read_point_cloud(path_, io::ReadOptions{.scalars = false});
+    table_ = GetParam();
+    Pg pg;
+    // One import per server (the server lives for one ctest run, the binary does not change in it).
+    if (pg.rows("SELECT to_regclass('" + table_ + "_chunks') IS NULL")[0][0] == "t") {
+      ASSERT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + path_.string() + "' --postgres '" + conninfo() +
+                    "' --table " + table_ + " --chunk 512 > /dev/null"), 0);
+    }
+  }
+  fs::path path_;
+  PointCloud cloud_;
+  std::string table_;
+};
+
+TEST_P(PostgresScan, ImportAndQueriesEqualBruteForce) {
+  Pg pg;
+  const auto& pos = cloud_.positions;
+  ASSERT_EQ(pg.rows("SELECT count(*) FROM " + table_)[0][0], std::to_string(cloud_.size()));
+  for (const auto& row : pg.rows("SELECT point_index, x, y, z FROM " + table_ + " WHERE point_index % 97 = 0"))
+    ASSERT_EQ(Vec3(dbl(row[1]), dbl(row[2]), dbl(row[3])), pos[std::stoull(row[0])]);
+  pg.rows("SET enable_seqscan = off");
+  const BruteForceIndex brute(cloud_);
+  const double r = 2.0 * spacing(cloud_);
+  const std::string from = " FROM " + table_ + "_chunks c JOIN " + table_ + " p ON p.chunk = c.chunk WHERE ";
+  int nonempty = 0;
+  for (const Ray& q_ray : query_rays(cloud_, 4, 21)) {
+    // The oracle's ray is built from the same direction values the SQL receives.
+    const Vec3 o = q_ray.origin(), d = q_ray.direction();
+    const Ray ray(o, d);
+    const std::string od = vec(o) + "," + vec(d);
+    const std::string dr = "dist_ray(" + od + ",p.x,p.y,p.z)", rt = "ray_time(" + od + ",p.x,p.y,p.z)";
+    const double tc = glm::length(cloud_.bounds().center() - o);
+    struct Case { const char* name; std::size_t k; double r, t0, t1; RayOrder order; };
+    const Case cases[] = {
+        {"radius", kAllPoints, r, -kInf, kInf, RayOrder::ray},
+        {"time slab", kAllPoints, 4 * r, tc - 20 * r, tc + 20 * r, RayOrder::time},
+        {"kNN to the ray within 3r", 7, 3 * r, -kInf, kInf, RayOrder::ray},
+        {"kNN along the ray within r", 6, r, -kInf, kInf, RayOrder::time},
+    };
+    for (const Case& c : cases) {
+      const bool slab = std::isfinite(c.t0);
+      std::string sql = "SELECT p.point_index" + from + "c.box && ray_within(" + od + "," + num(c.r) +
+                        (slab ? "," + num(c.t0) + "," + num(c.t1) : "") + ") AND " + dr + " <= " + num(c.r);
+      if (slab) sql += " AND " + rt + " BETWEEN " + num(c.t0) + " AND " + num(c.t1);
+      const bool knn = c.k != kAllPoints;
+      if (knn) sql += " ORDER BY " + (c.order == RayOrder::ray ? dr : rt) + ", p.point_index LIMIT " + std::to_string(c.k);
+      RayQuery q;
+      q.k = c.k;
+      q.radius = c.r;
+      q.t_min = c.t0;
+      q.t_max = c.t1;
+      q.order = c.order;
+      const auto want = ray_query(brute, ray, q);
+      const auto rows = pg.rows(sql);
+      if (knn) {
+        ASSERT_EQ(rows.size(), want.size()) << c.name;
+        for (std::size_t i = 0; i < rows.size(); ++i) EXPECT_EQ(std::stoull(rows[i][0]), want[i].index) << c.name << " rank " << i;
+      } else {
+        std::set<std::size_t> got, w;
+        for (const auto& row : rows) got.insert(std::stoull(row[0]));
+        for (const RayHit& h : want) w.insert(h.index);
+        EXPECT_EQ(got, w) << c.name;
+      }
+      nonempty += !want.empty();
+    }
+    // Frustum: four half-spaces around the ray, pruned with plane_below on the chunk index.
+    const Vec3 a = glm::normalize(glm::cross(d, std::abs(d.z) < 0.9 ? Vec3(0, 0, 1) : Vec3(1, 0, 0)));
+    const Vec3 b = glm::cross(d, a);
+    const double w = 10 * r;
+    const std::vector<Plane> planes = {{o + w * a, a}, {o - w * a, -a}, {o + w * b, b}, {o - w * b, -b}};
+    std::string sql = "SELECT p.point_index" + from;
+    for (std::size_t i = 0; i < planes.size(); ++i) {
+      const std::string pl = vec(planes[i].point) + "," + vec(planes[i].normal);
+      sql += std::string(i ? " AND " : "") + "c.box && plane_below(" + pl + ") AND dist_plane(" + pl + ", p.x, p.y, p.z) <= 0";
+    }
+    RayQuery fq;
+    fq.planes = planes;
+    std::set<std::size_t> got, want;
+    for (const auto& row : pg.rows(sql)) got.insert(std::stoull(row[0]));
+    for (const RayHit& h : ray_query(brute, ray, fq)) want.insert(h.index);
+    EXPECT_EQ(got, want) << "frustum";
+    EXPECT_FALSE(want.empty()) << "frustum";
+    std::string plan;
+    for (const auto& row : pg.rows("EXPLAIN " + sql)) plan += row[0] + "\n";
+    EXPECT_NE(plan.find(table_ + "_chunks_box"), std::string::npos) << plan;
+  }
+  EXPECT_GE(nonempty, 8);  // the rays aim at points of the cloud: most queries have results
+}
+
+INSTANTIATE_TEST_SUITE_P(Scans, PostgresScan, ::testing::Values("lone_star", "pdrf8_append_bug"),
+                         [](const auto& i) { return i.param; });
+
 TEST_F(Postgres, FailedImportLeavesNoHalfTable) {
   Pg pg;
   pg.rows("DROP TABLE IF EXISTS half, half_chunks, half_sources");

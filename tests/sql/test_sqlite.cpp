@@ -4,6 +4,7 @@
 
 #include "rayscan/distance.hpp"
 #include "rayscan/sql/functions.h"
+#include "rayscan/sql/import.hpp"
 
 #include <sqlite3.h>
 
@@ -472,6 +473,13 @@ TEST(SqliteImportCli, BadInputExitsTwoWithOneLineAndLeavesNoFile) {
     ++n;
   }
   EXPECT_GT(n, 100);
+  // Without --chunk: chunks of the documented default size (the last one partial).
+  Stmt ch(db.db, "SELECT count(*), max(count), min(count) FROM chunks");
+  ASSERT_TRUE(ch.step());
+  const long long per = sql::ImportOptions::kDefaultChunkSize;
+  EXPECT_EQ(ch.i64(0), ((long long)c.size() + per - 1) / per);
+  EXPECT_EQ(ch.i64(1), per);
+  EXPECT_EQ(ch.i64(2), (long long)c.size() - (ch.i64(0) - 1) * per);
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include "rayscan/mpi/work_queue.hpp"
 
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace rayscan::mpi {
@@ -14,6 +15,16 @@ namespace rayscan::mpi {
 /// True when the environment shows an MPI launcher (Open MPI's OMPI_COMM_WORLD_SIZE, or the
 /// PMI_SIZE / PMIX_RANK of other launchers) with more than zero ranks.
 bool launched_by_mpi();
+
+/// What one rank's command-line parsing decided (Session::agree_on_start): go on with the command,
+/// or end the run now, printing `out` (help or version text, to stdout) and `err` (a one-line usage
+/// error without its newline, to stderr) and returning `code` (0 for --help/--version, 2 for an error).
+struct StartOutcome {
+  bool end = false;
+  int code = 0;
+  std::string out;
+  std::string err;
+};
 
 /// The MPI environment of the process, alive for the whole run (RAII: MPI_Init_thread with
 /// MPI_THREAD_FUNNELED in the constructor, MPI_Finalize in the destructor). Only one may exist.
@@ -41,6 +52,16 @@ class Session {
   [[nodiscard]] QueueDistributor* distributor() { return queue_.get(); }
   /// The timeout in seconds (constructor value or RAYSCAN_MPI_TIMEOUT).
   [[nodiscard]] double timeout() const { return timeout_; }
+
+  /// Collective, once, right after every rank parsed its command line: `--help`, `--version` and
+  /// usage errors are printed once per job, by rank 0, not once per rank. Returns std::nullopt when
+  /// no rank ends (go on with the command). Otherwise the job ends with the outcome of the lowest rank
+  /// among those with the strongest outcome (a usage error beats help/version, which beats going on):
+  /// rank 0 prints that rank's `out` and `err` (a worker's error gets " (rank R of N)" appended), the
+  /// others print nothing, and every rank returns its exit code (main returns it; ~Session finalises
+  /// MPI, so the job ends without MPI_Abort). One rank: prints `mine` and returns its code. Waits at
+  /// most timeout() for the other ranks, then ends the job like fail().
+  std::optional<int> agree_on_start(const StartOutcome& mine);
 
   /// Normal end, collective: workers tell the root they finished; the root waits for all of
   /// them (reporting a worker's failure message like fail() would). No-op for one rank.

@@ -15,7 +15,11 @@ namespace rayscan::sql {
 
 /// Options shared by both engines.
 struct ImportOptions {
-  std::uint32_t chunk_size = 4096;      ///< points per chunk (>= 1)
+  /// Default points per chunk. 512 rather than 4096: a radius query with r at the point spacing
+  /// then reads ~0.35% of the chunks of a 0.7 M-point scan (2.2% at 4096) and SQLite's ray_query
+  /// costs ~15-18x the in-memory octree (38x at 4096); bench/README.md, "SQL ray queries".
+  static constexpr std::uint32_t kDefaultChunkSize = 512;
+  std::uint32_t chunk_size = kDefaultChunkSize;  ///< points per chunk (>= 1)
   std::vector<std::string> attributes;  ///< extra columns: intensity, classification, gps_time,
                                         ///< rgb (red, green, blue) or any scalar field's name
   bool pcpatch = false;  ///< PostgreSQL only: one pgpointcloud patch per chunk instead of rows
