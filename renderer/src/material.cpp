@@ -1,6 +1,10 @@
 #include "rayscan/render/material.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
+#include <atomic>
 #include <stdexcept>
 
 namespace rayscan::render {
@@ -44,9 +48,16 @@ AlbedoRule::AlbedoRule(const AlbedoAttributes& a, std::size_t n, const MaterialD
       if (a.rgb.size() != n)
         throw std::invalid_argument("material color \"rgb\": the cloud has no RGB colours (use "
                                     "\"elevation\", \"intensity\" or a constant [r, g, b])");
-      // Only whether some channel exceeds 255 matters: stop at the first one that does.
-      bool wide = false;
-      for (std::size_t i = 0; i < n && !wide; ++i) wide = std::max({a.rgb[i].r, a.rgb[i].g, a.rgb[i].b}) > 255;
+      // Only whether some channel exceeds 255 matters: stop at the first one that does (16-bit
+      // colour: after a few points; 8-bit colour: one parallel read of all of them).
+      std::atomic<bool> any_wide{false};
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1 << 16), [&](const auto& r) {
+        if (any_wide.load(std::memory_order_relaxed)) return;
+        std::uint16_t mx = 0;
+        for (std::size_t i = r.begin(); i != r.end(); ++i) mx = std::max({mx, a.rgb[i].r, a.rgb[i].g, a.rgb[i].b});
+        if (mx > 255) any_wide = true;
+      });
+      const bool wide = any_wide.load();
       const float scale = wide ? 1.0f / 65535.0f : 1.0f / 255.0f;
       lut_.resize(65536);  // 8-bit data only reads [0, 255]
       for (std::size_t i = 0; i < (wide ? lut_.size() : 256); ++i) lut_[i] = srgb_to_linear(float(i) * scale);

@@ -158,6 +158,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
     else for (const Vec3& p : mapped->positions()) bounds.expand(p);
     scene.camera = o.camera_for_cloud(bounds);
   }
+  t0 = std::chrono::steady_clock::now();
   try {
     if (cloud) {
       P->albedo = compute_albedo(*cloud, scene.material, scene.up);
@@ -169,6 +170,11 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
     }
   } catch (const std::invalid_argument& e) {
     throw SceneError(f + ": /material/color: " + e.what());
+  }
+  if (mapped && !cloud) {
+    std::snprintf(buf, sizeof buf, "albedo at shading time from the stored attributes (statistics in %.2f s)",
+                  seconds_since(t0));
+    ctl.info(buf);
   }
   t0 = std::chrono::steady_clock::now();
   if (!mapped) {
@@ -202,6 +208,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
                   surfels.max_radius, scene.surfel.max_radius_factor, seconds_since(t0));
     ctl.info(buf);
   } else {
+    t0 = std::chrono::steady_clock::now();
     try {
       r.radius = mapped ? choose_radius(scene.radius, scene.auto_radius_factor,
                                         [&] { return median_nn_spacing_by_id(*mapped); })
@@ -210,8 +217,8 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
       throw SceneError(f + ": /radius: " + e.what());
     }
     if (r.radius.automatic) {
-      std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x factor %.3g = %.6g",
-                    r.radius.spacing, r.radius.factor, r.radius.radius);
+      std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x factor %.3g = %.6g (%.2f s)",
+                    r.radius.spacing, r.radius.factor, r.radius.radius, seconds_since(t0));
       ctl.info(buf);
     }
   }
