@@ -105,9 +105,9 @@ int run_render(const RenderCliOptions& o) {
     job.write = false;
     if (std::find(job.scene.output.aovs.begin(), job.scene.output.aovs.end(), Aov::depth) == job.scene.output.aovs.end())
       job.scene.output.aovs.push_back(Aov::depth);
-    job.camera_for_cloud = [&](const PointCloud& cloud) {
+    job.camera_for_cloud = [&](const AABB& bounds) {
       try {
-        map = analysis::ortho_map(cloud.bounds(), *o.ortho_res);
+        map = analysis::ortho_map(bounds, *o.ortho_res);
       } catch (const std::invalid_argument& e) {
         throw UsageError(std::string("--ortho-map: ") + e.what());
       }

@@ -5,6 +5,7 @@
 #include "rayscan/input_file.hpp"
 #include "rayscan/point_query.hpp"
 
+#include <type_traits>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -245,12 +246,16 @@ Observer parse_observer(std::string_view text) {
   return o;
 }
 
-double local_ground(const AnyIndex& index, const PointCloud& cloud, double x, double y, double radius) {
+template <class Index>
+double local_ground_over(const Index& index, const PointCloud& cloud, double x, double y, double radius) {
   if (cloud.empty()) return std::numeric_limits<double>::quiet_NaN();
   const AABB b = cloud.bounds();
   const AABB cyl{Vec3(x - radius, y - radius, b.lo.z), Vec3(x + radius, y + radius, b.hi.z)};
   std::vector<PointIndex> ids;
-  std::visit([&](const auto& idx) { box_query(idx, cyl, ids); }, index);
+  if constexpr (std::is_same_v<Index, AnyIndex>)
+    std::visit([&](const auto& idx) { box_query(idx, cyl, ids); }, index);
+  else
+    box_query(index, cyl, ids);
   const bool classified = cloud.classification.size() == cloud.size();
   const double r2 = radius * radius;
   double lowest_any = kInf, lowest_ground = kInf;
@@ -269,7 +274,8 @@ double local_ground(const AnyIndex& index, const PointCloud& cloud, double x, do
   return std::numeric_limits<double>::quiet_NaN();
 }
 
-void place_observers(std::vector<Observer>& observers, const AnyIndex& index, const PointCloud& cloud,
+template <class Index>
+void place_observers_over(std::vector<Observer>& observers, const Index& index, const PointCloud& cloud,
                      const GroundOptions& options) {
   if (!(options.radius > 0.0) || !std::isfinite(options.radius))
     throw ObserverError("ground radius must be a finite number > 0");
@@ -280,7 +286,7 @@ void place_observers(std::vector<Observer>& observers, const AnyIndex& index, co
     if (!h)
       throw ObserverError(observer_where(o, k + 1) +
                           ": no z and no height; give z, a height, or a default height (--height)");
-    const double g = local_ground(index, cloud, o.position.x, o.position.y, options.radius);
+    const double g = local_ground_over(index, cloud, o.position.x, o.position.y, options.radius);
     if (std::isnan(g)) {
       char buf[160];
       std::snprintf(buf, sizeof buf, ": no point within the ground radius %.6g of (%.6f, %.6f) to put the "
@@ -291,6 +297,21 @@ void place_observers(std::vector<Observer>& observers, const AnyIndex& index, co
     o.height = *h;
     o.position.z = g + *h;
   }
+}
+
+double local_ground(const AnyIndex& index, const PointCloud& cloud, double x, double y, double radius) {
+  return local_ground_over(index, cloud, x, y, radius);
+}
+double local_ground(const io::MappedIndex& index, const PointCloud& cloud, double x, double y, double radius) {
+  return local_ground_over(index, cloud, x, y, radius);
+}
+void place_observers(std::vector<Observer>& observers, const AnyIndex& index, const PointCloud& cloud,
+                     const GroundOptions& options) {
+  place_observers_over(observers, index, cloud, options);
+}
+void place_observers(std::vector<Observer>& observers, const io::MappedIndex& index, const PointCloud& cloud,
+                     const GroundOptions& options) {
+  place_observers_over(observers, index, cloud, options);
 }
 
 bool within_angle_limits(const Observer& o, const Vec3& dir) {

@@ -23,8 +23,20 @@ namespace {
 
 constexpr std::uint32_t kChunk = 512;  // points (or pixel rows' worth of pixels) per work item
 
-std::size_t index_size(const AnyIndex& index) {
-  return std::visit([](const auto& i) { return i.positions().size(); }, index);
+// std::visit over the in-memory index variant, or the call itself for an index file: the one
+// dispatch of every function below, so both run the same template code.
+template <class F>
+decltype(auto) visit_index(F&& f, const AnyIndex& index) {
+  return std::visit(std::forward<F>(f), index);
+}
+template <class F>
+decltype(auto) visit_index(F&& f, const io::MappedIndex& index) {
+  return f(index);
+}
+
+template <class Index>
+std::size_t index_size(const Index& index) {
+  return visit_index([](const auto& i) { return i.positions().size(); }, index);
 }
 
 // One line-of-sight decision (see is_visible in the header). `queried` is set when a ray query
@@ -67,7 +79,7 @@ bool line_of_sight(const I& idx, std::span<const Vec3> positions, const Observer
   if (hits.empty()) return true;
   const RayHit& h = hits.front();
   if (h.index == i) return true;
-  const double tj = ray_point_terms(ray.origin(), ray.direction(), positions[h.index]).t;
+  const double tj = ray_point_terms(ray.origin(), ray.direction(), idx.positions()[h.slot]).t;
   return tj >= Da - opts.tolerance;
 }
 
@@ -123,7 +135,8 @@ void distribute_point_chunks(WorkDistributor& dist, std::size_t n, std::size_t c
 
 }  // namespace
 
-bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Observer& observer,
+template <class Index>
+bool is_visible_over(const Index& index, std::span<const Vec3> positions, const Observer& observer,
                 PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch) {
   check(opts);
   if (i >= positions.size()) throw std::out_of_range("is_visible: point index out of range");
@@ -132,14 +145,15 @@ bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Ob
   const double max_d = observer.max_distance.value_or(opts.max_distance);
   bool queried;
   double dist;
-  return std::visit(
+  return visit_index(
       [&](const auto& idx) {
         return line_of_sight(idx, positions, observer, max_d, positions[i], i, opts, scratch, queried, dist);
       },
       index);
 }
 
-VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3> positions,
+template <class Index>
+VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec3> positions,
                                     std::span<const Observer> observers, const VisibilityOptions& opts) {
   check(opts);
   if (index_size(index) != positions.size())
@@ -171,7 +185,7 @@ VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3>
   // Chunks [c0, c1) of kChunk points in the index's storage order.
   auto run_chunks = [&](std::size_t c0, std::size_t c1) {
     arena.execute([&] {
-      std::visit(
+      visit_index(
           [&](const auto& idx) {
             const std::span<const Vec3> pos = idx.positions();
             const std::span<const PointIndex> ids = idx.ids();
@@ -205,7 +219,7 @@ VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3>
     run_chunks(0, chunks);
   } else {
     // Point chunks handed out by the distributor; per-point count and distance gathered to the root.
-    const std::span<const PointIndex> ids = std::visit([](const auto& i) { return i.ids(); }, index);
+    const std::span<const PointIndex> ids = visit_index([](const auto& i) { return i.ids(); }, index);
     distribute_point_chunks(*dist, n, chunks, res.threads, ids, run_chunks, progress, "visibility", res.count,
                             res.nearest);
   }
@@ -243,7 +257,8 @@ double sky_rotation(std::uint64_t seed, std::uint64_t i) {
   return 2.0 * std::numbers::pi * (double(z >> 11) * 0x1.0p-53);
 }
 
-std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3> positions,
+template <class Index>
+std::vector<double> compute_sky_view_over(const Index& index, std::span<const Vec3> positions,
                                      const SkyViewOptions& opts, std::uint64_t* queries) {
   if (opts.rays == 0) throw std::invalid_argument("sky view: the number of rays must be >= 1");
   if (!(opts.radius > 0.0) || !std::isfinite(opts.radius))
@@ -270,7 +285,7 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
   tbb::task_arena arena(static_cast<int>(threads));
   auto run_chunks = [&](std::size_t c0, std::size_t c1) {
     arena.execute([&] {
-      std::visit(
+      visit_index(
           [&](const auto& idx) {
             const std::span<const Vec3> pos = idx.positions();
             const std::span<const PointIndex> ids = idx.ids();
@@ -302,7 +317,7 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
   if (!dist || dist->size() <= 1) {
     run_chunks(0, chunks);
   } else {
-    const std::span<const PointIndex> ids = std::visit([](const auto& i) { return i.ids(); }, index);
+    const std::span<const PointIndex> ids = visit_index([](const auto& i) { return i.ids(); }, index);
     distribute_point_chunks(*dist, n, chunks, threads, ids, run_chunks, progress, "sky view", out);
     std::uint64_t t = total.load();
     dist->sum_to_root(std::span<std::uint64_t>(&t, 1));
@@ -313,7 +328,8 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
   return out;
 }
 
-std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const Camera& camera,
+template <class Index>
+std::vector<std::uint32_t> camera_first_hits_over(const Index& index, const Camera& camera,
                                              double radius, double max_distance, unsigned threads,
                                              bool progress_bar, WorkDistributor* distributor) {
   if (!(radius > 0.0) || !std::isfinite(radius))
@@ -334,7 +350,7 @@ std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const Camera
   tbb::task_arena arena(static_cast<int>(nthreads));
   auto run_rows = [&](std::uint32_t y0, std::uint32_t y1) {
     arena.execute([&] {
-      std::visit(
+      visit_index(
           [&](const auto& idx) {
             tbb::parallel_for(tbb::blocked_range<std::uint32_t>(y0, y1, 1), [&](const auto& range) {
               std::vector<RayHit> hits;
@@ -385,6 +401,41 @@ std::vector<std::uint32_t> count_pixel_hits(std::span<const std::uint32_t> pixel
     ++count[i];
   }
   return count;
+}
+
+bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Observer& observer, PointIndex i,
+                const VisibilityOptions& opts, std::vector<RayHit>& scratch) {
+  return is_visible_over(index, positions, observer, i, opts, scratch);
+}
+bool is_visible(const io::MappedIndex& index, std::span<const Vec3> positions, const Observer& observer,
+                PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch) {
+  return is_visible_over(index, positions, observer, i, opts, scratch);
+}
+VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3> positions,
+                                    std::span<const Observer> observers, const VisibilityOptions& opts) {
+  return compute_visibility_over(index, positions, observers, opts);
+}
+VisibilityResult compute_visibility(const io::MappedIndex& index, std::span<const Vec3> positions,
+                                    std::span<const Observer> observers, const VisibilityOptions& opts) {
+  return compute_visibility_over(index, positions, observers, opts);
+}
+std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3> positions,
+                                     const SkyViewOptions& opts, std::uint64_t* queries) {
+  return compute_sky_view_over(index, positions, opts, queries);
+}
+std::vector<double> compute_sky_view(const io::MappedIndex& index, std::span<const Vec3> positions,
+                                     const SkyViewOptions& opts, std::uint64_t* queries) {
+  return compute_sky_view_over(index, positions, opts, queries);
+}
+std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const Camera& camera, double radius,
+                                             double max_distance, unsigned threads, bool progress_bar,
+                                             WorkDistributor* distributor) {
+  return camera_first_hits_over(index, camera, radius, max_distance, threads, progress_bar, distributor);
+}
+std::vector<std::uint32_t> camera_first_hits(const io::MappedIndex& index, const Camera& camera, double radius,
+                                             double max_distance, unsigned threads, bool progress_bar,
+                                             WorkDistributor* distributor) {
+  return camera_first_hits_over(index, camera, radius, max_distance, threads, progress_bar, distributor);
 }
 
 }  // namespace rayscan::analysis

@@ -17,6 +17,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <stdexcept>
 
 namespace rayscan::analysis {
@@ -116,28 +117,40 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   // ---- Cloud, index, radius.
   auto t0 = std::chrono::steady_clock::now();
   r.source = o.cloud ? std::string("(memory)") : o.cloud_file.string();
+  // An index file (.rsi) is queried in place (no tree is built); its points are copied to the
+  // sources' original order (tiles concatenated in build order) as the output cloud, so the
+  // per-point fields line up with the sources.
+  std::optional<io::MappedIndex> mapped;
   if (o.cloud) r.cloud = *o.cloud;
-  // An index file (.rsi) gives its points in the sources' original order (tiles concatenated in
-  // build order), so the per-point fields line up with the sources; the tree is rebuilt in memory.
-  else if (io::is_index_file(o.cloud_file)) r.cloud = io::MappedIndex::open(o.cloud_file).to_point_cloud();
-  else r.cloud = io::read_point_cloud(o.cloud_file, {}, &r.info);
+  else if (io::is_index_file(o.cloud_file)) {
+    mapped.emplace(io::MappedIndex::open(o.cloud_file));
+    r.cloud = mapped->to_point_cloud();
+  } else {
+    r.cloud = io::read_point_cloud(o.cloud_file, {}, &r.info);
+  }
   PointCloud& cloud = r.cloud;
   if (cloud.empty()) throw invalid_argument(r.source + ": the point cloud has no points");
-  std::snprintf(buf, sizeof buf, "read %zu points from %s in %.2f s", cloud.size(), r.source.c_str(),
-                seconds_since(t0));
+  std::snprintf(buf, sizeof buf, "%s %zu points from %s in %.2f s", mapped ? "mapped" : "read", cloud.size(),
+                r.source.c_str(), seconds_since(t0));
   ctl.info(buf);
   t0 = std::chrono::steady_clock::now();
   AnyIndex index = [&] {
+    if (mapped) return AnyIndex(BruteForceIndex(std::span<const Vec3>{}));  // unused: queries run on the file
     try {
       return make_index(cloud.positions, o.index);
     } catch (const std::invalid_argument& e) {
       throw invalid_argument(std::string("--index: ") + e.what());
     }
   }();
-  std::snprintf(buf, sizeof buf, "built %s index in %.2f s", o.index.type.c_str(), seconds_since(t0));
-  ctl.info(buf);
+  if (!mapped) {
+    std::snprintf(buf, sizeof buf, "built %s index in %.2f s", o.index.type.c_str(), seconds_since(t0));
+    ctl.info(buf);
+  }
+  // Every query below runs on the mapped file or the built index (one template body each).
+  auto with_index = [&](auto&& f) -> decltype(auto) { return mapped ? f(*mapped) : f(index); };
   try {
-    r.radius = choose_radius(index, cloud.positions, o.radius, o.radius_factor);
+    r.radius = mapped ? choose_radius(o.radius, o.radius_factor, [&] { return median_nn_spacing_by_id(*mapped); })
+                      : choose_radius(index, cloud.positions, o.radius, o.radius_factor);
   } catch (const std::invalid_argument&) {
     if (o.radius) throw invalid_argument("--radius " + std::to_string(*o.radius) + ": expected a number > 0 or auto");
     if (!(o.radius_factor > 0.0)) throw invalid_argument("--radius-factor: expected a number > 0");
@@ -157,7 +170,8 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   if (surfel) {
     t0 = std::chrono::steady_clock::now();
     try {
-      surfels = estimate_surfels(index, cloud.positions, o.surfel, cloud.normals);
+      surfels = mapped ? estimate_surfels_over(*mapped, cloud.positions, o.surfel, cloud.normals)
+                       : estimate_surfels(index, cloud.positions, o.surfel, cloud.normals);
     } catch (const std::invalid_argument& e) {
       throw invalid_argument(std::string("--primitive surfel: ") + e.what());
     }
@@ -176,7 +190,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     GroundOptions g;
     g.radius = o.ground_radius.value_or(5.0 * radius);
     g.default_height = o.height;
-    place_observers(observers, index, cloud, g);
+    with_index([&](const auto& ix) { place_observers(observers, ix, cloud, g); });
     VisibilityOptions vo;
     vo.radius = radius;
     vo.tolerance = r.tolerance;
@@ -186,7 +200,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     vo.threads = ctl.threads;
     vo.progress = ctl.progress;
     vo.distributor = ctl.distributor;
-    vis = compute_visibility(index, cloud.positions, observers, vo);
+    vis = with_index([&](const auto& ix) { return compute_visibility(ix, cloud.positions, observers, vo); });
     std::uint64_t seen = 0;
     for (std::uint32_t c : vis.count) seen += c > 0;
     std::snprintf(buf, sizeof buf,
@@ -213,7 +227,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     so.progress = ctl.progress;
     so.distributor = ctl.distributor;
     t0 = std::chrono::steady_clock::now();
-    r.sky_view = compute_sky_view(index, cloud.positions, so, &r.sky_queries);
+    r.sky_view = with_index([&](const auto& ix) { return compute_sky_view(ix, cloud.positions, so, &r.sky_queries); });
     r.sky_seconds = seconds_since(t0);
     double mean = 0;
     for (double v : r.sky_view) mean += v;
@@ -228,8 +242,9 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   // ---- Camera.
   if (camera) {
     t0 = std::chrono::steady_clock::now();
-    const std::vector<std::uint32_t> px =
-        camera_first_hits(index, *camera, radius, r.max_distance, ctl.threads, ctl.progress, ctl.distributor);
+    const std::vector<std::uint32_t> px = with_index([&](const auto& ix) {
+      return camera_first_hits(ix, *camera, radius, r.max_distance, ctl.threads, ctl.progress, ctl.distributor);
+    });
     r.camera_hits = count_pixel_hits(px, cloud.size());
     r.camera_seconds = seconds_since(t0);
     std::uint64_t seen = 0;

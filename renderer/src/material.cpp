@@ -1,11 +1,16 @@
 #include "rayscan/render/material.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
+#include <atomic>
 #include <stdexcept>
 
 namespace rayscan::render {
 
 namespace {
+// Values at ranks lo = 2% and hi = 98% of n (nth_element's answer), the default scalar range.
 std::array<double, 2> percentile_range(std::vector<double> v) {
   if (v.empty()) return {0.0, 1.0};
   const std::size_t lo = v.size() * 2 / 100, hi = std::min(v.size() - 1, v.size() * 98 / 100);
@@ -15,51 +20,79 @@ std::array<double, 2> percentile_range(std::vector<double> v) {
   const double b = v[hi];
   return {a, b > a ? b : a + 1.0};
 }
+
+// The same ranks of 16-bit values from a histogram (one pass, no copy of the values).
+std::array<double, 2> percentile_range_u16(std::span<const std::uint16_t> v) {
+  if (v.empty()) return {0.0, 1.0};
+  std::vector<std::uint64_t> hist(65536, 0);
+  for (const std::uint16_t x : v) ++hist[x];
+  const std::size_t lo = v.size() * 2 / 100, hi = std::min(v.size() - 1, v.size() * 98 / 100);
+  auto value_at = [&](std::size_t rank) {
+    std::uint64_t seen = 0;
+    for (std::size_t x = 0; x < hist.size(); ++x) {
+      seen += hist[x];
+      if (seen > rank) return double(x);
+    }
+    return 65535.0;
+  };
+  const double a = value_at(lo), b = value_at(hi);
+  return {a, b > a ? b : a + 1.0};
+}
 }  // namespace
 
-std::vector<Color> compute_albedo(const PointCloud& cloud, const MaterialDesc& m, const Vec3& up) {
-  const std::size_t n = cloud.size();
-  std::vector<Color> albedo(n, m.constant);
+AlbedoRule::AlbedoRule(const AlbedoAttributes& a, std::size_t n, const MaterialDesc& m, const Vec3& up)
+    : material_(m), up_(glm::normalize(up)) {
   switch (m.mode) {
     case ColorMode::constant: break;
     case ColorMode::rgb: {
-      if (cloud.rgb.size() != n)
+      if (a.rgb.size() != n)
         throw std::invalid_argument("material color \"rgb\": the cloud has no RGB colours (use "
                                     "\"elevation\", \"intensity\" or a constant [r, g, b])");
-      std::uint16_t mx = 0;
-      for (const Rgb16& c : cloud.rgb) mx = std::max({mx, c.r, c.g, c.b});
-      const float scale = mx <= 255 ? 1.0f / 255.0f : 1.0f / 65535.0f;
-      // Decode through a table: 65536 entries at most, shared by all points.
-      std::vector<float> lut(mx <= 255 ? 256 : 65536);
-      for (std::size_t i = 0; i < lut.size(); ++i) lut[i] = srgb_to_linear(float(i) * scale);
-      for (std::size_t i = 0; i < n; ++i)
-        albedo[i] = {lut[cloud.rgb[i].r], lut[cloud.rgb[i].g], lut[cloud.rgb[i].b]};
+      // Only whether some channel exceeds 255 matters: stop at the first one that does (16-bit
+      // colour: after a few points; 8-bit colour: one parallel read of all of them).
+      std::atomic<bool> any_wide{false};
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1 << 16), [&](const auto& r) {
+        if (any_wide.load(std::memory_order_relaxed)) return;
+        std::uint16_t mx = 0;
+        for (std::size_t i = r.begin(); i != r.end(); ++i) mx = std::max({mx, a.rgb[i].r, a.rgb[i].g, a.rgb[i].b});
+        if (mx > 255) any_wide = true;
+      });
+      const bool wide = any_wide.load();
+      const float scale = wide ? 1.0f / 65535.0f : 1.0f / 255.0f;
+      lut_.resize(65536);  // 8-bit data only reads [0, 255]
+      for (std::size_t i = 0; i < (wide ? lut_.size() : 256); ++i) lut_[i] = srgb_to_linear(float(i) * scale);
       break;
     }
     case ColorMode::classification:
-      if (cloud.classification.size() != n)
+      if (a.classification.size() != n)
         throw std::invalid_argument("material color \"classification\": the cloud has no classification");
-      for (std::size_t i = 0; i < n; ++i) albedo[i] = classification_color(cloud.classification[i]);
       break;
     case ColorMode::intensity:
-    case ColorMode::elevation: {
-      std::vector<double> v(n);
-      if (m.mode == ColorMode::intensity) {
-        if (cloud.intensity.size() != n)
-          throw std::invalid_argument("material color \"intensity\": the cloud has no intensity");
-        for (std::size_t i = 0; i < n; ++i) v[i] = cloud.intensity[i];
-      } else {
-        const Vec3 u = glm::normalize(up);
-        for (std::size_t i = 0; i < n; ++i) v[i] = glm::dot(cloud.positions[i], u);
-      }
-      const auto range = m.range ? *m.range : percentile_range(v);
-      const double inv = 1.0 / (range[1] - range[0]);
-      for (std::size_t i = 0; i < n; ++i)
-        albedo[i] = ramp_linear(m.ramp, static_cast<float>((v[i] - range[0]) * inv));
+      if (a.intensity.size() != n) throw std::invalid_argument("material color \"intensity\": the cloud has no intensity");
+      range_ = m.range ? *m.range : percentile_range_u16(a.intensity);
       break;
-    }
+    case ColorMode::elevation:
+      if (!m.range) {
+        std::vector<double> v(n);
+        for (std::size_t i = 0; i < n; ++i) v[i] = glm::dot(a.positions[i], up_);
+        range_ = percentile_range(std::move(v));
+      } else {
+        range_ = *m.range;
+      }
+      break;
   }
-  for (Color& c : albedo) c = glm::clamp(c * m.albedo_scale, Color(0.0f), Color(1.0f));
+  inv_ = 1.0 / (range_[1] - range_[0]);
+}
+
+AlbedoAttributes albedo_attributes(const PointCloud& cloud) {
+  return {cloud.positions, cloud.rgb, cloud.intensity, cloud.classification};
+}
+
+std::vector<Color> compute_albedo(const PointCloud& cloud, const MaterialDesc& m, const Vec3& up) {
+  const AlbedoAttributes a = albedo_attributes(cloud);
+  const AlbedoRule rule(a, cloud.size(), m, up);
+  std::vector<Color> albedo(cloud.size());
+  for (std::size_t i = 0; i < albedo.size(); ++i) albedo[i] = rule.at(a, i);
   return albedo;
 }
 

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <mutex>
 
@@ -20,7 +21,7 @@ RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
   RenderSettings s{*scene.camera, {}, scene.background, scene.sun, scene.up, scene.spp, scene.seed,
                    scene.output.aovs};
   s.integrator.centers = centers;
-  s.integrator.albedo = albedo;
+  s.integrator.albedo.by_index = albedo;
   s.integrator.radius = radius;
   s.integrator.hit = scene.hit;
   s.integrator.node_distance = scene.node_distance;
@@ -39,7 +40,8 @@ namespace {
 // Tiles [first, last) of the T x T tile grid (row-major tile order).
 template <class I>
 void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const RenderOptions& opt,
-                  RenderStats& stats, std::uint32_t first, std::uint32_t last) {
+                  RenderStats& stats, std::uint32_t first, std::uint32_t last,
+                  std::chrono::steady_clock::time_point t0, std::atomic<bool>& first_done) {
   const Sky sky(s.background, s.sun, s.up);
   const PathTracer<I> tracer(idx, s.integrator, sky, opt.time_queries);
   const std::uint32_t W = fb.width, H = fb.height, T = std::max(1u, opt.tile_size);
@@ -78,9 +80,11 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
           if (!fb.position.empty())
             fb.position[p] = hit ? glm::vec3(h.position - fb.position_origin) : glm::vec3(0.0f);
           if (!fb.index.empty()) fb.index[p] = hit ? h.index : kNoPoint;
-          if (!fb.albedo.empty()) fb.albedo[p] = hit ? s.integrator.albedo[h.index] : Color(0.0f);
+          if (!fb.albedo.empty()) fb.albedo[p] = hit ? s.integrator.albedo.at(h.index, h.slot) : Color(0.0f);
         }
       if (opt.progress) opt.progress->tile_done(c.queries - q_before);
+      if (!first_done.load(std::memory_order_relaxed) && !first_done.exchange(true))
+        stats.first_tile_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     }
     std::lock_guard lock(stats_mutex);
     stats.queries += c.queries;
@@ -173,7 +177,7 @@ RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuff
   const std::size_t n = std::size_t(W) * H;
   fb = empty_framebuffer(s.camera, s.aovs);
   const std::size_t npts = index.positions().size();
-  if (npts != s.integrator.centers.size() || s.integrator.albedo.size() != s.integrator.centers.size())
+  if ((!s.integrator.centers.empty() && npts != s.integrator.centers.size()) || !s.integrator.albedo.covers(npts))
     throw std::invalid_argument("render: index, centres and albedo sizes differ");
   if (s.spp == 0) throw std::invalid_argument("render: spp must be >= 1");
 
@@ -182,11 +186,12 @@ RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuff
   stats.threads = threads;
   tbb::task_arena arena(static_cast<int>(threads));
   const auto t0 = std::chrono::steady_clock::now();
+  std::atomic<bool> first_done{false};
   const std::uint32_t T = std::max(1u, opt.tile_size);
   const std::uint32_t tiles = ((W + T - 1) / T) * ((H + T - 1) / T);
   WorkDistributor* dist = opt.distributor;
   if (!dist || dist->size() <= 1) {
-    arena.execute([&] { render_tiles(index, s, fb, opt, stats, 0, tiles); });
+    arena.execute([&] { render_tiles(index, s, fb, opt, stats, 0, tiles, t0, first_done); });
   } else {
     // Tiles handed out by the distributor (rayscan::mpi's work queue); the root gathers them.
     WorkStage stage;
@@ -194,7 +199,7 @@ RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuff
     stage.batch = threads;
     stage.compute = [&](std::uint64_t first, std::uint64_t count) {
       arena.execute([&] {
-        render_tiles(index, s, fb, opt, stats, std::uint32_t(first), std::uint32_t(first + count));
+        render_tiles(index, s, fb, opt, stats, std::uint32_t(first), std::uint32_t(first + count), t0, first_done);
       });
     };
     stage.pack = [&](std::uint64_t first, std::uint64_t count) { return pack_tiles(fb, T, first, count); };

@@ -88,22 +88,34 @@ void apply_overrides(Scene& scene, const SceneOverrides& o) {
 
 namespace {
 
-// What every frame of a render job shares: the scene, the cloud, its index, albedo and radius.
-// Heap-allocated (spans into `owned` and `albedo` must not move).
+// What every frame of a render job shares: the scene, the cloud or the mapped index file, the
+// albedo, the index and the radius. Heap-allocated (spans into `owned`, `albedo`, `rule` must not
+// move).
 struct Prepared {
   Scene scene;
   std::optional<io::MappedIndex> mapped;
-  PointCloud owned;
-  const PointCloud* cloud = nullptr;
-  std::vector<Color> albedo;
+  PointCloud owned;                 // the read cloud (or, for surfels over an index file, its points)
+  const PointCloud* cloud = nullptr;  // null when tracing straight from `mapped`
+  std::vector<Color> albedo;        // by original index (in-memory clouds, surfel mode)
+  AlbedoRule rule;                  // sphere mode over `mapped`: applied at shading time
+  AlbedoSource albedo_source;
   AnyIndex index = AnyIndex(BruteForceIndex(std::span<const Vec3>{}));
   SurfelAttributes surfels;
+  std::chrono::steady_clock::time_point started;  // job start (time to the first traced tile)
 };
 
-// Reads the cloud (or maps the index file), computes the albedo, builds the index and chooses
+// Reads the cloud (or maps the index file), sets up the albedo, builds the index and chooses
 // the radius; fills r.points, read/index seconds, radius, crs. (run_render's first half.)
+//
+// An index file (.rsi) in sphere mode is traced straight from the mapping: no copy of its points.
+// The only passes over all points before tracing are whole-cloud statistics the image depends
+// on: the 8-bit colour test of material "rgb" (stops at the first channel > 255), the percentile
+// range of intensity/elevation without a "range", the original-order samples of the auto radius
+// (one read of the 4-byte id section), and the exact bounds of an ortho map. Surfel mode still
+// copies the points to original order (MappedIndex::to_point_cloud) for the disc estimate.
 std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r) {
   auto P = std::make_unique<Prepared>();
+  P->started = std::chrono::steady_clock::now();
   P->scene = o.scene;  // small: the camera may be replaced by camera_for_cloud
   Scene& scene = P->scene;
   const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
@@ -116,62 +128,77 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   // Only positions, colour, intensity and classification are used: skip the other scalars.
   auto t0 = std::chrono::steady_clock::now();
   PointCloud& owned = P->owned;
-  // An index file (.rsi): the tree is mapped, not built; centres and colours come from its stored
-  // points in original order (MappedIndex::to_point_cloud).
   std::optional<io::MappedIndex>& mapped = P->mapped;
+  const bool surfel = scene.primitive == Primitive::surfel;
   if (!o.cloud && io::is_index_file(scene.cloud)) {
     mapped.emplace(io::MappedIndex::open(scene.cloud));
-    owned = mapped->to_point_cloud();
-    if (owned.empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
+    if (mapped->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
+    if (surfel) owned = mapped->to_point_cloud();  // disc centres and estimate by original index
   } else if (!o.cloud) {
     owned = load_cloud(scene, io::ReadOptions{.scalars = false});
   }
   else if (o.cloud->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
-  P->cloud = o.cloud ? o.cloud : &owned;
-  const PointCloud& cloud = *P->cloud;
-  r.points = cloud.size();
-  if (!o.cloud) {
-    r.read_seconds = seconds_since(t0);
-    std::snprintf(buf, sizeof buf, "read %zu points from %s in %.2f s", cloud.size(), scene.cloud.string().c_str(),
+  if (o.cloud) P->cloud = o.cloud;
+  else if (!mapped || surfel) P->cloud = &owned;
+  const PointCloud* cloud = P->cloud;
+  r.points = mapped ? mapped->positions().size() : cloud->size();
+  r.read_seconds = o.cloud ? 0.0 : seconds_since(t0);
+  if (mapped)
+    std::snprintf(buf, sizeof buf, "mapped index file %s: %zu points, %zu nodes, in %.2f s%s", scene.cloud.string().c_str(),
+                  r.points, static_cast<std::size_t>(mapped->node_count()), r.read_seconds,
+                  cloud ? " (points copied to original order for surfels)" : "");
+  else
+    std::snprintf(buf, sizeof buf, "read %zu points from %s in %.2f s", r.points, scene.cloud.string().c_str(),
                   r.read_seconds);
-    ctl.info(buf);
+  if (!o.cloud) ctl.info(buf);
+  r.crs_wkt = mapped ? mapped->crs_wkt() : cloud->crs_wkt;
+  if (o.camera_for_cloud) {
+    AABB bounds;
+    if (cloud) bounds = cloud->bounds();
+    else for (const Vec3& p : mapped->positions()) bounds.expand(p);
+    scene.camera = o.camera_for_cloud(bounds);
   }
-  r.crs_wkt = cloud.crs_wkt;
-  if (o.camera_for_cloud) scene.camera = o.camera_for_cloud(cloud);
-  std::vector<Color>& albedo = P->albedo;
+  t0 = std::chrono::steady_clock::now();
   try {
-    albedo = compute_albedo(cloud, scene.material, scene.up);
+    if (cloud) {
+      P->albedo = compute_albedo(*cloud, scene.material, scene.up);
+      P->albedo_source.by_index = P->albedo;
+    } else {
+      const AlbedoAttributes slots{mapped->positions(), mapped->rgb(), mapped->intensity(), mapped->classification()};
+      P->rule = AlbedoRule(slots, r.points, scene.material, scene.up);
+      P->albedo_source = {{}, &P->rule, slots, r.points};
+    }
   } catch (const std::invalid_argument& e) {
     throw SceneError(f + ": /material/color: " + e.what());
   }
+  if (mapped && !cloud) {
+    std::snprintf(buf, sizeof buf, "albedo at shading time from the stored attributes (statistics in %.2f s)",
+                  seconds_since(t0));
+    ctl.info(buf);
+  }
   t0 = std::chrono::steady_clock::now();
-  P->index = [&] {
-    if (mapped) return AnyIndex(BruteForceIndex(std::span<const Vec3>{}));  // unused: the mapped tree is
+  if (!mapped) {
     try {
-      return make_index(cloud.positions, scene.index);
+      P->index = make_index(cloud->positions, scene.index);
     } catch (const std::invalid_argument& e) {
       throw SceneError(f + ": /index: " + e.what());
     }
-  }();
-  r.index_seconds = seconds_since(t0);
-  if (mapped)
-    std::snprintf(buf, sizeof buf, "mapped index file %s (%zu nodes)", scene.cloud.string().c_str(),
-                  static_cast<std::size_t>(mapped->node_count()));
-  else
+    r.index_seconds = seconds_since(t0);
     std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), r.index_seconds);
-  ctl.info(buf);
+    ctl.info(buf);
+  }
   AnyIndex& index = P->index;
   SurfelAttributes& surfels = P->surfels;
-  if (scene.primitive == Primitive::surfel) {
+  if (surfel) {
     // Surfel normals and radii: kNN over the mapped or the built in-memory index (scene_surfels).
     t0 = std::chrono::steady_clock::now();
     try {
-      surfels = mapped ? scene_surfels(scene, *mapped, cloud) : scene_surfels(scene, index, cloud);
+      surfels = mapped ? scene_surfels(scene, *mapped, *cloud) : scene_surfels(scene, index, *cloud);
     } catch (const std::invalid_argument& e) {
       throw SceneError(f + ": /surfel: " + e.what());
     }
     r.radius.radius = surfels.median_radius;
-    const std::string normals = cloud.normals.empty()
+    const std::string normals = cloud->normals.empty()
                                     ? "by PCA over " + std::to_string(scene.surfel.k_normal) + " neighbours"
                                     : std::string("from the file");
     std::snprintf(buf, sizeof buf,
@@ -181,16 +208,17 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
                   surfels.max_radius, scene.surfel.max_radius_factor, seconds_since(t0));
     ctl.info(buf);
   } else {
+    t0 = std::chrono::steady_clock::now();
     try {
       r.radius = mapped ? choose_radius(scene.radius, scene.auto_radius_factor,
-                                        [&] { return median_nn_spacing_of(*mapped, cloud.positions); })
-                        : choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor);
+                                        [&] { return median_nn_spacing_by_id(*mapped); })
+                        : choose_radius(index, cloud->positions, scene.radius, scene.auto_radius_factor);
     } catch (const std::invalid_argument& e) {
       throw SceneError(f + ": /radius: " + e.what());
     }
     if (r.radius.automatic) {
-      std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x factor %.3g = %.6g",
-                    r.radius.spacing, r.radius.factor, r.radius.radius);
+      std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x factor %.3g = %.6g (%.2f s)",
+                    r.radius.spacing, r.radius.factor, r.radius.radius, seconds_since(t0));
       ctl.info(buf);
     }
   }
@@ -203,7 +231,9 @@ RenderStats render_camera(const Prepared& P, const Camera& camera, const JobCont
                           Framebuffer& image, bool distribute) {
   Scene scene = P.scene;
   scene.camera = camera;
-  RenderSettings settings = make_settings(scene, P.cloud->positions, P.albedo, radius);
+  RenderSettings settings =
+      make_settings(scene, P.cloud ? std::span<const Vec3>(P.cloud->positions) : std::span<const Vec3>{}, {}, radius);
+  settings.integrator.albedo = P.albedo_source;
   if (scene.primitive == Primitive::surfel) use_surfels(settings, P.surfels);
   const Camera& cam = settings.camera;
   const std::uint64_t tiles = std::uint64_t((cam.width() + 15) / 16) * ((cam.height() + 15) / 16);
@@ -249,7 +279,13 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   const std::unique_ptr<Prepared> P = prepare(o, r);
   const Scene& scene = P->scene;
   const JobControl& ctl = o.control;
+  const double prepared = seconds_since(P->started);
   r.stats = render_camera(*P, *scene.camera, ctl, r.radius.radius, r.image, true);
+  r.first_tile_seconds = prepared + r.stats.first_tile_seconds;
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "first tile traced %.2f s after the start (%.2f s to set up, %.2f s of tracing)",
+                r.first_tile_seconds, prepared, r.stats.first_tile_seconds);
+  ctl.info(buf);
   r.metadata = render_metadata(o, scene, r, scene.camera_file);
   if (o.write && !scene.output.image.empty() && is_root(ctl))
     r.written = write_image(r.image, scene.output, r.metadata);

@@ -3,13 +3,18 @@
 // compute_sky_view calls, and the geometry of an open plane.
 #include "rayscan/analysis/compare_job.hpp"
 #include "rayscan/analysis/visibility_job.hpp"
+#include "rayscan/io/index_file.hpp"
+#include "rayscan/io/point_io.hpp"
 
 #include "image_test_util.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <functional>
+#include <unistd.h>
 
 using namespace rayscan;
 using namespace rayscan::analysis;
@@ -139,4 +144,51 @@ TEST(VisibilityJob, OptionErrorsComeBeforeAnyWork) {
   o.raster = "m.tif";
   o.cell = 1.0;
   EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "--raster-value count needs observers");
+}
+
+// Issue 10, section 3: `visibility SITE.rsi` queries the mapped index file in place (no tree is
+// built) and writes its per-point fields in the sources' original point order. Oracle: the same
+// job on the source file (in-memory index); every field must be equal point for point.
+TEST(VisibilityJob, IndexFileEqualsTheSourceCloudInOriginalOrder) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("rayscan_vis_rsi_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  PointCloud pc = plane_with_wall();
+  std::reverse(pc.positions.begin(), pc.positions.end());  // original order != Morton order
+  const fs::path src = dir / "site.ply", rsi = dir / "site.rsi";
+  io::write_ply(src, pc);
+  io::IndexBuildOptions bo;
+  bo.config.capacity = 8;
+  io::build_index_file({src}, rsi, bo);
+  VisibilityJobResult r[2];
+  for (int k = 0; k < 2; ++k) {
+    VisibilityJobOptions o;
+    o.cloud_file = k == 0 ? src : rsi;
+    Observer eye;
+    eye.position = Vec3(0.5, 2.0, 0.0);
+    eye.height = 1.7;  // placed on the local ground through the index
+    o.observers = {eye};
+    o.distance = true;
+    o.sky_rays = 8;
+    LookAtParams la;
+    la.position = Vec3(-1.0, 2.0, 1.5);
+    la.look_at = Vec3(2.0, 2.0, 0.5);
+    o.camera = Camera::look_at(la, 24, 16);
+    o.control.threads = 2;
+    r[k] = run_visibility(o);
+  }
+  ASSERT_EQ(r[0].cloud.size(), pc.size());
+  EXPECT_EQ(r[0].cloud.positions, r[1].cloud.positions);
+  EXPECT_EQ(r[0].observers[0].position, r[1].observers[0].position);
+  EXPECT_EQ(r[0].radius.radius, r[1].radius.radius);
+  EXPECT_EQ(r[0].line_of_sight.count, r[1].line_of_sight.count);
+  EXPECT_EQ(r[0].line_of_sight.nearest, r[1].line_of_sight.nearest);
+  EXPECT_EQ(r[0].sky_view, r[1].sky_view);
+  EXPECT_EQ(r[0].camera_hits, r[1].camera_hits);
+  // Not vacuous: some points are hidden, some seen, some hit by the camera.
+  const auto& c = r[1].line_of_sight.count;
+  EXPECT_GT(std::count(c.begin(), c.end(), 0u), 10);
+  EXPECT_GT(std::count(c.begin(), c.end(), 1u), 10);
+  EXPECT_GT(std::count_if(r[1].camera_hits.begin(), r[1].camera_hits.end(), [](auto v) { return v > 0; }), 10);
+  fs::remove_all(dir);
 }

@@ -123,7 +123,17 @@ TEST_P(RayQueryProperty, MatchesBruteForceOracleOnEveryIndex) {
       for (std::size_t r = 0; r < rays.size(); ++r) {
         const auto want = oracle_ray_query(pts, rays[r], q);
         nonempty[qi] += !want.empty();
-        const auto got = std::visit([&](const auto& idx) { return ray_query(idx, rays[r], q); }, index);
+        const auto got = std::visit(
+            [&](const auto& idx) {
+              std::vector<RayHit> hits = ray_query(idx, rays[r], q);
+              // RayHit::slot names the hit's storage slot: the index stores that point there.
+              for (const RayHit& h : hits) {
+                EXPECT_EQ(idx.ids()[h.slot], h.index);
+                EXPECT_EQ(idx.positions()[h.slot], pts[h.index]);
+              }
+              return hits;
+            },
+            index);
         expect_same(got, want,
                     std::string(name(c.dist)) + " n=" + std::to_string(c.n) + " " + label(opt) +
                         " ray " + std::to_string(r) + " " + describe(q));

@@ -84,7 +84,8 @@ inline std::vector<RayHit> oracle_ray_query(std::span<const Vec3> pts, const Ray
     if (!ok) continue;
     const double dist = std::sqrt(pt.d2);
     const double key = q.order == RayOrder::ray ? dist : t;
-    all.push_back({static_cast<PointIndex>(i), t, dist, key});
+    // slot: the oracle has no storage order; it is the original index (never compared).
+    all.push_back({static_cast<PointIndex>(i), static_cast<std::uint32_t>(i), t, dist, key});
   }
   std::sort(all.begin(), all.end(), [](const RayHit& a, const RayHit& b) {
     return a.key < b.key || (a.key == b.key && a.index < b.index);

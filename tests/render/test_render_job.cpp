@@ -171,3 +171,77 @@ TEST(RenderJob, IndexFileRendersLikeTheSourceCloud) {
   }
   fs::remove_all(dir);
 }
+
+// Issue 10, section 3: an index file is traced in place, its albedo computed at shading time from
+// the stored colour, intensity and classification (AlbedoRule over the slot-ordered attributes)
+// instead of a per-point array. Oracle: the render of the source LAS through the in-memory index,
+// for every material mode (8-bit and 16-bit colour, the intensity and elevation percentile
+// ranges), compared bit for bit in beauty, the albedo AOV and the index AOV; and a camera from
+// the cloud's exact bounds (the --ortho-map hook) gets the same bounds from both.
+TEST(RenderJob, IndexFileAlbedoAtShadingTimeEqualsThePerPointArray) {
+  const fs::path dir = fs::temp_directory_path() / ("rayscan_render_rsi_albedo_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  for (const int bits : {8, 16}) {
+    SCOPED_TRACE("colour bits " + std::to_string(bits));
+    PointCloud pc = subset();
+    const std::size_t n = pc.size();
+    pc.rgb.resize(n);
+    pc.intensity.resize(n);
+    pc.classification.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t h = std::uint32_t(i) * 2654435761u;  // a deterministic spread of values
+      const std::uint16_t m = bits == 8 ? 255 : 65535;
+      pc.rgb[i] = {std::uint16_t((h >> 3) % (m + 1u)), std::uint16_t((h >> 11) % (m + 1u)), std::uint16_t((h >> 19) % (m + 1u))};
+      pc.intensity[i] = std::uint16_t(h >> 16);
+      pc.classification[i] = std::uint8_t((h >> 8) % 10);
+    }
+    const fs::path las = dir / ("src" + std::to_string(bits) + ".las"), rsi = dir / ("src" + std::to_string(bits) + ".rsi");
+    io::write_las(las, pc);
+    io::IndexBuildOptions bo;
+    bo.config.capacity = 16;
+    bo.attributes = io::AttributeSet::parse("rgb,intensity,classification");
+    io::build_index_file({las}, rsi, bo);
+    for (ColorMode mode : {ColorMode::rgb, ColorMode::intensity, ColorMode::classification, ColorMode::elevation,
+                           ColorMode::constant}) {
+      SCOPED_TRACE("mode " + std::to_string(int(mode)));
+      RenderJobResult r[2];
+      AABB bounds[2];
+      for (int k = 0; k < 2; ++k) {
+        RenderJobOptions o;
+        o.scene = small_scene();
+        o.scene.material.mode = mode;
+        o.scene.material.albedo_scale = 1.7f;  // some albedos clamp
+        o.scene.output.aovs = {Aov::index, Aov::albedo};
+        o.scene.cloud = k == 0 ? las : rsi;
+        o.write = false;
+        o.control.threads = 2;
+        const Camera cam = *o.scene.camera;
+        o.camera_for_cloud = [&bounds, k, cam](const AABB& b) {
+          bounds[k] = b;
+          return cam;
+        };
+        r[k] = run_render(o);
+      }
+      EXPECT_EQ(bounds[0].lo, bounds[1].lo);
+      EXPECT_EQ(bounds[0].hi, bounds[1].hi);
+      ASSERT_EQ(r[0].image.beauty.size(), r[1].image.beauty.size());
+      EXPECT_EQ(std::memcmp(r[0].image.beauty.data(), r[1].image.beauty.data(), r[0].image.beauty.size() * sizeof(Color)), 0);
+      EXPECT_EQ(std::memcmp(r[0].image.albedo.data(), r[1].image.albedo.data(), r[0].image.albedo.size() * sizeof(Color)), 0);
+      EXPECT_EQ(r[0].image.index, r[1].image.index);
+      // The albedo AOV of a hit pixel is compute_albedo of the point it shows (the array oracle).
+      const PointCloud back = io::read_point_cloud(las);
+      MaterialDesc mat = small_scene().material;
+      mat.mode = mode;
+      mat.albedo_scale = 1.7f;
+      const std::vector<Color> albedo = compute_albedo(back, mat, Vec3(0, 0, 1));
+      std::size_t hit = 0;
+      for (std::size_t p = 0; p < r[1].image.index.size(); ++p) {
+        if (r[1].image.index[p] == kNoPoint) continue;
+        ++hit;
+        EXPECT_EQ(r[1].image.albedo[p], albedo[r[1].image.index[p]]);
+      }
+      EXPECT_GT(hit, r[1].image.index.size() / 4);
+    }
+  }
+  fs::remove_all(dir);
+}

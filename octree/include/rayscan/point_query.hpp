@@ -126,7 +126,7 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
       const Vec3 v = pos[s] - q;
       const double d2 = glm::dot(v, v);
       if (d2 > r2 || d2 > worst) return;
-      const detail::Candidate c{d2, ids[s], 0.0, d2};
+      const detail::Candidate c{d2, ids[s], s, 0.0, d2};
       if (!bounded) {
         cands.push_back(c);
       } else if (cands.size() < k) {

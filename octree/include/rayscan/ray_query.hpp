@@ -64,7 +64,10 @@ struct RayQuery {
 
 /// One result of a ray query.
 struct RayHit {
-  PointIndex index;  ///< the point's index in the caller's original cloud
+  PointIndex index;    ///< the point's index in the caller's original cloud
+  std::uint32_t slot;  ///< its slot in the queried index's storage order: index.positions()[slot]
+                       ///< is the point and index.ids()[slot] == index (so a caller reads the
+                       ///< point or slot-ordered attributes without an id -> slot table)
   double t;          ///< ray parameter: t_p of the projection (orders ray, time) or the sphere
                      ///< entry parameter (order sphere_hit); world units along the unit direction
   double distance;   ///< orthogonal distance of the point to the ray line (eq. 1), not squared
@@ -103,6 +106,7 @@ namespace detail {
 struct Candidate {
   double key;
   PointIndex id;
+  std::uint32_t slot;  ///< storage slot of the point (RayHit::slot)
   double t;
   double d2;
 };
@@ -354,7 +358,7 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
       }
       const double key = ray_order ? std::sqrt(pt.d2) : t;
       if (key > worst) return;
-      push_candidate({key, ids[s], t, pt.d2});
+      push_candidate({key, ids[s], s, t, pt.d2});
     };
     if (kern.point_filter && sr.size() >= 4) {
       // SIMD filter, then the exact test on the survivors only (in slot order, as below).
@@ -433,7 +437,7 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
 
   std::sort(cands.begin(), cands.end(), detail::cand_less);
   out.reserve(cands.size());
-  for (const detail::Candidate& c : cands) out.push_back({c.id, c.t, std::sqrt(c.d2), c.key});
+  for (const detail::Candidate& c : cands) out.push_back({c.id, c.slot, c.t, std::sqrt(c.d2), c.key});
 }
 
 /// Convenience overload returning a new vector; see the overload above.

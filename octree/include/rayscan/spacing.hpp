@@ -55,6 +55,30 @@ template <class I>
   return d[d.size() / 2];
 }
 
+/// median_nn_spacing_of(index, positions, max_samples) for an index whose points are not held in
+/// original order (an index file, io::MappedIndex, whose positions are in storage order): the
+/// same samples, original indices i * N / n, are located by one pass over index.ids() (parallel,
+/// no per-point allocation), so the result is the same as over the original-order positions.
+template <class I>
+[[nodiscard]] double median_nn_spacing_by_id(const I& index, std::size_t max_samples = 20000) {
+  const std::span<const Vec3> pos = index.positions();
+  const std::span<const PointIndex> ids = index.ids();
+  const std::size_t N = pos.size();
+  if (N < 2 || max_samples == 0) return 0.0;
+  const std::size_t n = std::min(max_samples, N);
+  std::vector<Vec3> samples(n);
+  // Sample i is original index p(i) = floor(i N / n); p is strictly increasing (N >= n), so an id
+  // is a sample iff p(ceil(id n / N)) == id.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, N, 1 << 16), [&](const auto& r) {
+    for (std::size_t s = r.begin(); s != r.end(); ++s) {
+      const std::uint64_t id = ids[s];
+      const std::uint64_t i = (id * n + N - 1) / N;
+      if (i < n && i * N / n == id) samples[i] = pos[s];
+    }
+  });
+  return median_nn_spacing_of(index, std::span<const Vec3>(samples), n);
+}
+
 /// The sphere radius a job used and how it was chosen.
 struct RadiusChoice {
   double radius = 0.0;     ///< world units, > 0

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "rayscan/any_index.hpp"
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/point_cloud.hpp"
 
 #include <filesystem>
@@ -88,12 +89,17 @@ struct GroundOptions {
 /// (low noise) and 18 (high noise) never count. Returns NaN when the cylinder holds no usable point.
 /// `index` must be built over cloud.positions.
 double local_ground(const AnyIndex& index, const PointCloud& cloud, double x, double y, double radius);
+/// The same over an index file (`cloud`: its points in original order).
+double local_ground(const io::MappedIndex& index, const PointCloud& cloud, double x, double y, double radius);
 
 /// Resolves every observer's eye z: observers with a height (or, lacking z and height, the default
 /// height) get z = local_ground + height. Fills ground_z for those. Throws ObserverError naming the
 /// observer when no ground point lies within the radius, or it has neither z nor a height and there
 /// is no default. `index` must be built over cloud.positions.
 void place_observers(std::vector<Observer>& observers, const AnyIndex& index, const PointCloud& cloud,
+                     const GroundOptions& options);
+/// The same over an index file (`cloud`: its points in original order).
+void place_observers(std::vector<Observer>& observers, const io::MappedIndex& index, const PointCloud& cloud,
                      const GroundOptions& options);
 
 /// True when `dir` (from the observer, need not be unit) lies inside the observer's azimuth and

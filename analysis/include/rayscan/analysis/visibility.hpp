@@ -9,6 +9,7 @@
 
 #include "rayscan/analysis/observer.hpp"
 #include "rayscan/any_index.hpp"
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/ray_query.hpp"
 #include "rayscan/camera.hpp"
 #include "rayscan/normals.hpp"
@@ -70,11 +71,18 @@ struct VisibilityResult {
 /// `index` must be built over `positions`; i < positions.size(); `scratch` is caller-owned.
 bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Observer& observer,
                 PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch);
+/// The same over an index file, queried in place (`positions`: its points in original order).
+bool is_visible(const io::MappedIndex& index, std::span<const Vec3> positions, const Observer& observer,
+                PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch);
 
 /// is_visible() for every point and observer. Observers must have a resolved z (place_observers).
 /// Throws std::invalid_argument for radius <= 0, a negative or NaN tolerance or max distance, an
 /// index whose size differs from positions, or surfel attributes of another size.
 VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3> positions,
+                                    std::span<const Observer> observers, const VisibilityOptions& opts);
+/// The same over an index file, queried in place (no tree is built; `positions`: its points in
+/// original order, MappedIndex::to_point_cloud()). Per-point results are by original index.
+VisibilityResult compute_visibility(const io::MappedIndex& index, std::span<const Vec3> positions,
                                     std::span<const Observer> observers, const VisibilityOptions& opts);
 
 /// Hemisphere sampling of the sky view factor.
@@ -118,6 +126,9 @@ double sky_rotation(std::uint64_t seed, std::uint64_t i);
 /// [0, 1]. Throws std::invalid_argument for rays == 0, radius <= 0, negative lift or max distance.
 std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3> positions,
                                      const SkyViewOptions& opts, std::uint64_t* queries = nullptr);
+/// The same over an index file, queried in place (results by original index).
+std::vector<double> compute_sky_view(const io::MappedIndex& index, std::span<const Vec3> positions,
+                                     const SkyViewOptions& opts, std::uint64_t* queries = nullptr);
 
 /// The point each pixel of `camera` sees: the first sphere hit (ray_query k = 1, sphere_hit,
 /// t in [0, max_distance]) of the ray through the pixel centre and lens centre,
@@ -126,6 +137,11 @@ std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3
 /// kNoPoint for a miss. With a `distributor` of several processes (MPI) the rows are handed out
 /// by it and only the root's result is complete. Throws std::invalid_argument for radius <= 0.
 std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const Camera& camera,
+                                             double radius, double max_distance = kInf,
+                                             unsigned threads = 0, bool progress = false,
+                                             WorkDistributor* distributor = nullptr);
+/// The same over an index file, queried in place.
+std::vector<std::uint32_t> camera_first_hits(const io::MappedIndex& index, const Camera& camera,
                                              double radius, double max_distance = kInf,
                                              unsigned threads = 0, bool progress = false,
                                              WorkDistributor* distributor = nullptr);

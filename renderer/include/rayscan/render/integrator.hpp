@@ -4,6 +4,7 @@
 #pragma once
 
 #include "rayscan/ray_query.hpp"
+#include "rayscan/render/material.hpp"
 #include "rayscan/render/sampler.hpp"
 #include "rayscan/render/scene.hpp"
 #include "rayscan/render/sky.hpp"
@@ -16,11 +17,13 @@
 
 namespace rayscan::render {
 
-/// Everything the integrator reads, independent of the index type. Spans are indexed by original
-/// point index and must outlive the integrator.
+/// Everything the integrator reads, independent of the index type. Spans must outlive the
+/// integrator. Sphere centres are read from the index itself (index.positions()[RayHit::slot]),
+/// so an index file is traced without a copy of its points.
 struct IntegratorInputs {
-  std::span<const Vec3> centers;    ///< sphere centres (the cloud's positions), world coordinates
-  std::span<const Color> albedo;    ///< per-point albedo, linear [0,1]
+  std::span<const Vec3> centers;    ///< the cloud's positions by original index, world coordinates:
+                                    ///< the disc centres of surfel mode (empty: sphere mode only)
+  AlbedoSource albedo;              ///< per-point albedo, linear [0,1] (array or rule)
   double radius = 1.0;              ///< sphere radius r, world units (> 0)
   HitMode hit = HitMode::sphere;
   NodeDistance node_distance = NodeDistance::exact;  ///< node pruning bound of the ray query
@@ -44,6 +47,7 @@ struct TraceCounters {
 struct SurfaceHit {
   double t = kInf;        ///< ray parameter of the hit (world units along the unit direction)
   PointIndex index = 0;   ///< original index of the point whose sphere was hit
+  std::uint32_t slot = 0; ///< its storage slot in the index (sphere mode; surfel mode: 0)
   Vec3 position{0.0};     ///< world position of the hit
   Vec3 normal{0.0};       ///< unit normal (hit - centre) / r, or the disc normal, facing the ray
   double radius = 0.0;    ///< radius of the sphere or disc hit, world units
@@ -61,6 +65,10 @@ class PathTracer {
         (in.surfels.normals.size() != in.centers.size() || in.surfels.radii.size() != in.centers.size() ||
          !(in.surfels.max_radius > 0.0)))
       throw std::invalid_argument("render: surfel mode needs a normal and a radius > 0 per point");
+    if (in.primitive == Primitive::surfel && in.albedo.by_index.size() != in.centers.size())
+      throw std::invalid_argument("render: surfel mode needs the albedo by original point index");
+    if (!in.albedo.covers(index.positions().size()))
+      throw std::invalid_argument("render: the albedo does not cover the index's points");
     query_.k = 1;
     query_.radius = in.radius;
     query_.t_min = 0.0;
@@ -115,8 +123,9 @@ class PathTracer {
     h.t = in_.hit == HitMode::sphere ? rh.t
                                      : std::max(0.0, sphere_entry(rh.t, rh.distance * rh.distance, r));
     h.index = rh.index;
+    h.slot = rh.slot;
     h.position = ray.at(h.t);
-    const Vec3 n = h.position - in_.centers[rh.index];
+    const Vec3 n = h.position - index_.positions()[rh.slot];
     const double len = glm::length(n);
     h.normal = len > 0.0 ? n / len : -ray.direction();
     if (glm::dot(h.normal, ray.direction()) > 0.0) h.normal = -h.normal;
@@ -166,7 +175,7 @@ class PathTracer {
         break;
       }
       if (first && depth == 0) *first = h;
-      const Color a = in_.albedo[h.index];
+      const Color a = in_.albedo.at(h.index, h.slot);
       const Vec3 origin = h.position + (in_.ray_offset * h.radius) * h.normal;
       from = {h.index, h.position, h.normal, h.radius};
       const LeavingSurface* leaving = surfel ? &from : nullptr;

@@ -6,11 +6,27 @@
 #include "rayscan/render/color.hpp"
 #include "rayscan/render/scene.hpp"
 
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <span>
 #include <vector>
 
 namespace rayscan::render {
 
-/// Albedo of every point (linear RGB in [0,1], indexed like cloud.positions).
+/// A cloud's attributes as the albedo rule reads them, all indexed alike (by original point index
+/// for a PointCloud, by storage slot for an index file). Spans the material does not use may be
+/// empty.
+struct AlbedoAttributes {
+  std::span<const Vec3> positions;  ///< world coordinates (elevation)
+  std::span<const Rgb16> rgb;
+  std::span<const std::uint16_t> intensity;
+  std::span<const std::uint8_t> classification;
+};
+
+/// The material's albedo rule for one cloud: the whole-cloud statistics resolved once (8-bit
+/// colour detection, the percentile range), then applied to one point at a time, so a renderer
+/// can shade from the stored attributes without a per-point albedo array.
 ///  - rgb: the point's 16-bit colour, sRGB-decoded. 8-bit data stored in 16-bit fields (max <= 255,
 ///    as in many LAS files) is detected and scaled by 1/255 instead of 1/65535.
 ///  - intensity / elevation (coordinate along `up`): mapped through material.ramp, from
@@ -18,7 +34,65 @@ namespace rayscan::render {
 ///  - classification: classification_color().
 ///  - constant: material.constant.
 /// Every albedo is multiplied by material.albedo_scale and clamped to [0,1].
-/// Throws std::invalid_argument when the mode needs an attribute the cloud lacks (naming it).
+class AlbedoRule {
+ public:
+  AlbedoRule() = default;
+  /// Resolves the statistics over `a` (`n` points). Cost: rgb scans colours until one exceeds 255
+  /// (all of them for 8-bit data); intensity without a range one pass (65536-bin histogram);
+  /// elevation without a range one pass and a copy of the n coordinates (nth_element); other
+  /// modes O(1). Throws std::invalid_argument when the mode needs an attribute `a` lacks (naming it).
+  AlbedoRule(const AlbedoAttributes& a, std::size_t n, const MaterialDesc& material, const Vec3& up);
+
+  /// Albedo of point i of the attributes the rule is applied to (linear RGB in [0,1]).
+  [[nodiscard]] Color at(const AlbedoAttributes& a, std::size_t i) const {
+    Color c = material_.constant;
+    switch (material_.mode) {
+      case ColorMode::constant: break;
+      case ColorMode::rgb: c = {lut_[a.rgb[i].r], lut_[a.rgb[i].g], lut_[a.rgb[i].b]}; break;
+      case ColorMode::classification: c = classification_color(a.classification[i]); break;
+      case ColorMode::intensity: c = scalar(a.intensity[i]); break;
+      case ColorMode::elevation: c = scalar(glm::dot(a.positions[i], up_)); break;
+    }
+    return glm::clamp(c * material_.albedo_scale, Color(0.0f), Color(1.0f));
+  }
+
+ private:
+  [[nodiscard]] Color scalar(double v) const {
+    return ramp_linear(material_.ramp, static_cast<float>((v - range_[0]) * inv_));
+  }
+  MaterialDesc material_;
+  Vec3 up_{0.0, 0.0, 1.0};
+  std::vector<float> lut_;  ///< rgb: 16-bit channel value -> linear
+  std::array<double, 2> range_{0.0, 1.0};
+  double inv_ = 1.0;
+};
+
+/// Where the integrator takes a hit point's albedo from: a precomputed array by original point
+/// index (`by_index`, e.g. compute_albedo of an in-memory cloud) or, when that is empty, `rule`
+/// applied to slot-ordered attributes (`by_slot`: an index file's stored points, read at shading
+/// time; no per-point array). The two give the same colour for the same point.
+struct AlbedoSource {
+  std::span<const Color> by_index;
+  const AlbedoRule* rule = nullptr;  ///< must outlive the render (when by_index is empty)
+  AlbedoAttributes by_slot;
+  std::size_t slots = 0;             ///< points behind by_slot
+
+  /// Albedo of the point with original index `index` stored at `slot` of the queried index.
+  [[nodiscard]] Color at(PointIndex index, std::uint32_t slot) const {
+    return by_index.empty() ? rule->at(by_slot, slot) : by_index[index];
+  }
+  /// True when the source covers an index of `n` points.
+  [[nodiscard]] bool covers(std::size_t n) const {
+    return by_index.empty() ? rule != nullptr && slots == n : by_index.size() == n;
+  }
+};
+
+/// Albedo of every point (linear RGB in [0,1], indexed like cloud.positions): AlbedoRule over the
+/// cloud, applied to each point. Throws std::invalid_argument when the mode needs an attribute
+/// the cloud lacks (naming it).
 std::vector<Color> compute_albedo(const PointCloud& cloud, const MaterialDesc& material, const Vec3& up);
+
+/// The cloud's attributes in original order (spans into `cloud`).
+[[nodiscard]] AlbedoAttributes albedo_attributes(const PointCloud& cloud);
 
 }  // namespace rayscan::render

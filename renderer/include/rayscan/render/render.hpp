@@ -51,6 +51,7 @@ struct RenderStats {
   std::uint64_t nodes_visited = 0;
   std::uint64_t points_tested = 0;
   double query_seconds = 0.0;       ///< summed over threads; only with RenderOptions::time_queries
+  double first_tile_seconds = 0.0;  ///< wall time from the call to the first tile traced here
   unsigned threads = 0;             ///< threads used
 };
 
@@ -66,7 +67,8 @@ struct RenderSettings {
   std::vector<Aov> aovs;
 };
 
-/// The scene's settings for a loaded cloud, albedo and radius (spans must outlive the render).
+/// The scene's settings for a loaded cloud, albedo (by original index) and radius (spans must
+/// outlive the render).
 RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
                              std::span<const Color> albedo, double radius);
 
@@ -75,12 +77,15 @@ using rayscan::median_nn_spacing;
 
 /// Render into `fb` (resized to the camera). Pixels are traced in 16x16 tiles by tbb::parallel_for;
 /// sample j of pixel (x, y) uses Sampler(seed, x, y, j) only, so the image is bit-identical for
-/// any thread count. `index` must be built over settings.integrator.centers.
+/// any thread count. `index` must be built over the cloud whose points settings.integrator.centers
+/// (when not empty) and settings.integrator.albedo describe by original index.
 RenderStats render_image(const AnyIndex& index, const RenderSettings& settings, Framebuffer& fb,
                    const RenderOptions& options = {});
 
-/// The same over a memory-mapped index file (settings.integrator.centers must be its points in
-/// original order, MappedIndex::to_point_cloud()).
+/// The same over a memory-mapped index file, traced in place: centres are read from the mapping
+/// by storage slot, the albedo from settings.integrator.albedo (an array by original index or an
+/// AlbedoRule over the file's slot-ordered attributes). settings.integrator.centers may be empty
+/// (sphere mode); surfel mode needs it (the points in original order, to_point_cloud()).
 RenderStats render_image(const io::MappedIndex& index, const RenderSettings& settings, Framebuffer& fb,
                          const RenderOptions& options = {});
 /// A framebuffer of the camera's size with beauty and the channels of `aovs` allocated and

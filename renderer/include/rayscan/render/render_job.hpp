@@ -26,10 +26,11 @@ struct RenderJobOptions {
   Scene scene;                         ///< the render description (scenes/README.md)
   const PointCloud* cloud = nullptr;   ///< in-memory points instead of scene.cloud (not copied)
   bool write = true;                   ///< write scene.output.image (+ AOVs) when it is set
-  /// When set, called once the cloud is read; the camera it returns replaces scene.camera (the
-  /// scene then needs no camera). E.g. a top-down map over the cloud's extent (analysis::ortho_map,
-  /// `rayscan render --ortho-map`). Exceptions it throws propagate unchanged.
-  std::function<Camera(const PointCloud&)> camera_for_cloud;
+  /// When set, called once the cloud is read with its exact bounds (the AABB of its points); the
+  /// camera it returns replaces scene.camera (the scene then needs no camera). E.g. a top-down map
+  /// over the cloud's extent (analysis::ortho_map, `rayscan render --ortho-map`). Exceptions it
+  /// throws propagate unchanged.
+  std::function<Camera(const AABB&)> camera_for_cloud;
   JobControl control;                  ///< threads, progress bar, log lines
 };
 
@@ -41,8 +42,10 @@ struct RenderJobResult {
                                        ///< the median disc radius, automatic = false)
   std::string crs_wkt;                 ///< the cloud's CRS (PointCloud::crs_wkt), "" if unknown
   std::size_t points = 0;              ///< points in the cloud
-  double read_seconds = 0.0;           ///< reading the cloud (0 for an in-memory cloud)
-  double index_seconds = 0.0;          ///< building the index
+  double read_seconds = 0.0;           ///< reading the cloud or opening the index file (0 for an
+                                       ///< in-memory cloud)
+  double index_seconds = 0.0;          ///< building the index (0 for an index file)
+  double first_tile_seconds = 0.0;     ///< from the call to the first traced tile (run_render)
   ImageMetadata metadata;              ///< what was (or would be) stored in the image header
   std::vector<std::filesystem::path> written;  ///< files written (beauty first)
 };
