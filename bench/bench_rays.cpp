@@ -187,6 +187,7 @@ RayQuery make_query(Q q, double r) {
       rq.order = rayscan::RayOrder::sphere_hit;
       break;
   }
+  rq.validate();  // once per batch: run_rayscan's first-hit loop (ray_first_hit) does not
   return rq;
 }
 
@@ -208,6 +209,19 @@ std::uint64_t run_rayscan(const rayscan::AnyIndex& index, std::span<const Ray> r
                           [&](const tbb::blocked_range<std::size_t>& br) {
                             thread_local std::vector<RayHit> out;
                             std::uint64_t local = 0;
+                            if (rq.k == 1) {
+                              // First hit (closest, sphere_hit): no result vector, validated once
+                              // per batch (make_query), like rtcIntersect1.
+                              for (std::size_t i = br.begin(); i != br.end(); ++i) {
+                                const std::optional<RayHit> h = rayscan::ray_first_hit(idx, rays[i], rq);
+                                res.count[i] = h.has_value();
+                                res.first[i] = h ? h->index : kNoHit;
+                                res.first_t[i] = h ? h->t : 0.0;
+                                local += h.has_value();
+                              }
+                              total += local;
+                              return;
+                            }
                             for (std::size_t i = br.begin(); i != br.end(); ++i) {
                               rayscan::ray_query(idx, rays[i], rq, out);
                               res.count[i] = static_cast<std::uint32_t>(out.size());

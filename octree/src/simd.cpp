@@ -65,24 +65,31 @@ constexpr float kRelSlack = 0x1p-20f;  // > 3 float roundings (sub, 1/d, mul) of
 #if RAYSCAN_X86
 // ---- SSE2 (x86-64 baseline) ----------------------------------------------------------------
 
+// Box i's lo.xyz, hi.xyz as 8 floats (the record's next 2 floats are read and ignored); lanes
+// past b.count repeat box 0 and are masked off by the caller.
+inline const float* box_row(const ChildBoxesF& b, unsigned i) {
+  return b.base + static_cast<std::size_t>(i < b.count ? i : 0) * b.stride;
+}
+
 unsigned child_slab_sse2(const ChildBoxesF& b, const SlabRayF& r, float* entry) {
-  alignas(16) float lo[3][8] = {}, hi[3][8] = {};
-  for (unsigned i = 0; i < b.count; ++i) {
-    const float* p = b.base + static_cast<std::size_t>(i) * b.stride;
-    for (int a = 0; a < 3; ++a) {
-      lo[a][i] = p[a];
-      hi[a][i] = p[3 + a];
-    }
-  }
   const __m128 eps = _mm_set1_ps(kRelSlack);
   const __m128 sign = _mm_set1_ps(-0.0f);
   unsigned mask = 0;
-  for (unsigned h = 0; h < 8 && h < b.count; h += 4) {
+  for (unsigned h = 0; h < b.count; h += 4) {
+    // 4 boxes transposed in registers: rows [lx ly lz hx] and [hy hz . .] -> one register per
+    // coordinate (no copy through memory).
+    const float* p0 = box_row(b, h), *p1 = box_row(b, h + 1), *p2 = box_row(b, h + 2), *p3 = box_row(b, h + 3);
+    __m128 lx = _mm_loadu_ps(p0), ly = _mm_loadu_ps(p1), lz = _mm_loadu_ps(p2), hx = _mm_loadu_ps(p3);
+    _MM_TRANSPOSE4_PS(lx, ly, lz, hx);
+    const __m128 u01 = _mm_unpacklo_ps(_mm_loadu_ps(p0 + 4), _mm_loadu_ps(p1 + 4));  // hy0 hy1 hz0 hz1
+    const __m128 u23 = _mm_unpacklo_ps(_mm_loadu_ps(p2 + 4), _mm_loadu_ps(p3 + 4));
+    const __m128 hy = _mm_movelh_ps(u01, u23), hz = _mm_movehl_ps(u23, u01);
+    const __m128 lo[3] = {lx, ly, lz}, hi[3] = {hx, hy, hz};
     __m128 tn = _mm_set1_ps(r.t_lo), tf = _mm_set1_ps(r.t_hi);
     for (int a = 0; a < 3; ++a) {
       const __m128 inv = _mm_set1_ps(r.inv_d[a]);
-      const __m128 ta = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(lo[a] + h), _mm_set1_ps(r.o_plus[a])), inv);
-      const __m128 tb = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(hi[a] + h), _mm_set1_ps(r.o_minus[a])), inv);
+      const __m128 ta = _mm_mul_ps(_mm_sub_ps(lo[a], _mm_set1_ps(r.o_plus[a])), inv);
+      const __m128 tb = _mm_mul_ps(_mm_sub_ps(hi[a], _mm_set1_ps(r.o_minus[a])), inv);
       __m128 t0 = _mm_min_ps(ta, tb), t1 = _mm_max_ps(ta, tb);
       t0 = _mm_sub_ps(t0, _mm_mul_ps(_mm_andnot_ps(sign, t0), eps));
       t1 = _mm_add_ps(t1, _mm_mul_ps(_mm_andnot_ps(sign, t1), eps));
@@ -148,34 +155,41 @@ unsigned point_filter_sse2(const double* xyz, unsigned count, const PointFilterD
 
 __attribute__((target("avx2,fma"))) unsigned child_slab_avx2(const ChildBoxesF& b, const SlabRayF& r,
                                                              float* entry) {
-  // Boxes to SoA with plain loads (measured: 6 masked gathers per node were slower than scalar).
-  alignas(32) float lo_s[3][8] = {}, hi_s[3][8] = {};
-  for (unsigned i = 0; i < b.count; ++i) {
-    const float* p = b.base + static_cast<std::size_t>(i) * b.stride;
-    for (int a = 0; a < 3; ++a) {
-      lo_s[a][i] = p[a];
-      hi_s[a][i] = p[3 + a];
-    }
-  }
-  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-  const __m256 valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(b.count)), lane));
+  // The 8 boxes transposed in registers (8 row loads, an 8x8 transpose of which 6 rows are kept):
+  // measured history: 6 masked gathers per node were slower than scalar; a lane-by-lane copy to
+  // SoA arrays through memory cost ~100 instructions per node.
+  const __m256 r0 = _mm256_loadu_ps(box_row(b, 0)), r1 = _mm256_loadu_ps(box_row(b, 1));
+  const __m256 r2 = _mm256_loadu_ps(box_row(b, 2)), r3 = _mm256_loadu_ps(box_row(b, 3));
+  const __m256 r4 = _mm256_loadu_ps(box_row(b, 4)), r5 = _mm256_loadu_ps(box_row(b, 5));
+  const __m256 r6 = _mm256_loadu_ps(box_row(b, 6)), r7 = _mm256_loadu_ps(box_row(b, 7));
+  const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpackhi_ps(r0, r1);
+  const __m256 t2 = _mm256_unpacklo_ps(r2, r3), t3 = _mm256_unpackhi_ps(r2, r3);
+  const __m256 t4 = _mm256_unpacklo_ps(r4, r5), t5 = _mm256_unpackhi_ps(r4, r5);
+  const __m256 t6 = _mm256_unpacklo_ps(r6, r7), t7 = _mm256_unpackhi_ps(r6, r7);
+  const __m256 s0 = _mm256_shuffle_ps(t0, t2, 0x44), s1 = _mm256_shuffle_ps(t0, t2, 0xEE);
+  const __m256 s2 = _mm256_shuffle_ps(t1, t3, 0x44), s3 = _mm256_shuffle_ps(t1, t3, 0xEE);
+  const __m256 s4 = _mm256_shuffle_ps(t4, t6, 0x44), s5 = _mm256_shuffle_ps(t4, t6, 0xEE);
+  const __m256 s6 = _mm256_shuffle_ps(t5, t7, 0x44), s7 = _mm256_shuffle_ps(t5, t7, 0xEE);
+  const __m256 lo[3] = {_mm256_permute2f128_ps(s0, s4, 0x20), _mm256_permute2f128_ps(s1, s5, 0x20),
+                        _mm256_permute2f128_ps(s2, s6, 0x20)};
+  const __m256 hi[3] = {_mm256_permute2f128_ps(s3, s7, 0x20), _mm256_permute2f128_ps(s0, s4, 0x31),
+                        _mm256_permute2f128_ps(s1, s5, 0x31)};
   const __m256 eps = _mm256_set1_ps(kRelSlack);
   const __m256 sign = _mm256_set1_ps(-0.0f);
   __m256 tn = _mm256_set1_ps(r.t_lo), tf = _mm256_set1_ps(r.t_hi);
   for (int a = 0; a < 3; ++a) {
-    const __m256 lo = _mm256_load_ps(lo_s[a]), hi = _mm256_load_ps(hi_s[a]);
     const __m256 inv = _mm256_set1_ps(r.inv_d[a]);
-    const __m256 ta = _mm256_mul_ps(_mm256_sub_ps(lo, _mm256_set1_ps(r.o_plus[a])), inv);
-    const __m256 tb = _mm256_mul_ps(_mm256_sub_ps(hi, _mm256_set1_ps(r.o_minus[a])), inv);
-    __m256 t0 = _mm256_min_ps(ta, tb), t1 = _mm256_max_ps(ta, tb);
-    t0 = _mm256_fnmadd_ps(_mm256_andnot_ps(sign, t0), eps, t0);
-    t1 = _mm256_fmadd_ps(_mm256_andnot_ps(sign, t1), eps, t1);
-    tn = _mm256_max_ps(t0, tn);
-    tf = _mm256_min_ps(t1, tf);
+    const __m256 ta = _mm256_mul_ps(_mm256_sub_ps(lo[a], _mm256_set1_ps(r.o_plus[a])), inv);
+    const __m256 tb = _mm256_mul_ps(_mm256_sub_ps(hi[a], _mm256_set1_ps(r.o_minus[a])), inv);
+    __m256 t0a = _mm256_min_ps(ta, tb), t1a = _mm256_max_ps(ta, tb);
+    t0a = _mm256_fnmadd_ps(_mm256_andnot_ps(sign, t0a), eps, t0a);
+    t1a = _mm256_fmadd_ps(_mm256_andnot_ps(sign, t1a), eps, t1a);
+    tn = _mm256_max_ps(t0a, tn);
+    tf = _mm256_min_ps(t1a, tf);
   }
-  const unsigned mask = static_cast<unsigned>(_mm256_movemask_ps(_mm256_and_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ), valid)));
+  const unsigned mask = static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ)));
   _mm256_storeu_ps(entry, tn);
-  return mask;
+  return mask & ((1u << b.count) - 1u);
 }
 
 [[maybe_unused]] __attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, const float* q, float margin,
@@ -273,8 +287,8 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx51
 const Kernels& kernels_for(SimdPath p) {
   // child_dist2 is off on every path: the gathered float MINDIST of 8 children measured 1.35x
   // slower than the scalar test on Table 1 kNN on the reference machine (bench/README.md, issue
-  // 12), so knn_query keeps its scalar child test. The kernels stay for the next attempt (with a
-  // transposed SoA node layout instead of gathers) and are checked by test_simd.cpp.
+  // 12), so knn_query keeps its scalar child test. The kernels stay for the next attempt (with the
+  // in-register transpose of child_slab_avx2 instead of gathers) and are checked by test_simd.cpp.
   static const Kernels k_scalar{SimdPath::scalar, nullptr, nullptr, nullptr};
 #if RAYSCAN_X86
   static const Kernels k_sse2{SimdPath::sse2, child_slab_sse2, point_filter_sse2, nullptr};

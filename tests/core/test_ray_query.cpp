@@ -308,6 +308,46 @@ TEST(RayQuery, BatchEqualsSingleRayCalls) {
     expect_same(batch[i], ray_query(tree, rays[i], q), "ray " + std::to_string(i));
 }
 
+TEST(RayQuery, FirstHitEqualsTheOracleFirstResult) {
+  // ray_first_hit (no result vector) against the brute-force oracle's first result, whatever
+  // q.k says (it answers k = 1), on every index and for orders sphere_hit, time and ray.
+  const auto pts = make_points(5000, Dist::clustered, 13);
+  AABB box;
+  for (const Vec3& p : pts) box.expand(p);
+  const double s = box.max_extent();
+  std::mt19937_64 rng(9);
+  std::vector<Ray> rays;
+  for (int i = 0; i < 60; ++i) rays.push_back(random_ray(rng, box, i % 3 == 0));
+  std::size_t hits = 0, misses = 0;
+  for (const IndexOptions& opt : all_index_options()) {
+    const AnyIndex index = make_index(pts, opt);
+    for (const RayOrder order : {RayOrder::sphere_hit, RayOrder::time, RayOrder::ray}) {
+      RayQuery q;
+      q.k = 7;  // ignored by ray_first_hit
+      q.radius = 0.02 * s;
+      q.t_min = 0.0;
+      q.order = order;
+      RayQuery q1 = q;
+      q1.k = 1;
+      for (std::size_t r = 0; r < rays.size(); ++r) {
+        const auto want = oracle_ray_query(pts, rays[r], q1);
+        const auto got = std::visit([&](const auto& idx) { return ray_first_hit(idx, rays[r], q); }, index);
+        const std::string ctx = label(opt) + " ray " + std::to_string(r) + " " + describe(q);
+        ASSERT_EQ(got.has_value(), !want.empty()) << ctx;
+        if (!got) {
+          ++misses;
+          continue;
+        }
+        ++hits;
+        expect_same({*got}, want, ctx);
+        if (::testing::Test::HasFatalFailure()) return;
+      }
+    }
+  }
+  EXPECT_GT(hits, 100u);
+  EXPECT_GT(misses, 10u);
+}
+
 TEST(RayQuery, UtmMagnitudeKeepsMillimetres) {
   // Points 1 mm apart at x ~ 6e5, y ~ 5.3e6: a ray along x through the middle row must return
   // exactly that row's points for r = 0.4 mm, ordered by t with 1 mm steps.

@@ -62,18 +62,19 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
     const simd::Kernels& k = simd::active_kernels();
     if (!k.child_slab) continue;
     for (int trial = 0; trial < 4000; ++trial) {
-      // 1..8 float boxes (stride 7 floats, as an arbitrary record), relative to the origin 0.
+      // 1..8 float boxes (stride 9 floats, as an arbitrary record of >= 8 floats: the kernels
+      // read 8 floats per box), relative to the origin 0.
       const unsigned n = 1 + static_cast<unsigned>(trial % 8);
-      std::vector<float> rec(n * 7 + 1);
+      std::vector<float> rec(n * 9);
       std::vector<AABB> boxes(n);
       for (unsigned i = 0; i < n; ++i) {
         const Vec3 c(u(rng), u(rng), u(rng));
         const double h = 0.3 * u(rng) * u(rng);
         for (int a = 0; a < 3; ++a) {
-          rec[i * 7 + a] = static_cast<float>(c[a] - h);
-          rec[i * 7 + 3 + a] = static_cast<float>(c[a] + h);
-          boxes[i].lo[a] = rec[i * 7 + a];
-          boxes[i].hi[a] = rec[i * 7 + 3 + a];
+          rec[i * 9 + a] = static_cast<float>(c[a] - h);
+          rec[i * 9 + 3 + a] = static_cast<float>(c[a] + h);
+          boxes[i].lo[a] = rec[i * 9 + a];
+          boxes[i].hi[a] = rec[i * 9 + 3 + a];
         }
       }
       // Rays from outside and inside, some nearly axis-parallel (huge 1/d), pads from 0.
@@ -95,7 +96,7 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
       r.t_lo = static_cast<float>(t_lo);
       r.t_hi = static_cast<float>(t_hi);
       float entry[8];
-      const unsigned mask = k.child_slab({rec.data(), 7, n}, r, entry);
+      const unsigned mask = k.child_slab({rec.data(), 9, n}, r, entry);
       ASSERT_EQ(mask >> n, 0u) << "lanes beyond count must be clear";
       for (unsigned i = 0; i < n; ++i) {
         const Interval iv = slab_interval(o, inv, boxes[i], pad, t_lo, t_hi);

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -157,47 +158,24 @@ RayScratch<Node>& ray_scratch() {
 
 }  // namespace detail
 
-/// Ray query (paper Algorithm 1) over any SpatialIndex; results are appended to `out` (cleared
-/// first), sorted by (key, original index) ascending.
-///
-/// Semantics: a point p with terms (t_p, d) is a candidate when d <= radius, every plane gives
-/// dist_plane <= 0, and its t lies in [t_min, t_max], where t = t_p for orders ray/time and
-/// t = sphere_entry(t_p, d^2, radius) for sphere_hit. The k smallest candidates by key are kept.
-///
-/// Pruning (section 3.3): a node is skipped when its minimum distance to the ray segment exceeds
-/// the radius (exact distance or eq. 3, see NodeDistance), when its projected time interval (eq. 4,
-/// or the slab interval of the box grown by r, which is tighter) misses [t_min, t_max], when a plane
-/// has the whole box on its positive side, and, once k candidates are held, when its lower bound on
-/// the key exceeds the worst kept key (dynamic k filter: it tightens r for order ray, t_max for
-/// orders time and sphere_hit). With k set, the traversal is depth-first with each node's children
-/// visited nearest lower bound first, so the k filter tightens early, and every node whose lower
-/// bound exceeds the current k-bound is skipped when it is popped (a global best-first heap was
-/// measured slower for the k = 1 queries a renderer issues); without k, a plain depth-first stack
-/// is used. Bounds carry a tolerance of 1e-9 of the
-/// scene's magnitude so rounding never prunes a qualifying point.
-///
-/// SIMD (issue 12): on the active simd_path(), an index with FloatChildBoxes tests all children
-/// of a node at once on their float boxes (slabs grown by a margin that covers every float rounding,
-/// so no box holding a qualifying point is rejected), and each node's points go through a SIMD
-/// filter with widened bounds before the exact scalar test. Both are policies of this one traversal
-/// and only filter: every answer is bit-identical to the scalar path (RAYSCAN_SIMD=scalar).
-///
-/// Throws std::invalid_argument (from RayQuery::validate) for inconsistent parameters.
-/// Thread-safe for concurrent calls on one index (per-thread scratch).
-template <SpatialIndex I>
-void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<RayHit>& out,
-               RayQueryStats* stats = nullptr) {
+namespace detail {
+
+/// The one traversal of the ray query (see ray_query for the semantics). Candidates go to the
+/// per-thread k-heap (scratch.cands) or, with kBest1 (k = 1: the first hit of a renderer), to
+/// `best` alone: no heap and no vector (a compile-time policy of this one traversal, not a copy).
+/// Expects a validated query, a non-empty index and k >= 1. Returns true when `best` was set
+/// (kBest1 only).
+template <bool kBest1, SpatialIndex I>
+bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& best, RayQueryStats* stats) {
   using Node = typename I::Node;
-  q.validate();
-  out.clear();
-  if (index.empty() || q.k == 0) return;
 
   const Vec3 o = ray.origin();
   const Vec3 d = ray.direction();
   const Vec3 inv_d = 1.0 / d;
   const std::span<const Vec3> pos = index.positions();
   const std::span<const PointIndex> ids = index.ids();
-  const bool bounded = q.k != kAllPoints;
+  const bool bounded = kBest1 || q.k != kAllPoints;
+  bool found = false;  // kBest1: best holds a candidate
   const bool sphere = q.order == RayOrder::sphere_hit;
   const bool ray_order = q.order == RayOrder::ray;
   const bool exact = q.node_distance == NodeDistance::exact;
@@ -306,28 +284,39 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
   };
 
   bool done = false;  // any_hit: a candidate was found
-  auto push_candidate = [&](const detail::Candidate& c) {
-    if (q.any_hit) {
+  auto push_candidate = [&](const detail::Candidate& c) __attribute__((always_inline)) {
+    if constexpr (kBest1) {
+      if (found && !detail::cand_less(c, best)) return;
+      best = c;
+      found = true;
+      if (q.any_hit) {
+        done = true;
+        return;
+      }
+    } else if (q.any_hit) {
       cands.push_back(c);
       done = true;
       return;
     }
-    if (!bounded) {
-      cands.push_back(c);
-      return;
+    if constexpr (!kBest1) {
+      if (!bounded) {
+        cands.push_back(c);
+        return;
+      }
+      if (cands.size() < q.k) {
+        cands.push_back(c);
+        std::push_heap(cands.begin(), cands.end(), detail::cand_less);
+      } else if (detail::cand_less(c, cands.front())) {
+        std::pop_heap(cands.begin(), cands.end(), detail::cand_less);
+        cands.back() = c;
+        std::push_heap(cands.begin(), cands.end(), detail::cand_less);
+      } else {
+        return;
+      }
+      if (cands.size() != q.k) return;
     }
-    if (cands.size() < q.k) {
-      cands.push_back(c);
-      std::push_heap(cands.begin(), cands.end(), detail::cand_less);
-    } else if (detail::cand_less(c, cands.front())) {
-      std::pop_heap(cands.begin(), cands.end(), detail::cand_less);
-      cands.back() = c;
-      std::push_heap(cands.begin(), cands.end(), detail::cand_less);
-    } else {
-      return;
-    }
-    if (cands.size() == q.k) {  // dynamic k filter: tighten r (order ray) or t_max
-      worst = cands.front().key;
+    {  // dynamic k filter: tighten r (order ray) or t_max
+      worst = kBest1 ? best.key : cands.front().key;
       if (ray_order) {
         pad = std::min(radius, worst);
         o_plus = o + (pad + tol);
@@ -390,6 +379,7 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
     eval_points(e.node);
     if (done) break;
     const unsigned nc = index.child_count(e.node);
+    if (nc == 0) continue;  // a leaf: no child test (nor an indirect SIMD call)
     unsigned nk = 0;
     auto take = [&](const Node c, double lb) __attribute__((always_inline)) {
       if (!bounded || nc > 8) {
@@ -435,9 +425,70 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
     for (unsigned j = 0; j < nk; ++j) nodes.push_back(kids[j]);
   }
 
+  return found;
+}
+
+}  // namespace detail
+
+/// Ray query (paper Algorithm 1) over any SpatialIndex; results are appended to `out` (cleared
+/// first), sorted by (key, original index) ascending.
+///
+/// Semantics: a point p with terms (t_p, d) is a candidate when d <= radius, every plane gives
+/// dist_plane <= 0, and its t lies in [t_min, t_max], where t = t_p for orders ray/time and
+/// t = sphere_entry(t_p, d^2, radius) for sphere_hit. The k smallest candidates by key are kept.
+///
+/// Pruning (section 3.3): a node is skipped when its minimum distance to the ray segment exceeds
+/// the radius (exact distance or eq. 3, see NodeDistance), when its projected time interval (eq. 4,
+/// or the slab interval of the box grown by r, which is tighter) misses [t_min, t_max], when a plane
+/// has the whole box on its positive side, and, once k candidates are held, when its lower bound on
+/// the key exceeds the worst kept key (dynamic k filter: it tightens r for order ray, t_max for
+/// orders time and sphere_hit). With k set, the traversal is depth-first with each node's children
+/// visited nearest lower bound first, so the k filter tightens early, and every node whose lower
+/// bound exceeds the current k-bound is skipped when it is popped (a global best-first heap was
+/// measured slower for the k = 1 queries a renderer issues); without k, a plain depth-first stack
+/// is used. Bounds carry a tolerance of 1e-9 of the
+/// scene's magnitude so rounding never prunes a qualifying point.
+///
+/// SIMD (issue 12): on the active simd_path(), an index with FloatChildBoxes tests all children
+/// of a node at once on their float boxes (slabs grown by a margin that covers every float rounding,
+/// so no box holding a qualifying point is rejected), and each node's points go through a SIMD
+/// filter with widened bounds before the exact scalar test. Both are policies of this one traversal
+/// and only filter: every answer is bit-identical to the scalar path (RAYSCAN_SIMD=scalar).
+/// With k = 1 the candidates go to a single best candidate instead of the k-heap (same answer;
+/// ray_first_hit is that query without a result vector or per-query validation).
+///
+/// Throws std::invalid_argument (from RayQuery::validate) for inconsistent parameters.
+/// Thread-safe for concurrent calls on one index (per-thread scratch).
+template <SpatialIndex I>
+void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<RayHit>& out,
+               RayQueryStats* stats = nullptr) {
+  q.validate();
+  out.clear();
+  if (index.empty() || q.k == 0) return;
+  detail::Candidate best;
+  if (q.k == 1) {  // first hit: the single-candidate policy (same answer as the k-heap)
+    if (detail::ray_traverse<true>(index, ray, q, best, stats))
+      out.push_back({best.id, best.t, std::sqrt(best.d2), best.key});
+    return;
+  }
+  detail::ray_traverse<false>(index, ray, q, best, stats);
+  auto& cands = detail::ray_scratch<typename I::Node>().cands;
   std::sort(cands.begin(), cands.end(), detail::cand_less);
   out.reserve(cands.size());
   for (const detail::Candidate& c : cands) out.push_back({c.id, c.slot, c.t, std::sqrt(c.d2), c.key});
+}
+
+/// First hit: the result ray_query(index, ray, q) gives with q.k = 1 (whatever q.k says), without a
+/// result vector; nullopt when nothing qualifies. For renderers (cf. Embree's rtcIntersect1).
+/// `q` must have been checked with q.validate() (once per batch: this hot path does not validate;
+/// an unchecked invalid query gives an unspecified answer, never undefined behaviour).
+template <SpatialIndex I>
+[[nodiscard]] std::optional<RayHit> ray_first_hit(const I& index, const Ray& ray, const RayQuery& q,
+                                                  RayQueryStats* stats = nullptr) {
+  if (index.empty()) return std::nullopt;
+  detail::Candidate best;
+  if (!detail::ray_traverse<true>(index, ray, q, best, stats)) return std::nullopt;
+  return RayHit{best.id, best.t, std::sqrt(best.d2), best.key};
 }
 
 /// Convenience overload returning a new vector; see the overload above.

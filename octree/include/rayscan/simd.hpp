@@ -50,7 +50,7 @@ struct SlabRayF {
 /// base[i * stride + 0..2] and hi at base[i * stride + 3..5].
 struct ChildBoxesF {
   const float* base = nullptr;
-  unsigned stride = 0;  ///< in floats
+  unsigned stride = 0;  ///< in floats, >= 8: the kernels read 8 floats from each box's lo (transposed in registers)
   unsigned count = 0;   ///< number of children (<= 8)
 };
 
