@@ -468,7 +468,7 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
   detail::Candidate best;
   if (q.k == 1) {  // first hit: the single-candidate policy (same answer as the k-heap)
     if (detail::ray_traverse<true>(index, ray, q, best, stats))
-      out.push_back({best.id, best.t, std::sqrt(best.d2), best.key});
+      out.push_back({best.id, best.slot, best.t, std::sqrt(best.d2), best.key});
     return;
   }
   detail::ray_traverse<false>(index, ray, q, best, stats);
@@ -488,7 +488,7 @@ template <SpatialIndex I>
   if (index.empty()) return std::nullopt;
   detail::Candidate best;
   if (!detail::ray_traverse<true>(index, ray, q, best, stats)) return std::nullopt;
-  return RayHit{best.id, best.t, std::sqrt(best.d2), best.key};
+  return RayHit{best.id, best.slot, best.t, std::sqrt(best.d2), best.key};
 }
 
 /// Convenience overload returning a new vector; see the overload above.
