@@ -59,6 +59,11 @@ TEST(FirstSurfelHit, MatchesBruteForceOverEveryDisc) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (const char* type : {"octree-adaptive", "kdtree", "brute"}) {
     const AnyIndex idx = make_index(d.c, IndexOptions{type});
+    const std::vector<float> node_r = std::visit([&](const auto& ix) { return surfel_node_radii(ix, d.r); }, idx);
+    SurfelView view_node = d.view();
+    view_node.node_radii = node_r;
+    const float root_r = std::visit([&](const auto& ix) { return node_r.at(ix.root()); }, idx);
+    EXPECT_EQ(root_r, float(d.rmax)) << type;  // the root's subtree holds every disc
     int hits = 0;
     for (int k = 0; k < 400; ++k) {
       const Vec3 o(u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2);
@@ -72,18 +77,23 @@ TEST(FirstSurfelHit, MatchesBruteForceOverEveryDisc) {
       }
       std::vector<RayHit> scratch;
       RayQueryStats st;
-      const SurfelHit h = std::visit(
-          [&](const auto& ix) { return first_surfel_hit(ix, d.view(), ray, 0.0, kInf, nullptr, false, scratch, st); },
-          idx);
-      ASSERT_EQ(h.t, bt) << type << " ray " << k;
-      if (bt < kInf) {
-        EXPECT_EQ(h.index, bi);
-        ++hits;
-        const SurfelHit any = std::visit(
-            [&](const auto& ix) { return first_surfel_hit(ix, d.view(), ray, 0.0, kInf, nullptr, true, scratch, st); },
+      // Both candidate radii: the global maximum, and each node's own largest disc radius.
+      for (const SurfelView& v : {d.view(), view_node}) {
+        const SurfelHit h = std::visit(
+            [&](const auto& ix) { return first_surfel_hit(ix, v, ray, 0.0, kInf, nullptr, false, scratch, st); },
             idx);
-        EXPECT_LT(any.t, kInf);
+        ASSERT_EQ(h.t, bt) << type << " ray " << k << " per-node radii " << !v.node_radii.empty();
+        if (bt < kInf) {
+          EXPECT_EQ(h.index, bi);
+          const SurfelHit any = std::visit(
+              [&](const auto& ix) { return first_surfel_hit(ix, v, ray, 0.0, kInf, nullptr, true, scratch, st); },
+              idx);
+          EXPECT_LT(any.t, kInf);
+          EXPECT_EQ(any.t, ray_disc_t(ray.origin(), ray.direction(), d.c[any.index], Vec3(d.n[any.index]),
+                                      d.r[any.index], 0.0, kInf));
+        }
       }
+      hits += bt < kInf;
     }
     EXPECT_GT(hits, 100) << type;  // the sample exercises hits, not only misses
   }

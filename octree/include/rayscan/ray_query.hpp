@@ -14,6 +14,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace rayscan {
@@ -158,15 +159,47 @@ RayScratch<Node>& ray_scratch() {
 
 }  // namespace detail
 
+/// The default point-key policy of ray_query: a candidate's key is the order's measure.
+struct OrderKey {
+  static constexpr bool refines = false;
+  static constexpr bool node_radius = false;
+};
+
+/// "No per-node radius" (the query radius bounds every node): see RefinedKey.
+struct NoNodeRadius {};
+
+/// A point-key policy refines the key of each candidate that passed the query's predicates:
+/// `key(id, t_p, d2, base)` receives the point's original index, its projection terms and its
+/// order key `base`, and returns a key >= base (kInf rejects the point). Because the refined key
+/// is never below the base key, every node lower bound of the traversal stays a lower bound, so
+/// the k smallest refined keys are found exactly. Used for geometry inside the query radius whose
+/// exact hit is known per point: the oriented discs of surfel rendering (the refined key is the
+/// disc hit parameter, >= the entry into the sphere of radius `radius` that contains the disc).
+///
+/// Optionally (orders time and sphere_hit only) the policy bounds, per node, how far the geometry
+/// of the points of the node's subtree reaches: `node_radius(n)` (world units) is >= the distance
+/// from every point p of n's subtree to the ray point at p's finite refined key. The traversal then
+/// grows each node's box by its own bound instead of the query radius (a tube as thin as the local
+/// geometry; cf. the per-node radius bounds of a BVH over spheres of varying radii), which keeps
+/// every node lower bound a lower bound of the refined keys inside it, so the answer is unchanged.
+template <class F, class G = NoNodeRadius>
+struct RefinedKey {
+  static constexpr bool refines = true;
+  static constexpr bool node_radius = !std::is_same_v<G, NoNodeRadius>;
+  F key;              ///< double(PointIndex id, double t_p, double d2, double base)
+  G node_radius_of{};  ///< double(Node n): the bound above (NoNodeRadius: none)
+};
+
 namespace detail {
 
 /// The one traversal of the ray query (see ray_query for the semantics). Candidates go to the
 /// per-thread k-heap (scratch.cands) or, with kBest1 (k = 1: the first hit of a renderer), to
 /// `best` alone: no heap and no vector (a compile-time policy of this one traversal, not a copy).
 /// Expects a validated query, a non-empty index and k >= 1. Returns true when `best` was set
-/// (kBest1 only).
-template <bool kBest1, SpatialIndex I>
-bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& best, RayQueryStats* stats) {
+/// (kBest1 only). `key_policy`: OrderKey or RefinedKey (see there).
+template <bool kBest1, SpatialIndex I, class KeyPolicy = OrderKey>
+bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& best, RayQueryStats* stats,
+                  const KeyPolicy& key_policy = {}) {
   using Node = typename I::Node;
 
   const Vec3 o = ray.origin();
@@ -182,6 +215,9 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
   const double radius = q.radius;
   const double r2 = radius * radius;
   const bool has_planes = !q.planes.empty();
+  constexpr bool per_node = KeyPolicy::node_radius;
+  if (per_node && ray_order)
+    throw std::invalid_argument("ray query: per-node radii need order time or sphere_hit");
 
   const AABB root_box = index.node_bounds(index.root());
   const double tol = 1e-9 * (glm::length(o - root_box.center()) + root_box.max_extent()) + 1e-300;
@@ -224,7 +260,7 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
   }
   // Refreshes the per-ray SIMD constants after pad or t_hi changed (dynamic k filter).
   auto update_simd = [&]() {
-    pf.d2_max = (ray_order ? std::min(r2, worst * worst * (1.0 + 1e-12)) : r2) + slack_d2;
+    pf.d2_max = (ray_order ? std::min(r2, worst * worst * (1.0 + 1e-12)) : per_node ? pad * pad : r2) + slack_d2;
     pf.t_lo = t_lo - slack_t;
     pf.t_hi = t_hi + slack_t;
     if constexpr (detail::FloatChildBoxes<I>) {
@@ -243,9 +279,18 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
       }
     }
   };
+  // Per-node radius policy: pad becomes the node's own bound (never above the query radius).
+  [[maybe_unused]] auto set_node_pad = [&](Node n) {
+    if constexpr (per_node) {
+      pad = std::min(radius, static_cast<double>(key_policy.node_radius_of(n)));
+      o_plus = o + (pad + tol);
+      o_minus = o - (pad + tol);
+    }
+  };
+  if constexpr (per_node) set_node_pad(index.root());
   update_simd();
   // Children whose SIMD slab result is final (else it only prefilters the scalar test).
-  const bool slab_is_final = !ray_order && !has_planes;
+  const bool slab_is_final = !ray_order && !has_planes && !per_node;
 
   // Node test (section 3.3): false prunes the node; otherwise lb receives a lower bound of the key
   // of any result inside it.
@@ -345,8 +390,12 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
           if (dist_plane(pl.point, pl.normal, pos[s]) > 0.0) { inside = false; break; }
         if (!inside) return;
       }
-      const double key = ray_order ? std::sqrt(pt.d2) : t;
+      double key = ray_order ? std::sqrt(pt.d2) : t;
       if (key > worst) return;
+      if constexpr (KeyPolicy::refines) {
+        key = key_policy.key(ids[s], pt.t, pt.d2, key);
+        if (!(key <= worst) || !(key < kInf)) return;
+      }
       push_candidate({key, ids[s], s, t, pt.d2});
     };
     if (kern.point_filter && sr.size() >= 4) {
@@ -376,6 +425,12 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
     const detail::NodeEntry<Node> e = nodes.back();
     nodes.pop_back();
     if (bounded && e.lb > worst + tol) continue;
+    if constexpr (per_node) {
+      // The node's subtree bound: its own points' SIMD filter and its children's SIMD slab test;
+      // each surviving child is then tested with its own bound (below).
+      set_node_pad(e.node);
+      update_simd();
+    }
     eval_points(e.node);
     if (done) break;
     const unsigned nc = index.child_count(e.node);
@@ -407,8 +462,9 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
           if (slab_is_final) {
             lb = std::max(static_cast<double>(entry[i]), q.t_min);
             if (bounded && lb > worst + tol) continue;
-          } else if (!test_node(index.node_bounds(c), lb)) {
-            continue;
+          } else {
+            if constexpr (per_node) set_node_pad(c);
+            if (!test_node(index.node_bounds(c), lb)) continue;
           }
           take(c, lb);
         }
@@ -419,6 +475,7 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
     for (unsigned i = 0; i < nc; ++i) {
       const Node c = index.child(e.node, i);
       double lb;
+      if constexpr (per_node) set_node_pad(c);
       if (!test_node(index.node_bounds(c), lb)) continue;
       take(c, lb);
     }
@@ -457,21 +514,25 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
 /// With k = 1 the candidates go to a single best candidate instead of the k-heap (same answer;
 /// ray_first_hit is that query without a result vector or per-query validation).
 ///
+/// Point-key policy (OrderKey, RefinedKey): with RefinedKey, each candidate's key is the policy's
+/// refinement of the order key (k filter, ordering, any_hit acceptance and RayHit::key use it;
+/// RayHit::t stays the order's t).
+///
 /// Throws std::invalid_argument (from RayQuery::validate) for inconsistent parameters.
 /// Thread-safe for concurrent calls on one index (per-thread scratch).
-template <SpatialIndex I>
+template <SpatialIndex I, class KeyPolicy = OrderKey>
 void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<RayHit>& out,
-               RayQueryStats* stats = nullptr) {
+               RayQueryStats* stats = nullptr, const KeyPolicy& key_policy = {}) {
   q.validate();
   out.clear();
   if (index.empty() || q.k == 0) return;
   detail::Candidate best;
   if (q.k == 1) {  // first hit: the single-candidate policy (same answer as the k-heap)
-    if (detail::ray_traverse<true>(index, ray, q, best, stats))
+    if (detail::ray_traverse<true>(index, ray, q, best, stats, key_policy))
       out.push_back({best.id, best.slot, best.t, std::sqrt(best.d2), best.key});
     return;
   }
-  detail::ray_traverse<false>(index, ray, q, best, stats);
+  detail::ray_traverse<false>(index, ray, q, best, stats, key_policy);
   auto& cands = detail::ray_scratch<typename I::Node>().cands;
   std::sort(cands.begin(), cands.end(), detail::cand_less);
   out.reserve(cands.size());

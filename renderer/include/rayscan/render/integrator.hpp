@@ -69,6 +69,10 @@ class PathTracer {
       throw std::invalid_argument("render: surfel mode needs the albedo by original point index");
     if (!in.albedo.covers(index.positions().size()))
       throw std::invalid_argument("render: the albedo does not cover the index's points");
+    if (in_.primitive == Primitive::surfel && in_.surfels.node_radii.empty()) {
+      node_radii_ = surfel_node_radii(index, in_.surfels.radii);
+      in_.surfels.node_radii = node_radii_;
+    }
     query_.k = 1;
     query_.radius = in.radius;
     query_.t_min = 0.0;
@@ -78,6 +82,9 @@ class PathTracer {
     shadow_query_ = query_;
     shadow_query_.any_hit = true;  // a shadow ray only asks whether anything blocks the sun
   }
+
+  PathTracer(const PathTracer&) = delete;  // in_.surfels.node_radii views node_radii_
+  PathTracer& operator=(const PathTracer&) = delete;
 
   /// True when any sphere blocks `ray` at t >= 0 (shadow rays; the core's any_hit mode).
   /// `from`: the surface the ray leaves, whose own discs are ignored (surfel mode).
@@ -153,7 +160,8 @@ class PathTracer {
     h.t = sh.t;
     h.index = sh.index;
     h.position = ray.at(sh.t);
-    h.normal = blended_normal(in_.surfels, hits, sh.index, h.position);
+    thread_local std::vector<Neighbor> near;
+    h.normal = surfel_shading_normal(index_, in_.surfels, sh.index, h.position, near);
     if (glm::dot(h.normal, ray.direction()) > 0.0) h.normal = -h.normal;
     h.radius = in_.surfels.radii[sh.index];
     return true;
@@ -218,6 +226,7 @@ class PathTracer {
  private:
   const I& index_;
   IntegratorInputs in_;
+  std::vector<float> node_radii_;  ///< surfel_node_radii over index_ (surfel mode)
   const Sky& sky_;
   bool time_;
   RayQuery query_;

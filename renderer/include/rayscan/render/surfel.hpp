@@ -5,6 +5,7 @@
 // bound of the disc hit), then the exact ray-disc test in double.
 #pragma once
 
+#include "rayscan/point_query.hpp"
 #include "rayscan/ray_query.hpp"
 
 #include <glm/vec3.hpp>
@@ -27,7 +28,40 @@ struct SurfelView {
   std::span<const glm::vec3> normals;  ///< unit disc normals
   std::span<const float> radii;        ///< disc radii, world units (> 0)
   double max_radius = 0.0;             ///< max of radii: the candidate radius of the ray query
+  /// Optional, by node of the one index the view is used with (surfel_node_radii over it): the
+  /// largest disc radius in each node's subtree, the per-node candidate radius of the ray query.
+  /// Empty: max_radius everywhere.
+  std::span<const float> node_radii{};
 };
+
+/// The largest of `radii` (by original point index) over the points of each node's subtree of
+/// `index`, indexed by node (size: largest node handle + 1; unvisited handles hold 0). One pass
+/// over the tree (children after parents in pre-order, reduced in reverse).
+template <SpatialIndex I>
+[[nodiscard]] std::vector<float> surfel_node_radii(const I& index, std::span<const float> radii) {
+  using Node = typename I::Node;
+  std::vector<float> out;
+  if (index.empty()) return out;
+  std::vector<Node> order{index.root()}, stack{index.root()};
+  order.clear();
+  while (!stack.empty()) {
+    const Node n = stack.back();
+    stack.pop_back();
+    order.push_back(n);
+    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) stack.push_back(index.child(n, i));
+  }
+  out.assign(static_cast<std::size_t>(*std::max_element(order.begin(), order.end())) + 1, 0.0f);
+  const auto ids = index.ids();
+  for (auto it = order.rbegin(); it != order.rend(); ++it) {
+    const Node n = *it;
+    float m = 0.0f;
+    const SlotRange sr = index.node_points(n);
+    for (std::uint32_t k = sr.begin; k < sr.end; ++k) m = std::max(m, radii[ids[k]]);
+    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) m = std::max(m, out[index.child(n, i)]);
+    out[n] = m;
+  }
+  return out;
+}
 
 /// Ray parameter where the ray o + t d (unit d) crosses the disc (centre c, unit normal n, radius
 /// r), or kInf when it misses it or the hit lies outside [t_min, t_max]. A ray parallel to the
@@ -78,85 +112,69 @@ struct SurfelHit {
 };
 
 /// The first disc hit along `ray` with t in [t_min, t_max] (or, with any_hit, some disc hit in it),
-/// ignoring the discs of `from` when given. Candidates come from ray_query with order sphere_hit
-/// and the maximum radius R: a disc of radius r <= R around c lies inside the sphere of radius R
-/// around c, so its hit is never before that sphere's entry key. The search alternates a k = 1
-/// probe (the next key a, as the sphere renderer's query) with a query of every candidate whose key
-/// lies in the window [a, a + 2R], tested exactly in key order; it stops once the best hit is not
-/// after the window's end. `hits` is caller-owned scratch (on return it holds the last window's
-/// candidates, used by blended_normal); `stats` accumulates the query counters.
+/// ignoring the discs of `from` when given; ties in t go to the smaller index. One ray query: order
+/// sphere_hit with the maximum radius R as candidate radius (a disc of radius r <= R around c lies
+/// inside the sphere of radius R around c, so its hit is never before that sphere's entry, the
+/// key the traversal prunes with), k = 1, and the exact ray-disc test in double as the query's
+/// refined key (RefinedKey): the traversal visits nodes nearest entry first and stops once no node
+/// can hold a disc hit before the best one. With s.node_radii, each node's box is grown by its own
+/// largest disc radius instead of R. `hits` is caller-owned scratch; `stats` accumulates the
+/// query counters.
 template <SpatialIndex I>
 SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, double t_min,
                            double t_max, const LeavingSurface* from, bool any_hit,
                            std::vector<RayHit>& hits, RayQueryStats& stats) {
   SurfelHit best;
   const double R = s.max_radius;
-  const double W = 2.0 * R;
-  RayQuery probe;
-  probe.order = RayOrder::sphere_hit;
-  probe.radius = R;
-  probe.k = 1;
+  RayQuery q;
+  q.order = RayOrder::sphere_hit;
+  q.radius = R;
+  q.k = 1;
+  q.any_hit = any_hit;
   // A hit at t >= t_min has t_p >= t_min - r, so its sphere key is >= t_min - 2R.
-  probe.t_min = t_min - 2.0 * R;
-  probe.t_max = t_max;
-  RayQuery window = probe;
-  window.k = kAllPoints;
+  q.t_min = t_min - 2.0 * R;
+  q.t_max = t_max;
   const Vec3& o = ray.origin();
   const Vec3& d = ray.direction();
-  // Ids already tested whose key equals the last window's end (ties across windows).
-  thread_local std::vector<PointIndex> tied;
-  tied.clear();
-  double done_to = -kInf;  // keys <= done_to were tested (except ties not in `tied`)
-  for (;;) {
-    RayQueryStats st;
-    ray_query(index, ray, probe, hits, &st);
-    ++best.queries;
-    if (hits.empty()) break;
-    const double a = hits.front().key;
-    if (a > best.t) break;
-    window.t_min = a;
-    window.t_max = std::min(t_max, a + W);
-    ray_query(index, ray, window, hits, &st);
-    ++best.queries;
-    stats.nodes_visited += st.nodes_visited;
-    stats.points_tested += st.points_tested;
-    for (const RayHit& h : hits) {
-      if (h.key > best.t) break;
-      if (h.key == done_to && std::find(tied.begin(), tied.end(), h.index) != tied.end()) continue;
-      const Vec3& c = s.centers[h.index];
-      const double r = s.radii[h.index];
-      const Vec3 n(s.normals[h.index]);
-      if (from && same_surface(*from, h.index, c, n, r)) continue;
-      const double t = ray_disc_t(o, d, c, n, r, t_min, std::min(t_max, best.t));
-      if (t < best.t || (t == best.t && t < kInf && h.index < best.index)) {
-        best.t = t;
-        best.index = h.index;
-        if (any_hit) return best;
-      }
-    }
-    const double end = window.t_max;
-    if (best.t <= end || end >= t_max) break;
-    tied.clear();
-    for (const RayHit& h : hits)
-      if (h.key == end) tied.push_back(h.index);
-    done_to = end;
-    probe.t_min = end;
+  const auto disc_t = [&](PointIndex id, double, double d2, double) {
+    const double r = s.radii[id];
+    if (d2 > r * r) return kInf;  // the ray passes farther than r from the centre: misses the disc
+    const Vec3& c = s.centers[id];
+    const Vec3 n(s.normals[id]);
+    if (from && same_surface(*from, id, c, n, r)) return kInf;
+    return ray_disc_t(o, d, c, n, r, t_min, t_max);
+  };
+  if (s.node_radii.empty()) {
+    ray_query(index, ray, q, hits, &stats, RefinedKey<decltype(disc_t)>{disc_t, {}});
+  } else {
+    // Per-node bounds: a disc hit lies within the disc's radius of its centre.
+    const auto node_r = [&](typename I::Node n) { return double(s.node_radii[n]); };
+    ray_query(index, ray, q, hits, &stats, RefinedKey<decltype(disc_t), decltype(node_r)>{disc_t, node_r});
+  }
+  best.queries = 1;
+  if (!hits.empty()) {
+    best.t = hits.front().key;
+    best.index = hits.front().index;
   }
   return best;
 }
 
-/// Shading normal at hit point x of disc `hit`: the normals of the discs among `candidates` (the
-/// last batch of first_surfel_hit) that cover x (in-plane distance < r, within r/4 of their
-/// plane, normal within 45 degrees) blended with weights 1 - d^2/r^2, the normalised splat blending
-/// of EWA surface splatting (Zwicker et al. 2001, section 5) that hides the facets of flat discs
-/// on curved surfaces. Signs are aligned with the hit disc; returns the hit disc's normal when no
-/// other disc covers x.
-[[nodiscard]] inline Vec3 blended_normal(const SurfelView& s, std::span<const RayHit> candidates,
+/// Distance from a point x within which lie the centres of all discs that can cover x in the
+/// sense of blended_normal (in-plane distance < r, plane offset <= r/4): sqrt(1 + 1/16) R.
+[[nodiscard]] inline double blend_reach(const SurfelView& s) { return s.max_radius * 1.0307764064044151; }
+
+/// Shading normal at hit point x of disc `hit`: the normals of the discs among `candidates` (at
+/// least every disc centre within blend_reach of x) that cover x (in-plane distance < r, within r/4
+/// of their plane, normal within 45 degrees) blended with weights 1 - d^2/r^2, the normalised splat
+/// blending of EWA surface splatting (Zwicker et al. 2001, section 5) that hides the facets of flat
+/// discs on curved surfaces. Signs are aligned with the hit disc; returns the hit disc's normal
+/// when no other disc covers x.
+[[nodiscard]] inline Vec3 blended_normal(const SurfelView& s, std::span<const Neighbor> candidates,
                                          PointIndex hit, const Vec3& x) {
   const Vec3 n0(s.normals[hit]);
   Vec3 sum(0.0);
   bool own = false;
-  for (const RayHit& h : candidates) {
+  for (const Neighbor& h : candidates) {
     const Vec3 n(s.normals[h.index]);
     const double c = glm::dot(n, n0);
     if (std::abs(c) < 0.7071) continue;
@@ -171,6 +189,15 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
   }
   const double len = glm::length(sum);
   return own && len > 0.0 ? sum / len : n0;
+}
+
+/// blended_normal over the discs found by a radius query of blend_reach around x (the core's
+/// knn_query); `scratch` is caller-owned.
+template <SpatialIndex I>
+[[nodiscard]] Vec3 surfel_shading_normal(const I& index, const SurfelView& s, PointIndex hit,
+                                         const Vec3& x, std::vector<Neighbor>& scratch) {
+  knn_query(index, x, kAllPoints, blend_reach(s), scratch);
+  return blended_normal(s, scratch, hit, x);
 }
 
 }  // namespace rayscan::render
