@@ -246,11 +246,12 @@ Observer parse_observer(std::string_view text) {
   return o;
 }
 
+// The lowest point within `radius` of (x, y) among the points whose z lies in [z_lo, z_hi] (the
+// cloud's z range: every point), ground class 2 preferred; NaN when there is none.
 template <class Index>
-double local_ground_over(const Index& index, const PointCloud& cloud, double x, double y, double radius) {
-  if (cloud.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const AABB b = cloud.bounds();
-  const AABB cyl{Vec3(x - radius, y - radius, b.lo.z), Vec3(x + radius, y + radius, b.hi.z)};
+double local_ground_in(const Index& index, const PointCloud& cloud, double x, double y, double radius, double z_lo,
+                       double z_hi) {
+  const AABB cyl{Vec3(x - radius, y - radius, z_lo), Vec3(x + radius, y + radius, z_hi)};
   std::vector<PointIndex> ids;
   if constexpr (std::is_same_v<Index, AnyIndex>)
     std::visit([&](const auto& idx) { box_query(idx, cyl, ids); }, index);
@@ -275,10 +276,18 @@ double local_ground_over(const Index& index, const PointCloud& cloud, double x, 
 }
 
 template <class Index>
+double local_ground_over(const Index& index, const PointCloud& cloud, double x, double y, double radius) {
+  if (cloud.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const AABB b = cloud.bounds();
+  return local_ground_in(index, cloud, x, y, radius, b.lo.z, b.hi.z);
+}
+
+template <class Index>
 void place_observers_over(std::vector<Observer>& observers, const Index& index, const PointCloud& cloud,
                      const GroundOptions& options) {
   if (!(options.radius > 0.0) || !std::isfinite(options.radius))
     throw ObserverError("ground radius must be a finite number > 0");
+  std::optional<AABB> bounds;  // the cloud's z range, computed once (an O(N) pass), when needed
   for (std::size_t k = 0; k < observers.size(); ++k) {
     Observer& o = observers[k];
     if (o.has_z) continue;
@@ -286,7 +295,10 @@ void place_observers_over(std::vector<Observer>& observers, const Index& index, 
     if (!h)
       throw ObserverError(observer_where(o, k + 1) +
                           ": no z and no height; give z, a height, or a default height (--height)");
-    const double g = local_ground_over(index, cloud, o.position.x, o.position.y, options.radius);
+    if (!bounds && !cloud.empty()) bounds = cloud.bounds();
+    const double g = cloud.empty() ? std::numeric_limits<double>::quiet_NaN()
+                                   : local_ground_in(index, cloud, o.position.x, o.position.y, options.radius,
+                                                     bounds->lo.z, bounds->hi.z);
     if (std::isnan(g)) {
       char buf[160];
       std::snprintf(buf, sizeof buf, ": no point within the ground radius %.6g of (%.6f, %.6f) to put the "

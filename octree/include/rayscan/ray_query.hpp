@@ -519,7 +519,7 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
 /// RayHit::t stays the order's t).
 ///
 /// Throws std::invalid_argument (from RayQuery::validate) for inconsistent parameters.
-/// Thread-safe for concurrent calls on one index (per-thread scratch).
+/// Thread-safe (per-thread scratch, shared with knn_query: a key policy must not query on its thread).
 template <SpatialIndex I, class KeyPolicy = OrderKey>
 void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<RayHit>& out,
                RayQueryStats* stats = nullptr, const KeyPolicy& key_policy = {}) {
