@@ -253,10 +253,7 @@ double local_ground_in(const Index& index, const PointCloud& cloud, double x, do
                        double z_hi) {
   const AABB cyl{Vec3(x - radius, y - radius, z_lo), Vec3(x + radius, y + radius, z_hi)};
   std::vector<PointIndex> ids;
-  if constexpr (std::is_same_v<Index, AnyIndex>)
-    std::visit([&](const auto& idx) { box_query(idx, cyl, ids); }, index);
-  else
-    box_query(index, cyl, ids);
+  visit_index([&](const auto& idx) { box_query(idx, cyl, ids); }, index);
   const bool classified = cloud.classification.size() == cloud.size();
   const double r2 = radius * radius;
   double lowest_any = kInf, lowest_ground = kInf;

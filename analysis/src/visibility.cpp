@@ -23,17 +23,6 @@ namespace {
 
 constexpr std::uint32_t kChunk = 512;  // points (or pixel rows' worth of pixels) per work item
 
-// std::visit over the in-memory index variant, or the call itself for an index file: the one
-// dispatch of every function below, so both run the same template code.
-template <class F>
-decltype(auto) visit_index(F&& f, const AnyIndex& index) {
-  return std::visit(std::forward<F>(f), index);
-}
-template <class F>
-decltype(auto) visit_index(F&& f, const io::MappedIndex& index) {
-  return f(index);
-}
-
 template <class Index>
 std::size_t index_size(const Index& index) {
   return visit_index([](const auto& i) { return i.positions().size(); }, index);

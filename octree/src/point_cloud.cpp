@@ -4,11 +4,13 @@
 
 namespace rayscan {
 
-AABB PointCloud::bounds() const {
+AABB bounds_of(std::span<const Vec3> points) {
   AABB b;
-  for (const Vec3& p : positions) b.expand(p);
+  for (const Vec3& p : points) b.expand(p);
   return b;
 }
+
+AABB PointCloud::bounds() const { return bounds_of(positions); }
 
 const ScalarField* PointCloud::scalar(const std::string& name) const {
   for (const ScalarField& f : scalars)

@@ -153,10 +153,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   if (!o.cloud) ctl.info(buf);
   r.crs_wkt = mapped ? mapped->crs_wkt() : cloud->crs_wkt;
   if (o.camera_for_cloud) {
-    AABB bounds;
-    if (cloud) bounds = cloud->bounds();
-    else for (const Vec3& p : mapped->positions()) bounds.expand(p);
-    scene.camera = o.camera_for_cloud(bounds);
+    scene.camera = o.camera_for_cloud(bounds_of(cloud ? std::span<const Vec3>(cloud->positions) : mapped->positions()));
   }
   t0 = std::chrono::steady_clock::now();
   try {

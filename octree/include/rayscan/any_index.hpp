@@ -6,12 +6,24 @@
 #include "rayscan/octree.hpp"
 
 #include <string>
+#include <utility>
 #include <variant>
 
 namespace rayscan {
 
-/// Any of the library's indexes; use std::visit to call a query template on it.
+/// Any of the library's indexes; use std::visit (or visit_index) to call a query template on it.
 using AnyIndex = std::variant<Octree, KdTree, BruteForceIndex>;
+
+/// Calls `f` with the concrete index: the alternative an AnyIndex holds (std::visit), or `index`
+/// itself for any other SpatialIndex (e.g. io::MappedIndex), so one template body serves both.
+template <class F>
+decltype(auto) visit_index(F&& f, const AnyIndex& index) {
+  return std::visit(std::forward<F>(f), index);
+}
+template <class F, class I>
+decltype(auto) visit_index(F&& f, const I& index) {
+  return std::forward<F>(f)(index);
+}
 
 /// Index build options shared by the CLI and scene files.
 struct IndexOptions {

@@ -24,6 +24,9 @@ struct ScalarField {
   std::vector<double> values;  ///< one value per point (same length as positions)
 };
 
+/// Axis-aligned bounding box of `points` (world coordinates); empty (AABB{}) when there is none.
+AABB bounds_of(std::span<const Vec3> points);
+
 /// A raw point cloud: positions in double-precision world coordinates plus optional per-point
 /// attributes. An attribute vector is either empty (absent) or has exactly size() entries.
 ///
@@ -48,8 +51,8 @@ struct PointCloud {
   [[nodiscard]] std::size_t size() const { return positions.size(); }
   /// True when the cloud holds no point.
   [[nodiscard]] bool empty() const { return positions.empty(); }
-  /// Bounding box recomputed from the positions (never a header's stored box). Empty for an empty
-  /// cloud.
+  /// Bounding box recomputed from the positions (never a header's stored box), bounds_of(positions).
+  /// Empty for an empty cloud.
   [[nodiscard]] AABB bounds() const;
   /// Pointer to the scalar field called `name`, or nullptr.
   [[nodiscard]] const ScalarField* scalar(const std::string& name) const;
