@@ -26,7 +26,7 @@ struct RenderCliOptions {
   std::optional<std::uint64_t> seed;
   unsigned threads = 0;
   std::vector<std::string> aovs;
-  std::string primitive, colmap_dir, colmap_image, dsm, frames;
+  std::string primitive, colmap_dir, colmap_image, dsm, frames, cache = "2G";
   std::optional<double> ortho_res;
   bool quiet = false, print_scene = false;
 };
@@ -62,6 +62,11 @@ int run_render(const RenderCliOptions& o) {
   job.scene = rs.scene;
   if (points) job.cloud = &*points;
   job.control.threads = o.threads;
+  try {
+    job.cache_bytes = static_cast<std::size_t>(io::parse_byte_size(o.cache));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--cache: ") + e.what());
+  }
   // MPI (docs/mpi.md): tiles or frames over the ranks; only rank 0 logs, prints and writes.
   job.control.distributor = distributor();
   const bool talk = !o.quiet && is_root();
@@ -159,6 +164,10 @@ Runner add_render_command(CLI::App& app) {
   c->add_option("--height", o->height, "Image height in pixels, in [1, 65536]; keeps the field of view, and the width "
                 "follows the aspect ratio unless given (default: the camera's size)")
       ->check(CLI::Range(1u, 65536u));
+  c->add_option("--cache", o->cache,
+                "COPC input (sphere mode): bound on decoded node data kept between tile batches (LRU; e.g. 2G, "
+                "512M). A COPC file is traced in place, decoding only the nodes the rays reach")
+      ->capture_default_str();
   c->add_option("--aov", o->aovs, "Extra output: depth, normal, position, index, albedo, cost (repeatable)");
   c->add_option("--primitive", o->primitive, "Geometry of each point: sphere (the paper's model, one "
                 "radius) or surfel (oriented disc with a PCA normal and a radius from the local "

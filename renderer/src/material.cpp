@@ -21,12 +21,10 @@ std::array<double, 2> percentile_range(std::vector<double> v) {
   return {a, b > a ? b : a + 1.0};
 }
 
-// The same ranks of 16-bit values from a histogram (one pass, no copy of the values).
-std::array<double, 2> percentile_range_u16(std::span<const std::uint16_t> v) {
-  if (v.empty()) return {0.0, 1.0};
-  std::vector<std::uint64_t> hist(65536, 0);
-  for (const std::uint16_t x : v) ++hist[x];
-  const std::size_t lo = v.size() * 2 / 100, hi = std::min(v.size() - 1, v.size() * 98 / 100);
+// The same ranks of n 16-bit values from their histogram.
+std::array<double, 2> percentile_range_hist(const std::vector<std::uint64_t>& hist, std::size_t n) {
+  if (n == 0) return {0.0, 1.0};
+  const std::size_t lo = n * 2 / 100, hi = std::min(n - 1, n * 98 / 100);
   auto value_at = [&](std::size_t rank) {
     std::uint64_t seen = 0;
     for (std::size_t x = 0; x < hist.size(); ++x) {
@@ -38,16 +36,84 @@ std::array<double, 2> percentile_range_u16(std::span<const std::uint16_t> v) {
   const double a = value_at(lo), b = value_at(hi);
   return {a, b > a ? b : a + 1.0};
 }
+
+// The same ranks of 16-bit values from a histogram (one pass, no copy of the values).
+std::array<double, 2> percentile_range_u16(std::span<const std::uint16_t> v) {
+  std::vector<std::uint64_t> hist(65536, 0);
+  for (const std::uint16_t x : v) ++hist[x];
+  return percentile_range_hist(hist, v.size());
+}
+
+const char* kNoRgb = "material color \"rgb\": the cloud has no RGB colours (use "
+                     "\"elevation\", \"intensity\" or a constant [r, g, b])";
 }  // namespace
+
+void AlbedoRule::set_rgb_scale(bool wide) {
+  const float scale = wide ? 1.0f / 65535.0f : 1.0f / 255.0f;
+  lut_.resize(65536);  // 8-bit data only reads [0, 255]
+  for (std::size_t i = 0; i < (wide ? lut_.size() : 256); ++i) lut_[i] = srgb_to_linear(float(i) * scale);
+}
+
+AlbedoRule::AlbedoRule(const AlbedoStream& s, const MaterialDesc& m, const Vec3& up)
+    : material_(m), up_(glm::normalize(up)) {
+  switch (m.mode) {
+    case ColorMode::constant: break;
+    case ColorMode::rgb: {
+      if (!s.rgb) throw std::invalid_argument(kNoRgb);
+      bool wide = false;
+      s.blocks([&](const AlbedoAttributes& a) {
+        for (const Rgb16& c : a.rgb)
+          if (std::max({c.r, c.g, c.b}) > 255) {
+            wide = true;
+            return false;
+          }
+        return true;
+      });
+      set_rgb_scale(wide);
+      break;
+    }
+    case ColorMode::classification:
+      if (!s.classification)
+        throw std::invalid_argument("material color \"classification\": the cloud has no classification");
+      break;
+    case ColorMode::intensity:
+      if (!s.intensity) throw std::invalid_argument("material color \"intensity\": the cloud has no intensity");
+      if (m.range) {
+        range_ = *m.range;
+      } else {
+        std::vector<std::uint64_t> hist(65536, 0);
+        std::size_t n = 0;
+        s.blocks([&](const AlbedoAttributes& a) {
+          for (const std::uint16_t x : a.intensity) ++hist[x];
+          n += a.intensity.size();
+          return true;
+        });
+        range_ = percentile_range_hist(hist, n);
+      }
+      break;
+    case ColorMode::elevation:
+      if (m.range) {
+        range_ = *m.range;
+      } else {
+        std::vector<double> v;
+        v.reserve(s.points);
+        s.blocks([&](const AlbedoAttributes& a) {
+          for (const Vec3& p : a.positions) v.push_back(glm::dot(p, up_));
+          return true;
+        });
+        range_ = percentile_range(std::move(v));
+      }
+      break;
+  }
+  inv_ = 1.0 / (range_[1] - range_[0]);
+}
 
 AlbedoRule::AlbedoRule(const AlbedoAttributes& a, std::size_t n, const MaterialDesc& m, const Vec3& up)
     : material_(m), up_(glm::normalize(up)) {
   switch (m.mode) {
     case ColorMode::constant: break;
     case ColorMode::rgb: {
-      if (a.rgb.size() != n)
-        throw std::invalid_argument("material color \"rgb\": the cloud has no RGB colours (use "
-                                    "\"elevation\", \"intensity\" or a constant [r, g, b])");
+      if (a.rgb.size() != n) throw std::invalid_argument(kNoRgb);
       // Only whether some channel exceeds 255 matters: stop at the first one that does (16-bit
       // colour: after a few points; 8-bit colour: one parallel read of all of them).
       std::atomic<bool> any_wide{false};
@@ -57,10 +123,7 @@ AlbedoRule::AlbedoRule(const AlbedoAttributes& a, std::size_t n, const MaterialD
         for (std::size_t i = r.begin(); i != r.end(); ++i) mx = std::max({mx, a.rgb[i].r, a.rgb[i].g, a.rgb[i].b});
         if (mx > 255) any_wide = true;
       });
-      const bool wide = any_wide.load();
-      const float scale = wide ? 1.0f / 65535.0f : 1.0f / 255.0f;
-      lut_.resize(65536);  // 8-bit data only reads [0, 255]
-      for (std::size_t i = 0; i < (wide ? lut_.size() : 256); ++i) lut_[i] = srgb_to_linear(float(i) * scale);
+      set_rgb_scale(any_wide.load());
       break;
     }
     case ColorMode::classification:

@@ -11,6 +11,7 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <mutex>
 
 namespace rayscan::render {
@@ -170,9 +171,12 @@ Framebuffer empty_framebuffer(const Camera& camera, std::span<const Aov> aovs) {
 }
 
 namespace {
+// `after_batch`, when set, runs between batches of `batch` tiles (no query in flight): the
+// COPC cache trim.
 template <class I>
 RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuffer& fb,
-                              const RenderOptions& opt) {
+                              const RenderOptions& opt, const std::function<void()>& after_batch = {},
+                              std::uint32_t batch = 0) {
   const std::uint32_t W = s.camera.width(), H = s.camera.height();
   const std::size_t n = std::size_t(W) * H;
   fb = empty_framebuffer(s.camera, s.aovs);
@@ -191,7 +195,12 @@ RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuff
   const std::uint32_t tiles = ((W + T - 1) / T) * ((H + T - 1) / T);
   WorkDistributor* dist = opt.distributor;
   if (!dist || dist->size() <= 1) {
-    arena.execute([&] { render_tiles(index, s, fb, opt, stats, 0, tiles, t0, first_done); });
+    const std::uint32_t step = after_batch && batch > 0 ? batch : std::max(tiles, 1u);
+    for (std::uint32_t b = 0; b < tiles; b += step) {
+      const std::uint32_t e = tiles - b < step ? tiles : b + step;
+      arena.execute([&] { render_tiles(index, s, fb, opt, stats, b, e, t0, first_done); });
+      if (after_batch) after_batch();
+    }
   } else {
     // Tiles handed out by the distributor (rayscan::mpi's work queue); the root gathers them.
     WorkStage stage;
@@ -201,6 +210,7 @@ RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuff
       arena.execute([&] {
         render_tiles(index, s, fb, opt, stats, std::uint32_t(first), std::uint32_t(first + count), t0, first_done);
       });
+      if (after_batch) after_batch();
     };
     stage.pack = [&](std::uint64_t first, std::uint64_t count) { return pack_tiles(fb, T, first, count); };
     stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
@@ -231,6 +241,14 @@ RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebu
 RenderStats render_image(const io::MappedIndex& index, const RenderSettings& s, Framebuffer& fb,
                          const RenderOptions& opt) {
   return render_image_impl(index, s, fb, opt);
+}
+
+RenderStats render_image(io::CopcIndex& index, const RenderSettings& s, Framebuffer& fb,
+                         const RenderOptions& opt) {
+  if (s.integrator.primitive != Primitive::sphere)
+    throw std::invalid_argument("render: a COPC file is traced in place in sphere mode only");
+  // 64 tiles (16x16 px) per batch: the cache is trimmed 8+ times per 1080p frame.
+  return render_image_impl(index, s, fb, opt, [&] { index.trim_cache(); }, 64);
 }
 
 }  // namespace rayscan::render

@@ -3,7 +3,9 @@
 
 #include "rayscan/io/camera_file.hpp"
 #include "rayscan/render/colmap.hpp"
+#include "rayscan/io/copc.hpp"
 #include "rayscan/io/index_file.hpp"
+#include "rayscan/io/point_reader.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/surfel_setup.hpp"
 #include "rayscan/work_distributor.hpp"
@@ -94,6 +96,7 @@ namespace {
 struct Prepared {
   Scene scene;
   std::optional<io::MappedIndex> mapped;
+  std::unique_ptr<io::CopcIndex> copc;  // a COPC file traced in place (sphere mode)
   PointCloud owned;                 // the read cloud (or, for surfels over an index file, its points)
   const PointCloud* cloud = nullptr;  // null when tracing straight from `mapped`
   std::vector<Color> albedo;        // by original index (in-memory clouds, surfel mode)
@@ -103,6 +106,74 @@ struct Prepared {
   SurfelAttributes surfels;
   std::chrono::steady_clock::time_point started;  // job start (time to the first traced tile)
 };
+
+// The COPC half of prepare(): albedo rule from one streamed pass of the statistics it needs (none
+// for constant/classification/ranged modes; rgb stops at the first non-zero colour), the auto
+// radius from CopcIndex::spacing_samples (a few nodes), the exact bounds for camera_for_cloud by
+// one streamed pass over the positions. Memory stays within the cache budget.
+constexpr std::size_t kCopcSpacingSamples = 2000;
+
+void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
+  Scene& scene = P.scene;
+  const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
+  const JobControl& ctl = o.control;
+  io::CopcIndex& copc = *P.copc;
+  char buf[512];
+  r.crs_wkt = io::open_point_reader(scene.cloud, io::AttributeSet::none())->crs_wkt();
+  if (o.camera_for_cloud) {
+    AABB b;
+    copc.scan(0, [&](const io::CopcIndex::NodeBlock& k) {
+      b.expand(bounds_of(k.positions));
+      return true;
+    });
+    scene.camera = o.camera_for_cloud(b);
+  }
+  auto t0 = std::chrono::steady_clock::now();
+  const ColorMode mode = scene.material.mode;
+  const unsigned attrs = mode == ColorMode::rgb              ? io::CopcIndex::kRgb
+                         : mode == ColorMode::intensity      ? io::CopcIndex::kIntensity
+                         : mode == ColorMode::classification ? io::CopcIndex::kClassification
+                                                             : 0u;
+  copc.set_attributes(attrs);
+  AlbedoStream stream;
+  stream.points = r.points;
+  stream.rgb = copc.has_rgb();
+  stream.intensity = stream.classification = true;  // PDRF 6-8 (COPC) always carry both
+  stream.blocks = [&](const std::function<bool(const AlbedoAttributes&)>& each) {
+    copc.scan(attrs, [&](const io::CopcIndex::NodeBlock& k) {
+      return each(AlbedoAttributes{k.positions, k.rgb, k.intensity, k.classification});
+    });
+  };
+  try {
+    P.rule = AlbedoRule(stream, scene.material, scene.up);
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(f + ": /material/color: " + e.what());
+  }
+  const AlbedoAttributes slots{copc.positions(), copc.rgb(), copc.intensity(), copc.classification()};
+  P.albedo_source = {{}, &P.rule, slots, copc.positions().size()};
+  std::snprintf(buf, sizeof buf, "albedo at shading time from the decoded node attributes (statistics in %.2f s)",
+                seconds_since(t0));
+  ctl.info(buf);
+  t0 = std::chrono::steady_clock::now();
+  try {
+    r.radius = choose_radius(scene.radius, scene.auto_radius_factor, [&] {
+      // 2000 samples (not the in-memory path's 20000): a kNN query on the COPC hierarchy tests
+      // every point of the ancestor nodes (tens of thousands each), so each sample costs more.
+      const std::vector<Vec3> samples = copc.spacing_samples(kCopcSpacingSamples);
+      return median_nn_spacing_of(copc, std::span<const Vec3>(samples), samples.size());
+    });
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(f + ": /radius: " + e.what());
+  }
+  if (r.radius.automatic) {
+    std::snprintf(buf, sizeof buf,
+                  "radius auto: median nearest-neighbour spacing %.6g (2000 samples from at most 64 nodes) x factor %.3g = %.6g "
+                  "(%.2f s)",
+                  r.radius.spacing, r.radius.factor, r.radius.radius, seconds_since(t0));
+    ctl.info(buf);
+  }
+  copc.trim_cache();
+}
 
 // Reads the cloud (or maps the index file), sets up the albedo, builds the index and chooses
 // the radius; fills r.points, read/index seconds, radius, crs. (run_render's first half.)
@@ -130,6 +201,19 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   PointCloud& owned = P->owned;
   std::optional<io::MappedIndex>& mapped = P->mapped;
   const bool surfel = scene.primitive == Primitive::surfel;
+  std::unique_ptr<io::CopcIndex>& copc = P->copc;
+  if (!o.cloud && !surfel && io::is_copc_file(scene.cloud)) {
+    // A COPC file in sphere mode is traced in place (prepare_copc); surfels read it whole below.
+    copc = std::make_unique<io::CopcIndex>(scene.cloud, o.cache_bytes);
+    if (copc->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
+    r.points = copc->info().point_count;
+    r.read_seconds = seconds_since(t0);
+    std::snprintf(buf, sizeof buf, "COPC file %s: %zu points, %zu nodes, hierarchy read in %.2f s (nodes decoded as rays reach them)",
+                  scene.cloud.string().c_str(), r.points, copc->node_count(), r.read_seconds);
+    ctl.info(buf);
+    prepare_copc(*P, o, r);
+    return P;
+  }
   if (!o.cloud && io::is_index_file(scene.cloud)) {
     mapped.emplace(io::MappedIndex::open(scene.cloud));
     if (mapped->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
@@ -239,6 +323,7 @@ RenderStats render_camera(const Prepared& P, const Camera& camera, const JobCont
   ropt.threads = ctl.threads;
   ropt.progress = &progress;
   ropt.distributor = distribute ? ctl.distributor : nullptr;
+  if (P.copc) return render_image(*P.copc, settings, image, ropt);
   return P.mapped ? render_image(*P.mapped, settings, image, ropt) : render_image(P.index, settings, image, ropt);
 }
 
@@ -277,7 +362,14 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   const Scene& scene = P->scene;
   const JobControl& ctl = o.control;
   const double prepared = seconds_since(P->started);
+  char buf0[200];
   r.stats = render_camera(*P, *scene.camera, ctl, r.radius.radius, r.image, true);
+  if (P->copc) {
+    r.copc_decodes = P->copc->decodes();
+    std::snprintf(buf0, sizeof buf0, "COPC: %llu node decodes (of %zu nodes), %zu resident after the last trim",
+                  static_cast<unsigned long long>(r.copc_decodes), P->copc->node_count(), P->copc->resident_nodes());
+    ctl.info(buf0);
+  }
   r.first_tile_seconds = prepared + r.stats.first_tile_seconds;
   char buf[160];
   std::snprintf(buf, sizeof buf, "first tile traced %.2f s after the start (%.2f s to set up, %.2f s of tracing)",

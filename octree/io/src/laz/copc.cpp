@@ -10,6 +10,8 @@
 #include "../las_header.hpp"
 #include "rayscan/io/point_io.hpp"
 
+#include <tbb/parallel_for.h>
+
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -242,6 +244,9 @@ CopcIndex::CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes)
 CopcIndex::~CopcIndex() {
   if (pos_ != nullptr) ::munmap(pos_, slots_ * sizeof(Vec3));
   if (ids_ != nullptr) ::munmap(ids_, slots_ * sizeof(PointIndex));
+  if (rgb_ != nullptr) ::munmap(rgb_, slots_ * sizeof(Rgb16));
+  if (int_ != nullptr) ::munmap(int_, slots_ * sizeof(std::uint16_t));
+  if (cls_ != nullptr) ::munmap(cls_, slots_);
 }
 
 SlotRange CopcIndex::node_points(Node n) const {
@@ -250,35 +255,154 @@ SlotRange CopcIndex::node_points(Node n) const {
   return nodes_[n].slots;
 }
 
+void CopcIndex::decode_records(Node n, std::uint32_t layers, std::vector<std::uint8_t>& buf) const {
+  const NodeData& nd = nodes_[n];
+  const CopcNode& e = info_.nodes[nd.entry];
+  buf.resize(static_cast<std::size_t>(std::max(e.point_count, 0)) * info_.record_length);
+  if (e.point_count <= 0) return;
+  const detail::Input in{map_->bytes(), name_, {}};
+  // the LASzip VLR was validated at open; parse again here (cheap) to keep no reference state
+  const detail::LasHeader h = detail::parse_las_header(in);
+  const laz::LaszipVlr v =
+      laz::parse_laszip_vlr(map_->bytes().data() + h.laszip.at, h.laszip.len, name_, h.laszip.at, h.pdrf, h.record_length);
+  laz::ChunkDecoder dec(v, layers);
+  laz::Chunk c{e.offset, static_cast<std::uint64_t>(e.byte_size), nd.first_id, static_cast<std::uint64_t>(e.point_count)};
+  dec.start(in, n, c, e.offset + static_cast<std::uint64_t>(e.byte_size));
+  dec.next(static_cast<std::size_t>(e.point_count), buf.data());
+  dec.finish();
+}
+
+namespace {
+// LAS 1.4 R15 tables 13-17 (PDRF 6-8): intensity at byte 12, classification at 16, RGB at 30.
+constexpr std::size_t kIntensityAt = 12, kClassAt = 16, kRgbAt = 30;
+std::uint32_t layers_of(unsigned attrs) {
+  std::uint32_t l = laz::kLayerZ;
+  if (attrs & CopcIndex::kRgb) l |= laz::kLayerRgb;
+  if (attrs & CopcIndex::kIntensity) l |= laz::kLayerIntensity;
+  if (attrs & CopcIndex::kClassification) l |= laz::kLayerClassification;
+  return l;
+}
+}  // namespace
+
 void CopcIndex::load(Node n) const {
   std::lock_guard<std::mutex> lock(locks_[n % 32]);
   if (loaded_[n].load(std::memory_order_acquire) != 0) return;
   const NodeData& nd = nodes_[n];
   const CopcNode& e = info_.nodes[nd.entry];
   if (e.point_count > 0) {
-    const detail::Input in{map_->bytes(), name_, {}};
-    // the LASzip VLR was validated at open; parse again here (cheap) to keep no reference state
-    const detail::LasHeader h = detail::parse_las_header(in);
-    const laz::LaszipVlr v =
-        laz::parse_laszip_vlr(map_->bytes().data() + h.laszip.at, h.laszip.len, name_, h.laszip.at, h.pdrf, h.record_length);
-    laz::ChunkDecoder dec(v, laz::kLayerZ);
-    laz::Chunk c{e.offset, static_cast<std::uint64_t>(e.byte_size), nd.first_id, static_cast<std::uint64_t>(e.point_count)};
+    thread_local std::vector<std::uint8_t> buf;
+    decode_records(n, layers_of(attrs_), buf);
     const std::size_t rec = info_.record_length;
-    std::vector<std::uint8_t> buf(static_cast<std::size_t>(e.point_count) * rec);
-    dec.start(in, n, c, e.offset + static_cast<std::uint64_t>(e.byte_size));
-    dec.next(static_cast<std::size_t>(e.point_count), buf.data());
-    dec.finish();
     for (std::int32_t i = 0; i < e.point_count; ++i) {
       const std::uint8_t* r = buf.data() + static_cast<std::size_t>(i) * rec;
-      pos_[nd.slots.begin + static_cast<std::uint32_t>(i)] =
-          Vec3(detail::load_le<std::int32_t>(r) * info_.scale.x + info_.offset.x,
-               detail::load_le<std::int32_t>(r + 4) * info_.scale.y + info_.offset.y,
-               detail::load_le<std::int32_t>(r + 8) * info_.scale.z + info_.offset.z);
-      ids_[nd.slots.begin + static_cast<std::uint32_t>(i)] = static_cast<PointIndex>(nd.first_id + static_cast<std::uint64_t>(i));
+      const std::uint32_t s = nd.slots.begin + static_cast<std::uint32_t>(i);
+      pos_[s] = Vec3(detail::load_le<std::int32_t>(r) * info_.scale.x + info_.offset.x,
+                     detail::load_le<std::int32_t>(r + 4) * info_.scale.y + info_.offset.y,
+                     detail::load_le<std::int32_t>(r + 8) * info_.scale.z + info_.offset.z);
+      ids_[s] = static_cast<PointIndex>(nd.first_id + static_cast<std::uint64_t>(i));
+      if (int_ != nullptr) int_[s] = detail::load_le<std::uint16_t>(r + kIntensityAt);
+      if (cls_ != nullptr) cls_[s] = r[kClassAt];
+      if (rgb_ != nullptr)
+        rgb_[s] = Rgb16{static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt) * rgb_mul_),
+                        static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt + 2) * rgb_mul_),
+                        static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt + 4) * rgb_mul_)};
     }
   }
   decodes_.fetch_add(1);
   loaded_[n].store(1, std::memory_order_release);
+}
+
+std::size_t CopcIndex::slot_bytes() const {
+  return sizeof(Vec3) + sizeof(PointIndex) + (rgb_ ? sizeof(Rgb16) : 0) + (int_ ? sizeof(std::uint16_t) : 0) +
+         (cls_ ? sizeof(std::uint8_t) : 0);
+}
+
+void CopcIndex::set_attributes(unsigned attrs) {
+  for (std::size_t i = 0; i < nodes_.size(); ++i) loaded_[i].store(0);  // decode again with the attributes
+  const bool pdrf_rgb = info_.pdrf == 7 || info_.pdrf == 8;
+  if ((attrs & kRgb) && pdrf_rgb && rgb_ == nullptr && slots_ > 0) {
+    // The reader's colour normalisation (las_reader.cpp decide_colour_scale): the largest channel
+    // value decides; stop at the first one above 255 (16-bit colour: usually the first node).
+    std::uint16_t mx = 0;
+    std::vector<std::uint8_t> buf;
+    for (Node n : by_first_id_) {
+      decode_records(n, laz::kLayerRgb, buf);
+      for (std::size_t i = 0; i < buf.size() / info_.record_length; ++i) {
+        const std::uint8_t* r = buf.data() + i * info_.record_length + kRgbAt;
+        mx = std::max({mx, detail::load_le<std::uint16_t>(r), detail::load_le<std::uint16_t>(r + 2),
+                       detail::load_le<std::uint16_t>(r + 4)});
+      }
+      if (mx > 255) break;
+    }
+    if (mx > 0) {
+      rgb_mul_ = mx <= 255 ? 257 : 1;
+      rgb_ = static_cast<Rgb16*>(reserve(slots_ * sizeof(Rgb16)));
+    }
+  }
+  if ((attrs & kIntensity) && int_ == nullptr && slots_ > 0)
+    int_ = static_cast<std::uint16_t*>(reserve(slots_ * sizeof(std::uint16_t)));
+  if ((attrs & kClassification) && cls_ == nullptr && slots_ > 0)
+    cls_ = static_cast<std::uint8_t*>(reserve(slots_));
+  attrs_ = (rgb_ ? kRgb : 0u) | (int_ ? kIntensity : 0u) | (cls_ ? kClassification : 0u);
+}
+
+void CopcIndex::scan(unsigned attrs, const std::function<bool(const NodeBlock&)>& f) const {
+  const bool rgb = (attrs & kRgb) && rgb_ != nullptr;
+  const std::uint32_t layers = layers_of(rgb ? attrs : attrs & ~unsigned(kRgb));
+  // Nodes in file order, decoded a few at a time in parallel, handed to f in order.
+  const std::size_t batch = 8;
+  std::vector<std::vector<std::uint8_t>> bufs(batch);
+  std::vector<Vec3> pos;
+  std::vector<Rgb16> col;
+  std::vector<std::uint16_t> inten;
+  std::vector<std::uint8_t> cls;
+  for (std::size_t b0 = 0; b0 < by_first_id_.size(); b0 += batch) {
+    const std::size_t b1 = std::min(by_first_id_.size(), b0 + batch);
+    tbb::parallel_for(b0, b1, [&](std::size_t k) { decode_records(by_first_id_[k], layers, bufs[k - b0]); });
+    for (std::size_t k = b0; k < b1; ++k) {
+      const std::vector<std::uint8_t>& buf = bufs[k - b0];
+      const std::size_t rec = info_.record_length, m = buf.size() / rec;
+      pos.resize(m);
+      col.resize(rgb ? m : 0);
+      inten.resize(attrs & kIntensity ? m : 0);
+      cls.resize(attrs & kClassification ? m : 0);
+      for (std::size_t i = 0; i < m; ++i) {
+        const std::uint8_t* r = buf.data() + i * rec;
+        pos[i] = Vec3(detail::load_le<std::int32_t>(r) * info_.scale.x + info_.offset.x,
+                      detail::load_le<std::int32_t>(r + 4) * info_.scale.y + info_.offset.y,
+                      detail::load_le<std::int32_t>(r + 8) * info_.scale.z + info_.offset.z);
+        if (!inten.empty()) inten[i] = detail::load_le<std::uint16_t>(r + kIntensityAt);
+        if (!cls.empty()) cls[i] = r[kClassAt];
+        if (!col.empty())
+          col[i] = Rgb16{static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt) * rgb_mul_),
+                         static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt + 2) * rgb_mul_),
+                         static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt + 4) * rgb_mul_)};
+      }
+      if (!f(NodeBlock{pos, col, inten, cls})) return;
+    }
+  }
+}
+
+std::vector<Vec3> CopcIndex::spacing_samples(std::size_t max_samples, std::size_t max_nodes) const {
+  std::vector<Vec3> out;
+  const std::uint64_t N = info_.point_count;
+  if (N == 0 || by_first_id_.empty() || max_samples == 0 || max_nodes == 0) return out;
+  const std::uint64_t K = std::min<std::uint64_t>(max_nodes, N);
+  std::vector<Node> picked;
+  for (std::uint64_t k = 0; k < K; ++k) {
+    const std::uint64_t id = k * N / K;
+    auto it = std::upper_bound(by_first_id_.begin(), by_first_id_.end(), id,
+                               [&](std::uint64_t v, Node n) { return v < nodes_[n].first_id; });
+    const Node n = *--it;
+    if (picked.empty() || picked.back() != n) picked.push_back(n);
+  }
+  const std::size_t per = std::max<std::size_t>(1, max_samples / picked.size());
+  for (Node n : picked) {
+    const SlotRange s = node_points(n);
+    const std::size_t cnt = s.size(), m = std::min(per, cnt);
+    for (std::size_t j = 0; j < m && out.size() < max_samples; ++j) out.push_back(pos_[s.begin + j * cnt / m]);
+  }
+  return out;
 }
 
 Vec3 CopcIndex::position_of(PointIndex id) const {
@@ -299,12 +423,13 @@ std::size_t CopcIndex::resident_nodes() const {
 }
 
 std::size_t CopcIndex::trim_cache() {
+  const std::size_t per_slot = slot_bytes();
   std::vector<Node> resident;
   std::size_t bytes = 0;
   for (Node i = 0; i < nodes_.size(); ++i)
     if (loaded_[i].load() != 0) {
       resident.push_back(i);
-      bytes += nodes_[i].slots.size() * (sizeof(Vec3) + sizeof(PointIndex));
+      bytes += nodes_[i].slots.size() * per_slot;
     }
   if (bytes <= cache_bytes_) return 0;
   std::sort(resident.begin(), resident.end(), [&](Node a, Node b) { return touched_[a].load() < touched_[b].load(); });
@@ -320,8 +445,19 @@ std::size_t CopcIndex::trim_cache() {
     };
     drop(pos_, sizeof(Vec3));
     drop(ids_, sizeof(PointIndex));
+    // Attribute arrays: a node's range is not page-aligned there; release only the whole pages
+    // inside it (neighbours keep theirs; under 2 pages per node stay resident).
+    auto drop_inner = [&](void* base, std::size_t elem) {
+      if (base == nullptr) return;
+      const auto b = (reinterpret_cast<std::uintptr_t>(base) + s.begin * elem + page - 1) / page * page;
+      const auto e = (reinterpret_cast<std::uintptr_t>(base) + s.end * elem) / page * page;
+      if (e > b) ::madvise(reinterpret_cast<void*>(b), e - b, MADV_DONTNEED);
+    };
+    drop_inner(rgb_, sizeof(Rgb16));
+    drop_inner(int_, sizeof(std::uint16_t));
+    drop_inner(cls_, sizeof(std::uint8_t));
     loaded_[i].store(0);
-    bytes -= s.size() * (sizeof(Vec3) + sizeof(PointIndex));
+    bytes -= s.size() * per_slot;
     ++evicted;
   }
   return evicted;

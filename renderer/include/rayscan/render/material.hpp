@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -22,6 +23,16 @@ struct AlbedoAttributes {
   std::span<const Rgb16> rgb;
   std::span<const std::uint16_t> intensity;
   std::span<const std::uint8_t> classification;
+};
+
+/// A cloud's attributes delivered block by block (e.g. node by node from a COPC file, in bounded
+/// memory) for the whole-cloud statistics of AlbedoRule: `blocks` calls its argument once per
+/// block (spans of equal length; attributes the material does not use may be empty) and stops
+/// when it returns false. `rgb`, `intensity`, `classification`: whether the cloud has them.
+struct AlbedoStream {
+  std::size_t points = 0;
+  bool rgb = false, intensity = false, classification = false;
+  std::function<void(const std::function<bool(const AlbedoAttributes&)>&)> blocks;
 };
 
 /// The material's albedo rule for one cloud: the whole-cloud statistics resolved once (8-bit
@@ -42,6 +53,10 @@ class AlbedoRule {
   /// elevation without a range one pass and a copy of the n coordinates (nth_element); other
   /// modes O(1). Throws std::invalid_argument when the mode needs an attribute `a` lacks (naming it).
   AlbedoRule(const AlbedoAttributes& a, std::size_t n, const MaterialDesc& material, const Vec3& up);
+  /// The same statistics from a stream of blocks (one pass, stopped early by the rgb test), equal
+  /// to the constructor above over the concatenated blocks. Memory: intensity a 65536-bin
+  /// histogram, elevation without a range a copy of the n coordinates. Same errors.
+  AlbedoRule(const AlbedoStream& s, const MaterialDesc& material, const Vec3& up);
 
   /// Albedo of point i of the attributes the rule is applied to (linear RGB in [0,1]).
   [[nodiscard]] Color at(const AlbedoAttributes& a, std::size_t i) const {
@@ -57,6 +72,7 @@ class AlbedoRule {
   }
 
  private:
+  void set_rgb_scale(bool wide);
   [[nodiscard]] Color scalar(double v) const {
     return ramp_linear(material_.ramp, static_cast<float>((v - range_[0]) * inv_));
   }

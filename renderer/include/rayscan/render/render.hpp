@@ -3,6 +3,7 @@
 #pragma once
 
 #include "rayscan/any_index.hpp"
+#include "rayscan/io/copc.hpp"
 #include "rayscan/io/index_file.hpp"
 #include "rayscan/point_cloud.hpp"
 #include "rayscan/render/camera.hpp"
@@ -88,6 +89,15 @@ RenderStats render_image(const AnyIndex& index, const RenderSettings& settings, 
 /// (sphere mode); surfel mode needs it (the points in original order, to_point_cloud()).
 RenderStats render_image(const io::MappedIndex& index, const RenderSettings& settings, Framebuffer& fb,
                          const RenderOptions& options = {});
+/// The same over a COPC file (io::CopcIndex, the file's own octree), traced in place: nodes are
+/// decoded as rays reach them; centres by storage slot, the albedo from an AlbedoRule over the
+/// index's slot attributes (CopcIndex::set_attributes). Tiles are traced in batches with
+/// index.trim_cache() between them, so the decoded nodes stay within the cache budget (plus the
+/// nodes one batch touches). Sphere mode only (settings.integrator.centers empty). The image is
+/// identical to the render of the same points read whole.
+RenderStats render_image(io::CopcIndex& index, const RenderSettings& settings, Framebuffer& fb,
+                         const RenderOptions& options = {});
+
 /// A framebuffer of the camera's size with beauty and the channels of `aovs` allocated and
 /// cleared (misses: kNoPoint in `index`), position_origin = the camera centre.
 Framebuffer empty_framebuffer(const Camera& camera, std::span<const Aov> aovs);

@@ -32,6 +32,8 @@ struct RenderJobOptions {
   /// throws propagate unchanged.
   std::function<Camera(const AABB&)> camera_for_cloud;
   JobControl control;                  ///< threads, progress bar, log lines
+  /// COPC input (sphere mode): bytes of decoded nodes kept between tile batches (`--cache`).
+  std::size_t cache_bytes = std::size_t{2} << 30;
 };
 
 /// Output of run_render().
@@ -46,6 +48,8 @@ struct RenderJobResult {
                                        ///< in-memory cloud)
   double index_seconds = 0.0;          ///< building the index (0 for an index file)
   double first_tile_seconds = 0.0;     ///< from the call to the first traced tile (run_render)
+  std::uint64_t copc_decodes = 0;      ///< COPC input traced in place: node decodes (re-decodes after
+                                       ///< eviction included); 0 otherwise
   ImageMetadata metadata;              ///< what was (or would be) stored in the image header
   std::vector<std::filesystem::path> written;  ///< files written (beauty first)
 };

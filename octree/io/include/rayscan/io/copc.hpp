@@ -7,11 +7,13 @@
 #pragma once
 
 #include "rayscan/geometry.hpp"
+#include "rayscan/point_cloud.hpp"
 #include "rayscan/spatial_index.hpp"
 
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <span>
@@ -100,10 +102,52 @@ class CopcIndex {
   /// index), decoding its node if needed. Throws std::out_of_range for id >= the point count,
   /// FormatError for a corrupted chunk.
   [[nodiscard]] Vec3 position_of(PointIndex id) const;
-  /// Releases least recently touched nodes until the resident positions+ids fit the cache
-  /// budget; returns the nodes evicted. Must not run concurrently with queries on this index
-  /// (call it between batches, e.g. between render tiles).
+  /// Releases least recently touched nodes until the resident positions, ids and attributes fit
+  /// the cache budget; returns the nodes evicted. Must not run concurrently with queries on this
+  /// index (call it between batches, e.g. between render tiles).
   std::size_t trim_cache();
+  /// The cache budget in bytes (the constructor's `cache_bytes`).
+  [[nodiscard]] std::size_t cache_bytes() const { return cache_bytes_; }
+
+  /// Per-point attributes decoded into slots with the positions (bits, `Attr`).
+  enum Attr : unsigned { kRgb = 1, kIntensity = 2, kClassification = 4 };
+  /// Also decode `attrs` (Attr bits) into slot-ordered arrays (rgb(), intensity(),
+  /// classification()) when a node is loaded, from the chunk's RGB, intensity and classification
+  /// layers only (LAZ layered chunks: the other layers stay compressed). Colour is normalised as
+  /// read_point_cloud() does (docs/formats.md): 8-bit values in the 16-bit fields are scaled by
+  /// 257, a file whose colours are all zero has none (rgb() then stays empty); deciding this
+  /// decodes RGB layers node by node in file order until a channel exceeds 255. Resident nodes
+  /// are dropped. Must not run concurrently with queries. Throws FormatError.
+  void set_attributes(unsigned attrs);
+  /// Slot-ordered attributes (size positions().size() when decoded, else empty); a slot is valid
+  /// once node_points() returned its node and until the next trim_cache().
+  [[nodiscard]] std::span<const Rgb16> rgb() const { return {rgb_, rgb_ ? slots_ : 0}; }
+  [[nodiscard]] std::span<const std::uint16_t> intensity() const { return {int_, int_ ? slots_ : 0}; }
+  [[nodiscard]] std::span<const std::uint8_t> classification() const { return {cls_, cls_ ? slots_ : 0}; }
+  /// True when the point format carries RGB (PDRF 7, 8) and not every colour is zero; only
+  /// known after set_attributes(kRgb) (false before).
+  [[nodiscard]] bool has_rgb() const { return rgb_ != nullptr; }
+
+  /// One node's points as a whole-file pass sees them: positions, and (when asked) normalised
+  /// colour, intensity, classification (empty spans otherwise), in the node's file order.
+  struct NodeBlock {
+    std::span<const Vec3> positions;
+    std::span<const Rgb16> rgb;
+    std::span<const std::uint16_t> intensity;
+    std::span<const std::uint8_t> classification;
+  };
+  /// Decodes every node with points in file (chunk offset) order into a scratch buffer, outside
+  /// the cache, and calls f with it until f returns false: a streaming whole-file pass in bounded
+  /// memory (one node at a time), for whole-cloud statistics. `attrs`: Attr bits to decode
+  /// (kRgb needs set_attributes(kRgb) first for the normalisation). Throws FormatError.
+  void scan(unsigned attrs, const std::function<bool(const NodeBlock&)>& f) const;
+
+  /// Sample positions for the auto radius without decoding the file: `max_nodes` nodes chosen
+  /// as those holding the file-order points i * N / max_nodes (so a node is picked with
+  /// probability proportional to its point count, as the whole-file evenly spaced sample picks
+  /// its points), and within them evenly spaced points, at most `max_samples` in all. Decodes
+  /// only those nodes. Deterministic.
+  [[nodiscard]] std::vector<Vec3> spacing_samples(std::size_t max_samples = 20000, std::size_t max_nodes = 64) const;
 
  private:
   struct NodeData {
@@ -115,6 +159,9 @@ class CopcIndex {
     unsigned child_count = 0;
   };
   void load(Node n) const;
+  // Decodes node n's records (layers: laz Layer bits) into `buf`.
+  void decode_records(Node n, std::uint32_t layers, std::vector<std::uint8_t>& buf) const;
+  [[nodiscard]] std::size_t slot_bytes() const;
 
   CopcInfo info_;
   std::string name_;
@@ -125,6 +172,11 @@ class CopcIndex {
   std::size_t slots_ = 0;
   Vec3* pos_ = nullptr;
   PointIndex* ids_ = nullptr;
+  Rgb16* rgb_ = nullptr;
+  std::uint16_t* int_ = nullptr;
+  std::uint8_t* cls_ = nullptr;
+  std::uint16_t rgb_mul_ = 1;  // 257 when the file stores 8-bit colour
+  unsigned attrs_ = 0;
   std::size_t cache_bytes_;
   mutable std::unique_ptr<std::atomic<std::uint8_t>[]> loaded_;
   mutable std::unique_ptr<std::atomic<std::uint64_t>[]> touched_;
