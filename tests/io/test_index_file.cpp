@@ -163,6 +163,10 @@ TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
   const AABB bb = bounds_of(s.all);
   EXPECT_TRUE(m.bounds().lo == bb.lo && m.bounds().hi == bb.hi);
   EXPECT_TRUE(m.verified());  // small file: every section and record checked at open
+  std::vector<std::uint64_t> levels(t.depth() + 1, 0);
+  for (std::uint32_t n = 0; n < t.node_count(); ++n)
+    levels[t.node_id(n).depth()] += t.node_points(n).end - t.node_points(n).begin;
+  EXPECT_EQ(m.points_per_level(), levels);  // stored in the header
   fs::remove_all(s.dir);
 }
 

@@ -45,6 +45,8 @@ constexpr std::size_t kNodeBytes = 48;
 constexpr std::size_t kCrcOffset = 120;
 constexpr std::size_t kSpacingOffset = 112;  // float64 median nearest-neighbour spacing
 constexpr std::size_t kBoundsOffset = 640;   // float64[6] exact point bounds (after the table)
+constexpr std::size_t kLevelsOffset = 688;   // uint64[22] points stored at each depth 0..21
+constexpr unsigned kLevels = 22;
 /// Files up to this size get every section verified at open by default (IndexOpenOptions).
 constexpr std::uint64_t kVerifyAllBytes = std::uint64_t{256} << 20;
 
@@ -202,6 +204,7 @@ struct Header {
   std::uint32_t attributes = 0;
   double spacing = 0.0;  ///< median_nn_spacing_by_id of the stored points
   AABB bounds;           ///< exact bounds of the stored positions (bounds_of)
+  std::array<std::uint64_t, kLevels> levels{};  ///< points per depth
   std::vector<SectionEntry> sections;
 };
 
@@ -240,6 +243,7 @@ std::vector<std::uint8_t> encode_header(const Header& h) {
     put<double>(b.data(), kBoundsOffset + 8 * k, h.bounds.lo[k]);
     put<double>(b.data(), kBoundsOffset + 24 + 8 * k, h.bounds.hi[k]);
   }
+  for (unsigned d = 0; d < kLevels; ++d) put<std::uint64_t>(b.data(), kLevelsOffset + 8 * d, h.levels[d]);
   for (std::size_t i = 0; i < h.sections.size(); ++i) {
     const SectionEntry& s = h.sections[i];
     const std::size_t o = kTableOffset + i * kEntryBytes;
@@ -714,6 +718,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     h.sections[s_nodes].crc = w.crc();
     h.nodes = nb.nodes.size();
     h.depth = nb.depth;
+    for (const Octree::NodeRec& r : nb.nodes) h.levels[OctreeNodeId::from_bits(r.key).depth()] += r.own_end - r.own_begin;
     off = h.sections[s_nodes].offset + h.sections[s_nodes].size;  // the file ends with the nodes
   }
   h.bounds = bounds;
@@ -830,6 +835,19 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
     x.bounds_.hi[k] = get<double>(b, kBoundsOffset + 24 + 8 * k);
   }
   if (x.points_ >= 0xFFFFFFFFull) fail(24, "point count " + std::to_string(x.points_) + " above 2^32 - 2");
+  {
+    std::uint64_t sum = 0;
+    for (unsigned d = 0; d < kLevels; ++d) {
+      const auto v = get<std::uint64_t>(b, kLevelsOffset + 8 * d);
+      if (v > x.points_ || (d > x.depth_ && v != 0))
+        fail(kLevelsOffset + 8 * d, "points at depth " + std::to_string(d) + ": " + std::to_string(v) +
+                                        " (the header says " + std::to_string(x.points_) + " points, depth " +
+                                        std::to_string(x.depth_) + ")");
+      sum += v;
+    }
+    if (sum != x.points_)
+      fail(kLevelsOffset, "points per level sum to " + std::to_string(sum) + ", the header says " + std::to_string(x.points_));
+  }
   const bool verify_all = opt.verify == IndexOpenOptions::Verify::always ||
                           (opt.verify == IndexOpenOptions::Verify::automatic && size <= kVerifyAllBytes);
   x.verified_ = verify_all;
@@ -936,6 +954,16 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   return x;
 }
 
+/// Points per depth counted over the node records (the deep check of the header's table).
+static std::vector<std::uint64_t> count_levels(const MappedIndex& m) {
+  std::vector<std::uint64_t> out(kLevels, 0);
+  for (std::size_t n = 0; n < m.node_count(); ++n) {
+    const SlotRange r = m.node_points(static_cast<MappedIndex::Node>(n));
+    out[m.node_id(static_cast<MappedIndex::Node>(n)).depth()] += r.end - r.begin;  // depth <= 21
+  }
+  return out;
+}
+
 void MappedIndex::verify_records(std::uint64_t node_off, std::uint64_t ids_off) const {
   const std::string nm = path_.string();
   auto fail = [&nm](std::uint64_t off, const std::string& what) -> void {
@@ -978,6 +1006,16 @@ void MappedIndex::verify_records(std::uint64_t node_off, std::uint64_t ids_off) 
     }
   }
 
+  // The header's points per level agree with the records.
+  {
+    const std::vector<std::uint64_t> have = count_levels(*this);
+    const std::vector<std::uint64_t> want = points_per_level();
+    for (unsigned d = 0; d < kLevels; ++d)
+      if (have[d] != (d < want.size() ? want[d] : 0))
+        fail(kLevelsOffset + 8 * d, "points at depth " + std::to_string(d) + ": the header says " +
+                                        std::to_string(d < want.size() ? want[d] : 0) + ", the nodes hold " +
+                                        std::to_string(have[d]));
+  }
   // Ids: every stored id names a point (callers index per-point arrays by id).
   std::atomic<std::size_t> bad{points_};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_, 1 << 16), [&](const auto& r) {
@@ -995,13 +1033,11 @@ void MappedIndex::verify_records(std::uint64_t node_off, std::uint64_t ids_off) 
 }
 
 std::vector<std::uint64_t> MappedIndex::points_per_level() const {
+  // Stored in the header at build time (checked at open: sums to N, nothing below the depth).
   std::vector<std::uint64_t> out(depth_ + 1, 0);
-  for (std::size_t n = 0; n < node_count_; ++n) {
-    const unsigned d = node_id(static_cast<Node>(n)).depth();  // <= 21 for any 64-bit key
-    if (d >= out.size()) out.resize(d + 1, 0);
-    const SlotRange r = node_points(static_cast<Node>(n));
-    out[d] += r.end - r.begin;
-  }
+  if (!map_ || map_->p == nullptr) return out;
+  const auto* b = static_cast<const std::uint8_t*>(map_->p);
+  for (unsigned d = 0; d <= depth_ && d < kLevels; ++d) out[d] = get<std::uint64_t>(b, kLevelsOffset + 8 * d);
   return out;
 }
 
