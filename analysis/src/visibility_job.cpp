@@ -149,7 +149,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   // Every query below runs on the mapped file or the built index (one template body each).
   auto with_index = [&](auto&& f) -> decltype(auto) { return mapped ? f(*mapped) : f(index); };
   try {
-    r.radius = mapped ? choose_radius(o.radius, o.radius_factor, [&] { return median_nn_spacing_by_id(*mapped); })
+    r.radius = mapped ? choose_radius(o.radius, o.radius_factor, [&] { return mapped->median_nn_spacing(); })
                       : choose_radius(index, cloud.positions, o.radius, o.radius_factor);
   } catch (const std::invalid_argument&) {
     if (o.radius) throw invalid_argument("--radius " + std::to_string(*o.radius) + ": expected a number > 0 or auto");

@@ -237,7 +237,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   if (!o.cloud) ctl.info(buf);
   r.crs_wkt = mapped ? mapped->crs_wkt() : cloud->crs_wkt;
   if (o.camera_for_cloud) {
-    scene.camera = o.camera_for_cloud(bounds_of(cloud ? std::span<const Vec3>(cloud->positions) : mapped->positions()));
+    scene.camera = o.camera_for_cloud(cloud ? bounds_of(cloud->positions) : mapped->bounds());  // stored: no pass
   }
   t0 = std::chrono::steady_clock::now();
   try {
@@ -292,7 +292,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
     t0 = std::chrono::steady_clock::now();
     try {
       r.radius = mapped ? choose_radius(scene.radius, scene.auto_radius_factor,
-                                        [&] { return median_nn_spacing_by_id(*mapped); })
+                                        [&] { return mapped->median_nn_spacing(); })  // stored at build
                         : choose_radius(index, cloud->positions, scene.radius, scene.auto_radius_factor);
     } catch (const std::invalid_argument& e) {
       throw SceneError(f + ": /radius: " + e.what());

@@ -7,14 +7,15 @@
 
 #include "rayscan/batch.hpp"
 #include "rayscan/brute_force.hpp"
+#include "rayscan/io/crc32c.hpp"
 #include "rayscan/io/index_file.hpp"
 #include "rayscan/io/point_reader.hpp"
 #include "rayscan/point_query.hpp"
 #include "rayscan/ray_query.hpp"
+#include "rayscan/spacing.hpp"
 
 #include <sys/wait.h>
 #include <unistd.h>
-#include <zlib.h>
 
 #include <cerrno>
 
@@ -154,6 +155,18 @@ TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
   EXPECT_EQ(0, std::memcmp(back.positions.data(), s.all.data(), s.all.size() * sizeof(Vec3)));
   ASSERT_EQ(m.sources().size(), 3u);
   EXPECT_EQ(m.sources()[1].first_id, 9001u);
+  // Stored at build time: the auto radius (the renderer's own function, the same value bit for
+  // bit) and the exact point bounds.
+  EXPECT_GT(m.median_nn_spacing(), 0.0);
+  EXPECT_EQ(m.median_nn_spacing(), median_nn_spacing_by_id(m));
+  EXPECT_EQ(m.median_nn_spacing(), median_nn_spacing_of(t, std::span<const Vec3>(s.all)));
+  const AABB bb = bounds_of(s.all);
+  EXPECT_TRUE(m.bounds().lo == bb.lo && m.bounds().hi == bb.hi);
+  EXPECT_TRUE(m.verified());  // small file: every section and record checked at open
+  std::vector<std::uint64_t> levels(t.depth() + 1, 0);
+  for (std::uint32_t n = 0; n < t.node_count(); ++n)
+    levels[t.node_id(n).depth()] += t.node_points(n).end - t.node_points(n).begin;
+  EXPECT_EQ(m.points_per_level(), levels);  // stored in the header
   fs::remove_all(s.dir);
 }
 
@@ -302,8 +315,9 @@ TEST(IndexFileBadInput, TruncatedCorruptedVersionChangedSource) {
   }
   {
     auto b = bytes;
-    b[8] = 2;  // version 2
-    EXPECT_NE(open_error(write(b)).find("version 2"), std::string::npos);
+    b[8] = 1;  // version 1 (zlib CRC-32, no stored spacing): refused, naming both versions
+    const std::string e = open_error(write(b));
+    EXPECT_NE(e.find("m.rsi: byte 8: index format version 1; this rayscan reads version 2"), std::string::npos) << e;
   }
   {
     auto b = bytes;
@@ -326,11 +340,11 @@ TEST(IndexFileBadInput, TruncatedCorruptedVersionChangedSource) {
       if (id != 9) continue;  // the nodes section
       ASSERT_GE(size, 2u * 48u);
       std::memset(b.data() + off + 48 + 24, 0, 8);  // node 1's key := 0
-      const auto crc = static_cast<std::uint32_t>(::crc32_z(0, b.data() + off, size));
+      const auto crc = io::crc32c(b.data() + off, size);
       std::memcpy(b.data() + e + 24, &crc, 4);
     }
     std::memset(b.data() + 120, 0, 4);
-    const auto hcrc = static_cast<std::uint32_t>(::crc32_z(0, b.data(), 4096));
+    const auto hcrc = io::crc32c(b.data(), 4096);
     std::memcpy(b.data() + 120, &hcrc, 4);
     const std::string e = open_error(write(b));
     EXPECT_NE(e.find("node 1: key 0 is not a child key of node 0"), std::string::npos) << e;
@@ -341,6 +355,115 @@ TEST(IndexFileBadInput, TruncatedCorruptedVersionChangedSource) {
     const std::string e = open_error(good);
     EXPECT_NE(e.find("changed since the index was built"), std::string::npos) << e;
   }
+  fs::remove_all(dir);
+}
+
+// CRC-32C: the RFC 3720 check value, and the hardware path (three interleaved streams over 24 KiB
+// blocks, then 8-byte and byte tails) equals the portable table path for every length class and
+// alignment, whole or continued piecewise.
+TEST(IndexFileCrc32c, CheckValueAndHardwareEqualsPortable) {
+  const char* check = "123456789";
+  EXPECT_EQ(io::crc32c(check, 9), 0xE3069283u);
+  EXPECT_EQ(io::crc32c_portable(check, 9), 0xE3069283u);
+  EXPECT_EQ(io::crc32c(check, 0), 0u);
+  std::mt19937_64 rng(5);
+  std::vector<std::uint8_t> buf(3 * 24576 + 4096);
+  for (auto& c : buf) c = static_cast<std::uint8_t>(rng());
+  for (std::size_t len : {std::size_t{1}, std::size_t{7}, std::size_t{8}, std::size_t{63}, std::size_t{24575},
+                          std::size_t{24576}, std::size_t{24577}, std::size_t{3 * 24576 + 1000}})
+    for (std::size_t off : {std::size_t{0}, std::size_t{1}, std::size_t{5}}) {
+      const std::uint32_t want = io::crc32c_portable(buf.data() + off, len);
+      EXPECT_EQ(io::crc32c(buf.data() + off, len), want) << len << " at " << off;
+      const std::size_t cut = len / 3;
+      EXPECT_EQ(io::crc32c(buf.data() + off + cut, len - cut, io::crc32c(buf.data() + off, cut)), want) << len;
+    }
+}
+
+// Large files are opened without the deep checks (O(header) open); then the node accessors
+// sanitise corrupted records, so a query never leaves the mapping or loops. Here a small file is
+// opened the same way (Verify::metadata_only) after its root was made a cycle with a point range
+// past N and a later node got a child range past M: the accessors read them as leaves / empty,
+// queries return (ASan checks the reads), and the deep checks (`info --verify`) name the node.
+TEST(IndexFileBadInput, UnverifiedCorruptNodesAreSanitisedAndVerifyNamesThem) {
+  const fs::path dir = temp_dir() / "unverified";
+  const fs::path good = small_index(dir);
+  auto bytes = slurp(good);
+  std::uint64_t node_off = 0, node_size = 0, ids_off = 0;
+  std::uint32_t nsec = 0;
+  std::memcpy(&nsec, bytes.data() + 20, 4);
+  for (std::uint32_t i = 0; i < nsec; ++i) {
+    std::uint32_t id = 0;
+    std::memcpy(&id, bytes.data() + 128 + 32 * i, 4);
+    if (id == 9) {
+      std::memcpy(&node_off, bytes.data() + 128 + 32 * i + 8, 8);
+      std::memcpy(&node_size, bytes.data() + 128 + 32 * i + 16, 8);
+    }
+    if (id == 4) std::memcpy(&ids_off, bytes.data() + 128 + 32 * i + 8, 8);
+  }
+  ASSERT_GE(node_size, 3u * 48u);
+  const std::uint32_t zero = 0, huge = 0xFFFFFFF0u;
+  std::memcpy(bytes.data() + node_off + 32, &zero, 4);          // root: first_child 0 (a cycle)
+  std::memcpy(bytes.data() + node_off + 40, &huge, 4);          // root: own_end past N
+  std::memcpy(bytes.data() + node_off + 48 + 32, &huge, 4);     // node 1: children past M
+  bytes[node_off + 48 + 44] = 3;
+  const fs::path bad = dir / "bad.rsi";
+  std::ofstream(bad, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  io::IndexOpenOptions quick;
+  quick.verify = io::IndexOpenOptions::Verify::metadata_only;
+  const io::MappedIndex m = io::MappedIndex::open(bad, quick);
+  EXPECT_FALSE(m.verified());
+  EXPECT_EQ(m.child_count(0), 0u);
+  EXPECT_EQ(m.node_points(0).begin, m.node_points(0).end);
+  EXPECT_EQ(m.child_count(1), 0u);
+  const AABB box = m.bounds();
+  RayQuery q;
+  q.radius = 1.0;
+  q.k = 4;
+  const std::vector<Ray> rays{Ray(box.lo - Vec3(1.0), box.hi - box.lo)};
+  EXPECT_TRUE(ray_query_batch(m, rays, q).at(0).empty());  // the root is now an empty leaf
+  EXPECT_TRUE(knn(m, box.lo, 3).empty());
+  // The deep checks refuse it, naming the node and the byte (header CRC still valid: the nodes
+  // section CRC is what fails first when verifying everything).
+  io::IndexOpenOptions full;
+  full.verify = io::IndexOpenOptions::Verify::always;
+  try {
+    io::MappedIndex::open(bad, full);
+    FAIL() << "corrupted nodes accepted by --verify";
+  } catch (const io::IndexError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.rsi: section nodes (byte " + std::to_string(node_off) + "): checksum"),
+              std::string::npos) << e.what();
+  }
+  // With the section CRCs forged, the record checks name the node; an id >= N names the slot.
+  auto forge = [&](std::vector<std::uint8_t> b) {
+    for (std::uint32_t i = 0; i < nsec; ++i) {
+      const std::size_t e = 128 + 32 * i;
+      std::uint64_t off = 0, size = 0;
+      std::memcpy(&off, b.data() + e + 8, 8);
+      std::memcpy(&size, b.data() + e + 16, 8);
+      const std::uint32_t c = io::crc32c(b.data() + off, size);
+      std::memcpy(b.data() + e + 24, &c, 4);
+    }
+    std::memset(b.data() + 120, 0, 4);
+    const std::uint32_t h = io::crc32c(b.data(), 4096);
+    std::memcpy(b.data() + 120, &h, 4);
+    std::ofstream(bad, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  };
+  auto deep_error = [&]() -> std::string {
+    try {
+      io::MappedIndex::open(bad, full);
+    } catch (const io::IndexError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  forge(bytes);
+  EXPECT_NE(deep_error().find("byte " + std::to_string(node_off + 36) + ": node 0: point range"), std::string::npos)
+      << deep_error();
+  auto b2 = slurp(good);
+  std::memcpy(b2.data() + ids_off + 4 * 17, &huge, 4);  // slot 17 holds an id past N
+  forge(b2);
+  EXPECT_NE(deep_error().find("byte " + std::to_string(ids_off + 68) + ": section ids: slot 17 holds id"), std::string::npos)
+      << deep_error();
   fs::remove_all(dir);
 }
 

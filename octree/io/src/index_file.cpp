@@ -3,19 +3,21 @@
 #include "rayscan/input_file.hpp"
 
 #include "rayscan/atomic_file.hpp"
+#include "rayscan/io/crc32c.hpp"
+#include "rayscan/spacing.hpp"
 #include "readers.hpp"
 
 #include <fcntl.h>
 #include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
-#include <zlib.h>
 
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstddef>
@@ -32,7 +34,7 @@ namespace fs = std::filesystem;
 
 // ---- format constants (docs/index-format.md) ----------------------------------------------------
 constexpr char kMagic[8] = {'R', 'S', 'I', 'N', 'D', 'E', 'X', '\0'};
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 2;
 constexpr std::uint32_t kEndianMarker = 0x01020304;
 constexpr std::uint64_t kHeaderBytes = 4096;
 constexpr std::uint64_t kAlign = 4096;
@@ -41,6 +43,12 @@ constexpr std::size_t kTableOffset = 128;
 constexpr std::size_t kEntryBytes = 32;
 constexpr std::size_t kNodeBytes = 48;
 constexpr std::size_t kCrcOffset = 120;
+constexpr std::size_t kSpacingOffset = 112;  // float64 median nearest-neighbour spacing
+constexpr std::size_t kBoundsOffset = 640;   // float64[6] exact point bounds (after the table)
+constexpr std::size_t kLevelsOffset = 688;   // uint64[22] points stored at each depth 0..21
+constexpr unsigned kLevels = 22;
+/// Files up to this size get every section verified at open by default (IndexOpenOptions).
+constexpr std::uint64_t kVerifyAllBytes = std::uint64_t{256} << 20;
 
 enum SectionId : std::uint32_t {
   kSources = 1, kCrs = 2, kPositions = 3, kIds = 4, kRgb = 5, kIntensity = 6,
@@ -86,16 +94,8 @@ static_assert(std::endian::native == std::endian::little, "the index file is lit
 
 std::uint64_t align_up(std::uint64_t v) { return (v + kAlign - 1) / kAlign * kAlign; }
 
-std::uint32_t crc32_of(const void* p, std::size_t n, std::uint32_t crc = 0) {
-  const auto* b = static_cast<const Bytef*>(p);
-  while (n > 0) {  // crc32_z takes z_size_t; chunk anyway to keep progress bounded
-    const std::size_t k = std::min<std::size_t>(n, std::size_t{1} << 30);
-    crc = static_cast<std::uint32_t>(::crc32_z(crc, b, k));
-    b += k;
-    n -= k;
-  }
-  return crc;
-}
+/// The section and header checksum (version 2: CRC-32C, hardware-accelerated; docs/index-format.md).
+std::uint32_t crc32_of(const void* p, std::size_t n, std::uint32_t crc = 0) { return crc32c(p, n, crc); }
 
 std::string hex32(std::uint32_t v) {
   char buf[16];
@@ -202,6 +202,9 @@ struct Header {
   OctreeConfig config;
   std::uint32_t depth = 0;
   std::uint32_t attributes = 0;
+  double spacing = 0.0;  ///< median_nn_spacing_by_id of the stored points
+  AABB bounds;           ///< exact bounds of the stored positions (bounds_of)
+  std::array<std::uint64_t, kLevels> levels{};  ///< points per depth
   std::vector<SectionEntry> sections;
 };
 
@@ -235,6 +238,12 @@ std::vector<std::uint8_t> encode_header(const Header& h) {
   put<std::uint32_t>(b.data(), 100, h.config.depth);
   put<std::uint32_t>(b.data(), 104, h.depth);
   put<std::uint32_t>(b.data(), 108, h.attributes);
+  put<double>(b.data(), kSpacingOffset, h.spacing);
+  for (int k = 0; k < 3; ++k) {
+    put<double>(b.data(), kBoundsOffset + 8 * k, h.bounds.lo[k]);
+    put<double>(b.data(), kBoundsOffset + 24 + 8 * k, h.bounds.hi[k]);
+  }
+  for (unsigned d = 0; d < kLevels; ++d) put<std::uint64_t>(b.data(), kLevelsOffset + 8 * d, h.levels[d]);
   for (std::size_t i = 0; i < h.sections.size(); ++i) {
     const SectionEntry& s = h.sections[i];
     const std::size_t o = kTableOffset + i * kEntryBytes;
@@ -709,11 +718,27 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     h.sections[s_nodes].crc = w.crc();
     h.nodes = nb.nodes.size();
     h.depth = nb.depth;
+    for (const Octree::NodeRec& r : nb.nodes) h.levels[OctreeNodeId::from_bits(r.key).depth()] += r.own_end - r.own_begin;
     off = h.sections[s_nodes].offset + h.sections[s_nodes].size;  // the file ends with the nodes
   }
-  const std::vector<std::uint8_t> hb = encode_header(h);
-  fd.pwrite_all(hb.data(), hb.size(), 0);
+  h.bounds = bounds;
   if (::ftruncate(fd.get(), static_cast<off_t>(off)) != 0) io_fail(out.temp(), "cannot set the file size");
+  {
+    const std::vector<std::uint8_t> hb = encode_header(h);
+    fd.pwrite_all(hb.data(), hb.size(), 0);
+  }
+  // The auto radius (median nearest-neighbour spacing) over the finished tree, by the renderer's
+  // own function, so that opening never runs kNN for it; then the final header.
+  if (total >= 2) {
+    if (opt.progress) opt.progress("spacing", 0, 1);
+    IndexOpenOptions oo;
+    oo.verify = IndexOpenOptions::Verify::metadata_only;
+    oo.check_sources = false;
+    const MappedIndex m = MappedIndex::open(out.temp(), oo);
+    h.spacing = median_nn_spacing_by_id(m);
+    const std::vector<std::uint8_t> hb = encode_header(h);
+    fd.pwrite_all(hb.data(), hb.size(), 0);
+  }
   if (::fsync(fd.get()) != 0) io_fail(out.temp(), "fsync failed");
   out.commit();
 
@@ -802,9 +827,30 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   x.depth_ = get<std::uint32_t>(b, 104);
   if (x.depth_ > 21) fail(104, "depth " + std::to_string(x.depth_) + " (expected 0..21, the Morton code depth)");
   x.attrs_ = AttributeSet{get<std::uint32_t>(b, 108)};
+  x.spacing_ = get<double>(b, kSpacingOffset);
+  if (!(x.spacing_ >= 0.0) || !std::isfinite(x.spacing_))
+    fail(kSpacingOffset, "median nearest-neighbour spacing " + std::to_string(x.spacing_) + " (expected a finite number >= 0)");
+  for (int k = 0; k < 3; ++k) {
+    x.bounds_.lo[k] = get<double>(b, kBoundsOffset + 8 * k);
+    x.bounds_.hi[k] = get<double>(b, kBoundsOffset + 24 + 8 * k);
+  }
   if (x.points_ >= 0xFFFFFFFFull) fail(24, "point count " + std::to_string(x.points_) + " above 2^32 - 2");
+  {
+    std::uint64_t sum = 0;
+    for (unsigned d = 0; d < kLevels; ++d) {
+      const auto v = get<std::uint64_t>(b, kLevelsOffset + 8 * d);
+      if (v > x.points_ || (d > x.depth_ && v != 0))
+        fail(kLevelsOffset + 8 * d, "points at depth " + std::to_string(d) + ": " + std::to_string(v) +
+                                        " (the header says " + std::to_string(x.points_) + " points, depth " +
+                                        std::to_string(x.depth_) + ")");
+      sum += v;
+    }
+    if (sum != x.points_)
+      fail(kLevelsOffset, "points per level sum to " + std::to_string(sum) + ", the header says " + std::to_string(x.points_));
+  }
   const bool verify_all = opt.verify == IndexOpenOptions::Verify::always ||
-                          (opt.verify == IndexOpenOptions::Verify::automatic && size <= (std::uint64_t{256} << 20));
+                          (opt.verify == IndexOpenOptions::Verify::automatic && size <= kVerifyAllBytes);
+  x.verified_ = verify_all;
   std::array<const SectionEntry*, 10> by_id{};
   std::vector<SectionEntry> secs(nsec);
   for (std::uint32_t i = 0; i < nsec; ++i) {
@@ -817,6 +863,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
     e.crc = get<std::uint32_t>(b, o + 24);
     if (e.id < kSources || e.id > kNodes) fail(o, "unknown section id " + std::to_string(e.id));
     const std::string sn = std::string("section ") + section_name(e.id);
+    x.sections_.push_back({section_name(e.id), e.offset, e.size});
     if (by_id[e.id] != nullptr) fail(o, sn + " appears twice");
     by_id[e.id] = &e;
     if (e.elem != elem_size(e.id)) fail(o + 4, sn + ": element size " + std::to_string(e.elem) + ", expected " + std::to_string(elem_size(e.id)));
@@ -829,7 +876,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
     if (e.id >= kPositions && e.id <= kGpsTime) expect = x.points_ * e.elem;
     if (e.id == kNodes) expect = x.node_count_ * e.elem;
     if (e.size != expect) fail(o + 16, sn + ": " + std::to_string(e.size) + " bytes, expected " + std::to_string(expect));
-    const bool meta = e.id == kSources || e.id == kCrs || e.id == kNodes;
+    const bool meta = e.id == kSources || e.id == kCrs;
     if (verify_all || meta) {
       const std::uint32_t have = crc32_of(b + e.offset, e.size);
       if (have != e.crc)
@@ -860,42 +907,10 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   if (by_id[kGpsTime]) x.gps_ = {reinterpret_cast<const double*>(at(kGpsTime)), x.points_};
   x.crs_.assign(reinterpret_cast<const char*>(at(kCrs)), by_id[kCrs]->size);
 
-  // Node ranges: every later access stays inside the mapping.
-  const std::uint64_t node_off = by_id[kNodes]->offset;
-  for (std::size_t n = 0; n < x.node_count_; ++n) {
-    const Octree::NodeRec& r = x.nodes_[n];
-    const std::uint64_t o = node_off + n * kNodeBytes;
-    if (r.own_begin > r.own_end || r.own_end > x.points_)
-      fail(o + 36, "node " + std::to_string(n) + ": point range [" + std::to_string(r.own_begin) + ", " +
-                       std::to_string(r.own_end) + ") outside the " + std::to_string(x.points_) + " points");
-    if (r.child_count > 8 || (r.child_count > 0 && (r.first_child <= n || r.first_child + std::uint64_t{r.child_count} > x.node_count_)))
-      fail(o + 32, "node " + std::to_string(n) + ": children [" + std::to_string(r.first_child) + ", +" +
-                       std::to_string(r.child_count) + ") outside the " + std::to_string(x.node_count_) + " nodes");
-    for (int k = 0; k < 3; ++k)
-      if (std::isnan(r.lo[k]) || std::isnan(r.hi[k])) fail(o, "node " + std::to_string(n) + ": NaN bounds");
-  }
-  if (x.node_count_ > 0 && x.nodes_[0].key != 1) fail(node_off + 24, "root node key must be 1");
-  // Keys (Warren & Salmon): every node but the root is the child of exactly one node, its key is
-  // the parent's key shifted by 3 plus its octant, octants increase within a family, and no node
-  // is deeper than the header's depth; so every key has its sentinel bit (never 0).
-  {
-    std::vector<std::uint8_t> referenced(x.node_count_, 0);
-    for (std::size_t n = 0; n < x.node_count_; ++n) {  // parents come before their children
-      const Octree::NodeRec& r = x.nodes_[n];
-      if (n > 0 && !referenced[n])
-        fail(node_off + n * kNodeBytes, "node " + std::to_string(n) + ": not the child of any earlier node");
-      if (r.child_count > 0 && OctreeNodeId::from_bits(r.key).depth() >= x.depth_)
-        fail(node_off + n * kNodeBytes + 24, "node " + std::to_string(n) + ": children below the deepest level " +
-                                                 std::to_string(x.depth_) + " of the header");
-      for (unsigned c = 0; c < r.child_count; ++c) {
-        const std::size_t k = r.first_child + c;
-        const std::uint64_t ck = x.nodes_[k].key;
-        if (referenced[k]++ || (ck >> 3) != r.key || (c > 0 && (ck & 7) <= (x.nodes_[k - 1].key & 7)))
-          fail(node_off + k * kNodeBytes + 24, "node " + std::to_string(k) + ": key " + std::to_string(ck) +
-                                                   " is not a child key of node " + std::to_string(n));
-      }
-    }
-  }
+  // Deep checks of the node records and ids (with the section CRCs above, a file that passes them
+  // is exactly as built). Without them the accessors sanitise every record they return
+  // (MappedIndex::child_count / node_points), so no traversal reads outside the mapping either.
+  if (verify_all) x.verify_records(by_id[kNodes]->offset, by_id[kIds]->offset);
 
   // Sources: "size \t mtime_ns \t points \t first_id \t format \t path" lines.
   {
@@ -939,13 +954,90 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   return x;
 }
 
-std::vector<std::uint64_t> MappedIndex::points_per_level() const {
-  std::vector<std::uint64_t> out(depth_ + 1, 0);
-  for (std::size_t n = 0; n < node_count_; ++n) {
-    const unsigned d = node_id(static_cast<Node>(n)).depth();
-    if (d >= out.size()) out.resize(d + 1, 0);
-    out[d] += nodes_[n].own_end - nodes_[n].own_begin;
+/// Points per depth counted over the node records (the deep check of the header's table).
+static std::vector<std::uint64_t> count_levels(const MappedIndex& m) {
+  std::vector<std::uint64_t> out(kLevels, 0);
+  for (std::size_t n = 0; n < m.node_count(); ++n) {
+    const SlotRange r = m.node_points(static_cast<MappedIndex::Node>(n));
+    out[m.node_id(static_cast<MappedIndex::Node>(n)).depth()] += r.end - r.begin;  // depth <= 21
   }
+  return out;
+}
+
+void MappedIndex::verify_records(std::uint64_t node_off, std::uint64_t ids_off) const {
+  const std::string nm = path_.string();
+  auto fail = [&nm](std::uint64_t off, const std::string& what) -> void {
+    throw IndexError(nm + ": byte " + std::to_string(off) + ": " + what);
+  };
+  const MappedIndex& x = *this;
+  // Node ranges: every later access stays inside the mapping.
+  for (std::size_t n = 0; n < x.node_count_; ++n) {
+    const Octree::NodeRec& r = x.nodes_[n];
+    const std::uint64_t o = node_off + n * kNodeBytes;
+    if (r.own_begin > r.own_end || r.own_end > x.points_)
+      fail(o + 36, "node " + std::to_string(n) + ": point range [" + std::to_string(r.own_begin) + ", " +
+                       std::to_string(r.own_end) + ") outside the " + std::to_string(x.points_) + " points");
+    if (r.child_count > 8 || (r.child_count > 0 && (r.first_child <= n || r.first_child + std::uint64_t{r.child_count} > x.node_count_)))
+      fail(o + 32, "node " + std::to_string(n) + ": children [" + std::to_string(r.first_child) + ", +" +
+                       std::to_string(r.child_count) + ") outside the " + std::to_string(x.node_count_) + " nodes");
+    for (int k = 0; k < 3; ++k)
+      if (std::isnan(r.lo[k]) || std::isnan(r.hi[k])) fail(o, "node " + std::to_string(n) + ": NaN bounds");
+  }
+  if (x.node_count_ > 0 && x.nodes_[0].key != 1) fail(node_off + 24, "root node key must be 1");
+  // Keys (Warren & Salmon): every node but the root is the child of exactly one node, its key is
+  // the parent's key shifted by 3 plus its octant, octants increase within a family, and no node
+  // is deeper than the header's depth; so every key has its sentinel bit (never 0).
+  {
+    std::vector<std::uint8_t> referenced(x.node_count_, 0);
+    for (std::size_t n = 0; n < x.node_count_; ++n) {  // parents come before their children
+      const Octree::NodeRec& r = x.nodes_[n];
+      if (n > 0 && !referenced[n])
+        fail(node_off + n * kNodeBytes, "node " + std::to_string(n) + ": not the child of any earlier node");
+      if (r.child_count > 0 && OctreeNodeId::from_bits(r.key).depth() >= x.depth_)
+        fail(node_off + n * kNodeBytes + 24, "node " + std::to_string(n) + ": children below the deepest level " +
+                                                 std::to_string(x.depth_) + " of the header");
+      for (unsigned c = 0; c < r.child_count; ++c) {
+        const std::size_t k = r.first_child + c;
+        const std::uint64_t ck = x.nodes_[k].key;
+        if (referenced[k]++ || (ck >> 3) != r.key || (c > 0 && (ck & 7) <= (x.nodes_[k - 1].key & 7)))
+          fail(node_off + k * kNodeBytes + 24, "node " + std::to_string(k) + ": key " + std::to_string(ck) +
+                                                   " is not a child key of node " + std::to_string(n));
+      }
+    }
+  }
+
+  // The header's points per level agree with the records.
+  {
+    const std::vector<std::uint64_t> have = count_levels(*this);
+    const std::vector<std::uint64_t> want = points_per_level();
+    for (unsigned d = 0; d < kLevels; ++d)
+      if (have[d] != (d < want.size() ? want[d] : 0))
+        fail(kLevelsOffset + 8 * d, "points at depth " + std::to_string(d) + ": the header says " +
+                                        std::to_string(d < want.size() ? want[d] : 0) + ", the nodes hold " +
+                                        std::to_string(have[d]));
+  }
+  // Ids: every stored id names a point (callers index per-point arrays by id).
+  std::atomic<std::size_t> bad{points_};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_, 1 << 16), [&](const auto& r) {
+    for (std::size_t s = r.begin(); s != r.end(); ++s)
+      if (ids_[s] >= points_) {
+        std::size_t cur = bad.load();
+        while (s < cur && !bad.compare_exchange_weak(cur, s)) {
+        }
+        return;
+      }
+  });
+  if (const std::size_t s = bad.load(); s < points_)
+    fail(ids_off + 4 * s, "section ids: slot " + std::to_string(s) + " holds id " + std::to_string(ids_[s]) +
+                              " outside the " + std::to_string(points_) + " points");
+}
+
+std::vector<std::uint64_t> MappedIndex::points_per_level() const {
+  // Stored in the header at build time (checked at open: sums to N, nothing below the depth).
+  std::vector<std::uint64_t> out(depth_ + 1, 0);
+  if (!map_ || map_->p == nullptr) return out;
+  const auto* b = static_cast<const std::uint8_t*>(map_->p);
+  for (unsigned d = 0; d <= depth_ && d < kLevels; ++d) out[d] = get<std::uint64_t>(b, kLevelsOffset + 8 * d);
   return out;
 }
 

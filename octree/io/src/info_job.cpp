@@ -62,8 +62,10 @@ InfoJobResult run_info(const InfoJobOptions& options) {
         m.empty() ? 0.0 : static_cast<double>(m.file_bytes()) / static_cast<double>(m.positions().size());
     x.attributes = m.attributes().to_string();
     x.root_cell = m.root_cell();
-    x.checksums = options.verify || m.file_bytes() <= (256u << 20) ? "all sections verified"
-                                                                    : "header, nodes and metadata verified";
+    x.checksums = m.verified() ? "all sections verified"
+                               : "header and metadata verified (nodes and points: rayscan info --verify)";
+    x.spacing = m.median_nn_spacing();
+    x.sections = m.sections();
     x.sources = m.sources();
     r.index = std::move(x);
     r.info.format = "rayscan index";
@@ -105,6 +107,12 @@ std::string index_report_json(const InfoJobResult& r) {
   j["root_cell"] = {{"min", vec_json(x.root_cell.lo)}, {"max", vec_json(x.root_cell.hi)}};
   if (r.count != 0) j["bounds"] = {{"min", vec_json(r.bounds.lo)}, {"max", vec_json(r.bounds.hi)}};
   j["checksums"] = x.checksums;
+  j["spacing"] = x.spacing;
+  nlohmann::ordered_json secs = nlohmann::ordered_json::array();
+  for (const IndexSectionInfo& s : x.sections)
+    secs.push_back({{"name", s.name}, {"offset", s.offset}, {"bytes", s.bytes},
+                    {"bytes_per_point", r.count ? static_cast<double>(s.bytes) / static_cast<double>(r.count) : 0.0}});
+  j["sections"] = secs;
   nlohmann::ordered_json src = nlohmann::ordered_json::array();
   for (const IndexSource& s : x.sources)
     src.push_back({{"path", s.path}, {"format", s.format}, {"points", s.points}, {"first_id", s.first_id}, {"bytes", s.size}});
@@ -126,6 +134,11 @@ std::string index_report_text(const InfoJobResult& r) {
   o << "\n";
   o << "file size:         " << x.file_bytes << " bytes (" << num(x.bytes_per_point) << " bytes/point)\n";
   o << "attributes:        " << (x.attributes.empty() ? std::string("positions only") : x.attributes) << "\n";
+  o << "sections:         ";
+  for (const IndexSectionInfo& s : x.sections)
+    o << " " << s.name << " " << num(r.count ? static_cast<double>(s.bytes) / static_cast<double>(r.count) : 0.0);
+  o << " (bytes/point)\n";
+  o << "spacing:           " << num(x.spacing) << " (median nearest-neighbour distance: the auto radius)\n";
   o << "checksums:         " << x.checksums << "\n";
   o << "CRS:               " << (r.crs_wkt.empty() ? std::string("none") : r.crs_wkt.substr(0, 100)) << "\n";
   for (const IndexSource& s : x.sources)

@@ -37,6 +37,13 @@ struct IndexSource {
   std::string format;         ///< "LAS 1.2", "PLY 1.0", ...
 };
 
+/// One section of an index file as its header's section table lists it (docs/index-format.md).
+struct IndexSectionInfo {
+  std::string name;           ///< "sources", "crs", "positions", "ids", "rgb", ..., "nodes"
+  std::uint64_t offset = 0;   ///< byte offset in the file (a multiple of 4096)
+  std::uint64_t bytes = 0;    ///< size in bytes (without the alignment gap after it)
+};
+
 /// Progress of a build: `phase` is "scan", "sort", "merge" or "nodes"; `done` of `total` points.
 using IndexProgress = std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)>;
 
@@ -77,17 +84,21 @@ IndexBuildStats build_index_file(const std::vector<std::filesystem::path>& input
 
 /// Options of MappedIndex::open().
 struct IndexOpenOptions {
-  /// Verify every section's CRC-32. Auto (default) verifies when the file is at most 256 MiB and
-  /// otherwise only the header, node and metadata sections (so opening stays under a second);
-  /// `rayscan info --verify` forces it.
+  /// What open() checks besides the header, the section table and the small metadata sections
+  /// (sources, crs), which are always checked. `always`: every section's CRC-32C and every node
+  /// record and id (docs/index-format.md, "Opening and validation"; `rayscan info --verify`).
+  /// `automatic` (default): the same when the file is at most 256 MiB, otherwise nothing more, so
+  /// opening costs O(header + sources) at any size. `metadata_only`: never the deep checks.
+  /// Unverified node records are sanitised by the accessors (never a read past the mapping).
   enum class Verify { automatic, always, metadata_only } verify = Verify::automatic;
   /// Fail when a source file still exists but its size or modification time changed.
   bool check_sources = true;
 };
 
 /// A read-only memory-mapped index file satisfying SpatialIndex. Node records, positions and ids
-/// are used in place (no copy): opening costs the header checks and one pass over the node
-/// records validating their ranges (never a read past the mapping afterwards).
+/// are used in place (no copy): opening a large file costs the header, section table and sources
+/// checks only (well under a second at any size); the node accessors are checked, so no query
+/// reads past the mapping whether or not the deep checks ran (IndexOpenOptions::verify).
 class MappedIndex {
  public:
   using Node = std::uint32_t;
@@ -102,15 +113,32 @@ class MappedIndex {
     const Octree::NodeRec& r = nodes_[n];
     return {cell_.lo + Vec3(r.lo), cell_.lo + Vec3(r.hi)};
   }
-  [[nodiscard]] SlotRange node_points(Node n) const { return {nodes_[n].own_begin, nodes_[n].own_end}; }
-  [[nodiscard]] unsigned child_count(Node n) const { return nodes_[n].child_count; }
+  // The node accessors are checked, so that a file opened without the deep checks (a large file;
+  // IndexOpenOptions) can never lead a query outside the mapping or into a cycle: a point range
+  // that is reversed or beyond the N points reads as empty, and a child range that is not strictly
+  // after the node, has more than 8 children or runs past the M nodes reads as a leaf. A verified
+  // (or well-formed) file never triggers either, so results are those of the in-memory octree.
+  [[nodiscard]] SlotRange node_points(Node n) const {
+    const Octree::NodeRec& r = nodes_[n];
+    return r.own_begin <= r.own_end && r.own_end <= points_ ? SlotRange{r.own_begin, r.own_end} : SlotRange{0, 0};
+  }
+  [[nodiscard]] unsigned child_count(Node n) const {
+    const Octree::NodeRec& r = nodes_[n];
+    return r.child_count <= 8 && r.first_child > n && std::uint64_t{r.first_child} + r.child_count <= node_count_
+               ? r.child_count
+               : 0u;
+  }
+  /// Child i < child_count(n) of n.
   [[nodiscard]] Node child(Node n, unsigned i) const { return nodes_[n].first_child + i; }
   [[nodiscard]] std::span<const Vec3> positions() const { return {pos_, points_}; }
   [[nodiscard]] std::span<const PointIndex> ids() const { return {ids_, points_}; }
 
   // Index file specifics -----------------------------------------------------------------------
-  /// The Warren & Salmon id of node n.
-  [[nodiscard]] OctreeNodeId node_id(Node n) const { return OctreeNodeId::from_bits(nodes_[n].key); }
+  /// The Warren & Salmon id of node n (a corrupted, unverified key 0 reads as the root's id 1).
+  [[nodiscard]] OctreeNodeId node_id(Node n) const {
+    const std::uint64_t k = nodes_[n].key;
+    return OctreeNodeId::from_bits(k != 0 ? k : 1);
+  }
   [[nodiscard]] const AABB& root_cell() const { return cell_; }
   [[nodiscard]] std::size_t node_count() const { return node_count_; }
   [[nodiscard]] unsigned depth() const { return depth_; }
@@ -127,6 +155,16 @@ class MappedIndex {
   [[nodiscard]] const std::string& crs_wkt() const { return crs_; }
   [[nodiscard]] std::uint64_t file_bytes() const;
   [[nodiscard]] const std::filesystem::path& path() const { return path_; }
+  /// The median nearest-neighbour spacing of the stored points (world units; 0 below two distinct
+  /// points), computed at build time by median_nn_spacing_by_id (rayscan/spacing.hpp) over this
+  /// index and stored in the header: the "auto" radius without a kNN pass at open.
+  [[nodiscard]] double median_nn_spacing() const { return spacing_; }
+  /// The exact bounds of the stored positions (bounds_of(positions()), stored in the header).
+  [[nodiscard]] const AABB& bounds() const { return bounds_; }
+  /// The section table, in file order.
+  [[nodiscard]] const std::vector<IndexSectionInfo>& sections() const { return sections_; }
+  /// True when open() ran the deep checks (every section's CRC, every node record and id).
+  [[nodiscard]] bool verified() const { return verified_; }
   /// The stored points and attributes in the sources' original order (ids()), as read_point_cloud
   /// of the concatenated sources would return positions and the stored attributes. Allocates.
   [[nodiscard]] PointCloud to_point_cloud() const;
@@ -139,6 +177,8 @@ class MappedIndex {
 
  private:
   MappedIndex() = default;
+  /// The deep record checks of open(): node ranges, children and keys; ids below N. Throws IndexError.
+  void verify_records(std::uint64_t node_offset, std::uint64_t ids_offset) const;
   struct Map;
   std::unique_ptr<Map> map_;
   std::filesystem::path path_;
@@ -146,6 +186,10 @@ class MappedIndex {
   AABB cell_;
   unsigned depth_ = 0;
   std::size_t points_ = 0, node_count_ = 0;
+  double spacing_ = 0.0;
+  AABB bounds_;
+  bool verified_ = false;
+  std::vector<IndexSectionInfo> sections_;
   const Octree::NodeRec* nodes_ = nullptr;
   const Vec3* pos_ = nullptr;
   const PointIndex* ids_ = nullptr;

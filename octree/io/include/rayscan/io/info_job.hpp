@@ -39,6 +39,8 @@ struct IndexFileSummary {
   std::string attributes;                      ///< AttributeSet::to_string() ("" = positions only)
   AABB root_cell;                              ///< the octree's root cube (world units)
   std::string checksums;                       ///< which sections were verified
+  double spacing = 0;                          ///< median nearest-neighbour spacing (the auto radius)
+  std::vector<IndexSectionInfo> sections;      ///< the section table (bytes per section)
   std::vector<IndexSource> sources;            ///< the files the index was built from
 };
 
