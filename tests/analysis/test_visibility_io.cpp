@@ -149,24 +149,24 @@ TEST(Observers, LocalGroundPrefersClassTwoAndSkipsNoise) {
 
   std::vector<Observer> obs{parse_observer("0,0"), parse_observer("0,0,100")};
   obs[0].height = 1.5;
-  place_observers(obs, idx, c, GroundOptions{2.0, std::nullopt});
+  place_observers(obs, idx, c, GroundOptions{2.0, std::nullopt, std::nullopt});
   EXPECT_EQ(obs[0].position.z, 6.5);
   EXPECT_EQ(obs[0].ground_z, 5.0);
   EXPECT_EQ(obs[1].position.z, 100.0);
   std::vector<Observer> far{parse_observer("50,50")};
   try {
-    place_observers(far, idx, c, GroundOptions{2.0, 1.7});
+    place_observers(far, idx, c, GroundOptions{2.0, 1.7, std::nullopt});
     FAIL() << "expected ObserverError";
   } catch (const ObserverError& e) {
     EXPECT_NE(std::string(e.what()).find("observer 1: no point within the ground radius"), std::string::npos);
   }
   std::vector<Observer> no_height{parse_observer("0,0")};
-  EXPECT_THROW(place_observers(no_height, idx, c, GroundOptions{2.0, std::nullopt}), ObserverError);
+  EXPECT_THROW(place_observers(no_height, idx, c, GroundOptions{2.0, std::nullopt, std::nullopt}), ObserverError);
 
   // Errors found while placing name the observer's file and JSON pointer / CSV line.
   auto place_error = [&](std::vector<Observer> v, std::optional<double> height) {
     try {
-      place_observers(v, idx, c, GroundOptions{2.0, height});
+      place_observers(v, idx, c, GroundOptions{2.0, height, std::nullopt});
     } catch (const ObserverError& e) {
       return std::string(e.what());
     }
@@ -369,7 +369,7 @@ TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
   const PointCloud in = io::read_point_cloud(scene());
   const AnyIndex idx = make_index(in.positions, IndexOptions{});
   std::vector<Observer> obs = read_observers(csv);
-  place_observers(obs, idx, in, GroundOptions{4.0, std::nullopt});
+  place_observers(obs, idx, in, GroundOptions{4.0, std::nullopt, std::nullopt});
   EXPECT_EQ(obs[0].position.z, 1.7);
   VisibilityOptions vo;
   vo.radius = 0.8;
