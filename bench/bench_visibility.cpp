@@ -67,7 +67,7 @@ int main(int argc, char** argv) {
       }
       obs.push_back(o);
     }
-    place_observers(obs, index, cloud, GroundOptions{25.0 * radius, std::nullopt});
+    place_observers(obs, index, cloud, GroundOptions{25.0 * radius, std::nullopt, std::nullopt});
 
     VisibilityOptions vo;
     vo.radius = radius;

@@ -293,9 +293,15 @@ void place_observers_over(std::vector<Observer>& observers, const Index& index, 
       throw ObserverError(observer_where(o, k + 1) +
                           ": no z and no height; give z, a height, or a default height (--height)");
     if (!bounds && !cloud.empty()) bounds = cloud.bounds();
-    const double g = cloud.empty() ? std::numeric_limits<double>::quiet_NaN()
-                                   : local_ground_in(index, cloud, o.position.x, o.position.y, options.radius,
-                                                     bounds->lo.z, bounds->hi.z);
+    auto ground_within = [&](double radius) {
+      return cloud.empty() ? std::numeric_limits<double>::quiet_NaN()
+                           : local_ground_in(index, cloud, o.position.x, o.position.y, radius, bounds->lo.z,
+                                             bounds->hi.z);
+    };
+    double g = std::numeric_limits<double>::quiet_NaN();
+    if (options.inner_radius && *options.inner_radius > 0.0 && *options.inner_radius < options.radius)
+      g = ground_within(*options.inner_radius);
+    if (std::isnan(g)) g = ground_within(options.radius);
     if (std::isnan(g)) {
       char buf[160];
       std::snprintf(buf, sizeof buf, ": no point within the ground radius %.6g of (%.6f, %.6f) to put the "

@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -28,10 +29,86 @@ std::size_t index_size(const Index& index) {
   return visit_index([](const auto& i) { return i.positions().size(); }, index);
 }
 
+// Height of the surface disc j (centre c, unit normal n, radius r) stands for at horizontal offset
+// (dx, dy) from its centre, inside its footprint: for a disc within 45 degrees of level (n_z^2 >=
+// 1/2: ground, roofs) the height of its plane there, n . (q - c) = 0, limited to the disc's own
+// vertical extent c.z +- r sqrt(1 - n_z^2); for a steeper disc (walls, leaves) its top, c.z + r
+// sqrt(1 - n_z^2) (what a first-return DSM records over a wall).
+double disc_top(const Vec3& c, const glm::vec3& n, double r, double dx, double dy) {
+  const double nz2 = double(n.z) * double(n.z);
+  const double e = r * std::sqrt(std::max(0.0, 1.0 - nz2));
+  if (nz2 < 0.5) return c.z + e;
+  return std::clamp(c.z - (double(n.x) * dx + double(n.y) * dy) / double(n.z), c.z - e, c.z + e);
+}
+
+// The surfel rule (is_visible in the header): true when the segment eye -> aim passes below the
+// surface of some disc j: c_j projects onto the segment at a parameter t* strictly inside (0, 1),
+// the segment's point at t* lies horizontally within r_j of c_j (over or under the disc's
+// footprint), and disc_top there exceeds the segment's height by more than `tol`. The surface is
+// the height field of the discs, solid below them, like a DSM (first-return surface). Discs of the
+// target's own surface that overlap its disc (render::same_surface and centres within r_i + r_j)
+// are not obstacles: the sampled surface must not hide itself at grazing angles. One traversal of
+// the index: a node is entered only when the segment's horizontal projection passes within R (the
+// largest disc radius) of its box (Liang & Barsky 1984 clipping in x and y) and the box's top plus
+// R lies above the segment's lowest point over that stretch.
+template <class I>
+bool height_field_blocked(const I& idx, const SurfelAttributes& sa, const Vec3& eye, const Vec3& aim,
+                          const render::LeavingSurface& target, double tol) {
+  const Vec3 v = aim - eye;
+  const double h2 = v.x * v.x + v.y * v.y;
+  if (!(h2 > 1e-24)) return false;  // the target lies straight below or above the eye
+  const double R = sa.max_radius;
+  const std::span<const Vec3> pos = idx.positions();
+  const std::span<const PointIndex> ids = idx.ids();
+  thread_local std::vector<typename I::Node> stack;
+  stack.clear();
+  stack.push_back(idx.root());
+  while (!stack.empty()) {
+    const auto n = stack.back();
+    stack.pop_back();
+    const AABB b = idx.node_bounds(n);
+    double t0 = 0.0, t1 = 1.0;
+    bool miss = false;
+    for (int a = 0; a < 2 && !miss; ++a) {
+      const double lo = b.lo[a] - R - eye[a], hi = b.hi[a] + R - eye[a];
+      if (std::abs(v[a]) < 1e-300) {
+        miss = lo > 0.0 || hi < 0.0;
+        continue;
+      }
+      double ta = lo / v[a], tb = hi / v[a];
+      if (ta > tb) std::swap(ta, tb);
+      t0 = std::max(t0, ta);
+      t1 = std::min(t1, tb);
+      miss = t0 > t1;
+    }
+    if (miss) continue;
+    if (b.hi.z + R <= eye.z + std::min(t0 * v.z, t1 * v.z) + tol) continue;  // box below the segment there
+    const SlotRange sr = idx.node_points(n);
+    for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+      const PointIndex j = ids[s];
+      const Vec3& c = pos[s];
+      const double t = ((c.x - eye.x) * v.x + (c.y - eye.y) * v.y) / h2;
+      if (!(t > 0.0 && t < 1.0)) continue;  // beside the eye or beyond the target
+      const double rj = sa.radii[j];
+      const double zr = eye.z + t * v.z + tol;  // the segment's height there (plus tolerance)
+      if (!(c.z + rj > zr)) continue;
+      const double dx = eye.x + t * v.x - c.x, dy = eye.y + t * v.y - c.y;
+      if (dx * dx + dy * dy > rj * rj) continue;
+      if (!(disc_top(c, sa.normals[j], rj, dx, dy) > zr)) continue;
+      const Vec3 w = c - target.position;
+      const double reach = target.radius + rj;  // discs overlapping the target's own disc
+      if (glm::dot(w, w) <= reach * reach && render::same_surface(target, j, c, Vec3(sa.normals[j]), rj)) continue;
+      return true;
+    }
+    for (unsigned k = 0, nc = idx.child_count(n); k < nc; ++k) stack.push_back(idx.child(n, k));
+  }
+  return false;
+}
+
 // One line-of-sight decision (see is_visible in the header). `queried` is set when a ray query
 // was issued; `dist` receives D.
 template <class I>
-bool line_of_sight(const I& idx, std::span<const Vec3> positions, const Observer& obs, double max_d,
+bool line_of_sight(const I& idx, [[maybe_unused]] std::span<const Vec3> positions, const Observer& obs, double max_d,
                    const Vec3& p, PointIndex i, const VisibilityOptions& opts,
                    std::vector<RayHit>& hits, bool& queried, double& dist) {
   queried = false;
@@ -47,15 +124,11 @@ bool line_of_sight(const I& idx, std::span<const Vec3> positions, const Observer
   if (Da <= r) return true;
   const Ray ray(obs.position, aim);
   if (opts.surfels) {
-    // Surfel rule (header): no disc before the aim point except those of P's own surface.
-    const SurfelAttributes& sa = *opts.surfels;
-    const render::SurfelView view{positions, sa.normals, sa.radii, sa.max_radius};
-    const render::LeavingSurface target{i, p, Vec3(sa.normals[i]), sa.radii[i]};
-    RayQueryStats st;
-    const render::SurfelHit h =
-        render::first_surfel_hit(idx, view, ray, 0.0, Da - opts.tolerance, &target, true, hits, st);
     queried = true;
-    return !(h.t < kInf);
+    const SurfelAttributes& sa = *opts.surfels;
+    const render::LeavingSurface target{i, p, Vec3(sa.normals[i]), sa.radii[i]};
+    return !height_field_blocked(idx, sa, obs.position, p + Vec3(0.0, 0.0, opts.target_height), target,
+                                 opts.tolerance);
   }
   RayQuery q;
   q.k = 1;

@@ -189,6 +189,9 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   if (have_observers) {
     GroundOptions g;
     g.radius = o.ground_radius.value_or(5.0 * radius);
+    // Surfels: the ground is the surface right under the eye (within the median disc radius) when
+    // it is sampled there, as a DSM's cell under the observer is (issue 16, section 5).
+    if (surfel && !o.ground_radius) g.inner_radius = surfels.median_radius;
     g.default_height = o.height;
     with_index([&](const auto& ix) { place_observers(observers, ix, cloud, g); });
     VisibilityOptions vo;

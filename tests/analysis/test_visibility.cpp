@@ -405,3 +405,49 @@ TEST(Visibility, BadOptionsThrow) {
   EXPECT_THROW(compute_sky_view(idx, pts, so), std::invalid_argument);
   EXPECT_THROW(count_pixel_hits(std::vector<std::uint32_t>{5}, 1), std::out_of_range);
 }
+
+TEST(Visibility, SurfelHeightFieldHidesWhatPassesUnderACanopyWhileSpheresSeeUnderIt) {
+  // Level ground (spacing 0.5) and a level crown 8 above it over x in [20, 25], |y| <= 3, no trunk,
+  // seen from 2 above the ground at x = 2. The sight line to a ground point at x >= 30 passes
+  // about 1 above the ground, 7 below the crown: the spheres (true 3D) see under the crown; the
+  // surfels are a height field like a DSM (the crown's discs are the surface there, solid below
+  // them), so the ground behind the crown is hidden, while the ground before it and the crown
+  // itself are visible in both modes (issue 16, section 5; is_visible's surfel rule).
+  std::vector<Vec3> pts;
+  add_grid(pts, Vec3(0, -5, 0), Vec3(0.5, 0, 0), Vec3(0, 0.5, 0), 120, 21);
+  const std::size_t ground = pts.size();
+  add_grid(pts, Vec3(20, -3, 8), Vec3(0.5, 0, 0), Vec3(0, 0.5, 0), 11, 13);
+  const AnyIndex idx = octree(pts);
+  const SurfelAttributes sa = estimate_surfels(idx, pts);
+  const Observer o = eye(Vec3(2, 0, 2));
+  const Observer* op = &o;
+  VisibilityOptions surf;
+  surf.radius = 0.5;
+  surf.tolerance = 0.0;
+  surf.surfels = &sa;
+  VisibilityOptions sph;
+  sph.radius = 0.5;
+  sph.target_height = 0.5;  // the sphere mode's default (h_t = r): level ground stays open
+  const VisibilityResult rs = compute_visibility(idx, pts, std::span(op, 1), surf);
+  const VisibilityResult rp = compute_visibility(idx, pts, std::span(op, 1), sph);
+  std::size_t behind = 0, before = 0;
+  for (std::size_t i = 0; i < ground; ++i) {
+    if (std::abs(pts[i].y) > 1.0) continue;
+    if (pts[i].x >= 30.0) {
+      ++behind;
+      EXPECT_EQ(rs.count[i], 0u) << "surfel, behind the crown: " << pts[i].x << "," << pts[i].y;
+      EXPECT_EQ(rp.count[i], 1u) << "sphere, behind the crown: " << pts[i].x << "," << pts[i].y;
+    } else if (pts[i].x >= 4.0 && pts[i].x <= 18.0) {
+      ++before;
+      EXPECT_EQ(rs.count[i], 1u) << "surfel, before the crown: " << pts[i].x << "," << pts[i].y;
+      EXPECT_EQ(rp.count[i], 1u) << "sphere, before the crown: " << pts[i].x << "," << pts[i].y;
+    }
+  }
+  EXPECT_GT(behind, 100u);
+  EXPECT_GT(before, 100u);
+  // The crown's edge facing the observer is visible to both.
+  const auto edge = std::size_t(std::find(pts.begin() + std::ptrdiff_t(ground), pts.end(), Vec3(20, 0, 8)) - pts.begin());
+  ASSERT_LT(edge, pts.size());
+  EXPECT_EQ(rs.count[edge], 1u);
+  EXPECT_EQ(rp.count[edge], 1u);
+}

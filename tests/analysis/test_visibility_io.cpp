@@ -149,24 +149,24 @@ TEST(Observers, LocalGroundPrefersClassTwoAndSkipsNoise) {
 
   std::vector<Observer> obs{parse_observer("0,0"), parse_observer("0,0,100")};
   obs[0].height = 1.5;
-  place_observers(obs, idx, c, GroundOptions{2.0, std::nullopt});
+  place_observers(obs, idx, c, GroundOptions{2.0, std::nullopt, std::nullopt});
   EXPECT_EQ(obs[0].position.z, 6.5);
   EXPECT_EQ(obs[0].ground_z, 5.0);
   EXPECT_EQ(obs[1].position.z, 100.0);
   std::vector<Observer> far{parse_observer("50,50")};
   try {
-    place_observers(far, idx, c, GroundOptions{2.0, 1.7});
+    place_observers(far, idx, c, GroundOptions{2.0, 1.7, std::nullopt});
     FAIL() << "expected ObserverError";
   } catch (const ObserverError& e) {
     EXPECT_NE(std::string(e.what()).find("observer 1: no point within the ground radius"), std::string::npos);
   }
   std::vector<Observer> no_height{parse_observer("0,0")};
-  EXPECT_THROW(place_observers(no_height, idx, c, GroundOptions{2.0, std::nullopt}), ObserverError);
+  EXPECT_THROW(place_observers(no_height, idx, c, GroundOptions{2.0, std::nullopt, std::nullopt}), ObserverError);
 
   // Errors found while placing name the observer's file and JSON pointer / CSV line.
   auto place_error = [&](std::vector<Observer> v, std::optional<double> height) {
     try {
-      place_observers(v, idx, c, GroundOptions{2.0, height});
+      place_observers(v, idx, c, GroundOptions{2.0, height, std::nullopt});
     } catch (const ObserverError& e) {
       return std::string(e.what());
     }
@@ -369,7 +369,7 @@ TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
   const PointCloud in = io::read_point_cloud(scene());
   const AnyIndex idx = make_index(in.positions, IndexOptions{});
   std::vector<Observer> obs = read_observers(csv);
-  place_observers(obs, idx, in, GroundOptions{4.0, std::nullopt});
+  place_observers(obs, idx, in, GroundOptions{4.0, std::nullopt, std::nullopt});
   EXPECT_EQ(obs[0].position.z, 1.7);
   VisibilityOptions vo;
   vo.radius = 0.8;
@@ -474,4 +474,25 @@ TEST_F(VisibilityCli, FromCameraMarksThePointsItSees) {
     }
   }
   EXPECT_GT(total, 64 * 48 / 4);
+}
+
+TEST(Observers, InnerGroundRadiusKeepsTheEyeOnASlope) {
+  // A 1:2 slope z = x / 2 (points every 0.5): the lowest point within 4.9 of (10, 0) lies downhill
+  // at x = 5.5 (z 2.75); with an inner radius of 0.3 the ground is the point under the eye (z 5).
+  // An inner radius holding no point (between the samples) falls back to the outer radius.
+  PointCloud c;
+  for (int a = 0; a <= 40; ++a)
+    for (int b = -4; b <= 4; ++b) c.positions.push_back({0.5 * a, 0.5 * b, 0.25 * a});
+  const AnyIndex idx = make_index(c.positions, IndexOptions{});
+  std::vector<Observer> obs{parse_observer("10,0")};
+  obs[0].height = 1.5;
+  std::vector<Observer> outer = obs, inner = obs, fallback{parse_observer("10.25,0.25")};
+  fallback[0].height = 1.5;
+  place_observers(outer, idx, c, GroundOptions{4.9, std::nullopt, std::nullopt});
+  EXPECT_DOUBLE_EQ(outer[0].ground_z, 2.75);
+  place_observers(inner, idx, c, GroundOptions{4.9, std::nullopt, 0.3});
+  EXPECT_DOUBLE_EQ(inner[0].ground_z, 5.0);
+  EXPECT_DOUBLE_EQ(inner[0].position.z, 6.5);
+  place_observers(fallback, idx, c, GroundOptions{4.9, std::nullopt, 0.3});  // nearest point 0.35 away
+  EXPECT_DOUBLE_EQ(fallback[0].ground_z, 2.75);  // lowest within 4.9 of (10.25, 0.25): x = 5.5
 }

@@ -81,6 +81,10 @@ struct GroundOptions {
   /// Height used for observers that have neither z nor a height; unset = such observers are an
   /// error.
   std::optional<double> default_height;
+  /// When set (> 0), the ground is first searched within this smaller radius (the surface right
+  /// under the eye: on a slope the lowest point within `radius` lies downhill, putting the eye too
+  /// low), and within `radius` only when that holds no usable point. World units.
+  std::optional<double> inner_radius;
 };
 
 /// The local ground at (x, y): the lowest z among the cloud's points within horizontal distance

@@ -31,7 +31,7 @@ struct VisibilityOptions {
   bool progress = false;      ///< draw a progress bar on stderr (only if stderr is a terminal)
   /// Surfel mode (issue 16, section 5): when set, every point is the oriented disc of these
   /// attributes (indexed like the positions; estimate_surfels) instead of a sphere of `radius`,
-  /// and is_visible() uses the surfel rule. Must outlive the call.
+  /// and is_visible() uses the surfel (height-field) rule. Must outlive the call.
   const SurfelAttributes* surfels = nullptr;
   /// Spreads the point chunks over processes (rayscan::mpi, docs/mpi.md); nullptr = all here.
   /// With several processes, only the root's result is complete (per_observer, queries summed).
@@ -68,6 +68,19 @@ struct VisibilityResult {
 /// hidden by itself beyond a few metres unless tau >= r / tan(a). Aiming at the top of P's sphere
 /// (h_t = r) keeps the ray above a flat, level neighbourhood (it stays more than r above the
 /// neighbours' centres) while any real obstacle still blocks it. h_t = 0 is the plain rule.
+///
+/// Surfel rule (opts.surfels set; issue 16, section 5): the discs are a height field, the surface
+/// a first-return DSM records, solid below it. Rule 3 becomes: the segment from O to P' passes
+/// below no disc j, where "below" means: c_j projects onto the segment's horizontal projection at
+/// a parameter strictly between O and P', the segment's point there lies horizontally within r_j
+/// of c_j, and the disc's height there exceeds the segment's by more than tau. A disc's height at
+/// a horizontal offset is its plane's for discs within 45 degrees of level (limited to the disc's
+/// own vertical extent), its top c_j.z + r_j sqrt(1 - n_z^2) for steeper ones (walls, leaves). The
+/// discs of P's own surface that overlap P's disc (render::same_surface, centres within r_i + r_j)
+/// and P itself are not obstacles. So, unlike the spheres, a crown or a roof edge hides what a
+/// ray passes under, as it does in a DSM viewshed (gdal_viewshed, r.viewshed); use spheres for
+/// the true 3-D answer (under trees, overhangs, through gaps). Found by one traversal of the index
+/// pruned by the segment's horizontal projection (not the paper's ray query).
 /// `index` must be built over `positions`; i < positions.size(); `scratch` is caller-owned.
 bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Observer& observer,
                 PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch);
