@@ -620,7 +620,7 @@ inline constexpr std::size_t kMaxRayPacket = 16;
 
 namespace detail {
 
-/// The packet first hit of up to N <= 32 rays (kBest1 policy, OrderKey). One traversal state per
+/// The packet first hit of up to N <= 16 rays (kBest1 policy, OrderKey). One traversal state per
 /// ray (RayTraversal above: its node test, leaf work and candidate sink), driven down one shared
 /// node stack: a node is visited when any of the rays of its entry's mask still has it live, each
 /// live ray evaluates the node's points and tests the node's children with its own node test, and
@@ -638,7 +638,7 @@ namespace detail {
 template <unsigned N, SpatialIndex I>
 unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const RayQuery& q, Candidate* best,
                           RayQueryStats* stats) {
-  static_assert(N >= 1 && N <= 32);
+  static_assert(N >= 1 && N <= 16);
   using Node = typename I::Node;
   using RT = RayTraversal<true, I, OrderKey>;
   static constexpr OrderKey kKey{};
@@ -658,9 +658,39 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
   }
   stack.clear();
   if (root.mask) stack.push_back(root);
+  // Child test policy: SIMD over the rays (packet_child_slab: one lane per ray, each child box
+  // broadcast) when every ray's slab result is final (orders time / sphere_hit, no planes) and
+  // float-testable; else each ray's own test_children (SIMD over the children).
+  [[maybe_unused]] const simd::Kernels& kern = simd::active_kernels();
+  [[maybe_unused]] bool over_rays = false;
+  [[maybe_unused]] alignas(64) simd::SlabPacketF lanes;
+  [[maybe_unused]] auto set_lane = [&](unsigned i) {
+    const simd::SlabRayF& r = st[i]->sr;
+    for (int a = 0; a < 3; ++a) {
+      lanes.o_plus[a][i] = r.o_plus[a];
+      lanes.o_minus[a][i] = r.o_minus[a];
+      lanes.inv_d[a][i] = r.inv_d[a];
+    }
+    lanes.t_lo[i] = r.t_lo;
+    lanes.t_hi[i] = r.t_hi;
+  };
+  if constexpr (FloatChildBoxes<I>) {
+    over_rays = kern.packet_child_slab != nullptr;
+    for (unsigned i = 0; i < n; ++i)
+      over_rays = over_rays && st[i]->slab_is_final && st[i]->simd_children && st[i]->pad < kInf;
+    if (over_rays) {
+      for (unsigned i = 0; i < 16; ++i) {  // unused lanes: a ray that hits nothing (t_lo > t_hi)
+        for (int a = 0; a < 3; ++a) lanes.o_plus[a][i] = lanes.o_minus[a][i] = lanes.inv_d[a][i] = 0.0f;
+        lanes.t_lo[i] = 1.0f;
+        lanes.t_hi[i] = 0.0f;
+      }
+      for (unsigned i = 0; i < n; ++i) set_lane(i);
+    }
+  }
   Entry kids[8];
-  double lbs[N][8];
-  std::uint32_t hit[N];
+  double lbs[8];
+  double lbc[8][N];     // lbc[c][i]: ray i's bound of child c
+  std::uint32_t cm[8];  // cm[c]: the rays that hit child c
   while (!stack.empty()) {
     const Entry e = stack.back();
     stack.pop_back();
@@ -675,7 +705,13 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
       st[i]->traverse_from(e.node, e.lb[i]);
       continue;
     }
-    for (std::uint32_t m = act; m; m &= m - 1) st[__builtin_ctz(m)]->eval_points(e.node);
+    for (std::uint32_t m = act; m; m &= m - 1) {
+      RT& r = *st[__builtin_ctz(m)];
+      const double before = r.worst;
+      r.eval_points(e.node);
+      if constexpr (FloatChildBoxes<I>)
+        if (over_rays && r.worst != before) set_lane(static_cast<unsigned>(__builtin_ctz(m)));
+    }
     const unsigned nc = index.child_count(e.node);
     if (nc == 0) continue;
     if (nc > 8) {  // (no index here has more than 8 children): each ray alone below this node
@@ -689,11 +725,35 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
       continue;
     }
     std::uint32_t any = 0;
-    for (std::uint32_t m = act; m; m &= m - 1) {
-      const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-      hit[i] = st[i]->test_children(e.node, nc, lbs[i]);
-      any |= hit[i];
+    for (unsigned c = 0; c < nc; ++c) cm[c] = 0;
+    bool tested = false;
+    if constexpr (FloatChildBoxes<I>) {
+      if (over_rays) {
+        std::uint32_t hits[8];
+        alignas(64) float entry[8 * 16];
+        kern.packet_child_slab(index.child_boxes_f(e.node), lanes, N, hits, entry);
+        for (unsigned c = 0; c < nc; ++c)
+          for (std::uint32_t m = hits[c] & act; m; m &= m - 1) {
+            const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+            const double lb = std::max(static_cast<double>(entry[16 * c + i]), q.t_min);  // as test_children
+            if (!st[i]->live(lb)) continue;
+            cm[c] |= 1u << i;
+            lbc[c][i] = lb;
+            any |= 1u << c;
+          }
+        tested = true;
+      }
     }
+    if (!tested)
+      for (std::uint32_t m = act; m; m &= m - 1) {
+        const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+        for (std::uint32_t h = st[i]->test_children(e.node, nc, lbs); h; h &= h - 1) {
+          const unsigned c = static_cast<unsigned>(__builtin_ctz(h));
+          cm[c] |= 1u << i;
+          lbc[c][i] = lbs[c];
+          any |= 1u << c;
+        }
+      }
     // One entry per child hit by any ray, pushed far-to-near by the smallest bound of its rays.
     unsigned nk = 0;
     double key[8];
@@ -701,14 +761,12 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
       const unsigned c = static_cast<unsigned>(__builtin_ctz(any));
       Entry k;
       k.node = index.child(e.node, c);
-      k.mask = 0;
+      k.mask = cm[c];
       double kmin = kInf;
-      for (std::uint32_t m = act; m; m &= m - 1) {
+      for (std::uint32_t m = cm[c]; m; m &= m - 1) {
         const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-        if (!((hit[i] >> c) & 1u)) continue;
-        k.mask |= 1u << i;
-        k.lb[i] = lbs[i][c];
-        kmin = std::min(kmin, lbs[i][c]);
+        k.lb[i] = lbc[c][i];
+        kmin = std::min(kmin, lbc[c][i]);
       }
       unsigned j = nk++;
       while (j > 0 && key[j - 1] < kmin) {
