@@ -102,6 +102,35 @@ unsigned child_slab_sse2(const ChildBoxesF& b, const SlabRayF& r, float* entry) 
   return mask & ((1u << b.count) - 1u);
 }
 
+// Child boxes x rays of a packet: box i's six coordinates broadcast, 4 rays per register.
+void packet_child_slab_sse2(const ChildBoxesF& b, const SlabPacketF& p, unsigned lanes, std::uint32_t* hits,
+                            float* entry) {
+  const __m128 eps = _mm_set1_ps(kRelSlack);
+  const __m128 sign = _mm_set1_ps(-0.0f);
+  for (unsigned c = 0; c < b.count; ++c) {
+    const float* bx = b.base + static_cast<std::size_t>(c) * b.stride;
+    const __m128 lo[3] = {_mm_set1_ps(bx[0]), _mm_set1_ps(bx[1]), _mm_set1_ps(bx[2])};
+    const __m128 hi[3] = {_mm_set1_ps(bx[3]), _mm_set1_ps(bx[4]), _mm_set1_ps(bx[5])};
+    unsigned mask = 0;
+    for (unsigned h = 0; h < lanes; h += 4) {
+      __m128 tn = _mm_load_ps(p.t_lo + h), tf = _mm_load_ps(p.t_hi + h);
+      for (int a = 0; a < 3; ++a) {
+        const __m128 inv = _mm_load_ps(p.inv_d[a] + h);
+        const __m128 ta = _mm_mul_ps(_mm_sub_ps(lo[a], _mm_load_ps(p.o_plus[a] + h)), inv);
+        const __m128 tb = _mm_mul_ps(_mm_sub_ps(hi[a], _mm_load_ps(p.o_minus[a] + h)), inv);
+        __m128 t0 = _mm_min_ps(ta, tb), t1 = _mm_max_ps(ta, tb);
+        t0 = _mm_sub_ps(t0, _mm_mul_ps(_mm_andnot_ps(sign, t0), eps));
+        t1 = _mm_add_ps(t1, _mm_mul_ps(_mm_andnot_ps(sign, t1), eps));
+        tn = _mm_max_ps(t0, tn);  // a NaN in t0/t1 keeps the accumulator (conservative)
+        tf = _mm_min_ps(t1, tf);
+      }
+      mask |= static_cast<unsigned>(_mm_movemask_ps(_mm_cmple_ps(tn, tf))) << h;
+      _mm_storeu_ps(entry + 16 * c + h, tn);
+    }
+    hits[c] = mask;
+  }
+}
+
 [[maybe_unused]] void child_dist2_sse2(const ChildBoxesF& b, const float* q, float margin, float* lb2) {
   alignas(16) float lo[3][8] = {}, hi[3][8] = {};
   for (unsigned i = 0; i < b.count; ++i) {
@@ -192,6 +221,34 @@ __attribute__((target("avx2,fma"))) unsigned child_slab_avx2(const ChildBoxesF& 
   return mask & ((1u << b.count) - 1u);
 }
 
+__attribute__((target("avx2,fma"))) void packet_child_slab_avx2(const ChildBoxesF& b, const SlabPacketF& p,
+                                                                unsigned lanes, std::uint32_t* hits, float* entry) {
+  const __m256 eps = _mm256_set1_ps(kRelSlack);
+  const __m256 sign = _mm256_set1_ps(-0.0f);
+  for (unsigned c = 0; c < b.count; ++c) {
+    const float* bx = b.base + static_cast<std::size_t>(c) * b.stride;
+    const __m256 lo[3] = {_mm256_set1_ps(bx[0]), _mm256_set1_ps(bx[1]), _mm256_set1_ps(bx[2])};
+    const __m256 hi[3] = {_mm256_set1_ps(bx[3]), _mm256_set1_ps(bx[4]), _mm256_set1_ps(bx[5])};
+    unsigned mask = 0;
+    for (unsigned h = 0; h < lanes; h += 8) {
+      __m256 tn = _mm256_load_ps(p.t_lo + h), tf = _mm256_load_ps(p.t_hi + h);
+      for (int a = 0; a < 3; ++a) {
+        const __m256 inv = _mm256_load_ps(p.inv_d[a] + h);
+        const __m256 ta = _mm256_mul_ps(_mm256_sub_ps(lo[a], _mm256_load_ps(p.o_plus[a] + h)), inv);
+        const __m256 tb = _mm256_mul_ps(_mm256_sub_ps(hi[a], _mm256_load_ps(p.o_minus[a] + h)), inv);
+        __m256 t0a = _mm256_min_ps(ta, tb), t1a = _mm256_max_ps(ta, tb);
+        t0a = _mm256_fnmadd_ps(_mm256_andnot_ps(sign, t0a), eps, t0a);
+        t1a = _mm256_fmadd_ps(_mm256_andnot_ps(sign, t1a), eps, t1a);
+        tn = _mm256_max_ps(t0a, tn);
+        tf = _mm256_min_ps(t1a, tf);
+      }
+      mask |= static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ))) << h;
+      _mm256_storeu_ps(entry + 16 * c + h, tn);
+    }
+    hits[c] = mask;
+  }
+}
+
 [[maybe_unused]] __attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, const float* q, float margin,
                                                            float* lb2) {
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
@@ -243,6 +300,45 @@ __attribute__((target("avx2,fma"))) unsigned point_filter_avx2(const double* xyz
   return n;
 }
 
+// 16 rays per register (packets of more than 8 rays; smaller ones take the AVX2 kernel). GCC 12's
+// _mm512_min_ps/_mm512_max_ps pass an undefined pass-through operand that -Wmaybe-uninitialized
+// reports (a false positive inside the intrinsics header).
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+__attribute__((target("avx512f,avx512vl,avx2,fma"))) void packet_child_slab_avx512(const ChildBoxesF& b,
+                                                                                   const SlabPacketF& p,
+                                                                                   unsigned lanes,
+                                                                                   std::uint32_t* hits,
+                                                                                   float* entry) {
+  if (lanes <= 8) {
+    packet_child_slab_avx2(b, p, lanes, hits, entry);
+    return;
+  }
+  const __m512 eps = _mm512_set1_ps(kRelSlack);
+  const __m512i abs_mask = _mm512_set1_epi32(0x7fffffff);
+  const __m512 tl = _mm512_load_ps(p.t_lo), th = _mm512_load_ps(p.t_hi);
+  const __m512 inv[3] = {_mm512_load_ps(p.inv_d[0]), _mm512_load_ps(p.inv_d[1]), _mm512_load_ps(p.inv_d[2])};
+  const __m512 op[3] = {_mm512_load_ps(p.o_plus[0]), _mm512_load_ps(p.o_plus[1]), _mm512_load_ps(p.o_plus[2])};
+  const __m512 om[3] = {_mm512_load_ps(p.o_minus[0]), _mm512_load_ps(p.o_minus[1]), _mm512_load_ps(p.o_minus[2])};
+  for (unsigned c = 0; c < b.count; ++c) {
+    const float* bx = b.base + static_cast<std::size_t>(c) * b.stride;
+    __m512 tn = tl, tf = th;
+    for (int a = 0; a < 3; ++a) {
+      const __m512 ta = _mm512_mul_ps(_mm512_sub_ps(_mm512_set1_ps(bx[a]), op[a]), inv[a]);
+      const __m512 tb = _mm512_mul_ps(_mm512_sub_ps(_mm512_set1_ps(bx[3 + a]), om[a]), inv[a]);
+      __m512 t0a = _mm512_min_ps(ta, tb), t1a = _mm512_max_ps(ta, tb);
+      t0a = _mm512_fnmadd_ps(_mm512_castsi512_ps(_mm512_and_si512(_mm512_castps_si512(t0a), abs_mask)), eps, t0a);
+      t1a = _mm512_fmadd_ps(_mm512_castsi512_ps(_mm512_and_si512(_mm512_castps_si512(t1a), abs_mask)), eps, t1a);
+      tn = _mm512_max_ps(t0a, tn);
+      tf = _mm512_min_ps(t1a, tf);
+    }
+    hits[c] = static_cast<unsigned>(_mm512_cmp_ps_mask(tn, tf, _CMP_LE_OQ));
+    _mm512_storeu_ps(entry + 16 * c, tn);
+  }
+}
+
+#pragma GCC diagnostic pop
+
 // ---- AVX-512: 8 points per step (the child test stays 8-wide: an octree node has 8 children) ----
 
 __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx512(const double* xyz, unsigned count,
@@ -289,11 +385,12 @@ const Kernels& kernels_for(SimdPath p) {
   // slower than the scalar test on Table 1 kNN on the reference machine (bench/README.md, issue
   // 12), so knn_query keeps its scalar child test. The kernels stay for the next attempt (with the
   // in-register transpose of child_slab_avx2 instead of gathers) and are checked by test_simd.cpp.
-  static const Kernels k_scalar{SimdPath::scalar, nullptr, nullptr, nullptr};
+  static const Kernels k_scalar{SimdPath::scalar, nullptr, nullptr, nullptr, nullptr};
 #if RAYSCAN_X86
-  static const Kernels k_sse2{SimdPath::sse2, child_slab_sse2, point_filter_sse2, nullptr};
-  static const Kernels k_avx2{SimdPath::avx2, child_slab_avx2, point_filter_avx2, nullptr};
-  static const Kernels k_avx512{SimdPath::avx512, child_slab_avx2, point_filter_avx512, nullptr};
+  static const Kernels k_sse2{SimdPath::sse2, child_slab_sse2, point_filter_sse2, nullptr, packet_child_slab_sse2};
+  static const Kernels k_avx2{SimdPath::avx2, child_slab_avx2, point_filter_avx2, nullptr, packet_child_slab_avx2};
+  static const Kernels k_avx512{SimdPath::avx512, child_slab_avx2, point_filter_avx512, nullptr,
+                                packet_child_slab_avx512};
   switch (p) {
     case SimdPath::scalar: return k_scalar;
     case SimdPath::sse2: return k_sse2;

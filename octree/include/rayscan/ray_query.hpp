@@ -192,74 +192,102 @@ struct RefinedKey {
 
 namespace detail {
 
-/// The one traversal of the ray query (see ray_query for the semantics). Candidates go to the
-/// per-thread k-heap (scratch.cands) or, with kBest1 (k = 1: the first hit of a renderer), to
-/// `best` alone: no heap and no vector (a compile-time policy of this one traversal, not a copy).
-/// Expects a validated query, a non-empty index and k >= 1. Returns true when `best` was set
-/// (kBest1 only). `key_policy`: OrderKey or RefinedKey (see there).
+/// The one traversal of the ray query (see ray_query for the semantics), as the per-ray state and
+/// its policies: the node test (test_node, and test_children: all children of a node at once, SIMD
+/// on FloatChildBoxes indexes), the leaf work (eval_points: SIMD filter + exact double test) and
+/// the candidate sink (push_candidate with the dynamic k filter), plus the depth-first loop
+/// (traverse_from). ray_traverse runs the loop from the root for one ray; the packet first hit
+/// (first_hit_packet) drives several of these states down one shared stack and hands a subtree to
+/// traverse_from when the packet diverges, so both use the same node test and leaf work.
+///
+/// Candidates go to the per-thread k-heap (scratch.cands) or, with kBest1 (k = 1: the first hit of
+/// a renderer), to `best` alone: no heap and no vector (a compile-time policy, not a copy).
+/// Expects a validated query, a non-empty index and k >= 1. `key_policy`: OrderKey or RefinedKey.
+/// The constructor clears the per-thread scratch (one traversal per thread at a time; the states
+/// of one packet are all constructed before any of them traverses).
 template <bool kBest1, SpatialIndex I, class KeyPolicy = OrderKey>
-bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& best, RayQueryStats* stats,
-                  const KeyPolicy& key_policy = {}) {
+struct RayTraversal {
   using Node = typename I::Node;
+  static constexpr bool per_node = KeyPolicy::node_radius;
 
-  const Vec3 o = ray.origin();
-  const Vec3 d = ray.direction();
-  const Vec3 inv_d = 1.0 / d;
-  const std::span<const Vec3> pos = index.positions();
-  const std::span<const PointIndex> ids = index.ids();
-  const bool bounded = kBest1 || q.k != kAllPoints;
+  const I& index;
+  const RayQuery& q;
+  Candidate& best;
+  RayQueryStats* stats;
+  const KeyPolicy& key_policy;
+  Vec3 o, d, inv_d;
+  std::span<const Vec3> pos;
+  std::span<const PointIndex> ids;
+  bool bounded;
   bool found = false;  // kBest1: best holds a candidate
-  const bool sphere = q.order == RayOrder::sphere_hit;
-  const bool ray_order = q.order == RayOrder::ray;
-  const bool exact = q.node_distance == NodeDistance::exact;
-  const double radius = q.radius;
-  const double r2 = radius * radius;
-  const bool has_planes = !q.planes.empty();
-  constexpr bool per_node = KeyPolicy::node_radius;
-  if (per_node && ray_order)
-    throw std::invalid_argument("ray query: per-node radii need order time or sphere_hit");
-
-  const AABB root_box = index.node_bounds(index.root());
-  const double tol = 1e-9 * (glm::length(o - root_box.center()) + root_box.max_extent()) + 1e-300;
-
+  bool sphere, ray_order, exact, has_planes;
+  bool done = false;  // any_hit: a candidate was found
+  double radius, r2;
+  AABB root_box;
+  double tol;
   // Current bounds, tightened by the dynamic k filter (Algorithm 1, step 2).
   double worst = kInf;  // worst kept key once k candidates are held
-  double pad = radius;  // node distance bound: r, tightened to the k-bound for order ray
-  Vec3 o_plus = o + (pad + tol), o_minus = o - (pad + tol);  // slab planes of the box grown by pad
-  const double t_lo = q.t_min - tol;
-  double t_hi = (sphere ? q.t_max + radius : q.t_max) + tol;  // sphere keys satisfy t_p <= key + r
-
-  auto& scratch = detail::ray_scratch<Node>();
-  auto& nodes = scratch.nodes;
-  auto& cands = scratch.cands;
-  nodes.clear();
-  cands.clear();
-
-  // SIMD policies (simd.hpp). Point filter: bounds widened by far more than the difference between
-  // the SIMD (possibly fused) and the scalar evaluation of t_p and d^2 (a few ulps of |p - o| and
-  // |p - o|^2; |p - o| <= vmax for every point in the root box).
-  const simd::Kernels& kern = simd::active_kernels();
-  const double vmax = glm::length(o - root_box.center()) + 0.5 * glm::length(root_box.hi - root_box.lo);
-  const double slack_t = 1e-12 * vmax + 1e-300, slack_d2 = 1e-12 * vmax * vmax + 1e-300;
-  simd::PointFilterD pf{{o.x, o.y, o.z}, {d.x, d.y, d.z}, 0, 0, 0};
-  // Child test: float slabs relative to the index's float origin; rays with a direction component
-  // whose float reciprocal is not finite keep the scalar node test.
+  double pad;           // node distance bound: r, tightened to the k-bound for order ray
+  Vec3 o_plus, o_minus;  // slab planes of the box grown by pad
+  double t_lo, t_hi;
+  RayScratch<Node>& scratch;
+  const simd::Kernels& kern;
+  double slack_t = 0, slack_d2 = 0;
+  simd::PointFilterD pf;
   simd::SlabRayF sr{};
   bool simd_children = false;
-  [[maybe_unused]] Vec3 o_rel{0.0};
-  [[maybe_unused]] double mag = 0;
-  if constexpr (detail::FloatChildBoxes<I>) {
-    if (kern.child_slab) {
-      o_rel = o - index.float_origin();
-      const float fx = static_cast<float>(inv_d.x), fy = static_cast<float>(inv_d.y),
-                  fz = static_cast<float>(inv_d.z);
-      simd_children = std::isfinite(fx) && std::isfinite(fy) && std::isfinite(fz);
-      sr.inv_d[0] = fx, sr.inv_d[1] = fy, sr.inv_d[2] = fz;
-      mag = std::max({std::abs(o_rel.x), std::abs(o_rel.y), std::abs(o_rel.z)}) + index.float_extent();
+  Vec3 o_rel{0.0};
+  double mag = 0;
+  bool slab_is_final;  // children whose SIMD slab result is final (else it only prefilters)
+
+  RayTraversal(const I& index_, const Ray& ray, const RayQuery& q_, Candidate& best_, RayQueryStats* stats_,
+               const KeyPolicy& key_policy_)
+      : index(index_), q(q_), best(best_), stats(stats_), key_policy(key_policy_), o(ray.origin()),
+        d(ray.direction()), inv_d(1.0 / d), pos(index_.positions()), ids(index_.ids()),
+        bounded(kBest1 || q_.k != kAllPoints), sphere(q_.order == RayOrder::sphere_hit),
+        ray_order(q_.order == RayOrder::ray), exact(q_.node_distance == NodeDistance::exact),
+        has_planes(!q_.planes.empty()), radius(q_.radius), r2(q_.radius * q_.radius),
+        root_box(index_.node_bounds(index_.root())), scratch(detail::ray_scratch<Node>()),
+        kern(simd::active_kernels()) {
+    if (per_node && ray_order)
+      throw std::invalid_argument("ray query: per-node radii need order time or sphere_hit");
+    tol = 1e-9 * (glm::length(o - root_box.center()) + root_box.max_extent()) + 1e-300;
+    pad = radius;
+    o_plus = o + (pad + tol);
+    o_minus = o - (pad + tol);
+    t_lo = q.t_min - tol;
+    t_hi = (sphere ? q.t_max + radius : q.t_max) + tol;  // sphere keys satisfy t_p <= key + r
+    scratch.nodes.clear();
+    scratch.cands.clear();
+
+    // SIMD policies (simd.hpp). Point filter: bounds widened by far more than the difference
+    // between the SIMD (possibly fused) and the scalar evaluation of t_p and d^2 (a few ulps of
+    // |p - o| and |p - o|^2; |p - o| <= vmax for every point in the root box).
+    const double vmax = glm::length(o - root_box.center()) + 0.5 * glm::length(root_box.hi - root_box.lo);
+    slack_t = 1e-12 * vmax + 1e-300;
+    slack_d2 = 1e-12 * vmax * vmax + 1e-300;
+    pf = simd::PointFilterD{{o.x, o.y, o.z}, {d.x, d.y, d.z}, 0, 0, 0};
+    // Child test: float slabs relative to the index's float origin; rays with a direction
+    // component whose float reciprocal is not finite keep the scalar node test.
+    if constexpr (detail::FloatChildBoxes<I>) {
+      if (kern.child_slab) {
+        o_rel = o - index.float_origin();
+        const float fx = static_cast<float>(inv_d.x), fy = static_cast<float>(inv_d.y),
+                    fz = static_cast<float>(inv_d.z);
+        simd_children = std::isfinite(fx) && std::isfinite(fy) && std::isfinite(fz);
+        sr.inv_d[0] = fx, sr.inv_d[1] = fy, sr.inv_d[2] = fz;
+        mag = std::max({std::abs(o_rel.x), std::abs(o_rel.y), std::abs(o_rel.z)}) + index.float_extent();
+      }
     }
+    if constexpr (per_node) set_node_pad(index.root());
+    update_simd();
+    slab_is_final = !ray_order && !has_planes && !per_node;
   }
-  // Refreshes the per-ray SIMD constants after pad or t_hi changed (dynamic k filter).
-  auto update_simd = [&]() {
+  RayTraversal(const RayTraversal&) = delete;
+  RayTraversal& operator=(const RayTraversal&) = delete;
+
+  /// Refreshes the per-ray SIMD constants after pad or t_hi changed (dynamic k filter).
+  void update_simd() {
     pf.d2_max = (ray_order ? std::min(r2, worst * worst * (1.0 + 1e-12)) : per_node ? pad * pad : r2) + slack_d2;
     pf.t_lo = t_lo - slack_t;
     pf.t_hi = t_hi + slack_t;
@@ -278,23 +306,23 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
         sr.t_hi = static_cast<float>(t_hi + 0x1p-22 * std::abs(t_hi));
       }
     }
-  };
-  // Per-node radius policy: pad becomes the node's own bound (never above the query radius).
-  [[maybe_unused]] auto set_node_pad = [&](Node n) {
+  }
+
+  /// Per-node radius policy: pad becomes the node's own bound (never above the query radius).
+  void set_node_pad([[maybe_unused]] Node n) {
     if constexpr (per_node) {
       pad = std::min(radius, static_cast<double>(key_policy.node_radius_of(n)));
       o_plus = o + (pad + tol);
       o_minus = o - (pad + tol);
     }
-  };
-  if constexpr (per_node) set_node_pad(index.root());
-  update_simd();
-  // Children whose SIMD slab result is final (else it only prefilters the scalar test).
-  const bool slab_is_final = !ray_order && !has_planes && !per_node;
+  }
 
-  // Node test (section 3.3): false prunes the node; otherwise lb receives a lower bound of the key
-  // of any result inside it.
-  auto test_node = [&](const AABB& b, double& lb) __attribute__((always_inline)) -> bool {
+  /// True when a node with key lower bound lb can still hold a better result (k filter).
+  [[nodiscard]] bool live(double lb) const { return !(bounded && lb > worst + tol); }
+
+  /// Node test (section 3.3): false prunes the node; otherwise lb receives a lower bound of the key
+  /// of any result inside it.
+  __attribute__((always_inline)) bool test_node(const AABB& b, double& lb) {
     Interval iv;
     if (pad < kInf) {
       // Slab test of the box grown by pad: every qualifying point projects inside iv.
@@ -325,11 +353,44 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
       // nodes at a 25% higher cost, so it is not done.
       lb = std::max(iv.lo, q.t_min);
     }
-    return !(bounded && lb > worst + tol);
-  };
+    return live(lb);
+  }
 
-  bool done = false;  // any_hit: a candidate was found
-  auto push_candidate = [&](const detail::Candidate& c) __attribute__((always_inline)) {
+  /// Node test of the nc <= 8 children of n at once: bit i of the result is set when child i
+  /// passes, and lb[i] then holds its lower bound. SIMD policy on FloatChildBoxes indexes (all
+  /// children on their float boxes; the result is final for orders time / sphere_hit without
+  /// planes or per-node radii, else it prefilters the exact test), the scalar test otherwise.
+  __attribute__((always_inline)) unsigned test_children(Node n, unsigned nc, double* lb) {
+    unsigned out = 0;
+    if constexpr (detail::FloatChildBoxes<I>) {
+      if (simd_children && pad < kInf) {
+        float entry[8];
+        unsigned m = kern.child_slab(index.child_boxes_f(n), sr, entry);
+        while (m) {
+          const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+          m &= m - 1;
+          if (slab_is_final) {
+            lb[i] = std::max(static_cast<double>(entry[i]), q.t_min);
+            if (!live(lb[i])) continue;
+          } else {
+            const Node c = index.child(n, i);
+            if constexpr (per_node) set_node_pad(c);
+            if (!test_node(index.node_bounds(c), lb[i])) continue;
+          }
+          out |= 1u << i;
+        }
+        return out;
+      }
+    }
+    for (unsigned i = 0; i < nc; ++i) {
+      const Node c = index.child(n, i);
+      if constexpr (per_node) set_node_pad(c);
+      if (test_node(index.node_bounds(c), lb[i])) out |= 1u << i;
+    }
+    return out;
+  }
+
+  __attribute__((always_inline)) void push_candidate(const detail::Candidate& c) {
     if constexpr (kBest1) {
       if (found && !detail::cand_less(c, best)) return;
       best = c;
@@ -339,11 +400,12 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
         return;
       }
     } else if (q.any_hit) {
-      cands.push_back(c);
+      scratch.cands.push_back(c);
       done = true;
       return;
     }
     if constexpr (!kBest1) {
+      auto& cands = scratch.cands;
       if (!bounded) {
         cands.push_back(c);
         return;
@@ -361,7 +423,7 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
       if (cands.size() != q.k) return;
     }
     {  // dynamic k filter: tighten r (order ray) or t_max
-      worst = kBest1 ? best.key : cands.front().key;
+      worst = kBest1 ? best.key : scratch.cands.front().key;
       if (ray_order) {
         pad = std::min(radius, worst);
         o_plus = o + (pad + tol);
@@ -371,13 +433,14 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
       }
       update_simd();
     }
-  };
+  }
 
-  auto eval_points = [&](Node n) {
-    const SlotRange sr = index.node_points(n);
+  /// Leaf work: the points stored at node n (every node of a layered octree holds some).
+  __attribute__((always_inline)) void eval_points(Node n) {
+    const SlotRange range = index.node_points(n);
     if (stats) {
       ++stats->nodes_visited;
-      stats->points_tested += sr.size();
+      stats->points_tested += range.size();
     }
     auto eval_slot = [&](std::uint32_t s) __attribute__((always_inline)) {
       const RayPointTerms pt = ray_point_terms(o, d, pos[s]);
@@ -398,91 +461,91 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
       }
       push_candidate({key, ids[s], s, t, pt.d2});
     };
-    if (kern.point_filter && sr.size() >= 4) {
+    if (kern.point_filter && range.size() >= 4) {
       // SIMD filter, then the exact test on the survivors only (in slot order, as below).
       auto& sel = scratch.sel;
-      if (sel.size() < sr.size()) sel.resize(sr.size());
-      const unsigned n = kern.point_filter(&pos[sr.begin].x, sr.size(), pf, sel.data());
-      for (unsigned j = 0; j < n; ++j) {
-        eval_slot(sr.begin + sel[j]);
+      if (sel.size() < range.size()) sel.resize(range.size());
+      const unsigned m = kern.point_filter(&pos[range.begin].x, range.size(), pf, sel.data());
+      for (unsigned j = 0; j < m; ++j) {
+        eval_slot(range.begin + sel[j]);
         if (done) return;
       }
       return;
     }
-    for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+    for (std::uint32_t s = range.begin; s < range.end; ++s) {
       eval_slot(s);
       if (done) return;
     }
-  };
-
-  // Traversal. With k set: depth-first with the children of each node pushed far-to-near (so the
-  // nearest is expanded first and the k filter tightens early), skipping any popped node whose
-  // lower bound exceeds the current k-bound. Without k: plain depth-first.
-  double lb0 = 0;
-  if (test_node(root_box, lb0)) nodes.push_back({lb0, index.root()});
-  detail::NodeEntry<Node> kids[8];
-  while (!nodes.empty()) {
-    const detail::NodeEntry<Node> e = nodes.back();
-    nodes.pop_back();
-    if (bounded && e.lb > worst + tol) continue;
-    if constexpr (per_node) {
-      // The node's subtree bound: its own points' SIMD filter and its children's SIMD slab test;
-      // each surviving child is then tested with its own bound (below).
-      set_node_pad(e.node);
-      update_simd();
-    }
-    eval_points(e.node);
-    if (done) break;
-    const unsigned nc = index.child_count(e.node);
-    if (nc == 0) continue;  // a leaf: no child test (nor an indirect SIMD call)
-    unsigned nk = 0;
-    auto take = [&](const Node c, double lb) __attribute__((always_inline)) {
-      if (!bounded || nc > 8) {
-        nodes.push_back({lb, c});
-        return;
-      }
-      // Insertion sort into kids[] by descending lb (at most 8 children).
-      unsigned j = nk++;
-      while (j > 0 && kids[j - 1].lb < lb) {
-        kids[j] = kids[j - 1];
-        --j;
-      }
-      kids[j] = {lb, c};
-    };
-    if constexpr (detail::FloatChildBoxes<I>) {
-      if (simd_children && pad < kInf && nc <= 8) {
-        // SIMD node test policy: all children at once on their float boxes.
-        float entry[8];
-        unsigned m = kern.child_slab(index.child_boxes_f(e.node), sr, entry);
-        while (m) {
-          const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-          m &= m - 1;
-          const Node c = index.child(e.node, i);
-          double lb;
-          if (slab_is_final) {
-            lb = std::max(static_cast<double>(entry[i]), q.t_min);
-            if (bounded && lb > worst + tol) continue;
-          } else {
-            if constexpr (per_node) set_node_pad(c);
-            if (!test_node(index.node_bounds(c), lb)) continue;
-          }
-          take(c, lb);
-        }
-        for (unsigned j = 0; j < nk; ++j) nodes.push_back(kids[j]);
-        continue;
-      }
-    }
-    for (unsigned i = 0; i < nc; ++i) {
-      const Node c = index.child(e.node, i);
-      double lb;
-      if constexpr (per_node) set_node_pad(c);
-      if (!test_node(index.node_bounds(c), lb)) continue;
-      take(c, lb);
-    }
-    for (unsigned j = 0; j < nk; ++j) nodes.push_back(kids[j]);
   }
 
-  return found;
+  /// The depth-first loop over the subtree of `start` (which passed the node test with bound lb0).
+  /// With k set: the children of each node pushed far-to-near (so the nearest is expanded first
+  /// and the k filter tightens early), skipping any popped node whose lower bound exceeds the
+  /// current k-bound. Without k: plain depth-first. Uses the per-thread node stack above its
+  /// current top, and leaves it as it found it.
+  void traverse_from(Node start, double lb0) {
+    auto& nodes = scratch.nodes;
+    const std::size_t base = nodes.size();
+    nodes.push_back({lb0, start});
+    detail::NodeEntry<Node> kids[8];
+    while (nodes.size() > base) {
+      const detail::NodeEntry<Node> e = nodes.back();
+      nodes.pop_back();
+      if (!live(e.lb)) continue;
+      if constexpr (per_node) {
+        // The node's subtree bound: its own points' SIMD filter and its children's SIMD slab
+        // test; each surviving child is then tested with its own bound (test_children).
+        set_node_pad(e.node);
+        update_simd();
+      }
+      eval_points(e.node);
+      if (done) break;
+      const unsigned nc = index.child_count(e.node);
+      if (nc == 0) continue;  // a leaf: no child test (nor an indirect SIMD call)
+      if (nc > 8) {           // (no index here has more than 8 children; kept general)
+        for (unsigned i = 0; i < nc; ++i) {
+          const Node c = index.child(e.node, i);
+          double lb;
+          if constexpr (per_node) set_node_pad(c);
+          if (test_node(index.node_bounds(c), lb)) nodes.push_back({lb, c});
+        }
+        continue;
+      }
+      double lb[8];
+      unsigned m = test_children(e.node, nc, lb);
+      if (!bounded) {
+        for (; m; m &= m - 1) {
+          const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+          nodes.push_back({lb[i], index.child(e.node, i)});
+        }
+        continue;
+      }
+      unsigned nk = 0;
+      for (; m; m &= m - 1) {
+        // Insertion sort into kids[] by descending lb (at most 8 children).
+        const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+        unsigned j = nk++;
+        while (j > 0 && kids[j - 1].lb < lb[i]) {
+          kids[j] = kids[j - 1];
+          --j;
+        }
+        kids[j] = {lb[i], index.child(e.node, i)};
+      }
+      for (unsigned j = 0; j < nk; ++j) nodes.push_back(kids[j]);
+    }
+    nodes.resize(base);
+  }
+};
+
+/// The ray query for one ray: the traversal above from the root. Returns true when `best` was set
+/// (kBest1 only).
+template <bool kBest1, SpatialIndex I, class KeyPolicy = OrderKey>
+bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& best, RayQueryStats* stats,
+                  const KeyPolicy& key_policy = {}) {
+  RayTraversal<kBest1, I, KeyPolicy> rt(index, ray, q, best, stats, key_policy);
+  double lb0 = 0;
+  if (rt.test_node(rt.root_box, lb0)) rt.traverse_from(index.root(), lb0);
+  return rt.found;
 }
 
 }  // namespace detail
@@ -550,6 +613,212 @@ template <SpatialIndex I>
   detail::Candidate best;
   if (!detail::ray_traverse<true>(index, ray, q, best, stats)) return std::nullopt;
   return RayHit{best.id, best.slot, best.t, std::sqrt(best.d2), best.key};
+}
+
+/// Rays per packet of ray_first_hit_packet: at most this many rays share one traversal.
+inline constexpr std::size_t kMaxRayPacket = 16;
+
+namespace detail {
+
+/// The packet first hit of up to N <= 16 rays (kBest1 policy, OrderKey). One traversal state per
+/// ray (RayTraversal above: its node test, leaf work and candidate sink), driven down one shared
+/// node stack: a node is visited when any of the rays of its entry's mask still has it live, each
+/// live ray evaluates the node's points and tests the node's children with its own node test, and
+/// a child is pushed once with the mask of the rays that hit it (and each one's lower bound), so
+/// rays whose t_far (the k-bound) is beaten drop out of the subtrees behind their hit. When a
+/// node is left with a single live ray the packet has diverged there and that ray finishes the
+/// subtree alone (RayTraversal::traverse_from, the single-ray loop itself).
+///
+/// Why a loop of its own rather than a policy of traverse_from: the stack entries carry a ray
+/// mask and a bound per ray, and the child order is chosen for the packet; everything a node or a
+/// point is tested with is the single-ray code. Each ray's answer is the exact minimum (key, id)
+/// over every candidate, which conservative pruning always reaches, so it is bit-identical to
+/// ray_first_hit on that ray whatever order the nodes are visited in. Returns the mask of rays
+/// that found a hit (best[i] set).
+template <unsigned N, SpatialIndex I>
+unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const RayQuery& q, Candidate* best,
+                          RayQueryStats* stats) {
+  static_assert(N >= 1 && N <= 16);
+  using Node = typename I::Node;
+  using RT = RayTraversal<true, I, OrderKey>;
+  static constexpr OrderKey kKey{};
+  struct Entry {
+    Node node;
+    std::uint32_t mask;  // rays for which the node passed the node test
+    double lb[N];        // each one's lower bound (valid where mask has the bit)
+  };
+  thread_local std::vector<Entry> stack;
+  std::optional<RT> st[N];
+  Entry root;
+  root.node = index.root();
+  root.mask = 0;
+  for (unsigned i = 0; i < n; ++i) {
+    st[i].emplace(index, rays[i], q, best[i], stats, kKey);
+    if (st[i]->test_node(st[i]->root_box, root.lb[i])) root.mask |= 1u << i;
+  }
+  stack.clear();
+  if (root.mask) stack.push_back(root);
+  // Child test policy: SIMD over the rays (packet_child_slab: one lane per ray, each child box
+  // broadcast) when every ray's slab result is final (orders time / sphere_hit, no planes) and
+  // float-testable; else each ray's own test_children (SIMD over the children).
+  [[maybe_unused]] const simd::Kernels& kern = simd::active_kernels();
+  [[maybe_unused]] bool over_rays = false;
+  [[maybe_unused]] alignas(64) simd::SlabPacketF lanes;
+  [[maybe_unused]] auto set_lane = [&](unsigned i) {
+    const simd::SlabRayF& r = st[i]->sr;
+    for (int a = 0; a < 3; ++a) {
+      lanes.o_plus[a][i] = r.o_plus[a];
+      lanes.o_minus[a][i] = r.o_minus[a];
+      lanes.inv_d[a][i] = r.inv_d[a];
+    }
+    lanes.t_lo[i] = r.t_lo;
+    lanes.t_hi[i] = r.t_hi;
+  };
+  if constexpr (FloatChildBoxes<I>) {
+    over_rays = kern.packet_child_slab != nullptr;
+    for (unsigned i = 0; i < n; ++i)
+      over_rays = over_rays && st[i]->slab_is_final && st[i]->simd_children && st[i]->pad < kInf;
+    if (over_rays) {
+      for (unsigned i = 0; i < 16; ++i) {  // unused lanes: a ray that hits nothing (t_lo > t_hi)
+        for (int a = 0; a < 3; ++a) lanes.o_plus[a][i] = lanes.o_minus[a][i] = lanes.inv_d[a][i] = 0.0f;
+        lanes.t_lo[i] = 1.0f;
+        lanes.t_hi[i] = 0.0f;
+      }
+      for (unsigned i = 0; i < n; ++i) set_lane(i);
+    }
+  }
+  Entry kids[8];
+  double lbs[8];
+  double lbc[8][N];     // lbc[c][i]: ray i's bound of child c
+  std::uint32_t cm[8];  // cm[c]: the rays that hit child c
+  while (!stack.empty()) {
+    const Entry e = stack.back();
+    stack.pop_back();
+    std::uint32_t act = 0;
+    for (std::uint32_t m = e.mask; m; m &= m - 1) {
+      const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+      if (st[i]->live(e.lb[i])) act |= 1u << i;
+    }
+    if (!act) continue;
+    if ((act & (act - 1)) == 0) {  // one ray left: diverged, it finishes the subtree alone
+      const unsigned i = static_cast<unsigned>(__builtin_ctz(act));
+      st[i]->traverse_from(e.node, e.lb[i]);
+      continue;
+    }
+    for (std::uint32_t m = act; m; m &= m - 1) {
+      RT& r = *st[__builtin_ctz(m)];
+      const double before = r.worst;
+      r.eval_points(e.node);
+      if constexpr (FloatChildBoxes<I>)
+        if (over_rays && r.worst != before) set_lane(static_cast<unsigned>(__builtin_ctz(m)));
+    }
+    const unsigned nc = index.child_count(e.node);
+    if (nc == 0) continue;
+    if (nc > 8) {  // (no index here has more than 8 children): each ray alone below this node
+      for (std::uint32_t m = act; m; m &= m - 1) {
+        RT& r = *st[__builtin_ctz(m)];
+        for (unsigned c = 0; c < nc; ++c) {
+          double lb;
+          if (r.test_node(index.node_bounds(index.child(e.node, c)), lb)) r.traverse_from(index.child(e.node, c), lb);
+        }
+      }
+      continue;
+    }
+    std::uint32_t any = 0;
+    for (unsigned c = 0; c < nc; ++c) cm[c] = 0;
+    bool tested = false;
+    if constexpr (FloatChildBoxes<I>) {
+      if (over_rays) {
+        std::uint32_t hits[8];
+        alignas(64) float entry[8 * 16];
+        kern.packet_child_slab(index.child_boxes_f(e.node), lanes, N, hits, entry);
+        for (unsigned c = 0; c < nc; ++c)
+          for (std::uint32_t m = hits[c] & act; m; m &= m - 1) {
+            const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+            const double lb = std::max(static_cast<double>(entry[16 * c + i]), q.t_min);  // as test_children
+            if (!st[i]->live(lb)) continue;
+            cm[c] |= 1u << i;
+            lbc[c][i] = lb;
+            any |= 1u << c;
+          }
+        tested = true;
+      }
+    }
+    if (!tested)
+      for (std::uint32_t m = act; m; m &= m - 1) {
+        const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+        for (std::uint32_t h = st[i]->test_children(e.node, nc, lbs); h; h &= h - 1) {
+          const unsigned c = static_cast<unsigned>(__builtin_ctz(h));
+          cm[c] |= 1u << i;
+          lbc[c][i] = lbs[c];
+          any |= 1u << c;
+        }
+      }
+    // One entry per child hit by any ray, pushed far-to-near by the smallest bound of its rays.
+    unsigned nk = 0;
+    double key[8];
+    for (; any; any &= any - 1) {
+      const unsigned c = static_cast<unsigned>(__builtin_ctz(any));
+      Entry k;
+      k.node = index.child(e.node, c);
+      k.mask = cm[c];
+      double kmin = kInf;
+      for (std::uint32_t m = cm[c]; m; m &= m - 1) {
+        const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+        k.lb[i] = lbc[c][i];
+        kmin = std::min(kmin, lbc[c][i]);
+      }
+      unsigned j = nk++;
+      while (j > 0 && key[j - 1] < kmin) {
+        kids[j] = kids[j - 1];
+        key[j] = key[j - 1];
+        --j;
+      }
+      kids[j] = k;
+      key[j] = kmin;
+    }
+    for (unsigned j = 0; j < nk; ++j) stack.push_back(kids[j]);
+  }
+  std::uint32_t found = 0;
+  for (unsigned i = 0; i < n; ++i)
+    if (st[i]->found) found |= 1u << i;
+  return found;
+}
+
+}  // namespace detail
+
+/// Packet first hit (issue 12, "coherent rays"): out[i] = ray_first_hit(index, rays[i], q) for
+/// every i, bit for bit, computed for up to kMaxRayPacket rays at a time with one traversal that
+/// shares the node stack and visits of the rays (detail::first_hit_packet): meant for coherent
+/// rays such as the camera rays of a 2x2 or 4x4 pixel tile (cf. Embree's rtcIntersect4/8/16 and
+/// Wald et al., "Interactive Rendering with Coherent Ray Tracing", 2001). Incoherent rays still
+/// get the right answers (the packet splits into single rays where it diverges), only slower.
+/// Longer spans are answered in packets of kMaxRayPacket consecutive rays. With q.any_hit the
+/// answer depends on the visiting order, so each ray runs ray_first_hit alone.
+/// `q` must have been checked with q.validate(), as for ray_first_hit. Throws std::invalid_argument
+/// when out.size() != rays.size(). Thread-safe (per-thread scratch).
+template <SpatialIndex I>
+void ray_first_hit_packet(const I& index, std::span<const Ray> rays, const RayQuery& q,
+                          std::span<std::optional<RayHit>> out, RayQueryStats* stats = nullptr) {
+  if (out.size() != rays.size())
+    throw std::invalid_argument("ray_first_hit_packet: " + std::to_string(out.size()) + " results for " +
+                                std::to_string(rays.size()) + " rays");
+  if (index.empty() || q.any_hit) {
+    for (std::size_t i = 0; i < rays.size(); ++i) out[i] = ray_first_hit(index, rays[i], q, stats);
+    return;
+  }
+  for (std::size_t b = 0; b < rays.size(); b += kMaxRayPacket) {
+    const unsigned n = static_cast<unsigned>(std::min(kMaxRayPacket, rays.size() - b));
+    detail::Candidate best[kMaxRayPacket];
+    const std::uint32_t found =
+        n <= 4   ? detail::first_hit_packet<4>(index, rays.data() + b, n, q, best, stats)
+        : n <= 8 ? detail::first_hit_packet<8>(index, rays.data() + b, n, q, best, stats)
+                 : detail::first_hit_packet<kMaxRayPacket>(index, rays.data() + b, n, q, best, stats);
+    for (unsigned i = 0; i < n; ++i)
+      out[b + i] = (found >> i) & 1u ? std::optional<RayHit>(RayHit{best[i].id, best[i].slot, best[i].t,
+                                                                     std::sqrt(best[i].d2), best[i].key})
+                                     : std::nullopt;
+  }
 }
 
 /// Convenience overload returning a new vector; see the overload above.

@@ -54,6 +54,16 @@ struct ChildBoxesF {
   unsigned count = 0;   ///< number of children (<= 8)
 };
 
+/// SlabRayF of a packet of up to 16 rays, one lane per ray (the SIMD-over-rays form of the child
+/// test, issue 12 "coherent rays"). Unused lanes must hold a never-hitting ray (t_lo > t_hi).
+struct SlabPacketF {
+  alignas(64) float o_plus[3][16];
+  alignas(64) float o_minus[3][16];
+  alignas(64) float inv_d[3][16];
+  alignas(64) float t_lo[16];
+  alignas(64) float t_hi[16];
+};
+
 /// Per-ray constants of the point filter (double, world coordinates).
 struct PointFilterD {
   double o[3];       ///< ray origin
@@ -65,6 +75,12 @@ struct PointFilterD {
 /// Slab test of up to 8 child boxes: bit i of the result is set when box i grown as in `r`
 /// meets [t_lo, t_hi] (conservatively); entry[i] receives a lower bound of its entry parameter.
 using ChildSlabFn = unsigned (*)(const ChildBoxesF& boxes, const SlabRayF& r, float* entry);
+/// Slab test of up to 8 child boxes against the rays of lanes [0, lanes) of a packet (lanes <= 16):
+/// bit j of hits[i] is set when box i grown as in lane j meets its [t_lo, t_hi] (the same
+/// conservative test as ChildSlabFn), entry[i * 16 + j] receives a lower bound of the entry
+/// parameter. Lanes past `lanes` (up to the next multiple of the vector width) may be computed too.
+using PacketChildSlabFn = void (*)(const ChildBoxesF& boxes, const SlabPacketF& p, unsigned lanes,
+                                   std::uint32_t* hits, float* entry);
 /// Point filter over positions xyz[0..count) (AoS doubles, 3 per point): writes the local
 /// indices of the points that may pass to out (capacity count) and returns how many. The
 /// filter may keep points that fail (never drops one that passes).
@@ -82,6 +98,7 @@ struct Kernels {
   ChildSlabFn child_slab;      ///< nullptr for the scalar path
   PointFilterFn point_filter;  ///< nullptr for the scalar path (with d = 0 it filters |p - o|^2)
   ChildDist2Fn child_dist2;    ///< nullptr for the scalar path
+  PacketChildSlabFn packet_child_slab;  ///< nullptr for the scalar path
 };
 
 /// The kernels of the active path (simd_path()).
