@@ -51,7 +51,7 @@ for fmt in ${FUZZ_TARGETS:-las ply pcd text laz copc rsi}; do
     text) seeds=() ;;
     laz) seeds=(tests/data/laz/append-bug.laz) ;;  # + the small LAZ files in regressions/laz
     rsi) seeds=() ;;  # the small index files in regressions/rsi (built by `rayscan index`)
-    copc) seeds=(); for f in ../shared/data/laz/*.copc.laz; do [ -f "$f" ] && seeds+=("$f"); done ;;
+    copc) seeds=(tests/data/laz/*.copc.laz) ;;  # lone-star.copc.laz (bundled, 2.7 MB)
   esac
   for f in "${seeds[@]}"; do
     # Seeds over 256 KiB are cut to their head (libFuzzer's -max_len); small ones are whole.

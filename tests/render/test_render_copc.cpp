@@ -18,9 +18,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// The bundled copy (tests/data/laz, attribution in tests/data/README.md), else ../shared/data.
 fs::path lone_star() {
-  const fs::path p = fs::path(RAYSCAN_SHARED_DATA) / "laz" / "lone-star.copc.laz";
-  return fs::exists(p) ? p : fs::path();
+  for (const fs::path dir : {fs::path(RAYSCAN_TEST_DATA), fs::path(RAYSCAN_SHARED_DATA)})
+    if (const fs::path p = dir / "laz" / "lone-star.copc.laz"; fs::exists(p)) return p;
+  return {};
 }
 
 // A small view of the cloud: from `from` (a fraction of the box diagonal away from the centre).
@@ -41,7 +43,7 @@ Scene copc_scene(const AABB& b, const Vec3& from) {
 
 TEST(RenderCopc, InPlaceRenderEqualsTheWholeFileRender) {
   const fs::path p = lone_star();
-  if (p.empty()) GTEST_SKIP() << "../shared/data/laz/lone-star.copc.laz is absent";
+  if (p.empty()) GTEST_SKIP() << "lone-star.copc.laz is in neither tests/data/laz nor ../shared/data/laz";
   const PointCloud pc = io::read_point_cloud(p, io::ReadOptions{.scalars = false});
   const AABB b = pc.bounds();
   for (ColorMode mode : {ColorMode::intensity, ColorMode::elevation}) {
@@ -84,7 +86,7 @@ TEST(RenderCopc, InPlaceRenderEqualsTheWholeFileRender) {
 
 TEST(RenderCopc, AutoRadiusSamplesNodesAndTracingStartsWithoutReadingTheFile) {
   const fs::path p = lone_star();
-  if (p.empty()) GTEST_SKIP() << "../shared/data/laz/lone-star.copc.laz is absent";
+  if (p.empty()) GTEST_SKIP() << "lone-star.copc.laz is in neither tests/data/laz nor ../shared/data/laz";
   const PointCloud pc = io::read_point_cloud(p, io::ReadOptions{.scalars = false});
   const AABB b = pc.bounds();
   // The auto radius: the median spacing at CopcIndex::spacing_samples, whose nearest neighbours
