@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -108,6 +109,59 @@ struct Agreement {
   double rayscan_visible = 0.0, gdal_visible = 0.0;  ///< fractions of those cells visible
 };
 
+/// `gdal_viewshed` on dir/dsm.tif from (ox, oy), `eye` above the DSM, target height 0 (-tz 0
+/// -cc 0; 1 = visible): its band, row-major. Empty (with a test failure) when the tool fails or its
+/// raster does not have the grid's size.
+std::vector<float> gdal_viewshed_band(const fs::path& dir, double ox, double oy, double eye, const GridSpec& grid) {
+  const std::string cmd = "gdal_viewshed -q -ox " + std::to_string(ox) + " -oy " + std::to_string(oy) + " -oz " +
+                          std::to_string(eye) + " -tz 0 -cc 0 -vv 1 -iv 0 -ov 0 '" + (dir / "dsm.tif").string() +
+                          "' '" + (dir / "gdal.tif").string() + "'";
+  const auto g = rayscan::test::run_command(cmd, true);
+  EXPECT_EQ(g.code, 0) << cmd << "\n" << g.out;
+  int gc = 0, gr = 0;
+  std::vector<float> gv = read_band(dir / "gdal.tif", gc, gr);
+  EXPECT_EQ(gc, static_cast<int>(grid.cols));
+  EXPECT_EQ(gr, static_cast<int>(grid.rows));
+  if (g.code != 0 || gc != static_cast<int>(grid.cols) || gr != static_cast<int>(grid.rows)) gv.clear();
+  return gv;
+}
+
+/// rayscan's viewshed raster of `pc` (one observer at (ox, oy), `eye` above its ground, the
+/// `primitive`, `target_height` when given, cells of `cell`) compared with gdal's band `gv` on the
+/// cells that contain points.
+Agreement agreement_with_gdal(const PointCloud& pc, const fs::path& dir, double ox, double oy, double eye,
+                              double cell, const std::string& primitive, std::optional<double> target_height,
+                              const std::vector<float>& gv) {
+  VisibilityJobOptions o;
+  o.cloud = &pc;
+  Observer ob;
+  ob.position = {ox, oy, 0.0};
+  ob.height = eye;
+  o.observers.push_back(ob);
+  o.primitive = primitive;
+  if (target_height) o.target_height = *target_height;
+  o.raster = dir / ("rayscan_" + primitive + ".tif");
+  o.cell = cell;
+  o.raster_value = "viewshed";
+  o.write_preview = false;
+  const VisibilityJobResult r = run_visibility(o);
+  Agreement a;
+  std::size_t cells = 0, same = 0, rv = 0, gvis = 0;
+  for (std::size_t c = 0; c < r.raster->values.size(); ++c) {
+    const float v = r.raster->values[c];
+    if (std::isnan(v)) continue;  // no points in the cell
+    ++cells;
+    const bool mine = v > 0.5f, theirs = gv[c] > 0.5f;
+    same += mine == theirs;
+    rv += mine;
+    gvis += theirs;
+  }
+  a.agree = double(same) / double(cells);
+  a.rayscan_visible = double(rv) / double(cells);
+  a.gdal_visible = double(gvis) / double(cells);
+  return a;
+}
+
 }  // namespace
 
 TEST(ViewshedVsGdal, SurfelTargetHeightZeroAgreesWithGdalViewshedOnTheDsm) {
@@ -130,45 +184,10 @@ TEST(ViewshedVsGdal, SurfelTargetHeightZeroAgreesWithGdalViewshedOnTheDsm) {
   write_geotiff(dir / "dsm.tif", dsm, {});
 
   const double ox = 30.5, oy = 40.5, eye = 2.0;  // a cell centre, on open ground
-  const std::string cmd = "gdal_viewshed -q -ox " + std::to_string(ox) + " -oy " + std::to_string(oy) + " -oz " +
-                          std::to_string(eye) + " -tz 0 -cc 0 -vv 1 -iv 0 -ov 0 '" + (dir / "dsm.tif").string() +
-                          "' '" + (dir / "gdal.tif").string() + "'";
-  const auto g = rayscan::test::run_command(cmd, true);
-  ASSERT_EQ(g.code, 0) << cmd << "\n" << g.out;
-  int gc = 0, gr = 0;
-  const std::vector<float> gv = read_band(dir / "gdal.tif", gc, gr);
-  ASSERT_EQ(gc, static_cast<int>(grid.cols));
-  ASSERT_EQ(gr, static_cast<int>(grid.rows));
-
+  const std::vector<float> gv = gdal_viewshed_band(dir, ox, oy, eye, grid);
+  ASSERT_EQ(gv.size(), std::size_t(grid.cols) * grid.rows);
   auto run = [&](const std::string& primitive) {
-    VisibilityJobOptions o;
-    o.cloud = &pc;
-    Observer ob;
-    ob.position = {ox, oy, 0.0};
-    ob.height = eye;
-    o.observers.push_back(ob);
-    o.primitive = primitive;
-    o.target_height = 0.0;
-    o.raster = dir / ("rayscan_" + primitive + ".tif");
-    o.cell = cell;
-    o.raster_value = "viewshed";
-    o.write_preview = false;
-    const VisibilityJobResult r = run_visibility(o);
-    Agreement a;
-    std::size_t cells = 0, same = 0, rv = 0, gvis = 0;
-    for (std::size_t c = 0; c < r.raster->values.size(); ++c) {
-      const float v = r.raster->values[c];
-      if (std::isnan(v)) continue;  // no points in the cell
-      ++cells;
-      const bool mine = v > 0.5f, theirs = gv[c] > 0.5f;
-      same += mine == theirs;
-      rv += mine;
-      gvis += theirs;
-    }
-    a.agree = double(same) / double(cells);
-    a.rayscan_visible = double(rv) / double(cells);
-    a.gdal_visible = double(gvis) / double(cells);
-    return a;
+    return agreement_with_gdal(pc, dir, ox, oy, eye, cell, primitive, 0.0, gv);
   };
   const Agreement surfel = run("surfel"), sphere = run("sphere");
   std::printf("viewshed vs gdal_viewshed (%u x %u cells of %.1f): surfel agrees on %.2f%% (rayscan %.2f%% visible, "
@@ -207,45 +226,12 @@ TEST(ViewshedVsGdal, SurfelAgreesWithGdalViewshedOnTheRealAutzenScan) {
   const double ox = 636781.5, oy = 849121.5, eye = 6.0;  // a cell centre on the open field
   // gdal's -oz is above the DSM at the observer's cell; rayscan's surfel eye is `eye` above the
   // lowest point within the median disc radius (0.13 ft lower here).
-  const std::string cmd = "gdal_viewshed -q -ox " + std::to_string(ox) + " -oy " + std::to_string(oy) + " -oz " +
-                          std::to_string(eye) + " -tz 0 -cc 0 -vv 1 -iv 0 -ov 0 '" + (dir / "dsm.tif").string() +
-                          "' '" + (dir / "gdal.tif").string() + "'";
-  const auto g = rayscan::test::run_command(cmd, true);
-  ASSERT_EQ(g.code, 0) << cmd << "\n" << g.out;
-  int gc = 0, gr = 0;
-  const std::vector<float> gv = read_band(dir / "gdal.tif", gc, gr);
-  ASSERT_EQ(gc, static_cast<int>(grid.cols));
-  ASSERT_EQ(gr, static_cast<int>(grid.rows));
-
+  const std::vector<float> gv = gdal_viewshed_band(dir, ox, oy, eye, grid);
+  ASSERT_EQ(gv.size(), std::size_t(grid.cols) * grid.rows);
   auto run = [&](const std::string& primitive) {
-    VisibilityJobOptions o;
-    o.cloud = &pc;
-    Observer ob;
-    ob.position = {ox, oy, 0.0};
-    ob.height = eye;
-    o.observers.push_back(ob);
-    o.primitive = primitive;
-    if (primitive == "surfel") o.target_height = 0.0;  // the documented mode (also the default)
-    o.raster = dir / ("rayscan_" + primitive + ".tif");
-    o.cell = cell;
-    o.raster_value = "viewshed";
-    o.write_preview = false;
-    const VisibilityJobResult r = run_visibility(o);
-    Agreement a;
-    std::size_t cells = 0, same = 0, rv = 0, gvis = 0;
-    for (std::size_t c = 0; c < r.raster->values.size(); ++c) {
-      const float v = r.raster->values[c];
-      if (std::isnan(v)) continue;  // no points in the cell
-      ++cells;
-      const bool mine = v > 0.5f, theirs = gv[c] > 0.5f;
-      same += mine == theirs;
-      rv += mine;
-      gvis += theirs;
-    }
-    a.agree = double(same) / double(cells);
-    a.rayscan_visible = double(rv) / double(cells);
-    a.gdal_visible = double(gvis) / double(cells);
-    return a;
+    // Target height 0 is the documented surfel mode; the sphere mode keeps its default (r).
+    const std::optional<double> target = primitive == "surfel" ? std::optional<double>(0.0) : std::nullopt;
+    return agreement_with_gdal(pc, dir, ox, oy, eye, cell, primitive, target, gv);
   };
   const Agreement surfel = run("surfel"), sphere = run("sphere");
   std::printf("autzen viewshed vs gdal_viewshed (%u x %u cells of 3 ft): surfel agrees on %.2f%% (rayscan %.2f%% "
