@@ -108,7 +108,7 @@ bool height_field_blocked(const I& idx, const SurfelAttributes& sa, const Vec3& 
 // One line-of-sight decision (see is_visible in the header). `queried` is set when a ray query
 // was issued; `dist` receives D.
 template <class I>
-bool line_of_sight(const I& idx, [[maybe_unused]] std::span<const Vec3> positions, const Observer& obs, double max_d,
+bool line_of_sight(const I& idx, const Observer& obs, double max_d,
                    const Vec3& p, PointIndex i, const VisibilityOptions& opts,
                    std::vector<RayHit>& hits, bool& queried, double& dist) {
   queried = false;
@@ -209,7 +209,7 @@ bool is_visible_over(const Index& index, std::span<const Vec3> positions, const 
   double dist;
   return visit_index(
       [&](const auto& idx) {
-        return line_of_sight(idx, positions, observer, max_d, positions[i], i, opts, scratch, queried, dist);
+        return line_of_sight(idx, observer, max_d, positions[i], i, opts, scratch, queried, dist);
       },
       index);
 }
@@ -261,7 +261,7 @@ VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec
                     const PointIndex i = ids[s];
                     bool queried;
                     double dist;
-                    const bool vis = line_of_sight(idx, positions, observers[k], max_d[k], pos[s], i, opts,
+                    const bool vis = line_of_sight(idx, observers[k], max_d[k], pos[s], i, opts,
                                                    L.hits, queried, dist);
                     L.queries += queried;
                     if (!vis) continue;

@@ -37,11 +37,28 @@ std::array<double, 2> percentile_range_hist(const std::vector<std::uint64_t>& hi
   return {a, b > a ? b : a + 1.0};
 }
 
-// The same ranks of 16-bit values from a histogram (one pass, no copy of the values).
-std::array<double, 2> percentile_range_u16(std::span<const std::uint16_t> v) {
-  std::vector<std::uint64_t> hist(65536, 0);
-  for (const std::uint16_t x : v) ++hist[x];
-  return percentile_range_hist(hist, v.size());
+// True when some channel of `rgb` exceeds 255 (16-bit colour). Only that matters, so the parallel
+// read stops at the first such value (16-bit colour: after a few points; 8-bit: one read of all).
+bool any_wide_rgb(std::span<const Rgb16> rgb) {
+  std::atomic<bool> any_wide{false};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rgb.size(), 1 << 16), [&](const auto& r) {
+    if (any_wide.load(std::memory_order_relaxed)) return;
+    std::uint16_t mx = 0;
+    for (std::size_t i = r.begin(); i != r.end(); ++i) mx = std::max({mx, rgb[i].r, rgb[i].g, rgb[i].b});
+    if (mx > 255) any_wide = true;
+  });
+  return any_wide.load();
+}
+
+// The whole cloud's attributes as a stream of one block.
+AlbedoStream one_block(const AlbedoAttributes& a, std::size_t n) {
+  AlbedoStream s;
+  s.points = n;
+  s.rgb = a.rgb.size() == n;
+  s.intensity = a.intensity.size() == n;
+  s.classification = a.classification.size() == n;
+  s.blocks = [a](const std::function<bool(const AlbedoAttributes&)>& each) { each(a); };
+  return s;
 }
 
 const char* kNoRgb = "material color \"rgb\": the cloud has no RGB colours (use "
@@ -61,14 +78,7 @@ AlbedoRule::AlbedoRule(const AlbedoStream& s, const MaterialDesc& m, const Vec3&
     case ColorMode::rgb: {
       if (!s.rgb) throw std::invalid_argument(kNoRgb);
       bool wide = false;
-      s.blocks([&](const AlbedoAttributes& a) {
-        for (const Rgb16& c : a.rgb)
-          if (std::max({c.r, c.g, c.b}) > 255) {
-            wide = true;
-            return false;
-          }
-        return true;
-      });
+      s.blocks([&](const AlbedoAttributes& a) { return !(wide = any_wide_rgb(a.rgb)); });
       set_rgb_scale(wide);
       break;
     }
@@ -109,43 +119,7 @@ AlbedoRule::AlbedoRule(const AlbedoStream& s, const MaterialDesc& m, const Vec3&
 }
 
 AlbedoRule::AlbedoRule(const AlbedoAttributes& a, std::size_t n, const MaterialDesc& m, const Vec3& up)
-    : material_(m), up_(glm::normalize(up)) {
-  switch (m.mode) {
-    case ColorMode::constant: break;
-    case ColorMode::rgb: {
-      if (a.rgb.size() != n) throw std::invalid_argument(kNoRgb);
-      // Only whether some channel exceeds 255 matters: stop at the first one that does (16-bit
-      // colour: after a few points; 8-bit colour: one parallel read of all of them).
-      std::atomic<bool> any_wide{false};
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1 << 16), [&](const auto& r) {
-        if (any_wide.load(std::memory_order_relaxed)) return;
-        std::uint16_t mx = 0;
-        for (std::size_t i = r.begin(); i != r.end(); ++i) mx = std::max({mx, a.rgb[i].r, a.rgb[i].g, a.rgb[i].b});
-        if (mx > 255) any_wide = true;
-      });
-      set_rgb_scale(any_wide.load());
-      break;
-    }
-    case ColorMode::classification:
-      if (a.classification.size() != n)
-        throw std::invalid_argument("material color \"classification\": the cloud has no classification");
-      break;
-    case ColorMode::intensity:
-      if (a.intensity.size() != n) throw std::invalid_argument("material color \"intensity\": the cloud has no intensity");
-      range_ = m.range ? *m.range : percentile_range_u16(a.intensity);
-      break;
-    case ColorMode::elevation:
-      if (!m.range) {
-        std::vector<double> v(n);
-        for (std::size_t i = 0; i < n; ++i) v[i] = glm::dot(a.positions[i], up_);
-        range_ = percentile_range(std::move(v));
-      } else {
-        range_ = *m.range;
-      }
-      break;
-  }
-  inv_ = 1.0 / (range_[1] - range_[0]);
-}
+    : AlbedoRule(one_block(a, n), m, up) {}
 
 AlbedoAttributes albedo_attributes(const PointCloud& cloud) {
   return {cloud.positions, cloud.rgb, cloud.intensity, cloud.classification};

@@ -157,7 +157,7 @@ void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
   t0 = std::chrono::steady_clock::now();
   try {
     r.radius = choose_radius(scene.radius, scene.auto_radius_factor, [&] {
-      // 2000 samples (not the in-memory path's 20000): a kNN query on the COPC hierarchy tests
+      // kCopcSpacingSamples (not the in-memory path's 20000): a kNN query on the COPC hierarchy tests
       // every point of the ancestor nodes (tens of thousands each), so each sample costs more.
       const std::vector<Vec3> samples = copc.spacing_samples(kCopcSpacingSamples);
       return median_nn_spacing_of(copc, std::span<const Vec3>(samples), samples.size());
@@ -167,9 +167,9 @@ void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
   }
   if (r.radius.automatic) {
     std::snprintf(buf, sizeof buf,
-                  "radius auto: median nearest-neighbour spacing %.6g (2000 samples from at most 64 nodes) x factor %.3g = %.6g "
-                  "(%.2f s)",
-                  r.radius.spacing, r.radius.factor, r.radius.radius, seconds_since(t0));
+                  "radius auto: median nearest-neighbour spacing %.6g (%zu samples from at most 64 nodes) x factor %.3g = "
+                  "%.6g (%.2f s)",
+                  r.radius.spacing, kCopcSpacingSamples, r.radius.factor, r.radius.radius, seconds_since(t0));
     ctl.info(buf);
   }
   copc.trim_cache();

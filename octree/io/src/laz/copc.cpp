@@ -275,6 +275,21 @@ void CopcIndex::decode_records(Node n, std::uint32_t layers, std::vector<std::ui
 namespace {
 // LAS 1.4 R15 tables 13-17 (PDRF 6-8): intensity at byte 12, classification at 16, RGB at 30.
 constexpr std::size_t kIntensityAt = 12, kClassAt = 16, kRgbAt = 30;
+
+// X/Y/Z of one point record (int32 at bytes 0, 4, 8 of every PDRF), scaled and offset: world units.
+Vec3 record_position(const CopcInfo& info, const std::uint8_t* r) {
+  return Vec3(detail::load_le<std::int32_t>(r) * info.scale.x + info.offset.x,
+              detail::load_le<std::int32_t>(r + 4) * info.scale.y + info.offset.y,
+              detail::load_le<std::int32_t>(r + 8) * info.scale.z + info.offset.z);
+}
+
+// The record's colour times `mul` (257 for 8-bit colour stored in the 16-bit fields, else 1).
+Rgb16 record_rgb(const std::uint8_t* r, std::uint16_t mul) {
+  return Rgb16{static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt) * mul),
+               static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt + 2) * mul),
+               static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt + 4) * mul)};
+}
+
 std::uint32_t layers_of(unsigned attrs) {
   std::uint32_t l = laz::kLayerZ;
   if (attrs & CopcIndex::kRgb) l |= laz::kLayerRgb;
@@ -296,16 +311,12 @@ void CopcIndex::load(Node n) const {
     for (std::int32_t i = 0; i < e.point_count; ++i) {
       const std::uint8_t* r = buf.data() + static_cast<std::size_t>(i) * rec;
       const std::uint32_t s = nd.slots.begin + static_cast<std::uint32_t>(i);
-      pos_[s] = Vec3(detail::load_le<std::int32_t>(r) * info_.scale.x + info_.offset.x,
-                     detail::load_le<std::int32_t>(r + 4) * info_.scale.y + info_.offset.y,
-                     detail::load_le<std::int32_t>(r + 8) * info_.scale.z + info_.offset.z);
+      pos_[s] = record_position(info_, r);
       ids_[s] = static_cast<PointIndex>(nd.first_id + static_cast<std::uint64_t>(i));
       if (int_ != nullptr) int_[s] = detail::load_le<std::uint16_t>(r + kIntensityAt);
       if (cls_ != nullptr) cls_[s] = r[kClassAt];
       if (rgb_ != nullptr)
-        rgb_[s] = Rgb16{static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt) * rgb_mul_),
-                        static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt + 2) * rgb_mul_),
-                        static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt + 4) * rgb_mul_)};
+        rgb_[s] = record_rgb(r, rgb_mul_);
     }
   }
   decodes_.fetch_add(1);
@@ -368,15 +379,11 @@ void CopcIndex::scan(unsigned attrs, const std::function<bool(const NodeBlock&)>
       cls.resize(attrs & kClassification ? m : 0);
       for (std::size_t i = 0; i < m; ++i) {
         const std::uint8_t* r = buf.data() + i * rec;
-        pos[i] = Vec3(detail::load_le<std::int32_t>(r) * info_.scale.x + info_.offset.x,
-                      detail::load_le<std::int32_t>(r + 4) * info_.scale.y + info_.offset.y,
-                      detail::load_le<std::int32_t>(r + 8) * info_.scale.z + info_.offset.z);
+        pos[i] = record_position(info_, r);
         if (!inten.empty()) inten[i] = detail::load_le<std::uint16_t>(r + kIntensityAt);
         if (!cls.empty()) cls[i] = r[kClassAt];
         if (!col.empty())
-          col[i] = Rgb16{static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt) * rgb_mul_),
-                         static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt + 2) * rgb_mul_),
-                         static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt + 4) * rgb_mul_)};
+          col[i] = record_rgb(r, rgb_mul_);
       }
       if (!f(NodeBlock{pos, col, inten, cls})) return;
     }

@@ -54,7 +54,7 @@ class AlbedoRule {
   /// modes O(1). Throws std::invalid_argument when the mode needs an attribute `a` lacks (naming it).
   AlbedoRule(const AlbedoAttributes& a, std::size_t n, const MaterialDesc& material, const Vec3& up);
   /// The same statistics from a stream of blocks (one pass, stopped early by the rgb test), equal
-  /// to the constructor above over the concatenated blocks. Memory: intensity a 65536-bin
+  /// to the constructor above over the concatenated blocks (which is this one over one block). Memory: intensity a 65536-bin
   /// histogram, elevation without a range a copy of the n coordinates. Same errors.
   AlbedoRule(const AlbedoStream& s, const MaterialDesc& material, const Vec3& up);
 
