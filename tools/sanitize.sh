@@ -6,8 +6,9 @@
 # 48 s CPU at -O1 -g1 against 103 s at -O2 -g (16 s for the plain -O3 build), which halves the
 # from-scratch build CI pays; -O1 is the level the AddressSanitizer documentation recommends,
 # and -g1 keeps file:line in every sanitizer stack trace. Measured from scratch (ccache recaching,
-# 2026-11-22, 137 build steps): 2,301 s user + 91 s system CPU, i.e. ~20 min of wall time on the
-# 2 cores; the suite then takes ~6 min (the four forced-SIMD property runs are 80 % of it).
+# 2026-11-22, 137 build steps): 2,301 s user + 91 s system CPU (so about 20 min of wall time on
+# 2 idle cores); the suite then took 718 s on the shared machine at load 4-6 (the four
+# forced-SIMD property runs are most of it).
 # Any sanitizer report fails the test that triggered it (UBSan halts on the first error; ASan
 # always does), and a failing test fails the job (and CI). LeakSanitizer is off: GDAL/PROJ and
 # OpenImageIO keep process-lifetime caches that it would report. ccache is used when installed.
