@@ -48,7 +48,7 @@ int main(int argc, char** argv) {
   CLI::App app{"bench_sql: SQL ray queries (SQLite, PostgreSQL, full scan) vs the in-memory octree"};
   std::string cloud_path = RAYSCAN_DEFAULT_CLOUD, db_path, conninfo, table = "points";
   int nrays = 1000, full_rays = 20, k = 10;
-  std::string baseline_ext, only;
+  std::string baseline_ext, only, pragma;
   app.add_option("--cloud", cloud_path, "Point cloud (the one imported)")->capture_default_str();
   app.add_option("--sqlite", db_path, "SQLite database from `rayscan db import` of --cloud "
                                       "(default: imported here into a temporary file, default chunk size)");
@@ -57,6 +57,8 @@ int main(int argc, char** argv) {
   app.add_option("--rays", nrays, "Camera rays");
   app.add_option("--full-rays", full_rays, "Rays for the unpruned full scan (slow)");
   app.add_option("--baseline-ext", baseline_ext, "Another rayscan_sqlite.so to run interleaved (before/after)");
+  app.add_option("--pragma", pragma, "PRAGMA statements run on every SQLite connection first, e.g. "
+                                     "\"mmap_size=1073741824\" (SQLite's memory-mapped I/O)");
   app.add_option("--only", only, "Run only the radius or only the kNN queries (for profiling one case)")
       ->check(CLI::IsMember({"radius", "knn"}));
   CLI11_PARSE(app, argc, argv);
@@ -92,10 +94,20 @@ int main(int argc, char** argv) {
     std::cerr << err << "\n";
     return 2;
   }
+  auto apply_pragma = [&](sqlite3* c) {
+    if (pragma.empty()) return true;
+    char* e = nullptr;
+    if (sqlite3_exec(c, ("PRAGMA " + pragma).c_str(), nullptr, nullptr, &e) == SQLITE_OK) return true;
+    std::cerr << "PRAGMA " << pragma << ": " << (e ? e : "?") << "\n";
+    sqlite3_free(e);
+    return false;
+  };
+  if (!apply_pragma(db)) return 2;
   sqlite3* db_base = nullptr;
   sqlite3_stmt *q_base = nullptr, *stats_base = nullptr;
   if (!baseline_ext.empty()) {
     if (sqlite3_open_v2(db_path.c_str(), &db_base, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK) return 2;
+    if (!apply_pragma(db_base)) return 2;
     sqlite3_enable_load_extension(db_base, 1);
     if (sqlite3_load_extension(db_base, baseline_ext.c_str(), "sqlite3_extension_init", &err) != SQLITE_OK) {
       std::cerr << err << "\n";
