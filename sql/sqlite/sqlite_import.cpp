@@ -6,6 +6,7 @@
 
 #include <sqlite3.h>
 
+#include <algorithm>
 #include <bit>
 #include <cstring>
 #include <memory>
@@ -48,11 +49,16 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
   {
     Db db;
     db.name = out.string();
-    if (sqlite3_open_v2(file.temp().c_str(), &db.db, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE,
-                        nullptr) != SQLITE_OK)
+    // One thread uses the connection: no per-call mutex (7% of an import's time in a profile).
+    if (sqlite3_open_v2(file.temp().c_str(), &db.db,
+                        SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK)
       db.fail("cannot create");
-    // The temporary file is renamed into place only when complete: no journal needed.
-    db.exec("PRAGMA journal_mode=OFF; PRAGMA synchronous=OFF; PRAGMA page_size=8192;");
+    // The temporary file is renamed into place only when complete: no journal needed. The page
+    // cache (also the in-memory budget of CREATE INDEX's external sorter) gets a quarter of the
+    // memory budget, at most 1 GiB, instead of SQLite's default 2 MB.
+    const std::uint64_t cache_kib = std::min<std::uint64_t>(opt.memory_bytes / 4, std::uint64_t{1} << 30) >> 10;
+    db.exec("PRAGMA journal_mode=OFF; PRAGMA synchronous=OFF; PRAGMA page_size=8192; PRAGMA cache_size=-" +
+            std::to_string(cache_kib) + ";");
     db.exec("BEGIN");
     db.exec("CREATE TABLE rayscan_meta(key TEXT PRIMARY KEY, value TEXT) WITHOUT ROWID");
     db.exec("CREATE TABLE sources(source INTEGER PRIMARY KEY, path TEXT NOT NULL, "
