@@ -118,6 +118,13 @@ TEST_F(Postgres, ImportKeepsExactDoublesAndChunkBoxes) {
                            "OR NOT (c.box && ray_within(p.x,p.y,p.z,1,0,0,0))");
   EXPECT_EQ(bad[0][0], "0");
   EXPECT_EQ(pg.rows("SELECT count(*) FROM autzen")[0][0], std::to_string(cloud_->size()));
+  // The planner statistic of the chunk column is the exact number of distinct chunks (counted here).
+  const auto nd = pg.rows("SELECT (SELECT attoptions::text FROM pg_attribute WHERE attrelid = 'autzen'::regclass "
+                          "AND attname = 'chunk'), -count(DISTINCT chunk)::float8 / count(*) FROM autzen");
+  ASSERT_EQ(nd.size(), 1u);
+  const auto eq = nd[0][0].find("n_distinct=");
+  ASSERT_NE(eq, std::string::npos) << nd[0][0];
+  EXPECT_EQ(dbl(nd[0][0].substr(eq + 11)), dbl(nd[0][1])) << nd[0][0];
 }
 
 TEST_F(Postgres, FunctionsEqualTheCoreBitForBit) {
