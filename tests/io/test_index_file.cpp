@@ -74,6 +74,8 @@ Site build_site(const std::string& name, OctreeConfig cfg, std::uint64_t memory)
   EXPECT_EQ(st.points, s.all.size());
   if (memory < (1u << 21)) {
     EXPECT_GT(st.runs, 1u);  // the merge of several runs is exercised
+  } else {
+    EXPECT_EQ(st.runs, 1u);  // everything fits: sorted and written from memory, no merge
   }
   return s;
 }
@@ -106,14 +108,17 @@ bool same_hits(const std::vector<RayHit>& a, const std::vector<RayHit>& b) {
   return true;
 }
 
-class IndexFile : public ::testing::TestWithParam<OctreeLayout> {};
+/// Layout, and the memory budget: 1 MiB (several sorted runs and the k-way merge) or 64 MiB (one
+/// run: the in-memory sort writes the sections directly).
+class IndexFile : public ::testing::TestWithParam<std::tuple<OctreeLayout, std::uint64_t>> {};
 
 TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
   OctreeConfig cfg;
-  cfg.layout = GetParam();
+  cfg.layout = std::get<0>(GetParam());
   cfg.capacity = 16;
   cfg.depth = 5;
-  const Site s = build_site(std::string("site_") + to_string(cfg.layout), cfg, 1 << 20);
+  const std::uint64_t memory = std::get<1>(GetParam());
+  const Site s = build_site(std::string("site_") + to_string(cfg.layout) + "_" + std::to_string(memory), cfg, memory);
   const io::MappedIndex m = io::MappedIndex::open(s.index);
   const Octree t = Octree::build_bulk(s.all, cfg);
   expect_same_tree(m, t);
@@ -170,7 +175,10 @@ TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
   fs::remove_all(s.dir);
 }
 
-INSTANTIATE_TEST_SUITE_P(Layouts, IndexFile, ::testing::Values(OctreeLayout::adaptive, OctreeLayout::fixed));
+INSTANTIATE_TEST_SUITE_P(Layouts, IndexFile,
+                         ::testing::Values(std::make_tuple(OctreeLayout::adaptive, std::uint64_t{1} << 20),
+                                           std::make_tuple(OctreeLayout::adaptive, std::uint64_t{64} << 20),
+                                           std::make_tuple(OctreeLayout::fixed, std::uint64_t{1} << 20)));
 
 TEST(IndexFileBuild, LasAttributesAreStoredExactlyBySlot) {
   RAYSCAN_REQUIRE_FILE(p, "las/autzen_trim.las");

@@ -287,13 +287,6 @@ struct RecordLayout {
   }
 };
 
-struct SortKey {
-  std::uint64_t code;
-  std::uint32_t id;
-  std::uint32_t slot;  // record position in the run buffer
-  bool operator<(const SortKey& o) const { return code < o.code || (code == o.code && id < o.id); }
-};
-
 /// A folder of temporary files removed (with its contents) on destruction.
 struct TempDir {
   fs::path path;
@@ -338,9 +331,122 @@ class RunReader {
   std::uint64_t off_ = 0;
 };
 
-/// Node construction over the Morton-sorted codes and positions (both memory-mapped), following
-/// Octree::build_bulk for the adaptive and fixed layouts: same split rule, child order, node
-/// numbering and float bounds (OctreeRules), hence the identical node array.
+/// Sort key of one buffered point: its Morton code and its position in the run buffer (the
+/// buffer holds points in id order, so (code, idx) order is the (code, id) order of build_bulk).
+struct SortKey {
+  std::uint64_t code;
+  std::uint32_t idx;
+  bool operator<(const SortKey& o) const { return code < o.code || (code == o.code && idx < o.idx); }
+};
+
+/// The points of one sort run (or of the whole input when it fits the budget), structure of
+/// arrays in id order: positions and the stored attributes only.
+struct PointBuffer {
+  std::vector<Vec3> pos;
+  std::vector<Rgb16> rgb;
+  std::vector<std::uint16_t> intensity;
+  std::vector<std::uint8_t> cls;
+  std::vector<double> gps;
+  [[nodiscard]] std::size_t size() const { return pos.size(); }
+  void reserve(std::size_t n, const RecordLayout& L) {
+    pos.reserve(n);
+    if (L.rgb) rgb.reserve(n);
+    if (L.intensity) intensity.reserve(n);
+    if (L.cls) cls.reserve(n);
+    if (L.gps) gps.reserve(n);
+  }
+  void clear() {
+    pos.clear(), rgb.clear(), intensity.clear(), cls.clear(), gps.clear();
+  }
+  /// Appends points [i0, i0 + n) of `c` (bulk copies) and widens `bounds` by them.
+  void append(const PointCloud& c, std::size_t i0, std::size_t n, const RecordLayout& L, AABB& bounds) {
+    auto add = [&](auto& dst, const auto& src) {
+      dst.insert(dst.end(), src.begin() + static_cast<std::ptrdiff_t>(i0), src.begin() + static_cast<std::ptrdiff_t>(i0 + n));
+    };
+    add(pos, c.positions);
+    if (L.rgb) add(rgb, c.rgb);
+    if (L.intensity) add(intensity, c.intensity);
+    if (L.cls) add(cls, c.classification);
+    if (L.gps) add(gps, c.gps_time);
+    for (std::size_t i = i0; i < i0 + n; ++i) bounds.expand(c.positions[i]);
+  }
+};
+
+/// The Morton keys of the buffered points on the grid `qz`, sorted by (code, id): one parallel
+/// MSD radix pass on the top kBucketBits of the 63-bit codes (a histogram pass, then a scatter
+/// pass that computes each code again instead of holding a second key array), then each bucket
+/// sorted on its own (cache-sized for a site; a bucket holding more than an eighth of the points,
+/// e.g. a dense cluster, is sorted in parallel itself). Scattering chunk by chunk keeps each
+/// bucket in idx order, so the result is the (code, idx) order of a full sort.
+std::vector<SortKey> sorted_keys(const PointBuffer& buf, const OctreeRules::Quantizer& qz) {
+  constexpr unsigned kBucketBits = 16, kShift = 3 * kMortonBits - kBucketBits;
+  constexpr std::size_t kBuckets = std::size_t{1} << kBucketBits;
+  const std::size_t n = buf.size();
+  std::vector<SortKey> keys(n);
+  if (n == 0) return keys;
+  const std::size_t chunks = std::min<std::size_t>(16, (n + 4095) / 4096);
+  auto chunk_begin = [&](std::size_t c) { return n * c / chunks; };
+  std::vector<std::uint64_t> hist(chunks * kBuckets, 0);  // [chunk][bucket], then write cursors
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    std::uint64_t* h = hist.data() + c * kBuckets;
+    for (std::size_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i) ++h[qz.code(buf.pos[i]) >> kShift];
+  });
+  std::vector<std::uint64_t> bucket_begin(kBuckets + 1, 0);
+  {
+    std::uint64_t sum = 0;
+    for (std::size_t k = 0; k < kBuckets; ++k) {
+      bucket_begin[k] = sum;
+      for (std::size_t c = 0; c < chunks; ++c) {
+        const std::uint64_t v = hist[c * kBuckets + k];
+        hist[c * kBuckets + k] = sum;
+        sum += v;
+      }
+    }
+    bucket_begin[kBuckets] = sum;
+  }
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    std::uint64_t* cur = hist.data() + c * kBuckets;
+    for (std::size_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i) {
+      const std::uint64_t code = qz.code(buf.pos[i]);
+      keys[cur[code >> kShift]++] = {code, static_cast<std::uint32_t>(i)};
+    }
+  });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, kBuckets, 64), [&](const auto& r) {
+    for (std::size_t k = r.begin(); k != r.end(); ++k) {
+      auto b = keys.begin() + static_cast<std::ptrdiff_t>(bucket_begin[k]);
+      auto e = keys.begin() + static_cast<std::ptrdiff_t>(bucket_begin[k + 1]);
+      if (e - b < 2) continue;
+      if (static_cast<std::size_t>(e - b) > n / 8) tbb::parallel_sort(b, e);
+      else std::sort(b, e);
+    }
+  });
+  return keys;
+}
+
+/// Calls `fn(b, e)` for consecutive blocks [b, e) of [0, n) of at most kGatherBlock keys.
+constexpr std::size_t kGatherBlock = std::size_t{1} << 18;
+template <class Fn>
+void for_blocks(std::size_t n, Fn&& fn) {
+  for (std::size_t b = 0; b < n; b += kGatherBlock) fn(b, std::min(n, b + kGatherBlock));
+}
+
+/// Gathers field `src[keys[i].idx]` for keys [b, e) into `out` (parallel) and appends it to `w`.
+template <class T>
+void gather_write(const std::vector<T>& src, const std::vector<SortKey>& keys, std::size_t b, std::size_t e,
+                  std::vector<T>& out, SectionWriter& w) {
+  out.resize(e - b);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, 1 << 14), [&](const auto& r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i) out[i - b] = src[keys[i].idx];
+  });
+  w.write(out.data(), out.size() * sizeof(T));
+}
+
+/// Node construction over the Morton-sorted codes and positions, following Octree::build_bulk
+/// for the adaptive and fixed layouts: same split rule, child order, node numbering and float
+/// bounds (OctreeRules), hence the identical node array. The topology (a depth-first pass over
+/// the codes that finds each child's range by binary search) is sequential; the bounds of the
+/// nodes' own points are computed in parallel, then closed bottom-up (children are numbered
+/// after their parent, so a pass in reverse node order sees every child before its parent).
 struct NodeBuilder {
   const OctreeConfig& cfg;
   const std::uint64_t* codes;
@@ -351,61 +457,79 @@ struct NodeBuilder {
   IndexProgress progress;
   std::uint64_t total = 0, emitted = 0, next_report = 0;
 
-  void build(std::uint32_t n, unsigned d, std::size_t b, std::size_t e) {
+  void build(std::size_t n_points) {
+    if (n_points == 0) return;
+    nodes.emplace_back();
+    nodes[0].key = 1;
+    topology(0, 0, 0, n_points);
+    close();
+  }
+
+ private:
+  void topology(std::uint32_t n, unsigned d, std::size_t b, std::size_t e) {
     const std::size_t count = e - b;
     const bool same = count == 0 || codes[b] == codes[e - 1];
     const bool split = OctreeRules::splits(cfg, d, count, same);
     const std::size_t rest = split ? b : e;
     nodes[n].own_begin = static_cast<std::uint32_t>(b);
     nodes[n].own_end = static_cast<std::uint32_t>(rest);
-    if (rest < e) {
-      std::array<std::size_t, 9> start{};
-      std::array<unsigned, 8> oct{};
-      unsigned nchild = 0;
-      std::size_t i = rest;
-      while (i < e) {
-        const unsigned o = OctreeRules::octant(codes[i], d);
-        const std::size_t j = static_cast<std::size_t>(
-            std::partition_point(codes + i, codes + e,
-                                 [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; }) -
-            codes);
-        start[nchild] = i;
-        oct[nchild] = o;
-        ++nchild;
-        i = j;
-      }
-      start[nchild] = e;
-      const auto first = static_cast<std::uint32_t>(nodes.size());
-      const std::uint64_t key = nodes[n].key;
-      nodes.resize(nodes.size() + nchild);
-      nodes[n].first_child = first;
-      nodes[n].child_count = static_cast<std::uint8_t>(nchild);
-      for (unsigned k = 0; k < nchild; ++k) {
-        nodes[first + k].key = (key << 3) | oct[k];
-        build(first + k, d + 1, start[k], start[k + 1]);
-      }
-    }
-    // Close: bounds of the own points, then of the children (Octree's close_node).
-    Octree::NodeRec& rec = nodes[n];
-    AABB own;
-    for (std::uint32_t s = rec.own_begin; s < rec.own_end; ++s) own.expand(pos[s]);
-    glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
-    if (!own.empty())
-      for (int a = 0; a < 3; ++a) {
-        lo[a] = OctreeRules::float_bound(own.lo[a] - cell_lo[a], false);
-        hi[a] = OctreeRules::float_bound(own.hi[a] - cell_lo[a], true);
-      }
-    for (unsigned c = 0; c < rec.child_count; ++c) {
-      lo = glm::min(lo, nodes[rec.first_child + c].lo);
-      hi = glm::max(hi, nodes[rec.first_child + c].hi);
-    }
-    rec.lo = lo;
-    rec.hi = hi;
     depth = std::max(depth, d);
-    emitted += rec.own_end - rec.own_begin;
+    emitted += rest - b;
     if (progress && emitted >= next_report) {
       progress("nodes", emitted, total);
       next_report = emitted + (std::uint64_t{1} << 23);
+    }
+    if (rest == e) return;
+    std::array<std::size_t, 9> start{};
+    std::array<unsigned, 8> oct{};
+    unsigned nchild = 0;
+    std::size_t i = rest;
+    while (i < e) {
+      const unsigned o = OctreeRules::octant(codes[i], d);
+      const std::size_t j = static_cast<std::size_t>(
+          std::partition_point(codes + i, codes + e, [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; }) -
+          codes);
+      start[nchild] = i;
+      oct[nchild] = o;
+      ++nchild;
+      i = j;
+    }
+    start[nchild] = e;
+    const auto first = static_cast<std::uint32_t>(nodes.size());
+    const std::uint64_t key = nodes[n].key;
+    nodes.resize(nodes.size() + nchild);
+    nodes[n].first_child = first;
+    nodes[n].child_count = static_cast<std::uint8_t>(nchild);
+    for (unsigned k = 0; k < nchild; ++k) {
+      nodes[first + k].key = (key << 3) | oct[k];
+      topology(first + k, d + 1, start[k], start[k + 1]);
+    }
+  }
+
+  // Octree's close_node: bounds of the own points (rounded outwards to float), then of the children.
+  void close() {
+    const float inf = std::numeric_limits<float>::infinity();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodes.size(), 1 << 10), [&](const auto& r) {
+      for (std::size_t n = r.begin(); n != r.end(); ++n) {
+        Octree::NodeRec& rec = nodes[n];
+        AABB own;
+        for (std::uint32_t s = rec.own_begin; s < rec.own_end; ++s) own.expand(pos[s]);
+        glm::vec3 lo(inf), hi(-inf);
+        if (!own.empty())
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = OctreeRules::float_bound(own.lo[a] - cell_lo[a], false);
+            hi[a] = OctreeRules::float_bound(own.hi[a] - cell_lo[a], true);
+          }
+        rec.lo = lo;
+        rec.hi = hi;
+      }
+    });
+    for (std::size_t n = nodes.size(); n-- > 0;) {
+      Octree::NodeRec& rec = nodes[n];
+      for (unsigned c = 0; c < rec.child_count; ++c) {
+        rec.lo = glm::min(rec.lo, nodes[rec.first_child + c].lo);
+        rec.hi = glm::max(rec.hi, nodes[rec.first_child + c].hi);
+      }
     }
   }
 };
@@ -480,16 +604,19 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
                                 ": an index stores rgb, intensity, classification, gps_time");
   IndexBuildStats stats;
 
-  // Pass 1: bounds, counts, CRS agreement (positions only).
-  AABB bounds;
+  // Inputs: CRS agreement, the stored attributes, the announced point counts. The readers stay
+  // open for the read pass when there are few of them (a LAS file's colour scan runs once).
+  constexpr std::size_t kKeepOpen = 64;
   std::vector<IndexSource> sources;
+  std::vector<std::unique_ptr<PointReader>> kept(inputs.size());
   AttributeSet stored = opt.attributes;
   std::string crs;
-  std::uint64_t total = 0;
+  std::uint64_t announced = 0;
   {
-    std::unique_ptr<PointReader> first;
-    PointCloud chunk;
-    for (const fs::path& in : inputs) {
+    std::unique_ptr<PointReader> first_owned;
+    const PointReader* first = nullptr;
+    for (std::size_t f = 0; f < inputs.size(); ++f) {
+      const fs::path& in = inputs[f];
       auto r = open_point_reader(in, opt.attributes, ReadOptions{.scalars = false});
       if (first && !same_crs(*first, *r))
         throw IndexError(in.string() + ": CRS " + crs_label(*r) + " differs from " + crs_label(*first) +
@@ -499,101 +626,122 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
         stats.notes.push_back(in.string() + " has no " + lacking.to_string() + ": not stored");
         stored = AttributeSet{stored.bits & ~lacking.bits};
       }
-      auto pr = open_point_reader(in, AttributeSet::none(), ReadOptions{.scalars = false});
       IndexSource s;
       s.path = fs::absolute(in).lexically_normal().string();
       s.size = fs::file_size(in);
       s.mtime_ns = mtime_ns(in);
-      s.first_id = total;
       s.format = r->info().format + (r->info().version.empty() ? "" : " " + r->info().version);
-      while (pr->read(chunk, kDefaultChunkPoints) > 0) {
-        for (const Vec3& p : chunk.positions) bounds.expand(p);
-        s.points += chunk.size();
-        if (opt.progress) opt.progress("scan", total + s.points, 0);
-      }
-      total += s.points;
-      if (total >= 0xFFFFFFFFull) throw std::length_error("rayscan index: more than 2^32 - 2 points");
       sources.push_back(s);
-      if (!first) {
-        crs = r->crs_wkt();
-        first = std::move(r);
+      announced += r->point_count();
+      if (!first) crs = r->crs_wkt();
+      if (inputs.size() <= kKeepOpen) {
+        kept[f] = std::move(r);
+        if (!first) first = kept[f].get();
+      } else if (!first) {
+        first_owned = std::move(r);
+        first = first_owned.get();
       }
     }
   }
-  const AABB cell = OctreeRules::root_cell(bounds);
-  const OctreeRules::Quantizer qz(cell.lo, OctreeRules::root_side(bounds));
   const RecordLayout L(stored);
+  // Points per sort run within the memory budget (a record and a sort key per point; the buffer
+  // actually holds positions, the stored attributes and a 16-byte key, a little less).
+  const std::size_t run_cap = std::max<std::size_t>(
+      1024, static_cast<std::size_t>(opt.memory_bytes * 3 / 4 / (L.bytes + sizeof(SortKey))));
+  // All points fit the budget (the readers announce exact counts or upper bounds): one read pass
+  // into memory, the bounds from it, then sort and write the sections straight from memory. Else
+  // a bounds pass first (the runs need the Morton grid), sorted runs on disk and a k-way merge.
+  const bool in_memory = announced <= run_cap;
+  AABB grid_bounds;  // defines the Morton grid of the runs (multi-run build)
+  if (!in_memory) {
+    std::uint64_t scanned = 0;
+    PointCloud chunk;
+    for (const fs::path& in : inputs) {
+      auto pr = open_point_reader(in, AttributeSet::none(), ReadOptions{.scalars = false});
+      while (pr->read(chunk, kDefaultChunkPoints) > 0) {
+        for (const Vec3& p : chunk.positions) grid_bounds.expand(p);
+        scanned += chunk.size();
+        if (opt.progress) opt.progress("scan", scanned, 0);
+      }
+    }
+  }
+  const OctreeRules::Quantizer grid_qz(OctreeRules::root_cell(grid_bounds).lo, OctreeRules::root_side(grid_bounds));
 
   AtomicFile out(output);
   fs::path tmp_dir = opt.temp_dir.empty() ? output.parent_path() : opt.temp_dir;
   if (tmp_dir.empty()) tmp_dir = ".";
   TempDir runs_dir(tmp_dir / ("." + output.filename().string() + ".runs." + std::to_string(::getpid())));
 
-  // Pass 2: sorted runs within the memory budget (records + 16-byte sort keys per point).
-  const std::size_t run_cap = std::max<std::size_t>(
-      1024, static_cast<std::size_t>(opt.memory_bytes * 3 / 4 / (L.bytes + sizeof(SortKey))));
+  // The read pass: points in id order into the buffer; a full buffer becomes a sorted run file
+  // (multi-run build) written as records (code, id, position, attributes).
+  AABB bounds;
+  std::uint64_t total = 0;
+  PointBuffer buf;
+  buf.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(run_cap, announced)), L);
   std::vector<fs::path> run_files;
-  {
+  std::uint64_t run_first_id = 0;
+  auto flush_run = [&] {
+    if (buf.size() == 0) return;
+    const std::vector<SortKey> keys = sorted_keys(buf, grid_qz);
+    const fs::path rp = runs_dir.path / ("run" + std::to_string(run_files.size()));
+    Fd fd(rp, O_WRONLY | O_CREAT | O_TRUNC);
     std::vector<std::uint8_t> recs;
-    std::vector<SortKey> keys;
-    recs.reserve(std::min<std::uint64_t>(run_cap, total) * L.bytes);
-    keys.reserve(std::min<std::uint64_t>(run_cap, total));
-    std::uint64_t id = 0;
-    auto flush_run = [&] {
-      if (keys.empty()) return;
-      tbb::parallel_sort(keys.begin(), keys.end());
-      const fs::path rp = runs_dir.path / ("run" + std::to_string(run_files.size()));
-      Fd fd(rp, O_WRONLY | O_CREAT | O_TRUNC);
-      SectionWriter w(fd, 0, 8 << 20);
-      std::vector<std::uint8_t> tmp(L.bytes);
-      for (const SortKey& k : keys) w.write(recs.data() + static_cast<std::size_t>(k.slot) * L.bytes, L.bytes);
-      w.flush();
-      run_files.push_back(rp);
-      keys.clear();
-      recs.clear();
-    };
+    std::uint64_t off = 0;
+    for_blocks(keys.size(), [&](std::size_t b, std::size_t e) {
+      recs.resize((e - b) * L.bytes);
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, 1 << 14), [&](const auto& r) {
+        for (std::size_t k = r.begin(); k != r.end(); ++k) {
+          const std::uint32_t i = keys[k].idx;
+          const auto pid = static_cast<std::uint32_t>(run_first_id + i);
+          std::uint8_t* rec = recs.data() + (k - b) * L.bytes;
+          std::memcpy(rec, &keys[k].code, 8);
+          std::memcpy(rec + 8, &pid, 4);
+          std::memcpy(rec + 12, &buf.pos[i], 24);
+          if (L.gps) std::memcpy(rec + L.gps_off, &buf.gps[i], 8);
+          if (L.rgb) std::memcpy(rec + L.rgb_off, &buf.rgb[i], 6);
+          if (L.intensity) std::memcpy(rec + L.int_off, &buf.intensity[i], 2);
+          if (L.cls) rec[L.cls_off] = buf.cls[i];
+        }
+      });
+      fd.pwrite_all(recs.data(), recs.size(), off);
+      off += recs.size();
+    });
+    run_files.push_back(rp);
+    run_first_id += buf.size();
+    buf.clear();
+  };
+  {
     PointCloud c;
-    for (const fs::path& in : inputs) {
-      auto r = open_point_reader(in, stored, ReadOptions{.scalars = false});
+    for (std::size_t f = 0; f < inputs.size(); ++f) {
+      std::unique_ptr<PointReader> r = std::move(kept[f]);
+      if (!r) r = open_point_reader(inputs[f], stored, ReadOptions{.scalars = false});
+      sources[f].first_id = total;
       std::size_t n;
       while ((n = r->read(c, kDefaultChunkPoints)) > 0) {
-        std::size_t i0 = 0;
-        while (i0 < n) {
-          const std::size_t take = std::min(n - i0, run_cap - keys.size());
-          const std::size_t k0 = keys.size();
-          keys.resize(k0 + take);
-          recs.resize((k0 + take) * L.bytes);
-          tbb::parallel_for(tbb::blocked_range<std::size_t>(0, take, 1 << 14),
-                            [&](const tbb::blocked_range<std::size_t>& rg) {
-                              for (std::size_t j = rg.begin(); j < rg.end(); ++j) {
-                                const std::size_t i = i0 + j, slot = k0 + j;
-                                const Vec3& p = c.positions[i];
-                                const std::uint64_t code = qz.code(p);
-                                const auto pid = static_cast<std::uint32_t>(id + i);
-                                keys[slot] = {code, pid, static_cast<std::uint32_t>(slot)};
-                                std::uint8_t* rec = recs.data() + slot * L.bytes;
-                                std::memcpy(rec, &code, 8);
-                                std::memcpy(rec + 8, &pid, 4);
-                                std::memcpy(rec + 12, &p, 24);
-                                if (L.gps) std::memcpy(rec + L.gps_off, &c.gps_time[i], 8);
-                                if (L.rgb) std::memcpy(rec + L.rgb_off, &c.rgb[i], 6);
-                                if (L.intensity) std::memcpy(rec + L.int_off, &c.intensity[i], 2);
-                                if (L.cls) rec[L.cls_off] = c.classification[i];
-                              }
-                            });
+        if (total + n >= 0xFFFFFFFFull) throw std::length_error("rayscan index: more than 2^32 - 2 points");
+        if (in_memory && buf.size() + n > run_cap)
+          throw std::runtime_error(inputs[f].string() + ": the inputs changed during the build (more points than " +
+                                   std::to_string(announced) + " announced by the headers)");
+        for (std::size_t i0 = 0; i0 < n;) {
+          const std::size_t take = std::min(n - i0, run_cap - buf.size());
+          buf.append(c, i0, take, L, bounds);
           i0 += take;
-          if (keys.size() == run_cap) flush_run();
+          if (!in_memory && buf.size() == run_cap) flush_run();
         }
-        id += n;
-        if (opt.progress) opt.progress("sort", id, total);
+        total += n;
+        sources[f].points += n;
+        if (opt.progress) opt.progress("read", total, announced);
       }
     }
-    if (id != total)
-      throw std::runtime_error(inputs.front().string() + ": the inputs changed during the build (" +
-                               std::to_string(id) + " points, first pass read " + std::to_string(total) + ")");
-    flush_run();
+    if (!in_memory) {
+      flush_run();
+      if (!(bounds.lo == grid_bounds.lo && bounds.hi == grid_bounds.hi))
+        throw std::runtime_error(inputs.front().string() +
+                                 ": the inputs changed during the build (their bounds differ from the first pass)");
+    }
   }
-  stats.runs = run_files.size();
+  stats.runs = in_memory ? (total > 0 ? 1 : 0) : run_files.size();
+  const AABB cell = OctreeRules::root_cell(bounds);
 
   // Section placement: sources, crs, per-point sections, then nodes (size known after the build).
   Header h;
@@ -631,9 +779,51 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   write_blob(s_src, src_text);
   write_blob(s_crs, crs);
 
-  // Merge: k-way by (code, id) into the point sections; codes go to a temporary file.
+  // The point sections in (code, id) order: straight from memory (one run), or by a k-way merge
+  // of the runs whose codes go to a temporary file. Then the nodes from the sorted codes.
   const fs::path codes_path = runs_dir.path / "codes";
-  {
+  std::vector<std::uint64_t> mem_codes;  // sorted codes of the in-memory build
+  if (in_memory) {
+    const OctreeRules::Quantizer qz(cell.lo, OctreeRules::root_side(bounds));
+    if (opt.progress) opt.progress("sort", 0, total);
+    std::vector<SortKey> keys = sorted_keys(buf, qz);
+    mem_codes.resize(keys.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 1 << 16), [&](const auto& r) {
+      for (std::size_t i = r.begin(); i != r.end(); ++i) mem_codes[i] = keys[i].code;
+    });
+    const std::size_t wbuf = 1 << 16;  // blocks are written directly
+    SectionWriter w_pos(fd, h.sections[s_pos].offset, wbuf), w_ids(fd, h.sections[s_ids].offset, wbuf);
+    std::optional<SectionWriter> w_rgb, w_int, w_cls, w_gps;
+    if (L.rgb) w_rgb.emplace(fd, h.sections[s_rgb].offset, wbuf);
+    if (L.intensity) w_int.emplace(fd, h.sections[s_int].offset, wbuf);
+    if (L.cls) w_cls.emplace(fd, h.sections[s_cls].offset, wbuf);
+    if (L.gps) w_gps.emplace(fd, h.sections[s_gps].offset, wbuf);
+    std::vector<Vec3> g_pos;
+    std::vector<std::uint32_t> g_ids;
+    std::vector<Rgb16> g_rgb;
+    std::vector<std::uint16_t> g_int;
+    std::vector<std::uint8_t> g_cls;
+    std::vector<double> g_gps;
+    for_blocks(keys.size(), [&](std::size_t b, std::size_t e) {
+      gather_write(buf.pos, keys, b, e, g_pos, w_pos);
+      g_ids.resize(e - b);
+      for (std::size_t i = b; i < e; ++i) g_ids[i - b] = keys[i].idx;  // one run: idx == id
+      w_ids.write(g_ids.data(), g_ids.size() * 4);
+      if (L.rgb) gather_write(buf.rgb, keys, b, e, g_rgb, *w_rgb);
+      if (L.intensity) gather_write(buf.intensity, keys, b, e, g_int, *w_int);
+      if (L.cls) gather_write(buf.cls, keys, b, e, g_cls, *w_cls);
+      if (L.gps) gather_write(buf.gps, keys, b, e, g_gps, *w_gps);
+      if (opt.progress && (e & ((std::size_t{1} << 22) - 1)) < kGatherBlock) opt.progress("write", e, total);
+    });
+    for (SectionWriter* w : {&w_pos, &w_ids}) w->flush();
+    h.sections[s_pos].crc = w_pos.crc();
+    h.sections[s_ids].crc = w_ids.crc();
+    if (L.rgb) w_rgb->flush(), h.sections[s_rgb].crc = w_rgb->crc();
+    if (L.intensity) w_int->flush(), h.sections[s_int].crc = w_int->crc();
+    if (L.cls) w_cls->flush(), h.sections[s_cls].crc = w_cls->crc();
+    if (L.gps) w_gps->flush(), h.sections[s_gps].crc = w_gps->crc();
+    buf = PointBuffer{};  // release before the node build
+  } else {
     Fd codes_fd(codes_path, O_WRONLY | O_CREAT | O_TRUNC);
     const std::size_t wbuf = 4 << 20;
     SectionWriter w_codes(codes_fd, 0, wbuf), w_pos(fd, h.sections[s_pos].offset, wbuf),
@@ -687,19 +877,23 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   }
   for (const fs::path& rp : run_files) fs::remove(rp);
 
-  // Nodes from the sorted codes and positions (both mapped; their pages are file cache).
+  // Nodes from the sorted codes (in memory, or the mapped codes file of the merge) and the
+  // positions section (mapped; its pages are file cache).
   {
-    Fd codes_fd(codes_path, O_RDONLY);
-    ReadMap codes(codes_fd.get(), total * 8, codes_path);
+    std::optional<Fd> codes_fd;
+    std::optional<ReadMap> codes_map;
+    if (!in_memory) {
+      codes_fd.emplace(codes_path, O_RDONLY);
+      codes_map.emplace(codes_fd->get(), total * 8, codes_path);
+    }
     ReadMap file(fd.get(), h.sections[s_pos].offset + total * 24, out.temp());
+    const std::uint64_t* codes = in_memory ? mem_codes.data() : static_cast<const std::uint64_t*>(codes_map->p);
     NodeBuilder nb{opt.config,
-                   static_cast<const std::uint64_t*>(codes.p),
+                   codes,
                    reinterpret_cast<const Vec3*>(static_cast<const std::uint8_t*>(file.p) + h.sections[s_pos].offset),
                    cell.lo, {}, 0, opt.progress, total, 0, 0};
-    if (total > 0) {
-      nb.nodes.emplace_back();
-      nb.build(0, 0, 0, total);
-    }
+    nb.build(total);
+    mem_codes = {};
     const std::size_t s_nodes = place(kNodes, nb.nodes.size() * kNodeBytes);
     SectionWriter w(fd, h.sections[s_nodes].offset, 8 << 20);
     std::uint8_t rec[kNodeBytes];
