@@ -491,6 +491,79 @@ std::string text(const fs::path& p) {
   return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
 }
 
+// Ids in a file opened without the deep checks (issue 10 section 4): every consumer indexes
+// per-point arrays by id, so one id >= N in a large unverified file would be a write out of
+// bounds (normals, visibility) or a read past an array (query, spacing). ids() checks them on
+// first use: the library reports a clean IndexError naming the slot and byte; the CLI exits 2 on
+// a file made larger than the 256 MiB verify-at-open limit by a sparse tail (the real unverified
+// path, no test hook). Oracle: the byte offset of the corrupted slot computed from the section
+// table, and the untouched file passing the same calls.
+TEST(IndexFileBadInput, UnverifiedCorruptIdIsRefusedBeforeAnyIdIndexedAccess) {
+  const fs::path dir = temp_dir() / "unverified_ids";
+  const fs::path good = small_index(dir);
+  auto bytes = slurp(good);
+  std::uint64_t ids_off = 0;
+  std::uint32_t nsec = 0;
+  std::memcpy(&nsec, bytes.data() + 20, 4);
+  for (std::uint32_t i = 0; i < nsec; ++i) {
+    std::uint32_t id = 0;
+    std::memcpy(&id, bytes.data() + 128 + 32 * i, 4);
+    if (id == 4) std::memcpy(&ids_off, bytes.data() + 128 + 32 * i + 8, 8);
+  }
+  ASSERT_GT(ids_off, 0u);
+  const std::uint32_t huge = 0x7FFFFFF0u;
+  std::memcpy(bytes.data() + ids_off + 4 * 1234, &huge, 4);  // slot 1234 holds an id past N
+  const fs::path bad = dir / "bad.rsi";
+  std::ofstream(bad, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  io::IndexOpenOptions quick;
+  quick.verify = io::IndexOpenOptions::Verify::metadata_only;
+  const std::string want = "bad.rsi: byte " + std::to_string(ids_off + 4 * 1234) + ": section ids: slot 1234 holds id " +
+                           std::to_string(huge);
+  {
+    const io::MappedIndex ok = io::MappedIndex::open(good, quick);  // the same calls on the good file pass
+    EXPECT_FALSE(ok.verified());
+    EXPECT_EQ(ok.ids().size(), 3001u);
+    EXPECT_EQ(knn(ok, ok.positions()[0], 3).size(), 3u);
+  }
+  const io::MappedIndex m = io::MappedIndex::open(bad, quick);
+  EXPECT_FALSE(m.verified());
+  auto error_of = [&](auto&& call) -> std::string {
+    try {
+      call();
+    } catch (const io::IndexError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_NE(error_of([&] { (void)m.ids(); }).find(want), std::string::npos) << error_of([&] { (void)m.ids(); });
+  // Consumers that read or write per-point arrays by id: each fails cleanly (ASan: no access).
+  const Vec3 p = m.positions()[0];
+  EXPECT_NE(error_of([&] { (void)knn(m, p, 3); }).find(want), std::string::npos);
+  RayQuery q;
+  q.radius = 1.0;
+  q.k = 4;
+  const std::vector<Ray> rays(64, Ray(p + Vec3(0.0, 0.0, 10.0), Vec3(0.0, 0.0, -1.0)));
+  EXPECT_NE(error_of([&] { (void)ray_query_batch(m, rays, q); }).find(want), std::string::npos);  // from TBB tasks
+  EXPECT_NE(error_of([&] { (void)median_nn_spacing_by_id(m); }).find(want), std::string::npos);
+  EXPECT_NE(error_of([&] { (void)m.to_point_cloud(); }).find("slot 1234 holds id"), std::string::npos);
+
+  // The CLI on the real unverified path: the file padded past 256 MiB (sparse) is opened without
+  // the deep checks; the query reports the id and exits 2.
+  fs::resize_file(bad, (std::uint64_t{256} << 20) + 4096);
+  {
+    std::ofstream r(dir / "rays.csv");
+    r.precision(17);
+    r << "ox,oy,oz,dx,dy,dz\n" << p.x << ',' << p.y << ',' << p.z + 10 << ",0,0,-1\n";
+  }
+  const fs::path log = dir / "log.txt";
+  EXPECT_EQ(run_cli("query --cloud '" + bad.string() + "' --rays '" + (dir / "rays.csv").string() + "' --radius 1", log), 2)
+      << text(log);
+  const std::string e = text(log);
+  EXPECT_NE(e.find(want), std::string::npos) << e;
+  EXPECT_EQ(std::count(e.begin(), e.end(), '\n'), 1) << e;
+  fs::remove_all(dir);
+}
+
 TEST(IndexFileCli, IndexThenQueryEqualsQueryOnTheCloudAndInfoDescribesIt) {
   RAYSCAN_REQUIRE_FILE(las, "las/autzen_trim.las");
   const fs::path dir = temp_dir() / "cli";

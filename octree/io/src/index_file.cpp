@@ -14,6 +14,7 @@
 
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <array>
@@ -23,6 +24,7 @@
 #include <cstddef>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <queue>
 #include <sstream>
 
@@ -950,6 +952,7 @@ struct MappedIndex::Map {
   int fd = -1;
   void* p = nullptr;
   std::size_t n = 0;
+  std::once_flag ids_checked;  ///< ids() of an unverified file: the id range pass ran and passed
   ~Map() {
     if (p != nullptr) ::munmap(p, n);
     if (fd >= 0) ::close(fd);
@@ -1095,6 +1098,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   x.nodes_ = reinterpret_cast<const Octree::NodeRec*>(at(kNodes));
   x.pos_ = reinterpret_cast<const Vec3*>(at(kPositions));
   x.ids_ = reinterpret_cast<const PointIndex*>(at(kIds));
+  x.ids_offset_ = by_id[kIds]->offset;
   if (by_id[kRgb]) x.rgb_ = {reinterpret_cast<const Rgb16*>(at(kRgb)), x.points_};
   if (by_id[kIntensity]) x.intensity_ = {reinterpret_cast<const std::uint16_t*>(at(kIntensity)), x.points_};
   if (by_id[kClassification]) x.classification_ = {at(kClassification), x.points_};
@@ -1103,8 +1107,9 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
 
   // Deep checks of the node records and ids (with the section CRCs above, a file that passes them
   // is exactly as built). Without them the accessors sanitise every record they return
-  // (MappedIndex::child_count / node_points), so no traversal reads outside the mapping either.
-  if (verify_all) x.verify_records(by_id[kNodes]->offset, by_id[kIds]->offset);
+  // (MappedIndex::child_count / node_points), so no traversal reads outside the mapping either,
+  // and ids() checks the ids on first use (consumers index per-point arrays by id).
+  if (verify_all) x.verify_records(by_id[kNodes]->offset);
 
   // Sources: "size \t mtime_ns \t points \t first_id \t format \t path" lines.
   {
@@ -1158,7 +1163,7 @@ static std::vector<std::uint64_t> count_levels(const MappedIndex& m) {
   return out;
 }
 
-void MappedIndex::verify_records(std::uint64_t node_off, std::uint64_t ids_off) const {
+void MappedIndex::verify_records(std::uint64_t node_off) const {
   const std::string nm = path_.string();
   auto fail = [&nm](std::uint64_t off, const std::string& what) -> void {
     throw IndexError(nm + ": byte " + std::to_string(off) + ": " + what);
@@ -1211,19 +1216,33 @@ void MappedIndex::verify_records(std::uint64_t node_off, std::uint64_t ids_off) 
                                         std::to_string(have[d]));
   }
   // Ids: every stored id names a point (callers index per-point arrays by id).
+  check_ids();
+}
+
+std::span<const PointIndex> MappedIndex::ids() const {
+  if (!verified_ && map_) std::call_once(map_->ids_checked, [this] { check_ids(); });
+  return {ids_, points_};
+}
+
+void MappedIndex::check_ids() const {
   std::atomic<std::size_t> bad{points_};
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_, 1 << 16), [&](const auto& r) {
-    for (std::size_t s = r.begin(); s != r.end(); ++s)
-      if (ids_[s] >= points_) {
-        std::size_t cur = bad.load();
-        while (s < cur && !bad.compare_exchange_weak(cur, s)) {
+  // Isolated: a thread waiting for this pass must not pick up an outer task (e.g. another ray of
+  // a batch) that calls ids() again and would wait on the once_flag this thread holds.
+  tbb::this_task_arena::isolate([&] {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_, 1 << 16), [&](const auto& r) {
+      for (std::size_t s = r.begin(); s != r.end(); ++s)
+        if (ids_[s] >= points_) {
+          std::size_t cur = bad.load();
+          while (s < cur && !bad.compare_exchange_weak(cur, s)) {
+          }
+          return;
         }
-        return;
-      }
+    });
   });
   if (const std::size_t s = bad.load(); s < points_)
-    fail(ids_off + 4 * s, "section ids: slot " + std::to_string(s) + " holds id " + std::to_string(ids_[s]) +
-                              " outside the " + std::to_string(points_) + " points");
+    throw IndexError(path_.string() + ": byte " + std::to_string(ids_offset_ + 4 * s) + ": section ids: slot " +
+                     std::to_string(s) + " holds id " + std::to_string(ids_[s]) + " outside the " +
+                     std::to_string(points_) + " points (corrupted; `rayscan info --verify` checks the whole file)");
 }
 
 std::vector<std::uint64_t> MappedIndex::points_per_level() const {

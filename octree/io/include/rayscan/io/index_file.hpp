@@ -131,7 +131,14 @@ class MappedIndex {
   /// Child i < child_count(n) of n.
   [[nodiscard]] Node child(Node n, unsigned i) const { return nodes_[n].first_child + i; }
   [[nodiscard]] std::span<const Vec3> positions() const { return {pos_, points_}; }
-  [[nodiscard]] std::span<const PointIndex> ids() const { return {ids_, points_}; }
+  /// The original id of each slot (a point's index in the concatenated sources). Every id is
+  /// below N: a verified file had them checked at open; on a file opened without the deep checks
+  /// (IndexOpenOptions) the first call checks them (one parallel pass over the 4-byte ids,
+  /// thread-safe, once per MappedIndex), because every consumer indexes per-point arrays by id
+  /// (normals, visibility, query, the renderer's radii, ray hits' `index`). Throws IndexError
+  /// naming the file, the byte offset and the slot of the first id >= N (the call fails again
+  /// if repeated).
+  [[nodiscard]] std::span<const PointIndex> ids() const;
 
   // Index file specifics -----------------------------------------------------------------------
   /// The Warren & Salmon id of node n (a corrupted, unverified key 0 reads as the root's id 1).
@@ -178,7 +185,9 @@ class MappedIndex {
  private:
   MappedIndex() = default;
   /// The deep record checks of open(): node ranges, children and keys; ids below N. Throws IndexError.
-  void verify_records(std::uint64_t node_offset, std::uint64_t ids_offset) const;
+  void verify_records(std::uint64_t node_offset) const;
+  /// Throws IndexError for the first stored id >= N (section ids, slot, byte offset).
+  void check_ids() const;
   struct Map;
   std::unique_ptr<Map> map_;
   std::filesystem::path path_;
@@ -193,6 +202,7 @@ class MappedIndex {
   const Octree::NodeRec* nodes_ = nullptr;
   const Vec3* pos_ = nullptr;
   const PointIndex* ids_ = nullptr;
+  std::uint64_t ids_offset_ = 0;  ///< byte offset of the ids section (error messages)
   std::span<const Rgb16> rgb_;
   std::span<const std::uint16_t> intensity_;
   std::span<const std::uint8_t> classification_;
