@@ -314,6 +314,8 @@ class RunReader {
     refill();
   }
   [[nodiscard]] bool done() const { return pos_ >= len_; }
+  /// True when cur() is the last record of the buffer (next() refills it, moving every record).
+  [[nodiscard]] bool last_in_buffer() const { return pos_ + rec_ >= len_; }
   [[nodiscard]] const std::uint8_t* cur() const { return buf_.data() + pos_; }
   void next() {
     pos_ += rec_;
@@ -654,8 +656,21 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   // into memory, the bounds from it, then sort and write the sections straight from memory. Else
   // a bounds pass first (the runs need the Morton grid), sorted runs on disk and a k-way merge.
   const bool in_memory = announced <= run_cap;
-  AABB grid_bounds;  // defines the Morton grid of the runs (multi-run build)
-  if (!in_memory) {
+  // The Morton grid of the runs (multi-run build) needs the bounds before the read pass. LAS
+  // headers state them (min/max x, y, z): when every input is LAS, their union is taken on trust
+  // and checked against the exact bounds of the read pass, which is repeated on the exact grid
+  // when the headers were wrong (the tree must be build_bulk's, whose grid is the exact bounds).
+  // Other inputs get a bounds pass first (positions only).
+  AABB grid_bounds;
+  bool grid_from_headers = !in_memory;
+  for (const fs::path& in : inputs) {
+    if (!grid_from_headers) break;
+    auto r = open_point_reader(in, AttributeSet::none(), ReadOptions{.scalars = false});
+    if (!r->integer_grid() || !r->info().header_bounds || r->point_count() == 0) grid_from_headers = false;
+    else grid_bounds.expand(*r->info().header_bounds);
+  }
+  if (!in_memory && !grid_from_headers) {
+    grid_bounds = AABB{};
     std::uint64_t scanned = 0;
     PointCloud chunk;
     for (const fs::path& in : inputs) {
@@ -667,7 +682,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
       }
     }
   }
-  const OctreeRules::Quantizer grid_qz(OctreeRules::root_cell(grid_bounds).lo, OctreeRules::root_side(grid_bounds));
+  OctreeRules::Quantizer grid_qz(OctreeRules::root_cell(grid_bounds).lo, OctreeRules::root_side(grid_bounds));
 
   AtomicFile out(output);
   fs::path tmp_dir = opt.temp_dir.empty() ? output.parent_path() : opt.temp_dir;
@@ -712,8 +727,15 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     run_first_id += buf.size();
     buf.clear();
   };
-  {
+  for (int attempt = 0;; ++attempt) {
     PointCloud c;
+    bounds = AABB{};
+    total = 0;
+    run_first_id = 0;
+    for (const fs::path& rp : run_files) fs::remove(rp);
+    run_files.clear();
+    buf.clear();
+    for (IndexSource& s : sources) s.points = 0;
     for (std::size_t f = 0; f < inputs.size(); ++f) {
       std::unique_ptr<PointReader> r = std::move(kept[f]);
       if (!r) r = open_point_reader(inputs[f], stored, ReadOptions{.scalars = false});
@@ -735,12 +757,15 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
         if (opt.progress) opt.progress("read", total, announced);
       }
     }
-    if (!in_memory) {
-      flush_run();
-      if (!(bounds.lo == grid_bounds.lo && bounds.hi == grid_bounds.hi))
-        throw std::runtime_error(inputs.front().string() +
-                                 ": the inputs changed during the build (their bounds differ from the first pass)");
-    }
+    if (in_memory) break;
+    flush_run();
+    if (bounds.lo == grid_bounds.lo && bounds.hi == grid_bounds.hi) break;
+    if (!grid_from_headers || attempt > 0)
+      throw std::runtime_error(inputs.front().string() +
+                               ": the inputs changed during the build (their bounds differ from the first pass)");
+    stats.notes.push_back("the LAS headers' bounds differ from the points' bounds: read again on the exact grid");
+    grid_bounds = bounds;
+    grid_qz = OctreeRules::Quantizer(OctreeRules::root_cell(grid_bounds).lo, OctreeRules::root_side(grid_bounds));
   }
   stats.runs = in_memory ? (total > 0 ? 1 : 0) : run_files.size();
   const AABB cell = OctreeRules::root_cell(bounds);
@@ -852,22 +877,42 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
       heap.push({get<std::uint64_t>(readers[r]->cur(), 0), get<std::uint32_t>(readers[r]->cur(), 8), r});
     };
     for (std::uint32_t r = 0; r < readers.size(); ++r) push(r);
+    // The merge order is decided for a block of records (pointers into the run buffers, valid
+    // until a buffer refills, which ends the block); each section is then gathered from the block
+    // and written, the sections in parallel.
+    std::vector<const std::uint8_t*> block;
+    block.reserve(std::size_t{1} << 16);
     std::uint64_t merged = 0;
+    auto emit_block = [&] {
+      struct Field {
+        SectionWriter* w;
+        std::size_t off, size;
+      };
+      std::vector<Field> fields{{&w_codes, 0, 8}, {&w_ids, 8, 4}, {&w_pos, 12, 24}};
+      if (L.gps) fields.push_back({&*w_gps, L.gps_off, 8});
+      if (L.rgb) fields.push_back({&*w_rgb, L.rgb_off, 6});
+      if (L.intensity) fields.push_back({&*w_int, L.int_off, 2});
+      if (L.cls) fields.push_back({&*w_cls, L.cls_off, 1});
+      tbb::parallel_for(std::size_t{0}, fields.size(), [&](std::size_t f) {
+        const Field& fd_ = fields[f];
+        std::vector<std::uint8_t> out(block.size() * fd_.size);
+        for (std::size_t i = 0; i < block.size(); ++i) std::memcpy(out.data() + i * fd_.size, block[i] + fd_.off, fd_.size);
+        fd_.w->write(out.data(), out.size());
+      });
+      merged += block.size();
+      block.clear();
+      if (opt.progress) opt.progress("merge", merged, total);
+    };
     while (!heap.empty()) {
       const Head top = heap.top();
       heap.pop();
-      const std::uint8_t* rec = readers[top.run]->cur();
-      w_codes.write(rec, 8);
-      w_ids.write(rec + 8, 4);
-      w_pos.write(rec + 12, 24);
-      if (L.gps) w_gps->write(rec + L.gps_off, 8);
-      if (L.rgb) w_rgb->write(rec + L.rgb_off, 6);
-      if (L.intensity) w_int->write(rec + L.int_off, 2);
-      if (L.cls) w_cls->write(rec + L.cls_off, 1);
-      readers[top.run]->next();
+      RunReader& rr = *readers[top.run];
+      block.push_back(rr.cur());
+      if (rr.last_in_buffer() || block.size() == block.capacity()) emit_block();
+      rr.next();
       push(top.run);
-      if (opt.progress && (++merged & ((1u << 22) - 1)) == 0) opt.progress("merge", merged, total);
     }
+    emit_block();
     for (SectionWriter* w : {&w_codes, &w_pos, &w_ids}) w->flush();
     h.sections[s_pos].crc = w_pos.crc();
     h.sections[s_ids].crc = w_ids.crc();
