@@ -44,7 +44,9 @@ struct IndexSectionInfo {
   std::uint64_t bytes = 0;    ///< size in bytes (without the alignment gap after it)
 };
 
-/// Progress of a build: `phase` is "scan", "sort", "merge" or "nodes"; `done` of `total` points.
+/// Progress of a build: `phase` is "scan" (a bounds pass, several-run builds of non-LAS inputs;
+/// total 0), "read", "sort", "write" (one-run build), "merge" (several runs), "nodes" or
+/// "spacing"; `done` of `total` points.
 using IndexProgress = std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)>;
 
 /// Options of build_index_file().
@@ -71,14 +73,17 @@ struct IndexBuildStats {
   std::vector<std::string> notes;  ///< decisions the user should know about
 };
 
-/// Builds the index of `inputs` (their points in this order get ids 0, 1, ...) into `output`:
-/// pass 1 streams positions for the bounds and checks that the inputs agree on CRS; pass 2
-/// streams points, Morton codes (OctreeRules) and sorts runs that fit the memory budget; the runs
-/// are merged into the point sections and the nodes are built from the sorted codes exactly as
-/// Octree::build_bulk does. Written to a temporary file and renamed (AtomicFile); on any error
-/// the temporary and the runs are removed. Throws FormatError (an input), IndexError (inputs
-/// disagree: names the file), std::invalid_argument (options), std::runtime_error (I/O, e.g. disk
-/// full: names the file and errno text).
+/// Builds the index of `inputs` (their points in this order get ids 0, 1, ...) into `output`
+/// (docs/index-format.md, "Build"): when the announced points fit the memory budget, one read
+/// pass into memory, a parallel sort of the Morton keys (OctreeRules) and the sections written
+/// from memory; otherwise sorted runs on the grid of the LAS headers' bounds (checked; read again
+/// on the exact grid when a header is wrong) or of a bounds pass, merged into the sections. The
+/// nodes are built from the sorted codes exactly as Octree::build_bulk does, so the file is the
+/// same byte for byte whichever path ran. Written to a temporary file and renamed (AtomicFile);
+/// on any error the temporary and the runs are removed. Throws FormatError (an input),
+/// IndexError (inputs disagree: names the file), std::invalid_argument (options),
+/// std::runtime_error (I/O, e.g. disk full: names the file and errno text; inputs that change
+/// during the build).
 IndexBuildStats build_index_file(const std::vector<std::filesystem::path>& inputs,
                                  const std::filesystem::path& output, const IndexBuildOptions& options);
 
