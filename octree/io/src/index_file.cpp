@@ -27,6 +27,7 @@
 #include <mutex>
 #include <queue>
 #include <sstream>
+#include <type_traits>
 
 namespace rayscan::io {
 
@@ -767,6 +768,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     grid_bounds = bounds;
     grid_qz = OctreeRules::Quantizer(OctreeRules::root_cell(grid_bounds).lo, OctreeRules::root_side(grid_bounds));
   }
+  if (!in_memory) buf = PointBuffer{};  // the runs are on disk: release the buffer before the merge
   stats.runs = in_memory ? (total > 0 ? 1 : 0) : run_files.size();
   const AABB cell = OctreeRules::root_cell(bounds);
 
@@ -896,7 +898,17 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
       tbb::parallel_for(std::size_t{0}, fields.size(), [&](std::size_t f) {
         const Field& fd_ = fields[f];
         std::vector<std::uint8_t> out(block.size() * fd_.size);
-        for (std::size_t i = 0; i < block.size(); ++i) std::memcpy(out.data() + i * fd_.size, block[i] + fd_.off, fd_.size);
+        auto gather = [&]<std::size_t B>(std::integral_constant<std::size_t, B>) {  // constant-size copies
+          for (std::size_t i = 0; i < block.size(); ++i) std::memcpy(out.data() + i * B, block[i] + fd_.off, B);
+        };
+        switch (fd_.size) {
+          case 1: gather(std::integral_constant<std::size_t, 1>{}); break;
+          case 2: gather(std::integral_constant<std::size_t, 2>{}); break;
+          case 4: gather(std::integral_constant<std::size_t, 4>{}); break;
+          case 6: gather(std::integral_constant<std::size_t, 6>{}); break;
+          case 8: gather(std::integral_constant<std::size_t, 8>{}); break;
+          default: gather(std::integral_constant<std::size_t, 24>{}); break;
+        }
         fd_.w->write(out.data(), out.size());
       });
       merged += block.size();
