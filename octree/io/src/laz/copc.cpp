@@ -326,14 +326,24 @@ void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector
   auto cell = [&](double v, double lo, double s) {
     return static_cast<std::uint32_t>(std::clamp((v - lo) * s, 0.0, cells - 1));
   };
-  thread_local std::vector<std::uint64_t> keys;
+  thread_local std::vector<std::uint64_t> keys, tmp;
   keys.resize(m);
+  tmp.resize(m);
   for (std::uint32_t i = 0; i < m; ++i) {
     const Vec3& p = pos[i];
     const std::uint64_t code = morton_encode(cell(p.x, bx.lo.x, sc.x), cell(p.y, bx.lo.y, sc.y), cell(p.z, bx.lo.z, sc.z));
     keys[i] = code << 32 | i;
   }
-  std::sort(keys.begin(), keys.end());
+  // LSD radix sort on the 30-bit code, 3 stable passes of 10 bits: (code, file order), as
+  // std::sort of the keys would give (profiled: the comparison sort took a third of build_local).
+  for (unsigned pass = 0; pass < 3; ++pass) {
+    const unsigned shift = 32 + 10 * pass;
+    std::uint32_t count[1025] = {};
+    for (std::uint32_t i = 0; i < m; ++i) ++count[((keys[i] >> shift) & 1023u) + 1];
+    for (unsigned k = 0; k < 1024; ++k) count[k + 1] += count[k];
+    for (std::uint32_t i = 0; i < m; ++i) tmp[count[(keys[i] >> shift) & 1023u]++] = keys[i];
+    keys.swap(tmp);
+  }
   L.slot_of.resize(m);
   for (std::uint32_t r = 0; r < m; ++r) {
     order[r] = static_cast<std::uint32_t>(keys[r]);
@@ -365,11 +375,19 @@ void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector
       std::uint32_t b = a + 1;
       while (b < it.b && digit(b, it.level) == dg) ++b;
       todo.push_back(Item{static_cast<std::uint32_t>(L.cells.size()), a, b, it.level + 1});
-      L.cells.push_back(Cell{box_of(a, b), {}, 0, 0});
+      L.cells.push_back(Cell{AABB{}, {}, 0, 0});
       ++nc;
       a = b;
     }
     L.cells[it.cell].child_count = nc;
+  }
+  // Tight boxes bottom-up (children follow their parent in the breadth-first order): a leaf's
+  // from its points, an inner cell's the union of its children's (min/max are exact).
+  for (std::size_t k = L.cells.size(); k-- > 1;) {
+    Cell& c = L.cells[k];
+    if (c.child_count == 0) c.box = box_of(c.slots.begin - slots.begin, c.slots.end - slots.begin);
+    else
+      for (std::uint32_t j = 0; j < c.child_count; ++j) c.box.expand(L.cells[c.first_child + j].box);
   }
 }
 
