@@ -10,6 +10,7 @@
 #include "../las_header.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/morton.hpp"
+#include "rayscan/ray_query.hpp"
 
 #include <tbb/parallel_for.h>
 
@@ -234,6 +235,14 @@ CopcIndex::CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes)
     nd.top_count = pts + nd.child_count <= 8 ? pts + nd.child_count : 2u;
     nodes_.push_back(nd);
   }
+  const Vec3 origin = float_origin();
+  fboxes_.assign(nodes_.size() * kBoxesPerNode, FBox{});
+  for (std::uint32_t i = 0; i < nodes_.size(); ++i) {
+    const NodeData& nd = nodes_[i];
+    FBox* f = &fboxes_[std::size_t{i} * kBoxesPerNode];
+    f[0] = f[9] = f[10] = float_box(nd.box, origin);  // points node and group: the voxel cube
+    for (unsigned c = 0; c < nd.child_count; ++c) f[1 + c] = float_box(nodes_[nd.children[c]].box, origin);
+  }
   for (std::uint32_t i = 0; i < nodes_.size(); ++i)
     if (nodes_[i].slots.size() > 0) by_first_id_.push_back(i);
   std::sort(by_first_id_.begin(), by_first_id_.end(),
@@ -298,6 +307,15 @@ std::uint32_t layers_of(unsigned attrs) {
 }
 }  // namespace
 
+CopcIndex::FBox CopcIndex::float_box(const AABB& b, const Vec3& origin) {
+  FBox f{};
+  for (int a = 0; a < 3; ++a) {
+    f.v[a] = rayscan::detail::round_float_down(b.lo[a] - origin[a]);
+    f.v[3 + a] = rayscan::detail::round_float_up(b.hi[a] - origin[a]);
+  }
+  return f;
+}
+
 void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector<std::uint32_t>& order) const {
   const SlotRange slots = nodes_[n].slots;
   const std::uint32_t m = slots.size();
@@ -311,8 +329,14 @@ void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector
     for (std::uint32_t r = a; r < b; ++r) bx.expand(pos[order[r]]);
     return bx;
   };
+  const Vec3 origin = float_origin();
+  auto set_float = [&](Cell& c) {
+    const FBox f = float_box(c.box, origin);
+    std::copy(f.v, f.v + 8, c.f);
+  };
   if (m <= kLeafPoints) {  // one leaf cell, file order kept
-    L.cells.push_back(Cell{box_of(0, m), slots, 0, 0});
+    L.cells.push_back(Cell{{}, box_of(0, m), slots, 0, 0});
+    set_float(L.cells[0]);
     return;
   }
   // Morton order within the node's tight bounds: 10 bits per axis (a 1024^3 grid, enough for
@@ -358,7 +382,7 @@ void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector
     unsigned level;
   };
   std::vector<Item> todo{{0, 0, m, 0}};
-  L.cells.push_back(Cell{bx, {}, 0, 0});
+  L.cells.push_back(Cell{{}, bx, {}, 0, 0});
   for (std::size_t t = 0; t < todo.size(); ++t) {
     Item it = todo[t];
     // collapse single-child chains: skip the digits every point of the range shares
@@ -375,7 +399,7 @@ void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector
       std::uint32_t b = a + 1;
       while (b < it.b && digit(b, it.level) == dg) ++b;
       todo.push_back(Item{static_cast<std::uint32_t>(L.cells.size()), a, b, it.level + 1});
-      L.cells.push_back(Cell{AABB{}, {}, 0, 0});
+      L.cells.push_back(Cell{{}, AABB{}, {}, 0, 0});
       ++nc;
       a = b;
     }
@@ -389,6 +413,7 @@ void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector
     else
       for (std::uint32_t j = 0; j < c.child_count; ++j) c.box.expand(L.cells[c.first_child + j].box);
   }
+  for (Cell& c : L.cells) set_float(c);
 }
 
 void CopcIndex::load(std::uint32_t n) const {
@@ -544,6 +569,7 @@ std::size_t CopcIndex::trim_cache() {
       resident.push_back(i);
       bytes += nodes_[i].slots.size() * per_slot + local_bytes(i);
     }
+  clock_.fetch_add(1);  // a new batch: what is touched from now on is more recent
   if (bytes <= cache_bytes_) return 0;
   std::sort(resident.begin(), resident.end(),
             [&](std::uint32_t a, std::uint32_t b) { return touched_[a].load() < touched_[b].load(); });

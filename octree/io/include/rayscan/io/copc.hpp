@@ -8,6 +8,7 @@
 
 #include "rayscan/geometry.hpp"
 #include "rayscan/point_cloud.hpp"
+#include "rayscan/simd.hpp"
 #include "rayscan/spatial_index.hpp"
 
 #include <atomic>
@@ -120,7 +121,7 @@ class CopcIndex {
     const std::uint32_t h = hier(n), c = part(n);
     if (c == 0) return nodes_[h].top_count;
     if (c == kGroup) return nodes_[h].child_count;
-    if (c == 1) touch(h);
+    if (c == 1) ensure_loaded(h);
     return local_[h].cells[c - 1].child_count;
   }
   [[nodiscard]] Node child(Node n, unsigned i) const {
@@ -138,6 +139,28 @@ class CopcIndex {
   [[nodiscard]] std::span<const Vec3> positions() const { return {pos_, slots_}; }
   [[nodiscard]] std::span<const PointIndex> ids() const { return {ids_, slots_}; }
 
+  // Optional SIMD extension of the concept (issue 12; see ray_query): the float boxes of a
+  // node's children relative to float_origin(), rounded outwards (hierarchy children: stored
+  // per hierarchy node at open; cells: stored in the cells when a node is decoded).
+  [[nodiscard]] simd::ChildBoxesF child_boxes_f(Node n) const {
+    const std::uint32_t h = hier(n), c = part(n);
+    const NodeData& nd = nodes_[h];
+    const float* f = &fboxes_[std::size_t{h} * kBoxesPerNode].v[0];
+    constexpr unsigned stride = sizeof(FBox) / sizeof(float);
+    if (c == 0) {
+      const bool pts = nd.slots.size() > 0;
+      if (pts && nd.top_count == 2 && nd.child_count == 8) return {f + 9 * stride, stride, 2};
+      return {pts ? f : f + stride, stride, nd.top_count};
+    }
+    if (c == kGroup) return {f + stride, stride, nd.child_count};
+    const std::vector<Cell>& cells = local_[h].cells;
+    const Cell& cell = cells[c - 1];
+    return {&cells[cell.first_child].f[0], sizeof(Cell) / sizeof(float), cell.child_count};
+  }
+  /// The root box's minimum corner (float boxes are relative to it) and its largest edge.
+  [[nodiscard]] Vec3 float_origin() const { return nodes_.empty() ? Vec3(0.0) : nodes_[0].box.lo; }
+  [[nodiscard]] double float_extent() const { return nodes_.empty() ? 0.0 : nodes_[0].box.max_extent(); }
+
   [[nodiscard]] const CopcInfo& info() const { return info_; }
   [[nodiscard]] std::size_t node_count() const { return nodes_.size(); }
   /// Nodes decoded so far (including re-decodes after eviction) and nodes resident now.
@@ -148,7 +171,8 @@ class CopcIndex {
   /// permutation). Throws std::out_of_range for id >= the point count,
   /// FormatError for a corrupted chunk.
   [[nodiscard]] Vec3 position_of(PointIndex id) const;
-  /// Releases least recently touched nodes until the resident positions, ids, attributes and
+  /// Releases least recently touched nodes (by batch: the nodes touched since the last call are
+  /// the most recent, in no order among themselves) until the resident positions, ids, attributes and
   /// local trees fit the cache budget; returns the nodes evicted. Must not run concurrently with queries on this
   /// index (call it between batches, e.g. between render tiles).
   std::size_t trim_cache();
@@ -208,6 +232,7 @@ class CopcIndex {
   /// One cell of a node's local tree: tight box, its slots (absolute; empty unless a leaf), its
   /// children (contiguous cells from first_child).
   struct Cell {
+    float f[8];  // box relative to float_origin(), rounded outwards (lo xyz, hi xyz, 2 unused)
     AABB box;
     SlotRange slots;
     std::uint32_t first_child = 0;
@@ -220,12 +245,24 @@ class CopcIndex {
     std::vector<std::uint32_t> slot_of;
   };
   static constexpr std::uint32_t kGroup = 0xFFFFFFFFu;
+  /// Float boxes of a hierarchy node's children: [points node, 8 hierarchy children, points
+  /// node, group] (the last two: the children of the handle when they are grouped).
+  struct FBox {
+    float v[8];
+  };
+  static constexpr std::size_t kBoxesPerNode = 11;
+  static FBox float_box(const AABB& b, const Vec3& origin);
   static std::uint32_t hier(Node n) { return static_cast<std::uint32_t>(n); }
   static std::uint32_t part(Node n) { return static_cast<std::uint32_t>(n >> 32); }
   static Node handle(std::uint32_t h, std::uint32_t part) { return Node{part} << 32 | h; }
-  /// Marks hierarchy node h as used now and decodes it on first touch.
+  /// Marks hierarchy node h as used in the current batch (the LRU clock is the batch count,
+  /// advanced by trim_cache: no shared counter written per ray) and decodes it on first touch.
   void touch(std::uint32_t h) const {
-    touched_[h].store(++clock_, std::memory_order_relaxed);
+    const std::uint64_t now = clock_.load(std::memory_order_relaxed);
+    if (touched_[h].load(std::memory_order_relaxed) != now) touched_[h].store(now, std::memory_order_relaxed);
+    ensure_loaded(h);
+  }
+  void ensure_loaded(std::uint32_t h) const {
     if (loaded_[h].load(std::memory_order_acquire) == 0) load(h);
   }
   void load(std::uint32_t n) const;
@@ -243,6 +280,7 @@ class CopcIndex {
   struct Map;
   std::unique_ptr<Map> map_;
   std::vector<NodeData> nodes_;
+  std::vector<FBox> fboxes_;  // kBoxesPerNode per hierarchy node
   std::vector<std::uint32_t> by_first_id_;  // nodes holding points, by first_id
   std::size_t slots_ = 0;
   Vec3* pos_ = nullptr;
@@ -256,7 +294,7 @@ class CopcIndex {
   mutable std::unique_ptr<Local[]> local_;  // per hierarchy node, filled by load()
   mutable std::unique_ptr<std::atomic<std::uint8_t>[]> loaded_;
   mutable std::unique_ptr<std::atomic<std::uint64_t>[]> touched_;
-  mutable std::atomic<std::uint64_t> clock_{0}, decodes_{0};
+  mutable std::atomic<std::uint64_t> clock_{1}, decodes_{0};
   mutable std::mutex locks_[32];
 };
 
