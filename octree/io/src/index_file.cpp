@@ -812,6 +812,20 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   // of the runs whose codes go to a temporary file. Then the nodes from the sorted codes.
   const fs::path codes_path = runs_dir.path / "codes";
   std::vector<std::uint64_t> mem_codes;  // sorted codes of the in-memory build
+  // Flushes the point sections' writers (positions, ids, the stored attributes) and records their
+  // CRCs in the header: the end of both paths below.
+  auto finish_points = [&](SectionWriter& pos, SectionWriter& ids, std::optional<SectionWriter>& rgb,
+                           std::optional<SectionWriter>& intensity, std::optional<SectionWriter>& cls,
+                           std::optional<SectionWriter>& gps) {
+    pos.flush();
+    ids.flush();
+    h.sections[s_pos].crc = pos.crc();
+    h.sections[s_ids].crc = ids.crc();
+    if (rgb) rgb->flush(), h.sections[s_rgb].crc = rgb->crc();
+    if (intensity) intensity->flush(), h.sections[s_int].crc = intensity->crc();
+    if (cls) cls->flush(), h.sections[s_cls].crc = cls->crc();
+    if (gps) gps->flush(), h.sections[s_gps].crc = gps->crc();
+  };
   if (in_memory) {
     const OctreeRules::Quantizer qz(cell.lo, OctreeRules::root_side(bounds));
     if (opt.progress) opt.progress("sort", 0, total);
@@ -844,13 +858,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
       if (L.gps) gather_write(buf.gps, keys, b, e, g_gps, *w_gps);
       if (opt.progress && (e & ((std::size_t{1} << 22) - 1)) < kGatherBlock) opt.progress("write", e, total);
     });
-    for (SectionWriter* w : {&w_pos, &w_ids}) w->flush();
-    h.sections[s_pos].crc = w_pos.crc();
-    h.sections[s_ids].crc = w_ids.crc();
-    if (L.rgb) w_rgb->flush(), h.sections[s_rgb].crc = w_rgb->crc();
-    if (L.intensity) w_int->flush(), h.sections[s_int].crc = w_int->crc();
-    if (L.cls) w_cls->flush(), h.sections[s_cls].crc = w_cls->crc();
-    if (L.gps) w_gps->flush(), h.sections[s_gps].crc = w_gps->crc();
+    finish_points(w_pos, w_ids, w_rgb, w_int, w_cls, w_gps);
     buf = PointBuffer{};  // release before the node build
   } else {
     Fd codes_fd(codes_path, O_WRONLY | O_CREAT | O_TRUNC);
@@ -925,13 +933,8 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
       push(top.run);
     }
     emit_block();
-    for (SectionWriter* w : {&w_codes, &w_pos, &w_ids}) w->flush();
-    h.sections[s_pos].crc = w_pos.crc();
-    h.sections[s_ids].crc = w_ids.crc();
-    if (L.rgb) w_rgb->flush(), h.sections[s_rgb].crc = w_rgb->crc();
-    if (L.intensity) w_int->flush(), h.sections[s_int].crc = w_int->crc();
-    if (L.cls) w_cls->flush(), h.sections[s_cls].crc = w_cls->crc();
-    if (L.gps) w_gps->flush(), h.sections[s_gps].crc = w_gps->crc();
+    w_codes.flush();
+    finish_points(w_pos, w_ids, w_rgb, w_int, w_cls, w_gps);
     if (opt.progress) opt.progress("merge", total, total);
   }
   for (const fs::path& rp : run_files) fs::remove(rp);
