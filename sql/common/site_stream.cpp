@@ -20,31 +20,26 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The attributes an index file stores (IndexBuildOptions::attributes), by the import's names.
+// A column of the points table filled from an attribute section of an index file.
 enum class Stored { intensity, classification, gps_time, red, green, blue };
 
-struct StoredAttribute {
-  const char* name;            // --attributes word
-  io::Attribute attribute;
-};
-constexpr StoredAttribute kStored[] = {{"intensity", io::Attribute::intensity},
-                                       {"classification", io::Attribute::classification},
-                                       {"gps_time", io::Attribute::gps_time},
-                                       {"rgb", io::Attribute::rgb}};
+// The attributes an index file stores (IndexBuildOptions::attributes).
+constexpr io::Attribute kIndexAttributes[] = {io::Attribute::rgb, io::Attribute::intensity,
+                                              io::Attribute::classification, io::Attribute::gps_time};
 
-const StoredAttribute* stored_attribute(const std::string& name) {
-  for (const auto& a : kStored)
-    if (name == a.name) return &a;
-  return nullptr;
+// The stored attribute an --attributes word names (the names are io::AttributeSet's own), if any.
+std::optional<io::Attribute> stored_attribute(const std::string& name) {
+  for (io::Attribute a : kIndexAttributes)
+    if (io::AttributeSet::none().add(a).to_string() == name) return a;
+  return std::nullopt;
 }
 
 // ---- the index file path ------------------------------------------------------------------------
 
 class IndexSite final : public SiteStream {
  public:
-  IndexSite(io::MappedIndex index, std::vector<std::string> given_paths, std::string how,
-            const ImportOptions& options)
-      : m_(std::move(index)), chunk_size_(options.chunk_size), how_(std::move(how)) {
+  IndexSite(io::MappedIndex index, std::vector<std::string> given_paths, const ImportOptions& options)
+      : m_(std::move(index)), chunk_size_(options.chunk_size) {
     const auto& src = m_.sources();
     for (std::size_t i = 0; i < src.size(); ++i) {
       SourceRow row;
@@ -55,31 +50,29 @@ class IndexSite final : public SiteStream {
       first_ids_.push_back(src[i].first_id);
     }
     for (const std::string& name : options.attributes) {
-      const StoredAttribute* a = stored_attribute(name);
+      const std::optional<io::Attribute> a = stored_attribute(name);
       if (!a) throw std::invalid_argument("attribute '" + name + "': index files store only intensity, "
                                           "classification, gps_time and rgb");
-      if (!m_.attributes().has(a->attribute))
+      if (!m_.attributes().has(*a))
         throw std::invalid_argument(m_.path().string() + ": attribute '" + name +
                                     "' requested but the index file does not store it (rebuild it "
                                     "with rayscan index --attributes " + name + ")");
-      if (a->attribute == io::Attribute::rgb) {
+      if (*a == io::Attribute::rgb) {
         for (Stored s : {Stored::red, Stored::green, Stored::blue}) kinds_.push_back(s);
         cols_.push_back({"red", true});
         cols_.push_back({"green", true});
         cols_.push_back({"blue", true});
       } else {
-        kinds_.push_back(a->attribute == io::Attribute::intensity        ? Stored::intensity
-                         : a->attribute == io::Attribute::classification ? Stored::classification
-                                                                         : Stored::gps_time);
-        cols_.push_back({name, a->attribute != io::Attribute::gps_time});
+        kinds_.push_back(*a == io::Attribute::intensity        ? Stored::intensity
+                         : *a == io::Attribute::classification ? Stored::classification
+                                                               : Stored::gps_time);
+        cols_.push_back({name, *a != io::Attribute::gps_time});
       }
     }
   }
 
   const std::vector<SourceRow>& sources() const override { return sources_; }
   const std::vector<ColumnInfo>& columns() const override { return cols_; }
-  std::uint64_t points() const override { return m_.positions().size(); }
-  const std::string& how() const override { return how_; }
 
   bool next(ChunkRows& out) override {
     const std::uint64_t n = m_.positions().size();
@@ -126,7 +119,6 @@ class IndexSite final : public SiteStream {
  private:
   io::MappedIndex m_;
   std::uint32_t chunk_size_;
-  std::string how_;
   std::vector<SourceRow> sources_;
   std::vector<ColumnInfo> cols_;
   std::vector<Stored> kinds_;
@@ -147,12 +139,9 @@ class MemorySite final : public SiteStream {
     std::vector<const PointCloud*> ptrs;
     for (const auto& c : clouds_) ptrs.push_back(&c);
     layout_ = make_chunk_layout(ptrs, chunk_size_);
-    how_ = "clouds read whole (a requested scalar field is not stored by index files)";
   }
   const std::vector<SourceRow>& sources() const override { return sources_; }
   const std::vector<ColumnInfo>& columns() const override { return cols_; }
-  std::uint64_t points() const override { return layout_.order.size(); }
-  const std::string& how() const override { return how_; }
 
   bool next(ChunkRows& out) override {
     if (next_ >= layout_.chunks.size()) return false;
@@ -180,7 +169,6 @@ class MemorySite final : public SiteStream {
   std::vector<ColumnInfo> cols_;
   std::vector<SourceRow> sources_;
   ChunkLayout layout_;
-  std::string how_;
   std::size_t next_ = 0;
 };
 
@@ -193,7 +181,7 @@ std::unique_ptr<SiteStream> open_site(const std::vector<fs::path>& paths, const 
   bool all_stored = true;
   io::AttributeSet wanted = io::AttributeSet::none();
   for (const std::string& a : options.attributes) {
-    if (const StoredAttribute* s = stored_attribute(a)) wanted.add(s->attribute);
+    if (const auto s = stored_attribute(a)) wanted.add(*s);
     else all_stored = false;
   }
   const bool one_index = paths.size() == 1 && io::is_index_file(paths[0]);
@@ -207,15 +195,14 @@ std::unique_ptr<SiteStream> open_site(const std::vector<fs::path>& paths, const 
     if (io::is_index_file(p) && !one_index)
       throw std::invalid_argument(p.string() + ": an index file must be the only input of an import");
   if (one_index)
-    return std::make_unique<IndexSite>(io::MappedIndex::open(paths[0]), std::vector<std::string>{},
-                                       "index file " + paths[0].string(), options);
+    return std::make_unique<IndexSite>(io::MappedIndex::open(paths[0]), std::vector<std::string>{}, options);
 
   // Every input must have the requested attributes (the index would silently leave one out).
   for (const auto& p : paths) {
     const auto reader = io::open_point_reader(p, wanted, io::ReadOptions{.scalars = false});
-    for (const auto& s : kStored)
-      if (wanted.has(s.attribute) && !reader->attributes().has(s.attribute))
-        throw std::invalid_argument(p.string() + ": attribute '" + s.name + "' requested but the file has none");
+    for (const std::string& a : options.attributes)
+      if (!reader->attributes().has(*stored_attribute(a)))
+        throw std::invalid_argument(p.string() + ": attribute '" + a + "' requested but the file has none");
   }
   // The clouds go through a temporary index file: the external Morton sort of `rayscan index`
   // (bounded memory), then its positions section in storage order are the rows. The file is
@@ -243,8 +230,7 @@ std::unique_ptr<SiteStream> open_site(const std::vector<fs::path>& paths, const 
   fs::remove(temp, ec);
   std::vector<std::string> given;
   for (const auto& p : paths) given.push_back(p.string());
-  return std::make_unique<IndexSite>(std::move(*index), std::move(given), "temporary index file (external sort)",
-                                     options);
+  return std::make_unique<IndexSite>(std::move(*index), std::move(given), options);
 }
 
 }  // namespace rayscan::sql

@@ -296,11 +296,10 @@ int prepare(VTab* vt) {
   // With chunk_points the R*Tree's auxiliary columns (first_row, count) are not read: reading them
   // makes the R*Tree prepare an internal statement on every query (~8% of a query's instructions;
   // bench/README.md, "SQL ray queries"); a chunk's count is its BLOB's size / 40.
-  const char* match = c.blob ? "SELECT min_x, min_y, min_z, max_x, max_y, max_z, id, 0, 0 FROM "
-                               "main.chunks WHERE id MATCH ray_prune(?1,?2,?3,?4,?5,?6,?7,?8,?9)"
-                             : "SELECT min_x, min_y, min_z, max_x, max_y, max_z, id, first_row, count FROM "
-                               "main.chunks WHERE id MATCH ray_prune(?1,?2,?3,?4,?5,?6,?7,?8,?9)";
-  if (sqlite3_prepare_v2(vt->db, match, -1, &c.match, nullptr) != SQLITE_OK) {
+  const std::string match = std::string("SELECT min_x, min_y, min_z, max_x, max_y, max_z, id, ") +
+                            (c.blob ? "0, 0" : "first_row, count") +
+                            " FROM main.chunks WHERE id MATCH ray_prune(?1,?2,?3,?4,?5,?6,?7,?8,?9)";
+  if (sqlite3_prepare_v2(vt->db, match.c_str(), -1, &c.match, nullptr) != SQLITE_OK) {
     const std::string e = sqlite3_errmsg(vt->db);
     c.clear();
     return vt_error(&vt->base, "ray_query: cannot read the chunk index: " + e);

@@ -48,13 +48,9 @@ class SiteStream {
   virtual ~SiteStream() = default;
   [[nodiscard]] virtual const std::vector<SourceRow>& sources() const = 0;
   [[nodiscard]] virtual const std::vector<ColumnInfo>& columns() const = 0;
-  /// Total points of the site.
-  [[nodiscard]] virtual std::uint64_t points() const = 0;
   /// Fills `out` with the next chunk (vectors reused); false after the last one. Throws
   /// io::IndexError for an id outside the index's sources (a corrupted, unverified file).
   virtual bool next(ChunkRows& out) = 0;
-  /// How the points were read, for the user ("index file site.rsi", "temporary index", ...).
-  [[nodiscard]] virtual const std::string& how() const = 0;
 };
 
 /// Opens `paths` for import with `options` (chunk size, attributes, memory, temp_dir):
@@ -65,7 +61,7 @@ class SiteStream {
 ///    when the stream is destroyed; peak memory stays within the budget whatever the site's size;
 ///  - when an attribute is not one of intensity, classification, gps_time, rgb (a scalar field
 ///    such as a LAS extra-bytes dimension, which index files do not store): the clouds are read
-///    whole and ordered by make_chunk_layout (memory grows with the site; how() says so).
+///    whole and ordered by make_chunk_layout (memory grows with the site).
 /// Throws io::FormatError (unreadable input), io::IndexError (inputs disagree on CRS, corrupted
 /// index), std::invalid_argument (bad option; "<file>: attribute 'gps_time' requested but the file
 /// has none"), std::runtime_error (I/O, e.g. disk full while writing the temporary index).
