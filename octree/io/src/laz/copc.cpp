@@ -5,6 +5,7 @@
 // offset uint64, byteSize int32, pointCount int32; pointCount -1 = a child hierarchy page).
 // Reference read (not copied): copc-lib cpp/include/copc-lib/copc/info.hpp, hierarchy/entry.hpp.
 #include "rayscan/io/copc.hpp"
+#include "rayscan/octree.hpp"
 
 #include "laz.hpp"
 #include "../las_header.hpp"
@@ -310,8 +311,9 @@ std::uint32_t layers_of(unsigned attrs) {
 CopcIndex::FBox CopcIndex::float_box(const AABB& b, const Vec3& origin) {
   FBox f{};
   for (int a = 0; a < 3; ++a) {
-    f.v[a] = rayscan::detail::round_float_down(b.lo[a] - origin[a]);
-    f.v[3 + a] = rayscan::detail::round_float_up(b.hi[a] - origin[a]);
+    // The octree's rule (one float ulp outwards, more than the double rounding of the offset).
+    f.v[a] = OctreeRules::float_bound(b.lo[a] - origin[a], false);
+    f.v[3 + a] = OctreeRules::float_bound(b.hi[a] - origin[a], true);
   }
   return f;
 }
