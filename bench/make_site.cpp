@@ -1,8 +1,11 @@
-// make_site OUT.las N [SOURCE.las]: the issue-10 benchmark site, generated (never committed): the
-// bundled autzen scan (LAS 1.2 PDRF 3) tiled 4 x 4, then repeated with +-0.5 m xy jitter until N
-// points, written as LAS 1.2 PDRF 3 (34 bytes per point: check free disk first, delete after).
+// make_site OUT.las N [SOURCE.las] [--pdrf 0|3]: the issue-10 benchmark site, generated (never
+// committed): the bundled autzen scan (LAS 1.2 PDRF 3) tiled 4 x 4, then repeated with +-0.5 m xy
+// jitter until N points, written as LAS 1.2 PDRF 3 (34 bytes per point) or, with --pdrf 0, PDRF 0
+// (20 bytes per point: the first 20 bytes of each PDRF 3 record, LAS 1.2 Table 7 vs Table 10, no
+// GPS time or colour). Check free disk first (1e9 points = 20 GB at PDRF 0), delete after.
 #include <algorithm>
 #include <cstdint>
+#include <cstdlib>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -12,13 +15,25 @@
 #include <vector>
 
 int main(int argc, char** argv) {
-  if (argc < 3) {
-    std::cerr << "usage: make_site OUT.las N [SOURCE.las]\n";
+  std::vector<std::string> args;
+  int pdrf = 3;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--pdrf" && i + 1 < argc) pdrf = std::atoi(argv[++i]);
+    else args.push_back(a);
+  }
+  if (args.size() < 2 || (pdrf != 0 && pdrf != 3)) {
+    std::cerr << "usage: make_site OUT.las N [SOURCE.las] [--pdrf 0|3]\n";
     return 2;
   }
-  const std::string out = argv[1];
-  const auto n = static_cast<std::uint64_t>(std::stod(argv[2]));
-  const std::string src_path = argc > 3 ? argv[3] : std::string(RAYSCAN_SOURCE_DIR) + "/scenes/data/autzen_trim.las";
+  const std::string out = args[0];
+  const auto n = static_cast<std::uint64_t>(std::stod(args[1]));
+  if (n > 0xFFFFFFFFull) {
+    std::cerr << "make_site: at most 2^32 - 1 points (LAS 1.2 point count)\n";
+    return 2;
+  }
+  const std::size_t rl = pdrf == 0 ? 20 : 34;  // output record length
+  const std::string src_path = args.size() > 2 ? args[2] : std::string(RAYSCAN_SOURCE_DIR) + "/scenes/data/autzen_trim.las";
   std::ifstream in(src_path, std::ios::binary);
   std::vector<char> src((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   auto u32 = [&](std::size_t o) { std::uint32_t v; std::memcpy(&v, src.data() + o, 4); return v; };
@@ -45,16 +60,19 @@ int main(int argc, char** argv) {
   std::FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) return 2;
   std::vector<char> hdr(src.begin(), src.begin() + 227);
+  hdr[104] = static_cast<char>(pdrf);
+  const auto rl16 = static_cast<std::uint16_t>(rl);
+  std::memcpy(hdr.data() + 105, &rl16, 2);
   std::fwrite(hdr.data(), 1, 227, f);
-  std::vector<char> block(static_cast<std::size_t>(count) * 34);
+  std::vector<char> block(static_cast<std::size_t>(count) * rl);
   std::int64_t blo[3] = {INT64_MAX, INT64_MAX, INT64_MAX}, bhi[3] = {INT64_MIN, INT64_MIN, INT64_MIN};
   std::uint64_t done = 0;
   for (std::uint64_t rep = 0; done < n; ++rep) {
     const std::uint64_t m = std::min<std::uint64_t>(count, n - done);
     const int t = static_cast<int>(rep % 16);
     for (std::uint64_t i = 0; i < m; ++i) {
-      char* r = block.data() + i * 34;
-      std::memcpy(r, recs + i * 34, 34);
+      char* r = block.data() + i * rl;
+      std::memcpy(r, recs + i * 34, rl);
       std::int32_t xyz[3];
       std::memcpy(xyz, r, 12);
       std::int64_t x = xyz[0] + (t % 4) * ext[0], y = xyz[1] + (t / 4) * ext[1];
@@ -63,7 +81,7 @@ int main(int argc, char** argv) {
       for (int k = 0; k < 3; ++k) blo[k] = std::min<std::int64_t>(blo[k], xyz[k]), bhi[k] = std::max<std::int64_t>(bhi[k], xyz[k]);
       std::memcpy(r, xyz, 12);
     }
-    if (std::fwrite(block.data(), 34, m, f) != m) {
+    if (std::fwrite(block.data(), rl, m, f) != m) {
       std::perror(tmp.c_str());
       std::fclose(f);
       std::remove(tmp.c_str());

@@ -306,11 +306,14 @@ struct TempDir {
   }
 };
 
-/// Sequential reader of one sorted run file with a fixed buffer.
+/// Sequential reader of one sorted run file with a fixed buffer. Each range is read once: once
+/// it is in the buffer its disk blocks are released (`fallocate` PUNCH_HOLE, best effort: ignored
+/// where the file system lacks it), so the runs shrink while the merge writes the sections and the
+/// build's disk peak stays near the runs' size instead of runs + output (1e9 points: 36 GB less).
 class RunReader {
  public:
   RunReader(const fs::path& p, std::size_t rec, std::size_t buffer_bytes)
-      : fd_(p, O_RDONLY), rec_(rec) {
+      : fd_(p, O_RDWR), rec_(rec) {
     buf_.resize(std::max(rec, buffer_bytes / rec * rec));
     refill();
   }
@@ -326,6 +329,9 @@ class RunReader {
  private:
   void refill() {
     len_ = fd_.pread_some(buf_.data(), buf_.size(), off_) / rec_ * rec_;
+    if (len_ > 0)
+      (void)::fallocate(fd_.get(), FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, static_cast<off_t>(off_),
+                        static_cast<off_t>(len_));
     off_ += len_;
     pos_ = 0;
   }
