@@ -204,6 +204,38 @@ TEST(IndexFileBuild, LasAttributesAreStoredExactlyBySlot) {
   fs::remove_all(dir);
 }
 
+// The key sort's per-bucket LSD radix pass (buckets of 64 .. n/8 keys): 64 small clusters 100 m
+// apart (one top-16-bit Morton bucket each), their points interleaved in input order and every
+// 5th an exact duplicate of an earlier point of its cluster (equal codes: the tie is the id), in
+// one run and in several; the oracle is build_bulk's tree, slot order and ids.
+TEST(IndexFileBuild, ClusteredBucketsWithDuplicatesSortLikeBuildBulk) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  std::vector<Vec3> pts;
+  for (std::size_t i = 0; i < 16500; ++i) {
+    const std::size_t c = i % 64;
+    if (i % 5 == 4 && i >= 640) {
+      pts.push_back(pts[i - 64 * (1 + i % 7)]);  // same cluster, earlier point
+      continue;
+    }
+    pts.emplace_back(5.0e5 + 100.0 * static_cast<double>(c % 8) + u(rng),
+                     4.0e6 + 100.0 * static_cast<double>(c / 8) + u(rng), 20.0 + u(rng));
+  }
+  const fs::path dir = temp_dir() / "clustered_buckets";
+  fs::create_directories(dir);
+  write_f64(dir / "c.f64", pts);
+  const Octree t = Octree::build_bulk(pts, OctreeConfig{});
+  for (const std::uint64_t memory : {std::uint64_t{64} << 20, std::uint64_t{1} << 20}) {
+    SCOPED_TRACE(memory);
+    io::IndexBuildOptions o;
+    o.memory_bytes = memory;
+    const auto st = io::build_index_file({dir / "c.f64"}, dir / "c.rsi", o);
+    EXPECT_EQ(st.runs, memory == (std::uint64_t{1} << 20) ? 2u : 1u);
+    expect_same_tree(io::MappedIndex::open(dir / "c.rsi"), t);
+  }
+  fs::remove_all(dir);
+}
+
 // A build in several runs takes the Morton grid from the LAS header's bounds (no bounds pass) and
 // checks it against the points: a header whose max x lies (LAS 1.2 header byte 179) is detected
 // and the read pass repeated on the exact grid, so the tree is still build_bulk's (the oracle:

@@ -383,12 +383,40 @@ struct PointBuffer {
   }
 };
 
+/// Sorts `a[0, n)` by code, stably, by an LSD radix sort on the 8-bit digits of the code's low
+/// `low_bits` bits (the higher bits are equal); `tmp` holds n keys. One pass counts every digit;
+/// a digit on which all keys agree is skipped (a site's bucket spans few levels below its cell).
+/// The keys arrive in idx order, so the result is their (code, idx) order (Knuth, TAOCP vol. 3,
+/// 5.2.5: LSD radix sorting is stable pass by pass).
+[[gnu::noinline]] void radix_sort_low_bits(SortKey* a, std::size_t n, SortKey* tmp, unsigned low_bits) {
+  const unsigned digits = (low_bits + 7) / 8;
+  std::array<std::array<std::uint32_t, 256>, 8> count{};
+  for (std::size_t i = 0; i < n; ++i)
+    for (unsigned d = 0; d < digits; ++d) ++count[d][(a[i].code >> (8 * d)) & 0xFF];
+  SortKey* src = a;
+  SortKey* dst = tmp;
+  for (unsigned d = 0; d < digits; ++d) {
+    std::array<std::uint32_t, 256>& c = count[d];
+    if (c[(src[0].code >> (8 * d)) & 0xFF] == n) continue;  // every key has this digit
+    std::uint32_t sum = 0;
+    for (std::uint32_t& v : c) {
+      const std::uint32_t k = v;
+      v = sum;
+      sum += k;
+    }
+    for (std::size_t i = 0; i < n; ++i) dst[c[(src[i].code >> (8 * d)) & 0xFF]++] = src[i];
+    std::swap(src, dst);
+  }
+  if (src != a) std::copy(src, src + n, a);
+}
+
 /// The Morton keys of the buffered points on the grid `qz`, sorted by (code, id): one parallel
 /// MSD radix pass on the top kBucketBits of the 63-bit codes (a histogram pass, then a scatter
 /// pass that computes each code again instead of holding a second key array), then each bucket
-/// sorted on its own (cache-sized for a site; a bucket holding more than an eighth of the points,
-/// e.g. a dense cluster, is sorted in parallel itself). Scattering chunk by chunk keeps each
-/// bucket in idx order, so the result is the (code, idx) order of a full sort.
+/// sorted on its own by an LSD radix sort of the remaining bits (cache-sized for a site; a bucket
+/// holding more than an eighth of the points, e.g. a dense cluster, is sorted in parallel by
+/// `tbb::parallel_sort`). Scattering chunk by chunk keeps each bucket in idx order, so the result
+/// is the (code, idx) order of a full sort.
 std::vector<SortKey> sorted_keys(const PointBuffer& buf, const OctreeRules::Quantizer& qz) {
   constexpr unsigned kBucketBits = 16, kShift = 3 * kMortonBits - kBucketBits;
   constexpr std::size_t kBuckets = std::size_t{1} << kBucketBits;
@@ -423,12 +451,20 @@ std::vector<SortKey> sorted_keys(const PointBuffer& buf, const OctreeRules::Quan
     }
   });
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, kBuckets, 64), [&](const auto& r) {
+    std::vector<SortKey> tmp;
     for (std::size_t k = r.begin(); k != r.end(); ++k) {
       auto b = keys.begin() + static_cast<std::ptrdiff_t>(bucket_begin[k]);
       auto e = keys.begin() + static_cast<std::ptrdiff_t>(bucket_begin[k + 1]);
-      if (e - b < 2) continue;
-      if (static_cast<std::size_t>(e - b) > n / 8) tbb::parallel_sort(b, e);
-      else std::sort(b, e);
+      const auto m = static_cast<std::size_t>(e - b);
+      if (m < 2) continue;
+      if (m > n / 8) {
+        tbb::parallel_sort(b, e);
+      } else if (m < 64) {
+        std::sort(b, e);
+      } else {
+        if (tmp.size() < m) tmp.resize(m);
+        radix_sort_low_bits(&*b, m, tmp.data(), kShift);
+      }
     }
   });
   return keys;
