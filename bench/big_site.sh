@@ -7,10 +7,11 @@
 # printing each progress phase's start time. With DELETE_LAS=1 the LAS file is deleted as soon
 # as the read pass is over (the sort runs' folder holds the merge's "codes" file; the readers are
 # closed by then), for sites whose LAS, runs and index do not fit the disk together. Then renders
-# SCRATCH/sN.json (600x400, SPP samples, elevation colours unless ATTRIBUTES has rgb) from the
-# index under the same sampler. Data stays in SCRATCH: delete it afterwards.
+# SCRATCH/sN.json (600x400, SPP samples, radius RADIUS or "auto", elevation colours unless
+# ATTRIBUTES has rgb) from the index under the same sampler. Data stays in SCRATCH: delete it
+# afterwards.
 set -u
-scratch=$1; n=$2; mem=$3; attrs=${4:-none}; pdrf=${5:-0}; del=${6:-0}; spp=${SPP:-16}
+scratch=$1; n=$2; mem=$3; attrs=${4:-none}; pdrf=${5:-0}; del=${6:-0}; spp=${SPP:-16}; radius=${RADIUS:-'"auto"'}
 B=$(cd "$(dirname "$0")/.." && pwd)/build
 R=${RAYSCAN:-$B/tools/rayscan}
 cd "$scratch" || exit 2
@@ -58,7 +59,7 @@ if [ ! -e "$name.rsi" ]; then
 fi
 if [ "$attrs" = none ] || [[ "$attrs" != *rgb* ]]; then color='"color": "elevation", "ramp": "terrain", "range": [400, 520]'; else color='"color": "rgb"'; fi
 cat > "$name.json" <<EOF
-{ "cloud": "$name.rsi", "radius": "auto", "material": {$color},
+{ "cloud": "$name.rsi", "radius": $radius, "material": {$color},
   "background": {"type": "gradient", "horizon": [1.0, 1.0, 1.0], "zenith": [0.5, 0.7, 1.0], "intensity": 0.6},
   "sun": {"azimuth_deg": 210, "elevation_deg": 35, "irradiance": 2.5},
   "camera": {"width": 600, "height": 400, "position": [636900, 847500, 1900], "look_at": [638356, 850060, 460], "up": [0, 0, 1], "vfov_deg": 42},
