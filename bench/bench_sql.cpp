@@ -9,6 +9,7 @@
 //             inside radius 3r; ray_dwithin(rs_box(x,y,z), ...) on the points' own GiST index
 //             (the planner-support form; the bench creates <table>_pt) (only with --postgres).
 // Prints time per query and chunks touched / total, and counts result mismatches vs the octree.
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/octree.hpp"
 #include "rayscan/ray_query.hpp"
@@ -24,6 +25,7 @@
 #include <unistd.h>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <random>
 #include <string>
 
@@ -48,7 +50,8 @@ int main(int argc, char** argv) {
   CLI::App app{"bench_sql: SQL ray queries (SQLite, PostgreSQL, full scan) vs the in-memory octree"};
   std::string cloud_path = RAYSCAN_DEFAULT_CLOUD, db_path, conninfo, table = "points";
   int nrays = 1000, full_rays = 20, k = 10;
-  std::string baseline_ext, only;
+  std::string baseline_ext, only, pragma, index_path;
+  bool point_gist = true;
   app.add_option("--cloud", cloud_path, "Point cloud (the one imported)")->capture_default_str();
   app.add_option("--sqlite", db_path, "SQLite database from `rayscan db import` of --cloud "
                                       "(default: imported here into a temporary file, default chunk size)");
@@ -57,22 +60,50 @@ int main(int argc, char** argv) {
   app.add_option("--rays", nrays, "Camera rays");
   app.add_option("--full-rays", full_rays, "Rays for the unpruned full scan (slow)");
   app.add_option("--baseline-ext", baseline_ext, "Another rayscan_sqlite.so to run interleaved (before/after)");
+  app.add_option("--pragma", pragma, "PRAGMA statements run on every SQLite connection first, e.g. "
+                                     "\"mmap_size=1073741824\" (SQLite's memory-mapped I/O)");
+  app.add_option("--index", index_path, "Use this index file (rayscan index of --cloud, mapped) as the "
+                                        "octree instead of reading --cloud and building it in memory "
+                                        "(the same tree and results; for sites larger than memory)");
+  app.add_flag("!--no-point-gist", point_gist, "PostgreSQL: skip ray_dwithin on the points' own GiST "
+                                               "index (building it on 1e8+ rows takes hours)");
   app.add_option("--only", only, "Run only the radius or only the kNN queries (for profiling one case)")
       ->check(CLI::IsMember({"radius", "knn"}));
   CLI11_PARSE(app, argc, argv);
 
-  const PointCloud cloud = io::read_point_cloud(cloud_path, io::ReadOptions{.scalars = false});
-  const Octree oct = Octree::build_bulk(cloud.positions);
-  const AABB b = cloud.bounds();
+  // The octree: built in memory from the cloud, or the mapped index file of the same cloud.
+  PointCloud cloud;
+  std::optional<Octree> mem;
+  std::optional<io::MappedIndex> mapped;
+  std::span<const Vec3> positions;
+  AABB b;
+  std::string label;
+  if (index_path.empty()) {
+    cloud = io::read_point_cloud(cloud_path, io::ReadOptions{.scalars = false});
+    mem.emplace(Octree::build_bulk(cloud.positions));
+    positions = cloud.positions;
+    b = cloud.bounds();
+    label = cloud_path + " (octree built in memory)";
+  } else {
+    mapped.emplace(io::MappedIndex::open(index_path));
+    positions = mapped->positions();
+    b = mapped->bounds();
+    label = cloud_path + " (octree: mapped index file " + index_path + ")";
+  }
+  auto octree_query = [&](const Ray& ray, const RayQuery& q, std::vector<RayHit>& out) {
+    if (mapped) ray_query(*mapped, ray, q, out);
+    else ray_query(*mem, ray, q, out);
+  };
+  const std::size_t npoints = positions.size();
   const Vec3 e = b.extent();
-  const double r = std::sqrt(std::max(e.x * e.y, 1e-12) / double(cloud.size()));
+  const double r = std::sqrt(std::max(e.x * e.y, 1e-12) / double(npoints));
   std::mt19937_64 rng(42);
-  std::uniform_int_distribution<std::size_t> pick(0, cloud.size() - 1);
+  std::uniform_int_distribution<std::size_t> pick(0, npoints - 1);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::vector<Ray> rays;
   for (int i = 0; i < nrays; ++i) {
     const Vec3 o(b.lo.x + u(rng) * e.x, b.lo.y + u(rng) * e.y, b.hi.z + 0.3 * b.max_extent());
-    const Ray tmp(o, cloud.positions[pick(rng)] - o);
+    const Ray tmp(o, positions[pick(rng)] - o);
     rays.emplace_back(tmp.origin(), tmp.direction());
   }
 
@@ -92,10 +123,20 @@ int main(int argc, char** argv) {
     std::cerr << err << "\n";
     return 2;
   }
+  auto apply_pragma = [&](sqlite3* c) {
+    if (pragma.empty()) return true;
+    char* e = nullptr;
+    if (sqlite3_exec(c, ("PRAGMA " + pragma).c_str(), nullptr, nullptr, &e) == SQLITE_OK) return true;
+    std::cerr << "PRAGMA " << pragma << ": " << (e ? e : "?") << "\n";
+    sqlite3_free(e);
+    return false;
+  };
+  if (!apply_pragma(db)) return 2;
   sqlite3* db_base = nullptr;
   sqlite3_stmt *q_base = nullptr, *stats_base = nullptr;
   if (!baseline_ext.empty()) {
     if (sqlite3_open_v2(db_path.c_str(), &db_base, SQLITE_OPEN_READONLY, nullptr) != SQLITE_OK) return 2;
+    if (!apply_pragma(db_base)) return 2;
     sqlite3_enable_load_extension(db_base, 1);
     if (sqlite3_load_extension(db_base, baseline_ext.c_str(), "sqlite3_extension_init", &err) != SQLITE_OK) {
       std::cerr << err << "\n";
@@ -118,9 +159,11 @@ int main(int argc, char** argv) {
     }
     PQclear(PQexec(pg, "SET max_parallel_workers_per_gather = 0"));
     // The points' own GiST index for ray_dwithin(rs_box(x,y,z), ...) (the support-function form).
-    PGresult* ix = PQexec(pg, ("CREATE INDEX IF NOT EXISTS " + table + "_pt ON " + table + " USING gist (rs_box(x, y, z))").c_str());
-    if (PQresultStatus(ix) != PGRES_COMMAND_OK) std::cerr << PQerrorMessage(pg);
-    PQclear(ix);
+    if (point_gist) {
+      PGresult* ix = PQexec(pg, ("CREATE INDEX IF NOT EXISTS " + table + "_pt ON " + table + " USING gist (rs_box(x, y, z))").c_str());
+      if (PQresultStatus(ix) != PGRES_COMMAND_OK) std::cerr << PQerrorMessage(pg);
+      PQclear(ix);
+    }
     PQclear(PQexec(pg, ("ANALYZE " + table).c_str()));
   }
   auto pg_count = [&](const std::string& sql) {
@@ -144,11 +187,11 @@ int main(int argc, char** argv) {
     RayQuery qr; qr.radius = r;
     RayQuery qk; qk.k = k;
     Tick t0;
-    ray_query(oct, Ray(o, d), qr, hits);
+    octree_query(Ray(o, d), qr, hits);
     oct_r.add(t0);
     const std::size_t want_r = hits.size();
     t0 = Tick();
-    ray_query(oct, Ray(o, d), qk, hits);
+    octree_query(Ray(o, d), qk, hits);
     oct_k.add(t0);
     const std::size_t want_k = hits.size();
     for (int mode = 0; mode < 4; ++mode) {
@@ -189,21 +232,23 @@ int main(int argc, char** argv) {
                              "WHERE c.box && ray_within(" + od + "," + num(r) + ") AND dist_ray(" + od + ",p.x,p.y,p.z) <= " + num(r));
       pg_r.add(t0);
       if (n != (int)want_r) ++pg_r.mismatch;
+      if (point_gist) {
       t0 = Tick();
       const int w = pg_count("SELECT point_index FROM " + table + " WHERE ray_dwithin(rs_box(x, y, z), " + od + "," + num(r) + ")");
       pg_w.add(t0);
       if (w != (int)want_r) ++pg_w.mismatch;
+      }
       t0 = Tick();
       const int m = pg_count("SELECT p.point_index FROM " + table + "_chunks c JOIN " + table + " p ON p.chunk = c.chunk "
                              "WHERE c.box && ray_within(" + od + "," + num(3 * r) + ") AND dist_ray(" + od + ",p.x,p.y,p.z) <= " +
                              num(3 * r) + " ORDER BY dist_ray(" + od + ",p.x,p.y,p.z), 1 LIMIT " + std::to_string(k));
       pg_k.add(t0);
       RayQuery q3; q3.k = k; q3.radius = 3 * r;
-      ray_query(oct, Ray(o, d), q3, hits);
+      octree_query(Ray(o, d), q3, hits);
       if (m != (int)hits.size()) ++pg_k.mismatch;
     }
   }
-  std::printf("cloud %s: %zu points, r = %.4g (point spacing), k = %d, %d rays\n", cloud_path.c_str(), cloud.size(), r, k, nrays);
+  std::printf("cloud %s: %zu points, r = %.4g (point spacing), k = %d, %d rays\n", label.c_str(), npoints, r, k, nrays);
   std::printf("%-28s %10s %10s %10s %10s %14s %9s\n", "engine / query", "wall us/q", "x octree", "cpu us/q",
               "x octree", "chunks touched", "mismatch");
   auto row = [&](const char* name, const Acc& a, const Acc& ref, bool cpu = true) {

@@ -4,6 +4,7 @@
 #include "commands.hpp"
 #include "processes.hpp"
 
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/sql/import.hpp"
 
 #include <iostream>
@@ -16,7 +17,7 @@ namespace {
 
 struct DbImportOptions {
   std::vector<std::string> clouds;
-  std::string out, postgres, table = "points", attributes;
+  std::string out, postgres, table = "points", attributes, memory, temp_dir;
   std::uint32_t chunk = sql::ImportOptions::kDefaultChunkSize;
   bool pcpatch = false;
 };
@@ -27,6 +28,12 @@ int run_import(const DbImportOptions& o) {
   sql::ImportOptions opt;
   opt.chunk_size = o.chunk;
   opt.pcpatch = o.pcpatch;
+  opt.temp_dir = o.temp_dir;
+  try {
+    if (!o.memory.empty()) opt.memory_bytes = io::parse_byte_size(o.memory);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--memory: ") + e.what());
+  }
   if (o.pcpatch && o.postgres.empty()) throw UsageError("--pcpatch needs --postgres CONNINFO");
   std::stringstream ss(o.attributes);
   for (std::string a; std::getline(ss, a, ',');)
@@ -62,6 +69,13 @@ Runner add_db_command(CLI::App& app) {
   c->add_flag("--pcpatch", o->pcpatch,
               "PostgreSQL: one pgpointcloud patch (pcpatch, double X/Y/Z) per chunk in TABLE, with "
               "its box, instead of rows");
+  c->add_option("--memory", o->memory,
+                "memory budget of the external Morton sort (e.g. 4G, 512M): the clouds are ordered "
+                "through a temporary index file, so memory stays bounded whatever their size; "
+                "default: that of rayscan index");
+  c->add_option("--temp-dir", o->temp_dir,
+                "folder of the temporary index file and sort runs (default: the SQLite output's "
+                "folder, or the system temporary folder for --postgres)");
   c->add_option("--attributes", o->attributes,
                 "Comma-separated extra columns: intensity, classification, gps_time, rgb or a "
                 "scalar field name");

@@ -283,14 +283,6 @@ int prepare(VTab* vt) {
       return vt_error(&vt->base, std::string("ray_query: reading the chunk index: ") + sqlite3_errmsg(vt->db));
     c.chunks_total = sqlite3_column_int64(s.s, 0);
   }
-  if (sqlite3_prepare_v2(vt->db,
-                         "SELECT min_x, min_y, min_z, max_x, max_y, max_z, first_row, count, id FROM "
-                         "main.chunks WHERE id MATCH ray_prune(?1,?2,?3,?4,?5,?6,?7,?8,?9)",
-                         -1, &c.match, nullptr) != SQLITE_OK) {
-    const std::string e = sqlite3_errmsg(vt->db);
-    c.clear();
-    return vt_error(&vt->base, "ray_query: cannot read the chunk index: " + e);
-  }
   if (sqlite3_prepare_v2(vt->db, "SELECT data FROM main.chunk_points WHERE id = ?1", -1, &c.blob, nullptr) != SQLITE_OK) {
     sqlite3_finalize(c.blob);
     c.blob = nullptr;
@@ -300,6 +292,17 @@ int prepare(VTab* vt) {
       c.clear();
       return vt_error(&vt->base, "ray_query: cannot read table 'points': " + e);
     }
+  }
+  // With chunk_points the R*Tree's auxiliary columns (first_row, count) are not read: reading them
+  // makes the R*Tree prepare an internal statement on every query (~8% of a query's instructions;
+  // bench/README.md, "SQL ray queries"); a chunk's count is its BLOB's size / 40.
+  const std::string match = std::string("SELECT min_x, min_y, min_z, max_x, max_y, max_z, id, ") +
+                            (c.blob ? "0, 0" : "first_row, count") +
+                            " FROM main.chunks WHERE id MATCH ray_prune(?1,?2,?3,?4,?5,?6,?7,?8,?9)";
+  if (sqlite3_prepare_v2(vt->db, match.c_str(), -1, &c.match, nullptr) != SQLITE_OK) {
+    const std::string e = sqlite3_errmsg(vt->db);
+    c.clear();
+    return vt_error(&vt->base, "ray_query: cannot read the chunk index: " + e);
   }
   vt->ready = true;
   return SQLITE_OK;
@@ -394,32 +397,33 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
   // Reads one chunk's points: the packed BLOB when the database has chunk_points, else its rows.
   auto visit = [&](const Cand& ch) -> int {
     ++st.chunks_visited;
-    st.points_tested += ch.count;
     if (sqlite3_stmt* b = vt->st.blob) {
       // Packed chunk (rayscan/sql/chunking.hpp PackedPoint): one lookup, then a tight loop.
+      constexpr std::size_t kPoint = sizeof(rayscan::sql::PackedPoint);
       sqlite3_bind_int64(b, 1, ch.id);
       const int rc = sqlite3_step(b);
       const auto* data = static_cast<const unsigned char*>(sqlite3_column_blob(b, 0));
       const auto bytes = static_cast<std::size_t>(sqlite3_column_bytes(b, 0));
-      if (rc != SQLITE_ROW || bytes != std::size_t(ch.count) * sizeof(rayscan::sql::PackedPoint) ||
-          (bytes && !data)) {
+      if (rc != SQLITE_ROW || bytes % kPoint != 0 || (bytes && !data)) {
         const std::string msg = rc == SQLITE_ROW || rc == SQLITE_DONE
                                     ? "chunk " + std::to_string(ch.id) + ": chunk_points has " +
                                           (rc == SQLITE_ROW ? std::to_string(bytes) + " bytes" : "no row") +
-                                          "; expected " + std::to_string(ch.count) +
-                                          " points of 40 bytes (corrupted database?)"
+                                          "; expected a whole number of 40-byte points (corrupted database?)"
                                     : std::string(sqlite3_errmsg(vt->db));
         sqlite3_reset(b);
         return vt_error(&vt->base, "ray_query: reading table 'chunk_points': " + msg);
       }
-      for (std::size_t i = 0; i < std::size_t(ch.count); ++i) {
+      const std::size_t count = bytes / kPoint;
+      st.points_tested += static_cast<long long>(count);
+      for (std::size_t i = 0; i < count; ++i) {
         rayscan::sql::PackedPoint p;
-        std::memcpy(&p, data + i * sizeof p, sizeof p);
+        std::memcpy(&p, data + i * kPoint, kPoint);
         consider(p.x, p.y, p.z, p.point_index, p.source);
       }
       sqlite3_reset(b);
       return SQLITE_OK;
     }
+    st.points_tested += ch.count;
     sqlite3_stmt* pts = vt->st.rows;
     sqlite3_bind_int64(pts, 1, ch.first);
     sqlite3_bind_int64(pts, 2, ch.first + ch.count - 1);
@@ -454,7 +458,7 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
       rs_ray_box_test(o3, d3, r, t_min, t_max, time_order, box, &score);
       const rayscan::AABB b{Vec3(box[0], box[1], box[2]), Vec3(box[3], box[4], box[5])};
       const double tol = 1e-9 * (glm::length(o - b.center()) + b.max_extent()) + 1e-300;
-      const Cand ch{score, tol, sqlite3_column_int64(s, 8), sqlite3_column_int64(s, 6), sqlite3_column_int64(s, 7)};
+      const Cand ch{score, tol, sqlite3_column_int64(s, 6), sqlite3_column_int64(s, 7), sqlite3_column_int64(s, 8)};
       ++st.chunks_candidate;
       if (time_order) {
         cands.push_back(ch);

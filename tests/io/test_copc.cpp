@@ -59,6 +59,9 @@ TEST(Copc, IndexRayQueriesEqualBruteForceAndDecodeLazily) {
     for (std::size_t i = 0; i < got.size(); ++i) {
       EXPECT_EQ(got[i].index, want[i].index) << "query " << q;
       EXPECT_EQ(got[i].t, want[i].t);
+      // slots are in Morton order inside a node: the hit's slot still names the hit's point
+      EXPECT_EQ(idx.ids()[got[i].slot], got[i].index);
+      EXPECT_EQ(idx.positions()[got[i].slot], pc.positions[got[i].index]);
     }
     if (q == 0) {
       EXPECT_LT(idx.resident_nodes(), idx.node_count()) << "a single narrow ray touched every node";
@@ -66,6 +69,48 @@ TEST(Copc, IndexRayQueriesEqualBruteForceAndDecodeLazily) {
     if (q % 10 == 9) idx.trim_cache();  // evicted nodes are decoded again on the next touch
   }
   EXPECT_GT(idx.decodes(), 0u);
+}
+
+TEST(Copc, LocalTreesPartitionEachNodeAndPositionOfFollowsThePermutation) {
+  // Walk the whole index (decoding every node): the local trees of the decoded nodes, read through
+  // the SpatialIndex interface, must hold every point of the file exactly once, each inside the
+  // box of every node on its path, with at most 8 children per node; position_of(id) (file order)
+  // must equal the whole-file read despite the Morton order of the slots.
+  RAYSCAN_REQUIRE_FILE(p, "laz/lone-star.copc.laz");
+  const PointCloud pc = io::read_point_cloud(p, io::ReadOptions{.scalars = false});
+  io::CopcIndex idx(p);
+  std::vector<std::uint8_t> seen(pc.size(), 0);
+  std::size_t cells = 0, max_children = 0;
+  struct Item {
+    io::CopcIndex::Node n;
+    std::vector<AABB> path;
+  };
+  std::vector<Item> stack{{idx.root(), {}}};
+  while (!stack.empty()) {
+    Item it = std::move(stack.back());
+    stack.pop_back();
+    it.path.push_back(idx.node_bounds(it.n));
+    const SlotRange s = idx.node_points(it.n);
+    for (std::uint32_t k = s.begin; k < s.end; ++k) {
+      const PointIndex id = idx.ids()[k];
+      ASSERT_LT(id, pc.size());
+      ++seen[id];
+      ASSERT_EQ(idx.positions()[k], pc.positions[id]);
+      for (const AABB& b : it.path) ASSERT_TRUE(b.contains(pc.positions[id]));
+    }
+    ++cells;
+    const unsigned nc = idx.child_count(it.n);
+    max_children = std::max<std::size_t>(max_children, nc);
+    for (unsigned c = 0; c < nc; ++c) stack.push_back({idx.child(it.n, c), it.path});
+  }
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), std::uint8_t{1}), static_cast<std::ptrdiff_t>(pc.size()));
+  EXPECT_LE(max_children, 8u);
+  EXPECT_GT(cells, 10 * idx.node_count()) << "the nodes were not sub-indexed";
+  std::mt19937 rng(3);
+  for (int i = 0; i < 2000; ++i) {
+    const PointIndex id = static_cast<PointIndex>(rng() % pc.size());
+    ASSERT_EQ(idx.position_of(id), pc.positions[id]);
+  }
 }
 
 TEST(Copc, QueryJobRunsOnTheHierarchyAndEqualsTheWholeFilePath) {

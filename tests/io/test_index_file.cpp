@@ -74,6 +74,8 @@ Site build_site(const std::string& name, OctreeConfig cfg, std::uint64_t memory)
   EXPECT_EQ(st.points, s.all.size());
   if (memory < (1u << 21)) {
     EXPECT_GT(st.runs, 1u);  // the merge of several runs is exercised
+  } else {
+    EXPECT_EQ(st.runs, 1u);  // everything fits: sorted and written from memory, no merge
   }
   return s;
 }
@@ -106,14 +108,17 @@ bool same_hits(const std::vector<RayHit>& a, const std::vector<RayHit>& b) {
   return true;
 }
 
-class IndexFile : public ::testing::TestWithParam<OctreeLayout> {};
+/// Layout, and the memory budget: 1 MiB (several sorted runs and the k-way merge) or 64 MiB (one
+/// run: the in-memory sort writes the sections directly).
+class IndexFile : public ::testing::TestWithParam<std::tuple<OctreeLayout, std::uint64_t>> {};
 
 TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
   OctreeConfig cfg;
-  cfg.layout = GetParam();
+  cfg.layout = std::get<0>(GetParam());
   cfg.capacity = 16;
   cfg.depth = 5;
-  const Site s = build_site(std::string("site_") + to_string(cfg.layout), cfg, 1 << 20);
+  const std::uint64_t memory = std::get<1>(GetParam());
+  const Site s = build_site(std::string("site_") + to_string(cfg.layout) + "_" + std::to_string(memory), cfg, memory);
   const io::MappedIndex m = io::MappedIndex::open(s.index);
   const Octree t = Octree::build_bulk(s.all, cfg);
   expect_same_tree(m, t);
@@ -170,7 +175,10 @@ TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
   fs::remove_all(s.dir);
 }
 
-INSTANTIATE_TEST_SUITE_P(Layouts, IndexFile, ::testing::Values(OctreeLayout::adaptive, OctreeLayout::fixed));
+INSTANTIATE_TEST_SUITE_P(Layouts, IndexFile,
+                         ::testing::Values(std::make_tuple(OctreeLayout::adaptive, std::uint64_t{1} << 20),
+                                           std::make_tuple(OctreeLayout::adaptive, std::uint64_t{64} << 20),
+                                           std::make_tuple(OctreeLayout::fixed, std::uint64_t{1} << 20)));
 
 TEST(IndexFileBuild, LasAttributesAreStoredExactlyBySlot) {
   RAYSCAN_REQUIRE_FILE(p, "las/autzen_trim.las");
@@ -193,6 +201,40 @@ TEST(IndexFileBuild, LasAttributesAreStoredExactlyBySlot) {
   EXPECT_TRUE(back.classification == src.classification);
   EXPECT_TRUE(back.gps_time == src.gps_time);
   expect_same_tree(m, Octree::build_bulk(src.positions, OctreeConfig{}));
+  fs::remove_all(dir);
+}
+
+// A build in several runs takes the Morton grid from the LAS header's bounds (no bounds pass) and
+// checks it against the points: a header whose max x lies (LAS 1.2 header byte 179) is detected
+// and the read pass repeated on the exact grid, so the tree is still build_bulk's (the oracle:
+// the in-memory octree of the reader's points, which never trusts the header's box).
+TEST(IndexFileBuild, LyingLasHeaderBoundsAreCaughtAndTheTreeIsExact) {
+  RAYSCAN_REQUIRE_FILE(p, "las/autzen_trim.las");
+  const fs::path dir = temp_dir() / "las_lying_header";
+  fs::create_directories(dir);
+  const fs::path honest = dir / "honest.las", lying = dir / "lying.las";
+  fs::copy_file(p, honest, fs::copy_options::overwrite_existing);
+  auto bytes = slurp(p);
+  double max_x = 0;
+  std::memcpy(&max_x, bytes.data() + 179, 8);
+  max_x += 100.0;
+  std::memcpy(bytes.data() + 179, &max_x, 8);
+  std::ofstream(lying, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  const PointCloud src = io::read_point_cloud(p);
+  const Octree t = Octree::build_bulk(src.positions, OctreeConfig{});
+  io::IndexBuildOptions o;
+  o.memory_bytes = 2 << 20;  // several runs: the grid is needed before the points are read
+  for (const fs::path& in : {honest, lying}) {
+    SCOPED_TRACE(in.filename().string());
+    const auto st = io::build_index_file({in}, dir / "x.rsi", o);
+    EXPECT_GT(st.runs, 1u);
+    const bool noted = std::any_of(st.notes.begin(), st.notes.end(),
+                                   [](const std::string& n) { return n.find("headers' bounds differ") != std::string::npos; });
+    if (in == lying) {
+      EXPECT_TRUE(noted);  // (autzen's own header box is not the exact box of its points either)
+    }
+    expect_same_tree(io::MappedIndex::open(dir / "x.rsi"), t);
+  }
   fs::remove_all(dir);
 }
 
@@ -481,6 +523,79 @@ int run_cli(const std::string& args, const fs::path& out) {
 std::string text(const fs::path& p) {
   std::ifstream f(p);
   return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+}
+
+// Ids in a file opened without the deep checks (issue 10 section 4): every consumer indexes
+// per-point arrays by id, so one id >= N in a large unverified file would be a write out of
+// bounds (normals, visibility) or a read past an array (query, spacing). ids() checks them on
+// first use: the library reports a clean IndexError naming the slot and byte; the CLI exits 2 on
+// a file made larger than the 256 MiB verify-at-open limit by a sparse tail (the real unverified
+// path, no test hook). Oracle: the byte offset of the corrupted slot computed from the section
+// table, and the untouched file passing the same calls.
+TEST(IndexFileBadInput, UnverifiedCorruptIdIsRefusedBeforeAnyIdIndexedAccess) {
+  const fs::path dir = temp_dir() / "unverified_ids";
+  const fs::path good = small_index(dir);
+  auto bytes = slurp(good);
+  std::uint64_t ids_off = 0;
+  std::uint32_t nsec = 0;
+  std::memcpy(&nsec, bytes.data() + 20, 4);
+  for (std::uint32_t i = 0; i < nsec; ++i) {
+    std::uint32_t id = 0;
+    std::memcpy(&id, bytes.data() + 128 + 32 * i, 4);
+    if (id == 4) std::memcpy(&ids_off, bytes.data() + 128 + 32 * i + 8, 8);
+  }
+  ASSERT_GT(ids_off, 0u);
+  const std::uint32_t huge = 0x7FFFFFF0u;
+  std::memcpy(bytes.data() + ids_off + 4 * 1234, &huge, 4);  // slot 1234 holds an id past N
+  const fs::path bad = dir / "bad.rsi";
+  std::ofstream(bad, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  io::IndexOpenOptions quick;
+  quick.verify = io::IndexOpenOptions::Verify::metadata_only;
+  const std::string want = "bad.rsi: byte " + std::to_string(ids_off + 4 * 1234) + ": section ids: slot 1234 holds id " +
+                           std::to_string(huge);
+  {
+    const io::MappedIndex ok = io::MappedIndex::open(good, quick);  // the same calls on the good file pass
+    EXPECT_FALSE(ok.verified());
+    EXPECT_EQ(ok.ids().size(), 3001u);
+    EXPECT_EQ(knn(ok, ok.positions()[0], 3).size(), 3u);
+  }
+  const io::MappedIndex m = io::MappedIndex::open(bad, quick);
+  EXPECT_FALSE(m.verified());
+  auto error_of = [&](auto&& call) -> std::string {
+    try {
+      call();
+    } catch (const io::IndexError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_NE(error_of([&] { (void)m.ids(); }).find(want), std::string::npos) << error_of([&] { (void)m.ids(); });
+  // Consumers that read or write per-point arrays by id: each fails cleanly (ASan: no access).
+  const Vec3 p = m.positions()[0];
+  EXPECT_NE(error_of([&] { (void)knn(m, p, 3); }).find(want), std::string::npos);
+  RayQuery q;
+  q.radius = 1.0;
+  q.k = 4;
+  const std::vector<Ray> rays(64, Ray(p + Vec3(0.0, 0.0, 10.0), Vec3(0.0, 0.0, -1.0)));
+  EXPECT_NE(error_of([&] { (void)ray_query_batch(m, rays, q); }).find(want), std::string::npos);  // from TBB tasks
+  EXPECT_NE(error_of([&] { (void)median_nn_spacing_by_id(m); }).find(want), std::string::npos);
+  EXPECT_NE(error_of([&] { (void)m.to_point_cloud(); }).find("slot 1234 holds id"), std::string::npos);
+
+  // The CLI on the real unverified path: the file padded past 256 MiB (sparse) is opened without
+  // the deep checks; the query reports the id and exits 2.
+  fs::resize_file(bad, (std::uint64_t{256} << 20) + 4096);
+  {
+    std::ofstream r(dir / "rays.csv");
+    r.precision(17);
+    r << "ox,oy,oz,dx,dy,dz\n" << p.x << ',' << p.y << ',' << p.z + 10 << ",0,0,-1\n";
+  }
+  const fs::path log = dir / "log.txt";
+  EXPECT_EQ(run_cli("query --cloud '" + bad.string() + "' --rays '" + (dir / "rays.csv").string() + "' --radius 1", log), 2)
+      << text(log);
+  const std::string e = text(log);
+  EXPECT_NE(e.find(want), std::string::npos) << e;
+  EXPECT_EQ(std::count(e.begin(), e.end(), '\n'), 1) << e;
+  fs::remove_all(dir);
 }
 
 TEST(IndexFileCli, IndexThenQueryEqualsQueryOnTheCloudAndInfoDescribesIt) {

@@ -12,6 +12,8 @@
 #include <fstream>
 #include <set>
 
+#include <unistd.h>
+
 namespace rayscan::sqltest {
 namespace {
 
@@ -116,6 +118,13 @@ TEST_F(Postgres, ImportKeepsExactDoublesAndChunkBoxes) {
                            "OR NOT (c.box && ray_within(p.x,p.y,p.z,1,0,0,0))");
   EXPECT_EQ(bad[0][0], "0");
   EXPECT_EQ(pg.rows("SELECT count(*) FROM autzen")[0][0], std::to_string(cloud_->size()));
+  // The planner statistic of the chunk column is the exact number of distinct chunks (counted here).
+  const auto nd = pg.rows("SELECT (SELECT attoptions::text FROM pg_attribute WHERE attrelid = 'autzen'::regclass "
+                          "AND attname = 'chunk'), -count(DISTINCT chunk)::float8 / count(*) FROM autzen");
+  ASSERT_EQ(nd.size(), 1u);
+  const auto eq = nd[0][0].find("n_distinct=");
+  ASSERT_NE(eq, std::string::npos) << nd[0][0];
+  EXPECT_EQ(dbl(nd[0][0].substr(eq + 11)), dbl(nd[0][1])) << nd[0][0];
 }
 
 TEST_F(Postgres, FunctionsEqualTheCoreBitForBit) {
@@ -489,6 +498,35 @@ TEST_P(PostgresScan, ImportAndQueriesEqualBruteForce) {
 
 INSTANTIATE_TEST_SUITE_P(Scans, PostgresScan, ::testing::Values("lone_star", "pdrf8_append_bug"),
                          [](const auto& i) { return i.param; });
+
+// The import streams through the index's external sort (issue 13, 2.1 / 3.3): importing an index
+// file from `rayscan index` writes the same rows and chunks as importing the cloud (here with a
+// 1 MiB sort budget, so many sort runs), and every row is the file's own point.
+TEST_F(Postgres, ImportOfAnIndexFileEqualsImportOfTheCloud) {
+  const fs::path dir = fs::temp_directory_path() / ("rayscan-pgtest-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::string bin = RAYSCAN_BIN, rsi = (dir / "autzen.rsi").string();
+  ASSERT_EQ(run(bin + " index '" + scan_path("autzen").string() + "' -o " + rsi + " > /dev/null 2>&1"), 0);
+  Pg pg;
+  pg.rows("DROP TABLE IF EXISTS autzen_rsi, autzen_rsi_chunks, autzen_rsi_sources, autzen_small, "
+          "autzen_small_chunks, autzen_small_sources");
+  ASSERT_EQ(run(bin + " db import " + rsi + " --postgres '" + conninfo() + "' --table autzen_rsi > /dev/null"), 0);
+  ASSERT_EQ(run(bin + " db import '" + scan_path("autzen").string() + "' --postgres '" + conninfo() +
+                "' --table autzen_small --memory 1M --temp-dir " + dir.string() + " > /dev/null"), 0);
+  fs::remove(rsi);
+  EXPECT_TRUE(fs::is_empty(dir)) << "temporary index or sort runs left in " << dir;
+  fs::remove_all(dir);
+  const std::string q = " ORDER BY chunk, point_index";
+  const auto a = pg.rows("SELECT point_index, source, chunk, x, y, z FROM autzen_rsi" + q);
+  const auto b = pg.rows("SELECT point_index, source, chunk, x, y, z FROM autzen_small" + q);
+  ASSERT_EQ(a.size(), cloud_->size());
+  EXPECT_EQ(a, b);
+  for (const auto& row : a) ASSERT_EQ(Vec3(dbl(row[3]), dbl(row[4]), dbl(row[5])), cloud_->positions[std::stoull(row[0])]);
+  EXPECT_EQ(pg.rows("SELECT box::text, first_row, count FROM autzen_rsi_chunks ORDER BY chunk"),
+            pg.rows("SELECT box::text, first_row, count FROM autzen_small_chunks ORDER BY chunk"));
+  pg.rows("DROP TABLE autzen_rsi, autzen_rsi_chunks, autzen_rsi_sources, autzen_small, autzen_small_chunks, "
+          "autzen_small_sources");
+}
 
 TEST_F(Postgres, FailedImportLeavesNoHalfTable) {
   Pg pg;

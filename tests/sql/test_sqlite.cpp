@@ -482,5 +482,50 @@ TEST(SqliteImportCli, BadInputExitsTwoWithOneLineAndLeavesNoFile) {
   EXPECT_EQ(ch.i64(2), (long long)c.size() - (ch.i64(0) - 1) * per);
 }
 
+// Issue 13, 2.1 "streams the input": the import orders the points with the index's external sort.
+// With a 1 MiB budget (many sort runs) it writes the same rows as an import of an index file built
+// by `rayscan index`, every row carries the reader's exact point and colour (the file's own values,
+// read here with read_point_cloud), and nothing is left in the temporary folder.
+TEST(SqliteImportCli, StreamingImportEqualsIndexFileImportAndLeavesNoTemporaries) {
+  const std::string bin = RAYSCAN_BIN, cloud = scan_path("autzen").string();
+  const fs::path tmp = tmpdir() / "stream-tmp", a = tmpdir() / "stream.sqlite", b = tmpdir() / "from-rsi.sqlite",
+                 rsi = tmpdir() / "autzen.rsi";
+  fs::create_directories(tmp);
+  ASSERT_EQ(run(bin + " db import " + cloud + " -o " + a.string() + " --attributes rgb --memory 1M --temp-dir " +
+                tmp.string() + " > /dev/null"), 0);
+  EXPECT_TRUE(fs::is_empty(tmp)) << "temporary index or sort runs left in " << tmp;
+  ASSERT_EQ(run(bin + " index " + cloud + " -o " + rsi.string() + " --attributes rgb > /dev/null 2>&1"), 0);
+  ASSERT_EQ(run(bin + " db import " + rsi.string() + " -o " + b.string() + " --attributes rgb > /dev/null"), 0);
+  // An attribute the index file does not store is a one-line error, exit 2.
+  EXPECT_EQ(run(bin + " db import " + rsi.string() + " -o " + (tmpdir() / "x.sqlite").string() +
+                " --attributes intensity 2>/dev/null"), 2);
+
+  const PointCloud c = io::read_point_cloud(cloud);
+  Db da(a, false), db(b, false);
+  const std::string q = "SELECT rowid, point_index, source, chunk, x, y, z, red, green, blue FROM points ORDER BY rowid";
+  Stmt sa(da.db, q), sb(db.db, q);
+  std::vector<int> seen(c.size(), 0);
+  std::size_t n = 0;
+  while (sa.step()) {
+    ASSERT_TRUE(sb.step());
+    for (int col = 0; col < 10; ++col) ASSERT_EQ(sa.d(col), sb.d(col)) << "row " << n << " column " << col;
+    const auto i = static_cast<std::size_t>(sa.i64(1));
+    ASSERT_LT(i, c.size());
+    ++seen[i];
+    EXPECT_EQ(Vec3(sa.d(4), sa.d(5), sa.d(6)), c.positions[i]);
+    EXPECT_EQ(sa.i64(7), c.rgb[i].r);
+    EXPECT_EQ(sa.i64(9), c.rgb[i].b);
+    ++n;
+  }
+  EXPECT_FALSE(sb.step());
+  EXPECT_EQ(n, c.size());
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), static_cast<long>(c.size()));
+  // The sources table names the cloud as given (the index file's import names the indexed file).
+  Stmt src(da.db, "SELECT path, point_count FROM sources");
+  ASSERT_TRUE(src.step());
+  EXPECT_EQ(std::string(reinterpret_cast<const char*>(sqlite3_column_text(src.s, 0))), cloud);
+  EXPECT_EQ(src.i64(1), static_cast<long long>(c.size()));
+}
+
 }  // namespace
 }  // namespace rayscan::sqltest

@@ -14,6 +14,7 @@
 
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_sort.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <array>
@@ -23,8 +24,10 @@
 #include <cstddef>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <queue>
 #include <sstream>
+#include <type_traits>
 
 namespace rayscan::io {
 
@@ -287,13 +290,6 @@ struct RecordLayout {
   }
 };
 
-struct SortKey {
-  std::uint64_t code;
-  std::uint32_t id;
-  std::uint32_t slot;  // record position in the run buffer
-  bool operator<(const SortKey& o) const { return code < o.code || (code == o.code && id < o.id); }
-};
-
 /// A folder of temporary files removed (with its contents) on destruction.
 struct TempDir {
   fs::path path;
@@ -319,6 +315,8 @@ class RunReader {
     refill();
   }
   [[nodiscard]] bool done() const { return pos_ >= len_; }
+  /// True when cur() is the last record of the buffer (next() refills it, moving every record).
+  [[nodiscard]] bool last_in_buffer() const { return pos_ + rec_ >= len_; }
   [[nodiscard]] const std::uint8_t* cur() const { return buf_.data() + pos_; }
   void next() {
     pos_ += rec_;
@@ -338,9 +336,122 @@ class RunReader {
   std::uint64_t off_ = 0;
 };
 
-/// Node construction over the Morton-sorted codes and positions (both memory-mapped), following
-/// Octree::build_bulk for the adaptive and fixed layouts: same split rule, child order, node
-/// numbering and float bounds (OctreeRules), hence the identical node array.
+/// Sort key of one buffered point: its Morton code and its position in the run buffer (the
+/// buffer holds points in id order, so (code, idx) order is the (code, id) order of build_bulk).
+struct SortKey {
+  std::uint64_t code;
+  std::uint32_t idx;
+  bool operator<(const SortKey& o) const { return code < o.code || (code == o.code && idx < o.idx); }
+};
+
+/// The points of one sort run (or of the whole input when it fits the budget), structure of
+/// arrays in id order: positions and the stored attributes only.
+struct PointBuffer {
+  std::vector<Vec3> pos;
+  std::vector<Rgb16> rgb;
+  std::vector<std::uint16_t> intensity;
+  std::vector<std::uint8_t> cls;
+  std::vector<double> gps;
+  [[nodiscard]] std::size_t size() const { return pos.size(); }
+  void reserve(std::size_t n, const RecordLayout& L) {
+    pos.reserve(n);
+    if (L.rgb) rgb.reserve(n);
+    if (L.intensity) intensity.reserve(n);
+    if (L.cls) cls.reserve(n);
+    if (L.gps) gps.reserve(n);
+  }
+  void clear() {
+    pos.clear(), rgb.clear(), intensity.clear(), cls.clear(), gps.clear();
+  }
+  /// Appends points [i0, i0 + n) of `c` (bulk copies) and widens `bounds` by them.
+  void append(const PointCloud& c, std::size_t i0, std::size_t n, const RecordLayout& L, AABB& bounds) {
+    auto add = [&](auto& dst, const auto& src) {
+      dst.insert(dst.end(), src.begin() + static_cast<std::ptrdiff_t>(i0), src.begin() + static_cast<std::ptrdiff_t>(i0 + n));
+    };
+    add(pos, c.positions);
+    if (L.rgb) add(rgb, c.rgb);
+    if (L.intensity) add(intensity, c.intensity);
+    if (L.cls) add(cls, c.classification);
+    if (L.gps) add(gps, c.gps_time);
+    for (std::size_t i = i0; i < i0 + n; ++i) bounds.expand(c.positions[i]);
+  }
+};
+
+/// The Morton keys of the buffered points on the grid `qz`, sorted by (code, id): one parallel
+/// MSD radix pass on the top kBucketBits of the 63-bit codes (a histogram pass, then a scatter
+/// pass that computes each code again instead of holding a second key array), then each bucket
+/// sorted on its own (cache-sized for a site; a bucket holding more than an eighth of the points,
+/// e.g. a dense cluster, is sorted in parallel itself). Scattering chunk by chunk keeps each
+/// bucket in idx order, so the result is the (code, idx) order of a full sort.
+std::vector<SortKey> sorted_keys(const PointBuffer& buf, const OctreeRules::Quantizer& qz) {
+  constexpr unsigned kBucketBits = 16, kShift = 3 * kMortonBits - kBucketBits;
+  constexpr std::size_t kBuckets = std::size_t{1} << kBucketBits;
+  const std::size_t n = buf.size();
+  std::vector<SortKey> keys(n);
+  if (n == 0) return keys;
+  const std::size_t chunks = std::min<std::size_t>(16, (n + 4095) / 4096);
+  auto chunk_begin = [&](std::size_t c) { return n * c / chunks; };
+  std::vector<std::uint64_t> hist(chunks * kBuckets, 0);  // [chunk][bucket], then write cursors
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    std::uint64_t* h = hist.data() + c * kBuckets;
+    for (std::size_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i) ++h[qz.code(buf.pos[i]) >> kShift];
+  });
+  std::vector<std::uint64_t> bucket_begin(kBuckets + 1, 0);
+  {
+    std::uint64_t sum = 0;
+    for (std::size_t k = 0; k < kBuckets; ++k) {
+      bucket_begin[k] = sum;
+      for (std::size_t c = 0; c < chunks; ++c) {
+        const std::uint64_t v = hist[c * kBuckets + k];
+        hist[c * kBuckets + k] = sum;
+        sum += v;
+      }
+    }
+    bucket_begin[kBuckets] = sum;
+  }
+  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
+    std::uint64_t* cur = hist.data() + c * kBuckets;
+    for (std::size_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i) {
+      const std::uint64_t code = qz.code(buf.pos[i]);
+      keys[cur[code >> kShift]++] = {code, static_cast<std::uint32_t>(i)};
+    }
+  });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, kBuckets, 64), [&](const auto& r) {
+    for (std::size_t k = r.begin(); k != r.end(); ++k) {
+      auto b = keys.begin() + static_cast<std::ptrdiff_t>(bucket_begin[k]);
+      auto e = keys.begin() + static_cast<std::ptrdiff_t>(bucket_begin[k + 1]);
+      if (e - b < 2) continue;
+      if (static_cast<std::size_t>(e - b) > n / 8) tbb::parallel_sort(b, e);
+      else std::sort(b, e);
+    }
+  });
+  return keys;
+}
+
+/// Calls `fn(b, e)` for consecutive blocks [b, e) of [0, n) of at most kGatherBlock keys.
+constexpr std::size_t kGatherBlock = std::size_t{1} << 18;
+template <class Fn>
+void for_blocks(std::size_t n, Fn&& fn) {
+  for (std::size_t b = 0; b < n; b += kGatherBlock) fn(b, std::min(n, b + kGatherBlock));
+}
+
+/// Gathers field `src[keys[i].idx]` for keys [b, e) into `out` (parallel) and appends it to `w`.
+template <class T>
+void gather_write(const std::vector<T>& src, const std::vector<SortKey>& keys, std::size_t b, std::size_t e,
+                  std::vector<T>& out, SectionWriter& w) {
+  out.resize(e - b);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, 1 << 14), [&](const auto& r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i) out[i - b] = src[keys[i].idx];
+  });
+  w.write(out.data(), out.size() * sizeof(T));
+}
+
+/// Node construction over the Morton-sorted codes and positions, following Octree::build_bulk
+/// for the adaptive and fixed layouts: same split rule, child order, node numbering and float
+/// bounds (OctreeRules), hence the identical node array. The topology (a depth-first pass over
+/// the codes that finds each child's range by binary search) is sequential; the bounds of the
+/// nodes' own points are computed in parallel, then closed bottom-up (children are numbered
+/// after their parent, so a pass in reverse node order sees every child before its parent).
 struct NodeBuilder {
   const OctreeConfig& cfg;
   const std::uint64_t* codes;
@@ -351,61 +462,79 @@ struct NodeBuilder {
   IndexProgress progress;
   std::uint64_t total = 0, emitted = 0, next_report = 0;
 
-  void build(std::uint32_t n, unsigned d, std::size_t b, std::size_t e) {
+  void build(std::size_t n_points) {
+    if (n_points == 0) return;
+    nodes.emplace_back();
+    nodes[0].key = 1;
+    topology(0, 0, 0, n_points);
+    close();
+  }
+
+ private:
+  void topology(std::uint32_t n, unsigned d, std::size_t b, std::size_t e) {
     const std::size_t count = e - b;
     const bool same = count == 0 || codes[b] == codes[e - 1];
     const bool split = OctreeRules::splits(cfg, d, count, same);
     const std::size_t rest = split ? b : e;
     nodes[n].own_begin = static_cast<std::uint32_t>(b);
     nodes[n].own_end = static_cast<std::uint32_t>(rest);
-    if (rest < e) {
-      std::array<std::size_t, 9> start{};
-      std::array<unsigned, 8> oct{};
-      unsigned nchild = 0;
-      std::size_t i = rest;
-      while (i < e) {
-        const unsigned o = OctreeRules::octant(codes[i], d);
-        const std::size_t j = static_cast<std::size_t>(
-            std::partition_point(codes + i, codes + e,
-                                 [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; }) -
-            codes);
-        start[nchild] = i;
-        oct[nchild] = o;
-        ++nchild;
-        i = j;
-      }
-      start[nchild] = e;
-      const auto first = static_cast<std::uint32_t>(nodes.size());
-      const std::uint64_t key = nodes[n].key;
-      nodes.resize(nodes.size() + nchild);
-      nodes[n].first_child = first;
-      nodes[n].child_count = static_cast<std::uint8_t>(nchild);
-      for (unsigned k = 0; k < nchild; ++k) {
-        nodes[first + k].key = (key << 3) | oct[k];
-        build(first + k, d + 1, start[k], start[k + 1]);
-      }
-    }
-    // Close: bounds of the own points, then of the children (Octree's close_node).
-    Octree::NodeRec& rec = nodes[n];
-    AABB own;
-    for (std::uint32_t s = rec.own_begin; s < rec.own_end; ++s) own.expand(pos[s]);
-    glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
-    if (!own.empty())
-      for (int a = 0; a < 3; ++a) {
-        lo[a] = OctreeRules::float_bound(own.lo[a] - cell_lo[a], false);
-        hi[a] = OctreeRules::float_bound(own.hi[a] - cell_lo[a], true);
-      }
-    for (unsigned c = 0; c < rec.child_count; ++c) {
-      lo = glm::min(lo, nodes[rec.first_child + c].lo);
-      hi = glm::max(hi, nodes[rec.first_child + c].hi);
-    }
-    rec.lo = lo;
-    rec.hi = hi;
     depth = std::max(depth, d);
-    emitted += rec.own_end - rec.own_begin;
+    emitted += rest - b;
     if (progress && emitted >= next_report) {
       progress("nodes", emitted, total);
       next_report = emitted + (std::uint64_t{1} << 23);
+    }
+    if (rest == e) return;
+    std::array<std::size_t, 9> start{};
+    std::array<unsigned, 8> oct{};
+    unsigned nchild = 0;
+    std::size_t i = rest;
+    while (i < e) {
+      const unsigned o = OctreeRules::octant(codes[i], d);
+      const std::size_t j = static_cast<std::size_t>(
+          std::partition_point(codes + i, codes + e, [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; }) -
+          codes);
+      start[nchild] = i;
+      oct[nchild] = o;
+      ++nchild;
+      i = j;
+    }
+    start[nchild] = e;
+    const auto first = static_cast<std::uint32_t>(nodes.size());
+    const std::uint64_t key = nodes[n].key;
+    nodes.resize(nodes.size() + nchild);
+    nodes[n].first_child = first;
+    nodes[n].child_count = static_cast<std::uint8_t>(nchild);
+    for (unsigned k = 0; k < nchild; ++k) {
+      nodes[first + k].key = (key << 3) | oct[k];
+      topology(first + k, d + 1, start[k], start[k + 1]);
+    }
+  }
+
+  // Octree's close_node: bounds of the own points (rounded outwards to float), then of the children.
+  void close() {
+    const float inf = std::numeric_limits<float>::infinity();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodes.size(), 1 << 10), [&](const auto& r) {
+      for (std::size_t n = r.begin(); n != r.end(); ++n) {
+        Octree::NodeRec& rec = nodes[n];
+        AABB own;
+        for (std::uint32_t s = rec.own_begin; s < rec.own_end; ++s) own.expand(pos[s]);
+        glm::vec3 lo(inf), hi(-inf);
+        if (!own.empty())
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = OctreeRules::float_bound(own.lo[a] - cell_lo[a], false);
+            hi[a] = OctreeRules::float_bound(own.hi[a] - cell_lo[a], true);
+          }
+        rec.lo = lo;
+        rec.hi = hi;
+      }
+    });
+    for (std::size_t n = nodes.size(); n-- > 0;) {
+      Octree::NodeRec& rec = nodes[n];
+      for (unsigned c = 0; c < rec.child_count; ++c) {
+        rec.lo = glm::min(rec.lo, nodes[rec.first_child + c].lo);
+        rec.hi = glm::max(rec.hi, nodes[rec.first_child + c].hi);
+      }
     }
   }
 };
@@ -480,16 +609,19 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
                                 ": an index stores rgb, intensity, classification, gps_time");
   IndexBuildStats stats;
 
-  // Pass 1: bounds, counts, CRS agreement (positions only).
-  AABB bounds;
+  // Inputs: CRS agreement, the stored attributes, the announced point counts. The readers stay
+  // open for the read pass when there are few of them (a LAS file's colour scan runs once).
+  constexpr std::size_t kKeepOpen = 64;
   std::vector<IndexSource> sources;
+  std::vector<std::unique_ptr<PointReader>> kept(inputs.size());
   AttributeSet stored = opt.attributes;
   std::string crs;
-  std::uint64_t total = 0;
+  std::uint64_t announced = 0;
   {
-    std::unique_ptr<PointReader> first;
-    PointCloud chunk;
-    for (const fs::path& in : inputs) {
+    std::unique_ptr<PointReader> first_owned;
+    const PointReader* first = nullptr;
+    for (std::size_t f = 0; f < inputs.size(); ++f) {
+      const fs::path& in = inputs[f];
       auto r = open_point_reader(in, opt.attributes, ReadOptions{.scalars = false});
       if (first && !same_crs(*first, *r))
         throw IndexError(in.string() + ": CRS " + crs_label(*r) + " differs from " + crs_label(*first) +
@@ -499,101 +631,146 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
         stats.notes.push_back(in.string() + " has no " + lacking.to_string() + ": not stored");
         stored = AttributeSet{stored.bits & ~lacking.bits};
       }
-      auto pr = open_point_reader(in, AttributeSet::none(), ReadOptions{.scalars = false});
       IndexSource s;
       s.path = fs::absolute(in).lexically_normal().string();
       s.size = fs::file_size(in);
       s.mtime_ns = mtime_ns(in);
-      s.first_id = total;
       s.format = r->info().format + (r->info().version.empty() ? "" : " " + r->info().version);
-      while (pr->read(chunk, kDefaultChunkPoints) > 0) {
-        for (const Vec3& p : chunk.positions) bounds.expand(p);
-        s.points += chunk.size();
-        if (opt.progress) opt.progress("scan", total + s.points, 0);
-      }
-      total += s.points;
-      if (total >= 0xFFFFFFFFull) throw std::length_error("rayscan index: more than 2^32 - 2 points");
       sources.push_back(s);
-      if (!first) {
-        crs = r->crs_wkt();
-        first = std::move(r);
+      announced += r->point_count();
+      if (!first) crs = r->crs_wkt();
+      if (inputs.size() <= kKeepOpen) {
+        kept[f] = std::move(r);
+        if (!first) first = kept[f].get();
+      } else if (!first) {
+        first_owned = std::move(r);
+        first = first_owned.get();
       }
     }
   }
-  const AABB cell = OctreeRules::root_cell(bounds);
-  const OctreeRules::Quantizer qz(cell.lo, OctreeRules::root_side(bounds));
   const RecordLayout L(stored);
+  // Points per sort run within the memory budget (a record and a sort key per point; the buffer
+  // actually holds positions, the stored attributes and a 16-byte key, a little less).
+  const std::size_t run_cap = std::max<std::size_t>(
+      1024, static_cast<std::size_t>(opt.memory_bytes * 3 / 4 / (L.bytes + sizeof(SortKey))));
+  // All points fit the budget (the readers announce exact counts or upper bounds): one read pass
+  // into memory, the bounds from it, then sort and write the sections straight from memory. Else
+  // a bounds pass first (the runs need the Morton grid), sorted runs on disk and a k-way merge.
+  const bool in_memory = announced <= run_cap;
+  // The Morton grid of the runs (multi-run build) needs the bounds before the read pass. LAS
+  // headers state them (min/max x, y, z): when every input is LAS, their union is taken on trust
+  // and checked against the exact bounds of the read pass, which is repeated on the exact grid
+  // when the headers were wrong (the tree must be build_bulk's, whose grid is the exact bounds).
+  // Other inputs get a bounds pass first (positions only).
+  AABB grid_bounds;
+  bool grid_from_headers = !in_memory;
+  for (const fs::path& in : inputs) {
+    if (!grid_from_headers) break;
+    auto r = open_point_reader(in, AttributeSet::none(), ReadOptions{.scalars = false});
+    if (!r->integer_grid() || !r->info().header_bounds || r->point_count() == 0) grid_from_headers = false;
+    else grid_bounds.expand(*r->info().header_bounds);
+  }
+  if (!in_memory && !grid_from_headers) {
+    grid_bounds = AABB{};
+    std::uint64_t scanned = 0;
+    PointCloud chunk;
+    for (const fs::path& in : inputs) {
+      auto pr = open_point_reader(in, AttributeSet::none(), ReadOptions{.scalars = false});
+      while (pr->read(chunk, kDefaultChunkPoints) > 0) {
+        for (const Vec3& p : chunk.positions) grid_bounds.expand(p);
+        scanned += chunk.size();
+        if (opt.progress) opt.progress("scan", scanned, 0);
+      }
+    }
+  }
+  OctreeRules::Quantizer grid_qz(OctreeRules::root_cell(grid_bounds).lo, OctreeRules::root_side(grid_bounds));
 
   AtomicFile out(output);
   fs::path tmp_dir = opt.temp_dir.empty() ? output.parent_path() : opt.temp_dir;
   if (tmp_dir.empty()) tmp_dir = ".";
   TempDir runs_dir(tmp_dir / ("." + output.filename().string() + ".runs." + std::to_string(::getpid())));
 
-  // Pass 2: sorted runs within the memory budget (records + 16-byte sort keys per point).
-  const std::size_t run_cap = std::max<std::size_t>(
-      1024, static_cast<std::size_t>(opt.memory_bytes * 3 / 4 / (L.bytes + sizeof(SortKey))));
+  // The read pass: points in id order into the buffer; a full buffer becomes a sorted run file
+  // (multi-run build) written as records (code, id, position, attributes).
+  AABB bounds;
+  std::uint64_t total = 0;
+  PointBuffer buf;
+  buf.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(run_cap, announced)), L);
   std::vector<fs::path> run_files;
-  {
+  std::uint64_t run_first_id = 0;
+  auto flush_run = [&] {
+    if (buf.size() == 0) return;
+    const std::vector<SortKey> keys = sorted_keys(buf, grid_qz);
+    const fs::path rp = runs_dir.path / ("run" + std::to_string(run_files.size()));
+    Fd fd(rp, O_WRONLY | O_CREAT | O_TRUNC);
     std::vector<std::uint8_t> recs;
-    std::vector<SortKey> keys;
-    recs.reserve(std::min<std::uint64_t>(run_cap, total) * L.bytes);
-    keys.reserve(std::min<std::uint64_t>(run_cap, total));
-    std::uint64_t id = 0;
-    auto flush_run = [&] {
-      if (keys.empty()) return;
-      tbb::parallel_sort(keys.begin(), keys.end());
-      const fs::path rp = runs_dir.path / ("run" + std::to_string(run_files.size()));
-      Fd fd(rp, O_WRONLY | O_CREAT | O_TRUNC);
-      SectionWriter w(fd, 0, 8 << 20);
-      std::vector<std::uint8_t> tmp(L.bytes);
-      for (const SortKey& k : keys) w.write(recs.data() + static_cast<std::size_t>(k.slot) * L.bytes, L.bytes);
-      w.flush();
-      run_files.push_back(rp);
-      keys.clear();
-      recs.clear();
-    };
+    std::uint64_t off = 0;
+    for_blocks(keys.size(), [&](std::size_t b, std::size_t e) {
+      recs.resize((e - b) * L.bytes);
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, 1 << 14), [&](const auto& r) {
+        for (std::size_t k = r.begin(); k != r.end(); ++k) {
+          const std::uint32_t i = keys[k].idx;
+          const auto pid = static_cast<std::uint32_t>(run_first_id + i);
+          std::uint8_t* rec = recs.data() + (k - b) * L.bytes;
+          std::memcpy(rec, &keys[k].code, 8);
+          std::memcpy(rec + 8, &pid, 4);
+          std::memcpy(rec + 12, &buf.pos[i], 24);
+          if (L.gps) std::memcpy(rec + L.gps_off, &buf.gps[i], 8);
+          if (L.rgb) std::memcpy(rec + L.rgb_off, &buf.rgb[i], 6);
+          if (L.intensity) std::memcpy(rec + L.int_off, &buf.intensity[i], 2);
+          if (L.cls) rec[L.cls_off] = buf.cls[i];
+        }
+      });
+      fd.pwrite_all(recs.data(), recs.size(), off);
+      off += recs.size();
+    });
+    run_files.push_back(rp);
+    run_first_id += buf.size();
+    buf.clear();
+  };
+  for (int attempt = 0;; ++attempt) {
     PointCloud c;
-    for (const fs::path& in : inputs) {
-      auto r = open_point_reader(in, stored, ReadOptions{.scalars = false});
+    bounds = AABB{};
+    total = 0;
+    run_first_id = 0;
+    for (const fs::path& rp : run_files) fs::remove(rp);
+    run_files.clear();
+    buf.clear();
+    for (IndexSource& s : sources) s.points = 0;
+    for (std::size_t f = 0; f < inputs.size(); ++f) {
+      std::unique_ptr<PointReader> r = std::move(kept[f]);
+      if (!r) r = open_point_reader(inputs[f], stored, ReadOptions{.scalars = false});
+      sources[f].first_id = total;
       std::size_t n;
       while ((n = r->read(c, kDefaultChunkPoints)) > 0) {
-        std::size_t i0 = 0;
-        while (i0 < n) {
-          const std::size_t take = std::min(n - i0, run_cap - keys.size());
-          const std::size_t k0 = keys.size();
-          keys.resize(k0 + take);
-          recs.resize((k0 + take) * L.bytes);
-          tbb::parallel_for(tbb::blocked_range<std::size_t>(0, take, 1 << 14),
-                            [&](const tbb::blocked_range<std::size_t>& rg) {
-                              for (std::size_t j = rg.begin(); j < rg.end(); ++j) {
-                                const std::size_t i = i0 + j, slot = k0 + j;
-                                const Vec3& p = c.positions[i];
-                                const std::uint64_t code = qz.code(p);
-                                const auto pid = static_cast<std::uint32_t>(id + i);
-                                keys[slot] = {code, pid, static_cast<std::uint32_t>(slot)};
-                                std::uint8_t* rec = recs.data() + slot * L.bytes;
-                                std::memcpy(rec, &code, 8);
-                                std::memcpy(rec + 8, &pid, 4);
-                                std::memcpy(rec + 12, &p, 24);
-                                if (L.gps) std::memcpy(rec + L.gps_off, &c.gps_time[i], 8);
-                                if (L.rgb) std::memcpy(rec + L.rgb_off, &c.rgb[i], 6);
-                                if (L.intensity) std::memcpy(rec + L.int_off, &c.intensity[i], 2);
-                                if (L.cls) rec[L.cls_off] = c.classification[i];
-                              }
-                            });
+        if (total + n >= 0xFFFFFFFFull) throw std::length_error("rayscan index: more than 2^32 - 2 points");
+        if (in_memory && buf.size() + n > run_cap)
+          throw std::runtime_error(inputs[f].string() + ": the inputs changed during the build (more points than " +
+                                   std::to_string(announced) + " announced by the headers)");
+        for (std::size_t i0 = 0; i0 < n;) {
+          const std::size_t take = std::min(n - i0, run_cap - buf.size());
+          buf.append(c, i0, take, L, bounds);
           i0 += take;
-          if (keys.size() == run_cap) flush_run();
+          if (!in_memory && buf.size() == run_cap) flush_run();
         }
-        id += n;
-        if (opt.progress) opt.progress("sort", id, total);
+        total += n;
+        sources[f].points += n;
+        if (opt.progress) opt.progress("read", total, announced);
       }
     }
-    if (id != total)
-      throw std::runtime_error(inputs.front().string() + ": the inputs changed during the build (" +
-                               std::to_string(id) + " points, first pass read " + std::to_string(total) + ")");
+    if (in_memory) break;
     flush_run();
+    if (bounds.lo == grid_bounds.lo && bounds.hi == grid_bounds.hi) break;
+    if (!grid_from_headers || attempt > 0)
+      throw std::runtime_error(inputs.front().string() +
+                               ": the inputs changed during the build (their bounds differ from the first pass)");
+    stats.notes.push_back("the LAS headers' bounds differ from the points' bounds: read again on the exact grid");
+    grid_bounds = bounds;
+    grid_qz = OctreeRules::Quantizer(OctreeRules::root_cell(grid_bounds).lo, OctreeRules::root_side(grid_bounds));
   }
-  stats.runs = run_files.size();
+  if (!in_memory) buf = PointBuffer{};  // the runs are on disk: release the buffer before the merge
+  stats.runs = in_memory ? (total > 0 ? 1 : 0) : run_files.size();
+  const AABB cell = OctreeRules::root_cell(bounds);
 
   // Section placement: sources, crs, per-point sections, then nodes (size known after the build).
   Header h;
@@ -631,9 +808,59 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   write_blob(s_src, src_text);
   write_blob(s_crs, crs);
 
-  // Merge: k-way by (code, id) into the point sections; codes go to a temporary file.
+  // The point sections in (code, id) order: straight from memory (one run), or by a k-way merge
+  // of the runs whose codes go to a temporary file. Then the nodes from the sorted codes.
   const fs::path codes_path = runs_dir.path / "codes";
-  {
+  std::vector<std::uint64_t> mem_codes;  // sorted codes of the in-memory build
+  // Flushes the point sections' writers (positions, ids, the stored attributes) and records their
+  // CRCs in the header: the end of both paths below.
+  auto finish_points = [&](SectionWriter& pos, SectionWriter& ids, std::optional<SectionWriter>& rgb,
+                           std::optional<SectionWriter>& intensity, std::optional<SectionWriter>& cls,
+                           std::optional<SectionWriter>& gps) {
+    pos.flush();
+    ids.flush();
+    h.sections[s_pos].crc = pos.crc();
+    h.sections[s_ids].crc = ids.crc();
+    if (rgb) rgb->flush(), h.sections[s_rgb].crc = rgb->crc();
+    if (intensity) intensity->flush(), h.sections[s_int].crc = intensity->crc();
+    if (cls) cls->flush(), h.sections[s_cls].crc = cls->crc();
+    if (gps) gps->flush(), h.sections[s_gps].crc = gps->crc();
+  };
+  if (in_memory) {
+    const OctreeRules::Quantizer qz(cell.lo, OctreeRules::root_side(bounds));
+    if (opt.progress) opt.progress("sort", 0, total);
+    std::vector<SortKey> keys = sorted_keys(buf, qz);
+    mem_codes.resize(keys.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 1 << 16), [&](const auto& r) {
+      for (std::size_t i = r.begin(); i != r.end(); ++i) mem_codes[i] = keys[i].code;
+    });
+    const std::size_t wbuf = 1 << 16;  // blocks are written directly
+    SectionWriter w_pos(fd, h.sections[s_pos].offset, wbuf), w_ids(fd, h.sections[s_ids].offset, wbuf);
+    std::optional<SectionWriter> w_rgb, w_int, w_cls, w_gps;
+    if (L.rgb) w_rgb.emplace(fd, h.sections[s_rgb].offset, wbuf);
+    if (L.intensity) w_int.emplace(fd, h.sections[s_int].offset, wbuf);
+    if (L.cls) w_cls.emplace(fd, h.sections[s_cls].offset, wbuf);
+    if (L.gps) w_gps.emplace(fd, h.sections[s_gps].offset, wbuf);
+    std::vector<Vec3> g_pos;
+    std::vector<std::uint32_t> g_ids;
+    std::vector<Rgb16> g_rgb;
+    std::vector<std::uint16_t> g_int;
+    std::vector<std::uint8_t> g_cls;
+    std::vector<double> g_gps;
+    for_blocks(keys.size(), [&](std::size_t b, std::size_t e) {
+      gather_write(buf.pos, keys, b, e, g_pos, w_pos);
+      g_ids.resize(e - b);
+      for (std::size_t i = b; i < e; ++i) g_ids[i - b] = keys[i].idx;  // one run: idx == id
+      w_ids.write(g_ids.data(), g_ids.size() * 4);
+      if (L.rgb) gather_write(buf.rgb, keys, b, e, g_rgb, *w_rgb);
+      if (L.intensity) gather_write(buf.intensity, keys, b, e, g_int, *w_int);
+      if (L.cls) gather_write(buf.cls, keys, b, e, g_cls, *w_cls);
+      if (L.gps) gather_write(buf.gps, keys, b, e, g_gps, *w_gps);
+      if (opt.progress && (e & ((std::size_t{1} << 22) - 1)) < kGatherBlock) opt.progress("write", e, total);
+    });
+    finish_points(w_pos, w_ids, w_rgb, w_int, w_cls, w_gps);
+    buf = PointBuffer{};  // release before the node build
+  } else {
     Fd codes_fd(codes_path, O_WRONLY | O_CREAT | O_TRUNC);
     const std::size_t wbuf = 4 << 20;
     SectionWriter w_codes(codes_fd, 0, wbuf), w_pos(fd, h.sections[s_pos].offset, wbuf),
@@ -660,46 +887,75 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
       heap.push({get<std::uint64_t>(readers[r]->cur(), 0), get<std::uint32_t>(readers[r]->cur(), 8), r});
     };
     for (std::uint32_t r = 0; r < readers.size(); ++r) push(r);
+    // The merge order is decided for a block of records (pointers into the run buffers, valid
+    // until a buffer refills, which ends the block); each section is then gathered from the block
+    // and written, the sections in parallel.
+    std::vector<const std::uint8_t*> block;
+    block.reserve(std::size_t{1} << 16);
     std::uint64_t merged = 0;
+    auto emit_block = [&] {
+      struct Field {
+        SectionWriter* w;
+        std::size_t off, size;
+      };
+      std::vector<Field> fields{{&w_codes, 0, 8}, {&w_ids, 8, 4}, {&w_pos, 12, 24}};
+      if (L.gps) fields.push_back({&*w_gps, L.gps_off, 8});
+      if (L.rgb) fields.push_back({&*w_rgb, L.rgb_off, 6});
+      if (L.intensity) fields.push_back({&*w_int, L.int_off, 2});
+      if (L.cls) fields.push_back({&*w_cls, L.cls_off, 1});
+      tbb::parallel_for(std::size_t{0}, fields.size(), [&](std::size_t f) {
+        const Field& fd_ = fields[f];
+        std::vector<std::uint8_t> out(block.size() * fd_.size);
+        auto gather = [&]<std::size_t B>(std::integral_constant<std::size_t, B>) {  // constant-size copies
+          for (std::size_t i = 0; i < block.size(); ++i) std::memcpy(out.data() + i * B, block[i] + fd_.off, B);
+        };
+        switch (fd_.size) {
+          case 1: gather(std::integral_constant<std::size_t, 1>{}); break;
+          case 2: gather(std::integral_constant<std::size_t, 2>{}); break;
+          case 4: gather(std::integral_constant<std::size_t, 4>{}); break;
+          case 6: gather(std::integral_constant<std::size_t, 6>{}); break;
+          case 8: gather(std::integral_constant<std::size_t, 8>{}); break;
+          default: gather(std::integral_constant<std::size_t, 24>{}); break;
+        }
+        fd_.w->write(out.data(), out.size());
+      });
+      merged += block.size();
+      block.clear();
+      if (opt.progress) opt.progress("merge", merged, total);
+    };
     while (!heap.empty()) {
       const Head top = heap.top();
       heap.pop();
-      const std::uint8_t* rec = readers[top.run]->cur();
-      w_codes.write(rec, 8);
-      w_ids.write(rec + 8, 4);
-      w_pos.write(rec + 12, 24);
-      if (L.gps) w_gps->write(rec + L.gps_off, 8);
-      if (L.rgb) w_rgb->write(rec + L.rgb_off, 6);
-      if (L.intensity) w_int->write(rec + L.int_off, 2);
-      if (L.cls) w_cls->write(rec + L.cls_off, 1);
-      readers[top.run]->next();
+      RunReader& rr = *readers[top.run];
+      block.push_back(rr.cur());
+      if (rr.last_in_buffer() || block.size() == block.capacity()) emit_block();
+      rr.next();
       push(top.run);
-      if (opt.progress && (++merged & ((1u << 22) - 1)) == 0) opt.progress("merge", merged, total);
     }
-    for (SectionWriter* w : {&w_codes, &w_pos, &w_ids}) w->flush();
-    h.sections[s_pos].crc = w_pos.crc();
-    h.sections[s_ids].crc = w_ids.crc();
-    if (L.rgb) w_rgb->flush(), h.sections[s_rgb].crc = w_rgb->crc();
-    if (L.intensity) w_int->flush(), h.sections[s_int].crc = w_int->crc();
-    if (L.cls) w_cls->flush(), h.sections[s_cls].crc = w_cls->crc();
-    if (L.gps) w_gps->flush(), h.sections[s_gps].crc = w_gps->crc();
+    emit_block();
+    w_codes.flush();
+    finish_points(w_pos, w_ids, w_rgb, w_int, w_cls, w_gps);
     if (opt.progress) opt.progress("merge", total, total);
   }
   for (const fs::path& rp : run_files) fs::remove(rp);
 
-  // Nodes from the sorted codes and positions (both mapped; their pages are file cache).
+  // Nodes from the sorted codes (in memory, or the mapped codes file of the merge) and the
+  // positions section (mapped; its pages are file cache).
   {
-    Fd codes_fd(codes_path, O_RDONLY);
-    ReadMap codes(codes_fd.get(), total * 8, codes_path);
+    std::optional<Fd> codes_fd;
+    std::optional<ReadMap> codes_map;
+    if (!in_memory) {
+      codes_fd.emplace(codes_path, O_RDONLY);
+      codes_map.emplace(codes_fd->get(), total * 8, codes_path);
+    }
     ReadMap file(fd.get(), h.sections[s_pos].offset + total * 24, out.temp());
+    const std::uint64_t* codes = in_memory ? mem_codes.data() : static_cast<const std::uint64_t*>(codes_map->p);
     NodeBuilder nb{opt.config,
-                   static_cast<const std::uint64_t*>(codes.p),
+                   codes,
                    reinterpret_cast<const Vec3*>(static_cast<const std::uint8_t*>(file.p) + h.sections[s_pos].offset),
                    cell.lo, {}, 0, opt.progress, total, 0, 0};
-    if (total > 0) {
-      nb.nodes.emplace_back();
-      nb.build(0, 0, 0, total);
-    }
+    nb.build(total);
+    mem_codes = {};
     const std::size_t s_nodes = place(kNodes, nb.nodes.size() * kNodeBytes);
     SectionWriter w(fd, h.sections[s_nodes].offset, 8 << 20);
     std::uint8_t rec[kNodeBytes];
@@ -756,6 +1012,7 @@ struct MappedIndex::Map {
   int fd = -1;
   void* p = nullptr;
   std::size_t n = 0;
+  std::once_flag ids_checked;  ///< ids() of an unverified file: the id range pass ran and passed
   ~Map() {
     if (p != nullptr) ::munmap(p, n);
     if (fd >= 0) ::close(fd);
@@ -901,6 +1158,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   x.nodes_ = reinterpret_cast<const Octree::NodeRec*>(at(kNodes));
   x.pos_ = reinterpret_cast<const Vec3*>(at(kPositions));
   x.ids_ = reinterpret_cast<const PointIndex*>(at(kIds));
+  x.ids_offset_ = by_id[kIds]->offset;
   if (by_id[kRgb]) x.rgb_ = {reinterpret_cast<const Rgb16*>(at(kRgb)), x.points_};
   if (by_id[kIntensity]) x.intensity_ = {reinterpret_cast<const std::uint16_t*>(at(kIntensity)), x.points_};
   if (by_id[kClassification]) x.classification_ = {at(kClassification), x.points_};
@@ -909,8 +1167,9 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
 
   // Deep checks of the node records and ids (with the section CRCs above, a file that passes them
   // is exactly as built). Without them the accessors sanitise every record they return
-  // (MappedIndex::child_count / node_points), so no traversal reads outside the mapping either.
-  if (verify_all) x.verify_records(by_id[kNodes]->offset, by_id[kIds]->offset);
+  // (MappedIndex::child_count / node_points), so no traversal reads outside the mapping either,
+  // and ids() checks the ids on first use (consumers index per-point arrays by id).
+  if (verify_all) x.verify_records(by_id[kNodes]->offset);
 
   // Sources: "size \t mtime_ns \t points \t first_id \t format \t path" lines.
   {
@@ -964,7 +1223,7 @@ static std::vector<std::uint64_t> count_levels(const MappedIndex& m) {
   return out;
 }
 
-void MappedIndex::verify_records(std::uint64_t node_off, std::uint64_t ids_off) const {
+void MappedIndex::verify_records(std::uint64_t node_off) const {
   const std::string nm = path_.string();
   auto fail = [&nm](std::uint64_t off, const std::string& what) -> void {
     throw IndexError(nm + ": byte " + std::to_string(off) + ": " + what);
@@ -1017,19 +1276,33 @@ void MappedIndex::verify_records(std::uint64_t node_off, std::uint64_t ids_off) 
                                         std::to_string(have[d]));
   }
   // Ids: every stored id names a point (callers index per-point arrays by id).
+  check_ids();
+}
+
+std::span<const PointIndex> MappedIndex::ids() const {
+  if (!verified_ && map_) std::call_once(map_->ids_checked, [this] { check_ids(); });
+  return {ids_, points_};
+}
+
+void MappedIndex::check_ids() const {
   std::atomic<std::size_t> bad{points_};
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_, 1 << 16), [&](const auto& r) {
-    for (std::size_t s = r.begin(); s != r.end(); ++s)
-      if (ids_[s] >= points_) {
-        std::size_t cur = bad.load();
-        while (s < cur && !bad.compare_exchange_weak(cur, s)) {
+  // Isolated: a thread waiting for this pass must not pick up an outer task (e.g. another ray of
+  // a batch) that calls ids() again and would wait on the once_flag this thread holds.
+  tbb::this_task_arena::isolate([&] {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_, 1 << 16), [&](const auto& r) {
+      for (std::size_t s = r.begin(); s != r.end(); ++s)
+        if (ids_[s] >= points_) {
+          std::size_t cur = bad.load();
+          while (s < cur && !bad.compare_exchange_weak(cur, s)) {
+          }
+          return;
         }
-        return;
-      }
+    });
   });
   if (const std::size_t s = bad.load(); s < points_)
-    fail(ids_off + 4 * s, "section ids: slot " + std::to_string(s) + " holds id " + std::to_string(ids_[s]) +
-                              " outside the " + std::to_string(points_) + " points");
+    throw IndexError(path_.string() + ": byte " + std::to_string(ids_offset_ + 4 * s) + ": section ids: slot " +
+                     std::to_string(s) + " holds id " + std::to_string(ids_[s]) + " outside the " +
+                     std::to_string(points_) + " points (corrupted; `rayscan info --verify` checks the whole file)");
 }
 
 std::vector<std::uint64_t> MappedIndex::points_per_level() const {

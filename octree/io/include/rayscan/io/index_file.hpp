@@ -44,7 +44,9 @@ struct IndexSectionInfo {
   std::uint64_t bytes = 0;    ///< size in bytes (without the alignment gap after it)
 };
 
-/// Progress of a build: `phase` is "scan", "sort", "merge" or "nodes"; `done` of `total` points.
+/// Progress of a build: `phase` is "scan" (a bounds pass, several-run builds of non-LAS inputs;
+/// total 0), "read", "sort", "write" (one-run build), "merge" (several runs), "nodes" or
+/// "spacing"; `done` of `total` points.
 using IndexProgress = std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)>;
 
 /// Options of build_index_file().
@@ -71,14 +73,17 @@ struct IndexBuildStats {
   std::vector<std::string> notes;  ///< decisions the user should know about
 };
 
-/// Builds the index of `inputs` (their points in this order get ids 0, 1, ...) into `output`:
-/// pass 1 streams positions for the bounds and checks that the inputs agree on CRS; pass 2
-/// streams points, Morton codes (OctreeRules) and sorts runs that fit the memory budget; the runs
-/// are merged into the point sections and the nodes are built from the sorted codes exactly as
-/// Octree::build_bulk does. Written to a temporary file and renamed (AtomicFile); on any error
-/// the temporary and the runs are removed. Throws FormatError (an input), IndexError (inputs
-/// disagree: names the file), std::invalid_argument (options), std::runtime_error (I/O, e.g. disk
-/// full: names the file and errno text).
+/// Builds the index of `inputs` (their points in this order get ids 0, 1, ...) into `output`
+/// (docs/index-format.md, "Build"): when the announced points fit the memory budget, one read
+/// pass into memory, a parallel sort of the Morton keys (OctreeRules) and the sections written
+/// from memory; otherwise sorted runs on the grid of the LAS headers' bounds (checked; read again
+/// on the exact grid when a header is wrong) or of a bounds pass, merged into the sections. The
+/// nodes are built from the sorted codes exactly as Octree::build_bulk does, so the file is the
+/// same byte for byte whichever path ran. Written to a temporary file and renamed (AtomicFile);
+/// on any error the temporary and the runs are removed. Throws FormatError (an input),
+/// IndexError (inputs disagree: names the file), std::invalid_argument (options),
+/// std::runtime_error (I/O, e.g. disk full: names the file and errno text; inputs that change
+/// during the build).
 IndexBuildStats build_index_file(const std::vector<std::filesystem::path>& inputs,
                                  const std::filesystem::path& output, const IndexBuildOptions& options);
 
@@ -131,7 +136,14 @@ class MappedIndex {
   /// Child i < child_count(n) of n.
   [[nodiscard]] Node child(Node n, unsigned i) const { return nodes_[n].first_child + i; }
   [[nodiscard]] std::span<const Vec3> positions() const { return {pos_, points_}; }
-  [[nodiscard]] std::span<const PointIndex> ids() const { return {ids_, points_}; }
+  /// The original id of each slot (a point's index in the concatenated sources). Every id is
+  /// below N: a verified file had them checked at open; on a file opened without the deep checks
+  /// (IndexOpenOptions) the first call checks them (one parallel pass over the 4-byte ids,
+  /// thread-safe, once per MappedIndex), because every consumer indexes per-point arrays by id
+  /// (normals, visibility, query, the renderer's radii, ray hits' `index`). Throws IndexError
+  /// naming the file, the byte offset and the slot of the first id >= N (the call fails again
+  /// if repeated).
+  [[nodiscard]] std::span<const PointIndex> ids() const;
 
   // Index file specifics -----------------------------------------------------------------------
   /// The Warren & Salmon id of node n (a corrupted, unverified key 0 reads as the root's id 1).
@@ -178,7 +190,9 @@ class MappedIndex {
  private:
   MappedIndex() = default;
   /// The deep record checks of open(): node ranges, children and keys; ids below N. Throws IndexError.
-  void verify_records(std::uint64_t node_offset, std::uint64_t ids_offset) const;
+  void verify_records(std::uint64_t node_offset) const;
+  /// Throws IndexError for the first stored id >= N (section ids, slot, byte offset).
+  void check_ids() const;
   struct Map;
   std::unique_ptr<Map> map_;
   std::filesystem::path path_;
@@ -193,6 +207,7 @@ class MappedIndex {
   const Octree::NodeRec* nodes_ = nullptr;
   const Vec3* pos_ = nullptr;
   const PointIndex* ids_ = nullptr;
+  std::uint64_t ids_offset_ = 0;  ///< byte offset of the ids section (error messages)
   std::span<const Rgb16> rgb_;
   std::span<const std::uint16_t> intensity_;
   std::span<const std::uint8_t> classification_;

@@ -51,8 +51,8 @@ inline constexpr const char* kChunkPointsLayout = "x,y,z f64le; point_index,sour
 
 /// Builds the layout for `clouds` (all in one world frame). Throws std::invalid_argument when
 /// chunk_size is 0. Memory: 24 bytes per point besides the clouds.
-/// Streaming (issue 10) plugs in here: a two-pass import (bounds from the headers, then Morton
-/// codes of chunked reads and an external merge sort) would replace the in-memory sort.
+/// Used only when the clouds are read whole (open_site in rayscan/sql/site_stream.hpp: scalar
+/// fields an index file does not store); otherwise the import streams through an index file.
 [[nodiscard]] ChunkLayout make_chunk_layout(std::span<const PointCloud* const> clouds,
                                             std::uint32_t chunk_size);
 

@@ -2,6 +2,7 @@
 // 3.3). Library code; tools/cmd_db.cpp only parses options and prints.
 #pragma once
 
+#include "rayscan/io/index_file.hpp"
 #include "rayscan/point_cloud.hpp"
 #include "rayscan/sql/chunking.hpp"
 
@@ -23,6 +24,12 @@ struct ImportOptions {
   std::vector<std::string> attributes;  ///< extra columns: intensity, classification, gps_time,
                                         ///< rgb (red, green, blue) or any scalar field's name
   bool pcpatch = false;  ///< PostgreSQL only: one pgpointcloud patch per chunk instead of rows
+  /// Memory budget (bytes) of the external Morton sort that orders the points (the temporary
+  /// index file of open_site(); io::IndexBuildOptions::memory_bytes).
+  std::uint64_t memory_bytes = io::IndexBuildOptions{}.memory_bytes;
+  /// Folder of the temporary index file and its sort runs. Empty: SQLite uses the output file's
+  /// folder, PostgreSQL the system's temporary folder.
+  std::filesystem::path temp_dir;
 };
 
 /// One extra column of the points table.

@@ -1,0 +1,71 @@
+// The points of a site being imported, streamed chunk by chunk in Morton order (issue 13, section
+// 2.1: "streams the input; works for clouds larger than RAM"). Both engines' importers write what
+// this hands out, so the SQLite and PostgreSQL layouts are the same rows in the same order.
+#pragma once
+
+#include "rayscan/geometry.hpp"
+#include "rayscan/sql/chunking.hpp"
+#include "rayscan/sql/import.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace rayscan::sql {
+
+/// One input file of the site: the `sources` table row.
+struct SourceRow {
+  std::string path;         ///< as given on the command line (or as stored in an index file)
+  std::uint64_t points = 0; ///< points read from it
+  std::string crs_wkt;      ///< "" when unknown
+};
+
+/// One extra column of the points table: its SQL name and type.
+struct ColumnInfo {
+  std::string name;  ///< an SQL identifier ("intensity", "red", ...)
+  bool integer;      ///< INTEGER / bigint (true) or REAL / float8
+};
+
+/// The rows of one chunk, in Morton order: row r of the chunk is row `first_row + r` of the site.
+struct ChunkRows {
+  std::uint64_t chunk = 0;         ///< chunk id, 0-based
+  std::uint64_t first_row = 0;     ///< 0-based row of the chunk's first point in the site
+  AABB box;                        ///< exact bounds of `positions`
+  std::vector<Vec3> positions;     ///< the reader's exact doubles (world units)
+  std::vector<PointRef> refs;      ///< source file and index there, per row
+  /// Extra column values, column-major: values[c * size() + r] (integers are exact in a double).
+  std::vector<double> values;
+  [[nodiscard]] std::size_t size() const { return positions.size(); }
+};
+
+/// A site opened for import: metadata first, then the chunks in order through next().
+/// Implementations: the index file (default; bounded memory) and the clouds read whole (only when
+/// a requested attribute is a scalar field the index file does not store).
+class SiteStream {
+ public:
+  virtual ~SiteStream() = default;
+  [[nodiscard]] virtual const std::vector<SourceRow>& sources() const = 0;
+  [[nodiscard]] virtual const std::vector<ColumnInfo>& columns() const = 0;
+  /// Fills `out` with the next chunk (vectors reused); false after the last one. Throws
+  /// io::IndexError for an id outside the index's sources (a corrupted, unverified file).
+  virtual bool next(ChunkRows& out) = 0;
+};
+
+/// Opens `paths` for import with `options` (chunk size, attributes, memory, temp_dir):
+///  - one `.rsi` index file: its points in storage order (the index's Morton order), chunked;
+///    attributes must be stored in it (else std::invalid_argument naming the file);
+///  - point cloud files: a temporary index file is built with io::build_index_file (external
+///    Morton sort within options.memory_bytes, in options.temp_dir), streamed as above and removed
+///    when the stream is destroyed; peak memory stays within the budget whatever the site's size;
+///  - when an attribute is not one of intensity, classification, gps_time, rgb (a scalar field
+///    such as a LAS extra-bytes dimension, which index files do not store): the clouds are read
+///    whole and ordered by make_chunk_layout (memory grows with the site).
+/// Throws io::FormatError (unreadable input), io::IndexError (inputs disagree on CRS, corrupted
+/// index), std::invalid_argument (bad option; "<file>: attribute 'gps_time' requested but the file
+/// has none"), std::runtime_error (I/O, e.g. disk full while writing the temporary index).
+[[nodiscard]] std::unique_ptr<SiteStream> open_site(const std::vector<std::filesystem::path>& paths,
+                                                    const ImportOptions& options);
+
+}  // namespace rayscan::sql
