@@ -94,23 +94,28 @@ struct LeavingSurface {
 };
 
 /// True when candidate disc j (thickness t_j) belongs to the surface `from` lies on: j is the disc
-/// left, or its normal is within 45 degrees of the surface normal and its centre lies within the
-/// surface's slab around the tangent plane at the origin (half a radius plus the larger measured
-/// thickness of the two discs: the depth steps of a quantised scan, the noise of a noisy one) and
-/// within two disc diameters (plus that slab) of it laterally: the overlapping neighbours of a
-/// scanned surface. A wall meeting the floor at a corner has another normal and is kept.
+/// left, or its centre lies within the surface's slab around the tangent plane at the origin (half
+/// a radius plus T, the larger measured thickness of the two discs: the depth steps of a quantised
+/// scan, the noise of a noisy one) and within two disc diameters plus T of it (the offset along the
+/// normal counted only beyond T), and either its
+/// normal is within 45 degrees of the surface normal or its centre lies strictly within the
+/// measured thickness of the surface left (no disc there is resolved as an occluder): the
+/// overlapping neighbours of a scanned surface. A wall meeting the floor at a corner has another
+/// normal and is kept. With both thicknesses zero (visibility, a noise-free scan) this is exactly
+/// the rule without thickness: normal within 45 degrees, |h| <= r / 2, distance <= 2 (r + r_j).
 [[nodiscard]] inline bool same_surface(const LeavingSurface& from, PointIndex j, const Vec3& c_j,
                                        const Vec3& n_j, double r_j, double t_j = 0.0) {
   if (j == from.index) return true;
   const Vec3 v = c_j - from.position;
   const double r = std::max(from.radius, r_j);
   const double h = glm::dot(v, from.normal);
-  const double slab = 0.5 * r + std::max(from.thickness, t_j);
-  if (std::abs(h) > slab) return false;
-  const double lim = 2.0 * (from.radius + r_j) + (slab - 0.5 * r);
-  if (glm::dot(v, v) - h * h > lim * lim) return false;
-  // Within the measured thickness of the surface left, no disc is resolved as an occluder.
-  if (std::abs(h) <= from.thickness) return true;
+  const double T = std::max(from.thickness, t_j);
+  if (std::abs(h) > 0.5 * r + T) return false;
+  // Distance to the disc left, without the part of the offset along the normal that lies within
+  // the measured thickness (the layers of one surface are side by side, not above each other).
+  const double lim = 2.0 * (from.radius + r_j) + T;
+  if (glm::dot(v, v) - std::min(h * h, T * T) > lim * lim) return false;
+  if (std::abs(h) < from.thickness) return true;
   return std::abs(glm::dot(n_j, from.normal)) >= 0.7071;
 }
 
