@@ -169,9 +169,11 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   SurfelAttributes surfels;
   if (surfel) {
     t0 = std::chrono::steady_clock::now();
+    SurfelOptions so = o.surfel;
+    so.measure_thickness = false;  // visibility traces no shadow or bounce rays (same_surface with 0)
     try {
-      surfels = mapped ? estimate_surfels_over(*mapped, cloud.positions, o.surfel, cloud.normals)
-                       : estimate_surfels(index, cloud.positions, o.surfel, cloud.normals);
+      surfels = mapped ? estimate_surfels_over(*mapped, cloud.positions, so, cloud.normals)
+                       : estimate_surfels(index, cloud.positions, so, cloud.normals);
     } catch (const std::invalid_argument& e) {
       throw invalid_argument(std::string("--primitive surfel: ") + e.what());
     }

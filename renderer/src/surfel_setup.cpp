@@ -22,7 +22,7 @@ SurfelAttributes scene_surfels(const Scene& scene, const io::MappedIndex& index,
 
 void use_surfels(RenderSettings& s, const SurfelAttributes& a) {
   s.integrator.primitive = Primitive::surfel;
-  s.integrator.surfels = SurfelView{s.integrator.centers, a.normals, a.radii, a.max_radius};
+  s.integrator.surfels = SurfelView{s.integrator.centers, a.normals, a.radii, a.max_radius, {}, a.thickness};
   if (a.median_radius > 0.0) s.integrator.radius = a.median_radius;
 }
 

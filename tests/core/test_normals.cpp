@@ -112,3 +112,35 @@ TEST(EstimateSurfels, FileNormalsAreNormalisedAndOriented) {
   bad.k_normal = 2;
   EXPECT_THROW(estimate_surfels(idx, pts, bad), std::invalid_argument);
 }
+
+TEST(EstimateSurfels, ThicknessIsTheStepOfADepthQuantisedTerrace) {
+  // Two flat terraces of a unit grid, z = 0 for x < 30 and z = 7 for x >= 30 (a depth camera's
+  // disparity step, 7 spacings), as the office1 Kinect wall. Analytic answers: the points within 2
+  // spacings of the step see the other terrace (lateral <= 2 < kThicknessReach x r, r = 0.6 x sqrt 2,
+  // offset 7 < kThicknessHeight x r): thickness exactly 7; no point has more than 7; far from the
+  // step (patch spread aside) both terraces are flat: 0.
+  std::vector<Vec3> pts;
+  for (int y = 0; y < 40; ++y)
+    for (int x = 0; x < 60; ++x) pts.push_back(Vec3(x, y, x < 30 ? 0.0 : 7.0));
+  const AnyIndex idx = make_index(pts, IndexOptions{});
+  const SurfelAttributes a = estimate_surfels(idx, pts);
+  ASSERT_EQ(a.thickness.size(), pts.size());
+  std::size_t far = 0, far_zero = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    EXPECT_NEAR(std::abs(a.normals[i].z), 1.0f, 1e-6f);
+    EXPECT_LE(a.thickness[i], 7.0f + 1e-5f) << "no layer is farther than the step";
+    const double x = pts[i].x;
+    if (x >= 28 && x <= 31) {
+      EXPECT_NEAR(a.thickness[i], 7.0f, 1e-5f) << "point " << i << " next to the step";
+    }
+    if (std::abs(x - 29.5) > 12) {
+      ++far;
+      far_zero += a.thickness[i] < 1e-5f;
+    }
+  }
+  EXPECT_GT(double(far_zero), 0.9 * double(far)) << far_zero << " of " << far << " far points are flat";
+  SurfelOptions o;
+  o.measure_thickness = false;
+  const SurfelAttributes b = estimate_surfels(idx, pts, o);
+  for (const float t : b.thickness) ASSERT_EQ(t, 0.0f);
+}

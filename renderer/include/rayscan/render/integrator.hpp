@@ -185,7 +185,7 @@ class PathTracer {
       if (first && depth == 0) *first = h;
       const Color a = in_.albedo.at(h.index, h.slot);
       const Vec3 origin = h.position + (in_.ray_offset * h.radius) * h.normal;
-      from = {h.index, h.position, h.normal, h.radius};
+      from = {h.index, h.position, h.normal, h.radius, surfel ? in_.surfels.thickness_at(h.index) : 0.0};
       const LeavingSurface* leaving = surfel ? &from : nullptr;
       // Next-event estimation of the sun: Lambertian f = a/pi, times E cos(theta).
       if (sky_.has_sun()) {

@@ -32,6 +32,11 @@ struct SurfelView {
   /// largest disc radius in each node's subtree, the per-node candidate radius of the ray query.
   /// Empty: max_radius everywhere.
   std::span<const float> node_radii{};
+  /// Optional, by original point index: the measured surface thickness at each disc (world units,
+  /// SurfelAttributes::thickness), which widens the self-intersection slab (same_surface). Empty: 0.
+  std::span<const float> thickness{};
+  /// thickness[i], or 0 without thickness.
+  [[nodiscard]] double thickness_at(PointIndex i) const { return thickness.empty() ? 0.0 : double(thickness[i]); }
 };
 
 /// The largest of `radii` (by original point index) over the points of each node's subtree of
@@ -85,23 +90,33 @@ struct LeavingSurface {
   Vec3 position{0.0};    ///< hit point, world coordinates
   Vec3 normal{0.0};      ///< unit normal at the hit, facing the side the new ray leaves into
   double radius = 0.0;   ///< radius of the disc or sphere that was hit, world units
+  double thickness = 0.0;  ///< measured surface thickness at the disc hit (SurfelView::thickness_at)
 };
 
-/// True when candidate disc j belongs to the surface `from` lies on: j is the disc left, or its
-/// normal is within 45 degrees of the surface normal and its centre lies within half a radius of
-/// the tangent plane at the origin and within two disc diameters of it (the overlapping
-/// neighbours of a scanned surface; a wall meeting the floor at a corner has another normal and
-/// is kept).
+/// True when candidate disc j (thickness t_j) belongs to the surface `from` lies on: j is the disc
+/// left, or its centre lies within the surface's slab around the tangent plane at the origin (half
+/// a radius plus T, the larger measured thickness of the two discs: the depth steps of a quantised
+/// scan, the noise of a noisy one) and within two disc diameters plus T of it (the offset along the
+/// normal counted only beyond T), and either its
+/// normal is within 45 degrees of the surface normal or its centre lies strictly within the
+/// measured thickness of the surface left (no disc there is resolved as an occluder): the
+/// overlapping neighbours of a scanned surface. A wall meeting the floor at a corner has another
+/// normal and is kept. With both thicknesses zero (visibility, a noise-free scan) this is exactly
+/// the rule without thickness: normal within 45 degrees, |h| <= r / 2, distance <= 2 (r + r_j).
 [[nodiscard]] inline bool same_surface(const LeavingSurface& from, PointIndex j, const Vec3& c_j,
-                                       const Vec3& n_j, double r_j) {
+                                       const Vec3& n_j, double r_j, double t_j = 0.0) {
   if (j == from.index) return true;
-  if (std::abs(glm::dot(n_j, from.normal)) < 0.7071) return false;
   const Vec3 v = c_j - from.position;
   const double r = std::max(from.radius, r_j);
   const double h = glm::dot(v, from.normal);
-  if (std::abs(h) > 0.5 * r) return false;
-  const double lim = 2.0 * (from.radius + r_j);
-  return glm::dot(v, v) <= lim * lim;
+  const double T = std::max(from.thickness, t_j);
+  if (std::abs(h) > 0.5 * r + T) return false;
+  // Distance to the disc left, without the part of the offset along the normal that lies within
+  // the measured thickness (the layers of one surface are side by side, not above each other).
+  const double lim = 2.0 * (from.radius + r_j) + T;
+  if (glm::dot(v, v) - std::min(h * h, T * T) > lim * lim) return false;
+  if (std::abs(h) < from.thickness) return true;
+  return std::abs(glm::dot(n_j, from.normal)) >= 0.7071;
 }
 
 /// Result of first_surfel_hit().
@@ -141,7 +156,7 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
     if (d2 > r * r) return kInf;  // the ray passes farther than r from the centre: misses the disc
     const Vec3& c = s.centers[id];
     const Vec3 n(s.normals[id]);
-    if (from && same_surface(*from, id, c, n, r)) return kInf;
+    if (from && same_surface(*from, id, c, n, r, s.thickness_at(id))) return kInf;
     return ray_disc_t(o, d, c, n, r, t_min, t_max);
   };
   if (s.node_radii.empty()) {
