@@ -339,6 +339,7 @@ int main(int argc, char** argv) {
   std::uint32_t capacity = 32, kd_leaf = 16;
   int fixed_depth = -1;
   bool no_insert = false;
+  std::string only;
   app.add_option("--points", n, "number of uniform points in the unit cube")->capture_default_str();
   app.add_option("--queries", queries, "box queries and kNN queries (each)")->capture_default_str();
   app.add_option("-k", k, "k of the kNN queries")->capture_default_str();
@@ -350,6 +351,9 @@ int main(int argc, char** argv) {
   app.add_option("--kd-leaf", kd_leaf, "rayscan kd-tree leaf size, points")->capture_default_str();
   app.add_option("--nano-leaf", nano_leaf, "nanoflann leaf_max_size, points")->capture_default_str();
   app.add_flag("--no-insert", no_insert, "skip the insertion builds");
+  app.add_option("--only", only,
+                 "run only the contenders whose name contains this text (e.g. \"octree layered\"; for "
+                 "valgrind --tool=callgrind --toggle-collect on one index's queries)");
   CLI11_PARSE(app, argc, argv);
   if (reps == 0 || n == 0) {
     std::cerr << "bench_table1: --reps and --points must be >= 1\n";
@@ -398,6 +402,13 @@ int main(int argc, char** argv) {
   cs.push_back(boost_contender(w));
   if (no_insert) cs.back().build_insert = {};
   cs.push_back(nanoflann_contender(w, nano_leaf));
+  if (!only.empty()) {
+    std::erase_if(cs, [&](const Contender& c) { return c.name.find(only) == std::string::npos; });
+    if (cs.empty()) {
+      std::cerr << "bench_table1: no contender name contains \"" << only << "\"\n";
+      return 2;
+    }
+  }
 
   std::printf("load average: %s\n", rb::loadavg().c_str());
   std::printf("bench_table1: %zu uniform points in the unit cube (seed %llu), %zu box queries, "

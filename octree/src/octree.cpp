@@ -1,12 +1,12 @@
 #include "rayscan/octree.hpp"
 
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 
 namespace rayscan {
@@ -131,6 +131,12 @@ struct OctreeBuilder {
 
   // Bounds of the node's own points and children (children are closed first).
   static void close_node(Octree& t, Octree::Node n, unsigned depth) {
+    own_bounds(t, n);
+    merge_children(t, n);
+    t.depth_ = std::max(t.depth_, depth);
+  }
+  // rec.lo / hi = the float bounds of n's own points (empty: +inf / -inf).
+  static void own_bounds(Octree& t, Octree::Node n) {
     auto& rec = t.nodes_[n];
     AABB own;
     for (std::uint32_t s = rec.own_begin; s < rec.own_end; ++s) own.expand(t.pos_[s]);
@@ -140,13 +146,16 @@ struct OctreeBuilder {
         lo[a] = to_float_bound(own.lo[a] - t.cell_.lo[a], false);
         hi[a] = to_float_bound(own.hi[a] - t.cell_.lo[a], true);
       }
-    for (unsigned c = 0; c < rec.child_count; ++c) {
-      lo = glm::min(lo, t.nodes_[rec.first_child + c].lo);
-      hi = glm::max(hi, t.nodes_[rec.first_child + c].hi);
-    }
     rec.lo = lo;
     rec.hi = hi;
-    t.depth_ = std::max(t.depth_, depth);
+  }
+  // Grows rec.lo / hi by the (final) bounds of n's children.
+  static void merge_children(Octree& t, Octree::Node n) {
+    auto& rec = t.nodes_[n];
+    for (unsigned c = 0; c < rec.child_count; ++c) {
+      rec.lo = glm::min(rec.lo, t.nodes_[rec.first_child + c].lo);
+      rec.hi = glm::max(rec.hi, t.nodes_[rec.first_child + c].hi);
+    }
   }
 
   // ---- bulk -------------------------------------------------------------------------------
@@ -156,7 +165,47 @@ struct OctreeBuilder {
     bool operator<(const Item& o) const { return code < o.code || (code == o.code && idx < o.idx); }
   };
 
-  static void bulk(Octree& t, std::span<const Vec3> pts, std::vector<Item>& items,
+  // The items {codes[i], i} sorted by (code, index), in parallel: a counting pass and a stable
+  // scatter on the top kBucketBits of the code (in index order, so each bucket is index-sorted),
+  // then each bucket sorted on its own (cache-resident; buckets are processed dynamically, so
+  // clustered data whose codes crowd into few buckets still spreads over the threads). The result
+  // is the unique (code, index) order of a global sort. Replaced tbb::parallel_sort, which was
+  // the largest part of the 1e7-point build after the gather (bench/README.md, issue 12).
+  static std::unique_ptr<Item[]> sorted_items(const std::vector<std::uint64_t>& codes) {
+    constexpr unsigned kBucketBits = 12, kShift = 3 * kMortonBits - kBucketBits;
+    constexpr std::size_t kBuckets = std::size_t{1} << kBucketBits;
+    const std::size_t n = codes.size();
+    std::unique_ptr<Item[]> items(new Item[n]);  // uninitialised: first touched by the scatter
+    const std::size_t chunk = std::size_t{1} << 17;
+    const std::size_t nchunks = std::max<std::size_t>(1, (n + chunk - 1) / chunk);
+    std::vector<std::uint32_t> hist(nchunks * kBuckets, 0);  // [chunk][bucket]
+    tbb::parallel_for(std::size_t{0}, nchunks, [&](std::size_t c) {
+      std::uint32_t* h = hist.data() + c * kBuckets;
+      for (std::size_t i = c * chunk, e = std::min(n, (c + 1) * chunk); i < e; ++i) ++h[codes[i] >> kShift];
+    });
+    std::vector<std::size_t> start(kBuckets + 1);
+    std::size_t at = 0;
+    for (std::size_t b = 0; b < kBuckets; ++b) {
+      start[b] = at;
+      for (std::size_t c = 0; c < nchunks; ++c) {
+        const std::uint32_t k = hist[c * kBuckets + b];
+        hist[c * kBuckets + b] = static_cast<std::uint32_t>(at);
+        at += k;
+      }
+    }
+    start[kBuckets] = at;
+    tbb::parallel_for(std::size_t{0}, nchunks, [&](std::size_t c) {
+      std::uint32_t* h = hist.data() + c * kBuckets;
+      for (std::size_t i = c * chunk, e = std::min(n, (c + 1) * chunk); i < e; ++i)
+        items[h[codes[i] >> kShift]++] = {codes[i], static_cast<std::uint32_t>(i)};
+    });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, kBuckets, 16), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t b = r.begin(); b != r.end(); ++b) std::sort(items.get() + start[b], items.get() + start[b + 1]);
+    });
+    return items;
+  }
+
+  static void bulk(Octree& t, std::span<const Vec3> pts, std::span<Item> items,
                    std::vector<std::uint32_t>& scratch, Octree::Node n, unsigned depth,
                    std::size_t b, std::size_t e) {
     const OctreeConfig& c = t.config_;
@@ -177,9 +226,12 @@ struct OctreeBuilder {
         rest = b + c.capacity;
       }
     }
-    scratch.clear();
-    for (std::size_t i = b; i < rest; ++i) scratch.push_back(items[i].idx);
-    emit_points(t, pts, n, scratch);
+    // Own points: items [b, rest). Every node's range starts where the previous node's (in
+    // depth-first order) ended and later calls only permute ranges of descendants, so after the
+    // recursion slot s holds items[s].idx (gathered in parallel by finish_bulk).
+    t.nodes_[n].own_begin = static_cast<std::uint32_t>(b);
+    t.nodes_[n].own_end = static_cast<std::uint32_t>(rest);
+    t.depth_ = std::max(t.depth_, depth);
     if (rest < e) {
       // Children: contiguous runs of equal octant digit (items are Morton-sorted and share the
       // digits above this level), found by binary search on the digit.
@@ -210,7 +262,30 @@ struct OctreeBuilder {
         bulk(t, pts, items, scratch, first + k, depth + 1, start[k], start[k + 1]);
       }
     }
-    close_node(t, n, depth);
+  }
+
+  // After bulk(): positions and ids in slot order (a parallel gather: the random reads of the
+  // input were ~75% of the serial recursion's time), then the node bounds of close_node: each
+  // node's own points in parallel, then children merged into parents in reverse node order
+  // (children always have larger indices than their parent).
+  static void finish_bulk(Octree& t, std::span<const Vec3> pts, std::span<const Item> items) {
+    const std::size_t n = items.size();
+    t.pos_.resize(n);
+    t.ids_.resize(n);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1 << 14), [&](const tbb::blocked_range<std::size_t>& r) {
+      constexpr std::size_t kAhead = 16;
+      for (std::size_t s = r.begin(); s != r.end(); ++s) {
+        if (s + kAhead < n) __builtin_prefetch(&pts[items[s + kAhead].idx]);
+        const std::uint32_t i = items[s].idx;
+        t.pos_[s] = pts[i];
+        t.ids_[s] = i;
+      }
+    });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, t.nodes_.size(), 1 << 12),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                        for (std::size_t i = r.begin(); i != r.end(); ++i) own_bounds(t, static_cast<Octree::Node>(i));
+                      });
+    for (std::size_t i = t.nodes_.size(); i-- > 0;) merge_children(t, static_cast<Octree::Node>(i));
   }
 
   // ---- insertion --------------------------------------------------------------------------
@@ -296,20 +371,14 @@ Octree Octree::build_bulk(std::span<const Vec3> positions, const OctreeConfig& c
   Octree t;
   std::vector<std::uint64_t> codes;
   OctreeBuilder::prepare(t, positions, config, codes);
-  std::vector<OctreeBuilder::Item> items(positions.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, items.size(), 1 << 16),
-                    [&](const tbb::blocked_range<std::size_t>& r) {
-                      for (std::size_t i = r.begin(); i != r.end(); ++i)
-                        items[i] = {codes[i], static_cast<std::uint32_t>(i)};
-                    });
+  const std::unique_ptr<OctreeBuilder::Item[]> buf = OctreeBuilder::sorted_items(codes);
+  const std::span<OctreeBuilder::Item> items(buf.get(), positions.size());
   std::vector<std::uint64_t>().swap(codes);
-  tbb::parallel_sort(items.begin(), items.end());
-  t.pos_.reserve(positions.size());
-  t.ids_.reserve(positions.size());
   t.nodes_.emplace_back();
   std::vector<std::uint32_t> scratch;
   OctreeBuilder::bulk(t, positions, items, scratch, 0, 0, 0, items.size());
   t.nodes_.shrink_to_fit();
+  OctreeBuilder::finish_bulk(t, positions, items);
   return t;
 }
 

@@ -131,21 +131,21 @@ void packet_child_slab_sse2(const ChildBoxesF& b, const SlabPacketF& p, unsigned
   }
 }
 
-[[maybe_unused]] void child_dist2_sse2(const ChildBoxesF& b, const float* q, float margin, float* lb2) {
-  alignas(16) float lo[3][8] = {}, hi[3][8] = {};
-  for (unsigned i = 0; i < b.count; ++i) {
-    const float* p = b.base + static_cast<std::size_t>(i) * b.stride;
-    for (int a = 0; a < 3; ++a) {
-      lo[a][i] = p[a];
-      hi[a][i] = p[3 + a];
-    }
-  }
+// MINDIST^2 lower bounds, 4 children per register, transposed in registers like child_slab_sse2.
+void child_dist2_sse2(const ChildBoxesF& b, const float* q, float margin, float* lb2) {
   const __m128 m = _mm_set1_ps(margin), zero = _mm_setzero_ps(), shrink = _mm_set1_ps(1.0f - kRelSlack);
-  for (unsigned h = 0; h < 8 && h < b.count; h += 4) {
+  for (unsigned h = 0; h < b.count; h += 4) {
+    const float* p0 = box_row(b, h), *p1 = box_row(b, h + 1), *p2 = box_row(b, h + 2), *p3 = box_row(b, h + 3);
+    __m128 lx = _mm_loadu_ps(p0), ly = _mm_loadu_ps(p1), lz = _mm_loadu_ps(p2), hx = _mm_loadu_ps(p3);
+    _MM_TRANSPOSE4_PS(lx, ly, lz, hx);
+    const __m128 u01 = _mm_unpacklo_ps(_mm_loadu_ps(p0 + 4), _mm_loadu_ps(p1 + 4));  // hy0 hy1 hz0 hz1
+    const __m128 u23 = _mm_unpacklo_ps(_mm_loadu_ps(p2 + 4), _mm_loadu_ps(p3 + 4));
+    const __m128 hy = _mm_movelh_ps(u01, u23), hz = _mm_movehl_ps(u23, u01);
+    const __m128 lo[3] = {lx, ly, lz}, hi[3] = {hx, hy, hz};
     __m128 d2 = zero;
     for (int a = 0; a < 3; ++a) {
       const __m128 qa = _mm_set1_ps(q[a]);
-      const __m128 g = _mm_max_ps(_mm_sub_ps(_mm_load_ps(lo[a] + h), qa), _mm_sub_ps(qa, _mm_load_ps(hi[a] + h)));
+      const __m128 g = _mm_max_ps(_mm_sub_ps(lo[a], qa), _mm_sub_ps(qa, hi[a]));
       const __m128 gm = _mm_max_ps(_mm_sub_ps(g, m), zero);
       d2 = _mm_add_ps(d2, _mm_mul_ps(gm, gm));
     }
@@ -182,11 +182,12 @@ unsigned point_filter_sse2(const double* xyz, unsigned count, const PointFilterD
 
 // ---- AVX2 + FMA: all 8 children in one register -------------------------------------------------
 
-__attribute__((target("avx2,fma"))) unsigned child_slab_avx2(const ChildBoxesF& b, const SlabRayF& r,
-                                                             float* entry) {
-  // The 8 boxes transposed in registers (8 row loads, an 8x8 transpose of which 6 rows are kept):
-  // measured history: 6 masked gathers per node were slower than scalar; a lane-by-lane copy to
-  // SoA arrays through memory cost ~100 instructions per node.
+// The 8 child boxes of a node transposed in registers: lo[a] / hi[a] hold coordinate a of boxes
+// 0..7 (8 row loads of lo.xyz, hi.xyz + 2 ignored floats, an 8x8 transpose of which 6 rows are
+// kept; rows past b.count repeat box 0). Measured history: 6 masked gathers per node were slower
+// than scalar; a lane-by-lane copy to SoA arrays through memory cost ~100 instructions per node.
+__attribute__((target("avx2,fma"), always_inline)) inline void transpose_boxes8(const ChildBoxesF& b, __m256* lo,
+                                                                             __m256* hi) {
   const __m256 r0 = _mm256_loadu_ps(box_row(b, 0)), r1 = _mm256_loadu_ps(box_row(b, 1));
   const __m256 r2 = _mm256_loadu_ps(box_row(b, 2)), r3 = _mm256_loadu_ps(box_row(b, 3));
   const __m256 r4 = _mm256_loadu_ps(box_row(b, 4)), r5 = _mm256_loadu_ps(box_row(b, 5));
@@ -199,10 +200,18 @@ __attribute__((target("avx2,fma"))) unsigned child_slab_avx2(const ChildBoxesF& 
   const __m256 s2 = _mm256_shuffle_ps(t1, t3, 0x44), s3 = _mm256_shuffle_ps(t1, t3, 0xEE);
   const __m256 s4 = _mm256_shuffle_ps(t4, t6, 0x44), s5 = _mm256_shuffle_ps(t4, t6, 0xEE);
   const __m256 s6 = _mm256_shuffle_ps(t5, t7, 0x44), s7 = _mm256_shuffle_ps(t5, t7, 0xEE);
-  const __m256 lo[3] = {_mm256_permute2f128_ps(s0, s4, 0x20), _mm256_permute2f128_ps(s1, s5, 0x20),
-                        _mm256_permute2f128_ps(s2, s6, 0x20)};
-  const __m256 hi[3] = {_mm256_permute2f128_ps(s3, s7, 0x20), _mm256_permute2f128_ps(s0, s4, 0x31),
-                        _mm256_permute2f128_ps(s1, s5, 0x31)};
+  lo[0] = _mm256_permute2f128_ps(s0, s4, 0x20);
+  lo[1] = _mm256_permute2f128_ps(s1, s5, 0x20);
+  lo[2] = _mm256_permute2f128_ps(s2, s6, 0x20);
+  hi[0] = _mm256_permute2f128_ps(s3, s7, 0x20);
+  hi[1] = _mm256_permute2f128_ps(s0, s4, 0x31);
+  hi[2] = _mm256_permute2f128_ps(s1, s5, 0x31);
+}
+
+__attribute__((target("avx2,fma"))) unsigned child_slab_avx2(const ChildBoxesF& b, const SlabRayF& r,
+                                                             float* entry) {
+  __m256 lo[3], hi[3];
+  transpose_boxes8(b, lo, hi);
   const __m256 eps = _mm256_set1_ps(kRelSlack);
   const __m256 sign = _mm256_set1_ps(-0.0f);
   __m256 tn = _mm256_set1_ps(r.t_lo), tf = _mm256_set1_ps(r.t_hi);
@@ -249,18 +258,16 @@ __attribute__((target("avx2,fma"))) void packet_child_slab_avx2(const ChildBoxes
   }
 }
 
-[[maybe_unused]] __attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, const float* q, float margin,
-                                                           float* lb2) {
-  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-  const __m256i idx = _mm256_mullo_epi32(lane, _mm256_set1_epi32(static_cast<int>(b.stride)));
-  const __m256 valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(static_cast<int>(b.count)), lane));
+// MINDIST^2 lower bounds of the 8 children on the transposed boxes (no gather, no copy).
+__attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, const float* q, float margin,
+                                                          float* lb2) {
+  __m256 lo[3], hi[3];
+  transpose_boxes8(b, lo, hi);
   const __m256 m = _mm256_set1_ps(margin), zero = _mm256_setzero_ps();
   __m256 d2 = zero;
   for (int a = 0; a < 3; ++a) {
-    const __m256 lo = _mm256_mask_i32gather_ps(zero, b.base + a, idx, valid, 4);
-    const __m256 hi = _mm256_mask_i32gather_ps(zero, b.base + 3 + a, idx, valid, 4);
     const __m256 qa = _mm256_set1_ps(q[a]);
-    const __m256 g = _mm256_max_ps(_mm256_sub_ps(lo, qa), _mm256_sub_ps(qa, hi));
+    const __m256 g = _mm256_max_ps(_mm256_sub_ps(lo[a], qa), _mm256_sub_ps(qa, hi[a]));
     const __m256 gm = _mm256_max_ps(_mm256_sub_ps(g, m), zero);
     d2 = _mm256_fmadd_ps(gm, gm, d2);
   }
@@ -381,15 +388,16 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx51
 #endif
 
 const Kernels& kernels_for(SimdPath p) {
-  // child_dist2 is off on every path: the gathered float MINDIST of 8 children measured 1.35x
-  // slower than the scalar test on Table 1 kNN on the reference machine (bench/README.md, issue
-  // 12), so knn_query keeps its scalar child test. The kernels stay for the next attempt (with the
-  // in-register transpose of child_slab_avx2 instead of gathers) and are checked by test_simd.cpp.
+  // child_dist2 (knn_query's child lower bounds): the gathering version measured 1.35x slower
+  // than the scalar test on Table 1 kNN and was disabled; the in-register transpose (as in
+  // child_slab) brought it back (bench/README.md, "Issue 12, requirement 4").
   static const Kernels k_scalar{SimdPath::scalar, nullptr, nullptr, nullptr, nullptr};
 #if RAYSCAN_X86
-  static const Kernels k_sse2{SimdPath::sse2, child_slab_sse2, point_filter_sse2, nullptr, packet_child_slab_sse2};
-  static const Kernels k_avx2{SimdPath::avx2, child_slab_avx2, point_filter_avx2, nullptr, packet_child_slab_avx2};
-  static const Kernels k_avx512{SimdPath::avx512, child_slab_avx2, point_filter_avx512, nullptr,
+  static const Kernels k_sse2{SimdPath::sse2, child_slab_sse2, point_filter_sse2, child_dist2_sse2,
+                              packet_child_slab_sse2};
+  static const Kernels k_avx2{SimdPath::avx2, child_slab_avx2, point_filter_avx2, child_dist2_avx2,
+                              packet_child_slab_avx2};
+  static const Kernels k_avx512{SimdPath::avx512, child_slab_avx2, point_filter_avx512, child_dist2_avx2,
                                 packet_child_slab_avx512};
   switch (p) {
     case SimdPath::scalar: return k_scalar;

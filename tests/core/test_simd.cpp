@@ -19,7 +19,7 @@ using namespace rayscan;
 using namespace rayscan::test;
 
 namespace rayscan::simd {
-// The child MINDIST kernel of a path (simd.cpp); not wired into knn_query yet (see there).
+// The child MINDIST kernel of a path (simd.cpp; knn_query takes it from active_kernels()).
 ChildDist2Fn child_dist2_kernel(SimdPath p);
 }  // namespace rayscan::simd
 
@@ -156,11 +156,11 @@ TEST(Simd, KnnIsBitIdenticalOnEveryPath) {
   const std::vector<Vec3> pts = make_points(20000, Dist::utm_mm, 4);
   std::mt19937_64 rng(5);
   std::uniform_int_distribution<std::size_t> pick(0, pts.size() - 1);
-  for (const OctreeLayout layout : {OctreeLayout::layered, OctreeLayout::adaptive}) {
+  for (const OctreeLayout layout : {OctreeLayout::layered, OctreeLayout::fixed, OctreeLayout::adaptive}) {
     OctreeConfig cfg;
     cfg.layout = layout;
     const Octree tree = Octree::build_bulk(pts, cfg);
-    for (int i = 0; i < 50; ++i) {
+    for (int i = 0; i < 30; ++i) {
       const Vec3 q = pts[pick(rng)] + Vec3(0.0004, -0.0003, 0.0002);
       // Oracle: every point, sorted by (squared distance, index).
       std::vector<std::pair<double, PointIndex>> all(pts.size());
@@ -168,16 +168,21 @@ TEST(Simd, KnnIsBitIdenticalOnEveryPath) {
         const Vec3 v = pts[j] - q;
         all[j] = {glm::dot(v, v), static_cast<PointIndex>(j)};
       }
-      std::partial_sort(all.begin(), all.begin() + 8, all.end());
-      std::vector<Neighbor> want;
-      for (int j = 0; j < 8; ++j) want.push_back({all[j].second, std::sqrt(all[j].first)});
-      for (SimdPath path : supported_paths()) {
-        set_simd_path(path);
-        const auto got = knn(tree, q, 8);
-        ASSERT_EQ(got.size(), want.size()) << to_string(path);
-        for (std::size_t j = 0; j < got.size(); ++j) {
-          ASSERT_EQ(got[j].index, want[j].index) << to_string(path) << " rank " << j;
-          ASSERT_EQ(got[j].distance, want[j].distance) << to_string(path) << " rank " << j;
+      // k = 1 and 8: the sorted candidate array; k = 40: the heap (detail::kKnnSortedMax = 32).
+      std::partial_sort(all.begin(), all.begin() + 40, all.end());
+      for (const std::size_t k : {std::size_t{1}, std::size_t{8}, std::size_t{40}}) {
+        std::vector<Neighbor> want;
+        for (std::size_t j = 0; j < k; ++j) want.push_back({all[j].second, std::sqrt(all[j].first)});
+        for (SimdPath path : supported_paths()) {
+          set_simd_path(path);
+          // Every SIMD path bounds the children with child_dist2 (the scalar path has none).
+          ASSERT_EQ(simd::active_kernels().child_dist2 == nullptr, path == SimdPath::scalar) << to_string(path);
+          const auto got = knn(tree, q, k);
+          ASSERT_EQ(got.size(), want.size()) << to_string(path);
+          for (std::size_t j = 0; j < got.size(); ++j) {
+            ASSERT_EQ(got[j].index, want[j].index) << to_string(path) << " k " << k << " rank " << j;
+            ASSERT_EQ(got[j].distance, want[j].distance) << to_string(path) << " k " << k << " rank " << j;
+          }
         }
       }
     }

@@ -60,14 +60,58 @@ void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
   }
 }
 
+namespace detail {
+
+/// A kNN candidate: squared distance and original index (ordered by both: exact ties resolved by
+/// the smaller index, like the brute-force oracle).
+struct KnnCand {
+  double d2;
+  PointIndex id;
+};
+inline bool knn_less(const KnnCand& a, const KnnCand& b) { return a.d2 < b.d2 || (a.d2 == b.d2 && a.id < b.id); }
+
+/// A stack entry of the kNN traversal: a node (points = false: test its children, then its own
+/// points) or a node's own points alone (points = true, deferred below its children).
+template <class Node>
+struct KnnEntry {
+  double lb;  ///< lower bound of the squared distance of any point the entry covers
+  Node node;
+  bool points;
+};
+
+/// Per-thread scratch of knn_query (allocates nothing once warm).
+template <class Node>
+struct KnnScratch {
+  std::vector<KnnEntry<Node>> stack;
+  std::vector<KnnCand> cands;
+  std::vector<std::uint32_t> sel;  // survivors of the SIMD point filter (local slot offsets)
+};
+template <class Node>
+KnnScratch<Node>& knn_scratch() {
+  thread_local KnnScratch<Node> s;
+  return s;
+}
+
+/// Up to this k the k best are kept as a sorted array (insertion), above it as a binary heap.
+inline constexpr std::size_t kKnnSortedMax = 32;
+
+}  // namespace detail
+
 /// kNN with optional radius: the at most k points nearest to q with distance <= radius (inclusive),
 /// sorted by (squared distance, index). k = kAllPoints means no k limit (a pure radius query);
 /// radius = kInf means no radius. Ordering and pruning use squared distances; Neighbor::distance is
-/// their square root. Best-first search over node MINDIST (Hjaltason & Samet 1999).
-/// SIMD (issue 12, the same policies as ray_query): on the active simd_path() an index with
-/// detail::FloatChildBoxes bounds all children's MINDIST at once in float (lower bounds, rounded
-/// down), and each node's points pass a SIMD distance filter with a widened bound before the exact
-/// double test, so the answers are bit-identical on every path.
+/// their square root.
+///
+/// Traversal (issue 12, requirement 4): ordered depth-first over node MINDIST (nearest child
+/// first, as nanoflann; a node is skipped when its bound exceeds the current k-th distance), with
+/// the policies of ray_query: on the active simd_path() an index with detail::FloatChildBoxes
+/// bounds all children's MINDIST at once in float (child_dist2 on the boxes transposed in
+/// registers; lower bounds, rounded down), and a node's points pass the SIMD distance filter with
+/// a widened bound before the exact double test, so the answers are bit-identical on every path.
+/// The own points of a node that also has children (the layered octree's interior points, a
+/// subsample spread over the whole cell) are deferred below its children on the stack: they are
+/// tested after the nearest subtree has tightened the k-th distance, so the filter rejects nearly
+/// all of them. The k best are kept in a sorted array (k <= 32) or a heap.
 /// Throws std::invalid_argument for a NaN/negative radius or a non-finite q.
 template <SpatialIndex I>
 void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
@@ -79,23 +123,24 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
   out.clear();
   if (index.empty() || k == 0) return;
   using Node = typename I::Node;
+  using detail::KnnCand;
   const bool bounded = k != kAllPoints;
+  const bool sorted_set = bounded && k <= detail::kKnnSortedMax;
   const double r2 = radius * radius;
   const std::span<const Vec3> pos = index.positions();
   const std::span<const PointIndex> ids = index.ids();
-  auto& scratch = detail::ray_scratch<Node>();  // same shapes: (bound, node) and candidates
-  auto& nodes = scratch.nodes;
+  auto& scratch = detail::knn_scratch<Node>();
+  auto& stack = scratch.stack;
   auto& cands = scratch.cands;
-  nodes.clear();
+  stack.clear();
   cands.clear();
-  double worst = kInf;
-  auto greater = [](const detail::NodeEntry<Node>& a, const detail::NodeEntry<Node>& b) {
-    return a.lb > b.lb;
-  };
+  std::size_t held = 0;  // sorted_set: cands[0, held) sorted ascending
+  if (sorted_set) cands.resize(k);
+  double worst = kInf;   // the k-th smallest squared distance once k are held
+  double bound = r2;     // min(r2, worst): the pruning bound
   // A node is kept when its squared MINDIST is within the (relative-tolerance) bound.
-  auto within = [](double lb, double bound) { return lb <= bound * (1.0 + 1e-12); };
+  auto within = [](double lb, double b) { return lb <= b * (1.0 + 1e-12); };
   const AABB root_box = index.node_bounds(index.root());
-  nodes.push_back({distance2_point_box(q, root_box), index.root()});
   // SIMD policies (simd.hpp): see ray_query for the margins.
   const simd::Kernels& kern = simd::active_kernels();
   const double vmax = glm::length(q - root_box.center()) + 0.5 * glm::length(root_box.hi - root_box.lo);
@@ -109,71 +154,110 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
     const double mag = std::max({std::abs(q_rel.x), std::abs(q_rel.y), std::abs(q_rel.z)}) + index.float_extent();
     margin_f = detail::round_float_up(0x1p-20 * mag);
   }
-  while (!nodes.empty()) {
-    detail::NodeEntry<Node> e;
-    if (bounded) {
-      std::pop_heap(nodes.begin(), nodes.end(), greater);
-      e = nodes.back();
-      nodes.pop_back();
-      if (!within(e.lb, worst)) break;
-    } else {
-      e = nodes.back();
-      nodes.pop_back();
+  auto insert = [&](std::uint32_t s) __attribute__((always_inline)) {
+    const Vec3 v = pos[s] - q;
+    const double d2 = glm::dot(v, v);
+    if (d2 > bound) return;  // bound <= r2 and <= worst
+    const KnnCand c{d2, ids[s]};
+    if (!bounded) {
+      cands.push_back(c);
+      return;
     }
-    if (!within(e.lb, r2)) continue;
-    const SlotRange sr = index.node_points(e.node);
-    auto eval_slot = [&](std::uint32_t s) __attribute__((always_inline)) {
-      const Vec3 v = pos[s] - q;
-      const double d2 = glm::dot(v, v);
-      if (d2 > r2 || d2 > worst) return;
-      const detail::Candidate c{d2, ids[s], s, 0.0, d2};
-      if (!bounded) {
-        cands.push_back(c);
-      } else if (cands.size() < k) {
-        cands.push_back(c);
-        std::push_heap(cands.begin(), cands.end(), detail::cand_less);
-        if (cands.size() == k) worst = cands.front().key;
-      } else if (detail::cand_less(c, cands.front())) {
-        std::pop_heap(cands.begin(), cands.end(), detail::cand_less);
-        cands.back() = c;
-        std::push_heap(cands.begin(), cands.end(), detail::cand_less);
-        worst = cands.front().key;
+    if (sorted_set) {
+      std::size_t i;
+      if (held < k) {
+        i = held++;
+      } else {
+        if (!detail::knn_less(c, cands[k - 1])) return;
+        i = k - 1;
       }
-    };
-    if (kern.point_filter && sr.size() >= 4) {
-      pf.d2_max = std::min(r2, worst) * (1.0 + 1e-12) + slack_d2;
+      for (; i > 0 && detail::knn_less(c, cands[i - 1]); --i) cands[i] = cands[i - 1];
+      cands[i] = c;
+      if (held == k) worst = cands[k - 1].d2;
+    } else if (cands.size() < k) {
+      cands.push_back(c);
+      std::push_heap(cands.begin(), cands.end(), detail::knn_less);
+      if (cands.size() == k) worst = cands.front().d2;
+    } else {
+      if (!detail::knn_less(c, cands.front())) return;
+      std::pop_heap(cands.begin(), cands.end(), detail::knn_less);
+      cands.back() = c;
+      std::push_heap(cands.begin(), cands.end(), detail::knn_less);
+      worst = cands.front().d2;
+    }
+    bound = std::min(r2, worst);
+  };
+  // Leaf work: the node's own points, through the SIMD filter once a finite bound exists.
+  auto eval_points = [&](Node n) __attribute__((always_inline)) {
+    const SlotRange sr = index.node_points(n);
+    if (kern.point_filter && sr.size() >= 4 && bound < kInf) {
+      pf.d2_max = bound * (1.0 + 1e-12) + slack_d2;
       auto& sel = scratch.sel;
       if (sel.size() < sr.size()) sel.resize(sr.size());
-      const unsigned n = kern.point_filter(&pos[sr.begin].x, sr.size(), pf, sel.data());
-      for (unsigned j = 0; j < n; ++j) eval_slot(sr.begin + sel[j]);
+      const unsigned m = kern.point_filter(&pos[sr.begin].x, sr.size(), pf, sel.data());
+      for (unsigned j = 0; j < m; ++j) insert(sr.begin + sel[j]);
     } else {
-      for (std::uint32_t s = sr.begin; s < sr.end; ++s) eval_slot(s);
+      for (std::uint32_t s = sr.begin; s < sr.end; ++s) insert(s);
     }
+  };
+  stack.push_back({distance2_point_box(q, root_box), index.root(), false});
+  while (!stack.empty()) {
+    const detail::KnnEntry<Node> e = stack.back();
+    stack.pop_back();
+    if (!within(e.lb, bound)) continue;
     const unsigned nc = index.child_count(e.node);
+    if (e.points || nc == 0) {
+      eval_points(e.node);
+      continue;
+    }
+    // Children's lower bounds (SIMD on FloatChildBoxes indexes), then pushed far-to-near so the
+    // nearest is popped first; the node's own points go below them.
+    if (index.node_points(e.node).size() > 0) stack.push_back({e.lb, e.node, true});
+    double lb[8];
+    Node ch[8];
+    unsigned m = 0;
+    auto add = [&](double l, Node c) __attribute__((always_inline)) {
+      if (!within(l, bound)) return;
+      unsigned j = m++;
+      for (; j > 0 && lb[j - 1] < l; --j) {  // descending by bound
+        lb[j] = lb[j - 1];
+        ch[j] = ch[j - 1];
+      }
+      lb[j] = l;
+      ch[j] = c;
+    };
+    bool done = false;
     if constexpr (detail::FloatChildBoxes<I>) {
       if (kern.child_dist2 && nc <= 8) {
         float lb2[8];
         kern.child_dist2(index.child_boxes_f(e.node), qf, margin_f, lb2);
-        for (unsigned i = 0; i < nc; ++i) {
-          const double lb = lb2[i];
-          if (!within(lb, r2) || !within(lb, worst)) continue;
-          nodes.push_back({lb, index.child(e.node, i)});
-          if (bounded) std::push_heap(nodes.begin(), nodes.end(), greater);
-        }
-        continue;
+        for (unsigned i = 0; i < nc; ++i) add(lb2[i], index.child(e.node, i));
+        done = true;
       }
     }
-    for (unsigned i = 0; i < nc; ++i) {
-      const Node ch = index.child(e.node, i);
-      const double lb = distance2_point_box(q, index.node_bounds(ch));
-      if (!within(lb, r2) || !within(lb, worst)) continue;
-      nodes.push_back({lb, ch});
-      if (bounded) std::push_heap(nodes.begin(), nodes.end(), greater);
+    if (!done) {
+      if (nc <= 8) {
+        for (unsigned i = 0; i < nc; ++i) {
+          const Node c = index.child(e.node, i);
+          add(distance2_point_box(q, index.node_bounds(c)), c);
+        }
+      } else {  // more than 8 children (not an octree): unordered
+        for (unsigned i = 0; i < nc; ++i) {
+          const Node c = index.child(e.node, i);
+          const double l = distance2_point_box(q, index.node_bounds(c));
+          if (within(l, bound)) stack.push_back({l, c, false});
+        }
+      }
     }
+    for (unsigned j = 0; j < m; ++j) stack.push_back({lb[j], ch[j], false});
   }
-  std::sort(cands.begin(), cands.end(), detail::cand_less);
+  if (sorted_set) {
+    cands.resize(held);
+  } else {
+    std::sort(cands.begin(), cands.end(), detail::knn_less);
+  }
   out.reserve(cands.size());
-  for (const detail::Candidate& c : cands) out.push_back({c.id, std::sqrt(c.d2)});
+  for (const KnnCand& c : cands) out.push_back({c.id, std::sqrt(c.d2)});
 }
 
 /// kNN: the k nearest points (see knn_query above for order and ties).
