@@ -498,7 +498,7 @@ TEST(RayQuery, PacketAnyHitEqualsOracleExistence) {
           }
         }
     }
-    EXPECT_GT(blocked_count, total / 10) << name(dist);  // both answers occur
+    EXPECT_GT(blocked_count, total / 50) << name(dist);  // both answers occur (clustered: ~5%)
     EXPECT_LT(blocked_count, total - total / 10) << name(dist);
   }
   const auto pts = make_points(100, Dist::uniform, 3);
