@@ -201,10 +201,10 @@ class PathTracer {
   /// Radiance of n = rays.size() <= kMaxRayPacket coherent camera rays (one sample of each pixel
   /// of a small pixel tile, sampler streams `s`), bit-identical to trace() on each ray with its
   /// own stream (issue 12, requirement 3). The n paths advance together, one vertex at a time (a
-  /// small wavefront): the camera rays go through ray_first_hit_packet, the shadow rays of the
-  /// hits at every depth, which all point at the sun, through ray_any_hit_packet, and the bounce
-  /// rays, which are incoherent, one by one (in packets they measured no faster: bench/README.md),
-  /// then each path scatters. Every stage consumes a
+  /// small wavefront): the camera rays go through ray_first_hit_packet, the shadow rays of their
+  /// hits, which all point at the sun from within the block's footprint, through
+  /// ray_any_hit_packet, and the bounce rays and their shadow rays, which are incoherent, one by
+  /// one (in packets they measured no faster: bench/README.md); then each path scatters. Every stage consumes a
   /// path's sampler stream in the order trace() does and adds to its L in the same order, and the
   /// packet answers are ray_first_hit's, so nothing depends on which paths share a packet.
   /// Sphere mode; surfel mode (first_surfel_hit: per-disc refined keys, per-node radii and the
@@ -254,8 +254,13 @@ class PathTracer {
         if (!hit_vertex(q, rh[j].has_value(), h, s[lane[j]], nullptr)) live &= ~(1u << lane[j]);
         else if (q.shadow_pending) shadowed |= 1u << lane[j];
       }
-      // The shadow rays of the hits (all towards the sun).
-      if (shadowed) {
+      // The shadow rays of the hits (all towards the sun): a packet for the camera rays' hits,
+      // whose origins lie within the block's footprint; one by one after a bounce (the origins
+      // are scattered: in packets they measured slower, bench/README.md).
+      if (shadowed && !camera) {
+        for (std::size_t i = 0; i < n; ++i)
+          if (((shadowed >> i) & 1u) && !occluded(p[i]->shadow, hits, c)) add_sun(*p[i]);
+      } else if (shadowed) {
         std::size_t ns = 0;
         wave.clear();
         for (std::size_t i = 0; i < n; ++i)
