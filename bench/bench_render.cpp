@@ -4,14 +4,20 @@
 // rest (camera, shading, sampling), measured by timing every ray_query call.
 //
 // Usage: bench_render [SCENE.json] [--tiles N] [--spp S] [--threads T] [--no-timing]
+//                     [--packets on|off|both] [--rounds R]
 //   default scene: scenes/autzen_overview.json; --tiles N renders an N x N tiling of the cloud
 //   (N = 9 gives 8.9 million points for autzen_trim), seen by a camera scaled to cover it.
+//   --packets (issue 12): camera and shadow rays of 4x4 pixel blocks as ray packets (on, the
+//   default), single rays (off), or both, alternating in each of R rounds (default 1) of the same
+//   process, with the two images compared byte by byte and queries/s per thread by wall clock and
+//   by process CPU time (the fair figure on a loaded machine) for each render.
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/render.hpp"
 
 #include <chrono>
 #include <cstdio>
+#include <ctime>
 #include <cstring>
 #include <string>
 
@@ -23,11 +29,15 @@ int main(int argc, char** argv) {
   int tiles = 1;
   unsigned spp = 50, threads = 0;
   bool timing = true;
+  std::string packets = "on";
+  int rounds = 1;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--tiles") && i + 1 < argc) tiles = std::atoi(argv[++i]);
     else if (!std::strcmp(argv[i], "--spp") && i + 1 < argc) spp = unsigned(std::atoi(argv[++i]));
     else if (!std::strcmp(argv[i], "--threads") && i + 1 < argc) threads = unsigned(std::atoi(argv[++i]));
     else if (!std::strcmp(argv[i], "--no-timing")) timing = false;
+    else if (!std::strcmp(argv[i], "--packets") && i + 1 < argc) packets = argv[++i];
+    else if (!std::strcmp(argv[i], "--rounds") && i + 1 < argc) rounds = std::max(1, std::atoi(argv[++i]));
     else scene_path = argv[i];
   }
   try {
@@ -69,26 +79,57 @@ int main(int argc, char** argv) {
     const AnyIndex index = make_index(cloud.positions, scene.index);
     const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const double radius = choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor).radius;
-    RenderOptions opt;
-    opt.threads = threads;
-    opt.time_queries = timing;
-    Framebuffer fb;
-    const RenderStats st = render_image(index, make_settings(scene, cloud.positions, albedo, radius), fb, opt);
-    const double qps = double(st.queries) / st.seconds;
+    if (packets != "on" && packets != "off" && packets != "both") {
+      std::fprintf(stderr, "bench_render: --packets '%s': expected on, off or both\n", packets.c_str());
+      return 2;
+    }
+    const RenderSettings settings = make_settings(scene, cloud.positions, albedo, radius);
     std::printf("scene %s, tiles %dx%d: %zu points, %s build %.2f s, radius %.4g\n", scene_path.c_str(),
                 tiles, tiles, cloud.size(), scene.index.type.c_str(), build_s, radius);
-    std::printf("%ux%u px, %u spp, %u threads: %.2f s, %llu primary rays, %llu ray queries\n",
-                fb.width, fb.height, scene.spp, st.threads, st.seconds,
-                (unsigned long long)st.primary_rays, (unsigned long long)st.queries);
-    std::printf("ray queries/s: %.3g total, %.3g per thread; nodes visited/query %.1f, points tested/query %.1f\n",
-                qps, qps / st.threads, double(st.nodes_visited) / double(st.queries),
-                double(st.points_tested) / double(st.queries));
-    if (timing) {
-      const double busy = st.seconds * st.threads;
-      std::printf("cost split (thread time): ray query %.1f%%, rest (camera, shading, sampling, "
-                  "timer overhead) %.1f%%\n",
-                  100.0 * st.query_seconds / busy, 100.0 * (1.0 - st.query_seconds / busy));
-    }
+    auto cpu_now = [] {
+      timespec ts{};
+      clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+      return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
+    };
+    std::vector<bool> modes;
+    if (packets != "on") modes.push_back(false);
+    if (packets != "off") modes.push_back(true);
+    std::vector<Color> first_image[2];
+    for (int round = 0; round < rounds; ++round)
+      for (const bool pk : modes) {
+        RenderOptions opt;
+        opt.threads = threads;
+        opt.time_queries = timing;
+        opt.packets = pk;
+        Framebuffer fb;
+        const double c0 = cpu_now();
+        const RenderStats st = render_image(index, settings, fb, opt);
+        const double cpu = cpu_now() - c0;
+        const double qps = double(st.queries) / st.seconds;
+        std::printf("round %d, packets %s: %ux%u px, %u spp, %u threads: %.2f s, %llu primary rays, %llu ray queries\n",
+                    round + 1, pk ? "on" : "off", fb.width, fb.height, scene.spp, st.threads, st.seconds,
+                    (unsigned long long)st.primary_rays, (unsigned long long)st.queries);
+        std::printf("  ray queries/s: %.3g total, %.3g per thread (wall); %.3g per CPU-second; "
+                    "nodes visited/query %.1f, points tested/query %.1f\n",
+                    qps, qps / st.threads, double(st.queries) / cpu, double(st.nodes_visited) / double(st.queries),
+                    double(st.points_tested) / double(st.queries));
+        if (timing) {
+          const double busy = st.seconds * st.threads;
+          std::printf("  cost split (thread time): ray query %.1f%%, rest (camera, shading, sampling, "
+                      "timer overhead) %.1f%%\n",
+                      100.0 * st.query_seconds / busy, 100.0 * (1.0 - st.query_seconds / busy));
+        }
+        std::vector<Color>& ref = first_image[pk ? 1 : 0];
+        if (ref.empty()) ref = fb.beauty;
+        const std::vector<Color>& other = first_image[pk ? 0 : 1];
+        for (const std::vector<Color>* cmp : {static_cast<const std::vector<Color>*>(&ref), &other})
+          if (!cmp->empty() && (cmp->size() != fb.beauty.size() ||
+                                std::memcmp(cmp->data(), fb.beauty.data(), fb.beauty.size() * sizeof(Color)) != 0)) {
+            std::fprintf(stderr, "bench_render: round %d: the image differs from an earlier render\n", round + 1);
+            return 1;
+          }
+      }
+    if (modes.size() == 2) std::printf("images identical byte for byte (packets on vs off, every round)\n");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_render: %s\n", e.what());
     return 2;

@@ -13,6 +13,7 @@
 #include <chrono>
 #include <functional>
 #include <mutex>
+#include <type_traits>
 
 namespace rayscan::render {
 
@@ -50,29 +51,66 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
   const bool any_aov = !s.aovs.empty();
   const bool want_cost = !fb.cost.empty();
   const Camera& cam = s.camera;
+  // Packets of camera rays (issue 12): not for the cost AOV (node visits are counted per packet,
+  // not per pixel), nor for COPC (nodes decoded as rays reach them; kept single-ray).
+  const bool packets = opt.packets && !want_cost && !std::is_same_v<I, io::CopcIndex>;
+  constexpr std::uint32_t kBlock = 4;  // 4x4 pixels = kMaxRayPacket rays
+  static_assert(kBlock * kBlock == kMaxRayPacket);
   std::mutex stats_mutex;
 
   tbb::parallel_for(tbb::blocked_range<std::uint32_t>(first, last, 1), [&](const auto& range) {
     std::vector<RayHit> hits;
     hits.reserve(4);
     TraceCounters c;
+    std::vector<Ray> rays;  // one packet's camera rays (Ray has no default constructor)
+    rays.reserve(kMaxRayPacket);
+    std::vector<Sampler> smps;
+    smps.reserve(kMaxRayPacket);
     for (std::uint32_t tile = range.begin(); tile != range.end(); ++tile) {
       const std::uint64_t q_before = c.queries;
       const std::uint32_t x0 = (tile % tiles_x) * T, y0 = (tile / tiles_x) * T;
       const std::uint32_t x1 = std::min(W, x0 + T), y1 = std::min(H, y0 + T);
+      if (packets) {
+        // Sample j of the pixels of each 4x4 block (row-major) as one packet; each pixel keeps its
+        // own stream Sampler(seed, x, y, j) and sums its samples in the order j = 0, 1, ...
+        for (std::uint32_t by = y0; by < y1; by += kBlock)
+          for (std::uint32_t bx = x0; bx < x1; bx += kBlock) {
+            const std::uint32_t bw = std::min(kBlock, x1 - bx), bh = std::min(kBlock, y1 - by);
+            const std::size_t n = std::size_t(bw) * bh;
+            Color sum[kMaxRayPacket], L[kMaxRayPacket];
+            std::fill(sum, sum + n, Color(0.0f));
+            for (std::uint32_t j = 0; j < s.spp; ++j) {
+              rays.clear();
+              smps.clear();
+              for (std::uint32_t y = by; y < by + bh; ++y)
+                for (std::uint32_t x = bx; x < bx + bw; ++x) {
+                  Sampler& smp = smps.emplace_back(s.seed, x, y, j);
+                  const double u = x + smp.uniform() - 0.5, v = y + smp.uniform() - 0.5;
+                  const double lu = smp.uniform(), lv = smp.uniform();
+                  rays.push_back(cam.generate_ray(u, v, lu, lv));
+                }
+              tracer.trace_packet(rays, smps, std::span(L, n), hits, c);
+              for (std::size_t i = 0; i < n; ++i) sum[i] += L[i];
+            }
+            for (std::uint32_t k = 0; k < n; ++k)
+              fb.beauty[std::size_t(by + k / bw) * W + bx + k % bw] = sum[k] / float(s.spp);
+          }
+      }
       for (std::uint32_t y = y0; y < y1; ++y)
         for (std::uint32_t x = x0; x < x1; ++x) {
           const std::size_t p = std::size_t(y) * W + x;
-          const std::uint64_t nodes_before = c.nodes_visited;
-          Color sum(0.0f);
-          for (std::uint32_t j = 0; j < s.spp; ++j) {
-            Sampler smp(s.seed, x, y, j);
-            const double u = x + smp.uniform() - 0.5, v = y + smp.uniform() - 0.5;
-            const double lu = smp.uniform(), lv = smp.uniform();
-            sum += tracer.trace(cam.generate_ray(u, v, lu, lv), smp, hits, c);
+          if (!packets) {
+            const std::uint64_t nodes_before = c.nodes_visited;
+            Color sum(0.0f);
+            for (std::uint32_t j = 0; j < s.spp; ++j) {
+              Sampler smp(s.seed, x, y, j);
+              const double u = x + smp.uniform() - 0.5, v = y + smp.uniform() - 0.5;
+              const double lu = smp.uniform(), lv = smp.uniform();
+              sum += tracer.trace(cam.generate_ray(u, v, lu, lv), smp, hits, c);
+            }
+            fb.beauty[p] = sum / float(s.spp);
+            if (want_cost) fb.cost[p] = float(double(c.nodes_visited - nodes_before) / s.spp);
           }
-          fb.beauty[p] = sum / float(s.spp);
-          if (want_cost) fb.cost[p] = float(double(c.nodes_visited - nodes_before) / s.spp);
           if (!any_aov) continue;
           SurfaceHit h;  // the AOV ray (after the cost AOV was taken, so not part of it)
           const bool hit = tracer.intersect(cam.generate_ray(x, y), h, hits, c);

@@ -450,4 +450,65 @@ TEST(RayQuery, PacketFirstHitEqualsSingleRayAndOracle) {
                std::invalid_argument);
 }
 
+TEST(RayQuery, PacketAnyHitEqualsOracleExistence) {
+  // ray_any_hit_packet (shadow rays) against the brute-force oracle: out[i] is true exactly when
+  // some point qualifies along ray i. Coherent packets (parallel rays from a grid of origins, as
+  // shadow rays towards a sun), incoherent ones (random rays) and packets of 1..20 rays, with
+  // and without any_hit, on every index and forced SIMD path (simd_*_properties).
+  for (const Dist dist : {Dist::clustered, Dist::grid}) {
+    const auto pts = make_points(3000, dist, 29);
+    AABB box;
+    for (const Vec3& p : pts) box.expand(p);
+    const double s = std::max(box.max_extent(), 1e-3);
+    std::vector<Ray> rays;
+    const Vec3 sun = glm::normalize(Vec3(0.4, -0.3, 0.85));
+    for (int y = 0; y < 6; ++y)
+      for (int x = 0; x < 6; ++x)
+        rays.emplace_back(box.lo + Vec3((0.1 + 0.15 * x) * s, (0.1 + 0.15 * y) * s, 0.3 * s), sun);
+    std::mt19937_64 rng(31);
+    for (int i = 0; i < 20; ++i) rays.push_back(random_ray(rng, box, i % 3 == 0));
+    std::size_t blocked_count = 0, total = 0;
+    for (const IndexOptions& opt : all_index_options()) {
+      const AnyIndex index = make_index(pts, opt);
+      for (const RayOrder order : {RayOrder::sphere_hit, RayOrder::time})
+        for (const bool any : {true, false}) {
+          RayQuery q;
+          q.radius = 0.02 * s;
+          q.t_min = 0.0;
+          q.order = order;
+          q.any_hit = any;
+          q.validate();
+          RayQuery q1 = q;
+          q1.k = 1;
+          q1.any_hit = false;
+          std::vector<char> got(rays.size(), 2);
+          const std::size_t cuts[] = {0, 16, 17, 20, 36, 43, rays.size()};
+          for (std::size_t c = 0; c + 1 < std::size(cuts); ++c) {
+            const std::span<const Ray> span(rays.data() + cuts[c], cuts[c + 1] - cuts[c]);
+            bool out[kMaxRayPacket + 8];
+            std::visit([&](const auto& idx) { ray_any_hit_packet(idx, span, q, std::span<bool>(out, span.size())); },
+                       index);
+            for (std::size_t i = 0; i < span.size(); ++i) got[cuts[c] + i] = out[i] ? 1 : 0;
+          }
+          for (std::size_t r = 0; r < rays.size(); ++r) {
+            const bool want = !oracle_ray_query(pts, rays[r], q1).empty();
+            ASSERT_EQ(got[r], want ? 1 : 0) << name(dist) << " " << label(opt) << " ray " << r << " " << describe(q);
+            blocked_count += want;
+            ++total;
+          }
+        }
+    }
+    EXPECT_GT(blocked_count, total / 50) << name(dist);  // both answers occur (clustered: ~5%)
+    EXPECT_LT(blocked_count, total - total / 10) << name(dist);
+  }
+  const auto pts = make_points(100, Dist::uniform, 3);
+  const Octree tree = Octree::build_bulk(pts);
+  const std::vector<Ray> two{Ray(Vec3(-1, 0.5, 0.5), Vec3(1, 0, 0)), Ray(Vec3(-1, 0.4, 0.5), Vec3(1, 0, 0))};
+  bool one[1];
+  RayQuery q;
+  q.radius = 0.1;
+  q.any_hit = true;
+  EXPECT_THROW(ray_any_hit_packet(tree, std::span<const Ray>(two), q, std::span<bool>(one, 1)), std::invalid_argument);
+}
+
 }  // namespace

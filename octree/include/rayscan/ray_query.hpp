@@ -697,7 +697,7 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
     std::uint32_t act = 0;
     for (std::uint32_t m = e.mask; m; m &= m - 1) {
       const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-      if (st[i]->live(e.lb[i])) act |= 1u << i;
+      if (!st[i]->done && st[i]->live(e.lb[i])) act |= 1u << i;  // (done: any_hit answered)
     }
     if (!act) continue;
     if ((act & (act - 1)) == 0) {  // one ray left: diverged, it finishes the subtree alone
@@ -818,6 +818,34 @@ void ray_first_hit_packet(const I& index, std::span<const Ray> rays, const RayQu
       out[b + i] = (found >> i) & 1u ? std::optional<RayHit>(RayHit{best[i].id, best[i].slot, best[i].t,
                                                                      std::sqrt(best[i].d2), best[i].key})
                                      : std::nullopt;
+  }
+}
+
+/// Packet any hit (shadow rays; issue 12, "coherent rays"): out[i] = ray_first_hit(index, rays[i],
+/// q).has_value() for every i: whether anything qualifies along the ray. With q.any_hit each ray
+/// stops at its first candidate in the packet's visiting order and drops out of the packet (cf.
+/// Embree's rtcOccluded4/8/16); the answer is the same whatever that order, as pruning is
+/// conservative and an any_hit query never tightens the k-bound. Shares detail::first_hit_packet
+/// with ray_first_hit_packet. `q` must have been checked with q.validate(). Throws
+/// std::invalid_argument when out.size() != rays.size(). Thread-safe (per-thread scratch).
+template <SpatialIndex I>
+void ray_any_hit_packet(const I& index, std::span<const Ray> rays, const RayQuery& q, std::span<bool> out,
+                        RayQueryStats* stats = nullptr) {
+  if (out.size() != rays.size())
+    throw std::invalid_argument("ray_any_hit_packet: " + std::to_string(out.size()) + " results for " +
+                                std::to_string(rays.size()) + " rays");
+  if (index.empty()) {
+    std::fill(out.begin(), out.end(), false);
+    return;
+  }
+  for (std::size_t b = 0; b < rays.size(); b += kMaxRayPacket) {
+    const unsigned n = static_cast<unsigned>(std::min(kMaxRayPacket, rays.size() - b));
+    detail::Candidate best[kMaxRayPacket];
+    const std::uint32_t found =
+        n <= 4   ? detail::first_hit_packet<4>(index, rays.data() + b, n, q, best, stats)
+        : n <= 8 ? detail::first_hit_packet<8>(index, rays.data() + b, n, q, best, stats)
+                 : detail::first_hit_packet<kMaxRayPacket>(index, rays.data() + b, n, q, best, stats);
+    for (unsigned i = 0; i < n; ++i) out[b + i] = (found >> i) & 1u;
   }
 }
 

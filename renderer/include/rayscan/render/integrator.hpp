@@ -12,6 +12,7 @@
 
 #include <chrono>
 #include <numbers>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -98,11 +99,11 @@ class PathTracer {
       c.points_tested += st.points_tested;
       return sh.t < kInf;
     }
-    ray_query(index_, ray, shadow_query_, hits, &st);
+    const bool blocked = ray_first_hit(index_, ray, shadow_query_, &st).has_value();
     ++c.queries;
     c.nodes_visited += st.nodes_visited;
     c.points_tested += st.points_tested;
-    return !hits.empty();
+    return blocked;
   }
 
   /// First hit along `ray` with t >= 0 (see HitMode). `hits` is caller-owned scratch.
@@ -111,19 +112,25 @@ class PathTracer {
                  const LeavingSurface* from = nullptr) const {
     RayQueryStats st;
     if (in_.primitive == Primitive::surfel) return intersect_surfel(ray, h, hits, c, from);
+    std::optional<RayHit> rh;
     if (time_) {
       const auto t0 = std::chrono::steady_clock::now();
-      ray_query(index_, ray, query_, hits, &st);
+      rh = ray_first_hit(index_, ray, query_, &st);
       c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
                         std::chrono::steady_clock::now() - t0).count();
     } else {
-      ray_query(index_, ray, query_, hits, &st);
+      rh = ray_first_hit(index_, ray, query_, &st);
     }
     ++c.queries;
     c.nodes_visited += st.nodes_visited;
     c.points_tested += st.points_tested;
-    if (hits.empty()) return false;
-    const RayHit& rh = hits.front();
+    if (!rh) return false;
+    surface_at(ray, *rh, h);
+    return true;
+  }
+
+  /// The sphere-mode surface of the first hit `rh` of `ray` (ray_first_hit's answer for query_).
+  void surface_at(const Ray& ray, const RayHit& rh, SurfaceHit& h) const {
     const double r = in_.radius;
     // sphere_hit: rh.t is already the entry parameter. closest_point: rh.t is t_p of the point
     // with the smallest t within r; enter its sphere (never before the ray origin).
@@ -137,7 +144,6 @@ class PathTracer {
     h.normal = len > 0.0 ? n / len : -ray.direction();
     if (glm::dot(h.normal, ray.direction()) > 0.0) h.normal = -h.normal;
     h.radius = r;
-    return true;
   }
 
   /// First disc hit (see first_surfel_hit); the normal is the disc's, facing the ray.
@@ -167,47 +173,113 @@ class PathTracer {
     return true;
   }
 
+  /// The state of one path between the stages of a path vertex (see trace): the ray to trace
+  /// next, the radiance so far and the throughput, and, after hit_vertex, the vertex's albedo,
+  /// secondary-ray origin and pending shadow ray towards the sun.
+  struct Path {
+    Ray ray;
+    Color L{0.0f}, beta{1.0f};
+    std::uint32_t depth = 0;   ///< rays of the path traced so far, minus one (0 = camera ray)
+    LeavingSurface from;       ///< the surface of the current vertex
+    Color a{0.0f};             ///< albedo at the current vertex
+    Vec3 origin{0.0};          ///< origin of the vertex's secondary rays (offset along n)
+    Ray shadow;                ///< shadow ray towards the sun (when shadow_pending)
+    double cos_l = 0.0;        ///< cos(theta) of the sun direction at the vertex
+    bool shadow_pending = false;
+    explicit Path(const Ray& r) : ray(r), shadow(r) {}
+  };
+
   /// Radiance along a camera ray (one path sample). `first`, when non-null, receives the first
   /// hit (or t = inf for a miss).
   Color trace(Ray ray, Sampler& s, std::vector<RayHit>& hits, TraceCounters& c,
               SurfaceHit* first = nullptr) const {
-    Color L(0.0f), beta(1.0f);
-    const bool surfel = in_.primitive == Primitive::surfel;
-    LeavingSurface from;
-    for (std::uint32_t depth = 0;; ++depth) {
-      SurfaceHit h;
-      if (!intersect(ray, h, hits, c, depth > 0 && surfel ? &from : nullptr)) {
-        L += beta * sky_.background(ray.direction());
-        if (depth == 0) L += sky_.sun_disk(ray.direction());
-        if (first && depth == 0) first->t = kInf;
-        break;
-      }
-      if (first && depth == 0) *first = h;
-      const Color a = in_.albedo.at(h.index, h.slot);
-      const Vec3 origin = h.position + (in_.ray_offset * h.radius) * h.normal;
-      from = {h.index, h.position, h.normal, h.radius, surfel ? in_.surfels.thickness_at(h.index) : 0.0};
-      const LeavingSurface* leaving = surfel ? &from : nullptr;
-      // Next-event estimation of the sun: Lambertian f = a/pi, times E cos(theta).
-      if (sky_.has_sun()) {
-        const Vec3 l = sky_.sample_sun(s.uniform(), s.uniform());
-        const double cos_l = glm::dot(l, h.normal);
-        if (cos_l > 0.0) {
-          if (!occluded(Ray(origin, l), hits, c, leaving))
-            L += beta * a * sky_.sun_irradiance() * float(cos_l / std::numbers::pi);
-        }
-      }
-      if (depth + 1 >= in_.max_depth) break;  // RTIOW max_depth: rays per path
-      // Cosine-weighted bounce (Malley's method): the pdf cancels cos/pi, leaving beta *= albedo.
-      beta *= a;
-      if (in_.rr_depth > 0 && depth + 1 >= in_.rr_depth) {
-        const float q = std::min(0.95f, std::max({beta.r, beta.g, beta.b}));
-        if (s.uniform() >= q) break;
-        beta /= q;
-      }
-      if (beta == Color(0.0f)) break;
-      ray = Ray(origin, cosine_direction(h.normal, s.uniform(), s.uniform()));
+    Path p(ray);
+    continue_path(p, s, hits, c, first);
+    return p.L;
+  }
+
+  /// Radiance of n = rays.size() <= kMaxRayPacket coherent camera rays (one sample of each pixel
+  /// of a small pixel tile, sampler streams `s`), bit-identical to trace() on each ray with its
+  /// own stream (issue 12, requirement 3). The n paths advance together, one vertex at a time (a
+  /// small wavefront): the camera rays go through ray_first_hit_packet, the shadow rays of their
+  /// hits, which all point at the sun from within the block's footprint, through
+  /// ray_any_hit_packet, and the bounce rays and their shadow rays, which are incoherent, one by
+  /// one (in packets they measured no faster: bench/README.md); then each path scatters. Every stage consumes a
+  /// path's sampler stream in the order trace() does and adds to its L in the same order, and the
+  /// packet answers are ray_first_hit's, so nothing depends on which paths share a packet.
+  /// Sphere mode; surfel mode (first_surfel_hit: per-disc refined keys, per-node radii and the
+  /// leaving surface, which the packet traversal does not take) traces each ray with trace().
+  void trace_packet(std::span<const Ray> rays, std::span<Sampler> s, std::span<Color> out,
+                    std::vector<RayHit>& hits, TraceCounters& c) const {
+    const std::size_t n = rays.size();
+    if (n > kMaxRayPacket || s.size() != n || out.size() != n)
+      throw std::invalid_argument("render: a ray packet holds at most 16 rays with one sampler and output each");
+    if (in_.primitive == Primitive::surfel) {
+      for (std::size_t i = 0; i < n; ++i) out[i] = trace(rays[i], s[i], hits, c);
+      return;
     }
-    return L;
+    std::optional<Path> p[kMaxRayPacket];
+    std::uint32_t live = 0;  // paths still going
+    for (std::size_t i = 0; i < n; ++i) {
+      p[i].emplace(rays[i]);
+      live |= 1u << i;
+    }
+    thread_local std::vector<Ray> wave;  // the packet's rays (Ray has no default constructor)
+    RayQueryStats st;
+    for (bool camera = true; live; camera = false) {
+      // The first hits of the live paths' rays.
+      std::uint8_t lane[kMaxRayPacket];
+      std::size_t m = 0;
+      wave.clear();
+      for (std::size_t i = 0; i < n; ++i)
+        if ((live >> i) & 1u) {
+          lane[m++] = static_cast<std::uint8_t>(i);
+          wave.push_back(p[i]->ray);
+        }
+      std::optional<RayHit> rh[kMaxRayPacket];
+      const auto t0 = time_ ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+      if (camera)
+        ray_first_hit_packet(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
+      else
+        for (std::size_t j = 0; j < std::min(m, kMaxRayPacket); ++j) rh[j] = ray_first_hit(index_, wave[j], query_, &st);
+      if (time_)
+        c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
+                          std::chrono::steady_clock::now() - t0).count();
+      c.queries += m;
+      std::uint32_t shadowed = 0;
+      for (std::size_t j = 0; j < m; ++j) {
+        Path& q = *p[lane[j]];
+        SurfaceHit h;
+        if (rh[j]) surface_at(q.ray, *rh[j], h);
+        if (!hit_vertex(q, rh[j].has_value(), h, s[lane[j]], nullptr)) live &= ~(1u << lane[j]);
+        else if (q.shadow_pending) shadowed |= 1u << lane[j];
+      }
+      // The shadow rays of the hits (all towards the sun): a packet for the camera rays' hits,
+      // whose origins lie within the block's footprint; one by one after a bounce (the origins
+      // are scattered: in packets they measured slower, bench/README.md).
+      if (shadowed && !camera) {
+        for (std::size_t i = 0; i < n; ++i)
+          if (((shadowed >> i) & 1u) && !occluded(p[i]->shadow, hits, c)) add_sun(*p[i]);
+      } else if (shadowed) {
+        std::size_t ns = 0;
+        wave.clear();
+        for (std::size_t i = 0; i < n; ++i)
+          if ((shadowed >> i) & 1u) {
+            lane[ns++] = static_cast<std::uint8_t>(i);
+            wave.push_back(p[i]->shadow);
+          }
+        bool blocked[kMaxRayPacket];
+        ray_any_hit_packet(index_, std::span<const Ray>(wave), shadow_query_, std::span(blocked, ns), &st);
+        c.queries += ns;
+        for (std::size_t j = 0; j < ns; ++j)
+          if (!blocked[j]) add_sun(*p[lane[j]]);
+      }
+      for (std::size_t i = 0; i < n; ++i)
+        if (((live >> i) & 1u) && !scatter(*p[i], s[i])) live &= ~(1u << i);
+    }
+    c.nodes_visited += st.nodes_visited;
+    c.points_tested += st.points_tested;
+    for (std::size_t i = 0; i < n; ++i) out[i] = p[i]->L;
   }
 
   /// Cosine-distributed unit direction around unit n (Malley's method over an orthonormal basis
@@ -224,6 +296,67 @@ class PathTracer {
   }
 
  private:
+  /// The path loop of trace() from p.ray at p.depth: intersect, hit_vertex, the shadow ray, scatter.
+  void continue_path(Path& p, Sampler& s, std::vector<RayHit>& hits, TraceCounters& c, SurfaceHit* first) const {
+    const bool surfel = in_.primitive == Primitive::surfel;
+    for (;;) {
+      SurfaceHit h;
+      const bool hit = intersect(p.ray, h, hits, c, p.depth > 0 && surfel ? &p.from : nullptr);
+      if (!hit_vertex(p, hit, h, s, first)) break;
+      if (p.shadow_pending && !occluded(p.shadow, hits, c, surfel ? &p.from : nullptr)) add_sun(p);
+      if (!scatter(p, s)) break;
+    }
+  }
+
+  /// A path vertex after the ray query of p.ray: a miss adds the sky (and the sun disk, seen
+  /// directly by a camera ray) and ends the path (false); a hit sets the vertex (albedo, origin,
+  /// leaving surface) and samples the sun (next-event estimation: 2 samples of `s` when there is
+  /// a sun), leaving the shadow ray pending when the sun is above the surface.
+  bool hit_vertex(Path& p, bool hit, const SurfaceHit& h, Sampler& s, SurfaceHit* first) const {
+    p.shadow_pending = false;
+    if (!hit) {
+      p.L += p.beta * sky_.background(p.ray.direction());
+      if (p.depth == 0) p.L += sky_.sun_disk(p.ray.direction());
+      if (first && p.depth == 0) first->t = kInf;
+      return false;
+    }
+    if (first && p.depth == 0) *first = h;
+    p.a = in_.albedo.at(h.index, h.slot);
+    p.origin = h.position + (in_.ray_offset * h.radius) * h.normal;
+    p.from = {h.index, h.position, h.normal, h.radius,
+              in_.primitive == Primitive::surfel ? in_.surfels.thickness_at(h.index) : 0.0};
+    // Next-event estimation of the sun: Lambertian f = a/pi, times E cos(theta).
+    if (sky_.has_sun()) {
+      const Vec3 l = sky_.sample_sun(s.uniform(), s.uniform());
+      p.cos_l = glm::dot(l, h.normal);
+      if (p.cos_l > 0.0) {
+        p.shadow = Ray(p.origin, l);
+        p.shadow_pending = true;
+      }
+    }
+    return true;
+  }
+
+  /// The sun's contribution at the vertex whose shadow ray was not blocked.
+  void add_sun(Path& p) const { p.L += p.beta * p.a * sky_.sun_irradiance() * float(p.cos_l / std::numbers::pi); }
+
+  /// The bounce after a vertex: false ends the path (max_depth, Russian roulette, zero
+  /// throughput); else p.ray becomes the cosine-weighted bounce ray and p.depth grows by one.
+  bool scatter(Path& p, Sampler& s) const {
+    if (p.depth + 1 >= in_.max_depth) return false;  // RTIOW max_depth: rays per path
+    // Cosine-weighted bounce (Malley's method): the pdf cancels cos/pi, leaving beta *= albedo.
+    p.beta *= p.a;
+    if (in_.rr_depth > 0 && p.depth + 1 >= in_.rr_depth) {
+      const float q = std::min(0.95f, std::max({p.beta.r, p.beta.g, p.beta.b}));
+      if (s.uniform() >= q) return false;
+      p.beta /= q;
+    }
+    if (p.beta == Color(0.0f)) return false;
+    p.ray = Ray(p.origin, cosine_direction(p.from.normal, s.uniform(), s.uniform()));
+    ++p.depth;
+    return true;
+  }
+
   const I& index_;
   IntegratorInputs in_;
   std::vector<float> node_radii_;  ///< surfel_node_radii over index_ (surfel mode)

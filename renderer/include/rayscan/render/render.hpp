@@ -38,6 +38,11 @@ struct RenderOptions {
   unsigned threads = 0;         ///< worker threads; 0 = all cores (the result is identical)
   unsigned tile_size = 16;      ///< tile edge, pixels
   bool time_queries = false;    ///< measure time inside ray_query (bench: cost split)
+  /// Trace the camera rays of each 4x4 pixel block (one sample index at a time) as one packet,
+  /// and their shadow rays as another (ray_first_hit_packet / ray_any_hit_packet; issue 12). The
+  /// image is bit-identical either way. Ignored (single rays) for the cost AOV, whose node
+  /// visits are per pixel, and for COPC files.
+  bool packets = true;
   Progress* progress = nullptr; ///< optional progress bar
   /// Spreads the tiles over processes (rayscan::mpi's work queue, docs/mpi.md); nullptr or a
   /// single process = all tiles here. With several, only the root's framebuffer is complete.
