@@ -1,4 +1,5 @@
 #include "rayscan/octree.hpp"
+#include "rayscan/morton_sort.hpp"
 
 #include <tbb/parallel_for.h>
 
@@ -159,49 +160,14 @@ struct OctreeBuilder {
   }
 
   // ---- bulk -------------------------------------------------------------------------------
-  struct Item {
-    std::uint64_t code;
-    std::uint32_t idx;
-    bool operator<(const Item& o) const { return code < o.code || (code == o.code && idx < o.idx); }
-  };
+  using Item = MortonKey;
 
-  // The items {codes[i], i} sorted by (code, index), in parallel: a counting pass and a stable
-  // scatter on the top kBucketBits of the code (in index order, so each bucket is index-sorted),
-  // then each bucket sorted on its own (cache-resident; buckets are processed dynamically, so
-  // clustered data whose codes crowd into few buckets still spreads over the threads). The result
-  // is the unique (code, index) order of a global sort. Replaced tbb::parallel_sort, which was
-  // the largest part of the 1e7-point build after the gather (bench/README.md, issue 12).
+  // The items {codes[i], i} sorted by (code, index) (sort_morton_keys; it replaced
+  // tbb::parallel_sort, which was the largest part of the 1e7-point build after the gather:
+  // bench/README.md, issue 12).
   static std::unique_ptr<Item[]> sorted_items(const std::vector<std::uint64_t>& codes) {
-    constexpr unsigned kBucketBits = 12, kShift = 3 * kMortonBits - kBucketBits;
-    constexpr std::size_t kBuckets = std::size_t{1} << kBucketBits;
-    const std::size_t n = codes.size();
-    std::unique_ptr<Item[]> items(new Item[n]);  // uninitialised: first touched by the scatter
-    const std::size_t chunk = std::size_t{1} << 17;
-    const std::size_t nchunks = std::max<std::size_t>(1, (n + chunk - 1) / chunk);
-    std::vector<std::uint32_t> hist(nchunks * kBuckets, 0);  // [chunk][bucket]
-    tbb::parallel_for(std::size_t{0}, nchunks, [&](std::size_t c) {
-      std::uint32_t* h = hist.data() + c * kBuckets;
-      for (std::size_t i = c * chunk, e = std::min(n, (c + 1) * chunk); i < e; ++i) ++h[codes[i] >> kShift];
-    });
-    std::vector<std::size_t> start(kBuckets + 1);
-    std::size_t at = 0;
-    for (std::size_t b = 0; b < kBuckets; ++b) {
-      start[b] = at;
-      for (std::size_t c = 0; c < nchunks; ++c) {
-        const std::uint32_t k = hist[c * kBuckets + b];
-        hist[c * kBuckets + b] = static_cast<std::uint32_t>(at);
-        at += k;
-      }
-    }
-    start[kBuckets] = at;
-    tbb::parallel_for(std::size_t{0}, nchunks, [&](std::size_t c) {
-      std::uint32_t* h = hist.data() + c * kBuckets;
-      for (std::size_t i = c * chunk, e = std::min(n, (c + 1) * chunk); i < e; ++i)
-        items[h[codes[i] >> kShift]++] = {codes[i], static_cast<std::uint32_t>(i)};
-    });
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, kBuckets, 16), [&](const tbb::blocked_range<std::size_t>& r) {
-      for (std::size_t b = r.begin(); b != r.end(); ++b) std::sort(items.get() + start[b], items.get() + start[b + 1]);
-    });
+    std::unique_ptr<Item[]> items(new Item[codes.size()]);  // uninitialised: first touched by the scatter
+    sort_morton_keys(codes.size(), [&](std::size_t i) { return codes[i]; }, items.get());
     return items;
   }
 

@@ -2,11 +2,14 @@
 // Warren & Salmon ids and the lazy per-level maps, duplicates, storage order and permutation.
 #include "test_util.hpp"
 
+#include "rayscan/morton_sort.hpp"
 #include "rayscan/octree.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <numeric>
+#include <random>
 
 using namespace rayscan;
 using namespace rayscan::test;
@@ -198,3 +201,49 @@ TEST(Octree, MemoryStaysUnderFortyBytesPerPoint) {
 }
 
 }  // namespace
+
+// ---- the Morton sort (rayscan/morton_sort.hpp) against std::sort of the same keys ------------
+
+namespace {
+// Codes of n points: uniform 63-bit codes, or clustered (few distinct high bits, many duplicates).
+std::vector<std::uint64_t> morton_test_codes(std::size_t n, bool clustered, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<std::uint64_t> c(n);
+  for (auto& v : c) {
+    const std::uint64_t r = rng() >> 1;  // < 2^63
+    v = clustered ? (std::uint64_t{5} << 58) | (r % 97) << 20 | (r % 3) : r;
+  }
+  return c;
+}
+}  // namespace
+
+TEST(MortonSort, EqualsStdSortOfTheKeys) {
+  for (std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{7}, std::size_t{100}, std::size_t{5000},
+                        std::size_t{300000}})
+    for (bool clustered : {false, true}) {
+      const std::vector<std::uint64_t> codes = morton_test_codes(n, clustered, 17 + n);
+      std::vector<MortonKey> expect(n);
+      for (std::size_t i = 0; i < n; ++i) expect[i] = {codes[i], static_cast<std::uint32_t>(i)};
+      std::sort(expect.begin(), expect.end());
+      std::vector<MortonKey> got(n);
+      sort_morton_keys(n, [&](std::size_t i) { return codes[i]; }, got.data());
+      for (std::size_t i = 0; i < n; ++i) {
+        ASSERT_EQ(got[i].code, expect[i].code) << "n " << n << " clustered " << clustered << " at " << i;
+        ASSERT_EQ(got[i].idx, expect[i].idx) << "n " << n << " clustered " << clustered << " at " << i;
+      }
+    }
+}
+
+TEST(MortonSort, LowBitsRadixSortIsStable) {
+  // 30-bit codes (a COPC node's local tree) with many ties: ties must keep their input order.
+  std::mt19937_64 rng(3);
+  std::vector<MortonKey> keys(20000), tmp(keys.size());
+  for (std::uint32_t i = 0; i < keys.size(); ++i) keys[i] = {(rng() % 500) << 12 | (rng() % 2), i};
+  std::vector<MortonKey> expect = keys;
+  std::stable_sort(expect.begin(), expect.end(), [](const MortonKey& a, const MortonKey& b) { return a.code < b.code; });
+  radix_sort_low_bits(keys.data(), keys.size(), tmp.data(), 30);
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    ASSERT_EQ(keys[i].code, expect[i].code) << i;
+    ASSERT_EQ(keys[i].idx, expect[i].idx) << i;
+  }
+}

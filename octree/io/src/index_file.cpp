@@ -4,6 +4,7 @@
 
 #include "rayscan/atomic_file.hpp"
 #include "rayscan/io/crc32c.hpp"
+#include "rayscan/morton_sort.hpp"
 #include "rayscan/spacing.hpp"
 #include "readers.hpp"
 
@@ -13,7 +14,6 @@
 #include <unistd.h>
 
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -344,12 +344,6 @@ class RunReader {
 
 /// Sort key of one buffered point: its Morton code and its position in the run buffer (the
 /// buffer holds points in id order, so (code, idx) order is the (code, id) order of build_bulk).
-struct SortKey {
-  std::uint64_t code;
-  std::uint32_t idx;
-  bool operator<(const SortKey& o) const { return code < o.code || (code == o.code && idx < o.idx); }
-};
-
 /// The points of one sort run (or of the whole input when it fits the budget), structure of
 /// arrays in id order: positions and the stored attributes only.
 struct PointBuffer {
@@ -383,90 +377,11 @@ struct PointBuffer {
   }
 };
 
-/// Sorts `a[0, n)` by code, stably, by an LSD radix sort on the 8-bit digits of the code's low
-/// `low_bits` bits (the higher bits are equal); `tmp` holds n keys. One pass counts every digit;
-/// a digit on which all keys agree is skipped (a site's bucket spans few levels below its cell).
-/// The keys arrive in idx order, so the result is their (code, idx) order (Knuth, TAOCP vol. 3,
-/// 5.2.5: LSD radix sorting is stable pass by pass).
-[[gnu::noinline]] void radix_sort_low_bits(SortKey* a, std::size_t n, SortKey* tmp, unsigned low_bits) {
-  const unsigned digits = (low_bits + 7) / 8;
-  std::array<std::array<std::uint32_t, 256>, 8> count{};
-  for (std::size_t i = 0; i < n; ++i)
-    for (unsigned d = 0; d < digits; ++d) ++count[d][(a[i].code >> (8 * d)) & 0xFF];
-  SortKey* src = a;
-  SortKey* dst = tmp;
-  for (unsigned d = 0; d < digits; ++d) {
-    std::array<std::uint32_t, 256>& c = count[d];
-    if (c[(src[0].code >> (8 * d)) & 0xFF] == n) continue;  // every key has this digit
-    std::uint32_t sum = 0;
-    for (std::uint32_t& v : c) {
-      const std::uint32_t k = v;
-      v = sum;
-      sum += k;
-    }
-    for (std::size_t i = 0; i < n; ++i) dst[c[(src[i].code >> (8 * d)) & 0xFF]++] = src[i];
-    std::swap(src, dst);
-  }
-  if (src != a) std::copy(src, src + n, a);
-}
-
-/// The Morton keys of the buffered points on the grid `qz`, sorted by (code, id): one parallel
-/// MSD radix pass on the top kBucketBits of the 63-bit codes (a histogram pass, then a scatter
-/// pass that computes each code again instead of holding a second key array), then each bucket
-/// sorted on its own by an LSD radix sort of the remaining bits (cache-sized for a site; a bucket
-/// holding more than an eighth of the points, e.g. a dense cluster, is sorted in parallel by
-/// `tbb::parallel_sort`). Scattering chunk by chunk keeps each bucket in idx order, so the result
-/// is the (code, idx) order of a full sort.
-std::vector<SortKey> sorted_keys(const PointBuffer& buf, const OctreeRules::Quantizer& qz) {
-  constexpr unsigned kBucketBits = 16, kShift = 3 * kMortonBits - kBucketBits;
-  constexpr std::size_t kBuckets = std::size_t{1} << kBucketBits;
-  const std::size_t n = buf.size();
-  std::vector<SortKey> keys(n);
-  if (n == 0) return keys;
-  const std::size_t chunks = std::min<std::size_t>(16, (n + 4095) / 4096);
-  auto chunk_begin = [&](std::size_t c) { return n * c / chunks; };
-  std::vector<std::uint64_t> hist(chunks * kBuckets, 0);  // [chunk][bucket], then write cursors
-  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
-    std::uint64_t* h = hist.data() + c * kBuckets;
-    for (std::size_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i) ++h[qz.code(buf.pos[i]) >> kShift];
-  });
-  std::vector<std::uint64_t> bucket_begin(kBuckets + 1, 0);
-  {
-    std::uint64_t sum = 0;
-    for (std::size_t k = 0; k < kBuckets; ++k) {
-      bucket_begin[k] = sum;
-      for (std::size_t c = 0; c < chunks; ++c) {
-        const std::uint64_t v = hist[c * kBuckets + k];
-        hist[c * kBuckets + k] = sum;
-        sum += v;
-      }
-    }
-    bucket_begin[kBuckets] = sum;
-  }
-  tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
-    std::uint64_t* cur = hist.data() + c * kBuckets;
-    for (std::size_t i = chunk_begin(c); i < chunk_begin(c + 1); ++i) {
-      const std::uint64_t code = qz.code(buf.pos[i]);
-      keys[cur[code >> kShift]++] = {code, static_cast<std::uint32_t>(i)};
-    }
-  });
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, kBuckets, 64), [&](const auto& r) {
-    std::vector<SortKey> tmp;
-    for (std::size_t k = r.begin(); k != r.end(); ++k) {
-      auto b = keys.begin() + static_cast<std::ptrdiff_t>(bucket_begin[k]);
-      auto e = keys.begin() + static_cast<std::ptrdiff_t>(bucket_begin[k + 1]);
-      const auto m = static_cast<std::size_t>(e - b);
-      if (m < 2) continue;
-      if (m > n / 8) {
-        tbb::parallel_sort(b, e);
-      } else if (m < 64) {
-        std::sort(b, e);
-      } else {
-        if (tmp.size() < m) tmp.resize(m);
-        radix_sort_low_bits(&*b, m, tmp.data(), kShift);
-      }
-    }
-  });
+/// The Morton keys of the buffered points on the grid `qz`, sorted by (code, id)
+/// (sort_morton_keys: the codes are computed twice instead of held in a second array).
+std::vector<MortonKey> sorted_keys(const PointBuffer& buf, const OctreeRules::Quantizer& qz) {
+  std::vector<MortonKey> keys(buf.size());
+  sort_morton_keys(buf.size(), [&](std::size_t i) { return qz.code(buf.pos[i]); }, keys.data());
   return keys;
 }
 
@@ -479,7 +394,7 @@ void for_blocks(std::size_t n, Fn&& fn) {
 
 /// Gathers field `src[keys[i].idx]` for keys [b, e) into `out` (parallel) and appends it to `w`.
 template <class T>
-void gather_write(const std::vector<T>& src, const std::vector<SortKey>& keys, std::size_t b, std::size_t e,
+void gather_write(const std::vector<T>& src, const std::vector<MortonKey>& keys, std::size_t b, std::size_t e,
                   std::vector<T>& out, SectionWriter& w) {
   out.resize(e - b);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, 1 << 14), [&](const auto& r) {
@@ -694,7 +609,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   // Points per sort run within the memory budget (a record and a sort key per point; the buffer
   // actually holds positions, the stored attributes and a 16-byte key, a little less).
   const std::size_t run_cap = std::max<std::size_t>(
-      1024, static_cast<std::size_t>(opt.memory_bytes * 3 / 4 / (L.bytes + sizeof(SortKey))));
+      1024, static_cast<std::size_t>(opt.memory_bytes * 3 / 4 / (L.bytes + sizeof(MortonKey))));
   // All points fit the budget (the readers announce exact counts or upper bounds): one read pass
   // into memory, the bounds from it, then sort and write the sections straight from memory. Else
   // a bounds pass first (the runs need the Morton grid), sorted runs on disk and a k-way merge.
@@ -742,7 +657,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   std::uint64_t run_first_id = 0;
   auto flush_run = [&] {
     if (buf.size() == 0) return;
-    const std::vector<SortKey> keys = sorted_keys(buf, grid_qz);
+    const std::vector<MortonKey> keys = sorted_keys(buf, grid_qz);
     const fs::path rp = runs_dir.path / ("run" + std::to_string(run_files.size()));
     Fd fd(rp, O_WRONLY | O_CREAT | O_TRUNC);
     std::vector<std::uint8_t> recs;
@@ -871,7 +786,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   if (in_memory) {
     const OctreeRules::Quantizer qz(cell.lo, OctreeRules::root_side(bounds));
     if (opt.progress) opt.progress("sort", 0, total);
-    std::vector<SortKey> keys = sorted_keys(buf, qz);
+    std::vector<MortonKey> keys = sorted_keys(buf, qz);
     mem_codes.resize(keys.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 1 << 16), [&](const auto& r) {
       for (std::size_t i = r.begin(); i != r.end(); ++i) mem_codes[i] = keys[i].code;

@@ -10,7 +10,7 @@
 #include "laz.hpp"
 #include "../las_header.hpp"
 #include "rayscan/io/point_io.hpp"
-#include "rayscan/morton.hpp"
+#include "rayscan/morton_sort.hpp"
 #include "rayscan/ray_query.hpp"
 
 #include <tbb/parallel_for.h>
@@ -352,31 +352,23 @@ void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector
   auto cell = [&](double v, double lo, double s) {
     return static_cast<std::uint32_t>(std::clamp((v - lo) * s, 0.0, cells - 1));
   };
-  thread_local std::vector<std::uint64_t> keys, tmp;
+  thread_local std::vector<MortonKey> keys, tmp;
   keys.resize(m);
   tmp.resize(m);
   for (std::uint32_t i = 0; i < m; ++i) {
     const Vec3& p = pos[i];
-    const std::uint64_t code = morton_encode(cell(p.x, bx.lo.x, sc.x), cell(p.y, bx.lo.y, sc.y), cell(p.z, bx.lo.z, sc.z));
-    keys[i] = code << 32 | i;
+    keys[i] = {morton_encode(cell(p.x, bx.lo.x, sc.x), cell(p.y, bx.lo.y, sc.y), cell(p.z, bx.lo.z, sc.z)), i};
   }
-  // LSD radix sort on the 30-bit code, 3 stable passes of 10 bits: (code, file order), as
-  // std::sort of the keys would give (profiled: the comparison sort took a third of build_local).
-  for (unsigned pass = 0; pass < 3; ++pass) {
-    const unsigned shift = 32 + 10 * pass;
-    std::uint32_t count[1025] = {};
-    for (std::uint32_t i = 0; i < m; ++i) ++count[((keys[i] >> shift) & 1023u) + 1];
-    for (unsigned k = 0; k < 1024; ++k) count[k + 1] += count[k];
-    for (std::uint32_t i = 0; i < m; ++i) tmp[count[(keys[i] >> shift) & 1023u]++] = keys[i];
-    keys.swap(tmp);
-  }
+  // (code, file order): the LSD radix sort of the Morton sort on the 30-bit code (profiled: a
+  // comparison sort took a third of build_local).
+  radix_sort_low_bits(keys.data(), m, tmp.data(), 3 * kBits);
   L.slot_of.resize(m);
   for (std::uint32_t r = 0; r < m; ++r) {
-    order[r] = static_cast<std::uint32_t>(keys[r]);
+    order[r] = keys[r].idx;
     L.slot_of[order[r]] = r;
   }
   auto digit = [&](std::uint32_t r, unsigned level) {  // Morton digit of rank r at depth level (0 = top)
-    return static_cast<unsigned>(keys[r] >> (32 + 3 * (kBits - 1 - level))) & 7u;
+    return static_cast<unsigned>(keys[r].code >> (3 * (kBits - 1 - level))) & 7u;
   };
   // Cells breadth first; a cell's children are contiguous. Work item: cell, rank range, depth.
   struct Item {
