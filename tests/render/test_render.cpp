@@ -1,6 +1,7 @@
 // Rendering real data: determinism across thread counts (issue 4, 4.2), depth AOV against a
 // brute-force ray/sphere oracle (4.3), image files through OpenImageIO, and every scene in
 // scenes/ renders at reduced size (4.4).
+#include "render_test_data.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/image_output.hpp"
 #include "rayscan/render/material.hpp"
@@ -19,10 +20,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const PointCloud& subset() {
-  static const PointCloud pc = io::read_point_cloud(fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz");
-  return pc;
-}
+using rayscan::render::test::subset;
 
 // Oblique view of the 60 x 60 ft autzen subset (trees and ground), with a sun.
 Scene subset_scene(std::uint32_t w, std::uint32_t h) {

@@ -1,6 +1,7 @@
 // The render job as a library call (rayscan/render/render_job.hpp). Oracles: the lower-level
 // calls it composes (compute_albedo, make_index, median_nn_spacing, render_image) run by hand,
 // and the files' own bytes read back through OpenImageIO.
+#include "render_test_data.hpp"
 #include "rayscan/io/index_file.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/render_job.hpp"
@@ -18,10 +19,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const PointCloud& subset() {
-  static const PointCloud pc = io::read_point_cloud(fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz");
-  return pc;
-}
+using rayscan::render::test::subset;
 
 Scene small_scene() {
   const AABB b = subset().bounds();

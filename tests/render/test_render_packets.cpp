@@ -4,6 +4,7 @@
 // loop of PathTracer::trace); the images must be identical byte for byte, on the index types that
 // take packets (octree, index file) and one that does not (kd-tree: per-ray child tests inside the
 // packet), for both hit modes, Russian roulette, partial blocks at tile and image edges, AOVs.
+#include "render_test_data.hpp"
 #include "rayscan/io/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/render.hpp"
@@ -20,10 +21,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const PointCloud& subset() {
-  static const PointCloud pc = io::read_point_cloud(fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz");
-  return pc;
-}
+using rayscan::render::test::subset;
 
 // Oblique view of the autzen subset (trees and ground) with a low sun, so that shadow rays are
 // both blocked and free; 45 x 34 px so that 4x4 blocks and 7 px tiles end in partial ones.

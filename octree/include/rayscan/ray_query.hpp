@@ -785,6 +785,22 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
   return found;
 }
 
+/// Runs first_hit_packet over `rays` in blocks of kMaxRayPacket consecutive rays (the 4-, 8- or
+/// 16-lane instance by block size) and calls emit(b, n, best, found) for each block: rays
+/// [b, b + n), bit i of `found` set when ray b + i has its answer in best[i].
+template <SpatialIndex I, class Emit>
+void for_each_ray_packet(const I& index, std::span<const Ray> rays, const RayQuery& q, RayQueryStats* stats,
+                         Emit&& emit) {
+  for (std::size_t b = 0; b < rays.size(); b += kMaxRayPacket) {
+    const unsigned n = static_cast<unsigned>(std::min(kMaxRayPacket, rays.size() - b));
+    Candidate best[kMaxRayPacket];
+    const std::uint32_t found = n <= 4   ? first_hit_packet<4>(index, rays.data() + b, n, q, best, stats)
+                                : n <= 8 ? first_hit_packet<8>(index, rays.data() + b, n, q, best, stats)
+                                         : first_hit_packet<kMaxRayPacket>(index, rays.data() + b, n, q, best, stats);
+    emit(b, n, static_cast<const Candidate*>(best), found);
+  }
+}
+
 }  // namespace detail
 
 /// Packet first hit (issue 12, "coherent rays"): out[i] = ray_first_hit(index, rays[i], q) for
@@ -807,18 +823,14 @@ void ray_first_hit_packet(const I& index, std::span<const Ray> rays, const RayQu
     for (std::size_t i = 0; i < rays.size(); ++i) out[i] = ray_first_hit(index, rays[i], q, stats);
     return;
   }
-  for (std::size_t b = 0; b < rays.size(); b += kMaxRayPacket) {
-    const unsigned n = static_cast<unsigned>(std::min(kMaxRayPacket, rays.size() - b));
-    detail::Candidate best[kMaxRayPacket];
-    const std::uint32_t found =
-        n <= 4   ? detail::first_hit_packet<4>(index, rays.data() + b, n, q, best, stats)
-        : n <= 8 ? detail::first_hit_packet<8>(index, rays.data() + b, n, q, best, stats)
-                 : detail::first_hit_packet<kMaxRayPacket>(index, rays.data() + b, n, q, best, stats);
-    for (unsigned i = 0; i < n; ++i)
-      out[b + i] = (found >> i) & 1u ? std::optional<RayHit>(RayHit{best[i].id, best[i].slot, best[i].t,
-                                                                     std::sqrt(best[i].d2), best[i].key})
-                                     : std::nullopt;
-  }
+  detail::for_each_ray_packet(index, rays, q, stats,
+                              [&](std::size_t b, unsigned n, const detail::Candidate* best, std::uint32_t found) {
+                                for (unsigned i = 0; i < n; ++i)
+                                  out[b + i] = (found >> i) & 1u
+                                                   ? std::optional<RayHit>(RayHit{best[i].id, best[i].slot, best[i].t,
+                                                                                  std::sqrt(best[i].d2), best[i].key})
+                                                   : std::nullopt;
+                              });
 }
 
 /// Packet any hit (shadow rays; issue 12, "coherent rays"): out[i] = ray_first_hit(index, rays[i],
@@ -838,15 +850,10 @@ void ray_any_hit_packet(const I& index, std::span<const Ray> rays, const RayQuer
     std::fill(out.begin(), out.end(), false);
     return;
   }
-  for (std::size_t b = 0; b < rays.size(); b += kMaxRayPacket) {
-    const unsigned n = static_cast<unsigned>(std::min(kMaxRayPacket, rays.size() - b));
-    detail::Candidate best[kMaxRayPacket];
-    const std::uint32_t found =
-        n <= 4   ? detail::first_hit_packet<4>(index, rays.data() + b, n, q, best, stats)
-        : n <= 8 ? detail::first_hit_packet<8>(index, rays.data() + b, n, q, best, stats)
-                 : detail::first_hit_packet<kMaxRayPacket>(index, rays.data() + b, n, q, best, stats);
-    for (unsigned i = 0; i < n; ++i) out[b + i] = (found >> i) & 1u;
-  }
+  detail::for_each_ray_packet(index, rays, q, stats,
+                              [&](std::size_t b, unsigned n, const detail::Candidate*, std::uint32_t found) {
+                                for (unsigned i = 0; i < n; ++i) out[b + i] = (found >> i) & 1u;
+                              });
 }
 
 /// Convenience overload returning a new vector; see the overload above.
