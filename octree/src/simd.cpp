@@ -71,20 +71,25 @@ inline const float* box_row(const ChildBoxesF& b, unsigned i) {
   return b.base + static_cast<std::size_t>(i < b.count ? i : 0) * b.stride;
 }
 
+// Boxes h .. h + 3 transposed in registers: rows [lx ly lz hx] and [hy hz . .] -> one register
+// per coordinate, lo[a] / hi[a] (no copy through memory).
+inline void transpose_boxes4(const ChildBoxesF& b, unsigned h, __m128 lo[3], __m128 hi[3]) {
+  const float* p0 = box_row(b, h), *p1 = box_row(b, h + 1), *p2 = box_row(b, h + 2), *p3 = box_row(b, h + 3);
+  __m128 lx = _mm_loadu_ps(p0), ly = _mm_loadu_ps(p1), lz = _mm_loadu_ps(p2), hx = _mm_loadu_ps(p3);
+  _MM_TRANSPOSE4_PS(lx, ly, lz, hx);
+  const __m128 u01 = _mm_unpacklo_ps(_mm_loadu_ps(p0 + 4), _mm_loadu_ps(p1 + 4));  // hy0 hy1 hz0 hz1
+  const __m128 u23 = _mm_unpacklo_ps(_mm_loadu_ps(p2 + 4), _mm_loadu_ps(p3 + 4));
+  lo[0] = lx, lo[1] = ly, lo[2] = lz;
+  hi[0] = hx, hi[1] = _mm_movelh_ps(u01, u23), hi[2] = _mm_movehl_ps(u23, u01);
+}
+
 unsigned child_slab_sse2(const ChildBoxesF& b, const SlabRayF& r, float* entry) {
   const __m128 eps = _mm_set1_ps(kRelSlack);
   const __m128 sign = _mm_set1_ps(-0.0f);
   unsigned mask = 0;
   for (unsigned h = 0; h < b.count; h += 4) {
-    // 4 boxes transposed in registers: rows [lx ly lz hx] and [hy hz . .] -> one register per
-    // coordinate (no copy through memory).
-    const float* p0 = box_row(b, h), *p1 = box_row(b, h + 1), *p2 = box_row(b, h + 2), *p3 = box_row(b, h + 3);
-    __m128 lx = _mm_loadu_ps(p0), ly = _mm_loadu_ps(p1), lz = _mm_loadu_ps(p2), hx = _mm_loadu_ps(p3);
-    _MM_TRANSPOSE4_PS(lx, ly, lz, hx);
-    const __m128 u01 = _mm_unpacklo_ps(_mm_loadu_ps(p0 + 4), _mm_loadu_ps(p1 + 4));  // hy0 hy1 hz0 hz1
-    const __m128 u23 = _mm_unpacklo_ps(_mm_loadu_ps(p2 + 4), _mm_loadu_ps(p3 + 4));
-    const __m128 hy = _mm_movelh_ps(u01, u23), hz = _mm_movehl_ps(u23, u01);
-    const __m128 lo[3] = {lx, ly, lz}, hi[3] = {hx, hy, hz};
+    __m128 lo[3], hi[3];
+    transpose_boxes4(b, h, lo, hi);
     __m128 tn = _mm_set1_ps(r.t_lo), tf = _mm_set1_ps(r.t_hi);
     for (int a = 0; a < 3; ++a) {
       const __m128 inv = _mm_set1_ps(r.inv_d[a]);
@@ -135,13 +140,8 @@ void packet_child_slab_sse2(const ChildBoxesF& b, const SlabPacketF& p, unsigned
 void child_dist2_sse2(const ChildBoxesF& b, const float* q, float margin, float* lb2) {
   const __m128 m = _mm_set1_ps(margin), zero = _mm_setzero_ps(), shrink = _mm_set1_ps(1.0f - kRelSlack);
   for (unsigned h = 0; h < b.count; h += 4) {
-    const float* p0 = box_row(b, h), *p1 = box_row(b, h + 1), *p2 = box_row(b, h + 2), *p3 = box_row(b, h + 3);
-    __m128 lx = _mm_loadu_ps(p0), ly = _mm_loadu_ps(p1), lz = _mm_loadu_ps(p2), hx = _mm_loadu_ps(p3);
-    _MM_TRANSPOSE4_PS(lx, ly, lz, hx);
-    const __m128 u01 = _mm_unpacklo_ps(_mm_loadu_ps(p0 + 4), _mm_loadu_ps(p1 + 4));  // hy0 hy1 hz0 hz1
-    const __m128 u23 = _mm_unpacklo_ps(_mm_loadu_ps(p2 + 4), _mm_loadu_ps(p3 + 4));
-    const __m128 hy = _mm_movelh_ps(u01, u23), hz = _mm_movehl_ps(u23, u01);
-    const __m128 lo[3] = {lx, ly, lz}, hi[3] = {hx, hy, hz};
+    __m128 lo[3], hi[3];
+    transpose_boxes4(b, h, lo, hi);
     __m128 d2 = zero;
     for (int a = 0; a < 3; ++a) {
       const __m128 qa = _mm_set1_ps(q[a]);
