@@ -22,22 +22,7 @@ namespace {
 
 using rayscan::render::test::subset;
 
-// Oblique view of the 60 x 60 ft autzen subset (trees and ground), with a sun.
-Scene subset_scene(std::uint32_t w, std::uint32_t h) {
-  const AABB b = subset().bounds();
-  LookAtParams la;
-  la.position = b.center() + Vec3(-45.0, -60.0, 50.0);
-  la.look_at = b.center();
-  la.vfov_deg = 50.0;
-  Scene s;
-  s.camera = Camera::look_at(la, w, h);
-  s.sun.enabled = true;
-  s.sun.direction = glm::normalize(Vec3(0.5, -0.3, 0.8));
-  s.spp = 3;
-  s.max_depth = 3;
-  s.seed = 12345;
-  return s;
-}
+using rayscan::render::test::subset_scene;
 
 fs::path temp_dir() {
   const fs::path d = fs::temp_directory_path() / ("rayscan_render_test_" + std::to_string(::getpid()));

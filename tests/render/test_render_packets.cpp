@@ -26,17 +26,8 @@ using rayscan::render::test::subset;
 // Oblique view of the autzen subset (trees and ground) with a low sun, so that shadow rays are
 // both blocked and free; 45 x 34 px so that 4x4 blocks and 7 px tiles end in partial ones.
 Scene packet_scene() {
-  const AABB b = subset().bounds();
-  LookAtParams la;
-  la.position = b.center() + Vec3(-45.0, -60.0, 50.0);
-  la.look_at = b.center();
-  la.vfov_deg = 50.0;
-  Scene s;
-  s.camera = Camera::look_at(la, 45, 34);
-  s.sun.enabled = true;
+  Scene s = rayscan::render::test::subset_scene(45, 34);
   s.sun.direction = glm::normalize(Vec3(0.6, -0.3, 0.5));
-  s.spp = 3;
-  s.max_depth = 3;
   s.seed = 777;
   return s;
 }
