@@ -55,6 +55,13 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
   // not per pixel), nor for COPC (nodes decoded as rays reach them; kept single-ray).
   const bool packets = opt.packets && !want_cost && !std::is_same_v<I, io::CopcIndex>;
   constexpr std::uint32_t kBlock = 4;  // 4x4 pixels = kMaxRayPacket rays
+  // The camera ray of pixel (x, y) for sampler stream smp: pixel jitter (u, v), then the lens
+  // sample, in this order on every path (the image depends on it).
+  auto camera_ray = [&](std::uint32_t x, std::uint32_t y, Sampler& smp) {
+    const double u = x + smp.uniform() - 0.5, v = y + smp.uniform() - 0.5;
+    const double lu = smp.uniform(), lv = smp.uniform();
+    return cam.generate_ray(u, v, lu, lv);
+  };
   static_assert(kBlock * kBlock == kMaxRayPacket);
   std::mutex stats_mutex;
 
@@ -84,10 +91,7 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
               smps.clear();
               for (std::uint32_t y = by; y < by + bh; ++y)
                 for (std::uint32_t x = bx; x < bx + bw; ++x) {
-                  Sampler& smp = smps.emplace_back(s.seed, x, y, j);
-                  const double u = x + smp.uniform() - 0.5, v = y + smp.uniform() - 0.5;
-                  const double lu = smp.uniform(), lv = smp.uniform();
-                  rays.push_back(cam.generate_ray(u, v, lu, lv));
+                  rays.push_back(camera_ray(x, y, smps.emplace_back(s.seed, x, y, j)));
                 }
               tracer.trace_packet(rays, smps, std::span(L, n), hits, c);
               for (std::size_t i = 0; i < n; ++i) sum[i] += L[i];
@@ -104,9 +108,7 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
             Color sum(0.0f);
             for (std::uint32_t j = 0; j < s.spp; ++j) {
               Sampler smp(s.seed, x, y, j);
-              const double u = x + smp.uniform() - 0.5, v = y + smp.uniform() - 0.5;
-              const double lu = smp.uniform(), lv = smp.uniform();
-              sum += tracer.trace(cam.generate_ray(u, v, lu, lv), smp, hits, c);
+              sum += tracer.trace(camera_ray(x, y, smp), smp, hits, c);
             }
             fb.beauty[p] = sum / float(s.spp);
             if (want_cost) fb.cost[p] = float(double(c.nodes_visited - nodes_before) / s.spp);
