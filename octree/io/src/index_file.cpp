@@ -1042,8 +1042,21 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     IndexOpenOptions oo;
     oo.verify = IndexOpenOptions::Verify::metadata_only;
     oo.check_sources = false;
+    oo.trust_ids = true;  // written above: no first-use pass over the whole ids section
     const MappedIndex m = MappedIndex::open(out.temp(), oo);
-    h.spacing = median_nn_spacing_by_id(m);
+    // The ids pass is sequential: its pages are dropped behind it (the map is shared and
+    // read-only), so this phase's resident set is the samples' kNN paths, not the ids section.
+    const auto* ids0 = reinterpret_cast<const std::uint8_t*>(m.ids().data());
+    const std::uintptr_t pg = page_bytes();
+    std::uintptr_t dropped = (reinterpret_cast<std::uintptr_t>(ids0) + pg - 1) / pg * pg;
+    h.spacing = median_nn_spacing_by_id(m, 20000, [&](std::size_t slots) {
+      const std::uintptr_t end = (reinterpret_cast<std::uintptr_t>(ids0) + slots * sizeof(PointIndex)) / pg * pg;
+      if (end > dropped) {
+        // NOLINTNEXTLINE(performance-no-int-to-ptr): a page range of the index's own read-only map
+        (void)::madvise(reinterpret_cast<void*>(dropped), end - dropped, MADV_DONTNEED);
+        dropped = end;
+      }
+    });
     const std::vector<std::uint8_t> hb = encode_header(h);
     fd.pwrite_all(hb.data(), hb.size(), 0);
   }
@@ -1262,6 +1275,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
                          std::to_string(mt) + " ns): rebuild it with `rayscan index`");
     }
   ::madvise(m.p, m.n, MADV_RANDOM);
+  if (opt.trust_ids && !x.verified_) std::call_once(m.ids_checked, [] {});  // the builder's own output
   return x;
 }
 
