@@ -236,6 +236,34 @@ TEST(IndexFileBuild, ClusteredBucketsWithDuplicatesSortLikeBuildBulk) {
   fs::remove_all(dir);
 }
 
+// The node records are written in place into a shared map of the output's nodes section that is
+// extended (posix_fallocate + mremap) while the tree grows and released behind the depth-first
+// pass, and the codes and positions maps are released behind it too: with capacity 1 the tree has
+// more nodes than points (the first reservation is points / 8), and the 1 MiB budget releases
+// every 2048 points. Oracle: Octree::build_bulk.
+TEST(IndexFileBuild, GrowingNodeSectionAndReleasedMapsGiveTheBuildBulkTree) {
+  const std::vector<Vec3> pts = make_points(30000, 21);
+  const fs::path dir = temp_dir() / "growing_nodes";
+  fs::create_directories(dir);
+  write_f64(dir / "g.f64", pts);
+  OctreeConfig cfg;
+  cfg.capacity = 1;
+  const Octree t = Octree::build_bulk(pts, cfg);
+  ASSERT_GT(t.node_count(), pts.size());  // several extensions of the first reservation
+  for (const std::uint64_t memory : {std::uint64_t{64} << 20, std::uint64_t{1} << 20}) {
+    SCOPED_TRACE(memory);
+    io::IndexBuildOptions o;
+    o.config = cfg;
+    o.memory_bytes = memory;
+    const auto st = io::build_index_file({dir / "g.f64"}, dir / "g.rsi", o);
+    EXPECT_EQ(st.nodes, t.node_count());
+    const io::MappedIndex m = io::MappedIndex::open(dir / "g.rsi");
+    EXPECT_TRUE(m.verified());  // the nodes section's CRC and every record checked at open
+    expect_same_tree(m, t);
+  }
+  fs::remove_all(dir);
+}
+
 // A build in several runs takes the Morton grid from the LAS header's bounds (no bounds pass) and
 // checks it against the points: a header whose max x lies (LAS 1.2 header byte 179) is detected
 // and the read pass repeated on the exact grid, so the tree is still build_bulk's (the oracle:

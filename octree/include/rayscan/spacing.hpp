@@ -59,8 +59,11 @@ template <class I>
 /// original order (an index file, io::MappedIndex, whose positions are in storage order): the
 /// same samples, original indices i * N / n, are located by one pass over index.ids() (parallel,
 /// no per-point allocation), so the result is the same as over the original-order positions.
+/// The pass goes in blocks of 4 Mi slots; `scanned(end)` (optional) is called after the slots
+/// [0, end) are done, e.g. to drop the pages of a mapped ids section behind the pass.
 template <class I>
-[[nodiscard]] double median_nn_spacing_by_id(const I& index, std::size_t max_samples = 20000) {
+[[nodiscard]] double median_nn_spacing_by_id(const I& index, std::size_t max_samples = 20000,
+                                             const std::function<void(std::size_t)>& scanned = {}) {
   const std::span<const Vec3> pos = index.positions();
   const std::span<const PointIndex> ids = index.ids();
   const std::size_t N = pos.size();
@@ -69,13 +72,17 @@ template <class I>
   std::vector<Vec3> samples(n);
   // Sample i is original index p(i) = floor(i N / n); p is strictly increasing (N >= n), so an id
   // is a sample iff p(ceil(id n / N)) == id.
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, N, 1 << 16), [&](const auto& r) {
+  for (std::size_t c0 = 0; c0 < N; c0 += std::size_t{1} << 22) {
+    const std::size_t c1 = std::min(N, c0 + (std::size_t{1} << 22));
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1 << 16), [&](const auto& r) {
     for (std::size_t s = r.begin(); s != r.end(); ++s) {
       const std::uint64_t id = ids[s];
       const std::uint64_t i = (id * n + N - 1) / N;
       if (i < n && i * N / n == id) samples[i] = pos[s];
     }
   });
+    if (scanned) scanned(c1);
+  }
   return median_nn_spacing_of(index, std::span<const Vec3>(samples), n);
 }
 

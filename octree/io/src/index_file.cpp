@@ -23,8 +23,10 @@
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <queue>
 #include <sstream>
 #include <type_traits>
@@ -403,103 +405,23 @@ void gather_write(const std::vector<T>& src, const std::vector<MortonKey>& keys,
   w.write(out.data(), out.size() * sizeof(T));
 }
 
-/// Node construction over the Morton-sorted codes and positions, following Octree::build_bulk
-/// for the adaptive and fixed layouts: same split rule, child order, node numbering and float
-/// bounds (OctreeRules), hence the identical node array. The topology (a depth-first pass over
-/// the codes that finds each child's range by binary search) is sequential; the bounds of the
-/// nodes' own points are computed in parallel, then closed bottom-up (children are numbered
-/// after their parent, so a pass in reverse node order sees every child before its parent).
-struct NodeBuilder {
-  const OctreeConfig& cfg;
-  const std::uint64_t* codes;
-  const Vec3* pos;
-  Vec3 cell_lo;
-  std::vector<Octree::NodeRec> nodes;
-  unsigned depth = 0;
-  IndexProgress progress;
-  std::uint64_t total = 0, emitted = 0, next_report = 0;
-
-  void build(std::size_t n_points) {
-    if (n_points == 0) return;
-    nodes.emplace_back();
-    nodes[0].key = 1;
-    topology(0, 0, 0, n_points);
-    close();
-  }
-
- private:
-  void topology(std::uint32_t n, unsigned d, std::size_t b, std::size_t e) {
-    const std::size_t count = e - b;
-    const bool same = count == 0 || codes[b] == codes[e - 1];
-    const bool split = OctreeRules::splits(cfg, d, count, same);
-    const std::size_t rest = split ? b : e;
-    nodes[n].own_begin = static_cast<std::uint32_t>(b);
-    nodes[n].own_end = static_cast<std::uint32_t>(rest);
-    depth = std::max(depth, d);
-    emitted += rest - b;
-    if (progress && emitted >= next_report) {
-      progress("nodes", emitted, total);
-      next_report = emitted + (std::uint64_t{1} << 23);
-    }
-    if (rest == e) return;
-    std::array<std::size_t, 9> start{};
-    std::array<unsigned, 8> oct{};
-    unsigned nchild = 0;
-    std::size_t i = rest;
-    while (i < e) {
-      const unsigned o = OctreeRules::octant(codes[i], d);
-      const std::size_t j = static_cast<std::size_t>(
-          std::partition_point(codes + i, codes + e, [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; }) -
-          codes);
-      start[nchild] = i;
-      oct[nchild] = o;
-      ++nchild;
-      i = j;
-    }
-    start[nchild] = e;
-    const auto first = static_cast<std::uint32_t>(nodes.size());
-    const std::uint64_t key = nodes[n].key;
-    nodes.resize(nodes.size() + nchild);
-    nodes[n].first_child = first;
-    nodes[n].child_count = static_cast<std::uint8_t>(nchild);
-    for (unsigned k = 0; k < nchild; ++k) {
-      nodes[first + k].key = (key << 3) | oct[k];
-      topology(first + k, d + 1, start[k], start[k + 1]);
-    }
-  }
-
-  // Octree's close_node: bounds of the own points (rounded outwards to float), then of the children.
-  void close() {
-    const float inf = std::numeric_limits<float>::infinity();
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodes.size(), 1 << 10), [&](const auto& r) {
-      for (std::size_t n = r.begin(); n != r.end(); ++n) {
-        Octree::NodeRec& rec = nodes[n];
-        AABB own;
-        for (std::uint32_t s = rec.own_begin; s < rec.own_end; ++s) own.expand(pos[s]);
-        glm::vec3 lo(inf), hi(-inf);
-        if (!own.empty())
-          for (int a = 0; a < 3; ++a) {
-            lo[a] = OctreeRules::float_bound(own.lo[a] - cell_lo[a], false);
-            hi[a] = OctreeRules::float_bound(own.hi[a] - cell_lo[a], true);
-          }
-        rec.lo = lo;
-        rec.hi = hi;
-      }
-    });
-    for (std::size_t n = nodes.size(); n-- > 0;) {
-      Octree::NodeRec& rec = nodes[n];
-      for (unsigned c = 0; c < rec.child_count; ++c) {
-        rec.lo = glm::min(rec.lo, nodes[rec.first_child + c].lo);
-        rec.hi = glm::max(rec.hi, nodes[rec.first_child + c].hi);
-      }
-    }
-  }
-};
+/// Page size of the maps below (madvise ranges are page-aligned).
+std::size_t page_bytes() {
+  static const std::size_t p = [] {
+    const long v = ::sysconf(_SC_PAGESIZE);
+    return v > 0 ? static_cast<std::size_t>(v) : std::size_t{4096};
+  }();
+  return p;
+}
 
 /// Read-only map of a file region (for the codes temp file and the output's positions).
+/// release_below() drops the pages of [0, byte) from the process (MADV_DONTNEED: on a shared
+/// read-only map the data stays in the page cache and is faulted in again if touched), so a
+/// sequential pass holds a bounded number of resident pages whatever the file size.
 struct ReadMap {
   void* p = nullptr;
   std::size_t n = 0;
+  std::size_t released = 0;  ///< bytes [0, released) have been dropped
   ReadMap(int fd, std::size_t bytes, const fs::path& name) : n(bytes) {
     if (n == 0) return;
     p = ::mmap(nullptr, n, PROT_READ, MAP_SHARED, fd, 0);
@@ -512,6 +434,180 @@ struct ReadMap {
   ReadMap& operator=(const ReadMap&) = delete;
   ~ReadMap() {
     if (p != nullptr) ::munmap(p, n);
+  }
+  void release_below(std::size_t byte) {
+    const std::size_t end = std::min(byte, n) / page_bytes() * page_bytes();
+    if (p == nullptr || end <= released) return;
+    (void)::madvise(static_cast<std::uint8_t*>(p) + released, end - released, MADV_DONTNEED);
+    released = end;
+  }
+};
+
+/// The nodes section of the temporary output as a growing shared map of fixed-size records
+/// (docs/index-format.md, "Nodes"). The file is extended with posix_fallocate before the map
+/// grows (mremap), so a full disk is an error here and never a SIGBUS on a store. Records are
+/// stored in place; release_below() drops written pages from the process (MADV_DONTNEED on a
+/// shared file map keeps the dirty data in the page cache, a later touch faults it back), so the
+/// node phase's resident memory does not grow with the node count.
+class NodeFile {
+ public:
+  NodeFile(int fd, std::uint64_t offset, const fs::path& name, std::size_t initial_records)
+      : fd_(fd), off_(offset), name_(name) {
+    grow(std::max<std::size_t>(initial_records, 1024));
+  }
+  NodeFile(const NodeFile&) = delete;
+  NodeFile& operator=(const NodeFile&) = delete;
+  ~NodeFile() {
+    if (p_ != nullptr) ::munmap(p_, cap_ * kNodeBytes);
+  }
+  /// Makes records [0, n) addressable (the file grows by at least half its size each time).
+  void reserve(std::size_t n) {
+    if (n > cap_) grow(std::max(n, cap_ + cap_ / 2));
+  }
+  /// Record i (i < reserved); valid until the next reserve().
+  [[nodiscard]] std::uint8_t* rec(std::size_t i) { return p_ + i * kNodeBytes; }
+  /// Drops the resident pages of records [0, i) (correctness never depends on it).
+  void release_below(std::size_t i) {
+    const std::size_t end = std::min(i, cap_) * kNodeBytes / page_bytes() * page_bytes();
+    if (end <= released_) return;
+    (void)::madvise(p_ + released_, end - released_, MADV_DONTNEED);
+    released_ = end;
+  }
+  /// CRC-32C of records [0, n), read back sequentially and released behind.
+  std::uint32_t crc(std::size_t n) {
+    released_ = 0;
+    std::uint32_t c = 0;
+    const std::size_t total = n * kNodeBytes, step = std::size_t{8} << 20;
+    for (std::size_t b = 0; b < total; b += step) {
+      const std::size_t e = std::min(total, b + step);
+      c = crc32_of(p_ + b, e - b, c);
+      release_below(e / kNodeBytes);
+    }
+    return c;
+  }
+
+ private:
+  void grow(std::size_t records) {
+    const std::size_t old_bytes = cap_ * kNodeBytes, bytes = records * kNodeBytes;
+    const int err = ::posix_fallocate(fd_, static_cast<off_t>(off_ + old_bytes), static_cast<off_t>(bytes - old_bytes));
+    if (err != 0) {
+      errno = err;
+      io_fail(name_, "cannot extend the nodes section to " + std::to_string(off_ + bytes) + " bytes");
+    }
+    void* q = p_ == nullptr ? ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd_, static_cast<off_t>(off_))
+                            : ::mremap(p_, old_bytes, bytes, MREMAP_MAYMOVE);
+    if (q == MAP_FAILED) io_fail(name_, "cannot memory-map the nodes section (" + std::to_string(bytes) + " bytes)");
+    p_ = static_cast<std::uint8_t*>(q);
+    cap_ = records;
+  }
+  int fd_;
+  std::uint64_t off_;  ///< file offset of record 0 (page-aligned: kAlign)
+  fs::path name_;
+  std::uint8_t* p_ = nullptr;
+  std::size_t cap_ = 0, released_ = 0;
+};
+
+/// Node construction over the Morton-sorted codes and positions, following Octree::build_bulk
+/// for the adaptive and fixed layouts: same split rule, child order, node numbering and float
+/// bounds (OctreeRules), hence the identical node array. One sequential depth-first pass: a
+/// node's children are numbered as a block when it is visited (each child's range found by
+/// binary search on the octant digit), its own points are read then (so the positions and codes
+/// are read in order), and its record is written to the NodeFile when its recursion returns,
+/// final: the float bounds of its own points (Octree's close_node) widened by its children's.
+/// The records are never held in memory; `release(i)` is called every few million points with
+/// the index of the next point to be read, so the caller can drop the pages of its maps below it.
+struct NodeBuilder {
+  const OctreeConfig& cfg;
+  const std::uint64_t* codes;
+  const Vec3* pos;
+  Vec3 cell_lo;
+  NodeFile& out;
+  std::function<void(std::size_t)> release;
+  IndexProgress progress;
+  std::uint64_t total = 0;
+  std::size_t count = 0;  ///< nodes numbered so far
+  unsigned depth = 0;
+  std::array<std::uint64_t, kLevels> levels{};  ///< own points per depth
+  std::uint64_t every = std::uint64_t{1} << 22;  ///< progress and release every so many points
+  std::uint64_t next_report = 0;
+
+  void build(std::size_t n_points) {
+    if (n_points == 0) return;
+    count = 1;
+    next_report = every;
+    out.reserve(1);
+    (void)visit(0, 1, 0, 0, n_points);
+    if (progress) progress("nodes", total, total);
+  }
+
+ private:
+  struct Bounds {
+    glm::vec3 lo, hi;
+  };
+
+  Bounds visit(std::uint32_t n, std::uint64_t key, unsigned d, std::size_t b, std::size_t e) {
+    const std::size_t cnt = e - b;
+    const bool same = cnt == 0 || codes[b] == codes[e - 1];
+    const bool split = OctreeRules::splits(cfg, d, cnt, same);
+    const std::size_t rest = split ? b : e;
+    depth = std::max(depth, d);
+    levels[d] += rest - b;
+    // Octree's close_node: bounds of the own points (rounded outwards to float), then of the children.
+    const float inf = std::numeric_limits<float>::infinity();
+    Bounds box{glm::vec3(inf), glm::vec3(-inf)};
+    {
+      AABB own;
+      for (std::size_t s = b; s < rest; ++s) own.expand(pos[s]);
+      if (!own.empty())
+        for (int a = 0; a < 3; ++a) {
+          box.lo[a] = OctreeRules::float_bound(own.lo[a] - cell_lo[a], false);
+          box.hi[a] = OctreeRules::float_bound(own.hi[a] - cell_lo[a], true);
+        }
+    }
+    if (rest > b && rest >= next_report) {
+      next_report = rest + every;
+      if (release) release(b);
+      out.release_below(count > 256 ? count - 256 : 0);
+      if (progress) progress("nodes", rest, total);
+    }
+    std::uint32_t first = 0;
+    unsigned nchild = 0;
+    if (rest < e) {
+      std::array<std::size_t, 9> start{};
+      std::array<unsigned, 8> oct{};
+      std::size_t i = rest;
+      while (i < e) {
+        const unsigned o = OctreeRules::octant(codes[i], d);
+        const std::size_t j = static_cast<std::size_t>(
+            std::partition_point(codes + i, codes + e, [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; }) -
+            codes);
+        start[nchild] = i;
+        oct[nchild] = o;
+        ++nchild;
+        i = j;
+      }
+      start[nchild] = e;
+      first = static_cast<std::uint32_t>(count);
+      count += nchild;
+      out.reserve(count);
+      for (unsigned k = 0; k < nchild; ++k) {
+        const Bounds c = visit(first + k, (key << 3) | oct[k], d + 1, start[k], start[k + 1]);
+        box.lo = glm::min(box.lo, c.lo);
+        box.hi = glm::max(box.hi, c.hi);
+      }
+    }
+    // The record (docs/index-format.md, "Nodes"): written once, final.
+    std::uint8_t* rec = out.rec(n);
+    const auto own_begin = static_cast<std::uint32_t>(b), own_end = static_cast<std::uint32_t>(rest);
+    std::memset(rec, 0, kNodeBytes);
+    std::memcpy(rec, &box.lo, 12);
+    std::memcpy(rec + 12, &box.hi, 12);
+    std::memcpy(rec + 24, &key, 8);
+    std::memcpy(rec + 32, &first, 4);
+    std::memcpy(rec + 36, &own_begin, 4);
+    std::memcpy(rec + 40, &own_end, 4);
+    rec[44] = static_cast<std::uint8_t>(nchild);
+    return box;
   }
 };
 
@@ -897,7 +993,9 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   for (const fs::path& rp : run_files) fs::remove(rp);
 
   // Nodes from the sorted codes (in memory, or the mapped codes file of the merge) and the
-  // positions section (mapped; its pages are file cache).
+  // positions section (mapped; its pages are file cache), written in place into the nodes
+  // section (NodeFile). The maps' pages are dropped behind the sequential pass, so the node
+  // phase's resident set (anonymous and file-backed) does not grow with the site.
   {
     std::optional<Fd> codes_fd;
     std::optional<ReadMap> codes_map;
@@ -907,31 +1005,28 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     }
     ReadMap file(fd.get(), h.sections[s_pos].offset + total * 24, out.temp());
     const std::uint64_t* codes = in_memory ? mem_codes.data() : static_cast<const std::uint64_t*>(codes_map->p);
+    const std::uint64_t nodes_off = off;  // the next aligned offset: where place() puts the nodes
+    NodeFile node_file(fd.get(), nodes_off, out.temp(), static_cast<std::size_t>(total / 8 + 1));
+    auto release = [&](std::size_t i) {
+      if (codes_map) codes_map->release_below(i * 8);
+      file.release_below(h.sections[s_pos].offset + i * 24);
+    };
     NodeBuilder nb{opt.config,
                    codes,
                    reinterpret_cast<const Vec3*>(static_cast<const std::uint8_t*>(file.p) + h.sections[s_pos].offset),
-                   cell.lo, {}, 0, opt.progress, total, 0, 0};
+                   cell.lo, node_file, release, opt.progress, total};
+    // Resident window of the maps: 1/16 of the budget (codes and positions, 32 B/point), 4 M
+    // points at most (the progress interval), so small budgets release often too.
+    nb.every = std::clamp<std::uint64_t>(opt.memory_bytes / 16 / 32, 1024, std::uint64_t{1} << 22);
     nb.build(total);
     mem_codes = {};
-    const std::size_t s_nodes = place(kNodes, nb.nodes.size() * kNodeBytes);
-    SectionWriter w(fd, h.sections[s_nodes].offset, 8 << 20);
-    std::uint8_t rec[kNodeBytes];
-    for (const Octree::NodeRec& r : nb.nodes) {
-      std::memset(rec, 0, sizeof rec);
-      std::memcpy(rec, &r.lo, 12);
-      std::memcpy(rec + 12, &r.hi, 12);
-      std::memcpy(rec + 24, &r.key, 8);
-      std::memcpy(rec + 32, &r.first_child, 4);
-      std::memcpy(rec + 36, &r.own_begin, 4);
-      std::memcpy(rec + 40, &r.own_end, 4);
-      rec[44] = r.child_count;
-      w.write(rec, sizeof rec);
-    }
-    w.flush();
-    h.sections[s_nodes].crc = w.crc();
-    h.nodes = nb.nodes.size();
+    codes_map.reset();
+    const std::size_t s_nodes = place(kNodes, nb.count * kNodeBytes);
+    if (h.sections[s_nodes].offset != nodes_off) throw std::logic_error("rayscan index: nodes section misplaced");
+    h.sections[s_nodes].crc = node_file.crc(nb.count);
+    h.nodes = nb.count;
     h.depth = nb.depth;
-    for (const Octree::NodeRec& r : nb.nodes) h.levels[OctreeNodeId::from_bits(r.key).depth()] += r.own_end - r.own_begin;
+    h.levels = nb.levels;
     off = h.sections[s_nodes].offset + h.sections[s_nodes].size;  // the file ends with the nodes
   }
   h.bounds = bounds;
@@ -947,8 +1042,21 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     IndexOpenOptions oo;
     oo.verify = IndexOpenOptions::Verify::metadata_only;
     oo.check_sources = false;
+    oo.trust_ids = true;  // written above: no first-use pass over the whole ids section
     const MappedIndex m = MappedIndex::open(out.temp(), oo);
-    h.spacing = median_nn_spacing_by_id(m);
+    // The ids pass is sequential: its pages are dropped behind it (the map is shared and
+    // read-only), so this phase's resident set is the samples' kNN paths, not the ids section.
+    const auto* ids0 = reinterpret_cast<const std::uint8_t*>(m.ids().data());
+    const std::uintptr_t pg = page_bytes();
+    std::uintptr_t dropped = (reinterpret_cast<std::uintptr_t>(ids0) + pg - 1) / pg * pg;
+    h.spacing = median_nn_spacing_by_id(m, 20000, [&](std::size_t slots) {
+      const std::uintptr_t end = (reinterpret_cast<std::uintptr_t>(ids0) + slots * sizeof(PointIndex)) / pg * pg;
+      if (end > dropped) {
+        // NOLINTNEXTLINE(performance-no-int-to-ptr): a page range of the index's own read-only map
+        (void)::madvise(reinterpret_cast<void*>(dropped), end - dropped, MADV_DONTNEED);
+        dropped = end;
+      }
+    });
     const std::vector<std::uint8_t> hb = encode_header(h);
     fd.pwrite_all(hb.data(), hb.size(), 0);
   }
@@ -1167,6 +1275,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
                          std::to_string(mt) + " ns): rebuild it with `rayscan index`");
     }
   ::madvise(m.p, m.n, MADV_RANDOM);
+  if (opt.trust_ids && !x.verified_) std::call_once(m.ids_checked, [] {});  // the builder's own output
   return x;
 }
 

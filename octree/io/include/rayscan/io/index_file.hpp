@@ -98,6 +98,10 @@ struct IndexOpenOptions {
   enum class Verify { automatic, always, metadata_only } verify = Verify::automatic;
   /// Fail when a source file still exists but its size or modification time changed.
   bool check_sources = true;
+  /// Skip the id range pass that ids() otherwise runs on its first call when the deep checks did
+  /// not run (for the builder, which opens its own fresh output: that pass would make every page
+  /// of the ids section resident).
+  bool trust_ids = false;
 };
 
 /// A read-only memory-mapped index file satisfying SpatialIndex. Node records, positions and ids
