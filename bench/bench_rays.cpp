@@ -365,9 +365,13 @@ std::uint64_t run_embree_packets(const EmbreeScene& es, std::span<const Ray> ray
   return total.load();
 }
 
+/// Index options of a --indexes entry: a make_index type, optionally with ":capacity" (octree
+/// node capacity / kd-tree leaf size, e.g. "octree-adaptive:8"; the leaf-capacity sweep of issue 12).
 rayscan::IndexOptions index_options(const std::string& type) {
   rayscan::IndexOptions o;
-  o.type = type;
+  const std::size_t colon = type.find(':');
+  o.type = type.substr(0, colon);
+  if (colon != std::string::npos) o.capacity = static_cast<std::uint32_t>(std::stoul(type.substr(colon + 1)));
   return o;
 }
 
@@ -654,7 +658,8 @@ int main(int argc, char** argv) {
   std::string profile_query;
   app.add_option("--points-list", points_list, "comma-separated cloud sizes")->capture_default_str();
   app.add_option("--indexes", index_list,
-                 "comma-separated rayscan indexes: octree-adaptive, octree-layered, octree-fixed, kdtree")
+                 "comma-separated rayscan indexes: octree-adaptive, octree-layered, octree-fixed, kdtree; "
+                 "NAME:C sets the node capacity / leaf size C (default 32)")
       ->capture_default_str();
   app.add_option("--threads", threads_list, "comma-separated thread counts (tbb::global_control)")
       ->capture_default_str();

@@ -153,7 +153,36 @@ void child_dist2_sse2(const ChildBoxesF& b, const float* q, float margin, float*
   }
 }
 
+// With d = 0 (knn_query: |p - q|^2 only) the point filter needs neither t nor the projection: these
+// distance-only loops drop 3 multiplies, 3 subtractions and the two t comparisons per point
+// (t = d.(p - o) = 0 exactly, so when 0 lies in [t_lo, t_hi] the t test passes every point).
+[[nodiscard]] inline bool distance_only(const PointFilterD& f) {
+  return f.d[0] == 0.0 && f.d[1] == 0.0 && f.d[2] == 0.0 && f.t_lo <= 0.0 && 0.0 <= f.t_hi;
+}
+
+unsigned dist_filter_sse2(const double* xyz, unsigned count, const PointFilterD& f, std::uint32_t* out) {
+  const __m128d ox = _mm_set1_pd(f.o[0]), oy = _mm_set1_pd(f.o[1]), oz = _mm_set1_pd(f.o[2]);
+  const __m128d d2max = _mm_set1_pd(f.d2_max);
+  unsigned i = 0, n = 0;
+  for (; i + 2 <= count; i += 2) {
+    const double* p = xyz + 3 * static_cast<std::size_t>(i);
+    const __m128d a = _mm_loadu_pd(p), b = _mm_loadu_pd(p + 2), c = _mm_loadu_pd(p + 4);
+    const __m128d vx = _mm_sub_pd(_mm_shuffle_pd(a, b, 0b10), ox);
+    const __m128d vy = _mm_sub_pd(_mm_shuffle_pd(a, c, 0b01), oy);
+    const __m128d vz = _mm_sub_pd(_mm_shuffle_pd(b, c, 0b10), oz);
+    const __m128d d2 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(vx, vx), _mm_mul_pd(vy, vy)), _mm_mul_pd(vz, vz));
+    unsigned m = static_cast<unsigned>(_mm_movemask_pd(_mm_cmple_pd(d2, d2max)));
+    while (m) {
+      out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
+      m &= m - 1;
+    }
+  }
+  for (; i < count; ++i) out[n++] = i;  // tail: left to the exact test
+  return n;
+}
+
 unsigned point_filter_sse2(const double* xyz, unsigned count, const PointFilterD& f, std::uint32_t* out) {
+  if (distance_only(f)) return dist_filter_sse2(xyz, count, f, out);
   const __m128d ox = _mm_set1_pd(f.o[0]), oy = _mm_set1_pd(f.o[1]), oz = _mm_set1_pd(f.o[2]);
   const __m128d dx = _mm_set1_pd(f.d[0]), dy = _mm_set1_pd(f.d[1]), dz = _mm_set1_pd(f.d[2]);
   const __m128d d2max = _mm_set1_pd(f.d2_max), tlo = _mm_set1_pd(f.t_lo), thi = _mm_set1_pd(f.t_hi);
@@ -274,8 +303,34 @@ __attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, 
   _mm256_storeu_ps(lb2, _mm256_mul_ps(d2, _mm256_set1_ps(1.0f - kRelSlack)));
 }
 
+__attribute__((target("avx2,fma"))) unsigned dist_filter_avx2(const double* xyz, unsigned count,
+                                                              const PointFilterD& f, std::uint32_t* out) {
+  const __m256d ox = _mm256_set1_pd(f.o[0]), oy = _mm256_set1_pd(f.o[1]), oz = _mm256_set1_pd(f.o[2]);
+  const __m256d d2max = _mm256_set1_pd(f.d2_max);
+  unsigned i = 0, n = 0;
+  for (; i + 4 <= count; i += 4) {
+    const double* p = xyz + 3 * static_cast<std::size_t>(i);  // AoS to SoA as in point_filter_avx2
+    const __m256d a = _mm256_loadu_pd(p), b = _mm256_loadu_pd(p + 4), c = _mm256_loadu_pd(p + 8);
+    const __m256d P = _mm256_blend_pd(a, b, 0b1100);
+    const __m256d Q = _mm256_permute2f128_pd(a, c, 0x21);
+    const __m256d R = _mm256_blend_pd(b, c, 0b1100);
+    const __m256d vx = _mm256_sub_pd(_mm256_shuffle_pd(P, Q, 0b1010), ox);
+    const __m256d vy = _mm256_sub_pd(_mm256_shuffle_pd(P, R, 0b0101), oy);
+    const __m256d vz = _mm256_sub_pd(_mm256_shuffle_pd(Q, R, 0b1010), oz);
+    const __m256d d2 = _mm256_fmadd_pd(vz, vz, _mm256_fmadd_pd(vy, vy, _mm256_mul_pd(vx, vx)));
+    unsigned m = static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(d2, d2max, _CMP_LE_OQ)));
+    while (m) {
+      out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
+      m &= m - 1;
+    }
+  }
+  for (; i < count; ++i) out[n++] = i;
+  return n;
+}
+
 __attribute__((target("avx2,fma"))) unsigned point_filter_avx2(const double* xyz, unsigned count,
                                                                const PointFilterD& f, std::uint32_t* out) {
+  if (distance_only(f)) return dist_filter_avx2(xyz, count, f, out);
   const __m256d ox = _mm256_set1_pd(f.o[0]), oy = _mm256_set1_pd(f.o[1]), oz = _mm256_set1_pd(f.o[2]);
   const __m256d dx = _mm256_set1_pd(f.d[0]), dy = _mm256_set1_pd(f.d[1]), dz = _mm256_set1_pd(f.d[2]);
   const __m256d d2max = _mm256_set1_pd(f.d2_max), tlo = _mm256_set1_pd(f.t_lo), thi = _mm256_set1_pd(f.t_hi);
@@ -354,6 +409,7 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx51
   const __m512d ox = _mm512_set1_pd(f.o[0]), oy = _mm512_set1_pd(f.o[1]), oz = _mm512_set1_pd(f.o[2]);
   const __m512d dx = _mm512_set1_pd(f.d[0]), dy = _mm512_set1_pd(f.d[1]), dz = _mm512_set1_pd(f.d[2]);
   const __m512d d2max = _mm512_set1_pd(f.d2_max), tlo = _mm512_set1_pd(f.t_lo), thi = _mm512_set1_pd(f.t_hi);
+  const bool dist_only = distance_only(f);
   // 8 AoS points = 24 doubles in a, b, c; x_j sits at 3j, y_j at 3j+1, z_j at 3j+2.
   const __m512i ix1 = _mm512_setr_epi64(0, 3, 6, 9, 12, 15, 0, 0), ix2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 10, 13);
   const __m512i iy1 = _mm512_setr_epi64(1, 4, 7, 10, 13, 0, 0, 0), iy2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 8, 11, 14);
@@ -365,6 +421,15 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx51
     const __m512d vx = _mm512_sub_pd(_mm512_permutex2var_pd(_mm512_permutex2var_pd(a, ix1, b), ix2, c), ox);
     const __m512d vy = _mm512_sub_pd(_mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iy1, b), iy2, c), oy);
     const __m512d vz = _mm512_sub_pd(_mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iz1, b), iz2, c), oz);
+    if (dist_only) {  // knn_query: |p - o|^2 alone (see distance_only)
+      unsigned m = _mm512_cmp_pd_mask(_mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx))), d2max,
+                                      _CMP_LE_OQ);
+      while (m) {
+        out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
+        m &= m - 1;
+      }
+      continue;
+    }
     const __m512d t = _mm512_fmadd_pd(vz, dz, _mm512_fmadd_pd(vy, dy, _mm512_mul_pd(vx, dx)));
     const __m512d wx = _mm512_fnmadd_pd(t, dx, vx);
     const __m512d wy = _mm512_fnmadd_pd(t, dy, vy);

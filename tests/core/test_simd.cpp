@@ -233,6 +233,53 @@ TEST(Simd, PointFilterNeverDropsAPointThatPasses) {
   EXPECT_GT(dropped, 1000u);
 }
 
+// knn_query's use of the point filter (d = 0: the distance-only loops): never drops a point within
+// the bound (oracle: |p - q|^2 in scalar double, as knn_query's exact test), drops most others.
+TEST(Simd, DistanceFilterNeverDropsAPointWithinTheBound) {
+  PathGuard guard;
+  const std::vector<Vec3> pts = make_points(1003, Dist::utm_mm, 6);
+  std::mt19937_64 rng(12);
+  AABB box;
+  for (const Vec3& p : pts) box.expand(p);
+  std::size_t kept = 0, dropped = 0;
+  for (SimdPath path : supported_paths()) {
+    set_simd_path(path);
+    const simd::Kernels& k = simd::active_kernels();
+    if (!k.point_filter) continue;
+    std::vector<std::uint32_t> sel(pts.size());
+    for (int trial = 0; trial < 100; ++trial) {
+      // Query points: data points (exact ties at distance 0) and random points in the box.
+      const Vec3 q = trial % 2 ? pts[(static_cast<std::size_t>(trial) * 37) % pts.size()]
+                               : box.lo + (box.hi - box.lo) * Vec3(std::uniform_real_distribution<double>(0, 1)(rng),
+                                                                   std::uniform_real_distribution<double>(0, 1)(rng),
+                                                                   std::uniform_real_distribution<double>(0, 1)(rng));
+      const double r2 = std::pow(0.02 * box.max_extent() * (1 + trial % 4), 2);
+      const double vmax = glm::length(q - box.center()) + glm::length(box.hi - box.lo);
+      const simd::PointFilterD f{{q.x, q.y, q.z}, {0.0, 0.0, 0.0}, r2 * (1.0 + 1e-12) + 1e-12 * vmax * vmax,
+                                 -kInf, kInf};
+      const unsigned off = static_cast<unsigned>(trial % 9);  // unaligned starts and odd counts
+      const unsigned count = static_cast<unsigned>(pts.size()) - off;
+      const unsigned n = k.point_filter(&pts[off].x, count, f, sel.data());
+      std::vector<char> in(count, 0);
+      for (unsigned j = 0; j < n; ++j) {
+        ASSERT_LT(sel[j], count);
+        in[sel[j]] = 1;
+      }
+      for (unsigned j = 0; j < count; ++j) {
+        const Vec3 v = pts[off + j] - q;
+        if (glm::dot(v, v) <= r2) {
+          ++kept;
+          ASSERT_TRUE(in[j]) << to_string(path) << " dropped point " << j << " of trial " << trial;
+        } else {
+          dropped += !in[j];
+        }
+      }
+    }
+  }
+  EXPECT_GT(kept, 50u);
+  EXPECT_GT(dropped, 10000u);
+}
+
 TEST(Simd, RayQueriesAreBitIdenticalOnEveryPath) {
   PathGuard guard;
   const std::vector<Vec3> pts = make_points(20000, Dist::clustered, 9);

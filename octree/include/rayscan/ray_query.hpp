@@ -224,6 +224,7 @@ struct RayTraversal {
   bool done = false;  // any_hit: a candidate was found
   double radius, r2;
   AABB root_box;
+  double dist_center;  // |o - centre of the root box|
   double tol;
   // Current bounds, tightened by the dynamic k filter (Algorithm 1, step 2).
   double worst = kInf;  // worst kept key once k candidates are held
@@ -238,7 +239,8 @@ struct RayTraversal {
   bool simd_children = false;
   Vec3 o_rel{0.0};
   double mag = 0;
-  bool slab_is_final;  // children whose SIMD slab result is final (else it only prefilters)
+  bool slab_is_final = false;  // children whose SIMD slab result is final (else it only prefilters)
+  bool prepared = false;       // prepare() ran
 
   RayTraversal(const I& index_, const Ray& ray, const RayQuery& q_, Candidate& best_, RayQueryStats* stats_,
                const KeyPolicy& key_policy_)
@@ -251,19 +253,34 @@ struct RayTraversal {
         kern(simd::active_kernels()) {
     if (per_node && ray_order)
       throw std::invalid_argument("ray query: per-node radii need order time or sphere_hit");
-    tol = 1e-9 * (glm::length(o - root_box.center()) + root_box.max_extent()) + 1e-300;
+    dist_center = glm::length(o - root_box.center());
+    tol = 1e-9 * (dist_center + root_box.max_extent()) + 1e-300;
     pad = radius;
     o_plus = o + (pad + tol);
     o_minus = o - (pad + tol);
     t_lo = q.t_min - tol;
     t_hi = (sphere ? q.t_max + radius : q.t_max) + tol;  // sphere keys satisfy t_p <= key + r
+    // The rest of the set-up (prepare) waits for the root test: a ray that misses the root's box
+    // (~45% of bench_rays' camera rays) pays only this much (issue 12 re-measure, bench/README.md).
+    // A per-node radius sets the root's own pad first, which the root test needs.
+    if constexpr (per_node) prepare();
+  }
+  RayTraversal(const RayTraversal&) = delete;
+  RayTraversal& operator=(const RayTraversal&) = delete;
+
+  /// The set-up the traversal needs past the root test: clears the per-thread scratch and computes
+  /// the SIMD constants (point filter bounds, float slabs). Idempotent; called by ray_traverse once
+  /// the root passed, and for every ray of a packet before any of them traverses.
+  void prepare() {
+    if (prepared) return;
+    prepared = true;
     scratch.nodes.clear();
     scratch.cands.clear();
 
     // SIMD policies (simd.hpp). Point filter: bounds widened by far more than the difference
     // between the SIMD (possibly fused) and the scalar evaluation of t_p and d^2 (a few ulps of
     // |p - o| and |p - o|^2; |p - o| <= vmax for every point in the root box).
-    const double vmax = glm::length(o - root_box.center()) + 0.5 * glm::length(root_box.hi - root_box.lo);
+    const double vmax = dist_center + 0.5 * glm::length(root_box.hi - root_box.lo);
     slack_t = 1e-12 * vmax + 1e-300;
     slack_d2 = 1e-12 * vmax * vmax + 1e-300;
     pf = simd::PointFilterD{{o.x, o.y, o.z}, {d.x, d.y, d.z}, 0, 0, 0};
@@ -283,8 +300,6 @@ struct RayTraversal {
     update_simd();
     slab_is_final = !ray_order && !has_planes && !per_node;
   }
-  RayTraversal(const RayTraversal&) = delete;
-  RayTraversal& operator=(const RayTraversal&) = delete;
 
   /// Refreshes the per-ray SIMD constants after pad or t_hi changed (dynamic k filter).
   void update_simd() {
@@ -544,7 +559,12 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
                   const KeyPolicy& key_policy = {}) {
   RayTraversal<kBest1, I, KeyPolicy> rt(index, ray, q, best, stats, key_policy);
   double lb0 = 0;
-  if (rt.test_node(rt.root_box, lb0)) rt.traverse_from(index.root(), lb0);
+  if (!rt.test_node(rt.root_box, lb0)) {  // missed the root: no further set-up
+    if constexpr (!kBest1) rt.scratch.cands.clear();  // (ray_query reads them)
+    return false;
+  }
+  rt.prepare();
+  rt.traverse_from(index.root(), lb0);
   return rt.found;
 }
 
@@ -654,6 +674,7 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
   root.mask = 0;
   for (unsigned i = 0; i < n; ++i) {
     st[i].emplace(index, rays[i], q, best[i], stats, kKey);
+    st[i]->prepare();
     if (st[i]->test_node(st[i]->root_box, root.lb[i])) root.mask |= 1u << i;
   }
   stack.clear();
