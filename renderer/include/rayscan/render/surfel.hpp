@@ -11,6 +11,7 @@
 #include <glm/vec3.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <span>
 #include <vector>
 
@@ -179,7 +180,7 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
 [[nodiscard]] inline double blend_reach(const SurfelView& s) { return s.max_radius * 1.0307764064044151; }
 
 /// Shading normal at hit point x of disc `hit`: the normals of the discs among `candidates` (at
-/// least every disc centre within blend_reach of x) that cover x (in-plane distance < r, within r/4
+/// least every disc that covers x: covering_discs, or every centre within blend_reach of x) that cover x (in-plane distance < r, within r/4
 /// of their plane, normal within 45 degrees) blended with weights 1 - d^2/r^2, the normalised splat
 /// blending of EWA surface splatting (Zwicker et al. 2001, section 5) that hides the facets of flat
 /// discs on curved surfaces. Signs are aligned with the hit disc; returns the hit disc's normal
@@ -206,12 +207,59 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
   return own && len > 0.0 ? sum / len : n0;
 }
 
-/// blended_normal over the discs found by a radius query of blend_reach around x (the core's
-/// knn_query); `scratch` is caller-owned.
+/// The discs that can cover point x in the sense of blended_normal: every disc i whose centre c_i
+/// lies within sqrt(1 + 1/16) r_i of x (in-plane distance < r_i and plane offset <= r_i / 4 imply
+/// it), appended to `out` (cleared first; Neighbor::distance = |x - c_i|) sorted by (distance,
+/// index) as knn_query sorts, so blended_normal over them equals blended_normal over a radius query
+/// of blend_reach around x (the same covering discs in the same order). A descent of `index` that
+/// prunes each node by its own subtree's largest disc radius (s.node_radii, from surfel_node_radii
+/// over this index; s.max_radius without), the per-node radius bound of first_surfel_hit applied to
+/// a point: a ball of the global blend_reach holds ~16x the discs where most radii are near the
+/// median and the clamp is 4x it (bench/README.md, "Issue 16: surfel render speed").
+template <SpatialIndex I>
+void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vector<Neighbor>& out) {
+  using Node = typename I::Node;
+  out.clear();
+  if (index.empty()) return;
+  constexpr double kReach2 = 1.0625 * (1.0 + 1e-12);  // (1 + 1/16), widened past rounding
+  const auto reach2 = [&](Node n) {
+    const double r = s.node_radii.empty() ? s.max_radius : double(s.node_radii[n]);
+    return kReach2 * r * r;
+  };
+  const auto pos = index.positions();
+  const auto ids = index.ids();
+  thread_local std::vector<Node> stack;
+  stack.clear();
+  if (distance2_point_box(x, index.node_bounds(index.root())) <= reach2(index.root())) stack.push_back(index.root());
+  while (!stack.empty()) {
+    const Node n = stack.back();
+    stack.pop_back();
+    const double node_reach2 = reach2(n);
+    const SlotRange sr = index.node_points(n);
+    for (std::uint32_t k = sr.begin; k < sr.end; ++k) {
+      const Vec3 v = pos[k] - x;
+      const double d2 = glm::dot(v, v);
+      if (d2 > node_reach2) continue;
+      const PointIndex id = ids[k];
+      const double r = s.radii[id];
+      if (d2 <= kReach2 * r * r) out.push_back({id, d2});  // squared until sorted
+    }
+    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) {
+      const Node c = index.child(n, i);
+      if (distance2_point_box(x, index.node_bounds(c)) <= reach2(c)) stack.push_back(c);
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const Neighbor& a, const Neighbor& b) {
+    return a.distance < b.distance || (a.distance == b.distance && a.index < b.index);
+  });
+  for (Neighbor& nb : out) nb.distance = std::sqrt(nb.distance);
+}
+
+/// blended_normal over covering_discs(x); `scratch` is caller-owned.
 template <SpatialIndex I>
 [[nodiscard]] Vec3 surfel_shading_normal(const I& index, const SurfelView& s, PointIndex hit,
                                          const Vec3& x, std::vector<Neighbor>& scratch) {
-  knn_query(index, x, kAllPoints, blend_reach(s), scratch);
+  covering_discs(index, s, x, scratch);
   return blended_normal(s, scratch, hit, x);
 }
 
