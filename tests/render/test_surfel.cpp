@@ -189,3 +189,64 @@ TEST(CoveringDiscs, HoldEveryCoveringDiscAndGiveTheBlendedNormalOfTheFullRadiusQ
     EXPECT_GT(covered, 1000u) << type;  // the sample exercises overlapping discs
   }
 }
+
+TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
+  // The node test on the bounding boxes of each subtree's discs (surfel_node_boxes): the same
+  // first hit as a brute-force loop over every disc, and every hit point lies in its disc's box.
+  Discs d = random_discs(3000, 13);
+  // Flat, thin-boxed discs too (normal along an axis): the case the boxes are for.
+  for (std::size_t i = 0; i < d.c.size(); i += 3) d.n[i] = glm::vec3(0.0f, 0.0f, i % 2 ? 1.0f : -1.0f);
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (const char* type : {"octree-adaptive", "kdtree", "brute"}) {
+    const AnyIndex idx = make_index(d.c, IndexOptions{type});
+    const std::vector<float> node_r = std::visit([&](const auto& ix) { return surfel_node_radii(ix, d.r); }, idx);
+    SurfelView v = d.view();
+    v.node_radii = node_r;
+    const std::vector<AABB> boxes = std::visit([&](const auto& ix) { return surfel_node_boxes(ix, v); }, idx);
+    v.node_boxes = boxes;
+    int hits = 0;
+    for (int k = 0; k < 400; ++k) {
+      const Vec3 o(u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2);
+      const Ray ray(o, Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5));
+      double bt = kInf;
+      PointIndex bi = 0;
+      for (std::size_t i = 0; i < d.c.size(); ++i) {
+        const double t = ray_disc_t(ray.origin(), ray.direction(), d.c[i], Vec3(d.n[i]), d.r[i], 0.0, kInf);
+        if (t < bt) { bt = t; bi = PointIndex(i); }
+      }
+      std::vector<RayHit> scratch;
+      RayQueryStats st;
+      const SurfelHit h = std::visit(
+          [&](const auto& ix) { return first_surfel_hit(ix, v, ray, 0.0, kInf, nullptr, false, scratch, st); }, idx);
+      ASSERT_EQ(h.t, bt) << type << " ray " << k;
+      if (bt < kInf) {
+        EXPECT_EQ(h.index, bi);
+        const AABB db = disc_bounds(d.c[bi], Vec3(d.n[bi]), d.r[bi]);
+        const Vec3 p = ray.at(bt);
+        for (int a = 0; a < 3; ++a) {
+          EXPECT_GE(p[a], db.lo[a] - 1e-12);
+          EXPECT_LE(p[a], db.hi[a] + 1e-12);
+        }
+        const SurfelHit any = std::visit(
+            [&](const auto& ix) { return first_surfel_hit(ix, v, ray, 0.0, kInf, nullptr, true, scratch, st); }, idx);
+        EXPECT_LT(any.t, kInf);
+      }
+      hits += bt < kInf;
+    }
+    EXPECT_GT(hits, 100) << type;
+  }
+}
+
+TEST(DiscBounds, AxisAlignedDiscsAndATiltedOne) {
+  // Hand-computed: a disc of radius 2 with normal +z spans +-2 in x and y and nothing in z; with
+  // normal (1, 0, 1) / sqrt 2 (not normalised here) it spans +-sqrt 2 in x and z and +-2 in y.
+  const AABB a = disc_bounds(Vec3(1, 2, 3), Vec3(0, 0, 5), 2.0);
+  EXPECT_NEAR(a.lo.x, -1.0, 1e-8);
+  EXPECT_NEAR(a.hi.y, 4.0, 1e-8);
+  EXPECT_NEAR(a.hi.z - a.lo.z, 0.0, 1e-8);
+  const AABB b = disc_bounds(Vec3(0, 0, 0), Vec3(1, 0, 1), 2.0);
+  EXPECT_NEAR(b.hi.x, std::sqrt(2.0), 1e-8);
+  EXPECT_NEAR(b.hi.y, 2.0, 1e-8);
+  EXPECT_NEAR(b.lo.z, -std::sqrt(2.0), 1e-8);
+}

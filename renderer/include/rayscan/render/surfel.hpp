@@ -36,6 +36,10 @@ struct SurfelView {
   /// Optional, by original point index: the measured surface thickness at each disc (world units,
   /// SurfelAttributes::thickness), which widens the self-intersection slab (same_surface). Empty: 0.
   std::span<const float> thickness{};
+  /// Optional (with node_radii), by node of the same index (surfel_node_boxes over it): the
+  /// bounding box of the discs of each node's subtree, the node test of the ray query. Empty: each
+  /// node's box grown by its radius.
+  std::span<const AABB> node_boxes{};
   /// thickness[i], or 0 without thickness.
   [[nodiscard]] double thickness_at(PointIndex i) const { return thickness.empty() ? 0.0 : double(thickness[i]); }
 };
@@ -65,6 +69,54 @@ template <SpatialIndex I>
     for (std::uint32_t k = sr.begin; k < sr.end; ++k) m = std::max(m, radii[ids[k]]);
     for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) m = std::max(m, out[index.child(n, i)]);
     out[n] = m;
+  }
+  return out;
+}
+
+/// The axis-aligned bounding box of the disc (centre c, normal n, not necessarily unit, radius r):
+/// c +- r sqrt(1 - n_a^2 / |n|^2) on axis a (the disc's extent along a), widened by 1e-9 r for
+/// rounding. Every point ray_disc_t accepts as a hit lies in it (up to the ray query's tolerance).
+[[nodiscard]] inline AABB disc_bounds(const Vec3& c, const Vec3& n, double r) {
+  const double len2 = glm::dot(n, n);
+  Vec3 e;
+  for (int a = 0; a < 3; ++a) e[a] = r * (std::sqrt(std::max(0.0, 1.0 - n[a] * n[a] / len2)) + 1e-9);
+  return {c - e, c + e};
+}
+
+/// The bounding box of the discs of each node's subtree of `index` (disc_bounds of the centres
+/// `s.centers`, normals and radii, by original point index), indexed by node like
+/// surfel_node_radii (unvisited handles and nodes without discs hold an empty box). For flat
+/// surfaces it is much thinner across the surface than the node's box grown by its largest radius.
+template <SpatialIndex I>
+[[nodiscard]] std::vector<AABB> surfel_node_boxes(const I& index, const SurfelView& s) {
+  using Node = typename I::Node;
+  std::vector<AABB> out;
+  if (index.empty()) return out;
+  std::vector<Node> order, stack{index.root()};
+  while (!stack.empty()) {
+    const Node n = stack.back();
+    stack.pop_back();
+    order.push_back(n);
+    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) stack.push_back(index.child(n, i));
+  }
+  out.assign(static_cast<std::size_t>(*std::max_element(order.begin(), order.end())) + 1, AABB{});
+  const auto ids = index.ids();
+  for (auto it = order.rbegin(); it != order.rend(); ++it) {
+    const Node n = *it;
+    AABB b;
+    const SlotRange sr = index.node_points(n);
+    for (std::uint32_t k = sr.begin; k < sr.end; ++k) {
+      const PointIndex id = ids[k];
+      const AABB db = disc_bounds(s.centers[id], Vec3(s.normals[id]), s.radii[id]);
+      b.lo = glm::min(b.lo, db.lo);
+      b.hi = glm::max(b.hi, db.hi);
+    }
+    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) {
+      const AABB& cb = out[index.child(n, i)];
+      b.lo = glm::min(b.lo, cb.lo);
+      b.hi = glm::max(b.hi, cb.hi);
+    }
+    out[n] = b;
   }
   return out;
 }
@@ -134,7 +186,8 @@ struct SurfelHit {
 /// key the traversal prunes with), k = 1, and the exact ray-disc test in double as the query's
 /// refined key (RefinedKey): the traversal visits nodes nearest entry first and stops once no node
 /// can hold a disc hit before the best one. With s.node_radii, each node's box is grown by its own
-/// largest disc radius instead of R. `hits` is caller-owned scratch; `stats` accumulates the
+/// largest disc radius instead of R, and with s.node_boxes (and node_radii) each child is tested
+/// against the bounding box of its discs instead. `hits` is caller-owned scratch; `stats` accumulates the
 /// query counters.
 template <SpatialIndex I>
 SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, double t_min,
@@ -163,9 +216,15 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
   if (s.node_radii.empty()) {
     ray_query(index, ray, q, hits, &stats, RefinedKey<decltype(disc_t)>{disc_t, {}});
   } else {
-    // Per-node bounds: a disc hit lies within the disc's radius of its centre.
+    // Per-node bounds: a disc hit lies within the disc's radius of its centre, and in its box.
     const auto node_r = [&](typename I::Node n) { return double(s.node_radii[n]); };
-    ray_query(index, ray, q, hits, &stats, RefinedKey<decltype(disc_t), decltype(node_r)>{disc_t, node_r});
+    if (s.node_boxes.empty()) {
+      ray_query(index, ray, q, hits, &stats, RefinedKey<decltype(disc_t), decltype(node_r)>{disc_t, node_r});
+    } else {
+      const auto node_b = [&](typename I::Node n) { return s.node_boxes[n]; };
+      ray_query(index, ray, q, hits, &stats,
+                RefinedKey<decltype(disc_t), decltype(node_r), decltype(node_b)>{disc_t, node_r, node_b});
+    }
   }
   best.queries = 1;
   if (!hits.empty()) {
