@@ -78,8 +78,9 @@ template <SpatialIndex I>
 /// rounding. Every point ray_disc_t accepts as a hit lies in it (up to the ray query's tolerance).
 [[nodiscard]] inline AABB disc_bounds(const Vec3& c, const Vec3& n, double r) {
   const double len2 = glm::dot(n, n);
-  Vec3 e;
-  for (int a = 0; a < 3; ++a) e[a] = r * (std::sqrt(std::max(0.0, 1.0 - n[a] * n[a] / len2)) + 1e-9);
+  Vec3 e(r * (1.0 + 1e-9));  // a degenerate normal (never hit): the sphere's box
+  if (len2 > 0.0)
+    for (int a = 0; a < 3; ++a) e[a] = r * (std::sqrt(std::max(0.0, 1.0 - n[a] * n[a] / len2)) + 1e-9);
   return {c - e, c + e};
 }
 
