@@ -288,11 +288,13 @@ void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vec
   };
   const auto pos = index.positions();
   const auto ids = index.ids();
-  thread_local std::vector<Node> stack;
+  // The node stack: the ray query's per-thread scratch (free between queries; no new
+  // thread_local, whose static TLS the Python module cannot spare).
+  auto& stack = detail::ray_scratch<Node>().nodes;
   stack.clear();
-  if (distance2_point_box(x, index.node_bounds(index.root())) <= reach2(index.root())) stack.push_back(index.root());
+  if (distance2_point_box(x, index.node_bounds(index.root())) <= reach2(index.root())) stack.push_back({0.0, index.root()});
   while (!stack.empty()) {
-    const Node n = stack.back();
+    const Node n = stack.back().node;
     stack.pop_back();
     const double node_reach2 = reach2(n);
     const SlotRange sr = index.node_points(n);
@@ -306,7 +308,7 @@ void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vec
     }
     for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) {
       const Node c = index.child(n, i);
-      if (distance2_point_box(x, index.node_bounds(c)) <= reach2(c)) stack.push_back(c);
+      if (distance2_point_box(x, index.node_bounds(c)) <= reach2(c)) stack.push_back({0.0, c});
     }
   }
   std::sort(out.begin(), out.end(), [](const Neighbor& a, const Neighbor& b) {
