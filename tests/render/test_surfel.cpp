@@ -137,3 +137,116 @@ TEST(FirstSurfelHit, LeavingAFlatSurfaceIgnoresItsOwnDiscsOnly) {
   EXPECT_GE(h.index, PointIndex(d.c.size()));
   EXPECT_NEAR(h.t, 2.7 / std::cos(el), 1e-9);
 }
+
+TEST(CoveringDiscs, HoldEveryCoveringDiscAndGiveTheBlendedNormalOfTheFullRadiusQuery) {
+  // Oracle: a brute-force loop over every disc. Every disc that covers x (in-plane distance < r,
+  // plane offset <= r / 4) must be found, and the shading normal must equal, bit for bit,
+  // blended_normal over every disc centre within blend_reach of x sorted by (distance, index).
+  const Discs d = random_discs(3000, 7);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (const char* type : {"octree-adaptive", "kdtree", "brute"}) {
+    const AnyIndex idx = make_index(d.c, IndexOptions{type});
+    const std::vector<float> node_r = std::visit([&](const auto& ix) { return surfel_node_radii(ix, d.r); }, idx);
+    SurfelView view_node = d.view();
+    view_node.node_radii = node_r;
+    std::size_t covered = 0;
+    for (int k = 0; k < 600; ++k) {
+      // Points on discs (where shading happens: a hit point in the disc, slightly off its plane)
+      // and a few anywhere.
+      const PointIndex hit = PointIndex(rng() % d.c.size());
+      const Vec3 n(d.n[hit]);
+      const Vec3 a = glm::normalize(glm::cross(n, std::abs(n.x) < 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0)));
+      const Vec3 b = glm::cross(n, a);
+      const double rr = d.r[hit] * std::sqrt(u(rng)), ph = 2.0 * std::numbers::pi * u(rng);
+      const Vec3 x = k % 10 == 0 ? Vec3(u(rng), u(rng), u(rng))
+                                 : d.c[hit] + rr * (std::cos(ph) * a + std::sin(ph) * b) + 0.01 * d.r[hit] * n;
+      std::vector<Neighbor> ball;
+      for (std::size_t i = 0; i < d.c.size(); ++i) {
+        const double dist = glm::length(d.c[i] - x);
+        if (dist <= blend_reach(d.view())) ball.push_back({PointIndex(i), dist});
+      }
+      std::sort(ball.begin(), ball.end(), [](const Neighbor& p, const Neighbor& q) {
+        return p.distance < q.distance || (p.distance == q.distance && p.index < q.index);
+      });
+      const Vec3 want = blended_normal(d.view(), ball, hit, x);
+      for (const SurfelView& v : {d.view(), view_node}) {
+        std::vector<Neighbor> got;
+        std::visit([&](const auto& ix) { covering_discs(ix, v, x, got); }, idx);
+        for (std::size_t i = 0; i < d.c.size(); ++i) {
+          const Vec3 w = x - d.c[i];
+          const double off = glm::dot(w, Vec3(d.n[i]));
+          const double r = d.r[i];
+          if (std::abs(off) > 0.25 * r || glm::dot(w, w) - off * off >= r * r) continue;
+          covered += 1;
+          EXPECT_TRUE(std::any_of(got.begin(), got.end(), [&](const Neighbor& g) { return g.index == i; }))
+              << type << " point " << k << " disc " << i;
+        }
+        const Vec3 n_got = std::visit([&](const auto& ix) { return surfel_shading_normal(ix, v, hit, x, got); }, idx);
+        EXPECT_EQ(n_got, want) << type << " point " << k << " per-node radii " << !v.node_radii.empty();
+      }
+    }
+    EXPECT_GT(covered, 1000u) << type;  // the sample exercises overlapping discs
+  }
+}
+
+TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
+  // The node test on the bounding boxes of each subtree's discs (surfel_node_boxes): the same
+  // first hit as a brute-force loop over every disc, and every hit point lies in its disc's box.
+  Discs d = random_discs(3000, 13);
+  // Flat, thin-boxed discs too (normal along an axis): the case the boxes are for.
+  for (std::size_t i = 0; i < d.c.size(); i += 3) d.n[i] = glm::vec3(0.0f, 0.0f, i % 2 ? 1.0f : -1.0f);
+  std::mt19937_64 rng(17);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (const char* type : {"octree-adaptive", "kdtree", "brute"}) {
+    const AnyIndex idx = make_index(d.c, IndexOptions{type});
+    const std::vector<float> node_r = std::visit([&](const auto& ix) { return surfel_node_radii(ix, d.r); }, idx);
+    SurfelView v = d.view();
+    v.node_radii = node_r;
+    const std::vector<AABB> boxes = std::visit([&](const auto& ix) { return surfel_node_boxes(ix, v); }, idx);
+    v.node_boxes = boxes;
+    int hits = 0;
+    for (int k = 0; k < 400; ++k) {
+      const Vec3 o(u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2);
+      const Ray ray(o, Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5));
+      double bt = kInf;
+      PointIndex bi = 0;
+      for (std::size_t i = 0; i < d.c.size(); ++i) {
+        const double t = ray_disc_t(ray.origin(), ray.direction(), d.c[i], Vec3(d.n[i]), d.r[i], 0.0, kInf);
+        if (t < bt) { bt = t; bi = PointIndex(i); }
+      }
+      std::vector<RayHit> scratch;
+      RayQueryStats st;
+      const SurfelHit h = std::visit(
+          [&](const auto& ix) { return first_surfel_hit(ix, v, ray, 0.0, kInf, nullptr, false, scratch, st); }, idx);
+      ASSERT_EQ(h.t, bt) << type << " ray " << k;
+      if (bt < kInf) {
+        EXPECT_EQ(h.index, bi);
+        const AABB db = disc_bounds(d.c[bi], Vec3(d.n[bi]), d.r[bi]);
+        const Vec3 p = ray.at(bt);
+        for (int a = 0; a < 3; ++a) {
+          EXPECT_GE(p[a], db.lo[a] - 1e-12);
+          EXPECT_LE(p[a], db.hi[a] + 1e-12);
+        }
+        const SurfelHit any = std::visit(
+            [&](const auto& ix) { return first_surfel_hit(ix, v, ray, 0.0, kInf, nullptr, true, scratch, st); }, idx);
+        EXPECT_LT(any.t, kInf);
+      }
+      hits += bt < kInf;
+    }
+    EXPECT_GT(hits, 100) << type;
+  }
+}
+
+TEST(DiscBounds, AxisAlignedDiscsAndATiltedOne) {
+  // Hand-computed: a disc of radius 2 with normal +z spans +-2 in x and y and nothing in z; with
+  // normal (1, 0, 1) / sqrt 2 (not normalised here) it spans +-sqrt 2 in x and z and +-2 in y.
+  const AABB a = disc_bounds(Vec3(1, 2, 3), Vec3(0, 0, 5), 2.0);
+  EXPECT_NEAR(a.lo.x, -1.0, 1e-8);
+  EXPECT_NEAR(a.hi.y, 4.0, 1e-8);
+  EXPECT_NEAR(a.hi.z - a.lo.z, 0.0, 1e-8);
+  const AABB b = disc_bounds(Vec3(0, 0, 0), Vec3(1, 0, 1), 2.0);
+  EXPECT_NEAR(b.hi.x, std::sqrt(2.0), 1e-8);
+  EXPECT_NEAR(b.hi.y, 2.0, 1e-8);
+  EXPECT_NEAR(b.lo.z, -std::sqrt(2.0), 1e-8);
+}

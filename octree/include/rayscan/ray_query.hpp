@@ -163,10 +163,13 @@ RayScratch<Node>& ray_scratch() {
 struct OrderKey {
   static constexpr bool refines = false;
   static constexpr bool node_radius = false;
+  static constexpr bool node_box = false;
 };
 
 /// "No per-node radius" (the query radius bounds every node): see RefinedKey.
 struct NoNodeRadius {};
+/// "No per-node geometry box" (each node's box grown by its radius): see RefinedKey.
+struct NoNodeBox {};
 
 /// A point-key policy refines the key of each candidate that passed the query's predicates:
 /// `key(id, t_p, d2, base)` receives the point's original index, its projection terms and its
@@ -182,12 +185,22 @@ struct NoNodeRadius {};
 /// grows each node's box by its own bound instead of the query radius (a tube as thin as the local
 /// geometry; cf. the per-node radius bounds of a BVH over spheres of varying radii), which keeps
 /// every node lower bound a lower bound of the refined keys inside it, so the answer is unchanged.
-template <class F, class G = NoNodeRadius>
+///
+/// Optionally too (with node_radius), `node_box(n)` (AABB, world coordinates) holds the ray point
+/// at the finite refined key of every point of n's subtree, whatever the ray: the bounding box of
+/// the geometry itself (e.g. of oriented discs, thin across a flat surface where the radius pad is
+/// not). The exact node test of a child is then the slab test of that box, without pad, whose entry
+/// is the child's lower bound (still a lower bound of the refined keys); the radius bounds the SIMD
+/// prefilter of the children and the points (cf. a BVH over the primitives' own bounds).
+template <class F, class G = NoNodeRadius, class B = NoNodeBox>
 struct RefinedKey {
   static constexpr bool refines = true;
   static constexpr bool node_radius = !std::is_same_v<G, NoNodeRadius>;
+  static constexpr bool node_box = !std::is_same_v<B, NoNodeBox>;
+  static_assert(node_radius || !node_box, "RefinedKey: a per-node box needs the per-node radius");
   F key;              ///< double(PointIndex id, double t_p, double d2, double base)
   G node_radius_of{};  ///< double(Node n): the bound above (NoNodeRadius: none)
+  B node_box_of{};     ///< AABB(Node n): the box above (NoNodeBox: none)
 };
 
 namespace detail {
@@ -209,6 +222,7 @@ template <bool kBest1, SpatialIndex I, class KeyPolicy = OrderKey>
 struct RayTraversal {
   using Node = typename I::Node;
   static constexpr bool per_node = KeyPolicy::node_radius;
+  static constexpr bool per_box = KeyPolicy::node_box;
 
   const I& index;
   const RayQuery& q;
@@ -371,6 +385,24 @@ struct RayTraversal {
     return live(lb);
   }
 
+  /// Node test of child c: test_node of its box (grown by its own radius with per-node radii), or,
+  /// with per-node geometry boxes, the slab test of c's box without pad.
+  __attribute__((always_inline)) bool test_child(Node c, double& lb) {
+    if constexpr (per_node) set_node_pad(c);
+    if constexpr (per_box) {
+      const AABB b = key_policy.node_box_of(c);
+      const Interval iv = slab_interval_grown(o + tol, o - tol, inv_d, b, t_lo, t_hi);
+      if (iv.empty()) return false;
+      if (has_planes)
+        for (const Plane& pl : q.planes)
+          if (dist_plane_bounds(pl.point, pl.normal, b).lo > tol) return false;
+      lb = std::max(iv.lo, q.t_min);
+      return live(lb);
+    } else {
+      return test_node(index.node_bounds(c), lb);
+    }
+  }
+
   /// Node test of the nc <= 8 children of n at once: bit i of the result is set when child i
   /// passes, and lb[i] then holds its lower bound. SIMD policy on FloatChildBoxes indexes (all
   /// children on their float boxes; the result is final for orders time / sphere_hit without
@@ -387,21 +419,16 @@ struct RayTraversal {
           if (slab_is_final) {
             lb[i] = std::max(static_cast<double>(entry[i]), q.t_min);
             if (!live(lb[i])) continue;
-          } else {
-            const Node c = index.child(n, i);
-            if constexpr (per_node) set_node_pad(c);
-            if (!test_node(index.node_bounds(c), lb[i])) continue;
+          } else if (!test_child(index.child(n, i), lb[i])) {
+            continue;
           }
           out |= 1u << i;
         }
         return out;
       }
     }
-    for (unsigned i = 0; i < nc; ++i) {
-      const Node c = index.child(n, i);
-      if constexpr (per_node) set_node_pad(c);
-      if (test_node(index.node_bounds(c), lb[i])) out |= 1u << i;
-    }
+    for (unsigned i = 0; i < nc; ++i)
+      if (test_child(index.child(n, i), lb[i])) out |= 1u << i;
     return out;
   }
 
@@ -521,8 +548,7 @@ struct RayTraversal {
         for (unsigned i = 0; i < nc; ++i) {
           const Node c = index.child(e.node, i);
           double lb;
-          if constexpr (per_node) set_node_pad(c);
-          if (test_node(index.node_bounds(c), lb)) nodes.push_back({lb, c});
+          if (test_child(c, lb)) nodes.push_back({lb, c});
         }
         continue;
       }

@@ -74,6 +74,10 @@ class PathTracer {
       node_radii_ = surfel_node_radii(index, in_.surfels.radii);
       in_.surfels.node_radii = node_radii_;
     }
+    if (in_.primitive == Primitive::surfel && in_.surfels.node_boxes.empty()) {
+      node_boxes_ = surfel_node_boxes(index, in_.surfels);
+      in_.surfels.node_boxes = node_boxes_;
+    }
     query_.k = 1;
     query_.radius = in.radius;
     query_.t_min = 0.0;
@@ -84,7 +88,7 @@ class PathTracer {
     shadow_query_.any_hit = true;  // a shadow ray only asks whether anything blocks the sun
   }
 
-  PathTracer(const PathTracer&) = delete;  // in_.surfels.node_radii views node_radii_
+  PathTracer(const PathTracer&) = delete;  // in_.surfels.node_radii / node_boxes view node_radii_ / node_boxes_
   PathTracer& operator=(const PathTracer&) = delete;
 
   /// True when any sphere blocks `ray` at t >= 0 (shadow rays; the core's any_hit mode).
@@ -360,6 +364,7 @@ class PathTracer {
   const I& index_;
   IntegratorInputs in_;
   std::vector<float> node_radii_;  ///< surfel_node_radii over index_ (surfel mode)
+  std::vector<AABB> node_boxes_;   ///< surfel_node_boxes over index_ (surfel mode)
   const Sky& sky_;
   bool time_;
   RayQuery query_;

@@ -11,6 +11,7 @@
 #include <glm/vec3.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <span>
 #include <vector>
 
@@ -35,6 +36,10 @@ struct SurfelView {
   /// Optional, by original point index: the measured surface thickness at each disc (world units,
   /// SurfelAttributes::thickness), which widens the self-intersection slab (same_surface). Empty: 0.
   std::span<const float> thickness{};
+  /// Optional (with node_radii), by node of the same index (surfel_node_boxes over it): the
+  /// bounding box of the discs of each node's subtree, the node test of the ray query. Empty: each
+  /// node's box grown by its radius.
+  std::span<const AABB> node_boxes{};
   /// thickness[i], or 0 without thickness.
   [[nodiscard]] double thickness_at(PointIndex i) const { return thickness.empty() ? 0.0 : double(thickness[i]); }
 };
@@ -64,6 +69,55 @@ template <SpatialIndex I>
     for (std::uint32_t k = sr.begin; k < sr.end; ++k) m = std::max(m, radii[ids[k]]);
     for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) m = std::max(m, out[index.child(n, i)]);
     out[n] = m;
+  }
+  return out;
+}
+
+/// The axis-aligned bounding box of the disc (centre c, normal n, not necessarily unit, radius r):
+/// c +- r sqrt(1 - n_a^2 / |n|^2) on axis a (the disc's extent along a), widened by 1e-9 r for
+/// rounding. Every point ray_disc_t accepts as a hit lies in it (up to the ray query's tolerance).
+[[nodiscard]] inline AABB disc_bounds(const Vec3& c, const Vec3& n, double r) {
+  const double len2 = glm::dot(n, n);
+  Vec3 e(r * (1.0 + 1e-9));  // a degenerate normal (never hit): the sphere's box
+  if (len2 > 0.0)
+    for (int a = 0; a < 3; ++a) e[a] = r * (std::sqrt(std::max(0.0, 1.0 - n[a] * n[a] / len2)) + 1e-9);
+  return {c - e, c + e};
+}
+
+/// The bounding box of the discs of each node's subtree of `index` (disc_bounds of the centres
+/// `s.centers`, normals and radii, by original point index), indexed by node like
+/// surfel_node_radii (unvisited handles and nodes without discs hold an empty box). For flat
+/// surfaces it is much thinner across the surface than the node's box grown by its largest radius.
+template <SpatialIndex I>
+[[nodiscard]] std::vector<AABB> surfel_node_boxes(const I& index, const SurfelView& s) {
+  using Node = typename I::Node;
+  std::vector<AABB> out;
+  if (index.empty()) return out;
+  std::vector<Node> order, stack{index.root()};
+  while (!stack.empty()) {
+    const Node n = stack.back();
+    stack.pop_back();
+    order.push_back(n);
+    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) stack.push_back(index.child(n, i));
+  }
+  out.assign(static_cast<std::size_t>(*std::max_element(order.begin(), order.end())) + 1, AABB{});
+  const auto ids = index.ids();
+  for (auto it = order.rbegin(); it != order.rend(); ++it) {
+    const Node n = *it;
+    AABB b;
+    const SlotRange sr = index.node_points(n);
+    for (std::uint32_t k = sr.begin; k < sr.end; ++k) {
+      const PointIndex id = ids[k];
+      const AABB db = disc_bounds(s.centers[id], Vec3(s.normals[id]), s.radii[id]);
+      b.lo = glm::min(b.lo, db.lo);
+      b.hi = glm::max(b.hi, db.hi);
+    }
+    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) {
+      const AABB& cb = out[index.child(n, i)];
+      b.lo = glm::min(b.lo, cb.lo);
+      b.hi = glm::max(b.hi, cb.hi);
+    }
+    out[n] = b;
   }
   return out;
 }
@@ -133,7 +187,8 @@ struct SurfelHit {
 /// key the traversal prunes with), k = 1, and the exact ray-disc test in double as the query's
 /// refined key (RefinedKey): the traversal visits nodes nearest entry first and stops once no node
 /// can hold a disc hit before the best one. With s.node_radii, each node's box is grown by its own
-/// largest disc radius instead of R. `hits` is caller-owned scratch; `stats` accumulates the
+/// largest disc radius instead of R, and with s.node_boxes (and node_radii) each child is tested
+/// against the bounding box of its discs instead. `hits` is caller-owned scratch; `stats` accumulates the
 /// query counters.
 template <SpatialIndex I>
 SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, double t_min,
@@ -162,9 +217,15 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
   if (s.node_radii.empty()) {
     ray_query(index, ray, q, hits, &stats, RefinedKey<decltype(disc_t)>{disc_t, {}});
   } else {
-    // Per-node bounds: a disc hit lies within the disc's radius of its centre.
+    // Per-node bounds: a disc hit lies within the disc's radius of its centre, and in its box.
     const auto node_r = [&](typename I::Node n) { return double(s.node_radii[n]); };
-    ray_query(index, ray, q, hits, &stats, RefinedKey<decltype(disc_t), decltype(node_r)>{disc_t, node_r});
+    if (s.node_boxes.empty()) {
+      ray_query(index, ray, q, hits, &stats, RefinedKey<decltype(disc_t), decltype(node_r)>{disc_t, node_r});
+    } else {
+      const auto node_b = [&](typename I::Node n) { return s.node_boxes[n]; };
+      ray_query(index, ray, q, hits, &stats,
+                RefinedKey<decltype(disc_t), decltype(node_r), decltype(node_b)>{disc_t, node_r, node_b});
+    }
   }
   best.queries = 1;
   if (!hits.empty()) {
@@ -179,7 +240,7 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
 [[nodiscard]] inline double blend_reach(const SurfelView& s) { return s.max_radius * 1.0307764064044151; }
 
 /// Shading normal at hit point x of disc `hit`: the normals of the discs among `candidates` (at
-/// least every disc centre within blend_reach of x) that cover x (in-plane distance < r, within r/4
+/// least every disc that covers x: covering_discs, or every centre within blend_reach of x) that cover x (in-plane distance < r, within r/4
 /// of their plane, normal within 45 degrees) blended with weights 1 - d^2/r^2, the normalised splat
 /// blending of EWA surface splatting (Zwicker et al. 2001, section 5) that hides the facets of flat
 /// discs on curved surfaces. Signs are aligned with the hit disc; returns the hit disc's normal
@@ -206,12 +267,61 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
   return own && len > 0.0 ? sum / len : n0;
 }
 
-/// blended_normal over the discs found by a radius query of blend_reach around x (the core's
-/// knn_query); `scratch` is caller-owned.
+/// The discs that can cover point x in the sense of blended_normal: every disc i whose centre c_i
+/// lies within sqrt(1 + 1/16) r_i of x (in-plane distance < r_i and plane offset <= r_i / 4 imply
+/// it), appended to `out` (cleared first; Neighbor::distance = |x - c_i|) sorted by (distance,
+/// index) as knn_query sorts, so blended_normal over them equals blended_normal over a radius query
+/// of blend_reach around x (the same covering discs in the same order). A descent of `index` that
+/// prunes each node by its own subtree's largest disc radius (s.node_radii, from surfel_node_radii
+/// over this index; s.max_radius without), the per-node radius bound of first_surfel_hit applied to
+/// a point: a ball of the global blend_reach holds ~16x the discs where most radii are near the
+/// median and the clamp is 4x it (bench/README.md, "Issue 16: surfel render speed").
+template <SpatialIndex I>
+void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vector<Neighbor>& out) {
+  using Node = typename I::Node;
+  out.clear();
+  if (index.empty()) return;
+  constexpr double kReach2 = 1.0625 * (1.0 + 1e-12);  // (1 + 1/16), widened past rounding
+  const auto reach2 = [&](Node n) {
+    const double r = s.node_radii.empty() ? s.max_radius : double(s.node_radii[n]);
+    return kReach2 * r * r;
+  };
+  const auto pos = index.positions();
+  const auto ids = index.ids();
+  // The node stack: the ray query's per-thread scratch (free between queries; no new
+  // thread_local, whose static TLS the Python module cannot spare).
+  auto& stack = detail::ray_scratch<Node>().nodes;
+  stack.clear();
+  if (distance2_point_box(x, index.node_bounds(index.root())) <= reach2(index.root())) stack.push_back({0.0, index.root()});
+  while (!stack.empty()) {
+    const Node n = stack.back().node;
+    stack.pop_back();
+    const double node_reach2 = reach2(n);
+    const SlotRange sr = index.node_points(n);
+    for (std::uint32_t k = sr.begin; k < sr.end; ++k) {
+      const Vec3 v = pos[k] - x;
+      const double d2 = glm::dot(v, v);
+      if (d2 > node_reach2) continue;
+      const PointIndex id = ids[k];
+      const double r = s.radii[id];
+      if (d2 <= kReach2 * r * r) out.push_back({id, d2});  // squared until sorted
+    }
+    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) {
+      const Node c = index.child(n, i);
+      if (distance2_point_box(x, index.node_bounds(c)) <= reach2(c)) stack.push_back({0.0, c});
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const Neighbor& a, const Neighbor& b) {
+    return a.distance < b.distance || (a.distance == b.distance && a.index < b.index);
+  });
+  for (Neighbor& nb : out) nb.distance = std::sqrt(nb.distance);
+}
+
+/// blended_normal over covering_discs(x); `scratch` is caller-owned.
 template <SpatialIndex I>
 [[nodiscard]] Vec3 surfel_shading_normal(const I& index, const SurfelView& s, PointIndex hit,
                                          const Vec3& x, std::vector<Neighbor>& scratch) {
-  knn_query(index, x, kAllPoints, blend_reach(s), scratch);
+  covering_discs(index, s, x, scratch);
   return blended_normal(s, scratch, hit, x);
 }
 
