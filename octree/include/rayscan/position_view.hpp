@@ -78,7 +78,7 @@ class PositionView {
     }
     float f[3];
     std::memcpy(f, static_cast<const std::uint8_t*>(raw_) + 12 * s, 12);
-    return {f[0], f[1], f[2]};
+    return {static_cast<double>(f[0]), static_cast<double>(f[1]), static_cast<double>(f[2])};
   }
   /// Decodes slots [b, b + n) into out[0, n).
   void decode(std::size_t b, std::size_t n, Vec3* out) const {
@@ -86,7 +86,21 @@ class PositionView {
       std::memcpy(static_cast<void*>(out), f64_ + b, n * sizeof(Vec3));
       return;
     }
-    for (std::size_t i = 0; i < n; ++i) out[i] = (*this)[b + i];
+    const auto* src = static_cast<const std::uint8_t*>(raw_) + 12 * b;
+    if (enc_ == PositionEncoding::las_int32) {  // one branch per block, a tight loop per point
+      for (std::size_t i = 0; i < n; ++i) {
+        std::int32_t v[3];
+        std::memcpy(v, src + 12 * i, 12);
+        out[i] = Vec3(las_coordinate(v[0], scale_.x, offset_.x), las_coordinate(v[1], scale_.y, offset_.y),
+                      las_coordinate(v[2], scale_.z, offset_.z));
+      }
+      return;
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      float f[3];
+      std::memcpy(f, src + 12 * i, 12);
+      out[i] = Vec3(static_cast<double>(f[0]), static_cast<double>(f[1]), static_cast<double>(f[2]));
+    }
   }
 
   /// Random-access iterator yielding Vec3 by value (for std algorithms and vector::assign).

@@ -246,7 +246,10 @@ struct PositionCodec {
       for (int a = 0; a < 3; ++a) {
         std::int32_t k;
         if (grid_ok && !grid_value(p[i][a], a, k)) grid_ok = false;
-        if (f32_ok && !same_bits(static_cast<double>(static_cast<float>(p[i][a])), p[i][a])) f32_ok = false;
+        const double v = p[i][a];  // (a double beyond the float range is not converted: UB)
+        if (f32_ok && !(std::abs(v) <= static_cast<double>(std::numeric_limits<float>::max()) &&
+                        same_bits(static_cast<double>(static_cast<float>(v)), v)))
+          f32_ok = false;
       }
   }
   /// Chooses the most compact exact encoding once every point was checked (float64 unless `compact`).
