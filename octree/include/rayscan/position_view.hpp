@@ -159,7 +159,9 @@ concept PositionRange = requires(const P& p, std::size_t s) {
 inline const double* position_block(std::span<const Vec3> p, std::uint32_t b, std::uint32_t /*n*/) { return &p[b].x; }
 inline const double* position_block(const PositionView& p, std::uint32_t b, std::uint32_t n) {
   if (p.data() != nullptr) return &p.data()[b].x;
-  thread_local std::vector<Vec3> buf;
+  // global-dynamic even where -ftls-model=initial-exec is set (the python module): the static TLS
+  // surplus of a dlopen()ed module is already used by the queries' scratch.
+  __attribute__((tls_model("global-dynamic"))) thread_local std::vector<Vec3> buf;
   if (buf.size() < n || buf.empty()) buf.resize(n > 0 ? n : 1);
   p.decode(b, n, buf.data());
   return &buf[0].x;
