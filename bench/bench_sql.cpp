@@ -75,7 +75,7 @@ int main(int argc, char** argv) {
   PointCloud cloud;
   std::optional<Octree> mem;
   std::optional<io::MappedIndex> mapped;
-  std::span<const Vec3> positions;
+  PositionView positions;
   AABB b;
   std::string label;
   if (index_path.empty()) {

@@ -18,7 +18,7 @@ Runner add_index_command(CLI::App& app) {
                                           "out of core (external sort by Morton code), for mmap'd queries and renders");
   struct Opts {
     std::vector<std::string> inputs;
-    std::string output, attributes = "none", memory = "4G", layout = "adaptive", temp_dir;
+    std::string output, attributes = "none", memory = "4G", layout = "adaptive", temp_dir, positions = "compact";
     std::uint32_t capacity = 32;
     unsigned depth = 6, max_depth = 21;
     bool quiet = false;
@@ -34,6 +34,11 @@ Runner add_index_command(CLI::App& app) {
   sub->add_option("--capacity", o->capacity, "adaptive: points per leaf before a split")->capture_default_str();
   sub->add_option("--depth", o->depth, "fixed: leaf depth")->capture_default_str();
   sub->add_option("--max-depth", o->max_depth, "adaptive: deepest level (<= 21)")->capture_default_str();
+  sub->add_option("--positions", o->positions,
+                  "compact: the LAS int32 grid (LAS/LAZ inputs on one scale/offset) or float32 when exact, "
+                  "else float64 | float64: always 24 bytes per point (docs/index-format.md)")
+      ->check(CLI::IsMember({"compact", "float64"}))
+      ->capture_default_str();
   sub->add_option("--temp-dir", o->temp_dir, "folder for the sort runs (default: the output's folder)");
   sub->add_flag("-q,--quiet", o->quiet, "no progress on stderr");
   return [o]() -> int {
@@ -48,6 +53,7 @@ Runner add_index_command(CLI::App& app) {
       io::AttributeSet a = io::AttributeSet::parse(o->attributes);
       if (o->attributes == "all") a = io::AttributeSet::parse("rgb,intensity,classification,gps_time");
       opt.attributes = a;
+      opt.compact_positions = o->positions == "compact";
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }
@@ -72,10 +78,10 @@ Runner add_index_command(CLI::App& app) {
     const double s = secs();
     if (!o->quiet) std::fprintf(stderr, "\n");
     for (const std::string& n : st.notes) std::cerr << "note: " << n << "\n";
-    std::printf("%s: %llu points, %llu nodes, depth %u, %llu sort runs, %s; %.2f bytes/point; %.2f s (%.2f M points/s)\n",
+    std::printf("%s: %llu points, %llu nodes, depth %u, %llu sort runs, %s, positions %s; %.2f bytes/point; %.2f s (%.2f M points/s)\n",
                 o->output.c_str(), static_cast<unsigned long long>(st.points),
                 static_cast<unsigned long long>(st.nodes), st.depth, static_cast<unsigned long long>(st.runs),
-                st.attributes.bits ? st.attributes.to_string().c_str() : "positions only",
+                st.attributes.bits ? st.attributes.to_string().c_str() : "positions only", to_string(st.positions),
                 st.points ? static_cast<double>(st.file_bytes) / static_cast<double>(st.points) : 0.0, s,
                 s > 0 ? static_cast<double>(st.points) / s / 1e6 : 0.0);
     return 0;

@@ -58,7 +58,7 @@ bool height_field_blocked(const I& idx, const SurfelAttributes& sa, const Vec3& 
   const double h2 = v.x * v.x + v.y * v.y;
   if (!(h2 > 1e-24)) return false;  // the target lies straight below or above the eye
   const double R = sa.max_radius;
-  const std::span<const Vec3> pos = idx.positions();
+  const auto pos = idx.positions();
   const std::span<const PointIndex> ids = idx.ids();
   thread_local std::vector<typename I::Node> stack;
   stack.clear();
@@ -249,7 +249,7 @@ VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec
     arena.execute([&] {
       visit_index(
           [&](const auto& idx) {
-            const std::span<const Vec3> pos = idx.positions();
+            const auto pos = idx.positions();
             const std::span<const PointIndex> ids = idx.ids();
             tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
               Local& L = locals.local();
@@ -349,7 +349,7 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
     arena.execute([&] {
       visit_index(
           [&](const auto& idx) {
-            const std::span<const Vec3> pos = idx.positions();
+            const auto pos = idx.positions();
             const std::span<const PointIndex> ids = idx.ids();
             tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
               std::vector<RayHit> hits;

@@ -55,15 +55,37 @@ struct Site {
   std::vector<Vec3> all;
 };
 
-Site build_site(const std::string& name, OctreeConfig cfg, std::uint64_t memory) {
+/// Three tiles of make_points whose positions the index stores as `enc` (docs/index-format.md
+/// "Positions"): float64 (.f64 tiles of doubles), float32 (.f64 tiles of float-exact doubles),
+/// las_int32 (LAS tiles on one 1 mm grid; `all` is then what the LAS reader returns for them).
+Site build_site(const std::string& name, OctreeConfig cfg, std::uint64_t memory,
+                PositionEncoding enc = PositionEncoding::float64) {
   Site s;
   s.dir = temp_dir() / name;
   fs::create_directories(s.dir);
   std::vector<fs::path> tiles;
   for (unsigned t = 0; t < 3; ++t) {
-    const auto pts = make_points(9000 + 1000 * t, 7 + t);
-    tiles.push_back(s.dir / ("tile" + std::to_string(t) + ".f64"));
-    write_f64(tiles.back(), pts);
+    auto pts = make_points(9000 + 1000 * t, 7 + t);
+    if (enc == PositionEncoding::las_int32) {
+      PointCloud c;
+      c.positions = pts;
+      io::LasWriteOptions lo;
+      lo.scale = Vec3(0.001);
+      lo.offset = Vec3(4.0e5, 5.2e6, 0.0);
+      lo.has_offset = true;
+      tiles.push_back(s.dir / ("tile" + std::to_string(t) + ".las"));
+      io::write_las(tiles.back(), c, lo);
+      pts = io::read_point_cloud(tiles.back()).positions;
+    } else {
+      if (enc == PositionEncoding::float32)
+        for (Vec3& p : pts)
+          for (int a = 0; a < 3; ++a) {
+            const float f = static_cast<float>(p[a]);
+            p[a] = static_cast<double>(f);
+          }
+      tiles.push_back(s.dir / ("tile" + std::to_string(t) + ".f64"));
+      write_f64(tiles.back(), pts);
+    }
     s.all.insert(s.all.end(), pts.begin(), pts.end());
   }
   s.index = s.dir / "site.rsi";
@@ -72,6 +94,8 @@ Site build_site(const std::string& name, OctreeConfig cfg, std::uint64_t memory)
   o.memory_bytes = memory;
   const io::IndexBuildStats st = io::build_index_file(tiles, s.index, o);
   EXPECT_EQ(st.points, s.all.size());
+  EXPECT_EQ(io::MappedIndex::open(s.index).position_encoding(), enc);
+
   if (memory < (1u << 21)) {
     EXPECT_GT(st.runs, 1u);  // the merge of several runs is exercised
   } else {
@@ -96,7 +120,10 @@ void expect_same_tree(const io::MappedIndex& m, const Octree& t) {
     ASSERT_TRUE(a.lo == b.lo && a.hi == b.hi) << n;  // bit-identical bounds
   }
   ASSERT_EQ(m.positions().size(), t.positions().size());
-  EXPECT_EQ(0, std::memcmp(m.positions().data(), t.positions().data(), t.positions().size() * sizeof(Vec3)));
+  for (std::size_t i = 0; i < t.positions().size(); ++i) {  // decoded bit for bit
+    const Vec3 a = m.positions()[i];
+    ASSERT_EQ(0, std::memcmp(&a, &t.positions()[i], sizeof(Vec3))) << "slot " << i;
+  }
   EXPECT_TRUE(std::equal(m.ids().begin(), m.ids().end(), t.ids().begin(), t.ids().end()));
 }
 
@@ -108,9 +135,9 @@ bool same_hits(const std::vector<RayHit>& a, const std::vector<RayHit>& b) {
   return true;
 }
 
-/// Layout, and the memory budget: 1 MiB (several sorted runs and the k-way merge) or 64 MiB (one
-/// run: the in-memory sort writes the sections directly).
-class IndexFile : public ::testing::TestWithParam<std::tuple<OctreeLayout, std::uint64_t>> {};
+/// Layout, the memory budget: 1 MiB (several sorted runs and the k-way merge) or 64 MiB (one
+/// run: the in-memory sort writes the sections directly), and the positions encoding.
+class IndexFile : public ::testing::TestWithParam<std::tuple<OctreeLayout, std::uint64_t, PositionEncoding>> {};
 
 TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
   OctreeConfig cfg;
@@ -118,7 +145,10 @@ TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
   cfg.capacity = 16;
   cfg.depth = 5;
   const std::uint64_t memory = std::get<1>(GetParam());
-  const Site s = build_site(std::string("site_") + to_string(cfg.layout) + "_" + std::to_string(memory), cfg, memory);
+  const PositionEncoding enc = std::get<2>(GetParam());
+  const Site s = build_site(std::string("site_") + to_string(cfg.layout) + "_" + std::to_string(memory) + "_" +
+                                std::to_string(static_cast<int>(enc)),
+                            cfg, memory, enc);
   const io::MappedIndex m = io::MappedIndex::open(s.index);
   const Octree t = Octree::build_bulk(s.all, cfg);
   expect_same_tree(m, t);
@@ -176,9 +206,13 @@ TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Layouts, IndexFile,
-                         ::testing::Values(std::make_tuple(OctreeLayout::adaptive, std::uint64_t{1} << 20),
-                                           std::make_tuple(OctreeLayout::adaptive, std::uint64_t{64} << 20),
-                                           std::make_tuple(OctreeLayout::fixed, std::uint64_t{1} << 20)));
+                         ::testing::Values(
+                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{1} << 20, PositionEncoding::float64),
+                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{64} << 20, PositionEncoding::float64),
+                             std::make_tuple(OctreeLayout::fixed, std::uint64_t{1} << 20, PositionEncoding::float64),
+                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{1} << 20, PositionEncoding::las_int32),
+                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{64} << 20, PositionEncoding::las_int32),
+                             std::make_tuple(OctreeLayout::fixed, std::uint64_t{64} << 20, PositionEncoding::float32)));
 
 TEST(IndexFileBuild, LasAttributesAreStoredExactlyBySlot) {
   RAYSCAN_REQUIRE_FILE(p, "las/autzen_trim.las");
@@ -192,6 +226,11 @@ TEST(IndexFileBuild, LasAttributesAreStoredExactlyBySlot) {
   const io::MappedIndex m = io::MappedIndex::open(out);
   const PointCloud src = io::read_point_cloud(p);
   ASSERT_EQ(m.positions().size(), src.size());
+  EXPECT_EQ(m.position_encoding(), PositionEncoding::las_int32);  // 12 bytes per point
+  for (std::size_t k = 0; k < src.size(); ++k) {  // decoded by slot = the reader's value by id
+    const Vec3 a = m.positions()[k];
+    ASSERT_EQ(0, std::memcmp(&a, &src.positions[m.ids()[k]], sizeof(Vec3))) << "slot " << k;
+  }
   EXPECT_EQ(m.attributes(), st.attributes);
   EXPECT_EQ(m.crs_wkt(), src.crs_wkt);
   const PointCloud back = m.to_point_cloud();
@@ -201,6 +240,46 @@ TEST(IndexFileBuild, LasAttributesAreStoredExactlyBySlot) {
   EXPECT_TRUE(back.classification == src.classification);
   EXPECT_TRUE(back.gps_time == src.gps_time);
   expect_same_tree(m, Octree::build_bulk(src.positions, OctreeConfig{}));
+  fs::remove_all(dir);
+}
+
+// A float source (PCD, float32 x y z): stored as float32 (12 bytes per point), decoded bit for
+// bit to what read_point_cloud returns; queries equal brute force over the reader's positions.
+TEST(IndexFileBuild, FloatSourceIsStoredAsFloat32Exactly) {
+  RAYSCAN_REQUIRE_FILE(p, "pcd/cloud_bin_0.pcd");
+  const fs::path dir = temp_dir() / "f32_site";
+  fs::create_directories(dir);
+  const fs::path out = dir / "c.rsi";
+  io::build_index_file({p}, out, {});
+  const io::MappedIndex m = io::MappedIndex::open(out);
+  const PointCloud src = io::read_point_cloud(p);
+  ASSERT_EQ(m.positions().size(), src.size());
+  EXPECT_EQ(m.position_encoding(), PositionEncoding::float32);
+  EXPECT_EQ(m.sections()[2].name, "positions");
+  EXPECT_EQ(m.sections()[2].bytes, 12 * src.size());
+  for (std::size_t k = 0; k < src.size(); ++k) {
+    const Vec3 a = m.positions()[k];
+    ASSERT_EQ(0, std::memcmp(&a, &src.positions[m.ids()[k]], sizeof(Vec3))) << "slot " << k;
+  }
+  const PointCloud back = m.to_point_cloud();
+  EXPECT_EQ(0, std::memcmp(back.positions.data(), src.positions.data(), src.size() * sizeof(Vec3)));
+  const BruteForceIndex bf(src.positions);
+  const AABB b = bounds_of(src.positions);
+  std::size_t hits = 0;
+  for (int i = 0; i < 40; ++i) {
+    const Vec3 o = b.center() + Vec3(-2.0 * b.max_extent(), 0.01 * (i - 20) * b.max_extent(), 0.005 * i * b.max_extent());
+    const Ray ray(o, b.center() + Vec3(0.0, 0.02 * (20 - i) * b.max_extent(), 0.0) - o);
+    RayQuery q;
+    q.order = RayOrder::sphere_hit;
+    q.radius = 0.01 * b.max_extent();
+    q.k = 4;
+    std::vector<RayHit> a, c;
+    ray_query(m, ray, q, a);
+    ray_query(bf, ray, q, c);
+    EXPECT_TRUE(same_hits(a, c)) << "ray " << i;
+    hits += a.size();
+  }
+  EXPECT_GT(hits, 20u);
   fs::remove_all(dir);
 }
 
@@ -322,7 +401,12 @@ TEST(IndexFileBuild, LazInputGivesTheIndexOfTheSameLas) {
     ASSERT_EQ(a.node_points(n).end, b.node_points(n).end) << n;
   }
   ASSERT_EQ(a.positions().size(), b.positions().size());
-  EXPECT_EQ(0, std::memcmp(a.positions().data(), b.positions().data(), a.positions().size() * sizeof(Vec3)));
+  EXPECT_EQ(a.position_encoding(), PositionEncoding::las_int32);  // LAZ has the LAS grid too
+  EXPECT_EQ(b.position_encoding(), PositionEncoding::las_int32);
+  for (std::size_t i = 0; i < a.positions().size(); ++i) {
+    const Vec3 pa = a.positions()[i], pb = b.positions()[i];
+    ASSERT_EQ(0, std::memcmp(&pa, &pb, sizeof(Vec3))) << "slot " << i;
+  }
   EXPECT_TRUE(std::equal(a.ids().begin(), a.ids().end(), b.ids().begin(), b.ids().end()));
   EXPECT_TRUE(std::equal(a.rgb().begin(), a.rgb().end(), b.rgb().begin(), b.rgb().end()));
   EXPECT_TRUE(std::equal(a.intensity().begin(), a.intensity().end(), b.intensity().begin(), b.intensity().end()));
@@ -419,7 +503,37 @@ TEST(IndexFileBadInput, TruncatedCorruptedVersionChangedSource) {
     auto b = bytes;
     b[8] = 1;  // version 1 (zlib CRC-32, no stored spacing): refused, naming both versions
     const std::string e = open_error(write(b));
-    EXPECT_NE(e.find("m.rsi: byte 8: index format version 1; this rayscan reads version 2"), std::string::npos) << e;
+    EXPECT_NE(e.find("m.rsi: byte 8: index format version 1; this rayscan reads version 3"), std::string::npos) << e;
+    b[8] = 2;  // version 2 (float64 positions only): refused too, the rebuild named
+    const std::string e2 = open_error(write(b));
+    EXPECT_NE(e2.find("m.rsi: byte 8: index format version 2; this rayscan reads version 3 (rebuild the index with "
+                      "`rayscan index`)"),
+              std::string::npos)
+        << e2;
+  }
+  // The positions encoding (header byte 864) behind a valid header checksum: an unknown id is
+  // refused; a valid id that disagrees with the positions section's element size (a float64 file
+  // read as 12-byte positions: the section is not N x 12 bytes) too, naming the section.
+  {
+    auto reheader = [&](std::uint32_t enc) {
+      auto b = bytes;
+      std::memcpy(b.data() + 864, &enc, 4);
+      std::memset(b.data() + 120, 0, 4);
+      const auto hcrc = io::crc32c(b.data(), 4096);
+      std::memcpy(b.data() + 120, &hcrc, 4);
+      return open_error(write(b));
+    };
+    std::uint32_t enc = 9;
+    std::memcpy(&enc, bytes.data() + 864, 4);
+    EXPECT_EQ(enc, 0u);  // make_points: float64
+    const std::string e = reheader(7);
+    EXPECT_NE(e.find("m.rsi: byte 864: positions encoding 7 (expected 0 float64, 1 float32 or 2 LAS int32 grid)"),
+              std::string::npos)
+        << e;
+    const std::string e1 = reheader(1);
+    EXPECT_NE(e1.find("section positions: element size 24, expected 12"), std::string::npos) << e1;
+    const std::string e2 = reheader(2);
+    EXPECT_NE(e2.find("section positions: element size 24, expected 12"), std::string::npos) << e2;
   }
   {
     auto b = bytes;

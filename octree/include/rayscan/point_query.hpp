@@ -39,7 +39,7 @@ template <SpatialIndex I>
 void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
   out.clear();
   if (index.empty() || box.empty()) return;
-  const std::span<const Vec3> pos = index.positions();
+  const auto pos = index.positions();
   const std::span<const PointIndex> ids = index.ids();
   thread_local std::vector<typename I::Node> stack;
   stack.clear();
@@ -127,7 +127,7 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
   const bool bounded = k != kAllPoints;
   const bool sorted_set = bounded && k <= detail::kKnnSortedMax;
   const double r2 = radius * radius;
-  const std::span<const Vec3> pos = index.positions();
+  const auto pos = index.positions();
   const std::span<const PointIndex> ids = index.ids();
   auto& scratch = detail::knn_scratch<Node>();
   auto& stack = scratch.stack;
@@ -194,7 +194,7 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
       pf.d2_max = bound * (1.0 + 1e-12) + slack_d2;
       auto& sel = scratch.sel;
       if (sel.size() < sr.size()) sel.resize(sr.size());
-      const unsigned m = kern.point_filter(&pos[sr.begin].x, sr.size(), pf, sel.data());
+      const unsigned m = kern.point_filter(position_block(pos, sr.begin, sr.size()), sr.size(), pf, sel.data());
       for (unsigned j = 0; j < m; ++j) insert(sr.begin + sel[j]);
     } else {
       for (std::uint32_t s = sr.begin; s < sr.end; ++s) insert(s);

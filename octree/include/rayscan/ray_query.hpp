@@ -230,7 +230,7 @@ struct RayTraversal {
   RayQueryStats* stats;
   const KeyPolicy& key_policy;
   Vec3 o, d, inv_d;
-  std::span<const Vec3> pos;
+  std::remove_cvref_t<decltype(std::declval<const I&>().positions())> pos;
   std::span<const PointIndex> ids;
   bool bounded;
   bool found = false;  // kBest1: best holds a candidate
@@ -507,7 +507,7 @@ struct RayTraversal {
       // SIMD filter, then the exact test on the survivors only (in slot order, as below).
       auto& sel = scratch.sel;
       if (sel.size() < range.size()) sel.resize(range.size());
-      const unsigned m = kern.point_filter(&pos[range.begin].x, range.size(), pf, sel.data());
+      const unsigned m = kern.point_filter(position_block(pos, range.begin, range.size()), range.size(), pf, sel.data());
       for (unsigned j = 0; j < m; ++j) {
         eval_slot(range.begin + sel[j]);
         if (done) return;
@@ -926,7 +926,7 @@ template <SpatialIndex I>
   }
   const AABB root_box = index.node_bounds(index.root());
   const double tol = 1e-9 * (root_box.max_extent() + glm::length(root_box.center())) + 1e-300;
-  const std::span<const Vec3> pos = index.positions();
+  const auto pos = index.positions();
   const std::span<const PointIndex> ids = index.ids();
   std::vector<typename I::Node> stack{index.root()};
   while (!stack.empty()) {

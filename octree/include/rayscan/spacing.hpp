@@ -64,7 +64,7 @@ template <class I>
 template <class I>
 [[nodiscard]] double median_nn_spacing_by_id(const I& index, std::size_t max_samples = 20000,
                                              const std::function<void(std::size_t)>& scanned = {}) {
-  const std::span<const Vec3> pos = index.positions();
+  const auto pos = index.positions();
   const std::span<const PointIndex> ids = index.ids();
   const std::size_t N = pos.size();
   if (N < 2 || max_samples == 0) return 0.0;

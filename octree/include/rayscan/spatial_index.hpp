@@ -4,6 +4,7 @@
 #pragma once
 
 #include "rayscan/geometry.hpp"
+#include "rayscan/position_view.hpp"
 
 #include <concepts>
 #include <cstdint>
@@ -35,7 +36,10 @@ struct SlotRange {
 ///  - `node_points(n)`: the slots of the points stored at n itself (internal nodes of the layered
 ///    octree hold points too; other indexes hold points only in leaves).
 ///  - `child_count(n)`, `child(n, i)`: the children of n, i in [0, child_count(n)).
-///  - `positions()`: all positions by slot, `ids()`: the original PointIndex of each slot.
+///  - `positions()`: all positions by slot (a PositionRange: `std::span<const Vec3>` for the
+///    in-memory indexes, a decoding PositionView for the index file's compact encodings; read
+///    them only through `[slot]`, `size()` and position_block()), `ids()`: the original
+///    PointIndex of each slot.
 template <class I>
 concept SpatialIndex = requires(const I& idx, typename I::Node n, unsigned i) {
   typename I::Node;
@@ -45,7 +49,7 @@ concept SpatialIndex = requires(const I& idx, typename I::Node n, unsigned i) {
   { idx.node_points(n) } -> std::convertible_to<SlotRange>;
   { idx.child_count(n) } -> std::convertible_to<unsigned>;
   { idx.child(n, i) } -> std::convertible_to<typename I::Node>;
-  { idx.positions() } -> std::convertible_to<std::span<const Vec3>>;
+  { idx.positions() } -> PositionRange;
   { idx.ids() } -> std::convertible_to<std::span<const PointIndex>>;
 };
 

@@ -39,7 +39,7 @@ namespace fs = std::filesystem;
 
 // ---- format constants (docs/index-format.md) ----------------------------------------------------
 constexpr char kMagic[8] = {'R', 'S', 'I', 'N', 'D', 'E', 'X', '\0'};
-constexpr std::uint32_t kVersion = 2;
+constexpr std::uint32_t kVersion = 3;
 constexpr std::uint32_t kEndianMarker = 0x01020304;
 constexpr std::uint64_t kHeaderBytes = 4096;
 constexpr std::uint64_t kAlign = 4096;
@@ -52,6 +52,9 @@ constexpr std::size_t kSpacingOffset = 112;  // float64 median nearest-neighbour
 constexpr std::size_t kBoundsOffset = 640;   // float64[6] exact point bounds (after the table)
 constexpr std::size_t kLevelsOffset = 688;   // uint64[22] points stored at each depth 0..21
 constexpr unsigned kLevels = 22;
+constexpr std::size_t kEncodingOffset = 864;  // uint32 PositionEncoding (version 3)
+constexpr std::size_t kScaleOffset = 872;     // float64[3] LAS grid scale (las_int32)
+constexpr std::size_t kGridOffsetOffset = 896;  // float64[3] LAS grid offset (las_int32)
 /// Files up to this size get every section verified at open by default (IndexOpenOptions).
 constexpr std::uint64_t kVerifyAllBytes = std::uint64_t{256} << 20;
 
@@ -74,9 +77,9 @@ const char* section_name(std::uint32_t id) {
   return "unknown";
 }
 /// Bytes per element of a per-point or per-node section; 1 for byte sections.
-std::uint32_t elem_size(std::uint32_t id) {
+std::uint32_t elem_size(std::uint32_t id, PositionEncoding enc = PositionEncoding::float64) {
   switch (id) {
-    case kPositions: return 24;
+    case kPositions: return static_cast<std::uint32_t>(position_bytes(enc));
     case kIds: return 4;
     case kRgb: return 6;
     case kIntensity: return 2;
@@ -210,7 +213,74 @@ struct Header {
   double spacing = 0.0;  ///< median_nn_spacing_by_id of the stored points
   AABB bounds;           ///< exact bounds of the stored positions (bounds_of)
   std::array<std::uint64_t, kLevels> levels{};  ///< points per depth
+  PositionEncoding encoding = PositionEncoding::float64;
+  Vec3 grid_scale{1.0}, grid_offset{0.0};  ///< las_int32 only
   std::vector<SectionEntry> sections;
+};
+
+/// The positions encoding a build writes: decided by the read pass (every point checked to decode
+/// bit-identically), then applied by encode() to the sorted positions (docs/index-format.md,
+/// "Positions").
+struct PositionCodec {
+  PositionEncoding enc = PositionEncoding::float64;
+  Vec3 scale{1.0}, offset{0.0};
+  // Read pass state: still possible for every point seen so far.
+  bool grid_ok = true, f32_ok = true;
+  bool grid_set = false;
+
+  static bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+  /// The int32 grid value of coordinate v on axis a, or false when v is not exactly one.
+  bool grid_value(double v, int a, std::int32_t& out) const {
+    const double k = std::nearbyint((v - offset[a]) / scale[a]);
+    if (!(k >= -2147483648.0 && k <= 2147483647.0)) return false;
+    out = static_cast<std::int32_t>(k);
+    return same_bits(las_coordinate(out, scale[a], offset[a]), v);
+  }
+  /// A new source: its integer grid (PointReader::integer_grid) must be the first source's.
+  void source(const std::optional<std::pair<Vec3, Vec3>>& g) {
+    if (!g) grid_ok = false;
+    else if (!grid_set) scale = g->first, offset = g->second, grid_set = true;
+    else if (!(g->first == scale && g->second == offset)) grid_ok = false;
+  }
+  /// Checks points p[0, n) against the encodings still possible.
+  void check(const Vec3* p, std::size_t n) {
+    for (std::size_t i = 0; i < n && (grid_ok || f32_ok); ++i)
+      for (int a = 0; a < 3; ++a) {
+        std::int32_t k;
+        if (grid_ok && !grid_value(p[i][a], a, k)) grid_ok = false;
+        const double v = p[i][a];  // (a double beyond the float range is not converted: UB)
+        if (f32_ok && !(std::abs(v) <= static_cast<double>(std::numeric_limits<float>::max()) &&
+                        same_bits(static_cast<double>(static_cast<float>(v)), v)))
+          f32_ok = false;
+      }
+  }
+  /// Chooses the most compact exact encoding once every point was checked (float64 unless `compact`).
+  void decide(bool compact) {
+    enc = !compact                ? PositionEncoding::float64
+          : grid_ok && grid_set ? PositionEncoding::las_int32
+          : f32_ok            ? PositionEncoding::float32
+                              : PositionEncoding::float64;
+  }
+  [[nodiscard]] std::size_t bytes() const { return position_bytes(enc); }
+  /// Encodes the n float64 triples at `src` (any alignment) into out (n * bytes() bytes).
+  void encode(const void* src, std::size_t n, std::uint8_t* out) const {
+    if (enc == PositionEncoding::float64) {
+      std::memcpy(out, src, n * sizeof(Vec3));
+      return;
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      double p[3];
+      std::memcpy(p, static_cast<const std::uint8_t*>(src) + 24 * i, 24);
+      if (enc == PositionEncoding::las_int32) {
+        std::int32_t v[3];
+        for (int a = 0; a < 3; ++a) (void)grid_value(p[a], a, v[a]);  // checked by the read pass
+        std::memcpy(out + 12 * i, v, 12);
+      } else {
+        const float f[3] = {static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2])};
+        std::memcpy(out + 12 * i, f, 12);
+      }
+    }
+  }
 };
 
 template <class T>
@@ -249,6 +319,11 @@ std::vector<std::uint8_t> encode_header(const Header& h) {
     put<double>(b.data(), kBoundsOffset + 24 + 8 * k, h.bounds.hi[k]);
   }
   for (unsigned d = 0; d < kLevels; ++d) put<std::uint64_t>(b.data(), kLevelsOffset + 8 * d, h.levels[d]);
+  put<std::uint32_t>(b.data(), kEncodingOffset, static_cast<std::uint32_t>(h.encoding));
+  for (int k = 0; k < 3; ++k) {
+    put<double>(b.data(), kScaleOffset + 8 * k, h.grid_scale[k]);
+    put<double>(b.data(), kGridOffsetOffset + 8 * k, h.grid_offset[k]);
+  }
   for (std::size_t i = 0; i < h.sections.size(); ++i) {
     const SectionEntry& s = h.sections[i];
     const std::size_t o = kTableOffset + i * kEntryBytes;
@@ -519,7 +594,7 @@ class NodeFile {
 struct NodeBuilder {
   const OctreeConfig& cfg;
   const std::uint64_t* codes;
-  const Vec3* pos;
+  PositionView pos;  // the written positions section, decoded (the file's encoding)
   Vec3 cell_lo;
   NodeFile& out;
   std::function<void(std::size_t)> release;
@@ -781,8 +856,10 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     run_first_id += buf.size();
     buf.clear();
   };
+  PositionCodec codec;
   for (int attempt = 0;; ++attempt) {
     PointCloud c;
+    codec = PositionCodec{};
     bounds = AABB{};
     total = 0;
     run_first_id = 0;
@@ -794,8 +871,10 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
       std::unique_ptr<PointReader> r = std::move(kept[f]);
       if (!r) r = open_point_reader(inputs[f], stored, ReadOptions{.scalars = false});
       sources[f].first_id = total;
+      codec.source(r->integer_grid());
       std::size_t n;
       while ((n = r->read(c, kDefaultChunkPoints)) > 0) {
+        codec.check(c.positions.data(), n);
         if (total + n >= 0xFFFFFFFFull) throw std::length_error("rayscan index: more than 2^32 - 2 points");
         if (in_memory && buf.size() + n > run_cap)
           throw std::runtime_error(inputs[f].string() + ": the inputs changed during the build (more points than " +
@@ -824,6 +903,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   if (!in_memory) buf = PointBuffer{};  // the runs are on disk: release the buffer before the merge
   stats.runs = in_memory ? (total > 0 ? 1 : 0) : run_files.size();
   const AABB cell = OctreeRules::root_cell(bounds);
+  codec.decide(opt.compact_positions);
 
   // Section placement: sources, crs, per-point sections, then nodes (size known after the build).
   Header h;
@@ -831,17 +911,19 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   h.cell = cell;
   h.config = opt.config;
   h.attributes = stored.bits;
+  h.encoding = codec.enc;
+  if (codec.enc == PositionEncoding::las_int32) h.grid_scale = codec.scale, h.grid_offset = codec.offset;
   const std::string src_text = encode_sources(sources);
   std::uint64_t off = kHeaderBytes;
   auto place = [&](std::uint32_t id, std::uint64_t size) {
-    SectionEntry e{id, elem_size(id), off, size, 0};
+    SectionEntry e{id, elem_size(id, codec.enc), off, size, 0};
     h.sections.push_back(e);
     off = align_up(off + size);
     return h.sections.size() - 1;
   };
   const std::size_t s_src = place(kSources, src_text.size());
   const std::size_t s_crs = place(kCrs, crs.size());
-  const std::size_t s_pos = place(kPositions, total * 24);
+  const std::size_t s_pos = place(kPositions, total * codec.bytes());
   const std::size_t s_ids = place(kIds, total * 4);
   std::size_t s_rgb = 0, s_int = 0, s_cls = 0, s_gps = 0;
   if (L.rgb) s_rgb = place(kRgb, total * 6);
@@ -895,13 +977,24 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     if (L.cls) w_cls.emplace(fd, h.sections[s_cls].offset, wbuf);
     if (L.gps) w_gps.emplace(fd, h.sections[s_gps].offset, wbuf);
     std::vector<Vec3> g_pos;
+    std::vector<std::uint8_t> g_enc;  // encoded positions (float32, las_int32)
     std::vector<std::uint32_t> g_ids;
     std::vector<Rgb16> g_rgb;
     std::vector<std::uint16_t> g_int;
     std::vector<std::uint8_t> g_cls;
     std::vector<double> g_gps;
     for_blocks(keys.size(), [&](std::size_t b, std::size_t e) {
-      gather_write(buf.pos, keys, b, e, g_pos, w_pos);
+      if (codec.enc == PositionEncoding::float64) {
+        gather_write(buf.pos, keys, b, e, g_pos, w_pos);
+      } else {
+        g_pos.resize(e - b);
+        g_enc.resize((e - b) * codec.bytes());
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, 1 << 14), [&](const auto& r) {
+          for (std::size_t i = r.begin(); i != r.end(); ++i) g_pos[i - b] = buf.pos[keys[i].idx];
+          codec.encode(g_pos.data() + (r.begin() - b), r.end() - r.begin(), g_enc.data() + (r.begin() - b) * codec.bytes());
+        });
+        w_pos.write(g_enc.data(), g_enc.size());
+      }
       g_ids.resize(e - b);
       for (std::size_t i = b; i < e; ++i) g_ids[i - b] = keys[i].idx;  // one run: idx == id
       w_ids.write(g_ids.data(), g_ids.size() * 4);
@@ -970,6 +1063,12 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
           case 8: gather(std::integral_constant<std::size_t, 8>{}); break;
           default: gather(std::integral_constant<std::size_t, 24>{}); break;
         }
+        if (fd_.w == &w_pos && codec.enc != PositionEncoding::float64) {  // encode the float64 triples
+          std::vector<std::uint8_t> enc(block.size() * codec.bytes());
+          codec.encode(out.data(), block.size(), enc.data());
+          fd_.w->write(enc.data(), enc.size());
+          return;
+        }
         fd_.w->write(out.data(), out.size());
       });
       merged += block.size();
@@ -1003,17 +1102,18 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
       codes_fd.emplace(codes_path, O_RDONLY);
       codes_map.emplace(codes_fd->get(), total * 8, codes_path);
     }
-    ReadMap file(fd.get(), h.sections[s_pos].offset + total * 24, out.temp());
+    ReadMap file(fd.get(), h.sections[s_pos].offset + total * codec.bytes(), out.temp());
     const std::uint64_t* codes = in_memory ? mem_codes.data() : static_cast<const std::uint64_t*>(codes_map->p);
     const std::uint64_t nodes_off = off;  // the next aligned offset: where place() puts the nodes
     NodeFile node_file(fd.get(), nodes_off, out.temp(), static_cast<std::size_t>(total / 8 + 1));
     auto release = [&](std::size_t i) {
       if (codes_map) codes_map->release_below(i * 8);
-      file.release_below(h.sections[s_pos].offset + i * 24);
+      file.release_below(h.sections[s_pos].offset + i * codec.bytes());
     };
     NodeBuilder nb{opt.config,
                    codes,
-                   reinterpret_cast<const Vec3*>(static_cast<const std::uint8_t*>(file.p) + h.sections[s_pos].offset),
+                   PositionView(codec.enc, static_cast<const std::uint8_t*>(file.p) + h.sections[s_pos].offset, total,
+                                codec.scale, codec.offset),
                    cell.lo, node_file, release, opt.progress, total};
     // Resident window of the maps: 1/16 of the budget (codes and positions, 32 B/point), 4 M
     // points at most (the progress interval), so small budgets release often too.
@@ -1067,6 +1167,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   stats.nodes = h.nodes;
   stats.depth = h.depth;
   stats.attributes = stored;
+  stats.positions = codec.enc;
   stats.file_bytes = off;
   return stats;
 }
@@ -1170,6 +1271,19 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
     if (sum != x.points_)
       fail(kLevelsOffset, "points per level sum to " + std::to_string(sum) + ", the header says " + std::to_string(x.points_));
   }
+  const auto enc_id = get<std::uint32_t>(b, kEncodingOffset);
+  if (enc_id > static_cast<std::uint32_t>(PositionEncoding::las_int32))
+    fail(kEncodingOffset, "positions encoding " + std::to_string(enc_id) +
+                              " (expected 0 float64, 1 float32 or 2 LAS int32 grid)");
+  const auto enc = static_cast<PositionEncoding>(enc_id);
+  Vec3 grid_scale(1.0), grid_offset(0.0);
+  if (enc == PositionEncoding::las_int32)
+    for (int k = 0; k < 3; ++k) {
+      grid_scale[k] = get<double>(b, kScaleOffset + 8 * k);
+      grid_offset[k] = get<double>(b, kGridOffsetOffset + 8 * k);
+      if (!std::isfinite(grid_scale[k]) || grid_scale[k] == 0.0 || !std::isfinite(grid_offset[k]))
+        fail(kScaleOffset, "LAS grid scale/offset of axis " + std::to_string(k) + " not finite and non-zero");
+    }
   const bool verify_all = opt.verify == IndexOpenOptions::Verify::always ||
                           (opt.verify == IndexOpenOptions::Verify::automatic && size <= kVerifyAllBytes);
   x.verified_ = verify_all;
@@ -1188,7 +1302,8 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
     x.sections_.push_back({section_name(e.id), e.offset, e.size});
     if (by_id[e.id] != nullptr) fail(o, sn + " appears twice");
     by_id[e.id] = &e;
-    if (e.elem != elem_size(e.id)) fail(o + 4, sn + ": element size " + std::to_string(e.elem) + ", expected " + std::to_string(elem_size(e.id)));
+    if (e.elem != elem_size(e.id, enc))
+      fail(o + 4, sn + ": element size " + std::to_string(e.elem) + ", expected " + std::to_string(elem_size(e.id, enc)));
     if (e.offset % kAlign != 0 || e.offset < kHeaderBytes)
       fail(o + 8, sn + ": offset " + std::to_string(e.offset) + " not a multiple of 4096 after the header");
     if (e.offset > size || e.size > size - e.offset)
@@ -1221,7 +1336,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
       fail(40, "root cell is not a finite box");
   auto at = [&](std::uint32_t id) { return b + by_id[id]->offset; };
   x.nodes_ = reinterpret_cast<const Octree::NodeRec*>(at(kNodes));
-  x.pos_ = reinterpret_cast<const Vec3*>(at(kPositions));
+  x.positions_ = PositionView(enc, at(kPositions), x.points_, grid_scale, grid_offset);
   x.ids_ = reinterpret_cast<const PointIndex*>(at(kIds));
   x.ids_offset_ = by_id[kIds]->offset;
   if (by_id[kRgb]) x.rgb_ = {reinterpret_cast<const Rgb16*>(at(kRgb)), x.points_};
@@ -1393,7 +1508,7 @@ PointCloud MappedIndex::to_point_cloud() const {
     if (i >= points_)
       throw IndexError(path_.string() + ": section ids: slot " + std::to_string(s) + " holds id " + std::to_string(i) +
                        " outside the " + std::to_string(points_) + " points (corrupted)");
-    pc.positions[i] = pos_[s];
+    pc.positions[i] = positions_[s];
     if (!rgb_.empty()) pc.rgb[i] = rgb_[s];
     if (!intensity_.empty()) pc.intensity[i] = intensity_[s];
     if (!classification_.empty()) pc.classification[i] = classification_[s];

@@ -61,6 +61,11 @@ InfoJobResult run_info(const InfoJobOptions& options) {
     x.bytes_per_point =
         m.empty() ? 0.0 : static_cast<double>(m.file_bytes()) / static_cast<double>(m.positions().size());
     x.attributes = m.attributes().to_string();
+    x.positions = to_string(m.position_encoding());
+    if (m.position_encoding() == PositionEncoding::las_int32)
+      x.positions += " (scale " + num(m.positions().scale().x) + " " + num(m.positions().scale().y) + " " +
+                     num(m.positions().scale().z) + ", offset " + num(m.positions().offset().x) + " " +
+                     num(m.positions().offset().y) + " " + num(m.positions().offset().z) + ")";
     x.root_cell = m.root_cell();
     x.checksums = m.verified() ? "all sections verified"
                                : "header and metadata verified (nodes and points: rayscan info --verify)";
@@ -104,6 +109,7 @@ std::string index_report_json(const InfoJobResult& r) {
   j["file_bytes"] = x.file_bytes;
   j["bytes_per_point"] = x.bytes_per_point;
   j["attributes"] = x.attributes;
+  j["positions"] = x.positions;
   j["root_cell"] = {{"min", vec_json(x.root_cell.lo)}, {"max", vec_json(x.root_cell.hi)}};
   if (r.count != 0) j["bounds"] = {{"min", vec_json(r.bounds.lo)}, {"max", vec_json(r.bounds.hi)}};
   j["checksums"] = x.checksums;
@@ -134,6 +140,7 @@ std::string index_report_text(const InfoJobResult& r) {
   o << "\n";
   o << "file size:         " << x.file_bytes << " bytes (" << num(x.bytes_per_point) << " bytes/point)\n";
   o << "attributes:        " << (x.attributes.empty() ? std::string("positions only") : x.attributes) << "\n";
+  o << "positions:         " << x.positions << "\n";
   o << "sections:         ";
   for (const IndexSectionInfo& s : x.sections)
     o << " " << s.name << " " << num(r.count ? static_cast<double>(s.bytes) / static_cast<double>(r.count) : 0.0);

@@ -4,6 +4,7 @@
 // CRS: 2.5.1 (OGC WKT VLR 2112) and 2.5.2 (GeoKeyDirectoryTag 34735).
 #include "las_header.hpp"
 #include "readers.hpp"
+#include "rayscan/position_view.hpp"
 #include "laz/laz.hpp"
 
 #include <algorithm>
@@ -85,9 +86,10 @@ void decode(const Decoder& dc, std::size_t i0, std::size_t i1, Reduction& red) {
   const Out& o = dc.out;
   for (std::size_t i = i0; i < i1; ++i) {
     const std::uint8_t* r = dc.base + i * dc.rec_len;
-    const double x = load_le<std::int32_t>(r) * dc.scale.x + dc.offset.x;
-    const double y = load_le<std::int32_t>(r + 4) * dc.scale.y + dc.offset.y;
-    const double z = load_le<std::int32_t>(r + 8) * dc.scale.z + dc.offset.z;
+    // las_coordinate (rayscan/position_view.hpp): the one expression the index file decodes with too.
+    const double x = las_coordinate(load_le<std::int32_t>(r), dc.scale.x, dc.offset.x);
+    const double y = las_coordinate(load_le<std::int32_t>(r + 4), dc.scale.y, dc.offset.y);
+    const double z = las_coordinate(load_le<std::int32_t>(r + 8), dc.scale.z, dc.offset.z);
     if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) red.first_bad = std::min(red.first_bad, i);
     o.pos[i] = Vec3(x, y, z);
     if (o.intensity != nullptr) o.intensity[i] = load_le<std::uint16_t>(r + 12);

@@ -287,9 +287,9 @@ constexpr std::size_t kIntensityAt = 12, kClassAt = 16, kRgbAt = 30;
 
 // X/Y/Z of one point record (int32 at bytes 0, 4, 8 of every PDRF), scaled and offset: world units.
 Vec3 record_position(const CopcInfo& info, const std::uint8_t* r) {
-  return Vec3(detail::load_le<std::int32_t>(r) * info.scale.x + info.offset.x,
-              detail::load_le<std::int32_t>(r + 4) * info.scale.y + info.offset.y,
-              detail::load_le<std::int32_t>(r + 8) * info.scale.z + info.offset.z);
+  return Vec3(las_coordinate(detail::load_le<std::int32_t>(r), info.scale.x, info.offset.x),
+              las_coordinate(detail::load_le<std::int32_t>(r + 4), info.scale.y, info.offset.y),
+              las_coordinate(detail::load_le<std::int32_t>(r + 8), info.scale.z, info.offset.z));
 }
 
 // The record's colour times `mul` (257 for 8-bit colour stored in the 16-bit fields, else 1).

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "rayscan/point_cloud.hpp"
+#include "rayscan/position_view.hpp"
 #include "rayscan/render/color.hpp"
 #include "rayscan/render/scene.hpp"
 
@@ -19,7 +20,7 @@ namespace rayscan::render {
 /// for a PointCloud, by storage slot for an index file). Spans the material does not use may be
 /// empty.
 struct AlbedoAttributes {
-  std::span<const Vec3> positions;  ///< world coordinates (elevation)
+  PositionView positions;  ///< world coordinates (elevation); an index file's may be decoded on access
   std::span<const Rgb16> rgb;
   std::span<const std::uint16_t> intensity;
   std::span<const std::uint8_t> classification;

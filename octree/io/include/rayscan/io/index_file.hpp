@@ -60,6 +60,10 @@ struct IndexBuildOptions {
   /// Memory budget of the sort runs and merge buffers (bytes); peak RSS stays within this plus a
   /// constant (one reader chunk, the node array: 48 bytes per node).
   std::uint64_t memory_bytes = std::uint64_t{4} << 30;
+  /// Positions: the most compact exact encoding (true: the LAS int32 grid when every input is
+  /// LAS/LAZ on one scale and offset, else float32 when every coordinate is a float, else
+  /// float64; docs/index-format.md "Positions") or always float64 (false; `--positions float64`).
+  bool compact_positions = true;
   /// Folder for the sort runs (default: the output's folder). Removed afterwards.
   std::filesystem::path temp_dir;
   IndexProgress progress;  ///< called every few million points (may be empty)
@@ -70,6 +74,7 @@ struct IndexBuildStats {
   std::uint64_t points = 0, nodes = 0, runs = 0, file_bytes = 0;
   unsigned depth = 0;
   AttributeSet attributes;         ///< stored
+  PositionEncoding positions = PositionEncoding::float64;  ///< how the positions are stored
   std::vector<std::string> notes;  ///< decisions the user should know about
 };
 
@@ -139,7 +144,9 @@ class MappedIndex {
   }
   /// Child i < child_count(n) of n.
   [[nodiscard]] Node child(Node n, unsigned i) const { return nodes_[n].first_child + i; }
-  [[nodiscard]] std::span<const Vec3> positions() const { return {pos_, points_}; }
+  /// Positions by slot, decoded from the file's encoding (float64 in place, float32 or the LAS
+  /// int32 grid: docs/index-format.md "Positions"), bit-identical to the sources' readers.
+  [[nodiscard]] PositionView positions() const { return positions_; }
   /// The original id of each slot (a point's index in the concatenated sources). Every id is
   /// below N: a verified file had them checked at open; on a file opened without the deep checks
   /// (IndexOpenOptions) the first call checks them (one parallel pass over the 4-byte ids,
@@ -161,6 +168,9 @@ class MappedIndex {
   [[nodiscard]] const OctreeConfig& config() const { return config_; }
   /// Points stored per depth (index = depth).
   [[nodiscard]] std::vector<std::uint64_t> points_per_level() const;
+  /// How the positions are stored (PositionEncoding; the LAS grid's scale and offset are
+  /// positions().scale() / offset()).
+  [[nodiscard]] PositionEncoding position_encoding() const { return positions_.encoding(); }
   /// Stored attributes, by slot (like positions()); empty spans when not stored.
   [[nodiscard]] std::span<const Rgb16> rgb() const { return rgb_; }
   [[nodiscard]] std::span<const std::uint16_t> intensity() const { return intensity_; }
@@ -209,7 +219,7 @@ class MappedIndex {
   bool verified_ = false;
   std::vector<IndexSectionInfo> sections_;
   const Octree::NodeRec* nodes_ = nullptr;
-  const Vec3* pos_ = nullptr;
+  PositionView positions_;
   const PointIndex* ids_ = nullptr;
   std::uint64_t ids_offset_ = 0;  ///< byte offset of the ids section (error messages)
   std::span<const Rgb16> rgb_;

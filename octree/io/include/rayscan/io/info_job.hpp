@@ -37,6 +37,7 @@ struct IndexFileSummary {
   std::uint64_t file_bytes = 0;
   double bytes_per_point = 0;
   std::string attributes;                      ///< AttributeSet::to_string() ("" = positions only)
+  std::string positions;                       ///< encoding: "float64", "float32", "las_int32 (scale ..., offset ...)"
   AABB root_cell;                              ///< the octree's root cube (world units)
   std::string checksums;                       ///< which sections were verified
   double spacing = 0;                          ///< median nearest-neighbour spacing (the auto radius)
