@@ -160,22 +160,33 @@ void child_dist2_sse2(const ChildBoxesF& b, const float* q, float margin, float*
   return f.d[0] == 0.0 && f.d[1] == 0.0 && f.d[2] == 0.0 && f.t_lo <= 0.0 && 0.0 <= f.t_hi;
 }
 
+// Appends i + the index of each set bit of lane mask m to out[n...]; returns the new count.
+[[nodiscard]] inline unsigned append_lanes(unsigned m, unsigned i, std::uint32_t* out, unsigned n) {
+  while (m) {
+    out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
+    m &= m - 1;
+  }
+  return n;
+}
+
+// Two AoS points p[0..5] (x0 y0 z0 x1 y1 z1) as x, y and z lanes relative to (ox, oy, oz).
+inline void load_rel2(const double* p, __m128d ox, __m128d oy, __m128d oz, __m128d& vx, __m128d& vy, __m128d& vz) {
+  const __m128d a = _mm_loadu_pd(p), b = _mm_loadu_pd(p + 2), c = _mm_loadu_pd(p + 4);
+  vx = _mm_sub_pd(_mm_shuffle_pd(a, b, 0b10), ox);
+  vy = _mm_sub_pd(_mm_shuffle_pd(a, c, 0b01), oy);
+  vz = _mm_sub_pd(_mm_shuffle_pd(b, c, 0b10), oz);
+}
+
 unsigned dist_filter_sse2(const double* xyz, unsigned count, const PointFilterD& f, std::uint32_t* out) {
   const __m128d ox = _mm_set1_pd(f.o[0]), oy = _mm_set1_pd(f.o[1]), oz = _mm_set1_pd(f.o[2]);
   const __m128d d2max = _mm_set1_pd(f.d2_max);
   unsigned i = 0, n = 0;
   for (; i + 2 <= count; i += 2) {
-    const double* p = xyz + 3 * static_cast<std::size_t>(i);
-    const __m128d a = _mm_loadu_pd(p), b = _mm_loadu_pd(p + 2), c = _mm_loadu_pd(p + 4);
-    const __m128d vx = _mm_sub_pd(_mm_shuffle_pd(a, b, 0b10), ox);
-    const __m128d vy = _mm_sub_pd(_mm_shuffle_pd(a, c, 0b01), oy);
-    const __m128d vz = _mm_sub_pd(_mm_shuffle_pd(b, c, 0b10), oz);
+    __m128d vx, vy, vz;
+    load_rel2(xyz + 3 * static_cast<std::size_t>(i), ox, oy, oz, vx, vy, vz);
     const __m128d d2 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(vx, vx), _mm_mul_pd(vy, vy)), _mm_mul_pd(vz, vz));
     unsigned m = static_cast<unsigned>(_mm_movemask_pd(_mm_cmple_pd(d2, d2max)));
-    while (m) {
-      out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
-      m &= m - 1;
-    }
+    n = append_lanes(m, i, out, n);
   }
   for (; i < count; ++i) out[n++] = i;  // tail: left to the exact test
   return n;
@@ -188,11 +199,8 @@ unsigned point_filter_sse2(const double* xyz, unsigned count, const PointFilterD
   const __m128d d2max = _mm_set1_pd(f.d2_max), tlo = _mm_set1_pd(f.t_lo), thi = _mm_set1_pd(f.t_hi);
   unsigned i = 0, n = 0;
   for (; i + 2 <= count; i += 2) {
-    const double* p = xyz + 3 * static_cast<std::size_t>(i);
-    const __m128d a = _mm_loadu_pd(p), b = _mm_loadu_pd(p + 2), c = _mm_loadu_pd(p + 4);
-    const __m128d vx = _mm_sub_pd(_mm_shuffle_pd(a, b, 0b10), ox);
-    const __m128d vy = _mm_sub_pd(_mm_shuffle_pd(a, c, 0b01), oy);
-    const __m128d vz = _mm_sub_pd(_mm_shuffle_pd(b, c, 0b10), oz);
+    __m128d vx, vy, vz;
+    load_rel2(xyz + 3 * static_cast<std::size_t>(i), ox, oy, oz, vx, vy, vz);
     const __m128d t = _mm_add_pd(_mm_add_pd(_mm_mul_pd(vx, dx), _mm_mul_pd(vy, dy)), _mm_mul_pd(vz, dz));
     const __m128d wx = _mm_sub_pd(vx, _mm_mul_pd(t, dx));
     const __m128d wy = _mm_sub_pd(vy, _mm_mul_pd(t, dy));
@@ -200,10 +208,7 @@ unsigned point_filter_sse2(const double* xyz, unsigned count, const PointFilterD
     const __m128d d2 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(wx, wx), _mm_mul_pd(wy, wy)), _mm_mul_pd(wz, wz));
     const __m128d ok = _mm_and_pd(_mm_cmple_pd(d2, d2max), _mm_and_pd(_mm_cmpge_pd(t, tlo), _mm_cmple_pd(t, thi)));
     unsigned m = static_cast<unsigned>(_mm_movemask_pd(ok));
-    while (m) {
-      out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
-      m &= m - 1;
-    }
+    n = append_lanes(m, i, out, n);
   }
   for (; i < count; ++i) out[n++] = i;  // tail: left to the exact test
   return n;
@@ -303,26 +308,31 @@ __attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, 
   _mm256_storeu_ps(lb2, _mm256_mul_ps(d2, _mm256_set1_ps(1.0f - kRelSlack)));
 }
 
+// 4 AoS points p[0..11] (12 doubles) as x, y and z lanes relative to (ox, oy, oz):
+// P = x0 y0 x2 y2, Q = z0 x1 z2 x3, R = y1 z1 y3 z3, then one shuffle per coordinate.
+__attribute__((target("avx2,fma"), always_inline)) inline void load_rel4(const double* p, __m256d ox, __m256d oy,
+                                                                         __m256d oz, __m256d& vx, __m256d& vy,
+                                                                         __m256d& vz) {
+  const __m256d a = _mm256_loadu_pd(p), b = _mm256_loadu_pd(p + 4), c = _mm256_loadu_pd(p + 8);
+  const __m256d P = _mm256_blend_pd(a, b, 0b1100);
+  const __m256d Q = _mm256_permute2f128_pd(a, c, 0x21);
+  const __m256d R = _mm256_blend_pd(b, c, 0b1100);
+  vx = _mm256_sub_pd(_mm256_shuffle_pd(P, Q, 0b1010), ox);
+  vy = _mm256_sub_pd(_mm256_shuffle_pd(P, R, 0b0101), oy);
+  vz = _mm256_sub_pd(_mm256_shuffle_pd(Q, R, 0b1010), oz);
+}
+
 __attribute__((target("avx2,fma"))) unsigned dist_filter_avx2(const double* xyz, unsigned count,
                                                               const PointFilterD& f, std::uint32_t* out) {
   const __m256d ox = _mm256_set1_pd(f.o[0]), oy = _mm256_set1_pd(f.o[1]), oz = _mm256_set1_pd(f.o[2]);
   const __m256d d2max = _mm256_set1_pd(f.d2_max);
   unsigned i = 0, n = 0;
   for (; i + 4 <= count; i += 4) {
-    const double* p = xyz + 3 * static_cast<std::size_t>(i);  // AoS to SoA as in point_filter_avx2
-    const __m256d a = _mm256_loadu_pd(p), b = _mm256_loadu_pd(p + 4), c = _mm256_loadu_pd(p + 8);
-    const __m256d P = _mm256_blend_pd(a, b, 0b1100);
-    const __m256d Q = _mm256_permute2f128_pd(a, c, 0x21);
-    const __m256d R = _mm256_blend_pd(b, c, 0b1100);
-    const __m256d vx = _mm256_sub_pd(_mm256_shuffle_pd(P, Q, 0b1010), ox);
-    const __m256d vy = _mm256_sub_pd(_mm256_shuffle_pd(P, R, 0b0101), oy);
-    const __m256d vz = _mm256_sub_pd(_mm256_shuffle_pd(Q, R, 0b1010), oz);
+    __m256d vx, vy, vz;
+    load_rel4(xyz + 3 * static_cast<std::size_t>(i), ox, oy, oz, vx, vy, vz);
     const __m256d d2 = _mm256_fmadd_pd(vz, vz, _mm256_fmadd_pd(vy, vy, _mm256_mul_pd(vx, vx)));
     unsigned m = static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(d2, d2max, _CMP_LE_OQ)));
-    while (m) {
-      out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
-      m &= m - 1;
-    }
+    n = append_lanes(m, i, out, n);
   }
   for (; i < count; ++i) out[n++] = i;
   return n;
@@ -336,15 +346,8 @@ __attribute__((target("avx2,fma"))) unsigned point_filter_avx2(const double* xyz
   const __m256d d2max = _mm256_set1_pd(f.d2_max), tlo = _mm256_set1_pd(f.t_lo), thi = _mm256_set1_pd(f.t_hi);
   unsigned i = 0, n = 0;
   for (; i + 4 <= count; i += 4) {
-    // 4 AoS points (12 doubles) to SoA: P = x0 y0 x2 y2, Q = z0 x1 z2 x3, R = y1 z1 y3 z3.
-    const double* p = xyz + 3 * static_cast<std::size_t>(i);
-    const __m256d a = _mm256_loadu_pd(p), b = _mm256_loadu_pd(p + 4), c = _mm256_loadu_pd(p + 8);
-    const __m256d P = _mm256_blend_pd(a, b, 0b1100);
-    const __m256d Q = _mm256_permute2f128_pd(a, c, 0x21);
-    const __m256d R = _mm256_blend_pd(b, c, 0b1100);
-    const __m256d vx = _mm256_sub_pd(_mm256_shuffle_pd(P, Q, 0b1010), ox);
-    const __m256d vy = _mm256_sub_pd(_mm256_shuffle_pd(P, R, 0b0101), oy);
-    const __m256d vz = _mm256_sub_pd(_mm256_shuffle_pd(Q, R, 0b1010), oz);
+    __m256d vx, vy, vz;
+    load_rel4(xyz + 3 * static_cast<std::size_t>(i), ox, oy, oz, vx, vy, vz);
     const __m256d t = _mm256_fmadd_pd(vz, dz, _mm256_fmadd_pd(vy, dy, _mm256_mul_pd(vx, dx)));
     const __m256d wx = _mm256_fnmadd_pd(t, dx, vx);
     const __m256d wy = _mm256_fnmadd_pd(t, dy, vy);
@@ -353,10 +356,7 @@ __attribute__((target("avx2,fma"))) unsigned point_filter_avx2(const double* xyz
     const __m256d ok = _mm256_and_pd(_mm256_cmp_pd(d2, d2max, _CMP_LE_OQ),
                                      _mm256_and_pd(_mm256_cmp_pd(t, tlo, _CMP_GE_OQ), _mm256_cmp_pd(t, thi, _CMP_LE_OQ)));
     unsigned m = static_cast<unsigned>(_mm256_movemask_pd(ok));
-    while (m) {
-      out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
-      m &= m - 1;
-    }
+    n = append_lanes(m, i, out, n);
   }
   for (; i < count; ++i) out[n++] = i;
   return n;
@@ -424,10 +424,7 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx51
     if (dist_only) {  // knn_query: |p - o|^2 alone (see distance_only)
       unsigned m = _mm512_cmp_pd_mask(_mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx))), d2max,
                                       _CMP_LE_OQ);
-      while (m) {
-        out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
-        m &= m - 1;
-      }
+      n = append_lanes(m, i, out, n);
       continue;
     }
     const __m512d t = _mm512_fmadd_pd(vz, dz, _mm512_fmadd_pd(vy, dy, _mm512_mul_pd(vx, dx)));
@@ -437,10 +434,7 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx51
     const __m512d d2 = _mm512_fmadd_pd(wz, wz, _mm512_fmadd_pd(wy, wy, _mm512_mul_pd(wx, wx)));
     unsigned m = _mm512_cmp_pd_mask(d2, d2max, _CMP_LE_OQ) & _mm512_cmp_pd_mask(t, tlo, _CMP_GE_OQ) &
                  _mm512_cmp_pd_mask(t, thi, _CMP_LE_OQ);
-    while (m) {
-      out[n++] = i + static_cast<unsigned>(__builtin_ctz(m));
-      m &= m - 1;
-    }
+    n = append_lanes(m, i, out, n);
   }
   // The rest (< 8) through the 4-wide kernel.
   if (i < count) {
