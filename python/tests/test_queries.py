@@ -203,3 +203,29 @@ def test_thread_count_does_not_change_results(uniform_cloud, random_rays):
         np.testing.assert_array_equal(tree.knn(o, 3, threads=threads).indices, tree.knn(o, 3).indices)
     with pytest.raises(ValueError, match="threads must be"):
         tree.box([0, 0, 0], [1, 1, 1], threads=-1)
+
+
+def test_first_batch_of_a_fresh_process_equals_brute_force(tmp_path):
+    # The first query on each fresh worker thread is the one that touches its thread_local scratch
+    # for the first time (with TLS descriptors on glibc 2.36 that first ray lost its hit, see
+    # python/CMakeLists.txt): a new interpreter, one batch, checked against BruteForce ray by ray.
+    import os
+    import pathlib
+    import sys
+    script = tmp_path / "first_batch.py"
+    script.write_text(
+        "import numpy as np, rayscan\n"
+        "rng = np.random.default_rng(7)\n"
+        "xyz = rng.random((20000, 3))\n"
+        "v = rng.normal(size=(2000, 3))\n"
+        "o = 0.5 + 2.0 * v / np.linalg.norm(v, axis=1, keepdims=True)\n"
+        "d = xyz[rng.integers(0, len(xyz), 2000)] - o\n"
+        "a = rayscan.Octree(xyz).ray_query(o, d, k=1, radius=0.004, t_min=0.0, order='sphere_hit', threads=2)\n"
+        "b = rayscan.BruteForce(xyz).ray_query(o, d, k=1, radius=0.004, t_min=0.0, order='sphere_hit')\n"
+        "assert np.array_equal(a.offsets, b.offsets), np.nonzero(np.asarray(a.counts) != np.asarray(b.counts))[0][:5]\n"
+        "assert np.array_equal(a.indices, b.indices) and np.array_equal(a.t, b.t)\n"
+        "print(len(b.indices))\n")
+    env = dict(os.environ, PYTHONPATH=str(pathlib.Path(rayscan.__file__).resolve().parent.parent))
+    out = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert int(out.stdout) >= 1900  # every ray aims at a data point
