@@ -116,6 +116,8 @@ TEST(Writers, FailedWriteLeavesNoFile) {
   pc.positions = {Vec3(0, 0, 0), Vec3(1, 1, 1)};
   pc.intensity = {1};  // wrong length: validate() fails
   const fs::path out = temp_dir() / "bad.las";
+  // temp_dir() is per process id: a reused id can find another test's bad.las (test_info_cli).
+  fs::remove(out);
   EXPECT_THROW(io::write_las(out, pc), std::invalid_argument);
   EXPECT_THROW(io::write_ply(out, pc), std::invalid_argument);
   EXPECT_FALSE(fs::exists(out));
