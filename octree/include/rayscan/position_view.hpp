@@ -159,8 +159,9 @@ concept PositionRange = requires(const P& p, std::size_t s) {
 inline const double* position_block(std::span<const Vec3> p, std::uint32_t b, std::uint32_t /*n*/) { return &p[b].x; }
 inline const double* position_block(const PositionView& p, std::uint32_t b, std::uint32_t n) {
   if (p.data() != nullptr) return &p.data()[b].x;
-  // global-dynamic even where -ftls-model=initial-exec is set (the python module): the static TLS
-  // surplus of a dlopen()ed module is already used by the queries' scratch.
+  // (The attribute does not keep this buffer out of a module's static TLS block: a module with any
+  // initial-exec access needs its whole block there. The Python module uses the default model;
+  // python/CMakeLists.txt says why.)
   __attribute__((tls_model("global-dynamic"))) thread_local std::vector<Vec3> buf;
   if (buf.size() < n || buf.empty()) buf.resize(n > 0 ? n : 1);
   p.decode(b, n, buf.data());
