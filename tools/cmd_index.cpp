@@ -6,12 +6,49 @@
 
 #include "rayscan/io/index_file.hpp"
 
+#include <signal.h>
+
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <stdexcept>
+#include <string>
 
 namespace rayscan::cli {
+
+namespace {
+
+/// The signal that interrupted `rayscan index` (0: none). Set by the handler, read by the build's
+/// progress callback.
+volatile std::sig_atomic_t g_interrupt = 0;
+
+extern "C" void on_interrupt(int sig) { g_interrupt = sig; }
+
+/// Thrown by the progress callback once SIGINT, SIGTERM or SIGHUP arrived: the build unwinds, and
+/// its temporary output and sort runs are removed by their owners (AtomicFile, the runs folder),
+/// so an interrupted build leaves nothing behind, like a failed one.
+struct Interrupted : std::runtime_error {
+  int signal;
+  explicit Interrupted(int s)
+      : std::runtime_error(std::string("interrupted by ") + (s == SIGINT ? "SIGINT" : s == SIGTERM ? "SIGTERM" : "SIGHUP") +
+                           ": temporary files removed, no index written"),
+        signal(s) {}
+};
+
+/// Catches SIGINT/SIGTERM/SIGHUP for the build (one-shot: SA_RESETHAND, so a second signal
+/// terminates at once, as a user pressing Ctrl-C twice expects; SA_RESTART: reads and writes
+/// in progress are not cut short).
+void catch_interrupts() {
+  struct sigaction sa {};
+  sa.sa_handler = on_interrupt;
+  sigemptyset(&sa.sa_mask);
+  sa.sa_flags = SA_RESETHAND | SA_RESTART;
+  for (const int s : {SIGINT, SIGTERM, SIGHUP}) ::sigaction(s, &sa, nullptr);
+}
+
+}  // namespace
 
 Runner add_index_command(CLI::App& app) {
   auto* sub = app.add_subcommand("index", "Build an index file (.rsi) of one or more point cloud files "
@@ -61,20 +98,32 @@ Runner add_index_command(CLI::App& app) {
     opt.temp_dir = o->temp_dir;
     const auto t0 = std::chrono::steady_clock::now();
     auto secs = [t0] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
-    if (!o->quiet)
-      opt.progress = [&secs](const char* phase, std::uint64_t done, std::uint64_t total) {
-        const double s = secs();
-        if (total > 0)
-          std::fprintf(stderr, "\rindex: %-5s %6.1f%%  %llu / %llu points  %.1f M points/s   ", phase,
-                       100.0 * static_cast<double>(done) / static_cast<double>(total),
-                       static_cast<unsigned long long>(done), static_cast<unsigned long long>(total),
-                       s > 0 ? static_cast<double>(done) / s / 1e6 : 0.0);
-        else
-          std::fprintf(stderr, "\rindex: %-5s %llu points   ", phase, static_cast<unsigned long long>(done));
-        std::fflush(stderr);
-      };
+    // The progress callback runs every few million points in every phase (and once more before
+    // the output is renamed into place); it is also where an interrupt stops the build.
+    const bool quiet = o->quiet;
+    opt.progress = [&secs, quiet](const char* phase, std::uint64_t done, std::uint64_t total) {
+      if (const int sig = g_interrupt; sig != 0) throw Interrupted(sig);
+      if (quiet) return;
+      const double s = secs();
+      if (total > 0)
+        std::fprintf(stderr, "\rindex: %-5s %6.1f%%  %llu / %llu points  %.1f M points/s   ", phase,
+                     100.0 * static_cast<double>(done) / static_cast<double>(total),
+                     static_cast<unsigned long long>(done), static_cast<unsigned long long>(total),
+                     s > 0 ? static_cast<double>(done) / s / 1e6 : 0.0);
+      else
+        std::fprintf(stderr, "\rindex: %-5s %llu points   ", phase, static_cast<unsigned long long>(done));
+      std::fflush(stderr);
+    };
     std::vector<std::filesystem::path> in(o->inputs.begin(), o->inputs.end());
-    const io::IndexBuildStats st = io::build_index_file(in, o->output, opt);
+    catch_interrupts();
+    io::IndexBuildStats st;
+    try {
+      st = io::build_index_file(in, o->output, opt);
+    } catch (const Interrupted& e) {
+      if (!o->quiet) std::fprintf(stderr, "\n");
+      std::cerr << "rayscan index: " << e.what() << "\n";
+      return 128 + e.signal;  // the shell's convention for a command ended by a signal
+    }
     const double s = secs();
     if (!o->quiet) std::fprintf(stderr, "\n");
     for (const std::string& n : st.notes) std::cerr << "note: " << n << "\n";

@@ -1160,6 +1160,9 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     const std::vector<std::uint8_t> hb = encode_header(h);
     fd.pwrite_all(hb.data(), hb.size(), 0);
   }
+  // A last progress call before the rename: a caller that stops the build from its callback
+  // (rayscan index on SIGINT/SIGTERM) still gets no output when it stops here.
+  if (opt.progress) opt.progress("done", total, total);
   if (::fsync(fd.get()) != 0) io_fail(out.temp(), "fsync failed");
   out.commit();
 
