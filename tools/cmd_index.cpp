@@ -64,7 +64,8 @@ Runner add_index_command(CLI::App& app) {
   sub->add_option("CLOUD", o->inputs, "input point cloud files (tiles of one site, same CRS)")->required();
   sub->add_option("-o,--output", o->output, "index file to write (.rsi)")->required();
   sub->add_option("--attributes", o->attributes,
-                  "attributes to store besides positions: rgb,intensity,classification,gps_time | all | none")
+                  "attributes to store besides positions: id,rgb,intensity,classification,gps_time | all | none "
+                  "(id: the original point ids, 4 bytes/point; without it outputs are in index order)")
       ->capture_default_str();
   sub->add_option("--memory", o->memory, "memory budget of the external sort (e.g. 4G, 512M)")->capture_default_str();
   sub->add_option("--layout", o->layout, "octree layout: adaptive | fixed")->capture_default_str();
@@ -88,7 +89,7 @@ Runner add_index_command(CLI::App& app) {
       opt.config.max_depth = o->max_depth;
       opt.memory_bytes = io::parse_byte_size(o->memory);
       io::AttributeSet a = io::AttributeSet::parse(o->attributes);
-      if (o->attributes == "all") a = io::AttributeSet::parse("rgb,intensity,classification,gps_time");
+      if (o->attributes == "all") a = io::AttributeSet::parse("id,rgb,intensity,classification,gps_time");
       opt.attributes = a;
       opt.compact_positions = o->positions == "compact";
     } catch (const std::invalid_argument& e) {

@@ -59,7 +59,7 @@ bool height_field_blocked(const I& idx, const SurfelAttributes& sa, const Vec3& 
   if (!(h2 > 1e-24)) return false;  // the target lies straight below or above the eye
   const double R = sa.max_radius;
   const auto pos = idx.positions();
-  const std::span<const PointIndex> ids = idx.ids();
+  const IdView ids = idx.ids();
   thread_local std::vector<typename I::Node> stack;
   stack.clear();
   stack.push_back(idx.root());
@@ -157,13 +157,13 @@ void check(const VisibilityOptions& o) {
 }
 
 /// Runs `run_chunks(c0, c1)` over the `chunks` point chunks (kChunk slots each, in the index's
-/// storage order `ids`) through the distributor (MPI, docs/mpi.md): chunks are handed out in
+/// storage order `ids`, stored or the identity) through the distributor (MPI, docs/mpi.md): chunks are handed out in
 /// batches of `batch`, and the per-point result fields `fields...` (vectors indexed by original
 /// point id) of each batch's slots travel back to the root, field after field. `what` names the
 /// job in the error for a malformed message. Progress counts points.
 template <class RunChunks, class... Field>
 void distribute_point_chunks(WorkDistributor& dist, std::size_t n, std::size_t chunks, unsigned batch,
-                             std::span<const PointIndex> ids, RunChunks& run_chunks, Progress& progress,
+                             IdView ids, RunChunks& run_chunks, Progress& progress,
                              const char* what, std::vector<Field>&... fields) {
   auto slots = [n](std::uint64_t first, std::uint64_t count) {
     return std::pair{std::size_t(first * kChunk), std::min<std::size_t>(n, (first + count) * kChunk)};
@@ -250,7 +250,7 @@ VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec
       visit_index(
           [&](const auto& idx) {
             const auto pos = idx.positions();
-            const std::span<const PointIndex> ids = idx.ids();
+            const IdView ids = idx.ids();
             tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
               Local& L = locals.local();
               for (std::size_t c = range.begin(); c != range.end(); ++c) {
@@ -281,7 +281,7 @@ VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec
     run_chunks(0, chunks);
   } else {
     // Point chunks handed out by the distributor; per-point count and distance gathered to the root.
-    const std::span<const PointIndex> ids = visit_index([](const auto& i) { return i.ids(); }, index);
+    const IdView ids = visit_index([](const auto& i) -> IdView { return i.ids(); }, index);
     distribute_point_chunks(*dist, n, chunks, res.threads, ids, run_chunks, progress, "visibility", res.count,
                             res.nearest);
   }
@@ -350,7 +350,7 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
       visit_index(
           [&](const auto& idx) {
             const auto pos = idx.positions();
-            const std::span<const PointIndex> ids = idx.ids();
+            const IdView ids = idx.ids();
             tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
               std::vector<RayHit> hits;
               for (std::size_t c = range.begin(); c != range.end(); ++c) {
@@ -379,7 +379,7 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
   if (!dist || dist->size() <= 1) {
     run_chunks(0, chunks);
   } else {
-    const std::span<const PointIndex> ids = visit_index([](const auto& i) { return i.ids(); }, index);
+    const IdView ids = visit_index([](const auto& i) -> IdView { return i.ids(); }, index);
     distribute_point_chunks(*dist, n, chunks, threads, ids, run_chunks, progress, "sky view", out);
     std::uint64_t t = total.load();
     dist->sum_to_root(std::span<std::uint64_t>(&t, 1));

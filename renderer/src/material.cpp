@@ -39,7 +39,7 @@ std::array<double, 2> percentile_range_hist(const std::vector<std::uint64_t>& hi
 
 // True when some channel of `rgb` exceeds 255 (16-bit colour). Only that matters, so the parallel
 // read stops at the first such value (16-bit colour: after a few points; 8-bit: one read of all).
-bool any_wide_rgb(std::span<const Rgb16> rgb) {
+bool any_wide_rgb(RgbView rgb) {
   std::atomic<bool> any_wide{false};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rgb.size(), 1 << 16), [&](const auto& r) {
     if (any_wide.load(std::memory_order_relaxed)) return;
@@ -122,7 +122,7 @@ AlbedoRule::AlbedoRule(const AlbedoAttributes& a, std::size_t n, const MaterialD
     : AlbedoRule(one_block(a, n), m, up) {}
 
 AlbedoAttributes albedo_attributes(const PointCloud& cloud) {
-  return {cloud.positions, cloud.rgb, cloud.intensity, cloud.classification};
+  return {cloud.positions, std::span<const Rgb16>(cloud.rgb), cloud.intensity, cloud.classification};
 }
 
 std::vector<Color> compute_albedo(const PointCloud& cloud, const MaterialDesc& m, const Vec3& up) {

@@ -86,7 +86,7 @@ class IndexSite final : public SiteStream {
                          m_.positions().begin() + static_cast<std::ptrdiff_t>(e));
     for (const Vec3& p : out.positions) out.box.expand(p);
     out.refs.resize(count);
-    const auto ids = m_.ids();
+    const IdView ids = m_.ids();
     for (std::size_t r = 0; r < count; ++r) {
       const std::uint64_t id = ids[b + r];
       // The source whose id range holds id (sources are in id order).
@@ -213,6 +213,7 @@ std::unique_ptr<SiteStream> open_site(const std::vector<fs::path>& paths, const 
                                std::to_string(counter.fetch_add(1)) + ".rsi");
   io::IndexBuildOptions build;
   build.attributes = wanted;
+  build.attributes.add(io::Attribute::id);  // the rows name each point's source and number in it
   build.memory_bytes = options.memory_bytes;
   build.temp_dir = dir;
   std::optional<io::MappedIndex> index;

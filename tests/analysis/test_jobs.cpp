@@ -159,11 +159,16 @@ TEST(VisibilityJob, IndexFileEqualsTheSourceCloudInOriginalOrder) {
   io::write_ply(src, pc);
   io::IndexBuildOptions bo;
   bo.config.capacity = 8;
+  bo.attributes = io::AttributeSet::parse("id");  // original order
   io::build_index_file({src}, rsi, bo);
-  VisibilityJobResult r[2];
-  for (int k = 0; k < 2; ++k) {
+  const fs::path rsi_slots = dir / "slots.rsi";  // without ids: index (slot) order
+  bo.attributes = io::AttributeSet::none();
+  io::build_index_file({src}, rsi_slots, bo);
+  VisibilityJobResult r[4];
+  for (int k = 0; k < 4; ++k) {
     VisibilityJobOptions o;
-    o.cloud_file = k == 0 ? src : rsi;
+    o.cloud_file = k == 0 ? src : k == 2 ? rsi_slots : rsi;
+    if (k >= 2) o.radius = r[0].radius.radius;  // the auto radius samples in the reported order
     Observer eye;
     eye.position = Vec3(0.5, 2.0, 0.0);
     eye.height = 1.7;  // placed on the local ground through the index
@@ -190,5 +195,23 @@ TEST(VisibilityJob, IndexFileEqualsTheSourceCloudInOriginalOrder) {
   EXPECT_GT(std::count(c.begin(), c.end(), 0u), 10);
   EXPECT_GT(std::count(c.begin(), c.end(), 1u), 10);
   EXPECT_GT(std::count_if(r[1].camera_hits.begin(), r[1].camera_hits.end(), [](auto v) { return v > 0; }), 10);
+  // The index without ids reports every field in slot order, self-consistently: slot s of it is
+  // point ids[s] of the same tree with ids (r[3], same radius). The sky view is seeded by the
+  // point's reported number, so only the geometric fields are compared.
+  {
+    const io::MappedIndex with_ids = io::MappedIndex::open(rsi), slots = io::MappedIndex::open(rsi_slots);
+    EXPECT_FALSE(slots.has_ids());
+    EXPECT_TRUE(slots.ids().is_identity());
+    ASSERT_EQ(r[2].cloud.size(), pc.size());
+    for (std::size_t s = 0; s < pc.size(); ++s) {
+      const PointIndex i = with_ids.ids()[s];
+      ASSERT_EQ(r[2].cloud.positions[s], r[3].cloud.positions[i]) << s;
+      const Vec3 p = slots.positions()[s];
+      ASSERT_EQ(r[2].cloud.positions[s], p) << s;
+      EXPECT_EQ(r[2].line_of_sight.count[s], r[3].line_of_sight.count[i]) << s;
+      EXPECT_EQ(r[2].line_of_sight.nearest[s], r[3].line_of_sight.nearest[i]) << s;
+      EXPECT_EQ(r[2].camera_hits[s], r[3].camera_hits[i]) << s;
+    }
+  }
   fs::remove_all(dir);
 }

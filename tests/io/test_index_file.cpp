@@ -22,6 +22,8 @@
 #include <cstring>
 #include <fstream>
 #include <random>
+#include <set>
+#include <sstream>
 
 namespace rayscan::test {
 namespace {
@@ -59,7 +61,7 @@ struct Site {
 /// "Positions"): float64 (.f64 tiles of doubles), float32 (.f64 tiles of float-exact doubles),
 /// las_int32 (LAS tiles on one 1 mm grid; `all` is then what the LAS reader returns for them).
 Site build_site(const std::string& name, OctreeConfig cfg, std::uint64_t memory,
-                PositionEncoding enc = PositionEncoding::float64) {
+                PositionEncoding enc = PositionEncoding::float64, bool ids = true) {
   Site s;
   s.dir = temp_dir() / name;
   fs::create_directories(s.dir);
@@ -92,7 +94,9 @@ Site build_site(const std::string& name, OctreeConfig cfg, std::uint64_t memory,
   io::IndexBuildOptions o;
   o.config = cfg;
   o.memory_bytes = memory;
+  if (ids) o.attributes.add(io::Attribute::id);
   const io::IndexBuildStats st = io::build_index_file(tiles, s.index, o);
+  EXPECT_EQ(io::MappedIndex::open(s.index).has_ids(), ids);
   EXPECT_EQ(st.points, s.all.size());
   EXPECT_EQ(io::MappedIndex::open(s.index).position_encoding(), enc);
 
@@ -124,7 +128,15 @@ void expect_same_tree(const io::MappedIndex& m, const Octree& t) {
     const Vec3 a = m.positions()[i];
     ASSERT_EQ(0, std::memcmp(&a, &t.positions()[i], sizeof(Vec3))) << "slot " << i;
   }
-  EXPECT_TRUE(std::equal(m.ids().begin(), m.ids().end(), t.ids().begin(), t.ids().end()));
+  ASSERT_EQ(m.ids().size(), t.ids().size());
+  for (std::size_t i = 0; i < t.ids().size(); ++i) ASSERT_EQ(m.ids()[i], t.ids()[i]) << "slot " << i;
+}
+
+/// The positions of an index by slot (an index without ids reports its points in this order).
+std::vector<Vec3> slot_positions(const io::MappedIndex& m) {
+  std::vector<Vec3> out(m.positions().size());
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = m.positions()[i];
+  return out;
 }
 
 bool same_hits(const std::vector<RayHit>& a, const std::vector<RayHit>& b) {
@@ -136,8 +148,11 @@ bool same_hits(const std::vector<RayHit>& a, const std::vector<RayHit>& b) {
 }
 
 /// Layout, the memory budget: 1 MiB (several sorted runs and the k-way merge) or 64 MiB (one
-/// run: the in-memory sort writes the sections directly), and the positions encoding.
-class IndexFile : public ::testing::TestWithParam<std::tuple<OctreeLayout, std::uint64_t, PositionEncoding>> {};
+/// run: the in-memory sort writes the sections directly), the positions encoding, and whether the
+/// ids section is stored (without it the index's original order is its slot order: the oracles
+/// are then the in-memory octree and brute force over the points in slot order, whose ids are the
+/// identity, and the original-order octree's answers mapped through its ids).
+class IndexFile : public ::testing::TestWithParam<std::tuple<OctreeLayout, std::uint64_t, PositionEncoding, bool>> {};
 
 TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
   OctreeConfig cfg;
@@ -146,13 +161,24 @@ TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
   cfg.depth = 5;
   const std::uint64_t memory = std::get<1>(GetParam());
   const PositionEncoding enc = std::get<2>(GetParam());
+  const bool with_ids = std::get<3>(GetParam());
   const Site s = build_site(std::string("site_") + to_string(cfg.layout) + "_" + std::to_string(memory) + "_" +
-                                std::to_string(static_cast<int>(enc)),
-                            cfg, memory, enc);
+                                std::to_string(static_cast<int>(enc)) + (with_ids ? "_ids" : "_noids"),
+                            cfg, memory, enc, with_ids);
   const io::MappedIndex m = io::MappedIndex::open(s.index);
-  const Octree t = Octree::build_bulk(s.all, cfg);
+  const Octree t_orig = Octree::build_bulk(s.all, cfg);
+  // The reported order: the original one with ids, the slot order without (then m.ids() is the
+  // identity and the octree over the slot-ordered points is the same tree with identity ids).
+  const std::vector<Vec3> order = with_ids ? s.all : slot_positions(m);
+  EXPECT_EQ(m.ids().is_identity(), !with_ids);
+  const Octree t = Octree::build_bulk(order, cfg);
   expect_same_tree(m, t);
-  const BruteForceIndex bf(s.all);
+  if (!with_ids) {  // the same nodes as the original-order tree, which maps slots to ids
+    for (std::size_t i = 0; i < t.ids().size(); ++i) ASSERT_EQ(t.ids()[i], i);
+    for (std::size_t i = 0; i < order.size(); ++i)
+      ASSERT_EQ(0, std::memcmp(&order[i], &s.all[t_orig.ids()[i]], sizeof(Vec3))) << "slot " << i;
+  }
+  const BruteForceIndex bf(order);
 
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -168,15 +194,24 @@ TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
     q.radius = 0.5;
     q.k = order == RayOrder::time ? kAllPoints : 8;
     const auto mb = ray_query_batch(m, rays, q), tb = ray_query_batch(t, rays, q), bb = ray_query_batch(bf, rays, q);
+    const auto ob = ray_query_batch(t_orig, rays, q);
     for (std::size_t i = 0; i < rays.size(); ++i) {
       EXPECT_TRUE(same_hits(mb[i], tb[i])) << "ray " << i;
       EXPECT_TRUE(same_hits(mb[i], bb[i])) << "ray " << i;
+      // The same points as the original-order octree: its hit indices are the slots' ids.
+      ASSERT_EQ(mb[i].size(), ob[i].size()) << "ray " << i;
+      std::multiset<PointIndex> got, want;
+      for (std::size_t j = 0; j < mb[i].size(); ++j) {
+        got.insert(with_ids ? mb[i][j].index : t_orig.ids()[mb[i][j].index]);
+        want.insert(ob[i][j].index);
+      }
+      EXPECT_TRUE(got == want) << "ray " << i;
       hits += mb[i].size();
     }
   }
   EXPECT_GT(hits, 500u);  // the comparison is not vacuous
   for (int i = 0; i < 40; ++i) {
-    const Vec3 q = s.all[static_cast<std::size_t>(i) * 613 % s.all.size()] + Vec3(0.01 * u(rng));
+    const Vec3 q = order[static_cast<std::size_t>(i) * 613 % order.size()] + Vec3(0.01 * u(rng));
     const auto a = knn(m, q, 10), b = knn(bf, q, 10);
     ASSERT_EQ(a.size(), b.size());
     for (std::size_t j = 0; j < a.size(); ++j) EXPECT_TRUE(a[j].index == b[j].index && a[j].distance == b[j].distance);
@@ -184,17 +219,17 @@ TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
     ASSERT_EQ(ra.size(), rb.size());
     for (std::size_t j = 0; j < ra.size(); ++j) EXPECT_EQ(ra[j].index, rb[j].index);
   }
-  // Original order back from the ids: exactly the concatenated tiles.
+  // Original order back from the ids: exactly the concatenated tiles (slot order without ids).
   const PointCloud back = m.to_point_cloud();
-  ASSERT_EQ(back.size(), s.all.size());
-  EXPECT_EQ(0, std::memcmp(back.positions.data(), s.all.data(), s.all.size() * sizeof(Vec3)));
+  ASSERT_EQ(back.size(), order.size());
+  EXPECT_EQ(0, std::memcmp(back.positions.data(), order.data(), order.size() * sizeof(Vec3)));
   ASSERT_EQ(m.sources().size(), 3u);
   EXPECT_EQ(m.sources()[1].first_id, 9001u);
   // Stored at build time: the auto radius (the renderer's own function, the same value bit for
   // bit) and the exact point bounds.
   EXPECT_GT(m.median_nn_spacing(), 0.0);
   EXPECT_EQ(m.median_nn_spacing(), median_nn_spacing_by_id(m));
-  EXPECT_EQ(m.median_nn_spacing(), median_nn_spacing_of(t, std::span<const Vec3>(s.all)));
+  EXPECT_EQ(m.median_nn_spacing(), median_nn_spacing_of(t, std::span<const Vec3>(order)));
   const AABB bb = bounds_of(s.all);
   EXPECT_TRUE(m.bounds().lo == bb.lo && m.bounds().hi == bb.hi);
   EXPECT_TRUE(m.verified());  // small file: every section and record checked at open
@@ -207,19 +242,23 @@ TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
 
 INSTANTIATE_TEST_SUITE_P(Layouts, IndexFile,
                          ::testing::Values(
-                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{1} << 20, PositionEncoding::float64),
-                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{64} << 20, PositionEncoding::float64),
-                             std::make_tuple(OctreeLayout::fixed, std::uint64_t{1} << 20, PositionEncoding::float64),
-                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{1} << 20, PositionEncoding::las_int32),
-                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{64} << 20, PositionEncoding::las_int32),
-                             std::make_tuple(OctreeLayout::fixed, std::uint64_t{64} << 20, PositionEncoding::float32)));
+                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{1} << 20, PositionEncoding::float64, true),
+                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{64} << 20, PositionEncoding::float64, true),
+                             std::make_tuple(OctreeLayout::fixed, std::uint64_t{1} << 20, PositionEncoding::float64, true),
+                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{1} << 20, PositionEncoding::las_int32, true),
+                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{64} << 20, PositionEncoding::las_int32, true),
+                             std::make_tuple(OctreeLayout::fixed, std::uint64_t{64} << 20, PositionEncoding::float32, true),
+                             // without the ids section: slot order, the identity ids
+                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{1} << 20, PositionEncoding::float64, false),
+                             std::make_tuple(OctreeLayout::adaptive, std::uint64_t{64} << 20, PositionEncoding::las_int32, false),
+                             std::make_tuple(OctreeLayout::fixed, std::uint64_t{1} << 20, PositionEncoding::las_int32, false)));
 
 TEST(IndexFileBuild, LasAttributesAreStoredExactlyBySlot) {
   RAYSCAN_REQUIRE_FILE(p, "las/autzen_trim.las");
   const fs::path dir = temp_dir() / "las_site";
   fs::create_directories(dir);
   io::IndexBuildOptions o;
-  o.attributes = io::AttributeSet::parse("rgb,intensity,classification,gps_time");
+  o.attributes = io::AttributeSet::parse("id,rgb,intensity,classification,gps_time");
   o.memory_bytes = 4 << 20;
   const fs::path out = dir / "autzen.rsi";
   const auto st = io::build_index_file({p}, out, o);
@@ -250,7 +289,9 @@ TEST(IndexFileBuild, FloatSourceIsStoredAsFloat32Exactly) {
   const fs::path dir = temp_dir() / "f32_site";
   fs::create_directories(dir);
   const fs::path out = dir / "c.rsi";
-  io::build_index_file({p}, out, {});
+  io::IndexBuildOptions o;
+  o.attributes = io::AttributeSet::parse("id");
+  io::build_index_file({p}, out, o);
   const io::MappedIndex m = io::MappedIndex::open(out);
   const PointCloud src = io::read_point_cloud(p);
   ASSERT_EQ(m.positions().size(), src.size());
@@ -307,6 +348,7 @@ TEST(IndexFileBuild, ClusteredBucketsWithDuplicatesSortLikeBuildBulk) {
   for (const std::uint64_t memory : {std::uint64_t{64} << 20, std::uint64_t{1} << 20}) {
     SCOPED_TRACE(memory);
     io::IndexBuildOptions o;
+    o.attributes = io::AttributeSet::parse("id");  // the ids are compared with build_bulk's
     o.memory_bytes = memory;
     const auto st = io::build_index_file({dir / "c.f64"}, dir / "c.rsi", o);
     EXPECT_EQ(st.runs, memory == (std::uint64_t{1} << 20) ? 2u : 1u);
@@ -332,6 +374,7 @@ TEST(IndexFileBuild, GrowingNodeSectionAndReleasedMapsGiveTheBuildBulkTree) {
   for (const std::uint64_t memory : {std::uint64_t{64} << 20, std::uint64_t{1} << 20}) {
     SCOPED_TRACE(memory);
     io::IndexBuildOptions o;
+    o.attributes = io::AttributeSet::parse("id");  // the ids are compared with build_bulk's
     o.config = cfg;
     o.memory_bytes = memory;
     const auto st = io::build_index_file({dir / "g.f64"}, dir / "g.rsi", o);
@@ -362,6 +405,7 @@ TEST(IndexFileBuild, LyingLasHeaderBoundsAreCaughtAndTheTreeIsExact) {
   const PointCloud src = io::read_point_cloud(p);
   const Octree t = Octree::build_bulk(src.positions, OctreeConfig{});
   io::IndexBuildOptions o;
+  o.attributes = io::AttributeSet::parse("id");  // the ids are compared with build_bulk's
   o.memory_bytes = 2 << 20;  // several runs: the grid is needed before the points are read
   for (const fs::path& in : {honest, lying}) {
     SCOPED_TRACE(in.filename().string());
@@ -386,7 +430,7 @@ TEST(IndexFileBuild, LazInputGivesTheIndexOfTheSameLas) {
   const fs::path dir = temp_dir() / "laz_site";
   fs::create_directories(dir);
   io::IndexBuildOptions o;
-  o.attributes = io::AttributeSet::parse("rgb,intensity,classification,gps_time");
+  o.attributes = io::AttributeSet::parse("id,rgb,intensity,classification,gps_time");
   o.memory_bytes = 4 << 20;  // several sorted runs
   const auto st_las = io::build_index_file({las}, dir / "las.rsi", o);
   const auto st_laz = io::build_index_file({laz}, dir / "laz.rsi", o);
@@ -407,8 +451,13 @@ TEST(IndexFileBuild, LazInputGivesTheIndexOfTheSameLas) {
     const Vec3 pa = a.positions()[i], pb = b.positions()[i];
     ASSERT_EQ(0, std::memcmp(&pa, &pb, sizeof(Vec3))) << "slot " << i;
   }
-  EXPECT_TRUE(std::equal(a.ids().begin(), a.ids().end(), b.ids().begin(), b.ids().end()));
-  EXPECT_TRUE(std::equal(a.rgb().begin(), a.rgb().end(), b.rgb().begin(), b.rgb().end()));
+  ASSERT_EQ(a.ids().size(), b.ids().size());
+  ASSERT_EQ(a.rgb().size(), b.rgb().size());
+  EXPECT_EQ(a.rgb().multiplier(), b.rgb().multiplier());
+  for (std::size_t i = 0; i < a.ids().size(); ++i) {
+    ASSERT_EQ(a.ids()[i], b.ids()[i]) << "slot " << i;
+    ASSERT_EQ(a.rgb()[i], b.rgb()[i]) << "slot " << i;
+  }
   EXPECT_TRUE(std::equal(a.intensity().begin(), a.intensity().end(), b.intensity().begin(), b.intensity().end()));
   EXPECT_TRUE(std::equal(a.gps_time().begin(), a.gps_time().end(), b.gps_time().begin(), b.gps_time().end()));
   EXPECT_TRUE(std::equal(a.classification().begin(), a.classification().end(), b.classification().begin(),
@@ -439,6 +488,168 @@ TEST(IndexFileBuild, LazInputGivesTheIndexOfTheSameLas) {
   fs::remove_all(dir);
 }
 
+/// The rgb section an index holds ("rgb" 6 bytes or "rgb8" 3 bytes per point) and its size.
+std::pair<std::string, std::uint64_t> rgb_section(const io::MappedIndex& m) {
+  for (const io::IndexSectionInfo& x : m.sections())
+    if (x.name == "rgb" || x.name == "rgb8") return {x.name, x.bytes};
+  return {"", 0};
+}
+
+/// Builds `src` into `out` with `attributes` (plus `compact_rgb`) and checks every stored colour
+/// bit for bit against read_point_cloud of the source (an independent oracle: the reader's own
+/// values, looked up by the slot's id); returns the index.
+io::MappedIndex expect_exact_rgb(const fs::path& src, const fs::path& out, bool compact_rgb = true) {
+  io::IndexBuildOptions o;
+  o.attributes = io::AttributeSet::parse("id,rgb");
+  o.compact_rgb = compact_rgb;
+  o.memory_bytes = 1 << 20;  // several runs: the merge path encodes the colours too
+  const io::IndexBuildStats st = io::build_index_file({src}, out, o);
+  io::MappedIndex m = io::MappedIndex::open(out);
+  const PointCloud pc = io::read_point_cloud(src);
+  EXPECT_EQ(st.rgb_multiplier, m.rgb().multiplier());
+  EXPECT_EQ(m.rgb().size(), pc.size());
+  EXPECT_EQ(pc.rgb.size(), pc.size());
+  for (std::size_t k = 0; k < m.rgb().size() && k < pc.rgb.size(); ++k)
+    EXPECT_EQ(m.rgb()[k], pc.rgb[m.ids()[k]]) << src << " slot " << k;
+  EXPECT_TRUE(m.to_point_cloud().rgb == pc.rgb);
+  return m;
+}
+
+// Issue 10, 2.3: colour in 3 bytes per point when exact. autzen_trim.las holds 8-bit values (the
+// reader delivers them scaled by 257), warsaw_small.las shifted into the high byte (x 256); a LAS
+// written with true 16-bit colour (and one with 8-bit values plus a single 256: no multiplier
+// fits all) keeps the 6-byte section. The decoded colours equal read_point_cloud's bit for bit.
+TEST(IndexFileBuild, RgbIsStoredInThreeBytesWhenExactAndSixOtherwise) {
+  RAYSCAN_REQUIRE_FILE(autzen, "las/autzen_trim.las");
+  RAYSCAN_REQUIRE_FILE(warsaw, "las/warsaw_small.las");
+  const fs::path dir = temp_dir() / "rgb8";
+  fs::create_directories(dir);
+  {
+    const io::MappedIndex m = expect_exact_rgb(autzen, dir / "autzen.rsi");
+    EXPECT_EQ(m.rgb().multiplier(), 257u);
+    EXPECT_EQ(rgb_section(m), std::make_pair(std::string("rgb8"), std::uint64_t{3} * m.positions().size()));
+    // Without ids: the same colours by slot (the same tree).
+    io::IndexBuildOptions o;
+    o.attributes = io::AttributeSet::parse("rgb");
+    io::build_index_file({autzen}, dir / "autzen_noids.rsi", o);
+    const io::MappedIndex n = io::MappedIndex::open(dir / "autzen_noids.rsi");
+    EXPECT_FALSE(n.has_ids());
+    ASSERT_EQ(n.rgb().size(), m.rgb().size());
+    for (std::size_t k = 0; k < n.rgb().size(); ++k) ASSERT_EQ(n.rgb()[k], m.rgb()[k]) << k;
+    // xyz + rgb from LAS: 12 + 3 + nodes.
+    EXPECT_LT(static_cast<double>(n.file_bytes()) / static_cast<double>(n.positions().size()), 20.0);
+  }
+  {
+    const io::MappedIndex m = expect_exact_rgb(warsaw, dir / "warsaw.rsi");
+    EXPECT_EQ(m.rgb().multiplier(), 256u);
+    EXPECT_EQ(rgb_section(m).first, "rgb8");
+  }
+  {
+    const io::MappedIndex m = expect_exact_rgb(autzen, dir / "autzen_wide.rsi", false);  // compact_rgb off
+    EXPECT_EQ(m.rgb().multiplier(), 0u);
+    EXPECT_EQ(rgb_section(m), std::make_pair(std::string("rgb"), std::uint64_t{6} * m.positions().size()));
+  }
+  // True 16-bit colour, written with the project's LAS writer.
+  auto write_colour = [&](const fs::path& p, auto colour) {
+    PointCloud c;
+    c.positions = make_points(5000, 21);
+    c.rgb.resize(c.positions.size());
+    for (std::size_t i = 0; i < c.rgb.size(); ++i) c.rgb[i] = colour(i);
+    io::LasWriteOptions lo;
+    lo.scale = Vec3(0.001);
+    io::write_las(p, c, lo);
+  };
+  write_colour(dir / "wide.las", [](std::size_t i) {
+    return Rgb16{static_cast<std::uint16_t>(300 + 37 * i % 60000), static_cast<std::uint16_t>(65535 - i),
+                 static_cast<std::uint16_t>(i * 1031 % 65536)};
+  });
+  {
+    const io::MappedIndex m = expect_exact_rgb(dir / "wide.las", dir / "wide.rsi");
+    EXPECT_EQ(m.rgb().multiplier(), 0u);
+    EXPECT_EQ(rgb_section(m), std::make_pair(std::string("rgb"), std::uint64_t{6} * m.positions().size()));
+  }
+  // Values that are each b x 256 or b x 1 but not all on one multiplier: the 6-byte fallback.
+  write_colour(dir / "mixed.las", [](std::size_t i) {
+    const auto v = static_cast<std::uint16_t>(i == 17 ? 256 : i % 200);
+    return Rgb16{v, v, v};
+  });
+  {
+    const PointCloud pc = io::read_point_cloud(dir / "mixed.las");
+    ASSERT_EQ(pc.rgb[17].r, 256);  // not read as 8-bit (max 256 > 255)
+    const io::MappedIndex m = expect_exact_rgb(dir / "mixed.las", dir / "mixed.rsi");
+    EXPECT_EQ(m.rgb().multiplier(), 0u);
+    EXPECT_EQ(rgb_section(m).first, "rgb");
+  }
+  // 16-bit values that are all 0 or 65535 = 255 x 257: stored as 8-bit x 257, exactly.
+  write_colour(dir / "full.las", [](std::size_t i) {
+    const auto v = static_cast<std::uint16_t>(i % 2 ? 65535 : 0);
+    return Rgb16{v, 0, v};
+  });
+  {
+    const io::MappedIndex m = expect_exact_rgb(dir / "full.las", dir / "full.rsi");
+    EXPECT_EQ(m.rgb().multiplier(), 257u);
+  }
+  fs::remove_all(dir);
+}
+
+std::string open_error(const fs::path& p);  // below: the IndexError of opening p, "" when it opens
+
+// Corrupted rgb8 multiplier and sections behind a valid header checksum: one-line errors.
+TEST(IndexFileBadInput, Rgb8MultiplierAndMissingSectionsAreRefused) {
+  RAYSCAN_REQUIRE_FILE(autzen, "las/autzen_trim.las");
+  const fs::path dir = temp_dir() / "bad_rgb8";
+  fs::create_directories(dir);
+  io::IndexBuildOptions o;
+  o.attributes = io::AttributeSet::parse("rgb");
+  io::build_index_file({autzen}, dir / "a.rsi", o);
+  const auto bytes = slurp(dir / "a.rsi");
+  auto reheader = [&](auto edit) {
+    auto b = bytes;
+    edit(b);
+    std::memset(b.data() + 120, 0, 4);
+    const auto hcrc = io::crc32c(b.data(), 4096);
+    std::memcpy(b.data() + 120, &hcrc, 4);
+    const fs::path p = dir / "m.rsi";
+    std::ofstream(p, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+    return open_error(p);
+  };
+  std::uint32_t mul = 0;
+  std::memcpy(&mul, bytes.data() + 920, 4);
+  EXPECT_EQ(mul, 257u);
+  const std::string e = reheader([](auto& b) {
+    const std::uint32_t v = 7;
+    std::memcpy(b.data() + 920, &v, 4);
+  });
+  EXPECT_NE(e.find("m.rsi: byte 920: rgb8 multiplier 7 (expected 1, 256 or 257)"), std::string::npos) << e;
+  EXPECT_EQ(e.find('\n'), std::string::npos);
+  // The header claims ids (attribute bit 6) the file does not hold.
+  const std::string e2 = reheader([](auto& b) { b[108] |= 64; });
+  EXPECT_NE(e2.find("m.rsi: byte 108: attribute set and sections disagree on ids"), std::string::npos) << e2;
+  // A flipped byte in the rgb8 section: its checksum (small file, verified at open).
+  {
+    auto b = bytes;
+    const io::MappedIndex m = io::MappedIndex::open(dir / "a.rsi");
+    const auto [name, size] = rgb_section(m);
+    std::uint64_t off = 0;
+    for (const io::IndexSectionInfo& x : m.sections())
+      if (x.name == "rgb8") off = x.offset;
+    ASSERT_GT(off, 0u);
+    b[off + size / 2] ^= 0x10;
+    const fs::path p = dir / "f.rsi";
+    std::ofstream(p, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+    const std::string e3 = open_error(p);
+    EXPECT_NE(e3.find("f.rsi: section rgb8 (byte " + std::to_string(off) + "): checksum"), std::string::npos) << e3;
+    // Truncated inside the rgb8 section.
+    b = bytes;
+    b.resize(off + size / 2);
+    std::ofstream(p, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+    const std::string e4 = open_error(p);
+    EXPECT_NE(e4.find("f.rsi: byte"), std::string::npos) << e4;
+    EXPECT_EQ(e4.find('\n'), std::string::npos);
+  }
+  fs::remove_all(dir);
+}
+
 TEST(IndexFileBuild, RefusesLayeredAndDisagreeingCrsAndLeavesNoFile) {
   RAYSCAN_REQUIRE_FILE(a, "las/autzen_trim.las");
   RAYSCAN_REQUIRE_FILE(b, "las/Haystack_Rock.las");
@@ -463,7 +674,9 @@ fs::path small_index(const fs::path& dir) {
   fs::create_directories(dir);
   const auto pts = make_points(3000, 11);
   write_f64(dir / "a.f64", pts);
-  io::build_index_file({dir / "a.f64"}, dir / "a.rsi", {});
+  io::IndexBuildOptions o;
+  o.attributes = io::AttributeSet::parse("id");  // the ids section is corrupted below too
+  io::build_index_file({dir / "a.f64"}, dir / "a.rsi", o);
   return dir / "a.rsi";
 }
 
@@ -503,13 +716,20 @@ TEST(IndexFileBadInput, TruncatedCorruptedVersionChangedSource) {
     auto b = bytes;
     b[8] = 1;  // version 1 (zlib CRC-32, no stored spacing): refused, naming both versions
     const std::string e = open_error(write(b));
-    EXPECT_NE(e.find("m.rsi: byte 8: index format version 1; this rayscan reads version 3"), std::string::npos) << e;
+    EXPECT_NE(e.find("m.rsi: byte 8: index format version 1; this rayscan reads version 4"), std::string::npos) << e;
     b[8] = 2;  // version 2 (float64 positions only): refused too, the rebuild named
     const std::string e2 = open_error(write(b));
-    EXPECT_NE(e2.find("m.rsi: byte 8: index format version 2; this rayscan reads version 3 (rebuild the index with "
+    EXPECT_NE(e2.find("m.rsi: byte 8: index format version 2; this rayscan reads version 4 (rebuild the index with "
                       "`rayscan index`)"),
               std::string::npos)
         << e2;
+    b[8] = 3;  // version 3 (ids always stored, 6-byte rgb): refused in one line, the rebuild named
+    const std::string e3 = open_error(write(b));
+    EXPECT_NE(e3.find("m.rsi: byte 8: index format version 3; this rayscan reads version 4 (rebuild the index with "
+                      "`rayscan index`)"),
+              std::string::npos)
+        << e3;
+    EXPECT_EQ(e3.find('\n'), std::string::npos);
   }
   // The positions encoding (header byte 864) behind a valid header checksum: an unknown id is
   // refused; a valid id that disagrees with the positions section's element size (a float64 file
@@ -777,7 +997,10 @@ TEST(IndexFileCli, IndexThenQueryEqualsQueryOnTheCloudAndInfoDescribesIt) {
   const fs::path dir = temp_dir() / "cli";
   fs::create_directories(dir);
   const fs::path rsi = dir / "autzen.rsi", log = dir / "log.txt";
-  ASSERT_EQ(run_cli("index -q '" + las.string() + "' -o '" + rsi.string() + "' --attributes rgb --memory 2M", log), 0) << text(log);
+  ASSERT_EQ(run_cli("index -q '" + las.string() + "' -o '" + rsi.string() + "' --attributes id,rgb --memory 2M", log), 0) << text(log);
+  // Without ids (the default): the same rows in index order (the index column is the slot).
+  const fs::path rsi_slots = dir / "slots.rsi";
+  ASSERT_EQ(run_cli("index -q '" + las.string() + "' -o '" + rsi_slots.string() + "' --attributes rgb --memory 2M", log), 0) << text(log);
   {
     // Rays straight down onto three of the cloud's points (so they hit).
     const PointCloud pc = io::read_point_cloud(las);
@@ -793,6 +1016,41 @@ TEST(IndexFileCli, IndexThenQueryEqualsQueryOnTheCloudAndInfoDescribesIt) {
   ASSERT_EQ(run_cli("query --cloud '" + las.string() + "'" + q, dir / "a.csv"), 0) << text(dir / "a.csv");
   ASSERT_EQ(run_cli("query --cloud '" + rsi.string() + "'" + q, dir / "b.csv"), 0) << text(dir / "b.csv");
   EXPECT_EQ(text(dir / "a.csv"), text(dir / "b.csv"));
+  ASSERT_EQ(run_cli("query --cloud '" + rsi_slots.string() + "'" + q, dir / "c.csv"), 0) << text(dir / "c.csv");
+  {
+    // ray,rank,index,x,y,z,t,distance: every column but index equal; index = the slot, whose
+    // position is the row's x, y, z.
+    const io::MappedIndex ms = io::MappedIndex::open(rsi_slots);
+    EXPECT_TRUE(ms.ids().is_identity());
+    std::istringstream sb(text(dir / "b.csv")), sc(text(dir / "c.csv"));
+    std::string lb, lc;
+    std::size_t rows = 0;
+    std::getline(sb, lb), std::getline(sc, lc);
+    EXPECT_EQ(lb, lc);  // header
+    while (std::getline(sb, lb)) {
+      ASSERT_TRUE(std::getline(sc, lc)) << rows;
+      auto cols = [](const std::string& l) {
+        std::vector<std::string> v;
+        std::istringstream ls(l);
+        for (std::string c; std::getline(ls, c, ',');) v.push_back(c);
+        return v;
+      };
+      auto vb = cols(lb), vc = cols(lc);
+      ASSERT_EQ(vb.size(), 8u);
+      ASSERT_EQ(vc.size(), 8u);
+      for (int k : {0, 1, 3, 4, 5, 6, 7}) EXPECT_EQ(vb[k], vc[k]) << "row " << rows << " column " << k;
+      const Vec3 p = ms.positions()[std::stoul(vc[2])];
+      EXPECT_EQ(std::stod(vc[3]), p.x);
+      EXPECT_EQ(std::stod(vc[4]), p.y);
+      ++rows;
+    }
+    EXPECT_FALSE(std::getline(sc, lc));
+    EXPECT_GT(rows, 10u);
+  }
+  ASSERT_EQ(run_cli("info '" + rsi_slots.string() + "'", log), 0) << text(log);
+  EXPECT_NE(text(log).find("ids:               not stored (points in index order)"), std::string::npos) << text(log);
+  EXPECT_NE(text(log).find("rgb:               8-bit x 257 (3 bytes/point, exact)"), std::string::npos) << text(log);
+  EXPECT_NE(text(log).find(" positions 12 rgb8 3 nodes "), std::string::npos) << text(log);
   const std::string a = text(dir / "a.csv");
   EXPECT_GT(std::count(a.begin(), a.end(), '\n'), 10);  // the rays hit points
   ASSERT_EQ(run_cli("info --verify '" + rsi.string() + "'", log), 0) << text(log);

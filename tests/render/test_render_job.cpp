@@ -146,6 +146,7 @@ TEST(RenderJob, IndexFileRendersLikeTheSourceCloud) {
   const fs::path src = fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz", rsi = dir / "subset.rsi";
   io::IndexBuildOptions bo;
   bo.config.capacity = 16;  // a different tree from the scene's in-memory one
+  bo.attributes = io::AttributeSet::parse("id");  // the index AOV in the source's order
   io::build_index_file({src}, rsi, bo);
   for (Primitive prim : {Primitive::sphere, Primitive::surfel}) {
     SCOPED_TRACE(prim == Primitive::surfel ? "surfel" : "sphere");
@@ -197,7 +198,7 @@ TEST(RenderJob, IndexFileAlbedoAtShadingTimeEqualsThePerPointArray) {
     io::write_las(las, pc);
     io::IndexBuildOptions bo;
     bo.config.capacity = 16;
-    bo.attributes = io::AttributeSet::parse("rgb,intensity,classification");
+    bo.attributes = io::AttributeSet::parse("id,rgb,intensity,classification");
     io::build_index_file({las}, rsi, bo);
     for (ColorMode mode : {ColorMode::rgb, ColorMode::intensity, ColorMode::classification, ColorMode::elevation,
                            ColorMode::constant}) {

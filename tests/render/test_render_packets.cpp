@@ -84,7 +84,9 @@ TEST(RenderPackets, ImageIdenticalWithAndWithoutPackets) {
   const fs::path dir = fs::temp_directory_path() / ("rayscan_render_packets_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   const fs::path rsi = dir / "subset.rsi";
-  io::build_index_file({fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz"}, rsi, io::IndexBuildOptions{});
+  io::IndexBuildOptions bo;
+  bo.attributes = io::AttributeSet::parse("id");  // the settings' per-point arrays are in the source's order
+  io::build_index_file({fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz"}, rsi, bo);
   {
     const io::MappedIndex m = io::MappedIndex::open(rsi);
     expect_packets_identical(m, make_settings(s, pc.positions, albedo, 0.8), 16, "index file");

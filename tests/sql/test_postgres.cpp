@@ -506,7 +506,7 @@ TEST_F(Postgres, ImportOfAnIndexFileEqualsImportOfTheCloud) {
   const fs::path dir = fs::temp_directory_path() / ("rayscan-pgtest-" + std::to_string(::getpid()));
   fs::create_directories(dir);
   const std::string bin = RAYSCAN_BIN, rsi = (dir / "autzen.rsi").string();
-  ASSERT_EQ(run(bin + " index '" + scan_path("autzen").string() + "' -o " + rsi + " > /dev/null 2>&1"), 0);
+  ASSERT_EQ(run(bin + " index '" + scan_path("autzen").string() + "' -o " + rsi + " --attributes id > /dev/null 2>&1"), 0);
   Pg pg;
   pg.rows("DROP TABLE IF EXISTS autzen_rsi, autzen_rsi_chunks, autzen_rsi_sources, autzen_small, "
           "autzen_small_chunks, autzen_small_sources");

@@ -130,7 +130,7 @@ template <SpatialIndex I>
 void measure_thickness(const I& index, std::span<const Vec3> positions, SurfelAttributes& a, std::size_t b,
                        std::size_t e, std::vector<PointIndex>& gathered) {
   const auto pos = index.positions();
-  const auto ids = index.ids();
+  const IdView ids = index.ids();
   const Vec3 n0(a.normals[ids[b]]);
   Vec3 c(0.0), m(0.0);
   AABB box;
@@ -183,7 +183,7 @@ SurfelAttributes estimate_surfels_over(const I& index, std::span<const Vec3> pos
   const std::size_t k = std::max<std::size_t>(estimate ? o.k_normal : 0, o.k_radius + 1);
   const Vec3 up = detail::surfel_up(o);
   const auto pos = index.positions();
-  const auto ids = index.ids();
+  const IdView ids = index.ids();
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
     std::vector<Neighbor> nb;
     for (std::size_t s = range.begin(); s != range.end(); ++s) {

@@ -40,7 +40,7 @@ void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
   out.clear();
   if (index.empty() || box.empty()) return;
   const auto pos = index.positions();
-  const std::span<const PointIndex> ids = index.ids();
+  const IdView ids = index.ids();
   thread_local std::vector<typename I::Node> stack;
   stack.clear();
   stack.push_back(index.root());
@@ -128,7 +128,7 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
   const bool sorted_set = bounded && k <= detail::kKnnSortedMax;
   const double r2 = radius * radius;
   const auto pos = index.positions();
-  const std::span<const PointIndex> ids = index.ids();
+  const IdView ids = index.ids();
   auto& scratch = detail::knn_scratch<Node>();
   auto& stack = scratch.stack;
   auto& cands = scratch.cands;

@@ -231,7 +231,7 @@ struct RayTraversal {
   const KeyPolicy& key_policy;
   Vec3 o, d, inv_d;
   std::remove_cvref_t<decltype(std::declval<const I&>().positions())> pos;
-  std::span<const PointIndex> ids;
+  IdView ids;
   bool bounded;
   bool found = false;  // kBest1: best holds a candidate
   bool sphere, ray_order, exact, has_planes;
@@ -927,7 +927,7 @@ template <SpatialIndex I>
   const AABB root_box = index.node_bounds(index.root());
   const double tol = 1e-9 * (root_box.max_extent() + glm::length(root_box.center())) + 1e-300;
   const auto pos = index.positions();
-  const std::span<const PointIndex> ids = index.ids();
+  const IdView ids = index.ids();
   std::vector<typename I::Node> stack{index.root()};
   while (!stack.empty()) {
     const auto n = stack.back();

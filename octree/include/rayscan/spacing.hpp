@@ -59,17 +59,24 @@ template <class I>
 /// original order (an index file, io::MappedIndex, whose positions are in storage order): the
 /// same samples, original indices i * N / n, are located by one pass over index.ids() (parallel,
 /// no per-point allocation), so the result is the same as over the original-order positions.
+/// Without stored ids (IdView::identity: the original order is the slot order) the samples are
+/// read at slots i * N / n directly, without the pass.
 /// The pass goes in blocks of 4 Mi slots; `scanned(end)` (optional) is called after the slots
 /// [0, end) are done, e.g. to drop the pages of a mapped ids section behind the pass.
 template <class I>
 [[nodiscard]] double median_nn_spacing_by_id(const I& index, std::size_t max_samples = 20000,
                                              const std::function<void(std::size_t)>& scanned = {}) {
   const auto pos = index.positions();
-  const std::span<const PointIndex> ids = index.ids();
+  const IdView ids = index.ids();
   const std::size_t N = pos.size();
   if (N < 2 || max_samples == 0) return 0.0;
   const std::size_t n = std::min(max_samples, N);
   std::vector<Vec3> samples(n);
+  if (ids.is_identity()) {  // an index file without ids: original index == slot, no pass needed
+    for (std::size_t i = 0; i < n; ++i) samples[i] = pos[i * N / n];
+    if (scanned) scanned(N);
+    return median_nn_spacing_of(index, std::span<const Vec3>(samples), n);
+  }
   // Sample i is original index p(i) = floor(i N / n); p is strictly increasing (N >= n), so an id
   // is a sample iff p(ceil(id n / N)) == id.
   for (std::size_t c0 = 0; c0 < N; c0 += std::size_t{1} << 22) {

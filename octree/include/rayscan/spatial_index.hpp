@@ -4,6 +4,7 @@
 #pragma once
 
 #include "rayscan/geometry.hpp"
+#include "rayscan/id_view.hpp"
 #include "rayscan/position_view.hpp"
 
 #include <concepts>
@@ -11,9 +12,6 @@
 #include <span>
 
 namespace rayscan {
-
-/// Index of a point in the caller's original PointCloud order (max 2^32 - 1 points).
-using PointIndex = std::uint32_t;
 
 /// The "no point" value of a PointIndex: a ray that hits nothing, an empty pixel of the renderer's
 /// point-index AOV (stored as uint32 0xFFFFFFFF, the bits of int32 -1). Indexes hold at most
@@ -39,7 +37,9 @@ struct SlotRange {
 ///  - `positions()`: all positions by slot (a PositionRange: `std::span<const Vec3>` for the
 ///    in-memory indexes, a decoding PositionView for the index file's compact encodings; read
 ///    them only through `[slot]`, `size()` and position_block()), `ids()`: the original
-///    PointIndex of each slot.
+///    PointIndex of each slot, convertible to IdView (rayscan/id_view.hpp): a span of stored ids
+///    for the in-memory indexes, the identity for an index file built without ids (outputs then
+///    in slot order); read them only through IdView's `[slot]` and `size()`.
 template <class I>
 concept SpatialIndex = requires(const I& idx, typename I::Node n, unsigned i) {
   typename I::Node;
@@ -50,7 +50,7 @@ concept SpatialIndex = requires(const I& idx, typename I::Node n, unsigned i) {
   { idx.child_count(n) } -> std::convertible_to<unsigned>;
   { idx.child(n, i) } -> std::convertible_to<typename I::Node>;
   { idx.positions() } -> PositionRange;
-  { idx.ids() } -> std::convertible_to<std::span<const PointIndex>>;
+  { idx.ids() } -> std::convertible_to<IdView>;
 };
 
 }  // namespace rayscan

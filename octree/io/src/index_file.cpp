@@ -39,7 +39,7 @@ namespace fs = std::filesystem;
 
 // ---- format constants (docs/index-format.md) ----------------------------------------------------
 constexpr char kMagic[8] = {'R', 'S', 'I', 'N', 'D', 'E', 'X', '\0'};
-constexpr std::uint32_t kVersion = 3;
+constexpr std::uint32_t kVersion = 4;
 constexpr std::uint32_t kEndianMarker = 0x01020304;
 constexpr std::uint64_t kHeaderBytes = 4096;
 constexpr std::uint64_t kAlign = 4096;
@@ -55,13 +55,17 @@ constexpr unsigned kLevels = 22;
 constexpr std::size_t kEncodingOffset = 864;  // uint32 PositionEncoding (version 3)
 constexpr std::size_t kScaleOffset = 872;     // float64[3] LAS grid scale (las_int32)
 constexpr std::size_t kGridOffsetOffset = 896;  // float64[3] LAS grid offset (las_int32)
+constexpr std::size_t kRgbMulOffset = 920;      // uint32 rgb8 multiplier (version 4): 1, 256, 257; 0 without rgb8
 /// Files up to this size get every section verified at open by default (IndexOpenOptions).
 constexpr std::uint64_t kVerifyAllBytes = std::uint64_t{256} << 20;
 
 enum SectionId : std::uint32_t {
   kSources = 1, kCrs = 2, kPositions = 3, kIds = 4, kRgb = 5, kIntensity = 6,
-  kClassification = 7, kGpsTime = 8, kNodes = 9
+  kClassification = 7, kGpsTime = 8, kNodes = 9, kRgb8 = 10
 };
+constexpr std::uint32_t kLastSection = kRgb8;
+/// True for the sections of N elements (one per point slot).
+constexpr bool per_point(std::uint32_t id) { return (id >= kPositions && id <= kGpsTime) || id == kRgb8; }
 const char* section_name(std::uint32_t id) {
   switch (id) {
     case kSources: return "sources";
@@ -73,6 +77,7 @@ const char* section_name(std::uint32_t id) {
     case kClassification: return "classification";
     case kGpsTime: return "gps_time";
     case kNodes: return "nodes";
+    case kRgb8: return "rgb8";
   }
   return "unknown";
 }
@@ -82,6 +87,7 @@ std::uint32_t elem_size(std::uint32_t id, PositionEncoding enc = PositionEncodin
     case kPositions: return static_cast<std::uint32_t>(position_bytes(enc));
     case kIds: return 4;
     case kRgb: return 6;
+    case kRgb8: return 3;
     case kIntensity: return 2;
     case kClassification: return 1;
     case kGpsTime: return 8;
@@ -215,6 +221,7 @@ struct Header {
   std::array<std::uint64_t, kLevels> levels{};  ///< points per depth
   PositionEncoding encoding = PositionEncoding::float64;
   Vec3 grid_scale{1.0}, grid_offset{0.0};  ///< las_int32 only
+  std::uint32_t rgb_mul = 0;  ///< the rgb8 section's multiplier (1, 256, 257), 0 without it
   std::vector<SectionEntry> sections;
 };
 
@@ -324,6 +331,7 @@ std::vector<std::uint8_t> encode_header(const Header& h) {
     put<double>(b.data(), kScaleOffset + 8 * k, h.grid_scale[k]);
     put<double>(b.data(), kGridOffsetOffset + 8 * k, h.grid_offset[k]);
   }
+  put<std::uint32_t>(b.data(), kRgbMulOffset, h.rgb_mul);
   for (std::size_t i = 0; i < h.sections.size(); ++i) {
     const SectionEntry& s = h.sections[i];
     const std::size_t o = kTableOffset + i * kEntryBytes;
@@ -479,6 +487,40 @@ void gather_write(const std::vector<T>& src, const std::vector<MortonKey>& keys,
   });
   w.write(out.data(), out.size() * sizeof(T));
 }
+
+/// The colour encoding a build writes (docs/index-format.md "Colour"): the read pass checks every
+/// delivered rgb value v (uint16) against v = b * m with b <= 255 for each multiplier m in
+/// {1, 256, 257} (8-bit colour stored raw, in the high byte, or scaled by 257); decide() picks the
+/// first that held for every value (rgb8 section, 3 bytes per point, decoded as b * m, so
+/// bit-identical), else 0 (the 6-byte rgb section as read).
+struct RgbCodec {
+  std::uint32_t bad1 = 0, bad256 = 0, bad257 = 0;  ///< non-zero: some value is not b * m
+  std::uint32_t mul = 0;                           ///< decided: 1, 256, 257, or 0 (16-bit section)
+  /// Checks n colours.
+  void check(const Rgb16* c, std::size_t n) {
+    if (bad1 && bad256 && bad257) return;
+    std::uint32_t a = 0, h = 0, q = 0;
+    for (std::size_t i = 0; i < n; ++i)
+      for (const std::uint32_t v : {std::uint32_t{c[i].r}, std::uint32_t{c[i].g}, std::uint32_t{c[i].b}}) {
+        a |= v > 255u;
+        h |= v & 255u;
+        q |= (v % 257u) != 0u;
+      }
+    bad1 |= a, bad256 |= h, bad257 |= q;
+  }
+  /// Picks the multiplier (compact false: always the 16-bit section).
+  void decide(bool compact) {
+    mul = !compact ? 0u : !bad1 ? 1u : !bad256 ? 256u : !bad257 ? 257u : 0u;
+  }
+  /// Encodes n colours to 3 bytes each (mul != 0; every value was checked to be b * mul).
+  void encode(const Rgb16* c, std::size_t n, std::uint8_t* out) const {
+    for (std::size_t i = 0; i < n; ++i) {
+      out[3 * i] = static_cast<std::uint8_t>(c[i].r / mul);
+      out[3 * i + 1] = static_cast<std::uint8_t>(c[i].g / mul);
+      out[3 * i + 2] = static_cast<std::uint8_t>(c[i].b / mul);
+    }
+  }
+};
 
 /// Page size of the maps below (madvise ranges are page-aligned).
 std::size_t page_bytes() {
@@ -731,10 +773,13 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   if (inputs.empty()) throw std::invalid_argument("rayscan index: no input file");
   if (opt.memory_bytes < (std::uint64_t{1} << 20))
     throw std::invalid_argument("--memory " + std::to_string(opt.memory_bytes) + " bytes: at least 1M");
-  const AttributeSet storable = AttributeSet::parse("rgb,intensity,classification,gps_time");
+  const AttributeSet storable = AttributeSet::parse("id,rgb,intensity,classification,gps_time");
   if ((opt.attributes & storable) != opt.attributes)
     throw std::invalid_argument("--attributes " + opt.attributes.to_string() +
-                                ": an index stores rgb, intensity, classification, gps_time");
+                                ": an index stores id, rgb, intensity, classification, gps_time");
+  // The ids section only when asked (docs/index-format.md "Ids"); the readers deliver the rest.
+  const bool want_ids = opt.attributes.has(Attribute::id);
+  const AttributeSet read_attrs{opt.attributes.bits & ~static_cast<std::uint32_t>(Attribute::id)};
   IndexBuildStats stats;
 
   // Inputs: CRS agreement, the stored attributes, the announced point counts. The readers stay
@@ -750,11 +795,11 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     const PointReader* first = nullptr;
     for (std::size_t f = 0; f < inputs.size(); ++f) {
       const fs::path& in = inputs[f];
-      auto r = open_point_reader(in, opt.attributes, ReadOptions{.scalars = false});
+      auto r = open_point_reader(in, read_attrs, ReadOptions{.scalars = false});
       if (first && !same_crs(*first, *r))
         throw IndexError(in.string() + ": CRS " + crs_label(*r) + " differs from " + crs_label(*first) +
                          " of " + inputs.front().string() + " (an index holds one coordinate system)");
-      const AttributeSet lacking{opt.attributes.bits & ~r->attributes().bits};
+      const AttributeSet lacking{read_attrs.bits & ~r->attributes().bits};
       if (lacking.bits != 0 && (stored.bits & lacking.bits) != 0) {
         stats.notes.push_back(in.string() + " has no " + lacking.to_string() + ": not stored");
         stored = AttributeSet{stored.bits & ~lacking.bits};
@@ -857,9 +902,11 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     buf.clear();
   };
   PositionCodec codec;
+  RgbCodec rgbc;
   for (int attempt = 0;; ++attempt) {
     PointCloud c;
     codec = PositionCodec{};
+    rgbc = RgbCodec{};
     bounds = AABB{};
     total = 0;
     run_first_id = 0;
@@ -869,12 +916,13 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     for (IndexSource& s : sources) s.points = 0;
     for (std::size_t f = 0; f < inputs.size(); ++f) {
       std::unique_ptr<PointReader> r = std::move(kept[f]);
-      if (!r) r = open_point_reader(inputs[f], stored, ReadOptions{.scalars = false});
+      if (!r) r = open_point_reader(inputs[f], AttributeSet{stored.bits & read_attrs.bits}, ReadOptions{.scalars = false});
       sources[f].first_id = total;
       codec.source(r->integer_grid());
       std::size_t n;
       while ((n = r->read(c, kDefaultChunkPoints)) > 0) {
         codec.check(c.positions.data(), n);
+        if (L.rgb) rgbc.check(c.rgb.data(), n);
         if (total + n >= 0xFFFFFFFFull) throw std::length_error("rayscan index: more than 2^32 - 2 points");
         if (in_memory && buf.size() + n > run_cap)
           throw std::runtime_error(inputs[f].string() + ": the inputs changed during the build (more points than " +
@@ -904,6 +952,8 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   stats.runs = in_memory ? (total > 0 ? 1 : 0) : run_files.size();
   const AABB cell = OctreeRules::root_cell(bounds);
   codec.decide(opt.compact_positions);
+  if (L.rgb) rgbc.decide(opt.compact_rgb);
+  const bool rgb8 = L.rgb && rgbc.mul != 0;
 
   // Section placement: sources, crs, per-point sections, then nodes (size known after the build).
   Header h;
@@ -913,6 +963,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   h.attributes = stored.bits;
   h.encoding = codec.enc;
   if (codec.enc == PositionEncoding::las_int32) h.grid_scale = codec.scale, h.grid_offset = codec.offset;
+  h.rgb_mul = rgb8 ? rgbc.mul : 0u;
   const std::string src_text = encode_sources(sources);
   std::uint64_t off = kHeaderBytes;
   auto place = [&](std::uint32_t id, std::uint64_t size) {
@@ -924,9 +975,9 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   const std::size_t s_src = place(kSources, src_text.size());
   const std::size_t s_crs = place(kCrs, crs.size());
   const std::size_t s_pos = place(kPositions, total * codec.bytes());
-  const std::size_t s_ids = place(kIds, total * 4);
+  const std::size_t s_ids = want_ids ? place(kIds, total * 4) : 0;
   std::size_t s_rgb = 0, s_int = 0, s_cls = 0, s_gps = 0;
-  if (L.rgb) s_rgb = place(kRgb, total * 6);
+  if (L.rgb) s_rgb = rgb8 ? place(kRgb8, total * 3) : place(kRgb, total * 6);
   if (L.intensity) s_int = place(kIntensity, total * 2);
   if (L.cls) s_cls = place(kClassification, total);
   if (L.gps) s_gps = place(kGpsTime, total * 8);
@@ -949,13 +1000,12 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   std::vector<std::uint64_t> mem_codes;  // sorted codes of the in-memory build
   // Flushes the point sections' writers (positions, ids, the stored attributes) and records their
   // CRCs in the header: the end of both paths below.
-  auto finish_points = [&](SectionWriter& pos, SectionWriter& ids, std::optional<SectionWriter>& rgb,
+  auto finish_points = [&](SectionWriter& pos, std::optional<SectionWriter>& ids, std::optional<SectionWriter>& rgb,
                            std::optional<SectionWriter>& intensity, std::optional<SectionWriter>& cls,
                            std::optional<SectionWriter>& gps) {
     pos.flush();
-    ids.flush();
     h.sections[s_pos].crc = pos.crc();
-    h.sections[s_ids].crc = ids.crc();
+    if (ids) ids->flush(), h.sections[s_ids].crc = ids->crc();
     if (rgb) rgb->flush(), h.sections[s_rgb].crc = rgb->crc();
     if (intensity) intensity->flush(), h.sections[s_int].crc = intensity->crc();
     if (cls) cls->flush(), h.sections[s_cls].crc = cls->crc();
@@ -970,8 +1020,9 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
       for (std::size_t i = r.begin(); i != r.end(); ++i) mem_codes[i] = keys[i].code;
     });
     const std::size_t wbuf = 1 << 16;  // blocks are written directly
-    SectionWriter w_pos(fd, h.sections[s_pos].offset, wbuf), w_ids(fd, h.sections[s_ids].offset, wbuf);
-    std::optional<SectionWriter> w_rgb, w_int, w_cls, w_gps;
+    SectionWriter w_pos(fd, h.sections[s_pos].offset, wbuf);
+    std::optional<SectionWriter> w_ids, w_rgb, w_int, w_cls, w_gps;
+    if (want_ids) w_ids.emplace(fd, h.sections[s_ids].offset, wbuf);
     if (L.rgb) w_rgb.emplace(fd, h.sections[s_rgb].offset, wbuf);
     if (L.intensity) w_int.emplace(fd, h.sections[s_int].offset, wbuf);
     if (L.cls) w_cls.emplace(fd, h.sections[s_cls].offset, wbuf);
@@ -980,6 +1031,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     std::vector<std::uint8_t> g_enc;  // encoded positions (float32, las_int32)
     std::vector<std::uint32_t> g_ids;
     std::vector<Rgb16> g_rgb;
+    std::vector<std::uint8_t> g_rgb8;
     std::vector<std::uint16_t> g_int;
     std::vector<std::uint8_t> g_cls;
     std::vector<double> g_gps;
@@ -995,10 +1047,19 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
         });
         w_pos.write(g_enc.data(), g_enc.size());
       }
-      g_ids.resize(e - b);
-      for (std::size_t i = b; i < e; ++i) g_ids[i - b] = keys[i].idx;  // one run: idx == id
-      w_ids.write(g_ids.data(), g_ids.size() * 4);
-      if (L.rgb) gather_write(buf.rgb, keys, b, e, g_rgb, *w_rgb);
+      if (w_ids) {
+        g_ids.resize(e - b);
+        for (std::size_t i = b; i < e; ++i) g_ids[i - b] = keys[i].idx;  // one run: idx == id
+        w_ids->write(g_ids.data(), g_ids.size() * 4);
+      }
+      if (L.rgb && !rgb8) gather_write(buf.rgb, keys, b, e, g_rgb, *w_rgb);
+      if (rgb8) {
+        g_rgb8.resize((e - b) * 3);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, 1 << 14), [&](const auto& r) {
+          for (std::size_t i = r.begin(); i != r.end(); ++i) rgbc.encode(&buf.rgb[keys[i].idx], 1, &g_rgb8[3 * (i - b)]);
+        });
+        w_rgb->write(g_rgb8.data(), g_rgb8.size());
+      }
       if (L.intensity) gather_write(buf.intensity, keys, b, e, g_int, *w_int);
       if (L.cls) gather_write(buf.cls, keys, b, e, g_cls, *w_cls);
       if (L.gps) gather_write(buf.gps, keys, b, e, g_gps, *w_gps);
@@ -1009,9 +1070,9 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   } else {
     Fd codes_fd(codes_path, O_WRONLY | O_CREAT | O_TRUNC);
     const std::size_t wbuf = 4 << 20;
-    SectionWriter w_codes(codes_fd, 0, wbuf), w_pos(fd, h.sections[s_pos].offset, wbuf),
-        w_ids(fd, h.sections[s_ids].offset, wbuf);
-    std::optional<SectionWriter> w_rgb, w_int, w_cls, w_gps;
+    SectionWriter w_codes(codes_fd, 0, wbuf), w_pos(fd, h.sections[s_pos].offset, wbuf);
+    std::optional<SectionWriter> w_ids, w_rgb, w_int, w_cls, w_gps;
+    if (want_ids) w_ids.emplace(fd, h.sections[s_ids].offset, wbuf);
     if (L.rgb) w_rgb.emplace(fd, h.sections[s_rgb].offset, wbuf);
     if (L.intensity) w_int.emplace(fd, h.sections[s_int].offset, wbuf);
     if (L.cls) w_cls.emplace(fd, h.sections[s_cls].offset, wbuf);
@@ -1044,7 +1105,8 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
         SectionWriter* w;
         std::size_t off, size;
       };
-      std::vector<Field> fields{{&w_codes, 0, 8}, {&w_ids, 8, 4}, {&w_pos, 12, 24}};
+      std::vector<Field> fields{{&w_codes, 0, 8}, {&w_pos, 12, 24}};
+      if (w_ids) fields.push_back({&*w_ids, 8, 4});  // the record's id (the merge's tie-break) is always there
       if (L.gps) fields.push_back({&*w_gps, L.gps_off, 8});
       if (L.rgb) fields.push_back({&*w_rgb, L.rgb_off, 6});
       if (L.intensity) fields.push_back({&*w_int, L.int_off, 2});
@@ -1066,6 +1128,12 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
         if (fd_.w == &w_pos && codec.enc != PositionEncoding::float64) {  // encode the float64 triples
           std::vector<std::uint8_t> enc(block.size() * codec.bytes());
           codec.encode(out.data(), block.size(), enc.data());
+          fd_.w->write(enc.data(), enc.size());
+          return;
+        }
+        if (rgb8 && fd_.w == &*w_rgb) {  // 3 bytes per colour (RgbCodec)
+          std::vector<std::uint8_t> enc(block.size() * 3);
+          rgbc.encode(reinterpret_cast<const Rgb16*>(out.data()), block.size(), enc.data());
           fd_.w->write(enc.data(), enc.size());
           return;
         }
@@ -1146,10 +1214,12 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     const MappedIndex m = MappedIndex::open(out.temp(), oo);
     // The ids pass is sequential: its pages are dropped behind it (the map is shared and
     // read-only), so this phase's resident set is the samples' kNN paths, not the ids section.
+    // Without ids there is no pass (the samples are read by slot).
     const auto* ids0 = reinterpret_cast<const std::uint8_t*>(m.ids().data());
     const std::uintptr_t pg = page_bytes();
     std::uintptr_t dropped = (reinterpret_cast<std::uintptr_t>(ids0) + pg - 1) / pg * pg;
     h.spacing = median_nn_spacing_by_id(m, 20000, [&](std::size_t slots) {
+      if (ids0 == nullptr) return;
       const std::uintptr_t end = (reinterpret_cast<std::uintptr_t>(ids0) + slots * sizeof(PointIndex)) / pg * pg;
       if (end > dropped) {
         // NOLINTNEXTLINE(performance-no-int-to-ptr): a page range of the index's own read-only map
@@ -1171,6 +1241,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   stats.depth = h.depth;
   stats.attributes = stored;
   stats.positions = codec.enc;
+  stats.rgb_multiplier = h.rgb_mul;
   stats.file_bytes = off;
   return stats;
 }
@@ -1290,7 +1361,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   const bool verify_all = opt.verify == IndexOpenOptions::Verify::always ||
                           (opt.verify == IndexOpenOptions::Verify::automatic && size <= kVerifyAllBytes);
   x.verified_ = verify_all;
-  std::array<const SectionEntry*, 10> by_id{};
+  std::array<const SectionEntry*, kLastSection + 1> by_id{};
   std::vector<SectionEntry> secs(nsec);
   for (std::uint32_t i = 0; i < nsec; ++i) {
     const std::size_t o = kTableOffset + i * kEntryBytes;
@@ -1300,7 +1371,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
     e.offset = get<std::uint64_t>(b, o + 8);
     e.size = get<std::uint64_t>(b, o + 16);
     e.crc = get<std::uint32_t>(b, o + 24);
-    if (e.id < kSources || e.id > kNodes) fail(o, "unknown section id " + std::to_string(e.id));
+    if (e.id < kSources || e.id > kLastSection) fail(o, "unknown section id " + std::to_string(e.id));
     const std::string sn = std::string("section ") + section_name(e.id);
     x.sections_.push_back({section_name(e.id), e.offset, e.size});
     if (by_id[e.id] != nullptr) fail(o, sn + " appears twice");
@@ -1313,7 +1384,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
       fail(o + 16, sn + " [" + std::to_string(e.offset) + ", " + std::to_string(e.offset + e.size) +
                        ") runs past the end of the file (size " + std::to_string(size) + "; truncated)");
     std::uint64_t expect = e.size;
-    if (e.id >= kPositions && e.id <= kGpsTime) expect = x.points_ * e.elem;
+    if (per_point(e.id)) expect = x.points_ * e.elem;
     if (e.id == kNodes) expect = x.node_count_ * e.elem;
     if (e.size != expect) fail(o + 16, sn + ": " + std::to_string(e.size) + " bytes, expected " + std::to_string(expect));
     const bool meta = e.id == kSources || e.id == kCrs;
@@ -1324,14 +1395,22 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
                          ", expected " + hex32(e.crc) + " (corrupted)");
     }
   }
-  for (std::uint32_t id : {kSources, kCrs, kPositions, kIds, kNodes})
+  for (std::uint32_t id : {kSources, kCrs, kPositions, kNodes})
     if (by_id[id] == nullptr) fail(kTableOffset, std::string("missing section ") + section_name(id));
-  const std::pair<Attribute, std::uint32_t> attr_sec[] = {{Attribute::rgb, kRgb}, {Attribute::intensity, kIntensity},
+  if (by_id[kRgb] && by_id[kRgb8]) fail(kTableOffset, "sections rgb and rgb8 both present (expected one)");
+  const std::pair<Attribute, std::uint32_t> attr_sec[] = {{Attribute::id, kIds}, {Attribute::rgb, kRgb},
+                                                           {Attribute::intensity, kIntensity},
                                                            {Attribute::classification, kClassification},
                                                            {Attribute::gps_time, kGpsTime}};
   for (const auto& [a, id] : attr_sec)
-    if (x.attrs_.has(a) != (by_id[id] != nullptr))
+    if (x.attrs_.has(a) != (by_id[id] != nullptr || (id == kRgb && by_id[kRgb8] != nullptr)))
       fail(108, std::string("attribute set and sections disagree on ") + section_name(id));
+  if ((x.attrs_.bits & ~AttributeSet::parse("id,rgb,intensity,classification,gps_time").bits) != 0)
+    fail(108, "stored attributes " + std::to_string(x.attrs_.bits) + " (expected bits 0..3 and 6)");
+  const auto rgb_mul = get<std::uint32_t>(b, kRgbMulOffset);
+  if (by_id[kRgb8] ? rgb_mul != 1 && rgb_mul != 256 && rgb_mul != 257 : rgb_mul != 0)
+    fail(kRgbMulOffset, "rgb8 multiplier " + std::to_string(rgb_mul) +
+                            (by_id[kRgb8] ? " (expected 1, 256 or 257)" : " (expected 0 without an rgb8 section)"));
   if ((x.points_ > 0) != (x.node_count_ > 0)) fail(32, "node count " + std::to_string(x.node_count_) + " for " + std::to_string(x.points_) + " points");
   if (x.node_count_ >= 0xFFFFFFFFull) fail(32, "node count above 2^32 - 2");
   for (int k = 0; k < 3; ++k)
@@ -1340,9 +1419,12 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   auto at = [&](std::uint32_t id) { return b + by_id[id]->offset; };
   x.nodes_ = reinterpret_cast<const Octree::NodeRec*>(at(kNodes));
   x.positions_ = PositionView(enc, at(kPositions), x.points_, grid_scale, grid_offset);
-  x.ids_ = reinterpret_cast<const PointIndex*>(at(kIds));
-  x.ids_offset_ = by_id[kIds]->offset;
-  if (by_id[kRgb]) x.rgb_ = {reinterpret_cast<const Rgb16*>(at(kRgb)), x.points_};
+  if (by_id[kIds]) {
+    x.ids_ = reinterpret_cast<const PointIndex*>(at(kIds));
+    x.ids_offset_ = by_id[kIds]->offset;
+  }
+  if (by_id[kRgb]) x.rgb_ = std::span<const Rgb16>(reinterpret_cast<const Rgb16*>(at(kRgb)), x.points_);
+  if (by_id[kRgb8]) x.rgb_ = RgbView(at(kRgb8), x.points_, rgb_mul);
   if (by_id[kIntensity]) x.intensity_ = {reinterpret_cast<const std::uint16_t*>(at(kIntensity)), x.points_};
   if (by_id[kClassification]) x.classification_ = {at(kClassification), x.points_};
   if (by_id[kGpsTime]) x.gps_ = {reinterpret_cast<const double*>(at(kGpsTime)), x.points_};
@@ -1463,12 +1545,14 @@ void MappedIndex::verify_records(std::uint64_t node_off) const {
   check_ids();
 }
 
-std::span<const PointIndex> MappedIndex::ids() const {
+IdView MappedIndex::ids() const {
+  if (ids_ == nullptr) return IdView::identity(points_);  // no ids section: slot order
   if (!verified_ && map_) std::call_once(map_->ids_checked, [this] { check_ids(); });
-  return {ids_, points_};
+  return std::span<const PointIndex>(ids_, points_);
 }
 
 void MappedIndex::check_ids() const {
+  if (ids_ == nullptr) return;  // the identity names every point
   std::atomic<std::size_t> bad{points_};
   // Isolated: a thread waiting for this pass must not pick up an outer task (e.g. another ray of
   // a batch) that calls ids() again and would wait on the once_flag this thread holds.
@@ -1507,7 +1591,7 @@ PointCloud MappedIndex::to_point_cloud() const {
   if (!classification_.empty()) pc.classification.resize(points_);
   if (!gps_.empty()) pc.gps_time.resize(points_);
   for (std::size_t s = 0; s < points_; ++s) {
-    const PointIndex i = ids_[s];
+    const PointIndex i = ids_ ? ids_[s] : static_cast<PointIndex>(s);  // no ids: slot order
     if (i >= points_)
       throw IndexError(path_.string() + ": section ids: slot " + std::to_string(s) + " holds id " + std::to_string(i) +
                        " outside the " + std::to_string(points_) + " points (corrupted)");

@@ -66,6 +66,11 @@ InfoJobResult run_info(const InfoJobOptions& options) {
       x.positions += " (scale " + num(m.positions().scale().x) + " " + num(m.positions().scale().y) + " " +
                      num(m.positions().scale().z) + ", offset " + num(m.positions().offset().x) + " " +
                      num(m.positions().offset().y) + " " + num(m.positions().offset().z) + ")";
+    x.ids = m.has_ids() ? "stored (original order)" : "not stored (points in index order)";
+    if (!m.rgb().empty())
+      x.rgb = m.rgb().multiplier() != 0
+                  ? "8-bit x " + std::to_string(m.rgb().multiplier()) + " (3 bytes/point, exact)"
+                  : std::string("16-bit (6 bytes/point)");
     x.root_cell = m.root_cell();
     x.checksums = m.verified() ? "all sections verified"
                                : "header and metadata verified (nodes and points: rayscan info --verify)";
@@ -110,6 +115,8 @@ std::string index_report_json(const InfoJobResult& r) {
   j["bytes_per_point"] = x.bytes_per_point;
   j["attributes"] = x.attributes;
   j["positions"] = x.positions;
+  j["ids"] = x.ids;
+  if (!x.rgb.empty()) j["rgb"] = x.rgb;
   j["root_cell"] = {{"min", vec_json(x.root_cell.lo)}, {"max", vec_json(x.root_cell.hi)}};
   if (r.count != 0) j["bounds"] = {{"min", vec_json(r.bounds.lo)}, {"max", vec_json(r.bounds.hi)}};
   j["checksums"] = x.checksums;
@@ -141,6 +148,8 @@ std::string index_report_text(const InfoJobResult& r) {
   o << "file size:         " << x.file_bytes << " bytes (" << num(x.bytes_per_point) << " bytes/point)\n";
   o << "attributes:        " << (x.attributes.empty() ? std::string("positions only") : x.attributes) << "\n";
   o << "positions:         " << x.positions << "\n";
+  o << "ids:               " << x.ids << "\n";
+  if (!x.rgb.empty()) o << "rgb:               " << x.rgb << "\n";
   o << "sections:         ";
   for (const IndexSectionInfo& s : x.sections)
     o << " " << s.name << " " << num(r.count ? static_cast<double>(s.bytes) / static_cast<double>(r.count) : 0.0);

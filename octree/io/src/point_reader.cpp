@@ -218,6 +218,7 @@ class DecodedReader final : public PointReader {
 std::unique_ptr<PointReader> open_source(const std::shared_ptr<Source>& src, Format format,
                                          AttributeSet attrs, const ReadOptions& opt) {
   if (!opt.scalars) attrs = AttributeSet{attrs.bits & ~static_cast<std::uint32_t>(Attribute::scalars)};
+  attrs = AttributeSet{attrs.bits & ~static_cast<std::uint32_t>(Attribute::id)};  // ids are an index file's
   switch (format) {
     case Format::las: return detail::open_las(src, attrs, opt);
     case Format::f64: return std::make_unique<F64Reader>(src);
@@ -231,7 +232,7 @@ AttributeSet AttributeSet::parse(const std::string& list) {
   static const std::pair<const char*, Attribute> names[] = {
       {"rgb", Attribute::rgb},           {"intensity", Attribute::intensity},
       {"classification", Attribute::classification}, {"gps_time", Attribute::gps_time},
-      {"normals", Attribute::normals},   {"scalars", Attribute::scalars}};
+      {"normals", Attribute::normals},   {"scalars", Attribute::scalars}, {"id", Attribute::id}};
   AttributeSet s = none();
   std::size_t p = 0;
   while (p <= list.size()) {
@@ -250,15 +251,15 @@ AttributeSet AttributeSet::parse(const std::string& list) {
     if (!ok)
       throw std::invalid_argument("attribute '" + w +
                                   "': expected rgb, intensity, classification, gps_time, normals, "
-                                  "scalars, all or none");
+                                  "scalars, id, all or none");
   }
   return s;
 }
 
 std::string AttributeSet::to_string() const {
-  static const char* names[] = {"rgb", "intensity", "classification", "gps_time", "normals", "scalars"};
+  static const char* names[] = {"rgb", "intensity", "classification", "gps_time", "normals", "scalars", "id"};
   std::string out;
-  for (int k = 0; k < 6; ++k)
+  for (int k = 0; k < 7; ++k)
     if (bits & (1u << k)) {
       if (!out.empty()) out.push_back(',');
       out.append(names[k]);

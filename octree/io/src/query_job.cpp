@@ -95,9 +95,11 @@ QueryJobResult run_query(const QueryJobOptions& o) {
     std::unordered_map<PointIndex, Vec3> hit_pos;
     for (const auto& h : r.hits)
       for (const RayHit& x : h) hit_pos.emplace(x.index, Vec3(0.0));
-    const auto ids = idx.ids();
+    const IdView ids = idx.ids();
     const auto pos = idx.positions();
-    for (std::size_t s = 0; s < ids.size() && !hit_pos.empty(); ++s)
+    if (ids.is_identity())  // an index without ids: a hit's index is its slot
+      for (auto& [id, p] : hit_pos) p = pos[id];
+    for (std::size_t s = 0; s < ids.size() && !ids.is_identity() && !hit_pos.empty(); ++s)
       if (auto it = hit_pos.find(ids[s]); it != hit_pos.end()) it->second = pos[s];
     for (const auto& h : r.hits)
       for (const RayHit& x : h) r.hit_positions.push_back(hit_pos.at(x.index));

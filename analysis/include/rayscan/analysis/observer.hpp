@@ -93,7 +93,8 @@ struct GroundOptions {
 /// (low noise) and 18 (high noise) never count. Returns NaN when the cylinder holds no usable point.
 /// `index` must be built over cloud.positions.
 double local_ground(const AnyIndex& index, const PointCloud& cloud, double x, double y, double radius);
-/// The same over an index file (`cloud`: its points in original order).
+/// The same over an index file (`cloud`: its points in original order, by ids(): slot order for
+/// a file built without ids, docs/index-format.md "Ids").
 double local_ground(const io::MappedIndex& index, const PointCloud& cloud, double x, double y, double radius);
 
 /// Resolves every observer's eye z: observers with a height (or, lacking z and height, the default
@@ -102,7 +103,8 @@ double local_ground(const io::MappedIndex& index, const PointCloud& cloud, doubl
 /// is no default. `index` must be built over cloud.positions.
 void place_observers(std::vector<Observer>& observers, const AnyIndex& index, const PointCloud& cloud,
                      const GroundOptions& options);
-/// The same over an index file (`cloud`: its points in original order).
+/// The same over an index file (`cloud`: its points in original order, by ids(): slot order for
+/// a file built without ids, docs/index-format.md "Ids").
 void place_observers(std::vector<Observer>& observers, const io::MappedIndex& index, const PointCloud& cloud,
                      const GroundOptions& options);
 

@@ -84,7 +84,8 @@ struct VisibilityResult {
 /// `index` must be built over `positions`; i < positions.size(); `scratch` is caller-owned.
 bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Observer& observer,
                 PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch);
-/// The same over an index file, queried in place (`positions`: its points in original order).
+/// The same over an index file, queried in place (`positions`: its points in original order, i.e.
+/// by ids(): slot order for a file built without ids, docs/index-format.md "Ids").
 bool is_visible(const io::MappedIndex& index, std::span<const Vec3> positions, const Observer& observer,
                 PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch);
 
@@ -94,7 +95,8 @@ bool is_visible(const io::MappedIndex& index, std::span<const Vec3> positions, c
 VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3> positions,
                                     std::span<const Observer> observers, const VisibilityOptions& opts);
 /// The same over an index file, queried in place (no tree is built; `positions`: its points in
-/// original order, MappedIndex::to_point_cloud()). Per-point results are by original index.
+/// original order, MappedIndex::to_point_cloud()). Per-point results are by original index
+/// (index.ids(): the slot when the file has no ids section, docs/index-format.md "Ids").
 VisibilityResult compute_visibility(const io::MappedIndex& index, std::span<const Vec3> positions,
                                     std::span<const Observer> observers, const VisibilityOptions& opts);
 

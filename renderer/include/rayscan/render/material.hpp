@@ -4,6 +4,7 @@
 
 #include "rayscan/point_cloud.hpp"
 #include "rayscan/position_view.hpp"
+#include "rayscan/rgb_view.hpp"
 #include "rayscan/render/color.hpp"
 #include "rayscan/render/scene.hpp"
 
@@ -21,7 +22,7 @@ namespace rayscan::render {
 /// empty.
 struct AlbedoAttributes {
   PositionView positions;  ///< world coordinates (elevation); an index file's may be decoded on access
-  std::span<const Rgb16> rgb;
+  RgbView rgb;  ///< 16-bit colours (a span, or an index file's 3-byte colours decoded on access)
   std::span<const std::uint16_t> intensity;
   std::span<const std::uint8_t> classification;
 };

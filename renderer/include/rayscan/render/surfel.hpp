@@ -61,7 +61,7 @@ template <SpatialIndex I>
     for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) stack.push_back(index.child(n, i));
   }
   out.assign(static_cast<std::size_t>(*std::max_element(order.begin(), order.end())) + 1, 0.0f);
-  const auto ids = index.ids();
+  const IdView ids = index.ids();
   for (auto it = order.rbegin(); it != order.rend(); ++it) {
     const Node n = *it;
     float m = 0.0f;
@@ -101,7 +101,7 @@ template <SpatialIndex I>
     for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) stack.push_back(index.child(n, i));
   }
   out.assign(static_cast<std::size_t>(*std::max_element(order.begin(), order.end())) + 1, AABB{});
-  const auto ids = index.ids();
+  const IdView ids = index.ids();
   for (auto it = order.rbegin(); it != order.rend(); ++it) {
     const Node n = *it;
     AABB b;
@@ -287,7 +287,7 @@ void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vec
     return kReach2 * r * r;
   };
   const auto pos = index.positions();
-  const auto ids = index.ids();
+  const IdView ids = index.ids();
   // The node stack: the ray query's per-thread scratch (free between queries; no new
   // thread_local, whose static TLS the Python module cannot spare).
   auto& stack = detail::ray_scratch<Node>().nodes;

@@ -6,7 +6,9 @@
 #pragma once
 
 #include "rayscan/io/point_reader.hpp"
+#include "rayscan/id_view.hpp"
 #include "rayscan/octree.hpp"
+#include "rayscan/rgb_view.hpp"
 #include "rayscan/spatial_index.hpp"
 
 #include <cstdint>
@@ -39,7 +41,7 @@ struct IndexSource {
 
 /// One section of an index file as its header's section table lists it (docs/index-format.md).
 struct IndexSectionInfo {
-  std::string name;           ///< "sources", "crs", "positions", "ids", "rgb", ..., "nodes"
+  std::string name;           ///< "sources", "crs", "positions", "ids", "rgb" or "rgb8", ..., "nodes"
   std::uint64_t offset = 0;   ///< byte offset in the file (a multiple of 4096)
   std::uint64_t bytes = 0;    ///< size in bytes (without the alignment gap after it)
 };
@@ -54,8 +56,10 @@ struct IndexBuildOptions {
   /// Tree layout and parameters: adaptive or fixed (layered is not supported by the external
   /// build; std::invalid_argument).
   OctreeConfig config;
-  /// Attributes stored besides positions: any of rgb, intensity, classification, gps_time.
-  /// Attributes some input lacks are not stored (a note says which).
+  /// Attributes stored besides positions: any of id, rgb, intensity, classification, gps_time.
+  /// `id` stores the ids section (each slot's original point id, 4 bytes per point); without it
+  /// the index reports points in slot (index) order: ids() is the identity (docs/index-format.md
+  /// "Ids"). Attributes some input lacks are not stored (a note says which).
   AttributeSet attributes = AttributeSet::none();
   /// Memory budget of the sort runs and merge buffers (bytes); peak RSS stays within this plus a
   /// constant (one reader chunk, the node array: 48 bytes per node).
@@ -64,6 +68,10 @@ struct IndexBuildOptions {
   /// LAS/LAZ on one scale and offset, else float32 when every coordinate is a float, else
   /// float64; docs/index-format.md "Positions") or always float64 (false; `--positions float64`).
   bool compact_positions = true;
+  /// Colour: 3 bytes per point (rgb8 section) when every delivered rgb value is b * m, b <= 255,
+  /// for one m in {1, 256, 257} (checked during the read pass; decoded bit-identically), else the
+  /// 6-byte rgb section (true; docs/index-format.md "Colour"), or always 6 bytes (false).
+  bool compact_rgb = true;
   /// Folder for the sort runs (default: the output's folder). Removed afterwards.
   std::filesystem::path temp_dir;
   IndexProgress progress;  ///< called every few million points (may be empty)
@@ -73,8 +81,11 @@ struct IndexBuildOptions {
 struct IndexBuildStats {
   std::uint64_t points = 0, nodes = 0, runs = 0, file_bytes = 0;
   unsigned depth = 0;
-  AttributeSet attributes;         ///< stored
+  AttributeSet attributes;         ///< stored (Attribute::id: the ids section was written)
   PositionEncoding positions = PositionEncoding::float64;  ///< how the positions are stored
+  /// The rgb8 multiplier (1, 256 or 257: colours stored in 3 bytes), 0 when rgb is stored in 6
+  /// bytes or not at all.
+  std::uint32_t rgb_multiplier = 0;
   std::vector<std::string> notes;  ///< decisions the user should know about
 };
 
@@ -147,14 +158,18 @@ class MappedIndex {
   /// Positions by slot, decoded from the file's encoding (float64 in place, float32 or the LAS
   /// int32 grid: docs/index-format.md "Positions"), bit-identical to the sources' readers.
   [[nodiscard]] PositionView positions() const { return positions_; }
-  /// The original id of each slot (a point's index in the concatenated sources). Every id is
-  /// below N: a verified file had them checked at open; on a file opened without the deep checks
+  /// The original id of each slot (a point's index in the concatenated sources): the stored ids
+  /// section, or, for a file built without ids (has_ids() false), the identity IdView (slot s is
+  /// point s: every consumer then reports points in index order). Every id is below N: a
+  /// verified file had them checked at open; on a file opened without the deep checks
   /// (IndexOpenOptions) the first call checks them (one parallel pass over the 4-byte ids,
   /// thread-safe, once per MappedIndex), because every consumer indexes per-point arrays by id
   /// (normals, visibility, query, the renderer's radii, ray hits' `index`). Throws IndexError
   /// naming the file, the byte offset and the slot of the first id >= N (the call fails again
   /// if repeated).
-  [[nodiscard]] std::span<const PointIndex> ids() const;
+  [[nodiscard]] IdView ids() const;
+  /// True when the file holds the ids section (built with `--attributes id`).
+  [[nodiscard]] bool has_ids() const { return ids_ != nullptr; }
 
   // Index file specifics -----------------------------------------------------------------------
   /// The Warren & Salmon id of node n (a corrupted, unverified key 0 reads as the root's id 1).
@@ -171,11 +186,14 @@ class MappedIndex {
   /// How the positions are stored (PositionEncoding; the LAS grid's scale and offset are
   /// positions().scale() / offset()).
   [[nodiscard]] PositionEncoding position_encoding() const { return positions_.encoding(); }
-  /// Stored attributes, by slot (like positions()); empty spans when not stored.
-  [[nodiscard]] std::span<const Rgb16> rgb() const { return rgb_; }
+  /// Stored attributes, by slot (like positions()); empty when not stored. rgb() reads the
+  /// 6-byte section in place or decodes the 3-byte rgb8 section (byte x multiplier, bit-identical
+  /// to the readers' values; RgbView::multiplier()).
+  [[nodiscard]] RgbView rgb() const { return rgb_; }
   [[nodiscard]] std::span<const std::uint16_t> intensity() const { return intensity_; }
   [[nodiscard]] std::span<const std::uint8_t> classification() const { return classification_; }
   [[nodiscard]] std::span<const double> gps_time() const { return gps_; }
+  /// The stored attributes (Attribute::id when the ids section is present).
   [[nodiscard]] AttributeSet attributes() const { return attrs_; }
   [[nodiscard]] const std::vector<IndexSource>& sources() const { return sources_; }
   [[nodiscard]] const std::string& crs_wkt() const { return crs_; }
@@ -192,7 +210,8 @@ class MappedIndex {
   /// True when open() ran the deep checks (every section's CRC, every node record and id).
   [[nodiscard]] bool verified() const { return verified_; }
   /// The stored points and attributes in the sources' original order (ids()), as read_point_cloud
-  /// of the concatenated sources would return positions and the stored attributes. Allocates.
+  /// of the concatenated sources would return positions and the stored attributes; in slot
+  /// (index) order when the file has no ids. Allocates.
   [[nodiscard]] PointCloud to_point_cloud() const;
 
   MappedIndex(MappedIndex&&) noexcept;
@@ -205,7 +224,8 @@ class MappedIndex {
   MappedIndex() = default;
   /// The deep record checks of open(): node ranges, children and keys; ids below N. Throws IndexError.
   void verify_records(std::uint64_t node_offset) const;
-  /// Throws IndexError for the first stored id >= N (section ids, slot, byte offset).
+  /// Throws IndexError for the first stored id >= N (section ids, slot, byte offset); nothing
+  /// without an ids section.
   void check_ids() const;
   struct Map;
   std::unique_ptr<Map> map_;
@@ -220,9 +240,9 @@ class MappedIndex {
   std::vector<IndexSectionInfo> sections_;
   const Octree::NodeRec* nodes_ = nullptr;
   PositionView positions_;
-  const PointIndex* ids_ = nullptr;
+  const PointIndex* ids_ = nullptr;  ///< null: no ids section (identity)
   std::uint64_t ids_offset_ = 0;  ///< byte offset of the ids section (error messages)
-  std::span<const Rgb16> rgb_;
+  RgbView rgb_;
   std::span<const std::uint16_t> intensity_;
   std::span<const std::uint8_t> classification_;
   std::span<const double> gps_;

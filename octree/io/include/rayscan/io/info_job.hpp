@@ -38,6 +38,8 @@ struct IndexFileSummary {
   double bytes_per_point = 0;
   std::string attributes;                      ///< AttributeSet::to_string() ("" = positions only)
   std::string positions;                       ///< encoding: "float64", "float32", "las_int32 (scale ..., offset ...)"
+  std::string ids;                             ///< "stored (original order)" or "not stored (points in index order)"
+  std::string rgb;                             ///< "" (none), "16-bit (6 bytes/point)" or "8-bit x M (3 bytes/point)"
   AABB root_cell;                              ///< the octree's root cube (world units)
   std::string checksums;                       ///< which sections were verified
   double spacing = 0;                          ///< median nearest-neighbour spacing (the auto radius)

@@ -27,15 +27,17 @@ enum class Attribute : std::uint32_t {
   gps_time = 1u << 3,        ///< PointCloud::gps_time
   normals = 1u << 4,         ///< PointCloud::normals
   scalars = 1u << 5,         ///< PointCloud::scalars (every other named field, 8 bytes/point each)
+  id = 1u << 6,              ///< the original point ids of an index file (`rayscan index --attributes id`;
+                             ///< docs/index-format.md "Ids"); readers ignore it (a cloud's id is its order)
 };
 
 /// A set of Attribute values. Default: every attribute.
 struct AttributeSet {
-  std::uint32_t bits = 0x3F;
+  std::uint32_t bits = 0x7F;
   /// No attribute: positions only.
   static constexpr AttributeSet none() { return AttributeSet{0}; }
   /// Every attribute.
-  static constexpr AttributeSet all() { return AttributeSet{0x3F}; }
+  static constexpr AttributeSet all() { return AttributeSet{0x7F}; }
   [[nodiscard]] constexpr bool has(Attribute a) const { return (bits & static_cast<std::uint32_t>(a)) != 0; }
   constexpr AttributeSet& add(Attribute a) {
     bits |= static_cast<std::uint32_t>(a);
@@ -44,7 +46,7 @@ struct AttributeSet {
   [[nodiscard]] constexpr AttributeSet operator&(AttributeSet o) const { return AttributeSet{bits & o.bits}; }
   friend constexpr bool operator==(AttributeSet, AttributeSet) = default;
   /// Parses a comma-separated list of "rgb", "intensity", "classification", "gps_time",
-  /// "normals", "scalars", "all", "none" (e.g. the `--attributes` option). Throws
+  /// "normals", "scalars", "id", "all", "none" (e.g. the `--attributes` option; "all" includes id). Throws
   /// std::invalid_argument naming an unknown word and the allowed ones.
   static AttributeSet parse(const std::string& list);
   /// The comma-separated names of the set ("rgb,intensity"; "" for none).

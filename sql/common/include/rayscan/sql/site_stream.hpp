@@ -55,8 +55,10 @@ class SiteStream {
 
 /// Opens `paths` for import with `options` (chunk size, attributes, memory, temp_dir):
 ///  - one `.rsi` index file: its points in storage order (the index's Morton order), chunked;
-///    attributes must be stored in it (else std::invalid_argument naming the file);
-///  - point cloud files: a temporary index file is built with io::build_index_file (external
+///    attributes must be stored in it (else std::invalid_argument naming the file); each row's
+///    point number is its original number in its source when the index stores ids, else
+///    (built without `--attributes id`) its slot in the index (index order);
+///  - point cloud files: a temporary index file (with ids) is built with io::build_index_file (external
 ///    Morton sort within options.memory_bytes, in options.temp_dir), streamed as above and removed
 ///    when the stream is destroyed; peak memory stays within the budget whatever the site's size;
 ///  - when an attribute is not one of intensity, classification, gps_time, rgb (a scalar field

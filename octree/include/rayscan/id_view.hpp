@@ -1,0 +1,53 @@
+// IdView: the original point id of each storage slot of a SpatialIndex, either stored (a span of
+// uint32 ids) or implied (the identity over N slots: an index file built without its ids section,
+// docs/index-format.md "Ids").
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+
+namespace rayscan {
+
+/// Index of a point in the caller's original PointCloud order (max 2^32 - 1 points).
+using PointIndex = std::uint32_t;
+
+/// The original PointIndex of each slot of an index, read through `operator[](slot)` and `size()`:
+/// either a span of stored ids (the in-memory indexes, an index file with its ids section; the
+/// span must outlive the view) or the identity over `size()` slots (an index file built without
+/// ids: slot s is point s, i.e. outputs are in index order). A small value type (pointer + size),
+/// cheap to copy; it never allocates, so no consumer materialises N ids to fake the identity.
+/// Implicitly constructible from `std::span<const PointIndex>` so that indexes returning spans
+/// satisfy the SpatialIndex concept's `ids()` requirement unchanged.
+class IdView {
+ public:
+  /// An empty view (no slot).
+  constexpr IdView() = default;
+  /// The stored ids `ids` (ids[slot] = original id).
+  constexpr IdView(std::span<const PointIndex> ids) : data_(ids.data()), size_(ids.size()) {}  // NOLINT(implicit)
+  /// The identity over `n` slots: view[s] == s.
+  [[nodiscard]] static constexpr IdView identity(std::size_t n) {
+    IdView v;
+    v.size_ = n;
+    return v;
+  }
+  /// The original id of slot `slot` (< size(); unchecked).
+  [[nodiscard]] constexpr PointIndex operator[](std::size_t slot) const {
+    return data_ ? data_[slot] : static_cast<PointIndex>(slot);
+  }
+  /// Number of slots.
+  [[nodiscard]] constexpr std::size_t size() const { return size_; }
+  /// True when no slot.
+  [[nodiscard]] constexpr bool empty() const { return size_ == 0; }
+  /// True when the ids are implied (slot s is point s); then data() is null. A view of N > 0
+  /// stored ids is never the identity, even when they happen to equal their slots.
+  [[nodiscard]] constexpr bool is_identity() const { return data_ == nullptr && size_ > 0; }
+  /// The stored ids (null for the identity or an empty view).
+  [[nodiscard]] constexpr const PointIndex* data() const { return data_; }
+
+ private:
+  const PointIndex* data_ = nullptr;
+  std::size_t size_ = 0;
+};
+
+}  // namespace rayscan
