@@ -46,7 +46,7 @@ constexpr std::uint64_t kAlign = 4096;
 constexpr std::uint32_t kMaxSections = 16;
 constexpr std::size_t kTableOffset = 128;
 constexpr std::size_t kEntryBytes = 32;
-constexpr std::size_t kNodeBytes = 48;
+constexpr std::size_t kNodeBytes = 32;
 constexpr std::size_t kCrcOffset = 120;
 constexpr std::size_t kSpacingOffset = 112;  // float64 median nearest-neighbour spacing
 constexpr std::size_t kBoundsOffset = 640;   // float64[6] exact point bounds (after the table)
@@ -98,12 +98,10 @@ std::uint32_t elem_size(std::uint32_t id, PositionEncoding enc = PositionEncodin
 
 static_assert(sizeof(Vec3) == 24 && alignof(Vec3) <= 8, "positions section is an array of 3 float64");
 static_assert(sizeof(Rgb16) == 6, "rgb section is an array of 3 uint16");
-static_assert(sizeof(Octree::NodeRec) == kNodeBytes);
-static_assert(offsetof(Octree::NodeRec, lo) == 0 && offsetof(Octree::NodeRec, hi) == 12 &&
-              offsetof(Octree::NodeRec, key) == 24 && offsetof(Octree::NodeRec, first_child) == 32 &&
-              offsetof(Octree::NodeRec, own_begin) == 36 && offsetof(Octree::NodeRec, own_end) == 40 &&
-              offsetof(Octree::NodeRec, child_count) == 44,
-              "the nodes section is read in place as Octree::NodeRec");
+static_assert(sizeof(IndexNodeRecord) == kNodeBytes);
+static_assert(offsetof(IndexNodeRecord, lo) == 0 && offsetof(IndexNodeRecord, hi) == 12 &&
+                  offsetof(IndexNodeRecord, first) == 24 && offsetof(IndexNodeRecord, packed) == 28,
+              "the nodes section is read in place as IndexNodeRecord");
 static_assert(std::endian::native == std::endian::little, "the index file is little-endian");
 
 std::uint64_t align_up(std::uint64_t v) { return (v + kAlign - 1) / kAlign * kAlign; }
@@ -713,17 +711,21 @@ struct NodeBuilder {
         box.hi = glm::max(box.hi, c.hi);
       }
     }
-    // The record (docs/index-format.md, "Nodes"): written once, final.
-    std::uint8_t* rec = out.rec(n);
-    const auto own_begin = static_cast<std::uint32_t>(b), own_end = static_cast<std::uint32_t>(rest);
-    std::memset(rec, 0, kNodeBytes);
-    std::memcpy(rec, &box.lo, 12);
-    std::memcpy(rec + 12, &box.hi, 12);
-    std::memcpy(rec + 24, &key, 8);
-    std::memcpy(rec + 32, &first, 4);
-    std::memcpy(rec + 36, &own_begin, 4);
-    std::memcpy(rec + 40, &own_end, 4);
-    rec[44] = static_cast<std::uint8_t>(nchild);
+    // The record (docs/index-format.md, "Node record"): written once, final. A node is internal
+    // (children, no own points) or a leaf (points, no children): OctreeRules::splits moves all of
+    // a split node's points to its children.
+    if (nchild > 0 && rest > b) throw std::logic_error("index build: node with both points and children");
+    if (nchild == 0 && cnt > IndexNodeRecord::kMaxCount)
+      throw std::runtime_error("index build: a leaf of " + std::to_string(cnt) + " points at depth " + std::to_string(d) +
+                               " (at most " + std::to_string(IndexNodeRecord::kMaxCount) +
+                               " per leaf; use a deeper --depth or --max-depth)");
+    IndexNodeRecord r;
+    r.lo = box.lo;
+    r.hi = box.hi;
+    r.first = nchild > 0 ? first : static_cast<std::uint32_t>(b);
+    r.packed = IndexNodeRecord::pack(nchild > 0 ? nchild : static_cast<std::uint32_t>(cnt),
+                                     d == 0 ? 0u : static_cast<unsigned>(key & 7u), nchild > 0);
+    std::memcpy(out.rec(n), &r, kNodeBytes);
     return box;
   }
 };
@@ -1417,7 +1419,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
     if (!std::isfinite(x.cell_.lo[k]) || !std::isfinite(x.cell_.hi[k]) || !(x.cell_.hi[k] > x.cell_.lo[k]))
       fail(40, "root cell is not a finite box");
   auto at = [&](std::uint32_t id) { return b + by_id[id]->offset; };
-  x.nodes_ = reinterpret_cast<const Octree::NodeRec*>(at(kNodes));
+  x.nodes_ = reinterpret_cast<const IndexNodeRecord*>(at(kNodes));
   x.positions_ = PositionView(enc, at(kPositions), x.points_, grid_scale, grid_offset);
   if (by_id[kIds]) {
     x.ids_ = reinterpret_cast<const PointIndex*>(at(kIds));
@@ -1480,15 +1482,6 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
 }
 
 /// Points per depth counted over the node records (the deep check of the header's table).
-static std::vector<std::uint64_t> count_levels(const MappedIndex& m) {
-  std::vector<std::uint64_t> out(kLevels, 0);
-  for (std::size_t n = 0; n < m.node_count(); ++n) {
-    const SlotRange r = m.node_points(static_cast<MappedIndex::Node>(n));
-    out[m.node_id(static_cast<MappedIndex::Node>(n)).depth()] += r.end - r.begin;  // depth <= 21
-  }
-  return out;
-}
-
 void MappedIndex::verify_records(std::uint64_t node_off) const {
   const std::string nm = path_.string();
   auto fail = [&nm](std::uint64_t off, const std::string& what) -> void {
@@ -1497,43 +1490,49 @@ void MappedIndex::verify_records(std::uint64_t node_off) const {
   const MappedIndex& x = *this;
   // Node ranges: every later access stays inside the mapping.
   for (std::size_t n = 0; n < x.node_count_; ++n) {
-    const Octree::NodeRec& r = x.nodes_[n];
+    const IndexNodeRecord& r = x.nodes_[n];
     const std::uint64_t o = node_off + n * kNodeBytes;
-    if (r.own_begin > r.own_end || r.own_end > x.points_)
-      fail(o + 36, "node " + std::to_string(n) + ": point range [" + std::to_string(r.own_begin) + ", " +
-                       std::to_string(r.own_end) + ") outside the " + std::to_string(x.points_) + " points");
-    if (r.child_count > 8 || (r.child_count > 0 && (r.first_child <= n || r.first_child + std::uint64_t{r.child_count} > x.node_count_)))
-      fail(o + 32, "node " + std::to_string(n) + ": children [" + std::to_string(r.first_child) + ", +" +
-                       std::to_string(r.child_count) + ") outside the " + std::to_string(x.node_count_) + " nodes");
+    if (r.internal()) {
+      if (r.count() < 1 || r.count() > 8 || r.first <= n || r.first + std::uint64_t{r.count()} > x.node_count_)
+        fail(o + 24, "node " + std::to_string(n) + ": children [" + std::to_string(r.first) + ", +" +
+                         std::to_string(r.count()) + ") outside the " + std::to_string(x.node_count_) +
+                         " nodes (expected 1 to 8 nodes after it)");
+    } else if (r.first + std::uint64_t{r.count()} > x.points_) {
+      fail(o + 24, "node " + std::to_string(n) + ": point range [" + std::to_string(r.first) + ", +" +
+                       std::to_string(r.count()) + ") outside the " + std::to_string(x.points_) + " points");
+    }
     for (int k = 0; k < 3; ++k)
       if (std::isnan(r.lo[k]) || std::isnan(r.hi[k])) fail(o, "node " + std::to_string(n) + ": NaN bounds");
   }
-  if (x.node_count_ > 0 && x.nodes_[0].key != 1) fail(node_off + 24, "root node key must be 1");
-  // Keys (Warren & Salmon): every node but the root is the child of exactly one node, its key is
-  // the parent's key shifted by 3 plus its octant, octants increase within a family, and no node
-  // is deeper than the header's depth; so every key has its sentinel bit (never 0).
-  {
-    std::vector<std::uint8_t> referenced(x.node_count_, 0);
-    for (std::size_t n = 0; n < x.node_count_; ++n) {  // parents come before their children
-      const Octree::NodeRec& r = x.nodes_[n];
-      if (n > 0 && !referenced[n])
-        fail(node_off + n * kNodeBytes, "node " + std::to_string(n) + ": not the child of any earlier node");
-      if (r.child_count > 0 && OctreeNodeId::from_bits(r.key).depth() >= x.depth_)
-        fail(node_off + n * kNodeBytes + 24, "node " + std::to_string(n) + ": children below the deepest level " +
-                                                 std::to_string(x.depth_) + " of the header");
-      for (unsigned c = 0; c < r.child_count; ++c) {
-        const std::size_t k = r.first_child + c;
-        const std::uint64_t ck = x.nodes_[k].key;
-        if (referenced[k]++ || (ck >> 3) != r.key || (c > 0 && (ck & 7) <= (x.nodes_[k - 1].key & 7)))
-          fail(node_off + k * kNodeBytes + 24, "node " + std::to_string(k) + ": key " + std::to_string(ck) +
-                                                   " is not a child key of node " + std::to_string(n));
-      }
+  if (x.node_count_ > 0 && x.nodes_[0].octant() != 0) fail(node_off + 28, "root node octant must be 0");
+  // Structure (Warren & Salmon ids, paper section 4.1): every node but the root is the child of
+  // exactly one earlier node, octants strictly increase within a family (so sibling ids differ and
+  // each id is its parent's times 8 plus the octant), and no node is deeper than the header's
+  // depth. The depth of each node is kept (one byte per node) for the points per level below.
+  std::vector<std::uint8_t> depth_of(x.node_count_, 0xFF);
+  if (x.node_count_ > 0) depth_of[0] = 0;
+  for (std::size_t n = 0; n < x.node_count_; ++n) {  // parents come before their children
+    const IndexNodeRecord& r = x.nodes_[n];
+    if (depth_of[n] == 0xFF)
+      fail(node_off + n * kNodeBytes, "node " + std::to_string(n) + ": not the child of any earlier node");
+    if (!r.internal()) continue;
+    if (depth_of[n] >= x.depth_)
+      fail(node_off + n * kNodeBytes + 28, "node " + std::to_string(n) + ": children below the deepest level " +
+                                               std::to_string(x.depth_) + " of the header");
+    for (unsigned c = 0; c < r.count(); ++c) {
+      const std::size_t k = r.first + c;
+      if (depth_of[k] != 0xFF || (c > 0 && x.nodes_[k].octant() <= x.nodes_[k - 1].octant()))
+        fail(node_off + k * kNodeBytes + 28, "node " + std::to_string(k) + ": octant " +
+                                                 std::to_string(x.nodes_[k].octant()) + " is not the next child of node " +
+                                                 std::to_string(n));
+      depth_of[k] = static_cast<std::uint8_t>(depth_of[n] + 1);
     }
   }
-
   // The header's points per level agree with the records.
   {
-    const std::vector<std::uint64_t> have = count_levels(*this);
+    std::vector<std::uint64_t> have(kLevels, 0);
+    for (std::size_t n = 0; n < x.node_count_; ++n)
+      if (!x.nodes_[n].internal()) have[depth_of[n]] += x.nodes_[n].count();  // depth <= header depth <= 21
     const std::vector<std::uint64_t> want = points_per_level();
     for (unsigned d = 0; d < kLevels; ++d)
       if (have[d] != (d < want.size() ? want[d] : 0))

@@ -120,6 +120,29 @@ struct IndexOpenOptions {
   bool trust_ids = false;
 };
 
+/// One record of the index file's nodes section (docs/index-format.md, "Node record", format
+/// version 4: 32 bytes, little-endian, used in place from the map). The file holds the adaptive or
+/// fixed octree, whose nodes are either internal (children, no points of their own) or leaves
+/// (points, no children), so one 32-bit field names the first child or the first slot and one
+/// holds the count. The Warren & Salmon id of a node is not stored: it is its parent's id times 8
+/// plus its octant (paper section 4.1), found by descending from the root (key 1).
+struct IndexNodeRecord {
+  glm::vec3 lo{0.0f}, hi{0.0f};  ///< bounds of the subtree's points relative to the root cell's
+                                 ///< minimum corner, float, rounded outwards (as Octree::NodeRec)
+  std::uint32_t first = 0;       ///< internal: node number of the first child; leaf: first slot
+  std::uint32_t packed = 0;      ///< bits 0-27 count, 28-30 octant in the parent (root 0), 31 internal
+  /// Largest count (children of an internal node: 1..8; points of a leaf).
+  static constexpr std::uint32_t kMaxCount = (std::uint32_t{1} << 28) - 1;
+  /// The packed field of a node: `count` <= kMaxCount, `octant` < 8.
+  static constexpr std::uint32_t pack(std::uint32_t count, unsigned octant, bool internal) {
+    return count | (std::uint32_t{octant} << 28) | (internal ? std::uint32_t{1} << 31 : 0u);
+  }
+  [[nodiscard]] bool internal() const { return (packed >> 31) != 0; }
+  [[nodiscard]] std::uint32_t count() const { return packed & kMaxCount; }
+  [[nodiscard]] unsigned octant() const { return (packed >> 28) & 7u; }
+};
+static_assert(sizeof(IndexNodeRecord) == 32, "the nodes section's record is 32 bytes");
+
 /// A read-only memory-mapped index file satisfying SpatialIndex. Node records, positions and ids
 /// are used in place (no copy): opening a large file costs the header, section table and sources
 /// checks only (well under a second at any size); the node accessors are checked, so no query
@@ -135,7 +158,7 @@ class MappedIndex {
   [[nodiscard]] bool empty() const { return points_ == 0; }
   [[nodiscard]] Node root() const { return 0; }
   [[nodiscard]] AABB node_bounds(Node n) const {
-    const Octree::NodeRec& r = nodes_[n];
+    const IndexNodeRecord& r = nodes_[n];
     return {cell_.lo + Vec3(r.lo), cell_.lo + Vec3(r.hi)};
   }
   // The node accessors are checked, so that a file opened without the deep checks (a large file;
@@ -144,17 +167,17 @@ class MappedIndex {
   // after the node, has more than 8 children or runs past the M nodes reads as a leaf. A verified
   // (or well-formed) file never triggers either, so results are those of the in-memory octree.
   [[nodiscard]] SlotRange node_points(Node n) const {
-    const Octree::NodeRec& r = nodes_[n];
-    return r.own_begin <= r.own_end && r.own_end <= points_ ? SlotRange{r.own_begin, r.own_end} : SlotRange{0, 0};
+    const IndexNodeRecord& r = nodes_[n];
+    const std::uint64_t end = std::uint64_t{r.first} + r.count();
+    return !r.internal() && end <= points_ ? SlotRange{r.first, static_cast<std::uint32_t>(end)} : SlotRange{0, 0};
   }
   [[nodiscard]] unsigned child_count(Node n) const {
-    const Octree::NodeRec& r = nodes_[n];
-    return r.child_count <= 8 && r.first_child > n && std::uint64_t{r.first_child} + r.child_count <= node_count_
-               ? r.child_count
-               : 0u;
+    const IndexNodeRecord& r = nodes_[n];
+    const std::uint32_t c = r.count();
+    return r.internal() && c <= 8 && r.first > n && std::uint64_t{r.first} + c <= node_count_ ? c : 0u;
   }
   /// Child i < child_count(n) of n.
-  [[nodiscard]] Node child(Node n, unsigned i) const { return nodes_[n].first_child + i; }
+  [[nodiscard]] Node child(Node n, unsigned i) const { return nodes_[n].first + i; }
   /// Positions by slot, decoded from the file's encoding (float64 in place, float32 or the LAS
   /// int32 grid: docs/index-format.md "Positions"), bit-identical to the sources' readers.
   [[nodiscard]] PositionView positions() const { return positions_; }
@@ -172,11 +195,9 @@ class MappedIndex {
   [[nodiscard]] bool has_ids() const { return ids_ != nullptr; }
 
   // Index file specifics -----------------------------------------------------------------------
-  /// The Warren & Salmon id of node n (a corrupted, unverified key 0 reads as the root's id 1).
-  [[nodiscard]] OctreeNodeId node_id(Node n) const {
-    const std::uint64_t k = nodes_[n].key;
-    return OctreeNodeId::from_bits(k != 0 ? k : 1);
-  }
+  /// The octant (0..7, Morton digit) of node n in its parent's cell; 0 for the root. A node's
+  /// Warren & Salmon id is its parent's id times 8 plus this (not stored: IndexNodeRecord).
+  [[nodiscard]] unsigned node_octant(Node n) const { return nodes_[n].octant(); }
   [[nodiscard]] const AABB& root_cell() const { return cell_; }
   [[nodiscard]] std::size_t node_count() const { return node_count_; }
   [[nodiscard]] unsigned depth() const { return depth_; }
@@ -238,7 +259,7 @@ class MappedIndex {
   AABB bounds_;
   bool verified_ = false;
   std::vector<IndexSectionInfo> sections_;
-  const Octree::NodeRec* nodes_ = nullptr;
+  const IndexNodeRecord* nodes_ = nullptr;
   PositionView positions_;
   const PointIndex* ids_ = nullptr;  ///< null: no ids section (identity)
   std::uint64_t ids_offset_ = 0;  ///< byte offset of the ids section (error messages)
