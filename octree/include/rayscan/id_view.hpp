@@ -31,9 +31,28 @@ class IdView {
     v.size_ = n;
     return v;
   }
-  /// The original id of slot `slot` (< size(); unchecked).
+  /// Called by a checked view with (`context`, slot) when the id stored at `slot` is not below
+  /// size(); must throw (it never returns normally).
+  using BadIdHandler = void (*)(const void* context, std::size_t slot);
+  /// Stored ids that are checked when read: every id read through operator[] is compared with
+  /// size(), and an id >= size() calls `on_bad(context, slot)`, which throws. For ids from an
+  /// unverified file (rayscan::io::MappedIndex): a consumer indexes per-point arrays by id, so
+  /// each read is checked (one predictable compare) instead of a pass over all N ids up front.
+  [[nodiscard]] static constexpr IdView checked(std::span<const PointIndex> ids, BadIdHandler on_bad,
+                                                const void* context) {
+    IdView v(ids);
+    v.on_bad_ = on_bad;
+    v.context_ = context;
+    return v;
+  }
+  /// The original id of slot `slot` (< size(); the slot is not checked; the id is, on a checked
+  /// view: an id >= size() throws through the view's handler).
   [[nodiscard]] constexpr PointIndex operator[](std::size_t slot) const {
-    return data_ ? data_[slot] : static_cast<PointIndex>(slot);
+    if (data_ == nullptr) return static_cast<PointIndex>(slot);
+    const PointIndex v = data_[slot];
+    if (on_bad_ != nullptr && v >= size_) [[unlikely]]
+      on_bad_(context_, slot);
+    return v;
   }
   /// Number of slots.
   [[nodiscard]] constexpr std::size_t size() const { return size_; }
@@ -42,12 +61,15 @@ class IdView {
   /// True when the ids are implied (slot s is point s); then data() is null. A view of N > 0
   /// stored ids is never the identity, even when they happen to equal their slots.
   [[nodiscard]] constexpr bool is_identity() const { return data_ == nullptr && size_ > 0; }
-  /// The stored ids (null for the identity or an empty view).
+  /// The stored ids (null for the identity or an empty view). Raw: not checked, even on a
+  /// checked view (read through operator[] where the ids may be untrusted).
   [[nodiscard]] constexpr const PointIndex* data() const { return data_; }
 
  private:
   const PointIndex* data_ = nullptr;
   std::size_t size_ = 0;
+  BadIdHandler on_bad_ = nullptr;  ///< set on a checked view
+  const void* context_ = nullptr;
 };
 
 }  // namespace rayscan

@@ -1212,7 +1212,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     IndexOpenOptions oo;
     oo.verify = IndexOpenOptions::Verify::metadata_only;
     oo.check_sources = false;
-    oo.trust_ids = true;  // written above: no first-use pass over the whole ids section
+    oo.trust_ids = true;  // written above: the ids need no check
     const MappedIndex m = MappedIndex::open(out.temp(), oo);
     // The ids pass is sequential: its pages are dropped behind it (the map is shared and
     // read-only), so this phase's resident set is the samples' kNN paths, not the ids section.
@@ -1254,7 +1254,12 @@ struct MappedIndex::Map {
   int fd = -1;
   void* p = nullptr;
   std::size_t n = 0;
-  std::once_flag ids_checked;  ///< ids() of an unverified file: the id range pass ran and passed
+  // What a checked IdView's handler needs (MappedIndex::ids(); stable across moves of the index).
+  std::string path;              ///< the file, for error messages
+  std::uint64_t ids_offset = 0;  ///< byte offset of the ids section
+  const PointIndex* ids = nullptr;
+  std::size_t points = 0;
+  bool trust_ids = false;  ///< IndexOpenOptions::trust_ids: ids() returns an unchecked view
   ~Map() {
     if (p != nullptr) ::munmap(p, n);
     if (fd >= 0) ::close(fd);
@@ -1435,7 +1440,9 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   // Deep checks of the node records and ids (with the section CRCs above, a file that passes them
   // is exactly as built). Without them the accessors sanitise every record they return
   // (MappedIndex::child_count / node_points), so no traversal reads outside the mapping either,
-  // and ids() checks the ids on first use (consumers index per-point arrays by id).
+  // and ids() returns a checked view: every id read is compared with N (consumers index per-point
+  // arrays by id), so a corrupted id is an IndexError where it is read, never an access past an
+  // array, without a pass over all N ids before the first query.
   if (verify_all) x.verify_records(by_id[kNodes]->offset);
 
   // Sources: "size \t mtime_ns \t points \t first_id \t format \t path" lines.
@@ -1477,7 +1484,11 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
                          std::to_string(mt) + " ns): rebuild it with `rayscan index`");
     }
   ::madvise(m.p, m.n, MADV_RANDOM);
-  if (opt.trust_ids && !x.verified_) std::call_once(m.ids_checked, [] {});  // the builder's own output
+  m.path = nm;
+  m.ids_offset = x.ids_offset_;
+  m.ids = x.ids_;
+  m.points = x.points_;
+  m.trust_ids = opt.trust_ids;  // the builder's own output
   return x;
 }
 
@@ -1546,15 +1557,22 @@ void MappedIndex::verify_records(std::uint64_t node_off) const {
 
 IdView MappedIndex::ids() const {
   if (ids_ == nullptr) return IdView::identity(points_);  // no ids section: slot order
-  if (!verified_ && map_) std::call_once(map_->ids_checked, [this] { check_ids(); });
-  return std::span<const PointIndex>(ids_, points_);
+  const std::span<const PointIndex> ids(ids_, points_);
+  if (verified_ || !map_ || map_->trust_ids) return ids;
+  return IdView::checked(ids, &MappedIndex::bad_id, map_.get());
+}
+
+void MappedIndex::bad_id(const void* map, std::size_t slot) {
+  const auto& m = *static_cast<const Map*>(map);
+  throw IndexError(m.path + ": byte " + std::to_string(m.ids_offset + 4 * slot) + ": section ids: slot " +
+                   std::to_string(slot) + " holds id " + std::to_string(m.ids[slot]) + " outside the " +
+                   std::to_string(m.points) + " points (corrupted; `rayscan info --verify` checks the whole file)");
 }
 
 void MappedIndex::check_ids() const {
   if (ids_ == nullptr) return;  // the identity names every point
   std::atomic<std::size_t> bad{points_};
-  // Isolated: a thread waiting for this pass must not pick up an outer task (e.g. another ray of
-  // a batch) that calls ids() again and would wait on the once_flag this thread holds.
+  // The deep check at open (verify_records); isolated so that the pass never runs an outer task.
   tbb::this_task_arena::isolate([&] {
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_, 1 << 16), [&](const auto& r) {
       for (std::size_t s = r.begin(); s != r.end(); ++s)

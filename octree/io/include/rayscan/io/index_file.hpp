@@ -114,9 +114,8 @@ struct IndexOpenOptions {
   enum class Verify { automatic, always, metadata_only } verify = Verify::automatic;
   /// Fail when a source file still exists but its size or modification time changed.
   bool check_sources = true;
-  /// Skip the id range pass that ids() otherwise runs on its first call when the deep checks did
-  /// not run (for the builder, which opens its own fresh output: that pass would make every page
-  /// of the ids section resident).
+  /// Return unchecked ids from ids() even when the deep checks did not run (for the builder,
+  /// which opens its own fresh output).
   bool trust_ids = false;
 };
 
@@ -183,13 +182,14 @@ class MappedIndex {
   [[nodiscard]] PositionView positions() const { return positions_; }
   /// The original id of each slot (a point's index in the concatenated sources): the stored ids
   /// section, or, for a file built without ids (has_ids() false), the identity IdView (slot s is
-  /// point s: every consumer then reports points in index order). Every id is below N: a
-  /// verified file had them checked at open; on a file opened without the deep checks
-  /// (IndexOpenOptions) the first call checks them (one parallel pass over the 4-byte ids,
-  /// thread-safe, once per MappedIndex), because every consumer indexes per-point arrays by id
-  /// (normals, visibility, query, the renderer's radii, ray hits' `index`). Throws IndexError
-  /// naming the file, the byte offset and the slot of the first id >= N (the call fails again
-  /// if repeated).
+  /// point s: every consumer then reports points in index order). Every id a consumer reads is
+  /// below N: a verified file had them checked at open; on a file opened without the deep checks
+  /// (IndexOpenOptions) the view is checked (IdView::checked: each id read through `[slot]` is
+  /// compared with N), because every consumer indexes per-point arrays by id (normals,
+  /// visibility, query, the renderer's radii, ray hits' `index`). Reading a corrupted id throws
+  /// IndexError naming the file, the byte offset and the slot; queries that never read it are
+  /// answered exactly. (Before, the first call checked all N ids: at 1e9 points that pass held
+  /// the first rendered tile for a second or more.) The view must not outlive the index.
   [[nodiscard]] IdView ids() const;
   /// True when the file holds the ids section (built with `--attributes id`).
   [[nodiscard]] bool has_ids() const { return ids_ != nullptr; }
@@ -248,6 +248,9 @@ class MappedIndex {
   /// Throws IndexError for the first stored id >= N (section ids, slot, byte offset); nothing
   /// without an ids section.
   void check_ids() const;
+  /// The handler of the checked IdView of an unverified file: throws IndexError naming the file,
+  /// the byte and the slot whose id is >= N. `map` is the index's Map.
+  [[noreturn]] static void bad_id(const void* map, std::size_t slot);
   struct Map;
   std::unique_ptr<Map> map_;
   std::filesystem::path path_;
