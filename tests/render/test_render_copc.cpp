@@ -20,7 +20,7 @@ namespace {
 
 // The bundled copy (tests/data/laz, attribution in tests/data/README.md), else ../shared/data.
 fs::path lone_star() {
-  for (const fs::path dir : {fs::path(RAYSCAN_TEST_DATA), fs::path(RAYSCAN_SHARED_DATA)})
+  for (const fs::path& dir : {fs::path(RAYSCAN_TEST_DATA), fs::path(RAYSCAN_SHARED_DATA)})
     if (const fs::path p = dir / "laz" / "lone-star.copc.laz"; fs::exists(p)) return p;
   return {};
 }
