@@ -167,5 +167,18 @@ inline const double* position_block(const PositionView& p, std::uint32_t b, std:
   p.decode(b, n, buf.data());
   return &buf[0].x;
 }
+/// As above, decoding into the caller's buffer `buf` (grown to n as needed; the result stays
+/// valid until buf changes): for a caller that holds per-thread scratch already (the ray query),
+/// so the hot loop reaches no thread_local. A span or float64 view returns the array itself.
+inline const double* position_block(std::span<const Vec3> p, std::uint32_t b, std::uint32_t /*n*/,
+                                    std::vector<Vec3>& /*buf*/) {
+  return &p[b].x;
+}
+inline const double* position_block(const PositionView& p, std::uint32_t b, std::uint32_t n, std::vector<Vec3>& buf) {
+  if (p.data() != nullptr) return &p.data()[b].x;
+  if (buf.size() < n || buf.empty()) buf.resize(n > 0 ? n : 1);
+  p.decode(b, n, buf.data());
+  return &buf[0].x;
+}
 
 }  // namespace rayscan
