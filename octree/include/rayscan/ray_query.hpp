@@ -131,8 +131,8 @@ struct RayScratch {
   std::vector<Vec3> block;         // a leaf's positions decoded for the filter (compact encodings)
 };
 
-/// An index that exposes its children's float boxes for the SIMD child test (simd.hpp): the
-/// optional extension of SpatialIndex (the Octree has it; others use the scalar node test).
+/// An index that exposes its children's float boxes for the SIMD child test (simd.hpp): the optional
+/// extension of SpatialIndex (Octree, io::MappedIndex, io::CopcIndex; others: the scalar node test).
 template <class I>
 concept FloatChildBoxes = requires(const I& idx, typename I::Node n) {
   { idx.child_boxes_f(n) } -> std::convertible_to<simd::ChildBoxesF>;
