@@ -119,6 +119,9 @@ std::vector<std::uint64_t> mapped_node_keys(const io::MappedIndex& m) {
   return k;
 }
 
+// The mapped index takes the SIMD child test of the ray and point queries, as the octree does.
+static_assert(detail::FloatChildBoxes<io::MappedIndex>);
+
 void expect_same_tree(const io::MappedIndex& m, const Octree& t) {
   ASSERT_EQ(m.node_count(), t.node_count());
   ASSERT_EQ(m.depth(), t.depth());
@@ -139,7 +142,16 @@ void expect_same_tree(const io::MappedIndex& m, const Octree& t) {
     }
     const AABB a = m.node_bounds(n), b = t.node_bounds(n);
     ASSERT_TRUE(a.lo == b.lo && a.hi == b.hi) << n;  // bit-identical bounds
+    // The SIMD child test's float boxes (FloatChildBoxes): the same floats and count (the stride
+    // is each record's: 8 floats in the file, 12 in the octree; the kernels need >= 8).
+    const simd::ChildBoxesF fm = m.child_boxes_f(n), ft = t.child_boxes_f(n);
+    ASSERT_EQ(fm.count, ft.count) << n;
+    ASSERT_GE(fm.stride, 8u) << n;
+    for (unsigned c = 0; c < ft.count; ++c)
+      ASSERT_EQ(0, std::memcmp(fm.base + c * fm.stride, ft.base + c * ft.stride, 6 * sizeof(float))) << n;
   }
+  EXPECT_TRUE(m.float_origin() == t.float_origin());
+  EXPECT_EQ(m.float_extent(), t.float_extent());
   ASSERT_EQ(m.positions().size(), t.positions().size());
   for (std::size_t i = 0; i < t.positions().size(); ++i) {  // decoded bit for bit
     const Vec3 a = m.positions()[i];
@@ -882,6 +894,8 @@ TEST(IndexFileBadInput, UnverifiedCorruptNodesAreSanitisedAndVerifyNamesThem) {
   EXPECT_EQ(m.node_points(1).begin, m.node_points(1).end);
   EXPECT_EQ(m.child_count(2), 0u);
   EXPECT_EQ(m.node_points(2).begin, m.node_points(2).end);
+  EXPECT_EQ(m.child_boxes_f(0).count, 0u);  // the SIMD child test reads no box of a sanitised record
+  EXPECT_EQ(m.child_boxes_f(2).count, 0u);
   const AABB box = m.bounds();
   RayQuery q;
   q.radius = 1.0;

@@ -87,19 +87,28 @@ class PositionView {
       return;
     }
     const auto* src = static_cast<const std::uint8_t*>(raw_) + 12 * b;
-    if (enc_ == PositionEncoding::las_int32) {  // one branch per block, a tight loop per point
-      for (std::size_t i = 0; i < n; ++i) {
-        std::int32_t v[3];
-        std::memcpy(v, src + 12 * i, 12);
-        out[i] = Vec3(las_coordinate(v[0], scale_.x, offset_.x), las_coordinate(v[1], scale_.y, offset_.y),
-                      las_coordinate(v[2], scale_.z, offset_.z));
+    // One branch per block, a tight loop per point. The grid constants live in locals (out may
+    // alias *this as far as the compiler knows) and each coordinate is loaded on its own: a
+    // 12-byte memcpy into a stack array was compiled to two stores and a 16-byte reload per point
+    // (a store-forwarding stall; profiled, bench/README.md).
+    if (enc_ == PositionEncoding::las_int32) {
+      const double sx = scale_.x, sy = scale_.y, sz = scale_.z;
+      const double ox = offset_.x, oy = offset_.y, oz = offset_.z;
+      for (std::size_t i = 0; i < n; ++i, src += 12) {
+        std::int32_t x, y, z;
+        std::memcpy(&x, src, 4);
+        std::memcpy(&y, src + 4, 4);
+        std::memcpy(&z, src + 8, 4);
+        out[i] = Vec3(las_coordinate(x, sx, ox), las_coordinate(y, sy, oy), las_coordinate(z, sz, oz));
       }
       return;
     }
-    for (std::size_t i = 0; i < n; ++i) {
-      float f[3];
-      std::memcpy(f, src + 12 * i, 12);
-      out[i] = Vec3(static_cast<double>(f[0]), static_cast<double>(f[1]), static_cast<double>(f[2]));
+    for (std::size_t i = 0; i < n; ++i, src += 12) {
+      float x, y, z;
+      std::memcpy(&x, src, 4);
+      std::memcpy(&y, src + 4, 4);
+      std::memcpy(&z, src + 8, 4);
+      out[i] = Vec3(static_cast<double>(x), static_cast<double>(y), static_cast<double>(z));
     }
   }
 
@@ -163,6 +172,19 @@ inline const double* position_block(const PositionView& p, std::uint32_t b, std:
   // initial-exec access needs its whole block there. The Python module uses the default model;
   // python/CMakeLists.txt says why.)
   __attribute__((tls_model("global-dynamic"))) thread_local std::vector<Vec3> buf;
+  if (buf.size() < n || buf.empty()) buf.resize(n > 0 ? n : 1);
+  p.decode(b, n, buf.data());
+  return &buf[0].x;
+}
+/// As above, decoding into the caller's buffer `buf` (grown to n as needed; the result stays
+/// valid until buf changes): for a caller that holds per-thread scratch already (the ray query),
+/// so the hot loop reaches no thread_local. A span or float64 view returns the array itself.
+inline const double* position_block(std::span<const Vec3> p, std::uint32_t b, std::uint32_t /*n*/,
+                                    std::vector<Vec3>& /*buf*/) {
+  return &p[b].x;
+}
+inline const double* position_block(const PositionView& p, std::uint32_t b, std::uint32_t n, std::vector<Vec3>& buf) {
+  if (p.data() != nullptr) return &p.data()[b].x;
   if (buf.size() < n || buf.empty()) buf.resize(n > 0 ? n : 1);
   p.decode(b, n, buf.data());
   return &buf[0].x;

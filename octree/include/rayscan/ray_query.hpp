@@ -128,10 +128,11 @@ struct RayScratch {
   std::vector<NodeEntry<Node>> nodes;
   std::vector<Candidate> cands;
   std::vector<std::uint32_t> sel;  // survivors of the SIMD point filter (local slot offsets)
+  std::vector<Vec3> block;         // a leaf's positions decoded for the filter (compact encodings)
 };
 
-/// An index that exposes its children's float boxes for the SIMD child test (simd.hpp): the
-/// optional extension of SpatialIndex (the Octree has it; others use the scalar node test).
+/// An index that exposes its children's float boxes for the SIMD child test (simd.hpp): the optional
+/// extension of SpatialIndex (Octree, io::MappedIndex, io::CopcIndex; others: the scalar node test).
 template <class I>
 concept FloatChildBoxes = requires(const I& idx, typename I::Node n) {
   { idx.child_boxes_f(n) } -> std::convertible_to<simd::ChildBoxesF>;
@@ -484,15 +485,17 @@ struct RayTraversal {
       ++stats->nodes_visited;
       stats->points_tested += range.size();
     }
-    auto eval_slot = [&](std::uint32_t s) __attribute__((always_inline)) {
-      const RayPointTerms pt = ray_point_terms(o, d, pos[s]);
+    // p: the position of slot s (pos[s], bit for bit: from the SIMD filter's decoded block, so a
+    // compact encoding is decoded once per leaf, not again per survivor).
+    auto eval_slot = [&](std::uint32_t s, const Vec3& p) __attribute__((always_inline)) {
+      const RayPointTerms pt = ray_point_terms(o, d, p);
       if (pt.d2 > r2) return;
       const double t = sphere ? sphere_entry(pt.t, pt.d2, radius) : pt.t;
       if (t < q.t_min || t > q.t_max) return;
       if (has_planes) {
         bool inside = true;
         for (const Plane& pl : q.planes)
-          if (dist_plane(pl.point, pl.normal, pos[s]) > 0.0) { inside = false; break; }
+          if (dist_plane(pl.point, pl.normal, p) > 0.0) { inside = false; break; }
         if (!inside) return;
       }
       double key = ray_order ? std::sqrt(pt.d2) : t;
@@ -507,15 +510,17 @@ struct RayTraversal {
       // SIMD filter, then the exact test on the survivors only (in slot order, as below).
       auto& sel = scratch.sel;
       if (sel.size() < range.size()) sel.resize(range.size());
-      const unsigned m = kern.point_filter(position_block(pos, range.begin, range.size()), range.size(), pf, sel.data());
+      const double* xyz = position_block(pos, range.begin, range.size(), scratch.block);
+      const unsigned m = kern.point_filter(xyz, range.size(), pf, sel.data());
       for (unsigned j = 0; j < m; ++j) {
-        eval_slot(range.begin + sel[j]);
+        const double* p = xyz + 3 * std::size_t{sel[j]};
+        eval_slot(range.begin + sel[j], Vec3(p[0], p[1], p[2]));
         if (done) return;
       }
       return;
     }
     for (std::uint32_t s = range.begin; s < range.end; ++s) {
-      eval_slot(s);
+      eval_slot(s, pos[s]);
       if (done) return;
     }
   }

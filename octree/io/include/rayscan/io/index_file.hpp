@@ -177,6 +177,24 @@ class MappedIndex {
   }
   /// Child i < child_count(n) of n.
   [[nodiscard]] Node child(Node n, unsigned i) const { return nodes_[n].first + i; }
+
+  // Optional SIMD extension of the concept (issue 12; see ray_query) ----------------------------
+  /// The float boxes of n's children (their node records' lo/hi, contiguous in the mapped nodes
+  /// section with a stride of 8 floats, relative to float_origin()): the same float values as
+  /// Octree::child_boxes_f, so the SIMD child test prunes exactly as on the in-memory octree. The
+  /// count is the checked child_count(n) (0 for a sanitised record: no box is read), so the
+  /// kernels (which read 8 floats per box: lo, hi and the record's two uint32 fields) never read
+  /// past the mapping.
+  [[nodiscard]] simd::ChildBoxesF child_boxes_f(Node n) const {
+    const unsigned nc = child_count(n);
+    return {nc > 0 ? &nodes_[nodes_[n].first].lo.x : &nodes_[0].lo.x,
+            sizeof(IndexNodeRecord) / sizeof(float), nc};
+  }
+  /// The origin the float boxes are relative to (the root cell's minimum corner), and the largest
+  /// magnitude of a float box coordinate (the root cell's edge), as Octree's.
+  [[nodiscard]] const Vec3& float_origin() const { return cell_.lo; }
+  /// See float_origin().
+  [[nodiscard]] double float_extent() const { return cell_.max_extent(); }
   /// Positions by slot, decoded from the file's encoding (float64 in place, float32 or the LAS
   /// int32 grid: docs/index-format.md "Positions"), bit-identical to the sources' readers.
   [[nodiscard]] PositionView positions() const { return positions_; }
