@@ -1,67 +1,82 @@
 // scan_point_cloud(): one streaming pass over a PointReader.
 #include "rayscan/io/cloud_stats.hpp"
 
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
+
 #include <algorithm>
 #include <array>
+#include <functional>
+#include <string>
+#include <vector>
 
 namespace rayscan::io {
 
 namespace {
 
-/// Running min/max per named attribute, in the order attributes are first seen.
-struct Ranges {
-  std::vector<AttributeRange> r;
-  std::size_t k = 0;  // next slot for this chunk
-  void begin_chunk() { k = 0; }
-  template <class V, class F>
-  void add(const char* name, const V& v, F get) {
-    add(std::string(name), v, get);
+/// Minimum and maximum of get(e) over a non-empty v (std::min / std::max from the first element,
+/// as before: a NaN first element gives NaN, later NaNs are skipped).
+template <class V, class F>
+AttributeRange range_of(std::string name, const V& v, F get) {
+  double lo = static_cast<double>(get(v[0])), hi = lo;
+  for (const auto& e : v) {
+    const double x = static_cast<double>(get(e));
+    lo = std::min(lo, x);
+    hi = std::max(hi, x);
   }
-  template <class V, class F>
-  void add(const std::string& name, const V& v, F get) {
-    if (v.empty()) return;
-    double lo = static_cast<double>(get(v[0])), hi = lo;
-    for (const auto& e : v) {
-      const double x = static_cast<double>(get(e));
-      lo = std::min(lo, x);
-      hi = std::max(hi, x);
-    }
-    auto it = std::find_if(r.begin(), r.end(), [&](const AttributeRange& a) { return a.name == name; });
-    if (it == r.end()) {
-      r.push_back({name, lo, hi});
-    } else {
-      it->lo = std::min(it->lo, lo);
-      it->hi = std::max(it->hi, hi);
-    }
-  }
-};
+  return {std::move(name), lo, hi};
+}
 
 }  // namespace
 
 CloudStats scan_point_cloud(PointReader& reader, std::size_t chunk_points) {
   CloudStats st;
-  Ranges rg;
+  std::vector<AttributeRange> all;  // in the order attributes are first seen
   PointCloud c;
   std::array<std::uint64_t, 256> cls{};
   while (reader.read(c, std::max<std::size_t>(chunk_points, 1)) > 0) {
     st.count += c.size();
-    for (const Vec3& p : c.positions) st.bounds.expand(p);
-    rg.add("X", c.positions, [](const Vec3& p) { return p.x; });
-    rg.add("Y", c.positions, [](const Vec3& p) { return p.y; });
-    rg.add("Z", c.positions, [](const Vec3& p) { return p.z; });
-    rg.add("intensity", c.intensity, [](auto v) { return v; });
-    rg.add("classification", c.classification, [](auto v) { return v; });
-    rg.add("gps_time", c.gps_time, [](auto v) { return v; });
-    rg.add("red", c.rgb, [](const Rgb16& x) { return x.r; });
-    rg.add("green", c.rgb, [](const Rgb16& x) { return x.g; });
-    rg.add("blue", c.rgb, [](const Rgb16& x) { return x.b; });
-    rg.add("normal_x", c.normals, [](const glm::vec3& n) { return n.x; });
-    rg.add("normal_y", c.normals, [](const glm::vec3& n) { return n.y; });
-    rg.add("normal_z", c.normals, [](const glm::vec3& n) { return n.z; });
-    for (const ScalarField& f : c.scalars) rg.add(f.name, f.values, [](double v) { return v; });
-    for (std::uint8_t k : c.classification) ++cls[k];
+    // One job per attribute of the chunk (each a pass over one array), run in parallel: the
+    // summary pass is most of `rayscan info`'s time, and the reader decodes in parallel already.
+    std::vector<std::function<AttributeRange()>> jobs;
+    auto add = [&](std::string name, const auto& v, auto get) {
+      if (!v.empty()) jobs.emplace_back([name = std::move(name), &v, get] { return range_of(name, v, get); });
+    };
+    add("X", c.positions, [](const Vec3& p) { return p.x; });
+    add("Y", c.positions, [](const Vec3& p) { return p.y; });
+    add("Z", c.positions, [](const Vec3& p) { return p.z; });
+    add("intensity", c.intensity, [](auto v) { return v; });
+    add("classification", c.classification, [](auto v) { return v; });
+    add("gps_time", c.gps_time, [](auto v) { return v; });
+    add("red", c.rgb, [](const Rgb16& x) { return x.r; });
+    add("green", c.rgb, [](const Rgb16& x) { return x.g; });
+    add("blue", c.rgb, [](const Rgb16& x) { return x.b; });
+    add("normal_x", c.normals, [](const glm::vec3& n) { return n.x; });
+    add("normal_y", c.normals, [](const glm::vec3& n) { return n.y; });
+    add("normal_z", c.normals, [](const glm::vec3& n) { return n.z; });
+    for (const ScalarField& f : c.scalars) add(f.name, f.values, [](double v) { return v; });
+    std::vector<AttributeRange> chunk(jobs.size());
+    tbb::parallel_invoke(
+        [&] {
+          tbb::parallel_for(std::size_t{0}, jobs.size(), [&](std::size_t j) { chunk[j] = jobs[j](); });
+        },
+        [&] {
+          for (std::uint8_t k : c.classification) ++cls[k];
+        });
+    for (AttributeRange& r : chunk) {
+      auto it = std::find_if(all.begin(), all.end(), [&](const AttributeRange& a) { return a.name == r.name; });
+      if (it == all.end()) {
+        all.push_back(std::move(r));
+      } else {
+        it->lo = std::min(it->lo, r.lo);
+        it->hi = std::max(it->hi, r.hi);
+      }
+    }
   }
-  st.ranges = std::move(rg.r);
+  // The bounds are the X, Y, Z ranges (the same per-axis min/max over the same positions).
+  if (st.count > 0 && all.size() >= 3 && all[0].name == "X")
+    st.bounds = AABB{Vec3(all[0].lo, all[1].lo, all[2].lo), Vec3(all[0].hi, all[1].hi, all[2].hi)};
+  st.ranges = std::move(all);
   for (int k = 0; k < 256; ++k)
     if (cls[k] != 0) st.classification_counts[k] = cls[k];
   return st;
