@@ -89,7 +89,7 @@ Runner add_index_command(CLI::App& app) {
       opt.config.max_depth = o->max_depth;
       opt.memory_bytes = io::parse_byte_size(o->memory);
       io::AttributeSet a = io::AttributeSet::parse(o->attributes);
-      if (o->attributes == "all") a = io::AttributeSet::parse("id,rgb,intensity,classification,gps_time");
+      if (o->attributes == "all") a = io::kIndexAttributes;
       opt.attributes = a;
       opt.compact_positions = o->positions == "compact";
     } catch (const std::invalid_argument& e) {

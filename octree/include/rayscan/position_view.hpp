@@ -164,21 +164,11 @@ concept PositionRange = requires(const P& p, std::size_t s) {
 
 /// Positions [b, b + n) as contiguous float64 x, y, z triples (the SIMD point filters' input):
 /// the array itself for a span (zero cost), else decoded into a per-thread buffer that stays valid
-/// until the next position_block call on the same thread.
-inline const double* position_block(std::span<const Vec3> p, std::uint32_t b, std::uint32_t /*n*/) { return &p[b].x; }
-inline const double* position_block(const PositionView& p, std::uint32_t b, std::uint32_t n) {
-  if (p.data() != nullptr) return &p.data()[b].x;
-  // (The attribute does not keep this buffer out of a module's static TLS block: a module with any
-  // initial-exec access needs its whole block there. The Python module uses the default model;
-  // python/CMakeLists.txt says why.)
-  __attribute__((tls_model("global-dynamic"))) thread_local std::vector<Vec3> buf;
-  if (buf.size() < n || buf.empty()) buf.resize(n > 0 ? n : 1);
-  p.decode(b, n, buf.data());
-  return &buf[0].x;
-}
-/// As above, decoding into the caller's buffer `buf` (grown to n as needed; the result stays
-/// valid until buf changes): for a caller that holds per-thread scratch already (the ray query),
-/// so the hot loop reaches no thread_local. A span or float64 view returns the array itself.
+/// until the next position_block call on the same thread (the three-argument form, which decodes
+/// through the four-argument one).
+/// With `buf`: decoded into the caller's buffer (grown to n as needed; the result stays valid
+/// until buf changes), for a caller that holds per-thread scratch already (the ray query), so the
+/// hot loop reaches no thread_local. A span or float64 view returns the array itself.
 inline const double* position_block(std::span<const Vec3> p, std::uint32_t b, std::uint32_t /*n*/,
                                     std::vector<Vec3>& /*buf*/) {
   return &p[b].x;
@@ -188,6 +178,15 @@ inline const double* position_block(const PositionView& p, std::uint32_t b, std:
   if (buf.size() < n || buf.empty()) buf.resize(n > 0 ? n : 1);
   p.decode(b, n, buf.data());
   return &buf[0].x;
+}
+inline const double* position_block(std::span<const Vec3> p, std::uint32_t b, std::uint32_t /*n*/) { return &p[b].x; }
+inline const double* position_block(const PositionView& p, std::uint32_t b, std::uint32_t n) {
+  if (p.data() != nullptr) return &p.data()[b].x;
+  // (The attribute does not keep this buffer out of a module's static TLS block: a module with any
+  // initial-exec access needs its whole block there. The Python module uses the default model;
+  // python/CMakeLists.txt says why.)
+  __attribute__((tls_model("global-dynamic"))) thread_local std::vector<Vec3> buf;
+  return position_block(p, b, n, buf);
 }
 
 }  // namespace rayscan

@@ -52,6 +52,15 @@ struct IndexSectionInfo {
 using IndexProgress = std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)>;
 
 /// Options of build_index_file().
+/// The attributes an index file can store besides positions (docs/index-format.md "Sections"):
+/// id, rgb, intensity, classification, gps_time. What `rayscan index --attributes all` means, and
+/// the only attribute bits a header may carry.
+inline constexpr AttributeSet kIndexAttributes{static_cast<std::uint32_t>(Attribute::id) |
+                                               static_cast<std::uint32_t>(Attribute::rgb) |
+                                               static_cast<std::uint32_t>(Attribute::intensity) |
+                                               static_cast<std::uint32_t>(Attribute::classification) |
+                                               static_cast<std::uint32_t>(Attribute::gps_time)};
+
 struct IndexBuildOptions {
   /// Tree layout and parameters: adaptive or fixed (layered is not supported by the external
   /// build; std::invalid_argument).
@@ -62,7 +71,7 @@ struct IndexBuildOptions {
   /// "Ids"). Attributes some input lacks are not stored (a note says which).
   AttributeSet attributes = AttributeSet::none();
   /// Memory budget of the sort runs and merge buffers (bytes); peak RSS stays within this plus a
-  /// constant (one reader chunk, the node array: 48 bytes per node).
+  /// constant (one reader chunk; the node records are written into a map of the output).
   std::uint64_t memory_bytes = std::uint64_t{4} << 30;
   /// Positions: the most compact exact encoding (true: the LAS int32 grid when every input is
   /// LAS/LAZ on one scale and offset, else float32 when every coordinate is a float, else
@@ -136,8 +145,11 @@ struct IndexNodeRecord {
   static constexpr std::uint32_t pack(std::uint32_t count, unsigned octant, bool internal) {
     return count | (std::uint32_t{octant} << 28) | (internal ? std::uint32_t{1} << 31 : 0u);
   }
+  /// True for an internal node (children, no points), false for a leaf (points, no children).
   [[nodiscard]] bool internal() const { return (packed >> 31) != 0; }
+  /// An internal node's child count (1..8) or a leaf's point count.
   [[nodiscard]] std::uint32_t count() const { return packed & kMaxCount; }
+  /// The node's octant (Morton digit 0..7) in its parent's cell; 0 for the root.
   [[nodiscard]] unsigned octant() const { return (packed >> 28) & 7u; }
 };
 static_assert(sizeof(IndexNodeRecord) == 32, "the nodes section's record is 32 bytes");
