@@ -345,10 +345,12 @@ void log_stats(const JobControl& ctl, const RenderStats& st, const Camera& cam, 
   char buf[512];
   std::snprintf(buf, sizeof buf,
                 "%s%.2f s, %u threads, %llux%llu px, %u spp, %llu primary rays, %llu ray queries, "
-                "%.3g queries/s (%.3g per thread)",
+                "%.3g queries/s (%.3g per thread), %.3g nodes and %.3g points visited per query",
                 what, st.seconds, st.threads, (unsigned long long)cam.width(), (unsigned long long)cam.height(), spp,
                 (unsigned long long)st.primary_rays, (unsigned long long)st.queries, double(st.queries) / st.seconds,
-                double(st.queries) / st.seconds / st.threads);
+                double(st.queries) / st.seconds / st.threads,
+                st.queries ? double(st.nodes_visited) / double(st.queries) : 0.0,
+                st.queries ? double(st.points_tested) / double(st.queries) : 0.0);
   ctl.info(buf);
 }
 

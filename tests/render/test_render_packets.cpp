@@ -3,11 +3,14 @@
 // Oracle: the same render with packets off (every ray traced alone with ray_first_hit, the path
 // loop of PathTracer::trace); the images must be identical byte for byte, on the index types that
 // take packets (octree, index file) and one that does not (kd-tree: per-ray child tests inside the
-// packet), for both hit modes, Russian roulette, partial blocks at tile and image edges, AOVs.
+// packet), for both hit modes, Russian roulette, partial blocks at tile and image edges, AOVs,
+// and surfel mode (issue 16: first_surfel_hit_packet for the camera rays and, each leaving its own
+// surface, their shadow rays).
 #include "render_test_data.hpp"
 #include "rayscan/io/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/render.hpp"
+#include "rayscan/render/surfel_setup.hpp"
 
 #include <gtest/gtest.h>
 
@@ -90,6 +93,20 @@ TEST(RenderPackets, ImageIdenticalWithAndWithoutPackets) {
   {
     const io::MappedIndex m = io::MappedIndex::open(rsi);
     expect_packets_identical(m, make_settings(s, pc.positions, albedo, 0.8), 16, "index file");
+  }
+
+  // Surfel mode: camera rays and their shadow rays in packets of refined-key (disc) queries with
+  // per-node radii and float disc boxes, on the octree and the index file.
+  Scene su = s;
+  su.primitive = Primitive::surfel;
+  const SurfelAttributes sa = scene_surfels(su, octree, pc);
+  RenderSettings rs = make_settings(su, pc.positions, albedo, 0.8);
+  use_surfels(rs, sa);
+  expect_packets_identical(octree, rs, 16, "octree surfel");
+  expect_packets_identical(octree, rs, 7, "octree tile 7 surfel");
+  {
+    const io::MappedIndex m = io::MappedIndex::open(rsi);
+    expect_packets_identical(m, rs, 16, "index file surfel");
   }
   fs::remove_all(dir);
 }

@@ -205,7 +205,13 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
     v.node_radii = node_r;
     const std::vector<AABB> boxes = std::visit([&](const auto& ix) { return surfel_node_boxes(ix, v); }, idx);
     v.node_boxes = boxes;
+    // On the octree also the float copy of the boxes (the SIMD child test on them).
+    std::vector<float> boxes_f;
+    if (const auto* oct = std::get_if<Octree>(&idx)) boxes_f = surfel_node_boxes_f(*oct, boxes);
+    SurfelView vf = v;
+    vf.node_boxes_f = boxes_f;
     int hits = 0;
+    RayQueryStats st_d, st_f;
     for (int k = 0; k < 400; ++k) {
       const Vec3 o(u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2);
       const Ray ray(o, Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5));
@@ -220,6 +226,13 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
       const SurfelHit h = std::visit(
           [&](const auto& ix) { return first_surfel_hit(ix, v, ray, 0.0, kInf, nullptr, false, scratch, st); }, idx);
       ASSERT_EQ(h.t, bt) << type << " ray " << k;
+      if (!boxes_f.empty()) {
+        const Octree& oct = std::get<Octree>(idx);
+        const SurfelHit hd = first_surfel_hit(oct, v, ray, 0.0, kInf, nullptr, false, scratch, st_d);
+        const SurfelHit hf = first_surfel_hit(oct, vf, ray, 0.0, kInf, nullptr, false, scratch, st_f);
+        ASSERT_EQ(hf.t, bt) << type << " ray " << k << " (float boxes)";
+        EXPECT_EQ(hf.index, hd.index) << type << " ray " << k << " (float boxes)";
+      }
       if (bt < kInf) {
         EXPECT_EQ(h.index, bi);
         const AABB db = disc_bounds(d.c[bi], Vec3(d.n[bi]), d.r[bi]);
@@ -235,6 +248,12 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
       hits += bt < kInf;
     }
     EXPECT_GT(hits, 100) << type;
+    // The float boxes contain the double ones, so they visit at least as many nodes; rounded
+    // outwards by a few ulps only, so hardly more.
+    if (!boxes_f.empty()) {
+      EXPECT_GE(st_f.nodes_visited, st_d.nodes_visited);
+      EXPECT_LE(st_f.nodes_visited, st_d.nodes_visited + st_d.nodes_visited / 20) << st_f.nodes_visited;
+    }
   }
 }
 

@@ -165,12 +165,15 @@ struct OrderKey {
   static constexpr bool refines = false;
   static constexpr bool node_radius = false;
   static constexpr bool node_box = false;
+  static constexpr bool child_boxes_f = false;
 };
 
 /// "No per-node radius" (the query radius bounds every node): see RefinedKey.
 struct NoNodeRadius {};
 /// "No per-node geometry box" (each node's box grown by its radius): see RefinedKey.
 struct NoNodeBox {};
+/// "No float copy of the per-node geometry boxes" (scalar child test of node_box): see RefinedKey.
+struct NoChildBoxesF {};
 
 /// A point-key policy refines the key of each candidate that passed the query's predicates:
 /// `key(id, t_p, d2, base)` receives the point's original index, its projection terms and its
@@ -193,15 +196,26 @@ struct NoNodeBox {};
 /// not). The exact node test of a child is then the slab test of that box, without pad, whose entry
 /// is the child's lower bound (still a lower bound of the refined keys); the radius bounds the SIMD
 /// prefilter of the children and the points (cf. a BVH over the primitives' own bounds).
-template <class F, class G = NoNodeRadius, class B = NoNodeBox>
+///
+/// Optionally too (with node_box, on FloatChildBoxes indexes), `child_boxes_f(n)`
+/// (simd::ChildBoxesF) gives the node_box of each of n's children in float, relative to the
+/// index's float_origin() and rounded outwards (each float box contains the double one): the
+/// children are then tested all at once by the SIMD slab kernel on these boxes, without pad, and
+/// its result is final (no scalar re-test, no per-node float constants: the slabs are the ray's
+/// own, set once per ray and when its t_far shrinks). The entry the kernel returns is a lower bound
+/// of the double box's entry, so every node lower bound stays a lower bound.
+template <class F, class G = NoNodeRadius, class B = NoNodeBox, class C = NoChildBoxesF>
 struct RefinedKey {
   static constexpr bool refines = true;
   static constexpr bool node_radius = !std::is_same_v<G, NoNodeRadius>;
   static constexpr bool node_box = !std::is_same_v<B, NoNodeBox>;
+  static constexpr bool child_boxes_f = !std::is_same_v<C, NoChildBoxesF>;
   static_assert(node_radius || !node_box, "RefinedKey: a per-node box needs the per-node radius");
+  static_assert(node_box || !child_boxes_f, "RefinedKey: float child boxes need the per-node box");
   F key;              ///< double(PointIndex id, double t_p, double d2, double base)
   G node_radius_of{};  ///< double(Node n): the bound above (NoNodeRadius: none)
   B node_box_of{};     ///< AABB(Node n): the box above (NoNodeBox: none)
+  C child_boxes_f_of{};  ///< simd::ChildBoxesF(Node n): the float boxes above (NoChildBoxesF: none)
 };
 
 namespace detail {
@@ -224,6 +238,8 @@ struct RayTraversal {
   using Node = typename I::Node;
   static constexpr bool per_node = KeyPolicy::node_radius;
   static constexpr bool per_box = KeyPolicy::node_box;
+  // The per-node geometry boxes in float: the SIMD child test on them is final (RefinedKey).
+  static constexpr bool per_box_f = KeyPolicy::child_boxes_f && detail::FloatChildBoxes<I>;
 
   const I& index;
   const RayQuery& q;
@@ -251,6 +267,7 @@ struct RayTraversal {
   double slack_t = 0, slack_d2 = 0;
   simd::PointFilterD pf;
   simd::SlabRayF sr{};
+  simd::SlabRayF sr_box{};  // per_box_f: the ray's slabs for the float geometry boxes (no pad)
   bool simd_children = false;
   Vec3 o_rel{0.0};
   double mag = 0;
@@ -308,12 +325,27 @@ struct RayTraversal {
                     fz = static_cast<float>(inv_d.z);
         simd_children = std::isfinite(fx) && std::isfinite(fy) && std::isfinite(fz);
         sr.inv_d[0] = fx, sr.inv_d[1] = fy, sr.inv_d[2] = fz;
+        sr_box.inv_d[0] = fx, sr_box.inv_d[1] = fy, sr_box.inv_d[2] = fz;
         mag = std::max({std::abs(o_rel.x), std::abs(o_rel.y), std::abs(o_rel.z)}) + index.float_extent();
       }
     }
     if constexpr (per_node) set_node_pad(index.root());
     update_simd();
-    slab_is_final = !ray_order && !has_planes && !per_node;
+    slab_is_final = !ray_order && !has_planes && (!per_node || per_box_f);
+  }
+
+  /// Per-node state on entering node n (with per-node radii): the pad and the point filter's
+  /// distance bound become n's own; the float child slabs too, unless the children are tested on
+  /// their float geometry boxes (per_box_f), whose slabs do not depend on the node.
+  __attribute__((always_inline)) void enter_node([[maybe_unused]] Node n) {
+    if constexpr (per_node) {
+      set_node_pad(n);
+      if constexpr (per_box_f) {
+        pf.d2_max = pad * pad + slack_d2;
+      } else {
+        update_simd();
+      }
+    }
   }
 
   /// Refreshes the per-ray SIMD constants after pad or t_hi changed (dynamic k filter).
@@ -321,7 +353,19 @@ struct RayTraversal {
     pf.d2_max = (ray_order ? std::min(r2, worst * worst * (1.0 + 1e-12)) : per_node ? pad * pad : r2) + slack_d2;
     pf.t_lo = t_lo - slack_t;
     pf.t_hi = t_hi + slack_t;
-    if constexpr (detail::FloatChildBoxes<I>) {
+    if constexpr (per_box_f) {
+      if (kern.child_slab) {
+        // As below with pad 0, the magnitudes including the geometry's reach past the float
+        // cell (at most the query radius).
+        const double margin = 0x1p-20 * (mag + radius) + tol;
+        for (int a = 0; a < 3; ++a) {
+          sr_box.o_plus[a] = static_cast<float>(o_rel[a] + margin);
+          sr_box.o_minus[a] = static_cast<float>(o_rel[a] - margin);
+        }
+        sr_box.t_lo = static_cast<float>(t_lo - 0x1p-22 * std::abs(t_lo));
+        sr_box.t_hi = static_cast<float>(t_hi + 0x1p-22 * std::abs(t_hi));
+      }
+    } else if constexpr (detail::FloatChildBoxes<I>) {
       if (kern.child_slab && pad < kInf) {
         // Position-space margin: float rounding of the slab origins and of box - origin
         // differences (each <= 2^-24 of the magnitudes involved); 2^-20 of their sum covers both.
@@ -410,7 +454,24 @@ struct RayTraversal {
   /// planes or per-node radii, else it prefilters the exact test), the scalar test otherwise.
   __attribute__((always_inline)) unsigned test_children(Node n, unsigned nc, double* lb) {
     unsigned out = 0;
-    if constexpr (detail::FloatChildBoxes<I>) {
+    if constexpr (per_box_f) {
+      if (simd_children) {
+        float entry[8];
+        unsigned m = kern.child_slab(key_policy.child_boxes_f_of(n), sr_box, entry);
+        while (m) {
+          const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+          m &= m - 1;
+          if (slab_is_final) {
+            lb[i] = std::max(static_cast<double>(entry[i]), q.t_min);
+            if (!live(lb[i])) continue;
+          } else if (!test_child(index.child(n, i), lb[i])) {
+            continue;
+          }
+          out |= 1u << i;
+        }
+        return out;
+      }
+    } else if constexpr (detail::FloatChildBoxes<I>) {
       if (simd_children && pad < kInf) {
         float entry[8];
         unsigned m = kern.child_slab(index.child_boxes_f(n), sr, entry);
@@ -539,12 +600,9 @@ struct RayTraversal {
       const detail::NodeEntry<Node> e = nodes.back();
       nodes.pop_back();
       if (!live(e.lb)) continue;
-      if constexpr (per_node) {
-        // The node's subtree bound: its own points' SIMD filter and its children's SIMD slab
-        // test; each surviving child is then tested with its own bound (test_children).
-        set_node_pad(e.node);
-        update_simd();
-      }
+      // Per-node radii: the node's subtree bound for its own points' SIMD filter and (without
+      // float geometry boxes) its children's SIMD slab prefilter (test_children).
+      enter_node(e.node);
       eval_points(e.node);
       if (done) break;
       const unsigned nc = index.child_count(e.node);
@@ -686,13 +744,25 @@ namespace detail {
 /// over every candidate, which conservative pruning always reaches, so it is bit-identical to
 /// ray_first_hit on that ray whatever order the nodes are visited in. Returns the mask of rays
 /// that found a hit (best[i] set).
-template <unsigned N, SpatialIndex I>
+///
+/// `keys[i]` is ray i's point-key policy (OrderKey, or a RefinedKey whose refinement depends on the
+/// ray, e.g. the discs of surfel rendering; nullptr only with OrderKey). With per-node
+/// radii each ray enters a node with its own bound (RayTraversal::enter_node); with float
+/// geometry boxes (RefinedKey::child_boxes_f) the children are tested on them, all rays at once.
+template <unsigned N, SpatialIndex I, class KeyPolicy = OrderKey>
 unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const RayQuery& q, Candidate* best,
-                          RayQueryStats* stats) {
+                          RayQueryStats* stats, const KeyPolicy* keys = nullptr) {
   static_assert(N >= 1 && N <= 16);
   using Node = typename I::Node;
-  using RT = RayTraversal<true, I, OrderKey>;
-  static constexpr OrderKey kKey{};
+  using RT = RayTraversal<true, I, KeyPolicy>;
+  const auto key_of = [keys](unsigned i) -> const KeyPolicy& {
+    if constexpr (std::is_same_v<KeyPolicy, OrderKey>) {
+      static constexpr OrderKey kKey{};
+      return keys ? keys[i] : kKey;
+    } else {
+      return keys[i];
+    }
+  };
   struct Entry {
     Node node;
     std::uint32_t mask;  // rays for which the node passed the node test
@@ -704,7 +774,7 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
   root.node = index.root();
   root.mask = 0;
   for (unsigned i = 0; i < n; ++i) {
-    st[i].emplace(index, rays[i], q, best[i], stats, kKey);
+    st[i].emplace(index, rays[i], q, best[i], stats, key_of(i));
     st[i]->prepare();
     if (st[i]->test_node(st[i]->root_box, root.lb[i])) root.mask |= 1u << i;
   }
@@ -717,7 +787,7 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
   [[maybe_unused]] bool over_rays = false;
   [[maybe_unused]] alignas(64) simd::SlabPacketF lanes;
   [[maybe_unused]] auto set_lane = [&](unsigned i) {
-    const simd::SlabRayF& r = st[i]->sr;
+    const simd::SlabRayF& r = RT::per_box_f ? st[i]->sr_box : st[i]->sr;
     for (int a = 0; a < 3; ++a) {
       lanes.o_plus[a][i] = r.o_plus[a];
       lanes.o_minus[a][i] = r.o_minus[a];
@@ -760,6 +830,7 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
     for (std::uint32_t m = act; m; m &= m - 1) {
       RT& r = *st[__builtin_ctz(m)];
       const double before = r.worst;
+      r.enter_node(e.node);
       r.eval_points(e.node);
       if constexpr (FloatChildBoxes<I>)
         if (over_rays && r.worst != before) set_lane(static_cast<unsigned>(__builtin_ctz(m)));
@@ -771,7 +842,7 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
         RT& r = *st[__builtin_ctz(m)];
         for (unsigned c = 0; c < nc; ++c) {
           double lb;
-          if (r.test_node(index.node_bounds(index.child(e.node, c)), lb)) r.traverse_from(index.child(e.node, c), lb);
+          if (r.test_child(index.child(e.node, c), lb)) r.traverse_from(index.child(e.node, c), lb);
         }
       }
       continue;
@@ -783,7 +854,10 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
       if (over_rays) {
         std::uint32_t hits[8];
         alignas(64) float entry[8 * 16];
-        kern.packet_child_slab(index.child_boxes_f(e.node), lanes, N, hits, entry);
+        if constexpr (RT::per_box_f)
+          kern.packet_child_slab(st[__builtin_ctz(act)]->key_policy.child_boxes_f_of(e.node), lanes, N, hits, entry);
+        else
+          kern.packet_child_slab(index.child_boxes_f(e.node), lanes, N, hits, entry);
         for (unsigned c = 0; c < nc; ++c)
           for (std::uint32_t m = hits[c] & act; m; m &= m - 1) {
             const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
@@ -840,15 +914,17 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
 /// Runs first_hit_packet over `rays` in blocks of kMaxRayPacket consecutive rays (the 4-, 8- or
 /// 16-lane instance by block size) and calls emit(b, n, best, found) for each block: rays
 /// [b, b + n), bit i of `found` set when ray b + i has its answer in best[i].
-template <SpatialIndex I, class Emit>
+/// `keys`: as first_hit_packet's, one per ray of `rays` (nullptr only with OrderKey).
+template <SpatialIndex I, class Emit, class KeyPolicy = OrderKey>
 void for_each_ray_packet(const I& index, std::span<const Ray> rays, const RayQuery& q, RayQueryStats* stats,
-                         Emit&& emit) {
+                         Emit&& emit, const KeyPolicy* keys = nullptr) {
   for (std::size_t b = 0; b < rays.size(); b += kMaxRayPacket) {
     const unsigned n = static_cast<unsigned>(std::min(kMaxRayPacket, rays.size() - b));
+    const KeyPolicy* k = keys ? keys + b : nullptr;
     Candidate best[kMaxRayPacket];
-    const std::uint32_t found = n <= 4   ? first_hit_packet<4>(index, rays.data() + b, n, q, best, stats)
-                                : n <= 8 ? first_hit_packet<8>(index, rays.data() + b, n, q, best, stats)
-                                         : first_hit_packet<kMaxRayPacket>(index, rays.data() + b, n, q, best, stats);
+    const std::uint32_t found = n <= 4   ? first_hit_packet<4>(index, rays.data() + b, n, q, best, stats, k)
+                                : n <= 8 ? first_hit_packet<8>(index, rays.data() + b, n, q, best, stats, k)
+                                         : first_hit_packet<kMaxRayPacket>(index, rays.data() + b, n, q, best, stats, k);
     emit(b, n, static_cast<const Candidate*>(best), found);
   }
 }

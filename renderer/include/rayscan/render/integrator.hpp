@@ -78,6 +78,12 @@ class PathTracer {
       node_boxes_ = surfel_node_boxes(index, in_.surfels);
       in_.surfels.node_boxes = node_boxes_;
     }
+    if constexpr (detail::FloatChildBoxes<I>) {
+      if (in_.primitive == Primitive::surfel && in_.surfels.node_boxes_f.empty()) {
+        node_boxes_f_ = surfel_node_boxes_f(index, in_.surfels.node_boxes);
+        in_.surfels.node_boxes_f = node_boxes_f_;
+      }
+    }
     query_.k = 1;
     query_.radius = in.radius;
     query_.t_min = 0.0;
@@ -88,7 +94,7 @@ class PathTracer {
     shadow_query_.any_hit = true;  // a shadow ray only asks whether anything blocks the sun
   }
 
-  PathTracer(const PathTracer&) = delete;  // in_.surfels.node_radii / node_boxes view node_radii_ / node_boxes_
+  PathTracer(const PathTracer&) = delete;  // in_.surfels' node tables view the members below
   PathTracer& operator=(const PathTracer&) = delete;
 
   /// True when any sphere blocks `ray` at t >= 0 (shadow rays; the core's any_hit mode).
@@ -167,6 +173,13 @@ class PathTracer {
     c.nodes_visited += st.nodes_visited;
     c.points_tested += st.points_tested;
     if (!(sh.t < kInf)) return false;
+    surfel_surface_at(ray, sh, h);
+    return true;
+  }
+
+  /// The surfel-mode surface of the disc hit `sh` (first_surfel_hit's answer, t < inf) of `ray`:
+  /// the hit point, the blended shading normal facing the ray, the disc's radius.
+  void surfel_surface_at(const Ray& ray, const SurfelHit& sh, SurfaceHit& h) const {
     h.t = sh.t;
     h.index = sh.index;
     h.position = ray.at(sh.t);
@@ -174,7 +187,6 @@ class PathTracer {
     h.normal = surfel_shading_normal(index_, in_.surfels, sh.index, h.position, near);
     if (glm::dot(h.normal, ray.direction()) > 0.0) h.normal = -h.normal;
     h.radius = in_.surfels.radii[sh.index];
-    return true;
   }
 
   /// The state of one path between the stages of a path vertex (see trace): the ray to trace
@@ -211,17 +223,14 @@ class PathTracer {
   /// one (in packets they measured no faster: bench/README.md); then each path scatters. Every stage consumes a
   /// path's sampler stream in the order trace() does and adds to its L in the same order, and the
   /// packet answers are ray_first_hit's, so nothing depends on which paths share a packet.
-  /// Sphere mode; surfel mode (first_surfel_hit: per-disc refined keys, per-node radii and the
-  /// leaving surface, which the packet traversal does not take) traces each ray with trace().
+  /// Surfel mode likewise, with first_surfel_hit_packet for the camera rays and for their shadow
+  /// rays (each leaving its own surface), bit-identical to first_surfel_hit on each ray.
   void trace_packet(std::span<const Ray> rays, std::span<Sampler> s, std::span<Color> out,
                     std::vector<RayHit>& hits, TraceCounters& c) const {
     const std::size_t n = rays.size();
     if (n > kMaxRayPacket || s.size() != n || out.size() != n)
       throw std::invalid_argument("render: a ray packet holds at most 16 rays with one sampler and output each");
-    if (in_.primitive == Primitive::surfel) {
-      for (std::size_t i = 0; i < n; ++i) out[i] = trace(rays[i], s[i], hits, c);
-      return;
-    }
+    const bool surfel = in_.primitive == Primitive::surfel;
     std::optional<Path> p[kMaxRayPacket];
     std::uint32_t live = 0;  // paths still going
     for (std::size_t i = 0; i < n; ++i) {
@@ -240,22 +249,36 @@ class PathTracer {
           lane[m++] = static_cast<std::uint8_t>(i);
           wave.push_back(p[i]->ray);
         }
-      std::optional<RayHit> rh[kMaxRayPacket];
-      const auto t0 = time_ ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
-      if (camera)
-        ray_first_hit_packet(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
-      else
-        for (std::size_t j = 0; j < std::min(m, kMaxRayPacket); ++j) rh[j] = ray_first_hit(index_, wave[j], query_, &st);
-      if (time_)
-        c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
-                          std::chrono::steady_clock::now() - t0).count();
-      c.queries += m;
+      SurfaceHit h[kMaxRayPacket];
+      bool hit[kMaxRayPacket];
+      if (camera) {
+        // The camera rays as one packet (each ray's answer is the one-ray query's).
+        const auto t0 = time_ ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+        if (surfel) {
+          SurfelHit sh[kMaxRayPacket];
+          first_surfel_hit_packet(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf, {}, false,
+                                  std::span(sh, m), st);
+          for (std::size_t j = 0; j < m; ++j)
+            if ((hit[j] = sh[j].t < kInf)) surfel_surface_at(wave[j], sh[j], h[j]);
+        } else {
+          std::optional<RayHit> rh[kMaxRayPacket];
+          ray_first_hit_packet(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
+          for (std::size_t j = 0; j < m; ++j)
+            if ((hit[j] = rh[j].has_value())) surface_at(wave[j], *rh[j], h[j]);
+        }
+        if (time_)
+          c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
+                            std::chrono::steady_clock::now() - t0).count();
+        c.queries += m;
+      } else {
+        // Bounce rays, one by one (incoherent), each leaving its vertex's surface (as trace()).
+        for (std::size_t j = 0; j < m; ++j)
+          hit[j] = intersect(wave[j], h[j], hits, c, surfel ? &p[lane[j]]->from : nullptr);
+      }
       std::uint32_t shadowed = 0;
       for (std::size_t j = 0; j < m; ++j) {
         Path& q = *p[lane[j]];
-        SurfaceHit h;
-        if (rh[j]) surface_at(q.ray, *rh[j], h);
-        if (!hit_vertex(q, rh[j].has_value(), h, s[lane[j]], nullptr)) live &= ~(1u << lane[j]);
+        if (!hit_vertex(q, hit[j], h[j], s[lane[j]], nullptr)) live &= ~(1u << lane[j]);
         else if (q.shadow_pending) shadowed |= 1u << lane[j];
       }
       // The shadow rays of the hits (all towards the sun): a packet for the camera rays' hits,
@@ -263,17 +286,27 @@ class PathTracer {
       // are scattered: in packets they measured slower, bench/README.md).
       if (shadowed && !camera) {
         for (std::size_t i = 0; i < n; ++i)
-          if (((shadowed >> i) & 1u) && !occluded(p[i]->shadow, hits, c)) add_sun(*p[i]);
+          if (((shadowed >> i) & 1u) && !occluded(p[i]->shadow, hits, c, surfel ? &p[i]->from : nullptr))
+            add_sun(*p[i]);
       } else if (shadowed) {
         std::size_t ns = 0;
         wave.clear();
+        const LeavingSurface* from[kMaxRayPacket];
         for (std::size_t i = 0; i < n; ++i)
           if ((shadowed >> i) & 1u) {
+            from[ns] = &p[i]->from;
             lane[ns++] = static_cast<std::uint8_t>(i);
             wave.push_back(p[i]->shadow);
           }
         bool blocked[kMaxRayPacket];
-        ray_any_hit_packet(index_, std::span<const Ray>(wave), shadow_query_, std::span(blocked, ns), &st);
+        if (surfel) {
+          SurfelHit sh[kMaxRayPacket];
+          first_surfel_hit_packet(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf,
+                                  std::span<const LeavingSurface* const>(from, ns), true, std::span(sh, ns), st);
+          for (std::size_t j = 0; j < ns; ++j) blocked[j] = sh[j].t < kInf;
+        } else {
+          ray_any_hit_packet(index_, std::span<const Ray>(wave), shadow_query_, std::span(blocked, ns), &st);
+        }
         c.queries += ns;
         for (std::size_t j = 0; j < ns; ++j)
           if (!blocked[j]) add_sun(*p[lane[j]]);
@@ -365,6 +398,7 @@ class PathTracer {
   IntegratorInputs in_;
   std::vector<float> node_radii_;  ///< surfel_node_radii over index_ (surfel mode)
   std::vector<AABB> node_boxes_;   ///< surfel_node_boxes over index_ (surfel mode)
+  std::vector<float> node_boxes_f_;  ///< surfel_node_boxes_f of node_boxes_ (surfel mode, FloatChildBoxes)
   const Sky& sky_;
   bool time_;
   RayQuery query_;

@@ -12,7 +12,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <span>
+#include <stdexcept>
 #include <vector>
 
 namespace rayscan::render {
@@ -40,6 +42,11 @@ struct SurfelView {
   /// bounding box of the discs of each node's subtree, the node test of the ray query. Empty: each
   /// node's box grown by its radius.
   std::span<const AABB> node_boxes{};
+  /// Optional (with node_boxes, on FloatChildBoxes indexes), by node of the same index
+  /// (surfel_node_boxes_f over it): node_boxes in float, 8 floats per node (lo xyz, hi xyz, 2
+  /// unused), relative to the index's float_origin() and rounded outwards: the SIMD child test of
+  /// the ray query (RefinedKey::child_boxes_f). Empty: each child's box is tested in double.
+  std::span<const float> node_boxes_f{};
   /// thickness[i], or 0 without thickness.
   [[nodiscard]] double thickness_at(PointIndex i) const { return thickness.empty() ? 0.0 : double(thickness[i]); }
 };
@@ -122,6 +129,30 @@ template <SpatialIndex I>
   return out;
 }
 
+/// Floats per node of surfel_node_boxes_f (simd::ChildBoxesF::stride: lo xyz, hi xyz, 2 unused).
+inline constexpr unsigned kNodeBoxFloats = 8;
+
+/// `boxes` (surfel_node_boxes over `index`) as the float table of SurfelView::node_boxes_f: box n
+/// at [kNodeBoxFloats n, + 6), each coordinate relative to index.float_origin() rounded outwards
+/// (lo down, hi up), so the float box contains the double one; empty boxes stay empty (+inf lo,
+/// -inf hi). Only for indexes whose children are contiguous node handles with float boxes
+/// (detail::FloatChildBoxes: Octree, io::MappedIndex).
+template <SpatialIndex I>
+  requires detail::FloatChildBoxes<I>
+[[nodiscard]] std::vector<float> surfel_node_boxes_f(const I& index, std::span<const AABB> boxes) {
+  std::vector<float> out(boxes.size() * kNodeBoxFloats, 0.0f);
+  const Vec3 o = index.float_origin();
+  for (std::size_t n = 0; n < boxes.size(); ++n) {
+    float* f = out.data() + n * kNodeBoxFloats;
+    for (int a = 0; a < 3; ++a) {
+      const bool empty = !(boxes[n].lo[a] <= boxes[n].hi[a]);
+      f[a] = empty ? std::numeric_limits<float>::infinity() : detail::round_float_down(boxes[n].lo[a] - o[a]);
+      f[3 + a] = empty ? -std::numeric_limits<float>::infinity() : detail::round_float_up(boxes[n].hi[a] - o[a]);
+    }
+  }
+  return out;
+}
+
 /// Ray parameter where the ray o + t d (unit d) crosses the disc (centre c, unit normal n, radius
 /// r), or kInf when it misses it or the hit lies outside [t_min, t_max]. A ray parallel to the
 /// disc plane misses. Double precision throughout (pbrt-v4 section 6.4.2, "Disk Intersection
@@ -180,21 +211,53 @@ struct SurfelHit {
   std::uint32_t queries = 0;  ///< ray queries issued
 };
 
-/// The first disc hit along `ray` with t in [t_min, t_max] (or, with any_hit, some disc hit in it),
-/// ignoring the discs of `from` when given; ties in t go to the smaller index. One ray query: order
-/// sphere_hit with the maximum radius R as candidate radius (a disc of radius r <= R around c lies
-/// inside the sphere of radius R around c, so its hit is never before that sphere's entry, the
-/// key the traversal prunes with), k = 1, and the exact ray-disc test in double as the query's
-/// refined key (RefinedKey): the traversal visits nodes nearest entry first and stops once no node
-/// can hold a disc hit before the best one. With s.node_radii, each node's box is grown by its own
-/// largest disc radius instead of R, and with s.node_boxes (and node_radii) each child is tested
-/// against the bounding box of its discs instead. `hits` is caller-owned scratch; `stats` accumulates the
-/// query counters.
+/// The refined key of a surfel ray query (RefinedKey::key): the exact ray-disc parameter of disc
+/// `id` in [t_min, t_max] (ray_disc_t, double), kInf when the ray misses the disc, passes farther
+/// than its radius from the centre, or the disc belongs to the surface `from` leaves
+/// (same_surface). `o`, `d`: the ray's origin and unit direction, world coordinates.
+struct DiscKey {
+  const SurfelView* s = nullptr;
+  Vec3 o{0.0}, d{0.0};
+  double t_min = 0.0, t_max = kInf;
+  const LeavingSurface* from = nullptr;
+  double operator()(PointIndex id, double, double d2, double) const {
+    const double r = s->radii[id];
+    if (d2 > r * r) return kInf;  // the ray passes farther than r from the centre: misses the disc
+    const Vec3& c = s->centers[id];
+    const Vec3 n(s->normals[id]);
+    if (from && same_surface(*from, id, c, n, r, s->thickness_at(id))) return kInf;
+    return ray_disc_t(o, d, c, n, r, t_min, t_max);
+  }
+};
+
+/// RefinedKey::node_radius_of of a surfel query: SurfelView::node_radii (world units).
+struct SurfelNodeRadius {
+  const SurfelView* s = nullptr;
+  template <class Node>
+  double operator()(Node n) const { return double(s->node_radii[n]); }
+};
+
+/// RefinedKey::node_box_of of a surfel query: SurfelView::node_boxes (world coordinates).
+struct SurfelNodeBox {
+  const SurfelView* s = nullptr;
+  template <class Node>
+  AABB operator()(Node n) const { return s->node_boxes[n]; }
+};
+
+/// RefinedKey::child_boxes_f_of of a surfel query: the rows of SurfelView::node_boxes_f of n's
+/// children (contiguous node handles on FloatChildBoxes indexes).
 template <SpatialIndex I>
-SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, double t_min,
-                           double t_max, const LeavingSurface* from, bool any_hit,
-                           std::vector<RayHit>& hits, RayQueryStats& stats) {
-  SurfelHit best;
+struct SurfelChildBoxesF {
+  const I* index = nullptr;
+  const SurfelView* s = nullptr;
+  simd::ChildBoxesF operator()(typename I::Node n) const {
+    return {s->node_boxes_f.data() + std::size_t{index->child(n, 0)} * kNodeBoxFloats, kNodeBoxFloats,
+            index->child_count(n)};
+  }
+};
+
+/// The ray query of first_surfel_hit (see there): order sphere_hit, candidate radius R, k = 1.
+[[nodiscard]] inline RayQuery surfel_query(const SurfelView& s, double t_min, double t_max, bool any_hit) {
   const double R = s.max_radius;
   RayQuery q;
   q.order = RayOrder::sphere_hit;
@@ -204,28 +267,40 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
   // A hit at t >= t_min has t_p >= t_min - r, so its sphere key is >= t_min - 2R.
   q.t_min = t_min - 2.0 * R;
   q.t_max = t_max;
-  const Vec3& o = ray.origin();
-  const Vec3& d = ray.direction();
-  const auto disc_t = [&](PointIndex id, double, double d2, double) {
-    const double r = s.radii[id];
-    if (d2 > r * r) return kInf;  // the ray passes farther than r from the centre: misses the disc
-    const Vec3& c = s.centers[id];
-    const Vec3 n(s.normals[id]);
-    if (from && same_surface(*from, id, c, n, r, s.thickness_at(id))) return kInf;
-    return ray_disc_t(o, d, c, n, r, t_min, t_max);
-  };
+  return q;
+}
+
+/// The first disc hit along `ray` with t in [t_min, t_max] (or, with any_hit, some disc hit in it),
+/// ignoring the discs of `from` when given; ties in t go to the smaller index. One ray query: order
+/// sphere_hit with the maximum radius R as candidate radius (a disc of radius r <= R around c lies
+/// inside the sphere of radius R around c, so its hit is never before that sphere's entry, the
+/// key the traversal prunes with), k = 1, and the exact ray-disc test in double as the query's
+/// refined key (RefinedKey, DiscKey): the traversal visits nodes nearest entry first and stops once
+/// no node can hold a disc hit before the best one. With s.node_radii, each node's box is grown by
+/// its own largest disc radius instead of R, and with s.node_boxes (and node_radii) each child is
+/// tested against the bounding box of its discs instead, and with s.node_boxes_f (FloatChildBoxes
+/// indexes only, else std::invalid_argument) all children of a node at once on their float copies
+/// (SIMD). `hits` is caller-owned scratch; `stats` accumulates the query counters.
+template <SpatialIndex I>
+SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, double t_min,
+                           double t_max, const LeavingSurface* from, bool any_hit,
+                           std::vector<RayHit>& hits, RayQueryStats& stats) {
+  SurfelHit best;
+  const RayQuery q = surfel_query(s, t_min, t_max, any_hit);
+  const DiscKey disc_t{&s, ray.origin(), ray.direction(), t_min, t_max, from};
   if (s.node_radii.empty()) {
-    ray_query(index, ray, q, hits, &stats, RefinedKey<decltype(disc_t)>{disc_t, {}});
-  } else {
+    ray_query(index, ray, q, hits, &stats, RefinedKey<DiscKey>{disc_t, {}});
+  } else if (s.node_boxes.empty()) {
     // Per-node bounds: a disc hit lies within the disc's radius of its centre, and in its box.
-    const auto node_r = [&](typename I::Node n) { return double(s.node_radii[n]); };
-    if (s.node_boxes.empty()) {
-      ray_query(index, ray, q, hits, &stats, RefinedKey<decltype(disc_t), decltype(node_r)>{disc_t, node_r});
-    } else {
-      const auto node_b = [&](typename I::Node n) { return s.node_boxes[n]; };
-      ray_query(index, ray, q, hits, &stats,
-                RefinedKey<decltype(disc_t), decltype(node_r), decltype(node_b)>{disc_t, node_r, node_b});
-    }
+    ray_query(index, ray, q, hits, &stats, RefinedKey<DiscKey, SurfelNodeRadius>{disc_t, {&s}});
+  } else if (s.node_boxes_f.empty()) {
+    ray_query(index, ray, q, hits, &stats, RefinedKey<DiscKey, SurfelNodeRadius, SurfelNodeBox>{disc_t, {&s}, {&s}});
+  } else if constexpr (detail::FloatChildBoxes<I>) {
+    ray_query(index, ray, q, hits, &stats,
+              RefinedKey<DiscKey, SurfelNodeRadius, SurfelNodeBox, SurfelChildBoxesF<I>>{
+                  disc_t, {&s}, {&s}, {&index, &s}});
+  } else {
+    throw std::invalid_argument("first_surfel_hit: float node boxes on an index without float child boxes");
   }
   best.queries = 1;
   if (!hits.empty()) {
@@ -233,6 +308,46 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
     best.index = hits.front().index;
   }
   return best;
+}
+
+/// first_surfel_hit for each of n = rays.size() <= kMaxRayPacket coherent rays (a camera tile, or
+/// the shadow rays of its hits), out[i] = first_surfel_hit(index, s, rays[i], t_min, t_max,
+/// from[i], any_hit, ...) for every i: the same t and index bit for bit (with any_hit: whether a
+/// disc was hit; which one depends on the visiting order, as for one ray). `from` is empty (no
+/// surface left) or holds one (possibly null) pointer per ray. The rays share one traversal
+/// (detail::first_hit_packet with one DiscKey per ray) when the view has all its node tables on a
+/// FloatChildBoxes index; otherwise each ray is answered alone. Throws std::invalid_argument for
+/// inconsistent sizes. Thread-safe (per-thread scratch).
+template <SpatialIndex I>
+void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<const Ray> rays, double t_min,
+                             double t_max, std::span<const LeavingSurface* const> from, bool any_hit,
+                             std::span<SurfelHit> out, RayQueryStats& stats) {
+  const std::size_t n = rays.size();
+  if (n > kMaxRayPacket || out.size() != n || (!from.empty() && from.size() != n))
+    throw std::invalid_argument("first_surfel_hit_packet: at most 16 rays, with one result (and surface) each");
+  const auto from_of = [&](std::size_t i) { return from.empty() ? nullptr : from[i]; };
+  bool packet = !index.empty() && !s.node_radii.empty() && !s.node_boxes.empty() && !s.node_boxes_f.empty();
+  if constexpr (detail::FloatChildBoxes<I>) {
+    if (packet) {
+      using Key = RefinedKey<DiscKey, SurfelNodeRadius, SurfelNodeBox, SurfelChildBoxesF<I>>;
+      const RayQuery q = surfel_query(s, t_min, t_max, any_hit);
+      Key keys[kMaxRayPacket];
+      for (std::size_t i = 0; i < n; ++i)
+        keys[i] = Key{DiscKey{&s, rays[i].origin(), rays[i].direction(), t_min, t_max, from_of(i)},
+                      {&s}, {&s}, {&index, &s}};
+      detail::for_each_ray_packet(
+          index, rays, q, &stats,
+          [&](std::size_t b, unsigned m, const detail::Candidate* best, std::uint32_t found) {
+            for (unsigned i = 0; i < m; ++i)
+              out[b + i] = (found >> i) & 1u ? SurfelHit{best[i].key, best[i].id, 1} : SurfelHit{kInf, 0, 1};
+          },
+          static_cast<const Key*>(keys));
+      return;
+    }
+  }
+  thread_local std::vector<RayHit> hits;
+  for (std::size_t i = 0; i < n; ++i)
+    out[i] = first_surfel_hit(index, s, rays[i], t_min, t_max, from_of(i), any_hit, hits, stats);
 }
 
 /// Distance from a point x within which lie the centres of all discs that can cover x in the
