@@ -78,6 +78,10 @@ class PathTracer {
       node_boxes_ = surfel_node_boxes(index, in_.surfels);
       in_.surfels.node_boxes = node_boxes_;
     }
+    if (in_.primitive == Primitive::surfel && in_.surfels.slot_radii.empty()) {
+      slot_radii_ = surfel_slot_radii(index, in_.surfels.radii);
+      in_.surfels.slot_radii = slot_radii_;
+    }
     if constexpr (detail::FloatChildBoxes<I>) {
       if (in_.primitive == Primitive::surfel && in_.surfels.node_boxes_f.empty()) {
         node_boxes_f_ = surfel_node_boxes_f(index, in_.surfels.node_boxes);
@@ -231,10 +235,14 @@ class PathTracer {
     if (n > kMaxRayPacket || s.size() != n || out.size() != n)
       throw std::invalid_argument("render: a ray packet holds at most 16 rays with one sampler and output each");
     const bool surfel = in_.primitive == Primitive::surfel;
-    std::optional<Path> p[kMaxRayPacket];
+    // The paths in uninitialised storage (an array of std::optional<Path> was zero-filled on every
+    // call, ~4 KB of rep stos per packet); Path is trivially destructible.
+    static_assert(std::is_trivially_destructible_v<Path>);
+    alignas(Path) unsigned char path_buf[kMaxRayPacket][sizeof(Path)];
+    Path* p[kMaxRayPacket];
     std::uint32_t live = 0;  // paths still going
     for (std::size_t i = 0; i < n; ++i) {
-      p[i].emplace(rays[i]);
+      p[i] = ::new (static_cast<void*>(path_buf[i])) Path(rays[i]);
       live |= 1u << i;
     }
     thread_local std::vector<Ray> wave;  // the packet's rays (Ray has no default constructor)
@@ -249,37 +257,50 @@ class PathTracer {
           lane[m++] = static_cast<std::uint8_t>(i);
           wave.push_back(p[i]->ray);
         }
-      SurfaceHit h[kMaxRayPacket];
-      bool hit[kMaxRayPacket];
+      // Each lane's vertex right after its query (one SurfaceHit at a time: an array of them was
+      // zero-filled per stage).
+      std::uint32_t shadowed = 0;
+      const auto vertex = [&](std::size_t j, bool hit, const SurfaceHit& h) {
+        Path& q = *p[lane[j]];
+        if (!hit_vertex(q, hit, h, s[lane[j]], nullptr)) live &= ~(1u << lane[j]);
+        else if (q.shadow_pending) shadowed |= 1u << lane[j];
+      };
       if (camera) {
         // The camera rays as one packet (each ray's answer is the one-ray query's).
         const auto t0 = time_ ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+        const auto query_done = [&] {  // the query time only (not the shading below)
+          if (time_)
+            c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
+                              std::chrono::steady_clock::now() - t0).count();
+        };
         if (surfel) {
           SurfelHit sh[kMaxRayPacket];
           first_surfel_hit_packet(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf, {}, false,
                                   std::span(sh, m), st);
-          for (std::size_t j = 0; j < m; ++j)
-            if ((hit[j] = sh[j].t < kInf)) surfel_surface_at(wave[j], sh[j], h[j]);
+          query_done();
+          for (std::size_t j = 0; j < m; ++j) {
+            SurfaceHit h;
+            if (sh[j].t < kInf) surfel_surface_at(wave[j], sh[j], h);
+            vertex(j, sh[j].t < kInf, h);
+          }
         } else {
           std::optional<RayHit> rh[kMaxRayPacket];
           ray_first_hit_packet(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
-          for (std::size_t j = 0; j < m; ++j)
-            if ((hit[j] = rh[j].has_value())) surface_at(wave[j], *rh[j], h[j]);
+          query_done();
+          for (std::size_t j = 0; j < m; ++j) {
+            SurfaceHit h;
+            if (rh[j]) surface_at(wave[j], *rh[j], h);
+            vertex(j, rh[j].has_value(), h);
+          }
         }
-        if (time_)
-          c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
-                            std::chrono::steady_clock::now() - t0).count();
         c.queries += m;
       } else {
         // Bounce rays, one by one (incoherent), each leaving its vertex's surface (as trace()).
-        for (std::size_t j = 0; j < m; ++j)
-          hit[j] = intersect(wave[j], h[j], hits, c, surfel ? &p[lane[j]]->from : nullptr);
-      }
-      std::uint32_t shadowed = 0;
-      for (std::size_t j = 0; j < m; ++j) {
-        Path& q = *p[lane[j]];
-        if (!hit_vertex(q, hit[j], h[j], s[lane[j]], nullptr)) live &= ~(1u << lane[j]);
-        else if (q.shadow_pending) shadowed |= 1u << lane[j];
+        for (std::size_t j = 0; j < m; ++j) {
+          SurfaceHit h;
+          const bool hit = intersect(wave[j], h, hits, c, surfel ? &p[lane[j]]->from : nullptr);
+          vertex(j, hit, h);
+        }
       }
       // The shadow rays of the hits (all towards the sun): a packet for the camera rays' hits,
       // whose origins lie within the block's footprint; one by one after a bounce (the origins
@@ -398,6 +419,7 @@ class PathTracer {
   IntegratorInputs in_;
   std::vector<float> node_radii_;  ///< surfel_node_radii over index_ (surfel mode)
   std::vector<AABB> node_boxes_;   ///< surfel_node_boxes over index_ (surfel mode)
+  std::vector<float> slot_radii_;    ///< surfel_slot_radii over index_ (surfel mode)
   std::vector<float> node_boxes_f_;  ///< surfel_node_boxes_f of node_boxes_ (surfel mode, FloatChildBoxes)
   const Sky& sky_;
   bool time_;

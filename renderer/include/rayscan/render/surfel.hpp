@@ -47,6 +47,10 @@ struct SurfelView {
   /// unused), relative to the index's float_origin() and rounded outwards: the SIMD child test of
   /// the ray query (RefinedKey::child_boxes_f). Empty: each child's box is tested in double.
   std::span<const float> node_boxes_f{};
+  /// Optional, by storage slot of the same index (surfel_slot_radii over it): radii[ids[slot]],
+  /// so the ray query rejects a point whose disc the ray passes too far from by one contiguous
+  /// load (DiscKey::reject) instead of a lookup by original index. Empty: no early rejection.
+  std::span<const float> slot_radii{};
   /// thickness[i], or 0 without thickness.
   [[nodiscard]] double thickness_at(PointIndex i) const { return thickness.empty() ? 0.0 : double(thickness[i]); }
 };
@@ -126,6 +130,16 @@ template <SpatialIndex I>
     }
     out[n] = b;
   }
+  return out;
+}
+
+/// `radii` (by original point index) in the storage slot order of `index`: out[slot] =
+/// radii[index.ids()[slot]] (SurfelView::slot_radii).
+template <SpatialIndex I>
+[[nodiscard]] std::vector<float> surfel_slot_radii(const I& index, std::span<const float> radii) {
+  const IdView ids = index.ids();
+  std::vector<float> out(index.positions().size());
+  for (std::size_t k = 0; k < out.size(); ++k) out[k] = radii[ids[k]];
   return out;
 }
 
@@ -220,6 +234,14 @@ struct DiscKey {
   Vec3 o{0.0}, d{0.0};
   double t_min = 0.0, t_max = kInf;
   const LeavingSurface* from = nullptr;
+  const float* slot_radii = nullptr;  ///< SurfelView::slot_radii, or null
+  /// True when the point at storage slot `slot` lies farther than its disc's radius from the ray
+  /// (d2: squared distance), exactly the first rejection of operator() (same float radius).
+  bool reject(std::uint32_t slot, double d2) const {
+    if (!slot_radii) return false;
+    const double r = slot_radii[slot];
+    return d2 > r * r;
+  }
   double operator()(PointIndex id, double, double d2, double) const {
     const double r = s->radii[id];
     if (d2 > r * r) return kInf;  // the ray passes farther than r from the centre: misses the disc
@@ -287,7 +309,8 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
                            std::vector<RayHit>& hits, RayQueryStats& stats) {
   SurfelHit best;
   const RayQuery q = surfel_query(s, t_min, t_max, any_hit);
-  const DiscKey disc_t{&s, ray.origin(), ray.direction(), t_min, t_max, from};
+  const DiscKey disc_t{&s, ray.origin(), ray.direction(), t_min, t_max, from,
+                       s.slot_radii.empty() ? nullptr : s.slot_radii.data()};
   if (s.node_radii.empty()) {
     ray_query(index, ray, q, hits, &stats, RefinedKey<DiscKey>{disc_t, {}});
   } else if (s.node_boxes.empty()) {
@@ -333,7 +356,8 @@ void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<cons
       const RayQuery q = surfel_query(s, t_min, t_max, any_hit);
       Key keys[kMaxRayPacket];
       for (std::size_t i = 0; i < n; ++i)
-        keys[i] = Key{DiscKey{&s, rays[i].origin(), rays[i].direction(), t_min, t_max, from_of(i)},
+        keys[i] = Key{DiscKey{&s, rays[i].origin(), rays[i].direction(), t_min, t_max, from_of(i),
+                              s.slot_radii.empty() ? nullptr : s.slot_radii.data()},
                       {&s}, {&s}, {&index, &s}};
       detail::for_each_ray_packet(
           index, rays, q, &stats,
@@ -382,11 +406,12 @@ void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<cons
   return own && len > 0.0 ? sum / len : n0;
 }
 
-/// The discs that can cover point x in the sense of blended_normal: every disc i whose centre c_i
-/// lies within sqrt(1 + 1/16) r_i of x (in-plane distance < r_i and plane offset <= r_i / 4 imply
-/// it), appended to `out` (cleared first; Neighbor::distance = |x - c_i|) sorted by (distance,
-/// index) as knn_query sorts, so blended_normal over them equals blended_normal over a radius query
-/// of blend_reach around x (the same covering discs in the same order). A descent of `index` that
+/// The discs that cover point x in the sense of blended_normal (in-plane distance < r_i and plane
+/// offset <= r_i / 4, tested with blended_normal's own expressions; such a centre c_i lies within
+/// sqrt(1 + 1/16) r_i of x, the bound the descent prunes with), appended to `out` (cleared first;
+/// Neighbor::distance = |x - c_i|) sorted by (distance, index) as knn_query sorts, so
+/// blended_normal over them equals blended_normal over a radius query of blend_reach around x (the
+/// same covering discs in the same order). A descent of `index` that
 /// prunes each node by its own subtree's largest disc radius (s.node_radii, from surfel_node_radii
 /// over this index; s.max_radius without), the per-node radius bound of first_surfel_hit applied to
 /// a point: a ball of the global blend_reach holds ~16x the discs where most radii are near the
@@ -403,25 +428,72 @@ void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vec
   };
   const auto pos = index.positions();
   const IdView ids = index.ids();
-  // The node stack: the ray query's per-thread scratch (free between queries; no new
-  // thread_local, whose static TLS the Python module cannot spare).
-  auto& stack = detail::ray_scratch<Node>().nodes;
+  // The node stack, the filter's survivors and decoded positions: the ray query's per-thread
+  // scratch (free between queries; no new thread_local, whose static TLS the Python module cannot
+  // spare).
+  auto& scratch = detail::ray_scratch<Node>();
+  auto& stack = scratch.nodes;
   stack.clear();
-  if (distance2_point_box(x, index.node_bounds(index.root())) <= reach2(index.root())) stack.push_back({0.0, index.root()});
+  // SIMD policies as in knn_query: each child's MINDIST^2 lower bound on its float box
+  // (child_dist2), each node's points through the distance filter (point_filter with d = 0); both
+  // conservative, every survivor tested exactly below, so the output is the scalar one.
+  const simd::Kernels& kern = simd::active_kernels();
+  const AABB root_box = index.node_bounds(index.root());
+  const double vmax = glm::length(x - root_box.center()) + 0.5 * glm::length(root_box.hi - root_box.lo);
+  simd::PointFilterD pf{{x.x, x.y, x.z}, {0.0, 0.0, 0.0}, 0.0, -kInf, kInf};  // d = 0: |p - x|^2
+  const double slack_d2 = 1e-12 * vmax * vmax + 1e-300;
+  [[maybe_unused]] float xf[3] = {0, 0, 0};
+  [[maybe_unused]] float margin_f = 0;
+  if constexpr (detail::FloatChildBoxes<I>) {
+    const Vec3 x_rel = x - index.float_origin();
+    for (int a = 0; a < 3; ++a) xf[a] = static_cast<float>(x_rel[a]);
+    const double mag = std::max({std::abs(x_rel.x), std::abs(x_rel.y), std::abs(x_rel.z)}) + index.float_extent();
+    margin_f = detail::round_float_up(0x1p-20 * mag);
+  }
+  if (distance2_point_box(x, root_box) <= reach2(index.root())) stack.push_back({0.0, index.root()});
   while (!stack.empty()) {
     const Node n = stack.back().node;
     stack.pop_back();
     const double node_reach2 = reach2(n);
     const SlotRange sr = index.node_points(n);
-    for (std::uint32_t k = sr.begin; k < sr.end; ++k) {
-      const Vec3 v = pos[k] - x;
+    const auto test = [&](std::uint32_t k, const Vec3& p) __attribute__((always_inline)) {
+      const Vec3 v = p - x;
       const double d2 = glm::dot(v, v);
-      if (d2 > node_reach2) continue;
+      if (d2 > node_reach2) return;
       const PointIndex id = ids[k];
       const double r = s.radii[id];
-      if (d2 <= kReach2 * r * r) out.push_back({id, d2});  // squared until sorted
+      if (d2 > kReach2 * r * r) return;
+      // blended_normal's cover test, the same expressions: only the discs it can sum are sorted.
+      const Vec3 w = x - s.centers[id];
+      const double off = glm::dot(w, Vec3(s.normals[id]));
+      if (std::abs(off) > 0.25 * r || glm::dot(w, w) - off * off >= r * r) return;
+      out.push_back({id, d2});  // squared until sorted
+    };
+    if (kern.point_filter && sr.size() >= 4) {
+      if (scratch.sel.size() < sr.size()) scratch.sel.resize(sr.size());
+      const double* xyz = position_block(pos, sr.begin, sr.size(), scratch.block);
+      pf.d2_max = node_reach2 + slack_d2;
+      const unsigned m = kern.point_filter(xyz, sr.size(), pf, scratch.sel.data());
+      for (unsigned j = 0; j < m; ++j) {
+        const double* p = xyz + 3 * std::size_t{scratch.sel[j]};
+        test(sr.begin + scratch.sel[j], Vec3(p[0], p[1], p[2]));
+      }
+    } else {
+      for (std::uint32_t k = sr.begin; k < sr.end; ++k) test(k, pos[k]);
     }
-    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) {
+    const unsigned nc = index.child_count(n);
+    if constexpr (detail::FloatChildBoxes<I>) {
+      if (kern.child_dist2 && nc > 0 && nc <= 8) {
+        float lb2[8];
+        kern.child_dist2(index.child_boxes_f(n), xf, margin_f, lb2);
+        for (unsigned i = 0; i < nc; ++i) {
+          const Node c = index.child(n, i);
+          if (double(lb2[i]) <= reach2(c)) stack.push_back({0.0, c});
+        }
+        continue;
+      }
+    }
+    for (unsigned i = 0; i < nc; ++i) {
       const Node c = index.child(n, i);
       if (distance2_point_box(x, index.node_bounds(c)) <= reach2(c)) stack.push_back({0.0, c});
     }
