@@ -15,6 +15,7 @@
 #include <limits>
 #include <span>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace rayscan::render {
@@ -150,10 +151,26 @@ inline constexpr unsigned kNodeBoxFloats = 8;
 /// at [kNodeBoxFloats n, + 6), each coordinate relative to index.float_origin() rounded outwards
 /// (lo down, hi up), so the float box contains the double one; empty boxes stay empty (+inf lo,
 /// -inf hi). Only for indexes whose children are contiguous node handles with float boxes
-/// (detail::FloatChildBoxes: Octree, io::MappedIndex).
+/// (detail::FloatChildBoxes: Octree, io::MappedIndex); throws std::invalid_argument when a node's
+/// children are not contiguous or `boxes` does not cover every node.
 template <SpatialIndex I>
   requires detail::FloatChildBoxes<I>
 [[nodiscard]] std::vector<float> surfel_node_boxes_f(const I& index, std::span<const AABB> boxes) {
+  if (!index.empty()) {  // SurfelChildBoxesF reads the rows child(n, 0) + i
+    std::vector<typename I::Node> stack{index.root()};
+    while (!stack.empty()) {
+      const auto n = stack.back();
+      stack.pop_back();
+      if (std::size_t{n} >= boxes.size())
+        throw std::invalid_argument("surfel_node_boxes_f: the node boxes do not cover node " + std::to_string(n));
+      for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) {
+        if (index.child(n, i) != index.child(n, 0) + i)
+          throw std::invalid_argument("surfel_node_boxes_f: the children of node " + std::to_string(n) +
+                                      " are not contiguous");
+        stack.push_back(index.child(n, i));
+      }
+    }
+  }
   std::vector<float> out(boxes.size() * kNodeBoxFloats, 0.0f);
   const Vec3 o = index.float_origin();
   for (std::size_t n = 0; n < boxes.size(); ++n) {
