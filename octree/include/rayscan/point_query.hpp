@@ -95,6 +95,26 @@ KnnScratch<Node>& knn_scratch() {
 /// Up to this k the k best are kept as a sorted array (insertion), above it as a binary heap.
 inline constexpr std::size_t kKnnSortedMax = 32;
 
+/// A query point in the float frame of an index's child boxes, the inputs of simd child_dist2:
+/// q - float_origin() rounded to float, and the position-space margin covering that rounding and
+/// the boxes' own (2^-20 of the magnitudes involved, rounded up). Zero on indexes without
+/// FloatChildBoxes (unused there).
+struct FloatQueryPoint {
+  float q[3] = {0.0f, 0.0f, 0.0f};
+  float margin = 0.0f;
+};
+template <SpatialIndex I>
+FloatQueryPoint float_query_point([[maybe_unused]] const I& index, [[maybe_unused]] const Vec3& q) {
+  FloatQueryPoint f;
+  if constexpr (FloatChildBoxes<I>) {
+    const Vec3 q_rel = q - index.float_origin();
+    for (int a = 0; a < 3; ++a) f.q[a] = static_cast<float>(q_rel[a]);
+    const double mag = std::max({std::abs(q_rel.x), std::abs(q_rel.y), std::abs(q_rel.z)}) + index.float_extent();
+    f.margin = round_float_up(0x1p-20 * mag);
+  }
+  return f;
+}
+
 }  // namespace detail
 
 /// kNN with optional radius: the at most k points nearest to q with distance <= radius (inclusive),
@@ -146,14 +166,7 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
   const double vmax = glm::length(q - root_box.center()) + 0.5 * glm::length(root_box.hi - root_box.lo);
   const double slack_d2 = 1e-12 * vmax * vmax + 1e-300;
   simd::PointFilterD pf{{q.x, q.y, q.z}, {0.0, 0.0, 0.0}, 0.0, -kInf, kInf};  // d = 0: |p - q|^2
-  [[maybe_unused]] float qf[3] = {0, 0, 0};
-  [[maybe_unused]] float margin_f = 0;
-  if constexpr (detail::FloatChildBoxes<I>) {
-    const Vec3 q_rel = q - index.float_origin();
-    for (int a = 0; a < 3; ++a) qf[a] = static_cast<float>(q_rel[a]);
-    const double mag = std::max({std::abs(q_rel.x), std::abs(q_rel.y), std::abs(q_rel.z)}) + index.float_extent();
-    margin_f = detail::round_float_up(0x1p-20 * mag);
-  }
+  [[maybe_unused]] const detail::FloatQueryPoint qf = detail::float_query_point(index, q);
   auto insert = [&](std::uint32_t s) __attribute__((always_inline)) {
     const Vec3 v = pos[s] - q;
     const double d2 = glm::dot(v, v);
@@ -230,7 +243,7 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
     if constexpr (detail::FloatChildBoxes<I>) {
       if (kern.child_dist2 && nc <= 8) {
         float lb2[8];
-        kern.child_dist2(index.child_boxes_f(e.node), qf, margin_f, lb2);
+        kern.child_dist2(index.child_boxes_f(e.node), qf.q, qf.margin, lb2);
         for (unsigned i = 0; i < nc; ++i) add(lb2[i], index.child(e.node, i));
         done = true;
       }

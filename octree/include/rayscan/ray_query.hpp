@@ -456,31 +456,21 @@ struct RayTraversal {
 
   /// Node test of the nc <= 8 children of n at once: bit i of the result is set when child i
   /// passes, and lb[i] then holds its lower bound. SIMD policy on FloatChildBoxes indexes (all
-  /// children on their float boxes; the result is final for orders time / sphere_hit without
-  /// planes or per-node radii, else it prefilters the exact test), the scalar test otherwise.
+  /// children on their float boxes, or on the key policy's float geometry boxes; the result is
+  /// final for orders time / sphere_hit without planes, and with per-node radii only on the
+  /// geometry boxes, else it prefilters the exact test), the scalar test otherwise.
   __attribute__((always_inline)) unsigned test_children(Node n, unsigned nc, double* lb) {
     unsigned out = 0;
-    if constexpr (per_box_f) {
-      if (simd_children) {
+    if constexpr (detail::FloatChildBoxes<I>) {
+      // The float boxes: the policy's geometry boxes with the ray's own slabs (per_box_f), else
+      // the index's child boxes with the slabs grown by pad.
+      if (simd_children && (per_box_f || pad < kInf)) {
         float entry[8];
-        unsigned m = kern.child_slab(key_policy.child_boxes_f_of(n), sr_box, entry);
-        while (m) {
-          const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-          m &= m - 1;
-          if (slab_is_final) {
-            lb[i] = std::max(static_cast<double>(entry[i]), q.t_min);
-            if (!live(lb[i])) continue;
-          } else if (!test_child(index.child(n, i), lb[i])) {
-            continue;
-          }
-          out |= 1u << i;
-        }
-        return out;
-      }
-    } else if constexpr (detail::FloatChildBoxes<I>) {
-      if (simd_children && pad < kInf) {
-        float entry[8];
-        unsigned m = kern.child_slab(index.child_boxes_f(n), sr, entry);
+        unsigned m;
+        if constexpr (per_box_f)
+          m = kern.child_slab(key_policy.child_boxes_f_of(n), sr_box, entry);
+        else
+          m = kern.child_slab(index.child_boxes_f(n), sr, entry);
         while (m) {
           const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
           m &= m - 1;

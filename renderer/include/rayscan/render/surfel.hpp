@@ -459,14 +459,7 @@ void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vec
   const double vmax = glm::length(x - root_box.center()) + 0.5 * glm::length(root_box.hi - root_box.lo);
   simd::PointFilterD pf{{x.x, x.y, x.z}, {0.0, 0.0, 0.0}, 0.0, -kInf, kInf};  // d = 0: |p - x|^2
   const double slack_d2 = 1e-12 * vmax * vmax + 1e-300;
-  [[maybe_unused]] float xf[3] = {0, 0, 0};
-  [[maybe_unused]] float margin_f = 0;
-  if constexpr (detail::FloatChildBoxes<I>) {
-    const Vec3 x_rel = x - index.float_origin();
-    for (int a = 0; a < 3; ++a) xf[a] = static_cast<float>(x_rel[a]);
-    const double mag = std::max({std::abs(x_rel.x), std::abs(x_rel.y), std::abs(x_rel.z)}) + index.float_extent();
-    margin_f = detail::round_float_up(0x1p-20 * mag);
-  }
+  [[maybe_unused]] const detail::FloatQueryPoint xf = detail::float_query_point(index, x);
   if (distance2_point_box(x, root_box) <= reach2(index.root())) stack.push_back({0.0, index.root()});
   while (!stack.empty()) {
     const Node n = stack.back().node;
@@ -502,7 +495,7 @@ void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vec
     if constexpr (detail::FloatChildBoxes<I>) {
       if (kern.child_dist2 && nc > 0 && nc <= 8) {
         float lb2[8];
-        kern.child_dist2(index.child_boxes_f(n), xf, margin_f, lb2);
+        kern.child_dist2(index.child_boxes_f(n), xf.q, xf.margin, lb2);
         for (unsigned i = 0; i < nc; ++i) {
           const Node c = index.child(n, i);
           if (double(lb2[i]) <= reach2(c)) stack.push_back({0.0, c});
