@@ -39,8 +39,8 @@ struct RenderOptions {
   unsigned tile_size = 16;      ///< tile edge, pixels
   bool time_queries = false;    ///< measure time inside ray_query (bench: cost split)
   /// Trace the camera rays of each 4x4 pixel block (one sample index at a time) as one packet,
-  /// and their shadow rays as another (ray_first_hit_packet / ray_any_hit_packet; issue 12). The
-  /// image is bit-identical either way. Ignored (single rays) for the cost AOV, whose node
+  /// and their shadow rays as another (ray_first_hit_packet / ray_any_hit_packet; issue 12; in
+  /// surfel mode first_surfel_hit_packet, issue 16). The image is bit-identical either way. Ignored (single rays) for the cost AOV, whose node
   /// visits are per pixel, and for COPC files.
   bool packets = true;
   Progress* progress = nullptr; ///< optional progress bar
