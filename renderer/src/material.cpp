@@ -39,7 +39,9 @@ std::array<double, 2> percentile_range_hist(const std::vector<std::uint64_t>& hi
 
 // True when some channel of `rgb` exceeds 255 (16-bit colour). Only that matters, so the parallel
 // read stops at the first such value (16-bit colour: after a few points; 8-bit: one read of all).
+// An index file's 3-byte colours with multiplier 1 are bytes by construction: 8-bit, no read.
 bool any_wide_rgb(RgbView rgb) {
+  if (rgb.multiplier() == 1) return false;
   std::atomic<bool> any_wide{false};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rgb.size(), 1 << 16), [&](const auto& r) {
     if (any_wide.load(std::memory_order_relaxed)) return;

@@ -207,3 +207,30 @@ TEST(Scenes, EverySceneRendersAtReducedSize) {
   }
   EXPECT_GE(count, 4);
 }
+
+TEST(Albedo, EightBitColourOfAnIndexFileNeedsNoPassAndEqualsTheSixteenBitForm) {
+  // The 3-byte colour form with multiplier 1 (an index file built from 8-bit colours) is 8-bit by
+  // construction, so the rule skips its whole-cloud test; oracle: the same values as Rgb16 in
+  // place, which the rule reads in full. Every point's albedo must be equal, bit for bit.
+  const std::size_t n = 1000;
+  std::vector<std::uint8_t> bytes(3 * n);
+  std::vector<Rgb16> wide(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) bytes[3 * i + c] = static_cast<std::uint8_t>((i * 37 + c * 101) % 256);
+    wide[i] = {bytes[3 * i], bytes[3 * i + 1], bytes[3 * i + 2]};
+  }
+  const std::vector<Vec3> pos(n, Vec3(0.0));
+  MaterialDesc mat;  // colour "rgb"
+  const AlbedoAttributes narrow_a{pos, RgbView(bytes.data(), n, 1), {}, {}};
+  const AlbedoAttributes wide_a{pos, RgbView(std::span<const Rgb16>(wide)), {}, {}};
+  const AlbedoRule narrow_rule(narrow_a, n, mat, Vec3(0, 0, 1));
+  const AlbedoRule wide_rule(wide_a, n, mat, Vec3(0, 0, 1));
+  for (std::size_t i = 0; i < n; ++i) {
+    const Color a = narrow_rule.at(narrow_a, i), b = wide_rule.at(wide_a, i);
+    ASSERT_EQ(a, b) << i;
+  }
+  // Not vacuous: 8-bit scaling (255 -> 1), not 16-bit (255 -> 255 / 65535).
+  std::size_t bright = 0;
+  for (std::size_t i = 0; i < n; ++i) bright += narrow_rule.at(narrow_a, i).r > 0.9f;
+  EXPECT_GT(bright, 0u);
+}
