@@ -11,9 +11,11 @@
 #include "rayscan/render/surfel.hpp"
 
 #include <chrono>
+#include <new>
 #include <numbers>
 #include <optional>
 #include <span>
+#include <type_traits>
 #include <vector>
 
 namespace rayscan::render {
