@@ -52,7 +52,9 @@ struct AABB {
   }
   /// True when lo <= p <= hi on every axis (closed box).
   [[nodiscard]] bool contains(const Vec3& p) const {
-    return p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y && p.z >= lo.z && p.z <= hi.z;
+    // `&`, not `&&`: all six comparisons without a branch (where the answer is unpredictable, as
+    // for the points of a node a query box cuts, a branch per axis mispredicts).
+    return (p.x >= lo.x) & (p.x <= hi.x) & (p.y >= lo.y) & (p.y <= hi.y) & (p.z >= lo.z) & (p.z <= hi.z);
   }
   /// True when the two closed boxes share at least one point.
   [[nodiscard]] bool overlaps(const AABB& b) const {

@@ -53,17 +53,15 @@ void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
       detail::for_subtree(index, n, [&](std::uint32_t s) { out.push_back(ids[s]); });
       continue;
     }
-    // A node the box cuts: each point tested without a branch (the outcome is unpredictable
-    // there), its id written at the end and kept by advancing the end when inside.
+    // A node the box cuts: each point tested without a branch (AABB::contains; the outcome is
+    // unpredictable there), its id written at the end and kept by advancing the end when inside.
     const SlotRange sr = index.node_points(n);
     if (sr.size() > 0) {
       std::size_t k = out.size();
       out.resize(k + sr.size());
       for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
-        const Vec3 p = pos[s];
         out[k] = ids[s];
-        k += static_cast<std::size_t>((p.x >= box.lo.x) & (p.x <= box.hi.x) & (p.y >= box.lo.y) & (p.y <= box.hi.y) &
-                                      (p.z >= box.lo.z) & (p.z <= box.hi.z));
+        k += static_cast<std::size_t>(box.contains(pos[s]));
       }
       out.resize(k);
     }

@@ -688,10 +688,9 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
 /// ray_first_hit is that query without a result vector or per-query validation).
 ///
 /// Point-key policy (OrderKey, RefinedKey): with RefinedKey, each candidate's key is the policy's
-/// refinement of the order key (and a key functor with a member `bool reject(std::uint32_t slot,
-/// double d2)` may reject a point by its storage slot and squared ray distance first: true means
-/// the point has no finite refined key) (k filter, ordering, any_hit acceptance and RayHit::key use it;
-/// RayHit::t stays the order's t).
+/// refinement of the order key (k filter, ordering, any_hit acceptance and RayHit::key use it;
+/// RayHit::t stays the order's t); its optional early rejection by slot and node bounds are
+/// described at RefinedKey.
 ///
 /// Throws std::invalid_argument (from RayQuery::validate) for inconsistent parameters.
 /// Thread-safe (per-thread scratch, shared with knn_query: a key policy must not query on its thread).

@@ -776,8 +776,8 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   if (opt.memory_bytes < (std::uint64_t{1} << 20))
     throw std::invalid_argument("--memory " + std::to_string(opt.memory_bytes) + " bytes: at least 1M");
   if ((opt.attributes & kIndexAttributes) != opt.attributes)
-    throw std::invalid_argument("--attributes " + opt.attributes.to_string() +
-                                ": an index stores id, rgb, intensity, classification, gps_time");
+    throw std::invalid_argument("--attributes " + opt.attributes.to_string() + ": an index stores " +
+                                kIndexAttributes.to_string());
   // The ids section only when asked (docs/index-format.md "Ids"); the readers deliver the rest.
   const bool want_ids = opt.attributes.has(Attribute::id);
   const AttributeSet read_attrs{opt.attributes.bits & ~static_cast<std::uint32_t>(Attribute::id)};
@@ -1412,7 +1412,8 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
     if (x.attrs_.has(a) != (by_id[id] != nullptr || (id == kRgb && by_id[kRgb8] != nullptr)))
       fail(108, std::string("attribute set and sections disagree on ") + section_name(id));
   if ((x.attrs_.bits & ~kIndexAttributes.bits) != 0)
-    fail(108, "stored attributes " + std::to_string(x.attrs_.bits) + " (expected bits 0..3 and 6)");
+    fail(108, "stored attributes " + std::to_string(x.attrs_.bits) + " (expected a subset of " +
+                  std::to_string(kIndexAttributes.bits) + ": " + kIndexAttributes.to_string() + ")");
   const auto rgb_mul = get<std::uint32_t>(b, kRgbMulOffset);
   if (by_id[kRgb8] ? rgb_mul != 1 && rgb_mul != 256 && rgb_mul != 257 : rgb_mul != 0)
     fail(kRgbMulOffset, "rgb8 multiplier " + std::to_string(rgb_mul) +

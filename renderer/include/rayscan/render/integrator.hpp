@@ -278,7 +278,7 @@ class PathTracer {
         if (surfel) {
           SurfelHit sh[kMaxRayPacket];
           first_surfel_hit_packet(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf, {}, false,
-                                  std::span(sh, m), st);
+                                  std::span(sh, m), hits, st);
           query_done();
           for (std::size_t j = 0; j < m; ++j) {
             SurfaceHit h;
@@ -325,7 +325,8 @@ class PathTracer {
         if (surfel) {
           SurfelHit sh[kMaxRayPacket];
           first_surfel_hit_packet(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf,
-                                  std::span<const LeavingSurface* const>(from, ns), true, std::span(sh, ns), st);
+                                  std::span<const LeavingSurface* const>(from, ns), true, std::span(sh, ns), hits,
+                                  st);
           for (std::size_t j = 0; j < ns; ++j) blocked[j] = sh[j].t < kInf;
         } else {
           ray_any_hit_packet(index_, std::span<const Ray>(wave), shadow_query_, std::span(blocked, ns), &st);

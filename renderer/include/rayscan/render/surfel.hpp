@@ -356,12 +356,13 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
 /// disc was hit; which one depends on the visiting order, as for one ray). `from` is empty (no
 /// surface left) or holds one (possibly null) pointer per ray. The rays share one traversal
 /// (detail::first_hit_packet with one DiscKey per ray) when the view has all its node tables on a
-/// FloatChildBoxes index; otherwise each ray is answered alone. Throws std::invalid_argument for
-/// inconsistent sizes. Thread-safe (per-thread scratch).
+/// FloatChildBoxes index; otherwise each ray is answered alone (with `hits` as first_surfel_hit's
+/// caller-owned scratch). Throws std::invalid_argument for inconsistent sizes. Thread-safe
+/// (per-thread scratch).
 template <SpatialIndex I>
 void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<const Ray> rays, double t_min,
                              double t_max, std::span<const LeavingSurface* const> from, bool any_hit,
-                             std::span<SurfelHit> out, RayQueryStats& stats) {
+                             std::span<SurfelHit> out, std::vector<RayHit>& hits, RayQueryStats& stats) {
   const std::size_t n = rays.size();
   if (n > kMaxRayPacket || out.size() != n || (!from.empty() && from.size() != n))
     throw std::invalid_argument("first_surfel_hit_packet: at most 16 rays, with one result (and surface) each");
@@ -386,7 +387,6 @@ void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<cons
       return;
     }
   }
-  thread_local std::vector<RayHit> hits;
   for (std::size_t i = 0; i < n; ++i)
     out[i] = first_surfel_hit(index, s, rays[i], t_min, t_max, from_of(i), any_hit, hits, stats);
 }

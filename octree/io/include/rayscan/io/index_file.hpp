@@ -51,7 +51,6 @@ struct IndexSectionInfo {
 /// "spacing"; `done` of `total` points.
 using IndexProgress = std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)>;
 
-/// Options of build_index_file().
 /// The attributes an index file can store besides positions (docs/index-format.md "Sections"):
 /// id, rgb, intensity, classification, gps_time. What `rayscan index --attributes all` means, and
 /// the only attribute bits a header may carry.
@@ -61,6 +60,7 @@ inline constexpr AttributeSet kIndexAttributes{static_cast<std::uint32_t>(Attrib
                                                static_cast<std::uint32_t>(Attribute::classification) |
                                                static_cast<std::uint32_t>(Attribute::gps_time)};
 
+/// Options of build_index_file().
 struct IndexBuildOptions {
   /// Tree layout and parameters: adaptive or fixed (layered is not supported by the external
   /// build; std::invalid_argument).
