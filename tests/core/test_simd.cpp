@@ -233,6 +233,55 @@ TEST(Simd, PointFilterNeverDropsAPointThatPasses) {
   EXPECT_GT(dropped, 1000u);
 }
 
+// The filter with a radius per point (PointFilterD::radii, surfel rendering's disc radii): never
+// drops a point within its own radius (oracle: d^2 <= r_i^2 in scalar double, as DiscKey::reject),
+// and drops most points that pass the common bound but not their own.
+TEST(Simd, PointFilterWithPerPointRadiiNeverDropsAPointWithinItsRadius) {
+  PathGuard guard;
+  const std::vector<Vec3> pts = make_points(1003, Dist::utm_mm, 7);
+  std::mt19937_64 rng(13);
+  std::uniform_real_distribution<float> ur(0.0005f, 0.02f);
+  std::vector<float> radii(pts.size());
+  for (float& r : radii) r = ur(rng);
+  AABB box;
+  for (const Vec3& p : pts) box.expand(p);
+  std::size_t kept = 0, dropped_by_radius = 0;
+  for (SimdPath path : supported_paths()) {
+    set_simd_path(path);
+    const simd::Kernels& k = simd::active_kernels();
+    if (!k.point_filter) continue;
+    std::vector<std::uint32_t> sel(pts.size());
+    for (int trial = 0; trial < 200; ++trial) {
+      const Ray ray = random_ray(rng, box, trial % 2 == 0);
+      const Vec3 o = ray.origin(), d = ray.direction();
+      const double r_max = 0.02, vmax = glm::length(o - box.center()) + glm::length(box.hi - box.lo);
+      const double slack = 1e-12 * vmax * vmax;
+      const unsigned off = static_cast<unsigned>(trial % 11);  // unaligned starts and odd counts
+      const simd::PointFilterD f{{o.x, o.y, o.z}, {d.x, d.y, d.z}, r_max * r_max + slack, -kInf, kInf,
+                                 radii.data() + off, slack};
+      const unsigned count = static_cast<unsigned>(pts.size()) - off;
+      const unsigned n = k.point_filter(&pts[off].x, count, f, sel.data());
+      std::vector<char> in(count, 0);
+      for (unsigned j = 0; j < n; ++j) {
+        ASSERT_LT(sel[j], count);
+        in[sel[j]] = 1;
+      }
+      for (unsigned j = 0; j < count; ++j) {
+        const RayPointTerms pt = ray_point_terms(o, d, pts[off + j]);
+        const double r = radii[off + j];
+        if (pt.d2 <= r * r) {
+          ++kept;
+          ASSERT_TRUE(in[j]) << to_string(path) << " dropped point " << j << " of trial " << trial;
+        } else if (pt.d2 <= r_max * r_max) {
+          dropped_by_radius += !in[j];
+        }
+      }
+    }
+  }
+  EXPECT_GT(kept, 100u);
+  EXPECT_GT(dropped_by_radius, 100u);  // the per-point radius filters, not only the common bound
+}
+
 // knn_query's use of the point filter (d = 0: the distance-only loops): never drops a point within
 // the bound (oracle: |p - q|^2 in scalar double, as knn_query's exact test), drops most others.
 TEST(Simd, DistanceFilterNeverDropsAPointWithinTheBound) {

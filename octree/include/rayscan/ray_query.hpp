@@ -201,7 +201,9 @@ struct NoChildBoxesF {};
 /// The key functor may also have a member `bool reject(std::uint32_t slot, double d2)`: a cheap
 /// test by storage slot and squared ray distance, called before the order key is computed, that
 /// returns true only for points whose refined key would be kInf (e.g. a per-slot copy of each
-/// disc's radius: d2 > r^2).
+/// disc's radius: d2 > r^2). With a member `const float* filter_radii()` returning the same radii by
+/// storage slot (or null), the SIMD point filter applies that test too (simd::PointFilterD::radii),
+/// so the rejected points never reach the scalar loop.
 ///
 /// Optionally too (with node_box, on FloatChildBoxes indexes), `child_boxes_f(n)`
 /// (simd::ChildBoxesF) gives the node_box of each of n's children in float, relative to the
@@ -321,7 +323,7 @@ struct RayTraversal {
     const double vmax = dist_center + 0.5 * glm::length(root_box.hi - root_box.lo);
     slack_t = 1e-12 * vmax + 1e-300;
     slack_d2 = 1e-12 * vmax * vmax + 1e-300;
-    pf = simd::PointFilterD{{o.x, o.y, o.z}, {d.x, d.y, d.z}, 0, 0, 0};
+    pf = simd::PointFilterD{{o.x, o.y, o.z}, {d.x, d.y, d.z}, 0, 0, 0, nullptr, slack_d2};
     // Child test: float slabs relative to the index's float origin; rays with a direction
     // component whose float reciprocal is not finite keep the scalar node test.
     if constexpr (detail::FloatChildBoxes<I>) {
@@ -573,6 +575,11 @@ struct RayTraversal {
       auto& sel = scratch.sel;
       if (sel.size() < range.size()) sel.resize(range.size());
       const double* xyz = position_block(pos, range.begin, range.size(), scratch.block);
+      if constexpr (KeyPolicy::refines) {
+        // The policy's per-slot radii (RefinedKey): its early rejection inside the SIMD filter.
+        if constexpr (requires { key_policy.key.filter_radii(); })
+          if (const float* radii = key_policy.key.filter_radii()) pf.radii = radii + range.begin;
+      }
       const unsigned m = kern.point_filter(xyz, range.size(), pf, sel.data());
       for (unsigned j = 0; j < m; ++j) {
         const double* p = xyz + 3 * std::size_t{sel[j]};

@@ -70,6 +70,11 @@ struct PointFilterD {
   double d[3];       ///< unit direction
   double d2_max;     ///< keep points whose squared orthogonal distance <= d2_max (already widened)
   double t_lo, t_hi; ///< keep points whose projection t_p lies in [t_lo, t_hi] (already widened)
+  /// Optional (orders with d != 0): each point's own radius, radii[i] for xyz point i (world units),
+  /// and keep only points with d^2 <= radii[i]^2 + d2_slack as well (e.g. the disc radii of surfel
+  /// rendering, in slot order: RefinedKey's filter_radii). Null: d2_max alone.
+  const float* radii = nullptr;
+  double d2_slack = 0.0;  ///< absolute widening of radii[i]^2 (covers the filter's rounding)
 };
 
 /// Slab test of up to 8 child boxes: bit i of the result is set when box i grown as in `r`
