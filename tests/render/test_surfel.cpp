@@ -150,6 +150,17 @@ TEST(CoveringDiscs, HoldEveryCoveringDiscAndGiveTheBlendedNormalOfTheFullRadiusQ
     const std::vector<float> node_r = std::visit([&](const auto& ix) { return surfel_node_radii(ix, d.r); }, idx);
     SurfelView view_node = d.view();
     view_node.node_radii = node_r;
+    // With the renderer's other tables too (node boxes, slot radii; on the octree the float rows):
+    // the per-slot radii replace the lookups by original index and must change nothing.
+    const std::vector<AABB> boxes = std::visit([&](const auto& ix) { return surfel_node_boxes(ix, view_node); }, idx);
+    const std::vector<float> slot_r = std::visit([&](const auto& ix) { return surfel_slot_radii(ix, d.r); }, idx);
+    SurfelView view_box = view_node;
+    view_box.node_boxes = boxes;
+    view_box.slot_radii = slot_r;
+    std::vector<float> boxes_f;
+    if (const auto* oct = std::get_if<Octree>(&idx)) boxes_f = surfel_node_boxes_f(*oct, boxes);
+    SurfelView view_box_f = view_box;
+    view_box_f.node_boxes_f = boxes_f;
     std::size_t covered = 0;
     for (int k = 0; k < 600; ++k) {
       // Points on discs (where shading happens: a hit point in the disc, slightly off its plane)
@@ -160,7 +171,8 @@ TEST(CoveringDiscs, HoldEveryCoveringDiscAndGiveTheBlendedNormalOfTheFullRadiusQ
       const Vec3 b = glm::cross(n, a);
       const double rr = d.r[hit] * std::sqrt(u(rng)), ph = 2.0 * std::numbers::pi * u(rng);
       const Vec3 x = k % 10 == 0 ? Vec3(u(rng), u(rng), u(rng))
-                                 : d.c[hit] + rr * (std::cos(ph) * a + std::sin(ph) * b) + 0.01 * d.r[hit] * n;
+                                 : d.c[hit] + rr * (std::cos(ph) * a + std::sin(ph) * b) +
+                                       (k % 3 == 0 ? (k % 2 ? 0.2499 : -0.2499) : 0.01) * d.r[hit] * n;
       std::vector<Neighbor> ball;
       for (std::size_t i = 0; i < d.c.size(); ++i) {
         const double dist = glm::length(d.c[i] - x);
@@ -170,7 +182,7 @@ TEST(CoveringDiscs, HoldEveryCoveringDiscAndGiveTheBlendedNormalOfTheFullRadiusQ
         return p.distance < q.distance || (p.distance == q.distance && p.index < q.index);
       });
       const Vec3 want = blended_normal(d.view(), ball, hit, x);
-      for (const SurfelView& v : {d.view(), view_node}) {
+      for (const SurfelView& v : {d.view(), view_node, view_box, view_box_f}) {
         std::vector<Neighbor> got;
         std::visit([&](const auto& ix) { covering_discs(ix, v, x, got); }, idx);
         for (std::size_t i = 0; i < d.c.size(); ++i) {
@@ -183,10 +195,51 @@ TEST(CoveringDiscs, HoldEveryCoveringDiscAndGiveTheBlendedNormalOfTheFullRadiusQ
               << type << " point " << k << " disc " << i;
         }
         const Vec3 n_got = std::visit([&](const auto& ix) { return surfel_shading_normal(ix, v, hit, x, got); }, idx);
-        EXPECT_EQ(n_got, want) << type << " point " << k << " per-node radii " << !v.node_radii.empty();
+        EXPECT_EQ(n_got, want) << type << " point " << k << " per-node radii " << !v.node_radii.empty()
+                               << " disc boxes " << !v.node_boxes.empty() << " float rows " << !v.node_boxes_f.empty();
       }
     }
     EXPECT_GT(covered, 1000u) << type;  // the sample exercises overlapping discs
+  }
+}
+
+TEST(CoveringDiscs, FromTheCandidatesOfANearbyCentreEqualTheDescent) {
+  // Oracle: covering_discs(x) itself (checked against brute force above). For every x within
+  // delta of x0, covering_discs_among(cover_candidates(x0, delta), x) must give the same discs,
+  // distances and order, bit for bit, including x at delta (rounded inwards as the renderer does).
+  const Discs d = random_discs(3000, 21);
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (const char* type : {"octree-adaptive", "kdtree"}) {
+    const AnyIndex idx = make_index(d.c, IndexOptions{type});
+    const std::vector<float> node_r = std::visit([&](const auto& ix) { return surfel_node_radii(ix, d.r); }, idx);
+    const std::vector<float> slot_r = std::visit([&](const auto& ix) { return surfel_slot_radii(ix, d.r); }, idx);
+    SurfelView v = d.view();
+    v.node_radii = node_r;
+    v.slot_radii = slot_r;
+    std::size_t nonempty = 0;
+    for (int k = 0; k < 200; ++k) {
+      const PointIndex hit = PointIndex(rng() % d.c.size());
+      const Vec3 x0 = d.c[hit] + 0.3 * d.r[hit] * Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+      const double delta = (k % 4 + 1) * 0.5 * v.max_radius;
+      std::vector<CoverCandidate> cands;
+      std::visit([&](const auto& ix) { cover_candidates(ix, v, x0, delta, cands); }, idx);
+      for (int j = 0; j < 10; ++j) {
+        Vec3 dir(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+        dir /= glm::length(dir);
+        const Vec3 x = x0 + (j == 0 ? 0.999 : u(rng)) * delta * dir;
+        std::vector<Neighbor> want, got;
+        std::visit([&](const auto& ix) { covering_discs(ix, v, x, want); }, idx);
+        covering_discs_among(cands, x, got);
+        ASSERT_EQ(got.size(), want.size()) << type << " centre " << k << " point " << j;
+        for (std::size_t i = 0; i < got.size(); ++i) {
+          EXPECT_EQ(got[i].index, want[i].index) << type << " centre " << k << " point " << j;
+          EXPECT_EQ(got[i].distance, want[i].distance) << type << " centre " << k << " point " << j;
+        }
+        nonempty += !want.empty();
+      }
+    }
+    EXPECT_GT(nonempty, 500u) << type;  // most sample points are covered
   }
 }
 

@@ -10,7 +10,9 @@
 #include "rayscan/render/sky.hpp"
 #include "rayscan/render/surfel.hpp"
 
+#include <atomic>
 #include <chrono>
+#include <memory>
 #include <new>
 #include <numbers>
 #include <optional>
@@ -37,6 +39,19 @@ struct IntegratorInputs {
   Primitive primitive = Primitive::sphere;  ///< spheres of `radius` or the discs of `surfels`
   SurfelView surfels;               ///< per-point discs (Primitive::surfel only; centres = centers)
 };
+
+/// The candidate discs of one pixel's camera hits in surfel mode (PathTracer::trace_packet): every
+/// disc that may cover a point within `delta` of `x0` (cover_candidates), so the shading normal of
+/// each later sample of that pixel whose hit lies within delta is found among them
+/// (covering_discs_among: the same discs, bit for bit) instead of by a descent from the root.
+struct CoverCache {
+  std::uint64_t owner = 0;  ///< the PathTracer that filled it (0: empty)
+  Vec3 x0{0.0};             ///< centre, world coordinates
+  std::vector<CoverCandidate> cands;
+};
+
+/// Unique ids of PathTracers (a CoverCache filled by one is never used by another).
+inline std::atomic<std::uint64_t> next_path_tracer_id{1};
 
 /// Per-thread work counters (summed by the renderer).
 struct TraceCounters {
@@ -90,6 +105,9 @@ class PathTracer {
         in_.surfels.node_boxes_f = node_boxes_f_;
       }
     }
+    // The cover caches' reach: 1.5 x the median disc radius (surfel mode's in.radius); 1, 1.5
+    // and 0.7 x were measured (bench/README.md).
+    cover_delta_ = 1.5 * in.radius;
     query_.k = 1;
     query_.radius = in.radius;
     query_.t_min = 0.0;
@@ -184,13 +202,27 @@ class PathTracer {
   }
 
   /// The surfel-mode surface of the disc hit `sh` (first_surfel_hit's answer, t < inf) of `ray`:
-  /// the hit point, the blended shading normal facing the ray, the disc's radius.
-  void surfel_surface_at(const Ray& ray, const SurfelHit& sh, SurfaceHit& h) const {
+  /// the hit point, the blended shading normal facing the ray, the disc's radius. With `cache`
+  /// (a camera ray's pixel), the covering discs come from its candidates when the hit lies within
+  /// cover_delta_ of its centre (refilled around the hit otherwise): the same normal, bit for bit.
+  void surfel_surface_at(const Ray& ray, const SurfelHit& sh, SurfaceHit& h, CoverCache* cache = nullptr) const {
     h.t = sh.t;
     h.index = sh.index;
     h.position = ray.at(sh.t);
     thread_local std::vector<Neighbor> near;
-    h.normal = surfel_shading_normal(index_, in_.surfels, sh.index, h.position, near);
+    if (cache) {
+      // Within 0.999 delta: |x - x0| <= delta despite the rounding of the distance.
+      const Vec3 v = h.position - cache->x0;
+      if (cache->owner != id_ || !(glm::dot(v, v) <= 0.998 * cover_delta_ * cover_delta_)) {
+        cover_candidates(index_, in_.surfels, h.position, cover_delta_, cache->cands);
+        cache->owner = id_;
+        cache->x0 = h.position;
+      }
+      covering_discs_among(cache->cands, h.position, near);
+      h.normal = blended_normal(in_.surfels, near, sh.index, h.position);
+    } else {
+      h.normal = surfel_shading_normal(index_, in_.surfels, sh.index, h.position, near);
+    }
     if (glm::dot(h.normal, ray.direction()) > 0.0) h.normal = -h.normal;
     h.radius = in_.surfels.radii[sh.index];
   }
@@ -280,9 +312,24 @@ class PathTracer {
           first_surfel_hit_packet(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf, {}, false,
                                   std::span(sh, m), hits, st);
           query_done();
+          // One cover cache per pixel of the packet (the caller traces the samples of one pixel
+          // block in turn): a pointer's worth of static TLS, the caches on the heap.
+          thread_local std::unique_ptr<CoverCache[]> covers;
+          if (!covers) covers = std::make_unique<CoverCache[]>(kMaxRayPacket);
           for (std::size_t j = 0; j < m; ++j) {
             SurfaceHit h;
-            if (sh[j].t < kInf) surfel_surface_at(wave[j], sh[j], h);
+            if (sh[j].t < kInf) {
+              // The cache pays when the samples of a pixel land within its reach: judged by the
+              // hit of the neighbouring pixel in the row (lane j ^ 1), about one footprint away.
+              // Farther (a distant view), each sample would refill it: the plain descent instead.
+              const std::size_t nb = j ^ 1u;
+              bool cached = true;
+              if (nb < m && sh[nb].t < kInf) {
+                const Vec3 v = wave[j].at(sh[j].t) - wave[nb].at(sh[nb].t);
+                cached = glm::dot(v, v) <= 4.0 * cover_delta_ * cover_delta_;
+              }
+              surfel_surface_at(wave[j], sh[j], h, cached ? &covers[lane[j]] : nullptr);
+            }
             vertex(j, sh[j].t < kInf, h);
           }
         } else {
@@ -426,6 +473,8 @@ class PathTracer {
   std::vector<float> node_boxes_f_;  ///< surfel_node_boxes_f of node_boxes_ (surfel mode, FloatChildBoxes)
   const Sky& sky_;
   bool time_;
+  std::uint64_t id_ = next_path_tracer_id.fetch_add(1);  ///< owner id of the CoverCaches it fills
+  double cover_delta_ = 0.0;  ///< CoverCache reach, world units
   RayQuery query_;
   RayQuery shadow_query_;
 };

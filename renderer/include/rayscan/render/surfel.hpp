@@ -259,6 +259,8 @@ struct DiscKey {
     const double r = slot_radii[slot];
     return d2 > r * r;
   }
+  /// The radii reject() tests, by storage slot, for the ray query's SIMD point filter (or null).
+  const float* filter_radii() const { return slot_radii; }
   double operator()(PointIndex id, double, double d2, double) const {
     const double r = s->radii[id];
     if (d2 > r * r) return kInf;  // the ray passes farther than r from the centre: misses the disc
@@ -423,66 +425,69 @@ void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<cons
   return own && len > 0.0 ? sum / len : n0;
 }
 
-/// The discs that cover point x in the sense of blended_normal (in-plane distance < r_i and plane
-/// offset <= r_i / 4, tested with blended_normal's own expressions; such a centre c_i lies within
-/// sqrt(1 + 1/16) r_i of x, the bound the descent prunes with), appended to `out` (cleared first;
-/// Neighbor::distance = |x - c_i|) sorted by (distance, index) as knn_query sorts, so
-/// blended_normal over them equals blended_normal over a radius query of blend_reach around x (the
-/// same covering discs in the same order). A descent of `index` that
-/// prunes each node by its own subtree's largest disc radius (s.node_radii, from surfel_node_radii
-/// over this index; s.max_radius without), the per-node radius bound of first_surfel_hit applied to
-/// a point: a ball of the global blend_reach holds ~16x the discs where most radii are near the
-/// median and the clamp is 4x it (bench/README.md, "Issue 16: surfel render speed").
-template <SpatialIndex I>
-void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vector<Neighbor>& out) {
+namespace surfel_detail {
+
+/// True when the disc (centre c, normal n, radius r) covers x in the sense of blended_normal
+/// (in-plane distance < r, plane offset <= r/4), with blended_normal's own expressions.
+[[nodiscard]] inline bool disc_covers(const Vec3& c, const glm::vec3& n, double r, const Vec3& x) {
+  const Vec3 w = x - c;
+  const double off = glm::dot(w, Vec3(n));
+  return !(std::abs(off) > 0.25 * r || glm::dot(w, w) - off * off >= r * r);
+}
+
+/// The descent of covering_discs and cover_candidates: calls f(slot, id, p, d2) for every point p
+/// of `index` (id its original index, d2 = |p - x|^2) whose disc (radius r_i) may cover some point
+/// within `delta` of x: |p - x| <= sqrt(1 + 1/16) r_i + delta, widened past rounding (a superset:
+/// the callers test each one exactly). Prunes each node by its own subtree's largest disc radius
+/// (s.node_radii; s.max_radius without) on the SIMD child bound (child_dist2) and the distance
+/// filter (point_filter with d = 0), as knn_query. Uses the ray query's per-thread scratch.
+template <SpatialIndex I, class F>
+void cover_descent(const I& index, const SurfelView& s, const Vec3& x, double delta, F&& f) {
   using Node = typename I::Node;
-  out.clear();
   if (index.empty()) return;
-  constexpr double kReach2 = 1.0625 * (1.0 + 1e-12);  // (1 + 1/16), widened past rounding
-  const auto reach2 = [&](Node n) {
-    const double r = s.node_radii.empty() ? s.max_radius : double(s.node_radii[n]);
-    return kReach2 * r * r;
+  constexpr double kReach = 1.0307764064044151 * (1.0 + 1e-9);  // sqrt(1 + 1/16), widened
+  const auto reach2 = [&](double r) {
+    const double e = kReach * r + delta;
+    return e * e;
+  };
+  const auto node_reach2 = [&](Node n) {
+    return reach2(s.node_radii.empty() ? s.max_radius : double(s.node_radii[n]));
   };
   const auto pos = index.positions();
   const IdView ids = index.ids();
   // The node stack, the filter's survivors and decoded positions: the ray query's per-thread
   // scratch (free between queries; no new thread_local, whose static TLS the Python module cannot
   // spare).
-  auto& scratch = detail::ray_scratch<Node>();
+  auto& scratch = rayscan::detail::ray_scratch<Node>();
   auto& stack = scratch.nodes;
   stack.clear();
   // SIMD policies as in knn_query: each child's MINDIST^2 lower bound on its float box
   // (child_dist2), each node's points through the distance filter (point_filter with d = 0); both
-  // conservative, every survivor tested exactly below, so the output is the scalar one.
+  // conservative, every survivor tested exactly below.
   const simd::Kernels& kern = simd::active_kernels();
   const AABB root_box = index.node_bounds(index.root());
   const double vmax = glm::length(x - root_box.center()) + 0.5 * glm::length(root_box.hi - root_box.lo);
   simd::PointFilterD pf{{x.x, x.y, x.z}, {0.0, 0.0, 0.0}, 0.0, -kInf, kInf};  // d = 0: |p - x|^2
   const double slack_d2 = 1e-12 * vmax * vmax + 1e-300;
-  [[maybe_unused]] const detail::FloatQueryPoint xf = detail::float_query_point(index, x);
-  if (distance2_point_box(x, root_box) <= reach2(index.root())) stack.push_back({0.0, index.root()});
+  [[maybe_unused]] const rayscan::detail::FloatQueryPoint xf = rayscan::detail::float_query_point(index, x);
+  if (distance2_point_box(x, root_box) <= node_reach2(index.root())) stack.push_back({0.0, index.root()});
   while (!stack.empty()) {
     const Node n = stack.back().node;
     stack.pop_back();
-    const double node_reach2 = reach2(n);
+    const double n_reach2 = node_reach2(n);
     const SlotRange sr = index.node_points(n);
     const auto test = [&](std::uint32_t k, const Vec3& p) __attribute__((always_inline)) {
       const Vec3 v = p - x;
       const double d2 = glm::dot(v, v);
-      if (d2 > node_reach2) return;
+      if (d2 > n_reach2) return;
       const PointIndex id = ids[k];
-      const double r = s.radii[id];
-      if (d2 > kReach2 * r * r) return;
-      // blended_normal's cover test, the same expressions: only the discs it can sum are sorted.
-      const Vec3 w = x - s.centers[id];
-      const double off = glm::dot(w, Vec3(s.normals[id]));
-      if (std::abs(off) > 0.25 * r || glm::dot(w, w) - off * off >= r * r) return;
-      out.push_back({id, d2});  // squared until sorted
+      if (d2 > reach2(s.slot_radii.empty() ? double(s.radii[id]) : double(s.slot_radii[k]))) return;
+      f(k, id, p, d2);
     };
     if (kern.point_filter && sr.size() >= 4) {
       if (scratch.sel.size() < sr.size()) scratch.sel.resize(sr.size());
       const double* xyz = position_block(pos, sr.begin, sr.size(), scratch.block);
-      pf.d2_max = node_reach2 + slack_d2;
+      pf.d2_max = n_reach2 + slack_d2;
       const unsigned m = kern.point_filter(xyz, sr.size(), pf, scratch.sel.data());
       for (unsigned j = 0; j < m; ++j) {
         const double* p = xyz + 3 * std::size_t{scratch.sel[j]};
@@ -492,26 +497,91 @@ void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vec
       for (std::uint32_t k = sr.begin; k < sr.end; ++k) test(k, pos[k]);
     }
     const unsigned nc = index.child_count(n);
-    if constexpr (detail::FloatChildBoxes<I>) {
+    if constexpr (rayscan::detail::FloatChildBoxes<I>) {
       if (kern.child_dist2 && nc > 0 && nc <= 8) {
         float lb2[8];
         kern.child_dist2(index.child_boxes_f(n), xf.q, xf.margin, lb2);
         for (unsigned i = 0; i < nc; ++i) {
           const Node c = index.child(n, i);
-          if (double(lb2[i]) <= reach2(c)) stack.push_back({0.0, c});
+          if (double(lb2[i]) <= node_reach2(c)) stack.push_back({0.0, c});
         }
         continue;
       }
     }
     for (unsigned i = 0; i < nc; ++i) {
       const Node c = index.child(n, i);
-      if (distance2_point_box(x, index.node_bounds(c)) <= reach2(c)) stack.push_back({0.0, c});
+      if (distance2_point_box(x, index.node_bounds(c)) <= node_reach2(c)) stack.push_back({0.0, c});
     }
   }
+}
+
+/// Sorts covering discs by (squared distance, index) as knn_query does and turns the squared
+/// distances into distances.
+inline void finish_covering(std::vector<Neighbor>& out) {
   std::sort(out.begin(), out.end(), [](const Neighbor& a, const Neighbor& b) {
     return a.distance < b.distance || (a.distance == b.distance && a.index < b.index);
   });
   for (Neighbor& nb : out) nb.distance = std::sqrt(nb.distance);
+}
+
+}  // namespace surfel_detail
+
+/// The discs that cover point x in the sense of blended_normal (in-plane distance < r_i and plane
+/// offset <= r_i / 4, tested with blended_normal's own expressions; such a centre c_i lies within
+/// sqrt(1 + 1/16) r_i of x, the bound the descent prunes with), appended to `out` (cleared first;
+/// Neighbor::distance = |x - c_i|) sorted by (distance, index) as knn_query sorts, so
+/// blended_normal over them equals blended_normal over a radius query of blend_reach around x (the
+/// same covering discs in the same order). A descent of `index` that prunes each node by its own
+/// subtree's largest disc radius (s.node_radii, from surfel_node_radii over this index;
+/// s.max_radius without), the per-node radius bound of first_surfel_hit applied to a point: a ball
+/// of the global blend_reach holds ~16x the discs where most radii are near the median and the
+/// clamp is 4x it (bench/README.md, "Issue 16: surfel render speed").
+template <SpatialIndex I>
+void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vector<Neighbor>& out) {
+  out.clear();
+  surfel_detail::cover_descent(index, s, x, 0.0, [&](std::uint32_t k, PointIndex id, const Vec3&, double d2) {
+    const double r = s.slot_radii.empty() ? double(s.radii[id]) : double(s.slot_radii[k]);
+    if (surfel_detail::disc_covers(s.centers[id], s.normals[id], r, x)) out.push_back({id, d2});  // squared until sorted
+  });
+  surfel_detail::finish_covering(out);
+}
+
+/// A disc that may cover points near a centre (cover_candidates): its original index, the
+/// index's position of it (bit for bit), and the disc's centre, normal and radius as the view
+/// holds them (copied, so that testing a candidate reads no per-point array).
+struct CoverCandidate {
+  PointIndex id = 0;
+  Vec3 p{0.0};
+  Vec3 c{0.0};
+  glm::vec3 n{0.0f};
+  float r = 0.0f;
+};
+
+/// Every disc that may cover some point within `delta` (world units, >= 0) of x0: a superset of
+/// covering_discs(x) for every such x, from which covering_discs_among gives exactly
+/// covering_discs(x). Appended to `out` (cleared first), in no particular order. For a render's
+/// camera rays, whose hits for the samples of one pixel lie close together, one descent serves
+/// many hits (PathTracer's per-pixel cover cache).
+template <SpatialIndex I>
+void cover_candidates(const I& index, const SurfelView& s, const Vec3& x0, double delta,
+                      std::vector<CoverCandidate>& out) {
+  out.clear();
+  surfel_detail::cover_descent(index, s, x0, delta, [&](std::uint32_t k, PointIndex id, const Vec3& p, double) {
+    out.push_back({id, p, s.centers[id], s.normals[id], s.slot_radii.empty() ? s.radii[id] : s.slot_radii[k]});
+  });
+}
+
+/// covering_discs(x) from `cands` = cover_candidates(x0, delta) with |x - x0| <= delta: the same
+/// discs (same test, same expressions: d2 = |p - x|^2 on the index's positions) in the same order,
+/// bit for bit. `out` is cleared first.
+inline void covering_discs_among(std::span<const CoverCandidate> cands, const Vec3& x, std::vector<Neighbor>& out) {
+  out.clear();
+  for (const CoverCandidate& c : cands) {
+    if (!surfel_detail::disc_covers(c.c, c.n, c.r, x)) continue;
+    const Vec3 v = c.p - x;
+    out.push_back({c.id, glm::dot(v, v)});  // squared until sorted
+  }
+  surfel_detail::finish_covering(out);
 }
 
 /// blended_normal over covering_discs(x); `scratch` is caller-owned.
