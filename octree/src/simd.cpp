@@ -161,12 +161,11 @@ void child_dist2_sse2(const ChildBoxesF& b, const float* q, float margin, float*
   return f.d[0] == 0.0 && f.d[1] == 0.0 && f.d[2] == 0.0 && f.t_lo <= 0.0 && 0.0 <= f.t_hi;
 }
 
-// Appends i + the index of each set bit of lane mask m to out[n...]; returns the new count.
-// The local indices of the set bits of a W-lane mask appended to out[n...]: each lane's index is
-// written at out[n] and n advances only when its bit is set, without a branch per bit (a
-// loop over the set bits mispredicted ~1.6 M times in a 150x100, 8 spp surfel render:
-// bench/README.md). Writes stay below i + W (n <= i + j at lane j),
-// so out needs no capacity beyond the point count.
+// Appends i + the index of each set bit of the W-lane mask m to out[n...] and returns the new
+// count. Each lane's index is written at out[n] and n advances only when its bit is set, without a
+// branch per bit (a loop over the set bits mispredicted ~1.6 M times in a 150x100, 8 spp surfel
+// render: bench/README.md). Writes stay below i + W (n <= i + j at lane j), so out needs no
+// capacity beyond the point count.
 template <unsigned W>
 [[nodiscard]] inline unsigned append_lanes(unsigned m, unsigned i, std::uint32_t* out, unsigned n) {
   if (!m) return n;  // most steps of a thin ray tube keep nothing: a well-predicted exit
@@ -218,7 +217,7 @@ unsigned point_filter_sse2(const double* xyz, unsigned count, const PointFilterD
     __m128d lim = d2max;
     if (f.radii) {  // each point's own radius as well (PointFilterD::radii)
       const __m128d r = _mm_set_pd(f.radii[i + 1], f.radii[i]);
-      lim = _mm_min_pd(d2max, _mm_add_pd(_mm_mul_pd(r, r), slack));
+      lim = _mm_min_pd(_mm_add_pd(_mm_mul_pd(r, r), slack), d2max);  // (d2max when r is NaN)
     }
     const __m128d ok = _mm_and_pd(_mm_cmple_pd(d2, lim), _mm_and_pd(_mm_cmpge_pd(t, tlo), _mm_cmple_pd(t, thi)));
     unsigned m = static_cast<unsigned>(_mm_movemask_pd(ok));
@@ -371,7 +370,7 @@ __attribute__((target("avx2,fma"))) unsigned point_filter_avx2(const double* xyz
     __m256d lim = d2max;
     if (f.radii) {  // each point's own radius as well (PointFilterD::radii)
       const __m256d r = _mm256_cvtps_pd(_mm_loadu_ps(f.radii + i));
-      lim = _mm256_min_pd(d2max, _mm256_fmadd_pd(r, r, slack));
+      lim = _mm256_min_pd(_mm256_fmadd_pd(r, r, slack), d2max);  // (d2max when r is NaN)
     }
     const __m256d ok = _mm256_and_pd(_mm256_cmp_pd(d2, lim, _CMP_LE_OQ),
                                      _mm256_and_pd(_mm256_cmp_pd(t, tlo, _CMP_GE_OQ), _mm256_cmp_pd(t, thi, _CMP_LE_OQ)));
@@ -453,7 +452,7 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx51
     __m512d lim = d2max;
     if (f.radii) {  // each point's own radius as well (PointFilterD::radii)
       const __m512d r = _mm512_cvtps_pd(_mm256_loadu_ps(f.radii + i));
-      lim = _mm512_min_pd(d2max, _mm512_fmadd_pd(r, r, _mm512_set1_pd(f.d2_slack)));
+      lim = _mm512_min_pd(_mm512_fmadd_pd(r, r, _mm512_set1_pd(f.d2_slack)), d2max);  // (d2max when r is NaN)
     }
     unsigned m = _mm512_cmp_pd_mask(d2, lim, _CMP_LE_OQ) & _mm512_cmp_pd_mask(t, tlo, _CMP_GE_OQ) &
                  _mm512_cmp_pd_mask(t, thi, _CMP_LE_OQ);

@@ -150,17 +150,11 @@ TEST(CoveringDiscs, HoldEveryCoveringDiscAndGiveTheBlendedNormalOfTheFullRadiusQ
     const std::vector<float> node_r = std::visit([&](const auto& ix) { return surfel_node_radii(ix, d.r); }, idx);
     SurfelView view_node = d.view();
     view_node.node_radii = node_r;
-    // With the renderer's other tables too (node boxes, slot radii; on the octree the float rows):
-    // the per-slot radii replace the lookups by original index and must change nothing.
-    const std::vector<AABB> boxes = std::visit([&](const auto& ix) { return surfel_node_boxes(ix, view_node); }, idx);
+    // With the per-slot radii too (the renderer's table): they replace the lookups by original
+    // index and must change nothing.
     const std::vector<float> slot_r = std::visit([&](const auto& ix) { return surfel_slot_radii(ix, d.r); }, idx);
-    SurfelView view_box = view_node;
-    view_box.node_boxes = boxes;
-    view_box.slot_radii = slot_r;
-    std::vector<float> boxes_f;
-    if (const auto* oct = std::get_if<Octree>(&idx)) boxes_f = surfel_node_boxes_f(*oct, boxes);
-    SurfelView view_box_f = view_box;
-    view_box_f.node_boxes_f = boxes_f;
+    SurfelView view_slot = view_node;
+    view_slot.slot_radii = slot_r;
     std::size_t covered = 0;
     for (int k = 0; k < 600; ++k) {
       // Points on discs (where shading happens: a hit point in the disc, slightly off its plane)
@@ -182,7 +176,7 @@ TEST(CoveringDiscs, HoldEveryCoveringDiscAndGiveTheBlendedNormalOfTheFullRadiusQ
         return p.distance < q.distance || (p.distance == q.distance && p.index < q.index);
       });
       const Vec3 want = blended_normal(d.view(), ball, hit, x);
-      for (const SurfelView& v : {d.view(), view_node, view_box, view_box_f}) {
+      for (const SurfelView& v : {d.view(), view_node, view_slot}) {
         std::vector<Neighbor> got;
         std::visit([&](const auto& ix) { covering_discs(ix, v, x, got); }, idx);
         for (std::size_t i = 0; i < d.c.size(); ++i) {
@@ -196,7 +190,7 @@ TEST(CoveringDiscs, HoldEveryCoveringDiscAndGiveTheBlendedNormalOfTheFullRadiusQ
         }
         const Vec3 n_got = std::visit([&](const auto& ix) { return surfel_shading_normal(ix, v, hit, x, got); }, idx);
         EXPECT_EQ(n_got, want) << type << " point " << k << " per-node radii " << !v.node_radii.empty()
-                               << " disc boxes " << !v.node_boxes.empty() << " float rows " << !v.node_boxes_f.empty();
+                               << " slot radii " << !v.slot_radii.empty();
       }
     }
     EXPECT_GT(covered, 1000u) << type;  // the sample exercises overlapping discs

@@ -202,8 +202,9 @@ struct NoChildBoxesF {};
 /// test by storage slot and squared ray distance, called before the order key is computed, that
 /// returns true only for points whose refined key would be kInf (e.g. a per-slot copy of each
 /// disc's radius: d2 > r^2). With a member `const float* filter_radii()` returning the same radii by
-/// storage slot (or null), the SIMD point filter applies that test too (simd::PointFilterD::radii),
-/// so the rejected points never reach the scalar loop.
+/// storage slot (one float per slot of the index, world units; or null), the SIMD point filter
+/// applies that test too (simd::PointFilterD::radii), so the rejected points never reach the
+/// scalar loop.
 ///
 /// Optionally too (with node_box, on FloatChildBoxes indexes), `child_boxes_f(n)`
 /// (simd::ChildBoxesF) gives the node_box of each of n's children in float, relative to the

@@ -70,11 +70,12 @@ struct PointFilterD {
   double d[3];       ///< unit direction
   double d2_max;     ///< keep points whose squared orthogonal distance <= d2_max (already widened)
   double t_lo, t_hi; ///< keep points whose projection t_p lies in [t_lo, t_hi] (already widened)
-  /// Optional (orders with d != 0): each point's own radius, radii[i] for xyz point i (world units),
-  /// and keep only points with d^2 <= radii[i]^2 + d2_slack as well (e.g. the disc radii of surfel
-  /// rendering, in slot order: RefinedKey's filter_radii). Null: d2_max alone.
+  /// Optional (orders with d != 0; the d = 0 loops ignore it): each point's own radius, radii[i]
+  /// for xyz point i (world units, one float per point of the call), and keep only points with
+  /// d^2 <= radii[i]^2 + d2_slack as well (e.g. the disc radii of surfel rendering, in slot order:
+  /// RefinedKey's filter_radii). A NaN radius keeps the d2_max bound. Null: d2_max alone.
   const float* radii = nullptr;
-  double d2_slack = 0.0;  ///< absolute widening of radii[i]^2 (covers the filter's rounding)
+  double d2_slack = 0.0;  ///< widening of radii[i]^2 (world units^2; covers the filter's rounding)
 };
 
 /// Slab test of up to 8 child boxes: bit i of the result is set when box i grown as in `r`
@@ -87,8 +88,8 @@ using ChildSlabFn = unsigned (*)(const ChildBoxesF& boxes, const SlabRayF& r, fl
 using PacketChildSlabFn = void (*)(const ChildBoxesF& boxes, const SlabPacketF& p, unsigned lanes,
                                    std::uint32_t* hits, float* entry);
 /// Point filter over positions xyz[0..count) (AoS doubles, 3 per point): writes the local
-/// indices of the points that may pass to out (capacity count) and returns how many. The
-/// filter may keep points that fail (never drops one that passes).
+/// indices of the points that may pass to out (capacity count) and returns how many; out[ret,
+/// count) may be overwritten. The filter may keep points that fail (never drops one that passes).
 using PointFilterFn = unsigned (*)(const double* xyz, unsigned count, const PointFilterD& f,
                                    std::uint32_t* out);
 

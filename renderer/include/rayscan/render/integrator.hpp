@@ -47,11 +47,14 @@ struct IntegratorInputs {
 struct CoverCache {
   std::uint64_t owner = 0;  ///< the PathTracer that filled it (0: empty)
   Vec3 x0{0.0};             ///< centre, world coordinates
-  std::vector<CoverCandidate> cands;
+  std::vector<CoverCandidate> cands;  ///< cover_candidates(x0, the tracer's delta)
 };
 
-/// Unique ids of PathTracers (a CoverCache filled by one is never used by another).
+namespace surfel_detail {
+/// Unique ids of PathTracers of every index type (a CoverCache filled by one is never used by
+/// another).
 inline std::atomic<std::uint64_t> next_path_tracer_id{1};
+}  // namespace surfel_detail
 
 /// Per-thread work counters (summed by the renderer).
 struct TraceCounters {
@@ -211,7 +214,7 @@ class PathTracer {
     h.position = ray.at(sh.t);
     thread_local std::vector<Neighbor> near;
     if (cache) {
-      // Within 0.999 delta: |x - x0| <= delta despite the rounding of the distance.
+      // |x - x0|^2 <= 0.998 delta^2, i.e. within 0.999 delta: |x - x0| <= delta despite rounding.
       const Vec3 v = h.position - cache->x0;
       if (cache->owner != id_ || !(glm::dot(v, v) <= 0.998 * cover_delta_ * cover_delta_)) {
         cover_candidates(index_, in_.surfels, h.position, cover_delta_, cache->cands);
@@ -473,7 +476,7 @@ class PathTracer {
   std::vector<float> node_boxes_f_;  ///< surfel_node_boxes_f of node_boxes_ (surfel mode, FloatChildBoxes)
   const Sky& sky_;
   bool time_;
-  std::uint64_t id_ = next_path_tracer_id.fetch_add(1);  ///< owner id of the CoverCaches it fills
+  std::uint64_t id_ = surfel_detail::next_path_tracer_id.fetch_add(1);  ///< owner id of the CoverCaches it fills
   double cover_delta_ = 0.0;  ///< CoverCache reach, world units
   RayQuery query_;
   RayQuery shadow_query_;

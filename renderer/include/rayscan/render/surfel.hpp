@@ -393,9 +393,13 @@ void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<cons
     out[i] = first_surfel_hit(index, s, rays[i], t_min, t_max, from_of(i), any_hit, hits, stats);
 }
 
+/// sqrt(1 + 1/16): a disc of radius r that covers x in the sense of blended_normal (in-plane
+/// distance < r, plane offset <= r/4) has its centre within this factor times r of x.
+inline constexpr double kBlendReachFactor = 1.0307764064044151;
+
 /// Distance from a point x within which lie the centres of all discs that can cover x in the
 /// sense of blended_normal (in-plane distance < r, plane offset <= r/4): sqrt(1 + 1/16) R.
-[[nodiscard]] inline double blend_reach(const SurfelView& s) { return s.max_radius * 1.0307764064044151; }
+[[nodiscard]] inline double blend_reach(const SurfelView& s) { return s.max_radius * kBlendReachFactor; }
 
 /// Shading normal at hit point x of disc `hit`: the normals of the discs among `candidates` (at
 /// least every disc that covers x: covering_discs, or every centre within blend_reach of x) that cover x (in-plane distance < r, within r/4
@@ -435,8 +439,16 @@ namespace surfel_detail {
   return !(std::abs(off) > 0.25 * r || glm::dot(w, w) - off * off >= r * r);
 }
 
-/// The descent of covering_discs and cover_candidates: calls f(slot, id, p, d2) for every point p
-/// of `index` (id its original index, d2 = |p - x|^2) whose disc (radius r_i) may cover some point
+/// The squared reach of cover_descent for a disc of radius r (world units) and a neighbourhood of
+/// delta >= 0: (kBlendReachFactor r (1 + 1e-9) + delta)^2, widened past rounding.
+[[nodiscard]] inline double cover_reach2(double r, double delta) {
+  const double e = kBlendReachFactor * (1.0 + 1e-9) * r + delta;
+  return e * e;
+}
+
+/// The descent of covering_discs and cover_candidates: calls f(slot, id, p, d2, r) for every point p
+/// of `index` (id its original index, d2 = |p - x|^2, r its disc radius: s.slot_radii[slot], else
+/// s.radii[id]) whose disc (radius r_i) may cover some point
 /// within `delta` of x: |p - x| <= sqrt(1 + 1/16) r_i + delta, widened past rounding (a superset:
 /// the callers test each one exactly). Prunes each node by its own subtree's largest disc radius
 /// (s.node_radii; s.max_radius without) on the SIMD child bound (child_dist2) and the distance
@@ -445,11 +457,7 @@ template <SpatialIndex I, class F>
 void cover_descent(const I& index, const SurfelView& s, const Vec3& x, double delta, F&& f) {
   using Node = typename I::Node;
   if (index.empty()) return;
-  constexpr double kReach = 1.0307764064044151 * (1.0 + 1e-9);  // sqrt(1 + 1/16), widened
-  const auto reach2 = [&](double r) {
-    const double e = kReach * r + delta;
-    return e * e;
-  };
+  const auto reach2 = [&](double r) { return cover_reach2(r, delta); };
   const auto node_reach2 = [&](Node n) {
     return reach2(s.node_radii.empty() ? s.max_radius : double(s.node_radii[n]));
   };
@@ -481,8 +489,9 @@ void cover_descent(const I& index, const SurfelView& s, const Vec3& x, double de
       const double d2 = glm::dot(v, v);
       if (d2 > n_reach2) return;
       const PointIndex id = ids[k];
-      if (d2 > reach2(s.slot_radii.empty() ? double(s.radii[id]) : double(s.slot_radii[k]))) return;
-      f(k, id, p, d2);
+      const float r = s.slot_radii.empty() ? s.radii[id] : s.slot_radii[k];
+      if (d2 > reach2(r)) return;
+      f(k, id, p, d2, r);
     };
     if (kern.point_filter && sr.size() >= 4) {
       if (scratch.sel.size() < sr.size()) scratch.sel.resize(sr.size());
@@ -539,8 +548,7 @@ inline void finish_covering(std::vector<Neighbor>& out) {
 template <SpatialIndex I>
 void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vector<Neighbor>& out) {
   out.clear();
-  surfel_detail::cover_descent(index, s, x, 0.0, [&](std::uint32_t k, PointIndex id, const Vec3&, double d2) {
-    const double r = s.slot_radii.empty() ? double(s.radii[id]) : double(s.slot_radii[k]);
+  surfel_detail::cover_descent(index, s, x, 0.0, [&](std::uint32_t, PointIndex id, const Vec3&, double d2, float r) {
     if (surfel_detail::disc_covers(s.centers[id], s.normals[id], r, x)) out.push_back({id, d2});  // squared until sorted
   });
   surfel_detail::finish_covering(out);
@@ -550,36 +558,40 @@ void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vec
 /// index's position of it (bit for bit), and the disc's centre, normal and radius as the view
 /// holds them (copied, so that testing a candidate reads no per-point array).
 struct CoverCandidate {
-  PointIndex id = 0;
-  Vec3 p{0.0};
-  Vec3 c{0.0};
-  glm::vec3 n{0.0f};
-  float r = 0.0f;
+  PointIndex id = 0;  ///< original point index
+  Vec3 p{0.0};        ///< the index's position of the point (world coordinates)
+  Vec3 c{0.0};        ///< SurfelView::centers[id] (world coordinates)
+  glm::vec3 n{0.0f};  ///< SurfelView::normals[id] (unit)
+  float r = 0.0f;     ///< disc radius (world units)
 };
 
 /// Every disc that may cover some point within `delta` (world units, >= 0) of x0: a superset of
 /// covering_discs(x) for every such x, from which covering_discs_among gives exactly
 /// covering_discs(x). Appended to `out` (cleared first), in no particular order. For a render's
 /// camera rays, whose hits for the samples of one pixel lie close together, one descent serves
-/// many hits (PathTracer's per-pixel cover cache).
+/// many hits (PathTracer's per-pixel cover cache). Throws std::invalid_argument for delta < 0 or
+/// NaN.
 template <SpatialIndex I>
 void cover_candidates(const I& index, const SurfelView& s, const Vec3& x0, double delta,
                       std::vector<CoverCandidate>& out) {
+  if (!(delta >= 0.0)) throw std::invalid_argument("cover_candidates: delta must be >= 0");
   out.clear();
-  surfel_detail::cover_descent(index, s, x0, delta, [&](std::uint32_t k, PointIndex id, const Vec3& p, double) {
-    out.push_back({id, p, s.centers[id], s.normals[id], s.slot_radii.empty() ? s.radii[id] : s.slot_radii[k]});
+  surfel_detail::cover_descent(index, s, x0, delta, [&](std::uint32_t, PointIndex id, const Vec3& p, double, float r) {
+    out.push_back({id, p, s.centers[id], s.normals[id], r});
   });
 }
 
-/// covering_discs(x) from `cands` = cover_candidates(x0, delta) with |x - x0| <= delta: the same
-/// discs (same test, same expressions: d2 = |p - x|^2 on the index's positions) in the same order,
+/// covering_discs(x) from `cands` = cover_candidates(x0, delta) with |x - x0| <= delta (the
+/// caller's precondition, not checked): the same discs (the same tests, the descent's reach on
+/// the index's position included, with the same expressions: d2 = |p - x|^2) in the same order,
 /// bit for bit. `out` is cleared first.
 inline void covering_discs_among(std::span<const CoverCandidate> cands, const Vec3& x, std::vector<Neighbor>& out) {
   out.clear();
   for (const CoverCandidate& c : cands) {
-    if (!surfel_detail::disc_covers(c.c, c.n, c.r, x)) continue;
     const Vec3 v = c.p - x;
-    out.push_back({c.id, glm::dot(v, v)});  // squared until sorted
+    const double d2 = glm::dot(v, v);
+    if (d2 > surfel_detail::cover_reach2(c.r, 0.0) || !surfel_detail::disc_covers(c.c, c.n, c.r, x)) continue;
+    out.push_back({c.id, d2});  // squared until sorted
   }
   surfel_detail::finish_covering(out);
 }
