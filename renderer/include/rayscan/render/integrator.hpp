@@ -265,7 +265,9 @@ class PathTracer {
   /// path's sampler stream in the order trace() does and adds to its L in the same order, and the
   /// packet answers are ray_first_hit's, so nothing depends on which paths share a packet.
   /// Surfel mode likewise, with first_surfel_hit_packet for the camera rays and for their shadow
-  /// rays (each leaving its own surface), bit-identical to first_surfel_hit on each ray.
+  /// rays (each leaving its own surface), bit-identical to first_surfel_hit on each ray; the
+  /// shading normals of the camera hits come from a per-lane CoverCache (the same normals as
+  /// trace()'s descent, bit for bit).
   void trace_packet(std::span<const Ray> rays, std::span<Sampler> s, std::span<Color> out,
                     std::vector<RayHit>& hits, TraceCounters& c) const {
     const std::size_t n = rays.size();
