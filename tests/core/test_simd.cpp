@@ -189,6 +189,21 @@ TEST(Simd, KnnIsBitIdenticalOnEveryPath) {
   }
 }
 
+// Runs kernel set k's point filter over pts[off, end) with f and returns, per point, whether it
+// was kept (a local index past the count is reported as a failure and ignored).
+std::vector<char> filter_kept(const simd::Kernels& k, const std::vector<Vec3>& pts, unsigned off,
+                              const simd::PointFilterD& f) {
+  const unsigned count = static_cast<unsigned>(pts.size()) - off;
+  std::vector<std::uint32_t> sel(count);
+  const unsigned n = k.point_filter(&pts[off].x, count, f, sel.data());
+  std::vector<char> in(count, 0);
+  for (unsigned j = 0; j < n; ++j) {
+    if (sel[j] < count) in[sel[j]] = 1;
+    else ADD_FAILURE() << "local index " << sel[j] << " past the count " << count;
+  }
+  return in;
+}
+
 TEST(Simd, PointFilterNeverDropsAPointThatPasses) {
   PathGuard guard;
   const std::vector<Vec3> pts = make_points(1003, Dist::utm_mm, 5);  // large magnitudes, mm lattice
@@ -200,7 +215,6 @@ TEST(Simd, PointFilterNeverDropsAPointThatPasses) {
     set_simd_path(path);
     const simd::Kernels& k = simd::active_kernels();
     if (!k.point_filter) continue;
-    std::vector<std::uint32_t> sel(pts.size());
     for (int trial = 0; trial < 200; ++trial) {
       const Ray ray = random_ray(rng, box, trial % 2 == 0);
       const Vec3 o = ray.origin(), d = ray.direction();
@@ -211,12 +225,7 @@ TEST(Simd, PointFilterNeverDropsAPointThatPasses) {
                                  t_lo - 1e-12 * vmax, t_hi};
       const unsigned off = static_cast<unsigned>(trial % 7);  // unaligned starts and odd counts
       const unsigned count = static_cast<unsigned>(pts.size()) - off;
-      const unsigned n = k.point_filter(&pts[off].x, count, f, sel.data());
-      std::vector<char> in(count, 0);
-      for (unsigned j = 0; j < n; ++j) {
-        ASSERT_LT(sel[j], count);
-        in[sel[j]] = 1;
-      }
+      const std::vector<char> in = filter_kept(k, pts, off, f);
       for (unsigned j = 0; j < count; ++j) {
         const RayPointTerms pt = ray_point_terms(o, d, pts[off + j]);
         const bool pass = pt.d2 <= r2 && pt.t >= t_lo;
@@ -250,7 +259,6 @@ TEST(Simd, PointFilterWithPerPointRadiiNeverDropsAPointWithinItsRadius) {
     set_simd_path(path);
     const simd::Kernels& k = simd::active_kernels();
     if (!k.point_filter) continue;
-    std::vector<std::uint32_t> sel(pts.size());
     for (int trial = 0; trial < 200; ++trial) {
       const Ray ray = random_ray(rng, box, trial % 2 == 0);
       const Vec3 o = ray.origin(), d = ray.direction();
@@ -260,12 +268,7 @@ TEST(Simd, PointFilterWithPerPointRadiiNeverDropsAPointWithinItsRadius) {
       const simd::PointFilterD f{{o.x, o.y, o.z}, {d.x, d.y, d.z}, r_max * r_max + slack, -kInf, kInf,
                                  radii.data() + off, slack};
       const unsigned count = static_cast<unsigned>(pts.size()) - off;
-      const unsigned n = k.point_filter(&pts[off].x, count, f, sel.data());
-      std::vector<char> in(count, 0);
-      for (unsigned j = 0; j < n; ++j) {
-        ASSERT_LT(sel[j], count);
-        in[sel[j]] = 1;
-      }
+      const std::vector<char> in = filter_kept(k, pts, off, f);
       for (unsigned j = 0; j < count; ++j) {
         const RayPointTerms pt = ray_point_terms(o, d, pts[off + j]);
         const double r = radii[off + j];
@@ -295,7 +298,6 @@ TEST(Simd, DistanceFilterNeverDropsAPointWithinTheBound) {
     set_simd_path(path);
     const simd::Kernels& k = simd::active_kernels();
     if (!k.point_filter) continue;
-    std::vector<std::uint32_t> sel(pts.size());
     for (int trial = 0; trial < 100; ++trial) {
       // Query points: data points (exact ties at distance 0) and random points in the box.
       const Vec3 q = trial % 2 ? pts[(static_cast<std::size_t>(trial) * 37) % pts.size()]
@@ -308,12 +310,7 @@ TEST(Simd, DistanceFilterNeverDropsAPointWithinTheBound) {
                                  -kInf, kInf};
       const unsigned off = static_cast<unsigned>(trial % 9);  // unaligned starts and odd counts
       const unsigned count = static_cast<unsigned>(pts.size()) - off;
-      const unsigned n = k.point_filter(&pts[off].x, count, f, sel.data());
-      std::vector<char> in(count, 0);
-      for (unsigned j = 0; j < n; ++j) {
-        ASSERT_LT(sel[j], count);
-        in[sel[j]] = 1;
-      }
+      const std::vector<char> in = filter_kept(k, pts, off, f);
       for (unsigned j = 0; j < count; ++j) {
         const Vec3 v = pts[off + j] - q;
         if (glm::dot(v, v) <= r2) {
