@@ -68,7 +68,7 @@ constexpr float kRelSlack = 0x1p-20f;  // > 3 float roundings (sub, 1/d, mul) of
 // Box i's lo.xyz, hi.xyz as 8 floats (the record's next 2 floats are read and ignored); lanes
 // past b.count repeat box 0 and are masked off by the caller.
 inline const float* box_row(const ChildBoxesF& b, unsigned i) {
-  // (i < count) * i: no branch (the conditional mispredicted ~1 M times in the same render)
+  // (i < count) * i: no branch (the conditional mispredicted ~1 M times in the same run)
   return b.base + static_cast<std::size_t>(i * static_cast<unsigned>(i < b.count)) * b.stride;
 }
 
@@ -164,7 +164,7 @@ void child_dist2_sse2(const ChildBoxesF& b, const float* q, float margin, float*
 // Appends i + the index of each set bit of the W-lane mask m to out[n...] and returns the new
 // count. Each lane's index is written at out[n] and n advances only when its bit is set, without a
 // branch per bit (a loop over the set bits mispredicted ~1.6 M times in a 150x100, 8 spp surfel
-// render: bench/README.md). Writes stay below i + W (n <= i + j at lane j), so out needs no
+// run, set-up included: bench/README.md). Writes stay below i + W (n <= i + j at lane j), so out needs no
 // capacity beyond the point count.
 template <unsigned W>
 [[nodiscard]] inline unsigned append_lanes(unsigned m, unsigned i, std::uint32_t* out, unsigned n) {

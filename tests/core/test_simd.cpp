@@ -7,6 +7,7 @@
 #include "rayscan/brute_force.hpp"
 #include "rayscan/distance.hpp"
 #include "rayscan/octree.hpp"
+#include "rayscan/point_cloud.hpp"
 #include "rayscan/point_query.hpp"
 #include "rayscan/simd.hpp"
 
@@ -208,8 +209,7 @@ TEST(Simd, PointFilterNeverDropsAPointThatPasses) {
   PathGuard guard;
   const std::vector<Vec3> pts = make_points(1003, Dist::utm_mm, 5);  // large magnitudes, mm lattice
   std::mt19937_64 rng(11);
-  AABB box;
-  for (const Vec3& p : pts) box.expand(p);
+  const AABB box = bounds_of(pts);
   std::size_t kept = 0, dropped = 0;
   for (SimdPath path : supported_paths()) {
     set_simd_path(path);
@@ -252,8 +252,7 @@ TEST(Simd, PointFilterWithPerPointRadiiNeverDropsAPointWithinItsRadius) {
   std::uniform_real_distribution<float> ur(0.0005f, 0.02f);
   std::vector<float> radii(pts.size());
   for (float& r : radii) r = ur(rng);
-  AABB box;
-  for (const Vec3& p : pts) box.expand(p);
+  const AABB box = bounds_of(pts);
   std::size_t kept = 0, dropped_by_radius = 0;
   for (SimdPath path : supported_paths()) {
     set_simd_path(path);
@@ -291,8 +290,7 @@ TEST(Simd, DistanceFilterNeverDropsAPointWithinTheBound) {
   PathGuard guard;
   const std::vector<Vec3> pts = make_points(1003, Dist::utm_mm, 6);
   std::mt19937_64 rng(12);
-  AABB box;
-  for (const Vec3& p : pts) box.expand(p);
+  const AABB box = bounds_of(pts);
   std::size_t kept = 0, dropped = 0;
   for (SimdPath path : supported_paths()) {
     set_simd_path(path);
@@ -329,8 +327,7 @@ TEST(Simd, DistanceFilterNeverDropsAPointWithinTheBound) {
 TEST(Simd, RayQueriesAreBitIdenticalOnEveryPath) {
   PathGuard guard;
   const std::vector<Vec3> pts = make_points(20000, Dist::clustered, 9);
-  AABB box;
-  for (const Vec3& p : pts) box.expand(p);
+  const AABB box = bounds_of(pts);
   const Octree tree = Octree::build_bulk(pts);
   std::mt19937_64 rng(3);
   std::vector<Ray> rays;

@@ -401,6 +401,19 @@ inline constexpr double kBlendReachFactor = 1.0307764064044151;
 /// sense of blended_normal (in-plane distance < r, plane offset <= r/4): sqrt(1 + 1/16) R.
 [[nodiscard]] inline double blend_reach(const SurfelView& s) { return s.max_radius * kBlendReachFactor; }
 
+/// The squared in-plane distance of x from the centre c of a disc (normal n, not necessarily unit
+/// in float; radius r, world units) when the disc covers x in the sense of blended_normal (plane
+/// offset dot(x - c, n) within r/4, in-plane distance < r), else kInf. The one cover test of
+/// blended_normal, covering_discs and covering_discs_among (the same expressions, so they agree
+/// bit for bit).
+[[nodiscard]] inline double cover_in_plane_d2(const Vec3& c, const Vec3& n, double r, const Vec3& x) {
+  const Vec3 v = x - c;
+  const double off = glm::dot(v, n);
+  if (std::abs(off) > 0.25 * r) return kInf;
+  const double d2 = glm::dot(v, v) - off * off;
+  return d2 >= r * r ? kInf : d2;
+}
+
 /// Shading normal at hit point x of disc `hit`: the normals of the discs among `candidates` (at
 /// least every disc that covers x: covering_discs, or every centre within blend_reach of x) that cover x (in-plane distance < r, within r/4
 /// of their plane, normal within 45 degrees) blended with weights 1 - d^2/r^2, the normalised splat
@@ -416,12 +429,9 @@ inline constexpr double kBlendReachFactor = 1.0307764064044151;
     const Vec3 n(s.normals[h.index]);
     const double c = glm::dot(n, n0);
     if (std::abs(c) < 0.7071) continue;
-    const Vec3 v = x - s.centers[h.index];
     const double r = s.radii[h.index];
-    const double off = glm::dot(v, n);
-    if (std::abs(off) > 0.25 * r) continue;
-    const double d2 = glm::dot(v, v) - off * off;
-    if (d2 >= r * r) continue;
+    const double d2 = cover_in_plane_d2(s.centers[h.index], n, r, x);
+    if (!(d2 < kInf)) continue;
     own = own || h.index == hit;
     sum += (1.0 - d2 / (r * r)) * (c < 0.0 ? -n : n);
   }
@@ -430,14 +440,6 @@ inline constexpr double kBlendReachFactor = 1.0307764064044151;
 }
 
 namespace surfel_detail {
-
-/// True when the disc (centre c, normal n, radius r) covers x in the sense of blended_normal
-/// (in-plane distance < r, plane offset <= r/4), with blended_normal's own expressions.
-[[nodiscard]] inline bool disc_covers(const Vec3& c, const glm::vec3& n, double r, const Vec3& x) {
-  const Vec3 w = x - c;
-  const double off = glm::dot(w, Vec3(n));
-  return !(std::abs(off) > 0.25 * r || glm::dot(w, w) - off * off >= r * r);
-}
 
 /// The squared reach of cover_descent for a disc of radius r (world units) and a neighbourhood of
 /// delta >= 0: (kBlendReachFactor r (1 + 1e-9) + delta)^2, widened past rounding.
@@ -549,7 +551,7 @@ template <SpatialIndex I>
 void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vector<Neighbor>& out) {
   out.clear();
   surfel_detail::cover_descent(index, s, x, 0.0, [&](std::uint32_t, PointIndex id, const Vec3&, double d2, float r) {
-    if (surfel_detail::disc_covers(s.centers[id], s.normals[id], r, x)) out.push_back({id, d2});  // squared until sorted
+    if (cover_in_plane_d2(s.centers[id], Vec3(s.normals[id]), r, x) < kInf) out.push_back({id, d2});  // squared until sorted
   });
   surfel_detail::finish_covering(out);
 }
@@ -590,7 +592,7 @@ inline void covering_discs_among(std::span<const CoverCandidate> cands, const Ve
   for (const CoverCandidate& c : cands) {
     const Vec3 v = c.p - x;
     const double d2 = glm::dot(v, v);
-    if (d2 > surfel_detail::cover_reach2(c.r, 0.0) || !surfel_detail::disc_covers(c.c, c.n, c.r, x)) continue;
+    if (d2 > surfel_detail::cover_reach2(c.r, 0.0) || !(cover_in_plane_d2(c.c, Vec3(c.n), c.r, x) < kInf)) continue;
     out.push_back({c.id, d2});  // squared until sorted
   }
   surfel_detail::finish_covering(out);
