@@ -262,21 +262,24 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
     for (int k = 0; k < 400; ++k) {
       const Vec3 o(u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2);
       const Ray ray(o, Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5));
+      // Every fourth ray in a window [t0, t1] (the geometry boxes are cut at the disc test's t_min,
+      // DiscKey::key_min, far above the query's own t0 - 2 R); the others from the origin on.
+      const double t0 = k % 4 == 3 ? 0.4 * u(rng) : 0.0, t1 = k % 4 == 3 ? t0 + 0.6 : kInf;
       double bt = kInf;
       PointIndex bi = 0;
       for (std::size_t i = 0; i < d.c.size(); ++i) {
-        const double t = ray_disc_t(ray.origin(), ray.direction(), d.c[i], Vec3(d.n[i]), d.r[i], 0.0, kInf);
+        const double t = ray_disc_t(ray.origin(), ray.direction(), d.c[i], Vec3(d.n[i]), d.r[i], t0, t1);
         if (t < bt) { bt = t; bi = PointIndex(i); }
       }
       std::vector<RayHit> scratch;
       RayQueryStats st;
       const SurfelHit h = std::visit(
-          [&](const auto& ix) { return first_surfel_hit(ix, v, ray, 0.0, kInf, nullptr, false, scratch, st); }, idx);
+          [&](const auto& ix) { return first_surfel_hit(ix, v, ray, t0, t1, nullptr, false, scratch, st); }, idx);
       ASSERT_EQ(h.t, bt) << type << " ray " << k;
       if (!boxes_f.empty()) {
         const Octree& oct = std::get<Octree>(idx);
-        const SurfelHit hd = first_surfel_hit(oct, v, ray, 0.0, kInf, nullptr, false, scratch, st_d);
-        const SurfelHit hf = first_surfel_hit(oct, vf, ray, 0.0, kInf, nullptr, false, scratch, st_f);
+        const SurfelHit hd = first_surfel_hit(oct, v, ray, t0, t1, nullptr, false, scratch, st_d);
+        const SurfelHit hf = first_surfel_hit(oct, vf, ray, t0, t1, nullptr, false, scratch, st_f);
         ASSERT_EQ(hf.t, bt) << type << " ray " << k << " (float boxes)";
         EXPECT_EQ(hf.index, hd.index) << type << " ray " << k << " (float boxes)";
       }
@@ -289,8 +292,10 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
           EXPECT_LE(p[a], db.hi[a] + 1e-12);
         }
         const SurfelHit any = std::visit(
-            [&](const auto& ix) { return first_surfel_hit(ix, v, ray, 0.0, kInf, nullptr, true, scratch, st); }, idx);
+            [&](const auto& ix) { return first_surfel_hit(ix, v, ray, t0, t1, nullptr, true, scratch, st); }, idx);
         EXPECT_LT(any.t, kInf);
+        EXPECT_GE(any.t, t0);
+        EXPECT_LE(any.t, t1);
       }
       hits += bt < kInf;
     }

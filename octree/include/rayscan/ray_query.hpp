@@ -206,6 +206,11 @@ struct NoChildBoxesF {};
 /// applies that test too (simd::PointFilterD::radii), so the rejected points never reach the
 /// scalar loop.
 ///
+/// With node_box, the key functor may also have a member `double key_min()`: a lower bound of every
+/// finite refined key (e.g. the t_min of a disc test, where the query's t_min lies far below it so
+/// that the base keys pass). The geometry boxes are then cut at it (a box behind it holds no hit),
+/// and the SIMD point filter at it less the radius (the geometry lies within the radius of its point).
+///
 /// Optionally too (with node_box, on FloatChildBoxes indexes), `child_boxes_f(n)`
 /// (simd::ChildBoxesF) gives the node_box of each of n's children in float, relative to the
 /// index's float_origin() and rounded outwards (each float box contains the double one): the
@@ -271,6 +276,10 @@ struct RayTraversal {
   double pad;           // node distance bound: r, tightened to the k-bound for order ray
   Vec3 o_plus, o_minus;  // slab planes of the box grown by pad
   double t_lo, t_hi;
+  // Geometry boxes (RefinedKey::node_box): the least ray parameter a hit inside one can have, the
+  // key functor's key_min() when it has one (the query's own t_lo may lie far below it).
+  static constexpr bool key_floor_known = per_box && requires(const KeyPolicy& kp) { kp.key.key_min(); };
+  double box_t_lo = -kInf;
   RayScratch<Node>& scratch;
   const simd::Kernels& kern;
   double slack_t = 0, slack_d2 = 0;
@@ -301,6 +310,7 @@ struct RayTraversal {
     o_minus = o - (pad + tol);
     t_lo = q.t_min - tol;
     t_hi = (sphere ? q.t_max + radius : q.t_max) + tol;  // sphere keys satisfy t_p <= key + r
+    if constexpr (key_floor_known) box_t_lo = std::max(t_lo, key_policy.key.key_min() - tol);
     // The rest of the set-up (prepare) waits for the root test: a ray that misses the root's box
     // (~45% of bench_rays' camera rays) pays only this much (issue 12 re-measure, bench/README.md).
     // A per-node radius sets the root's own pad first, which the root test needs.
@@ -360,7 +370,9 @@ struct RayTraversal {
   /// Refreshes the per-ray SIMD constants after pad or t_hi changed (dynamic k filter).
   void update_simd() {
     pf.d2_max = (ray_order ? std::min(r2, worst * worst * (1.0 + 1e-12)) : per_node ? pad * pad : r2) + slack_d2;
-    pf.t_lo = t_lo - slack_t;
+    // With a key floor, a point whose geometry (within radius of it) holds a hit has t_p >= the
+    // floor less the radius.
+    pf.t_lo = (key_floor_known ? std::max(t_lo, box_t_lo - radius) : t_lo) - slack_t;
     pf.t_hi = t_hi + slack_t;
     if constexpr (per_box_f) {
       if (kern.child_slab) {
@@ -371,7 +383,8 @@ struct RayTraversal {
           sr_box.o_plus[a] = static_cast<float>(o_rel[a] + margin);
           sr_box.o_minus[a] = static_cast<float>(o_rel[a] - margin);
         }
-        sr_box.t_lo = static_cast<float>(t_lo - 0x1p-22 * std::abs(t_lo));
+        const double lo = key_floor_known ? std::max(t_lo, box_t_lo) : t_lo;
+        sr_box.t_lo = static_cast<float>(lo - 0x1p-22 * std::abs(lo));
         sr_box.t_hi = static_cast<float>(t_hi + 0x1p-22 * std::abs(t_hi));
       }
     } else if constexpr (detail::FloatChildBoxes<I>) {
@@ -445,7 +458,8 @@ struct RayTraversal {
     if constexpr (per_node) set_node_pad(c);
     if constexpr (per_box) {
       const AABB b = key_policy.node_box_of(c);
-      const Interval iv = slab_interval_grown(o + tol, o - tol, inv_d, b, t_lo, t_hi);
+      const Interval iv =
+          slab_interval_grown(o + tol, o - tol, inv_d, b, key_floor_known ? std::max(t_lo, box_t_lo) : t_lo, t_hi);
       if (iv.empty()) return false;
       if (has_planes)
         for (const Plane& pl : q.planes)

@@ -261,6 +261,9 @@ struct DiscKey {
   }
   /// The radii reject() tests, by storage slot, for the ray query's SIMD point filter (or null).
   const float* filter_radii() const { return slot_radii; }
+  /// Every finite key is a disc hit t >= t_min (RefinedKey's key_min; the query's own t_min is
+  /// 2 R lower, for the sphere keys).
+  double key_min() const { return t_min; }
   double operator()(PointIndex id, double, double d2, double) const {
     const double r = s->radii[id];
     if (d2 > r * r) return kInf;  // the ray passes farther than r from the centre: misses the disc
