@@ -291,6 +291,7 @@ struct RayTraversal {
   double mag = 0;
   bool slab_is_final = false;  // children whose SIMD slab result is final (else it only prefilters)
   bool prepared = false;       // prepare() ran
+  bool radii_filter = false;   // the SIMD point filter applies the key functor's per-slot radii
 
   RayTraversal(const I& index_, const Ray& ray, const RayQuery& q_, Candidate& best_, RayQueryStats* stats_,
                const KeyPolicy& key_policy_)
@@ -349,6 +350,7 @@ struct RayTraversal {
       }
     }
     if constexpr (per_node) set_node_pad(index.root());
+    if constexpr (requires { key_policy.key.filter_radii(); }) radii_filter = key_policy.key.filter_radii() != nullptr;
     update_simd();
     slab_is_final = !ray_order && !has_planes && (!per_node || per_box_f);
   }
@@ -356,12 +358,16 @@ struct RayTraversal {
   /// Per-node state on entering node n (with per-node radii): the pad and the point filter's
   /// distance bound become n's own; the float child slabs too, unless the children are tested on
   /// their float geometry boxes (per_box_f), whose slabs do not depend on the node.
+  /// With per-slot radii in the point filter (radii_filter) and float geometry boxes, nothing: each
+  /// point's own radius already bounds the filter below any node's pad, which nothing else reads.
   __attribute__((always_inline)) void enter_node([[maybe_unused]] Node n) {
     if constexpr (per_node) {
-      set_node_pad(n);
       if constexpr (per_box_f) {
+        if (radii_filter) return;
+        set_node_pad(n);
         pf.d2_max = pad * pad + slack_d2;
       } else {
+        set_node_pad(n);
         update_simd();
       }
     }
@@ -561,13 +567,15 @@ struct RayTraversal {
     }
     // p: the position of slot s (pos[s], bit for bit: from the SIMD filter's decoded block, so a
     // compact encoding is decoded once per leaf, not again per survivor).
-    auto eval_slot = [&](std::uint32_t s, const Vec3& p) __attribute__((always_inline)) {
+    // radius_filtered: the point passed the SIMD filter with the policy's per-slot radii, which
+    // already made reject()'s test (up to the filter's slack; the key functor decides exactly).
+    auto eval_slot = [&](std::uint32_t s, const Vec3& p, bool radius_filtered) __attribute__((always_inline)) {
       const RayPointTerms pt = ray_point_terms(o, d, p);
       if (pt.d2 > r2) return;
       if constexpr (KeyPolicy::refines) {
         // The policy's early rejection by storage slot (RefinedKey), before any per-point work.
         if constexpr (requires { key_policy.key.reject(s, pt.d2); })
-          if (key_policy.key.reject(s, pt.d2)) return;
+          if (!radius_filtered && key_policy.key.reject(s, pt.d2)) return;
       }
       const double t = sphere ? sphere_entry(pt.t, pt.d2, radius) : pt.t;
       if (t < q.t_min || t > q.t_max) return;
@@ -590,21 +598,19 @@ struct RayTraversal {
       auto& sel = scratch.sel;
       if (sel.size() < range.size()) sel.resize(range.size());
       const double* xyz = position_block(pos, range.begin, range.size(), scratch.block);
-      if constexpr (KeyPolicy::refines) {
-        // The policy's per-slot radii (RefinedKey): its early rejection inside the SIMD filter.
-        if constexpr (requires { key_policy.key.filter_radii(); })
-          if (const float* radii = key_policy.key.filter_radii()) pf.radii = radii + range.begin;
-      }
+      // The policy's per-slot radii (RefinedKey): its early rejection inside the SIMD filter.
+      if constexpr (requires { key_policy.key.filter_radii(); })
+        if (radii_filter) pf.radii = key_policy.key.filter_radii() + range.begin;
       const unsigned m = kern.point_filter(xyz, range.size(), pf, sel.data());
       for (unsigned j = 0; j < m; ++j) {
         const double* p = xyz + 3 * std::size_t{sel[j]};
-        eval_slot(range.begin + sel[j], Vec3(p[0], p[1], p[2]));
+        eval_slot(range.begin + sel[j], Vec3(p[0], p[1], p[2]), radii_filter);
         if (done) return;
       }
       return;
     }
     for (std::uint32_t s = range.begin; s < range.end; ++s) {
-      eval_slot(s, pos[s]);
+      eval_slot(s, pos[s], false);
       if (done) return;
     }
   }
