@@ -243,8 +243,9 @@ TEST(Simd, PointFilterNeverDropsAPointThatPasses) {
 }
 
 // The filter with a radius per point (PointFilterD::radii, surfel rendering's disc radii): never
-// drops a point within its own radius (oracle: d^2 <= r_i^2 in scalar double, as DiscKey::reject),
-// and drops most points that pass the common bound but not their own.
+// drops a point within its own radius (oracle: d^2 <= r_i^2 in scalar double, as DiscKey::reject)
+// nor, with t_lo_own, one whose t_p lies within its own radius before the floor; and drops most
+// points that pass the common bounds but not their own.
 TEST(Simd, PointFilterWithPerPointRadiiNeverDropsAPointWithinItsRadius) {
   PathGuard guard;
   const std::vector<Vec3> pts = make_points(1003, Dist::utm_mm, 7);
@@ -253,7 +254,7 @@ TEST(Simd, PointFilterWithPerPointRadiiNeverDropsAPointWithinItsRadius) {
   std::vector<float> radii(pts.size());
   for (float& r : radii) r = ur(rng);
   const AABB box = bounds_of(pts);
-  std::size_t kept = 0, dropped_by_radius = 0;
+  std::size_t kept = 0, dropped_by_radius = 0, dropped_by_t = 0;
   for (SimdPath path : supported_paths()) {
     set_simd_path(path);
     const simd::Kernels& k = simd::active_kernels();
@@ -264,17 +265,28 @@ TEST(Simd, PointFilterWithPerPointRadiiNeverDropsAPointWithinItsRadius) {
       const double r_max = 0.02, vmax = glm::length(o - box.center()) + glm::length(box.hi - box.lo);
       const double slack = 1e-12 * vmax * vmax;
       const unsigned off = static_cast<unsigned>(trial % 11);  // unaligned starts and odd counts
-      const simd::PointFilterD f{{o.x, o.y, o.z}, {d.x, d.y, d.z}, r_max * r_max + slack, -kInf, kInf,
-                                 radii.data() + off, slack};
+      simd::PointFilterD f{{o.x, o.y, o.z}, {d.x, d.y, d.z}, r_max * r_max + slack, -kInf, kInf,
+                           radii.data() + off, slack};
+      // Every other trial a key floor as the traversal sets it (RefinedKey::key_min): t_lo the
+      // query radius before it, t_lo_own the floor itself (the projection of a random point).
+      const bool floor = trial % 4 >= 2;
+      const double t_floor = ray_point_terms(o, d, pts[rng() % pts.size()]).t;
+      const double slack_t = 1e-12 * vmax;
+      if (floor) {
+        f.t_lo = t_floor - r_max - slack_t;
+        f.t_lo_own = t_floor - slack_t;
+      }
       const unsigned count = static_cast<unsigned>(pts.size()) - off;
       const std::vector<char> in = filter_kept(k, pts, off, f);
       for (unsigned j = 0; j < count; ++j) {
         const RayPointTerms pt = ray_point_terms(o, d, pts[off + j]);
         const double r = radii[off + j];
-        if (pt.d2 <= r * r) {
+        if (pt.d2 <= r * r && (!floor || pt.t >= t_floor - r)) {
           ++kept;
           ASSERT_TRUE(in[j]) << to_string(path) << " dropped point " << j << " of trial " << trial;
-        } else if (pt.d2 <= r_max * r_max) {
+        } else if (pt.d2 <= r * r && pt.t >= t_floor - r_max) {
+          dropped_by_t += !in[j];
+        } else if (pt.d2 <= r_max * r_max && (!floor || pt.t >= t_floor - r_max)) {
           dropped_by_radius += !in[j];
         }
       }
@@ -282,6 +294,44 @@ TEST(Simd, PointFilterWithPerPointRadiiNeverDropsAPointWithinItsRadius) {
   }
   EXPECT_GT(kept, 100u);
   EXPECT_GT(dropped_by_radius, 100u);  // the per-point radius filters, not only the common bound
+  EXPECT_GT(dropped_by_t, 100u);       // and so does each point's own t floor (t_lo_own)
+}
+
+// With per-point radii, every point the filter keeps passed its widened tests, the last count %
+// width points (the scalar tail) included: points far inside or far outside each bound (the ray's,
+// each point's own radius, the t window and each point's own t floor), every count from 1 to 11 on
+// every path, and the kept set must be exactly the passing one.
+TEST(Simd, PointFilterWithRadiiKeepsOnlyPassingPointsTailIncluded) {
+  PathGuard guard;
+  std::mt19937_64 rng(21);
+  const Vec3 o(636300.5, 848450.25, 1050.0), d = glm::normalize(Vec3(0.3, 0.8, -0.5));
+  const Vec3 side = glm::normalize(glm::cross(d, Vec3(0, 0, 1)));
+  for (SimdPath path : supported_paths()) {
+    set_simd_path(path);
+    const simd::Kernels& k = simd::active_kernels();
+    if (!k.point_filter) continue;
+    for (int trial = 0; trial < 60; ++trial) {
+      const unsigned count = 1 + static_cast<unsigned>(trial % 11);
+      std::vector<Vec3> pts;
+      std::vector<float> radii;
+      std::vector<char> pass;
+      for (unsigned j = 0; j < count; ++j) {
+        // kind 0: passes; 1: outside the common bound (distance 5); 2: inside it but outside its
+        // own radius (0.5 from the ray, radius 0.1); 3: before the t window; 4: inside the window
+        // but more than its own radius before the floor (t = 8, floor 10, radius 1).
+        const int kind = static_cast<int>(rng() % 5);
+        const double t = kind == 3 ? 2.0 : kind == 4 ? 8.0 : 20.0;
+        const double off = kind == 1 ? 5.0 : kind == 2 ? 0.5 : 0.05;
+        pts.push_back(o + t * d + off * side);
+        radii.push_back(kind == 2 ? 0.1f : 1.0f);
+        pass.push_back(kind == 0);
+      }
+      const simd::PointFilterD f{{o.x, o.y, o.z}, {d.x, d.y, d.z}, 1.0, 5.0, 100.0, radii.data(), 1e-9, 10.0};
+      const std::vector<char> in = filter_kept(k, pts, 0, f);
+      for (unsigned j = 0; j < count; ++j)
+        EXPECT_EQ(in[j], pass[j]) << to_string(path) << " point " << j << " of " << count;
+    }
+  }
 }
 
 // knn_query's use of the point filter (d = 0: the distance-only loops): never drops a point within

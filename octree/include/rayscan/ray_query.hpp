@@ -204,7 +204,9 @@ struct NoChildBoxesF {};
 /// disc's radius: d2 > r^2). With a member `const float* filter_radii()` returning the same radii by
 /// storage slot (one float per slot of the index, world units; or null), the SIMD point filter
 /// applies that test too (simd::PointFilterD::radii), so the rejected points never reach the
-/// scalar loop.
+/// scalar loop (nor reject() again). These radii must bound each point's whole geometry (a ball of
+/// radius r around it: a finite refined key is >= t_p - r), so that with key_min below the filter
+/// also drops the points whose t_p lies more than their own radius before it.
 ///
 /// With node_box, the key functor may also have a member `double key_min()`: a lower bound of every
 /// finite refined key (e.g. the t_min of a disc test, where the query's t_min lies far below it so
@@ -379,6 +381,8 @@ struct RayTraversal {
     // With a key floor, a point whose geometry (within radius of it) holds a hit has t_p >= the
     // floor less the radius.
     pf.t_lo = (key_floor_known ? std::max(t_lo, box_t_lo - radius) : t_lo) - slack_t;
+    // With per-slot radii in the filter, each point's own: t_p >= the floor less its radius.
+    if constexpr (key_floor_known) pf.t_lo_own = box_t_lo - slack_t;
     pf.t_hi = t_hi + slack_t;
     if constexpr (per_box_f) {
       if (kern.child_slab) {

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 
@@ -76,6 +77,10 @@ struct PointFilterD {
   /// RefinedKey's filter_radii). A NaN radius keeps the d2_max bound. Null: d2_max alone.
   const float* radii = nullptr;
   double d2_slack = 0.0;  ///< widening of radii[i]^2 (world units^2; covers the filter's rounding)
+  /// With radii: keep only points with t_p >= t_lo_own - radii[i] as well (already widened; a NaN
+  /// radius keeps t_lo): the lower t bound of geometry that lies within each point's own radius of
+  /// it, e.g. a key floor (RefinedKey's key_min) less nothing but that radius.
+  double t_lo_own = -std::numeric_limits<double>::infinity();
 };
 
 /// Slab test of up to 8 child boxes: bit i of the result is set when box i grown as in `r`
@@ -89,7 +94,9 @@ using PacketChildSlabFn = void (*)(const ChildBoxesF& boxes, const SlabPacketF& 
                                    std::uint32_t* hits, float* entry);
 /// Point filter over positions xyz[0..count) (AoS doubles, 3 per point): writes the local
 /// indices of the points that may pass to out (capacity count) and returns how many; out[ret,
-/// count) may be overwritten. The filter may keep points that fail (never drops one that passes).
+/// count) may be overwritten. The filter may keep points that fail (never drops one that passes);
+/// with per-point radii, every point it keeps passed its widened tests, the last count % width
+/// points included (a scalar tail), so a caller may skip its own copy of the radius test.
 using PointFilterFn = unsigned (*)(const double* xyz, unsigned count, const PointFilterD& f,
                                    std::uint32_t* out);
 
