@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <limits>
 #include <random>
 
 using namespace rayscan;
@@ -298,9 +299,10 @@ TEST(Simd, PointFilterWithPerPointRadiiNeverDropsAPointWithinItsRadius) {
 }
 
 // With per-point radii, every point the filter keeps passed its widened tests, the last count %
-// width points (the scalar tail) included: points far inside or far outside each bound (the ray's,
-// each point's own radius, the t window and each point's own t floor), every count from 1 to 11 on
-// every path, and the kept set must be exactly the passing one.
+// width points (the scalar tail) included: points far inside or far outside one bound each (the
+// common distance bound, each point's own radius, both ends of the t window, each point's own t
+// floor) and passing points with a NaN radius (which keeps the common bounds), every count from 1
+// to 11 on every path; the kept set must be exactly the passing one.
 TEST(Simd, PointFilterWithRadiiKeepsOnlyPassingPointsTailIncluded) {
   PathGuard guard;
   std::mt19937_64 rng(21);
@@ -316,15 +318,21 @@ TEST(Simd, PointFilterWithRadiiKeepsOnlyPassingPointsTailIncluded) {
       std::vector<float> radii;
       std::vector<char> pass;
       for (unsigned j = 0; j < count; ++j) {
-        // kind 0: passes; 1: outside the common bound (distance 5); 2: inside it but outside its
-        // own radius (0.5 from the ray, radius 0.1); 3: before the t window; 4: inside the window
-        // but more than its own radius before the floor (t = 8, floor 10, radius 1).
-        const int kind = static_cast<int>(rng() % 5);
-        const double t = kind == 3 ? 2.0 : kind == 4 ? 8.0 : 20.0;
-        const double off = kind == 1 ? 5.0 : kind == 2 ? 0.5 : 0.05;
+        // kind 0: passes (radius 1); 1: outside the common bound only (1.5 from the ray, radius
+        // 2); 2: outside its own radius only (0.5 from the ray, radius 0.1); 3: before the t
+        // window only (t = 2 < 5, radius 9: its own floor is 10 - 9 = 1); 4: more than its own
+        // radius before the floor only (t = 8, radius 1); 5: past the window (t = 150 > 100);
+        // 6: passes with a NaN radius.
+        const int kind = static_cast<int>(rng() % 7);
+        const double t = kind == 3 ? 2.0 : kind == 4 ? 8.0 : kind == 5 ? 150.0 : 20.0;
+        const double off = kind == 1 ? 1.5 : kind == 2 ? 0.5 : 0.05;
         pts.push_back(o + t * d + off * side);
-        radii.push_back(kind == 2 ? 0.1f : 1.0f);
-        pass.push_back(kind == 0);
+        radii.push_back(kind == 1   ? 2.0f
+                        : kind == 2 ? 0.1f
+                        : kind == 3 ? 9.0f
+                        : kind == 6 ? std::numeric_limits<float>::quiet_NaN()
+                                    : 1.0f);
+        pass.push_back(kind == 0 || kind == 6);
       }
       const simd::PointFilterD f{{o.x, o.y, o.z}, {d.x, d.y, d.z}, 1.0, 5.0, 100.0, radii.data(), 1e-9, 10.0};
       const std::vector<char> in = filter_kept(k, pts, 0, f);

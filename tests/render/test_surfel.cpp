@@ -243,6 +243,10 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
   Discs d = random_discs(3000, 13);
   // Flat, thin-boxed discs too (normal along an axis): the case the boxes are for.
   for (std::size_t i = 0; i < d.c.size(); i += 3) d.n[i] = glm::vec3(0.0f, 0.0f, i % 2 ? 1.0f : -1.0f);
+  // Small discs in one half of the cube, so that node radius bounds differ from node to node
+  // (a bound left over from another node would drop discs of the other half).
+  for (std::size_t i = 0; i < d.c.size(); ++i)
+    if (d.c[i].x < 0.5) d.r[i] = 0.2f * d.r[i];
   std::mt19937_64 rng(17);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   for (const char* type : {"octree-adaptive", "kdtree", "brute"}) {
@@ -257,11 +261,20 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
     if (const auto* oct = std::get_if<Octree>(&idx)) boxes_f = surfel_node_boxes_f(*oct, boxes);
     SurfelView vf = v;
     vf.node_boxes_f = boxes_f;
+    // And the render's full view: the disc radii by storage slot too (the SIMD filter's own radius
+    // and t floor per point, DiscKey::reject skipped for its survivors).
+    std::vector<float> slot_r;
+    if (const auto* oct = std::get_if<Octree>(&idx)) slot_r = surfel_slot_radii(*oct, d.r);
+    SurfelView vs = vf;
+    vs.slot_radii = slot_r;
     int hits = 0;
     RayQueryStats st_d, st_f;
-    for (int k = 0; k < 400; ++k) {
+    for (int k = 0; k < 6000; ++k) {
       const Vec3 o(u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2, u(rng) * 1.4 - 0.2);
-      const Ray ray(o, Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5));
+      // Every other ray along an axis (a zero direction component: the scalar child test).
+      Vec3 dir(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+      if (k % 2 == 1) dir = Vec3(0.0, 0.0, 0.0), dir[k % 3] = k % 4 == 1 ? 1.0 : -1.0;
+      const Ray ray(o, dir);
       // Every fourth ray in a window [t0, t1] (the geometry boxes are cut at the disc test's t_min,
       // DiscKey::key_min, far above the query's own t0 - 2 R); the others from the origin on.
       const double t0 = k % 4 == 3 ? 0.4 * u(rng) : 0.0, t1 = k % 4 == 3 ? t0 + 0.6 : kInf;
@@ -282,6 +295,10 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
         const SurfelHit hf = first_surfel_hit(oct, vf, ray, t0, t1, nullptr, false, scratch, st_f);
         ASSERT_EQ(hf.t, bt) << type << " ray " << k << " (float boxes)";
         EXPECT_EQ(hf.index, hd.index) << type << " ray " << k << " (float boxes)";
+        RayQueryStats st_s;
+        const SurfelHit hs = first_surfel_hit(oct, vs, ray, t0, t1, nullptr, false, scratch, st_s);
+        ASSERT_EQ(hs.t, bt) << type << " ray " << k << " (slot radii)";
+        EXPECT_EQ(hs.index, hd.index) << type << " ray " << k << " (slot radii)";
       }
       if (bt < kInf) {
         EXPECT_EQ(h.index, bi);

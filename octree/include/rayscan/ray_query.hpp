@@ -211,7 +211,8 @@ struct NoChildBoxesF {};
 /// With node_box, the key functor may also have a member `double key_min()`: a lower bound of every
 /// finite refined key (e.g. the t_min of a disc test, where the query's t_min lies far below it so
 /// that the base keys pass). The geometry boxes are then cut at it (a box behind it holds no hit),
-/// and the SIMD point filter at it less the radius (the geometry lies within the radius of its point).
+/// and the SIMD point filter at it less the query radius, which therefore must bound the reach of
+/// each point's geometry (as the sphere keys of order sphere_hit already assume).
 ///
 /// Optionally too (with node_box, on FloatChildBoxes indexes), `child_boxes_f(n)`
 /// (simd::ChildBoxesF) gives the node_box of each of n's children in float, relative to the
@@ -360,8 +361,9 @@ struct RayTraversal {
   /// Per-node state on entering node n (with per-node radii): the pad and the point filter's
   /// distance bound become n's own; the float child slabs too, unless the children are tested on
   /// their float geometry boxes (per_box_f), whose slabs do not depend on the node.
-  /// With per-slot radii in the point filter (radii_filter) and float geometry boxes, nothing: each
-  /// point's own radius already bounds the filter below any node's pad, which nothing else reads.
+  /// With per-slot radii in the point filter (radii_filter) and float geometry boxes, nothing: the
+  /// pad stays the root's (the filter's distance bound in update_simd, valid for every point; each
+  /// point's own radius is below it), and nothing else reads it (test_child leaves it alone).
   __attribute__((always_inline)) void enter_node([[maybe_unused]] Node n) {
     if constexpr (per_node) {
       if constexpr (per_box_f) {
@@ -464,8 +466,9 @@ struct RayTraversal {
 
   /// Node test of child c: test_node of its box (grown by its own radius with per-node radii), or,
   /// with per-node geometry boxes, the slab test of c's box without pad.
+  /// With per-node geometry boxes the pad is neither read nor changed (it is the bound of the node
+  /// whose points are tested, or the root's: see enter_node).
   __attribute__((always_inline)) bool test_child(Node c, double& lb) {
-    if constexpr (per_node) set_node_pad(c);
     if constexpr (per_box) {
       const AABB b = key_policy.node_box_of(c);
       const Interval iv =
@@ -477,6 +480,7 @@ struct RayTraversal {
       lb = std::max(iv.lo, q.t_min);
       return live(lb);
     } else {
+      if constexpr (per_node) set_node_pad(c);
       return test_node(index.node_bounds(c), lb);
     }
   }
@@ -634,7 +638,8 @@ struct RayTraversal {
       nodes.pop_back();
       if (!live(e.lb)) continue;
       // Per-node radii: the node's subtree bound for its own points' SIMD filter and (without
-      // float geometry boxes) its children's SIMD slab prefilter (test_children).
+      // float geometry boxes) its children's SIMD slab prefilter (test_children); with per-slot
+      // radii in the filter and float geometry boxes, nothing (see enter_node).
       enter_node(e.node);
       eval_points(e.node);
       if (done) break;
@@ -781,7 +786,8 @@ namespace detail {
 ///
 /// `keys[i]` is ray i's point-key policy (OrderKey, or a RefinedKey whose refinement depends on the
 /// ray, e.g. the discs of surfel rendering; nullptr only with OrderKey). With per-node
-/// radii each ray enters a node with its own bound (RayTraversal::enter_node); with float
+/// radii each ray enters a node with its own bound (RayTraversal::enter_node; or keeps the root's
+/// when the filter has per-slot radii and the boxes are float geometry boxes); with float
 /// geometry boxes (RefinedKey::child_boxes_f) the children are tested on them, all rays at once.
 template <unsigned N, SpatialIndex I, class KeyPolicy = OrderKey>
 unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const RayQuery& q, Candidate* best,
