@@ -178,12 +178,13 @@ void child_dist2_sse2(const ChildBoxesF& b, const float* q, float margin, float*
 }
 
 // The tail of a point filter kernel: points [i, count) appended to out[n...]; returns the new
-// count. With per-point radii each through keep_point (no branch per point); without, all of them,
-// left to the exact test (measured: filtering them cost the sphere mode 0.9% more instructions
-// than it saved, bench/README.md).
+// count. With per-point radii (kRadii: f.radii is set) each through keep_point (no branch per
+// point); without, all of them, left to the exact test (measured: filtering them cost the sphere
+// mode 0.9% more instructions than it saved, bench/README.md).
+template <bool kRadii>
 [[nodiscard]] inline unsigned append_tail(const double* xyz, unsigned i, unsigned count, const PointFilterD& f,
                                           std::uint32_t* out, unsigned n) {
-  if (!f.radii) {
+  if constexpr (!kRadii) {
     for (; i < count; ++i) out[n++] = i;
     return n;
   }
@@ -258,7 +259,7 @@ unsigned point_filter_sse2_impl(const double* xyz, unsigned count, const PointFi
     unsigned m = static_cast<unsigned>(_mm_movemask_pd(ok));
     n = append_lanes<2>(m, i, out, n);
   }
-  return append_tail(xyz, i, count, f, out, n);
+  return append_tail<kRadii>(xyz, i, count, f, out, n);
 }
 
 unsigned point_filter_sse2(const double* xyz, unsigned count, const PointFilterD& f, std::uint32_t* out) {
@@ -418,7 +419,7 @@ __attribute__((target("avx2,fma"))) unsigned point_filter_avx2_impl(const double
     unsigned m = static_cast<unsigned>(_mm256_movemask_pd(ok));
     n = append_lanes<4>(m, i, out, n);
   }
-  return append_tail(xyz, i, count, f, out, n);
+  return append_tail<kRadii>(xyz, i, count, f, out, n);
 }
 
 __attribute__((target("avx2,fma"))) unsigned point_filter_avx2(const double* xyz, unsigned count,

@@ -191,6 +191,16 @@ TEST(Simd, KnnIsBitIdenticalOnEveryPath) {
   }
 }
 
+// Runs f(k, path) with each supported SIMD path set whose kernels k have a point filter.
+template <class F>
+void for_each_point_filter(F&& f) {
+  for (SimdPath path : supported_paths()) {
+    set_simd_path(path);
+    const simd::Kernels& k = simd::active_kernels();
+    if (k.point_filter) f(k, path);
+  }
+}
+
 // Runs kernel set k's point filter over pts[off, end) with f and returns, per point, whether it
 // was kept (a local index past the count is reported as a failure and ignored).
 std::vector<char> filter_kept(const simd::Kernels& k, const std::vector<Vec3>& pts, unsigned off,
@@ -212,10 +222,7 @@ TEST(Simd, PointFilterNeverDropsAPointThatPasses) {
   std::mt19937_64 rng(11);
   const AABB box = bounds_of(pts);
   std::size_t kept = 0, dropped = 0;
-  for (SimdPath path : supported_paths()) {
-    set_simd_path(path);
-    const simd::Kernels& k = simd::active_kernels();
-    if (!k.point_filter) continue;
+  for_each_point_filter([&](const simd::Kernels& k, [[maybe_unused]] SimdPath path) {
     for (int trial = 0; trial < 200; ++trial) {
       const Ray ray = random_ray(rng, box, trial % 2 == 0);
       const Vec3 o = ray.origin(), d = ray.direction();
@@ -238,7 +245,7 @@ TEST(Simd, PointFilterNeverDropsAPointThatPasses) {
         }
       }
     }
-  }
+  });
   EXPECT_GT(kept, 100u);
   EXPECT_GT(dropped, 1000u);
 }
@@ -256,10 +263,7 @@ TEST(Simd, PointFilterWithPerPointRadiiNeverDropsAPointWithinItsRadius) {
   for (float& r : radii) r = ur(rng);
   const AABB box = bounds_of(pts);
   std::size_t kept = 0, dropped_by_radius = 0, dropped_by_t = 0;
-  for (SimdPath path : supported_paths()) {
-    set_simd_path(path);
-    const simd::Kernels& k = simd::active_kernels();
-    if (!k.point_filter) continue;
+  for_each_point_filter([&](const simd::Kernels& k, [[maybe_unused]] SimdPath path) {
     for (int trial = 0; trial < 200; ++trial) {
       const Ray ray = random_ray(rng, box, trial % 2 == 0);
       const Vec3 o = ray.origin(), d = ray.direction();
@@ -292,7 +296,7 @@ TEST(Simd, PointFilterWithPerPointRadiiNeverDropsAPointWithinItsRadius) {
         }
       }
     }
-  }
+  });
   EXPECT_GT(kept, 100u);
   EXPECT_GT(dropped_by_radius, 100u);  // the per-point radius filters, not only the common bound
   EXPECT_GT(dropped_by_t, 100u);       // and so does each point's own t floor (t_lo_own)
@@ -308,10 +312,7 @@ TEST(Simd, PointFilterWithRadiiKeepsOnlyPassingPointsTailIncluded) {
   std::mt19937_64 rng(21);
   const Vec3 o(636300.5, 848450.25, 1050.0), d = glm::normalize(Vec3(0.3, 0.8, -0.5));
   const Vec3 side = glm::normalize(glm::cross(d, Vec3(0, 0, 1)));
-  for (SimdPath path : supported_paths()) {
-    set_simd_path(path);
-    const simd::Kernels& k = simd::active_kernels();
-    if (!k.point_filter) continue;
+  for_each_point_filter([&](const simd::Kernels& k, [[maybe_unused]] SimdPath path) {
     for (int trial = 0; trial < 60; ++trial) {
       const unsigned count = 1 + static_cast<unsigned>(trial % 11);
       std::vector<Vec3> pts;
@@ -339,7 +340,7 @@ TEST(Simd, PointFilterWithRadiiKeepsOnlyPassingPointsTailIncluded) {
       for (unsigned j = 0; j < count; ++j)
         EXPECT_EQ(in[j], pass[j]) << to_string(path) << " point " << j << " of " << count;
     }
-  }
+  });
 }
 
 // knn_query's use of the point filter (d = 0: the distance-only loops): never drops a point within
@@ -350,10 +351,7 @@ TEST(Simd, DistanceFilterNeverDropsAPointWithinTheBound) {
   std::mt19937_64 rng(12);
   const AABB box = bounds_of(pts);
   std::size_t kept = 0, dropped = 0;
-  for (SimdPath path : supported_paths()) {
-    set_simd_path(path);
-    const simd::Kernels& k = simd::active_kernels();
-    if (!k.point_filter) continue;
+  for_each_point_filter([&](const simd::Kernels& k, [[maybe_unused]] SimdPath path) {
     for (int trial = 0; trial < 100; ++trial) {
       // Query points: data points (exact ties at distance 0) and random points in the box.
       const Vec3 q = trial % 2 ? pts[(static_cast<std::size_t>(trial) * 37) % pts.size()]
@@ -377,7 +375,7 @@ TEST(Simd, DistanceFilterNeverDropsAPointWithinTheBound) {
         }
       }
     }
-  }
+  });
   EXPECT_GT(kept, 50u);
   EXPECT_GT(dropped, 10000u);
 }

@@ -279,10 +279,10 @@ struct RayTraversal {
   double pad;           // node distance bound: r, tightened to the k-bound for order ray
   Vec3 o_plus, o_minus;  // slab planes of the box grown by pad
   double t_lo, t_hi;
-  // Geometry boxes (RefinedKey::node_box): the least ray parameter a hit inside one can have, the
-  // key functor's key_min() when it has one (the query's own t_lo may lie far below it).
+  // Geometry boxes (RefinedKey::node_box): the least ray parameter a hit inside one can have: t_lo,
+  // raised to the key functor's key_min() when it has one (the query's own t_lo may lie far below).
   static constexpr bool key_floor_known = per_box && requires(const KeyPolicy& kp) { kp.key.key_min(); };
-  double box_t_lo = -kInf;
+  double box_t_lo;
   RayScratch<Node>& scratch;
   const simd::Kernels& kern;
   double slack_t = 0, slack_d2 = 0;
@@ -314,6 +314,7 @@ struct RayTraversal {
     o_minus = o - (pad + tol);
     t_lo = q.t_min - tol;
     t_hi = (sphere ? q.t_max + radius : q.t_max) + tol;  // sphere keys satisfy t_p <= key + r
+    box_t_lo = t_lo;
     if constexpr (key_floor_known) box_t_lo = std::max(t_lo, key_policy.key.key_min() - tol);
     // The rest of the set-up (prepare) waits for the root test: a ray that misses the root's box
     // (~45% of bench_rays' camera rays) pays only this much (issue 12 re-measure, bench/README.md).
@@ -380,11 +381,11 @@ struct RayTraversal {
   /// Refreshes the per-ray SIMD constants after pad or t_hi changed (dynamic k filter).
   void update_simd() {
     pf.d2_max = (ray_order ? std::min(r2, worst * worst * (1.0 + 1e-12)) : per_node ? pad * pad : r2) + slack_d2;
-    // With a key floor, a point whose geometry (within radius of it) holds a hit has t_p >= the
-    // floor less the radius.
-    pf.t_lo = (key_floor_known ? std::max(t_lo, box_t_lo - radius) : t_lo) - slack_t;
-    // With per-slot radii in the filter, each point's own: t_p >= the floor less its radius.
-    if constexpr (key_floor_known) pf.t_lo_own = box_t_lo - slack_t;
+    // A point whose geometry (within radius of it) holds a hit has t_p >= the key floor less the
+    // radius (without a floor, box_t_lo = t_lo and this is t_lo); with per-slot radii in the
+    // filter, each point's own: t_p >= the floor less its radius.
+    pf.t_lo = std::max(t_lo, box_t_lo - radius) - slack_t;
+    pf.t_lo_own = box_t_lo - slack_t;
     pf.t_hi = t_hi + slack_t;
     if constexpr (per_box_f) {
       if (kern.child_slab) {
@@ -395,8 +396,7 @@ struct RayTraversal {
           sr_box.o_plus[a] = static_cast<float>(o_rel[a] + margin);
           sr_box.o_minus[a] = static_cast<float>(o_rel[a] - margin);
         }
-        const double lo = key_floor_known ? std::max(t_lo, box_t_lo) : t_lo;
-        sr_box.t_lo = static_cast<float>(lo - 0x1p-22 * std::abs(lo));
+        sr_box.t_lo = static_cast<float>(box_t_lo - 0x1p-22 * std::abs(box_t_lo));
         sr_box.t_hi = static_cast<float>(t_hi + 0x1p-22 * std::abs(t_hi));
       }
     } else if constexpr (detail::FloatChildBoxes<I>) {
@@ -471,8 +471,7 @@ struct RayTraversal {
   __attribute__((always_inline)) bool test_child(Node c, double& lb) {
     if constexpr (per_box) {
       const AABB b = key_policy.node_box_of(c);
-      const Interval iv =
-          slab_interval_grown(o + tol, o - tol, inv_d, b, key_floor_known ? std::max(t_lo, box_t_lo) : t_lo, t_hi);
+      const Interval iv = slab_interval_grown(o + tol, o - tol, inv_d, b, box_t_lo, t_hi);
       if (iv.empty()) return false;
       if (has_planes)
         for (const Plane& pl : q.planes)

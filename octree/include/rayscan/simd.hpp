@@ -78,8 +78,8 @@ struct PointFilterD {
   const float* radii = nullptr;
   double d2_slack = 0.0;  ///< widening of radii[i]^2 (world units^2; covers the filter's rounding)
   /// With radii: keep only points with t_p >= t_lo_own - radii[i] as well (already widened; a NaN
-  /// radius keeps t_lo): the lower t bound of geometry that lies within each point's own radius of
-  /// it, e.g. a key floor (RefinedKey's key_min) less nothing but that radius.
+  /// radius keeps t_lo): the least ray parameter of a hit (e.g. RefinedKey's key_min), less each
+  /// point's own radius, for geometry that lies within that radius of its point.
   double t_lo_own = -std::numeric_limits<double>::infinity();
 };
 

@@ -451,7 +451,7 @@ namespace surfel_detail {
   return e * e;
 }
 
-/// The descent of covering_discs and cover_candidates: calls f(slot, id, p, d2, r) for every point p
+/// The descent of covering_discs and cover_candidates: calls f(id, p, d2, r) for every point p
 /// of `index` (id its original index, d2 = |p - x|^2, r its disc radius: s.slot_radii[slot], else
 /// s.radii[id]) whose disc (radius r_i) may cover some point
 /// within `delta` of x: |p - x| <= sqrt(1 + 1/16) r_i + delta, widened past rounding (a superset:
@@ -496,7 +496,7 @@ void cover_descent(const I& index, const SurfelView& s, const Vec3& x, double de
       const PointIndex id = ids[k];
       const float r = s.slot_radii.empty() ? s.radii[id] : s.slot_radii[k];
       if (d2 > reach2(r)) return;
-      f(k, id, p, d2, r);
+      f(id, p, d2, r);
     };
     if (kern.point_filter && sr.size() >= 4) {
       if (scratch.sel.size() < sr.size()) scratch.sel.resize(sr.size());
@@ -553,7 +553,7 @@ inline void finish_covering(std::vector<Neighbor>& out) {
 template <SpatialIndex I>
 void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vector<Neighbor>& out) {
   out.clear();
-  surfel_detail::cover_descent(index, s, x, 0.0, [&](std::uint32_t, PointIndex id, const Vec3&, double d2, float r) {
+  surfel_detail::cover_descent(index, s, x, 0.0, [&](PointIndex id, const Vec3&, double d2, float r) {
     if (cover_in_plane_d2(s.centers[id], Vec3(s.normals[id]), r, x) < kInf) out.push_back({id, d2});  // squared until sorted
   });
   surfel_detail::finish_covering(out);
@@ -581,7 +581,7 @@ void cover_candidates(const I& index, const SurfelView& s, const Vec3& x0, doubl
                       std::vector<CoverCandidate>& out) {
   if (!(delta >= 0.0)) throw std::invalid_argument("cover_candidates: delta must be >= 0");
   out.clear();
-  surfel_detail::cover_descent(index, s, x0, delta, [&](std::uint32_t, PointIndex id, const Vec3& p, double, float r) {
+  surfel_detail::cover_descent(index, s, x0, delta, [&](PointIndex id, const Vec3& p, double, float r) {
     out.push_back({id, p, s.centers[id], s.normals[id], r});
   });
 }
