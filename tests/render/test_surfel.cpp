@@ -200,7 +200,8 @@ TEST(CoveringDiscs, HoldEveryCoveringDiscAndGiveTheBlendedNormalOfTheFullRadiusQ
 TEST(CoveringDiscs, FromTheCandidatesOfANearbyCentreEqualTheDescent) {
   // Oracle: covering_discs(x) itself (checked against brute force above). For every x within
   // delta of x0, covering_discs_among(cover_candidates(x0, delta), x) must give the same discs,
-  // distances and order, bit for bit, including x at delta (rounded inwards as the renderer does).
+  // distances and order, bit for bit, including x at delta (rounded inwards as the renderer does),
+  // and blended_normal_among the same normal as blended_normal over them.
   const Discs d = random_discs(3000, 21);
   std::mt19937_64 rng(23);
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -216,7 +217,7 @@ TEST(CoveringDiscs, FromTheCandidatesOfANearbyCentreEqualTheDescent) {
       const PointIndex hit = PointIndex(rng() % d.c.size());
       const Vec3 x0 = d.c[hit] + 0.3 * d.r[hit] * Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
       const double delta = (k % 4 + 1) * 0.5 * v.max_radius;
-      std::vector<CoverCandidate> cands;
+      CoverCandidates cands;
       std::visit([&](const auto& ix) { cover_candidates(ix, v, x0, delta, cands); }, idx);
       for (int j = 0; j < 10; ++j) {
         Vec3 dir(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
@@ -230,6 +231,13 @@ TEST(CoveringDiscs, FromTheCandidatesOfANearbyCentreEqualTheDescent) {
           EXPECT_EQ(got[i].index, want[i].index) << type << " centre " << k << " point " << j;
           EXPECT_EQ(got[i].distance, want[i].distance) << type << " centre " << k << " point " << j;
         }
+        // The renderer's shading normal from the same set: blended_normal over the descent's
+        // covering discs, bit for bit (the hit disc: the nearest covering one, else `hit`).
+        const PointIndex h = want.empty() ? hit : want.front().index;
+        std::vector<CoverHit> scratch;
+        const Vec3 nb = blended_normal_among(cands, h, v.normals[h], x, scratch);
+        const Vec3 nw = blended_normal(v, want, h, x);
+        for (int a = 0; a < 3; ++a) EXPECT_EQ(nb[a], nw[a]) << type << " centre " << k << " point " << j;
         nonempty += !want.empty();
       }
     }

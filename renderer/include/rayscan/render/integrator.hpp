@@ -43,11 +43,10 @@ struct IntegratorInputs {
 /// The candidate discs of one pixel's camera hits in surfel mode (PathTracer::trace_packet): every
 /// disc that may cover a point within `delta` of `x0` (cover_candidates), so the shading normal of
 /// each later sample of that pixel whose hit lies within delta is found among them
-/// (covering_discs_among: the same discs, bit for bit) instead of by a descent from the root.
+/// (blended_normal_among: the same normal, bit for bit) instead of by a descent from the root.
 struct CoverCache {
   std::uint64_t owner = 0;  ///< the PathTracer that filled it (0: empty)
-  Vec3 x0{0.0};             ///< centre, world coordinates
-  std::vector<CoverCandidate> cands;  ///< cover_candidates(x0, the tracer's delta)
+  CoverCandidates cands;    ///< cover_candidates(its x0, the tracer's delta)
 };
 
 namespace surfel_detail {
@@ -212,18 +211,17 @@ class PathTracer {
     h.t = sh.t;
     h.index = sh.index;
     h.position = ray.at(sh.t);
-    thread_local std::vector<Neighbor> near;
     if (cache) {
       // |x - x0|^2 <= 0.998 delta^2, i.e. within 0.999 delta: |x - x0| <= delta despite rounding.
-      const Vec3 v = h.position - cache->x0;
+      const Vec3 v = h.position - cache->cands.x0;
       if (cache->owner != id_ || !(glm::dot(v, v) <= 0.998 * cover_delta_ * cover_delta_)) {
         cover_candidates(index_, in_.surfels, h.position, cover_delta_, cache->cands);
         cache->owner = id_;
-        cache->x0 = h.position;
       }
-      covering_discs_among(cache->cands, h.position, near);
-      h.normal = blended_normal(in_.surfels, near, sh.index, h.position);
+      thread_local std::vector<CoverHit> covering;
+      h.normal = blended_normal_among(cache->cands, sh.index, in_.surfels.normals[sh.index], h.position, covering);
     } else {
+      thread_local std::vector<Neighbor> near;
       h.normal = surfel_shading_normal(index_, in_.surfels, sh.index, h.position, near);
     }
     if (glm::dot(h.normal, ray.direction()) > 0.0) h.normal = -h.normal;

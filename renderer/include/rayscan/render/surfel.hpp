@@ -264,13 +264,23 @@ struct DiscKey {
   /// Every finite key is a disc hit t >= t_min (RefinedKey's key_min; the query's own t_min is
   /// 2 R lower, for the sphere keys).
   double key_min() const { return t_min; }
-  double operator()(PointIndex id, double, double d2, double) const {
+  /// The disc hit parameter of disc `id` alone (RefinedKey::exact_key): ray_disc_t in [t_min,
+  /// t_max] unless the disc belongs to the surface left. A finite one implies the query's own
+  /// predicates (surfel_query: the centre within r <= R of the ray, the sphere key t_p - sqrt(R^2 -
+  /// d^2) >= t - r - R >= t_min - 2 R and <= t), so the traversal skips them.
+  double exact_key(PointIndex id) const {
     const double r = s->radii[id];
-    if (d2 > r * r) return kInf;  // the ray passes farther than r from the centre: misses the disc
     const Vec3& c = s->centers[id];
     const Vec3 n(s->normals[id]);
     if (from && same_surface(*from, id, c, n, r, s->thickness_at(id))) return kInf;
     return ray_disc_t(o, d, c, n, r, t_min, t_max);
+  }
+  /// RefinedKey::key: exact_key after the cheap rejection of a centre farther than r from the ray
+  /// (d2: its squared distance), for queries that test the points first (with planes).
+  double operator()(PointIndex id, double, double d2, double) const {
+    const double r = s->radii[id];
+    if (d2 > r * r) return kInf;  // the ray passes farther than r from the centre: misses the disc
+    return exact_key(id);
   }
 };
 
@@ -423,23 +433,42 @@ inline constexpr double kBlendReachFactor = 1.0307764064044151;
 /// blending of EWA surface splatting (Zwicker et al. 2001, section 5) that hides the facets of flat
 /// discs on curved surfaces. Signs are aligned with the hit disc; returns the hit disc's normal
 /// when no other disc covers x.
-[[nodiscard]] inline Vec3 blended_normal(const SurfelView& s, std::span<const Neighbor> candidates,
-                                         PointIndex hit, const Vec3& x) {
-  const Vec3 n0(s.normals[hit]);
-  Vec3 sum(0.0);
-  bool own = false;
-  for (const Neighbor& h : candidates) {
-    const Vec3 n(s.normals[h.index]);
+namespace surfel_detail {
+
+/// The sum of blended_normal (shared with blended_normal_among, so both blend alike bit for bit):
+/// n0, the hit disc's normal; add() one covering disc at a time, in order; normal() the result.
+struct NormalBlend {
+  Vec3 n0{0.0};
+  PointIndex hit = 0;
+  Vec3 sum{0.0};
+  bool own = false;  ///< the hit disc itself was added
+  /// Adds disc `id` (unit normal n, radius r) when its normal is within 45 degrees of n0 (either
+  /// side) and plane_d2() (its cover_in_plane_d2 of the hit point, called only then) is finite.
+  template <class PlaneD2>
+  void add(PointIndex id, const Vec3& n, double r, PlaneD2&& plane_d2) {
     const double c = glm::dot(n, n0);
-    if (std::abs(c) < 0.7071) continue;
-    const double r = s.radii[h.index];
-    const double d2 = cover_in_plane_d2(s.centers[h.index], n, r, x);
-    if (!(d2 < kInf)) continue;
-    own = own || h.index == hit;
+    if (std::abs(c) < 0.7071) return;
+    const double d2 = plane_d2();
+    if (!(d2 < kInf)) return;
+    own = own || id == hit;
     sum += (1.0 - d2 / (r * r)) * (c < 0.0 ? -n : n);
   }
-  const double len = glm::length(sum);
-  return own && len > 0.0 ? sum / len : n0;
+  [[nodiscard]] Vec3 normal() const {
+    const double len = glm::length(sum);
+    return own && len > 0.0 ? sum / len : n0;
+  }
+};
+
+}  // namespace surfel_detail
+
+[[nodiscard]] inline Vec3 blended_normal(const SurfelView& s, std::span<const Neighbor> candidates,
+                                         PointIndex hit, const Vec3& x) {
+  surfel_detail::NormalBlend b{Vec3(s.normals[hit]), hit};
+  for (const Neighbor& h : candidates) {
+    const double r = s.radii[h.index];
+    b.add(h.index, Vec3(s.normals[h.index]), r, [&] { return cover_in_plane_d2(s.centers[h.index], Vec3(s.normals[h.index]), r, x); });
+  }
+  return b.normal();
 }
 
 namespace surfel_detail {
@@ -570,36 +599,66 @@ struct CoverCandidate {
   float r = 0.0f;     ///< disc radius (world units)
 };
 
+/// Every disc that may cover some point within `delta` of a centre x0 (cover_candidates), plus a
+/// float copy, relative to x0, of each one's index position and a float bound on its squared
+/// reach (structure of arrays), with which covering_discs_among rejects most candidates in a
+/// conservative float test before the exact one (bench/README.md, "Session 18").
+struct CoverCandidates {
+  Vec3 x0{0.0};        ///< centre (world coordinates)
+  double delta = 0.0;  ///< reach around x0 (world units)
+  std::vector<CoverCandidate> cands;  ///< in no particular order
+  /// float(p - x0) per axis and a float bound >= |p - x|^2 whenever the exact cover reach
+  /// |p - x|^2 <= cover_reach2(r, 0) holds for some x within delta of x0 (see finish).
+  std::vector<float> px, py, pz, lim2;
+  /// Fills the float arrays from x0, delta and cands (cover_candidates calls it).
+  void finish();
+};
+
 /// Every disc that may cover some point within `delta` (world units, >= 0) of x0: a superset of
 /// covering_discs(x) for every such x, from which covering_discs_among gives exactly
-/// covering_discs(x). Appended to `out` (cleared first), in no particular order. For a render's
+/// covering_discs(x). `out` is refilled (candidates in no particular order). For a render's
 /// camera rays, whose hits for the samples of one pixel lie close together, one descent serves
 /// many hits (PathTracer's per-pixel cover cache). Throws std::invalid_argument for delta < 0 or
 /// NaN.
 template <SpatialIndex I>
-void cover_candidates(const I& index, const SurfelView& s, const Vec3& x0, double delta,
-                      std::vector<CoverCandidate>& out) {
+void cover_candidates(const I& index, const SurfelView& s, const Vec3& x0, double delta, CoverCandidates& out) {
   if (!(delta >= 0.0)) throw std::invalid_argument("cover_candidates: delta must be >= 0");
-  out.clear();
+  out.x0 = x0;
+  out.delta = delta;
+  out.cands.clear();
   surfel_detail::cover_descent(index, s, x0, delta, [&](PointIndex id, const Vec3& p, double, float r) {
-    out.push_back({id, p, s.centers[id], s.normals[id], r});
+    out.cands.push_back({id, p, s.centers[id], s.normals[id], r});
   });
+  out.finish();
 }
 
-/// covering_discs(x) from `cands` = cover_candidates(x0, delta) with |x - x0| <= delta (the
-/// caller's precondition, not checked): the same discs (the same tests, the descent's reach on
-/// the index's position included, with the same expressions: d2 = |p - x|^2) in the same order,
-/// bit for bit. `out` is cleared first.
-inline void covering_discs_among(std::span<const CoverCandidate> cands, const Vec3& x, std::vector<Neighbor>& out) {
-  out.clear();
-  for (const CoverCandidate& c : cands) {
-    const Vec3 v = c.p - x;
-    const double d2 = glm::dot(v, v);
-    if (d2 > surfel_detail::cover_reach2(c.r, 0.0) || !(cover_in_plane_d2(c.c, Vec3(c.n), c.r, x) < kInf)) continue;
-    out.push_back({c.id, d2});  // squared until sorted
-  }
-  surfel_detail::finish_covering(out);
-}
+/// A covering disc of x among a CoverCandidates set: |p - x|^2 (squared distance of its index
+/// position, as covering_discs), its original index, cover_in_plane_d2 of x and the candidate.
+struct CoverHit {
+  double d2 = 0.0;                  ///< |p - x|^2 (world units squared)
+  PointIndex id = 0;                ///< original point index
+  double plane_d2 = 0.0;            ///< cover_in_plane_d2(c, n, r, x)
+  const CoverCandidate* cand = nullptr;  ///< the candidate (in the set it came from)
+};
+
+/// The discs of `set` (cover_candidates(x0, delta)) that cover x, for |x - x0| <= delta (the
+/// caller's precondition, not checked): exactly covering_discs(x), with its tests and expressions
+/// (d2 = |p - x|^2 within cover_reach2(r, 0), cover_in_plane_d2), sorted as it sorts, by (d2,
+/// id). A float test of |p - x|^2 against CoverCandidates::lim2 (4 candidates at a time on SSE2)
+/// rejects first; it never rejects a disc the exact test keeps. `out` is cleared first.
+void cover_hits_among(const CoverCandidates& set, const Vec3& x, std::vector<CoverHit>& out);
+
+/// covering_discs(x) from `set` = cover_candidates(x0, delta) with |x - x0| <= delta (the
+/// caller's precondition): the same discs in the same order with the same distances, bit for bit
+/// (cover_hits_among, distances turned into |p - x|). `out` is cleared first.
+void covering_discs_among(const CoverCandidates& set, const Vec3& x, std::vector<Neighbor>& out);
+
+/// blended_normal(s, covering_discs(x), hit, x) for |x - x0| <= delta from `set` =
+/// cover_candidates(x0, delta), bit for bit: the covering discs of cover_hits_among, blended in
+/// its order with blended_normal's terms, from the candidates' copies of normals and radii. `n0`:
+/// the normal of disc `hit` (SurfelView::normals[hit]). `scratch` is caller-owned.
+[[nodiscard]] Vec3 blended_normal_among(const CoverCandidates& set, PointIndex hit, const glm::vec3& n0, const Vec3& x,
+                                        std::vector<CoverHit>& scratch);
 
 /// blended_normal over covering_discs(x); `scratch` is caller-owned.
 template <SpatialIndex I>
