@@ -272,8 +272,11 @@ struct DiscKey {
     const double r = s->radii[id];
     const Vec3& c = s->centers[id];
     const Vec3 n(s->normals[id]);
-    if (from && same_surface(*from, id, c, n, r, s->thickness_at(id))) return kInf;
-    return ray_disc_t(o, d, c, n, r, t_min, t_max);
+    // The disc test first: it rejects most of the surface's own discs near a secondary ray's
+    // origin (behind it, or not under it) for less than same_surface costs.
+    const double t = ray_disc_t(o, d, c, n, r, t_min, t_max);
+    if (t < kInf && from && same_surface(*from, id, c, n, r, s->thickness_at(id))) return kInf;
+    return t;
   }
   /// RefinedKey::key: exact_key after the cheap rejection of a centre farther than r from the ray
   /// (d2: its squared distance), for queries that test the points first (with planes).
