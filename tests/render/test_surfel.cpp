@@ -275,6 +275,13 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
     if (const auto* oct = std::get_if<Octree>(&idx)) slot_r = surfel_slot_radii(*oct, d.r);
     SurfelView vs = vf;
     vs.slot_radii = slot_r;
+    // The render's view has the normals by slot too (the disc test reads the centre, normal and
+    // radius in storage order); the oracle below reads d.c / d.n / d.r by original index.
+    std::vector<glm::vec3> slot_n;
+    if (const auto* oct = std::get_if<Octree>(&idx)) slot_n = surfel_slot_normals(*oct, v.centers, v.normals);
+    if (!slot_r.empty()) ASSERT_EQ(slot_n.size(), slot_r.size()) << "the octree stores the centres bit for bit";
+    SurfelView vn = vs;
+    vn.slot_normals = slot_n;
     int hits = 0;
     RayQueryStats st_d, st_f;
     for (int k = 0; k < 6000; ++k) {
@@ -307,6 +314,9 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
         const SurfelHit hs = first_surfel_hit(oct, vs, ray, t0, t1, nullptr, false, scratch, st_s);
         ASSERT_EQ(hs.t, bt) << type << " ray " << k << " (slot radii)";
         EXPECT_EQ(hs.index, hd.index) << type << " ray " << k << " (slot radii)";
+        const SurfelHit hn = first_surfel_hit(oct, vn, ray, t0, t1, nullptr, false, scratch, st_s);
+        ASSERT_EQ(hn.t, bt) << type << " ray " << k << " (slot normals)";
+        EXPECT_EQ(hn.index, hd.index) << type << " ray " << k << " (slot normals)";
       }
       if (bt < kInf) {
         EXPECT_EQ(h.index, bi);
@@ -332,6 +342,24 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
       EXPECT_LE(st_f.nodes_visited, st_d.nodes_visited + st_d.nodes_visited / 20) << st_f.nodes_visited;
     }
   }
+}
+
+TEST(SurfelSlotNormals, ByStorageSlotOnlyWhereTheCentresAreTheIndexPositions) {
+  // Oracle: the index's own ids (normals[ids[slot]]) and positions; one centre moved by an ulp
+  // must turn the table off (the disc test would read a centre that is not the disc's).
+  const Discs d = random_discs(500, 3);
+  const AnyIndex idx = make_index(d.c, IndexOptions{"octree-adaptive"});
+  const Octree& oct = std::get<Octree>(idx);
+  const std::vector<glm::vec3> n = surfel_slot_normals(oct, d.c, d.n);
+  ASSERT_EQ(n.size(), d.c.size());
+  const IdView ids = oct.ids();
+  for (std::size_t k = 0; k < n.size(); ++k) {
+    EXPECT_EQ(n[k], d.n[ids[k]]) << k;
+    EXPECT_EQ(oct.positions()[k], d.c[ids[k]]) << k;
+  }
+  std::vector<Vec3> moved = d.c;
+  moved[123].y = std::nextafter(moved[123].y, 10.0);
+  EXPECT_TRUE(surfel_slot_normals(oct, moved, d.n).empty());
 }
 
 TEST(DiscBounds, AxisAlignedDiscsAndATiltedOne) {

@@ -208,8 +208,9 @@ struct NoChildBoxesF {};
 /// radius r around it: a finite refined key is >= t_p - r), so that with key_min below the filter
 /// also drops the points whose t_p lies more than their own radius before it.
 ///
-/// The key functor may also have a member `double exact_key(PointIndex id)`: the refined key of
-/// point `id` decided from the point alone (an exact geometric test, e.g. the ray-disc test),
+/// The key functor may also have a member `double exact_key(std::uint32_t slot, PointIndex id,
+/// const Vec3& p)`: the refined key of point `id` (at storage slot `slot`, p its position in the
+/// index, bit for bit) decided from the point alone (an exact geometric test, e.g. the ray-disc test),
 /// finite only where the query's own predicates hold too (the point within `radius` of the ray,
 /// its order key in [t_min, t_max] and <= the refined key: true of a disc of radius <= `radius`
 /// around the point whose hit lies in [t_min + 2 radius, t_max], as DiscKey's). Queries without planes and of
@@ -585,12 +586,12 @@ struct RayTraversal {
     // radius_filtered: the point passed the SIMD filter with the policy's per-slot radii, which
     // already made reject()'s test (up to the filter's slack; the key functor decides exactly).
     auto eval_slot = [&](std::uint32_t s, const Vec3& p, bool radius_filtered) __attribute__((always_inline)) {
-      if constexpr (KeyPolicy::refines && requires { key_policy.key.exact_key(PointIndex{}); }) {
+      if constexpr (KeyPolicy::refines && requires { key_policy.key.exact_key(s, PointIndex{}, p); }) {
         // A key that decides alone (RefinedKey, exact_key): no projection terms, sphere key or
         // base-key tests before it; the terms only for a point it keeps (RayHit::t, distance).
         if (!has_planes && !ray_order) {
           const PointIndex id = ids[s];
-          const double key = key_policy.key.exact_key(id);
+          const double key = key_policy.key.exact_key(s, id, p);
           if (!(key <= worst) || !(key < kInf)) return;
           const RayPointTerms pt = ray_point_terms(o, d, p);
           push_candidate({key, id, s, sphere ? sphere_entry(pt.t, pt.d2, radius) : pt.t, pt.d2});

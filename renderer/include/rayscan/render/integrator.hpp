@@ -101,6 +101,10 @@ class PathTracer {
       slot_radii_ = surfel_slot_radii(index, in_.surfels.radii);
       in_.surfels.slot_radii = slot_radii_;
     }
+    if (in_.primitive == Primitive::surfel && in_.surfels.slot_normals.empty()) {
+      slot_normals_ = surfel_slot_normals(index, in_.surfels.centers, in_.surfels.normals);
+      in_.surfels.slot_normals = slot_normals_;
+    }
     if constexpr (detail::FloatChildBoxes<I>) {
       if (in_.primitive == Primitive::surfel && in_.surfels.node_boxes_f.empty()) {
         node_boxes_f_ = surfel_node_boxes_f(index, in_.surfels.node_boxes);
@@ -473,6 +477,7 @@ class PathTracer {
   std::vector<float> node_radii_;  ///< surfel_node_radii over index_ (surfel mode)
   std::vector<AABB> node_boxes_;   ///< surfel_node_boxes over index_ (surfel mode)
   std::vector<float> slot_radii_;    ///< surfel_slot_radii over index_ (surfel mode)
+  std::vector<glm::vec3> slot_normals_;  ///< surfel_slot_normals over index_ (surfel mode; may be empty)
   std::vector<float> node_boxes_f_;  ///< surfel_node_boxes_f of node_boxes_ (surfel mode, FloatChildBoxes)
   const Sky& sky_;
   bool time_;

@@ -52,6 +52,12 @@ struct SurfelView {
   /// so the ray query rejects a point whose disc the ray passes too far from by one contiguous
   /// load (DiscKey::reject) instead of a lookup by original index. Empty: no early rejection.
   std::span<const float> slot_radii{};
+  /// Optional (with slot_radii), by storage slot of the same index (surfel_slot_normals over it):
+  /// normals[ids[slot]], present only where every disc centre is the index's position of its
+  /// point bit for bit, so the disc test reads a candidate's centre, normal and radius in storage
+  /// order (DiscKey::exact_key: the position the traversal holds, this and slot_radii) instead of
+  /// by three lookups by original index. Empty: by original index.
+  std::span<const glm::vec3> slot_normals{};
   /// thickness[i], or 0 without thickness.
   [[nodiscard]] double thickness_at(PointIndex i) const { return thickness.empty() ? 0.0 : double(thickness[i]); }
 };
@@ -141,6 +147,24 @@ template <SpatialIndex I>
   const IdView ids = index.ids();
   std::vector<float> out(index.positions().size());
   for (std::size_t k = 0; k < out.size(); ++k) out[k] = radii[ids[k]];
+  return out;
+}
+
+/// `normals` (by original point index) in the storage slot order of `index` (SurfelView::
+/// slot_normals): out[slot] = normals[index.ids()[slot]], or empty when some disc centre
+/// centers[ids[slot]] differs from the index's position of the slot (then the disc test keeps
+/// reading by original index).
+template <SpatialIndex I>
+[[nodiscard]] std::vector<glm::vec3> surfel_slot_normals(const I& index, std::span<const Vec3> centers,
+                                                         std::span<const glm::vec3> normals) {
+  const IdView ids = index.ids();
+  const auto pos = index.positions();
+  std::vector<glm::vec3> out(pos.size());
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    const Vec3 p = pos[k];
+    if (!(p == centers[ids[k]])) return {};
+    out[k] = normals[ids[k]];
+  }
   return out;
 }
 
@@ -252,6 +276,7 @@ struct DiscKey {
   double t_min = 0.0, t_max = kInf;
   const LeavingSurface* from = nullptr;
   const float* slot_radii = nullptr;  ///< SurfelView::slot_radii, or null
+  const glm::vec3* slot_normals = nullptr;  ///< SurfelView::slot_normals (with slot_radii), or null
   /// True when the point at storage slot `slot` lies farther than its disc's radius from the ray
   /// (d2: squared distance), exactly the first rejection of operator() (same float radius).
   bool reject(std::uint32_t slot, double d2) const {
@@ -264,28 +289,39 @@ struct DiscKey {
   /// Every finite key is a disc hit t >= t_min (RefinedKey's key_min; the query's own t_min is
   /// 2 R lower, for the sphere keys).
   double key_min() const { return t_min; }
-  /// The disc hit parameter of disc `id` alone (RefinedKey::exact_key): ray_disc_t in [t_min,
-  /// t_max] unless the disc belongs to the surface left. A finite one implies the query's own
-  /// predicates (surfel_query: the centre within r <= R of the ray, the sphere key t_p - sqrt(R^2 -
-  /// d^2) >= t - r - R >= t_min - 2 R and <= t), so the traversal skips them.
-  double exact_key(PointIndex id) const {
+  /// The disc hit parameter of disc `id` (at storage slot `slot`, index position p) alone
+  /// (RefinedKey::exact_key): ray_disc_t in [t_min, t_max] unless the disc belongs to the surface
+  /// left. With slot_normals, the centre is p (the same value: see SurfelView::slot_normals) and
+  /// normal and radius come by slot. A finite one implies the query's own predicates
+  /// (surfel_query: the centre within r <= R of the ray, the sphere key t_p - sqrt(R^2 - d^2) >= t
+  /// - r - R >= t_min - 2 R and <= t), so the traversal skips them.
+  double exact_key(std::uint32_t slot, PointIndex id, const Vec3& p) const {
+    if (slot_normals) return disc_test(id, p, Vec3(slot_normals[slot]), slot_radii[slot]);
+    return disc_test(id, s->centers[id], Vec3(s->normals[id]), s->radii[id]);
+  }
+  /// RefinedKey::key: the test of exact_key by original index after the cheap rejection of a
+  /// centre farther than r from the ray (d2: its squared distance), for queries that test the
+  /// points first (with planes).
+  double operator()(PointIndex id, double, double d2, double) const {
     const double r = s->radii[id];
-    const Vec3& c = s->centers[id];
-    const Vec3 n(s->normals[id]);
-    // The disc test first: it rejects most of the surface's own discs near a secondary ray's
-    // origin (behind it, or not under it) for less than same_surface costs.
+    if (d2 > r * r) return kInf;  // the ray passes farther than r from the centre: misses the disc
+    return disc_test(id, s->centers[id], Vec3(s->normals[id]), r);
+  }
+  /// ray_disc_t of disc `id` (centre c, unit normal n, radius r) unless it belongs to the surface
+  /// left. The disc test first: it rejects most of the surface's own discs near a secondary ray's
+  /// origin (behind it, or not under it) for less than same_surface costs.
+  double disc_test(PointIndex id, const Vec3& c, const Vec3& n, double r) const {
     const double t = ray_disc_t(o, d, c, n, r, t_min, t_max);
     if (t < kInf && from && same_surface(*from, id, c, n, r, s->thickness_at(id))) return kInf;
     return t;
   }
-  /// RefinedKey::key: exact_key after the cheap rejection of a centre farther than r from the ray
-  /// (d2: its squared distance), for queries that test the points first (with planes).
-  double operator()(PointIndex id, double, double d2, double) const {
-    const double r = s->radii[id];
-    if (d2 > r * r) return kInf;  // the ray passes farther than r from the centre: misses the disc
-    return exact_key(id);
-  }
 };
+
+/// DiscKey::slot_normals of a view: SurfelView::slot_normals when it and slot_radii cover the
+/// same slots, else null.
+[[nodiscard]] inline const glm::vec3* slot_normals_of(const SurfelView& s) {
+  return !s.slot_normals.empty() && s.slot_normals.size() == s.slot_radii.size() ? s.slot_normals.data() : nullptr;
+}
 
 /// RefinedKey::node_radius_of of a surfel query: SurfelView::node_radii (world units).
 struct SurfelNodeRadius {
@@ -345,7 +381,7 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
   SurfelHit best;
   const RayQuery q = surfel_query(s, t_min, t_max, any_hit);
   const DiscKey disc_t{&s, ray.origin(), ray.direction(), t_min, t_max, from,
-                       s.slot_radii.empty() ? nullptr : s.slot_radii.data()};
+                       s.slot_radii.empty() ? nullptr : s.slot_radii.data(), slot_normals_of(s)};
   if (s.node_radii.empty()) {
     ray_query(index, ray, q, hits, &stats, RefinedKey<DiscKey>{disc_t, {}});
   } else if (s.node_boxes.empty()) {
@@ -393,7 +429,7 @@ void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<cons
       Key keys[kMaxRayPacket];
       for (std::size_t i = 0; i < n; ++i)
         keys[i] = Key{DiscKey{&s, rays[i].origin(), rays[i].direction(), t_min, t_max, from_of(i),
-                              s.slot_radii.empty() ? nullptr : s.slot_radii.data()},
+                              s.slot_radii.empty() ? nullptr : s.slot_radii.data(), slot_normals_of(s)},
                       {&s}, {&s}, {&index, &s}};
       detail::for_each_ray_packet(
           index, rays, q, &stats,
