@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cassert>
 #include <cmath>
 #include <limits>
 
@@ -37,7 +38,8 @@ void CoverCandidates::finish() {
     const double lim = reach * reach * (1.0 + 0x1p-18);
     float f = static_cast<float>(lim);
     if (static_cast<double>(f) < lim) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-    // A NaN radius (never kept by the float test) is left to the exact tests.
+    // A NaN bound (a NaN radius) would reject the candidate; +inf leaves it to the exact tests,
+    // which keep it as the descent does.
     lim2[i] = f >= 0.0f ? f : std::numeric_limits<float>::infinity();
   }
 }
@@ -45,6 +47,7 @@ void CoverCandidates::finish() {
 void cover_hits_among(const CoverCandidates& set, const Vec3& x, std::vector<CoverHit>& out) {
   out.clear();
   const std::size_t n = set.cands.size();
+  assert(set.px.size() == n && set.py.size() == n && set.pz.size() == n && set.lim2.size() == n);
   // The exact tests of covering_discs (the descent's reach on the index position, then the cover
   // test), with the same expressions.
   const auto exact = [&](std::size_t i) {
@@ -80,16 +83,15 @@ void cover_hits_among(const CoverCandidates& set, const Vec3& x, std::vector<Cov
     const float dx = px[i] - qx, dy = py[i] - qy, dz = pz[i] - qz;
     if (dx * dx + dy * dy + dz * dz <= lim[i]) exact(i);
   }
-  std::sort(out.begin(), out.end(), [](const CoverHit& a, const CoverHit& b) {
-    return a.d2 < b.d2 || (a.d2 == b.d2 && a.id < b.id);
-  });
+  std::sort(out.begin(), out.end(),
+            [](const CoverHit& a, const CoverHit& b) { return surfel_detail::cover_less(a.d2, a.id, b.d2, b.id); });
 }
 
-void covering_discs_among(const CoverCandidates& set, const Vec3& x, std::vector<Neighbor>& out) {
-  thread_local std::vector<CoverHit> hits;
-  cover_hits_among(set, x, hits);
+void covering_discs_among(const CoverCandidates& set, const Vec3& x, std::vector<Neighbor>& out,
+                          std::vector<CoverHit>& scratch) {
+  cover_hits_among(set, x, scratch);
   out.clear();
-  for (const CoverHit& h : hits) out.push_back({h.id, std::sqrt(h.d2)});
+  for (const CoverHit& h : scratch) out.push_back({h.id, std::sqrt(h.d2)});
 }
 
 Vec3 blended_normal_among(const CoverCandidates& set, PointIndex hit, const glm::vec3& n0, const Vec3& x,

@@ -225,7 +225,8 @@ TEST(CoveringDiscs, FromTheCandidatesOfANearbyCentreEqualTheDescent) {
         const Vec3 x = x0 + (j == 0 ? 0.999 : u(rng)) * delta * dir;
         std::vector<Neighbor> want, got;
         std::visit([&](const auto& ix) { covering_discs(ix, v, x, want); }, idx);
-        covering_discs_among(cands, x, got);
+        std::vector<CoverHit> scratch;
+        covering_discs_among(cands, x, got, scratch);
         ASSERT_EQ(got.size(), want.size()) << type << " centre " << k << " point " << j;
         for (std::size_t i = 0; i < got.size(); ++i) {
           EXPECT_EQ(got[i].index, want[i].index) << type << " centre " << k << " point " << j;
@@ -234,7 +235,6 @@ TEST(CoveringDiscs, FromTheCandidatesOfANearbyCentreEqualTheDescent) {
         // The renderer's shading normal from the same set: blended_normal over the descent's
         // covering discs, bit for bit (the hit disc: the nearest covering one, else `hit`).
         const PointIndex h = want.empty() ? hit : want.front().index;
-        std::vector<CoverHit> scratch;
         const Vec3 nb = blended_normal_among(cands, h, v.normals[h], x, scratch);
         const Vec3 nw = blended_normal(v, want, h, x);
         for (int a = 0; a < 3; ++a) EXPECT_EQ(nb[a], nw[a]) << type << " centre " << k << " point " << j;
@@ -243,6 +243,65 @@ TEST(CoveringDiscs, FromTheCandidatesOfANearbyCentreEqualTheDescent) {
     }
     EXPECT_GT(nonempty, 500u) << type;  // most sample points are covered
   }
+}
+
+TEST(CoveringDiscs, FloatPrefilterNeverDropsADiscTheExactTestsKeep) {
+  // Oracle: the exact tests of cover_hits_among applied to every candidate (a brute-force loop),
+  // sorted by (d2, id). The candidates are put where the float prefilter is tested hardest: the
+  // index position p just inside the exact reach of x (|p - x|^2 <= cover_reach2(r, 0) by at
+  // most a few ulps of the coordinates), x up to 0.999 delta from x0, with the disc centre c
+  // (which the cover test reads) at half a radius from x in the disc's plane, so the cover test
+  // keeps it; far coordinates and
+  // radii over six decades; and decoys just outside the reach, which must be dropped. Seven
+  // candidates per set: one 4-wide step and a scalar tail.
+  std::mt19937_64 rng(29);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const auto unit = [&] {
+    Vec3 a(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+    return a / glm::length(a);
+  };
+  std::size_t kept = 0;
+  std::vector<CoverHit> got;
+  for (int t = 0; t < 40000; ++t) {
+    const float r = static_cast<float>(std::pow(10.0, -3.0 + 3.0 * u(rng)));
+    CoverCandidates set;
+    set.delta = r * std::pow(10.0, -2.0 + 4.0 * u(rng));
+    set.x0 = Vec3(2000 * u(rng) - 1000, 2000 * u(rng) - 1000, 2000 * u(rng) - 1000);
+    const Vec3 x = set.x0 + (t % 3 == 0 ? 0.999 : u(rng)) * set.delta * unit();
+    const double reach2 = surfel_detail::cover_reach2(r, 0.0);
+    for (PointIndex i = 0; i < 7; ++i) {
+      const Vec3 w = unit();
+      const bool decoy = i == 6;
+      Vec3 p = x + std::sqrt(reach2) * (decoy ? 1.0 + 1e-6 : 1.0) * w;
+      // Pulled in by doubling steps until the rounded position is inside (far from the origin a
+      // coordinate's ulp is up to 1e-10 of a small reach).
+      for (int it = 0; !decoy && glm::dot(p - x, p - x) > reach2 && it < 60; ++it)
+        p = x + std::sqrt(reach2) * (1.0 - std::ldexp(1e-16, it)) * w;
+      const glm::vec3 n(unit());
+      Vec3 inplane = glm::cross(Vec3(n), unit());
+      inplane /= glm::length(inplane);
+      set.cands.push_back({i, p, x + 0.5 * double(r) * inplane, n, r});
+    }
+    set.finish();
+    std::vector<CoverHit> want;
+    for (const CoverCandidate& c : set.cands) {
+      const double d2 = glm::dot(c.p - x, c.p - x);
+      if (d2 > reach2) continue;
+      const double pd2 = cover_in_plane_d2(c.c, Vec3(c.n), c.r, x);
+      if (pd2 < kInf) want.push_back({d2, c.id, pd2, &c});
+    }
+    std::sort(want.begin(), want.end(),
+              [](const CoverHit& a, const CoverHit& b) { return a.d2 < b.d2 || (a.d2 == b.d2 && a.id < b.id); });
+    cover_hits_among(set, x, got);
+    ASSERT_EQ(got.size(), want.size()) << "set " << t;
+    for (std::size_t i = 0; i < got.size(); ++i) {
+      EXPECT_EQ(got[i].id, want[i].id) << "set " << t;
+      EXPECT_EQ(got[i].d2, want[i].d2) << "set " << t;
+      EXPECT_EQ(got[i].plane_d2, want[i].plane_d2) << "set " << t;
+    }
+    kept += want.size();
+  }
+  EXPECT_GT(kept, 40000u * 5);  // nearly every boundary candidate is kept (the decoys are not)
 }
 
 TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
@@ -317,6 +376,26 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
         const SurfelHit hn = first_surfel_hit(oct, vn, ray, t0, t1, nullptr, false, scratch, st_s);
         ASSERT_EQ(hn.t, bt) << type << " ray " << k << " (slot normals)";
         EXPECT_EQ(hn.index, hd.index) << type << " ray " << k << " (slot normals)";
+      }
+      // Every fifth ray leaves a surface (a random disc's): the discs of that surface are skipped
+      // (same_surface), on the id path and on the slot path alike.
+      if (k % 5 == 2) {
+        const PointIndex j = PointIndex(rng() % d.c.size());
+        const LeavingSurface from{j, d.c[j], Vec3(d.n[j]), double(d.r[j]), 0.0};
+        double ft = kInf;
+        for (std::size_t i = 0; i < d.c.size(); ++i) {
+          const double t = ray_disc_t(ray.origin(), ray.direction(), d.c[i], Vec3(d.n[i]), d.r[i], t0, t1);
+          if (t < ft && !same_surface(from, PointIndex(i), d.c[i], Vec3(d.n[i]), d.r[i])) ft = t;
+        }
+        const SurfelHit hv = std::visit(
+            [&](const auto& ix) { return first_surfel_hit(ix, v, ray, t0, t1, &from, false, scratch, st); }, idx);
+        ASSERT_EQ(hv.t, ft) << type << " ray " << k << " (leaving a surface)";
+        if (!boxes_f.empty()) {
+          RayQueryStats st_n;
+          const SurfelHit hn = first_surfel_hit(std::get<Octree>(idx), vn, ray, t0, t1, &from, false, scratch, st_n);
+          ASSERT_EQ(hn.t, ft) << type << " ray " << k << " (leaving a surface, slot normals)";
+          EXPECT_EQ(hn.index, hv.index) << type << " ray " << k << " (leaving a surface, slot normals)";
+        }
       }
       if (bt < kInf) {
         EXPECT_EQ(h.index, bi);

@@ -211,11 +211,14 @@ struct NoChildBoxesF {};
 /// The key functor may also have a member `double exact_key(std::uint32_t slot, PointIndex id,
 /// const Vec3& p)`: the refined key of point `id` (at storage slot `slot`, p its position in the
 /// index, bit for bit) decided from the point alone (an exact geometric test, e.g. the ray-disc test),
-/// finite only where the query's own predicates hold too (the point within `radius` of the ray,
-/// its order key in [t_min, t_max] and <= the refined key: true of a disc of radius <= `radius`
-/// around the point whose hit lies in [t_min + 2 radius, t_max], as DiscKey's). Queries without planes and of
-/// order time or sphere_hit then call it instead of key() and skip those predicates and the
-/// projection terms, which they compute only for the points they keep (RayHit::t, distance).
+/// finite only where the query's own predicates hold too, up to rounding (the point within
+/// `radius` of the ray, its sphere key in [t_min, t_max] and <= the refined key: true of a disc
+/// of radius <= `radius` around the point whose hit lies in [t_min + 2 radius, t_max], as
+/// DiscKey's). Queries of order sphere_hit without planes then call it instead of key() and skip
+/// those predicates and the projection terms, which they compute only for the points they keep
+/// (RayHit::t, distance). Only the node lower bounds need to stay below the refined keys, so a
+/// point that a predicate would have dropped by a rounding (a disc hit at its rim) is answered by
+/// its exact key, as a brute-force loop over the exact test answers it.
 ///
 /// With node_box, the key functor may also have a member `double key_min()`: a lower bound of every
 /// finite refined key (e.g. the t_min of a disc test, where the query's t_min lies far below it so
@@ -589,7 +592,7 @@ struct RayTraversal {
       if constexpr (KeyPolicy::refines && requires { key_policy.key.exact_key(s, PointIndex{}, p); }) {
         // A key that decides alone (RefinedKey, exact_key): no projection terms, sphere key or
         // base-key tests before it; the terms only for a point it keeps (RayHit::t, distance).
-        if (!has_planes && !ray_order) {
+        if (!has_planes && sphere) {
           const PointIndex id = ids[s];
           const double key = key_policy.key.exact_key(s, id, p);
           if (!(key <= worst) || !(key < kInf)) return;

@@ -207,6 +207,16 @@ class PathTracer {
     return true;
   }
 
+  /// Per-thread scratch of the shading normals (one thread_local object for both paths).
+  struct NormalScratch {
+    std::vector<Neighbor> near;      ///< covering_discs of a hit without a cover cache
+    std::vector<CoverHit> covering;  ///< cover_hits_among of a hit with one
+  };
+  static NormalScratch& normal_scratch() {
+    thread_local NormalScratch s;
+    return s;
+  }
+
   /// The surfel-mode surface of the disc hit `sh` (first_surfel_hit's answer, t < inf) of `ray`:
   /// the hit point, the blended shading normal facing the ray, the disc's radius. With `cache`
   /// (a camera ray's pixel), the covering discs come from its candidates when the hit lies within
@@ -222,11 +232,10 @@ class PathTracer {
         cover_candidates(index_, in_.surfels, h.position, cover_delta_, cache->cands);
         cache->owner = id_;
       }
-      thread_local std::vector<CoverHit> covering;
-      h.normal = blended_normal_among(cache->cands, sh.index, in_.surfels.normals[sh.index], h.position, covering);
+      h.normal = blended_normal_among(cache->cands, sh.index, in_.surfels.normals[sh.index], h.position,
+                                      normal_scratch().covering);
     } else {
-      thread_local std::vector<Neighbor> near;
-      h.normal = surfel_shading_normal(index_, in_.surfels, sh.index, h.position, near);
+      h.normal = surfel_shading_normal(index_, in_.surfels, sh.index, h.position, normal_scratch().near);
     }
     if (glm::dot(h.normal, ray.direction()) > 0.0) h.normal = -h.normal;
     h.radius = in_.surfels.radii[sh.index];

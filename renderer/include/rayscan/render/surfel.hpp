@@ -53,8 +53,8 @@ struct SurfelView {
   /// load (DiscKey::reject) instead of a lookup by original index. Empty: no early rejection.
   std::span<const float> slot_radii{};
   /// Optional (with slot_radii), by storage slot of the same index (surfel_slot_normals over it):
-  /// normals[ids[slot]], present only where every disc centre is the index's position of its
-  /// point bit for bit, so the disc test reads a candidate's centre, normal and radius in storage
+  /// normals[ids[slot]], present only where every disc centre equals (==) the index's position
+  /// of its point, so the disc test reads a candidate's centre, normal and radius in storage
   /// order (DiscKey::exact_key: the position the traversal holds, this and slot_radii) instead of
   /// by three lookups by original index. Empty: by original index.
   std::span<const glm::vec3> slot_normals{};
@@ -152,8 +152,8 @@ template <SpatialIndex I>
 
 /// `normals` (by original point index) in the storage slot order of `index` (SurfelView::
 /// slot_normals): out[slot] = normals[index.ids()[slot]], or empty when some disc centre
-/// centers[ids[slot]] differs from the index's position of the slot (then the disc test keeps
-/// reading by original index).
+/// centers[ids[slot]] is not equal (==) to the index's position of the slot (then the disc test
+/// keeps reading by original index).
 template <SpatialIndex I>
 [[nodiscard]] std::vector<glm::vec3> surfel_slot_normals(const I& index, std::span<const Vec3> centers,
                                                          std::span<const glm::vec3> normals) {
@@ -292,16 +292,16 @@ struct DiscKey {
   /// The disc hit parameter of disc `id` (at storage slot `slot`, index position p) alone
   /// (RefinedKey::exact_key): ray_disc_t in [t_min, t_max] unless the disc belongs to the surface
   /// left. With slot_normals, the centre is p (the same value: see SurfelView::slot_normals) and
-  /// normal and radius come by slot. A finite one implies the query's own predicates
-  /// (surfel_query: the centre within r <= R of the ray, the sphere key t_p - sqrt(R^2 - d^2) >= t
-  /// - r - R >= t_min - 2 R and <= t), so the traversal skips them.
+  /// normal and radius come by slot. A finite one satisfies the query's own predicates up to
+  /// rounding (surfel_query: the centre within r <= R of the ray, the sphere key t_p - sqrt(R^2 -
+  /// d^2) >= t - r - R >= t_min - 2 R and <= t), so the traversal skips them (RefinedKey).
   double exact_key(std::uint32_t slot, PointIndex id, const Vec3& p) const {
     if (slot_normals) return disc_test(id, p, Vec3(slot_normals[slot]), slot_radii[slot]);
     return disc_test(id, s->centers[id], Vec3(s->normals[id]), s->radii[id]);
   }
   /// RefinedKey::key: the test of exact_key by original index after the cheap rejection of a
-  /// centre farther than r from the ray (d2: its squared distance), for queries that test the
-  /// points first (with planes).
+  /// centre farther than r from the ray (d2: its squared distance), for the queries that test the
+  /// points first (with planes, or of an order other than sphere_hit).
   double operator()(PointIndex id, double, double d2, double) const {
     const double r = s->radii[id];
     if (d2 > r * r) return kInf;  // the ray passes farther than r from the centre: misses the disc
@@ -466,21 +466,21 @@ inline constexpr double kBlendReachFactor = 1.0307764064044151;
   return d2 >= r * r ? kInf : d2;
 }
 
-/// Shading normal at hit point x of disc `hit`: the normals of the discs among `candidates` (at
-/// least every disc that covers x: covering_discs, or every centre within blend_reach of x) that cover x (in-plane distance < r, within r/4
-/// of their plane, normal within 45 degrees) blended with weights 1 - d^2/r^2, the normalised splat
-/// blending of EWA surface splatting (Zwicker et al. 2001, section 5) that hides the facets of flat
-/// discs on curved surfaces. Signs are aligned with the hit disc; returns the hit disc's normal
-/// when no other disc covers x.
 namespace surfel_detail {
 
+/// The order of covering discs (covering_discs, cover_hits_among), as knn_query orders: by squared
+/// distance d2 (world units squared), then by original index.
+[[nodiscard]] inline bool cover_less(double d2_a, PointIndex a, double d2_b, PointIndex b) {
+  return d2_a < d2_b || (d2_a == d2_b && a < b);
+}
+
 /// The sum of blended_normal (shared with blended_normal_among, so both blend alike bit for bit):
-/// n0, the hit disc's normal; add() one covering disc at a time, in order; normal() the result.
+/// add() one covering disc at a time, in order; normal() the result.
 struct NormalBlend {
-  Vec3 n0{0.0};
-  PointIndex hit = 0;
-  Vec3 sum{0.0};
-  bool own = false;  ///< the hit disc itself was added
+  Vec3 n0{0.0};        ///< the hit disc's unit normal
+  PointIndex hit = 0;  ///< the hit disc's original index
+  Vec3 sum{0.0};       ///< the weighted normals so far
+  bool own = false;    ///< the hit disc itself was added
   /// Adds disc `id` (unit normal n, radius r) when its normal is within 45 degrees of n0 (either
   /// side) and plane_d2() (its cover_in_plane_d2 of the hit point, called only then) is finite.
   template <class PlaneD2>
@@ -492,6 +492,8 @@ struct NormalBlend {
     own = own || id == hit;
     sum += (1.0 - d2 / (r * r)) * (c < 0.0 ? -n : n);
   }
+  /// The blended normal (unit): sum normalised, or n0 when the hit disc was not added or the
+  /// sum vanishes.
   [[nodiscard]] Vec3 normal() const {
     const double len = glm::length(sum);
     return own && len > 0.0 ? sum / len : n0;
@@ -500,6 +502,13 @@ struct NormalBlend {
 
 }  // namespace surfel_detail
 
+/// Shading normal at hit point x of disc `hit`: the normals of the discs among `candidates` (at
+/// least every disc that covers x: covering_discs, or every centre within blend_reach of x) that
+/// cover x (in-plane distance < r, within r/4 of their plane, normal within 45 degrees) blended
+/// with weights 1 - d^2/r^2 in the candidates' order, the normalised splat blending of EWA surface
+/// splatting (Zwicker et al. 2001, section 5) that hides the facets of flat discs on curved
+/// surfaces. Signs are aligned with the hit disc; returns the hit disc's normal when no other disc
+/// covers x.
 [[nodiscard]] inline Vec3 blended_normal(const SurfelView& s, std::span<const Neighbor> candidates,
                                          PointIndex hit, const Vec3& x) {
   surfel_detail::NormalBlend b{Vec3(s.normals[hit]), hit};
@@ -600,9 +609,8 @@ void cover_descent(const I& index, const SurfelView& s, const Vec3& x, double de
 /// Sorts covering discs by (squared distance, index) as knn_query does and turns the squared
 /// distances into distances.
 inline void finish_covering(std::vector<Neighbor>& out) {
-  std::sort(out.begin(), out.end(), [](const Neighbor& a, const Neighbor& b) {
-    return a.distance < b.distance || (a.distance == b.distance && a.index < b.index);
-  });
+  std::sort(out.begin(), out.end(),
+            [](const Neighbor& a, const Neighbor& b) { return cover_less(a.distance, a.index, b.distance, b.index); });
   for (Neighbor& nb : out) nb.distance = std::sqrt(nb.distance);
 }
 
@@ -640,7 +648,7 @@ struct CoverCandidate {
 
 /// Every disc that may cover some point within `delta` of a centre x0 (cover_candidates), plus a
 /// float copy, relative to x0, of each one's index position and a float bound on its squared
-/// reach (structure of arrays), with which covering_discs_among rejects most candidates in a
+/// reach (structure of arrays), with which cover_hits_among rejects most candidates in a
 /// conservative float test before the exact one (bench/README.md, "Session 18").
 struct CoverCandidates {
   Vec3 x0{0.0};        ///< centre (world coordinates)
@@ -684,13 +692,17 @@ struct CoverHit {
 /// caller's precondition, not checked): exactly covering_discs(x), with its tests and expressions
 /// (d2 = |p - x|^2 within cover_reach2(r, 0), cover_in_plane_d2), sorted as it sorts, by (d2,
 /// id). A float test of |p - x|^2 against CoverCandidates::lim2 (4 candidates at a time on SSE2)
-/// rejects first; it never rejects a disc the exact test keeps. `out` is cleared first.
+/// rejects first; it never rejects a disc the exact tests keep. Expects `set` filled by
+/// cover_candidates (its float arrays from finish(): one entry per candidate). `out` is cleared
+/// first; its CoverHit::cand point into `set`.
 void cover_hits_among(const CoverCandidates& set, const Vec3& x, std::vector<CoverHit>& out);
 
 /// covering_discs(x) from `set` = cover_candidates(x0, delta) with |x - x0| <= delta (the
 /// caller's precondition): the same discs in the same order with the same distances, bit for bit
-/// (cover_hits_among, distances turned into |p - x|). `out` is cleared first.
-void covering_discs_among(const CoverCandidates& set, const Vec3& x, std::vector<Neighbor>& out);
+/// (cover_hits_among into the caller's `scratch`, distances turned into |p - x|). `out` is cleared
+/// first.
+void covering_discs_among(const CoverCandidates& set, const Vec3& x, std::vector<Neighbor>& out,
+                          std::vector<CoverHit>& scratch);
 
 /// blended_normal(s, covering_discs(x), hit, x) for |x - x0| <= delta from `set` =
 /// cover_candidates(x0, delta), bit for bit: the covering discs of cover_hits_among, blended in
