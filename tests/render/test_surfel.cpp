@@ -338,7 +338,9 @@ TEST(FirstSurfelHit, PerNodeDiscBoxesMatchBruteForce) {
     // radius in storage order); the oracle below reads d.c / d.n / d.r by original index.
     std::vector<glm::vec3> slot_n;
     if (const auto* oct = std::get_if<Octree>(&idx)) slot_n = surfel_slot_normals(*oct, v.centers, v.normals);
-    if (!slot_r.empty()) ASSERT_EQ(slot_n.size(), slot_r.size()) << "the octree stores the centres bit for bit";
+    if (!slot_r.empty()) {
+      ASSERT_EQ(slot_n.size(), slot_r.size()) << "the octree stores the centres bit for bit";
+    }
     SurfelView vn = vs;
     vn.slot_normals = slot_n;
     int hits = 0;
