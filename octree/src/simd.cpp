@@ -179,8 +179,9 @@ void child_dist2_sse2(const ChildBoxesF& b, const float* q, float margin, float*
 
 // The tail of a point filter kernel: points [i, count) appended to out[n...]; returns the new
 // count. With per-point radii (kRadii: f.radii is set) each through keep_point (no branch per
-// point); without, all of them, left to the exact test (measured: filtering them cost the sphere
-// mode 0.9% more instructions than it saved, bench/README.md).
+// point); without, all of them, left to the exact test (measured: filtering them in scalar code
+// cost the sphere mode 0.9% more instructions than it saved, bench/README.md). The SSE2 kernels
+// (at most one point) and counts below 4 end here; the AVX2 kernels overlap (tail_lanes4).
 template <bool kRadii>
 [[nodiscard]] inline unsigned append_tail(const double* xyz, unsigned i, unsigned count, const PointFilterD& f,
                                           std::uint32_t* out, unsigned n) {
@@ -375,50 +376,70 @@ __attribute__((target("avx2,fma"), always_inline)) inline void load_rel4(const d
   vz = _mm256_sub_pd(_mm256_shuffle_pd(Q, R, 0b1010), oz);
 }
 
+// The lane mask of points [i, i + 4) of the AVX2 distance filter: |p - o|^2 <= d2max.
+__attribute__((target("avx2,fma"), always_inline)) inline unsigned dist_step4(const double* xyz, unsigned i,
+                                                                              __m256d ox, __m256d oy, __m256d oz,
+                                                                              __m256d d2max) {
+  __m256d vx, vy, vz;
+  load_rel4(xyz + 3 * static_cast<std::size_t>(i), ox, oy, oz, vx, vy, vz);
+  const __m256d d2 = _mm256_fmadd_pd(vz, vz, _mm256_fmadd_pd(vy, vy, _mm256_mul_pd(vx, vx)));
+  return static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(d2, d2max, _CMP_LE_OQ)));
+}
+
+// The tail of the AVX2 kernels: the last count % 4 points as one more 4-wide step over points
+// [count - 4, count) (count >= 4, as every caller of a kernel has), whose lanes below i (appended
+// already) tail_lanes4 masks off: lane k of the step at j = count - 4 is point j + k. Writes stay
+// below count: lane k writes at n <= i (k < i - j) or at n + (k - (i - j)) <= j + k. Measured
+// against the scalar tails: -1.8% (surfel) and -2.6% (sphere) instructions of a render
+// (bench/README.md, "Session 19").
+[[nodiscard]] inline unsigned tail_lanes4(unsigned i, unsigned count) { return 0xFu << (i - (count - 4)); }
+
 __attribute__((target("avx2,fma"))) unsigned dist_filter_avx2(const double* xyz, unsigned count,
                                                               const PointFilterD& f, std::uint32_t* out) {
   const __m256d ox = _mm256_set1_pd(f.o[0]), oy = _mm256_set1_pd(f.o[1]), oz = _mm256_set1_pd(f.o[2]);
   const __m256d d2max = _mm256_set1_pd(f.d2_max);
   unsigned i = 0, n = 0;
-  for (; i + 4 <= count; i += 4) {
-    __m256d vx, vy, vz;
-    load_rel4(xyz + 3 * static_cast<std::size_t>(i), ox, oy, oz, vx, vy, vz);
-    const __m256d d2 = _mm256_fmadd_pd(vz, vz, _mm256_fmadd_pd(vy, vy, _mm256_mul_pd(vx, vx)));
-    unsigned m = static_cast<unsigned>(_mm256_movemask_pd(_mm256_cmp_pd(d2, d2max, _CMP_LE_OQ)));
-    n = append_lanes<4>(m, i, out, n);
-  }
-  for (; i < count; ++i) out[n++] = i;  // tail: left to the exact test
+  for (; i + 4 <= count; i += 4) n = append_lanes<4>(dist_step4(xyz, i, ox, oy, oz, d2max), i, out, n);
+  if (i < count && count >= 4)
+    return append_lanes<4>(dist_step4(xyz, count - 4, ox, oy, oz, d2max) & tail_lanes4(i, count), count - 4, out, n);
+  for (; i < count; ++i) out[n++] = i;  // (count < 4) left to the exact test
   return n;
 }
 
-// kRadii: as point_filter_sse2_impl.
+// The lane mask of points [i, i + 4) of an AVX2 point filter step (kRadii: with f.radii).
+template <bool kRadii>
+__attribute__((target("avx2,fma"), always_inline)) inline unsigned filter_step4(const double* xyz, unsigned i,
+                                                                                const PointFilterD& f) {
+  const __m256d ox = _mm256_set1_pd(f.o[0]), oy = _mm256_set1_pd(f.o[1]), oz = _mm256_set1_pd(f.o[2]);
+  const __m256d dx = _mm256_set1_pd(f.d[0]), dy = _mm256_set1_pd(f.d[1]), dz = _mm256_set1_pd(f.d[2]);
+  __m256d vx, vy, vz;
+  load_rel4(xyz + 3 * static_cast<std::size_t>(i), ox, oy, oz, vx, vy, vz);
+  const __m256d t = _mm256_fmadd_pd(vz, dz, _mm256_fmadd_pd(vy, dy, _mm256_mul_pd(vx, dx)));
+  const __m256d wx = _mm256_fnmadd_pd(t, dx, vx);
+  const __m256d wy = _mm256_fnmadd_pd(t, dy, vy);
+  const __m256d wz = _mm256_fnmadd_pd(t, dz, vz);
+  const __m256d d2 = _mm256_fmadd_pd(wz, wz, _mm256_fmadd_pd(wy, wy, _mm256_mul_pd(wx, wx)));
+  const __m256d d2max = _mm256_set1_pd(f.d2_max), tlo = _mm256_set1_pd(f.t_lo);
+  __m256d lim = d2max, tl = tlo;
+  if constexpr (kRadii) {  // each point's own radius as well (PointFilterD::radii, t_lo_own)
+    const __m256d r = _mm256_cvtps_pd(_mm_loadu_ps(f.radii + i));
+    lim = _mm256_min_pd(_mm256_fmadd_pd(r, r, _mm256_set1_pd(f.d2_slack)), d2max);  // (d2max when r is NaN)
+    tl = _mm256_max_pd(_mm256_sub_pd(_mm256_set1_pd(f.t_lo_own), r), tlo);          // (t_lo when r is NaN)
+  }
+  const __m256d ok = _mm256_and_pd(_mm256_cmp_pd(d2, lim, _CMP_LE_OQ),
+                                   _mm256_and_pd(_mm256_cmp_pd(t, tl, _CMP_GE_OQ),
+                                                 _mm256_cmp_pd(t, _mm256_set1_pd(f.t_hi), _CMP_LE_OQ)));
+  return static_cast<unsigned>(_mm256_movemask_pd(ok));
+}
+
+// kRadii: as point_filter_sse2_impl; the tail as tail_lanes4 says.
 template <bool kRadii>
 __attribute__((target("avx2,fma"))) unsigned point_filter_avx2_impl(const double* xyz, unsigned count,
                                                                     const PointFilterD& f, std::uint32_t* out) {
-  const __m256d ox = _mm256_set1_pd(f.o[0]), oy = _mm256_set1_pd(f.o[1]), oz = _mm256_set1_pd(f.o[2]);
-  const __m256d dx = _mm256_set1_pd(f.d[0]), dy = _mm256_set1_pd(f.d[1]), dz = _mm256_set1_pd(f.d[2]);
-  const __m256d d2max = _mm256_set1_pd(f.d2_max), tlo = _mm256_set1_pd(f.t_lo), thi = _mm256_set1_pd(f.t_hi);
-  const __m256d slack = _mm256_set1_pd(f.d2_slack), tlo_own = _mm256_set1_pd(f.t_lo_own);
   unsigned i = 0, n = 0;
-  for (; i + 4 <= count; i += 4) {
-    __m256d vx, vy, vz;
-    load_rel4(xyz + 3 * static_cast<std::size_t>(i), ox, oy, oz, vx, vy, vz);
-    const __m256d t = _mm256_fmadd_pd(vz, dz, _mm256_fmadd_pd(vy, dy, _mm256_mul_pd(vx, dx)));
-    const __m256d wx = _mm256_fnmadd_pd(t, dx, vx);
-    const __m256d wy = _mm256_fnmadd_pd(t, dy, vy);
-    const __m256d wz = _mm256_fnmadd_pd(t, dz, vz);
-    const __m256d d2 = _mm256_fmadd_pd(wz, wz, _mm256_fmadd_pd(wy, wy, _mm256_mul_pd(wx, wx)));
-    __m256d lim = d2max, tl = tlo;
-    if constexpr (kRadii) {  // each point's own radius as well (PointFilterD::radii, t_lo_own)
-      const __m256d r = _mm256_cvtps_pd(_mm_loadu_ps(f.radii + i));
-      lim = _mm256_min_pd(_mm256_fmadd_pd(r, r, slack), d2max);  // (d2max when r is NaN)
-      tl = _mm256_max_pd(_mm256_sub_pd(tlo_own, r), tlo);        // (t_lo when r is NaN)
-    }
-    const __m256d ok = _mm256_and_pd(_mm256_cmp_pd(d2, lim, _CMP_LE_OQ),
-                                     _mm256_and_pd(_mm256_cmp_pd(t, tl, _CMP_GE_OQ), _mm256_cmp_pd(t, thi, _CMP_LE_OQ)));
-    unsigned m = static_cast<unsigned>(_mm256_movemask_pd(ok));
-    n = append_lanes<4>(m, i, out, n);
-  }
+  for (; i + 4 <= count; i += 4) n = append_lanes<4>(filter_step4<kRadii>(xyz, i, f), i, out, n);
+  if (i < count && count >= 4)
+    return append_lanes<4>(filter_step4<kRadii>(xyz, count - 4, f) & tail_lanes4(i, count), count - 4, out, n);
   return append_tail<kRadii>(xyz, i, count, f, out, n);
 }
 

@@ -303,7 +303,8 @@ TEST(Simd, PointFilterWithPerPointRadiiNeverDropsAPointWithinItsRadius) {
 }
 
 // With per-point radii, every point the filter keeps passed its widened tests, the last count %
-// width points (the scalar tail) included: points far inside or far outside one bound each (the
+// width points (the scalar tail, or the AVX2 kernel's overlapping last step) included: points far
+// inside or far outside one bound each (the
 // common distance bound, each point's own radius, both ends of the t window, each point's own t
 // floor) and passing points with a NaN radius (which keeps the common bounds), every count from 1
 // to 11 on every path; the kept set must be exactly the passing one.

@@ -96,7 +96,8 @@ using PacketChildSlabFn = void (*)(const ChildBoxesF& boxes, const SlabPacketF& 
 /// indices of the points that may pass to out (capacity count) and returns how many; out[ret,
 /// count) may be overwritten. The filter may keep points that fail (never drops one that passes);
 /// with per-point radii (and d != 0), every point it keeps passed its widened tests, the last
-/// count % width points included (a scalar tail), so a caller may skip its own radius test.
+/// count % width points included (a scalar tail, or an overlapping last step), so a caller may
+/// skip its own radius test.
 using PointFilterFn = unsigned (*)(const double* xyz, unsigned count, const PointFilterD& f,
                                    std::uint32_t* out);
 
