@@ -111,9 +111,10 @@ class PathTracer {
         in_.surfels.node_boxes_f = node_boxes_f_;
       }
     }
-    // The cover caches' reach: 1.5 x the median disc radius (surfel mode's in.radius); 1, 1.5
-    // and 0.7 x were measured (bench/README.md).
-    cover_delta_ = 1.5 * in.radius;
+    // The cover caches' reach: 2 x the median disc radius (surfel mode's in.radius); 0.7, 1 and
+    // 1.5 x were measured with a cache per lane, 1.5, 2 and 3 x with the lanes' caches shared
+    // (bench/README.md, sessions 16 and 19).
+    cover_delta_ = 2.0 * in.radius;
     query_.k = 1;
     query_.radius = in.radius;
     query_.t_min = 0.0;
@@ -218,21 +219,33 @@ class PathTracer {
   }
 
   /// The surfel-mode surface of the disc hit `sh` (first_surfel_hit's answer, t < inf) of `ray`:
-  /// the hit point, the blended shading normal facing the ray, the disc's radius. With `cache`
-  /// (a camera ray's pixel), the covering discs come from its candidates when the hit lies within
-  /// cover_delta_ of its centre (refilled around the hit otherwise): the same normal, bit for bit.
-  void surfel_surface_at(const Ray& ray, const SurfelHit& sh, SurfaceHit& h, CoverCache* cache = nullptr) const {
+  /// the hit point, the blended shading normal facing the ray, the disc's radius. With `caches`
+  /// (the per-lane cover caches of a camera packet; `own`: the lane of this ray's pixel), the
+  /// covering discs come from the candidates of the first cache, own lane first, whose centre lies
+  /// within cover_delta_ of the hit (any such cache gives exactly the descent's discs), else the
+  /// own lane's cache is refilled around the hit: the same normal, bit for bit, from whichever.
+  void surfel_surface_at(const Ray& ray, const SurfelHit& sh, SurfaceHit& h, std::span<CoverCache> caches = {},
+                         std::size_t own = 0) const {
     h.t = sh.t;
     h.index = sh.index;
     h.position = ray.at(sh.t);
-    if (cache) {
+    if (!caches.empty()) {
       // |x - x0|^2 <= 0.998 delta^2, i.e. within 0.999 delta: |x - x0| <= delta despite rounding.
-      const Vec3 v = h.position - cache->cands.x0;
-      if (cache->owner != id_ || !(glm::dot(v, v) <= 0.998 * cover_delta_ * cover_delta_)) {
-        cover_candidates(index_, in_.surfels, h.position, cover_delta_, cache->cands);
-        cache->owner = id_;
+      const auto serves = [&](const CoverCache& c) {
+        const Vec3 v = h.position - c.cands.x0;
+        return c.owner == id_ && glm::dot(v, v) <= 0.998 * cover_delta_ * cover_delta_;
+      };
+      const CoverCache* use = serves(caches[own]) ? &caches[own] : nullptr;
+      // A neighbouring pixel's cache often reaches this hit too (its samples land within a few
+      // pixel footprints): one test per lane instead of a descent (bench/README.md, "Session 19").
+      for (std::size_t k = 0; !use && k < caches.size(); ++k)
+        if (k != own && serves(caches[k])) use = &caches[k];
+      if (!use) {
+        cover_candidates(index_, in_.surfels, h.position, cover_delta_, caches[own].cands);
+        caches[own].owner = id_;
+        use = &caches[own];
       }
-      h.normal = blended_normal_among(cache->cands, sh.index, in_.surfels.normals[sh.index], h.position,
+      h.normal = blended_normal_among(use->cands, sh.index, in_.surfels.normals[sh.index], h.position,
                                       normal_scratch().covering);
     } else {
       h.normal = surfel_shading_normal(index_, in_.surfels, sh.index, h.position, normal_scratch().near);
@@ -277,7 +290,7 @@ class PathTracer {
   /// packet answers are ray_first_hit's, so nothing depends on which paths share a packet.
   /// Surfel mode likewise, with first_surfel_hit_packet for the camera rays and for their shadow
   /// rays (each leaving its own surface), bit-identical to first_surfel_hit on each ray; the
-  /// shading normals of the camera hits come from a per-lane CoverCache (the same normals as
+  /// shading normals of the camera hits come from the per-lane CoverCaches (the same normals as
   /// trace()'s descent, bit for bit).
   void trace_packet(std::span<const Ray> rays, std::span<Sampler> s, std::span<Color> out,
                     std::vector<RayHit>& hits, TraceCounters& c) const {
@@ -329,7 +342,8 @@ class PathTracer {
                                   std::span(sh, m), hits, st);
           query_done();
           // One cover cache per pixel of the packet (the caller traces the samples of one pixel
-          // block in turn): a pointer's worth of static TLS, the caches on the heap.
+          // block in turn), each also serving the other lanes' hits within its reach: a pointer's
+          // worth of static TLS, the caches on the heap.
           thread_local std::unique_ptr<CoverCache[]> covers;
           if (!covers) covers = std::make_unique<CoverCache[]>(kMaxRayPacket);
           for (std::size_t j = 0; j < m; ++j) {
@@ -344,7 +358,9 @@ class PathTracer {
                 const Vec3 v = wave[j].at(sh[j].t) - wave[nb].at(sh[nb].t);
                 cached = glm::dot(v, v) <= 4.0 * cover_delta_ * cover_delta_;
               }
-              surfel_surface_at(wave[j], sh[j], h, cached ? &covers[lane[j]] : nullptr);
+              surfel_surface_at(wave[j], sh[j], h,
+                                cached ? std::span<CoverCache>(covers.get(), kMaxRayPacket) : std::span<CoverCache>{},
+                                lane[j]);
             }
             vertex(j, sh[j].t < kInf, h);
           }
