@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -36,6 +37,7 @@ namespace rayscan::io {
 namespace {
 
 namespace fs = std::filesystem;
+using detail::HugeArray;
 
 // ---- format constants (docs/index-format.md) ----------------------------------------------------
 constexpr char kMagic[8] = {'R', 'S', 'I', 'N', 'D', 'E', 'X', '\0'};
@@ -247,17 +249,20 @@ struct PositionCodec {
     else if (!grid_set) scale = g->first, offset = g->second, grid_set = true;
     else if (!(g->first == scale && g->second == offset)) grid_ok = false;
   }
-  /// Checks points p[0, n) against the encodings still possible.
-  void check(const Vec3* p, std::size_t n) {
-    for (std::size_t i = 0; i < n && (grid_ok || f32_ok); ++i)
-      for (int a = 0; a < 3; ++a) {
-        std::int32_t k;
-        if (grid_ok && !grid_value(p[i][a], a, k)) grid_ok = false;
-        const double v = p[i][a];  // (a double beyond the float range is not converted: UB)
-        if (f32_ok && !(std::abs(v) <= static_cast<double>(std::numeric_limits<float>::max()) &&
-                        same_bits(static_cast<double>(static_cast<float>(v)), v)))
-          f32_ok = false;
-      }
+  /// True when every coordinate of p is exactly an int32 value of the grid (las_int32 encodes it).
+  [[nodiscard]] bool on_grid(const Vec3& p) const {
+    std::int32_t k;
+    return grid_value(p[0], 0, k) && grid_value(p[1], 1, k) && grid_value(p[2], 2, k);
+  }
+  /// True when every coordinate of p is exactly a float (float32 encodes it).
+  static bool is_f32(const Vec3& p) {
+    for (int a = 0; a < 3; ++a) {
+      const double v = p[a];  // (a double beyond the float range is not converted: UB)
+      if (!(std::abs(v) <= static_cast<double>(std::numeric_limits<float>::max()) &&
+            same_bits(static_cast<double>(static_cast<float>(v)), v)))
+        return false;
+    }
+    return true;
   }
   /// Chooses the most compact exact encoding once every point was checked (float64 unless `compact`).
   void decide(bool compact) {
@@ -425,67 +430,6 @@ class RunReader {
   std::uint64_t off_ = 0;
 };
 
-/// Sort key of one buffered point: its Morton code and its position in the run buffer (the
-/// buffer holds points in id order, so (code, idx) order is the (code, id) order of build_bulk).
-/// The points of one sort run (or of the whole input when it fits the budget), structure of
-/// arrays in id order: positions and the stored attributes only.
-struct PointBuffer {
-  std::vector<Vec3> pos;
-  std::vector<Rgb16> rgb;
-  std::vector<std::uint16_t> intensity;
-  std::vector<std::uint8_t> cls;
-  std::vector<double> gps;
-  [[nodiscard]] std::size_t size() const { return pos.size(); }
-  void reserve(std::size_t n, const RecordLayout& L) {
-    pos.reserve(n);
-    if (L.rgb) rgb.reserve(n);
-    if (L.intensity) intensity.reserve(n);
-    if (L.cls) cls.reserve(n);
-    if (L.gps) gps.reserve(n);
-  }
-  void clear() {
-    pos.clear(), rgb.clear(), intensity.clear(), cls.clear(), gps.clear();
-  }
-  /// Appends points [i0, i0 + n) of `c` (bulk copies) and widens `bounds` by them.
-  void append(const PointCloud& c, std::size_t i0, std::size_t n, const RecordLayout& L, AABB& bounds) {
-    auto add = [&](auto& dst, const auto& src) {
-      dst.insert(dst.end(), src.begin() + static_cast<std::ptrdiff_t>(i0), src.begin() + static_cast<std::ptrdiff_t>(i0 + n));
-    };
-    add(pos, c.positions);
-    if (L.rgb) add(rgb, c.rgb);
-    if (L.intensity) add(intensity, c.intensity);
-    if (L.cls) add(cls, c.classification);
-    if (L.gps) add(gps, c.gps_time);
-    for (std::size_t i = i0; i < i0 + n; ++i) bounds.expand(c.positions[i]);
-  }
-};
-
-/// The Morton keys of the buffered points on the grid `qz`, sorted by (code, id)
-/// (sort_morton_keys: the codes are computed twice instead of held in a second array).
-std::vector<MortonKey> sorted_keys(const PointBuffer& buf, const OctreeRules::Quantizer& qz) {
-  std::vector<MortonKey> keys(buf.size());
-  sort_morton_keys(buf.size(), [&](std::size_t i) { return qz.code(buf.pos[i]); }, keys.data());
-  return keys;
-}
-
-/// Calls `fn(b, e)` for consecutive blocks [b, e) of [0, n) of at most kGatherBlock keys.
-constexpr std::size_t kGatherBlock = std::size_t{1} << 18;
-template <class Fn>
-void for_blocks(std::size_t n, Fn&& fn) {
-  for (std::size_t b = 0; b < n; b += kGatherBlock) fn(b, std::min(n, b + kGatherBlock));
-}
-
-/// Gathers field `src[keys[i].idx]` for keys [b, e) into `out` (parallel) and appends it to `w`.
-template <class T>
-void gather_write(const std::vector<T>& src, const std::vector<MortonKey>& keys, std::size_t b, std::size_t e,
-                  std::vector<T>& out, SectionWriter& w) {
-  out.resize(e - b);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, 1 << 14), [&](const auto& r) {
-    for (std::size_t i = r.begin(); i != r.end(); ++i) out[i - b] = src[keys[i].idx];
-  });
-  w.write(out.data(), out.size() * sizeof(T));
-}
-
 /// The colour encoding a build writes (docs/index-format.md "Colour"): the read pass checks every
 /// delivered rgb value v (uint16) against v = b * m with b <= 255 for each multiplier m in
 /// {1, 256, 257} (8-bit colour stored raw, in the high byte, or scaled by 257); decide() picks the
@@ -494,9 +438,8 @@ void gather_write(const std::vector<T>& src, const std::vector<MortonKey>& keys,
 struct RgbCodec {
   std::uint32_t bad1 = 0, bad256 = 0, bad257 = 0;  ///< non-zero: some value is not b * m
   std::uint32_t mul = 0;                           ///< decided: 1, 256, 257, or 0 (16-bit section)
-  /// Checks n colours.
-  void check(const Rgb16* c, std::size_t n) {
-    if (bad1 && bad256 && bad257) return;
+  /// Bits of each candidate multiplier that n colours rule out (bit 0: 1, bit 1: 256, bit 2: 257).
+  static std::uint32_t ruled_out(const Rgb16* c, std::size_t n) {
     std::uint32_t a = 0, h = 0, q = 0;
     for (std::size_t i = 0; i < n; ++i)
       for (const std::uint32_t v : {std::uint32_t{c[i].r}, std::uint32_t{c[i].g}, std::uint32_t{c[i].b}}) {
@@ -504,8 +447,11 @@ struct RgbCodec {
         h |= v & 255u;
         q |= (v % 257u) != 0u;
       }
-    bad1 |= a, bad256 |= h, bad257 |= q;
+    return (a != 0 ? 1u : 0u) | (h != 0 ? 2u : 0u) | (q != 0 ? 4u : 0u);
   }
+  /// Records the multipliers ruled out (ruled_out()'s bits).
+  void rule_out(std::uint32_t bits) { bad1 |= bits & 1u, bad256 |= bits & 2u, bad257 |= bits & 4u; }
+  [[nodiscard]] bool undecided() const { return !(bad1 && bad256 && bad257); }
   /// Picks the multiplier (compact false: always the 16-bit section).
   void decide(bool compact) {
     mul = !compact ? 0u : !bad1 ? 1u : !bad256 ? 256u : !bad257 ? 257u : 0u;
@@ -519,6 +465,103 @@ struct RgbCodec {
     }
   }
 };
+
+/// What the read pass learns from a block of points besides the points themselves: their bounds,
+/// whether the positions encodings are still possible (PositionCodec) and the colour
+/// multipliers ruled out (RgbCodec::ruled_out). Joined over the parallel blocks of a chunk.
+struct BlockScan {
+  AABB box;
+  bool grid = true, f32 = true;
+  std::uint32_t rgb_out = 0;
+  void join(const BlockScan& o) {
+    box.expand(o.box);
+    grid = grid && o.grid, f32 = f32 && o.f32;
+    rgb_out |= o.rgb_out;
+  }
+};
+
+/// The points of one sort run (or of the whole input when it fits the budget), structure of
+/// arrays in id order: positions and the stored attributes only, in huge-page arrays of a fixed
+/// capacity (no zero-fill pass; a few hundred page faults for gigabytes).
+struct PointBuffer {
+  HugeArray<Vec3> pos;
+  HugeArray<Rgb16> rgb;
+  HugeArray<std::uint16_t> intensity;
+  HugeArray<std::uint8_t> cls;
+  HugeArray<double> gps;
+  std::size_t n = 0;  ///< points held
+  [[nodiscard]] std::size_t size() const { return n; }
+  [[nodiscard]] std::size_t capacity() const { return pos.size(); }
+  /// Storage for `cap` points of layout L (the arrays the layout stores).
+  void allocate(std::size_t cap, const RecordLayout& L) {
+    pos = HugeArray<Vec3>(cap);
+    if (L.rgb) rgb = HugeArray<Rgb16>(cap);
+    if (L.intensity) intensity = HugeArray<std::uint16_t>(cap);
+    if (L.cls) cls = HugeArray<std::uint8_t>(cap);
+    if (L.gps) gps = HugeArray<double>(cap);
+  }
+  void clear() { n = 0; }
+  /// Appends points [i0, i0 + count) of `c` (count <= capacity() - size()), copying and scanning
+  /// them in parallel blocks: the bounds, the positions encodings still possible under `codec`
+  /// and the colour multipliers ruled out (skipped once `rgbc` has ruled out every one).
+  BlockScan append(const PointCloud& c, std::size_t i0, std::size_t count, const RecordLayout& L,
+                   const PositionCodec& codec, const RgbCodec& rgbc) {
+    const bool grid0 = codec.grid_ok, f320 = codec.f32_ok, rgb0 = L.rgb && rgbc.undecided();
+    const std::size_t at = n;
+    BlockScan all = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(i0, i0 + count, 1 << 14), BlockScan{},
+        [&](const tbb::blocked_range<std::size_t>& r, BlockScan acc) {
+          const std::size_t b = r.begin(), m = r.end() - r.begin(), d = at + (b - i0);
+          std::memcpy(pos.data() + d, c.positions.data() + b, m * sizeof(Vec3));
+          if (L.rgb) std::memcpy(rgb.data() + d, c.rgb.data() + b, m * sizeof(Rgb16));
+          if (L.intensity) std::memcpy(intensity.data() + d, c.intensity.data() + b, m * 2);
+          if (L.cls) std::memcpy(cls.data() + d, c.classification.data() + b, m);
+          if (L.gps) std::memcpy(gps.data() + d, c.gps_time.data() + b, m * 8);
+          bool g = grid0, f = f320;
+          for (std::size_t i = b; i < r.end(); ++i) {
+            const Vec3& p = c.positions[i];
+            acc.box.expand(p);
+            if (g) g = codec.on_grid(p);
+            if (f) f = PositionCodec::is_f32(p);
+          }
+          acc.grid = acc.grid && g, acc.f32 = acc.f32 && f;
+          if (rgb0) acc.rgb_out |= RgbCodec::ruled_out(c.rgb.data() + b, m);
+          return acc;
+        },
+        [](BlockScan x, const BlockScan& y) {
+          x.join(y);
+          return x;
+        });
+    n += count;
+    return all;
+  }
+};
+
+/// The Morton keys of the buffered points on the grid `qz`, sorted by (code, id)
+/// (sort_morton_keys: the codes are computed twice instead of held in a second array).
+HugeArray<MortonKey> sorted_keys(const PointBuffer& buf, const OctreeRules::Quantizer& qz) {
+  HugeArray<MortonKey> keys(buf.size());
+  sort_morton_keys(buf.size(), [&](std::size_t i) { return qz.code(buf.pos[i]); }, keys.data());
+  return keys;
+}
+
+/// Calls `fn(b, e)` for consecutive blocks [b, e) of [0, n) of at most kGatherBlock keys.
+constexpr std::size_t kGatherBlock = std::size_t{1} << 18;
+template <class Fn>
+void for_blocks(std::size_t n, Fn&& fn) {
+  for (std::size_t b = 0; b < n; b += kGatherBlock) fn(b, std::min(n, b + kGatherBlock));
+}
+
+/// Gathers field `src[keys[i].idx]` for keys [b, e) into `out` (parallel) and appends it to `w`.
+template <class T>
+void gather_write(const HugeArray<T>& src, const HugeArray<MortonKey>& keys, std::size_t b, std::size_t e,
+                  std::vector<T>& out, SectionWriter& w) {
+  out.resize(e - b);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, 1 << 14), [&](const auto& r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i) out[i - b] = src[keys[i].idx];
+  });
+  w.write(out.data(), out.size() * sizeof(T));
+}
 
 /// Page size of the maps below (madvise ranges are page-aligned).
 std::size_t page_bytes() {
@@ -869,12 +912,12 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   AABB bounds;
   std::uint64_t total = 0;
   PointBuffer buf;
-  buf.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(run_cap, announced)), L);
+  buf.allocate(static_cast<std::size_t>(std::min<std::uint64_t>(run_cap, announced)), L);
   std::vector<fs::path> run_files;
   std::uint64_t run_first_id = 0;
   auto flush_run = [&] {
     if (buf.size() == 0) return;
-    const std::vector<MortonKey> keys = sorted_keys(buf, grid_qz);
+    const HugeArray<MortonKey> keys = sorted_keys(buf, grid_qz);
     const fs::path rp = runs_dir.path / ("run" + std::to_string(run_files.size()));
     Fd fd(rp, O_WRONLY | O_CREAT | O_TRUNC);
     std::vector<std::uint8_t> recs;
@@ -922,17 +965,18 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
       codec.source(r->integer_grid());
       std::size_t n;
       while ((n = r->read(c, kDefaultChunkPoints)) > 0) {
-        codec.check(c.positions.data(), n);
-        if (L.rgb) rgbc.check(c.rgb.data(), n);
         if (total + n >= 0xFFFFFFFFull) throw std::length_error("rayscan index: more than 2^32 - 2 points");
-        if (in_memory && buf.size() + n > run_cap)
+        if (in_memory && buf.size() + n > buf.capacity())
           throw std::runtime_error(inputs[f].string() + ": the inputs changed during the build (more points than " +
                                    std::to_string(announced) + " announced by the headers)");
         for (std::size_t i0 = 0; i0 < n;) {
-          const std::size_t take = std::min(n - i0, run_cap - buf.size());
-          buf.append(c, i0, take, L, bounds);
+          const std::size_t take = std::min(n - i0, buf.capacity() - buf.size());
+          const BlockScan sc = buf.append(c, i0, take, L, codec, rgbc);
+          bounds.expand(sc.box);
+          codec.grid_ok = codec.grid_ok && sc.grid, codec.f32_ok = codec.f32_ok && sc.f32;
+          rgbc.rule_out(sc.rgb_out);
           i0 += take;
-          if (!in_memory && buf.size() == run_cap) flush_run();
+          if (!in_memory && buf.size() == buf.capacity()) flush_run();
         }
         total += n;
         sources[f].points += n;
@@ -998,7 +1042,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   // The point sections in (code, id) order: straight from memory (one run), or by a k-way merge
   // of the runs whose codes go to a temporary file. Then the nodes from the sorted codes.
   const fs::path codes_path = runs_dir.path / "codes";
-  std::vector<std::uint64_t> mem_codes;  // sorted codes of the in-memory build
+  HugeArray<std::uint64_t> mem_codes;  // sorted codes of the in-memory build
   // Flushes the point sections' writers (positions, ids, the stored attributes) and records their
   // CRCs in the header: the end of both paths below.
   auto finish_points = [&](SectionWriter& pos, std::optional<SectionWriter>& ids, std::optional<SectionWriter>& rgb,
@@ -1015,8 +1059,8 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   if (in_memory) {
     const OctreeRules::Quantizer qz(cell.lo, OctreeRules::root_side(bounds));
     if (opt.progress) opt.progress("sort", 0, total);
-    std::vector<MortonKey> keys = sorted_keys(buf, qz);
-    mem_codes.resize(keys.size());
+    HugeArray<MortonKey> keys = sorted_keys(buf, qz);
+    mem_codes = HugeArray<std::uint64_t>(keys.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 1 << 16), [&](const auto& r) {
       for (std::size_t i = r.begin(); i != r.end(); ++i) mem_codes[i] = keys[i].code;
     });
@@ -1188,7 +1232,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     // points at most (the progress interval), so small budgets release often too.
     nb.every = std::clamp<std::uint64_t>(opt.memory_bytes / 16 / 32, 1024, std::uint64_t{1} << 22);
     nb.build(total);
-    mem_codes = {};
+    mem_codes = HugeArray<std::uint64_t>{};
     codes_map.reset();
     const std::size_t s_nodes = place(kNodes, nb.count * kNodeBytes);
     if (h.sections[s_nodes].offset != nodes_off) throw std::logic_error("rayscan index: nodes section misplaced");
