@@ -311,6 +311,57 @@ TEST(IndexFileBuild, LasAttributesAreStoredExactlyBySlot) {
   fs::remove_all(dir);
 }
 
+// Sort runs store a position as the LAS int32 grid values while every point read so far lies on
+// the sources' grid, and as float64 after that (docs/index-format.md "Build"). Two LAS tiles of
+// autzen on different scales (0.01 and 0.001): the first tile's runs are grid runs, the second
+// tile makes the grid impossible, so its runs hold float64 and the file stores float64. With a
+// 1 MiB budget (several runs of each kind) the file equals, byte for byte, the one-run build of
+// the same tiles, every position decodes to the reader's value of its id, the attributes follow
+// their points, and the tree is build_bulk's over the concatenated points.
+TEST(IndexFileBuild, GridRunsThenFloatRunsGiveTheOneRunFile) {
+  RAYSCAN_REQUIRE_FILE(p, "las/autzen_trim.las");
+  const fs::path dir = temp_dir() / "mixed_runs";
+  fs::create_directories(dir);
+  const PointCloud src = io::read_point_cloud(p);
+  const std::size_t half = src.size() / 2;
+  auto tile = [&](std::size_t b, std::size_t e, double scale, const fs::path& out) {
+    PointCloud c;
+    c.crs_wkt = src.crs_wkt;
+    c.positions.assign(src.positions.begin() + static_cast<std::ptrdiff_t>(b), src.positions.begin() + static_cast<std::ptrdiff_t>(e));
+    c.rgb.assign(src.rgb.begin() + static_cast<std::ptrdiff_t>(b), src.rgb.begin() + static_cast<std::ptrdiff_t>(e));
+    io::LasWriteOptions w;
+    w.scale = Vec3(scale);
+    io::write_las(out, c, w);
+  };
+  tile(0, half, 0.01, dir / "a.las");
+  tile(half, src.size(), 0.001, dir / "b.las");
+  const PointCloud a = io::read_point_cloud(dir / "a.las"), b = io::read_point_cloud(dir / "b.las");
+  std::vector<Vec3> all = a.positions;
+  all.insert(all.end(), b.positions.begin(), b.positions.end());
+  std::vector<Rgb16> rgb = a.rgb;
+  rgb.insert(rgb.end(), b.rgb.begin(), b.rgb.end());
+  ASSERT_EQ(rgb.size(), all.size());
+  auto build = [&](std::uint64_t memory, const fs::path& out) {
+    io::IndexBuildOptions o;
+    o.attributes = io::AttributeSet::parse("id,rgb");
+    o.memory_bytes = memory;
+    return io::build_index_file({dir / "a.las", dir / "b.las"}, out, o);
+  };
+  const auto one = build(std::uint64_t{64} << 20, dir / "one.rsi");
+  const auto many = build(std::uint64_t{1} << 20, dir / "many.rsi");
+  EXPECT_EQ(one.runs, 1u);
+  EXPECT_GE(many.runs, 4u);
+  EXPECT_TRUE(slurp(dir / "one.rsi") == slurp(dir / "many.rsi"));
+  const io::MappedIndex m = io::MappedIndex::open(dir / "many.rsi");
+  EXPECT_EQ(m.position_encoding(), PositionEncoding::float64);
+  const PointCloud back = m.to_point_cloud();  // original order (ids stored)
+  ASSERT_EQ(back.size(), all.size());
+  EXPECT_EQ(0, std::memcmp(back.positions.data(), all.data(), all.size() * sizeof(Vec3)));
+  EXPECT_TRUE(back.rgb == rgb);
+  expect_same_tree(m, Octree::build_bulk(all, OctreeConfig{}));
+  fs::remove_all(dir);
+}
+
 // A float source (PCD, float32 x y z): stored as float32 (12 bytes per point), decoded bit for
 // bit to what read_point_cloud returns; queries equal brute force over the reader's positions.
 TEST(IndexFileBuild, FloatSourceIsStoredAsFloat32Exactly) {

@@ -231,6 +231,7 @@ struct Header {
 struct PositionCodec {
   PositionEncoding enc = PositionEncoding::float64;
   Vec3 scale{1.0}, offset{0.0};
+  Vec3 inv_scale{1.0};  ///< 1 / scale (grid_int)
   // Read pass state: still possible for every point seen so far.
   bool grid_ok = true, f32_ok = true;
   bool grid_set = false;
@@ -243,10 +244,21 @@ struct PositionCodec {
     out = static_cast<std::int32_t>(k);
     return same_bits(las_coordinate(out, scale[a], offset[a]), v);
   }
+  /// grid_value's int32 for a coordinate v known to have one (the read pass checked it), mostly
+  /// without its division: q = (v - offset) * (1 / scale) differs from grid_value's quotient by
+  /// less than 1e-6 (|k| < 2^31, a few ulps), so when q lies within 0.25 of an integer both round
+  /// to it; otherwise grid_value decides.
+  [[nodiscard]] std::int32_t grid_int(double v, int a) const {
+    const double q = (v - offset[a]) * inv_scale[a], k = std::nearbyint(q);
+    if (std::abs(q - k) <= 0.25) return static_cast<std::int32_t>(k);
+    std::int32_t out = 0;
+    (void)grid_value(v, a, out);
+    return out;
+  }
   /// A new source: its integer grid (PointReader::integer_grid) must be the first source's.
   void source(const std::optional<std::pair<Vec3, Vec3>>& g) {
     if (!g) grid_ok = false;
-    else if (!grid_set) scale = g->first, offset = g->second, grid_set = true;
+    else if (!grid_set) scale = g->first, offset = g->second, inv_scale = 1.0 / scale, grid_set = true;
     else if (!(g->first == scale && g->second == offset)) grid_ok = false;
   }
   /// True when every coordinate of p is exactly an int32 value of the grid (las_int32 encodes it).
@@ -364,17 +376,35 @@ std::int64_t mtime_ns(const fs::path& p) {
 
 // ---- build ---------------------------------------------------------------------------------------
 
-/// Layout of one sort record: Morton code, id, position, then the stored attributes.
+/// The stored attributes of a build and the run buffer's bytes per point (`bytes`: a float64
+/// position, the attributes and the 12 bytes of code and id that sized the budget before the
+/// compact run records; kept so that a --memory value gives the same runs).
 struct RecordLayout {
   bool rgb = false, intensity = false, cls = false, gps = false;
-  std::size_t bytes = 36, rgb_off = 0, int_off = 0, cls_off = 0, gps_off = 0;
+  std::size_t bytes = 36;
   explicit RecordLayout(AttributeSet a)
       : rgb(a.has(Attribute::rgb)), intensity(a.has(Attribute::intensity)),
         cls(a.has(Attribute::classification)), gps(a.has(Attribute::gps_time)) {
-    if (gps) gps_off = bytes, bytes += 8;
-    if (rgb) rgb_off = bytes, bytes += 6;
-    if (intensity) int_off = bytes, bytes += 2;
-    if (cls) cls_off = bytes, bytes += 1;
+    bytes += (gps ? 8 : 0) + (rgb ? 6 : 0) + (intensity ? 2 : 0) + (cls ? 1 : 0);
+  }
+};
+
+/// Layout of one sort-run record (docs/index-format.md "Build"): the Morton code (8 bytes), the
+/// point id (4, only when the ids section is written), the stored attributes (gps_time 8, rgb 6,
+/// intensity 2, classification 1), then the position: the LAS int32 grid values (12) when every
+/// point read before the run was written lies exactly on the sources' grid, else 3 float64 (24).
+/// The merge needs no id as its tie-break: run r holds the ids that follow run r - 1's, so
+/// (code, run) order is (code, id) order.
+struct RunLayout {
+  bool ids = false, grid = false;
+  std::size_t bytes = 8, id_off = 0, gps_off = 0, rgb_off = 0, int_off = 0, cls_off = 0, pos_off = 0;
+  RunLayout(const RecordLayout& L, bool with_ids, bool grid_positions) : ids(with_ids), grid(grid_positions) {
+    if (ids) id_off = bytes, bytes += 4;
+    if (L.gps) gps_off = bytes, bytes += 8;
+    if (L.rgb) rgb_off = bytes, bytes += 6;
+    if (L.intensity) int_off = bytes, bytes += 2;
+    if (L.cls) cls_off = bytes, bytes += 1;
+    pos_off = bytes, bytes += grid ? 12 : 24;
   }
 };
 
@@ -428,6 +458,51 @@ class RunReader {
   std::vector<std::uint8_t> buf_;
   std::size_t pos_ = 0, len_ = 0;
   std::uint64_t off_ = 0;
+};
+
+/// Tournament tree of losers over k sorted sequences (Knuth, TAOCP vol. 3, section 5.4.1,
+/// "replacement selection" with a tree of losers): the winner is the sequence with the least
+/// (key, sequence) pair; replacing the winner's key replays one leaf-to-root path, one comparison
+/// per level (log2 k), where a binary heap's pop and push take two sift passes. Keys are < kDone;
+/// an exhausted sequence has key kDone and sorts last.
+class LoserTree {
+ public:
+  static constexpr std::uint64_t kDone = ~std::uint64_t{0};
+  /// `keys[r]`: the first key of sequence r (kDone when it is empty).
+  explicit LoserTree(const std::vector<std::uint64_t>& keys) {
+    p_ = 1;
+    while (p_ < keys.size()) p_ *= 2;
+    key_.assign(p_, kDone);
+    std::copy(keys.begin(), keys.end(), key_.begin());
+    loser_.assign(p_, 0);
+    std::vector<std::uint32_t> win(2 * p_);
+    for (std::size_t i = 0; i < p_; ++i) win[p_ + i] = static_cast<std::uint32_t>(i);
+    for (std::size_t n = p_ - 1; n >= 1; --n) {
+      const std::uint32_t a = win[2 * n], b = win[2 * n + 1];
+      win[n] = less(a, b) ? a : b;
+      loser_[n] = less(a, b) ? b : a;
+    }
+    loser_[0] = win[1];
+  }
+  /// The sequence holding the least key (kDone when every sequence is exhausted).
+  [[nodiscard]] std::uint32_t winner() const { return loser_[0]; }
+  [[nodiscard]] std::uint64_t winner_key() const { return key_[loser_[0]]; }
+  /// Gives the winner its next key (kDone when it is exhausted) and finds the new winner.
+  void replace(std::uint64_t key) {
+    std::uint32_t w = loser_[0];
+    key_[w] = key;
+    for (std::size_t n = (w + p_) / 2; n >= 1; n /= 2)
+      if (less(loser_[n], w)) std::swap(loser_[n], w);
+    loser_[0] = w;
+  }
+
+ private:
+  [[nodiscard]] bool less(std::uint32_t a, std::uint32_t b) const {
+    return key_[a] < key_[b] || (key_[a] == key_[b] && a < b);
+  }
+  std::size_t p_ = 1;                 ///< leaves: k rounded up to a power of two
+  std::vector<std::uint64_t> key_;    ///< current key per leaf
+  std::vector<std::uint32_t> loser_;  ///< [0]: the winner; [n >= 1]: the loser at internal node n
 };
 
 /// The colour encoding a build writes (docs/index-format.md "Colour"): the read pass checks every
@@ -537,12 +612,12 @@ struct PointBuffer {
   }
 };
 
-/// The Morton keys of the buffered points on the grid `qz`, sorted by (code, id)
+/// The Morton keys of the buffered points on the grid `qz`, sorted by (code, id), into `keys`
+/// (reallocated only when smaller than the buffer: the runs of a build reuse one array)
 /// (sort_morton_keys: the codes are computed twice instead of held in a second array).
-HugeArray<MortonKey> sorted_keys(const PointBuffer& buf, const OctreeRules::Quantizer& qz) {
-  HugeArray<MortonKey> keys(buf.size());
+void sort_keys(const PointBuffer& buf, const OctreeRules::Quantizer& qz, HugeArray<MortonKey>& keys) {
+  if (keys.size() < buf.size()) keys = HugeArray<MortonKey>(buf.size());
   sort_morton_keys(buf.size(), [&](std::size_t i) { return qz.code(buf.pos[i]); }, keys.data());
-  return keys;
 }
 
 /// Calls `fn(b, e)` for consecutive blocks [b, e) of [0, n) of at most kGatherBlock keys.
@@ -914,39 +989,52 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   PointBuffer buf;
   buf.allocate(static_cast<std::size_t>(std::min<std::uint64_t>(run_cap, announced)), L);
   std::vector<fs::path> run_files;
+  std::vector<RunLayout> run_layouts;
   std::uint64_t run_first_id = 0;
+  PositionCodec codec;
+  RgbCodec rgbc;
+  HugeArray<MortonKey> run_keys;
   auto flush_run = [&] {
     if (buf.size() == 0) return;
-    const HugeArray<MortonKey> keys = sorted_keys(buf, grid_qz);
+    sort_keys(buf, grid_qz, run_keys);
+    const HugeArray<MortonKey>& keys = run_keys;
     const fs::path rp = runs_dir.path / ("run" + std::to_string(run_files.size()));
+    // codec.grid_ok covers every point read so far, this run's included (append checked them).
+    const RunLayout R(L, want_ids, codec.grid_ok && codec.grid_set);
     Fd fd(rp, O_WRONLY | O_CREAT | O_TRUNC);
-    std::vector<std::uint8_t> recs;
-    std::uint64_t off = 0;
-    for_blocks(keys.size(), [&](std::size_t b, std::size_t e) {
-      recs.resize((e - b) * L.bytes);
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, 1 << 14), [&](const auto& r) {
-        for (std::size_t k = r.begin(); k != r.end(); ++k) {
-          const std::uint32_t i = keys[k].idx;
+    // Blocks of records gathered and written in parallel, each at its own offset (the kernel's
+    // copy into the page cache then runs on every core too).
+    const std::size_t nb = (buf.size() + kGatherBlock - 1) / kGatherBlock;
+    tbb::parallel_for(std::size_t{0}, nb, [&](std::size_t blk) {
+      const std::size_t b = blk * kGatherBlock, e = std::min(buf.size(), b + kGatherBlock);
+      std::vector<std::uint8_t> recs((e - b) * R.bytes);
+      for (std::size_t k = b; k != e; ++k) {
+        const std::uint32_t i = keys[k].idx;
+        std::uint8_t* rec = recs.data() + (k - b) * R.bytes;
+        std::memcpy(rec, &keys[k].code, 8);
+        if (R.ids) {
           const auto pid = static_cast<std::uint32_t>(run_first_id + i);
-          std::uint8_t* rec = recs.data() + (k - b) * L.bytes;
-          std::memcpy(rec, &keys[k].code, 8);
-          std::memcpy(rec + 8, &pid, 4);
-          std::memcpy(rec + 12, &buf.pos[i], 24);
-          if (L.gps) std::memcpy(rec + L.gps_off, &buf.gps[i], 8);
-          if (L.rgb) std::memcpy(rec + L.rgb_off, &buf.rgb[i], 6);
-          if (L.intensity) std::memcpy(rec + L.int_off, &buf.intensity[i], 2);
-          if (L.cls) rec[L.cls_off] = buf.cls[i];
+          std::memcpy(rec + R.id_off, &pid, 4);
         }
-      });
-      fd.pwrite_all(recs.data(), recs.size(), off);
-      off += recs.size();
+        if (L.gps) std::memcpy(rec + R.gps_off, &buf.gps[i], 8);
+        if (L.rgb) std::memcpy(rec + R.rgb_off, &buf.rgb[i], 6);
+        if (L.intensity) std::memcpy(rec + R.int_off, &buf.intensity[i], 2);
+        if (L.cls) rec[R.cls_off] = buf.cls[i];
+        if (R.grid) {
+          std::int32_t v[3];
+          for (int a = 0; a < 3; ++a) v[a] = codec.grid_int(buf.pos[i][a], a);
+          std::memcpy(rec + R.pos_off, v, 12);
+        } else {
+          std::memcpy(rec + R.pos_off, &buf.pos[i], 24);
+        }
+      }
+      fd.pwrite_all(recs.data(), recs.size(), static_cast<std::uint64_t>(b) * R.bytes);
     });
     run_files.push_back(rp);
+    run_layouts.push_back(R);
     run_first_id += buf.size();
     buf.clear();
   };
-  PositionCodec codec;
-  RgbCodec rgbc;
   for (int attempt = 0;; ++attempt) {
     PointCloud c;
     codec = PositionCodec{};
@@ -956,6 +1044,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     run_first_id = 0;
     for (const fs::path& rp : run_files) fs::remove(rp);
     run_files.clear();
+    run_layouts.clear();
     buf.clear();
     for (IndexSource& s : sources) s.points = 0;
     for (std::size_t f = 0; f < inputs.size(); ++f) {
@@ -1059,7 +1148,8 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   if (in_memory) {
     const OctreeRules::Quantizer qz(cell.lo, OctreeRules::root_side(bounds));
     if (opt.progress) opt.progress("sort", 0, total);
-    HugeArray<MortonKey> keys = sorted_keys(buf, qz);
+    HugeArray<MortonKey> keys;
+    sort_keys(buf, qz, keys);
     mem_codes = HugeArray<std::uint64_t>(keys.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 1 << 16), [&](const auto& r) {
       for (std::size_t i = r.begin(); i != r.end(); ++i) mem_codes[i] = keys[i].code;
@@ -1126,38 +1216,58 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
         static_cast<std::size_t>(opt.memory_bytes / 2 / std::max<std::size_t>(1, run_files.size())),
         std::size_t{1} << 16, std::size_t{64} << 20);
     std::vector<std::unique_ptr<RunReader>> readers;
-    for (const fs::path& rp : run_files) readers.push_back(std::make_unique<RunReader>(rp, L.bytes, rbuf));
-    struct Head {
-      std::uint64_t code;
-      std::uint32_t id;
-      std::uint32_t run;
-      bool operator>(const Head& o) const { return code > o.code || (code == o.code && id > o.id); }
-    };
-    std::priority_queue<Head, std::vector<Head>, std::greater<>> heap;
-    auto push = [&](std::uint32_t r) {
-      if (readers[r]->done()) return;
-      heap.push({get<std::uint64_t>(readers[r]->cur(), 0), get<std::uint32_t>(readers[r]->cur(), 8), r});
-    };
-    for (std::uint32_t r = 0; r < readers.size(); ++r) push(r);
+    for (std::size_t r = 0; r < run_files.size(); ++r)
+      readers.push_back(std::make_unique<RunReader>(run_files[r], run_layouts[r].bytes, rbuf));
+    // Every run shares the offsets of the fields before the position (RunLayout).
+    const RunLayout R0 = run_layouts.empty() ? RunLayout(L, want_ids, false) : run_layouts.front();
+    auto head = [&](std::size_t r) { return readers[r]->done() ? LoserTree::kDone : get<std::uint64_t>(readers[r]->cur(), 0); };
+    std::vector<std::uint64_t> heads(readers.size());
+    for (std::size_t r = 0; r < readers.size(); ++r) heads[r] = head(r);
+    LoserTree tree(heads);  // (code, run) order is (code, id) order (RunLayout)
     // The merge order is decided for a block of records (pointers into the run buffers, valid
     // until a buffer refills, which ends the block); each section is then gathered from the block
     // and written, the sections in parallel.
     std::vector<const std::uint8_t*> block;
+    std::vector<std::uint32_t> block_run;
     block.reserve(std::size_t{1} << 16);
+    block_run.reserve(block.capacity());
     std::uint64_t merged = 0;
     auto emit_block = [&] {
       struct Field {
         SectionWriter* w;
         std::size_t off, size;
       };
-      std::vector<Field> fields{{&w_codes, 0, 8}, {&w_pos, 12, 24}};
-      if (w_ids) fields.push_back({&*w_ids, 8, 4});  // the record's id (the merge's tie-break) is always there
-      if (L.gps) fields.push_back({&*w_gps, L.gps_off, 8});
-      if (L.rgb) fields.push_back({&*w_rgb, L.rgb_off, 6});
-      if (L.intensity) fields.push_back({&*w_int, L.int_off, 2});
-      if (L.cls) fields.push_back({&*w_cls, L.cls_off, 1});
+      std::vector<Field> fields{{&w_codes, 0, 8}, {&w_pos, 0, 0}};  // size 0: the position (per run)
+      if (w_ids) fields.push_back({&*w_ids, R0.id_off, 4});
+      if (L.gps) fields.push_back({&*w_gps, R0.gps_off, 8});
+      if (L.rgb) fields.push_back({&*w_rgb, R0.rgb_off, 6});
+      if (L.intensity) fields.push_back({&*w_int, R0.int_off, 2});
+      if (L.cls) fields.push_back({&*w_cls, R0.cls_off, 1});
       tbb::parallel_for(std::size_t{0}, fields.size(), [&](std::size_t f) {
         const Field& fd_ = fields[f];
+        if (fd_.size == 0) {  // positions: the run's grid values or float64 triples, encoded
+          const std::size_t pb = codec.bytes();
+          std::vector<std::uint8_t> enc(block.size() * pb);
+          for (std::size_t i = 0; i < block.size(); ++i) {
+            const RunLayout& R = run_layouts[block_run[i]];
+            const std::uint8_t* p = block[i] + R.pos_off;
+            if (R.grid && codec.enc == PositionEncoding::las_int32) {
+              std::memcpy(enc.data() + i * 12, p, 12);
+              continue;
+            }
+            double v[3];
+            if (R.grid) {  // exact: the run was written only when every value round-tripped
+              std::int32_t k[3];
+              std::memcpy(k, p, 12);
+              for (int a = 0; a < 3; ++a) v[a] = las_coordinate(k[a], codec.scale[a], codec.offset[a]);
+            } else {
+              std::memcpy(v, p, 24);
+            }
+            codec.encode(v, 1, enc.data() + i * pb);
+          }
+          fd_.w->write(enc.data(), enc.size());
+          return;
+        }
         std::vector<std::uint8_t> out(block.size() * fd_.size);
         auto gather = [&]<std::size_t B>(std::integral_constant<std::size_t, B>) {  // constant-size copies
           for (std::size_t i = 0; i < block.size(); ++i) std::memcpy(out.data() + i * B, block[i] + fd_.off, B);
@@ -1167,14 +1277,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
           case 2: gather(std::integral_constant<std::size_t, 2>{}); break;
           case 4: gather(std::integral_constant<std::size_t, 4>{}); break;
           case 6: gather(std::integral_constant<std::size_t, 6>{}); break;
-          case 8: gather(std::integral_constant<std::size_t, 8>{}); break;
-          default: gather(std::integral_constant<std::size_t, 24>{}); break;
-        }
-        if (fd_.w == &w_pos && codec.enc != PositionEncoding::float64) {  // encode the float64 triples
-          std::vector<std::uint8_t> enc(block.size() * codec.bytes());
-          codec.encode(out.data(), block.size(), enc.data());
-          fd_.w->write(enc.data(), enc.size());
-          return;
+          default: gather(std::integral_constant<std::size_t, 8>{}); break;
         }
         if (rgb8 && fd_.w == &*w_rgb) {  // 3 bytes per colour (RgbCodec)
           std::vector<std::uint8_t> enc(block.size() * 3);
@@ -1186,16 +1289,17 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
       });
       merged += block.size();
       block.clear();
+      block_run.clear();
       if (opt.progress) opt.progress("merge", merged, total);
     };
-    while (!heap.empty()) {
-      const Head top = heap.top();
-      heap.pop();
-      RunReader& rr = *readers[top.run];
+    while (tree.winner_key() != LoserTree::kDone) {
+      const std::uint32_t r = tree.winner();
+      RunReader& rr = *readers[r];
       block.push_back(rr.cur());
+      block_run.push_back(r);
       if (rr.last_in_buffer() || block.size() == block.capacity()) emit_block();
       rr.next();
-      push(top.run);
+      tree.replace(head(r));
     }
     emit_block();
     w_codes.flush();
