@@ -14,6 +14,7 @@
 #include <unistd.h>
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_pipeline.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/task_arena.h>
 
@@ -627,6 +628,36 @@ void for_blocks(std::size_t n, Fn&& fn) {
   for (std::size_t b = 0; b < n; b += kGatherBlock) fn(b, std::min(n, b + kGatherBlock));
 }
 
+/// Runs fill(i, buffer) -> bytes for blocks i in [0, n) in parallel and write(i, buffer, bytes)
+/// for each block in order of i, one write at a time, with at most kSlots blocks in flight, each
+/// in one of kSlots buffers of `block_bytes` allocated once (huge pages: no fresh small pages per
+/// block). TBB parallel_pipeline: the serial_in_order last stage frees block i's slot before
+/// block i + kSlots starts, so slot i % kSlots is never in use twice.
+template <class Fill, class Write>
+void pipelined_blocks(std::size_t n, std::size_t block_bytes, const Fill& fill, const Write& write) {
+  constexpr std::size_t kSlots = 4;
+  std::array<HugeArray<std::uint8_t>, kSlots> slots;
+  for (auto& sl : slots) sl = HugeArray<std::uint8_t>(std::min<std::size_t>(block_bytes, n * block_bytes));
+  struct Done {
+    std::size_t i = 0, bytes = 0;
+  };
+  std::size_t next = 0;
+  tbb::parallel_pipeline(
+      kSlots,
+      tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
+                                          [&](tbb::flow_control& fc) -> std::size_t {
+                                            if (next == n) {
+                                              fc.stop();
+                                              return 0;
+                                            }
+                                            return next++;
+                                          }) &
+          tbb::make_filter<std::size_t, Done>(tbb::filter_mode::parallel,
+                                              [&](std::size_t i) { return Done{i, fill(i, slots[i % kSlots].data())}; }) &
+          tbb::make_filter<Done, void>(tbb::filter_mode::serial_in_order,
+                                       [&](const Done& d) { write(d.i, slots[d.i % kSlots].data(), d.bytes); }));
+}
+
 /// Gathers field `src[keys[i].idx]` for keys [b, e) into `out` (parallel) and appends it to `w`.
 template <class T>
 void gather_write(const HugeArray<T>& src, const HugeArray<MortonKey>& keys, std::size_t b, std::size_t e,
@@ -778,6 +809,26 @@ struct NodeBuilder {
     glm::vec3 lo, hi;
   };
 
+  /// The first index in (i, e) whose code fails `pred`, or e (pred holds at i and for a prefix):
+  /// an exponential search from i (probes at i + 1, i + 3, i + 7, ...), then a binary search in
+  /// the last step (Bentley & Yao 1976). Its probes stay within twice the child's range of i, so
+  /// the sequential pass reads the codes near where it is instead of halving the parent's range
+  /// (page faults on the mapped codes far ahead, dropped again behind).
+  template <class Pred>
+  std::size_t gallop(std::size_t i, std::size_t e, const Pred& pred) const {
+    std::size_t lo = i + 1, step = 1, hi = e;
+    while (lo < e) {
+      const std::size_t probe = lo + std::min(step, e - lo) - 1;
+      if (!pred(codes[probe])) {
+        hi = probe;
+        break;
+      }
+      lo = probe + 1;
+      step *= 2;
+    }
+    return static_cast<std::size_t>(std::partition_point(codes + lo, codes + hi, pred) - codes);
+  }
+
   Bounds visit(std::uint32_t n, std::uint64_t key, unsigned d, std::size_t b, std::size_t e) {
     const std::size_t cnt = e - b;
     const bool same = cnt == 0 || codes[b] == codes[e - 1];
@@ -811,9 +862,7 @@ struct NodeBuilder {
       std::size_t i = rest;
       while (i < e) {
         const unsigned o = OctreeRules::octant(codes[i], d);
-        const std::size_t j = static_cast<std::size_t>(
-            std::partition_point(codes + i, codes + e, [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; }) -
-            codes);
+        const std::size_t j = gallop(i, e, [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; });
         start[nchild] = i;
         oct[nchild] = o;
         ++nchild;
@@ -1002,15 +1051,21 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     // codec.grid_ok covers every point read so far, this run's included (append checked them).
     const RunLayout R(L, want_ids, codec.grid_ok && codec.grid_set);
     Fd fd(rp, O_WRONLY | O_CREAT | O_TRUNC);
-    // Blocks of records gathered and written in parallel, each at its own offset (the kernel's
-    // copy into the page cache then runs on every core too).
+    // Blocks of records gathered in parallel and written in order by one writer at a time (a
+    // file's buffered writes serialise on its inode lock: concurrent writers only spin), so the
+    // kernel's copy of block i overlaps the gather of the next ones.
     const std::size_t nb = (buf.size() + kGatherBlock - 1) / kGatherBlock;
-    tbb::parallel_for(std::size_t{0}, nb, [&](std::size_t blk) {
+    pipelined_blocks(nb, kGatherBlock * R.bytes, [&](std::size_t blk, std::uint8_t* recs) {
       const std::size_t b = blk * kGatherBlock, e = std::min(buf.size(), b + kGatherBlock);
-      std::vector<std::uint8_t> recs((e - b) * R.bytes);
+      constexpr std::size_t kAhead = 16;  // prefetch distance (keys) of the random reads
       for (std::size_t k = b; k != e; ++k) {
+        if (k + kAhead < e) {
+          const std::uint32_t j = keys[k + kAhead].idx;
+          __builtin_prefetch(&buf.pos[j]);
+          if (L.rgb) __builtin_prefetch(&buf.rgb[j]);
+        }
         const std::uint32_t i = keys[k].idx;
-        std::uint8_t* rec = recs.data() + (k - b) * R.bytes;
+        std::uint8_t* rec = recs + (k - b) * R.bytes;
         std::memcpy(rec, &keys[k].code, 8);
         if (R.ids) {
           const auto pid = static_cast<std::uint32_t>(run_first_id + i);
@@ -1028,7 +1083,9 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
           std::memcpy(rec + R.pos_off, &buf.pos[i], 24);
         }
       }
-      fd.pwrite_all(recs.data(), recs.size(), static_cast<std::uint64_t>(b) * R.bytes);
+      return (e - b) * R.bytes;
+    }, [&](std::size_t blk, const std::uint8_t* recs, std::size_t bytes) {
+      fd.pwrite_all(recs, bytes, static_cast<std::uint64_t>(blk) * kGatherBlock * R.bytes);
     });
     run_files.push_back(rp);
     run_layouts.push_back(R);
@@ -1082,6 +1139,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     grid_bounds = bounds;
     grid_qz = OctreeRules::Quantizer(OctreeRules::root_cell(grid_bounds).lo, OctreeRules::root_side(grid_bounds));
   }
+  run_keys = HugeArray<MortonKey>{};
   if (!in_memory) buf = PointBuffer{};  // the runs are on disk: release the buffer before the merge
   stats.runs = in_memory ? (total > 0 ? 1 : 0) : run_files.size();
   const AABB cell = OctreeRules::root_cell(bounds);
