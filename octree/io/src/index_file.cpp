@@ -432,16 +432,43 @@ struct TempDir {
 class RunReader {
  public:
   RunReader(const fs::path& p, std::size_t rec, std::size_t buffer_bytes)
-      : fd_(p, O_RDWR), rec_(rec) {
-    buf_.resize(std::max(rec, buffer_bytes / rec * rec));
+      : fd_(p, O_RDWR), rec_(rec), buf_(std::max(rec, buffer_bytes / rec * rec)) {
     refill();
   }
   [[nodiscard]] bool done() const { return pos_ >= len_; }
-  /// True when cur() is the last record of the buffer (next() refills it, moving every record).
-  [[nodiscard]] bool last_in_buffer() const { return pos_ + rec_ >= len_; }
   [[nodiscard]] const std::uint8_t* cur() const { return buf_.data() + pos_; }
-  void next() {
-    pos_ += rec_;
+  /// Records from cur() to the end of the buffer.
+  [[nodiscard]] std::size_t left() const { return (len_ - pos_) / rec_; }
+  /// The number of records from cur() on (at least 1, at most left()) whose Morton code (the
+  /// record's first 8 bytes) is below `limit`, or at most `limit` when `inclusive`; cur()'s own
+  /// code must pass. An exponential search from cur() (Bentley & Yao 1976): a stretch of n
+  /// records costs about 2 log2 n comparisons.
+  [[nodiscard]] std::size_t count_below(std::uint64_t limit, bool inclusive) const {
+    auto pass = [&](std::size_t i) {
+      const std::uint64_t c = get<std::uint64_t>(cur() + i * rec_, 0);
+      return c < limit || (inclusive && c == limit);
+    };
+    const std::size_t n = left();
+    std::size_t lo = 1, step = 1, hi = n;  // pass(i) for every i < lo
+    while (lo < n) {
+      const std::size_t probe = lo + std::min(step, n - lo) - 1;
+      if (!pass(probe)) {
+        hi = probe;
+        break;
+      }
+      lo = probe + 1;
+      step *= 2;
+    }
+    while (lo < hi) {  // first failing index in [lo, hi]
+      const std::size_t mid = lo + (hi - lo) / 2;
+      if (pass(mid)) lo = mid + 1;
+      else hi = mid;
+    }
+    return lo;
+  }
+  /// Moves past n <= left() records; the buffer is refilled (every record moved) when it is used up.
+  void skip(std::size_t n) {
+    pos_ += n * rec_;
     if (pos_ >= len_) refill();
   }
 
@@ -456,7 +483,7 @@ class RunReader {
   }
   Fd fd_;
   std::size_t rec_;
-  std::vector<std::uint8_t> buf_;
+  HugeArray<std::uint8_t> buf_;
   std::size_t pos_ = 0, len_ = 0;
   std::uint64_t off_ = 0;
 };
@@ -488,6 +515,16 @@ class LoserTree {
   /// The sequence holding the least key (kDone when every sequence is exhausted).
   [[nodiscard]] std::uint32_t winner() const { return loser_[0]; }
   [[nodiscard]] std::uint64_t winner_key() const { return key_[loser_[0]]; }
+  /// The least (key, sequence) pair among the sequences other than the winner's ({kDone, k} when
+  /// there is none): one of the losers on the winner's path, since each lost only to it.
+  [[nodiscard]] std::pair<std::uint64_t, std::uint32_t> runner_up() const {
+    const std::uint32_t w = loser_[0];
+    std::uint32_t best = w;
+    for (std::size_t n = (w + p_) / 2; n >= 1; n /= 2)
+      if (best == w || less(loser_[n], best)) best = loser_[n];
+    if (best == w) return {kDone, static_cast<std::uint32_t>(p_)};
+    return {key_[best], best};
+  }
   /// Gives the winner its next key (kDone when it is exhausted) and finds the new winner.
   void replace(std::uint64_t key) {
     std::uint32_t w = loser_[0];
@@ -1282,13 +1319,20 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     std::vector<std::uint64_t> heads(readers.size());
     for (std::size_t r = 0; r < readers.size(); ++r) heads[r] = head(r);
     LoserTree tree(heads);  // (code, run) order is (code, id) order (RunLayout)
-    // The merge order is decided for a block of records (pointers into the run buffers, valid
-    // until a buffer refills, which ends the block); each section is then gathered from the block
-    // and written, the sections in parallel.
-    std::vector<const std::uint8_t*> block;
-    std::vector<std::uint32_t> block_run;
-    block.reserve(std::size_t{1} << 16);
-    block_run.reserve(block.capacity());
+    // The merge order is decided for a block of records as segments: stretches of consecutive
+    // records of one run buffer (valid until that buffer refills, which ends the block). The
+    // winner's stretch is every record below the runner-up's (code, run) (RunReader::count_below),
+    // so runs that cover different parts of the site (tiles, flight lines) merge a stretch at a
+    // time instead of a tree replay per record. Each section is then gathered from the block and
+    // written, the sections in parallel.
+    struct Segment {
+      const std::uint8_t* p;
+      std::uint32_t run;
+      std::size_t n;
+    };
+    std::vector<Segment> block;
+    std::size_t block_records = 0;
+    constexpr std::size_t kBlockRecords = std::size_t{1} << 18;
     std::uint64_t merged = 0;
     auto emit_block = [&] {
       struct Field {
@@ -1305,30 +1349,37 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
         const Field& fd_ = fields[f];
         if (fd_.size == 0) {  // positions: the run's grid values or float64 triples, encoded
           const std::size_t pb = codec.bytes();
-          std::vector<std::uint8_t> enc(block.size() * pb);
-          for (std::size_t i = 0; i < block.size(); ++i) {
-            const RunLayout& R = run_layouts[block_run[i]];
-            const std::uint8_t* p = block[i] + R.pos_off;
-            if (R.grid && codec.enc == PositionEncoding::las_int32) {
-              std::memcpy(enc.data() + i * 12, p, 12);
-              continue;
+          std::vector<std::uint8_t> enc(block_records * pb);
+          std::uint8_t* o = enc.data();
+          for (const Segment& sg : block) {
+            const RunLayout& R = run_layouts[sg.run];
+            for (std::size_t i = 0; i < sg.n; ++i, o += pb) {
+              const std::uint8_t* p = sg.p + i * R.bytes + R.pos_off;
+              if (R.grid && codec.enc == PositionEncoding::las_int32) {
+                std::memcpy(o, p, 12);
+                continue;
+              }
+              double v[3];
+              if (R.grid) {  // exact: the run was written only when every value round-tripped
+                std::int32_t k[3];
+                std::memcpy(k, p, 12);
+                for (int a = 0; a < 3; ++a) v[a] = las_coordinate(k[a], codec.scale[a], codec.offset[a]);
+              } else {
+                std::memcpy(v, p, 24);
+              }
+              codec.encode(v, 1, o);
             }
-            double v[3];
-            if (R.grid) {  // exact: the run was written only when every value round-tripped
-              std::int32_t k[3];
-              std::memcpy(k, p, 12);
-              for (int a = 0; a < 3; ++a) v[a] = las_coordinate(k[a], codec.scale[a], codec.offset[a]);
-            } else {
-              std::memcpy(v, p, 24);
-            }
-            codec.encode(v, 1, enc.data() + i * pb);
           }
           fd_.w->write(enc.data(), enc.size());
           return;
         }
-        std::vector<std::uint8_t> out(block.size() * fd_.size);
+        std::vector<std::uint8_t> out(block_records * fd_.size);
         auto gather = [&]<std::size_t B>(std::integral_constant<std::size_t, B>) {  // constant-size copies
-          for (std::size_t i = 0; i < block.size(); ++i) std::memcpy(out.data() + i * B, block[i] + fd_.off, B);
+          std::uint8_t* o = out.data();
+          for (const Segment& sg : block) {
+            const std::size_t rb = run_layouts[sg.run].bytes;
+            for (std::size_t i = 0; i < sg.n; ++i, o += B) std::memcpy(o, sg.p + i * rb + fd_.off, B);
+          }
         };
         switch (fd_.size) {
           case 1: gather(std::integral_constant<std::size_t, 1>{}); break;
@@ -1338,25 +1389,27 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
           default: gather(std::integral_constant<std::size_t, 8>{}); break;
         }
         if (rgb8 && fd_.w == &*w_rgb) {  // 3 bytes per colour (RgbCodec)
-          std::vector<std::uint8_t> enc(block.size() * 3);
-          rgbc.encode(reinterpret_cast<const Rgb16*>(out.data()), block.size(), enc.data());
+          std::vector<std::uint8_t> enc(block_records * 3);
+          rgbc.encode(reinterpret_cast<const Rgb16*>(out.data()), block_records, enc.data());
           fd_.w->write(enc.data(), enc.size());
           return;
         }
         fd_.w->write(out.data(), out.size());
       });
-      merged += block.size();
+      merged += block_records;
       block.clear();
-      block_run.clear();
+      block_records = 0;
       if (opt.progress) opt.progress("merge", merged, total);
     };
     while (tree.winner_key() != LoserTree::kDone) {
       const std::uint32_t r = tree.winner();
       RunReader& rr = *readers[r];
-      block.push_back(rr.cur());
-      block_run.push_back(r);
-      if (rr.last_in_buffer() || block.size() == block.capacity()) emit_block();
-      rr.next();
+      const auto [bcode, brun] = tree.runner_up();
+      const std::size_t n = std::min(rr.count_below(bcode, r < brun), kBlockRecords - block_records);
+      block.push_back({rr.cur(), r, n});
+      block_records += n;
+      if (n == rr.left() || block_records == kBlockRecords) emit_block();  // before a refill moves them
+      rr.skip(n);
       tree.replace(head(r));
     }
     emit_block();
