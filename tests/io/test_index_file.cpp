@@ -437,6 +437,28 @@ TEST(IndexFileBuild, ClusteredBucketsWithDuplicatesSortLikeBuildBulk) {
   fs::remove_all(dir);
 }
 
+// The merge cuts a window of the run buffers at the least last code S of the runs with more on
+// disk; when every buffered code is S (a point repeated more often than a buffer holds), it takes
+// the S records of the lowest run first (the (code, id) tie order). 48,000 points alternating
+// between two positions, then a few others: with a 1 MiB budget each run holds thousands of copies
+// of each, more than a read buffer, so the merge has windows with nothing below S. Oracle:
+// build_bulk's slot order and ids.
+TEST(IndexFileBuild, RunsOfOneRepeatedPointMergeInIdOrder) {
+  std::vector<Vec3> pts;
+  for (std::size_t i = 0; i < 48000; ++i) pts.push_back(i % 2 == 0 ? Vec3(10.0, 20.0, 30.0) : Vec3(11.0, 21.0, 31.0));
+  for (std::size_t i = 0; i < 500; ++i) pts.emplace_back(10.0 + 0.002 * static_cast<double>(i), 20.5, 30.5);
+  const fs::path dir = temp_dir() / "repeated_point";
+  fs::create_directories(dir);
+  write_f64(dir / "r.f64", pts);
+  io::IndexBuildOptions o;
+  o.attributes = io::AttributeSet::parse("id");
+  o.memory_bytes = std::uint64_t{1} << 20;
+  const auto st = io::build_index_file({dir / "r.f64"}, dir / "r.rsi", o);
+  EXPECT_GE(st.runs, 3u);
+  expect_same_tree(io::MappedIndex::open(dir / "r.rsi"), Octree::build_bulk(pts, OctreeConfig{}));
+  fs::remove_all(dir);
+}
+
 // The node records are written in place into a shared map of the output's nodes section that is
 // extended (posix_fallocate + mremap) while the tree grows and released behind the depth-first
 // pass, and the codes and positions maps are released behind it too: with capacity 1 the tree has

@@ -433,6 +433,9 @@ class RunReader {
  public:
   RunReader(const fs::path& p, std::size_t rec, std::size_t buffer_bytes)
       : fd_(p, O_RDWR), rec_(rec), buf_(std::max(rec, buffer_bytes / rec * rec)) {
+    struct stat st {};
+    if (::fstat(fd_.get(), &st) != 0) io_fail(p, "cannot stat");
+    size_ = static_cast<std::uint64_t>(st.st_size) / rec_ * rec_;
     refill();
   }
   [[nodiscard]] bool done() const { return pos_ >= len_; }
@@ -466,6 +469,22 @@ class RunReader {
     }
     return lo;
   }
+  /// The Morton code of record i of the buffer, counted from cur() (i < left()).
+  [[nodiscard]] std::uint64_t code(std::size_t i) const { return get<std::uint64_t>(cur() + i * rec_, 0); }
+  /// The number of records from cur() whose code is below `limit` (binary search of the buffer).
+  [[nodiscard]] std::size_t lower_bound(std::uint64_t limit) const {
+    std::size_t lo = 0, hi = left();
+    while (lo < hi) {
+      const std::size_t mid = lo + (hi - lo) / 2;
+      if (code(mid) < limit) lo = mid + 1;
+      else hi = mid;
+    }
+    return lo;
+  }
+  /// True when the buffer holds the run's last records (no refill follows).
+  [[nodiscard]] bool at_end() const { return off_ >= size_; }
+  /// The record size (RunLayout::bytes).
+  [[nodiscard]] std::size_t record_bytes() const { return rec_; }
   /// Moves past n <= left() records; the buffer is refilled (every record moved) when it is used up.
   void skip(std::size_t n) {
     pos_ += n * rec_;
@@ -485,7 +504,7 @@ class RunReader {
   std::size_t rec_;
   HugeArray<std::uint8_t> buf_;
   std::size_t pos_ = 0, len_ = 0;
-  std::uint64_t off_ = 0;
+  std::uint64_t off_ = 0, size_ = 0;
 };
 
 /// Tournament tree of losers over k sorted sequences (Knuth, TAOCP vol. 3, section 5.4.1,
@@ -1313,106 +1332,173 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     std::vector<std::unique_ptr<RunReader>> readers;
     for (std::size_t r = 0; r < run_files.size(); ++r)
       readers.push_back(std::make_unique<RunReader>(run_files[r], run_layouts[r].bytes, rbuf));
-    // Every run shares the offsets of the fields before the position (RunLayout).
-    const RunLayout R0 = run_layouts.empty() ? RunLayout(L, want_ids, false) : run_layouts.front();
-    auto head = [&](std::size_t r) { return readers[r]->done() ? LoserTree::kDone : get<std::uint64_t>(readers[r]->cur(), 0); };
-    std::vector<std::uint64_t> heads(readers.size());
-    for (std::size_t r = 0; r < readers.size(); ++r) heads[r] = head(r);
-    LoserTree tree(heads);  // (code, run) order is (code, id) order (RunLayout)
-    // The merge order is decided for a block of records as segments: stretches of consecutive
-    // records of one run buffer (valid until that buffer refills, which ends the block). The
-    // winner's stretch is every record below the runner-up's (code, run) (RunReader::count_below),
-    // so runs that cover different parts of the site (tiles, flight lines) merge a stretch at a
-    // time instead of a tree replay per record. Each section is then gathered from the block and
-    // written, the sections in parallel.
-    struct Segment {
-      const std::uint8_t* p;
-      std::uint32_t run;
-      std::size_t n;
+    // The merge (docs/index-format.md "Build"), a window at a time: S = the least last code of the
+    // buffers of the runs that have more records on disk; every record with a code below S is in
+    // a buffer, so the window (those records) is merged before any buffer refills. The window is
+    // cut into parts by codes taken at quantiles of its largest run slice (equal codes fall in
+    // one part, so the (code, run) tie order holds within a part); the parts are merged in
+    // parallel, each by a tree of losers over its run slices that takes a stretch at a time (the
+    // winner's records below the runner-up's key), straight into the sections' output arrays of
+    // one of a few slots, and written in order by one writer (tbb::parallel_pipeline).
+    const std::size_t k = readers.size();
+    const std::size_t pos_bytes = codec.bytes(), rgb_bytes = rgb8 ? 3 : 6;
+    struct Part {
+      std::vector<std::pair<const std::uint8_t*, std::size_t>> slices;  // per run: first record, count
+      std::size_t n = 0;
     };
-    std::vector<Segment> block;
-    std::size_t block_records = 0;
-    constexpr std::size_t kBlockRecords = std::size_t{1} << 18;
+    struct Slot {  // one part's sections, in file order
+      std::vector<std::uint8_t> codes, pos, ids, gps, rgb, inten, cls;
+      std::size_t n = 0;
+    };
+    constexpr std::size_t kSlots = 4;
+    constexpr std::size_t kPartRecords = std::size_t{1} << 16;
+    std::array<Slot, kSlots> slots;
+    // Merges part `pt` into `sl` (resized to its records).
+    auto merge_part = [&](const Part& pt, Slot& sl) {
+      sl.n = pt.n;
+      sl.codes.resize(pt.n * 8), sl.pos.resize(pt.n * pos_bytes);
+      if (want_ids) sl.ids.resize(pt.n * 4);
+      if (L.gps) sl.gps.resize(pt.n * 8);
+      if (L.rgb) sl.rgb.resize(pt.n * rgb_bytes);
+      if (L.intensity) sl.inten.resize(pt.n * 2);
+      if (L.cls) sl.cls.resize(pt.n);
+      std::vector<const std::uint8_t*> cur(k);
+      std::vector<std::size_t> left(k);
+      std::vector<std::uint64_t> heads(k, LoserTree::kDone);
+      for (std::size_t r = 0; r < k; ++r) {
+        cur[r] = pt.slices[r].first, left[r] = pt.slices[r].second;
+        if (left[r] > 0) heads[r] = get<std::uint64_t>(cur[r], 0);
+      }
+      LoserTree tree(heads);
+      std::size_t o = 0;
+      while (tree.winner_key() != LoserTree::kDone) {
+        const std::uint32_t r = tree.winner();
+        const RunLayout& R = run_layouts[r];
+        const auto [bcode, brun] = tree.runner_up();
+        const bool incl = r < brun;
+        std::size_t n = 1;  // the stretch: records below (bcode, brun)
+        while (n < left[r]) {
+          const std::uint64_t c = get<std::uint64_t>(cur[r] + n * R.bytes, 0);
+          if (!(c < bcode || (incl && c == bcode))) break;
+          ++n;
+        }
+        for (std::size_t i = 0; i < n; ++i, ++o) {
+          const std::uint8_t* rec = cur[r] + i * R.bytes;
+          std::memcpy(sl.codes.data() + o * 8, rec, 8);
+          if (want_ids) std::memcpy(sl.ids.data() + o * 4, rec + R.id_off, 4);
+          if (L.gps) std::memcpy(sl.gps.data() + o * 8, rec + R.gps_off, 8);
+          if (L.rgb) {
+            if (rgb8) rgbc.encode(reinterpret_cast<const Rgb16*>(rec + R.rgb_off), 1, sl.rgb.data() + o * 3);
+            else std::memcpy(sl.rgb.data() + o * 6, rec + R.rgb_off, 6);
+          }
+          if (L.intensity) std::memcpy(sl.inten.data() + o * 2, rec + R.int_off, 2);
+          if (L.cls) sl.cls[o] = rec[R.cls_off];
+          const std::uint8_t* p = rec + R.pos_off;
+          std::uint8_t* out = sl.pos.data() + o * pos_bytes;
+          if (R.grid && codec.enc == PositionEncoding::las_int32) {
+            std::memcpy(out, p, 12);
+            continue;
+          }
+          double v[3];
+          if (R.grid) {  // exact: the run was written only when every value round-tripped
+            std::int32_t g[3];
+            std::memcpy(g, p, 12);
+            for (int a = 0; a < 3; ++a) v[a] = las_coordinate(g[a], codec.scale[a], codec.offset[a]);
+          } else {
+            std::memcpy(v, p, 24);
+          }
+          codec.encode(v, 1, out);
+        }
+        cur[r] += n * R.bytes;
+        left[r] -= n;
+        tree.replace(left[r] > 0 ? get<std::uint64_t>(cur[r], 0) : LoserTree::kDone);
+      }
+      if (o != pt.n) throw std::logic_error("index build: a merge part lost records");
+    };
+    auto write_slot = [&](const Slot& sl) {
+      w_codes.write(sl.codes.data(), sl.codes.size());
+      w_pos.write(sl.pos.data(), sl.pos.size());
+      if (w_ids) w_ids->write(sl.ids.data(), sl.ids.size());
+      if (w_rgb) w_rgb->write(sl.rgb.data(), sl.rgb.size());
+      if (w_int) w_int->write(sl.inten.data(), sl.inten.size());
+      if (w_cls) w_cls->write(sl.cls.data(), sl.cls.size());
+      if (w_gps) w_gps->write(sl.gps.data(), sl.gps.size());
+    };
     std::uint64_t merged = 0;
-    auto emit_block = [&] {
-      struct Field {
-        SectionWriter* w;
-        std::size_t off, size;
-      };
-      std::vector<Field> fields{{&w_codes, 0, 8}, {&w_pos, 0, 0}};  // size 0: the position (per run)
-      if (w_ids) fields.push_back({&*w_ids, R0.id_off, 4});
-      if (L.gps) fields.push_back({&*w_gps, R0.gps_off, 8});
-      if (L.rgb) fields.push_back({&*w_rgb, R0.rgb_off, 6});
-      if (L.intensity) fields.push_back({&*w_int, R0.int_off, 2});
-      if (L.cls) fields.push_back({&*w_cls, R0.cls_off, 1});
-      tbb::parallel_for(std::size_t{0}, fields.size(), [&](std::size_t f) {
-        const Field& fd_ = fields[f];
-        if (fd_.size == 0) {  // positions: the run's grid values or float64 triples, encoded
-          const std::size_t pb = codec.bytes();
-          std::vector<std::uint8_t> enc(block_records * pb);
-          std::uint8_t* o = enc.data();
-          for (const Segment& sg : block) {
-            const RunLayout& R = run_layouts[sg.run];
-            for (std::size_t i = 0; i < sg.n; ++i, o += pb) {
-              const std::uint8_t* p = sg.p + i * R.bytes + R.pos_off;
-              if (R.grid && codec.enc == PositionEncoding::las_int32) {
-                std::memcpy(o, p, 12);
-                continue;
-              }
-              double v[3];
-              if (R.grid) {  // exact: the run was written only when every value round-tripped
-                std::int32_t k[3];
-                std::memcpy(k, p, 12);
-                for (int a = 0; a < 3; ++a) v[a] = las_coordinate(k[a], codec.scale[a], codec.offset[a]);
-              } else {
-                std::memcpy(v, p, 24);
-              }
-              codec.encode(v, 1, o);
-            }
+    std::vector<std::size_t> counts(k);
+    for (;;) {
+      bool any = false;
+      std::uint64_t S = LoserTree::kDone;
+      for (std::size_t r = 0; r < k; ++r) {
+        if (readers[r]->done()) continue;
+        any = true;
+        if (!readers[r]->at_end()) S = std::min(S, readers[r]->code(readers[r]->left() - 1));
+      }
+      if (!any) break;
+      std::size_t window = 0, big = 0;
+      for (std::size_t r = 0; r < k; ++r) {
+        counts[r] = readers[r]->done() ? 0 : S == LoserTree::kDone ? readers[r]->left() : readers[r]->lower_bound(S);
+        window += counts[r];
+        if (counts[r] > counts[big]) big = r;
+      }
+      if (window == 0) {
+        // Every buffered code is >= S, and the buffer of the run that set S holds S only: the next
+        // records are the S records of the lowest run that starts with S, as far as its buffer goes.
+        for (std::size_t r = 0; r < k; ++r)
+          if (!readers[r]->done() && readers[r]->code(0) == S) {
+            counts[r] = readers[r]->count_below(S, true);
+            window = counts[r];
+            break;
           }
-          fd_.w->write(enc.data(), enc.size());
-          return;
-        }
-        std::vector<std::uint8_t> out(block_records * fd_.size);
-        auto gather = [&]<std::size_t B>(std::integral_constant<std::size_t, B>) {  // constant-size copies
-          std::uint8_t* o = out.data();
-          for (const Segment& sg : block) {
-            const std::size_t rb = run_layouts[sg.run].bytes;
-            for (std::size_t i = 0; i < sg.n; ++i, o += B) std::memcpy(o, sg.p + i * rb + fd_.off, B);
+        if (window == 0) throw std::logic_error("index build: the merge made no progress");
+      }
+      // Parts: splitter codes at quantiles of the largest slice; each part's slice of run r is
+      // [its lower bound of the part's first splitter, that of the next).
+      const std::size_t parts = std::max<std::size_t>(1, (window + kPartRecords - 1) / kPartRecords);
+      std::vector<std::vector<std::size_t>> cut(parts + 1, std::vector<std::size_t>(k, 0));
+      cut[parts] = counts;
+      for (std::size_t j = 1; j < parts; ++j) {
+        const std::uint64_t c = readers[big]->code(counts[big] * j / parts);
+        for (std::size_t r = 0; r < k; ++r) {
+          std::size_t lo = cut[j - 1][r], hi = counts[r];  // monotone in j
+          while (lo < hi) {
+            const std::size_t mid = lo + (hi - lo) / 2;
+            if (readers[r]->code(mid) < c) lo = mid + 1;
+            else hi = mid;
           }
-        };
-        switch (fd_.size) {
-          case 1: gather(std::integral_constant<std::size_t, 1>{}); break;
-          case 2: gather(std::integral_constant<std::size_t, 2>{}); break;
-          case 4: gather(std::integral_constant<std::size_t, 4>{}); break;
-          case 6: gather(std::integral_constant<std::size_t, 6>{}); break;
-          default: gather(std::integral_constant<std::size_t, 8>{}); break;
+          cut[j][r] = lo;
         }
-        if (rgb8 && fd_.w == &*w_rgb) {  // 3 bytes per colour (RgbCodec)
-          std::vector<std::uint8_t> enc(block_records * 3);
-          rgbc.encode(reinterpret_cast<const Rgb16*>(out.data()), block_records, enc.data());
-          fd_.w->write(enc.data(), enc.size());
-          return;
-        }
-        fd_.w->write(out.data(), out.size());
-      });
-      merged += block_records;
-      block.clear();
-      block_records = 0;
+      }
+      std::size_t next = 0;
+      tbb::parallel_pipeline(
+          kSlots,
+          tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
+                                              [&](tbb::flow_control& fc) -> std::size_t {
+                                                if (next == parts) {
+                                                  fc.stop();
+                                                  return 0;
+                                                }
+                                                return next++;
+                                              }) &
+              tbb::make_filter<std::size_t, std::size_t>(tbb::filter_mode::parallel,
+                                                         [&](std::size_t j) {
+                                                           Part pt;
+                                                           pt.slices.resize(k);
+                                                           for (std::size_t r = 0; r < k; ++r) {
+                                                             const std::size_t b = cut[j][r], e = cut[j + 1][r];
+                                                             pt.slices[r] = {readers[r]->cur() + b * readers[r]->record_bytes(), e - b};
+                                                             pt.n += e - b;
+                                                           }
+                                                           merge_part(pt, slots[j % kSlots]);
+                                                           return j;
+                                                         }) &
+              tbb::make_filter<std::size_t, void>(tbb::filter_mode::serial_in_order,
+                                                  [&](std::size_t j) { write_slot(slots[j % kSlots]); }));
+      for (std::size_t r = 0; r < k; ++r)
+        if (counts[r] > 0) readers[r]->skip(counts[r]);
+      merged += window;
       if (opt.progress) opt.progress("merge", merged, total);
-    };
-    while (tree.winner_key() != LoserTree::kDone) {
-      const std::uint32_t r = tree.winner();
-      RunReader& rr = *readers[r];
-      const auto [bcode, brun] = tree.runner_up();
-      const std::size_t n = std::min(rr.count_below(bcode, r < brun), kBlockRecords - block_records);
-      block.push_back({rr.cur(), r, n});
-      block_records += n;
-      if (n == rr.left() || block_records == kBlockRecords) emit_block();  // before a refill moves them
-      rr.skip(n);
-      tree.replace(head(r));
     }
-    emit_block();
     w_codes.flush();
     finish_points(w_pos, w_ids, w_rgb, w_int, w_cls, w_gps);
     if (opt.progress) opt.progress("merge", total, total);
