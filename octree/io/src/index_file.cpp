@@ -162,11 +162,27 @@ class Fd {
     return got;
   }
   [[nodiscard]] int get() const { return fd_; }
+  /// Opens with O_DIRECT where the file system takes it (not tmpfs, say), else as a plain open.
+  static Fd direct(const fs::path& p, int flags) {
+    const int d = ::open(p.c_str(), flags | O_DIRECT | O_CLOEXEC, 0644);
+    if (d >= 0) return Fd(d, p, true);
+    return Fd(p, flags);
+  }
+  /// True when opened with O_DIRECT: offsets, lengths and buffers of reads and writes must be
+  /// multiples of kDirectAlign (the page cache is bypassed).
+  [[nodiscard]] bool is_direct() const { return direct_; }
+  Fd(Fd&& o) noexcept : fd_(std::exchange(o.fd_, -1)), path_(std::move(o.path_)), direct_(o.direct_) {}
 
  private:
+  Fd(int d, fs::path p, bool direct) : fd_(d), path_(std::move(p)), direct_(direct) {}
   int fd_ = -1;
   fs::path path_;
+  bool direct_ = false;
 };
+
+/// Alignment of O_DIRECT transfers (a multiple of every logical block size in use).
+constexpr std::size_t kDirectAlign = 4096;
+constexpr std::size_t round_up_direct(std::size_t n) { return (n + kDirectAlign - 1) / kDirectAlign * kDirectAlign; }
 
 /// Sequential buffered writer into one region of a file, with a running CRC-32.
 class SectionWriter {
@@ -432,14 +448,16 @@ struct TempDir {
 class RunReader {
  public:
   RunReader(const fs::path& p, std::size_t rec, std::size_t buffer_bytes)
-      : fd_(p, O_RDWR), rec_(rec), buf_(std::max(rec, buffer_bytes / rec * rec)) {
+      : fd_(Fd::direct(p, O_RDWR)), rec_(rec),
+        cap_(std::max(round_up_direct(rec), buffer_bytes / kDirectAlign * kDirectAlign)),
+        buf_(kDirectAlign + cap_) {
     struct stat st {};
     if (::fstat(fd_.get(), &st) != 0) io_fail(p, "cannot stat");
     size_ = static_cast<std::uint64_t>(st.st_size) / rec_ * rec_;
     refill();
   }
   [[nodiscard]] bool done() const { return pos_ >= len_; }
-  [[nodiscard]] const std::uint8_t* cur() const { return buf_.data() + pos_; }
+  [[nodiscard]] const std::uint8_t* cur() const { return base_ + pos_; }
   /// Records from cur() to the end of the buffer.
   [[nodiscard]] std::size_t left() const { return (len_ - pos_) / rec_; }
   /// The number of records from cur() on (at least 1, at most left()) whose Morton code (the
@@ -492,18 +510,27 @@ class RunReader {
   }
 
  private:
+  /// Reads the next cap_ bytes (aligned, for O_DIRECT) behind the unread bytes of a record cut
+  /// by the previous read (carried into the page before the data: records are < 4 KiB).
   void refill() {
-    len_ = fd_.pread_some(buf_.data(), buf_.size(), off_) / rec_ * rec_;
-    if (len_ > 0)
+    const std::size_t carry = avail_ - pos_;  // < rec_: a partial record
+    std::uint8_t* data = buf_.data() + kDirectAlign;
+    if (carry > 0) std::memmove(data - carry, base_ + pos_, carry);
+    const std::size_t n = fd_.pread_some(data, cap_, off_);
+    if (n > 0)
       (void)::fallocate(fd_.get(), FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, static_cast<off_t>(off_),
-                        static_cast<off_t>(len_));
-    off_ += len_;
+                        static_cast<off_t>(n));
+    off_ += n;
+    base_ = data - carry;
+    avail_ = carry + n;
+    len_ = avail_ / rec_ * rec_;
     pos_ = 0;
   }
   Fd fd_;
-  std::size_t rec_;
-  HugeArray<std::uint8_t> buf_;
-  std::size_t pos_ = 0, len_ = 0;
+  std::size_t rec_, cap_;
+  HugeArray<std::uint8_t> buf_;  ///< one page for the carried bytes, then cap_ bytes of data
+  const std::uint8_t* base_ = nullptr;  ///< first unread record of the last read
+  std::size_t pos_ = 0, len_ = 0, avail_ = 0;  ///< from base_: position, whole records, bytes
   std::uint64_t off_ = 0, size_ = 0;
 };
 
@@ -687,13 +714,13 @@ void for_blocks(std::size_t n, Fn&& fn) {
 /// Runs fill(i, buffer) -> bytes for blocks i in [0, n) in parallel and write(i, buffer, bytes)
 /// for each block in order of i, one write at a time, with at most kSlots blocks in flight, each
 /// in one of kSlots buffers of `block_bytes` allocated once (huge pages: no fresh small pages per
-/// block). TBB parallel_pipeline: the serial_in_order last stage frees block i's slot before
+/// block; rounded up to whole pages, so a writer may pad a block for O_DIRECT). TBB parallel_pipeline: the serial_in_order last stage frees block i's slot before
 /// block i + kSlots starts, so slot i % kSlots is never in use twice.
 template <class Fill, class Write>
 void pipelined_blocks(std::size_t n, std::size_t block_bytes, const Fill& fill, const Write& write) {
   constexpr std::size_t kSlots = 4;
   std::array<HugeArray<std::uint8_t>, kSlots> slots;
-  for (auto& sl : slots) sl = HugeArray<std::uint8_t>(std::min<std::size_t>(block_bytes, n * block_bytes));
+  for (auto& sl : slots) sl = HugeArray<std::uint8_t>(round_up_direct(std::min<std::size_t>(block_bytes, n * block_bytes)));
   struct Done {
     std::size_t i = 0, bytes = 0;
   };
@@ -1106,7 +1133,9 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     const fs::path rp = runs_dir.path / ("run" + std::to_string(run_files.size()));
     // codec.grid_ok covers every point read so far, this run's included (append checked them).
     const RunLayout R(L, want_ids, codec.grid_ok && codec.grid_set);
-    Fd fd(rp, O_WRONLY | O_CREAT | O_TRUNC);
+    // O_DIRECT where possible: a run is written once and read once, so it bypasses the page
+    // cache (no kernel copy, no cache pages to fill and evict; bench/README.md "Session 19").
+    Fd fd = Fd::direct(rp, O_WRONLY | O_CREAT | O_TRUNC);
     // Blocks of records gathered in parallel and written in order by one writer at a time (a
     // file's buffered writes serialise on its inode lock: concurrent writers only spin), so the
     // kernel's copy of block i overlaps the gather of the next ones.
@@ -1140,9 +1169,15 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
         }
       }
       return (e - b) * R.bytes;
-    }, [&](std::size_t blk, const std::uint8_t* recs, std::size_t bytes) {
-      fd.pwrite_all(recs, bytes, static_cast<std::uint64_t>(blk) * kGatherBlock * R.bytes);
+    }, [&](std::size_t blk, std::uint8_t* recs, std::size_t bytes) {
+      // Direct writes are whole pages: the last block's tail is zero-padded, then cut off below.
+      const std::size_t len = fd.is_direct() ? round_up_direct(bytes) : bytes;
+      std::memset(recs + bytes, 0, len - bytes);
+      fd.pwrite_all(recs, len, static_cast<std::uint64_t>(blk) * kGatherBlock * R.bytes);
     });
+    const std::uint64_t run_bytes = static_cast<std::uint64_t>(buf.size()) * R.bytes;
+    if (fd.is_direct() && run_bytes % kDirectAlign != 0 && ::ftruncate(fd.get(), static_cast<off_t>(run_bytes)) != 0)
+      io_fail(rp, "cannot truncate to " + std::to_string(run_bytes) + " bytes");
     run_files.push_back(rp);
     run_layouts.push_back(R);
     run_first_id += buf.size();
