@@ -26,6 +26,7 @@
 #include <cstddef>
 #include <cstring>
 #include <functional>
+#include <future>
 #include <limits>
 #include <mutex>
 #include <optional>
@@ -447,14 +448,22 @@ struct TempDir {
 /// build's disk peak stays near the runs' size instead of runs + output (1e9 points: 36 GB less).
 class RunReader {
  public:
+  /// `buffer_bytes`: the reader's memory, split between the buffer being read and the one
+  /// being filled in the background.
   RunReader(const fs::path& p, std::size_t rec, std::size_t buffer_bytes)
       : fd_(Fd::direct(p, O_RDWR)), rec_(rec),
-        cap_(std::max(round_up_direct(rec), buffer_bytes / kDirectAlign * kDirectAlign)),
-        buf_(kDirectAlign + cap_) {
+        cap_(std::max(round_up_direct(rec), buffer_bytes / 2 / kDirectAlign * kDirectAlign)),
+        buf_{HugeArray<std::uint8_t>(kDirectAlign + cap_), HugeArray<std::uint8_t>(kDirectAlign + cap_)} {
     struct stat st {};
     if (::fstat(fd_.get(), &st) != 0) io_fail(p, "cannot stat");
     size_ = static_cast<std::uint64_t>(st.st_size) / rec_ * rec_;
+    start_read(0);
     refill();
+  }
+  RunReader(const RunReader&) = delete;
+  RunReader& operator=(const RunReader&) = delete;
+  ~RunReader() {
+    if (pending_.valid()) pending_.wait();
   }
   [[nodiscard]] bool done() const { return pos_ >= len_; }
   [[nodiscard]] const std::uint8_t* cur() const { return base_ + pos_; }
@@ -510,28 +519,51 @@ class RunReader {
   }
 
  private:
-  /// Reads the next cap_ bytes (aligned, for O_DIRECT) behind the unread bytes of a record cut
-  /// by the previous read (carried into the page before the data: records are < 4 KiB).
+  /// Reads the next cap_ bytes of the run into buffer `i`'s data area (after its carry page) in
+  /// the background, then releases them from the disk.
+  void start_read(int i) {
+    std::uint8_t* data = buf_[i].data() + kDirectAlign;
+    const std::uint64_t at = next_off_;
+    next_off_ += cap_;
+    pending_ = std::async(std::launch::async, [this, data, at] {
+      const std::size_t n = fd_.pread_some(data, cap_, at);
+      if (n > 0)
+        (void)::fallocate(fd_.get(), FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, static_cast<off_t>(at),
+                          static_cast<off_t>(n));
+      return n;
+    });
+  }
+  /// Switches to the buffer read in the background, behind the unread bytes of a record cut by
+  /// the previous read (carried into the page before the data: records are < 4 KiB), and starts
+  /// reading the next bytes into the other buffer. Direct reads need aligned offsets and
+  /// lengths, hence the carry instead of reading from a record boundary.
   void refill() {
     const std::size_t carry = avail_ - pos_;  // < rec_: a partial record
-    std::uint8_t* data = buf_.data() + kDirectAlign;
+    if (!pending_.valid()) {  // the run is read to its end: nothing follows
+      base_ += pos_;
+      avail_ = carry, len_ = 0, pos_ = 0;
+      return;
+    }
+    const int next = 1 - cur_buf_;
+    std::uint8_t* data = buf_[next].data() + kDirectAlign;
+    const std::size_t n = pending_.get();  // rethrows a read error
     if (carry > 0) std::memmove(data - carry, base_ + pos_, carry);
-    const std::size_t n = fd_.pread_some(data, cap_, off_);
-    if (n > 0)
-      (void)::fallocate(fd_.get(), FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, static_cast<off_t>(off_),
-                        static_cast<off_t>(n));
     off_ += n;
     base_ = data - carry;
     avail_ = carry + n;
     len_ = avail_ / rec_ * rec_;
     pos_ = 0;
+    cur_buf_ = next;
+    if (n == cap_ && off_ < size_) start_read(1 - next);
   }
   Fd fd_;
   std::size_t rec_, cap_;
-  HugeArray<std::uint8_t> buf_;  ///< one page for the carried bytes, then cap_ bytes of data
+  std::array<HugeArray<std::uint8_t>, 2> buf_;  ///< each: one page for the carried bytes, then cap_ bytes
+  int cur_buf_ = 1;                             ///< the buffer base_ points into
+  std::future<std::size_t> pending_;            ///< the background read (bytes read)
   const std::uint8_t* base_ = nullptr;  ///< first unread record of the last read
   std::size_t pos_ = 0, len_ = 0, avail_ = 0;  ///< from base_: position, whole records, bytes
-  std::uint64_t off_ = 0, size_ = 0;
+  std::uint64_t off_ = 0, next_off_ = 0, size_ = 0;  ///< bytes consumed / requested / whole records
 };
 
 /// Tournament tree of losers over k sorted sequences (Knuth, TAOCP vol. 3, section 5.4.1,
