@@ -695,6 +695,71 @@ TEST(IndexFileBuild, RgbIsStoredInThreeBytesWhenExactAndSixOtherwise) {
   fs::remove_all(dir);
 }
 
+// The build reads LAS tiles with their colour as stored (no colour pass at open) and applies the
+// readers' rule itself from each tile's largest value (docs/formats.md: 8-bit colour scaled by
+// 257, all zero dropped). Tiles of one kind are read once; tiles that differ (8-bit and 16-bit, or
+// one all zero) are read again with each reader's own rule, with a note. Oracle: the colours
+// read_point_cloud delivers for each tile, by id, in one run and in several, 3- and 6-byte forms.
+TEST(IndexFileBuild, TilesOfDifferentColourKindsGetEachReadersColour) {
+  RAYSCAN_REQUIRE_FILE(autzen, "las/autzen_trim.las");
+  const fs::path dir = temp_dir() / "colour_kinds";
+  fs::create_directories(dir);
+  const PointCloud src = io::read_point_cloud(autzen);
+  ASSERT_TRUE(src.rgb_from_8bit_las);
+  const std::size_t half = src.size() / 2;
+  auto tile = [&](std::size_t b, std::size_t e, const fs::path& out, int kind) {  // 8: as read, 16: wide, 0: zero
+    PointCloud c;
+    c.crs_wkt = src.crs_wkt;
+    c.positions.assign(src.positions.begin() + static_cast<std::ptrdiff_t>(b), src.positions.begin() + static_cast<std::ptrdiff_t>(e));
+    c.rgb.assign(src.rgb.begin() + static_cast<std::ptrdiff_t>(b), src.rgb.begin() + static_cast<std::ptrdiff_t>(e));
+    c.rgb_from_8bit_las = kind == 8;  // written back as the 8-bit values
+    for (std::size_t i = 0; i < c.rgb.size(); ++i) {
+      if (kind == 16) c.rgb[i].g = static_cast<std::uint16_t>(1000 + i % 30000);
+      else if (kind == 0) c.rgb[i] = Rgb16{0, 0, 0};
+    }
+    io::LasWriteOptions w;
+    w.scale = Vec3(0.01);
+    io::write_las(out, c, w);
+  };
+  tile(0, half, dir / "a8.las", 8);
+  tile(half, src.size(), dir / "b8.las", 8);
+  tile(half, src.size(), dir / "b16.las", 16);
+  tile(half, src.size(), dir / "b0.las", 0);
+  struct Case {
+    const char* second;
+    bool retried, has_rgb;
+  };
+  for (const Case& k : {Case{"b8.las", false, true}, Case{"b16.las", true, true}, Case{"b0.las", true, false}})
+    for (const bool compact : {true, false})
+      for (const std::uint64_t memory : {std::uint64_t{64} << 20, std::uint64_t{1} << 20}) {
+        SCOPED_TRACE(std::string(k.second) + (compact ? " rgb8 " : " rgb16 ") + std::to_string(memory));
+        const std::vector<fs::path> in{dir / "a8.las", dir / k.second};
+        io::IndexBuildOptions o;
+        o.attributes = io::AttributeSet::parse("id,rgb");
+        o.compact_rgb = compact;
+        o.memory_bytes = memory;
+        const auto st = io::build_index_file(in, dir / "t.rsi", o);
+        bool noted = false;
+        for (const std::string& n : st.notes) noted = noted || n.find("colour differs in kind") != std::string::npos;
+        EXPECT_EQ(noted, k.retried);
+        const io::MappedIndex m = io::MappedIndex::open(dir / "t.rsi");
+        std::vector<Rgb16> want;
+        for (const fs::path& p : in) {
+          const PointCloud pc = io::read_point_cloud(p);
+          if (!pc.rgb.empty()) want.insert(want.end(), pc.rgb.begin(), pc.rgb.end());
+        }
+        EXPECT_EQ(m.attributes().has(io::Attribute::rgb), k.has_rgb);
+        if (!k.has_rgb) continue;
+        ASSERT_EQ(want.size(), m.positions().size());
+        ASSERT_EQ(m.rgb().size(), want.size());
+        for (std::size_t s = 0; s < want.size(); ++s) ASSERT_EQ(m.rgb()[s], want[m.ids()[s]]) << "slot " << s;
+        if (!k.retried) {
+          EXPECT_EQ(m.rgb().multiplier(), compact ? 257u : 0u);
+        }
+      }
+  fs::remove_all(dir);
+}
+
 std::string open_error(const fs::path& p);  // below: the IndexError of opening p, "" when it opens
 
 // Corrupted rgb8 multiplier and sections behind a valid header checksum: one-line errors.

@@ -621,6 +621,11 @@ class LoserTree {
   std::vector<std::uint32_t> loser_;  ///< [0]: the winner; [n >= 1]: the loser at internal node n
 };
 
+/// Thrown by build_index_impl when LAS tiles read with their colour as stored cannot share one
+/// colour rule (some 8-bit, some 16-bit, or one all zero): the build is repeated with the
+/// readers' own per-file normalisation.
+struct ColourRetry {};
+
 /// The colour encoding a build writes (docs/index-format.md "Colour"): the read pass checks every
 /// delivered rgb value v (uint16) against v = b * m with b <= 255 for each multiplier m in
 /// {1, 256, 257} (8-bit colour stored raw, in the high byte, or scaled by 257); decide() picks the
@@ -629,6 +634,9 @@ class LoserTree {
 struct RgbCodec {
   std::uint32_t bad1 = 0, bad256 = 0, bad257 = 0;  ///< non-zero: some value is not b * m
   std::uint32_t mul = 0;                           ///< decided: 1, 256, 257, or 0 (16-bit section)
+  /// The factor from the values read to the values stored: 257 when LAS tiles read as stored
+  /// (ReadOptions::stored_colour) all hold 8-bit colour, which their readers would have scaled.
+  std::uint16_t fix = 1;
   /// Bits of each candidate multiplier that n colours rule out (bit 0: 1, bit 1: 256, bit 2: 257).
   static std::uint32_t ruled_out(const Rgb16* c, std::size_t n) {
     std::uint32_t a = 0, h = 0, q = 0;
@@ -647,13 +655,31 @@ struct RgbCodec {
   void decide(bool compact) {
     mul = !compact ? 0u : !bad1 ? 1u : !bad256 ? 256u : !bad257 ? 257u : 0u;
   }
-  /// Encodes n colours to 3 bytes each (mul != 0; every value was checked to be b * mul).
+  /// The readers' colour rule (docs/formats.md) from the largest stored value of each LAS input
+  /// read as stored: all zero drops the colour, <= 255 means 8-bit colour scaled by 257. When
+  /// every file holds 8-bit colour the values stored are the values read x 257 (fix), which are
+  /// all b x 257: multiplier 257. When every file holds 16-bit colour the values read are final.
+  /// Otherwise (files differ, or one is all zero) throws ColourRetry.
+  void stored_scale(const std::vector<std::uint16_t>& file_max) {
+    const bool eight = std::all_of(file_max.begin(), file_max.end(), [](std::uint16_t m) { return m > 0 && m <= 255; });
+    const bool sixteen = std::all_of(file_max.begin(), file_max.end(), [](std::uint16_t m) { return m > 255; });
+    if (eight) fix = 257, bad1 = bad256 = 1, bad257 = 0;
+    else if (!sixteen) throw ColourRetry{};
+  }
+  /// Encodes n colours (as read) to 3 bytes each (mul != 0; every value was checked to be b * mul).
   void encode(const Rgb16* c, std::size_t n, std::uint8_t* out) const {
+    const std::uint32_t f = fix;
     for (std::size_t i = 0; i < n; ++i) {
-      out[3 * i] = static_cast<std::uint8_t>(c[i].r / mul);
-      out[3 * i + 1] = static_cast<std::uint8_t>(c[i].g / mul);
-      out[3 * i + 2] = static_cast<std::uint8_t>(c[i].b / mul);
+      out[3 * i] = static_cast<std::uint8_t>(c[i].r * f / mul);
+      out[3 * i + 1] = static_cast<std::uint8_t>(c[i].g * f / mul);
+      out[3 * i + 2] = static_cast<std::uint8_t>(c[i].b * f / mul);
     }
+  }
+  /// The 16-bit values stored for n colours as read (x fix).
+  void widen(const Rgb16* c, std::size_t n, Rgb16* out) const {
+    for (std::size_t i = 0; i < n; ++i)
+      out[i] = Rgb16{static_cast<std::uint16_t>(c[i].r * fix), static_cast<std::uint16_t>(c[i].g * fix),
+                     static_cast<std::uint16_t>(c[i].b * fix)};
   }
 };
 
@@ -664,10 +690,12 @@ struct BlockScan {
   AABB box;
   bool grid = true, f32 = true;
   std::uint32_t rgb_out = 0;
+  std::uint16_t rgb_max = 0;  ///< the largest colour channel value (when asked)
   void join(const BlockScan& o) {
     box.expand(o.box);
     grid = grid && o.grid, f32 = f32 && o.f32;
     rgb_out |= o.rgb_out;
+    rgb_max = std::max(rgb_max, o.rgb_max);
   }
 };
 
@@ -696,7 +724,7 @@ struct PointBuffer {
   /// them in parallel blocks: the bounds, the positions encodings still possible under `codec`
   /// and the colour multipliers ruled out (skipped once `rgbc` has ruled out every one).
   BlockScan append(const PointCloud& c, std::size_t i0, std::size_t count, const RecordLayout& L,
-                   const PositionCodec& codec, const RgbCodec& rgbc) {
+                   const PositionCodec& codec, const RgbCodec& rgbc, bool rgb_max) {
     const bool grid0 = codec.grid_ok, f320 = codec.f32_ok, rgb0 = L.rgb && rgbc.undecided();
     const std::size_t at = n;
     BlockScan all = tbb::parallel_reduce(
@@ -717,6 +745,9 @@ struct PointBuffer {
           }
           acc.grid = acc.grid && g, acc.f32 = acc.f32 && f;
           if (rgb0) acc.rgb_out |= RgbCodec::ruled_out(c.rgb.data() + b, m);
+          if (L.rgb && rgb_max)
+            for (std::size_t i = b; i < r.end(); ++i)
+              acc.rgb_max = std::max({acc.rgb_max, c.rgb[i].r, c.rgb[i].g, c.rgb[i].b});
           return acc;
         },
         [](BlockScan x, const BlockScan& y) {
@@ -1048,8 +1079,29 @@ std::uint64_t parse_byte_size(const std::string& text) {
 
 bool is_index_file(const std::filesystem::path& path) { return detail::lower(path.extension().string()) == ".rsi"; }
 
+namespace {
+
+IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::path& output,
+                                 const IndexBuildOptions& opt, bool stored_colour);
+
+}  // namespace
+
 IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::path& output,
                                  const IndexBuildOptions& opt) {
+  try {
+    return build_index_impl(inputs, output, opt, true);
+  } catch (const ColourRetry&) {
+    IndexBuildStats st = build_index_impl(inputs, output, opt, false);
+    st.notes.insert(st.notes.begin(), "the tiles' colour differs in kind (8-bit, 16-bit or all zero): read again "
+                                      "with each file's own colour rule");
+    return st;
+  }
+}
+
+namespace {
+
+IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::path& output,
+                                 const IndexBuildOptions& opt, bool stored_colour) {
   opt.config.validate();
   if (opt.config.layout == OctreeLayout::layered)
     throw std::invalid_argument("--layout layered: not supported by the external-memory index build "
@@ -1064,6 +1116,14 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   const bool want_ids = opt.attributes.has(Attribute::id);
   const AttributeSet read_attrs{opt.attributes.bits & ~static_cast<std::uint32_t>(Attribute::id)};
   IndexBuildStats stats;
+  // LAS/LAZ colour as stored (ReadOptions::stored_colour): the readers skip their whole-file
+  // colour pass (a read of every record before the first point), and the read pass below
+  // applies the same rule from the largest value of each file (RgbCodec::stored_scale).
+  const bool raw_colour = stored_colour && read_attrs.has(Attribute::rgb) &&
+                          std::all_of(inputs.begin(), inputs.end(), [](const fs::path& in) {
+                            return format_from_extension(in) == Format::las;
+                          });
+  const ReadOptions ropt{.scalars = false, .stored_colour = raw_colour};
 
   // Inputs: CRS agreement, the stored attributes, the announced point counts. The readers stay
   // open for the read pass when there are few of them (a LAS file's colour scan runs once).
@@ -1078,7 +1138,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     const PointReader* first = nullptr;
     for (std::size_t f = 0; f < inputs.size(); ++f) {
       const fs::path& in = inputs[f];
-      auto r = open_point_reader(in, read_attrs, ReadOptions{.scalars = false});
+      auto r = open_point_reader(in, read_attrs, ropt);
       if (first && !same_crs(*first, *r))
         throw IndexError(in.string() + ": CRS " + crs_label(*r) + " differs from " + crs_label(*first) +
                          " of " + inputs.front().string() + " (an index holds one coordinate system)");
@@ -1215,6 +1275,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     run_first_id += buf.size();
     buf.clear();
   };
+  std::vector<std::uint16_t> file_rgb_max;  // the largest stored colour value of each input (raw_colour)
   for (int attempt = 0;; ++attempt) {
     PointCloud c;
     codec = PositionCodec{};
@@ -1227,9 +1288,10 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
     run_layouts.clear();
     buf.clear();
     for (IndexSource& s : sources) s.points = 0;
+    file_rgb_max.assign(inputs.size(), 0);
     for (std::size_t f = 0; f < inputs.size(); ++f) {
       std::unique_ptr<PointReader> r = std::move(kept[f]);
-      if (!r) r = open_point_reader(inputs[f], AttributeSet{stored.bits & read_attrs.bits}, ReadOptions{.scalars = false});
+      if (!r) r = open_point_reader(inputs[f], AttributeSet{stored.bits & read_attrs.bits}, ropt);
       sources[f].first_id = total;
       codec.source(r->integer_grid());
       std::size_t n;
@@ -1240,7 +1302,8 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
                                    std::to_string(announced) + " announced by the headers)");
         for (std::size_t i0 = 0; i0 < n;) {
           const std::size_t take = std::min(n - i0, buf.capacity() - buf.size());
-          const BlockScan sc = buf.append(c, i0, take, L, codec, rgbc);
+          const BlockScan sc = buf.append(c, i0, take, L, codec, rgbc, raw_colour);
+          file_rgb_max[f] = std::max(file_rgb_max[f], sc.rgb_max);
           bounds.expand(sc.box);
           codec.grid_ok = codec.grid_ok && sc.grid, codec.f32_ok = codec.f32_ok && sc.f32;
           rgbc.rule_out(sc.rgb_out);
@@ -1267,6 +1330,7 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   stats.runs = in_memory ? (total > 0 ? 1 : 0) : run_files.size();
   const AABB cell = OctreeRules::root_cell(bounds);
   codec.decide(opt.compact_positions);
+  if (raw_colour && L.rgb) rgbc.stored_scale(file_rgb_max);  // throws ColourRetry when the files disagree
   if (L.rgb) rgbc.decide(opt.compact_rgb);
   const bool rgb8 = L.rgb && rgbc.mul != 0;
 
@@ -1368,7 +1432,13 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
         for (std::size_t i = b; i < e; ++i) g_ids[i - b] = keys[i].idx;  // one run: idx == id
         w_ids->write(g_ids.data(), g_ids.size() * 4);
       }
-      if (L.rgb && !rgb8) gather_write(buf.rgb, keys, b, e, g_rgb, *w_rgb);
+      if (L.rgb && !rgb8) {
+        g_rgb.resize(e - b);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, 1 << 14), [&](const auto& r) {
+          for (std::size_t i = r.begin(); i != r.end(); ++i) rgbc.widen(&buf.rgb[keys[i].idx], 1, &g_rgb[i - b]);
+        });
+        w_rgb->write(g_rgb.data(), g_rgb.size() * sizeof(Rgb16));
+      }
       if (rgb8) {
         g_rgb8.resize((e - b) * 3);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(b, e, 1 << 14), [&](const auto& r) {
@@ -1456,7 +1526,12 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
           if (L.gps) std::memcpy(sl.gps.data() + o * 8, rec + R.gps_off, 8);
           if (L.rgb) {
             if (rgb8) rgbc.encode(reinterpret_cast<const Rgb16*>(rec + R.rgb_off), 1, sl.rgb.data() + o * 3);
-            else std::memcpy(sl.rgb.data() + o * 6, rec + R.rgb_off, 6);
+            else {
+              Rgb16 v;
+              std::memcpy(&v, rec + R.rgb_off, 6);
+              rgbc.widen(&v, 1, &v);
+              std::memcpy(sl.rgb.data() + o * 6, &v, 6);
+            }
           }
           if (L.intensity) std::memcpy(sl.inten.data() + o * 2, rec + R.int_off, 2);
           if (L.cls) sl.cls[o] = rec[R.cls_off];
@@ -1658,6 +1733,8 @@ IndexBuildStats build_index_file(const std::vector<fs::path>& inputs, const fs::
   stats.file_bytes = off;
   return stats;
 }
+
+}  // namespace
 
 // ---- open ------------------------------------------------------------------------------------------
 

@@ -412,7 +412,9 @@ void LasReader::setup(AttributeSet want, const ReadOptions& opt) {
   // Colour normalisation (docs/formats.md) is a whole-file decision: 8-bit values stored in the
   // 16-bit fields are scaled by 257; a colour format whose channels are all zero carries no
   // colour and is dropped. A streaming reader therefore scans the colour fields once at open.
-  if (attrs_.has(Attribute::rgb) && count_ > 0 && laszip_) {
+  if (opt.stored_colour) {
+    // The caller takes the colour as stored (ReadOptions::stored_colour): no pass, no scaling.
+  } else if (attrs_.has(Attribute::rgb) && count_ > 0 && laszip_) {
     // LAZ: one pass over the chunks decoding only X/Y/RGB (layered chunks), stopped as soon as a
     // value above 255 shows the colour is 16-bit (usually in the first window).
     const int off = pdrf_rgb_offset(pdrf_);

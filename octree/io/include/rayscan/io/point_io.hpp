@@ -32,6 +32,11 @@ struct ReadOptions {
   /// Turn off for very large clouds when only positions, colour, intensity, classification,
   /// GPS time and normals are needed.
   bool scalars = true;
+  /// LAS/LAZ: deliver the colour fields as stored, skipping the whole-file 8-bit decision of
+  /// docs/formats.md (no colour pass over the file at open, no x 257 scaling, an all-zero colour
+  /// kept). For a caller that makes that decision itself from the values it reads (the index
+  /// build, bench/README.md "Session 19"); other formats ignore it.
+  bool stored_colour = false;
 };
 
 /// The format of `path` from its extension (case-insensitive): .las .laz .copc → las; .ply;
