@@ -262,15 +262,22 @@ struct PositionCodec {
     out = static_cast<std::int32_t>(k);
     return same_bits(las_coordinate(out, scale[a], offset[a]), v);
   }
-  /// grid_value's int32 for a coordinate v known to have one (the read pass checked it), mostly
-  /// without its division: q = (v - offset) * (1 / scale) differs from grid_value's quotient by
-  /// less than 1e-6 (|k| < 2^31, a few ulps), so when q lies within 0.25 of an integer both round
-  /// to it; otherwise grid_value decides.
-  [[nodiscard]] std::int32_t grid_int(double v, int a) const {
+  /// grid_value() mostly without its division: q = (v - offset) * (1 / scale) differs from
+  /// grid_value's quotient by less than 2e-6 while |q| <= 2^31 (a few ulps relative), so when q
+  /// lies within 0.25 of an integer k both round to k and the round trip decides; otherwise
+  /// grid_value does.
+  bool grid_fast(double v, int a, std::int32_t& out) const {
     const double q = (v - offset[a]) * inv_scale[a], k = std::nearbyint(q);
-    if (std::abs(q - k) <= 0.25) return static_cast<std::int32_t>(k);
+    if (std::abs(q - k) <= 0.25 && k >= -2147483648.0 && k <= 2147483647.0) {
+      out = static_cast<std::int32_t>(k);
+      return same_bits(las_coordinate(out, scale[a], offset[a]), v);
+    }
+    return grid_value(v, a, out);
+  }
+  /// grid_value's int32 for a coordinate v known to have one (the read pass checked it).
+  [[nodiscard]] std::int32_t grid_int(double v, int a) const {
     std::int32_t out = 0;
-    (void)grid_value(v, a, out);
+    (void)grid_fast(v, a, out);
     return out;
   }
   /// A new source: its integer grid (PointReader::integer_grid) must be the first source's.
@@ -282,7 +289,7 @@ struct PositionCodec {
   /// True when every coordinate of p is exactly an int32 value of the grid (las_int32 encodes it).
   [[nodiscard]] bool on_grid(const Vec3& p) const {
     std::int32_t k;
-    return grid_value(p[0], 0, k) && grid_value(p[1], 1, k) && grid_value(p[2], 2, k);
+    return grid_fast(p[0], 0, k) && grid_fast(p[1], 1, k) && grid_fast(p[2], 2, k);
   }
   /// True when every coordinate of p is exactly a float (float32 encodes it).
   static bool is_f32(const Vec3& p) {
@@ -313,7 +320,7 @@ struct PositionCodec {
       std::memcpy(p, static_cast<const std::uint8_t*>(src) + 24 * i, 24);
       if (enc == PositionEncoding::las_int32) {
         std::int32_t v[3];
-        for (int a = 0; a < 3; ++a) (void)grid_value(p[a], a, v[a]);  // checked by the read pass
+        for (int a = 0; a < 3; ++a) v[a] = grid_int(p[a], a);  // checked by the read pass
         std::memcpy(out + 12 * i, v, 12);
       } else {
         const float f[3] = {static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2])};
@@ -394,9 +401,10 @@ std::int64_t mtime_ns(const fs::path& p) {
 
 // ---- build ---------------------------------------------------------------------------------------
 
-/// The stored attributes of a build and the run buffer's bytes per point (`bytes`: a float64
-/// position, the attributes and the 12 bytes of code and id that sized the budget before the
-/// compact run records; kept so that a --memory value gives the same runs).
+/// The stored attributes of a build and the run buffer's bytes per point for the budget
+/// (`bytes`: 36 plus the attributes, as sized before the compact run records, so that a --memory
+/// value gives the same runs; the buffer holds a float64 position, the attributes and, in a
+/// multi-run build, an 8-byte Morton code: 32 plus the attributes).
 struct RecordLayout {
   bool rgb = false, intensity = false, cls = false, gps = false;
   std::size_t bytes = 36;
@@ -708,12 +716,14 @@ struct PointBuffer {
   HugeArray<std::uint16_t> intensity;
   HugeArray<std::uint8_t> cls;
   HugeArray<double> gps;
+  HugeArray<std::uint64_t> codes;  ///< Morton codes on the runs' grid (multi-run builds only)
   std::size_t n = 0;  ///< points held
   [[nodiscard]] std::size_t size() const { return n; }
   [[nodiscard]] std::size_t capacity() const { return pos.size(); }
   /// Storage for `cap` points of layout L (the arrays the layout stores).
-  void allocate(std::size_t cap, const RecordLayout& L) {
+  void allocate(std::size_t cap, const RecordLayout& L, bool with_codes) {
     pos = HugeArray<Vec3>(cap);
+    if (with_codes) codes = HugeArray<std::uint64_t>(cap);
     if (L.rgb) rgb = HugeArray<Rgb16>(cap);
     if (L.intensity) intensity = HugeArray<std::uint16_t>(cap);
     if (L.cls) cls = HugeArray<std::uint8_t>(cap);
@@ -724,7 +734,8 @@ struct PointBuffer {
   /// them in parallel blocks: the bounds, the positions encodings still possible under `codec`
   /// and the colour multipliers ruled out (skipped once `rgbc` has ruled out every one).
   BlockScan append(const PointCloud& c, std::size_t i0, std::size_t count, const RecordLayout& L,
-                   const PositionCodec& codec, const RgbCodec& rgbc, bool rgb_max) {
+                   const PositionCodec& codec, const RgbCodec& rgbc, bool rgb_max,
+                   const OctreeRules::Quantizer* qz) {
     const bool grid0 = codec.grid_ok, f320 = codec.f32_ok, rgb0 = L.rgb && rgbc.undecided();
     const std::size_t at = n;
     BlockScan all = tbb::parallel_reduce(
@@ -737,6 +748,8 @@ struct PointBuffer {
           if (L.cls) std::memcpy(cls.data() + d, c.classification.data() + b, m);
           if (L.gps) std::memcpy(gps.data() + d, c.gps_time.data() + b, m * 8);
           bool g = grid0, f = f320;
+          if (qz != nullptr)  // the code now, while the points are in cache (the sort reads it twice)
+            for (std::size_t i = b; i < r.end(); ++i) codes[d + (i - b)] = qz->code(c.positions[i]);
           for (std::size_t i = b; i < r.end(); ++i) {
             const Vec3& p = c.positions[i];
             acc.box.expand(p);
@@ -764,7 +777,8 @@ struct PointBuffer {
 /// (sort_morton_keys: the codes are computed twice instead of held in a second array).
 void sort_keys(const PointBuffer& buf, const OctreeRules::Quantizer& qz, HugeArray<MortonKey>& keys) {
   if (keys.size() < buf.size()) keys = HugeArray<MortonKey>(buf.size());
-  sort_morton_keys(buf.size(), [&](std::size_t i) { return qz.code(buf.pos[i]); }, keys.data());
+  if (buf.codes.size() > 0) sort_morton_keys(buf.size(), [&](std::size_t i) { return buf.codes[i]; }, keys.data());
+  else sort_morton_keys(buf.size(), [&](std::size_t i) { return qz.code(buf.pos[i]); }, keys.data());
 }
 
 /// Calls `fn(b, e)` for consecutive blocks [b, e) of [0, n) of at most kGatherBlock keys.
@@ -1211,7 +1225,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
   AABB bounds;
   std::uint64_t total = 0;
   PointBuffer buf;
-  buf.allocate(static_cast<std::size_t>(std::min<std::uint64_t>(run_cap, announced)), L);
+  buf.allocate(static_cast<std::size_t>(std::min<std::uint64_t>(run_cap, announced)), L, !in_memory);
   std::vector<fs::path> run_files;
   std::vector<RunLayout> run_layouts;
   std::uint64_t run_first_id = 0;
@@ -1302,7 +1316,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
                                    std::to_string(announced) + " announced by the headers)");
         for (std::size_t i0 = 0; i0 < n;) {
           const std::size_t take = std::min(n - i0, buf.capacity() - buf.size());
-          const BlockScan sc = buf.append(c, i0, take, L, codec, rgbc, raw_colour);
+          const BlockScan sc = buf.append(c, i0, take, L, codec, rgbc, raw_colour, in_memory ? nullptr : &grid_qz);
           file_rgb_max[f] = std::max(file_rgb_max[f], sc.rgb_max);
           bounds.expand(sc.box);
           codec.grid_ok = codec.grid_ok && sc.grid, codec.f32_ok = codec.f32_ok && sc.f32;
