@@ -506,9 +506,10 @@ class RunReader {
   }
   /// The Morton code of record i of the buffer, counted from cur() (i < left()).
   [[nodiscard]] std::uint64_t code(std::size_t i) const { return get<std::uint64_t>(cur() + i * rec_, 0); }
-  /// The number of records from cur() whose code is below `limit` (binary search of the buffer).
-  [[nodiscard]] std::size_t lower_bound(std::uint64_t limit) const {
-    std::size_t lo = 0, hi = left();
+  /// The number of records from cur() whose code is below `limit` (binary search of the buffer
+  /// from record `from` on, which must be below it; to `to`, default the buffer's end).
+  [[nodiscard]] std::size_t lower_bound(std::uint64_t limit, std::size_t from = 0, std::size_t to = ~std::size_t{0}) const {
+    std::size_t lo = from, hi = std::min(to, left());
     while (lo < hi) {
       const std::size_t mid = lo + (hi - lo) / 2;
       if (code(mid) < limit) lo = mid + 1;
@@ -788,22 +789,16 @@ void for_blocks(std::size_t n, Fn&& fn) {
   for (std::size_t b = 0; b < n; b += kGatherBlock) fn(b, std::min(n, b + kGatherBlock));
 }
 
-/// Runs fill(i, buffer) -> bytes for blocks i in [0, n) in parallel and write(i, buffer, bytes)
-/// for each block in order of i, one write at a time, with at most kSlots blocks in flight, each
-/// in one of kSlots buffers of `block_bytes` allocated once (huge pages: no fresh small pages per
-/// block; rounded up to whole pages, so a writer may pad a block for O_DIRECT). TBB parallel_pipeline: the serial_in_order last stage frees block i's slot before
-/// block i + kSlots starts, so slot i % kSlots is never in use twice.
-template <class Fill, class Write>
-void pipelined_blocks(std::size_t n, std::size_t block_bytes, const Fill& fill, const Write& write) {
-  constexpr std::size_t kSlots = 4;
-  std::array<HugeArray<std::uint8_t>, kSlots> slots;
-  for (auto& sl : slots) sl = HugeArray<std::uint8_t>(round_up_direct(std::min<std::size_t>(block_bytes, n * block_bytes)));
-  struct Done {
-    std::size_t i = 0, bytes = 0;
-  };
+/// Runs work(i) for i in [0, n) in parallel and then sink(i) for each i in order of i, one sink
+/// at a time, with at most kPipelineSlots items in flight (TBB parallel_pipeline: the
+/// serial_in_order last stage ends item i before item i + kPipelineSlots starts, so a caller's
+/// buffer i % kPipelineSlots is never in use by two items).
+constexpr std::size_t kPipelineSlots = 4;
+template <class Work, class Sink>
+void ordered_pipeline(std::size_t n, const Work& work, const Sink& sink) {
   std::size_t next = 0;
   tbb::parallel_pipeline(
-      kSlots,
+      kPipelineSlots,
       tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
                                           [&](tbb::flow_control& fc) -> std::size_t {
                                             if (next == n) {
@@ -812,10 +807,26 @@ void pipelined_blocks(std::size_t n, std::size_t block_bytes, const Fill& fill, 
                                             }
                                             return next++;
                                           }) &
-          tbb::make_filter<std::size_t, Done>(tbb::filter_mode::parallel,
-                                              [&](std::size_t i) { return Done{i, fill(i, slots[i % kSlots].data())}; }) &
-          tbb::make_filter<Done, void>(tbb::filter_mode::serial_in_order,
-                                       [&](const Done& d) { write(d.i, slots[d.i % kSlots].data(), d.bytes); }));
+          tbb::make_filter<std::size_t, std::size_t>(tbb::filter_mode::parallel,
+                                                     [&](std::size_t i) {
+                                                       work(i);
+                                                       return i;
+                                                     }) &
+          tbb::make_filter<std::size_t, void>(tbb::filter_mode::serial_in_order, [&](std::size_t i) { sink(i); }));
+}
+
+/// Runs fill(i, buffer) -> bytes for blocks i in [0, n) in parallel and write(i, buffer, bytes)
+/// for each block in order of i, one write at a time (ordered_pipeline), each block in one of
+/// kPipelineSlots buffers of `block_bytes` allocated once (huge pages: no fresh small pages per
+/// block; rounded up to whole pages, so a writer may pad a block for O_DIRECT).
+template <class Fill, class Write>
+void pipelined_blocks(std::size_t n, std::size_t block_bytes, const Fill& fill, const Write& write) {
+  std::array<HugeArray<std::uint8_t>, kPipelineSlots> slots;
+  std::array<std::size_t, kPipelineSlots> bytes{};
+  for (auto& sl : slots) sl = HugeArray<std::uint8_t>(round_up_direct(std::min<std::size_t>(block_bytes, n * block_bytes)));
+  ordered_pipeline(
+      n, [&](std::size_t i) { bytes[i % kPipelineSlots] = fill(i, slots[i % kPipelineSlots].data()); },
+      [&](std::size_t i) { write(i, slots[i % kPipelineSlots].data(), bytes[i % kPipelineSlots]); });
 }
 
 /// Gathers field `src[keys[i].idx]` for keys [b, e) into `out` (parallel) and appends it to `w`.
@@ -1517,9 +1528,8 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
       std::vector<std::uint8_t> codes, pos, ids, gps, rgb, inten, cls;
       std::size_t n = 0;
     };
-    constexpr std::size_t kSlots = 4;
     constexpr std::size_t kPartRecords = std::size_t{1} << 16;
-    std::array<Slot, kSlots> slots;
+    std::array<Slot, kPipelineSlots> slots;
     // Merges part `pt` into `sl` (resized to its records).
     auto merge_part = [&](const Part& pt, Slot& sl) {
       sl.n = pt.n;
@@ -1631,41 +1641,21 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
       cut[parts] = counts;
       for (std::size_t j = 1; j < parts; ++j) {
         const std::uint64_t c = readers[big]->code(counts[big] * j / parts);
-        for (std::size_t r = 0; r < k; ++r) {
-          std::size_t lo = cut[j - 1][r], hi = counts[r];  // monotone in j
-          while (lo < hi) {
-            const std::size_t mid = lo + (hi - lo) / 2;
-            if (readers[r]->code(mid) < c) lo = mid + 1;
-            else hi = mid;
-          }
-          cut[j][r] = lo;
-        }
+        for (std::size_t r = 0; r < k; ++r) cut[j][r] = readers[r]->lower_bound(c, cut[j - 1][r], counts[r]);  // monotone in j
       }
-      std::size_t next = 0;
-      tbb::parallel_pipeline(
-          kSlots,
-          tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
-                                              [&](tbb::flow_control& fc) -> std::size_t {
-                                                if (next == parts) {
-                                                  fc.stop();
-                                                  return 0;
-                                                }
-                                                return next++;
-                                              }) &
-              tbb::make_filter<std::size_t, std::size_t>(tbb::filter_mode::parallel,
-                                                         [&](std::size_t j) {
-                                                           Part pt;
-                                                           pt.slices.resize(k);
-                                                           for (std::size_t r = 0; r < k; ++r) {
-                                                             const std::size_t b = cut[j][r], e = cut[j + 1][r];
-                                                             pt.slices[r] = {readers[r]->cur() + b * readers[r]->record_bytes(), e - b};
-                                                             pt.n += e - b;
-                                                           }
-                                                           merge_part(pt, slots[j % kSlots]);
-                                                           return j;
-                                                         }) &
-              tbb::make_filter<std::size_t, void>(tbb::filter_mode::serial_in_order,
-                                                  [&](std::size_t j) { write_slot(slots[j % kSlots]); }));
+      ordered_pipeline(
+          parts,
+          [&](std::size_t j) {
+            Part pt;
+            pt.slices.resize(k);
+            for (std::size_t r = 0; r < k; ++r) {
+              const std::size_t b = cut[j][r], e = cut[j + 1][r];
+              pt.slices[r] = {readers[r]->cur() + b * readers[r]->record_bytes(), e - b};
+              pt.n += e - b;
+            }
+            merge_part(pt, slots[j % kPipelineSlots]);
+          },
+          [&](std::size_t j) { write_slot(slots[j % kPipelineSlots]); });
       for (std::size_t r = 0; r < k; ++r)
         if (counts[r] > 0) readers[r]->skip(counts[r]);
       merged += window;
