@@ -149,7 +149,9 @@ class Fd {
       off += static_cast<std::uint64_t>(w);
     }
   }
-  /// Reads up to n bytes at off; returns bytes read (less only at end of file).
+  /// Reads up to n bytes at off; returns bytes read (less only at end of file). On an O_DIRECT
+  /// descriptor a read that ends off a block boundary is the end of the file: the loop stops
+  /// there rather than read again at an unaligned offset.
   std::size_t pread_some(void* data, std::size_t n, std::uint64_t off) {
     auto* p = static_cast<char*>(data);
     std::size_t got = 0;
@@ -159,6 +161,7 @@ class Fd {
       if (r < 0) io_fail(path_, "read failed at byte " + std::to_string(off + got));
       if (r == 0) break;
       got += static_cast<std::size_t>(r);
+      if (direct_ && got % 4096 != 0) break;
     }
     return got;
   }
@@ -457,9 +460,10 @@ struct TempDir {
 class RunReader {
  public:
   /// `buffer_bytes`: the reader's memory, split between the buffer being read and the one
-  /// being filled in the background.
-  RunReader(const fs::path& p, std::size_t rec, std::size_t buffer_bytes)
-      : fd_(Fd::direct(p, O_RDWR)), rec_(rec),
+  /// being filled next, in the background when `background` (a thread per read in flight: for
+  /// a merge of few runs), else when the first is used up.
+  RunReader(const fs::path& p, std::size_t rec, std::size_t buffer_bytes, bool background)
+      : background_(background), fd_(Fd::direct(p, O_RDWR)), rec_(rec),
         cap_(std::max(round_up_direct(rec), buffer_bytes / 2 / kDirectAlign * kDirectAlign)),
         buf_{HugeArray<std::uint8_t>(kDirectAlign + cap_), HugeArray<std::uint8_t>(kDirectAlign + cap_)} {
     struct stat st {};
@@ -471,7 +475,7 @@ class RunReader {
   RunReader(const RunReader&) = delete;
   RunReader& operator=(const RunReader&) = delete;
   ~RunReader() {
-    if (pending_.valid()) pending_.wait();
+    if (background_ && pending_.valid()) pending_.wait();  // a deferred read is never run
   }
   [[nodiscard]] bool done() const { return pos_ >= len_; }
   [[nodiscard]] const std::uint8_t* cur() const { return base_ + pos_; }
@@ -534,7 +538,7 @@ class RunReader {
     std::uint8_t* data = buf_[i].data() + kDirectAlign;
     const std::uint64_t at = next_off_;
     next_off_ += cap_;
-    pending_ = std::async(std::launch::async, [this, data, at] {
+    pending_ = std::async(background_ ? std::launch::async : std::launch::deferred, [this, data, at] {
       const std::size_t n = fd_.pread_some(data, cap_, at);
       if (n > 0)
         (void)::fallocate(fd_.get(), FALLOC_FL_PUNCH_HOLE | FALLOC_FL_KEEP_SIZE, static_cast<off_t>(at),
@@ -565,6 +569,7 @@ class RunReader {
     cur_buf_ = next;
     if (n == cap_ && off_ < size_) start_read(1 - next);
   }
+  bool background_;
   Fd fd_;
   std::size_t rec_, cap_;
   std::array<HugeArray<std::uint8_t>, 2> buf_;  ///< each: one page for the carried bytes, then cap_ bytes
@@ -669,9 +674,14 @@ struct RgbCodec {
   /// every file holds 8-bit colour the values stored are the values read x 257 (fix), which are
   /// all b x 257: multiplier 257. When every file holds 16-bit colour the values read are final.
   /// Otherwise (files differ, or one is all zero) throws ColourRetry.
-  void stored_scale(const std::vector<std::uint16_t>& file_max) {
-    const bool eight = std::all_of(file_max.begin(), file_max.end(), [](std::uint16_t m) { return m > 0 && m <= 255; });
-    const bool sixteen = std::all_of(file_max.begin(), file_max.end(), [](std::uint16_t m) { return m > 255; });
+  /// Files without points (`points[f] == 0`) have no colour to decide (their readers decide none).
+  void stored_scale(const std::vector<std::uint16_t>& file_max, const std::vector<std::uint64_t>& points) {
+    bool eight = true, sixteen = true;
+    for (std::size_t f = 0; f < file_max.size(); ++f) {
+      if (points[f] == 0) continue;
+      eight = eight && file_max[f] > 0 && file_max[f] <= 255;
+      sixteen = sixteen && file_max[f] > 255;
+    }
     if (eight) fix = 257, bad1 = bad256 = 1, bad257 = 0;
     else if (!sixteen) throw ColourRetry{};
   }
@@ -1272,9 +1282,13 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     // Blocks of records gathered in parallel and written in order by one writer at a time (a
     // file's buffered writes serialise on its inode lock: concurrent writers only spin), so the
     // kernel's copy of block i overlaps the gather of the next ones.
-    const std::size_t nb = (buf.size() + kGatherBlock - 1) / kGatherBlock;
-    pipelined_blocks(nb, kGatherBlock * R.bytes, [&](std::size_t blk, std::uint8_t* recs) {
-      const std::size_t b = blk * kGatherBlock, e = std::min(buf.size(), b + kGatherBlock);
+    // Blocks of up to kGatherBlock records, fewer for a small budget (the four slots then hold
+    // about a quarter of a run), a multiple of 4096 records so that every block's offset is
+    // page-aligned for O_DIRECT.
+    const std::size_t blk_recs = std::clamp<std::size_t>(run_cap / 16 / 4096 * 4096, 4096, kGatherBlock);
+    const std::size_t nb = (buf.size() + blk_recs - 1) / blk_recs;
+    pipelined_blocks(nb, blk_recs * R.bytes, [&](std::size_t blk, std::uint8_t* recs) {
+      const std::size_t b = blk * blk_recs, e = std::min(buf.size(), b + blk_recs);
       constexpr std::size_t kAhead = 16;  // prefetch distance (keys) of the random reads
       for (std::size_t k = b; k != e; ++k) {
         if (k + kAhead < e) {
@@ -1306,7 +1320,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
       // Direct writes are whole pages: the last block's tail is zero-padded, then cut off below.
       const std::size_t len = fd.is_direct() ? round_up_direct(bytes) : bytes;
       std::memset(recs + bytes, 0, len - bytes);
-      fd.pwrite_all(recs, len, static_cast<std::uint64_t>(blk) * kGatherBlock * R.bytes);
+      fd.pwrite_all(recs, len, static_cast<std::uint64_t>(blk) * blk_recs * R.bytes);
     });
     const std::uint64_t run_bytes = static_cast<std::uint64_t>(buf.size()) * R.bytes;
     if (fd.is_direct() && run_bytes % kDirectAlign != 0 && ::ftruncate(fd.get(), static_cast<off_t>(run_bytes)) != 0)
@@ -1371,7 +1385,11 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
   stats.runs = in_memory ? (total > 0 ? 1 : 0) : run_files.size();
   const AABB cell = OctreeRules::root_cell(bounds);
   codec.decide(opt.compact_positions);
-  if (raw_colour && L.rgb) rgbc.stored_scale(file_rgb_max);  // throws ColourRetry when the files disagree
+  if (raw_colour && L.rgb) {  // throws ColourRetry when the files disagree
+    std::vector<std::uint64_t> points(sources.size());
+    for (std::size_t f = 0; f < sources.size(); ++f) points[f] = sources[f].points;
+    rgbc.stored_scale(file_rgb_max, points);
+  }
   if (L.rgb) rgbc.decide(opt.compact_rgb);
   const bool rgb8 = L.rgb && rgbc.mul != 0;
 
@@ -1509,7 +1527,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
         std::size_t{1} << 16, std::size_t{64} << 20);
     std::vector<std::unique_ptr<RunReader>> readers;
     for (std::size_t r = 0; r < run_files.size(); ++r)
-      readers.push_back(std::make_unique<RunReader>(run_files[r], run_layouts[r].bytes, rbuf));
+      readers.push_back(std::make_unique<RunReader>(run_files[r], run_layouts[r].bytes, rbuf, run_files.size() <= 64));
     // The merge (docs/index-format.md "Build"), a window at a time: S = the least last code of the
     // buffers of the runs that have more records on disk; every record with a code below S is in
     // a buffer, so the window (those records) is merged before any buffer refills. The window is
@@ -1528,7 +1546,8 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
       std::vector<std::uint8_t> codes, pos, ids, gps, rgb, inten, cls;
       std::size_t n = 0;
     };
-    constexpr std::size_t kPartRecords = std::size_t{1} << 16;
+    // Records per part: 65,536, fewer for a small budget (the slots' arrays stay near 1/16 of it).
+    const std::size_t part_records = std::clamp<std::size_t>(opt.memory_bytes / 64 / 64, 1024, std::size_t{1} << 16);
     std::array<Slot, kPipelineSlots> slots;
     // Merges part `pt` into `sl` (resized to its records).
     auto merge_part = [&](const Part& pt, Slot& sl) {
@@ -1565,10 +1584,11 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
           if (want_ids) std::memcpy(sl.ids.data() + o * 4, rec + R.id_off, 4);
           if (L.gps) std::memcpy(sl.gps.data() + o * 8, rec + R.gps_off, 8);
           if (L.rgb) {
-            if (rgb8) rgbc.encode(reinterpret_cast<const Rgb16*>(rec + R.rgb_off), 1, sl.rgb.data() + o * 3);
-            else {
-              Rgb16 v;
-              std::memcpy(&v, rec + R.rgb_off, 6);
+            Rgb16 v;  // copied out: a record's colour need not be 2-byte aligned
+            std::memcpy(&v, rec + R.rgb_off, 6);
+            if (rgb8) {
+              rgbc.encode(&v, 1, sl.rgb.data() + o * 3);
+            } else {
               rgbc.widen(&v, 1, &v);
               std::memcpy(sl.rgb.data() + o * 6, &v, 6);
             }
@@ -1630,13 +1650,14 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
           if (!readers[r]->done() && readers[r]->code(0) == S) {
             counts[r] = readers[r]->count_below(S, true);
             window = counts[r];
+            big = r;  // the parts' cut codes come from the one slice
             break;
           }
         if (window == 0) throw std::logic_error("index build: the merge made no progress");
       }
       // Parts: splitter codes at quantiles of the largest slice; each part's slice of run r is
       // [its lower bound of the part's first splitter, that of the next).
-      const std::size_t parts = std::max<std::size_t>(1, (window + kPartRecords - 1) / kPartRecords);
+      const std::size_t parts = std::max<std::size_t>(1, (window + part_records - 1) / part_records);
       std::vector<std::vector<std::size_t>> cut(parts + 1, std::vector<std::size_t>(k, 0));
       cut[parts] = counts;
       for (std::size_t j = 1; j < parts; ++j) {
