@@ -27,14 +27,20 @@ namespace rayscan {
 
 /// The same over any index satisfying SpatialIndex (e.g. io::MappedIndex, an index file): the
 /// median over up to `max_samples` evenly spaced positions of the distance to the nearest point
-/// at a non-zero distance (world units); 0 when fewer than two distinct points.
+/// at a non-zero distance (world units); 0 when fewer than two distinct points. With `batch` > 0
+/// the samples are queried `batch` at a time (each batch in parallel) and `after_batch()` is
+/// called after each, e.g. to drop the pages a mapped index's queries touched; the result is the
+/// same.
 template <class I>
 [[nodiscard]] double median_nn_spacing_of(const I& index, std::span<const Vec3> positions,
-                                          std::size_t max_samples = 20000) {
+                                          std::size_t max_samples = 20000, std::size_t batch = 0,
+                                          const std::function<void()>& after_batch = {}) {
   if (positions.size() < 2 || max_samples == 0) return 0.0;
   const std::size_t n = std::min(max_samples, positions.size());
   std::vector<double> d(n, 0.0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 256), [&](const auto& r) {
+  const std::size_t step = batch == 0 ? n : batch;
+  for (std::size_t b0 = 0; b0 < n; b0 += step) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(b0, std::min(n, b0 + step), 32), [&](const auto& r) {
     std::vector<Neighbor> nb;
     for (std::size_t i = r.begin(); i != r.end(); ++i) {
       const std::size_t p = i * positions.size() / n;
@@ -49,6 +55,8 @@ template <class I>
       d[i] = best;
     }
   });
+    if (after_batch) after_batch();
+  }
   std::erase(d, 0.0);
   if (d.empty()) return 0.0;
   std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
@@ -62,10 +70,13 @@ template <class I>
 /// Without stored ids (IdView::identity: the original order is the slot order) the samples are
 /// read at slots i * N / n directly, without the pass.
 /// The pass goes in blocks of 4 Mi slots; `scanned(end)` (optional) is called after the slots
-/// [0, end) are done, e.g. to drop the pages of a mapped ids section behind the pass.
+/// [0, end) are done, e.g. to drop the pages of a mapped ids section behind the pass (without
+/// ids, after every 1,024 samples read by slot). `batch`
+/// and `after_batch` are median_nn_spacing_of's.
 template <class I>
 [[nodiscard]] double median_nn_spacing_by_id(const I& index, std::size_t max_samples = 20000,
-                                             const std::function<void(std::size_t)>& scanned = {}) {
+                                             const std::function<void(std::size_t)>& scanned = {},
+                                             std::size_t batch = 0, const std::function<void()>& after_batch = {}) {
   const auto pos = index.positions();
   const IdView ids = index.ids();
   const std::size_t N = pos.size();
@@ -73,9 +84,12 @@ template <class I>
   const std::size_t n = std::min(max_samples, N);
   std::vector<Vec3> samples(n);
   if (ids.is_identity()) {  // an index file without ids: original index == slot, no pass needed
-    for (std::size_t i = 0; i < n; ++i) samples[i] = pos[i * N / n];
+    for (std::size_t i = 0; i < n; ++i) {
+      samples[i] = pos[i * N / n];
+      if (scanned && i % 1024 == 1023) scanned(i * N / n + 1);
+    }
     if (scanned) scanned(N);
-    return median_nn_spacing_of(index, std::span<const Vec3>(samples), n);
+    return median_nn_spacing_of(index, std::span<const Vec3>(samples), n, batch, after_batch);
   }
   // Sample i is original index p(i) = floor(i N / n); p is strictly increasing (N >= n), so an id
   // is a sample iff p(ceil(id n / N)) == id.
@@ -90,7 +104,7 @@ template <class I>
   });
     if (scanned) scanned(c1);
   }
-  return median_nn_spacing_of(index, std::span<const Vec3>(samples), n);
+  return median_nn_spacing_of(index, std::span<const Vec3>(samples), n, batch, after_batch);
 }
 
 /// The sphere radius a job used and how it was chosen.

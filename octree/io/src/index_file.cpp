@@ -1753,14 +1753,17 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     const std::uintptr_t pg = page_bytes();
     std::uintptr_t dropped = (reinterpret_cast<std::uintptr_t>(ids0) + pg - 1) / pg * pg;
     h.spacing = median_nn_spacing_by_id(m, 20000, [&](std::size_t slots) {
-      if (ids0 == nullptr) return;
+      if (ids0 == nullptr) {  // the samples read by slot: drop the pages their reads mapped
+        m.release_pages();
+        return;
+      }
       const std::uintptr_t end = (reinterpret_cast<std::uintptr_t>(ids0) + slots * sizeof(PointIndex)) / pg * pg;
       if (end > dropped) {
         // NOLINTNEXTLINE(performance-no-int-to-ptr): a page range of the index's own read-only map
         (void)::madvise(reinterpret_cast<void*>(dropped), end - dropped, MADV_DONTNEED);
         dropped = end;
       }
-    });
+    }, 256, [&] { m.release_pages(); });  // the queries' pages (64 KiB per fault) dropped every 256 samples
     const std::vector<std::uint8_t> hb = encode_header(h);
     fd.pwrite_all(hb.data(), hb.size(), 0);
   }
@@ -2025,6 +2028,10 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   m.points = x.points_;
   m.trust_ids = opt.trust_ids;  // the builder's own output
   return x;
+}
+
+void MappedIndex::release_pages() const {
+  if (map_ && map_->p != nullptr) (void)::madvise(map_->p, map_->n, MADV_DONTNEED);
 }
 
 /// Points per depth counted over the node records (the deep check of the header's table).

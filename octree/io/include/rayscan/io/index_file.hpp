@@ -249,6 +249,10 @@ class MappedIndex {
   [[nodiscard]] const std::vector<IndexSource>& sources() const { return sources_; }
   [[nodiscard]] const std::string& crs_wkt() const { return crs_; }
   [[nodiscard]] std::uint64_t file_bytes() const;
+  /// Drops the map's resident pages from the process (MADV_DONTNEED on the shared read-only map:
+  /// the data stays in the page cache and is faulted in again when touched), so a long pass of
+  /// scattered reads keeps a bounded resident set. Never changes what the index reads.
+  void release_pages() const;
   [[nodiscard]] const std::filesystem::path& path() const { return path_; }
   /// The median nearest-neighbour spacing of the stored points (world units; 0 below two distinct
   /// points), computed at build time by median_nn_spacing_by_id (rayscan/spacing.hpp) over this
