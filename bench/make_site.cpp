@@ -2,7 +2,10 @@
 // committed): the bundled autzen scan (LAS 1.2 PDRF 3) tiled 4 x 4, then repeated with +-0.5 m xy
 // jitter until N points, written as LAS 1.2 PDRF 3 (34 bytes per point) or, with --pdrf 0, PDRF 0
 // (20 bytes per point: the first 20 bytes of each PDRF 3 record, LAS 1.2 Table 7 vs Table 10, no
-// GPS time or colour). Check free disk first (1e9 points = 20 GB at PDRF 0), delete after.
+// GPS time or colour). With --tile-major the copies are written tile by tile (all of tile 0's,
+// then tile 1's, ...), as a site delivered in tiles and concatenated would be; by default they
+// go round the 16 tiles, so every stretch of the file covers the whole site. Check free disk
+// first (1e9 points = 20 GB at PDRF 0), delete after.
 #include <algorithm>
 #include <cstdint>
 #include <cstdlib>
@@ -17,13 +20,15 @@
 int main(int argc, char** argv) {
   std::vector<std::string> args;
   int pdrf = 3;
+  bool tile_major = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--pdrf" && i + 1 < argc) pdrf = std::atoi(argv[++i]);
+    else if (a == "--tile-major") tile_major = true;
     else args.push_back(a);
   }
   if (args.size() < 2 || (pdrf != 0 && pdrf != 3)) {
-    std::cerr << "usage: make_site OUT.las N [SOURCE.las] [--pdrf 0|3]\n";
+    std::cerr << "usage: make_site OUT.las N [SOURCE.las] [--pdrf 0|3] [--tile-major]\n";
     return 2;
   }
   const std::string out = args[0];
@@ -67,7 +72,13 @@ int main(int argc, char** argv) {
   std::vector<char> block(static_cast<std::size_t>(count) * rl);
   std::int64_t blo[3] = {INT64_MAX, INT64_MAX, INT64_MAX}, bhi[3] = {INT64_MIN, INT64_MIN, INT64_MIN};
   std::uint64_t done = 0;
-  for (std::uint64_t rep = 0; done < n; ++rep) {
+  // Copy r goes to tile r % 16 (jittered from the second round on); the order of the copies.
+  const std::uint64_t copies = (n + count - 1) / count;
+  std::vector<std::uint64_t> order(copies);
+  for (std::uint64_t r = 0; r < copies; ++r) order[r] = r;
+  if (tile_major) std::stable_sort(order.begin(), order.end(), [](std::uint64_t a, std::uint64_t b) { return a % 16 < b % 16; });
+  for (std::uint64_t k = 0; done < n; ++k) {
+    const std::uint64_t rep = order[k];
     const std::uint64_t m = std::min<std::uint64_t>(count, n - done);
     const int t = static_cast<int>(rep % 16);
     for (std::uint64_t i = 0; i < m; ++i) {
