@@ -481,33 +481,6 @@ class RunReader {
   [[nodiscard]] const std::uint8_t* cur() const { return base_ + pos_; }
   /// Records from cur() to the end of the buffer.
   [[nodiscard]] std::size_t left() const { return (len_ - pos_) / rec_; }
-  /// The number of records from cur() on (at least 1, at most left()) whose Morton code (the
-  /// record's first 8 bytes) is below `limit`, or at most `limit` when `inclusive`; cur()'s own
-  /// code must pass. An exponential search from cur() (Bentley & Yao 1976): a stretch of n
-  /// records costs about 2 log2 n comparisons.
-  [[nodiscard]] std::size_t count_below(std::uint64_t limit, bool inclusive) const {
-    auto pass = [&](std::size_t i) {
-      const std::uint64_t c = get<std::uint64_t>(cur() + i * rec_, 0);
-      return c < limit || (inclusive && c == limit);
-    };
-    const std::size_t n = left();
-    std::size_t lo = 1, step = 1, hi = n;  // pass(i) for every i < lo
-    while (lo < n) {
-      const std::size_t probe = lo + std::min(step, n - lo) - 1;
-      if (!pass(probe)) {
-        hi = probe;
-        break;
-      }
-      lo = probe + 1;
-      step *= 2;
-    }
-    while (lo < hi) {  // first failing index in [lo, hi]
-      const std::size_t mid = lo + (hi - lo) / 2;
-      if (pass(mid)) lo = mid + 1;
-      else hi = mid;
-    }
-    return lo;
-  }
   /// The Morton code of record i of the buffer, counted from cur() (i < left()).
   [[nodiscard]] std::uint64_t code(std::size_t i) const { return get<std::uint64_t>(cur() + i * rec_, 0); }
   /// The number of records from cur() whose code is below `limit` (binary search of the buffer
@@ -784,8 +757,9 @@ struct PointBuffer {
 };
 
 /// The Morton keys of the buffered points on the grid `qz`, sorted by (code, id), into `keys`
-/// (reallocated only when smaller than the buffer: the runs of a build reuse one array)
-/// (sort_morton_keys: the codes are computed twice instead of held in a second array).
+/// (reallocated only when smaller than the buffer: the runs of a build reuse one array). The
+/// sort reads each code twice: from buf.codes when the copy pass computed them (multi-run
+/// builds), else computed from the positions on each read.
 void sort_keys(const PointBuffer& buf, const OctreeRules::Quantizer& qz, HugeArray<MortonKey>& keys) {
   if (keys.size() < buf.size()) keys = HugeArray<MortonKey>(buf.size());
   if (buf.codes.size() > 0) sort_morton_keys(buf.size(), [&](std::size_t i) { return buf.codes[i]; }, keys.data());
@@ -1280,11 +1254,10 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     // cache (no kernel copy, no cache pages to fill and evict; bench/README.md "Session 19").
     Fd fd = Fd::direct(rp, O_WRONLY | O_CREAT | O_TRUNC);
     // Blocks of records gathered in parallel and written in order by one writer at a time (a
-    // file's buffered writes serialise on its inode lock: concurrent writers only spin), so the
-    // kernel's copy of block i overlaps the gather of the next ones.
-    // Blocks of up to kGatherBlock records, fewer for a small budget (the four slots then hold
-    // about a quarter of a run), a multiple of 4096 records so that every block's offset is
-    // page-aligned for O_DIRECT.
+    // file's writes serialise on its inode lock: concurrent writers only spin), so the write of
+    // block i overlaps the gather of the next ones. A block is up to kGatherBlock records, fewer
+    // for a small budget (the four slots then hold about a quarter of a run), and a multiple of
+    // 4096 records, so that every block's offset is page-aligned for O_DIRECT.
     const std::size_t blk_recs = std::clamp<std::size_t>(run_cap / 16 / 4096 * 4096, 4096, kGatherBlock);
     const std::size_t nb = (buf.size() + blk_recs - 1) / blk_recs;
     pipelined_blocks(nb, blk_recs * R.bytes, [&](std::size_t blk, std::uint8_t* recs) {
@@ -1645,10 +1618,11 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
       }
       if (window == 0) {
         // Every buffered code is >= S, and the buffer of the run that set S holds S only: the next
-        // records are the S records of the lowest run that starts with S, as far as its buffer goes.
+        // records are the S records of the lowest run that starts with S, as far as its buffer goes
+        // (S < 2^63, so S + 1 does not wrap).
         for (std::size_t r = 0; r < k; ++r)
           if (!readers[r]->done() && readers[r]->code(0) == S) {
-            counts[r] = readers[r]->count_below(S, true);
+            counts[r] = readers[r]->lower_bound(S + 1);
             window = counts[r];
             big = r;  // the parts' cut codes come from the one slice
             break;
@@ -1746,24 +1720,12 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     oo.check_sources = false;
     oo.trust_ids = true;  // written above: the ids need no check
     const MappedIndex m = MappedIndex::open(out.temp(), oo);
-    // The ids pass is sequential: its pages are dropped behind it (the map is shared and
-    // read-only), so this phase's resident set is the samples' kNN paths, not the ids section.
-    // Without ids there is no pass (the samples are read by slot).
-    const auto* ids0 = reinterpret_cast<const std::uint8_t*>(m.ids().data());
-    const std::uintptr_t pg = page_bytes();
-    std::uintptr_t dropped = (reinterpret_cast<std::uintptr_t>(ids0) + pg - 1) / pg * pg;
-    h.spacing = median_nn_spacing_by_id(m, 20000, [&](std::size_t slots) {
-      if (ids0 == nullptr) {  // the samples read by slot: drop the pages their reads mapped
-        m.release_pages();
-        return;
-      }
-      const std::uintptr_t end = (reinterpret_cast<std::uintptr_t>(ids0) + slots * sizeof(PointIndex)) / pg * pg;
-      if (end > dropped) {
-        // NOLINTNEXTLINE(performance-no-int-to-ptr): a page range of the index's own read-only map
-        (void)::madvise(reinterpret_cast<void*>(dropped), end - dropped, MADV_DONTNEED);
-        dropped = end;
-      }
-    }, 256, [&] { m.release_pages(); });  // the queries' pages (64 KiB per fault) dropped every 256 samples
+    // The map's pages are dropped from the process (MappedIndex::release_pages) behind the ids
+    // pass (or every 1,024 samples read by slot without ids) and after every 256 kNN queries:
+    // each page fault maps up to 64 KiB around it, so scattered reads would otherwise keep
+    // gigabytes of the file resident.
+    h.spacing = median_nn_spacing_by_id(
+        m, 20000, [&](std::size_t) { m.release_pages(); }, 256, [&] { m.release_pages(); });
     const std::vector<std::uint8_t> hb = encode_header(h);
     fd.pwrite_all(hb.data(), hb.size(), 0);
   }
