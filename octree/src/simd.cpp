@@ -364,16 +364,55 @@ __attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, 
 
 // 4 AoS points p[0..11] (12 doubles) as x, y and z lanes relative to (ox, oy, oz):
 // P = x0 y0 x2 y2, Q = z0 x1 z2 x3, R = y1 z1 y3 z3, then one shuffle per coordinate.
-__attribute__((target("avx2,fma"), always_inline)) inline void load_rel4(const double* p, __m256d ox, __m256d oy,
-                                                                         __m256d oz, __m256d& vx, __m256d& vy,
-                                                                         __m256d& vz) {
-  const __m256d a = _mm256_loadu_pd(p), b = _mm256_loadu_pd(p + 4), c = _mm256_loadu_pd(p + 8);
+// Four AoS triples held in a, b, c (x0 y0 z0 x1 | y1 z1 x2 y2 | z2 x3 y3 z3) as x, y and z lanes.
+__attribute__((target("avx2,fma"), always_inline)) inline void deinterleave4(__m256d a, __m256d b, __m256d c,
+                                                                             __m256d& x, __m256d& y, __m256d& z) {
   const __m256d P = _mm256_blend_pd(a, b, 0b1100);
   const __m256d Q = _mm256_permute2f128_pd(a, c, 0x21);
   const __m256d R = _mm256_blend_pd(b, c, 0b1100);
-  vx = _mm256_sub_pd(_mm256_shuffle_pd(P, Q, 0b1010), ox);
-  vy = _mm256_sub_pd(_mm256_shuffle_pd(P, R, 0b0101), oy);
-  vz = _mm256_sub_pd(_mm256_shuffle_pd(Q, R, 0b1010), oz);
+  x = _mm256_shuffle_pd(P, Q, 0b1010);
+  y = _mm256_shuffle_pd(P, R, 0b0101);
+  z = _mm256_shuffle_pd(Q, R, 0b1010);
+}
+
+__attribute__((target("avx2,fma"), always_inline)) inline void load_rel4(const double* p, __m256d ox, __m256d oy,
+                                                                         __m256d oz, __m256d& vx, __m256d& vy,
+                                                                         __m256d& vz) {
+  deinterleave4(_mm256_loadu_pd(p), _mm256_loadu_pd(p + 4), _mm256_loadu_pd(p + 8), vx, vy, vz);
+  vx = _mm256_sub_pd(vx, ox);
+  vy = _mm256_sub_pd(vy, oy);
+  vz = _mm256_sub_pd(vz, oz);
+}
+
+// The lanes of points [i, i + 4) whose disc the ray provably misses (PointFilterD::normals; v =
+// p - o, r the radii as doubles): the ray-disc test with the margins stated there. Lanes with
+// |d.n| < 2^-10 or NaN data are never set.
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d disc_miss4(const PointFilterD& f, unsigned i,
+                                                                             __m256d vx, __m256d vy, __m256d vz,
+                                                                             __m256d r) {
+  const float* nf = f.normals + 3 * static_cast<std::size_t>(i);
+  __m256d nx, ny, nz;
+  deinterleave4(_mm256_cvtps_pd(_mm_loadu_ps(nf)), _mm256_cvtps_pd(_mm_loadu_ps(nf + 4)),
+                _mm256_cvtps_pd(_mm_loadu_ps(nf + 8)), nx, ny, nz);
+  const __m256d dn = _mm256_fmadd_pd(_mm256_set1_pd(f.d[2]), nz,
+                                     _mm256_fmadd_pd(_mm256_set1_pd(f.d[1]), ny, _mm256_mul_pd(_mm256_set1_pd(f.d[0]), nx)));
+  const __m256d vn = _mm256_fmadd_pd(vz, nz, _mm256_fmadd_pd(vy, ny, _mm256_mul_pd(vx, nx)));
+  const __m256d t = _mm256_div_pd(vn, dn);
+  const __m256d wx = _mm256_fmsub_pd(t, _mm256_set1_pd(f.d[0]), vx);
+  const __m256d wy = _mm256_fmsub_pd(t, _mm256_set1_pd(f.d[1]), vy);
+  const __m256d wz = _mm256_fmsub_pd(t, _mm256_set1_pd(f.d[2]), vz);
+  const __m256d w2 = _mm256_fmadd_pd(wz, wz, _mm256_fmadd_pd(wy, wy, _mm256_mul_pd(wx, wx)));
+  const __m256d v2 = _mm256_fmadd_pd(vz, vz, _mm256_fmadd_pd(vy, vy, _mm256_mul_pd(vx, vx)));
+  const __m256d r2 = _mm256_mul_pd(r, r);
+  const __m256d lim = _mm256_fmadd_pd(_mm256_add_pd(r2, v2), _mm256_set1_pd(0x1p-32), r2);
+  const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
+  const __m256d e = _mm256_fmadd_pd(_mm256_and_pd(t, abs_mask), _mm256_set1_pd(0x1p-36), _mm256_set1_pd(f.disc_slack));
+  const __m256d miss = _mm256_or_pd(
+      _mm256_cmp_pd(w2, lim, _CMP_GT_OQ),
+      _mm256_or_pd(_mm256_cmp_pd(t, _mm256_sub_pd(_mm256_set1_pd(f.disc_t_lo), e), _CMP_LT_OQ),
+                   _mm256_cmp_pd(t, _mm256_add_pd(_mm256_set1_pd(f.disc_t_hi), e), _CMP_GT_OQ)));
+  const __m256d steep = _mm256_cmp_pd(_mm256_and_pd(dn, abs_mask), _mm256_set1_pd(0x1p-10), _CMP_GE_OQ);
+  return _mm256_and_pd(miss, steep);
 }
 
 // The lane mask of points [i, i + 4) of the AVX2 distance filter: |p - o|^2 <= d2max.
@@ -429,7 +468,12 @@ __attribute__((target("avx2,fma"), always_inline)) inline unsigned filter_step4(
   const __m256d ok = _mm256_and_pd(_mm256_cmp_pd(d2, lim, _CMP_LE_OQ),
                                    _mm256_and_pd(_mm256_cmp_pd(t, tl, _CMP_GE_OQ),
                                                  _mm256_cmp_pd(t, _mm256_set1_pd(f.t_hi), _CMP_LE_OQ)));
-  return static_cast<unsigned>(_mm256_movemask_pd(ok));
+  unsigned m = static_cast<unsigned>(_mm256_movemask_pd(ok));
+  if constexpr (kRadii) {  // the ray-disc test too (PointFilterD::normals), for the survivors' steps
+    if (m && f.normals)
+      m &= ~static_cast<unsigned>(_mm256_movemask_pd(disc_miss4(f, i, vx, vy, vz, _mm256_cvtps_pd(_mm_loadu_ps(f.radii + i)))));
+  }
+  return m;
 }
 
 // kRadii: as point_filter_sse2_impl; the tail as tail_lanes4 says.
@@ -488,6 +532,35 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) void packet_child_slab_avx5
 
 // ---- AVX-512: 8 points per step (the child test stays 8-wide: an octree node has 8 children) ----
 
+// As disc_miss4, for points [i, i + 8): the lane mask of the discs the ray provably misses.
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned disc_miss8(
+    const PointFilterD& f, unsigned i, __m512d vx, __m512d vy, __m512d vz, __m512d r) {
+  const float* nf = f.normals + 3 * static_cast<std::size_t>(i);
+  const __m512d a = _mm512_cvtps_pd(_mm256_loadu_ps(nf)), b = _mm512_cvtps_pd(_mm256_loadu_ps(nf + 8)),
+                c = _mm512_cvtps_pd(_mm256_loadu_ps(nf + 16));
+  // The permutations of point_filter_avx512 (x_j at 3j, y_j at 3j + 1, z_j at 3j + 2).
+  const __m512i ix1 = _mm512_setr_epi64(0, 3, 6, 9, 12, 15, 0, 0), ix2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 10, 13);
+  const __m512i iy1 = _mm512_setr_epi64(1, 4, 7, 10, 13, 0, 0, 0), iy2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 8, 11, 14);
+  const __m512i iz1 = _mm512_setr_epi64(2, 5, 8, 11, 14, 0, 0, 0), iz2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 9, 12, 15);
+  const __m512d nx = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, ix1, b), ix2, c);
+  const __m512d ny = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iy1, b), iy2, c);
+  const __m512d nz = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iz1, b), iz2, c);
+  const __m512d dx = _mm512_set1_pd(f.d[0]), dy = _mm512_set1_pd(f.d[1]), dz = _mm512_set1_pd(f.d[2]);
+  const __m512d dn = _mm512_fmadd_pd(dz, nz, _mm512_fmadd_pd(dy, ny, _mm512_mul_pd(dx, nx)));
+  const __m512d vn = _mm512_fmadd_pd(vz, nz, _mm512_fmadd_pd(vy, ny, _mm512_mul_pd(vx, nx)));
+  const __m512d t = _mm512_div_pd(vn, dn);
+  const __m512d wx = _mm512_fmsub_pd(t, dx, vx), wy = _mm512_fmsub_pd(t, dy, vy), wz = _mm512_fmsub_pd(t, dz, vz);
+  const __m512d w2 = _mm512_fmadd_pd(wz, wz, _mm512_fmadd_pd(wy, wy, _mm512_mul_pd(wx, wx)));
+  const __m512d v2 = _mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx)));
+  const __m512d r2 = _mm512_mul_pd(r, r);
+  const __m512d lim = _mm512_fmadd_pd(_mm512_add_pd(r2, v2), _mm512_set1_pd(0x1p-32), r2);
+  const __m512d e = _mm512_fmadd_pd(_mm512_abs_pd(t), _mm512_set1_pd(0x1p-36), _mm512_set1_pd(f.disc_slack));
+  const unsigned miss = _mm512_cmp_pd_mask(w2, lim, _CMP_GT_OQ) |
+                        _mm512_cmp_pd_mask(t, _mm512_sub_pd(_mm512_set1_pd(f.disc_t_lo), e), _CMP_LT_OQ) |
+                        _mm512_cmp_pd_mask(t, _mm512_add_pd(_mm512_set1_pd(f.disc_t_hi), e), _CMP_GT_OQ);
+  return miss & _mm512_cmp_pd_mask(_mm512_abs_pd(dn), _mm512_set1_pd(0x1p-10), _CMP_GE_OQ);
+}
+
 __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx512(const double* xyz, unsigned count,
                                                                                  const PointFilterD& f,
                                                                                  std::uint32_t* out) {
@@ -525,12 +598,14 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx51
     }
     unsigned m = _mm512_cmp_pd_mask(d2, lim, _CMP_LE_OQ) & _mm512_cmp_pd_mask(t, tl, _CMP_GE_OQ) &
                  _mm512_cmp_pd_mask(t, thi, _CMP_LE_OQ);
+    if (m && f.normals && f.radii) m &= ~disc_miss8(f, i, vx, vy, vz, _mm512_cvtps_pd(_mm256_loadu_ps(f.radii + i)));
     n = append_lanes<8>(m, i, out, n);
   }
   // The rest (< 8) through the 4-wide kernel (its radii from point i on).
   if (i < count) {
     PointFilterD rest = f;
     if (rest.radii) rest.radii += i;
+    if (rest.normals) rest.normals += 3 * static_cast<std::size_t>(i);
     const unsigned k = point_filter_avx2(xyz + 3 * static_cast<std::size_t>(i), count - i, rest, out + n);
     for (unsigned j = 0; j < k; ++j) out[n + j] += i;
     n += k;

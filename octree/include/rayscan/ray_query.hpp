@@ -220,6 +220,13 @@ struct NoChildBoxesF {};
 /// point that a predicate would have dropped by a rounding (a disc hit at its rim) is answered by
 /// its exact key, as a brute-force loop over the exact test answers it.
 ///
+/// With filter_radii and key_min (below), a member `const float* filter_normals()` (3 floats per
+/// storage slot, a unit normal; or null) declares the refined key a ray-disc hit: finite only
+/// where the ray crosses the plane through the point with that normal at some t in [key_min(),
+/// the query's t_max] within the point's radius of it, and then equal to that t. The SIMD point
+/// filter then drops the points whose disc the ray provably misses in [key_min(), min(t_max, the
+/// k-bound)] (simd::PointFilterD::normals), so they never reach the exact test.
+///
 /// With node_box, the key functor may also have a member `double key_min()`: a lower bound of every
 /// finite refined key (e.g. the t_min of a disc test, where the query's t_min lies far below it so
 /// that the base keys pass). The geometry boxes are then cut at it (a box behind it holds no hit),
@@ -307,6 +314,7 @@ struct RayTraversal {
   bool slab_is_final = false;  // children whose SIMD slab result is final (else it only prefilters)
   bool prepared = false;       // prepare() ran
   bool radii_filter = false;   // the SIMD point filter applies the key functor's per-slot radii
+  bool normals_filter = false;  // ... and its per-slot disc normals (filter_normals)
 
   RayTraversal(const I& index_, const Ray& ray, const RayQuery& q_, Candidate& best_, RayQueryStats* stats_,
                const KeyPolicy& key_policy_)
@@ -367,6 +375,10 @@ struct RayTraversal {
     }
     if constexpr (per_node) set_node_pad(index.root());
     if constexpr (requires { key_policy.key.filter_radii(); }) radii_filter = key_policy.key.filter_radii() != nullptr;
+    if constexpr (key_floor_known && requires { key_policy.key.filter_normals(); }) {
+      normals_filter = radii_filter && key_policy.key.filter_normals() != nullptr;
+      pf.disc_slack = 0x1p-36 * vmax + tol;
+    }
     update_simd();
     slab_is_final = !ray_order && !has_planes && (!per_node || per_box_f);
   }
@@ -399,6 +411,9 @@ struct RayTraversal {
     pf.t_lo = std::max(t_lo, box_t_lo - radius) - slack_t;
     pf.t_lo_own = box_t_lo - slack_t;
     pf.t_hi = t_hi + slack_t;
+    // Disc hits (filter_normals): t in [key_min, t_max], and a refined key above the k-bound fails.
+    pf.disc_t_lo = box_t_lo;
+    pf.disc_t_hi = std::min(q.t_max, worst);
     if constexpr (per_box_f) {
       if (kern.child_slab) {
         // As below with pad 0, the magnitudes including the geometry's reach past the float
@@ -632,6 +647,8 @@ struct RayTraversal {
       // The policy's per-slot radii (RefinedKey): its early rejection inside the SIMD filter.
       if constexpr (requires { key_policy.key.filter_radii(); })
         if (radii_filter) pf.radii = key_policy.key.filter_radii() + range.begin;
+      if constexpr (requires { key_policy.key.filter_normals(); })
+        if (normals_filter) pf.normals = key_policy.key.filter_normals() + 3 * std::size_t{range.begin};
       const unsigned m = kern.point_filter(xyz, range.size(), pf, sel.data());
       for (unsigned j = 0; j < m; ++j) {
         const double* p = xyz + 3 * std::size_t{sel[j]};

@@ -81,6 +81,18 @@ struct PointFilterD {
   /// radius keeps t_lo): the least ray parameter of a hit (e.g. RefinedKey's key_min), less each
   /// point's own radius, for geometry that lies within that radius of its point.
   double t_lo_own = -std::numeric_limits<double>::infinity();
+  /// Optional (with radii, d != 0): each point's disc normal, normals[3i .. 3i + 2] (unit, float),
+  /// for the ray-disc test of a disc centred on the point with radius radii[i] (pbrt-v4 6.4.2, as
+  /// render::ray_disc_t): the AVX2 and AVX-512 kernels also drop the points whose disc the ray
+  /// provably misses, crossing its plane at t = ((p - o).n) / (d.n) outside [disc_t_lo - e,
+  /// disc_t_hi + e] (e = disc_slack + 2^-36 |t|) or farther than radius from p (|t d - (p - o)|^2
+  /// > r^2 + 2^-32 (r^2 + |p - o|^2)). These margins cover the difference between any two
+  /// evaluations of the test in double when |d.n| >= 2^-10; rays closer to parallel to a disc, and
+  /// NaN data, keep the point. The SSE2 kernel and the scalar tails ignore it (a filter may keep).
+  const float* normals = nullptr;
+  double disc_t_lo = -std::numeric_limits<double>::infinity();  ///< with normals: least disc hit t
+  double disc_t_hi = std::numeric_limits<double>::infinity();   ///< with normals: largest disc hit t
+  double disc_slack = 0.0;  ///< with normals: t margin (world units), >= 2^-36 max |p - o|
 };
 
 /// Slab test of up to 8 child boxes: bit i of the result is set when box i grown as in `r`

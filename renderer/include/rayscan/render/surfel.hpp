@@ -286,6 +286,9 @@ struct DiscKey {
   }
   /// The radii reject() tests, by storage slot, for the ray query's SIMD point filter (or null).
   const float* filter_radii() const { return slot_radii; }
+  /// The disc normals by storage slot for the SIMD point filter's ray-disc test (RefinedKey's
+  /// filter_normals; the refined key is ray_disc_t in [t_min, t_max]), or null.
+  const float* filter_normals() const { return slot_normals ? &slot_normals->x : nullptr; }
   /// Every finite key is a disc hit t >= t_min (RefinedKey's key_min; the query's own t_min is
   /// 2 R lower, for the sphere keys).
   double key_min() const { return t_min; }
