@@ -532,19 +532,10 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"))) void packet_child_slab_avx5
 
 // ---- AVX-512: 8 points per step (the child test stays 8-wide: an octree node has 8 children) ----
 
-// As disc_miss4, for points [i, i + 8): the lane mask of the discs the ray provably misses.
+// As disc_miss4, for eight points (v = p - o, r the radii, n the normals, as doubles): the lane
+// mask of the discs the ray provably misses.
 __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned disc_miss8(
-    const PointFilterD& f, unsigned i, __m512d vx, __m512d vy, __m512d vz, __m512d r) {
-  const float* nf = f.normals + 3 * static_cast<std::size_t>(i);
-  const __m512d a = _mm512_cvtps_pd(_mm256_loadu_ps(nf)), b = _mm512_cvtps_pd(_mm256_loadu_ps(nf + 8)),
-                c = _mm512_cvtps_pd(_mm256_loadu_ps(nf + 16));
-  // The permutations of point_filter_avx512 (x_j at 3j, y_j at 3j + 1, z_j at 3j + 2).
-  const __m512i ix1 = _mm512_setr_epi64(0, 3, 6, 9, 12, 15, 0, 0), ix2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 10, 13);
-  const __m512i iy1 = _mm512_setr_epi64(1, 4, 7, 10, 13, 0, 0, 0), iy2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 8, 11, 14);
-  const __m512i iz1 = _mm512_setr_epi64(2, 5, 8, 11, 14, 0, 0, 0), iz2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 9, 12, 15);
-  const __m512d nx = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, ix1, b), ix2, c);
-  const __m512d ny = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iy1, b), iy2, c);
-  const __m512d nz = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iz1, b), iz2, c);
+    const PointFilterD& f, __m512d vx, __m512d vy, __m512d vz, __m512d r, __m512d nx, __m512d ny, __m512d nz) {
   const __m512d dx = _mm512_set1_pd(f.d[0]), dy = _mm512_set1_pd(f.d[1]), dz = _mm512_set1_pd(f.d[2]);
   const __m512d dn = _mm512_fmadd_pd(dz, nz, _mm512_fmadd_pd(dy, ny, _mm512_mul_pd(dx, nx)));
   const __m512d vn = _mm512_fmadd_pd(vz, nz, _mm512_fmadd_pd(vy, ny, _mm512_mul_pd(vx, nx)));
@@ -561,54 +552,99 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
   return miss & _mm512_cmp_pd_mask(_mm512_abs_pd(dn), _mm512_set1_pd(0x1p-10), _CMP_GE_OQ);
 }
 
-__attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx512(const double* xyz, unsigned count,
-                                                                                 const PointFilterD& f,
-                                                                                 std::uint32_t* out) {
-  const __m512d ox = _mm512_set1_pd(f.o[0]), oy = _mm512_set1_pd(f.o[1]), oz = _mm512_set1_pd(f.o[2]);
-  const __m512d dx = _mm512_set1_pd(f.d[0]), dy = _mm512_set1_pd(f.d[1]), dz = _mm512_set1_pd(f.d[2]);
-  const __m512d d2max = _mm512_set1_pd(f.d2_max), tlo = _mm512_set1_pd(f.t_lo), thi = _mm512_set1_pd(f.t_hi);
-  const bool dist_only = distance_only(f);
-  // 8 AoS points = 24 doubles in a, b, c; x_j sits at 3j, y_j at 3j+1, z_j at 3j+2.
+// Eight AoS triples at p (24 values) as x, y and z lanes (x_j at 3j, y_j at 3j + 1, z_j at 3j + 2
+// of a, b, c).
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline void deinterleave8(
+    __m512d a, __m512d b, __m512d c, __m512d& x, __m512d& y, __m512d& z) {
   const __m512i ix1 = _mm512_setr_epi64(0, 3, 6, 9, 12, 15, 0, 0), ix2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 10, 13);
   const __m512i iy1 = _mm512_setr_epi64(1, 4, 7, 10, 13, 0, 0, 0), iy2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 8, 11, 14);
   const __m512i iz1 = _mm512_setr_epi64(2, 5, 8, 11, 14, 0, 0, 0), iz2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 9, 12, 15);
-  unsigned i = 0, n = 0;
-  for (; i + 8 <= count; i += 8) {
-    const double* p = xyz + 3 * static_cast<std::size_t>(i);
-    const __m512d a = _mm512_loadu_pd(p), b = _mm512_loadu_pd(p + 8), c = _mm512_loadu_pd(p + 16);
-    const __m512d vx = _mm512_sub_pd(_mm512_permutex2var_pd(_mm512_permutex2var_pd(a, ix1, b), ix2, c), ox);
-    const __m512d vy = _mm512_sub_pd(_mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iy1, b), iy2, c), oy);
-    const __m512d vz = _mm512_sub_pd(_mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iz1, b), iz2, c), oz);
-    if (dist_only) {  // knn_query: |p - o|^2 alone (see distance_only)
-      unsigned m = _mm512_cmp_pd_mask(_mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx))), d2max,
-                                      _CMP_LE_OQ);
-      n = append_lanes<8>(m, i, out, n);
-      continue;
-    }
-    const __m512d t = _mm512_fmadd_pd(vz, dz, _mm512_fmadd_pd(vy, dy, _mm512_mul_pd(vx, dx)));
-    const __m512d wx = _mm512_fnmadd_pd(t, dx, vx);
-    const __m512d wy = _mm512_fnmadd_pd(t, dy, vy);
-    const __m512d wz = _mm512_fnmadd_pd(t, dz, vz);
-    const __m512d d2 = _mm512_fmadd_pd(wz, wz, _mm512_fmadd_pd(wy, wy, _mm512_mul_pd(wx, wx)));
-    __m512d lim = d2max, tl = tlo;
-    if (f.radii) {  // each point's own radius as well (PointFilterD::radii, t_lo_own)
-      const __m512d r = _mm512_cvtps_pd(_mm256_loadu_ps(f.radii + i));
-      lim = _mm512_min_pd(_mm512_fmadd_pd(r, r, _mm512_set1_pd(f.d2_slack)), d2max);  // (d2max when r is NaN)
-      tl = _mm512_max_pd(_mm512_sub_pd(_mm512_set1_pd(f.t_lo_own), r), tlo);          // (t_lo when r is NaN)
-    }
-    unsigned m = _mm512_cmp_pd_mask(d2, lim, _CMP_LE_OQ) & _mm512_cmp_pd_mask(t, tl, _CMP_GE_OQ) &
-                 _mm512_cmp_pd_mask(t, thi, _CMP_LE_OQ);
-    if (m && f.normals && f.radii) m &= ~disc_miss8(f, i, vx, vy, vz, _mm512_cvtps_pd(_mm256_loadu_ps(f.radii + i)));
-    n = append_lanes<8>(m, i, out, n);
+  x = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, ix1, b), ix2, c);
+  y = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iy1, b), iy2, c);
+  z = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iz1, b), iz2, c);
+}
+
+// The load masks of the first `valid` (<= 8) of eight AoS triples: 3 valid values over 3 vectors of 8.
+struct TripleMasks8 {
+  __mmask8 a, b, c, lanes;
+  explicit TripleMasks8(unsigned valid) {
+    const unsigned k = 3 * valid;
+    const auto first = [](unsigned m) { return static_cast<__mmask8>(m >= 8 ? 0xFFu : (1u << m) - 1u); };
+    a = first(k);
+    b = first(k > 8 ? k - 8 : 0);
+    c = first(k > 16 ? k - 16 : 0);
+    lanes = first(valid);
   }
-  // The rest (< 8) through the 4-wide kernel (its radii from point i on).
-  if (i < count) {
-    PointFilterD rest = f;
-    if (rest.radii) rest.radii += i;
-    if (rest.normals) rest.normals += 3 * static_cast<std::size_t>(i);
-    const unsigned k = point_filter_avx2(xyz + 3 * static_cast<std::size_t>(i), count - i, rest, out + n);
-    for (unsigned j = 0; j < k; ++j) out[n + j] += i;
-    n += k;
+};
+
+// The lane mask of points [i, i + 8) of the AVX-512 point filter, or of the first `valid` of them
+// (kMasked: masked loads, nothing read past them; the other lanes unset).
+template <bool kMasked>
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned filter_step8(
+    const double* xyz, unsigned i, unsigned valid, const PointFilterD& f, bool dist_only) {
+  const TripleMasks8 mk(kMasked ? valid : 8u);
+  const double* p = xyz + 3 * static_cast<std::size_t>(i);
+  __m512d vx, vy, vz;
+  if constexpr (kMasked)
+    deinterleave8(_mm512_maskz_loadu_pd(mk.a, p), _mm512_maskz_loadu_pd(mk.b, p + 8), _mm512_maskz_loadu_pd(mk.c, p + 16),
+                  vx, vy, vz);
+  else
+    deinterleave8(_mm512_loadu_pd(p), _mm512_loadu_pd(p + 8), _mm512_loadu_pd(p + 16), vx, vy, vz);
+  vx = _mm512_sub_pd(vx, _mm512_set1_pd(f.o[0]));
+  vy = _mm512_sub_pd(vy, _mm512_set1_pd(f.o[1]));
+  vz = _mm512_sub_pd(vz, _mm512_set1_pd(f.o[2]));
+  const __m512d d2max = _mm512_set1_pd(f.d2_max);
+  const unsigned lanes = kMasked ? mk.lanes : 0xFFu;
+  if (dist_only)  // knn_query: |p - o|^2 alone (see distance_only)
+    return lanes & _mm512_cmp_pd_mask(_mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx))), d2max,
+                                      _CMP_LE_OQ);
+  const __m512d dx = _mm512_set1_pd(f.d[0]), dy = _mm512_set1_pd(f.d[1]), dz = _mm512_set1_pd(f.d[2]);
+  const __m512d t = _mm512_fmadd_pd(vz, dz, _mm512_fmadd_pd(vy, dy, _mm512_mul_pd(vx, dx)));
+  const __m512d wx = _mm512_fnmadd_pd(t, dx, vx);
+  const __m512d wy = _mm512_fnmadd_pd(t, dy, vy);
+  const __m512d wz = _mm512_fnmadd_pd(t, dz, vz);
+  const __m512d d2 = _mm512_fmadd_pd(wz, wz, _mm512_fmadd_pd(wy, wy, _mm512_mul_pd(wx, wx)));
+  const __m512d tlo = _mm512_set1_pd(f.t_lo);
+  __m512d lim = d2max, tl = tlo, r = _mm512_setzero_pd();
+  if (f.radii) {  // each point's own radius as well (PointFilterD::radii, t_lo_own)
+    r = _mm512_cvtps_pd(kMasked ? _mm256_maskz_loadu_ps(mk.lanes, f.radii + i) : _mm256_loadu_ps(f.radii + i));
+    lim = _mm512_min_pd(_mm512_fmadd_pd(r, r, _mm512_set1_pd(f.d2_slack)), d2max);  // (d2max when r is NaN)
+    tl = _mm512_max_pd(_mm512_sub_pd(_mm512_set1_pd(f.t_lo_own), r), tlo);          // (t_lo when r is NaN)
+  }
+  unsigned m = lanes & _mm512_cmp_pd_mask(d2, lim, _CMP_LE_OQ) & _mm512_cmp_pd_mask(t, tl, _CMP_GE_OQ) &
+               _mm512_cmp_pd_mask(t, _mm512_set1_pd(f.t_hi), _CMP_LE_OQ);
+  if (m && f.normals && f.radii) {  // the ray-disc test too (PointFilterD::normals)
+    const float* nf = f.normals + 3 * static_cast<std::size_t>(i);
+    __m512d nx, ny, nz;
+    if constexpr (kMasked)
+      deinterleave8(_mm512_cvtps_pd(_mm256_maskz_loadu_ps(mk.a, nf)), _mm512_cvtps_pd(_mm256_maskz_loadu_ps(mk.b, nf + 8)),
+                    _mm512_cvtps_pd(_mm256_maskz_loadu_ps(mk.c, nf + 16)), nx, ny, nz);
+    else
+      deinterleave8(_mm512_cvtps_pd(_mm256_loadu_ps(nf)), _mm512_cvtps_pd(_mm256_loadu_ps(nf + 8)),
+                    _mm512_cvtps_pd(_mm256_loadu_ps(nf + 16)), nx, ny, nz);
+    m &= ~disc_miss8(f, vx, vy, vz, r, nx, ny, nz);
+  }
+  return m;
+}
+
+__attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx512(const double* xyz, unsigned count,
+                                                                                 const PointFilterD& f,
+                                                                                 std::uint32_t* out) {
+  const bool dist_only = distance_only(f);
+  unsigned i = 0, n = 0;
+  for (; i + 8 <= count; i += 8) n = append_lanes<8>(filter_step8<false>(xyz, i, 8, f, dist_only), i, out, n);
+  if (i == count) return n;
+  if (count >= 8) {
+    // The last count % 8 points: one overlapping step over the last 8, the lanes before i cleared
+    // (append_lanes then writes below count, as in the AVX2 kernel's tail_lanes4).
+    const unsigned base = count - 8;
+    return append_lanes<8>(filter_step8<false>(xyz, base, 8, f, dist_only) & (0xFFu << (i - base)), base, out, n);
+  }
+  // Fewer than 8 points: one masked step; its indices written for the valid lanes only (out holds count).
+  const unsigned m = filter_step8<true>(xyz, 0, count, f, dist_only);
+  for (unsigned j = 0; j < count; ++j) {
+    out[n] = j;
+    n += (m >> j) & 1u;
   }
   return n;
 }

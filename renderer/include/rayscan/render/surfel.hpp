@@ -429,11 +429,26 @@ void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<cons
     if (packet) {
       using Key = RefinedKey<DiscKey, SurfelNodeRadius, SurfelNodeBox, SurfelChildBoxesF<I>>;
       const RayQuery q = surfel_query(s, t_min, t_max, any_hit);
+      // Each key set field by field in place: assigning a built temporary cost 5.8% of a camera-ray
+      // render (perf: store-forwarding stalls of the 128-byte copies; bench/README.md, session 20).
       Key keys[kMaxRayPacket];
-      for (std::size_t i = 0; i < n; ++i)
-        keys[i] = Key{DiscKey{&s, rays[i].origin(), rays[i].direction(), t_min, t_max, from_of(i),
-                              s.slot_radii.empty() ? nullptr : s.slot_radii.data(), slot_normals_of(s)},
-                      {&s}, {&s}, {&index, &s}};
+      const float* slot_radii = s.slot_radii.empty() ? nullptr : s.slot_radii.data();
+      const glm::vec3* slot_normals = slot_normals_of(s);
+      for (std::size_t i = 0; i < n; ++i) {
+        DiscKey& k = keys[i].key;
+        k.s = &s;
+        k.o = rays[i].origin();
+        k.d = rays[i].direction();
+        k.t_min = t_min;
+        k.t_max = t_max;
+        k.from = from_of(i);
+        k.slot_radii = slot_radii;
+        k.slot_normals = slot_normals;
+        keys[i].node_radius_of.s = &s;
+        keys[i].node_box_of.s = &s;
+        keys[i].child_boxes_f_of.index = &index;
+        keys[i].child_boxes_f_of.s = &s;
+      }
       detail::for_each_ray_packet(
           index, rays, q, &stats,
           [&](std::size_t b, unsigned m, const detail::Candidate* best, std::uint32_t found) {
