@@ -206,7 +206,7 @@ void for_each_point_filter(F&& f) {
 }
 
 // Runs kernel set k's point filter over pts[off, end) with f and returns, per point, whether it
-// was kept (a local index past the count is reported as a failure and ignored).
+// was kept (a local index past the count, or kept twice, is reported as a failure and ignored).
 std::vector<char> filter_kept(const simd::Kernels& k, const std::vector<Vec3>& pts, unsigned off,
                               const simd::PointFilterD& f) {
   const unsigned count = static_cast<unsigned>(pts.size()) - off;
@@ -214,8 +214,9 @@ std::vector<char> filter_kept(const simd::Kernels& k, const std::vector<Vec3>& p
   const unsigned n = k.point_filter(&pts[off].x, count, f, sel.data());
   std::vector<char> in(count, 0);
   for (unsigned j = 0; j < n; ++j) {
-    if (sel[j] < count) in[sel[j]] = 1;
-    else ADD_FAILURE() << "local index " << sel[j] << " past the count " << count;
+    if (sel[j] >= count) ADD_FAILURE() << "local index " << sel[j] << " past the count " << count;
+    else if (in[sel[j]]) ADD_FAILURE() << "local index " << sel[j] << " kept twice";
+    else in[sel[j]] = 1;
   }
   return in;
 }
