@@ -386,7 +386,7 @@ __attribute__((target("avx2,fma"), always_inline)) inline void load_rel4(const d
 
 // The lanes of points [i, i + 4) whose disc the ray provably misses (PointFilterD::normals; v =
 // p - o, r the radii as doubles): the ray-disc test with the margins stated there. Lanes with
-// |d.n| < 2^-10 or NaN data are never set.
+// |d.n| < 2^-10 |n| or NaN data are never set.
 __attribute__((target("avx2,fma"), always_inline)) inline __m256d disc_miss4(const PointFilterD& f, unsigned i,
                                                                              __m256d vx, __m256d vy, __m256d vz,
                                                                              __m256d r) {
@@ -411,7 +411,9 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256d disc_miss4(con
       _mm256_cmp_pd(w2, lim, _CMP_GT_OQ),
       _mm256_or_pd(_mm256_cmp_pd(t, _mm256_sub_pd(_mm256_set1_pd(f.disc_t_lo), e), _CMP_LT_OQ),
                    _mm256_cmp_pd(t, _mm256_add_pd(_mm256_set1_pd(f.disc_t_hi), e), _CMP_GT_OQ)));
-  const __m256d steep = _mm256_cmp_pd(_mm256_and_pd(dn, abs_mask), _mm256_set1_pd(0x1p-10), _CMP_GE_OQ);
+  // |d.n| >= 2^-10 |n| (squared; scale-free, so a normal of any length gets the margins' bound).
+  const __m256d n2 = _mm256_fmadd_pd(nz, nz, _mm256_fmadd_pd(ny, ny, _mm256_mul_pd(nx, nx)));
+  const __m256d steep = _mm256_cmp_pd(_mm256_mul_pd(dn, dn), _mm256_mul_pd(n2, _mm256_set1_pd(0x1p-20)), _CMP_GE_OQ);
   return _mm256_and_pd(miss, steep);
 }
 
@@ -549,7 +551,9 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
   const unsigned miss = _mm512_cmp_pd_mask(w2, lim, _CMP_GT_OQ) |
                         _mm512_cmp_pd_mask(t, _mm512_sub_pd(_mm512_set1_pd(f.disc_t_lo), e), _CMP_LT_OQ) |
                         _mm512_cmp_pd_mask(t, _mm512_add_pd(_mm512_set1_pd(f.disc_t_hi), e), _CMP_GT_OQ);
-  return miss & _mm512_cmp_pd_mask(_mm512_abs_pd(dn), _mm512_set1_pd(0x1p-10), _CMP_GE_OQ);
+  // |d.n| >= 2^-10 |n| (squared; scale-free, so a normal of any length gets the margins' bound).
+  const __m512d n2 = _mm512_fmadd_pd(nz, nz, _mm512_fmadd_pd(ny, ny, _mm512_mul_pd(nx, nx)));
+  return miss & _mm512_cmp_pd_mask(_mm512_mul_pd(dn, dn), _mm512_mul_pd(n2, _mm512_set1_pd(0x1p-20)), _CMP_GE_OQ);
 }
 
 // Eight AoS triples at p (24 values) as x, y and z lanes (x_j at 3j, y_j at 3j + 1, z_j at 3j + 2

@@ -448,6 +448,94 @@ TEST(Simd, PointFilterWithDiscNormalsNeverDropsAHitDisc) {
   std::printf("disc filter: %zu hits kept; %zu of %zu misses near the ray dropped\n", hits, dropped, misses_near);
 }
 
+// The disc filter's margins at their limits: discs hit exactly at their rim (r the least float with
+// r^2 >= the scalar test's |t d - v|^2) with the window closed on the hit itself (disc_t_lo =
+// disc_t_hi = t: the key floor and the k-bound at a tie), |d.n| from 2^-30 up, |p - o| up to
+// 1e5 at UTM magnitudes, and the least disc_slack the doc allows (2^-36 max |p - o|). None may be
+// dropped. A lane with a NaN normal is kept whatever the window, one with a NaN radius by an open
+// window (no radius test, as the filter without radii); a window that holds no t (disc_t_lo =
+// +inf, or disc_t_hi = -inf) drops every other lane.
+TEST(Simd, PointFilterWithDiscNormalsKeepsRimHitsAtTheWindowEnds) {
+  PathGuard guard;
+  std::mt19937_64 rng(41);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const auto unit = [&] {
+    for (;;) {
+      const Vec3 v(2 * u(rng) - 1, 2 * u(rng) - 1, 2 * u(rng) - 1);
+      if (glm::dot(v, v) > 0.01 && glm::dot(v, v) <= 1.0) return glm::normalize(v);
+    }
+  };
+  constexpr unsigned kCount = 8;
+  std::size_t tested = 0;
+  for_each_point_filter([&](const simd::Kernels& k, SimdPath path) {
+    if (path != SimdPath::avx2 && path != SimdPath::avx512) return;  // the kernels that use normals
+    for (int trial = 0; trial < 30000; ++trial) {
+      const Vec3 o(636300.123 + 1000 * u(rng), 8484500.77 + 1000 * u(rng), 105.3 + 10 * u(rng));
+      const Vec3 d = unit();
+      const double scale = trial % 3 == 0 ? 10.0 : trial % 3 == 1 ? 1e3 : 1e5;
+      std::vector<Vec3> pts(kCount);
+      std::vector<float> radii(kCount), normals(3 * kCount);
+      std::vector<double> ts(kCount);
+      double vmax = 0;
+      for (unsigned j = 0; j < kCount; ++j) {
+        // |d.n| = 2^-10 (1 + 5%), 2^-10 .. 2^-4, any, or 2^-30 .. 2^-11 (below the guard: kept).
+        const Vec3 across = glm::normalize(glm::cross(d, unit()));
+        const double c = j % 4 == 0   ? std::ldexp(1.0 + 0.05 * u(rng), -10)
+                         : j % 4 == 1 ? std::ldexp(1.0, -10 + static_cast<int>(6 * u(rng)))
+                                      : std::ldexp(1.0, -30 + static_cast<int>(20 * u(rng)));
+        const Vec3 n = j % 4 == 2 ? unit() : glm::normalize(std::sqrt(1 - c * c) * across + c * d);
+        const glm::vec3 nf(n);
+        const Vec3 nd(nf);
+        const Vec3 in_plane = glm::normalize(glm::cross(nd, glm::cross(d, nd)));
+        const Vec3 side = glm::normalize(glm::cross(nd, in_plane));
+        const double rim = 0.01 + 3 * u(rng), angle = 6.283 * u(rng);
+        pts[j] = o + ((2 * u(rng) - 1) * scale) * d - rim * (std::cos(angle) * in_plane + std::sin(angle) * side);
+        // The scalar test's own terms (disc_hit's), and the least float radius that it hits with.
+        const Vec3 v = pts[j] - o;
+        const double t = glm::dot(v, nd) / glm::dot(d, nd);
+        const Vec3 w = t * d - v;
+        float r = static_cast<float>(std::sqrt(glm::dot(w, w)));
+        while (double(r) * double(r) < glm::dot(w, w)) r = std::nextafter(r, std::numeric_limits<float>::infinity());
+        radii[j] = r;
+        normals[3 * j] = nf.x, normals[3 * j + 1] = nf.y, normals[3 * j + 2] = nf.z;
+        ts[j] = t;
+        vmax = std::max(vmax, glm::length(v));
+      }
+      for (unsigned j = 0; j < kCount; ++j) {
+        const Vec3 n(normals[3 * j], normals[3 * j + 1], normals[3 * j + 2]);
+        if (!disc_hit(o, d, pts[j], n, radii[j], ts[j], ts[j])) continue;  // (a rounding of t itself)
+        simd::PointFilterD f{{o.x, o.y, o.z}, {d.x, d.y, d.z}, kInf, -kInf, kInf, radii.data(), 1e-12 * vmax * vmax};
+        f.normals = normals.data();
+        f.disc_t_lo = f.disc_t_hi = ts[j];
+        f.disc_slack = std::ldexp(vmax, -36);
+        ++tested;
+        ASSERT_TRUE(filter_kept(k, pts, 0, f)[j])
+            << to_string(path) << " dropped a rim hit at t = " << ts[j] << ", trial " << trial << ", disc " << j;
+      }
+    }
+    // NaN data keeps its lane; an empty window drops every other one.
+    const Vec3 o(636300.5, 848450.25, 1050.0), d = glm::normalize(Vec3(0.3, 0.8, -0.5));
+    std::vector<Vec3> pts;
+    for (unsigned j = 0; j < kCount; ++j) pts.push_back(o + (5.0 + j) * d);
+    std::vector<float> radii(kCount, 1.0f), normals(3 * kCount, 0.0f);
+    for (unsigned j = 0; j < kCount; ++j) normals[3 * j + 2] = 1.0f;
+    normals[3 * 2] = std::numeric_limits<float>::quiet_NaN();
+    radii[5] = std::numeric_limits<float>::quiet_NaN();
+    for (int window = 0; window < 3; ++window) {
+      simd::PointFilterD f{{o.x, o.y, o.z}, {d.x, d.y, d.z}, 4.0, -kInf, kInf, radii.data(), 1e-9};
+      f.normals = normals.data();
+      f.disc_t_lo = window == 1 ? kInf : -kInf;
+      f.disc_t_hi = window == 2 ? -kInf : kInf;
+      const std::vector<char> in = filter_kept(k, pts, 0, f);
+      for (unsigned j = 0; j < kCount; ++j)
+        EXPECT_EQ(in[j], window == 0 || j == 2) << to_string(path) << " window " << window << " point " << j;
+    }
+  });
+  if (simd_path_supported(SimdPath::avx2)) {
+    EXPECT_GT(tested, 100000u);
+  }
+}
+
 // knn_query's use of the point filter (d = 0: the distance-only loops): never drops a point within
 // the bound (oracle: |p - q|^2 in scalar double, as knn_query's exact test), drops most others.
 TEST(Simd, DistanceFilterNeverDropsAPointWithinTheBound) {

@@ -87,8 +87,9 @@ struct PointFilterD {
   /// provably misses, crossing its plane at t = ((p - o).n) / (d.n) outside [disc_t_lo - e,
   /// disc_t_hi + e] (e = disc_slack + 2^-36 |t|) or farther than radius from p (|t d - (p - o)|^2
   /// > r^2 + 2^-32 (r^2 + |p - o|^2)). These margins cover the difference between any two
-  /// evaluations of the test in double when |d.n| >= 2^-10; rays closer to parallel to a disc, and
-  /// NaN data, keep the point. The SSE2 kernel and the scalar tails ignore it (a filter may keep).
+  /// evaluations of the test in double when |d.n| >= 2^-10 |n|; rays closer to parallel to a disc,
+  /// and NaN normals, keep the point (a NaN radius drops no lane by distance: only by t). The SSE2
+  /// kernel and the scalar tails ignore it (a filter may keep).
   const float* normals = nullptr;
   double disc_t_lo = -std::numeric_limits<double>::infinity();  ///< with normals: least disc hit t
   double disc_t_hi = std::numeric_limits<double>::infinity();   ///< with normals: largest disc hit t

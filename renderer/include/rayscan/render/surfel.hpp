@@ -289,6 +289,7 @@ struct DiscKey {
   /// The disc normals by storage slot for the SIMD point filter's ray-disc test (RefinedKey's
   /// filter_normals; the refined key is ray_disc_t in [t_min, t_max]), or null.
   const float* filter_normals() const { return slot_normals ? &slot_normals->x : nullptr; }
+  static_assert(sizeof(glm::vec3) == 3 * sizeof(float), "filter_normals: slot normals as packed float triples");
   /// Every finite key is a disc hit t >= t_min (RefinedKey's key_min; the query's own t_min is
   /// 2 R lower, for the sphere keys).
   double key_min() const { return t_min; }
@@ -431,6 +432,8 @@ void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<cons
       const RayQuery q = surfel_query(s, t_min, t_max, any_hit);
       // Each key set field by field in place: assigning a built temporary cost 5.8% of a camera-ray
       // render (perf: store-forwarding stalls of the 128-byte copies; bench/README.md, session 20).
+      static_assert(sizeof(DiscKey) == 96 && sizeof(Key) == 128,
+                    "first_surfel_hit_packet sets every field of DiscKey and of its node policies: update it");
       Key keys[kMaxRayPacket];
       const float* slot_radii = s.slot_radii.empty() ? nullptr : s.slot_radii.data();
       const glm::vec3* slot_normals = slot_normals_of(s);
