@@ -944,13 +944,21 @@ class NodeFile {
 
 /// Node construction over the Morton-sorted codes and positions, following Octree::build_bulk
 /// for the adaptive and fixed layouts: same split rule, child order, node numbering and float
-/// bounds (OctreeRules), hence the identical node array. One sequential depth-first pass: a
-/// node's children are numbered as a block when it is visited (each child's range found by
-/// binary search on the octant digit), its own points are read then (so the positions and codes
-/// are read in order), and its record is written to the NodeFile when its recursion returns,
-/// final: the float bounds of its own points (Octree's close_node) widened by its children's.
-/// The records are never held in memory; `release(i)` is called every few million points with
-/// the index of the next point to be read, so the caller can drop the pages of its maps below it.
+/// bounds (OctreeRules), hence the identical node array. The numbering is that of one depth-first
+/// pass in which a node's children are numbered as a block when the node is visited, so the
+/// descendants of any node take consecutive numbers. The build runs in three steps:
+///  1. plan (serial, codes only): the upper tree, the nodes of more than `every` points that
+///     split, each child range found by an exponential search on the octant digit; every other
+///     node reached is the root of a subtree;
+///  2. the subtrees, in parallel in the order of the depth-first pass (ordered_pipeline): each
+///     numbers its descendants from 1 in that pass's order, reads its own positions (Octree's
+///     close_node: the float bounds of a leaf's points, widened by the children's) and keeps its
+///     records; the in-order sink replays the upper nodes' blocks met before the subtree, gives
+///     its descendants the next free numbers and writes the records into the NodeFile;
+///  3. the upper nodes' records, their bounds widened from their children's.
+/// `ahead(b, e)` is called (from any thread) before a subtree reads points [b, e), `release(e)`
+/// in order after the subtree that ends at e, so the caller maps its windows ahead and drops the
+/// pages behind; the subtrees in flight hold at most kPipelineSlots x `every` points.
 struct NodeBuilder {
   const OctreeConfig& cfg;
   const std::uint64_t* codes;
@@ -958,20 +966,83 @@ struct NodeBuilder {
   Vec3 cell_lo;
   NodeFile& out;
   std::function<void(std::size_t)> release;
+  std::function<void(std::size_t, std::size_t)> ahead;
   IndexProgress progress;
   std::uint64_t total = 0;
   std::size_t count = 0;  ///< nodes numbered so far
   unsigned depth = 0;
   std::array<std::uint64_t, kLevels> levels{};  ///< own points per depth
-  std::uint64_t every = std::uint64_t{1} << 22;  ///< progress and release every so many points
-  std::uint64_t next_report = 0;
+  std::uint64_t every = std::uint64_t{1} << 22;  ///< most points of a subtree built as one task
+
+  NodeBuilder(const OctreeConfig& config, const std::uint64_t* sorted_codes, PositionView positions, Vec3 cell_min,
+              NodeFile& records, std::function<void(std::size_t)> release_below,
+              std::function<void(std::size_t, std::size_t)> map_ahead, IndexProgress report, std::uint64_t points)
+      : cfg(config), codes(sorted_codes), pos(positions), cell_lo(cell_min), out(records),
+        release(std::move(release_below)), ahead(std::move(map_ahead)), progress(std::move(report)), total(points) {}
 
   void build(std::size_t n_points) {
     if (n_points == 0) return;
-    count = 1;
-    next_report = every;
-    out.reserve(1);
-    (void)visit(0, 1, 0, 0, n_points);
+    (void)plan(0, 0, 0, n_points);
+    count = 1;  // the root is node 0
+    std::size_t next_event = 0;
+    std::array<Subtree, kPipelineSlots> slots;
+    ordered_pipeline(
+        tasks_.size(),
+        [&](std::size_t j) {
+          const Task& t = tasks_[j];
+          if (ahead) ahead(t.b, t.e);
+          Subtree& st = slots[j % kPipelineSlots];
+          st.recs.assign(1, IndexNodeRecord{});
+          st.depth = 0;
+          st.levels.fill(0);
+          st.box = visit(st, 0, t.key, t.d, t.b, t.e);
+        },
+        [&](std::size_t j) {
+          // The upper nodes visited before subtree j number their children's blocks now.
+          for (; next_event < events_.size() && events_[next_event].upper; ++next_event) number_children(events_[next_event].idx);
+          if (next_event == events_.size() || events_[next_event].idx != j)
+            throw std::logic_error("index build: node plan out of order");
+          ++next_event;
+          Task& t = tasks_[j];
+          Subtree& st = slots[j % kPipelineSlots];
+          const std::size_t base = count;  // descendant k (k >= 1) becomes node base + k - 1
+          count += st.recs.size() - 1;
+          if (count > std::numeric_limits<std::uint32_t>::max()) throw std::runtime_error("index build: too many nodes");
+          out.reserve(count);
+          for (std::size_t k = 0; k < st.recs.size(); ++k) {
+            IndexNodeRecord r = st.recs[k];
+            if (r.internal()) r.first = static_cast<std::uint32_t>(base + r.first - 1);
+            std::memcpy(out.rec(k == 0 ? t.n : base + k - 1), &r, kNodeBytes);
+          }
+          t.box = st.box;
+          depth = std::max(depth, st.depth);
+          for (unsigned d = 0; d < kLevels; ++d) levels[d] += st.levels[d];
+          if (release) release(t.e);
+          out.release_below(count > 256 ? count - 256 : 0);
+          if (progress) progress("nodes", t.e, total);
+        });
+    for (; next_event < events_.size(); ++next_event)
+      if (events_[next_event].upper) number_children(events_[next_event].idx);
+    // The upper nodes' records, children before parents (the plan lists them in preorder).
+    for (std::size_t u = uppers_.size(); u-- > 0;) {
+      Upper& up = uppers_[u];
+      const float inf = std::numeric_limits<float>::infinity();
+      Bounds box{glm::vec3(inf), glm::vec3(-inf)};
+      for (unsigned k = 0; k < up.nchild; ++k) {
+        const Bounds& c = up.child[k].upper ? uppers_[up.child[k].idx].box : tasks_[up.child[k].idx].box;
+        box.lo = glm::min(box.lo, c.lo);
+        box.hi = glm::max(box.hi, c.hi);
+      }
+      up.box = box;
+      depth = std::max(depth, up.d);
+      IndexNodeRecord r;
+      r.lo = box.lo;
+      r.hi = box.hi;
+      r.first = up.first;
+      r.packed = IndexNodeRecord::pack(up.nchild, up.d == 0 ? 0u : static_cast<unsigned>(up.key & 7u), true);
+      out.reserve(std::max<std::size_t>(count, up.n + 1));
+      std::memcpy(out.rec(up.n), &r, kNodeBytes);
+    }
     if (progress) progress("nodes", total, total);
   }
 
@@ -979,12 +1050,96 @@ struct NodeBuilder {
   struct Bounds {
     glm::vec3 lo, hi;
   };
+  /// A node of the plan: an upper node (index into uppers_) or a subtree (index into tasks_).
+  struct Ref {
+    bool upper = false;
+    std::uint32_t idx = 0;
+  };
+  struct Upper {
+    std::uint64_t key;
+    unsigned d;
+    std::uint32_t n = 0, first = 0;  ///< its number; its first child's (set when numbered)
+    unsigned nchild = 0;
+    std::array<Ref, 8> child{};
+    Bounds box{};
+  };
+  struct Task {
+    std::uint64_t key;
+    unsigned d;
+    std::size_t b, e;
+    std::uint32_t n = 0;  ///< the subtree root's number (set when its parent's block is numbered)
+    Bounds box{};
+  };
+  /// One subtree's records: [0] its root, [k >= 1] its k-th descendant in depth-first numbering.
+  struct Subtree {
+    std::vector<IndexNodeRecord> recs;
+    unsigned depth = 0;
+    std::array<std::uint64_t, kLevels> levels{};
+    Bounds box{};
+  };
+  std::vector<Upper> uppers_;
+  std::vector<Task> tasks_;
+  std::vector<Ref> events_;  ///< upper nodes and subtrees in the order the depth-first pass visits them
+
+  /// Step 1 for the node (key, d) over [b, e): an upper node if it splits and holds more than
+  /// `every` points (its children planned in order), else a subtree.
+  Ref plan(std::uint64_t key, unsigned d, std::size_t b, std::size_t e) {
+    const std::size_t cnt = e - b;
+    const bool same = cnt == 0 || codes[b] == codes[e - 1];
+    if (cnt <= every || !OctreeRules::splits(cfg, d, cnt, same)) {
+      const Ref r{false, static_cast<std::uint32_t>(tasks_.size())};
+      tasks_.push_back(Task{key, d, b, e});
+      events_.push_back(r);
+      return r;
+    }
+    const Ref r{true, static_cast<std::uint32_t>(uppers_.size())};
+    uppers_.push_back(Upper{key, d});
+    events_.push_back(r);
+    std::array<std::size_t, 9> start{};
+    std::array<unsigned, 8> oct{};
+    const unsigned nchild = children(d, b, e, start, oct);
+    uppers_[r.idx].nchild = nchild;
+    for (unsigned k = 0; k < nchild; ++k) {
+      const Ref c = plan((key << 3) | oct[k], d + 1, start[k], start[k + 1]);
+      uppers_[r.idx].child[k] = c;
+    }
+    return r;
+  }
+
+  /// Numbers upper node u's children as the next block (the depth-first pass's visit of u).
+  void number_children(std::uint32_t u) {
+    Upper& up = uppers_[u];
+    up.first = static_cast<std::uint32_t>(count);
+    for (unsigned k = 0; k < up.nchild; ++k) {
+      const auto n = static_cast<std::uint32_t>(count + k);
+      if (up.child[k].upper) uppers_[up.child[k].idx].n = n;
+      else tasks_[up.child[k].idx].n = n;
+    }
+    count += up.nchild;
+  }
+
+  /// The child ranges of a split node over [b, e) at depth d, in octant order: start[k] ..
+  /// start[k + 1] for k < the returned count, oct[k] the octant digit.
+  unsigned children(unsigned d, std::size_t b, std::size_t e, std::array<std::size_t, 9>& start,
+                    std::array<unsigned, 8>& oct) const {
+    unsigned nchild = 0;
+    std::size_t i = b;
+    while (i < e) {
+      const unsigned o = OctreeRules::octant(codes[i], d);
+      const std::size_t j = gallop(i, e, [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; });
+      start[nchild] = i;
+      oct[nchild] = o;
+      ++nchild;
+      i = j;
+    }
+    start[nchild] = e;
+    return nchild;
+  }
 
   /// The first index in (i, e) whose code fails `pred`, or e (pred holds at i and for a prefix):
   /// an exponential search from i (probes at i + 1, i + 3, i + 7, ...), then a binary search in
   /// the last step (Bentley & Yao 1976). Its probes stay within twice the child's range of i, so
-  /// the sequential pass reads the codes near where it is instead of halving the parent's range
-  /// (page faults on the mapped codes far ahead, dropped again behind).
+  /// the pass reads the codes near where it is instead of halving the parent's range.
   template <class Pred>
   std::size_t gallop(std::size_t i, std::size_t e, const Pred& pred) const {
     std::size_t lo = i + 1, step = 1, hi = e;
@@ -1000,13 +1155,14 @@ struct NodeBuilder {
     return static_cast<std::size_t>(std::partition_point(codes + lo, codes + hi, pred) - codes);
   }
 
-  Bounds visit(std::uint32_t n, std::uint64_t key, unsigned d, std::size_t b, std::size_t e) {
+  /// Step 2's depth-first pass over one subtree: node n (local number) at depth d over [b, e).
+  Bounds visit(Subtree& st, std::size_t n, std::uint64_t key, unsigned d, std::size_t b, std::size_t e) const {
     const std::size_t cnt = e - b;
     const bool same = cnt == 0 || codes[b] == codes[e - 1];
     const bool split = OctreeRules::splits(cfg, d, cnt, same);
     const std::size_t rest = split ? b : e;
-    depth = std::max(depth, d);
-    levels[d] += rest - b;
+    st.depth = std::max(st.depth, d);
+    st.levels[d] += rest - b;
     // Octree's close_node: bounds of the own points (rounded outwards to float), then of the children.
     const float inf = std::numeric_limits<float>::infinity();
     Bounds box{glm::vec3(inf), glm::vec3(-inf)};
@@ -1019,32 +1175,16 @@ struct NodeBuilder {
           box.hi[a] = OctreeRules::float_bound(own.hi[a] - cell_lo[a], true);
         }
     }
-    if (rest > b && rest >= next_report) {
-      next_report = rest + every;
-      if (release) release(b);
-      out.release_below(count > 256 ? count - 256 : 0);
-      if (progress) progress("nodes", rest, total);
-    }
-    std::uint32_t first = 0;
+    std::size_t first = 0;
     unsigned nchild = 0;
     if (rest < e) {
       std::array<std::size_t, 9> start{};
       std::array<unsigned, 8> oct{};
-      std::size_t i = rest;
-      while (i < e) {
-        const unsigned o = OctreeRules::octant(codes[i], d);
-        const std::size_t j = gallop(i, e, [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; });
-        start[nchild] = i;
-        oct[nchild] = o;
-        ++nchild;
-        i = j;
-      }
-      start[nchild] = e;
-      first = static_cast<std::uint32_t>(count);
-      count += nchild;
-      out.reserve(count);
+      nchild = children(d, rest, e, start, oct);
+      first = st.recs.size();
+      st.recs.resize(first + nchild);
       for (unsigned k = 0; k < nchild; ++k) {
-        const Bounds c = visit(first + k, (key << 3) | oct[k], d + 1, start[k], start[k + 1]);
+        const Bounds c = visit(st, first + k, (key << 3) | oct[k], d + 1, start[k], start[k + 1]);
         box.lo = glm::min(box.lo, c.lo);
         box.hi = glm::max(box.hi, c.hi);
       }
@@ -1060,10 +1200,10 @@ struct NodeBuilder {
     IndexNodeRecord r;
     r.lo = box.lo;
     r.hi = box.hi;
-    r.first = nchild > 0 ? first : static_cast<std::uint32_t>(b);
+    r.first = nchild > 0 ? static_cast<std::uint32_t>(first) : static_cast<std::uint32_t>(b);
     r.packed = IndexNodeRecord::pack(nchild > 0 ? nchild : static_cast<std::uint32_t>(cnt),
                                      d == 0 ? 0u : static_cast<unsigned>(key & 7u), nchild > 0);
-    std::memcpy(out.rec(n), &r, kNodeBytes);
+    st.recs[n] = r;
     return box;
   }
 };
@@ -1677,23 +1817,23 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     const std::uint64_t* codes = in_memory ? mem_codes.data() : static_cast<const std::uint64_t*>(codes_map->p);
     const std::uint64_t nodes_off = off;  // the next aligned offset: where place() puts the nodes
     NodeFile node_file(fd.get(), nodes_off, out.temp(), static_cast<std::size_t>(total / 8 + 1));
-    // Called every nb.every points with the next point to read: drops the pages behind and maps
-    // the next window's codes and positions ahead.
-    std::uint64_t every = 0;
+    // The pages behind the finished subtrees are dropped (in order), and each subtree's codes and
+    // positions are mapped in one call before it is read.
     auto release = [&](std::size_t i) {
-      if (codes_map) codes_map->release_below(i * 8), codes_map->populate(i * 8, every * 8);
+      if (codes_map) codes_map->release_below(i * 8);
       file.release_below(h.sections[s_pos].offset + i * codec.bytes());
-      file.populate(h.sections[s_pos].offset + i * codec.bytes(), every * codec.bytes());
     };
-    NodeBuilder nb{opt.config,
-                   codes,
+    auto ahead = [&](std::size_t b, std::size_t e) {
+      if (codes_map) codes_map->populate(b * 8, (e - b) * 8);
+      file.populate(h.sections[s_pos].offset + b * codec.bytes(), (e - b) * codec.bytes());
+    };
+    NodeBuilder nb(opt.config, codes,
                    PositionView(codec.enc, static_cast<const std::uint8_t*>(file.p) + h.sections[s_pos].offset, total,
                                 codec.scale, codec.offset),
-                   cell.lo, node_file, release, opt.progress, total};
-    // Resident window of the maps: 1/16 of the budget (codes and positions, 32 B/point), 4 M
-    // points at most (the progress interval), so small budgets release often too.
+                   cell.lo, node_file, release, ahead, opt.progress, total);
+    // Subtrees of 1/16 of the budget at most (codes and positions, 32 B/point; kPipelineSlots of
+    // them in flight), 4 M points at most, so small budgets release often too.
     nb.every = std::clamp<std::uint64_t>(opt.memory_bytes / 16 / 32, 1024, std::uint64_t{1} << 22);
-    every = nb.every;
     nb.build(total);
     mem_codes = HugeArray<std::uint64_t>{};
     codes_map.reset();
