@@ -5,8 +5,7 @@
 # `rayscan index --memory MEMORY --attributes ATTRIBUTES` under `nice ionice -c3`, sampling every
 # 0.5 s the process's RssAnon / RssFile (/proc/PID/status) and the file system's free space, and
 # printing each progress phase's start time. With DELETE_LAS=1 the LAS file is deleted as soon
-# as the read pass is over (the sort runs' folder holds the merge's "codes" file; the readers are
-# closed by then), for sites whose LAS, runs and index do not fit the disk together. Then renders
+# as the read pass is over (the progress shows the merge; the readers are closed by then), for sites whose LAS, runs and index do not fit the disk together. Then renders
 # SCRATCH/sN.json (600x400, SPP samples, radius RADIUS or "auto", elevation colours unless
 # ATTRIBUTES has rgb) from the index under the same sampler. Data stays in SCRATCH: delete it
 # afterwards.
@@ -27,7 +26,7 @@ sample() {
     [ -n "$a" ] && [ "$a" -gt "$pa" ] && pa=$a
     [ -n "$f" ] && [ "$f" -gt "$pf" ] && pf=$f
     [ -n "$d" ] && [ "$d" -lt "$fmin" ] && fmin=$d
-    if [ "$del" = 1 ] && [ -e "$name.las" ] && ls -d .$name.rsi.runs.*/codes >/dev/null 2>&1; then
+    if [ "$del" = 1 ] && [ -e "$name.las" ] && tr '\r' '\n' < index.progress 2>/dev/null | grep -q '^index: merge'; then
       rm -f "$name.las"; stamp "read pass over: deleted $name.las"
     fi
     sleep 0.5

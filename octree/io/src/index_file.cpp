@@ -860,6 +860,11 @@ struct ReadMap {
     (void)::madvise(static_cast<std::uint8_t*>(p) + released, end - released, MADV_DONTNEED);
     released = end;
   }
+  /// Drops every resident page of the map (release_below's bookkeeping is kept: it only ever
+  /// drops pages again).
+  void drop() const {
+    if (p != nullptr) (void)::madvise(p, n, MADV_DONTNEED);
+  }
   /// Maps the pages of [byte, byte + len) in one call (MADV_POPULATE_READ, best effort) instead
   /// of a page fault per few pages as a sequential pass reaches them.
   void populate(std::size_t byte, std::size_t len) const {
@@ -956,12 +961,16 @@ class NodeFile {
 ///     records; the in-order sink replays the upper nodes' blocks met before the subtree, gives
 ///     its descendants the next free numbers and writes the records into the NodeFile;
 ///  3. the upper nodes' records, their bounds widened from their children's.
+/// The sorted codes are given (`codes`), or else each subtree computes its own from the decoded
+/// positions on the grid `qz` (the plan's probes likewise), so the merge writes no codes file.
 /// `ahead(b, e)` is called (from any thread) before a subtree reads points [b, e), `release(e)`
 /// in order after the subtree that ends at e, so the caller maps its windows ahead and drops the
-/// pages behind; the subtrees in flight hold at most kPipelineSlots x `every` points.
+/// pages behind; the subtrees in flight hold at most kPipelineSlots x `every` points. Call
+/// plan() then build().
 struct NodeBuilder {
   const OctreeConfig& cfg;
-  const std::uint64_t* codes;
+  const std::uint64_t* codes;  ///< the sorted codes, or null: computed from `pos` on `qz`
+  OctreeRules::Quantizer qz;
   PositionView pos;  // the written positions section, decoded (the file's encoding)
   Vec3 cell_lo;
   NodeFile& out;
@@ -974,15 +983,20 @@ struct NodeBuilder {
   std::array<std::uint64_t, kLevels> levels{};  ///< own points per depth
   std::uint64_t every = std::uint64_t{1} << 22;  ///< most points of a subtree built as one task
 
-  NodeBuilder(const OctreeConfig& config, const std::uint64_t* sorted_codes, PositionView positions, Vec3 cell_min,
-              NodeFile& records, std::function<void(std::size_t)> release_below,
+  NodeBuilder(const OctreeConfig& config, const std::uint64_t* sorted_codes, const OctreeRules::Quantizer& grid,
+              PositionView positions, Vec3 cell_min, NodeFile& records, std::function<void(std::size_t)> release_below,
               std::function<void(std::size_t, std::size_t)> map_ahead, IndexProgress report, std::uint64_t points)
-      : cfg(config), codes(sorted_codes), pos(positions), cell_lo(cell_min), out(records),
+      : cfg(config), codes(sorted_codes), qz(grid), pos(positions), cell_lo(cell_min), out(records),
         release(std::move(release_below)), ahead(std::move(map_ahead)), progress(std::move(report)), total(points) {}
 
-  void build(std::size_t n_points) {
-    if (n_points == 0) return;
-    (void)plan(0, 0, 0, n_points);
+  /// Step 1 over points [0, n_points).
+  void plan(std::size_t n_points) {
+    if (n_points > 0) (void)plan([this](std::size_t i) { return code_at(i); }, 0, 0, 0, n_points);
+  }
+
+  /// Steps 2 and 3 (after plan()).
+  void build() {
+    if (tasks_.empty()) return;
     count = 1;  // the root is node 0
     std::size_t next_event = 0;
     std::array<Subtree, kPipelineSlots> slots;
@@ -995,7 +1009,13 @@ struct NodeBuilder {
           st.recs.assign(1, IndexNodeRecord{});
           st.depth = 0;
           st.levels.fill(0);
-          st.box = visit(st, 0, t.key, t.d, t.b, t.e);
+          if (codes != nullptr) {
+            st.box = visit(st, CodeView{codes, 0}, 0, t.key, t.d, t.b, t.e);
+          } else {
+            st.codes.resize(t.e - t.b);
+            for (std::size_t i = t.b; i < t.e; ++i) st.codes[i - t.b] = qz.code(pos[i]);
+            st.box = visit(st, CodeView{st.codes.data(), t.b}, 0, t.key, t.d, t.b, t.e);
+          }
         },
         [&](std::size_t j) {
           // The upper nodes visited before subtree j number their children's blocks now.
@@ -1070,9 +1090,16 @@ struct NodeBuilder {
     std::uint32_t n = 0;  ///< the subtree root's number (set when its parent's block is numbered)
     Bounds box{};
   };
+  /// The codes of points [base, base + n) as code(i) for the point's index i.
+  struct CodeView {
+    const std::uint64_t* p;
+    std::size_t base;
+    std::uint64_t operator()(std::size_t i) const { return p[i - base]; }
+  };
   /// One subtree's records: [0] its root, [k >= 1] its k-th descendant in depth-first numbering.
   struct Subtree {
     std::vector<IndexNodeRecord> recs;
+    std::vector<std::uint64_t> codes;  ///< its points' codes when they are computed
     unsigned depth = 0;
     std::array<std::uint64_t, kLevels> levels{};
     Bounds box{};
@@ -1081,11 +1108,15 @@ struct NodeBuilder {
   std::vector<Task> tasks_;
   std::vector<Ref> events_;  ///< upper nodes and subtrees in the order the depth-first pass visits them
 
+  /// The code of point i (given, or computed from its position).
+  std::uint64_t code_at(std::size_t i) const { return codes != nullptr ? codes[i] : qz.code(pos[i]); }
+
   /// Step 1 for the node (key, d) over [b, e): an upper node if it splits and holds more than
   /// `every` points (its children planned in order), else a subtree.
-  Ref plan(std::uint64_t key, unsigned d, std::size_t b, std::size_t e) {
+  template <class Code>
+  Ref plan(const Code& code, std::uint64_t key, unsigned d, std::size_t b, std::size_t e) {
     const std::size_t cnt = e - b;
-    const bool same = cnt == 0 || codes[b] == codes[e - 1];
+    const bool same = cnt == 0 || code(b) == code(e - 1);
     if (cnt <= every || !OctreeRules::splits(cfg, d, cnt, same)) {
       const Ref r{false, static_cast<std::uint32_t>(tasks_.size())};
       tasks_.push_back(Task{key, d, b, e});
@@ -1097,10 +1128,10 @@ struct NodeBuilder {
     events_.push_back(r);
     std::array<std::size_t, 9> start{};
     std::array<unsigned, 8> oct{};
-    const unsigned nchild = children(d, b, e, start, oct);
+    const unsigned nchild = children(code, d, b, e, start, oct);
     uppers_[r.idx].nchild = nchild;
     for (unsigned k = 0; k < nchild; ++k) {
-      const Ref c = plan((key << 3) | oct[k], d + 1, start[k], start[k + 1]);
+      const Ref c = plan(code, (key << 3) | oct[k], d + 1, start[k], start[k + 1]);
       uppers_[r.idx].child[k] = c;
     }
     return r;
@@ -1120,13 +1151,14 @@ struct NodeBuilder {
 
   /// The child ranges of a split node over [b, e) at depth d, in octant order: start[k] ..
   /// start[k + 1] for k < the returned count, oct[k] the octant digit.
-  unsigned children(unsigned d, std::size_t b, std::size_t e, std::array<std::size_t, 9>& start,
-                    std::array<unsigned, 8>& oct) const {
+  template <class Code>
+  static unsigned children(const Code& code, unsigned d, std::size_t b, std::size_t e, std::array<std::size_t, 9>& start,
+                           std::array<unsigned, 8>& oct) {
     unsigned nchild = 0;
     std::size_t i = b;
     while (i < e) {
-      const unsigned o = OctreeRules::octant(codes[i], d);
-      const std::size_t j = gallop(i, e, [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; });
+      const unsigned o = OctreeRules::octant(code(i), d);
+      const std::size_t j = gallop(code, i, e, [&](std::uint64_t c) { return OctreeRules::octant(c, d) == o; });
       start[nchild] = i;
       oct[nchild] = o;
       ++nchild;
@@ -1140,25 +1172,31 @@ struct NodeBuilder {
   /// an exponential search from i (probes at i + 1, i + 3, i + 7, ...), then a binary search in
   /// the last step (Bentley & Yao 1976). Its probes stay within twice the child's range of i, so
   /// the pass reads the codes near where it is instead of halving the parent's range.
-  template <class Pred>
-  std::size_t gallop(std::size_t i, std::size_t e, const Pred& pred) const {
+  template <class Code, class Pred>
+  static std::size_t gallop(const Code& code, std::size_t i, std::size_t e, const Pred& pred) {
     std::size_t lo = i + 1, step = 1, hi = e;
     while (lo < e) {
       const std::size_t probe = lo + std::min(step, e - lo) - 1;
-      if (!pred(codes[probe])) {
+      if (!pred(code(probe))) {
         hi = probe;
         break;
       }
       lo = probe + 1;
       step *= 2;
     }
-    return static_cast<std::size_t>(std::partition_point(codes + lo, codes + hi, pred) - codes);
+    while (lo < hi) {  // pred holds before lo and fails at hi (or hi == e)
+      const std::size_t mid = lo + (hi - lo) / 2;
+      if (pred(code(mid))) lo = mid + 1;
+      else hi = mid;
+    }
+    return lo;
   }
 
   /// Step 2's depth-first pass over one subtree: node n (local number) at depth d over [b, e).
-  Bounds visit(Subtree& st, std::size_t n, std::uint64_t key, unsigned d, std::size_t b, std::size_t e) const {
+  Bounds visit(Subtree& st, const CodeView& code, std::size_t n, std::uint64_t key, unsigned d, std::size_t b,
+               std::size_t e) const {
     const std::size_t cnt = e - b;
-    const bool same = cnt == 0 || codes[b] == codes[e - 1];
+    const bool same = cnt == 0 || code(b) == code(e - 1);
     const bool split = OctreeRules::splits(cfg, d, cnt, same);
     const std::size_t rest = split ? b : e;
     st.depth = std::max(st.depth, d);
@@ -1180,11 +1218,11 @@ struct NodeBuilder {
     if (rest < e) {
       std::array<std::size_t, 9> start{};
       std::array<unsigned, 8> oct{};
-      nchild = children(d, rest, e, start, oct);
+      nchild = children(code, d, rest, e, start, oct);
       first = st.recs.size();
       st.recs.resize(first + nchild);
       for (unsigned k = 0; k < nchild; ++k) {
-        const Bounds c = visit(st, first + k, (key << 3) | oct[k], d + 1, start[k], start[k + 1]);
+        const Bounds c = visit(st, code, first + k, (key << 3) | oct[k], d + 1, start[k], start[k + 1]);
         box.lo = glm::min(box.lo, c.lo);
         box.hi = glm::max(box.hi, c.hi);
       }
@@ -1547,7 +1585,6 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
 
   // The point sections in (code, id) order: straight from memory (one run), or by a k-way merge
   // of the runs whose codes go to a temporary file. Then the nodes from the sorted codes.
-  const fs::path codes_path = runs_dir.path / "codes";
   HugeArray<std::uint64_t> mem_codes;  // sorted codes of the in-memory build
   // Flushes the point sections' writers (positions, ids, the stored attributes) and records their
   // CRCs in the header: the end of both paths below.
@@ -1626,9 +1663,8 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     finish_points(w_pos, w_ids, w_rgb, w_int, w_cls, w_gps);
     buf = PointBuffer{};  // release before the node build
   } else {
-    Fd codes_fd(codes_path, O_WRONLY | O_CREAT | O_TRUNC);
     const std::size_t wbuf = 4 << 20;
-    SectionWriter w_codes(codes_fd, 0, wbuf), w_pos(fd, h.sections[s_pos].offset, wbuf);
+    SectionWriter w_pos(fd, h.sections[s_pos].offset, wbuf);
     std::optional<SectionWriter> w_ids, w_rgb, w_int, w_cls, w_gps;
     if (want_ids) w_ids.emplace(fd, h.sections[s_ids].offset, wbuf);
     if (L.rgb) w_rgb.emplace(fd, h.sections[s_rgb].offset, wbuf);
@@ -1656,7 +1692,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
       std::size_t n = 0;
     };
     struct Slot {  // one part's sections, in file order
-      std::vector<std::uint8_t> codes, pos, ids, gps, rgb, inten, cls;
+      std::vector<std::uint8_t> pos, ids, gps, rgb, inten, cls;
       std::size_t n = 0;
     };
     // Records per part: 65,536, fewer for a small budget (the slots' arrays stay near 1/16 of it).
@@ -1665,7 +1701,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     // Merges part `pt` into `sl` (resized to its records).
     auto merge_part = [&](const Part& pt, Slot& sl) {
       sl.n = pt.n;
-      sl.codes.resize(pt.n * 8), sl.pos.resize(pt.n * pos_bytes);
+      sl.pos.resize(pt.n * pos_bytes);
       if (want_ids) sl.ids.resize(pt.n * 4);
       if (L.gps) sl.gps.resize(pt.n * 8);
       if (L.rgb) sl.rgb.resize(pt.n * rgb_bytes);
@@ -1693,7 +1729,6 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
         }
         for (std::size_t i = 0; i < n; ++i, ++o) {
           const std::uint8_t* rec = cur[r] + i * R.bytes;
-          std::memcpy(sl.codes.data() + o * 8, rec, 8);
           if (want_ids) std::memcpy(sl.ids.data() + o * 4, rec + R.id_off, 4);
           if (L.gps) std::memcpy(sl.gps.data() + o * 8, rec + R.gps_off, 8);
           if (L.rgb) {
@@ -1731,7 +1766,6 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
       if (o != pt.n) throw std::logic_error("index build: a merge part lost records");
     };
     auto write_slot = [&](const Slot& sl) {
-      w_codes.write(sl.codes.data(), sl.codes.size());
       w_pos.write(sl.pos.data(), sl.pos.size());
       if (w_ids) w_ids->write(sl.ids.data(), sl.ids.size());
       if (w_rgb) w_rgb->write(sl.rgb.data(), sl.rgb.size());
@@ -1796,47 +1830,35 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
       merged += window;
       if (opt.progress) opt.progress("merge", merged, total);
     }
-    w_codes.flush();
     finish_points(w_pos, w_ids, w_rgb, w_int, w_cls, w_gps);
     if (opt.progress) opt.progress("merge", total, total);
   }
   for (const fs::path& rp : run_files) fs::remove(rp);
 
-  // Nodes from the sorted codes (in memory, or the mapped codes file of the merge) and the
-  // positions section (mapped; its pages are file cache), written in place into the nodes
-  // section (NodeFile). The maps' pages are dropped behind the sequential pass, so the node
-  // phase's resident set (anonymous and file-backed) does not grow with the site.
+  // Nodes from the sorted codes (in memory) or, after a merge, the codes of the positions section
+  // (mapped; its pages are file cache; the codes are the run sort's, as the grid is the final
+  // root cell and the decoded positions are the read ones bit for bit), written in place into
+  // the nodes section (NodeFile). The map's pages are dropped behind the finished subtrees, so
+  // the node phase's resident set (anonymous and file-backed) does not grow with the site.
   {
-    std::optional<Fd> codes_fd;
-    std::optional<ReadMap> codes_map;
-    if (!in_memory) {
-      codes_fd.emplace(codes_path, O_RDONLY);
-      codes_map.emplace(codes_fd->get(), total * 8, codes_path);
-    }
     ReadMap file(fd.get(), h.sections[s_pos].offset + total * codec.bytes(), out.temp());
-    const std::uint64_t* codes = in_memory ? mem_codes.data() : static_cast<const std::uint64_t*>(codes_map->p);
     const std::uint64_t nodes_off = off;  // the next aligned offset: where place() puts the nodes
     NodeFile node_file(fd.get(), nodes_off, out.temp(), static_cast<std::size_t>(total / 8 + 1));
-    // The pages behind the finished subtrees are dropped (in order), and each subtree's codes and
-    // positions are mapped in one call before it is read.
-    auto release = [&](std::size_t i) {
-      if (codes_map) codes_map->release_below(i * 8);
-      file.release_below(h.sections[s_pos].offset + i * codec.bytes());
-    };
+    auto release = [&](std::size_t i) { file.release_below(h.sections[s_pos].offset + i * codec.bytes()); };
     auto ahead = [&](std::size_t b, std::size_t e) {
-      if (codes_map) codes_map->populate(b * 8, (e - b) * 8);
       file.populate(h.sections[s_pos].offset + b * codec.bytes(), (e - b) * codec.bytes());
     };
-    NodeBuilder nb(opt.config, codes,
+    NodeBuilder nb(opt.config, in_memory ? mem_codes.data() : nullptr, OctreeRules::Quantizer(cell.lo, OctreeRules::root_side(bounds)),
                    PositionView(codec.enc, static_cast<const std::uint8_t*>(file.p) + h.sections[s_pos].offset, total,
                                 codec.scale, codec.offset),
                    cell.lo, node_file, release, ahead, opt.progress, total);
-    // Subtrees of 1/16 of the budget at most (codes and positions, 32 B/point; kPipelineSlots of
-    // them in flight), 4 M points at most, so small budgets release often too.
+    // Subtrees of 1/16 of the budget at most (positions and codes, 20-32 B/point; kPipelineSlots
+    // of them in flight), 4 M points at most, so small budgets release often too.
     nb.every = std::clamp<std::uint64_t>(opt.memory_bytes / 16 / 32, 1024, std::uint64_t{1} << 22);
-    nb.build(total);
+    nb.plan(total);
+    file.drop();  // the plan's probes faulted pages all over the positions
+    nb.build();
     mem_codes = HugeArray<std::uint64_t>{};
-    codes_map.reset();
     const std::size_t s_nodes = place(kNodes, nb.count * kNodeBytes);
     if (h.sections[s_nodes].offset != nodes_off) throw std::logic_error("rayscan index: nodes section misplaced");
     h.sections[s_nodes].crc = node_file.crc(nb.count);
