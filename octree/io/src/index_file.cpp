@@ -989,9 +989,20 @@ struct NodeBuilder {
       : cfg(config), codes(sorted_codes), qz(grid), pos(positions), cell_lo(cell_min), out(records),
         release(std::move(release_below)), ahead(std::move(map_ahead)), progress(std::move(report)), total(points) {}
 
-  /// Step 1 over points [0, n_points).
-  void plan(std::size_t n_points) {
-    if (n_points > 0) (void)plan([this](std::size_t i) { return code_at(i); }, 0, 0, 0, n_points);
+  /// Step 1 over points [0, n_points). Without sorted codes, `drop()` is called every 256 probes
+  /// and at the end: each probe's page fault maps up to 64 KiB of the positions around it, so the
+  /// plan's scattered probes would otherwise leave gigabytes of the map resident (at 1e9 points).
+  void plan(std::size_t n_points, const std::function<void()>& drop) {
+    if (n_points == 0) return;
+    std::size_t probes = 0;
+    (void)plan(
+        [&](std::size_t i) {
+          if (codes != nullptr) return codes[i];
+          if (++probes % 256 == 0 && drop) drop();
+          return qz.code(pos[i]);
+        },
+        0, 0, 0, n_points);
+    if (drop) drop();
   }
 
   /// Steps 2 and 3 (after plan()).
@@ -1107,9 +1118,6 @@ struct NodeBuilder {
   std::vector<Upper> uppers_;
   std::vector<Task> tasks_;
   std::vector<Ref> events_;  ///< upper nodes and subtrees in the order the depth-first pass visits them
-
-  /// The code of point i (given, or computed from its position).
-  std::uint64_t code_at(std::size_t i) const { return codes != nullptr ? codes[i] : qz.code(pos[i]); }
 
   /// Step 1 for the node (key, d) over [b, e): an upper node if it splits and holds more than
   /// `every` points (its children planned in order), else a subtree.
@@ -1855,8 +1863,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     // Subtrees of 1/16 of the budget at most (positions and codes, 20-32 B/point; kPipelineSlots
     // of them in flight), 4 M points at most, so small budgets release often too.
     nb.every = std::clamp<std::uint64_t>(opt.memory_bytes / 16 / 32, 1024, std::uint64_t{1} << 22);
-    nb.plan(total);
-    file.drop();  // the plan's probes faulted pages all over the positions
+    nb.plan(total, [&] { file.drop(); });
     nb.build();
     mem_codes = HugeArray<std::uint64_t>{};
     const std::size_t s_nodes = place(kNodes, nb.count * kNodeBytes);
