@@ -873,78 +873,34 @@ struct ReadMap {
   }
 };
 
-/// The nodes section of the temporary output as a growing shared map of fixed-size records
-/// (docs/index-format.md, "Nodes"). The file is extended with posix_fallocate before the map
-/// grows (mremap), so a full disk is an error here and never a SIGBUS on a store. Records are
-/// stored in place; release_below() drops written pages from the process (MADV_DONTNEED on a
-/// shared file map keeps the dirty data in the page cache, a later touch faults it back), so the
-/// node phase's resident memory does not grow with the node count.
+/// The nodes section of the temporary output, written with pwrite (docs/index-format.md,
+/// "Nodes"): runs of consecutive records and single records, in any order, each final when
+/// written. Buffered writes of whole pages need no read of the page first, where a shared map
+/// of the preallocated section had the kernel zero every page it faulted in (22% of the node
+/// phase, bench/README.md); a full disk is an error from pwrite (Fd::pwrite_all).
 class NodeFile {
  public:
-  NodeFile(int fd, std::uint64_t offset, const fs::path& name, std::size_t initial_records)
-      : fd_(fd), off_(offset), name_(name) {
-    grow(std::max<std::size_t>(initial_records, 1024));
+  NodeFile(Fd& fd, std::uint64_t offset) : fd_(fd), off_(offset) {}
+  /// Writes records [first, first + n) from `recs`.
+  void write(std::size_t first, const IndexNodeRecord* recs, std::size_t n) {
+    if (n > 0) fd_.pwrite_all(recs, n * kNodeBytes, off_ + first * kNodeBytes);
   }
-  NodeFile(const NodeFile&) = delete;
-  NodeFile& operator=(const NodeFile&) = delete;
-  ~NodeFile() {
-    if (p_ != nullptr) ::munmap(p_, cap_ * kNodeBytes);
-  }
-  /// Makes records [0, n) addressable (the file grows by at least half its size each time).
-  void reserve(std::size_t n) {
-    if (n > cap_) grow(std::max(n, cap_ + cap_ / 2));
-    if (n > populated_) {  // fault the next records' pages in at once (best effort)
-      const std::size_t b = populated_ * kNodeBytes / page_bytes() * page_bytes();
-      populated_ = std::min(cap_, n + kPopulateAhead);
-      const std::size_t e = populated_ * kNodeBytes;
-      if (e > b) (void)::madvise(p_ + b, e - b, MADV_POPULATE_WRITE);
-    }
-  }
-  /// Record i (i < reserved); valid until the next reserve().
-  [[nodiscard]] std::uint8_t* rec(std::size_t i) { return p_ + i * kNodeBytes; }
-  /// Drops the resident pages of records [0, i) (correctness never depends on it).
-  void release_below(std::size_t i) {
-    const std::size_t end = std::min(i, cap_) * kNodeBytes / page_bytes() * page_bytes();
-    if (end <= released_) return;
-    (void)::madvise(p_ + released_, end - released_, MADV_DONTNEED);
-    released_ = end;
-  }
-  /// CRC-32C of records [0, n), read back sequentially and released behind.
+  /// CRC-32C of records [0, n), read back in 8 MiB steps.
   std::uint32_t crc(std::size_t n) {
-    released_ = 0;
     std::uint32_t c = 0;
     const std::size_t total = n * kNodeBytes, step = std::size_t{8} << 20;
+    std::vector<std::uint8_t> buf(std::min(total, step));
     for (std::size_t b = 0; b < total; b += step) {
-      const std::size_t e = std::min(total, b + step);
-      c = crc32_of(p_ + b, e - b, c);
-      release_below(e / kNodeBytes);
+      const std::size_t len = std::min(total - b, step);
+      if (fd_.pread_some(buf.data(), len, off_ + b) != len) throw std::runtime_error("index build: the nodes section reads back short");
+      c = crc32_of(buf.data(), len, c);
     }
     return c;
   }
 
  private:
-  void grow(std::size_t records) {
-    const std::size_t old_bytes = cap_ * kNodeBytes, bytes = records * kNodeBytes;
-    const int err = ::posix_fallocate(fd_, static_cast<off_t>(off_ + old_bytes), static_cast<off_t>(bytes - old_bytes));
-    if (err != 0) {
-      errno = err;
-      io_fail(name_, "cannot extend the nodes section to " + std::to_string(off_ + bytes) + " bytes");
-    }
-    void* q = p_ == nullptr ? ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, fd_, static_cast<off_t>(off_))
-                            : ::mremap(p_, old_bytes, bytes, MREMAP_MAYMOVE);
-    if (q == MAP_FAILED) io_fail(name_, "cannot memory-map the nodes section (" + std::to_string(bytes) + " bytes)");
-    p_ = static_cast<std::uint8_t*>(q);
-    cap_ = records;
-  }
-  /// Records whose pages reserve() populates ahead of the last one asked for (MADV_POPULATE_WRITE:
-  /// one call instead of a page fault per 4 KiB page; 1 MiB of records).
-  static constexpr std::size_t kPopulateAhead = std::size_t{1} << 15;
-  std::size_t populated_ = 0;  ///< records [0, populated_) were populated
-  int fd_;
+  Fd& fd_;
   std::uint64_t off_;  ///< file offset of record 0 (page-aligned: kAlign)
-  fs::path name_;
-  std::uint8_t* p_ = nullptr;
-  std::size_t cap_ = 0, released_ = 0;
 };
 
 /// Node construction over the Morton-sorted codes and positions, following Octree::build_bulk
@@ -1020,12 +976,15 @@ struct NodeBuilder {
           st.recs.assign(1, IndexNodeRecord{});
           st.depth = 0;
           st.levels.fill(0);
+          // The subtree's positions decoded once (its codes, then its leaves' bounds).
+          st.pos.resize(t.e - t.b);
+          pos.decode(t.b, t.e - t.b, st.pos.data());
           if (codes != nullptr) {
-            st.box = visit(st, CodeView{codes, 0}, 0, t.key, t.d, t.b, t.e);
+            st.box = visit(st, CodeView{codes, 0}, t.b, 0, t.key, t.d, t.b, t.e);
           } else {
             st.codes.resize(t.e - t.b);
-            for (std::size_t i = t.b; i < t.e; ++i) st.codes[i - t.b] = qz.code(pos[i]);
-            st.box = visit(st, CodeView{st.codes.data(), t.b}, 0, t.key, t.d, t.b, t.e);
+            for (std::size_t i = 0; i < st.pos.size(); ++i) st.codes[i] = qz.code(st.pos[i]);
+            st.box = visit(st, CodeView{st.codes.data(), t.b}, t.b, 0, t.key, t.d, t.b, t.e);
           }
         },
         [&](std::size_t j) {
@@ -1039,17 +998,14 @@ struct NodeBuilder {
           const std::size_t base = count;  // descendant k (k >= 1) becomes node base + k - 1
           count += st.recs.size() - 1;
           if (count > std::numeric_limits<std::uint32_t>::max()) throw std::runtime_error("index build: too many nodes");
-          out.reserve(count);
-          for (std::size_t k = 0; k < st.recs.size(); ++k) {
-            IndexNodeRecord r = st.recs[k];
+          for (IndexNodeRecord& r : st.recs)
             if (r.internal()) r.first = static_cast<std::uint32_t>(base + r.first - 1);
-            std::memcpy(out.rec(k == 0 ? t.n : base + k - 1), &r, kNodeBytes);
-          }
+          out.write(t.n, st.recs.data(), 1);
+          out.write(base, st.recs.data() + 1, st.recs.size() - 1);
           t.box = st.box;
           depth = std::max(depth, st.depth);
           for (unsigned d = 0; d < kLevels; ++d) levels[d] += st.levels[d];
           if (release) release(t.e);
-          out.release_below(count > 256 ? count - 256 : 0);
           if (progress) progress("nodes", t.e, total);
         });
     for (; next_event < events_.size(); ++next_event)
@@ -1071,8 +1027,7 @@ struct NodeBuilder {
       r.hi = box.hi;
       r.first = up.first;
       r.packed = IndexNodeRecord::pack(up.nchild, up.d == 0 ? 0u : static_cast<unsigned>(up.key & 7u), true);
-      out.reserve(std::max<std::size_t>(count, up.n + 1));
-      std::memcpy(out.rec(up.n), &r, kNodeBytes);
+      out.write(up.n, &r, 1);
     }
     if (progress) progress("nodes", total, total);
   }
@@ -1111,6 +1066,7 @@ struct NodeBuilder {
   struct Subtree {
     std::vector<IndexNodeRecord> recs;
     std::vector<std::uint64_t> codes;  ///< its points' codes when they are computed
+    std::vector<Vec3> pos;             ///< its points' positions, decoded
     unsigned depth = 0;
     std::array<std::uint64_t, kLevels> levels{};
     Bounds box{};
@@ -1201,8 +1157,9 @@ struct NodeBuilder {
   }
 
   /// Step 2's depth-first pass over one subtree: node n (local number) at depth d over [b, e).
-  Bounds visit(Subtree& st, const CodeView& code, std::size_t n, std::uint64_t key, unsigned d, std::size_t b,
-               std::size_t e) const {
+  /// `p0` is the first point of the subtree (st.pos[0]).
+  Bounds visit(Subtree& st, const CodeView& code, std::size_t p0, std::size_t n, std::uint64_t key, unsigned d,
+               std::size_t b, std::size_t e) const {
     const std::size_t cnt = e - b;
     const bool same = cnt == 0 || code(b) == code(e - 1);
     const bool split = OctreeRules::splits(cfg, d, cnt, same);
@@ -1214,7 +1171,7 @@ struct NodeBuilder {
     Bounds box{glm::vec3(inf), glm::vec3(-inf)};
     {
       AABB own;
-      for (std::size_t s = b; s < rest; ++s) own.expand(pos[s]);
+      for (std::size_t s = b; s < rest; ++s) own.expand(st.pos[s - p0]);
       if (!own.empty())
         for (int a = 0; a < 3; ++a) {
           box.lo[a] = OctreeRules::float_bound(own.lo[a] - cell_lo[a], false);
@@ -1230,7 +1187,7 @@ struct NodeBuilder {
       first = st.recs.size();
       st.recs.resize(first + nchild);
       for (unsigned k = 0; k < nchild; ++k) {
-        const Bounds c = visit(st, code, first + k, (key << 3) | oct[k], d + 1, start[k], start[k + 1]);
+        const Bounds c = visit(st, code, p0, first + k, (key << 3) | oct[k], d + 1, start[k], start[k + 1]);
         box.lo = glm::min(box.lo, c.lo);
         box.hi = glm::max(box.hi, c.hi);
       }
@@ -1851,7 +1808,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
   {
     ReadMap file(fd.get(), h.sections[s_pos].offset + total * codec.bytes(), out.temp());
     const std::uint64_t nodes_off = off;  // the next aligned offset: where place() puts the nodes
-    NodeFile node_file(fd.get(), nodes_off, out.temp(), static_cast<std::size_t>(total / 8 + 1));
+    NodeFile node_file(fd, nodes_off);
     auto release = [&](std::size_t i) { file.release_below(h.sections[s_pos].offset + i * codec.bytes()); };
     auto ahead = [&](std::size_t b, std::size_t e) {
       file.populate(h.sections[s_pos].offset + b * codec.bytes(), (e - b) * codec.bytes());
@@ -1860,9 +1817,11 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
                    PositionView(codec.enc, static_cast<const std::uint8_t*>(file.p) + h.sections[s_pos].offset, total,
                                 codec.scale, codec.offset),
                    cell.lo, node_file, release, ahead, opt.progress, total);
-    // Subtrees of 1/16 of the budget at most (positions and codes, 20-32 B/point; kPipelineSlots
-    // of them in flight), 4 M points at most, so small budgets release often too.
-    nb.every = std::clamp<std::uint64_t>(opt.memory_bytes / 16 / 32, 1024, std::uint64_t{1} << 22);
+    // Subtrees of --memory/512 points at most (1 Mi at most): each of the kPipelineSlots in
+    // flight holds its decoded positions, codes and records (about 36 B/point) and its part of the
+    // positions map (12-24 B/point), about 1/8 of the budget in all, so small budgets release
+    // often too.
+    nb.every = std::clamp<std::uint64_t>(opt.memory_bytes / 16 / 32, 1024, std::uint64_t{1} << 20);
     nb.plan(total, [&] { file.drop(); });
     nb.build();
     mem_codes = HugeArray<std::uint64_t>{};
