@@ -1291,16 +1291,16 @@ void expect_clean_disk_full_failure(const fs::path& dir, const fs::path& las, co
   EXPECT_EQ(left, std::vector<std::string>{"site.rsi"}) << "temporaries left behind";
 }
 
-// Issue 10: a build that runs out of disk, in each stage (sorted runs, code file, output), fails
-// with one line and leaves the previous output and no temporaries. The stages are reached with a
-// file-size limit (RLIMIT_FSIZE with SIGXFSZ ignored, so write() fails with EFBIG exactly where a
-// full disk fails with ENOSPC); as root a real full disk (a 1 MiB tmpfs in a private mount
-// namespace) is tried as well.
+// Issue 10: a build that runs out of disk, in each stage (sorted runs, the output's point sections
+// in the merge, its nodes section), fails with one line and leaves the previous output and no
+// temporaries. The stages are reached with a file-size limit (RLIMIT_FSIZE with SIGXFSZ ignored,
+// so write() fails with EFBIG exactly where a full disk fails with ENOSPC); as root a real full
+// disk (a 1 MiB tmpfs in a private mount namespace) is tried as well.
 TEST(IndexFileCli, FullDiskInEveryStageLeavesNoPartialOutput) {
   RAYSCAN_REQUIRE_FILE(las, "las/autzen_trim.las");
   const fs::path dir = temp_dir() / "disk_full";
   fs::create_directories(dir);
-  for (int kib : {64, 600, 3000}) {  // runs, codes, the output file (autzen: 110,000 points)
+  for (int kib : {64, 600, 3000}) {  // runs, point sections, nodes (autzen: 110,000 points)
     SCOPED_TRACE("ulimit -f " + std::to_string(kib));
     expect_clean_disk_full_failure(dir, las, "ulimit -f " + std::to_string(kib) + "; trap '' XFSZ; ",
                                    std::strerror(EFBIG));
