@@ -750,11 +750,17 @@ int main(int argc, char** argv) {
         }
       const double em = rb::median(t.back());
       std::printf("\nbuild, %d threads, median of %zu interleaved rounds:\n", hw, build_reps);
-      std::printf("| index | build ms | speed-up vs Embree rtcCommitScene (goal >= 5x) |\n|---|---:|---:|\n");
+      std::printf("| index | build ms | speed-up vs Embree rtcCommitScene (goal >= 5x) | every round, ms |\n"
+                  "|---|---:|---:|---|\n");
+      auto rounds = [](const std::vector<double>& v) {
+        std::string out;
+        for (const double x : v) out += (out.empty() ? "" : " ") + std::to_string(static_cast<long>(x + 0.5));
+        return out;
+      };
       for (std::size_t c = 0; c < indexes.size(); ++c)
-        std::printf("| rayscan %s (bulk) | %.0f | %.2fx |\n", indexes[c].c_str(), rb::median(t[c]),
-                    em / rb::median(t[c]));
-      std::printf("| Embree rtcCommitScene | %.0f | 1 |\n", em);
+        std::printf("| rayscan %s (bulk) | %.0f | %.2fx | %s |\n", indexes[c].c_str(), rb::median(t[c]),
+                    em / rb::median(t[c]), rounds(t[c]).c_str());
+      std::printf("| Embree rtcCommitScene | %.0f | 1 | %s |\n", em, rounds(t.back()).c_str());
       std::printf("(Embree geometry creation + float4 buffer fill, not included above: %.0f ms)\n",
                   rb::median(fill));
       std::fflush(stdout);

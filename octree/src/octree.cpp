@@ -2,9 +2,11 @@
 #include "rayscan/morton_sort.hpp"
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -80,26 +82,51 @@ bool OctreeRules::splits(const OctreeConfig& c, unsigned depth, std::size_t coun
 float OctreeRules::float_bound(double off, bool up) {
   if (off == 0.0) return 0.0f;
   const float f = static_cast<float>(off);
-  return std::nextafter(f, up ? std::numeric_limits<float>::infinity()
-                              : -std::numeric_limits<float>::infinity());
+  // std::nextafter(f, +-inf) without the libm call (6 per node, 2% of a 1e7-point build): for a
+  // finite non-zero float, the next one away from / towards zero is one step of its bit pattern
+  // (IEEE 754 binary32: the magnitude bits are ordered like the magnitudes).
+  if (f == 0.0f || !std::isfinite(f))
+    return std::nextafter(f, up ? std::numeric_limits<float>::infinity()
+                                : -std::numeric_limits<float>::infinity());
+  const auto bits = std::bit_cast<std::uint32_t>(f);
+  return std::bit_cast<float>((f > 0.0f) == up ? bits + 1 : bits - 1);
 }
 
 // Shared by both builders: validation, the root cell and the Morton codes.
 struct OctreeBuilder {
   static void prepare(Octree& t, std::span<const Vec3> pts, const OctreeConfig& cfg,
-                      std::vector<std::uint64_t>& codes) {
+                      DefaultInitVector<std::uint64_t>& codes) {
     cfg.validate();
     if (pts.size() >= 0xFFFFFFFFull) throw std::length_error("octree: more than 2^32 - 2 points");
     t.config_ = cfg;
     t.levels_ = std::make_unique<Octree::LevelMaps>();
-    AABB b;
-    for (std::size_t i = 0; i < pts.size(); ++i) {
-      const Vec3& p = pts[i];
-      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-        throw std::invalid_argument("octree: point " + std::to_string(i) +
-                                    " has a non-finite coordinate");
-      b.expand(p);
-    }
+    // Bounds and the first non-finite point, in parallel.
+    struct Scan {
+      AABB box;
+      std::size_t bad = static_cast<std::size_t>(-1);
+    };
+    const Scan scan = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, pts.size(), 1 << 16), Scan{},
+        [&](const tbb::blocked_range<std::size_t>& r, Scan acc) {
+          for (std::size_t i = r.begin(); i != r.end(); ++i) {
+            const Vec3& p = pts[i];
+            if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+              acc.bad = std::min(acc.bad, i);
+              break;
+            }
+            acc.box.expand(p);
+          }
+          return acc;
+        },
+        [](Scan x, const Scan& y) {
+          x.box.expand(y.box);
+          x.bad = std::min(x.bad, y.bad);
+          return x;
+        });
+    if (scan.bad != static_cast<std::size_t>(-1))
+      throw std::invalid_argument("octree: point " + std::to_string(scan.bad) +
+                                  " has a non-finite coordinate");
+    const AABB& b = scan.box;
     t.cell_ = OctreeRules::root_cell(b);
     const Quantizer qz(t.cell_.lo, OctreeRules::root_side(b));
     codes.resize(pts.size());
@@ -132,49 +159,56 @@ struct OctreeBuilder {
 
   // Bounds of the node's own points and children (children are closed first).
   static void close_node(Octree& t, Octree::Node n, unsigned depth) {
-    own_bounds(t, n);
-    merge_children(t, n);
+    own_bounds(t.nodes_[n], t.pos_, t.cell_.lo);
+    merge_children(t.nodes_.data(), n);
     t.depth_ = std::max(t.depth_, depth);
   }
-  // rec.lo / hi = the float bounds of n's own points (empty: +inf / -inf).
-  static void own_bounds(Octree& t, Octree::Node n) {
-    auto& rec = t.nodes_[n];
+  // rec.lo / hi = the float bounds of rec's own points pos[own_begin, own_end) relative to
+  // `origin` (empty: +inf / -inf).
+  static void own_bounds(Octree::NodeRec& rec, std::span<const Vec3> pos, const Vec3& origin) {
     AABB own;
-    for (std::uint32_t s = rec.own_begin; s < rec.own_end; ++s) own.expand(t.pos_[s]);
+    for (std::uint32_t s = rec.own_begin; s < rec.own_end; ++s) own.expand(pos[s]);
     glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-std::numeric_limits<float>::infinity());
     if (!own.empty())
       for (int a = 0; a < 3; ++a) {
-        lo[a] = to_float_bound(own.lo[a] - t.cell_.lo[a], false);
-        hi[a] = to_float_bound(own.hi[a] - t.cell_.lo[a], true);
+        lo[a] = to_float_bound(own.lo[a] - origin[a], false);
+        hi[a] = to_float_bound(own.hi[a] - origin[a], true);
       }
     rec.lo = lo;
     rec.hi = hi;
   }
-  // Grows rec.lo / hi by the (final) bounds of n's children.
-  static void merge_children(Octree& t, Octree::Node n) {
-    auto& rec = t.nodes_[n];
+  // Grows nodes[n].lo / hi by the (final) bounds of its children (numbered in the same array).
+  static void merge_children(Octree::NodeRec* nodes, Octree::Node n) {
+    auto& rec = nodes[n];
     for (unsigned c = 0; c < rec.child_count; ++c) {
-      rec.lo = glm::min(rec.lo, t.nodes_[rec.first_child + c].lo);
-      rec.hi = glm::max(rec.hi, t.nodes_[rec.first_child + c].hi);
+      rec.lo = glm::min(rec.lo, nodes[rec.first_child + c].lo);
+      rec.hi = glm::max(rec.hi, nodes[rec.first_child + c].hi);
     }
   }
 
   // ---- bulk -------------------------------------------------------------------------------
   using Item = MortonKey;
+  using Nodes = std::vector<Octree::NodeRec>;
 
   // The items {codes[i], i} sorted by (code, index) (sort_morton_keys; it replaced
   // tbb::parallel_sort, which was the largest part of the 1e7-point build after the gather:
   // bench/README.md, issue 12).
-  static std::unique_ptr<Item[]> sorted_items(const std::vector<std::uint64_t>& codes) {
-    std::unique_ptr<Item[]> items(new Item[codes.size()]);  // uninitialised: first touched by the scatter
-    sort_morton_keys(codes.size(), [&](std::size_t i) { return codes[i]; }, items.get());
+  static DefaultInitVector<Item> sorted_items(const DefaultInitVector<std::uint64_t>& codes) {
+    DefaultInitVector<Item> items(codes.size());  // uninitialised: first touched by the scatter
+    sort_morton_keys(codes.size(), [&](std::size_t i) { return codes[i]; }, items.data());
     return items;
   }
 
-  static void bulk(Octree& t, std::span<const Vec3> pts, std::span<Item> items,
+  // The top-down build of the subtree of node n (depth `depth`, items [b, e)) into `nodes`, where
+  // n and its descendants are numbered: the tree of build_by_insertion, numbered the same way
+  // (a node's children are appended as one block when the node is built, then built in octant
+  // order). `cut(n, depth, b, e)` returning true leaves the node to the caller (the parallel
+  // build's subtrees, below). max_depth grows to the deepest node built.
+  template <class Cut>
+  static void bulk(const OctreeConfig& c, std::span<Item> items, Nodes& nodes,
                    std::vector<std::uint32_t>& scratch, Octree::Node n, unsigned depth,
-                   std::size_t b, std::size_t e) {
-    const OctreeConfig& c = t.config_;
+                   std::size_t b, std::size_t e, unsigned& max_depth, const Cut& cut) {
+    if (cut(n, depth, b, e)) return;
     const std::size_t count = e - b;
     const bool same = count == 0 || items[b].code == items[e - 1].code;
     std::size_t rest = e;  // items [b, rest) are this node's own points
@@ -194,10 +228,10 @@ struct OctreeBuilder {
     }
     // Own points: items [b, rest). Every node's range starts where the previous node's (in
     // depth-first order) ended and later calls only permute ranges of descendants, so after the
-    // recursion slot s holds items[s].idx (gathered in parallel by finish_bulk).
-    t.nodes_[n].own_begin = static_cast<std::uint32_t>(b);
-    t.nodes_[n].own_end = static_cast<std::uint32_t>(rest);
-    t.depth_ = std::max(t.depth_, depth);
+    // recursion slot s holds items[s].idx (gathered by the caller).
+    nodes[n].own_begin = static_cast<std::uint32_t>(b);
+    nodes[n].own_end = static_cast<std::uint32_t>(rest);
+    max_depth = std::max(max_depth, depth);
     if (rest < e) {
       // Children: contiguous runs of equal octant digit (items are Morton-sorted and share the
       // digits above this level), found by binary search on the digit.
@@ -218,40 +252,131 @@ struct OctreeBuilder {
         i = j;
       }
       start[nchild] = e;
-      const auto first = static_cast<Octree::Node>(t.nodes_.size());
-      const std::uint64_t key = t.nodes_[n].key;
-      t.nodes_.resize(t.nodes_.size() + nchild);
-      t.nodes_[n].first_child = first;
-      t.nodes_[n].child_count = static_cast<std::uint8_t>(nchild);
+      const auto first = static_cast<Octree::Node>(nodes.size());
+      const std::uint64_t key = nodes[n].key;
+      nodes.resize(nodes.size() + nchild);
+      nodes[n].first_child = first;
+      nodes[n].child_count = static_cast<std::uint8_t>(nchild);
       for (unsigned k = 0; k < nchild; ++k) {
-        t.nodes_[first + k].key = (key << 3) | oct[k];
-        bulk(t, pts, items, scratch, first + k, depth + 1, start[k], start[k + 1]);
+        nodes[first + k].key = (key << 3) | oct[k];
+        bulk(c, items, nodes, scratch, first + k, depth + 1, start[k], start[k + 1], max_depth, cut);
       }
     }
   }
 
-  // After bulk(): positions and ids in slot order (a parallel gather: the random reads of the
-  // input were ~75% of the serial recursion's time), then the node bounds of close_node: each
-  // node's own points in parallel, then children merged into parents in reverse node order
-  // (children always have larger indices than their parent).
-  static void finish_bulk(Octree& t, std::span<const Vec3> pts, std::span<const Item> items) {
+  // A subtree of the parallel bulk build: node `root` of the upper tree, its items [b, e), and,
+  // once built, the subtree in `nodes` with local numbers (nodes[0] is the root's record).
+  struct Subtree {
+    Octree::Node root;
+    unsigned depth;
+    std::size_t b, e;
+    Nodes nodes;
+    unsigned max_depth = 0;
+    std::size_t base = 0;  // final number of nodes[1]
+  };
+
+  // The parallel bulk build (bench/README.md, "Issue 12, session 22"):
+  // 1. the upper tree, serially, down to nodes of at most max(n / 64, 256) points: those become
+  //    subtrees;
+  // 2. each subtree in parallel: its nodes with local numbers, then positions and ids gathered
+  //    into slot order for its slots [b, e) (slot s holds items[s].idx), then its node bounds
+  //    (own points, then children merged into parents in reverse node order: a child's number is
+  //    always larger than its parent's);
+  // 3. the upper tree's own points and bounds;
+  // 4. the final numbers, replaying the serial order over the upper tree: a subtree's
+  //    descendants take one contiguous block of numbers at the point where the serial build would
+  //    have built them, so the tree equals the serial (and the insertion) build node for node;
+  // 5. every subtree copied into the one node array in parallel, child links renumbered.
+  static void build(Octree& t, std::span<const Vec3> pts, std::span<Item> items) {
+    const OctreeConfig& c = t.config_;
     const std::size_t n = items.size();
-    t.pos_.resize(n);
+    const std::size_t cut_size = std::max<std::size_t>(n / 64, 256);
+    Nodes upper(1);
+    std::vector<Subtree> subs;
+    std::vector<std::uint32_t> scratch;
+    unsigned max_depth = 0;
+    bulk(c, items, upper, scratch, 0, 0, 0, n, max_depth,
+         [&](Octree::Node node, unsigned depth, std::size_t b, std::size_t e) {
+           if (e - b > cut_size) return false;
+           subs.push_back(Subtree{node, depth, b, e, {}, 0, 0});
+           return true;
+         });
+    t.pos_.resize(n);  // uninitialised: first touched by the gathers
     t.ids_.resize(n);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1 << 14), [&](const tbb::blocked_range<std::size_t>& r) {
+    auto gather = [&](std::size_t b, std::size_t e) {
       constexpr std::size_t kAhead = 16;
-      for (std::size_t s = r.begin(); s != r.end(); ++s) {
-        if (s + kAhead < n) __builtin_prefetch(&pts[items[s + kAhead].idx]);
+      for (std::size_t s = b; s != e; ++s) {
+        if (s + kAhead < e) __builtin_prefetch(&pts[items[s + kAhead].idx]);
         const std::uint32_t i = items[s].idx;
         t.pos_[s] = pts[i];
         t.ids_[s] = i;
       }
+    };
+    const Vec3 origin = t.cell_.lo;
+    tbb::parallel_for(std::size_t{0}, subs.size(), [&](std::size_t k) {
+      Subtree& s = subs[k];
+      std::vector<std::uint32_t> local_scratch;
+      s.nodes.push_back(upper[s.root]);
+      s.max_depth = s.depth;
+      bulk(c, items, s.nodes, local_scratch, 0, s.depth, s.b, s.e, s.max_depth,
+           [](Octree::Node, unsigned, std::size_t, std::size_t) { return false; });
+      gather(s.b, s.e);
+      for (auto& rec : s.nodes) own_bounds(rec, t.pos_, origin);
+      for (std::size_t i = s.nodes.size(); i-- > 0;) merge_children(s.nodes.data(), static_cast<Octree::Node>(i));
     });
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, t.nodes_.size(), 1 << 12),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                        for (std::size_t i = r.begin(); i != r.end(); ++i) own_bounds(t, static_cast<Octree::Node>(i));
-                      });
-    for (std::size_t i = t.nodes_.size(); i-- > 0;) merge_children(t, static_cast<Octree::Node>(i));
+    // The upper tree: a subtree root takes its record from its subtree, the others their own
+    // points (layered interior points) and then their children's bounds.
+    std::vector<std::int32_t> sub_of(upper.size(), -1);
+    for (std::size_t k = 0; k < subs.size(); ++k) {
+      sub_of[subs[k].root] = static_cast<std::int32_t>(k);
+      upper[subs[k].root] = subs[k].nodes[0];
+      max_depth = std::max(max_depth, subs[k].max_depth);
+    }
+    for (std::size_t i = upper.size(); i-- > 0;) {
+      if (sub_of[i] >= 0) continue;
+      gather(upper[i].own_begin, upper[i].own_end);
+      own_bounds(upper[i], t.pos_, origin);
+      merge_children(upper.data(), static_cast<Octree::Node>(i));
+    }
+    // Final numbers: upper node u becomes number[u]; the serial build's order of allocation.
+    std::vector<Octree::Node> number(upper.size(), 0);
+    std::size_t next = 1;
+    auto assign = [&](auto&& self, Octree::Node u) -> void {
+      if (sub_of[u] >= 0) {
+        Subtree& s = subs[static_cast<std::size_t>(sub_of[u])];
+        s.base = next;
+        next += s.nodes.size() - 1;
+        return;
+      }
+      const Octree::NodeRec& rec = upper[u];
+      const std::size_t first = next;
+      next += rec.child_count;
+      for (unsigned k = 0; k < rec.child_count; ++k) number[rec.first_child + k] = static_cast<Octree::Node>(first + k);
+      for (unsigned k = 0; k < rec.child_count; ++k) self(self, rec.first_child + k);
+    };
+    assign(assign, 0);
+    if (next >= 0xFFFFFFFFull) throw std::length_error("octree: more than 2^32 - 2 nodes");
+    t.nodes_.resize(next);
+    // A subtree's local node j >= 1 becomes base + j - 1; its local root is the upper node.
+    auto renumber = [](Octree::NodeRec rec, std::size_t base) {
+      if (rec.child_count) rec.first_child = static_cast<Octree::Node>(base + rec.first_child - 1);
+      return rec;
+    };
+    for (std::size_t u = 0; u < upper.size(); ++u) {
+      if (sub_of[u] >= 0) {
+        t.nodes_[number[u]] = renumber(upper[u], subs[static_cast<std::size_t>(sub_of[u])].base);
+      } else {
+        Octree::NodeRec rec = upper[u];
+        if (rec.child_count) rec.first_child = number[rec.first_child];
+        t.nodes_[number[u]] = rec;
+      }
+    }
+    tbb::parallel_for(std::size_t{0}, subs.size(), [&](std::size_t k) {
+      Subtree& s = subs[k];
+      for (std::size_t j = 1; j < s.nodes.size(); ++j) t.nodes_[s.base + j - 1] = renumber(s.nodes[j], s.base);
+      Nodes().swap(s.nodes);
+    });
+    t.depth_ = max_depth;
   }
 
   // ---- insertion --------------------------------------------------------------------------
@@ -265,7 +390,7 @@ struct OctreeBuilder {
 
   struct Inserter {
     const OctreeConfig& c;
-    const std::vector<std::uint64_t>& codes;
+    const DefaultInitVector<std::uint64_t>& codes;
     std::vector<DynNode> dn;
 
     std::int32_t child_of(std::int32_t n, unsigned o) {
@@ -335,22 +460,18 @@ struct OctreeBuilder {
 
 Octree Octree::build_bulk(std::span<const Vec3> positions, const OctreeConfig& config) {
   Octree t;
-  std::vector<std::uint64_t> codes;
+  DefaultInitVector<std::uint64_t> codes;
   OctreeBuilder::prepare(t, positions, config, codes);
-  const std::unique_ptr<OctreeBuilder::Item[]> buf = OctreeBuilder::sorted_items(codes);
-  const std::span<OctreeBuilder::Item> items(buf.get(), positions.size());
-  std::vector<std::uint64_t>().swap(codes);
-  t.nodes_.emplace_back();
-  std::vector<std::uint32_t> scratch;
-  OctreeBuilder::bulk(t, positions, items, scratch, 0, 0, 0, items.size());
-  t.nodes_.shrink_to_fit();
-  OctreeBuilder::finish_bulk(t, positions, items);
+  DefaultInitVector<OctreeBuilder::Item> buf = OctreeBuilder::sorted_items(codes);
+  const std::span<OctreeBuilder::Item> items(buf.data(), positions.size());
+  DefaultInitVector<std::uint64_t>().swap(codes);
+  OctreeBuilder::build(t, positions, items);
   return t;
 }
 
 Octree Octree::build_by_insertion(std::span<const Vec3> positions, const OctreeConfig& config) {
   Octree t;
-  std::vector<std::uint64_t> codes;
+  DefaultInitVector<std::uint64_t> codes;
   OctreeBuilder::prepare(t, positions, config, codes);
   OctreeBuilder::Inserter ins{t.config_, codes, {}};
   ins.dn.emplace_back();

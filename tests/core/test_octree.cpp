@@ -234,6 +234,28 @@ TEST(MortonSort, EqualsStdSortOfTheKeys) {
     }
 }
 
+TEST(MortonSort, BucketsOfTiedCodesKeepIndexOrder) {
+  // 300,000 keys in 2,048 buckets of ~146 (the 8-bit counting pass and small sorts of
+  // sort_morton_buckets), each bucket holding few distinct codes: all in one sub-bucket of the
+  // counting pass (b < 8 sets only bits below its top 8) or spread over up to 256 sub-buckets of
+  // ~1-18 keys (insertion sort and std::sort). Ties must come out in index order.
+  for (std::uint64_t sub : {std::uint64_t{8}, std::uint64_t{256}}) {
+    std::mt19937_64 rng(5 + sub);
+    const std::size_t n = 300000;
+    std::vector<std::uint64_t> codes(n);
+    for (auto& c : codes) c = (rng() % 2048) << 52 | (rng() % sub) << (sub == 8 ? 20 : 44) | (rng() % 2);
+    std::vector<MortonKey> expect(n);
+    for (std::size_t i = 0; i < n; ++i) expect[i] = {codes[i], static_cast<std::uint32_t>(i)};
+    std::sort(expect.begin(), expect.end());
+    std::vector<MortonKey> got(n);
+    sort_morton_keys(n, [&](std::size_t i) { return codes[i]; }, got.data());
+    for (std::size_t i = 0; i < n; ++i) {
+      ASSERT_EQ(got[i].code, expect[i].code) << "sub " << sub << " at " << i;
+      ASSERT_EQ(got[i].idx, expect[i].idx) << "sub " << sub << " at " << i;
+    }
+  }
+}
+
 TEST(MortonSort, LowBitsRadixSortIsStable) {
   // 30-bit codes (a COPC node's local tree) with many ties: ties must keep their input order.
   std::mt19937_64 rng(3);

@@ -42,7 +42,8 @@ inline unsigned morton_bucket_bits(std::size_t n) {
 }
 /// Sorts each bucket [start[b], start[b + 1]) of keys (the keys of a bucket share the code's top
 /// 63 - low_bits bits) in parallel: std::sort below 64 keys, tbb::parallel_sort above n / 8 (a
-/// dense cluster), radix_sort_low_bits otherwise.
+/// dense cluster), one 8-bit counting pass and small sorts below 1,024 keys, radix_sort_low_bits
+/// otherwise.
 void sort_morton_buckets(MortonKey* keys, std::size_t n, const std::vector<std::size_t>& start, unsigned low_bits);
 }  // namespace detail
 

@@ -2,6 +2,7 @@
 // of depth + Morton code, lazily built per-level index maps, and three data organisations.
 #pragma once
 
+#include "rayscan/default_init_vector.hpp"
 #include "rayscan/morton.hpp"
 #include "rayscan/point_cloud.hpp"
 #include "rayscan/simd.hpp"
@@ -188,9 +189,11 @@ class Octree {
   OctreeConfig config_;
   AABB cell_;                       // root cube
   unsigned depth_ = 0;
-  std::vector<NodeRec> nodes_;
-  std::vector<Vec3> pos_;
-  std::vector<PointIndex> ids_;
+  // resize() leaves them uninitialised (default_init_vector.hpp): the bulk build's parallel
+  // passes are the first to touch them.
+  DefaultInitVector<NodeRec> nodes_;
+  DefaultInitVector<Vec3> pos_;
+  DefaultInitVector<PointIndex> ids_;
   std::unique_ptr<LevelMaps> levels_;  // lazily filled per level
 };
 
