@@ -189,6 +189,11 @@ struct OctreeBuilder {
   // ---- bulk -------------------------------------------------------------------------------
   using Item = MortonKey;
   using Nodes = std::vector<Octree::NodeRec>;
+  // Scratch of keep_first_inserted, one per thread.
+  struct LayeredScratch {
+    std::vector<std::uint32_t> heap;
+    std::vector<Item> kept;
+  };
 
   // The items {codes[i], i} sorted by (code, index) (sort_morton_keys; it replaced
   // tbb::parallel_sort, which was the largest part of the 1e7-point build after the gather:
@@ -199,6 +204,36 @@ struct OctreeBuilder {
     return items;
   }
 
+  // Layered node of items (count > capacity, distinct idx): moves the `capacity` items of smallest
+  // idx (the first inserted) to the front, both parts in their Morton order (a stable partition).
+  // The threshold is the capacity-th smallest idx, kept in a max-heap of `capacity` entries in one
+  // pass (few heap updates on shuffled input); the partition moves the other items backwards in
+  // place. This replaced a copy + nth_element + std::stable_partition per node: 25% and 4% of the
+  // 1e7-point layered build under perf (bench/README.md, "Issue 12, session 22").
+  static void keep_first_inserted(std::span<Item> items, std::uint32_t capacity, LayeredScratch& scratch) {
+    auto& heap = scratch.heap;
+    heap.clear();
+    for (std::size_t i = 0; i < capacity; ++i) heap.push_back(items[i].idx);
+    std::make_heap(heap.begin(), heap.end());
+    for (std::size_t i = capacity; i < items.size(); ++i)
+      if (items[i].idx < heap.front()) {
+        std::pop_heap(heap.begin(), heap.end());
+        heap.back() = items[i].idx;
+        std::push_heap(heap.begin(), heap.end());
+      }
+    const std::uint32_t thr = heap.front();
+    auto& kept = scratch.kept;
+    kept.clear();
+    std::size_t w = items.size();
+    for (std::size_t i = items.size(); i-- > 0;) {
+      if (items[i].idx <= thr)
+        kept.push_back(items[i]);
+      else
+        items[--w] = items[i];  // w > i: only items already read are overwritten
+    }
+    std::reverse_copy(kept.begin(), kept.end(), items.begin());
+  }
+
   // The top-down build of the subtree of node n (depth `depth`, items [b, e)) into `nodes`, where
   // n and its descendants are numbered: the tree of build_by_insertion, numbered the same way
   // (a node's children are appended as one block when the node is built, then built in octant
@@ -206,7 +241,7 @@ struct OctreeBuilder {
   // build's subtrees, below). max_depth grows to the deepest node built.
   template <class Cut>
   static void bulk(const OctreeConfig& c, std::span<Item> items, Nodes& nodes,
-                   std::vector<std::uint32_t>& scratch, Octree::Node n, unsigned depth,
+                   LayeredScratch& scratch, Octree::Node n, unsigned depth,
                    std::size_t b, std::size_t e, unsigned& max_depth, const Cut& cut) {
     if (cut(n, depth, b, e)) return;
     const std::size_t count = e - b;
@@ -215,14 +250,7 @@ struct OctreeBuilder {
     if (splits(c, depth, count, same)) {
       rest = b;
       if (c.layout == OctreeLayout::layered) {
-        // Keep the `capacity` smallest original indices (the first inserted); stable partition keeps
-        // Morton order on both sides.
-        scratch.clear();
-        for (std::size_t i = b; i < e; ++i) scratch.push_back(items[i].idx);
-        std::nth_element(scratch.begin(), scratch.begin() + (c.capacity - 1), scratch.end());
-        const std::uint32_t thr = scratch[c.capacity - 1];
-        std::stable_partition(items.begin() + b, items.begin() + e,
-                              [thr](const Item& it) { return it.idx <= thr; });
+        keep_first_inserted(items.subspan(b, count), c.capacity, scratch);
         rest = b + c.capacity;
       }
     }
@@ -293,7 +321,7 @@ struct OctreeBuilder {
     const std::size_t cut_size = std::max<std::size_t>(n / 64, 256);
     Nodes upper(1);
     std::vector<Subtree> subs;
-    std::vector<std::uint32_t> scratch;
+    LayeredScratch scratch;
     unsigned max_depth = 0;
     bulk(c, items, upper, scratch, 0, 0, 0, n, max_depth,
          [&](Octree::Node node, unsigned depth, std::size_t b, std::size_t e) {
@@ -315,7 +343,7 @@ struct OctreeBuilder {
     const Vec3 origin = t.cell_.lo;
     tbb::parallel_for(std::size_t{0}, subs.size(), [&](std::size_t k) {
       Subtree& s = subs[k];
-      std::vector<std::uint32_t> local_scratch;
+      LayeredScratch local_scratch;
       s.nodes.push_back(upper[s.root]);
       s.max_depth = s.depth;
       bulk(c, items, s.nodes, local_scratch, 0, s.depth, s.b, s.e, s.max_depth,
