@@ -654,7 +654,7 @@ int main(int argc, char** argv) {
   std::size_t points_child = 0;
   double radius = 0.0046;
   std::uint64_t seed = 20240601;
-  bool no_memory = false, no_build = false;
+  bool no_memory = false, no_build = false, only_build = false;
   std::string profile_query;
   app.add_option("--points-list", points_list, "comma-separated cloud sizes")->capture_default_str();
   app.add_option("--indexes", index_list,
@@ -676,6 +676,7 @@ int main(int argc, char** argv) {
   app.add_option("--seed", seed, "seed of points and random rays")->capture_default_str();
   app.add_flag("--no-memory", no_memory, "skip the per-index memory probes");
   app.add_flag("--no-build", no_build, "skip the build-time comparison");
+  app.add_flag("--only-build", only_build, "only the build-time comparison (and memory, unless --no-memory)");
   app.add_option("--profile", profile_query,
                  "run only this query (knn8|radius|closest|sphere|embree; sphere2x2|sphere4x4: the camera's "
                  "sphere hits in pixel packets) once per ray set on one thread, with work counters; for "
@@ -784,6 +785,8 @@ int main(int argc, char** argv) {
         std::fflush(stdout);
       }
     }
+
+    if (only_build) continue;
 
     // -- throughput ----------------------------------------------------------------------------
     std::vector<rayscan::AnyIndex> built;

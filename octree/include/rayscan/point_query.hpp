@@ -113,7 +113,7 @@ struct FloatQueryPoint {
   float margin = 0.0f;
 };
 template <SpatialIndex I>
-FloatQueryPoint float_query_point([[maybe_unused]] const I& index, [[maybe_unused]] const Vec3& q) {
+__attribute__((always_inline)) inline FloatQueryPoint float_query_point([[maybe_unused]] const I& index, [[maybe_unused]] const Vec3& q) {
   FloatQueryPoint f;
   if constexpr (FloatChildBoxes<I>) {
     const Vec3 q_rel = q - index.float_origin();
@@ -162,9 +162,12 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
   auto& stack = scratch.stack;
   auto& cands = scratch.cands;
   stack.clear();
-  cands.clear();
   std::size_t held = 0;  // sorted_set: cands[0, held) sorted ascending
-  if (sorted_set) cands.resize(k);
+  if (sorted_set) {
+    if (cands.size() < k) cands.resize(k);  // once per thread: no per-query fill
+  } else {
+    cands.clear();
+  }
   double worst = kInf;   // the k-th smallest squared distance once k are held
   double bound = r2;     // min(r2, worst): the pruning bound
   // A node is kept when its squared MINDIST is within the (relative-tolerance) bound.
@@ -273,13 +276,12 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
     }
     for (unsigned j = 0; j < m; ++j) stack.push_back({lb[j], ch[j], false});
   }
-  if (sorted_set) {
-    cands.resize(held);
-  } else {
+  if (!sorted_set) {
     std::sort(cands.begin(), cands.end(), detail::knn_less);
+    held = cands.size();
   }
-  out.reserve(cands.size());
-  for (const KnnCand& c : cands) out.push_back({c.id, std::sqrt(c.d2)});
+  out.reserve(held);
+  for (std::size_t i = 0; i < held; ++i) out.push_back({cands[i].id, std::sqrt(cands[i].d2)});
 }
 
 /// kNN: the k nearest points (see knn_query above for order and ties).
