@@ -215,22 +215,29 @@ std::vector<std::uint64_t> morton_test_codes(std::size_t n, bool clustered, std:
   }
   return c;
 }
+
+// sort_morton_keys over `codes` equals std::sort of the keys {codes[i], i} (the oracle).
+void expect_sorted_like_std_sort(const std::vector<std::uint64_t>& codes) {
+  const std::size_t n = codes.size();
+  std::vector<MortonKey> expect(n);
+  for (std::size_t i = 0; i < n; ++i) expect[i] = {codes[i], static_cast<std::uint32_t>(i)};
+  std::sort(expect.begin(), expect.end());
+  std::vector<MortonKey> got(n);
+  sort_morton_keys(n, [&](std::size_t i) { return codes[i]; }, got.data());
+  for (std::size_t i = 0; i < n; ++i) {
+    ASSERT_EQ(got[i].code, expect[i].code) << "at " << i;
+    ASSERT_EQ(got[i].idx, expect[i].idx) << "at " << i;
+  }
+}
 }  // namespace
 
 TEST(MortonSort, EqualsStdSortOfTheKeys) {
   for (std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{7}, std::size_t{100}, std::size_t{5000},
                         std::size_t{300000}})
     for (bool clustered : {false, true}) {
-      const std::vector<std::uint64_t> codes = morton_test_codes(n, clustered, 17 + n);
-      std::vector<MortonKey> expect(n);
-      for (std::size_t i = 0; i < n; ++i) expect[i] = {codes[i], static_cast<std::uint32_t>(i)};
-      std::sort(expect.begin(), expect.end());
-      std::vector<MortonKey> got(n);
-      sort_morton_keys(n, [&](std::size_t i) { return codes[i]; }, got.data());
-      for (std::size_t i = 0; i < n; ++i) {
-        ASSERT_EQ(got[i].code, expect[i].code) << "n " << n << " clustered " << clustered << " at " << i;
-        ASSERT_EQ(got[i].idx, expect[i].idx) << "n " << n << " clustered " << clustered << " at " << i;
-      }
+      SCOPED_TRACE("n " + std::to_string(n) + " clustered " + std::to_string(clustered));
+      expect_sorted_like_std_sort(morton_test_codes(n, clustered, 17 + n));
+      if (::testing::Test::HasFatalFailure()) return;
     }
 }
 
@@ -244,15 +251,9 @@ TEST(MortonSort, BucketsOfTiedCodesKeepIndexOrder) {
     const std::size_t n = 300000;
     std::vector<std::uint64_t> codes(n);
     for (auto& c : codes) c = (rng() % 2048) << 52 | (rng() % sub) << (sub == 8 ? 20 : 44) | (rng() % 2);
-    std::vector<MortonKey> expect(n);
-    for (std::size_t i = 0; i < n; ++i) expect[i] = {codes[i], static_cast<std::uint32_t>(i)};
-    std::sort(expect.begin(), expect.end());
-    std::vector<MortonKey> got(n);
-    sort_morton_keys(n, [&](std::size_t i) { return codes[i]; }, got.data());
-    for (std::size_t i = 0; i < n; ++i) {
-      ASSERT_EQ(got[i].code, expect[i].code) << "sub " << sub << " at " << i;
-      ASSERT_EQ(got[i].idx, expect[i].idx) << "sub " << sub << " at " << i;
-    }
+    SCOPED_TRACE("sub " + std::to_string(sub));
+    expect_sorted_like_std_sort(codes);
+    if (::testing::Test::HasFatalFailure()) return;
   }
 }
 
