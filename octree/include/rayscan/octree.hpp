@@ -100,9 +100,11 @@ class Octree {
  public:
   using Node = std::uint32_t;
 
-  /// Bulk load: Morton-sort the points, then split ranges top-down. O(N log N).
-  /// Throws std::invalid_argument for a bad config or non-finite position, std::length_error above
-  /// 2^32 - 2 points.
+  /// Bulk load: Morton-sort the points, then split ranges top-down. O(N log N), in parallel (TBB):
+  /// the upper tree serially, then subtrees of at most max(N / 64, 256) points built, gathered and
+  /// bounded on their own and renumbered into the serial order (bench/README.md, "Issue 12,
+  /// session 22"). Throws std::invalid_argument for a bad config or non-finite position,
+  /// std::length_error above 2^32 - 2 points.
   static Octree build_bulk(std::span<const Vec3> positions, const OctreeConfig& config = {});
   /// Insert points one at a time in index order into a pointer-based tree, splitting leaves as they
   /// overflow, then compact it. Same errors as build_bulk; same resulting tree.
