@@ -4,6 +4,8 @@
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
+#include <sys/mman.h>
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -188,7 +190,29 @@ struct OctreeBuilder {
 
   // ---- bulk -------------------------------------------------------------------------------
   using Item = MortonKey;
-  using Nodes = std::vector<Octree::NodeRec>;
+  // The node arrays of the parallel build's subtrees (below) on pages of their own: they are
+  // allocated by TBB's worker threads, whose glibc malloc arenas kept ~3 MB of them after they were
+  // freed (`malloc_trim` trims only the main arena's top), 3 B/point more resident memory at 1e6
+  // points (bench/README.md, "Issue 12, session 22"). Unmapped, they go back at once.
+  template <class T>
+  struct MappedAllocator {
+    using value_type = T;
+    MappedAllocator() noexcept = default;
+    template <class U>
+    MappedAllocator(const MappedAllocator<U>&) noexcept {}
+    T* allocate(std::size_t n) {
+      if (n > static_cast<std::size_t>(-1) / sizeof(T)) throw std::bad_alloc();
+      void* p = ::mmap(nullptr, n * sizeof(T), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+      if (p == MAP_FAILED) throw std::bad_alloc();
+      return static_cast<T*>(p);
+    }
+    void deallocate(T* p, std::size_t n) noexcept { ::munmap(p, n * sizeof(T)); }
+    template <class U>
+    friend bool operator==(const MappedAllocator&, const MappedAllocator<U>&) noexcept {
+      return true;
+    }
+  };
+  using Nodes = std::vector<Octree::NodeRec, MappedAllocator<Octree::NodeRec>>;
   // Scratch of keep_first_inserted, one per thread.
   struct LayeredScratch {
     std::vector<std::uint32_t> heap;
@@ -344,6 +368,7 @@ struct OctreeBuilder {
     tbb::parallel_for(std::size_t{0}, subs.size(), [&](std::size_t k) {
       Subtree& s = subs[k];
       LayeredScratch local_scratch;
+      s.nodes.reserve((s.e - s.b) / 4 + 64);  // (adaptive, uniform: ~0.13 nodes per point)
       s.nodes.push_back(upper[s.root]);
       s.max_depth = s.depth;
       bulk(c, items, s.nodes, local_scratch, 0, s.depth, s.b, s.e, s.max_depth,
