@@ -343,7 +343,8 @@ struct OctreeBuilder {
     const OctreeConfig& c = t.config_;
     const std::size_t n = items.size();
     const std::size_t cut_size = std::max<std::size_t>(n / 64, 256);
-    Nodes upper(1);
+    Nodes upper(1);  // NodeRec{}: all zero
+    upper[0].key = 1;
     std::vector<Subtree> subs;
     LayeredScratch scratch;
     unsigned max_depth = 0;
@@ -409,7 +410,7 @@ struct OctreeBuilder {
     };
     assign(assign, 0);
     if (next >= 0xFFFFFFFFull) throw std::length_error("octree: more than 2^32 - 2 nodes");
-    t.nodes_.resize(next);
+    t.nodes_.resize(next);  // uninitialised: every record is written below
     // A subtree's local node j >= 1 becomes base + j - 1; its local root is the upper node.
     auto renumber = [](Octree::NodeRec rec, std::size_t base) {
       if (rec.child_count) rec.first_child = static_cast<Octree::Node>(base + rec.first_child - 1);
@@ -495,7 +496,7 @@ struct OctreeBuilder {
     if (nchild) {
       const auto first = static_cast<Octree::Node>(t.nodes_.size());
       const std::uint64_t key = t.nodes_[n].key;
-      t.nodes_.resize(t.nodes_.size() + nchild);
+      t.nodes_.resize(t.nodes_.size() + nchild, Octree::NodeRec{});
       t.nodes_[n].first_child = first;
       t.nodes_[n].child_count = static_cast<std::uint8_t>(nchild);
       unsigned k = 0;
@@ -532,7 +533,9 @@ Octree Octree::build_by_insertion(std::span<const Vec3> positions, const OctreeC
     ins.insert(0, 0, static_cast<std::uint32_t>(i));
   t.pos_.reserve(positions.size());
   t.ids_.reserve(positions.size());
-  t.nodes_.emplace_back();
+  Octree::NodeRec root{};
+  root.key = 1;
+  t.nodes_.push_back(root);
   OctreeBuilder::compact(t, positions, ins, 0, 0, 0);
   t.nodes_.shrink_to_fit();
   return t;

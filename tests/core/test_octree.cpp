@@ -8,6 +8,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
+#include <cmath>
+#include <limits>
 #include <numeric>
 #include <random>
 
@@ -116,6 +119,27 @@ void check_invariants(const Octree& t, std::span<const Vec3> pts, const OctreeCo
     }
   }
   EXPECT_EQ(visited, t.node_count());
+}
+
+TEST(OctreeRules, FloatBoundIsTheNextFloatOutwardsOfTheRoundedOffset) {
+  // The oracle: std::nextafter of the offset rounded to float, towards +inf (up) or -inf (down);
+  // 0 stays 0. Offsets of every magnitude and sign, ones that round to 0, to FLT_MAX and past it.
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> mant(-1.0, 1.0);
+  std::uniform_int_distribution<int> exp2(-160, 140);
+  std::vector<double> offs = {0.0, -0.0, 1.0, -1.0, 1e-50, -1e-50, 0x1p-149, -0x1p-149, 0x1p-126,
+                              double(std::numeric_limits<float>::max()), -double(std::numeric_limits<float>::max()),
+                              1e39, -1e39};
+  for (int i = 0; i < 100000; ++i) offs.push_back(std::ldexp(mant(rng), exp2(rng)));
+  for (const double off : offs)
+    for (const bool up : {false, true}) {
+      const float f = static_cast<float>(off);
+      const float want = off == 0.0 ? 0.0f
+                                    : std::nextafter(f, up ? std::numeric_limits<float>::infinity()
+                                                           : -std::numeric_limits<float>::infinity());
+      const float got = OctreeRules::float_bound(off, up);
+      ASSERT_EQ(std::bit_cast<std::uint32_t>(got), std::bit_cast<std::uint32_t>(want)) << off << " up " << up;
+    }
 }
 
 TEST(Octree, InsertionAndBulkBuildIdenticalTrees) {

@@ -172,14 +172,16 @@ class Octree {
   Octree& operator=(const Octree&) = delete;
   ~Octree();
 
-  /// Node record (public for the builders in octree.cpp; not part of the API contract).
+  /// Node record (public for the builders in octree.cpp; not part of the API contract). No
+  /// member initialisers: default-initialised records (nodes_.resize) are left for the builders
+  /// to write, and `NodeRec{}` is all zero (then a root needs key 1).
   struct NodeRec {
-    glm::vec3 lo{0.0f}, hi{0.0f};  ///< bounds of the subtree's points relative to root_cell().lo,
-                                   ///< rounded outwards to float
-    std::uint64_t key = 1;         ///< Warren & Salmon id bits
-    std::uint32_t first_child = 0;
-    std::uint32_t own_begin = 0, own_end = 0;
-    std::uint8_t child_count = 0;
+    glm::vec3 lo, hi;  ///< bounds of the subtree's points relative to root_cell().lo, rounded
+                       ///< outwards to float
+    std::uint64_t key;  ///< Warren & Salmon id bits (the root: 1)
+    std::uint32_t first_child;
+    std::uint32_t own_begin, own_end;
+    std::uint8_t child_count;
   };
   static_assert(sizeof(NodeRec) % sizeof(float) == 0);
 
