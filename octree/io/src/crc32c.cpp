@@ -50,24 +50,6 @@ std::uint32_t update_portable(std::uint32_t c, const unsigned char* p, std::size
   return c;
 }
 
-#ifdef RAYSCAN_CRC32C_X86
-// Three independent streams over thirds of each 24 KiB block hide the instruction's 3-cycle
-// latency; the partial CRCs are combined by shifting through zero bytes with the table method
-// (crc(A || B) = shift(crc(A), |B|) xor crc(B) for the raw, non-inverted register).
-__attribute__((target("sse4.2"))) std::uint32_t update_hw_1(std::uint32_t c, const unsigned char* p, std::size_t n) {
-  std::uint64_t c64 = c;
-  while (n >= 8) {
-    std::uint64_t v;
-    std::memcpy(&v, p, 8);
-    c64 = _mm_crc32_u64(c64, v);
-    p += 8;
-    n -= 8;
-  }
-  c = static_cast<std::uint32_t>(c64);
-  while (n-- > 0) c = _mm_crc32_u8(c, *p++);
-  return c;
-}
-
 /// x^(8 len) mod P applied to a raw register: the CRC register after `len` zero bytes.
 /// Computed with a 32x32 GF(2) matrix squared log(len) times (zlib's crc32_combine method).
 std::uint32_t gf2_times(const std::array<std::uint32_t, 32>& m, std::uint32_t v) {
@@ -98,6 +80,24 @@ std::array<std::uint32_t, 32> zeros_operator(std::size_t bytes) {
     sq = gf2_square(sq);
   }
   return op;
+}
+
+#ifdef RAYSCAN_CRC32C_X86
+// Three independent streams over thirds of each 24 KiB block hide the instruction's 3-cycle
+// latency; the partial CRCs are combined by shifting through zero bytes with the table method
+// (crc(A || B) = shift(crc(A), |B|) xor crc(B) for the raw, non-inverted register).
+__attribute__((target("sse4.2"))) std::uint32_t update_hw_1(std::uint32_t c, const unsigned char* p, std::size_t n) {
+  std::uint64_t c64 = c;
+  while (n >= 8) {
+    std::uint64_t v;
+    std::memcpy(&v, p, 8);
+    c64 = _mm_crc32_u64(c64, v);
+    p += 8;
+    n -= 8;
+  }
+  c = static_cast<std::uint32_t>(c64);
+  while (n-- > 0) c = _mm_crc32_u8(c, *p++);
+  return c;
 }
 
 constexpr std::size_t kLane = 8192;  // bytes per stream per block
@@ -152,6 +152,13 @@ std::uint32_t crc32c(const void* data, std::size_t n, std::uint32_t crc) {
   if (crc32c_is_hardware()) return ~update_hw(~crc, p, n);
 #endif
   return ~update_portable(~crc, p, n);
+}
+
+std::uint32_t crc32c_combine(std::uint32_t crc_a, std::uint32_t crc_b, std::size_t len_b) {
+  // crc(A || B) = shift(crc(A), |B|) xor crc(B): the inversions at both ends cancel (zlib's
+  // crc32_combine); the operator for the common 4 KiB page is computed once.
+  static const std::array<std::uint32_t, 32> page = zeros_operator(4096);
+  return (len_b == 4096 ? gf2_times(page, crc_a) : gf2_times(zeros_operator(len_b), crc_a)) ^ crc_b;
 }
 
 }  // namespace rayscan::io

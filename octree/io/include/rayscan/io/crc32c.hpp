@@ -17,6 +17,11 @@ namespace rayscan::io {
 /// The portable table implementation of crc32c() (same result; exposed for tests).
 [[nodiscard]] std::uint32_t crc32c_portable(const void* data, std::size_t n, std::uint32_t crc = 0);
 
+/// crc32c(A || B) from crc32c(A), crc32c(B) and |B| bytes, without the bytes (zlib's
+/// crc32_combine method: a GF(2) matrix for "append |B| zero bytes", applied to crc(A)). Lets
+/// pieces of a stream that become final out of order be checksummed as they do.
+[[nodiscard]] std::uint32_t crc32c_combine(std::uint32_t crc_a, std::uint32_t crc_b, std::size_t len_b);
+
 /// True when crc32c() uses the SSE4.2 instruction on this CPU.
 [[nodiscard]] bool crc32c_is_hardware();
 
