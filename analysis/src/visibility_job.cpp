@@ -123,7 +123,9 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   std::optional<io::MappedIndex> mapped;
   if (o.cloud) r.cloud = *o.cloud;
   else if (io::is_index_file(o.cloud_file)) {
-    mapped.emplace(io::MappedIndex::open(o.cloud_file));
+    io::IndexOpenOptions oo;
+    oo.read_ahead = true;  // every point is read and many queried: read the file ahead
+    mapped.emplace(io::MappedIndex::open(o.cloud_file, oo));
     r.cloud = mapped->to_point_cloud();
   } else {
     r.cloud = io::read_point_cloud(o.cloud_file, {}, &r.info);

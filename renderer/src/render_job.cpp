@@ -215,7 +215,9 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
     return P;
   }
   if (!o.cloud && io::is_index_file(scene.cloud)) {
-    mapped.emplace(io::MappedIndex::open(scene.cloud));
+    io::IndexOpenOptions oo;
+    oo.read_ahead = true;  // a render touches most of the file: read it ahead, nodes first
+    mapped.emplace(io::MappedIndex::open(scene.cloud, oo));
     if (mapped->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
     if (surfel) owned = mapped->to_point_cloud();  // disc centres and estimate by original index
   } else if (!o.cloud) {

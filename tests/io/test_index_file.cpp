@@ -488,6 +488,42 @@ TEST(IndexFileBuild, GrowingNodeSectionAndReleasedMapsGiveTheBuildBulkTree) {
   fs::remove_all(dir);
 }
 
+// A build in several runs builds the nodes during the merge when the read pass's points per cell
+// decide the upper tree (uniform points), and from the written positions when they cannot (a
+// dense cluster inside one cell, far outliers stretching the root cell): both give build_bulk's
+// tree (the oracle), ids included, and a verified nodes section (its CRC is combined from pages
+// written out of order, checked against the bytes at open).
+TEST(IndexFileBuild, NodesBuiltInTheMergeOrAfterItGiveTheBuildBulkTree) {
+  const fs::path dir = temp_dir() / "fused_nodes";
+  fs::create_directories(dir);
+  std::mt19937_64 rng(8);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Vec3> uniform(200000), cluster;
+  for (Vec3& q : uniform) q = Vec3(u(rng), u(rng), u(rng));
+  cluster.push_back(Vec3(0.0));
+  for (int i = 0; i < 200000; ++i) cluster.push_back(Vec3(0.5) + 1e-4 * Vec3(u(rng), u(rng), u(rng)));
+  cluster.push_back(Vec3(1.0));
+  for (const bool fused : {true, false}) {
+    SCOPED_TRACE(fused ? "uniform: nodes in the merge" : "cluster: nodes after the merge");
+    const std::vector<Vec3>& pts = fused ? uniform : cluster;
+    write_f64(dir / "c.f64", pts);
+    const Octree t = Octree::build_bulk(pts, OctreeConfig{});
+    io::IndexBuildOptions o;
+    o.attributes = io::AttributeSet::parse("id");
+    o.memory_bytes = 4 << 20;
+    const auto st = io::build_index_file({dir / "c.f64"}, dir / "c.rsi", o);
+    EXPECT_GT(st.runs, 1u);
+    EXPECT_EQ(st.nodes_in_merge, fused);
+    const io::MappedIndex m = io::MappedIndex::open(dir / "c.rsi");
+    EXPECT_TRUE(m.verified());
+    expect_same_tree(m, t);
+    io::IndexOpenOptions ra;  // the background read ahead of a render changes no answer
+    ra.read_ahead = true;
+    expect_same_tree(io::MappedIndex::open(dir / "c.rsi", ra), t);
+  }
+  fs::remove_all(dir);
+}
+
 // A build in several runs takes the Morton grid from the LAS header's bounds (no bounds pass) and
 // checks it against the points: a header whose max x lies (LAS 1.2 header byte 179) is detected
 // and the read pass repeated on the exact grid, so the tree is still build_bulk's (the oracle:
@@ -988,6 +1024,25 @@ TEST(IndexFileCrc32c, CheckValueAndHardwareEqualsPortable) {
       const std::size_t cut = len / 3;
       EXPECT_EQ(io::crc32c(buf.data() + off + cut, len - cut, io::crc32c(buf.data() + off, cut)), want) << len;
     }
+}
+
+// crc32c_combine: the CRC of a concatenation from the pieces' CRCs (4 KiB pages, whose operator
+// is cached, and other lengths, 0 included), against crc32c over the whole bytes.
+TEST(IndexFileCrc32c, CombineEqualsTheCrcOfTheConcatenation) {
+  std::mt19937_64 rng(11);
+  std::vector<std::uint8_t> buf(5 * 4096 + 777);
+  for (auto& c : buf) c = static_cast<std::uint8_t>(rng());
+  std::uint32_t pages = 0;
+  for (std::size_t b = 0; b < buf.size(); b += 4096) {
+    const std::size_t len = std::min<std::size_t>(4096, buf.size() - b);
+    pages = b == 0 ? io::crc32c(buf.data(), len) : io::crc32c_combine(pages, io::crc32c(buf.data() + b, len), len);
+  }
+  EXPECT_EQ(pages, io::crc32c(buf.data(), buf.size()));
+  for (std::size_t cut : {std::size_t{0}, std::size_t{1}, std::size_t{4095}, std::size_t{4096}, std::size_t{9000}}) {
+    const std::uint32_t a = io::crc32c(buf.data(), cut), b = io::crc32c(buf.data() + cut, buf.size() - cut);
+    EXPECT_EQ(io::crc32c_combine(a, b, buf.size() - cut), io::crc32c(buf.data(), buf.size())) << cut;
+  }
+  EXPECT_EQ(io::crc32c_combine(io::crc32c(buf.data(), 100), 0, 0), io::crc32c(buf.data(), 100));
 }
 
 // Large files are opened without the deep checks (O(header) open); then the node accessors

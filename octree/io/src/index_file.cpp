@@ -17,14 +17,21 @@
 #include <tbb/parallel_pipeline.h>
 #include <tbb/parallel_reduce.h>
 #include <tbb/task_arena.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <thread>
+#include <unordered_map>
+#include <unordered_set>
 #include <cerrno>
 #include <cmath>
 #include <cstddef>
 #include <cstring>
+#include <fstream>
 #include <functional>
 #include <future>
 #include <limits>
@@ -188,15 +195,132 @@ class Fd {
 constexpr std::size_t kDirectAlign = 4096;
 constexpr std::size_t round_up_direct(std::size_t n) { return (n + kDirectAlign - 1) / kDirectAlign * kDirectAlign; }
 
-/// Sequential buffered writer into one region of a file, with a running CRC-32.
+/// Writes page-aligned buffers to O_DIRECT descriptors on a thread of its own, so that the
+/// builder's in-order sink never waits for the disk: a fixed pool of buffers (page-aligned,
+/// kDirectAlign multiples) is acquired, filled, submitted and recycled after its write. Errors
+/// (a full disk) are kept and rethrown by the next acquire/submit/drain.
+class DirectWriter {
+ public:
+  DirectWriter(std::size_t buffers, std::size_t bytes) : bytes_(bytes) {
+    for (std::size_t i = 0; i < buffers; ++i) {
+      pool_.emplace_back(bytes);
+      free_.push_back(pool_.back().data());
+    }
+    thread_ = std::thread([this] { run(); });
+  }
+  DirectWriter(const DirectWriter&) = delete;
+  DirectWriter& operator=(const DirectWriter&) = delete;
+  ~DirectWriter() {
+    {
+      std::lock_guard<std::mutex> lk(m_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+  [[nodiscard]] std::size_t buffer_bytes() const { return bytes_; }
+  /// A free buffer of buffer_bytes() (waits for a write to end when all are in use).
+  std::uint8_t* acquire() {
+    std::unique_lock<std::mutex> lk(m_);
+    cv_.wait(lk, [&] { return !free_.empty() || error_; });
+    rethrow();
+    std::uint8_t* b = free_.back();
+    free_.pop_back();
+    return b;
+  }
+  /// Queues the write of buf[0, len) at byte `off` of `fd` (len and off multiples of
+  /// kDirectAlign); buf returns to the pool after it.
+  void submit(Fd& fd, std::uint8_t* buf, std::size_t len, std::uint64_t off) {
+    {
+      std::lock_guard<std::mutex> lk(m_);
+      rethrow();
+      jobs_.push_back({&fd, buf, len, off});
+    }
+    cv_.notify_all();
+  }
+  /// Waits until every submitted write has ended; rethrows the first error.
+  void drain() {
+    std::unique_lock<std::mutex> lk(m_);
+    cv_.wait(lk, [&] { return (jobs_.empty() && busy_ == 0) || error_; });
+    rethrow();
+  }
+
+ private:
+  struct Job {
+    Fd* fd;
+    std::uint8_t* buf;
+    std::size_t len;
+    std::uint64_t off;
+  };
+  void rethrow() {
+    if (error_) std::rethrow_exception(error_);
+  }
+  void run() {
+    std::unique_lock<std::mutex> lk(m_);
+    for (;;) {
+      cv_.wait(lk, [&] { return stop_ || !jobs_.empty(); });
+      if (jobs_.empty()) return;  // (stop_)
+      const Job j = jobs_.front();
+      jobs_.pop_front();
+      ++busy_;
+      lk.unlock();
+      std::exception_ptr e;
+      try {
+        j.fd->pwrite_all(j.buf, j.len, j.off);
+      } catch (...) {
+        e = std::current_exception();
+      }
+      lk.lock();
+      --busy_;
+      if (e && !error_) error_ = e;
+      free_.push_back(j.buf);
+      cv_.notify_all();
+    }
+  }
+  std::size_t bytes_;
+  std::deque<HugeArray<std::uint8_t>> pool_;
+  std::vector<std::uint8_t*> free_;
+  std::deque<Job> jobs_;
+  std::size_t busy_ = 0;
+  bool stop_ = false;
+  std::exception_ptr error_;
+  std::mutex m_;
+  std::condition_variable cv_;
+  std::thread thread_;
+};
+
+/// Sequential writer into one region of a file, with a running CRC-32C of the bytes written.
+/// With a DirectWriter (and an O_DIRECT descriptor; the region's offset a multiple of
+/// kDirectAlign) the bytes go through its page-aligned buffers past the page cache, written in
+/// the background; the last page is padded with zeros past the region's end (flush), which must
+/// be free file space (sections are kAlign-aligned). Why: on a VM whose balloon reports free
+/// memory to the host, each fresh page-cache page is a host fault on first touch, and buffered
+/// writes of the output cost ~1.5 s of CPU per GB against ~0.1 s direct (bench/README.md,
+/// "Issue 10, session 23").
 class SectionWriter {
  public:
-  SectionWriter(Fd& fd, std::uint64_t offset, std::size_t buffer_bytes)
+  SectionWriter(Fd& fd, std::uint64_t offset, std::size_t buffer_bytes, DirectWriter* direct = nullptr)
       : fd_(&fd), off_(offset) {
-    buf_.reserve(buffer_bytes);
+    if (direct != nullptr && fd.is_direct()) {
+      if (offset % kDirectAlign != 0) throw std::logic_error("index build: a direct section off its alignment");
+      dw_ = direct;
+    } else {
+      buf_.reserve(buffer_bytes);
+    }
   }
   void write(const void* p, std::size_t n) {
     const auto* b = static_cast<const std::uint8_t*>(p);
+    if (dw_ != nullptr) {
+      crc_ = crc32_of(b, n, crc_);
+      while (n > 0) {
+        if (cur_ == nullptr) cur_ = dw_->acquire(), fill_ = 0;
+        const std::size_t take = std::min(n, dw_->buffer_bytes() - fill_);
+        std::memcpy(cur_ + fill_, b, take);
+        fill_ += take, b += take, n -= take;
+        if (fill_ == dw_->buffer_bytes()) submit(fill_);
+      }
+      return;
+    }
     if (buf_.size() + n > buf_.capacity()) flush();
     if (n >= buf_.capacity()) {
       emit(b, n);
@@ -204,7 +328,18 @@ class SectionWriter {
     }
     buf_.insert(buf_.end(), b, b + n);
   }
+  /// Writes what is buffered. Direct: only at the end of the section (the last page padded;
+  /// the write may still run: DirectWriter::drain).
   void flush() {
+    if (dw_ != nullptr) {
+      if (cur_ != nullptr && fill_ > 0) {
+        const std::size_t len = round_up_direct(fill_), real = fill_;
+        std::memset(cur_ + fill_, 0, len - fill_);
+        submit(len);
+        written_ -= len - real;
+      }
+      return;
+    }
     if (!buf_.empty()) emit(buf_.data(), buf_.size());
     buf_.clear();
   }
@@ -217,11 +352,20 @@ class SectionWriter {
     crc_ = crc32_of(p, n, crc_);
     written_ += n;
   }
+  void submit(std::size_t len) {
+    dw_->submit(*fd_, cur_, len, off_ + written_);
+    written_ += len;
+    cur_ = nullptr;
+    fill_ = 0;
+  }
   Fd* fd_;
   std::uint64_t off_;
   std::uint64_t written_ = 0;
   std::uint32_t crc_ = 0;
   std::vector<std::uint8_t> buf_;
+  DirectWriter* dw_ = nullptr;   // direct mode: the background writer
+  std::uint8_t* cur_ = nullptr;  // ... its buffer being filled, to fill_
+  std::size_t fill_ = 0;
 };
 
 struct SectionEntry {
@@ -787,11 +931,15 @@ void for_blocks(std::size_t n, Fn&& fn) {
 /// serial_in_order last stage ends item i before item i + kPipelineSlots starts, so a caller's
 /// buffer i % kPipelineSlots is never in use by two items).
 constexpr std::size_t kPipelineSlots = 4;
+/// The merge's items in flight (ordered_pipeline's `slots`): more than kPipelineSlots, so the
+/// parts' merge runs on while the in-order sink builds a subtree of the fused node build
+/// (NodeBuilder::feed; ~1 MB of records per slot).
+constexpr std::size_t kMergeSlots = 16;
 template <class Work, class Sink>
-void ordered_pipeline(std::size_t n, const Work& work, const Sink& sink) {
+void ordered_pipeline(std::size_t n, const Work& work, const Sink& sink, std::size_t slots = kPipelineSlots) {
   std::size_t next = 0;
   tbb::parallel_pipeline(
-      kPipelineSlots,
+      slots,
       tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
                                           [&](tbb::flow_control& fc) -> std::size_t {
                                             if (next == n) {
@@ -882,20 +1030,101 @@ struct ReadMap {
   }
 };
 
-/// The nodes section of the temporary output, written with pwrite (docs/index-format.md,
-/// "Nodes"): runs of consecutive records and single records, in any order, each final when
-/// written. Buffered writes of whole pages need no read of the page first, where a shared map
-/// of the preallocated section had the kernel zero every page it faulted in (22% of the node
-/// phase, bench/README.md); a full disk is an error from pwrite (Fd::pwrite_all).
+/// The nodes section of the temporary output (docs/index-format.md, "Nodes"): records written
+/// in any order, each final when written. The builders write most of them in increasing order
+/// (a subtree's descendants as one block at the next free numbers) and the rest into blocks they
+/// reserved before (reserve: an upper node's children, numbered before the subtrees below them,
+/// and the root).
+///
+/// On an O_DIRECT descriptor (the file system allows it) whole pages bypass the page cache: a
+/// staging buffer holds the pages from the first one not yet written; a page leaves it when the
+/// in-order writes pass it, written at once if every record of it is in, else kept aside
+/// (pinned) until its reserved records are (bench/README.md, "Issue 10, session 23": buffered
+/// writes into fresh page cache cost ~1.5 s of CPU per GB on this VM). Each page's CRC is kept
+/// and combined in order at the end (crc32c_combine), so nothing is read back. Otherwise the
+/// records are written with pwrite (whole pages need no read of the page first) and read back
+/// for the CRC. A full disk is an error from pwrite (Fd::pwrite_all).
 class NodeFile {
  public:
-  NodeFile(Fd& fd, std::uint64_t offset) : fd_(fd), off_(offset) {}
-  /// Writes records [first, first + n) from `recs`.
-  void write(std::size_t first, const IndexNodeRecord* recs, std::size_t n) {
-    if (n > 0) fd_.pwrite_all(recs, n * kNodeBytes, off_ + first * kNodeBytes);
+  /// `direct`: an O_DIRECT descriptor of the same file, or null / not direct: buffered writes.
+  NodeFile(Fd& fd, Fd* direct, DirectWriter* writer, std::uint64_t offset) : fd_(fd), off_(offset) {
+    if (direct != nullptr && writer != nullptr && direct->is_direct() && offset % kDirectAlign == 0) {
+      dfd_ = direct;
+      dw_ = writer;
+      stage_ = HugeArray<std::uint8_t>(kStagePages * kDirectAlign);
+    }
   }
-  /// CRC-32C of records [0, n), read back in 8 MiB steps.
+  /// Records [first, first + n) will be written later, after records above them (direct mode
+  /// keeps their pages until then). Must be called at the in-order frontier (first = every
+  /// record written or reserved so far).
+  void reserve(std::size_t first, std::size_t n) {
+    if (dfd_ == nullptr || n == 0) return;
+    if (first != frontier_) throw std::logic_error("index build: node records reserved off the frontier");
+    for (std::size_t r = first; r < first + n; ++r) {
+      reserved_.insert(r);
+      ++pending_[r / kPerPage];
+    }
+    frontier_ = first + n;
+  }
+  /// Writes records [first, first + n) from `recs`: a block at the frontier, or reserved records.
+  void write(std::size_t first, const IndexNodeRecord* recs, std::size_t n) {
+    if (n == 0) return;
+    if (dfd_ == nullptr) {
+      fd_.pwrite_all(recs, n * kNodeBytes, off_ + first * kNodeBytes);
+      return;
+    }
+    if (first >= frontier_) {  // in order: advance the stage past the pages below `first`
+      if (first != frontier_) throw std::logic_error("index build: a gap in the node records");
+      const auto* b = reinterpret_cast<const std::uint8_t*>(recs);
+      std::size_t r = first, left = n;
+      while (left > 0) {
+        while (r / kPerPage >= stage_page_ + kStagePages) advance(stage_page_ + kStagePages);
+        const std::size_t room = (stage_page_ + kStagePages) * kPerPage - r, take = std::min(left, room);
+        std::memcpy(stage_.data() + (r - stage_page_ * kPerPage) * kNodeBytes, b, take * kNodeBytes);
+        b += take * kNodeBytes, r += take, left -= take;
+        frontier_ = r;  // (the pages advance() writes hold records below it only)
+      }
+      return;
+    }
+    for (std::size_t i = 0; i < n; ++i) {  // reserved records
+      const std::size_t r = first + i, page = r / kPerPage;
+      if (reserved_.erase(r) != 1) throw std::logic_error("index build: node record " + std::to_string(r) + " written twice");
+      std::uint8_t* dst;
+      if (page >= stage_page_) {
+        dst = stage_.data() + (r - stage_page_ * kPerPage) * kNodeBytes;
+      } else {
+        auto it = pinned_.find(page);
+        if (it == pinned_.end()) throw std::logic_error("index build: a node page written before its records");
+        dst = it->second->data() + (r % kPerPage) * kNodeBytes;
+      }
+      std::memcpy(dst, recs + i, kNodeBytes);
+      if (--pending_[page] == 0) {
+        pending_.erase(page);
+        if (page < stage_page_) {  // the last record of a pinned page: write it
+          auto it = pinned_.find(page);
+          write_pages(page, it->second->data(), 1);
+          pinned_.erase(it);
+        }
+      }
+    }
+  }
+  /// Ends the section of `n` records and returns its CRC-32C (direct: every page written; each
+  /// page's CRC combined in order; buffered: read back in 8 MiB steps).
   std::uint32_t crc(std::size_t n) {
+    if (dfd_ != nullptr) {
+      if (!reserved_.empty() || frontier_ != n) throw std::logic_error("index build: node records missing");
+      const std::size_t bytes = n * kNodeBytes, pages = (bytes + kDirectAlign - 1) / kDirectAlign;
+      if (bytes % kDirectAlign != 0)  // the last page's padding (the file is cut at the section's end)
+        std::memset(stage_.data() + (bytes - stage_page_ * kDirectAlign), 0, kDirectAlign - bytes % kDirectAlign);
+      advance(std::max(pages, stage_page_));
+      if (!pinned_.empty()) throw std::logic_error("index build: pinned node pages left");
+      std::uint32_t c = 0;
+      for (std::size_t p = 0; p < pages; ++p) {
+        const std::size_t len = std::min(kDirectAlign, bytes - p * kDirectAlign);
+        c = p == 0 ? page_crc_[0] : crc32c_combine(c, page_crc_[p], len);
+      }
+      return c;
+    }
     std::uint32_t c = 0;
     const std::size_t total = n * kNodeBytes, step = std::size_t{8} << 20;
     std::vector<std::uint8_t> buf(std::min(total, step));
@@ -908,8 +1137,67 @@ class NodeFile {
   }
 
  private:
+  static constexpr std::size_t kPerPage = kDirectAlign / kNodeBytes;  // records per page
+  static constexpr std::size_t kStagePages = 1024;                    // 4 MiB staged
+  struct alignas(kDirectAlign) Page : std::array<std::uint8_t, kDirectAlign> {};
+
+  /// Moves the stage's start to page `to`: every page below it leaves (written, or pinned while
+  /// reserved records of it are missing); the stage's pages from `to` on move down.
+  void advance(std::size_t to) {
+    const std::size_t end = std::min(to, stage_page_ + kStagePages);
+    std::size_t p = stage_page_;
+    while (p < end) {
+      if (pending_.count(p) != 0) {  // pinned until its reserved records are in
+        auto pg = std::make_unique<Page>();
+        std::memcpy(pg->data(), stage_.data() + (p - stage_page_) * kDirectAlign, kDirectAlign);
+        pinned_.emplace(p, std::move(pg));
+        ++p;
+        continue;
+      }
+      std::size_t q = p + 1;  // a run of complete pages: one write
+      while (q < end && pending_.count(q) == 0) ++q;
+      write_pages(p, stage_.data() + (p - stage_page_) * kDirectAlign, q - p);
+      p = q;
+    }
+    // The pages from `to` on move down (the in-order writes advance by whole stages, crc() to the
+    // end: none move in practice). The rest of the stage keeps stale bytes: every record is
+    // written before its page leaves, and crc() zeroes the last page's padding.
+    const std::size_t keep = stage_page_ + kStagePages > to ? stage_page_ + kStagePages - to : 0;
+    if (keep > 0 && to > stage_page_)
+      std::memmove(stage_.data(), stage_.data() + (to - stage_page_) * kDirectAlign, keep * kDirectAlign);
+    stage_page_ = to;
+  }
+  /// Writes `count` whole pages from page `first` on (direct), keeping their CRCs (of the bytes
+  /// the section holds: the last page's may be cut later by crc()'s length, which combines the
+  /// CRC of its records only: see below).
+  void write_pages(std::size_t first, const std::uint8_t* data, std::size_t count) {
+    const std::size_t per = dw_->buffer_bytes() / kDirectAlign;  // pages per background write
+    for (std::size_t k = 0; k < count; k += per) {
+      const std::size_t m = std::min(per, count - k);
+      std::uint8_t* buf = dw_->acquire();
+      std::memcpy(buf, data + k * kDirectAlign, m * kDirectAlign);
+      dw_->submit(*dfd_, buf, m * kDirectAlign, off_ + (first + k) * kDirectAlign);
+    }
+    if (page_crc_.size() < first + count) page_crc_.resize(first + count);
+    for (std::size_t k = 0; k < count; ++k) {
+      // Only records below the frontier are section bytes: the final page's tail is padding.
+      const std::size_t page = first + k, rec0 = page * kPerPage;
+      const std::size_t recs = frontier_ > rec0 ? std::min(kPerPage, frontier_ - rec0) : 0;
+      page_crc_[page] = crc32_of(data + k * kDirectAlign, recs * kNodeBytes);
+    }
+  }
+
   Fd& fd_;
   std::uint64_t off_;  ///< file offset of record 0 (page-aligned: kAlign)
+  Fd* dfd_ = nullptr;  ///< direct mode: the O_DIRECT descriptor
+  DirectWriter* dw_ = nullptr;  ///< ... and the background writer of its pages
+  HugeArray<std::uint8_t> stage_;
+  std::size_t stage_page_ = 0;  ///< the page stage_[0] holds
+  std::size_t frontier_ = 0;    ///< records [0, frontier_) are written or reserved
+  std::unordered_set<std::size_t> reserved_;
+  std::unordered_map<std::size_t, std::uint32_t> pending_;  ///< page -> reserved records not yet in
+  std::unordered_map<std::size_t, std::unique_ptr<Page>> pinned_;
+  std::vector<std::uint32_t> page_crc_;
 };
 
 /// Node construction over the Morton-sorted codes and positions, following Octree::build_bulk
@@ -931,7 +1219,9 @@ class NodeFile {
 /// `ahead(b, e)` is called (from any thread) before a subtree reads points [b, e), `release(e)`
 /// in order after the subtree that ends at e, so the caller maps its windows ahead and drops the
 /// pages behind; the subtrees in flight hold at most kPipelineSlots x `every` points. Call
-/// plan() then build().
+/// plan() then build(); or, fused into the merge (docs/index-format.md, "Build" 4), plan_counts()
+/// from the read pass's points per cell, then begin_feed(), feed() with the merged positions in
+/// order and end_feed(). Both write the same records (NodeFile), numbered alike.
 struct NodeBuilder {
   const OctreeConfig& cfg;
   const std::uint64_t* codes;  ///< the sorted codes, or null: computed from `pos` on `qz`
@@ -970,11 +1260,27 @@ struct NodeBuilder {
     if (drop) drop();
   }
 
-  /// Steps 2 and 3 (after plan()).
+  /// Step 1 from the points per cell of depth `D` (the fused build: no positions needed):
+  /// `prefix[c]` = the points in the cells before cell c in Morton order, prefix.size() = 8^D + 1.
+  /// The same plan as plan() over the sorted codes, as long as every node it makes an upper node
+  /// lies above depth D and holds points of two cells or more (so its codes differ and its
+  /// children's ranges are sums of cells); otherwise returns false and plans nothing (the caller
+  /// then calls plan() on the written positions).
+  bool plan_counts(std::span<const std::uint64_t> prefix, unsigned D) {
+    if (prefix.size() != (std::size_t{1} << (3 * D)) + 1) throw std::logic_error("index build: a cell histogram of the wrong size");
+    if (prefix.back() == 0) return true;
+    bool ok = true;
+    (void)plan_cells(prefix, D, 0, 0, 0, prefix.back(), ok);
+    if (!ok) uppers_.clear(), tasks_.clear(), events_.clear();
+    return ok;
+  }
+
+  /// Steps 2 and 3 (after plan()): the subtrees in parallel from the positions view `pos`.
   void build() {
     if (tasks_.empty()) return;
-    count = 1;  // the root is node 0
-    std::size_t next_event = 0;
+    out.reserve(0, 1);  // the root is node 0
+    count = 1;
+    next_event_ = 0;
     std::array<Subtree, kPipelineSlots> slots;
     ordered_pipeline(
         tasks_.size(),
@@ -982,64 +1288,76 @@ struct NodeBuilder {
           const Task& t = tasks_[j];
           if (ahead) ahead(t.b, t.e);
           Subtree& st = slots[j % kPipelineSlots];
-          st.recs.assign(1, IndexNodeRecord{});
-          st.depth = 0;
-          st.levels.fill(0);
           // The subtree's positions decoded once (its codes, then its leaves' bounds).
           st.pos.resize(t.e - t.b);
           pos.decode(t.b, t.e - t.b, st.pos.data());
-          if (codes != nullptr) {
-            st.box = visit(st, CodeView{codes, 0}, t.b, 0, t.key, t.d, t.b, t.e);
-          } else {
-            st.codes.resize(t.e - t.b);
-            for (std::size_t i = 0; i < st.pos.size(); ++i) st.codes[i] = qz.code(st.pos[i]);
-            st.box = visit(st, CodeView{st.codes.data(), t.b}, t.b, 0, t.key, t.d, t.b, t.e);
-          }
+          make_subtree(t, st);
         },
-        [&](std::size_t j) {
-          // The upper nodes visited before subtree j number their children's blocks now.
-          for (; next_event < events_.size() && events_[next_event].upper; ++next_event) number_children(events_[next_event].idx);
-          if (next_event == events_.size() || events_[next_event].idx != j)
-            throw std::logic_error("index build: node plan out of order");
-          ++next_event;
-          Task& t = tasks_[j];
-          Subtree& st = slots[j % kPipelineSlots];
-          const std::size_t base = count;  // descendant k (k >= 1) becomes node base + k - 1
-          count += st.recs.size() - 1;
-          if (count > std::numeric_limits<std::uint32_t>::max()) throw std::runtime_error("index build: too many nodes");
-          for (IndexNodeRecord& r : st.recs)
-            if (r.internal()) r.first = static_cast<std::uint32_t>(base + r.first - 1);
-          out.write(t.n, st.recs.data(), 1);
-          out.write(base, st.recs.data() + 1, st.recs.size() - 1);
-          t.box = st.box;
-          depth = std::max(depth, st.depth);
-          for (unsigned d = 0; d < kLevels; ++d) levels[d] += st.levels[d];
-          if (release) release(t.e);
-          if (progress) progress("nodes", t.e, total);
-        });
-    for (; next_event < events_.size(); ++next_event)
-      if (events_[next_event].upper) number_children(events_[next_event].idx);
-    // The upper nodes' records, children before parents (the plan lists them in preorder).
-    for (std::size_t u = uppers_.size(); u-- > 0;) {
-      Upper& up = uppers_[u];
-      const float inf = std::numeric_limits<float>::infinity();
-      Bounds box{glm::vec3(inf), glm::vec3(-inf)};
-      for (unsigned k = 0; k < up.nchild; ++k) {
-        const Bounds& c = up.child[k].upper ? uppers_[up.child[k].idx].box : tasks_[up.child[k].idx].box;
-        box.lo = glm::min(box.lo, c.lo);
-        box.hi = glm::max(box.hi, c.hi);
-      }
-      up.box = box;
-      depth = std::max(depth, up.d);
-      IndexNodeRecord r;
-      r.lo = box.lo;
-      r.hi = box.hi;
-      r.first = up.first;
-      r.packed = IndexNodeRecord::pack(up.nchild, up.d == 0 ? 0u : static_cast<unsigned>(up.key & 7u), true);
-      out.write(up.n, &r, 1);
-    }
-    if (progress) progress("nodes", total, total);
+        [&](std::size_t j) { commit(j, slots[j % kPipelineSlots]); });
+    finish();
   }
+
+  /// Steps 2 and 3 fused into the merge (after plan_counts()): feed(bytes, n) is called with the
+  /// sorted points in order, n positions encoded as `enc` (the positions section's bytes); each
+  /// subtree whose points are all in is built by a task of its own (decode, codes, records; at
+  /// most kPipelineSlots in flight) and committed in order by later feed() calls (numbers and
+  /// records written), then end_feed() commits the rest and writes the upper nodes.
+  void begin_feed(PositionView enc) {
+    if (!tasks_.empty()) out.reserve(0, 1);  // the root is node 0
+    count = 1;
+    next_event_ = 0;
+    feed_view_ = enc;  // (its bytes pointer is replaced per task; encoding and grid kept)
+    pending_.clear();
+    pending_b_ = 0;
+    next_task_ = 0;
+  }
+  void feed(const std::uint8_t* bytes, std::size_t n) {
+    const std::size_t pb = position_bytes(feed_view_.encoding());
+    pending_.insert(pending_.end(), bytes, bytes + n * pb);
+    std::size_t used = 0;  // points of pending_ handed to tasks
+    const std::size_t have = pending_.size() / pb;
+    while (next_task_ < tasks_.size() && tasks_[next_task_].e <= pending_b_ + have) {
+      const Task& t = tasks_[next_task_];
+      if (t.b != pending_b_ + used) throw std::logic_error("index build: fused node plan out of order");
+      auto f = std::make_unique<InFlight>();
+      f->task = next_task_;
+      f->enc.assign(pending_.begin() + static_cast<std::ptrdiff_t>(used * pb),
+                    pending_.begin() + static_cast<std::ptrdiff_t>((t.e - pending_b_) * pb));
+      InFlight* fp = f.get();
+      flight_.push_back(std::move(f));
+      tasks_group_.run([this, fp] {
+        try {
+          const Task& tk = tasks_[fp->task];
+          const PositionView v(feed_view_.encoding(), fp->enc.data(), tk.e - tk.b, feed_view_.scale(), feed_view_.offset());
+          fp->st.pos.resize(tk.e - tk.b);
+          v.decode(0, tk.e - tk.b, fp->st.pos.data());
+          make_subtree(tk, fp->st);
+        } catch (...) {
+          fp->error = std::current_exception();
+        }
+        fp->done.store(true, std::memory_order_release);
+      });
+      used += t.e - t.b;
+      ++next_task_;
+      if (flight_.size() > kPipelineSlots) tasks_group_.wait();  // (bounds the subtrees held)
+      commit_done();
+    }
+    if (used > 0) {
+      pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(used * pb));
+      pending_b_ += used;
+    }
+  }
+  void end_feed() {
+    tasks_group_.wait();
+    commit_done();
+    if (tasks_.empty()) return;
+    if (next_task_ != tasks_.size() || !pending_.empty() || !flight_.empty())
+      throw std::logic_error("index build: the fused node build lost points");
+    finish();
+    std::vector<std::uint8_t>().swap(pending_);
+  }
+  ~NodeBuilder() { tasks_group_.wait(); }  // (an exception may leave tasks running)
+
 
  private:
   struct Bounds {
@@ -1083,6 +1401,132 @@ struct NodeBuilder {
   std::vector<Upper> uppers_;
   std::vector<Task> tasks_;
   std::vector<Ref> events_;  ///< upper nodes and subtrees in the order the depth-first pass visits them
+  std::size_t next_event_ = 0;  ///< the sink's place in events_
+  // The fused build's state (begin_feed): the encoded positions of points [pending_b_, ...) not
+  // yet built, the next task, the one subtree in work.
+  PositionView feed_view_;
+  std::vector<std::uint8_t> pending_;
+  std::size_t pending_b_ = 0, next_task_ = 0;
+  /// A subtree of the fused build: its points' encoded positions, built by a task.
+  struct InFlight {
+    std::size_t task = 0;
+    std::vector<std::uint8_t> enc;
+    Subtree st;
+    std::atomic<bool> done{false};
+    std::exception_ptr error;
+  };
+  std::deque<std::unique_ptr<InFlight>> flight_;  // in task order
+  tbb::task_group tasks_group_;
+  /// Commits the finished subtrees at the head of flight_, in order (the sink's thread).
+  void commit_done() {
+    while (!flight_.empty() && flight_.front()->done.load(std::memory_order_acquire)) {
+      InFlight& f = *flight_.front();
+      if (f.error) std::rethrow_exception(f.error);
+      commit(f.task, f.st);
+      flight_.pop_front();
+    }
+  }
+
+  /// Step 2's work for task t, its positions decoded in st.pos: codes, records, bounds.
+  void make_subtree(const Task& t, Subtree& st) const {
+    st.recs.assign(1, IndexNodeRecord{});
+    st.depth = 0;
+    st.levels.fill(0);
+    if (codes != nullptr) {
+      st.box = visit(st, CodeView{codes, 0}, t.b, 0, t.key, t.d, t.b, t.e);
+    } else {
+      st.codes.resize(t.e - t.b);
+      for (std::size_t i = 0; i < st.pos.size(); ++i) st.codes[i] = qz.code(st.pos[i]);
+      st.box = visit(st, CodeView{st.codes.data(), t.b}, t.b, 0, t.key, t.d, t.b, t.e);
+    }
+  }
+
+  /// Step 2's in-order sink for task j: the upper nodes visited before it number their children's
+  /// blocks, its descendants take the next numbers, its records are written.
+  void commit(std::size_t j, Subtree& st) {
+    for (; next_event_ < events_.size() && events_[next_event_].upper; ++next_event_) number_children(events_[next_event_].idx);
+    if (next_event_ == events_.size() || events_[next_event_].idx != j) throw std::logic_error("index build: node plan out of order");
+    ++next_event_;
+    Task& t = tasks_[j];
+    const std::size_t base = count;  // descendant k (k >= 1) becomes node base + k - 1
+    count += st.recs.size() - 1;
+    if (count > std::numeric_limits<std::uint32_t>::max()) throw std::runtime_error("index build: too many nodes");
+    for (IndexNodeRecord& r : st.recs)
+      if (r.internal()) r.first = static_cast<std::uint32_t>(base + r.first - 1);
+    out.write(t.n, st.recs.data(), 1);
+    out.write(base, st.recs.data() + 1, st.recs.size() - 1);
+    t.box = st.box;
+    depth = std::max(depth, st.depth);
+    for (unsigned d = 0; d < kLevels; ++d) levels[d] += st.levels[d];
+    if (release) release(t.e);
+    if (progress) progress("nodes", t.e, total);
+  }
+
+  /// Step 3: the upper nodes' records, children before parents (the plan lists them in preorder).
+  void finish() {
+    for (; next_event_ < events_.size(); ++next_event_)
+      if (events_[next_event_].upper) number_children(events_[next_event_].idx);
+    for (std::size_t u = uppers_.size(); u-- > 0;) {
+      Upper& up = uppers_[u];
+      const float inf = std::numeric_limits<float>::infinity();
+      Bounds box{glm::vec3(inf), glm::vec3(-inf)};
+      for (unsigned k = 0; k < up.nchild; ++k) {
+        const Bounds& c = up.child[k].upper ? uppers_[up.child[k].idx].box : tasks_[up.child[k].idx].box;
+        box.lo = glm::min(box.lo, c.lo);
+        box.hi = glm::max(box.hi, c.hi);
+      }
+      up.box = box;
+      depth = std::max(depth, up.d);
+      IndexNodeRecord r;
+      r.lo = box.lo;
+      r.hi = box.hi;
+      r.first = up.first;
+      r.packed = IndexNodeRecord::pack(up.nchild, up.d == 0 ? 0u : static_cast<unsigned>(up.key & 7u), true);
+      out.write(up.n, &r, 1);
+    }
+    if (progress) progress("nodes", total, total);
+  }
+
+  /// plan() for the node (key, d) over points [b, e) from the cell counts (plan_counts); clears
+  /// `ok` where they cannot decide.
+  Ref plan_cells(std::span<const std::uint64_t> prefix, unsigned D, std::uint64_t key, unsigned d, std::size_t b,
+                 std::size_t e, bool& ok) {
+    const std::size_t cnt = e - b;
+    if (cnt <= every) {
+      const Ref r{false, static_cast<std::uint32_t>(tasks_.size())};
+      tasks_.push_back(Task{key, d, b, e});
+      events_.push_back(r);
+      return r;
+    }
+    // A node of more than `every` points: its codes differ when its points fill two cells or more.
+    const std::size_t c0 = static_cast<std::size_t>(key << (3 * (D - d)));
+    const std::size_t c1 = static_cast<std::size_t>((key + 1) << (3 * (D - d)));
+    const std::size_t cb = static_cast<std::size_t>(std::upper_bound(prefix.begin() + c0, prefix.begin() + c1 + 1, b) - prefix.begin()) - 1;
+    if (d >= D || prefix[cb + 1] >= e) {  // one cell holds them all, or children below the cells
+      ok = false;
+      return {};
+    }
+    if (!OctreeRules::splits(cfg, d, cnt, false)) {  // (a leaf of more than `every` points)
+      const Ref r{false, static_cast<std::uint32_t>(tasks_.size())};
+      tasks_.push_back(Task{key, d, b, e});
+      events_.push_back(r);
+      return r;
+    }
+    const Ref r{true, static_cast<std::uint32_t>(uppers_.size())};
+    uppers_.push_back(Upper{key, d});
+    events_.push_back(r);
+    const std::size_t step = std::size_t{1} << (3 * (D - d - 1));
+    unsigned nchild = 0;
+    for (unsigned o = 0; o < 8; ++o) {
+      const std::size_t lo = prefix[c0 + o * step], hi = prefix[c0 + (o + 1) * step];
+      if (hi == lo) continue;
+      const Ref c = plan_cells(prefix, D, (key << 3) | o, d + 1, lo, hi, ok);
+      if (!ok) return {};
+      uppers_[r.idx].child[nchild++] = c;
+    }
+    uppers_[r.idx].nchild = nchild;
+    return r;
+  }
 
   /// Step 1 for the node (key, d) over [b, e): an upper node if it splits and holds more than
   /// `every` points (its children planned in order), else a subtree.
@@ -1113,6 +1557,7 @@ struct NodeBuilder {
   /// Numbers upper node u's children as the next block (the depth-first pass's visit of u).
   void number_children(std::uint32_t u) {
     Upper& up = uppers_[u];
+    out.reserve(count, up.nchild);  // (written by the subtrees' sink and finish())
     up.first = static_cast<std::uint32_t>(count);
     for (unsigned k = 0; k < up.nchild; ++k) {
       const auto n = static_cast<std::uint32_t>(count + k);
@@ -1300,7 +1745,14 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
                           std::all_of(inputs.begin(), inputs.end(), [](const fs::path& in) {
                             return format_from_extension(in) == Format::las;
                           });
-  const ReadOptions ropt{.scalars = false, .stored_colour = raw_colour};
+  // Inputs larger than the budget are read once, past the page cache (direct_records).
+  std::uint64_t input_bytes = 0;
+  for (const fs::path& in : inputs) {
+    std::error_code ec;  // (a missing input is reported by its reader below)
+    const std::uintmax_t size = fs::file_size(in, ec);
+    if (!ec) input_bytes += size;
+  }
+  const ReadOptions ropt{.scalars = false, .stored_colour = raw_colour, .direct_records = input_bytes > opt.memory_bytes};
 
   // Inputs: CRS agreement, the stored attributes, the announced point counts. The readers stay
   // open for the read pass when there are few of them (a LAS file's colour scan runs once).
@@ -1395,10 +1847,28 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
   PositionCodec codec;
   RgbCodec rgbc;
   HugeArray<MortonKey> run_keys;
+  // Points per cell of depth cell_depth on the runs' grid, counted from each sorted run: the
+  // merge then builds the nodes as it goes (NodeBuilder::plan_counts, feed). The deepest level
+  // <= 7 whose 12 bytes per cell (the counts and their prefix sums) fit 1/16 of the budget.
+  unsigned cell_depth = 0;
+  while (cell_depth < 7 && (std::uint64_t{12} << (3 * (cell_depth + 1))) <= opt.memory_bytes / 16) ++cell_depth;
+  std::vector<std::uint32_t> cell_points;
   auto flush_run = [&] {
     if (buf.size() == 0) return;
     sort_keys(buf, grid_qz, run_keys);
     const HugeArray<MortonKey>& keys = run_keys;
+    {  // the run's points per cell: one add per stretch of a cell (the keys are sorted)
+      const unsigned shift = 3 * (kMortonBits - cell_depth);
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, buf.size(), 1 << 16), [&](const auto& r) {
+        for (std::size_t i = r.begin(); i < r.end();) {
+          const std::uint64_t c = keys[i].code >> shift;
+          std::size_t j = i + 1;
+          while (j < r.end() && (keys[j].code >> shift) == c) ++j;
+          std::atomic_ref<std::uint32_t>(cell_points[c]).fetch_add(static_cast<std::uint32_t>(j - i), std::memory_order_relaxed);
+          i = j;
+        }
+      });
+    }
     const fs::path rp = runs_dir.path / ("run" + std::to_string(run_files.size()));
     // codec.grid_ok covers every point read so far, this run's included (append checked them).
     const RunLayout R(L, want_ids, codec.grid_ok && codec.grid_set);
@@ -1463,6 +1933,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     bounds = AABB{};
     total = 0;
     run_first_id = 0;
+    if (!in_memory) cell_points.assign(std::size_t{1} << (3 * cell_depth), 0);
     for (const fs::path& rp : run_files) fs::remove(rp);
     run_files.clear();
     run_layouts.clear();
@@ -1546,6 +2017,13 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
   if (L.gps) s_gps = place(kGpsTime, total * 8);
 
   Fd fd(out.temp(), O_RDWR | O_CREAT | O_TRUNC);
+  // The point sections are written once and not read back by this build but for the node
+  // phase's positions: past the page cache where the file system allows (SectionWriter).
+  Fd dfd = Fd::direct(out.temp(), O_WRONLY);
+  std::optional<DirectWriter> dw;  // its background writes (8 buffers of up to 4 MiB)
+  if (dfd.is_direct())
+    dw.emplace(8, std::clamp<std::size_t>(opt.memory_bytes / 128 / kDirectAlign * kDirectAlign, 64 << 10, 4 << 20));
+  DirectWriter* const dwp = dw ? &*dw : nullptr;
   {
     const std::vector<std::uint8_t> zero(kHeaderBytes, 0);  // header slot, written last
     fd.pwrite_all(zero.data(), zero.size(), 0);
@@ -1558,8 +2036,28 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
   write_blob(s_crs, crs);
 
   // The point sections in (code, id) order: straight from memory (one run), or by a k-way merge
-  // of the runs whose codes go to a temporary file. Then the nodes from the sorted codes.
+  // of the runs. Then the nodes from the sorted codes, or (multi-run builds whose cells decide
+  // the upper tree) during the merge from the merged positions (NodeBuilder::feed).
   HugeArray<std::uint64_t> mem_codes;  // sorted codes of the in-memory build
+  NodeFile node_file(fd, &dfd, dwp, off);  // the nodes section: next after the point sections
+  // Subtrees of --memory/512 points at most (1 Mi at most): each of the kPipelineSlots in
+  // flight holds its decoded positions, codes and records (about 36 B/point) and its part of the
+  // positions map (12-24 B/point), about 1/8 of the budget in all, so small budgets release
+  // often too.
+  const std::uint64_t node_every = std::clamp<std::uint64_t>(opt.memory_bytes / 16 / 32, 1024, std::uint64_t{1} << 20);
+  const OctreeRules::Quantizer node_qz(cell.lo, OctreeRules::root_side(bounds));
+  std::optional<NodeBuilder> fused;
+  if (!in_memory && total > 0) {
+    std::vector<std::uint64_t> prefix(cell_points.size() + 1, 0);
+    for (std::size_t c = 0; c < cell_points.size(); ++c) prefix[c + 1] = prefix[c] + cell_points[c];
+    if (prefix.back() != total) throw std::logic_error("index build: the cells lost points");
+    const PositionView enc(codec.enc, nullptr, 0, codec.scale, codec.offset);
+    fused.emplace(opt.config, nullptr, node_qz, enc, cell.lo, node_file, nullptr, nullptr, nullptr, total);
+    fused->every = node_every;
+    if (fused->plan_counts(prefix, cell_depth)) fused->begin_feed(enc);
+    else fused.reset();
+  }
+  std::vector<std::uint32_t>().swap(cell_points);
   // Flushes the point sections' writers (positions, ids, the stored attributes) and records their
   // CRCs in the header: the end of both paths below.
   auto finish_points = [&](SectionWriter& pos, std::optional<SectionWriter>& ids, std::optional<SectionWriter>& rgb,
@@ -1572,6 +2070,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     if (intensity) intensity->flush(), h.sections[s_int].crc = intensity->crc();
     if (cls) cls->flush(), h.sections[s_cls].crc = cls->crc();
     if (gps) gps->flush(), h.sections[s_gps].crc = gps->crc();
+    if (dwp != nullptr) dwp->drain();  // on disk before the node phase maps the positions
   };
   if (in_memory) {
     const OctreeRules::Quantizer qz(cell.lo, OctreeRules::root_side(bounds));
@@ -1582,14 +2081,14 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 1 << 16), [&](const auto& r) {
       for (std::size_t i = r.begin(); i != r.end(); ++i) mem_codes[i] = keys[i].code;
     });
-    const std::size_t wbuf = 1 << 16;  // blocks are written directly
-    SectionWriter w_pos(fd, h.sections[s_pos].offset, wbuf);
+    const std::size_t wbuf = dfd.is_direct() ? 4 << 20 : 1 << 16;  // (buffered: blocks are written directly)
+    SectionWriter w_pos(dfd, h.sections[s_pos].offset, wbuf, dwp);
     std::optional<SectionWriter> w_ids, w_rgb, w_int, w_cls, w_gps;
-    if (want_ids) w_ids.emplace(fd, h.sections[s_ids].offset, wbuf);
-    if (L.rgb) w_rgb.emplace(fd, h.sections[s_rgb].offset, wbuf);
-    if (L.intensity) w_int.emplace(fd, h.sections[s_int].offset, wbuf);
-    if (L.cls) w_cls.emplace(fd, h.sections[s_cls].offset, wbuf);
-    if (L.gps) w_gps.emplace(fd, h.sections[s_gps].offset, wbuf);
+    if (want_ids) w_ids.emplace(dfd, h.sections[s_ids].offset, wbuf, dwp);
+    if (L.rgb) w_rgb.emplace(dfd, h.sections[s_rgb].offset, wbuf, dwp);
+    if (L.intensity) w_int.emplace(dfd, h.sections[s_int].offset, wbuf, dwp);
+    if (L.cls) w_cls.emplace(dfd, h.sections[s_cls].offset, wbuf, dwp);
+    if (L.gps) w_gps.emplace(dfd, h.sections[s_gps].offset, wbuf, dwp);
     std::vector<Vec3> g_pos;
     std::vector<std::uint8_t> g_enc;  // encoded positions (float32, las_int32)
     std::vector<std::uint32_t> g_ids;
@@ -1638,13 +2137,13 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     buf = PointBuffer{};  // release before the node build
   } else {
     const std::size_t wbuf = 4 << 20;
-    SectionWriter w_pos(fd, h.sections[s_pos].offset, wbuf);
+    SectionWriter w_pos(dfd, h.sections[s_pos].offset, wbuf, dwp);
     std::optional<SectionWriter> w_ids, w_rgb, w_int, w_cls, w_gps;
-    if (want_ids) w_ids.emplace(fd, h.sections[s_ids].offset, wbuf);
-    if (L.rgb) w_rgb.emplace(fd, h.sections[s_rgb].offset, wbuf);
-    if (L.intensity) w_int.emplace(fd, h.sections[s_int].offset, wbuf);
-    if (L.cls) w_cls.emplace(fd, h.sections[s_cls].offset, wbuf);
-    if (L.gps) w_gps.emplace(fd, h.sections[s_gps].offset, wbuf);
+    if (want_ids) w_ids.emplace(dfd, h.sections[s_ids].offset, wbuf, dwp);
+    if (L.rgb) w_rgb.emplace(dfd, h.sections[s_rgb].offset, wbuf, dwp);
+    if (L.intensity) w_int.emplace(dfd, h.sections[s_int].offset, wbuf, dwp);
+    if (L.cls) w_cls.emplace(dfd, h.sections[s_cls].offset, wbuf, dwp);
+    if (L.gps) w_gps.emplace(dfd, h.sections[s_gps].offset, wbuf, dwp);
     const std::size_t rbuf = std::clamp<std::size_t>(
         static_cast<std::size_t>(opt.memory_bytes / 2 / std::max<std::size_t>(1, run_files.size())),
         std::size_t{1} << 16, std::size_t{64} << 20);
@@ -1670,8 +2169,8 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
       std::size_t n = 0;
     };
     // Records per part: 65,536, fewer for a small budget (the slots' arrays stay near 1/16 of it).
-    const std::size_t part_records = std::clamp<std::size_t>(opt.memory_bytes / 64 / 64, 1024, std::size_t{1} << 16);
-    std::array<Slot, kPipelineSlots> slots;
+    const std::size_t part_records = std::clamp<std::size_t>(opt.memory_bytes / 64 / 256, 1024, std::size_t{1} << 16);
+    std::array<Slot, kMergeSlots> slots;
     // Merges part `pt` into `sl` (resized to its records).
     auto merge_part = [&](const Part& pt, Slot& sl) {
       sl.n = pt.n;
@@ -1747,6 +2246,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
       if (o != pt.n) throw std::logic_error("index build: a merge part lost records");
     };
     auto write_slot = [&](const Slot& sl) {
+      if (fused) fused->feed(sl.pos.data(), sl.n);  // the subtrees whose points are all in
       w_pos.write(sl.pos.data(), sl.pos.size());
       if (w_ids) w_ids->write(sl.ids.data(), sl.ids.size());
       if (w_rgb) w_rgb->write(sl.rgb.data(), sl.rgb.size());
@@ -1803,9 +2303,9 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
               pt.slices[r] = {readers[r]->cur() + b * readers[r]->record_bytes(), e - b};
               pt.n += e - b;
             }
-            merge_part(pt, slots[j % kPipelineSlots]);
+            merge_part(pt, slots[j % kMergeSlots]);
           },
-          [&](std::size_t j) { write_slot(slots[j % kPipelineSlots]); });
+          [&](std::size_t j) { write_slot(slots[j % kMergeSlots]); }, kMergeSlots);
       for (std::size_t r = 0; r < k; ++r)
         if (counts[r] > 0) readers[r]->skip(counts[r]);
       merged += window;
@@ -1822,24 +2322,27 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
   // the nodes section (NodeFile). The map's pages are dropped behind the finished subtrees, so
   // the node phase's resident set (anonymous and file-backed) does not grow with the site.
   {
-    ReadMap file(fd.get(), h.sections[s_pos].offset + total * codec.bytes(), out.temp());
     const std::uint64_t nodes_off = off;  // the next aligned offset: where place() puts the nodes
-    NodeFile node_file(fd, nodes_off);
-    auto release = [&](std::size_t i) { file.release_below(h.sections[s_pos].offset + i * codec.bytes()); };
-    auto ahead = [&](std::size_t b, std::size_t e) {
-      file.populate(h.sections[s_pos].offset + b * codec.bytes(), (e - b) * codec.bytes());
-    };
-    NodeBuilder nb(opt.config, in_memory ? mem_codes.data() : nullptr, OctreeRules::Quantizer(cell.lo, OctreeRules::root_side(bounds)),
-                   PositionView(codec.enc, static_cast<const std::uint8_t*>(file.p) + h.sections[s_pos].offset, total,
-                                codec.scale, codec.offset),
-                   cell.lo, node_file, release, ahead, opt.progress, total);
-    // Subtrees of --memory/512 points at most (1 Mi at most): each of the kPipelineSlots in
-    // flight holds its decoded positions, codes and records (about 36 B/point) and its part of the
-    // positions map (12-24 B/point), about 1/8 of the budget in all, so small budgets release
-    // often too.
-    nb.every = std::clamp<std::uint64_t>(opt.memory_bytes / 16 / 32, 1024, std::uint64_t{1} << 20);
-    nb.plan(total, [&] { file.drop(); });
-    nb.build();
+    std::optional<ReadMap> file;
+    std::optional<NodeBuilder> phase;
+    if (fused) {
+      fused->end_feed();
+      stats.nodes_in_merge = true;
+    } else {
+      file.emplace(fd.get(), h.sections[s_pos].offset + total * codec.bytes(), out.temp());
+      auto release = [&](std::size_t i) { file->release_below(h.sections[s_pos].offset + i * codec.bytes()); };
+      auto ahead = [&](std::size_t b, std::size_t e) {
+        file->populate(h.sections[s_pos].offset + b * codec.bytes(), (e - b) * codec.bytes());
+      };
+      phase.emplace(opt.config, in_memory ? mem_codes.data() : nullptr, node_qz,
+                    PositionView(codec.enc, static_cast<const std::uint8_t*>(file->p) + h.sections[s_pos].offset, total,
+                                 codec.scale, codec.offset),
+                    cell.lo, node_file, release, ahead, opt.progress, total);
+      phase->every = node_every;
+      phase->plan(total, [&] { file->drop(); });
+      phase->build();
+    }
+    NodeBuilder& nb = fused ? *fused : *phase;
     mem_codes = HugeArray<std::uint64_t>{};
     const std::size_t s_nodes = place(kNodes, nb.count * kNodeBytes);
     if (h.sections[s_nodes].offset != nodes_off) throw std::logic_error("rayscan index: nodes section misplaced");
@@ -1850,6 +2353,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     off = h.sections[s_nodes].offset + h.sections[s_nodes].size;  // the file ends with the nodes
   }
   h.bounds = bounds;
+  if (dwp != nullptr) dwp->drain();  // (the node records)
   if (::ftruncate(fd.get(), static_cast<off_t>(off)) != 0) io_fail(out.temp(), "cannot set the file size");
   {
     const std::vector<std::uint8_t> hb = encode_header(h);
@@ -1903,11 +2407,47 @@ struct MappedIndex::Map {
   const PointIndex* ids = nullptr;
   std::size_t points = 0;
   bool trust_ids = false;  ///< IndexOpenOptions::trust_ids: ids() returns an unchecked view
+  // IndexOpenOptions::read_ahead: the background thread asking for the file's pages, and its
+  // stop flag (set and joined before the unmap).
+  std::thread ahead;
+  std::atomic<bool> stop{false};
+  /// Starts reading bytes [first, first + len) (the nodes section), then, when `whole`, the whole
+  /// file from its start, in 4 MiB sequential reads into a buffer that is thrown away: the pages
+  /// land in the page cache, not in this process's resident set, and the queries' faults find
+  /// them there. (MADV_WILLNEED in 64 MiB steps was tried: a cold 2e8 render took 24 s against
+  /// 31 s without and 7.2 s with these reads; bench/README.md, "Issue 10, session 23".)
+  void start_read_ahead(std::uint64_t first, std::uint64_t len, bool whole) {
+    ahead = std::thread([this, first, len, whole] {
+      constexpr std::uint64_t kStep = std::uint64_t{4} << 20;
+      std::vector<std::uint8_t> buf(kStep);
+      const auto ask = [&](std::uint64_t b, std::uint64_t e) {
+        for (std::uint64_t o = b / 4096 * 4096; o < e && !stop.load(std::memory_order_relaxed); o += kStep)
+          if (::pread(fd, buf.data(), static_cast<std::size_t>(std::min(kStep, n - o)), static_cast<off_t>(o)) <= 0) return;
+      };
+      ask(first, std::min<std::uint64_t>(n, first + len));
+      if (whole) ask(0, n);
+    });
+  }
   ~Map() {
+    stop = true;
+    if (ahead.joinable()) ahead.join();
     if (p != nullptr) ::munmap(p, n);
     if (fd >= 0) ::close(fd);
   }
 };
+
+namespace {
+/// MemAvailable of /proc/meminfo in bytes (0 when unknown).
+std::uint64_t available_memory() {
+  std::ifstream f("/proc/meminfo");
+  std::string key;
+  std::uint64_t kb = 0;
+  std::string unit;
+  while (f >> key >> kb >> unit)
+    if (key == "MemAvailable:") return kb * 1024;
+  return 0;
+}
+}  // namespace
 
 MappedIndex::MappedIndex(MappedIndex&&) noexcept = default;
 MappedIndex& MappedIndex::operator=(MappedIndex&&) noexcept = default;
@@ -2128,6 +2668,8 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
                          std::to_string(mt) + " ns): rebuild it with `rayscan index`");
     }
   ::madvise(m.p, m.n, MADV_RANDOM);
+  if (opt.read_ahead && x.node_count_ > 0)
+    m.start_read_ahead(by_id[kNodes]->offset, by_id[kNodes]->size, m.n <= available_memory() / 2);
   m.path = nm;
   m.ids_offset = x.ids_offset_;
   m.ids = x.ids_;

@@ -7,9 +7,17 @@
 #include "rayscan/position_view.hpp"
 #include "laz/laz.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <future>
 #include <limits>
+#include <memory>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -150,6 +158,82 @@ std::uint32_t laz_layers(AttributeSet a) {
 
 namespace {
 
+/// ReadOptions::direct_records: byte ranges of a file read with O_DIRECT into two page-aligned
+/// buffers of the reader's own, the next range's read running on a background thread while the
+/// caller decodes the current one. On a VM whose balloon reports free memory to the host, reading
+/// through the page cache (the map) costs ~2 s of CPU per GB for the fresh cache pages; these
+/// reads cost the disk's time only (bench/README.md, "Issue 10, session 23").
+class DirectBlocks {
+ public:
+  /// Opens `path` with O_DIRECT; ok() is false when the file system refuses (then use the map).
+  explicit DirectBlocks(const std::string& path) : name_(path) {
+    fd_ = ::open(path.c_str(), O_RDONLY | O_DIRECT | O_CLOEXEC);
+  }
+  DirectBlocks(const DirectBlocks&) = delete;
+  DirectBlocks& operator=(const DirectBlocks&) = delete;
+  ~DirectBlocks() {
+    if (pending_.valid()) pending_.wait();
+    if (fd_ >= 0) ::close(fd_);
+  }
+  [[nodiscard]] bool ok() const { return fd_ >= 0; }
+  /// Bytes [a, b) of the file (read now, or by the background read prefetch(a, b) started).
+  /// Valid until the next get(). Throws FormatError when the read fails or the file is shorter.
+  const std::uint8_t* get(std::uint64_t a, std::uint64_t b) {
+    if (pending_.valid()) {
+      pending_.get();  // rethrows the background read's error
+      if (pa_ == a && pb_ == b) {
+        cur_ ^= 1;
+        return buf_[cur_].get() + (a - a / kAlign * kAlign);
+      }
+    }
+    fill(cur_, a, b);
+    return buf_[cur_].get() + (a - a / kAlign * kAlign);
+  }
+  /// Starts reading bytes [a, b) into the other buffer (the one get() did not return last).
+  void prefetch(std::uint64_t a, std::uint64_t b) {
+    if (pending_.valid()) pending_.get();
+    pa_ = a, pb_ = b;
+    const int other = cur_ ^ 1;
+    reserve(other, a, b);
+    pending_ = std::async(std::launch::async, [this, other, a, b] { fill(other, a, b); });
+  }
+
+ private:
+  static constexpr std::uint64_t kAlign = 4096;
+  struct Free {
+    void operator()(std::uint8_t* p) const { std::free(p); }
+  };
+  void reserve(int k, std::uint64_t a, std::uint64_t b) {
+    const std::uint64_t a0 = a / kAlign * kAlign, len = (b - a0 + kAlign - 1) / kAlign * kAlign;
+    if (cap_[k] >= len) return;
+    void* p = std::aligned_alloc(kAlign, static_cast<std::size_t>(len));
+    if (p == nullptr) throw std::bad_alloc();
+    buf_[k].reset(static_cast<std::uint8_t*>(p));
+    cap_[k] = len;
+  }
+  void fill(int k, std::uint64_t a, std::uint64_t b) {
+    reserve(k, a, b);
+    const std::uint64_t a0 = a / kAlign * kAlign, len = (b - a0 + kAlign - 1) / kAlign * kAlign;
+    std::uint64_t got = 0;
+    while (got < b - a0) {
+      const ssize_t r = ::pread(fd_, buf_[k].get() + got, static_cast<std::size_t>(len - got), static_cast<off_t>(a0 + got));
+      if (r < 0 && errno == EINTR) continue;
+      if (r < 0) fail_at(name_, a0 + got, std::string("cannot read the point records: ") + std::strerror(errno));
+      if (r == 0) fail_at(name_, a0 + got, "file ends inside the point records (expected " + std::to_string(b) + " bytes)");
+      got += static_cast<std::uint64_t>(r);
+      if (got % kAlign != 0) break;  // (end of file)
+    }
+    if (got < b - a0) fail_at(name_, a0 + got, "file ends inside the point records (expected " + std::to_string(b) + " bytes)");
+  }
+  std::string name_;
+  int fd_ = -1;
+  std::unique_ptr<std::uint8_t, Free> buf_[2];
+  std::uint64_t cap_[2] = {0, 0};
+  int cur_ = 0;
+  std::uint64_t pa_ = 0, pb_ = 0;
+  std::future<void> pending_;
+};
+
 /// The chunked LAS reader: the header, VLRs, EVLRs and Extra Bytes descriptors are parsed and
 /// validated at open (parse() below); read() decodes the next block of records in parallel. LAZ
 /// (LASzip VLR): read() first decompresses the chunks holding the block into a window of records
@@ -161,6 +245,10 @@ class LasReader final : public PointReader {
       : src_(std::move(src)) {
     parse(src_->in, opt);
     setup(attrs, opt);
+    if (opt.direct_records && !laszip_ && src_->map) {
+      direct_ = std::make_unique<DirectBlocks>(src_->in.name);
+      if (!direct_->ok()) direct_.reset();
+    }
   }
   const FileInfo& info() const override { return info_; }
   const std::string& crs_wkt() const override { return crs_; }
@@ -202,6 +290,9 @@ class LasReader final : public PointReader {
   std::size_t win_c0_ = 0, win_c1_ = 0;
   std::uint64_t win_first_ = 0, win_points_ = 0;
   std::uint32_t win_layers_ = 0;
+  // ReadOptions::direct_records: each read()'s records from DirectBlocks, the next read()'s
+  // range read ahead.
+  std::unique_ptr<DirectBlocks> direct_;
 };
 
 const std::uint8_t* LasReader::laz_records(std::uint64_t first, std::size_t n, std::uint32_t layers) {
@@ -505,8 +596,17 @@ std::size_t LasReader::read(PointCloud& pc, std::size_t max_points) {
   // Records [next_, next_ + n) decoded into chunk slots [0, n): the decoder's base pointer is the
   // first record of the chunk.
   const Input& in = src_->in;
-  const std::uint8_t* first_rec = laszip_ ? laz_records(next_, n, laz_layers(attrs_))
-                                          : in.bytes.data() + point_offset_ + next_ * rec_len_;
+  const std::uint8_t* first_rec = nullptr;
+  if (laszip_) {
+    first_rec = laz_records(next_, n, laz_layers(attrs_));
+  } else if (direct_) {  // this block's records, then the next block of the same size read ahead
+    const std::uint64_t a = point_offset_ + next_ * rec_len_;
+    first_rec = direct_->get(a, a + std::uint64_t{n} * rec_len_);
+    const std::uint64_t m = std::min<std::uint64_t>(max_points, count_ - next_ - n);
+    if (m > 0) direct_->prefetch(a + std::uint64_t{n} * rec_len_, a + (std::uint64_t{n} + m) * rec_len_);
+  } else {
+    first_rec = in.bytes.data() + point_offset_ + next_ * rec_len_;
+  }
   Decoder dec{first_rec, rec_len_, scale_, offset_,
               pdrf_ >= 6 ? 22 : 20, pdrf_rgb_offset(pdrf_), &extras_, out};
   using DecodeFn = void (*)(const Decoder&, std::size_t, std::size_t, Reduction&);
@@ -538,7 +638,7 @@ std::size_t LasReader::read(PointCloud& pc, std::size_t max_points) {
       fail_at(in.name, point_offset_ + (next_ + r.first_bad) * rec_len_,
               "point " + std::to_string(next_ + r.first_bad) +
                   ": coordinate overflows to infinity (scale/offset)");
-    if (!laszip_) in.done(point_offset_ + (next_ + b1) * rec_len_);
+    if (!laszip_ && !direct_) in.done(point_offset_ + (next_ + b1) * rec_len_);
   }
   // Colour normalisation (docs/formats.md), decided at open (setup()).
   if (rgb_mul_ != 1) {

@@ -51,10 +51,21 @@ void MappedFile::release(std::uint64_t upto) {
   const std::uint64_t end = std::min<std::uint64_t>(upto, size_) / page * page;
   // A second pass over the file (the LAS colour scan at open, then the decode) starts again from
   // the beginning: its pages are released afresh.
-  if (end < released_) released_ = 0;
+  if (end < released_) released_ = 0, ahead_ = 0;
   if (end > released_) {
     ::madvise(const_cast<std::uint8_t*>(data_) + released_, end - released_, MADV_DONTNEED);
     released_ = end;
+  }
+  // Read ahead of the decode: the next 256 MiB are asked for in steps of 64 MiB (MADV_WILLNEED
+  // starts the reads and returns), so the disk reads while the blocks before are decoded,
+  // instead of each page fault waiting for its readahead (bench/README.md, "Issue 10,
+  // session 23").
+  constexpr std::uint64_t kAhead = std::uint64_t{256} << 20, kStep = std::uint64_t{64} << 20;
+  if (ahead_ < end) ahead_ = end;
+  const std::uint64_t want = std::min<std::uint64_t>(size_, end + kAhead) / page * page;
+  if (want > ahead_ && (want - ahead_ >= kStep || want == size_ / page * page)) {
+    ::madvise(const_cast<std::uint8_t*>(data_) + ahead_, want - ahead_, MADV_WILLNEED);
+    ahead_ = want;
   }
 }
 

@@ -18,8 +18,9 @@ class MappedFile {
   MappedFile& operator=(const MappedFile&) = delete;
   ~MappedFile();
   [[nodiscard]] std::span<const std::uint8_t> bytes() const { return {data_, size_}; }
-  /// Drops the pages of [0, upto) from the resident set (they stay in the page cache). A call
-  /// with a smaller `upto` than before starts a new pass.
+  /// Drops the pages of [0, upto) from the resident set (they stay in the page cache) and asks
+  /// for the next 256 MiB to be read ahead (MADV_WILLNEED). A call with a smaller `upto` than
+  /// before starts a new pass.
   void release(std::uint64_t upto);
 
  private:
@@ -27,6 +28,7 @@ class MappedFile {
   const std::uint8_t* data_ = nullptr;
   std::size_t size_ = 0;
   std::uint64_t released_ = 0;
+  std::uint64_t ahead_ = 0;  ///< [.., ahead_) was asked for (release's read ahead)
 };
 
 /// The bytes a chunked reader decodes: a mapped file (owned) or caller memory, as an Input.

@@ -95,6 +95,10 @@ struct IndexBuildStats {
   /// The rgb8 multiplier (1, 256 or 257: colours stored in 3 bytes), 0 when rgb is stored in 6
   /// bytes or not at all.
   std::uint32_t rgb_multiplier = 0;
+  /// Multi-run builds: true when the nodes were built during the merge from the read pass's
+  /// points per cell (no pass over the written positions; docs/index-format.md, "Build"), false
+  /// when the cells could not decide the upper tree and the node phase read the positions back.
+  bool nodes_in_merge = false;
   std::vector<std::string> notes;  ///< decisions the user should know about
 };
 
@@ -126,6 +130,13 @@ struct IndexOpenOptions {
   /// Return unchecked ids from ids() even when the deep checks did not run (for the builder,
   /// which opens its own fresh output).
   bool trust_ids = false;
+  /// Read the file ahead in the background (a thread of the index, stopped when it is
+  /// destroyed; sequential reads into the page cache): the nodes section first, then the whole
+  /// file when it fits half the available memory (MemAvailable). For a job that will touch most of it (a render, a
+  /// viewshed): on a file not in the page cache (e.g. right after `rayscan index`, which writes
+  /// past the cache) its queries would otherwise each wait for a 4 KiB read (the map is
+  /// MADV_RANDOM). Answers are unchanged.
+  bool read_ahead = false;
 };
 
 /// One record of the index file's nodes section (docs/index-format.md, "Node record", format

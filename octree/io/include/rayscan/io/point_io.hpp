@@ -37,6 +37,12 @@ struct ReadOptions {
   /// kept). For a caller that makes that decision itself from the values it reads (the index
   /// build, bench/README.md "Session 19"); other formats ignore it.
   bool stored_colour = false;
+  /// Uncompressed LAS from a file: read the point records with O_DIRECT into the reader's own
+  /// two buffers (the next block read in the background while one is decoded) instead of through
+  /// the page cache. For one sequential pass over files larger than memory (the index build,
+  /// bench/README.md "Issue 10, session 23"); the file system must allow O_DIRECT, else the map
+  /// is used as usual. Other formats ignore it.
+  bool direct_records = false;
 };
 
 /// The format of `path` from its extension (case-insensitive): .las .laz .copc → las; .ply;
