@@ -1047,7 +1047,9 @@ struct ReadMap {
 class NodeFile {
  public:
   /// `direct`: an O_DIRECT descriptor of the same file, or null / not direct: buffered writes.
-  NodeFile(Fd& fd, Fd* direct, DirectWriter* writer, std::uint64_t offset) : fd_(fd), off_(offset) {
+  /// `stage_pages` (>= 1): the stage's size in pages (IndexBuildOptions::node_stage_pages).
+  NodeFile(Fd& fd, Fd* direct, DirectWriter* writer, std::uint64_t offset, std::size_t stage_pages)
+      : fd_(fd), off_(offset), kStagePages(std::max<std::size_t>(1, stage_pages)) {
     if (direct != nullptr && writer != nullptr && direct->is_direct() && offset % kDirectAlign == 0) {
       dfd_ = direct;
       dw_ = writer;
@@ -1065,6 +1067,9 @@ class NodeFile {
       ++pending_[r / kPerPage];
     }
     frontier_ = first + n;
+    // The stage must hold the page of every record below the frontier that is not yet written:
+    // the pages it leaves lie wholly below the frontier (complete, or pinned while reserved).
+    while ((frontier_ - 1) / kPerPage >= stage_page_ + kStagePages) advance(stage_page_ + kStagePages);
   }
   /// Writes records [first, first + n) from `recs`: a block at the frontier, or reserved records.
   void write(std::size_t first, const IndexNodeRecord* recs, std::size_t n) {
@@ -1091,6 +1096,7 @@ class NodeFile {
       if (reserved_.erase(r) != 1) throw std::logic_error("index build: node record " + std::to_string(r) + " written twice");
       std::uint8_t* dst;
       if (page >= stage_page_) {
+        if (page >= stage_page_ + kStagePages) throw std::logic_error("index build: a reserved node record past the stage");
         dst = stage_.data() + (r - stage_page_ * kPerPage) * kNodeBytes;
       } else {
         auto it = pinned_.find(page);
@@ -1138,7 +1144,6 @@ class NodeFile {
 
  private:
   static constexpr std::size_t kPerPage = kDirectAlign / kNodeBytes;  // records per page
-  static constexpr std::size_t kStagePages = 1024;                    // 4 MiB staged
   struct alignas(kDirectAlign) Page : std::array<std::uint8_t, kDirectAlign> {};
 
   /// Moves the stage's start to page `to`: every page below it leaves (written, or pinned while
@@ -1189,6 +1194,7 @@ class NodeFile {
 
   Fd& fd_;
   std::uint64_t off_;  ///< file offset of record 0 (page-aligned: kAlign)
+  const std::size_t kStagePages;  ///< pages staged (4 MiB by default)
   Fd* dfd_ = nullptr;  ///< direct mode: the O_DIRECT descriptor
   DirectWriter* dw_ = nullptr;  ///< ... and the background writer of its pages
   HugeArray<std::uint8_t> stage_;
@@ -1304,7 +1310,7 @@ struct NodeBuilder {
   /// records written), then end_feed() commits the rest and writes the upper nodes.
   void begin_feed(PositionView enc) {
     if (!tasks_.empty()) out.reserve(0, 1);  // the root is node 0
-    count = 1;
+    count = tasks_.empty() ? 0 : 1;
     next_event_ = 0;
     feed_view_ = enc;  // (its bytes pointer is replaced per task; encoding and grid kept)
     pending_.clear();
@@ -1339,7 +1345,7 @@ struct NodeBuilder {
       });
       used += t.e - t.b;
       ++next_task_;
-      if (flight_.size() > kPipelineSlots) tasks_group_.wait();  // (bounds the subtrees held)
+      if (flight_.size() >= kPipelineSlots) tasks_group_.wait();  // (bounds the subtrees held)
       commit_done();
     }
     if (used > 0) {
@@ -1416,7 +1422,10 @@ struct NodeBuilder {
     std::exception_ptr error;
   };
   std::deque<std::unique_ptr<InFlight>> flight_;  // in task order
-  tbb::task_group tasks_group_;
+  // An isolated context: the group outlives the merge window's pipeline it is first run from
+  // (a bound context would take that pipeline's as its parent).
+  tbb::task_group_context tasks_ctx_{tbb::task_group_context::isolated};
+  tbb::task_group tasks_group_{tasks_ctx_};
   /// Commits the finished subtrees at the head of flight_, in order (the sink's thread).
   void commit_done() {
     while (!flight_.empty() && flight_.front()->done.load(std::memory_order_acquire)) {
@@ -1487,34 +1496,37 @@ struct NodeBuilder {
     if (progress) progress("nodes", total, total);
   }
 
+  /// The plan's two kinds of node, in the depth-first pass's order (events_).
+  Ref add_task(std::uint64_t key, unsigned d, std::size_t b, std::size_t e) {
+    const Ref r{false, static_cast<std::uint32_t>(tasks_.size())};
+    tasks_.push_back(Task{key, d, b, e});
+    events_.push_back(r);
+    return r;
+  }
+  Ref add_upper(std::uint64_t key, unsigned d) {
+    const Ref r{true, static_cast<std::uint32_t>(uppers_.size())};
+    uppers_.push_back(Upper{key, d});
+    events_.push_back(r);
+    return r;
+  }
+
   /// plan() for the node (key, d) over points [b, e) from the cell counts (plan_counts); clears
   /// `ok` where they cannot decide.
   Ref plan_cells(std::span<const std::uint64_t> prefix, unsigned D, std::uint64_t key, unsigned d, std::size_t b,
                  std::size_t e, bool& ok) {
     const std::size_t cnt = e - b;
-    if (cnt <= every) {
-      const Ref r{false, static_cast<std::uint32_t>(tasks_.size())};
-      tasks_.push_back(Task{key, d, b, e});
-      events_.push_back(r);
-      return r;
-    }
+    if (cnt <= every) return add_task(key, d, b, e);
     // A node of more than `every` points: its codes differ when its points fill two cells or more.
     const std::size_t c0 = static_cast<std::size_t>(key << (3 * (D - d)));
     const std::size_t c1 = static_cast<std::size_t>((key + 1) << (3 * (D - d)));
+    // (!splits with distinct codes implies !splits whatever `same` is: a leaf of > `every`)
+    if (!OctreeRules::splits(cfg, d, cnt, false)) return add_task(key, d, b, e);
     const std::size_t cb = static_cast<std::size_t>(std::upper_bound(prefix.begin() + c0, prefix.begin() + c1 + 1, b) - prefix.begin()) - 1;
     if (d >= D || prefix[cb + 1] >= e) {  // one cell holds them all, or children below the cells
       ok = false;
       return {};
     }
-    if (!OctreeRules::splits(cfg, d, cnt, false)) {  // (a leaf of more than `every` points)
-      const Ref r{false, static_cast<std::uint32_t>(tasks_.size())};
-      tasks_.push_back(Task{key, d, b, e});
-      events_.push_back(r);
-      return r;
-    }
-    const Ref r{true, static_cast<std::uint32_t>(uppers_.size())};
-    uppers_.push_back(Upper{key, d});
-    events_.push_back(r);
+    const Ref r = add_upper(key, d);
     const std::size_t step = std::size_t{1} << (3 * (D - d - 1));
     unsigned nchild = 0;
     for (unsigned o = 0; o < 8; ++o) {
@@ -1534,15 +1546,8 @@ struct NodeBuilder {
   Ref plan(const Code& code, std::uint64_t key, unsigned d, std::size_t b, std::size_t e) {
     const std::size_t cnt = e - b;
     const bool same = cnt == 0 || code(b) == code(e - 1);
-    if (cnt <= every || !OctreeRules::splits(cfg, d, cnt, same)) {
-      const Ref r{false, static_cast<std::uint32_t>(tasks_.size())};
-      tasks_.push_back(Task{key, d, b, e});
-      events_.push_back(r);
-      return r;
-    }
-    const Ref r{true, static_cast<std::uint32_t>(uppers_.size())};
-    uppers_.push_back(Upper{key, d});
-    events_.push_back(r);
+    if (cnt <= every || !OctreeRules::splits(cfg, d, cnt, same)) return add_task(key, d, b, e);
+    const Ref r = add_upper(key, d);
     std::array<std::size_t, 9> start{};
     std::array<unsigned, 8> oct{};
     const unsigned nchild = children(code, d, b, e, start, oct);
@@ -2020,7 +2025,9 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
   // The point sections are written once and not read back by this build but for the node
   // phase's positions: past the page cache where the file system allows (SectionWriter).
   Fd dfd = Fd::direct(out.temp(), O_WRONLY);
-  std::optional<DirectWriter> dw;  // its background writes (8 buffers of up to 4 MiB)
+  // Its background writes: 8 buffers of up to 4 MiB, more than are ever held at once (one per
+  // section writer, at most 6, and one by the node file while it copies pages in).
+  std::optional<DirectWriter> dw;
   if (dfd.is_direct())
     dw.emplace(8, std::clamp<std::size_t>(opt.memory_bytes / 128 / kDirectAlign * kDirectAlign, 64 << 10, 4 << 20));
   DirectWriter* const dwp = dw ? &*dw : nullptr;
@@ -2039,11 +2046,12 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
   // of the runs. Then the nodes from the sorted codes, or (multi-run builds whose cells decide
   // the upper tree) during the merge from the merged positions (NodeBuilder::feed).
   HugeArray<std::uint64_t> mem_codes;  // sorted codes of the in-memory build
-  NodeFile node_file(fd, &dfd, dwp, off);  // the nodes section: next after the point sections
-  // Subtrees of --memory/512 points at most (1 Mi at most): each of the kPipelineSlots in
-  // flight holds its decoded positions, codes and records (about 36 B/point) and its part of the
-  // positions map (12-24 B/point), about 1/8 of the budget in all, so small budgets release
-  // often too.
+  NodeFile node_file(fd, &dfd, dwp, off, opt.node_stage_pages);  // the nodes section, after the points
+  // The node phase after a merge (or of an in-memory build): subtrees of --memory/512 points at
+  // most (1 Mi at most); each of the kPipelineSlots in flight holds its decoded positions, codes
+  // and records (about 36 B/point) and its part of the positions map (12-24 B/point), about a
+  // quarter of the budget in all (the merge's buffers are freed by then), so small budgets
+  // release often too. (The fused build's subtrees are smaller: see below.)
   const std::uint64_t node_every = std::clamp<std::uint64_t>(opt.memory_bytes / 16 / 32, 1024, std::uint64_t{1} << 20);
   const OctreeRules::Quantizer node_qz(cell.lo, OctreeRules::root_side(bounds));
   std::optional<NodeBuilder> fused;
@@ -2053,7 +2061,9 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     if (prefix.back() != total) throw std::logic_error("index build: the cells lost points");
     const PositionView enc(codec.enc, nullptr, 0, codec.scale, codec.offset);
     fused.emplace(opt.config, nullptr, node_qz, enc, cell.lo, node_file, nullptr, nullptr, nullptr, total);
-    fused->every = node_every;
+    // Subtrees of --memory/2048 points at most: up to kPipelineSlots of them (~50 B/point: the
+    // encoded and decoded positions, codes, records) live beside the merge's buffers.
+    fused->every = std::clamp<std::uint64_t>(opt.memory_bytes / 16 / 128, 1024, std::uint64_t{1} << 20);
     if (fused->plan_counts(prefix, cell_depth)) fused->begin_feed(enc);
     else fused.reset();
   }

@@ -84,6 +84,10 @@ struct IndexBuildOptions {
   /// Folder for the sort runs (default: the output's folder). Removed afterwards.
   std::filesystem::path temp_dir;
   IndexProgress progress;  ///< called every few million points (may be empty)
+  /// Pages (4 KiB) of the nodes section staged before they are written with O_DIRECT (>= 1;
+  /// docs/index-format.md "Build" 4). The default suits any build; tests use 1 so that every
+  /// page boundary of the node records is crossed.
+  std::size_t node_stage_pages = 1024;
 };
 
 /// What a build did.
