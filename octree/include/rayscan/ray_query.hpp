@@ -299,7 +299,6 @@ struct RayTraversal {
   double tol;
   // Current bounds, tightened by the dynamic k filter (Algorithm 1, step 2).
   double worst = kInf;  // worst kept key once k candidates are held
-  double worst_tol = kInf;  // worst + tol (live's bound)
   // kBest1 with OrderKey: best.id is read from the index only when a tie of keys needs it and
   // once at the end (finish), not for every better candidate (a cache miss each).
   bool best_id_known = true;
@@ -425,7 +424,7 @@ struct RayTraversal {
     // The float slabs' t_far: for orders time and sphere_hit a child's lower bound is its entry,
     // so live()'s k-bound (worst + tol) caps it too and the SIMD mask drops the dead children
     // (the float entry is a lower bound of the double one, so no live child is dropped).
-    [[maybe_unused]] const double th = ray_order ? t_hi : std::min(t_hi, worst_tol);
+    [[maybe_unused]] const double th = ray_order ? t_hi : std::min(t_hi, worst + tol);
     if constexpr (per_box_f) {
       if (kern.child_slab) {
         // As below with pad 0, the magnitudes including the geometry's reach past the float
@@ -465,10 +464,7 @@ struct RayTraversal {
   }
 
   /// True when a node with key lower bound lb can still hold a better result (k filter).
-  [[nodiscard]] bool live(double lb) const {
-    if constexpr (kBest1) return !(lb > worst_tol);
-    else return !(bounded && lb > worst_tol);
-  }
+  [[nodiscard]] bool live(double lb) const { return !(bounded && lb > worst + tol); }
 
   /// Node test (section 3.3): false prunes the node; otherwise lb receives a lower bound of the key
   /// of any result inside it.
@@ -585,12 +581,18 @@ struct RayTraversal {
       if (key == best.key) {
         const PointIndex id = ids[s];
         if (!(id < best_id())) return;
-        push_candidate({key, id, s, t, d2});
+        take_best({key, id, s, t, d2}, true);
         return;
       }
     }
-    best = {key, PointIndex{}, s, t, d2};
-    best_id_known = false;
+    take_best({key, PointIndex{}, s, t, d2}, false);
+  }
+
+  /// kBest1: `c` becomes the best candidate (its id read from the index when `id_known` is
+  /// false: best_id()); then the any_hit stop or the dynamic k filter.
+  __attribute__((always_inline)) void take_best(const detail::Candidate& c, bool id_known) {
+    best = c;
+    best_id_known = id_known;
     found = true;
     if (q.any_hit) {
       done = true;
@@ -602,20 +604,14 @@ struct RayTraversal {
   __attribute__((always_inline)) void push_candidate(const detail::Candidate& c) {
     if constexpr (kBest1) {
       if (found && !detail::cand_less(c, best)) return;
-      best = c;
-      best_id_known = true;
-      found = true;
+      take_best(c, true);
+    } else {
+      auto& cands = scratch.cands;
       if (q.any_hit) {
+        cands.push_back(c);
         done = true;
         return;
       }
-    } else if (q.any_hit) {
-      scratch.cands.push_back(c);
-      done = true;
-      return;
-    }
-    if constexpr (!kBest1) {
-      auto& cands = scratch.cands;
       if (!bounded) {
         cands.push_back(c);
         return;
@@ -630,26 +626,22 @@ struct RayTraversal {
       } else {
         return;
       }
-      if (cands.size() != q.k) return;
+      if (cands.size() == q.k) tighten();
     }
-    tighten();
   }
 
   /// The dynamic k filter (Algorithm 1, step 2) once k candidates are held: tightens r (order
   /// ray) or t_max to the worst kept key.
   __attribute__((always_inline)) void tighten() {
-    {
-      worst = kBest1 ? best.key : scratch.cands.front().key;
-      worst_tol = worst + tol;
-      if (ray_order) {
-        pad = std::min(radius, worst);
-        o_plus = o + (pad + tol);
-        o_minus = o - (pad + tol);
-      } else {
-        t_hi = (sphere ? std::min(q.t_max, worst) + radius : std::min(q.t_max, worst)) + tol;
-      }
-      update_simd();
+    worst = kBest1 ? best.key : scratch.cands.front().key;
+    if (ray_order) {
+      pad = std::min(radius, worst);
+      o_plus = o + (pad + tol);
+      o_minus = o - (pad + tol);
+    } else {
+      t_hi = (sphere ? std::min(q.t_max, worst) + radius : std::min(q.t_max, worst)) + tol;
     }
+    update_simd();
   }
 
   /// Leaf work: the points stored at node n (every node of a layered octree holds some).

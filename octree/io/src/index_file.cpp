@@ -1049,11 +1049,11 @@ class NodeFile {
   /// `direct`: an O_DIRECT descriptor of the same file, or null / not direct: buffered writes.
   /// `stage_pages` (>= 1): the stage's size in pages (IndexBuildOptions::node_stage_pages).
   NodeFile(Fd& fd, Fd* direct, DirectWriter* writer, std::uint64_t offset, std::size_t stage_pages)
-      : fd_(fd), off_(offset), kStagePages(std::max<std::size_t>(1, stage_pages)) {
+      : fd_(fd), off_(offset), stage_pages_(std::max<std::size_t>(1, stage_pages)) {
     if (direct != nullptr && writer != nullptr && direct->is_direct() && offset % kDirectAlign == 0) {
       dfd_ = direct;
       dw_ = writer;
-      stage_ = HugeArray<std::uint8_t>(kStagePages * kDirectAlign);
+      stage_ = HugeArray<std::uint8_t>(stage_pages_ * kDirectAlign);
     }
   }
   /// Records [first, first + n) will be written later, after records above them (direct mode
@@ -1069,7 +1069,7 @@ class NodeFile {
     frontier_ = first + n;
     // The stage must hold the page of every record below the frontier that is not yet written:
     // the pages it leaves lie wholly below the frontier (complete, or pinned while reserved).
-    while ((frontier_ - 1) / kPerPage >= stage_page_ + kStagePages) advance(stage_page_ + kStagePages);
+    while ((frontier_ - 1) / kPerPage >= stage_page_ + stage_pages_) advance(stage_page_ + stage_pages_);
   }
   /// Writes records [first, first + n) from `recs`: a block at the frontier, or reserved records.
   void write(std::size_t first, const IndexNodeRecord* recs, std::size_t n) {
@@ -1083,8 +1083,8 @@ class NodeFile {
       const auto* b = reinterpret_cast<const std::uint8_t*>(recs);
       std::size_t r = first, left = n;
       while (left > 0) {
-        while (r / kPerPage >= stage_page_ + kStagePages) advance(stage_page_ + kStagePages);
-        const std::size_t room = (stage_page_ + kStagePages) * kPerPage - r, take = std::min(left, room);
+        while (r / kPerPage >= stage_page_ + stage_pages_) advance(stage_page_ + stage_pages_);
+        const std::size_t room = (stage_page_ + stage_pages_) * kPerPage - r, take = std::min(left, room);
         std::memcpy(stage_.data() + (r - stage_page_ * kPerPage) * kNodeBytes, b, take * kNodeBytes);
         b += take * kNodeBytes, r += take, left -= take;
         frontier_ = r;  // (the pages advance() writes hold records below it only)
@@ -1096,7 +1096,7 @@ class NodeFile {
       if (reserved_.erase(r) != 1) throw std::logic_error("index build: node record " + std::to_string(r) + " written twice");
       std::uint8_t* dst;
       if (page >= stage_page_) {
-        if (page >= stage_page_ + kStagePages) throw std::logic_error("index build: a reserved node record past the stage");
+        if (page >= stage_page_ + stage_pages_) throw std::logic_error("index build: a reserved node record past the stage");
         dst = stage_.data() + (r - stage_page_ * kPerPage) * kNodeBytes;
       } else {
         auto it = pinned_.find(page);
@@ -1146,10 +1146,14 @@ class NodeFile {
   static constexpr std::size_t kPerPage = kDirectAlign / kNodeBytes;  // records per page
   struct alignas(kDirectAlign) Page : std::array<std::uint8_t, kDirectAlign> {};
 
-  /// Moves the stage's start to page `to`: every page below it leaves (written, or pinned while
-  /// reserved records of it are missing); the stage's pages from `to` on move down.
+  /// Moves the stage's start to page `to` (at most its end): every page below it leaves (written,
+  /// or pinned while reserved records of it are missing). The stage then starts afresh at `to`:
+  /// the in-order writes and reserve() advance by whole stages, crc() to the end of the records.
+  /// Its bytes are stale until written: every record is written before its page leaves, and
+  /// crc() zeroes the last page's padding.
   void advance(std::size_t to) {
-    const std::size_t end = std::min(to, stage_page_ + kStagePages);
+    if (to > stage_page_ + stage_pages_) throw std::logic_error("index build: the node stage skipped pages");
+    const std::size_t end = to;
     std::size_t p = stage_page_;
     while (p < end) {
       if (pending_.count(p) != 0) {  // pinned until its reserved records are in
@@ -1164,17 +1168,10 @@ class NodeFile {
       write_pages(p, stage_.data() + (p - stage_page_) * kDirectAlign, q - p);
       p = q;
     }
-    // The pages from `to` on move down (the in-order writes advance by whole stages, crc() to the
-    // end: none move in practice). The rest of the stage keeps stale bytes: every record is
-    // written before its page leaves, and crc() zeroes the last page's padding.
-    const std::size_t keep = stage_page_ + kStagePages > to ? stage_page_ + kStagePages - to : 0;
-    if (keep > 0 && to > stage_page_)
-      std::memmove(stage_.data(), stage_.data() + (to - stage_page_) * kDirectAlign, keep * kDirectAlign);
     stage_page_ = to;
   }
-  /// Writes `count` whole pages from page `first` on (direct), keeping their CRCs (of the bytes
-  /// the section holds: the last page's may be cut later by crc()'s length, which combines the
-  /// CRC of its records only: see below).
+  /// Writes `count` whole pages from page `first` on (direct, in the background) and keeps the
+  /// CRC of each page's records (all of a page below the frontier; the last page's records only).
   void write_pages(std::size_t first, const std::uint8_t* data, std::size_t count) {
     const std::size_t per = dw_->buffer_bytes() / kDirectAlign;  // pages per background write
     for (std::size_t k = 0; k < count; k += per) {
@@ -1194,7 +1191,7 @@ class NodeFile {
 
   Fd& fd_;
   std::uint64_t off_;  ///< file offset of record 0 (page-aligned: kAlign)
-  const std::size_t kStagePages;  ///< pages staged (4 MiB by default)
+  const std::size_t stage_pages_;  ///< pages staged (4 MiB by default)
   Fd* dfd_ = nullptr;  ///< direct mode: the O_DIRECT descriptor
   DirectWriter* dw_ = nullptr;  ///< ... and the background writer of its pages
   HugeArray<std::uint8_t> stage_;
@@ -1304,8 +1301,9 @@ struct NodeBuilder {
   }
 
   /// Steps 2 and 3 fused into the merge (after plan_counts()): feed(bytes, n) is called with the
-  /// sorted points in order, n positions encoded as `enc` (the positions section's bytes); each
-  /// subtree whose points are all in is built by a task of its own (decode, codes, records; at
+  /// sorted points in order, n positions encoded as `enc` (the positions section's bytes), copied
+  /// into the buffer of the subtree they belong to; each subtree whose points are all in is built
+  /// by a task of its own (decode, codes, records; at
   /// most kPipelineSlots in flight) and committed in order by later feed() calls (numbers and
   /// records written), then end_feed() commits the rest and writes the upper nodes.
   void begin_feed(PositionView enc) {
@@ -1313,54 +1311,33 @@ struct NodeBuilder {
     count = tasks_.empty() ? 0 : 1;
     next_event_ = 0;
     feed_view_ = enc;  // (its bytes pointer is replaced per task; encoding and grid kept)
-    pending_.clear();
-    pending_b_ = 0;
     next_task_ = 0;
   }
   void feed(const std::uint8_t* bytes, std::size_t n) {
     const std::size_t pb = position_bytes(feed_view_.encoding());
-    pending_.insert(pending_.end(), bytes, bytes + n * pb);
-    std::size_t used = 0;  // points of pending_ handed to tasks
-    const std::size_t have = pending_.size() / pb;
-    while (next_task_ < tasks_.size() && tasks_[next_task_].e <= pending_b_ + have) {
+    while (n > 0) {
+      if (next_task_ == tasks_.size()) throw std::logic_error("index build: more points than the fused node plan");
       const Task& t = tasks_[next_task_];
-      if (t.b != pending_b_ + used) throw std::logic_error("index build: fused node plan out of order");
-      auto f = std::make_unique<InFlight>();
-      f->task = next_task_;
-      f->enc.assign(pending_.begin() + static_cast<std::ptrdiff_t>(used * pb),
-                    pending_.begin() + static_cast<std::ptrdiff_t>((t.e - pending_b_) * pb));
-      InFlight* fp = f.get();
-      flight_.push_back(std::move(f));
-      tasks_group_.run([this, fp] {
-        try {
-          const Task& tk = tasks_[fp->task];
-          const PositionView v(feed_view_.encoding(), fp->enc.data(), tk.e - tk.b, feed_view_.scale(), feed_view_.offset());
-          fp->st.pos.resize(tk.e - tk.b);
-          v.decode(0, tk.e - tk.b, fp->st.pos.data());
-          make_subtree(tk, fp->st);
-        } catch (...) {
-          fp->error = std::current_exception();
-        }
-        fp->done.store(true, std::memory_order_release);
-      });
-      used += t.e - t.b;
+      if (!filling_) {  // the next subtree's positions, copied in as they arrive (tasks are contiguous)
+        filling_ = std::make_unique<InFlight>();
+        filling_->task = next_task_;
+        filling_->enc.reserve((t.e - t.b) * pb);
+      }
+      const std::size_t have = filling_->enc.size() / pb, take = std::min(n, t.e - t.b - have);
+      filling_->enc.insert(filling_->enc.end(), bytes, bytes + take * pb);
+      bytes += take * pb, n -= take;
+      if (have + take < t.e - t.b) break;  // (n == 0)
+      launch(std::move(filling_));
       ++next_task_;
-      if (flight_.size() >= kPipelineSlots) tasks_group_.wait();  // (bounds the subtrees held)
-      commit_done();
-    }
-    if (used > 0) {
-      pending_.erase(pending_.begin(), pending_.begin() + static_cast<std::ptrdiff_t>(used * pb));
-      pending_b_ += used;
     }
   }
   void end_feed() {
     tasks_group_.wait();
     commit_done();
     if (tasks_.empty()) return;
-    if (next_task_ != tasks_.size() || !pending_.empty() || !flight_.empty())
+    if (next_task_ != tasks_.size() || filling_ || !flight_.empty())
       throw std::logic_error("index build: the fused node build lost points");
     finish();
-    std::vector<std::uint8_t>().swap(pending_);
   }
   ~NodeBuilder() { tasks_group_.wait(); }  // (an exception may leave tasks running)
 
@@ -1408,11 +1385,9 @@ struct NodeBuilder {
   std::vector<Task> tasks_;
   std::vector<Ref> events_;  ///< upper nodes and subtrees in the order the depth-first pass visits them
   std::size_t next_event_ = 0;  ///< the sink's place in events_
-  // The fused build's state (begin_feed): the encoded positions of points [pending_b_, ...) not
-  // yet built, the next task, the one subtree in work.
+  // The fused build's state (begin_feed): the positions' encoding, the next task.
   PositionView feed_view_;
-  std::vector<std::uint8_t> pending_;
-  std::size_t pending_b_ = 0, next_task_ = 0;
+  std::size_t next_task_ = 0;
   /// A subtree of the fused build: its points' encoded positions, built by a task.
   struct InFlight {
     std::size_t task = 0;
@@ -1421,11 +1396,32 @@ struct NodeBuilder {
     std::atomic<bool> done{false};
     std::exception_ptr error;
   };
+  std::unique_ptr<InFlight> filling_;             // the subtree whose points are coming in
   std::deque<std::unique_ptr<InFlight>> flight_;  // in task order
   // An isolated context: the group outlives the merge window's pipeline it is first run from
   // (a bound context would take that pipeline's as its parent).
   tbb::task_group_context tasks_ctx_{tbb::task_group_context::isolated};
   tbb::task_group tasks_group_{tasks_ctx_};
+  /// Builds subtree f (all its positions in) by a task; then commits what has finished, after
+  /// waiting when kPipelineSlots are in flight (the subtrees held stay bounded).
+  void launch(std::unique_ptr<InFlight> f) {
+    InFlight* fp = f.get();
+    flight_.push_back(std::move(f));
+    tasks_group_.run([this, fp] {
+      try {
+        const Task& tk = tasks_[fp->task];
+        const PositionView v(feed_view_.encoding(), fp->enc.data(), tk.e - tk.b, feed_view_.scale(), feed_view_.offset());
+        fp->st.pos.resize(tk.e - tk.b);
+        v.decode(0, tk.e - tk.b, fp->st.pos.data());
+        make_subtree(tk, fp->st);
+      } catch (...) {
+        fp->error = std::current_exception();
+      }
+      fp->done.store(true, std::memory_order_release);
+    });
+    if (flight_.size() >= kPipelineSlots) tasks_group_.wait();
+    commit_done();
+  }
   /// Commits the finished subtrees at the head of flight_, in order (the sink's thread).
   void commit_done() {
     while (!flight_.empty() && flight_.front()->done.load(std::memory_order_acquire)) {
@@ -2068,20 +2064,27 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     else fused.reset();
   }
   std::vector<std::uint32_t>().swap(cell_points);
-  // Flushes the point sections' writers (positions, ids, the stored attributes) and records their
-  // CRCs in the header: the end of both paths below.
-  auto finish_points = [&](SectionWriter& pos, std::optional<SectionWriter>& ids, std::optional<SectionWriter>& rgb,
-                           std::optional<SectionWriter>& intensity, std::optional<SectionWriter>& cls,
-                           std::optional<SectionWriter>& gps) {
-    pos.flush();
-    h.sections[s_pos].crc = pos.crc();
-    if (ids) ids->flush(), h.sections[s_ids].crc = ids->crc();
-    if (rgb) rgb->flush(), h.sections[s_rgb].crc = rgb->crc();
-    if (intensity) intensity->flush(), h.sections[s_int].crc = intensity->crc();
-    if (cls) cls->flush(), h.sections[s_cls].crc = cls->crc();
-    if (gps) gps->flush(), h.sections[s_gps].crc = gps->crc();
+  // The point sections' writers (positions, ids, the stored attributes), filled in (code, id)
+  // order by either path below; finish_points flushes them and records their CRCs in the header.
+  const std::size_t wbuf = in_memory ? 1 << 16 : 4 << 20;  // (buffered only; in memory: blocks go straight)
+  SectionWriter w_pos(dfd, h.sections[s_pos].offset, wbuf, dwp);
+  std::optional<SectionWriter> w_ids, w_rgb, w_int, w_cls, w_gps;
+  if (want_ids) w_ids.emplace(dfd, h.sections[s_ids].offset, wbuf, dwp);
+  if (L.rgb) w_rgb.emplace(dfd, h.sections[s_rgb].offset, wbuf, dwp);
+  if (L.intensity) w_int.emplace(dfd, h.sections[s_int].offset, wbuf, dwp);
+  if (L.cls) w_cls.emplace(dfd, h.sections[s_cls].offset, wbuf, dwp);
+  if (L.gps) w_gps.emplace(dfd, h.sections[s_gps].offset, wbuf, dwp);
+  auto finish_points = [&] {
+    w_pos.flush();
+    h.sections[s_pos].crc = w_pos.crc();
+    if (w_ids) w_ids->flush(), h.sections[s_ids].crc = w_ids->crc();
+    if (w_rgb) w_rgb->flush(), h.sections[s_rgb].crc = w_rgb->crc();
+    if (w_int) w_int->flush(), h.sections[s_int].crc = w_int->crc();
+    if (w_cls) w_cls->flush(), h.sections[s_cls].crc = w_cls->crc();
+    if (w_gps) w_gps->flush(), h.sections[s_gps].crc = w_gps->crc();
     if (dwp != nullptr) dwp->drain();  // on disk before the node phase maps the positions
   };
+
   if (in_memory) {
     const OctreeRules::Quantizer qz(cell.lo, OctreeRules::root_side(bounds));
     if (opt.progress) opt.progress("sort", 0, total);
@@ -2091,14 +2094,6 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, keys.size(), 1 << 16), [&](const auto& r) {
       for (std::size_t i = r.begin(); i != r.end(); ++i) mem_codes[i] = keys[i].code;
     });
-    const std::size_t wbuf = dfd.is_direct() ? 4 << 20 : 1 << 16;  // (buffered: blocks are written directly)
-    SectionWriter w_pos(dfd, h.sections[s_pos].offset, wbuf, dwp);
-    std::optional<SectionWriter> w_ids, w_rgb, w_int, w_cls, w_gps;
-    if (want_ids) w_ids.emplace(dfd, h.sections[s_ids].offset, wbuf, dwp);
-    if (L.rgb) w_rgb.emplace(dfd, h.sections[s_rgb].offset, wbuf, dwp);
-    if (L.intensity) w_int.emplace(dfd, h.sections[s_int].offset, wbuf, dwp);
-    if (L.cls) w_cls.emplace(dfd, h.sections[s_cls].offset, wbuf, dwp);
-    if (L.gps) w_gps.emplace(dfd, h.sections[s_gps].offset, wbuf, dwp);
     std::vector<Vec3> g_pos;
     std::vector<std::uint8_t> g_enc;  // encoded positions (float32, las_int32)
     std::vector<std::uint32_t> g_ids;
@@ -2143,17 +2138,9 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
       if (L.gps) gather_write(buf.gps, keys, b, e, g_gps, *w_gps);
       if (opt.progress && (e & ((std::size_t{1} << 22) - 1)) < kGatherBlock) opt.progress("write", e, total);
     });
-    finish_points(w_pos, w_ids, w_rgb, w_int, w_cls, w_gps);
+    finish_points();
     buf = PointBuffer{};  // release before the node build
   } else {
-    const std::size_t wbuf = 4 << 20;
-    SectionWriter w_pos(dfd, h.sections[s_pos].offset, wbuf, dwp);
-    std::optional<SectionWriter> w_ids, w_rgb, w_int, w_cls, w_gps;
-    if (want_ids) w_ids.emplace(dfd, h.sections[s_ids].offset, wbuf, dwp);
-    if (L.rgb) w_rgb.emplace(dfd, h.sections[s_rgb].offset, wbuf, dwp);
-    if (L.intensity) w_int.emplace(dfd, h.sections[s_int].offset, wbuf, dwp);
-    if (L.cls) w_cls.emplace(dfd, h.sections[s_cls].offset, wbuf, dwp);
-    if (L.gps) w_gps.emplace(dfd, h.sections[s_gps].offset, wbuf, dwp);
     const std::size_t rbuf = std::clamp<std::size_t>(
         static_cast<std::size_t>(opt.memory_bytes / 2 / std::max<std::size_t>(1, run_files.size())),
         std::size_t{1} << 16, std::size_t{64} << 20);
@@ -2321,7 +2308,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
       merged += window;
       if (opt.progress) opt.progress("merge", merged, total);
     }
-    finish_points(w_pos, w_ids, w_rgb, w_int, w_cls, w_gps);
+    finish_points();
     if (opt.progress) opt.progress("merge", total, total);
   }
   for (const fs::path& rp : run_files) fs::remove(rp);
@@ -2434,8 +2421,9 @@ struct MappedIndex::Map {
         for (std::uint64_t o = b / 4096 * 4096; o < e && !stop.load(std::memory_order_relaxed); o += kStep)
           if (::pread(fd, buf.data(), static_cast<std::size_t>(std::min(kStep, n - o)), static_cast<off_t>(o)) <= 0) return;
       };
-      ask(first, std::min<std::uint64_t>(n, first + len));
-      if (whole) ask(0, n);
+      const std::uint64_t end = std::min<std::uint64_t>(n, first + len);
+      ask(first, end);
+      if (whole) ask(0, first), ask(end, n);
     });
   }
   ~Map() {
