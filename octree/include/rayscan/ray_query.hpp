@@ -126,11 +126,7 @@ struct NodeEntry {
 /// Reusable per-thread scratch so that a query allocates nothing once warm.
 template <class Node>
 struct RayScratch {
-  std::vector<NodeEntry<Node>> nodes;  // a node stack for the other descents (surfel cover_descent)
-  /// traverse_from's node stack as plain storage: its size is its capacity (grown, never shrunk),
-  /// so a push is one store (std::vector::push_back's checks were ~8% of a first hit's
-  /// instructions, bench/README.md "Issue 12, session 23").
-  std::vector<NodeEntry<Node>> stack;
+  std::vector<NodeEntry<Node>> nodes;
   std::vector<Candidate> cands;
   std::vector<std::uint32_t> sel;  // survivors of the SIMD point filter (local slot offsets)
   std::vector<Vec3> block;         // a leaf's positions decoded for the filter (compact encodings)
@@ -299,9 +295,6 @@ struct RayTraversal {
   double tol;
   // Current bounds, tightened by the dynamic k filter (Algorithm 1, step 2).
   double worst = kInf;  // worst kept key once k candidates are held
-  // kBest1 with OrderKey: best.id is read from the index only when a tie of keys needs it and
-  // once at the end (finish), not for every better candidate (a cache miss each).
-  bool best_id_known = true;
   double pad;           // node distance bound: r, tightened to the k-bound for order ray
   Vec3 o_plus, o_minus;  // slab planes of the box grown by pad
   double t_lo, t_hi;
@@ -421,10 +414,6 @@ struct RayTraversal {
     // Disc hits (filter_normals): t in [key_min, t_max], and a refined key above the k-bound fails.
     pf.disc_t_lo = box_t_lo;
     pf.disc_t_hi = std::min(q.t_max, worst);
-    // The float slabs' t_far: for orders time and sphere_hit a child's lower bound is its entry,
-    // so live()'s k-bound (worst + tol) caps it too and the SIMD mask drops the dead children
-    // (the float entry is a lower bound of the double one, so no live child is dropped).
-    [[maybe_unused]] const double th = ray_order ? t_hi : std::min(t_hi, worst + tol);
     if constexpr (per_box_f) {
       if (kern.child_slab) {
         // As below with pad 0, the magnitudes including the geometry's reach past the float
@@ -435,7 +424,7 @@ struct RayTraversal {
           sr_box.o_minus[a] = static_cast<float>(o_rel[a] - margin);
         }
         sr_box.t_lo = static_cast<float>(box_t_lo - 0x1p-22 * std::abs(box_t_lo));
-        sr_box.t_hi = static_cast<float>(th + 0x1p-22 * std::abs(th));
+        sr_box.t_hi = static_cast<float>(t_hi + 0x1p-22 * std::abs(t_hi));
       }
     } else if constexpr (detail::FloatChildBoxes<I>) {
       if (kern.child_slab && pad < kInf) {
@@ -449,7 +438,7 @@ struct RayTraversal {
           sr.o_minus[a] = static_cast<float>(o_rel[a] - (pad + margin));
         }
         sr.t_lo = static_cast<float>(t_lo - 0x1p-22 * std::abs(t_lo));
-        sr.t_hi = static_cast<float>(th + 0x1p-22 * std::abs(th));
+        sr.t_hi = static_cast<float>(t_hi + 0x1p-22 * std::abs(t_hi));
       }
     }
   }
@@ -558,60 +547,22 @@ struct RayTraversal {
     return out;
   }
 
-  /// The id of the best candidate (kBest1), read from the index if it was deferred.
-  PointIndex best_id() {
-    if (!best_id_known) {
-      best.id = ids[best.slot];
-      best_id_known = true;
-    }
-    return best.id;
-  }
-  /// Completes `best` after the traversal (kBest1): its id, if it was deferred.
-  void finish() {
-    if constexpr (kBest1)
-      if (found) (void)best_id();
-  }
-
-  /// kBest1 with OrderKey: offers the point at slot s with key `key` (and terms t, d2) as the best
-  /// candidate; its id is read only when the key ties with the best one's (cand_less's order).
-  __attribute__((always_inline)) void offer_best(double key, std::uint32_t s, double t, double d2) {
-    static_assert(kBest1);
-    if (found) {
-      if (key > best.key) return;
-      if (key == best.key) {
-        const PointIndex id = ids[s];
-        if (!(id < best_id())) return;
-        take_best({key, id, s, t, d2}, true);
-        return;
-      }
-    }
-    take_best({key, PointIndex{}, s, t, d2}, false);
-  }
-
-  /// kBest1: `c` becomes the best candidate (its id read from the index when `id_known` is
-  /// false: best_id()); then the any_hit stop or the dynamic k filter.
-  __attribute__((always_inline)) void take_best(const detail::Candidate& c, bool id_known) {
-    best = c;
-    best_id_known = id_known;
-    found = true;
-    if (q.any_hit) {
-      done = true;
-      return;
-    }
-    tighten();
-  }
-
   __attribute__((always_inline)) void push_candidate(const detail::Candidate& c) {
     if constexpr (kBest1) {
       if (found && !detail::cand_less(c, best)) return;
-      take_best(c, true);
-    } else {
-      auto& cands = scratch.cands;
+      best = c;
+      found = true;
       if (q.any_hit) {
-        cands.push_back(c);
         done = true;
         return;
       }
+    } else if (q.any_hit) {
+      scratch.cands.push_back(c);
+      done = true;
+      return;
+    }
+    if constexpr (!kBest1) {
+      auto& cands = scratch.cands;
       if (!bounded) {
         cands.push_back(c);
         return;
@@ -626,22 +577,19 @@ struct RayTraversal {
       } else {
         return;
       }
-      if (cands.size() == q.k) tighten();
+      if (cands.size() != q.k) return;
     }
-  }
-
-  /// The dynamic k filter (Algorithm 1, step 2) once k candidates are held: tightens r (order
-  /// ray) or t_max to the worst kept key.
-  __attribute__((always_inline)) void tighten() {
-    worst = kBest1 ? best.key : scratch.cands.front().key;
-    if (ray_order) {
-      pad = std::min(radius, worst);
-      o_plus = o + (pad + tol);
-      o_minus = o - (pad + tol);
-    } else {
-      t_hi = (sphere ? std::min(q.t_max, worst) + radius : std::min(q.t_max, worst)) + tol;
+    {  // dynamic k filter: tighten r (order ray) or t_max
+      worst = kBest1 ? best.key : scratch.cands.front().key;
+      if (ray_order) {
+        pad = std::min(radius, worst);
+        o_plus = o + (pad + tol);
+        o_minus = o - (pad + tol);
+      } else {
+        t_hi = (sphere ? std::min(q.t_max, worst) + radius : std::min(q.t_max, worst)) + tol;
+      }
+      update_simd();
     }
-    update_simd();
   }
 
   /// Leaf work: the points stored at node n (every node of a layered octree holds some).
@@ -689,8 +637,7 @@ struct RayTraversal {
         key = key_policy.key(ids[s], pt.t, pt.d2, key);
         if (!(key <= worst) || !(key < kInf)) return;
       }
-      if constexpr (kBest1 && !KeyPolicy::refines) offer_best(key, s, t, pt.d2);
-      else push_candidate({key, ids[s], s, t, pt.d2});
+      push_candidate({key, ids[s], s, t, pt.d2});
     };
     if (kern.point_filter && range.size() >= 4) {
       // SIMD filter, then the exact test on the survivors only (in slot order, as below).
@@ -719,23 +666,16 @@ struct RayTraversal {
   /// The depth-first loop over the subtree of `start` (which passed the node test with bound lb0).
   /// With k set: the children of each node pushed far-to-near (so the nearest is expanded first
   /// and the k filter tightens early), skipping any popped node whose lower bound exceeds the
-  /// current k-bound. Without k: plain depth-first. Uses the per-thread stack storage
-  /// (RayScratch::stack) from its bottom: calls do not nest.
+  /// current k-bound. Without k: plain depth-first. Uses the per-thread node stack above its
+  /// current top, and leaves it as it found it.
   void traverse_from(Node start, double lb0) {
-    // The stack: entries [0, sp) of scratch.stack (traversals do not nest: a packet hands its
-    // rays' subtrees to this loop one after another). room(m) makes space for m more pushes.
-    auto& store = scratch.stack;
-    std::size_t sp = 0;
-    const auto room = [&](std::size_t m) __attribute__((always_inline)) {
-      if (sp + m > store.size()) [[unlikely]]
-        store.resize(std::max<std::size_t>(2 * store.size(), sp + m + 64));
-      return store.data();
-    };
-    detail::NodeEntry<Node>* stk = room(1);
-    stk[sp++] = {lb0, start};
+    auto& nodes = scratch.nodes;
+    const std::size_t base = nodes.size();
+    nodes.push_back({lb0, start});
     detail::NodeEntry<Node> kids[8];
-    while (sp > 0) {
-      const detail::NodeEntry<Node> e = stk[--sp];
+    while (nodes.size() > base) {
+      const detail::NodeEntry<Node> e = nodes.back();
+      nodes.pop_back();
       if (!live(e.lb)) continue;
       // Per-node radii: the node's subtree bound for its own points' SIMD filter and (without
       // float geometry boxes) its children's SIMD slab prefilter (test_children); with per-slot
@@ -746,21 +686,19 @@ struct RayTraversal {
       const unsigned nc = index.child_count(e.node);
       if (nc == 0) continue;  // a leaf: no child test (nor an indirect SIMD call)
       if (nc > 8) {           // (no index here has more than 8 children; kept general)
-        stk = room(nc);
         for (unsigned i = 0; i < nc; ++i) {
           const Node c = index.child(e.node, i);
           double lb;
-          if (test_child(c, lb)) stk[sp++] = {lb, c};
+          if (test_child(c, lb)) nodes.push_back({lb, c});
         }
         continue;
       }
       double lb[8];
       unsigned m = test_children(e.node, nc, lb);
-      stk = room(8);
       if (!bounded) {
         for (; m; m &= m - 1) {
           const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-          stk[sp++] = {lb[i], index.child(e.node, i)};
+          nodes.push_back({lb[i], index.child(e.node, i)});
         }
         continue;
       }
@@ -775,8 +713,9 @@ struct RayTraversal {
         }
         kids[j] = {lb[i], index.child(e.node, i)};
       }
-      for (unsigned j = 0; j < nk; ++j) stk[sp++] = kids[j];
+      for (unsigned j = 0; j < nk; ++j) nodes.push_back(kids[j]);
     }
+    nodes.resize(base);
   }
 };
 
@@ -793,7 +732,6 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
   }
   rt.prepare();
   rt.traverse_from(index.root(), lb0);
-  rt.finish();
   return rt.found;
 }
 
@@ -1058,10 +996,8 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
     for (unsigned j = 0; j < nk; ++j) stack.push_back(kids[j]);
   }
   std::uint32_t found = 0;
-  for (unsigned i = 0; i < n; ++i) {
-    st[i]->finish();
+  for (unsigned i = 0; i < n; ++i)
     if (st[i]->found) found |= 1u << i;
-  }
   return found;
 }
 
