@@ -659,7 +659,7 @@ int main(int argc, char** argv) {
   app.add_option("--points-list", points_list, "comma-separated cloud sizes")->capture_default_str();
   app.add_option("--indexes", index_list,
                  "comma-separated rayscan indexes: octree-adaptive, octree-layered, octree-fixed, kdtree; "
-                 "NAME:C sets the node capacity / leaf size C (default 32)")
+                 "NAME:C sets the node capacity / leaf size C (default: make_index's, index_capacity)")
       ->capture_default_str();
   app.add_option("--threads", threads_list, "comma-separated thread counts (tbb::global_control)")
       ->capture_default_str();
@@ -702,12 +702,10 @@ int main(int argc, char** argv) {
   std::printf("Embree %d.%d.%d, RTC_GEOMETRY_TYPE_SPHERE_POINT (float4), rtcIntersect1 per ray, "
               "default build quality; rayscan: double precision, per-thread result vectors\n",
               RTC_VERSION_MAJOR, RTC_VERSION_MINOR, RTC_VERSION_PATCH);
-  {
-    const rayscan::IndexOptions d;
-    std::printf("rayscan indexes from make_index with its defaults: capacity %u (octree node capacity, "
-                "kd-tree leaf size), bulk build; queries use t_min = 0\n",
-                d.capacity);
-  }
+  std::printf("rayscan indexes from make_index with its defaults unless NAME:C: capacity %u (octree-adaptive, "
+              "-fixed), %u (octree-layered), kd-tree leaf %u; bulk build; queries use t_min = 0\n",
+              rayscan::default_capacity(rayscan::OctreeLayout::adaptive),
+              rayscan::default_capacity(rayscan::OctreeLayout::layered), rayscan::kDefaultKdTreeLeaf);
   std::printf("load average: %s\n", rb::loadavg().c_str());
   std::fflush(stdout);
 

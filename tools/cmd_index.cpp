@@ -56,7 +56,7 @@ Runner add_index_command(CLI::App& app) {
   struct Opts {
     std::vector<std::string> inputs;
     std::string output, attributes = "none", memory = "4G", layout = "adaptive", temp_dir, positions = "compact";
-    std::uint32_t capacity = 32;
+    std::uint32_t capacity = default_capacity(OctreeLayout::adaptive);
     unsigned depth = 6, max_depth = 21;
     bool quiet = false;
   };

@@ -16,6 +16,7 @@ namespace {
 struct QueryOptions {
   std::string cloud, rays, out, order = "ray", cache = "2G";
   IndexOptions index;
+  std::uint32_t capacity = 0;  // --capacity (0: not given; the index type's default)
   long long k = -1;
   double radius = kInf, t_min = -kInf, t_max = kInf;
   bool depth_given = false;
@@ -50,6 +51,7 @@ int run_query(const QueryOptions& o) {
   job.rays_file = o.rays;
   job.query = q;
   job.index = o.index;
+  if (o.capacity > 0) job.index.capacity = o.capacity;
   try {
     job.cache_bytes = static_cast<std::size_t>(io::parse_byte_size(o.cache));
   } catch (const std::invalid_argument& e) {
@@ -90,9 +92,11 @@ Runner add_query_command(CLI::App& app) {
   c->add_option("--index", o->index.type,
                 "Index: octree-adaptive, octree-layered, octree-fixed, kdtree or brute")
       ->capture_default_str();
-  c->add_option("--capacity", o->index.capacity,
-                "Octree node capacity / kd-tree leaf size, points")
-      ->capture_default_str()
+  c->add_option("--capacity", o->capacity,
+                "Octree node capacity / kd-tree leaf size, points (default: the index's own, " +
+                    std::to_string(default_capacity(OctreeLayout::adaptive)) + " for octree-adaptive, " +
+                    std::to_string(default_capacity(OctreeLayout::layered)) + " for octree-layered, " +
+                    std::to_string(kDefaultKdTreeLeaf) + " for kdtree)")
       ->check(positive());
   CLI::Option* depth_opt = c->add_option("--depth", o->index.depth, "Leaf depth of octree-fixed (0..21; other indexes: an error)")
       ->capture_default_str()

@@ -3,7 +3,7 @@ Clouds", Algorithm 1), point queries and the point cloud readers of the rayscan 
 
     >>> import numpy as np, rayscan
     >>> pc = rayscan.read("tests/data/las/autzen_10k.las")       # doctest: +SKIP
-    >>> tree = rayscan.Octree(pc.xyz, layout="adaptive", capacity=32)
+    >>> tree = rayscan.Octree(pc.xyz, layout="adaptive", capacity=64)
     >>> hits = tree.ray_query(origin, directions, k=1, radius=0.5, order="sphere_hit")
     >>> hits.first("t")                                          # depth of each ray, NaN = miss
 
@@ -98,10 +98,11 @@ class Octree(_QueriesMixin, _rayscan._Octree):
     PointCloud). layout: 'adaptive' (split a leaf above `capacity` points, up to max_depth),
     'layered' (every node keeps up to `capacity` points: a level-of-detail subsample) or 'fixed'
     (all points in leaves at `depth`). insertion=True builds by point insertion as the paper
-    measures (same tree as the default Morton bulk load). Raises ValueError for a non-finite
+    measures (same tree as the default Morton bulk load). capacity=None takes the layout's default
+    (64 for adaptive, 32 for layered). Raises ValueError for a non-finite
     point (naming it), a bad layout or capacity < 1."""
 
-    def __init__(self, xyz, layout="adaptive", capacity=32, depth=6, max_depth=21, insertion=False):
+    def __init__(self, xyz, layout="adaptive", capacity=None, depth=6, max_depth=21, insertion=False):
         super().__init__(_xyz(xyz), layout, capacity, depth, max_depth, insertion)
 
     def __repr__(self):

@@ -7,6 +7,7 @@
 #include "rayscan/any_index.hpp"
 #include "rayscan/batch.hpp"
 
+#include <pybind11/stl.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
@@ -233,20 +234,20 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
 
   struct PyOctree : PyIndex {};
   py::class_<PyOctree, PyIndex>(m, "_Octree")
-      .def(py::init([](py::handle xyz, const std::string& layout, long long capacity, long long depth,
-                       long long max_depth, bool insertion) {
+      .def(py::init([](py::handle xyz, const std::string& layout, std::optional<long long> capacity,
+                       long long depth, long long max_depth, bool insertion) {
              IndexOptions o;
              o.type = "octree-" + std::string(to_string(parse_octree_layout(layout)));
-             o.capacity = parse_count(capacity, "capacity");
+             if (capacity) o.capacity = parse_count(*capacity, "capacity");
              o.depth = parse_depth(depth, "depth");
              o.max_depth = parse_depth(max_depth, "max_depth");
              o.insertion = insertion;
              return PyOctree{build(xyz, o)};
            }),
-           py::arg("xyz"), py::arg("layout") = "adaptive", py::arg("capacity") = 32,
+           py::arg("xyz"), py::arg("layout") = "adaptive", py::arg("capacity") = py::none(),
            py::arg("depth") = 6, py::arg("max_depth") = 21, py::arg("insertion") = false)
       .def_property_readonly("layout", [](const PyOctree& s) { return s.options.type.substr(7); })
-      .def_property_readonly("capacity", [](const PyOctree& s) { return s.options.capacity; })
+      .def_property_readonly("capacity", [](const PyOctree& s) { return index_capacity(s.options); })
       .def_property_readonly("node_count",
                              [](const PyOctree& s) { return std::get<Octree>(s.index).node_count(); })
       .def_property_readonly("depth", [](const PyOctree& s) { return std::get<Octree>(s.index).depth(); });
@@ -259,8 +260,8 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
              o.capacity = parse_count(capacity, "capacity");
              return PyKdTree{build(xyz, o)};
            }),
-           py::arg("xyz"), py::arg("capacity") = 32)
-      .def_property_readonly("capacity", [](const PyKdTree& s) { return s.options.capacity; })
+           py::arg("xyz"), py::arg("capacity") = kDefaultKdTreeLeaf)
+      .def_property_readonly("capacity", [](const PyKdTree& s) { return index_capacity(s.options); })
       .def_property_readonly("node_count",
                              [](const PyKdTree& s) { return std::get<KdTree>(s.index).node_count(); });
 

@@ -72,7 +72,8 @@ IndexOptions parse_index(Obj& parent, const std::string& key, NodeDistance& nd) 
   } else {
     opt.type = type;
   }
-  if (type != "brute") opt.capacity = static_cast<std::uint32_t>(o.integer("capacity", 32, 1, 1u << 20));
+  if (type != "brute")
+    opt.capacity = static_cast<std::uint32_t>(o.integer("capacity", index_capacity(opt), 1, 1u << 20));
   o.finish();
   return opt;
 }

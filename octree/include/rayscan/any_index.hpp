@@ -5,6 +5,7 @@
 #include "rayscan/kdtree.hpp"
 #include "rayscan/octree.hpp"
 
+#include <optional>
 #include <string>
 #include <utility>
 #include <variant>
@@ -28,11 +29,20 @@ decltype(auto) visit_index(F&& f, const I& index) {
 /// Index build options shared by the CLI and scene files.
 struct IndexOptions {
   std::string type = "octree-adaptive";  ///< octree-adaptive|octree-layered|octree-fixed|kdtree|brute
-  std::uint32_t capacity = 32;   ///< octree node capacity / kd-tree leaf size (points)
+  /// Octree node capacity / kd-tree leaf size (points); unset: the type's default (index_capacity).
+  std::optional<std::uint32_t> capacity{};
   unsigned depth = 6;            ///< octree-fixed leaf depth
   unsigned max_depth = 21;       ///< octree-adaptive/layered maximum depth
   bool insertion = false;        ///< octree: build by insertion instead of bulk loading
 };
+
+/// The kd-tree's leaf size when none is given (points).
+inline constexpr std::uint32_t kDefaultKdTreeLeaf = 32;
+
+/// The capacity make_index builds `opts` with: opts.capacity when set, else the default of its
+/// type (octrees: default_capacity(layout); kd-tree: kDefaultKdTreeLeaf; brute: 0, unused).
+/// Throws std::invalid_argument for an unknown octree layout.
+std::uint32_t index_capacity(const IndexOptions& opts);
 
 /// Build the index named by opts.type over `positions`. Throws std::invalid_argument for an unknown
 /// type (naming the allowed ones) or invalid parameters.

@@ -30,14 +30,34 @@ OctreeLayout parse_octree_layout(const std::string& s);
 /// The name parse_octree_layout accepts.
 const char* to_string(OctreeLayout layout);
 
-/// Octree build parameters.
+/// The node capacity (points) of a layout when none is given: the one default of OctreeConfig,
+/// IndexOptions, scene files, `rayscan index` / `rayscan query` and the Python Octree.
+/// - adaptive: 64 points per leaf. Measured against 32 (bench/README.md, "Issue 12, session 24"):
+///   first sphere hits 1.07-1.3x faster on uniform clouds (32 leaves cells of ~31 points split into
+///   eight leaves of ~4), renders of the bundled Autzen scan 2-4% faster, fewer node records.
+/// - layered: 32 points per node, the paper's Table 1 configuration (64 measured ~10% slower for
+///   first hits, as every node's points are tested on the way down).
+/// - fixed: unused (every point sits in a leaf at `depth`); 64, as adaptive.
+[[nodiscard]] constexpr std::uint32_t default_capacity(OctreeLayout layout) {
+  return layout == OctreeLayout::layered ? 32u : 64u;
+}
+
+/// Octree build parameters. The default capacity is the default layout's; a caller that sets
+/// another layout takes default_capacity(layout) (or for_layout) for its capacity.
 struct OctreeConfig {
   OctreeLayout layout = OctreeLayout::adaptive;
-  std::uint32_t capacity = 32;  ///< points per node (layered) / per leaf before a split (adaptive)
+  std::uint32_t capacity = default_capacity(OctreeLayout::adaptive);  ///< points per node (layered) / per leaf before a split (adaptive)
   unsigned max_depth = 21;      ///< deepest level for layered and adaptive (<= 21)
   unsigned depth = 6;           ///< leaf depth for fixed (<= 21)
   /// Throws std::invalid_argument for capacity 0 or a depth above 21.
   void validate() const;
+  /// The defaults of `layout`: its default_capacity, max_depth 21, depth 6.
+  [[nodiscard]] static OctreeConfig for_layout(OctreeLayout layout) {
+    OctreeConfig c;
+    c.layout = layout;
+    c.capacity = default_capacity(layout);
+    return c;
+  }
 };
 
 /// The construction rules every builder of the octree shares, defined once: the in-memory builders
