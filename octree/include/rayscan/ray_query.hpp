@@ -346,7 +346,7 @@ struct RayTraversal {
 
   /// The set-up the traversal needs past the root test: clears the per-thread scratch and computes
   /// the SIMD constants (point filter bounds, float slabs). Idempotent; called by ray_traverse once
-  /// the root passed, and for every ray of a packet before any of them traverses.
+  /// the root passed, and for every ray of a packet that passed it, before any of them traverses.
   void prepare() {
     if (prepared) return;
     prepared = true;
@@ -865,8 +865,11 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
   for (unsigned i = 0; i < n; ++i) {
     st[i] = ::new (static_cast<void*>(states.buf[i])) RT(index, rays[i], q, best[i], stats, key_of(i));
     states.made = i + 1;
-    st[i]->prepare();
-    if (st[i]->test_node(st[i]->root_box, root.lb[i])) root.mask |= 1u << i;
+    // As ray_traverse: a ray that misses the root's box is never prepared (nor read again).
+    if (st[i]->test_node(st[i]->root_box, root.lb[i])) {
+      st[i]->prepare();
+      root.mask |= 1u << i;
+    }
   }
   stack.clear();
   if (root.mask) stack.push_back(root);
@@ -887,16 +890,20 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
     lanes.t_hi[i] = r.t_hi;
   };
   if constexpr (FloatChildBoxes<I>) {
+    // (Only the prepared rays, those in root.mask, count and get a lane; no other ray is ever in a
+    // stack entry's mask.)
     over_rays = kern.packet_child_slab != nullptr;
-    for (unsigned i = 0; i < n; ++i)
-      over_rays = over_rays && st[i]->slab_is_final && st[i]->simd_children && st[i]->pad < kInf;
+    for (std::uint32_t m = root.mask; m; m &= m - 1) {
+      const RT& r = *st[__builtin_ctz(m)];
+      over_rays = over_rays && r.slab_is_final && r.simd_children && r.pad < kInf;
+    }
     if (over_rays) {
       for (unsigned i = 0; i < 16; ++i) {  // unused lanes: a ray that hits nothing (t_lo > t_hi)
         for (int a = 0; a < 3; ++a) lanes.o_plus[a][i] = lanes.o_minus[a][i] = lanes.inv_d[a][i] = 0.0f;
         lanes.t_lo[i] = 1.0f;
         lanes.t_hi[i] = 0.0f;
       }
-      for (unsigned i = 0; i < n; ++i) set_lane(i);
+      for (std::uint32_t m = root.mask; m; m &= m - 1) set_lane(static_cast<unsigned>(__builtin_ctz(m)));
     }
   }
   Entry kids[8];
