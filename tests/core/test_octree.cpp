@@ -2,6 +2,7 @@
 // Warren & Salmon ids and the lazy per-level maps, duplicates, storage order and permutation.
 #include "test_util.hpp"
 
+#include "rayscan/any_index.hpp"
 #include "rayscan/morton_sort.hpp"
 #include "rayscan/octree.hpp"
 
@@ -216,6 +217,30 @@ TEST(Octree, RejectsBadInput) {
   c.max_depth = 22;
   EXPECT_THROW(Octree::build_bulk(std::span<const Vec3>{}, c), std::invalid_argument);
   EXPECT_THROW(parse_octree_layout("grid"), std::invalid_argument);
+}
+
+// make_index without a capacity builds each layout at its own default (default_capacity: the
+// layered octree must not inherit the adaptive leaf size of OctreeConfig{}); a given capacity wins,
+// and index_capacity reports what was built.
+TEST(Octree, MakeIndexTakesEachLayoutsDefaultCapacity) {
+  const auto pts = make_points(20000, Dist::uniform, 5);
+  for (OctreeLayout l : {OctreeLayout::adaptive, OctreeLayout::layered, OctreeLayout::fixed}) {
+    SCOPED_TRACE(to_string(l));
+    IndexOptions o;
+    o.type = std::string("octree-") + to_string(l);
+    const AnyIndex built = make_index(pts, o);
+    const Octree& t = std::get<Octree>(built);
+    EXPECT_EQ(t.config().capacity, default_capacity(l));
+    EXPECT_EQ(index_capacity(o), default_capacity(l));
+    EXPECT_TRUE(t.same_structure(Octree::build_bulk(pts, OctreeConfig::for_layout(l))));
+    o.capacity = 9;
+    const AnyIndex nine = make_index(pts, o);
+    EXPECT_EQ(std::get<Octree>(nine).config().capacity, 9u);
+    EXPECT_EQ(index_capacity(o), 9u);
+  }
+  IndexOptions kd;
+  kd.type = "kdtree";
+  EXPECT_EQ(index_capacity(kd), kDefaultKdTreeLeaf);
 }
 
 TEST(Octree, MemoryStaysUnderFortyBytesPerPoint) {
