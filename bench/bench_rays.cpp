@@ -16,7 +16,9 @@
 // Coherent rays (issue 12): the camera's first sphere hit also in 2x2 and 4x4 pixel packets
 // (ray_first_hit_packet) against the same rays one by one and Embree's rtcIntersect1 and its ray
 // packets (rtcIntersect4 on 2x2 tiles, rtcIntersect8 on 4x2 halves of 4x4 tiles, rtcIntersect16
-// on 4x4 tiles where this Embree build supports them), same rays, interleaved in the same rounds.
+// on 4x4 tiles where this Embree build supports them), same rays, interleaved in the same rounds;
+// and the row-major camera rays through ray_query_each, the batch API's path (blocks of 16 rays
+// sharing an origin in a narrow cone as packets, packet_coherent).
 #include "bench_common.hpp"
 
 #include "rayscan/any_index.hpp"
@@ -330,6 +332,35 @@ std::uint64_t run_rayscan_packets(const rayscan::AnyIndex& index, std::span<cons
                                 res.first_t[i] = out[j] ? out[j]->t : 0.0;
                                 local += out[j].has_value();
                               }
+                            }
+                            total += local;
+                          });
+        return total.load();
+      },
+      index);
+}
+
+/// First sphere hits of the row-major camera rays by ray_query_each (the batch API's path:
+/// ray_query_batch, the Python module, `rayscan query`): blocks of 16 consecutive rays that share
+/// an origin in a narrow cone as packets (packet_coherent), the rest alone. Returns the hit count.
+std::uint64_t run_rayscan_each(const rayscan::AnyIndex& index, std::span<const Ray> rays, const RayQuery& rq,
+                               RayResults& res) {
+  return std::visit(
+      [&](const auto& idx) {
+        std::atomic<std::uint64_t> total{0};
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 64),
+                          [&](const tbb::blocked_range<std::size_t>& br) {
+                            thread_local std::vector<std::vector<RayHit>> out;
+                            if (out.size() < br.size()) out.resize(br.size());
+                            rayscan::ray_query_each(idx, rays.subspan(br.begin(), br.size()), rq,
+                                                    std::span<std::vector<RayHit>>(out.data(), br.size()));
+                            std::uint64_t local = 0;
+                            for (std::size_t j = 0; j < br.size(); ++j) {
+                              const std::size_t i = br.begin() + j;
+                              res.count[i] = static_cast<std::uint32_t>(out[j].size());
+                              res.first[i] = out[j].empty() ? kNoHit : out[j].front().index;
+                              res.first_t[i] = out[j].empty() ? 0.0 : out[j].front().t;
+                              local += out[j].size();
                             }
                             total += local;
                           });
@@ -876,7 +907,8 @@ int main(int argc, char** argv) {
           std::size_t b;  // index into built, or built.size() for Embree
           Q q;
           std::vector<double> ms;
-          int packet = 0;  // rays per packet: 0 single rays; rayscan 4 (2x2) / 16 (4x4); Embree 4 / 8 / 16
+          int packet = 0;  // rays per packet: 0 single rays; rayscan 4 (2x2) / 16 (4x4), 1 ray_query_each
+                           // (row-major, packets where coherent); Embree 4 / 8 / 16
         };
         std::vector<Run> runs;
         for (std::size_t b = 0; b < built.size(); ++b)
@@ -885,14 +917,14 @@ int main(int argc, char** argv) {
         const std::size_t first_packet_run = runs.size();
         if (packets) {
           for (std::size_t b = 0; b < built.size(); ++b)
-            for (const int p : {4, 16}) runs.push_back({b, Q::sphere, {}, p});
+            for (const int p : {1, 4, 16}) runs.push_back({b, Q::sphere, {}, p});
           for (const int w : em_widths) runs.push_back({built.size(), Q::sphere, {}, w});
         }
         for (std::size_t r = 0; r < reps; ++r)
           for (std::size_t j = 0; j < runs.size(); ++j) {
             Run& run = runs[(j + r) % runs.size()];
             const auto& rays = (run.q == Q::knn8 || run.q == Q::radius) ? set.slow
-                               : run.packet == 0                       ? set.rays
+                               : run.packet <= 1                       ? set.rays
                                : run.packet == 4                       ? set.tiles2
                                                                        : set.tiles4;
             RayResults res(rays.size());
@@ -902,9 +934,10 @@ int main(int argc, char** argv) {
             const std::uint64_t tot =
                 run.packet == 0 ? (em ? run_embree(es, rays, res)
                                       : run_rayscan(built[run.b], rays, make_query(run.q, radius), res))
-                                : (em ? run_embree_packets(es, rays, run.packet, res)
-                                      : run_rayscan_packets(built[run.b], rays, static_cast<std::size_t>(run.packet),
-                                                            make_query(run.q, radius), res));
+                : em              ? run_embree_packets(es, rays, run.packet, res)
+                : run.packet == 1 ? run_rayscan_each(built[run.b], rays, make_query(run.q, radius), res)
+                                  : run_rayscan_packets(built[run.b], rays, static_cast<std::size_t>(run.packet),
+                                                        make_query(run.q, radius), res);
             // One thread: TBB runs everything on this thread, so its CPU time is the cost free of
             // waiting for a core on the shared machine; more threads: wall time.
             run.ms.push_back(nt == 1 ? cpu.ms() : sw.ms());
@@ -957,7 +990,10 @@ int main(int argc, char** argv) {
                                                                               (run.packet == 4 ? " (2x2)" : run.packet == 8 ? " (4x2)" : " (4x4)")
                                                                         : "rtcIntersect1")
                                  : "rayscan " + indexes[run.b] +
-                                       (run.packet == 0 ? " single rays" : run.packet == 4 ? " packets 2x2" : " packets 4x4");
+                                       (run.packet == 0   ? " single rays"
+                                        : run.packet == 1 ? " ray_query_each, row-major (packets where coherent)"
+                                        : run.packet == 4 ? " packets 2x2"
+                                                          : " packets 4x4");
             std::printf("| %s | %s | %.2fx | %.2fx | %.2fx |\n", who.c_str(), mrays(rps).c_str(), rps / single_rps,
                         rps / em_rps, rps / em_best);
           }

@@ -308,6 +308,75 @@ TEST(RayQuery, BatchEqualsSingleRayCalls) {
     expect_same(batch[i], ray_query(tree, rays[i], q), "ray " + std::to_string(i));
 }
 
+TEST(RayQuery, PacketCoherentAcceptsOneOriginInANarrowCone) {
+  // Analytic directions: rotations of +x by a known angle about z.
+  const auto dir = [](double deg) {
+    const double a = deg * 3.14159265358979323846 / 180.0;
+    return Vec3(std::cos(a), std::sin(a), 0.0);
+  };
+  const Vec3 eye(-2.0, 0.5, 0.25);
+  std::vector<Ray> rays;
+  for (int i = 0; i < 16; ++i) rays.emplace_back(eye, dir(0.1 * i));  // 0 .. 1.5 degrees
+  EXPECT_TRUE(packet_coherent(rays));
+  rays[9] = Ray(eye, dir(2.5));  // 2.5 degrees from the first ray
+  EXPECT_FALSE(packet_coherent(rays));
+  rays[9] = Ray(eye, dir(1.9));
+  EXPECT_TRUE(packet_coherent(rays));
+  rays[3] = Ray(eye + Vec3(1e-9, 0, 0), dir(0.3));  // another origin, however close
+  EXPECT_FALSE(packet_coherent(rays));
+  EXPECT_FALSE(packet_coherent(std::span<const Ray>(rays.data(), 1)));
+}
+
+TEST(RayQuery, BatchFirstHitsInPacketsEqualSingleRayCallsAndOracle) {
+  // ray_query_batch with k = 1 traces coherent blocks as packets (ray_query_each): every answer
+  // equals ray_query on that ray alone and the brute-force oracle, for camera rays (one origin,
+  // a narrow cone: packets), a camera block broken by one wide ray, and random rays (single), on
+  // every index and for orders sphere_hit, time and ray (and every forced SIMD path:
+  // simd_*_properties).
+  const auto pts = make_points(3000, Dist::clustered, 29);
+  AABB box;
+  for (const Vec3& p : pts) box.expand(p);
+  const double s = std::max(box.max_extent(), 1e-3);
+  const Vec3 eye = box.center() + Vec3(1.3, 0.9, -1.1) * s;
+  const Vec3 fwd = glm::normalize(pts[17] - eye);  // at a point of a cluster, so most rays hit
+  const Vec3 right = glm::normalize(glm::cross(fwd, Vec3(0, 1, 0)));
+  const Vec3 up = glm::cross(right, fwd);
+  std::vector<Ray> rays;
+  for (int y = 0; y < 6; ++y)  // 6 rows of 24 pixels, row-major, 0.0015 rad apart
+    for (int x = 0; x < 24; ++x) rays.emplace_back(eye, fwd + (0.0015 * (x - 11.5)) * right + (0.0015 * (y - 2.5)) * up);
+  for (std::size_t b = 0; b + kMaxRayPacket <= rays.size(); b += kMaxRayPacket)
+    ASSERT_TRUE(packet_coherent(std::span<const Ray>(rays.data() + b, kMaxRayPacket))) << b;
+  rays[40] = Ray(eye, fwd + 0.2 * right);  // its block of 16 is not coherent
+  std::mt19937_64 rng(31);
+  for (int i = 0; i < 40; ++i) rays.push_back(random_ray(rng, box, i % 3 == 0));
+  std::size_t hits = 0;
+  for (const IndexOptions& opt : all_index_options()) {
+    const AnyIndex index = make_index(pts, opt);
+    for (const RayOrder order : {RayOrder::sphere_hit, RayOrder::time, RayOrder::ray}) {
+      RayQuery q;
+      q.k = 1;
+      q.radius = 0.03 * s;
+      q.t_min = 0.0;
+      q.order = order;
+      const auto batch = std::visit([&](const auto& idx) { return ray_query_batch(idx, std::span<const Ray>(rays), q); }, index);
+      ASSERT_EQ(batch.size(), rays.size());
+      for (std::size_t r = 0; r < rays.size(); ++r) {
+        const auto one = std::visit([&](const auto& idx) { return ray_query(idx, rays[r], q); }, index);
+        const std::string ctx = label(opt) + " ray " + std::to_string(r) + " " + describe(q);
+        expect_same(batch[r], one, ctx);
+        if (!batch[r].empty()) {
+          EXPECT_EQ(batch[r][0].slot, one[0].slot) << ctx;
+          EXPECT_EQ(batch[r][0].key, one[0].key) << ctx;
+        }
+        expect_same(batch[r], oracle_ray_query(pts, rays[r], q), ctx);
+        hits += batch[r].size();
+        if (::testing::Test::HasFailure()) return;
+      }
+    }
+  }
+  EXPECT_GT(hits, 200u);
+}
+
 TEST(RayQuery, FirstHitEqualsTheOracleFirstResult) {
   // ray_first_hit (no result vector) against the brute-force oracle's first result, whatever
   // q.k says (it answers k = 1), on every index and for orders sphere_hit, time and ray.

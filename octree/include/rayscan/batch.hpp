@@ -13,8 +13,9 @@
 namespace rayscan {
 
 /// Answer `rays[i]` with ray_query(index, rays[i], q) into result[i], for all i in parallel
-/// (tbb::parallel_for over blocks of rays). Results are identical to the single-ray calls for any
-/// thread count. Throws std::invalid_argument (before any work) for an invalid q.
+/// (tbb::parallel_for over blocks of rays, each answered by ray_query_each: first hits of rays that
+/// share an origin in a narrow cone as packets). Results are identical to the single-ray calls for
+/// any thread count. Throws std::invalid_argument (before any work) for an invalid q.
 template <SpatialIndex I>
 [[nodiscard]] std::vector<std::vector<RayHit>> ray_query_batch(const I& index,
                                                                std::span<const Ray> rays,
@@ -23,8 +24,8 @@ template <SpatialIndex I>
   std::vector<std::vector<RayHit>> result(rays.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 64),
                     [&](const tbb::blocked_range<std::size_t>& r) {
-                      for (std::size_t i = r.begin(); i != r.end(); ++i)
-                        ray_query(index, rays[i], q, result[i]);
+                      ray_query_each(index, rays.subspan(r.begin(), r.size()), q,
+                                     std::span<std::vector<RayHit>>(result).subspan(r.begin(), r.size()));
                     });
   return result;
 }

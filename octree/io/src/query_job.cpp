@@ -48,7 +48,8 @@ void answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, 
     const auto ab = range(first, count);  // not a structured binding: clang 14 cannot capture those
     arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<std::uint64_t>(ab.first, ab.second, 64), [&](const auto& br) {
-        for (std::uint64_t i = br.begin(); i != br.end(); ++i) ray_query(idx, rays[i], q, hits[i]);
+        ray_query_each(idx, std::span<const Ray>(rays).subspan(br.begin(), br.size()), q,
+                       std::span<std::vector<RayHit>>(hits).subspan(br.begin(), br.size()));
       });
     });
   };
