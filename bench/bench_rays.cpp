@@ -675,6 +675,86 @@ void profile(const std::string& which, const std::vector<Vec3>& pts, const std::
 
 }  // namespace
 
+/// --coherence (issue 12, session 24): where single camera rays lose to Embree and when packets
+/// pay, on the first index of --indexes, one thread (thread CPU time), `reps` interleaved rounds,
+/// medians. (1) The camera rays split by rayscan's answer into hits and misses, each set timed
+/// with ray_first_hit and rtcIntersect1. (2) Every k-th camera ray in row order (k = 1..16), so
+/// that 16 consecutive rays share the eye in a cone k times as wide, and the random rays: time of
+/// ray_first_hit_packet on consecutive blocks of 16 over one ray_first_hit per ray (the figures
+/// behind packet_coherent's 2-degree cone).
+void coherence(const std::vector<Vec3>& pts, const std::string& index_name, const std::vector<RaySet>& sets,
+               double radius, std::size_t reps) {
+  const rayscan::AnyIndex built = rayscan::make_index(pts, index_options(index_name));
+  const EmbreeScene es(pts, radius);
+  const RayQuery q = make_query(Q::sphere, radius);
+  const auto single = [&](std::span<const Ray> rays) {
+    return std::visit([&](const auto& idx) {
+      std::size_t h = 0;
+      for (const Ray& r : rays) h += rayscan::ray_first_hit(idx, r, q).has_value();
+      return h;
+    }, built);
+  };
+  const auto packets = [&](std::span<const Ray> rays) {
+    return std::visit([&](const auto& idx) {
+      std::size_t h = 0;
+      std::optional<RayHit> out[rayscan::kMaxRayPacket];
+      for (std::size_t b = 0; b < rays.size(); b += rayscan::kMaxRayPacket) {
+        const std::size_t n = std::min(rayscan::kMaxRayPacket, rays.size() - b);
+        rayscan::ray_first_hit_packet(idx, rays.subspan(b, n), q, std::span<std::optional<RayHit>>(out, n));
+        for (std::size_t j = 0; j < n; ++j) h += out[j].has_value();
+      }
+      return h;
+    }, built);
+  };
+  const auto embree = [&](std::span<const Ray> rays) {
+    std::size_t h = 0;
+    for (const Ray& r : rays) h += es.intersect(r).first != kNoHit;
+    return h;
+  };
+  // Median thread-CPU ms of f over the rays, `reps` rounds alternating with g.
+  const auto ab = [&](auto&& f, auto&& g, std::span<const Ray> rays) {
+    std::vector<double> a, b;
+    for (std::size_t r = 0; r < reps; ++r) {
+      rb::ThreadCpuStopwatch c1;
+      (void)f(rays);
+      a.push_back(c1.ms());
+      rb::ThreadCpuStopwatch c2;
+      (void)g(rays);
+      b.push_back(c2.ms());
+    }
+    return std::pair{rb::median(a), rb::median(b)};
+  };
+  const std::vector<Ray>& cam = sets[0].rays;
+  std::vector<Ray> hit, miss;
+  std::visit([&](const auto& idx) {
+    for (const Ray& r : cam) (rayscan::ray_first_hit(idx, r, q) ? hit : miss).push_back(r);
+  }, built);
+  std::printf("coherence, %s, 1 thread, median of %zu rounds (ns per ray):\n", index_name.c_str(), reps);
+  std::printf("| camera rays | rays | rayscan ray_first_hit | Embree rtcIntersect1 | ratio |\n|---|---:|---:|---:|---:|\n");
+  for (const std::vector<Ray>* set : {&cam, static_cast<const std::vector<Ray>*>(&hit), static_cast<const std::vector<Ray>*>(&miss)}) {
+    const auto [r, e] = ab(single, embree, *set);
+    const double n = static_cast<double>(set->size());
+    std::printf("| %s | %zu | %.1f | %.1f | %.2fx |\n", set == &cam ? "all" : set == &hit ? "hits" : "misses",
+                set->size(), 1e6 * r / n, 1e6 * e / n, e / r);
+  }
+  std::printf("| 16 consecutive rays | cone (degrees, first to last) | single | packets of 16 | packets / single time |\n"
+              "|---|---:|---:|---:|---:|\n");
+  for (const std::size_t k : {1u, 2u, 4u, 8u, 16u}) {
+    std::vector<Ray> sub;
+    for (std::size_t i = 0; i < cam.size(); i += k) sub.push_back(cam[i]);
+    const double deg = std::acos(std::min(1.0, glm::dot(sub[0].direction(), sub[15].direction()))) * 180.0 /
+                       3.14159265358979323846;
+    const auto [a, b] = ab(single, packets, sub);
+    const double n = static_cast<double>(sub.size());
+    std::printf("| every %zu-th camera ray | %.2f | %.1f | %.1f | %.2f |\n", k, deg, 1e6 * a / n, 1e6 * b / n, b / a);
+  }
+  const std::vector<Ray>& rnd = sets[1].rays;
+  const auto [a, b] = ab(single, packets, rnd);
+  const double n = static_cast<double>(rnd.size());
+  std::printf("| random rays | | %.1f | %.1f | %.2f |\n", 1e6 * a / n, 1e6 * b / n, b / a);
+  std::fflush(stdout);
+}
+
 int main(int argc, char** argv) {
   CLI::App app{"rayscan benchmark: ray-query throughput, first hit vs Embree 3, build time, memory"};
   std::string points_list = "1000000,10000000", threads_list = "1,2";
@@ -687,6 +767,7 @@ int main(int argc, char** argv) {
   std::uint64_t seed = 20240601;
   bool no_memory = false, no_build = false, only_build = false;
   std::string profile_query;
+  bool coherence_only = false;
   app.add_option("--points-list", points_list, "comma-separated cloud sizes")->capture_default_str();
   app.add_option("--indexes", index_list,
                  "comma-separated rayscan indexes: octree-adaptive, octree-layered, octree-fixed, kdtree; "
@@ -708,6 +789,9 @@ int main(int argc, char** argv) {
   app.add_flag("--no-memory", no_memory, "skip the per-index memory probes");
   app.add_flag("--no-build", no_build, "skip the build-time comparison");
   app.add_flag("--only-build", only_build, "only the build-time comparison (and memory, unless --no-memory)");
+  app.add_flag("--coherence", coherence_only,
+               "only the coherence study on the first of --indexes: camera hits and misses vs Embree, and "
+               "packets of 16 consecutive rays in cones of growing width (1 thread)");
   app.add_option("--profile", profile_query,
                  "run only this query (knn8|radius|closest|sphere|embree; sphere2x2|sphere4x4: the camera's "
                  "sphere hits in pixel packets) once per ray set on one thread, with work counters; for "
@@ -757,6 +841,10 @@ int main(int argc, char** argv) {
 
     if (!profile_query.empty()) {
       profile(profile_query, pts, indexes, sets, radius);
+      continue;
+    }
+    if (coherence_only) {
+      coherence(pts, indexes.front(), sets, radius, reps);
       continue;
     }
 
