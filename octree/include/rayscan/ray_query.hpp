@@ -1083,10 +1083,10 @@ void ray_any_hit_packet(const I& index, std::span<const Ray> rays, const RayQuer
 
 /// Whether ray_first_hit_packet pays for these rays: they share one origin (bit for bit) and every
 /// direction lies within 2 degrees of the first one's: the rays of a pinhole camera's neighbouring
-/// pixels or of one observer. Measured (1e6 and 1e7 uniform points, 16 rays sharing an origin,
-/// bench/README.md "Issue 12, session 24"): packets take 0.70-0.78x the time of single rays for a
-/// 1-degree cone, 0.77-0.88x for 2 degrees, 0.90-1.05x for 4 and 1.01-1.09x beyond; random rays
-/// 2.1-2.7x. False for fewer than two rays.
+/// pixels or of one observer. Measured (`bench_rays --coherence`, 1e6 and 1e7 uniform points, 16
+/// rays sharing an origin, bench/README.md "Issue 12, session 24"): packets take 0.70-0.78x the
+/// time of single rays for a 1-degree cone, 0.77-0.89x for 2 degrees, 0.90-1.05x for 4 and
+/// 1.01-1.09x beyond; random rays 2.1-2.7x. False for fewer than two rays.
 [[nodiscard]] inline bool packet_coherent(std::span<const Ray> rays) {
   if (rays.size() < 2) return false;
   constexpr double kCos2Deg = 0.99939082701909573;  // cos(2 degrees)
