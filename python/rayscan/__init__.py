@@ -112,9 +112,9 @@ class Octree(_QueriesMixin, _rayscan._Octree):
 
 class KdTree(_QueriesMixin, _rayscan._KdTree):
     """kd-tree (median split on the widest axis) over the (N, 3) points `xyz`, at most
-    `capacity` points per leaf. Same queries and results as Octree."""
+    `capacity` points per leaf (None: 32). Same queries and results as Octree."""
 
-    def __init__(self, xyz, capacity=32):
+    def __init__(self, xyz, capacity=None):
         super().__init__(_xyz(xyz), capacity)
 
     def __repr__(self):

@@ -254,13 +254,13 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
 
   struct PyKdTree : PyIndex {};
   py::class_<PyKdTree, PyIndex>(m, "_KdTree")
-      .def(py::init([](py::handle xyz, long long capacity) {
+      .def(py::init([](py::handle xyz, std::optional<long long> capacity) {
              IndexOptions o;
              o.type = "kdtree";
-             o.capacity = parse_count(capacity, "capacity");
+             if (capacity) o.capacity = parse_count(*capacity, "capacity");
              return PyKdTree{build(xyz, o)};
            }),
-           py::arg("xyz"), py::arg("capacity") = kDefaultKdTreeLeaf)
+           py::arg("xyz"), py::arg("capacity") = py::none())
       .def_property_readonly("capacity", [](const PyKdTree& s) { return index_capacity(s.options); })
       .def_property_readonly("node_count",
                              [](const PyKdTree& s) { return std::get<KdTree>(s.index).node_count(); });

@@ -229,3 +229,15 @@ def test_first_batch_of_a_fresh_process_equals_brute_force(tmp_path):
     out = subprocess.run([sys.executable, str(script)], env=env, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert int(out.stdout) >= 1900  # every ray aims at a data point
+
+
+def test_default_capacities_follow_the_layout(uniform_cloud):
+    # capacity=None takes each index type's default (octree.hpp default_capacity, as documented in
+    # the docstrings): adaptive 64, layered 32, kd-tree 32; the property reports the built one.
+    adaptive = rayscan.Octree(uniform_cloud)
+    assert adaptive.capacity == 64
+    assert adaptive.node_count == rayscan.Octree(uniform_cloud, capacity=64).node_count
+    assert adaptive.node_count != rayscan.Octree(uniform_cloud, capacity=32).node_count
+    assert rayscan.Octree(uniform_cloud, layout="layered").capacity == 32
+    assert rayscan.KdTree(uniform_cloud).capacity == 32
+    assert rayscan.Octree(uniform_cloud, capacity=7).capacity == 7

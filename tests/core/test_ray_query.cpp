@@ -377,6 +377,62 @@ TEST(RayQuery, BatchFirstHitsInPacketsEqualSingleRayCallsAndOracle) {
   EXPECT_GT(hits, 200u);
 }
 
+TEST(RayQuery, RayQueryEachEqualsSingleCallsForEveryQueryKind) {
+  // ray_query_each on coherent camera rays (packets only for plain k = 1) equals ray_query per
+  // ray for k = 1 with a plane, any_hit (one candidate, whichever the order), k = 3 and no k, on
+  // an octree and an empty index; and rejects a length mismatch and an invalid query.
+  const auto pts = make_points(2000, Dist::clustered, 37);
+  AABB box;
+  for (const Vec3& p : pts) box.expand(p);
+  const double s = std::max(box.max_extent(), 1e-3);
+  const Vec3 eye = box.center() + Vec3(1.3, 0.9, -1.1) * s;
+  const Vec3 fwd = glm::normalize(pts[5] - eye);
+  const Vec3 right = glm::normalize(glm::cross(fwd, Vec3(0, 1, 0)));
+  const Vec3 up = glm::cross(right, fwd);
+  std::vector<Ray> rays;
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 12; ++x) rays.emplace_back(eye, fwd + (0.0015 * (x - 5.5)) * right + (0.0015 * (y - 1.5)) * up);
+  const Octree tree = Octree::build_bulk(pts);
+  const Octree empty = Octree::build_bulk(std::span<const Vec3>());
+  const Plane plane{box.center(), Vec3(0.3, -1.0, 0.2)};
+  std::size_t hits = 0;
+  for (int kind = 0; kind < 4; ++kind) {
+    RayQuery q;
+    q.radius = 0.03 * s;
+    q.t_min = 0.0;
+    q.order = RayOrder::sphere_hit;
+    if (kind == 0) q.k = 1, q.planes = std::span<const Plane>(&plane, 1);
+    if (kind == 1) q.k = 1, q.any_hit = true;
+    if (kind == 2) q.k = 3;
+    for (const Octree* t : {&tree, &empty}) {
+      std::vector<std::vector<RayHit>> out(rays.size());
+      ray_query_each(*t, std::span<const Ray>(rays), q, std::span<std::vector<RayHit>>(out));
+      for (std::size_t r = 0; r < rays.size(); ++r) {
+        const std::string ctx = "kind " + std::to_string(kind) + " ray " + std::to_string(r) + " " + describe(q);
+        if (q.any_hit) {  // any candidate: the same existence as the oracle's
+          EXPECT_EQ(out[r].size(), ray_query(*t, rays[r], q).size()) << ctx;
+        } else {
+          expect_same(out[r], ray_query(*t, rays[r], q), ctx);
+        }
+        hits += out[r].size();
+      }
+    }
+  }
+  EXPECT_GT(hits, 50u);
+  std::vector<std::vector<RayHit>> short_out(rays.size() - 1);
+  RayQuery q1;
+  q1.k = 1;
+  q1.radius = 0.03 * s;
+  q1.order = RayOrder::sphere_hit;
+  EXPECT_THROW(ray_query_each(tree, std::span<const Ray>(rays), q1, std::span<std::vector<RayHit>>(short_out)),
+               std::invalid_argument);
+  std::vector<std::vector<RayHit>> out(rays.size());
+  q1.t_min = 2.0;
+  q1.t_max = 1.0;  // invalid: t_min > t_max
+  EXPECT_THROW(ray_query_each(tree, std::span<const Ray>(rays), q1, std::span<std::vector<RayHit>>(out)),
+               std::invalid_argument);
+}
+
 TEST(RayQuery, FirstHitEqualsTheOracleFirstResult) {
   // ray_first_hit (no result vector) against the brute-force oracle's first result, whatever
   // q.k says (it answers k = 1), on every index and for orders sphere_hit, time and ray.

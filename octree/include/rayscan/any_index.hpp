@@ -40,8 +40,9 @@ struct IndexOptions {
 inline constexpr std::uint32_t kDefaultKdTreeLeaf = 32;
 
 /// The capacity make_index builds `opts` with: opts.capacity when set, else the default of its
-/// type (octrees: default_capacity(layout); kd-tree: kDefaultKdTreeLeaf; brute: 0, unused).
-/// Throws std::invalid_argument for an unknown octree layout.
+/// type (octrees: default_capacity(layout); kd-tree: kDefaultKdTreeLeaf; brute and any other type:
+/// 0, unused: make_index rejects an unknown type). Throws std::invalid_argument for an unknown
+/// octree layout.
 std::uint32_t index_capacity(const IndexOptions& opts);
 
 /// Build the index named by opts.type over `positions`. Throws std::invalid_argument for an unknown

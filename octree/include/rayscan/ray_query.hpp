@@ -1083,29 +1083,34 @@ void ray_any_hit_packet(const I& index, std::span<const Ray> rays, const RayQuer
 
 /// Whether ray_first_hit_packet pays for these rays: they share one origin (bit for bit) and every
 /// direction lies within 2 degrees of the first one's: the rays of a pinhole camera's neighbouring
-/// pixels or of one observer. Measured (`bench_rays --coherence`, 1e6 and 1e7 uniform points, 16
-/// rays sharing an origin, bench/README.md "Issue 12, session 24"): packets take 0.70-0.78x the
-/// time of single rays for a 1-degree cone, 0.77-0.89x for 2 degrees, 0.90-1.05x for 4 and
-/// 1.01-1.09x beyond; random rays 2.1-2.7x. False for fewer than two rays.
+/// pixels or of one observer. Measured (`bench_rays --coherence`, 1e6 / 1e7 uniform points, 16
+/// rays sharing an origin, bench/README.md "Issue 12, session 24"): packets take 0.70 / 0.78x the
+/// time of single rays for a 1-degree cone, 0.78 / 0.89x for 2 degrees, 0.90 / 1.00x for 4 and
+/// 1.03-1.05x beyond; random rays 2.4-2.5x. (Rays in another order than a pixel row may lie up to
+/// 4 degrees apart.) False for fewer than two rays.
 [[nodiscard]] inline bool packet_coherent(std::span<const Ray> rays) {
   if (rays.size() < 2) return false;
   constexpr double kCos2Deg = 0.99939082701909573;  // cos(2 degrees)
   const Vec3& o = rays[0].origin();
   const Vec3& d = rays[0].direction();
   for (const Ray& r : rays.subspan(1))
-    if (r.origin() != o || glm::dot(r.direction(), d) < kCos2Deg) return false;
+    if (r.origin() != o || !(glm::dot(r.direction(), d) >= kCos2Deg)) return false;
   return true;
 }
 
 /// out[i] = ray_query(index, rays[i], q) for every i, bit for bit: with q.k == 1 (and not
-/// q.any_hit), each block of kMaxRayPacket consecutive rays that packet_coherent() accepts is
-/// traced as one packet (ray_first_hit_packet), every other ray alone. The batch form of the
-/// renderer's camera packets for callers that pass whole ray sets (ray_query_batch: the Python
-/// module, `rayscan query`). `q` must have been checked with q.validate(). Throws
-/// std::invalid_argument when out.size() != rays.size(). Thread-safe (per-thread scratch).
+/// q.any_hit), the next min(kMaxRayPacket, rays left) rays are traced as one packet
+/// (ray_first_hit_packet) when packet_coherent() accepts them, else the first of them alone and
+/// the window moves on by one ray; other queries ray by ray. The batch form of the renderer's
+/// camera packets for callers that pass whole ray sets (ray_query_batch: the Python module,
+/// `rayscan query`). `stats` (optional) sums the work counters, which follow the packets' visiting
+/// order (the answers do not), so they may differ from the single calls'. Throws
+/// std::invalid_argument for an invalid q (RayQuery::validate) or out.size() != rays.size().
+/// Thread-safe (per-thread scratch).
 template <SpatialIndex I>
 void ray_query_each(const I& index, std::span<const Ray> rays, const RayQuery& q,
                     std::span<std::vector<RayHit>> out, RayQueryStats* stats = nullptr) {
+  q.validate();
   if (out.size() != rays.size())
     throw std::invalid_argument("ray_query_each: " + std::to_string(out.size()) + " results for " +
                                 std::to_string(rays.size()) + " rays");
