@@ -34,7 +34,7 @@ const char* to_string(OctreeLayout layout);
 /// IndexOptions, scene files, `rayscan index` / `rayscan query` and the Python Octree.
 /// - adaptive: 64 points per leaf. Measured against 32 (bench/README.md, "Issue 12, session 24"):
 ///   first sphere hits 1.05-1.6x faster on uniform clouds of 1e6 and 1e7 points (32 leaves cells of
-///   ~31 points split into eight leaves of ~4), renders of the bundled Autzen scan 2-4% faster,
+///   ~31 points split into eight leaves of ~4), renders of the bundled Autzen scan 2-11% faster,
 ///   fewer node records.
 /// - layered: 32 points per node, the paper's Table 1 configuration (64 measured ~10% slower for
 ///   first hits, as every node's points are tested on the way down).
