@@ -258,40 +258,46 @@ struct RayResults {
   explicit RayResults(std::size_t n) : count(n), first(n), first_t(n) {}
 };
 
-std::uint64_t run_rayscan(const rayscan::AnyIndex& index, std::span<const Ray> rays, const RayQuery& rq,
-                          RayResults& res) {
+/// body(idx, br) over blocks of `grain` of [0, n) in parallel (TBB), idx the index's concrete type;
+/// returns the sum of the hit counts the blocks return.
+template <class Body>
+std::uint64_t sum_over_blocks(const rayscan::AnyIndex& index, std::size_t n, std::size_t grain, Body&& body) {
   return std::visit(
       [&](const auto& idx) {
         std::atomic<std::uint64_t> total{0};
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 64),
-                          [&](const tbb::blocked_range<std::size_t>& br) {
-                            thread_local std::vector<RayHit> out;
-                            std::uint64_t local = 0;
-                            if (rq.k == 1) {
-                              // First hit (closest, sphere_hit): no result vector, validated once
-                              // per batch (make_query), like rtcIntersect1.
-                              for (std::size_t i = br.begin(); i != br.end(); ++i) {
-                                const std::optional<RayHit> h = rayscan::ray_first_hit(idx, rays[i], rq);
-                                res.count[i] = h.has_value();
-                                res.first[i] = h ? h->index : kNoHit;
-                                res.first_t[i] = h ? h->t : 0.0;
-                                local += h.has_value();
-                              }
-                              total += local;
-                              return;
-                            }
-                            for (std::size_t i = br.begin(); i != br.end(); ++i) {
-                              rayscan::ray_query(idx, rays[i], rq, out);
-                              res.count[i] = static_cast<std::uint32_t>(out.size());
-                              res.first[i] = out.empty() ? kNoHit : out.front().index;
-                              res.first_t[i] = out.empty() ? 0.0 : out.front().t;
-                              local += out.size();
-                            }
-                            total += local;
-                          });
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain),
+                          [&](const tbb::blocked_range<std::size_t>& br) { total += body(idx, br); });
         return total.load();
       },
       index);
+}
+
+std::uint64_t run_rayscan(const rayscan::AnyIndex& index, std::span<const Ray> rays, const RayQuery& rq,
+                          RayResults& res) {
+  return sum_over_blocks(index, rays.size(), 64, [&](const auto& idx, const tbb::blocked_range<std::size_t>& br) {
+    thread_local std::vector<RayHit> out;
+    std::uint64_t local = 0;
+    if (rq.k == 1) {
+      // First hit (closest, sphere_hit): no result vector, validated once per batch (make_query),
+      // like rtcIntersect1.
+      for (std::size_t i = br.begin(); i != br.end(); ++i) {
+        const std::optional<RayHit> h = rayscan::ray_first_hit(idx, rays[i], rq);
+        res.count[i] = h.has_value();
+        res.first[i] = h ? h->index : kNoHit;
+        res.first_t[i] = h ? h->t : 0.0;
+        local += h.has_value();
+      }
+      return local;
+    }
+    for (std::size_t i = br.begin(); i != br.end(); ++i) {
+      rayscan::ray_query(idx, rays[i], rq, out);
+      res.count[i] = static_cast<std::uint32_t>(out.size());
+      res.first[i] = out.empty() ? kNoHit : out.front().index;
+      res.first_t[i] = out.empty() ? 0.0 : out.front().t;
+      local += out.size();
+    }
+    return local;
+  });
 }
 
 std::uint64_t run_embree(const EmbreeScene& es, std::span<const Ray> rays, RayResults& res) {
@@ -345,28 +351,21 @@ std::uint64_t run_rayscan_packets(const rayscan::AnyIndex& index, std::span<cons
 /// an origin in a narrow cone as packets (packet_coherent), the rest alone. Returns the hit count.
 std::uint64_t run_rayscan_each(const rayscan::AnyIndex& index, std::span<const Ray> rays, const RayQuery& rq,
                                RayResults& res) {
-  return std::visit(
-      [&](const auto& idx) {
-        std::atomic<std::uint64_t> total{0};
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 64),
-                          [&](const tbb::blocked_range<std::size_t>& br) {
-                            thread_local std::vector<std::vector<RayHit>> out;
-                            if (out.size() < br.size()) out.resize(br.size());
-                            rayscan::ray_query_each(idx, rays.subspan(br.begin(), br.size()), rq,
-                                                    std::span<std::vector<RayHit>>(out.data(), br.size()));
-                            std::uint64_t local = 0;
-                            for (std::size_t j = 0; j < br.size(); ++j) {
-                              const std::size_t i = br.begin() + j;
-                              res.count[i] = static_cast<std::uint32_t>(out[j].size());
-                              res.first[i] = out[j].empty() ? kNoHit : out[j].front().index;
-                              res.first_t[i] = out[j].empty() ? 0.0 : out[j].front().t;
-                              local += out[j].size();
-                            }
-                            total += local;
-                          });
-        return total.load();
-      },
-      index);
+  return sum_over_blocks(index, rays.size(), 64, [&](const auto& idx, const tbb::blocked_range<std::size_t>& br) {
+    thread_local std::vector<std::vector<RayHit>> out;
+    if (out.size() < br.size()) out.resize(br.size());
+    rayscan::ray_query_each(idx, rays.subspan(br.begin(), br.size()), rq,
+                            std::span<std::vector<RayHit>>(out.data(), br.size()));
+    std::uint64_t local = 0;
+    for (std::size_t j = 0; j < br.size(); ++j) {
+      const std::size_t i = br.begin() + j;
+      res.count[i] = static_cast<std::uint32_t>(out[j].size());
+      res.first[i] = out[j].empty() ? kNoHit : out[j].front().index;
+      res.first_t[i] = out[j].empty() ? 0.0 : out[j].front().t;
+      local += out[j].size();
+    }
+    return local;
+  });
 }
 
 /// Embree's first hits of tile-ordered rays as native packets of w = 4, 8 or 16 rays.

@@ -327,6 +327,27 @@ TEST(RayQuery, PacketCoherentAcceptsOneOriginInANarrowCone) {
   EXPECT_FALSE(packet_coherent(std::span<const Ray>(rays.data(), 1)));
 }
 
+namespace {
+// A pinhole camera outside the box of `pts` looking at pts[target]: rows x cols rays in row order,
+// `step` radians apart (one origin, a narrow cone: the rays packet_coherent accepts). `box` and
+// `scale` (the box's largest extent, >= 1e-3) receive the cloud's box.
+std::vector<Ray> camera_at(std::span<const Vec3> pts, std::size_t target, int cols, int rows, double step, AABB& box,
+                           double& scale) {
+  box = AABB{};
+  for (const Vec3& p : pts) box.expand(p);
+  scale = std::max(box.max_extent(), 1e-3);
+  const Vec3 eye = box.center() + Vec3(1.3, 0.9, -1.1) * scale;
+  const Vec3 fwd = glm::normalize(pts[target] - eye);
+  const Vec3 right = glm::normalize(glm::cross(fwd, Vec3(0, 1, 0)));
+  const Vec3 up = glm::cross(right, fwd);
+  std::vector<Ray> rays;
+  for (int y = 0; y < rows; ++y)
+    for (int x = 0; x < cols; ++x)
+      rays.emplace_back(eye, fwd + (step * (x - 0.5 * (cols - 1))) * right + (step * (y - 0.5 * (rows - 1))) * up);
+  return rays;
+}
+}  // namespace
+
 TEST(RayQuery, BatchFirstHitsInPacketsEqualSingleRayCallsAndOracle) {
   // ray_query_batch with k = 1 traces coherent blocks as packets (ray_query_each): every answer
   // equals ray_query on that ray alone and the brute-force oracle, for camera rays (one origin,
@@ -335,15 +356,12 @@ TEST(RayQuery, BatchFirstHitsInPacketsEqualSingleRayCallsAndOracle) {
   // simd_*_properties).
   const auto pts = make_points(3000, Dist::clustered, 29);
   AABB box;
-  for (const Vec3& p : pts) box.expand(p);
-  const double s = std::max(box.max_extent(), 1e-3);
-  const Vec3 eye = box.center() + Vec3(1.3, 0.9, -1.1) * s;
-  const Vec3 fwd = glm::normalize(pts[17] - eye);  // at a point of a cluster, so most rays hit
+  double s = 0;
+  // 6 rows of 24 pixels, 0.0015 rad apart, at a point of a cluster so that most rays hit.
+  std::vector<Ray> rays = camera_at(pts, 17, 24, 6, 0.0015, box, s);
+  const Vec3 eye = rays[0].origin();
+  const Vec3 fwd = glm::normalize(pts[17] - eye);
   const Vec3 right = glm::normalize(glm::cross(fwd, Vec3(0, 1, 0)));
-  const Vec3 up = glm::cross(right, fwd);
-  std::vector<Ray> rays;
-  for (int y = 0; y < 6; ++y)  // 6 rows of 24 pixels, row-major, 0.0015 rad apart
-    for (int x = 0; x < 24; ++x) rays.emplace_back(eye, fwd + (0.0015 * (x - 11.5)) * right + (0.0015 * (y - 2.5)) * up);
   for (std::size_t b = 0; b + kMaxRayPacket <= rays.size(); b += kMaxRayPacket)
     ASSERT_TRUE(packet_coherent(std::span<const Ray>(rays.data() + b, kMaxRayPacket))) << b;
   rays[40] = Ray(eye, fwd + 0.2 * right);  // its block of 16 is not coherent
@@ -383,15 +401,8 @@ TEST(RayQuery, RayQueryEachEqualsSingleCallsForEveryQueryKind) {
   // an octree and an empty index; and rejects a length mismatch and an invalid query.
   const auto pts = make_points(2000, Dist::clustered, 37);
   AABB box;
-  for (const Vec3& p : pts) box.expand(p);
-  const double s = std::max(box.max_extent(), 1e-3);
-  const Vec3 eye = box.center() + Vec3(1.3, 0.9, -1.1) * s;
-  const Vec3 fwd = glm::normalize(pts[5] - eye);
-  const Vec3 right = glm::normalize(glm::cross(fwd, Vec3(0, 1, 0)));
-  const Vec3 up = glm::cross(right, fwd);
-  std::vector<Ray> rays;
-  for (int y = 0; y < 4; ++y)
-    for (int x = 0; x < 12; ++x) rays.emplace_back(eye, fwd + (0.0015 * (x - 5.5)) * right + (0.0015 * (y - 1.5)) * up);
+  double s = 0;
+  const std::vector<Ray> rays = camera_at(pts, 5, 12, 4, 0.0015, box, s);
   const Octree tree = Octree::build_bulk(pts);
   const Octree empty = Octree::build_bulk(std::span<const Vec3>());
   const Plane plane{box.center(), Vec3(0.3, -1.0, 0.2)};
