@@ -347,18 +347,21 @@ std::uint64_t run_rayscan_packets(const rayscan::AnyIndex& index, std::span<cons
 }
 
 /// First sphere hits of the row-major camera rays by ray_query_each (the batch API's path:
-/// ray_query_batch, the Python module, `rayscan query`): blocks of 16 consecutive rays that share
+/// ray_query_batch / ray_query_each_parallel, the Python module, `rayscan query`): blocks of 16 consecutive rays that share
 /// an origin in a narrow cone as packets (packet_coherent), the rest alone. Returns the hit count.
 std::uint64_t run_rayscan_each(const rayscan::AnyIndex& index, std::span<const Ray> rays, const RayQuery& rq,
                                RayResults& res) {
-  return sum_over_blocks(index, rays.size(), 64, [&](const auto& idx, const tbb::blocked_range<std::size_t>& br) {
+  // Runs of whole 16-ray blocks counted from rays[0], as ray_query_each_parallel (batch.hpp) cuts
+  // them, into per-thread result vectors (no allocation once warm).
+  constexpr std::size_t kB = rayscan::kMaxRayPacket;
+  return sum_over_blocks(index, (rays.size() + kB - 1) / kB, 4, [&](const auto& idx, const tbb::blocked_range<std::size_t>& bb) {
+    const std::size_t b = bb.begin() * kB, e = std::min(rays.size(), bb.end() * kB);
     thread_local std::vector<std::vector<RayHit>> out;
-    if (out.size() < br.size()) out.resize(br.size());
-    rayscan::ray_query_each(idx, rays.subspan(br.begin(), br.size()), rq,
-                            std::span<std::vector<RayHit>>(out.data(), br.size()));
+    if (out.size() < e - b) out.resize(e - b);
+    rayscan::ray_query_each(idx, rays.subspan(b, e - b), rq, std::span<std::vector<RayHit>>(out.data(), e - b));
     std::uint64_t local = 0;
-    for (std::size_t j = 0; j < br.size(); ++j) {
-      const std::size_t i = br.begin() + j;
+    for (std::size_t j = 0; j < e - b; ++j) {
+      const std::size_t i = b + j;
       res.count[i] = static_cast<std::uint32_t>(out[j].size());
       res.first[i] = out[j].empty() ? kNoHit : out[j].front().index;
       res.first_t[i] = out[j].empty() ? 0.0 : out[j].front().t;

@@ -7,26 +7,43 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <span>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace rayscan {
 
+/// out[i] = ray_query(index, rays[i], q) for all i, in parallel (tbb::parallel_for over runs of
+/// whole kMaxRayPacket-ray blocks counted from rays[0], each run answered by ray_query_each, so
+/// that its packets of coherent rays are not cut at the runs' ends). Identical to the single-ray
+/// calls for any thread count. Throws std::invalid_argument (before any work) for an invalid q or
+/// out.size() != rays.size().
+template <SpatialIndex I>
+void ray_query_each_parallel(const I& index, std::span<const Ray> rays, const RayQuery& q,
+                             std::span<std::vector<RayHit>> out) {
+  q.validate();
+  if (out.size() != rays.size())
+    throw std::invalid_argument("ray_query_each_parallel: " + std::to_string(out.size()) + " results for " +
+                                std::to_string(rays.size()) + " rays");
+  const std::size_t blocks = (rays.size() + kMaxRayPacket - 1) / kMaxRayPacket;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 4), [&](const tbb::blocked_range<std::size_t>& r) {
+    const std::size_t b = r.begin() * kMaxRayPacket, e = std::min(rays.size(), r.end() * kMaxRayPacket);
+    ray_query_each(index, rays.subspan(b, e - b), q, out.subspan(b, e - b));
+  });
+}
+
 /// Answer `rays[i]` with ray_query(index, rays[i], q) into result[i], for all i in parallel
-/// (tbb::parallel_for over blocks of rays, each answered by ray_query_each: first hits of rays that
-/// share an origin in a narrow cone as packets). Results are identical to the single-ray calls for
-/// any thread count. Throws std::invalid_argument (before any work) for an invalid q.
+/// (ray_query_each_parallel: first hits of rays that share an origin in a narrow cone as
+/// packets). Results are identical to the single-ray calls for any thread count. Throws
+/// std::invalid_argument (before any work) for an invalid q.
 template <SpatialIndex I>
 [[nodiscard]] std::vector<std::vector<RayHit>> ray_query_batch(const I& index,
                                                                std::span<const Ray> rays,
                                                                const RayQuery& q) {
-  q.validate();
   std::vector<std::vector<RayHit>> result(rays.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size(), 64),
-                    [&](const tbb::blocked_range<std::size_t>& r) {
-                      ray_query_each(index, rays.subspan(r.begin(), r.size()), q,
-                                     std::span<std::vector<RayHit>>(result).subspan(r.begin(), r.size()));
-                    });
+  ray_query_each_parallel(index, rays, q, std::span<std::vector<RayHit>>(result));
   return result;
 }
 

@@ -47,10 +47,8 @@ void answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, 
   stage.compute = [&](std::uint64_t first, std::uint64_t count) {
     const auto ab = range(first, count);  // not a structured binding: clang 14 cannot capture those
     arena.execute([&] {
-      tbb::parallel_for(tbb::blocked_range<std::uint64_t>(ab.first, ab.second, 64), [&](const auto& br) {
-        ray_query_each(idx, std::span<const Ray>(rays).subspan(br.begin(), br.size()), q,
-                       std::span<std::vector<RayHit>>(hits).subspan(br.begin(), br.size()));
-      });
+      ray_query_each_parallel(idx, std::span<const Ray>(rays).subspan(ab.first, ab.second - ab.first), q,
+                              std::span<std::vector<RayHit>>(hits).subspan(ab.first, ab.second - ab.first));
     });
   };
   stage.pack = [&](std::uint64_t first, std::uint64_t count) {
