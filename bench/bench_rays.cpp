@@ -321,29 +321,23 @@ std::uint64_t run_embree(const EmbreeScene& es, std::span<const Ray> rays, RayRe
 /// results in the same (tile) order. Returns the hit count.
 std::uint64_t run_rayscan_packets(const rayscan::AnyIndex& index, std::span<const Ray> rays, std::size_t p,
                                   const RayQuery& rq, RayResults& res) {
-  return std::visit(
-      [&](const auto& idx) {
-        std::atomic<std::uint64_t> total{0};
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rays.size() / p, std::max<std::size_t>(1, 64 / p)),
-                          [&](const tbb::blocked_range<std::size_t>& br) {
-                            std::uint64_t local = 0;
-                            std::optional<RayHit> out[rayscan::kMaxRayPacket];
-                            for (std::size_t k = br.begin(); k != br.end(); ++k) {
-                              rayscan::ray_first_hit_packet(idx, rays.subspan(k * p, p), rq,
-                                                            std::span<std::optional<RayHit>>(out, p));
-                              for (std::size_t j = 0; j < p; ++j) {
-                                const std::size_t i = k * p + j;
-                                res.count[i] = out[j].has_value();
-                                res.first[i] = out[j] ? out[j]->index : kNoHit;
-                                res.first_t[i] = out[j] ? out[j]->t : 0.0;
-                                local += out[j].has_value();
-                              }
-                            }
-                            total += local;
-                          });
-        return total.load();
-      },
-      index);
+  return sum_over_blocks(index, rays.size() / p, std::max<std::size_t>(1, 64 / p),
+                         [&](const auto& idx, const tbb::blocked_range<std::size_t>& br) {
+                           std::uint64_t local = 0;
+                           std::optional<RayHit> out[rayscan::kMaxRayPacket];
+                           for (std::size_t k = br.begin(); k != br.end(); ++k) {
+                             rayscan::ray_first_hit_packet(idx, rays.subspan(k * p, p), rq,
+                                                           std::span<std::optional<RayHit>>(out, p));
+                             for (std::size_t j = 0; j < p; ++j) {
+                               const std::size_t i = k * p + j;
+                               res.count[i] = out[j].has_value();
+                               res.first[i] = out[j] ? out[j]->index : kNoHit;
+                               res.first_t[i] = out[j] ? out[j]->t : 0.0;
+                               local += out[j].has_value();
+                             }
+                           }
+                           return local;
+                         });
 }
 
 /// First sphere hits of the row-major camera rays by ray_query_each (the batch API's path:

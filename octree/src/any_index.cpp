@@ -15,7 +15,7 @@ AnyIndex make_index(std::span<const Vec3> positions, const IndexOptions& opts) {
   const std::string& t = opts.type;
   if (t.rfind("octree-", 0) == 0) {
     OctreeConfig c = OctreeConfig::for_layout(parse_octree_layout(t.substr(7)));
-    c.capacity = index_capacity(opts);
+    c.capacity = opts.capacity.value_or(c.capacity);  // (index_capacity, without parsing the layout again)
     c.depth = opts.depth;
     c.max_depth = opts.max_depth;
     return opts.insertion ? Octree::build_by_insertion(positions, c)

@@ -1086,8 +1086,8 @@ void ray_any_hit_packet(const I& index, std::span<const Ray> rays, const RayQuer
 /// pixels or of one observer. Measured (`bench_rays --coherence`, 1e6 / 1e7 uniform points, 16
 /// rays sharing an origin, bench/README.md "Issue 12, session 24"): packets take 0.70 / 0.78x the
 /// time of single rays for a 1-degree cone, 0.78 / 0.89x for 2 degrees, 0.90 / 1.00x for 4 and
-/// 1.03-1.05x beyond; random rays 2.4-2.5x. (Rays in another order than a pixel row may lie up to
-/// 4 degrees apart.) False for fewer than two rays.
+/// 1.03-1.05x beyond; random rays 2.4-2.5x. (Two rays of an accepted span may lie up to 4 degrees
+/// apart, each within 2 of the first.) False for fewer than two rays.
 [[nodiscard]] inline bool packet_coherent(std::span<const Ray> rays) {
   if (rays.size() < 2) return false;
   constexpr double kCos2Deg = 0.99939082701909573;  // cos(2 degrees)
