@@ -156,9 +156,15 @@ std::uint32_t crc32c(const void* data, std::size_t n, std::uint32_t crc) {
 
 std::uint32_t crc32c_combine(std::uint32_t crc_a, std::uint32_t crc_b, std::size_t len_b) {
   // crc(A || B) = shift(crc(A), |B|) xor crc(B): the inversions at both ends cancel (zlib's
-  // crc32_combine); the operator for the common 4 KiB page is computed once.
-  static const std::array<std::uint32_t, 32> page = zeros_operator(4096);
-  return (len_b == 4096 ? gf2_times(page, crc_a) : gf2_times(zeros_operator(len_b), crc_a)) ^ crc_b;
+  // crc32_combine). The operator of the last length is kept per thread: callers combine runs of
+  // one length (the index build's pages), so it is computed once per run.
+  thread_local std::size_t last_len = 0;
+  thread_local std::array<std::uint32_t, 32> last_op{};
+  if (len_b != last_len || last_len == 0) {
+    last_op = zeros_operator(len_b);
+    last_len = len_b;
+  }
+  return gf2_times(last_op, crc_a) ^ crc_b;
 }
 
 }  // namespace rayscan::io

@@ -26,7 +26,7 @@
 #include <deque>
 #include <thread>
 #include <unordered_map>
-#include <unordered_set>
+#include <bitset>
 #include <cerrno>
 #include <cmath>
 #include <cstddef>
@@ -1036,36 +1036,31 @@ struct ReadMap {
 /// reserved before (reserve: an upper node's children, numbered before the subtrees below them,
 /// and the root).
 ///
-/// On an O_DIRECT descriptor (the file system allows it) whole pages bypass the page cache: a
-/// staging buffer holds the pages from the first one not yet written; a page leaves it when the
-/// in-order writes pass it, written at once if every record of it is in, else kept aside
-/// (pinned) until its reserved records are (bench/README.md, "Issue 10, session 23": buffered
-/// writes into fresh page cache cost ~1.5 s of CPU per GB on this VM). Each page's CRC is kept
-/// and combined in order at the end (crc32c_combine), so nothing is read back. Otherwise the
-/// records are written with pwrite (whole pages need no read of the page first) and read back
-/// for the CRC. A full disk is an error from pwrite (Fd::pwrite_all).
+/// Whole pages are written by the background writer (past the page cache where the descriptor
+/// is O_DIRECT): a staging buffer holds the pages from the first one not yet written; a page
+/// leaves it when the in-order writes pass it, written at once if every record of it is in, else
+/// kept aside (pinned) until its reserved records are (bench/README.md, "Issue 10, session 23":
+/// buffered writes into fresh page cache cost ~1.5 s of CPU per GB on this VM). Each page's CRC
+/// is kept and combined in order at the end (crc32c_combine), so nothing is read back. A full
+/// disk is an error from pwrite (Fd::pwrite_all, rethrown by the writer).
 class NodeFile {
  public:
-  /// `direct`: an O_DIRECT descriptor of the same file, or null / not direct: buffered writes.
-  /// `stage_pages` (>= 1): the stage's size in pages (IndexBuildOptions::node_stage_pages).
-  NodeFile(Fd& fd, Fd* direct, DirectWriter* writer, std::uint64_t offset, std::size_t stage_pages)
-      : fd_(fd), off_(offset), stage_pages_(std::max<std::size_t>(1, stage_pages)) {
-    if (direct != nullptr && writer != nullptr && direct->is_direct() && offset % kDirectAlign == 0) {
-      dfd_ = direct;
-      dw_ = writer;
-      stage_ = HugeArray<std::uint8_t>(stage_pages_ * kDirectAlign);
-    }
+  /// `fd`: the output (O_DIRECT where the file system allows it, Fd::direct), written through
+  /// `writer`; `offset`: the section's start (a multiple of kDirectAlign, else std::logic_error).
+  /// `stage_pages` (>= 1; 0 counts as 1): the stage's size in pages
+  /// (IndexBuildOptions::node_stage_pages).
+  NodeFile(Fd& fd, DirectWriter& writer, std::uint64_t offset, std::size_t stage_pages)
+      : fd_(fd), dw_(writer), off_(offset), stage_pages_(std::max<std::size_t>(1, stage_pages)),
+        stage_(stage_pages_ * kDirectAlign) {
+    if (offset % kDirectAlign != 0) throw std::logic_error("index build: the nodes section off its alignment");
   }
-  /// Records [first, first + n) will be written later, after records above them (direct mode
-  /// keeps their pages until then). Must be called at the in-order frontier (first = every
+  /// Records [first, first + n) will be written later, after records above them (their pages
+  /// are kept until then). Must be called at the in-order frontier (first = every
   /// record written or reserved so far).
   void reserve(std::size_t first, std::size_t n) {
-    if (dfd_ == nullptr || n == 0) return;
+    if (n == 0) return;
     if (first != frontier_) throw std::logic_error("index build: node records reserved off the frontier");
-    for (std::size_t r = first; r < first + n; ++r) {
-      reserved_.insert(r);
-      ++pending_[r / kPerPage];
-    }
+    for (std::size_t r = first; r < first + n; ++r) pending_[r / kPerPage].set(r % kPerPage);
     frontier_ = first + n;
     // The stage must hold the page of every record below the frontier that is not yet written:
     // the pages it leaves lie wholly below the frontier (complete, or pinned while reserved).
@@ -1074,10 +1069,6 @@ class NodeFile {
   /// Writes records [first, first + n) from `recs`: a block at the frontier, or reserved records.
   void write(std::size_t first, const IndexNodeRecord* recs, std::size_t n) {
     if (n == 0) return;
-    if (dfd_ == nullptr) {
-      fd_.pwrite_all(recs, n * kNodeBytes, off_ + first * kNodeBytes);
-      return;
-    }
     if (first >= frontier_) {  // in order: advance the stage past the pages below `first`
       if (first != frontier_) throw std::logic_error("index build: a gap in the node records");
       const auto* b = reinterpret_cast<const std::uint8_t*>(recs);
@@ -1093,7 +1084,10 @@ class NodeFile {
     }
     for (std::size_t i = 0; i < n; ++i) {  // reserved records
       const std::size_t r = first + i, page = r / kPerPage;
-      if (reserved_.erase(r) != 1) throw std::logic_error("index build: node record " + std::to_string(r) + " written twice");
+      const auto pend = pending_.find(page);
+      if (pend == pending_.end() || !pend->second.test(r % kPerPage))
+        throw std::logic_error("index build: node record " + std::to_string(r) + " written twice");
+      pend->second.reset(r % kPerPage);
       std::uint8_t* dst;
       if (page >= stage_page_) {
         if (page >= stage_page_ + stage_pages_) throw std::logic_error("index build: a reserved node record past the stage");
@@ -1104,8 +1098,8 @@ class NodeFile {
         dst = it->second->data() + (r % kPerPage) * kNodeBytes;
       }
       std::memcpy(dst, recs + i, kNodeBytes);
-      if (--pending_[page] == 0) {
-        pending_.erase(page);
+      if (pend->second.none()) {
+        pending_.erase(pend);
         if (page < stage_page_) {  // the last record of a pinned page: write it
           auto it = pinned_.find(page);
           write_pages(page, it->second->data(), 1);
@@ -1114,37 +1108,26 @@ class NodeFile {
       }
     }
   }
-  /// Ends the section of `n` records and returns its CRC-32C (direct: every page written; each
-  /// page's CRC combined in order; buffered: read back in 8 MiB steps).
+  /// Ends the section of `n` records and returns its CRC-32C: every page written, each page's CRC
+  /// combined in order.
   std::uint32_t crc(std::size_t n) {
-    if (dfd_ != nullptr) {
-      if (!reserved_.empty() || frontier_ != n) throw std::logic_error("index build: node records missing");
-      const std::size_t bytes = n * kNodeBytes, pages = (bytes + kDirectAlign - 1) / kDirectAlign;
-      if (bytes % kDirectAlign != 0)  // the last page's padding (the file is cut at the section's end)
-        std::memset(stage_.data() + (bytes - stage_page_ * kDirectAlign), 0, kDirectAlign - bytes % kDirectAlign);
-      advance(std::max(pages, stage_page_));
-      if (!pinned_.empty()) throw std::logic_error("index build: pinned node pages left");
-      std::uint32_t c = 0;
-      for (std::size_t p = 0; p < pages; ++p) {
-        const std::size_t len = std::min(kDirectAlign, bytes - p * kDirectAlign);
-        c = p == 0 ? page_crc_[0] : crc32c_combine(c, page_crc_[p], len);
-      }
-      return c;
-    }
+    if (!pending_.empty() || frontier_ != n) throw std::logic_error("index build: node records missing");
+    const std::size_t bytes = n * kNodeBytes, pages = (bytes + kDirectAlign - 1) / kDirectAlign;
+    if (bytes % kDirectAlign != 0)  // the last page's padding (the file is cut at the section's end)
+      std::memset(stage_.data() + (bytes - stage_page_ * kDirectAlign), 0, kDirectAlign - bytes % kDirectAlign);
+    advance(std::max(pages, stage_page_));
+    if (!pinned_.empty()) throw std::logic_error("index build: pinned node pages left");
     std::uint32_t c = 0;
-    const std::size_t total = n * kNodeBytes, step = std::size_t{8} << 20;
-    std::vector<std::uint8_t> buf(std::min(total, step));
-    for (std::size_t b = 0; b < total; b += step) {
-      const std::size_t len = std::min(total - b, step);
-      if (fd_.pread_some(buf.data(), len, off_ + b) != len) throw std::runtime_error("index build: the nodes section reads back short");
-      c = crc32_of(buf.data(), len, c);
+    for (std::size_t p = 0; p < pages; ++p) {
+      const std::size_t len = std::min(kDirectAlign, bytes - p * kDirectAlign);
+      c = p == 0 ? page_crc_[0] : crc32c_combine(c, page_crc_[p], len);
     }
     return c;
   }
 
  private:
   static constexpr std::size_t kPerPage = kDirectAlign / kNodeBytes;  // records per page
-  struct alignas(kDirectAlign) Page : std::array<std::uint8_t, kDirectAlign> {};
+  using Page = std::array<std::uint8_t, kDirectAlign>;  // a pinned page (copied into a writer buffer when written)
 
   /// Moves the stage's start to page `to` (at most its end): every page below it leaves (written,
   /// or pinned while reserved records of it are missing). The stage then starts afresh at `to`:
@@ -1157,7 +1140,7 @@ class NodeFile {
     std::size_t p = stage_page_;
     while (p < end) {
       if (pending_.count(p) != 0) {  // pinned until its reserved records are in
-        auto pg = std::make_unique<Page>();
+        auto pg = std::make_unique_for_overwrite<Page>();
         std::memcpy(pg->data(), stage_.data() + (p - stage_page_) * kDirectAlign, kDirectAlign);
         pinned_.emplace(p, std::move(pg));
         ++p;
@@ -1173,12 +1156,12 @@ class NodeFile {
   /// Writes `count` whole pages from page `first` on (direct, in the background) and keeps the
   /// CRC of each page's records (all of a page below the frontier; the last page's records only).
   void write_pages(std::size_t first, const std::uint8_t* data, std::size_t count) {
-    const std::size_t per = dw_->buffer_bytes() / kDirectAlign;  // pages per background write
+    const std::size_t per = dw_.buffer_bytes() / kDirectAlign;  // pages per background write
     for (std::size_t k = 0; k < count; k += per) {
       const std::size_t m = std::min(per, count - k);
-      std::uint8_t* buf = dw_->acquire();
+      std::uint8_t* buf = dw_.acquire();
       std::memcpy(buf, data + k * kDirectAlign, m * kDirectAlign);
-      dw_->submit(*dfd_, buf, m * kDirectAlign, off_ + (first + k) * kDirectAlign);
+      dw_.submit(fd_, buf, m * kDirectAlign, off_ + (first + k) * kDirectAlign);
     }
     if (page_crc_.size() < first + count) page_crc_.resize(first + count);
     for (std::size_t k = 0; k < count; ++k) {
@@ -1189,16 +1172,15 @@ class NodeFile {
     }
   }
 
-  Fd& fd_;
+  Fd& fd_;            ///< the output (O_DIRECT where allowed)
+  DirectWriter& dw_;  ///< the background writer of its pages
   std::uint64_t off_;  ///< file offset of record 0 (page-aligned: kAlign)
   const std::size_t stage_pages_;  ///< pages staged (4 MiB by default)
-  Fd* dfd_ = nullptr;  ///< direct mode: the O_DIRECT descriptor
-  DirectWriter* dw_ = nullptr;  ///< ... and the background writer of its pages
   HugeArray<std::uint8_t> stage_;
   std::size_t stage_page_ = 0;  ///< the page stage_[0] holds
   std::size_t frontier_ = 0;    ///< records [0, frontier_) are written or reserved
-  std::unordered_set<std::size_t> reserved_;
-  std::unordered_map<std::size_t, std::uint32_t> pending_;  ///< page -> reserved records not yet in
+  /// page -> its reserved records not yet written (bit r % kPerPage of record r)
+  std::unordered_map<std::size_t, std::bitset<kPerPage>> pending_;
   std::unordered_map<std::size_t, std::unique_ptr<Page>> pinned_;
   std::vector<std::uint32_t> page_crc_;
 };
@@ -1229,7 +1211,7 @@ struct NodeBuilder {
   const OctreeConfig& cfg;
   const std::uint64_t* codes;  ///< the sorted codes, or null: computed from `pos` on `qz`
   OctreeRules::Quantizer qz;
-  PositionView pos;  // the written positions section, decoded (the file's encoding)
+  PositionView pos;  // the written positions section (the file's encoding); fused build: its encoding only
   Vec3 cell_lo;
   NodeFile& out;
   std::function<void(std::size_t)> release;
@@ -1306,15 +1288,14 @@ struct NodeBuilder {
   /// by a task of its own (decode, codes, records; at
   /// most kPipelineSlots in flight) and committed in order by later feed() calls (numbers and
   /// records written), then end_feed() commits the rest and writes the upper nodes.
-  void begin_feed(PositionView enc) {
+  void begin_feed() {
     if (!tasks_.empty()) out.reserve(0, 1);  // the root is node 0
     count = tasks_.empty() ? 0 : 1;
     next_event_ = 0;
-    feed_view_ = enc;  // (its bytes pointer is replaced per task; encoding and grid kept)
     next_task_ = 0;
   }
   void feed(const std::uint8_t* bytes, std::size_t n) {
-    const std::size_t pb = position_bytes(feed_view_.encoding());
+    const std::size_t pb = position_bytes(pos.encoding());
     while (n > 0) {
       if (next_task_ == tasks_.size()) throw std::logic_error("index build: more points than the fused node plan");
       const Task& t = tasks_[next_task_];
@@ -1385,8 +1366,7 @@ struct NodeBuilder {
   std::vector<Task> tasks_;
   std::vector<Ref> events_;  ///< upper nodes and subtrees in the order the depth-first pass visits them
   std::size_t next_event_ = 0;  ///< the sink's place in events_
-  // The fused build's state (begin_feed): the positions' encoding, the next task.
-  PositionView feed_view_;
+  // The fused build's state (begin_feed): the next task (the positions' encoding: pos).
   std::size_t next_task_ = 0;
   /// A subtree of the fused build: its points' encoded positions, built by a task.
   struct InFlight {
@@ -1410,7 +1390,7 @@ struct NodeBuilder {
     tasks_group_.run([this, fp] {
       try {
         const Task& tk = tasks_[fp->task];
-        const PositionView v(feed_view_.encoding(), fp->enc.data(), tk.e - tk.b, feed_view_.scale(), feed_view_.offset());
+        const PositionView v(pos.encoding(), fp->enc.data(), tk.e - tk.b, pos.scale(), pos.offset());
         fp->st.pos.resize(tk.e - tk.b);
         v.decode(0, tk.e - tk.b, fp->st.pos.data());
         make_subtree(tk, fp->st);
@@ -2022,11 +2002,11 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
   // phase's positions: past the page cache where the file system allows (SectionWriter).
   Fd dfd = Fd::direct(out.temp(), O_WRONLY);
   // Its background writes: 8 buffers of up to 4 MiB, more than are ever held at once (one per
-  // section writer, at most 6, and one by the node file while it copies pages in).
-  std::optional<DirectWriter> dw;
-  if (dfd.is_direct())
-    dw.emplace(8, std::clamp<std::size_t>(opt.memory_bytes / 128 / kDirectAlign * kDirectAlign, 64 << 10, 4 << 20));
-  DirectWriter* const dwp = dw ? &*dw : nullptr;
+  // section writer, at most 6, and one by the node file while it copies pages in). The section
+  // writers use it on an O_DIRECT descriptor only; the node file always (through the page cache
+  // where the file system refuses O_DIRECT).
+  DirectWriter dw(8, std::clamp<std::size_t>(opt.memory_bytes / 128 / kDirectAlign * kDirectAlign, 64 << 10, 4 << 20));
+  DirectWriter* const dwp = &dw;
   {
     const std::vector<std::uint8_t> zero(kHeaderBytes, 0);  // header slot, written last
     fd.pwrite_all(zero.data(), zero.size(), 0);
@@ -2042,7 +2022,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
   // of the runs. Then the nodes from the sorted codes, or (multi-run builds whose cells decide
   // the upper tree) during the merge from the merged positions (NodeBuilder::feed).
   HugeArray<std::uint64_t> mem_codes;  // sorted codes of the in-memory build
-  NodeFile node_file(fd, &dfd, dwp, off, opt.node_stage_pages);  // the nodes section, after the points
+  NodeFile node_file(dfd, dw, off, opt.node_stage_pages);  // the nodes section, after the points
   // The node phase after a merge (or of an in-memory build): subtrees of --memory/512 points at
   // most (1 Mi at most); each of the kPipelineSlots in flight holds its decoded positions, codes
   // and records (about 36 B/point) and its part of the positions map (12-24 B/point), about a
@@ -2060,7 +2040,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     // Subtrees of --memory/2048 points at most: up to kPipelineSlots of them (~50 B/point: the
     // encoded and decoded positions, codes, records) live beside the merge's buffers.
     fused->every = std::clamp<std::uint64_t>(opt.memory_bytes / 16 / 128, 1024, std::uint64_t{1} << 20);
-    if (fused->plan_counts(prefix, cell_depth)) fused->begin_feed(enc);
+    if (fused->plan_counts(prefix, cell_depth)) fused->begin_feed();
     else fused.reset();
   }
   std::vector<std::uint32_t>().swap(cell_points);
@@ -2082,7 +2062,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     if (w_int) w_int->flush(), h.sections[s_int].crc = w_int->crc();
     if (w_cls) w_cls->flush(), h.sections[s_cls].crc = w_cls->crc();
     if (w_gps) w_gps->flush(), h.sections[s_gps].crc = w_gps->crc();
-    if (dwp != nullptr) dwp->drain();  // on disk before the node phase maps the positions
+    dw.drain();  // on disk before the node phase maps the positions
   };
 
   if (in_memory) {
@@ -2350,7 +2330,7 @@ IndexBuildStats build_index_impl(const std::vector<fs::path>& inputs, const fs::
     off = h.sections[s_nodes].offset + h.sections[s_nodes].size;  // the file ends with the nodes
   }
   h.bounds = bounds;
-  if (dwp != nullptr) dwp->drain();  // (the node records)
+  dw.drain();  // (the node records)
   if (::ftruncate(fd.get(), static_cast<off_t>(off)) != 0) io_fail(out.temp(), "cannot set the file size");
   {
     const std::vector<std::uint8_t> hb = encode_header(h);
@@ -2666,7 +2646,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
                          std::to_string(mt) + " ns): rebuild it with `rayscan index`");
     }
   ::madvise(m.p, m.n, MADV_RANDOM);
-  if (opt.read_ahead && x.node_count_ > 0)
+  if (opt.read_ahead && !x.verified_ && x.node_count_ > 0)  // (verified: open read every section just now)
     m.start_read_ahead(by_id[kNodes]->offset, by_id[kNodes]->size, m.n <= available_memory() / 2);
   m.path = nm;
   m.ids_offset = x.ids_offset_;

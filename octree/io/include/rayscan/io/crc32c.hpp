@@ -19,7 +19,8 @@ namespace rayscan::io {
 
 /// crc32c(A || B) from crc32c(A), crc32c(B) and |B| bytes, without the bytes (zlib's
 /// crc32_combine method: a GF(2) matrix for "append |B| zero bytes", applied to crc(A)). Lets
-/// pieces of a stream that become final out of order be checksummed as they do.
+/// pieces of a stream that become final out of order be checksummed as they do. The operator of
+/// the last |B| is kept per thread (runs of equal lengths cost one matrix product each).
 [[nodiscard]] std::uint32_t crc32c_combine(std::uint32_t crc_a, std::uint32_t crc_b, std::size_t len_b);
 
 /// True when crc32c() uses the SSE4.2 instruction on this CPU.

@@ -70,8 +70,12 @@ struct IndexBuildOptions {
   /// the index reports points in slot (index) order: ids() is the identity (docs/index-format.md
   /// "Ids"). Attributes some input lacks are not stored (a note says which).
   AttributeSet attributes = AttributeSet::none();
-  /// Memory budget of the sort runs and merge buffers (bytes); peak RSS stays within this plus a
-  /// constant (one reader chunk; the node records are written into a map of the output).
+  /// Memory budget of the sort runs and merge buffers (bytes); peak RSS stays within this plus
+  /// what scales with it by a small fraction or not at all: one reader chunk, the per-cell point
+  /// counts of the fused node build (at most memory_bytes / 16 / 12 cells of 4 bytes), the
+  /// background writer's 8 buffers (memory_bytes / 128 each, clamped to [64 KiB, 4 MiB]), and the
+  /// nodes section's stage (node_stage_pages x 4 KiB) with its pinned pages (docs/index-format.md
+  /// "Build").
   std::uint64_t memory_bytes = std::uint64_t{4} << 30;
   /// Positions: the most compact exact encoding (true: the LAS int32 grid when every input is
   /// LAS/LAZ on one scale and offset, else float32 when every coordinate is a float, else
@@ -84,9 +88,10 @@ struct IndexBuildOptions {
   /// Folder for the sort runs (default: the output's folder). Removed afterwards.
   std::filesystem::path temp_dir;
   IndexProgress progress;  ///< called every few million points (may be empty)
-  /// Pages (4 KiB) of the nodes section staged before they are written with O_DIRECT (>= 1;
-  /// docs/index-format.md "Build" 4). The default suits any build; tests use 1 so that every
-  /// page boundary of the node records is crossed.
+  /// Pages (4 KiB) of the nodes section staged before they are written by the background writer
+  /// (O_DIRECT where the file system allows it; docs/index-format.md "Build" 4); 0 counts as 1.
+  /// The default suits any build; tests use 1 so that every page boundary of the node records is
+  /// crossed.
   std::size_t node_stage_pages = 1024;
 };
 
@@ -139,7 +144,8 @@ struct IndexOpenOptions {
   /// file when it fits half the available memory (MemAvailable). For a job that will touch most of it (a render, a
   /// viewshed): on a file not in the page cache (e.g. right after `rayscan index`, which writes
   /// past the cache) its queries would otherwise each wait for a 4 KiB read (the map is
-  /// MADV_RANDOM). Answers are unchanged.
+  /// MADV_RANDOM). Answers are unchanged. Nothing is started when open verified every section
+  /// (it has just read the whole file).
   bool read_ahead = false;
 };
 
