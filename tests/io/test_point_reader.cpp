@@ -83,6 +83,24 @@ TEST(PointReader, ChunksOfAnySizeEqualTheWholeRead) {
   }
 }
 
+// ReadOptions::direct_records: the uncompressed LAS files' records read with O_DIRECT into the
+// reader's two buffers (the next block in the background) equal the whole read through the map,
+// chunk by chunk (blocks crossing page boundaries at every offset). Where the file system refuses
+// O_DIRECT the reader falls back to the map and this compares the map with itself.
+TEST(PointReader, DirectRecordReadsEqualTheMappedRead) {
+  std::size_t files = 0;
+  for (const fs::path& p : all_data_files()) {
+    if (p.extension() != ".las") continue;
+    ++files;
+    const PointCloud whole = io::read_point_cloud(p);
+    for (std::size_t chunk : {std::size_t{7}, std::size_t{4096}}) {
+      auto r = io::open_point_reader(p, io::AttributeSet::all(), io::ReadOptions{.direct_records = true});
+      expect_same(read_chunked(*r, chunk), whole, p.string() + " direct, chunk " + std::to_string(chunk));
+    }
+  }
+  EXPECT_GT(files, 0u);
+}
+
 // LAZ through the LAS reader, chunk by chunk (reads crossing LAZ chunk boundaries): every value
 // equals the plain LAS file holding the same records (shared data README: autzen_trim.laz is
 // autzen_trim.las compressed).

@@ -148,7 +148,12 @@ void resize_huge(std::vector<T>& v, std::size_t n) {
   v.resize(n);
 }
 
-/// A fixed-size array of trivially copyable T in an anonymous mapping of its own: no zero-fill
+/// Alignment of O_DIRECT transfers (offsets, lengths, buffers; a multiple of every logical block
+/// size in use), and n rounded up to it.
+inline constexpr std::size_t kDirectAlign = 4096;
+constexpr std::size_t round_up_direct(std::size_t n) { return (n + kDirectAlign - 1) / kDirectAlign * kDirectAlign; }
+
+/// A fixed-size array of trivially copyable T in an anonymous mapping of its own (page-aligned): no zero-fill
 /// pass (the kernel supplies zero pages on first touch) and transparent huge pages advised
 /// (MADV_HUGEPAGE), for the multi-gigabyte buffers of the index build. Throws std::bad_alloc when
 /// the mapping fails. Move-only.

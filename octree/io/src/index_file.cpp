@@ -47,6 +47,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using detail::HugeArray;
+using detail::kDirectAlign;
+using detail::round_up_direct;
 
 // ---- format constants (docs/index-format.md) ----------------------------------------------------
 constexpr char kMagic[8] = {'R', 'S', 'I', 'N', 'D', 'E', 'X', '\0'};
@@ -191,9 +193,6 @@ class Fd {
   bool direct_ = false;
 };
 
-/// Alignment of O_DIRECT transfers (a multiple of every logical block size in use).
-constexpr std::size_t kDirectAlign = 4096;
-constexpr std::size_t round_up_direct(std::size_t n) { return (n + kDirectAlign - 1) / kDirectAlign * kDirectAlign; }
 
 /// Writes page-aligned buffers to O_DIRECT descriptors on a thread of its own, so that the
 /// builder's in-order sink never waits for the disk: a fixed pool of buffers (page-aligned,

@@ -183,52 +183,44 @@ class DirectBlocks {
       pending_.get();  // rethrows the background read's error
       if (pa_ == a && pb_ == b) {
         cur_ ^= 1;
-        return buf_[cur_].get() + (a - a / kAlign * kAlign);
+        return buf_[cur_].data() + (a - aligned(a, b).first);
       }
     }
     fill(cur_, a, b);
-    return buf_[cur_].get() + (a - a / kAlign * kAlign);
+    return buf_[cur_].data() + (a - aligned(a, b).first);
   }
   /// Starts reading bytes [a, b) into the other buffer (the one get() did not return last).
   void prefetch(std::uint64_t a, std::uint64_t b) {
     if (pending_.valid()) pending_.get();
     pa_ = a, pb_ = b;
     const int other = cur_ ^ 1;
-    reserve(other, a, b);
     pending_ = std::async(std::launch::async, [this, other, a, b] { fill(other, a, b); });
   }
 
  private:
-  static constexpr std::uint64_t kAlign = 4096;
-  struct Free {
-    void operator()(std::uint8_t* p) const { std::free(p); }
-  };
-  void reserve(int k, std::uint64_t a, std::uint64_t b) {
-    const std::uint64_t a0 = a / kAlign * kAlign, len = (b - a0 + kAlign - 1) / kAlign * kAlign;
-    if (cap_[k] >= len) return;
-    void* p = std::aligned_alloc(kAlign, static_cast<std::size_t>(len));
-    if (p == nullptr) throw std::bad_alloc();
-    buf_[k].reset(static_cast<std::uint8_t*>(p));
-    cap_[k] = len;
+  /// The O_DIRECT transfer holding bytes [a, b): its start (a rounded down to kDirectAlign) and
+  /// length (a multiple of kDirectAlign).
+  static std::pair<std::uint64_t, std::uint64_t> aligned(std::uint64_t a, std::uint64_t b) {
+    const std::uint64_t a0 = a / detail::kDirectAlign * detail::kDirectAlign;
+    return {a0, detail::round_up_direct(static_cast<std::size_t>(b - a0))};
   }
   void fill(int k, std::uint64_t a, std::uint64_t b) {
-    reserve(k, a, b);
-    const std::uint64_t a0 = a / kAlign * kAlign, len = (b - a0 + kAlign - 1) / kAlign * kAlign;
+    const auto [a0, len] = aligned(a, b);
+    if (buf_[k].size() < len) buf_[k] = detail::HugeArray<std::uint8_t>(static_cast<std::size_t>(len));  // page-aligned
     std::uint64_t got = 0;
     while (got < b - a0) {
-      const ssize_t r = ::pread(fd_, buf_[k].get() + got, static_cast<std::size_t>(len - got), static_cast<off_t>(a0 + got));
+      const ssize_t r = ::pread(fd_, buf_[k].data() + got, static_cast<std::size_t>(len - got), static_cast<off_t>(a0 + got));
       if (r < 0 && errno == EINTR) continue;
       if (r < 0) fail_at(name_, a0 + got, std::string("cannot read the point records: ") + std::strerror(errno));
       if (r == 0) fail_at(name_, a0 + got, "file ends inside the point records (expected " + std::to_string(b) + " bytes)");
       got += static_cast<std::uint64_t>(r);
-      if (got % kAlign != 0) break;  // (end of file)
+      if (got % detail::kDirectAlign != 0) break;  // (end of file)
     }
     if (got < b - a0) fail_at(name_, a0 + got, "file ends inside the point records (expected " + std::to_string(b) + " bytes)");
   }
   std::string name_;
   int fd_ = -1;
-  std::unique_ptr<std::uint8_t, Free> buf_[2];
-  std::uint64_t cap_[2] = {0, 0};
+  detail::HugeArray<std::uint8_t> buf_[2];
   int cur_ = 0;
   std::uint64_t pa_ = 0, pb_ = 0;
   std::future<void> pending_;
