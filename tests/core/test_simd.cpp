@@ -607,3 +607,63 @@ TEST(Simd, RayQueriesAreBitIdenticalOnEveryPath) {
 }
 
 }  // namespace
+
+namespace {
+
+// The per-ISA instances of the traversal (ray_query.hpp: ray_traverse_avx2 / _avx512 and the packet
+// ones, compiled with target attributes and their kernels inlined) against the instance that calls
+// the same path's kernels through simd::Kernels, and against the brute-force oracle: bit-identical
+// first hits (key, id, t, d^2), so no rounding of the compiled instance (FMA contraction, vector
+// code) reaches an answer.
+TEST(Simd, TraversalCompiledPerIsaEqualsTheKernelTableInstance) {
+  static_assert(detail::kIsaInstances<Octree, OrderKey>, "octree first hits run the per-ISA instances");
+  PathGuard guard;
+  const std::vector<Vec3> pts = make_points(30000, Dist::clustered, 21);
+  const AABB box = bounds_of(pts);
+  const Octree tree = Octree::build_bulk(pts);
+  std::mt19937_64 rng(5);
+  std::vector<Ray> rays;
+  for (int i = 0; i < 400; ++i) rays.push_back(random_ray(rng, box, i % 4 == 0));
+  RayQuery q;
+  q.k = 1, q.radius = 0.008, q.t_min = 0, q.order = RayOrder::sphere_hit;
+  std::size_t compared = 0, hits = 0;
+  for (SimdPath path : {SimdPath::avx2, SimdPath::avx512}) {
+    if (!simd_path_supported(path)) continue;
+    set_simd_path(path);
+    std::vector<detail::Candidate> packet(rays.size());
+    std::vector<bool> packet_found(rays.size());
+    detail::for_each_ray_packet(tree, std::span<const Ray>(rays), q, nullptr,
+                                [&](std::size_t b, unsigned n, const detail::Candidate* best, std::uint32_t found) {
+                                  for (unsigned i = 0; i < n; ++i) {
+                                    packet[b + i] = best[i];
+                                    packet_found[b + i] = (found >> i) & 1u;
+                                  }
+                                });
+    for (std::size_t r = 0; r < rays.size(); ++r) {
+      detail::Candidate isa{}, table{};
+      const bool fi = path == SimdPath::avx2
+                          ? detail::ray_traverse_avx2<true>(tree, rays[r], q, isa, nullptr, OrderKey{})
+                          : detail::ray_traverse_avx512<true>(tree, rays[r], q, isa, nullptr, OrderKey{});
+      const bool ft = detail::ray_traverse_with<true, simd::Kernels>(tree, rays[r], q, table, nullptr, OrderKey{});
+      const auto want = oracle_ray_query(pts, rays[r], q);
+      ASSERT_EQ(fi, ft) << to_string(path) << " ray " << r;
+      ASSERT_EQ(fi, !want.empty()) << to_string(path) << " ray " << r;
+      ASSERT_EQ(packet_found[r], fi) << to_string(path) << " ray " << r;
+      ++compared;
+      if (!fi) continue;
+      ++hits;
+      for (const detail::Candidate* c : {&table, &packet[r]}) {
+        ASSERT_EQ(isa.key, c->key) << to_string(path) << " ray " << r;
+        ASSERT_EQ(isa.id, c->id) << to_string(path) << " ray " << r;
+        ASSERT_EQ(isa.t, c->t) << to_string(path) << " ray " << r;
+        ASSERT_EQ(isa.d2, c->d2) << to_string(path) << " ray " << r;
+      }
+      ASSERT_EQ(isa.id, want[0].index) << to_string(path) << " ray " << r;
+      ASSERT_EQ(isa.t, want[0].t) << to_string(path) << " ray " << r;
+    }
+  }
+  if (compared == 0) GTEST_SKIP() << "CPU has neither AVX2 nor AVX-512";
+  EXPECT_GT(hits, 100u);
+}
+
+}  // namespace

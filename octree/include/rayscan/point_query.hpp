@@ -143,14 +143,16 @@ __attribute__((always_inline)) inline FloatQueryPoint float_query_point([[maybe_
 /// all of them. The k best are kept in a sorted array (k <= 32) or a heap.
 /// Throws std::invalid_argument for a NaN/negative radius or a non-finite q.
 template <SpatialIndex I>
-void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
-               std::vector<Neighbor>& out) {
-  if (std::isnan(radius) || radius < 0.0)
-    throw std::invalid_argument("knn query: radius must be >= 0");
-  if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z))
-    throw std::invalid_argument("knn query: query point must be finite");
-  out.clear();
-  if (index.empty() || k == 0) return;
+void knn_query(const I& index, const Vec3& q, std::size_t k, double radius, std::vector<Neighbor>& out);
+
+namespace detail {
+
+/// knn_query's traversal with kernel policy K (as RayTraversal's: simd::Kernels or a compile-time
+/// policy of simd_kernels.hpp), for a valid radius and q, a non-empty index and k >= 1; `out` is
+/// cleared.
+template <class K, SpatialIndex I>
+__attribute__((always_inline)) inline void knn_query_with(const I& index, const Vec3& q, std::size_t k,
+                                                          double radius, std::vector<Neighbor>& out) {
   using Node = typename I::Node;
   using detail::KnnCand;
   const bool bounded = k != kAllPoints;
@@ -174,7 +176,7 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
   auto within = [](double lb, double b) { return lb <= b * (1.0 + 1e-12); };
   const AABB root_box = index.node_bounds(index.root());
   // SIMD policies (simd.hpp): see ray_query for the margins.
-  const simd::Kernels& kern = simd::active_kernels();
+  const KernelsOf<K> kern = kernels_of<K>();
   const double vmax = glm::length(q - root_box.center()) + 0.5 * glm::length(root_box.hi - root_box.lo);
   const double slack_d2 = 1e-12 * vmax * vmax + 1e-300;
   simd::PointFilterD pf{{q.x, q.y, q.z}, {0.0, 0.0, 0.0}, 0.0, -kInf, kInf};  // d = 0: |p - q|^2
@@ -215,7 +217,7 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
   // Leaf work: the node's own points, through the SIMD filter once a finite bound exists.
   auto eval_points = [&](Node n) __attribute__((always_inline)) {
     const SlotRange sr = index.node_points(n);
-    if (kern.point_filter && sr.size() >= 4 && bound < kInf) {
+    if (has_kernel(kern.point_filter) && sr.size() >= 4 && bound < kInf) {
       pf.d2_max = bound * (1.0 + 1e-12) + slack_d2;
       auto& sel = scratch.sel;
       if (sel.size() < sr.size()) sel.resize(sr.size());
@@ -225,11 +227,18 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
       for (std::uint32_t s = sr.begin; s < sr.end; ++s) insert(s);
     }
   };
-  stack.push_back({distance2_point_box(q, root_box), index.root(), false});
-  while (!stack.empty()) {
-    const detail::KnnEntry<Node> e = stack.back();
-    stack.pop_back();
-    if (!within(e.lb, bound)) continue;
+  // e: the node to expand next: popped, or the nearest child of the last one, expanded right away
+  // instead of through the stack (as RayTraversal::traverse_from; it passed within() just now).
+  detail::KnnEntry<Node> e{distance2_point_box(q, root_box), index.root(), false};
+  bool next = within(e.lb, bound);
+  while (true) {
+    if (!next) {
+      if (stack.empty()) break;
+      e = stack.back();
+      stack.pop_back();
+      if (!within(e.lb, bound)) continue;
+    }
+    next = false;
     const unsigned nc = index.child_count(e.node);
     if (e.points || nc == 0) {
       eval_points(e.node);
@@ -253,7 +262,7 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
     };
     bool done = false;
     if constexpr (detail::FloatChildBoxes<I>) {
-      if (kern.child_dist2 && nc <= 8) {
+      if (has_kernel(kern.child_dist2) && nc <= 8) {
         float lb2[8];
         kern.child_dist2(index.child_boxes_f(e.node), qf.q, qf.margin, lb2);
         for (unsigned i = 0; i < nc; ++i) add(lb2[i], index.child(e.node, i));
@@ -274,7 +283,10 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
         }
       }
     }
-    for (unsigned j = 0; j < m; ++j) stack.push_back({lb[j], ch[j], false});
+    if (m == 0) continue;
+    for (unsigned j = 0; j + 1 < m; ++j) stack.push_back({lb[j], ch[j], false});
+    e = {lb[m - 1], ch[m - 1], false};
+    next = true;
   }
   if (!sorted_set) {
     std::sort(cands.begin(), cands.end(), detail::knn_less);
@@ -283,6 +295,57 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius,
   out.reserve(held);
   for (std::size_t i = 0; i < held; ++i) out.push_back({cands[i].id, std::sqrt(cands[i].d2)});
 }
+
+#if RAYSCAN_SIMD_X86
+/// knn_query_with compiled for AVX2 + FMA with the AVX2 kernels inlined (flatten, as
+/// ray_traverse_avx2).
+template <SpatialIndex I>
+__attribute__((target("avx2,fma"), flatten, noinline)) void knn_query_avx2(const I& index, const Vec3& q,
+                                                                           std::size_t k, double radius,
+                                                                           std::vector<Neighbor>& out) {
+  knn_query_with<simd::Avx2Kernels>(index, q, k, radius, out);
+}
+/// As knn_query_avx2, for the AVX-512 path (F + VL).
+template <SpatialIndex I>
+__attribute__((target("avx512f,avx512vl,avx2,fma"), flatten, noinline)) void knn_query_avx512(
+    const I& index, const Vec3& q, std::size_t k, double radius, std::vector<Neighbor>& out) {
+  knn_query_with<simd::Avx512Kernels>(index, q, k, radius, out);
+}
+#endif
+
+}  // namespace detail
+
+template <SpatialIndex I>
+void knn_query(const I& index, const Vec3& q, std::size_t k, double radius, std::vector<Neighbor>& out) {
+  if (std::isnan(radius) || radius < 0.0)
+    throw std::invalid_argument("knn query: radius must be >= 0");
+  if (!std::isfinite(q.x) || !std::isfinite(q.y) || !std::isfinite(q.z))
+    throw std::invalid_argument("knn query: query point must be finite");
+  out.clear();
+  if (index.empty() || k == 0) return;
+#if RAYSCAN_SIMD_X86
+  // On FloatChildBoxes indexes, the instance compiled for the active path (as ray_traverse).
+  if constexpr (detail::FloatChildBoxes<I>) {
+    switch (simd::active_kernels().path) {
+      case SimdPath::avx2: return detail::knn_query_avx2(index, q, k, radius, out);
+      case SimdPath::avx512: return detail::knn_query_avx512(index, q, k, radius, out);
+      default: break;
+    }
+  }
+#endif
+  detail::knn_query_with<simd::Kernels>(index, q, k, radius, out);
+}
+
+#if RAYSCAN_SIMD_X86
+// The octree's kNN instances compiled per ISA, instantiated once in the library
+// (octree/src/ray_query.cpp) instead of in every caller's translation unit.
+namespace detail {
+extern template void knn_query_avx2<Octree>(const Octree&, const Vec3&, std::size_t, double,
+                                            std::vector<Neighbor>&);
+extern template void knn_query_avx512<Octree>(const Octree&, const Vec3&, std::size_t, double,
+                                              std::vector<Neighbor>&);
+}  // namespace detail
+#endif
 
 /// kNN: the k nearest points (see knn_query above for order and ties).
 template <SpatialIndex I>

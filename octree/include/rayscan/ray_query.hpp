@@ -3,8 +3,10 @@
 #pragma once
 
 #include "rayscan/distance.hpp"
+#include "rayscan/octree.hpp"
 #include "rayscan/ray.hpp"
 #include "rayscan/simd.hpp"
+#include "rayscan/simd_kernels.hpp"
 #include "rayscan/spatial_index.hpp"
 
 #include <algorithm>
@@ -159,6 +161,25 @@ RayScratch<Node>& ray_scratch() {
   return s;
 }
 
+/// The kernels member of a traversal with kernel policy K: simd::Kernels, the run-time table of the
+/// active path (held by reference), or a compile-time policy of simd_kernels.hpp (an empty value
+/// whose kernels are constants, called directly and inlined into a per-ISA traversal instance).
+template <class K>
+using KernelsOf = std::conditional_t<std::is_same_v<K, simd::Kernels>, const simd::Kernels&, K>;
+/// Whether a kernel is present (nullptr on the scalar path); a function, so that a policy's
+/// constant kernel does not draw -Waddress.
+template <class Fn>
+constexpr bool has_kernel(Fn f) {
+  return f != nullptr;
+}
+template <class K>
+KernelsOf<K> kernels_of() {
+  if constexpr (std::is_same_v<K, simd::Kernels>)
+    return simd::active_kernels();
+  else
+    return K{};
+}
+
 }  // namespace detail
 
 /// The default point-key policy of ray_query: a candidate's key is the order's measure.
@@ -267,9 +288,11 @@ namespace detail {
 /// Candidates go to the per-thread k-heap (scratch.cands) or, with kBest1 (k = 1: the first hit of
 /// a renderer), to `best` alone: no heap and no vector (a compile-time policy, not a copy).
 /// Expects a validated query, a non-empty index and k >= 1. `key_policy`: OrderKey or RefinedKey.
+/// `K`: the kernel policy, simd::Kernels (the active path's table, called through pointers) or a
+/// compile-time policy of simd_kernels.hpp for the instances compiled per ISA (ray_traverse).
 /// The constructor clears the per-thread scratch (one traversal per thread at a time; the states
 /// of one packet are all constructed before any of them traverses).
-template <bool kBest1, SpatialIndex I, class KeyPolicy = OrderKey>
+template <bool kBest1, SpatialIndex I, class KeyPolicy = OrderKey, class K = simd::Kernels>
 struct RayTraversal {
   using Node = typename I::Node;
   static constexpr bool per_node = KeyPolicy::node_radius;
@@ -303,7 +326,7 @@ struct RayTraversal {
   static constexpr bool key_floor_known = per_box && requires(const KeyPolicy& kp) { kp.key.key_min(); };
   double box_t_lo;
   RayScratch<Node>& scratch;
-  const simd::Kernels& kern;
+  KernelsOf<K> kern;
   double slack_t = 0, slack_d2 = 0;
   simd::PointFilterD pf;
   simd::SlabRayF sr{};
@@ -324,7 +347,7 @@ struct RayTraversal {
         ray_order(q_.order == RayOrder::ray), exact(q_.node_distance == NodeDistance::exact),
         has_planes(!q_.planes.empty()), radius(q_.radius), r2(q_.radius * q_.radius),
         root_box(index_.node_bounds(index_.root())), scratch(detail::ray_scratch<Node>()),
-        kern(simd::active_kernels()) {
+        kern(kernels_of<K>()) {
     if (per_node && ray_order)
       throw std::invalid_argument("ray query: per-node radii need order time or sphere_hit");
     dist_center = glm::length(o - root_box.center());
@@ -363,7 +386,7 @@ struct RayTraversal {
     // Child test: float slabs relative to the index's float origin; rays with a direction
     // component whose float reciprocal is not finite keep the scalar node test.
     if constexpr (detail::FloatChildBoxes<I>) {
-      if (kern.child_slab) {
+      if (has_kernel(kern.child_slab)) {
         o_rel = o - index.float_origin();
         const float fx = static_cast<float>(inv_d.x), fy = static_cast<float>(inv_d.y),
                     fz = static_cast<float>(inv_d.z);
@@ -415,7 +438,7 @@ struct RayTraversal {
     pf.disc_t_lo = box_t_lo;
     pf.disc_t_hi = std::min(q.t_max, worst);
     if constexpr (per_box_f) {
-      if (kern.child_slab) {
+      if (has_kernel(kern.child_slab)) {
         // As below with pad 0, the magnitudes including the geometry's reach past the float
         // cell (at most the query radius).
         const double margin = 0x1p-20 * (mag + radius) + tol;
@@ -427,7 +450,7 @@ struct RayTraversal {
         sr_box.t_hi = static_cast<float>(t_hi + 0x1p-22 * std::abs(t_hi));
       }
     } else if constexpr (detail::FloatChildBoxes<I>) {
-      if (kern.child_slab && pad < kInf) {
+      if (has_kernel(kern.child_slab) && pad < kInf) {
         // Position-space margin: float rounding of the slab origins and of box - origin
         // differences (each <= 2^-24 of the magnitudes involved); 2^-20 of their sum covers both.
         // The margin is 16x the rounding of o_plus / o_minus to float, so plain casts stay
@@ -639,7 +662,7 @@ struct RayTraversal {
       }
       push_candidate({key, ids[s], s, t, pt.d2});
     };
-    if (kern.point_filter && range.size() >= 4) {
+    if (has_kernel(kern.point_filter) && range.size() >= 4) {
       // SIMD filter, then the exact test on the survivors only (in slot order, as below).
       auto& sel = scratch.sel;
       if (sel.size() < range.size()) sel.resize(range.size());
@@ -731,12 +754,13 @@ struct RayTraversal {
   }
 };
 
-/// The ray query for one ray: the traversal above from the root. Returns true when `best` was set
-/// (kBest1 only).
-template <bool kBest1, SpatialIndex I, class KeyPolicy = OrderKey>
-bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& best, RayQueryStats* stats,
-                  const KeyPolicy& key_policy = {}) {
-  RayTraversal<kBest1, I, KeyPolicy> rt(index, ray, q, best, stats, key_policy);
+/// The ray query for one ray with kernel policy K: the traversal above from the root. Returns true
+/// when `best` was set (kBest1 only).
+template <bool kBest1, class K, SpatialIndex I, class KeyPolicy>
+__attribute__((always_inline)) inline bool ray_traverse_with(const I& index, const Ray& ray, const RayQuery& q,
+                                                             Candidate& best, RayQueryStats* stats,
+                                                             const KeyPolicy& key_policy) {
+  RayTraversal<kBest1, I, KeyPolicy, K> rt(index, ray, q, best, stats, key_policy);
   double lb0 = 0;
   if (!rt.test_node(rt.root_box, lb0)) {  // missed the root: no further set-up
     if constexpr (!kBest1) rt.scratch.cands.clear();  // (ray_query reads them)
@@ -745,6 +769,58 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
   rt.prepare();
   rt.traverse_from(index.root(), lb0);
   return rt.found;
+}
+
+#if RAYSCAN_SIMD_X86
+/// ray_traverse_with compiled for AVX2 + FMA with the AVX2 kernels, everything it calls inlined
+/// (flatten; a kernel cannot be always_inline into the traversal's default-target member
+/// functions): no indirect kernel call, no spill of the ray's state around one, VEX encodings
+/// for the scalar double code. Same double arithmetic as the baseline instance (-ffp-contract=off: no
+/// fused multiply-add is formed from the traversal's own expressions), so the answers are
+/// bit-identical. Called only after simd_path() chose avx2 (__builtin_cpu_supports).
+template <bool kBest1, SpatialIndex I, class KeyPolicy>
+__attribute__((target("avx2,fma"), flatten, noinline)) bool ray_traverse_avx2(
+    const I& index, const Ray& ray, const RayQuery& q, Candidate& best, RayQueryStats* stats,
+    const KeyPolicy& key_policy) {
+  return ray_traverse_with<kBest1, simd::Avx2Kernels>(index, ray, q, best, stats, key_policy);
+}
+/// As ray_traverse_avx2, for the AVX-512 path (F + VL).
+template <bool kBest1, SpatialIndex I, class KeyPolicy>
+__attribute__((target("avx512f,avx512vl,avx2,fma"), flatten, noinline)) bool ray_traverse_avx512(
+    const I& index, const Ray& ray, const RayQuery& q, Candidate& best, RayQueryStats* stats,
+    const KeyPolicy& key_policy) {
+  return ray_traverse_with<kBest1, simd::Avx512Kernels>(index, ray, q, best, stats, key_policy);
+}
+#endif
+
+/// Whether the traversal of index I with key policy KeyPolicy has instances compiled per ISA
+/// (ray_traverse_avx2 / _avx512 with kBest1, first_hit_packet_avx2 / _avx512): the first hit
+/// (k = 1, the renderer's, visibility's and the issue's query) of the plain ray query (OrderKey)
+/// on indexes with float child boxes. Queries with k > 1 and the refined keys of surfel rendering
+/// keep the table instance: each per-ISA instance is the whole traversal inlined once more, and
+/// instancing every combination made the build 1.75x slower (bench/README.md, "Issue 12,
+/// session 25"). The octree's instances are compiled once, in the library (extern templates at
+/// the end of this header).
+template <class I, class KeyPolicy>
+inline constexpr bool kIsaInstances = FloatChildBoxes<I> && std::is_same_v<KeyPolicy, OrderKey>;
+
+/// The ray query for one ray: the traversal above from the root, on the active SIMD path
+/// (simd_path()): where kIsaInstances, the instance compiled for that path's instruction set
+/// (ray_traverse_avx2 / _avx512), else the instance that calls the path's kernels through
+/// simd::Kernels. Returns true when `best` was set (kBest1 only).
+template <bool kBest1, SpatialIndex I, class KeyPolicy = OrderKey>
+bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& best, RayQueryStats* stats,
+                  const KeyPolicy& key_policy = {}) {
+#if RAYSCAN_SIMD_X86
+  if constexpr (kBest1 && kIsaInstances<I, KeyPolicy>) {
+    switch (simd::active_kernels().path) {
+      case SimdPath::avx2: return ray_traverse_avx2<kBest1>(index, ray, q, best, stats, key_policy);
+      case SimdPath::avx512: return ray_traverse_avx512<kBest1>(index, ray, q, best, stats, key_policy);
+      default: break;
+    }
+  }
+#endif
+  return ray_traverse_with<kBest1, simd::Kernels>(index, ray, q, best, stats, key_policy);
 }
 
 }  // namespace detail
@@ -841,12 +917,16 @@ namespace detail {
 /// radii each ray enters a node with its own bound (RayTraversal::enter_node; or keeps the root's
 /// when the filter has per-slot radii and the boxes are float geometry boxes); with float
 /// geometry boxes (RefinedKey::child_boxes_f) the children are tested on them, all rays at once.
-template <unsigned N, SpatialIndex I, class KeyPolicy = OrderKey>
-unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const RayQuery& q, Candidate* best,
-                          RayQueryStats* stats, const KeyPolicy* keys = nullptr) {
+///
+/// `K`: the kernel policy, as RayTraversal's (first_hit_packet_avx2 / _avx512 below run the
+/// instances compiled per ISA).
+template <unsigned N, class K, SpatialIndex I, class KeyPolicy>
+__attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n,
+                                                                const RayQuery& q, Candidate* best,
+                                                                RayQueryStats* stats, const KeyPolicy* keys) {
   static_assert(N >= 1 && N <= 16);
   using Node = typename I::Node;
-  using RT = RayTraversal<true, I, KeyPolicy>;
+  using RT = RayTraversal<true, I, KeyPolicy, K>;
   const auto key_of = [keys](unsigned i) -> const KeyPolicy& {
     if constexpr (std::is_same_v<KeyPolicy, OrderKey>) {
       static constexpr OrderKey kKey{};
@@ -888,7 +968,7 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
   // Child test policy: SIMD over the rays (packet_child_slab: one lane per ray, each child box
   // broadcast) when every ray's slab result is final (orders time / sphere_hit, no planes) and
   // float-testable; else each ray's own test_children (SIMD over the children).
-  [[maybe_unused]] const simd::Kernels& kern = simd::active_kernels();
+  [[maybe_unused]] const KernelsOf<K> kern = kernels_of<K>();
   [[maybe_unused]] bool over_rays = false;
   [[maybe_unused]] alignas(64) simd::SlabPacketF lanes;
   [[maybe_unused]] auto set_lane = [&](unsigned i) {
@@ -904,7 +984,7 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
   if constexpr (FloatChildBoxes<I>) {
     // (Only the prepared rays, those in root.mask, count and get a lane; no other ray is ever in a
     // stack entry's mask.)
-    over_rays = kern.packet_child_slab != nullptr;
+    over_rays = has_kernel(kern.packet_child_slab);
     for (std::uint32_t m = root.mask; m; m &= m - 1) {
       const RT& r = *st[__builtin_ctz(m)];
       over_rays = over_rays && r.slab_is_final && r.simd_children && r.pad < kInf;
@@ -1020,20 +1100,65 @@ unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n, const Ray
   return found;
 }
 
+/// first_hit_packet with kernel policy K, the 4-, 8- or 16-lane instance by packet size n.
+template <class K, SpatialIndex I, class KeyPolicy>
+unsigned first_hit_packet_any(const I& index, const Ray* rays, unsigned n,
+                                                                    const RayQuery& q, Candidate* best,
+                                                                    RayQueryStats* stats, const KeyPolicy* keys) {
+  return n <= 4   ? first_hit_packet<4, K>(index, rays, n, q, best, stats, keys)
+         : n <= 8 ? first_hit_packet<8, K>(index, rays, n, q, best, stats, keys)
+                  : first_hit_packet<kMaxRayPacket, K>(index, rays, n, q, best, stats, keys);
+}
+
+#if RAYSCAN_SIMD_X86
+/// first_hit_packet compiled for AVX2 + FMA with its kernels inlined (as ray_traverse_avx2), the
+/// 16-lane instance for any packet size (one instance per ISA: the packet loop inlines two
+/// single-ray loops, and three sizes per ISA tripled the compile time of the renderer; the 4- and
+/// 8-lane instances only serve the last rays of a span).
+template <SpatialIndex I, class KeyPolicy>
+__attribute__((target("avx2,fma"), flatten, noinline)) unsigned first_hit_packet_avx2(
+    const I& index, const Ray* rays, unsigned n, const RayQuery& q, Candidate* best, RayQueryStats* stats,
+    const KeyPolicy* keys) {
+  return first_hit_packet<kMaxRayPacket, simd::Avx2Kernels>(index, rays, n, q, best, stats, keys);
+}
+/// As first_hit_packet_avx2, for the AVX-512 path (F + VL).
+template <SpatialIndex I, class KeyPolicy>
+__attribute__((target("avx512f,avx512vl,avx2,fma"), flatten, noinline)) unsigned first_hit_packet_avx512(
+    const I& index, const Ray* rays, unsigned n, const RayQuery& q, Candidate* best, RayQueryStats* stats,
+    const KeyPolicy* keys) {
+  return first_hit_packet<kMaxRayPacket, simd::Avx512Kernels>(index, rays, n, q, best, stats, keys);
+}
+#endif
+
+/// first_hit_packet_any on SIMD path `path` (simd_path()): where kIsaInstances, the instance
+/// compiled for its instruction set, else the one calling its kernels through simd::Kernels.
+template <SpatialIndex I, class KeyPolicy>
+unsigned first_hit_packet_on(SimdPath path, const I& index, const Ray* rays, unsigned n, const RayQuery& q,
+                             Candidate* best, RayQueryStats* stats, const KeyPolicy* keys) {
+#if RAYSCAN_SIMD_X86
+  if constexpr (kIsaInstances<I, KeyPolicy>) {
+    if (path == SimdPath::avx2) return first_hit_packet_avx2(index, rays, n, q, best, stats, keys);
+    if (path == SimdPath::avx512) return first_hit_packet_avx512(index, rays, n, q, best, stats, keys);
+  }
+#endif
+  (void)path;
+  return first_hit_packet_any<simd::Kernels>(index, rays, n, q, best, stats, keys);
+}
+
 /// Runs first_hit_packet over `rays` in blocks of kMaxRayPacket consecutive rays (the 4-, 8- or
-/// 16-lane instance by block size) and calls emit(b, n, best, found) for each block: rays
+/// 16-lane instance by block size; on FloatChildBoxes indexes the instance compiled for the
+/// active SIMD path where kIsaInstances, as ray_traverse) and calls emit(b, n, best, found) for each block: rays
 /// [b, b + n), bit i of `found` set when ray b + i has its answer in best[i].
 /// `keys`: as first_hit_packet's, one per ray of `rays` (nullptr only with OrderKey).
 template <SpatialIndex I, class Emit, class KeyPolicy = OrderKey>
 void for_each_ray_packet(const I& index, std::span<const Ray> rays, const RayQuery& q, RayQueryStats* stats,
                          Emit&& emit, const KeyPolicy* keys = nullptr) {
+  const SimdPath path = simd::active_kernels().path;
   for (std::size_t b = 0; b < rays.size(); b += kMaxRayPacket) {
     const unsigned n = static_cast<unsigned>(std::min(kMaxRayPacket, rays.size() - b));
     const KeyPolicy* k = keys ? keys + b : nullptr;
     Candidate best[kMaxRayPacket];
-    const std::uint32_t found = n <= 4   ? first_hit_packet<4>(index, rays.data() + b, n, q, best, stats, k)
-                                : n <= 8 ? first_hit_packet<8>(index, rays.data() + b, n, q, best, stats, k)
-                                         : first_hit_packet<kMaxRayPacket>(index, rays.data() + b, n, q, best, stats, k);
+    const std::uint32_t found = first_hit_packet_on(path, index, rays.data() + b, n, q, best, stats, k);
     emit(b, n, static_cast<const Candidate*>(best), found);
   }
 }
@@ -1192,5 +1317,22 @@ template <SpatialIndex I>
   std::sort(out.begin(), out.end());
   return out;
 }
+
+#if RAYSCAN_SIMD_X86
+// The octree's first-hit instances compiled per ISA, instantiated once in the library
+// (octree/src/ray_query.cpp) instead of in every caller's translation unit.
+namespace detail {
+extern template bool ray_traverse_avx2<true, Octree, OrderKey>(const Octree&, const Ray&, const RayQuery&,
+                                                               Candidate&, RayQueryStats*, const OrderKey&);
+extern template bool ray_traverse_avx512<true, Octree, OrderKey>(const Octree&, const Ray&, const RayQuery&,
+                                                                 Candidate&, RayQueryStats*, const OrderKey&);
+extern template unsigned first_hit_packet_avx2<Octree, OrderKey>(const Octree&, const Ray*, unsigned,
+                                                                 const RayQuery&, Candidate*, RayQueryStats*,
+                                                                 const OrderKey*);
+extern template unsigned first_hit_packet_avx512<Octree, OrderKey>(const Octree&, const Ray*, unsigned,
+                                                                   const RayQuery&, Candidate*, RayQueryStats*,
+                                                                   const OrderKey*);
+}  // namespace detail
+#endif
 
 }  // namespace rayscan

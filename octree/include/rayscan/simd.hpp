@@ -32,7 +32,8 @@ SimdPath simd_path();
 /// Forces path p for all later queries of the process (not thread-safe against running queries).
 /// Returns false (and changes nothing) when the CPU cannot run p.
 bool set_simd_path(SimdPath p);
-/// One line for `rayscan --version`: the active path and what the CPU supports.
+/// One line for `rayscan --version`: the active path (and, for avx2 / avx512, that the ray and kNN
+/// traversals run their instances compiled for it: simd_kernels.hpp) and what the CPU supports.
 std::string simd_description();
 
 namespace simd {

@@ -9,6 +9,7 @@
 #include "rayscan/geometry.hpp"
 #include "rayscan/point_cloud.hpp"
 #include "rayscan/simd.hpp"
+#include "rayscan/ray_query.hpp"
 #include "rayscan/spatial_index.hpp"
 
 #include <atomic>
@@ -301,3 +302,18 @@ class CopcIndex {
 static_assert(SpatialIndex<CopcIndex>);
 
 }  // namespace rayscan::io
+
+#if RAYSCAN_SIMD_X86
+// The first-hit instances compiled per ISA (ray_query.hpp) of this index, instantiated once in the
+// library (octree/io/src/query_instances.cpp) instead of in every caller's translation unit.
+namespace rayscan::detail {
+extern template bool ray_traverse_avx2<true, io::CopcIndex, OrderKey>(
+    const io::CopcIndex&, const Ray&, const RayQuery&, Candidate&, RayQueryStats*, const OrderKey&);
+extern template bool ray_traverse_avx512<true, io::CopcIndex, OrderKey>(
+    const io::CopcIndex&, const Ray&, const RayQuery&, Candidate&, RayQueryStats*, const OrderKey&);
+extern template unsigned first_hit_packet_avx2<io::CopcIndex, OrderKey>(
+    const io::CopcIndex&, const Ray*, unsigned, const RayQuery&, Candidate*, RayQueryStats*, const OrderKey*);
+extern template unsigned first_hit_packet_avx512<io::CopcIndex, OrderKey>(
+    const io::CopcIndex&, const Ray*, unsigned, const RayQuery&, Candidate*, RayQueryStats*, const OrderKey*);
+}  // namespace rayscan::detail
+#endif

@@ -9,6 +9,7 @@
 #include "rayscan/id_view.hpp"
 #include "rayscan/octree.hpp"
 #include "rayscan/rgb_view.hpp"
+#include "rayscan/ray_query.hpp"
 #include "rayscan/spatial_index.hpp"
 
 #include <cstdint>
@@ -340,3 +341,18 @@ std::uint64_t parse_byte_size(const std::string& text);
 bool is_index_file(const std::filesystem::path& path);
 
 }  // namespace rayscan::io
+
+#if RAYSCAN_SIMD_X86
+// The first-hit instances compiled per ISA (ray_query.hpp) of this index, instantiated once in the
+// library (octree/io/src/query_instances.cpp) instead of in every caller's translation unit.
+namespace rayscan::detail {
+extern template bool ray_traverse_avx2<true, io::MappedIndex, OrderKey>(
+    const io::MappedIndex&, const Ray&, const RayQuery&, Candidate&, RayQueryStats*, const OrderKey&);
+extern template bool ray_traverse_avx512<true, io::MappedIndex, OrderKey>(
+    const io::MappedIndex&, const Ray&, const RayQuery&, Candidate&, RayQueryStats*, const OrderKey&);
+extern template unsigned first_hit_packet_avx2<io::MappedIndex, OrderKey>(
+    const io::MappedIndex&, const Ray*, unsigned, const RayQuery&, Candidate*, RayQueryStats*, const OrderKey*);
+extern template unsigned first_hit_packet_avx512<io::MappedIndex, OrderKey>(
+    const io::MappedIndex&, const Ray*, unsigned, const RayQuery&, Candidate*, RayQueryStats*, const OrderKey*);
+}  // namespace rayscan::detail
+#endif
