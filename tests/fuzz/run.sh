@@ -16,7 +16,7 @@ CXX="${FUZZ_CXX:-clang++}"
 command -v "$CXX" >/dev/null || { echo "fuzz: $CXX not found (Debian package clang)"; exit 2; }
 mkdir -p "$OUT/obj" "$OUT/crashes"
 
-FLAGS=(-std=c++20 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined
+FLAGS=(-std=c++20 -O1 -g -fno-omit-frame-pointer -ffp-contract=off -fsanitize=address,undefined
        -fno-sanitize-recover=undefined -Ioctree/include -Ioctree/io/include -I/usr/include/liblzf)
 # The whole core and io: io sources (camera files, the query job, the input policy) call into
 # the core.
