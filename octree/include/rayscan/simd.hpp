@@ -6,6 +6,9 @@
 // Paths: scalar (the reference), sse2 (x86-64 baseline), avx2 (+FMA), avx512 (F+VL). The best path
 // the CPU supports is chosen once at start-up with __builtin_cpu_supports; the environment variable
 // RAYSCAN_SIMD=scalar|sse2|avx2|avx512 or set_simd_path() forces one (tests, benchmarks).
+// On the avx2 and avx512 paths the first-hit ray traversal, its packets and knn_query run
+// instances of the one traversal compiled for that instruction set with these kernels inlined
+// (simd_kernels.hpp, ray_query.hpp); elsewhere the kernels are called through simd::Kernels.
 #pragma once
 
 #include <cstdint>
