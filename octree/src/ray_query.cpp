@@ -27,14 +27,7 @@ void RayQuery::validate() const {
 #if RAYSCAN_SIMD_X86
 // The octree's instances compiled per ISA (declared extern in ray_query.hpp / point_query.hpp).
 namespace detail {
-template bool ray_traverse_avx2<true, Octree, OrderKey>(const Octree&, const Ray&, const RayQuery&, Candidate&,
-                                                        RayQueryStats*, const OrderKey&);
-template bool ray_traverse_avx512<true, Octree, OrderKey>(const Octree&, const Ray&, const RayQuery&, Candidate&,
-                                                          RayQueryStats*, const OrderKey&);
-template unsigned first_hit_packet_avx2<Octree, OrderKey>(const Octree&, const Ray*, unsigned, const RayQuery&,
-                                                          Candidate*, RayQueryStats*, const OrderKey*);
-template unsigned first_hit_packet_avx512<Octree, OrderKey>(const Octree&, const Ray*, unsigned, const RayQuery&,
-                                                            Candidate*, RayQueryStats*, const OrderKey*);
+RAYSCAN_FIRST_HIT_ISA_INSTANCES(template, Octree)
 template void knn_query_avx2<Octree>(const Octree&, const Vec3&, std::size_t, double, std::vector<Neighbor>&);
 template void knn_query_avx512<Octree>(const Octree&, const Vec3&, std::size_t, double, std::vector<Neighbor>&);
 }  // namespace detail

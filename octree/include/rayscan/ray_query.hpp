@@ -1319,19 +1319,23 @@ template <SpatialIndex I>
 }
 
 #if RAYSCAN_SIMD_X86
-// The octree's first-hit instances compiled per ISA, instantiated once in the library
-// (octree/src/ray_query.cpp) instead of in every caller's translation unit.
+/// Declares (KW = `extern template`) or defines (KW = `template`) the first-hit instances compiled
+/// per ISA of index type I (kIsaInstances): ray_traverse_avx2 / _avx512 and first_hit_packet_avx2 /
+/// _avx512 with OrderKey. Used inside namespace rayscan::detail: the headers of the indexes declare
+/// them extern and their libraries define them once (octree/src/ray_query.cpp,
+/// octree/io/src/query_instances.cpp), instead of every caller's translation unit compiling them.
+#define RAYSCAN_FIRST_HIT_ISA_INSTANCES(KW, I)                                                              \
+  KW bool ray_traverse_avx2<true, I, OrderKey>(const I&, const Ray&, const RayQuery&, Candidate&,          \
+                                               RayQueryStats*, const OrderKey&);                          \
+  KW bool ray_traverse_avx512<true, I, OrderKey>(const I&, const Ray&, const RayQuery&, Candidate&,        \
+                                                 RayQueryStats*, const OrderKey&);                        \
+  KW unsigned first_hit_packet_avx2<I, OrderKey>(const I&, const Ray*, unsigned, const RayQuery&,          \
+                                                 Candidate*, RayQueryStats*, const OrderKey*);            \
+  KW unsigned first_hit_packet_avx512<I, OrderKey>(const I&, const Ray*, unsigned, const RayQuery&,        \
+                                                   Candidate*, RayQueryStats*, const OrderKey*);
+
 namespace detail {
-extern template bool ray_traverse_avx2<true, Octree, OrderKey>(const Octree&, const Ray&, const RayQuery&,
-                                                               Candidate&, RayQueryStats*, const OrderKey&);
-extern template bool ray_traverse_avx512<true, Octree, OrderKey>(const Octree&, const Ray&, const RayQuery&,
-                                                                 Candidate&, RayQueryStats*, const OrderKey&);
-extern template unsigned first_hit_packet_avx2<Octree, OrderKey>(const Octree&, const Ray*, unsigned,
-                                                                 const RayQuery&, Candidate*, RayQueryStats*,
-                                                                 const OrderKey*);
-extern template unsigned first_hit_packet_avx512<Octree, OrderKey>(const Octree&, const Ray*, unsigned,
-                                                                   const RayQuery&, Candidate*, RayQueryStats*,
-                                                                   const OrderKey*);
+RAYSCAN_FIRST_HIT_ISA_INSTANCES(extern template, Octree)
 }  // namespace detail
 #endif
 

@@ -7,21 +7,7 @@
 
 #if RAYSCAN_SIMD_X86
 namespace rayscan::detail {
-template bool ray_traverse_avx2<true, io::MappedIndex, OrderKey>(
-    const io::MappedIndex&, const Ray&, const RayQuery&, Candidate&, RayQueryStats*, const OrderKey&);
-template bool ray_traverse_avx512<true, io::MappedIndex, OrderKey>(
-    const io::MappedIndex&, const Ray&, const RayQuery&, Candidate&, RayQueryStats*, const OrderKey&);
-template unsigned first_hit_packet_avx2<io::MappedIndex, OrderKey>(
-    const io::MappedIndex&, const Ray*, unsigned, const RayQuery&, Candidate*, RayQueryStats*, const OrderKey*);
-template unsigned first_hit_packet_avx512<io::MappedIndex, OrderKey>(
-    const io::MappedIndex&, const Ray*, unsigned, const RayQuery&, Candidate*, RayQueryStats*, const OrderKey*);
-template bool ray_traverse_avx2<true, io::CopcIndex, OrderKey>(
-    const io::CopcIndex&, const Ray&, const RayQuery&, Candidate&, RayQueryStats*, const OrderKey&);
-template bool ray_traverse_avx512<true, io::CopcIndex, OrderKey>(
-    const io::CopcIndex&, const Ray&, const RayQuery&, Candidate&, RayQueryStats*, const OrderKey&);
-template unsigned first_hit_packet_avx2<io::CopcIndex, OrderKey>(
-    const io::CopcIndex&, const Ray*, unsigned, const RayQuery&, Candidate*, RayQueryStats*, const OrderKey*);
-template unsigned first_hit_packet_avx512<io::CopcIndex, OrderKey>(
-    const io::CopcIndex&, const Ray*, unsigned, const RayQuery&, Candidate*, RayQueryStats*, const OrderKey*);
+RAYSCAN_FIRST_HIT_ISA_INSTANCES(template, io::MappedIndex)
+RAYSCAN_FIRST_HIT_ISA_INSTANCES(template, io::CopcIndex)
 }  // namespace rayscan::detail
 #endif

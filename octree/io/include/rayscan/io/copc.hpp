@@ -307,13 +307,6 @@ static_assert(SpatialIndex<CopcIndex>);
 // The first-hit instances compiled per ISA (ray_query.hpp) of this index, instantiated once in the
 // library (octree/io/src/query_instances.cpp) instead of in every caller's translation unit.
 namespace rayscan::detail {
-extern template bool ray_traverse_avx2<true, io::CopcIndex, OrderKey>(
-    const io::CopcIndex&, const Ray&, const RayQuery&, Candidate&, RayQueryStats*, const OrderKey&);
-extern template bool ray_traverse_avx512<true, io::CopcIndex, OrderKey>(
-    const io::CopcIndex&, const Ray&, const RayQuery&, Candidate&, RayQueryStats*, const OrderKey&);
-extern template unsigned first_hit_packet_avx2<io::CopcIndex, OrderKey>(
-    const io::CopcIndex&, const Ray*, unsigned, const RayQuery&, Candidate*, RayQueryStats*, const OrderKey*);
-extern template unsigned first_hit_packet_avx512<io::CopcIndex, OrderKey>(
-    const io::CopcIndex&, const Ray*, unsigned, const RayQuery&, Candidate*, RayQueryStats*, const OrderKey*);
+RAYSCAN_FIRST_HIT_ISA_INSTANCES(extern template, io::CopcIndex)
 }  // namespace rayscan::detail
 #endif

@@ -346,13 +346,6 @@ bool is_index_file(const std::filesystem::path& path);
 // The first-hit instances compiled per ISA (ray_query.hpp) of this index, instantiated once in the
 // library (octree/io/src/query_instances.cpp) instead of in every caller's translation unit.
 namespace rayscan::detail {
-extern template bool ray_traverse_avx2<true, io::MappedIndex, OrderKey>(
-    const io::MappedIndex&, const Ray&, const RayQuery&, Candidate&, RayQueryStats*, const OrderKey&);
-extern template bool ray_traverse_avx512<true, io::MappedIndex, OrderKey>(
-    const io::MappedIndex&, const Ray&, const RayQuery&, Candidate&, RayQueryStats*, const OrderKey&);
-extern template unsigned first_hit_packet_avx2<io::MappedIndex, OrderKey>(
-    const io::MappedIndex&, const Ray*, unsigned, const RayQuery&, Candidate*, RayQueryStats*, const OrderKey*);
-extern template unsigned first_hit_packet_avx512<io::MappedIndex, OrderKey>(
-    const io::MappedIndex&, const Ray*, unsigned, const RayQuery&, Candidate*, RayQueryStats*, const OrderKey*);
+RAYSCAN_FIRST_HIT_ISA_INSTANCES(extern template, io::MappedIndex)
 }  // namespace rayscan::detail
 #endif
