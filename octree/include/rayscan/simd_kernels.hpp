@@ -467,7 +467,9 @@ inline __attribute__((target("avx2,fma"))) unsigned point_filter_avx2(const doub
 // _mm512_min_ps/_mm512_max_ps pass an undefined pass-through operand that -Wmaybe-uninitialized
 // reports (a false positive inside the intrinsics header).
 #pragma GCC diagnostic push
+#if !defined(__clang__)  // (a GCC warning: clang, which builds the fuzzers, has no such group)
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) void packet_child_slab_avx512(const ChildBoxesF& b,
                                                                                    const SlabPacketF& p,
                                                                                    unsigned lanes,
