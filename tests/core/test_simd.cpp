@@ -69,9 +69,12 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
     if (!k.child_slab) continue;
     for (int trial = 0; trial < 4000; ++trial) {
       // 1..8 float boxes (stride 9 floats, as an arbitrary record of >= 8 floats: the kernels
-      // read 8 floats per box), relative to the origin 0.
+      // read 8 floats per box), relative to the origin 0. The 8 - n rows after them (read as
+      // they are with rows8) hold a box around everything, which no lane past n may report.
       const unsigned n = 1 + static_cast<unsigned>(trial % 8);
-      std::vector<float> rec(n * 9);
+      std::vector<float> rec(8 * 9);
+      for (unsigned i = n; i < 8; ++i)
+        for (int a = 0; a < 3; ++a) rec[i * 9 + a] = -1e30f, rec[i * 9 + 3 + a] = 1e30f;
       std::vector<AABB> boxes(n);
       for (unsigned i = 0; i < n; ++i) {
         const Vec3 c(u(rng), u(rng), u(rng));
@@ -101,9 +104,15 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
       if (!std::isfinite(r.inv_d[0]) || !std::isfinite(r.inv_d[1]) || !std::isfinite(r.inv_d[2])) continue;
       r.t_lo = static_cast<float>(t_lo);
       r.t_hi = static_cast<float>(t_hi);
-      float entry[8];
+      float entry[8], entry8[8];
       const unsigned mask = k.child_slab({rec.data(), 9, n}, r, entry);
       ASSERT_EQ(mask >> n, 0u) << "lanes beyond count must be clear";
+      // The same boxes with the rows past n read as they are (ChildBoxesF::rows8): the same
+      // answer, lane for lane.
+      const unsigned mask8 = k.child_slab({rec.data(), 9, n, true}, r, entry8);
+      ASSERT_EQ(mask8, mask) << to_string(path) << " trial " << trial;
+      for (unsigned i = 0; i < n; ++i)
+        if (mask >> i & 1u) ASSERT_EQ(entry8[i], entry[i]) << to_string(path) << " trial " << trial;
       for (unsigned i = 0; i < n; ++i) {
         const Interval iv = slab_interval(o, inv, boxes[i], pad, t_lo, t_hi);
         if (iv.empty()) {

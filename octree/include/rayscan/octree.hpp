@@ -153,10 +153,12 @@ class Octree {
   }
 
   // Optional SIMD extension of the concept (issue 12; see ray_query) ----------------------------
-  /// The float boxes of n's children (contiguous in the node array), relative to float_origin().
+  /// The float boxes of n's children (contiguous in the node array), relative to float_origin();
+  /// rows8 when 8 records from the first child lie inside the node array.
   [[nodiscard]] simd::ChildBoxesF child_boxes_f(Node n) const {
     const NodeRec& r = nodes_[n];
-    return {&nodes_[r.first_child].lo.x, sizeof(NodeRec) / sizeof(float), r.child_count};
+    return {&nodes_[r.first_child].lo.x, sizeof(NodeRec) / sizeof(float), r.child_count,
+            std::size_t{r.first_child} + 8 <= nodes_.size()};
   }
   /// The origin the float boxes are relative to (the root cell's minimum corner), and the largest
   /// magnitude of a float box coordinate (the root cell's edge).

@@ -57,6 +57,10 @@ struct ChildBoxesF {
   const float* base = nullptr;
   unsigned stride = 0;  ///< in floats, >= 8: the kernels read 8 floats from each box's lo (transposed in registers)
   unsigned count = 0;   ///< number of children (<= 8)
+  /// True when 8 rows are readable from base (8 floats from base + i * stride, i < 8), as for
+  /// children that are not the last of the node array: the 8-wide kernels then load rows past
+  /// count as they are (their lanes are masked off) instead of clamping each row to box 0.
+  bool rows8 = false;
 };
 
 /// SlabRayF of a packet of up to 16 rays, one lane per ray (the SIMD-over-rays form of the child

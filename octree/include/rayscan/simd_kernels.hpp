@@ -244,10 +244,19 @@ inline unsigned point_filter_sse2(const double* xyz, unsigned count, const Point
 // than scalar; a lane-by-lane copy to SoA arrays through memory cost ~100 instructions per node.
 __attribute__((target("avx2,fma"), always_inline)) inline void transpose_boxes8(const ChildBoxesF& b, __m256* lo,
                                                                              __m256* hi) {
-  const __m256 r0 = _mm256_loadu_ps(box_row(b, 0)), r1 = _mm256_loadu_ps(box_row(b, 1));
-  const __m256 r2 = _mm256_loadu_ps(box_row(b, 2)), r3 = _mm256_loadu_ps(box_row(b, 3));
-  const __m256 r4 = _mm256_loadu_ps(box_row(b, 4)), r5 = _mm256_loadu_ps(box_row(b, 5));
-  const __m256 r6 = _mm256_loadu_ps(box_row(b, 6)), r7 = _mm256_loadu_ps(box_row(b, 7));
+  __m256 r0, r1, r2, r3, r4, r5, r6, r7;
+  if (b.rows8) {  // rows past count readable: no clamp (ChildBoxesF::rows8)
+    const float* p = b.base;
+    const std::size_t s = b.stride;
+    r0 = _mm256_loadu_ps(p), r1 = _mm256_loadu_ps(p + s), r2 = _mm256_loadu_ps(p + 2 * s);
+    r3 = _mm256_loadu_ps(p + 3 * s), r4 = _mm256_loadu_ps(p + 4 * s), r5 = _mm256_loadu_ps(p + 5 * s);
+    r6 = _mm256_loadu_ps(p + 6 * s), r7 = _mm256_loadu_ps(p + 7 * s);
+  } else {
+    r0 = _mm256_loadu_ps(box_row(b, 0)), r1 = _mm256_loadu_ps(box_row(b, 1));
+    r2 = _mm256_loadu_ps(box_row(b, 2)), r3 = _mm256_loadu_ps(box_row(b, 3));
+    r4 = _mm256_loadu_ps(box_row(b, 4)), r5 = _mm256_loadu_ps(box_row(b, 5));
+    r6 = _mm256_loadu_ps(box_row(b, 6)), r7 = _mm256_loadu_ps(box_row(b, 7));
+  }
   const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpackhi_ps(r0, r1);
   const __m256 t2 = _mm256_unpacklo_ps(r2, r3), t3 = _mm256_unpackhi_ps(r2, r3);
   const __m256 t4 = _mm256_unpacklo_ps(r4, r5), t5 = _mm256_unpackhi_ps(r4, r5);

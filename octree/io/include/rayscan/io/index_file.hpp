@@ -218,11 +218,12 @@ class MappedIndex {
   /// Octree::child_boxes_f, so the SIMD child test prunes exactly as on the in-memory octree. The
   /// count is the checked child_count(n) (0 for a sanitised record: no box is read), so the
   /// kernels (which read 8 floats per box: lo, hi and the record's two uint32 fields) never read
-  /// past the mapping.
+  /// past the mapping: rows past the count are read as they are (rows8) only when 8 records from
+  /// the first child lie inside the nodes section.
   [[nodiscard]] simd::ChildBoxesF child_boxes_f(Node n) const {
     const unsigned nc = child_count(n);
-    return {nc > 0 ? &nodes_[nodes_[n].first].lo.x : &nodes_[0].lo.x,
-            sizeof(IndexNodeRecord) / sizeof(float), nc};
+    const std::uint64_t first = nc > 0 ? nodes_[n].first : 0;
+    return {&nodes_[first].lo.x, sizeof(IndexNodeRecord) / sizeof(float), nc, nc > 0 && first + 8 <= node_count_};
   }
   /// The origin the float boxes are relative to (the root cell's minimum corner), and the largest
   /// magnitude of a float box coordinate (the root cell's edge), as Octree's.
