@@ -3,6 +3,7 @@
 #include "test_util.hpp"
 
 #include "rayscan/any_index.hpp"
+#include "rayscan/default_init_vector.hpp"
 #include "rayscan/morton_sort.hpp"
 #include "rayscan/octree.hpp"
 
@@ -11,6 +12,10 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdint>
+#include <fstream>
+#include <sstream>
+#include <string>
 #include <limits>
 #include <numeric>
 #include <random>
@@ -279,6 +284,54 @@ void expect_sorted_like_std_sort(const std::vector<std::uint64_t>& codes) {
   }
 }
 }  // namespace
+
+// The kernel's view of the mapping that holds address p: its /proc/self/smaps "THPeligible" flag
+// (1 when the range may take transparent huge pages: MADV_HUGEPAGE under THP mode "madvise"),
+// or -1 when no mapping or no flag is found.
+static int thp_eligible(const void* p) {
+  std::ifstream smaps("/proc/self/smaps");
+  const auto a = reinterpret_cast<std::uintptr_t>(p);
+  std::string line;
+  bool inside = false;
+  while (std::getline(smaps, line)) {
+    std::uintptr_t lo = 0, hi = 0;
+    char dash = 0;
+    std::istringstream head(line);
+    if (head >> std::hex >> lo >> dash >> hi && dash == '-') {
+      inside = lo <= a && a < hi;
+      continue;
+    }
+    if (inside && line.rfind("THPeligible:", 0) == 0) return std::stoi(line.substr(12));
+  }
+  return -1;
+}
+
+TEST(DefaultInitVector, LargeArraysAreHugePageAlignedAndAdvised) {
+  using rayscan::DefaultInitAllocator;
+  using rayscan::DefaultInitVector;
+  constexpr std::size_t kBig = DefaultInitAllocator<double>::kHugeBytes / sizeof(double) + 3;  // just above
+  DefaultInitVector<double> big(kBig);
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(big.data()) % DefaultInitAllocator<double>::kHugePage, 0u);
+  for (std::size_t i = 0; i < kBig; ++i) big[i] = static_cast<double>(i);
+  // The advice reached the kernel (unless THP is off on this machine: then nothing to check).
+  std::ifstream mode("/sys/kernel/mm/transparent_hugepage/enabled");
+  std::string m((std::istreambuf_iterator<char>(mode)), std::istreambuf_iterator<char>());
+  if (m.find("[never]") == std::string::npos && !m.empty()) {
+    EXPECT_EQ(thp_eligible(big.data()), 1) << "THP mode: " << m;
+  }
+  // Below the threshold: std::allocator's memory (not advised, not necessarily aligned); growing
+  // across the threshold and shrinking back keep the elements (allocate / deallocate pair up).
+  DefaultInitVector<double> small(1000);
+  for (std::size_t i = 0; i < small.size(); ++i) small[i] = static_cast<double>(3 * i);
+  small.resize(kBig);
+  EXPECT_EQ(reinterpret_cast<std::uintptr_t>(small.data()) % DefaultInitAllocator<double>::kHugePage, 0u);
+  small.resize(1000);
+  small.shrink_to_fit();
+  for (std::size_t i = 0; i < small.size(); ++i) ASSERT_EQ(small[i], static_cast<double>(3 * i));
+  EXPECT_EQ(big[kBig - 1], static_cast<double>(kBig - 1));
+  EXPECT_THROW((void)DefaultInitAllocator<double>().allocate(std::numeric_limits<std::size_t>::max() / 4),
+               std::bad_array_new_length);
+}
 
 TEST(MortonSort, EqualsStdSortOfTheKeys) {
   for (std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{7}, std::size_t{100}, std::size_t{5000},
