@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include <sys/resource.h>
+
 namespace rayscan::bench {
 
 /// Wall-clock stopwatch (std::chrono::steady_clock), milliseconds.
@@ -46,6 +48,28 @@ class ThreadCpuStopwatch {
     return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
   }
   double t0_;
+};
+
+/// The process's page faults and system CPU (getrusage(RUSAGE_SELF): every thread, TBB's workers
+/// included) since construction. A first touch of fresh memory is a minor fault; on a VM whose
+/// balloon reports free pages to the host it is also a host fault, which shows as system CPU
+/// (bench/README.md, "Issue 12, session 22" and "session 26").
+class ProcessFaults {
+ public:
+  ProcessFaults() : r0_(now()) {}
+  /// Minor page faults since construction.
+  [[nodiscard]] double minor_faults() const { return static_cast<double>(now().ru_minflt - r0_.ru_minflt); }
+  /// System CPU since construction, milliseconds.
+  [[nodiscard]] double sys_ms() const { return ms(now().ru_stime) - ms(r0_.ru_stime); }
+
+ private:
+  static rusage now() {
+    rusage r{};
+    getrusage(RUSAGE_SELF, &r);
+    return r;
+  }
+  static double ms(const timeval& t) { return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_usec) * 1e-3; }
+  rusage r0_;
 };
 
 /// Median of a sample (the upper median for an even count); NaN for an empty sample.

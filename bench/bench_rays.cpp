@@ -846,11 +846,14 @@ int main(int argc, char** argv) {
 
     // -- build time, all hardware threads (2 here) --------------------------------------------
     if (!no_build) {
-      std::vector<std::vector<double>> t(indexes.size() + 1);
+      // t: wall ms; faults / sys: the process's minor page faults and system CPU ms of the same
+      // span (for Embree: geometry fill + commit, which cannot be split).
+      std::vector<std::vector<double>> t(indexes.size() + 1), faults(indexes.size() + 1), sys(indexes.size() + 1);
       std::vector<double> fill;
       for (std::size_t r = 0; r < build_reps; ++r)
         for (std::size_t j = 0; j <= indexes.size(); ++j) {
           const std::size_t c = (j + r) % (indexes.size() + 1);
+          rb::ProcessFaults pf;
           if (c == indexes.size()) {
             EmbreeScene es(pts, radius);
             t[c].push_back(es.commit_ms);
@@ -861,22 +864,25 @@ int main(int argc, char** argv) {
             t[c].push_back(sw.ms());
             rb::keep(idx);
           }
+          faults[c].push_back(pf.minor_faults());
+          sys[c].push_back(pf.sys_ms());
         }
       const double em = rb::median(t.back());
       std::printf("\nbuild, %d threads, median of %zu interleaved rounds:\n", hw, build_reps);
-      std::printf("| index | build ms | speed-up vs Embree rtcCommitScene (goal >= 5x) | every round, ms |\n"
-                  "|---|---:|---:|---|\n");
+      std::printf("| index | build ms | speed-up vs Embree rtcCommitScene (goal >= 5x) | every round, ms | "
+                  "page faults (median) | system CPU ms (median) |\n|---|---:|---:|---|---:|---:|\n");
       auto rounds = [](const std::vector<double>& v) {
         std::string out;
         for (const double x : v) out += (out.empty() ? "" : " ") + std::to_string(static_cast<long>(x + 0.5));
         return out;
       };
       for (std::size_t c = 0; c < indexes.size(); ++c)
-        std::printf("| rayscan %s (bulk) | %.0f | %.2fx | %s |\n", indexes[c].c_str(), rb::median(t[c]),
-                    em / rb::median(t[c]), rounds(t[c]).c_str());
-      std::printf("| Embree rtcCommitScene | %.0f | 1 | %s |\n", em, rounds(t.back()).c_str());
-      std::printf("(Embree geometry creation + float4 buffer fill, not included above: %.0f ms)\n",
-                  rb::median(fill));
+        std::printf("| rayscan %s (bulk) | %.0f | %.2fx | %s | %.0f | %.0f |\n", indexes[c].c_str(), rb::median(t[c]),
+                    em / rb::median(t[c]), rounds(t[c]).c_str(), rb::median(faults[c]), rb::median(sys[c]));
+      std::printf("| Embree rtcCommitScene | %.0f | 1 | %s | %.0f | %.0f |\n", em, rounds(t.back()).c_str(),
+                  rb::median(faults.back()), rb::median(sys.back()));
+      std::printf("(Embree: faults and system CPU include the geometry fill. Its geometry creation + float4 "
+                  "buffer fill, not in the build ms above: %.0f ms)\n", rb::median(fill));
       std::fflush(stdout);
     }
 
