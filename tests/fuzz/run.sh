@@ -5,7 +5,8 @@
 # (plus the checked-in regression inputs in tests/fuzz/regressions/<format>/).
 # Usage: tests/fuzz/run.sh [SECONDS_PER_TARGET (default 60)] [BUILD_DIR (default build-fuzz)]
 # FUZZ_TARGETS="laz copc" limits the run to some targets; FUZZ_SEED (default 1) fixes libFuzzer's
-# random seed so that a failure in CI replays locally with the same command.
+# random seed so that a failure in CI replays locally with the same command. FUZZ_JOBS (default 2)
+# compiles that many sources and runs that many targets at a time (each target single-threaded).
 # Exit status: 0 when no target crashed, 1 otherwise. Crashing inputs are written to
 # BUILD_DIR/crashes/<format>-crash-*; copy them to tests/fuzz/regressions/<format>/ after fixing.
 set -euo pipefail
@@ -37,8 +38,10 @@ done
 wait
 for o in "${objs[@]}"; do [ -f "$o" ] || { echo "fuzz: compiling $o failed"; exit 1; }; done
 
-status=0
-for fmt in ${FUZZ_TARGETS:-las ply pcd text laz copc rsi}; do
+# Link every target and seed its corpus, then run up to FUZZ_JOBS targets at a time (each libFuzzer
+# process is single-threaded, so one at a time left a core idle for the whole bounded run).
+TARGETS=(${FUZZ_TARGETS:-las ply pcd text laz copc rsi})
+for fmt in "${TARGETS[@]}"; do
   exe="$OUT/fuzz_$fmt"
   echo "fuzz: linking $exe"
   "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer "tests/fuzz/fuzz_$fmt.cpp" "${objs[@]}" -lgdal -llzf -lz -ltbb -o "$exe"
@@ -62,12 +65,34 @@ for fmt in ${FUZZ_TARGETS:-las ply pcd text laz copc rsi}; do
     head -n 50 tests/data/pcd/lamppost.pcd | tail -n 30 > "$corpus/seed-xyz.txt"
     head -n 40 tests/data/pcd/utm17_space.pcd | tail -n 10 > "$corpus/seed-utm.xyz"
   fi
-  echo "fuzz: running $exe for ${SECONDS_PER_TARGET}s"
+done
+
+# One target's bounded run; its exit status (0: no crash) in $OUT/fuzz_$fmt.status.
+run_target() {
+  local fmt="$1"
   # LeakSanitizer off: GDAL/PROJ keep process-lifetime caches that it would report.
-  if ! ASAN_OPTIONS=detect_leaks=0 "$exe" -max_total_time="$SECONDS_PER_TARGET" -max_len=262144 \
-        -seed="${FUZZ_SEED:-1}" -timeout=20 -rss_limit_mb=3072 -print_final_stats=1 -dict="tests/fuzz/$fmt.dict" \
-        -artifact_prefix="$OUT/crashes/$fmt-" "$corpus" "tests/fuzz/regressions/$fmt" \
-        > "$OUT/fuzz_$fmt.log" 2>&1; then
+  if ASAN_OPTIONS=detect_leaks=0 "$OUT/fuzz_$fmt" -max_total_time="$SECONDS_PER_TARGET" -max_len=262144 \
+       -seed="${FUZZ_SEED:-1}" -timeout=20 -rss_limit_mb=3072 -print_final_stats=1 -dict="tests/fuzz/$fmt.dict" \
+       -artifact_prefix="$OUT/crashes/$fmt-" "$OUT/corpus/$fmt" "tests/fuzz/regressions/$fmt" \
+       > "$OUT/fuzz_$fmt.log" 2>&1; then
+    echo 0 > "$OUT/fuzz_$fmt.status"
+  else
+    echo 1 > "$OUT/fuzz_$fmt.status"
+  fi
+}
+running=0
+for fmt in "${TARGETS[@]}"; do
+  echo "fuzz: running $OUT/fuzz_$fmt for ${SECONDS_PER_TARGET}s"
+  rm -f "$OUT/fuzz_$fmt.status"
+  run_target "$fmt" &
+  running=$((running + 1))
+  if [ "$running" -ge "$JOBS" ]; then wait -n || true; running=$((running - 1)); fi
+done
+wait || true
+
+status=0
+for fmt in "${TARGETS[@]}"; do
+  if [ "$(cat "$OUT/fuzz_$fmt.status" 2>/dev/null)" != 0 ]; then
     echo "fuzz: $fmt FAILED (see $OUT/fuzz_$fmt.log and $OUT/crashes/)"
     tail -n 40 "$OUT/fuzz_$fmt.log"
     status=1
