@@ -28,8 +28,7 @@ void RayQuery::validate() const {
 // The octree's instances compiled per ISA (declared extern in ray_query.hpp / point_query.hpp).
 namespace detail {
 RAYSCAN_FIRST_HIT_ISA_INSTANCES(template, Octree)
-template void knn_query_avx2<Octree>(const Octree&, const Vec3&, std::size_t, double, std::vector<Neighbor>&);
-template void knn_query_avx512<Octree>(const Octree&, const Vec3&, std::size_t, double, std::vector<Neighbor>&);
+RAYSCAN_KNN_ISA_INSTANCES(template, Octree)
 }  // namespace detail
 #endif
 

@@ -337,13 +337,18 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius, std:
 }
 
 #if RAYSCAN_SIMD_X86
-// The octree's kNN instances compiled per ISA, instantiated once in the library
-// (octree/src/ray_query.cpp) instead of in every caller's translation unit.
+/// Declares (KW = `extern template`) or defines (KW = `template`) the kNN instances compiled per
+/// ISA of index type I (knn_query_avx2 / _avx512), as RAYSCAN_FIRST_HIT_ISA_INSTANCES does for the
+/// first hits: the headers of the indexes with float child boxes declare them extern and their
+/// libraries define them once (octree/src/ray_query.cpp, octree/io/src/query_instances.cpp),
+/// instead of every translation unit that calls knn_query compiling them (render.cpp compiled four:
+/// bench/README.md, "Issue 12, session 27").
+#define RAYSCAN_KNN_ISA_INSTANCES(KW, I)                                                                     \
+  KW void knn_query_avx2<I>(const I&, const Vec3&, std::size_t, double, std::vector<Neighbor>&);            \
+  KW void knn_query_avx512<I>(const I&, const Vec3&, std::size_t, double, std::vector<Neighbor>&);
+
 namespace detail {
-extern template void knn_query_avx2<Octree>(const Octree&, const Vec3&, std::size_t, double,
-                                            std::vector<Neighbor>&);
-extern template void knn_query_avx512<Octree>(const Octree&, const Vec3&, std::size_t, double,
-                                              std::vector<Neighbor>&);
+RAYSCAN_KNN_ISA_INSTANCES(extern template, Octree)
 }  // namespace detail
 #endif
 

@@ -1,13 +1,17 @@
 // The per-ISA first-hit instances of the ray query (ray_query.hpp: ray_traverse_avx2 / _avx512,
-// first_hit_packet_avx2 / _avx512) for the index file (MappedIndex) and COPC (CopcIndex) indexes,
-// compiled once here; the headers declare them extern (issue 12: build time, bench/README.md).
+// first_hit_packet_avx2 / _avx512) and of the kNN query (point_query.hpp: knn_query_avx2 /
+// _avx512) for the index file (MappedIndex) and COPC (CopcIndex) indexes, compiled once here; the
+// headers declare them extern (issue 12: build time, bench/README.md).
 #include "rayscan/io/copc.hpp"
 #include "rayscan/io/index_file.hpp"
+#include "rayscan/point_query.hpp"
 #include "rayscan/ray_query.hpp"
 
 #if RAYSCAN_SIMD_X86
 namespace rayscan::detail {
 RAYSCAN_FIRST_HIT_ISA_INSTANCES(template, io::MappedIndex)
 RAYSCAN_FIRST_HIT_ISA_INSTANCES(template, io::CopcIndex)
+RAYSCAN_KNN_ISA_INSTANCES(template, io::MappedIndex)
+RAYSCAN_KNN_ISA_INSTANCES(template, io::CopcIndex)
 }  // namespace rayscan::detail
 #endif

@@ -9,6 +9,7 @@
 #include "rayscan/geometry.hpp"
 #include "rayscan/point_cloud.hpp"
 #include "rayscan/simd.hpp"
+#include "rayscan/point_query.hpp"
 #include "rayscan/ray_query.hpp"
 #include "rayscan/spatial_index.hpp"
 
@@ -304,9 +305,11 @@ static_assert(SpatialIndex<CopcIndex>);
 }  // namespace rayscan::io
 
 #if RAYSCAN_SIMD_X86
-// The first-hit instances compiled per ISA (ray_query.hpp) of this index, instantiated once in the
-// library (octree/io/src/query_instances.cpp) instead of in every caller's translation unit.
+// The first-hit and kNN instances compiled per ISA (ray_query.hpp, point_query.hpp) of this index,
+// instantiated once in the library (octree/io/src/query_instances.cpp) instead of in every caller's
+// translation unit.
 namespace rayscan::detail {
 RAYSCAN_FIRST_HIT_ISA_INSTANCES(extern template, io::CopcIndex)
+RAYSCAN_KNN_ISA_INSTANCES(extern template, io::CopcIndex)
 }  // namespace rayscan::detail
 #endif

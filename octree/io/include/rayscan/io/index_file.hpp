@@ -9,6 +9,7 @@
 #include "rayscan/id_view.hpp"
 #include "rayscan/octree.hpp"
 #include "rayscan/rgb_view.hpp"
+#include "rayscan/point_query.hpp"
 #include "rayscan/ray_query.hpp"
 #include "rayscan/spatial_index.hpp"
 
@@ -344,9 +345,11 @@ bool is_index_file(const std::filesystem::path& path);
 }  // namespace rayscan::io
 
 #if RAYSCAN_SIMD_X86
-// The first-hit instances compiled per ISA (ray_query.hpp) of this index, instantiated once in the
-// library (octree/io/src/query_instances.cpp) instead of in every caller's translation unit.
+// The first-hit and kNN instances compiled per ISA (ray_query.hpp, point_query.hpp) of this index,
+// instantiated once in the library (octree/io/src/query_instances.cpp) instead of in every caller's
+// translation unit.
 namespace rayscan::detail {
 RAYSCAN_FIRST_HIT_ISA_INSTANCES(extern template, io::MappedIndex)
+RAYSCAN_KNN_ISA_INSTANCES(extern template, io::MappedIndex)
 }  // namespace rayscan::detail
 #endif
