@@ -8,7 +8,9 @@
 # and -g1 keeps file:line in every sanitizer stack trace. Measured from scratch (ccache recaching,
 # 2026-11-22, 137 build steps): 2,301 s user + 91 s system CPU (so about 20 min of wall time on
 # 2 idle cores); the suite then took 718 s on the shared machine at load 4-6 (the four
-# forced-SIMD property runs are most of it).
+# forced-SIMD property runs are most of it). Again on 2026-11-25 (154 steps, no ccache): 1,062 s
+# wall, 2,139 s of compile CPU (renderer/src/render.cpp alone 366 s); the suite 1,142 s, partly
+# shared with other compiles (bench/README.md, "Issue 12, session 27").
 # Any sanitizer report fails the test that triggered it (UBSan halts on the first error; ASan
 # always does), and a failing test fails the job (and CI). LeakSanitizer is off: GDAL/PROJ and
 # OpenImageIO keep process-lifetime caches that it would report. ccache is used when installed.
