@@ -111,8 +111,11 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
       // answer, lane for lane.
       const unsigned mask8 = k.child_slab({rec.data(), 9, n, true}, r, entry8);
       ASSERT_EQ(mask8, mask) << to_string(path) << " trial " << trial;
-      for (unsigned i = 0; i < n; ++i)
-        if (mask >> i & 1u) ASSERT_EQ(entry8[i], entry[i]) << to_string(path) << " trial " << trial;
+      for (unsigned i = 0; i < n; ++i) {
+        if ((mask >> i) & 1u) {
+          ASSERT_EQ(entry8[i], entry[i]) << to_string(path) << " trial " << trial;
+        }
+      }
       for (unsigned i = 0; i < n; ++i) {
         const Interval iv = slab_interval(o, inv, boxes[i], pad, t_lo, t_hi);
         if (iv.empty()) {
