@@ -1,5 +1,6 @@
 #include "rayscan/ray_query.hpp"
 
+#include "rayscan/any_index.hpp"
 #include "rayscan/octree.hpp"
 #include "rayscan/point_query.hpp"
 
@@ -23,6 +24,14 @@ void RayQuery::validate() const {
       throw std::invalid_argument("ray query: plane normal must be non-zero and finite");
   }
 }
+
+// The table-kernel instances of the core's indexes (declared extern in ray_query.hpp and
+// any_index.hpp).
+namespace detail {
+RAYSCAN_BASE_INSTANCES(template, Octree)
+RAYSCAN_BASE_INSTANCES(template, KdTree)
+RAYSCAN_BASE_INSTANCES(template, BruteForceIndex)
+}  // namespace detail
 
 #if RAYSCAN_SIMD_X86
 // The octree's instances compiled per ISA (declared extern in ray_query.hpp / point_query.hpp).

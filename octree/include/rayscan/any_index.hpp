@@ -4,6 +4,7 @@
 #include "rayscan/brute_force.hpp"
 #include "rayscan/kdtree.hpp"
 #include "rayscan/octree.hpp"
+#include "rayscan/ray_query.hpp"
 
 #include <optional>
 #include <string>
@@ -11,6 +12,14 @@
 #include <variant>
 
 namespace rayscan {
+
+// The table-kernel instances of the plain ray query (ray_query.hpp) for the kd-tree and the brute
+// force index, compiled once in the library (octree/src/ray_query.cpp); the octree's are declared
+// in ray_query.hpp.
+namespace detail {
+RAYSCAN_BASE_INSTANCES(extern template, KdTree)
+RAYSCAN_BASE_INSTANCES(extern template, BruteForceIndex)
+}  // namespace detail
 
 /// Any of the library's indexes; use std::visit (or visit_index) to call a query template on it.
 using AnyIndex = std::variant<Octree, KdTree, BruteForceIndex>;

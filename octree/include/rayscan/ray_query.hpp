@@ -771,6 +771,17 @@ __attribute__((always_inline)) inline bool ray_traverse_with(const I& index, con
   return rt.found;
 }
 
+/// ray_traverse_with with the table kernels (simd::Kernels: the active path's kernels through
+/// function pointers), as one out-of-line function: the instance every path without a per-ISA one
+/// runs (SSE2 and scalar, k > 1, refined keys, indexes without float child boxes). Its OrderKey
+/// instances are compiled once, in the libraries of the indexes (RAYSCAN_BASE_INSTANCES), instead of
+/// in every translation unit that queries (CI build time, bench/README.md, "Issue 12, session 28").
+template <bool kBest1, SpatialIndex I, class KeyPolicy>
+__attribute__((noinline)) bool ray_traverse_base(const I& index, const Ray& ray, const RayQuery& q, Candidate& best,
+                                                 RayQueryStats* stats, const KeyPolicy& key_policy) {
+  return ray_traverse_with<kBest1, simd::Kernels>(index, ray, q, best, stats, key_policy);
+}
+
 #if RAYSCAN_SIMD_X86
 /// ray_traverse_with compiled for AVX2 + FMA with the AVX2 kernels, everything it calls inlined
 /// (flatten; a kernel cannot be always_inline into the traversal's default-target member
@@ -820,7 +831,7 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
     }
   }
 #endif
-  return ray_traverse_with<kBest1, simd::Kernels>(index, ray, q, best, stats, key_policy);
+  return ray_traverse_base<kBest1>(index, ray, q, best, stats, key_policy);
 }
 
 }  // namespace detail
@@ -1317,6 +1328,24 @@ template <SpatialIndex I>
   std::sort(out.begin(), out.end());
   return out;
 }
+
+/// Declares (KW = `extern template`) or defines (KW = `template`) the plain ray query's instances
+/// with the table kernels for index type I: ray_traverse_base (k = 1 and k > 1) and
+/// first_hit_packet_any with OrderKey. Used inside namespace rayscan::detail, as
+/// RAYSCAN_FIRST_HIT_ISA_INSTANCES below: the headers of the indexes declare them extern and their
+/// libraries define them once (octree/src/ray_query.cpp, octree/io/src/query_instances.cpp).
+#define RAYSCAN_BASE_INSTANCES(KW, I)                                                                        \
+  KW bool ray_traverse_base<true, I, OrderKey>(const I&, const Ray&, const RayQuery&, Candidate&,           \
+                                               RayQueryStats*, const OrderKey&);                           \
+  KW bool ray_traverse_base<false, I, OrderKey>(const I&, const Ray&, const RayQuery&, Candidate&,          \
+                                                RayQueryStats*, const OrderKey&);                          \
+  KW unsigned first_hit_packet_any<simd::Kernels, I, OrderKey>(const I&, const Ray*, unsigned,              \
+                                                               const RayQuery&, Candidate*, RayQueryStats*, \
+                                                               const OrderKey*);
+
+namespace detail {
+RAYSCAN_BASE_INSTANCES(extern template, Octree)
+}  // namespace detail
 
 #if RAYSCAN_SIMD_X86
 /// Declares (KW = `extern template`) or defines (KW = `template`) the first-hit instances compiled

@@ -1,11 +1,17 @@
-// The per-ISA first-hit instances of the ray query (ray_query.hpp: ray_traverse_avx2 / _avx512,
-// first_hit_packet_avx2 / _avx512) and of the kNN query (point_query.hpp: knn_query_avx2 /
+// The table-kernel instances of the plain ray query (ray_query.hpp: ray_traverse_base,
+// first_hit_packet_any), the per-ISA first-hit instances of the ray query (ray_query.hpp:
+// ray_traverse_avx2 / _avx512, first_hit_packet_avx2 / _avx512) and those of the kNN query (point_query.hpp: knn_query_avx2 /
 // _avx512) for the index file (MappedIndex) and COPC (CopcIndex) indexes, compiled once here; the
 // headers declare them extern (issue 12: build time, bench/README.md).
 #include "rayscan/io/copc.hpp"
 #include "rayscan/io/index_file.hpp"
 #include "rayscan/point_query.hpp"
 #include "rayscan/ray_query.hpp"
+
+namespace rayscan::detail {
+RAYSCAN_BASE_INSTANCES(template, io::MappedIndex)
+RAYSCAN_BASE_INSTANCES(template, io::CopcIndex)
+}  // namespace rayscan::detail
 
 #if RAYSCAN_SIMD_X86
 namespace rayscan::detail {

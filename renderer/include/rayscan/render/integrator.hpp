@@ -134,7 +134,7 @@ class PathTracer {
                 const LeavingSurface* from = nullptr) const {
     RayQueryStats st;
     if (in_.primitive == Primitive::surfel) {
-      const SurfelHit sh = first_surfel_hit(index_, in_.surfels, ray, 0.0, kInf, from, true, hits, st);
+      const SurfelHit sh = first_surfel_hit<I, SurfelTables::best>(index_, in_.surfels, ray, 0.0, kInf, from, true, hits, st);
       c.queries += sh.queries;
       c.nodes_visited += st.nodes_visited;
       c.points_tested += st.points_tested;
@@ -194,11 +194,11 @@ class PathTracer {
     SurfelHit sh;
     if (time_) {
       const auto t0 = std::chrono::steady_clock::now();
-      sh = first_surfel_hit(index_, in_.surfels, ray, 0.0, kInf, from, false, hits, st);
+      sh = first_surfel_hit<I, SurfelTables::best>(index_, in_.surfels, ray, 0.0, kInf, from, false, hits, st);
       c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
                         std::chrono::steady_clock::now() - t0).count();
     } else {
-      sh = first_surfel_hit(index_, in_.surfels, ray, 0.0, kInf, from, false, hits, st);
+      sh = first_surfel_hit<I, SurfelTables::best>(index_, in_.surfels, ray, 0.0, kInf, from, false, hits, st);
     }
     c.queries += sh.queries;
     c.nodes_visited += st.nodes_visited;
@@ -338,7 +338,7 @@ class PathTracer {
         };
         if (surfel) {
           SurfelHit sh[kMaxRayPacket];
-          first_surfel_hit_packet(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf, {}, false,
+          first_surfel_hit_packet<I, SurfelTables::best>(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf, {}, false,
                                   std::span(sh, m), hits, st);
           query_done();
           // One cover cache per pixel of the packet (the caller traces the samples of one pixel
@@ -403,7 +403,7 @@ class PathTracer {
         bool blocked[kMaxRayPacket];
         if (surfel) {
           SurfelHit sh[kMaxRayPacket];
-          first_surfel_hit_packet(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf,
+          first_surfel_hit_packet<I, SurfelTables::best>(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf,
                                   std::span<const LeavingSurface* const>(from, ns), true, std::span(sh, ns), hits,
                                   st);
           for (std::size_t j = 0; j < ns; ++j) blocked[j] = sh[j].t < kInf;

@@ -367,6 +367,11 @@ struct SurfelChildBoxesF {
   return q;
 }
 
+/// Which node-bound variants of the surfel ray query first_surfel_hit compiles: `any` all of
+/// them, chosen at run time by which node tables the SurfelView holds; `best` only the one of the
+/// index's full tables (see first_surfel_hit).
+enum class SurfelTables { any, best };
+
 /// The first disc hit along `ray` with t in [t_min, t_max] (or, with any_hit, some disc hit in it),
 /// ignoring the discs of `from` when given; ties in t go to the smaller index. One ray query: order
 /// sphere_hit with the maximum radius R as candidate radius (a disc of radius r <= R around c lies
@@ -378,7 +383,11 @@ struct SurfelChildBoxesF {
 /// tested against the bounding box of its discs instead, and with s.node_boxes_f (FloatChildBoxes
 /// indexes only, else std::invalid_argument) all children of a node at once on their float copies
 /// (SIMD). `hits` is caller-owned scratch; `stats` accumulates the query counters.
-template <SpatialIndex I>
+/// V = SurfelTables::best compiles only the variant of the index's full tables (the path tracer,
+/// which builds them all: node_radii and node_boxes, and node_boxes_f on a FloatChildBoxes index)
+/// and throws std::invalid_argument when the view lacks one; the default chooses at run time,
+/// so its caller compiles all four ray queries (render.cpp: 13 of its 18 surfel traversals).
+template <SpatialIndex I, SurfelTables V = SurfelTables::any>
 SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, double t_min,
                            double t_max, const LeavingSurface* from, bool any_hit,
                            std::vector<RayHit>& hits, RayQueryStats& stats) {
@@ -386,7 +395,18 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
   const RayQuery q = surfel_query(s, t_min, t_max, any_hit);
   const DiscKey disc_t{&s, ray.origin(), ray.direction(), t_min, t_max, from,
                        s.slot_radii.empty() ? nullptr : s.slot_radii.data(), slot_normals_of(s)};
-  if (s.node_radii.empty()) {
+  if constexpr (V == SurfelTables::best) {
+    best.queries = 1;
+    if (index.empty()) return best;  // no node, so no node table
+    if (s.node_radii.empty() || s.node_boxes.empty() || (detail::FloatChildBoxes<I> && s.node_boxes_f.empty()))
+      throw std::invalid_argument("first_surfel_hit: SurfelTables::best needs the view's node tables");
+    if constexpr (detail::FloatChildBoxes<I>)
+      ray_query(index, ray, q, hits, &stats,
+                RefinedKey<DiscKey, SurfelNodeRadius, SurfelNodeBox, SurfelChildBoxesF<I>>{
+                    disc_t, {&s}, {&s}, {&index, &s}});
+    else
+      ray_query(index, ray, q, hits, &stats, RefinedKey<DiscKey, SurfelNodeRadius, SurfelNodeBox>{disc_t, {&s}, {&s}});
+  } else if (s.node_radii.empty()) {
     ray_query(index, ray, q, hits, &stats, RefinedKey<DiscKey>{disc_t, {}});
   } else if (s.node_boxes.empty()) {
     // Per-node bounds: a disc hit lies within the disc's radius of its centre, and in its box.
@@ -415,9 +435,9 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
 /// surface left) or holds one (possibly null) pointer per ray. The rays share one traversal
 /// (detail::first_hit_packet with one DiscKey per ray) when the view has all its node tables on a
 /// FloatChildBoxes index; otherwise each ray is answered alone (with `hits` as first_surfel_hit's
-/// caller-owned scratch). Throws std::invalid_argument for inconsistent sizes. Thread-safe
+/// caller-owned scratch, and V as there). Throws std::invalid_argument for inconsistent sizes. Thread-safe
 /// (per-thread scratch).
-template <SpatialIndex I>
+template <SpatialIndex I, SurfelTables V = SurfelTables::any>
 void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<const Ray> rays, double t_min,
                              double t_max, std::span<const LeavingSurface* const> from, bool any_hit,
                              std::span<SurfelHit> out, std::vector<RayHit>& hits, RayQueryStats& stats) {
@@ -463,7 +483,7 @@ void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<cons
     }
   }
   for (std::size_t i = 0; i < n; ++i)
-    out[i] = first_surfel_hit(index, s, rays[i], t_min, t_max, from_of(i), any_hit, hits, stats);
+    out[i] = first_surfel_hit<I, V>(index, s, rays[i], t_min, t_max, from_of(i), any_hit, hits, stats);
 }
 
 /// sqrt(1 + 1/16): a disc of radius r that covers x in the sense of blended_normal (in-plane

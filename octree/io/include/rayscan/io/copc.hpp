@@ -304,6 +304,12 @@ static_assert(SpatialIndex<CopcIndex>);
 
 }  // namespace rayscan::io
 
+// The table-kernel instances of the plain ray query (ray_query.hpp), compiled once in the library
+// (octree/io/src/query_instances.cpp) instead of in every caller's translation unit.
+namespace rayscan::detail {
+RAYSCAN_BASE_INSTANCES(extern template, io::CopcIndex)
+}  // namespace rayscan::detail
+
 #if RAYSCAN_SIMD_X86
 // The first-hit and kNN instances compiled per ISA (ray_query.hpp, point_query.hpp) of this index,
 // instantiated once in the library (octree/io/src/query_instances.cpp) instead of in every caller's
