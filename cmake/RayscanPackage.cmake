@@ -35,5 +35,5 @@ function(rayscan_install_package)
   write_basic_package_version_file(${PROJECT_BINARY_DIR}/rayscanConfigVersion.cmake
                                    VERSION ${PROJECT_VERSION} COMPATIBILITY SameMinorVersion)
   install(FILES ${PROJECT_BINARY_DIR}/rayscanConfig.cmake ${PROJECT_BINARY_DIR}/rayscanConfigVersion.cmake
-          ${PROJECT_SOURCE_DIR}/cmake/FindOIIOFixed.cmake DESTINATION ${RAYSCAN_INSTALL_CMAKEDIR})
+          DESTINATION ${RAYSCAN_INSTALL_CMAKEDIR})
 endfunction()

@@ -3,8 +3,7 @@
 #include "rayscan/analysis/color_ramp.hpp"
 #include "rayscan/analysis/image.hpp"
 
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imagebufalgo.h>
+#include "rayscan/image/image_file.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -35,10 +34,12 @@ std::string write_raster_preview(const std::filesystem::path& path, const Raster
   const int legend_h = 70, margin = 10;
   const int W = std::max(map_w, 420), H = map_h + legend_h;
 
-  OIIO::ImageBuf buf(OIIO::ImageSpec(W, H, 3, OIIO::TypeDesc::FLOAT));
-  const float white[3] = {1.0f, 1.0f, 1.0f}, black[3] = {0.0f, 0.0f, 0.0f};
-  OIIO::ImageBufAlgo::fill(buf, white);
-  auto put = [&](int x, int y, const float* c) { buf.setpixel(x, y, c, 3); };
+  Image img = make_image(W, H, {"R", "G", "B"}, 1.0f);  // white
+  const float black[3] = {0.0f, 0.0f, 0.0f};
+  auto put = [&](int x, int y, const float* c) {
+    if (x < 0 || y < 0 || x >= W || y >= H) return;
+    std::copy(c, c + 3, img.pixels.begin() + (std::ptrdiff_t(y) * W + x) * 3);
+  };
   auto ramp = [&](double t) {
     const Rgb c = heat_ramp(t);
     return std::array<float, 3>{c.r, c.g, c.b};
@@ -74,19 +75,15 @@ std::string write_raster_preview(const std::filesystem::path& path, const Raster
   for (int y = 0; y < bar_h; ++y)
     for (int x = 0; x < bar_h; ++x) put(sw_x + x, bar_y + y, kNoDataRgb);
 
-  bool labels = OIIO::ImageBufAlgo::render_text(buf, margin, map_h + 18, title, 14, "DejaVuSans", black);
+  const bool labels = render_text(img, margin, map_h + 18, title, 14, black);
   if (labels) {
     const int ty = bar_y + bar_h + 16;
-    OIIO::ImageBufAlgo::render_text(buf, bar_x, ty, fmt(lo), 12, "DejaVuSans", black);
-    OIIO::ImageBufAlgo::render_text(buf, bar_x + bar_w / 2, ty, fmt(lo + span / 2), 12, "DejaVuSans", black,
-                                    OIIO::ImageBufAlgo::TextAlignX::Center);
-    OIIO::ImageBufAlgo::render_text(buf, bar_x + bar_w, ty, fmt(hi), 12, "DejaVuSans", black,
-                                    OIIO::ImageBufAlgo::TextAlignX::Right);
-    OIIO::ImageBufAlgo::render_text(buf, sw_x + bar_h + 4, bar_y + bar_h - 2, "no data", 12, "DejaVuSans", black);
+    render_text(img, bar_x, ty, fmt(lo), 12, black);
+    render_text(img, bar_x + bar_w / 2, ty, fmt(lo + span / 2), 12, black, TextAlign::center);
+    render_text(img, bar_x + bar_w, ty, fmt(hi), 12, black, TextAlign::right);
+    render_text(img, sw_x + bar_h + 4, bar_y + bar_h - 2, "no data", 12, black);
   }
 
-  Image img = make_image(W, H, {"R", "G", "B"});
-  buf.get_pixels(OIIO::ROI(0, W, 0, H, 0, 1, 0, 3), OIIO::TypeDesc::FLOAT, img.pixels.data());
   const std::string legend = title + ": " + heat_ramp_legend(lo, hi) + "; no data: blue; " +
                              std::to_string(s) + " px per cell of " + fmt(g.cell) + " world units";
   write_image(img, path.string(), PixelFormat::uint8, legend);

@@ -1,11 +1,15 @@
 // Links rayscan::render and rayscan::analysis from an installed package: renders an in-memory
 // cloud with the render job and runs the visibility job on it. Exit 0 = the calls ran and their
 // results agree with the geometry (a camera looking at a plane hits it; every point of an open
-// plane sees the sky).
+// plane sees the sky). Then writes a PNG and reads it back through rayscan::image, whose
+// OpenImageIO module (librayscan_oiio.so) run_consumer.cmake points at in the installed prefix
+// (RAYSCAN_OIIO_MODULE), so the installed module is the one that loads.
 #include "rayscan/analysis/visibility_job.hpp"
+#include "rayscan/image/image_file.hpp"
 #include "rayscan/render/render_job.hpp"
 
 #include <cstdio>
+#include <filesystem>
 
 int main() {
   using namespace rayscan;
@@ -36,6 +40,16 @@ int main() {
       std::fprintf(stderr, "consumer: a point of an open plane does not see the whole sky (%g)\n", s);
       return 1;
     }
+  Image img = make_image(4, 3, {"R", "G", "B"}, 0.0f);
+  img.pixels[5] = 1.0f;  // pixel (1, 0), blue
+  const std::filesystem::path png = std::filesystem::temp_directory_path() / "rayscan-consumer.png";
+  write_image(img, png.string(), PixelFormat::uint8);
+  const Image back = read_image(png.string());
+  std::filesystem::remove(png);
+  if (back.width != 4 || back.height != 3 || back.nchannels() != 3 || back.pixels != img.pixels) {
+    std::fprintf(stderr, "consumer: the PNG read back differs from the image written\n");
+    return 1;
+  }
   std::printf("consumer: render radius %.4f, centre pixel hits point %u; sky view 1 for %zu points\n",
               r.radius.radius, centre, v.sky_view.size());
   return 0;

@@ -51,8 +51,12 @@ if(NOT ONLY_CORE)
     endif()
   endforeach()
 endif()
-foreach(f lib/cmake/rayscan/rayscanConfig.cmake lib/cmake/rayscan/rayscanConfigVersion.cmake
-          include/rayscan/octree.hpp)
+set(installed lib/cmake/rayscan/rayscanConfig.cmake lib/cmake/rayscan/rayscanConfigVersion.cmake
+    include/rayscan/octree.hpp)
+if(NOT ONLY_CORE)
+  list(APPEND installed lib/rayscan/librayscan_oiio.so)  # rayscan::image's OpenImageIO module
+endif()
+foreach(f ${installed})
   if(NOT EXISTS ${prefix}/${f})
     message(FATAL_ERROR "install lacks ${f}")
   endif()
@@ -78,7 +82,9 @@ else()
   endif()
 endif()
 if(NOT ONLY_CORE)
+  set(ENV{RAYSCAN_OIIO_MODULE} ${prefix}/lib/rayscan/librayscan_oiio.so)  # the installed module
   run(${build}/consumer_jobs)
+  unset(ENV{RAYSCAN_OIIO_MODULE})
 else()
   # A core-only package must not offer the targets that need OpenImageIO or GDAL.
   file(READ ${prefix}/lib/cmake/rayscan/rayscanTargets.cmake targets)

@@ -1,13 +1,17 @@
 // Image files through OpenImageIO (https://openimageio.readthedocs.io, "ImageInput",
-// "ImageOutput", ImageBufAlgo::resize): the one reader and the one writer of rayscan::Image,
-// used by the renderer (render output and AOV files) and by analysis (compare, heat maps,
-// raster previews, visibility index files).
+// "ImageOutput", ImageBufAlgo::resize and ::render_text): the one reader and the one writer of
+// rayscan::Image, used by the renderer (render output and AOV files) and by analysis (compare,
+// heat maps, raster previews, visibility index files). OpenImageIO lives in a module
+// (librayscan_oiio.so) loaded by the first call of any function here, so that programs start
+// without its ~260 libraries; each function also throws std::runtime_error when the module cannot
+// be loaded (the message names the paths tried).
 #pragma once
 
 #include "rayscan/image/image.hpp"
 
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -60,6 +64,17 @@ Image read_image(const std::string& path);
 /// "triangle", "gaussian", "mitchell", ...; its default width). The full image windows are mapped
 /// onto each other. Throws std::runtime_error naming the filter when OpenImageIO rejects it.
 Image resize_image(const Image& img, int width, int height, const std::string& filter);
+
+/// Horizontal alignment of render_text's string at its x.
+enum class TextAlign { left = 0, center = 1, right = 2 };
+
+/// Draws `text` into `img`'s float channels with OpenImageIO's ImageBufAlgo::render_text
+/// (FreeType, the DejaVu Sans font): baseline at pixel row y, aligned at pixel column x, `size`
+/// pixels high, `color` one value per float channel. Returns false (and draws nothing) when no
+/// font is found. Throws std::invalid_argument when `color` does not have one value per channel
+/// or the pixel buffer does not match the image size.
+bool render_text(Image& img, int x, int y, const std::string& text, int size, std::span<const float> color,
+                 TextAlign align = TextAlign::left);
 
 /// Per-pixel "miss" flags (1 = miss) of a point-index AOV channel: the renderer's per-pixel index
 /// of the point hit, with -1 where the primary ray hit nothing. The channel is read in its stored
