@@ -18,7 +18,7 @@ namespace {
 
 thread_local OutputTransaction* g_current = nullptr;
 
-[[noreturn]] void refuse(const std::filesystem::path& path, const std::string& why) {
+[[noreturn]] void refuse_output(const std::filesystem::path& path, const std::string& why) {
   throw OutputFileError(one_line(path.string()) + ": " + why);
 }
 
@@ -28,15 +28,15 @@ void require_replaceable_output(const std::filesystem::path& path) {
   struct stat st {};
   if (::lstat(path.c_str(), &st) == 0) {
     if (!S_ISREG(st.st_mode))
-      refuse(path, "is " + detail::file_kind_name(st.st_mode) +
+      refuse_output(path, "is " + detail::file_kind_name(st.st_mode) +
                        "; refusing to replace it (outputs go to a new path or over a regular file)");
     return;
   }
-  if (errno != ENOENT) refuse(path, std::string("cannot stat output path: ") + std::strerror(errno));
+  if (errno != ENOENT) refuse_output(path, std::string("cannot stat output path: ") + std::strerror(errno));
   const std::filesystem::path dir = path.parent_path().empty() ? "." : path.parent_path();
   struct stat ds {};
   if (::stat(dir.c_str(), &ds) != 0 || !S_ISDIR(ds.st_mode))
-    refuse(path, "output directory '" + one_line(dir.string()) + "' does not exist");
+    refuse_output(path, "output directory '" + one_line(dir.string()) + "' does not exist");
 }
 
 OutputTransaction::OutputTransaction() : outer_(g_current) {
@@ -65,7 +65,7 @@ void OutputTransaction::commit() {
     auto [tmp, path] = pending_.front();
     std::error_code ec;
     std::filesystem::rename(tmp, path, ec);
-    if (ec) refuse(path, "cannot move the finished file into place: " + ec.message());
+    if (ec) refuse_output(path, "cannot move the finished file into place: " + ec.message());
     pending_.erase(pending_.begin());
   }
 }
@@ -77,7 +77,7 @@ AtomicFile::AtomicFile(std::filesystem::path path) : path_(std::move(path)) {
   tmp_ = path_.parent_path() / name;
   ::unlink(tmp_.c_str());  // a stale temporary of this pid (or a planted link): removed, not followed
   const int fd = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
-  if (fd < 0) refuse(path_, std::string("cannot create output file: ") + std::strerror(errno));
+  if (fd < 0) refuse_output(path_, std::string("cannot create output file: ") + std::strerror(errno));
   ::close(fd);
 }
 
@@ -102,7 +102,7 @@ void AtomicFile::commit() {
   require_replaceable_output(path_);  // re-checked: the path may have changed while writing
   std::error_code ec;
   std::filesystem::rename(tmp_, path_, ec);
-  if (ec) refuse(path_, "cannot move the finished file into place: " + ec.message());
+  if (ec) refuse_output(path_, "cannot move the finished file into place: " + ec.message());
   committed_ = true;
 }
 

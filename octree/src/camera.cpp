@@ -14,12 +14,11 @@ void check_size(std::uint32_t w, std::uint32_t h) {
   if (w == 0 || h == 0) throw std::invalid_argument("camera: width and height must be > 0");
   if (w > 65536 || h > 65536) throw std::invalid_argument("camera: width and height must be <= 65536");
 }
-bool finite(const Vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 }  // namespace
 
 Camera Camera::look_at(const LookAtParams& p, std::uint32_t width, std::uint32_t height) {
   check_size(width, height);
-  if (!finite(p.position) || !finite(p.look_at) || !finite(p.up))
+  if (!is_finite(p.position) || !is_finite(p.look_at) || !is_finite(p.up))
     throw std::invalid_argument("camera: position, look_at and up must be finite");
   if (!(p.vfov_deg > 0.0 && p.vfov_deg < 180.0))
     throw std::invalid_argument("camera: vfov_deg must be in (0, 180)");
@@ -62,7 +61,7 @@ Camera Camera::pinhole(const PinholeParams& p, std::uint32_t width, std::uint32_
       if (!std::isfinite(p.K[r][c]) || !std::isfinite(p.R[r][c]))
         throw std::invalid_argument("camera: K and R must be finite");
     }
-  if (!finite(p.t)) throw std::invalid_argument("camera: t must be finite");
+  if (!is_finite(p.t)) throw std::invalid_argument("camera: t must be finite");
   if (p.K[2][0] != 0.0 || p.K[2][1] != 0.0 || p.K[2][2] != 1.0)
     throw std::invalid_argument("camera: the last row of K must be (0, 0, 1)");
   if (!(std::abs(glm::determinant(K)) > 0.0)) throw std::invalid_argument("camera: K is singular");

@@ -10,8 +10,7 @@ namespace rayscan {
 Camera Camera::equirectangular(const EquirectangularParams& p, std::uint32_t width, std::uint32_t height) {
   if (width == 0 || height == 0 || width > 65536 || height > 65536)
     throw std::invalid_argument("camera: width and height must be in [1, 65536]");
-  auto finite = [](const Vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); };
-  if (!finite(p.position) || !finite(p.forward) || !finite(p.up) || glm::length(p.up) == 0.0)
+  if (!is_finite(p.position) || !is_finite(p.forward) || !is_finite(p.up) || glm::length(p.up) == 0.0)
     throw std::invalid_argument("camera: position, forward and up must be finite, up non-zero");
   const Vec3 up = glm::normalize(p.up);
   const Vec3 horiz = p.forward - glm::dot(p.forward, up) * up;

@@ -8,14 +8,13 @@
 namespace rayscan {
 
 namespace {
-bool finite(const Vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 }  // namespace
 
 Camera Camera::orthographic_grid(const Vec3& origin00, const Vec3& step_u, const Vec3& step_v,
                                  const Vec3& direction, std::uint32_t width, std::uint32_t height) {
   if (width == 0 || height == 0 || width > 65536 || height > 65536)
     throw std::invalid_argument("camera: width and height must be in [1, 65536]");
-  if (!finite(origin00) || !finite(step_u) || !finite(step_v) || !finite(direction) ||
+  if (!is_finite(origin00) || !is_finite(step_u) || !is_finite(step_v) || !is_finite(direction) ||
       glm::length(step_u) == 0.0 || glm::length(step_v) == 0.0 || glm::length(direction) == 0.0)
     throw std::invalid_argument("camera: orthographic origin, steps and direction must be finite and non-zero");
   Camera c;
@@ -31,7 +30,7 @@ Camera Camera::orthographic_grid(const Vec3& origin00, const Vec3& step_u, const
 }
 
 Camera Camera::orthographic(const OrthographicParams& p, std::uint32_t width, std::uint32_t height) {
-  if (!finite(p.position) || !finite(p.look_at) || !finite(p.up))
+  if (!is_finite(p.position) || !is_finite(p.look_at) || !is_finite(p.up))
     throw std::invalid_argument("camera: position, look_at and up must be finite");
   if (!(p.view_height > 0.0) || !std::isfinite(p.view_height))
     throw std::invalid_argument("camera: view_height must be a finite number > 0");

@@ -16,7 +16,7 @@ namespace rayscan {
 
 namespace {
 
-[[noreturn]] void refuse(const std::filesystem::path& path, const std::string& why) {
+[[noreturn]] void refuse_input(const std::filesystem::path& path, const std::string& why) {
   throw InputFileError(one_line(path.string()) + ": " + why);
 }
 
@@ -49,19 +49,19 @@ InputFile::InputFile(const std::filesystem::path& path) : path_(path) {
   fd_ = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
   if (fd_ < 0) {
     const int e = errno;
-    refuse(path, std::string("cannot open file: ") + std::strerror(e));
+    refuse_input(path, std::string("cannot open file: ") + std::strerror(e));
   }
   struct stat st {};
   if (::fstat(fd_, &st) != 0) {
     const int e = errno;
     ::close(fd_);
     fd_ = -1;
-    refuse(path, std::string("cannot stat file: ") + std::strerror(e));
+    refuse_input(path, std::string("cannot stat file: ") + std::strerror(e));
   }
   if (!S_ISREG(st.st_mode)) {
     ::close(fd_);
     fd_ = -1;
-    refuse(path, not_regular(st.st_mode));
+    refuse_input(path, not_regular(st.st_mode));
   }
   const int fl = ::fcntl(fd_, F_GETFL);
   if (fl >= 0) ::fcntl(fd_, F_SETFL, fl & ~O_NONBLOCK);
@@ -79,9 +79,9 @@ std::vector<std::uint8_t> InputFile::read_all() const {
     const ssize_t r = ::pread(fd_, buf.data() + got, static_cast<std::size_t>(size_ - got),
                               static_cast<off_t>(got));
     if (r < 0 && errno == EINTR) continue;
-    if (r < 0) refuse(path_, "byte " + std::to_string(got) + ": read failed: " + std::strerror(errno));
+    if (r < 0) refuse_input(path_, "byte " + std::to_string(got) + ": read failed: " + std::strerror(errno));
     if (r == 0)
-      refuse(path_, "byte " + std::to_string(got) + ": file shrank while being read (expected " +
+      refuse_input(path_, "byte " + std::to_string(got) + ": file shrank while being read (expected " +
                         std::to_string(size_) + " bytes)");
     got += static_cast<std::uint64_t>(r);
   }
@@ -92,14 +92,14 @@ void require_regular_file(const std::filesystem::path& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) {
     const int e = errno;
-    refuse(path, e == ENOENT ? std::string("no such file") : std::string("cannot stat file: ") + std::strerror(e));
+    refuse_input(path, e == ENOENT ? std::string("no such file") : std::string("cannot stat file: ") + std::strerror(e));
   }
-  if (!S_ISREG(st.st_mode)) refuse(path, not_regular(st.st_mode));
+  if (!S_ISREG(st.st_mode)) refuse_input(path, not_regular(st.st_mode));
 }
 
 std::string read_text_file(const std::filesystem::path& path, std::uint64_t cap) {
   const auto over = [&](const std::string& size) {
-    refuse(path, "file is " + size + " bytes, over the " + std::to_string(cap) +
+    refuse_input(path, "file is " + size + " bytes, over the " + std::to_string(cap) +
                      "-byte limit for text inputs");
   };
   if (path == "-") {

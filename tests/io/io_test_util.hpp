@@ -33,6 +33,9 @@ inline fs::path data_file(const std::string& rel) {
   const std::filesystem::path var = ::rayscan::test::data_file(rel);                     \
   if (var.empty()) GTEST_SKIP() << rel << " is not in tests/data and ../shared/data is absent"
 
+/// The whole cloud of `p` (every attribute), its FileInfo in `info` when given.
+inline PointCloud read(const fs::path& p, io::FileInfo* info = nullptr) { return io::read_point_cloud(p, {}, info); }
+
 inline std::vector<std::uint8_t> slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};

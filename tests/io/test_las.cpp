@@ -8,8 +8,6 @@
 namespace rayscan::test {
 namespace {
 
-PointCloud read(const fs::path& p, io::FileInfo* info = nullptr) { return io::read_point_cloud(p, {}, info); }
-
 TEST(Las, Pdrf0To3ParitySetYieldsIdenticalXyzAndMatchesThePcdCopy) {
   RAYSCAN_REQUIRE_FILE(p0, "las/conformance/point10.las");
   const PointCloud ref = read(p0);

@@ -10,8 +10,6 @@
 namespace rayscan::test {
 namespace {
 
-PointCloud read(const fs::path& p, io::FileInfo* info = nullptr) { return io::read_point_cloud(p, {}, info); }
-
 PointCloud read_text(const std::string& text, io::Format f, io::FileInfo* info = nullptr) {
   const std::vector<std::uint8_t> b(text.begin(), text.end());
   return io::read_point_cloud(b, f, "mem", {}, info);

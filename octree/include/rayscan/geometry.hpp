@@ -19,6 +19,11 @@ using Vec3 = glm::dvec3;
 /// +infinity, the "not set" value of the paper's Algorithm 1 for r, k, t_max.
 inline constexpr double kInf = std::numeric_limits<double>::infinity();
 
+/// True when every coordinate of `v` is finite (no NaN, no infinity).
+[[nodiscard]] inline bool is_finite(const Vec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
 /// A closed interval [lo, hi] of reals; empty when lo > hi. Used for the "bounds evaluation"
 /// of the distance functions (paper section 4.2) and for the projected time interval of a node
 /// (paper eq. 4).

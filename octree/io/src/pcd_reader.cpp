@@ -50,7 +50,7 @@ double load_field(const std::uint8_t* p, const PcdField& f) {
   }
 }
 
-enum class Role { skip, x, y, z, nx, ny, nz, packed, r, g, b, scalar };
+enum class PcdRole { skip, x, y, z, nx, ny, nz, packed, r, g, b, scalar };
 
 }  // namespace
 
@@ -199,40 +199,40 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
                             " values per point (at most 65536 supported)");
   // Roles.
   const std::size_t nf = fields.size();
-  std::vector<Role> roles(nf, Role::skip);
+  std::vector<PcdRole> roles(nf, PcdRole::skip);
   int have = 0;
   bool has_n = false, has_packed = false, has_ch = false;
   std::vector<std::string> scalar_names;
   std::vector<std::pair<std::size_t, std::uint64_t>> scalar_src;  // field, element
   for (std::size_t k = 0; k < nf; ++k) {
     const std::string n = lower(fields[k].name);
-    Role r = Role::scalar;
-    if (n == "_") r = Role::skip;
-    else if (n == "x") r = Role::x;
-    else if (n == "y") r = Role::y;
-    else if (n == "z") r = Role::z;
-    else if (n == "normal_x" || n == "nx") r = Role::nx;
-    else if (n == "normal_y" || n == "ny") r = Role::ny;
-    else if (n == "normal_z" || n == "nz") r = Role::nz;
-    else if ((n == "rgb" || n == "rgba") && fields[k].size == 4 && fields[k].count == 1) r = Role::packed;
-    else if (n == "red" || n == "r") r = Role::r;
-    else if (n == "green" || n == "g") r = Role::g;
-    else if (n == "blue" || n == "b") r = Role::b;
-    if ((r >= Role::x && r <= Role::z) || (r >= Role::r && r <= Role::b) || (r >= Role::nx && r <= Role::nz))
-      if (fields[k].count != 1) r = Role::scalar;
-    if (r == Role::x) have |= 1;
-    if (r == Role::y) have |= 2;
-    if (r == Role::z) have |= 4;
-    has_n |= r == Role::nx;
-    has_packed |= r == Role::packed;
-    has_ch |= r == Role::r;
-    if (r == Role::scalar) {
+    PcdRole r = PcdRole::scalar;
+    if (n == "_") r = PcdRole::skip;
+    else if (n == "x") r = PcdRole::x;
+    else if (n == "y") r = PcdRole::y;
+    else if (n == "z") r = PcdRole::z;
+    else if (n == "normal_x" || n == "nx") r = PcdRole::nx;
+    else if (n == "normal_y" || n == "ny") r = PcdRole::ny;
+    else if (n == "normal_z" || n == "nz") r = PcdRole::nz;
+    else if ((n == "rgb" || n == "rgba") && fields[k].size == 4 && fields[k].count == 1) r = PcdRole::packed;
+    else if (n == "red" || n == "r") r = PcdRole::r;
+    else if (n == "green" || n == "g") r = PcdRole::g;
+    else if (n == "blue" || n == "b") r = PcdRole::b;
+    if ((r >= PcdRole::x && r <= PcdRole::z) || (r >= PcdRole::r && r <= PcdRole::b) || (r >= PcdRole::nx && r <= PcdRole::nz))
+      if (fields[k].count != 1) r = PcdRole::scalar;
+    if (r == PcdRole::x) have |= 1;
+    if (r == PcdRole::y) have |= 2;
+    if (r == PcdRole::z) have |= 4;
+    has_n |= r == PcdRole::nx;
+    has_packed |= r == PcdRole::packed;
+    has_ch |= r == PcdRole::r;
+    if (r == PcdRole::scalar) {
       const bool core = n == "intensity" || n == "classification" || n == "gpstime" || n == "gps_time";
-      if (!opt.scalars && !core) r = Role::skip;
+      if (!opt.scalars && !core) r = PcdRole::skip;
       else if (fields[k].count > 3) {
         info.notes.push_back("field '" + fields[k].name + "' has COUNT " + std::to_string(fields[k].count) +
                              " (a descriptor, not a per-point scalar): skipped");
-        r = Role::skip;
+        r = PcdRole::skip;
       } else {
         for (std::uint64_t j = 0; j < fields[k].count; ++j) {
           scalar_names.push_back(fields[k].count == 1 ? fields[k].name : fields[k].name + "_" + std::to_string(j));
@@ -294,7 +294,7 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
   std::vector<float> ch;
   bool ch_float = false;
   for (std::size_t k = 0; k < nf; ++k)
-    if (roles[k] >= Role::r && roles[k] <= Role::b) ch_float |= fields[k].type == 'F';
+    if (roles[k] >= PcdRole::r && roles[k] <= PcdRole::b) ch_float |= fields[k].type == 'F';
   std::vector<double> vals;  // per point: one value per (field, element)
   std::vector<std::uint64_t> first(nf + 1, 0);
   for (std::size_t k = 0; k < nf; ++k) first[k + 1] = first[k] + fields[k].count;
@@ -307,16 +307,16 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
     for (std::size_t k = 0; k < nf; ++k) {
       const double a = vals[first[k]];
       switch (roles[k]) {
-        case Role::x: x = a; break;
-        case Role::y: y = a; break;
-        case Role::z: z = a; break;
-        case Role::nx: n3[0] = a; break;
-        case Role::ny: n3[1] = a; break;
-        case Role::nz: n3[2] = a; break;
-        case Role::r: c3[0] = a; break;
-        case Role::g: c3[1] = a; break;
-        case Role::b: c3[2] = a; break;
-        case Role::packed: pk = packed_bits[k]; break;
+        case PcdRole::x: x = a; break;
+        case PcdRole::y: y = a; break;
+        case PcdRole::z: z = a; break;
+        case PcdRole::nx: n3[0] = a; break;
+        case PcdRole::ny: n3[1] = a; break;
+        case PcdRole::nz: n3[2] = a; break;
+        case PcdRole::r: c3[0] = a; break;
+        case PcdRole::g: c3[1] = a; break;
+        case PcdRole::b: c3[2] = a; break;
+        case PcdRole::packed: pk = packed_bits[k]; break;
         default: break;
       }
     }
@@ -369,7 +369,7 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
             fail_line(nm, ln, "field '" + fields[k].name + "': expected a number, got '" +
                                   std::string(d + b, std::min<std::uint64_t>(p - b, 40)) + "'");
           vals[first[k] + j] = v;
-          if (roles[k] == Role::packed) {
+          if (roles[k] == PcdRole::packed) {
             // PCL writes packed colour in ascii as the uint32 value; older writers as the float.
             const std::string_view tok(d + b, p - b);
             if (tok.find_first_of(".eEnN") == std::string_view::npos && v >= 0 && v <= 4294967295.0) {
@@ -393,12 +393,12 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info) {
     for (std::uint64_t i = 0; i < points; ++i) {
       for (std::size_t k = 0; k < nf; ++k) {
         const PcdField& f = fields[k];
-        if (roles[k] == Role::skip) continue;
+        if (roles[k] == PcdRole::skip) continue;
         const std::uint8_t* fp = soa ? base + points * f.offset + i * f.size * f.count
                                      : base + i * point_size + f.offset;
-        const std::uint64_t ne = roles[k] == Role::scalar ? f.count : 1;
+        const std::uint64_t ne = roles[k] == PcdRole::scalar ? f.count : 1;
         for (std::uint64_t j = 0; j < ne; ++j) vals[first[k] + j] = load_field(fp + j * f.size, f);
-        if (roles[k] == Role::packed) packed_bits[k] = load_le<std::uint32_t>(fp);
+        if (roles[k] == PcdRole::packed) packed_bits[k] = load_le<std::uint32_t>(fp);
       }
       emit();
       if (!soa && (i + 1) % 65536 == 0) in.done(body + (i + 1) * point_size);
