@@ -10,7 +10,9 @@
 # 2 idle cores); the suite then took 718 s on the shared machine at load 4-6 (the four
 # forced-SIMD property runs are most of it). Again on 2026-11-25 (154 steps, no ccache): 1,062 s
 # wall, 2,139 s of compile CPU (renderer/src/render.cpp alone 366 s); the suite 1,142 s, partly
-# shared with other compiles (bench/README.md, "Issue 12, session 27").
+# shared with other compiles (bench/README.md, "Issue 12, session 27"). After session 28 (unity
+# builds, instances compiled once, OpenImageIO loaded on first use), from scratch on the same
+# machine: 85 steps, 678 s wall (1,337 s of steps on 2 cores), the suite 368 s: 17.5 min in all.
 # Any sanitizer report fails the test that triggered it (UBSan halts on the first error; ASan
 # always does), and a failing test fails the job (and CI). LeakSanitizer is off: GDAL/PROJ and
 # OpenImageIO keep process-lifetime caches that it would report. ccache is used when installed.
