@@ -6,6 +6,7 @@
 #include "rayscan/analysis/raster_preview.hpp"
 #include "rayscan/atomic_file.hpp"
 #include "rayscan/file_names.hpp"
+#include "rayscan/image/image_file.hpp"
 #include "rayscan/io/camera_file.hpp"
 #include "rayscan/io/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -78,7 +79,10 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   }
   check_output_folder("--out", o.out);
   check_output_folder("--raster", o.raster);
-  if (o.write_preview) check_output_folder("--preview", o.preview);  // default: next to --raster
+  if (o.write_preview) {
+    check_output_folder("--preview", o.preview);  // default: next to --raster
+    load_image_io();  // the preview's writer, before the computation rather than after it
+  }
   // The output policy up front: every output path must be absent or a regular file.
   for (const std::filesystem::path& f : {o.out, o.raster, o.preview})
     if (!f.empty()) require_replaceable_output(f);

@@ -24,8 +24,9 @@ namespace {
 
 /// Where librayscan_oiio.so is looked for (see api()).
 std::vector<std::string> module_candidates() {
+  // An explicit RAYSCAN_OIIO_MODULE is the only candidate: no silent fall-back to another build.
+  if (const char* env = std::getenv("RAYSCAN_OIIO_MODULE"); env != nullptr && *env != '\0') return {env};
   std::vector<std::string> paths;
-  if (const char* env = std::getenv("RAYSCAN_OIIO_MODULE"); env != nullptr && *env != '\0') paths.emplace_back(env);
   std::error_code ec;
   const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
   if (!ec)
@@ -112,6 +113,8 @@ std::unique_ptr<oiio_module::ImageReader> open_input(const std::string& path) {
 }
 
 }  // namespace
+
+void load_image_io() { (void)oiio_module::api(); }
 
 Image read_image(const std::string& path) {
   auto in = open_input(path);

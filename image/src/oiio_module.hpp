@@ -71,10 +71,10 @@ struct Api {
 inline constexpr const char* kEntryPoint = "rayscan_oiio_module_v1";
 using EntryPoint = const Api* (*)();
 
-/// The loaded module's table (dlopen on the first call; thread-safe). Looked for, in order: the
-/// file RAYSCAN_OIIO_MODULE names, then librayscan_oiio.so in lib/rayscan/ beside the program's
-/// bin/ (an installed tree, wherever it was moved), in the configured install prefix, and in the
-/// build tree. Throws std::runtime_error naming the paths tried and dlerror()'s reason.
+/// The loaded module's table (dlopen on the first call; thread-safe). When RAYSCAN_OIIO_MODULE is
+/// set, the file it names and nothing else; otherwise librayscan_oiio.so in lib/rayscan/ beside
+/// the program's bin/ (an installed tree, wherever it was moved), in the configured install
+/// prefix, then in the build tree. Throws std::runtime_error naming the paths tried and dlerror()'s reason.
 const Api& api();
 
 }  // namespace rayscan::oiio_module

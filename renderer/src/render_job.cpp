@@ -5,6 +5,7 @@
 #include "rayscan/render/colmap.hpp"
 #include "rayscan/io/copc.hpp"
 #include "rayscan/io/index_file.hpp"
+#include "rayscan/image/image_file.hpp"
 #include "rayscan/io/point_reader.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/surfel_setup.hpp"
@@ -193,6 +194,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   if (!scene.camera && !o.camera_for_cloud) throw SceneError(f + ": /camera: not set; give a camera in the scene or a camera file");
   if (o.write && scene.output.image.empty())
     throw SceneError(f + ": /output/image: not set; give it in the scene or with --out");
+  if (o.write) load_image_io();  // the image writer, before the render rather than after it
   const JobControl& ctl = o.control;
   char buf[512];
 

@@ -50,6 +50,26 @@ TEST(RenderCli, OutRejectsExtensionsTheSceneFileRejects) {
   EXPECT_FALSE(fs::exists(out));
 }
 
+TEST(RenderCli, AnImageModuleThatDoesNotLoadStopsTheRenderBeforeItStarts) {
+  // The image writer (OpenImageIO, in librayscan_oiio.so) is loaded before the render, so a
+  // missing module costs no render: one line naming the path tried, exit 2, no output file.
+  const fs::path scene = small_scene();
+  const fs::path out = temp_dir() / "m.png";
+  const std::string bad = (temp_dir() / "no-such-module.so").string();
+  const RunResult r = rayscan::test::run_command("RAYSCAN_OIIO_MODULE=" + bad + " " + std::string(RAYSCAN_BIN) +
+                                                 " render " + scene.string() + " --out " + out.string());
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out, "rayscan render: image files need rayscan's OpenImageIO module librayscan_oiio.so: not found "
+                   "(looked for " + bad + ")\n");
+  EXPECT_FALSE(fs::exists(out));
+  // Positive control: the built module named explicitly renders and writes the image.
+  const RunResult ok = rayscan::test::run_command("RAYSCAN_OIIO_MODULE=" + std::string(RAYSCAN_OIIO_MODULE_FILE) +
+                                                  " " + std::string(RAYSCAN_BIN) + " render -q " + scene.string() +
+                                                  " --out " + out.string());
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  EXPECT_TRUE(fs::exists(out));
+}
+
 TEST(RenderCli, OutAcceptsEveryImageExtension) {
   // Positive control for the test above: the same command with a listed extension succeeds.
   const fs::path scene = small_scene();

@@ -18,6 +18,11 @@
 
 namespace rayscan {
 
+/// Loads the OpenImageIO module now, which the first image call below otherwise does: for jobs
+/// that end by writing an image (a render, a preview), so that a missing or broken module stops
+/// them before hours of work, not after. Throws std::runtime_error naming the paths tried.
+void load_image_io();
+
 /// Sample storage of a written float channel.
 enum class PixelFormat { uint8, uint16, half, float32 };
 
