@@ -38,8 +38,9 @@ std::vector<std::string> module_candidates() {
 }
 
 const Api* load() {
+  const std::vector<std::string> candidates = module_candidates();
   std::string tried;
-  for (const std::string& path : module_candidates()) {
+  for (const std::string& path : candidates) {
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec)) continue;
     void* handle = ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);  // never closed
@@ -51,7 +52,7 @@ const Api* load() {
     tried += (tried.empty() ? "" : "; ") + path + ": " + (err != nullptr ? err : "not loadable");
   }
   if (tried.empty()) {
-    for (const std::string& path : module_candidates()) tried += (tried.empty() ? "" : ", ") + path;
+    for (const std::string& path : candidates) tried += (tried.empty() ? "" : ", ") + path;
     tried = "not found (looked for " + tried + ")";
   }
   throw std::runtime_error("image files need rayscan's OpenImageIO module " RAYSCAN_OIIO_MODULE_NAME ": " + tried);

@@ -395,30 +395,32 @@ SurfelHit first_surfel_hit(const I& index, const SurfelView& s, const Ray& ray, 
   const RayQuery q = surfel_query(s, t_min, t_max, any_hit);
   const DiscKey disc_t{&s, ray.origin(), ray.direction(), t_min, t_max, from,
                        s.slot_radii.empty() ? nullptr : s.slot_radii.data(), slot_normals_of(s)};
-  if constexpr (V == SurfelTables::best) {
-    best.queries = 1;
-    if (index.empty()) return best;  // no node, so no node table
-    if (s.node_radii.empty() || s.node_boxes.empty() || (detail::FloatChildBoxes<I> && s.node_boxes_f.empty()))
-      throw std::invalid_argument("first_surfel_hit: SurfelTables::best needs the view's node tables");
-    if constexpr (detail::FloatChildBoxes<I>)
+  constexpr bool kFloatBoxes = detail::FloatChildBoxes<I>;
+  // Every node table of the index: the float child boxes where the index has them.
+  const auto query_full_tables = [&] {
+    if constexpr (kFloatBoxes)
       ray_query(index, ray, q, hits, &stats,
                 RefinedKey<DiscKey, SurfelNodeRadius, SurfelNodeBox, SurfelChildBoxesF<I>>{
                     disc_t, {&s}, {&s}, {&index, &s}});
     else
       ray_query(index, ray, q, hits, &stats, RefinedKey<DiscKey, SurfelNodeRadius, SurfelNodeBox>{disc_t, {&s}, {&s}});
+  };
+  if constexpr (V == SurfelTables::best) {
+    // (An empty index has no node and no table; ray_query answers it without reading one.)
+    if (!index.empty() && (s.node_radii.empty() || s.node_boxes.empty() || (kFloatBoxes && s.node_boxes_f.empty())))
+      throw std::invalid_argument("first_surfel_hit: SurfelTables::best needs the view's node tables");
+    query_full_tables();
   } else if (s.node_radii.empty()) {
     ray_query(index, ray, q, hits, &stats, RefinedKey<DiscKey>{disc_t, {}});
   } else if (s.node_boxes.empty()) {
     // Per-node bounds: a disc hit lies within the disc's radius of its centre, and in its box.
     ray_query(index, ray, q, hits, &stats, RefinedKey<DiscKey, SurfelNodeRadius>{disc_t, {&s}});
-  } else if (s.node_boxes_f.empty()) {
-    ray_query(index, ray, q, hits, &stats, RefinedKey<DiscKey, SurfelNodeRadius, SurfelNodeBox>{disc_t, {&s}, {&s}});
-  } else if constexpr (detail::FloatChildBoxes<I>) {
-    ray_query(index, ray, q, hits, &stats,
-              RefinedKey<DiscKey, SurfelNodeRadius, SurfelNodeBox, SurfelChildBoxesF<I>>{
-                  disc_t, {&s}, {&s}, {&index, &s}});
-  } else {
+  } else if (!kFloatBoxes && !s.node_boxes_f.empty()) {
     throw std::invalid_argument("first_surfel_hit: float node boxes on an index without float child boxes");
+  } else if (kFloatBoxes && s.node_boxes_f.empty()) {
+    ray_query(index, ray, q, hits, &stats, RefinedKey<DiscKey, SurfelNodeRadius, SurfelNodeBox>{disc_t, {&s}, {&s}});
+  } else {
+    query_full_tables();
   }
   best.queries = 1;
   if (!hits.empty()) {
