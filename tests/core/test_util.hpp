@@ -25,6 +25,17 @@ inline const char* name(Dist d) {
   return "?";
 }
 
+/// Three draws of f, in this order, as a vector: the order of evaluation of a constructor's
+/// arguments is unspecified (GCC draws z first, Clang x), so Vec3(f(), f(), f()) would give each
+/// compiler different test data.
+template <class F>
+inline Vec3 draw3(F&& f) {
+  const double x = f();
+  const double y = f();
+  const double z = f();
+  return Vec3(x, y, z);
+}
+
 /// n points of distribution d, deterministic in (n, d, seed).
 /// grid: integer lattice coordinates in [0, 8]^3 / 8, i.e. exactly on octree cell boundaries, with
 /// repeats; utm_mm: x ~ 6e5, y ~ 5.3e6 with millimetre spacing (a 0.1 m cube on a 1 mm lattice).
@@ -34,20 +45,20 @@ inline std::vector<Vec3> make_points(std::size_t n, Dist d, unsigned seed = 1) {
   std::normal_distribution<double> g(0.0, 0.02);
   std::vector<Vec3> pts(n);
   std::vector<Vec3> centres(5);
-  for (auto& c : centres) c = Vec3(u(rng), u(rng), u(rng));
+  for (auto& c : centres) c = draw3([&] { return u(rng); });
   for (std::size_t i = 0; i < n; ++i) {
     switch (d) {
-      case Dist::uniform: pts[i] = Vec3(u(rng), u(rng), u(rng)); break;
-      case Dist::clustered: pts[i] = centres[i % centres.size()] + Vec3(g(rng), g(rng), g(rng)); break;
+      case Dist::uniform: pts[i] = draw3([&] { return u(rng); }); break;
+      case Dist::clustered: pts[i] = centres[i % centres.size()] + draw3([&] { return g(rng); }); break;
       case Dist::identical: pts[i] = Vec3(0.25, 0.5, 0.75); break;
       case Dist::grid: {
         std::uniform_int_distribution<int> k(0, 8);
-        pts[i] = Vec3(k(rng), k(rng), k(rng)) / 8.0;
+        pts[i] = draw3([&] { return double(k(rng)); }) / 8.0;
         break;
       }
       case Dist::utm_mm: {
         std::uniform_int_distribution<int> k(0, 100);
-        pts[i] = Vec3(600000.0 + k(rng) * 0.001, 5300000.0 + k(rng) * 0.001, 100.0 + k(rng) * 0.001);
+        pts[i] = Vec3(600000.0, 5300000.0, 100.0) + draw3([&] { return k(rng) * 0.001; });
         break;
       }
     }
@@ -60,11 +71,11 @@ inline Ray random_ray(std::mt19937_64& rng, const AABB& box, bool inside) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const Vec3 c = box.center();
   const double s = std::max(box.max_extent(), 1e-3);
-  auto in_box = [&] { return box.lo + Vec3(u(rng), u(rng), u(rng)) * (box.hi - box.lo); };
+  auto in_box = [&] { return box.lo + draw3([&] { return u(rng); }) * (box.hi - box.lo); };
   const Vec3 target = in_box();
-  Vec3 origin = inside ? in_box() : c + Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * (4.0 * s);
+  Vec3 origin = inside ? in_box() : c + draw3([&] { return u(rng) - 0.5; }) * (4.0 * s);
   Vec3 dir = target - origin;
-  if (glm::length(dir) < 1e-12 * s) dir = Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+  if (glm::length(dir) < 1e-12 * s) dir = draw3([&] { return u(rng) - 0.5; });
   return Ray(origin, dir);
 }
 
