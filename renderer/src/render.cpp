@@ -147,8 +147,12 @@ void for_each_channel(Framebuffer& fb, F&& f) {
   f(std::as_writable_bytes(std::span(fb.cost)), sizeof(float));
 }
 
-// The pixel rectangle of tile t: x0, y0, x1, y1.
-std::array<std::uint32_t, 4> tile_rect(const Framebuffer& fb, std::uint32_t T, std::uint64_t t) {
+// The pixel rectangle of tile t (row-major tiles of T x T pixels, cut at the image edge).
+struct TileRect {
+  std::uint32_t x0, y0, x1, y1;  // pixels [x0, x1) x [y0, y1)
+};
+
+TileRect tile_rect(const Framebuffer& fb, std::uint32_t T, std::uint64_t t) {
   const std::uint32_t tiles_x = (fb.width + T - 1) / T;
   const std::uint32_t x0 = std::uint32_t(t % tiles_x) * T, y0 = std::uint32_t(t / tiles_x) * T;
   return {x0, y0, std::min(fb.width, x0 + T), std::min(fb.height, y0 + T)};
@@ -160,11 +164,11 @@ std::vector<std::byte> pack_tiles(Framebuffer& fb, unsigned tile_size, std::uint
   std::vector<std::byte> out;
   const std::uint32_t T = std::max(1u, tile_size);
   for (std::uint64_t t = first; t < first + count; ++t) {
-    const auto [x0, y0, x1, y1] = tile_rect(fb, T, t);
+    const TileRect r = tile_rect(fb, T, t);
     for_each_channel(fb, [&](std::span<std::byte> ch, std::size_t px) {
       if (ch.empty()) return;
-      for (std::uint32_t y = y0; y < y1; ++y) {
-        const std::size_t a = (std::size_t(y) * fb.width + x0) * px, b = (std::size_t(y) * fb.width + x1) * px;
+      for (std::uint32_t y = r.y0; y < r.y1; ++y) {
+        const std::size_t a = (std::size_t(y) * fb.width + r.x0) * px, b = (std::size_t(y) * fb.width + r.x1) * px;
         out.insert(out.end(), ch.begin() + a, ch.begin() + b);
       }
     });
@@ -177,12 +181,12 @@ void unpack_tiles(Framebuffer& fb, unsigned tile_size, std::uint64_t first, std:
   const std::uint32_t T = std::max(1u, tile_size);
   std::size_t off = 0;
   for (std::uint64_t t = first; t < first + count; ++t) {
-    const auto [x0, y0, x1, y1] = tile_rect(fb, T, t);
+    const TileRect r = tile_rect(fb, T, t);
     for_each_channel(fb, [&](std::span<std::byte> ch, std::size_t px) {
       if (ch.empty()) return;
-      for (std::uint32_t y = y0; y < y1; ++y) {
-        const std::size_t a = (std::size_t(y) * fb.width + x0) * px;
-        read_bytes(bytes, off, ch.subspan(a, std::size_t(x1 - x0) * px));
+      for (std::uint32_t y = r.y0; y < r.y1; ++y) {
+        const std::size_t a = (std::size_t(y) * fb.width + r.x0) * px;
+        read_bytes(bytes, off, ch.subspan(a, std::size_t(r.x1 - r.x0) * px));
       }
     });
   }

@@ -51,8 +51,10 @@ TEST(PointQuery, MatchBruteForceOnEveryIndex) {
           std::visit([&](const auto& idx) { box_query(idx, qb, got_box); }, index);
           std::sort(got_box.begin(), got_box.end());
           ASSERT_EQ(got_box, want_box) << ctx;
-          for (auto [k, r] : {std::pair<std::size_t, double>{8, kInf}, {kAllPoints, 0.05 * s},
-                              {5, 0.03 * s}, {n + 3, kInf}, {1, 0.0}}) {
+          for (const auto& kr : {std::pair<std::size_t, double>{8, kInf}, {kAllPoints, 0.05 * s},
+                                 {5, 0.03 * s}, {n + 3, kInf}, {1, 0.0}}) {
+            const std::size_t k = kr.first;  // (no structured binding: a lambda below captures them)
+            const double r = kr.second;
             std::vector<Neighbor> got;
             std::visit([&](const auto& idx) { knn_query(idx, q, k, r, got); }, index);
             const auto want = oracle_knn(pts, q, k, r);
