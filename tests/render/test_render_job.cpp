@@ -1,12 +1,11 @@
 // The render job as a library call (rayscan/render/render_job.hpp). Oracles: the lower-level
-// calls it composes (compute_albedo, make_index, median_nn_spacing, render_image) run by hand,
-// and the files' own bytes read back through OpenImageIO.
+// calls it composes (compute_albedo, make_index, median_nn_spacing, render_image) run by hand.
+// The files it writes, read back through OpenImageIO: test_render_files.cpp.
 #include "render_test_data.hpp"
 #include "rayscan/io/index_file.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/render_job.hpp"
 
-#include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -71,29 +70,6 @@ TEST(RenderJob, InMemoryCloudEqualsTheHandComposedRender) {
   EXPECT_EQ(r.points, subset().size());
   ASSERT_FALSE(log.empty());
   EXPECT_NE(log.back().find("ray queries"), std::string::npos);
-}
-
-TEST(RenderJob, WritesTheImageAndAovsItNames) {
-  const fs::path dir = fs::temp_directory_path() / ("rayscan_render_job_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  RenderJobOptions o;
-  o.scene = small_scene();
-  o.scene.radius = 0.9;
-  o.scene.output.image = dir / "a.exr";
-  o.cloud = &subset();
-  const RenderJobResult r = run_render(o);
-  ASSERT_EQ(r.written.size(), 1u);
-  EXPECT_EQ(r.written[0], dir / "a.exr");
-  EXPECT_FALSE(r.radius.automatic);
-  auto in = OIIO::ImageInput::open((dir / "a.exr").string());
-  ASSERT_TRUE(in);
-  const OIIO::ImageSpec& spec = in->spec();
-  EXPECT_EQ(spec.width, 40);
-  EXPECT_GE(spec.channelindex(aov_channels(Aov::index)[0]), 0);
-  EXPECT_GE(spec.channelindex(aov_channels(Aov::depth)[0]), 0);
-  EXPECT_EQ(spec.get_string_attribute("rayscan:radius"), "0.90000000000000002");
-  in->close();
-  fs::remove_all(dir);
 }
 
 TEST(RenderJob, ErrorsNameTheSceneField) {
