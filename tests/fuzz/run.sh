@@ -9,6 +9,9 @@
 # compiles that many sources and runs that many targets at a time (each target single-threaded).
 # Exit status: 0 when no target crashed, 1 otherwise. Crashing inputs are written to
 # BUILD_DIR/crashes/<format>-crash-*; copy them to tests/fuzz/regressions/<format>/ after fixing.
+# FUZZ_BUILD=DIR runs the targets that a CMake build with RAYSCAN_FUZZ=ON made (tools/sanitize.sh:
+# DIR/tests/fuzz/fuzz_<format>, the sanitizer build's own rayscan_io with coverage) and compiles
+# nothing here; CI does this, after the sanitizer job. BUILD_DIR then holds corpora, logs, crashes.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 SECONDS_PER_TARGET="${1:-60}"
@@ -16,13 +19,14 @@ OUT="${2:-build-fuzz}"
 CXX="${FUZZ_CXX:-clang++}"
 command -v "$CXX" >/dev/null || { echo "fuzz: $CXX not found (Debian package clang)"; exit 2; }
 mkdir -p "$OUT/obj" "$OUT/crashes"
+JOBS="${FUZZ_JOBS:-2}"
 
+if [ -z "${FUZZ_BUILD:-}" ]; then
 FLAGS=(-std=c++20 -O1 -g -fno-omit-frame-pointer -ffp-contract=off -fsanitize=address,undefined
        -fno-sanitize-recover=undefined -Ioctree/include -Ioctree/io/include -I/usr/include/liblzf)
 # The whole core and io: io sources (camera files, the query job, the input policy) call into
 # the core.
 SOURCES=(octree/src/*.cpp octree/io/src/*.cpp octree/io/src/laz/*.cpp)
-JOBS="${FUZZ_JOBS:-2}"
 objs=()
 running=0
 for s in "${SOURCES[@]}"; do
@@ -38,13 +42,22 @@ done
 wait
 for o in "${objs[@]}"; do [ -f "$o" ] || { echo "fuzz: compiling $o failed"; exit 1; }; done
 
+fi
+
 # Link every target and seed its corpus, then run up to FUZZ_JOBS targets at a time (each libFuzzer
 # process is single-threaded, so one at a time left a core idle for the whole bounded run).
+
 TARGETS=(${FUZZ_TARGETS:-las ply pcd text laz copc rsi})
 for fmt in "${TARGETS[@]}"; do
-  exe="$OUT/fuzz_$fmt"
-  echo "fuzz: linking $exe"
-  "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer "tests/fuzz/fuzz_$fmt.cpp" "${objs[@]}" -lgdal -llzf -lz -ltbb -o "$exe"
+  if [ -n "${FUZZ_BUILD:-}" ]; then
+    [ -x "$FUZZ_BUILD/tests/fuzz/fuzz_$fmt" ] ||
+      { echo "fuzz: $FUZZ_BUILD/tests/fuzz/fuzz_$fmt not built (configure with -DRAYSCAN_FUZZ=ON)"; exit 2; }
+    ln -sf "$(cd "$FUZZ_BUILD" && pwd)/tests/fuzz/fuzz_$fmt" "$OUT/fuzz_$fmt"
+  else
+    exe="$OUT/fuzz_$fmt"
+    echo "fuzz: linking $exe"
+    "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer "tests/fuzz/fuzz_$fmt.cpp" "${objs[@]}" -lgdal -llzf -lz -ltbb -o "$exe"
+  fi
   corpus="$OUT/corpus/$fmt"
   mkdir -p "$corpus" "tests/fuzz/regressions/$fmt"
   case "$fmt" in
