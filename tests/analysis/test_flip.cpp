@@ -121,8 +121,8 @@ TEST(Flip, EdgeDetectorAnswersTheLuminanceJumpAtAStep) {
 }
 
 TEST(Flip, IdenticalImagesScoreZeroAndTheMetricIsSymmetricAndBounded) {
-  const Image a = test::noise_image(40, 30, {"R", "G", "B"}, 7, 0, 1);
-  const Image b = test::noise_image(40, 30, {"R", "G", "B"}, 8, 0, 1);
+  const Image a = rayscan::analysis::test::noise_image(40, 30, {"R", "G", "B"}, 7, 0, 1);
+  const Image b = rayscan::analysis::test::noise_image(40, 30, {"R", "G", "B"}, 8, 0, 1);
   const FlipResult same = flip(a.pixels, a.pixels, 40, 30);
   EXPECT_EQ(same.mean, 0.0);
   for (float e : same.error) ASSERT_EQ(e, 0.0f);
@@ -174,7 +174,7 @@ TEST(Flip, MaskedPixelsLeaveTheMeanAndBadInputThrows) {
 }
 
 TEST(Flip, CompareJobReportsMeanFlipAndJudgesIt) {
-  const Image a = test::noise_image(32, 24, {"R", "G", "B"}, 1, 0, 1);
+  const Image a = rayscan::analysis::test::noise_image(32, 24, {"R", "G", "B"}, 1, 0, 1);
   Image b = a;
   for (float& f : b.pixels) f = 1.0f - f;
   CompareJobOptions o;
@@ -187,7 +187,7 @@ TEST(Flip, CompareJobReportsMeanFlipAndJudgesIt) {
   o.image = &a;
   EXPECT_EQ(run_compare(o).metrics.flip, 0.0);
   // A depth channel has no FLIP; a FLIP criterion on it is a user error.
-  const Image z = test::noise_image(8, 8, {"Z"}, 1, 0, 1);
+  const Image z = rayscan::analysis::test::noise_image(8, 8, {"Z"}, 1, 0, 1);
   o.reference = &z;
   o.image = &z;
   EXPECT_THROW(run_compare(o), std::invalid_argument);

@@ -58,7 +58,7 @@ std::string error_of(const fs::path& p) {
 using RunResult = rayscan::test::CommandResult;
 
 /// Runs a shell command, capturing standard output and error.
-RunResult run(const std::string& cmd) { return rayscan::test::run_command(cmd); }
+RunResult run_cmd(const std::string& cmd) { return rayscan::test::run_command(cmd); }
 
 // Removes the temporary folder when the test program ends.
 class RemoveTmp : public ::testing::Environment {
@@ -345,14 +345,14 @@ TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
   const fs::path las = tmpdir() / "out.las", ply = tmpdir() / "out.ply", tif = tmpdir() / "vis.tif";
   const std::string common = bin() + " visibility " + scene().string() + " --observers " + csv.string() +
                              " --radius 0.8 --distance --sky-view 16 -q";
-  RunResult r = run(common + " -o " + las.string() + " --raster " + tif.string() + " --cell 2 --json");
+  RunResult r = run_cmd(common + " -o " + las.string() + " --raster " + tif.string() + " --cell 2 --json");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("\"visible_points\""), std::string::npos) << r.out;
-  r = run(common + " -o " + ply.string());
+  r = run_cmd(common + " -o " + ply.string());
   ASSERT_EQ(r.code, 0) << r.out;
   // -o .laz: the same LAS records through the LAZ (layered, LASzip 3) writer
   const fs::path laz = tmpdir() / "out.laz";
-  r = run(common + " -o " + laz.string());
+  r = run_cmd(common + " -o " + laz.string());
   ASSERT_EQ(r.code, 0) << r.out;
   {
     const io::LasRecords zl = io::read_las_records(laz), pl = io::read_las_records(las);
@@ -404,7 +404,7 @@ TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
 TEST_F(VisibilityCli, UserErrorsExitTwoAndWriteNothing) {
   const fs::path out = tmpdir() / "never.las";
   auto expect_error = [&](const std::string& args, const std::string& msg) {
-    const RunResult r = run(bin() + " visibility " + args);
+    const RunResult r = run_cmd(bin() + " visibility " + args);
     EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
     EXPECT_NE(r.out.find(msg), std::string::npos) << args << "\n" << r.out;
     EXPECT_FALSE(fs::exists(out));
@@ -433,7 +433,7 @@ TEST_F(VisibilityCli, OutputFoldersAreCheckedBeforeComputing) {
   auto expect_error = [&](const std::string& args, const std::string& msg) {
     // --sky-view 20000 on 500 points would take a while: the error must come first, and
     // "rayscan visibility:" progress lines must not appear.
-    const RunResult r = run(bin() + " visibility " + s + " --sky-view 20000 " + args);
+    const RunResult r = run_cmd(bin() + " visibility " + s + " --sky-view 20000 " + args);
     EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
     EXPECT_NE(r.out.find(msg), std::string::npos) << args << "\n" << r.out;
     EXPECT_EQ(r.out.find("sky view"), std::string::npos) << args << "\n" << r.out;
@@ -454,7 +454,7 @@ TEST_F(VisibilityCli, FromCameraMarksThePointsItSees) {
   const fs::path cam = write_text("cam.json", R"({"width": 64, "height": 48, "position": [-9, 0, 4],
     "look_at": [5, 0, 1], "up": [0, 0, 1], "vfov_deg": 50})");
   const fs::path out = tmpdir() / "cam.ply";
-  const RunResult r = run(bin() + " visibility " + scene().string() + " --from-camera " + cam.string() +
+  const RunResult r = run_cmd(bin() + " visibility " + scene().string() + " --from-camera " + cam.string() +
                           " --radius 0.6 -q -o " + out.string());
   ASSERT_EQ(r.code, 0) << r.out;
   const PointCloud in = io::read_point_cloud(scene());

@@ -33,7 +33,7 @@ std::array<double, 3> project(const LookAtParams& c, std::uint32_t w, std::uint3
   return {glm::dot(v, r) / z / th, glm::dot(v, u) / z / tv, z};
 }
 
-fs::path temp_dir() {
+fs::path quick_look_temp_dir() {
   const fs::path d = fs::temp_directory_path() / ("rayscan_quick_look_" + std::to_string(::getpid()));
   fs::create_directories(d);
   return d;
@@ -74,7 +74,7 @@ TEST(OverviewCamera, FramesEveryCornerOfTheBoxTightly) {
 }
 
 TEST(QuickLook, CloudRendersAndPrintedSceneReproducesTheImage) {
-  const fs::path d = temp_dir();
+  const fs::path d = quick_look_temp_dir();
   {
     std::ofstream xyz(d / "c.xyz");
     for (int i = 0; i < 20; ++i)

@@ -24,15 +24,15 @@ RunResult run(const std::string& args) {
   return rayscan::test::run_command(std::string(RAYSCAN_BIN) + " " + args);
 }
 
-fs::path temp_dir() {
+fs::path cli_temp_dir() {
   const fs::path d = fs::temp_directory_path() / ("rayscan_render_cli_" + std::to_string(::getpid()));
   fs::create_directories(d);
   return d;
 }
 
 // A valid scene over a 3-point cloud.
-fs::path small_scene() {
-  const fs::path d = temp_dir();
+fs::path small_scene_file() {
+  const fs::path d = cli_temp_dir();
   std::ofstream(d / "c.xyz") << "0 0 0\n1 0 0\n0 1 0\n";
   std::ofstream(d / "s.json") << R"({"cloud": "c.xyz", "radius": 0.5, "spp": 1, "material": {"color": [0.5, 0.5, 0.5]},
     "camera": {"width": 8, "height": 6, "position": [0, -10, 2], "look_at": [0, 0, 0]}})";
@@ -42,8 +42,8 @@ fs::path small_scene() {
 }  // namespace
 
 TEST(RenderCli, OutRejectsExtensionsTheSceneFileRejects) {
-  const fs::path scene = small_scene();
-  const fs::path out = temp_dir() / "x.bmp";
+  const fs::path scene = small_scene_file();
+  const fs::path out = cli_temp_dir() / "x.bmp";
   const RunResult r = run("render -q " + scene.string() + " --out " + out.string());
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_EQ(r.out, "rayscan render: --out '" + out.string() + "': " + rayscan::render::image_file_name_expected() + "\n");
@@ -53,9 +53,9 @@ TEST(RenderCli, OutRejectsExtensionsTheSceneFileRejects) {
 TEST(RenderCli, AnImageModuleThatDoesNotLoadStopsTheRenderBeforeItStarts) {
   // The image writer (OpenImageIO, in librayscan_oiio.so) is loaded before the render, so a
   // missing module costs no render: one line naming the path tried, exit 2, no output file.
-  const fs::path scene = small_scene();
-  const fs::path out = temp_dir() / "m.png";
-  const std::string bad = (temp_dir() / "no-such-module.so").string();
+  const fs::path scene = small_scene_file();
+  const fs::path out = cli_temp_dir() / "m.png";
+  const std::string bad = (cli_temp_dir() / "no-such-module.so").string();
   const RunResult r = rayscan::test::run_command("RAYSCAN_OIIO_MODULE=" + bad + " " + std::string(RAYSCAN_BIN) +
                                                  " render " + scene.string() + " --out " + out.string());
   EXPECT_EQ(r.code, 2) << r.out;
@@ -72,8 +72,8 @@ TEST(RenderCli, AnImageModuleThatDoesNotLoadStopsTheRenderBeforeItStarts) {
 
 TEST(RenderCli, OutAcceptsEveryImageExtension) {
   // Positive control for the test above: the same command with a listed extension succeeds.
-  const fs::path scene = small_scene();
-  const fs::path out = temp_dir() / "x.PNG";
+  const fs::path scene = small_scene_file();
+  const fs::path out = cli_temp_dir() / "x.PNG";
   const RunResult r = run("render -q " + scene.string() + " --out " + out.string());
   EXPECT_EQ(r.code, 0) << r.out;
   EXPECT_TRUE(fs::exists(out));

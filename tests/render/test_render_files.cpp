@@ -25,7 +25,7 @@ namespace {
 using rayscan::render::test::subset;
 using rayscan::render::test::subset_scene;
 
-fs::path temp_dir() {
+fs::path files_temp_dir() {
   const fs::path d = fs::temp_directory_path() / ("rayscan_render_files_test_" + std::to_string(::getpid()));
   fs::create_directories(d);
   return d;
@@ -45,7 +45,7 @@ TEST(ImageOutput, ExrHoldsBeautyAndAovChannelsAndMetadata) {
   Framebuffer fb;
   render_image(index, make_settings(s, pc.positions, albedo, 0.8), fb);
   OutputDesc out;
-  out.image = temp_dir() / "img.exr";
+  out.image = files_temp_dir() / "img.exr";
   out.exr_half = false;
   const auto files = write_image(fb, out, {{"rayscan:spp", "1"}});
   ASSERT_EQ(files.size(), 1u);
@@ -72,7 +72,7 @@ TEST(ImageOutput, ExrHoldsBeautyAndAovChannelsAndMetadata) {
     EXPECT_EQ(ids[i], fb.index[i]);
   }
   // Nothing temporary is left next to the image.
-  for (const auto& e : fs::directory_iterator(temp_dir()))
+  for (const auto& e : fs::directory_iterator(files_temp_dir()))
     EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
 }
 
@@ -82,7 +82,7 @@ TEST(ImageOutput, PngIsSrgbEncodedAt16Bit) {
   fb.height = 1;
   fb.beauty = {Color(0.5f), Color(0.0031308f, 1.0f, 2.0f)};
   OutputDesc out;
-  out.image = temp_dir() / "img16.png";
+  out.image = files_temp_dir() / "img16.png";
   out.bit_depth = 16;
   write_image(fb, out, {});
   auto in = OIIO::ImageInput::open(out.image.string());

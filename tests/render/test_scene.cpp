@@ -16,14 +16,14 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path temp_dir() {
+fs::path scene_temp_dir() {
   const fs::path d = fs::temp_directory_path() / ("rayscan_render_scene_" + std::to_string(::getpid()));
   fs::create_directories(d);
   return d;
 }
 
 fs::path write(const std::string& name, const std::string& text) {
-  const fs::path p = temp_dir() / name;
+  const fs::path p = scene_temp_dir() / name;
   std::ofstream(p) << text;
   return p;
 }
@@ -42,7 +42,7 @@ std::string error_of(const fs::path& p) {
 }  // namespace
 
 TEST(Scene, ParsesValuesAndResolvesPathsAgainstTheSceneFolder) {
-  fs::create_directories(temp_dir() / "sub");
+  fs::create_directories(scene_temp_dir() / "sub");
   write("sub/cam.json", R"({"width": 64, "height": 32, "position": [1, 2, 3], "look_at": [1, 3, 3], "vfov_deg": 30})");
   const fs::path p = write("sub/s.json", R"({"cloud": "../data/c.las", "radius": 0.25, "hit": "closest_point",
     "index": {"type": "octree", "layout": "layered", "capacity": 8},
@@ -50,8 +50,8 @@ TEST(Scene, ParsesValuesAndResolvesPathsAgainstTheSceneFolder) {
     "sun": {"direction": [0, 0, 2], "angular_diameter_deg": 1}, "camera": "cam.json",
     "spp": 3, "max_depth": 7, "seed": 99, "output": {"image": "img.exr", "aovs": ["depth", "index"]}})");
   const Scene s = load_scene(p);
-  EXPECT_EQ(s.cloud, (temp_dir() / "data/c.las").lexically_normal());
-  EXPECT_EQ(s.output.image, (temp_dir() / "sub/img.exr").lexically_normal());
+  EXPECT_EQ(s.cloud, (scene_temp_dir() / "data/c.las").lexically_normal());
+  EXPECT_EQ(s.output.image, (scene_temp_dir() / "sub/img.exr").lexically_normal());
   ASSERT_TRUE(s.radius.has_value());
   EXPECT_EQ(*s.radius, 0.25);
   EXPECT_EQ(s.hit, HitMode::closest_point);
@@ -114,7 +114,7 @@ TEST(Scene, BadFieldsNameFileAndJsonPointer) {
     "K": [[100, 0, 30], [0, 100, 20], [0, 0, 1]], "R": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "t": [0, 0, "a"]}})");
   EXPECT_EQ(error_of(p9), p9.string() + ": /camera/t/2: expected an array of 3 finite numbers");
 
-  EXPECT_NE(error_of(temp_dir() / "missing.json").find("missing.json: cannot open file"), std::string::npos);
+  EXPECT_NE(error_of(scene_temp_dir() / "missing.json").find("missing.json: cannot open file"), std::string::npos);
 }
 
 TEST(Scene, LookAtCameraRejectsPinholeKeys) {
