@@ -351,16 +351,7 @@ struct RayTraversal {
     if (per_node && ray_order)
       throw std::invalid_argument("ray query: per-node radii need order time or sphere_hit");
     dist_center = glm::length(o - root_box.center());
-    // Rounding allowance of the node tests. The box-to-ray distance bounds (node_ray_distance_sat,
-    // segment_box_distance2) round box centres and points on the ray at the coordinates' own
-    // magnitude, so far from the frame's origin (UTM: 5.3e6 m, ulp 9.3e-10 m) their error does not
-    // shrink with the box or the ray: a ray touching a tight box's edge (r = 0, a data point on a
-    // kd-tree box's corner) was pruned by a bound of 3.7e-10 m. Hence 2^-48 (16 ulp) of the largest
-    // coordinate magnitude on top of the relative term; answers are still confirmed exactly.
-    const double coord_mag = std::max({std::abs(o.x), std::abs(o.y), std::abs(o.z), std::abs(root_box.lo.x),
-                                       std::abs(root_box.lo.y), std::abs(root_box.lo.z), std::abs(root_box.hi.x),
-                                       std::abs(root_box.hi.y), std::abs(root_box.hi.z)});
-    tol = 1e-9 * (dist_center + root_box.max_extent()) + 0x1p-48 * coord_mag + 1e-300;
+    tol = node_test_tolerance(o, root_box);  // (distance.hpp: includes the coordinates' magnitude)
     pad = radius;
     o_plus = o + (pad + tol);
     o_minus = o - (pad + tol);
