@@ -48,23 +48,6 @@ nlohmann::json compare_json(const fs::path& a, const fs::path& b, const std::str
 using rayscan::analysis::test::noise_image;
 using rayscan::analysis::test::px;
 
-class CompareCli : public ::testing::Test {
- protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("rayscan_compare_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  fs::path write(const std::string& name, const Image& img, PixelFormat f = PixelFormat::float32) {
-    const fs::path p = dir_ / name;
-    write_image(img, p.string(), f);
-    return p;
-  }
-  fs::path dir_;
-};
-
 /// Value of "<label> = <number>" in idiff's report.
 double idiff_value(const std::string& out, const std::string& label) {
   const std::regex re(label + R"(\s*=\s*([-+0-9.eEinfa]+))");
@@ -83,6 +66,25 @@ double printed_tolerance(double v) {
 }
 
 }  // namespace
+
+// The fixture outside the anonymous namespace: its TEST_F classes have external linkage (GCC's
+// -Wsubobject-linkage in a unity batch).
+class CompareCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("rayscan_compare_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path write(const std::string& name, const Image& img, PixelFormat f = PixelFormat::float32) {
+    const fs::path p = dir_ / name;
+    write_image(img, p.string(), f);
+    return p;
+  }
+  fs::path dir_;
+};
 
 TEST_F(CompareCli, IdenticalImagesPassWithInfinitePsnr) {
   const fs::path a = write("a.png", noise_image(48, 32, {"R", "G", "B"}, 1, 0, 1), PixelFormat::uint8);
