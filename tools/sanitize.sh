@@ -33,6 +33,14 @@ cxx="${SANITIZE_CXX:-clang++}"
 compiler=(-DCMAKE_CXX_COMPILER="$cxx")
 case "$cxx" in *clang++*) compiler+=(-DCMAKE_C_COMPILER="${cxx/clang++/clang}" -DRAYSCAN_FUZZ=ON) ;;
                  *) compiler+=(-DRAYSCAN_FUZZ=OFF) ;; esac
+# A build folder configured with another compiler is started afresh: CMake would drop its cache and
+# re-run without the options below (and no object of the other compiler can be reused).
+cached=$(sed -n 's/^CMAKE_CXX_COMPILER:[A-Z]*=//p' "$BUILD/CMakeCache.txt" 2>/dev/null || true)
+want=$(command -v "$cxx" || echo "$cxx")
+if [ -n "$cached" ] && [ "$(readlink -f "$(command -v "$cached" || echo "$cached")")" != "$(readlink -f "$want")" ]; then
+  echo "sanitize: $BUILD was configured with $cached, not $want: starting it afresh"
+  rm -rf "$BUILD"
+fi
 cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRAYSCAN_SANITIZE=ON "${compiler[@]}" \
   "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" "-DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" \
   -DRAYSCAN_BUILD_BENCH=OFF "${launcher[@]}" >/dev/null

@@ -43,7 +43,7 @@ const char* check(rs_function f, const double* a, int n, bool box, char* err) {
   return nullptr;
 }
 
-// Tolerance of the pruning tests: the core ray query's (ray_query.hpp), 1e-9 of the magnitude.
+// Tolerance of the pruning tests: the core ray query's (distance.hpp, node_test_tolerance).
 double tolerance(const Vec3& o, const AABB& b) { return rayscan::node_test_tolerance(o, b); }
 
 AABB make_box(const double* b) { return {Vec3(b[0], b[1], b[2]), Vec3(b[3], b[4], b[5])}; }

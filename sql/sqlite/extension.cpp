@@ -457,7 +457,7 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
       double score;
       rs_ray_box_test(o3, d3, r, t_min, t_max, time_order, box, &score);
       const rayscan::AABB b{Vec3(box[0], box[1], box[2]), Vec3(box[3], box[4], box[5])};
-      const double tol = 1e-9 * (glm::length(o - b.center()) + b.max_extent()) + 1e-300;
+      const double tol = rayscan::node_test_tolerance(o, b);
       const Cand ch{score, tol, sqlite3_column_int64(s, 6), sqlite3_column_int64(s, 7), sqlite3_column_int64(s, 8)};
       ++st.chunks_candidate;
       if (time_order) {

@@ -12,13 +12,18 @@
 # FUZZ_BUILD=DIR runs the targets that a CMake build with RAYSCAN_FUZZ=ON made (tools/sanitize.sh:
 # DIR/tests/fuzz/fuzz_<format>, the sanitizer build's own rayscan_io with coverage) and compiles
 # nothing here; CI does this, after the sanitizer job. BUILD_DIR then holds corpora, logs, crashes.
+# Both folders are relative to the repository's root. The targets are used as they are: build them
+# first (tools/sanitize.sh DIR).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 SECONDS_PER_TARGET="${1:-60}"
 OUT="${2:-build-fuzz}"
 CXX="${FUZZ_CXX:-clang++}"
-command -v "$CXX" >/dev/null || { echo "fuzz: $CXX not found (Debian package clang)"; exit 2; }
-mkdir -p "$OUT/obj" "$OUT/crashes"
+if [ -z "${FUZZ_BUILD:-}" ]; then
+  command -v "$CXX" >/dev/null || { echo "fuzz: $CXX not found (Debian package clang)"; exit 2; }
+  mkdir -p "$OUT/obj"
+fi
+mkdir -p "$OUT/crashes"
 JOBS="${FUZZ_JOBS:-2}"
 
 if [ -z "${FUZZ_BUILD:-}" ]; then

@@ -852,8 +852,8 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
 /// visited nearest lower bound first, so the k filter tightens early, and every node whose lower
 /// bound exceeds the current k-bound is skipped when it is popped (a global best-first heap was
 /// measured slower for the k = 1 queries a renderer issues); without k, a plain depth-first stack
-/// is used. Bounds carry a tolerance of 1e-9 of the
-/// scene's magnitude so rounding never prunes a qualifying point.
+/// is used. Bounds carry a rounding allowance (node_test_tolerance: relative to the geometry and
+/// to the coordinates' magnitude) so rounding never prunes a qualifying point.
 ///
 /// SIMD (issue 12): on the active simd_path(), an index with FloatChildBoxes tests all children
 /// of a node at once on their float boxes (slabs grown by a margin that covers every float rounding,
