@@ -1,5 +1,7 @@
 // Distance predicates (paper eqs. 1-6) and their bounds evaluation, Morton codes and node ids,
 // against independent formulas (cross product, corner enumeration, ternary search over edges).
+#include "test_util.hpp"
+
 #include "rayscan/distance.hpp"
 #include "rayscan/morton.hpp"
 #include "rayscan/ray.hpp"
@@ -117,6 +119,36 @@ TEST(Distance, DistRayBoundsOfAPointBoxIsNeverEmpty) {
     ASSERT_FALSE(iv.empty()) << i;
     ASSERT_LE(iv.lo, iv.hi);
     EXPECT_NEAR(iv.lo, dist_ray(base, d, p), 1e-9 * (1 + glm::length(p - base)));
+  }
+}
+
+// A line touching a box's edge or corner is at distance 0 from it (analytic), so no bound of the
+// box-to-line distance may exceed the node tests' rounding allowance there. At UTM magnitudes the
+// bounds round box centres at the coordinates' ulp (9.3e-10 m at 5.3e6): the first box is the
+// kd-tree leaf whose point a ray at r = 0 lost (separating-axis bound 3.7e-10 m against an
+// allowance of 2.2e-10 m without the magnitude term; bench/README.md, "Issue 12, session 29").
+TEST(Distance, BoxBoundsOfATouchingLineStayWithinTheNodeTestTolerance) {
+  const AABB leaf{Vec3(600000.04599999997, 5300000.0290000001, 100.015),
+                  Vec3(600000.071, 5300000.0480000004, 100.029)};
+  const Vec3 leaf_o(599999.86800000002, 5300000.0480000004, 100.015), x(1, 0, 0);
+  EXPECT_LE(node_ray_distance_sat(leaf_o, x, leaf), node_test_tolerance(leaf_o, leaf));
+  std::mt19937_64 rng(29);
+  std::uniform_int_distribution<int> mm(0, 100);
+  const Vec3 base(600000.0, 5300000.0, 100.0);
+  for (int i = 0; i < 20000; ++i) {
+    Vec3 lo = base + 0.001 * test::draw3([&] { return double(mm(rng)); });
+    Vec3 hi = base + 0.001 * test::draw3([&] { return double(mm(rng)); });
+    const AABB b{glm::min(lo, hi), glm::max(lo, hi)};
+    const int axis = i % 3;
+    Vec3 u(0.0);
+    u[axis] = (i / 3) % 2 ? 1.0 : -1.0;
+    // Through a corner of b (the other two coordinates exactly a corner's), from outside the box.
+    Vec3 o((i & 8) ? b.hi.x : b.lo.x, (i & 16) ? b.hi.y : b.lo.y, (i & 32) ? b.hi.z : b.lo.z);
+    o[axis] = b.center()[axis] - u[axis] * (0.05 + 0.001 * mm(rng));
+    const double tol = node_test_tolerance(o, b);
+    ASSERT_LE(node_ray_distance_sat(o, u, b), tol) << i;
+    ASSERT_LE(std::sqrt(segment_box_distance2(o, u, -kInf, kInf, b)), tol) << i;
+    ASSERT_LE(dist_ray_bounds(o, u, b).lo, tol) << i;
   }
 }
 
