@@ -43,9 +43,6 @@ const char* check(rs_function f, const double* a, int n, bool box, char* err) {
   return nullptr;
 }
 
-// Tolerance of the pruning tests: the core ray query's (distance.hpp, node_test_tolerance).
-double tolerance(const Vec3& o, const AABB& b) { return rayscan::node_test_tolerance(o, b); }
-
 AABB make_box(const double* b) { return {Vec3(b[0], b[1], b[2]), Vec3(b[3], b[4], b[5])}; }
 
 }  // namespace
@@ -117,7 +114,7 @@ extern "C" rs_within rs_ray_box_test(const double o_[3], const double d_[3], dou
                                      double* score) {
   const Vec3 o(o_[0], o_[1], o_[2]), d(d_[0], d_[1], d_[2]);
   const AABB b = make_box(box);
-  const double tol = tolerance(o, b);
+  const double tol = rayscan::node_test_tolerance(o, b);
   const Interval dr = rayscan::dist_ray_bounds(o, d, b);
   const Interval tb = rayscan::dist_plane_bounds(o, d, b);
   *score = order_time ? std::max(tb.lo, t_min) : dr.lo;
@@ -130,7 +127,7 @@ extern "C" rs_within rs_ray_box_test(const double o_[3], const double d_[3], dou
 extern "C" rs_within rs_plane_box_test(const double p0_[3], const double n_[3], const double box[6]) {
   const Vec3 p0(p0_[0], p0_[1], p0_[2]), n(n_[0], n_[1], n_[2]);
   const AABB b = make_box(box);
-  const double tol = tolerance(p0, b);
+  const double tol = rayscan::node_test_tolerance(p0, b);
   const Interval iv = rayscan::dist_plane_bounds(p0, n, b);
   if (iv.empty() || iv.lo > tol) return RS_NOT_WITHIN;
   if (iv.hi <= -tol) return RS_FULLY_WITHIN;
@@ -146,7 +143,7 @@ extern "C" int rs_ray_box_misses(const double o_[3], const double d_[3], double 
   // A qualifying point p lies within r of the line point o + t_p u (t_p in [t_min, t_max]), so
   // that line point lies in the box grown by r (+ the pruning tolerance) on every axis: if the
   // line segment misses the grown box (slab test), no point of the box qualifies.
-  const double g = r + tolerance(o, b);
+  const double g = r + rayscan::node_test_tolerance(o, b);
   double t0 = t_min - g, t1 = t_max + g;
   for (int i = 0; i < 3; ++i) {
     const double lo = b.lo[i] - g, hi = b.hi[i] + g;

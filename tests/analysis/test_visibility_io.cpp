@@ -1,6 +1,7 @@
 // Visibility inputs and outputs: observer files, local ground, raster grid and reductions, the
 // GeoTIFF read back through GDAL (geotransform, CRS, NoData, values), the PNG preview, and
 // `rayscan visibility` end to end (fields in LAS/PLY, exit codes, no partial files).
+#include "../common/temp_dir.hpp"
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/analysis/image.hpp"
 #include "rayscan/analysis/observer.hpp"
@@ -23,7 +24,6 @@
 #include <filesystem>
 #include <fstream>
 #include <sys/wait.h>
-#include <unistd.h>
 
 using namespace rayscan;
 using namespace rayscan::analysis;
@@ -32,11 +32,7 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path tmpdir() {
-  static const fs::path d = [] {
-    fs::path p = fs::temp_directory_path() / ("rayscan_vis_test_" + std::to_string(::getpid()));
-    fs::create_directories(p);
-    return p;
-  }();
+  static const fs::path d = rayscan::test::process_temp_dir("rayscan_vis_test");
   return d;
 }
 

@@ -125,7 +125,7 @@ TEST(Distance, DistRayBoundsOfAPointBoxIsNeverEmpty) {
 // A line touching a box's edge or corner is at distance 0 from it (analytic), so no bound of the
 // box-to-line distance may exceed the node tests' rounding allowance there. At UTM magnitudes the
 // bounds round box centres at the coordinates' ulp (9.3e-10 m at 5.3e6): the first box is the
-// kd-tree leaf whose point a ray at r = 0 lost (separating-axis bound 3.7e-10 m against an
+// kd-tree leaf whose point a ray at r = 0 lost (separating-axis bound 3.7e-10 m against this box's
 // allowance of 2.2e-10 m without the magnitude term; bench/README.md, "Issue 12, session 29").
 TEST(Distance, BoxBoundsOfATouchingLineStayWithinTheNodeTestTolerance) {
   const AABB leaf{Vec3(600000.04599999997, 5300000.0290000001, 100.015),

@@ -1,6 +1,7 @@
 // The one image writer and reader (rayscan/image/image_file.hpp): per-channel sample types, the
 // uint32 id plane, quantisation and metadata, checked against the file as OpenImageIO reads it
 // back in its stored types (the oracle is the file's own samples, not rayscan's reader).
+#include "../common/temp_dir.hpp"
 #include "rayscan/image/image_file.hpp"
 #include "rayscan/spatial_index.hpp"
 
@@ -12,17 +13,12 @@
 #include <cstdint>
 #include <filesystem>
 #include <limits>
-#include <unistd.h>
 
 namespace fs = std::filesystem;
 
 namespace {
 
-fs::path temp_dir() {
-  const fs::path d = fs::temp_directory_path() / ("rayscan_image_file_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+fs::path temp_dir() { return rayscan::test::process_temp_dir("rayscan_image_file"); }
 
 }  // namespace
 

@@ -1,6 +1,7 @@
 // Paths to the real data files the io tests read, and small helpers.
 #pragma once
 
+#include "../common/temp_dir.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <gtest/gtest.h>
@@ -41,10 +42,6 @@ inline std::vector<std::uint8_t> slurp(const fs::path& p) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
-inline fs::path temp_dir() {
-  const fs::path d = fs::temp_directory_path() / ("rayscan_io_tests_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+inline fs::path temp_dir() { return process_temp_dir("rayscan_io_tests"); }
 
 }  // namespace rayscan::test

@@ -2,13 +2,13 @@
 // (checked by projecting the box corners with Camera::look_at's own rays' geometry: an
 // independent pinhole projection from the look-at parameters), and `--print-scene` prints a scene
 // that renders the same image when fed back (the render is a pure function of the scene and seed).
+#include "../common/temp_dir.hpp"
 #include "rayscan/render/quick_look.hpp"
 
 #include "../common/run_command.hpp"
 
 #include <gtest/gtest.h>
 
-#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -33,11 +33,7 @@ std::array<double, 3> project(const LookAtParams& c, std::uint32_t w, std::uint3
   return {glm::dot(v, r) / z / th, glm::dot(v, u) / z / tv, z};
 }
 
-fs::path quick_look_temp_dir() {
-  const fs::path d = fs::temp_directory_path() / ("rayscan_quick_look_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+fs::path quick_look_temp_dir() { return rayscan::test::process_temp_dir("rayscan_quick_look"); }
 
 }  // namespace
 

@@ -1,5 +1,6 @@
 // `rayscan render` end to end for its argument checks: user errors exit with code 2, print one
 // line naming the option or file, and write no output file.
+#include "../common/temp_dir.hpp"
 #include "rayscan/render/scene.hpp"
 
 #include "../common/run_command.hpp"
@@ -7,7 +8,6 @@
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
-#include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -24,11 +24,7 @@ RunResult run(const std::string& args) {
   return rayscan::test::run_command(std::string(RAYSCAN_BIN) + " " + args);
 }
 
-fs::path cli_temp_dir() {
-  const fs::path d = fs::temp_directory_path() / ("rayscan_render_cli_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+fs::path cli_temp_dir() { return rayscan::test::process_temp_dir("rayscan_render_cli"); }
 
 // A valid scene over a 3-point cloud.
 fs::path small_scene_file() {

@@ -3,6 +3,7 @@
 // the files the render job writes. A test binary of its own, so that only these tests load
 // OpenImageIO's ~260 libraries at process start (0.4 s each; every other render test process is
 // spared it).
+#include "../common/temp_dir.hpp"
 #include "render_test_data.hpp"
 #include "rayscan/render/image_output.hpp"
 #include "rayscan/render/material.hpp"
@@ -14,7 +15,6 @@
 
 #include <cmath>
 #include <filesystem>
-#include <unistd.h>
 
 using namespace rayscan;
 using namespace rayscan::render;
@@ -25,11 +25,7 @@ namespace {
 using rayscan::render::test::subset;
 using rayscan::render::test::subset_scene;
 
-fs::path files_temp_dir() {
-  const fs::path d = fs::temp_directory_path() / ("rayscan_render_files_test_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+fs::path files_temp_dir() { return rayscan::test::process_temp_dir("rayscan_render_files_test"); }
 
 }  // namespace
 
@@ -98,8 +94,7 @@ TEST(ImageOutput, PngIsSrgbEncodedAt16Bit) {
 }
 
 TEST(RenderJob, WritesTheImageAndAovsItNames) {
-  const fs::path dir = fs::temp_directory_path() / ("rayscan_render_job_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  const fs::path dir = rayscan::test::process_temp_dir("rayscan_render_job");
   RenderJobOptions o;
   o.scene = subset_scene(40, 30);
   o.scene.material.mode = ColorMode::elevation;  // (the subset has no RGB)

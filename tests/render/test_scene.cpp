@@ -1,5 +1,6 @@
 // Scene and camera files: a valid file parses to the documented values; every malformed field is
 // reported with the file and its JSON pointer (issue 4, 2.3).
+#include "../common/temp_dir.hpp"
 #include "rayscan/render/scene.hpp"
 
 #include "rayscan/io/point_io.hpp"
@@ -8,7 +9,6 @@
 
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 using namespace rayscan;
 using namespace rayscan::render;
@@ -16,11 +16,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-fs::path scene_temp_dir() {
-  const fs::path d = fs::temp_directory_path() / ("rayscan_render_scene_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+fs::path scene_temp_dir() { return rayscan::test::process_temp_dir("rayscan_render_scene"); }
 
 fs::path write(const std::string& name, const std::string& text) {
   const fs::path p = scene_temp_dir() / name;

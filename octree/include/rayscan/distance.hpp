@@ -109,15 +109,21 @@ namespace rayscan {
 /// Rounding allowance of node tests for queries from origin o on box b (world units): the bounds
 /// above are computed in double and may err, so a node is pruned only when its bound exceeds the
 /// query's limit by more than this. 1e-9 of o's distance to b's centre plus b's extent covers the
-/// errors relative to the geometry; 2^-48 (16 ulp) of the largest coordinate magnitude covers the
+/// errors relative to the geometry; 2^-48 (16-32 ulp) of the largest coordinate magnitude covers the
 /// rounding of box centres and points on the ray at the coordinates' own magnitude, which does not
 /// shrink with the box (UTM northings ~5.3e6 m: ulp 9.3e-10 m). Without that term a ray touching a
 /// tight box's corner at r = 0 was pruned by a separating-axis bound of 3.7e-10 m
 /// (bench/README.md, "Issue 12, session 29"). Used by the ray query and the SQL box tests.
-[[nodiscard]] inline double node_test_tolerance(const Vec3& o, const AABB& b) {
+/// `dist_to_centre` = |o - b.center()|, for callers that have it already.
+[[nodiscard]] inline double node_test_tolerance(const Vec3& o, const AABB& b, double dist_to_centre) {
   const double mag = std::max({std::abs(o.x), std::abs(o.y), std::abs(o.z), std::abs(b.lo.x), std::abs(b.lo.y),
                                std::abs(b.lo.z), std::abs(b.hi.x), std::abs(b.hi.y), std::abs(b.hi.z)});
-  return 1e-9 * (glm::length(o - b.center()) + b.max_extent()) + 0x1p-48 * mag + 1e-300;
+  return 1e-9 * (dist_to_centre + b.max_extent()) + 0x1p-48 * mag + 1e-300;
+}
+
+/// node_test_tolerance with |o - b.center()| computed here.
+[[nodiscard]] inline double node_test_tolerance(const Vec3& o, const AABB& b) {
+  return node_test_tolerance(o, b, glm::length(o - b.center()));
 }
 
 /// slab_interval_grown for a ray origin o and pad (computes o +- pad itself).

@@ -351,7 +351,7 @@ struct RayTraversal {
     if (per_node && ray_order)
       throw std::invalid_argument("ray query: per-node radii need order time or sphere_hit");
     dist_center = glm::length(o - root_box.center());
-    tol = node_test_tolerance(o, root_box);  // (distance.hpp: includes the coordinates' magnitude)
+    tol = node_test_tolerance(o, root_box, dist_center);  // (distance.hpp: with the coordinates' magnitude)
     pad = radius;
     o_plus = o + (pad + tol);
     o_minus = o - (pad + tol);
