@@ -9,6 +9,7 @@
 #include "rayscan/octree.hpp"
 #include "rayscan/point_cloud.hpp"
 #include "rayscan/point_query.hpp"
+#include "rayscan/ray_query.hpp"
 #include "rayscan/simd.hpp"
 
 #include <gtest/gtest.h>
@@ -104,6 +105,12 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
       if (!std::isfinite(r.inv_d[0]) || !std::isfinite(r.inv_d[1]) || !std::isfinite(r.inv_d[2])) continue;
       r.t_lo = static_cast<float>(t_lo);
       r.t_hi = static_cast<float>(t_hi);
+      // The traversal's k-bound on the entry (enter_max) and the floor t_min (lb_floor), in some
+      // trials: a box entered no later than the bound is never rejected.
+      const double enter_max = (trial % 6 == 1) ? 2.5 * u(rng) : kInf;
+      const double t_min = (trial % 6 == 2) ? 2.0 * u(rng) - 0.5 : -kInf;
+      r.enter_max = detail::float_above(enter_max);
+      r.lb_floor = detail::float_below(t_min);
       float entry[8], entry8[8];
       const unsigned mask = k.child_slab({rec.data(), 9, n}, r, entry);
       ASSERT_EQ(mask >> n, 0u) << "lanes beyond count must be clear";
@@ -116,20 +123,96 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
           ASSERT_EQ(entry8[i], entry[i]) << to_string(path) << " trial " << trial;
         }
       }
+      // The keys kernel: the same mask, and each passing child's key is child_key(entry, i).
+      if (k.child_slab_keys) {
+        std::uint32_t keys[8];
+        ASSERT_EQ(k.child_slab_keys({rec.data(), 9, n, trial % 2 == 0}, r, keys), mask) << to_string(path);
+        for (unsigned i = 0; i < 8; ++i)
+          ASSERT_EQ(keys[i], (mask >> i & 1u) ? simd::child_key(entry[i], i) : ~0u) << to_string(path) << " lane " << i;
+      }
       for (unsigned i = 0; i < n; ++i) {
         const Interval iv = slab_interval(o, inv, boxes[i], pad, t_lo, t_hi);
-        if (iv.empty()) {
+        if (iv.empty() || iv.lo > enter_max) {
           rejected += !(mask >> i & 1u);
           continue;
         }
         ++accepted;
         ASSERT_TRUE(mask >> i & 1u) << to_string(path) << " trial " << trial << " box " << i;
-        ASSERT_LE(entry[i], iv.lo) << to_string(path) << " entry must be a lower bound";
+        ASSERT_LE(entry[i], std::max(iv.lo, t_min)) << to_string(path) << " entry must be a lower bound";
+        ASSERT_GE(entry[i], r.lb_floor) << to_string(path) << " entry raised to the floor";
       }
     }
   }
   EXPECT_GT(accepted, 1000u);
   EXPECT_GT(rejected, 1000u);  // the test also prunes, or it would be vacuous
+}
+
+// Child order keys (simd.hpp): a key's bound never exceeds the entry it encodes (and is within 8
+// ulps of it), its number is the child's, and keys order as their entries do: checked on floats
+// of every class (signed zeros, subnormals, infinities, neighbours in ulps).
+TEST(Simd, ChildKeysAreOrderedLowerBounds) {
+  std::mt19937_64 rng(11);
+  std::vector<float> v = {0.0f, -0.0f, std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
+                          std::numeric_limits<float>::max(), -std::numeric_limits<float>::max(),
+                          std::numeric_limits<float>::denorm_min(), -std::numeric_limits<float>::denorm_min(),
+                          std::numeric_limits<float>::min(), 1.0f, -1.0f};
+  std::uniform_real_distribution<double> ex(-40.0, 40.0);
+  for (int i = 0; i < 4000; ++i) {
+    const float f = static_cast<float>((i % 2 ? -1.0 : 1.0) * std::exp2(ex(rng)));
+    v.push_back(f);
+    v.push_back(std::nextafter(f, std::numeric_limits<float>::infinity()));  // neighbours: same key bits
+  }
+  for (float e : v)
+    for (unsigned i = 0; i < 8; ++i) {
+      const std::uint32_t key = simd::child_key(e, i);
+      ASSERT_NE(key, ~0u) << e;
+      ASSERT_EQ(simd::child_key_index(key), i);
+      const double b = simd::child_key_bound(key);
+      ASSERT_LE(b, static_cast<double>(e)) << "bound of " << e;
+      if (std::isfinite(e) && std::abs(e) > std::numeric_limits<float>::min()) {
+        ASSERT_GE(b, static_cast<double>(e) - 8.0 * std::abs(static_cast<double>(e)) * 0x1p-23) << e;
+      }
+    }
+  std::sort(v.begin(), v.end());
+  for (std::size_t j = 1; j < v.size(); ++j) {
+    // Non-decreasing with the entry; a smaller entry's key with the largest number still sorts no
+    // later than a larger entry's key with the smallest, unless both round to the same bits.
+    if (!(v[j - 1] < v[j])) continue;  // (-0 and +0 are equal entries: either order)
+    const std::uint32_t a = simd::child_key(v[j - 1], 7), b = simd::child_key(v[j], 0);
+    ASSERT_TRUE(a <= b || (a & ~7u) == (b & ~7u)) << v[j - 1] << " " << v[j];
+  }
+}
+
+// sort_keys8 against std::sort: all 256 0-1 inputs (the 0-1 principle: a comparator network that
+// sorts them sorts every input) and random keys with ties and empty lanes (~0u).
+TEST(Simd, SortKeys8SortsEveryInput) {
+  PathGuard guard;
+  std::mt19937_64 rng(5);
+  bool ran = false;
+  for (SimdPath path : supported_paths()) {
+    set_simd_path(path);
+    const simd::Kernels& k = simd::active_kernels();
+    if (!k.sort_keys8) continue;
+    ran = true;
+    for (unsigned bits = 0; bits < 256; ++bits) {
+      std::uint32_t keys[8], want[8];
+      for (unsigned i = 0; i < 8; ++i) keys[i] = want[i] = (bits >> i) & 1u;
+      k.sort_keys8(keys);
+      std::sort(want, want + 8);
+      ASSERT_TRUE(std::equal(keys, keys + 8, want)) << to_string(path) << " bits " << bits;
+    }
+    for (int t = 0; t < 20000; ++t) {
+      std::uint32_t keys[8], want[8];
+      for (unsigned i = 0; i < 8; ++i) {
+        const std::uint64_t r = rng();
+        keys[i] = want[i] = (r % 5 == 0) ? ~0u : (t % 2 ? static_cast<std::uint32_t>(r >> 8) : static_cast<std::uint32_t>(r >> 60));
+      }
+      k.sort_keys8(keys);
+      std::sort(want, want + 8);
+      ASSERT_TRUE(std::equal(keys, keys + 8, want)) << to_string(path) << " trial " << t;
+    }
+  }
+  if (!ran) GTEST_SKIP() << "no path with sort_keys8 on this CPU";
 }
 
 TEST(Simd, ChildDist2IsALowerBoundOfTheExactMindist) {

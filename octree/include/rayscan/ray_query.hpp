@@ -128,7 +128,10 @@ struct NodeEntry {
 /// Reusable per-thread scratch so that a query allocates nothing once warm.
 template <class Node>
 struct RayScratch {
+  // The node stack: entries [0, top) (traverse_from); the vector only grows, so that a push
+  // needs no capacity test of its own (one per node, for all of its children).
   std::vector<NodeEntry<Node>> nodes;
+  std::size_t top = 0;
   std::vector<Candidate> cands;
   std::vector<std::uint32_t> sel;  // survivors of the SIMD point filter (local slot offsets)
   std::vector<Vec3> block;         // a leaf's positions decoded for the filter (compact encodings)
@@ -153,6 +156,21 @@ inline float round_float_up(double x) {
   float f = static_cast<float>(x);
   if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
   return f;
+}
+/// A float <= x (float_below) or >= x (float_above) without a branch on the rounding (the
+/// per-ray and per-hit bounds of the SIMD child test): x pushed out by 2^-22 relative (over 2 float
+/// roundings) and 2^-140 absolute (below the least normal float) before the cast; infinities are
+/// kept, finite values past the float range clamped to -FLT_MAX (below) / +FLT_MAX (above) on
+/// the side where the cast would cross them.
+inline float float_below(double x) {
+  if (std::isinf(x)) return static_cast<float>(x);
+  return static_cast<float>(std::min(x - (0x1p-22 * std::abs(x) + 0x1p-140),
+                                     static_cast<double>(std::numeric_limits<float>::max())));
+}
+inline float float_above(double x) {
+  if (std::isinf(x)) return static_cast<float>(x);
+  return static_cast<float>(std::max(x + (0x1p-22 * std::abs(x) + 0x1p-140),
+                                     -static_cast<double>(std::numeric_limits<float>::max())));
 }
 
 template <class Node>
@@ -373,7 +391,7 @@ struct RayTraversal {
   void prepare() {
     if (prepared) return;
     prepared = true;
-    scratch.nodes.clear();
+    scratch.top = 0;
     scratch.cands.clear();
 
     // SIMD policies (simd.hpp). Point filter: bounds widened by far more than the difference
@@ -396,6 +414,8 @@ struct RayTraversal {
         mag = std::max({std::abs(o_rel.x), std::abs(o_rel.y), std::abs(o_rel.z)}) + index.float_extent();
       }
     }
+    // Child entries are raised to t_min (no key lies below it), rounded down once per ray.
+    sr.lb_floor = sr_box.lb_floor = float_below(q.t_min);
     if constexpr (per_node) set_node_pad(index.root());
     if constexpr (requires { key_policy.key.filter_radii(); }) radii_filter = key_policy.key.filter_radii() != nullptr;
     if constexpr (key_floor_known && requires { key_policy.key.filter_normals(); }) {
@@ -425,7 +445,8 @@ struct RayTraversal {
     }
   }
 
-  /// Refreshes the per-ray SIMD constants after pad or t_hi changed (dynamic k filter).
+  /// Refreshes the per-ray SIMD constants after the pad changed (per-node radii, or the dynamic k
+  /// filter of order ray), and at the start.
   void update_simd() {
     pf.d2_max = (ray_order ? std::min(r2, worst * worst * (1.0 + 1e-12)) : per_node ? pad * pad : r2) + slack_d2;
     // A point whose geometry (within radius of it) holds a hit has t_p >= the key floor less the
@@ -433,10 +454,8 @@ struct RayTraversal {
     // filter, each point's own: t_p >= the floor less its radius.
     pf.t_lo = std::max(t_lo, box_t_lo - radius) - slack_t;
     pf.t_lo_own = box_t_lo - slack_t;
-    pf.t_hi = t_hi + slack_t;
     // Disc hits (filter_normals): t in [key_min, t_max], and a refined key above the k-bound fails.
     pf.disc_t_lo = box_t_lo;
-    pf.disc_t_hi = std::min(q.t_max, worst);
     if constexpr (per_box_f) {
       if (has_kernel(kern.child_slab)) {
         // As below with pad 0, the magnitudes including the geometry's reach past the float
@@ -446,24 +465,33 @@ struct RayTraversal {
           sr_box.o_plus[a] = static_cast<float>(o_rel[a] + margin);
           sr_box.o_minus[a] = static_cast<float>(o_rel[a] - margin);
         }
-        sr_box.t_lo = static_cast<float>(box_t_lo - 0x1p-22 * std::abs(box_t_lo));
-        sr_box.t_hi = static_cast<float>(t_hi + 0x1p-22 * std::abs(t_hi));
+        sr_box.t_lo = float_below(box_t_lo);
       }
     } else if constexpr (detail::FloatChildBoxes<I>) {
       if (has_kernel(kern.child_slab) && pad < kInf) {
         // Position-space margin: float rounding of the slab origins and of box - origin
         // differences (each <= 2^-24 of the magnitudes involved); 2^-20 of their sum covers both.
         // The margin is 16x the rounding of o_plus / o_minus to float, so plain casts stay
-        // outside the grown box; t_lo / t_hi are pushed out by 2^-22 relative before rounding.
+        // outside the grown box; t_lo / t_hi are rounded outwards (float_below / float_above).
         const double margin = 0x1p-20 * (mag + pad) + tol;
         for (int a = 0; a < 3; ++a) {
           sr.o_plus[a] = static_cast<float>(o_rel[a] + (pad + margin));
           sr.o_minus[a] = static_cast<float>(o_rel[a] - (pad + margin));
         }
-        sr.t_lo = static_cast<float>(t_lo - 0x1p-22 * std::abs(t_lo));
-        sr.t_hi = static_cast<float>(t_hi + 0x1p-22 * std::abs(t_hi));
+        sr.t_lo = float_below(t_lo);
       }
     }
+    update_t_hi();
+  }
+
+  /// The SIMD constants that depend on t_hi and the k-bound alone: all that the dynamic k filter
+  /// of orders time and sphere_hit moves (push_candidate), so a new best hit costs only these.
+  /// The child test's enter_max is live()'s bound rounded up (order ray bounds a distance: none).
+  void update_t_hi() {
+    pf.t_hi = t_hi + slack_t;
+    pf.disc_t_hi = std::min(q.t_max, worst);
+    sr.t_hi = sr_box.t_hi = float_above(t_hi);
+    if (bounded && !ray_order) sr.enter_max = sr_box.enter_max = float_above(worst + tol);
   }
 
   /// Per-node radius policy: pad becomes the node's own bound (never above the query radius).
@@ -555,8 +583,7 @@ struct RayTraversal {
           const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
           m &= m - 1;
           if (slab_is_final) {
-            lb[i] = std::max(static_cast<double>(entry[i]), q.t_min);
-            if (!live(lb[i])) continue;
+            lb[i] = entry[i];  // (>= t_min rounded down, and live: the kernel tested enter_max)
           } else if (!test_child(index.child(n, i), lb[i])) {
             continue;
           }
@@ -608,10 +635,11 @@ struct RayTraversal {
         pad = std::min(radius, worst);
         o_plus = o + (pad + tol);
         o_minus = o - (pad + tol);
+        update_simd();
       } else {
         t_hi = (sphere ? std::min(q.t_max, worst) + radius : std::min(q.t_max, worst)) + tol;
+        update_t_hi();
       }
-      update_simd();
     }
   }
 
@@ -694,17 +722,24 @@ struct RayTraversal {
   /// first hits 5-10% faster, bench/README.md "Issue 12, session 25"). Without k: plain
   /// depth-first. Uses the per-thread node stack above its current top, and leaves it as it found
   /// it.
+  ///
+  /// The child step, when the children's SIMD slab result is final and k is set: the kernel
+  /// writes each passing child's entry as a child order key (simd.hpp, child_key), and one or two
+  /// children need no sort (63% of the octree's nodes on the camera rays of bench_rays); three or
+  /// more are sorted by a network on the 8 keys (sort_keys8) instead of an insertion sort of
+  /// 16-byte entries. Otherwise the children are tested by test_children and sorted by insertion.
+  /// (bench/README.md, "Issue 12, session 30": -14% instructions per camera hit.)
   void traverse_from(Node start, double lb0) {
     auto& nodes = scratch.nodes;
-    const std::size_t base = nodes.size();
+    const std::size_t base = scratch.top;
+    std::size_t top = base;
     detail::NodeEntry<Node> kids[8];
     detail::NodeEntry<Node> e{lb0, start};
     bool next = live(lb0);  // e holds the next node (start, then the nearest child of the last one)
     while (true) {
       if (!next) {
-        if (nodes.size() == base) break;
-        e = nodes.back();
-        nodes.pop_back();
+        if (top == base) break;
+        e = nodes[--top];
         if (!live(e.lb)) continue;
       }
       next = false;
@@ -716,20 +751,52 @@ struct RayTraversal {
       if (done) break;
       const unsigned nc = index.child_count(e.node);
       if (nc == 0) continue;  // a leaf: no child test (nor an indirect SIMD call)
-      if (nc > 8) {           // (no index here has more than 8 children; kept general)
+      // Room for every child (the one capacity test of the node's pushes).
+      if (top + std::max(nc, 8u) > nodes.size()) nodes.resize(nodes.size() + std::max(nc, 8u) + 64);
+      if (nc > 8) {  // (no index here has more than 8 children; kept general)
         for (unsigned i = 0; i < nc; ++i) {
           const Node c = index.child(e.node, i);
           double lb;
-          if (test_child(c, lb)) nodes.push_back({lb, c});
+          if (test_child(c, lb)) nodes[top++] = {lb, c};
         }
         continue;
+      }
+      if constexpr (detail::FloatChildBoxes<I>) {
+        if (has_kernel(kern.child_slab_keys) && bounded && slab_is_final && simd_children && (per_box_f || pad < kInf)) {
+          alignas(32) std::uint32_t keys[8];
+          unsigned m;
+          if constexpr (per_box_f)
+            m = kern.child_slab_keys(key_policy.child_boxes_f_of(e.node), sr_box, keys);
+          else
+            m = kern.child_slab_keys(index.child_boxes_f(e.node), sr, keys);
+          if (m == 0) continue;
+          const unsigned i0 = static_cast<unsigned>(__builtin_ctz(m));
+          const unsigned m1 = m & (m - 1);
+          std::uint32_t near = keys[i0];
+          if (m1 != 0) {
+            if ((m1 & (m1 - 1)) == 0) {  // two: the farther one pushed
+              const std::uint32_t k1 = keys[__builtin_ctz(m1)];
+              const std::uint32_t far = std::max(near, k1);
+              near = std::min(near, k1);
+              nodes[top++] = {simd::child_key_bound(far), index.child(e.node, simd::child_key_index(far))};
+            } else {  // three or more: keys[0..n) ascending, the lanes outside m (~0u) after them
+              kern.sort_keys8(keys);
+              for (unsigned j = static_cast<unsigned>(__builtin_popcount(m)); --j > 0;)
+                nodes[top++] = {simd::child_key_bound(keys[j]), index.child(e.node, simd::child_key_index(keys[j]))};
+              near = keys[0];
+            }
+          }
+          e = {simd::child_key_bound(near), index.child(e.node, simd::child_key_index(near))};
+          next = true;
+          continue;
+        }
       }
       double lb[8];
       unsigned m = test_children(e.node, nc, lb);
       if (!bounded) {
         for (; m; m &= m - 1) {
           const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-          nodes.push_back({lb[i], index.child(e.node, i)});
+          nodes[top++] = {lb[i], index.child(e.node, i)};
         }
         continue;
       }
@@ -746,11 +813,11 @@ struct RayTraversal {
       }
       if (nk == 0) continue;
       // The nearest child next, without a trip through the stack (it passed live() just now).
-      for (unsigned j = 0; j + 1 < nk; ++j) nodes.push_back(kids[j]);
+      for (unsigned j = 0; j + 1 < nk; ++j) nodes[top++] = kids[j];
       e = kids[nk - 1];
       next = true;
     }
-    nodes.resize(base);
+    scratch.top = base;
   }
 };
 

@@ -11,6 +11,7 @@
 // (simd_kernels.hpp, ray_query.hpp); elsewhere the kernels are called through simd::Kernels.
 #pragma once
 
+#include <bit>
 #include <cstdint>
 #include <limits>
 #include <optional>
@@ -49,7 +50,32 @@ struct SlabRayF {
   float o_minus[3];  ///< origin - (pad + margin)
   float inv_d[3];    ///< 1 / direction (finite: rays with a zero component use the scalar test)
   float t_lo, t_hi;  ///< parameter interval the slab interval must meet (already widened)
+  /// The k-bound on the entry (the traversal's live test, rounded up): a box entered after it
+  /// is rejected. +inf: no bound.
+  float enter_max = std::numeric_limits<float>::infinity();
+  /// The least key a result can have (t_min, rounded down): entries are raised to at least this.
+  float lb_floor = -std::numeric_limits<float>::infinity();
 };
+
+/// Child order keys (ChildSlabKeysFn): a child's entry lower bound e in an order-preserving
+/// unsigned encoding (IEEE bits with the sign flipped, negatives complemented) whose low 3 bits
+/// are replaced by the child's number i < 8, so that sorting the keys sorts the children by entry
+/// (ties by number). Clearing the low bits rounds e down (by at most 7 ulps), so the bound a key
+/// decodes to (child_key_bound) is still a lower bound of the entry. A key of ~0u marks no child.
+[[nodiscard]] inline std::uint32_t child_key(float e, unsigned i) {
+  const std::uint32_t b = std::bit_cast<std::uint32_t>(e);
+  const std::uint32_t u = (b & 0x80000000u) ? ~b : (b | 0x80000000u);
+  return (u & ~7u) | i;
+}
+/// The child number of a key.
+[[nodiscard]] inline unsigned child_key_index(std::uint32_t key) { return key & 7u; }
+/// The lower bound a key holds: <= the entry it was made from (-inf for -inf, whose rounded key
+/// would decode to NaN).
+[[nodiscard]] inline double child_key_bound(std::uint32_t key) {
+  const std::uint32_t u = key & ~7u;
+  const float f = std::bit_cast<float>((u & 0x80000000u) ? (u & 0x7FFFFFFFu) : ~u);
+  return f == f ? static_cast<double>(f) : -std::numeric_limits<double>::infinity();
+}
 
 /// Float boxes of n <= 8 sibling nodes stored with a fixed stride: box i has lo at
 /// base[i * stride + 0..2] and hi at base[i * stride + 3..5].
@@ -105,8 +131,15 @@ struct PointFilterD {
 };
 
 /// Slab test of up to 8 child boxes: bit i of the result is set when box i grown as in `r`
-/// meets [t_lo, t_hi] (conservatively); entry[i] receives a lower bound of its entry parameter.
+/// meets [t_lo, t_hi] and is entered no later than enter_max (conservatively); entry[i] receives
+/// a lower bound of its entry parameter, at least lb_floor.
 using ChildSlabFn = unsigned (*)(const ChildBoxesF& boxes, const SlabRayF& r, float* entry);
+/// ChildSlabFn with the entries as child order keys: returns the same mask and writes keys[0..8):
+/// child_key(entry[i], i) for each child i of the mask, ~0u for every other lane. The first-hit
+/// traversal's child step (ray_query.hpp), so that ordering the children is one sort of 8 keys.
+using ChildSlabKeysFn = unsigned (*)(const ChildBoxesF& boxes, const SlabRayF& r, std::uint32_t* keys);
+/// Sorts keys[0..8) ascending (a sorting network: no branch on the data).
+using SortKeys8Fn = void (*)(std::uint32_t* keys);
 /// Slab test of up to 8 child boxes against the rays of lanes [0, lanes) of a packet (lanes <= 16):
 /// bit j of hits[i] is set when box i grown as in lane j meets its [t_lo, t_hi] (the same
 /// conservative test as ChildSlabFn), entry[i * 16 + j] receives a lower bound of the entry
@@ -134,6 +167,8 @@ struct Kernels {
   PointFilterFn point_filter;  ///< nullptr for the scalar path (with d = 0 it filters |p - o|^2)
   ChildDist2Fn child_dist2;    ///< nullptr for the scalar path
   PacketChildSlabFn packet_child_slab;  ///< nullptr for the scalar path
+  ChildSlabKeysFn child_slab_keys;      ///< nullptr for the scalar and sse2 paths
+  SortKeys8Fn sort_keys8;               ///< nullptr for the scalar and sse2 paths
 };
 
 /// The kernels of the active path (simd_path()).
