@@ -125,8 +125,9 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
       }
       // The keys kernel: the same mask, and each passing child's key is child_key(entry, i).
       if (k.child_slab_keys) {
-        std::uint32_t keys[8];
-        ASSERT_EQ(k.child_slab_keys({rec.data(), 9, n, trial % 2 == 0}, r, keys), mask) << to_string(path);
+        std::uint32_t keys[8], near = 0;
+        ASSERT_EQ(k.child_slab_keys({rec.data(), 9, n, trial % 2 == 0}, r, keys, near), mask) << to_string(path);
+        ASSERT_EQ(near, *std::min_element(keys, keys + 8)) << to_string(path);
         for (unsigned i = 0; i < 8; ++i)
           ASSERT_EQ(keys[i], (mask >> i & 1u) ? simd::child_key(entry[i], i) : ~0u) << to_string(path) << " lane " << i;
       }

@@ -353,6 +353,7 @@ struct RayTraversal {
   Vec3 o_rel{0.0};
   double mag = 0;
   bool slab_is_final = false;  // children whose SIMD slab result is final (else it only prefilters)
+  bool child_keys = false;     // traverse_from's child step on child order keys (child_slab_keys)
   bool prepared = false;       // prepare() ran
   bool radii_filter = false;   // the SIMD point filter applies the key functor's per-slot radii
   bool normals_filter = false;  // ... and its per-slot disc normals (filter_normals)
@@ -424,6 +425,8 @@ struct RayTraversal {
     }
     update_simd();
     slab_is_final = !ray_order && !has_planes && (!per_node || per_box_f);
+    if constexpr (detail::FloatChildBoxes<I>)  // (pad is the query radius here: per node only with per_box_f)
+      child_keys = has_kernel(kern.child_slab_keys) && bounded && slab_is_final && simd_children && (per_box_f || pad < kInf);
   }
 
   /// Per-node state on entering node n (with per-node radii): the pad and the point filter's
@@ -762,31 +765,30 @@ struct RayTraversal {
         continue;
       }
       if constexpr (detail::FloatChildBoxes<I>) {
-        if (has_kernel(kern.child_slab_keys) && bounded && slab_is_final && simd_children && (per_box_f || pad < kInf)) {
+        if (child_keys) {
           alignas(32) std::uint32_t keys[8];
+          std::uint32_t near;  // the least key: the next node (its bound is not needed)
           unsigned m;
           if constexpr (per_box_f)
-            m = kern.child_slab_keys(key_policy.child_boxes_f_of(e.node), sr_box, keys);
+            m = kern.child_slab_keys(key_policy.child_boxes_f_of(e.node), sr_box, keys, near);
           else
-            m = kern.child_slab_keys(index.child_boxes_f(e.node), sr, keys);
+            m = kern.child_slab_keys(index.child_boxes_f(e.node), sr, keys, near);
           if (m == 0) continue;
-          const unsigned i0 = static_cast<unsigned>(__builtin_ctz(m));
           const unsigned m1 = m & (m - 1);
-          std::uint32_t near = keys[i0];
-          if (m1 != 0) {
-            if ((m1 & (m1 - 1)) == 0) {  // two: the farther one pushed
-              const std::uint32_t k1 = keys[__builtin_ctz(m1)];
-              const std::uint32_t far = std::max(near, k1);
-              near = std::min(near, k1);
-              nodes[top++] = {simd::child_key_bound(far), index.child(e.node, simd::child_key_index(far))};
-            } else {  // three or more: keys[0..n) ascending, the lanes outside m (~0u) after them
-              kern.sort_keys8(keys);
-              for (unsigned j = static_cast<unsigned>(__builtin_popcount(m)); --j > 0;)
-                nodes[top++] = {simd::child_key_bound(keys[j]), index.child(e.node, simd::child_key_index(keys[j]))};
-              near = keys[0];
-            }
+          if (m1 == 0) {  // one: straight from the mask
+            e.node = index.child(e.node, static_cast<unsigned>(__builtin_ctz(m)));
+            next = true;
+            continue;
           }
-          e = {simd::child_key_bound(near), index.child(e.node, simd::child_key_index(near))};
+          if ((m1 & (m1 - 1)) == 0) {  // two: the farther one pushed
+            const std::uint32_t far = std::max(keys[__builtin_ctz(m)], keys[__builtin_ctz(m1)]);
+            nodes[top++] = {simd::child_key_bound(far), index.child(e.node, simd::child_key_index(far))};
+          } else {  // three or more: keys[0..n) ascending, the lanes outside m (~0u) after them
+            kern.sort_keys8(keys);
+            for (unsigned j = static_cast<unsigned>(__builtin_popcount(m)); --j > 0;)
+              nodes[top++] = {simd::child_key_bound(keys[j]), index.child(e.node, simd::child_key_index(keys[j]))};
+          }
+          e.node = index.child(e.node, simd::child_key_index(near));
           next = true;
           continue;
         }

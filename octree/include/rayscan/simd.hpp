@@ -134,10 +134,12 @@ struct PointFilterD {
 /// meets [t_lo, t_hi] and is entered no later than enter_max (conservatively); entry[i] receives
 /// a lower bound of its entry parameter, at least lb_floor.
 using ChildSlabFn = unsigned (*)(const ChildBoxesF& boxes, const SlabRayF& r, float* entry);
-/// ChildSlabFn with the entries as child order keys: returns the same mask and writes keys[0..8):
-/// child_key(entry[i], i) for each child i of the mask, ~0u for every other lane. The first-hit
-/// traversal's child step (ray_query.hpp), so that ordering the children is one sort of 8 keys.
-using ChildSlabKeysFn = unsigned (*)(const ChildBoxesF& boxes, const SlabRayF& r, std::uint32_t* keys);
+/// ChildSlabFn with the entries as child order keys: returns the same mask, writes keys[0..8):
+/// child_key(entry[i], i) for each child i of the mask, ~0u for every other lane, and sets `near`
+/// to the least of them. The first-hit traversal's child step (ray_query.hpp), so that ordering
+/// the children is one sort of 8 keys.
+using ChildSlabKeysFn = unsigned (*)(const ChildBoxesF& boxes, const SlabRayF& r, std::uint32_t* keys,
+                                     std::uint32_t& near);
 /// Sorts keys[0..8) ascending (a sorting network: no branch on the data).
 using SortKeys8Fn = void (*)(std::uint32_t* keys);
 /// Slab test of up to 8 child boxes against the rays of lanes [0, lanes) of a packet (lanes <= 16):

@@ -306,9 +306,10 @@ inline __attribute__((target("avx2,fma"))) unsigned child_slab_avx2(const ChildB
 }
 
 // child_slab_avx2 with the entries written as child order keys (simd.hpp, child_key), lanes
-// outside the mask ~0u.
+// outside the mask ~0u, and the least key in `near` (a reduction in registers: the traversal's
+// next node does not wait for the keys' store to reach a scalar load).
 inline __attribute__((target("avx2,fma"))) unsigned child_slab_keys_avx2(const ChildBoxesF& b, const SlabRayF& r,
-                                                                  std::uint32_t* keys) {
+                                                                  std::uint32_t* keys, std::uint32_t& near) {
   __m256 e;
   const unsigned mask = child_slab8(b, r, e);
   const __m256i bits = _mm256_castps_si256(e);
@@ -321,6 +322,10 @@ inline __attribute__((target("avx2,fma"))) unsigned child_slab_keys_avx2(const C
   const __m256i in = _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(static_cast<int>(mask)), bit), bit);
   k = _mm256_or_si256(k, _mm256_andnot_si256(in, _mm256_set1_epi32(-1)));
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(keys), k);
+  __m128i h = _mm_min_epu32(_mm256_castsi256_si128(k), _mm256_extracti128_si256(k, 1));
+  h = _mm_min_epu32(h, _mm_shuffle_epi32(h, 0x4E));
+  h = _mm_min_epu32(h, _mm_shuffle_epi32(h, 0xB1));
+  near = static_cast<std::uint32_t>(_mm_cvtsi128_si32(h));
   return mask;
 }
 
