@@ -488,10 +488,11 @@ __attribute__((target("avx2,fma"), always_inline)) inline unsigned filter_step4(
   __m256d vx, vy, vz;
   load_rel4(xyz + 3 * static_cast<std::size_t>(i), ox, oy, oz, vx, vy, vz);
   const __m256d t = _mm256_fmadd_pd(vz, dz, _mm256_fmadd_pd(vy, dy, _mm256_mul_pd(vx, dx)));
-  const __m256d wx = _mm256_fnmadd_pd(t, dx, vx);
-  const __m256d wy = _mm256_fnmadd_pd(t, dy, vy);
-  const __m256d wz = _mm256_fnmadd_pd(t, dz, vz);
-  const __m256d d2 = _mm256_fmadd_pd(wz, wz, _mm256_fmadd_pd(wy, wy, _mm256_mul_pd(wx, wx)));
+  // d^2 = |v|^2 - t^2 (unit d): |v|^2 computed beside t, so the distance waits on one fused step
+  // after t instead of four; it differs from |v - t d|^2 by a few ulps of |v|^2, far inside the
+  // filter's slack (PointFilterD: 1e-12 of the largest |v|^2).
+  const __m256d vv = _mm256_fmadd_pd(vz, vz, _mm256_fmadd_pd(vy, vy, _mm256_mul_pd(vx, vx)));
+  const __m256d d2 = _mm256_fnmadd_pd(t, t, vv);
   const __m256d d2max = _mm256_set1_pd(f.d2_max), tlo = _mm256_set1_pd(f.t_lo);
   __m256d lim = d2max, tl = tlo;
   if constexpr (kRadii) {  // each point's own radius as well (PointFilterD::radii, t_lo_own)
@@ -638,10 +639,9 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
                                       _CMP_LE_OQ);
   const __m512d dx = _mm512_set1_pd(f.d[0]), dy = _mm512_set1_pd(f.d[1]), dz = _mm512_set1_pd(f.d[2]);
   const __m512d t = _mm512_fmadd_pd(vz, dz, _mm512_fmadd_pd(vy, dy, _mm512_mul_pd(vx, dx)));
-  const __m512d wx = _mm512_fnmadd_pd(t, dx, vx);
-  const __m512d wy = _mm512_fnmadd_pd(t, dy, vy);
-  const __m512d wz = _mm512_fnmadd_pd(t, dz, vz);
-  const __m512d d2 = _mm512_fmadd_pd(wz, wz, _mm512_fmadd_pd(wy, wy, _mm512_mul_pd(wx, wx)));
+  // d^2 = |v|^2 - t^2, as filter_step4.
+  const __m512d vv = _mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx)));
+  const __m512d d2 = _mm512_fnmadd_pd(t, t, vv);
   const __m512d tlo = _mm512_set1_pd(f.t_lo);
   __m512d lim = d2max, tl = tlo, r = _mm512_setzero_pd();
   if (f.radii) {  // each point's own radius as well (PointFilterD::radii, t_lo_own)
