@@ -283,15 +283,21 @@ __attribute__((target("avx2,fma"), always_inline)) inline unsigned child_slab8(c
   const __m256 sign = _mm256_set1_ps(-0.0f);
   __m256 tn = _mm256_set1_ps(r.t_lo), tf = _mm256_set1_ps(r.t_hi < r.enter_max ? r.t_hi : r.enter_max);
   for (int a = 0; a < 3; ++a) {
+    // (box - o) / d as one fused step, box * inv - o * inv: the product o * inv depends on the ray
+    // alone (off the data's critical path); its rounding, 2^-24 of |o| |inv|, is a position error
+    // of 2^-24 |o|, inside the margin the caller grew o_plus / o_minus by (2^-20 of the
+    // magnitudes: ray_query.hpp, update_simd), and the fused step's own rounding is relative.
     const __m256 inv = _mm256_set1_ps(r.inv_d[a]);
-    const __m256 ta = _mm256_mul_ps(_mm256_sub_ps(lo[a], _mm256_set1_ps(r.o_plus[a])), inv);
-    const __m256 tb = _mm256_mul_ps(_mm256_sub_ps(hi[a], _mm256_set1_ps(r.o_minus[a])), inv);
+    const __m256 ta = _mm256_fmsub_ps(lo[a], inv, _mm256_mul_ps(_mm256_set1_ps(r.o_plus[a]), inv));
+    const __m256 tb = _mm256_fmsub_ps(hi[a], inv, _mm256_mul_ps(_mm256_set1_ps(r.o_minus[a]), inv));
     __m256 t0a = _mm256_min_ps(ta, tb), t1a = _mm256_max_ps(ta, tb);
-    t0a = _mm256_fnmadd_ps(_mm256_andnot_ps(sign, t0a), eps, t0a);
-    t1a = _mm256_fmadd_ps(_mm256_andnot_ps(sign, t1a), eps, t1a);
     tn = _mm256_max_ps(t0a, tn);
     tf = _mm256_min_ps(t1a, tf);
   }
+  // The relative slack once, on the accumulated bounds (x -> x -+ |x| eps is increasing, so it
+  // commutes with the max / min over the axes; t_lo and t_hi, already rounded outwards, get it too).
+  tn = _mm256_fnmadd_ps(_mm256_andnot_ps(sign, tn), eps, tn);
+  tf = _mm256_fmadd_ps(_mm256_andnot_ps(sign, tf), eps, tf);
   const unsigned mask = static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(tn, tf, _CMP_LE_OQ)));
   entry = _mm256_max_ps(tn, _mm256_set1_ps(r.lb_floor));
   return mask & ((1u << b.count) - 1u);
