@@ -736,13 +736,17 @@ struct RayTraversal {
     auto& nodes = scratch.nodes;
     const std::size_t base = scratch.top;
     std::size_t top = base;
+    // The stack's storage and size in locals (the pushes' stores cannot then make the compiler
+    // reload the vector's pointers); refreshed where it grows.
+    detail::NodeEntry<Node>* stack = nodes.data();
+    std::size_t cap = nodes.size();
     detail::NodeEntry<Node> kids[8];
     detail::NodeEntry<Node> e{lb0, start};
     bool next = live(lb0);  // e holds the next node (start, then the nearest child of the last one)
     while (true) {
       if (!next) {
         if (top == base) break;
-        e = nodes[--top];
+        e = stack[--top];
         if (!live(e.lb)) continue;
       }
       next = false;
@@ -755,12 +759,16 @@ struct RayTraversal {
       const unsigned nc = index.child_count(e.node);
       if (nc == 0) continue;  // a leaf: no child test (nor an indirect SIMD call)
       // Room for every child (the one capacity test of the node's pushes).
-      if (top + std::max(nc, 8u) > nodes.size()) nodes.resize(nodes.size() + std::max(nc, 8u) + 64);
+      if (const std::size_t room = nc > 8 ? nc : 8; top + room > cap) [[unlikely]] {
+        nodes.resize(cap + room + 64);
+        stack = nodes.data();
+        cap = nodes.size();
+      }
       if (nc > 8) {  // (no index here has more than 8 children; kept general)
         for (unsigned i = 0; i < nc; ++i) {
           const Node c = index.child(e.node, i);
           double lb;
-          if (test_child(c, lb)) nodes[top++] = {lb, c};
+          if (test_child(c, lb)) stack[top++] = {lb, c};
         }
         continue;
       }
@@ -782,11 +790,11 @@ struct RayTraversal {
           }
           if ((m1 & (m1 - 1)) == 0) {  // two: the farther one pushed
             const std::uint32_t far = std::max(keys[__builtin_ctz(m)], keys[__builtin_ctz(m1)]);
-            nodes[top++] = {simd::child_key_bound(far), index.child(e.node, simd::child_key_index(far))};
+            stack[top++] = {simd::child_key_bound(far), index.child(e.node, simd::child_key_index(far))};
           } else {  // three or more: keys[0..n) ascending, the lanes outside m (~0u) after them
             kern.sort_keys8(keys);
             for (unsigned j = static_cast<unsigned>(__builtin_popcount(m)); --j > 0;)
-              nodes[top++] = {simd::child_key_bound(keys[j]), index.child(e.node, simd::child_key_index(keys[j]))};
+              stack[top++] = {simd::child_key_bound(keys[j]), index.child(e.node, simd::child_key_index(keys[j]))};
           }
           e.node = index.child(e.node, simd::child_key_index(near));
           next = true;
@@ -798,7 +806,7 @@ struct RayTraversal {
       if (!bounded) {
         for (; m; m &= m - 1) {
           const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-          nodes[top++] = {lb[i], index.child(e.node, i)};
+          stack[top++] = {lb[i], index.child(e.node, i)};
         }
         continue;
       }
@@ -815,7 +823,7 @@ struct RayTraversal {
       }
       if (nk == 0) continue;
       // The nearest child next, without a trip through the stack (it passed live() just now).
-      for (unsigned j = 0; j + 1 < nk; ++j) nodes[top++] = kids[j];
+      for (unsigned j = 0; j + 1 < nk; ++j) stack[top++] = kids[j];
       e = kids[nk - 1];
       next = true;
     }
