@@ -726,12 +726,15 @@ struct RayTraversal {
   /// depth-first. Uses the per-thread node stack above its current top, and leaves it as it found
   /// it.
   ///
-  /// The child step, when the children's SIMD slab result is final and k is set: the kernel
-  /// writes each passing child's entry as a child order key (simd.hpp, child_key), and one or two
-  /// children need no sort (63% of the octree's nodes on the camera rays of bench_rays); three or
-  /// more are sorted by a network on the 8 keys (sort_keys8) instead of an insertion sort of
-  /// 16-byte entries. Otherwise the children are tested by test_children and sorted by insertion.
-  /// (bench/README.md, "Issue 12, session 30": -14% instructions per camera hit.)
+  /// The child step, when the children's SIMD slab result is final and k is set (child_keys): the
+  /// kernel writes each passing child's entry as a child order key (simd.hpp, child_key) and
+  /// reduces the least in registers. The next node comes straight from the mask (one child) or
+  /// from that key (more), never through a store and reload (the loop is latency-bound: the chain
+  /// from one node to the next is its time); the farther of two children is pushed after one
+  /// compare (one or two children: 63% of the octree's nodes on the camera rays of bench_rays),
+  /// three or more are sorted by a network on the 8 keys (sort_keys8). Otherwise the children are
+  /// tested by test_children and sorted by insertion. (bench/README.md, "Issue 12, session 30":
+  /// -17% instructions per camera hit; a network for two children as well was slower.)
   void traverse_from(Node start, double lb0) {
     auto& nodes = scratch.nodes;
     const std::size_t base = scratch.top;
