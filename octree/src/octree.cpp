@@ -520,6 +520,7 @@ Octree Octree::build_bulk(std::span<const Vec3> positions, const OctreeConfig& c
   const std::span<OctreeBuilder::Item> items(buf.data(), positions.size());
   DefaultInitVector<std::uint64_t>().swap(codes);
   OctreeBuilder::build(t, positions, items);
+  t.build_child_blocks();
   return t;
 }
 
@@ -538,7 +539,32 @@ Octree Octree::build_by_insertion(std::span<const Vec3> positions, const OctreeC
   t.nodes_.push_back(root);
   OctreeBuilder::compact(t, positions, ins, 0, 0, 0);
   t.nodes_.shrink_to_fit();
+  t.build_child_blocks();
   return t;
+}
+
+void Octree::build_child_blocks() {
+  const std::size_t n = nodes_.size();
+  block_of_.resize(n);
+  std::uint32_t blocks = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    block_of_[i] = nodes_[i].child_count ? blocks : 0;
+    blocks += nodes_[i].child_count != 0;
+  }
+  child_soa_.resize(std::size_t{blocks} * kChildBlockFloats);
+  tbb::parallel_for(std::size_t{0}, n, [&](std::size_t i) {
+    const NodeRec& r = nodes_[i];
+    if (!r.child_count) return;
+    float* b = child_soa_.data() + std::size_t{kChildBlockFloats} * block_of_[i];
+    for (unsigned c = 0; c < 8; ++c) {
+      const bool in = c < r.child_count;
+      const NodeRec& k = nodes_[r.first_child + (in ? c : 0)];
+      for (int a = 0; a < 3; ++a) {
+        b[a * 8 + c] = in ? k.lo[a] : std::numeric_limits<float>::infinity();
+        b[(3 + a) * 8 + c] = in ? k.hi[a] : -std::numeric_limits<float>::infinity();
+      }
+    }
+  });
 }
 
 std::optional<Octree::Node> Octree::find(OctreeNodeId id) const {
@@ -584,7 +610,8 @@ AABB Octree::cell_bounds(Node n) const {
 
 std::size_t Octree::memory_bytes() const {
   return pos_.capacity() * sizeof(Vec3) + ids_.capacity() * sizeof(PointIndex) +
-         nodes_.capacity() * sizeof(NodeRec);
+         nodes_.capacity() * sizeof(NodeRec) + child_soa_.capacity() * sizeof(float) +
+         block_of_.capacity() * sizeof(std::uint32_t);
 }
 
 bool Octree::same_structure(const Octree& o) const {

@@ -164,6 +164,34 @@ TEST(Octree, InsertionAndBulkBuildIdenticalTrees) {
       }
 }
 
+// The child blocks (child_boxes_f's soa) hold every interior node's child boxes transposed, bit
+// for bit the records' float boxes, for both builders and every layout; leaves have none.
+TEST(Octree, ChildBlocksAreTheChildRecordsTransposed) {
+  for (OctreeLayout layout : {OctreeLayout::layered, OctreeLayout::fixed, OctreeLayout::adaptive})
+    for (Dist d : {Dist::uniform, Dist::clustered}) {
+      const auto pts = make_points(20000, d, 23);
+      const OctreeConfig cfg = OctreeConfig::for_layout(layout);
+      const Octree trees[] = {Octree::build_bulk(pts, cfg), Octree::build_by_insertion(pts, cfg)};
+      for (const Octree& t : trees) {
+        std::size_t interior = 0;
+        for (Octree::Node n = 0; n < t.node_count(); ++n) {
+          const simd::ChildBoxesF b = t.child_boxes_f(n);
+          if (t.child_count(n) == 0) {
+            EXPECT_EQ(b.soa, nullptr);
+            continue;
+          }
+          ++interior;
+          ASSERT_NE(b.soa, nullptr);
+          ASSERT_EQ(b.soa, t.child_blocks() + 48 * std::size_t{t.block_of(n)});
+          for (unsigned c = 0; c < b.count; ++c)
+            for (unsigned f = 0; f < 6; ++f)
+              ASSERT_EQ(b.soa[f * 8 + c], b.base[c * b.stride + f]) << "node " << n << " child " << c;
+        }
+        EXPECT_GT(interior, 0u);
+      }
+    }
+}
+
 TEST(Octree, DuplicatesDoNotSplitEndlessly) {
   std::vector<Vec3> pts(50000, Vec3(1.5, -2.0, 3.25));
   pts.emplace_back(1.0, 1.0, 1.0);  // one distinct point forces a real root split

@@ -118,6 +118,17 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
       // answer, lane for lane.
       const unsigned mask8 = k.child_slab({rec.data(), 9, n, true}, r, entry8);
       ASSERT_EQ(mask8, mask) << to_string(path) << " trial " << trial;
+      // And transposed (ChildBoxesF::soa, the octree's child blocks): the same again.
+      {
+        float soa[48], entry_t[8];
+        for (unsigned i = 0; i < 8; ++i)
+          for (unsigned f = 0; f < 6; ++f) soa[f * 8 + i] = rec[i * 9 + f];
+        ASSERT_EQ(k.child_slab({rec.data(), 9, n, false, soa}, r, entry_t), mask) << to_string(path);
+        for (unsigned i = 0; i < n; ++i)
+          if ((mask >> i) & 1u) {
+            ASSERT_EQ(entry_t[i], entry[i]) << to_string(path) << " trial " << trial;
+          }
+      }
       for (unsigned i = 0; i < n; ++i) {
         if ((mask >> i) & 1u) {
           ASSERT_EQ(entry8[i], entry[i]) << to_string(path) << " trial " << trial;

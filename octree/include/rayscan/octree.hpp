@@ -154,12 +154,24 @@ class Octree {
 
   // Optional SIMD extension of the concept (issue 12; see ray_query) ----------------------------
   /// The float boxes of n's children (contiguous in the node array), relative to float_origin();
-  /// rows8 when 8 records from the first child lie inside the node array.
+  /// rows8 when 8 records from the first child lie inside the node array; soa: n's child block
+  /// (the same boxes transposed, child_blocks()).
   [[nodiscard]] simd::ChildBoxesF child_boxes_f(Node n) const {
     const NodeRec& r = nodes_[n];
     return {&nodes_[r.first_child].lo.x, sizeof(NodeRec) / sizeof(float), r.child_count,
-            std::size_t{r.first_child} + 8 <= nodes_.size()};
+            std::size_t{r.first_child} + 8 <= nodes_.size(),
+            r.child_count ? child_soa_.data() + std::size_t{kChildBlockFloats} * block_of_[n] : nullptr};
   }
+  /// Floats per child block: the 6 x 8 transposed child boxes of one interior node.
+  static constexpr unsigned kChildBlockFloats = 48;
+  /// The child blocks (issue 12, bench/README.md "Issue 12, session 30"): for each interior node n,
+  /// its children's float boxes as 6 rows of 8 floats at child_blocks() + 48 * block_of(n), so the
+  /// 8-wide child test loads them as they are instead of transposing 8 node records; 192 bytes per
+  /// interior node and 4 per node (about 1 B per point at the default capacity). Lanes past the
+  /// child count hold empty boxes (+inf lo, -inf hi). Built with the tree (build_child_blocks).
+  [[nodiscard]] const float* child_blocks() const { return child_soa_.data(); }
+  /// The block index of interior node n (unspecified for a leaf).
+  [[nodiscard]] std::uint32_t block_of(Node n) const { return block_of_[n]; }
   /// The origin the float boxes are relative to (the root cell's minimum corner), and the largest
   /// magnitude of a float box coordinate (the root cell's edge).
   [[nodiscard]] const Vec3& float_origin() const { return cell_.lo; }
@@ -221,7 +233,11 @@ class Octree {
   DefaultInitVector<NodeRec> nodes_;
   DefaultInitVector<Vec3> pos_;
   DefaultInitVector<PointIndex> ids_;
+  DefaultInitVector<float> child_soa_;          // child blocks (child_boxes_f's soa)
+  DefaultInitVector<std::uint32_t> block_of_;  // node -> its child block (interior nodes)
   std::unique_ptr<LevelMaps> levels_;  // lazily filled per level
+  /// Fills child_soa_ and block_of_ from the node records (the builders' last step).
+  void build_child_blocks();
 };
 
 static_assert(SpatialIndex<Octree>);

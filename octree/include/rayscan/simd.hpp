@@ -87,6 +87,11 @@ struct ChildBoxesF {
   /// children that are not the last of the node array: the 8-wide kernels then load rows past
   /// count as they are (their lanes are masked off) instead of clamping each row to box 0.
   bool rows8 = false;
+  /// The same boxes transposed, or nullptr: 6 rows of 8 floats (lo.x, lo.y, lo.z, hi.x, hi.y,
+  /// hi.z of boxes 0..7; lanes past count hold anything), read by the 8-wide kernels as they are
+  /// instead of transposing 8 records in registers (the Octree's child blocks). base and stride
+  /// stay valid for the other kernels.
+  const float* soa = nullptr;
 };
 
 /// SlabRayF of a packet of up to 16 rays, one lane per ray (the SIMD-over-rays form of the child

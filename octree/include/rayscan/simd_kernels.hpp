@@ -244,6 +244,11 @@ inline unsigned point_filter_sse2(const double* xyz, unsigned count, const Point
 // than scalar; a lane-by-lane copy to SoA arrays through memory cost ~100 instructions per node.
 __attribute__((target("avx2,fma"), always_inline)) inline void transpose_boxes8(const ChildBoxesF& b, __m256* lo,
                                                                              __m256* hi) {
+  if (b.soa) {  // already transposed (ChildBoxesF::soa)
+    lo[0] = _mm256_loadu_ps(b.soa), lo[1] = _mm256_loadu_ps(b.soa + 8), lo[2] = _mm256_loadu_ps(b.soa + 16);
+    hi[0] = _mm256_loadu_ps(b.soa + 24), hi[1] = _mm256_loadu_ps(b.soa + 32), hi[2] = _mm256_loadu_ps(b.soa + 40);
+    return;
+  }
   __m256 r0, r1, r2, r3, r4, r5, r6, r7;
   if (b.rows8) {  // rows past count readable: no clamp (ChildBoxesF::rows8)
     const float* p = b.base;
