@@ -389,11 +389,16 @@ inline __attribute__((target("avx2,fma"))) void packet_child_slab_avx2(const Chi
   }
 }
 
-// MINDIST^2 lower bounds of the 8 children on the transposed boxes (no gather, no copy).
+// MINDIST^2 lower bounds of the 8 children on the transposed boxes (no gather, no copy). From the
+// records even where child blocks exist (ChildBoxesF::soa): knn_query reads the children's records
+// anyway, and the blocks' extra 192 bytes per node made Table 1's layered kNN 5-9% slower
+// (bench/README.md, "Issue 12, session 30").
 inline __attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, const float* q, float margin,
                                                           float* lb2) {
   __m256 lo[3], hi[3];
-  transpose_boxes8(b, lo, hi);
+  ChildBoxesF rows = b;
+  rows.soa = nullptr;
+  transpose_boxes8(rows, lo, hi);
   const __m256 m = _mm256_set1_ps(margin), zero = _mm256_setzero_ps();
   __m256 d2 = zero;
   for (int a = 0; a < 3; ++a) {
