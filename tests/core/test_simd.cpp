@@ -109,8 +109,8 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
       // trials: a box entered no later than the bound is never rejected.
       const double enter_max = (trial % 6 == 1) ? 2.5 * u(rng) : kInf;
       const double t_min = (trial % 6 == 2) ? 2.0 * u(rng) - 0.5 : -kInf;
-      r.enter_max = detail::float_above(enter_max);
-      r.lb_floor = detail::float_below(t_min);
+      r.enter_max = detail::round_float_up(enter_max);
+      r.lb_floor = detail::round_float_down(t_min);
       float entry[8], entry8[8];
       const unsigned mask = k.child_slab({rec.data(), 9, n}, r, entry);
       ASSERT_EQ(mask >> n, 0u) << "lanes beyond count must be clear";
@@ -157,6 +157,36 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
   }
   EXPECT_GT(accepted, 1000u);
   EXPECT_GT(rejected, 1000u);  // the test also prunes, or it would be vacuous
+}
+
+// round_float_down / round_float_up (ray_query.hpp, stepping in IEEE bits) against their
+// definition: the largest float <= x / the least float >= x, found with std::nextafter; doubles
+// of every class (zeros, subnormal and normal floats, float midpoints, past the float range,
+// infinities).
+TEST(Simd, RoundFloatIsTheNearestFloatOnEachSide) {
+  std::mt19937_64 rng(13);
+  std::uniform_real_distribution<double> ex(-160.0, 140.0);
+  std::vector<double> xs = {0.0, -0.0, 1e-300, -1e-300, 1e300, -1e300, kInf, -kInf,
+                            double(std::numeric_limits<float>::max()), -double(std::numeric_limits<float>::max()),
+                            double(std::numeric_limits<float>::denorm_min()) * 0.5, 1.0, -1.0};
+  for (int i = 0; i < 20000; ++i) {
+    const double x = (i % 2 ? -1.0 : 1.0) * std::exp2(ex(rng));
+    xs.push_back(x);
+    const float f = static_cast<float>(x);  // and the midpoint between f and its neighbour
+    xs.push_back(0.5 * (double(f) + double(std::nextafter(f, std::numeric_limits<float>::infinity()))));
+  }
+  const float inf = std::numeric_limits<float>::infinity();
+  for (double x : xs) {
+    const float d = detail::round_float_down(x), u = detail::round_float_up(x);
+    ASSERT_LE(double(d), x) << x;
+    ASSERT_GE(double(u), x) << x;
+    if (d != inf) {
+      ASSERT_GT(double(std::nextafter(d, inf)), x) << x;
+    }
+    if (u != -inf) {
+      ASSERT_LT(double(std::nextafter(u, -inf)), x) << x;
+    }
+  }
 }
 
 // Child order keys (simd.hpp): a key's bound never exceeds the entry it encodes (and is within 8

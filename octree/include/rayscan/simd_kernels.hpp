@@ -238,17 +238,12 @@ inline unsigned point_filter_sse2(const double* xyz, unsigned count, const Point
 
 // ---- AVX2 + FMA: all 8 children in one register -------------------------------------------------
 
-// The 8 child boxes of a node transposed in registers: lo[a] / hi[a] hold coordinate a of boxes
+// The 8 child boxes of a node transposed in registers from their records: lo[a] / hi[a] hold coordinate a of boxes
 // 0..7 (8 row loads of lo.xyz, hi.xyz + 2 ignored floats, an 8x8 transpose of which 6 rows are
 // kept; rows past b.count repeat box 0). Measured history: 6 masked gathers per node were slower
 // than scalar; a lane-by-lane copy to SoA arrays through memory cost ~100 instructions per node.
-__attribute__((target("avx2,fma"), always_inline)) inline void transpose_boxes8(const ChildBoxesF& b, __m256* lo,
-                                                                             __m256* hi) {
-  if (b.soa) {  // already transposed (ChildBoxesF::soa)
-    lo[0] = _mm256_loadu_ps(b.soa), lo[1] = _mm256_loadu_ps(b.soa + 8), lo[2] = _mm256_loadu_ps(b.soa + 16);
-    hi[0] = _mm256_loadu_ps(b.soa + 24), hi[1] = _mm256_loadu_ps(b.soa + 32), hi[2] = _mm256_loadu_ps(b.soa + 40);
-    return;
-  }
+__attribute__((target("avx2,fma"), always_inline)) inline void transpose_rows8(const ChildBoxesF& b, __m256* lo,
+                                                                            __m256* hi) {
   __m256 r0, r1, r2, r3, r4, r5, r6, r7;
   if (b.rows8) {  // rows past count readable: no clamp (ChildBoxesF::rows8)
     const float* p = b.base;
@@ -276,6 +271,15 @@ __attribute__((target("avx2,fma"), always_inline)) inline void transpose_boxes8(
   hi[0] = _mm256_permute2f128_ps(s3, s7, 0x20);
   hi[1] = _mm256_permute2f128_ps(s0, s4, 0x31);
   hi[2] = _mm256_permute2f128_ps(s1, s5, 0x31);
+}
+
+// The 8 child boxes in registers as transpose_rows8 gives them: loaded as they are from the child
+// block when there is one (ChildBoxesF::soa), else transposed from the records.
+__attribute__((target("avx2,fma"), always_inline)) inline void transpose_boxes8(const ChildBoxesF& b, __m256* lo,
+                                                                             __m256* hi) {
+  if (!b.soa) return transpose_rows8(b, lo, hi);
+  lo[0] = _mm256_loadu_ps(b.soa), lo[1] = _mm256_loadu_ps(b.soa + 8), lo[2] = _mm256_loadu_ps(b.soa + 16);
+  hi[0] = _mm256_loadu_ps(b.soa + 24), hi[1] = _mm256_loadu_ps(b.soa + 32), hi[2] = _mm256_loadu_ps(b.soa + 40);
 }
 
 // The slab test of the 8-wide child kernels: returns the mask of the boxes that pass (lanes past
@@ -396,9 +400,7 @@ inline __attribute__((target("avx2,fma"))) void packet_child_slab_avx2(const Chi
 inline __attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, const float* q, float margin,
                                                           float* lb2) {
   __m256 lo[3], hi[3];
-  ChildBoxesF rows = b;
-  rows.soa = nullptr;
-  transpose_boxes8(rows, lo, hi);
+  transpose_rows8(b, lo, hi);
   const __m256 m = _mm256_set1_ps(margin), zero = _mm256_setzero_ps();
   __m256 d2 = zero;
   for (int a = 0; a < 3; ++a) {
