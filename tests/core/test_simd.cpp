@@ -168,7 +168,8 @@ TEST(Simd, RoundFloatIsTheNearestFloatOnEachSide) {
   std::uniform_real_distribution<double> ex(-160.0, 140.0);
   std::vector<double> xs = {0.0, -0.0, 1e-300, -1e-300, 1e300, -1e300, kInf, -kInf,
                             double(std::numeric_limits<float>::max()), -double(std::numeric_limits<float>::max()),
-                            double(std::numeric_limits<float>::denorm_min()) * 0.5, 1.0, -1.0};
+                            double(std::numeric_limits<float>::denorm_min()) * 0.5,
+                            -double(std::numeric_limits<float>::denorm_min()) * 0.5, 1.0, -1.0};
   for (int i = 0; i < 20000; ++i) {
     const double x = (i % 2 ? -1.0 : 1.0) * std::exp2(ex(rng));
     xs.push_back(x);
@@ -187,6 +188,9 @@ TEST(Simd, RoundFloatIsTheNearestFloatOnEachSide) {
       ASSERT_LT(double(std::nextafter(u, -inf)), x) << x;
     }
   }
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(std::isnan(detail::round_float_down(nan)));
+  EXPECT_TRUE(std::isnan(detail::round_float_up(nan)));
 }
 
 // Child order keys (simd.hpp): a key's bound never exceeds the entry it encodes (and is within 8

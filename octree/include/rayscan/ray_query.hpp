@@ -147,23 +147,23 @@ concept FloatChildBoxes = requires(const I& idx, typename I::Node n) {
   { idx.float_extent() } -> std::convertible_to<double>;
 };
 
-/// The float after f towards +inf (up) or -inf (down), for a non-NaN f not already at that end:
-/// std::nextafter's step in IEEE bits, inline (the traversal rounds a bound on every new best hit;
-/// the libm call cost 2.5% of a camera hit's instructions, bench/README.md "Issue 12, session 30").
-inline float float_step(float f, bool up) {
-  if (f == 0.0f) return up ? std::numeric_limits<float>::denorm_min() : -std::numeric_limits<float>::denorm_min();
-  const std::uint32_t b = std::bit_cast<std::uint32_t>(f);
-  return std::bit_cast<float>((f > 0.0f) == up ? b + 1 : b - 1);
-}
 /// Rounds x to float towards -inf (down) or +inf (up): infinities are kept, finite values past
 /// the float range go to -inf / FLT_MAX (down) and -FLT_MAX / +inf (up), NaN stays NaN.
+/// Branch-free: the nearest float, stepped one unit in its IEEE bits (the magnitude up or down by
+/// the sign bit) when it lies on the wrong side of x (a branch on that mispredicted about once per
+/// camera hit: bench/README.md "Issue 12, session 31"). A nonzero x's nearest float keeps x's sign,
+/// so a +0 only ever steps up to denorm_min and a -0 only down to -denorm_min: the bit step holds.
 inline float round_float_down(double x) {
   const float f = static_cast<float>(x);
-  return static_cast<double>(f) > x ? float_step(f, false) : f;
+  const std::uint32_t b = std::bit_cast<std::uint32_t>(f);
+  const std::uint32_t wrong = 0u - static_cast<std::uint32_t>(static_cast<double>(f) > x);  // all ones or 0
+  return std::bit_cast<float>(b + (wrong & (((b >> 31) << 1) - 1u)));  // negative: +1, else -1
 }
 inline float round_float_up(double x) {
   const float f = static_cast<float>(x);
-  return static_cast<double>(f) < x ? float_step(f, true) : f;
+  const std::uint32_t b = std::bit_cast<std::uint32_t>(f);
+  const std::uint32_t wrong = 0u - static_cast<std::uint32_t>(static_cast<double>(f) < x);
+  return std::bit_cast<float>(b + (wrong & (1u - ((b >> 31) << 1))));  // negative: -1, else +1
 }
 
 template <class Node>
