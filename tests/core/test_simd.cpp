@@ -261,6 +261,58 @@ TEST(Simd, SortKeys8SortsEveryInput) {
   if (!ran) GTEST_SKIP() << "no path with sort_keys8 on this CPU";
 }
 
+// sort_push_keys8 against a scalar oracle: the keys of child_slab_keys' form (n passing children
+// with keys child_key(entry, i) from floats of every class, the other lanes ~0u) sorted by
+// std::sort, the n - 1 farther ones as entries farthest first with child_key_bound and
+// first_child + the child's number; on every path that has the kernel.
+TEST(Simd, SortPushKeys8WritesTheFartherChildrenFarthestFirst) {
+  PathGuard guard;
+  std::mt19937_64 rng(17);
+  const std::vector<float> special = {0.0f, -0.0f, std::numeric_limits<float>::infinity(),
+                                      -std::numeric_limits<float>::infinity(), std::numeric_limits<float>::denorm_min(),
+                                      -std::numeric_limits<float>::denorm_min(), 1.0f, -1.0f, 1e30f, -1e30f};
+  std::uniform_real_distribution<double> ex(-30.0, 30.0);
+  bool ran = false;
+  for (SimdPath path : supported_paths()) {
+    set_simd_path(path);
+    const simd::Kernels& k = simd::active_kernels();
+    if (!k.sort_push_keys8) continue;
+    ran = true;
+    for (int t = 0; t < 20000; ++t) {
+      std::uint32_t keys[8];
+      std::vector<std::uint32_t> passing;
+      const unsigned mask = static_cast<unsigned>(rng() & 0xFFu) | (1u << (t % 8));  // at least one child
+      for (unsigned i = 0; i < 8; ++i) {
+        if (!((mask >> i) & 1u)) {
+          keys[i] = ~0u;
+          continue;
+        }
+        const std::uint64_t r = rng();
+        float e = (r % 7 == 0) ? special[(r >> 8) % special.size()]
+                               : static_cast<float>((r % 2 ? -1.0 : 1.0) * std::exp2(ex(rng)));
+        if (t % 3 == 0) e = static_cast<float>(r % 4);  // ties of entries
+        keys[i] = simd::child_key(e, i);
+        passing.push_back(keys[i]);
+      }
+      std::sort(passing.begin(), passing.end());
+      const std::uint32_t first = static_cast<std::uint32_t>(rng() >> 40);
+      struct Entry {
+        double lb;
+        std::uint32_t node, pad;
+      } out[8];
+      k.sort_push_keys8(keys, static_cast<unsigned>(passing.size()), first, out);
+      for (std::size_t j = 0; j + 1 < passing.size(); ++j) {
+        const std::uint32_t key = passing[passing.size() - 1 - j];
+        const double want = simd::child_key_bound(key);
+        ASSERT_EQ(std::bit_cast<std::uint64_t>(out[j].lb), std::bit_cast<std::uint64_t>(want))
+            << to_string(path) << " trial " << t << " entry " << j;
+        ASSERT_EQ(out[j].node, first + simd::child_key_index(key)) << to_string(path) << " trial " << t;
+      }
+    }
+  }
+  if (!ran) GTEST_SKIP() << "no path with sort_push_keys8 on this CPU";
+}
+
 TEST(Simd, ChildDist2IsALowerBoundOfTheExactMindist) {
   PathGuard guard;
   std::mt19937_64 rng(17);

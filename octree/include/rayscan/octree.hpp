@@ -143,6 +143,8 @@ class Octree {
   }
   [[nodiscard]] unsigned child_count(Node n) const { return nodes_[n].child_count; }
   [[nodiscard]] Node child(Node n, unsigned i) const { return nodes_[n].first_child + i; }
+  /// child(n, i) is child(n, 0) + i (ray_query's child step pushes the children in one kernel).
+  static constexpr bool kContiguousChildren = true;
   [[nodiscard]] std::span<const Vec3> positions() const { return pos_; }
   [[nodiscard]] std::span<const PointIndex> ids() const { return ids_; }
   /// All slots of the subtree rooted at n (its own points and every descendant's): contiguous.

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <new>
@@ -125,6 +126,14 @@ struct NodeEntry {
   double lb;  // lower bound of the ordering key of any result inside the node
   Node node;
 };
+// The entry layout simd::SortPushKeys8Fn writes (16 bytes: lb at 0, a 32-bit node at 8).
+static_assert(sizeof(NodeEntry<std::uint32_t>) == 16 && offsetof(NodeEntry<std::uint32_t>, node) == 8);
+
+/// Indexes with 32-bit nodes whose children are consecutive handles (child(n, i) ==
+/// child(n, 0) + i, declared by I::kContiguousChildren): the first-hit child step writes its
+/// pushes with one kernel (simd::SortPushKeys8Fn).
+template <class I>
+concept ContiguousChildren32 = sizeof(typename I::Node) == 4 && requires { requires I::kContiguousChildren; };
 
 /// Reusable per-thread scratch so that a query allocates nothing once warm.
 template <class Node>
@@ -725,7 +734,10 @@ struct RayTraversal {
   /// from that key (more), never through a store and reload (the loop is latency-bound: the chain
   /// from one node to the next is its time); the farther of two children is pushed after one
   /// compare (one or two children: 63% of the octree's nodes on the camera rays of bench_rays),
-  /// three or more are sorted by a network on the 8 keys (sort_keys8). Otherwise the children are
+  /// three or more are sorted by a network on the 8 keys and, on indexes with ContiguousChildren32,
+  /// written to the stack by the same kernel (sort_push_keys8: no reload of each sorted key and no
+  /// loop whose trip count mispredicts; camera hits ~3-5% faster, "Issue 12, session 31"; else
+  /// sort_keys8 and a loop). Otherwise the children are
   /// tested by test_children and sorted by insertion. (bench/README.md, "Issue 12, session 30":
   /// -17% instructions per camera hit; a network for two children as well was slower.)
   void traverse_from(Node start, double lb0) {
@@ -787,6 +799,11 @@ struct RayTraversal {
           if ((m1 & (m1 - 1)) == 0) {  // two: the farther one pushed
             const std::uint32_t far = std::max(keys[__builtin_ctz(m)], keys[__builtin_ctz(m1)]);
             stack[top++] = {simd::child_key_bound(far), index.child(e.node, simd::child_key_index(far))};
+          } else if (detail::ContiguousChildren32<I> && has_kernel(kern.sort_push_keys8)) {
+            // three or more: sorted and pushed by one kernel, farthest first (no branch on the count)
+            const unsigned nk = static_cast<unsigned>(__builtin_popcount(m));
+            kern.sort_push_keys8(keys, nk, static_cast<std::uint32_t>(index.child(e.node, 0)), stack + top);
+            top += nk - 1;
           } else {  // three or more: keys[0..n) ascending, the lanes outside m (~0u) after them
             kern.sort_keys8(keys);
             for (unsigned j = static_cast<unsigned>(__builtin_popcount(m)); --j > 0;)

@@ -147,6 +147,15 @@ using ChildSlabKeysFn = unsigned (*)(const ChildBoxesF& boxes, const SlabRayF& r
                                      std::uint32_t& near);
 /// Sorts keys[0..8) ascending (a sorting network: no branch on the data).
 using SortKeys8Fn = void (*)(std::uint32_t* keys);
+/// The child step's pushes for 32-bit nodes in one kernel: sorts the 8 keys of child_slab_keys
+/// (n of them passing, the other lanes ~0u) and writes the n - 1 farther children as node stack
+/// entries, farthest first, to out[0 .. n - 1): 16 bytes each, {double lb = child_key_bound(key)
+/// at byte 0, uint32 node = first_child + child_key_index(key) at byte 8} (the layout of the
+/// traversal's entry for a 32-bit Node). out must have room for 8 entries (128 bytes): all 8 are
+/// written, those from n - 1 on mean nothing. No branch on the data (issue 12, bench/README.md
+/// "Issue 12, session 31": the scalar push loop after sort_keys8 reloaded each key from the
+/// sorted store and mispredicted its trip count).
+using SortPushKeys8Fn = void (*)(const std::uint32_t* keys, unsigned n, std::uint32_t first_child, void* out);
 /// Slab test of up to 8 child boxes against the rays of lanes [0, lanes) of a packet (lanes <= 16):
 /// bit j of hits[i] is set when box i grown as in lane j meets its [t_lo, t_hi] (the same
 /// conservative test as ChildSlabFn), entry[i * 16 + j] receives a lower bound of the entry
@@ -176,6 +185,7 @@ struct Kernels {
   PacketChildSlabFn packet_child_slab;  ///< nullptr for the scalar path
   ChildSlabKeysFn child_slab_keys;      ///< nullptr for the scalar and sse2 paths
   SortKeys8Fn sort_keys8;               ///< nullptr for the scalar and sse2 paths
+  SortPushKeys8Fn sort_push_keys8;      ///< nullptr for the scalar and sse2 paths
 };
 
 /// The kernels of the active path (simd_path()).

@@ -354,15 +354,55 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256i sort_layer(__m
 
 // Sorts 8 unsigned keys ascending: a sorting network of 19 comparators in 6 layers (Knuth, TAOCP
 // vol. 3, section 5.3.4, the optimal network for n = 8; checked on all 256 0-1 inputs by the test).
-inline __attribute__((target("avx2,fma"))) void sort_keys8_avx2(std::uint32_t* keys) {
-  __m256i k = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(keys));
+__attribute__((target("avx2,fma"), always_inline)) inline __m256i sort8(__m256i k) {
   k = sort_layer<0b11001100>(k, _mm256_setr_epi32(2, 3, 0, 1, 6, 7, 4, 5));  // (0,2) (1,3) (4,6) (5,7)
   k = sort_layer<0b11110000>(k, _mm256_setr_epi32(4, 5, 6, 7, 0, 1, 2, 3));  // (0,4) (1,5) (2,6) (3,7)
   k = sort_layer<0b10101010>(k, _mm256_setr_epi32(1, 0, 3, 2, 5, 4, 7, 6));  // (0,1) (2,3) (4,5) (6,7)
   k = sort_layer<0b00110000>(k, _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7));  // (2,4) (3,5)
   k = sort_layer<0b01010000>(k, _mm256_setr_epi32(0, 4, 2, 6, 1, 5, 3, 7));  // (1,4) (3,6)
-  k = sort_layer<0b01010100>(k, _mm256_setr_epi32(0, 2, 1, 4, 3, 6, 5, 7));  // (1,2) (3,4) (5,6)
-  _mm256_storeu_si256(reinterpret_cast<__m256i*>(keys), k);
+  return sort_layer<0b01010100>(k, _mm256_setr_epi32(0, 2, 1, 4, 3, 6, 5, 7));  // (1,2) (3,4) (5,6)
+}
+
+inline __attribute__((target("avx2,fma"))) void sort_keys8_avx2(std::uint32_t* keys) {
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(keys), sort8(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(keys))));
+}
+
+// sort_push_keys8's lanes before the stores (simd.hpp, SortPushKeys8Fn): the keys sorted and
+// reversed so that lane j holds the (n - 1 - j)-th least (lanes 0 .. n - 2: the farther children,
+// farthest first), their bounds (child_key_bound in lanes: the float's bits back from the
+// order-preserving key, a NaN to -inf) and their nodes.
+struct PushLanes8 {
+  __m256 lb;
+  __m256i node;
+};
+__attribute__((target("avx2,fma"), always_inline)) inline PushLanes8 push_lanes8(const std::uint32_t* keys, unsigned n,
+                                                                                  std::uint32_t first_child) {
+  __m256i k = sort8(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(keys)));
+  const __m256i rev = _mm256_and_si256(
+      _mm256_sub_epi32(_mm256_set1_epi32(static_cast<int>(n) - 1), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)),
+      _mm256_set1_epi32(7));
+  k = _mm256_permutevar8x32_epi32(k, rev);
+  const __m256i u = _mm256_and_si256(k, _mm256_set1_epi32(~7));
+  const __m256i nonneg = _mm256_srai_epi32(u, 31);  // all ones: the key of a float with the sign bit clear
+  const __m256i bits = _mm256_blendv_epi8(_mm256_xor_si256(u, _mm256_set1_epi32(-1)),
+                                          _mm256_and_si256(u, _mm256_set1_epi32(0x7FFFFFFF)), nonneg);
+  const __m256 f = _mm256_castsi256_ps(bits);
+  const __m256 lb = _mm256_blendv_ps(_mm256_set1_ps(-std::numeric_limits<float>::infinity()), f, _mm256_cmp_ps(f, f, _CMP_ORD_Q));
+  return {lb, _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(first_child)), _mm256_and_si256(k, _mm256_set1_epi32(7)))};
+}
+
+inline __attribute__((target("avx2,fma"))) void sort_push_keys8_avx2(const std::uint32_t* keys, unsigned n,
+                                                                     std::uint32_t first_child, void* out) {
+  const PushLanes8 p = push_lanes8(keys, n, first_child);
+  double* o = static_cast<double*>(out);
+  for (int h = 0; h < 2; ++h) {  // entries 4h .. 4h + 3
+    const __m256d lb = _mm256_cvtps_pd(h ? _mm256_extractf128_ps(p.lb, 1) : _mm256_castps256_ps128(p.lb));
+    const __m256d nd = _mm256_castsi256_pd(
+        _mm256_cvtepu32_epi64(h ? _mm256_extracti128_si256(p.node, 1) : _mm256_castsi256_si128(p.node)));
+    const __m256d lo = _mm256_unpacklo_pd(lb, nd), hi = _mm256_unpackhi_pd(lb, nd);  // entries 0 2 / 1 3
+    _mm256_storeu_pd(o + 8 * h, _mm256_permute2f128_pd(lo, hi, 0x20));
+    _mm256_storeu_pd(o + 8 * h + 4, _mm256_permute2f128_pd(lo, hi, 0x31));
+  }
 }
 
 inline __attribute__((target("avx2,fma"))) void packet_child_slab_avx2(const ChildBoxesF& b, const SlabPacketF& p,
@@ -704,6 +744,19 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filte
   }
   return n;
 }
+// sort_push_keys8_avx2 with the 8 entries built in two 512-bit registers.
+inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) void sort_push_keys8_avx512(const std::uint32_t* keys,
+                                                                                        unsigned n,
+                                                                                        std::uint32_t first_child,
+                                                                                        void* out) {
+  const PushLanes8 p = push_lanes8(keys, n, first_child);
+  // (the zero-masked forms: GCC 12's plain ones pass an undefined operand -Wuninitialized reports)
+  const __m512d lb = _mm512_maskz_cvtps_pd(0xFF, p.lb);
+  const __m512d nd = _mm512_castsi512_pd(_mm512_maskz_cvtepu32_epi64(0xFF, p.node));
+  double* o = static_cast<double*>(out);
+  _mm512_storeu_pd(o, _mm512_permutex2var_pd(lb, _mm512_setr_epi64(0, 8, 1, 9, 2, 10, 3, 11), nd));
+  _mm512_storeu_pd(o + 8, _mm512_permutex2var_pd(lb, _mm512_setr_epi64(4, 12, 5, 13, 6, 14, 7, 15), nd));
+}
 #pragma GCC diagnostic pop  // (also _mm512_cvtps_pd / _mm512_min_pd of the per-point radii)
 #endif
 
@@ -722,6 +775,7 @@ struct Avx2Kernels {
   static constexpr PacketChildSlabFn packet_child_slab = kernels::packet_child_slab_avx2;
   static constexpr ChildSlabKeysFn child_slab_keys = kernels::child_slab_keys_avx2;
   static constexpr SortKeys8Fn sort_keys8 = kernels::sort_keys8_avx2;
+  static constexpr SortPushKeys8Fn sort_push_keys8 = kernels::sort_push_keys8_avx2;
 };
 
 /// Compile-time kernel policy of the AVX-512 (F + VL) path: the child tests stay 8-wide (an octree
@@ -734,6 +788,7 @@ struct Avx512Kernels {
   static constexpr PacketChildSlabFn packet_child_slab = kernels::packet_child_slab_avx512;
   static constexpr ChildSlabKeysFn child_slab_keys = kernels::child_slab_keys_avx2;
   static constexpr SortKeys8Fn sort_keys8 = kernels::sort_keys8_avx2;
+  static constexpr SortPushKeys8Fn sort_push_keys8 = kernels::sort_push_keys8_avx512;
 };
 #endif
 

@@ -212,6 +212,8 @@ class MappedIndex {
   }
   /// Child i < child_count(n) of n.
   [[nodiscard]] Node child(Node n, unsigned i) const { return nodes_[n].first + i; }
+  /// child(n, i) is child(n, 0) + i (ray_query's child step pushes the children in one kernel).
+  static constexpr bool kContiguousChildren = true;
 
   // Optional SIMD extension of the concept (issue 12; see ray_query) ----------------------------
   /// The float boxes of n's children (their node records' lo/hi, contiguous in the mapped nodes
