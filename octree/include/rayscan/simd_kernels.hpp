@@ -649,17 +649,31 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
   return miss & _mm512_cmp_pd_mask(_mm512_mul_pd(dn, dn), _mm512_mul_pd(n2, _mm512_set1_pd(0x1p-20)), _CMP_GE_OQ);
 }
 
-// Eight AoS triples at p (24 values) as x, y and z lanes (x_j at 3j, y_j at 3j + 1, z_j at 3j + 2
-// of a, b, c).
+// Eight AoS triples (24 values in a, b, c) as x, y and z lanes, lane L holding point 3L mod 8
+// (kLanePoint): x_j sits at lane 3j mod 8 of one of a, b, c, y_j one lane later, z_j two, so two
+// blends gather each coordinate and a rotation aligns y and z with x (2 shuffles instead of 6
+// two-source permutes). Masks of these lanes go back to point order through lane_to_point_mask.
 __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline void deinterleave8(
     __m512d a, __m512d b, __m512d c, __m512d& x, __m512d& y, __m512d& z) {
-  const __m512i ix1 = _mm512_setr_epi64(0, 3, 6, 9, 12, 15, 0, 0), ix2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 10, 13);
-  const __m512i iy1 = _mm512_setr_epi64(1, 4, 7, 10, 13, 0, 0, 0), iy2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 8, 11, 14);
-  const __m512i iz1 = _mm512_setr_epi64(2, 5, 8, 11, 14, 0, 0, 0), iz2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 9, 12, 15);
-  x = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, ix1, b), ix2, c);
-  y = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iy1, b), iy2, c);
-  z = _mm512_permutex2var_pd(_mm512_permutex2var_pd(a, iz1, b), iz2, c);
+  x = _mm512_mask_blend_pd(0x24, _mm512_mask_blend_pd(0x92, a, b), c);
+  y = _mm512_mask_blend_pd(0x49, _mm512_mask_blend_pd(0x24, a, b), c);
+  z = _mm512_mask_blend_pd(0x92, _mm512_mask_blend_pd(0x49, a, b), c);
+  y = _mm512_castsi512_pd(_mm512_alignr_epi64(_mm512_castpd_si512(y), _mm512_castpd_si512(y), 1));
+  z = _mm512_castsi512_pd(_mm512_alignr_epi64(_mm512_castpd_si512(z), _mm512_castpd_si512(z), 2));
 }
+// The bits of a lane mask of deinterleave8 in point order (bit 3L mod 8 <- bit L).
+struct LaneToPoint8 {
+  std::uint8_t t[256];
+  constexpr LaneToPoint8() : t{} {
+    for (unsigned m = 0; m < 256; ++m) {
+      unsigned r = 0;
+      for (unsigned l = 0; l < 8; ++l) r |= ((m >> l) & 1u) << ((3 * l) & 7u);
+      t[m] = static_cast<std::uint8_t>(r);
+    }
+  }
+};
+inline constexpr LaneToPoint8 kLaneToPoint8{};
+[[nodiscard]] inline unsigned lane_to_point_mask(unsigned m) { return kLaneToPoint8.t[m & 0xFFu]; }
 
 // The load masks of the first `valid` (<= 8) of eight AoS triples: 3 valid values over 3 vectors of 8.
 struct TripleMasks8 {
@@ -693,8 +707,8 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
   const __m512d d2max = _mm512_set1_pd(f.d2_max);
   const unsigned lanes = kMasked ? mk.lanes : 0xFFu;
   if (dist_only)  // knn_query: |p - o|^2 alone (see distance_only)
-    return lanes & _mm512_cmp_pd_mask(_mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx))), d2max,
-                                      _CMP_LE_OQ);
+    return lanes & lane_to_point_mask(_mm512_cmp_pd_mask(
+                       _mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx))), d2max, _CMP_LE_OQ));
   const __m512d dx = _mm512_set1_pd(f.d[0]), dy = _mm512_set1_pd(f.d[1]), dz = _mm512_set1_pd(f.d[2]);
   const __m512d t = _mm512_fmadd_pd(vz, dz, _mm512_fmadd_pd(vy, dy, _mm512_mul_pd(vx, dx)));
   // d^2 = |v|^2 - t^2, as filter_step4.
@@ -703,12 +717,14 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
   const __m512d tlo = _mm512_set1_pd(f.t_lo);
   __m512d lim = d2max, tl = tlo, r = _mm512_setzero_pd();
   if (f.radii) {  // each point's own radius as well (PointFilterD::radii, t_lo_own)
-    r = _mm512_cvtps_pd(kMasked ? _mm256_maskz_loadu_ps(mk.lanes, f.radii + i) : _mm256_loadu_ps(f.radii + i));
+    r = _mm512_permutexvar_pd(_mm512_setr_epi64(0, 3, 6, 1, 4, 7, 2, 5),  // (in lane order)
+                              _mm512_cvtps_pd(kMasked ? _mm256_maskz_loadu_ps(mk.lanes, f.radii + i)
+                                                      : _mm256_loadu_ps(f.radii + i)));
     lim = _mm512_min_pd(_mm512_fmadd_pd(r, r, _mm512_set1_pd(f.d2_slack)), d2max);  // (d2max when r is NaN)
     tl = _mm512_max_pd(_mm512_sub_pd(_mm512_set1_pd(f.t_lo_own), r), tlo);          // (t_lo when r is NaN)
   }
-  unsigned m = lanes & _mm512_cmp_pd_mask(d2, lim, _CMP_LE_OQ) & _mm512_cmp_pd_mask(t, tl, _CMP_GE_OQ) &
-               _mm512_cmp_pd_mask(t, _mm512_set1_pd(f.t_hi), _CMP_LE_OQ);
+  unsigned m = _mm512_cmp_pd_mask(d2, lim, _CMP_LE_OQ) & _mm512_cmp_pd_mask(t, tl, _CMP_GE_OQ) &
+               _mm512_cmp_pd_mask(t, _mm512_set1_pd(f.t_hi), _CMP_LE_OQ);  // lanes (deinterleave8's order)
   if (m && f.normals && f.radii) {  // the ray-disc test too (PointFilterD::normals)
     const float* nf = f.normals + 3 * static_cast<std::size_t>(i);
     __m512d nx, ny, nz;
@@ -720,7 +736,7 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
                     _mm512_cvtps_pd(_mm256_loadu_ps(nf + 16)), nx, ny, nz);
     m &= ~disc_miss8(f, vx, vy, vz, r, nx, ny, nz);
   }
-  return m;
+  return lanes & lane_to_point_mask(m);
 }
 
 inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx512(const double* xyz, unsigned count,
