@@ -736,7 +736,7 @@ struct RayTraversal {
   /// compare (one or two children: 63% of the octree's nodes on the camera rays of bench_rays),
   /// three or more are sorted by a network on the 8 keys and, on indexes with ContiguousChildren32,
   /// written to the stack by the same kernel (sort_push_keys8: no reload of each sorted key and no
-  /// loop whose trip count mispredicts; camera hits ~3-5% faster, "Issue 12, session 31"; else
+  /// loop whose trip count mispredicts; camera hits ~3% faster, "Issue 12, session 31"; else
   /// sort_keys8 and a loop). Otherwise the children are
   /// tested by test_children and sorted by insertion. (bench/README.md, "Issue 12, session 30":
   /// -17% instructions per camera hit; a network for two children as well was slower.)
