@@ -649,10 +649,11 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
   return miss & _mm512_cmp_pd_mask(_mm512_mul_pd(dn, dn), _mm512_mul_pd(n2, _mm512_set1_pd(0x1p-20)), _CMP_GE_OQ);
 }
 
-// Eight AoS triples (24 values in a, b, c) as x, y and z lanes, lane L holding point 3L mod 8
-// (kLanePoint): x_j sits at lane 3j mod 8 of one of a, b, c, y_j one lane later, z_j two, so two
-// blends gather each coordinate and a rotation aligns y and z with x (2 shuffles instead of 6
-// two-source permutes). Masks of these lanes go back to point order through lane_to_point_mask.
+// Eight AoS triples (24 values in a, b, c) as x, y and z lanes, lane L holding point 3L mod 8:
+// x_j sits at lane 3j mod 8 of one of a, b, c, y_j one lane later, z_j two, so two blends gather
+// each coordinate and a rotation aligns y and z with x (2 shuffles instead of 6 two-source
+// permutes: bench/README.md "Issue 12, session 31"). Per-point inputs in point order (radii) are
+// permuted into this order; lane masks go back to point order through lane_to_point_mask.
 __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline void deinterleave8(
     __m512d a, __m512d b, __m512d c, __m512d& x, __m512d& y, __m512d& z) {
   x = _mm512_mask_blend_pd(0x24, _mm512_mask_blend_pd(0x92, a, b), c);
