@@ -296,10 +296,7 @@ TEST(Simd, SortPushKeys8WritesTheFartherChildrenFarthestFirst) {
       }
       std::sort(passing.begin(), passing.end());
       const std::uint32_t first = static_cast<std::uint32_t>(rng() >> 40);
-      struct Entry {
-        double lb;
-        std::uint32_t node, pad;
-      } out[8];
+      detail::NodeEntry<std::uint32_t> out[8];  // the traversal's own entries, as it passes them
       k.sort_push_keys8(keys, static_cast<unsigned>(passing.size()), first, out);
       for (std::size_t j = 0; j + 1 < passing.size(); ++j) {
         const std::uint32_t key = passing[passing.size() - 1 - j];

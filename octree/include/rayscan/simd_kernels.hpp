@@ -238,9 +238,9 @@ inline unsigned point_filter_sse2(const double* xyz, unsigned count, const Point
 
 // ---- AVX2 + FMA: all 8 children in one register -------------------------------------------------
 
-// The 8 child boxes of a node transposed in registers from their records: lo[a] / hi[a] hold coordinate a of boxes
-// 0..7 (8 row loads of lo.xyz, hi.xyz + 2 ignored floats, an 8x8 transpose of which 6 rows are
-// kept; rows past b.count repeat box 0). Measured history: 6 masked gathers per node were slower
+// The 8 child boxes of a node transposed in registers from their records: lo[a] / hi[a] hold
+// coordinate a of boxes 0..7 (8 row loads of lo.xyz, hi.xyz + 2 ignored floats, an 8x8 transpose
+// of which 6 rows are kept; rows past b.count repeat box 0). Measured history: 6 masked gathers per node were slower
 // than scalar; a lane-by-lane copy to SoA arrays through memory cost ~100 instructions per node.
 __attribute__((target("avx2,fma"), always_inline)) inline void transpose_rows8(const ChildBoxesF& b, __m256* lo,
                                                                             __m256* hi) {
@@ -391,6 +391,8 @@ __attribute__((target("avx2,fma"), always_inline)) inline PushLanes8 push_lanes8
   return {lb, _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(first_child)), _mm256_and_si256(k, _mm256_set1_epi32(7)))};
 }
 
+// SortPushKeys8Fn (simd.hpp) on AVX2: the 8 entries built 4 at a time (bounds widened to double,
+// nodes to 64 bits, interleaved by unpack and a 128-bit lane swap), four 256-bit stores.
 inline __attribute__((target("avx2,fma"))) void sort_push_keys8_avx2(const std::uint32_t* keys, unsigned n,
                                                                      std::uint32_t first_child, void* out) {
   const PushLanes8 p = push_lanes8(keys, n, first_child);
@@ -761,7 +763,8 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filte
   }
   return n;
 }
-// sort_push_keys8_avx2 with the 8 entries built in two 512-bit registers.
+// SortPushKeys8Fn (simd.hpp) on AVX-512: as sort_push_keys8_avx2, the 8 entries interleaved by two
+// two-source permutes into two 512-bit stores.
 inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) void sort_push_keys8_avx512(const std::uint32_t* keys,
                                                                                         unsigned n,
                                                                                         std::uint32_t first_child,
