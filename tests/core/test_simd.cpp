@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <limits>
 #include <optional>
 #include <random>
@@ -297,6 +298,7 @@ TEST(Simd, SortPushKeys8WritesTheFartherChildrenFarthestFirst) {
       std::sort(passing.begin(), passing.end());
       const std::uint32_t first = static_cast<std::uint32_t>(rng() >> 40);
       detail::NodeEntry<std::uint32_t> out[8];  // the traversal's own entries, as it passes them
+      std::memset(out, 0xFF, sizeof out);
       k.sort_push_keys8(keys, static_cast<unsigned>(passing.size()), first, out);
       for (std::size_t j = 0; j + 1 < passing.size(); ++j) {
         const std::uint32_t key = passing[passing.size() - 1 - j];
@@ -304,6 +306,10 @@ TEST(Simd, SortPushKeys8WritesTheFartherChildrenFarthestFirst) {
         ASSERT_EQ(std::bit_cast<std::uint64_t>(out[j].lb), std::bit_cast<std::uint64_t>(want))
             << to_string(path) << " trial " << t << " entry " << j;
         ASSERT_EQ(out[j].node, first + simd::child_key_index(key)) << to_string(path) << " trial " << t;
+        // Bytes 12..15 zero: knn_query's KnnEntry reads its points flag there.
+        std::uint32_t pad;
+        std::memcpy(&pad, reinterpret_cast<const unsigned char*>(&out[j]) + 12, 4);
+        ASSERT_EQ(pad, 0u) << to_string(path) << " trial " << t;
       }
     }
   }
@@ -347,6 +353,61 @@ TEST(Simd, ChildDist2IsALowerBoundOfTheExactMindist) {
   EXPECT_GT(positive, 1000u);  // the bound is also tight enough to prune
 }
 
+// child_dist2_keys against child_dist2 on the same path (the bounds it encodes) and the scalar
+// child_key: the mask is the children i < n within the bound, the keys of the others ~0u, near the
+// least key; bounds on both sides of the children's own, 0 and infinity.
+TEST(Simd, ChildDist2KeysEncodeTheChildrenWithinTheBound) {
+  PathGuard guard;
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  bool ran = false;
+  for (SimdPath path : supported_paths()) {
+    set_simd_path(path);
+    const simd::Kernels& k = simd::active_kernels();
+    if (!k.child_dist2_keys) continue;
+    ASSERT_NE(k.child_dist2, nullptr);
+    ran = true;
+    for (int trial = 0; trial < 5000; ++trial) {
+      const unsigned n = 1 + static_cast<unsigned>(trial % 8);
+      std::vector<float> rec(8 * 12, 0.5f);  // rows past n readable (as an octree's records)
+      for (unsigned i = 0; i < n; ++i)
+        for (int a = 0; a < 3; ++a) {
+          const double c = u(rng), h = 0.2 * u(rng);
+          rec[i * 12 + a] = static_cast<float>(c - h);
+          rec[i * 12 + 3 + a] = static_cast<float>(c + h);
+        }
+      const float q[3] = {static_cast<float>(3 * u(rng) - 1), static_cast<float>(3 * u(rng) - 1),
+                          static_cast<float>(3 * u(rng) - 1)};
+      const float margin = static_cast<float>(0x1p-20 * 3.0);
+      const simd::ChildBoxesF boxes{rec.data(), 12, n};
+      float lb2[8];
+      k.child_dist2(boxes, q, margin, lb2);
+      const float pick = lb2[trial % n];
+      const float bound = trial % 7 == 0   ? std::numeric_limits<float>::infinity()
+                          : trial % 7 == 1 ? 0.0f
+                          : trial % 7 == 2 ? pick
+                          : trial % 7 == 3 ? std::nextafter(pick, 0.0f)
+                                           : static_cast<float>(u(rng) * 2.0);
+      unsigned want_mask = 0;
+      std::uint32_t want_keys[8], want_near = ~0u;
+      for (unsigned i = 0; i < 8; ++i) {
+        const bool in = i < n && lb2[i] <= bound;
+        want_mask |= static_cast<unsigned>(in) << i;
+        want_keys[i] = in ? simd::child_key(lb2[i], i) : ~0u;
+        want_near = std::min(want_near, want_keys[i]);
+      }
+      std::uint32_t keys[8], near = 0;
+      const unsigned mask = k.child_dist2_keys(boxes, q, margin, bound, keys, near);
+      ASSERT_EQ(mask, want_mask) << to_string(path) << " trial " << trial;
+      ASSERT_TRUE(std::equal(keys, keys + 8, want_keys)) << to_string(path) << " trial " << trial;
+      if (mask) {
+        ASSERT_EQ(near, want_near) << to_string(path) << " trial " << trial;
+      }
+    }
+  }
+  if (!ran) GTEST_SKIP() << "no path with child_dist2_keys on this CPU";
+}
+
 TEST(Simd, KnnIsBitIdenticalOnEveryPath) {
   PathGuard guard;
   const std::vector<Vec3> pts = make_points(20000, Dist::utm_mm, 4);
@@ -364,9 +425,11 @@ TEST(Simd, KnnIsBitIdenticalOnEveryPath) {
         const Vec3 v = pts[j] - q;
         all[j] = {glm::dot(v, v), static_cast<PointIndex>(j)};
       }
-      // k = 1 and 8: the sorted candidate array; k = 40: the heap (detail::kKnnSortedMax = 32).
+      // k = 1, 5 and 8: the vector k best (detail::Best8) on the SIMD instances, the sorted
+      // candidate array on the others; k = 20: the sorted array; k = 40: the heap
+      // (detail::kKnnSortedMax = 32).
       std::partial_sort(all.begin(), all.begin() + 40, all.end());
-      for (const std::size_t k : {std::size_t{1}, std::size_t{8}, std::size_t{40}}) {
+      for (const std::size_t k : {std::size_t{1}, std::size_t{5}, std::size_t{8}, std::size_t{20}, std::size_t{40}}) {
         std::vector<Neighbor> want;
         for (std::size_t j = 0; j < k; ++j) want.push_back({all[j].second, std::sqrt(all[j].first)});
         for (SimdPath path : supported_paths()) {

@@ -6,6 +6,7 @@
 #include "rayscan/spatial_index.hpp"
 
 #include <algorithm>
+#include <cstddef>
 #include <vector>
 
 namespace rayscan {
@@ -78,6 +79,20 @@ struct KnnCand {
   PointIndex id;
 };
 inline bool knn_less(const KnnCand& a, const KnnCand& b) { return a.d2 < b.d2 || (a.d2 == b.d2 && a.id < b.id); }
+/// knn_query's k best for k <= 8 in 8 lanes, two GNU vectors of 4 each (one AVX2 register):
+/// squared distances and ids (64-bit lanes, so that one compare mask selects both; an id < 2^32
+/// compares the same signed), ascending by (d2, id); lanes past the held ones {inf, INT64_MAX}.
+using Best4D = double __attribute__((vector_size(32)));
+using Best4I = std::int64_t __attribute__((vector_size(32)));
+struct Best8 {
+  Best4D d2[2] = {Best4D{} + kInf, Best4D{} + kInf};
+  Best4I id[2] = {Best4I{} + std::numeric_limits<std::int64_t>::max(), Best4I{} + std::numeric_limits<std::int64_t>::max()};
+};
+/// Whether knn_query_with<K> keeps k <= 8 in Best8: on the instances compiled for a SIMD path
+/// (a compile-time policy of simd_kernels.hpp), whose registers hold its lanes; the run-time table
+/// (scalar, SSE2: no 64-bit lane compare) keeps the insertion sort.
+template <class K>
+inline constexpr bool kVectorBest = !std::is_same_v<K, simd::Kernels>;
 
 /// A stack entry of the kNN traversal: a node (points = false: test its children, then its own
 /// points) or a node's own points alone (points = true, deferred below its children).
@@ -87,11 +102,15 @@ struct KnnEntry {
   Node node;
   bool points;
 };
+// The layout simd::SortPushKeys8Fn writes (lb at 0, a 32-bit node at 8, zero bytes from 12: points
+// reads false).
+static_assert(sizeof(KnnEntry<std::uint32_t>) == 16 && offsetof(KnnEntry<std::uint32_t>, node) == 8 &&
+              offsetof(KnnEntry<std::uint32_t>, points) == 12);
 
 /// Per-thread scratch of knn_query (allocates nothing once warm).
 template <class Node>
 struct KnnScratch {
-  std::vector<KnnEntry<Node>> stack;
+  std::vector<KnnEntry<Node>> stack;  // storage: its size is the capacity (knn_query_with keeps the top)
   std::vector<KnnCand> cands;
   std::vector<std::uint32_t> sel;  // survivors of the SIMD point filter (local slot offsets)
 };
@@ -163,8 +182,12 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
   auto& scratch = detail::knn_scratch<Node>();
   auto& stack = scratch.stack;
   auto& cands = scratch.cands;
-  stack.clear();
-  std::size_t held = 0;  // sorted_set: cands[0, held) sorted ascending
+  std::size_t held = 0;  // sorted_set: cands[0, held) sorted ascending (small_set: best's lanes [0, held))
+  // k <= 8 on the compiled SIMD instances: the k best in two vectors of 4 lanes sorted ascending,
+  // the lanes past the held ones {inf, max} (never less than a candidate), filled by a
+  // branch-free insertion; elsewhere cands, by insertion sort.
+  const bool small_set = detail::kVectorBest<K> && bounded && k <= 8;
+  detail::Best8 best;
   if (sorted_set) {
     if (cands.size() < k) cands.resize(k);  // once per thread: no per-query fill
   } else {
@@ -189,6 +212,30 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
     if (!bounded) {
       cands.push_back(c);
       return;
+    }
+    if constexpr (detail::kVectorBest<K>) {
+      if (small_set) {
+        // Branch-free (the sorted insertion's loop exits mispredicted: bench/README.md, "Issue 12,
+        // session 32"): the lanes less than c are a prefix; from the first other lane on, c and
+        // the entries shifted up by one lane. Only an exact tie with the k-th rejects c here.
+        using detail::Best4D, detail::Best4I;
+        const std::int64_t id = c.id;
+        if (d2 == worst && !(id < best.id[(k - 1) / 4][(k - 1) % 4])) return;
+        const Best4D cd = Best4D{} + d2;
+        const Best4I ci = Best4I{} + id;
+        const Best4I lt0 = (best.d2[0] < cd) | ((best.d2[0] == cd) & (best.id[0] < ci));
+        const Best4I lt1 = (best.d2[1] < cd) | ((best.d2[1] == cd) & (best.id[1] < ci));
+        const Best4I prev0 = __builtin_shufflevector(lt0, Best4I{} - 1, 4, 0, 1, 2);  // lane i: lt of lane i - 1
+        const Best4I prev1 = __builtin_shufflevector(lt1, lt0, 7, 0, 1, 2);
+        best.d2[1] = lt1 ? best.d2[1] : (prev1 ? cd : __builtin_shufflevector(best.d2[1], best.d2[0], 7, 0, 1, 2));
+        best.id[1] = lt1 ? best.id[1] : (prev1 ? ci : __builtin_shufflevector(best.id[1], best.id[0], 7, 0, 1, 2));
+        best.d2[0] = lt0 ? best.d2[0] : (prev0 ? cd : __builtin_shufflevector(best.d2[0], best.d2[0], 0, 0, 1, 2));
+        best.id[0] = lt0 ? best.id[0] : (prev0 ? ci : __builtin_shufflevector(best.id[0], best.id[0], 0, 0, 1, 2));
+        held += held < k;
+        worst = best.d2[(k - 1) / 4][(k - 1) % 4];
+        bound = std::min(r2, worst);
+        return;
+      }
     }
     if (sorted_set) {
       std::size_t i;
@@ -227,15 +274,18 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
       for (std::uint32_t s = sr.begin; s < sr.end; ++s) insert(s);
     }
   };
+  // The stack's storage and size in locals (as RayTraversal::traverse_from), grown before a node's
+  // pushes: at most its 8 children and its own points' entry (or nc + 1 for more children).
+  detail::KnnEntry<Node>* st = stack.data();
+  std::size_t cap = stack.size(), top = 0;
   // e: the node to expand next: popped, or the nearest child of the last one, expanded right away
   // instead of through the stack (as RayTraversal::traverse_from; it passed within() just now).
   detail::KnnEntry<Node> e{distance2_point_box(q, root_box), index.root(), false};
   bool next = within(e.lb, bound);
   while (true) {
     if (!next) {
-      if (stack.empty()) break;
-      e = stack.back();
-      stack.pop_back();
+      if (top == 0) break;
+      e = st[--top];
       if (!within(e.lb, bound)) continue;
     }
     next = false;
@@ -244,9 +294,46 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
       eval_points(e.node);
       continue;
     }
-    // Children's lower bounds (SIMD on FloatChildBoxes indexes), then pushed far-to-near so the
-    // nearest is popped first; the node's own points go below them.
-    if (index.node_points(e.node).size() > 0) stack.push_back({e.lb, e.node, true});
+    if (const std::size_t room = std::max(nc, 8u) + 1; top + room > cap) [[unlikely]] {
+      stack.resize(cap + room + 64);
+      st = stack.data();
+      cap = stack.size();
+    }
+    // The children after the node's own points on the stack, far-to-near so that the nearest is
+    // expanded first.
+    if (index.node_points(e.node).size() > 0) st[top++] = {e.lb, e.node, true};
+    if constexpr (detail::FloatChildBoxes<I>) {
+      if (has_kernel(kern.child_dist2_keys) && nc <= 8) {
+        // The children's bounds as keys (simd.hpp, ChildDist2KeysFn) against the bound rounded up
+        // to float: the mask may keep a child within() drops (dropped when popped, or expanded
+        // for nothing when nearest), never the reverse. One child: straight from the mask; two: the farther pushed after one
+        // compare; more: sorted by a network (pushed by one kernel on ContiguousChildren32
+        // indexes), as RayTraversal's child step.
+        alignas(32) std::uint32_t keys[8];
+        std::uint32_t near;
+        const float bf = round_float_up(bound * (1.0 + 1e-12));
+        const unsigned m = kern.child_dist2_keys(index.child_boxes_f(e.node), qf.q, qf.margin, bf, keys, near);
+        if (m == 0) continue;
+        const unsigned m1 = m & (m - 1);
+        if (m1 != 0) {
+          if ((m1 & (m1 - 1)) == 0) {
+            const std::uint32_t far = std::max(keys[__builtin_ctz(m)], keys[__builtin_ctz(m1)]);
+            st[top++] = {simd::child_key_bound(far), index.child(e.node, simd::child_key_index(far)), false};
+          } else if (detail::ContiguousChildren32<I> && has_kernel(kern.sort_push_keys8)) {
+            const unsigned nk = static_cast<unsigned>(__builtin_popcount(m));
+            kern.sort_push_keys8(keys, nk, static_cast<std::uint32_t>(index.child(e.node, 0)), st + top);
+            top += nk - 1;
+          } else {
+            kern.sort_keys8(keys);
+            for (unsigned j = static_cast<unsigned>(__builtin_popcount(m)); --j > 0;)
+              st[top++] = {simd::child_key_bound(keys[j]), index.child(e.node, simd::child_key_index(keys[j])), false};
+          }
+        }
+        e = {simd::child_key_bound(near), index.child(e.node, simd::child_key_index(near)), false};
+        next = true;
+        continue;
+      }
+    }
     double lb[8];
     Node ch[8];
     unsigned m = 0;
@@ -279,12 +366,12 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
         for (unsigned i = 0; i < nc; ++i) {
           const Node c = index.child(e.node, i);
           const double l = distance2_point_box(q, index.node_bounds(c));
-          if (within(l, bound)) stack.push_back({l, c, false});
+          if (within(l, bound)) st[top++] = {l, c, false};
         }
       }
     }
     if (m == 0) continue;
-    for (unsigned j = 0; j + 1 < m; ++j) stack.push_back({lb[j], ch[j], false});
+    for (unsigned j = 0; j + 1 < m; ++j) st[top++] = {lb[j], ch[j], false};
     e = {lb[m - 1], ch[m - 1], false};
     next = true;
   }
@@ -293,6 +380,11 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
     held = cands.size();
   }
   out.reserve(held);
+  if (small_set) {
+    for (std::size_t i = 0; i < held; ++i)
+      out.push_back({static_cast<PointIndex>(best.id[i / 4][i % 4]), std::sqrt(best.d2[i / 4][i % 4])});
+    return;
+  }
   for (std::size_t i = 0; i < held; ++i) out.push_back({cands[i].id, std::sqrt(cands[i].d2)});
 }
 

@@ -150,8 +150,9 @@ using SortKeys8Fn = void (*)(std::uint32_t* keys);
 /// The child step's pushes for 32-bit nodes in one kernel: sorts the 8 keys of child_slab_keys
 /// (n of them passing, the other lanes ~0u) and writes the n - 1 farther children as node stack
 /// entries, farthest first, to out[0 .. n - 1): 16 bytes each, {double lb = child_key_bound(key)
-/// at byte 0, uint32 node = first_child + child_key_index(key) at byte 8} (the layout of the
-/// traversal's entry for a 32-bit Node). out must have room for 8 entries (128 bytes): all 8 are
+/// at byte 0, uint32 node = first_child + child_key_index(key) at byte 8, zero bytes 12..15} (the
+/// layout of the traversals' entries for a 32-bit Node; knn_query's points flag at byte 12 reads
+/// false). out must have room for 8 entries (128 bytes): all 8 are
 /// written, those from n - 1 on mean nothing. No branch on the data (issue 12, bench/README.md
 /// "Issue 12, session 31": the scalar push loop after sort_keys8 reloaded each key from the
 /// sorted store and mispredicted its trip count).
@@ -175,6 +176,13 @@ using PointFilterFn = unsigned (*)(const double* xyz, unsigned count, const Poin
 /// 8 child boxes: each axis gap is shrunk by `margin` (position space, covering the float rounding
 /// of q and of the differences) and the sum scaled down by 2^-20 relative. Writes lb2[0..count).
 using ChildDist2Fn = void (*)(const ChildBoxesF& boxes, const float* q, float margin, float* lb2);
+/// ChildDist2Fn with the bounds as child order keys (child_key, as ChildSlabKeysFn): returns the
+/// mask of the children i < count whose bound lb2[i] <= `bound` (a float the caller rounds up from
+/// its double bound), writes keys[0..8): child_key(lb2[i], i) for each child of the mask, ~0u for
+/// every other lane, and sets `near` to the least of them. knn_query's child step, so that
+/// ordering the children is one sort of 8 keys (no insertion sort whose branches mispredict).
+using ChildDist2KeysFn = unsigned (*)(const ChildBoxesF& boxes, const float* q, float margin, float bound,
+                                      std::uint32_t* keys, std::uint32_t& near);
 
 /// The kernels of one path.
 struct Kernels {
@@ -182,6 +190,7 @@ struct Kernels {
   ChildSlabFn child_slab;      ///< nullptr for the scalar path
   PointFilterFn point_filter;  ///< nullptr for the scalar path (with d = 0 it filters |p - o|^2)
   ChildDist2Fn child_dist2;    ///< nullptr for the scalar path
+  ChildDist2KeysFn child_dist2_keys;    ///< nullptr for the scalar and sse2 paths
   PacketChildSlabFn packet_child_slab;  ///< nullptr for the scalar path
   ChildSlabKeysFn child_slab_keys;      ///< nullptr for the scalar and sse2 paths
   SortKeys8Fn sort_keys8;               ///< nullptr for the scalar and sse2 paths

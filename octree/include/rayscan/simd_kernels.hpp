@@ -320,13 +320,11 @@ inline __attribute__((target("avx2,fma"))) unsigned child_slab_avx2(const ChildB
   return mask;
 }
 
-// child_slab_avx2 with the entries written as child order keys (simd.hpp, child_key), lanes
-// outside the mask ~0u, and the least key in `near` (a reduction in registers: the traversal's
-// next node does not wait for the keys' store to reach a scalar load).
-inline __attribute__((target("avx2,fma"))) unsigned child_slab_keys_avx2(const ChildBoxesF& b, const SlabRayF& r,
-                                                                  std::uint32_t* keys, std::uint32_t& near) {
-  __m256 e;
-  const unsigned mask = child_slab8(b, r, e);
+// The child order keys of lanes e (simd.hpp, child_key; lanes outside mask ~0u) stored to keys[0..8),
+// and the least of them reduced in registers (the traversals' next node does not wait for the
+// keys' store to reach a scalar load). Shared by child_slab_keys and child_dist2_keys.
+__attribute__((target("avx2,fma"), always_inline)) inline std::uint32_t store_child_keys8(__m256 e, unsigned mask,
+                                                                                          std::uint32_t* keys) {
   const __m256i bits = _mm256_castps_si256(e);
   // Order-preserving: negatives complemented, positives with the sign bit set.
   __m256i k = _mm256_xor_si256(bits, _mm256_or_si256(_mm256_srai_epi32(bits, 31),
@@ -340,7 +338,15 @@ inline __attribute__((target("avx2,fma"))) unsigned child_slab_keys_avx2(const C
   __m128i h = _mm_min_epu32(_mm256_castsi256_si128(k), _mm256_extracti128_si256(k, 1));
   h = _mm_min_epu32(h, _mm_shuffle_epi32(h, 0x4E));
   h = _mm_min_epu32(h, _mm_shuffle_epi32(h, 0xB1));
-  near = static_cast<std::uint32_t>(_mm_cvtsi128_si32(h));
+  return static_cast<std::uint32_t>(_mm_cvtsi128_si32(h));
+}
+
+// ChildSlabKeysFn (simd.hpp): child_slab_avx2 with the entries as child order keys.
+inline __attribute__((target("avx2,fma"))) unsigned child_slab_keys_avx2(const ChildBoxesF& b, const SlabRayF& r,
+                                                                  std::uint32_t* keys, std::uint32_t& near) {
+  __m256 e;
+  const unsigned mask = child_slab8(b, r, e);
+  near = store_child_keys8(e, mask, keys);
   return mask;
 }
 
@@ -439,8 +445,8 @@ inline __attribute__((target("avx2,fma"))) void packet_child_slab_avx2(const Chi
 // records even where child blocks exist (ChildBoxesF::soa): knn_query reads the children's records
 // anyway, and the blocks' extra 192 bytes per node made Table 1's layered kNN 5-9% slower
 // (bench/README.md, "Issue 12, session 30").
-inline __attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, const float* q, float margin,
-                                                          float* lb2) {
+__attribute__((target("avx2,fma"), always_inline)) inline __m256 child_dist2_8(const ChildBoxesF& b, const float* q,
+                                                                            float margin) {
   __m256 lo[3], hi[3];
   transpose_rows8(b, lo, hi);
   const __m256 m = _mm256_set1_ps(margin), zero = _mm256_setzero_ps();
@@ -451,7 +457,24 @@ inline __attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxe
     const __m256 gm = _mm256_max_ps(_mm256_sub_ps(g, m), zero);
     d2 = _mm256_fmadd_ps(gm, gm, d2);
   }
-  _mm256_storeu_ps(lb2, _mm256_mul_ps(d2, _mm256_set1_ps(1.0f - kRelSlack)));
+  return _mm256_mul_ps(d2, _mm256_set1_ps(1.0f - kRelSlack));
+}
+
+inline __attribute__((target("avx2,fma"))) void child_dist2_avx2(const ChildBoxesF& b, const float* q, float margin,
+                                                          float* lb2) {
+  _mm256_storeu_ps(lb2, child_dist2_8(b, q, margin));
+}
+
+// ChildDist2KeysFn (simd.hpp): child_dist2's bounds as child order keys, the children within
+// `bound` in the mask.
+inline __attribute__((target("avx2,fma"))) unsigned child_dist2_keys_avx2(const ChildBoxesF& b, const float* q,
+                                                                   float margin, float bound, std::uint32_t* keys,
+                                                                   std::uint32_t& near) {
+  const __m256 d2 = child_dist2_8(b, q, margin);
+  const unsigned mask = static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(d2, _mm256_set1_ps(bound), _CMP_LE_OQ))) &
+                        ((1u << b.count) - 1u);
+  near = store_child_keys8(d2, mask, keys);
+  return mask;
 }
 
 // 4 AoS points p[0..11] (12 doubles) as x, y and z lanes relative to (ox, oy, oz):
@@ -792,6 +815,7 @@ struct Avx2Kernels {
   static constexpr ChildSlabFn child_slab = kernels::child_slab_avx2;
   static constexpr PointFilterFn point_filter = kernels::point_filter_avx2;
   static constexpr ChildDist2Fn child_dist2 = kernels::child_dist2_avx2;
+  static constexpr ChildDist2KeysFn child_dist2_keys = kernels::child_dist2_keys_avx2;
   static constexpr PacketChildSlabFn packet_child_slab = kernels::packet_child_slab_avx2;
   static constexpr ChildSlabKeysFn child_slab_keys = kernels::child_slab_keys_avx2;
   static constexpr SortKeys8Fn sort_keys8 = kernels::sort_keys8_avx2;
@@ -805,6 +829,7 @@ struct Avx512Kernels {
   static constexpr ChildSlabFn child_slab = kernels::child_slab_avx2;
   static constexpr PointFilterFn point_filter = kernels::point_filter_avx512;
   static constexpr ChildDist2Fn child_dist2 = kernels::child_dist2_avx2;
+  static constexpr ChildDist2KeysFn child_dist2_keys = kernels::child_dist2_keys_avx2;
   static constexpr PacketChildSlabFn packet_child_slab = kernels::packet_child_slab_avx512;
   static constexpr ChildSlabKeysFn child_slab_keys = kernels::child_slab_keys_avx2;
   static constexpr SortKeys8Fn sort_keys8 = kernels::sort_keys8_avx2;
