@@ -43,4 +43,10 @@ std::size_t parse_k(const py::object& k) {
   return static_cast<std::size_t>(v.cast<unsigned long long>());
 }
 
+unsigned parse_threads(long long threads) {
+  if (threads < 0 || threads > 4096)
+    throw py::value_error("threads must be 0 (all cores) or a positive count, got " + std::to_string(threads));
+  return static_cast<unsigned>(threads);
+}
+
 }  // namespace rayscan::python

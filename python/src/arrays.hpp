@@ -62,4 +62,8 @@ py::array view_rows(const T* data, std::size_t n, std::size_t cols, py::handle b
 /// None. Raises ValueError "k must be None or an integer >= 0".
 std::size_t parse_k(const py::object& k);
 
+/// Check a `threads` argument: 0 (every core) or a positive count up to 4096; returns it. Raises
+/// ValueError "threads must be 0 (all cores) or a positive count, got -1".
+unsigned parse_threads(long long threads);
+
 }  // namespace rayscan::python

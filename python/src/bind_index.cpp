@@ -64,12 +64,6 @@ auto with_threads(long long threads, F&& f) {
   return arena.execute(std::forward<F>(f));
 }
 
-long long parse_threads(long long threads) {
-  if (threads < 0 || threads > 4096)
-    throw py::value_error("threads must be 0 (all cores) or a positive count, got " + std::to_string(threads));
-  return threads;
-}
-
 /// Row i of a broadcast pair: a one-row array repeats.
 inline const Vec3& row(std::span<const Vec3> a, std::size_t i) { return a.size() == 1 ? a[0] : a[i]; }
 

@@ -38,12 +38,6 @@ py::array_t<std::int64_t> point_ids(const std::vector<std::uint32_t>& v, std::ve
   return to_numpy(std::move(out), std::move(shape));
 }
 
-unsigned parse_threads(long long threads) {
-  if (threads < 0 || threads > 4096)
-    throw py::value_error("threads must be 0 (all cores) or a positive count, got " + std::to_string(threads));
-  return static_cast<unsigned>(threads);
-}
-
 const PointCloud* in_memory_cloud(const py::object& cloud) {
   if (cloud.is_none()) return nullptr;
   if (!py::isinstance<PyCloud>(cloud))

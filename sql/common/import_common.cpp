@@ -4,17 +4,15 @@
 
 namespace rayscan::sql {
 
-namespace {
-bool is_identifier(const std::string& s) {
-  if (s.empty() || s.size() > 63) return false;
+bool is_sql_identifier(const std::string& s, std::size_t max_len, bool allow_upper) {
+  if (s.empty() || s.size() > max_len) return false;
   for (std::size_t i = 0; i < s.size(); ++i) {
     const char c = s[i];
-    const bool alpha = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_';
+    const bool alpha = (c >= 'a' && c <= 'z') || (allow_upper && c >= 'A' && c <= 'Z') || c == '_';
     if (!alpha && !(i > 0 && c >= '0' && c <= '9')) return false;
   }
   return true;
 }
-}  // namespace
 
 std::vector<AttributeColumn> resolve_attributes(const std::vector<std::string>& names,
                                                 const std::vector<std::filesystem::path>& paths,
@@ -27,7 +25,7 @@ std::vector<AttributeColumn> resolve_attributes(const std::vector<std::string>& 
                                     "' requested but the file has none");
   };
   for (const std::string& n : names) {
-    if (!is_identifier(n))
+    if (!is_sql_identifier(n, 63, true))
       throw std::invalid_argument("attribute '" + n + "': expected an SQL identifier [A-Za-z_][A-Za-z0-9_]*");
     static const char* reserved[] = {"point_index", "source", "chunk", "x", "y", "z"};
     for (const char* r : reserved)

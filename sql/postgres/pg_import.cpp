@@ -62,16 +62,6 @@ void append_hex(std::string& s, T v) {
   }
 }
 
-bool is_identifier(const std::string& s) {
-  if (s.empty() || s.size() > 50) return false;
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    const char ch = s[i];
-    const bool ok = (ch >= 'a' && ch <= 'z') || ch == '_' || (i > 0 && ch >= '0' && ch <= '9');
-    if (!ok) return false;
-  }
-  return true;
-}
-
 // Rows of <table>_sources: each input file's path and point count.
 void insert_sources(Conn& db, const std::string& table, const std::vector<SourceRow>& sources) {
   for (std::size_t i = 0; i < sources.size(); ++i) {
@@ -92,7 +82,8 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
                               const std::string& conninfo, const std::string& table,
                               const ImportOptions& options) {
   if (paths.empty()) throw std::invalid_argument("no input cloud given");
-  if (!is_identifier(table))
+  // Lower case and <= 50: the table's companions (<table>_sources, _chunks, ...) stay within 63.
+  if (!is_sql_identifier(table, 50, false))
     throw std::invalid_argument("--table '" + table + "': expected a lower-case SQL identifier [a-z_][a-z0-9_]* (max 50)");
   const std::unique_ptr<SiteStream> site = open_site(paths, options);
   const std::vector<ColumnInfo>& cols = site->columns();

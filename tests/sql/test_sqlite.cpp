@@ -362,6 +362,31 @@ TEST(SqliteFunctions, NullInNullOutAndClearErrors) {
   EXPECT_NE(error_of(db.db, "SELECT id FROM chunks WHERE id MATCH ray_prune(0,0,0, 1,0,0)"), "");
 }
 
+// is_sql_identifier: known answers, and every name it accepts is one SQLite takes unquoted as a
+// column name (the server as oracle for the accepting side).
+TEST(SqlImport, IdentifiersAreRegularAsciiNamesWithinTheLength) {
+  const std::string l63(63, 'a'), l64(64, 'a');
+  struct Case {
+    std::string s;
+    std::size_t max_len;
+    bool upper, want;
+  };
+  const std::vector<Case> cases = {
+      {"gps_time", 63, true, true},  {"_x1", 63, true, true},     {"GpsTime", 63, true, true},
+      {"GpsTime", 63, false, false}, {"site_2", 50, false, true}, {"", 63, true, false},
+      {"1abc", 63, true, false},     {"a b", 63, true, false},    {"a-b", 63, true, false},
+      {"a;drop", 63, true, false},   {"caf\xc3\xa9", 63, true, false}, {l63, 63, true, true},
+      {l64, 63, true, false},        {l63, 50, false, false},     {"\"q\"", 63, true, false}};
+  Db db(":memory:", false);
+  for (const Case& c : cases) {
+    EXPECT_EQ(sql::is_sql_identifier(c.s, c.max_len, c.upper), c.want) << "'" << c.s << "'";
+    if (c.want) {
+      EXPECT_EQ(error_of(db.db, "CREATE TEMP TABLE t_" + std::to_string(&c - cases.data()) + "(" + c.s + " INTEGER)"), "")
+          << c.s;
+    }
+  }
+}
+
 TEST(SqliteFunctions, DatabaseWithoutChunkIndexIsAnError) {
   const fs::path p = tmpdir() / "plain.sqlite";
   fs::remove(p);
