@@ -79,7 +79,7 @@ struct KnnCand {
   PointIndex id;
 };
 inline bool knn_less(const KnnCand& a, const KnnCand& b) { return a.d2 < b.d2 || (a.d2 == b.d2 && a.id < b.id); }
-/// knn_query's k best for k <= 8 in 8 lanes, two GNU vectors of 4 each (one AVX2 register):
+/// knn_query's k best for k <= 8 in 8 lanes, two GNU vectors of 4 each (AVX2 registers):
 /// squared distances and ids (64-bit lanes, so that one compare mask selects both; an id < 2^32
 /// compares the same signed), ascending by (d2, id); lanes past the held ones {inf, INT64_MAX}.
 using Best4D = double __attribute__((vector_size(32)));
@@ -207,7 +207,9 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
   auto insert = [&](std::uint32_t s) __attribute__((always_inline)) {
     const Vec3 v = pos[s] - q;
     const double d2 = glm::dot(v, v);
-    if (d2 > bound) return;  // bound <= r2 and <= worst
+    // bound <= r2 and <= worst; the vector k best rejects past worst itself, branch-free (a
+    // candidate past it lands in a lane >= k), so there only the radius is tested (kInf: never).
+    if (small_set ? d2 > r2 : d2 > bound) return;
     const KnnCand c{d2, ids[s]};
     if (!bounded) {
       cands.push_back(c);
@@ -217,10 +219,10 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
       if (small_set) {
         // Branch-free (the sorted insertion's loop exits mispredicted: bench/README.md, "Issue 12,
         // session 32"): the lanes less than c are a prefix; from the first other lane on, c and
-        // the entries shifted up by one lane. Only an exact tie with the k-th rejects c here.
+        // the entries shifted up by one lane. All 8 lanes stay sorted, so the k-th is right for
+        // any k <= 8 and a candidate past it only moves lanes >= k.
         using detail::Best4D, detail::Best4I;
         const std::int64_t id = c.id;
-        if (d2 == worst && !(id < best.id[(k - 1) / 4][(k - 1) % 4])) return;
         const Best4D cd = Best4D{} + d2;
         const Best4I ci = Best4I{} + id;
         const Best4I lt0 = (best.d2[0] < cd) | ((best.d2[0] == cd) & (best.id[0] < ci));
