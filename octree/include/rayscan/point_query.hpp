@@ -154,12 +154,14 @@ __attribute__((always_inline)) inline FloatQueryPoint float_query_point([[maybe_
 /// first, as nanoflann; a node is skipped when its bound exceeds the current k-th distance), with
 /// the policies of ray_query: on the active simd_path() an index with detail::FloatChildBoxes
 /// bounds all children's MINDIST at once in float (child_dist2 on the boxes transposed in
-/// registers; lower bounds, rounded down), and a node's points pass the SIMD distance filter with
+/// registers; lower bounds, rounded down; on AVX2 / AVX-512 as child order keys ordered by a
+/// sorting network, child_dist2_keys), and a node's points pass the SIMD distance filter with
 /// a widened bound before the exact double test, so the answers are bit-identical on every path.
 /// The own points of a node that also has children (the layered octree's interior points, a
 /// subsample spread over the whole cell) are deferred below its children on the stack: they are
 /// tested after the nearest subtree has tightened the k-th distance, so the filter rejects nearly
-/// all of them. The k best are kept in a sorted array (k <= 32) or a heap.
+/// all of them. The k best are kept in vectors filled without a branch (k <= 8 on AVX2 /
+/// AVX-512), a sorted array (k <= 32) or a heap (bench/README.md, "Issue 12, session 32").
 /// Throws std::invalid_argument for a NaN/negative radius or a non-finite q.
 template <SpatialIndex I>
 void knn_query(const I& index, const Vec3& q, std::size_t k, double radius, std::vector<Neighbor>& out);
