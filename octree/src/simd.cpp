@@ -62,7 +62,8 @@ const Kernels& kernels_for(SimdPath p) {
   // child_dist2 (knn_query's child lower bounds): the gathering version measured 1.35x slower
   // than the scalar test on Table 1 kNN and was disabled; the in-register transpose (as in
   // child_slab) brought it back (bench/README.md, "Issue 12, requirement 4").
-  static const Kernels k_scalar{SimdPath::scalar, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr};
+  static const Kernels k_scalar{SimdPath::scalar, nullptr, nullptr, nullptr, nullptr,
+                                nullptr,          nullptr, nullptr, nullptr};
 #if RAYSCAN_SIMD_X86
   static const Kernels k_sse2{SimdPath::sse2, kernels::child_slab_sse2, kernels::point_filter_sse2,
                               kernels::child_dist2_sse2, nullptr, kernels::packet_child_slab_sse2, nullptr,

@@ -425,11 +425,11 @@ TEST(Simd, KnnIsBitIdenticalOnEveryPath) {
         const Vec3 v = pts[j] - q;
         all[j] = {glm::dot(v, v), static_cast<PointIndex>(j)};
       }
-      // k = 1, 5 and 8: the vector k best (detail::Best8) on the SIMD instances, the sorted
-      // candidate array on the others; k = 20: the sorted array; k = 40: the heap
-      // (detail::kKnnSortedMax = 32).
+      // k = 1 to 8: the vector k best (detail::Best8) on the SIMD instances (the k-th in every
+      // lane), the sorted candidate array on the others; k = 20: the sorted array; k = 40: the
+      // heap (detail::kKnnSortedMax = 32).
       std::partial_sort(all.begin(), all.begin() + 40, all.end());
-      for (const std::size_t k : {std::size_t{1}, std::size_t{5}, std::size_t{8}, std::size_t{20}, std::size_t{40}}) {
+      for (const std::size_t k : {1, 2, 3, 4, 5, 6, 7, 8, 20, 40}) {
         std::vector<Neighbor> want;
         for (std::size_t j = 0; j < k; ++j) want.push_back({all[j].second, std::sqrt(all[j].first)});
         for (SimdPath path : supported_paths()) {

@@ -362,8 +362,8 @@ TEST(SqliteFunctions, NullInNullOutAndClearErrors) {
   EXPECT_NE(error_of(db.db, "SELECT id FROM chunks WHERE id MATCH ray_prune(0,0,0, 1,0,0)"), "");
 }
 
-// is_sql_identifier: known answers, and every name it accepts is one SQLite takes unquoted as a
-// column name (the server as oracle for the accepting side).
+// is_sql_identifier: known answers, and every name of the list that it accepts SQLite takes
+// unquoted as a column name (the database as the oracle of the accepting side).
 TEST(SqlImport, IdentifiersAreRegularAsciiNamesWithinTheLength) {
   const std::string l63(63, 'a'), l64(64, 'a');
   struct Case {
@@ -381,8 +381,8 @@ TEST(SqlImport, IdentifiersAreRegularAsciiNamesWithinTheLength) {
   for (const Case& c : cases) {
     EXPECT_EQ(sql::is_sql_identifier(c.s, c.max_len, c.upper), c.want) << "'" << c.s << "'";
     if (c.want) {
-      EXPECT_EQ(error_of(db.db, "CREATE TEMP TABLE t_" + std::to_string(&c - cases.data()) + "(" + c.s + " INTEGER)"), "")
-          << c.s;
+      const std::string table = "t_" + std::to_string(&c - cases.data());
+      EXPECT_EQ(error_of(db.db, "CREATE TEMP TABLE " + table + "(" + c.s + " INTEGER)"), "") << c.s;
     }
   }
 }

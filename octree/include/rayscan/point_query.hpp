@@ -79,18 +79,22 @@ struct KnnCand {
   PointIndex id;
 };
 inline bool knn_less(const KnnCand& a, const KnnCand& b) { return a.d2 < b.d2 || (a.d2 == b.d2 && a.id < b.id); }
-/// knn_query's k best for k <= 8 in 8 lanes, two GNU vectors of 4 each (AVX2 registers):
-/// squared distances and ids (64-bit lanes, so that one compare mask selects both; an id < 2^32
-/// compares the same signed), ascending by (d2, id); lanes past the held ones {inf, INT64_MAX}.
+/// 4 lanes of Best8's squared distances (a GNU vector: one AVX2 register).
 using Best4D = double __attribute__((vector_size(32)));
+/// 4 lanes of Best8's ids (64-bit, so that one compare mask selects distances and ids; an id
+/// < 2^32 compares the same signed), or of a compare's mask (all ones or 0).
 using Best4I = std::int64_t __attribute__((vector_size(32)));
+/// knn_query's k best for k <= 8 in 8 lanes, each of d2 and id two vectors of 4: ascending by
+/// (d2, id), lanes past the held ones {inf, INT64_MAX} (never less than a candidate).
 struct Best8 {
+  static constexpr std::int64_t kNoId = std::numeric_limits<std::int64_t>::max();
   Best4D d2[2] = {Best4D{} + kInf, Best4D{} + kInf};
-  Best4I id[2] = {Best4I{} + std::numeric_limits<std::int64_t>::max(), Best4I{} + std::numeric_limits<std::int64_t>::max()};
+  Best4I id[2] = {Best4I{} + kNoId, Best4I{} + kNoId};
 };
 /// Whether knn_query_with<K> keeps k <= 8 in Best8: on the instances compiled for a SIMD path
-/// (a compile-time policy of simd_kernels.hpp), whose registers hold its lanes; the run-time table
-/// (scalar, SSE2: no 64-bit lane compare) keeps the insertion sort.
+/// (a compile-time policy of simd_kernels.hpp; knn_query uses them on indexes with
+/// FloatChildBoxes), whose registers hold its lanes; the run-time table (scalar and SSE2, and
+/// every path on the other indexes) keeps the insertion sort.
 template <class K>
 inline constexpr bool kVectorBest = !std::is_same_v<K, simd::Kernels>;
 
@@ -160,8 +164,9 @@ __attribute__((always_inline)) inline FloatQueryPoint float_query_point([[maybe_
 /// The own points of a node that also has children (the layered octree's interior points, a
 /// subsample spread over the whole cell) are deferred below its children on the stack: they are
 /// tested after the nearest subtree has tightened the k-th distance, so the filter rejects nearly
-/// all of them. The k best are kept in vectors filled without a branch (k <= 8 on AVX2 /
-/// AVX-512), a sorted array (k <= 32) or a heap (bench/README.md, "Issue 12, session 32").
+/// all of them. The k best are kept in vectors filled without a branch (k <= 8, on AVX2 /
+/// AVX-512 and FloatChildBoxes indexes), a sorted array (k <= 32) or a heap (bench/README.md,
+/// "Issue 12, session 32").
 /// Throws std::invalid_argument for a NaN/negative radius or a non-finite q.
 template <SpatialIndex I>
 void knn_query(const I& index, const Vec3& q, std::size_t k, double radius, std::vector<Neighbor>& out);
@@ -310,9 +315,9 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
       if (has_kernel(kern.child_dist2_keys) && nc <= 8) {
         // The children's bounds as keys (simd.hpp, ChildDist2KeysFn) against the bound rounded up
         // to float: the mask may keep a child within() drops (dropped when popped, or expanded
-        // for nothing when nearest), never the reverse. One child: straight from the mask; two: the farther pushed after one
-        // compare; more: sorted by a network (pushed by one kernel on ContiguousChildren32
-        // indexes), as RayTraversal's child step.
+        // for nothing when nearest), never the reverse. One child: straight from the mask; two:
+        // the farther pushed after one compare; more: sorted by a network (pushed by one kernel
+        // on ContiguousChildren32 indexes), as RayTraversal's child step.
         alignas(32) std::uint32_t keys[8];
         std::uint32_t near;
         const float bf = round_float_up(bound * (1.0 + 1e-12));

@@ -179,8 +179,9 @@ using ChildDist2Fn = void (*)(const ChildBoxesF& boxes, const float* q, float ma
 /// ChildDist2Fn with the bounds as child order keys (child_key, as ChildSlabKeysFn): returns the
 /// mask of the children i < count whose bound lb2[i] <= `bound` (a float the caller rounds up from
 /// its double bound), writes keys[0..8): child_key(lb2[i], i) for each child of the mask, ~0u for
-/// every other lane, and sets `near` to the least of them. knn_query's child step, so that
-/// ordering the children is one sort of 8 keys (no insertion sort whose branches mispredict).
+/// every other lane, and sets `near` to the least of them (~0u when the mask is empty). knn_query's
+/// child step, so that ordering the children is one sort of 8 keys (no insertion sort whose
+/// branches mispredict).
 using ChildDist2KeysFn = unsigned (*)(const ChildBoxesF& boxes, const float* q, float margin, float bound,
                                       std::uint32_t* keys, std::uint32_t& near);
 

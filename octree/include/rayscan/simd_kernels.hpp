@@ -471,8 +471,8 @@ inline __attribute__((target("avx2,fma"))) unsigned child_dist2_keys_avx2(const 
                                                                    float margin, float bound, std::uint32_t* keys,
                                                                    std::uint32_t& near) {
   const __m256 d2 = child_dist2_8(b, q, margin);
-  const unsigned mask = static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(d2, _mm256_set1_ps(bound), _CMP_LE_OQ))) &
-                        ((1u << b.count) - 1u);
+  const __m256 in = _mm256_cmp_ps(d2, _mm256_set1_ps(bound), _CMP_LE_OQ);
+  const unsigned mask = static_cast<unsigned>(_mm256_movemask_ps(in)) & ((1u << b.count) - 1u);
   near = store_child_keys8(d2, mask, keys);
   return mask;
 }

@@ -32,10 +32,11 @@ struct ImportOptions {
   std::filesystem::path temp_dir;
 };
 
-/// Whether s is an identifier rayscan may put unquoted into SQL: a letter or '_', then letters,
-/// digits or '_' (upper-case letters only with allow_upper: PostgreSQL folds unquoted names to
-/// lower case), at most max_len characters (PostgreSQL keeps 63: NAMEDATALEN - 1). SQL:2016
-/// section 5.2 <regular identifier>, restricted to ASCII.
+/// Whether s has the form of an SQL regular identifier, restricted to ASCII (SQL:2016 section 5.2):
+/// a letter or '_', then letters, digits or '_' (upper-case letters only with allow_upper:
+/// PostgreSQL folds unquoted names to lower case), at most max_len characters (PostgreSQL keeps
+/// 63: NAMEDATALEN - 1). Key words are not excluded: callers that emit s unquoted only accept
+/// names they know.
 [[nodiscard]] bool is_sql_identifier(const std::string& s, std::size_t max_len, bool allow_upper);
 
 /// One extra column of the points table.
