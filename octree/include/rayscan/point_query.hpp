@@ -315,29 +315,14 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
       if (has_kernel(kern.child_dist2_keys) && nc <= 8) {
         // The children's bounds as keys (simd.hpp, ChildDist2KeysFn) against the bound rounded up
         // to float: the mask may keep a child within() drops (dropped when popped, or expanded
-        // for nothing when nearest), never the reverse. One child: straight from the mask; two:
-        // the farther pushed after one compare; more: sorted by a network (pushed by one kernel
-        // on ContiguousChildren32 indexes), as RayTraversal's child step.
+        // for nothing when nearest), never the reverse. The farther children pushed as
+        // RayTraversal's child step pushes them (push_farther_children).
         alignas(32) std::uint32_t keys[8];
         std::uint32_t near;
         const float bf = round_float_up(bound * (1.0 + 1e-12));
         const unsigned m = kern.child_dist2_keys(index.child_boxes_f(e.node), qf.q, qf.margin, bf, keys, near);
         if (m == 0) continue;
-        const unsigned m1 = m & (m - 1);
-        if (m1 != 0) {
-          if ((m1 & (m1 - 1)) == 0) {
-            const std::uint32_t far = std::max(keys[__builtin_ctz(m)], keys[__builtin_ctz(m1)]);
-            st[top++] = {simd::child_key_bound(far), index.child(e.node, simd::child_key_index(far)), false};
-          } else if (detail::ContiguousChildren32<I> && has_kernel(kern.sort_push_keys8)) {
-            const unsigned nk = static_cast<unsigned>(__builtin_popcount(m));
-            kern.sort_push_keys8(keys, nk, static_cast<std::uint32_t>(index.child(e.node, 0)), st + top);
-            top += nk - 1;
-          } else {
-            kern.sort_keys8(keys);
-            for (unsigned j = static_cast<unsigned>(__builtin_popcount(m)); --j > 0;)
-              st[top++] = {simd::child_key_bound(keys[j]), index.child(e.node, simd::child_key_index(keys[j])), false};
-          }
-        }
+        top = detail::push_farther_children(index, kern, e.node, m, keys, st, top);
         e = {simd::child_key_bound(near), index.child(e.node, simd::child_key_index(near)), false};
         next = true;
         continue;

@@ -200,6 +200,41 @@ KernelsOf<K> kernels_of() {
     return K{};
 }
 
+/// The child step on child order keys (simd.hpp, child_key), shared by the first-hit traversal
+/// and knn_query: of node n's children in mask m (keys[0..8) from child_slab_keys or
+/// child_dist2_keys, the lanes outside m ~0u), every one but the nearest is written to
+/// stack[top, ...) as Entry{child_key_bound(key), child}, farthest first; returns the new top. The
+/// caller goes on with the nearest (its `near` key). The stack needs room for 8 entries. Two
+/// children: the farther after one compare; three or more: sorted by a network and, on
+/// ContiguousChildren32 indexes, written by the same kernel (sort_push_keys8), else by a loop
+/// (bench/README.md, "Issue 12, session 30" and "session 31").
+template <class I, class Kern, class Entry>
+__attribute__((always_inline)) inline std::size_t push_farther_children(const I& index, const Kern& kern,
+                                                                        typename I::Node n, unsigned m,
+                                                                        std::uint32_t* keys, Entry* stack,
+                                                                        std::size_t top) {
+  auto entry = [&](std::uint32_t key) __attribute__((always_inline)) {
+    Entry x{};  // (other members, as knn_query's points flag: zero)
+    x.lb = simd::child_key_bound(key);
+    x.node = index.child(n, simd::child_key_index(key));
+    return x;
+  };
+  const unsigned m1 = m & (m - 1);
+  if (m1 == 0) return top;  // one child: nothing to push
+  if ((m1 & (m1 - 1)) == 0) {
+    stack[top++] = entry(std::max(keys[__builtin_ctz(m)], keys[__builtin_ctz(m1)]));
+  } else if (ContiguousChildren32<I> && has_kernel(kern.sort_push_keys8)) {
+    const unsigned nk = static_cast<unsigned>(__builtin_popcount(m));
+    kern.sort_push_keys8(keys, nk, static_cast<std::uint32_t>(index.child(n, 0)), stack + top);
+    top += nk - 1;
+  } else {  // keys[0..n) ascending after the sort, the lanes outside m (~0u) after them
+    kern.sort_keys8(keys);
+    for (unsigned j = static_cast<unsigned>(__builtin_popcount(m)); --j > 0;)
+      stack[top++] = entry(keys[j]);
+  }
+  return top;
+}
+
 }  // namespace detail
 
 /// The default point-key policy of ray_query: a candidate's key is the order's measure.
@@ -790,25 +825,12 @@ struct RayTraversal {
           else
             m = kern.child_slab_keys(index.child_boxes_f(e.node), sr, keys, near);
           if (m == 0) continue;
-          const unsigned m1 = m & (m - 1);
-          if (m1 == 0) {  // one: straight from the mask
+          if ((m & (m - 1)) == 0) {  // one: straight from the mask
             e.node = index.child(e.node, static_cast<unsigned>(__builtin_ctz(m)));
             next = true;
             continue;
           }
-          if ((m1 & (m1 - 1)) == 0) {  // two: the farther one pushed
-            const std::uint32_t far = std::max(keys[__builtin_ctz(m)], keys[__builtin_ctz(m1)]);
-            stack[top++] = {simd::child_key_bound(far), index.child(e.node, simd::child_key_index(far))};
-          } else if (detail::ContiguousChildren32<I> && has_kernel(kern.sort_push_keys8)) {
-            // three or more: sorted and pushed by one kernel, farthest first (no branch on the count)
-            const unsigned nk = static_cast<unsigned>(__builtin_popcount(m));
-            kern.sort_push_keys8(keys, nk, static_cast<std::uint32_t>(index.child(e.node, 0)), stack + top);
-            top += nk - 1;
-          } else {  // three or more: keys[0..n) ascending, the lanes outside m (~0u) after them
-            kern.sort_keys8(keys);
-            for (unsigned j = static_cast<unsigned>(__builtin_popcount(m)); --j > 0;)
-              stack[top++] = {simd::child_key_bound(keys[j]), index.child(e.node, simd::child_key_index(keys[j]))};
-          }
+          top = detail::push_farther_children(index, kern, e.node, m, keys, stack, top);
           e.node = index.child(e.node, simd::child_key_index(near));
           next = true;
           continue;
