@@ -17,8 +17,9 @@
 // (ray_first_hit_packet) against the same rays one by one and Embree's rtcIntersect1 and its ray
 // packets (rtcIntersect4 on 2x2 tiles, rtcIntersect8 on 4x2 halves of 4x4 tiles, rtcIntersect16
 // on 4x4 tiles where this Embree build supports them), same rays, interleaved in the same rounds;
-// and the row-major camera rays through ray_query_each, the batch API's path (blocks of 16 rays
-// sharing an origin in a narrow cone as packets, packet_coherent).
+// and the row-major camera rays through ray_first_hit_each (two rays at a time, their traversals
+// interleaved node by node) and ray_query_each, the batch API's path (the same pairs, with result
+// vectors).
 #include "bench_common.hpp"
 
 #include "rayscan/any_index.hpp"
@@ -340,9 +341,30 @@ std::uint64_t run_rayscan_packets(const rayscan::AnyIndex& index, std::span<cons
                          });
 }
 
+/// First sphere hits of the row-major camera rays by ray_first_hit_each: two consecutive rays at
+/// a time, their traversals interleaved node by node. Returns the hit count.
+std::uint64_t run_rayscan_pairs(const rayscan::AnyIndex& index, std::span<const Ray> rays, const RayQuery& rq,
+                                RayResults& res) {
+  return sum_over_blocks(index, rays.size(), 64, [&](const auto& idx, const tbb::blocked_range<std::size_t>& br) {
+    thread_local std::vector<std::optional<RayHit>> out;
+    const std::size_t n = br.size();
+    if (out.size() < n) out.resize(n);
+    rayscan::ray_first_hit_each(idx, rays.subspan(br.begin(), n), rq, std::span<std::optional<RayHit>>(out.data(), n));
+    std::uint64_t local = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+      const std::size_t i = br.begin() + j;
+      res.count[i] = out[j].has_value();
+      res.first[i] = out[j] ? out[j]->index : kNoHit;
+      res.first_t[i] = out[j] ? out[j]->t : 0.0;
+      local += out[j].has_value();
+    }
+    return local;
+  });
+}
+
 /// First sphere hits of the row-major camera rays by ray_query_each (the batch API's path:
-/// ray_query_batch / ray_query_each_parallel, the Python module, `rayscan query`): blocks of 16 consecutive rays that share
-/// an origin in a narrow cone as packets (packet_coherent), the rest alone. Returns the hit count.
+/// ray_query_batch / ray_query_each_parallel, the Python module, `rayscan query`): with k = 1,
+/// ray_first_hit_each's interleaved pairs, and result vectors. Returns the hit count.
 std::uint64_t run_rayscan_each(const rayscan::AnyIndex& index, std::span<const Ray> rays, const RayQuery& rq,
                                RayResults& res) {
   // Runs of whole 16-ray blocks counted from rays[0], as ray_query_each_parallel (batch.hpp) cuts
@@ -997,8 +1019,8 @@ int main(int argc, char** argv) {
           std::size_t b;  // index into built, or built.size() for Embree
           Q q;
           std::vector<double> ms;
-          int packet = 0;  // rays per packet: 0 single rays; rayscan 4 (2x2) / 16 (4x4), 1 ray_query_each
-                           // (row-major, packets where coherent); Embree 4 / 8 / 16
+          int packet = 0;  // rays per packet: 0 single rays; rayscan 4 (2x2) / 16 (4x4), 1 ray_query_each,
+                           // 2 ray_first_hit_each (row-major, two rays interleaved); Embree 4 / 8 / 16
         };
         std::vector<Run> runs;
         for (std::size_t b = 0; b < built.size(); ++b)
@@ -1007,14 +1029,14 @@ int main(int argc, char** argv) {
         const std::size_t first_packet_run = runs.size();
         if (packets) {
           for (std::size_t b = 0; b < built.size(); ++b)
-            for (const int p : {1, 4, 16}) runs.push_back({b, Q::sphere, {}, p});
+            for (const int p : {2, 1, 4, 16}) runs.push_back({b, Q::sphere, {}, p});
           for (const int w : em_widths) runs.push_back({built.size(), Q::sphere, {}, w});
         }
         for (std::size_t r = 0; r < reps; ++r)
           for (std::size_t j = 0; j < runs.size(); ++j) {
             Run& run = runs[(j + r) % runs.size()];
             const auto& rays = (run.q == Q::knn8 || run.q == Q::radius) ? set.slow
-                               : run.packet <= 1                       ? set.rays
+                               : run.packet <= 2                       ? set.rays
                                : run.packet == 4                       ? set.tiles2
                                                                        : set.tiles4;
             RayResults res(rays.size());
@@ -1026,6 +1048,7 @@ int main(int argc, char** argv) {
                                       : run_rayscan(built[run.b], rays, make_query(run.q, radius), res))
                 : em              ? run_embree_packets(es, rays, run.packet, res)
                 : run.packet == 1 ? run_rayscan_each(built[run.b], rays, make_query(run.q, radius), res)
+                : run.packet == 2 ? run_rayscan_pairs(built[run.b], rays, make_query(run.q, radius), res)
                                   : run_rayscan_packets(built[run.b], rays, static_cast<std::size_t>(run.packet),
                                                         make_query(run.q, radius), res);
             // One thread: TBB runs everything on this thread, so its CPU time is the cost free of
@@ -1064,7 +1087,7 @@ int main(int argc, char** argv) {
               const double rps = static_cast<double>(set.rays.size()) / (rb::median(runs[k].ms) / 1e3);
               if (rps > em_best) em_best = rps, em_best_name = "rtcIntersect" + std::to_string(runs[k].packet);
             }
-          std::printf("\ncoherent rays, %d thread%s: first sphere hit of the camera rays in pixel packets "
+          std::printf("\ncoherent rays, %d thread%s: first sphere hit of the camera rays in pixel packets and batches "
                       "(rays/s, same rounds as above):\n", nt, nt > 1 ? "s" : "");
           std::printf("| contender | rays/s | vs its single rays | vs Embree rtcIntersect1 | vs Embree's best (%s) |\n"
                       "|---|---:|---:|---:|---:|\n", em_best_name.c_str());
@@ -1081,7 +1104,8 @@ int main(int argc, char** argv) {
                                                                         : "rtcIntersect1")
                                  : "rayscan " + indexes[run.b] +
                                        (run.packet == 0   ? " single rays"
-                                        : run.packet == 1 ? " ray_query_each, row-major (packets where coherent)"
+                                        : run.packet == 1 ? " ray_query_each, row-major (two rays interleaved)"
+                                        : run.packet == 2 ? " ray_first_hit_each, row-major (two rays interleaved)"
                                         : run.packet == 4 ? " packets 2x2"
                                                           : " packets 4x4");
             std::printf("| %s | %s | %.2fx | %.2fx | %.2fx |\n", who.c_str(), mrays(rps).c_str(), rps / single_rps,

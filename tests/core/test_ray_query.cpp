@@ -353,11 +353,11 @@ std::vector<Ray> camera_at(std::span<const Vec3> pts, std::size_t target, int co
 }
 }  // namespace
 
-TEST(RayQuery, BatchFirstHitsInPacketsEqualSingleRayCallsAndOracle) {
-  // ray_query_batch with k = 1 traces coherent blocks as packets (ray_query_each): every answer
-  // equals ray_query on that ray alone and the brute-force oracle, for camera rays (one origin,
-  // a narrow cone: packets), a camera block broken by one wide ray, and random rays (single), on
-  // every index and for orders sphere_hit, time and ray (and every forced SIMD path:
+TEST(RayQuery, BatchFirstHitsEqualSingleRayCallsAndOracle) {
+  // ray_query_batch with k = 1 traces the rays in interleaved pairs (ray_query_each,
+  // ray_first_hit_each): every answer equals ray_query on that ray alone and the brute-force
+  // oracle, for camera rays (one origin, a narrow cone), one wide ray among them, and random rays,
+  // on every index and for orders sphere_hit, time and ray (and every forced SIMD path:
   // simd_*_properties).
   const auto pts = make_points(3000, Dist::clustered, 29);
   AABB box;
@@ -367,9 +367,7 @@ TEST(RayQuery, BatchFirstHitsInPacketsEqualSingleRayCallsAndOracle) {
   const Vec3 eye = rays[0].origin();
   const Vec3 fwd = glm::normalize(pts[17] - eye);
   const Vec3 right = glm::normalize(glm::cross(fwd, Vec3(0, 1, 0)));
-  for (std::size_t b = 0; b + kMaxRayPacket <= rays.size(); b += kMaxRayPacket)
-    ASSERT_TRUE(packet_coherent(std::span<const Ray>(rays.data() + b, kMaxRayPacket))) << b;
-  rays[40] = Ray(eye, fwd + 0.2 * right);  // its block of 16 is not coherent
+  rays[40] = Ray(eye, fwd + 0.2 * right);  // paired with a camera ray
   std::mt19937_64 rng(31);
   for (int i = 0; i < 40; ++i) rays.push_back(random_ray(rng, box, i % 3 == 0));
   std::size_t hits = 0;
@@ -401,7 +399,7 @@ TEST(RayQuery, BatchFirstHitsInPacketsEqualSingleRayCallsAndOracle) {
 }
 
 TEST(RayQuery, RayQueryEachEqualsSingleCallsForEveryQueryKind) {
-  // ray_query_each on coherent camera rays (packets only for plain k = 1) equals ray_query per
+  // ray_query_each on coherent camera rays (interleaved pairs for k = 1) equals ray_query per
   // ray for k = 1 with a plane, any_hit (one candidate, whichever the order), k = 3 and no k, on
   // an octree and an empty index; and rejects a length mismatch and an invalid query.
   const auto pts = make_points(2000, Dist::clustered, 37);
@@ -589,6 +587,98 @@ TEST(RayQuery, PacketFirstHitEqualsSingleRayAndOracle) {
   q.order = RayOrder::sphere_hit;
   EXPECT_THROW(ray_first_hit_packet(tree, std::span<const Ray>(two), q, std::span<std::optional<RayHit>>(one)),
                std::invalid_argument);
+}
+
+TEST(RayQuery, FirstHitEachInterleavedPairsEqualSingleRaysAndOracle) {
+  // ray_first_hit_each (two rays at a time, their traversals interleaved node by node) against
+  // ray_first_hit on each ray (every field, bit for bit, and the same work counters: each ray
+  // follows its own traversal) and the brute-force oracle: camera rays, axis-parallel rays (an
+  // infinite float reciprocal), random rays that hit and miss, spans of odd and even lengths (a
+  // lone last ray), on every index, for orders sphere_hit, time and ray, with and without a
+  // plane and any_hit, on every forced SIMD path (simd_*_properties).
+  for (const Dist dist : {Dist::clustered, Dist::grid}) {
+    const auto pts = make_points(3000, dist, 41);
+    AABB box;
+    for (const Vec3& p : pts) box.expand(p);
+    const double s = std::max(box.max_extent(), 1e-3);
+    const Vec3 eye = box.center() + Vec3(1.3, 0.9, -1.1) * s;
+    const Vec3 fwd = glm::normalize(box.center() - eye);
+    const Vec3 right = glm::normalize(glm::cross(fwd, Vec3(0, 1, 0)));
+    const Vec3 up = glm::cross(right, fwd);
+    std::vector<Ray> rays;
+    for (int y = 0; y < 4; ++y)
+      for (int x = 0; x < 9; ++x) rays.emplace_back(eye, fwd + (0.03 * (x - 4)) * right + (0.03 * (y - 1.5)) * up);
+    for (int i = 0; i < 3; ++i)
+      rays.emplace_back(box.lo - Vec3(0.5 * s, 0, 0) + Vec3(0, (0.3 + 0.1 * i) * s, 0.5 * s), Vec3(1, 0, 0));
+    std::mt19937_64 rng(43);
+    for (int i = 0; i < 22; ++i) rays.push_back(random_ray(rng, box, i % 3 == 0));
+    ASSERT_EQ(rays.size() % 2, 1u);  // (61: the last ray of the whole span alone)
+    const Plane plane{box.center(), Vec3(0.3, -1.0, 0.2)};
+    std::size_t hits = 0;
+    for (const IndexOptions& opt : all_index_options()) {
+      const AnyIndex index = make_index(pts, opt);
+      for (const RayOrder order : {RayOrder::sphere_hit, RayOrder::time, RayOrder::ray})
+        for (const int variant : {0, 1, 2}) {  // plain, with a plane, any_hit
+          RayQuery q;
+          q.radius = 0.03 * s;
+          q.t_min = 0.0;
+          q.order = order;
+          if (variant == 1) q.planes = std::span<const Plane>(&plane, 1);
+          q.any_hit = variant == 2;
+          q.validate();
+          RayQuery q1 = q;
+          q1.k = 1;
+          q1.any_hit = false;
+          std::vector<std::optional<RayHit>> got(rays.size());
+          RayQueryStats st_each, st_one;
+          const std::size_t cuts[] = {0, 1, 3, 6, 10, rays.size()};  // spans of 1, 2, 3, 4 and 51 rays
+          for (std::size_t c = 0; c + 1 < std::size(cuts); ++c) {
+            const std::span<const Ray> span(rays.data() + cuts[c], cuts[c + 1] - cuts[c]);
+            std::visit([&](const auto& idx) {
+              ray_first_hit_each(idx, span, q, std::span<std::optional<RayHit>>(got.data() + cuts[c], span.size()),
+                                 &st_each);
+            }, index);
+          }
+          for (std::size_t r = 0; r < rays.size(); ++r) {
+            const auto one = std::visit([&](const auto& idx) { return ray_first_hit(idx, rays[r], q, &st_one); }, index);
+            const auto want = oracle_ray_query(pts, rays[r], q1);
+            const std::string ctx = std::string(name(dist)) + " " + label(opt) + " ray " + std::to_string(r) + " " +
+                                    describe(q) + (q.any_hit ? " any_hit" : "");
+            ASSERT_EQ(got[r].has_value(), one.has_value()) << ctx;
+            ASSERT_EQ(got[r].has_value(), !want.empty()) << ctx;
+            if (!got[r]) continue;
+            ++hits;
+            EXPECT_EQ(got[r]->index, one->index) << ctx;
+            EXPECT_EQ(got[r]->slot, one->slot) << ctx;
+            EXPECT_EQ(got[r]->t, one->t) << ctx;
+            EXPECT_EQ(got[r]->distance, one->distance) << ctx;
+            EXPECT_EQ(got[r]->key, one->key) << ctx;
+            if (!q.any_hit) expect_same({*got[r]}, want, ctx);  // (any_hit: any qualifying point)
+            if (::testing::Test::HasFailure()) return;
+          }
+          EXPECT_EQ(st_each.nodes_visited, st_one.nodes_visited) << label(opt) << " " << describe(q);
+          EXPECT_EQ(st_each.points_tested, st_one.points_tested) << label(opt) << " " << describe(q);
+        }
+    }
+    EXPECT_GT(hits, 100u) << name(dist);
+  }
+  // A length mismatch is an error; an empty index answers nothing.
+  const auto pts = make_points(100, Dist::uniform, 3);
+  const Octree tree = Octree::build_bulk(pts);
+  const Octree empty = Octree::build_bulk(std::span<const Vec3>());
+  const std::vector<Ray> two{Ray(Vec3(-1, 0.5, 0.5), Vec3(1, 0, 0)), Ray(Vec3(-1, 0.4, 0.5), Vec3(1, 0, 0))};
+  RayQuery q;
+  q.radius = 0.3;  // (a cylinder of ~28% of the unit cube around each ray: ~28 of the 100 points)
+  q.order = RayOrder::sphere_hit;
+  std::vector<std::optional<RayHit>> one(1);
+  EXPECT_THROW(ray_first_hit_each(tree, std::span<const Ray>(two), q, std::span<std::optional<RayHit>>(one)),
+               std::invalid_argument);
+  std::vector<std::optional<RayHit>> out(2, RayHit{});
+  ray_first_hit_each(empty, std::span<const Ray>(two), q, std::span<std::optional<RayHit>>(out));
+  EXPECT_FALSE(out[0].has_value());
+  EXPECT_FALSE(out[1].has_value());
+  ray_first_hit_each(tree, std::span<const Ray>(two), q, std::span<std::optional<RayHit>>(out));
+  EXPECT_TRUE(out[0].has_value() && out[1].has_value());
 }
 
 TEST(RayQuery, PacketAnyHitEqualsOracleExistence) {

@@ -16,9 +16,8 @@
 namespace rayscan {
 
 /// out[i] = ray_query(index, rays[i], q) for all i, in parallel (tbb::parallel_for over runs of
-/// whole kMaxRayPacket-ray blocks counted from rays[0], each run answered by ray_query_each, so
-/// that its packets of coherent rays are not cut at the runs' ends). Identical to the single-ray
-/// calls for any thread count. Throws std::invalid_argument (before any work) for an invalid q or
+/// whole kMaxRayPacket-ray blocks counted from rays[0], each run answered by ray_query_each and
+/// its interleaved pairs of rays). Identical to the single-ray calls for any thread count. Throws std::invalid_argument (before any work) for an invalid q or
 /// out.size() != rays.size().
 template <SpatialIndex I>
 void ray_query_each_parallel(const I& index, std::span<const Ray> rays, const RayQuery& q,
@@ -35,8 +34,7 @@ void ray_query_each_parallel(const I& index, std::span<const Ray> rays, const Ra
 }
 
 /// Answer `rays[i]` with ray_query(index, rays[i], q) into result[i], for all i in parallel
-/// (ray_query_each_parallel: first hits of rays that share an origin in a narrow cone as
-/// packets). Results are identical to the single-ray calls for any thread count. Throws
+/// (ray_query_each_parallel: first hits two rays at a time, interleaved). Results are identical to the single-ray calls for any thread count. Throws
 /// std::invalid_argument (before any work) for an invalid q.
 template <SpatialIndex I>
 [[nodiscard]] std::vector<std::vector<RayHit>> ray_query_batch(const I& index,

@@ -175,7 +175,9 @@ inline float round_float_up(double x) {
   return std::bit_cast<float>(b + (wrong & (1u - ((b >> 31) << 1))));  // negative: -1, else +1
 }
 
-template <class Node>
+/// The calling thread's scratch number kSlot (0: every query's; 1: the second ray of
+/// first_hit_pair, whose node stack must be its own).
+template <class Node, unsigned kSlot = 0>
 RayScratch<Node>& ray_scratch() {
   thread_local RayScratch<Node> s;
   return s;
@@ -336,17 +338,19 @@ namespace detail {
 /// its policies: the node test (test_node, and test_children: all children of a node at once, SIMD
 /// on FloatChildBoxes indexes), the leaf work (eval_points: SIMD filter + exact double test) and
 /// the candidate sink (push_candidate with the dynamic k filter), plus the depth-first loop
-/// (traverse_from). ray_traverse runs the loop from the root for one ray; the packet first hit
-/// (first_hit_packet) drives several of these states down one shared stack and hands a subtree to
-/// traverse_from when the packet diverges, so both use the same node test and leaf work.
+/// (traverse_from, in steps of one node: step). ray_traverse runs the loop from the root for one
+/// ray; first_hit_pair steps two rays' loops in turn; the packet first hit (first_hit_packet)
+/// drives several of these states down one shared stack and hands a subtree to traverse_from when
+/// the packet diverges, so all use the same node test and leaf work.
 ///
 /// Candidates go to the per-thread k-heap (scratch.cands) or, with kBest1 (k = 1: the first hit of
 /// a renderer), to `best` alone: no heap and no vector (a compile-time policy, not a copy).
 /// Expects a validated query, a non-empty index and k >= 1. `key_policy`: OrderKey or RefinedKey.
 /// `K`: the kernel policy, simd::Kernels (the active path's table, called through pointers) or a
 /// compile-time policy of simd_kernels.hpp for the instances compiled per ISA (ray_traverse).
-/// The constructor clears the per-thread scratch (one traversal per thread at a time; the states
-/// of one packet are all constructed before any of them traverses).
+/// The constructor clears the per-thread scratch (one traversal per thread and scratch at a time;
+/// the states of one packet are all constructed before any of them traverses; the two rays of
+/// first_hit_pair use two scratches).
 template <bool kBest1, SpatialIndex I, class KeyPolicy = OrderKey, class K = simd::Kernels>
 struct RayTraversal {
   using Node = typename I::Node;
@@ -395,14 +399,15 @@ struct RayTraversal {
   bool radii_filter = false;   // the SIMD point filter applies the key functor's per-slot radii
   bool normals_filter = false;  // ... and its per-slot disc normals (filter_normals)
 
+  /// `scratch_`: the per-thread scratch to use (node stack, survivors), by default ray_scratch<Node>().
   RayTraversal(const I& index_, const Ray& ray, const RayQuery& q_, Candidate& best_, RayQueryStats* stats_,
-               const KeyPolicy& key_policy_)
+               const KeyPolicy& key_policy_, RayScratch<Node>* scratch_ = nullptr)
       : index(index_), q(q_), best(best_), stats(stats_), key_policy(key_policy_), o(ray.origin()),
         d(ray.direction()), inv_d(1.0 / d), pos(index_.positions()), ids(index_.ids()),
         bounded(kBest1 || q_.k != kAllPoints), sphere(q_.order == RayOrder::sphere_hit),
         ray_order(q_.order == RayOrder::ray), exact(q_.node_distance == NodeDistance::exact),
         has_planes(!q_.planes.empty()), radius(q_.radius), r2(q_.radius * q_.radius),
-        root_box(index_.node_bounds(index_.root())), scratch(detail::ray_scratch<Node>()),
+        root_box(index_.node_bounds(index_.root())), scratch(scratch_ ? *scratch_ : detail::ray_scratch<Node>()),
         kern(kernels_of<K>()) {
     if (per_node && ray_order)
       throw std::invalid_argument("ray query: per-node radii need order time or sphere_hit");
@@ -775,94 +780,124 @@ struct RayTraversal {
   /// sort_keys8 and a loop). Otherwise the children are
   /// tested by test_children and sorted by insertion. (bench/README.md, "Issue 12, session 30":
   /// -17% instructions per camera hit; a network for two children as well was slower.)
+  ///
+  /// The loop is written as steps of one node over a Cursor (begin_at, step, end), so that
+  /// first_hit_pair can interleave two rays' traversals node by node; traverse_from runs one.
   void traverse_from(Node start, double lb0) {
-    auto& nodes = scratch.nodes;
-    const std::size_t base = scratch.top;
-    std::size_t top = base;
-    // The stack's storage and size in locals (the pushes' stores cannot then make the compiler
-    // reload the vector's pointers); refreshed where it grows.
-    detail::NodeEntry<Node>* stack = nodes.data();
-    std::size_t cap = nodes.size();
-    detail::NodeEntry<Node> kids[8];
-    detail::NodeEntry<Node> e{lb0, start};
-    bool next = live(lb0);  // e holds the next node (start, then the nearest child of the last one)
-    while (true) {
-      if (!next) {
-        if (top == base) break;
-        e = stack[--top];
-        if (!live(e.lb)) continue;
-      }
-      next = false;
-      // Per-node radii: the node's subtree bound for its own points' SIMD filter and (without
-      // float geometry boxes) its children's SIMD slab prefilter (test_children); with per-slot
-      // radii in the filter and float geometry boxes, nothing (see enter_node).
-      enter_node(e.node);
-      eval_points(e.node);
-      if (done) break;
-      const unsigned nc = index.child_count(e.node);
-      if (nc == 0) continue;  // a leaf: no child test (nor an indirect SIMD call)
-      // Room for every child (the one capacity test of the node's pushes).
-      if (const std::size_t room = nc > 8 ? nc : 8; top + room > cap) [[unlikely]] {
-        nodes.resize(cap + room + 64);
-        stack = nodes.data();
-        cap = nodes.size();
-      }
-      if (nc > 8) {  // (no index here has more than 8 children; kept general)
-        for (unsigned i = 0; i < nc; ++i) {
-          const Node c = index.child(e.node, i);
-          double lb;
-          if (test_child(c, lb)) stack[top++] = {lb, c};
-        }
-        continue;
-      }
-      if constexpr (detail::FloatChildBoxes<I>) {
-        if (child_keys) {
-          alignas(32) std::uint32_t keys[8];
-          std::uint32_t near;  // the least key: the next node (its bound is not needed)
-          unsigned m;
-          if constexpr (per_box_f)
-            m = kern.child_slab_keys(key_policy.child_boxes_f_of(e.node), sr_box, keys, near);
-          else
-            m = kern.child_slab_keys(index.child_boxes_f(e.node), sr, keys, near);
-          if (m == 0) continue;
-          if ((m & (m - 1)) == 0) {  // one: straight from the mask
-            e.node = index.child(e.node, static_cast<unsigned>(__builtin_ctz(m)));
-            next = true;
-            continue;
-          }
-          top = detail::push_farther_children(index, kern, e.node, m, keys, stack, top);
-          e.node = index.child(e.node, simd::child_key_index(near));
-          next = true;
-          continue;
-        }
-      }
-      double lb[8];
-      unsigned m = test_children(e.node, nc, lb);
-      if (!bounded) {
-        for (; m; m &= m - 1) {
-          const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-          stack[top++] = {lb[i], index.child(e.node, i)};
-        }
-        continue;
-      }
-      unsigned nk = 0;
-      for (; m; m &= m - 1) {
-        // Insertion sort into kids[] by descending lb (at most 8 children).
-        const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-        unsigned j = nk++;
-        while (j > 0 && kids[j - 1].lb < lb[i]) {
-          kids[j] = kids[j - 1];
-          --j;
-        }
-        kids[j] = {lb[i], index.child(e.node, i)};
-      }
-      if (nk == 0) continue;
-      // The nearest child next, without a trip through the stack (it passed live() just now).
-      for (unsigned j = 0; j + 1 < nk; ++j) stack[top++] = kids[j];
-      e = kids[nk - 1];
-      next = true;
+    Cursor c = begin_at(start, lb0);
+    while (step(c)) {
     }
-    scratch.top = base;
+    end(c);
+  }
+
+  /// One ray's place in the loop between two nodes: `e` is the next node when `next`, else the
+  /// stack entries [base, top) hold what is left (the per-thread stack of this traversal's
+  /// scratch, its storage and size held here rather than reloaded from the vector: the pushes'
+  /// stores could not then make the compiler reload the vector's pointers; refreshed where it grows).
+  struct Cursor {
+    detail::NodeEntry<Node> e;
+    bool next;
+    std::size_t base, top, cap;
+    detail::NodeEntry<Node>* stack;
+  };
+
+  /// The cursor at the subtree of `start` (which passed the node test with bound lb0), over the
+  /// stack above its current top.
+  [[nodiscard]] Cursor begin_at(Node start, double lb0) {
+    const std::size_t base = scratch.top;
+    return {{lb0, start}, live(lb0), base, base, scratch.nodes.size(), scratch.nodes.data()};
+  }
+
+  /// Leaves the stack as begin_at found it (after the last step).
+  void end(const Cursor& c) { scratch.top = c.base; }
+
+  /// One node of the loop (traverse_from): pops the next live node unless c holds one, evaluates
+  /// its points and steps to its children. Returns false once the ray is done (nothing left, or an
+  /// any_hit query found its hit); then call end(c).
+  __attribute__((always_inline)) bool step(Cursor& c) {
+    auto& nodes = scratch.nodes;
+    auto& e = c.e;
+    auto& next = c.next;
+    auto& top = c.top;
+    auto& cap = c.cap;
+    auto& stack = c.stack;
+    const std::size_t base = c.base;
+    detail::NodeEntry<Node> kids[8];
+    if (!next) {
+      if (top == base) return false;
+      e = stack[--top];
+      if (!live(e.lb)) return true;
+    }
+    next = false;
+    // Per-node radii: the node's subtree bound for its own points' SIMD filter and (without
+    // float geometry boxes) its children's SIMD slab prefilter (test_children); with per-slot
+    // radii in the filter and float geometry boxes, nothing (see enter_node).
+    enter_node(e.node);
+    eval_points(e.node);
+    if (done) return false;
+    const unsigned nc = index.child_count(e.node);
+    if (nc == 0) return true;  // a leaf: no child test (nor an indirect SIMD call)
+    // Room for every child (the one capacity test of the node's pushes).
+    if (const std::size_t room = nc > 8 ? nc : 8; top + room > cap) [[unlikely]] {
+      nodes.resize(cap + room + 64);
+      stack = nodes.data();
+      cap = nodes.size();
+    }
+    if (nc > 8) {  // (no index here has more than 8 children; kept general)
+      for (unsigned i = 0; i < nc; ++i) {
+        const Node ch = index.child(e.node, i);
+        double lb;
+        if (test_child(ch, lb)) stack[top++] = {lb, ch};
+      }
+      return true;
+    }
+    if constexpr (detail::FloatChildBoxes<I>) {
+      if (child_keys) {
+        alignas(32) std::uint32_t keys[8];
+        std::uint32_t near;  // the least key: the next node (its bound is not needed)
+        unsigned m;
+        if constexpr (per_box_f)
+          m = kern.child_slab_keys(key_policy.child_boxes_f_of(e.node), sr_box, keys, near);
+        else
+          m = kern.child_slab_keys(index.child_boxes_f(e.node), sr, keys, near);
+        if (m == 0) return true;
+        if ((m & (m - 1)) == 0) {  // one: straight from the mask
+          e.node = index.child(e.node, static_cast<unsigned>(__builtin_ctz(m)));
+          next = true;
+          return true;
+        }
+        top = detail::push_farther_children(index, kern, e.node, m, keys, stack, top);
+        e.node = index.child(e.node, simd::child_key_index(near));
+        next = true;
+        return true;
+      }
+    }
+    double lb[8];
+    unsigned m = test_children(e.node, nc, lb);
+    if (!bounded) {
+      for (; m; m &= m - 1) {
+        const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+        stack[top++] = {lb[i], index.child(e.node, i)};
+      }
+      return true;
+    }
+    unsigned nk = 0;
+    for (; m; m &= m - 1) {
+      // Insertion sort into kids[] by descending lb (at most 8 children).
+      const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+      unsigned j = nk++;
+      while (j > 0 && kids[j - 1].lb < lb[i]) {
+        kids[j] = kids[j - 1];
+        --j;
+      }
+      kids[j] = {lb[i], index.child(e.node, i)};
+    }
+    if (nk == 0) return true;
+    // The nearest child next, without a trip through the stack (it passed live() just now).
+    for (unsigned j = 0; j + 1 < nk; ++j) stack[top++] = kids[j];
+    e = kids[nk - 1];
+    next = true;
+    return true;
   }
 };
 
@@ -946,6 +981,83 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
   return ray_traverse_base<kBest1>(index, ray, q, best, stats, key_policy);
 }
 
+/// The first hits of two rays, their traversals interleaved one node at a time (RayTraversal::step
+/// of the one traversal, each ray on its own node stack: ray_scratch slots 0 and 1), so that the
+/// core overlaps the two chains of dependent loads and tests from one node to the next, which set
+/// a single ray's speed (bench/README.md, "Issue 12, session 33"). best[j] and bit j of the result
+/// are ray_traverse<true>'s answer for rays[j], bit for bit (each ray's own order, bounds and
+/// candidates; only the interleaving differs). With kernel policy K as ray_traverse_with.
+template <class K, SpatialIndex I>
+__attribute__((always_inline)) inline unsigned first_hit_pair_with(const I& index, const Ray* rays, const RayQuery& q,
+                                                                   Candidate* best, RayQueryStats* stats) {
+  using Traversal = RayTraversal<true, I, OrderKey, K>;
+  const OrderKey key_policy;
+  Traversal r0(index, rays[0], q, best[0], stats, key_policy);
+  Traversal r1(index, rays[1], q, best[1], stats, key_policy, &ray_scratch<typename I::Node, 1>());
+  double lb0 = 0, lb1 = 0;
+  bool a0 = r0.test_node(r0.root_box, lb0);  // (a ray that misses the root: no further set-up)
+  bool a1 = r1.test_node(r1.root_box, lb1);
+  typename Traversal::Cursor c0{}, c1{};
+  if (a0) {
+    r0.prepare();
+    c0 = r0.begin_at(index.root(), lb0);
+  }
+  if (a1) {
+    r1.prepare();
+    c1 = r1.begin_at(index.root(), lb1);
+  }
+  const bool s0 = a0, s1 = a1;
+  while (a0 && a1) {
+    a0 = r0.step(c0);
+    a1 = r1.step(c1);
+  }
+  while (a0) a0 = r0.step(c0);
+  while (a1) a1 = r1.step(c1);
+  if (s0) r0.end(c0);
+  if (s1) r1.end(c1);
+  return (r0.found ? 1u : 0u) | (r1.found ? 2u : 0u);
+}
+
+/// first_hit_pair_with with the table kernels (the instance of paths and indexes without per-ISA
+/// ones; compiled once per core index, RAYSCAN_BASE_INSTANCES).
+template <SpatialIndex I>
+__attribute__((noinline)) unsigned first_hit_pair_base(const I& index, const Ray* rays, const RayQuery& q,
+                                                       Candidate* best, RayQueryStats* stats) {
+  return first_hit_pair_with<simd::Kernels>(index, rays, q, best, stats);
+}
+
+#if RAYSCAN_SIMD_X86
+/// first_hit_pair_with compiled for AVX2 + FMA, as ray_traverse_avx2.
+template <SpatialIndex I>
+__attribute__((target("avx2,fma"), flatten, noinline)) unsigned first_hit_pair_avx2(const I& index, const Ray* rays,
+                                                                                    const RayQuery& q, Candidate* best,
+                                                                                    RayQueryStats* stats) {
+  return first_hit_pair_with<simd::Avx2Kernels>(index, rays, q, best, stats);
+}
+/// first_hit_pair_with compiled for AVX-512 (F + VL), as ray_traverse_avx512.
+template <SpatialIndex I>
+__attribute__((target("avx512f,avx512vl,avx2,fma"), flatten, noinline)) unsigned first_hit_pair_avx512(
+    const I& index, const Ray* rays, const RayQuery& q, Candidate* best, RayQueryStats* stats) {
+  return first_hit_pair_with<simd::Avx512Kernels>(index, rays, q, best, stats);
+}
+#endif
+
+/// first_hit_pair_with on the active SIMD path (as ray_traverse: the per-ISA instance where
+/// kIsaInstances, else the table one).
+template <SpatialIndex I>
+unsigned first_hit_pair(const I& index, const Ray* rays, const RayQuery& q, Candidate* best, RayQueryStats* stats) {
+#if RAYSCAN_SIMD_X86
+  if constexpr (kIsaInstances<I, OrderKey>) {
+    switch (simd::active_kernels().path) {
+      case SimdPath::avx2: return first_hit_pair_avx2(index, rays, q, best, stats);
+      case SimdPath::avx512: return first_hit_pair_avx512(index, rays, q, best, stats);
+      default: break;
+    }
+  }
+#endif
+  return first_hit_pair_base(index, rays, q, best, stats);
+}
+
 }  // namespace detail
 
 /// Ray query (paper Algorithm 1) over any SpatialIndex; results are appended to `out` (cleared
@@ -1012,6 +1124,37 @@ template <SpatialIndex I>
   detail::Candidate best;
   if (!detail::ray_traverse<true>(index, ray, q, best, stats)) return std::nullopt;
   return RayHit{best.id, best.slot, best.t, std::sqrt(best.d2), best.key};
+}
+
+/// First hits of a batch of rays: out[i] = ray_first_hit(index, rays[i], q, stats) for every i,
+/// bit for bit, with the rays traced two at a time, their traversals interleaved node by node
+/// (detail::first_hit_pair: the single ray's loop is latency-bound, and two independent chains
+/// fill the core's idle slots; camera rays of bench_rays ~1.15x the single calls, bench/README.md
+/// "Issue 12, session 33"). The batch form of ray_first_hit for callers with many rays
+/// (ray_query_each, the renderer's wavefronts, bench_rays). `stats` (optional) sums the work
+/// counters. As ray_first_hit, `q` must have been validated. Throws std::invalid_argument when
+/// out.size() != rays.size(). Thread-safe (per-thread scratch).
+template <SpatialIndex I>
+void ray_first_hit_each(const I& index, std::span<const Ray> rays, const RayQuery& q,
+                        std::span<std::optional<RayHit>> out, RayQueryStats* stats = nullptr) {
+  if (out.size() != rays.size())
+    throw std::invalid_argument("ray_first_hit_each: " + std::to_string(out.size()) + " results for " +
+                                std::to_string(rays.size()) + " rays");
+  if (index.empty()) {
+    std::fill(out.begin(), out.end(), std::nullopt);
+    return;
+  }
+  std::size_t i = 0;
+  for (; i + 2 <= rays.size(); i += 2) {
+    detail::Candidate best[2];
+    const unsigned found = detail::first_hit_pair(index, rays.data() + i, q, best, stats);
+    for (unsigned j = 0; j < 2; ++j) {
+      const detail::Candidate& b = best[j];
+      out[i + j] = (found >> j) & 1u ? std::optional<RayHit>(RayHit{b.id, b.slot, b.t, std::sqrt(b.d2), b.key})
+                                     : std::nullopt;
+    }
+  }
+  if (i < rays.size()) out[i] = ray_first_hit(index, rays[i], q, stats);
 }
 
 /// Rays per packet of ray_first_hit_packet: at most this many rays share one traversal.
@@ -1358,15 +1501,14 @@ void ray_any_hit_packet(const I& index, std::span<const Ray> rays, const RayQuer
   return true;
 }
 
-/// out[i] = ray_query(index, rays[i], q) for every i, bit for bit: with q.k == 1 (and not
-/// q.any_hit), the next min(kMaxRayPacket, rays left) rays are traced as one packet
-/// (ray_first_hit_packet) when packet_coherent() accepts them, else the first of them alone and
-/// the window moves on by one ray; other queries ray by ray. The batch form of the renderer's
-/// camera packets for callers that pass whole ray sets (ray_query_batch: the Python module,
-/// `rayscan query`). `stats` (optional) sums the work counters, which follow the packets' visiting
-/// order (the answers do not), so they may differ from the single calls'. Throws
-/// std::invalid_argument for an invalid q (RayQuery::validate) or out.size() != rays.size().
-/// Thread-safe (per-thread scratch).
+/// out[i] = ray_query(index, rays[i], q) for every i, bit for bit: with q.k == 1, the rays are
+/// traced two at a time with their traversals interleaved (ray_first_hit_each; camera rays of
+/// bench_rays ~1.1x the single calls, where 16-ray packets had been 0.9x: bench/README.md,
+/// "Issue 12, session 33"), other queries ray by ray. The batch form for callers that pass whole
+/// ray sets (ray_query_batch: the Python module, `rayscan query`; the renderer traces its camera
+/// wavefronts as packets, ray_first_hit_packet). `stats` (optional) sums the work counters.
+/// Throws std::invalid_argument for an invalid q (RayQuery::validate) or out.size() !=
+/// rays.size(). Thread-safe (per-thread scratch).
 template <SpatialIndex I>
 void ray_query_each(const I& index, std::span<const Ray> rays, const RayQuery& q,
                     std::span<std::vector<RayHit>> out, RayQueryStats* stats = nullptr) {
@@ -1374,22 +1516,18 @@ void ray_query_each(const I& index, std::span<const Ray> rays, const RayQuery& q
   if (out.size() != rays.size())
     throw std::invalid_argument("ray_query_each: " + std::to_string(out.size()) + " results for " +
                                 std::to_string(rays.size()) + " rays");
-  const bool packets = q.k == 1 && !q.any_hit && !index.empty();
-  std::size_t i = 0;
-  while (i < rays.size()) {
-    const std::size_t n = std::min(kMaxRayPacket, rays.size() - i);
-    const std::span<const Ray> block = rays.subspan(i, n);
-    if (packets && packet_coherent(block)) {
-      std::optional<RayHit> hit[kMaxRayPacket];
-      ray_first_hit_packet(index, block, q, std::span<std::optional<RayHit>>(hit, n), stats);
-      for (std::size_t j = 0; j < n; ++j) {
-        out[i + j].clear();
-        if (hit[j]) out[i + j].push_back(*hit[j]);
-      }
-      i += n;
-    } else {
-      ray_query(index, rays[i], q, out[i], stats);
-      ++i;
+  if (q.k != 1) {
+    for (std::size_t i = 0; i < rays.size(); ++i) ray_query(index, rays[i], q, out[i], stats);
+    return;
+  }
+  constexpr std::size_t kChunk = 64;  // (a multiple of 2: every pair stays a pair)
+  std::optional<RayHit> hit[kChunk];
+  for (std::size_t i = 0; i < rays.size(); i += kChunk) {
+    const std::size_t n = std::min(kChunk, rays.size() - i);
+    ray_first_hit_each(index, rays.subspan(i, n), q, std::span<std::optional<RayHit>>(hit, n), stats);
+    for (std::size_t j = 0; j < n; ++j) {
+      out[i + j].clear();
+      if (hit[j]) out[i + j].push_back(*hit[j]);
     }
   }
 }
@@ -1442,8 +1580,8 @@ template <SpatialIndex I>
 }
 
 /// Declares (KW = `extern template`) or defines (KW = `template`) the plain ray query's instances
-/// with the table kernels for index type I: ray_traverse_base (k = 1 and k > 1) and
-/// first_hit_packet_any with OrderKey. Used inside namespace rayscan::detail, as
+/// with the table kernels for index type I: ray_traverse_base (k = 1 and k > 1),
+/// first_hit_packet_any with OrderKey and first_hit_pair_base. Used inside namespace rayscan::detail, as
 /// RAYSCAN_FIRST_HIT_ISA_INSTANCES below: the headers of the indexes declare them extern and their
 /// libraries define them once (octree/src/ray_query.cpp, octree/io/src/query_instances.cpp).
 #define RAYSCAN_BASE_INSTANCES(KW, I)                                                                        \
@@ -1453,7 +1591,8 @@ template <SpatialIndex I>
                                                 RayQueryStats*, const OrderKey&);                          \
   KW unsigned first_hit_packet_any<simd::Kernels, I, OrderKey>(const I&, const Ray*, unsigned,              \
                                                                const RayQuery&, Candidate*, RayQueryStats*, \
-                                                               const OrderKey*);
+                                                               const OrderKey*);                           \
+  KW unsigned first_hit_pair_base<I>(const I&, const Ray*, const RayQuery&, Candidate*, RayQueryStats*);
 
 namespace detail {
 RAYSCAN_BASE_INSTANCES(extern template, Octree)
@@ -1461,8 +1600,8 @@ RAYSCAN_BASE_INSTANCES(extern template, Octree)
 
 #if RAYSCAN_SIMD_X86
 /// Declares (KW = `extern template`) or defines (KW = `template`) the first-hit instances compiled
-/// per ISA of index type I (kIsaInstances): ray_traverse_avx2 / _avx512 and first_hit_packet_avx2 /
-/// _avx512 with OrderKey. Used inside namespace rayscan::detail: the headers of the indexes declare
+/// per ISA of index type I (kIsaInstances): ray_traverse_avx2 / _avx512, first_hit_packet_avx2 /
+/// _avx512 with OrderKey and first_hit_pair_avx2 / _avx512. Used inside namespace rayscan::detail: the headers of the indexes declare
 /// them extern and their libraries define them once (octree/src/ray_query.cpp,
 /// octree/io/src/query_instances.cpp), instead of every caller's translation unit compiling them.
 #define RAYSCAN_FIRST_HIT_ISA_INSTANCES(KW, I)                                                              \
@@ -1473,7 +1612,9 @@ RAYSCAN_BASE_INSTANCES(extern template, Octree)
   KW unsigned first_hit_packet_avx2<I, OrderKey>(const I&, const Ray*, unsigned, const RayQuery&,          \
                                                  Candidate*, RayQueryStats*, const OrderKey*);            \
   KW unsigned first_hit_packet_avx512<I, OrderKey>(const I&, const Ray*, unsigned, const RayQuery&,        \
-                                                   Candidate*, RayQueryStats*, const OrderKey*);
+                                                   Candidate*, RayQueryStats*, const OrderKey*);           \
+  KW unsigned first_hit_pair_avx2<I>(const I&, const Ray*, const RayQuery&, Candidate*, RayQueryStats*);     \
+  KW unsigned first_hit_pair_avx512<I>(const I&, const Ray*, const RayQuery&, Candidate*, RayQueryStats*);
 
 namespace detail {
 RAYSCAN_FIRST_HIT_ISA_INSTANCES(extern template, Octree)
