@@ -1,5 +1,6 @@
 // Issue 12, requirement 3: the renderer traces the camera rays of each 4x4 pixel block (one sample
-// index at a time) and their shadow rays as packets (ray_first_hit_packet / ray_any_hit_packet).
+// index at a time) and their shadow rays as packets (ray_first_hit_packet / ray_any_hit_packet),
+// and the bounce rays and theirs two at a time, interleaved (ray_first_hit_each).
 // Oracle: the same render with packets off (every ray traced alone with ray_first_hit, the path
 // loop of PathTracer::trace); the images must be identical byte for byte, on the index types that
 // take packets (octree, index file) and one that does not (kd-tree: per-ray child tests inside the

@@ -284,12 +284,15 @@ class PathTracer {
   /// own stream (issue 12, requirement 3). The n paths advance together, one vertex at a time (a
   /// small wavefront): the camera rays go through ray_first_hit_packet, the shadow rays of their
   /// hits, which all point at the sun from within the block's footprint, through
-  /// ray_any_hit_packet, and the bounce rays and their shadow rays, which are incoherent, one by
-  /// one (in packets they measured no faster: bench/README.md); then each path scatters. Every stage consumes a
-  /// path's sampler stream in the order trace() does and adds to its L in the same order, and the
-  /// packet answers are ray_first_hit's, so nothing depends on which paths share a packet.
+  /// ray_any_hit_packet, the bounce rays, which are incoherent (in packets they measured no
+  /// faster: bench/README.md) and their shadow rays, two at a time with their traversals
+  /// interleaved (ray_first_hit_each); then each path scatters.
+  /// Every stage consumes a path's sampler stream in the order trace() does and adds to its L in
+  /// the same order, and the packet and pair answers are ray_first_hit's, so nothing depends on
+  /// which paths share a packet.
   /// Surfel mode likewise, with first_surfel_hit_packet for the camera rays and for their shadow
-  /// rays (each leaving its own surface), bit-identical to first_surfel_hit on each ray; the
+  /// rays (each leaving its own surface), bit-identical to first_surfel_hit on each ray, and the
+  /// bounce rays and their shadow rays one by one; the
   /// shading normals of the camera hits come from the per-lane CoverCaches (the same normals as
   /// trace()'s descent, bit for bit).
   void trace_packet(std::span<const Ray> rays, std::span<Sampler> s, std::span<Color> out,
@@ -328,14 +331,14 @@ class PathTracer {
         if (!hit_vertex(q, hit, h, s[lane[j]], nullptr)) live &= ~(1u << lane[j]);
         else if (q.shadow_pending) shadowed |= 1u << lane[j];
       };
+      const auto t0 = time_ ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+      const auto query_done = [&] {  // the query time only (not the shading below)
+        if (time_)
+          c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
+                            std::chrono::steady_clock::now() - t0).count();
+      };
       if (camera) {
         // The camera rays as one packet (each ray's answer is the one-ray query's).
-        const auto t0 = time_ ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
-        const auto query_done = [&] {  // the query time only (not the shading below)
-          if (time_)
-            c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
-                              std::chrono::steady_clock::now() - t0).count();
-        };
         if (surfel) {
           SurfelHit sh[kMaxRayPacket];
           first_surfel_hit_packet<I, SurfelTables::best>(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf, {}, false,
@@ -375,8 +378,20 @@ class PathTracer {
           }
         }
         c.queries += m;
+      } else if (!surfel) {
+        // Bounce rays (incoherent): two at a time, their traversals interleaved (ray_first_hit_each;
+        // each answer is the one-ray query's, as trace()'s intersect).
+        std::optional<RayHit> rh[kMaxRayPacket];
+        ray_first_hit_each(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
+        query_done();
+        for (std::size_t j = 0; j < m; ++j) {
+          SurfaceHit h;
+          if (rh[j]) surface_at(wave[j], *rh[j], h);
+          vertex(j, rh[j].has_value(), h);
+        }
+        c.queries += m;
       } else {
-        // Bounce rays, one by one (incoherent), each leaving its vertex's surface (as trace()).
+        // Surfel bounce rays, one by one (incoherent), each leaving its vertex's surface (as trace()).
         for (std::size_t j = 0; j < m; ++j) {
           SurfaceHit h;
           const bool hit = intersect(wave[j], h, hits, c, surfel ? &p[lane[j]]->from : nullptr);
@@ -384,9 +399,10 @@ class PathTracer {
         }
       }
       // The shadow rays of the hits (all towards the sun): a packet for the camera rays' hits,
-      // whose origins lie within the block's footprint; one by one after a bounce (the origins
-      // are scattered: in packets they measured slower, bench/README.md).
-      if (shadowed && !camera) {
+      // whose origins lie within the block's footprint; after a bounce (the origins are
+      // scattered: in packets they measured slower, bench/README.md) two at a time, interleaved
+      // (ray_first_hit_each), or one by one in surfel mode.
+      if (shadowed && !camera && surfel) {
         for (std::size_t i = 0; i < n; ++i)
           if (((shadowed >> i) & 1u) && !occluded(p[i]->shadow, hits, c, surfel ? &p[i]->from : nullptr))
             add_sun(*p[i]);
@@ -407,8 +423,12 @@ class PathTracer {
                                   std::span<const LeavingSurface* const>(from, ns), true, std::span(sh, ns), hits,
                                   st);
           for (std::size_t j = 0; j < ns; ++j) blocked[j] = sh[j].t < kInf;
-        } else {
+        } else if (camera) {
           ray_any_hit_packet(index_, std::span<const Ray>(wave), shadow_query_, std::span(blocked, ns), &st);
+        } else {
+          std::optional<RayHit> rh[kMaxRayPacket];
+          ray_first_hit_each(index_, std::span<const Ray>(wave), shadow_query_, std::span(rh, ns), &st);
+          for (std::size_t j = 0; j < ns; ++j) blocked[j] = rh[j].has_value();
         }
         c.queries += ns;
         for (std::size_t j = 0; j < ns; ++j)
