@@ -343,6 +343,7 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
   q.order = RayOrder::sphere_hit;
   q.t_min = 0.0;
   q.t_max = opts.max_distance;
+  q.validate();  // (once: ray_first_hit_each does not validate)
   const unsigned threads = resolve_threads(opts.threads);
   tbb::task_arena arena(static_cast<int>(threads));
   auto run_chunks = [&](std::size_t c0, std::size_t c1) {
@@ -352,18 +353,23 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
             const auto pos = idx.positions();
             const IdView ids = idx.ids();
             tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
-              std::vector<RayHit> hits;
+              // A point's sky rays as one batch: first hits two at a time, interleaved
+              // (ray_first_hit_each; each answer is the single query's).
+              std::vector<Ray> rays;
+              std::vector<std::optional<RayHit>> hit(opts.rays);
+              rays.reserve(opts.rays);
               for (std::size_t c = range.begin(); c != range.end(); ++c) {
                 const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
                 for (std::size_t s = s0; s < s1; ++s) {
                   const PointIndex i = ids[s];
                   const Vec3 origin = pos[s] + Vec3(0.0, 0.0, opts.lift);
                   const double rot = sky_rotation(opts.seed, i);
+                  rays.clear();
+                  for (std::uint32_t k = 0; k < opts.rays; ++k)
+                    rays.emplace_back(origin, sky_direction(k, opts.rays, rot, opts.weighting));
+                  ray_first_hit_each(idx, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(hit));
                   std::uint32_t open = 0;
-                  for (std::uint32_t k = 0; k < opts.rays; ++k) {
-                    ray_query(idx, Ray(origin, sky_direction(k, opts.rays, rot, opts.weighting)), q, hits);
-                    open += hits.empty();
-                  }
+                  for (const auto& h : hit) open += !h.has_value();
                   out[i] = double(open) / double(opts.rays);
                 }
                 const std::uint64_t nq = std::uint64_t(s1 - s0) * opts.rays;
@@ -406,6 +412,7 @@ std::vector<std::uint32_t> camera_first_hits_over(const Index& index, const Came
   q.order = RayOrder::sphere_hit;
   q.t_min = 0.0;
   q.t_max = max_distance;
+  q.validate();  // (once: ray_first_hit_each does not validate)
   Progress progress(H, progress_bar && Progress::stderr_is_terminal(),
                             ProgressUnits{"rows", "M rays/s", 1e-6, 2});
   const unsigned nthreads = resolve_threads(threads);
@@ -415,12 +422,17 @@ std::vector<std::uint32_t> camera_first_hits_over(const Index& index, const Came
       visit_index(
           [&](const auto& idx) {
             tbb::parallel_for(tbb::blocked_range<std::uint32_t>(y0, y1, 1), [&](const auto& range) {
-              std::vector<RayHit> hits;
+              // A row's rays as one batch: first hits two at a time, interleaved
+              // (ray_first_hit_each; each answer is the single query's).
+              std::vector<Ray> rays;
+              std::vector<std::optional<RayHit>> hit(W);
+              rays.reserve(W);
               for (std::uint32_t y = range.begin(); y != range.end(); ++y) {
-                for (std::uint32_t x = 0; x < W; ++x) {
-                  ray_query(idx, camera.generate_ray(x, y), q, hits);
-                  if (!hits.empty()) out[std::size_t(y) * W + x] = hits.front().index;
-                }
+                rays.clear();
+                for (std::uint32_t x = 0; x < W; ++x) rays.push_back(camera.generate_ray(x, y));
+                ray_first_hit_each(idx, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(hit));
+                for (std::uint32_t x = 0; x < W; ++x)
+                  if (hit[x]) out[std::size_t(y) * W + x] = hit[x]->index;
                 progress.tile_done(W);
               }
             });
