@@ -353,23 +353,27 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
             const auto pos = idx.positions();
             const IdView ids = idx.ids();
             tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
-              // A point's sky rays as one batch: first hits two at a time, interleaved
-              // (ray_first_hit_each; each answer is the single query's).
+              // A point's sky rays in batches of up to kRayBatch: first hits two at a time,
+              // interleaved (ray_first_hit_each; each answer is the single query's).
+              constexpr std::uint32_t kRayBatch = 64;
               std::vector<Ray> rays;
-              std::vector<std::optional<RayHit>> hit(opts.rays);
-              rays.reserve(opts.rays);
+              rays.reserve(kRayBatch);
+              std::optional<RayHit> hit[kRayBatch];
               for (std::size_t c = range.begin(); c != range.end(); ++c) {
                 const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
                 for (std::size_t s = s0; s < s1; ++s) {
                   const PointIndex i = ids[s];
                   const Vec3 origin = pos[s] + Vec3(0.0, 0.0, opts.lift);
                   const double rot = sky_rotation(opts.seed, i);
-                  rays.clear();
-                  for (std::uint32_t k = 0; k < opts.rays; ++k)
-                    rays.emplace_back(origin, sky_direction(k, opts.rays, rot, opts.weighting));
-                  ray_first_hit_each(idx, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(hit));
                   std::uint32_t open = 0;
-                  for (const auto& h : hit) open += !h.has_value();
+                  for (std::uint64_t k0 = 0; k0 < opts.rays; k0 += kRayBatch) {  // (64-bit: no wrap)
+                    const auto nk = static_cast<std::uint32_t>(std::min<std::uint64_t>(kRayBatch, opts.rays - k0));
+                    rays.clear();
+                    for (auto k = static_cast<std::uint32_t>(k0); k < k0 + nk; ++k)
+                      rays.emplace_back(origin, sky_direction(k, opts.rays, rot, opts.weighting));
+                    ray_first_hit_each(idx, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(hit, nk));
+                    for (std::uint32_t k = 0; k < nk; ++k) open += !hit[k].has_value();
+                  }
                   out[i] = double(open) / double(opts.rays);
                 }
                 const std::uint64_t nq = std::uint64_t(s1 - s0) * opts.rays;
@@ -422,17 +426,21 @@ std::vector<std::uint32_t> camera_first_hits_over(const Index& index, const Came
       visit_index(
           [&](const auto& idx) {
             tbb::parallel_for(tbb::blocked_range<std::uint32_t>(y0, y1, 1), [&](const auto& range) {
-              // A row's rays as one batch: first hits two at a time, interleaved
+              // A row's rays in batches of up to kRayBatch: first hits two at a time, interleaved
               // (ray_first_hit_each; each answer is the single query's).
+              constexpr std::uint32_t kRayBatch = 64;
               std::vector<Ray> rays;
-              std::vector<std::optional<RayHit>> hit(W);
-              rays.reserve(W);
+              rays.reserve(kRayBatch);
+              std::optional<RayHit> hit[kRayBatch];
               for (std::uint32_t y = range.begin(); y != range.end(); ++y) {
-                rays.clear();
-                for (std::uint32_t x = 0; x < W; ++x) rays.push_back(camera.generate_ray(x, y));
-                ray_first_hit_each(idx, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(hit));
-                for (std::uint32_t x = 0; x < W; ++x)
-                  if (hit[x]) out[std::size_t(y) * W + x] = hit[x]->index;
+                for (std::uint64_t x0 = 0; x0 < W; x0 += kRayBatch) {  // (64-bit: no wrap)
+                  const auto nx = static_cast<std::uint32_t>(std::min<std::uint64_t>(kRayBatch, W - x0));
+                  rays.clear();
+                  for (auto x = static_cast<std::uint32_t>(x0); x < x0 + nx; ++x) rays.push_back(camera.generate_ray(x, y));
+                  ray_first_hit_each(idx, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(hit, nx));
+                  for (std::uint32_t x = 0; x < nx; ++x)
+                    if (hit[x]) out[std::size_t(y) * W + x0 + x] = hit[x]->index;
+                }
                 progress.tile_done(W);
               }
             });

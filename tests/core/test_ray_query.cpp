@@ -593,9 +593,10 @@ TEST(RayQuery, FirstHitEachInterleavedPairsEqualSingleRaysAndOracle) {
   // ray_first_hit_each (two rays at a time, their traversals interleaved node by node) against
   // ray_first_hit on each ray (every field, bit for bit, and the same work counters: each ray
   // follows its own traversal) and the brute-force oracle: camera rays, axis-parallel rays (an
-  // infinite float reciprocal), random rays that hit and miss, spans of odd and even lengths (a
-  // lone last ray), on every index, for orders sphere_hit, time and ray, with and without a
-  // plane and any_hit, on every forced SIMD path (simd_*_properties).
+  // infinite float reciprocal), rays that miss the root box paired with rays that enter it, random
+  // rays through and from inside the box, spans of odd and even lengths (a lone last ray), on
+  // every index, for orders sphere_hit, time and ray, with and without a plane and any_hit, on
+  // every forced SIMD path (simd_*_properties).
   for (const Dist dist : {Dist::clustered, Dist::grid}) {
     const auto pts = make_points(3000, dist, 41);
     AABB box;
@@ -610,9 +611,12 @@ TEST(RayQuery, FirstHitEachInterleavedPairsEqualSingleRaysAndOracle) {
       for (int x = 0; x < 9; ++x) rays.emplace_back(eye, fwd + (0.03 * (x - 4)) * right + (0.03 * (y - 1.5)) * up);
     for (int i = 0; i < 3; ++i)
       rays.emplace_back(box.lo - Vec3(0.5 * s, 0, 0) + Vec3(0, (0.3 + 0.1 * i) * s, 0.5 * s), Vec3(1, 0, 0));
+    // Two rays that miss the root box (away from it), paired with rays that enter it (38-39, 40-41).
+    rays.emplace_back(eye, -fwd);
+    rays.emplace_back(eye, -fwd + 0.1 * up);
     std::mt19937_64 rng(43);
     for (int i = 0; i < 22; ++i) rays.push_back(random_ray(rng, box, i % 3 == 0));
-    ASSERT_EQ(rays.size() % 2, 1u);  // (61: the last ray of the whole span alone)
+    ASSERT_EQ(rays.size(), 63u);  // (odd: the last ray of the whole span alone)
     const Plane plane{box.center(), Vec3(0.3, -1.0, 0.2)};
     std::size_t hits = 0;
     for (const IndexOptions& opt : all_index_options()) {
@@ -631,7 +635,7 @@ TEST(RayQuery, FirstHitEachInterleavedPairsEqualSingleRaysAndOracle) {
           q1.any_hit = false;
           std::vector<std::optional<RayHit>> got(rays.size());
           RayQueryStats st_each, st_one;
-          const std::size_t cuts[] = {0, 1, 3, 6, 10, rays.size()};  // spans of 1, 2, 3, 4 and 51 rays
+          const std::size_t cuts[] = {0, 1, 3, 6, 10, rays.size()};  // spans of 1, 2, 3, 4 and 53 rays
           for (std::size_t c = 0; c + 1 < std::size(cuts); ++c) {
             const std::span<const Ray> span(rays.data() + cuts[c], cuts[c + 1] - cuts[c]);
             std::visit([&](const auto& idx) {

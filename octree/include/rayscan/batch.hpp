@@ -16,8 +16,9 @@
 namespace rayscan {
 
 /// out[i] = ray_query(index, rays[i], q) for all i, in parallel (tbb::parallel_for over runs of
-/// whole kMaxRayPacket-ray blocks counted from rays[0], each run answered by ray_query_each and
-/// its interleaved pairs of rays). Identical to the single-ray calls for any thread count. Throws std::invalid_argument (before any work) for an invalid q or
+/// whole kMaxRayPacket-ray blocks counted from rays[0], a grain that keeps every pair whole, each
+/// run answered by ray_query_each and its interleaved pairs of rays). Identical to the single-ray
+/// calls for any thread count. Throws std::invalid_argument (before any work) for an invalid q or
 /// out.size() != rays.size().
 template <SpatialIndex I>
 void ray_query_each_parallel(const I& index, std::span<const Ray> rays, const RayQuery& q,

@@ -120,6 +120,8 @@ struct Candidate {
 inline bool cand_less(const Candidate& a, const Candidate& b) {
   return a.key < b.key || (a.key == b.key && a.id < b.id);
 }
+/// The RayHit that candidate c answers (RayHit::distance = sqrt(c.d2)): every query's one conversion.
+inline RayHit to_ray_hit(const Candidate& c) { return {c.id, c.slot, c.t, std::sqrt(c.d2), c.key}; }
 
 template <class Node>
 struct NodeEntry {
@@ -952,7 +954,8 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), flatten, noinline)) bool ray
 #endif
 
 /// Whether the traversal of index I with key policy KeyPolicy has instances compiled per ISA
-/// (ray_traverse_avx2 / _avx512 with kBest1, first_hit_packet_avx2 / _avx512): the first hit
+/// (ray_traverse_avx2 / _avx512 with kBest1, first_hit_packet_avx2 / _avx512 and, with OrderKey,
+/// first_hit_pair_avx2 / _avx512): the first hit
 /// (k = 1, the renderer's, visibility's and the issue's query) of the plain ray query (OrderKey)
 /// on indexes with float child boxes. Queries with k > 1 and the refined keys of surfel rendering
 /// keep the table instance: each per-ISA instance is the whole traversal inlined once more, and
@@ -1103,14 +1106,14 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
   detail::Candidate best;
   if (q.k == 1) {  // first hit: the single-candidate policy (same answer as the k-heap)
     if (detail::ray_traverse<true>(index, ray, q, best, stats, key_policy))
-      out.push_back({best.id, best.slot, best.t, std::sqrt(best.d2), best.key});
+      out.push_back(detail::to_ray_hit(best));
     return;
   }
   detail::ray_traverse<false>(index, ray, q, best, stats, key_policy);
   auto& cands = detail::ray_scratch<typename I::Node>().cands;
   std::sort(cands.begin(), cands.end(), detail::cand_less);
   out.reserve(cands.size());
-  for (const detail::Candidate& c : cands) out.push_back({c.id, c.slot, c.t, std::sqrt(c.d2), c.key});
+  for (const detail::Candidate& c : cands) out.push_back(detail::to_ray_hit(c));
 }
 
 /// First hit: the result ray_query(index, ray, q) gives with q.k = 1 (whatever q.k says), without a
@@ -1123,14 +1126,14 @@ template <SpatialIndex I>
   if (index.empty()) return std::nullopt;
   detail::Candidate best;
   if (!detail::ray_traverse<true>(index, ray, q, best, stats)) return std::nullopt;
-  return RayHit{best.id, best.slot, best.t, std::sqrt(best.d2), best.key};
+  return detail::to_ray_hit(best);
 }
 
 /// First hits of a batch of rays: out[i] = ray_first_hit(index, rays[i], q, stats) for every i,
 /// bit for bit, with the rays traced two at a time, their traversals interleaved node by node
 /// (detail::first_hit_pair: the single ray's loop is latency-bound, and two independent chains
-/// fill the core's idle slots; camera rays of bench_rays ~1.15x the single calls, bench/README.md
-/// "Issue 12, session 33"). The batch form of ray_first_hit for callers with many rays
+/// fill the core's idle slots; the 1e6 camera rays of bench_rays 1.06-1.09x the single calls,
+/// bench/README.md "Issue 12, session 33"). The batch form of ray_first_hit for callers with many rays
 /// (ray_query_each, the renderer's wavefronts, bench_rays). `stats` (optional) sums the work
 /// counters. As ray_first_hit, `q` must have been validated. Throws std::invalid_argument when
 /// out.size() != rays.size(). Thread-safe (per-thread scratch).
@@ -1148,11 +1151,8 @@ void ray_first_hit_each(const I& index, std::span<const Ray> rays, const RayQuer
   for (; i + 2 <= rays.size(); i += 2) {
     detail::Candidate best[2];
     const unsigned found = detail::first_hit_pair(index, rays.data() + i, q, best, stats);
-    for (unsigned j = 0; j < 2; ++j) {
-      const detail::Candidate& b = best[j];
-      out[i + j] = (found >> j) & 1u ? std::optional<RayHit>(RayHit{b.id, b.slot, b.t, std::sqrt(b.d2), b.key})
-                                     : std::nullopt;
-    }
+    for (unsigned j = 0; j < 2; ++j)
+      out[i + j] = (found >> j) & 1u ? std::optional<RayHit>(detail::to_ray_hit(best[j])) : std::nullopt;
   }
   if (i < rays.size()) out[i] = ray_first_hit(index, rays[i], q, stats);
 }
@@ -1454,10 +1454,8 @@ void ray_first_hit_packet(const I& index, std::span<const Ray> rays, const RayQu
   detail::for_each_ray_packet(index, rays, q, stats,
                               [&](std::size_t b, unsigned n, const detail::Candidate* best, std::uint32_t found) {
                                 for (unsigned i = 0; i < n; ++i)
-                                  out[b + i] = (found >> i) & 1u
-                                                   ? std::optional<RayHit>(RayHit{best[i].id, best[i].slot, best[i].t,
-                                                                                  std::sqrt(best[i].d2), best[i].key})
-                                                   : std::nullopt;
+                                  out[b + i] = (found >> i) & 1u ? std::optional<RayHit>(detail::to_ray_hit(best[i]))
+                                                                 : std::nullopt;
                               });
 }
 
@@ -1502,9 +1500,10 @@ void ray_any_hit_packet(const I& index, std::span<const Ray> rays, const RayQuer
 }
 
 /// out[i] = ray_query(index, rays[i], q) for every i, bit for bit: with q.k == 1, the rays are
-/// traced two at a time with their traversals interleaved (ray_first_hit_each; camera rays of
-/// bench_rays ~1.1x the single calls, where 16-ray packets had been 0.9x: bench/README.md,
-/// "Issue 12, session 33"), other queries ray by ray. The batch form for callers that pass whole
+/// traced two at a time with their traversals interleaved (ray_first_hit_each; the 1e6 camera
+/// rays of bench_rays 1.04-1.11x Embree's rtcIntersect1, where 16-ray packets of consecutive rays
+/// had been 0.88-0.91x of single rays: bench/README.md, "Issue 12, session 33"), other queries
+/// ray by ray. The batch form for callers that pass whole
 /// ray sets (ray_query_batch: the Python module, `rayscan query`; the renderer traces its camera
 /// wavefronts as packets, ray_first_hit_packet). `stats` (optional) sums the work counters.
 /// Throws std::invalid_argument for an invalid q (RayQuery::validate) or out.size() !=
