@@ -600,20 +600,14 @@ TEST(RayQuery, FirstHitEachInterleavedPairsEqualSingleRaysAndOracle) {
   for (const Dist dist : {Dist::clustered, Dist::grid}) {
     const auto pts = make_points(3000, dist, 41);
     AABB box;
-    for (const Vec3& p : pts) box.expand(p);
-    const double s = std::max(box.max_extent(), 1e-3);
-    const Vec3 eye = box.center() + Vec3(1.3, 0.9, -1.1) * s;
-    const Vec3 fwd = glm::normalize(box.center() - eye);
-    const Vec3 right = glm::normalize(glm::cross(fwd, Vec3(0, 1, 0)));
-    const Vec3 up = glm::cross(right, fwd);
-    std::vector<Ray> rays;
-    for (int y = 0; y < 4; ++y)
-      for (int x = 0; x < 9; ++x) rays.emplace_back(eye, fwd + (0.03 * (x - 4)) * right + (0.03 * (y - 1.5)) * up);
+    double s = 0;
+    std::vector<Ray> rays = camera_at(pts, 17, 9, 4, 0.03, box, s);  // 9 x 4 pixels, row order
     for (int i = 0; i < 3; ++i)
       rays.emplace_back(box.lo - Vec3(0.5 * s, 0, 0) + Vec3(0, (0.3 + 0.1 * i) * s, 0.5 * s), Vec3(1, 0, 0));
-    // Two rays that miss the root box (away from it), paired with rays that enter it (38-39, 40-41).
-    rays.emplace_back(eye, -fwd);
-    rays.emplace_back(eye, -fwd + 0.1 * up);
+    // Two rays that miss the root box (from the eye, away from it), paired with rays that enter it
+    // (38-39, 40-41).
+    rays.emplace_back(rays[0].origin(), -rays[0].direction());
+    rays.emplace_back(rays[0].origin(), -rays[35].direction());
     std::mt19937_64 rng(43);
     for (int i = 0; i < 22; ++i) rays.push_back(random_ray(rng, box, i % 3 == 0));
     ASSERT_EQ(rays.size(), 63u);  // (odd: the last ray of the whole span alone)
@@ -660,6 +654,7 @@ TEST(RayQuery, FirstHitEachInterleavedPairsEqualSingleRaysAndOracle) {
             if (!q.any_hit) expect_same({*got[r]}, want, ctx);  // (any_hit: any qualifying point)
             if (::testing::Test::HasFailure()) return;
           }
+          EXPECT_FALSE(got[39] || got[40]) << "the two rays away from the box miss it";
           EXPECT_EQ(st_each.nodes_visited, st_one.nodes_visited) << label(opt) << " " << describe(q);
           EXPECT_EQ(st_each.points_tested, st_one.points_tested) << label(opt) << " " << describe(q);
         }

@@ -122,6 +122,13 @@ inline bool cand_less(const Candidate& a, const Candidate& b) {
 }
 /// The RayHit that candidate c answers (RayHit::distance = sqrt(c.d2)): every query's one conversion.
 inline RayHit to_ray_hit(const Candidate& c) { return {c.id, c.slot, c.t, std::sqrt(c.d2), c.key}; }
+/// The batch functions' length check: throws std::invalid_argument("<who>: N results for M rays")
+/// unless `results` == `rays` (one output per ray).
+inline void require_one_result_per_ray(const char* who, std::size_t results, std::size_t rays) {
+  if (results != rays)
+    throw std::invalid_argument(std::string(who) + ": " + std::to_string(results) + " results for " +
+                                std::to_string(rays) + " rays");
+}
 
 template <class Node>
 struct NodeEntry {
@@ -1140,9 +1147,7 @@ template <SpatialIndex I>
 template <SpatialIndex I>
 void ray_first_hit_each(const I& index, std::span<const Ray> rays, const RayQuery& q,
                         std::span<std::optional<RayHit>> out, RayQueryStats* stats = nullptr) {
-  if (out.size() != rays.size())
-    throw std::invalid_argument("ray_first_hit_each: " + std::to_string(out.size()) + " results for " +
-                                std::to_string(rays.size()) + " rays");
+  detail::require_one_result_per_ray("ray_first_hit_each", out.size(), rays.size());
   if (index.empty()) {
     std::fill(out.begin(), out.end(), std::nullopt);
     return;
@@ -1444,9 +1449,7 @@ void for_each_ray_packet(const I& index, std::span<const Ray> rays, const RayQue
 template <SpatialIndex I>
 void ray_first_hit_packet(const I& index, std::span<const Ray> rays, const RayQuery& q,
                           std::span<std::optional<RayHit>> out, RayQueryStats* stats = nullptr) {
-  if (out.size() != rays.size())
-    throw std::invalid_argument("ray_first_hit_packet: " + std::to_string(out.size()) + " results for " +
-                                std::to_string(rays.size()) + " rays");
+  detail::require_one_result_per_ray("ray_first_hit_packet", out.size(), rays.size());
   if (index.empty() || q.any_hit) {
     for (std::size_t i = 0; i < rays.size(); ++i) out[i] = ray_first_hit(index, rays[i], q, stats);
     return;
@@ -1469,9 +1472,7 @@ void ray_first_hit_packet(const I& index, std::span<const Ray> rays, const RayQu
 template <SpatialIndex I>
 void ray_any_hit_packet(const I& index, std::span<const Ray> rays, const RayQuery& q, std::span<bool> out,
                         RayQueryStats* stats = nullptr) {
-  if (out.size() != rays.size())
-    throw std::invalid_argument("ray_any_hit_packet: " + std::to_string(out.size()) + " results for " +
-                                std::to_string(rays.size()) + " rays");
+  detail::require_one_result_per_ray("ray_any_hit_packet", out.size(), rays.size());
   if (index.empty()) {
     std::fill(out.begin(), out.end(), false);
     return;
@@ -1512,9 +1513,7 @@ template <SpatialIndex I>
 void ray_query_each(const I& index, std::span<const Ray> rays, const RayQuery& q,
                     std::span<std::vector<RayHit>> out, RayQueryStats* stats = nullptr) {
   q.validate();
-  if (out.size() != rays.size())
-    throw std::invalid_argument("ray_query_each: " + std::to_string(out.size()) + " results for " +
-                                std::to_string(rays.size()) + " rays");
+  detail::require_one_result_per_ray("ray_query_each", out.size(), rays.size());
   if (q.k != 1) {
     for (std::size_t i = 0; i < rays.size(); ++i) ray_query(index, rays[i], q, out[i], stats);
     return;

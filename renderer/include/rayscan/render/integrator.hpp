@@ -337,52 +337,52 @@ class PathTracer {
           c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
                             std::chrono::steady_clock::now() - t0).count();
       };
-      if (camera) {
+      if (surfel && camera) {
         // The camera rays as one packet (each ray's answer is the one-ray query's).
-        if (surfel) {
-          SurfelHit sh[kMaxRayPacket];
-          first_surfel_hit_packet<I, SurfelTables::best>(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf, {}, false,
-                                  std::span(sh, m), hits, st);
-          query_done();
-          // One cover cache per pixel of the packet (the caller traces the samples of one pixel
-          // block in turn), each also serving the other lanes' hits within its reach: a pointer's
-          // worth of static TLS, the caches on the heap.
-          thread_local std::unique_ptr<CoverCache[]> covers;
-          if (!covers) covers = std::make_unique<CoverCache[]>(kMaxRayPacket);
-          for (std::size_t j = 0; j < m; ++j) {
-            SurfaceHit h;
-            if (sh[j].t < kInf) {
-              // The cache pays when the samples of a pixel land within its reach: judged by the
-              // hit of the neighbouring pixel in the row (lane j ^ 1), about one footprint away.
-              // Farther (a distant view), each sample would refill it: the plain descent instead.
-              const std::size_t nb = j ^ 1u;
-              bool cached = true;
-              if (nb < m && sh[nb].t < kInf) {
-                const Vec3 v = wave[j].at(sh[j].t) - wave[nb].at(sh[nb].t);
-                cached = glm::dot(v, v) <= 4.0 * cover_delta_ * cover_delta_;
-              }
-              surfel_surface_at(wave[j], sh[j], h,
-                                cached ? std::span<CoverCache>(covers.get(), kMaxRayPacket) : std::span<CoverCache>{},
-                                lane[j]);
+        SurfelHit sh[kMaxRayPacket];
+        first_surfel_hit_packet<I, SurfelTables::best>(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf, {}, false,
+                                std::span(sh, m), hits, st);
+        query_done();
+        // One cover cache per pixel of the packet (the caller traces the samples of one pixel
+        // block in turn), each also serving the other lanes' hits within its reach: a pointer's
+        // worth of static TLS, the caches on the heap.
+        thread_local std::unique_ptr<CoverCache[]> covers;
+        if (!covers) covers = std::make_unique<CoverCache[]>(kMaxRayPacket);
+        for (std::size_t j = 0; j < m; ++j) {
+          SurfaceHit h;
+          if (sh[j].t < kInf) {
+            // The cache pays when the samples of a pixel land within its reach: judged by the
+            // hit of the neighbouring pixel in the row (lane j ^ 1), about one footprint away.
+            // Farther (a distant view), each sample would refill it: the plain descent instead.
+            const std::size_t nb = j ^ 1u;
+            bool cached = true;
+            if (nb < m && sh[nb].t < kInf) {
+              const Vec3 v = wave[j].at(sh[j].t) - wave[nb].at(sh[nb].t);
+              cached = glm::dot(v, v) <= 4.0 * cover_delta_ * cover_delta_;
             }
-            vertex(j, sh[j].t < kInf, h);
+            surfel_surface_at(wave[j], sh[j], h,
+                              cached ? std::span<CoverCache>(covers.get(), kMaxRayPacket) : std::span<CoverCache>{},
+                              lane[j]);
           }
-        } else {
-          std::optional<RayHit> rh[kMaxRayPacket];
-          ray_first_hit_packet(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
-          query_done();
-          for (std::size_t j = 0; j < m; ++j) {
-            SurfaceHit h;
-            if (rh[j]) surface_at(wave[j], *rh[j], h);
-            vertex(j, rh[j].has_value(), h);
-          }
+          vertex(j, sh[j].t < kInf, h);
         }
         c.queries += m;
-      } else if (!surfel) {
-        // Bounce rays (incoherent): two at a time, their traversals interleaved (ray_first_hit_each;
-        // each answer is the one-ray query's, as trace()'s intersect).
+      } else if (surfel) {
+        // Surfel bounce rays, one by one (incoherent), each leaving its vertex's surface (as trace()).
+        for (std::size_t j = 0; j < m; ++j) {
+          SurfaceHit h;
+          const bool hit = intersect(wave[j], h, hits, c, &p[lane[j]]->from);
+          vertex(j, hit, h);
+        }
+      } else {
+        // The camera rays as one packet; the bounce rays, which are incoherent, two at a time with
+        // their traversals interleaved (ray_first_hit_each). Each answer is the one-ray query's (as
+        // trace()'s intersect).
         std::optional<RayHit> rh[kMaxRayPacket];
-        ray_first_hit_each(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
+        if (camera)
+          ray_first_hit_packet(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
+        else
+          ray_first_hit_each(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
         query_done();
         for (std::size_t j = 0; j < m; ++j) {
           SurfaceHit h;
@@ -390,13 +390,6 @@ class PathTracer {
           vertex(j, rh[j].has_value(), h);
         }
         c.queries += m;
-      } else {
-        // Surfel bounce rays, one by one (incoherent), each leaving its vertex's surface (as trace()).
-        for (std::size_t j = 0; j < m; ++j) {
-          SurfaceHit h;
-          const bool hit = intersect(wave[j], h, hits, c, surfel ? &p[lane[j]]->from : nullptr);
-          vertex(j, hit, h);
-        }
       }
       // The shadow rays of the hits (all towards the sun): a packet for the camera rays' hits,
       // whose origins lie within the block's footprint; after a bounce (the origins are
@@ -404,8 +397,7 @@ class PathTracer {
       // (ray_first_hit_each), or one by one in surfel mode.
       if (shadowed && !camera && surfel) {
         for (std::size_t i = 0; i < n; ++i)
-          if (((shadowed >> i) & 1u) && !occluded(p[i]->shadow, hits, c, surfel ? &p[i]->from : nullptr))
-            add_sun(*p[i]);
+          if (((shadowed >> i) & 1u) && !occluded(p[i]->shadow, hits, c, &p[i]->from)) add_sun(*p[i]);
       } else if (shadowed) {
         std::size_t ns = 0;
         wave.clear();
