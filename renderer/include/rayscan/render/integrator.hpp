@@ -331,7 +331,9 @@ class PathTracer {
         if (!hit_vertex(q, hit, h, s[lane[j]], nullptr)) live &= ~(1u << lane[j]);
         else if (q.shadow_pending) shadowed |= 1u << lane[j];
       };
-      const auto t0 = time_ ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point{};
+      // (The surfel bounce rays go through intersect(), which times its own queries.)
+      const auto t0 = time_ && !(surfel && !camera) ? std::chrono::steady_clock::now()
+                                                    : std::chrono::steady_clock::time_point{};
       const auto query_done = [&] {  // the query time only (not the shading below)
         if (time_)
           c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
