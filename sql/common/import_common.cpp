@@ -1,6 +1,8 @@
 #include "rayscan/sql/import.hpp"
 
 #include <stdexcept>
+#include <utility>
+#include <vector>
 
 namespace rayscan::sql {
 
@@ -14,6 +16,34 @@ bool is_sql_identifier(const std::string& s, std::size_t max_len, bool allow_upp
   return true;
 }
 
+void check_attribute_names(const std::vector<std::string>& names) {
+  // SQL names are case-insensitive: PostgreSQL folds an unquoted name to lower case and SQLite
+  // compares names without case, so "GpsTime" and "gpstime", or "X" and the built-in x, would be
+  // one column (the database's own error, or two attributes merged).
+  const auto folded = [](std::string s) {
+    for (char& c : s)
+      if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+    return s;
+  };
+  std::vector<std::pair<std::string, std::string>> taken;  // (folded column name, what holds it)
+  for (const char* b : {"point_index", "source", "chunk", "x", "y", "z"})
+    taken.emplace_back(b, std::string("the built-in column '") + b + "'");
+  for (const std::string& n : names) {
+    if (!is_sql_identifier(n, 63, true))
+      throw std::invalid_argument("attribute '" + n + "': expected an SQL identifier [A-Za-z_][A-Za-z0-9_]*");
+    const std::vector<std::string> columns =
+        n == "rgb" ? std::vector<std::string>{"red", "green", "blue"} : std::vector<std::string>{n};
+    for (const std::string& col : columns) {
+      const std::string f = folded(col);
+      for (const auto& [t, holder] : taken)
+        if (t == f)
+          throw std::invalid_argument("attribute '" + n + "': its column '" + col + "' would be " + holder +
+                                      " (SQL names ignore case)");
+      taken.emplace_back(f, "the column '" + col + "' of attribute '" + n + "'");
+    }
+  }
+}
+
 std::vector<AttributeColumn> resolve_attributes(const std::vector<std::string>& names,
                                                 const std::vector<std::filesystem::path>& paths,
                                                 const std::vector<PointCloud>& clouds) {
@@ -24,12 +54,8 @@ std::vector<AttributeColumn> resolve_attributes(const std::vector<std::string>& 
         throw std::invalid_argument(paths[i].string() + ": attribute '" + name +
                                     "' requested but the file has none");
   };
+  check_attribute_names(names);
   for (const std::string& n : names) {
-    if (!is_sql_identifier(n, 63, true))
-      throw std::invalid_argument("attribute '" + n + "': expected an SQL identifier [A-Za-z_][A-Za-z0-9_]*");
-    static const char* reserved[] = {"point_index", "source", "chunk", "x", "y", "z"};
-    for (const char* r : reserved)
-      if (n == r) throw std::invalid_argument("attribute '" + n + "' is a built-in column");
     if (n == "intensity") {
       need(n, [](const PointCloud& c) { return !c.intensity.empty(); });
       cols.push_back({n, true, [](const PointCloud& c, std::size_t i) { return double(c.intensity[i]); }});

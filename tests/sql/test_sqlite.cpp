@@ -387,6 +387,47 @@ TEST(SqlImport, IdentifiersAreRegularAsciiNamesWithinTheLength) {
   }
 }
 
+// check_attribute_names: the columns an import would create (the built-ins, then red, green, blue
+// for rgb, else the name) must differ other than by case. SQLite is the oracle: it refuses a table
+// with two such columns ("duplicate column name") exactly when the check throws.
+TEST(SqlImport, AttributeColumnsEqualButForCaseAreRejectedAsTheDatabaseWould) {
+  const std::vector<std::vector<std::string>> cases = {
+      {"intensity", "classification", "gps_time", "rgb", "GpsTime"},
+      {"intensity", "intensity"},
+      {"GpsTime", "gpstime"},
+      {"X"},
+      {"z"},
+      {"Point_Index"},
+      {"rgb", "Red"},
+      {"rgb", "rgb"},
+      {"blue"},
+      {"Chunk_2", "chunk_2"},
+      {"source_id", "SOURCE"}};
+  Db db(":memory:", false);
+  for (std::size_t k = 0; k < cases.size(); ++k) {
+    const std::vector<std::string>& names = cases[k];
+    std::string ddl = "CREATE TEMP TABLE cols_" + std::to_string(k) + "(point_index, source, chunk, x, y, z";
+    for (const std::string& n : names) ddl += n == "rgb" ? ", red, green, blue" : ", " + n;
+    ddl += ")";
+    const bool db_accepts = error_of(db.db, ddl).empty();
+    bool check_accepts = true;
+    std::string message;
+    try {
+      sql::check_attribute_names(names);
+    } catch (const std::invalid_argument& e) {
+      check_accepts = false;
+      message = e.what();
+    }
+    EXPECT_EQ(check_accepts, db_accepts) << ddl;
+    if (!check_accepts) {
+      EXPECT_NE(message.find("ignore case"), std::string::npos) << message;
+    }
+  }
+  // The two sides of the list are both exercised.
+  EXPECT_NO_THROW(sql::check_attribute_names(cases[0]));
+  EXPECT_THROW(sql::check_attribute_names(cases[1]), std::invalid_argument);
+}
+
 TEST(SqliteFunctions, DatabaseWithoutChunkIndexIsAnError) {
   const fs::path p = tmpdir() / "plain.sqlite";
   fs::remove(p);
@@ -476,6 +517,8 @@ TEST(SqliteImportCli, BadInputExitsTwoWithOneLineAndLeavesNoFile) {
   EXPECT_EQ(run(bin + " db import " + scan_path("autzen").string() + " -o " + out.string() + " --chunk 0 2>/dev/null"), 2);
   EXPECT_EQ(run(bin + " db import " + scan_path("autzen").string() + " -o " + out.string() +
                 " --attributes nir 2>/dev/null"), 2);
+  EXPECT_EQ(run(bin + " db import " + scan_path("autzen").string() + " -o " + out.string() +
+                " --attributes intensity,Intensity 2>/dev/null"), 2);  // one column twice (SQL ignores case)
   EXPECT_EQ(run(bin + " db import " + scan_path("autzen").string() + " 2>/dev/null"), 2);
   EXPECT_FALSE(fs::exists(out));
   for (const auto& e : fs::directory_iterator(tmpdir()))

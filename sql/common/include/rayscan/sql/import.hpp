@@ -47,9 +47,18 @@ struct AttributeColumn {
   std::function<double(const PointCloud&, std::size_t)> value;
 };
 
+/// Checks the requested attribute names (`--attributes`) before an import reads anything: each an
+/// SQL identifier (is_sql_identifier, 63 characters), and no two columns they make ("rgb": red,
+/// green, blue; any other name: itself) equal but for case to each other or to a built-in column
+/// (point_index, source, chunk, x, y, z), since PostgreSQL folds unquoted names to lower case and
+/// SQLite compares names without case: e.g. an attribute asked twice, "GpsTime" with "gpstime",
+/// "X" with x, a scalar "red" with rgb. Throws std::invalid_argument naming the attribute and
+/// the column it would collide with.
+void check_attribute_names(const std::vector<std::string>& names);
+
 /// Resolves the requested attribute names against every cloud. Throws std::invalid_argument
-/// ("<file>: attribute 'gps_time' requested but the file has none") when a cloud lacks one or a
-/// name is not an SQL identifier.
+/// ("<file>: attribute 'gps_time' requested but the file has none") when a cloud lacks one, or
+/// as check_attribute_names for the names themselves.
 [[nodiscard]] std::vector<AttributeColumn> resolve_attributes(
     const std::vector<std::string>& names, const std::vector<std::filesystem::path>& paths,
     const std::vector<PointCloud>& clouds);
