@@ -37,6 +37,7 @@
 #include <cstdio>
 #include <iostream>
 #include <malloc.h>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -1062,9 +1063,13 @@ int main(int argc, char** argv) {
         const double em_rps =
             static_cast<double>(set.rays.size()) / (rb::median(runs[first_packet_run - 1].ms) / 1e3);
         // The fastest round of each as well: Embree's single-ray passes at 1e7 vary 2-4x within one
-        // process (no page faults, no context switches; ours by ~1.4x), so a median of a few rounds
-        // can flatter rayscan there (bench/README.md, "Issue 12, session 34").
-        const auto fastest = [](const Run& run) { return *std::min_element(run.ms.begin(), run.ms.end()); };
+        // process (with almost no page faults or context switches; ours by ~1.3x), so a median of a
+        // few rounds can flatter rayscan there (bench/README.md, "Issue 12, session 34"). NaN
+        // without rounds, as rb::median.
+        const auto fastest = [](const Run& run) {
+          return run.ms.empty() ? std::numeric_limits<double>::quiet_NaN()
+                                : *std::min_element(run.ms.begin(), run.ms.end());
+        };
         const double em_fastest_ms = fastest(runs[first_packet_run - 1]);
         std::printf("\n%d thread%s, rays/s (%s; kNN and radius timed on %zu of the rays):\n", nt,
                     nt > 1 ? "s" : "", nt == 1 ? "per CPU-second of the one thread" : "wall clock",

@@ -1,7 +1,6 @@
 #include "rayscan/sql/import.hpp"
 
 #include <stdexcept>
-#include <utility>
 #include <vector>
 
 namespace rayscan::sql {
@@ -16,7 +15,7 @@ bool is_sql_identifier(const std::string& s, std::size_t max_len, bool allow_upp
   return true;
 }
 
-void check_attribute_names(const std::vector<std::string>& names) {
+void check_attribute_names(const std::vector<std::string>& names, bool pcpatch) {
   // SQL names are case-insensitive: PostgreSQL folds an unquoted name to lower case and SQLite
   // compares names without case, so "GpsTime" and "gpstime", or "X" and the built-in x, would be
   // one column (the database's own error, or two attributes merged).
@@ -25,9 +24,12 @@ void check_attribute_names(const std::vector<std::string>& names) {
       if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
     return s;
   };
-  std::vector<std::pair<std::string, std::string>> taken;  // (folded column name, what holds it)
-  for (const char* b : {"point_index", "source", "chunk", "x", "y", "z"})
-    taken.emplace_back(b, std::string("the built-in column '") + b + "'");
+  struct Taken {
+    std::string folded, column, attribute;  // attribute empty: a built-in column
+  };
+  std::vector<Taken> taken;
+  for (const char* b : {"point_index", "source", "chunk", "x", "y", "z"}) taken.push_back({b, b, ""});
+  if (pcpatch) taken.push_back({"pointindex", "PointIndex", ""});  // (the pgpointcloud schema's dimension)
   for (const std::string& n : names) {
     if (!is_sql_identifier(n, 63, true))
       throw std::invalid_argument("attribute '" + n + "': expected an SQL identifier [A-Za-z_][A-Za-z0-9_]*");
@@ -35,11 +37,17 @@ void check_attribute_names(const std::vector<std::string>& names) {
         n == "rgb" ? std::vector<std::string>{"red", "green", "blue"} : std::vector<std::string>{n};
     for (const std::string& col : columns) {
       const std::string f = folded(col);
-      for (const auto& [t, holder] : taken)
-        if (t == f)
-          throw std::invalid_argument("attribute '" + n + "': its column '" + col + "' would be " + holder +
-                                      " (SQL names ignore case)");
-      taken.emplace_back(f, "the column '" + col + "' of attribute '" + n + "'");
+      for (const Taken& t : taken) {
+        if (t.folded != f) continue;
+        if (t.attribute == n) throw std::invalid_argument("attribute '" + n + "' is asked twice");
+        const std::string why = t.column == col ? "" : " (SQL names ignore case)";
+        if (t.attribute.empty())
+          throw std::invalid_argument("attribute '" + n + "': its column '" + col + "' would be the built-in column '" +
+                                      t.column + "'" + why);
+        throw std::invalid_argument("attribute '" + n + "': its column '" + col + "' would be the column '" +
+                                    t.column + "' of attribute '" + t.attribute + "'" + why);
+      }
+      taken.push_back({f, col, n});
     }
   }
 }

@@ -177,7 +177,7 @@ class MemorySite final : public SiteStream {
 std::unique_ptr<SiteStream> open_site(const std::vector<fs::path>& paths, const ImportOptions& options) {
   if (paths.empty()) throw std::invalid_argument("no input cloud given");
   if (options.chunk_size == 0) throw std::invalid_argument("--chunk must be at least 1 point");
-  check_attribute_names(options.attributes);  // (both paths below: identifiers, no column twice)
+  check_attribute_names(options.attributes, options.pcpatch);  // (both paths below: no column twice)
   bool all_stored = true;
   io::AttributeSet wanted = io::AttributeSet::none();
   for (const std::string& a : options.attributes) {

@@ -334,7 +334,9 @@ class PathTracer {
       // (The surfel bounce rays go through intersect(), which times its own queries.)
       const auto t0 = time_ && !(surfel && !camera) ? std::chrono::steady_clock::now()
                                                     : std::chrono::steady_clock::time_point{};
-      const auto query_done = [&] {  // the query time only (not the shading below)
+      // The query time only (not the shading below). t0 is unset in the surfel bounce branch,
+      // which never calls this.
+      const auto query_done = [&] {
         if (time_)
           c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
                             std::chrono::steady_clock::now() - t0).count();

@@ -52,9 +52,10 @@ struct AttributeColumn {
 /// green, blue; any other name: itself) equal but for case to each other or to a built-in column
 /// (point_index, source, chunk, x, y, z), since PostgreSQL folds unquoted names to lower case and
 /// SQLite compares names without case: e.g. an attribute asked twice, "GpsTime" with "gpstime",
-/// "X" with x, a scalar "red" with rgb. Throws std::invalid_argument naming the attribute and
-/// the column it would collide with.
-void check_attribute_names(const std::vector<std::string>& names);
+/// "X" with x, a scalar "red" with rgb. With `pcpatch` (ImportOptions::pcpatch) the pgpointcloud
+/// schema's PointIndex dimension is built in too. Throws std::invalid_argument naming the
+/// attribute and the column it would collide with.
+void check_attribute_names(const std::vector<std::string>& names, bool pcpatch = false);
 
 /// Resolves the requested attribute names against every cloud. Throws std::invalid_argument
 /// ("<file>: attribute 'gps_time' requested but the file has none") when a cloud lacks one, or
