@@ -14,9 +14,11 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace rayscan::analysis {
 
@@ -28,6 +30,28 @@ template <class Index>
 std::size_t index_size(const Index& index) {
   return visit_index([](const auto& i) { return i.positions().size(); }, index);
 }
+
+// First hits of `count` rays, ray(k) for k < count, in batches of up to kBatch: two at a time,
+// interleaved (ray_first_hit_each; each answer is the single query's, so the batching changes no
+// result), use(k, hit) for each k in order. One per thread (its ray buffer is reused).
+struct FirstHitBatches {
+  static constexpr std::uint32_t kBatch = 64;
+  std::vector<Ray> rays;
+  std::optional<RayHit> hit[kBatch];
+
+  FirstHitBatches() { rays.reserve(kBatch); }
+
+  template <class Idx, class MakeRay, class Use>
+  void run(const Idx& idx, const RayQuery& q, std::uint64_t count, MakeRay&& ray, Use&& use) {
+    for (std::uint64_t k0 = 0; k0 < count; k0 += kBatch) {  // (64-bit: no wrap)
+      const auto nk = static_cast<std::uint32_t>(std::min<std::uint64_t>(kBatch, count - k0));
+      rays.clear();
+      for (std::uint64_t k = k0; k < k0 + nk; ++k) rays.push_back(ray(k));
+      ray_first_hit_each(idx, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(hit, nk));
+      for (std::uint32_t j = 0; j < nk; ++j) use(k0 + j, hit[j]);
+    }
+  }
+};
 
 // Height of the surface disc j (centre c, unit normal n, radius r) stands for at horizontal offset
 // (dx, dy) from its centre, inside its footprint: for a disc within 45 degrees of level (n_z^2 >=
@@ -353,12 +377,7 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
             const auto pos = idx.positions();
             const IdView ids = idx.ids();
             tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
-              // A point's sky rays in batches of up to kRayBatch: first hits two at a time,
-              // interleaved (ray_first_hit_each; each answer is the single query's).
-              constexpr std::uint32_t kRayBatch = 64;
-              std::vector<Ray> rays;
-              rays.reserve(kRayBatch);
-              std::optional<RayHit> hit[kRayBatch];
+              FirstHitBatches batches;  // a point's sky rays
               for (std::size_t c = range.begin(); c != range.end(); ++c) {
                 const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
                 for (std::size_t s = s0; s < s1; ++s) {
@@ -366,14 +385,12 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
                   const Vec3 origin = pos[s] + Vec3(0.0, 0.0, opts.lift);
                   const double rot = sky_rotation(opts.seed, i);
                   std::uint32_t open = 0;
-                  for (std::uint64_t k0 = 0; k0 < opts.rays; k0 += kRayBatch) {  // (64-bit: no wrap)
-                    const auto nk = static_cast<std::uint32_t>(std::min<std::uint64_t>(kRayBatch, opts.rays - k0));
-                    rays.clear();
-                    for (auto k = static_cast<std::uint32_t>(k0); k < k0 + nk; ++k)
-                      rays.emplace_back(origin, sky_direction(k, opts.rays, rot, opts.weighting));
-                    ray_first_hit_each(idx, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(hit, nk));
-                    for (std::uint32_t k = 0; k < nk; ++k) open += !hit[k].has_value();
-                  }
+                  batches.run(
+                      idx, q, opts.rays,
+                      [&](std::uint64_t k) {
+                        return Ray(origin, sky_direction(static_cast<std::uint32_t>(k), opts.rays, rot, opts.weighting));
+                      },
+                      [&](std::uint64_t, const std::optional<RayHit>& hit) { open += !hit.has_value(); });
                   out[i] = double(open) / double(opts.rays);
                 }
                 const std::uint64_t nq = std::uint64_t(s1 - s0) * opts.rays;
@@ -426,21 +443,13 @@ std::vector<std::uint32_t> camera_first_hits_over(const Index& index, const Came
       visit_index(
           [&](const auto& idx) {
             tbb::parallel_for(tbb::blocked_range<std::uint32_t>(y0, y1, 1), [&](const auto& range) {
-              // A row's rays in batches of up to kRayBatch: first hits two at a time, interleaved
-              // (ray_first_hit_each; each answer is the single query's).
-              constexpr std::uint32_t kRayBatch = 64;
-              std::vector<Ray> rays;
-              rays.reserve(kRayBatch);
-              std::optional<RayHit> hit[kRayBatch];
+              FirstHitBatches batches;  // a row's rays
               for (std::uint32_t y = range.begin(); y != range.end(); ++y) {
-                for (std::uint64_t x0 = 0; x0 < W; x0 += kRayBatch) {  // (64-bit: no wrap)
-                  const auto nx = static_cast<std::uint32_t>(std::min<std::uint64_t>(kRayBatch, W - x0));
-                  rays.clear();
-                  for (auto x = static_cast<std::uint32_t>(x0); x < x0 + nx; ++x) rays.push_back(camera.generate_ray(x, y));
-                  ray_first_hit_each(idx, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(hit, nx));
-                  for (std::uint32_t x = 0; x < nx; ++x)
-                    if (hit[x]) out[std::size_t(y) * W + x0 + x] = hit[x]->index;
-                }
+                batches.run(
+                    idx, q, W, [&](std::uint64_t x) { return camera.generate_ray(static_cast<std::uint32_t>(x), y); },
+                    [&](std::uint64_t x, const std::optional<RayHit>& hit) {
+                      if (hit) out[std::size_t(y) * W + x] = hit->index;
+                    });
                 progress.tile_done(W);
               }
             });

@@ -122,6 +122,11 @@ inline bool cand_less(const Candidate& a, const Candidate& b) {
 }
 /// The RayHit that candidate c answers (RayHit::distance = sqrt(c.d2)): every query's one conversion.
 inline RayHit to_ray_hit(const Candidate& c) { return {c.id, c.slot, c.t, std::sqrt(c.d2), c.key}; }
+/// The answer of ray j of a batch whose traversal set bit j of `found` when best[j] holds its hit
+/// (first_hit_pair, first_hit_packet): to_ray_hit(best[j]), or nullopt.
+inline std::optional<RayHit> hit_of(std::uint32_t found, const Candidate* best, unsigned j) {
+  return (found >> j) & 1u ? std::optional<RayHit>(to_ray_hit(best[j])) : std::nullopt;
+}
 /// The batch functions' length check: throws std::invalid_argument("<who>: N results for M rays")
 /// unless `results` == `rays` (one output per ray).
 inline void require_one_result_per_ray(const char* who, std::size_t results, std::size_t rays) {
@@ -357,8 +362,8 @@ namespace detail {
 /// Expects a validated query, a non-empty index and k >= 1. `key_policy`: OrderKey or RefinedKey.
 /// `K`: the kernel policy, simd::Kernels (the active path's table, called through pointers) or a
 /// compile-time policy of simd_kernels.hpp for the instances compiled per ISA (ray_traverse).
-/// The constructor clears the per-thread scratch (one traversal per thread and scratch at a time;
-/// the states of one packet are all constructed before any of them traverses; the two rays of
+/// prepare() clears the per-thread scratch (one traversal per thread and scratch at a time; the
+/// states of one packet are all prepared before any of them traverses; the two rays of
 /// first_hit_pair use two scratches).
 template <bool kBest1, SpatialIndex I, class KeyPolicy = OrderKey, class K = simd::Kernels>
 struct RayTraversal {
@@ -1157,7 +1162,7 @@ void ray_first_hit_each(const I& index, std::span<const Ray> rays, const RayQuer
     detail::Candidate best[2];
     const unsigned found = detail::first_hit_pair(index, rays.data() + i, q, best, stats);
     for (unsigned j = 0; j < 2; ++j)
-      out[i + j] = (found >> j) & 1u ? std::optional<RayHit>(detail::to_ray_hit(best[j])) : std::nullopt;
+      out[i + j] = detail::hit_of(found, best, j);
   }
   if (i < rays.size()) out[i] = ray_first_hit(index, rays[i], q, stats);
 }
@@ -1457,8 +1462,7 @@ void ray_first_hit_packet(const I& index, std::span<const Ray> rays, const RayQu
   detail::for_each_ray_packet(index, rays, q, stats,
                               [&](std::size_t b, unsigned n, const detail::Candidate* best, std::uint32_t found) {
                                 for (unsigned i = 0; i < n; ++i)
-                                  out[b + i] = (found >> i) & 1u ? std::optional<RayHit>(detail::to_ray_hit(best[i]))
-                                                                 : std::nullopt;
+                                  out[b + i] = detail::hit_of(found, best, i);
                               });
 }
 
