@@ -160,6 +160,83 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
   EXPECT_GT(rejected, 1000u);  // the test also prunes, or it would be vacuous
 }
 
+// The root test kernel (simd::RayBoxFn, ray_query.hpp's root_test) against the traversal's own
+// test of the root (test_node: slab_interval_grown of the box grown by pad + node_test_tolerance,
+// over [t_min - tol, t_max + pad + tol]): it never rejects a ray that test accepts, including rays
+// aimed at the grown box's faces, edges and corners (within the tolerance), axis-parallel rays (1 / d
+// infinite), boxes of zero extent and coordinates at UTM magnitudes; and it rejects every ray that
+// misses the box grown by twice node_test_tolerance_bound (so a kernel that keeps everything fails).
+TEST(Simd, RayBoxNeverRejectsWhatTheRootTestAccepts) {
+  PathGuard guard;
+  std::mt19937_64 rng(35);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::size_t kept = 0, rejected = 0, within_tolerance = 0, tested = 0;
+  for (SimdPath path : supported_paths()) {
+    set_simd_path(path);
+    const simd::Kernels& k = simd::active_kernels();
+    if (!k.ray_box) continue;
+    for (int trial = 0; trial < 20000; ++trial) {
+      const double size = trial % 5 == 0 ? 1e-3 : trial % 5 == 1 ? 300.0 : 1.0;
+      const Vec3 offset = trial % 3 == 0 ? Vec3(4.5e5, 5.3e6, 120.0) : trial % 3 == 1 ? Vec3(-2.0, 0.5, 1e3) : Vec3(0.0);
+      AABB b;
+      for (int a = 0; a < 3; ++a) {
+        const double c = offset[a] + size * (u(rng) - 0.5);
+        const double h = (trial % 11 == 0 || (trial % 7 == 0 && a == trial % 3)) ? 0.0 : 0.5 * size * u(rng);
+        b.lo[a] = c - h;
+        b.hi[a] = c + h;
+      }
+      const double pad = trial % 4 == 0 ? 0.0 : 0.1 * size * u(rng);
+      const double t_min = trial % 6 == 0 ? -kInf : trial % 6 == 1 ? 3.0 * size * u(rng) : 0.0;
+      const double t_max = trial % 9 == 0 ? 4.0 * size * u(rng) : kInf;
+      Vec3 o;
+      for (int a = 0; a < 3; ++a) o[a] = 0.5 * (b.lo[a] + b.hi[a]) + 4.0 * size * (u(rng) - 0.5);
+      // The direction: at a point of the box grown by pad + s * tol on each axis, s in {-1, 0, 1,
+      // 2} (a face, edge or corner just inside, on or just outside the grown box), at a random
+      // point around the box, or axis-parallel.
+      const double tol = node_test_tolerance(o, b);
+      Vec3 target;
+      for (int a = 0; a < 3; ++a) {
+        const int side = static_cast<int>(rng() % 3);  // lo, hi, inside
+        const double s = static_cast<double>(static_cast<int>(rng() % 4) - 1);
+        const double grown = pad + s * tol;
+        target[a] = side == 0 ? b.lo[a] - grown : side == 1 ? b.hi[a] + grown : b.lo[a] + u(rng) * (b.hi[a] - b.lo[a]);
+      }
+      if (trial % 8 == 3)
+        for (int a = 0; a < 3; ++a) target[a] = 0.5 * (b.lo[a] + b.hi[a]) + 2.0 * size * (u(rng) - 0.5);
+      Vec3 dir = target - o;
+      if (trial % 8 == 5) dir[trial % 3] = 0.0;
+      if (trial % 16 == 6) dir[(trial + 1) % 3] = 0.0, dir[trial % 3] = 0.0;
+      if (!(glm::length(dir) > 0.0)) continue;
+      const Ray ray(o, dir);
+      const Vec3 d = ray.direction(), inv = 1.0 / d;
+      const bool keep = k.ray_box(&b.lo.x, &b.hi.x, &o.x, &d.x, pad, t_min, t_max + pad);
+      ++tested;
+      // test_node's slab (ray_query.hpp: o_plus / o_minus = o +- (pad + tol), t in [t_lo, t_hi]).
+      const Interval iv = slab_interval_grown(o + (pad + tol), o - (pad + tol), inv, b, t_min - tol, (t_max + pad) + tol);
+      if (!iv.empty()) {
+        ++kept;
+        within_tolerance += slab_interval_grown(o + pad, o - pad, inv, b, t_min, t_max + pad).empty();
+        ASSERT_TRUE(keep) << to_string(path) << " trial " << trial;
+      }
+      double mag = 0;
+      for (int a = 0; a < 3; ++a) mag = std::max({mag, std::abs(o[a]), std::abs(b.lo[a]), std::abs(b.hi[a])});
+      const double bound = node_test_tolerance_bound(mag);
+      ASSERT_LE(2.0 * tol, bound) << "trial " << trial;
+      if (d.x != 0.0 && d.y != 0.0 && d.z != 0.0) {  // (no NaN axis: 0 * inf)
+        const double g2 = pad + 2.0 * bound;
+        if (slab_interval_grown(o + g2, o - g2, inv, b, t_min - 2.0 * bound, (t_max + pad) + 2.0 * bound).empty()) {
+          ++rejected;
+          ASSERT_FALSE(keep) << to_string(path) << " trial " << trial;
+        }
+      }
+    }
+  }
+  if (tested == 0) GTEST_SKIP() << "no path with a ray_box kernel on this CPU";
+  EXPECT_GT(kept, 5000u);
+  EXPECT_GT(rejected, 5000u);
+  EXPECT_GT(within_tolerance, 50u);  // rays the tolerance alone lets in were reached
+}
+
 // round_float_down / round_float_up (ray_query.hpp, stepping in IEEE bits) against their
 // definition: the largest float <= x / the least float >= x, found with std::nextafter; doubles
 // of every class (zeros, subnormal and normal floats, float midpoints, past the float range,

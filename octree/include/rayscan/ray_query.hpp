@@ -915,21 +915,62 @@ struct RayTraversal {
   }
 };
 
-/// The ray query for one ray with kernel policy K: the traversal above from the root. Returns true
-/// when `best` was set (kBest1 only).
+/// What the first-hit traversals' root test found (root_test).
+enum class RootTest {
+  miss,   ///< the ray misses the root: nothing to set up or traverse
+  enter,  ///< the ray may enter: the traversal starts at the root without its own root test
+  exact,  ///< no kernel test applies: the traversal's own node test decides at the root
+};
+
+/// The first-hit traversals' root test by the path's ray_box kernel (simd::RayBoxFn), where it has
+/// one and the query a finite radius (the node test's grown slabs; with an infinite radius it
+/// bounds the projection instead): a conservative test, false only when the traversal's own test of
+/// the root would fail, at a fraction of the set-up that test needs (its tolerance, 1 / d, the grown
+/// origins). A ray it lets in is traversed from the root without the traversal's own root test: the
+/// node tests are pruning only, and the root's children are tested as ever. Most of bench_rays'
+/// camera misses (~47% of its rays) are decided here: 356 -> 183 instructions each, and hits no
+/// slower (bench/README.md, "Issue 12, session 35").
+template <class K, SpatialIndex I>
+__attribute__((always_inline)) inline RootTest root_test(const KernelsOf<K>& kern, const I& index, const Ray& ray,
+                                                         const RayQuery& q) {
+  static_assert(sizeof(Vec3) == 3 * sizeof(double));  // (the kernel reads 3 doubles from &v.x)
+  if (!has_kernel(kern.ray_box) || !(q.radius < kInf)) return RootTest::exact;
+  const AABB b = index.node_bounds(index.root());
+  // t_max + radius bounds the traversal's t_hi for every order (sphere keys: t_p <= key + r).
+  return kern.ray_box(&b.lo.x, &b.hi.x, &ray.origin().x, &ray.direction().x, q.radius, q.t_min, q.t_max + q.radius)
+             ? RootTest::enter
+             : RootTest::miss;
+}
+
+/// The traversal of one ray with kernel policy K after root_test found `root` (enter or exact),
+/// from the root. Returns true when `best` was set (kBest1 only).
 template <bool kBest1, class K, SpatialIndex I, class KeyPolicy>
-__attribute__((always_inline)) inline bool ray_traverse_with(const I& index, const Ray& ray, const RayQuery& q,
-                                                             Candidate& best, RayQueryStats* stats,
-                                                             const KeyPolicy& key_policy) {
+__attribute__((always_inline)) inline bool ray_traverse_from_root(RootTest root, const I& index, const Ray& ray,
+                                                                  const RayQuery& q, Candidate& best,
+                                                                  RayQueryStats* stats, const KeyPolicy& key_policy) {
   RayTraversal<kBest1, I, KeyPolicy, K> rt(index, ray, q, best, stats, key_policy);
-  double lb0 = 0;
-  if (!rt.test_node(rt.root_box, lb0)) {  // missed the root: no further set-up
+  double lb0 = -kInf;  // (enter: no bound)
+  if (root == RootTest::exact && !rt.test_node(rt.root_box, lb0)) {  // missed the root: no further set-up
     if constexpr (!kBest1) rt.scratch.cands.clear();  // (ray_query reads them)
     return false;
   }
   rt.prepare();
   rt.traverse_from(index.root(), lb0);
   return rt.found;
+}
+
+/// The ray query for one ray with kernel policy K: the traversal above from the root, the first
+/// hit's after root_test. Returns true when `best` was set (kBest1 only).
+template <bool kBest1, class K, SpatialIndex I, class KeyPolicy>
+__attribute__((always_inline)) inline bool ray_traverse_with(const I& index, const Ray& ray, const RayQuery& q,
+                                                             Candidate& best, RayQueryStats* stats,
+                                                             const KeyPolicy& key_policy) {
+  RootTest root = RootTest::exact;
+  if constexpr (kBest1) {
+    root = root_test<K>(kernels_of<K>(), index, ray, q);
+    if (root == RootTest::miss) return false;
+  }
+  return ray_traverse_from_root<kBest1, K>(root, index, ray, q, best, stats, key_policy);
 }
 
 /// ray_traverse_with with the table kernels (simd::Kernels: the active path's kernels through
@@ -1007,11 +1048,21 @@ __attribute__((always_inline)) inline unsigned first_hit_pair_with(const I& inde
                                                                    Candidate* best, RayQueryStats* stats) {
   using Traversal = RayTraversal<true, I, OrderKey, K>;
   const OrderKey key_policy;
+  const KernelsOf<K> kern = kernels_of<K>();
+  const RootTest root0 = root_test<K>(kern, index, rays[0], q), root1 = root_test<K>(kern, index, rays[1], q);
+  if (root0 == RootTest::miss || root1 == RootTest::miss) {  // one ray at most to trace: alone
+    if (root0 != RootTest::miss)
+      return ray_traverse_from_root<true, K>(root0, index, rays[0], q, best[0], stats, key_policy) ? 1u : 0u;
+    if (root1 != RootTest::miss)
+      return ray_traverse_from_root<true, K>(root1, index, rays[1], q, best[1], stats, key_policy) ? 2u : 0u;
+    return 0;
+  }
   Traversal r0(index, rays[0], q, best[0], stats, key_policy);
   Traversal r1(index, rays[1], q, best[1], stats, key_policy, &ray_scratch<typename I::Node, 1>());
-  double lb0 = 0, lb1 = 0;
-  bool a0 = r0.test_node(r0.root_box, lb0);  // (a ray that misses the root: no further set-up)
-  bool a1 = r1.test_node(r1.root_box, lb1);
+  double lb0 = -kInf, lb1 = -kInf;
+  // (a ray that misses the root: no further set-up)
+  bool a0 = root0 == RootTest::enter || r0.test_node(r0.root_box, lb0);
+  bool a1 = root1 == RootTest::enter || r1.test_node(r1.root_box, lb1);
   typename Traversal::Cursor c0{}, c1{};
   if (a0) {
     r0.prepare();
@@ -1219,22 +1270,28 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
   thread_local std::vector<Entry> stack;
   // The rays' states in uninitialised storage (an array of std::optional<RT> was zero-filled on
   // every call: 9 KB of memset per 16-ray packet, 11% of a render's instructions under callgrind).
+  // (made: the rays whose state was constructed, bit i for st[i].)
   struct States {
     alignas(RT) unsigned char buf[N][sizeof(RT)];
-    unsigned made = 0;
+    std::uint32_t made = 0;
     ~States() {
-      for (unsigned i = 0; i < made; ++i) std::launder(reinterpret_cast<RT*>(buf[i]))->~RT();
+      for (std::uint32_t m = made; m; m &= m - 1) std::launder(reinterpret_cast<RT*>(buf[__builtin_ctz(m)]))->~RT();
     }
   } states;
   RT* st[N];
   Entry root;
   root.node = index.root();
   root.mask = 0;
+  const KernelsOf<K> kern = kernels_of<K>();
   for (unsigned i = 0; i < n; ++i) {
+    // As ray_traverse: a ray that misses the root is never set up (root_test) or prepared, nor read
+    // again; one that root_test lets in enters without the traversal's own root test.
+    const RootTest rtest = root_test<K>(kern, index, rays[i], q);
+    if (rtest == RootTest::miss) continue;
     st[i] = ::new (static_cast<void*>(states.buf[i])) RT(index, rays[i], q, best[i], stats, key_of(i));
-    states.made = i + 1;
-    // As ray_traverse: a ray that misses the root's box is never prepared (nor read again).
-    if (st[i]->test_node(st[i]->root_box, root.lb[i])) {
+    states.made |= 1u << i;
+    root.lb[i] = -kInf;
+    if (rtest == RootTest::enter || st[i]->test_node(st[i]->root_box, root.lb[i])) {
       st[i]->prepare();
       root.mask |= 1u << i;
     }
@@ -1244,7 +1301,6 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
   // Child test policy: SIMD over the rays (packet_child_slab: one lane per ray, each child box
   // broadcast) when every ray's slab result is final (orders time / sphere_hit, no planes) and
   // float-testable; else each ray's own test_children (SIMD over the children).
-  [[maybe_unused]] const KernelsOf<K> kern = kernels_of<K>();
   [[maybe_unused]] bool over_rays = false;
   [[maybe_unused]] alignas(64) simd::SlabPacketF lanes;
   [[maybe_unused]] auto set_lane = [&](unsigned i) {
@@ -1371,8 +1427,8 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
     for (unsigned j = 0; j < nk; ++j) stack.push_back(kids[j]);
   }
   std::uint32_t found = 0;
-  for (unsigned i = 0; i < n; ++i)
-    if (st[i]->found) found |= 1u << i;
+  for (std::uint32_t m = states.made; m; m &= m - 1)
+    if (st[__builtin_ctz(m)]->found) found |= 1u << __builtin_ctz(m);
   return found;
 }
 

@@ -185,6 +185,19 @@ using ChildDist2Fn = void (*)(const ChildBoxesF& boxes, const float* q, float ma
 using ChildDist2KeysFn = unsigned (*)(const ChildBoxesF& boxes, const float* q, float margin, float bound,
                                       std::uint32_t* keys, std::uint32_t& near);
 
+/// Conservative test of one ray against one box, for the first-hit traversals' root test: false
+/// only when the traversal's own node test (ray_query.hpp, test_node: slab_interval_grown of the
+/// box grown by pad + tol, t in [t_lo - tol, t_hi + tol], tol = node_test_tolerance(o, box), with
+/// pad <= the `pad` given here) rejects the ray. It grows the box and the interval by
+/// node_test_tolerance_bound(mag) >= tol instead (mag: the largest |coordinate| of o, lo and hi;
+/// no square root), with the same slab expressions in double (1 / d, box - (o +- grow), times 1 /
+/// d: each correctly rounded, so a wider growth only widens each axis' interval) and ignores an
+/// axis whose interval is NaN. A ray it keeps may still fail the node test. lo, hi: the box's
+/// corners; o: the origin; d: the direction (finite); 3 doubles each, world coordinates. pad >= 0
+/// and finite; t_lo <= t_hi may be infinite.
+using RayBoxFn = bool (*)(const double* lo, const double* hi, const double* o, const double* d, double pad,
+                          double t_lo, double t_hi);
+
 /// The kernels of one path.
 struct Kernels {
   SimdPath path;
@@ -196,6 +209,7 @@ struct Kernels {
   ChildSlabKeysFn child_slab_keys;      ///< nullptr for the scalar and sse2 paths
   SortKeys8Fn sort_keys8;               ///< nullptr for the scalar and sse2 paths
   SortPushKeys8Fn sort_push_keys8;      ///< nullptr for the scalar and sse2 paths
+  RayBoxFn ray_box;                     ///< nullptr for the scalar and sse2 paths
 };
 
 /// The kernels of the active path (simd_path()).
