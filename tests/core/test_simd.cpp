@@ -160,81 +160,125 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
   EXPECT_GT(rejected, 1000u);  // the test also prunes, or it would be vacuous
 }
 
-// The root test kernel (simd::RayBoxFn, ray_query.hpp's root_test) against the traversal's own
-// test of the root (test_node: slab_interval_grown of the box grown by pad + node_test_tolerance,
-// over [t_min - tol, t_max + pad + tol]): it never rejects a ray that test accepts, including rays
-// aimed at the grown box's faces, edges and corners (within the tolerance), axis-parallel rays (1 / d
-// infinite), boxes of zero extent and coordinates at UTM magnitudes; and it rejects every ray that
-// misses the box grown by twice node_test_tolerance_bound (so a kernel that keeps everything fails).
-TEST(Simd, RayBoxNeverRejectsWhatTheRootTestAccepts) {
+// detail::root_test (the path's ray_box kernel, simd::RayBoxFn) against the traversal's own test of
+// the root (RayTraversal::test_node, constructed for the same query): it never finds a miss where
+// that test lets the ray in, for the orders sphere_hit, time and ray, with and without planes, for
+// rays aimed at the root box's faces, edges and corners grown by the radius plus -1, 0, 1 or 2
+// tolerances, axis-parallel rays (1 / d infinite), flat clouds and UTM magnitudes; it finds a miss
+// for every ray that misses the root box grown by twice node_test_tolerance_bound (a kernel that
+// keeps everything fails); and ray_first_hit, ray_first_hit_each (pairs) and ray_first_hit_packet
+// answer those rays as the scalar path does, which has no kernel. Counted per path.
+TEST(Simd, RootKernelNeverRejectsWhatTheRootTestAccepts) {
   PathGuard guard;
-  std::mt19937_64 rng(35);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  std::size_t kept = 0, rejected = 0, within_tolerance = 0, tested = 0;
+  struct Answer {
+    bool hit;
+    PointIndex id;
+    double t;
+  };
+  std::vector<Answer> scalar_answers;
   for (SimdPath path : supported_paths()) {
     set_simd_path(path);
     const simd::Kernels& k = simd::active_kernels();
-    if (!k.ray_box) continue;
-    for (int trial = 0; trial < 20000; ++trial) {
-      const double size = trial % 5 == 0 ? 1e-3 : trial % 5 == 1 ? 300.0 : 1.0;
-      const Vec3 offset = trial % 3 == 0 ? Vec3(4.5e5, 5.3e6, 120.0) : trial % 3 == 1 ? Vec3(-2.0, 0.5, 1e3) : Vec3(0.0);
-      AABB b;
-      for (int a = 0; a < 3; ++a) {
-        const double c = offset[a] + size * (u(rng) - 0.5);
-        const double h = (trial % 11 == 0 || (trial % 7 == 0 && a == trial % 3)) ? 0.0 : 0.5 * size * u(rng);
-        b.lo[a] = c - h;
-        b.hi[a] = c + h;
+    std::mt19937_64 rng(35);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::size_t kept = 0, missed = 0, within_tolerance = 0, answer = 0;
+    for (int cloud = 0; cloud < 200; ++cloud) {
+      const double size = cloud % 5 == 0 ? 1e-3 : cloud % 5 == 1 ? 300.0 : 1.0;
+      const Vec3 offset = cloud % 3 == 0 ? Vec3(4.5e5, 5.3e6, 120.0) : cloud % 3 == 1 ? Vec3(-2.0, 0.5, 1e3) : Vec3(0.0);
+      std::vector<Vec3> pts(2 + cloud % 40);
+      for (Vec3& p : pts)
+        for (int a = 0; a < 3; ++a) p[a] = offset[a] + size * ((cloud % 7 == 0 && a == cloud % 3) ? 0.25 : u(rng));
+      const Octree oc = Octree::build_bulk(pts);
+      const AABB b = oc.node_bounds(oc.root());
+      std::vector<Ray> rays;
+      RayQuery q;
+      q.k = 1;
+      q.radius = cloud % 4 == 0 ? 0.0 : 0.05 * size * u(rng);
+      q.order = cloud % 3 == 0 ? RayOrder::sphere_hit : cloud % 3 == 1 ? RayOrder::time : RayOrder::ray;
+      q.t_min = cloud % 6 == 0 ? -kInf : cloud % 6 == 1 ? 3.0 * size * u(rng) : 0.0;
+      q.t_max = cloud % 9 == 0 ? q.t_min + 4.0 * size * u(rng) : kInf;
+      std::vector<Plane> planes;
+      if (cloud % 10 == 7) planes.push_back({b.center(), glm::normalize(Vec3(u(rng) - 0.5, u(rng) - 0.5, 1.0))});
+      q.planes = planes;
+      q.validate();
+      for (int trial = 0; trial < 64; ++trial) {
+        Vec3 o;
+        for (int a = 0; a < 3; ++a) o[a] = 0.5 * (b.lo[a] + b.hi[a]) + 4.0 * size * (u(rng) - 0.5);
+        // The direction: at a point of the box grown by r + s * tol on each axis, s in {-1, 0, 1,
+        // 2} (a face, edge or corner just inside, on or just outside the grown box), at a random
+        // point around the box, or axis-parallel.
+        const double tol = node_test_tolerance(o, b);
+        Vec3 target;
+        for (int a = 0; a < 3; ++a) {
+          const int side = static_cast<int>(rng() % 3);  // lo, hi, inside
+          const double grown = q.radius + static_cast<double>(static_cast<int>(rng() % 4) - 1) * tol;
+          target[a] = side == 0 ? b.lo[a] - grown : side == 1 ? b.hi[a] + grown : b.lo[a] + u(rng) * (b.hi[a] - b.lo[a]);
+        }
+        if (trial % 8 == 3)
+          for (int a = 0; a < 3; ++a) target[a] = 0.5 * (b.lo[a] + b.hi[a]) + 2.0 * size * (u(rng) - 0.5);
+        Vec3 dir = target - o;
+        if (trial % 8 == 5) dir[trial % 3] = 0.0;
+        if (trial % 16 == 6) dir[(trial + 1) % 3] = 0.0, dir[trial % 3] = 0.0;
+        if (!(glm::length(dir) > 0.0)) dir = Vec3(0.0, 0.0, 1.0);
+        const Ray ray(o, dir);
+        rays.push_back(ray);
+        if (!k.ray_box) continue;
+        const detail::RootTest found = detail::root_test<simd::Kernels, OrderKey>(k, oc, ray, q);
+        ASSERT_NE(found, detail::RootTest::exact) << to_string(path);
+        detail::Candidate best;
+        const OrderKey key;
+        detail::RayTraversal<true, Octree, OrderKey, simd::Kernels> traversal(oc, ray, q, best, nullptr, key);
+        double lb;
+        if (traversal.test_node(traversal.root_box, lb)) {
+          ++kept;
+          const Vec3 inv = 1.0 / ray.direction();
+          within_tolerance += slab_interval(o, inv, b, q.radius, q.t_min, q.t_max + q.radius).empty();
+          ASSERT_EQ(found, detail::RootTest::enter) << to_string(path) << " cloud " << cloud << " trial " << trial;
+        }
+        const Vec3 d = ray.direction();
+        if (d.x != 0.0 && d.y != 0.0 && d.z != 0.0) {  // (no NaN axis: 0 * inf)
+          double mag = 0;
+          for (int a = 0; a < 3; ++a) mag = std::max({mag, std::abs(o[a]), std::abs(b.lo[a]), std::abs(b.hi[a])});
+          const double bound = node_test_tolerance_bound(mag);
+          ASSERT_LE(2.0 * tol, bound) << "cloud " << cloud;
+          const double g2 = q.radius + 2.0 * bound;
+          if (slab_interval_grown(o + g2, o - g2, 1.0 / d, b, q.t_min - 2.0 * bound, (q.t_max + q.radius) + 2.0 * bound)
+                  .empty()) {
+            ++missed;
+            ASSERT_EQ(found, detail::RootTest::miss) << to_string(path) << " cloud " << cloud << " trial " << trial;
+          }
+        }
       }
-      const double pad = trial % 4 == 0 ? 0.0 : 0.1 * size * u(rng);
-      const double t_min = trial % 6 == 0 ? -kInf : trial % 6 == 1 ? 3.0 * size * u(rng) : 0.0;
-      const double t_max = trial % 9 == 0 ? 4.0 * size * u(rng) : kInf;
-      Vec3 o;
-      for (int a = 0; a < 3; ++a) o[a] = 0.5 * (b.lo[a] + b.hi[a]) + 4.0 * size * (u(rng) - 0.5);
-      // The direction: at a point of the box grown by pad + s * tol on each axis, s in {-1, 0, 1,
-      // 2} (a face, edge or corner just inside, on or just outside the grown box), at a random
-      // point around the box, or axis-parallel.
-      const double tol = node_test_tolerance(o, b);
-      Vec3 target;
-      for (int a = 0; a < 3; ++a) {
-        const int side = static_cast<int>(rng() % 3);  // lo, hi, inside
-        const double s = static_cast<double>(static_cast<int>(rng() % 4) - 1);
-        const double grown = pad + s * tol;
-        target[a] = side == 0 ? b.lo[a] - grown : side == 1 ? b.hi[a] + grown : b.lo[a] + u(rng) * (b.hi[a] - b.lo[a]);
-      }
-      if (trial % 8 == 3)
-        for (int a = 0; a < 3; ++a) target[a] = 0.5 * (b.lo[a] + b.hi[a]) + 2.0 * size * (u(rng) - 0.5);
-      Vec3 dir = target - o;
-      if (trial % 8 == 5) dir[trial % 3] = 0.0;
-      if (trial % 16 == 6) dir[(trial + 1) % 3] = 0.0, dir[trial % 3] = 0.0;
-      if (!(glm::length(dir) > 0.0)) continue;
-      const Ray ray(o, dir);
-      const Vec3 d = ray.direction(), inv = 1.0 / d;
-      const bool keep = k.ray_box(&b.lo.x, &b.hi.x, &o.x, &d.x, pad, t_min, t_max + pad);
-      ++tested;
-      // test_node's slab (ray_query.hpp: o_plus / o_minus = o +- (pad + tol), t in [t_lo, t_hi]).
-      const Interval iv = slab_interval_grown(o + (pad + tol), o - (pad + tol), inv, b, t_min - tol, (t_max + pad) + tol);
-      if (!iv.empty()) {
-        ++kept;
-        within_tolerance += slab_interval_grown(o + pad, o - pad, inv, b, t_min, t_max + pad).empty();
-        ASSERT_TRUE(keep) << to_string(path) << " trial " << trial;
-      }
-      double mag = 0;
-      for (int a = 0; a < 3; ++a) mag = std::max({mag, std::abs(o[a]), std::abs(b.lo[a]), std::abs(b.hi[a])});
-      const double bound = node_test_tolerance_bound(mag);
-      ASSERT_LE(2.0 * tol, bound) << "trial " << trial;
-      if (d.x != 0.0 && d.y != 0.0 && d.z != 0.0) {  // (no NaN axis: 0 * inf)
-        const double g2 = pad + 2.0 * bound;
-        if (slab_interval_grown(o + g2, o - g2, inv, b, t_min - 2.0 * bound, (t_max + pad) + 2.0 * bound).empty()) {
-          ++rejected;
-          ASSERT_FALSE(keep) << to_string(path) << " trial " << trial;
+      // End to end: single rays, pairs and packets answer as the scalar path (no root kernel).
+      std::vector<std::optional<RayHit>> each(rays.size()), packet(rays.size());
+      ray_first_hit_each(oc, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(each));
+      ray_first_hit_packet(oc, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(packet));
+      for (std::size_t r = 0; r < rays.size(); ++r, ++answer) {
+        const std::optional<RayHit> single = ray_first_hit(oc, rays[r], q);
+        const Answer a{single.has_value(), single ? single->index : PointIndex{}, single ? single->t : 0.0};
+        for (const std::optional<RayHit>* other : {&each[r], &packet[r]}) {
+          ASSERT_EQ(other->has_value(), a.hit) << to_string(path) << " cloud " << cloud << " ray " << r;
+          if (a.hit) {
+            ASSERT_EQ((*other)->index, a.id) << to_string(path) << " cloud " << cloud << " ray " << r;
+          }
+        }
+        if (path == SimdPath::scalar) {
+          scalar_answers.push_back(a);
+        } else if (answer < scalar_answers.size()) {
+          const Answer& s0 = scalar_answers[answer];
+          ASSERT_EQ(a.hit, s0.hit) << to_string(path) << " cloud " << cloud << " ray " << r;
+          if (a.hit) {
+            ASSERT_EQ(a.id, s0.id) << to_string(path) << " cloud " << cloud << " ray " << r;
+            ASSERT_EQ(a.t, s0.t) << to_string(path) << " cloud " << cloud << " ray " << r;
+          }
         }
       }
     }
+    if (!k.ray_box) continue;
+    EXPECT_GT(kept, 4000u) << to_string(path);
+    EXPECT_GT(missed, 1500u) << to_string(path);
+    EXPECT_GT(within_tolerance, 50u) << to_string(path);  // rays the tolerance alone lets in were reached
   }
-  if (tested == 0) GTEST_SKIP() << "no path with a ray_box kernel on this CPU";
-  EXPECT_GT(kept, 5000u);
-  EXPECT_GT(rejected, 5000u);
-  EXPECT_GT(within_tolerance, 50u);  // rays the tolerance alone lets in were reached
 }
 
 // round_float_down / round_float_up (ray_query.hpp, stepping in IEEE bits) against their

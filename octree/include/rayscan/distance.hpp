@@ -124,7 +124,8 @@ namespace rayscan {
 /// An upper bound of node_test_tolerance(o, b) for every origin o and box b with coordinates of
 /// magnitude at most `mag` (|o_i|, |b.lo_i|, |b.hi_i| <= mag), with a factor 2 to spare for the
 /// rounding of either: |o - b.center()| <= 2 sqrt(3) mag and b.max_extent() <= 2 mag give
-/// node_test_tolerance <= (5.47e-9 + 2^-48) mag + 1e-300, and 2^-26 = 1.49e-8. World units. For a
+/// node_test_tolerance <= (5.47e-9 + 2^-48) mag + 1e-300, and 2^-26 = 1.49e-8 (for mag far below
+/// 1e308, where node_test_tolerance itself stays finite). World units. For a
 /// test that must accept whatever the node test accepts without computing the tolerance itself
 /// (simd::RayBoxFn, the first-hit traversals' root test).
 [[nodiscard]] constexpr double node_test_tolerance_bound(double mag) { return 0x1p-26 * mag + 1e-299; }

@@ -82,6 +82,9 @@ struct RayHit {
 };
 
 /// Work counters of one query: the "query cost" a renderer shows as an AOV.
+/// (The counts depend on the SIMD path, not the answers: the float child tests and the first hit's
+/// root kernel (detail::root_test) are conservative, so they may let in a node the exact double
+/// test would prune.)
 struct RayQueryStats {
   std::uint64_t nodes_visited = 0;  ///< nodes whose points were evaluated
   std::uint64_t points_tested = 0;  ///< point predicates evaluated
@@ -365,6 +368,13 @@ namespace detail {
 /// prepare() clears the per-thread scratch (one traversal per thread and scratch at a time; the
 /// states of one packet are all prepared before any of them traverses; the two rays of
 /// first_hit_pair use two scratches).
+/// What the first-hit traversals' root test found (root_test).
+enum class RootTest {
+  miss,   ///< the ray misses the root: nothing to set up or traverse
+  enter,  ///< the ray may enter (RayTraversal::enters_root: without its own root test where it can)
+  exact,  ///< no kernel test applies: the traversal's own node test decides at the root
+};
+
 template <bool kBest1, SpatialIndex I, class KeyPolicy = OrderKey, class K = simd::Kernels>
 struct RayTraversal {
   using Node = typename I::Node;
@@ -434,9 +444,10 @@ struct RayTraversal {
     t_hi = (sphere ? q.t_max + radius : q.t_max) + tol;  // sphere keys satisfy t_p <= key + r
     box_t_lo = t_lo;
     if constexpr (key_floor_known) box_t_lo = std::max(t_lo, key_policy.key.key_min() - tol);
-    // The rest of the set-up (prepare) waits for the root test: a ray that misses the root's box
-    // (~45% of bench_rays' camera rays) pays only this much (issue 12 re-measure, bench/README.md).
-    // A per-node radius sets the root's own pad first, which the root test needs.
+    // The rest of the set-up (prepare) waits for the root test: a ray that the traversal's own
+    // root test rejects pays only this much (issue 12 re-measure, bench/README.md); on the paths
+    // with a root kernel most misses never get here (detail::root_test). A per-node radius sets
+    // the root's own pad first, which the root test needs.
     if constexpr (per_node) prepare();
   }
   RayTraversal(const RayTraversal&) = delete;
@@ -564,6 +575,16 @@ struct RayTraversal {
 
   /// True when a node with key lower bound lb can still hold a better result (k filter).
   [[nodiscard]] bool live(double lb) const { return !(bounded && lb > worst + tol); }
+
+  /// Whether the ray enters the root, after detail::root_test found `root` (enter or exact): the
+  /// node test of the root (lb0 its bound), unless the root kernel's test stands for it (enter,
+  /// and none of the conditions it does not test: planes, order ray's distance, a per-node
+  /// radius below the query's; lb0 = -inf: no bound).
+  [[nodiscard]] bool enters_root(RootTest root, double& lb0) {
+    lb0 = -kInf;
+    if (root == RootTest::enter && !has_planes && !ray_order && !per_node) return true;
+    return test_node(root_box, lb0);
+  }
 
   /// Node test (section 3.3): false prunes the node; otherwise lb receives a lower bound of the key
   /// of any result inside it.
@@ -773,7 +794,8 @@ struct RayTraversal {
     }
   }
 
-  /// The depth-first loop over the subtree of `start` (which passed the node test with bound lb0).
+  /// The depth-first loop over the subtree of `start` (which passed the node test with bound lb0,
+  /// or, for the root, enters_root with lb0 = -inf).
   /// With k set: the children of each node pushed far-to-near (so the nearest is expanded first
   /// and the k filter tightens early), skipping any popped node whose lower bound exceeds the
   /// current k-bound; the nearest child is expanded right away instead of being pushed and popped
@@ -815,8 +837,8 @@ struct RayTraversal {
     detail::NodeEntry<Node>* stack;
   };
 
-  /// The cursor at the subtree of `start` (which passed the node test with bound lb0), over the
-  /// stack above its current top.
+  /// The cursor at the subtree of `start` (which passed the node test with bound lb0, or
+  /// enters_root), over the stack above its current top.
   [[nodiscard]] Cursor begin_at(Node start, double lb0) {
     const std::size_t base = scratch.top;
     return {{lb0, start}, live(lb0), base, base, scratch.nodes.size(), scratch.nodes.data()};
@@ -915,26 +937,24 @@ struct RayTraversal {
   }
 };
 
-/// What the first-hit traversals' root test found (root_test).
-enum class RootTest {
-  miss,   ///< the ray misses the root: nothing to set up or traverse
-  enter,  ///< the ray may enter: the traversal starts at the root without its own root test
-  exact,  ///< no kernel test applies: the traversal's own node test decides at the root
-};
-
 /// The first-hit traversals' root test by the path's ray_box kernel (simd::RayBoxFn), where it has
 /// one and the query a finite radius (the node test's grown slabs; with an infinite radius it
-/// bounds the projection instead): a conservative test, false only when the traversal's own test of
-/// the root would fail, at a fraction of the set-up that test needs (its tolerance, 1 / d, the grown
-/// origins). A ray it lets in is traversed from the root without the traversal's own root test: the
-/// node tests are pruning only, and the root's children are tested as ever. Most of bench_rays'
-/// camera misses (~47% of its rays) are decided here: 356 -> 183 instructions each, and hits no
-/// slower (bench/README.md, "Issue 12, session 35").
-template <class K, SpatialIndex I>
+/// bounds the projection instead), before any traversal set-up: a conservative test, miss only
+/// when the traversal's own test of the root would fail, at a fraction of the set-up that test
+/// needs (its tolerance, 1 / d, the grown origins). A ray it lets in enters the root without the
+/// traversal's own test where the kernel's stands for it (RayTraversal::enters_root): the node
+/// tests are pruning only, and the root's children are tested as ever, so answers are unchanged and
+/// only RayQueryStats may count the root for a ray within the kernel's wider margin. Most of
+/// bench_rays' camera misses (~47% of its rays) are decided here: 356 -> 183 instructions each,
+/// and hits no slower (bench/README.md, "Issue 12, session 35"). KeyPolicy: the traversal's.
+template <class K, class KeyPolicy, SpatialIndex I>
 __attribute__((always_inline)) inline RootTest root_test(const KernelsOf<K>& kern, const I& index, const Ray& ray,
                                                          const RayQuery& q) {
   static_assert(sizeof(Vec3) == 3 * sizeof(double));  // (the kernel reads 3 doubles from &v.x)
   if (!has_kernel(kern.ray_box) || !(q.radius < kInf)) return RootTest::exact;
+  // (Per-node radii with order ray: the traversal's constructor refuses the query, for every ray.)
+  if constexpr (KeyPolicy::node_radius)
+    if (q.order == RayOrder::ray) return RootTest::exact;
   const AABB b = index.node_bounds(index.root());
   // t_max + radius bounds the traversal's t_hi for every order (sphere keys: t_p <= key + r).
   return kern.ray_box(&b.lo.x, &b.hi.x, &ray.origin().x, &ray.direction().x, q.radius, q.t_min, q.t_max + q.radius)
@@ -949,8 +969,8 @@ __attribute__((always_inline)) inline bool ray_traverse_from_root(RootTest root,
                                                                   const RayQuery& q, Candidate& best,
                                                                   RayQueryStats* stats, const KeyPolicy& key_policy) {
   RayTraversal<kBest1, I, KeyPolicy, K> rt(index, ray, q, best, stats, key_policy);
-  double lb0 = -kInf;  // (enter: no bound)
-  if (root == RootTest::exact && !rt.test_node(rt.root_box, lb0)) {  // missed the root: no further set-up
+  double lb0;
+  if (!rt.enters_root(root, lb0)) {  // missed the root: no further set-up
     if constexpr (!kBest1) rt.scratch.cands.clear();  // (ray_query reads them)
     return false;
   }
@@ -967,7 +987,7 @@ __attribute__((always_inline)) inline bool ray_traverse_with(const I& index, con
                                                              const KeyPolicy& key_policy) {
   RootTest root = RootTest::exact;
   if constexpr (kBest1) {
-    root = root_test<K>(kernels_of<K>(), index, ray, q);
+    root = root_test<K, KeyPolicy>(kernels_of<K>(), index, ray, q);
     if (root == RootTest::miss) return false;
   }
   return ray_traverse_from_root<kBest1, K>(root, index, ray, q, best, stats, key_policy);
@@ -1042,27 +1062,27 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
 /// core overlaps the two chains of dependent loads and tests from one node to the next, which set
 /// a single ray's speed (bench/README.md, "Issue 12, session 33"). best[j] and bit j of the result
 /// are ray_traverse<true>'s answer for rays[j], bit for bit (each ray's own order, bounds and
-/// candidates; only the interleaving differs). With kernel policy K as ray_traverse_with.
+/// candidates; only the interleaving differs). With kernel policy K as ray_traverse_with. A ray
+/// that root_test finds missing leaves the other to be traced alone (slot 0).
 template <class K, SpatialIndex I>
 __attribute__((always_inline)) inline unsigned first_hit_pair_with(const I& index, const Ray* rays, const RayQuery& q,
                                                                    Candidate* best, RayQueryStats* stats) {
   using Traversal = RayTraversal<true, I, OrderKey, K>;
   const OrderKey key_policy;
   const KernelsOf<K> kern = kernels_of<K>();
-  const RootTest root0 = root_test<K>(kern, index, rays[0], q), root1 = root_test<K>(kern, index, rays[1], q);
-  if (root0 == RootTest::miss || root1 == RootTest::miss) {  // one ray at most to trace: alone
-    if (root0 != RootTest::miss)
-      return ray_traverse_from_root<true, K>(root0, index, rays[0], q, best[0], stats, key_policy) ? 1u : 0u;
-    if (root1 != RootTest::miss)
-      return ray_traverse_from_root<true, K>(root1, index, rays[1], q, best[1], stats, key_policy) ? 2u : 0u;
-    return 0;
+  const RootTest root0 = root_test<K, OrderKey>(kern, index, rays[0], q);
+  const RootTest root1 = root_test<K, OrderKey>(kern, index, rays[1], q);
+  if (root0 == RootTest::miss || root1 == RootTest::miss) {  // one ray at most to trace: alone (slot 0)
+    if (root0 == root1) return 0;
+    const unsigned j = root0 == RootTest::miss ? 1 : 0;
+    return ray_traverse_from_root<true, K>(j ? root1 : root0, index, rays[j], q, best[j], stats, key_policy) ? 1u << j
+                                                                                                           : 0u;
   }
   Traversal r0(index, rays[0], q, best[0], stats, key_policy);
   Traversal r1(index, rays[1], q, best[1], stats, key_policy, &ray_scratch<typename I::Node, 1>());
-  double lb0 = -kInf, lb1 = -kInf;
-  // (a ray that misses the root: no further set-up)
-  bool a0 = root0 == RootTest::enter || r0.test_node(r0.root_box, lb0);
-  bool a1 = root1 == RootTest::enter || r1.test_node(r1.root_box, lb1);
+  double lb0, lb1;
+  bool a0 = r0.enters_root(root0, lb0);  // (a ray that misses the root: no further set-up)
+  bool a1 = r1.enters_root(root1, lb1);
   typename Traversal::Cursor c0{}, c1{};
   if (a0) {
     r0.prepare();
@@ -1284,14 +1304,13 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
   root.mask = 0;
   const KernelsOf<K> kern = kernels_of<K>();
   for (unsigned i = 0; i < n; ++i) {
-    // As ray_traverse: a ray that misses the root is never set up (root_test) or prepared, nor read
-    // again; one that root_test lets in enters without the traversal's own root test.
-    const RootTest rtest = root_test<K>(kern, index, rays[i], q);
+    // As ray_traverse: a ray that root_test finds missing is never set up, one that misses the
+    // root is never prepared, nor read again.
+    const RootTest rtest = root_test<K, KeyPolicy>(kern, index, rays[i], q);
     if (rtest == RootTest::miss) continue;
     st[i] = ::new (static_cast<void*>(states.buf[i])) RT(index, rays[i], q, best[i], stats, key_of(i));
     states.made |= 1u << i;
-    root.lb[i] = -kInf;
-    if (rtest == RootTest::enter || st[i]->test_node(st[i]->root_box, root.lb[i])) {
+    if (st[i]->enters_root(rtest, root.lb[i])) {
       st[i]->prepare();
       root.mask |= 1u << i;
     }

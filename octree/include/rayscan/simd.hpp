@@ -193,8 +193,9 @@ using ChildDist2KeysFn = unsigned (*)(const ChildBoxesF& boxes, const float* q, 
 /// no square root), with the same slab expressions in double (1 / d, box - (o +- grow), times 1 /
 /// d: each correctly rounded, so a wider growth only widens each axis' interval) and ignores an
 /// axis whose interval is NaN. A ray it keeps may still fail the node test. lo, hi: the box's
-/// corners; o: the origin; d: the direction (finite); 3 doubles each, world coordinates. pad >= 0
-/// and finite; t_lo <= t_hi may be infinite.
+/// corners; o: the origin; d: the unit direction (finite); 3 doubles each, world coordinates.
+/// pad >= 0 and finite (world units); t_lo <= t_hi: ray parameters along d (world units), may be
+/// infinite. Coordinates must be far below 1e308 (node_test_tolerance finite).
 using RayBoxFn = bool (*)(const double* lo, const double* hi, const double* o, const double* d, double pad,
                           double t_lo, double t_hi);
 

@@ -661,7 +661,7 @@ inline __attribute__((target("avx2,fma"))) bool ray_box_avx2(const double* lo, c
                                                               const double* d, double pad, double t_lo,
                                                               double t_hi) {
   // (Element loads: a masked or wider load of values just stored, such as a box computed by the
-  // caller, would not be forwarded from the stores: misses took 32 instead of 15 ns. Lane 3 repeats
+  // caller, would not be forwarded from the stores: misses took 32 instead of 14 ns. Lane 3 repeats
   // lane 2 rather than 0.0, whose zero-extending vmovq valgrind 3.19 cannot decode: callgrind.)
   const __m256d vlo = _mm256_setr_pd(lo[0], lo[1], lo[2], lo[2]), vhi = _mm256_setr_pd(hi[0], hi[1], hi[2], hi[2]);
   const __m256d vo = _mm256_setr_pd(o[0], o[1], o[2], o[2]), vd = _mm256_setr_pd(d[0], d[1], d[2], d[2]);
