@@ -32,18 +32,6 @@ void expect_same(const std::vector<RayHit>& got, const std::vector<RayHit>& want
   }
 }
 
-// A batch function's answer against the single-ray call's (ray_first_hit): both absent, or both
-// present with every field bit for bit.
-void expect_same_answer(const std::optional<RayHit>& got, const std::optional<RayHit>& one, const std::string& ctx) {
-  ASSERT_EQ(got.has_value(), one.has_value()) << ctx;
-  if (!got) return;
-  EXPECT_EQ(got->index, one->index) << ctx;
-  EXPECT_EQ(got->slot, one->slot) << ctx;
-  EXPECT_EQ(got->t, one->t) << ctx;
-  EXPECT_EQ(got->distance, one->distance) << ctx;
-  EXPECT_EQ(got->key, one->key) << ctx;
-}
-
 // The query modalities of paper section 3.1 (and combinations), scaled to the cloud's extent s.
 std::vector<RayQuery> modalities(double s, std::size_t n) {
   std::vector<RayQuery> qs;

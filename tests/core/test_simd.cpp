@@ -170,12 +170,7 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
 // answer those rays as the scalar path does, which has no kernel. Counted per path.
 TEST(Simd, RootKernelNeverRejectsWhatTheRootTestAccepts) {
   PathGuard guard;
-  struct Answer {
-    bool hit;
-    PointIndex id;
-    double t;
-  };
-  std::vector<Answer> scalar_answers;
+  std::vector<std::optional<RayHit>> scalar_answers;
   for (SimdPath path : supported_paths()) {
     set_simd_path(path);
     const simd::Kernels& k = simd::active_kernels();
@@ -255,23 +250,14 @@ TEST(Simd, RootKernelNeverRejectsWhatTheRootTestAccepts) {
       ray_first_hit_packet(oc, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(packet));
       for (std::size_t r = 0; r < rays.size(); ++r, ++answer) {
         const std::optional<RayHit> single = ray_first_hit(oc, rays[r], q);
-        const Answer a{single.has_value(), single ? single->index : PointIndex{}, single ? single->t : 0.0};
-        for (const std::optional<RayHit>* other : {&each[r], &packet[r]}) {
-          ASSERT_EQ(other->has_value(), a.hit) << to_string(path) << " cloud " << cloud << " ray " << r;
-          if (a.hit) {
-            ASSERT_EQ((*other)->index, a.id) << to_string(path) << " cloud " << cloud << " ray " << r;
-          }
-        }
-        if (path == SimdPath::scalar) {
-          scalar_answers.push_back(a);
-        } else if (answer < scalar_answers.size()) {
-          const Answer& s0 = scalar_answers[answer];
-          ASSERT_EQ(a.hit, s0.hit) << to_string(path) << " cloud " << cloud << " ray " << r;
-          if (a.hit) {
-            ASSERT_EQ(a.id, s0.id) << to_string(path) << " cloud " << cloud << " ray " << r;
-            ASSERT_EQ(a.t, s0.t) << to_string(path) << " cloud " << cloud << " ray " << r;
-          }
-        }
+        const std::string ctx = std::string(to_string(path)) + " cloud " + std::to_string(cloud) + " ray " + std::to_string(r);
+        expect_same_answer(each[r], single, ctx + " (pairs)");
+        expect_same_answer(packet[r], single, ctx + " (packets)");
+        if (path == SimdPath::scalar)
+          scalar_answers.push_back(single);
+        else if (answer < scalar_answers.size())
+          expect_same_answer(single, scalar_answers[answer], ctx + " (against the scalar path)");
+        if (::testing::Test::HasFailure()) return;
       }
     }
     if (!k.ray_box) continue;

@@ -1,10 +1,14 @@
-// Shared generators and the independent brute-force oracle for the core tests.
+// Shared generators, the independent brute-force oracle and the first-hit answer comparison for the
+// core tests.
 #pragma once
 
 #include "rayscan/any_index.hpp"
 #include "rayscan/ray_query.hpp"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -129,6 +133,20 @@ inline std::vector<IndexOptions> all_index_options() {
 
 inline std::string label(const IndexOptions& o) {
   return o.type + (o.insertion ? "/insert" : "");
+}
+
+/// A first-hit answer against another that must equal it (a batch function's against the
+/// single-ray call's, or one SIMD path's against another's): both absent, or both present with
+/// every field bit for bit. ctx: the failure message's context.
+inline void expect_same_answer(const std::optional<RayHit>& got, const std::optional<RayHit>& one,
+                               const std::string& ctx) {
+  ASSERT_EQ(got.has_value(), one.has_value()) << ctx;
+  if (!got) return;
+  EXPECT_EQ(got->index, one->index) << ctx;
+  EXPECT_EQ(got->slot, one->slot) << ctx;
+  EXPECT_EQ(got->t, one->t) << ctx;
+  EXPECT_EQ(got->distance, one->distance) << ctx;
+  EXPECT_EQ(got->key, one->key) << ctx;
 }
 
 }  // namespace rayscan::test

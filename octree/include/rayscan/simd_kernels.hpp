@@ -653,10 +653,19 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) void packet_child_sl
   }
 }
 
+// The largest / least of the four lanes of v, in every lane.
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d lanes_max4(__m256d v) {
+  v = _mm256_max_pd(v, _mm256_permute4x64_pd(v, 0x4E));
+  return _mm256_max_pd(v, _mm256_permute_pd(v, 0x5));
+}
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d lanes_min4(__m256d v) {
+  v = _mm256_min_pd(v, _mm256_permute4x64_pd(v, 0x4E));
+  return _mm256_min_pd(v, _mm256_permute_pd(v, 0x5));
+}
+
 // RayBoxFn (simd.hpp) on AVX2: the three axes in the lanes 0-2 of one register (lane 3 repeats z,
-// and its 1 / d is made NaN: an ignored axis). Replaces the scalar set-up of a traversal (its
-// tolerance with a square root, 1 / d, the grown origins) for the ~47% of bench_rays' camera rays
-// that miss the root: 356 -> 183 instructions per miss (bench/README.md, "Issue 12, session 35").
+// and its 1 / d is made NaN: an ignored axis). The first-hit traversals' root test (ray_query.hpp,
+// root_test, where its effect is measured).
 inline __attribute__((target("avx2,fma"))) bool ray_box_avx2(const double* lo, const double* hi, const double* o,
                                                               const double* d, double pad, double t_lo,
                                                               double t_hi) {
@@ -666,10 +675,8 @@ inline __attribute__((target("avx2,fma"))) bool ray_box_avx2(const double* lo, c
   const __m256d vlo = _mm256_setr_pd(lo[0], lo[1], lo[2], lo[2]), vhi = _mm256_setr_pd(hi[0], hi[1], hi[2], hi[2]);
   const __m256d vo = _mm256_setr_pd(o[0], o[1], o[2], o[2]), vd = _mm256_setr_pd(d[0], d[1], d[2], d[2]);
   const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7FFFFFFFFFFFFFFFLL));
-  __m256d m = _mm256_max_pd(_mm256_max_pd(_mm256_and_pd(vlo, abs_mask), _mm256_and_pd(vhi, abs_mask)),
-                            _mm256_and_pd(vo, abs_mask));
-  m = _mm256_max_pd(m, _mm256_permute4x64_pd(m, 0x4E));
-  m = _mm256_max_pd(m, _mm256_permute_pd(m, 0x5));
+  const __m256d m = lanes_max4(_mm256_max_pd(
+      _mm256_max_pd(_mm256_and_pd(vlo, abs_mask), _mm256_and_pd(vhi, abs_mask)), _mm256_and_pd(vo, abs_mask)));
   const double tol = node_test_tolerance_bound(_mm256_cvtsd_f64(m));
   const __m256d grow = _mm256_set1_pd(pad + tol);
   const __m256d nan = _mm256_set1_pd(std::numeric_limits<double>::quiet_NaN());
@@ -678,12 +685,8 @@ inline __attribute__((target("avx2,fma"))) bool ray_box_avx2(const double* lo, c
   const __m256d tb = _mm256_mul_pd(_mm256_sub_pd(vhi, _mm256_sub_pd(vo, grow)), inv);
   const __m256d skip = _mm256_cmp_pd(ta, tb, _CMP_UNORD_Q);  // NaN in either: the axis says nothing
   const double inf = std::numeric_limits<double>::infinity();
-  __m256d near = _mm256_blendv_pd(_mm256_min_pd(ta, tb), _mm256_set1_pd(-inf), skip);
-  __m256d far = _mm256_blendv_pd(_mm256_max_pd(ta, tb), _mm256_set1_pd(inf), skip);
-  near = _mm256_max_pd(near, _mm256_permute4x64_pd(near, 0x4E));
-  near = _mm256_max_pd(near, _mm256_permute_pd(near, 0x5));
-  far = _mm256_min_pd(far, _mm256_permute4x64_pd(far, 0x4E));
-  far = _mm256_min_pd(far, _mm256_permute_pd(far, 0x5));
+  const __m256d near = lanes_max4(_mm256_blendv_pd(_mm256_min_pd(ta, tb), _mm256_set1_pd(-inf), skip));
+  const __m256d far = lanes_min4(_mm256_blendv_pd(_mm256_max_pd(ta, tb), _mm256_set1_pd(inf), skip));
   const double t_near = std::max(_mm256_cvtsd_f64(near), t_lo - tol);
   const double t_far = std::min(_mm256_cvtsd_f64(far), t_hi + tol);
   return !(t_near > t_far);
