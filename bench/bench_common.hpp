@@ -3,7 +3,7 @@
 // Benchmarks print figures; they are never tests (see bench/README.md).
 #pragma once
 
-#include "rayscan/geometry.hpp"
+#include "rayscan/octree/geometry.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -53,7 +53,7 @@ class ThreadCpuStopwatch {
 /// The process's page faults and system CPU (getrusage(RUSAGE_SELF): every thread, TBB's workers
 /// included) since construction. A first touch of fresh memory is a minor fault; on a VM whose
 /// balloon reports free pages to the host it is also a host fault, which shows as system CPU
-/// (bench/README.md, "Issue 12, session 22" and "session 26").
+/// (bench/notes/: the octree build's page faults).
 class ProcessFaults {
  public:
   ProcessFaults() : r0_(now()) {}

@@ -1,12 +1,12 @@
-// Issue 11, section 5: time to the first traced tile and total render time for a COPC file
+// Time to the first traced tile and total render time for a COPC file
 // traced in place (io::CopcIndex: header + hierarchy, nodes decoded as rays reach them) vs the
 // same file read whole (io::read_point_cloud) and rendered through the in-memory octree.
 //   bench_copc_render inplace|whole FILE.copc.laz [width height spp cache]
 // One mode per process (peak RSS is per process); bench/copc_render.sh interleaves the modes.
 // Prints one line: mode first_tile_s total_s decodes nodes maxrss_mb queries.
-#include "rayscan/io/copc.hpp"
+#include "rayscan/site/copc.hpp"
 #include "rayscan/io/point_io.hpp"
-#include "rayscan/render/render_job.hpp"
+#include "rayscan/jobs/render.hpp"
 
 #include <sys/resource.h>
 

@@ -1,15 +1,15 @@
-// bench_index_rays SITE.rsi [MORE.rsi ...] (issue 10 section 5.4): ray-query throughput on memory-
-// mapped index files vs the in-memory octree (Octree::build_bulk over the first file's points in
-// original order, same layout and capacity: the same tree) on the same rays, interleaved in rounds
+// bench_index_rays SITE.rsi [MORE.rsi ...]: ray-query throughput on memory-mapped index files vs
+// the in-memory octree (Octree::build_bulk over the first file's points in original order, same
+// layout and capacity: the same tree) on the same rays, interleaved in rounds
 // (the first contender rotating), median of the rounds. Every index file is checked to return the
 // octree's hits bit for bit (index, t, distance). Queries: the renderer's first hit (sphere_hit,
 // k = 1, r = the stored median spacing) and kNN to the ray (order ray, k = 8, r = 4 x spacing).
 // Rays: from 200 m above the site's box to uniform points of the box (seeded). One thread; the
 // thread's CPU time is reported (on the shared machine wall time mostly measures preemption).
 // Page cache: the files are read once before the first round (warm). bench/README.md.
-#include "rayscan/io/index_file.hpp"
-#include "rayscan/octree.hpp"
-#include "rayscan/ray_query.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/octree/octree.hpp"
+#include "rayscan/octree/ray_query.hpp"
 
 #include <CLI/CLI.hpp>
 

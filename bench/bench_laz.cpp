@@ -5,11 +5,11 @@
 //                                       (CopcIndex: header + hierarchy + touched nodes) vs
 //                                       reading the whole file (read_point_cloud)
 // bench/laz.sh interleaves these with laz-perf under Node on the same files.
-#include "rayscan/io/copc.hpp"
+#include "rayscan/site/copc.hpp"
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/io/translate.hpp"
-#include "rayscan/ray_query.hpp"
+#include "rayscan/octree/ray_query.hpp"
 
 #include <tbb/global_control.h>
 

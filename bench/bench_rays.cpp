@@ -4,7 +4,7 @@
 // build time against Embree's rtcCommitScene, and resident memory per point of every index, each
 // built in a fresh child process (this program re-executed with --mem-child).
 //
-// Queries (issue 2, section 8.2), all with t_min = 0 like Embree's tnear = 0:
+// Queries, all with t_min = 0 like Embree's tnear = 0:
 //   knn8      k = 8, order ray            (kNN to the ray)
 //   radius    radius r, no k, order ray   (every point of the cylinder, sorted by distance)
 //   closest   k = 1, order time, radius r (ray-marching emulation)
@@ -13,7 +13,7 @@
 // the cube (origin on a sphere of radius 2 around the cube centre, aimed at a uniform point in the
 // cube). Every timed configuration runs once per round, rounds interleave all contenders (the first
 // one rotating), and the median of the rounds is reported.
-// Coherent rays (issue 12): the camera's first sphere hit also in 2x2 and 4x4 pixel packets
+// Coherent rays: the camera's first sphere hit also in 2x2 and 4x4 pixel packets
 // (ray_first_hit_packet) against the same rays one by one and Embree's rtcIntersect1 and its ray
 // packets (rtcIntersect4 on 2x2 tiles, rtcIntersect8 on 4x2 halves of 4x4 tiles, rtcIntersect16
 // on 4x4 tiles where this Embree build supports them), same rays, interleaved in the same rounds;
@@ -22,8 +22,8 @@
 // vectors).
 #include "bench_common.hpp"
 
-#include "rayscan/any_index.hpp"
-#include "rayscan/ray_query.hpp"
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/octree/ray_query.hpp"
 
 #include <CLI/CLI.hpp>
 #include <embree3/rtcore.h>
@@ -417,7 +417,7 @@ std::uint64_t run_embree_packets(const EmbreeScene& es, std::span<const Ray> ray
 }
 
 /// Index options of a --indexes entry: a make_index type, optionally with ":capacity" (octree
-/// node capacity / kd-tree leaf size, e.g. "octree-adaptive:8"; the leaf-capacity sweep of issue 12).
+/// node capacity / kd-tree leaf size, e.g. "octree-adaptive:8", for leaf-capacity sweeps).
 rayscan::IndexOptions index_options(const std::string& type) {
   rayscan::IndexOptions o;
   const std::size_t colon = type.find(':');
@@ -695,7 +695,7 @@ void profile(const std::string& which, const std::vector<Vec3>& pts, const std::
 
 }  // namespace
 
-/// --coherence (issue 12, session 24): where single camera rays lose to Embree and when packets
+/// --coherence: where single camera rays lose to Embree and when packets
 /// pay, on the first index of --indexes, one thread (thread CPU time), `reps` interleaved rounds,
 /// medians. (1) The camera rays split by rayscan's answer into hits and misses, each set timed
 /// with ray_first_hit and rtcIntersect1. (2) Every k-th camera ray in row order (k = 1..16), so
@@ -1064,7 +1064,7 @@ int main(int argc, char** argv) {
             static_cast<double>(set.rays.size()) / (rb::median(runs[first_packet_run - 1].ms) / 1e3);
         // The fastest round of each as well: Embree's single-ray passes at 1e7 vary 2-4x within one
         // process (with almost no page faults or context switches; ours by ~1.3x), so a median of a
-        // few rounds can flatter rayscan there (bench/README.md, "Issue 12, session 34"). NaN
+        // few rounds can flatter rayscan there (bench/notes/: Embree's erratic passes). NaN
         // without rounds, as rb::median.
         const auto fastest = [](const Run& run) {
           return run.ms.empty() ? std::numeric_limits<double>::quiet_NaN()

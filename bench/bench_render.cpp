@@ -1,4 +1,4 @@
-// Render benchmark (issue 4, section 5): the paper's workload shape, 600x400 pixels at 50 spp,
+// Render benchmark: the paper's workload shape, 600x400 pixels at 50 spp,
 // on the bundled Autzen scan and on a ~10 million point scene made by tiling it. Reports the time,
 // ray queries per second (total and per thread) and the cost split between the ray query and the
 // rest (camera, shading, sampling), measured by timing every ray_query call.
@@ -7,7 +7,7 @@
 //                     [--packets on|off|both] [--rounds R]
 //   default scene: scenes/autzen_overview.json; --tiles N renders an N x N tiling of the cloud
 //   (N = 9 gives 8.9 million points for autzen_trim), seen by a camera scaled to cover it.
-//   --packets (issue 12): camera and shadow rays of 4x4 pixel blocks as ray packets (on, the
+//   --packets: camera and shadow rays of 4x4 pixel blocks as ray packets (on, the
 //   default), single rays (off), or both, alternating in each of R rounds (default 1) of the same
 //   process, with the two images compared byte by byte and queries/s per thread by wall clock and
 //   by process CPU time (the fair figure on a loaded machine) for each render.

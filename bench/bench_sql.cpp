@@ -1,4 +1,4 @@
-// bench_sql (issue 13, section 6): ray queries through SQL against the in-memory octree, in one
+// bench_sql: ray queries through SQL against the in-memory octree, in one
 // interleaved run. Per camera ray: radius query (r = point spacing) and kNN to the ray (k = 10) on
 //   octree    rayscan::ray_query over Octree::build_bulk (what `rayscan query` runs);
 //   sqlite    ray_query(...) of rayscan_sqlite.so (R*Tree pruning callback + dynamic k filter);
@@ -9,10 +9,10 @@
 //             inside radius 3r; ray_dwithin(rs_box(x,y,z), ...) on the points' own GiST index
 //             (the planner-support form; the bench creates <table>_pt) (only with --postgres).
 // Prints time per query and chunks touched / total, and counts result mismatches vs the octree.
-#include "rayscan/io/index_file.hpp"
+#include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
-#include "rayscan/octree.hpp"
-#include "rayscan/ray_query.hpp"
+#include "rayscan/octree/octree.hpp"
+#include "rayscan/octree/ray_query.hpp"
 #include "rayscan/sql/import.hpp"
 
 #include <CLI/CLI.hpp>

@@ -8,9 +8,9 @@
 // of every contender is cross-checked against the others; a disagreement aborts (exit 3).
 #include "bench_common.hpp"
 
-#include "rayscan/kdtree.hpp"
-#include "rayscan/octree.hpp"
-#include "rayscan/point_query.hpp"
+#include "rayscan/octree/kdtree.hpp"
+#include "rayscan/octree/octree.hpp"
+#include "rayscan/octree/point_query.hpp"
 
 #include <CLI/CLI.hpp>
 #include <boost/geometry.hpp>

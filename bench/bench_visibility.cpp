@@ -1,4 +1,4 @@
-// Visibility benchmark (issue 5, 3.3): line of sight from 10 observers to every point of the
+// Visibility benchmark: line of sight from 10 observers to every point of the
 // largest bundled LAS (scenes/data/autzen_trim.las, 110,000 points), reported as points per second
 // (a point is done when all observers are tested) and observer-point pairs per second. The
 // observers are fixed: 8 at eye height (5.5 ft above the local ground) on a 4 x 2 grid over the
@@ -11,7 +11,7 @@
 #include "rayscan/analysis/observer.hpp"
 #include "rayscan/analysis/visibility.hpp"
 #include "rayscan/io/point_io.hpp"
-#include "rayscan/spacing.hpp"
+#include "rayscan/octree/spacing.hpp"
 
 #include <sys/resource.h>
 

@@ -1,5 +1,5 @@
 #!/bin/bash
-# bench/big_site.sh SCRATCH N MEMORY [ATTRIBUTES] [PDRF] [DELETE_LAS]: the issue-10 "1e9-point site"
+# bench/big_site.sh SCRATCH N MEMORY [ATTRIBUTES] [PDRF] [DELETE_LAS]: the index-file "1e9-point site"
 # benchmark (bench/README.md). Generates SCRATCH/sN.las with build/bench/make_site (LAS 1.2, PDRF
 # 0 = 20 B/point or 3 = 34 B/point; check `df -h` first), builds SCRATCH/sN.rsi with
 # `rayscan index --memory MEMORY --attributes ATTRIBUTES` under `nice ionice -c3`, sampling every

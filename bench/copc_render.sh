@@ -1,5 +1,5 @@
 #!/bin/sh
-# Issue 11 section 5: COPC rendered in place vs read whole, interleaved rounds, one process each.
+# COPC rendered in place vs read whole, interleaved rounds, one process each.
 #   bench/copc_render.sh BUILD_DIR FILE.copc.laz [rounds width height spp cache_mb]
 #   bench/copc_render.sh BUILD_DIR site:N [rounds width height spp cache_mb]
 # "site:N" (e.g. site:2e7) generates the file first: BUILD_DIR/bench/make_site writes an N-point

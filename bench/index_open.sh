@@ -1,10 +1,10 @@
 #!/bin/bash
-# bench/index_open.sh SCRATCH ROUNDS LABEL=BINARY:SCENE...: issue-10 benchmark "open an index file
+# bench/index_open.sh SCRATCH ROUNDS LABEL=BINARY:SCENE...: index-file benchmark "open an index file
 # and start tracing". Runs each (rayscan binary, scene) pair once per round, interleaved, and
 # prints per run: process wall time, and from the render's own timing lines the open time
 # ("mapped index file ... in X s"), the auto-radius time and the time to the first traced tile
 # after the job's start. Scenes are JSON whose "cloud" is an .rsi under SCRATCH (built by
-# `rayscan index`, e.g. from build/bench/make_site). bench/README.md, issue 10.
+# `rayscan index`, e.g. from build/bench/make_site). See bench/README.md.
 set -u
 scratch=$1; rounds=$2; shift 2
 cd "$scratch" || exit 2

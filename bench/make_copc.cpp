@@ -1,4 +1,4 @@
-// make_copc: writes a COPC 1.0 file from any cloud rayscan reads, for the issue-11 COPC render
+// make_copc: writes a COPC 1.0 file from any cloud rayscan reads, for the COPC render
 // benchmark on a file larger than the shared lone-star.copc.laz (bench/copc_render.sh).
 //   make_copc IN.las OUT.copc.laz [max_points_per_node]
 // Benchmark-only: PDAL's writers.copc is the usual tool, but Debian 12 packages no PDAL, so this

@@ -1,4 +1,4 @@
-// make_site OUT.las N [SOURCE.las] [--pdrf 0|3]: the issue-10 benchmark site, generated (never
+// make_site OUT.las N [SOURCE.las] [--pdrf 0|3]: the index-file benchmark site, generated (never
 // committed): the bundled autzen scan (LAS 1.2 PDRF 3) tiled 4 x 4, then repeated with +-0.5 m xy
 // jitter until N points, written as LAS 1.2 PDRF 3 (34 bytes per point) or, with --pdrf 0, PDRF 0
 // (20 bytes per point: the first 20 bytes of each PDRF 3 record, LAS 1.2 Table 7 vs Table 10, no

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 15 benchmark: 1 rank x 2 threads vs 2 ranks x 1 thread (mpirun, shared memory only) on
+# MPI benchmark: 1 rank x 2 threads vs 2 ranks x 1 thread (mpirun, shared memory only) on
 # this 2-core machine, interleaved rounds, plus the plain process (no mpirun) as the reference.
 # Usage: bench/mpi.sh BUILD_DIR WORK_DIR [ROUNDS] [SCENE] [extra render args...]
 # Prints one line per run (wall seconds, the job's own pixel-loop seconds, MPI traffic) and

@@ -1,5 +1,5 @@
 // python_batch_peer: the C++ side of bench/bench_python.py. Builds the same index over the same
-// points as the Python benchmark and times rayscan::ray_query_batch (rayscan/batch.hpp, TBB, all
+// points as the Python benchmark and times rayscan::ray_query_batch (rayscan/octree/batch.hpp, TBB, all
 // cores) on the same rays, so the Python module's overhead (array conversion, GIL release, CSR
 // flattening) is the only difference. Not a bench_* program: bench/run.sh runs it through
 // bench_python.py, which passes the files.
@@ -8,8 +8,8 @@
 //   CLOUD.f64: N x 3 little-endian float64; RAYS.f64: M x 6 (ox oy oz dx dy dz); K < 0 = all;
 //   ORDER ray|time|sphere_hit; t_min = 0. Prints "ms <wall ms> <process CPU ms>" per rep (after one
 //   warm-up batch) and "check <hits> <sum of indices> <sum of t>" of the last batch.
-#include "rayscan/batch.hpp"
-#include "rayscan/octree.hpp"
+#include "rayscan/octree/batch.hpp"
+#include "rayscan/octree/octree.hpp"
 
 #include <chrono>
 #include <ctime>

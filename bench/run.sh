@@ -42,7 +42,7 @@ for prog in "$dir"/bench_*; do
   case "$name" in bench_table1 | bench_rays) continue ;; esac
   [ -f "$prog" ] && [ -x "$prog" ] && run "$name"
 done
-# The Python module (issue 14): Python batch vs C++ batch, NumPy brute force, Open3D kNN.
+# The Python module: Python batch vs C++ batch, NumPy brute force, Open3D kNN.
 if [ -f "$1/python/rayscan/__init__.py" ] && [ -x "$dir/python_batch_peer" ]; then
   echo
   echo "## bench_python.py"

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
-"""rayscan visibility against gdal_viewshed on a real scan (issue 16, section 5).
+"""rayscan visibility against gdal_viewshed on a real scan.
 
-The issue's protocol: a DSM of CELL-sized cells (max z per cell, gaps filled by repeated
+The protocol: a DSM of CELL-sized cells (max z per cell, gaps filled by repeated
 4-neighbour averaging), one observer EYE above the ground, `gdal_viewshed -oz EYE -tz 0 -cc 0`;
 then `rayscan visibility --raster-value viewshed --cell CELL` on the same cloud (same grid: rayscan
 snaps its grid to whole cells, and so does this DSM), and the share of the cells that contain points

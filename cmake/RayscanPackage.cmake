@@ -1,7 +1,8 @@
-# The CMake package of rayscan (issue 9 section 2): `cmake --install build --prefix P` installs
-# the public headers, the libraries and P/lib/cmake/rayscan/rayscanConfig.cmake (+ version file)
-# with the targets rayscan::octree, rayscan::io, rayscan::image, rayscan::render, rayscan::analysis,
-# and rayscan::mpi (component `mpi`) when built with RAYSCAN_MPI.
+# The CMake package of rayscan: `cmake --install build --prefix P` installs the public headers,
+# the libraries and P/lib/cmake/rayscan/rayscanConfig.cmake (+ version file) with the targets
+# rayscan::base, rayscan::octree, rayscan::io, rayscan::site, rayscan::camera, rayscan::image,
+# rayscan::render, rayscan::analysis, rayscan::jobs, and rayscan::mpi (component `mpi`) when built
+# with RAYSCAN_MPI.
 include(CMakePackageConfigHelpers)
 
 set(RAYSCAN_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/rayscan)
@@ -14,7 +15,8 @@ endfunction()
 # Install and export the library targets that exist, then the package files.
 function(rayscan_install_package)
   set(targets)
-  foreach(t rayscan_octree rayscan_io rayscan_image rayscan_renderer rayscan_analysis rayscan_mpi)
+  foreach(t rayscan_base rayscan_octree rayscan_io rayscan_site rayscan_camera rayscan_image rayscan_renderer
+           rayscan_analysis rayscan_jobs rayscan_mpi)
     if(TARGET ${t})
       list(APPEND targets ${t})
     endif()

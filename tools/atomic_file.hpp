@@ -2,7 +2,7 @@
 // standard output.
 #pragma once
 
-#include "rayscan/atomic_file.hpp"
+#include "rayscan/base/atomic_file.hpp"
 
 #include <fstream>
 #include <iostream>

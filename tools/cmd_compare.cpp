@@ -1,12 +1,12 @@
-// `rayscan compare REFERENCE IMAGE`: check a render against a reference image (issue 5 section 1).
+// `rayscan compare REFERENCE IMAGE`: check a render against a reference image.
 // Metrics and their definitions: analysis/include/rayscan/analysis/image_compare.hpp. Pass/fail
 // follows OpenImageIO's idiff (thresholds -fail/-failpercent/-hardfail/-warn/-warnpercent), with
 // exit code 0 = pass (or warning), 1 = fail, 2 = error. The job is analysis::run_compare
-// (rayscan/analysis/compare_job.hpp); this file parses options and prints.
+// (rayscan/jobs/compare.hpp); this file parses options and prints.
 #include "commands.hpp"
 #include "processes.hpp"
 
-#include "rayscan/analysis/compare_job.hpp"
+#include "rayscan/jobs/compare.hpp"
 
 #include <iostream>
 #include <memory>

@@ -1,10 +1,11 @@
 // `rayscan db import`: clouds into SQLite (default) or PostgreSQL as Morton-ordered chunks with an
-// index of chunk bounds (issue 13; paper section 4.2). Parsing and printing only: the work is in
+// index of chunk bounds (paper section 4.2). Parsing and printing only: the work is in
 // sql/ (rayscan/sql/import.hpp).
 #include "commands.hpp"
 #include "processes.hpp"
 
-#include "rayscan/io/index_file.hpp"
+#include "rayscan/base/byte_size.hpp"
+#include "rayscan/site/index_file.hpp"
 #include "rayscan/sql/import.hpp"
 
 #include <iostream>
@@ -30,7 +31,7 @@ int run_import(const DbImportOptions& o) {
   opt.pcpatch = o.pcpatch;
   opt.temp_dir = o.temp_dir;
   try {
-    if (!o.memory.empty()) opt.memory_bytes = io::parse_byte_size(o.memory);
+    if (!o.memory.empty()) opt.memory_bytes = rayscan::parse_byte_size(o.memory);
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--memory: ") + e.what());
   }

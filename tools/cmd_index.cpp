@@ -4,7 +4,8 @@
 #include "commands.hpp"
 #include "processes.hpp"
 
-#include "rayscan/io/index_file.hpp"
+#include "rayscan/base/byte_size.hpp"
+#include "rayscan/site/index_file.hpp"
 
 #include <signal.h>
 
@@ -87,7 +88,7 @@ Runner add_index_command(CLI::App& app) {
       opt.config.capacity = o->capacity;
       opt.config.depth = o->depth;
       opt.config.max_depth = o->max_depth;
-      opt.memory_bytes = io::parse_byte_size(o->memory);
+      opt.memory_bytes = rayscan::parse_byte_size(o->memory);
       io::AttributeSet a = io::AttributeSet::parse(o->attributes);
       if (o->attributes == "all") a = io::kIndexAttributes;
       opt.attributes = a;

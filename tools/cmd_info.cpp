@@ -1,10 +1,10 @@
 // `rayscan info FILE [--json] [--verify]`: what `pdal info` reports for a point cloud file (streamed
-// chunk by chunk) or an index file (.rsi). The job is io::run_info (rayscan/io/info_job.hpp); this
+// chunk by chunk) or an index file (.rsi). The job is io::run_info (rayscan/jobs/info.hpp); this
 // file parses options and prints.
 #include "commands.hpp"
 #include "processes.hpp"
 
-#include "rayscan/io/info_job.hpp"
+#include "rayscan/jobs/info.hpp"
 
 #include <iostream>
 #include <memory>

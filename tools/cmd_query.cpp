@@ -1,10 +1,11 @@
 // `rayscan query`: the paper's ray query (Algorithm 1) from the command line; the job is
-// io::run_query (rayscan/io/query_job.hpp).
+// io::run_query (rayscan/jobs/query.hpp).
 #include "commands.hpp"
 #include "processes.hpp"
 
-#include "rayscan/io/index_file.hpp"
-#include "rayscan/io/query_job.hpp"
+#include "rayscan/base/byte_size.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/jobs/query.hpp"
 #include "atomic_file.hpp"
 
 #include <memory>
@@ -53,7 +54,7 @@ int run_query(const QueryOptions& o) {
   job.index = o.index;
   if (o.capacity > 0) job.index.capacity = o.capacity;
   try {
-    job.cache_bytes = static_cast<std::size_t>(io::parse_byte_size(o.cache));
+    job.cache_bytes = static_cast<std::size_t>(rayscan::parse_byte_size(o.cache));
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--cache: ") + e.what());
   }

@@ -1,15 +1,16 @@
 // `rayscan render`: path-trace a scanned site from a JSON scene (paper section 5.3); the job is
-// render::run_render (rayscan/render/render_job.hpp); --ortho-map renders through
+// render::run_render (rayscan/jobs/render.hpp); --ortho-map renders through
 // analysis::ortho_map's camera and writes with analysis::write_ortho_map.
 #include "commands.hpp"
 #include "processes.hpp"
 
+#include "rayscan/base/byte_size.hpp"
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/analysis/ortho_map.hpp"
-#include "rayscan/file_names.hpp"
+#include "rayscan/base/file_names.hpp"
 #include "rayscan/io/point_io.hpp"
-#include "rayscan/render/quick_look.hpp"
-#include "rayscan/render/render_job.hpp"
+#include "rayscan/jobs/quick_look.hpp"
+#include "rayscan/jobs/render.hpp"
 
 #include <algorithm>
 #include <iostream>
@@ -63,7 +64,7 @@ int run_render(const RenderCliOptions& o) {
   if (points) job.cloud = &*points;
   job.control.threads = o.threads;
   try {
-    job.cache_bytes = static_cast<std::size_t>(io::parse_byte_size(o.cache));
+    job.cache_bytes = static_cast<std::size_t>(rayscan::parse_byte_size(o.cache));
   } catch (const std::invalid_argument& e) {
     throw UsageError(std::string("--cache: ") + e.what());
   }

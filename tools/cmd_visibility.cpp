@@ -1,11 +1,11 @@
-// `rayscan visibility`: which points can be seen from where (issue 5 section 2). Per-point
+// `rayscan visibility`: which points can be seen from where. Per-point
 // visible-from counts (and distance, sky view, camera hits) as scalar fields of a LAS/PLY copy of
 // the cloud, and a top-down GeoTIFF map with a PNG preview. The job is analysis::run_visibility
-// (rayscan/analysis/visibility_job.hpp); this file parses options and prints.
+// (rayscan/jobs/visibility.hpp); this file parses options and prints.
 #include "commands.hpp"
 #include "processes.hpp"
 
-#include "rayscan/analysis/visibility_job.hpp"
+#include "rayscan/jobs/visibility.hpp"
 
 #include <cmath>
 #include <cstdio>

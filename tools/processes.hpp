@@ -3,7 +3,7 @@
 // distributor() to their job; only the root prints and writes.
 #pragma once
 
-#include "rayscan/work_distributor.hpp"
+#include "rayscan/base/work_distributor.hpp"
 
 #include <string>
 

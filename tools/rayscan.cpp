@@ -2,8 +2,8 @@
 #include "commands.hpp"
 #include "processes.hpp"
 
-#include "rayscan/input_file.hpp"
-#include "rayscan/simd.hpp"
+#include "rayscan/base/input_file.hpp"
+#include "rayscan/octree/simd.hpp"
 
 #include <cstdio>
 #include <exception>
@@ -84,7 +84,7 @@ int main(int argc, char** argv) {
       end_code = app.exit(e, out, err);
       end_out = out.str() + err.str();
     } else {
-      // One line, "rayscan <command>: <message>" like every other error (issue 8).
+      // One line, "rayscan <command>: <message>" like every other error.
       std::string where = "rayscan";
       for (auto& [sub, run] : commands)
         if (sub->parsed()) where += " " + sub->get_name();
@@ -111,7 +111,7 @@ int main(int argc, char** argv) {
 #endif
       return code;
     } catch (const std::exception& e) {
-      // One line per error (issue 8): control characters in paths or values are escaped.
+      // One line per error: control characters in paths or values are escaped.
       return fail("rayscan " + sub->get_name() + ": " + rayscan::one_line(e.what()));
     }
   }

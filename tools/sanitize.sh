@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The sanitizer job (issue 8, requirement 3): the whole test suite built with
+# The sanitizer job: the whole test suite built with
 # -fsanitize=address,undefined (RelWithDebInfo, benchmarks off) in its own build folder and run
 # by CTest. RelWithDebInfo here means -O1 -g1 (optimised, line tables only) instead of CMake's
 # -O2 -g: with both sanitizers GCC 12 compiles the heaviest translation unit (query_job.cpp) in
@@ -10,10 +10,10 @@
 # 2 idle cores); the suite then took 718 s on the shared machine at load 4-6 (the four
 # forced-SIMD property runs are most of it). Again on 2026-11-25 (154 steps, no ccache): 1,062 s
 # wall, 2,139 s of compile CPU (renderer/src/render.cpp alone 366 s); the suite 1,142 s, partly
-# shared with other compiles (bench/README.md, "Issue 12, session 27"). After session 28 (unity
-# builds, instances compiled once, OpenImageIO loaded on first use), from scratch on the same
-# machine: 85 steps, 678 s wall (1,337 s of steps on 2 cores), the suite 368 s: 17.5 min in all.
-# Session 29, with Clang 14 (and the 7 fuzz targets, rayscan_io with coverage), from scratch: 106
+# shared with other compiles (bench/notes/). With unity builds, instances compiled once and
+# OpenImageIO loaded on first use, from scratch on the same machine: 85 steps, 678 s wall
+# (1,337 s of steps on 2 cores), the suite 368 s: 17.5 min in all.
+# With Clang 14 (and the 7 fuzz targets, rayscan_io with coverage), from scratch: 106
 # steps, 371 s wall (765 s of steps), the suite 392 s: 12.8 min in all; the fuzz job that follows
 # in CI then compiles nothing (354 -> 187 s).
 # Any sanitizer report fails the test that triggered it (UBSan halts on the first error; ASan

@@ -1,6 +1,6 @@
 #include "rayscan/analysis/geotiff.hpp"
 
-#include "rayscan/atomic_file.hpp"
+#include "rayscan/base/atomic_file.hpp"
 
 #include <cpl_conv.h>
 #include <cpl_error.h>

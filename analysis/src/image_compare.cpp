@@ -2,7 +2,7 @@
 // for MAE/RMSE/PSNR, Wang et al. 2004 for SSIM).
 #include "rayscan/analysis/image_compare.hpp"
 
-#include "rayscan/analysis/color_ramp.hpp"
+#include "rayscan/image/color_ramp.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>

@@ -1,9 +1,9 @@
 #include "rayscan/analysis/observer.hpp"
 
-#include "rayscan/file_names.hpp"
+#include "rayscan/base/file_names.hpp"
 
-#include "rayscan/input_file.hpp"
-#include "rayscan/point_query.hpp"
+#include "rayscan/base/input_file.hpp"
+#include "rayscan/octree/point_query.hpp"
 
 #include <type_traits>
 #include <nlohmann/json.hpp>

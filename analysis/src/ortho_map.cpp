@@ -1,8 +1,8 @@
 #include "rayscan/analysis/ortho_map.hpp"
 
-#include "rayscan/atomic_file.hpp"
-#include "rayscan/color_ramp.hpp"
-#include "rayscan/file_names.hpp"
+#include "rayscan/base/atomic_file.hpp"
+#include "rayscan/image/color_ramp.hpp"
+#include "rayscan/base/file_names.hpp"
 #include "rayscan/analysis/geotiff.hpp"
 
 #include <cpl_error.h>

@@ -1,7 +1,7 @@
 #include "rayscan/analysis/raster_preview.hpp"
 
-#include "rayscan/analysis/color_ramp.hpp"
-#include "rayscan/analysis/image.hpp"
+#include "rayscan/image/color_ramp.hpp"
+#include "rayscan/image/image_file.hpp"
 
 #include "rayscan/image/image_file.hpp"
 

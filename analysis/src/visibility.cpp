@@ -1,8 +1,8 @@
 #include "rayscan/analysis/visibility.hpp"
 
-#include "rayscan/progress.hpp"
+#include "rayscan/base/progress.hpp"
 #include "rayscan/render/surfel.hpp"
-#include "rayscan/threads.hpp"
+#include "rayscan/base/threads.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>

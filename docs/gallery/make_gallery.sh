@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Regenerates docs/gallery: every bundled scene (scenes/*.json) in both geometry modes (sphere, the
-# paper's model; surfel, issue 16), plus the quick look (automatic overview camera) of the bundled
+# paper's model; surfel, oriented discs), plus the quick look (automatic overview camera) of the bundled
 # clouds, small (300 px wide, 8 spp), and writes docs/gallery/README.md with the render times.
 # Usage: docs/gallery/make_gallery.sh [BUILD_DIR [SCENE ...]]   (default: build, every scenes/*.json)
 #   SCENE is a scene name (autzen_street). KEEP=1 reuses images already in docs/gallery (their time

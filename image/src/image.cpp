@@ -1,7 +1,7 @@
 // The in-memory image type (rayscan/image/image.hpp): channel lookup, construction, selection.
 #include "rayscan/image/image.hpp"
 
-#include "rayscan/aov.hpp"
+#include "rayscan/image/aov.hpp"
 
 #include <optional>
 #include <stdexcept>
@@ -16,7 +16,7 @@ int Image::channel_index(std::string_view name) const {
 }
 
 std::string_view renderer_channel_alias(std::string_view name) {
-  // Single-channel AOVs have one file channel (rayscan/aov.hpp): depth -> Z, index -> id, cost.
+  // Single-channel AOVs have one file channel (rayscan/image/aov.hpp): depth -> Z, index -> id, cost.
   if (const std::optional<Aov> a = parse_aov(name); a && aov_channels(*a).size() == 1) return aov_channels(*a)[0];
   return name;
 }

@@ -4,10 +4,10 @@
 #include "rayscan/image/image_file.hpp"
 
 #include "oiio_module.hpp"
-#include "rayscan/atomic_file.hpp"
-#include "rayscan/file_names.hpp"
-#include "rayscan/input_file.hpp"
-#include "rayscan/spatial_index.hpp"
+#include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/file_names.hpp"
+#include "rayscan/base/input_file.hpp"
+#include "rayscan/octree/spatial_index.hpp"
 
 #include <dlfcn.h>
 
@@ -98,7 +98,7 @@ std::unique_ptr<oiio_module::ImageReader> open_input(const std::string& path) {
     throw std::runtime_error(path + ": empty image (" + std::to_string(s.width) + "x" +
                              std::to_string(s.height) + ", " + std::to_string(nchannels) + " channels)");
   // Checked against a fixed cap and against the file's size before any pixel buffer is
-  // allocated (issue 8: a 249-byte PNG claiming 10000x10000 must not allocate 1.5 GB).
+  // allocated (a 249-byte PNG claiming 10000x10000 must not allocate 1.5 GB).
   const double samples = double(s.width) * double(s.height) * double(nchannels);
   const std::string dims =
       std::to_string(s.width) + "x" + std::to_string(s.height) + "x" + std::to_string(nchannels);

@@ -172,7 +172,7 @@ void write(const Image& img, const std::string& name, const std::string& temp, c
   if (mixed) spec.channelformats = types;
   spec.alpha_channel = img.alpha_channel;
   for (const auto& [k, v] : o.metadata) spec.attribute(k, v);
-  // No wall-clock time in the file (issue 8, requirement 5): OpenImageIO stamps "DateTime" with
+  // No wall-clock time in the file: OpenImageIO stamps "DateTime" with
   // the current time unless it is set, so it is set to a fixed value; `cmp` then confirms that
   // two renders of one scene and seed are identical.
   spec.attribute("DateTime", "");

@@ -3,7 +3,7 @@
 // whose loading and relocation took 0.43 s of every process start on the reference machine, so
 // rayscan_image loads the module with dlopen on its first image operation instead of linking
 // OpenImageIO: commands that never read or write an image (info, index, query, db, translate)
-// start without it (bench/README.md, "Issue 12, session 28"). Private to image/: nothing here is
+// start without it (bench/notes/: CI time). Private to image/: nothing here is
 // installed as a header.
 //
 // The module holds only OpenImageIO calls: the input policy, the size caps, the temporary file

@@ -1,4 +1,4 @@
-#include "rayscan/any_index.hpp"
+#include "rayscan/octree/any_index.hpp"
 
 #include <stdexcept>
 

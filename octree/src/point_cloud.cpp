@@ -1,4 +1,4 @@
-#include "rayscan/point_cloud.hpp"
+#include "rayscan/octree/point_cloud.hpp"
 
 #include <stdexcept>
 

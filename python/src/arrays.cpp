@@ -1,6 +1,6 @@
 #include "arrays.hpp"
 
-#include "rayscan/ray_query.hpp"
+#include "rayscan/octree/ray_query.hpp"
 
 namespace rayscan::python {
 

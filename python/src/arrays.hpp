@@ -3,7 +3,7 @@
 // layout of batch query results.
 #pragma once
 
-#include "rayscan/geometry.hpp"
+#include "rayscan/octree/geometry.hpp"
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>

@@ -1,11 +1,11 @@
 // rayscan.Octree / KdTree / BruteForce and their batch queries (ray, kNN, radius, box) on NumPy
 // arrays. Every batch call converts its arguments while holding the GIL, then releases it and runs
-// the core's TBB batch API (rayscan/batch.hpp); results are flattened into CSR arrays.
+// the core's TBB batch API (rayscan/octree/batch.hpp); results are flattened into CSR arrays.
 #include "arrays.hpp"
 #include "bindings.hpp"
 
-#include "rayscan/any_index.hpp"
-#include "rayscan/batch.hpp"
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/octree/batch.hpp"
 
 #include <pybind11/stl.h>
 #include <tbb/parallel_for.h>

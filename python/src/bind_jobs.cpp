@@ -6,9 +6,9 @@
 #include "bindings.hpp"
 #include "cloud.hpp"
 
-#include "rayscan/analysis/compare_job.hpp"
-#include "rayscan/analysis/visibility_job.hpp"
-#include "rayscan/render/render_job.hpp"
+#include "rayscan/jobs/compare.hpp"
+#include "rayscan/jobs/visibility.hpp"
+#include "rayscan/jobs/render.hpp"
 
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
@@ -96,9 +96,9 @@ py::dict render(const std::string& scene_file, const py::object& cloud, std::opt
   return out;
 }
 
-/// An (H, W) or (H, W, C) array as an analysis::Image: channels Y (C = 1), R G B (3), R G B A (4),
+/// An (H, W) or (H, W, C) array as an rayscan::Image: channels Y (C = 1), R G B (3), R G B A (4),
 /// else c0, c1, ...; float32 samples.
-analysis::Image to_image(py::handle obj, const std::string& name) {
+rayscan::Image to_image(py::handle obj, const std::string& name) {
   py::module_ np = py::module_::import("numpy");
   py::array a = np.attr("asarray")(obj);
   const char kind = a.dtype().kind();
@@ -106,7 +106,7 @@ analysis::Image to_image(py::handle obj, const std::string& name) {
     throw py::value_error(name + ": expected a file name or an (H, W) or (H, W, C) array of numbers");
   auto f = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
   if (!f) throw py::error_already_set();
-  analysis::Image img;
+  rayscan::Image img;
   img.height = static_cast<int>(f.shape(0));
   img.width = static_cast<int>(f.shape(1));
   const int c = a.ndim() == 3 ? static_cast<int>(f.shape(2)) : 1;
@@ -128,7 +128,7 @@ py::dict compare(const py::object& a, const py::object& b, const std::vector<std
                  std::optional<double> fail_percent, std::optional<double> fail_psnr,
                  std::optional<double> fail_ssim, std::optional<double> warn) {
   analysis::CompareJobOptions o;
-  std::optional<analysis::Image> ia, ib;
+  std::optional<rayscan::Image> ia, ib;
   if (py::isinstance<py::str>(a) || py::hasattr(a, "__fspath__"))
     o.reference_file = py::str(a).cast<std::string>();
   else

@@ -3,7 +3,7 @@
 #pragma once
 
 #include "rayscan/io/file_info.hpp"
-#include "rayscan/point_cloud.hpp"
+#include "rayscan/octree/point_cloud.hpp"
 
 #include <algorithm>
 #include <string>

@@ -1,4 +1,4 @@
-// The `rayscan._rayscan` extension module (issue 14): the C++ library on NumPy arrays. The public
+// The `rayscan._rayscan` extension module: the C++ library on NumPy arrays. The public
 // Python API (docstrings, result classes) is the package python/rayscan/__init__.py.
 #include "bindings.hpp"
 

@@ -1,8 +1,8 @@
 #include "rayscan/render/image_output.hpp"
 
-#include "rayscan/aov.hpp"
-#include "rayscan/atomic_file.hpp"
-#include "rayscan/file_names.hpp"
+#include "rayscan/image/aov.hpp"
+#include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/file_names.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -51,7 +51,7 @@ std::vector<Source> rgb_channels(const std::vector<Color>& px, PixelFormat forma
 
 /// The float AOV channels of fb (the index AOV is the id plane, see to_image).
 void add_aov_channels(const Framebuffer& fb, PixelFormat color_format, std::vector<Source>& ch) {
-  // Channel names: rayscan/aov.hpp (aov_channels), the one list the compare job also reads.
+  // Channel names: rayscan/image/aov.hpp (aov_channels), the one list the compare job also reads.
   const PixelFormat f32 = PixelFormat::float32;
   if (!fb.depth.empty()) ch.push_back({aov_channels(Aov::depth)[0], f32, fb.depth.data(), 1});
   if (!fb.normal.empty())
@@ -93,7 +93,7 @@ std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const Outp
   const bool has_aovs = !fb.depth.empty() || !fb.normal.empty() || !fb.position.empty() ||
                         !fb.albedo.empty() || !fb.cost.empty() || !fb.index.empty();
   std::vector<std::filesystem::path> written;
-  OutputTransaction tx;  // the image and its AOV file: all or nothing (issue 8)
+  OutputTransaction tx;  // the image and its AOV file: all or nothing
   if (ext == ".exr") {
     const PixelFormat cf = out.exr_half ? PixelFormat::half : PixelFormat::float32;
     std::vector<Source> ch = rgb_channels(px, cf);

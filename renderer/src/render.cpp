@@ -1,7 +1,7 @@
 #include "rayscan/render/render.hpp"
 
-#include "rayscan/point_query.hpp"
-#include "rayscan/threads.hpp"
+#include "rayscan/octree/point_query.hpp"
+#include "rayscan/base/threads.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -51,7 +51,7 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
   const bool any_aov = !s.aovs.empty();
   const bool want_cost = !fb.cost.empty();
   const Camera& cam = s.camera;
-  // Packets of camera rays (issue 12): not for the cost AOV (node visits are counted per packet,
+  // Packets of camera rays: not for the cost AOV (node visits are counted per packet,
   // not per pixel), nor for COPC (nodes decoded as rays reach them; kept single-ray).
   const bool packets = opt.packets && !want_cost && !std::is_same_v<I, io::CopcIndex>;
   constexpr std::uint32_t kBlock = 4;  // 4x4 pixels = kMaxRayPacket rays

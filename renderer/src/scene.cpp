@@ -1,11 +1,11 @@
 // Scene/camera JSON parsing. Every value is read through Obj, which records the JSON pointer of
 // what it reads so that an error names the exact field, and rejects keys it was not asked about.
 #include "rayscan/render/scene.hpp"
-#include "scene_json.hpp"
+#include "rayscan/render/scene_json.hpp"
 
-#include "rayscan/file_names.hpp"
-#include "rayscan/io/camera_file.hpp"
-#include "rayscan/io/json_object.hpp"
+#include "rayscan/base/file_names.hpp"
+#include "rayscan/camera/camera_file.hpp"
+#include "rayscan/base/json_object.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -34,7 +34,7 @@ std::filesystem::path resolve(const std::filesystem::path& base_file, const std:
   return path.lexically_normal();
 }
 
-/// "surfel": {"k_normal", "k_radius", "radius_factor", "max_radius_factor", "orient"} (issue 16).
+/// "surfel": {"k_normal", "k_radius", "radius_factor", "max_radius_factor", "orient"}.
 void parse_surfel(Obj& parent, Scene& s) {
   if (!parent.has("surfel")) return;
   Obj o(parent.at("surfel"), parent.file(), parent.ptr("surfel"));

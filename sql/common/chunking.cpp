@@ -1,6 +1,6 @@
 #include "rayscan/sql/chunking.hpp"
 
-#include "rayscan/morton.hpp"
+#include "rayscan/octree/morton.hpp"
 
 #include <algorithm>
 #include <stdexcept>

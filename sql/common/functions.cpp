@@ -2,9 +2,9 @@
 // values from the core so that SQLite, PostgreSQL and `rayscan query` agree to the last bit.
 #include "rayscan/sql/functions.h"
 
-#include "rayscan/distance.hpp"
-#include "rayscan/ray.hpp"
-#include "rayscan/ray_query.hpp"
+#include "rayscan/octree/distance.hpp"
+#include "rayscan/octree/ray.hpp"
+#include "rayscan/octree/ray_query.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -3,7 +3,7 @@
 // the index does not store, from the clouds read whole.
 #include "rayscan/sql/site_stream.hpp"
 
-#include "rayscan/io/index_file.hpp"
+#include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/io/point_reader.hpp"
 

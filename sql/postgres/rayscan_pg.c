@@ -1,4 +1,4 @@
-/* PostgreSQL 15 extension `rayscan` (issue 13; paper section 4.2): the functions dist_ray,
+/* PostgreSQL 15 extension `rayscan` (paper section 4.2): the functions dist_ray,
  * ray_time, dist_plane and their bounds evaluation <name>_min / <name>_max, the chunk box type
  * rs_box, the ray predicate rs_ray (ray_within(...)), the operators
  *   rs_box && rs_ray   (the box may hold a point with dist_ray <= r and t in [t_min, t_max])

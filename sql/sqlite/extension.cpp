@@ -1,4 +1,4 @@
-// rayscan_sqlite: the SQLite loadable extension of issue 13 (paper section 4.2).
+// rayscan_sqlite: the SQLite loadable extension (paper section 4.2).
 //   .load ./rayscan_sqlite          (sqlite3 shell)      conn.load_extension("rayscan_sqlite")
 // Registers
 //   * dist_ray, ray_time, dist_plane (9 arguments) and their bounds evaluation over a box,
@@ -19,8 +19,8 @@ SQLITE_EXTENSION_INIT1
 #include "rayscan/sql/chunking.hpp"
 #include "rayscan/sql/functions.h"
 
-#include "rayscan/ray.hpp"
-#include "rayscan/ray_query.hpp"
+#include "rayscan/octree/ray.hpp"
+#include "rayscan/octree/ray_query.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,7 +1,7 @@
 // import_sqlite (rayscan/sql/import.hpp): Morton-ordered chunks plus an R*Tree of chunk bounds.
 #include "rayscan/sql/import.hpp"
 
-#include "rayscan/atomic_file.hpp"
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/sql/site_stream.hpp"
 
 #include <sqlite3.h>

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The adversarial corpus (issue 8): hostile but realistic inputs and output paths for every
+# The adversarial corpus: hostile but realistic inputs and output paths for every
 # command. Each case must exit with code 2, print exactly one line on stderr that names the
 # offending file (or option) and the place (byte, line, field or option), never hang (each run
 # has a 60 s timeout and a 2 GiB address-space limit, so unbounded reads fail the case), and
@@ -83,7 +83,7 @@ expect_error rays-symlink-dev-zero "rays.csv" "character device" -- query --clou
 expect_error info-fifo "fifo.pcd" "FIFO" -- info "$W/fifo.pcd"
 expect_error compare-dev-zero "/dev/zero" "character device" -- compare /dev/zero "$W/old.png"
 # ---- Huge counts and lying sizes.
-# The issue's 130-byte PLY (2^40 items without properties took about an hour): valid, read at once.
+# A 130-byte PLY reproducer (2^40 items without properties took about an hour): valid, read at once.
 cases=$((cases + 1))
 if (ulimit -t 20 2>/dev/null; timeout 20 "$RAYSCAN" info "$HERE/huge_count_no_properties.ply" >/dev/null 2>&1); then
   echo "ok   ply-2e40-items-no-properties (read at once)"

@@ -1,7 +1,7 @@
 // Test helpers shared by the image-comparison tests: synthetic images with fixed seeds.
 #pragma once
 
-#include "rayscan/analysis/image.hpp"
+#include "rayscan/image/image_file.hpp"
 
 #include <random>
 #include <string>

@@ -1,6 +1,6 @@
 // `rayscan compare` end to end: exit codes, errors, heat map, mask, and agreement with
 // OpenImageIO's `idiff` (the reference tool) on the same files.
-#include "rayscan/analysis/image.hpp"
+#include "rayscan/image/image_file.hpp"
 #include "image_test_util.hpp"
 
 #include "../common/run_command.hpp"
@@ -16,6 +16,7 @@
 #include <string>
 #include <sys/wait.h>
 
+using namespace rayscan;
 using namespace rayscan::analysis;
 namespace fs = std::filesystem;
 

@@ -8,7 +8,7 @@
 //    negative weights sum to -1, answers exactly the luminance jump next to the step;
 //  - properties the paper states: 0 for identical images, in [0, 1], symmetric, growing with noise.
 #include "rayscan/analysis/flip.hpp"
-#include "rayscan/analysis/compare_job.hpp"
+#include "rayscan/jobs/compare.hpp"
 
 #include "image_test_util.hpp"
 
@@ -19,6 +19,7 @@
 #include <random>
 #include <vector>
 
+using namespace rayscan;
 using namespace rayscan::analysis;
 
 namespace {

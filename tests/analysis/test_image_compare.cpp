@@ -1,6 +1,6 @@
 // Comparison metrics against analytic values of constructed perturbations.
-#include "rayscan/analysis/color_ramp.hpp"
-#include "rayscan/analysis/image.hpp"
+#include "rayscan/image/color_ramp.hpp"
+#include "rayscan/image/image_file.hpp"
 #include "image_test_util.hpp"
 #include "rayscan/analysis/image_compare.hpp"
 
@@ -11,6 +11,7 @@
 #include <random>
 #include <unistd.h>
 
+using namespace rayscan;
 using namespace rayscan::analysis;
 
 namespace {

@@ -1,9 +1,9 @@
 // The compare and visibility jobs as library calls (compare_job.hpp, visibility_job.hpp).
 // Oracles: hand-computed errors of constructed images, the lower-level compute_visibility and
 // compute_sky_view calls, and the geometry of an open plane.
-#include "rayscan/analysis/compare_job.hpp"
-#include "rayscan/analysis/visibility_job.hpp"
-#include "rayscan/io/index_file.hpp"
+#include "rayscan/jobs/compare.hpp"
+#include "rayscan/jobs/visibility.hpp"
+#include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include "image_test_util.hpp"
@@ -146,7 +146,7 @@ TEST(VisibilityJob, OptionErrorsComeBeforeAnyWork) {
   EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "--raster-value count needs observers");
 }
 
-// Issue 10, section 3: `visibility SITE.rsi` queries the mapped index file in place (no tree is
+// `visibility SITE.rsi` queries the mapped index file in place (no tree is
 // built) and writes its per-point fields in the sources' original point order. Oracle: the same
 // job on the source file (in-memory index); every field must be equal point for point.
 TEST(VisibilityJob, IndexFileEqualsTheSourceCloudInOriginalOrder) {

@@ -1,4 +1,4 @@
-// Top-down orthophoto and DSM (issue 16, 3.1): a tilted plane z = 5 + 0.1 x rendered through the
+// Top-down orthophoto and DSM: a tilted plane z = 5 + 0.1 x rendered through the
 // ortho map camera gives back its analytic elevation per cell centre; the GeoTIFF carries the grid.
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/analysis/ortho_map.hpp"
@@ -76,7 +76,7 @@ TEST(OrthoMap, DsmOfATiltedPlaneIsItsAnalyticElevation) {
   std::filesystem::remove_all(dir);
 }
 
-// The CLI end to end (issue 16 section 6): `rayscan render SCENE --primitive surfel --ortho-map RES
+// The CLI end to end: `rayscan render SCENE --primitive surfel --ortho-map RES
 // --out o.tif --dsm d.tif` over the same tilted plane written as a PLY; the DSM read back through
 // GDAL gives the analytic elevation per cell centre, and misuse of the options exits 2.
 TEST(OrthoMap, CliWritesOrthophotoAndDsm) {

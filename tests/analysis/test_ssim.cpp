@@ -8,6 +8,7 @@
 #include <random>
 #include <vector>
 
+using namespace rayscan;
 using namespace rayscan::analysis;
 
 namespace {

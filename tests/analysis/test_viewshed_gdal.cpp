@@ -1,14 +1,14 @@
-// Surfel line of sight against the established raster viewshed (issue 16, section 5): a scanned
+// Surfel line of sight against the established raster viewshed: a scanned
 // terrain (hills, a walled building, an anisotropic 2.5:1 scan pattern with noise) is rasterised to
 // a DSM (max z per cell, the cloud's own grid); `gdal_viewshed` (GDAL, Debian gdal-bin) computes
 // the viewshed of one observer on it, and `rayscan visibility --primitive surfel` (target height 0,
 // library call) the one of the points. On the cells that contain points they must agree on >= 95%
-// (the issue's goal; the cells that differ lie on the boundary of hidden areas, where the DSM's
+// (the target; the cells that differ lie on the boundary of hidden areas, where the DSM's
 // max-z-per-cell staircase and the discs' sampled surface give the horizon a slightly different
 // height). Skips with a message when gdal_viewshed is not installed.
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/analysis/raster.hpp"
-#include "rayscan/analysis/visibility_job.hpp"
+#include "rayscan/jobs/visibility.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include "../common/run_command.hpp"
@@ -77,7 +77,7 @@ std::vector<float> read_band(const fs::path& file, int& cols, int& rows) {
   return v;
 }
 
-/// The issue's gap filling: every empty (NaN) cell takes the mean of its known 4-neighbours,
+/// The protocol's gap filling: every empty (NaN) cell takes the mean of its known 4-neighbours,
 /// repeated until no cell is empty (bench/viewshed_vs_gdal.py does the same).
 void fill_gaps(Raster& r) {
   const std::size_t W = r.grid.cols, H = r.grid.rows;
@@ -201,7 +201,7 @@ TEST(ViewshedVsGdal, SurfelTargetHeightZeroAgreesWithGdalViewshedOnTheDsm) {
   fs::remove_all(dir);
 }
 
-// The issue's protocol on the real autzen scan (tests/data/las/autzen_trim.las, PDAL test data,
+// The comparison protocol on the real autzen scan (tests/data/las/autzen_trim.las, PDAL test data,
 // feet): a DSM of 3 ft cells (max z per cell, gaps filled), one observer 6 ft above the ground on
 // the open field east of the bridge, `gdal_viewshed -tz 0 -cc 0`; `rayscan visibility --primitive
 // surfel` (target height 0) must agree with it on >= 95% of the cells that contain points

@@ -1,4 +1,4 @@
-// Visibility (issue 5, 2.2-2.4 and 3.2): hand-built scenes with known answers, and the per-point
+// Visibility: hand-built scenes with known answers, and the per-point
 // result against an independent brute-force ray/sphere oracle on a real scan (autzen crop).
 #include "rayscan/analysis/visibility.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -412,7 +412,7 @@ TEST(Visibility, SurfelHeightFieldHidesWhatPassesUnderACanopyWhileSpheresSeeUnde
   // about 1 above the ground, 7 below the crown: the spheres (true 3D) see under the crown; the
   // surfels are a height field like a DSM (the crown's discs are the surface there, solid below
   // them), so the ground behind the crown is hidden, while the ground before it and the crown
-  // itself are visible in both modes (issue 16, section 5; is_visible's surfel rule).
+  // itself are visible in both modes (is_visible's surfel rule).
   std::vector<Vec3> pts;
   add_grid(pts, Vec3(0, -5, 0), Vec3(0.5, 0, 0), Vec3(0, 0.5, 0), 120, 21);
   const std::size_t ground = pts.size();

@@ -3,13 +3,13 @@
 // `rayscan visibility` end to end (fields in LAS/PLY, exit codes, no partial files).
 #include "../common/temp_dir.hpp"
 #include "rayscan/analysis/geotiff.hpp"
-#include "rayscan/analysis/image.hpp"
+#include "rayscan/image/image_file.hpp"
 #include "rayscan/analysis/observer.hpp"
 #include "rayscan/analysis/raster.hpp"
 #include "rayscan/analysis/raster_preview.hpp"
 #include "rayscan/analysis/visibility.hpp"
 #include "rayscan/io/point_io.hpp"
-#include "rayscan/io/camera_file.hpp"
+#include "rayscan/camera/camera_file.hpp"
 #include "rayscan/io/las_records.hpp"
 
 #include <gdal_priv.h>

@@ -4,9 +4,9 @@
 // plane sees the sky). Then writes a PNG and reads it back through rayscan::image, whose
 // OpenImageIO module (librayscan_oiio.so) run_consumer.cmake points at in the installed prefix
 // (RAYSCAN_OIIO_MODULE), so the installed module is the one that loads.
-#include "rayscan/analysis/visibility_job.hpp"
+#include "rayscan/jobs/visibility.hpp"
 #include "rayscan/image/image_file.hpp"
-#include "rayscan/render/render_job.hpp"
+#include "rayscan/jobs/render.hpp"
 
 #include <cstdio>
 #include <filesystem>

@@ -1,9 +1,9 @@
 // Links rayscan::octree from an installed package and runs a ray query (paper Algorithm 1) on a
 // small grid, checking the answer against brute force over the same points. Exit 0 = correct.
-#include "rayscan/any_index.hpp"
-#include "rayscan/brute_force.hpp"
-#include "rayscan/octree.hpp"
-#include "rayscan/ray_query.hpp"
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/octree/brute_force.hpp"
+#include "rayscan/octree/octree.hpp"
+#include "rayscan/octree/ray_query.hpp"
 
 #include <cstdio>
 #include <vector>

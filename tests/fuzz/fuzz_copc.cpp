@@ -1,6 +1,6 @@
 // libFuzzer target for the COPC info VLR and hierarchy walk (cycles, offsets, keys) followed by
 // decoding every node's chunk: FormatError or success, nothing else. Built by run.sh.
-#include "rayscan/io/copc.hpp"
+#include "rayscan/site/copc.hpp"
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/io/point_io.hpp"
 

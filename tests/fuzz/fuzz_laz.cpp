@@ -6,8 +6,8 @@
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/io/point_io.hpp"
 
-#include "../../octree/io/src/laz/encoder_v3.hpp"
-#include "../../octree/io/src/laz/laz.hpp"
+#include "../../io/src/laz/encoder_v3.hpp"
+#include "../../io/src/laz/laz.hpp"
 
 #include <cstddef>
 #include <cstdint>

@@ -9,11 +9,11 @@
 // checks behind the CRCs (section table, node ranges, sources) are what gets fuzzed; the first
 // inputs whose size is 15 modulo 16 keep their checksums as they are (so the CRC path stays covered).
 // Built and run by tests/fuzz/run.sh.
-#include "rayscan/batch.hpp"
-#include "rayscan/io/crc32c.hpp"
-#include "rayscan/io/index_file.hpp"
-#include "rayscan/point_query.hpp"
-#include "rayscan/ray_query.hpp"
+#include "rayscan/octree/batch.hpp"
+#include "rayscan/base/crc32c.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/octree/point_query.hpp"
+#include "rayscan/octree/ray_query.hpp"
 
 
 #include <cmath>

@@ -28,15 +28,15 @@ JOBS="${FUZZ_JOBS:-2}"
 
 if [ -z "${FUZZ_BUILD:-}" ]; then
 FLAGS=(-std=c++20 -O1 -g -fno-omit-frame-pointer -ffp-contract=off -fsanitize=address,undefined
-       -fno-sanitize-recover=undefined -Ioctree/include -Ioctree/io/include -I/usr/include/liblzf)
-# The whole core and io: io sources (camera files, the query job, the input policy) call into
-# the core.
-SOURCES=(octree/src/*.cpp octree/io/src/*.cpp octree/io/src/laz/*.cpp)
+       -fno-sanitize-recover=undefined -Ibase/include -Ioctree/include -Iio/include -Iio/src -Isite/include
+       -Icamera/include -I/usr/include/liblzf)
+# base, the core, io and site: the readers call into all of them.
+SOURCES=(base/src/*.cpp octree/src/*.cpp octree/src/*/*.cpp io/src/*.cpp io/src/*/*.cpp site/src/*.cpp site/src/*/*.cpp)
 objs=()
 running=0
 for s in "${SOURCES[@]}"; do
   o="$OUT/obj/$(echo "$s" | tr '/' '_').o"
-  if [ ! -f "$o" ] || [ "$s" -nt "$o" ] || [ -n "$(find octree/io/src octree/io/include octree/include -newer "$o" -name '*.hpp' 2>/dev/null)" ]; then
+  if [ ! -f "$o" ] || [ "$s" -nt "$o" ] || [ -n "$(find base io site octree -newer "$o" -name '*.hpp' 2>/dev/null)" ]; then
     echo "fuzz: compiling $s"
     "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer-no-link -c "$s" -o "$o.tmp" && mv "$o.tmp" "$o" &
     running=$((running + 1))

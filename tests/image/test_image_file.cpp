@@ -3,7 +3,7 @@
 // back in its stored types (the oracle is the file's own samples, not rayscan's reader).
 #include "../common/temp_dir.hpp"
 #include "rayscan/image/image_file.hpp"
-#include "rayscan/spatial_index.hpp"
+#include "rayscan/octree/spatial_index.hpp"
 
 #include <gtest/gtest.h>
 

@@ -2,10 +2,10 @@
 // straight from the file) against the brute-force oracle on the same decoded points.
 #include "io_test_util.hpp"
 
-#include "rayscan/brute_force.hpp"
-#include "rayscan/io/copc.hpp"
-#include "rayscan/io/query_job.hpp"
-#include "rayscan/ray_query.hpp"
+#include "rayscan/octree/brute_force.hpp"
+#include "rayscan/site/copc.hpp"
+#include "rayscan/jobs/query.hpp"
+#include "rayscan/octree/ray_query.hpp"
 
 #include <random>
 #include <sstream>

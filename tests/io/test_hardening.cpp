@@ -1,11 +1,11 @@
-// Issue 8 (hardening): the input policy (regular files only, no blocking open, size cap), the
-// output policy (no replacing special files, all-or-nothing multi-file outputs), the reader fixes
-// built from the issue's reproducers, and derived LAS / PLY files that keep every source field,
+// Hardening: the input policy (regular files only, no blocking open, size cap), the output
+// policy (no replacing special files, all-or-nothing multi-file outputs), the reader fixes built
+// from hostile-input reproducers, and derived LAS / PLY files that keep every source field,
 // checked against the files' own bytes.
 #include "io_test_util.hpp"
 
-#include "rayscan/atomic_file.hpp"
-#include "rayscan/input_file.hpp"
+#include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/input_file.hpp"
 
 #include <sys/stat.h>
 #include <unistd.h>
@@ -29,7 +29,7 @@ std::string read_text(const fs::path& p) {
   return {b.begin(), b.end()};
 }
 
-// ---- Input policy (issue 8, items 1 and 3; requirement 2).
+// ---- Input policy.
 
 TEST(InputPolicy, FifoIsRefusedWithoutBlocking) {
   const fs::path f = scratch() / "f.pcd";
@@ -150,7 +150,7 @@ std::string error_of(const std::string& s, io::Format f, const std::string& name
 }
 
 TEST(ReaderReproducers, PlyHugeElementCountWithoutPropertiesReturnsAtOnce) {
-  // The issue's 130-byte file: skipping 2^40 empty items took about an hour.
+  // A 130-byte reproducer: skipping 2^40 empty items took about an hour.
   const std::string ply =
       "ply\nformat ascii 1.0\nelement face 1099511627776\nelement vertex 1\nproperty float x\n"
       "property float y\nproperty float z\nend_header\n1 2 3\n";

@@ -5,14 +5,14 @@
 // changed source, each a one-line IndexError naming the file.
 #include "io_test_util.hpp"
 
-#include "rayscan/batch.hpp"
-#include "rayscan/brute_force.hpp"
-#include "rayscan/io/crc32c.hpp"
-#include "rayscan/io/index_file.hpp"
+#include "rayscan/octree/batch.hpp"
+#include "rayscan/octree/brute_force.hpp"
+#include "rayscan/base/crc32c.hpp"
+#include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_reader.hpp"
-#include "rayscan/point_query.hpp"
-#include "rayscan/ray_query.hpp"
-#include "rayscan/spacing.hpp"
+#include "rayscan/octree/point_query.hpp"
+#include "rayscan/octree/ray_query.hpp"
+#include "rayscan/octree/spacing.hpp"
 
 #include <sys/wait.h>
 #include <unistd.h>
@@ -665,7 +665,7 @@ io::MappedIndex expect_exact_rgb(const fs::path& src, const fs::path& out, bool 
   return m;
 }
 
-// Issue 10, 2.3: colour in 3 bytes per point when exact. autzen_trim.las holds 8-bit values (the
+// Colour in 3 bytes per point when exact. autzen_trim.las holds 8-bit values (the
 // reader delivers them scaled by 257), warsaw_small.las shifted into the high byte (x 256); a LAS
 // written with true 16-bit colour (and one with 8-bit values plus a single 256: no multiplier
 // fits all) keeps the 6-byte section. The decoded colours equal read_point_cloud's bit for bit.
@@ -1168,7 +1168,7 @@ std::string text(const fs::path& p) {
   return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
 }
 
-// Ids in a file opened without the deep checks (issue 10 section 4): every consumer indexes
+// Ids in a file opened without the deep checks: every consumer indexes
 // per-point arrays by id, so one id >= N in a large unverified file would be a write out of
 // bounds (normals, visibility) or a read past an array (query, spacing). ids() returns a checked
 // view: reading the corrupted id reports a clean IndexError naming the slot and byte, and a query
@@ -1357,7 +1357,7 @@ void expect_clean_disk_full_failure(const fs::path& dir, const fs::path& las, co
   EXPECT_EQ(left, std::vector<std::string>{"site.rsi"}) << "temporaries left behind";
 }
 
-// Issue 10: a build that runs out of disk, in each stage (sorted runs, the output's point sections
+// A build that runs out of disk, in each stage (sorted runs, the output's point sections
 // in the merge, its nodes section), fails with one line and leaves the previous output and no
 // temporaries. The stages are reached with a file-size limit (RLIMIT_FSIZE with SIGXFSZ ignored,
 // so write() fails with EFBIG exactly where a full disk fails with ENOSPC); as root a real full

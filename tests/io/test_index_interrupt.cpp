@@ -1,7 +1,7 @@
-// `rayscan index` stopped by a signal (issue 10, requirement 2.4: "a build that fails or is
-// interrupted leaves no file at the output path"; a demanding user also expects no temporary
-// output or sort runs left beside it). The real CLI is started on a real LAS file, signalled as
-// soon as its temporary files exist, and the folder is then listed: the oracle is the file system.
+// `rayscan index` stopped by a signal (a build that fails or is interrupted leaves no file at
+// the output path; a demanding user also expects no temporary output or sort runs left beside
+// it). The real CLI is started on a real LAS file, signalled as soon as its temporary files exist,
+// and the folder is then listed: the oracle is the file system.
 #include "io_test_util.hpp"
 
 #include "rayscan/io/point_io.hpp"

@@ -3,7 +3,7 @@
 // from their LAZ by laz-perf), compared byte for byte.
 #include "io_test_util.hpp"
 
-#include "rayscan/io/copc.hpp"
+#include "rayscan/site/copc.hpp"
 #include "rayscan/io/las_records.hpp"
 
 #include <algorithm>

@@ -1,8 +1,8 @@
-// The ray-query job and ray files as library calls (rayscan/io/query_job.hpp, rays.hpp); oracle:
+// The ray-query job and ray files as library calls (rayscan/jobs/query.hpp, rays.hpp); oracle:
 // the brute-force index and the bytes written by the test itself.
-#include "rayscan/brute_force.hpp"
-#include "rayscan/io/info_job.hpp"
-#include "rayscan/io/query_job.hpp"
+#include "rayscan/octree/brute_force.hpp"
+#include "rayscan/jobs/info.hpp"
+#include "rayscan/jobs/query.hpp"
 #include "rayscan/io/rays.hpp"
 
 #include "io_test_util.hpp"

@@ -1,8 +1,8 @@
-// The frames job (rayscan render --frames, issue 15 section 3) in one process. Oracle: run_render
+// The frames job (rayscan render --frames) in one process. Oracle: run_render
 // of each camera alone; the camera list reader against hand-written files.
 #include "rayscan/io/point_io.hpp"
-#include "rayscan/render/render_job.hpp"
-#include "rayscan/work_distributor.hpp"
+#include "rayscan/jobs/render.hpp"
+#include "rayscan/base/work_distributor.hpp"
 
 #include <gtest/gtest.h>
 

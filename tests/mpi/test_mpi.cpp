@@ -1,4 +1,4 @@
-// `mpirun -n N rayscan ...` end to end (issue 15): images, per-point fields and query hits are
+// `mpirun -n N rayscan ...` end to end: images, per-point fields and query hits are
 // the same bytes as a single-process run (the oracle: the file written by one process), for 2
 // and 3 ranks and 1 or 2 threads; a rank that cannot open the index or dies ends the job with an
 // error and no output. Loopback only: the shared-memory transport (btl self,vader), no network.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Starts / stops a private PostgreSQL 15 for the SQL tests (issue 13, section 3.4): initdb into a
+# Starts / stops a private PostgreSQL 15 for the SQL tests: initdb into a
 # temporary directory, listening only on a Unix socket inside it (listen_addresses=''), run as an
 # unprivileged user (`nobody` when the tests run as root). CTest runs `stop` as a FIXTURES_CLEANUP
 # step, so the server is stopped and the directory removed also when a test fails.

@@ -2,10 +2,10 @@
 // brute-force oracle (rayscan::ray_query over BruteForceIndex, and plain loops).
 #pragma once
 
-#include "rayscan/brute_force.hpp"
+#include "rayscan/octree/brute_force.hpp"
 #include "rayscan/io/point_io.hpp"
-#include "rayscan/octree.hpp"
-#include "rayscan/ray_query.hpp"
+#include "rayscan/octree/octree.hpp"
+#include "rayscan/octree/ray_query.hpp"
 
 #include <gtest/gtest.h>
 
@@ -19,7 +19,7 @@ namespace rayscan::sqltest {
 
 namespace fs = std::filesystem;
 
-/// The real scans of issue 13 section 4: autzen (tests/data), lone-star (../shared/data/las/derived,
+/// The real scans of the SQL tests: autzen (tests/data), lone-star (../shared/data/las/derived,
 /// skipped when absent) and the PDRF 8 file append-bug (the decompressed LAS from ../shared when
 /// present, else the same points from the bundled tests/data/laz/append-bug.laz).
 inline std::vector<std::string> scan_names() { return {"autzen", "lone_star", "pdrf8_append_bug"}; }

@@ -1,9 +1,9 @@
-// PostgreSQL side of issue 13: CREATE EXTENSION rayscan on a private server that CTest starts
+// PostgreSQL side of the SQL extensions: CREATE EXTENSION rayscan on a private server that CTest starts
 // (pg_server.sh: initdb in a temporary directory, Unix socket only, unprivileged user) and stops.
 // Checked against the core (bit for bit), the brute-force oracle and the SQLite extension's rules.
 #include "sql_test_util.hpp"
 
-#include "rayscan/distance.hpp"
+#include "rayscan/octree/distance.hpp"
 #include "rayscan/sql/functions.h"
 
 #include <libpq-fe.h>
@@ -308,7 +308,7 @@ TEST_F(Postgres, RayDwithinSupportFunctionUsesTheGistIndex) {
 }
 
 // A frustum (four half-spaces around a ray): box && plane_below(...) on the chunk GiST index plus
-// dist_plane <= 0 per point equals the brute-force set (issue 13 section 4, as in SQLite).
+// dist_plane <= 0 per point equals the brute-force set (as in SQLite).
 TEST_F(Postgres, FrustumWithPlanePruningEqualsBruteForce) {
   Pg pg;
   pg.rows("SET enable_seqscan = off");
@@ -397,7 +397,7 @@ TEST_F(Postgres, FunctionsComeFromTheBuildTreeNotASystemInstall) {
   EXPECT_EQ(pg.rows("SELECT count(*) FROM pg_extension WHERE extname = 'rayscan'")[0][0], "0");
 }
 
-// Issue 13 section 4 on the other real scans: lone-star (terrestrial, 0.5 M points, y ~ 4.9e6 at a
+// The same checks on the other real scans: lone-star (terrestrial, 0.5 M points, y ~ 4.9e6 at a
 // 0.25 mm scale; from ../shared) and the PDRF 8 file append-bug (bundled as LAZ). Radius, time slab,
 // kNN to the ray, kNN along the ray and a frustum through the chunk GiST index equal the core's ray
 // query over the brute-force oracle (same point sets; same order for kNN).
@@ -499,7 +499,7 @@ TEST_P(PostgresScan, ImportAndQueriesEqualBruteForce) {
 INSTANTIATE_TEST_SUITE_P(Scans, PostgresScan, ::testing::Values("lone_star", "pdrf8_append_bug"),
                          [](const auto& i) { return i.param; });
 
-// The import streams through the index's external sort (issue 13, 2.1 / 3.3): importing an index
+// The import streams through the index's external sort: importing an index
 // file from `rayscan index` writes the same rows and chunks as importing the cloud (here with a
 // 1 MiB sort budget, so many sort runs), and every row is the file's own point.
 TEST_F(Postgres, ImportOfAnIndexFileEqualsImportOfTheCloud) {

@@ -1,8 +1,8 @@
-// SQLite side of issue 13: the loadable extension rayscan_sqlite.so on databases written by the
+// SQLite side of the SQL extensions: the loadable extension rayscan_sqlite.so on databases written by the
 // real `rayscan db import`, checked against the core (bit for bit) and the brute-force oracle.
 #include "sql_test_util.hpp"
 
-#include "rayscan/distance.hpp"
+#include "rayscan/octree/distance.hpp"
 #include "rayscan/sql/functions.h"
 #include "rayscan/sql/import.hpp"
 
@@ -557,7 +557,7 @@ TEST(SqliteImportCli, BadInputExitsTwoWithOneLineAndLeavesNoFile) {
   EXPECT_EQ(ch.i64(2), (long long)c.size() - (ch.i64(0) - 1) * per);
 }
 
-// Issue 13, 2.1 "streams the input": the import orders the points with the index's external sort.
+// The import streams the input: it orders the points with the index's external sort.
 // With a 1 MiB budget (many sort runs) it writes the same rows as an import of an index file built
 // by `rayscan index`, every row carries the reader's exact point and colour (the file's own values,
 // read here with read_point_cloud), and nothing is left in the temporary folder.

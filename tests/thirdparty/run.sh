@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Third-party readers open rayscan's PLY output with every field (issue 8, item 9): CloudCompare
+# Third-party readers open rayscan's PLY output with every field: CloudCompare
 # (Debian `cloudcompare`, command line under `xvfb-run`) and Open3D (Debian `python3-open3d`).
 # The oracle is the PLY file's own bytes, parsed here with numpy from its header.
 # Exit 0 = pass, 1 = a tool missed or changed a field, 77 = skipped (a tool is not installed;

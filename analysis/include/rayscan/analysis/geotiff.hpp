@@ -1,4 +1,4 @@
-// Georeferenced GeoTIFF output of a Raster through GDAL's GTiff driver (issue 5, 2.3).
+// Georeferenced GeoTIFF output of a Raster through GDAL's GTiff driver.
 #pragma once
 
 #include "rayscan/analysis/raster.hpp"
@@ -28,7 +28,7 @@ struct GeoTiffOptions {
 void write_geotiff(const std::filesystem::path& path, const Raster& raster, const GeoTiffOptions& options);
 
 /// The file name extensions of a GeoTIFF output, lower case with the dot: {".tif", ".tiff"} (for
-/// has_extension / extensions_expected in rayscan/file_names.hpp).
+/// has_extension / extensions_expected in rayscan/base/file_names.hpp).
 const std::vector<std::string>& geotiff_extensions();
 
 }  // namespace rayscan::analysis

@@ -15,7 +15,7 @@
 //   compared channels (the channel itself for one channel, e.g. --channel depth).
 #pragma once
 
-#include "rayscan/analysis/image.hpp"
+#include "rayscan/image/image_file.hpp"
 #include "rayscan/analysis/ssim.hpp"
 
 #include <cstdint>

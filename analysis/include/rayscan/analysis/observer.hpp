@@ -1,10 +1,10 @@
-// Observers of a visibility analysis (`rayscan visibility`, issue 5 section 2.1): eye positions,
+// Observers of a visibility analysis (`rayscan visibility`): eye positions,
 // optionally given as a height above the local ground, each with optional angle and range limits.
 #pragma once
 
-#include "rayscan/any_index.hpp"
-#include "rayscan/io/index_file.hpp"
-#include "rayscan/point_cloud.hpp"
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/octree/point_cloud.hpp"
 
 #include <filesystem>
 #include <limits>

@@ -1,10 +1,10 @@
-// True orthophotos and digital surface models from the renderer (issue 16, 3.1): a top-down
+// True orthophotos and digital surface models from the renderer: a top-down
 // orthographic camera whose pixels are the cells of a north-up grid over the cloud's XY extent,
 // the beauty image written as a georeferenced RGB GeoTIFF and the depth AOV as elevations.
 #pragma once
 
 #include "rayscan/analysis/raster.hpp"
-#include "rayscan/camera.hpp"
+#include "rayscan/camera/camera.hpp"
 
 #include <glm/vec3.hpp>
 

@@ -1,8 +1,8 @@
-// Top-down rasters of per-point values (issue 5, 2.3): a north-up grid over the cloud's XY extent,
+// Top-down rasters of per-point values: a north-up grid over the cloud's XY extent,
 // each cell reducing the values of the points that fall in it.
 #pragma once
 
-#include "rayscan/geometry.hpp"
+#include "rayscan/octree/geometry.hpp"
 
 #include <array>
 #include <cstdint>

@@ -1,4 +1,4 @@
-// PNG preview of a Raster: the cells through the heat colour ramp, with a legend (issue 5, 2.3).
+// PNG preview of a Raster: the cells through the heat colour ramp, with a legend.
 #pragma once
 
 #include "rayscan/analysis/raster.hpp"

@@ -1,5 +1,5 @@
 // Per-point visibility over the paper's ray query (Teuscher et al., Algorithm 1, order sphere_hit):
-// line of sight from observers, sky view factor, and the points a camera sees (issue 5 section 2).
+// line of sight from observers, sky view factor, and the points a camera sees.
 //
 // Surface model: every point is a sphere of radius r (the renderer's model, paper section 5.3).
 // All functions run on TBB over the points (or pixels) in the index's storage order (spatially
@@ -8,12 +8,12 @@
 #pragma once
 
 #include "rayscan/analysis/observer.hpp"
-#include "rayscan/any_index.hpp"
-#include "rayscan/io/index_file.hpp"
-#include "rayscan/ray_query.hpp"
-#include "rayscan/camera.hpp"
-#include "rayscan/normals.hpp"
-#include "rayscan/work_distributor.hpp"
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/octree/ray_query.hpp"
+#include "rayscan/camera/camera.hpp"
+#include "rayscan/octree/normals.hpp"
+#include "rayscan/base/work_distributor.hpp"
 
 #include <cstdint>
 #include <span>
@@ -29,7 +29,7 @@ struct VisibilityOptions {
   double max_distance = kInf; ///< observers see no farther than this (each may override), world units
   unsigned threads = 0;       ///< worker threads; 0 = all cores (results are identical)
   bool progress = false;      ///< draw a progress bar on stderr (only if stderr is a terminal)
-  /// Surfel mode (issue 16, section 5): when set, every point is the oriented disc of these
+  /// Surfel mode: when set, every point is the oriented disc of these
   /// attributes (indexed like the positions; estimate_surfels) instead of a sphere of `radius`,
   /// and is_visible() uses the surfel (height-field) rule. Must outlive the call.
   const SurfelAttributes* surfels = nullptr;
@@ -49,7 +49,7 @@ struct VisibilityResult {
   unsigned threads = 0;        ///< threads used
 };
 
-/// Line-of-sight rule (issue 5, 2.2). Point i at P, distance D = |P - O| from the eye O, is visible
+/// Line-of-sight rule. Point i at P, distance D = |P - O| from the eye O, is visible
 /// from the observer when all of:
 ///  1. D <= max distance (the observer's own max_distance, else opts.max_distance);
 ///  2. the direction P - O lies inside the observer's azimuth/elevation limits (within_angle_limits);
@@ -69,7 +69,7 @@ struct VisibilityResult {
 /// (h_t = r) keeps the ray above a flat, level neighbourhood (it stays more than r above the
 /// neighbours' centres) while any real obstacle still blocks it. h_t = 0 is the plain rule.
 ///
-/// Surfel rule (opts.surfels set; issue 16, section 5): the discs are a height field, the surface
+/// Surfel rule (opts.surfels set): the discs are a height field, the surface
 /// a first-return DSM records, solid below it. Rule 3 becomes: the segment from O to P' passes
 /// below no disc j, where "below" means: c_j projects onto the segment's horizontal projection at
 /// a parameter strictly between O and P', the segment's point there lies horizontally within r_j
@@ -102,7 +102,7 @@ VisibilityResult compute_visibility(const io::MappedIndex& index, std::span<cons
 
 /// Hemisphere sampling of the sky view factor.
 enum class SkyWeighting {
-  uniform,  ///< equal solid angle: the fraction of the upper hemisphere that is open (issue 5, 2.4)
+  uniform,  ///< equal solid angle: the fraction of the upper hemisphere that is open
   cosine    ///< cosine-weighted (Lambert): the fraction of diffuse sky irradiance on a horizontal
             ///< surface, the "sky view factor" of urban climatology and ambient occlusion
 };

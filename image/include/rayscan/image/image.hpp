@@ -47,7 +47,7 @@ struct Image {
   }
 };
 
-/// The channel name `rayscan render` gives an AOV in an EXR (rayscan/aov.hpp, aov_channels):
+/// The channel name `rayscan render` gives an AOV in an EXR (rayscan/image/aov.hpp, aov_channels):
 /// "depth" -> "Z", "index" -> "id"; any other name is returned unchanged.
 std::string_view renderer_channel_alias(std::string_view name);
 

@@ -43,7 +43,7 @@ struct ImageWriteOptions {
 
 /// Write `img` to `path` in the format its extension names (.png, .tif, .tiff, .exr, .jpg, ...):
 /// float channels first, then the id channels. EXR uses ZIP compression; "DateTime" is stored
-/// empty so that equal images give byte-identical files (issue 8). Data goes to a temporary
+/// empty so that equal images give byte-identical files. Data goes to a temporary
 /// sibling (rayscan::AtomicFile) renamed into place only when complete (or at the commit of an
 /// enclosing OutputTransaction), so a failure never leaves a half-written file.
 /// Throws std::invalid_argument "<path>: ..." for buffers that do not match the size or a
@@ -61,7 +61,7 @@ void write_image(const Image& img, const std::string& path, PixelFormat format,
 /// channels converted to float (id_channels stays empty). The path must be a regular file
 /// (rayscan::InputFile). Throws std::runtime_error "<path>: <reason>" when the file cannot be
 /// opened or decoded, is volumetric (depth > 1), would exceed 2^28 samples, or its header claims
-/// more samples than its size allows under any compression (issue 8).
+/// more samples than its size allows under any compression.
 Image read_image(const std::string& path);
 
 /// Resample `img` (float channels) to width x height with OpenImageIO's ImageBufAlgo::resize

@@ -1,4 +1,4 @@
-// One MPI job of the `rayscan` program (issue 15, docs/mpi.md): MPI is initialised only when the
+// One MPI job of the `rayscan` program (docs/mpi.md): MPI is initialised only when the
 // process was started by an MPI launcher (`mpirun -n N rayscan ...`), so the same binary runs
 // alone without one. Every rank runs the same command on the same inputs; rank 0 (the root)
 // gathers the results and writes the outputs. Open MPI from Debian (libopenmpi-dev).

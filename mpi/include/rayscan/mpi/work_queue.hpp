@@ -1,4 +1,4 @@
-// The dynamic work queue over MPI (issue 15 section 2): rank 0 hands out the items of a job's
+// The dynamic work queue over MPI (docs/mpi.md): rank 0 hands out the items of a job's
 // stage (render tiles, visibility point chunks, query ray blocks, animation frames) in small
 // batches on request; every rank computes its batches with its own TBB threads and returns the
 // results with its next request; rank 0 unpacks them into the full result and is the only writer.
@@ -16,7 +16,7 @@
 // while a second thread computes the root's own batches, so rank 0 works like the others.
 #pragma once
 
-#include "rayscan/work_distributor.hpp"
+#include "rayscan/base/work_distributor.hpp"
 
 #include <cstdint>
 #include <functional>

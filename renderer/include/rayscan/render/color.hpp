@@ -1,8 +1,8 @@
 // Linear RGB colour and the classification colours of the renderer's albedo; the sRGB transfer
-// and the colour ramps come from the core (rayscan/color_ramp.hpp).
+// and the colour ramps come from the core (rayscan/image/color_ramp.hpp).
 #pragma once
 
-#include "rayscan/color_ramp.hpp"
+#include "rayscan/image/color_ramp.hpp"
 
 #include <glm/vec3.hpp>
 
@@ -15,7 +15,7 @@ namespace rayscan::render {
 using Color = glm::vec3;
 
 /// The sRGB transfer function and the colour ramps are defined once in the core
-/// (rayscan/color_ramp.hpp): linear_to_srgb, srgb_to_linear, Ramp, parse_ramp, ramp_linear.
+/// (rayscan/image/color_ramp.hpp): linear_to_srgb, srgb_to_linear, Ramp, parse_ramp, ramp_linear.
 using rayscan::linear_to_srgb;
 using rayscan::parse_ramp;
 using rayscan::Ramp;

@@ -26,7 +26,7 @@ using rayscan::ImageMetadata;
 ///    "albedo.R albedo.G albedo.B", cost "cost" (float).
 /// Pixel values are scaled by 2^out.exposure first. Each file is written by rayscan::write_image
 /// to a temporary sibling; the image and its AOV file form one OutputTransaction
-/// (rayscan/atomic_file.hpp): both are renamed into place only when both were written, so a
+/// (rayscan/base/atomic_file.hpp): both are renamed into place only when both were written, so a
 /// failure leaves the old files intact. Paths that are not regular files (device, FIFO,
 /// directory, symlink) are refused. Returns the files written.
 /// Throws std::runtime_error naming the file when OpenImageIO cannot create or write it.

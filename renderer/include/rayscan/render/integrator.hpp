@@ -3,7 +3,7 @@
 // next-event estimation of the sun and optional Russian roulette (pbrt-v4 section 13.1.1).
 #pragma once
 
-#include "rayscan/ray_query.hpp"
+#include "rayscan/octree/ray_query.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/sampler.hpp"
 #include "rayscan/render/scene.hpp"
@@ -113,7 +113,7 @@ class PathTracer {
     }
     // The cover caches' reach: 2 x the median disc radius (surfel mode's in.radius); 0.7, 1 and
     // 1.5 x were measured with a cache per lane, 1.5, 2 and 3 x with the lanes' caches shared
-    // (bench/README.md, sessions 16 and 19).
+    // (bench/notes/).
     cover_delta_ = 2.0 * in.radius;
     query_.k = 1;
     query_.radius = in.radius;
@@ -237,7 +237,7 @@ class PathTracer {
       };
       const CoverCache* use = serves(caches[own]) ? &caches[own] : nullptr;
       // A neighbouring pixel's cache often reaches this hit too (its samples land within a few
-      // pixel footprints): one test per lane instead of a descent (bench/README.md, "Session 19").
+      // pixel footprints): one test per lane instead of a descent (bench/notes/).
       for (std::size_t k = 0; !use && k < caches.size(); ++k)
         if (k != own && serves(caches[k])) use = &caches[k];
       if (!use) {
@@ -281,7 +281,7 @@ class PathTracer {
 
   /// Radiance of n = rays.size() <= kMaxRayPacket coherent camera rays (one sample of each pixel
   /// of a small pixel tile, sampler streams `s`), bit-identical to trace() on each ray with its
-  /// own stream (issue 12, requirement 3). The n paths advance together, one vertex at a time (a
+  /// own stream. The n paths advance together, one vertex at a time (a
   /// small wavefront): the camera rays go through ray_first_hit_packet, the shadow rays of their
   /// hits, which all point at the sun from within the block's footprint, through
   /// ray_any_hit_packet, the bounce rays, which are incoherent (in packets they measured no

@@ -2,9 +2,9 @@
 // the point's colour or a scalar attribute through a colour ramp.
 #pragma once
 
-#include "rayscan/point_cloud.hpp"
-#include "rayscan/position_view.hpp"
-#include "rayscan/rgb_view.hpp"
+#include "rayscan/octree/point_cloud.hpp"
+#include "rayscan/octree/position_view.hpp"
+#include "rayscan/octree/rgb_view.hpp"
 #include "rayscan/render/color.hpp"
 #include "rayscan/render/scene.hpp"
 

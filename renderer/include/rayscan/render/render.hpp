@@ -2,16 +2,16 @@
 // in parallel over image tiles (TBB) with the PathTracer (integrator.hpp).
 #pragma once
 
-#include "rayscan/any_index.hpp"
-#include "rayscan/io/copc.hpp"
-#include "rayscan/io/index_file.hpp"
-#include "rayscan/point_cloud.hpp"
-#include "rayscan/render/camera.hpp"
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/site/copc.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/octree/point_cloud.hpp"
+#include "rayscan/camera/camera.hpp"
 #include "rayscan/render/integrator.hpp"
-#include "rayscan/render/progress.hpp"
+#include "rayscan/base/progress.hpp"
 #include "rayscan/render/scene.hpp"
-#include "rayscan/spacing.hpp"
-#include "rayscan/work_distributor.hpp"
+#include "rayscan/octree/spacing.hpp"
+#include "rayscan/base/work_distributor.hpp"
 
 #include <cstdint>
 #include <vector>
@@ -39,9 +39,9 @@ struct RenderOptions {
   unsigned tile_size = 16;      ///< tile edge, pixels
   bool time_queries = false;    ///< measure time inside ray_query (bench: cost split)
   /// Trace the camera rays of each 4x4 pixel block (one sample index at a time) as one packet,
-  /// and their shadow rays as another (ray_first_hit_packet / ray_any_hit_packet; issue 12; in
-  /// surfel mode first_surfel_hit_packet, issue 16). The image is bit-identical either way. Ignored (single rays) for the cost AOV, whose node
-  /// visits are per pixel, and for COPC files.
+  /// and their shadow rays as another (ray_first_hit_packet / ray_any_hit_packet; in surfel mode
+  /// first_surfel_hit_packet). The image is bit-identical either way. Ignored (single rays) for the
+  /// cost AOV, whose node visits are per pixel, and for COPC files.
   bool packets = true;
   Progress* progress = nullptr; ///< optional progress bar
   /// Spreads the tiles over processes (rayscan::mpi's work queue, docs/mpi.md); nullptr or a
@@ -78,7 +78,7 @@ struct RenderSettings {
 RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
                              std::span<const Color> albedo, double radius);
 
-/// The auto radius lives in the core (rayscan/spacing.hpp); this keeps render::median_nn_spacing.
+/// The auto radius lives in the core (rayscan/octree/spacing.hpp); this keeps render::median_nn_spacing.
 using rayscan::median_nn_spacing;
 
 /// Render into `fb` (resized to the camera). Pixels are traced in 16x16 tiles by tbb::parallel_for;

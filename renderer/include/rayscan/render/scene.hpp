@@ -1,14 +1,14 @@
 // Scene and camera files: the JSON description of a render (schema in scenes/README.md).
 #pragma once
 
-#include "rayscan/any_index.hpp"
-#include "rayscan/aov.hpp"
-#include "rayscan/ray_query.hpp"
-#include "rayscan/render/camera.hpp"
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/image/aov.hpp"
+#include "rayscan/octree/ray_query.hpp"
+#include "rayscan/camera/camera.hpp"
 #include "rayscan/render/color.hpp"
-#include "rayscan/io/camera_file.hpp"
-#include "rayscan/io/json_object.hpp"
-#include "rayscan/normals.hpp"
+#include "rayscan/camera/camera_file.hpp"
+#include "rayscan/base/json_object.hpp"
+#include "rayscan/octree/normals.hpp"
 #include "rayscan/render/surfel.hpp"
 #include "rayscan/io/point_io.hpp"
 
@@ -22,10 +22,10 @@ namespace rayscan::render {
 
 /// A malformed scene or camera file. what() is one line: "<file>: <JSON pointer>: <what was
 /// expected>", e.g. "scenes/x.json: /camera/vfov_deg: expected a number in (0, 180)".
-/// The JSON file error of the io library (rayscan/io/json_object.hpp), shared with camera files.
+/// The JSON file error of the io library (rayscan/base/json_object.hpp), shared with camera files.
 using SceneError = io::JsonFileError;
 
-/// How a ray hits the point spheres (paper section 5.3 and issue 4, 1.1).
+/// How a ray hits the point spheres (paper section 5.3).
 enum class HitMode {
   sphere,        ///< exact: the sphere with the smallest entry parameter (RayOrder::sphere_hit)
   closest_point  ///< the paper's naive mode: the point with the smallest t within r
@@ -62,7 +62,7 @@ struct SunDesc {
   Color color{1.0f, 0.95f, 0.85f};    ///< tint multiplying the irradiance (linear)
 };
 
-/// Arbitrary output variables (issue 4, 3.2): defined once in the core, rayscan/aov.hpp.
+/// Arbitrary output variables: defined once in the core, rayscan/image/aov.hpp.
 using rayscan::Aov;
 using rayscan::all_aovs;
 using rayscan::aov_channels;
@@ -117,7 +117,7 @@ Scene load_scene(const std::filesystem::path& file);
 PointCloud load_cloud(const Scene& scene, const io::ReadOptions& options = {});
 
 /// Parse a camera file (schema in scenes/README.md: look-at or K/[R|t]). Throws SceneError.
-/// Defined in the io library (rayscan/io/camera_file.hpp) so analysis reads cameras without the
+/// Defined in the io library (rayscan/camera/camera_file.hpp) so analysis reads cameras without the
 /// renderer.
 using io::load_camera;
 

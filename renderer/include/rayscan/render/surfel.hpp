@@ -5,8 +5,8 @@
 // bound of the disc hit), then the exact ray-disc test in double.
 #pragma once
 
-#include "rayscan/point_query.hpp"
-#include "rayscan/ray_query.hpp"
+#include "rayscan/octree/point_query.hpp"
+#include "rayscan/octree/ray_query.hpp"
 
 #include <glm/vec3.hpp>
 
@@ -20,7 +20,7 @@
 
 namespace rayscan::render {
 
-/// The geometry each point stands for (issue 16, section 1).
+/// The geometry each point stands for.
 enum class Primitive {
   sphere,  ///< the paper's model: a sphere of one global radius, shaded with the sphere normal
   surfel   ///< an oriented disc with a per-point normal and radius
@@ -223,7 +223,7 @@ template <SpatialIndex I>
   return glm::dot(w, w) <= r * r ? t : kInf;
 }
 
-/// The surface a shadow or bounce ray leaves (issue 16, 1.4): the discs of that surface near the
+/// The surface a shadow or bounce ray leaves: the discs of that surface near the
 /// origin are ignored, so flat lit surfaces do not shadow themselves (no "acne").
 struct LeavingSurface {
   PointIndex index = 0;  ///< the disc or sphere that was hit
@@ -453,7 +453,7 @@ void first_surfel_hit_packet(const I& index, const SurfelView& s, std::span<cons
       using Key = RefinedKey<DiscKey, SurfelNodeRadius, SurfelNodeBox, SurfelChildBoxesF<I>>;
       const RayQuery q = surfel_query(s, t_min, t_max, any_hit);
       // Each key set field by field in place: assigning a built temporary cost 5.8% of a camera-ray
-      // render (perf: store-forwarding stalls of the 128-byte copies; bench/README.md, session 20).
+      // render (perf: store-forwarding stalls of the 128-byte copies; bench/notes/).
       static_assert(sizeof(DiscKey) == 96 && sizeof(Key) == 128,
                     "first_surfel_hit_packet sets every field of DiscKey and of its node policies: update it");
       Key keys[kMaxRayPacket];
@@ -668,7 +668,7 @@ inline void finish_covering(std::vector<Neighbor>& out) {
 /// subtree's largest disc radius (s.node_radii, from surfel_node_radii over this index;
 /// s.max_radius without), the per-node radius bound of first_surfel_hit applied to a point: a ball
 /// of the global blend_reach holds ~16x the discs where most radii are near the median and the
-/// clamp is 4x it (bench/README.md, "Issue 16: surfel render speed").
+/// clamp is 4x it (bench/README.md, "surfel render speed").
 template <SpatialIndex I>
 void covering_discs(const I& index, const SurfelView& s, const Vec3& x, std::vector<Neighbor>& out) {
   out.clear();
@@ -692,7 +692,7 @@ struct CoverCandidate {
 /// Every disc that may cover some point within `delta` of a centre x0 (cover_candidates), plus a
 /// float copy, relative to x0, of each one's index position and a float bound on its squared
 /// reach (structure of arrays), with which cover_hits_among rejects most candidates in a
-/// conservative float test before the exact one (bench/README.md, "Session 18").
+/// conservative float test before the exact one (bench/notes/).
 struct CoverCandidates {
   Vec3 x0{0.0};        ///< centre (world coordinates)
   double delta = 0.0;  ///< reach around x0 (world units)

@@ -1,9 +1,9 @@
-// Surfel mode for a loaded scene (issue 16, section 1): per-point normals and radii for the
+// Surfel mode for a loaded scene: per-point normals and radii for the
 // scene's cloud and the switch of the render settings to oriented discs.
 #pragma once
 
-#include "rayscan/io/index_file.hpp"
-#include "rayscan/normals.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/octree/normals.hpp"
 #include "rayscan/render/render.hpp"
 #include "rayscan/render/scene.hpp"
 

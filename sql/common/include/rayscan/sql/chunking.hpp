@@ -3,8 +3,8 @@
 // dist_ray / dist_plane prunes).
 #pragma once
 
-#include "rayscan/geometry.hpp"
-#include "rayscan/point_cloud.hpp"
+#include "rayscan/octree/geometry.hpp"
+#include "rayscan/octree/point_cloud.hpp"
 
 #include <bit>
 #include <cstdint>

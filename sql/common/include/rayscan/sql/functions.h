@@ -2,7 +2,7 @@
  * section 4.2, eqs. 5 and 6) and their bounds evaluation over a chunk box, with the argument rules
  * both database engines share (SQLite extension sql/sqlite, PostgreSQL extension sql/postgres).
  * A plain C interface so that the PostgreSQL glue can stay C; the values come from the core
- * (octree/include/rayscan/distance.hpp, ray_query.hpp), so both engines agree with `rayscan query`
+ * (octree/include/rayscan/octree/distance.hpp, ray_query.hpp), so both engines agree with `rayscan query`
  * to the last bit. No function throws; none allocates. */
 #ifndef RAYSCAN_SQL_FUNCTIONS_H
 #define RAYSCAN_SQL_FUNCTIONS_H
@@ -11,7 +11,7 @@
 extern "C" {
 #endif
 
-/** The three point functions of issue 13 (all take 9 arguments: 3-vector, 3-vector, point). */
+/** The three point functions of the SQL extensions (all take 9 arguments: 3-vector, 3-vector, point). */
 typedef enum rs_function {
   RS_DIST_RAY = 0,  /**< dist_ray(ox,oy,oz, dx,dy,dz, x,y,z): distance to the ray line, eq. 5 */
   RS_RAY_TIME = 1,  /**< ray_time(ox,oy,oz, dx,dy,dz, x,y,z): t of the projection, world units */

@@ -1,9 +1,9 @@
-// `rayscan db import`: clouds into a database as Morton-ordered chunks (issue 13, sections 2.1 and
-// 3.3). Library code; tools/cmd_db.cpp only parses options and prints.
+// `rayscan db import`: clouds into a database as Morton-ordered chunks. Library code;
+// tools/cmd_db.cpp only parses options and prints.
 #pragma once
 
-#include "rayscan/io/index_file.hpp"
-#include "rayscan/point_cloud.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/octree/point_cloud.hpp"
 #include "rayscan/sql/chunking.hpp"
 
 #include <cstdint>

@@ -1,9 +1,9 @@
-// The points of a site being imported, streamed chunk by chunk in Morton order (issue 13, section
-// 2.1: "streams the input; works for clouds larger than RAM"). Both engines' importers write what
-// this hands out, so the SQLite and PostgreSQL layouts are the same rows in the same order.
+// The points of a site being imported, streamed chunk by chunk in Morton order (so an import works
+// for clouds larger than RAM). Both engines' importers write what this hands out, so the SQLite
+// and PostgreSQL layouts are the same rows in the same order.
 #pragma once
 
-#include "rayscan/geometry.hpp"
+#include "rayscan/octree/geometry.hpp"
 #include "rayscan/sql/chunking.hpp"
 #include "rayscan/sql/import.hpp"
 

@@ -1,0 +1,86 @@
+// The output policy. Output files are never left half-written: data goes to a
+// temporary sibling and is renamed into place only when complete (rename(2) is atomic within a
+// file system). Only a regular file or an absent path is ever replaced: a device node, FIFO,
+// socket, directory or symbolic link at the output path is refused before anything is written.
+// Outputs that belong together (an image and its AOV file, a LAS file and its raster) are written
+// inside an OutputTransaction: every temporary is written first, and the renames happen only when
+// all of them succeeded.
+#pragma once
+
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+#include <utility>
+#include <vector>
+
+namespace rayscan {
+
+/// An output path the output policy refuses, or a failed commit. what() is one line
+/// "<path>: <reason>".
+struct OutputFileError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// Throws OutputFileError unless `path` is absent or a regular file (checked with lstat(2), so a
+/// symbolic link is refused rather than followed or replaced), or when its directory does not
+/// exist. Called by AtomicFile's constructor; call it directly to check every output of a
+/// command before starting long work.
+void require_replaceable_output(const std::filesystem::path& path);
+
+class AtomicFile;
+
+/// A group of outputs committed all or nothing. While an OutputTransaction is alive on a thread,
+/// AtomicFile::commit() on that thread only flushes its temporary and hands it to the
+/// transaction; commit() of the transaction renames all of them (in creation order). Destroying
+/// the transaction without commit() removes every temporary, leaving all old outputs intact.
+/// A transaction constructed while another is active on the thread joins the outer one (its
+/// commit() does nothing; the outer commit() renames everything), so library functions that
+/// write several files can open one and still compose. Not copyable.
+class OutputTransaction {
+ public:
+  OutputTransaction();
+  OutputTransaction(const OutputTransaction&) = delete;
+  OutputTransaction& operator=(const OutputTransaction&) = delete;
+  ~OutputTransaction();
+  /// Renames every finished temporary into place. Throws OutputFileError when a rename fails
+  /// (outputs renamed before it stay in place; the rest are removed).
+  void commit();
+  /// The transaction active on this thread, or nullptr.
+  static OutputTransaction* current();
+
+ private:
+  friend class AtomicFile;
+  void adopt(std::filesystem::path temp, std::filesystem::path path);
+  std::vector<std::pair<std::filesystem::path, std::filesystem::path>> pending_;  // temp, final
+  OutputTransaction* outer_ = nullptr;  // non-null: this one joined an outer transaction
+};
+
+/// A temporary path "<dir>/.<name>.tmp.<pid>" next to `path`. Write the whole output to temp(),
+/// then call commit() to rename it to `path`. If commit() is not reached (an exception, an early
+/// return), the destructor removes the temporary, so `path` is either the old file or the complete
+/// new one. The constructor applies require_replaceable_output() and creates the temporary
+/// exclusively (O_EXCL | O_NOFOLLOW, after removing a stale one of the same name), so writing
+/// never follows a planted link. Throws OutputFileError.
+class AtomicFile {
+ public:
+  explicit AtomicFile(std::filesystem::path path);
+  AtomicFile(const AtomicFile&) = delete;
+  AtomicFile& operator=(const AtomicFile&) = delete;
+  ~AtomicFile();
+  /// The final path.
+  [[nodiscard]] const std::filesystem::path& path() const { return path_; }
+  /// Where to write the data.
+  [[nodiscard]] const std::filesystem::path& temp() const { return tmp_; }
+  /// Flush the finished temporary to disk (fsync) and move it into place, so that after a crash
+  /// or power loss `path` holds the old or the complete new file, never an empty one. Inside an
+  /// OutputTransaction the rename is deferred to the transaction's commit().
+  void commit();
+
+ private:
+  std::filesystem::path path_;
+  std::filesystem::path tmp_;
+  bool committed_ = false;
+};
+
+}  // namespace rayscan

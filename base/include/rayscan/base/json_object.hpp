@@ -1,0 +1,188 @@
+// A JSON object reader for the project's JSON files (scenes, cameras): every value is read
+// through JsonObject, which records the JSON pointer (RFC 6901) of what it reads so that an error
+// names the exact field, and rejects keys it was not asked about. Header-only (nlohmann_json).
+#pragma once
+
+#include "rayscan/octree/geometry.hpp"
+#include "rayscan/base/input_file.hpp"
+
+#include <glm/vec3.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace rayscan::io {
+
+/// A malformed JSON file. what() is one line: "<file>: <JSON pointer>: <what was expected>",
+/// e.g. "scenes/x.json: /camera/vfov_deg: expected a number in (0, 180)". (render::SceneError.)
+struct JsonFileError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+using nlohmann::json;
+
+/// Throws JsonFileError "<file>: <ptr or />: <what>".
+[[noreturn]] inline void json_fail(const std::string& file, const std::string& ptr, const std::string& what) {
+  throw JsonFileError(file + ": " + (ptr.empty() ? "/" : ptr) + ": " + what);
+}
+
+inline std::string escape_key(const std::string& k) {  // RFC 6901 escaping
+  std::string s;
+  for (char c : k) {
+    if (c == '~') s += "~0";
+    else if (c == '/') s += "~1";
+    else s += c;
+  }
+  return s;
+}
+
+inline json parse_json_file(const std::filesystem::path& file) {
+  std::string text;
+  try {
+    text = read_text_file(file);  // the input policy: regular file, size cap
+  } catch (const InputFileError& e) {
+    throw JsonFileError(e.what());
+  }
+  try {
+    return json::parse(text);
+  } catch (const json::parse_error& e) {
+    throw JsonFileError(file.string() + ": byte " + std::to_string(e.byte) +
+                        ": invalid JSON (" + std::string(e.what()) + ")");
+  } catch (const json::out_of_range& e) {
+    // nlohmann reports a number beyond double (406 "number overflow parsing '1e400'") without a
+    // position: find the token to name its byte offset.
+    std::string what = e.what();
+    const std::size_t q0 = what.find('\''), q1 = what.rfind('\'');
+    std::string where = "/";
+    if (q0 != std::string::npos && q1 > q0) {
+      const std::size_t at = text.find(what.substr(q0 + 1, q1 - q0 - 1));
+      if (at != std::string::npos) where = "byte " + std::to_string(at);
+    }
+    if (what.rfind("[json.exception", 0) == 0 && what.find("] ") != std::string::npos)
+      what = what.substr(what.find("] ") + 2);
+    throw JsonFileError(file.string() + ": " + where + ": " + what + " (expected a finite number)");
+  }
+}
+
+/// A JSON object being read: typed getters with range checks, and finish() to reject unknown keys.
+class JsonObject {
+ public:
+  JsonObject(const json& j, std::string file, std::string ptr) : j_(j), file_(std::move(file)), ptr_(std::move(ptr)) {
+    if (!j_.is_object()) json_fail(file_, ptr_, "expected an object");
+  }
+  bool has(const std::string& k) {
+    seen_.insert(k);
+    return j_.contains(k);
+  }
+  /// Whether `k` is present, without making it an allowed key (finish() still rejects it unless
+  /// a getter asks for it).
+  bool present(const std::string& k) const { return j_.contains(k); }
+  const json& at(const std::string& k) { seen_.insert(k); return j_.at(k); }
+  std::string ptr(const std::string& k) const { return ptr_ + "/" + escape_key(k); }
+  const std::string& file() const { return file_; }
+
+  double number(const std::string& k, double def, double lo, double hi, bool lo_open, bool hi_open) {
+    if (!has(k)) return def;
+    return number_at(j_.at(k), ptr(k), lo, hi, lo_open, hi_open);
+  }
+  double number_at(const json& v, const std::string& p, double lo, double hi, bool lo_open,
+                   bool hi_open) const {
+    const bool ok = v.is_number() && std::isfinite(v.get<double>()) &&
+                    (lo_open ? v.get<double>() > lo : v.get<double>() >= lo) &&
+                    (hi_open ? v.get<double>() < hi : v.get<double>() <= hi);
+    if (!ok) json_fail(file_, p, "expected a number in " + range_text(lo, hi, lo_open, hi_open));
+    return v.get<double>();
+  }
+  std::uint64_t integer(const std::string& k, std::uint64_t def, std::uint64_t lo, std::uint64_t hi) {
+    if (!has(k)) return def;
+    const json& v = j_.at(k);
+    if (!v.is_number_integer() || (v.is_number_integer() && !v.is_number_unsigned() && v.get<std::int64_t>() < 0) ||
+        v.get<std::uint64_t>() < lo || v.get<std::uint64_t>() > hi)
+      json_fail(file_, ptr(k), "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    return v.get<std::uint64_t>();
+  }
+  bool boolean(const std::string& k, bool def) {
+    if (!has(k)) return def;
+    if (!j_.at(k).is_boolean()) json_fail(file_, ptr(k), "expected true or false");
+    return j_.at(k).get<bool>();
+  }
+  std::string string(const std::string& k, const std::string& def, const std::vector<std::string>& allowed = {}) {
+    if (!has(k)) return def;
+    return string_at(j_.at(k), ptr(k), allowed);
+  }
+  std::string string_at(const json& v, const std::string& p, const std::vector<std::string>& allowed) const {
+    std::string list;
+    for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + ("\"" + a + "\"");
+    if (!v.is_string()) json_fail(file_, p, allowed.empty() ? "expected a string" : "expected one of " + list);
+    const std::string s = v.get<std::string>();
+    if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), s) == allowed.end())
+      json_fail(file_, p, "expected one of " + list + ", got \"" + s + "\"");
+    return s;
+  }
+  Vec3 vec3(const std::string& k, const Vec3& def, bool nonzero = false) {
+    if (!has(k)) return def;
+    return vec3_at(j_.at(k), ptr(k), nonzero);
+  }
+  Vec3 vec3_at(const json& v, const std::string& p, bool nonzero) const {
+    const char* what = nonzero ? "expected an array of 3 finite numbers, not all zero"
+                               : "expected an array of 3 finite numbers";
+    if (!v.is_array() || v.size() != 3) json_fail(file_, p, what);
+    Vec3 r;
+    for (int i = 0; i < 3; ++i) {
+      if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) json_fail(file_, p + "/" + std::to_string(i), what);
+      r[i] = v[i].get<double>();
+    }
+    if (nonzero && r == Vec3(0.0)) json_fail(file_, p, what);
+    return r;
+  }
+  glm::vec3 color(const std::string& k, const glm::vec3& def, float hi) {
+    if (!has(k)) return def;
+    return color_at(j_.at(k), ptr(k), hi);
+  }
+  glm::vec3 color_at(const json& v, const std::string& p, float hi) const {
+    const std::string what = "expected an array of 3 numbers (linear RGB) in [0, " + num(hi) + "]";
+    if (!v.is_array() || v.size() != 3) json_fail(file_, p, what);
+    glm::vec3 c;
+    for (int i = 0; i < 3; ++i) {
+      if (!v[i].is_number() || !(v[i].get<double>() >= 0.0) || !(v[i].get<double>() <= hi))
+        json_fail(file_, p + "/" + std::to_string(i), what);
+      c[i] = v[i].get<float>();
+    }
+    return c;
+  }
+  /// Rejects keys that no getter asked about.
+  void finish() const {
+    for (auto it = j_.begin(); it != j_.end(); ++it) {
+      if (seen_.count(it.key())) continue;
+      std::string list;
+      for (const auto& s : seen_) list += (list.empty() ? "" : ", ") + s;
+      json_fail(file_, ptr(it.key()), "unknown key (allowed here: " + list + ")");
+    }
+  }
+
+  static std::string num(double v) {
+    std::ostringstream os;
+    os << v;
+    return os.str();
+  }
+  static std::string range_text(double lo, double hi, bool lo_open, bool hi_open) {
+    auto s = [](double v) { return std::isinf(v) ? (v > 0 ? std::string("inf") : std::string("-inf")) : num(v); };
+    return std::string(lo_open ? "(" : "[") + s(lo) + ", " + s(hi) + (hi_open ? ")" : "]");
+  }
+
+ private:
+  const json& j_;
+  std::string file_, ptr_;
+  std::set<std::string> seen_;
+};
+
+}  // namespace rayscan::io

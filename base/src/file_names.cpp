@@ -1,0 +1,26 @@
+#include "rayscan/base/file_names.hpp"
+
+#include <algorithm>
+
+namespace rayscan {
+
+std::string lower_extension(const std::filesystem::path& path) {
+  std::string e = path.extension().string();
+  for (char& c : e)
+    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  return e;
+}
+
+bool has_extension(const std::filesystem::path& path, const std::vector<std::string>& extensions) {
+  const std::string e = lower_extension(path);
+  return !e.empty() && std::find(extensions.begin(), extensions.end(), e) != extensions.end();
+}
+
+std::string extensions_expected(const std::vector<std::string>& extensions) {
+  std::string s = "expected a file name ending in ";
+  for (std::size_t i = 0; i < extensions.size(); ++i)
+    s += (i == 0 ? "" : i + 1 == extensions.size() ? " or " : ", ") + extensions[i];
+  return s;
+}
+
+}  // namespace rayscan

@@ -1,0 +1,30 @@
+// Equirectangular (latitude-longitude) panoramas: the 360 x 180 degree view of a scanner station
+// (pbrt-v4 section 5.3 "Spherical Camera", equirectangular mapping).
+#include "rayscan/camera/camera.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace rayscan {
+
+Camera Camera::equirectangular(const EquirectangularParams& p, std::uint32_t width, std::uint32_t height) {
+  if (width == 0 || height == 0 || width > 65536 || height > 65536)
+    throw std::invalid_argument("camera: width and height must be in [1, 65536]");
+  if (!is_finite(p.position) || !is_finite(p.forward) || !is_finite(p.up) || glm::length(p.up) == 0.0)
+    throw std::invalid_argument("camera: position, forward and up must be finite, up non-zero");
+  const Vec3 up = glm::normalize(p.up);
+  const Vec3 horiz = p.forward - glm::dot(p.forward, up) * up;
+  if (!(glm::length(horiz) > 1e-9 * glm::length(p.forward)))
+    throw std::invalid_argument("camera: forward must not be parallel to up");
+  Camera c;
+  c.projection_ = Projection::equirectangular;
+  c.width_ = width;
+  c.height_ = height;
+  c.center_ = p.position;
+  c.forward_ = glm::normalize(horiz);
+  c.up_ = up;
+  c.right_ = glm::cross(c.forward_, up);
+  return c;
+}
+
+}  // namespace rayscan

@@ -1,0 +1,105 @@
+// Reading and writing point cloud files: the single entry point the tools use. Each format reader
+// follows its published specification (docs/formats.md lists the versions and sections).
+#pragma once
+
+#include "rayscan/io/file_info.hpp"
+#include "rayscan/octree/point_cloud.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <span>
+#include <stdexcept>
+#include <string>
+
+namespace rayscan::io {
+
+/// A malformed, unsupported or unreadable input file. what() is one line naming the file, the
+/// byte offset or line, and what was expected:
+/// "cloud.las: byte 96: point data offset 9000 past end of file (size 8000)".
+struct FormatError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// File formats rayscan reads.
+enum class Format { las, ply, pcd, text, f64 };
+
+/// What a reader keeps besides positions.
+struct ReadOptions {
+  /// Keep attributes that have no dedicated PointCloud field as named ScalarFields (8 bytes per
+  /// point each): LAS return_number, number_of_returns, classification_flags, scanner_channel,
+  /// scan_direction_flag, edge_of_flight_line, scan_angle (degrees), user_data,
+  /// point_source_id, nir and Extra Bytes fields; PLY/PCD properties such as "confidence".
+  /// Turn off for very large clouds when only positions, colour, intensity, classification,
+  /// GPS time and normals are needed.
+  bool scalars = true;
+  /// LAS/LAZ: deliver the colour fields as stored, skipping the whole-file 8-bit decision of
+  /// docs/formats.md (no colour pass over the file at open, no x 257 scaling, an all-zero colour
+  /// kept). For a caller that makes that decision itself from the values it reads (the index
+  /// build); other formats ignore it.
+  bool stored_colour = false;
+  /// Uncompressed LAS from a file: read the point records with O_DIRECT into the reader's own
+  /// two buffers (the next block read in the background while one is decoded) instead of through
+  /// the page cache. For one sequential pass over files larger than memory (the index build,
+  /// bench/notes/); the file system must allow O_DIRECT, else the map
+  /// is used as usual. Other formats ignore it.
+  bool direct_records = false;
+};
+
+/// The format of `path` from its extension (case-insensitive): .las .laz .copc → las; .ply;
+/// .pcd; .xyz .csv .txt .pts → text; .f64 (headerless little-endian float64 x,y,z triples).
+/// Throws FormatError for any other extension.
+Format format_from_extension(const std::filesystem::path& path);
+
+/// Reads any supported point cloud file (format from format_from_extension). The file is memory
+/// mapped; pages already decoded are released while reading, so peak memory is the output
+/// arrays plus a bounded window. Fills `info` when non-null. Positions are finite doubles in the
+/// file's own world frame and units; the cloud satisfies PointCloud::validate().
+/// Throws FormatError (one line: file, byte offset or line, what was expected) for unreadable,
+/// malformed or unsupported (LAZ/COPC) files.
+PointCloud read_point_cloud(const std::filesystem::path& path, const ReadOptions& options = {},
+                            FileInfo* info = nullptr);
+
+/// Reads a point cloud from bytes already in memory (the libFuzzer entry point). `name` is used
+/// in error messages. Same contract as read_point_cloud().
+PointCloud read_point_cloud(std::span<const std::uint8_t> bytes, Format format,
+                            const std::string& name, const ReadOptions& options = {},
+                            FileInfo* info = nullptr);
+
+/// Options of write_las().
+struct LasWriteOptions {
+  /// LAS scale factors (x, y, z); 0 = choose: 0.001 (millimetre in metre units), coarsened by
+  /// powers of ten until the cloud's extent fits 32-bit integers.
+  Vec3 scale{0.0};
+  /// LAS offsets; used only when `has_offset`, otherwise the bounding box minimum rounded down
+  /// to a whole multiple of 1000 * scale.
+  Vec3 offset{0.0};
+  bool has_offset = false;
+  std::string system_id = "rayscan";  ///< header System Identifier (max 32 characters)
+};
+
+/// Writes `cloud` as ASPRS LAS 1.4 R15: point data record format 6 (7 with rgb, 8 with rgb and a
+/// scalar called "nir"). Scalars named return_number, number_of_returns, classification_flags,
+/// scanner_channel, scan_direction_flag, edge_of_flight_line, scan_angle (degrees), user_data,
+/// point_source_id go to their standard fields; colour read as 8-bit LAS values
+/// (PointCloud::rgb_from_8bit_las) is written back as those values; every other ScalarField becomes a
+/// float64 extra byte described in an Extra Bytes VLR (section 2.5.6); crs_wkt becomes an OGC WKT
+/// VLR (2112). Positions are quantised to the scale: a point read from LAS and written back with
+/// the same scale and offset is bit-exact. Written to "<dir>/.<name>.tmp.<pid>" (rayscan::AtomicFile) and renamed into place.
+/// A path ending in .laz (case-insensitive) is written as LAZ: the same records compressed by
+/// translate_las (LASzip layered-chunked compressor, item version 3; docs/formats.md "LAZ" 5).
+/// Throws std::invalid_argument for a cloud failing validate() or coordinates that do not fit the
+/// 32-bit integer grid, std::runtime_error for I/O failures (no partial file is left).
+void write_las(const std::filesystem::path& path, const PointCloud& cloud,
+               const LasWriteOptions& options = {});
+
+/// Writes `cloud` as PLY 1.0 binary_little_endian, one "vertex" element: double x y z, then
+/// float nx ny nz, uchar red green blue (16-bit colour rounded to 8 bit), float
+/// scalar_intensity, uchar scalar_classification, double scalar_gps_time, and one double
+/// property "scalar_<name>" per ScalarField (characters other than [A-Za-z0-9_] replaced by '_').
+/// The names and types are the ones CloudCompare (scalar_ prefix) and Open3D (uchar, float,
+/// double) both load (docs/formats.md, "PLY property names"); read_point_cloud strips the prefix
+/// again. Written via temp file + rename.
+/// Throws std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
+void write_ply(const std::filesystem::path& path, const PointCloud& cloud);
+
+}  // namespace rayscan::io

@@ -1,0 +1,79 @@
+// Internal: a binary output file written through a large buffer to rayscan::AtomicFile's temporary
+// and renamed into place by commit(); a failed write never leaves a partial file at `path`.
+#pragma once
+
+#include "rayscan/base/atomic_file.hpp"
+
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <fcntl.h>
+#include <unistd.h>
+#include <vector>
+
+namespace rayscan::io::detail {
+
+class AtomicWriter {
+ public:
+  /// `direct`: write straight to `path` (no temporary, no rename; for an intermediate file the
+  /// caller removes itself, e.g. the plain LAS that write_las compresses into a .laz output).
+  explicit AtomicWriter(const std::filesystem::path& path, bool direct = false) : path_(path) {
+    if (!direct) {
+      file_.emplace(path);
+      f_ = std::fopen(file_->temp().c_str(), "wb");
+    } else {  // created exclusively, never through a planted link (as AtomicFile's temporary)
+      std::error_code ec;
+      std::filesystem::remove(path, ec);
+      const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+      if (fd >= 0 && (f_ = ::fdopen(fd, "wb")) == nullptr) ::close(fd);
+    }
+    if (f_ == nullptr) throw std::runtime_error(path.string() + ": cannot create output file");
+    buf_.reserve(kBuffer);
+  }
+  AtomicWriter(const AtomicWriter&) = delete;
+  AtomicWriter& operator=(const AtomicWriter&) = delete;
+  ~AtomicWriter() {
+    if (f_ != nullptr) std::fclose(f_);
+  }
+  void write(const void* p, std::size_t n) {
+    const auto* b = static_cast<const std::uint8_t*>(p);
+    buf_.insert(buf_.end(), b, b + n);
+    if (buf_.size() >= kBuffer) flush();
+  }
+  template <class T>
+  void put(T v) {
+    write(&v, sizeof(T));
+  }
+  /// Writes `s` into a fixed-width NUL-padded field of `n` bytes (truncating).
+  void put_fixed(const std::string& s, std::size_t n) {
+    std::vector<char> f(n, '\0');
+    std::memcpy(f.data(), s.data(), std::min(n, s.size()));
+    write(f.data(), n);
+  }
+  void commit() {
+    flush();
+    if (std::fflush(f_) != 0 || std::ferror(f_))
+      throw std::runtime_error(path_.string() + ": write failed");
+    std::fclose(f_);
+    f_ = nullptr;
+    if (file_) file_->commit();
+  }
+
+ private:
+  static constexpr std::size_t kBuffer = 4u << 20;
+  void flush() {
+    if (!buf_.empty() && std::fwrite(buf_.data(), 1, buf_.size(), f_) != buf_.size())
+      throw std::runtime_error(path_.string() + ": write failed (disk full?)");
+    buf_.clear();
+  }
+  std::filesystem::path path_;
+  std::optional<AtomicFile> file_;
+  std::FILE* f_ = nullptr;
+  std::vector<std::uint8_t> buf_;
+};
+
+}  // namespace rayscan::io::detail

@@ -1,0 +1,144 @@
+// parse_las_header(): see las_header.hpp. ASPRS LAS 1.4 R15 section 2.4 (table 3), 2.5, 2.7.
+#include "las/las_header.hpp"
+
+#include <cmath>
+#include <cstring>
+
+namespace rayscan::io::detail {
+
+int pdrf_length(int f) {
+  static constexpr int len[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
+  return f >= 0 && f <= 10 ? len[f] : -1;
+}
+
+namespace {
+
+/// Remembers the (E)VLRs the readers use (user id and record id per the sections cited in
+/// las_header.hpp; LASzip: laszip.cpp, COPC: the COPC 1.0 specification).
+void note_vlr(LasHeader& h, const VlrInfo& v) {
+  const LasHeader::Found f{v.offset + (v.extended ? 60 : 54), v.length, true};
+  if (v.user_id == "laszip encoded" && v.record_id == 22204 && !v.extended) h.laszip = f;
+  if (v.user_id == "copc" && v.record_id == 1 && !v.extended) h.copc_info = f;
+  if (v.user_id == "copc" && v.record_id == 1000 && v.extended) h.copc_hierarchy = f;
+  if (v.user_id == "LASF_Projection" && v.record_id == 2112) h.wkt = f;
+  if (v.user_id == "LASF_Projection" && v.record_id == 34735) h.geokeys = f;
+  if (v.user_id == "LASF_Spec" && v.record_id == 4) h.extra_bytes = f;
+}
+
+}  // namespace
+
+LasHeader parse_las_header(const Input& in) {
+  LasHeader h;
+  const std::uint8_t* d = in.bytes.data();
+  const std::string& nm = in.name;
+  in.need(0, 227, "LAS public header block (227 bytes for LAS 1.0-1.2)");
+  if (std::memcmp(d, "LASF", 4) != 0) fail_at(nm, 0, "expected file signature \"LASF\"");
+  const int vmaj = d[24], vmin = d[25];
+  const std::string version = std::to_string(vmaj) + "." + std::to_string(vmin);
+  if (vmaj != 1 || vmin > 4) fail_at(nm, 24, "unsupported LAS version " + version + " (expected 1.0 to 1.4)");
+  h.version_minor = vmin;
+  h.global_encoding = load_le<std::uint16_t>(d + 6);
+  h.system_id = fixed_string(d + 26, 32);
+  h.software = fixed_string(d + 58, 32);
+  h.creation_day = load_le<std::uint16_t>(d + 90);
+  h.creation_year = load_le<std::uint16_t>(d + 92);
+  h.header_size = load_le<std::uint16_t>(d + 94);
+  h.point_offset = load_le<std::uint32_t>(d + 96);
+  const std::uint32_t n_vlr = load_le<std::uint32_t>(d + 100);
+  h.pdrf_raw = d[104];
+  h.pdrf = h.pdrf_raw & 0x3F;
+  h.record_length = load_le<std::uint16_t>(d + 105);
+  h.count = load_le<std::uint32_t>(d + 107);
+  h.scale = Vec3(load_le<double>(d + 131), load_le<double>(d + 139), load_le<double>(d + 147));
+  h.offset = Vec3(load_le<double>(d + 155), load_le<double>(d + 163), load_le<double>(d + 171));
+  h.header_bounds.hi = Vec3(load_le<double>(d + 179), load_le<double>(d + 195), load_le<double>(d + 211));
+  h.header_bounds.lo = Vec3(load_le<double>(d + 187), load_le<double>(d + 203), load_le<double>(d + 219));
+
+  const std::uint16_t min_header = vmin <= 2 ? 227 : (vmin == 3 ? 235 : 375);
+  if (h.header_size < min_header)
+    fail_at(nm, 94, "header size " + std::to_string(h.header_size) + " smaller than the " +
+                        std::to_string(min_header) + " bytes LAS " + version + " requires");
+  in.need(0, h.header_size, "LAS public header block");
+  std::uint64_t evlr_start = 0;
+  std::uint32_t n_evlr = 0;
+  if (vmin >= 4) {
+    evlr_start = load_le<std::uint64_t>(d + 235);
+    n_evlr = load_le<std::uint32_t>(d + 243);
+    const std::uint64_t count64 = load_le<std::uint64_t>(d + 247);
+    if (count64 != 0 || h.count == 0) h.count = count64;
+  }
+
+  // VLRs (section 2.5): 54-byte headers, between the public header and the point data.
+  if (h.point_offset < h.header_size)
+    fail_at(nm, 96, "offset to point data " + std::to_string(h.point_offset) + " is inside the " +
+                        std::to_string(h.header_size) + "-byte header");
+  if (h.point_offset > in.size())
+    fail_at(nm, 96, "offset to point data " + std::to_string(h.point_offset) + " past end of file (size " +
+                        std::to_string(in.size()) + ")");
+  std::uint64_t pos = h.header_size;
+  for (std::uint32_t i = 0; i < n_vlr; ++i) {
+    if (pos + 54 > h.point_offset)
+      fail_at(nm, pos, "VLR " + std::to_string(i) + " of " + std::to_string(n_vlr) +
+                           ": header runs past the start of point data at byte " + std::to_string(h.point_offset));
+    VlrInfo v;
+    v.offset = pos;
+    v.user_id = fixed_string(d + pos + 2, 16);
+    v.record_id = load_le<std::uint16_t>(d + pos + 18);
+    v.length = load_le<std::uint16_t>(d + pos + 20);
+    v.description = fixed_string(d + pos + 22, 32);
+    if (pos + 54 + v.length > h.point_offset)
+      fail_at(nm, pos + 20, "VLR " + std::to_string(i) + " (" + v.user_id + " " + std::to_string(v.record_id) +
+                                ") of " + std::to_string(v.length) + " bytes runs past the start of point data at byte " +
+                                std::to_string(h.point_offset));
+    note_vlr(h, v);
+    h.vlrs.push_back(std::move(v));
+    pos += 54 + h.vlrs.back().length;
+  }
+  // EVLRs (section 2.7, LAS 1.4): 60-byte headers after the point data.
+  h.data_end = in.size();
+  if (n_evlr > 0) {
+    if (evlr_start > in.size() || n_evlr > (in.size() - evlr_start) / 60)
+      fail_at(nm, 235, "EVLR start " + std::to_string(evlr_start) + " with " + std::to_string(n_evlr) +
+                           " EVLRs lies past end of file (size " + std::to_string(in.size()) + ")");
+    if (evlr_start >= h.point_offset) h.data_end = evlr_start;
+    std::uint64_t ep = evlr_start;
+    for (std::uint32_t i = 0; i < n_evlr; ++i) {
+      in.need(ep, 60, "EVLR " + std::to_string(i) + " header");
+      VlrInfo v;
+      v.offset = ep;
+      v.extended = true;
+      v.user_id = fixed_string(d + ep + 2, 16);
+      v.record_id = load_le<std::uint16_t>(d + ep + 18);
+      v.length = load_le<std::uint64_t>(d + ep + 20);
+      v.description = fixed_string(d + ep + 28, 32);
+      if (v.length > in.size() - ep - 60)
+        fail_at(nm, ep + 20, "EVLR " + std::to_string(i) + " (" + v.user_id + ") of " + std::to_string(v.length) +
+                                 " bytes runs past end of file (size " + std::to_string(in.size()) + ")");
+      note_vlr(h, v);
+      h.vlrs.push_back(std::move(v));
+      ep += 60 + h.vlrs.back().length;
+    }
+  }
+  // LAZ: the LASzip VLR decides (LASzip also sets bit 7, historically bit 6, of the PDRF byte).
+  if ((h.pdrf_raw & 0xC0) != 0 && !h.laszip.present)
+    fail_at(nm, 104, "point data record format byte " + std::to_string(h.pdrf_raw) +
+                         " has the LAZ compression bit set but the file has no LASzip VLR "
+                         "(\"laszip encoded\", record 22204)");
+  if (h.laszip.present && (h.pdrf_raw & 0xC0) == 0)
+    h.notes.push_back("LASzip VLR present but the compression bits of the PDRF byte are clear: read as LAZ");
+  if (h.pdrf > 10) fail_at(nm, 104, "point data record format " + std::to_string(h.pdrf) + " (expected 0 to 10)");
+  const int need_len = pdrf_length(h.pdrf);
+  if (h.record_length < need_len)
+    fail_at(nm, 105, "point record length " + std::to_string(h.record_length) + " smaller than the " +
+                         std::to_string(need_len) + " bytes point data record format " + std::to_string(h.pdrf) +
+                         " needs");
+  for (int k = 0; k < 3; ++k) {
+    if (!std::isfinite(h.scale[k]) || h.scale[k] == 0.0)
+      fail_at(nm, 131 + 8 * k, std::string("scale factor ") + "XYZ"[k] + " is " + std::to_string(h.scale[k]) +
+                                   " (expected a finite non-zero number)");
+    if (!std::isfinite(h.offset[k])) fail_at(nm, 155 + 8 * k, std::string("offset ") + "XYZ"[k] + " is not finite");
+  }
+  return h;
+}
+
+}  // namespace rayscan::io::detail

@@ -1,0 +1,282 @@
+// LAS 1.4 writer (ASPRS LAS Specification 1.4 R15): public header block (section 2.4, 375 bytes),
+// OGC WKT VLR (2.5.1, record 2112), Extra Bytes VLR (2.5.6, record 4 of "LASF_Spec"), point data
+// record formats 6, 7 and 8 (2.6, tables 13-15), an EVLR (2.7) only for WKT longer than a VLR
+// can hold.
+#include "rayscan/io/point_io.hpp"
+
+#include "atomic_writer.hpp"
+#include "bytes.hpp"
+#include "rayscan/base/file_names.hpp"
+#include "rayscan/io/translate.hpp"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+namespace rayscan::io {
+
+namespace {
+
+struct Standard {
+  const std::vector<double>* ret = nullptr;
+  const std::vector<double>* nret = nullptr;
+  const std::vector<double>* angle = nullptr;
+  const std::vector<double>* udata = nullptr;
+  const std::vector<double>* psid = nullptr;
+  const std::vector<double>* nir = nullptr;
+  const std::vector<double>* cflags = nullptr;
+  const std::vector<double>* channel = nullptr;
+  const std::vector<double>* scan_dir = nullptr;
+  const std::vector<double>* edge = nullptr;
+};
+
+template <class T>
+T clamp_to(double v) {
+  if (!std::isfinite(v)) return T{0};
+  const double lo = static_cast<double>(std::numeric_limits<T>::lowest());
+  const double hi = static_cast<double>(std::numeric_limits<T>::max());
+  return static_cast<T>(std::llround(std::clamp(v, lo, hi)));
+}
+
+}  // namespace
+
+namespace {
+void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options,
+                       bool direct = false);
+}  // namespace
+
+void write_las(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options) {
+  if (lower_extension(path) != ".laz") {
+    write_las_records(path, cloud, options);
+    return;
+  }
+  // LAZ: the LAS bytes go to a hidden sibling file (written directly: inside an OutputTransaction
+  // an AtomicFile's rename would be deferred), then translate_las compresses them (layered
+  // encoder for PDRF 6-8) into `path` through its own AtomicFile; the sibling is always removed.
+  std::string plain_name = ".";  // built by appending (GCC 12 -Wrestrict false positive on "." + s)
+  plain_name += path.filename().string();
+  plain_name += ".las.tmp.";
+  plain_name += std::to_string(::getpid());
+  const std::filesystem::path plain = path.parent_path() / plain_name;
+  struct Remove {
+    std::filesystem::path p;
+    ~Remove() {
+      std::error_code ec;
+      std::filesystem::remove(p, ec);
+    }
+  } guard{plain};
+  try {
+    write_las_records(plain, cloud, options, true);
+  } catch (const std::invalid_argument& e) {  // name the file the caller asked for
+    std::string what = e.what();
+    if (what.rfind(plain.string(), 0) == 0) what = path.string() + what.substr(plain.string().size());
+    throw std::invalid_argument(what);
+  }
+  TranslateOptions t;
+  t.compression = LasCompression::laz;
+  translate_las(plain, path, t);
+}
+
+namespace {
+/// The LAS writer proper; `direct` writes `path` without a temporary (see AtomicWriter).
+void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options,
+                       bool direct) {
+  try {
+    cloud.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(path.string() + ": " + e.what());
+  }
+  const std::size_t n = cloud.size();
+  // Standard fields carried as named scalars by the reader; everything else is an extra byte.
+  Standard st;
+  std::vector<const ScalarField*> extra;
+  for (const ScalarField& f : cloud.scalars) {
+    if (f.name == "return_number") st.ret = &f.values;
+    else if (f.name == "number_of_returns") st.nret = &f.values;
+    else if (f.name == "scan_angle") st.angle = &f.values;
+    else if (f.name == "user_data") st.udata = &f.values;
+    else if (f.name == "point_source_id") st.psid = &f.values;
+    else if (f.name == "classification_flags") st.cflags = &f.values;
+    else if (f.name == "scanner_channel") st.channel = &f.values;
+    else if (f.name == "scan_direction_flag") st.scan_dir = &f.values;
+    else if (f.name == "edge_of_flight_line") st.edge = &f.values;
+    else if (f.name == "nir" && !cloud.rgb.empty()) st.nir = &f.values;
+    else extra.push_back(&f);
+  }
+  const bool rgb = !cloud.rgb.empty();
+  const int pdrf = st.nir != nullptr ? 8 : (rgb ? 7 : 6);
+  const int base_len = pdrf == 8 ? 38 : (pdrf == 7 ? 36 : 30);
+  if (extra.size() > (65535 - 38) / 8)
+    throw std::invalid_argument(path.string() + ": " + std::to_string(extra.size()) +
+                                " scalar fields do not fit a LAS point record");
+  const int rec_len = base_len + 8 * static_cast<int>(extra.size());
+
+  // Scale and offset.
+  const AABB box = cloud.bounds();
+  Vec3 scale = options.scale, offset = options.offset;
+  bool auto_scale[3];
+  for (int k = 0; k < 3; ++k) {
+    auto_scale[k] = !(scale[k] > 0.0) || !std::isfinite(scale[k]);
+    if (auto_scale[k]) scale[k] = 0.001;
+  }
+  if (!options.has_offset)
+    for (int k = 0; k < 3; ++k) {
+      const double unit = 1000.0 * scale[k];
+      offset[k] = box.empty() ? 0.0 : std::floor(box.lo[k] / unit) * unit;
+    }
+  for (int k = 0; k < 3; ++k)
+    while (auto_scale[k] && !box.empty() &&
+           std::max(std::abs(box.hi[k] - offset[k]), std::abs(box.lo[k] - offset[k])) / scale[k] > 2.0e9)
+      scale[k] *= 10.0;
+  auto quantise = [&](double v, int k, std::size_t i) {
+    const double q = std::round((v - offset[k]) / scale[k]);
+    if (!(q >= -2147483648.0 && q <= 2147483647.0))
+      throw std::invalid_argument(path.string() + ": point " + std::to_string(i) + " coordinate " +
+                                  "XYZ"[k] + " = " + std::to_string(v) + " does not fit 32-bit LAS integers with scale " +
+                                  std::to_string(scale[k]) + " and offset " + std::to_string(offset[k]));
+    return static_cast<std::int32_t>(q);
+  };
+  // First pass: quantised bounds and points by return.
+  std::array<std::uint64_t, 15> by_return{};
+  Vec3 qlo(std::numeric_limits<double>::infinity()), qhi(-std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const double v = quantise(cloud.positions[i][k], k, i) * scale[k] + offset[k];
+      qlo[k] = std::min(qlo[k], v);
+      qhi[k] = std::max(qhi[k], v);
+    }
+    const int r = st.ret != nullptr ? std::clamp(static_cast<int>((*st.ret)[i]), 0, 15) : 1;
+    if (r >= 1) ++by_return[static_cast<std::size_t>(r - 1)];
+  }
+  if (n == 0) qlo = qhi = Vec3(0.0);
+
+  // VLRs.
+  std::string wkt = cloud.crs_wkt;
+  const bool wkt_evlr = wkt.size() + 1 > 65535;
+  std::uint32_t n_vlr = 0;
+  std::uint64_t vlr_bytes = 0;
+  if (!wkt.empty() && !wkt_evlr) ++n_vlr, vlr_bytes += 54 + wkt.size() + 1;
+  if (!extra.empty()) ++n_vlr, vlr_bytes += 54 + 192 * extra.size();
+  const std::uint64_t point_offset = 375 + vlr_bytes;
+  if (point_offset > std::numeric_limits<std::uint32_t>::max())
+    throw std::invalid_argument(path.string() + ": VLRs too large for a LAS header");
+  const std::uint64_t evlr_start = wkt_evlr ? point_offset + static_cast<std::uint64_t>(rec_len) * n : 0;
+
+  detail::AtomicWriter w(path, direct);
+  // Public header block (table 3).
+  w.write("LASF", 4);
+  w.put<std::uint16_t>(0);                         // file source id
+  w.put<std::uint16_t>(1u << 4);                   // global encoding: WKT CRS (required for PDRF 6-10)
+  w.put_fixed("", 16);                             // project GUID
+  w.put<std::uint8_t>(1);
+  w.put<std::uint8_t>(4);
+  w.put_fixed(options.system_id, 32);
+  w.put_fixed("rayscan 0.1.0", 32);
+  {
+    const auto now = std::chrono::system_clock::now();
+    const std::chrono::year_month_day ymd{std::chrono::floor<std::chrono::days>(now)};
+    const auto jan1 = std::chrono::sys_days{ymd.year() / std::chrono::January / 1};
+    const auto doy = (std::chrono::floor<std::chrono::days>(now) - jan1).count() + 1;
+    w.put<std::uint16_t>(static_cast<std::uint16_t>(doy));
+    w.put<std::uint16_t>(static_cast<std::uint16_t>(static_cast<int>(ymd.year())));
+  }
+  w.put<std::uint16_t>(375);
+  w.put<std::uint32_t>(static_cast<std::uint32_t>(point_offset));
+  w.put<std::uint32_t>(n_vlr);
+  w.put<std::uint8_t>(static_cast<std::uint8_t>(pdrf));
+  w.put<std::uint16_t>(static_cast<std::uint16_t>(rec_len));
+  w.put<std::uint32_t>(0);  // legacy point count: 0 for PDRF 6-10
+  for (int k = 0; k < 5; ++k) w.put<std::uint32_t>(0);
+  for (int k = 0; k < 3; ++k) w.put<double>(scale[k]);
+  for (int k = 0; k < 3; ++k) w.put<double>(offset[k]);
+  for (int k = 0; k < 3; ++k) {
+    w.put<double>(qhi[k]);
+    w.put<double>(qlo[k]);
+  }
+  w.put<std::uint64_t>(0);  // start of waveform data packet record
+  w.put<std::uint64_t>(evlr_start);
+  w.put<std::uint32_t>(wkt_evlr ? 1 : 0);
+  w.put<std::uint64_t>(n);
+  for (std::uint64_t c : by_return) w.put<std::uint64_t>(c);
+  // VLRs.
+  auto vlr_header = [&](const char* user, std::uint16_t id, std::uint16_t len, const char* desc) {
+    w.put<std::uint16_t>(0);
+    w.put_fixed(user, 16);
+    w.put<std::uint16_t>(id);
+    w.put<std::uint16_t>(len);
+    w.put_fixed(desc, 32);
+  };
+  if (!wkt.empty() && !wkt_evlr) {
+    vlr_header("LASF_Projection", 2112, static_cast<std::uint16_t>(wkt.size() + 1), "OGC WKT");
+    w.write(wkt.c_str(), wkt.size() + 1);
+  }
+  if (!extra.empty()) {
+    vlr_header("LASF_Spec", 4, static_cast<std::uint16_t>(192 * extra.size()), "Extra Bytes Record");
+    for (const ScalarField* f : extra) {
+      std::uint8_t e[192] = {};
+      e[2] = 10;  // data type: double
+      e[3] = 0;   // options: no no_data/min/max/scale/offset
+      std::memcpy(e + 4, f->name.data(), std::min<std::size_t>(32, f->name.size()));
+      const char* desc = "rayscan per-point scalar";
+      std::memcpy(e + 160, desc, std::strlen(desc));
+      w.write(e, 192);
+    }
+  }
+  // Point records (tables 13-15).
+  std::vector<std::uint8_t> rec(static_cast<std::size_t>(rec_len));
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint8_t* r = rec.data();
+    std::memset(r, 0, rec.size());
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t q = quantise(cloud.positions[i][k], k, i);
+      std::memcpy(r + 4 * k, &q, 4);
+    }
+    const std::uint16_t inten = cloud.intensity.empty() ? 0 : cloud.intensity[i];
+    std::memcpy(r + 12, &inten, 2);
+    const int ret = st.ret ? std::clamp(static_cast<int>((*st.ret)[i]), 0, 15) : 1;
+    const int nret = st.nret ? std::clamp(static_cast<int>((*st.nret)[i]), 0, 15) : 1;
+    r[14] = static_cast<std::uint8_t>(ret | (nret << 4));
+    // Classification flags, scanner channel, scan direction, edge of flight line (table 13).
+    auto bits = [&](const std::vector<double>* v, int mask) { return v ? (clamp_to<int>((*v)[i]) & mask) : 0; };
+    r[15] = static_cast<std::uint8_t>(bits(st.cflags, 15) | (bits(st.channel, 3) << 4) |
+                                      (bits(st.scan_dir, 1) << 6) | (bits(st.edge, 1) << 7));
+    r[16] = cloud.classification.empty() ? 0 : cloud.classification[i];
+    r[17] = st.udata ? clamp_to<std::uint8_t>((*st.udata)[i]) : 0;
+    const std::int16_t angle = st.angle ? clamp_to<std::int16_t>((*st.angle)[i] / 0.006) : 0;
+    std::memcpy(r + 18, &angle, 2);
+    const std::uint16_t psid = st.psid ? clamp_to<std::uint16_t>((*st.psid)[i]) : 0;
+    std::memcpy(r + 20, &psid, 2);
+    const double t = cloud.gps_time.empty() ? 0.0 : cloud.gps_time[i];
+    std::memcpy(r + 22, &t, 8);
+    if (rgb) {
+      Rgb16 c = cloud.rgb[i];
+      if (cloud.rgb_from_8bit_las)  // back to the source's 8-bit values (the reader scaled by 257)
+        c = Rgb16{static_cast<std::uint16_t>(c.r / 257), static_cast<std::uint16_t>(c.g / 257),
+                  static_cast<std::uint16_t>(c.b / 257)};
+      std::memcpy(r + 30, &c.r, 2);
+      std::memcpy(r + 32, &c.g, 2);
+      std::memcpy(r + 34, &c.b, 2);
+    }
+    if (st.nir) {
+      const std::uint16_t v = clamp_to<std::uint16_t>((*st.nir)[i]);
+      std::memcpy(r + 36, &v, 2);
+    }
+    for (std::size_t k = 0; k < extra.size(); ++k) std::memcpy(r + base_len + 8 * k, &extra[k]->values[i], 8);
+    w.write(r, rec.size());
+  }
+  if (wkt_evlr) {
+    w.put<std::uint16_t>(0);
+    w.put_fixed("LASF_Projection", 16);
+    w.put<std::uint16_t>(2112);
+    w.put<std::uint64_t>(wkt.size() + 1);
+    w.put_fixed("OGC WKT", 32);
+    w.write(wkt.c_str(), wkt.size() + 1);
+  }
+  w.commit();
+}
+
+}  // namespace
+
+}  // namespace rayscan::io

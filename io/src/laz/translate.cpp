@@ -1,0 +1,289 @@
+// translate_las(): see rayscan/io/translate.hpp.
+#include "rayscan/io/translate.hpp"
+
+#include "laz/encoder_v2.hpp"
+#include "laz/encoder_v3.hpp"
+#include "laz/laz.hpp"
+#include "las/las_header.hpp"
+#include "rayscan/base/atomic_file.hpp"
+
+#include <fstream>
+#include <optional>
+#include <stdexcept>
+
+namespace rayscan::io {
+
+namespace {
+
+using detail::load_le;
+
+template <class T>
+void store_le(std::vector<std::uint8_t>& b, std::size_t at, T v) {
+  std::memcpy(b.data() + at, &v, sizeof(T));
+}
+template <class T>
+void append_le(std::vector<std::uint8_t>& b, T v) {
+  const std::size_t at = b.size();
+  b.resize(at + sizeof(T));
+  std::memcpy(b.data() + at, &v, sizeof(T));
+}
+
+/// Sequential source of raw records: from the map (LAS) or decoded chunk by chunk (LAZ).
+class RecordSource {
+ public:
+  RecordSource(const detail::Input& in, const detail::LasHeader& h, std::vector<std::string>& notes) : in_(in), h_(h) {
+    if (h.laszip.present) {
+      vlr_ = laz::parse_laszip_vlr(in.bytes.data() + h.laszip.at, h.laszip.len, in.name, h.laszip.at, h.pdrf,
+                                   h.record_length);
+      chunks_ = laz::read_chunk_table(in, *vlr_, h.point_offset, h.data_end, h.count, notes);
+      dec_ = std::make_unique<laz::ChunkDecoder>(*vlr_);
+    } else if (h.count > (h.data_end - h.point_offset) / h.record_length) {
+      detail::fail_at(in.name, h.version_minor >= 4 ? 247 : 107,
+                      "header announces " + std::to_string(h.count) + " records but only " +
+                          std::to_string(h.data_end - h.point_offset) + " bytes of point data follow");
+    }
+  }
+  /// Pointer to the next `n` records (valid until the next call).
+  const std::uint8_t* next(std::size_t n) {
+    const std::size_t rec = h_.record_length;
+    if (!vlr_) {
+      const std::uint8_t* p = in_.bytes.data() + h_.point_offset + done_ * rec;
+      done_ += n;
+      return p;
+    }
+    buf_.resize(n * rec);
+    std::size_t got = 0;
+    while (got < n) {
+      if (left_ == 0) {
+        if (chunk_ > 0) dec_->finish();
+        const laz::Chunk& c = chunks_.at(chunk_);
+        dec_->start(in_, chunk_, c, c.offset + c.bytes);
+        left_ = c.points;
+        ++chunk_;
+      }
+      const std::size_t k = static_cast<std::size_t>(std::min<std::uint64_t>(left_, n - got));
+      dec_->next(k, buf_.data() + got * rec);
+      got += k;
+      left_ -= k;
+    }
+    done_ += n;
+    return buf_.data();
+  }
+
+ private:
+  const detail::Input& in_;
+  const detail::LasHeader& h_;
+  std::optional<laz::LaszipVlr> vlr_;
+  std::vector<laz::Chunk> chunks_;
+  std::unique_ptr<laz::ChunkDecoder> dec_;
+  std::vector<std::uint8_t> buf_;
+  std::size_t chunk_ = 0;
+  std::uint64_t left_ = 0, done_ = 0;
+};
+
+/// LASzip VLR payload (laszip.cpp LASzip::pack): pointwise-chunked with version 2 items for
+/// `pdrf` 0-3 (LASzip 2.2), layered-chunked with version 3 items for `pdrf` 6-8 (LASzip 3.4 r3,
+/// what laszip and laz-perf write for LAS 1.4 formats), `extra` bytes as a BYTE/BYTE14 item.
+std::vector<std::uint8_t> laszip_vlr(int pdrf, std::size_t extra, std::uint32_t chunk_size) {
+  const bool layered = pdrf >= 6;
+  const std::uint16_t iv = layered ? 3 : 2;
+  std::vector<std::uint16_t> items;  // type, size pairs
+  if (!layered) {
+    items.insert(items.end(), {laz::kPoint10, 20});
+    if (pdrf == 1 || pdrf == 3) items.insert(items.end(), {laz::kGpsTime11, 8});
+    if (pdrf == 2 || pdrf == 3) items.insert(items.end(), {laz::kRgb12, 6});
+    if (extra > 0) items.insert(items.end(), {laz::kByte, static_cast<std::uint16_t>(extra)});
+  } else {
+    items.insert(items.end(), {laz::kPoint14, 30});
+    if (pdrf == 7) items.insert(items.end(), {laz::kRgb14, 6});
+    if (pdrf == 8) items.insert(items.end(), {laz::kRgbNir14, 8});
+    if (extra > 0) items.insert(items.end(), {laz::kByte14, static_cast<std::uint16_t>(extra)});
+  }
+  std::vector<std::uint8_t> v;
+  append_le<std::uint16_t>(v, layered ? 3 : 2);  // compressor: layered-chunked / pointwise-chunked
+  append_le<std::uint16_t>(v, 0);                // coder: arithmetic
+  v.push_back(layered ? 3 : 2);                  // LASzip version of the item coders
+  v.push_back(layered ? 4 : 2);
+  append_le<std::uint16_t>(v, layered ? 3 : 0);
+  append_le<std::uint32_t>(v, 0);  // options
+  append_le<std::uint32_t>(v, chunk_size);
+  append_le<std::int64_t>(v, -1);  // number of special EVLRs
+  append_le<std::int64_t>(v, -1);  // offset of special EVLRs
+  append_le<std::uint16_t>(v, static_cast<std::uint16_t>(items.size() / 2));
+  for (std::size_t i = 0; i < items.size(); i += 2) {
+    append_le<std::uint16_t>(v, items[i]);
+    append_le<std::uint16_t>(v, items[i + 1]);
+    append_le<std::uint16_t>(v, iv);
+  }
+  return v;
+}
+
+/// Compresses `n` records into one chunk (first record raw, then the arithmetic-coded rest).
+void encode_chunk_v2(const std::uint8_t* recs, std::size_t n, std::size_t rec, int pdrf, std::size_t extra,
+                     std::vector<std::uint8_t>& out) {
+  out.insert(out.end(), recs, recs + rec);
+  if (n == 1) return;
+  laz::Point10V2Enc p;
+  std::optional<laz::GpsTime11V2Enc> g;
+  std::optional<laz::Rgb12V2Enc> c;
+  std::optional<laz::ByteV2Enc> b;
+  std::size_t off = 20, og = 0, oc = 0, ob = 0;
+  p.init(recs);
+  if (pdrf == 1 || pdrf == 3) g.emplace(), g->init(recs + off), og = off, off += 8;
+  if (pdrf == 2 || pdrf == 3) c.emplace(), c->init(recs + off), oc = off, off += 6;
+  if (extra > 0) b.emplace(extra), b->init(recs + off), ob = off;
+  laz::ArithmeticEncoder enc(out);
+  for (std::size_t i = 1; i < n; ++i) {
+    const std::uint8_t* r = recs + i * rec;
+    p.write(enc, r);
+    if (g) g->write(enc, r + og);
+    if (c) c->write(enc, r + oc);
+    if (b) b->write(enc, r + ob);
+  }
+  enc.done();
+}
+
+}  // namespace
+
+TranslateResult translate_las(const std::filesystem::path& in_path, const std::filesystem::path& out_path,
+                              const TranslateOptions& opt) {
+  if (opt.chunk_size == 0) throw std::invalid_argument("translate: chunk size must be at least 1");
+  const laz::FileMap map(in_path);
+  const detail::Input in{map.bytes(), in_path.string(), {}};
+  const detail::LasHeader h = detail::parse_las_header(in);
+  const std::uint8_t* d = map.bytes().data();
+  bool to_laz = false;
+  if (opt.compression == LasCompression::laz) to_laz = true;
+  else if (opt.compression == LasCompression::by_extension) to_laz = detail::lower(out_path.extension().string()) == ".laz";
+  const std::size_t rec = h.record_length;
+  static constexpr int kLen[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
+  if (rec < static_cast<std::size_t>(kLen[h.pdrf]))
+    detail::fail_at(in.name, 105, "point record length " + std::to_string(rec) + " smaller than PDRF " +
+                                      std::to_string(h.pdrf) + " needs (" + std::to_string(kLen[h.pdrf]) + ")");
+  const std::size_t extra = rec - static_cast<std::size_t>(kLen[h.pdrf]);
+  if (to_laz && (h.pdrf == 4 || h.pdrf == 5 || h.pdrf > 8))
+    throw std::invalid_argument("translate: LAZ output of point data record format " + std::to_string(h.pdrf) +
+                                " (waveform packets) is not implemented (the writer covers PDRF 0-3 and 6-8 with extra bytes)");
+  std::vector<std::string> notes;
+  RecordSource src(in, h, notes);
+
+  // Header and VLRs: everything but the LASzip VLR and COPC records, plus a new LASzip VLR.
+  std::vector<std::uint8_t> head(d, d + h.header_size);
+  std::uint32_t n_vlr = 0;
+  std::uint64_t pos = h.header_size;
+  const std::uint32_t n_vlr_in = load_le<std::uint32_t>(d + 100);
+  for (std::uint32_t i = 0; i < n_vlr_in; ++i) {
+    const std::string user = detail::fixed_string(d + pos + 2, 16);
+    const std::uint16_t id = load_le<std::uint16_t>(d + pos + 18);
+    const std::uint16_t len = load_le<std::uint16_t>(d + pos + 20);
+    const bool drop = (user == "laszip encoded" && id == 22204) || user == "copc";
+    if (!drop) {
+      head.insert(head.end(), d + pos, d + pos + 54 + len);
+      ++n_vlr;
+    }
+    pos += 54 + len;
+  }
+  head.insert(head.end(), d + pos, d + h.point_offset);  // bytes between the VLRs and the points
+  if (to_laz) {
+    const std::vector<std::uint8_t> payload = laszip_vlr(h.pdrf, extra, opt.chunk_size);
+    std::vector<std::uint8_t> vh(54, 0);
+    std::memcpy(vh.data() + 2, "laszip encoded", 14);
+    store_le<std::uint16_t>(vh, 18, 22204);
+    store_le<std::uint16_t>(vh, 20, static_cast<std::uint16_t>(payload.size()));
+    const char* desc = h.pdrf >= 6 ? "by rayscan (LASzip 3.4 items)" : "by rayscan (LASzip 2.2 items)";
+    std::memcpy(vh.data() + 22, desc, 29);
+    // insert before the trailing user bytes: right after the last kept VLR
+    const std::size_t at = head.size() - (h.point_offset - pos);
+    head.insert(head.begin() + static_cast<std::ptrdiff_t>(at), payload.begin(), payload.end());
+    head.insert(head.begin() + static_cast<std::ptrdiff_t>(at), vh.begin(), vh.end());
+    ++n_vlr;
+  }
+  store_le<std::uint32_t>(head, 96, static_cast<std::uint32_t>(head.size()));
+  store_le<std::uint32_t>(head, 100, n_vlr);
+  head[104] = static_cast<std::uint8_t>(to_laz ? (h.pdrf | 0x80) : h.pdrf);
+
+  AtomicFile atomic(out_path);
+  std::ofstream f(atomic.temp(), std::ios::binary | std::ios::trunc);
+  if (!f) throw std::runtime_error(out_path.string() + ": cannot create " + atomic.temp().string());
+  f.write(reinterpret_cast<const char*>(head.data()), static_cast<std::streamsize>(head.size()));
+  TranslateResult res;
+  res.points = h.count;
+  res.compressed = to_laz;
+  std::uint64_t written = head.size();
+  if (!to_laz) {
+    const std::size_t batch = std::max<std::size_t>(1, (8u << 20) / rec);
+    for (std::uint64_t i = 0; i < h.count; i += batch) {
+      const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(batch, h.count - i));
+      f.write(reinterpret_cast<const char*>(src.next(n)), static_cast<std::streamsize>(n * rec));
+    }
+    written += h.count * rec;
+  } else {
+    std::vector<std::uint8_t> table_ptr(8, 0);
+    f.write(reinterpret_cast<const char*>(table_ptr.data()), 8);
+    written += 8;
+    std::vector<std::uint32_t> sizes;
+    std::vector<std::uint8_t> chunk;
+    std::optional<laz::LayeredChunkEncoder> layered;
+    if (h.pdrf >= 6) layered.emplace(h.pdrf, extra);
+    for (std::uint64_t i = 0; i < h.count; i += opt.chunk_size) {
+      const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(opt.chunk_size, h.count - i));
+      chunk.clear();
+      if (layered) layered->encode(src.next(n), n, rec, chunk);
+      else encode_chunk_v2(src.next(n), n, rec, h.pdrf, extra, chunk);
+      f.write(reinterpret_cast<const char*>(chunk.data()), static_cast<std::streamsize>(chunk.size()));
+      sizes.push_back(static_cast<std::uint32_t>(chunk.size()));
+      written += chunk.size();
+    }
+    // chunk table (LASzip lasreadpoint.cpp read_chunk_table): version 0, count, coded byte sizes
+    const std::uint64_t table_at = written;
+    std::vector<std::uint8_t> table;
+    append_le<std::uint32_t>(table, 0);
+    append_le<std::uint32_t>(table, static_cast<std::uint32_t>(sizes.size()));
+    if (!sizes.empty()) {
+      laz::ArithmeticEncoder enc(table);
+      laz::IntegerCompressor ic(32, 2);
+      std::int32_t prev = 0;
+      for (std::uint32_t s : sizes) {
+        ic.compress(enc, prev, static_cast<std::int32_t>(s), 1);
+        prev = static_cast<std::int32_t>(s);
+      }
+      enc.done();
+    }
+    f.write(reinterpret_cast<const char*>(table.data()), static_cast<std::streamsize>(table.size()));
+    written += table.size();
+    res.chunks = sizes.size();
+    f.seekp(static_cast<std::streamoff>(head.size()));
+    const auto t = static_cast<std::int64_t>(table_at);
+    f.write(reinterpret_cast<const char*>(&t), 8);
+    f.seekp(static_cast<std::streamoff>(written));
+  }
+  // EVLRs (LAS 1.4): copied after the point data, COPC ones dropped; the header start updated.
+  if (h.version_minor >= 4) {
+    const std::uint32_t n_evlr_in = load_le<std::uint32_t>(d + 243);
+    std::uint64_t ep = h.data_end;
+    std::uint32_t n_evlr = 0;
+    const std::uint64_t evlr_start = written;
+    for (std::uint32_t i = 0; i < n_evlr_in; ++i) {
+      const std::string user = detail::fixed_string(d + ep + 2, 16);
+      const std::uint64_t len = load_le<std::uint64_t>(d + ep + 20);
+      if (user != "copc") {
+        f.write(reinterpret_cast<const char*>(d + ep), static_cast<std::streamsize>(60 + len));
+        written += 60 + len;
+        ++n_evlr;
+      }
+      ep += 60 + len;
+    }
+    f.seekp(235);
+    const std::uint64_t start = n_evlr > 0 ? evlr_start : 0;
+    f.write(reinterpret_cast<const char*>(&start), 8);
+    f.write(reinterpret_cast<const char*>(&n_evlr), 4);
+  }
+  f.close();
+  if (!f) throw std::runtime_error(out_path.string() + ": write failed");
+  atomic.commit();
+  res.in_bytes = map.bytes().size();
+  res.out_bytes = written;
+  return res;
+}
+
+}  // namespace rayscan::io

@@ -1,0 +1,68 @@
+// read_point_cloud(): a loop over the chunked reader of the file's format (point_reader.hpp).
+#include "rayscan/io/point_io.hpp"
+
+#include "rayscan/base/file_names.hpp"
+#include "rayscan/io/point_reader.hpp"
+#include "readers.hpp"
+
+#include <algorithm>
+
+namespace rayscan::io {
+
+Format format_from_extension(const std::filesystem::path& path) {
+  const std::string e = lower_extension(path);
+  if (e == ".las" || e == ".laz" || e == ".copc") return Format::las;
+  if (e == ".ply") return Format::ply;
+  if (e == ".pcd") return Format::pcd;
+  if (e == ".xyz" || e == ".csv" || e == ".txt" || e == ".pts") return Format::text;
+  if (e == ".f64") return Format::f64;
+  throw FormatError(path.string() + ": unknown point cloud extension '" + e +
+                    "' (expected .las, .ply, .pcd, .xyz, .csv, .txt, .pts or .f64)");
+}
+
+namespace {
+
+/// Appends `n` entries of `src` to `dst` (an attribute vector of the growing whole cloud).
+template <class V>
+void append(V& dst, const V& src) {
+  dst.insert(dst.end(), src.begin(), src.end());
+}
+
+/// The whole-file read as a loop over the chunked reader. The first chunk asks for every point
+/// the reader announces (a count validated against the file size at open, never an unchecked
+/// header field), so a LAS file is decoded straight into the output arrays and a format decoded
+/// at open hands its arrays over without a copy; later chunks (none unless a reader delivers
+/// fewer than announced per call) are appended.
+PointCloud read_all(PointReader& r, FileInfo* info) {
+  PointCloud pc;
+  const std::size_t total = static_cast<std::size_t>(r.point_count());
+  r.read(pc, std::max<std::size_t>(total, 1));
+  PointCloud chunk;
+  while (r.read(chunk, kDefaultChunkPoints) > 0) {
+    append(pc.positions, chunk.positions);
+    append(pc.rgb, chunk.rgb);
+    append(pc.intensity, chunk.intensity);
+    append(pc.classification, chunk.classification);
+    append(pc.gps_time, chunk.gps_time);
+    append(pc.normals, chunk.normals);
+    for (std::size_t k = 0; k < chunk.scalars.size(); ++k) append(pc.scalars[k].values, chunk.scalars[k].values);
+  }
+  pc.crs_wkt = r.crs_wkt();
+  if (info != nullptr) *info = r.info();
+  return pc;
+}
+
+}  // namespace
+
+PointCloud read_point_cloud(const std::filesystem::path& path, const ReadOptions& options, FileInfo* info) {
+  auto r = open_point_reader(path, AttributeSet::all(), options);
+  return read_all(*r, info);
+}
+
+PointCloud read_point_cloud(std::span<const std::uint8_t> bytes, Format format, const std::string& name,
+                            const ReadOptions& options, FileInfo* info) {
+  auto r = open_point_reader(bytes, format, name, AttributeSet::all(), options);
+  return read_all(*r, info);
+}
+
+}  // namespace rayscan::io

@@ -1,0 +1,73 @@
+// The info job: what `pdal info` reports for a point cloud file -- format, version, point data
+// record format, point counts (and dropped non-finite points), recomputed bounds (and the
+// header's where they differ), attributes with their ranges, scale/offset, CRS, VLRs.
+// `rayscan info` prints its reports.
+#pragma once
+
+#include "rayscan/io/cloud_stats.hpp"
+#include "rayscan/site/copc.hpp"
+#include "rayscan/io/file_info.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/io/point_io.hpp"
+#include "rayscan/base/job.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rayscan::io {
+
+/// Inputs of run_info().
+struct InfoJobOptions {
+  std::filesystem::path file;  ///< point cloud file (any format read_point_cloud reads)
+  bool verify = false;         ///< index files: verify every section's checksum (CLI --verify)
+  JobControl control;          ///< unused today (the reader is single-threaded)
+};
+
+/// Output of run_info().
+/// What `rayscan info` reports for an index file (.rsi, rayscan/site/index_file.hpp).
+struct IndexFileSummary {
+  std::string layout;                          ///< octree organisation ("adaptive", ...)
+  std::uint32_t capacity = 0;                  ///< points per leaf
+  std::uint64_t nodes = 0, depth = 0;
+  std::vector<std::uint64_t> points_per_level;  ///< points stored at each octree depth
+  std::uint64_t file_bytes = 0;
+  double bytes_per_point = 0;
+  std::string attributes;                      ///< AttributeSet::to_string() ("" = positions only)
+  std::string positions;                       ///< encoding: "float64", "float32", "las_int32 (scale ..., offset ...)"
+  std::string ids;                             ///< "stored (original order)" or "not stored (points in index order)"
+  std::string rgb;                             ///< "" (none), "16-bit (6 bytes/point)" or "8-bit x M (3 bytes/point)"
+  AABB root_cell;                              ///< the octree's root cube (world units)
+  std::string checksums;                       ///< which sections were verified
+  double spacing = 0;                          ///< median nearest-neighbour spacing (the auto radius)
+  std::vector<IndexSectionInfo> sections;      ///< the section table (bytes per section)
+  std::vector<IndexSource> sources;            ///< the files the index was built from
+};
+
+struct InfoJobResult {
+  std::string file;                          ///< the file described
+  FileInfo info;                             ///< what the reader found
+  std::uint64_t count = 0;                   ///< points read
+  AABB bounds;                               ///< recomputed from the points (empty box for 0 points)
+  bool header_differs = false;               ///< the header's box differs by more than half a scale step
+  std::vector<AttributeRange> attributes;    ///< every attribute present, in a fixed order
+  std::map<int, std::uint64_t> classes;      ///< points per ASPRS class code
+  std::string crs_wkt;                       ///< the cloud's CRS as WKT ("" = none)
+  std::optional<IndexFileSummary> index;     ///< set for an index file (.rsi); then info is mostly empty
+  std::optional<CopcInfo> copc;              ///< set for a COPC file: its octree (hierarchy)
+};
+
+/// Reads `file` (read_point_cloud with all scalars) and summarises it. Throws io::FormatError for a
+/// malformed or unsupported file.
+InfoJobResult run_info(const InfoJobOptions& options);
+
+/// The report as JSON (pdal info style), 2-space indent.
+std::string info_report_json(const InfoJobResult& result);
+
+/// The report as aligned text lines.
+std::string info_report_text(const InfoJobResult& result);
+
+}  // namespace rayscan::io

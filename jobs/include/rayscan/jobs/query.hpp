@@ -1,0 +1,64 @@
+// The ray-query job (paper Algorithm 1 over a file or an in-memory cloud): what `rayscan query`
+// runs, as one library call.
+#pragma once
+
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/io/point_io.hpp"
+#include "rayscan/base/job.hpp"
+#include "rayscan/octree/ray_query.hpp"
+
+#include <filesystem>
+#include <ostream>
+#include <vector>
+
+namespace rayscan::io {
+
+/// Inputs of run_query().
+struct QueryJobOptions {
+  std::filesystem::path cloud_file;      ///< point cloud to read (any format read_point_cloud reads), or an
+                                         ///< index file (.rsi: queried on its memory map; `index` is ignored)
+  const PointCloud* cloud = nullptr;     ///< in-memory points instead of cloud_file (not copied)
+  std::filesystem::path rays_file;       ///< rays to read (read_rays) when `rays` is empty
+  std::vector<Ray> rays;                 ///< rays given in memory
+  RayQuery query;                        ///< k, radius, t interval, order (RayQuery::validate rules)
+  IndexOptions index;                    ///< index type and parameters
+  /// COPC input (a LAZ file with the COPC info VLR): the bound on decoded node data kept by the
+  /// CopcIndex LRU cache, bytes (`--cache`). The query runs on the file's own hierarchy
+  /// (io::CopcIndex, the paper's layered organisation); `index` is then ignored.
+  std::size_t cache_bytes = std::size_t{2} << 30;
+  JobControl control;                    ///< threads, log
+};
+
+/// Output of run_query().
+struct QueryJobResult {
+  PointCloud cloud;                          ///< the cloud read from cloud_file (empty for in-memory input)
+  std::vector<Ray> rays;                     ///< the rays answered
+  std::vector<std::vector<RayHit>> hits;     ///< hits[r]: the results of ray r, best first
+  /// Index-file input (.rsi, rayscan/site/index_file.hpp): the position of every hit, in the order
+  /// of `hits` flattened (ray by ray, best first); `cloud` then stays empty. Empty otherwise.
+  std::vector<Vec3> hit_positions;
+  /// COPC input: node chunks decoded (CopcIndex::decodes()) and nodes in the hierarchy; the
+  /// hit positions are in `hit_positions` as for an index file. Both 0 otherwise.
+  std::uint64_t copc_decodes = 0, copc_nodes = 0;
+};
+
+/// Reads the rays (first, so a malformed rays file is reported before a large cloud is read) and
+/// the cloud, builds the index and answers every ray (ray_query_batch: TBB, identical for any
+/// thread count). Throws std::invalid_argument for an invalid query or index option (e.g. depth
+/// with another index than octree-fixed), io::FormatError for a malformed input file.
+/// With options.control.distributor over several processes (MPI, docs/mpi.md), every process
+/// calls it; blocks of 256 rays are handed out by the distributor and only the root's `hits`
+/// (and `hit_positions`) are complete.
+QueryJobResult run_query(const QueryJobOptions& options);
+
+/// Writes the hits as CSV "ray,rank,index,x,y,z,t,distance" (17 significant digits) to `out`;
+/// `positions` are the positions of the cloud queried (to print x, y, z).
+void write_hits_csv(std::ostream& out, std::span<const Vec3> positions,
+                    const std::vector<std::vector<RayHit>>& hits);
+
+/// The same for a job's result: positions from `result.cloud`, or `result.hit_positions` for an
+/// index-file input. (For in-memory input, use the overload above with the caller's positions.)
+void write_hits_csv(std::ostream& out, const QueryJobResult& result);
+
+
+}  // namespace rayscan::io

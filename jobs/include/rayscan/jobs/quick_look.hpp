@@ -1,0 +1,55 @@
+// A quick look without writing JSON: `rayscan render CLOUD.las --out view.png`
+// frames the whole cloud with an automatic overview camera, and `--print-scene` prints the
+// effective scene as JSON that `rayscan render` reads back.
+#pragma once
+
+#include "rayscan/camera/camera.hpp"
+#include "rayscan/octree/geometry.hpp"
+#include "rayscan/octree/point_cloud.hpp"
+#include "rayscan/jobs/render.hpp"
+#include "rayscan/render/scene.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+
+namespace rayscan::render {
+
+/// Image size of the overview camera when neither --width nor --height is given, pixels.
+inline constexpr std::uint32_t kOverviewWidth = 600, kOverviewHeight = 400;
+/// Overview view angles: the camera looks north-east (bearing 45 degrees, i.e. it stands
+/// south-west of the cloud) and down at 35 degrees below the horizontal, with a 40 degree vertical
+/// field of view; +z is up.
+inline constexpr double kOverviewBearingDeg = 45.0, kOverviewPitchDeg = 35.0, kOverviewVfovDeg = 40.0;
+
+/// The automatic overview camera of a viewer's "zoom to extent": a look-at camera aimed at the
+/// centre of `bounds` from the direction above (kOverviewBearingDeg, kOverviewPitchDeg), at the
+/// smallest distance at which all 8 corners of the box project inside a width x height image
+/// (pinhole, vfov kOverviewVfovDeg, square pixels; exact per-corner fit, then 2% margin), up = +z.
+/// World coordinates and units of the cloud. A box of zero size is treated as a 1-unit cube.
+/// Throws std::invalid_argument for a zero width or height or an empty/non-finite box.
+LookAtParams overview_view(const AABB& bounds, std::uint32_t width, std::uint32_t height);
+
+/// The scene a `rayscan render INPUT [flags]` command line means, and its JSON.
+struct ResolvedScene {
+  Scene scene;       ///< parsed and with every override applied (what the render job runs)
+  std::string json;  ///< the effective scene as JSON (2-space indent), re-readable by `rayscan render`;
+                     ///< "" when the JSON cannot state it (a COLMAP view, a resized K/[R|t] camera)
+  bool overview = false;  ///< the camera is the automatic overview camera
+};
+
+/// Resolve a command line's scene. `input` is a point cloud file when its extension is one the io
+/// library reads (io::format_from_extension), else a scene file; for a cloud the scene is {"cloud": input, "radius": "auto",
+/// "material": {"color": "rgb" if the cloud has colours else "elevation"}} with the default sky
+/// and sun. When the scene has no camera (a cloud, or a scene file without "camera"), the camera
+/// is overview_view() of the cloud's bounds at --width x --height (default 600 x 400; one of them
+/// keeps the 3:2 aspect). The overrides are written into the JSON (camera files are inlined, paths
+/// made absolute) and applied to the scene (apply_overrides). `cloud` returns the points of the
+/// file it is given (the input, or the scene's "cloud") and is called only when needed (a cloud
+/// input or a missing camera), at most once. Throws SceneError (bad scene
+/// file), std::invalid_argument (bad override), and what `cloud` throws (io errors).
+ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverrides& overrides,
+                            const std::function<const PointCloud&(const std::filesystem::path&)>& cloud);
+
+}  // namespace rayscan::render

@@ -1,0 +1,117 @@
+// The render job: a scene (file or built in code) and its cloud (file or in memory) to an image
+// with AOVs, as one library call (paper section 5.3). `rayscan render` and the Python module's
+// rayscan.render() are thin wrappers over run_render().
+#pragma once
+
+#include "rayscan/base/job.hpp"
+#include "rayscan/octree/point_cloud.hpp"
+#include "rayscan/image/aov.hpp"
+#include "rayscan/render/image_output.hpp"
+#include "rayscan/render/render.hpp"
+#include "rayscan/render/scene.hpp"
+#include "rayscan/octree/spacing.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <span>
+#include <vector>
+
+namespace rayscan::render {
+
+/// Inputs of run_render(). Start from load_scene(file) or a Scene built in code (then set
+/// scene.camera, and scene.cloud or `cloud`).
+struct RenderJobOptions {
+  Scene scene;                         ///< the render description (scenes/README.md)
+  const PointCloud* cloud = nullptr;   ///< in-memory points instead of scene.cloud (not copied)
+  bool write = true;                   ///< write scene.output.image (+ AOVs) when it is set
+  /// When set, called once the cloud is read with its exact bounds (the AABB of its points); the
+  /// camera it returns replaces scene.camera (the scene then needs no camera). E.g. a top-down map
+  /// over the cloud's extent (analysis::ortho_map, `rayscan render --ortho-map`). Exceptions it
+  /// throws propagate unchanged.
+  std::function<Camera(const AABB&)> camera_for_cloud;
+  JobControl control;                  ///< threads, progress bar, log lines
+  /// COPC input (sphere mode): bytes of decoded nodes kept between tile batches (`--cache`).
+  std::size_t cache_bytes = std::size_t{2} << 30;
+};
+
+/// Output of run_render().
+struct RenderJobResult {
+  Framebuffer image;                   ///< beauty + requested AOVs (Framebuffer)
+  RenderStats stats;                   ///< rays, queries, seconds, threads
+  RadiusChoice radius;                 ///< the sphere radius used and how it was chosen (surfels:
+                                       ///< the median disc radius, automatic = false)
+  std::string crs_wkt;                 ///< the cloud's CRS (PointCloud::crs_wkt), "" if unknown
+  std::size_t points = 0;              ///< points in the cloud
+  double read_seconds = 0.0;           ///< reading the cloud or opening the index file (0 for an
+                                       ///< in-memory cloud)
+  double index_seconds = 0.0;          ///< building the index (0 for an index file)
+  double first_tile_seconds = 0.0;     ///< from the call to the first traced tile (run_render)
+  std::uint64_t copc_decodes = 0;      ///< COPC input traced in place: node decodes (re-decodes after
+                                       ///< eviction included); 0 otherwise
+  ImageMetadata metadata;              ///< what was (or would be) stored in the image header
+  std::vector<std::filesystem::path> written;  ///< files written (beauty first)
+};
+
+/// Renders `options.scene`: reads the cloud (skipping unused scalar fields), computes the albedo,
+/// builds the index, chooses the radius (choose_radius with the scene's auto factor) or, for
+/// scene.primitive surfel, the per-point normals and disc radii (scene_surfels), traces the
+/// image (render_image) and, when `write` and scene.output.image are set, writes it (write_image).
+/// Throws SceneError "<scene file>: <JSON pointer>: <what was expected>" for a missing camera or
+/// cloud, an unreadable or empty cloud, a bad material range or index option, or an impossible
+/// auto radius, "<scene file>: /surfel: ..." when surfels cannot be estimated; std::runtime_error naming the file when an image cannot be written.
+/// With options.control.distributor over several processes (MPI, docs/mpi.md) every process calls
+/// it with the same options; the tiles are handed out by the distributor, only the root's `image`
+/// is complete and only the root writes (stats: ray queries summed over the processes).
+RenderJobResult run_render(const RenderJobOptions& options);
+
+/// Output of run_render_frames().
+struct RenderFramesResult {
+  RenderJobResult job;     ///< shared values (points, radius, metadata); stats summed over frames;
+                           ///< `image` is the last frame when frames were rendered one by one
+                           ///< (empty when whole frames were distributed); `written` every file
+  std::size_t frames = 0;  ///< frames rendered
+  /// Every frame in camera order, only when options.write is false (in-memory use; on the root).
+  std::vector<Framebuffer> images;
+};
+
+/// Renders one image per camera over one prepared scene (the cloud is read, the index built and
+/// the radius chosen once): an animation or fly-through, `rayscan render --frames CAMERAS.json`.
+/// Frame f is written to frame_file_name(scene.output.image, f). With a distributor
+/// (JobControl::distributor, MPI) of N processes: more frames than processes -> whole frames are
+/// the work items of the queue (each rank renders a frame with its own threads, the root writes
+/// it as it arrives); otherwise frame after frame with tiles distributed. Images are identical to
+/// run_render() with each camera. Throws like run_render(), and std::invalid_argument for an empty
+/// camera list.
+RenderFramesResult run_render_frames(const RenderJobOptions& options, std::span<const Camera> cameras);
+
+/// Reads a camera list (a fly-through): a JSON array whose elements are camera objects (the
+/// camera file schema, scenes/README.md) or camera file names (relative to the list's folder), or
+/// {"cameras": [...]} of the same. Throws SceneError "<file>: <JSON pointer>: <expected>".
+std::vector<Camera> load_camera_list(const std::filesystem::path& file);
+
+/// The output name of frame `frame`: "<stem>_<frame, 4+ digits><extension>" beside `image`
+/// (out.png -> out_0000.png, out_0001.png, ...).
+std::filesystem::path frame_file_name(const std::filesystem::path& image, std::size_t frame);
+
+/// Applies the usual command-line overrides to a loaded scene, checking each: a camera file
+/// (replaces the camera), samples per pixel, seed, output image (must pass is_image_file_name),
+/// extra AOVs by name (parse_aov; duplicates ignored), the primitive ("sphere" | "surfel"), the
+/// camera of a COLMAP photo (load_colmap_camera(colmap_dir, colmap_image))
+/// and an image size (one of width/height given: the other follows the camera's aspect ratio; the
+/// field of view is kept). Throws SceneError (camera file, COLMAP model) or std::invalid_argument
+/// naming the option ("--aov 'x': expected ...").
+struct SceneOverrides {
+  std::filesystem::path camera_file;
+  std::filesystem::path colmap_dir;  ///< COLMAP text model folder (cameras.txt, images.txt)
+  std::string colmap_image;          ///< NAME of the photo in images.txt (required with colmap_dir)
+  std::string primitive;             ///< "sphere" | "surfel"; "" keeps the scene's
+  std::optional<std::uint32_t> spp, width, height;
+  std::optional<std::uint64_t> seed;
+  std::filesystem::path out;
+  std::vector<std::string> aovs;
+};
+void apply_overrides(Scene& scene, const SceneOverrides& overrides);
+
+}  // namespace rayscan::render

@@ -1,0 +1,108 @@
+// The visibility job: which points of a cloud can be seen from where, as one
+// library call -- line of sight from observers, sky view factor, camera marks; per-point fields,
+// a LAS/PLY copy of the cloud, a GeoTIFF map and its PNG preview. `rayscan visibility` and the
+// Python module's rayscan.visibility() are thin wrappers over run_visibility().
+#pragma once
+
+#include "rayscan/analysis/observer.hpp"
+#include "rayscan/analysis/raster.hpp"
+#include "rayscan/analysis/visibility.hpp"
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/camera/camera.hpp"
+#include "rayscan/io/file_info.hpp"
+#include "rayscan/base/job.hpp"
+#include "rayscan/octree/point_cloud.hpp"
+#include "rayscan/octree/spacing.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rayscan::analysis {
+
+/// Inputs of run_visibility(). Error messages name the fields by their command-line spelling
+/// (field `raster_value` is `--raster-value`), so one message serves the CLI and the library.
+struct VisibilityJobOptions {
+  // ---- Input cloud.
+  std::filesystem::path cloud_file;     ///< point cloud to read (LAS, LAZ, COPC, PLY, PCD, text) or index file (.rsi)
+  const PointCloud* cloud = nullptr;    ///< in-memory points instead of cloud_file (copied into the result)
+  IndexOptions index;                   ///< index type (default octree-adaptive)
+  std::optional<double> radius;         ///< sphere radius, world units; nullopt = auto
+  double radius_factor = 1.0;           ///< auto radius = factor x median NN spacing (choose_radius)
+  std::string primitive = "sphere";     ///< "sphere" (the paper's model) or "surfel" (oriented discs:
+                                        ///< PCA normals, per-point radii; estimate_surfels with `surfel`)
+  SurfelOptions surfel;                 ///< surfel normals and radii (orientation: +z up unless set)
+
+  // ---- Observers (line of sight, VisibilityOptions / is_visible).
+  std::vector<Observer> observers;      ///< given in code or parsed with parse_observer()
+  std::filesystem::path observers_file; ///< read_observers(); these come first
+  std::optional<double> height;         ///< eye height above ground for observers without z
+  std::optional<double> ground_radius;  ///< local-ground search radius (default 5 x radius)
+  std::optional<AngleRange> azimuth;    ///< limit for observers without one
+  std::optional<AngleRange> elevation;  ///< limit for observers without one
+  std::optional<double> tolerance;      ///< along-ray tolerance (default 2 x radius; surfels: 0)
+  std::optional<double> target_height;  ///< aim height above each point (default 1 x radius; surfels: 0)
+  std::optional<double> max_distance;   ///< viewing range (default unlimited)
+  bool distance = false;                ///< add the field visible_distance
+
+  // ---- Sky view (compute_sky_view).
+  std::uint32_t sky_rays = 0;           ///< directions per point; 0 = off
+  SkyWeighting sky_weighting = SkyWeighting::uniform;
+  std::optional<double> sky_lift;       ///< ray start above the point (default 2 x radius)
+  std::uint64_t seed = 0;               ///< sky direction rotation seed
+
+  // ---- Camera marks (camera_first_hits).
+  std::optional<Camera> camera;         ///< a camera given in code
+  std::filesystem::path camera_file;    ///< or a camera file (scenes/README.md schema)
+
+  // ---- Outputs (each written through AtomicFile; "" = not written).
+  std::filesystem::path out;            ///< the cloud with the result fields (.las or .ply)
+  std::filesystem::path raster;         ///< top-down GeoTIFF (.tif/.tiff); needs `cell`
+  std::optional<double> cell;           ///< raster cell edge, world units
+  std::string raster_value;             ///< fraction|viewshed|count|distance|sky|camera; "" = by inputs
+  std::filesystem::path preview;        ///< PNG preview ("" = the raster's name with .png)
+  bool write_preview = true;            ///< write the preview next to the raster
+
+  JobControl control;                   ///< threads, progress bar, log lines
+};
+
+/// Output of run_visibility().
+struct VisibilityJobResult {
+  PointCloud cloud;                     ///< the input with fields visible_count, visible_distance,
+                                        ///< sky_view, camera_hits (those computed)
+  io::FileInfo info;                    ///< what the reader found (format, scale, offset) for cloud_file
+  std::string source;                   ///< cloud_file, or "(memory)"
+  RadiusChoice radius;                  ///< radius used (spheres; with surfels the ground search and sky lift scale)
+  std::string primitive = "sphere";     ///< "sphere" or "surfel"
+  double surfel_median_radius = 0.0;    ///< median disc radius (surfels)
+  double surfel_max_radius = 0.0;       ///< largest disc radius (surfels)
+  double tolerance = 0.0, target_height = 0.0, max_distance = kInf;  ///< line-of-sight values used
+  std::vector<Observer> observers;      ///< placed on the ground (z resolved)
+  VisibilityResult line_of_sight;       ///< per point / per observer counts (empty without observers)
+  std::vector<double> sky_view;         ///< per point (empty unless sky_rays > 0)
+  double sky_seconds = 0.0;             ///< wall time of the sky view
+  std::uint64_t sky_queries = 0;        ///< ray queries of the sky view
+  std::vector<std::uint32_t> camera_hits;  ///< pixels whose first hit is each point (empty without camera)
+  double camera_seconds = 0.0;          ///< wall time of the camera marks
+  std::optional<Raster> raster;         ///< the map (when `raster` was given)
+  std::string raster_value;             ///< what the map shows
+  std::vector<std::filesystem::path> written;  ///< files written, in order
+};
+
+/// Checks every option (before any work: extensions, output folders, value/input combinations),
+/// reads the cloud, builds the index, chooses the radius, runs the requested analyses and writes
+/// the outputs. A LAS output keeps the source's scale and offset. Throws std::invalid_argument
+/// (bad option, message naming it), ObserverError, SceneError (camera file), io::FormatError
+/// (cloud), std::runtime_error (I/O).
+/// With options.control.distributor over several processes (MPI, docs/mpi.md) every process calls
+/// it with the same options; point chunks (and camera rows) are handed out by the distributor,
+/// and only the root's result is complete and only the root writes the outputs.
+VisibilityJobResult run_visibility(const VisibilityJobOptions& options);
+
+/// The pdal-info-style JSON report of a run (cloud, points, radius, seconds, observers, sky view,
+/// camera, written files), as printed by `rayscan visibility --json`, indented by 2.
+std::string visibility_report_json(const VisibilityJobResult& result);
+
+}  // namespace rayscan::analysis

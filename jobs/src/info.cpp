@@ -1,0 +1,307 @@
+// The info job (rayscan/jobs/info.hpp): what `pdal info` reports for a point cloud file.
+#include "rayscan/jobs/info.hpp"
+
+#include "rayscan/io/point_reader.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+namespace rayscan::io {
+
+namespace {
+
+std::string num(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+/// A coordinate printed to the file's resolution: the decimals of the LAS scale, else 10
+/// significant digits.
+std::string coord(double v, const std::optional<Vec3>& scale, int axis) {
+  char buf[64];
+  if (scale && (*scale)[axis] > 0) {
+    const int dec = std::clamp(static_cast<int>(std::ceil(-std::log10((*scale)[axis]) - 1e-9)), 0, 12);
+    std::snprintf(buf, sizeof buf, "%.*f", dec, v);
+  } else {
+    std::snprintf(buf, sizeof buf, "%.10g", v);
+  }
+  return buf;
+}
+
+nlohmann::ordered_json vec_json(const Vec3& v) { return {v.x, v.y, v.z}; }
+
+bool same_box(const AABB& a, const AABB& b, const std::optional<Vec3>& scale) {
+  for (int k = 0; k < 3; ++k) {
+    const double tol = scale ? 0.5 * std::abs((*scale)[k]) : 1e-9 * std::max(1.0, std::abs(a.hi[k]));
+    if (std::abs(a.lo[k] - b.lo[k]) > tol || std::abs(a.hi[k] - b.hi[k]) > tol) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+InfoJobResult run_info(const InfoJobOptions& options) {
+  InfoJobResult r;
+  r.file = options.file.string();
+  if (is_index_file(options.file)) {
+    IndexOpenOptions oo;
+    if (options.verify) oo.verify = IndexOpenOptions::Verify::always;
+    const MappedIndex m = MappedIndex::open(options.file, oo);
+    IndexFileSummary x;
+    x.layout = to_string(m.config().layout);
+    x.capacity = static_cast<std::uint32_t>(m.config().capacity);
+    x.nodes = m.node_count();
+    x.depth = m.depth();
+    x.points_per_level = m.points_per_level();
+    x.file_bytes = m.file_bytes();
+    x.bytes_per_point =
+        m.empty() ? 0.0 : static_cast<double>(m.file_bytes()) / static_cast<double>(m.positions().size());
+    x.attributes = m.attributes().to_string();
+    x.positions = to_string(m.position_encoding());
+    if (m.position_encoding() == PositionEncoding::las_int32)
+      x.positions += " (scale " + num(m.positions().scale().x) + " " + num(m.positions().scale().y) + " " +
+                     num(m.positions().scale().z) + ", offset " + num(m.positions().offset().x) + " " +
+                     num(m.positions().offset().y) + " " + num(m.positions().offset().z) + ")";
+    x.ids = m.has_ids() ? "stored (original order)" : "not stored (points in index order)";
+    if (!m.rgb().empty())
+      x.rgb = m.rgb().multiplier() != 0
+                  ? "8-bit x " + std::to_string(m.rgb().multiplier()) + " (3 bytes/point, exact)"
+                  : std::string("16-bit (6 bytes/point)");
+    x.root_cell = m.root_cell();
+    x.checksums = m.verified() ? "all sections verified"
+                               : "header and metadata verified (nodes and points: rayscan info --verify)";
+    x.spacing = m.median_nn_spacing();
+    x.sections = m.sections();
+    x.sources = m.sources();
+    r.index = std::move(x);
+    r.info.format = "rayscan index";
+    r.count = m.positions().size();
+    if (!m.empty()) r.bounds = m.node_bounds(m.root());
+    r.crs_wkt = m.crs_wkt();
+    return r;
+  }
+  // Streaming: one chunk in memory at a time, whatever the file size (cloud_stats.hpp).
+  const auto reader = open_point_reader(options.file);
+  CloudStats stats = scan_point_cloud(*reader);
+  r.info = reader->info();
+  r.count = stats.count;
+  r.bounds = stats.bounds;
+  r.attributes = std::move(stats.ranges);
+  r.classes = std::move(stats.classification_counts);
+  r.header_differs = r.info.header_bounds && r.count != 0 && !same_box(*r.info.header_bounds, r.bounds, r.info.scale);
+  r.crs_wkt = reader->crs_wkt();
+  if (r.info.format == "COPC") r.copc = read_copc_info(options.file);
+  return r;
+}
+
+namespace {
+
+std::string index_report_json(const InfoJobResult& r) {
+  const IndexFileSummary& x = *r.index;
+  nlohmann::ordered_json j;
+  j["filename"] = r.file;
+  j["format"] = "rayscan index";
+  j["count"] = r.count;
+  j["layout"] = x.layout;
+  j["capacity"] = x.capacity;
+  j["nodes"] = x.nodes;
+  j["depth"] = x.depth;
+  j["points_per_level"] = x.points_per_level;
+  j["file_bytes"] = x.file_bytes;
+  j["bytes_per_point"] = x.bytes_per_point;
+  j["attributes"] = x.attributes;
+  j["positions"] = x.positions;
+  j["ids"] = x.ids;
+  if (!x.rgb.empty()) j["rgb"] = x.rgb;
+  j["root_cell"] = {{"min", vec_json(x.root_cell.lo)}, {"max", vec_json(x.root_cell.hi)}};
+  if (r.count != 0) j["bounds"] = {{"min", vec_json(r.bounds.lo)}, {"max", vec_json(r.bounds.hi)}};
+  j["checksums"] = x.checksums;
+  j["spacing"] = x.spacing;
+  nlohmann::ordered_json secs = nlohmann::ordered_json::array();
+  for (const IndexSectionInfo& s : x.sections)
+    secs.push_back({{"name", s.name}, {"offset", s.offset}, {"bytes", s.bytes},
+                    {"bytes_per_point", r.count ? static_cast<double>(s.bytes) / static_cast<double>(r.count) : 0.0}});
+  j["sections"] = secs;
+  nlohmann::ordered_json src = nlohmann::ordered_json::array();
+  for (const IndexSource& s : x.sources)
+    src.push_back({{"path", s.path}, {"format", s.format}, {"points", s.points}, {"first_id", s.first_id}, {"bytes", s.size}});
+  j["sources"] = src;
+  j["crs"] = {{"wkt", r.crs_wkt}};
+  return j.dump(2);
+}
+
+std::string index_report_text(const InfoJobResult& r) {
+  const IndexFileSummary& x = *r.index;
+  std::ostringstream o;
+  o << "file:              " << r.file << "\n";
+  o << "format:            rayscan index (" << x.layout << " octree, capacity " << x.capacity << ")\n";
+  o << "points:            " << r.count << "\n";
+  o << "nodes:             " << x.nodes << ", depth " << x.depth << "\n";
+  o << "points per level: ";
+  for (std::size_t d = 0; d < x.points_per_level.size(); ++d)
+    if (x.points_per_level[d]) o << " " << d << ":" << x.points_per_level[d];
+  o << "\n";
+  o << "file size:         " << x.file_bytes << " bytes (" << num(x.bytes_per_point) << " bytes/point)\n";
+  o << "attributes:        " << (x.attributes.empty() ? std::string("positions only") : x.attributes) << "\n";
+  o << "positions:         " << x.positions << "\n";
+  o << "ids:               " << x.ids << "\n";
+  if (!x.rgb.empty()) o << "rgb:               " << x.rgb << "\n";
+  o << "sections:         ";
+  for (const IndexSectionInfo& s : x.sections)
+    o << " " << s.name << " " << num(r.count ? static_cast<double>(s.bytes) / static_cast<double>(r.count) : 0.0);
+  o << " (bytes/point)\n";
+  o << "spacing:           " << num(x.spacing) << " (median nearest-neighbour distance: the auto radius)\n";
+  o << "checksums:         " << x.checksums << "\n";
+  o << "CRS:               " << (r.crs_wkt.empty() ? std::string("none") : r.crs_wkt.substr(0, 100)) << "\n";
+  for (const IndexSource& s : x.sources)
+    o << "source:            " << s.path << " (" << s.format << ", " << s.points << " points)\n";
+  return o.str();
+}
+
+}  // namespace
+
+std::string info_report_json(const InfoJobResult& r) {
+  if (r.index) return index_report_json(r);
+  nlohmann::ordered_json j;
+  j["filename"] = r.file;
+  j["format"] = r.info.format;
+  if (!r.info.version.empty()) j["version"] = r.info.version;
+  if (!r.info.encoding.empty()) j["encoding"] = r.info.encoding;
+  if (r.info.point_format >= 0) {
+    j["point_data_record_format"] = r.info.point_format;
+    j["point_record_length"] = r.info.record_length;
+    j["extra_bytes_per_point"] = r.info.extra_bytes_per_point;
+    j["global_encoding"] = r.info.global_encoding;
+    j["system_id"] = r.info.system_id;
+    j["software"] = r.info.software;
+    j["creation"] = {{"year", r.info.creation_year}, {"day_of_year", r.info.creation_day}};
+  }
+  j["count"] = r.count;
+  j["header_count"] = r.info.header_point_count;
+  j["dropped_nonfinite"] = r.info.dropped_nonfinite;
+  if (r.count != 0) j["bounds"] = {{"min", vec_json(r.bounds.lo)}, {"max", vec_json(r.bounds.hi)}};
+  if (r.info.header_bounds)
+    j["header_bounds"] = {{"min", vec_json(r.info.header_bounds->lo)},
+                          {"max", vec_json(r.info.header_bounds->hi)},
+                          {"differs", r.header_differs}};
+  if (r.info.scale) j["scale"] = vec_json(*r.info.scale);
+  if (r.info.offset) j["offset"] = vec_json(*r.info.offset);
+  if (r.info.width != 0) j["width"] = r.info.width, j["height"] = r.info.height;
+  if (r.info.viewpoint) j["viewpoint"] = *r.info.viewpoint;
+  nlohmann::ordered_json crs = nlohmann::ordered_json::object();
+  if (!r.info.crs_source.empty()) crs["source"] = r.info.crs_source;
+  if (r.info.epsg != 0) crs["epsg"] = r.info.epsg;
+  if (r.info.vertical_epsg != 0) crs["vertical_epsg"] = r.info.vertical_epsg;
+  crs["wkt"] = r.crs_wkt;
+  j["crs"] = crs;
+  nlohmann::ordered_json attrs = nlohmann::ordered_json::array();
+  for (const AttributeRange& a : r.attributes) attrs.push_back({{"name", a.name}, {"min", a.lo}, {"max", a.hi}});
+  j["attributes"] = attrs;
+  if (!r.classes.empty()) {
+    nlohmann::ordered_json cj = nlohmann::ordered_json::object();
+    for (auto [c, n] : r.classes) cj[std::to_string(c)] = n;
+    j["classification_counts"] = cj;
+  }
+  j["fields"] = r.info.fields;
+  nlohmann::ordered_json vl = nlohmann::ordered_json::array();
+  for (const io::VlrInfo& v : r.info.vlrs)
+    vl.push_back({{"user_id", v.user_id}, {"record_id", v.record_id}, {"description", v.description},
+                  {"length", v.length}, {"offset", v.offset}, {"extended", v.extended}});
+  if (r.info.format == "LAS" || r.info.format == "LAZ" || r.info.format == "COPC") j["vlrs"] = vl;
+  if (r.copc) {
+    const CopcInfo& c = *r.copc;
+    const AABB cube = c.node_cube(CopcNode{});
+    j["copc"] = {{"root_cube", {{"min", vec_json(cube.lo)}, {"max", vec_json(cube.hi)}}},
+                 {"spacing", c.spacing}, {"depth", c.depth}, {"nodes", c.nodes.size()},
+                 {"hierarchy_pages", c.hierarchy_pages}, {"nodes_per_level", c.nodes_per_level},
+                 {"points_per_level", c.points_per_level}};
+  }
+  j["comments"] = r.info.comments;
+  j["notes"] = r.info.notes;
+  return j.dump(2);
+}
+
+std::string info_report_text(const InfoJobResult& r) {
+  if (r.index) return index_report_text(r);
+  std::ostringstream o;
+  o << "file:              " << r.file << "\n";
+  o << "format:            " << r.info.format;
+  if (!r.info.version.empty()) o << " " << r.info.version;
+  if (!r.info.encoding.empty()) o << " (" << r.info.encoding << ")";
+  o << "\n";
+  if (r.info.point_format >= 0) {
+    o << "point format:      " << r.info.point_format << " (" << r.info.record_length << "-byte records, "
+      << r.info.extra_bytes_per_point << " extra bytes)\n";
+    o << "system / software: " << r.info.system_id << " / " << r.info.software << "\n";
+    o << "created:           day " << r.info.creation_day << " of " << r.info.creation_year << "\n";
+  }
+  o << "points:            " << r.count;
+  if (r.info.header_point_count != r.count) o << " (header: " << r.info.header_point_count << ")";
+  o << "\n";
+  if (r.info.dropped_nonfinite > 0) o << "dropped:           " << r.info.dropped_nonfinite << " non-finite points\n";
+  if (r.info.width != 0) o << "width x height:    " << r.info.width << " x " << r.info.height << "\n";
+  if (r.info.viewpoint) {
+    o << "viewpoint:         ";
+    for (double v : *r.info.viewpoint) o << num(v) << " ";
+    o << "(tx ty tz qw qx qy qz; reported, not applied)\n";
+  }
+  if (r.count != 0) {
+    o << "bounds min:        " << coord(r.bounds.lo.x, r.info.scale, 0) << " " << coord(r.bounds.lo.y, r.info.scale, 1) << " "
+      << coord(r.bounds.lo.z, r.info.scale, 2) << "\n";
+    o << "bounds max:        " << coord(r.bounds.hi.x, r.info.scale, 0) << " " << coord(r.bounds.hi.y, r.info.scale, 1) << " "
+      << coord(r.bounds.hi.z, r.info.scale, 2) << "\n";
+  }
+  if (r.header_differs) {
+    const AABB& h = *r.info.header_bounds;
+    o << "header bounds min: " << num(h.lo.x) << " " << num(h.lo.y) << " " << num(h.lo.z) << "  (differs)\n";
+    o << "header bounds max: " << num(h.hi.x) << " " << num(h.hi.y) << " " << num(h.hi.z) << "\n";
+  }
+  if (r.info.scale) o << "scale:             " << num(r.info.scale->x) << " " << num(r.info.scale->y) << " " << num(r.info.scale->z) << "\n";
+  if (r.info.offset) o << "offset:            " << num(r.info.offset->x) << " " << num(r.info.offset->y) << " " << num(r.info.offset->z) << "\n";
+  o << "CRS:               ";
+  if (r.info.crs_source.empty()) o << "none";
+  else {
+    o << (r.info.epsg ? "EPSG:" + std::to_string(r.info.epsg) : std::string("(no EPSG code)"));
+    if (r.info.vertical_epsg) o << " + EPSG:" << r.info.vertical_epsg << " (vertical)";
+    o << " from " << r.info.crs_source;
+  }
+  o << "\n";
+  if (!r.crs_wkt.empty()) o << "WKT:               " << r.crs_wkt.substr(0, 100) << (r.crs_wkt.size() > 100 ? "..." : "") << "\n";
+  if (!r.attributes.empty()) {
+    o << "attributes:\n";
+    for (const AttributeRange& a : r.attributes) {
+      char line[256];
+      std::snprintf(line, sizeof line, "  %-20s %18s %18s\n", a.name.c_str(), num(a.lo).c_str(), num(a.hi).c_str());
+      o << line;
+    }
+  }
+  if (!r.classes.empty()) {
+    o << "classes:          ";
+    for (auto [c, n] : r.classes) o << " " << c << ":" << n;
+    o << "\n";
+  }
+  if (!r.info.vlrs.empty()) {
+    o << "VLRs:\n";
+    for (const io::VlrInfo& v : r.info.vlrs)
+      o << "  " << (v.extended ? "EVLR " : "VLR  ") << v.user_id << " " << v.record_id << " \"" << v.description
+        << "\" " << v.length << " bytes\n";
+  }
+  if (r.copc) {
+    const CopcInfo& c = *r.copc;
+    const AABB cube = c.node_cube(CopcNode{});
+    o << "COPC octree:       root cube " << num(cube.lo.x) << " " << num(cube.lo.y) << " " << num(cube.lo.z) << " / "
+      << num(cube.hi.x) << " " << num(cube.hi.y) << " " << num(cube.hi.z) << ", spacing " << num(c.spacing)
+      << ", depth " << c.depth << ", " << c.nodes.size() << " nodes in " << c.hierarchy_pages << " hierarchy page(s)\n";
+    for (std::size_t l = 0; l < c.nodes_per_level.size(); ++l)
+      o << "  level " << l << ": " << c.nodes_per_level[l] << " nodes, " << c.points_per_level[l] << " points\n";
+  }
+  for (const std::string& c : r.info.comments) o << "comment:           " << c << "\n";
+  for (const std::string& n : r.info.notes) o << "note:              " << n << "\n";
+  return o.str();
+}
+
+}  // namespace rayscan::io

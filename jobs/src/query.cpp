@@ -1,0 +1,164 @@
+// The ray-query job (rayscan/jobs/query.hpp).
+#include "rayscan/jobs/query.hpp"
+
+#include "rayscan/octree/batch.hpp"
+#include "rayscan/site/copc.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/io/rays.hpp"
+#include "rayscan/base/threads.hpp"
+#include "rayscan/base/work_distributor.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <tbb/task_arena.h>
+
+#include <chrono>
+#include <cstdio>
+#include <unordered_map>
+
+namespace rayscan::io {
+
+namespace {
+
+constexpr std::uint64_t kRaysPerItem = 256;  // rays per work item of the distributed batch
+
+// ray_query_batch over TBB, or, with a distributor of several processes, blocks of kRaysPerItem
+// rays handed out by it and gathered to the root (hit lists serialised as count + RayHits).
+template <class I>
+void answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, const JobControl& ctl,
+                 std::vector<std::vector<RayHit>>& hits) {
+  const unsigned threads = resolve_threads(ctl.threads);
+  tbb::task_arena arena(static_cast<int>(threads));
+  WorkDistributor* dist = ctl.distributor;
+  if (!dist || dist->size() <= 1) {
+    arena.execute([&] { hits = ray_query_batch(idx, rays, q); });
+    return;
+  }
+  q.validate();
+  hits.assign(rays.size(), {});
+  const std::uint64_t n = rays.size();
+  WorkStage stage;
+  stage.items = (n + kRaysPerItem - 1) / kRaysPerItem;
+  stage.batch = threads;
+  auto range = [&](std::uint64_t first, std::uint64_t count) {
+    return std::pair{first * kRaysPerItem, std::min(n, (first + count) * kRaysPerItem)};
+  };
+  stage.compute = [&](std::uint64_t first, std::uint64_t count) {
+    const auto ab = range(first, count);  // not a structured binding: clang 14 cannot capture those
+    arena.execute([&] {
+      ray_query_each_parallel(idx, std::span<const Ray>(rays).subspan(ab.first, ab.second - ab.first), q,
+                              std::span<std::vector<RayHit>>(hits).subspan(ab.first, ab.second - ab.first));
+    });
+  };
+  stage.pack = [&](std::uint64_t first, std::uint64_t count) {
+    const auto [a, b] = range(first, count);
+    std::vector<std::byte> out;
+    for (std::uint64_t i = a; i < b; ++i) {
+      const std::uint64_t k = hits[i].size();
+      append_bytes(out, std::span<const std::uint64_t>(&k, 1));
+      append_bytes(out, std::span<const RayHit>(hits[i]));
+    }
+    return out;
+  };
+  stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
+    const auto [a, b] = range(first, count);
+    std::size_t off = 0;
+    for (std::uint64_t i = a; i < b; ++i) {
+      std::uint64_t k = 0;
+      read_values(bytes, off, std::span<std::uint64_t>(&k, 1));
+      if (k > (bytes.size() - off) / sizeof(RayHit)) throw std::runtime_error("query: ray block message is short");
+      hits[i].resize(k);
+      read_values(bytes, off, std::span<RayHit>(hits[i]));
+    }
+    if (off != bytes.size()) throw std::runtime_error("query: ray block message has trailing bytes");
+  };
+  dist->run(stage);
+}
+
+}  // namespace
+
+QueryJobResult run_query(const QueryJobOptions& o) {
+  o.query.validate();
+  QueryJobResult r;
+  // Rays first: a malformed rays file is reported before a large cloud is read.
+  r.rays = o.rays.empty() && !o.rays_file.empty() ? read_rays(o.rays_file) : o.rays;
+  const auto t0 = std::chrono::steady_clock::now();
+  if (!o.cloud && is_index_file(o.cloud_file)) {
+    // An index file: queries run on the memory map; positions of the hits are looked up by one
+    // sequential scan of the ids (no inverse permutation in memory).
+    const MappedIndex idx = MappedIndex::open(o.cloud_file);
+    tbb::task_arena arena(static_cast<int>(resolve_threads(o.control.threads)));
+    answer_rays(idx, r.rays, o.query, o.control, r.hits);
+    if (o.control.distributor && !o.control.distributor->is_root()) return r;
+    std::unordered_map<PointIndex, Vec3> hit_pos;
+    for (const auto& h : r.hits)
+      for (const RayHit& x : h) hit_pos.emplace(x.index, Vec3(0.0));
+    const IdView ids = idx.ids();
+    const auto pos = idx.positions();
+    if (ids.is_identity())  // an index without ids: a hit's index is its slot
+      for (auto& [id, p] : hit_pos) p = pos[id];
+    for (std::size_t s = 0; s < ids.size() && !ids.is_identity() && !hit_pos.empty(); ++s)
+      if (auto it = hit_pos.find(ids[s]); it != hit_pos.end()) it->second = pos[s];
+    for (const auto& h : r.hits)
+      for (const RayHit& x : h) r.hit_positions.push_back(hit_pos.at(x.index));
+    return r;
+  }
+  if (!o.cloud && is_copc_file(o.cloud_file)) {
+    // COPC: the query runs on the file's hierarchy; only the nodes the rays reach are decoded.
+    const CopcIndex idx(o.cloud_file, o.cache_bytes);
+    tbb::task_arena arena(static_cast<int>(resolve_threads(o.control.threads)));
+    arena.execute([&] { r.hits = ray_query_batch(idx, r.rays, o.query); });
+    for (const auto& h : r.hits)
+      for (const RayHit& x : h) r.hit_positions.push_back(idx.position_of(x.index));
+    r.copc_decodes = idx.decodes();
+    r.copc_nodes = idx.node_count();
+    char msg[256];
+    std::snprintf(msg, sizeof msg, "COPC: %llu of %llu nodes decoded, %zu rays in %.2f s",
+                  static_cast<unsigned long long>(r.copc_decodes), static_cast<unsigned long long>(r.copc_nodes),
+                  r.rays.size(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    o.control.info(msg);
+    return r;
+  }
+  if (!o.cloud) r.cloud = read_point_cloud(o.cloud_file, ReadOptions{.scalars = false});
+  const PointCloud& cloud = o.cloud ? *o.cloud : r.cloud;
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "read %zu points and %zu rays in %.2f s", cloud.size(), r.rays.size(),
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  o.control.info(buf);
+  const AnyIndex index = make_index(cloud.positions, o.index);
+  std::visit([&](const auto& idx) { answer_rays(idx, r.rays, o.query, o.control, r.hits); }, index);
+  return r;
+}
+
+void write_hits_csv(std::ostream& os, std::span<const Vec3> positions,
+                    const std::vector<std::vector<RayHit>>& hits) {
+  const auto precision = os.precision(17);
+  os << "ray,rank,index,x,y,z,t,distance\n";
+  for (std::size_t r = 0; r < hits.size(); ++r)
+    for (std::size_t k = 0; k < hits[r].size(); ++k) {
+      const RayHit& h = hits[r][k];
+      const Vec3& p = positions[h.index];
+      os << r << ',' << k << ',' << h.index << ',' << p.x << ',' << p.y << ',' << p.z << ',' << h.t << ','
+         << h.distance << '\n';
+    }
+  os.precision(precision);
+}
+
+void write_hits_csv(std::ostream& os, const QueryJobResult& r) {
+  if (r.hit_positions.empty()) return write_hits_csv(os, r.cloud.positions, r.hits);
+  // Index-file input: hit_positions follows hits flattened (ray by ray, best first).
+  const auto precision = os.precision(17);
+  os << "ray,rank,index,x,y,z,t,distance\n";
+  std::size_t slot = 0;
+  for (std::size_t k = 0; k < r.hits.size(); ++k)
+    for (std::size_t j = 0; j < r.hits[k].size(); ++j) {
+      const RayHit& h = r.hits[k][j];
+      const Vec3& p = r.hit_positions[slot++];
+      os << k << ',' << j << ',' << h.index << ',' << p.x << ',' << p.y << ',' << p.z << ',' << h.t << ','
+         << h.distance << '\n';
+    }
+  os.precision(precision);
+}
+
+}  // namespace rayscan::io

@@ -1,0 +1,542 @@
+// The render job (rayscan/jobs/render.hpp): what `rayscan render` and rayscan.render() run.
+#include "rayscan/jobs/render.hpp"
+
+#include "rayscan/camera/camera_file.hpp"
+#include "rayscan/camera/colmap.hpp"
+#include "rayscan/site/copc.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/image/image_file.hpp"
+#include "rayscan/io/point_reader.hpp"
+#include "rayscan/render/material.hpp"
+#include "rayscan/render/surfel_setup.hpp"
+#include "rayscan/base/work_distributor.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <utility>
+
+namespace rayscan::render {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::string num17(double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.17g", v);
+  return b;
+}
+
+}  // namespace
+
+void apply_overrides(Scene& scene, const SceneOverrides& o) {
+  if (!o.camera_file.empty()) {
+    scene.camera = io::load_camera(o.camera_file);
+    scene.camera_file = o.camera_file;
+  }
+  if (!o.colmap_dir.empty()) {
+    if (o.colmap_image.empty()) throw std::invalid_argument("--colmap: give the photo with --image NAME");
+    scene.camera = load_colmap_camera(o.colmap_dir, o.colmap_image);
+    scene.camera_file = o.colmap_dir / "images.txt";
+  } else if (!o.colmap_image.empty()) {
+    throw std::invalid_argument("--image: needs --colmap DIR");
+  }
+  if (!o.primitive.empty()) {
+    if (o.primitive != "sphere" && o.primitive != "surfel")
+      throw std::invalid_argument("--primitive '" + o.primitive + "': expected sphere or surfel");
+    scene.primitive = o.primitive == "surfel" ? Primitive::surfel : Primitive::sphere;
+  }
+  if (o.spp) {
+    if (*o.spp < 1 || *o.spp > (1u << 20)) throw std::invalid_argument("--spp: expected an integer in [1, 1048576]");
+    scene.spp = *o.spp;
+  }
+  if (o.seed) scene.seed = *o.seed;
+  if (!o.out.empty()) {
+    if (!is_image_file_name(o.out))
+      throw std::invalid_argument("--out '" + o.out.string() + "': " + image_file_name_expected());
+    scene.output.image = o.out;
+  }
+  for (const std::string& a : o.aovs) {
+    const std::optional<Aov> v = parse_aov(a);
+    if (!v) throw std::invalid_argument("--aov '" + a + "': " + aov_names_expected());
+    if (std::find(scene.output.aovs.begin(), scene.output.aovs.end(), *v) == scene.output.aovs.end())
+      scene.output.aovs.push_back(*v);
+  }
+  if (o.width || o.height) {
+    if (!scene.camera) throw std::invalid_argument("--width/--height: the scene has no camera");
+    // In double, then checked: a 1x65536 camera with --width 65536 asks for a height of 2^32,
+    // which must be an error, not a wrapped 32-bit integer.
+    const Camera& c = *scene.camera;
+    const double w = o.width ? double(*o.width) : std::round(double(c.width()) * *o.height / c.height());
+    const double h = o.height ? double(*o.height) : std::round(double(c.height()) * *o.width / c.width());
+    for (const auto& [v, name] : {std::pair{w, "width"}, std::pair{h, "height"}})
+      if (!(v >= 1.0 && v <= 65536.0))
+        throw std::invalid_argument("the camera's aspect ratio " + std::to_string(c.width()) + ":" +
+                                    std::to_string(c.height()) + " gives an image " + name + " of " +
+                                    std::to_string(static_cast<long long>(std::min(v, 1e18))) +
+                                    " pixels, expected 1 to 65536; give both --width and --height");
+    scene.camera = c.resized(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h));
+  }
+}
+
+namespace {
+
+// What every frame of a render job shares: the scene, the cloud or the mapped index file, the
+// albedo, the index and the radius. Heap-allocated (spans into `owned`, `albedo`, `rule` must not
+// move).
+struct Prepared {
+  Scene scene;
+  std::optional<io::MappedIndex> mapped;
+  std::unique_ptr<io::CopcIndex> copc;  // a COPC file traced in place (sphere mode)
+  PointCloud owned;                 // the read cloud (or, for surfels over an index file, its points)
+  const PointCloud* cloud = nullptr;  // null when tracing straight from `mapped`
+  std::vector<Color> albedo;        // by original index (in-memory clouds, surfel mode)
+  AlbedoRule rule;                  // sphere mode over `mapped`: applied at shading time
+  AlbedoSource albedo_source;
+  AnyIndex index = AnyIndex(BruteForceIndex(std::span<const Vec3>{}));
+  SurfelAttributes surfels;
+  std::chrono::steady_clock::time_point started;  // job start (time to the first traced tile)
+};
+
+// The COPC half of prepare(): albedo rule from one streamed pass of the statistics it needs (none
+// for constant/classification/ranged modes; rgb stops at the first non-zero colour), the auto
+// radius from CopcIndex::spacing_samples (a few nodes), the exact bounds for camera_for_cloud by
+// one streamed pass over the positions. Memory stays within the cache budget.
+constexpr std::size_t kCopcSpacingSamples = 2000;
+
+void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
+  Scene& scene = P.scene;
+  const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
+  const JobControl& ctl = o.control;
+  io::CopcIndex& copc = *P.copc;
+  char buf[512];
+  r.crs_wkt = io::open_point_reader(scene.cloud, io::AttributeSet::none())->crs_wkt();
+  if (o.camera_for_cloud) {
+    AABB b;
+    copc.scan(0, [&](const io::CopcIndex::NodeBlock& k) {
+      b.expand(bounds_of(k.positions));
+      return true;
+    });
+    scene.camera = o.camera_for_cloud(b);
+  }
+  auto t0 = std::chrono::steady_clock::now();
+  const ColorMode mode = scene.material.mode;
+  const unsigned attrs = mode == ColorMode::rgb              ? io::CopcIndex::kRgb
+                         : mode == ColorMode::intensity      ? io::CopcIndex::kIntensity
+                         : mode == ColorMode::classification ? io::CopcIndex::kClassification
+                                                             : 0u;
+  copc.set_attributes(attrs);
+  AlbedoStream stream;
+  stream.points = r.points;
+  stream.rgb = copc.has_rgb();
+  stream.intensity = stream.classification = true;  // PDRF 6-8 (COPC) always carry both
+  stream.blocks = [&](const std::function<bool(const AlbedoAttributes&)>& each) {
+    copc.scan(attrs, [&](const io::CopcIndex::NodeBlock& k) {
+      return each(AlbedoAttributes{k.positions, k.rgb, k.intensity, k.classification});
+    });
+  };
+  try {
+    P.rule = AlbedoRule(stream, scene.material, scene.up);
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(f + ": /material/color: " + e.what());
+  }
+  const AlbedoAttributes slots{copc.positions(), copc.rgb(), copc.intensity(), copc.classification()};
+  P.albedo_source = {{}, &P.rule, slots, copc.positions().size()};
+  std::snprintf(buf, sizeof buf, "albedo at shading time from the decoded node attributes (statistics in %.2f s)",
+                seconds_since(t0));
+  ctl.info(buf);
+  t0 = std::chrono::steady_clock::now();
+  try {
+    r.radius = choose_radius(scene.radius, scene.auto_radius_factor, [&] {
+      // kCopcSpacingSamples (not the in-memory path's 20000): a kNN query on the COPC hierarchy tests
+      // every point of the ancestor nodes (tens of thousands each), so each sample costs more.
+      const std::vector<Vec3> samples = copc.spacing_samples(kCopcSpacingSamples);
+      return median_nn_spacing_of(copc, std::span<const Vec3>(samples), samples.size());
+    });
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(f + ": /radius: " + e.what());
+  }
+  if (r.radius.automatic) {
+    std::snprintf(buf, sizeof buf,
+                  "radius auto: median nearest-neighbour spacing %.6g (%zu samples from at most 64 nodes) x factor %.3g = "
+                  "%.6g (%.2f s)",
+                  r.radius.spacing, kCopcSpacingSamples, r.radius.factor, r.radius.radius, seconds_since(t0));
+    ctl.info(buf);
+  }
+  copc.trim_cache();
+}
+
+// Reads the cloud (or maps the index file), sets up the albedo, builds the index and chooses
+// the radius; fills r.points, read/index seconds, radius, crs. (run_render's first half.)
+//
+// An index file (.rsi) in sphere mode is traced straight from the mapping: no copy of its points.
+// The only passes over all points before tracing are whole-cloud statistics the image depends
+// on: the 8-bit colour test of material "rgb" (stops at the first channel > 255), the percentile
+// range of intensity/elevation without a "range", the original-order samples of the auto radius
+// (one read of the 4-byte id section), and the exact bounds of an ortho map. Surfel mode still
+// copies the points to original order (MappedIndex::to_point_cloud) for the disc estimate.
+std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r) {
+  auto P = std::make_unique<Prepared>();
+  P->started = std::chrono::steady_clock::now();
+  P->scene = o.scene;  // small: the camera may be replaced by camera_for_cloud
+  Scene& scene = P->scene;
+  const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
+  if (!scene.camera && !o.camera_for_cloud) throw SceneError(f + ": /camera: not set; give a camera in the scene or a camera file");
+  if (o.write && scene.output.image.empty())
+    throw SceneError(f + ": /output/image: not set; give it in the scene or with --out");
+  if (o.write) load_image_io();  // the image writer, before the render rather than after it
+  const JobControl& ctl = o.control;
+  char buf[512];
+
+  // Only positions, colour, intensity and classification are used: skip the other scalars.
+  auto t0 = std::chrono::steady_clock::now();
+  PointCloud& owned = P->owned;
+  std::optional<io::MappedIndex>& mapped = P->mapped;
+  const bool surfel = scene.primitive == Primitive::surfel;
+  std::unique_ptr<io::CopcIndex>& copc = P->copc;
+  if (!o.cloud && !surfel && io::is_copc_file(scene.cloud)) {
+    // A COPC file in sphere mode is traced in place (prepare_copc); surfels read it whole below.
+    copc = std::make_unique<io::CopcIndex>(scene.cloud, o.cache_bytes);
+    if (copc->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
+    r.points = copc->info().point_count;
+    r.read_seconds = seconds_since(t0);
+    std::snprintf(buf, sizeof buf, "COPC file %s: %zu points, %zu nodes, hierarchy read in %.2f s (nodes decoded as rays reach them)",
+                  scene.cloud.string().c_str(), r.points, copc->node_count(), r.read_seconds);
+    ctl.info(buf);
+    prepare_copc(*P, o, r);
+    return P;
+  }
+  if (!o.cloud && io::is_index_file(scene.cloud)) {
+    io::IndexOpenOptions oo;
+    oo.read_ahead = true;  // a render touches most of the file: read it ahead, nodes first
+    mapped.emplace(io::MappedIndex::open(scene.cloud, oo));
+    if (mapped->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
+    if (surfel) owned = mapped->to_point_cloud();  // disc centres and estimate by original index
+  } else if (!o.cloud) {
+    owned = load_cloud(scene, io::ReadOptions{.scalars = false});
+  }
+  else if (o.cloud->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
+  if (o.cloud) P->cloud = o.cloud;
+  else if (!mapped || surfel) P->cloud = &owned;
+  const PointCloud* cloud = P->cloud;
+  r.points = mapped ? mapped->positions().size() : cloud->size();
+  r.read_seconds = o.cloud ? 0.0 : seconds_since(t0);
+  if (mapped)
+    std::snprintf(buf, sizeof buf, "mapped index file %s: %zu points, %zu nodes, in %.2f s%s", scene.cloud.string().c_str(),
+                  r.points, static_cast<std::size_t>(mapped->node_count()), r.read_seconds,
+                  cloud ? " (points copied to original order for surfels)" : "");
+  else
+    std::snprintf(buf, sizeof buf, "read %zu points from %s in %.2f s", r.points, scene.cloud.string().c_str(),
+                  r.read_seconds);
+  if (!o.cloud) ctl.info(buf);
+  r.crs_wkt = mapped ? mapped->crs_wkt() : cloud->crs_wkt;
+  if (o.camera_for_cloud) {
+    scene.camera = o.camera_for_cloud(cloud ? bounds_of(cloud->positions) : mapped->bounds());  // stored: no pass
+  }
+  t0 = std::chrono::steady_clock::now();
+  try {
+    if (cloud) {
+      P->albedo = compute_albedo(*cloud, scene.material, scene.up);
+      P->albedo_source.by_index = P->albedo;
+    } else {
+      const AlbedoAttributes slots{mapped->positions(), mapped->rgb(), mapped->intensity(), mapped->classification()};
+      P->rule = AlbedoRule(slots, r.points, scene.material, scene.up);
+      P->albedo_source = {{}, &P->rule, slots, r.points};
+    }
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(f + ": /material/color: " + e.what());
+  }
+  if (mapped && !cloud) {
+    std::snprintf(buf, sizeof buf, "albedo at shading time from the stored attributes (statistics in %.2f s)",
+                  seconds_since(t0));
+    ctl.info(buf);
+  }
+  t0 = std::chrono::steady_clock::now();
+  if (!mapped) {
+    try {
+      P->index = make_index(cloud->positions, scene.index);
+    } catch (const std::invalid_argument& e) {
+      throw SceneError(f + ": /index: " + e.what());
+    }
+    r.index_seconds = seconds_since(t0);
+    std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), r.index_seconds);
+    ctl.info(buf);
+  }
+  AnyIndex& index = P->index;
+  SurfelAttributes& surfels = P->surfels;
+  if (surfel) {
+    // Surfel normals and radii: kNN over the mapped or the built in-memory index (scene_surfels).
+    t0 = std::chrono::steady_clock::now();
+    try {
+      surfels = mapped ? scene_surfels(scene, *mapped, *cloud) : scene_surfels(scene, index, *cloud);
+    } catch (const std::invalid_argument& e) {
+      throw SceneError(f + ": /surfel: " + e.what());
+    }
+    r.radius.radius = surfels.median_radius;
+    const std::string normals = cloud->normals.empty()
+                                    ? "by PCA over " + std::to_string(scene.surfel.k_normal) + " neighbours"
+                                    : std::string("from the file");
+    std::snprintf(buf, sizeof buf,
+                  "surfels: normals %s, radius %.3g x distance to neighbour %u: median %.6g, max %.6g "
+                  "(clamped to %.3g x median), in %.2f s",
+                  normals.c_str(), scene.surfel.radius_factor, scene.surfel.k_radius, surfels.median_radius,
+                  surfels.max_radius, scene.surfel.max_radius_factor, seconds_since(t0));
+    ctl.info(buf);
+  } else {
+    t0 = std::chrono::steady_clock::now();
+    try {
+      r.radius = mapped ? choose_radius(scene.radius, scene.auto_radius_factor,
+                                        [&] { return mapped->median_nn_spacing(); })  // stored at build
+                        : choose_radius(index, cloud->positions, scene.radius, scene.auto_radius_factor);
+    } catch (const std::invalid_argument& e) {
+      throw SceneError(f + ": /radius: " + e.what());
+    }
+    if (r.radius.automatic) {
+      std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x factor %.3g = %.6g (%.2f s)",
+                    r.radius.spacing, r.radius.factor, r.radius.radius, seconds_since(t0));
+      ctl.info(buf);
+    }
+  }
+
+  return P;
+}
+
+// Traces one camera's image over the prepared scene (run_render's second half).
+RenderStats render_camera(const Prepared& P, const Camera& camera, const JobControl& ctl, double radius,
+                          Framebuffer& image, bool distribute) {
+  Scene scene = P.scene;
+  scene.camera = camera;
+  RenderSettings settings =
+      make_settings(scene, P.cloud ? std::span<const Vec3>(P.cloud->positions) : std::span<const Vec3>{}, {}, radius);
+  settings.integrator.albedo = P.albedo_source;
+  if (scene.primitive == Primitive::surfel) use_surfels(settings, P.surfels);
+  const Camera& cam = settings.camera;
+  const std::uint64_t tiles = std::uint64_t((cam.width() + 15) / 16) * ((cam.height() + 15) / 16);
+  Progress progress(tiles, ctl.progress && Progress::stderr_is_terminal());
+  RenderOptions ropt;
+  ropt.threads = ctl.threads;
+  ropt.progress = &progress;
+  ropt.distributor = distribute ? ctl.distributor : nullptr;
+  if (P.copc) return render_image(*P.copc, settings, image, ropt);
+  return P.mapped ? render_image(*P.mapped, settings, image, ropt) : render_image(P.index, settings, image, ropt);
+}
+
+ImageMetadata render_metadata(const RenderJobOptions& o, const Scene& scene, const RenderJobResult& r,
+                              const std::filesystem::path& camera_file) {
+  ImageMetadata m = {{"rayscan:scene", scene.file.string()},
+                     {"rayscan:cloud", o.cloud ? std::string("(memory)") : scene.cloud.string()},
+                     {"rayscan:spp", std::to_string(scene.spp)},
+                     {"rayscan:seed", std::to_string(scene.seed)},
+                     {"rayscan:radius", num17(r.radius.radius)},
+                     {"rayscan:primitive", scene.primitive == Primitive::surfel ? "surfel" : "sphere"}};
+  // No render time in the file: two renders of the same scene and seed are identical
+  // byte for byte (`cmp`); the time is in RenderJobResult::stats and the log.
+  if (!camera_file.empty()) m.emplace_back("rayscan:camera", camera_file.string());
+  return m;
+}
+
+void log_stats(const JobControl& ctl, const RenderStats& st, const Camera& cam, std::uint32_t spp, const char* what) {
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "%s%.2f s, %u threads, %llux%llu px, %u spp, %llu primary rays, %llu ray queries, "
+                "%.3g queries/s (%.3g per thread), %.3g nodes and %.3g points visited per query",
+                what, st.seconds, st.threads, (unsigned long long)cam.width(), (unsigned long long)cam.height(), spp,
+                (unsigned long long)st.primary_rays, (unsigned long long)st.queries, double(st.queries) / st.seconds,
+                double(st.queries) / st.seconds / st.threads,
+                st.queries ? double(st.nodes_visited) / double(st.queries) : 0.0,
+                st.queries ? double(st.points_tested) / double(st.queries) : 0.0);
+  ctl.info(buf);
+}
+
+bool is_root(const JobControl& ctl) { return !ctl.distributor || ctl.distributor->is_root(); }
+
+}  // namespace
+
+RenderJobResult run_render(const RenderJobOptions& o) {
+  RenderJobResult r;
+  const std::unique_ptr<Prepared> P = prepare(o, r);
+  const Scene& scene = P->scene;
+  const JobControl& ctl = o.control;
+  const double prepared = seconds_since(P->started);
+  char buf0[200];
+  r.stats = render_camera(*P, *scene.camera, ctl, r.radius.radius, r.image, true);
+  if (P->copc) {
+    r.copc_decodes = P->copc->decodes();
+    std::snprintf(buf0, sizeof buf0, "COPC: %llu node decodes (of %zu nodes), %zu resident after the last trim",
+                  static_cast<unsigned long long>(r.copc_decodes), P->copc->node_count(), P->copc->resident_nodes());
+    ctl.info(buf0);
+  }
+  r.first_tile_seconds = prepared + r.stats.first_tile_seconds;
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "first tile traced %.2f s after the start (%.2f s to set up, %.2f s of tracing)",
+                r.first_tile_seconds, prepared, r.stats.first_tile_seconds);
+  ctl.info(buf);
+  r.metadata = render_metadata(o, scene, r, scene.camera_file);
+  if (o.write && !scene.output.image.empty() && is_root(ctl))
+    r.written = write_image(r.image, scene.output, r.metadata);
+  log_stats(ctl, r.stats, *scene.camera, scene.spp, "");
+  return r;
+}
+
+std::vector<Camera> load_camera_list(const std::filesystem::path& file) {
+  const std::string f = file.string();
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw SceneError(f + ": cannot open the camera list");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw SceneError(f + ": byte " + std::to_string(e.byte) + ": expected JSON (a list of cameras)");
+  }
+  std::string base;
+  if (j.is_object()) {
+    if (j.size() != 1 || !j.contains("cameras"))
+      throw SceneError(f + ": expected an array of cameras or {\"cameras\": [...]}");
+    j = j["cameras"];
+    base = "/cameras";
+  }
+  if (!j.is_array() || j.empty()) throw SceneError(f + ": " + (base.empty() ? "" : base + ": ") + "expected a non-empty array of cameras");
+  if (j.size() > 1000000) throw SceneError(f + ": more than 1000000 cameras");
+  std::vector<Camera> cams;
+  cams.reserve(j.size());
+  for (std::size_t k = 0; k < j.size(); ++k) {
+    const std::string ptr = base + "/" + std::to_string(k);
+    if (j[k].is_string()) {
+      std::filesystem::path p = j[k].get<std::string>();
+      if (p.is_relative()) p = file.parent_path() / p;
+      cams.push_back(io::load_camera(p));
+    } else if (j[k].is_object()) {
+      cams.push_back(io::parse_camera(j[k], f, ptr));
+    } else {
+      throw SceneError(f + ": " + ptr + ": expected a camera object or a camera file name");
+    }
+  }
+  return cams;
+}
+
+std::filesystem::path frame_file_name(const std::filesystem::path& image, std::size_t frame) {
+  char num[32];
+  std::snprintf(num, sizeof num, "_%04zu", frame);
+  std::filesystem::path p = image;
+  p.replace_filename(image.stem().string() + num + image.extension().string());
+  return p;
+}
+
+RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const Camera> cameras) {
+  if (cameras.empty()) throw std::invalid_argument("--frames: the camera list is empty");
+  if (o.write && o.scene.output.image.empty())
+    throw SceneError((o.scene.file.empty() ? std::string("(scene)") : o.scene.file.string()) +
+                     ": /output/image: not set; give it in the scene or with --out");
+  RenderJobOptions first = o;
+  if (!first.scene.camera) first.scene.camera = cameras.front();  // prepare() needs a camera
+  RenderFramesResult fr;
+  RenderJobResult& r = fr.job;
+  const std::unique_ptr<Prepared> P = prepare(first, r);
+  const Scene& scene = P->scene;
+  const JobControl& ctl = o.control;
+  WorkDistributor* dist = ctl.distributor;
+  const int ranks = dist ? dist->size() : 1;
+  const bool root = is_root(ctl);
+  fr.frames = cameras.size();
+  if (!o.write && root) fr.images.resize(cameras.size());
+  std::mutex write_mutex;
+  const auto t0 = std::chrono::steady_clock::now();
+  // Writes frame f (root only) and accumulates its statistics.
+  auto finish_frame = [&](std::size_t f, const Framebuffer& fb, const RenderStats& st) {
+    std::lock_guard lock(write_mutex);
+    r.stats.queries += st.queries;
+    r.stats.nodes_visited += st.nodes_visited;
+    r.stats.points_tested += st.points_tested;
+    r.stats.primary_rays += st.primary_rays;
+    r.stats.threads = st.threads;
+    if (!root) return;
+    if (!o.write) {
+      fr.images[f] = fb;
+      return;
+    }
+    OutputDesc out = scene.output;
+    out.image = frame_file_name(scene.output.image, f);
+    ImageMetadata m = render_metadata(o, scene, r, {});
+    m.emplace_back("rayscan:frame", std::to_string(f));
+    const auto w = write_image(fb, out, m);
+    fr.job.written.insert(fr.job.written.end(), w.begin(), w.end());
+  };
+  if (cameras.size() > std::size_t(ranks) && ranks > 1) {
+    // More frames than ranks: whole frames are the work items (one frame per request).
+    JobControl quiet = ctl;
+    quiet.progress = false;
+    std::vector<Framebuffer> pending(cameras.size());  // a worker's frame until it is packed
+    std::vector<RenderStats> stats(cameras.size());
+    WorkStage stage;
+    stage.items = cameras.size();
+    stage.batch = 1;
+    stage.compute = [&](std::uint64_t first_f, std::uint64_t count) {
+      for (std::uint64_t f = first_f; f < first_f + count; ++f) {
+        stats[f] = render_camera(*P, cameras[f], quiet, r.radius.radius, pending[f], false);
+        if (root) {
+          finish_frame(f, pending[f], stats[f]);
+          pending[f] = Framebuffer{};
+        }
+      }
+    };
+    stage.pack = [&](std::uint64_t first_f, std::uint64_t count) {
+      std::vector<std::byte> out;
+      for (std::uint64_t f = first_f; f < first_f + count; ++f) {
+        const std::uint64_t st[4] = {stats[f].queries, stats[f].nodes_visited, stats[f].points_tested,
+                                     stats[f].primary_rays};
+        append_bytes(out, std::span<const std::uint64_t>(st));
+        const std::vector<std::byte> px = pack_tiles(pending[f], 1u << 30, 0, 1);  // one tile = the frame
+        append_bytes(out, std::span<const std::byte>(px));
+        pending[f] = Framebuffer{};
+      }
+      return out;
+    };
+    stage.unpack = [&](std::uint64_t first_f, std::uint64_t count, std::span<const std::byte> bytes) {
+      std::size_t off = 0;
+      for (std::uint64_t f = first_f; f < first_f + count; ++f) {
+        std::uint64_t st[4];
+        read_values(bytes, off, std::span<std::uint64_t>(st));
+        Framebuffer fb = empty_framebuffer(cameras[f], scene.output.aovs);
+        const std::size_t need = pack_tiles(fb, 1u << 30, 0, 1).size();
+        if (bytes.size() - off < need) throw std::runtime_error("render --frames: short frame message");
+        unpack_tiles(fb, 1u << 30, 0, 1, bytes.subspan(off, need));
+        off += need;
+        RenderStats s;
+        s.queries = st[0];
+        s.nodes_visited = st[1];
+        s.points_tested = st[2];
+        s.primary_rays = st[3];
+        s.threads = r.stats.threads;
+        finish_frame(f, fb, s);
+      }
+    };
+    dist->run(stage);
+  } else {
+    // As many ranks as frames or more (or one process): frame after frame, tiles distributed.
+    for (std::size_t f = 0; f < cameras.size(); ++f) {
+      Framebuffer fb;
+      const RenderStats st = render_camera(*P, cameras[f], ctl, r.radius.radius, fb, true);
+      finish_frame(f, fb, st);
+      if (f + 1 == cameras.size()) r.image = std::move(fb);
+    }
+  }
+  r.stats.seconds = seconds_since(t0);
+  r.metadata = render_metadata(o, scene, r, {});
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%zu frames in %.2f s (%.3g frames/s), %llu ray queries", cameras.size(),
+                r.stats.seconds, double(cameras.size()) / r.stats.seconds, (unsigned long long)r.stats.queries);
+  ctl.info(buf);
+  return fr;
+}
+
+}  // namespace rayscan::render

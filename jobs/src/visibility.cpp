@@ -1,0 +1,403 @@
+// The visibility job (rayscan/jobs/visibility.hpp): what `rayscan visibility` and
+// rayscan.visibility() run.
+#include "rayscan/jobs/visibility.hpp"
+
+#include "rayscan/analysis/geotiff.hpp"
+#include "rayscan/analysis/raster_preview.hpp"
+#include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/file_names.hpp"
+#include "rayscan/image/image_file.hpp"
+#include "rayscan/camera/camera_file.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/io/point_io.hpp"
+#include "rayscan/base/work_distributor.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <optional>
+#include <stdexcept>
+
+namespace rayscan::analysis {
+
+namespace {
+
+using std::invalid_argument;
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values) {
+  for (ScalarField& f : cloud.scalars)
+    if (f.name == name) {
+      f.values = std::move(values);
+      return;
+    }
+  cloud.scalars.push_back({name, std::move(values)});
+}
+
+// Output folders must exist before the (possibly long) computation; outputs are written to a
+// temporary sibling and renamed there, so a missing folder would only fail at the very end.
+void check_output_folder(const char* option, const std::filesystem::path& path) {
+  if (path.empty()) return;
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_directory(fs::status(path, ec)))
+    throw invalid_argument(std::string(option) + " '" + path.string() + "': is a folder, expected a file name");
+  const fs::path dir = path.parent_path();
+  if (dir.empty()) return;  // the current folder
+  const fs::file_status st = fs::status(dir, ec);
+  if (!fs::exists(st))
+    throw invalid_argument(std::string(option) + " '" + path.string() + "': folder '" + dir.string() +
+                           "' does not exist");
+  if (!fs::is_directory(st))
+    throw invalid_argument(std::string(option) + " '" + path.string() + "': '" + dir.string() + "' is not a folder");
+}
+
+const std::vector<std::string> kCloudOutputs{".las", ".laz", ".ply"};
+
+}  // namespace
+
+VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
+  const JobControl& ctl = o.control;
+  char buf[512];
+
+  // ---- Check every option before any work.
+  if (!o.out.empty() && !has_extension(o.out, kCloudOutputs))
+    throw invalid_argument("--out '" + o.out.string() + "': " + extensions_expected(kCloudOutputs));
+  if (!o.raster.empty()) {
+    if (!has_extension(o.raster, geotiff_extensions()))
+      throw invalid_argument("--raster '" + o.raster.string() + "': expected a file name ending in .tif (GeoTIFF)");
+    if (!o.cell) throw invalid_argument("--raster needs --cell SIZE (cell edge in the cloud's units)");
+    if (!(*o.cell > 0.0) || !std::isfinite(*o.cell)) throw invalid_argument("--cell: expected a number > 0");
+  } else if (o.cell || !o.raster_value.empty() || !o.preview.empty()) {
+    throw invalid_argument("--cell, --raster-value and --preview need --raster OUT.tif");
+  }
+  check_output_folder("--out", o.out);
+  check_output_folder("--raster", o.raster);
+  if (o.write_preview) {
+    check_output_folder("--preview", o.preview);  // default: next to --raster
+    load_image_io();  // the preview's writer, before the computation rather than after it
+  }
+  // The output policy up front: every output path must be absent or a regular file.
+  for (const std::filesystem::path& f : {o.out, o.raster, o.preview})
+    if (!f.empty()) require_replaceable_output(f);
+  const bool have_observers = !o.observers_file.empty() || !o.observers.empty();
+  const bool have_camera = o.camera || !o.camera_file.empty();
+  if (!have_observers && o.sky_rays == 0 && !have_camera)
+    throw invalid_argument("nothing to compute: give observers (--observers FILE or --observer X,Y[,Z]), "
+                           "--sky-view N or --from-camera CAMERA.json");
+  if (o.distance && !have_observers) throw invalid_argument("--distance needs observers");
+  if (o.primitive != "sphere" && o.primitive != "surfel")
+    throw invalid_argument("--primitive '" + o.primitive + "': expected sphere or surfel");
+  std::string value = o.raster_value;
+  if (value.empty()) value = have_observers ? "fraction" : o.sky_rays ? "sky" : "camera";
+  static const char* values[] = {"fraction", "viewshed", "count", "distance", "sky", "camera"};
+  if (std::find(std::begin(values), std::end(values), value) == std::end(values))
+    throw invalid_argument("--raster-value '" + value + "': expected fraction, viewshed, count, distance, sky or camera");
+  if ((value == "fraction" || value == "viewshed" || value == "count" || value == "distance") && !have_observers)
+    throw invalid_argument("--raster-value " + value + " needs observers");
+  if (value == "sky" && o.sky_rays == 0) throw invalid_argument("--raster-value sky needs --sky-view N");
+  if (value == "camera" && !have_camera) throw invalid_argument("--raster-value camera needs --from-camera");
+
+  VisibilityJobResult r;
+  r.raster_value = value;
+  std::vector<Observer>& observers = r.observers;
+  if (!o.observers_file.empty()) observers = read_observers(o.observers_file);
+  observers.insert(observers.end(), o.observers.begin(), o.observers.end());
+  for (std::size_t k = 0; k < observers.size(); ++k) {
+    Observer& ob = observers[k];
+    if (!ob.azimuth && o.azimuth) ob.azimuth = o.azimuth;
+    if (!ob.elevation && o.elevation) ob.elevation = o.elevation;
+    validate_observer(ob, observer_where(ob, k + 1));
+  }
+  std::optional<Camera> camera = o.camera;
+  if (!camera && !o.camera_file.empty()) camera = io::load_camera(o.camera_file);
+
+  // ---- Cloud, index, radius.
+  auto t0 = std::chrono::steady_clock::now();
+  r.source = o.cloud ? std::string("(memory)") : o.cloud_file.string();
+  // An index file (.rsi) is queried in place (no tree is built); its points are copied to the
+  // sources' original order (tiles concatenated in build order) as the output cloud, so the
+  // per-point fields line up with the sources.
+  std::optional<io::MappedIndex> mapped;
+  if (o.cloud) r.cloud = *o.cloud;
+  else if (io::is_index_file(o.cloud_file)) {
+    io::IndexOpenOptions oo;
+    oo.read_ahead = true;  // every point is read and many queried: read the file ahead
+    mapped.emplace(io::MappedIndex::open(o.cloud_file, oo));
+    r.cloud = mapped->to_point_cloud();
+  } else {
+    r.cloud = io::read_point_cloud(o.cloud_file, {}, &r.info);
+  }
+  PointCloud& cloud = r.cloud;
+  if (cloud.empty()) throw invalid_argument(r.source + ": the point cloud has no points");
+  std::snprintf(buf, sizeof buf, "%s %zu points from %s in %.2f s", mapped ? "mapped" : "read", cloud.size(),
+                r.source.c_str(), seconds_since(t0));
+  ctl.info(buf);
+  t0 = std::chrono::steady_clock::now();
+  AnyIndex index = [&] {
+    if (mapped) return AnyIndex(BruteForceIndex(std::span<const Vec3>{}));  // unused: queries run on the file
+    try {
+      return make_index(cloud.positions, o.index);
+    } catch (const std::invalid_argument& e) {
+      throw invalid_argument(std::string("--index: ") + e.what());
+    }
+  }();
+  if (!mapped) {
+    std::snprintf(buf, sizeof buf, "built %s index in %.2f s", o.index.type.c_str(), seconds_since(t0));
+    ctl.info(buf);
+  }
+  // Every query below runs on the mapped file or the built index (one template body each).
+  auto with_index = [&](auto&& f) -> decltype(auto) { return mapped ? f(*mapped) : f(index); };
+  try {
+    r.radius = mapped ? choose_radius(o.radius, o.radius_factor, [&] { return mapped->median_nn_spacing(); })
+                      : choose_radius(index, cloud.positions, o.radius, o.radius_factor);
+  } catch (const std::invalid_argument&) {
+    if (o.radius) throw invalid_argument("--radius " + std::to_string(*o.radius) + ": expected a number > 0 or auto");
+    if (!(o.radius_factor > 0.0)) throw invalid_argument("--radius-factor: expected a number > 0");
+    throw invalid_argument("--radius auto needs at least two distinct points; give a number");
+  }
+  const double radius = r.radius.radius;
+  if (r.radius.automatic) {
+    std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x %.3g = %.6g",
+                  r.radius.spacing, r.radius.factor, radius);
+    ctl.info(buf);
+  }
+  const bool surfel = o.primitive == "surfel";
+  r.primitive = o.primitive;
+  r.tolerance = o.tolerance.value_or(surfel ? 0.0 : 2.0 * radius);
+  r.target_height = o.target_height.value_or(surfel ? 0.0 : radius);
+  SurfelAttributes surfels;
+  if (surfel) {
+    t0 = std::chrono::steady_clock::now();
+    SurfelOptions so = o.surfel;
+    so.measure_thickness = false;  // visibility traces no shadow or bounce rays (same_surface with 0)
+    try {
+      surfels = mapped ? estimate_surfels_over(*mapped, cloud.positions, so, cloud.normals)
+                       : estimate_surfels(index, cloud.positions, so, cloud.normals);
+    } catch (const std::invalid_argument& e) {
+      throw invalid_argument(std::string("--primitive surfel: ") + e.what());
+    }
+    r.surfel_median_radius = surfels.median_radius;
+    r.surfel_max_radius = surfels.max_radius;
+    std::snprintf(buf, sizeof buf, "surfels: %s normals, median disc radius %.6g, max %.6g, in %.2f s",
+                  cloud.normals.empty() ? "PCA" : "file", surfels.median_radius, surfels.max_radius,
+                  seconds_since(t0));
+    ctl.info(buf);
+  }
+  r.max_distance = o.max_distance.value_or(kInf);
+
+  // ---- Observers.
+  VisibilityResult& vis = r.line_of_sight;
+  if (have_observers) {
+    GroundOptions g;
+    g.radius = o.ground_radius.value_or(5.0 * radius);
+    // Surfels: the ground is the surface right under the eye (within the median disc radius) when
+    // it is sampled there, as a DSM's cell under the observer is.
+    if (surfel && !o.ground_radius) g.inner_radius = surfels.median_radius;
+    g.default_height = o.height;
+    with_index([&](const auto& ix) { place_observers(observers, ix, cloud, g); });
+    VisibilityOptions vo;
+    vo.radius = radius;
+    vo.tolerance = r.tolerance;
+    vo.target_height = r.target_height;
+    vo.max_distance = r.max_distance;
+    if (surfel) vo.surfels = &surfels;
+    vo.threads = ctl.threads;
+    vo.progress = ctl.progress;
+    vo.distributor = ctl.distributor;
+    vis = with_index([&](const auto& ix) { return compute_visibility(ix, cloud.positions, observers, vo); });
+    std::uint64_t seen = 0;
+    for (std::uint32_t c : vis.count) seen += c > 0;
+    std::snprintf(buf, sizeof buf,
+                  "line of sight: %zu points x %zu observers in %.2f s (%u threads): %.4g points/s, "
+                  "%.4g observer-point pairs/s; %llu points (%.1f %%) seen by at least one observer",
+                  cloud.size(), observers.size(), vis.seconds, vis.threads, double(cloud.size()) / vis.seconds,
+                  double(vis.pairs) / vis.seconds, static_cast<unsigned long long>(seen),
+                  100.0 * double(seen) / double(cloud.size()));
+    ctl.info(buf);
+    set_scalar(cloud, "visible_count", std::vector<double>(vis.count.begin(), vis.count.end()));
+    if (o.distance) set_scalar(cloud, "visible_distance", vis.nearest);
+  }
+
+  // ---- Sky view.
+  if (o.sky_rays > 0) {
+    SkyViewOptions so;
+    so.rays = o.sky_rays;
+    so.weighting = o.sky_weighting;
+    so.radius = radius;
+    so.lift = o.sky_lift.value_or(2.0 * radius);
+    so.max_distance = r.max_distance;
+    so.seed = o.seed;
+    so.threads = ctl.threads;
+    so.progress = ctl.progress;
+    so.distributor = ctl.distributor;
+    t0 = std::chrono::steady_clock::now();
+    r.sky_view = with_index([&](const auto& ix) { return compute_sky_view(ix, cloud.positions, so, &r.sky_queries); });
+    r.sky_seconds = seconds_since(t0);
+    double mean = 0;
+    for (double v : r.sky_view) mean += v;
+    mean /= double(r.sky_view.size());
+    std::snprintf(buf, sizeof buf, "sky view: %u %s rays per point in %.2f s (%.4g ray queries/s); mean %.4f",
+                  o.sky_rays, o.sky_weighting == SkyWeighting::cosine ? "cosine" : "uniform", r.sky_seconds,
+                  double(r.sky_queries) / r.sky_seconds, mean);
+    ctl.info(buf);
+    set_scalar(cloud, "sky_view", r.sky_view);
+  }
+
+  // ---- Camera.
+  if (camera) {
+    t0 = std::chrono::steady_clock::now();
+    const std::vector<std::uint32_t> px = with_index([&](const auto& ix) {
+      return camera_first_hits(ix, *camera, radius, r.max_distance, ctl.threads, ctl.progress, ctl.distributor);
+    });
+    r.camera_hits = count_pixel_hits(px, cloud.size());
+    r.camera_seconds = seconds_since(t0);
+    std::uint64_t seen = 0;
+    for (std::uint32_t c : r.camera_hits) seen += c > 0;
+    std::snprintf(buf, sizeof buf, "camera %ux%u: %llu points seen in %.2f s", camera->width(), camera->height(),
+                  static_cast<unsigned long long>(seen), r.camera_seconds);
+    ctl.info(buf);
+    set_scalar(cloud, "camera_hits", std::vector<double>(r.camera_hits.begin(), r.camera_hits.end()));
+  }
+
+  // ---- Outputs: one transaction, so a failing raster leaves the old --out intact.
+  // Over several processes (MPI) only the root holds the gathered fields and writes.
+  if (ctl.distributor && !ctl.distributor->is_root()) return r;
+  OutputTransaction tx;
+  if (!o.out.empty()) {
+    if (lower_extension(o.out) != ".ply") {  // .las or .laz (write_las compresses .laz)
+      io::LasWriteOptions lo;
+      if ((r.info.format == "LAS" || r.info.format == "LAZ" || r.info.format == "COPC") && r.info.scale &&
+          r.info.offset) {  // keep the source's integer grid
+        lo.scale = *r.info.scale;
+        lo.offset = *r.info.offset;
+        lo.has_offset = true;
+      }
+      io::write_las(o.out, cloud, lo);
+    } else {
+      io::write_ply(o.out, cloud);
+    }
+    r.written.push_back(o.out);
+  }
+  if (!o.raster.empty()) {
+    GridSpec grid;
+    try {
+      grid = grid_over(cloud.bounds(), *o.cell);
+    } catch (const std::invalid_argument& e) {
+      throw invalid_argument(std::string("--cell: ") + e.what());
+    }
+    std::vector<double> v(cloud.size());
+    CellReduce red = CellReduce::mean;
+    std::string name;
+    double lo = 0.0, hi = 1.0;
+    if (value == "fraction") {
+      for (std::size_t i = 0; i < v.size(); ++i) v[i] = vis.count[i] > 0;
+      name = "fraction of points visible from at least one observer";
+    } else if (value == "viewshed") {
+      for (std::size_t i = 0; i < v.size(); ++i) v[i] = vis.count[i] > 0;
+      red = CellReduce::max;
+      name = "viewshed (1 = some point of the cell is visible)";
+    } else if (value == "count") {
+      for (std::size_t i = 0; i < v.size(); ++i) v[i] = vis.count[i];
+      red = CellReduce::max;
+      hi = double(observers.size());
+      name = "observers that see the cell (max over its points)";
+    } else if (value == "distance") {
+      hi = 0.0;
+      for (std::size_t i = 0; i < v.size(); ++i) {
+        v[i] = vis.nearest[i] >= 0.0 ? vis.nearest[i] : std::nan("");
+        if (v[i] > hi) hi = v[i];
+      }
+      red = CellReduce::min;
+      name = "distance to the nearest observer that sees the cell";
+    } else if (value == "sky") {
+      v = r.sky_view;
+      name = std::string("sky view factor (") + (o.sky_weighting == SkyWeighting::cosine ? "cosine" : "uniform") +
+             ", mean over the cell)";
+    } else {
+      for (std::size_t i = 0; i < v.size(); ++i) v[i] = r.camera_hits[i] > 0;
+      name = "fraction of points seen by the camera";
+    }
+    r.raster = rasterize(cloud.positions, v, grid, red, name);
+    GeoTiffOptions go;
+    go.crs_wkt = cloud.crs_wkt;
+    go.metadata = {{"RAYSCAN_VALUE", value}, {"RAYSCAN_SOURCE", r.source}, {"RAYSCAN_RADIUS", std::to_string(radius)}};
+    if (have_observers) {
+      go.metadata.emplace_back("RAYSCAN_TOLERANCE", std::to_string(r.tolerance));
+      go.metadata.emplace_back("RAYSCAN_TARGET_HEIGHT", std::to_string(r.target_height));
+    }
+    write_geotiff(o.raster, *r.raster, go);
+    r.written.push_back(o.raster);
+    if (cloud.crs_wkt.empty()) ctl.info("the cloud has no CRS; the GeoTIFF has a geotransform but no CRS");
+    std::snprintf(buf, sizeof buf, "raster %ux%u cells of %.6g, origin (%.6f, %.6f)", grid.cols, grid.rows, grid.cell,
+                  grid.x0, grid.y_top);
+    ctl.info(buf);
+    if (o.write_preview) {
+      std::filesystem::path pv = o.preview;
+      if (pv.empty()) pv = std::filesystem::path(o.raster).replace_extension(".png");
+      const std::string legend = write_raster_preview(pv, *r.raster, lo, hi, value + ": " + name);
+      ctl.info("preview legend: " + legend);
+      r.written.push_back(pv);
+    }
+  }
+  tx.commit();
+  return r;
+}
+
+std::string visibility_report_json(const VisibilityJobResult& r) {
+  nlohmann::json report;
+  report["cloud"] = r.source;
+  report["points"] = r.cloud.size();
+  report["radius"] = r.radius.radius;
+  report["seconds"] = nlohmann::json::object();
+  const VisibilityResult& vis = r.line_of_sight;
+  if (!vis.count.empty()) {
+    std::uint64_t seen = 0;
+    for (std::uint32_t c : vis.count) seen += c > 0;
+    report["primitive"] = r.primitive;
+    if (r.primitive == "surfel")
+      report["surfel_radius"] = {{"median", r.surfel_median_radius}, {"max", r.surfel_max_radius}};
+    report["tolerance"] = r.tolerance;
+    report["target_height"] = r.target_height;
+    report["max_distance"] = std::isfinite(r.max_distance) ? nlohmann::json(r.max_distance) : nlohmann::json("inf");
+    report["seconds"]["line_of_sight"] = vis.seconds;
+    report["points_per_second"] = double(r.cloud.size()) / vis.seconds;
+    report["pairs_per_second"] = double(vis.pairs) / vis.seconds;
+    report["visible_points"] = seen;
+    nlohmann::json arr = nlohmann::json::array();
+    for (std::size_t k = 0; k < r.observers.size(); ++k) {
+      const Observer& ob = r.observers[k];
+      nlohmann::json j;
+      j["name"] = ob.name.empty() ? "observer " + std::to_string(k + 1) : ob.name;
+      j["position"] = {ob.position.x, ob.position.y, ob.position.z};
+      if (!std::isnan(ob.ground_z)) j["ground_z"] = ob.ground_z;
+      j["visible_points"] = vis.per_observer[k];
+      arr.push_back(j);
+    }
+    report["observers"] = arr;
+  }
+  if (!r.sky_view.empty()) {
+    double mean = 0;
+    for (double v : r.sky_view) mean += v;
+    report["seconds"]["sky_view"] = r.sky_seconds;
+    report["sky_view_mean"] = mean / double(r.sky_view.size());
+  }
+  if (!r.camera_hits.empty()) {
+    std::uint64_t seen = 0;
+    for (std::uint32_t c : r.camera_hits) seen += c > 0;
+    report["seconds"]["camera"] = r.camera_seconds;
+    report["camera_points"] = seen;
+  }
+  nlohmann::json written = nlohmann::json::array();
+  for (const auto& f : r.written) written.push_back(f.string());
+  report["written"] = written;
+  return report.dump(2);
+}
+
+}  // namespace rayscan::analysis

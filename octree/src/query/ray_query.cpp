@@ -1,0 +1,44 @@
+#include "rayscan/octree/ray_query.hpp"
+
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/octree/octree.hpp"
+#include "rayscan/octree/point_query.hpp"
+
+#include <cmath>
+
+namespace rayscan {
+
+void RayQuery::validate() const {
+  if (std::isnan(radius) || std::isnan(t_min) || std::isnan(t_max))
+    throw std::invalid_argument("ray query: radius, t_min and t_max must not be NaN");
+  if (radius < 0.0)
+    throw std::invalid_argument("ray query: radius must be >= 0, got " + std::to_string(radius));
+  if (t_min > t_max)
+    throw std::invalid_argument("ray query: t_min (" + std::to_string(t_min) +
+                                ") must not exceed t_max (" + std::to_string(t_max) + ")");
+  if (order == RayOrder::sphere_hit && !(radius < kInf))
+    throw std::invalid_argument("ray query: order sphere_hit requires a finite radius");
+  for (const Plane& pl : planes) {
+    const double len = glm::length(pl.normal);
+    if (!(len > 0.0) || !std::isfinite(len) || !std::isfinite(glm::length(pl.point)))
+      throw std::invalid_argument("ray query: plane normal must be non-zero and finite");
+  }
+}
+
+// The table-kernel instances of the core's indexes (declared extern in ray_query.hpp and
+// any_index.hpp).
+namespace detail {
+RAYSCAN_BASE_INSTANCES(template, Octree)
+RAYSCAN_BASE_INSTANCES(template, KdTree)
+RAYSCAN_BASE_INSTANCES(template, BruteForceIndex)
+}  // namespace detail
+
+#if RAYSCAN_SIMD_X86
+// The octree's instances compiled per ISA (declared extern in ray_query.hpp / point_query.hpp).
+namespace detail {
+RAYSCAN_FIRST_HIT_ISA_INSTANCES(template, Octree)
+RAYSCAN_KNN_ISA_INSTANCES(template, Octree)
+}  // namespace detail
+#endif
+
+}  // namespace rayscan

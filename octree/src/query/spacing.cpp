@@ -1,0 +1,44 @@
+#include "rayscan/octree/spacing.hpp"
+
+#include "rayscan/octree/point_query.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+namespace rayscan {
+
+double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions,
+                         std::size_t max_samples) {
+  return std::visit([&](const auto& idx) { return median_nn_spacing_of(idx, positions, max_samples); }, index);
+}
+
+RadiusChoice choose_radius(const AnyIndex& index, std::span<const Vec3> positions,
+                           std::optional<double> radius, double factor) {
+  return choose_radius(radius, factor, [&] { return median_nn_spacing(index, positions); });
+}
+
+RadiusChoice choose_radius(std::optional<double> radius, double factor, const std::function<double()>& spacing) {
+  RadiusChoice c;
+  if (radius) {
+    if (!(*radius > 0.0) || !std::isfinite(*radius))
+      throw std::invalid_argument("radius: expected a finite number > 0");
+    c.radius = *radius;
+    return c;
+  }
+  if (!(factor > 0.0) || !std::isfinite(factor))
+    throw std::invalid_argument("radius factor: expected a finite number > 0");
+  c.automatic = true;
+  c.factor = factor;
+  c.spacing = spacing();
+  if (!(c.spacing > 0.0))
+    throw std::invalid_argument("\"auto\" needs at least two distinct points; give a number");
+  c.radius = factor * c.spacing;
+  return c;
+}
+
+}  // namespace rayscan

@@ -1,0 +1,321 @@
+// Cloud Optimized Point Cloud (COPC 1.0, https://copc.io): a LAZ 1.4 file whose variable-size
+// chunks are the nodes of an octree described by a hierarchy EVLR. Its hierarchy is exactly the
+// paper's *layered* organisation (section 4: every node holds a subsample of its subtree), so
+// CopcIndex satisfies the SpatialIndex concept and the one ray query (Algorithm 1) runs on the
+// file directly: opening reads the header and the hierarchy, nodes are decompressed on first
+// touch and kept in a bounded cache.
+#pragma once
+
+#include "rayscan/octree/geometry.hpp"
+#include "rayscan/octree/point_cloud.hpp"
+#include "rayscan/octree/simd.hpp"
+#include "rayscan/octree/point_query.hpp"
+#include "rayscan/octree/ray_query.hpp"
+#include "rayscan/octree/spatial_index.hpp"
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace rayscan::io {
+
+/// One hierarchy entry (COPC 1.0 "Hierarchy entry", 32 bytes): the voxel key, the byte range of
+/// the node's LAZ chunk and its point count.
+struct CopcNode {
+  std::int32_t level = 0, x = 0, y = 0, z = 0;  ///< VoxelKey (depth and integer cell)
+  std::uint64_t offset = 0;                     ///< file offset of the node's compressed chunk
+  std::int32_t byte_size = 0;                   ///< bytes of the chunk
+  std::int32_t point_count = 0;                 ///< points stored in the node itself
+};
+
+/// The COPC info VLR (user "copc", record 1, 160 bytes) and the parsed hierarchy.
+struct CopcInfo {
+  Vec3 center{0.0};          ///< centre of the root cube (file units)
+  double halfsize = 0;       ///< half the root cube's edge length
+  double spacing = 0;        ///< the root node's point spacing
+  std::uint64_t root_hier_offset = 0, root_hier_size = 0;  ///< first hierarchy page
+  double gps_min = 0, gps_max = 0;
+  Vec3 scale{1.0}, offset{0.0};  ///< LAS header scale and offset
+  std::uint64_t point_count = 0;  ///< header point count
+  int pdrf = 6;
+  std::uint16_t record_length = 0;
+  std::vector<CopcNode> nodes;  ///< every node with a chunk or children, hierarchy order
+  int depth = 0;                ///< deepest level + 1
+  std::vector<std::uint64_t> nodes_per_level, points_per_level;
+  std::uint64_t hierarchy_pages = 0;
+
+  /// Cube of a voxel key (COPC 1.0: level 0 is the root cube; each level halves the edge).
+  [[nodiscard]] AABB node_cube(const CopcNode& n) const;
+};
+
+/// Reads the COPC info VLR and walks the hierarchy EVLR pages (record 1000) from the root page.
+/// Throws FormatError naming the file and byte offset for: no COPC VLR, a page or chunk range
+/// past the end of the file, a page visited twice (cycle), a duplicate or out-of-range key, a
+/// node without its parent, a negative point count other than the -1 page marker.
+CopcInfo read_copc_info(std::span<const std::uint8_t> bytes, const std::string& name);
+/// Same for a file (reads only the header, VLRs and hierarchy pages).
+CopcInfo read_copc_info(const std::filesystem::path& path);
+
+/// True when `path` is a LAS/LAZ file (by extension .las/.laz/.copc) whose header carries the COPC
+/// info VLR (user "copc", record 1; COPC 1.0 section "Info VLR"). Reads only the header and VLR
+/// headers; false for any other or unreadable file (the caller's reader reports why).
+bool is_copc_file(const std::filesystem::path& path);
+
+/// A COPC file as a SpatialIndex (layered octree). Node 0 is the root; a node's children are
+/// the existing keys one level down. Slots: each node owns a contiguous slot range (aligned to
+/// 1024 slots so that its pages can be released on eviction); ids() are the points' indices in
+/// file order, the order read_point_cloud() returns them in. positions() spans reserved virtual
+/// memory: a node's slots are filled on first touch (thread-safe), which decodes only the node's
+/// X, Y and Z layers. Coordinates: x = X * scale + offset in double, exactly as
+/// read_point_cloud(). Node bounds are the COPC voxel cubes, grown by one scale step (points on a
+/// face may be rounded outside by the LAS quantisation).
+///
+/// Local index (a node sub-indexed when decoded): a COPC node holds a subsample of
+/// its subtree, tens of thousands of points in practice, and Algorithm 1 would test each of them
+/// for every ray that enters the node's cube. So when a node is decoded its points are sorted in
+/// Morton order within their bounding box (a node's slots then hold them in that order, not in
+/// file order) and a small octree of cells over them is built (cells split at the Morton digits
+/// until at most kLeafPoints points, single-child chains collapsed, each cell's box the tight
+/// bounds of its points; cf. the adaptive organisation of the paper, section 4). The cells are
+/// virtual nodes of this index: a hierarchy node stores no point itself; its children are a
+/// "points" node (the root cell of its local tree, bounded by the voxel cube so that it needs no
+/// decode until a ray reaches it) and its hierarchy children (under one extra "group" node,
+/// bounded by the voxel cube, when there are 8 of them, so that no node has more than 8
+/// children). The cells and the slot permutation are cached with the node's points and counted
+/// in the cache budget. Node handles: low 32 bits the hierarchy node, high 32 bits 0 (the
+/// hierarchy node), kGroup (its group) or 1 + a cell index of its local tree.
+class CopcIndex {
+ public:
+  using Node = std::uint64_t;
+  /// Most points a leaf cell of a node's local tree holds (fewer where the Morton digits run out).
+  static constexpr std::uint32_t kLeafPoints = 32;
+
+  /// Opens `path` (memory-mapped) and reads its header and hierarchy. `cache_bytes` bounds the
+  /// decoded positions and ids kept resident by trim_cache(). Throws FormatError.
+  explicit CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes = std::size_t{2} << 30);
+  ~CopcIndex();
+  CopcIndex(const CopcIndex&) = delete;
+  CopcIndex& operator=(const CopcIndex&) = delete;
+
+  [[nodiscard]] bool empty() const { return nodes_.empty() || info_.point_count == 0; }
+  [[nodiscard]] Node root() const { return 0; }
+  /// The voxel cube (grown) of a hierarchy, group or points node; a cell's tight box.
+  [[nodiscard]] AABB node_bounds(Node n) const {
+    const std::uint32_t h = hier(n), c = part(n);
+    return c == 0 || c == kGroup || c == 1 ? nodes_[h].box : local_[h].cells[c - 1].box;
+  }
+  /// The slots of the points stored at a cell (none at hierarchy and group nodes). A points node
+  /// (the root cell) decodes its hierarchy node on first touch (throws FormatError for a
+  /// corrupted chunk).
+  [[nodiscard]] SlotRange node_points(Node n) const {
+    const std::uint32_t h = hier(n), c = part(n);
+    if (c == 0 || c == kGroup) return SlotRange{nodes_[h].slots.begin, nodes_[h].slots.begin};
+    if (c == 1) touch(h);
+    return local_[h].cells[c - 1].slots;
+  }
+  [[nodiscard]] unsigned child_count(Node n) const {
+    const std::uint32_t h = hier(n), c = part(n);
+    if (c == 0) return nodes_[h].top_count;
+    if (c == kGroup) return nodes_[h].child_count;
+    if (c == 1) ensure_loaded(h);
+    return local_[h].cells[c - 1].child_count;
+  }
+  [[nodiscard]] Node child(Node n, unsigned i) const {
+    const std::uint32_t h = hier(n), c = part(n);
+    const NodeData& nd = nodes_[h];
+    if (c == 0) {
+      const bool pts = nd.slots.size() > 0;
+      if (pts && i == 0) return handle(h, 1);
+      if (nd.top_count == 2 && nd.child_count == 8) return handle(h, kGroup);
+      return handle(nd.children[i - (pts ? 1u : 0u)], 0);
+    }
+    if (c == kGroup) return handle(nd.children[i], 0);
+    return handle(h, local_[h].cells[c - 1].first_child + i + 1);
+  }
+  [[nodiscard]] std::span<const Vec3> positions() const { return {pos_, slots_}; }
+  [[nodiscard]] std::span<const PointIndex> ids() const { return {ids_, slots_}; }
+
+  // Optional SIMD extension of the concept (see ray_query): the float boxes of a
+  // node's children relative to float_origin(), rounded outwards (hierarchy children: stored
+  // per hierarchy node at open; cells: stored in the cells when a node is decoded).
+  [[nodiscard]] simd::ChildBoxesF child_boxes_f(Node n) const {
+    const std::uint32_t h = hier(n), c = part(n);
+    const NodeData& nd = nodes_[h];
+    const float* f = &fboxes_[std::size_t{h} * kBoxesPerNode].v[0];
+    constexpr unsigned stride = sizeof(FBox) / sizeof(float);
+    if (c == 0) {
+      const bool pts = nd.slots.size() > 0;
+      if (pts && nd.top_count == 2 && nd.child_count == 8) return {f + 9 * stride, stride, 2};
+      return {pts ? f : f + stride, stride, nd.top_count};
+    }
+    if (c == kGroup) return {f + stride, stride, nd.child_count};
+    const std::vector<Cell>& cells = local_[h].cells;
+    const Cell& cell = cells[c - 1];
+    return {&cells[cell.first_child].f[0], sizeof(Cell) / sizeof(float), cell.child_count};
+  }
+  /// The root box's minimum corner (float boxes are relative to it) and its largest edge.
+  [[nodiscard]] Vec3 float_origin() const { return nodes_.empty() ? Vec3(0.0) : nodes_[0].box.lo; }
+  [[nodiscard]] double float_extent() const { return nodes_.empty() ? 0.0 : nodes_[0].box.max_extent(); }
+
+  [[nodiscard]] const CopcInfo& info() const { return info_; }
+  [[nodiscard]] std::size_t node_count() const { return nodes_.size(); }
+  /// Nodes decoded so far (including re-decodes after eviction) and nodes resident now.
+  [[nodiscard]] std::uint64_t decodes() const { return decodes_.load(); }
+  [[nodiscard]] std::size_t resident_nodes() const;
+  /// Position of the point with file-order index `id` (the RayHit::index of a query on this
+  /// index), decoding its node if needed (slots are in Morton order: found via the node's
+  /// permutation). Throws std::out_of_range for id >= the point count,
+  /// FormatError for a corrupted chunk.
+  [[nodiscard]] Vec3 position_of(PointIndex id) const;
+  /// Releases least recently touched nodes (by batch: the nodes touched since the last call are
+  /// the most recent, in no order among themselves) until the resident positions, ids, attributes and
+  /// local trees fit the cache budget; returns the nodes evicted. Must not run concurrently with queries on this
+  /// index (call it between batches, e.g. between render tiles).
+  std::size_t trim_cache();
+  /// The cache budget in bytes (the constructor's `cache_bytes`).
+  [[nodiscard]] std::size_t cache_bytes() const { return cache_bytes_; }
+
+  /// Per-point attributes decoded into slots with the positions (bits, `Attr`).
+  enum Attr : unsigned { kRgb = 1, kIntensity = 2, kClassification = 4 };
+  /// Also decode `attrs` (Attr bits) into slot-ordered arrays (rgb(), intensity(),
+  /// classification()) when a node is loaded, from the chunk's RGB, intensity and classification
+  /// layers only (LAZ layered chunks: the other layers stay compressed). Colour is normalised as
+  /// read_point_cloud() does (docs/formats.md): 8-bit values in the 16-bit fields are scaled by
+  /// 257, a file whose colours are all zero has none (rgb() then stays empty); deciding this
+  /// decodes RGB layers node by node in file order until a channel exceeds 255. Resident nodes
+  /// are dropped. Must not run concurrently with queries. Throws FormatError.
+  void set_attributes(unsigned attrs);
+  /// Slot-ordered attributes (size positions().size() when decoded, else empty); a slot is valid
+  /// once node_points() returned its node and until the next trim_cache().
+  [[nodiscard]] std::span<const Rgb16> rgb() const { return {rgb_, rgb_ ? slots_ : 0}; }
+  [[nodiscard]] std::span<const std::uint16_t> intensity() const { return {int_, int_ ? slots_ : 0}; }
+  [[nodiscard]] std::span<const std::uint8_t> classification() const { return {cls_, cls_ ? slots_ : 0}; }
+  /// True when the point format carries RGB (PDRF 7, 8) and not every colour is zero; only
+  /// known after set_attributes(kRgb) (false before).
+  [[nodiscard]] bool has_rgb() const { return rgb_ != nullptr; }
+
+  /// One node's points as a whole-file pass sees them: positions, and (when asked) normalised
+  /// colour, intensity, classification (empty spans otherwise), in the node's file order.
+  struct NodeBlock {
+    std::span<const Vec3> positions;
+    std::span<const Rgb16> rgb;
+    std::span<const std::uint16_t> intensity;
+    std::span<const std::uint8_t> classification;
+  };
+  /// Decodes every node with points in file (chunk offset) order into a scratch buffer, outside
+  /// the cache, and calls f with it until f returns false: a streaming whole-file pass in bounded
+  /// memory (one node at a time), for whole-cloud statistics. `attrs`: Attr bits to decode
+  /// (kRgb needs set_attributes(kRgb) first for the normalisation). Throws FormatError.
+  void scan(unsigned attrs, const std::function<bool(const NodeBlock&)>& f) const;
+
+  /// Sample positions for the auto radius without decoding the file: `max_nodes` nodes chosen
+  /// as those holding the file-order points i * N / max_nodes (so a node is picked with
+  /// probability proportional to its point count, as the whole-file evenly spaced sample picks
+  /// its points), and within them evenly spaced points, at most `max_samples` in all. Decodes
+  /// only those nodes. Deterministic.
+  [[nodiscard]] std::vector<Vec3> spacing_samples(std::size_t max_samples = 20000, std::size_t max_nodes = 64) const;
+
+ private:
+  struct NodeData {
+    AABB box;
+    SlotRange slots;
+    std::uint32_t entry = 0;       // index into info_.nodes
+    std::uint64_t first_id = 0;    // file-order index of the node's first point
+    std::uint32_t children[8] = {};  // hierarchy children (nodes_ indices)
+    unsigned child_count = 0;        // hierarchy children
+    unsigned top_count = 0;          // children of the hierarchy node's handle (see the class doc)
+  };
+  /// One cell of a node's local tree: tight box, its slots (absolute; empty unless a leaf), its
+  /// children (contiguous cells from first_child).
+  struct Cell {
+    float f[8];  // box relative to float_origin(), rounded outwards (lo xyz, hi xyz, 2 unused)
+    AABB box;
+    SlotRange slots;
+    std::uint32_t first_child = 0;
+    std::uint32_t child_count = 0;
+  };
+  /// A decoded node's local tree and slot permutation (slot_of[file-order k] = slot - begin;
+  /// empty when the node is small enough to stay in file order).
+  struct Local {
+    std::vector<Cell> cells;
+    std::vector<std::uint32_t> slot_of;
+  };
+  static constexpr std::uint32_t kGroup = 0xFFFFFFFFu;
+  /// Float boxes of a hierarchy node's children: [points node, 8 hierarchy children, points
+  /// node, group] (the last two: the children of the handle when they are grouped).
+  struct FBox {
+    float v[8];
+  };
+  static constexpr std::size_t kBoxesPerNode = 11;
+  static FBox float_box(const AABB& b, const Vec3& origin);
+  static std::uint32_t hier(Node n) { return static_cast<std::uint32_t>(n); }
+  static std::uint32_t part(Node n) { return static_cast<std::uint32_t>(n >> 32); }
+  static Node handle(std::uint32_t h, std::uint32_t part) { return Node{part} << 32 | h; }
+  /// Marks hierarchy node h as used in the current batch (the LRU clock is the batch count,
+  /// advanced by trim_cache: no shared counter written per ray) and decodes it on first touch.
+  void touch(std::uint32_t h) const {
+    const std::uint64_t now = clock_.load(std::memory_order_relaxed);
+    if (touched_[h].load(std::memory_order_relaxed) != now) touched_[h].store(now, std::memory_order_relaxed);
+    ensure_loaded(h);
+  }
+  void ensure_loaded(std::uint32_t h) const {
+    if (loaded_[h].load(std::memory_order_acquire) == 0) load(h);
+  }
+  void load(std::uint32_t n) const;
+  // Sorts node n's freshly decoded points (file order: pos[i], i < m) into its slots in Morton
+  // order and builds its local tree into local_[n].
+  void build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector<std::uint32_t>& order) const;
+  // Slot of the k-th point (file order) of decoded hierarchy node n.
+  [[nodiscard]] std::uint32_t slot_of(std::uint32_t n, std::uint64_t k) const;
+  // Decodes node n's records (layers: laz Layer bits) into `buf`.
+  void decode_records(std::uint32_t n, std::uint32_t layers, std::vector<std::uint8_t>& buf) const;
+  [[nodiscard]] std::size_t slot_bytes() const;
+
+  CopcInfo info_;
+  std::string name_;
+  struct Map;
+  std::unique_ptr<Map> map_;
+  std::vector<NodeData> nodes_;
+  std::vector<FBox> fboxes_;  // kBoxesPerNode per hierarchy node
+  std::vector<std::uint32_t> by_first_id_;  // nodes holding points, by first_id
+  std::size_t slots_ = 0;
+  Vec3* pos_ = nullptr;
+  PointIndex* ids_ = nullptr;
+  Rgb16* rgb_ = nullptr;
+  std::uint16_t* int_ = nullptr;
+  std::uint8_t* cls_ = nullptr;
+  std::uint16_t rgb_mul_ = 1;  // 257 when the file stores 8-bit colour
+  unsigned attrs_ = 0;
+  std::size_t cache_bytes_;
+  mutable std::unique_ptr<Local[]> local_;  // per hierarchy node, filled by load()
+  mutable std::unique_ptr<std::atomic<std::uint8_t>[]> loaded_;
+  mutable std::unique_ptr<std::atomic<std::uint64_t>[]> touched_;
+  mutable std::atomic<std::uint64_t> clock_{1}, decodes_{0};
+  mutable std::mutex locks_[32];
+};
+
+static_assert(SpatialIndex<CopcIndex>);
+
+}  // namespace rayscan::io
+
+// The table-kernel instances of the plain ray query (ray_query.hpp), compiled once in the library
+// (site/src/query_instances.cpp) instead of in every caller's translation unit.
+namespace rayscan::detail {
+RAYSCAN_BASE_INSTANCES(extern template, io::CopcIndex)
+}  // namespace rayscan::detail
+
+#if RAYSCAN_SIMD_X86
+// The first-hit and kNN instances compiled per ISA (ray_query.hpp, point_query.hpp) of this index,
+// instantiated once in the library (site/src/query_instances.cpp) instead of in every caller's
+// translation unit.
+namespace rayscan::detail {
+RAYSCAN_FIRST_HIT_ISA_INSTANCES(extern template, io::CopcIndex)
+RAYSCAN_KNN_ISA_INSTANCES(extern template, io::CopcIndex)
+}  // namespace rayscan::detail
+#endif

@@ -1,0 +1,601 @@
+// COPC info, hierarchy and the lazily decoded CopcIndex; see rayscan/site/copc.hpp.
+// Format: COPC 1.0 specification (copc.io): info VLR (user "copc", record 1: center_x/y/z,
+// halfsize, spacing, root_hier_offset, root_hier_size, gpstime_minimum/maximum, 11 reserved
+// uint64), hierarchy EVLR (record 1000) of pages of 32-byte entries (VoxelKey level/x/y/z int32,
+// offset uint64, byteSize int32, pointCount int32; pointCount -1 = a child hierarchy page).
+// Reference read (not copied): copc-lib cpp/include/copc-lib/copc/info.hpp, hierarchy/entry.hpp.
+#include "rayscan/site/copc.hpp"
+#include "rayscan/octree/octree.hpp"
+
+#include "laz/laz.hpp"
+#include "las/las_header.hpp"
+#include "rayscan/io/point_io.hpp"
+#include "rayscan/octree/morton_sort.hpp"
+#include "rayscan/octree/ray_query.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <map>
+#include <set>
+#include <stdexcept>
+#include <tuple>
+
+namespace rayscan::io {
+
+namespace {
+
+using Key = std::tuple<std::int32_t, std::int32_t, std::int32_t, std::int32_t>;
+
+CopcInfo parse_copc(const detail::Input& in, const detail::LasHeader& h) {
+  using detail::fail_at;
+  using detail::load_le;
+  const std::string& nm = in.name;
+  const std::uint8_t* d = in.bytes.data();
+  if (!h.copc_info.present) fail_at(nm, h.header_size, "no COPC info VLR (user id \"copc\", record 1)");
+  if (h.copc_info.len < 160)
+    fail_at(nm, h.copc_info.at, "COPC info VLR of " + std::to_string(h.copc_info.len) + " bytes (expected 160)");
+  if (!h.laszip.present) fail_at(nm, h.header_size, "COPC file without a LASzip VLR");
+  if (h.pdrf < 6 || h.pdrf > 8)
+    fail_at(nm, 104, "COPC point data record format " + std::to_string(h.pdrf) + " (expected 6, 7 or 8)");
+  CopcInfo c;
+  const std::uint8_t* v = d + h.copc_info.at;
+  c.center = Vec3(load_le<double>(v), load_le<double>(v + 8), load_le<double>(v + 16));
+  c.halfsize = load_le<double>(v + 24);
+  c.spacing = load_le<double>(v + 32);
+  c.root_hier_offset = load_le<std::uint64_t>(v + 40);
+  c.root_hier_size = load_le<std::uint64_t>(v + 48);
+  c.gps_min = load_le<double>(v + 56);
+  c.gps_max = load_le<double>(v + 64);
+  c.scale = h.scale;
+  c.offset = h.offset;
+  c.point_count = h.count;
+  c.pdrf = h.pdrf;
+  c.record_length = h.record_length;
+  if (!(c.halfsize > 0) || !std::isfinite(c.halfsize) || !std::isfinite(c.center.x) ||
+      !std::isfinite(c.center.y) || !std::isfinite(c.center.z))
+    fail_at(nm, h.copc_info.at + 24, "COPC root cube has halfsize " + std::to_string(c.halfsize) + " (expected > 0, finite)");
+  // Walk the hierarchy pages breadth-first from the root page.
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> todo{{c.root_hier_offset, c.root_hier_size}};
+  std::set<std::uint64_t> seen_pages;
+  std::map<Key, std::size_t> by_key;
+  const std::uint64_t max_entries = in.size() / 32;
+  for (std::size_t t = 0; t < todo.size(); ++t) {
+    const auto [off, size] = todo[t];
+    if (off > in.size() || size > in.size() - off)
+      fail_at(nm, off, "COPC hierarchy page of " + std::to_string(size) + " bytes at byte " + std::to_string(off) +
+                           " runs past the end of the file (size " + std::to_string(in.size()) + ")");
+    if (size % 32 != 0) fail_at(nm, off, "COPC hierarchy page size " + std::to_string(size) + " is not a multiple of 32");
+    if (!seen_pages.insert(off).second)
+      fail_at(nm, off, "COPC hierarchy page at byte " + std::to_string(off) + " is referenced twice (cycle)");
+    ++c.hierarchy_pages;
+    for (std::uint64_t e = off; e < off + size; e += 32) {
+      CopcNode n;
+      n.level = load_le<std::int32_t>(d + e);
+      n.x = load_le<std::int32_t>(d + e + 4);
+      n.y = load_le<std::int32_t>(d + e + 8);
+      n.z = load_le<std::int32_t>(d + e + 12);
+      n.offset = load_le<std::uint64_t>(d + e + 16);
+      n.byte_size = load_le<std::int32_t>(d + e + 24);
+      n.point_count = load_le<std::int32_t>(d + e + 28);
+      if (n.level < 0 || n.level > 30 || n.x < 0 || n.y < 0 || n.z < 0 || (n.x >> n.level) != 0 ||
+          (n.y >> n.level) != 0 || (n.z >> n.level) != 0)
+        fail_at(nm, e, "COPC hierarchy entry with invalid key " + std::to_string(n.level) + "-" + std::to_string(n.x) +
+                           "-" + std::to_string(n.y) + "-" + std::to_string(n.z));
+      if (n.point_count == -1) {
+        if (n.byte_size < 0) fail_at(nm, e + 24, "COPC hierarchy page reference with negative size");
+        todo.emplace_back(n.offset, static_cast<std::uint64_t>(n.byte_size));
+        continue;
+      }
+      if (n.point_count < -1 || n.byte_size < 0)
+        fail_at(nm, e + 24, "COPC hierarchy entry with byte size " + std::to_string(n.byte_size) + " and point count " +
+                                std::to_string(n.point_count));
+      if (n.point_count > 0 &&
+          (n.byte_size == 0 || n.offset < h.point_offset || n.offset > h.data_end ||
+           static_cast<std::uint64_t>(n.byte_size) > h.data_end - n.offset))
+        fail_at(nm, e + 16, "COPC node " + std::to_string(n.level) + "-" + std::to_string(n.x) + "-" +
+                                std::to_string(n.y) + "-" + std::to_string(n.z) + " chunk [" + std::to_string(n.offset) +
+                                ", +" + std::to_string(n.byte_size) + ") lies outside the point data (ends at byte " +
+                                std::to_string(h.data_end) + ")");
+      if (!by_key.emplace(Key{n.level, n.x, n.y, n.z}, c.nodes.size()).second)
+        fail_at(nm, e, "COPC hierarchy lists key " + std::to_string(n.level) + "-" + std::to_string(n.x) + "-" +
+                           std::to_string(n.y) + "-" + std::to_string(n.z) + " twice");
+      if (c.nodes.size() >= max_entries) fail_at(nm, e, "COPC hierarchy has more entries than the file has bytes / 32");
+      c.nodes.push_back(n);
+    }
+  }
+  std::uint64_t total = 0;
+  for (const CopcNode& n : c.nodes) {
+    if (n.level > 0 && by_key.find(Key{n.level - 1, n.x / 2, n.y / 2, n.z / 2}) == by_key.end())
+      fail_at(nm, c.root_hier_offset, "COPC node " + std::to_string(n.level) + "-" + std::to_string(n.x) + "-" +
+                                          std::to_string(n.y) + "-" + std::to_string(n.z) + " has no parent in the hierarchy");
+    c.depth = std::max(c.depth, n.level + 1);
+    total += static_cast<std::uint64_t>(n.point_count);
+  }
+  c.nodes_per_level.assign(static_cast<std::size_t>(c.depth), 0);
+  c.points_per_level.assign(static_cast<std::size_t>(c.depth), 0);
+  for (const CopcNode& n : c.nodes) {
+    ++c.nodes_per_level[static_cast<std::size_t>(n.level)];
+    c.points_per_level[static_cast<std::size_t>(n.level)] += static_cast<std::uint64_t>(n.point_count);
+  }
+  if (total != c.point_count)
+    fail_at(nm, c.root_hier_offset, "COPC hierarchy node point counts add up to " + std::to_string(total) +
+                                        " but the header announces " + std::to_string(c.point_count));
+  if (!c.nodes.empty() && by_key.find(Key{0, 0, 0, 0}) == by_key.end())
+    fail_at(nm, c.root_hier_offset, "COPC hierarchy has no root node 0-0-0-0");
+  return c;
+}
+
+}  // namespace
+
+AABB CopcInfo::node_cube(const CopcNode& n) const {
+  const double edge = 2.0 * halfsize / std::ldexp(1.0, n.level);
+  const Vec3 lo = center - Vec3(halfsize) + Vec3(n.x * edge, n.y * edge, n.z * edge);
+  AABB b;
+  b.lo = lo;
+  b.hi = lo + Vec3(edge);
+  return b;
+}
+
+CopcInfo read_copc_info(std::span<const std::uint8_t> bytes, const std::string& name) {
+  const detail::Input in{bytes, name, {}};
+  return parse_copc(in, detail::parse_las_header(in));
+}
+
+// ---------------------------------------------------------------------------------------------
+
+/// The mapped COPC file: nodes are touched in query order, so the sequential read-ahead hint of
+/// the streaming readers' mapping is replaced by the default one.
+struct CopcIndex::Map : laz::FileMap {
+  explicit Map(const std::filesystem::path& p) : laz::FileMap(p) {
+    if (!bytes().empty())
+      ::madvise(const_cast<std::uint8_t*>(bytes().data()), bytes().size(), MADV_NORMAL);
+  }
+};
+
+CopcInfo read_copc_info(const std::filesystem::path& path) {
+  const laz::FileMap m(path);
+  return read_copc_info(m.bytes(), path.string());
+}
+
+bool is_copc_file(const std::filesystem::path& path) {
+  try {
+    if (format_from_extension(path) != Format::las) return false;
+    const laz::FileMap m(path);
+    const detail::Input in{m.bytes(), path.string(), {}};
+    return detail::parse_las_header(in).copc_info.present;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+namespace {
+constexpr std::size_t kSlotAlign = 1024;  // 1024 * 24 B and 1024 * 4 B are whole 4 KiB pages
+void* reserve(std::size_t bytes) {
+  if (bytes == 0) return nullptr;
+  void* p = ::mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+  if (p == MAP_FAILED) throw std::bad_alloc();
+  return p;
+}
+}  // namespace
+
+CopcIndex::CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes)
+    : name_(path.string()), map_(std::make_unique<Map>(path)), cache_bytes_(cache_bytes) {
+  const detail::Input in{map_->bytes(), name_, {}};
+  const detail::LasHeader h = detail::parse_las_header(in);
+  info_ = parse_copc(in, h);
+  // the LASzip VLR must describe layered POINT14 chunks
+  (void)laz::parse_laszip_vlr(map_->bytes().data() + h.laszip.at, h.laszip.len, name_, h.laszip.at, h.pdrf, h.record_length);
+  if (info_.nodes.empty()) return;
+  // Nodes in breadth-first order from the root: node id = position in nodes_.
+  std::map<Key, std::uint32_t> entry_of;
+  for (std::uint32_t i = 0; i < info_.nodes.size(); ++i) {
+    const CopcNode& n = info_.nodes[i];
+    entry_of[Key{n.level, n.x, n.y, n.z}] = i;
+  }
+  // file-order ids: nodes sorted by chunk offset
+  std::vector<std::uint32_t> by_offset(info_.nodes.size());
+  for (std::uint32_t i = 0; i < by_offset.size(); ++i) by_offset[i] = i;
+  std::sort(by_offset.begin(), by_offset.end(),
+            [&](std::uint32_t a, std::uint32_t b) { return info_.nodes[a].offset < info_.nodes[b].offset; });
+  std::vector<std::uint64_t> first_id(info_.nodes.size());
+  std::uint64_t acc = 0;
+  for (std::uint32_t i : by_offset) {
+    first_id[i] = acc;
+    acc += static_cast<std::uint64_t>(info_.nodes[i].point_count);
+  }
+  if (acc > 0xFFFFFFFFull) throw FormatError(name_ + ": COPC file of " + std::to_string(acc) + " points exceeds 2^32 - 1");
+  nodes_.reserve(info_.nodes.size());
+  std::vector<std::uint32_t> queue{entry_of.at(Key{0, 0, 0, 0})};
+  const Vec3 grow = Vec3(std::abs(info_.scale.x), std::abs(info_.scale.y), std::abs(info_.scale.z));
+  for (std::size_t q = 0; q < queue.size(); ++q) {
+    const CopcNode& n = info_.nodes[queue[q]];
+    NodeData nd;
+    nd.entry = queue[q];
+    nd.first_id = first_id[queue[q]];
+    nd.box = info_.node_cube(n);
+    nd.box.lo = nd.box.lo - grow;
+    nd.box.hi = nd.box.hi + grow;
+    nd.slots.begin = static_cast<std::uint32_t>(slots_);
+    nd.slots.end = static_cast<std::uint32_t>(slots_ + static_cast<std::size_t>(n.point_count));
+    slots_ = (nd.slots.end + kSlotAlign - 1) / kSlotAlign * kSlotAlign;
+    if (slots_ > 0xFFFFFFFFull) throw FormatError(name_ + ": COPC slot space exceeds 2^32");
+    for (int c = 0; c < 8; ++c) {
+      auto it = entry_of.find(Key{n.level + 1, 2 * n.x + (c & 1), 2 * n.y + ((c >> 1) & 1), 2 * n.z + (c >> 2)});
+      if (it == entry_of.end()) continue;
+      nd.children[nd.child_count++] = static_cast<std::uint32_t>(queue.size());
+      queue.push_back(it->second);
+    }
+    // the handle's children: the points node (if any) and the hierarchy children, grouped when 9
+    const unsigned pts = nd.slots.size() > 0 ? 1u : 0u;
+    nd.top_count = pts + nd.child_count <= 8 ? pts + nd.child_count : 2u;
+    nodes_.push_back(nd);
+  }
+  const Vec3 origin = float_origin();
+  fboxes_.assign(nodes_.size() * kBoxesPerNode, FBox{});
+  for (std::uint32_t i = 0; i < nodes_.size(); ++i) {
+    const NodeData& nd = nodes_[i];
+    FBox* f = &fboxes_[std::size_t{i} * kBoxesPerNode];
+    f[0] = f[9] = f[10] = float_box(nd.box, origin);  // points node and group: the voxel cube
+    for (unsigned c = 0; c < nd.child_count; ++c) f[1 + c] = float_box(nodes_[nd.children[c]].box, origin);
+  }
+  for (std::uint32_t i = 0; i < nodes_.size(); ++i)
+    if (nodes_[i].slots.size() > 0) by_first_id_.push_back(i);
+  std::sort(by_first_id_.begin(), by_first_id_.end(),
+            [&](std::uint32_t a, std::uint32_t b) { return nodes_[a].first_id < nodes_[b].first_id; });
+  pos_ = static_cast<Vec3*>(reserve(slots_ * sizeof(Vec3)));
+  ids_ = static_cast<PointIndex*>(reserve(slots_ * sizeof(PointIndex)));
+  local_ = std::make_unique<Local[]>(nodes_.size());
+  loaded_ = std::make_unique<std::atomic<std::uint8_t>[]>(nodes_.size());
+  touched_ = std::make_unique<std::atomic<std::uint64_t>[]>(nodes_.size());
+  for (std::size_t i = 0; i < nodes_.size(); ++i) loaded_[i].store(0), touched_[i].store(0);
+}
+
+CopcIndex::~CopcIndex() {
+  if (pos_ != nullptr) ::munmap(pos_, slots_ * sizeof(Vec3));
+  if (ids_ != nullptr) ::munmap(ids_, slots_ * sizeof(PointIndex));
+  if (rgb_ != nullptr) ::munmap(rgb_, slots_ * sizeof(Rgb16));
+  if (int_ != nullptr) ::munmap(int_, slots_ * sizeof(std::uint16_t));
+  if (cls_ != nullptr) ::munmap(cls_, slots_);
+}
+
+void CopcIndex::decode_records(std::uint32_t n, std::uint32_t layers, std::vector<std::uint8_t>& buf) const {
+  const NodeData& nd = nodes_[n];
+  const CopcNode& e = info_.nodes[nd.entry];
+  buf.resize(static_cast<std::size_t>(std::max(e.point_count, 0)) * info_.record_length);
+  if (e.point_count <= 0) return;
+  const detail::Input in{map_->bytes(), name_, {}};
+  // the LASzip VLR was validated at open; parse again here (cheap) to keep no reference state
+  const detail::LasHeader h = detail::parse_las_header(in);
+  const laz::LaszipVlr v =
+      laz::parse_laszip_vlr(map_->bytes().data() + h.laszip.at, h.laszip.len, name_, h.laszip.at, h.pdrf, h.record_length);
+  laz::ChunkDecoder dec(v, layers);
+  laz::Chunk c{e.offset, static_cast<std::uint64_t>(e.byte_size), nd.first_id, static_cast<std::uint64_t>(e.point_count)};
+  dec.start(in, n, c, e.offset + static_cast<std::uint64_t>(e.byte_size));
+  dec.next(static_cast<std::size_t>(e.point_count), buf.data());
+  dec.finish();
+}
+
+namespace {
+// LAS 1.4 R15 tables 13-17 (PDRF 6-8): intensity at byte 12, classification at 16, RGB at 30.
+constexpr std::size_t kIntensityAt = 12, kClassAt = 16, kRgbAt = 30;
+
+// X/Y/Z of one point record (int32 at bytes 0, 4, 8 of every PDRF), scaled and offset: world units.
+Vec3 record_position(const CopcInfo& info, const std::uint8_t* r) {
+  return Vec3(las_coordinate(detail::load_le<std::int32_t>(r), info.scale.x, info.offset.x),
+              las_coordinate(detail::load_le<std::int32_t>(r + 4), info.scale.y, info.offset.y),
+              las_coordinate(detail::load_le<std::int32_t>(r + 8), info.scale.z, info.offset.z));
+}
+
+// The record's colour times `mul` (257 for 8-bit colour stored in the 16-bit fields, else 1).
+Rgb16 record_rgb(const std::uint8_t* r, std::uint16_t mul) {
+  return Rgb16{static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt) * mul),
+               static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt + 2) * mul),
+               static_cast<std::uint16_t>(detail::load_le<std::uint16_t>(r + kRgbAt + 4) * mul)};
+}
+
+std::uint32_t layers_of(unsigned attrs) {
+  std::uint32_t l = laz::kLayerZ;
+  if (attrs & CopcIndex::kRgb) l |= laz::kLayerRgb;
+  if (attrs & CopcIndex::kIntensity) l |= laz::kLayerIntensity;
+  if (attrs & CopcIndex::kClassification) l |= laz::kLayerClassification;
+  return l;
+}
+}  // namespace
+
+CopcIndex::FBox CopcIndex::float_box(const AABB& b, const Vec3& origin) {
+  FBox f{};
+  for (int a = 0; a < 3; ++a) {
+    // The octree's rule (one float ulp outwards, more than the double rounding of the offset).
+    f.v[a] = OctreeRules::float_bound(b.lo[a] - origin[a], false);
+    f.v[3 + a] = OctreeRules::float_bound(b.hi[a] - origin[a], true);
+  }
+  return f;
+}
+
+void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector<std::uint32_t>& order) const {
+  const SlotRange slots = nodes_[n].slots;
+  const std::uint32_t m = slots.size();
+  Local& L = local_[n];
+  L.cells.clear();
+  L.slot_of.clear();
+  order.resize(m);
+  for (std::uint32_t i = 0; i < m; ++i) order[i] = i;
+  auto box_of = [&](std::uint32_t a, std::uint32_t b) {  // tight bounds of ranks [a, b)
+    AABB bx;
+    for (std::uint32_t r = a; r < b; ++r) bx.expand(pos[order[r]]);
+    return bx;
+  };
+  const Vec3 origin = float_origin();
+  auto set_float = [&](Cell& c) {
+    const FBox f = float_box(c.box, origin);
+    std::copy(f.v, f.v + 8, c.f);
+  };
+  if (m <= kLeafPoints) {  // one leaf cell, file order kept
+    L.cells.push_back(Cell{{}, box_of(0, m), slots, 0, 0});
+    set_float(L.cells[0]);
+    return;
+  }
+  // Morton order within the node's tight bounds: 10 bits per axis (a 1024^3 grid, enough for
+  // leaves of kLeafPoints points in nodes of up to ~10^7 points), ties by file order.
+  constexpr unsigned kBits = 10;
+  const AABB bx = box_of(0, m);
+  const Vec3 ext = bx.hi - bx.lo;
+  const double cells = double(1u << kBits);
+  auto inv = [&](double e) { return e > 0 ? cells / e : 0.0; };
+  const Vec3 sc(inv(ext.x), inv(ext.y), inv(ext.z));
+  auto cell = [&](double v, double lo, double s) {
+    return static_cast<std::uint32_t>(std::clamp((v - lo) * s, 0.0, cells - 1));
+  };
+  thread_local std::vector<MortonKey> keys, tmp;
+  keys.resize(m);
+  tmp.resize(m);
+  for (std::uint32_t i = 0; i < m; ++i) {
+    const Vec3& p = pos[i];
+    keys[i] = {morton_encode(cell(p.x, bx.lo.x, sc.x), cell(p.y, bx.lo.y, sc.y), cell(p.z, bx.lo.z, sc.z)), i};
+  }
+  // (code, file order): the LSD radix sort of the Morton sort on the 30-bit code (profiled: a
+  // comparison sort took a third of build_local).
+  radix_sort_low_bits(keys.data(), m, tmp.data(), 3 * kBits);
+  L.slot_of.resize(m);
+  for (std::uint32_t r = 0; r < m; ++r) {
+    order[r] = keys[r].idx;
+    L.slot_of[order[r]] = r;
+  }
+  auto digit = [&](std::uint32_t r, unsigned level) {  // Morton digit of rank r at depth level (0 = top)
+    return static_cast<unsigned>(keys[r].code >> (3 * (kBits - 1 - level))) & 7u;
+  };
+  // Cells breadth first; a cell's children are contiguous. Work item: cell, rank range, depth.
+  struct Item {
+    std::uint32_t cell, a, b;
+    unsigned level;
+  };
+  std::vector<Item> todo{{0, 0, m, 0}};
+  L.cells.push_back(Cell{{}, bx, {}, 0, 0});
+  for (std::size_t t = 0; t < todo.size(); ++t) {
+    Item it = todo[t];
+    // collapse single-child chains: skip the digits every point of the range shares
+    while (it.level < kBits && it.b - it.a > kLeafPoints && digit(it.a, it.level) == digit(it.b - 1, it.level)) ++it.level;
+    if (it.b - it.a <= kLeafPoints || it.level == kBits) {
+      L.cells[it.cell].slots = SlotRange{slots.begin + it.a, slots.begin + it.b};
+      continue;
+    }
+    L.cells[it.cell].slots = SlotRange{slots.begin + it.a, slots.begin + it.a};
+    L.cells[it.cell].first_child = static_cast<std::uint32_t>(L.cells.size());
+    std::uint32_t nc = 0;
+    for (std::uint32_t a = it.a; a < it.b;) {
+      const unsigned dg = digit(a, it.level);
+      std::uint32_t b = a + 1;
+      while (b < it.b && digit(b, it.level) == dg) ++b;
+      todo.push_back(Item{static_cast<std::uint32_t>(L.cells.size()), a, b, it.level + 1});
+      L.cells.push_back(Cell{{}, AABB{}, {}, 0, 0});
+      ++nc;
+      a = b;
+    }
+    L.cells[it.cell].child_count = nc;
+  }
+  // Tight boxes bottom-up (children follow their parent in the breadth-first order): a leaf's
+  // from its points, an inner cell's the union of its children's (min/max are exact).
+  for (std::size_t k = L.cells.size(); k-- > 1;) {
+    Cell& c = L.cells[k];
+    if (c.child_count == 0) c.box = box_of(c.slots.begin - slots.begin, c.slots.end - slots.begin);
+    else
+      for (std::uint32_t j = 0; j < c.child_count; ++j) c.box.expand(L.cells[c.first_child + j].box);
+  }
+  for (Cell& c : L.cells) set_float(c);
+}
+
+void CopcIndex::load(std::uint32_t n) const {
+  std::lock_guard<std::mutex> lock(locks_[n % 32]);
+  if (loaded_[n].load(std::memory_order_acquire) != 0) return;
+  const NodeData& nd = nodes_[n];
+  const CopcNode& e = info_.nodes[nd.entry];
+  if (e.point_count > 0) {
+    thread_local std::vector<std::uint8_t> buf;
+    thread_local std::vector<Vec3> pos;
+    thread_local std::vector<std::uint32_t> order;
+    decode_records(n, layers_of(attrs_), buf);
+    const std::size_t rec = info_.record_length;
+    const std::uint32_t m = static_cast<std::uint32_t>(e.point_count);
+    pos.resize(m);
+    for (std::uint32_t i = 0; i < m; ++i) pos[i] = record_position(info_, buf.data() + std::size_t{i} * rec);
+    build_local(n, pos, order);
+    for (std::uint32_t r = 0; r < m; ++r) {  // slot begin + r holds the point of Morton rank r
+      const std::uint32_t i = order[r];
+      const std::uint8_t* rp = buf.data() + std::size_t{i} * rec;
+      const std::uint32_t s = nd.slots.begin + r;
+      pos_[s] = pos[i];
+      ids_[s] = static_cast<PointIndex>(nd.first_id + i);
+      if (int_ != nullptr) int_[s] = detail::load_le<std::uint16_t>(rp + kIntensityAt);
+      if (cls_ != nullptr) cls_[s] = rp[kClassAt];
+      if (rgb_ != nullptr) rgb_[s] = record_rgb(rp, rgb_mul_);
+    }
+  }
+  decodes_.fetch_add(1);
+  loaded_[n].store(1, std::memory_order_release);
+}
+
+std::uint32_t CopcIndex::slot_of(std::uint32_t n, std::uint64_t k) const {
+  const std::vector<std::uint32_t>& perm = local_[n].slot_of;
+  return nodes_[n].slots.begin + static_cast<std::uint32_t>(perm.empty() ? k : perm[k]);
+}
+
+std::size_t CopcIndex::slot_bytes() const {
+  return sizeof(Vec3) + sizeof(PointIndex) + (rgb_ ? sizeof(Rgb16) : 0) + (int_ ? sizeof(std::uint16_t) : 0) +
+         (cls_ ? sizeof(std::uint8_t) : 0);
+}
+
+void CopcIndex::set_attributes(unsigned attrs) {
+  for (std::size_t i = 0; i < nodes_.size(); ++i) loaded_[i].store(0);  // decode again with the attributes
+  const bool pdrf_rgb = info_.pdrf == 7 || info_.pdrf == 8;
+  if ((attrs & kRgb) && pdrf_rgb && rgb_ == nullptr && slots_ > 0) {
+    // The reader's colour normalisation (las_reader.cpp decide_colour_scale): the largest channel
+    // value decides; stop at the first one above 255 (16-bit colour: usually the first node).
+    std::uint16_t mx = 0;
+    std::vector<std::uint8_t> buf;
+    for (std::uint32_t n : by_first_id_) {
+      decode_records(n, laz::kLayerRgb, buf);
+      for (std::size_t i = 0; i < buf.size() / info_.record_length; ++i) {
+        const std::uint8_t* r = buf.data() + i * info_.record_length + kRgbAt;
+        mx = std::max({mx, detail::load_le<std::uint16_t>(r), detail::load_le<std::uint16_t>(r + 2),
+                       detail::load_le<std::uint16_t>(r + 4)});
+      }
+      if (mx > 255) break;
+    }
+    if (mx > 0) {
+      rgb_mul_ = mx <= 255 ? 257 : 1;
+      rgb_ = static_cast<Rgb16*>(reserve(slots_ * sizeof(Rgb16)));
+    }
+  }
+  if ((attrs & kIntensity) && int_ == nullptr && slots_ > 0)
+    int_ = static_cast<std::uint16_t*>(reserve(slots_ * sizeof(std::uint16_t)));
+  if ((attrs & kClassification) && cls_ == nullptr && slots_ > 0)
+    cls_ = static_cast<std::uint8_t*>(reserve(slots_));
+  attrs_ = (rgb_ ? kRgb : 0u) | (int_ ? kIntensity : 0u) | (cls_ ? kClassification : 0u);
+}
+
+void CopcIndex::scan(unsigned attrs, const std::function<bool(const NodeBlock&)>& f) const {
+  const bool rgb = (attrs & kRgb) && rgb_ != nullptr;
+  const std::uint32_t layers = layers_of(rgb ? attrs : attrs & ~unsigned(kRgb));
+  // Nodes in file order, decoded a few at a time in parallel, handed to f in order.
+  const std::size_t batch = 8;
+  std::vector<std::vector<std::uint8_t>> bufs(batch);
+  std::vector<Vec3> pos;
+  std::vector<Rgb16> col;
+  std::vector<std::uint16_t> inten;
+  std::vector<std::uint8_t> cls;
+  for (std::size_t b0 = 0; b0 < by_first_id_.size(); b0 += batch) {
+    const std::size_t b1 = std::min(by_first_id_.size(), b0 + batch);
+    tbb::parallel_for(b0, b1, [&](std::size_t k) { decode_records(by_first_id_[k], layers, bufs[k - b0]); });
+    for (std::size_t k = b0; k < b1; ++k) {
+      const std::vector<std::uint8_t>& buf = bufs[k - b0];
+      const std::size_t rec = info_.record_length, m = buf.size() / rec;
+      pos.resize(m);
+      col.resize(rgb ? m : 0);
+      inten.resize(attrs & kIntensity ? m : 0);
+      cls.resize(attrs & kClassification ? m : 0);
+      for (std::size_t i = 0; i < m; ++i) {
+        const std::uint8_t* r = buf.data() + i * rec;
+        pos[i] = record_position(info_, r);
+        if (!inten.empty()) inten[i] = detail::load_le<std::uint16_t>(r + kIntensityAt);
+        if (!cls.empty()) cls[i] = r[kClassAt];
+        if (!col.empty())
+          col[i] = record_rgb(r, rgb_mul_);
+      }
+      if (!f(NodeBlock{pos, col, inten, cls})) return;
+    }
+  }
+}
+
+std::vector<Vec3> CopcIndex::spacing_samples(std::size_t max_samples, std::size_t max_nodes) const {
+  std::vector<Vec3> out;
+  const std::uint64_t N = info_.point_count;
+  if (N == 0 || by_first_id_.empty() || max_samples == 0 || max_nodes == 0) return out;
+  const std::uint64_t K = std::min<std::uint64_t>(max_nodes, N);
+  std::vector<std::uint32_t> picked;
+  for (std::uint64_t k = 0; k < K; ++k) {
+    const std::uint64_t id = k * N / K;
+    auto it = std::upper_bound(by_first_id_.begin(), by_first_id_.end(), id,
+                               [&](std::uint64_t v, std::uint32_t n) { return v < nodes_[n].first_id; });
+    const std::uint32_t n = *--it;
+    if (picked.empty() || picked.back() != n) picked.push_back(n);
+  }
+  const std::size_t per = std::max<std::size_t>(1, max_samples / picked.size());
+  for (std::uint32_t n : picked) {
+    touch(n);
+    const std::size_t cnt = nodes_[n].slots.size(), m = std::min(per, cnt);
+    for (std::size_t j = 0; j < m && out.size() < max_samples; ++j) out.push_back(pos_[slot_of(n, j * cnt / m)]);
+  }
+  return out;
+}
+
+Vec3 CopcIndex::position_of(PointIndex id) const {
+  auto it = std::upper_bound(by_first_id_.begin(), by_first_id_.end(), static_cast<std::uint64_t>(id),
+                             [&](std::uint64_t v, std::uint32_t n) { return v < nodes_[n].first_id; });
+  if (it == by_first_id_.begin()) throw std::out_of_range(name_ + ": no point " + std::to_string(id));
+  const std::uint32_t n = *--it;
+  touch(n);
+  const std::uint64_t k = static_cast<std::uint64_t>(id) - nodes_[n].first_id;
+  if (k >= nodes_[n].slots.size()) throw std::out_of_range(name_ + ": no point " + std::to_string(id));
+  return pos_[slot_of(n, k)];
+}
+
+std::size_t CopcIndex::resident_nodes() const {
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < nodes_.size(); ++i) k += loaded_[i].load() != 0;
+  return k;
+}
+
+std::size_t CopcIndex::trim_cache() {
+  const std::size_t per_slot = slot_bytes();
+  auto local_bytes = [&](std::uint32_t i) {
+    return local_[i].cells.capacity() * sizeof(Cell) + local_[i].slot_of.capacity() * sizeof(std::uint32_t);
+  };
+  std::vector<std::uint32_t> resident;
+  std::size_t bytes = 0;
+  for (std::uint32_t i = 0; i < nodes_.size(); ++i)
+    if (loaded_[i].load() != 0) {
+      resident.push_back(i);
+      bytes += nodes_[i].slots.size() * per_slot + local_bytes(i);
+    }
+  clock_.fetch_add(1);  // a new batch: what is touched from now on is more recent
+  if (bytes <= cache_bytes_) return 0;
+  std::sort(resident.begin(), resident.end(),
+            [&](std::uint32_t a, std::uint32_t b) { return touched_[a].load() < touched_[b].load(); });
+  std::size_t evicted = 0;
+  const std::size_t page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+  for (std::uint32_t i : resident) {
+    if (bytes <= cache_bytes_) break;
+    const SlotRange s = nodes_[i].slots;
+    auto drop = [&](void* base, std::size_t elem) {
+      const auto b = reinterpret_cast<std::uintptr_t>(base) + s.begin * elem;
+      const auto e = (reinterpret_cast<std::uintptr_t>(base) + s.end * elem + page - 1) / page * page;
+      if (e > b) ::madvise(reinterpret_cast<void*>(b), e - b, MADV_DONTNEED);
+    };
+    drop(pos_, sizeof(Vec3));
+    drop(ids_, sizeof(PointIndex));
+    // Attribute arrays: a node's range is not page-aligned there; release only the whole pages
+    // inside it (neighbours keep theirs; under 2 pages per node stay resident).
+    auto drop_inner = [&](void* base, std::size_t elem) {
+      if (base == nullptr) return;
+      const auto b = (reinterpret_cast<std::uintptr_t>(base) + s.begin * elem + page - 1) / page * page;
+      const auto e = (reinterpret_cast<std::uintptr_t>(base) + s.end * elem) / page * page;
+      if (e > b) ::madvise(reinterpret_cast<void*>(b), e - b, MADV_DONTNEED);
+    };
+    drop_inner(rgb_, sizeof(Rgb16));
+    drop_inner(int_, sizeof(std::uint16_t));
+    drop_inner(cls_, sizeof(std::uint8_t));
+    bytes -= s.size() * per_slot + local_bytes(i);
+    local_[i] = Local{};
+    loaded_[i].store(0);
+    ++evicted;
+  }
+  return evicted;
+}
+
+}  // namespace rayscan::io

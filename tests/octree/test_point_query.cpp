@@ -1,0 +1,81 @@
+// Box range, kNN, radius and k+r point queries against brute force on every index.
+#include "test_util.hpp"
+
+#include "rayscan/octree/point_query.hpp"
+
+#include <gtest/gtest.h>
+
+using namespace rayscan;
+using namespace rayscan::test;
+
+namespace {
+
+std::vector<Neighbor> oracle_knn(std::span<const Vec3> pts, const Vec3& q, std::size_t k, double r) {
+  std::vector<std::pair<double, PointIndex>> all;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const Vec3 v = pts[i] - q;
+    const double d2 = glm::dot(v, v);
+    if (d2 <= r * r) all.emplace_back(d2, static_cast<PointIndex>(i));
+  }
+  std::sort(all.begin(), all.end());
+  if (k < all.size()) all.resize(k);
+  std::vector<Neighbor> out;
+  for (auto& [d2, i] : all) out.push_back({i, std::sqrt(d2)});
+  return out;
+}
+
+TEST(PointQuery, MatchBruteForceOnEveryIndex) {
+  for (Dist d : {Dist::uniform, Dist::clustered, Dist::identical, Dist::grid, Dist::utm_mm})
+    for (std::size_t n : {0u, 1u, 2u, 1000u, 30000u}) {
+      const auto pts = make_points(n, d, 21);
+      AABB box;
+      for (const Vec3& p : pts) box.expand(p);
+      if (box.empty()) box = AABB{Vec3(0.0), Vec3(1.0)};
+      const double s = std::max(box.max_extent(), 1e-3);
+      std::mt19937_64 rng(5 + n);
+      std::uniform_real_distribution<double> u(0, 1);
+      for (const IndexOptions& opt : all_index_options()) {
+        const AnyIndex index = make_index(pts, opt);
+        const std::string ctx = std::string(name(d)) + " n=" + std::to_string(n) + " " + label(opt);
+        for (int i = 0; i < 15; ++i) {
+          const Vec3 q = (i % 3 == 0 && n > 0) ? pts[(i * 7919) % n]
+                                               : box.lo + Vec3(u(rng), u(rng), u(rng)) * (box.hi - box.lo);
+          // Box range with inclusive bounds: a box spanned by two random points (paper 5.1).
+          AABB qb;
+          qb.expand(box.lo + Vec3(u(rng), u(rng), u(rng)) * (box.hi - box.lo));
+          qb.expand(n > 0 ? pts[(i * 31) % n] : box.lo);  // a corner exactly on a data point
+          std::vector<PointIndex> want_box;
+          for (std::size_t j = 0; j < n; ++j)
+            if (qb.contains(pts[j])) want_box.push_back(static_cast<PointIndex>(j));
+          std::vector<PointIndex> got_box;
+          std::visit([&](const auto& idx) { box_query(idx, qb, got_box); }, index);
+          std::sort(got_box.begin(), got_box.end());
+          ASSERT_EQ(got_box, want_box) << ctx;
+          for (const auto& kr : {std::pair<std::size_t, double>{8, kInf}, {kAllPoints, 0.05 * s},
+                                 {5, 0.03 * s}, {n + 3, kInf}, {1, 0.0}}) {
+            const std::size_t k = kr.first;  // (no structured binding: a lambda below captures them)
+            const double r = kr.second;
+            std::vector<Neighbor> got;
+            std::visit([&](const auto& idx) { knn_query(idx, q, k, r, got); }, index);
+            const auto want = oracle_knn(pts, q, k, r);
+            ASSERT_EQ(got.size(), want.size()) << ctx << " k=" << k << " r=" << r;
+            for (std::size_t j = 0; j < got.size(); ++j) {
+              ASSERT_EQ(got[j].index, want[j].index) << ctx << " rank " << j;
+              ASSERT_EQ(got[j].distance, want[j].distance) << ctx << " rank " << j;
+            }
+          }
+        }
+      }
+    }
+}
+
+TEST(PointQuery, InvalidArgumentsThrow) {
+  const auto pts = make_points(10, Dist::uniform);
+  const Octree t = Octree::build_bulk(pts);
+  std::vector<Neighbor> out;
+  EXPECT_THROW(knn_query(t, Vec3(0.0), 3, -1.0, out), std::invalid_argument);
+  EXPECT_THROW(knn_query(t, Vec3(std::nan(""), 0, 0), 3, 1.0, out), std::invalid_argument);
+  EXPECT_THROW((void)make_index(pts, IndexOptions{"rtree"}), std::invalid_argument);
+}
+
+}  // namespace

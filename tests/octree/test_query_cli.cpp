@@ -1,0 +1,187 @@
+// `rayscan query` end to end: the CSV it writes equals the library's answer (itself checked against
+// brute force), every index gives the same rows, and bad input exits with code 2 and a one-line
+// error naming the file and line.
+#include "rayscan/octree/brute_force.hpp"
+#include "rayscan/octree/ray_query.hpp"
+
+#include "../common/run_command.hpp"
+
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+using namespace rayscan;
+namespace fs = std::filesystem;
+
+namespace {
+
+using RunResult = rayscan::test::CommandResult;
+
+/// Runs `rayscan ARGS`, capturing standard output and error.
+RunResult run(const std::string& args) {
+  return rayscan::test::run_command(std::string(RAYSCAN_BIN) + " " + args);
+}
+
+class QueryCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("rayscan_query_cli_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+    std::mt19937_64 rng(99);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::ofstream c(dir_ / "cloud.csv");
+    c.precision(17);
+    c << "x,y,z\n";
+    for (int i = 0; i < 2000; ++i) {
+      pts_.emplace_back(600000 + u(rng), 5300000 + u(rng), u(rng));
+      c << pts_.back().x << ',' << pts_.back().y << ',' << pts_.back().z << '\n';
+    }
+    std::ofstream r(dir_ / "rays.csv");
+    r.precision(17);
+    r << "ox,oy,oz,dx,dy,dz\n";
+    for (int i = 0; i < 20; ++i) {
+      rays_.emplace_back(Vec3(599999, 5300000 + u(rng), u(rng)), Vec3(1, 0, 0));
+      r << 599999 << ',' << rays_.back().origin().y << ',' << rays_.back().origin().z << ','
+        << 1 << ',' << 0 << ',' << 0 << '\n';
+    }
+    r.close();
+    c.close();
+    // Rebuild the rays from the text that was written (what the CLI will parse).
+    rays_.clear();
+    std::ifstream in(dir_ / "rays.csv");
+    std::string line;
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      double v[6];
+      char comma;
+      std::istringstream ss(line);
+      ss >> v[0] >> comma >> v[1] >> comma >> v[2] >> comma >> v[3] >> comma >> v[4] >> comma >> v[5];
+      rays_.emplace_back(Vec3(v[0], v[1], v[2]), Vec3(v[3], v[4], v[5]));
+    }
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string expected_csv(const RayQuery& q) const {
+    const BruteForceIndex bf(pts_);
+    std::ostringstream os;
+    os.precision(17);
+    os << "ray,rank,index,x,y,z,t,distance\n";
+    for (std::size_t r = 0; r < rays_.size(); ++r) {
+      const auto hits = ray_query(bf, rays_[r], q);
+      for (std::size_t k = 0; k < hits.size(); ++k) {
+        const Vec3& p = pts_[hits[k].index];
+        os << r << ',' << k << ',' << hits[k].index << ',' << p.x << ',' << p.y << ',' << p.z << ','
+           << hits[k].t << ',' << hits[k].distance << '\n';
+      }
+    }
+    return os.str();
+  }
+
+  static std::string slurp(const fs::path& p) {
+    std::ifstream in(p);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  }
+
+  fs::path dir_;
+  std::vector<Vec3> pts_;
+  std::vector<Ray> rays_;
+};
+
+TEST_F(QueryCli, EveryIndexWritesTheBruteForceRows) {
+  RayQuery q;
+  q.k = 3;
+  q.radius = 0.05;
+  q.order = RayOrder::sphere_hit;
+  const std::string want = expected_csv(q);
+  ASSERT_GT(std::count(want.begin(), want.end(), '\n'), 10);
+  for (const char* index : {"octree-adaptive", "octree-layered", "octree-fixed", "kdtree", "brute"}) {
+    const fs::path out = dir_ / (std::string(index) + ".csv");
+    const RunResult r = run("query --cloud " + (dir_ / "cloud.csv").string() + " --rays " +
+                            (dir_ / "rays.csv").string() +
+                            " --k 3 --radius 0.05 --order sphere_hit --index " + index +
+                            " --out " + out.string());
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(slurp(out), want) << index;
+  }
+}
+
+TEST_F(QueryCli, BinaryRaysAndTimeRange) {
+  // The same rays as headerless little-endian float64 (.f64).
+  std::ofstream f(dir_ / "rays.f64", std::ios::binary);
+  for (const Ray& r : rays_) {
+    const double v[6] = {r.origin().x, r.origin().y, r.origin().z, r.direction().x, r.direction().y,
+                         r.direction().z};
+    f.write(reinterpret_cast<const char*>(v), sizeof v);
+  }
+  f.close();
+  RayQuery q;
+  q.t_min = 0.25;
+  q.t_max = 0.5;
+  q.radius = 0.03;
+  q.order = RayOrder::time;
+  const RunResult r = run("query --cloud " + (dir_ / "cloud.csv").string() + " --rays " +
+                          (dir_ / "rays.f64").string() +
+                          " --t-min 0.25 --t-max 0.5 --radius 0.03 --order time");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out, expected_csv(q));
+}
+
+TEST_F(QueryCli, BadInputExitsTwoWithOneLineError) {
+  const std::string cloud = (dir_ / "cloud.csv").string();
+  const std::string rays = (dir_ / "rays.csv").string();
+  {
+    std::ofstream bad(dir_ / "bad_rays.csv");
+    bad << "ox,oy,oz,dx,dy,dz\n0,0,0,1,0,0\n0,0,zero,1,0,0\n";
+  }
+  RunResult r = run("query --cloud " + cloud + " --rays " + (dir_ / "bad_rays.csv").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("bad_rays.csv: line 3"), std::string::npos) << r.out;
+  {
+    std::ofstream bad(dir_ / "zero_dir.csv");
+    bad << "ox,oy,oz,dx,dy,dz\n0,0,0,0,0,0\n";
+  }
+  r = run("query --cloud " + cloud + " --rays " + (dir_ / "zero_dir.csv").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("zero_dir.csv: line 2"), std::string::npos) << r.out;
+  r = run("query --cloud " + cloud + " --rays " + rays + " --t-min 2 --t-max 1");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("t_min"), std::string::npos) << r.out;
+  r = run("query --cloud " + cloud + " --rays " + rays + " --index rtree");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("rtree"), std::string::npos) << r.out;
+  r = run("query --cloud " + (dir_ / "missing.csv").string() + " --rays " + rays);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("missing.csv"), std::string::npos) << r.out;
+  r = run("query --cloud " + cloud + " --rays " + rays + " --order sphere_hit");
+  EXPECT_EQ(r.code, 2);  // sphere_hit needs --radius
+  r = run("query --cloud " + cloud + " --rays " + rays + " --k -1");
+  EXPECT_EQ(r.code, 2);
+  r = run("query --cloud " + cloud + " --rays " + rays + " --index kdtree --depth 3");
+  EXPECT_EQ(r.code, 2);  // --depth belongs to octree-fixed
+  EXPECT_NE(r.out.find("--depth"), std::string::npos) << r.out;
+  // A failed run leaves no output file behind.
+  r = run("query --cloud " + cloud + " --rays " + (dir_ / "bad_rays.csv").string() + " --out " +
+          (dir_ / "never.csv").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_FALSE(fs::exists(dir_ / "never.csv"));
+  for (const auto& e : fs::directory_iterator(dir_))
+    EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
+}
+
+TEST(QueryCliHelp, ListsEveryOptionWithDefaults) {
+  const RunResult r = run("query --help");
+  EXPECT_EQ(r.code, 0);
+  for (const char* opt : {"--cloud", "--rays", "--k", "--radius", "--t-min", "--t-max", "--order",
+                          "--index", "--capacity", "--depth", "--insertion", "--out"})
+    EXPECT_NE(r.out.find(opt), std::string::npos) << opt;
+}
+
+}  // namespace

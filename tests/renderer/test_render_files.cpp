@@ -1,0 +1,119 @@
+// Render output read back through OpenImageIO (the files' own samples and metadata, not rayscan's
+// reader): the EXR's beauty and AOV channels and metadata, the 16-bit sRGB PNG, and
+// the files the render job writes. A test binary of its own, so that only these tests load
+// OpenImageIO's ~260 libraries at process start (0.4 s each; every other render test process is
+// spared it).
+#include "../common/temp_dir.hpp"
+#include "render_test_data.hpp"
+#include "rayscan/render/image_output.hpp"
+#include "rayscan/render/material.hpp"
+#include "rayscan/render/render.hpp"
+#include "rayscan/jobs/render.hpp"
+
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+
+using namespace rayscan;
+using namespace rayscan::render;
+namespace fs = std::filesystem;
+
+namespace {
+
+using rayscan::render::test::subset;
+using rayscan::render::test::subset_scene;
+
+fs::path files_temp_dir() { return rayscan::test::process_temp_dir("rayscan_render_files_test"); }
+
+}  // namespace
+
+TEST(ImageOutput, ExrHoldsBeautyAndAovChannelsAndMetadata) {
+  const PointCloud& pc = subset();
+  MaterialDesc mat;
+  mat.mode = ColorMode::elevation;
+  const std::vector<Color> albedo = compute_albedo(pc, mat, Vec3(0, 0, 1));
+  const AnyIndex index = make_index(pc.positions, IndexOptions{});
+  Scene s = subset_scene(32, 24);
+  s.spp = 1;
+  s.output.aovs = {Aov::depth, Aov::normal, Aov::position, Aov::index, Aov::albedo, Aov::cost};
+  Framebuffer fb;
+  render_image(index, make_settings(s, pc.positions, albedo, 0.8), fb);
+  OutputDesc out;
+  out.image = files_temp_dir() / "img.exr";
+  out.exr_half = false;
+  const auto files = write_image(fb, out, {{"rayscan:spp", "1"}});
+  ASSERT_EQ(files.size(), 1u);
+  auto in = OIIO::ImageInput::open(out.image.string());
+  ASSERT_TRUE(in);
+  const OIIO::ImageSpec& spec = in->spec();
+  EXPECT_EQ(spec.width, 32);
+  EXPECT_EQ(spec.get_string_attribute("rayscan:spp"), "1");
+  int zc = -1, idc = -1;
+  for (int c = 0; c < spec.nchannels; ++c) {
+    if (spec.channelnames[c] == "Z") zc = c;
+    if (spec.channelnames[c] == "id") idc = c;
+  }
+  ASSERT_GE(zc, 0);
+  ASSERT_GE(idc, 0);
+  EXPECT_EQ(spec.nchannels, 3 + 1 + 3 + 3 + 3 + 1 + 1);
+  EXPECT_EQ(spec.channelformat(idc), OIIO::TypeDesc::UINT);
+  std::vector<float> z(32 * 24);
+  std::vector<std::uint32_t> ids(32 * 24);
+  ASSERT_TRUE(in->read_image(0, 0, zc, zc + 1, OIIO::TypeDesc::FLOAT, z.data()));
+  ASSERT_TRUE(in->read_image(0, 0, idc, idc + 1, OIIO::TypeDesc::UINT, ids.data()));
+  for (std::size_t i = 0; i < z.size(); ++i) {
+    EXPECT_EQ(z[i], fb.depth[i]);
+    EXPECT_EQ(ids[i], fb.index[i]);
+  }
+  // Nothing temporary is left next to the image.
+  for (const auto& e : fs::directory_iterator(files_temp_dir()))
+    EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
+}
+
+TEST(ImageOutput, PngIsSrgbEncodedAt16Bit) {
+  Framebuffer fb;
+  fb.width = 2;
+  fb.height = 1;
+  fb.beauty = {Color(0.5f), Color(0.0031308f, 1.0f, 2.0f)};
+  OutputDesc out;
+  out.image = files_temp_dir() / "img16.png";
+  out.bit_depth = 16;
+  write_image(fb, out, {});
+  auto in = OIIO::ImageInput::open(out.image.string());
+  ASSERT_TRUE(in);
+  EXPECT_EQ(in->spec().format, OIIO::TypeDesc::UINT16);
+  std::vector<std::uint16_t> px(6);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT16, px.data()));
+  // sRGB(0.5) = 1.055 * 0.5^(1/2.4) - 0.055 = 0.735357...
+  EXPECT_EQ(px[0], std::lround(0.7353569830524495 * 65535));
+  EXPECT_EQ(px[3], std::lround(0.0031308 * 12.92 * 65535));
+  EXPECT_EQ(px[4], 65535);
+  EXPECT_EQ(px[5], 65535);  // clamped
+}
+
+TEST(RenderJob, WritesTheImageAndAovsItNames) {
+  const fs::path dir = rayscan::test::process_temp_dir("rayscan_render_job");
+  RenderJobOptions o;
+  o.scene = subset_scene(40, 30);
+  o.scene.material.mode = ColorMode::elevation;  // (the subset has no RGB)
+  o.scene.output.aovs = {Aov::index, Aov::depth};
+  o.scene.radius = 0.9;
+  o.scene.output.image = dir / "a.exr";
+  o.cloud = &subset();
+  const RenderJobResult r = run_render(o);
+  ASSERT_EQ(r.written.size(), 1u);
+  EXPECT_EQ(r.written[0], dir / "a.exr");
+  EXPECT_FALSE(r.radius.automatic);
+  auto in = OIIO::ImageInput::open((dir / "a.exr").string());
+  ASSERT_TRUE(in);
+  const OIIO::ImageSpec& spec = in->spec();
+  EXPECT_EQ(spec.width, 40);
+  EXPECT_GE(spec.channelindex(aov_channels(Aov::index)[0]), 0);
+  EXPECT_GE(spec.channelindex(aov_channels(Aov::depth)[0]), 0);
+  EXPECT_EQ(spec.get_string_attribute("rayscan:radius"), "0.90000000000000002");
+  in->close();
+  fs::remove_all(dir);
+}
+
