@@ -1,7 +1,7 @@
 #include "rayscan/analysis/visibility.hpp"
 
 #include "rayscan/base/progress.hpp"
-#include "rayscan/render/surfel.hpp"
+#include "rayscan/octree/surfel.hpp"
 #include "rayscan/base/threads.hpp"
 
 #include <tbb/blocked_range.h>
@@ -70,14 +70,14 @@ double disc_top(const Vec3& c, const glm::vec3& n, double r, double dx, double d
 // the segment's point at t* lies horizontally within r_j of c_j (over or under the disc's
 // footprint), and disc_top there exceeds the segment's height by more than `tol`. The surface is
 // the height field of the discs, solid below them, like a DSM (first-return surface). Discs of the
-// target's own surface that overlap its disc (render::same_surface and centres within r_i + r_j)
+// target's own surface that overlap its disc (same_surface and centres within r_i + r_j)
 // are not obstacles: the sampled surface must not hide itself at grazing angles. One traversal of
 // the index: a node is entered only when the segment's horizontal projection passes within R (the
 // largest disc radius) of its box (Liang & Barsky 1984 clipping in x and y) and the box's top plus
 // R lies above the segment's lowest point over that stretch.
 template <class I>
 bool height_field_blocked(const I& idx, const SurfelAttributes& sa, const Vec3& eye, const Vec3& aim,
-                          const render::LeavingSurface& target, double tol) {
+                          const LeavingSurface& target, double tol) {
   const Vec3 v = aim - eye;
   const double h2 = v.x * v.x + v.y * v.y;
   if (!(h2 > 1e-24)) return false;  // the target lies straight below or above the eye
@@ -121,7 +121,7 @@ bool height_field_blocked(const I& idx, const SurfelAttributes& sa, const Vec3& 
       if (!(disc_top(c, sa.normals[j], rj, dx, dy) > zr)) continue;
       const Vec3 w = c - target.position;
       const double reach = target.radius + rj;  // discs overlapping the target's own disc
-      if (glm::dot(w, w) <= reach * reach && render::same_surface(target, j, c, Vec3(sa.normals[j]), rj)) continue;
+      if (glm::dot(w, w) <= reach * reach && same_surface(target, j, c, Vec3(sa.normals[j]), rj)) continue;
       return true;
     }
     for (unsigned k = 0, nc = idx.child_count(n); k < nc; ++k) stack.push_back(idx.child(n, k));
@@ -150,7 +150,7 @@ bool line_of_sight(const I& idx, const Observer& obs, double max_d,
   if (opts.surfels) {
     queried = true;
     const SurfelAttributes& sa = *opts.surfels;
-    const render::LeavingSurface target{i, p, Vec3(sa.normals[i]), sa.radii[i]};
+    const LeavingSurface target{i, p, Vec3(sa.normals[i]), sa.radii[i]};
     return !height_field_blocked(idx, sa, obs.position, p + Vec3(0.0, 0.0, opts.target_height), target,
                                  opts.tolerance);
   }

@@ -52,9 +52,12 @@ if(NOT ONLY_CORE)
   endforeach()
 endif()
 set(installed lib/cmake/rayscan/rayscanConfig.cmake lib/cmake/rayscan/rayscanConfigVersion.cmake
-    include/rayscan/octree.hpp)
+    include/rayscan/octree/octree.hpp include/rayscan/base/progress.hpp)
 if(NOT ONLY_CORE)
-  list(APPEND installed lib/rayscan/librayscan_oiio.so)  # rayscan::image's OpenImageIO module
+  # rayscan::image's OpenImageIO module, and a header of each library room.
+  list(APPEND installed lib/rayscan/librayscan_oiio.so include/rayscan/io/point_io.hpp include/rayscan/site/index_file.hpp
+       include/rayscan/camera/camera.hpp include/rayscan/image/aov.hpp include/rayscan/render/scene.hpp
+       include/rayscan/analysis/visibility.hpp include/rayscan/jobs/render.hpp)
 endif()
 foreach(f ${installed})
   if(NOT EXISTS ${prefix}/${f})

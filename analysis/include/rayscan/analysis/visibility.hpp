@@ -76,7 +76,7 @@ struct VisibilityResult {
 /// of c_j, and the disc's height there exceeds the segment's by more than tau. A disc's height at
 /// a horizontal offset is its plane's for discs within 45 degrees of level (limited to the disc's
 /// own vertical extent), its top c_j.z + r_j sqrt(1 - n_z^2) for steeper ones (walls, leaves). The
-/// discs of P's own surface that overlap P's disc (render::same_surface, centres within r_i + r_j)
+/// discs of P's own surface that overlap P's disc (same_surface, centres within r_i + r_j)
 /// and P itself are not obstacles. So, unlike the spheres, a crown or a roof edge hides what a
 /// ray passes under, as it does in a DSM viewshed (gdal_viewshed, r.viewshed); use spheres for
 /// the true 3-D answer (under trees, overhangs, through gaps). Found by one traversal of the index

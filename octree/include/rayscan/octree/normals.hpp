@@ -66,7 +66,7 @@ struct SurfelAttributes {
   /// About zero on a flat, noise-free surface; the depth step near the edges of a depth-quantised
   /// scan's terraces (a Kinect's disparity steps: ~7 cm at 5 m, 7 x the spacing), the noise
   /// amplitude on a noisy one. It widens the self-intersection slab of shadow and bounce rays
-  /// (render::same_surface).
+  /// (same_surface).
   std::vector<float> thickness;
   double max_radius = 0.0;         ///< max of radii (the ray query's candidate radius)
   double median_radius = 0.0;      ///< median of the radii before clamping, world units

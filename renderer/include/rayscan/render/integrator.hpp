@@ -8,7 +8,7 @@
 #include "rayscan/render/sampler.hpp"
 #include "rayscan/render/scene.hpp"
 #include "rayscan/render/sky.hpp"
-#include "rayscan/render/surfel.hpp"
+#include "rayscan/octree/surfel.hpp"
 
 #include <atomic>
 #include <chrono>

@@ -9,7 +9,7 @@
 #include "rayscan/camera/camera_file.hpp"
 #include "rayscan/base/json_object.hpp"
 #include "rayscan/octree/normals.hpp"
-#include "rayscan/render/surfel.hpp"
+#include "rayscan/octree/surfel.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <filesystem>
@@ -19,6 +19,12 @@
 #include <vector>
 
 namespace rayscan::render {
+
+/// The geometry each point stands for.
+enum class Primitive {
+  sphere,  ///< the paper's model: a sphere of one global radius, shaded with the sphere normal
+  surfel   ///< an oriented disc with a per-point normal and radius
+};
 
 /// A malformed scene or camera file. what() is one line: "<file>: <JSON pointer>: <what was
 /// expected>", e.g. "scenes/x.json: /camera/vfov_deg: expected a number in (0, 180)".

@@ -18,13 +18,7 @@
 #include <string>
 #include <vector>
 
-namespace rayscan::render {
-
-/// The geometry each point stands for.
-enum class Primitive {
-  sphere,  ///< the paper's model: a sphere of one global radius, shaded with the sphere normal
-  surfel   ///< an oriented disc with a per-point normal and radius
-};
+namespace rayscan {
 
 /// The discs of a cloud, indexed by original point index (spans must outlive the view).
 struct SurfelView {
@@ -762,4 +756,4 @@ template <SpatialIndex I>
   return blended_normal(s, scratch, hit, x);
 }
 
-}  // namespace rayscan::render
+}  // namespace rayscan

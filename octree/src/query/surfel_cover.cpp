@@ -1,6 +1,6 @@
 // The covering discs of a hit point from a per-pixel candidate set (surfel.hpp: CoverCandidates,
 // cover_hits_among, covering_discs_among, blended_normal_among).
-#include "rayscan/render/surfel.hpp"
+#include "rayscan/octree/surfel.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -12,7 +12,7 @@
 #include <emmintrin.h>
 #endif
 
-namespace rayscan::render {
+namespace rayscan {
 
 void CoverCandidates::finish() {
   const std::size_t n = cands.size();
@@ -102,4 +102,4 @@ Vec3 blended_normal_among(const CoverCandidates& set, PointIndex hit, const glm:
   return b.normal();
 }
 
-}  // namespace rayscan::render
+}  // namespace rayscan

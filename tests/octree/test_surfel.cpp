@@ -1,6 +1,6 @@
 // Surfels: the ray-disc test against hand-computed cases and the ray-query
 // search against a brute-force loop over every disc.
-#include "rayscan/render/surfel.hpp"
+#include "rayscan/octree/surfel.hpp"
 
 #include "rayscan/octree/any_index.hpp"
 
@@ -9,7 +9,6 @@
 #include <random>
 
 using namespace rayscan;
-using namespace rayscan::render;
 
 TEST(RayDisc, HandComputedCases) {
   const Vec3 c(1.0, 2.0, 3.0), n(0.0, 0.0, 1.0);
