@@ -39,3 +39,18 @@ function(rayscan_install_package)
   install(FILES ${PROJECT_BINARY_DIR}/rayscanConfig.cmake ${PROJECT_BINARY_DIR}/rayscanConfigVersion.cmake
           DESTINATION ${RAYSCAN_INSTALL_CMAKEDIR})
 endfunction()
+
+# rayscan_add_library(<room> SOURCES src...): the library rayscan_<room> of a room (docs/
+# architecture.md): alias rayscan::<room>, public headers in <room>/include (installed), the
+# project's warnings, C++20. The caller adds its dependencies and any unity-build SKIP list.
+function(rayscan_add_library room)
+  cmake_parse_arguments(L "" "" "SOURCES" ${ARGN})
+  add_library(rayscan_${room} ${L_SOURCES})
+  add_library(rayscan::${room} ALIAS rayscan_${room})
+  set_target_properties(rayscan_${room} PROPERTIES EXPORT_NAME ${room})
+  target_include_directories(rayscan_${room} PUBLIC
+    $<BUILD_INTERFACE:${CMAKE_CURRENT_SOURCE_DIR}/include> $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>)
+  target_compile_options(rayscan_${room} PRIVATE ${RAYSCAN_WARNINGS})
+  target_compile_features(rayscan_${room} PUBLIC cxx_std_20)
+  rayscan_install_headers(${CMAKE_CURRENT_SOURCE_DIR}/include)
+endfunction()
