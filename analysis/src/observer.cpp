@@ -1,4 +1,5 @@
 #include "rayscan/analysis/observer.hpp"
+#include "site_dispatch.hpp"
 
 #include "rayscan/base/file_names.hpp"
 
@@ -314,19 +315,14 @@ void place_observers_over(std::vector<Observer>& observers, const Index& index, 
   }
 }
 
-double local_ground(const AnyIndex& index, const PointCloud& cloud, double x, double y, double radius) {
-  return local_ground_over(index, cloud, x, y, radius);
+double local_ground(const Site& site, const PointCloud& cloud, double x, double y, double radius) {
+  return detail::over_site<double>(site, "local ground",
+                                   [&](const auto& index) { return local_ground_over(index, cloud, x, y, radius); });
 }
-double local_ground(const io::MappedIndex& index, const PointCloud& cloud, double x, double y, double radius) {
-  return local_ground_over(index, cloud, x, y, radius);
-}
-void place_observers(std::vector<Observer>& observers, const AnyIndex& index, const PointCloud& cloud,
+void place_observers(std::vector<Observer>& observers, const Site& site, const PointCloud& cloud,
                      const GroundOptions& options) {
-  place_observers_over(observers, index, cloud, options);
-}
-void place_observers(std::vector<Observer>& observers, const io::MappedIndex& index, const PointCloud& cloud,
-                     const GroundOptions& options) {
-  place_observers_over(observers, index, cloud, options);
+  detail::over_site<void>(site, "observer placement",
+                          [&](const auto& index) { place_observers_over(observers, index, cloud, options); });
 }
 
 bool within_angle_limits(const Observer& o, const Vec3& dir) {

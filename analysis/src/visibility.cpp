@@ -1,4 +1,5 @@
 #include "rayscan/analysis/visibility.hpp"
+#include "site_dispatch.hpp"
 
 #include "rayscan/base/progress.hpp"
 #include "rayscan/octree/surfel.hpp"
@@ -494,39 +495,30 @@ std::vector<std::uint32_t> count_pixel_hits(std::span<const std::uint32_t> pixel
   return count;
 }
 
-bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Observer& observer, PointIndex i,
+bool is_visible(const Site& site, std::span<const Vec3> positions, const Observer& observer, PointIndex i,
                 const VisibilityOptions& opts, std::vector<RayHit>& scratch) {
-  return is_visible_over(index, positions, observer, i, opts, scratch);
+  return detail::over_site<bool>(site, "visibility", [&](const auto& index) {
+    return is_visible_over(index, positions, observer, i, opts, scratch);
+  });
 }
-bool is_visible(const io::MappedIndex& index, std::span<const Vec3> positions, const Observer& observer,
-                PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch) {
-  return is_visible_over(index, positions, observer, i, opts, scratch);
-}
-VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3> positions,
+VisibilityResult compute_visibility(const Site& site, std::span<const Vec3> positions,
                                     std::span<const Observer> observers, const VisibilityOptions& opts) {
-  return compute_visibility_over(index, positions, observers, opts);
+  return detail::over_site<VisibilityResult>(site, "visibility", [&](const auto& index) {
+    return compute_visibility_over(index, positions, observers, opts);
+  });
 }
-VisibilityResult compute_visibility(const io::MappedIndex& index, std::span<const Vec3> positions,
-                                    std::span<const Observer> observers, const VisibilityOptions& opts) {
-  return compute_visibility_over(index, positions, observers, opts);
+std::vector<double> compute_sky_view(const Site& site, std::span<const Vec3> positions, const SkyViewOptions& opts,
+                                     std::uint64_t* queries) {
+  return detail::over_site<std::vector<double>>(site, "sky view", [&](const auto& index) {
+    return compute_sky_view_over(index, positions, opts, queries);
+  });
 }
-std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3> positions,
-                                     const SkyViewOptions& opts, std::uint64_t* queries) {
-  return compute_sky_view_over(index, positions, opts, queries);
-}
-std::vector<double> compute_sky_view(const io::MappedIndex& index, std::span<const Vec3> positions,
-                                     const SkyViewOptions& opts, std::uint64_t* queries) {
-  return compute_sky_view_over(index, positions, opts, queries);
-}
-std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const Camera& camera, double radius,
+std::vector<std::uint32_t> camera_first_hits(const Site& site, const Camera& camera, double radius,
                                              double max_distance, unsigned threads, bool progress_bar,
                                              WorkDistributor* distributor) {
-  return camera_first_hits_over(index, camera, radius, max_distance, threads, progress_bar, distributor);
-}
-std::vector<std::uint32_t> camera_first_hits(const io::MappedIndex& index, const Camera& camera, double radius,
-                                             double max_distance, unsigned threads, bool progress_bar,
-                                             WorkDistributor* distributor) {
-  return camera_first_hits_over(index, camera, radius, max_distance, threads, progress_bar, distributor);
+  return detail::over_site<std::vector<std::uint32_t>>(site, "camera visibility", [&](const auto& index) {
+    return camera_first_hits_over(index, camera, radius, max_distance, threads, progress_bar, distributor);
+  });
 }
 
 }  // namespace rayscan::analysis

@@ -2,8 +2,7 @@
 #include "rayscan/jobs/query.hpp"
 
 #include "rayscan/octree/batch.hpp"
-#include "rayscan/site/copc.hpp"
-#include "rayscan/site/index_file.hpp"
+#include "rayscan/site/site.hpp"
 #include "rayscan/io/rays.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/base/work_distributor.hpp"
@@ -15,6 +14,8 @@
 
 #include <chrono>
 #include <cstdio>
+#include <optional>
+#include <type_traits>
 #include <unordered_map>
 
 namespace rayscan::io {
@@ -84,50 +85,56 @@ QueryJobResult run_query(const QueryJobOptions& o) {
   // Rays first: a malformed rays file is reported before a large cloud is read.
   r.rays = o.rays.empty() && !o.rays_file.empty() ? read_rays(o.rays_file) : o.rays;
   const auto t0 = std::chrono::steady_clock::now();
-  if (!o.cloud && is_index_file(o.cloud_file)) {
-    // An index file: queries run on the memory map; positions of the hits are looked up by one
-    // sequential scan of the ids (no inverse permutation in memory).
-    const MappedIndex idx = MappedIndex::open(o.cloud_file);
-    tbb::task_arena arena(static_cast<int>(resolve_threads(o.control.threads)));
-    answer_rays(idx, r.rays, o.query, o.control, r.hits);
-    if (o.control.distributor && !o.control.distributor->is_root()) return r;
-    std::unordered_map<PointIndex, Vec3> hit_pos;
-    for (const auto& h : r.hits)
-      for (const RayHit& x : h) hit_pos.emplace(x.index, Vec3(0.0));
-    const IdView ids = idx.ids();
-    const auto pos = idx.positions();
-    if (ids.is_identity())  // an index without ids: a hit's index is its slot
-      for (auto& [id, p] : hit_pos) p = pos[id];
-    for (std::size_t s = 0; s < ids.size() && !ids.is_identity() && !hit_pos.empty(); ++s)
-      if (auto it = hit_pos.find(ids[s]); it != hit_pos.end()) it->second = pos[s];
-    for (const auto& h : r.hits)
-      for (const RayHit& x : h) r.hit_positions.push_back(hit_pos.at(x.index));
-    return r;
+  std::optional<Site> site;
+  if (!o.cloud && (is_index_file(o.cloud_file) || is_copc_file(o.cloud_file))) {
+    // An index file or a COPC file is queried in place: the queries run on the memory map or the
+    // file's hierarchy (only the nodes the rays reach are decoded).
+    SiteOptions so;
+    so.copc_cache_bytes = o.cache_bytes;
+    site.emplace(Site::open(o.cloud_file, so));
+  } else {
+    if (!o.cloud) r.cloud = read_point_cloud(o.cloud_file, ReadOptions{.scalars = false});
+    const PointCloud& cloud = o.cloud ? *o.cloud : r.cloud;
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "read %zu points and %zu rays in %.2f s", cloud.size(), r.rays.size(),
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    o.control.info(buf);
+    site.emplace(Site::over(cloud, o.index));
   }
-  if (!o.cloud && is_copc_file(o.cloud_file)) {
-    // COPC: the query runs on the file's hierarchy; only the nodes the rays reach are decoded.
-    const CopcIndex idx(o.cloud_file, o.cache_bytes);
-    tbb::task_arena arena(static_cast<int>(resolve_threads(o.control.threads)));
-    arena.execute([&] { r.hits = ray_query_batch(idx, r.rays, o.query); });
-    for (const auto& h : r.hits)
-      for (const RayHit& x : h) r.hit_positions.push_back(idx.position_of(x.index));
-    r.copc_decodes = idx.decodes();
-    r.copc_nodes = idx.node_count();
-    char msg[256];
-    std::snprintf(msg, sizeof msg, "COPC: %llu of %llu nodes decoded, %zu rays in %.2f s",
-                  static_cast<unsigned long long>(r.copc_decodes), static_cast<unsigned long long>(r.copc_nodes),
-                  r.rays.size(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-    o.control.info(msg);
-    return r;
-  }
-  if (!o.cloud) r.cloud = read_point_cloud(o.cloud_file, ReadOptions{.scalars = false});
-  const PointCloud& cloud = o.cloud ? *o.cloud : r.cloud;
-  char buf[256];
-  std::snprintf(buf, sizeof buf, "read %zu points and %zu rays in %.2f s", cloud.size(), r.rays.size(),
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-  o.control.info(buf);
-  const AnyIndex index = make_index(cloud.positions, o.index);
-  std::visit([&](const auto& idx) { answer_rays(idx, r.rays, o.query, o.control, r.hits); }, index);
+  site->visit([&](auto& idx) {
+    using I = std::remove_cvref_t<decltype(idx)>;
+    if constexpr (std::is_same_v<I, CopcIndex>) {
+      // The batch runs here (no distributed work queue for COPC files).
+      tbb::task_arena arena(static_cast<int>(resolve_threads(o.control.threads)));
+      arena.execute([&] { r.hits = ray_query_batch(idx, r.rays, o.query); });
+      for (const auto& h : r.hits)
+        for (const RayHit& x : h) r.hit_positions.push_back(idx.position_of(x.index));
+      r.copc_decodes = idx.decodes();
+      r.copc_nodes = idx.node_count();
+      char msg[256];
+      std::snprintf(msg, sizeof msg, "COPC: %llu of %llu nodes decoded, %zu rays in %.2f s",
+                    static_cast<unsigned long long>(r.copc_decodes), static_cast<unsigned long long>(r.copc_nodes),
+                    r.rays.size(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+      o.control.info(msg);
+    } else if constexpr (std::is_same_v<I, MappedIndex>) {
+      answer_rays(idx, r.rays, o.query, o.control, r.hits);
+      if (o.control.distributor && !o.control.distributor->is_root()) return;
+      // Positions of the hits by one sequential scan of the ids (no inverse permutation in memory).
+      std::unordered_map<PointIndex, Vec3> hit_pos;
+      for (const auto& h : r.hits)
+        for (const RayHit& x : h) hit_pos.emplace(x.index, Vec3(0.0));
+      const IdView ids = idx.ids();
+      const auto pos = idx.positions();
+      if (ids.is_identity())  // an index without ids: a hit's index is its slot
+        for (auto& [id, p] : hit_pos) p = pos[id];
+      for (std::size_t s = 0; s < ids.size() && !ids.is_identity() && !hit_pos.empty(); ++s)
+        if (auto it = hit_pos.find(ids[s]); it != hit_pos.end()) it->second = pos[s];
+      for (const auto& h : r.hits)
+        for (const RayHit& x : h) r.hit_positions.push_back(hit_pos.at(x.index));
+    } else {
+      answer_rays(idx, r.rays, o.query, o.control, r.hits);  // positions from the cloud in memory
+    }
+  });
   return r;
 }
 

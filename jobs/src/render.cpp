@@ -96,14 +96,12 @@ namespace {
 // move).
 struct Prepared {
   Scene scene;
-  std::optional<io::MappedIndex> mapped;
-  std::unique_ptr<io::CopcIndex> copc;  // a COPC file traced in place (sphere mode)
-  PointCloud owned;                 // the read cloud (or, for surfels over an index file, its points)
-  const PointCloud* cloud = nullptr;  // null when tracing straight from `mapped`
-  std::vector<Color> albedo;        // by original index (in-memory clouds, surfel mode)
-  AlbedoRule rule;                  // sphere mode over `mapped`: applied at shading time
+  std::optional<Site> site;           // the points and their index (in memory, index file or COPC)
+  PointCloud owned;                   // the read cloud (or, for surfels over an index file, its points)
+  const PointCloud* cloud = nullptr;  // points in original order; null when tracing straight from a file
+  std::vector<Color> albedo;          // by original index (in-memory clouds, surfel mode)
+  AlbedoRule rule;                    // sphere mode over a file traced in place: applied at shading time
   AlbedoSource albedo_source;
-  AnyIndex index = AnyIndex(BruteForceIndex(std::span<const Vec3>{}));
   SurfelAttributes surfels;
   std::chrono::steady_clock::time_point started;  // job start (time to the first traced tile)
 };
@@ -118,7 +116,7 @@ void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
   Scene& scene = P.scene;
   const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
   const JobControl& ctl = o.control;
-  io::CopcIndex& copc = *P.copc;
+  io::CopcIndex& copc = *P.site->copc();
   char buf[512];
   r.crs_wkt = io::open_point_reader(scene.cloud, io::AttributeSet::none())->crs_wkt();
   if (o.camera_for_cloud) {
@@ -201,36 +199,41 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   // Only positions, colour, intensity and classification are used: skip the other scalars.
   auto t0 = std::chrono::steady_clock::now();
   PointCloud& owned = P->owned;
-  std::optional<io::MappedIndex>& mapped = P->mapped;
   const bool surfel = scene.primitive == Primitive::surfel;
-  std::unique_ptr<io::CopcIndex>& copc = P->copc;
-  if (!o.cloud && !surfel && io::is_copc_file(scene.cloud)) {
-    // A COPC file in sphere mode is traced in place (prepare_copc); surfels read it whole below.
-    copc = std::make_unique<io::CopcIndex>(scene.cloud, o.cache_bytes);
-    if (copc->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
-    r.points = copc->info().point_count;
-    r.read_seconds = seconds_since(t0);
-    std::snprintf(buf, sizeof buf, "COPC file %s: %zu points, %zu nodes, hierarchy read in %.2f s (nodes decoded as rays reach them)",
-                  scene.cloud.string().c_str(), r.points, copc->node_count(), r.read_seconds);
-    ctl.info(buf);
-    prepare_copc(*P, o, r);
-    return P;
-  }
-  if (!o.cloud && io::is_index_file(scene.cloud)) {
-    io::IndexOpenOptions oo;
-    oo.read_ahead = true;  // a render touches most of the file: read it ahead, nodes first
-    mapped.emplace(io::MappedIndex::open(scene.cloud, oo));
-    if (mapped->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
+  const auto no_points = [&] { return SceneError(f + ": /cloud: the point cloud has no points"); };
+  // A COPC file in sphere mode is traced in place (prepare_copc); surfels read it whole below.
+  const bool in_place =
+      !o.cloud && (io::is_index_file(scene.cloud) || (!surfel && io::is_copc_file(scene.cloud)));
+  const io::MappedIndex* mapped = nullptr;
+  if (in_place) {
+    SiteOptions so;
+    so.index_file.read_ahead = true;  // a render touches most of the file: read it ahead, nodes first
+    so.copc_cache_bytes = o.cache_bytes;
+    SiteOpenTimes times;
+    P->site.emplace(Site::open(scene.cloud, so, &times));
+    if (P->site->empty()) throw no_points();
+    r.read_seconds = times.read_seconds;
+    if (io::CopcIndex* copc = P->site->copc()) {
+      r.points = copc->info().point_count;
+      std::snprintf(buf, sizeof buf,
+                    "COPC file %s: %zu points, %zu nodes, hierarchy read in %.2f s (nodes decoded as rays reach them)",
+                    scene.cloud.string().c_str(), r.points, copc->node_count(), r.read_seconds);
+      ctl.info(buf);
+      prepare_copc(*P, o, r);
+      return P;
+    }
+    mapped = P->site->index_file();
     if (surfel) owned = mapped->to_point_cloud();  // disc centres and estimate by original index
   } else if (!o.cloud) {
     owned = load_cloud(scene, io::ReadOptions{.scalars = false});
+  } else if (o.cloud->empty()) {
+    throw no_points();
   }
-  else if (o.cloud->empty()) throw SceneError(f + ": /cloud: the point cloud has no points");
   if (o.cloud) P->cloud = o.cloud;
   else if (!mapped || surfel) P->cloud = &owned;
   const PointCloud* cloud = P->cloud;
   r.points = mapped ? mapped->positions().size() : cloud->size();
-  r.read_seconds = o.cloud ? 0.0 : seconds_since(t0);
+  if (!in_place) r.read_seconds = o.cloud ? 0.0 : seconds_since(t0);
   if (mapped)
     std::snprintf(buf, sizeof buf, "mapped index file %s: %zu points, %zu nodes, in %.2f s%s", scene.cloud.string().c_str(),
                   r.points, static_cast<std::size_t>(mapped->node_count()), r.read_seconds,
@@ -264,7 +267,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   t0 = std::chrono::steady_clock::now();
   if (!mapped) {
     try {
-      P->index = make_index(cloud->positions, scene.index);
+      P->site.emplace(Site::over(*cloud, scene.index));
     } catch (const std::invalid_argument& e) {
       throw SceneError(f + ": /index: " + e.what());
     }
@@ -272,13 +275,13 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
     std::snprintf(buf, sizeof buf, "built %s index in %.2f s", scene.index.type.c_str(), r.index_seconds);
     ctl.info(buf);
   }
-  AnyIndex& index = P->index;
+  const Site& site = *P->site;
   SurfelAttributes& surfels = P->surfels;
   if (surfel) {
     // Surfel normals and radii: kNN over the mapped or the built in-memory index (scene_surfels).
     t0 = std::chrono::steady_clock::now();
     try {
-      surfels = mapped ? scene_surfels(scene, *mapped, *cloud) : scene_surfels(scene, index, *cloud);
+      surfels = scene_surfels(scene, site, *cloud);
     } catch (const std::invalid_argument& e) {
       throw SceneError(f + ": /surfel: " + e.what());
     }
@@ -297,7 +300,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
     try {
       r.radius = mapped ? choose_radius(scene.radius, scene.auto_radius_factor,
                                         [&] { return mapped->median_nn_spacing(); })  // stored at build
-                        : choose_radius(index, cloud->positions, scene.radius, scene.auto_radius_factor);
+                        : choose_radius(*site.memory_index(), cloud->positions, scene.radius, scene.auto_radius_factor);
     } catch (const std::invalid_argument& e) {
       throw SceneError(f + ": /radius: " + e.what());
     }
@@ -327,8 +330,7 @@ RenderStats render_camera(const Prepared& P, const Camera& camera, const JobCont
   ropt.threads = ctl.threads;
   ropt.progress = &progress;
   ropt.distributor = distribute ? ctl.distributor : nullptr;
-  if (P.copc) return render_image(*P.copc, settings, image, ropt);
-  return P.mapped ? render_image(*P.mapped, settings, image, ropt) : render_image(P.index, settings, image, ropt);
+  return render_image(*P.site, settings, image, ropt);
 }
 
 ImageMetadata render_metadata(const RenderJobOptions& o, const Scene& scene, const RenderJobResult& r,
@@ -370,10 +372,10 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   const double prepared = seconds_since(P->started);
   char buf0[200];
   r.stats = render_camera(*P, *scene.camera, ctl, r.radius.radius, r.image, true);
-  if (P->copc) {
-    r.copc_decodes = P->copc->decodes();
+  if (const io::CopcIndex* copc = P->site->copc()) {
+    r.copc_decodes = copc->decodes();
     std::snprintf(buf0, sizeof buf0, "COPC: %llu node decodes (of %zu nodes), %zu resident after the last trim",
-                  static_cast<unsigned long long>(r.copc_decodes), P->copc->node_count(), P->copc->resident_nodes());
+                  static_cast<unsigned long long>(r.copc_decodes), copc->node_count(), copc->resident_nodes());
     ctl.info(buf0);
   }
   r.first_tile_seconds = prepared + r.stats.first_tile_seconds;

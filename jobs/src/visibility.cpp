@@ -124,12 +124,14 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   // An index file (.rsi) is queried in place (no tree is built); its points are copied to the
   // sources' original order (tiles concatenated in build order) as the output cloud, so the
   // per-point fields line up with the sources.
-  std::optional<io::MappedIndex> mapped;
+  std::optional<Site> site;
+  const io::MappedIndex* mapped = nullptr;
   if (o.cloud) r.cloud = *o.cloud;
   else if (io::is_index_file(o.cloud_file)) {
-    io::IndexOpenOptions oo;
-    oo.read_ahead = true;  // every point is read and many queried: read the file ahead
-    mapped.emplace(io::MappedIndex::open(o.cloud_file, oo));
+    SiteOptions so;
+    so.index_file.read_ahead = true;  // every point is read and many queried: read the file ahead
+    site.emplace(Site::open(o.cloud_file, so));
+    mapped = site->index_file();
     r.cloud = mapped->to_point_cloud();
   } else {
     r.cloud = io::read_point_cloud(o.cloud_file, {}, &r.info);
@@ -140,23 +142,18 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
                 r.source.c_str(), seconds_since(t0));
   ctl.info(buf);
   t0 = std::chrono::steady_clock::now();
-  AnyIndex index = [&] {
-    if (mapped) return AnyIndex(BruteForceIndex(std::span<const Vec3>{}));  // unused: queries run on the file
+  if (!mapped) {
     try {
-      return make_index(cloud.positions, o.index);
+      site.emplace(Site::over(cloud, o.index));
     } catch (const std::invalid_argument& e) {
       throw invalid_argument(std::string("--index: ") + e.what());
     }
-  }();
-  if (!mapped) {
     std::snprintf(buf, sizeof buf, "built %s index in %.2f s", o.index.type.c_str(), seconds_since(t0));
     ctl.info(buf);
   }
-  // Every query below runs on the mapped file or the built index (one template body each).
-  auto with_index = [&](auto&& f) -> decltype(auto) { return mapped ? f(*mapped) : f(index); };
   try {
     r.radius = mapped ? choose_radius(o.radius, o.radius_factor, [&] { return mapped->median_nn_spacing(); })
-                      : choose_radius(index, cloud.positions, o.radius, o.radius_factor);
+                      : choose_radius(*site->memory_index(), cloud.positions, o.radius, o.radius_factor);
   } catch (const std::invalid_argument&) {
     if (o.radius) throw invalid_argument("--radius " + std::to_string(*o.radius) + ": expected a number > 0 or auto");
     if (!(o.radius_factor > 0.0)) throw invalid_argument("--radius-factor: expected a number > 0");
@@ -179,7 +176,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     so.measure_thickness = false;  // visibility traces no shadow or bounce rays (same_surface with 0)
     try {
       surfels = mapped ? estimate_surfels_over(*mapped, cloud.positions, so, cloud.normals)
-                       : estimate_surfels(index, cloud.positions, so, cloud.normals);
+                       : estimate_surfels(*site->memory_index(), cloud.positions, so, cloud.normals);
     } catch (const std::invalid_argument& e) {
       throw invalid_argument(std::string("--primitive surfel: ") + e.what());
     }
@@ -201,7 +198,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     // it is sampled there, as a DSM's cell under the observer is.
     if (surfel && !o.ground_radius) g.inner_radius = surfels.median_radius;
     g.default_height = o.height;
-    with_index([&](const auto& ix) { place_observers(observers, ix, cloud, g); });
+    place_observers(observers, *site, cloud, g);
     VisibilityOptions vo;
     vo.radius = radius;
     vo.tolerance = r.tolerance;
@@ -211,7 +208,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     vo.threads = ctl.threads;
     vo.progress = ctl.progress;
     vo.distributor = ctl.distributor;
-    vis = with_index([&](const auto& ix) { return compute_visibility(ix, cloud.positions, observers, vo); });
+    vis = compute_visibility(*site, cloud.positions, observers, vo);
     std::uint64_t seen = 0;
     for (std::uint32_t c : vis.count) seen += c > 0;
     std::snprintf(buf, sizeof buf,
@@ -238,7 +235,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     so.progress = ctl.progress;
     so.distributor = ctl.distributor;
     t0 = std::chrono::steady_clock::now();
-    r.sky_view = with_index([&](const auto& ix) { return compute_sky_view(ix, cloud.positions, so, &r.sky_queries); });
+    r.sky_view = compute_sky_view(*site, cloud.positions, so, &r.sky_queries);
     r.sky_seconds = seconds_since(t0);
     double mean = 0;
     for (double v : r.sky_view) mean += v;
@@ -253,9 +250,8 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   // ---- Camera.
   if (camera) {
     t0 = std::chrono::steady_clock::now();
-    const std::vector<std::uint32_t> px = with_index([&](const auto& ix) {
-      return camera_first_hits(ix, *camera, radius, r.max_distance, ctl.threads, ctl.progress, ctl.distributor);
-    });
+    const std::vector<std::uint32_t> px =
+        camera_first_hits(*site, *camera, radius, r.max_distance, ctl.threads, ctl.progress, ctl.distributor);
     r.camera_hits = count_pixel_hits(px, cloud.size());
     r.camera_seconds = seconds_since(t0);
     std::uint64_t seen = 0;

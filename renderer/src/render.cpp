@@ -33,10 +33,6 @@ RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
   return s;
 }
 
-double median_nn_spacing(const io::MappedIndex& index, std::span<const Vec3> positions, std::size_t max_samples) {
-  return median_nn_spacing_of(index, positions, max_samples);
-}
-
 namespace {
 
 // Tiles [first, last) of the T x T tile grid (row-major tile order).
@@ -277,22 +273,17 @@ RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuff
 
 }  // namespace
 
-RenderStats render_image(const AnyIndex& index, const RenderSettings& s, Framebuffer& fb,
-                         const RenderOptions& opt) {
-  return std::visit([&](const auto& idx) { return render_image_impl(idx, s, fb, opt); }, index);
-}
-
-RenderStats render_image(const io::MappedIndex& index, const RenderSettings& s, Framebuffer& fb,
-                         const RenderOptions& opt) {
-  return render_image_impl(index, s, fb, opt);
-}
-
-RenderStats render_image(io::CopcIndex& index, const RenderSettings& s, Framebuffer& fb,
-                         const RenderOptions& opt) {
-  if (s.integrator.primitive != Primitive::sphere)
-    throw std::invalid_argument("render: a COPC file is traced in place in sphere mode only");
-  // 64 tiles (16x16 px) per batch: the cache is trimmed 8+ times per 1080p frame.
-  return render_image_impl(index, s, fb, opt, [&] { index.trim_cache(); }, 64);
+RenderStats render_image(const Site& site, const RenderSettings& s, Framebuffer& fb, const RenderOptions& opt) {
+  return site.visit([&](auto& index) {
+    if constexpr (is_copc_index<decltype(index)>) {
+      if (s.integrator.primitive != Primitive::sphere)
+        throw std::invalid_argument("render: a COPC file is traced in place in sphere mode only");
+      // 64 tiles (16x16 px) per batch: the cache is trimmed 8+ times per 1080p frame.
+      return render_image_impl(index, s, fb, opt, [&] { index.trim_cache(); }, 64);
+    } else {
+      return render_image_impl(index, s, fb, opt);
+    }
+  });
 }
 
 }  // namespace rayscan::render

@@ -1,5 +1,7 @@
 #include "rayscan/render/surfel_setup.hpp"
 
+#include <stdexcept>
+
 namespace rayscan::render {
 
 namespace {
@@ -12,12 +14,15 @@ SurfelOptions surfel_options(const Scene& scene) {
 }
 }  // namespace
 
-SurfelAttributes scene_surfels(const Scene& scene, const AnyIndex& index, const PointCloud& cloud) {
-  return estimate_surfels(index, cloud.positions, surfel_options(scene), cloud.normals);
-}
-
-SurfelAttributes scene_surfels(const Scene& scene, const io::MappedIndex& index, const PointCloud& cloud) {
-  return estimate_surfels_over(index, cloud.positions, surfel_options(scene), cloud.normals);
+SurfelAttributes scene_surfels(const Scene& scene, const Site& site, const PointCloud& cloud) {
+  switch (site.storage()) {
+    case SiteStorage::memory:  // the library's instances over AnyIndex (normals.cpp)
+      return estimate_surfels(*site.memory_index(), cloud.positions, surfel_options(scene), cloud.normals);
+    case SiteStorage::index_file:
+      return estimate_surfels_over(*site.index_file(), cloud.positions, surfel_options(scene), cloud.normals);
+    case SiteStorage::copc: break;
+  }
+  throw std::invalid_argument("surfels: a COPC file queried in place is not supported; read it into memory");
 }
 
 void use_surfels(RenderSettings& s, const SurfelAttributes& a) {

@@ -2,8 +2,7 @@
 // optionally given as a height above the local ground, each with optional angle and range limits.
 #pragma once
 
-#include "rayscan/octree/any_index.hpp"
-#include "rayscan/site/index_file.hpp"
+#include "rayscan/site/site.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 
 #include <filesystem>
@@ -91,21 +90,17 @@ struct GroundOptions {
 /// `radius` of (x, y) (a vertical cylinder). When the cloud has classifications and the cylinder
 /// holds points of ASPRS class 2 (ground; LAS 1.4 R15 table 17), only those count; points of class 7
 /// (low noise) and 18 (high noise) never count. Returns NaN when the cylinder holds no usable point.
-/// `index` must be built over cloud.positions.
-double local_ground(const AnyIndex& index, const PointCloud& cloud, double x, double y, double radius);
-/// The same over an index file (`cloud`: its points in original order, by ids(): slot order for
-/// a file built without ids, docs/index-format.md "Ids").
-double local_ground(const io::MappedIndex& index, const PointCloud& cloud, double x, double y, double radius);
+/// `cloud` holds the site's points in original order (for an index file: by ids(), slot order for
+/// a file built without ids, docs/index-format.md "Ids"). Throws std::invalid_argument for a COPC
+/// site in place.
+double local_ground(const Site& site, const PointCloud& cloud, double x, double y, double radius);
 
 /// Resolves every observer's eye z: observers with a height (or, lacking z and height, the default
 /// height) get z = local_ground + height. Fills ground_z for those. Throws ObserverError naming the
 /// observer when no ground point lies within the radius, or it has neither z nor a height and there
-/// is no default. `index` must be built over cloud.positions.
-void place_observers(std::vector<Observer>& observers, const AnyIndex& index, const PointCloud& cloud,
-                     const GroundOptions& options);
-/// The same over an index file (`cloud`: its points in original order, by ids(): slot order for
-/// a file built without ids, docs/index-format.md "Ids").
-void place_observers(std::vector<Observer>& observers, const io::MappedIndex& index, const PointCloud& cloud,
+/// is no default. `cloud` holds the site's points in original order (as for local_ground).
+/// Throws std::invalid_argument for a COPC site in place.
+void place_observers(std::vector<Observer>& observers, const Site& site, const PointCloud& cloud,
                      const GroundOptions& options);
 
 /// True when `dir` (from the observer, need not be unit) lies inside the observer's azimuth and

@@ -8,8 +8,7 @@
 #pragma once
 
 #include "rayscan/analysis/observer.hpp"
-#include "rayscan/octree/any_index.hpp"
-#include "rayscan/site/index_file.hpp"
+#include "rayscan/site/site.hpp"
 #include "rayscan/octree/ray_query.hpp"
 #include "rayscan/camera/camera.hpp"
 #include "rayscan/octree/normals.hpp"
@@ -81,23 +80,20 @@ struct VisibilityResult {
 /// ray passes under, as it does in a DSM viewshed (gdal_viewshed, r.viewshed); use spheres for
 /// the true 3-D answer (under trees, overhangs, through gaps). Found by one traversal of the index
 /// pruned by the segment's horizontal projection (not the paper's ray query).
-/// `index` must be built over `positions`; i < positions.size(); `scratch` is caller-owned.
-bool is_visible(const AnyIndex& index, std::span<const Vec3> positions, const Observer& observer,
-                PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch);
-/// The same over an index file, queried in place (`positions`: its points in original order, i.e.
-/// by ids(): slot order for a file built without ids, docs/index-format.md "Ids").
-bool is_visible(const io::MappedIndex& index, std::span<const Vec3> positions, const Observer& observer,
+/// `site`'s points are `positions` in original order (for an index file, queried in place: by
+/// ids(), slot order for a file built without ids, docs/index-format.md "Ids"); i <
+/// positions.size(); `scratch` is caller-owned. Throws std::invalid_argument for a COPC site
+/// queried in place (read it into memory: SiteOptions::copc_in_place = false).
+bool is_visible(const Site& site, std::span<const Vec3> positions, const Observer& observer,
                 PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch);
 
 /// is_visible() for every point and observer. Observers must have a resolved z (place_observers).
 /// Throws std::invalid_argument for radius <= 0, a negative or NaN tolerance or max distance, an
-/// index whose size differs from positions, or surfel attributes of another size.
-VisibilityResult compute_visibility(const AnyIndex& index, std::span<const Vec3> positions,
-                                    std::span<const Observer> observers, const VisibilityOptions& opts);
-/// The same over an index file, queried in place (no tree is built; `positions`: its points in
+/// site whose size differs from positions, surfel attributes of another size, or a COPC site in
+/// place. An index file is queried in place (no tree is built; `positions`: its points in
 /// original order, MappedIndex::to_point_cloud()). Per-point results are by original index
-/// (index.ids(): the slot when the file has no ids section, docs/index-format.md "Ids").
-VisibilityResult compute_visibility(const io::MappedIndex& index, std::span<const Vec3> positions,
+/// (ids(): the slot when the file has no ids section, docs/index-format.md "Ids").
+VisibilityResult compute_visibility(const Site& site, std::span<const Vec3> positions,
                                     std::span<const Observer> observers, const VisibilityOptions& opts);
 
 /// Hemisphere sampling of the sky view factor.
@@ -138,11 +134,9 @@ double sky_rotation(std::uint64_t seed, std::uint64_t i);
 /// Sky view of every point: the fraction of its N rays, origin P + (0, 0, lift) and directions
 /// sky_direction(k, N, sky_rotation(seed, i)), with no sphere entry in [0, max_distance] (ray_query
 /// k = 1, sphere_hit; spheres containing the origin are ignored). Values are multiples of 1/N in
-/// [0, 1]. Throws std::invalid_argument for rays == 0, radius <= 0, negative lift or max distance.
-std::vector<double> compute_sky_view(const AnyIndex& index, std::span<const Vec3> positions,
-                                     const SkyViewOptions& opts, std::uint64_t* queries = nullptr);
-/// The same over an index file, queried in place (results by original index).
-std::vector<double> compute_sky_view(const io::MappedIndex& index, std::span<const Vec3> positions,
+/// [0, 1], by original index (an index file is queried in place). Throws std::invalid_argument
+/// for rays == 0, radius <= 0, negative lift or max distance, or a COPC site in place.
+std::vector<double> compute_sky_view(const Site& site, std::span<const Vec3> positions,
                                      const SkyViewOptions& opts, std::uint64_t* queries = nullptr);
 
 /// The point each pixel of `camera` sees: the first sphere hit (ray_query k = 1, sphere_hit,
@@ -150,13 +144,9 @@ std::vector<double> compute_sky_view(const io::MappedIndex& index, std::span<con
 /// camera.generate_ray(x, y) -- the ray of the renderer's point-index AOV, so the result equals
 /// `rayscan render --aov index` for the same radius. Row-major from the top-left pixel;
 /// kNoPoint for a miss. With a `distributor` of several processes (MPI) the rows are handed out
-/// by it and only the root's result is complete. Throws std::invalid_argument for radius <= 0.
-std::vector<std::uint32_t> camera_first_hits(const AnyIndex& index, const Camera& camera,
-                                             double radius, double max_distance = kInf,
-                                             unsigned threads = 0, bool progress = false,
-                                             WorkDistributor* distributor = nullptr);
-/// The same over an index file, queried in place.
-std::vector<std::uint32_t> camera_first_hits(const io::MappedIndex& index, const Camera& camera,
+/// by it and only the root's result is complete. An index file is queried in place. Throws
+/// std::invalid_argument for radius <= 0 or a COPC site in place.
+std::vector<std::uint32_t> camera_first_hits(const Site& site, const Camera& camera,
                                              double radius, double max_distance = kInf,
                                              unsigned threads = 0, bool progress = false,
                                              WorkDistributor* distributor = nullptr);

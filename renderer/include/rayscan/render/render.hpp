@@ -2,9 +2,7 @@
 // in parallel over image tiles (TBB) with the PathTracer (integrator.hpp).
 #pragma once
 
-#include "rayscan/octree/any_index.hpp"
-#include "rayscan/site/copc.hpp"
-#include "rayscan/site/index_file.hpp"
+#include "rayscan/site/site.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 #include "rayscan/camera/camera.hpp"
 #include "rayscan/render/integrator.hpp"
@@ -83,24 +81,21 @@ using rayscan::median_nn_spacing;
 
 /// Render into `fb` (resized to the camera). Pixels are traced in 16x16 tiles by tbb::parallel_for;
 /// sample j of pixel (x, y) uses Sampler(seed, x, y, j) only, so the image is bit-identical for
-/// any thread count. `index` must be built over the cloud whose points settings.integrator.centers
-/// (when not empty) and settings.integrator.albedo describe by original index.
-RenderStats render_image(const AnyIndex& index, const RenderSettings& settings, Framebuffer& fb,
-                   const RenderOptions& options = {});
-
-/// The same over a memory-mapped index file, traced in place: centres are read from the mapping
-/// by storage slot, the albedo from settings.integrator.albedo (an array by original index or an
-/// AlbedoRule over the file's slot-ordered attributes). settings.integrator.centers may be empty
-/// (sphere mode); surfel mode needs it (the points in original order, to_point_cloud()).
-RenderStats render_image(const io::MappedIndex& index, const RenderSettings& settings, Framebuffer& fb,
-                         const RenderOptions& options = {});
-/// The same over a COPC file (io::CopcIndex, the file's own octree), traced in place: nodes are
-/// decoded as rays reach them; centres by storage slot, the albedo from an AlbedoRule over the
-/// index's slot attributes (CopcIndex::set_attributes). Tiles are traced in batches with
-/// index.trim_cache() between them, so the decoded nodes stay within the cache budget (plus the
-/// nodes one batch touches). Sphere mode only (settings.integrator.centers empty). The image is
-/// identical to the render of the same points read whole.
-RenderStats render_image(io::CopcIndex& index, const RenderSettings& settings, Framebuffer& fb,
+/// any thread count and any storage of the same points. settings.integrator.centers (when not
+/// empty) and settings.integrator.albedo describe the site's points by original index.
+///  - In memory: `site`'s index must be built over the points settings.integrator.centers holds.
+///  - An index file is traced in place: centres are read from the mapping by storage slot, the
+///    albedo from settings.integrator.albedo (an array by original index or an AlbedoRule over the
+///    file's slot-ordered attributes). settings.integrator.centers may be empty (sphere mode);
+///    surfel mode needs it (the points in original order, MappedIndex::to_point_cloud()).
+///  - A COPC file (io::CopcIndex, the file's own octree) is traced in place: nodes are decoded as
+///    rays reach them; centres by storage slot, the albedo from an AlbedoRule over the index's slot
+///    attributes (CopcIndex::set_attributes). Tiles are traced in batches with trim_cache() between
+///    them, so the decoded nodes stay within the cache budget (plus the nodes one batch touches).
+///    Sphere mode only (settings.integrator.centers empty).
+/// Throws std::invalid_argument when the index, centres and albedo sizes differ, for spp 0, and
+/// for a COPC site in surfel mode.
+RenderStats render_image(const Site& site, const RenderSettings& settings, Framebuffer& fb,
                          const RenderOptions& options = {});
 
 /// A framebuffer of the camera's size with beauty and the channels of `aovs` allocated and
@@ -117,9 +112,5 @@ std::vector<std::byte> pack_tiles(Framebuffer& fb, unsigned tile_size, std::uint
 /// when `bytes` has not exactly the expected size.
 void unpack_tiles(Framebuffer& fb, unsigned tile_size, std::uint64_t first, std::uint64_t count,
                   std::span<const std::byte> bytes);
-
-/// median_nn_spacing over a memory-mapped index file.
-double median_nn_spacing(const io::MappedIndex& index, std::span<const Vec3> positions,
-                         std::size_t max_samples = 20000);
 
 }  // namespace rayscan::render
