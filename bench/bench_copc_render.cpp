@@ -19,6 +19,7 @@
 
 using namespace rayscan;
 using namespace rayscan::render;
+using namespace rayscan::jobs;
 
 int main(int argc, char** argv) {
   if (argc < 3) {

@@ -1,7 +1,7 @@
 // `rayscan compare REFERENCE IMAGE`: check a render against a reference image.
 // Metrics and their definitions: analysis/include/rayscan/analysis/image_compare.hpp. Pass/fail
 // follows OpenImageIO's idiff (thresholds -fail/-failpercent/-hardfail/-warn/-warnpercent), with
-// exit code 0 = pass (or warning), 1 = fail, 2 = error. The job is analysis::run_compare
+// exit code 0 = pass (or warning), 1 = fail, 2 = error. The job is jobs::run_compare
 // (rayscan/jobs/compare.hpp); this file parses options and prints.
 #include "commands.hpp"
 #include "processes.hpp"
@@ -17,6 +17,7 @@ namespace rayscan::cli {
 namespace {
 
 using namespace rayscan::analysis;
+using namespace rayscan::jobs;
 
 struct CompareCli {
   std::string reference, image;

@@ -1,5 +1,5 @@
 // `rayscan info FILE [--json] [--verify]`: what `pdal info` reports for a point cloud file (streamed
-// chunk by chunk) or an index file (.rsi). The job is io::run_info (rayscan/jobs/info.hpp); this
+// chunk by chunk) or an index file (.rsi). The job is jobs::run_info (rayscan/jobs/info.hpp); this
 // file parses options and prints.
 #include "commands.hpp"
 #include "processes.hpp"
@@ -24,11 +24,11 @@ Runner add_info_command(CLI::App& app) {
   sub->add_flag("--verify", *verify, "index files: verify the checksum of every section");
   return [file, json, verify]() -> int {
     require_single_process("rayscan info");
-    io::InfoJobOptions job;
+    jobs::InfoJobOptions job;
     job.file = *file;
     job.verify = *verify;
-    const io::InfoJobResult r = io::run_info(job);
-    std::cout << (*json ? io::info_report_json(r) + "\n" : io::info_report_text(r));
+    const jobs::InfoJobResult r = jobs::run_info(job);
+    std::cout << (*json ? jobs::info_report_json(r) + "\n" : jobs::info_report_text(r));
     return 0;
   };
 }

@@ -1,5 +1,5 @@
 // `rayscan query`: the paper's ray query (Algorithm 1) from the command line; the job is
-// io::run_query (rayscan/jobs/query.hpp).
+// jobs::run_query (rayscan/jobs/query.hpp).
 #include "commands.hpp"
 #include "processes.hpp"
 
@@ -47,7 +47,7 @@ int run_query(const QueryOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
-  io::QueryJobOptions job;
+  jobs::QueryJobOptions job;
   job.cloud_file = o.cloud;
   job.rays_file = o.rays;
   job.query = q;
@@ -60,10 +60,10 @@ int run_query(const QueryOptions& o) {
   }
   job.control.distributor = distributor();
   job.control.threads = o.threads;  // MPI: blocks of rays over the ranks (docs/mpi.md)
-  const io::QueryJobResult r = io::run_query(job);
+  const jobs::QueryJobResult r = jobs::run_query(job);
   if (!is_root()) return 0;  // only rank 0 holds every hit and writes
   AtomicOutput out(o.out);
-  io::write_hits_csv(out.stream(), r);
+  jobs::write_hits_csv(out.stream(), r);
   out.commit();
   return 0;
 }

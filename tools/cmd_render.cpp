@@ -1,5 +1,5 @@
 // `rayscan render`: path-trace a scanned site from a JSON scene (paper section 5.3); the job is
-// render::run_render (rayscan/jobs/render.hpp); --ortho-map renders through
+// jobs::run_render (rayscan/jobs/render.hpp); --ortho-map renders through
 // analysis::ortho_map's camera and writes with analysis::write_ortho_map.
 #include "commands.hpp"
 #include "processes.hpp"
@@ -34,6 +34,7 @@ struct RenderCliOptions {
 
 int run_render(const RenderCliOptions& o) {
   using namespace rayscan::render;
+  using namespace rayscan::jobs;
   RenderJobOptions job;
   SceneOverrides ov;
   ov.camera_file = o.camera;

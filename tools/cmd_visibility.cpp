@@ -1,6 +1,6 @@
 // `rayscan visibility`: which points can be seen from where. Per-point
 // visible-from counts (and distance, sky view, camera hits) as scalar fields of a LAS/PLY copy of
-// the cloud, and a top-down GeoTIFF map with a PNG preview. The job is analysis::run_visibility
+// the cloud, and a top-down GeoTIFF map with a PNG preview. The job is jobs::run_visibility
 // (rayscan/jobs/visibility.hpp); this file parses options and prints.
 #include "commands.hpp"
 #include "processes.hpp"
@@ -21,7 +21,7 @@ namespace {
 namespace an = rayscan::analysis;
 
 struct VisibilityCli {
-  an::VisibilityJobOptions job;  // options of the same type bind straight to the job
+  jobs::VisibilityJobOptions job;  // options of the same type bind straight to the job
   std::string cloud, out, observers_file, radius = "auto", raster, preview, camera;
   std::string sky_weighting = "uniform";
   std::vector<std::string> observer_args;
@@ -30,7 +30,7 @@ struct VisibilityCli {
 };
 
 int run_visibility(VisibilityCli& o) {
-  an::VisibilityJobOptions& job = o.job;
+  jobs::VisibilityJobOptions& job = o.job;
   if (o.radius != "auto") {
     char* end = nullptr;
     const double r = std::strtod(o.radius.c_str(), &end);
@@ -61,11 +61,11 @@ int run_visibility(VisibilityCli& o) {
   job.control.progress = talk;
   if (talk) job.control.log = [](const std::string& s) { std::cerr << "rayscan visibility: " << s << "\n"; };
 
-  const an::VisibilityJobResult r = an::run_visibility(job);
+  const jobs::VisibilityJobResult r = jobs::run_visibility(job);
   if (!is_root()) return 0;
   if (talk && !traffic_summary().empty()) std::cerr << "rayscan visibility: " << traffic_summary() << "\n";
   if (o.json) {
-    std::cout << an::visibility_report_json(r) << "\n";
+    std::cout << jobs::visibility_report_json(r) << "\n";
     return 0;
   }
   char buf[512];

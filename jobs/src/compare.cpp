@@ -14,7 +14,10 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace rayscan::analysis {
+namespace rayscan::jobs {
+
+using namespace rayscan::analysis;  // the analysis library's types, which this job speaks in
+using namespace rayscan::io;
 
 namespace {
 
@@ -111,7 +114,7 @@ std::vector<float> flip_input(const Image& img, int colour, bool linear) {
 
 std::string size_of(const Image& img) { return std::to_string(img.width) + "x" + std::to_string(img.height); }
 
-nlohmann::ordered_json num(double v) {
+nlohmann::ordered_json json_number(double v) {
   if (std::isnan(v)) return nullptr;
   if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
   return v;
@@ -295,25 +298,25 @@ std::string compare_report_json(const CompareJobResult& res) {
   out["resized"] = res.resized_from.empty()
                        ? nlohmann::ordered_json(nullptr)
                        : nlohmann::ordered_json{{"from", res.resized_from}, {"filter", res.resize_filter}};
-  out["mae"] = num(m.mae);
-  out["rmse"] = num(m.rmse);
-  out["psnr_db"] = num(m.psnr);
-  out["psnr_peak"] = num(m.peak);
-  out["max_error"] = {{"value", num(m.max_error)}, {"x", m.max_x}, {"y", m.max_y},
-                      {"channel", cname}, {"reference", num(m.max_ref)}, {"image", num(m.max_test)}};
-  out["ssim"] = {{"value", num(m.ssim)}, {"signal", m.ssim_signal},
+  out["mae"] = json_number(m.mae);
+  out["rmse"] = json_number(m.rmse);
+  out["psnr_db"] = json_number(m.psnr);
+  out["psnr_peak"] = json_number(m.peak);
+  out["max_error"] = {{"value", json_number(m.max_error)}, {"x", m.max_x}, {"y", m.max_y},
+                      {"channel", cname}, {"reference", json_number(m.max_ref)}, {"image", json_number(m.max_test)}};
+  out["ssim"] = {{"value", json_number(m.ssim)}, {"signal", m.ssim_signal},
                  {"luma_weights", {kLumaR, kLumaG, kLumaB}}, {"window", copt.ssim.window},
                  {"sigma", copt.ssim.sigma}, {"k1", copt.ssim.k1}, {"k2", copt.ssim.k2},
                  {"dynamic_range", copt.ssim.dynamic_range}};
   nlohmann::ordered_json pc = nlohmann::ordered_json::array();
   for (const ChannelStats& c : m.per_channel)
-    pc.push_back({{"name", c.name}, {"mae", num(c.mae)}, {"rmse", num(c.rmse)}, {"max_error", num(c.max_error)}});
+    pc.push_back({{"name", c.name}, {"mae", json_number(c.mae)}, {"rmse", json_number(c.rmse)}, {"max_error", json_number(c.max_error)}});
   out["per_channel"] = pc;
   out["over_threshold"] = {
       {"fail", {{"threshold", m.fail_threshold}, {"pixels", m.over_fail}, {"percent", m.percent_over_fail()}}},
       {"warn", {{"threshold", m.warn_threshold}, {"pixels", m.over_warn}, {"percent", m.percent_over_warn()}}}};
-  out["flip"] = {{"mean", num(m.flip)}, {"signal", m.flip_signal},
-                 {"pixels_per_degree", res.flip_ppd > 0 ? num(res.flip_ppd) : nlohmann::ordered_json(nullptr)},
+  out["flip"] = {{"mean", json_number(m.flip)}, {"signal", m.flip_signal},
+                 {"pixels_per_degree", res.flip_ppd > 0 ? json_number(res.flip_ppd) : nlohmann::ordered_json(nullptr)},
                  {"map", res.flip_map.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(res.flip_map)}};
   out["nonfinite_mismatches"] = m.nonfinite_mismatches;
   if (!res.diff.empty())
@@ -369,4 +372,4 @@ std::string compare_report_text(const CompareJobResult& res) {
   return s.str();
 }
 
-}  // namespace rayscan::analysis
+}  // namespace rayscan::jobs

@@ -10,11 +10,13 @@
 #include <cstdio>
 #include <sstream>
 
-namespace rayscan::io {
+namespace rayscan::jobs {
+
+using namespace rayscan::io;  // the io library's types, which this job speaks in
 
 namespace {
 
-std::string num(double v) {
+std::string decimal(double v) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.10g", v);
   return buf;
@@ -63,9 +65,9 @@ InfoJobResult run_info(const InfoJobOptions& options) {
     x.attributes = m.attributes().to_string();
     x.positions = to_string(m.position_encoding());
     if (m.position_encoding() == PositionEncoding::las_int32)
-      x.positions += " (scale " + num(m.positions().scale().x) + " " + num(m.positions().scale().y) + " " +
-                     num(m.positions().scale().z) + ", offset " + num(m.positions().offset().x) + " " +
-                     num(m.positions().offset().y) + " " + num(m.positions().offset().z) + ")";
+      x.positions += " (scale " + decimal(m.positions().scale().x) + " " + decimal(m.positions().scale().y) + " " +
+                     decimal(m.positions().scale().z) + ", offset " + decimal(m.positions().offset().x) + " " +
+                     decimal(m.positions().offset().y) + " " + decimal(m.positions().offset().z) + ")";
     x.ids = m.has_ids() ? "stored (original order)" : "not stored (points in index order)";
     if (!m.rgb().empty())
       x.rgb = m.rgb().multiplier() != 0
@@ -145,16 +147,16 @@ std::string index_report_text(const InfoJobResult& r) {
   for (std::size_t d = 0; d < x.points_per_level.size(); ++d)
     if (x.points_per_level[d]) o << " " << d << ":" << x.points_per_level[d];
   o << "\n";
-  o << "file size:         " << x.file_bytes << " bytes (" << num(x.bytes_per_point) << " bytes/point)\n";
+  o << "file size:         " << x.file_bytes << " bytes (" << decimal(x.bytes_per_point) << " bytes/point)\n";
   o << "attributes:        " << (x.attributes.empty() ? std::string("positions only") : x.attributes) << "\n";
   o << "positions:         " << x.positions << "\n";
   o << "ids:               " << x.ids << "\n";
   if (!x.rgb.empty()) o << "rgb:               " << x.rgb << "\n";
   o << "sections:         ";
   for (const IndexSectionInfo& s : x.sections)
-    o << " " << s.name << " " << num(r.count ? static_cast<double>(s.bytes) / static_cast<double>(r.count) : 0.0);
+    o << " " << s.name << " " << decimal(r.count ? static_cast<double>(s.bytes) / static_cast<double>(r.count) : 0.0);
   o << " (bytes/point)\n";
-  o << "spacing:           " << num(x.spacing) << " (median nearest-neighbour distance: the auto radius)\n";
+  o << "spacing:           " << decimal(x.spacing) << " (median nearest-neighbour distance: the auto radius)\n";
   o << "checksums:         " << x.checksums << "\n";
   o << "CRS:               " << (r.crs_wkt.empty() ? std::string("none") : r.crs_wkt.substr(0, 100)) << "\n";
   for (const IndexSource& s : x.sources)
@@ -246,7 +248,7 @@ std::string info_report_text(const InfoJobResult& r) {
   if (r.info.width != 0) o << "width x height:    " << r.info.width << " x " << r.info.height << "\n";
   if (r.info.viewpoint) {
     o << "viewpoint:         ";
-    for (double v : *r.info.viewpoint) o << num(v) << " ";
+    for (double v : *r.info.viewpoint) o << decimal(v) << " ";
     o << "(tx ty tz qw qx qy qz; reported, not applied)\n";
   }
   if (r.count != 0) {
@@ -257,11 +259,11 @@ std::string info_report_text(const InfoJobResult& r) {
   }
   if (r.header_differs) {
     const AABB& h = *r.info.header_bounds;
-    o << "header bounds min: " << num(h.lo.x) << " " << num(h.lo.y) << " " << num(h.lo.z) << "  (differs)\n";
-    o << "header bounds max: " << num(h.hi.x) << " " << num(h.hi.y) << " " << num(h.hi.z) << "\n";
+    o << "header bounds min: " << decimal(h.lo.x) << " " << decimal(h.lo.y) << " " << decimal(h.lo.z) << "  (differs)\n";
+    o << "header bounds max: " << decimal(h.hi.x) << " " << decimal(h.hi.y) << " " << decimal(h.hi.z) << "\n";
   }
-  if (r.info.scale) o << "scale:             " << num(r.info.scale->x) << " " << num(r.info.scale->y) << " " << num(r.info.scale->z) << "\n";
-  if (r.info.offset) o << "offset:            " << num(r.info.offset->x) << " " << num(r.info.offset->y) << " " << num(r.info.offset->z) << "\n";
+  if (r.info.scale) o << "scale:             " << decimal(r.info.scale->x) << " " << decimal(r.info.scale->y) << " " << decimal(r.info.scale->z) << "\n";
+  if (r.info.offset) o << "offset:            " << decimal(r.info.offset->x) << " " << decimal(r.info.offset->y) << " " << decimal(r.info.offset->z) << "\n";
   o << "CRS:               ";
   if (r.info.crs_source.empty()) o << "none";
   else {
@@ -275,7 +277,7 @@ std::string info_report_text(const InfoJobResult& r) {
     o << "attributes:\n";
     for (const AttributeRange& a : r.attributes) {
       char line[256];
-      std::snprintf(line, sizeof line, "  %-20s %18s %18s\n", a.name.c_str(), num(a.lo).c_str(), num(a.hi).c_str());
+      std::snprintf(line, sizeof line, "  %-20s %18s %18s\n", a.name.c_str(), decimal(a.lo).c_str(), decimal(a.hi).c_str());
       o << line;
     }
   }
@@ -293,8 +295,8 @@ std::string info_report_text(const InfoJobResult& r) {
   if (r.copc) {
     const CopcInfo& c = *r.copc;
     const AABB cube = c.node_cube(CopcNode{});
-    o << "COPC octree:       root cube " << num(cube.lo.x) << " " << num(cube.lo.y) << " " << num(cube.lo.z) << " / "
-      << num(cube.hi.x) << " " << num(cube.hi.y) << " " << num(cube.hi.z) << ", spacing " << num(c.spacing)
+    o << "COPC octree:       root cube " << decimal(cube.lo.x) << " " << decimal(cube.lo.y) << " " << decimal(cube.lo.z) << " / "
+      << decimal(cube.hi.x) << " " << decimal(cube.hi.y) << " " << decimal(cube.hi.z) << ", spacing " << decimal(c.spacing)
       << ", depth " << c.depth << ", " << c.nodes.size() << " nodes in " << c.hierarchy_pages << " hierarchy page(s)\n";
     for (std::size_t l = 0; l < c.nodes_per_level.size(); ++l)
       o << "  level " << l << ": " << c.nodes_per_level[l] << " nodes, " << c.points_per_level[l] << " points\n";
@@ -304,4 +306,4 @@ std::string info_report_text(const InfoJobResult& r) {
   return o.str();
 }
 
-}  // namespace rayscan::io
+}  // namespace rayscan::jobs

@@ -18,7 +18,9 @@
 #include <type_traits>
 #include <unordered_map>
 
-namespace rayscan::io {
+namespace rayscan::jobs {
+
+using namespace rayscan::io;  // the io library's types, which this job speaks in
 
 namespace {
 
@@ -168,4 +170,4 @@ void write_hits_csv(std::ostream& os, const QueryJobResult& r) {
   os.precision(precision);
 }
 
-}  // namespace rayscan::io
+}  // namespace rayscan::jobs

@@ -14,7 +14,10 @@
 #include <numbers>
 #include <stdexcept>
 
-namespace rayscan::render {
+namespace rayscan::jobs {
+
+using namespace rayscan::render;  // the renderer library's types, which this job speaks in
+using namespace rayscan::io;
 
 namespace {
 
@@ -165,4 +168,4 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
   return res;
 }
 
-}  // namespace rayscan::render
+}  // namespace rayscan::jobs

@@ -23,7 +23,10 @@
 #include <optional>
 #include <utility>
 
-namespace rayscan::render {
+namespace rayscan::jobs {
+
+using namespace rayscan::render;  // the renderer library's types, which this job speaks in
+using namespace rayscan::io;
 
 namespace {
 
@@ -541,4 +544,4 @@ RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const 
   return fr;
 }
 
-}  // namespace rayscan::render
+}  // namespace rayscan::jobs

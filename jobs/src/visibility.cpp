@@ -21,13 +21,16 @@
 #include <optional>
 #include <stdexcept>
 
-namespace rayscan::analysis {
+namespace rayscan::jobs {
+
+using namespace rayscan::analysis;  // the analysis library's types, which this job speaks in
+using namespace rayscan::io;
 
 namespace {
 
 using std::invalid_argument;
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
+double elapsed_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
@@ -139,7 +142,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   PointCloud& cloud = r.cloud;
   if (cloud.empty()) throw invalid_argument(r.source + ": the point cloud has no points");
   std::snprintf(buf, sizeof buf, "%s %zu points from %s in %.2f s", mapped ? "mapped" : "read", cloud.size(),
-                r.source.c_str(), seconds_since(t0));
+                r.source.c_str(), elapsed_since(t0));
   ctl.info(buf);
   t0 = std::chrono::steady_clock::now();
   if (!mapped) {
@@ -148,7 +151,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     } catch (const std::invalid_argument& e) {
       throw invalid_argument(std::string("--index: ") + e.what());
     }
-    std::snprintf(buf, sizeof buf, "built %s index in %.2f s", o.index.type.c_str(), seconds_since(t0));
+    std::snprintf(buf, sizeof buf, "built %s index in %.2f s", o.index.type.c_str(), elapsed_since(t0));
     ctl.info(buf);
   }
   try {
@@ -184,7 +187,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     r.surfel_max_radius = surfels.max_radius;
     std::snprintf(buf, sizeof buf, "surfels: %s normals, median disc radius %.6g, max %.6g, in %.2f s",
                   cloud.normals.empty() ? "PCA" : "file", surfels.median_radius, surfels.max_radius,
-                  seconds_since(t0));
+                  elapsed_since(t0));
     ctl.info(buf);
   }
   r.max_distance = o.max_distance.value_or(kInf);
@@ -236,7 +239,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     so.distributor = ctl.distributor;
     t0 = std::chrono::steady_clock::now();
     r.sky_view = compute_sky_view(*site, cloud.positions, so, &r.sky_queries);
-    r.sky_seconds = seconds_since(t0);
+    r.sky_seconds = elapsed_since(t0);
     double mean = 0;
     for (double v : r.sky_view) mean += v;
     mean /= double(r.sky_view.size());
@@ -253,7 +256,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     const std::vector<std::uint32_t> px =
         camera_first_hits(*site, *camera, radius, r.max_distance, ctl.threads, ctl.progress, ctl.distributor);
     r.camera_hits = count_pixel_hits(px, cloud.size());
-    r.camera_seconds = seconds_since(t0);
+    r.camera_seconds = elapsed_since(t0);
     std::uint64_t seen = 0;
     for (std::uint32_t c : r.camera_hits) seen += c > 0;
     std::snprintf(buf, sizeof buf, "camera %ux%u: %llu points seen in %.2f s", camera->width(), camera->height(),
@@ -396,4 +399,4 @@ std::string visibility_report_json(const VisibilityJobResult& r) {
   return report.dump(2);
 }
 
-}  // namespace rayscan::analysis
+}  // namespace rayscan::jobs

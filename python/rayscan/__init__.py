@@ -156,7 +156,7 @@ def _scene_file(scene, tmpdir):
 def render(scene, cloud=None, width=None, height=None, spp=None, seed=None, aovs=(), camera=None,
            threads=0):
     """Path-trace a scene (paper section 5.3; schema in scenes/README.md) like `rayscan render`,
-    without writing files: render::run_render.
+    without writing files: jobs::run_render.
 
     scene: a scene file path, or the same JSON as a dict (relative paths: from the working
     directory). cloud: a PointCloud to render instead of the scene's "cloud" file. width/height
@@ -179,7 +179,7 @@ def render(scene, cloud=None, width=None, height=None, spp=None, seed=None, aovs
 
 def visibility(cloud, observers=None, radius=None, height=None, max_distance=None, tolerance=None,
                target_height=None, sky_rays=0, camera=None, distance=False, threads=0):
-    """Per-point visibility like `rayscan visibility` (analysis::run_visibility; rule in
+    """Per-point visibility like `rayscan visibility` (jobs::run_visibility; rule in
     analysis/README.md), without writing files.
 
     cloud: a file path or a PointCloud. observers: a .json/.csv observer file, an (K, 3) array of
@@ -199,7 +199,7 @@ def visibility(cloud, observers=None, radius=None, height=None, max_distance=Non
 
 def compare(reference, image, channels=(), mask=False, alpha=False, resize=False, fail=None,
             fail_percent=None, fail_psnr=None, fail_ssim=None, warn=None):
-    """Compare `image` against `reference` like `rayscan compare` (analysis::run_compare;
+    """Compare `image` against `reference` like `rayscan compare` (jobs::run_compare;
     definitions in analysis/README.md). Each is an image file (anything OpenImageIO reads) or an
     (H, W) / (H, W, C) array (channels Y / R,G,B / R,G,B,A; values as given, e.g. linear floats).
 

@@ -1,5 +1,5 @@
 // rayscan.render / visibility / compare: the library's job calls (docs/library.md: one options
-// struct in, one result out; render::run_render, analysis::run_visibility, analysis::run_compare)
+// struct in, one result out; jobs::run_render, jobs::run_visibility, jobs::run_compare)
 // with NumPy arrays out. Each call converts its arguments with the GIL held, then releases it for
 // the job (TBB inside).
 #include "arrays.hpp"
@@ -49,23 +49,23 @@ py::dict render(const std::string& scene_file, const py::object& cloud, std::opt
                 std::optional<std::uint32_t> height, std::optional<std::uint32_t> spp,
                 std::optional<std::uint64_t> seed, const std::vector<std::string>& aovs,
                 const std::string& camera, long long threads) {
-  render::RenderJobOptions o;
+  jobs::RenderJobOptions o;
   o.cloud = in_memory_cloud(cloud);
   o.write = false;
   o.control.threads = parse_threads(threads);
-  render::RenderJobResult r;
+  jobs::RenderJobResult r;
   {
     py::gil_scoped_release nogil;
     o.scene = render::load_scene(scene_file);
-    render::SceneOverrides ov;
+    jobs::SceneOverrides ov;
     ov.camera_file = camera;
     ov.spp = spp;
     ov.width = width;
     ov.height = height;
     ov.seed = seed;
     ov.aovs = aovs;
-    render::apply_overrides(o.scene, ov);
-    r = render::run_render(o);
+    jobs::apply_overrides(o.scene, ov);
+    r = jobs::run_render(o);
   }
   render::Framebuffer& fb = r.image;
   const auto h = static_cast<py::ssize_t>(fb.height), w = static_cast<py::ssize_t>(fb.width);
@@ -127,7 +127,7 @@ py::dict compare(const py::object& a, const py::object& b, const std::vector<std
                  bool mask, bool alpha, bool resize, std::optional<double> fail,
                  std::optional<double> fail_percent, std::optional<double> fail_psnr,
                  std::optional<double> fail_ssim, std::optional<double> warn) {
-  analysis::CompareJobOptions o;
+  jobs::CompareJobOptions o;
   std::optional<rayscan::Image> ia, ib;
   if (py::isinstance<py::str>(a) || py::hasattr(a, "__fspath__"))
     o.reference_file = py::str(a).cast<std::string>();
@@ -146,10 +146,10 @@ py::dict compare(const py::object& a, const py::object& b, const std::vector<std
   o.fail.min_psnr = fail_psnr;
   o.fail.min_ssim = fail_ssim;
   o.warn.threshold = warn;
-  analysis::CompareJobResult r;
+  jobs::CompareJobResult r;
   {
     py::gil_scoped_release nogil;
-    r = analysis::run_compare(o);
+    r = jobs::run_compare(o);
   }
   const analysis::CompareMetrics& m = r.metrics;
   py::dict d;
@@ -190,7 +190,7 @@ py::dict visibility(const py::object& cloud, const py::object& observers, std::o
                     std::optional<double> height, std::optional<double> max_distance,
                     std::optional<double> tolerance, std::optional<double> target_height,
                     std::uint32_t sky_rays, const std::string& camera, bool distance, long long threads) {
-  analysis::VisibilityJobOptions o;
+  jobs::VisibilityJobOptions o;
   if (py::isinstance<PyCloud>(cloud))
     o.cloud = &cloud.cast<const PyCloud&>().cloud;
   else
@@ -222,10 +222,10 @@ py::dict visibility(const py::object& cloud, const py::object& observers, std::o
   o.camera_file = camera;
   o.distance = distance;
   o.control.threads = parse_threads(threads);
-  analysis::VisibilityJobResult r;
+  jobs::VisibilityJobResult r;
   {
     py::gil_scoped_release nogil;
-    r = analysis::run_visibility(o);
+    r = jobs::run_visibility(o);
   }
   py::dict d;
   for (ScalarField& f : r.cloud.scalars)

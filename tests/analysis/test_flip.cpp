@@ -21,6 +21,7 @@
 
 using namespace rayscan;
 using namespace rayscan::analysis;
+using namespace rayscan::jobs;
 
 namespace {
 

@@ -18,6 +18,7 @@
 
 using namespace rayscan;
 using namespace rayscan::analysis;
+using namespace rayscan::jobs;
 using rayscan::analysis::test::px;
 
 namespace {

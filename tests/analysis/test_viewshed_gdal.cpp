@@ -26,6 +26,7 @@
 
 using namespace rayscan;
 using namespace rayscan::analysis;
+using namespace rayscan::jobs;
 namespace fs = std::filesystem;
 
 namespace {

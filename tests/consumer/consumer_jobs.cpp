@@ -17,24 +17,24 @@ int main() {
   for (int x = 0; x < 30; ++x)
     for (int y = 0; y < 30; ++y) cloud.positions.emplace_back(0.1 * x, 0.1 * y, 0.0);
 
-  render::RenderJobOptions ro;
+  jobs::RenderJobOptions ro;
   ro.scene.camera = Camera::look_at({.position = {1.45, 1.45, 3.0}, .look_at = {1.45, 1.45, 0.0}, .up = {0, 1, 0}}, 16, 16);
   ro.scene.material.mode = render::ColorMode::constant;
   ro.scene.spp = 1;
   ro.scene.output.aovs = {render::Aov::index};
   ro.cloud = &cloud;
   ro.write = false;
-  const render::RenderJobResult r = render::run_render(ro);
+  const jobs::RenderJobResult r = jobs::run_render(ro);
   const std::uint32_t centre = r.image.index[8 * 16 + 8];
   if (centre == kNoPoint) {
     std::fprintf(stderr, "consumer: the centre pixel misses the plane\n");
     return 1;
   }
 
-  analysis::VisibilityJobOptions vo;
+  jobs::VisibilityJobOptions vo;
   vo.cloud = &cloud;
   vo.sky_rays = 8;
-  const analysis::VisibilityJobResult v = analysis::run_visibility(vo);
+  const jobs::VisibilityJobResult v = jobs::run_visibility(vo);
   for (double s : v.sky_view)
     if (s != 1.0) {
       std::fprintf(stderr, "consumer: a point of an open plane does not see the whole sky (%g)\n", s);

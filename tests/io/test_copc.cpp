@@ -122,12 +122,12 @@ TEST(Copc, QueryJobRunsOnTheHierarchyAndEqualsTheWholeFilePath) {
   const AABB b = pc.bounds();
   // A ray grazing one corner of the bounding box: it must reach only a few nodes.
   const Vec3 corner = b.lo + (b.hi - b.lo) * 0.02;
-  io::QueryJobOptions copc;
+  jobs::QueryJobOptions copc;
   copc.cloud_file = p;
   copc.query.radius = 0.5;
   copc.cache_bytes = std::size_t{8} << 20;
   copc.rays = {Ray(corner - Vec3(0, 0, 100), Vec3(0, 0, 1))};
-  const io::QueryJobResult one = io::run_query(copc);
+  const jobs::QueryJobResult one = jobs::run_query(copc);
   EXPECT_EQ(one.copc_nodes, io::CopcIndex(p).node_count());
   EXPECT_GT(one.copc_decodes, 0u);
   EXPECT_LT(one.copc_decodes, one.copc_nodes) << "a corner ray decoded every node";
@@ -140,10 +140,10 @@ TEST(Copc, QueryJobRunsOnTheHierarchyAndEqualsTheWholeFilePath) {
                            Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5));
   copc.query.k = 4;
   copc.query.radius = 0.3;
-  io::QueryJobOptions whole = copc;
+  jobs::QueryJobOptions whole = copc;
   whole.cloud = &pc;
   whole.index.type = "brute";
-  const io::QueryJobResult a = io::run_query(copc), w = io::run_query(whole);
+  const jobs::QueryJobResult a = jobs::run_query(copc), w = jobs::run_query(whole);
   ASSERT_EQ(a.hits.size(), w.hits.size());
   std::size_t flat = 0, total = 0;
   for (std::size_t r = 0; r < a.hits.size(); ++r) {
@@ -158,7 +158,7 @@ TEST(Copc, QueryJobRunsOnTheHierarchyAndEqualsTheWholeFilePath) {
   EXPECT_GT(total, 0u);
   // the CSV of a COPC query prints the positions (as for an index file)
   std::ostringstream csv;
-  io::write_hits_csv(csv, a);
+  jobs::write_hits_csv(csv, a);
   EXPECT_NE(csv.str().find("ray,rank,index"), std::string::npos);
 }
 

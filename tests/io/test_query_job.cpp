@@ -16,6 +16,7 @@
 
 using namespace rayscan;
 using namespace rayscan::io;
+using namespace rayscan::jobs;
 using rayscan::test::temp_dir;
 
 namespace {

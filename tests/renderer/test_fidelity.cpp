@@ -18,6 +18,7 @@
 
 using namespace rayscan;
 using namespace rayscan::render;
+using namespace rayscan::jobs;
 
 namespace {
 

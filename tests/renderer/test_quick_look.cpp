@@ -18,6 +18,7 @@
 namespace fs = std::filesystem;
 using namespace rayscan;
 using namespace rayscan::render;
+using namespace rayscan::jobs;
 
 namespace {
 

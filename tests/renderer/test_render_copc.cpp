@@ -14,6 +14,7 @@
 
 using namespace rayscan;
 using namespace rayscan::render;
+using namespace rayscan::jobs;
 namespace fs = std::filesystem;
 
 namespace {

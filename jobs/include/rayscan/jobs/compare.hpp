@@ -10,7 +10,13 @@
 #include <string>
 #include <vector>
 
-namespace rayscan::analysis {
+namespace rayscan::jobs {
+
+// The analysis library types this job's options and results are made of.
+using analysis::CompareMetrics;
+using analysis::CompareOptions;
+using analysis::Judgement;
+using analysis::Limits;
 
 /// One level (fail or warn) of criteria as given by a user; unset = not given. limits() turns it
 /// into Limits with idiff's rule: with no criterion given, fail on any pixel error over 1e-6.
@@ -78,4 +84,4 @@ std::string compare_report_json(const CompareJobResult& result);
 /// The idiff-style text report printed by `rayscan compare`, ending in PASS, WARNING or FAILURE.
 std::string compare_report_text(const CompareJobResult& result);
 
-}  // namespace rayscan::analysis
+}  // namespace rayscan::jobs

@@ -18,7 +18,15 @@
 #include <string>
 #include <vector>
 
-namespace rayscan::io {
+namespace rayscan::jobs {
+
+// The io library types this job's options and results are made of.
+using io::AttributeRange;
+using io::AttributeSet;
+using io::CopcInfo;
+using io::FileInfo;
+using io::IndexSectionInfo;
+using io::IndexSource;
 
 /// Inputs of run_info().
 struct InfoJobOptions {
@@ -70,4 +78,4 @@ std::string info_report_json(const InfoJobResult& result);
 /// The report as aligned text lines.
 std::string info_report_text(const InfoJobResult& result);
 
-}  // namespace rayscan::io
+}  // namespace rayscan::jobs

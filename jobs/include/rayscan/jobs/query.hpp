@@ -11,7 +11,7 @@
 #include <ostream>
 #include <vector>
 
-namespace rayscan::io {
+namespace rayscan::jobs {
 
 /// Inputs of run_query().
 struct QueryJobOptions {
@@ -61,4 +61,4 @@ void write_hits_csv(std::ostream& out, std::span<const Vec3> positions,
 void write_hits_csv(std::ostream& out, const QueryJobResult& result);
 
 
-}  // namespace rayscan::io
+}  // namespace rayscan::jobs

@@ -14,7 +14,10 @@
 #include <functional>
 #include <string>
 
-namespace rayscan::render {
+namespace rayscan::jobs {
+
+// The renderer types this job's options and results are made of.
+using render::Scene;
 
 /// Image size of the overview camera when neither --width nor --height is given, pixels.
 inline constexpr std::uint32_t kOverviewWidth = 600, kOverviewHeight = 400;
@@ -52,4 +55,4 @@ struct ResolvedScene {
 ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverrides& overrides,
                             const std::function<const PointCloud&(const std::filesystem::path&)>& cloud);
 
-}  // namespace rayscan::render
+}  // namespace rayscan::jobs

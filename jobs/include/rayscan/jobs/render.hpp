@@ -18,7 +18,13 @@
 #include <span>
 #include <vector>
 
-namespace rayscan::render {
+namespace rayscan::jobs {
+
+// The renderer types this job's options and results are made of.
+using render::Framebuffer;
+using render::ImageMetadata;
+using render::RenderStats;
+using render::Scene;
 
 /// Inputs of run_render(). Start from load_scene(file) or a Scene built in code (then set
 /// scene.camera, and scene.cloud or `cloud`).
@@ -114,4 +120,4 @@ struct SceneOverrides {
 };
 void apply_overrides(Scene& scene, const SceneOverrides& overrides);
 
-}  // namespace rayscan::render
+}  // namespace rayscan::jobs

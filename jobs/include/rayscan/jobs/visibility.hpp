@@ -20,7 +20,15 @@
 #include <string>
 #include <vector>
 
-namespace rayscan::analysis {
+namespace rayscan::jobs {
+
+// The analysis library types this job's options and results are made of.
+using analysis::AngleRange;
+using analysis::Observer;
+using analysis::Raster;
+using analysis::SkyWeighting;
+using analysis::VisibilityOptions;
+using analysis::VisibilityResult;
 
 /// Inputs of run_visibility(). Error messages name the fields by their command-line spelling
 /// (field `raster_value` is `--raster-value`), so one message serves the CLI and the library.
@@ -105,4 +113,4 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& options);
 /// camera, written files), as printed by `rayscan visibility --json`, indented by 2.
 std::string visibility_report_json(const VisibilityJobResult& result);
 
-}  // namespace rayscan::analysis
+}  // namespace rayscan::jobs
