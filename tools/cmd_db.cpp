@@ -3,6 +3,7 @@
 // sql/ (rayscan/sql/import.hpp).
 #include "commands.hpp"
 #include "processes.hpp"
+#include "rayscan/base/option_error.hpp"
 
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/site/index_file.hpp"
@@ -44,6 +45,8 @@ int run_import(const DbImportOptions& o) {
   try {
     s = o.postgres.empty() ? sql::import_sqlite(paths, o.out, opt)
                            : sql::import_postgres(paths, o.postgres, o.table, opt);
+  } catch (const OptionError&) {
+    throw;  // printed with this command's flag names (rayscan.cpp)
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }

@@ -47,7 +47,7 @@ int run_visibility(VisibilityCli& o) {
   if (o.sky_weighting != "uniform" && o.sky_weighting != "cosine")
     throw UsageError("--sky-weighting '" + o.sky_weighting + "': expected uniform or cosine");
   job.sky_weighting = o.sky_weighting == "cosine" ? an::SkyWeighting::cosine : an::SkyWeighting::uniform;
-  for (const std::string& s : o.observer_args) job.observers.push_back(an::parse_observer(s));
+  for (const std::string& s : o.observer_args) job.observers.push_back(an::parse_observer(s, "--observer '" + s + "'"));
   job.cloud_file = o.cloud;
   job.observers_file = o.observers_file;
   job.camera_file = o.camera;

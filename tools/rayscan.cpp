@@ -1,6 +1,8 @@
 // The `rayscan` command line: one program, PDAL-style subcommands.
 #include "commands.hpp"
+#include "option_names.hpp"
 #include "processes.hpp"
+#include "rayscan/base/option_error.hpp"
 
 #include "rayscan/base/input_file.hpp"
 #include "rayscan/octree/simd.hpp"
@@ -111,8 +113,14 @@ int main(int argc, char** argv) {
 #endif
       return code;
     } catch (const std::exception& e) {
-      // One line per error: control characters in paths or values are escaped.
-      return fail("rayscan " + sub->get_name() + ": " + rayscan::one_line(e.what()));
+      // One line per error: control characters in paths or values are escaped. An option the
+      // library names by its field is printed as this command's flag.
+      const std::string name = sub->get_name();
+      const auto* option_error = dynamic_cast<const rayscan::OptionError*>(&e);
+      const std::string message =
+          option_error ? option_error->spelled([&](std::string_view f) { return rayscan::cli::flag_for(name, f); })
+                       : std::string(e.what());
+      return fail("rayscan " + name + ": " + rayscan::one_line(message));
     }
   }
   return 2;

@@ -231,11 +231,12 @@ std::vector<Observer> read_observers(const std::filesystem::path& path) {
   return out;
 }
 
-Observer parse_observer(std::string_view text) {
+Observer parse_observer(std::string_view text, std::string source) {
   const std::vector<std::string> parts = split(text, ',');
-  const std::string where = "--observer '" + std::string(text) + "'";
+  const std::string where = source.empty() ? "observer '" + std::string(text) + "'" : std::move(source);
   if (parts.size() < 2 || parts.size() > 3)
-    throw ObserverError(where + ": expected X,Y,Z (absolute) or X,Y (eye at --height above the ground)");
+    throw ObserverError({where + ": expected X,Y,Z (absolute) or X,Y (eye at the default height, ", option("height"),
+                         ", above the ground)"});
   Observer o;
   for (std::size_t i = 0; i < parts.size(); ++i) {
     const auto v = to_number(parts[i]);
@@ -291,8 +292,8 @@ void place_observers_over(std::vector<Observer>& observers, const Index& index, 
     if (o.has_z) continue;
     const std::optional<double> h = o.height ? o.height : options.default_height;
     if (!h)
-      throw ObserverError(observer_where(o, k + 1) +
-                          ": no z and no height; give z, a height, or a default height (--height)");
+      throw ObserverError({observer_where(o, k + 1) + ": no z and no height; give z, a height, or a default height (",
+                           option("height"), ")"});
     if (!bounds && !cloud.empty()) bounds = cloud.bounds();
     auto ground_within = [&](double radius) {
       return cloud.empty() ? std::numeric_limits<double>::quiet_NaN()
@@ -306,8 +307,8 @@ void place_observers_over(std::vector<Observer>& observers, const Index& index, 
     if (std::isnan(g)) {
       char buf[160];
       std::snprintf(buf, sizeof buf, ": no point within the ground radius %.6g of (%.6f, %.6f) to put the "
-                    "eye above; move it or raise --ground-radius", options.radius, o.position.x, o.position.y);
-      throw ObserverError(observer_where(o, k + 1) + buf);
+                    "eye above; move it or raise ", options.radius, o.position.x, o.position.y);
+      throw ObserverError({observer_where(o, k + 1) + buf, option("ground_radius")});
     }
     o.ground_z = g;
     o.height = *h;

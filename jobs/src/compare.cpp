@@ -2,6 +2,8 @@
 // rayscan.compare() run. Pass/fail follows OpenImageIO's idiff.
 #include "rayscan/jobs/compare.hpp"
 
+#include "rayscan/base/option_error.hpp"
+
 #include "rayscan/image/color_ramp.hpp"
 #include "rayscan/analysis/flip.hpp"
 #include "rayscan/base/file_names.hpp"
@@ -74,14 +76,14 @@ std::vector<int> pick_channels(const Image& img, const CompareJobOptions& o) {
   } else {
     idx = colour_channels(img, o.mask_channel);
     if (idx.empty())
-      throw invalid_argument(img.source + ": no colour channels (channels: " + join(img.channels) +
-                             "); choose some with --channel");
+      throw OptionError({img.source + ": no colour channels (channels: " + join(img.channels) + "); choose some with ",
+                         option("channels")});
   }
   if (o.alpha) {
     const int a = alpha_index(img);
     if (a < 0)
-      throw invalid_argument(img.source + ": --alpha given but the image has no alpha channel (channels: " +
-                             join(img.channels) + ")");
+      throw OptionError({img.source + ": ", option("alpha"),
+                         " given but the image has no alpha channel (channels: " + join(img.channels) + ")"});
     idx.push_back(a);
   }
   return idx;
@@ -154,10 +156,10 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
 
   const std::vector<int> rc = pick_channels(ref, o), tc = pick_channels(test, o);
   if (rc.size() != tc.size())
-    throw invalid_argument("channel counts differ: " + res.reference_name + " has " + std::to_string(rc.size()) +
+    throw OptionError({"channel counts differ: " + res.reference_name + " has " + std::to_string(rc.size()) +
                            " (" + join(names_of(ref, rc)) + "), " + res.image_name + " has " +
-                           std::to_string(tc.size()) + " (" + join(names_of(test, tc)) +
-                           "); choose channels with --channel");
+                           std::to_string(tc.size()) + " (" + join(names_of(test, tc)) + "); choose channels with ",
+                       option("channels")});
 
   // Mask: reference alpha == 0, or the render's point-index AOV says "miss".
   res.masked = o.mask || !o.mask_index.empty();
@@ -179,7 +181,7 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
       try {
         miss = read_index_misses(index_file, o.mask_channel, iw, ih);
       } catch (const std::runtime_error& e) {
-        throw invalid_argument(std::string("--mask-index: ") + e.what());
+        throw OptionError({option("mask_index"), std::string(": ") + e.what()});
       }
       if (iw != test.width || ih != test.height)
         throw invalid_argument(index_file + ": point-index AOV is " + std::to_string(iw) + "x" + std::to_string(ih) +
@@ -199,23 +201,24 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
                       " miss (-1)";
     }
     if (mask_sources.empty())
-      throw invalid_argument("--mask: " + res.reference_name + " has no alpha channel and " + res.image_name +
-                             " has no '" + o.mask_channel +
-                             "' channel (give the point-index AOV with --mask-index FILE.exr)");
+      throw OptionError({option("mask"), ": " + res.reference_name + " has no alpha channel and " + res.image_name +
+                             " has no '" + o.mask_channel + "' channel (give the point-index AOV with ",
+                         option("mask_index"), " FILE.exr)"});
   }
 
   const Image r = select_channels(ref, rc);
   Image t = select_channels(test, tc);
   if (r.width != t.width || r.height != t.height) {
     if (!o.resize)
-      throw invalid_argument("image sizes differ: " + res.reference_name + " is " + size_of(r) + ", " +
-                             res.image_name + " is " + size_of(t) + " (use --resize to compare at the reference's size)");
+      throw OptionError({"image sizes differ: " + res.reference_name + " is " + size_of(r) + ", " + res.image_name +
+                             " is " + size_of(t) + " (use ",
+                         option("resize"), " to compare at the reference's size)"});
     res.resized_from = size_of(t);
     res.resize_filter = o.resize_filter;
     try {
       t = resize_image(t, r.width, r.height, o.resize_filter);
     } catch (const std::runtime_error& e) {
-      throw invalid_argument(std::string("--resize-filter: ") + e.what());
+      throw OptionError({option("resize_filter"), std::string(": ") + e.what()});
     }
   }
   res.image_channels = t.channels;
@@ -238,7 +241,7 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
       res.metrics.flip_signal = "not computed: FLIP needs R,G,B or Y channels";
     } else {
       if (!(o.flip_ppd > 0) || !std::isfinite(o.flip_ppd))
-        throw invalid_argument("--flip-ppd: expected a finite number > 0");
+        throw OptionError({option("flip_ppd"), ": expected a finite number > 0"});
       FlipOptions fo;
       fo.pixels_per_degree = o.flip_ppd;
       const FlipResult fr = flip(flip_input(r, colour, ref_linear), flip_input(t, colour, img_linear), r.width,
@@ -256,7 +259,7 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
       }
     }
     if (colour == 0 && !o.flip_map.empty())
-      throw invalid_argument("--flip-map: FLIP needs R,G,B or Y channels (compared: " + join(r.channels) + ")");
+      throw OptionError({option("flip_map"), ": FLIP needs R,G,B or Y channels (compared: " + join(r.channels) + ")"});
   }
   res.judgement = judge(res.metrics, fail, warn);  // std::invalid_argument for an SSIM limit without SSIM
 

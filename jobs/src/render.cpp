@@ -1,6 +1,8 @@
 // The render job (rayscan/jobs/render.hpp): what `rayscan render` and rayscan.render() run.
 #include "rayscan/jobs/render.hpp"
 
+#include "rayscan/base/option_error.hpp"
+
 #include "rayscan/camera/camera_file.hpp"
 #include "rayscan/camera/colmap.hpp"
 #include "rayscan/site/copc.hpp"
@@ -48,35 +50,36 @@ void apply_overrides(Scene& scene, const SceneOverrides& o) {
     scene.camera_file = o.camera_file;
   }
   if (!o.colmap_dir.empty()) {
-    if (o.colmap_image.empty()) throw std::invalid_argument("--colmap: give the photo with --image NAME");
+    if (o.colmap_image.empty())
+      throw OptionError({option("colmap_dir"), ": give the photo with ", option("colmap_image"), " NAME"});
     scene.camera = load_colmap_camera(o.colmap_dir, o.colmap_image);
     scene.camera_file = o.colmap_dir / "images.txt";
   } else if (!o.colmap_image.empty()) {
-    throw std::invalid_argument("--image: needs --colmap DIR");
+    throw OptionError({option("colmap_image"), ": needs ", option("colmap_dir"), " DIR"});
   }
   if (!o.primitive.empty()) {
     if (o.primitive != "sphere" && o.primitive != "surfel")
-      throw std::invalid_argument("--primitive '" + o.primitive + "': expected sphere or surfel");
+      throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
     scene.primitive = o.primitive == "surfel" ? Primitive::surfel : Primitive::sphere;
   }
   if (o.spp) {
-    if (*o.spp < 1 || *o.spp > (1u << 20)) throw std::invalid_argument("--spp: expected an integer in [1, 1048576]");
+    if (*o.spp < 1 || *o.spp > (1u << 20)) throw OptionError({option("spp"), ": expected an integer in [1, 1048576]"});
     scene.spp = *o.spp;
   }
   if (o.seed) scene.seed = *o.seed;
   if (!o.out.empty()) {
     if (!is_image_file_name(o.out))
-      throw std::invalid_argument("--out '" + o.out.string() + "': " + image_file_name_expected());
+      throw OptionError({option("out"), " '" + o.out.string() + "': " + image_file_name_expected()});
     scene.output.image = o.out;
   }
   for (const std::string& a : o.aovs) {
     const std::optional<Aov> v = parse_aov(a);
-    if (!v) throw std::invalid_argument("--aov '" + a + "': " + aov_names_expected());
+    if (!v) throw OptionError({option("aovs"), " '" + a + "': " + aov_names_expected()});
     if (std::find(scene.output.aovs.begin(), scene.output.aovs.end(), *v) == scene.output.aovs.end())
       scene.output.aovs.push_back(*v);
   }
   if (o.width || o.height) {
-    if (!scene.camera) throw std::invalid_argument("--width/--height: the scene has no camera");
+    if (!scene.camera) throw OptionError({option("width"), "/", option("height"), ": the scene has no camera"});
     // In double, then checked: a 1x65536 camera with --width 65536 asks for a height of 2^32,
     // which must be an error, not a wrapped 32-bit integer.
     const Camera& c = *scene.camera;
@@ -84,10 +87,11 @@ void apply_overrides(Scene& scene, const SceneOverrides& o) {
     const double h = o.height ? double(*o.height) : std::round(double(c.height()) * *o.width / c.width());
     for (const auto& [v, name] : {std::pair{w, "width"}, std::pair{h, "height"}})
       if (!(v >= 1.0 && v <= 65536.0))
-        throw std::invalid_argument("the camera's aspect ratio " + std::to_string(c.width()) + ":" +
-                                    std::to_string(c.height()) + " gives an image " + name + " of " +
-                                    std::to_string(static_cast<long long>(std::min(v, 1e18))) +
-                                    " pixels, expected 1 to 65536; give both --width and --height");
+        throw OptionError({"the camera's aspect ratio " + std::to_string(c.width()) + ":" +
+                               std::to_string(c.height()) + " gives an image " + name + " of " +
+                               std::to_string(static_cast<long long>(std::min(v, 1e18))) +
+                               " pixels, expected 1 to 65536; give both ",
+                           option("width"), " and ", option("height")});
     scene.camera = c.resized(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h));
   }
 }
@@ -194,7 +198,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
   if (!scene.camera && !o.camera_for_cloud) throw SceneError(f + ": /camera: not set; give a camera in the scene or a camera file");
   if (o.write && scene.output.image.empty())
-    throw SceneError(f + ": /output/image: not set; give it in the scene or with --out");
+    throw OptionError({f + ": /output/image: not set; give it in the scene or set the ", option("out"), " option"});
   if (o.write) load_image_io();  // the image writer, before the render rather than after it
   const JobControl& ctl = o.control;
   char buf[512];
@@ -438,10 +442,11 @@ std::filesystem::path frame_file_name(const std::filesystem::path& image, std::s
 }
 
 RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const Camera> cameras) {
-  if (cameras.empty()) throw std::invalid_argument("--frames: the camera list is empty");
+  if (cameras.empty()) throw std::invalid_argument("render frames: the camera list is empty");
   if (o.write && o.scene.output.image.empty())
-    throw SceneError((o.scene.file.empty() ? std::string("(scene)") : o.scene.file.string()) +
-                     ": /output/image: not set; give it in the scene or with --out");
+    throw OptionError({(o.scene.file.empty() ? std::string("(scene)") : o.scene.file.string()) +
+                           ": /output/image: not set; give it in the scene or set the ",
+                       option("out"), " option"});
   RenderJobOptions first = o;
   if (!first.scene.camera) first.scene.camera = cameras.front();  // prepare() needs a camera
   RenderFramesResult fr;
@@ -513,7 +518,7 @@ RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const 
         read_values(bytes, off, std::span<std::uint64_t>(st));
         Framebuffer fb = empty_framebuffer(cameras[f], scene.output.aovs);
         const std::size_t need = pack_tiles(fb, 1u << 30, 0, 1).size();
-        if (bytes.size() - off < need) throw std::runtime_error("render --frames: short frame message");
+        if (bytes.size() - off < need) throw std::runtime_error("render frames: short frame message");
         unpack_tiles(fb, 1u << 30, 0, 1, bytes.subspan(off, need));
         off += need;
         RenderStats s;

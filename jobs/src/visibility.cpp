@@ -2,6 +2,8 @@
 // rayscan.visibility() run.
 #include "rayscan/jobs/visibility.hpp"
 
+#include "rayscan/base/option_error.hpp"
+
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/analysis/raster_preview.hpp"
 #include "rayscan/base/atomic_file.hpp"
@@ -45,20 +47,19 @@ void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> 
 
 // Output folders must exist before the (possibly long) computation; outputs are written to a
 // temporary sibling and renamed there, so a missing folder would only fail at the very end.
-void check_output_folder(const char* option, const std::filesystem::path& path) {
+void check_output_folder(const char* field, const std::filesystem::path& path) {
   if (path.empty()) return;
   namespace fs = std::filesystem;
   std::error_code ec;
   if (fs::is_directory(fs::status(path, ec)))
-    throw invalid_argument(std::string(option) + " '" + path.string() + "': is a folder, expected a file name");
+    throw OptionError({option(field), " '" + path.string() + "': is a folder, expected a file name"});
   const fs::path dir = path.parent_path();
   if (dir.empty()) return;  // the current folder
   const fs::file_status st = fs::status(dir, ec);
   if (!fs::exists(st))
-    throw invalid_argument(std::string(option) + " '" + path.string() + "': folder '" + dir.string() +
-                           "' does not exist");
+    throw OptionError({option(field), " '" + path.string() + "': folder '" + dir.string() + "' does not exist"});
   if (!fs::is_directory(st))
-    throw invalid_argument(std::string(option) + " '" + path.string() + "': '" + dir.string() + "' is not a folder");
+    throw OptionError({option(field), " '" + path.string() + "': '" + dir.string() + "' is not a folder"});
 }
 
 const std::vector<std::string> kCloudOutputs{".las", ".laz", ".ply"};
@@ -71,19 +72,20 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
 
   // ---- Check every option before any work.
   if (!o.out.empty() && !has_extension(o.out, kCloudOutputs))
-    throw invalid_argument("--out '" + o.out.string() + "': " + extensions_expected(kCloudOutputs));
+    throw OptionError({option("out"), " '" + o.out.string() + "': " + extensions_expected(kCloudOutputs)});
   if (!o.raster.empty()) {
     if (!has_extension(o.raster, geotiff_extensions()))
-      throw invalid_argument("--raster '" + o.raster.string() + "': expected a file name ending in .tif (GeoTIFF)");
-    if (!o.cell) throw invalid_argument("--raster needs --cell SIZE (cell edge in the cloud's units)");
-    if (!(*o.cell > 0.0) || !std::isfinite(*o.cell)) throw invalid_argument("--cell: expected a number > 0");
+      throw OptionError({option("raster"), " '" + o.raster.string() + "': expected a file name ending in .tif (GeoTIFF)"});
+    if (!o.cell) throw OptionError({option("raster"), " needs ", option("cell"), " SIZE (cell edge in the cloud's units)"});
+    if (!(*o.cell > 0.0) || !std::isfinite(*o.cell)) throw OptionError({option("cell"), ": expected a number > 0"});
   } else if (o.cell || !o.raster_value.empty() || !o.preview.empty()) {
-    throw invalid_argument("--cell, --raster-value and --preview need --raster OUT.tif");
+    throw OptionError({option("cell"), ", ", option("raster_value"), " and ", option("preview"), " need ",
+                       option("raster"), " OUT.tif"});
   }
-  check_output_folder("--out", o.out);
-  check_output_folder("--raster", o.raster);
+  check_output_folder("out", o.out);
+  check_output_folder("raster", o.raster);
   if (o.write_preview) {
-    check_output_folder("--preview", o.preview);  // default: next to --raster
+    check_output_folder("preview", o.preview);  // default: next to the raster
     load_image_io();  // the preview's writer, before the computation rather than after it
   }
   // The output policy up front: every output path must be absent or a regular file.
@@ -92,20 +94,21 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   const bool have_observers = !o.observers_file.empty() || !o.observers.empty();
   const bool have_camera = o.camera || !o.camera_file.empty();
   if (!have_observers && o.sky_rays == 0 && !have_camera)
-    throw invalid_argument("nothing to compute: give observers (--observers FILE or --observer X,Y[,Z]), "
-                           "--sky-view N or --from-camera CAMERA.json");
-  if (o.distance && !have_observers) throw invalid_argument("--distance needs observers");
+    throw OptionError({"nothing to compute: give observers (", option("observers_file"), " FILE or ",
+                       option("observers"), " X,Y[,Z]), ", option("sky_rays"), " N or ", option("camera_file"),
+                       " CAMERA.json"});
+  if (o.distance && !have_observers) throw OptionError({option("distance"), " needs observers"});
   if (o.primitive != "sphere" && o.primitive != "surfel")
-    throw invalid_argument("--primitive '" + o.primitive + "': expected sphere or surfel");
+    throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
   std::string value = o.raster_value;
   if (value.empty()) value = have_observers ? "fraction" : o.sky_rays ? "sky" : "camera";
   static const char* values[] = {"fraction", "viewshed", "count", "distance", "sky", "camera"};
   if (std::find(std::begin(values), std::end(values), value) == std::end(values))
-    throw invalid_argument("--raster-value '" + value + "': expected fraction, viewshed, count, distance, sky or camera");
+    throw OptionError({option("raster_value"), " '" + value + "': expected fraction, viewshed, count, distance, sky or camera"});
   if ((value == "fraction" || value == "viewshed" || value == "count" || value == "distance") && !have_observers)
-    throw invalid_argument("--raster-value " + value + " needs observers");
-  if (value == "sky" && o.sky_rays == 0) throw invalid_argument("--raster-value sky needs --sky-view N");
-  if (value == "camera" && !have_camera) throw invalid_argument("--raster-value camera needs --from-camera");
+    throw OptionError({option("raster_value"), " " + value + " needs observers"});
+  if (value == "sky" && o.sky_rays == 0) throw OptionError({option("raster_value"), " sky needs ", option("sky_rays"), " N"});
+  if (value == "camera" && !have_camera) throw OptionError({option("raster_value"), " camera needs ", option("camera_file")});
 
   VisibilityJobResult r;
   r.raster_value = value;
@@ -149,7 +152,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     try {
       site.emplace(Site::over(cloud, o.index));
     } catch (const std::invalid_argument& e) {
-      throw invalid_argument(std::string("--index: ") + e.what());
+      throw OptionError({option("index"), std::string(": ") + e.what()});
     }
     std::snprintf(buf, sizeof buf, "built %s index in %.2f s", o.index.type.c_str(), elapsed_since(t0));
     ctl.info(buf);
@@ -158,9 +161,9 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     r.radius = mapped ? choose_radius(o.radius, o.radius_factor, [&] { return mapped->median_nn_spacing(); })
                       : choose_radius(*site->memory_index(), cloud.positions, o.radius, o.radius_factor);
   } catch (const std::invalid_argument&) {
-    if (o.radius) throw invalid_argument("--radius " + std::to_string(*o.radius) + ": expected a number > 0 or auto");
-    if (!(o.radius_factor > 0.0)) throw invalid_argument("--radius-factor: expected a number > 0");
-    throw invalid_argument("--radius auto needs at least two distinct points; give a number");
+    if (o.radius) throw OptionError({option("radius"), " " + std::to_string(*o.radius) + ": expected a number > 0 or auto"});
+    if (!(o.radius_factor > 0.0)) throw OptionError({option("radius_factor"), ": expected a number > 0"});
+    throw OptionError({option("radius"), " auto needs at least two distinct points; give a number"});
   }
   const double radius = r.radius.radius;
   if (r.radius.automatic) {
@@ -181,7 +184,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
       surfels = mapped ? estimate_surfels_over(*mapped, cloud.positions, so, cloud.normals)
                        : estimate_surfels(*site->memory_index(), cloud.positions, so, cloud.normals);
     } catch (const std::invalid_argument& e) {
-      throw invalid_argument(std::string("--primitive surfel: ") + e.what());
+      throw OptionError({option("primitive"), std::string(" surfel: ") + e.what()});
     }
     r.surfel_median_radius = surfels.median_radius;
     r.surfel_max_radius = surfels.max_radius;
@@ -289,7 +292,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     try {
       grid = grid_over(cloud.bounds(), *o.cell);
     } catch (const std::invalid_argument& e) {
-      throw invalid_argument(std::string("--cell: ") + e.what());
+      throw OptionError({option("cell"), std::string(": ") + e.what()});
     }
     std::vector<double> v(cloud.size());
     CellReduce red = CellReduce::mean;

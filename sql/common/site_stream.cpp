@@ -2,6 +2,7 @@
 // from an index file (built on the fly from the clouds when none is given) or, for scalar fields
 // the index does not store, from the clouds read whole.
 #include "rayscan/sql/site_stream.hpp"
+#include "rayscan/base/option_error.hpp"
 
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -176,7 +177,7 @@ class MemorySite final : public SiteStream {
 
 std::unique_ptr<SiteStream> open_site(const std::vector<fs::path>& paths, const ImportOptions& options) {
   if (paths.empty()) throw std::invalid_argument("no input cloud given");
-  if (options.chunk_size == 0) throw std::invalid_argument("--chunk must be at least 1 point");
+  if (options.chunk_size == 0) throw OptionError({option("chunk_size"), " must be at least 1 point"});
   check_attribute_names(options.attributes, options.pcpatch);  // (both paths below: no column twice)
   bool all_stored = true;
   io::AttributeSet wanted = io::AttributeSet::none();

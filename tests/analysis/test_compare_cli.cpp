@@ -139,6 +139,8 @@ TEST_F(CompareCli, SizeMismatchIsAnErrorUnlessResized) {
   EXPECT_NE(r.out.find("sizes differ"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("40x30"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("20x15"), std::string::npos) << r.out;
+  // The library names the option by its field (`resize`); the command line prints its flag.
+  EXPECT_NE(r.out.find("(use --resize to compare"), std::string::npos) << r.out;
   // A constant image resized is the same constant: identical within float rounding.
   const nlohmann::json j = compare_json(a, b, "--resize --fail 1e-5");
   EXPECT_EQ(j["verdict"], "pass");
@@ -150,6 +152,7 @@ TEST_F(CompareCli, SizeMismatchIsAnErrorUnlessResized) {
   const RunResult c = compare(a, g, "", true);
   EXPECT_EQ(c.code, 2);
   EXPECT_NE(c.out.find("channel counts differ"), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("choose channels with --channel"), std::string::npos) << c.out;  // field `channels`
 }
 
 TEST_F(CompareCli, AgreesWithIdiff) {

@@ -85,7 +85,7 @@ TEST(CompareJob, InMemoryImagesMetricsVerdictAndMask) {
   o.image = &small;
   o.mask = false;
   EXPECT_EQ(what_of([&] { (void)run_compare(o); }),
-            "image sizes differ: (memory) is 16x16, (memory) is 8x8 (use --resize to compare at the reference's size)");
+            "image sizes differ: (memory) is 16x16, (memory) is 8x8 (use resize to compare at the reference's size)");
 }
 
 TEST(VisibilityJob, InMemoryCloudEqualsTheLowerLevelCalls) {
@@ -135,16 +135,16 @@ TEST(VisibilityJob, OptionErrorsComeBeforeAnyWork) {
   o.raster = "map.png";
   o.cell = 1.0;
   EXPECT_EQ(what_of([&] { (void)run_visibility(o); }),
-            "--raster 'map.png': expected a file name ending in .tif (GeoTIFF)");
+            "raster 'map.png': expected a file name ending in .tif (GeoTIFF)");
   o.raster = "";
   o.cell.reset();
   o.out = "x.xyz";
-  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "--out 'x.xyz': expected a file name ending in .las, .laz or .ply");
+  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "out 'x.xyz': expected a file name ending in .las, .laz or .ply");
   o.out = "";
   o.raster_value = "count";
   o.raster = "m.tif";
   o.cell = 1.0;
-  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "--raster-value count needs observers");
+  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "raster_value count needs observers");
 }
 
 // `visibility SITE.rsi` queries the mapped index file in place (no tree is

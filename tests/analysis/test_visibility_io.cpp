@@ -174,7 +174,7 @@ TEST(Observers, LocalGroundPrefersClassTwoAndSkipsNoise) {
   const fs::path pc = write_text("place.csv", "# eyes\nname,x,y,z\ntop,0,0,9\n\ntree,50,50,\n");
   EXPECT_EQ(place_error(read_observers(pc), 1.7).rfind(pc.string() + ": line 5: observer 'tree': no point within the ground radius", 0), 0u)
       << place_error(read_observers(pc), 1.7);
-  EXPECT_EQ(place_error({parse_observer("0,0")}, std::nullopt).rfind("--observer '0,0': observer 1: no z and no height", 0), 0u);
+  EXPECT_EQ(place_error({parse_observer("0,0")}, std::nullopt).rfind("observer '0,0': observer 1: no z and no height", 0), 0u);
 }
 
 TEST(Raster, GridSnapsToCellMultiplesAndReduces) {

@@ -1330,6 +1330,9 @@ TEST(IndexFileCli, IndexThenQueryEqualsQueryOnTheCloudAndInfoDescribesIt) {
   EXPECT_EQ(run_cli("index -q '" + (dir / "missing.las").string() + "' -o '" + (dir / "x.rsi").string() + "'", log), 2);
   EXPECT_FALSE(fs::exists(dir / "x.rsi"));
   EXPECT_EQ(run_cli("index -q '" + las.string() + "' -o '" + (dir / "x.rsi").string() + "' --memory 10Q", log), 2);
+  // A budget below the minimum: the build names IndexBuildOptions::memory_bytes, the CLI its flag.
+  EXPECT_EQ(run_cli("index -q '" + las.string() + "' -o '" + (dir / "x.rsi").string() + "' --memory 1000", log), 2);
+  EXPECT_NE(text(log).find("rayscan index: --memory 1000 bytes: at least 1M"), std::string::npos) << text(log);
   fs::remove_all(dir);
 }
 

@@ -78,7 +78,7 @@ TEST(RenderJob, ErrorsNameTheSceneField) {
   o.scene = small_scene();
   o.cloud = &subset();
   EXPECT_EQ(what_of([&] { (void)run_render(o); }),
-            "(scene): /output/image: not set; give it in the scene or with --out");
+            "(scene): /output/image: not set; give it in the scene or set the out option");
   o.write = false;
   o.scene.camera.reset();
   EXPECT_NE(what_of([&] { (void)run_render(o); }).find("(scene): /camera: not set"), std::string::npos);
@@ -108,9 +108,9 @@ TEST(RenderJob, OverridesCheckEachValue) {
   bad_aov.aovs = {"colour"};
   bad_out.out = "x.bmp";
   EXPECT_EQ(what_of([&] { apply_overrides(s, bad_aov); }),
-            "--aov 'colour': expected depth, normal, position, index, albedo or cost");
+            "aovs 'colour': expected depth, normal, position, index, albedo or cost");
   EXPECT_EQ(what_of([&] { apply_overrides(s, bad_out); }),
-            "--out 'x.bmp': expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr");
+            "out 'x.bmp': expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr");
 }
 
 // Rendering the index file (.rsi) of a cloud gives the image of the cloud itself, bit

@@ -2,6 +2,7 @@
 // sorted runs, the encodings, the section placement, the nodes and the header. The point sections
 // themselves are merge.cpp's. docs/index-format.md, "Build (external memory)".
 #include "index_build.hpp"
+#include "rayscan/base/option_error.hpp"
 
 #include "rayscan/octree/spacing.hpp"
 
@@ -60,14 +61,14 @@ std::optional<IndexBuildStats> IndexBuild::run() {
 void IndexBuild::check_options() {
   opt.config.validate();
   if (opt.config.layout == OctreeLayout::layered)
-    throw std::invalid_argument("--layout layered: not supported by the external-memory index build "
-                                "(use adaptive or fixed)");
-  if (inputs.empty()) throw std::invalid_argument("rayscan index: no input file");
+    throw OptionError({option("layout"), " layered: not supported by the external-memory index build "
+                                         "(use adaptive or fixed)"});
+  if (inputs.empty()) throw std::invalid_argument("index build: no input file");
   if (opt.memory_bytes < (std::uint64_t{1} << 20))
-    throw std::invalid_argument("--memory " + std::to_string(opt.memory_bytes) + " bytes: at least 1M");
+    throw OptionError({option("memory_bytes"), " " + std::to_string(opt.memory_bytes) + " bytes: at least 1M"});
   if ((opt.attributes & kIndexAttributes) != opt.attributes)
-    throw std::invalid_argument("--attributes " + opt.attributes.to_string() + ": an index stores " +
-                                kIndexAttributes.to_string());
+    throw OptionError({option("attributes"), " " + opt.attributes.to_string() + ": an index stores " +
+                                                 kIndexAttributes.to_string()});
   // The ids section only when asked (docs/index-format.md "Ids"); the readers deliver the rest.
   want_ids = opt.attributes.has(Attribute::id);
   read_attrs = AttributeSet{opt.attributes.bits & ~static_cast<std::uint32_t>(Attribute::id)};

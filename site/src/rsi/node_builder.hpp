@@ -5,6 +5,7 @@
 #pragma once
 
 #include "direct_io.hpp"
+#include "rayscan/base/option_error.hpp"
 #include "pipeline.hpp"
 
 #include <tbb/task_group.h>
@@ -631,9 +632,9 @@ struct NodeBuilder {
     // a split node's points to its children.
     if (nchild > 0 && rest > b) throw std::logic_error("index build: node with both points and children");
     if (nchild == 0 && cnt > IndexNodeRecord::kMaxCount)
-      throw std::runtime_error("index build: a leaf of " + std::to_string(cnt) + " points at depth " + std::to_string(d) +
-                               " (at most " + std::to_string(IndexNodeRecord::kMaxCount) +
-                               " per leaf; use a deeper --depth or --max-depth)");
+      throw OptionError({"index build: a leaf of " + std::to_string(cnt) + " points at depth " + std::to_string(d) +
+                             " (at most " + std::to_string(IndexNodeRecord::kMaxCount) + " per leaf; use a deeper ",
+                         option("depth"), " or ", option("max_depth"), ")"});
     IndexNodeRecord r;
     r.lo = box.lo;
     r.hi = box.hi;

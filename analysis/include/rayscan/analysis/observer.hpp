@@ -2,6 +2,7 @@
 // optionally given as a height above the local ground, each with optional angle and range limits.
 #pragma once
 
+#include "rayscan/base/option_error.hpp"
 #include "rayscan/site/site.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 
@@ -17,8 +18,11 @@ namespace rayscan::analysis {
 
 /// A malformed observer list. what() is one line naming the file, the line or JSON pointer, and
 /// what was expected: "obs.csv: line 3: column 'height': expected a number, got 'abc'".
-struct ObserverError : std::runtime_error {
-  using std::runtime_error::runtime_error;
+/// An OptionError (std::invalid_argument), so that a hint naming an option ("a default height
+/// (height)") reaches the command line as its flag.
+struct ObserverError : OptionError {
+  explicit ObserverError(const std::string& message) : OptionError({message}) {}
+  explicit ObserverError(std::vector<Part> parts) : OptionError(std::move(parts)) {}
 };
 
 /// A closed range of angles in degrees.
@@ -65,9 +69,10 @@ struct Observer {
 /// angles out of range or a negative max_distance.
 std::vector<Observer> read_observers(const std::filesystem::path& path);
 
-/// Parse one command-line observer "x,y,z" (absolute) or "x,y" (height from place_observers'
-/// default). Throws ObserverError naming the text.
-Observer parse_observer(std::string_view text);
+/// Parse one observer given as text, "x,y,z" (absolute) or "x,y" (height from place_observers'
+/// default). `source` names it in messages and in Observer::source (default: "observer 'TEXT'").
+/// Throws ObserverError naming it.
+Observer parse_observer(std::string_view text, std::string source = {});
 
 /// Checks one observer's values (finite coordinates, angle ranges, max_distance >= 0, not both z
 /// and height). `where` prefixes the message. Throws ObserverError.

@@ -31,7 +31,8 @@ struct Criteria {
   [[nodiscard]] Limits limits() const;
 };
 
-/// Inputs of run_compare(). Error messages name the fields by their command-line spelling.
+/// Inputs of run_compare(). An invalid option throws OptionError naming the fields (`flip_ppd`),
+/// which the CLI writes as its flags (`--flip-ppd`).
 struct CompareJobOptions {
   std::string reference_file, image_file;      ///< files (any format OpenImageIO reads)
   const Image* reference = nullptr;            ///< in-memory reference instead of reference_file

@@ -106,8 +106,8 @@ std::filesystem::path frame_file_name(const std::filesystem::path& image, std::s
 /// extra AOVs by name (parse_aov; duplicates ignored), the primitive ("sphere" | "surfel"), the
 /// camera of a COLMAP photo (load_colmap_camera(colmap_dir, colmap_image))
 /// and an image size (one of width/height given: the other follows the camera's aspect ratio; the
-/// field of view is kept). Throws SceneError (camera file, COLMAP model) or std::invalid_argument
-/// naming the option ("--aov 'x': expected ...").
+/// field of view is kept). Throws SceneError (camera file, COLMAP model) or OptionError naming the
+/// field ("aovs 'x': expected ...", written by the CLI as its flag, "--aov 'x': ...").
 struct SceneOverrides {
   std::filesystem::path camera_file;
   std::filesystem::path colmap_dir;  ///< COLMAP text model folder (cameras.txt, images.txt)

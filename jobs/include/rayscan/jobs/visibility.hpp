@@ -30,8 +30,8 @@ using analysis::SkyWeighting;
 using analysis::VisibilityOptions;
 using analysis::VisibilityResult;
 
-/// Inputs of run_visibility(). Error messages name the fields by their command-line spelling
-/// (field `raster_value` is `--raster-value`), so one message serves the CLI and the library.
+/// Inputs of run_visibility(). An invalid option throws OptionError naming the fields
+/// (`raster_value`), which the CLI writes as its flags (`--raster-value`).
 struct VisibilityJobOptions {
   // ---- Input cloud.
   std::filesystem::path cloud_file;     ///< point cloud to read (LAS, LAZ, COPC, PLY, PCD, text) or index file (.rsi)

@@ -1,0 +1,41 @@
+// flag_for (option_names.hpp): the fields whose flag is not "--" + the field name.
+#include "option_names.hpp"
+
+#include <array>
+
+namespace rayscan::cli {
+
+namespace {
+
+struct Spelling {
+  std::string_view command, field, flag;
+};
+
+// The options structs: jobs::VisibilityJobOptions, jobs::SceneOverrides, jobs::CompareJobOptions,
+// io::IndexBuildOptions (with its OctreeConfig), sql::ImportOptions.
+constexpr std::array kSpellings{
+    Spelling{"visibility", "observers", "--observer"},
+    Spelling{"visibility", "observers_file", "--observers"},
+    Spelling{"visibility", "sky_rays", "--sky-view"},
+    Spelling{"visibility", "camera_file", "--from-camera"},
+    Spelling{"render", "camera_file", "--camera"},
+    Spelling{"render", "colmap_dir", "--colmap"},
+    Spelling{"render", "colmap_image", "--image"},
+    Spelling{"render", "aovs", "--aov"},
+    Spelling{"compare", "channels", "--channel"},
+    Spelling{"index", "memory_bytes", "--memory"},
+    Spelling{"db", "memory_bytes", "--memory"},
+    Spelling{"db", "chunk_size", "--chunk"},
+};
+
+}  // namespace
+
+std::string flag_for(std::string_view command, std::string_view field) {
+  for (const Spelling& s : kSpellings)
+    if (s.command == command && s.field == field) return std::string(s.flag);
+  std::string flag = "--";
+  for (char c : field) flag += c == '_' ? '-' : c;
+  return flag;
+}
+
+}  // namespace rayscan::cli
