@@ -66,238 +66,259 @@ const std::vector<std::string> kCloudOutputs{".las", ".laz", ".ply"};
 
 }  // namespace
 
-VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
-  const JobControl& ctl = o.control;
+namespace {
+
+/// The per-point values a raster shows (VisibilityJobOptions::raster_value), how a cell reduces
+/// them, the legend's name and the preview's colour range.
+struct RasterValues {
+  std::vector<double> values;
+  CellReduce reduce = CellReduce::mean;
+  std::string name;
+  double lo = 0.0, hi = 1.0;
+};
+
+/// One run_visibility call: the steps in order, sharing the options, the result being filled and
+/// the site. Not movable (references into `r`).
+struct VisibilityRun {
+  const VisibilityJobOptions& o;
+  const JobControl& ctl;
   char buf[512];
-
-  // ---- Check every option before any work.
-  if (!o.out.empty() && !has_extension(o.out, kCloudOutputs))
-    throw OptionError({option("out"), " '" + o.out.string() + "': " + extensions_expected(kCloudOutputs)});
-  if (!o.raster.empty()) {
-    if (!has_extension(o.raster, geotiff_extensions()))
-      throw OptionError({option("raster"), " '" + o.raster.string() + "': expected a file name ending in .tif (GeoTIFF)"});
-    if (!o.cell) throw OptionError({option("raster"), " needs ", option("cell"), " SIZE (cell edge in the cloud's units)"});
-    if (!(*o.cell > 0.0) || !std::isfinite(*o.cell)) throw OptionError({option("cell"), ": expected a number > 0"});
-  } else if (o.cell || !o.raster_value.empty() || !o.preview.empty()) {
-    throw OptionError({option("cell"), ", ", option("raster_value"), " and ", option("preview"), " need ",
-                       option("raster"), " OUT.tif"});
-  }
-  check_output_folder("out", o.out);
-  check_output_folder("raster", o.raster);
-  if (o.write_preview) {
-    check_output_folder("preview", o.preview);  // default: next to the raster
-    load_image_io();  // the preview's writer, before the computation rather than after it
-  }
-  // The output policy up front: every output path must be absent or a regular file.
-  for (const std::filesystem::path& f : {o.out, o.raster, o.preview})
-    if (!f.empty()) require_replaceable_output(f);
-  const bool have_observers = !o.observers_file.empty() || !o.observers.empty();
-  const bool have_camera = o.camera || !o.camera_file.empty();
-  if (!have_observers && o.sky_rays == 0 && !have_camera)
-    throw OptionError({"nothing to compute: give observers (", option("observers_file"), " FILE or ",
-                       option("observers"), " X,Y[,Z]), ", option("sky_rays"), " N or ", option("camera_file"),
-                       " CAMERA.json"});
-  if (o.distance && !have_observers) throw OptionError({option("distance"), " needs observers"});
-  if (o.primitive != "sphere" && o.primitive != "surfel")
-    throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
-  std::string value = o.raster_value;
-  if (value.empty()) value = have_observers ? "fraction" : o.sky_rays ? "sky" : "camera";
-  static const char* values[] = {"fraction", "viewshed", "count", "distance", "sky", "camera"};
-  if (std::find(std::begin(values), std::end(values), value) == std::end(values))
-    throw OptionError({option("raster_value"), " '" + value + "': expected fraction, viewshed, count, distance, sky or camera"});
-  if ((value == "fraction" || value == "viewshed" || value == "count" || value == "distance") && !have_observers)
-    throw OptionError({option("raster_value"), " " + value + " needs observers"});
-  if (value == "sky" && o.sky_rays == 0) throw OptionError({option("raster_value"), " sky needs ", option("sky_rays"), " N"});
-  if (value == "camera" && !have_camera) throw OptionError({option("raster_value"), " camera needs ", option("camera_file")});
-
   VisibilityJobResult r;
-  r.raster_value = value;
+  std::string value;  // the raster value, resolved
+  bool have_observers = false, have_camera = false;
   std::vector<Observer>& observers = r.observers;
-  if (!o.observers_file.empty()) observers = read_observers(o.observers_file);
-  observers.insert(observers.end(), o.observers.begin(), o.observers.end());
-  for (std::size_t k = 0; k < observers.size(); ++k) {
-    Observer& ob = observers[k];
-    if (!ob.azimuth && o.azimuth) ob.azimuth = o.azimuth;
-    if (!ob.elevation && o.elevation) ob.elevation = o.elevation;
-    validate_observer(ob, observer_where(ob, k + 1));
-  }
-  std::optional<Camera> camera = o.camera;
-  if (!camera && !o.camera_file.empty()) camera = io::load_camera(o.camera_file);
-
-  // ---- Cloud, index, radius.
-  auto t0 = std::chrono::steady_clock::now();
-  r.source = o.cloud ? std::string("(memory)") : o.cloud_file.string();
-  // An index file (.rsi) is queried in place (no tree is built); its points are copied to the
-  // sources' original order (tiles concatenated in build order) as the output cloud, so the
-  // per-point fields line up with the sources.
+  std::optional<Camera> camera;
   std::optional<Site> site;
-  const io::MappedIndex* mapped = nullptr;
-  if (o.cloud) r.cloud = *o.cloud;
-  else if (io::is_index_file(o.cloud_file)) {
-    SiteOptions so;
-    so.index_file.read_ahead = true;  // every point is read and many queried: read the file ahead
-    site.emplace(Site::open(o.cloud_file, so));
-    mapped = site->index_file();
-    r.cloud = mapped->to_point_cloud();
-  } else {
-    r.cloud = io::read_point_cloud(o.cloud_file, {}, &r.info);
-  }
+  const io::MappedIndex* mapped = nullptr;  // the index file queried in place, if the input is one
   PointCloud& cloud = r.cloud;
-  if (cloud.empty()) throw invalid_argument(r.source + ": the point cloud has no points");
-  std::snprintf(buf, sizeof buf, "%s %zu points from %s in %.2f s", mapped ? "mapped" : "read", cloud.size(),
-                r.source.c_str(), elapsed_since(t0));
-  ctl.info(buf);
-  t0 = std::chrono::steady_clock::now();
-  if (!mapped) {
-    try {
-      site.emplace(Site::over(cloud, o.index));
-    } catch (const std::invalid_argument& e) {
-      throw OptionError({option("index"), std::string(": ") + e.what()});
-    }
-    std::snprintf(buf, sizeof buf, "built %s index in %.2f s", o.index.type.c_str(), elapsed_since(t0));
-    ctl.info(buf);
-  }
-  try {
-    r.radius = mapped ? choose_radius(o.radius, o.radius_factor, [&] { return mapped->median_nn_spacing(); })
-                      : choose_radius(*site->memory_index(), cloud.positions, o.radius, o.radius_factor);
-  } catch (const std::invalid_argument&) {
-    if (o.radius) throw OptionError({option("radius"), " " + std::to_string(*o.radius) + ": expected a number > 0 or auto"});
-    if (!(o.radius_factor > 0.0)) throw OptionError({option("radius_factor"), ": expected a number > 0"});
-    throw OptionError({option("radius"), " auto needs at least two distinct points; give a number"});
-  }
-  const double radius = r.radius.radius;
-  if (r.radius.automatic) {
-    std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x %.3g = %.6g",
-                  r.radius.spacing, r.radius.factor, radius);
-    ctl.info(buf);
-  }
-  const bool surfel = o.primitive == "surfel";
-  r.primitive = o.primitive;
-  r.tolerance = o.tolerance.value_or(surfel ? 0.0 : 2.0 * radius);
-  r.target_height = o.target_height.value_or(surfel ? 0.0 : radius);
+  double radius = 0.0;
+  bool surfel = false;
   SurfelAttributes surfels;
-  if (surfel) {
-    t0 = std::chrono::steady_clock::now();
-    SurfelOptions so = o.surfel;
-    so.measure_thickness = false;  // visibility traces no shadow or bounce rays (same_surface with 0)
-    try {
-      surfels = mapped ? estimate_surfels_over(*mapped, cloud.positions, so, cloud.normals)
-                       : estimate_surfels(*site->memory_index(), cloud.positions, so, cloud.normals);
-    } catch (const std::invalid_argument& e) {
-      throw OptionError({option("primitive"), std::string(" surfel: ") + e.what()});
-    }
-    r.surfel_median_radius = surfels.median_radius;
-    r.surfel_max_radius = surfels.max_radius;
-    std::snprintf(buf, sizeof buf, "surfels: %s normals, median disc radius %.6g, max %.6g, in %.2f s",
-                  cloud.normals.empty() ? "PCA" : "file", surfels.median_radius, surfels.max_radius,
-                  elapsed_since(t0));
-    ctl.info(buf);
-  }
-  r.max_distance = o.max_distance.value_or(kInf);
-
-  // ---- Observers.
   VisibilityResult& vis = r.line_of_sight;
-  if (have_observers) {
-    GroundOptions g;
-    g.radius = o.ground_radius.value_or(5.0 * radius);
-    // Surfels: the ground is the surface right under the eye (within the median disc radius) when
-    // it is sampled there, as a DSM's cell under the observer is.
-    if (surfel && !o.ground_radius) g.inner_radius = surfels.median_radius;
-    g.default_height = o.height;
-    place_observers(observers, *site, cloud, g);
-    VisibilityOptions vo;
-    vo.radius = radius;
-    vo.tolerance = r.tolerance;
-    vo.target_height = r.target_height;
-    vo.max_distance = r.max_distance;
-    if (surfel) vo.surfels = &surfels;
-    vo.threads = ctl.threads;
-    vo.progress = ctl.progress;
-    vo.distributor = ctl.distributor;
-    vis = compute_visibility(*site, cloud.positions, observers, vo);
-    std::uint64_t seen = 0;
-    for (std::uint32_t c : vis.count) seen += c > 0;
-    std::snprintf(buf, sizeof buf,
-                  "line of sight: %zu points x %zu observers in %.2f s (%u threads): %.4g points/s, "
-                  "%.4g observer-point pairs/s; %llu points (%.1f %%) seen by at least one observer",
-                  cloud.size(), observers.size(), vis.seconds, vis.threads, double(cloud.size()) / vis.seconds,
-                  double(vis.pairs) / vis.seconds, static_cast<unsigned long long>(seen),
-                  100.0 * double(seen) / double(cloud.size()));
-    ctl.info(buf);
-    set_scalar(cloud, "visible_count", std::vector<double>(vis.count.begin(), vis.count.end()));
-    if (o.distance) set_scalar(cloud, "visible_distance", vis.nearest);
+  std::chrono::steady_clock::time_point t0;
+
+  explicit VisibilityRun(const VisibilityJobOptions& options) : o(options), ctl(options.control) {}
+  VisibilityRun(const VisibilityRun&) = delete;
+
+  /// Every option checked before any work; resolves `value`.
+  void check_options() {
+    if (!o.out.empty() && !has_extension(o.out, kCloudOutputs))
+      throw OptionError({option("out"), " '" + o.out.string() + "': " + extensions_expected(kCloudOutputs)});
+    if (!o.raster.empty()) {
+      if (!has_extension(o.raster, geotiff_extensions()))
+        throw OptionError(
+            {option("raster"), " '" + o.raster.string() + "': expected a file name ending in .tif (GeoTIFF)"});
+      if (!o.cell)
+        throw OptionError({option("raster"), " needs ", option("cell"), " SIZE (cell edge in the cloud's units)"});
+      if (!(*o.cell > 0.0) || !std::isfinite(*o.cell)) throw OptionError({option("cell"), ": expected a number > 0"});
+    } else if (o.cell || !o.raster_value.empty() || !o.preview.empty()) {
+      throw OptionError({option("cell"), ", ", option("raster_value"), " and ", option("preview"), " need ",
+                         option("raster"), " OUT.tif"});
+    }
+    check_output_folder("out", o.out);
+    check_output_folder("raster", o.raster);
+    if (o.write_preview) {
+      check_output_folder("preview", o.preview);  // default: next to the raster
+      load_image_io();                            // the preview's writer, before the computation rather than after it
+    }
+    // The output policy up front: every output path must be absent or a regular file.
+    for (const std::filesystem::path& f : {o.out, o.raster, o.preview})
+      if (!f.empty()) require_replaceable_output(f);
+    have_observers = !o.observers_file.empty() || !o.observers.empty();
+    have_camera = o.camera || !o.camera_file.empty();
+    if (!have_observers && o.sky_rays == 0 && !have_camera)
+      throw OptionError({"nothing to compute: give observers (", option("observers_file"), " FILE or ",
+                         option("observers"), " X,Y[,Z]), ", option("sky_rays"), " N or ", option("camera_file"),
+                         " CAMERA.json"});
+    if (o.distance && !have_observers) throw OptionError({option("distance"), " needs observers"});
+    if (o.primitive != "sphere" && o.primitive != "surfel")
+      throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
+    value = o.raster_value;
+    if (value.empty()) value = have_observers ? "fraction" : o.sky_rays ? "sky" : "camera";
+    static const char* values[] = {"fraction", "viewshed", "count", "distance", "sky", "camera"};
+    if (std::find(std::begin(values), std::end(values), value) == std::end(values))
+      throw OptionError(
+          {option("raster_value"), " '" + value + "': expected fraction, viewshed, count, distance, sky or camera"});
+    if ((value == "fraction" || value == "viewshed" || value == "count" || value == "distance") && !have_observers)
+      throw OptionError({option("raster_value"), " " + value + " needs observers"});
+    if (value == "sky" && o.sky_rays == 0)
+      throw OptionError({option("raster_value"), " sky needs ", option("sky_rays"), " N"});
+    if (value == "camera" && !have_camera)
+      throw OptionError({option("raster_value"), " camera needs ", option("camera_file")});
   }
 
-  // ---- Sky view.
-  if (o.sky_rays > 0) {
-    SkyViewOptions so;
-    so.rays = o.sky_rays;
-    so.weighting = o.sky_weighting;
-    so.radius = radius;
-    so.lift = o.sky_lift.value_or(2.0 * radius);
-    so.max_distance = r.max_distance;
-    so.seed = o.seed;
-    so.threads = ctl.threads;
-    so.progress = ctl.progress;
-    so.distributor = ctl.distributor;
+  /// The observers (file, then command line) with the default angle limits; the camera.
+  void gather_observers() {
+    r.raster_value = value;
+    if (!o.observers_file.empty()) observers = read_observers(o.observers_file);
+    observers.insert(observers.end(), o.observers.begin(), o.observers.end());
+    for (std::size_t k = 0; k < observers.size(); ++k) {
+      Observer& ob = observers[k];
+      if (!ob.azimuth && o.azimuth) ob.azimuth = o.azimuth;
+      if (!ob.elevation && o.elevation) ob.elevation = o.elevation;
+      validate_observer(ob, observer_where(ob, k + 1));
+    }
+    camera = o.camera;
+    if (!camera && !o.camera_file.empty()) camera = io::load_camera(o.camera_file);
+  }
+
+  /// The cloud, its index (or the mapped index file), the radius and the surfels.
+  void open_site() {
     t0 = std::chrono::steady_clock::now();
-    r.sky_view = compute_sky_view(*site, cloud.positions, so, &r.sky_queries);
-    r.sky_seconds = elapsed_since(t0);
-    double mean = 0;
-    for (double v : r.sky_view) mean += v;
-    mean /= double(r.sky_view.size());
-    std::snprintf(buf, sizeof buf, "sky view: %u %s rays per point in %.2f s (%.4g ray queries/s); mean %.4f",
-                  o.sky_rays, o.sky_weighting == SkyWeighting::cosine ? "cosine" : "uniform", r.sky_seconds,
-                  double(r.sky_queries) / r.sky_seconds, mean);
-    ctl.info(buf);
-    set_scalar(cloud, "sky_view", r.sky_view);
-  }
-
-  // ---- Camera.
-  if (camera) {
-    t0 = std::chrono::steady_clock::now();
-    const std::vector<std::uint32_t> px =
-        camera_first_hits(*site, *camera, radius, r.max_distance, ctl.threads, ctl.progress, ctl.distributor);
-    r.camera_hits = count_pixel_hits(px, cloud.size());
-    r.camera_seconds = elapsed_since(t0);
-    std::uint64_t seen = 0;
-    for (std::uint32_t c : r.camera_hits) seen += c > 0;
-    std::snprintf(buf, sizeof buf, "camera %ux%u: %llu points seen in %.2f s", camera->width(), camera->height(),
-                  static_cast<unsigned long long>(seen), r.camera_seconds);
-    ctl.info(buf);
-    set_scalar(cloud, "camera_hits", std::vector<double>(r.camera_hits.begin(), r.camera_hits.end()));
-  }
-
-  // ---- Outputs: one transaction, so a failing raster leaves the old --out intact.
-  // Over several processes (MPI) only the root holds the gathered fields and writes.
-  if (ctl.distributor && !ctl.distributor->is_root()) return r;
-  OutputTransaction tx;
-  if (!o.out.empty()) {
-    if (lower_extension(o.out) != ".ply") {  // .las or .laz (write_las compresses .laz)
-      io::LasWriteOptions lo;
-      if ((r.info.format == "LAS" || r.info.format == "LAZ" || r.info.format == "COPC") && r.info.scale &&
-          r.info.offset) {  // keep the source's integer grid
-        lo.scale = *r.info.scale;
-        lo.offset = *r.info.offset;
-        lo.has_offset = true;
-      }
-      io::write_las(o.out, cloud, lo);
+    r.source = o.cloud ? std::string("(memory)") : o.cloud_file.string();
+    // An index file (.rsi) is queried in place (no tree is built); its points are copied to the
+    // sources' original order (tiles concatenated in build order) as the output cloud, so the
+    // per-point fields line up with the sources.
+    if (o.cloud)
+      r.cloud = *o.cloud;
+    else if (io::is_index_file(o.cloud_file)) {
+      SiteOptions so;
+      so.index_file.read_ahead = true;  // every point is read and many queried: read the file ahead
+      site.emplace(Site::open(o.cloud_file, so));
+      mapped = site->index_file();
+      r.cloud = mapped->to_point_cloud();
     } else {
-      io::write_ply(o.out, cloud);
+      r.cloud = io::read_point_cloud(o.cloud_file, {}, &r.info);
     }
-    r.written.push_back(o.out);
-  }
-  if (!o.raster.empty()) {
-    GridSpec grid;
+    if (cloud.empty()) throw invalid_argument(r.source + ": the point cloud has no points");
+    std::snprintf(buf, sizeof buf, "%s %zu points from %s in %.2f s", mapped ? "mapped" : "read", cloud.size(),
+                  r.source.c_str(), elapsed_since(t0));
+    ctl.info(buf);
+    t0 = std::chrono::steady_clock::now();
+    if (!mapped) {
+      try {
+        site.emplace(Site::over(cloud, o.index));
+      } catch (const std::invalid_argument& e) {
+        throw OptionError({option("index"), std::string(": ") + e.what()});
+      }
+      std::snprintf(buf, sizeof buf, "built %s index in %.2f s", o.index.type.c_str(), elapsed_since(t0));
+      ctl.info(buf);
+    }
     try {
-      grid = grid_over(cloud.bounds(), *o.cell);
-    } catch (const std::invalid_argument& e) {
-      throw OptionError({option("cell"), std::string(": ") + e.what()});
+      r.radius = mapped ? choose_radius(o.radius, o.radius_factor, [&] { return mapped->median_nn_spacing(); })
+                        : choose_radius(*site->memory_index(), cloud.positions, o.radius, o.radius_factor);
+    } catch (const std::invalid_argument&) {
+      if (o.radius)
+        throw OptionError({option("radius"), " " + std::to_string(*o.radius) + ": expected a number > 0 or auto"});
+      if (!(o.radius_factor > 0.0)) throw OptionError({option("radius_factor"), ": expected a number > 0"});
+      throw OptionError({option("radius"), " auto needs at least two distinct points; give a number"});
     }
-    std::vector<double> v(cloud.size());
-    CellReduce red = CellReduce::mean;
-    std::string name;
-    double lo = 0.0, hi = 1.0;
+    radius = r.radius.radius;
+    if (r.radius.automatic) {
+      std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x %.3g = %.6g",
+                    r.radius.spacing, r.radius.factor, radius);
+      ctl.info(buf);
+    }
+    surfel = o.primitive == "surfel";
+    r.primitive = o.primitive;
+    r.tolerance = o.tolerance.value_or(surfel ? 0.0 : 2.0 * radius);
+    r.target_height = o.target_height.value_or(surfel ? 0.0 : radius);
+    if (surfel) {
+      t0 = std::chrono::steady_clock::now();
+      SurfelOptions so = o.surfel;
+      so.measure_thickness = false;  // visibility traces no shadow or bounce rays (same_surface with 0)
+      try {
+        surfels = mapped ? estimate_surfels_over(*mapped, cloud.positions, so, cloud.normals)
+                         : estimate_surfels(*site->memory_index(), cloud.positions, so, cloud.normals);
+      } catch (const std::invalid_argument& e) {
+        throw OptionError({option("primitive"), std::string(" surfel: ") + e.what()});
+      }
+      r.surfel_median_radius = surfels.median_radius;
+      r.surfel_max_radius = surfels.max_radius;
+      std::snprintf(buf, sizeof buf, "surfels: %s normals, median disc radius %.6g, max %.6g, in %.2f s",
+                    cloud.normals.empty() ? "PCA" : "file", surfels.median_radius, surfels.max_radius,
+                    elapsed_since(t0));
+      ctl.info(buf);
+    }
+    r.max_distance = o.max_distance.value_or(kInf);
+  }
+
+  /// Line of sight from every observer.
+  void line_of_sight() {
+    if (have_observers) {
+      GroundOptions g;
+      g.radius = o.ground_radius.value_or(5.0 * radius);
+      // Surfels: the ground is the surface right under the eye (within the median disc radius) when
+      // it is sampled there, as a DSM's cell under the observer is.
+      if (surfel && !o.ground_radius) g.inner_radius = surfels.median_radius;
+      g.default_height = o.height;
+      place_observers(observers, *site, cloud, g);
+      VisibilityOptions vo;
+      vo.radius = radius;
+      vo.tolerance = r.tolerance;
+      vo.target_height = r.target_height;
+      vo.max_distance = r.max_distance;
+      if (surfel) vo.surfels = &surfels;
+      vo.threads = ctl.threads;
+      vo.progress = ctl.progress;
+      vo.distributor = ctl.distributor;
+      vis = compute_visibility(*site, cloud.positions, observers, vo);
+      std::uint64_t seen = 0;
+      for (std::uint32_t c : vis.count) seen += c > 0;
+      std::snprintf(buf, sizeof buf,
+                    "line of sight: %zu points x %zu observers in %.2f s (%u threads): %.4g points/s, "
+                    "%.4g observer-point pairs/s; %llu points (%.1f %%) seen by at least one observer",
+                    cloud.size(), observers.size(), vis.seconds, vis.threads, double(cloud.size()) / vis.seconds,
+                    double(vis.pairs) / vis.seconds, static_cast<unsigned long long>(seen),
+                    100.0 * double(seen) / double(cloud.size()));
+      ctl.info(buf);
+      set_scalar(cloud, "visible_count", std::vector<double>(vis.count.begin(), vis.count.end()));
+      if (o.distance) set_scalar(cloud, "visible_distance", vis.nearest);
+    }
+  }
+
+  /// The sky view factor of every point.
+  void sky_view() {
+    if (o.sky_rays > 0) {
+      SkyViewOptions so;
+      so.rays = o.sky_rays;
+      so.weighting = o.sky_weighting;
+      so.radius = radius;
+      so.lift = o.sky_lift.value_or(2.0 * radius);
+      so.max_distance = r.max_distance;
+      so.seed = o.seed;
+      so.threads = ctl.threads;
+      so.progress = ctl.progress;
+      so.distributor = ctl.distributor;
+      t0 = std::chrono::steady_clock::now();
+      r.sky_view = compute_sky_view(*site, cloud.positions, so, &r.sky_queries);
+      r.sky_seconds = elapsed_since(t0);
+      double mean = 0;
+      for (double v : r.sky_view) mean += v;
+      mean /= double(r.sky_view.size());
+      std::snprintf(buf, sizeof buf, "sky view: %u %s rays per point in %.2f s (%.4g ray queries/s); mean %.4f",
+                    o.sky_rays, o.sky_weighting == SkyWeighting::cosine ? "cosine" : "uniform", r.sky_seconds,
+                    double(r.sky_queries) / r.sky_seconds, mean);
+      ctl.info(buf);
+      set_scalar(cloud, "sky_view", r.sky_view);
+    }
+  }
+
+  /// The points the camera sees.
+  void camera_marks() {
+    if (camera) {
+      t0 = std::chrono::steady_clock::now();
+      const std::vector<std::uint32_t> px =
+          camera_first_hits(*site, *camera, radius, r.max_distance, ctl.threads, ctl.progress, ctl.distributor);
+      r.camera_hits = count_pixel_hits(px, cloud.size());
+      r.camera_seconds = elapsed_since(t0);
+      std::uint64_t seen = 0;
+      for (std::uint32_t c : r.camera_hits) seen += c > 0;
+      std::snprintf(buf, sizeof buf, "camera %ux%u: %llu points seen in %.2f s", camera->width(), camera->height(),
+                    static_cast<unsigned long long>(seen), r.camera_seconds);
+      ctl.info(buf);
+      set_scalar(cloud, "camera_hits", std::vector<double>(r.camera_hits.begin(), r.camera_hits.end()));
+    }
+  }
+
+  /// The values of `value` per point for the raster.
+  RasterValues raster_values() const {
+    RasterValues out;
+    std::vector<double>& v = out.values;
+    v.resize(cloud.size());
+    CellReduce& red = out.reduce;
+    std::string& name = out.name;
+    double& hi = out.hi;
     if (value == "fraction") {
       for (std::size_t i = 0; i < v.size(); ++i) v[i] = vis.count[i] > 0;
       name = "fraction of points visible from at least one observer";
@@ -326,7 +347,19 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
       for (std::size_t i = 0; i < v.size(); ++i) v[i] = r.camera_hits[i] > 0;
       name = "fraction of points seen by the camera";
     }
-    r.raster = rasterize(cloud.positions, v, grid, red, name);
+    return out;
+  }
+
+  /// The GeoTIFF map and its preview.
+  void write_raster() {
+    GridSpec grid;
+    try {
+      grid = grid_over(cloud.bounds(), *o.cell);
+    } catch (const std::invalid_argument& e) {
+      throw OptionError({option("cell"), std::string(": ") + e.what()});
+    }
+    const RasterValues rv = raster_values();
+    r.raster = rasterize(cloud.positions, rv.values, grid, rv.reduce, rv.name);
     GeoTiffOptions go;
     go.crs_wkt = cloud.crs_wkt;
     go.metadata = {{"RAYSCAN_VALUE", value}, {"RAYSCAN_SOURCE", r.source}, {"RAYSCAN_RADIUS", std::to_string(radius)}};
@@ -343,13 +376,50 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
     if (o.write_preview) {
       std::filesystem::path pv = o.preview;
       if (pv.empty()) pv = std::filesystem::path(o.raster).replace_extension(".png");
-      const std::string legend = write_raster_preview(pv, *r.raster, lo, hi, value + ": " + name);
+      const std::string legend = write_raster_preview(pv, *r.raster, rv.lo, rv.hi, value + ": " + rv.name);
       ctl.info("preview legend: " + legend);
       r.written.push_back(pv);
     }
   }
-  tx.commit();
-  return r;
+
+  /// The cloud with its fields and the raster, as one transaction.
+  void write_outputs() {
+    // One transaction, so a failing raster leaves the old cloud output intact.
+    // Over several processes (MPI) only the root holds the gathered fields and writes.
+    if (ctl.distributor && !ctl.distributor->is_root()) return;
+    OutputTransaction tx;
+    if (!o.out.empty()) {
+      if (lower_extension(o.out) != ".ply") {  // .las or .laz (write_las compresses .laz)
+        io::LasWriteOptions lo;
+        if ((r.info.format == "LAS" || r.info.format == "LAZ" || r.info.format == "COPC") && r.info.scale &&
+            r.info.offset) {  // keep the source's integer grid
+          lo.scale = *r.info.scale;
+          lo.offset = *r.info.offset;
+          lo.has_offset = true;
+        }
+        io::write_las(o.out, cloud, lo);
+      } else {
+        io::write_ply(o.out, cloud);
+      }
+      r.written.push_back(o.out);
+    }
+    if (!o.raster.empty()) write_raster();
+    tx.commit();
+  }
+};
+
+}  // namespace
+
+VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
+  VisibilityRun run(o);
+  run.check_options();
+  run.gather_observers();
+  run.open_site();
+  run.line_of_sight();
+  run.sky_view();
+  run.camera_marks();
+  run.write_outputs();
+  return std::move(run.r);
 }
 
 std::string visibility_report_json(const VisibilityJobResult& r) {
