@@ -42,6 +42,15 @@ struct Conn {
     PQclear(r);
     if (st != PGRES_COPY_IN) fail(sql);
   }
+  /// Ends a COPY FROM STDIN and checks the server's results; throws (fail(what)) on an error.
+  void copy_end(const char* what) {
+    if (PQputCopyEnd(c, nullptr) != 1) fail(what);
+    for (PGresult* r; (r = PQgetResult(c));) {
+      const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
+      PQclear(r);
+      if (!ok) fail(what);
+    }
+  }
 };
 
 void append_double(std::string& s, double v) {
@@ -76,28 +85,33 @@ void insert_sources(Conn& db, const std::string& table, const std::vector<Source
   }
 }
 
-}  // namespace
-
-ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
-                              const std::string& conninfo, const std::string& table,
-                              const ImportOptions& options) {
-  if (paths.empty()) throw std::invalid_argument("no input cloud given");
-  // Lower case and <= 50: the table's companions (<table>_sources, _chunks, ...) stay within 63.
-  if (!is_sql_identifier(table, 50, false))
-    throw std::invalid_argument("--table '" + table + "': expected a lower-case SQL identifier [a-z_][a-z0-9_]* (max 50)");
-  const std::unique_ptr<SiteStream> site = open_site(paths, options);
-  const std::vector<ColumnInfo>& cols = site->columns();
-  ChunkRows c;
+/// One import into PostgreSQL: the site's chunks (open_site) streamed through COPY, all inside one
+/// transaction. Each step throws std::runtime_error "postgres: <what>: <server message>" (Conn::fail)
+/// on the first failing statement; the transaction then never commits.
+struct PgImport {
+  const std::string& table;
+  SiteStream& site;
+  const std::vector<ColumnInfo>& cols;  ///< the extra columns (attributes)
+  ChunkRows c;                          ///< the current chunk (vectors reused)
   ImportSummary sum;
-
   Conn db;
-  db.c = PQconnectdb(conninfo.c_str());
-  if (PQstatus(db.c) != CONNECTION_OK) db.fail("cannot connect");
-  db.exec("SET client_min_messages = warning");
-  db.exec("BEGIN");  // all or nothing: a failure (or the server going away) leaves no half table
-  // The functions come from `CREATE EXTENSION rayscan` (an installed build), or were loaded from a
-  // build tree with rayscan_build_tree.sql (docs/sql.md); create the extension only when absent.
-  {
+
+  PgImport(const std::string& t, SiteStream& s) : table(t), site(s), cols(s.columns()) {}
+
+  /// Connects with `conninfo` (libpq connection string), lowers the client's message level and
+  /// opens the transaction: all or nothing, a failure (or the server going away) leaves no half
+  /// table.
+  void connect_and_begin(const std::string& conninfo) {
+    db.c = PQconnectdb(conninfo.c_str());
+    if (PQstatus(db.c) != CONNECTION_OK) db.fail("cannot connect");
+    db.exec("SET client_min_messages = warning");
+    db.exec("BEGIN");
+  }
+
+  /// The functions come from `CREATE EXTENSION rayscan` (an installed build), or were loaded from a
+  /// build tree with rayscan_build_tree.sql (docs/sql.md); creates the extension only when the
+  /// rs_box type is absent.
+  void ensure_extension() {
     PGresult* r = PQexec(db.c, "SELECT to_regtype('rs_box') IS NOT NULL");
     const bool ok = PQresultStatus(r) == PGRES_TUPLES_OK && PQntuples(r) == 1;
     const bool present = ok && std::string(PQgetvalue(r, 0, 0)) == "t";
@@ -105,9 +119,12 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
     if (!ok) db.fail("to_regtype");
     if (!present) db.exec("CREATE EXTENSION IF NOT EXISTS rayscan");
   }
-  if (options.pcpatch) {
-    // pgpointcloud: a schema of double X/Y/Z (scale 1: the reader's exact doubles), the point's
-    // index and source, then the attributes; one uncompressed patch per chunk.
+
+  /// Registers a pgpointcloud schema (pointcloud_formats row) under a new pcid and returns the
+  /// pcid: double X/Y/Z (scale 1: the reader's exact doubles), the point's index and source, then
+  /// the attributes (int64 or double); no compression. Throws std::runtime_error when all 65535
+  /// pcids are in use.
+  int register_pcpatch_schema() {
     db.exec("CREATE EXTENSION IF NOT EXISTS pointcloud");
     db.exec("LOCK TABLE pointcloud_formats IN SHARE ROW EXCLUSIVE MODE");  // a unique new pcid
     PGresult* r = PQexec(db.c, "SELECT coalesce(max(pcid), 0) + 1 FROM pointcloud_formats");
@@ -122,7 +139,7 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
     };
     std::vector<Dim> dims = {{"X", "double", 8}, {"Y", "double", 8}, {"Z", "double", 8},
                              {"PointIndex", "uint64_t", 8}, {"Source", "uint32_t", 4}};
-    for (const auto& c : cols) dims.push_back({c.name, c.integer ? "int64_t" : "double", 8});
+    for (const auto& col : cols) dims.push_back({col.name, col.integer ? "int64_t" : "double", 8});
     std::string xml = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<pc:PointCloudSchema "
                       "xmlns:pc=\"http://pointcloud.org/schemas/PC/1.1\" "
                       "xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\">";
@@ -138,15 +155,18 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
     const bool ins = PQresultStatus(r) == PGRES_COMMAND_OK;
     PQclear(r);
     if (!ins) db.fail("insert pointcloud_formats schema");
-    db.exec("CREATE TABLE " + table + " (chunk int PRIMARY KEY, pa pcpatch(" + id + ") NOT NULL, box rs_box NOT NULL)");
-    db.exec("CREATE TABLE " + table + "_sources (source int PRIMARY KEY, path text NOT NULL, point_count bigint NOT NULL)");
+    return pcid;
+  }
+
+  /// COPY of one row per chunk into <table>: chunk id, the patch as hex WKB, the box. Patch WKB:
+  /// byte order 1 (NDR), uint32 pcid, uint32 compression 0 (none), uint32 npoints, then the
+  /// points in schema order (pgpointcloud README, "Binary Formats"). Sent in ~1 MiB pieces.
+  void copy_patches(int pcid) {
     db.copy_in("COPY " + table + " FROM STDIN");
     std::string buf;
-    while (site->next(c)) {
+    while (site.next(c)) {
       const std::size_t count = c.size();
       buf += std::to_string(c.chunk) + '\t';
-      // Patch WKB: byte order 1 (NDR), uint32 pcid, uint32 compression 0 (none), uint32 npoints,
-      // then the points in schema order (pgpointcloud README, "Binary Formats").
       buf += "01";
       append_hex(buf, static_cast<std::uint32_t>(pcid));
       append_hex(buf, std::uint32_t{0});
@@ -180,98 +200,135 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
       }
     }
     if (!buf.empty() && PQputCopyData(db.c, buf.data(), static_cast<int>(buf.size())) != 1) db.fail("COPY patches");
-    if (PQputCopyEnd(db.c, nullptr) != 1) db.fail("COPY patches");
-    for (PGresult* res; (res = PQgetResult(db.c));) {
-      const bool good = PQresultStatus(res) == PGRES_COMMAND_OK;
-      PQclear(res);
-      if (!good) db.fail("COPY patches");
-    }
-    insert_sources(db, table, site->sources());
+    db.copy_end("COPY patches");
+  }
+
+  /// --pcpatch: one uncompressed pgpointcloud patch per chunk in <table> (chunk, pa, box) with a
+  /// GiST index on the boxes, and <table>_sources; commits and analyzes.
+  void import_pcpatch() {
+    const int pcid = register_pcpatch_schema();
+    const std::string id = std::to_string(pcid);
+    db.exec("CREATE TABLE " + table + " (chunk int PRIMARY KEY, pa pcpatch(" + id + ") NOT NULL, box rs_box NOT NULL)");
+    db.exec("CREATE TABLE " + table + "_sources (source int PRIMARY KEY, path text NOT NULL, point_count bigint NOT NULL)");
+    copy_patches(pcid);
+    insert_sources(db, table, site.sources());
     db.exec("CREATE INDEX " + table + "_box ON " + table + " USING gist (box)");
     db.exec("COMMIT");
     db.exec("ANALYZE " + table);
-    return sum;
   }
-  std::string create = "CREATE TABLE " + table +
-                       " (point_index bigint NOT NULL, source int NOT NULL, chunk int NOT NULL, "
-                       "x float8 NOT NULL, y float8 NOT NULL, z float8 NOT NULL";
-  for (const auto& c : cols) create += ", " + c.name + (c.integer ? " bigint" : " float8");
-  db.exec(create + ")");
-  db.exec("CREATE TABLE " + table + "_chunks (chunk int PRIMARY KEY, box rs_box NOT NULL, "
-          "first_row bigint NOT NULL, count int NOT NULL)");
-  db.exec("CREATE TABLE " + table + "_sources (source int PRIMARY KEY, path text NOT NULL, "
-          "point_count bigint NOT NULL)");
-  db.copy_in("COPY " + table + " FROM STDIN");
-  std::string buf;
-  auto flush = [&](bool force) {
+
+  /// The plain-rows tables (docs/sql.md): <table> (point_index, source, chunk, x, y, z,
+  /// <attributes>), <table>_chunks (chunk, box, first_row, count), <table>_sources.
+  void create_point_tables() {
+    std::string create = "CREATE TABLE " + table +
+                         " (point_index bigint NOT NULL, source int NOT NULL, chunk int NOT NULL, "
+                         "x float8 NOT NULL, y float8 NOT NULL, z float8 NOT NULL";
+    for (const auto& col : cols) create += ", " + col.name + (col.integer ? " bigint" : " float8");
+    db.exec(create + ")");
+    db.exec("CREATE TABLE " + table + "_chunks (chunk int PRIMARY KEY, box rs_box NOT NULL, "
+            "first_row bigint NOT NULL, count int NOT NULL)");
+    db.exec("CREATE TABLE " + table + "_sources (source int PRIMARY KEY, path text NOT NULL, "
+            "point_count bigint NOT NULL)");
+  }
+
+  /// Sends `buf` as COPY data when it holds 1 MiB or more, or always with `force`; throws
+  /// (fail(what)) when libpq refuses it.
+  void flush(std::string& buf, bool force, const char* what) {
     if (buf.size() < (1u << 20) && !force) return;
-    if (PQputCopyData(db.c, buf.data(), static_cast<int>(buf.size())) != 1) db.fail("COPY points");
+    if (PQputCopyData(db.c, buf.data(), static_cast<int>(buf.size())) != 1) db.fail(what);
     buf.clear();
-  };
-  // The chunk rows are kept (one short line per chunk) and copied after the points: one COPY at a
-  // time on a connection.
-  std::string chunk_rows;
-  while (site->next(c)) {
-    const std::size_t count = c.size();
-    const std::string ci = std::to_string(c.chunk);
-    for (std::size_t r = 0; r < count; ++r) {
-      const PointRef ref = c.refs[r];
-      const Vec3& p = c.positions[r];
-      buf += std::to_string(ref.index) + '\t' + std::to_string(ref.source) + '\t' + ci;
-      for (double v : {p.x, p.y, p.z}) {
-        buf += '\t';
-        append_double(buf, v);
+  }
+
+  /// COPY of every point into <table> (coordinates and doubles in their shortest exact form).
+  /// Returns the <table>_chunks rows, one short line per chunk, kept for copy_chunks(): one COPY
+  /// at a time on a connection.
+  std::string copy_points() {
+    db.copy_in("COPY " + table + " FROM STDIN");
+    std::string buf;
+    std::string chunk_rows;
+    while (site.next(c)) {
+      const std::size_t count = c.size();
+      const std::string ci = std::to_string(c.chunk);
+      for (std::size_t r = 0; r < count; ++r) {
+        const PointRef ref = c.refs[r];
+        const Vec3& p = c.positions[r];
+        buf += std::to_string(ref.index) + '\t' + std::to_string(ref.source) + '\t' + ci;
+        for (double v : {p.x, p.y, p.z}) {
+          buf += '\t';
+          append_double(buf, v);
+        }
+        for (std::size_t a = 0; a < cols.size(); ++a) {
+          buf += '\t';
+          const double v = c.values[a * count + r];
+          if (cols[a].integer) buf += std::to_string(static_cast<long long>(v));
+          else append_double(buf, v);
+        }
+        buf += '\n';
+        flush(buf, false, "COPY points");
       }
-      for (std::size_t a = 0; a < cols.size(); ++a) {
-        buf += '\t';
-        const double v = c.values[a * count + r];
-        if (cols[a].integer) buf += std::to_string(static_cast<long long>(v));
-        else append_double(buf, v);
+      // Chunk boxes in double: exact, no outward rounding needed.
+      chunk_rows += ci + "\t(";
+      const double v[6] = {c.box.lo.x, c.box.lo.y, c.box.lo.z, c.box.hi.x, c.box.hi.y, c.box.hi.z};
+      for (int i = 0; i < 6; ++i) {
+        if (i) chunk_rows += ',';
+        append_double(chunk_rows, v[i]);
       }
-      buf += '\n';
-      flush(false);
+      chunk_rows += ")\t" + std::to_string(c.first_row) + '\t' + std::to_string(count) + '\n';
+      sum.points += count;
+      ++sum.chunks;
     }
-    // Chunk boxes in double: exact, no outward rounding needed.
-    chunk_rows += ci + "\t(";
-    const double v[6] = {c.box.lo.x, c.box.lo.y, c.box.lo.z, c.box.hi.x, c.box.hi.y, c.box.hi.z};
-    for (int i = 0; i < 6; ++i) {
-      if (i) chunk_rows += ',';
-      append_double(chunk_rows, v[i]);
+    flush(buf, true, "COPY points");
+    db.copy_end("COPY points");
+    return chunk_rows;
+  }
+
+  /// COPY of the chunk rows copy_points() collected into <table>_chunks.
+  void copy_chunks(std::string rows) {
+    db.copy_in("COPY " + table + "_chunks FROM STDIN");
+    flush(rows, true, "COPY points");  // a refused send reports "COPY points", as in copy_points()
+    db.copy_end("COPY chunks");
+  }
+
+  /// <table>_sources, the chunk index of <table> and the GiST index of the chunk boxes, the
+  /// planner's n_distinct of chunk; commits and analyzes.
+  void finish_indexes() {
+    insert_sources(db, table, site.sources());
+    db.exec("CREATE INDEX " + table + "_chunk_idx ON " + table + " (chunk)");
+    // The number of distinct chunks is known exactly: tell the planner (ANALYZE's sample estimates it
+    // from 30,000 rows, ~4x too few chunks at 2e8 points; the join's row estimate then crossed the
+    // JIT and parallel-plan thresholds and a pruned query scanned every chunk; bench/README.md).
+    if (sum.points > 0) {
+      char nd[40];
+      std::snprintf(nd, sizeof nd, "%.17g", -static_cast<double>(sum.chunks) / static_cast<double>(sum.points));
+      db.exec("ALTER TABLE " + table + " ALTER COLUMN chunk SET (n_distinct = " + nd + ")");
     }
-    chunk_rows += ")\t" + std::to_string(c.first_row) + '\t' + std::to_string(count) + '\n';
-    sum.points += count;
-    ++sum.chunks;
+    db.exec("CREATE INDEX " + table + "_chunks_box ON " + table + "_chunks USING gist (box)");
+    db.exec("COMMIT");
+    db.exec("ANALYZE " + table + "; ANALYZE " + table + "_chunks");
   }
-  flush(true);
-  if (PQputCopyEnd(db.c, nullptr) != 1) db.fail("COPY points");
-  for (PGresult* r; (r = PQgetResult(db.c));) {
-    const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
-    PQclear(r);
-    if (!ok) db.fail("COPY points");
+};
+
+}  // namespace
+
+ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
+                              const std::string& conninfo, const std::string& table,
+                              const ImportOptions& options) {
+  if (paths.empty()) throw std::invalid_argument("no input cloud given");
+  // Lower case and <= 50: the table's companions (<table>_sources, _chunks, ...) stay within 63.
+  if (!is_sql_identifier(table, 50, false))
+    throw std::invalid_argument("--table '" + table + "': expected a lower-case SQL identifier [a-z_][a-z0-9_]* (max 50)");
+  const std::unique_ptr<SiteStream> site = open_site(paths, options);
+  PgImport im(table, *site);
+  im.connect_and_begin(conninfo);
+  im.ensure_extension();
+  if (options.pcpatch) {
+    im.import_pcpatch();
+    return im.sum;
   }
-  db.copy_in("COPY " + table + "_chunks FROM STDIN");
-  buf = std::move(chunk_rows);
-  flush(true);
-  if (PQputCopyEnd(db.c, nullptr) != 1) db.fail("COPY chunks");
-  for (PGresult* r; (r = PQgetResult(db.c));) {
-    const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
-    PQclear(r);
-    if (!ok) db.fail("COPY chunks");
-  }
-  insert_sources(db, table, site->sources());
-  db.exec("CREATE INDEX " + table + "_chunk_idx ON " + table + " (chunk)");
-  // The number of distinct chunks is known exactly: tell the planner (ANALYZE's sample estimates it
-  // from 30,000 rows, ~4x too few chunks at 2e8 points; the join's row estimate then crossed the
-  // JIT and parallel-plan thresholds and a pruned query scanned every chunk; bench/README.md).
-  if (sum.points > 0) {
-    char nd[40];
-    std::snprintf(nd, sizeof nd, "%.17g", -static_cast<double>(sum.chunks) / static_cast<double>(sum.points));
-    db.exec("ALTER TABLE " + table + " ALTER COLUMN chunk SET (n_distinct = " + nd + ")");
-  }
-  db.exec("CREATE INDEX " + table + "_chunks_box ON " + table + "_chunks USING gist (box)");
-  db.exec("COMMIT");
-  db.exec("ANALYZE " + table + "; ANALYZE " + table + "_chunks");
-  return sum;
+  im.create_point_tables();
+  im.copy_chunks(im.copy_points());
+  im.finish_indexes();
+  return im.sum;
 }
 
 }  // namespace rayscan::sql

@@ -308,14 +308,24 @@ int prepare(VTab* vt) {
   return SQLITE_OK;
 }
 
-int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3_value** argv) {
-  auto* c = reinterpret_cast<Cursor*>(cur);
-  auto* vt = reinterpret_cast<VTab*>(cur->pVtab);
-  c->hits.clear();
-  c->pos = 0;
-  // Arguments: defaults, then the given ones (NULL keeps the default: k all, r inf, t +-inf).
-  double a[kNumArgs] = {0, 0, 0, 0, 0, 0, -1, kInf, -kInf, kInf, 0};
-  bool time_order = false;
+/// ray_query's arguments (kOx .. kOrd), checked: defaults for absent or NULL optional ones (k all
+/// points, r inf, t_min -inf, t_max inf, ord 'ray').
+struct Args {
+  double a[kNumArgs] = {0, 0, 0, 0, 0, 0, -1, kInf, -kInf, kInf, 0};  ///< by kArgNames
+  double o3[3] = {}, d3[3] = {};  ///< ray origin and direction (world units; d not unit length)
+  double r = kInf, t_min = -kInf, t_max = kInf;
+  bool time_order = false;   ///< ord 'time': kNN along the ray (else kNN to the ray)
+  bool bounded = false;      ///< k given: keep the k best hits (else every hit)
+  std::size_t k = std::size_t(-1);
+  bool null_ray = false;     ///< a ray argument is NULL: no rows (NULL in, NULL out)
+};
+
+/// Reads xFilter's arguments (present ones flagged in `mask`, vt_best_index) into `out`, in
+/// argument order so that the first bad argument is the one reported. Returns SQLITE_OK, or
+/// SQLITE_ERROR with the vtab's error message set: a missing ray argument, a non-number, k not an
+/// integer >= 0, ord not 'ray'/'time', or a ray rs_check_ray rejects.
+int parse_ray_query_args(VTab* vt, int mask, int argc, sqlite3_value** argv, Args& out) {
+  double* a = out.a;
   long long kval = -1;  // -1: k not set (all points)
   int ai = 0;
   for (int i = 0; i < kNumArgs && ai < argc; ++i) {
@@ -328,7 +338,10 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
     sqlite3_value* v = argv[ai++];
     const int t = sqlite3_value_type(v);
     if (t == SQLITE_NULL) {
-      if (i < 6) return SQLITE_OK;  // NULL ray: no rows (NULL in, NULL out)
+      if (i < 6) {
+        out.null_ray = true;
+        return SQLITE_OK;
+      }
       continue;
     }
     if (i == kOrd - kFirstArg) {
@@ -336,7 +349,7 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
       if (t != SQLITE_TEXT || !s || (std::strcmp(s, "ray") && std::strcmp(s, "time")))
         return vt_error(&vt->base, "ray_query: ord must be 'ray' (kNN to the ray) or 'time' "
                                    "(kNN along the ray)");
-      time_order = std::strcmp(s, "time") == 0;
+      out.time_order = std::strcmp(s, "time") == 0;
       continue;
     }
     if (t != SQLITE_INTEGER && t != SQLITE_FLOAT)
@@ -350,27 +363,29 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
     }
   }
   if (!(mask & 0x3f)) return vt_error(&vt->base, "ray_query: expected ray_query(ox,oy,oz, dx,dy,dz [, k, r, t_min, t_max, ord])");
-  const double o3[3] = {a[0], a[1], a[2]}, d3[3] = {a[3], a[4], a[5]};
-  const double r = a[7], t_min = a[8], t_max = a[9];
+  for (int i = 0; i < 3; ++i) out.o3[i] = a[i], out.d3[i] = a[i + 3];
+  out.r = a[7], out.t_min = a[8], out.t_max = a[9];
   char err[RS_ERRBUF];
-  if (const char* e = rs_check_ray("ray_query", o3, d3, r, t_min, t_max, err))
+  if (const char* e = rs_check_ray("ray_query", out.o3, out.d3, out.r, out.t_min, out.t_max, err))
     return vt_error(&vt->base, e);
-  const bool bounded = kval >= 0;
-  const auto k = bounded ? static_cast<std::size_t>(kval) : std::size_t(-1);
+  out.bounded = kval >= 0;
+  out.k = out.bounded ? static_cast<std::size_t>(kval) : std::size_t(-1);
+  return SQLITE_OK;
+}
 
-  Stats st;
-  if (const int rc = prepare(vt); rc != SQLITE_OK) return rc;
-  st.chunks_total = vt->st.chunks_total;
-  // Points: the core's per-point terms (ray_point_terms) on the unit direction of the core Ray,
-  // the candidate rule and keys of rayscan::ray_query (orders ray and time).
-  const rayscan::Ray ray(Vec3(a[0], a[1], a[2]), Vec3(a[3], a[4], a[5]));
-  const Vec3 ro = ray.origin(), rd = ray.direction();
-  const double r2 = r * r;
-  std::vector<Hit>& heap = c->hits;
-  double worst = kInf;
-  // Survivors of the per-point test below (few): the heap of rayscan::ray_query's candidate rule.
-  auto keep = [&](const rayscan::RayPointTerms& pt, double x, double y, double z, long long point_index,
-                  long long source) __attribute__((noinline)) {
+/// The hits kept so far: with k (bounded) a max-heap under hit_less of the k best, the worst on
+/// top; without k every hit, unordered.
+struct HitHeap {
+  std::vector<Hit>& heap;
+  const bool bounded;
+  const std::size_t k;
+  const bool time_order;  ///< key: t (ord 'time') or the distance to the ray
+  double worst = kInf;    ///< key of the k-th best hit once there are k; else inf
+
+  /// Offers a point that passed the per-point test. Out of line: few points get here, and the
+  /// caller's per-point loop stays small.
+  __attribute__((noinline)) void keep(const rayscan::RayPointTerms& pt, double x, double y, double z,
+                                      long long point_index, long long source) {
     const Hit h{time_order ? pt.t : std::sqrt(pt.d2), pt.t, pt.d2, point_index, source, x, y, z};
     if (!bounded) {
       heap.push_back(h);
@@ -383,19 +398,52 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
       std::push_heap(heap.begin(), heap.end(), hit_less);
     }
     if (bounded && heap.size() == k) worst = heap.front().key;
-  };
-  auto consider = [&](double x, double y, double z, long long point_index, long long source)
-                      __attribute__((always_inline)) {
+  }
+  /// The dynamic k filter (Algorithm 1, step 2): with k hits, a chunk whose bound `score`
+  /// exceeds the worst key by more than its tolerance cannot improve them.
+  [[nodiscard]] bool rejects(double score, double tol) const {
+    return bounded && heap.size() == k && score > worst + tol;
+  }
+};
+
+/// A chunk the R*Tree admitted: its bound (rScore recomputed for the query's order) and
+/// tolerance, id, and first row and point count (databases without chunk_points).
+struct Cand {
+  double score, tol;
+  long long id, first, count;
+};
+
+/// One ray_query evaluation over the chunks: the core's per-point terms (ray_point_terms) on the
+/// unit direction of the core Ray, the candidate rule and keys of rayscan::ray_query (orders ray
+/// and time). Hits go to `hits`, counters to `st`.
+struct RayQuery {
+  VTab* vt;
+  const Args& args;
+  Stats st;
+  Vec3 ro, rd;  ///< origin and unit direction of the core Ray
+  double r2;    ///< radius squared
+  HitHeap heap;
+
+  RayQuery(VTab* v, const Args& a, std::vector<Hit>& hits)
+      : vt(v), args(a), r2(a.r * a.r), heap{hits, a.bounded, a.k, a.time_order} {
+    const rayscan::Ray ray(Vec3(a.a[0], a.a[1], a.a[2]), Vec3(a.a[3], a.a[4], a.a[5]));
+    ro = ray.origin();
+    rd = ray.direction();
+    st.chunks_total = vt->st.chunks_total;
+  }
+
+  /// The per-point test: within radius r of the ray and t in [t_min, t_max].
+  __attribute__((always_inline)) void consider(double x, double y, double z, long long point_index,
+                                               long long source) {
     const rayscan::RayPointTerms pt = rayscan::ray_point_terms(ro, rd, Vec3(x, y, z));
-    if (pt.d2 > r2 || pt.t < t_min || pt.t > t_max) return;
-    keep(pt, x, y, z, point_index, source);
-  };
-  struct Cand {
-    double score, tol;
-    long long id, first, count;
-  };
-  // Reads one chunk's points: the packed BLOB when the database has chunk_points, else its rows.
-  auto visit = [&](const Cand& ch) -> int {
+    if (pt.d2 > r2 || pt.t < args.t_min || pt.t > args.t_max) return;
+    heap.keep(pt, x, y, z, point_index, source);
+  }
+
+  /// Reads one chunk's points: the packed BLOB when the database has chunk_points, else its rows.
+  /// Returns SQLITE_OK, or an error with the vtab's message set (a BLOB that is not a whole
+  /// number of 40-byte points, a missing row, an SQLite error).
+  int read_chunk(const Cand& ch) {
     ++st.chunks_visited;
     if (sqlite3_stmt* b = vt->st.blob) {
       // Packed chunk (rayscan/sql/chunking.hpp PackedPoint): one lookup, then a tight loop.
@@ -435,40 +483,42 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
     if (rc != SQLITE_DONE)
       return vt_error(&vt->base, std::string("ray_query: reading table 'points': ") + sqlite3_errmsg(vt->db));
     return SQLITE_OK;
-  };
+  }
 
-  // Chunk candidates from the R*Tree with the pruning callback. Its rScore (the lower bound of
-  // dist_ray) makes the R*Tree return chunks nearest first from a priority queue
-  // (sqlite.org/rtree.html section 7.3), so kNN to the ray consumes them as they come and stops
-  // at the first chunk the dynamic k filter rejects: the R*Tree never expands the far nodes.
-  // kNN along the ray (ord 'time') has another key: all candidates, sorted by the time bound.
-  std::vector<Cand> cands;
-  {
+  /// Chunk candidates from the R*Tree with the pruning callback. Its rScore (the lower bound of
+  /// dist_ray) makes the R*Tree return chunks nearest first from a priority queue
+  /// (sqlite.org/rtree.html section 7.3), so kNN to the ray reads them as they come and stops
+  /// at the first chunk the dynamic k filter rejects: the R*Tree never expands the far nodes.
+  /// kNN along the ray (ord 'time') has another key: its candidates go to `later`, unread.
+  /// Returns SQLITE_OK or an error with the vtab's message set.
+  int candidate_chunks(std::vector<Cand>& later) {
+    const Args& q = args;
+    const std::size_t k = q.k;
     sqlite3_stmt* s = vt->st.match;
-    for (int i = 0; i < 6; ++i) sqlite3_bind_double(s, i + 1, a[i]);
-    sqlite3_bind_double(s, 7, r);
-    sqlite3_bind_double(s, 8, t_min);
-    sqlite3_bind_double(s, 9, t_max);
-    const Vec3 o(a[0], a[1], a[2]);
+    for (int i = 0; i < 6; ++i) sqlite3_bind_double(s, i + 1, q.a[i]);
+    sqlite3_bind_double(s, 7, q.r);
+    sqlite3_bind_double(s, 8, q.t_min);
+    sqlite3_bind_double(s, 9, q.t_max);
+    const Vec3 o(q.a[0], q.a[1], q.a[2]);
     int rc = SQLITE_DONE;
     while (k != 0 && (rc = sqlite3_step(s)) == SQLITE_ROW) {
       double box[6];
       for (int i = 0; i < 6; ++i) box[i] = sqlite3_column_double(s, i);
       double score;
-      rs_ray_box_test(o3, d3, r, t_min, t_max, time_order, box, &score);
+      rs_ray_box_test(q.o3, q.d3, q.r, q.t_min, q.t_max, q.time_order, box, &score);
       const rayscan::AABB b{Vec3(box[0], box[1], box[2]), Vec3(box[3], box[4], box[5])};
       const double tol = rayscan::node_test_tolerance(o, b);
       const Cand ch{score, tol, sqlite3_column_int64(s, 6), sqlite3_column_int64(s, 7), sqlite3_column_int64(s, 8)};
       ++st.chunks_candidate;
-      if (time_order) {
-        cands.push_back(ch);
+      if (q.time_order) {
+        later.push_back(ch);
         continue;
       }
-      if (bounded && heap.size() == k && ch.score > worst + ch.tol) {  // dynamic k filter
+      if (heap.rejects(ch.score, ch.tol)) {
         rc = SQLITE_DONE;
         break;
       }
-      if (const int e = visit(ch); e != SQLITE_OK) {
+      if (const int e = read_chunk(ch); e != SQLITE_OK) {
         sqlite3_reset(s);
         return e;
       }
@@ -476,14 +526,35 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
     sqlite3_reset(s);
     if (rc != SQLITE_DONE)
       return vt_error(&vt->base, std::string("ray_query: reading the chunk index: ") + sqlite3_errmsg(vt->db));
+    return SQLITE_OK;
   }
-  std::sort(cands.begin(), cands.end(), [](const Cand& x, const Cand& y) { return x.score < y.score; });
-  for (const Cand& ch : cands) {
-    if (bounded && heap.size() == k && ch.score > worst + ch.tol) break;  // dynamic k filter
-    if (const int e = visit(ch); e != SQLITE_OK) return e;
+
+  /// Reads the chunks candidate_chunks() set aside (ord 'time'), lowest time bound first, until
+  /// the dynamic k filter rejects one.
+  int read_in_order(std::vector<Cand>& cands) {
+    std::sort(cands.begin(), cands.end(), [](const Cand& x, const Cand& y) { return x.score < y.score; });
+    for (const Cand& ch : cands) {
+      if (heap.rejects(ch.score, ch.tol)) break;
+      if (const int e = read_chunk(ch); e != SQLITE_OK) return e;
+    }
+    return SQLITE_OK;
   }
-  std::sort(heap.begin(), heap.end(), hit_less);
-  *vt->stats = st;
+};
+
+int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3_value** argv) {
+  auto* c = reinterpret_cast<Cursor*>(cur);
+  auto* vt = reinterpret_cast<VTab*>(cur->pVtab);
+  c->hits.clear();
+  c->pos = 0;
+  Args args;
+  if (const int rc = parse_ray_query_args(vt, mask, argc, argv, args); rc != SQLITE_OK || args.null_ray) return rc;
+  if (const int rc = prepare(vt); rc != SQLITE_OK) return rc;
+  RayQuery q(vt, args, c->hits);
+  std::vector<Cand> cands;
+  if (const int rc = q.candidate_chunks(cands); rc != SQLITE_OK) return rc;
+  if (const int rc = q.read_in_order(cands); rc != SQLITE_OK) return rc;
+  std::sort(c->hits.begin(), c->hits.end(), hit_less);
+  *vt->stats = q.st;
   return SQLITE_OK;
 }
 

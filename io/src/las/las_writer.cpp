@@ -80,155 +80,196 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
 }
 
 namespace {
-/// The LAS writer proper; `direct` writes `path` without a temporary (see AtomicWriter).
-void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options,
-                       bool direct) {
-  try {
-    cloud.validate();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(path.string() + ": " + e.what());
-  }
-  const std::size_t n = cloud.size();
-  // Standard fields carried as named scalars by the reader; everything else is an extra byte.
-  Standard st;
-  std::vector<const ScalarField*> extra;
-  for (const ScalarField& f : cloud.scalars) {
-    if (f.name == "return_number") st.ret = &f.values;
-    else if (f.name == "number_of_returns") st.nret = &f.values;
-    else if (f.name == "scan_angle") st.angle = &f.values;
-    else if (f.name == "user_data") st.udata = &f.values;
-    else if (f.name == "point_source_id") st.psid = &f.values;
-    else if (f.name == "classification_flags") st.cflags = &f.values;
-    else if (f.name == "scanner_channel") st.channel = &f.values;
-    else if (f.name == "scan_direction_flag") st.scan_dir = &f.values;
-    else if (f.name == "edge_of_flight_line") st.edge = &f.values;
-    else if (f.name == "nir" && !cloud.rgb.empty()) st.nir = &f.values;
-    else extra.push_back(&f);
-  }
-  const bool rgb = !cloud.rgb.empty();
-  const int pdrf = st.nir != nullptr ? 8 : (rgb ? 7 : 6);
-  const int base_len = pdrf == 8 ? 38 : (pdrf == 7 ? 36 : 30);
-  if (extra.size() > (65535 - 38) / 8)
-    throw std::invalid_argument(path.string() + ": " + std::to_string(extra.size()) +
-                                " scalar fields do not fit a LAS point record");
-  const int rec_len = base_len + 8 * static_cast<int>(extra.size());
 
-  // Scale and offset.
-  const AABB box = cloud.bounds();
-  Vec3 scale = options.scale, offset = options.offset;
-  bool auto_scale[3];
-  for (int k = 0; k < 3; ++k) {
-    auto_scale[k] = !(scale[k] > 0.0) || !std::isfinite(scale[k]);
-    if (auto_scale[k]) scale[k] = 0.001;
-  }
-  if (!options.has_offset)
-    for (int k = 0; k < 3; ++k) {
-      const double unit = 1000.0 * scale[k];
-      offset[k] = box.empty() ? 0.0 : std::floor(box.lo[k] / unit) * unit;
+/// One LAS 1.4 write of a PointCloud (PDRF 6, 7 or 8; LAS 1.4 R15 section 2.6). The layout is
+/// planned from the cloud before the output file is created (split_fields, choose_scale_offset,
+/// first_pass, plan_vlrs), so that a cloud LAS cannot hold leaves no file behind; then the
+/// header, VLRs, point records and the WKT EVLR are written in file order.
+struct LasRecordWriter {
+  const std::filesystem::path& path;
+  const PointCloud& cloud;
+  const LasWriteOptions& options;
+  const std::size_t n;          ///< points
+  const std::string& wkt;       ///< the cloud's CRS as WKT ("" for none)
+  Standard st;                  ///< standard fields the reader carries as named scalars
+  std::vector<const ScalarField*> extra;  ///< the other scalars: Extra Bytes (double each)
+  bool rgb = false;             ///< the cloud has colour: PDRF 7 (8 with NIR)
+  int pdrf = 6;
+  int base_len = 30;            ///< bytes of the PDRF's own fields (30, 36 or 38)
+  int rec_len = 30;             ///< base_len + 8 bytes per extra scalar
+  Vec3 scale{0.001}, offset{0.0};
+  std::array<std::uint64_t, 15> by_return{};  ///< points by return number 1..15
+  Vec3 qlo{0.0}, qhi{0.0};      ///< bounds of the quantised coordinates
+  bool wkt_evlr = false;        ///< WKT too long for a VLR (record length is 16 bit): an EVLR
+  std::uint32_t n_vlr = 0;
+  std::uint64_t vlr_bytes = 0;
+  std::uint64_t point_offset = 375;  ///< header (375 bytes) + VLRs
+  std::uint64_t evlr_start = 0;      ///< offset of the WKT EVLR (0: none)
+
+  LasRecordWriter(const std::filesystem::path& p, const PointCloud& c, const LasWriteOptions& o)
+      : path(p), cloud(c), options(o), n(c.size()), wkt(c.crs_wkt) {}
+
+  /// Sorts the scalars into standard fields and extra bytes and picks the PDRF: 8 with NIR
+  /// (and colour), 7 with colour, else 6 (tables 13-15). Throws std::invalid_argument when the
+  /// extra bytes make a record longer than 65535 bytes.
+  void split_fields() {
+    for (const ScalarField& f : cloud.scalars) {
+      if (f.name == "return_number") st.ret = &f.values;
+      else if (f.name == "number_of_returns") st.nret = &f.values;
+      else if (f.name == "scan_angle") st.angle = &f.values;
+      else if (f.name == "user_data") st.udata = &f.values;
+      else if (f.name == "point_source_id") st.psid = &f.values;
+      else if (f.name == "classification_flags") st.cflags = &f.values;
+      else if (f.name == "scanner_channel") st.channel = &f.values;
+      else if (f.name == "scan_direction_flag") st.scan_dir = &f.values;
+      else if (f.name == "edge_of_flight_line") st.edge = &f.values;
+      else if (f.name == "nir" && !cloud.rgb.empty()) st.nir = &f.values;
+      else extra.push_back(&f);
     }
-  for (int k = 0; k < 3; ++k)
-    while (auto_scale[k] && !box.empty() &&
-           std::max(std::abs(box.hi[k] - offset[k]), std::abs(box.lo[k] - offset[k])) / scale[k] > 2.0e9)
-      scale[k] *= 10.0;
-  auto quantise = [&](double v, int k, std::size_t i) {
+    rgb = !cloud.rgb.empty();
+    pdrf = st.nir != nullptr ? 8 : (rgb ? 7 : 6);
+    base_len = pdrf == 8 ? 38 : (pdrf == 7 ? 36 : 30);
+    if (extra.size() > (65535 - 38) / 8)
+      throw std::invalid_argument(path.string() + ": " + std::to_string(extra.size()) +
+                                  " scalar fields do not fit a LAS point record");
+    rec_len = base_len + 8 * static_cast<int>(extra.size());
+  }
+
+  /// Scale and offset per axis (header section 2.4). An invalid option scale becomes 0.001
+  /// (mm), multiplied by 10 until the bounds fit 32-bit integers (2e9 units); without an option
+  /// offset, the box's low corner rounded down to 1000 scale units.
+  void choose_scale_offset() {
+    const AABB box = cloud.bounds();
+    scale = options.scale;
+    offset = options.offset;
+    bool auto_scale[3];
+    for (int k = 0; k < 3; ++k) {
+      auto_scale[k] = !(scale[k] > 0.0) || !std::isfinite(scale[k]);
+      if (auto_scale[k]) scale[k] = 0.001;
+    }
+    if (!options.has_offset)
+      for (int k = 0; k < 3; ++k) {
+        const double unit = 1000.0 * scale[k];
+        offset[k] = box.empty() ? 0.0 : std::floor(box.lo[k] / unit) * unit;
+      }
+    for (int k = 0; k < 3; ++k)
+      while (auto_scale[k] && !box.empty() &&
+             std::max(std::abs(box.hi[k] - offset[k]), std::abs(box.lo[k] - offset[k])) / scale[k] > 2.0e9)
+        scale[k] *= 10.0;
+  }
+
+  /// Coordinate v of axis k (0 X, 1 Y, 2 Z) of point i as the record's 32-bit integer.
+  /// Throws std::invalid_argument when it does not fit.
+  [[nodiscard]] std::int32_t quantise(double v, int k, std::size_t i) const {
     const double q = std::round((v - offset[k]) / scale[k]);
     if (!(q >= -2147483648.0 && q <= 2147483647.0))
       throw std::invalid_argument(path.string() + ": point " + std::to_string(i) + " coordinate " +
                                   "XYZ"[k] + " = " + std::to_string(v) + " does not fit 32-bit LAS integers with scale " +
                                   std::to_string(scale[k]) + " and offset " + std::to_string(offset[k]));
     return static_cast<std::int32_t>(q);
-  };
-  // First pass: quantised bounds and points by return.
-  std::array<std::uint64_t, 15> by_return{};
-  Vec3 qlo(std::numeric_limits<double>::infinity()), qhi(-std::numeric_limits<double>::infinity());
-  for (std::size_t i = 0; i < n; ++i) {
+  }
+
+  /// The header's bounds (of the quantised coordinates, as readers will see them) and points
+  /// by return; checks that every coordinate quantises.
+  void first_pass() {
+    qlo = Vec3(std::numeric_limits<double>::infinity());
+    qhi = Vec3(-std::numeric_limits<double>::infinity());
+    for (std::size_t i = 0; i < n; ++i) {
+      for (int k = 0; k < 3; ++k) {
+        const double v = quantise(cloud.positions[i][k], k, i) * scale[k] + offset[k];
+        qlo[k] = std::min(qlo[k], v);
+        qhi[k] = std::max(qhi[k], v);
+      }
+      const int r = st.ret != nullptr ? std::clamp(static_cast<int>((*st.ret)[i]), 0, 15) : 1;
+      if (r >= 1) ++by_return[static_cast<std::size_t>(r - 1)];
+    }
+    if (n == 0) qlo = qhi = Vec3(0.0);
+  }
+
+  /// VLR count and bytes (54-byte VLR headers, section 2.5): the OGC WKT VLR (2.5.1) unless the
+  /// WKT needs an EVLR, the Extra Bytes VLR (2.5.6); hence the offset to point data and of the
+  /// EVLR. Throws std::invalid_argument when the point data offset exceeds 32 bits.
+  void plan_vlrs() {
+    wkt_evlr = wkt.size() + 1 > 65535;
+    if (!wkt.empty() && !wkt_evlr) ++n_vlr, vlr_bytes += 54 + wkt.size() + 1;
+    if (!extra.empty()) ++n_vlr, vlr_bytes += 54 + 192 * extra.size();
+    point_offset = 375 + vlr_bytes;
+    if (point_offset > std::numeric_limits<std::uint32_t>::max())
+      throw std::invalid_argument(path.string() + ": VLRs too large for a LAS header");
+    evlr_start = wkt_evlr ? point_offset + static_cast<std::uint64_t>(rec_len) * n : 0;
+  }
+
+  /// Public header block (section 2.4, table 3; 375 bytes): version 1.4, WKT global encoding bit
+  /// (required for PDRF 6-10), creation day/year of today, legacy point counts 0.
+  void write_header(detail::AtomicWriter& w) const {
+    w.write("LASF", 4);
+    w.put<std::uint16_t>(0);                         // file source id
+    w.put<std::uint16_t>(1u << 4);                   // global encoding: WKT CRS (required for PDRF 6-10)
+    w.put_fixed("", 16);                             // project GUID
+    w.put<std::uint8_t>(1);
+    w.put<std::uint8_t>(4);
+    w.put_fixed(options.system_id, 32);
+    w.put_fixed("rayscan 0.1.0", 32);
+    {
+      const auto now = std::chrono::system_clock::now();
+      const std::chrono::year_month_day ymd{std::chrono::floor<std::chrono::days>(now)};
+      const auto jan1 = std::chrono::sys_days{ymd.year() / std::chrono::January / 1};
+      const auto doy = (std::chrono::floor<std::chrono::days>(now) - jan1).count() + 1;
+      w.put<std::uint16_t>(static_cast<std::uint16_t>(doy));
+      w.put<std::uint16_t>(static_cast<std::uint16_t>(static_cast<int>(ymd.year())));
+    }
+    w.put<std::uint16_t>(375);
+    w.put<std::uint32_t>(static_cast<std::uint32_t>(point_offset));
+    w.put<std::uint32_t>(n_vlr);
+    w.put<std::uint8_t>(static_cast<std::uint8_t>(pdrf));
+    w.put<std::uint16_t>(static_cast<std::uint16_t>(rec_len));
+    w.put<std::uint32_t>(0);  // legacy point count: 0 for PDRF 6-10
+    for (int k = 0; k < 5; ++k) w.put<std::uint32_t>(0);
+    for (int k = 0; k < 3; ++k) w.put<double>(scale[k]);
+    for (int k = 0; k < 3; ++k) w.put<double>(offset[k]);
     for (int k = 0; k < 3; ++k) {
-      const double v = quantise(cloud.positions[i][k], k, i) * scale[k] + offset[k];
-      qlo[k] = std::min(qlo[k], v);
-      qhi[k] = std::max(qhi[k], v);
+      w.put<double>(qhi[k]);
+      w.put<double>(qlo[k]);
     }
-    const int r = st.ret != nullptr ? std::clamp(static_cast<int>((*st.ret)[i]), 0, 15) : 1;
-    if (r >= 1) ++by_return[static_cast<std::size_t>(r - 1)];
+    w.put<std::uint64_t>(0);  // start of waveform data packet record
+    w.put<std::uint64_t>(evlr_start);
+    w.put<std::uint32_t>(wkt_evlr ? 1 : 0);
+    w.put<std::uint64_t>(n);
+    for (std::uint64_t c : by_return) w.put<std::uint64_t>(c);
   }
-  if (n == 0) qlo = qhi = Vec3(0.0);
 
-  // VLRs.
-  std::string wkt = cloud.crs_wkt;
-  const bool wkt_evlr = wkt.size() + 1 > 65535;
-  std::uint32_t n_vlr = 0;
-  std::uint64_t vlr_bytes = 0;
-  if (!wkt.empty() && !wkt_evlr) ++n_vlr, vlr_bytes += 54 + wkt.size() + 1;
-  if (!extra.empty()) ++n_vlr, vlr_bytes += 54 + 192 * extra.size();
-  const std::uint64_t point_offset = 375 + vlr_bytes;
-  if (point_offset > std::numeric_limits<std::uint32_t>::max())
-    throw std::invalid_argument(path.string() + ": VLRs too large for a LAS header");
-  const std::uint64_t evlr_start = wkt_evlr ? point_offset + static_cast<std::uint64_t>(rec_len) * n : 0;
-
-  detail::AtomicWriter w(path, direct);
-  // Public header block (table 3).
-  w.write("LASF", 4);
-  w.put<std::uint16_t>(0);                         // file source id
-  w.put<std::uint16_t>(1u << 4);                   // global encoding: WKT CRS (required for PDRF 6-10)
-  w.put_fixed("", 16);                             // project GUID
-  w.put<std::uint8_t>(1);
-  w.put<std::uint8_t>(4);
-  w.put_fixed(options.system_id, 32);
-  w.put_fixed("rayscan 0.1.0", 32);
-  {
-    const auto now = std::chrono::system_clock::now();
-    const std::chrono::year_month_day ymd{std::chrono::floor<std::chrono::days>(now)};
-    const auto jan1 = std::chrono::sys_days{ymd.year() / std::chrono::January / 1};
-    const auto doy = (std::chrono::floor<std::chrono::days>(now) - jan1).count() + 1;
-    w.put<std::uint16_t>(static_cast<std::uint16_t>(doy));
-    w.put<std::uint16_t>(static_cast<std::uint16_t>(static_cast<int>(ymd.year())));
-  }
-  w.put<std::uint16_t>(375);
-  w.put<std::uint32_t>(static_cast<std::uint32_t>(point_offset));
-  w.put<std::uint32_t>(n_vlr);
-  w.put<std::uint8_t>(static_cast<std::uint8_t>(pdrf));
-  w.put<std::uint16_t>(static_cast<std::uint16_t>(rec_len));
-  w.put<std::uint32_t>(0);  // legacy point count: 0 for PDRF 6-10
-  for (int k = 0; k < 5; ++k) w.put<std::uint32_t>(0);
-  for (int k = 0; k < 3; ++k) w.put<double>(scale[k]);
-  for (int k = 0; k < 3; ++k) w.put<double>(offset[k]);
-  for (int k = 0; k < 3; ++k) {
-    w.put<double>(qhi[k]);
-    w.put<double>(qlo[k]);
-  }
-  w.put<std::uint64_t>(0);  // start of waveform data packet record
-  w.put<std::uint64_t>(evlr_start);
-  w.put<std::uint32_t>(wkt_evlr ? 1 : 0);
-  w.put<std::uint64_t>(n);
-  for (std::uint64_t c : by_return) w.put<std::uint64_t>(c);
-  // VLRs.
-  auto vlr_header = [&](const char* user, std::uint16_t id, std::uint16_t len, const char* desc) {
-    w.put<std::uint16_t>(0);
-    w.put_fixed(user, 16);
-    w.put<std::uint16_t>(id);
-    w.put<std::uint16_t>(len);
-    w.put_fixed(desc, 32);
-  };
-  if (!wkt.empty() && !wkt_evlr) {
-    vlr_header("LASF_Projection", 2112, static_cast<std::uint16_t>(wkt.size() + 1), "OGC WKT");
-    w.write(wkt.c_str(), wkt.size() + 1);
-  }
-  if (!extra.empty()) {
-    vlr_header("LASF_Spec", 4, static_cast<std::uint16_t>(192 * extra.size()), "Extra Bytes Record");
-    for (const ScalarField* f : extra) {
-      std::uint8_t e[192] = {};
-      e[2] = 10;  // data type: double
-      e[3] = 0;   // options: no no_data/min/max/scale/offset
-      std::memcpy(e + 4, f->name.data(), std::min<std::size_t>(32, f->name.size()));
-      const char* desc = "rayscan per-point scalar";
-      std::memcpy(e + 160, desc, std::strlen(desc));
-      w.write(e, 192);
+  /// The VLRs plan_vlrs() counted: OGC WKT (2.5.1, record 2112, NUL-terminated) and Extra Bytes
+  /// (2.5.6, record 4 of "LASF_Spec"; one 192-byte descriptor per extra scalar, type 10 double).
+  void write_vlrs(detail::AtomicWriter& w) const {
+    auto vlr_header = [&](const char* user, std::uint16_t id, std::uint16_t len, const char* desc) {
+      w.put<std::uint16_t>(0);
+      w.put_fixed(user, 16);
+      w.put<std::uint16_t>(id);
+      w.put<std::uint16_t>(len);
+      w.put_fixed(desc, 32);
+    };
+    if (!wkt.empty() && !wkt_evlr) {
+      vlr_header("LASF_Projection", 2112, static_cast<std::uint16_t>(wkt.size() + 1), "OGC WKT");
+      w.write(wkt.c_str(), wkt.size() + 1);
+    }
+    if (!extra.empty()) {
+      vlr_header("LASF_Spec", 4, static_cast<std::uint16_t>(192 * extra.size()), "Extra Bytes Record");
+      for (const ScalarField* f : extra) {
+        std::uint8_t e[192] = {};
+        e[2] = 10;  // data type: double
+        e[3] = 0;   // options: no no_data/min/max/scale/offset
+        std::memcpy(e + 4, f->name.data(), std::min<std::size_t>(32, f->name.size()));
+        const char* desc = "rayscan per-point scalar";
+        std::memcpy(e + 160, desc, std::strlen(desc));
+        w.write(e, 192);
+      }
     }
   }
-  // Point records (tables 13-15).
-  std::vector<std::uint8_t> rec(static_cast<std::size_t>(rec_len));
-  for (std::size_t i = 0; i < n; ++i) {
-    std::uint8_t* r = rec.data();
-    std::memset(r, 0, rec.size());
+
+  /// Point record i (section 2.6, tables 13-15) into r[0, rec_len): standard fields clamped to
+  /// their types, colour back to 8 bit when the reader scaled it up, then the extra bytes.
+  void pack_record(std::size_t i, std::uint8_t* r) const {
+    std::memset(r, 0, static_cast<std::size_t>(rec_len));
     for (int k = 0; k < 3; ++k) {
       const std::int32_t q = quantise(cloud.positions[i][k], k, i);
       std::memcpy(r + 4 * k, &q, 4);
@@ -264,9 +305,11 @@ void write_las_records(const std::filesystem::path& path, const PointCloud& clou
       std::memcpy(r + 36, &v, 2);
     }
     for (std::size_t k = 0; k < extra.size(); ++k) std::memcpy(r + base_len + 8 * k, &extra[k]->values[i], 8);
-    w.write(r, rec.size());
   }
-  if (wkt_evlr) {
+
+  /// The OGC WKT EVLR (section 2.7: 60-byte header with a 64-bit length) after the points, for
+  /// WKT longer than a VLR can hold.
+  void write_wkt_evlr(detail::AtomicWriter& w) const {
     w.put<std::uint16_t>(0);
     w.put_fixed("LASF_Projection", 16);
     w.put<std::uint16_t>(2112);
@@ -274,6 +317,30 @@ void write_las_records(const std::filesystem::path& path, const PointCloud& clou
     w.put_fixed("OGC WKT", 32);
     w.write(wkt.c_str(), wkt.size() + 1);
   }
+};
+
+/// The LAS writer proper; `direct` writes `path` without a temporary (see AtomicWriter).
+void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options,
+                       bool direct) {
+  try {
+    cloud.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(path.string() + ": " + e.what());
+  }
+  LasRecordWriter lw(path, cloud, options);
+  lw.split_fields();
+  lw.choose_scale_offset();
+  lw.first_pass();
+  lw.plan_vlrs();
+  detail::AtomicWriter w(path, direct);
+  lw.write_header(w);
+  lw.write_vlrs(w);
+  std::vector<std::uint8_t> rec(static_cast<std::size_t>(lw.rec_len));
+  for (std::size_t i = 0; i < lw.n; ++i) {
+    lw.pack_record(i, rec.data());
+    w.write(rec.data(), rec.size());
+  }
+  if (lw.wkt_evlr) lw.write_wkt_evlr(w);
   w.commit();
 }
 

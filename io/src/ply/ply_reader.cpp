@@ -3,6 +3,8 @@
 // list), end_header; formats ascii 1.0, binary_little_endian 1.0, binary_big_endian 1.0; scalar
 // types char uchar short ushort int uint float double and their sized aliases int8 .. float64.
 // The "vertex" element becomes the points; every other element (faces, edges, ...) is skipped.
+// read_ply's steps make their checks in a fixed order (the header, then the body in file order),
+// which decides the error a file with several defects reports.
 #include "readers.hpp"
 
 #include <algorithm>
@@ -131,14 +133,66 @@ struct AsciiCursor {
   }
 };
 
-}  // namespace
+/// A parsed PLY header (PLY 1.0: "ply", format, comment/obj_info, element, property,
+/// end_header).
+struct PlyHeader {
+  std::vector<Element> elems;  ///< in file order (the body stores them in this order)
+  std::size_t vertex = 0;      ///< index in elems of the (last) element named "vertex"
+  int format = -1;             ///< 0 ascii, 1 binary_little_endian, 2 binary_big_endian
+  std::string crs_wkt;         ///< from a "comment crs <WKT>" line; "" when absent
+  std::uint64_t line = 0;      ///< line number of end_header
+  std::uint64_t body = 0;      ///< byte offset of the body (after the end_header line)
+  [[nodiscard]] const Element& vertex_element() const { return elems[vertex]; }
+};
 
-PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
+/// Splits a header line at spaces and tabs.
+std::vector<std::string> words(const std::string& s) {
+  std::vector<std::string> w;
+  std::size_t i = 0;
+  while (i < s.size()) {
+    while (i < s.size() && (s[i] == ' ' || s[i] == '\t')) ++i;
+    std::size_t j = i;
+    while (j < s.size() && s[j] != ' ' && s[j] != '\t') ++j;
+    if (j > i) w.push_back(s.substr(i, j - i));
+    i = j;
+  }
+  return w;
+}
+
+/// A "property <type> <name>" or "property list <count type> <type> <name>" line split into
+/// words `w` (line `line` of the file, text `l`). Throws FormatError on an unknown type or form.
+Property parse_property(const std::string& nm, std::uint64_t line, const std::vector<std::string>& w,
+                        const std::string& l) {
+  Property p;
+  if (w.size() == 5 && w[1] == "list") {
+    p.is_list = true;
+    if (!parse_type(w[2], p.count_type) || is_float(p.count_type))
+      fail_line(nm, line, "list count type '" + w[2] + "' is not an integer PLY type");
+    if (!parse_type(w[3], p.type)) fail_line(nm, line, "unknown PLY type '" + w[3] + "'");
+    p.name = w[4];
+  } else if (w.size() == 3) {
+    if (!parse_type(w[1], p.type))
+      fail_line(nm, line, "unknown PLY type '" + w[1] +
+                              "' (expected char, uchar, short, ushort, int, uint, float, double)");
+    p.name = w[2];
+  } else {
+    fail_line(nm, line, "expected \"property <type> <name>\" or \"property list <count type> "
+                        "<type> <name>\", got '" + l + "'");
+  }
+  return p;
+}
+
+/// Reads the header up to end_header: the magic line, the format (version 1.0 only), the
+/// elements and their properties; comments go to info.comments. Lists the vertex properties in
+/// info.fields ("x:float", "vertex_indices:list int") and sets info's encoding, version and
+/// header point count. Throws FormatError "line N: ..." on the first defect, or when there is
+/// no vertex element or it lacks x, y or z.
+PlyHeader parse_ply_header(const Input& in, FileInfo& info) {
   const auto* d = reinterpret_cast<const char*>(in.bytes.data());
   const std::string& nm = in.name;
-  info.format = "PLY";
-  // ---- header ----
-  std::uint64_t pos = 0, line = 0;
+  PlyHeader h;
+  std::uint64_t pos = 0;
+  std::uint64_t& line = h.line;
   auto next_line = [&](std::string& out) {
     if (pos >= in.size()) return false;
     std::uint64_t e = pos;
@@ -149,23 +203,9 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
     ++line;
     return true;
   };
-  auto words = [](const std::string& s) {
-    std::vector<std::string> w;
-    std::size_t i = 0;
-    while (i < s.size()) {
-      while (i < s.size() && (s[i] == ' ' || s[i] == '\t')) ++i;
-      std::size_t j = i;
-      while (j < s.size() && s[j] != ' ' && s[j] != '\t') ++j;
-      if (j > i) w.push_back(s.substr(i, j - i));
-      i = j;
-    }
-    return w;
-  };
   std::string l;
   if (!next_line(l) || l != "ply") fail_line(nm, 1, "expected the magic line \"ply\"");
-  std::vector<Element> elems;
-  std::string crs_wkt;
-  int format = -1;  // 0 ascii, 1 little, 2 big
+  std::vector<Element>& elems = h.elems;
   bool ended = false;
   while (next_line(l)) {
     const auto w = words(l);
@@ -173,12 +213,12 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
     if (w[0] == "comment" || w[0] == "obj_info") {
       info.comments.push_back(l);
       // "comment crs <WKT>": the convention rayscan's PLY writer uses to carry the CRS.
-      if (w[0] == "comment" && w.size() > 2 && w[1] == "crs") crs_wkt = l.substr(l.find("crs") + 4);
+      if (w[0] == "comment" && w.size() > 2 && w[1] == "crs") h.crs_wkt = l.substr(l.find("crs") + 4);
     } else if (w[0] == "format") {
       if (w.size() != 3) fail_line(nm, line, "expected \"format <encoding> 1.0\", got '" + l + "'");
-      if (w[1] == "ascii") format = 0;
-      else if (w[1] == "binary_little_endian") format = 1;
-      else if (w[1] == "binary_big_endian") format = 2;
+      if (w[1] == "ascii") h.format = 0;
+      else if (w[1] == "binary_little_endian") h.format = 1;
+      else if (w[1] == "binary_big_endian") h.format = 2;
       else
         fail_line(nm, line, "unknown PLY format '" + w[1] +
                                 "' (expected ascii, binary_little_endian or binary_big_endian)");
@@ -196,23 +236,7 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
       elems.push_back(e);
     } else if (w[0] == "property") {
       if (elems.empty()) fail_line(nm, line, "property before any element");
-      Property p;
-      if (w.size() == 5 && w[1] == "list") {
-        p.is_list = true;
-        if (!parse_type(w[2], p.count_type) || is_float(p.count_type))
-          fail_line(nm, line, "list count type '" + w[2] + "' is not an integer PLY type");
-        if (!parse_type(w[3], p.type)) fail_line(nm, line, "unknown PLY type '" + w[3] + "'");
-        p.name = w[4];
-      } else if (w.size() == 3) {
-        if (!parse_type(w[1], p.type))
-          fail_line(nm, line, "unknown PLY type '" + w[1] +
-                                  "' (expected char, uchar, short, ushort, int, uint, float, double)");
-        p.name = w[2];
-      } else {
-        fail_line(nm, line, "expected \"property <type> <name>\" or \"property list <count type> "
-                            "<type> <name>\", got '" + l + "'");
-      }
-      elems.back().props.push_back(p);
+      elems.back().props.push_back(parse_property(nm, line, w, l));
     } else if (w[0] == "end_header") {
       ended = true;
       break;
@@ -221,82 +245,119 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
     }
   }
   if (!ended) fail_line(nm, line, "file ends before \"end_header\"");
-  if (format < 0) fail_line(nm, line, "no \"format\" line in the header");
-  const Element* vertex = nullptr;
-  for (const Element& e : elems)
-    if (e.name == "vertex") vertex = &e;
-  if (vertex == nullptr) fail_line(nm, line, "no \"vertex\" element in the header");
-  info.header_point_count = vertex->count;
+  if (h.format < 0) fail_line(nm, line, "no \"format\" line in the header");
+  h.body = pos;
+  bool found = false;
+  for (std::size_t i = 0; i < elems.size(); ++i)
+    if (elems[i].name == "vertex") h.vertex = i, found = true;
+  if (!found) fail_line(nm, line, "no \"vertex\" element in the header");
+  const Element& vertex = h.vertex_element();
+  info.header_point_count = vertex.count;
   int have = 0;
-  for (const Property& p : vertex->props) {
+  for (const Property& p : vertex.props) {
     info.fields.push_back(p.name + ":" + (p.is_list ? "list " : "") + type_name(p.type));
     const Role r = role_of(p);
     have |= r == Role::x ? 1 : r == Role::y ? 2 : r == Role::z ? 4 : 0;
   }
-  if (have != 7) fail_line(nm, vertex->line, "vertex element lacks property x, y or z");
+  if (have != 7) fail_line(nm, vertex.line, "vertex element lacks property x, y or z");
+  return h;
+}
 
-  // ---- body ----
-  const std::uint64_t body = pos;
-  const std::uint64_t remaining = in.size() - body;
-  PointCloud pc;
-  const std::size_t np = vertex->props.size();
-  std::vector<Role> roles(np);
-  bool has_n = false, has_rgb = false, has_i = false, has_c = false, has_g = false;
-  bool rgb_float = false;
-  std::vector<std::size_t> scalar_idx(np, 0);
+/// What each vertex property becomes, and which outputs exist.
+struct VertexRoles {
+  std::vector<Role> of;                 ///< per vertex property
+  bool has_n = false, has_rgb = false;  ///< normals (an nx property); colour (a red property)
+  bool has_i = false, has_c = false, has_g = false;  ///< intensity, classification, GPS time
+  bool rgb_float = false;               ///< some colour property is float (colour_scale's rule)
+  std::vector<std::size_t> scalar_idx;  ///< per property: its index in PointCloud::scalars
   std::size_t nscalars = 0;
+};
+
+/// The roles of the vertex properties (role_of). A second property with an already taken role
+/// becomes a named scalar; scalars are kept only with opt.scalars.
+VertexRoles vertex_roles(const Element& vertex, const ReadOptions& opt) {
+  const std::size_t np = vertex.props.size();
+  VertexRoles v;
+  v.of.resize(np);
+  v.scalar_idx.assign(np, 0);
   std::vector<bool> taken(static_cast<std::size_t>(Role::scalar) + 1, false);
   for (std::size_t k = 0; k < np; ++k) {
-    roles[k] = role_of(vertex->props[k]);
+    Role& r = v.of[k];
+    r = role_of(vertex.props[k]);
     // A second property with the same role (e.g. "intensity" and "scalar_intensity") stays a
     // named scalar so that every attribute vector gets exactly one value per vertex.
-    if (roles[k] != Role::skip && roles[k] != Role::scalar) {
-      if (taken[static_cast<std::size_t>(roles[k])]) roles[k] = Role::scalar;
-      else taken[static_cast<std::size_t>(roles[k])] = true;
+    if (r != Role::skip && r != Role::scalar) {
+      if (taken[static_cast<std::size_t>(r)]) r = Role::scalar;
+      else taken[static_cast<std::size_t>(r)] = true;
     }
-    has_n |= roles[k] == Role::nx;
-    has_rgb |= roles[k] == Role::r;
-    if (roles[k] == Role::r || roles[k] == Role::g || roles[k] == Role::b)
-      rgb_float |= is_float(vertex->props[k].type);
-    has_i |= roles[k] == Role::intensity;
-    has_c |= roles[k] == Role::classification;
-    has_g |= roles[k] == Role::gps;
-    if (roles[k] == Role::scalar) {
-      if (opt.scalars) scalar_idx[k] = nscalars++;
-      else roles[k] = Role::skip;
+    v.has_n |= r == Role::nx;
+    v.has_rgb |= r == Role::r;
+    if (r == Role::r || r == Role::g || r == Role::b) v.rgb_float |= is_float(vertex.props[k].type);
+    v.has_i |= r == Role::intensity;
+    v.has_c |= r == Role::classification;
+    v.has_g |= r == Role::gps;
+    if (r == Role::scalar) {
+      if (opt.scalars) v.scalar_idx[k] = v.nscalars++;
+      else r = Role::skip;
     }
   }
-  // Reserve only what the file can hold (every vertex needs at least one byte per property).
-  const std::uint64_t cap = std::min<std::uint64_t>(vertex->count, remaining / std::max<std::size_t>(np, 1));
-  auto reserve = [&](auto& v, bool on) {
-    if (on) v.reserve(static_cast<std::size_t>(cap));
-  };
-  reserve(pc.positions, true);
-  reserve(pc.normals, has_n);
-  reserve(pc.intensity, has_i);
-  reserve(pc.classification, has_c);
-  reserve(pc.gps_time, has_g);
-  std::vector<float> col;
-  if (has_rgb) col.reserve(static_cast<std::size_t>(cap) * 3);
-  for (std::size_t k = 0; k < np; ++k)
-    if (roles[k] == Role::scalar) {
-      // CloudCompare's "scalar_" prefix (docs/formats.md) is not part of the field's name,
-      // unless the property is a second one for a dedicated field ("scalar_intensity" beside
-      // "intensity"), which keeps its full name.
-      std::string name = vertex->props[k].name;
-      if (name.size() > 7 && lower(name.substr(0, 7)) == "scalar_" && role_of(vertex->props[k]) == Role::scalar)
-        name = name.substr(7);
-      pc.scalars.push_back({name, {}});
-      pc.scalars.back().values.reserve(static_cast<std::size_t>(cap));
-    }
+  return v;
+}
 
-  std::vector<double> vals(np);
+/// The body of a PLY file decoded into a PointCloud: the elements in header order, the vertex
+/// element's values gathered per vertex in `vals` and emitted; the elements after it are not
+/// read.
+struct PlyBody {
+  const Input& in;
+  FileInfo& info;
+  const PlyHeader& h;
+  const Element& vertex;
+  const VertexRoles& roles;
+  PointCloud pc;
+  std::vector<float> col;     ///< r, g, b per vertex (before colour_scale)
+  std::vector<double> vals;   ///< the current vertex: one value per property (0 for lists)
   std::uint64_t vertex_index = 0;
-  auto emit = [&](std::uint64_t where, bool is_line) {
+
+  PlyBody(const Input& input, FileInfo& file_info, const PlyHeader& header, const VertexRoles& r)
+      : in(input), info(file_info), h(header), vertex(header.vertex_element()), roles(r),
+        vals(vertex.props.size()) {}
+
+  /// Reserves the outputs, only what the file can hold (every vertex needs at least one byte
+  /// per property), and names the scalars.
+  void reserve_outputs() {
+    const std::size_t np = vertex.props.size();
+    const std::uint64_t remaining = in.size() - h.body;
+    const std::uint64_t cap = std::min<std::uint64_t>(vertex.count, remaining / std::max<std::size_t>(np, 1));
+    auto reserve = [&](auto& v, bool on) {
+      if (on) v.reserve(static_cast<std::size_t>(cap));
+    };
+    reserve(pc.positions, true);
+    reserve(pc.normals, roles.has_n);
+    reserve(pc.intensity, roles.has_i);
+    reserve(pc.classification, roles.has_c);
+    reserve(pc.gps_time, roles.has_g);
+    if (roles.has_rgb) col.reserve(static_cast<std::size_t>(cap) * 3);
+    for (std::size_t k = 0; k < np; ++k)
+      if (roles.of[k] == Role::scalar) {
+        // CloudCompare's "scalar_" prefix (docs/formats.md) is not part of the field's name,
+        // unless the property is a second one for a dedicated field ("scalar_intensity" beside
+        // "intensity"), which keeps its full name.
+        std::string name = vertex.props[k].name;
+        if (name.size() > 7 && lower(name.substr(0, 7)) == "scalar_" && role_of(vertex.props[k]) == Role::scalar)
+          name = name.substr(7);
+        pc.scalars.push_back({name, {}});
+        pc.scalars.back().values.reserve(static_cast<std::size_t>(cap));
+      }
+  }
+
+  /// Appends the vertex in `vals`. Throws FormatError at `where` (a line when is_line, else a
+  /// byte offset) when x, y or z is not finite.
+  void emit(std::uint64_t where, bool is_line) {
     double x = 0, y = 0, z = 0, n3[3] = {0, 0, 0}, c3[3] = {0, 0, 0};
+    const std::size_t np = vals.size();
     for (std::size_t k = 0; k < np; ++k) {
       const double a = vals[k];
-      switch (roles[k]) {
+      switch (roles.of[k]) {
         case Role::x: x = a; break;
         case Role::y: y = a; break;
         case Role::z: z = a; break;
@@ -309,26 +370,30 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
         case Role::intensity: pc.intensity.push_back(to_u16(a)); break;
         case Role::classification: pc.classification.push_back(to_u8(a)); break;
         case Role::gps: pc.gps_time.push_back(a); break;
-        case Role::scalar: pc.scalars[scalar_idx[k]].values.push_back(a); break;
+        case Role::scalar: pc.scalars[roles.scalar_idx[k]].values.push_back(a); break;
         case Role::skip: break;
       }
     }
     if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) {
       const std::string what = "vertex " + std::to_string(vertex_index) +
                                " has a non-finite coordinate (expected finite x, y, z)";
-      if (is_line) fail_line(nm, where, what);
-      fail_at(nm, where, what);
+      if (is_line) fail_line(in.name, where, what);
+      fail_at(in.name, where, what);
     }
     pc.positions.emplace_back(x, y, z);
-    if (has_n) pc.normals.emplace_back(to_f32(n3[0]), to_f32(n3[1]), to_f32(n3[2]));
-    if (has_rgb) col.insert(col.end(), {to_f32(c3[0]), to_f32(c3[1]), to_f32(c3[2])});
+    if (roles.has_n) pc.normals.emplace_back(to_f32(n3[0]), to_f32(n3[1]), to_f32(n3[2]));
+    if (roles.has_rgb) col.insert(col.end(), {to_f32(c3[0]), to_f32(c3[1]), to_f32(c3[2])});
     ++vertex_index;
-  };
+  }
 
-  if (format == 0) {
-    AsciiCursor cur{in, body, line + 1};
-    for (const Element& e : elems) {
-      const bool is_vertex = &e == vertex;
+  /// format ascii 1.0: whitespace-separated values, one item per line by convention (lines are
+  /// not enforced). Throws FormatError "line N: ..." on a bad value or when an element announces
+  /// more items than the bytes left could hold.
+  void read_ascii_elements() {
+    const std::string& nm = in.name;
+    AsciiCursor cur{in, h.body, h.line + 1};
+    for (const Element& e : h.elems) {
+      const bool is_vertex = &e == &vertex;
       // Loops bounded by the file's size, not by the header's count: an element
       // without properties holds no data, and every item of one with properties takes at
       // least one byte.
@@ -355,13 +420,20 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
       }
       if (is_vertex) break;
     }
-  } else {
-    const bool big = format == 2;
+  }
+
+  /// format binary_little_endian / binary_big_endian 1.0: each item's properties packed in
+  /// header order, a list as its count then the values. Elements of fixed size before the
+  /// vertex element are skipped whole. Throws FormatError "byte N: ..." when the data ends early
+  /// or a list count is negative.
+  void read_binary_elements() {
+    const std::string& nm = in.name;
+    const bool big = h.format == 2;
     auto ld = [big](const std::uint8_t* p, PlyType t) { return big ? load<true>(p, t) : load<false>(p, t); };
     const std::uint8_t* b = in.bytes.data();
-    std::uint64_t p = body;
-    for (const Element& e : elems) {
-      const bool is_vertex = &e == vertex;
+    std::uint64_t p = h.body;
+    for (const Element& e : h.elems) {
+      const bool is_vertex = &e == &vertex;
       bool fixed = true;
       std::uint64_t stride = 0;
       for (const Property& q : e.props) {
@@ -405,11 +477,15 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
       if (is_vertex) break;
     }
   }
-  if (has_rgb) {
+
+  /// PointCloud::rgb from the colour properties, scaled by colour_scale() (its note added to
+  /// info.notes).
+  void finish_colour() {
+    if (!roles.has_rgb) return;
     float mx = 0;
     for (float c : col) mx = std::max(mx, c);
     std::string note;
-    const double s = colour_scale(mx, rgb_float, note);
+    const double s = colour_scale(mx, roles.rgb_float, note);
     if (!note.empty()) info.notes.push_back(note);
     pc.rgb.resize(pc.positions.size());
     for (std::size_t i = 0; i < pc.rgb.size(); ++i) {
@@ -417,9 +493,22 @@ PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
       pc.rgb[i] = Rgb16{q(col[3 * i]), q(col[3 * i + 1]), q(col[3 * i + 2])};
     }
   }
-  pc.crs_wkt = crs_wkt;
-  if (!crs_wkt.empty()) info.crs_source = "PLY comment crs";
-  return pc;
+};
+
+}  // namespace
+
+PointCloud read_ply(const Input& in, const ReadOptions& opt, FileInfo& info) {
+  info.format = "PLY";
+  const PlyHeader h = parse_ply_header(in, info);
+  const VertexRoles roles = vertex_roles(h.vertex_element(), opt);
+  PlyBody body(in, info, h, roles);
+  body.reserve_outputs();
+  if (h.format == 0) body.read_ascii_elements();
+  else body.read_binary_elements();
+  body.finish_colour();
+  body.pc.crs_wkt = h.crs_wkt;
+  if (!h.crs_wkt.empty()) info.crs_source = "PLY comment crs";
+  return std::move(body.pc);
 }
 
 }  // namespace rayscan::io::detail
