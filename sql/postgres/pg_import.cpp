@@ -6,6 +6,8 @@
 // boxes live in <table>_chunks with a GiST index whose consistent/distance are the bounds evaluation.
 #include "rayscan/sql/import.hpp"
 
+#include "rayscan/base/option_error.hpp"
+
 #include "rayscan/sql/site_stream.hpp"
 
 #include <libpq-fe.h>
@@ -316,7 +318,7 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
   if (paths.empty()) throw std::invalid_argument("no input cloud given");
   // Lower case and <= 50: the table's companions (<table>_sources, _chunks, ...) stay within 63.
   if (!is_sql_identifier(table, 50, false))
-    throw std::invalid_argument("--table '" + table + "': expected a lower-case SQL identifier [a-z_][a-z0-9_]* (max 50)");
+    throw OptionError({option("table"), " '" + table + "': expected a lower-case SQL identifier [a-z_][a-z0-9_]* (max 50)"});
   const std::unique_ptr<SiteStream> site = open_site(paths, options);
   PgImport im(table, *site);
   im.connect_and_begin(conninfo);

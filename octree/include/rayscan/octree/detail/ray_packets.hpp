@@ -1,0 +1,281 @@
+// The packet first hit: up to 16 rays driven down one shared node stack with RayTraversal's node
+// test and leaf work.
+// Implementation of ray_query.hpp (include that).
+#pragma once
+
+#include "rayscan/octree/detail/ray_dispatch.hpp"
+
+namespace rayscan::detail {
+
+/// The packet first hit of up to N <= 16 rays (kBest1 policy, OrderKey). One traversal state per
+/// ray (RayTraversal above: its node test, leaf work and candidate sink), driven down one shared
+/// node stack: a node is visited when any of the rays of its entry's mask still has it live, each
+/// live ray evaluates the node's points and tests the node's children with its own node test, and
+/// a child is pushed once with the mask of the rays that hit it (and each one's lower bound), so
+/// rays whose t_far (the k-bound) is beaten drop out of the subtrees behind their hit. When a
+/// node is left with a single live ray the packet has diverged there and that ray finishes the
+/// subtree alone (RayTraversal::traverse_from, the single-ray loop itself).
+///
+/// Why a loop of its own rather than a policy of traverse_from: the stack entries carry a ray
+/// mask and a bound per ray, and the child order is chosen for the packet; everything a node or a
+/// point is tested with is the single-ray code. Each ray's answer is the exact minimum (key, id)
+/// over every candidate, which conservative pruning always reaches, so it is bit-identical to
+/// ray_first_hit on that ray whatever order the nodes are visited in. Returns the mask of rays
+/// that found a hit (best[i] set).
+///
+/// `keys[i]` is ray i's point-key policy (OrderKey, or a RefinedKey whose refinement depends on the
+/// ray, e.g. the discs of surfel rendering; nullptr only with OrderKey). With per-node
+/// radii each ray enters a node with its own bound (RayTraversal::enter_node; or keeps the root's
+/// when the filter has per-slot radii and the boxes are float geometry boxes); with float
+/// geometry boxes (RefinedKey::child_boxes_f) the children are tested on them, all rays at once.
+///
+/// `K`: the kernel policy, as RayTraversal's (first_hit_packet_avx2 / _avx512 below run the
+/// instances compiled per ISA).
+template <unsigned N, class K, SpatialIndex I, class KeyPolicy>
+__attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n,
+                                                                const RayQuery& q, Candidate* best,
+                                                                RayQueryStats* stats, const KeyPolicy* keys) {
+  static_assert(N >= 1 && N <= 16);
+  using Node = typename I::Node;
+  using RT = RayTraversal<true, I, KeyPolicy, K>;
+  const auto key_of = [keys](unsigned i) -> const KeyPolicy& {
+    if constexpr (std::is_same_v<KeyPolicy, OrderKey>) {
+      static constexpr OrderKey kKey{};
+      return keys ? keys[i] : kKey;
+    } else {
+      return keys[i];
+    }
+  };
+  struct Entry {
+    Node node;
+    std::uint32_t mask;  // rays for which the node passed the node test
+    double lb[N];        // each one's lower bound (valid where mask has the bit)
+  };
+  thread_local std::vector<Entry> stack;
+  // The rays' states in uninitialised storage (an array of std::optional<RT> was zero-filled on
+  // every call: 9 KB of memset per 16-ray packet, 11% of a render's instructions under callgrind).
+  // (made: the rays whose state was constructed, bit i for st[i].)
+  struct States {
+    alignas(RT) unsigned char buf[N][sizeof(RT)];
+    std::uint32_t made = 0;
+    ~States() {
+      for (std::uint32_t m = made; m; m &= m - 1) std::launder(reinterpret_cast<RT*>(buf[__builtin_ctz(m)]))->~RT();
+    }
+  } states;
+  RT* st[N];
+  Entry root;
+  root.node = index.root();
+  root.mask = 0;
+  const KernelsOf<K> kern = kernels_of<K>();
+  for (unsigned i = 0; i < n; ++i) {
+    // As ray_traverse: a ray that root_test finds missing is never set up, one that misses the
+    // root is never prepared, nor read again.
+    const RootTest rtest = root_test<K, KeyPolicy>(kern, index, rays[i], q);
+    if (rtest == RootTest::miss) continue;
+    st[i] = ::new (static_cast<void*>(states.buf[i])) RT(index, rays[i], q, best[i], stats, key_of(i));
+    states.made |= 1u << i;
+    if (st[i]->enters_root(rtest, root.lb[i])) {
+      st[i]->prepare();
+      root.mask |= 1u << i;
+    }
+  }
+  stack.clear();
+  if (root.mask) stack.push_back(root);
+  // Child test policy: SIMD over the rays (packet_child_slab: one lane per ray, each child box
+  // broadcast) when every ray's slab result is final (orders time / sphere_hit, no planes) and
+  // float-testable; else each ray's own test_children (SIMD over the children).
+  [[maybe_unused]] bool over_rays = false;
+  [[maybe_unused]] alignas(64) simd::SlabPacketF lanes;
+  [[maybe_unused]] auto set_lane = [&](unsigned i) {
+    const simd::SlabRayF& r = RT::per_box_f ? st[i]->sr_box : st[i]->sr;
+    for (int a = 0; a < 3; ++a) {
+      lanes.o_plus[a][i] = r.o_plus[a];
+      lanes.o_minus[a][i] = r.o_minus[a];
+      lanes.inv_d[a][i] = r.inv_d[a];
+    }
+    lanes.t_lo[i] = r.t_lo;
+    lanes.t_hi[i] = r.t_hi;
+  };
+  if constexpr (FloatChildBoxes<I>) {
+    // (Only the prepared rays, those in root.mask, count and get a lane; no other ray is ever in a
+    // stack entry's mask.)
+    over_rays = has_kernel(kern.packet_child_slab);
+    for (std::uint32_t m = root.mask; m; m &= m - 1) {
+      const RT& r = *st[__builtin_ctz(m)];
+      over_rays = over_rays && r.slab_is_final && r.simd_children && r.pad < kInf;
+    }
+    if (over_rays) {
+      for (unsigned i = 0; i < 16; ++i) {  // unused lanes: a ray that hits nothing (t_lo > t_hi)
+        for (int a = 0; a < 3; ++a) lanes.o_plus[a][i] = lanes.o_minus[a][i] = lanes.inv_d[a][i] = 0.0f;
+        lanes.t_lo[i] = 1.0f;
+        lanes.t_hi[i] = 0.0f;
+      }
+      for (std::uint32_t m = root.mask; m; m &= m - 1) set_lane(static_cast<unsigned>(__builtin_ctz(m)));
+    }
+  }
+  Entry kids[8];
+  double lbs[8];
+  double lbc[8][N];     // lbc[c][i]: ray i's bound of child c
+  std::uint32_t cm[8];  // cm[c]: the rays that hit child c
+  while (!stack.empty()) {
+    const Entry e = stack.back();
+    stack.pop_back();
+    std::uint32_t act = 0;
+    for (std::uint32_t m = e.mask; m; m &= m - 1) {
+      const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+      if (!st[i]->done && st[i]->live(e.lb[i])) act |= 1u << i;  // (done: any_hit answered)
+    }
+    if (!act) continue;
+    if ((act & (act - 1)) == 0) {  // one ray left: diverged, it finishes the subtree alone
+      const unsigned i = static_cast<unsigned>(__builtin_ctz(act));
+      st[i]->traverse_from(e.node, e.lb[i]);
+      continue;
+    }
+    for (std::uint32_t m = act; m; m &= m - 1) {
+      RT& r = *st[__builtin_ctz(m)];
+      const double before = r.worst;
+      r.enter_node(e.node);
+      r.eval_points(e.node);
+      if constexpr (FloatChildBoxes<I>)
+        if (over_rays && r.worst != before) set_lane(static_cast<unsigned>(__builtin_ctz(m)));
+    }
+    const unsigned nc = index.child_count(e.node);
+    if (nc == 0) continue;
+    if (nc > 8) {  // (no index here has more than 8 children): each ray alone below this node
+      for (std::uint32_t m = act; m; m &= m - 1) {
+        RT& r = *st[__builtin_ctz(m)];
+        for (unsigned c = 0; c < nc; ++c) {
+          double lb;
+          if (r.test_child(index.child(e.node, c), lb)) r.traverse_from(index.child(e.node, c), lb);
+        }
+      }
+      continue;
+    }
+    std::uint32_t any = 0;
+    for (unsigned c = 0; c < nc; ++c) cm[c] = 0;
+    bool tested = false;
+    if constexpr (FloatChildBoxes<I>) {
+      if (over_rays) {
+        std::uint32_t hits[8];
+        alignas(64) float entry[8 * 16];
+        if constexpr (RT::per_box_f)
+          kern.packet_child_slab(st[__builtin_ctz(act)]->key_policy.child_boxes_f_of(e.node), lanes, N, hits, entry);
+        else
+          kern.packet_child_slab(index.child_boxes_f(e.node), lanes, N, hits, entry);
+        for (unsigned c = 0; c < nc; ++c)
+          for (std::uint32_t m = hits[c] & act; m; m &= m - 1) {
+            const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+            const double lb = std::max(static_cast<double>(entry[16 * c + i]), q.t_min);  // as test_children
+            if (!st[i]->live(lb)) continue;
+            cm[c] |= 1u << i;
+            lbc[c][i] = lb;
+            any |= 1u << c;
+          }
+        tested = true;
+      }
+    }
+    if (!tested)
+      for (std::uint32_t m = act; m; m &= m - 1) {
+        const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+        for (std::uint32_t h = st[i]->test_children(e.node, nc, lbs); h; h &= h - 1) {
+          const unsigned c = static_cast<unsigned>(__builtin_ctz(h));
+          cm[c] |= 1u << i;
+          lbc[c][i] = lbs[c];
+          any |= 1u << c;
+        }
+      }
+    // One entry per child hit by any ray, pushed far-to-near by the smallest bound of its rays.
+    unsigned nk = 0;
+    double key[8];
+    for (; any; any &= any - 1) {
+      const unsigned c = static_cast<unsigned>(__builtin_ctz(any));
+      Entry k;
+      k.node = index.child(e.node, c);
+      k.mask = cm[c];
+      double kmin = kInf;
+      for (std::uint32_t m = cm[c]; m; m &= m - 1) {
+        const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+        k.lb[i] = lbc[c][i];
+        kmin = std::min(kmin, lbc[c][i]);
+      }
+      unsigned j = nk++;
+      while (j > 0 && key[j - 1] < kmin) {
+        kids[j] = kids[j - 1];
+        key[j] = key[j - 1];
+        --j;
+      }
+      kids[j] = k;
+      key[j] = kmin;
+    }
+    for (unsigned j = 0; j < nk; ++j) stack.push_back(kids[j]);
+  }
+  std::uint32_t found = 0;
+  for (std::uint32_t m = states.made; m; m &= m - 1)
+    if (st[__builtin_ctz(m)]->found) found |= 1u << __builtin_ctz(m);
+  return found;
+}
+
+/// first_hit_packet with kernel policy K, the 4-, 8- or 16-lane instance by packet size n.
+template <class K, SpatialIndex I, class KeyPolicy>
+unsigned first_hit_packet_any(const I& index, const Ray* rays, unsigned n,
+                                                                    const RayQuery& q, Candidate* best,
+                                                                    RayQueryStats* stats, const KeyPolicy* keys) {
+  return n <= 4   ? first_hit_packet<4, K>(index, rays, n, q, best, stats, keys)
+         : n <= 8 ? first_hit_packet<8, K>(index, rays, n, q, best, stats, keys)
+                  : first_hit_packet<kMaxRayPacket, K>(index, rays, n, q, best, stats, keys);
+}
+
+#if RAYSCAN_SIMD_X86
+/// first_hit_packet compiled for AVX2 + FMA with its kernels inlined (as ray_traverse_avx2), the
+/// 16-lane instance for any packet size (one instance per ISA: the packet loop inlines two
+/// single-ray loops, and three sizes per ISA tripled the compile time of the renderer; the 4- and
+/// 8-lane instances only serve the last rays of a span).
+template <SpatialIndex I, class KeyPolicy>
+__attribute__((target("avx2,fma"), flatten, noinline)) unsigned first_hit_packet_avx2(
+    const I& index, const Ray* rays, unsigned n, const RayQuery& q, Candidate* best, RayQueryStats* stats,
+    const KeyPolicy* keys) {
+  return first_hit_packet<kMaxRayPacket, simd::Avx2Kernels>(index, rays, n, q, best, stats, keys);
+}
+/// As first_hit_packet_avx2, for the AVX-512 path (F + VL).
+template <SpatialIndex I, class KeyPolicy>
+__attribute__((target("avx512f,avx512vl,avx2,fma"), flatten, noinline)) unsigned first_hit_packet_avx512(
+    const I& index, const Ray* rays, unsigned n, const RayQuery& q, Candidate* best, RayQueryStats* stats,
+    const KeyPolicy* keys) {
+  return first_hit_packet<kMaxRayPacket, simd::Avx512Kernels>(index, rays, n, q, best, stats, keys);
+}
+#endif
+
+/// first_hit_packet_any on SIMD path `path` (simd_path()): where kIsaInstances, the instance
+/// compiled for its instruction set, else the one calling its kernels through simd::Kernels.
+template <SpatialIndex I, class KeyPolicy>
+unsigned first_hit_packet_on(SimdPath path, const I& index, const Ray* rays, unsigned n, const RayQuery& q,
+                             Candidate* best, RayQueryStats* stats, const KeyPolicy* keys) {
+#if RAYSCAN_SIMD_X86
+  if constexpr (kIsaInstances<I, KeyPolicy>) {
+    if (path == SimdPath::avx2) return first_hit_packet_avx2(index, rays, n, q, best, stats, keys);
+    if (path == SimdPath::avx512) return first_hit_packet_avx512(index, rays, n, q, best, stats, keys);
+  }
+#endif
+  (void)path;
+  return first_hit_packet_any<simd::Kernels>(index, rays, n, q, best, stats, keys);
+}
+
+/// Runs first_hit_packet over `rays` in blocks of kMaxRayPacket consecutive rays (the 4-, 8- or
+/// 16-lane instance by block size; on FloatChildBoxes indexes the instance compiled for the
+/// active SIMD path where kIsaInstances, as ray_traverse) and calls emit(b, n, best, found) for each block: rays
+/// [b, b + n), bit i of `found` set when ray b + i has its answer in best[i].
+/// `keys`: as first_hit_packet's, one per ray of `rays` (nullptr only with OrderKey).
+template <SpatialIndex I, class Emit, class KeyPolicy = OrderKey>
+void for_each_ray_packet(const I& index, std::span<const Ray> rays, const RayQuery& q, RayQueryStats* stats,
+                         Emit&& emit, const KeyPolicy* keys = nullptr) {
+  const SimdPath path = simd::active_kernels().path;
+  for (std::size_t b = 0; b < rays.size(); b += kMaxRayPacket) {
+    const unsigned n = static_cast<unsigned>(std::min(kMaxRayPacket, rays.size() - b));
+    const KeyPolicy* k = keys ? keys + b : nullptr;
+    Candidate best[kMaxRayPacket];
+    const std::uint32_t found = first_hit_packet_on(path, index, rays.data() + b, n, q, best, stats, k);
+    emit(b, n, static_cast<const Candidate*>(best), found);
+  }
+}
+
+}  // namespace rayscan::detail

@@ -1,0 +1,242 @@
+// The AVX-512 (F + VL) kernels of the traversal: 8 points per step and 16-ray packets (the child
+// test stays 8-wide, the AVX2 kernel: an octree node has 8 children). Part of simd_kernels.hpp (include that); the
+// conventions (target attributes, conservative filters, -ffp-contract=off) are stated there.
+#pragma once
+
+#include "rayscan/octree/detail/simd_kernels_avx2.hpp"
+
+namespace rayscan::simd::kernels {
+
+#if RAYSCAN_SIMD_X86
+// 16 rays per register (packets of more than 8 rays; smaller ones take the AVX2 kernel). GCC 12's
+// _mm512_min_ps/_mm512_max_ps pass an undefined pass-through operand that -Wmaybe-uninitialized
+// reports (a false positive inside the intrinsics header).
+#pragma GCC diagnostic push
+#if !defined(__clang__)  // (a GCC warning: clang, which builds the fuzzers, has no such group)
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) void packet_child_slab_avx512(const ChildBoxesF& b,
+                                                                                   const SlabPacketF& p,
+                                                                                   unsigned lanes,
+                                                                                   std::uint32_t* hits,
+                                                                                   float* entry) {
+  if (lanes <= 8) {
+    packet_child_slab_avx2(b, p, lanes, hits, entry);
+    return;
+  }
+  const __m512 eps = _mm512_set1_ps(kRelSlack);
+  const __m512i abs_mask = _mm512_set1_epi32(0x7fffffff);
+  const __m512 tl = _mm512_load_ps(p.t_lo), th = _mm512_load_ps(p.t_hi);
+  const __m512 inv[3] = {_mm512_load_ps(p.inv_d[0]), _mm512_load_ps(p.inv_d[1]), _mm512_load_ps(p.inv_d[2])};
+  const __m512 op[3] = {_mm512_load_ps(p.o_plus[0]), _mm512_load_ps(p.o_plus[1]), _mm512_load_ps(p.o_plus[2])};
+  const __m512 om[3] = {_mm512_load_ps(p.o_minus[0]), _mm512_load_ps(p.o_minus[1]), _mm512_load_ps(p.o_minus[2])};
+  for (unsigned c = 0; c < b.count; ++c) {
+    const float* bx = b.base + static_cast<std::size_t>(c) * b.stride;
+    __m512 tn = tl, tf = th;
+    for (int a = 0; a < 3; ++a) {
+      const __m512 ta = _mm512_mul_ps(_mm512_sub_ps(_mm512_set1_ps(bx[a]), op[a]), inv[a]);
+      const __m512 tb = _mm512_mul_ps(_mm512_sub_ps(_mm512_set1_ps(bx[3 + a]), om[a]), inv[a]);
+      __m512 t0a = _mm512_min_ps(ta, tb), t1a = _mm512_max_ps(ta, tb);
+      t0a = _mm512_fnmadd_ps(_mm512_castsi512_ps(_mm512_and_si512(_mm512_castps_si512(t0a), abs_mask)), eps, t0a);
+      t1a = _mm512_fmadd_ps(_mm512_castsi512_ps(_mm512_and_si512(_mm512_castps_si512(t1a), abs_mask)), eps, t1a);
+      tn = _mm512_max_ps(t0a, tn);
+      tf = _mm512_min_ps(t1a, tf);
+    }
+    hits[c] = static_cast<unsigned>(_mm512_cmp_ps_mask(tn, tf, _CMP_LE_OQ));
+    _mm512_storeu_ps(entry + 16 * c, tn);
+  }
+}
+
+// The largest / least of the four lanes of v, in every lane.
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d lanes_max4(__m256d v) {
+  v = _mm256_max_pd(v, _mm256_permute4x64_pd(v, 0x4E));
+  return _mm256_max_pd(v, _mm256_permute_pd(v, 0x5));
+}
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d lanes_min4(__m256d v) {
+  v = _mm256_min_pd(v, _mm256_permute4x64_pd(v, 0x4E));
+  return _mm256_min_pd(v, _mm256_permute_pd(v, 0x5));
+}
+
+// RayBoxFn (simd.hpp) on AVX2: the three axes in the lanes 0-2 of one register (lane 3 repeats z,
+// and its 1 / d is made NaN: an ignored axis). The first-hit traversals' root test (ray_query.hpp,
+// root_test, where its effect is measured).
+inline __attribute__((target("avx2,fma"))) bool ray_box_avx2(const double* lo, const double* hi, const double* o,
+                                                              const double* d, double pad, double t_lo,
+                                                              double t_hi) {
+  // (Element loads: a masked or wider load of values just stored, such as a box computed by the
+  // caller, would not be forwarded from the stores: misses took 32 instead of 14 ns. Lane 3 repeats
+  // lane 2 rather than 0.0, whose zero-extending vmovq valgrind 3.19 cannot decode: callgrind.)
+  const __m256d vlo = _mm256_setr_pd(lo[0], lo[1], lo[2], lo[2]), vhi = _mm256_setr_pd(hi[0], hi[1], hi[2], hi[2]);
+  const __m256d vo = _mm256_setr_pd(o[0], o[1], o[2], o[2]), vd = _mm256_setr_pd(d[0], d[1], d[2], d[2]);
+  const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7FFFFFFFFFFFFFFFLL));
+  const __m256d m = lanes_max4(_mm256_max_pd(
+      _mm256_max_pd(_mm256_and_pd(vlo, abs_mask), _mm256_and_pd(vhi, abs_mask)), _mm256_and_pd(vo, abs_mask)));
+  const double tol = node_test_tolerance_bound(_mm256_cvtsd_f64(m));
+  const __m256d grow = _mm256_set1_pd(pad + tol);
+  const __m256d nan = _mm256_set1_pd(std::numeric_limits<double>::quiet_NaN());
+  const __m256d inv = _mm256_blend_pd(_mm256_div_pd(_mm256_set1_pd(1.0), vd), nan, 0x8);
+  const __m256d ta = _mm256_mul_pd(_mm256_sub_pd(vlo, _mm256_add_pd(vo, grow)), inv);
+  const __m256d tb = _mm256_mul_pd(_mm256_sub_pd(vhi, _mm256_sub_pd(vo, grow)), inv);
+  const __m256d skip = _mm256_cmp_pd(ta, tb, _CMP_UNORD_Q);  // NaN in either: the axis says nothing
+  const double inf = std::numeric_limits<double>::infinity();
+  const __m256d near = lanes_max4(_mm256_blendv_pd(_mm256_min_pd(ta, tb), _mm256_set1_pd(-inf), skip));
+  const __m256d far = lanes_min4(_mm256_blendv_pd(_mm256_max_pd(ta, tb), _mm256_set1_pd(inf), skip));
+  const double t_near = std::max(_mm256_cvtsd_f64(near), t_lo - tol);
+  const double t_far = std::min(_mm256_cvtsd_f64(far), t_hi + tol);
+  return !(t_near > t_far);
+}
+
+// ---- AVX-512: 8 points per step (the child test stays 8-wide: an octree node has 8 children) ----
+
+// As disc_miss4, for eight points (v = p - o, r the radii, n the normals, as doubles): the lane
+// mask of the discs the ray provably misses.
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned disc_miss8(
+    const PointFilterD& f, __m512d vx, __m512d vy, __m512d vz, __m512d r, __m512d nx, __m512d ny, __m512d nz) {
+  const __m512d dx = _mm512_set1_pd(f.d[0]), dy = _mm512_set1_pd(f.d[1]), dz = _mm512_set1_pd(f.d[2]);
+  const __m512d dn = _mm512_fmadd_pd(dz, nz, _mm512_fmadd_pd(dy, ny, _mm512_mul_pd(dx, nx)));
+  const __m512d vn = _mm512_fmadd_pd(vz, nz, _mm512_fmadd_pd(vy, ny, _mm512_mul_pd(vx, nx)));
+  const __m512d t = _mm512_div_pd(vn, dn);
+  const __m512d wx = _mm512_fmsub_pd(t, dx, vx), wy = _mm512_fmsub_pd(t, dy, vy), wz = _mm512_fmsub_pd(t, dz, vz);
+  const __m512d w2 = _mm512_fmadd_pd(wz, wz, _mm512_fmadd_pd(wy, wy, _mm512_mul_pd(wx, wx)));
+  const __m512d v2 = _mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx)));
+  const __m512d r2 = _mm512_mul_pd(r, r);
+  const __m512d lim = _mm512_fmadd_pd(_mm512_add_pd(r2, v2), _mm512_set1_pd(0x1p-32), r2);
+  const __m512d e = _mm512_fmadd_pd(_mm512_abs_pd(t), _mm512_set1_pd(0x1p-36), _mm512_set1_pd(f.disc_slack));
+  const unsigned miss = _mm512_cmp_pd_mask(w2, lim, _CMP_GT_OQ) |
+                        _mm512_cmp_pd_mask(t, _mm512_sub_pd(_mm512_set1_pd(f.disc_t_lo), e), _CMP_LT_OQ) |
+                        _mm512_cmp_pd_mask(t, _mm512_add_pd(_mm512_set1_pd(f.disc_t_hi), e), _CMP_GT_OQ);
+  // |d.n| >= 2^-10 |n| (squared; scale-free, so a normal of any length gets the margins' bound).
+  const __m512d n2 = _mm512_fmadd_pd(nz, nz, _mm512_fmadd_pd(ny, ny, _mm512_mul_pd(nx, nx)));
+  return miss & _mm512_cmp_pd_mask(_mm512_mul_pd(dn, dn), _mm512_mul_pd(n2, _mm512_set1_pd(0x1p-20)), _CMP_GE_OQ);
+}
+
+// Eight AoS triples (24 values in a, b, c) as x, y and z lanes, lane L holding point 3L mod 8:
+// x_j sits at lane 3j mod 8 of one of a, b, c, y_j one lane later, z_j two, so two blends gather
+// each coordinate and a rotation aligns y and z with x (2 shuffles instead of 6 two-source
+// permutes: bench/notes/). Per-point inputs in point order (radii) are
+// permuted into this order; lane masks go back to point order through lane_to_point_mask.
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline void deinterleave8(
+    __m512d a, __m512d b, __m512d c, __m512d& x, __m512d& y, __m512d& z) {
+  x = _mm512_mask_blend_pd(0x24, _mm512_mask_blend_pd(0x92, a, b), c);
+  y = _mm512_mask_blend_pd(0x49, _mm512_mask_blend_pd(0x24, a, b), c);
+  z = _mm512_mask_blend_pd(0x92, _mm512_mask_blend_pd(0x49, a, b), c);
+  y = _mm512_castsi512_pd(_mm512_alignr_epi64(_mm512_castpd_si512(y), _mm512_castpd_si512(y), 1));
+  z = _mm512_castsi512_pd(_mm512_alignr_epi64(_mm512_castpd_si512(z), _mm512_castpd_si512(z), 2));
+}
+// The bits of a lane mask of deinterleave8 in point order (bit 3L mod 8 <- bit L).
+struct LaneToPoint8 {
+  std::uint8_t t[256];
+  constexpr LaneToPoint8() : t{} {
+    for (unsigned m = 0; m < 256; ++m) {
+      unsigned r = 0;
+      for (unsigned l = 0; l < 8; ++l) r |= ((m >> l) & 1u) << ((3 * l) & 7u);
+      t[m] = static_cast<std::uint8_t>(r);
+    }
+  }
+};
+inline constexpr LaneToPoint8 kLaneToPoint8{};
+[[nodiscard]] inline unsigned lane_to_point_mask(unsigned m) { return kLaneToPoint8.t[m & 0xFFu]; }
+
+// The load masks of the first `valid` (<= 8) of eight AoS triples: 3 valid values over 3 vectors of 8.
+struct TripleMasks8 {
+  __mmask8 a, b, c, lanes;
+  explicit TripleMasks8(unsigned valid) {
+    const unsigned k = 3 * valid;
+    const auto first = [](unsigned m) { return static_cast<__mmask8>(m >= 8 ? 0xFFu : (1u << m) - 1u); };
+    a = first(k);
+    b = first(k > 8 ? k - 8 : 0);
+    c = first(k > 16 ? k - 16 : 0);
+    lanes = first(valid);
+  }
+};
+
+// The lane mask of points [i, i + 8) of the AVX-512 point filter, or of the first `valid` of them
+// (kMasked: masked loads, nothing read past them; the other lanes unset).
+template <bool kMasked>
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned filter_step8(
+    const double* xyz, unsigned i, unsigned valid, const PointFilterD& f, bool dist_only) {
+  const TripleMasks8 mk(kMasked ? valid : 8u);
+  const double* p = xyz + 3 * static_cast<std::size_t>(i);
+  __m512d vx, vy, vz;
+  if constexpr (kMasked)
+    deinterleave8(_mm512_maskz_loadu_pd(mk.a, p), _mm512_maskz_loadu_pd(mk.b, p + 8), _mm512_maskz_loadu_pd(mk.c, p + 16),
+                  vx, vy, vz);
+  else
+    deinterleave8(_mm512_loadu_pd(p), _mm512_loadu_pd(p + 8), _mm512_loadu_pd(p + 16), vx, vy, vz);
+  vx = _mm512_sub_pd(vx, _mm512_set1_pd(f.o[0]));
+  vy = _mm512_sub_pd(vy, _mm512_set1_pd(f.o[1]));
+  vz = _mm512_sub_pd(vz, _mm512_set1_pd(f.o[2]));
+  const __m512d d2max = _mm512_set1_pd(f.d2_max);
+  const unsigned lanes = kMasked ? mk.lanes : 0xFFu;
+  if (dist_only)  // knn_query: |p - o|^2 alone (see distance_only)
+    return lanes & lane_to_point_mask(_mm512_cmp_pd_mask(
+                       _mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx))), d2max, _CMP_LE_OQ));
+  const __m512d dx = _mm512_set1_pd(f.d[0]), dy = _mm512_set1_pd(f.d[1]), dz = _mm512_set1_pd(f.d[2]);
+  const __m512d t = _mm512_fmadd_pd(vz, dz, _mm512_fmadd_pd(vy, dy, _mm512_mul_pd(vx, dx)));
+  // d^2 = |v|^2 - t^2, as filter_step4.
+  const __m512d vv = _mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx)));
+  const __m512d d2 = _mm512_fnmadd_pd(t, t, vv);
+  const __m512d tlo = _mm512_set1_pd(f.t_lo);
+  __m512d lim = d2max, tl = tlo, r = _mm512_setzero_pd();
+  if (f.radii) {  // each point's own radius as well (PointFilterD::radii, t_lo_own)
+    r = _mm512_permutexvar_pd(_mm512_setr_epi64(0, 3, 6, 1, 4, 7, 2, 5),  // (in lane order)
+                              _mm512_cvtps_pd(kMasked ? _mm256_maskz_loadu_ps(mk.lanes, f.radii + i)
+                                                      : _mm256_loadu_ps(f.radii + i)));
+    lim = _mm512_min_pd(_mm512_fmadd_pd(r, r, _mm512_set1_pd(f.d2_slack)), d2max);  // (d2max when r is NaN)
+    tl = _mm512_max_pd(_mm512_sub_pd(_mm512_set1_pd(f.t_lo_own), r), tlo);          // (t_lo when r is NaN)
+  }
+  unsigned m = _mm512_cmp_pd_mask(d2, lim, _CMP_LE_OQ) & _mm512_cmp_pd_mask(t, tl, _CMP_GE_OQ) &
+               _mm512_cmp_pd_mask(t, _mm512_set1_pd(f.t_hi), _CMP_LE_OQ);  // lanes (deinterleave8's order)
+  if (m && f.normals && f.radii) {  // the ray-disc test too (PointFilterD::normals)
+    const float* nf = f.normals + 3 * static_cast<std::size_t>(i);
+    __m512d nx, ny, nz;
+    if constexpr (kMasked)
+      deinterleave8(_mm512_cvtps_pd(_mm256_maskz_loadu_ps(mk.a, nf)), _mm512_cvtps_pd(_mm256_maskz_loadu_ps(mk.b, nf + 8)),
+                    _mm512_cvtps_pd(_mm256_maskz_loadu_ps(mk.c, nf + 16)), nx, ny, nz);
+    else
+      deinterleave8(_mm512_cvtps_pd(_mm256_loadu_ps(nf)), _mm512_cvtps_pd(_mm256_loadu_ps(nf + 8)),
+                    _mm512_cvtps_pd(_mm256_loadu_ps(nf + 16)), nx, ny, nz);
+    m &= ~disc_miss8(f, vx, vy, vz, r, nx, ny, nz);
+  }
+  return lanes & lane_to_point_mask(m);
+}
+
+inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx512(const double* xyz, unsigned count,
+                                                                                 const PointFilterD& f,
+                                                                                 std::uint32_t* out) {
+  const bool dist_only = distance_only(f);
+  unsigned i = 0, n = 0;
+  for (; i + 8 <= count; i += 8) n = append_lanes<8>(filter_step8<false>(xyz, i, 8, f, dist_only), i, out, n);
+  if (i == count) return n;
+  if (count >= 8) {
+    // The last count % 8 points: one overlapping step over the last 8, the lanes before i cleared
+    // (append_lanes then writes below count, as in the AVX2 kernel's tail_lanes4).
+    const unsigned base = count - 8;
+    return append_lanes<8>(filter_step8<false>(xyz, base, 8, f, dist_only) & (0xFFu << (i - base)), base, out, n);
+  }
+  // Fewer than 8 points: one masked step; its indices written for the valid lanes only (out holds count).
+  const unsigned m = filter_step8<true>(xyz, 0, count, f, dist_only);
+  for (unsigned j = 0; j < count; ++j) {
+    out[n] = j;
+    n += (m >> j) & 1u;
+  }
+  return n;
+}
+// SortPushKeys8Fn (simd.hpp) on AVX-512: as sort_push_keys8_avx2, the 8 entries interleaved by two
+// two-source permutes into two 512-bit stores.
+inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) void sort_push_keys8_avx512(const std::uint32_t* keys,
+                                                                                        unsigned n,
+                                                                                        std::uint32_t first_child,
+                                                                                        void* out) {
+  const PushLanes8 p = push_lanes8(keys, n, first_child);
+  // (the zero-masked forms: GCC 12's plain ones pass an undefined operand -Wuninitialized reports)
+  const __m512d lb = _mm512_maskz_cvtps_pd(0xFF, p.lb);
+  const __m512d nd = _mm512_castsi512_pd(_mm512_maskz_cvtepu32_epi64(0xFF, p.node));
+  double* o = static_cast<double*>(out);
+  _mm512_storeu_pd(o, _mm512_permutex2var_pd(lb, _mm512_setr_epi64(0, 8, 1, 9, 2, 10, 3, 11), nd));
+  _mm512_storeu_pd(o + 8, _mm512_permutex2var_pd(lb, _mm512_setr_epi64(4, 12, 5, 13, 6, 14, 7, 15), nd));
+}
+#pragma GCC diagnostic pop  // (also _mm512_cvtps_pd / _mm512_min_pd of the per-point radii)
+#endif
+
+}  // namespace rayscan::simd::kernels
