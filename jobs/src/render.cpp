@@ -32,10 +32,6 @@ using namespace rayscan::io;
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
 std::string num17(double v) {
   char b[64];
   std::snprintf(b, sizeof b, "%.17g", v);
@@ -115,9 +111,8 @@ struct Prepared {
 
 // The COPC half of prepare(): albedo rule from one streamed pass of the statistics it needs (none
 // for constant/classification/ranged modes; rgb stops at the first non-zero colour), the auto
-// radius from CopcIndex::spacing_samples (a few nodes), the exact bounds for camera_for_cloud by
+// radius from a few nodes' samples (median_nn_spacing of the site), the exact bounds for camera_for_cloud by
 // one streamed pass over the positions. Memory stays within the cache budget.
-constexpr std::size_t kCopcSpacingSamples = 2000;
 
 void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
   Scene& scene = P.scene;
@@ -162,12 +157,8 @@ void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
   ctl.info(buf);
   t0 = std::chrono::steady_clock::now();
   try {
-    r.radius = choose_radius(scene.radius, scene.auto_radius_factor, [&] {
-      // kCopcSpacingSamples (not the in-memory path's 20000): a kNN query on the COPC hierarchy tests
-      // every point of the ancestor nodes (tens of thousands each), so each sample costs more.
-      const std::vector<Vec3> samples = copc.spacing_samples(kCopcSpacingSamples);
-      return median_nn_spacing_of(copc, std::span<const Vec3>(samples), samples.size());
-    });
+    r.radius = choose_radius(scene.radius, scene.auto_radius_factor,
+                             [&] { return median_nn_spacing(*P.site, {}); });  // kCopcSpacingSamples samples
   } catch (const std::invalid_argument& e) {
     throw SceneError(f + ": /radius: " + e.what());
   }
@@ -305,9 +296,9 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   } else {
     t0 = std::chrono::steady_clock::now();
     try {
-      r.radius = mapped ? choose_radius(scene.radius, scene.auto_radius_factor,
-                                        [&] { return mapped->median_nn_spacing(); })  // stored at build
-                        : choose_radius(*site.memory_index(), cloud->positions, scene.radius, scene.auto_radius_factor);
+      r.radius = choose_radius(scene.radius, scene.auto_radius_factor, [&] {
+        return median_nn_spacing(site, cloud ? std::span<const Vec3>(cloud->positions) : std::span<const Vec3>{});
+      });
     } catch (const std::invalid_argument& e) {
       throw SceneError(f + ": /radius: " + e.what());
     }

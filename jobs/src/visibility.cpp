@@ -32,9 +32,6 @@ namespace {
 
 using std::invalid_argument;
 
-double elapsed_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values) {
   for (ScalarField& f : cloud.scalars)
@@ -89,7 +86,6 @@ struct VisibilityRun {
   std::vector<Observer>& observers = r.observers;
   std::optional<Camera> camera;
   std::optional<Site> site;
-  const io::MappedIndex* mapped = nullptr;  // the index file queried in place, if the input is one
   PointCloud& cloud = r.cloud;
   double radius = 0.0;
   bool surfel = false;
@@ -175,28 +171,26 @@ struct VisibilityRun {
       SiteOptions so;
       so.index_file.read_ahead = true;  // every point is read and many queried: read the file ahead
       site.emplace(Site::open(o.cloud_file, so));
-      mapped = site->index_file();
-      r.cloud = mapped->to_point_cloud();
+      r.cloud = site->index_file()->to_point_cloud();
     } else {
       r.cloud = io::read_point_cloud(o.cloud_file, {}, &r.info);
     }
     if (cloud.empty()) throw invalid_argument(r.source + ": the point cloud has no points");
-    std::snprintf(buf, sizeof buf, "%s %zu points from %s in %.2f s", mapped ? "mapped" : "read", cloud.size(),
-                  r.source.c_str(), elapsed_since(t0));
+    std::snprintf(buf, sizeof buf, "%s %zu points from %s in %.2f s", site ? "mapped" : "read", cloud.size(),
+                  r.source.c_str(), seconds_since(t0));
     ctl.info(buf);
     t0 = std::chrono::steady_clock::now();
-    if (!mapped) {
+    if (!site) {
       try {
         site.emplace(Site::over(cloud, o.index));
       } catch (const std::invalid_argument& e) {
         throw OptionError({option("index"), std::string(": ") + e.what()});
       }
-      std::snprintf(buf, sizeof buf, "built %s index in %.2f s", o.index.type.c_str(), elapsed_since(t0));
+      std::snprintf(buf, sizeof buf, "built %s index in %.2f s", o.index.type.c_str(), seconds_since(t0));
       ctl.info(buf);
     }
     try {
-      r.radius = mapped ? choose_radius(o.radius, o.radius_factor, [&] { return mapped->median_nn_spacing(); })
-                        : choose_radius(*site->memory_index(), cloud.positions, o.radius, o.radius_factor);
+      r.radius = choose_radius(o.radius, o.radius_factor, [&] { return median_nn_spacing(*site, cloud.positions); });
     } catch (const std::invalid_argument&) {
       if (o.radius)
         throw OptionError({option("radius"), " " + std::to_string(*o.radius) + ": expected a number > 0 or auto"});
@@ -218,8 +212,7 @@ struct VisibilityRun {
       SurfelOptions so = o.surfel;
       so.measure_thickness = false;  // visibility traces no shadow or bounce rays (same_surface with 0)
       try {
-        surfels = mapped ? estimate_surfels_over(*mapped, cloud.positions, so, cloud.normals)
-                         : estimate_surfels(*site->memory_index(), cloud.positions, so, cloud.normals);
+        surfels = estimate_surfels(*site, cloud.positions, so, cloud.normals);
       } catch (const std::invalid_argument& e) {
         throw OptionError({option("primitive"), std::string(" surfel: ") + e.what()});
       }
@@ -227,7 +220,7 @@ struct VisibilityRun {
       r.surfel_max_radius = surfels.max_radius;
       std::snprintf(buf, sizeof buf, "surfels: %s normals, median disc radius %.6g, max %.6g, in %.2f s",
                     cloud.normals.empty() ? "PCA" : "file", surfels.median_radius, surfels.max_radius,
-                    elapsed_since(t0));
+                    seconds_since(t0));
       ctl.info(buf);
     }
     r.max_distance = o.max_distance.value_or(kInf);
@@ -282,7 +275,7 @@ struct VisibilityRun {
       so.distributor = ctl.distributor;
       t0 = std::chrono::steady_clock::now();
       r.sky_view = compute_sky_view(*site, cloud.positions, so, &r.sky_queries);
-      r.sky_seconds = elapsed_since(t0);
+      r.sky_seconds = seconds_since(t0);
       double mean = 0;
       for (double v : r.sky_view) mean += v;
       mean /= double(r.sky_view.size());
@@ -301,7 +294,7 @@ struct VisibilityRun {
       const std::vector<std::uint32_t> px =
           camera_first_hits(*site, *camera, radius, r.max_distance, ctl.threads, ctl.progress, ctl.distributor);
       r.camera_hits = count_pixel_hits(px, cloud.size());
-      r.camera_seconds = elapsed_since(t0);
+      r.camera_seconds = seconds_since(t0);
       std::uint64_t seen = 0;
       for (std::uint32_t c : r.camera_hits) seen += c > 0;
       std::snprintf(buf, sizeof buf, "camera %ux%u: %llu points seen in %.2f s", camera->width(), camera->height(),

@@ -1,6 +1,5 @@
 #include "rayscan/render/surfel_setup.hpp"
 
-#include <stdexcept>
 
 namespace rayscan::render {
 
@@ -15,14 +14,7 @@ SurfelOptions surfel_options(const Scene& scene) {
 }  // namespace
 
 SurfelAttributes scene_surfels(const Scene& scene, const Site& site, const PointCloud& cloud) {
-  switch (site.storage()) {
-    case SiteStorage::memory:  // the library's instances over AnyIndex (normals.cpp)
-      return estimate_surfels(*site.memory_index(), cloud.positions, surfel_options(scene), cloud.normals);
-    case SiteStorage::index_file:
-      return estimate_surfels_over(*site.index_file(), cloud.positions, surfel_options(scene), cloud.normals);
-    case SiteStorage::copc: break;
-  }
-  throw std::invalid_argument("surfels: a COPC file queried in place is not supported; read it into memory");
+  return estimate_surfels(site, cloud.positions, surfel_options(scene), cloud.normals);
 }
 
 void use_surfels(RenderSettings& s, const SurfelAttributes& a) {

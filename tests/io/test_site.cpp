@@ -87,6 +87,16 @@ TEST(Site, OpenChoosesTheStorageAndEveryStorageAnswersAsBruteForce) {
   EXPECT_EQ(rsi.size(), cloud.size());
   EXPECT_EQ(answers(rsi, cloud.positions, rays, q), expected);
 
+  // The surfel estimate over a site: the same attributes in memory and in the index file.
+  SurfelOptions so;
+  so.measure_thickness = false;
+  const SurfelAttributes sm = estimate_surfels(mem, cloud.positions, so);
+  const SurfelAttributes sr = estimate_surfels(rsi, cloud.positions, so);
+  ASSERT_EQ(sm.normals.size(), cloud.size());
+  EXPECT_TRUE(sm.normals == sr.normals);
+  EXPECT_TRUE(sm.radii == sr.radii);
+  EXPECT_GT(median_nn_spacing(mem, cloud.positions), 0.0);
+
   // A copy shares the storage and outlives the original handle.
   std::optional<rayscan::Site> first = rayscan::Site::open(dir / "autzen.rsi");
   const rayscan::Site copy = *first;
@@ -115,6 +125,9 @@ TEST(Site, CopcOpensInPlaceOrInMemoryWithTheSameAnswers) {
   const auto expected = answers(rayscan::Site(AnyIndex(brute)), mem.cloud()->positions, rays, q);
   EXPECT_EQ(answers(mem, mem.cloud()->positions, rays, q), expected);
   EXPECT_EQ(answers(in_place, {}, rays, q), expected);
+  // Spacing from a sample of the hierarchy's nodes; surfels need the points in memory.
+  EXPECT_GT(median_nn_spacing(in_place, {}), 0.0);
+  EXPECT_THROW((void)estimate_surfels(in_place, mem.cloud()->positions, SurfelOptions{}), std::invalid_argument);
 }
 
 TEST(Site, ReferringToAnIndexDoesNotOwnIt) {

@@ -4,12 +4,18 @@
 // and prints (docs/library.md).
 #pragma once
 
+#include <chrono>
 #include <functional>
 #include <string>
 
 namespace rayscan {
 
 class WorkDistributor;  // rayscan/base/work_distributor.hpp
+
+/// Wall-clock seconds since `t0` on the steady clock: the times of a job's log lines.
+inline double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
 
 /// Run-time controls of a job that never change its result.
 struct JobControl {

@@ -7,6 +7,7 @@
 
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/octree/any_index.hpp"
+#include "rayscan/octree/normals.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 #include "rayscan/site/copc.hpp"
 #include "rayscan/site/index_file.hpp"
@@ -117,7 +118,11 @@ class Site {
   }
 
  private:
+  struct Store;  // the storage of an owning Site (site.cpp)
   Site() = default;
+  /// An in-memory site over `cloud` with `index` built over its positions into `store`, which the
+  /// site keeps alive (and with it `cloud` when the store holds it).
+  static Site in_memory_over(std::shared_ptr<Store> store, const PointCloud& cloud, const IndexOptions& index);
   SiteStorage storage_ = SiteStorage::memory;
   const AnyIndex* memory_ = nullptr;
   const io::MappedIndex* mapped_ = nullptr;
@@ -126,9 +131,31 @@ class Site {
   std::shared_ptr<void> owned_;  // the storage of an owning Site (shared by copies)
 };
 
-/// True for the index types a Site visit() may pass: lets a consumer compile one branch out, e.g.
-/// `if constexpr (is_copc_index<I>)` where an analysis does not run on COPC in place.
+/// True when I (cv/ref-qualified or not) is io::CopcIndex: for the branch of a generic visit()
+/// callback that a COPC file in place needs, e.g. `if constexpr (is_copc_index<decltype(index)>)`.
 template <class I>
 inline constexpr bool is_copc_index = std::is_same_v<std::remove_cvref_t<I>, io::CopcIndex>;
+
+/// Points the auto radius samples on a COPC file in place: a kNN query on the COPC hierarchy tests
+/// every point of the ancestor nodes (tens of thousands each), so a sample costs more than in
+/// memory (median_nn_spacing's default of 20000).
+inline constexpr std::size_t kCopcSpacingSamples = 2000;
+
+/// The median nearest-neighbour spacing of the site's points, world units (the auto radius of
+/// paper section 5.3; octree/spacing.hpp): in memory median_nn_spacing(index, positions), with
+/// `positions` the site's points in original order; for an index file the spacing stored at build
+/// (MappedIndex::median_nn_spacing; `positions` unused); for a COPC file in place
+/// median_nn_spacing_of over kCopcSpacingSamples points of at most 64 nodes
+/// (CopcIndex::spacing_samples; `positions` unused). 0 when no two points differ.
+[[nodiscard]] double median_nn_spacing(const Site& site, std::span<const Vec3> positions);
+
+/// Surfel normals and radii (estimate_surfels, octree/normals.hpp) of the site's points
+/// `positions` in original order, with `file_normals` (N or none) when compute_normals is off:
+/// the same attributes for the same points in memory or in an index file
+/// (estimate_surfels_over). Throws std::invalid_argument as estimate_surfels does, and for a COPC
+/// file in place (read it into memory: SiteOptions::copc_in_place = false).
+[[nodiscard]] SurfelAttributes estimate_surfels(const Site& site, std::span<const Vec3> positions,
+                                                const SurfelOptions& options,
+                                                std::span<const glm::vec3> file_normals = {});
 
 }  // namespace rayscan
