@@ -99,7 +99,7 @@ QueryJobResult run_query(const QueryJobOptions& o) {
     const PointCloud& cloud = o.cloud ? *o.cloud : r.cloud;
     char buf[256];
     std::snprintf(buf, sizeof buf, "read %zu points and %zu rays in %.2f s", cloud.size(), r.rays.size(),
-                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+                  seconds_since(t0));
     o.control.info(buf);
     site.emplace(Site::over(cloud, o.index));
   }
@@ -116,7 +116,7 @@ QueryJobResult run_query(const QueryJobOptions& o) {
       char msg[256];
       std::snprintf(msg, sizeof msg, "COPC: %llu of %llu nodes decoded, %zu rays in %.2f s",
                     static_cast<unsigned long long>(r.copc_decodes), static_cast<unsigned long long>(r.copc_nodes),
-                    r.rays.size(), std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+                    r.rays.size(), seconds_since(t0));
       o.control.info(msg);
     } else if constexpr (std::is_same_v<I, MappedIndex>) {
       answer_rays(idx, r.rays, o.query, o.control, r.hits);
