@@ -56,8 +56,6 @@ int run_render(const RenderCliOptions& o) {
   });
   if (o.print_scene) {
     if (o.ortho_res) throw UsageError("--print-scene: not with --ortho-map (the map camera is not a scene camera)");
-    if (rs.json.empty())
-      throw UsageError("--print-scene: this camera (a COLMAP view, or a resized K/[R|t] camera) cannot be written as scene JSON");
     std::cout << rs.json << "\n";
     return 0;
   }
@@ -85,15 +83,7 @@ int run_render(const RenderCliOptions& o) {
       throw UsageError("--frames: the cameras come from the list; do not give --camera, --colmap or --ortho-map");
     std::vector<Camera> cams = load_camera_list(o.frames);
     if (o.width || o.height)
-      for (Camera& c : cams) {
-        Scene one = job.scene;
-        one.camera = c;
-        SceneOverrides size;
-        size.width = o.width;
-        size.height = o.height;
-        apply_overrides(one, size);
-        c = *one.camera;
-      }
+      for (Camera& c : cams) c = c.resized(o.width, o.height);
     const RenderFramesResult fr = run_render_frames(job, cams);
     if (talk && !traffic_summary().empty()) std::cerr << "rayscan render: " << traffic_summary() << "\n";
     if (is_root())

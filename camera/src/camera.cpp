@@ -1,11 +1,15 @@
 #include "rayscan/camera/camera.hpp"
 
+#include "rayscan/base/option_error.hpp"
+
 #include <glm/matrix.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace rayscan {
 
@@ -48,6 +52,8 @@ Camera Camera::look_at(const LookAtParams& p, std::uint32_t width, std::uint32_t
   c.lens_y_ = down;
   c.lens_radius_ = 0.5 * p.aperture;
   c.focus_distance_ = p.focus_distance > 0.0 ? p.focus_distance : dist;
+  c.desc_.model = CameraModel::look_at;
+  c.desc_.look_at = p;
   return c;
 }
 
@@ -80,6 +86,8 @@ Camera Camera::pinhole(const PinholeParams& p, std::uint32_t width, std::uint32_
   c.forward_ = glm::normalize(Rt * Vec3(0, 0, 1));
   c.lens_x_ = Rt * Vec3(1, 0, 0);
   c.lens_y_ = Rt * Vec3(0, 1, 0);
+  c.desc_.model = CameraModel::pinhole;
+  c.desc_.pinhole = p;
   return c;
 }
 
@@ -110,6 +118,7 @@ Camera Camera::pinhole_distorted(const PinholeParams& p, const LensDistortion& k
   c.k_inv_ = glm::inverse(K);
   c.r_t_ = glm::transpose(R);
   c.distortion_ = k;
+  c.desc_.distortion = k;
   return c;
 }
 
@@ -132,25 +141,51 @@ Ray Camera::generate_special(double u, double v) const {
   return Ray(center_, r_t_ * Vec3(x.x, x.y, 1.0));
 }
 
+ImageSize fit_image_size(ImageSize current, std::optional<std::uint32_t> width, std::optional<std::uint32_t> height) {
+  if (!width && !height) return current;
+  // In double, then checked: a 1x65536 camera with a width of 65536 asks for a height of 2^32,
+  // which must be an error, not a wrapped 32-bit integer.
+  const double w = width ? double(*width) : std::round(double(current.width) * *height / current.height);
+  const double h = height ? double(*height) : std::round(double(current.height) * *width / current.width);
+  for (const auto& [v, name] : {std::pair{w, "width"}, std::pair{h, "height"}})
+    if (!(v >= 1.0 && v <= 65536.0))
+      throw OptionError({"the camera's aspect ratio " + std::to_string(current.width) + ":" +
+                             std::to_string(current.height) + " gives an image " + name + " of " +
+                             std::to_string(static_cast<long long>(std::min(v, 1e18))) +
+                             " pixels, expected 1 to 65536; give both ",
+                         option("width"), " and ", option("height")});
+  return {static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h)};
+}
+
+Camera Camera::resized(std::optional<std::uint32_t> width, std::optional<std::uint32_t> height) const {
+  const ImageSize s = fit_image_size({width_, height_}, width, height);
+  return resized(s.width, s.height);
+}
+
 Camera Camera::resized(std::uint32_t width, std::uint32_t height) const {
   check_size(width, height);
+  switch (desc_.model) {
+    case CameraModel::look_at: return look_at(desc_.look_at, width, height);
+    case CameraModel::orthographic: return orthographic(desc_.orthographic, width, height);
+    case CameraModel::equirectangular: return equirectangular(desc_.equirectangular, width, height);
+    case CameraModel::pinhole: {
+      // New pixel coordinates u' = sx (u + 0.5) - 0.5 (pixel edges stay on the same rays):
+      // K' = A K with A = [[sx, 0, (sx - 1) / 2], [0, sy, (sy - 1) / 2], [0, 0, 1]].
+      const double sx = double(width) / double(width_), sy = double(height) / double(height_);
+      PinholeParams p = desc_.pinhole;
+      for (int c = 0; c < 3; ++c) {
+        p.K[0][c] = sx * p.K[0][c] + 0.5 * (sx - 1.0) * p.K[2][c];
+        p.K[1][c] = sy * p.K[1][c] + 0.5 * (sy - 1.0) * p.K[2][c];
+      }
+      return desc_.distortion.any() ? pinhole_distorted(p, desc_.distortion, width, height) : pinhole(p, width, height);
+    }
+    case CameraModel::orthographic_grid: break;
+  }
+  // A grid keeps the covered plane: the origin of pixel (0, 0) and the steps in the new grid.
   const double sx = double(width) / double(width_), sy = double(height) / double(height_);
-  // New pixel coordinates u' = sx (u + 0.5) - 0.5: old (u, v, 1) = A^-1 (u', v', 1).
-  glm::dmat3 Ainv(1.0);
-  Ainv[0][0] = 1.0 / sx;
-  Ainv[1][1] = 1.0 / sy;
-  Ainv[2][0] = (0.5 - 0.5 * sx) / sx;
-  Ainv[2][1] = (0.5 - 0.5 * sy) / sy;
-  Camera c = *this;
-  c.width_ = width;
-  c.height_ = height;
-  c.pixel_to_dir_ = pixel_to_dir_ * Ainv;
-  c.k_inv_ = k_inv_ * Ainv;
-  // Orthographic: the same plane in the new pixel grid (origin of pixel (0, 0) and steps).
-  c.origin00_ = origin00_ + step_u_ * Ainv[2][0] + step_v_ * Ainv[2][1];
-  c.step_u_ = step_u_ / sx;
-  c.step_v_ = step_v_ / sy;
-  return c;
+  const Vec3 su = step_u_ / sx, sv = step_v_ / sy;
+  const Vec3 o00 = origin00_ + step_u_ * ((0.5 - 0.5 * sx) / sx) + step_v_ * ((0.5 - 0.5 * sy) / sy);
+  return orthographic_grid(o00, su, sv, forward_, width, height);
 }
 
 }  // namespace rayscan

@@ -10,12 +10,13 @@ namespace rayscan {
 Camera Camera::equirectangular(const EquirectangularParams& p, std::uint32_t width, std::uint32_t height) {
   if (width == 0 || height == 0 || width > 65536 || height > 65536)
     throw std::invalid_argument("camera: width and height must be in [1, 65536]");
-  if (!is_finite(p.position) || !is_finite(p.forward) || !is_finite(p.up) || glm::length(p.up) == 0.0)
-    throw std::invalid_argument("camera: position, forward and up must be finite, up non-zero");
+  if (!is_finite(p.position) || !is_finite(p.look_at) || !is_finite(p.up) || glm::length(p.up) == 0.0)
+    throw std::invalid_argument("camera: position, look_at and up must be finite, up non-zero");
+  const Vec3 forward = p.look_at - p.position;
   const Vec3 up = glm::normalize(p.up);
-  const Vec3 horiz = p.forward - glm::dot(p.forward, up) * up;
-  if (!(glm::length(horiz) > 1e-9 * glm::length(p.forward)))
-    throw std::invalid_argument("camera: forward must not be parallel to up");
+  const Vec3 horiz = forward - glm::dot(forward, up) * up;
+  if (!(glm::length(horiz) > 1e-9 * glm::length(forward)))
+    throw std::invalid_argument("camera: look_at - position must not be parallel to up");
   Camera c;
   c.projection_ = Projection::equirectangular;
   c.width_ = width;
@@ -24,6 +25,8 @@ Camera Camera::equirectangular(const EquirectangularParams& p, std::uint32_t wid
   c.forward_ = glm::normalize(horiz);
   c.up_ = up;
   c.right_ = glm::cross(c.forward_, up);
+  c.desc_.model = CameraModel::equirectangular;
+  c.desc_.equirectangular = p;
   return c;
 }
 

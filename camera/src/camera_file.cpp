@@ -48,7 +48,7 @@ Camera parse_camera(const json& j, const std::string& file, const std::string& p
         return Camera::orthographic(OrthographicParams{pos, at, up, vh}, width, height);
       }
       o.finish();
-      return Camera::equirectangular(EquirectangularParams{pos, at - pos, up}, width, height);
+      return Camera::equirectangular(EquirectangularParams{pos, at, up}, width, height);
     } catch (const std::invalid_argument& e) {
       const std::string w = e.what();
       json_fail(file, o.ptr("up"), w.substr(w.find(':') + 2));
@@ -104,6 +104,61 @@ Camera parse_camera(const json& j, const std::string& file, const std::string& p
   } catch (const JsonFileError&) {
     throw;
   }
+}
+
+namespace {
+
+using ojson = nlohmann::ordered_json;
+
+ojson vec3_json(const Vec3& v) { return ojson::array({v.x, v.y, v.z}); }
+
+ojson mat3_json(const std::array<std::array<double, 3>, 3>& m) {
+  ojson a = ojson::array();
+  for (const auto& row : m) a.push_back(ojson::array({row[0], row[1], row[2]}));
+  return a;
+}
+
+}  // namespace
+
+nlohmann::ordered_json camera_to_json(const Camera& camera) {
+  const CameraDescription& d = camera.description();
+  nlohmann::ordered_json j;
+  j["width"] = camera.width();
+  j["height"] = camera.height();
+  switch (d.model) {
+    case CameraModel::look_at:
+      j["position"] = vec3_json(d.look_at.position);
+      j["look_at"] = vec3_json(d.look_at.look_at);
+      j["up"] = vec3_json(d.look_at.up);
+      j["vfov_deg"] = d.look_at.vfov_deg;
+      if (d.look_at.aperture != 0.0) j["aperture"] = d.look_at.aperture;
+      if (d.look_at.focus_distance != 0.0) j["focus_distance"] = d.look_at.focus_distance;
+      return j;
+    case CameraModel::pinhole:
+      j["K"] = mat3_json(d.pinhole.K);
+      j["R"] = mat3_json(d.pinhole.R);
+      j["t"] = vec3_json(d.pinhole.t);
+      if (d.distortion.any()) {
+        const LensDistortion& k = d.distortion;
+        j["distortion"] = ojson::array({k.k1, k.k2, k.p1, k.p2, k.k3});
+      }
+      return j;
+    case CameraModel::orthographic:
+      j["type"] = "orthographic";
+      j["position"] = vec3_json(d.orthographic.position);
+      j["look_at"] = vec3_json(d.orthographic.look_at);
+      j["up"] = vec3_json(d.orthographic.up);
+      j["view_height"] = d.orthographic.view_height;
+      return j;
+    case CameraModel::equirectangular:
+      j["type"] = "equirectangular";
+      j["position"] = vec3_json(d.equirectangular.position);
+      j["look_at"] = vec3_json(d.equirectangular.look_at);
+      j["up"] = vec3_json(d.equirectangular.up);
+      return j;
+    case CameraModel::orthographic_grid: break;
+  }
+  throw std::invalid_argument("camera: a per-pixel orthographic grid has no camera-file form");
 }
 
 Camera load_camera(const std::filesystem::path& file) {

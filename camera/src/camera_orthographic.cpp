@@ -7,8 +7,6 @@
 
 namespace rayscan {
 
-namespace {
-}  // namespace
 
 Camera Camera::orthographic_grid(const Vec3& origin00, const Vec3& step_u, const Vec3& step_v,
                                  const Vec3& direction, std::uint32_t width, std::uint32_t height) {
@@ -26,6 +24,7 @@ Camera Camera::orthographic_grid(const Vec3& origin00, const Vec3& step_u, const
   c.step_v_ = step_v;
   c.forward_ = glm::normalize(direction);
   c.center_ = origin00 + step_u * (0.5 * (double(width) - 1.0)) + step_v * (0.5 * (double(height) - 1.0));
+  c.desc_.model = CameraModel::orthographic_grid;
   return c;
 }
 
@@ -45,7 +44,10 @@ Camera Camera::orthographic(const OrthographicParams& p, std::uint32_t width, st
   if (width == 0 || height == 0) throw std::invalid_argument("camera: width and height must be > 0");
   const double px = p.view_height / double(height);  // square pixels, world units
   const Vec3 o00 = p.position - right * (px * 0.5 * (double(width) - 1.0)) - down * (px * 0.5 * (double(height) - 1.0));
-  return orthographic_grid(o00, right * px, down * px, w, width, height);
+  Camera c = orthographic_grid(o00, right * px, down * px, w, width, height);
+  c.desc_.model = CameraModel::orthographic;
+  c.desc_.orthographic = p;
+  return c;
 }
 
 }  // namespace rayscan

@@ -4,7 +4,6 @@
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/camera/camera_file.hpp"
-#include "rayscan/camera/colmap.hpp"
 #include "rayscan/site/copc.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/image/image_file.hpp"
@@ -39,58 +38,6 @@ std::string num17(double v) {
 }
 
 }  // namespace
-
-void apply_overrides(Scene& scene, const SceneOverrides& o) {
-  if (!o.camera_file.empty()) {
-    scene.camera = io::load_camera(o.camera_file);
-    scene.camera_file = o.camera_file;
-  }
-  if (!o.colmap_dir.empty()) {
-    if (o.colmap_image.empty())
-      throw OptionError({option("colmap_dir"), ": give the photo with ", option("colmap_image"), " NAME"});
-    scene.camera = load_colmap_camera(o.colmap_dir, o.colmap_image);
-    scene.camera_file = o.colmap_dir / "images.txt";
-  } else if (!o.colmap_image.empty()) {
-    throw OptionError({option("colmap_image"), ": needs ", option("colmap_dir"), " DIR"});
-  }
-  if (!o.primitive.empty()) {
-    if (o.primitive != "sphere" && o.primitive != "surfel")
-      throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
-    scene.primitive = o.primitive == "surfel" ? Primitive::surfel : Primitive::sphere;
-  }
-  if (o.spp) {
-    if (*o.spp < 1 || *o.spp > (1u << 20)) throw OptionError({option("spp"), ": expected an integer in [1, 1048576]"});
-    scene.spp = *o.spp;
-  }
-  if (o.seed) scene.seed = *o.seed;
-  if (!o.out.empty()) {
-    if (!is_image_file_name(o.out))
-      throw OptionError({option("out"), " '" + o.out.string() + "': " + image_file_name_expected()});
-    scene.output.image = o.out;
-  }
-  for (const std::string& a : o.aovs) {
-    const std::optional<Aov> v = parse_aov(a);
-    if (!v) throw OptionError({option("aovs"), " '" + a + "': " + aov_names_expected()});
-    if (std::find(scene.output.aovs.begin(), scene.output.aovs.end(), *v) == scene.output.aovs.end())
-      scene.output.aovs.push_back(*v);
-  }
-  if (o.width || o.height) {
-    if (!scene.camera) throw OptionError({option("width"), "/", option("height"), ": the scene has no camera"});
-    // In double, then checked: a 1x65536 camera with --width 65536 asks for a height of 2^32,
-    // which must be an error, not a wrapped 32-bit integer.
-    const Camera& c = *scene.camera;
-    const double w = o.width ? double(*o.width) : std::round(double(c.width()) * *o.height / c.height());
-    const double h = o.height ? double(*o.height) : std::round(double(c.height()) * *o.width / c.width());
-    for (const auto& [v, name] : {std::pair{w, "width"}, std::pair{h, "height"}})
-      if (!(v >= 1.0 && v <= 65536.0))
-        throw OptionError({"the camera's aspect ratio " + std::to_string(c.width()) + ":" +
-                               std::to_string(c.height()) + " gives an image " + name + " of " +
-                               std::to_string(static_cast<long long>(std::min(v, 1e18))) +
-                               " pixels, expected 1 to 65536; give both ",
-                           option("width"), " and ", option("height")});
-    scene.camera = c.resized(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h));
-  }
-}
 
 namespace {
 

@@ -57,14 +57,14 @@ py::dict render(const std::string& scene_file, const py::object& cloud, std::opt
   {
     py::gil_scoped_release nogil;
     o.scene = render::load_scene(scene_file);
-    jobs::SceneOverrides ov;
+    render::SceneOverrides ov;
     ov.camera_file = camera;
     ov.spp = spp;
     ov.width = width;
     ov.height = height;
     ov.seed = seed;
     ov.aovs = aovs;
-    jobs::apply_overrides(o.scene, ov);
+    o.scene.apply(ov);
     r = jobs::run_render(o);
   }
   render::Framebuffer& fb = r.image;

@@ -220,7 +220,7 @@ std::string image_file_name_expected() { return extensions_expected(image_extens
 
 Scene load_scene(const std::filesystem::path& file) { return parse_scene_json(parse_file(file), file); }
 
-Scene parse_scene_json(const nlohmann::json& j, const std::filesystem::path& file) {
+Scene parse_scene_json(const nlohmann::json& j, const std::filesystem::path& file, bool camera_required) {
   const std::string f = file.string();
   Obj o(j, f, "");
   Scene s;
@@ -246,10 +246,10 @@ Scene parse_scene_json(const nlohmann::json& j, const std::filesystem::path& fil
   s.up = glm::normalize(o.vec3("up", Vec3(0, 0, 1), true));
   s.background = parse_background(o);
   s.sun = parse_sun(o, s.up);
-  if (!o.has("camera"))
-    fail(f, "/camera", "required: a camera file name (relative to the scene file) or a camera object");
-  const json& cam = o.at("camera");
-  if (cam.is_string()) {
+  if (!o.has("camera")) {
+    if (camera_required)
+      fail(f, "/camera", "required: a camera file name (relative to the scene file) or a camera object");
+  } else if (const json& cam = o.at("camera"); cam.is_string()) {
     s.camera_file = resolve(file, cam.get<std::string>());
     s.camera = load_camera(s.camera_file);
   } else if (cam.is_object()) {

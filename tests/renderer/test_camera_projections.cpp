@@ -42,7 +42,7 @@ TEST(Orthographic, ParallelRaysOnTheImagePlane) {
 }
 
 TEST(Equirectangular, LongitudeLatitudeMapping) {
-  const Camera c = Camera::equirectangular({Vec3(1, 2, 3), Vec3(0, 1, 0), Vec3(0, 0, 1)}, 360, 180);
+  const Camera c = Camera::equirectangular({Vec3(1, 2, 3), Vec3(1, 3, 3), Vec3(0, 0, 1)}, 360, 180);
   auto dir = [&](double u, double v) { return c.generate_ray(u, v).direction(); };
   // Pixel centres: u + 0.5 = W/2 is longitude 0 (forward), W 3/4 is +90 (right), v + 0.5 = 0 is the zenith.
   EXPECT_NEAR(glm::length(dir(179.5, 89.5) - Vec3(0, 1, 0)), 0.0, 1e-12);

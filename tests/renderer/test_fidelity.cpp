@@ -329,7 +329,7 @@ TEST(Fidelity, KinectScanWallHasNoAcneWithSurfels) {
   SceneOverrides ov;
   ov.width = 160;
   ov.primitive = "surfel";
-  apply_overrides(scene, ov);
+  scene.apply(ov);
   scene.material.mode = ColorMode::constant;
   scene.material.constant = Color(0.5f);
   scene.background.gradient = false;

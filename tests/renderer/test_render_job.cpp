@@ -99,7 +99,7 @@ TEST(RenderJob, OverridesCheckEachValue) {
   ov.width = 80;  // height follows the 4:3 aspect ratio
   ov.aovs = {"normal", "index"};
   ov.spp = 5;
-  apply_overrides(s, ov);
+  s.apply(ov);
   EXPECT_EQ(s.camera->width(), 80u);
   EXPECT_EQ(s.camera->height(), 60u);
   EXPECT_EQ(s.spp, 5u);
@@ -107,9 +107,9 @@ TEST(RenderJob, OverridesCheckEachValue) {
   SceneOverrides bad_aov, bad_out;
   bad_aov.aovs = {"colour"};
   bad_out.out = "x.bmp";
-  EXPECT_EQ(what_of([&] { apply_overrides(s, bad_aov); }),
+  EXPECT_EQ(what_of([&] { s.apply(bad_aov); }),
             "aovs 'colour': expected depth, normal, position, index, albedo or cost");
-  EXPECT_EQ(what_of([&] { apply_overrides(s, bad_out); }),
+  EXPECT_EQ(what_of([&] { s.apply(bad_out); }),
             "out 'x.bmp': expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr");
 }
 

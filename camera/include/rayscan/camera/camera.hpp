@@ -11,6 +11,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 
 namespace rayscan {
 
@@ -49,13 +50,47 @@ struct OrthographicParams {
   double view_height = 1.0;      ///< height of the image plane, world units (> 0)
 };
 
-/// Equirectangular panorama: column u spans longitude -180..180 degrees around `up` (0 at
-/// `forward`, increasing to the right), row v spans latitude +90 (top) .. -90 (bottom).
+/// Equirectangular panorama: column u spans longitude -180..180 degrees around `up` (0 towards
+/// `look_at`, increasing to the right), row v spans latitude +90 (top) .. -90 (bottom).
 struct EquirectangularParams {
   Vec3 position{0.0};           ///< centre of projection (a scanner station), world coordinates
-  Vec3 forward{0.0, 1.0, 0.0};  ///< direction at the image centre (projected onto the horizon)
+  Vec3 look_at{0.0, 1.0, 0.0};  ///< a point in the direction of the image centre (the direction
+                                ///< position -> look_at, projected onto the horizon)
   Vec3 up{0.0, 0.0, 1.0};       ///< zenith direction
 };
+
+/// How a camera was described: the camera-file model (scenes/README.md) it was built from.
+enum class CameraModel {
+  look_at,            ///< LookAtParams (Camera::look_at)
+  pinhole,            ///< PinholeParams K/[R|t], optional OpenCV distortion (Camera::pinhole, pinhole_distorted)
+  orthographic,       ///< OrthographicParams (Camera::orthographic)
+  orthographic_grid,  ///< a per-pixel grid (Camera::orthographic_grid): no camera-file form
+  equirectangular     ///< EquirectangularParams (Camera::equirectangular)
+};
+
+/// The parameters a camera was built from, kept so that the camera can be written back to a
+/// camera file exactly (io::camera_to_json) and resized from its description rather than from
+/// derived matrices. Only the member of `model` is meaningful.
+struct CameraDescription {
+  CameraModel model = CameraModel::look_at;
+  LookAtParams look_at;                   ///< CameraModel::look_at
+  PinholeParams pinhole;                  ///< CameraModel::pinhole
+  LensDistortion distortion;              ///< CameraModel::pinhole: OpenCV coefficients (all 0: none)
+  OrthographicParams orthographic;        ///< CameraModel::orthographic
+  EquirectangularParams equirectangular;  ///< CameraModel::equirectangular
+};
+
+/// An image size in pixels.
+struct ImageSize {
+  std::uint32_t width = 0, height = 0;
+};
+
+/// The one resize rule of rayscan (`--width` / `--height`, scene overrides, fly-through frames):
+/// both given: that size; one given: the other follows the aspect ratio of `current`, rounded to
+/// the nearest pixel; none: `current`. Throws OptionError naming the fields "width" and "height"
+/// when a side comes out outside [1, 65536] ("the camera's aspect ratio 1:65536 gives an image
+/// height of 4294967296 pixels, expected 1 to 65536; give both width and height").
+ImageSize fit_image_size(ImageSize current, std::optional<std::uint32_t> width, std::optional<std::uint32_t> height);
 
 /// A camera that maps continuous pixel coordinates to world rays.
 ///
@@ -105,8 +140,18 @@ class Camera {
   [[nodiscard]] const Vec3& center() const { return center_; }
   /// Unit viewing direction (camera +z).
   [[nodiscard]] const Vec3& forward() const { return forward_; }
-  /// Returns a copy with another image size, scaling the intrinsics so the field of view is kept.
+  /// The parameters this camera was built from (its camera-file form).
+  [[nodiscard]] const CameraDescription& description() const { return desc_; }
+  /// Returns the camera rebuilt from its description at another image size, keeping the field of
+  /// view: a look-at camera keeps its vertical field of view and square pixels (the horizontal one
+  /// follows the new aspect ratio); a K/[R|t] camera scales K per axis (u' = s (u + 0.5) - 0.5, so
+  /// both fields of view are kept); an orthographic camera keeps its view height and square
+  /// pixels; a grid keeps the covered plane; a panorama always covers the sphere. Throws
+  /// std::invalid_argument for a size outside [1, 65536].
   [[nodiscard]] Camera resized(std::uint32_t width, std::uint32_t height) const;
+  /// resized() to fit_image_size({width(), height()}, width, height). Throws OptionError (see
+  /// fit_image_size).
+  [[nodiscard]] Camera resized(std::optional<std::uint32_t> width, std::optional<std::uint32_t> height) const;
 
  private:
   Camera() = default;
@@ -121,6 +166,7 @@ class Camera {
   glm::dmat3 k_inv_{1.0}, r_t_{1.0};  // pinhole_distorted: K^-1 and R^T separately
   Vec3 origin00_{0.0}, step_u_{0.0}, step_v_{0.0};  // orthographic: pixel -> ray origin
   Vec3 right_{1.0, 0.0, 0.0}, up_{0.0, 0.0, 1.0};    // equirectangular basis with forward_
+  CameraDescription desc_;
   [[nodiscard]] Ray generate_special(double u, double v) const;
 };
 

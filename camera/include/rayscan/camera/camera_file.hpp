@@ -21,4 +21,11 @@ Camera load_camera(const std::filesystem::path& file);
 /// file's inline "/camera"). Throws JsonFileError.
 Camera parse_camera(const nlohmann::json& j, const std::string& file, const std::string& ptr);
 
+/// The camera-file form of `camera` (the inverse of parse_camera: parse_camera(camera_to_json(c))
+/// builds the same camera bit for bit), from Camera::description(): look-at, K/[R|t] (with
+/// "distortion" when it has any), orthographic or equirectangular; doubles written with enough
+/// digits to round-trip. Throws std::invalid_argument for an orthographic grid (a top-down map's
+/// camera), which has no camera-file form.
+nlohmann::ordered_json camera_to_json(const Camera& camera);
+
 }  // namespace rayscan::io

@@ -37,8 +37,7 @@ LookAtParams overview_view(const AABB& bounds, std::uint32_t width, std::uint32_
 /// The scene a `rayscan render INPUT [flags]` command line means, and its JSON.
 struct ResolvedScene {
   Scene scene;       ///< parsed and with every override applied (what the render job runs)
-  std::string json;  ///< the effective scene as JSON (2-space indent), re-readable by `rayscan render`;
-                     ///< "" when the JSON cannot state it (a COLMAP view, a resized K/[R|t] camera)
+  std::string json;  ///< the effective scene as JSON (Scene::to_json), re-readable by `rayscan render`
   bool overview = false;  ///< the camera is the automatic overview camera
 };
 
@@ -46,12 +45,12 @@ struct ResolvedScene {
 /// library reads (io::format_from_extension), else a scene file; for a cloud the scene is {"cloud": input, "radius": "auto",
 /// "material": {"color": "rgb" if the cloud has colours else "elevation"}} with the default sky
 /// and sun. When the scene has no camera (a cloud, or a scene file without "camera"), the camera
-/// is overview_view() of the cloud's bounds at --width x --height (default 600 x 400; one of them
-/// keeps the 3:2 aspect). The overrides are written into the JSON (camera files are inlined, paths
-/// made absolute) and applied to the scene (apply_overrides). `cloud` returns the points of the
-/// file it is given (the input, or the scene's "cloud") and is called only when needed (a cloud
-/// input or a missing camera), at most once. Throws SceneError (bad scene
-/// file), std::invalid_argument (bad override), and what `cloud` throws (io errors).
+/// is overview_view() of the cloud's bounds at width x height (default 600 x 400; one of them
+/// keeps the 3:2 aspect, fit_image_size). The other overrides are applied by Scene::apply, and the
+/// JSON is the result's Scene::to_json. `cloud` returns the points of the file it is given (the
+/// input, or the scene's "cloud") and is called only when needed (a cloud input or a missing
+/// camera), at most once. Throws SceneError (bad scene file), OptionError (bad override), and
+/// what `cloud` throws (io errors).
 ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverrides& overrides,
                             const std::function<const PointCloud&(const std::filesystem::path&)>& cloud);
 

@@ -25,6 +25,7 @@ using render::Framebuffer;
 using render::ImageMetadata;
 using render::RenderStats;
 using render::Scene;
+using render::SceneOverrides;  // applied by Scene::apply
 
 /// Inputs of run_render(). Start from load_scene(file) or a Scene built in code (then set
 /// scene.camera, and scene.cloud or `cloud`).
@@ -100,24 +101,5 @@ std::vector<Camera> load_camera_list(const std::filesystem::path& file);
 /// The output name of frame `frame`: "<stem>_<frame, 4+ digits><extension>" beside `image`
 /// (out.png -> out_0000.png, out_0001.png, ...).
 std::filesystem::path frame_file_name(const std::filesystem::path& image, std::size_t frame);
-
-/// Applies the usual command-line overrides to a loaded scene, checking each: a camera file
-/// (replaces the camera), samples per pixel, seed, output image (must pass is_image_file_name),
-/// extra AOVs by name (parse_aov; duplicates ignored), the primitive ("sphere" | "surfel"), the
-/// camera of a COLMAP photo (load_colmap_camera(colmap_dir, colmap_image))
-/// and an image size (one of width/height given: the other follows the camera's aspect ratio; the
-/// field of view is kept). Throws SceneError (camera file, COLMAP model) or OptionError naming the
-/// field ("aovs 'x': expected ...", written by the CLI as its flag, "--aov 'x': ...").
-struct SceneOverrides {
-  std::filesystem::path camera_file;
-  std::filesystem::path colmap_dir;  ///< COLMAP text model folder (cameras.txt, images.txt)
-  std::string colmap_image;          ///< NAME of the photo in images.txt (required with colmap_dir)
-  std::string primitive;             ///< "sphere" | "surfel"; "" keeps the scene's
-  std::optional<std::uint32_t> spp, width, height;
-  std::optional<std::uint64_t> seed;
-  std::filesystem::path out;
-  std::vector<std::string> aovs;
-};
-void apply_overrides(Scene& scene, const SceneOverrides& overrides);
 
 }  // namespace rayscan::jobs

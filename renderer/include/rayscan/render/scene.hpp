@@ -84,6 +84,20 @@ struct OutputDesc {
   double exposure = 0.0;              ///< stops: pixel values are multiplied by 2^exposure
 };
 
+/// The usual command-line changes to a loaded scene (`rayscan render` flags, the Python module's
+/// render() arguments), applied by Scene::apply. Unset members change nothing.
+struct SceneOverrides {
+  std::filesystem::path camera_file;  ///< camera file replacing the scene's camera (scenes/README.md)
+  std::filesystem::path colmap_dir;   ///< COLMAP text model folder (cameras.txt, images.txt)
+  std::string colmap_image;           ///< NAME of the photo in images.txt (required with colmap_dir)
+  std::string primitive;              ///< "sphere" | "surfel"; "" keeps the scene's
+  std::optional<std::uint32_t> spp;   ///< samples per pixel, [1, 2^20]
+  std::optional<std::uint32_t> width, height;  ///< image size, pixels (fit_image_size)
+  std::optional<std::uint64_t> seed;  ///< sampler seed
+  std::filesystem::path out;          ///< output image (is_image_file_name)
+  std::vector<std::string> aovs;      ///< extra AOVs by name (parse_aov); duplicates ignored
+};
+
 /// A fully parsed render description. Paths are absolute or relative to the working directory
 /// (already resolved against the scene file's folder).
 struct Scene {
@@ -110,6 +124,21 @@ struct Scene {
   std::uint64_t seed = 0;
   double ray_offset = 1e-3;                   ///< bounce-ray origin offset along n, fraction of r
   OutputDesc output;
+
+  /// Applies `overrides`, checking each: a camera file (replaces the camera), the camera of a
+  /// COLMAP photo (load_colmap_camera(colmap_dir, colmap_image)), the primitive, samples per
+  /// pixel, seed, output image, extra AOVs, and an image size (Camera::resized: one of width and
+  /// height given, the other follows the camera's aspect ratio; the field of view is kept; the
+  /// camera is then inline, camera_file "").
+  /// Throws SceneError (camera file, COLMAP model) or OptionError naming the field of
+  /// SceneOverrides ("aovs 'x': expected ...", written by the CLI as its flag, "--aov 'x': ...").
+  void apply(const SceneOverrides& overrides);
+
+  /// The scene as scene-file JSON (2-space indent), every value explicit: load_scene of the text
+  /// gives this scene back (camera inline, bit for bit; paths absolute, so the file works from
+  /// any folder). What `rayscan render --print-scene` prints. Throws std::invalid_argument when
+  /// the camera has no camera-file form (an orthographic grid, io::camera_to_json) or is unset.
+  [[nodiscard]] std::string to_json() const;
 };
 
 /// Parse a scene file. Relative paths in it (cloud, camera, output) resolve against its folder.
