@@ -1074,7 +1074,7 @@ int main(int argc, char** argv) {
         std::printf("\n%d thread%s, rays/s (%s; kNN and radius timed on %zu of the rays):\n", nt,
                     nt > 1 ? "s" : "", nt == 1 ? "per CPU-second of the one thread" : "wall clock",
                     set.slow.size());
-        std::printf("| index | kNN k=8 | radius r | closest | sphere_hit | sphere_hit / Embree (issue 12 goal >= 1.0) | "
+        std::printf("| index | kNN k=8 | radius r | closest | sphere_hit | sphere_hit / Embree (goal >= 1.0) | "
                     "fastest rounds: sphere_hit / Embree |\n");
         std::printf("|---|---:|---:|---:|---:|---:|---:|\n");
         for (std::size_t b = 0; b < built.size(); ++b) {

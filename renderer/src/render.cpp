@@ -1,5 +1,7 @@
 #include "rayscan/render/render.hpp"
 
+#include "integrator.hpp"
+
 #include "rayscan/octree/point_query.hpp"
 #include "rayscan/base/threads.hpp"
 

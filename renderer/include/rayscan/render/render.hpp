@@ -1,11 +1,13 @@
 // Rendering a scene: load the cloud, build the index, choose the radius, then trace every pixel
-// in parallel over image tiles (TBB) with the PathTracer (integrator.hpp).
+// in parallel over image tiles (TBB) with the path tracer (PathTracer, private to the renderer:
+// renderer/src/integrator.hpp).
 #pragma once
 
 #include "rayscan/site/site.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 #include "rayscan/camera/camera.hpp"
-#include "rayscan/render/integrator.hpp"
+#include "rayscan/render/material.hpp"
+#include "rayscan/octree/surfel.hpp"
 #include "rayscan/base/progress.hpp"
 #include "rayscan/render/scene.hpp"
 #include "rayscan/octree/spacing.hpp"
@@ -15,6 +17,24 @@
 #include <vector>
 
 namespace rayscan::render {
+
+/// Everything the integrator reads, independent of the index type. Spans must outlive the
+/// integrator. Sphere centres are read from the index itself (index.positions()[RayHit::slot]),
+/// so an index file is traced without a copy of its points.
+struct IntegratorInputs {
+  std::span<const Vec3> centers;    ///< the cloud's positions by original index, world coordinates:
+                                    ///< the disc centres of surfel mode (empty: sphere mode only)
+  AlbedoSource albedo;              ///< per-point albedo, linear [0,1] (array or rule)
+  double radius = 1.0;              ///< sphere radius r, world units (> 0)
+  HitMode hit = HitMode::sphere;
+  NodeDistance node_distance = NodeDistance::exact;  ///< node pruning bound of the ray query
+  std::uint32_t max_depth = 4;      ///< rays per path (camera ray + bounces; shadow rays not
+                                    ///< counted), as RTIOW's max_depth: 1 = sun light only
+  std::uint32_t rr_depth = 0;       ///< Russian roulette from this depth on; 0 = off
+  double ray_offset = 1e-3;         ///< offset of secondary ray origins along n, fraction of r
+  Primitive primitive = Primitive::sphere;  ///< spheres of `radius` or the discs of `surfels`
+  SurfelView surfels;               ///< per-point discs (Primitive::surfel only; centres = centers)
+};
 
 /// The rendered image and its AOVs, row-major from the top-left pixel. AOV vectors are empty
 /// unless requested. AOVs describe the ray through the pixel centre (lens centre), not averaged

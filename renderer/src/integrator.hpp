@@ -5,9 +5,10 @@
 
 #include "rayscan/octree/ray_query.hpp"
 #include "rayscan/render/material.hpp"
-#include "rayscan/render/sampler.hpp"
+#include "sampler.hpp"
+#include "rayscan/render/render.hpp"
 #include "rayscan/render/scene.hpp"
-#include "rayscan/render/sky.hpp"
+#include "sky.hpp"
 #include "rayscan/octree/surfel.hpp"
 
 #include <atomic>
@@ -22,23 +23,6 @@
 
 namespace rayscan::render {
 
-/// Everything the integrator reads, independent of the index type. Spans must outlive the
-/// integrator. Sphere centres are read from the index itself (index.positions()[RayHit::slot]),
-/// so an index file is traced without a copy of its points.
-struct IntegratorInputs {
-  std::span<const Vec3> centers;    ///< the cloud's positions by original index, world coordinates:
-                                    ///< the disc centres of surfel mode (empty: sphere mode only)
-  AlbedoSource albedo;              ///< per-point albedo, linear [0,1] (array or rule)
-  double radius = 1.0;              ///< sphere radius r, world units (> 0)
-  HitMode hit = HitMode::sphere;
-  NodeDistance node_distance = NodeDistance::exact;  ///< node pruning bound of the ray query
-  std::uint32_t max_depth = 4;      ///< rays per path (camera ray + bounces; shadow rays not
-                                    ///< counted), as RTIOW's max_depth: 1 = sun light only
-  std::uint32_t rr_depth = 0;       ///< Russian roulette from this depth on; 0 = off
-  double ray_offset = 1e-3;         ///< offset of secondary ray origins along n, fraction of r
-  Primitive primitive = Primitive::sphere;  ///< spheres of `radius` or the discs of `surfels`
-  SurfelView surfels;               ///< per-point discs (Primitive::surfel only; centres = centers)
-};
 
 /// The candidate discs of one pixel's camera hits in surfel mode (PathTracer::trace_packet): every
 /// disc that may cover a point within `delta` of `x0` (cover_candidates), so the shading normal of
