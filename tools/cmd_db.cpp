@@ -1,13 +1,10 @@
 // `rayscan db import`: clouds into SQLite (default) or PostgreSQL as Morton-ordered chunks with an
-// index of chunk bounds (paper section 4.2). Parsing and printing only: the work is in
-// sql/ (rayscan/sql/import.hpp).
+// index of chunk bounds (paper section 4.2). Parsing and printing only; the job is
+// rayscan::jobs::run_db_import (rayscan/jobs/db_import.hpp).
 #include "commands.hpp"
 #include "processes.hpp"
-#include "rayscan/base/option_error.hpp"
 
-#include "rayscan/base/byte_size.hpp"
-#include "rayscan/site/index_file.hpp"
-#include "rayscan/sql/import.hpp"
+#include "rayscan/jobs/db_import.hpp"
 
 #include <iostream>
 #include <memory>
@@ -20,36 +17,24 @@ namespace {
 struct DbImportOptions {
   std::vector<std::string> clouds;
   std::string out, postgres, table = "points", attributes, memory, temp_dir;
-  std::uint32_t chunk = sql::ImportOptions::kDefaultChunkSize;
+  std::uint32_t chunk = jobs::DbImportJobOptions::kDefaultChunkSize;
   bool pcpatch = false;
 };
 
 int run_import(const DbImportOptions& o) {
-  if (o.postgres.empty() == o.out.empty())
-    throw UsageError("give exactly one of -o FILE.sqlite and --postgres CONNINFO");
-  sql::ImportOptions opt;
-  opt.chunk_size = o.chunk;
-  opt.pcpatch = o.pcpatch;
-  opt.temp_dir = o.temp_dir;
-  try {
-    if (!o.memory.empty()) opt.memory_bytes = rayscan::parse_byte_size(o.memory);
-  } catch (const std::invalid_argument& e) {
-    throw UsageError(std::string("--memory: ") + e.what());
-  }
-  if (o.pcpatch && o.postgres.empty()) throw UsageError("--pcpatch needs --postgres CONNINFO");
+  jobs::DbImportJobOptions job;
+  job.clouds.assign(o.clouds.begin(), o.clouds.end());
+  job.out = o.out;
+  job.postgres = o.postgres;
+  job.table = o.table;
+  job.chunk_size = o.chunk;
+  job.pcpatch = o.pcpatch;
+  job.memory = o.memory;
+  job.temp_dir = o.temp_dir;
   std::stringstream ss(o.attributes);
   for (std::string a; std::getline(ss, a, ',');)
-    if (!a.empty()) opt.attributes.push_back(a);
-  std::vector<std::filesystem::path> paths(o.clouds.begin(), o.clouds.end());
-  sql::ImportSummary s;
-  try {
-    s = o.postgres.empty() ? sql::import_sqlite(paths, o.out, opt)
-                           : sql::import_postgres(paths, o.postgres, o.table, opt);
-  } catch (const OptionError&) {
-    throw;  // printed with this command's flag names (rayscan.cpp)
-  } catch (const std::invalid_argument& e) {
-    throw UsageError(e.what());
-  }
+    if (!a.empty()) job.attributes.push_back(a);
+  const jobs::DbImportJobResult s = jobs::run_db_import(job);
   std::cout << "{\"points\": " << s.points << ", \"chunks\": " << s.chunks << ", \"chunk_size\": "
             << o.chunk << "}\n";
   return 0;

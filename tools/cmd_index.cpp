@@ -1,11 +1,10 @@
 // `rayscan index CLOUD... -o SITE.rsi`: builds the index file of one or more point cloud files
-// (a site delivered as tiles is one index) out of core. Parsing and printing only; the build is
-// rayscan::io::build_index_file (index_file.hpp).
+// (a site delivered as tiles is one index) out of core. Parsing and printing only; the job is
+// rayscan::jobs::run_index (rayscan/jobs/index.hpp).
 #include "commands.hpp"
 #include "processes.hpp"
 
-#include "rayscan/base/byte_size.hpp"
-#include "rayscan/site/index_file.hpp"
+#include "rayscan/jobs/index.hpp"
 
 #include <signal.h>
 
@@ -82,28 +81,27 @@ Runner add_index_command(CLI::App& app) {
   sub->add_flag("-q,--quiet", o->quiet, "no progress on stderr");
   return [o]() -> int {
     require_single_process("rayscan index");
-    io::IndexBuildOptions opt;
+    jobs::IndexJobOptions job;
     try {
-      opt.config.layout = parse_octree_layout(o->layout);
-      opt.config.capacity = o->capacity;
-      opt.config.depth = o->depth;
-      opt.config.max_depth = o->max_depth;
-      opt.memory_bytes = rayscan::parse_byte_size(o->memory);
-      io::AttributeSet a = io::AttributeSet::parse(o->attributes);
-      if (o->attributes == "all") a = io::kIndexAttributes;
-      opt.attributes = a;
-      opt.compact_positions = o->positions == "compact";
+      job.config.layout = parse_octree_layout(o->layout);
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }
-    if (!io::is_index_file(o->output)) throw UsageError(o->output + ": the index file name must end in .rsi");
-    opt.temp_dir = o->temp_dir;
+    job.config.capacity = o->capacity;
+    job.config.depth = o->depth;
+    job.config.max_depth = o->max_depth;
+    job.memory = o->memory;
+    job.attributes = o->attributes;
+    job.compact_positions = o->positions == "compact";
+    job.inputs.assign(o->inputs.begin(), o->inputs.end());
+    job.output = o->output;
+    job.temp_dir = o->temp_dir;
     const auto t0 = std::chrono::steady_clock::now();
     auto secs = [t0] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
     // The progress callback runs every few million points in every phase (and once more before
     // the output is renamed into place); it is also where an interrupt stops the build.
     const bool quiet = o->quiet;
-    opt.progress = [&secs, quiet](const char* phase, std::uint64_t done, std::uint64_t total) {
+    job.progress = [&secs, quiet](const char* phase, std::uint64_t done, std::uint64_t total) {
       if (const int sig = g_interrupt; sig != 0) throw Interrupted(sig);
       if (quiet) return;
       const double s = secs();
@@ -116,16 +114,16 @@ Runner add_index_command(CLI::App& app) {
         std::fprintf(stderr, "\rindex: %-5s %llu points   ", phase, static_cast<unsigned long long>(done));
       std::fflush(stderr);
     };
-    std::vector<std::filesystem::path> in(o->inputs.begin(), o->inputs.end());
     catch_interrupts();
-    io::IndexBuildStats st;
+    jobs::IndexJobResult r;
     try {
-      st = io::build_index_file(in, o->output, opt);
+      r = jobs::run_index(job);
     } catch (const Interrupted& e) {
       if (!o->quiet) std::fprintf(stderr, "\n");
       std::cerr << "rayscan index: " << e.what() << "\n";
       return 128 + e.signal;  // the shell's convention for a command ended by a signal
     }
+    const io::IndexBuildStats& st = r.stats;
     const double s = secs();
     if (!o->quiet) std::fprintf(stderr, "\n");
     for (const std::string& n : st.notes) std::cerr << "note: " << n << "\n";

@@ -1,9 +1,9 @@
-// `rayscan translate IN OUT`: lossless LAS <-> LAZ conversion (a thin kernel over
-// io::translate_las; see rayscan/io/translate.hpp).
+// `rayscan translate IN OUT`: lossless LAS <-> LAZ conversion. Parsing and printing only; the
+// job is rayscan::jobs::run_translate (rayscan/jobs/translate.hpp).
 #include "commands.hpp"
 #include "processes.hpp"
 
-#include "rayscan/io/translate.hpp"
+#include "rayscan/jobs/translate.hpp"
 
 #include <iostream>
 #include <memory>
@@ -24,11 +24,13 @@ Runner add_translate_command(CLI::App& app) {
   sub->add_option("--chunk-size", *chunk, "points per LAZ chunk")->check(CLI::Range(1u, 0xFFFFFFFEu));
   return [in, out, format, chunk]() -> int {
     require_single_process("rayscan translate");
-    io::TranslateOptions o;
-    o.compression = *format == "las" ? io::LasCompression::las
-                    : *format == "laz" ? io::LasCompression::laz : io::LasCompression::by_extension;
-    o.chunk_size = *chunk;
-    const io::TranslateResult r = io::translate_las(*in, *out, o);
+    jobs::TranslateJobOptions job;
+    job.in = *in;
+    job.out = *out;
+    job.compression = *format == "las" ? jobs::LasCompression::las
+                      : *format == "laz" ? jobs::LasCompression::laz : jobs::LasCompression::by_extension;
+    job.chunk_size = *chunk;
+    const jobs::TranslateJobResult r = jobs::run_translate(job);
     std::cout << *out << ": " << r.points << " points, " << (r.compressed ? "LAZ" : "LAS") << ", " << r.out_bytes
               << " bytes";
     if (r.compressed) std::cout << " in " << r.chunks << " chunks";

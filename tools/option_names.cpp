@@ -12,7 +12,8 @@ struct Spelling {
 };
 
 // The options structs: jobs::VisibilityJobOptions, jobs::SceneOverrides, jobs::CompareJobOptions,
-// io::IndexBuildOptions (with its OctreeConfig), sql::ImportOptions.
+// jobs::IndexJobOptions with the io::IndexBuildOptions it fills (and its OctreeConfig),
+// jobs::TranslateJobOptions, jobs::DbImportJobOptions with the sql::ImportOptions it fills.
 constexpr std::array kSpellings{
     Spelling{"visibility", "observers", "--observer"},
     Spelling{"visibility", "observers_file", "--observers"},
@@ -26,6 +27,7 @@ constexpr std::array kSpellings{
     Spelling{"index", "memory_bytes", "--memory"},
     Spelling{"db", "memory_bytes", "--memory"},
     Spelling{"db", "chunk_size", "--chunk"},
+    Spelling{"db", "out", "-o"},
 };
 
 }  // namespace

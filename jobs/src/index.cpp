@@ -1,0 +1,41 @@
+// The index job (rayscan/jobs/index.hpp): options checked, then the out-of-core build.
+#include "rayscan/jobs/index.hpp"
+
+#include "rayscan/base/byte_size.hpp"
+#include "rayscan/base/option_error.hpp"
+#include "rayscan/base/threads.hpp"
+
+#include <tbb/task_arena.h>
+
+namespace rayscan::jobs {
+
+namespace {
+
+/// The build's options from the job's: the memory budget and attribute list parsed, the output
+/// name checked. Throws as run_index() for these options.
+io::IndexBuildOptions index_build_options(const IndexJobOptions& o) {
+  io::IndexBuildOptions b;
+  b.config = o.config;
+  b.memory_bytes = parse_byte_size(o.memory);
+  // "all" of AttributeSet::parse means every attribute a reader knows; an index stores fewer.
+  b.attributes = o.attributes == "all" ? io::kIndexAttributes : io::AttributeSet::parse(o.attributes);
+  b.compact_positions = o.compact_positions;
+  if (!io::is_index_file(o.output))
+    throw OptionError({o.output.string() + ": the index file name must end in .rsi"});
+  b.temp_dir = o.temp_dir;
+  b.progress = o.progress;
+  return b;
+}
+
+}  // namespace
+
+IndexJobResult run_index(const IndexJobOptions& options) {
+  const io::IndexBuildOptions build = index_build_options(options);
+  IndexJobResult result;
+  result.output = options.output;
+  tbb::task_arena arena(static_cast<int>(resolve_threads(options.control.threads)));
+  arena.execute([&] { result.stats = io::build_index_file(options.inputs, options.output, build); });
+  return result;
+}
+
+}  // namespace rayscan::jobs
