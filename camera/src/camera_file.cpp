@@ -118,6 +118,14 @@ ojson mat3_json(const std::array<std::array<double, 3>, 3>& m) {
   return a;
 }
 
+// The "type", "position", "look_at" and "up" keys of the orthographic and equirectangular models.
+void set_frame(ojson& j, const char* type, const Vec3& position, const Vec3& look_at, const Vec3& up) {
+  j["type"] = type;
+  j["position"] = vec3_json(position);
+  j["look_at"] = vec3_json(look_at);
+  j["up"] = vec3_json(up);
+}
+
 }  // namespace
 
 nlohmann::ordered_json camera_to_json(const Camera& camera) {
@@ -144,17 +152,11 @@ nlohmann::ordered_json camera_to_json(const Camera& camera) {
       }
       return j;
     case CameraModel::orthographic:
-      j["type"] = "orthographic";
-      j["position"] = vec3_json(d.orthographic.position);
-      j["look_at"] = vec3_json(d.orthographic.look_at);
-      j["up"] = vec3_json(d.orthographic.up);
+      set_frame(j, "orthographic", d.orthographic.position, d.orthographic.look_at, d.orthographic.up);
       j["view_height"] = d.orthographic.view_height;
       return j;
     case CameraModel::equirectangular:
-      j["type"] = "equirectangular";
-      j["position"] = vec3_json(d.equirectangular.position);
-      j["look_at"] = vec3_json(d.equirectangular.look_at);
-      j["up"] = vec3_json(d.equirectangular.up);
+      set_frame(j, "equirectangular", d.equirectangular.position, d.equirectangular.look_at, d.equirectangular.up);
       return j;
     case CameraModel::orthographic_grid: break;
   }

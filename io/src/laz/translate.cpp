@@ -6,10 +6,12 @@
 #include "laz/laz.hpp"
 #include "las/las_header.hpp"
 #include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/option_error.hpp"
 
 #include <fstream>
 #include <optional>
 #include <stdexcept>
+#include <string>
 
 namespace rayscan::io {
 
@@ -147,7 +149,10 @@ void encode_chunk_v2(const std::uint8_t* recs, std::size_t n, std::size_t rec, i
 
 TranslateResult translate_las(const std::filesystem::path& in_path, const std::filesystem::path& out_path,
                               const TranslateOptions& opt) {
-  if (opt.chunk_size == 0) throw std::invalid_argument("translate: chunk size must be at least 1");
+  // 0xFFFFFFFF marks variable-sized chunks in the LASzip VLR (LASzip laszip.hpp, chunk_size).
+  if (opt.chunk_size == 0 || opt.chunk_size == 0xFFFFFFFFu)
+    throw OptionError({option("chunk_size"), " " + std::to_string(opt.chunk_size) +
+                                                 ": expected 1 to 4294967294 points per chunk"});
   const laz::FileMap map(in_path);
   const detail::Input in{map.bytes(), in_path.string(), {}};
   const detail::LasHeader h = detail::parse_las_header(in);

@@ -23,10 +23,11 @@ struct TranslateOptions {
 
 /// What translate_las() did.
 struct TranslateResult {
-  std::uint64_t points = 0;
-  std::uint64_t chunks = 0;  ///< LAZ chunks written (0 for LAS output)
-  bool compressed = false;   ///< the output is LAZ
-  std::uint64_t in_bytes = 0, out_bytes = 0;
+  std::uint64_t points = 0;     ///< point records converted
+  std::uint64_t chunks = 0;     ///< LAZ chunks written (0 for LAS output)
+  bool compressed = false;      ///< the output is LAZ
+  std::uint64_t in_bytes = 0;   ///< size of the input file, bytes
+  std::uint64_t out_bytes = 0;  ///< size of the output file, bytes
 };
 
 /// Converts the LAS or LAZ file `in` (LAZ recognised by its LASzip VLR) to `out`, streaming one
@@ -36,7 +37,8 @@ struct TranslateResult {
 /// compressor with item version 3 (POINT14, RGB14, RGBNIR14, BYTE14; one arithmetic coder per
 /// layer). Writes through a temporary file renamed into place (AtomicFile). Throws FormatError
 /// for malformed input, std::invalid_argument for an unsupported conversion (LAZ output of the
-/// waveform formats 4, 5, 9, 10; chunk_size 0), std::runtime_error for I/O failures. Sources:
+/// waveform formats 4, 5, 9, 10), OptionError naming "chunk_size" for 0 or 0xFFFFFFFF (the
+/// LASzip VLR's variable-chunk marker), std::runtime_error for I/O failures. Sources:
 /// ASPRS LAS 1.4 R15 sections 2.4-2.7; LASzip (docs/formats.md "LAZ" sections 4-5).
 TranslateResult translate_las(const std::filesystem::path& in, const std::filesystem::path& out,
                               const TranslateOptions& options = {});

@@ -25,14 +25,8 @@ struct TranslateJobOptions {
   JobControl control;  ///< unused today (the conversion streams on one thread)
 };
 
-/// Output of run_translate().
-struct TranslateJobResult {
-  std::uint64_t points = 0;    ///< point records converted
-  std::uint64_t chunks = 0;    ///< LAZ chunks written (0 for LAS output)
-  bool compressed = false;     ///< the output is LAZ
-  std::uint64_t in_bytes = 0;  ///< size of the input file, bytes
-  std::uint64_t out_bytes = 0; ///< size of the output file, bytes
-};
+/// Output of run_translate(): points, chunks, compressed, input and output sizes.
+using TranslateJobResult = io::TranslateResult;
 
 /// Converts `in` to `out` one chunk at a time (memory independent of the file size; details in
 /// rayscan/io/translate.hpp). Throws OptionError naming "chunk_size" for a chunk size outside
