@@ -4,6 +4,7 @@
 
 #include "rayscan/octree/ray_query.hpp"
 #include "rayscan/octree/spatial_index.hpp"
+#include "rayscan/octree/traverse.hpp"
 
 #include <algorithm>
 #include <cstddef>
@@ -17,20 +18,6 @@ struct Neighbor {
   double distance;   ///< Euclidean distance to the query point (not squared; world units)
 };
 
-namespace detail {
-template <class I, class F>
-void for_subtree(const I& index, typename I::Node n, F&& f) {
-  if constexpr (requires { index.subtree_points(n); }) {
-    const SlotRange sr = index.subtree_points(n);
-    for (std::uint32_t s = sr.begin; s < sr.end; ++s) f(s);
-  } else {
-    const SlotRange sr = index.node_points(n);
-    for (std::uint32_t s = sr.begin; s < sr.end; ++s) f(s);
-    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) for_subtree(index, index.child(n, i), f);
-  }
-}
-}  // namespace detail
-
 /// Box range query: the original indices of all points p with box.lo <= p <= box.hi (inclusive on
 /// every side), in the index's storage order (deterministic; sort the result if ascending indices
 /// are needed: the peers Boost.Geometry rtree and nanoflann also return tree order). Nodes inside
@@ -40,34 +27,33 @@ template <SpatialIndex I>
 void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
   out.clear();
   if (index.empty() || box.empty()) return;
+  using Node = typename I::Node;
   const auto pos = index.positions();
   const IdView ids = index.ids();
-  thread_local std::vector<typename I::Node> stack;
-  stack.clear();
-  stack.push_back(index.root());
-  while (!stack.empty()) {
-    const auto n = stack.back();
-    stack.pop_back();
-    const AABB nb = index.node_bounds(n);
-    if (!box.overlaps(nb)) continue;
-    if (box.contains(nb.lo) && box.contains(nb.hi)) {
-      detail::for_subtree(index, n, [&](std::uint32_t s) { out.push_back(ids[s]); });
-      continue;
-    }
-    // A node the box cuts: each point tested without a branch (AABB::contains; the outcome is
-    // unpredictable there), its id written at the end and kept by advancing the end when inside.
-    const SlotRange sr = index.node_points(n);
-    if (sr.size() > 0) {
-      std::size_t k = out.size();
-      out.resize(k + sr.size());
-      for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
-        out[k] = ids[s];
-        k += static_cast<std::size_t>(box.contains(pos[s]));
-      }
-      out.resize(k);
-    }
-    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) stack.push_back(index.child(n, i));
-  }
+  depth_first(
+      index,
+      [&](Node n) {
+        const AABB nb = index.node_bounds(n);
+        if (!box.overlaps(nb)) return Enter::no;
+        return box.contains(nb.lo) && box.contains(nb.hi) ? Enter::whole : Enter::yes;
+      },
+      [&](const NodeVisit<Node>& v) {
+        const SlotRange sr = v.slots;
+        if (v.whole) {
+          for (std::uint32_t s = sr.begin; s < sr.end; ++s) out.push_back(ids[s]);
+          return;
+        }
+        // A node the box cuts: each point tested without a branch (AABB::contains; the outcome is
+        // unpredictable there), its id written at the end and kept by advancing the end when inside.
+        if (sr.size() == 0) return;
+        std::size_t k = out.size();
+        out.resize(k + sr.size());
+        for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+          out[k] = ids[s];
+          k += static_cast<std::size_t>(box.contains(pos[s]));
+        }
+        out.resize(k);
+      });
 }
 
 namespace detail {

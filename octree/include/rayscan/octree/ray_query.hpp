@@ -6,6 +6,7 @@
 
 #include "rayscan/octree/detail/ray_packets.hpp"
 #include "rayscan/octree/ray_query_types.hpp"
+#include "rayscan/octree/traverse.hpp"
 
 namespace rayscan {
 
@@ -207,7 +208,8 @@ template <SpatialIndex I>
 
 /// Convex "frustum" query (paper section 3.1, "Time Range"): every point with
 /// dist_plane(plane.point, plane.normal, p) <= 0 for all planes, as original indices in ascending
-/// order. No ray is needed; nodes are pruned with dist_plane_bounds.
+/// order. No ray is needed; a depth_first walk (traverse.hpp) whose node test prunes with
+/// dist_plane_bounds.
 template <SpatialIndex I>
 [[nodiscard]] std::vector<PointIndex> frustum_query(const I& index, std::span<const Plane> planes) {
   std::vector<PointIndex> out;
@@ -221,24 +223,23 @@ template <SpatialIndex I>
   const double tol = 1e-9 * (root_box.max_extent() + glm::length(root_box.center())) + 1e-300;
   const auto pos = index.positions();
   const IdView ids = index.ids();
-  std::vector<typename I::Node> stack{index.root()};
-  while (!stack.empty()) {
-    const auto n = stack.back();
-    stack.pop_back();
-    const AABB b = index.node_bounds(n);
-    bool pruned = false;
-    for (const Plane& pl : planes)
-      if (dist_plane_bounds(pl.point, pl.normal, b).lo > tol) { pruned = true; break; }
-    if (pruned) continue;
-    const SlotRange sr = index.node_points(n);
-    for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
-      bool inside = true;
-      for (const Plane& pl : planes)
-        if (dist_plane(pl.point, pl.normal, pos[s]) > 0.0) { inside = false; break; }
-      if (inside) out.push_back(ids[s]);
-    }
-    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) stack.push_back(index.child(n, i));
-  }
+  using Node = typename I::Node;
+  depth_first(
+      index,
+      [&](Node n) {
+        const AABB b = index.node_bounds(n);
+        for (const Plane& pl : planes)
+          if (dist_plane_bounds(pl.point, pl.normal, b).lo > tol) return Enter::no;
+        return Enter::yes;
+      },
+      [&](const NodeVisit<Node>& v) {
+        for (std::uint32_t s = v.slots.begin; s < v.slots.end; ++s) {
+          bool inside = true;
+          for (const Plane& pl : planes)
+            if (dist_plane(pl.point, pl.normal, pos[s]) > 0.0) { inside = false; break; }
+          if (inside) out.push_back(ids[s]);
+        }
+      });
   std::sort(out.begin(), out.end());
   return out;
 }
