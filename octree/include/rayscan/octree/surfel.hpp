@@ -7,6 +7,7 @@
 
 #include "rayscan/octree/point_query.hpp"
 #include "rayscan/octree/ray_query.hpp"
+#include "rayscan/octree/traverse.hpp"
 
 #include <glm/vec3.hpp>
 
@@ -58,24 +59,15 @@ struct SurfelView {
 
 /// The largest of `radii` (by original point index) over the points of each node's subtree of
 /// `index`, indexed by node (size: largest node handle + 1; unvisited handles hold 0). One pass
-/// over the tree (children after parents in pre-order, reduced in reverse).
+/// over the tree (nodes_children_first: each node after its children).
 template <SpatialIndex I>
 [[nodiscard]] std::vector<float> surfel_node_radii(const I& index, std::span<const float> radii) {
-  using Node = typename I::Node;
   std::vector<float> out;
   if (index.empty()) return out;
-  std::vector<Node> order{index.root()}, stack{index.root()};
-  order.clear();
-  while (!stack.empty()) {
-    const Node n = stack.back();
-    stack.pop_back();
-    order.push_back(n);
-    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) stack.push_back(index.child(n, i));
-  }
+  const auto order = nodes_children_first(index);
   out.assign(static_cast<std::size_t>(*std::max_element(order.begin(), order.end())) + 1, 0.0f);
   const IdView ids = index.ids();
-  for (auto it = order.rbegin(); it != order.rend(); ++it) {
-    const Node n = *it;
+  for (const auto n : order) {
     float m = 0.0f;
     const SlotRange sr = index.node_points(n);
     for (std::uint32_t k = sr.begin; k < sr.end; ++k) m = std::max(m, radii[ids[k]]);
@@ -102,20 +94,12 @@ template <SpatialIndex I>
 /// surfaces it is much thinner across the surface than the node's box grown by its largest radius.
 template <SpatialIndex I>
 [[nodiscard]] std::vector<AABB> surfel_node_boxes(const I& index, const SurfelView& s) {
-  using Node = typename I::Node;
   std::vector<AABB> out;
   if (index.empty()) return out;
-  std::vector<Node> order, stack{index.root()};
-  while (!stack.empty()) {
-    const Node n = stack.back();
-    stack.pop_back();
-    order.push_back(n);
-    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) stack.push_back(index.child(n, i));
-  }
+  const auto order = nodes_children_first(index);
   out.assign(static_cast<std::size_t>(*std::max_element(order.begin(), order.end())) + 1, AABB{});
   const IdView ids = index.ids();
-  for (auto it = order.rbegin(); it != order.rend(); ++it) {
-    const Node n = *it;
+  for (const auto n : order) {
     AABB b;
     const SlotRange sr = index.node_points(n);
     for (std::uint32_t k = sr.begin; k < sr.end; ++k) {
@@ -174,21 +158,17 @@ inline constexpr unsigned kNodeBoxFloats = 8;
 template <SpatialIndex I>
   requires detail::FloatChildBoxes<I>
 [[nodiscard]] std::vector<float> surfel_node_boxes_f(const I& index, std::span<const AABB> boxes) {
-  if (!index.empty()) {  // SurfelChildBoxesF reads the rows child(n, 0) + i
-    std::vector<typename I::Node> stack{index.root()};
-    while (!stack.empty()) {
-      const auto n = stack.back();
-      stack.pop_back();
-      if (std::size_t{n} >= boxes.size())
-        throw std::invalid_argument("surfel_node_boxes_f: the node boxes do not cover node " + std::to_string(n));
-      for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i) {
-        if (index.child(n, i) != index.child(n, 0) + i)
-          throw std::invalid_argument("surfel_node_boxes_f: the children of node " + std::to_string(n) +
-                                      " are not contiguous");
-        stack.push_back(index.child(n, i));
-      }
-    }
-  }
+  using Node = typename I::Node;
+  // SurfelChildBoxesF reads the rows child(n, 0) + i: every node checked, in depth_first's order.
+  depth_first(index, [](Node) { return Enter::yes; }, [&](const NodeVisit<Node>& v) {
+    const Node n = v.node;
+    if (std::size_t{n} >= boxes.size())
+      throw std::invalid_argument("surfel_node_boxes_f: the node boxes do not cover node " + std::to_string(n));
+    for (unsigned i = 0, nc = index.child_count(n); i < nc; ++i)
+      if (index.child(n, i) != index.child(n, 0) + i)
+        throw std::invalid_argument("surfel_node_boxes_f: the children of node " + std::to_string(n) +
+                                    " are not contiguous");
+  });
   std::vector<float> out(boxes.size() * kNodeBoxFloats, 0.0f);
   const Vec3 o = index.float_origin();
   for (std::size_t n = 0; n < boxes.size(); ++n) {
@@ -571,7 +551,8 @@ namespace surfel_detail {
 /// within `delta` of x: |p - x| <= sqrt(1 + 1/16) r_i + delta, widened past rounding (a superset:
 /// the callers test each one exactly). Prunes each node by its own subtree's largest disc radius
 /// (s.node_radii; s.max_radius without) on the SIMD child bound (child_dist2) and the distance
-/// filter (point_filter with d = 0), as knn_query. Uses the ray query's per-thread scratch.
+/// filter (point_filter with d = 0), as knn_query: a depth_first walk (traverse.hpp) with that
+/// node test, its leaf callback the point test. Uses the ray query's per-thread filter scratch.
 template <SpatialIndex I, class F>
 void cover_descent(const I& index, const SurfelView& s, const Vec3& x, double delta, F&& f) {
   using Node = typename I::Node;
@@ -582,12 +563,9 @@ void cover_descent(const I& index, const SurfelView& s, const Vec3& x, double de
   };
   const auto pos = index.positions();
   const IdView ids = index.ids();
-  // The node stack, the filter's survivors and decoded positions: the ray query's per-thread
-  // scratch (free between queries; no new thread_local, whose static TLS the Python module cannot
-  // spare).
+  // The filter's survivors and decoded positions: the ray query's per-thread scratch (free
+  // between queries; no new thread_local, whose static TLS the Python module cannot spare).
   auto& scratch = rayscan::detail::ray_scratch<Node>();
-  auto& stack = scratch.nodes;
-  stack.clear();
   // SIMD policies as in knn_query: each child's MINDIST^2 lower bound on its float box
   // (child_dist2), each node's points through the distance filter (point_filter with d = 0); both
   // conservative, every survivor tested exactly below.
@@ -597,15 +575,36 @@ void cover_descent(const I& index, const SurfelView& s, const Vec3& x, double de
   simd::PointFilterD pf{{x.x, x.y, x.z}, {0.0, 0.0, 0.0}, 0.0, -kInf, kInf};  // d = 0: |p - x|^2
   const double slack_d2 = 1e-12 * vmax * vmax + 1e-300;
   [[maybe_unused]] const rayscan::detail::FloatQueryPoint xf = rayscan::detail::float_query_point(index, x);
-  if (distance2_point_box(x, root_box) <= node_reach2(index.root())) stack.push_back({0.0, index.root()});
-  while (!stack.empty()) {
-    const Node n = stack.back().node;
-    stack.pop_back();
-    const double n_reach2 = node_reach2(n);
-    const SlotRange sr = index.node_points(n);
+  // The node test: a node's box within its subtree's reach of x (all children at once on their
+  // float boxes where the index has them).
+  struct ReachTest {
+    const I& index;
+    const Vec3& x;
+    const decltype(node_reach2)& reach_of;  // node_reach2
+    const simd::Kernels& kern;
+    const rayscan::detail::FloatQueryPoint& xf;
+    Enter operator()(Node n) const {
+      return distance2_point_box(x, index.node_bounds(n)) <= reach_of(n) ? Enter::yes : Enter::no;
+    }
+    bool children([[maybe_unused]] Node n, [[maybe_unused]] unsigned nc, [[maybe_unused]] std::uint32_t& mask) const {
+      if constexpr (rayscan::detail::FloatChildBoxes<I>) {
+        if (kern.child_dist2 && nc <= 8) {
+          float lb2[8];
+          kern.child_dist2(index.child_boxes_f(n), xf.q, xf.margin, lb2);
+          for (unsigned i = 0; i < nc; ++i)
+            mask |= std::uint32_t{double(lb2[i]) <= reach_of(index.child(n, i))} << i;
+          return true;
+        }
+      }
+      return false;
+    }
+  };
+  depth_first(index, ReachTest{index, x, node_reach2, kern, xf}, [&](const NodeVisit<Node>& v) {
+    const double n_reach2 = node_reach2(v.node);
+    const SlotRange sr = v.slots;
     const auto test = [&](std::uint32_t k, const Vec3& p) __attribute__((always_inline)) {
-      const Vec3 v = p - x;
-      const double d2 = glm::dot(v, v);
+      const Vec3 d = p - x;
+      const double d2 = glm::dot(d, d);
       if (d2 > n_reach2) return;
       const PointIndex id = ids[k];
       const float r = s.slot_radii.empty() ? s.radii[id] : s.slot_radii[k];
@@ -624,23 +623,7 @@ void cover_descent(const I& index, const SurfelView& s, const Vec3& x, double de
     } else {
       for (std::uint32_t k = sr.begin; k < sr.end; ++k) test(k, pos[k]);
     }
-    const unsigned nc = index.child_count(n);
-    if constexpr (rayscan::detail::FloatChildBoxes<I>) {
-      if (kern.child_dist2 && nc > 0 && nc <= 8) {
-        float lb2[8];
-        kern.child_dist2(index.child_boxes_f(n), xf.q, xf.margin, lb2);
-        for (unsigned i = 0; i < nc; ++i) {
-          const Node c = index.child(n, i);
-          if (double(lb2[i]) <= node_reach2(c)) stack.push_back({0.0, c});
-        }
-        continue;
-      }
-    }
-    for (unsigned i = 0; i < nc; ++i) {
-      const Node c = index.child(n, i);
-      if (distance2_point_box(x, index.node_bounds(c)) <= node_reach2(c)) stack.push_back({0.0, c});
-    }
-  }
+  });
 }
 
 /// Sorts covering discs by (squared distance, index) as knn_query does and turns the squared
