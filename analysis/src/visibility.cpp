@@ -3,6 +3,7 @@
 
 #include "rayscan/base/progress.hpp"
 #include "rayscan/octree/surfel.hpp"
+#include "rayscan/octree/traverse.hpp"
 #include "rayscan/base/threads.hpp"
 
 #include <tbb/blocked_range.h>
@@ -75,7 +76,8 @@ double disc_top(const Vec3& c, const glm::vec3& n, double r, double dx, double d
 // are not obstacles: the sampled surface must not hide itself at grazing angles. One traversal of
 // the index: a node is entered only when the segment's horizontal projection passes within R (the
 // largest disc radius) of its box (Liang & Barsky 1984 clipping in x and y) and the box's top plus
-// R lies above the segment's lowest point over that stretch.
+// R lies above the segment's lowest point over that stretch (a depth_first walk, traverse.hpp, that
+// stops at the first blocking disc).
 template <class I>
 bool height_field_blocked(const I& idx, const SurfelAttributes& sa, const Vec3& eye, const Vec3& aim,
                           const LeavingSurface& target, double tol) {
@@ -85,12 +87,10 @@ bool height_field_blocked(const I& idx, const SurfelAttributes& sa, const Vec3& 
   const double R = sa.max_radius;
   const auto pos = idx.positions();
   const IdView ids = idx.ids();
-  thread_local std::vector<typename I::Node> stack;
-  stack.clear();
-  stack.push_back(idx.root());
-  while (!stack.empty()) {
-    const auto n = stack.back();
-    stack.pop_back();
+  using Node = typename I::Node;
+  // The node test: the segment's horizontal projection passes within R of the box, and the box's
+  // top plus R lies above the segment's lowest point over that stretch.
+  const auto near_segment = [&](Node n) {
     const AABB b = idx.node_bounds(n);
     double t0 = 0.0, t1 = 1.0;
     bool miss = false;
@@ -106,10 +106,13 @@ bool height_field_blocked(const I& idx, const SurfelAttributes& sa, const Vec3& 
       t1 = std::min(t1, tb);
       miss = t0 > t1;
     }
-    if (miss) continue;
-    if (b.hi.z + R <= eye.z + std::min(t0 * v.z, t1 * v.z) + tol) continue;  // box below the segment there
-    const SlotRange sr = idx.node_points(n);
-    for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+    if (miss) return Enter::no;
+    if (b.hi.z + R <= eye.z + std::min(t0 * v.z, t1 * v.z) + tol) return Enter::no;  // box below the segment there
+    return Enter::yes;
+  };
+  // The leaf: true (stop) at the first disc that blocks the segment.
+  const auto blocks = [&](const NodeVisit<Node>& nv) {
+    for (std::uint32_t s = nv.slots.begin; s < nv.slots.end; ++s) {
       const PointIndex j = ids[s];
       const Vec3& c = pos[s];
       const double t = ((c.x - eye.x) * v.x + (c.y - eye.y) * v.y) / h2;
@@ -125,9 +128,9 @@ bool height_field_blocked(const I& idx, const SurfelAttributes& sa, const Vec3& 
       if (glm::dot(w, w) <= reach * reach && same_surface(target, j, c, Vec3(sa.normals[j]), rj)) continue;
       return true;
     }
-    for (unsigned k = 0, nc = idx.child_count(n); k < nc; ++k) stack.push_back(idx.child(n, k));
-  }
-  return false;
+    return false;
+  };
+  return depth_first(idx, near_segment, blocks);
 }
 
 // One line-of-sight decision (see is_visible in the header). `queried` is set when a ray query
