@@ -77,6 +77,22 @@ struct Best8 {
   Best4D d2[2] = {Best4D{} + kInf, Best4D{} + kInf};
   Best4I id[2] = {Best4I{} + kNoId, Best4I{} + kNoId};
 };
+/// Inserts candidate (d2, id) into `best` without a branch: the lanes less than it (by (d2, id))
+/// are a prefix; from the first other lane on, the candidate and the entries shifted up by one
+/// lane (the last lane's entry drops out). All 8 lanes stay sorted.
+__attribute__((always_inline)) inline void best8_insert(Best8& best, double d2, PointIndex id_in) {
+  const std::int64_t id = id_in;
+  const Best4D cd = Best4D{} + d2;
+  const Best4I ci = Best4I{} + id;
+  const Best4I lt0 = (best.d2[0] < cd) | ((best.d2[0] == cd) & (best.id[0] < ci));
+  const Best4I lt1 = (best.d2[1] < cd) | ((best.d2[1] == cd) & (best.id[1] < ci));
+  const Best4I prev0 = __builtin_shufflevector(lt0, Best4I{} - 1, 4, 0, 1, 2);  // lane i: lt of lane i - 1
+  const Best4I prev1 = __builtin_shufflevector(lt1, lt0, 7, 0, 1, 2);
+  best.d2[1] = lt1 ? best.d2[1] : (prev1 ? cd : __builtin_shufflevector(best.d2[1], best.d2[0], 7, 0, 1, 2));
+  best.id[1] = lt1 ? best.id[1] : (prev1 ? ci : __builtin_shufflevector(best.id[1], best.id[0], 7, 0, 1, 2));
+  best.d2[0] = lt0 ? best.d2[0] : (prev0 ? cd : __builtin_shufflevector(best.d2[0], best.d2[0], 0, 0, 1, 2));
+  best.id[0] = lt0 ? best.id[0] : (prev0 ? ci : __builtin_shufflevector(best.id[0], best.id[0], 0, 0, 1, 2));
+}
 /// Whether knn_query_with<K> keeps k <= 8 in Best8: on the instances compiled for a SIMD path
 /// (a compile-time policy of simd_kernels.hpp; knn_query uses them on indexes with
 /// FloatChildBoxes), whose registers hold its lanes; the run-time table (scalar and SSE2, and
@@ -159,6 +175,81 @@ void knn_query(const I& index, const Vec3& q, std::size_t k, double radius, std:
 
 namespace detail {
 
+/// Whether a kNN stack entry with squared MINDIST lb is kept under the pruning bound b (a relative
+/// tolerance of 1e-12).
+__attribute__((always_inline)) inline bool knn_within(double lb, double b) { return lb <= b * (1.0 + 1e-12); }
+
+/// knn_query_with's child step for node e.node (nc >= 1 children; its own points' entry already
+/// pushed): the children within `bound` (squared distance, world units squared) pushed on the
+/// stack st[0, top) far-to-near, the nearest one left in `e` to expand next (returns true), or
+/// false when no child is kept. Child bounds: on FloatChildBoxes indexes the SIMD kernels of K
+/// (child order keys sorted by a network, or child_dist2 lower bounds in float, rounded down),
+/// else distance2_point_box in double; more than 8 children are pushed unordered. The stack has
+/// room for max(nc, 8) + 1 more entries.
+template <class K, SpatialIndex I>
+__attribute__((always_inline)) inline bool knn_push_children(const I& index, const KernelsOf<K>& kern, const Vec3& q,
+                                                             [[maybe_unused]] const FloatQueryPoint& qf, double bound,
+                                                             unsigned nc, KnnEntry<typename I::Node>& e,
+                                                             KnnEntry<typename I::Node>* st, std::size_t& top) {
+  using Node = typename I::Node;
+  if constexpr (FloatChildBoxes<I>) {
+    if (has_kernel(kern.child_dist2_keys) && nc <= 8) {
+      // The children's bounds as keys (simd.hpp, ChildDist2KeysFn) against the bound rounded up
+      // to float: the mask may keep a child knn_within() drops (dropped when popped, or expanded
+      // for nothing when nearest), never the reverse. The farther children pushed as
+      // RayTraversal's child step pushes them (push_farther_children).
+      alignas(32) std::uint32_t keys[8];
+      std::uint32_t near;
+      const float bf = round_float_up(bound * (1.0 + 1e-12));
+      const unsigned m = kern.child_dist2_keys(index.child_boxes_f(e.node), qf.q, qf.margin, bf, keys, near);
+      if (m == 0) return false;
+      top = push_farther_children(index, kern, e.node, m, keys, st, top);
+      e = {simd::child_key_bound(near), index.child(e.node, simd::child_key_index(near)), false};
+      return true;
+    }
+  }
+  double lb[8];
+  Node ch[8];
+  unsigned m = 0;
+  auto add = [&](double l, Node c) __attribute__((always_inline)) {
+    if (!knn_within(l, bound)) return;
+    unsigned j = m++;
+    for (; j > 0 && lb[j - 1] < l; --j) {  // descending by bound
+      lb[j] = lb[j - 1];
+      ch[j] = ch[j - 1];
+    }
+    lb[j] = l;
+    ch[j] = c;
+  };
+  bool done = false;
+  if constexpr (FloatChildBoxes<I>) {
+    if (has_kernel(kern.child_dist2) && nc <= 8) {
+      float lb2[8];
+      kern.child_dist2(index.child_boxes_f(e.node), qf.q, qf.margin, lb2);
+      for (unsigned i = 0; i < nc; ++i) add(lb2[i], index.child(e.node, i));
+      done = true;
+    }
+  }
+  if (!done) {
+    if (nc <= 8) {
+      for (unsigned i = 0; i < nc; ++i) {
+        const Node c = index.child(e.node, i);
+        add(distance2_point_box(q, index.node_bounds(c)), c);
+      }
+    } else {  // more than 8 children (not an octree): unordered
+      for (unsigned i = 0; i < nc; ++i) {
+        const Node c = index.child(e.node, i);
+        const double l = distance2_point_box(q, index.node_bounds(c));
+        if (knn_within(l, bound)) st[top++] = {l, c, false};
+      }
+    }
+  }
+  if (m == 0) return false;
+  for (unsigned j = 0; j + 1 < m; ++j) st[top++] = {lb[j], ch[j], false};
+  e = {lb[m - 1], ch[m - 1], false};
+  return true;
+}
+
 /// knn_query's traversal with kernel policy K (as RayTraversal's: simd::Kernels or a compile-time
 /// policy of simd_kernels.hpp), for a valid radius and q, a non-empty index and k >= 1; `out` is
 /// cleared.
@@ -188,8 +279,6 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
   }
   double worst = kInf;   // the k-th smallest squared distance once k are held
   double bound = r2;     // min(r2, worst): the pruning bound
-  // A node is kept when its squared MINDIST is within the (relative-tolerance) bound.
-  auto within = [](double lb, double b) { return lb <= b * (1.0 + 1e-12); };
   const AABB root_box = index.node_bounds(index.root());
   // SIMD policies (simd.hpp): see ray_query for the margins.
   const KernelsOf<K> kern = kernels_of<K>();
@@ -214,18 +303,7 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
         // less than c are a prefix; from the first other lane on, c and the entries shifted up by
         // one lane. All 8 lanes stay sorted, so the k-th is right for any k <= 8 and a candidate
         // past it only moves lanes >= k.
-        using detail::Best4D, detail::Best4I;
-        const std::int64_t id = c.id;
-        const Best4D cd = Best4D{} + d2;
-        const Best4I ci = Best4I{} + id;
-        const Best4I lt0 = (best.d2[0] < cd) | ((best.d2[0] == cd) & (best.id[0] < ci));
-        const Best4I lt1 = (best.d2[1] < cd) | ((best.d2[1] == cd) & (best.id[1] < ci));
-        const Best4I prev0 = __builtin_shufflevector(lt0, Best4I{} - 1, 4, 0, 1, 2);  // lane i: lt of lane i - 1
-        const Best4I prev1 = __builtin_shufflevector(lt1, lt0, 7, 0, 1, 2);
-        best.d2[1] = lt1 ? best.d2[1] : (prev1 ? cd : __builtin_shufflevector(best.d2[1], best.d2[0], 7, 0, 1, 2));
-        best.id[1] = lt1 ? best.id[1] : (prev1 ? ci : __builtin_shufflevector(best.id[1], best.id[0], 7, 0, 1, 2));
-        best.d2[0] = lt0 ? best.d2[0] : (prev0 ? cd : __builtin_shufflevector(best.d2[0], best.d2[0], 0, 0, 1, 2));
-        best.id[0] = lt0 ? best.id[0] : (prev0 ? ci : __builtin_shufflevector(best.id[0], best.id[0], 0, 0, 1, 2));
+        detail::best8_insert(best, d2, c.id);
         held += held < k;
         worst = best.d2[(k - 1) / 4][(k - 1) % 4];
         bound = std::min(r2, worst);
@@ -274,14 +352,14 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
   detail::KnnEntry<Node>* st = stack.data();
   std::size_t cap = stack.size(), top = 0;
   // e: the node to expand next: popped, or the nearest child of the last one, expanded right away
-  // instead of through the stack (as RayTraversal::traverse_from; it passed within() just now).
+  // instead of through the stack (as RayTraversal::traverse_from; it passed knn_within() just now).
   detail::KnnEntry<Node> e{distance2_point_box(q, root_box), index.root(), false};
-  bool next = within(e.lb, bound);
+  bool next = detail::knn_within(e.lb, bound);
   while (true) {
     if (!next) {
       if (top == 0) break;
       e = st[--top];
-      if (!within(e.lb, bound)) continue;
+      if (!detail::knn_within(e.lb, bound)) continue;
     }
     next = false;
     const unsigned nc = index.child_count(e.node);
@@ -297,63 +375,7 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
     // The children after the node's own points on the stack, far-to-near so that the nearest is
     // expanded first.
     if (index.node_points(e.node).size() > 0) st[top++] = {e.lb, e.node, true};
-    if constexpr (detail::FloatChildBoxes<I>) {
-      if (has_kernel(kern.child_dist2_keys) && nc <= 8) {
-        // The children's bounds as keys (simd.hpp, ChildDist2KeysFn) against the bound rounded up
-        // to float: the mask may keep a child within() drops (dropped when popped, or expanded
-        // for nothing when nearest), never the reverse. The farther children pushed as
-        // RayTraversal's child step pushes them (push_farther_children).
-        alignas(32) std::uint32_t keys[8];
-        std::uint32_t near;
-        const float bf = round_float_up(bound * (1.0 + 1e-12));
-        const unsigned m = kern.child_dist2_keys(index.child_boxes_f(e.node), qf.q, qf.margin, bf, keys, near);
-        if (m == 0) continue;
-        top = detail::push_farther_children(index, kern, e.node, m, keys, st, top);
-        e = {simd::child_key_bound(near), index.child(e.node, simd::child_key_index(near)), false};
-        next = true;
-        continue;
-      }
-    }
-    double lb[8];
-    Node ch[8];
-    unsigned m = 0;
-    auto add = [&](double l, Node c) __attribute__((always_inline)) {
-      if (!within(l, bound)) return;
-      unsigned j = m++;
-      for (; j > 0 && lb[j - 1] < l; --j) {  // descending by bound
-        lb[j] = lb[j - 1];
-        ch[j] = ch[j - 1];
-      }
-      lb[j] = l;
-      ch[j] = c;
-    };
-    bool done = false;
-    if constexpr (detail::FloatChildBoxes<I>) {
-      if (has_kernel(kern.child_dist2) && nc <= 8) {
-        float lb2[8];
-        kern.child_dist2(index.child_boxes_f(e.node), qf.q, qf.margin, lb2);
-        for (unsigned i = 0; i < nc; ++i) add(lb2[i], index.child(e.node, i));
-        done = true;
-      }
-    }
-    if (!done) {
-      if (nc <= 8) {
-        for (unsigned i = 0; i < nc; ++i) {
-          const Node c = index.child(e.node, i);
-          add(distance2_point_box(q, index.node_bounds(c)), c);
-        }
-      } else {  // more than 8 children (not an octree): unordered
-        for (unsigned i = 0; i < nc; ++i) {
-          const Node c = index.child(e.node, i);
-          const double l = distance2_point_box(q, index.node_bounds(c));
-          if (within(l, bound)) st[top++] = {l, c, false};
-        }
-      }
-    }
-    if (m == 0) continue;
-    for (unsigned j = 0; j + 1 < m; ++j) st[top++] = {lb[j], ch[j], false};
-    e = {lb[m - 1], ch[m - 1], false};
-    next = true;
+    next = detail::knn_push_children<K>(index, kern, q, qf, bound, nc, e, st, top);
   }
   if (!sorted_set) {
     std::sort(cands.begin(), cands.end(), detail::knn_less);
