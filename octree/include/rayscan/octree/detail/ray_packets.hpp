@@ -31,6 +31,138 @@ namespace rayscan::detail {
 ///
 /// `K`: the kernel policy, as RayTraversal's (first_hit_packet_avx2 / _avx512 below run the
 /// instances compiled per ISA).
+/// A stack entry of first_hit_packet: a node and the rays (of at most N) for which it passed
+/// the node test, each with its lower bound.
+template <class Node, unsigned N>
+struct PacketEntry {
+  Node node;
+  std::uint32_t mask;  // rays for which the node passed the node test
+  double lb[N];        // each one's lower bound (valid where mask has the bit)
+};
+
+/// Sets lane i of `lanes` (first_hit_packet's SIMD-over-rays child test) to ray traversal r's
+/// float slab ray (on the geometry boxes' own frame when RT::per_box_f).
+template <class RT>
+__attribute__((always_inline)) inline void set_packet_lane(simd::SlabPacketF& lanes, const RT& r, unsigned i) {
+  const simd::SlabRayF& f = RT::per_box_f ? r.sr_box : r.sr;
+  for (int a = 0; a < 3; ++a) {
+    lanes.o_plus[a][i] = f.o_plus[a];
+    lanes.o_minus[a][i] = f.o_minus[a];
+    lanes.inv_d[a][i] = f.inv_d[a];
+  }
+  lanes.t_lo[i] = f.t_lo;
+  lanes.t_hi[i] = f.t_hi;
+}
+
+/// first_hit_packet's child test policy: true (and `lanes` filled: one lane per ray of `mask`,
+/// the others a ray that hits nothing) when the children are tested SIMD over the rays
+/// (packet_child_slab: one lane per ray, each child box broadcast), which needs every ray's slab
+/// result final (orders time / sphere_hit, no planes) and float-testable; false: each ray's own
+/// test_children (SIMD over the children).
+template <class RT, class K, SpatialIndex I>
+__attribute__((always_inline)) inline bool packet_lanes_over_rays([[maybe_unused]] const KernelsOf<K>& kern,
+                                                                  RT* const* st, [[maybe_unused]] std::uint32_t mask,
+                                                                  [[maybe_unused]] simd::SlabPacketF& lanes) {
+  if constexpr (FloatChildBoxes<I>) {
+    // (Only the prepared rays, those in the root's mask, count and get a lane; no other ray is
+    // ever in a stack entry's mask.)
+    bool over_rays = has_kernel(kern.packet_child_slab);
+    for (std::uint32_t m = mask; m; m &= m - 1) {
+      const RT& r = *st[__builtin_ctz(m)];
+      over_rays = over_rays && r.slab_is_final && r.simd_children && r.pad < kInf;
+    }
+    if (!over_rays) return false;
+    for (unsigned i = 0; i < 16; ++i) {  // unused lanes: a ray that hits nothing (t_lo > t_hi)
+      for (int a = 0; a < 3; ++a) lanes.o_plus[a][i] = lanes.o_minus[a][i] = lanes.inv_d[a][i] = 0.0f;
+      lanes.t_lo[i] = 1.0f;
+      lanes.t_hi[i] = 0.0f;
+    }
+    for (std::uint32_t m = mask; m; m &= m - 1) {
+      const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+      set_packet_lane(lanes, *st[i], i);
+    }
+    return true;
+  }
+  return false;
+}
+
+/// The child hits of a packet node: for the nc <= 8 children of `node` and the live rays `act`,
+/// cm[c] = the rays whose node test enters child c, lbc[c][i] = ray i's lower bound of it;
+/// returns the mask of children entered by any ray. SIMD over the rays when over_rays (the lanes
+/// of packet_lanes_over_rays), else each ray's test_children.
+template <unsigned N, class RT, class K, SpatialIndex I>
+__attribute__((always_inline)) inline std::uint32_t packet_test_children(
+    const I& index, [[maybe_unused]] const KernelsOf<K>& kern, const RayQuery& q, RT* const* st,
+    typename I::Node node, unsigned nc, std::uint32_t act, [[maybe_unused]] bool over_rays,
+    [[maybe_unused]] const simd::SlabPacketF& lanes, std::uint32_t* cm, double (*lbc)[N]) {
+  std::uint32_t any = 0;
+  for (unsigned c = 0; c < nc; ++c) cm[c] = 0;
+  if constexpr (FloatChildBoxes<I>) {
+    if (over_rays) {
+      std::uint32_t hits[8];
+      alignas(64) float entry[8 * 16];
+      if constexpr (RT::per_box_f)
+        kern.packet_child_slab(st[__builtin_ctz(act)]->key_policy.child_boxes_f_of(node), lanes, N, hits, entry);
+      else
+        kern.packet_child_slab(index.child_boxes_f(node), lanes, N, hits, entry);
+      for (unsigned c = 0; c < nc; ++c)
+        for (std::uint32_t m = hits[c] & act; m; m &= m - 1) {
+          const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+          const double lb = std::max(static_cast<double>(entry[16 * c + i]), q.t_min);  // as test_children
+          if (!st[i]->live(lb)) continue;
+          cm[c] |= 1u << i;
+          lbc[c][i] = lb;
+          any |= 1u << c;
+        }
+      return any;
+    }
+  }
+  double lbs[8];
+  for (std::uint32_t m = act; m; m &= m - 1) {
+    const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+    for (std::uint32_t h = st[i]->test_children(node, nc, lbs); h; h &= h - 1) {
+      const unsigned c = static_cast<unsigned>(__builtin_ctz(h));
+      cm[c] |= 1u << i;
+      lbc[c][i] = lbs[c];
+      any |= 1u << c;
+    }
+  }
+  return any;
+}
+
+/// Pushes one entry per child of `node` in `any` (rays cm[c], bounds lbc[c]) onto `stack`,
+/// far-to-near by the smallest bound of its rays, so that the nearest is popped first.
+template <unsigned N, SpatialIndex I>
+__attribute__((always_inline)) inline void push_packet_children(const I& index, typename I::Node node,
+                                                                std::uint32_t any, const std::uint32_t* cm,
+                                                                const double (*lbc)[N],
+                                                                std::vector<PacketEntry<typename I::Node, N>>& stack) {
+  PacketEntry<typename I::Node, N> kids[8];
+  double key[8];
+  unsigned nk = 0;
+  for (; any; any &= any - 1) {
+    const unsigned c = static_cast<unsigned>(__builtin_ctz(any));
+    PacketEntry<typename I::Node, N> k;
+    k.node = index.child(node, c);
+    k.mask = cm[c];
+    double kmin = kInf;
+    for (std::uint32_t m = cm[c]; m; m &= m - 1) {
+      const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+      k.lb[i] = lbc[c][i];
+      kmin = std::min(kmin, lbc[c][i]);
+    }
+    unsigned j = nk++;
+    while (j > 0 && key[j - 1] < kmin) {
+      kids[j] = kids[j - 1];
+      key[j] = key[j - 1];
+      --j;
+    }
+    kids[j] = k;
+    key[j] = kmin;
+  }
+  for (unsigned j = 0; j < nk; ++j) stack.push_back(kids[j]);
+}
+
 template <unsigned N, class K, SpatialIndex I, class KeyPolicy>
 __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, const Ray* rays, unsigned n,
                                                                 const RayQuery& q, Candidate* best,
@@ -38,6 +170,7 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
   static_assert(N >= 1 && N <= 16);
   using Node = typename I::Node;
   using RT = RayTraversal<true, I, KeyPolicy, K>;
+  using Entry = PacketEntry<Node, N>;
   const auto key_of = [keys](unsigned i) -> const KeyPolicy& {
     if constexpr (std::is_same_v<KeyPolicy, OrderKey>) {
       static constexpr OrderKey kKey{};
@@ -45,11 +178,6 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
     } else {
       return keys[i];
     }
-  };
-  struct Entry {
-    Node node;
-    std::uint32_t mask;  // rays for which the node passed the node test
-    double lb[N];        // each one's lower bound (valid where mask has the bit)
   };
   thread_local std::vector<Entry> stack;
   // The rays' states in uninitialised storage (an array of std::optional<RT> was zero-filled on
@@ -81,40 +209,8 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
   }
   stack.clear();
   if (root.mask) stack.push_back(root);
-  // Child test policy: SIMD over the rays (packet_child_slab: one lane per ray, each child box
-  // broadcast) when every ray's slab result is final (orders time / sphere_hit, no planes) and
-  // float-testable; else each ray's own test_children (SIMD over the children).
-  [[maybe_unused]] bool over_rays = false;
-  [[maybe_unused]] alignas(64) simd::SlabPacketF lanes;
-  [[maybe_unused]] auto set_lane = [&](unsigned i) {
-    const simd::SlabRayF& r = RT::per_box_f ? st[i]->sr_box : st[i]->sr;
-    for (int a = 0; a < 3; ++a) {
-      lanes.o_plus[a][i] = r.o_plus[a];
-      lanes.o_minus[a][i] = r.o_minus[a];
-      lanes.inv_d[a][i] = r.inv_d[a];
-    }
-    lanes.t_lo[i] = r.t_lo;
-    lanes.t_hi[i] = r.t_hi;
-  };
-  if constexpr (FloatChildBoxes<I>) {
-    // (Only the prepared rays, those in root.mask, count and get a lane; no other ray is ever in a
-    // stack entry's mask.)
-    over_rays = has_kernel(kern.packet_child_slab);
-    for (std::uint32_t m = root.mask; m; m &= m - 1) {
-      const RT& r = *st[__builtin_ctz(m)];
-      over_rays = over_rays && r.slab_is_final && r.simd_children && r.pad < kInf;
-    }
-    if (over_rays) {
-      for (unsigned i = 0; i < 16; ++i) {  // unused lanes: a ray that hits nothing (t_lo > t_hi)
-        for (int a = 0; a < 3; ++a) lanes.o_plus[a][i] = lanes.o_minus[a][i] = lanes.inv_d[a][i] = 0.0f;
-        lanes.t_lo[i] = 1.0f;
-        lanes.t_hi[i] = 0.0f;
-      }
-      for (std::uint32_t m = root.mask; m; m &= m - 1) set_lane(static_cast<unsigned>(__builtin_ctz(m)));
-    }
-  }
-  Entry kids[8];
-  double lbs[8];
+  alignas(64) simd::SlabPacketF lanes;
+  const bool over_rays = packet_lanes_over_rays<RT, K, I>(kern, st, root.mask, lanes);
   double lbc[8][N];     // lbc[c][i]: ray i's bound of child c
   std::uint32_t cm[8];  // cm[c]: the rays that hit child c
   while (!stack.empty()) {
@@ -132,12 +228,13 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
       continue;
     }
     for (std::uint32_t m = act; m; m &= m - 1) {
-      RT& r = *st[__builtin_ctz(m)];
+      const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+      RT& r = *st[i];
       const double before = r.worst;
       r.enter_node(e.node);
       r.eval_points(e.node);
       if constexpr (FloatChildBoxes<I>)
-        if (over_rays && r.worst != before) set_lane(static_cast<unsigned>(__builtin_ctz(m)));
+        if (over_rays && r.worst != before) set_packet_lane(lanes, r, i);
     }
     const unsigned nc = index.child_count(e.node);
     if (nc == 0) continue;
@@ -151,63 +248,9 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
       }
       continue;
     }
-    std::uint32_t any = 0;
-    for (unsigned c = 0; c < nc; ++c) cm[c] = 0;
-    bool tested = false;
-    if constexpr (FloatChildBoxes<I>) {
-      if (over_rays) {
-        std::uint32_t hits[8];
-        alignas(64) float entry[8 * 16];
-        if constexpr (RT::per_box_f)
-          kern.packet_child_slab(st[__builtin_ctz(act)]->key_policy.child_boxes_f_of(e.node), lanes, N, hits, entry);
-        else
-          kern.packet_child_slab(index.child_boxes_f(e.node), lanes, N, hits, entry);
-        for (unsigned c = 0; c < nc; ++c)
-          for (std::uint32_t m = hits[c] & act; m; m &= m - 1) {
-            const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-            const double lb = std::max(static_cast<double>(entry[16 * c + i]), q.t_min);  // as test_children
-            if (!st[i]->live(lb)) continue;
-            cm[c] |= 1u << i;
-            lbc[c][i] = lb;
-            any |= 1u << c;
-          }
-        tested = true;
-      }
-    }
-    if (!tested)
-      for (std::uint32_t m = act; m; m &= m - 1) {
-        const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-        for (std::uint32_t h = st[i]->test_children(e.node, nc, lbs); h; h &= h - 1) {
-          const unsigned c = static_cast<unsigned>(__builtin_ctz(h));
-          cm[c] |= 1u << i;
-          lbc[c][i] = lbs[c];
-          any |= 1u << c;
-        }
-      }
-    // One entry per child hit by any ray, pushed far-to-near by the smallest bound of its rays.
-    unsigned nk = 0;
-    double key[8];
-    for (; any; any &= any - 1) {
-      const unsigned c = static_cast<unsigned>(__builtin_ctz(any));
-      Entry k;
-      k.node = index.child(e.node, c);
-      k.mask = cm[c];
-      double kmin = kInf;
-      for (std::uint32_t m = cm[c]; m; m &= m - 1) {
-        const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-        k.lb[i] = lbc[c][i];
-        kmin = std::min(kmin, lbc[c][i]);
-      }
-      unsigned j = nk++;
-      while (j > 0 && key[j - 1] < kmin) {
-        kids[j] = kids[j - 1];
-        key[j] = key[j - 1];
-        --j;
-      }
-      kids[j] = k;
-      key[j] = kmin;
-    }
-    for (unsigned j = 0; j < nk; ++j) stack.push_back(kids[j]);
+    const std::uint32_t any =
+        packet_test_children<N, RT, K>(index, kern, q, st, e.node, nc, act, over_rays, lanes, cm, lbc);
+    push_packet_children<N>(index, e.node, any, cm, lbc, stack);
   }
   std::uint32_t found = 0;
   for (std::uint32_t m = states.made; m; m &= m - 1)
