@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Summarises a bench/ab.sh log: per round and side, rayscan octree-adaptive's first-hit ratio to
-Embree rtcIntersect1 (median and fastest rounds; camera and random rays, 1 and 2 threads) and
+Embree rtcIntersect1 (median and fastest rounds; camera and random rays, at each thread count) and
 Table 1's ratios of the octree (adaptive) to the fastest peer (box, kNN); then old/new per row.
 Usage: bench/ab_summary.py LOG"""
 import re, sys
@@ -12,7 +12,7 @@ for line in open(sys.argv[1]):
         key = (int(m.group(1)), m.group(2)); rows.setdefault(key, {}); continue
     m = re.match(r"-- \d+ points, (camera|random)", line)
     if m: rays = m.group(1); continue
-    m = re.match(r"(1|2) threads?, rays/s", line)
+    m = re.match(r"(\d+) threads?, rays/s", line)
     if m: threads = m.group(1); continue
     if line.startswith("| rayscan octree-adaptive |") and rays:
         c = [x.strip() for x in line.strip().strip("|").split("|")]
