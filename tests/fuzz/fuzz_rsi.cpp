@@ -1,7 +1,8 @@
 // libFuzzer target for the index file (.rsi, docs/index-format.md): MappedIndex::open must either
-// throw IndexError (one line) or return an index on which ray queries, kNN, radius search and
-// to_point_cloud() never read outside the mapping (ASan checks the mapping's bounds through the
-// file copy below, which is exactly the mutated input's size). Anything else is a bug.
+// throw IndexError (one line) or return an index on which ray queries, kNN, radius search, the
+// per-slot accessors, the surfel set-up and to_point_cloud() never read outside the mapping (ASan
+// checks the mapping's bounds through the file copy below, which is exactly the mutated input's
+// size). Anything else is a bug.
 //
 // CRC-32C fix-up: a mutated file almost never keeps valid section checksums, so the fuzzer would
 // only ever exercise the CRC check. Like PNG fuzz harnesses, the target recomputes every section's
@@ -12,6 +13,7 @@
 #include "rayscan/octree/batch.hpp"
 #include "rayscan/base/crc32c.hpp"
 #include "rayscan/site/index_file.hpp"
+#include "rayscan/octree/normals.hpp"
 #include "rayscan/octree/point_query.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
@@ -21,6 +23,8 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <span>
+#include <stdexcept>
 #include <string>
 #include <unistd.h>
 #include <vector>
@@ -73,10 +77,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   try {
     rayscan::io::IndexOpenOptions opt;
-    // Half the inputs open like a large file (no deep checks: the node accessors must keep every
-    // query inside the mapping on their own), half with every check (`info --verify`).
-    opt.verify = size % 2 == 0 ? rayscan::io::IndexOpenOptions::Verify::always
-                               : rayscan::io::IndexOpenOptions::Verify::metadata_only;
+    // A third of the inputs open with every check (`info --verify`), a third as a large file
+    // (node records checked, no CRCs or ids: the default above 256 MiB), a third with no record
+    // checks at all (the node accessors must keep every query inside the mapping on their own).
+    switch (size % 3) {
+      case 0: opt.verify = rayscan::io::IndexOpenOptions::Verify::always; break;
+      case 1: opt.deep_check_bytes = 0; break;
+      default: opt.verify = rayscan::io::IndexOpenOptions::Verify::metadata_only; break;
+    }
     opt.check_sources = false;  // the seeds name files of the machine that built them
     const rayscan::io::MappedIndex m = rayscan::io::MappedIndex::open(path, opt);
     if (m.empty()) return 0;
@@ -101,8 +109,23 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
     (void)rayscan::knn(m, c, 5);
     (void)rayscan::radius_search(m, c, 0.1 * (box.hi.x - box.lo.x) + 1e-3);
-    (void)m.to_point_cloud();  // checks every id (IndexError) whether verified or not
+    const rayscan::PointCloud pc = m.to_point_cloud();  // checks every id (IndexError) whether verified or not
     (void)m.points_per_level();
+    for (std::size_t s = 0; s < m.positions().size() && s < 64; ++s) {  // the per-slot accessors
+      (void)m.positions()[s];
+      if (!m.rgb().empty()) (void)m.rgb()[s];
+      (void)m.ids()[s];
+    }
+    // The surfel set-up (kNN of every point; a corrupted root once made it read past an empty
+    // neighbour list): an error, never a crash. Only on opens that checked the node records, whose
+    // work is bounded (without them a corrupted family can make the walk exponential).
+    if (size % 3 != 2 && pc.size() >= 2 && pc.size() <= 4096) {
+      try {
+        (void)rayscan::estimate_surfels_over(m, std::span<const rayscan::Vec3>(pc.positions), rayscan::SurfelOptions{});
+      } catch (const std::runtime_error& e) {
+        if (std::string(e.what()).find("surfels:") == std::string::npos) throw;
+      }
+    }
   } catch (const rayscan::io::IndexError&) {
   }
   return 0;

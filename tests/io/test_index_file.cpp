@@ -10,6 +10,7 @@
 #include "rayscan/base/crc32c.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_reader.hpp"
+#include "rayscan/octree/normals.hpp"
 #include "rayscan/octree/point_query.hpp"
 #include "rayscan/octree/ray_query.hpp"
 #include "rayscan/octree/spacing.hpp"
@@ -21,6 +22,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <set>
 #include <sstream>
@@ -1056,9 +1058,9 @@ TEST(IndexFileCrc32c, CombineEqualsTheCrcOfTheConcatenation) {
   EXPECT_EQ(io::crc32c_combine(io::crc32c(buf.data(), 100), 0, 0), io::crc32c(buf.data(), 100));
 }
 
-// Large files are opened without the deep checks (O(header) open); then the node accessors
-// sanitise corrupted records, so a query never leaves the mapping or loops. Here a small file is
-// opened the same way (Verify::metadata_only) after its root was made a cycle, node 1 a leaf with
+// A file opened with Verify::metadata_only (one this process just wrote) skips the node checks;
+// then the node accessors sanitise corrupted records, so a query never leaves the mapping or
+// loops. Here a small file is opened so after its root was made a cycle, node 1 a leaf with
 // points past N and node 2 a node with children past M: the accessors read them as empty leaves,
 // queries return (ASan checks the reads), and the deep checks (`info --verify`) name the node.
 TEST(IndexFileBadInput, UnverifiedCorruptNodesAreSanitisedAndVerifyNamesThem) {
@@ -1168,6 +1170,144 @@ std::string text(const fs::path& p) {
   return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
 }
 
+// The node records are checked at every open but metadata_only, also above the size up to which
+// every section's CRC is checked (a limit of 0 bytes stands in for a file past 256 MiB), and the
+// header's bounds, the sources' point counts, trailing bytes and repeated ids are refused. The
+// cases are those of an adversarial run: a root made an internal node of 0 children (kNN then
+// found nothing and the surfel set-up read past an empty vector: SIGSEGV), the root made one leaf
+// of all N points (every query a scan of N), random bytes over the nodes section (the surfel
+// set-up ran for hours), NaN bounds ("use a cell of at least nan"), source counts whose sum wraps
+// past 2^64 to N, and an id twice (passed --verify). Oracle: the records and offsets written here.
+TEST(IndexFileBadInput, CorruptRecordsAreRefusedAtOpenAtAnySize) {
+  const fs::path dir = temp_dir() / "corrupt_open";
+  const fs::path good = small_index(dir);
+  const auto bytes = slurp(good);
+  std::uint32_t nsec = 0;
+  std::memcpy(&nsec, bytes.data() + 20, 4);
+  auto section = [&](std::uint32_t want, std::uint64_t& off, std::uint64_t& size) {
+    for (std::uint32_t i = 0; i < nsec; ++i) {
+      std::uint32_t id = 0;
+      std::memcpy(&id, bytes.data() + 128 + 32 * i, 4);
+      if (id != want) continue;
+      std::memcpy(&off, bytes.data() + 128 + 32 * i + 8, 8);
+      std::memcpy(&size, bytes.data() + 128 + 32 * i + 16, 8);
+      return 128 + 32 * i;
+    }
+    return 0u;
+  };
+  std::uint64_t node_off = 0, node_size = 0, ids_off = 0, ids_size = 0, src_off = 0, src_size = 0;
+  section(9, node_off, node_size);
+  section(4, ids_off, ids_size);
+  const std::size_t src_entry = section(1, src_off, src_size);
+  ASSERT_GT(node_size, 64u);
+  ASSERT_GT(src_entry, 0u);
+  std::uint64_t n = 0;
+  std::memcpy(&n, bytes.data() + 24, 8);
+  // Writes `b` with every section CRC and the header CRC made valid again.
+  const fs::path bad = dir / "bad.rsi";
+  auto write_forged = [&](std::vector<std::uint8_t> b) {
+    for (std::uint32_t i = 0; i < nsec; ++i) {
+      const std::size_t e = 128 + 32 * i;
+      std::uint64_t off = 0, size = 0;
+      std::memcpy(&off, b.data() + e + 8, 8);
+      std::memcpy(&size, b.data() + e + 16, 8);
+      const std::uint32_t c = io::crc32c(b.data() + off, size);
+      std::memcpy(b.data() + e + 24, &c, 4);
+    }
+    std::memset(b.data() + 120, 0, 4);
+    const std::uint32_t h = io::crc32c(b.data(), 4096);
+    std::memcpy(b.data() + 120, &h, 4);
+    std::ofstream(bad, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  };
+  io::IndexOpenOptions large;  // the automatic open of a large file: node records, no CRCs
+  large.deep_check_bytes = 0;
+  io::IndexOpenOptions full;
+  full.verify = io::IndexOpenOptions::Verify::always;
+  auto error_of = [&](const io::IndexOpenOptions& o) -> std::string {
+    try {
+      io::MappedIndex::open(bad, o);
+    } catch (const io::IndexError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  write_forged(bytes);
+  EXPECT_EQ(error_of(large), "");
+  EXPECT_EQ(error_of(full), "");
+
+  // The root an internal node of 0 children (the bytes 00 00 00 80 at nodes + 28).
+  auto b = bytes;
+  const std::uint32_t no_children = 0x80000000u;
+  std::memcpy(b.data() + node_off + 28, &no_children, 4);
+  write_forged(b);
+  EXPECT_NE(error_of(large).find("bad.rsi: byte " + std::to_string(node_off + 24) + ": node 0: children ["),
+            std::string::npos) << error_of(large);
+  {
+    // Opened without the node checks, the surfel set-up reports the inconsistency (was SIGSEGV).
+    io::IndexOpenOptions quick;
+    quick.verify = io::IndexOpenOptions::Verify::metadata_only;
+    const io::MappedIndex m = io::MappedIndex::open(bad, quick);
+    const PointCloud pc = m.to_point_cloud();
+    try {
+      (void)estimate_surfels_over(m, std::span<const Vec3>(pc.positions), SurfelOptions{});
+      ADD_FAILURE() << "surfels on an index whose root holds nothing";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("surfels: the kNN of point"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("found 0 neighbours among " + std::to_string(n)), std::string::npos) << e.what();
+    }
+  }
+
+  // The root one leaf of all N points.
+  b = bytes;
+  const std::uint32_t first = 0, all = io::IndexNodeRecord::pack(static_cast<std::uint32_t>(n), 0, false);
+  std::memcpy(b.data() + node_off + 24, &first, 4);
+  std::memcpy(b.data() + node_off + 28, &all, 4);
+  write_forged(b);
+  EXPECT_NE(error_of(large).find("bad.rsi: byte " + std::to_string(node_off + 32) + ": node 1: not the child of any earlier node"),
+            std::string::npos) << error_of(large);
+
+  // Random bytes over the whole nodes section (five seeds).
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    b = bytes;
+    std::mt19937 rng(seed);
+    for (std::uint64_t i = 0; i < node_size; ++i) b[node_off + i] = static_cast<std::uint8_t>(rng());
+    write_forged(b);
+    const std::string e = error_of(large);
+    EXPECT_NE(e.find("bad.rsi: byte "), std::string::npos) << seed << ": " << e;
+    EXPECT_NE(e.find(": node "), std::string::npos) << seed << ": " << e;
+  }
+
+  // NaN point bounds (header byte 640, the minimum x).
+  b = bytes;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::memcpy(b.data() + 640, &nan, 8);
+  write_forged(b);
+  EXPECT_NE(error_of(large).find("bad.rsi: byte 640: point bounds of axis 0 [nan, "), std::string::npos) << error_of(large);
+
+  // Two sources whose point counts sum to N only modulo 2^64.
+  b = bytes;
+  const std::string lines = "0\t0\t18446744073709551615\t0\tlas\t/nonexistent/a.las\n0\t0\t" + std::to_string(n + 1) +
+                            "\t0\tlas\t/nonexistent/b.las\n";
+  ASSERT_LE(src_off + lines.size(), src_off + ((src_size + 4095) / 4096) * 4096);  // fits the section's page(s)
+  std::memcpy(b.data() + src_off, lines.data(), lines.size());
+  const std::uint64_t new_size = lines.size();
+  std::memcpy(b.data() + src_entry + 16, &new_size, 8);
+  write_forged(b);
+  EXPECT_NE(error_of(large).find("bad.rsi: byte " + std::to_string(src_off) + ": section sources: the point counts exceed"),
+            std::string::npos) << error_of(large);
+
+  // Slot 5 holding slot 6's id: refused by the full verification, naming slot 6.
+  b = bytes;
+  std::memcpy(b.data() + ids_off + 4 * 5, b.data() + ids_off + 4 * 6, 4);
+  std::uint32_t id6 = 0;
+  std::memcpy(&id6, b.data() + ids_off + 4 * 6, 4);
+  write_forged(b);
+  EXPECT_NE(error_of(full).find("bad.rsi: byte " + std::to_string(ids_off + 24) + ": section ids: slot 6 holds id " +
+                                std::to_string(id6) + ", as slot 5 does"),
+            std::string::npos) << error_of(full);
+  fs::remove_all(dir);
+}
+
 // Ids in a file opened without the deep checks: every consumer indexes
 // per-point arrays by id, so one id >= N in a large unverified file would be a write out of
 // bounds (normals, visibility) or a read past an array (query, spacing). ids() returns a checked
@@ -1240,8 +1380,18 @@ TEST(IndexFileBadInput, UnverifiedCorruptIdIsRefusedBeforeAnyIdIndexedAccess) {
   EXPECT_NE(error_of([&] { (void)median_nn_spacing_by_id(m); }).find(want), std::string::npos);
   EXPECT_NE(error_of([&] { (void)m.to_point_cloud(); }).find("slot 1234 holds id"), std::string::npos);
 
-  // The CLI on the real unverified path: the file padded past 256 MiB (sparse) is opened without
-  // the deep checks; the query reports the id and exits 2.
+  // The automatic open of a file above the deep-check size (here a limit of 0 bytes stands in for
+  // a file past 256 MiB): the node records are checked, the ids are not, and ids() is the
+  // checked view.
+  io::IndexOpenOptions large;
+  large.deep_check_bytes = 0;
+  const io::MappedIndex ml = io::MappedIndex::open(bad, large);
+  EXPECT_FALSE(ml.verified());
+  EXPECT_NE(error_of([&] { (void)knn(ml, p, 3); }).find(want), std::string::npos);
+
+  // A file padded past 256 MiB (sparse), which would be opened without the deep checks, is
+  // refused: the file ends at its last section. The CLI exits 2 with one line.
+  const std::uint64_t end = fs::file_size(bad);
   fs::resize_file(bad, (std::uint64_t{256} << 20) + 4096);
   {
     std::ofstream r(dir / "rays.csv");
@@ -1252,7 +1402,10 @@ TEST(IndexFileBadInput, UnverifiedCorruptIdIsRefusedBeforeAnyIdIndexedAccess) {
   EXPECT_EQ(run_cli("query --cloud '" + bad.string() + "' --rays '" + (dir / "rays.csv").string() + "' --radius 1", log), 2)
       << text(log);
   const std::string e = text(log);
-  EXPECT_NE(e.find(want), std::string::npos) << e;
+  EXPECT_NE(e.find("bad.rsi: byte " + std::to_string(end) + ": " + std::to_string((std::uint64_t{256} << 20) + 4096 - end) +
+                   " bytes after the end of the last section"),
+            std::string::npos)
+      << e;
   EXPECT_EQ(std::count(e.begin(), e.end(), '\n'), 1) << e;
   fs::remove_all(dir);
 }

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
+#include <string>
 
 namespace rayscan {
 
@@ -50,6 +51,12 @@ void check_surfel_arguments(std::size_t index_points, std::span<const Vec3> posi
     throw std::invalid_argument("surfels: the file's normals and positions differ in size");
   if (n < 2) throw std::invalid_argument("surfels: need at least 2 points");
   if (index_points != n) throw std::invalid_argument("surfels: the index was built over another cloud");
+}
+
+void throw_knn_short(std::size_t id, std::size_t found, std::size_t points) {
+  throw std::runtime_error("surfels: the kNN of point " + std::to_string(id) + " found " + std::to_string(found) +
+                           " neighbours among " + std::to_string(points) +
+                           " points (expected at least 2: the index is inconsistent; `rayscan info --verify` checks an index file)");
 }
 
 Vec3 surfel_up(const SurfelOptions& o) {

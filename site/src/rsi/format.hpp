@@ -38,8 +38,6 @@ constexpr std::size_t kEncodingOffset = 864;  // uint32 PositionEncoding (versio
 constexpr std::size_t kScaleOffset = 872;     // float64[3] LAS grid scale (las_int32)
 constexpr std::size_t kGridOffsetOffset = 896;  // float64[3] LAS grid offset (las_int32)
 constexpr std::size_t kRgbMulOffset = 920;      // uint32 rgb8 multiplier (version 4): 1, 256, 257; 0 without rgb8
-/// Files up to this size get every section verified at open by default (IndexOpenOptions).
-constexpr std::uint64_t kVerifyAllBytes = std::uint64_t{256} << 20;
 
 /// The section ids of the section table (docs/index-format.md, "Sections").
 enum SectionId : std::uint32_t {

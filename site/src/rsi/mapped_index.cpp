@@ -145,6 +145,13 @@ OpenHeader read_header(const std::uint8_t* b, const Fail& fail) {
     h.bounds.hi[k] = get<double>(b, kBoundsOffset + 24 + 8 * k);
   }
   if (h.points >= 0xFFFFFFFFull) fail(24, "point count " + std::to_string(h.points) + " above 2^32 - 2");
+  // The exact bounds feed the auto radius, the overview camera and `info`: a non-empty file's are a
+  // finite, non-reversed box (a NaN here once surfaced as "use a cell of at least nan").
+  if (h.points > 0)
+    for (int k = 0; k < 3; ++k)
+      if (!std::isfinite(h.bounds.lo[k]) || !std::isfinite(h.bounds.hi[k]) || h.bounds.lo[k] > h.bounds.hi[k])
+        fail(kBoundsOffset + 8 * k, "point bounds of axis " + std::to_string(k) + " [" + std::to_string(h.bounds.lo[k]) +
+                                        ", " + std::to_string(h.bounds.hi[k]) + "] (expected finite, minimum <= maximum)");
   std::uint64_t sum = 0;
   for (unsigned d = 0; d < kLevels; ++d) {
     const auto v = get<std::uint64_t>(b, kLevelsOffset + 8 * d);
@@ -221,6 +228,13 @@ void read_sections(const std::uint8_t* b, std::uint64_t size, const OpenHeader& 
                          ", expected " + hex32(e.crc) + " (corrupted)");
     }
   }
+  // The file ends at the end of its last section (docs/index-format.md, "Conventions"): trailing
+  // bytes would also move a file past the size up to which open() runs the deep checks.
+  std::uint64_t end = kHeaderBytes;
+  for (const SectionEntry& e : t.secs) end = std::max(end, e.offset + e.size);
+  if (size != end)
+    fail(end, std::to_string(size - end) + " bytes after the end of the last section (expected the file to end at byte " +
+                  std::to_string(end) + ")");
 }
 
 /// The checks of the sections present against each other and the header: the required ones, the
@@ -278,6 +292,8 @@ std::vector<IndexSource> read_sources(std::string_view text, std::uint64_t off, 
     }
     s.format = f[4];
     s.path = f[5];
+    if (s.points > points - sum)  // checked before adding, so a sum past 2^64 cannot wrap to N
+      fail(off, "section sources: the point counts exceed the header's " + std::to_string(points) + " points");
     sum += s.points;
     out.push_back(s);
   }
@@ -347,7 +363,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   x.spacing_ = hd.spacing;
   x.bounds_ = hd.bounds;
   const bool verify_all = opt.verify == IndexOpenOptions::Verify::always ||
-                          (opt.verify == IndexOpenOptions::Verify::automatic && size <= kVerifyAllBytes);
+                          (opt.verify == IndexOpenOptions::Verify::automatic && size <= opt.deep_check_bytes);
   x.verified_ = verify_all;
   SectionTable t;
   read_sections(b, size, oh, verify_all, fail, t);
@@ -368,13 +384,17 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   if (by_id[kGpsTime]) x.gps_ = {reinterpret_cast<const double*>(at(kGpsTime)), x.points_};
   x.crs_.assign(reinterpret_cast<const char*>(at(kCrs)), by_id[kCrs]->size);
 
-  // Deep checks of the node records and ids (with the section CRCs above, a file that passes them
-  // is exactly as built). Without them the accessors sanitise every record they return
-  // (MappedIndex::child_count / node_points), so no traversal reads outside the mapping either,
-  // and ids() returns a checked view: every id read is compared with N (consumers index per-point
-  // arrays by id), so a corrupted id is an IndexError where it is read, never an access past an
-  // array, without a pass over all N ids before the first query.
-  if (verify_all) x.verify_records(by_id[kNodes]->offset);
+  // The node records are checked at every open but metadata_only (one sequential pass over the
+  // nodes section, about 2 of the file's 14-26 bytes per point): a corrupted record is then an IndexError here, never a
+  // traversal whose work grows without bound (a root rewritten as one leaf of all N points made
+  // kNN 180x slower; random bytes made the surfel set-up run for hours). The ids (N x 4 bytes) are
+  // checked with the CRCs; without them ids() returns a checked view: every id read is compared
+  // with N (consumers index per-point arrays by id), without a pass over all N ids before the
+  // first query. With metadata_only (a file this process just wrote) the accessors still
+  // sanitise every record they return (MappedIndex::child_count / node_points), so no traversal
+  // reads outside the mapping.
+  if (opt.verify != IndexOpenOptions::Verify::metadata_only) x.verify_nodes(by_id[kNodes]->offset);
+  if (verify_all) x.check_ids();
 
   x.sources_ = read_sources(std::string_view(reinterpret_cast<const char*>(at(kSources)), by_id[kSources]->size),
                             by_id[kSources]->offset, x.points_, fail);
@@ -394,8 +414,7 @@ void MappedIndex::release_pages() const {
   if (map_ && map_->p != nullptr) (void)::madvise(map_->p, map_->n, MADV_DONTNEED);
 }
 
-/// Points per depth counted over the node records (the deep check of the header's table).
-void MappedIndex::verify_records(std::uint64_t node_off) const {
+void MappedIndex::verify_nodes(std::uint64_t node_off) const {
   const std::string nm = path_.string();
   auto fail = [&nm](std::uint64_t off, const std::string& what) -> void {
     throw IndexError(nm + ": byte " + std::to_string(off) + ": " + what);
@@ -453,8 +472,6 @@ void MappedIndex::verify_records(std::uint64_t node_off) const {
                                         std::to_string(d < want.size() ? want[d] : 0) + ", the nodes hold " +
                                         std::to_string(have[d]));
   }
-  // Ids: every stored id names a point (callers index per-point arrays by id).
-  check_ids();
 }
 
 IdView MappedIndex::ids() const {
@@ -474,7 +491,7 @@ void MappedIndex::bad_id(const void* map, std::size_t slot) {
 void MappedIndex::check_ids() const {
   if (ids_ == nullptr) return;  // the identity names every point
   std::atomic<std::size_t> bad{points_};
-  // The deep check at open (verify_records); isolated so that the pass never runs an outer task.
+  // The deep check at open; isolated so that the pass never runs an outer task.
   tbb::this_task_arena::isolate([&] {
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_, 1 << 16), [&](const auto& r) {
       for (std::size_t s = r.begin(); s != r.end(); ++s)
@@ -490,6 +507,27 @@ void MappedIndex::check_ids() const {
     throw IndexError(path_.string() + ": byte " + std::to_string(ids_offset_ + 4 * s) + ": section ids: slot " +
                      std::to_string(s) + " holds id " + std::to_string(ids_[s]) + " outside the " +
                      std::to_string(points_) + " points (corrupted; `rayscan info --verify` checks the whole file)");
+  // N ids below N name every point exactly once iff none repeats (a permutation): one bit per id.
+  std::vector<std::atomic<std::uint64_t>> seen((points_ + 63) / 64);
+  std::atomic<bool> repeated{false};
+  tbb::this_task_arena::isolate([&] {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points_, 1 << 16), [&](const auto& r) {
+      for (std::size_t s = r.begin(); s != r.end() && !repeated.load(std::memory_order_relaxed); ++s) {
+        const std::uint64_t bit = std::uint64_t{1} << (ids_[s] % 64);
+        if (seen[ids_[s] / 64].fetch_or(bit, std::memory_order_relaxed) & bit) repeated = true;
+      }
+    });
+  });
+  if (!repeated) return;
+  // Name the first slot that repeats an earlier slot's id (a sequential pass, on the error path only).
+  std::vector<std::uint32_t> first(points_, 0xFFFFFFFFu);
+  for (std::size_t s = 0; s < points_; ++s) {
+    if (first[ids_[s]] != 0xFFFFFFFFu)
+      throw IndexError(path_.string() + ": byte " + std::to_string(ids_offset_ + 4 * s) + ": section ids: slot " +
+                       std::to_string(s) + " holds id " + std::to_string(ids_[s]) + ", as slot " +
+                       std::to_string(first[ids_[s]]) + " does (expected each point's id once; corrupted)");
+    first[ids_[s]] = static_cast<std::uint32_t>(s);
+  }
 }
 
 std::vector<std::uint64_t> MappedIndex::points_per_level() const {

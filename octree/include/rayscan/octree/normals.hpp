@@ -99,6 +99,9 @@ SurfelAttributes estimate_surfels_over(const I& index, std::span<const Vec3> pos
 
 namespace detail {
 /// Argument checks of estimate_surfels (throws std::invalid_argument, see there).
+/// Throws std::runtime_error: the kNN of the point with id `id` found `found` < 2 neighbours
+/// among `points` (the index's nodes do not reach its points).
+[[noreturn]] void throw_knn_short(std::size_t id, std::size_t found, std::size_t points);
 void check_surfel_arguments(std::size_t index_points, std::span<const Vec3> positions, const SurfelOptions& o,
                             std::span<const glm::vec3> file_normals);
 /// The unit up axis of `o.orientation` ((0, 0, 1) when it is zero), computed once per estimate.
@@ -190,6 +193,9 @@ SurfelAttributes estimate_surfels_over(const I& index, std::span<const Vec3> pos
       const Vec3& p = pos[s];
       const PointIndex id = ids[s];
       knn_query(index, p, k, kInf, nb);
+      // k >= 2 and the index holds n >= 2 points, so fewer than 2 neighbours means an index whose
+      // nodes do not reach its points (a corrupted file opened without its node checks).
+      if (nb.size() < 2) detail::throw_knn_short(id, nb.size(), n);
       // Radius: the k_radius-th neighbour other than the point (nb[0] is the point or a duplicate).
       const std::size_t rk = std::min<std::size_t>(o.k_radius, nb.size() - 1);
       out.radii[id] = float(nb[rk].distance * o.radius_factor);

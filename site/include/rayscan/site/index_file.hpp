@@ -132,10 +132,15 @@ struct IndexOpenOptions {
   /// What open() checks besides the header, the section table and the small metadata sections
   /// (sources, crs), which are always checked. `always`: every section's CRC-32C and every node
   /// record and id (docs/index-format.md, "Opening and validation"; `rayscan info --verify`).
-  /// `automatic` (default): the same when the file is at most 256 MiB, otherwise nothing more, so
-  /// opening costs O(header + sources) at any size. `metadata_only`: never the deep checks.
-  /// Unverified node records are sanitised by the accessors (never a read past the mapping).
+  /// `automatic` (default): the same when the file is at most 256 MiB; above, the node records
+  /// only (one pass over the nodes section, about 2 bytes per point), so a corrupted file is an error
+  /// and no query's work grows past that of the well-formed tree. `metadata_only`: neither (for a
+  /// file this process has just written); node records are then sanitised by the accessors
+  /// (never a read past the mapping) but a corrupted one can give wrong answers.
   enum class Verify { automatic, always, metadata_only } verify = Verify::automatic;
+  /// `automatic` verifies every section of a file of at most this many bytes (well under 0.1 s
+  /// at the default, 256 MiB).
+  std::uint64_t deep_check_bytes = std::uint64_t{256} << 20;
   /// Fail when a source file still exists but its size or modification time changed.
   bool check_sources = true;
   /// Return unchecked ids from ids() even when the deep checks did not run (for the builder,
@@ -179,8 +184,8 @@ static_assert(sizeof(IndexNodeRecord) == 32, "the nodes section's record is 32 b
 
 /// A read-only memory-mapped index file satisfying SpatialIndex. Node records, positions and ids
 /// are used in place (no copy): opening a large file costs the header, section table and sources
-/// checks only (well under a second at any size); the node accessors are checked, so no query
-/// reads past the mapping whether or not the deep checks ran (IndexOpenOptions::verify).
+/// checks and one pass over the node records (IndexOpenOptions::verify); the node accessors are
+/// checked too, so no query reads past the mapping whichever checks ran.
 class MappedIndex {
  public:
   using Node = std::uint32_t;
@@ -303,10 +308,13 @@ class MappedIndex {
 
  private:
   MappedIndex() = default;
-  /// The deep record checks of open(): node ranges, children and keys; ids below N. Throws IndexError.
-  void verify_records(std::uint64_t node_offset) const;
-  /// Throws IndexError for the first stored id >= N (section ids, slot, byte offset); nothing
-  /// without an ids section.
+  /// The node record checks of open() (docs/index-format.md, "Opening and validation" 2): point
+  /// and child ranges, a tree (every node but the root the child of exactly one earlier node,
+  /// octants increasing), no node below the header's depth, and the header's points per level.
+  /// `node_offset`: the nodes section's byte offset (messages). Throws IndexError.
+  void verify_nodes(std::uint64_t node_offset) const;
+  /// Throws IndexError for the first stored id >= N or the first slot repeating an earlier slot's
+  /// id (section ids, slot, byte offset); nothing without an ids section.
   void check_ids() const;
   /// The handler of the checked IdView of an unverified file: throws IndexError naming the file,
   /// the byte and the slot whose id is >= N. `map` is the index's Map.
