@@ -33,7 +33,8 @@ class AtomicOutput {
     }
     out_.flush();
     if (!out_) throw std::runtime_error(file_->path().string() + ": write failed");
-    out_.close();
+    out_.close();  // the last buffer's write error shows here
+    if (!out_) throw std::runtime_error(file_->path().string() + ": write failed");
     file_->commit();
   }
 

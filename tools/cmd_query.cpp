@@ -60,6 +60,10 @@ int run_query(const QueryOptions& o) {
   }
   job.control.distributor = distributor();
   job.control.threads = o.threads;  // MPI: blocks of rays over the ranks (docs/mpi.md)
+  if (!o.out.empty() && o.out != "-") {  // checked before the queries, not after them
+    const std::filesystem::path out[] = {o.out}, in[] = {o.cloud, o.rays};
+    rayscan::require_outputs(out, in);
+  }
   const jobs::QueryJobResult r = jobs::run_query(job);
   if (!is_root()) return 0;  // only rank 0 holds every hit and writes
   AtomicOutput out(o.out);

@@ -11,6 +11,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <string>
 
 namespace rayscan {
 
@@ -20,6 +21,14 @@ thread_local OutputTransaction* g_current = nullptr;
 
 [[noreturn]] void refuse_output(const std::filesystem::path& path, const std::string& why) {
   throw OutputFileError(one_line(path.string()) + ": " + why);
+}
+
+/// Gives `tmp` the permission bits of the regular file at `path`, if there is one, so that
+/// replacing an output keeps its mode.
+void keep_mode(const std::filesystem::path& tmp, const std::filesystem::path& path) {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::chmod(tmp.c_str(), st.st_mode & 07777) != 0)
+    refuse_output(path, std::string("cannot give the new file the old one's mode: ") + std::strerror(errno));
 }
 
 }  // namespace
@@ -37,6 +46,24 @@ void require_replaceable_output(const std::filesystem::path& path) {
   struct stat ds {};
   if (::stat(dir.c_str(), &ds) != 0 || !S_ISDIR(ds.st_mode))
     refuse_output(path, "output directory '" + one_line(dir.string()) + "' does not exist");
+}
+
+void require_outputs(std::span<const std::filesystem::path> outputs, std::span<const std::filesystem::path> inputs) {
+  for (const std::filesystem::path& out : outputs) {
+    if (out.empty()) continue;
+    require_replaceable_output(out);
+    const std::filesystem::path dir = out.parent_path().empty() ? "." : out.parent_path();
+    if (::access(dir.c_str(), W_OK) != 0)
+      refuse_output(out, "cannot write in directory '" + one_line(dir.string()) + "': " + std::strerror(errno));
+    struct stat os {};
+    if (::stat(out.c_str(), &os) != 0) continue;  // a new file cannot be an input
+    for (const std::filesystem::path& in : inputs) {
+      struct stat is {};
+      if (!in.empty() && ::stat(in.c_str(), &is) == 0 && is.st_dev == os.st_dev && is.st_ino == os.st_ino)
+        refuse_output(out, "is the same file as the input '" + one_line(in.string()) +
+                               "' (write the output to another path)");
+    }
+  }
 }
 
 OutputTransaction::OutputTransaction() : outer_(g_current) {
@@ -63,6 +90,7 @@ void OutputTransaction::commit() {
   for (const auto& [tmp, path] : pending_) require_replaceable_output(path);  // re-checked: may have changed
   while (!pending_.empty()) {
     auto [tmp, path] = pending_.front();
+    keep_mode(tmp, path);
     std::error_code ec;
     std::filesystem::rename(tmp, path, ec);
     if (ec) refuse_output(path, "cannot move the finished file into place: " + ec.message());
@@ -88,18 +116,39 @@ AtomicFile::~AtomicFile() {
   }
 }
 
-void AtomicFile::commit() {
-  const int fd = ::open(tmp_.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd >= 0) {
-    ::fsync(fd);
-    ::close(fd);
+void AtomicFile::write_all(std::span<const unsigned char> bytes) {
+  const int fd = ::open(tmp_.c_str(), O_WRONLY | O_TRUNC | O_NOFOLLOW | O_CLOEXEC);
+  if (fd < 0) refuse_output(path_, std::string("cannot open the temporary file: ") + std::strerror(errno));
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t w = ::write(fd, bytes.data() + done, bytes.size() - done);
+    if (w < 0 && errno == EINTR) continue;
+    if (w <= 0) {
+      const int e = w < 0 ? errno : ENOSPC;  // a zero-byte write makes no progress: treat as full
+      ::close(fd);
+      refuse_output(path_, "cannot write " + std::to_string(bytes.size()) + " bytes (wrote " + std::to_string(done) +
+                               "): " + std::strerror(e));
+    }
+    done += static_cast<std::size_t>(w);
   }
+  if (::close(fd) != 0) refuse_output(path_, std::string("cannot write: ") + std::strerror(errno));
+}
+
+void AtomicFile::commit() {
+  // fsync reports the delayed write errors (ENOSPC, EIO) of file systems that allocate late.
+  const int fd = ::open(tmp_.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) refuse_output(path_, std::string("cannot reopen the temporary file: ") + std::strerror(errno));
+  const bool synced = ::fsync(fd) == 0 || errno == EINVAL || errno == EROFS;  // EINVAL: no sync support
+  const int sync_errno = errno;
+  ::close(fd);
+  if (!synced) refuse_output(path_, std::string("cannot write: ") + std::strerror(sync_errno));
   if (OutputTransaction* tx = OutputTransaction::current()) {
     tx->adopt(tmp_, path_);
     committed_ = true;  // the transaction owns the temporary now
     return;
   }
   require_replaceable_output(path_);  // re-checked: the path may have changed while writing
+  keep_mode(tmp_, path_);
   std::error_code ec;
   std::filesystem::rename(tmp_, path_, ec);
   if (ec) refuse_output(path_, "cannot move the finished file into place: " + ec.message());

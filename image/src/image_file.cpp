@@ -47,7 +47,7 @@ const Api* load() {
     const char* err = handle == nullptr ? ::dlerror() : nullptr;
     if (handle != nullptr) {
       if (auto entry = reinterpret_cast<EntryPoint>(::dlsym(handle, kEntryPoint))) return entry();
-      err = "no entry point rayscan_oiio_module_v1 (a module of another rayscan version)";
+      err = "no entry point rayscan_oiio_module_v2 (a module of another rayscan version)";
     }
     tried += (tried.empty() ? "" : "; ") + path + ": " + (err != nullptr ? err : "not loadable");
   }
@@ -159,7 +159,9 @@ void write_image(const Image& img, const std::filesystem::path& path, const Imag
   for (std::size_t c = 0; c < nf && !o.formats.empty(); ++c) formats[c] = o.formats[o.formats.size() == 1 ? 0 : c];
   const oiio_module::Api& oiio = oiio_module::api();  // loaded before the temporary file exists
   AtomicFile file(path);
-  oiio.write(img, name, file.temp().string(), formats, o, lower_extension(path) == ".exr");
+  std::vector<unsigned char> bytes;
+  oiio.encode(img, name, formats, o, lower_extension(path) == ".exr", bytes);
+  file.write_all(bytes);
   file.commit();
 }
 

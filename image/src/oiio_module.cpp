@@ -3,6 +3,7 @@
 // (oiio_module.hpp says why). Only OpenImageIO and POSIX calls: no rayscan function.
 #include "oiio_module.hpp"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/half.h>
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
@@ -151,8 +152,8 @@ std::unique_ptr<ImageReader> open(const std::string& path, std::string& why) {
   return std::make_unique<OiioReader>(std::move(in));
 }
 
-void write(const Image& img, const std::string& name, const std::string& temp, const std::vector<PixelFormat>& formats,
-           const ImageWriteOptions& o, bool zip) {
+void encode(const Image& img, const std::string& name, const std::vector<PixelFormat>& formats,
+            const ImageWriteOptions& o, bool zip, std::vector<unsigned char>& bytes) {
   const std::size_t n = img.npixels(), nf = img.channels.size(), ni = img.id_channels.size();
   // The plugin is chosen from the final name; the data goes to the temporary sibling.
   auto out = OIIO::ImageOutput::create(name);
@@ -209,9 +210,12 @@ void write(const Image& img, const std::string& name, const std::string& temp, c
       dst += 4 * ni;
     }
   }
-  if (!out->open(temp, spec)) throw std::runtime_error(name + ": cannot create output file (" + out->geterror() + ")");
+  bytes.clear();
+  OIIO::Filesystem::IOVecOutput memory(bytes);
+  if (!out->set_ioproxy(&memory)) throw std::runtime_error(name + ": the image writer cannot encode into memory");
+  if (!out->open(name, spec)) throw std::runtime_error(name + ": cannot encode the image (" + out->geterror() + ")");
   const bool ok = out->write_image(mixed ? OIIO::TypeDesc::UNKNOWN : types[0], buf.data()) && out->close();
-  if (!ok) throw std::runtime_error(name + ": write failed (" + out->geterror() + ")");
+  if (!ok) throw std::runtime_error(name + ": encoding failed (" + out->geterror() + ")");
 }
 
 OIIO::ImageSpec spec_of(const Image& img) {
@@ -247,12 +251,12 @@ bool render_text(Image& img, int x, int y, const std::string& text, int size, co
                                          OIIO::cspan<float>(color, std::size_t(img.nchannels())), ax);
 }
 
-constexpr Api kApi{&open, &write, &resize, &render_text};
+constexpr Api kApi{&open, &encode, &resize, &render_text};
 
 }  // namespace
 
 }  // namespace rayscan::oiio_module
 
-extern "C" __attribute__((visibility("default"))) const rayscan::oiio_module::Api* rayscan_oiio_module_v1() {
+extern "C" __attribute__((visibility("default"))) const rayscan::oiio_module::Api* rayscan_oiio_module_v2() {
   return &rayscan::oiio_module::kApi;
 }

@@ -51,11 +51,14 @@ struct Api {
   /// Opens `path` (already checked by the input policy). Null with `why` set when OpenImageIO
   /// cannot open it.
   std::unique_ptr<ImageReader> (*open)(const std::string& path, std::string& why);
-  /// Writes `img` (already checked: buffers match its size; `formats` has one entry per float
-  /// channel) to `temp` with the writer OpenImageIO chooses from `name`'s extension. `zip`:
-  /// ZIP compression (EXR). Throws std::runtime_error "<name>: <reason>".
-  void (*write)(const Image& img, const std::string& name, const std::string& temp,
-                const std::vector<PixelFormat>& formats, const ImageWriteOptions& options, bool zip);
+  /// Encodes `img` (already checked: buffers match its size; `formats` has one entry per float
+  /// channel) into `bytes` (cleared first) with the writer OpenImageIO chooses from `name`'s
+  /// extension, through an in-memory IOProxy: the caller writes the file with checked writes
+  /// (AtomicFile::write_all), because the PNG and JPEG plugins do not report a short fwrite (a
+  /// full disk gave a truncated PNG and exit 0, and libjpeg's own exit). `zip`: ZIP compression
+  /// (EXR). Throws std::runtime_error "<name>: <reason>".
+  void (*encode)(const Image& img, const std::string& name, const std::vector<PixelFormat>& formats,
+                 const ImageWriteOptions& options, bool zip, std::vector<unsigned char>& bytes);
   /// ImageBufAlgo::resize of `img`'s float channels to width x height with `filter`. Throws
   /// std::runtime_error naming the filter.
   Image (*resize)(const Image& img, int width, int height, const std::string& filter);
@@ -68,7 +71,7 @@ struct Api {
 
 /// The module's entry point (extern "C", so dlsym finds it by this name); the version in the name
 /// changes with Api, so a stale module is refused instead of called.
-inline constexpr const char* kEntryPoint = "rayscan_oiio_module_v1";
+inline constexpr const char* kEntryPoint = "rayscan_oiio_module_v2";
 using EntryPoint = const Api* (*)();
 
 /// The loaded module's table (dlopen on the first call; thread-safe). When RAYSCAN_OIIO_MODULE is

@@ -4,6 +4,7 @@
 
 #include "rayscan/base/atomic_file.hpp"
 
+#include <cerrno>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -57,9 +58,10 @@ class AtomicWriter {
   void commit() {
     flush();
     if (std::fflush(f_) != 0 || std::ferror(f_))
-      throw std::runtime_error(path_.string() + ": write failed");
-    std::fclose(f_);
+      throw std::runtime_error(path_.string() + ": write failed (" + std::strerror(errno) + ")");
+    const int closed = std::fclose(f_);
     f_ = nullptr;
+    if (closed != 0) throw std::runtime_error(path_.string() + ": write failed (" + std::strerror(errno) + ")");
     if (file_) file_->commit();
   }
 
@@ -67,7 +69,7 @@ class AtomicWriter {
   static constexpr std::size_t kBuffer = 4u << 20;
   void flush() {
     if (!buf_.empty() && std::fwrite(buf_.data(), 1, buf_.size(), f_) != buf_.size())
-      throw std::runtime_error(path_.string() + ": write failed (disk full?)");
+      throw std::runtime_error(path_.string() + ": write failed (" + std::strerror(errno) + ")");
     buf_.clear();
   }
   std::filesystem::path path_;

@@ -2,6 +2,7 @@
 // import into SQLite or PostgreSQL.
 #include "rayscan/jobs/db_import.hpp"
 
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/sql/import.hpp"
@@ -36,6 +37,8 @@ sql::ImportOptions import_options(const DbImportJobOptions& o) {
 
 DbImportJobResult run_db_import(const DbImportJobOptions& options) {
   const sql::ImportOptions opt = import_options(options);
+  const std::filesystem::path out[] = {options.out};
+  require_outputs(out, options.clouds);
   const sql::ImportSummary s = options.postgres.empty()
                                    ? sql::import_sqlite(options.clouds, options.out, opt)
                                    : sql::import_postgres(options.clouds, options.postgres, options.table, opt);

@@ -1,6 +1,7 @@
 // The index job (rayscan/jobs/index.hpp): options checked, then the out-of-core build.
 #include "rayscan/jobs/index.hpp"
 
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/base/threads.hpp"
@@ -31,6 +32,8 @@ io::IndexBuildOptions index_build_options(const IndexJobOptions& o) {
 
 IndexJobResult run_index(const IndexJobOptions& options) {
   const io::IndexBuildOptions build = index_build_options(options);
+  const std::filesystem::path out[] = {options.output};
+  require_outputs(out, options.inputs);
   IndexJobResult result;
   result.output = options.output;
   tbb::task_arena arena(static_cast<int>(resolve_threads(options.control.threads)));

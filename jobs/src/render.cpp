@@ -1,6 +1,7 @@
 // The render job (rayscan/jobs/render.hpp): what `rayscan render` and rayscan.render() run.
 #include "rayscan/jobs/render.hpp"
 
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/camera/camera_file.hpp"
@@ -137,7 +138,11 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   if (!scene.camera && !o.camera_for_cloud) throw SceneError(f + ": /camera: not set; give a camera in the scene or a camera file");
   if (o.write && scene.output.image.empty())
     throw OptionError({f + ": /output/image: not set; give it in the scene or set the ", option("out"), " option"});
-  if (o.write) load_image_io();  // the image writer, before the render rather than after it
+  if (o.write) {
+    load_image_io();  // the image writer, before the render rather than after it
+    const std::filesystem::path out[] = {scene.output.image}, in[] = {scene.cloud, scene.file};
+    require_outputs(out, in);
+  }
   const JobControl& ctl = o.control;
   char buf[512];
 

@@ -118,8 +118,9 @@ struct VisibilityRun {
       load_image_io();                            // the preview's writer, before the computation rather than after it
     }
     // The output policy up front: every output path must be absent or a regular file.
-    for (const std::filesystem::path& f : {o.out, o.raster, o.preview})
-      if (!f.empty()) require_replaceable_output(f);
+    const std::filesystem::path outs[] = {o.out, o.raster, o.preview};
+    const std::filesystem::path ins[] = {o.cloud_file, o.observers_file, o.camera_file};
+    require_outputs(outs, ins);
     have_observers = !o.observers_file.empty() || !o.observers.empty();
     have_camera = o.camera || !o.camera_file.empty();
     if (!have_observers && o.sky_rays == 0 && !have_camera)

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <filesystem>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -27,6 +28,14 @@ struct OutputFileError : std::runtime_error {
 /// exist. Called by AtomicFile's constructor; call it directly to check every output of a
 /// command before starting long work.
 void require_replaceable_output(const std::filesystem::path& path);
+
+/// The checks a job runs on its outputs before any long work, so that a bad output path fails
+/// in a second, not after the computation: each output replaceable (require_replaceable_output),
+/// its directory writable by this process (access(2) W_OK: a read-only directory or mount is
+/// refused), and none the same file as an input (same device and inode, so another spelling, a
+/// hard link or a symbolic link to the input is caught: writing there would replace the input
+/// it is read from). Empty paths are skipped. Throws OutputFileError "<output>: <reason>".
+void require_outputs(std::span<const std::filesystem::path> outputs, std::span<const std::filesystem::path> inputs = {});
 
 class AtomicFile;
 
@@ -72,9 +81,15 @@ class AtomicFile {
   [[nodiscard]] const std::filesystem::path& path() const { return path_; }
   /// Where to write the data.
   [[nodiscard]] const std::filesystem::path& temp() const { return tmp_; }
-  /// Flush the finished temporary to disk (fsync) and move it into place, so that after a crash
-  /// or power loss `path` holds the old or the complete new file, never an empty one. Inside an
-  /// OutputTransaction the rename is deferred to the transaction's commit().
+  /// Writes `bytes` as the whole content of temp() with checked writes (a short write, ENOSPC or
+  /// EIO is an OutputFileError naming path() and the reason) and a checked close. For writers
+  /// that encode into memory (images); streaming writers write temp() themselves.
+  void write_all(std::span<const unsigned char> bytes);
+  /// Flush the finished temporary to disk (fsync, checked: a failure is an OutputFileError and
+  /// the old file stays) and move it into place, so that after a crash or power loss `path` holds
+  /// the old or the complete new file, never an empty one. A replaced file's permission bits are
+  /// kept (a read-only output stays read-only, as `cp` onto an existing file keeps its mode).
+  /// Inside an OutputTransaction the rename is deferred to the transaction's commit().
   void commit();
 
  private:

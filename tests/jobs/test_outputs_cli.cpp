@@ -1,0 +1,176 @@
+// Outputs under hostile conditions, through the command line: a full file system, a read-only
+// directory, a read-only output file, and an output that is one of the inputs. Each case must
+// exit 2 with one line naming the output, leave the old output byte-identical and no temporary
+// (".<name>.tmp.<pid>") behind. The full file system is a real tmpfs mounted by the test (root
+// only; skipped with a message otherwise); the read-only directory is a read-only tmpfs mount as
+// root (root writes through a 0555 folder) or a 0555 folder otherwise.
+#include "../common/run_command.hpp"
+#include "jobs_test_util.hpp"
+
+#include <sys/mount.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+namespace rayscan::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kBin = RAYSCAN_BIN;
+
+std::string q(const fs::path& p) { return "'" + p.string() + "'"; }
+
+/// The names in `dir` that look like an output's temporary (".<name>.tmp.<pid>").
+std::vector<std::string> temporaries(const fs::path& dir) {
+  std::vector<std::string> out;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().filename().string().find(".tmp.") != std::string::npos) out.push_back(e.path().filename().string());
+  return out;
+}
+
+/// One line on the output, exit 2, the line naming `name`.
+void expect_one_line_error(const CommandResult& r, const std::string& name, const std::string& why) {
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_NE(r.out.find(name), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(why), std::string::npos) << r.out;
+}
+
+/// A tmpfs mounted at `dir` for the test's lifetime (root only).
+struct Tmpfs {
+  fs::path dir;
+  bool mounted = false;
+  Tmpfs(fs::path d, const std::string& options, unsigned long flags = 0) : dir(std::move(d)) {
+    fs::create_directories(dir);
+    mounted = ::geteuid() == 0 && ::mount("tmpfs", dir.c_str(), "tmpfs", flags, options.c_str()) == 0;
+  }
+  ~Tmpfs() {
+    if (mounted) ::umount2(dir.c_str(), MNT_DETACH);
+  }
+};
+
+/// Fills the file system of `dir` with a filler file until a write fails (ENOSPC).
+void fill(const fs::path& dir) {
+  std::FILE* f = std::fopen((dir / "filler").c_str(), "wb");
+  ASSERT_NE(f, nullptr);
+  std::vector<char> block(4096, 'x');
+  while (std::fwrite(block.data(), 1, block.size(), f) == block.size() && std::fflush(f) == 0) {
+  }
+  std::fclose(f);
+  // What is left is less than a block: top it up a byte at a time.
+  f = std::fopen((dir / "filler2").c_str(), "wb");
+  if (f != nullptr) {
+    while (std::fputc('x', f) != EOF && std::fflush(f) == 0) {
+    }
+    std::fclose(f);
+  }
+}
+
+const fs::path& cloud() {
+  static const fs::path p = data_file("las/autzen_trim.las");
+  return p;
+}
+
+// A render, its JPEG, a viewshed raster with its PNG preview and a translate onto a full file
+// system: exit 2, one line naming the output, the old output kept, no temporary left.
+TEST(OutputsCli, FullFileSystemFailsCleanlyAndKeepsTheOldOutput) {
+  const Tmpfs full(temp_dir() / "full", "size=256k");
+  if (!full.mounted) GTEST_SKIP() << "needs root to mount a tmpfs (full file system); skipped";
+  const std::vector<std::string> outputs = {"r.png", "r.jpg", "v.tif", "t.laz"};
+  for (const std::string& name : outputs) {
+    std::ofstream(full.dir / name) << "OLD " << name;
+    std::ofstream(full.dir / ("v.png")) << "OLD v.png";
+  }
+  fill(full.dir);
+  const std::string render = kBin + " render " + q(cloud()) + " -q --spp 1 --width 300 --out ";
+  for (const std::string& name : {std::string("r.png"), std::string("r.jpg")}) {
+    SCOPED_TRACE(name);
+    expect_one_line_error(run_command(render + q(full.dir / name)), name, "No space left on device");
+    EXPECT_EQ(file_bytes(full.dir / name), "OLD " + name);
+  }
+  {
+    const CommandResult r = run_command(kBin + " visibility " + q(cloud()) + " -q --observers 636500,849200 --cell 5 --raster " +
+                                        q(full.dir / "v.tif"));
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+    EXPECT_EQ(file_bytes(full.dir / "v.tif"), "OLD v.tif");
+    EXPECT_EQ(file_bytes(full.dir / "v.png"), "OLD v.png");
+  }
+  expect_one_line_error(run_command(kBin + " translate " + q(cloud()) + " " + q(full.dir / "t.laz")), "t.laz", "write");
+  EXPECT_EQ(file_bytes(full.dir / "t.laz"), "OLD t.laz");
+  EXPECT_EQ(temporaries(full.dir), std::vector<std::string>{});
+}
+
+// An output directory this process cannot write is refused before the work (the message names
+// the directory), and nothing is created.
+TEST(OutputsCli, ReadOnlyDirectoryIsRefusedFirst) {
+  const fs::path dir = temp_dir() / "ro";
+  Tmpfs ro(dir, "size=64k", MS_RDONLY);
+  if (!ro.mounted) {
+    if (::geteuid() == 0) GTEST_SKIP() << "cannot mount a read-only tmpfs; skipped";
+    fs::permissions(dir, fs::perms::owner_read | fs::perms::owner_exec);
+  }
+  const CommandResult r = run_command(kBin + " render " + q(cloud()) + " -q --spp 1 --width 64 --out " + q(dir / "r.png"));
+  expect_one_line_error(r, "r.png", "cannot write in directory");
+  const CommandResult v = run_command(kBin + " visibility " + q(cloud()) + " -q --observers 636500,849200 --out " +
+                                      q(dir / "v.las"));
+  expect_one_line_error(v, "v.las", "cannot write in directory");
+  if (!ro.mounted) fs::permissions(dir, fs::perms::owner_all);
+  EXPECT_TRUE(fs::is_empty(dir));
+}
+
+// A replaced read-only output keeps its mode (as `cp` onto an existing file does).
+TEST(OutputsCli, ReplacedOutputKeepsItsMode) {
+  const fs::path dir = temp_dir() / "mode";
+  fs::create_directories(dir);
+  const fs::path out = dir / "t.laz";
+  std::ofstream(out) << "OLD";
+  ::chmod(out.c_str(), 0444);
+  const CommandResult r = run_command(kBin + " translate " + q(cloud()) + " " + q(out));
+  ASSERT_EQ(r.code, 0) << r.out;
+  struct stat st {};
+  ASSERT_EQ(::stat(out.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 07777, 0444u);
+  EXPECT_NE(file_bytes(out), "OLD");
+  fs::remove_all(dir);
+}
+
+// An output that is one of the inputs (same path, another spelling, a hard link) is refused
+// before anything is read or written; the input stays byte-identical.
+TEST(OutputsCli, OutputThatIsAnInputIsRefused) {
+  const fs::path dir = temp_dir() / "same";
+  fs::create_directories(dir);
+  const fs::path las = dir / "q.las";
+  fs::copy_file(cloud(), las, fs::copy_options::overwrite_existing);
+  fs::create_hard_link(las, dir / "link.las");
+  const std::string before = file_bytes(las);
+  {
+    std::ofstream r(dir / "rays.csv");
+    r << "ox,oy,oz,dx,dy,dz\n636500,849200,1000,0,0,-1\n";
+  }
+  const std::string same = "is the same file as the input";
+  expect_one_line_error(run_command(kBin + " query --cloud " + q(las) + " --rays " + q(dir / "rays.csv") +
+                                    " --radius 1 --out " + q(las)),
+                        "q.las", same);
+  expect_one_line_error(run_command(kBin + " query --cloud " + q(las) + " --rays " + q(dir / "rays.csv") +
+                                    " --radius 1 --out " + q(dir / "." / "link.las")),
+                        "link.las", same);
+  expect_one_line_error(run_command(kBin + " db import " + q(las) + " -o " + q(las)), "q.las", same);
+  expect_one_line_error(run_command(kBin + " translate " + q(las) + " " + q(dir / "link.las")), "link.las", same);
+  EXPECT_EQ(file_bytes(las), before);
+  EXPECT_EQ(temporaries(dir), std::vector<std::string>{});
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace rayscan::test
