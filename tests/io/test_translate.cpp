@@ -5,6 +5,7 @@
 #include "io_test_util.hpp"
 
 #include "rayscan/io/las_records.hpp"
+#include "rayscan/io/point_reader.hpp"
 #include "rayscan/io/translate.hpp"
 
 #include <algorithm>
@@ -85,6 +86,46 @@ TEST(Translate, Las14FormatsRoundTripThroughTheLayeredEncoder) {
     io::translate_las(laz, back);
     expect_same_file(back, las);
   }
+}
+
+// A header count one above what the chunks hold: the last chunk's stream runs out. Reading the
+// file (info, query) and translating it must fail alike, naming the file and the stream, instead
+// of translate writing one record invented from the stream's padding with success.
+TEST(Translate, HeaderCountAboveTheChunksIsRefusedByEveryDecodingPath) {
+  RAYSCAN_REQUIRE_FILE(src, "laz/autzen_trim.laz");
+  std::vector<std::uint8_t> bytes = slurp(src);
+  const std::uint8_t minor = bytes[25];
+  std::uint32_t legacy = 0;
+  std::memcpy(&legacy, bytes.data() + 107, 4);
+  ASSERT_GT(legacy, 0u);
+  ++legacy;
+  std::memcpy(bytes.data() + 107, &legacy, 4);
+  if (minor >= 4) {
+    std::uint64_t count = 0;
+    std::memcpy(&count, bytes.data() + 247, 8);
+    ++count;
+    std::memcpy(bytes.data() + 247, &count, 8);
+  }
+  const fs::path bad = temp_dir() / "count_plus_one.laz", out = temp_dir() / "count_plus_one.las";
+  {
+    std::ofstream f(bad, std::ios::binary | std::ios::trunc);
+    f.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  }
+  auto error_of = [](auto&& call) -> std::string {
+    try {
+      call();
+    } catch (const std::exception& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  const std::string read = error_of([&] { (void)io::read_point_cloud(bad); });
+  const std::string translated = error_of([&] { (void)io::translate_las(bad, out); });
+  EXPECT_NE(read.find("count_plus_one.laz"), std::string::npos) << read;
+  EXPECT_NE(read.find("past its end"), std::string::npos) << read;
+  EXPECT_NE(translated.find("count_plus_one.laz"), std::string::npos) << translated;
+  EXPECT_NE(translated.find("past its end"), std::string::npos) << translated;
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST(Translate, LayeredEncoderKeepsEveryFieldUnderScannerChannelSwitches) {

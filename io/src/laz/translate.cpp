@@ -57,7 +57,6 @@ class RecordSource {
     std::size_t got = 0;
     while (got < n) {
       if (left_ == 0) {
-        if (chunk_ > 0) dec_->finish();
         const laz::Chunk& c = chunks_.at(chunk_);
         dec_->start(in_, chunk_, c, c.offset + c.bytes);
         left_ = c.points;
@@ -67,6 +66,10 @@ class RecordSource {
       dec_->next(k, buf_.data() + got * rec);
       got += k;
       left_ -= k;
+      // Each chunk's stream is checked as soon as its last point is decoded, the last chunk's too:
+      // a header count above what the chunks hold then reads past a stream's end and is an
+      // error, as in the other decoding paths, instead of a record invented from padding.
+      if (left_ == 0) dec_->finish();
     }
     done_ += n;
     return buf_.data();
