@@ -47,12 +47,14 @@ int run_render(const RenderCliOptions& o) {
   ov.primitive = o.primitive;
   ov.colmap_dir = o.colmap_dir;
   ov.colmap_image = o.colmap_image;
-  // A cloud instead of a scene, or a scene without a camera: read the points once, here.
+  // A cloud instead of a scene, or a scene without a camera: an index file is summarised from its
+  // header (the render maps it); other points are read once, here, for the render too.
   std::optional<PointCloud> points;
-  const ResolvedScene rs = resolve_scene(o.scene, ov, [&](const std::filesystem::path& f) -> const PointCloud& {
+  const ResolvedScene rs = resolve_scene(o.scene, ov, [&](const std::filesystem::path& f) -> CloudSummary {
+    if (std::optional<CloudSummary> s = summary_in_place(f)) return *s;
     if (!points) points = io::read_point_cloud(f, io::ReadOptions{.scalars = false});
     if (points->empty()) throw UsageError(f.string() + ": the point cloud has no points");
-    return *points;
+    return {bounds_of(points->positions), !points->rgb.empty()};
   });
   if (o.print_scene) {
     if (o.ortho_res) throw UsageError("--print-scene: not with --ortho-map (the map camera is not a scene camera)");

@@ -5,6 +5,7 @@
 #include "rayscan/base/json_object.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/scene_json.hpp"
+#include "rayscan/site/index_file.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -61,8 +62,18 @@ LookAtParams overview_view(const AABB& bounds, std::uint32_t width, std::uint32_
   return p;
 }
 
+std::optional<CloudSummary> summary_in_place(const std::filesystem::path& path) {
+  if (io::is_index_file(path)) {
+    io::IndexOpenOptions o;
+    o.verify = io::IndexOpenOptions::Verify::metadata_only;  // the header is all that is read here
+    const io::MappedIndex m = io::MappedIndex::open(path, o);
+    return CloudSummary{m.bounds(), !m.rgb().empty()};
+  }
+  return std::nullopt;
+}
+
 ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverrides& ov,
-                            const std::function<const PointCloud&(const std::filesystem::path&)>& cloud) {
+                            const std::function<CloudSummary(const std::filesystem::path&)>& cloud) {
   namespace fs = std::filesystem;
   ResolvedScene res;
   // A point cloud by its extension (io::format_from_extension); anything else is read as a scene,
@@ -71,7 +82,7 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
   try {
     (void)io::format_from_extension(input);
   } catch (const io::FormatError&) {
-    is_scene = true;
+    is_scene = !io::is_index_file(input);
   }
   const fs::path base = fs::absolute(input);
   json j;
@@ -79,10 +90,9 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
     j = io::parse_json_file(input);
     if (!j.is_object()) io::json_fail(input.string(), "", "expected a JSON object (a scene)");
   } else {
-    const PointCloud& pc = cloud(base);
     j = {{"cloud", base.lexically_normal().string()},
          {"radius", "auto"},
-         {"material", {{"color", pc.rgb.empty() ? "elevation" : "rgb"}}}};
+         {"material", {{"color", cloud(base).has_rgb ? "rgb" : "elevation"}}}};
   }
   // A camera from the command line replaces the scene's, which is then not read at all.
   if (!ov.camera_file.empty() || !ov.colmap_dir.empty()) j.erase("camera");
@@ -94,7 +104,7 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
   if (!res.scene.camera && ov.camera_file.empty() && ov.colmap_dir.empty()) {
     // The overview camera, at the size the flags ask for (fit_image_size keeps its 3:2 aspect).
     const ImageSize size = fit_image_size({kOverviewWidth, kOverviewHeight}, ov.width, ov.height);
-    const LookAtParams p = overview_view(cloud(res.scene.cloud).bounds(), size.width, size.height);
+    const LookAtParams p = overview_view(cloud(res.scene.cloud).bounds, size.width, size.height);
     res.scene.camera = Camera::look_at(p, size.width, size.height);
     res.overview = true;
     rest.width.reset();

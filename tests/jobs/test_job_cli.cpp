@@ -5,7 +5,10 @@
 #include "../common/run_command.hpp"
 #include "jobs_test_util.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 using rayscan::test::data_file;
@@ -61,4 +64,36 @@ TEST(JobCli, DbImportErrorsAsBefore) {
   r = rayscan_cli("db import " + las + " -o " + out + " --pcpatch");
   EXPECT_EQ(r.code, 2);
   EXPECT_EQ(r.out, "rayscan db: --pcpatch needs --postgres CONNINFO\n");
+}
+
+// An index file works wherever a point cloud path is accepted: `render a.rsi` is the quick look of
+// its points (it was read as a scene: "invalid JSON"), and a scene whose "cloud" is the index and
+// which has no camera gets the overview camera (it was "unknown point cloud extension"). Oracle:
+// the quick look of the LAS file the index was built from, whose camera (from the same exact
+// bounds) and material must be the same.
+TEST(JobCli, IndexFileIsAcceptedWhereverACloudIs) {
+  const std::filesystem::path las = data_file("las/autzen_trim.las");
+  const std::filesystem::path dir = temp_dir() / "render_rsi";
+  std::filesystem::create_directories(dir);
+  const std::filesystem::path rsi = dir / "a.rsi";
+  ASSERT_EQ(rayscan_cli("index -q " + quoted(las) + " -o " + quoted(rsi) + " --attributes rgb").code, 0);
+  const auto from_las = rayscan_cli("render " + quoted(las) + " --print-scene");
+  const auto from_rsi = rayscan_cli("render " + quoted(rsi) + " --print-scene");
+  ASSERT_EQ(from_las.code, 0) << from_las.out;
+  ASSERT_EQ(from_rsi.code, 0) << from_rsi.out;
+  const auto a = nlohmann::json::parse(from_las.out), b = nlohmann::json::parse(from_rsi.out);
+  EXPECT_EQ(a["camera"], b["camera"]);
+  EXPECT_EQ(a["material"], b["material"]);
+  EXPECT_EQ(b["cloud"], rsi.lexically_normal().string());
+  {
+    std::ofstream s(dir / "scene.json");
+    s << nlohmann::json{{"cloud", "a.rsi"}, {"output", {{"image", "r.png"}}}}.dump();
+  }
+  const auto scene = rayscan_cli("render " + quoted(dir / "scene.json") + " --print-scene");
+  ASSERT_EQ(scene.code, 0) << scene.out;
+  EXPECT_EQ(nlohmann::json::parse(scene.out)["camera"], a["camera"]);
+  const auto r = rayscan_cli("render " + quoted(rsi) + " -q --spp 1 --width 60 --out " + quoted(dir / "q.png"));
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_TRUE(std::filesystem::is_regular_file(dir / "q.png"));
+  std::filesystem::remove_all(dir);
 }

@@ -136,7 +136,7 @@ TEST(SceneJson, QuickLookPrintsTheCameraItRenders) {
   jobs::SceneOverrides ov;
   ov.width = 101;
   ov.aovs = {"depth"};
-  const jobs::ResolvedScene rs = jobs::resolve_scene(d / "s.json", ov, [](const fs::path&) -> const PointCloud& {
+  const jobs::ResolvedScene rs = jobs::resolve_scene(d / "s.json", ov, [](const fs::path&) -> jobs::CloudSummary {
     throw std::logic_error("the cloud is not needed with a camera");
   });
   ASSERT_TRUE(rs.scene.camera);

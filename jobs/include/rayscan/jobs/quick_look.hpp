@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 
 namespace rayscan::jobs {
@@ -34,6 +35,18 @@ inline constexpr double kOverviewBearingDeg = 45.0, kOverviewPitchDeg = 35.0, kO
 /// Throws std::invalid_argument for a zero width or height or an empty/non-finite box.
 LookAtParams overview_view(const AABB& bounds, std::uint32_t width, std::uint32_t height);
 
+/// What resolve_scene needs of a point cloud file: its exact bounds (world units) and whether it
+/// stores colours (the quick look's material).
+struct CloudSummary {
+  AABB bounds;
+  bool has_rgb = false;
+};
+
+/// The summary of an index file from its checked header (exact bounds, stored colour), without
+/// reading its points; nullopt for any other file, whose points must be read (a COPC file too:
+/// its quick look renders the points read whole). Throws io::IndexError for a bad index file.
+std::optional<CloudSummary> summary_in_place(const std::filesystem::path& path);
+
 /// The scene a `rayscan render INPUT [flags]` command line means, and its JSON.
 struct ResolvedScene {
   Scene scene;       ///< parsed and with every override applied (what the render job runs)
@@ -42,16 +55,17 @@ struct ResolvedScene {
 };
 
 /// Resolve a command line's scene. `input` is a point cloud file when its extension is one the io
-/// library reads (io::format_from_extension), else a scene file; for a cloud the scene is {"cloud": input, "radius": "auto",
+/// library reads (io::format_from_extension) or an index file (.rsi), else a scene file; for a cloud the scene is {"cloud": input, "radius": "auto",
 /// "material": {"color": "rgb" if the cloud has colours else "elevation"}} with the default sky
 /// and sun. When the scene has no camera (a cloud, or a scene file without "camera"), the camera
 /// is overview_view() of the cloud's bounds at width x height (default 600 x 400; one of them
 /// keeps the 3:2 aspect, fit_image_size). The other overrides are applied by Scene::apply, and the
-/// JSON is the result's Scene::to_json. `cloud` returns the points of the file it is given (the
-/// input, or the scene's "cloud") and is called only when needed (a cloud input or a missing
-/// camera), at most once. Throws SceneError (bad scene file), OptionError (bad override), and
-/// what `cloud` throws (io errors).
+/// JSON is the result's Scene::to_json. `cloud` returns the summary of the file it is given (the
+/// input, or the scene's "cloud"; summary_in_place for an index file, else from its
+/// points, which the caller may keep for the render) and is called only when needed (a cloud
+/// input or a missing camera). Throws SceneError (bad scene file), OptionError (bad override),
+/// and what `cloud` throws (io errors).
 ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverrides& overrides,
-                            const std::function<const PointCloud&(const std::filesystem::path&)>& cloud);
+                            const std::function<CloudSummary(const std::filesystem::path&)>& cloud);
 
 }  // namespace rayscan::jobs
