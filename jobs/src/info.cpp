@@ -102,6 +102,37 @@ InfoJobResult run_info(const InfoJobOptions& options) {
 
 namespace {
 
+/// `j` as indented JSON. Strings read from the file (a WKT, a VLR description, a software name)
+/// may hold bytes that are not UTF-8 (Latin-1 writers): each is then replaced by U+FFFD and a
+/// "warnings" entry says so, rather than failing the whole report on one byte.
+std::string dump_report(nlohmann::ordered_json j) {
+  try {
+    return j.dump(2);
+  } catch (const nlohmann::json::type_error&) {
+  }
+  j["warnings"] = {"text fields of the file hold bytes that are not UTF-8; each was replaced by U+FFFD"};
+  return j.dump(2, ' ', false, nlohmann::ordered_json::error_handler_t::replace);
+}
+
+/// `text` with every control character but the line ends written as \xNN, so that a string from
+/// the file (an escape sequence in a VLR description, a carriage return in a WKT) cannot move the
+/// cursor, recolour or clear the user's terminal.
+std::string escape_controls(const std::string& text) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char ch : text) {
+    const auto c = static_cast<unsigned char>(ch);
+    if ((c < 0x20 && c != '\n') || c == 0x7f) {
+      char buf[5];
+      std::snprintf(buf, sizeof buf, "\\x%02x", c);
+      out += buf;
+    } else {
+      out += ch;
+    }
+  }
+  return out;
+}
+
 std::string index_report_json(const InfoJobResult& r) {
   const IndexFileSummary& x = *r.index;
   nlohmann::ordered_json j;
@@ -133,7 +164,7 @@ std::string index_report_json(const InfoJobResult& r) {
     src.push_back({{"path", s.path}, {"format", s.format}, {"points", s.points}, {"first_id", s.first_id}, {"bytes", s.size}});
   j["sources"] = src;
   j["crs"] = {{"wkt", r.crs_wkt}};
-  return j.dump(2);
+  return dump_report(j);
 }
 
 std::string index_report_text(const InfoJobResult& r) {
@@ -161,7 +192,7 @@ std::string index_report_text(const InfoJobResult& r) {
   o << "CRS:               " << (r.crs_wkt.empty() ? std::string("none") : r.crs_wkt.substr(0, 100)) << "\n";
   for (const IndexSource& s : x.sources)
     o << "source:            " << s.path << " (" << s.format << ", " << s.points << " points)\n";
-  return o.str();
+  return escape_controls(o.str());
 }
 
 }  // namespace
@@ -224,7 +255,7 @@ std::string info_report_json(const InfoJobResult& r) {
   }
   j["comments"] = r.info.comments;
   j["notes"] = r.info.notes;
-  return j.dump(2);
+  return dump_report(j);
 }
 
 std::string info_report_text(const InfoJobResult& r) {
@@ -303,7 +334,7 @@ std::string info_report_text(const InfoJobResult& r) {
   }
   for (const std::string& c : r.info.comments) o << "comment:           " << c << "\n";
   for (const std::string& n : r.info.notes) o << "note:              " << n << "\n";
-  return o.str();
+  return escape_controls(o.str());
 }
 
 }  // namespace rayscan::jobs

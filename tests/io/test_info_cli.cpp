@@ -4,6 +4,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <fstream>
 #include <cstdlib>
 #include <cstring>
 #include <map>
@@ -69,6 +71,37 @@ TEST(InfoCli, JsonReportsFormatCountsBoundsAttributesAndCrs) {
   bool has_intensity = false;
   for (const auto& a : j["attributes"]) has_intensity |= a["name"] == "intensity";
   EXPECT_TRUE(has_intensity);
+}
+
+// Strings of the file that are not UTF-8 or hold control characters: a WKT VLR with a Latin-1
+// byte (0xE9) made `info --json` exit 2 with nlohmann's "invalid UTF-8 byte" naming neither file
+// nor field; an escape character in the WKT reached the terminal raw. Now the JSON is valid
+// (strictly parsed) with the byte replaced and a warning, and the text shows \x1b.
+TEST(InfoCli, NonUtf8AndControlBytesOfTheFileAreReplacedOrEscaped) {
+  RAYSCAN_REQUIRE_FILE(src, "las/autzen_trim.las");
+  auto b = slurp(src);
+  const std::string wkt = "PROJCS[\"NAD_1983", geog = "GEOGCS[\"GCS_North";
+  const auto at = [&](const std::string& s) {
+    const auto it = std::search(b.begin(), b.end(), s.begin(), s.end());
+    EXPECT_NE(it, b.end()) << s;
+    return static_cast<std::size_t>(it - b.begin());
+  };
+  b[at(geog) + 12] = 0xE9;  // Latin-1 e-acute: "GCS_\xe9orth"
+  b[at(wkt) + 16] = 0x1B;   // ESC inside the WKT's name: "NAD_1983\x1bHARN"
+  const fs::path bad = temp_dir() / "latin1.las", out = temp_dir() / "latin1.out", err = temp_dir() / "latin1.err";
+  {
+    std::ofstream f(bad, std::ios::binary);
+    f.write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  }
+  ASSERT_EQ(run("info --json '" + bad.string() + "'", out, err), 0) << text_of(err);
+  const auto j = nlohmann::json::parse(text_of(out));  // strict: throws on invalid UTF-8
+  ASSERT_TRUE(j.contains("warnings")) << j.dump(2);
+  EXPECT_NE(j["warnings"][0].get<std::string>().find("not UTF-8"), std::string::npos);
+  EXPECT_NE(j["crs"]["wkt"].get<std::string>().find("GCS_\xEF\xBF\xBDorth"), std::string::npos);  // U+FFFD
+  ASSERT_EQ(run("info '" + bad.string() + "'", out, err), 0) << text_of(err);
+  const std::string text = text_of(out);
+  EXPECT_EQ(text.find('\x1b'), std::string::npos);
+  EXPECT_NE(text.find("NAD_1983\\x1bHARN"), std::string::npos) << text;
 }
 
 TEST(InfoCli, TextReportsDroppedNanPointsAndDifferingHeaderBounds) {
