@@ -114,6 +114,42 @@ expect_error visibility-raster-in-proc "x.tif" -- visibility -q "$W/c.xyz" --obs
 [ -L "$W/link.png" ] || { echo "FAIL the symlink output path was replaced"; fails=$((fails + 1)); }
 [ -c /dev/null ] || { echo "FAIL /dev/null is no longer a character device"; fails=$((fails + 1)); }
 
+# ---- Corrupted index files, a LAZ count above its chunks, an output that is an input.
+# Crafted here from the bundled autzen_trim.las (a 300 MiB reproducer is a sparse tail, not a file
+# in the repository). The root node record's packed field (nodes section + 28) := 0x80000000, an
+# internal node of 0 children: surfel set-up once read past an empty kNN result (SIGSEGV).
+if "$RAYSCAN" index -q "$DATA/las/autzen_trim.las" -o "$W/x.rsi" >/dev/null 2>&1; then
+  python3 - "$W/x.rsi" <<'PY'
+import struct, sys
+p = sys.argv[1]
+b = bytearray(open(p, 'rb').read())
+for i in range(struct.unpack_from('<I', b, 20)[0]):
+    sid, _, off = struct.unpack_from('<IIQ', b, 128 + 32 * i)
+    if sid == 9:
+        struct.pack_into('<I', b, off + 28, 0x80000000)
+open(p[:-4] + '_root.rsi', 'wb').write(b)
+PY
+  cp "$W/x_root.rsi" "$W/x_pad.rsi"
+  truncate -s 300M "$W/x_pad.rsi"
+  expect_error rsi-corrupt-root "x_root.rsi" "checksum" -- visibility -q "$W/x_root.rsi" --primitive surfel --observer 636500,849200 -o "$W/old.las"
+  expect_error rsi-padded-past-256MiB "x_pad.rsi" "bytes after the end of the last section" -- visibility -q "$W/x_pad.rsi" --primitive surfel --observer 636500,849200 -o "$W/old.las"
+  expect_error rsi-padded-render "x_pad.rsi" "bytes after the end of the last section" -- render -q "$W/x_pad.rsi" --primitive surfel --out "$W/old.png"
+else
+  echo "FAIL index of autzen_trim.las for the corrupted-index cases"; fails=$((fails + 1))
+fi
+python3 - "$DATA/laz/autzen_trim.laz" "$W/count.laz" <<'PY'
+import struct, sys
+b = bytearray(open(sys.argv[1], 'rb').read())
+struct.pack_into('<I', b, 107, struct.unpack_from('<I', b, 107)[0] + 1)
+if b[25] >= 4:
+    struct.pack_into('<Q', b, 247, struct.unpack_from('<Q', b, 247)[0] + 1)
+open(sys.argv[2], 'wb').write(b)
+PY
+expect_error laz-count-above-chunks "count.laz" "past its end" -- translate "$W/count.laz" "$W/old.las"
+cp "$W/c.xyz" "$W/c_before.xyz"
+expect_error query-out-is-input "c.xyz" "is the same file as the input" -- query --cloud "$W/c.xyz" --rays "$W/rays_ok.csv" --out "$W/c.xyz"
+cmp -s "$W/c.xyz" "$W/c_before.xyz" || { echo "FAIL query-out-is-input: the input was changed"; fails=$((fails + 1)); }
+
 # Requirement 5: no render time in the EXR header, so two renders of one scene are byte-identical.
 cases=$((cases + 1))
 if "$RAYSCAN" render -q "$W/s.json" --aov depth --out "$W/r1.exr" >/dev/null 2>&1 &&
