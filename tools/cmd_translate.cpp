@@ -1,8 +1,9 @@
-// `rayscan translate IN OUT`: lossless LAS <-> LAZ conversion. Parsing and printing only; the
-// job is rayscan::jobs::run_translate (rayscan/jobs/translate.hpp).
+// `rayscan translate IN OUT`: point file conversion (lossless LAS <-> LAZ; any input to LAS, LAZ, PLY). Parsing
+// and printing only; the job is rayscan::jobs::run_translate (rayscan/jobs/translate.hpp).
 #include "commands.hpp"
 #include "processes.hpp"
 
+#include "rayscan/base/file_names.hpp"
 #include "rayscan/jobs/translate.hpp"
 
 #include <iostream>
@@ -11,14 +12,15 @@
 namespace rayscan::cli {
 
 Runner add_translate_command(CLI::App& app) {
-  auto* sub = app.add_subcommand("translate", "Convert LAS <-> LAZ losslessly (like `laszip` / `pdal translate`): "
-                                              "same header, VLRs/EVLRs and byte-identical point records");
+  auto* sub = app.add_subcommand("translate", "Convert point files (like `pdal translate`): LAS <-> LAZ losslessly "
+                                              "(same header, VLRs/EVLRs and byte-identical point records); any "
+                                              "readable file to .las, .laz or .ply by OUT's extension");
   auto in = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto format = std::make_shared<std::string>("auto");
   auto chunk = std::make_shared<std::uint32_t>(50000);
-  sub->add_option("IN", *in, "input .las or .laz (LAZ recognised by its LASzip VLR)")->required();
-  sub->add_option("OUT", *out, "output file")->required();
+  sub->add_option("IN", *in, "input point file (LAS, LAZ, COPC, PLY, PCD, XYZ/CSV/TXT)")->required();
+  sub->add_option("OUT", *out, "output file: .las, .laz or .ply")->required();
   sub->add_option("--format", *format, "output: auto (by OUT's extension), las or laz")
       ->check(CLI::IsMember({"auto", "las", "laz"}));
   sub->add_option("--chunk-size", *chunk, "points per LAZ chunk")->check(CLI::Range(1u, 0xFFFFFFFEu));
@@ -31,7 +33,8 @@ Runner add_translate_command(CLI::App& app) {
                       : *format == "laz" ? jobs::LasCompression::laz : jobs::LasCompression::by_extension;
     job.chunk_size = *chunk;
     const jobs::TranslateJobResult r = jobs::run_translate(job);
-    std::cout << *out << ": " << r.points << " points, " << (r.compressed ? "LAZ" : "LAS") << ", " << r.out_bytes
+    const char* written = rayscan::lower_extension(*out) == ".ply" ? "PLY" : r.compressed ? "LAZ" : "LAS";
+    std::cout << *out << ": " << r.points << " points, " << written << ", " << r.out_bytes
               << " bytes";
     if (r.compressed) std::cout << " in " << r.chunks << " chunks";
     std::cout << " (input " << r.in_bytes << " bytes)\n";

@@ -6,6 +6,8 @@
 #include "readers.hpp"
 
 #include <algorithm>
+#include <cctype>
+#include <stdexcept>
 
 namespace rayscan::io {
 
@@ -63,6 +65,27 @@ PointCloud read_point_cloud(std::span<const std::uint8_t> bytes, Format format, 
                             const ReadOptions& options, FileInfo* info) {
   auto r = open_point_reader(bytes, format, name, AttributeSet::all(), options);
   return read_all(*r, info);
+}
+
+const std::vector<std::string>& point_cloud_output_extensions() {
+  static const std::vector<std::string> exts{".las", ".laz", ".ply"};
+  return exts;
+}
+
+void require_point_cloud_output(const std::filesystem::path& path) {
+  std::string name = path.filename().string();
+  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (name.size() > 9 && name.ends_with(".copc.laz"))
+    throw std::invalid_argument(path.string() + ": writing COPC is not supported yet (write .laz, or make a COPC file " +
+                                "from it with PDAL's writers.copc or untwine)");
+  if (!has_extension(path, point_cloud_output_extensions()))
+    throw std::invalid_argument(path.string() + ": " + extensions_expected(point_cloud_output_extensions()));
+}
+
+void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& las) {
+  require_point_cloud_output(path);
+  if (lower_extension(path) == ".ply") write_ply(path, cloud);
+  else write_las(path, cloud, las);  // .las or .laz (write_las compresses .laz)
 }
 
 }  // namespace rayscan::io

@@ -1,17 +1,37 @@
-// The translate job (rayscan/jobs/translate.hpp): LAS <-> LAZ through io::translate_las.
+// The translate job (rayscan/jobs/translate.hpp): LAS <-> LAZ through io::translate_las, any other
+// pair through the readers and io::write_point_cloud.
 #include "rayscan/jobs/translate.hpp"
 
 #include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/file_names.hpp"
+#include "rayscan/io/point_io.hpp"
 
 namespace rayscan::jobs {
 
 TranslateJobResult run_translate(const TranslateJobOptions& options) {
+  // The output's format is checked before anything is read (a .ply or .xyz name once received
+  // LAS bytes with exit 0, a .copc.laz name a plain LAZ).
+  if (options.compression == LasCompression::by_extension) io::require_point_cloud_output(options.out);
   const std::filesystem::path out[] = {options.out}, in[] = {options.in};
   require_outputs(out, in);
-  io::TranslateOptions t;
-  t.compression = options.compression;
-  t.chunk_size = options.chunk_size;
-  return io::translate_las(options.in, options.out, t);  // checks chunk_size (OptionError)
+  const bool las_in = io::format_from_extension(options.in) == io::Format::las;
+  const bool las_out = options.compression != LasCompression::by_extension || lower_extension(options.out) != ".ply";
+  if (las_in && las_out) {
+    io::TranslateOptions t;
+    t.compression = options.compression;
+    t.chunk_size = options.chunk_size;
+    return io::translate_las(options.in, options.out, t);  // checks chunk_size (OptionError)
+  }
+  // Any readable input to LAS/LAZ/PLY: every attribute the readers keep, positions in double
+  // (LAS output quantises them to write_las's scale).
+  const PointCloud cloud = io::read_point_cloud(options.in);
+  io::write_point_cloud(options.out, cloud);
+  TranslateJobResult r;
+  r.points = cloud.size();
+  r.compressed = lower_extension(options.out) == ".laz";
+  r.in_bytes = std::filesystem::file_size(options.in);
+  r.out_bytes = std::filesystem::file_size(options.out);
+  return r;
 }
 
 }  // namespace rayscan::jobs

@@ -59,8 +59,6 @@ void check_output_folder(const char* field, const std::filesystem::path& path) {
     throw OptionError({option(field), " '" + path.string() + "': '" + dir.string() + "' is not a folder"});
 }
 
-const std::vector<std::string> kCloudOutputs{".las", ".laz", ".ply"};
-
 }  // namespace
 
 namespace {
@@ -98,8 +96,8 @@ struct VisibilityRun {
 
   /// Every option checked before any work; resolves `value`.
   void check_options() {
-    if (!o.out.empty() && !has_extension(o.out, kCloudOutputs))
-      throw OptionError({option("out"), " '" + o.out.string() + "': " + extensions_expected(kCloudOutputs)});
+    if (!o.out.empty() && !has_extension(o.out, io::point_cloud_output_extensions()))
+      throw OptionError({option("out"), " '" + o.out.string() + "': " + extensions_expected(io::point_cloud_output_extensions())});
     if (!o.raster.empty()) {
       if (!has_extension(o.raster, geotiff_extensions()))
         throw OptionError(
@@ -383,18 +381,14 @@ struct VisibilityRun {
     if (ctl.distributor && !ctl.distributor->is_root()) return;
     OutputTransaction tx;
     if (!o.out.empty()) {
-      if (lower_extension(o.out) != ".ply") {  // .las or .laz (write_las compresses .laz)
-        io::LasWriteOptions lo;
-        if ((r.info.format == "LAS" || r.info.format == "LAZ" || r.info.format == "COPC") && r.info.scale &&
-            r.info.offset) {  // keep the source's integer grid
-          lo.scale = *r.info.scale;
-          lo.offset = *r.info.offset;
-          lo.has_offset = true;
-        }
-        io::write_las(o.out, cloud, lo);
-      } else {
-        io::write_ply(o.out, cloud);
+      io::LasWriteOptions lo;
+      if ((r.info.format == "LAS" || r.info.format == "LAZ" || r.info.format == "COPC") && r.info.scale &&
+          r.info.offset) {  // keep the source's integer grid
+        lo.scale = *r.info.scale;
+        lo.offset = *r.info.offset;
+        lo.has_offset = true;
       }
+      io::write_point_cloud(o.out, cloud, lo);
       r.written.push_back(o.out);
     }
     if (!o.raster.empty()) write_raster();

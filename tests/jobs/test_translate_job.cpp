@@ -68,3 +68,47 @@ TEST(TranslateJob, ChunkSizeOutOfRangeNamesTheField) {
   }
   EXPECT_FALSE(fs::exists(o.out));
 }
+
+// The output's extension decides what is written, for any readable input: LAS -> PLY keeps the
+// positions exactly (double) and the colour; PLY -> LAS keeps them to the LAS grid (half a scale
+// step, 0.0005 at write_las's default 0.001); an extension no writer has (.xyz) or a COPC name
+// is refused before anything is read or written. Before, `translate a.las a.ply` wrote LAS bytes
+// and `translate bunny.ply b.las` failed with "expected file signature LASF". Oracle: the readers.
+TEST(TranslateJob, WritesWhatTheOutputExtensionSays) {
+  const fs::path las = data_file("las/point-color.las");
+  const fs::path ply = temp_dir() / "tr.ply", back = temp_dir() / "tr_back.las";
+  jobs::TranslateJobOptions o;
+  o.in = las;
+  o.out = ply;
+  const jobs::TranslateJobResult r = jobs::run_translate(o);
+  const PointCloud a = io::read_point_cloud(las), b = io::read_point_cloud(ply);
+  EXPECT_EQ(r.points, a.size());
+  EXPECT_FALSE(r.compressed);
+  EXPECT_EQ(file_bytes(ply).substr(0, 4), "ply\n");
+  EXPECT_EQ(b.positions, a.positions);
+  ASSERT_EQ(b.rgb.size(), a.rgb.size());
+  o.in = ply;
+  o.out = back;
+  jobs::run_translate(o);
+  EXPECT_EQ(file_bytes(back).substr(0, 4), "LASF");
+  const PointCloud c = io::read_point_cloud(back);
+  ASSERT_EQ(c.size(), a.size());
+  for (std::size_t i = 0; i < a.size(); ++i)
+    for (int k = 0; k < 3; ++k) ASSERT_NEAR(c.positions[i][k], a.positions[i][k], 0.0005 + 1e-9) << i;
+  // Refused before reading: the input need not even exist.
+  for (const char* name : {"x.xyz", "x.pcd", "x.copc.laz", "X.COPC.LAZ"}) {
+    o.in = temp_dir() / "missing.las";
+    o.out = temp_dir() / name;
+    try {
+      jobs::run_translate(o);
+      ADD_FAILURE() << name << " accepted";
+    } catch (const std::invalid_argument& e) {
+      const std::string m = e.what();
+      EXPECT_NE(m.find(name), std::string::npos) << m;
+      const bool copc = std::string(name).find("copc") != std::string::npos || std::string(name).find("COPC") != std::string::npos;
+      EXPECT_NE(m.find(copc ? "writing COPC is not supported yet" : "expected a file name ending in .las, .laz or .ply"),
+                std::string::npos) << m;
+    }
+    EXPECT_FALSE(fs::exists(temp_dir() / name));
+  }
+}

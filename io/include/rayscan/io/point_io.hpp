@@ -102,4 +102,19 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud,
 /// Throws std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
 void write_ply(const std::filesystem::path& path, const PointCloud& cloud);
 
+/// The extensions write_point_cloud() writes, lower case with the dot: ".las", ".laz", ".ply".
+[[nodiscard]] const std::vector<std::string>& point_cloud_output_extensions();
+
+/// Throws std::invalid_argument "<path>: expected a file name ending in .las, .laz or .ply" unless
+/// write_point_cloud() can write `path`, and for a name ending in ".copc.laz" (COPC output is
+/// not written yet: a plain LAZ under that name would claim an octree it does not have). For
+/// checking a job's output before its work.
+void require_point_cloud_output(const std::filesystem::path& path);
+
+/// Writes `cloud` in the format its extension names (case-insensitive; the one writer choice of
+/// every job): .las and .laz with write_las (`las`: scale and offset), .ply with write_ply.
+/// Throws what require_point_cloud_output() throws before writing anything, else what the
+/// writer throws.
+void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& las = {});
+
 }  // namespace rayscan::io

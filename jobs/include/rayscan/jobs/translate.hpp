@@ -1,5 +1,6 @@
 // The translate job: lossless LAS <-> LAZ conversion (same header, VLRs/EVLRs and byte-identical
-// point records; io::translate_las). `rayscan translate` runs it.
+// point records; io::translate_las), and any readable point file to LAS, LAZ or PLY by the
+// output's extension (io::write_point_cloud). `rayscan translate` runs it.
 #pragma once
 
 #include "rayscan/base/job.hpp"
@@ -15,9 +16,10 @@ using io::LasCompression;
 
 /// Inputs of run_translate().
 struct TranslateJobOptions {
-  std::filesystem::path in;   ///< the .las or .laz file to read (LAZ recognised by its LASzip VLR)
+  std::filesystem::path in;   ///< the point file to read (any format read_point_cloud reads)
   std::filesystem::path out;  ///< the file to write (through a temporary file renamed into place)
-  /// Output compression: by the output's extension (.laz: LAZ, else LAS), or las or laz.
+  /// Output format: by the output's extension (.las, .laz or .ply: io::write_point_cloud), or las
+  /// or laz whatever the name (a LAS/LAZ input is then converted losslessly).
   LasCompression compression = LasCompression::by_extension;
   /// Points per LAZ chunk (LASzip's default 50000): 1 to 4294967294 (0xFFFFFFFF marks
   /// variable-sized chunks in a LASzip VLR).
@@ -28,10 +30,14 @@ struct TranslateJobOptions {
 /// Output of run_translate(): points, chunks, compressed, input and output sizes.
 using TranslateJobResult = io::TranslateResult;
 
-/// Converts `in` to `out` one chunk at a time (memory independent of the file size; details in
-/// rayscan/io/translate.hpp). Throws OptionError naming "chunk_size" for a chunk size outside
-/// [1, 4294967294], io::FormatError for a malformed input, std::invalid_argument for an
-/// unsupported conversion (LAZ output of the waveform point formats 4, 5, 9, 10),
+/// Converts `in` to `out`. LAS/LAZ to LAS/LAZ streams one chunk at a time (memory independent of
+/// the file size; details in rayscan/io/translate.hpp); any other pair reads the cloud whole and
+/// writes it with io::write_point_cloud (PLY output keeps positions exactly; LAS output quantises
+/// them to write_las's scale). The output's format and path are checked before the input is read
+/// (io::require_point_cloud_output, require_outputs). Throws OptionError naming "chunk_size" for
+/// a chunk size outside [1, 4294967294], std::invalid_argument for an output extension with no
+/// writer (or a .copc.laz name) and for an unsupported conversion (LAZ output of the waveform
+/// point formats 4, 5, 9, 10), io::FormatError for a malformed input, OutputFileError or
 /// std::runtime_error for I/O failures (the previous output, if any, is then left unchanged).
 TranslateJobResult run_translate(const TranslateJobOptions& options);
 
