@@ -62,5 +62,6 @@ Runner add_visibility_command(CLI::App& app);
 Runner add_db_command(CLI::App& app);
 Runner add_index_command(CLI::App& app);
 Runner add_translate_command(CLI::App& app);
+Runner add_version_command(CLI::App& app);
 
 }  // namespace rayscan::cli

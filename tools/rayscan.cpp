@@ -5,6 +5,7 @@
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/base/input_file.hpp"
+#include "rayscan/base/version.hpp"
 #include "rayscan/octree/simd.hpp"
 
 #include <cstdio>
@@ -55,7 +56,7 @@ int main(int argc, char** argv) {
   CLI::App app{"rayscan: ray queries, rendering and analysis of raw point clouds "
                "(after Teuscher et al., \"Ray Queries On Raw Point Clouds\")"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", std::string("rayscan 0.1.0, ") + rayscan::simd_description());
+  app.set_version_flag("--version", rayscan::software_name() + ", " + rayscan::simd_description());
 
   std::vector<std::pair<CLI::App*, rayscan::cli::Runner>> commands;
   auto reg = [&](rayscan::cli::Runner (*add)(CLI::App&)) {
@@ -71,6 +72,7 @@ int main(int argc, char** argv) {
   reg(rayscan::cli::add_db_command);
   reg(rayscan::cli::add_index_command);
   reg(rayscan::cli::add_translate_command);
+  reg(rayscan::cli::add_version_command);
 
   // The outcome of parsing: go on, or end now (--help, --version: exit 0; a usage error: exit 2).
   // Under mpirun every rank parses; only rank 0 prints (Session::agree_on_start).

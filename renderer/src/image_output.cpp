@@ -3,6 +3,7 @@
 #include "rayscan/image/aov.hpp"
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/version.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -78,7 +79,7 @@ std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const Outp
   }
   ImageWriteOptions opt;
   opt.metadata = metadata;
-  opt.metadata.emplace_back("Software", "rayscan 0.1.0");
+  opt.metadata.emplace_back("Software", software_name());
   if (!fb.position.empty()) {
     char buf[128];
     std::snprintf(buf, sizeof buf, "%.17g %.17g %.17g", fb.position_origin.x, fb.position_origin.y,

@@ -97,3 +97,22 @@ TEST(JobCli, IndexFileIsAcceptedWhereverACloudIs) {
   EXPECT_TRUE(std::filesystem::is_regular_file(dir / "q.png"));
   std::filesystem::remove_all(dir);
 }
+
+// `rayscan version --json`: the project's version (CMake's, the oracle), the commit of the checkout
+// it was built from (git's own answer, when the tests run in a checkout), the SIMD line of
+// `--version`, and each library's version; `--version` carries the same version.
+TEST(JobCli, VersionReportsTheProjectVersionCommitAndLibraries) {
+  const auto r = rayscan_cli("version --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["version"], RAYSCAN_PROJECT_VERSION);
+  const auto git = run_command("git -C " + quoted(RAYSCAN_SOURCE_DIR) + " rev-parse --short=12 HEAD", false);
+  if (git.code == 0 && git.out.size() > 1)
+    EXPECT_EQ(j["git_commit"].get<std::string>().substr(0, 12), git.out.substr(0, 12)) << r.out;
+  for (const char* lib : {"tbb", "gdal", "sqlite", "nlohmann_json"})
+    EXPECT_FALSE(j["libraries"][lib].get<std::string>().empty()) << lib;
+  const auto v = rayscan_cli("--version");
+  EXPECT_EQ(v.code, 0);
+  EXPECT_EQ(v.out.rfind(std::string("rayscan ") + RAYSCAN_PROJECT_VERSION + ", ", 0), 0u) << v.out;
+  EXPECT_NE(v.out.find(j["simd"].get<std::string>()), std::string::npos) << v.out;
+}

@@ -7,6 +7,7 @@
 #include "atomic_writer.hpp"
 #include "bytes.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/version.hpp"
 #include "rayscan/io/translate.hpp"
 
 #include <algorithm>
@@ -209,7 +210,7 @@ struct LasRecordWriter {
     w.put<std::uint8_t>(1);
     w.put<std::uint8_t>(4);
     w.put_fixed(options.system_id, 32);
-    w.put_fixed("rayscan 0.1.0", 32);
+    w.put_fixed(software_name(), 32);
     {
       const auto now = std::chrono::system_clock::now();
       const std::chrono::year_month_day ymd{std::chrono::floor<std::chrono::days>(now)};

@@ -3,6 +3,8 @@
 // MeshLab and Open3D.
 #include "rayscan/io/point_io.hpp"
 
+#include "rayscan/base/version.hpp"
+
 #include "atomic_writer.hpp"
 
 #include <algorithm>
@@ -32,7 +34,7 @@ void write_ply(const std::filesystem::path& path, const PointCloud& cloud) {
   }
   const std::size_t n = cloud.size();
   std::set<std::string> used = {"x", "y", "z"};
-  std::string h = "ply\nformat binary_little_endian 1.0\ncomment written by rayscan 0.1.0\n";
+  std::string h = "ply\nformat binary_little_endian 1.0\ncomment written by " + software_name() + "\n";
   if (!cloud.crs_wkt.empty()) {
     std::string one_line = cloud.crs_wkt;
     std::replace(one_line.begin(), one_line.end(), '\n', ' ');
