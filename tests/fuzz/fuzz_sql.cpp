@@ -162,8 +162,9 @@ void run(const std::string& fn, const std::string& sql, const std::vector<Arg>& 
   sqlite3_finalize(s);
   if (rows > 64 && fn == "ray_query") bug("ray_query: more rows than points");
   if (rc != SQLITE_DONE) return;
-  // What the rules refuse must not succeed: ray_query without its six ray arguments (it ran with
-  // the absent ones as 0), a text or blob argument to a prune callback (it was read as a number).
+  // What the rules refuse must not succeed: ray_query without its six ray arguments (the absent
+  // ones would be taken as 0), a text or blob argument to a prune callback (it would be read as a
+  // number).
   if (fn == "ray_query" && args.size() < 6) bug("ray_query: succeeded with " + std::to_string(args.size()) + " arguments");
   if (fn == "ray_prune" || fn == "plane_prune")
     for (const Arg& a : args)

@@ -558,9 +558,9 @@ std::pair<int, std::string> run_capture(const std::string& cmd) {
   return {rc, text};
 }
 
-// `--table pg_class` created public.pg_class, but the unqualified COPY pg_class resolved to the
-// catalog (pg_catalog comes first in every search path). Every statement names the table with its
-// schema (current_schema(), here also a schema of the connection's own search_path), so the import
+// `--table pg_class`: an unqualified COPY pg_class would reach the catalog (pg_catalog comes
+// first in every search path) while CREATE TABLE makes public.pg_class. Every statement names the
+// table with its schema (current_schema(), here also a schema of the connection's own search_path), so the import
 // lands there whole and the catalog is untouched.
 TEST_F(Postgres, TableNamedLikeACatalogTableLandsInTheCurrentSchema) {
   Pg pg;
@@ -591,8 +591,8 @@ TEST_F(Postgres, TableNamedLikeACatalogTableLandsInTheCurrentSchema) {
   pg.rows("DROP SCHEMA survey CASCADE");
 }
 
-// A reserved key word as --table (or an attribute) gave the server's raw syntax error after the
-// whole sort; it is refused before anything is read, with one line (exit 2). The server is the
+// A reserved key word as --table (or an attribute) would meet the server's raw syntax error after
+// the whole sort; it is refused before anything is read, with one line (exit 2). The server is the
 // oracle of the list: its key words of category R and T (pg_get_keywords()) are exactly the ones
 // refused, and every system column of a table is a refused column name.
 TEST_F(Postgres, ReservedWordsAndSystemColumnsAreRefusedUpFront) {
@@ -615,8 +615,8 @@ TEST_F(Postgres, ReservedWordsAndSystemColumnsAreRefusedUpFront) {
   for (const auto& row : sys) EXPECT_NE(sql::reserved_sql_name(row[0], true), "") << row[0];
 }
 
-// rs_box('Infinity',2,3) was accepted and failed later in ray_dwithin; non-finite coordinates are
-// refused where a box is made (both constructors and the text input), naming the coordinate.
+// A box such as rs_box('Infinity',2,3) would fail only later, in ray_dwithin; non-finite
+// coordinates are refused where a box is made (both constructors and the text input), naming the coordinate.
 TEST_F(Postgres, NonFiniteBoxCoordinatesAreRefusedAtInput) {
   Pg pg;
   EXPECT_EQ(pg.error_of("SELECT rs_box('Infinity',2,3)"), "rs_box: x is infinite; expected a finite number");
@@ -630,8 +630,8 @@ TEST_F(Postgres, NonFiniteBoxCoordinatesAreRefusedAtInput) {
             (std::vector<std::string>{"f", "t"}));  // dist_ray = sqrt(13) = 3.606
 }
 
-// A denormal direction (0,0,1e-320) passed the zero test and gave wrong values; the core's rule
-// refuses it in every function, with the same text as SQLite.
+// A denormal direction (0,0,1e-320) is not zero but cannot be normalised (its values would be
+// wrong); the core's rule refuses it in every function, with the same text as SQLite.
 TEST_F(Postgres, DirectionsThatCannotBeNormalisedAreErrors) {
   Pg pg;
   const std::string tail = " = (0,0,9.99989e-321) cannot be normalised exactly; expected a finite length between "

@@ -611,8 +611,8 @@ std::string slurp(const fs::path& p) {
 }
 
 // A direction whose squared length leaves the normal doubles (0,0,1e-320: |d|^2 underflows to 0;
-// 1e300: it overflows) gave wrong answers (ray_query: far points first, dist_ray NULL, dist_plane
-// inf). Every function refuses it through the core's rule with a one-line message; a direction
+// 1e300: it overflows) cannot be normalised, and every answer from it would be wrong (ray_query:
+// far points first, dist_ray NULL, dist_plane inf). Every function refuses it through the core's rule with a one-line message; a direction
 // just inside the range answers exactly as its unit multiple (the oracle: the same query with the
 // unit direction).
 TEST(SqliteFunctions, DirectionsThatCannotBeNormalisedAreErrorsNotWrongAnswers) {
@@ -650,7 +650,7 @@ TEST(SqliteFunctions, DirectionsThatCannotBeNormalisedAreErrorsNotWrongAnswers) 
 }
 
 // ray_query's positional arguments fill its hidden columns in order; with five the sixth (dz) is
-// absent, and the query ran with dz = 0 (every point). Each missing ray argument is named.
+// absent, and taking it as 0 would return every point. Each missing ray argument is named.
 TEST(SqliteFunctions, RayQueryWithTooFewArgumentsNamesTheMissingOne) {
   Db db(site("autzen")->db);
   const std::string tail = " is missing; expected ray_query(ox,oy,oz, dx,dy,dz [, k, r, t_min, t_max, ord])";
@@ -663,7 +663,7 @@ TEST(SqliteFunctions, RayQueryWithTooFewArgumentsNamesTheMissingOne) {
 }
 
 // ray_prune / plane_prune are R*Tree callbacks, whose API returns only an error code ("SQL logic
-// error"): the reason is rayscan_error()'s. A text radius was read as its numeric value.
+// error"): the reason is rayscan_error()'s. A text radius is an error, not its numeric value.
 TEST(SqliteFunctions, PruneCallbackErrorsKeepTheirReason) {
   Db db(site("autzen")->db);
   const auto reason = [&](const std::string& sql) {
@@ -691,8 +691,8 @@ TEST(SqliteFunctions, PruneCallbackErrorsKeepTheirReason) {
   EXPECT_EQ(error_of(db.db, m + "ray_prune(636500,849000,600, 0,0,-1, NULL, NULL, NULL)"), "");
 }
 
-// An attribute named like a column the engine reserves (a PLY property "rowid") became SQLite's
-// row id: 1 value of 2000 survived. The import refuses such names, before reading, with one line
+// An attribute named like a column the engine reserves (a PLY property "rowid") would be SQLite's
+// row id, its values lost. The import refuses such names, before reading, with one line
 // (exit 2). SQLite is the oracle of its reserved names: each is selectable from a table that has
 // no such column.
 TEST(SqliteImportCli, AttributeNamedLikeAReservedColumnIsRefused) {
