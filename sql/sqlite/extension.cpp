@@ -92,15 +92,13 @@ void bounds_fn(sqlite3_context* ctx, int argc, sqlite3_value** argv) {
 // ---- R*Tree query callbacks --------------------------------------------------------------------
 
 // Box of an R*Tree node or entry: aCoord = (min_x, max_x, min_y, max_y, min_z, max_z).
-bool rtree_box(const sqlite3_rtree_query_info* p, double box[6]) {
-  if (p->nCoord != 6) return false;
+void rtree_box(const sqlite3_rtree_query_info* p, double box[6]) {
   box[0] = p->aCoord[0];
   box[3] = p->aCoord[1];
   box[1] = p->aCoord[2];
   box[4] = p->aCoord[3];
   box[2] = p->aCoord[4];
   box[5] = p->aCoord[5];
-  return true;
 }
 
 // Parameter i, with NULL (or absent) mapped to `dflt`.
@@ -155,17 +153,33 @@ const char* check_prune_params(const sqlite3_rtree_query_info* p, const char* fn
   return nullptr;
 }
 
+// The arguments of a MATCH are the same on every R*Tree node of one query: a callback checks them
+// on its first call and then marks the query's pUser (per query, zeroed by SQLite; nothing to free).
+bool checked(const sqlite3_rtree_query_info* p) { return p->pUser != nullptr; }
+void mark_checked(sqlite3_rtree_query_info* p) {
+  static char mark;
+  p->pUser = &mark;
+  p->xDelUser = nullptr;
+}
+
 int ray_prune(sqlite3_rtree_query_info* p) {
   static const char* const names[9] = {"ox", "oy", "oz", "dx", "dy", "dz", "r", "t_min", "t_max"};
-  double box[6];
   char err[RS_ERRBUF];
-  if (const char* e = check_prune_params(p, "ray_prune", names, 6, 7, 9, err)) return prune_fail(p, e);
-  if (!rtree_box(p, box)) return prune_fail(p, "ray_prune: the R*Tree is not 3-dimensional; expected "
-                                               "`rayscan db import`'s chunks(id, min_x, max_x, ...)");
+  if (!checked(p)) {
+    if (p->nCoord != 6)
+      return prune_fail(p, "ray_prune: the R*Tree is not 3-dimensional; expected `rayscan db import`'s "
+                           "chunks(id, min_x, max_x, ...)");
+    if (const char* e = check_prune_params(p, "ray_prune", names, 6, 7, 9, err)) return prune_fail(p, e);
+  }
   const double o[3] = {p->aParam[0], p->aParam[1], p->aParam[2]};
   const double d[3] = {p->aParam[3], p->aParam[4], p->aParam[5]};
   const double r = param(p, 6, kInf), t0 = param(p, 7, -kInf), t1 = param(p, 8, kInf);
-  if (const char* e = rs_check_ray("ray_prune", o, d, r, t0, t1, err)) return prune_fail(p, e);
+  if (!checked(p)) {
+    if (const char* e = rs_check_ray("ray_prune", o, d, r, t0, t1, err)) return prune_fail(p, e);
+    mark_checked(p);
+  }
+  double box[6];
+  rtree_box(p, box);
   if (rs_ray_box_misses(o, d, r, t0, t1, box)) {  // most entries of an expanded node: cheap
     p->eWithin = NOT_WITHIN;
     return SQLITE_OK;
@@ -181,18 +195,24 @@ int plane_prune(sqlite3_rtree_query_info* p) {
   static const char* const names[6] = {"px", "py", "pz", "nx", "ny", "nz"};
   double box[6];
   char err[RS_ERRBUF];
-  if (const char* e = check_prune_params(p, "plane_prune", names, 6, 6, 6, err)) return prune_fail(p, e);
-  if (!rtree_box(p, box)) return prune_fail(p, "plane_prune: the R*Tree is not 3-dimensional; expected "
-                                                 "`rayscan db import`'s chunks(id, min_x, max_x, ...)");
+  if (!checked(p)) {
+    if (p->nCoord != 6)
+      return prune_fail(p, "plane_prune: the R*Tree is not 3-dimensional; expected `rayscan db import`'s "
+                           "chunks(id, min_x, max_x, ...)");
+    if (const char* e = check_prune_params(p, "plane_prune", names, 6, 6, 6, err)) return prune_fail(p, e);
+    for (int i = 0; i < 6; ++i)
+      if (!std::isfinite(p->aParam[i])) {
+        std::snprintf(err, RS_ERRBUF, "plane_prune: %s is %s; expected a finite number", names[i],
+                      std::isnan(p->aParam[i]) ? "NaN" : "infinite");
+        return prune_fail(p, err);
+      }
+    const double n[3] = {p->aParam[3], p->aParam[4], p->aParam[5]};
+    if (const char* e = rs_check_direction("plane_prune", 1, n, err)) return prune_fail(p, e);
+    mark_checked(p);
+  }
+  rtree_box(p, box);
   const double o[3] = {p->aParam[0], p->aParam[1], p->aParam[2]};
   const double n[3] = {p->aParam[3], p->aParam[4], p->aParam[5]};
-  for (int i = 0; i < 6; ++i)
-    if (!std::isfinite(p->aParam[i])) {
-      std::snprintf(err, RS_ERRBUF, "plane_prune: %s is %s; expected a finite number", names[i],
-                    std::isnan(p->aParam[i]) ? "NaN" : "infinite");
-      return prune_fail(p, err);
-    }
-  if (const char* e = rs_check_direction("plane_prune", 1, n, err)) return prune_fail(p, e);
   const rs_within w = rs_plane_box_test(o, n, box);
   p->eWithin = w == RS_NOT_WITHIN ? NOT_WITHIN : w == RS_FULLY_WITHIN ? FULLY_WITHIN : PARTLY_WITHIN;
   // Keep R*Tree order (the parent's score); planes give no "nearest" key.
@@ -379,15 +399,15 @@ int parse_ray_query_args(VTab* vt, int mask, int argc, sqlite3_value** argv, Arg
   double* a = out.a;
   long long kval = -1;  // -1: k not set (all points)
   int ai = 0;
-  // Every argument position is visited, not only the first argc: ray_query(ox,oy,oz, dx,dy) has
-  // five arguments and must report dz as missing rather than run with dz = 0.
-  for (int i = 0; i < kNumArgs; ++i) {
-    if (!(mask & (1 << i)) || ai >= argc) {
-      if (i < 6) return vt_error(&vt->base, std::string("ray_query: argument ") + kArgNames[i] +
-                                                " is missing; expected ray_query(ox,oy,oz, dx,dy,dz"
-                                                " [, k, r, t_min, t_max, ord])");
-      continue;
-    }
+  // The six ray arguments are required, NULL or not: ray_query(ox,oy,oz, dx,dy) must report dz as
+  // missing rather than run with dz = 0, and ray_query(1, NULL) is an error, not "NULL in, no rows".
+  for (int i = 0; i < 6; ++i)
+    if (!(mask & (1 << i)))
+      return vt_error(&vt->base, std::string("ray_query: argument ") + kArgNames[i] +
+                                     " is missing; expected ray_query(ox,oy,oz, dx,dy,dz [, k, r, t_min, "
+                                     "t_max, ord])");
+  for (int i = 0; i < kNumArgs && ai < argc; ++i) {
+    if (!(mask & (1 << i))) continue;
     sqlite3_value* v = argv[ai++];
     const int t = sqlite3_value_type(v);
     if (t == SQLITE_NULL) {

@@ -658,6 +658,8 @@ TEST(SqliteFunctions, RayQueryWithTooFewArgumentsNamesTheMissingOne) {
   EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(636500,849000,600, 0)"), "ray_query: argument dy" + tail);
   EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(636500,849000,600)"), "ray_query: argument dx" + tail);
   EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query()"), "ray_query: argument ox" + tail);
+  // NULL in, no rows, but only for a call with its six ray arguments.
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(3, NULL, 'ray')"), "ray_query: argument dx" + tail);
   EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(636500,849000,600, 0,-1,0, 3, '2')"),
             "ray_query: argument r has type text; expected a number");
 }
