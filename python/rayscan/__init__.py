@@ -15,8 +15,11 @@ Conventions (the C++ library's, see README.md "The library"):
     distances are in the same units (ray directions are normalised).
   * Batch queries run on all cores (TBB) with the GIL released; every result equals the
     single-query C++ call bit for bit (and the brute force).
-  * Bad arguments raise ValueError, unreadable or malformed files raise OSError, with the C++
-    library's one-line messages (file, byte offset or row, what was expected).
+  * Bad arguments raise ValueError (a value out of range: capacity=2**70, seed=-1, a file name
+    with a NUL byte) or TypeError (a value of the wrong type: a float or str where an integer is
+    expected, a list of numbers for attribute names), unreadable or malformed files raise OSError,
+    each with the C++ library's one-line message naming the argument (or file, byte offset, row)
+    and what was expected.
 """
 
 from . import _rayscan
@@ -42,7 +45,7 @@ def read(path, attributes=None):
     .classification, .gps_time, .normals, .scalars, .crs) are views of the reader's memory.
     Raises OSError for a missing, unreadable or malformed file (the reader's one-line message).
     """
-    return _rayscan._read(str(path), attributes)
+    return _rayscan._read(path, attributes)
 
 
 def _xyz(points):
@@ -140,7 +143,7 @@ def _scene_file(scene, tmpdir):
     import json
     import os
     if not isinstance(scene, dict):
-        return os.fspath(scene)
+        return scene  # a file name, checked by the module (path_arg)
     scene = dict(scene)
     for key in ("cloud", "camera"):
         if isinstance(scene.get(key), (str, os.PathLike)):
@@ -173,8 +176,8 @@ def render(scene, cloud=None, width=None, height=None, spp=None, seed=None, aovs
     """
     import tempfile
     with tempfile.TemporaryDirectory(prefix="rayscan-scene.") as tmp:
-        return _rayscan._render(_scene_file(scene, tmp), cloud, width, height, spp, seed, list(aovs),
-                                "" if camera is None else str(camera), threads)
+        return _rayscan._render(_scene_file(scene, tmp), cloud, width, height, spp, seed, aovs,
+                                camera, threads)
 
 
 def visibility(cloud, observers=None, radius=None, height=None, max_distance=None, tolerance=None,
@@ -193,8 +196,7 @@ def visibility(cloud, observers=None, radius=None, height=None, max_distance=Non
     (K,) uint64 points each observer sees.
     """
     return _rayscan._visibility(cloud, observers, radius, height, max_distance, tolerance,
-                                target_height, sky_rays, "" if camera is None else str(camera),
-                                distance, threads)
+                                target_height, sky_rays, camera, distance, threads)
 
 
 def compare(reference, image, channels=(), mask=False, alpha=False, resize=False, fail=None,
@@ -208,7 +210,7 @@ def compare(reference, image, channels=(), mask=False, alpha=False, resize=False
     "pixels_compared", "per_channel" {name: {...}},
     "verdict" ("pass", "warn", "fail") and "reasons".
     """
-    return _rayscan._compare(reference, image, list(channels), mask, alpha, resize, fail,
+    return _rayscan._compare(reference, image, channels, mask, alpha, resize, fail,
                              fail_percent, fail_psnr, fail_ssim, warn)
 
 

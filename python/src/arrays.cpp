@@ -43,10 +43,67 @@ std::size_t parse_k(const py::object& k) {
   return static_cast<std::size_t>(v.cast<unsigned long long>());
 }
 
-unsigned parse_threads(long long threads) {
-  if (threads < 0 || threads > 4096)
-    throw py::value_error("threads must be 0 (all cores) or a positive count, got " + std::to_string(threads));
-  return static_cast<unsigned>(threads);
+namespace {
+
+/// Python's name of v's type ("float", "str", "NoneType").
+std::string type_name(py::handle v) { return py::str(py::type::handle_of(v).attr("__name__")).cast<std::string>(); }
+
+/// v as a Python int (operator.index), or TypeError naming the argument.
+py::int_ index_of(py::handle v, const char* name, const std::string& expected) {
+  PyObject* i = py::isinstance<py::bool_>(v) ? nullptr : PyNumber_Index(v.ptr());
+  if (!i) {
+    PyErr_Clear();
+    throw py::type_error(std::string(name) + " must be " + expected + ", got " + type_name(v));
+  }
+  return py::reinterpret_steal<py::int_>(i);
+}
+
+}  // namespace
+
+long long int_arg(py::handle v, const char* name, long long lo, long long hi, const std::string& expected) {
+  const py::int_ i = index_of(v, name, expected);
+  if (i < py::int_(lo) || i > py::int_(hi))
+    throw py::value_error(std::string(name) + " must be " + expected + ", got " + py::repr(i).cast<std::string>());
+  return i.cast<long long>();
+}
+
+std::uint64_t uint64_arg(py::handle v, const char* name) {
+  const std::string expected = "an integer in [0, 2^64 - 1]";
+  const py::int_ i = index_of(v, name, expected);
+  if (i < py::int_(0) || i > py::int_(~std::uint64_t{0}))
+    throw py::value_error(std::string(name) + " must be " + expected + ", got " + py::repr(i).cast<std::string>());
+  return i.cast<std::uint64_t>();
+}
+
+unsigned parse_threads(py::handle threads) {
+  return static_cast<unsigned>(
+      int_arg(threads, "threads", 0, 4096, "0 (all cores) or a positive count up to 4096"));
+}
+
+std::string path_arg(py::handle v, const char* name) {
+  py::object s = py::reinterpret_borrow<py::object>(v);
+  if (!py::isinstance<py::str>(s) && py::hasattr(s, "__fspath__")) s = s.attr("__fspath__")();
+  if (!py::isinstance<py::str>(s))
+    throw py::type_error(std::string(name) + " must be a file name (str or os.PathLike), got " + type_name(s));
+  const std::string path = s.cast<std::string>();
+  if (path.find('\0') != std::string::npos)
+    throw py::value_error(std::string(name) + " " + py::repr(s).cast<std::string>() +
+                          " contains a NUL byte; expected a file name");
+  return path;
+}
+
+std::vector<std::string> names_arg(py::handle v, const char* name) {
+  if (py::isinstance<py::str>(v)) return {v.cast<std::string>()};
+  const std::string expected = std::string(name) + " must be a str or a list of str, got ";
+  if (py::isinstance<py::bytes>(v) || !py::hasattr(v, "__iter__")) throw py::type_error(expected + type_name(v));
+  std::vector<std::string> out;
+  for (py::handle item : v) {
+    if (!py::isinstance<py::str>(item))
+      throw py::type_error(expected + "a " + type_name(v) + " holding " + type_name(item) + " (item " +
+                           std::to_string(out.size()) + ")");
+    out.push_back(item.cast<std::string>());
+  }
+  return out;
 }
 
 }  // namespace rayscan::python

@@ -9,6 +9,7 @@
 #include <pybind11/pybind11.h>
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -62,8 +63,36 @@ py::array view_rows(const T* data, std::size_t n, std::size_t cols, py::handle b
 /// None. Raises ValueError "k must be None or an integer >= 0".
 std::size_t parse_k(const py::object& k);
 
+/// The integer argument `name`: a Python int or anything with __index__ (NumPy integers), not a
+/// bool, within [lo, hi]. `expected` says what is allowed ("an integer in [1, 2^32 - 1]").
+/// Raises TypeError "<name> must be <expected>, got float" for another type and ValueError
+/// "<name> must be <expected>, got <value>" outside the range (any size: 2**70 too), instead of
+/// pybind11's conversion errors.
+long long int_arg(py::handle v, const char* name, long long lo, long long hi, const std::string& expected);
+
+/// As int_arg for an unsigned 64-bit argument (a seed): [0, 2^64 - 1].
+std::uint64_t uint64_arg(py::handle v, const char* name);
+
+/// As int_arg with None allowed (returns nullopt).
+template <class T>
+std::optional<T> opt_int_arg(py::handle v, const char* name, long long lo, long long hi, const std::string& expected) {
+  if (v.is_none()) return std::nullopt;
+  return static_cast<T>(int_arg(v, name, lo, hi, expected));
+}
+
 /// Check a `threads` argument: 0 (every core) or a positive count up to 4096; returns it. Raises
-/// ValueError "threads must be 0 (all cores) or a positive count, got -1".
-unsigned parse_threads(long long threads);
+/// ValueError "threads must be 0 (all cores) or a positive count up to 4096, got -1" (TypeError
+/// for a non-integer).
+unsigned parse_threads(py::handle threads);
+
+/// A file name argument: a str or an os.PathLike giving one. Raises TypeError "<name> must be a
+/// file name (str or os.PathLike), got bytes" and ValueError "<name> '<repr>' contains a NUL
+/// byte; expected a file name" (no file can have such a name; the OS call would fail without
+/// saying why).
+std::string path_arg(py::handle v, const char* name);
+
+/// A list of names: one str, or an iterable of str (list, tuple). Raises TypeError "<name> must be
+/// a str or a list of str, got a list holding int (item 0)".
+std::vector<std::string> names_arg(py::handle v, const char* name);
 
 }  // namespace rayscan::python

@@ -32,17 +32,12 @@ RayOrder parse_order(const std::string& s) {
   throw py::value_error("order '" + s + "': expected 'ray', 'time' or 'sphere_hit'");
 }
 
-std::uint32_t parse_count(long long v, const char* name) {
-  if (v < 1 || v > 0xFFFFFFFFll)
-    throw py::value_error(std::string(name) + " must be an integer in [1, 2^32 - 1], got " +
-                          std::to_string(v));
-  return static_cast<std::uint32_t>(v);
+std::uint32_t parse_count(py::handle v, const char* name) {
+  return static_cast<std::uint32_t>(int_arg(v, name, 1, 0xFFFFFFFFll, "an integer in [1, 2^32 - 1]"));
 }
 
-unsigned parse_depth(long long v, const char* name) {
-  if (v < 0 || v > 21)
-    throw py::value_error(std::string(name) + " must be in [0, 21], got " + std::to_string(v));
-  return static_cast<unsigned>(v);
+unsigned parse_depth(py::handle v, const char* name) {
+  return static_cast<unsigned>(int_arg(v, name, 0, 21, "an integer in [0, 21]"));
 }
 
 PyIndex build(py::handle xyz, const IndexOptions& opts) {
@@ -58,7 +53,7 @@ PyIndex build(py::handle xyz, const IndexOptions& opts) {
 /// Run f() on `threads` worker threads (0 = all cores) in its own TBB arena; the results do not
 /// depend on the thread count (each query is answered alone).
 template <class F>
-auto with_threads(long long threads, F&& f) {
+auto with_threads(unsigned threads, F&& f) {
   if (threads == 0) return f();
   tbb::task_arena arena(static_cast<int>(threads));
   return arena.execute(std::forward<F>(f));
@@ -101,8 +96,8 @@ void csr_fill(const std::vector<std::vector<T>>& r, const std::vector<std::int64
 
 py::dict ray_query(const PyIndex& self, py::handle origins, py::handle directions,
                    const py::object& k, double radius, double t_min, double t_max,
-                   const std::string& order, bool any_hit, long long threads) {
-  parse_threads(threads);
+                   const std::string& order, bool any_hit, py::handle threads) {
+  const unsigned nthreads = parse_threads(threads);
   RayQuery q;
   q.k = parse_k(k);
   q.radius = radius;
@@ -128,7 +123,7 @@ py::dict ray_query(const PyIndex& self, py::handle origins, py::handle direction
         throw std::invalid_argument("ray " + std::to_string(i) + ": " + e.what());
       }
     }
-    const auto res = with_threads(threads, [&] {
+    const auto res = with_threads(nthreads, [&] {
       return std::visit([&](const auto& ix) { return ray_query_batch(ix, rays, q); }, self.index);
     });
     off = csr_offsets(res);
@@ -151,15 +146,15 @@ py::dict ray_query(const PyIndex& self, py::handle origins, py::handle direction
 }
 
 py::dict knn(const PyIndex& self, py::handle points, const py::object& k, double radius,
-             long long threads) {
-  parse_threads(threads);
+             py::handle threads) {
+  const unsigned nthreads = parse_threads(threads);
   const std::size_t kk = parse_k(k);
   const Vec3Rows p = as_vec3_rows(points, "points", true);
   std::vector<std::int64_t> off, idx;
   std::vector<double> dist;
   {
     py::gil_scoped_release nogil;
-    const auto res = with_threads(threads, [&] {
+    const auto res = with_threads(nthreads, [&] {
       return std::visit([&](const auto& ix) { return knn_query_batch(ix, p.rows, kk, radius); }, self.index);
     });
     off = csr_offsets(res);
@@ -178,8 +173,8 @@ py::dict knn(const PyIndex& self, py::handle points, const py::object& k, double
   return out;
 }
 
-py::dict box(const PyIndex& self, py::handle lo, py::handle hi, long long threads) {
-  parse_threads(threads);
+py::dict box(const PyIndex& self, py::handle lo, py::handle hi, py::handle threads) {
+  const unsigned nthreads = parse_threads(threads);
   const Vec3Rows l = as_vec3_rows(lo, "lo", true);
   const Vec3Rows h = as_vec3_rows(hi, "hi", true);
   const std::size_t m = broadcast_count(l, "lo", h, "hi");
@@ -193,7 +188,7 @@ py::dict box(const PyIndex& self, py::handle lo, py::handle hi, long long thread
         throw std::invalid_argument("box " + std::to_string(i) + ": lo and hi must not be NaN");
       boxes[i] = AABB{a, b};
     }
-    const auto res = with_threads(threads, [&] {
+    const auto res = with_threads(nthreads, [&] {
       return std::visit([&](const auto& ix) { return box_query_batch(ix, boxes); }, self.index);
     });
     off = csr_offsets(res);
@@ -228,11 +223,11 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
 
   struct PyOctree : PyIndex {};
   py::class_<PyOctree, PyIndex>(m, "_Octree")
-      .def(py::init([](py::handle xyz, const std::string& layout, std::optional<long long> capacity,
-                       long long depth, long long max_depth, bool insertion) {
+      .def(py::init([](py::handle xyz, const std::string& layout, py::handle capacity,
+                       py::handle depth, py::handle max_depth, bool insertion) {
              IndexOptions o;
              o.type = "octree-" + std::string(to_string(parse_octree_layout(layout)));
-             if (capacity) o.capacity = parse_count(*capacity, "capacity");
+             if (!capacity.is_none()) o.capacity = parse_count(capacity, "capacity");
              o.depth = parse_depth(depth, "depth");
              o.max_depth = parse_depth(max_depth, "max_depth");
              o.insertion = insertion;
@@ -248,10 +243,10 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
 
   struct PyKdTree : PyIndex {};
   py::class_<PyKdTree, PyIndex>(m, "_KdTree")
-      .def(py::init([](py::handle xyz, std::optional<long long> capacity) {
+      .def(py::init([](py::handle xyz, py::handle capacity) {
              IndexOptions o;
              o.type = "kdtree";
-             if (capacity) o.capacity = parse_count(*capacity, "capacity");
+             if (!capacity.is_none()) o.capacity = parse_count(capacity, "capacity");
              return PyKdTree{build(xyz, o)};
            }),
            py::arg("xyz"), py::arg("capacity") = py::none())

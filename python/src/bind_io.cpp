@@ -37,12 +37,7 @@ py::object attribute(py::object self, const std::string& name) {
 
 PyCloud read(const std::string& path, const py::object& attributes) {
   std::optional<std::vector<std::string>> keep;
-  if (!attributes.is_none()) {
-    if (py::isinstance<py::str>(attributes))
-      keep = std::vector<std::string>{attributes.cast<std::string>()};
-    else
-      keep = attributes.cast<std::vector<std::string>>();
-  }
+  if (!attributes.is_none()) keep = names_arg(attributes, "attributes");
   io::ReadOptions opts;
   if (keep) {
     const auto& std_names = standard_attributes();
@@ -141,8 +136,8 @@ kept alive by this object; absent attributes are None.
                c.info.format + ", attributes: " + a + ">";
       });
 
-  m.def("_read", [](const std::string& path, const py::object& attributes) {
-    return std::make_shared<PyCloud>(read(path, attributes));
+  m.def("_read", [](py::handle path, const py::object& attributes) {
+    return std::make_shared<PyCloud>(read(path_arg(path, "path"), attributes));
   }, py::arg("path"), py::arg("attributes") = py::none());
 }
 

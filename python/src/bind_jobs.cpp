@@ -45,25 +45,29 @@ const PointCloud* in_memory_cloud(const py::object& cloud) {
   return &cloud.cast<const PyCloud&>().cloud;
 }
 
-py::dict render(const std::string& scene_file, const py::object& cloud, std::optional<std::uint32_t> width,
-                std::optional<std::uint32_t> height, std::optional<std::uint32_t> spp,
-                std::optional<std::uint64_t> seed, const std::vector<std::string>& aovs,
-                const std::string& camera, long long threads) {
+/// A count of pixels or samples: an integer in [1, 2^32 - 1], or None.
+std::optional<std::uint32_t> size_arg(py::handle v, const char* name) {
+  return opt_int_arg<std::uint32_t>(v, name, 1, 0xFFFFFFFFll, "None or an integer in [1, 2^32 - 1]");
+}
+
+py::dict render(py::handle scene_file, const py::object& cloud, py::handle width, py::handle height,
+                py::handle spp, py::handle seed, py::handle aovs, py::handle camera, py::handle threads) {
   jobs::RenderJobOptions o;
   o.cloud = in_memory_cloud(cloud);
   o.write = false;
   o.control.threads = parse_threads(threads);
+  render::SceneOverrides ov;
+  const std::string scene = path_arg(scene_file, "scene");
+  if (!camera.is_none()) ov.camera_file = path_arg(camera, "camera");
+  ov.width = size_arg(width, "width");
+  ov.height = size_arg(height, "height");
+  ov.spp = size_arg(spp, "spp");
+  if (!seed.is_none()) ov.seed = uint64_arg(seed, "seed");
+  ov.aovs = names_arg(aovs, "aovs");
   jobs::RenderJobResult r;
   {
     py::gil_scoped_release nogil;
-    o.scene = render::load_scene(scene_file);
-    render::SceneOverrides ov;
-    ov.camera_file = camera;
-    ov.spp = spp;
-    ov.width = width;
-    ov.height = height;
-    ov.seed = seed;
-    ov.aovs = aovs;
+    o.scene = render::load_scene(scene);
     o.scene.apply(ov);
     r = jobs::run_render(o);
   }
@@ -123,21 +127,21 @@ rayscan::Image to_image(py::handle obj, const std::string& name) {
   return img;
 }
 
-py::dict compare(const py::object& a, const py::object& b, const std::vector<std::string>& channels,
+py::dict compare(const py::object& a, const py::object& b, py::handle channels,
                  bool mask, bool alpha, bool resize, std::optional<double> fail,
                  std::optional<double> fail_percent, std::optional<double> fail_psnr,
                  std::optional<double> fail_ssim, std::optional<double> warn) {
   jobs::CompareJobOptions o;
   std::optional<rayscan::Image> ia, ib;
   if (py::isinstance<py::str>(a) || py::hasattr(a, "__fspath__"))
-    o.reference_file = py::str(a).cast<std::string>();
+    o.reference_file = path_arg(a, "reference");
   else
     o.reference = &ia.emplace(to_image(a, "reference"));
   if (py::isinstance<py::str>(b) || py::hasattr(b, "__fspath__"))
-    o.image_file = py::str(b).cast<std::string>();
+    o.image_file = path_arg(b, "image");
   else
     o.image = &ib.emplace(to_image(b, "image"));
-  o.channels = channels;
+  o.channels = names_arg(channels, "channels");
   o.mask = mask;
   o.alpha = alpha;
   o.resize = resize;
@@ -189,15 +193,15 @@ py::dict compare(const py::object& a, const py::object& b, const std::vector<std
 py::dict visibility(const py::object& cloud, const py::object& observers, std::optional<double> radius,
                     std::optional<double> height, std::optional<double> max_distance,
                     std::optional<double> tolerance, std::optional<double> target_height,
-                    std::uint32_t sky_rays, const std::string& camera, bool distance, long long threads) {
+                    py::handle sky_rays, py::handle camera, bool distance, py::handle threads) {
   jobs::VisibilityJobOptions o;
   if (py::isinstance<PyCloud>(cloud))
     o.cloud = &cloud.cast<const PyCloud&>().cloud;
   else
-    o.cloud_file = py::str(cloud).cast<std::string>();
+    o.cloud_file = path_arg(cloud, "cloud");
   if (!observers.is_none()) {
     if (py::isinstance<py::str>(observers) || py::hasattr(observers, "__fspath__")) {
-      o.observers_file = py::str(observers).cast<std::string>();
+      o.observers_file = path_arg(observers, "observers");
     } else {
       py::module_ np = py::module_::import("numpy");
       py::array a = np.attr("asarray")(observers);
@@ -218,8 +222,8 @@ py::dict visibility(const py::object& cloud, const py::object& observers, std::o
   o.max_distance = max_distance;
   o.tolerance = tolerance;
   o.target_height = target_height;
-  o.sky_rays = sky_rays;
-  o.camera_file = camera;
+  o.sky_rays = static_cast<std::uint32_t>(int_arg(sky_rays, "sky_rays", 0, 0xFFFFFFFFll, "an integer in [0, 2^32 - 1]"));
+  if (!camera.is_none()) o.camera_file = path_arg(camera, "camera");
   o.distance = distance;
   o.control.threads = parse_threads(threads);
   jobs::VisibilityJobResult r;
@@ -247,15 +251,15 @@ py::dict visibility(const py::object& cloud, const py::object& observers, std::o
 void bind_jobs(py::module_& m) {
   m.def("_render", &render, py::arg("scene"), py::arg("cloud") = py::none(), py::arg("width") = py::none(),
         py::arg("height") = py::none(), py::arg("spp") = py::none(), py::arg("seed") = py::none(),
-        py::arg("aovs") = std::vector<std::string>{}, py::arg("camera") = "", py::arg("threads") = 0);
+        py::arg("aovs") = py::tuple(), py::arg("camera") = py::none(), py::arg("threads") = 0);
   m.def("_compare", &compare, py::arg("reference"), py::arg("image"),
-        py::arg("channels") = std::vector<std::string>{}, py::arg("mask") = false, py::arg("alpha") = false,
+        py::arg("channels") = py::tuple(), py::arg("mask") = false, py::arg("alpha") = false,
         py::arg("resize") = false, py::arg("fail") = py::none(), py::arg("fail_percent") = py::none(),
         py::arg("fail_psnr") = py::none(), py::arg("fail_ssim") = py::none(), py::arg("warn") = py::none());
   m.def("_visibility", &visibility, py::arg("cloud"), py::arg("observers") = py::none(),
         py::arg("radius") = py::none(), py::arg("height") = py::none(), py::arg("max_distance") = py::none(),
         py::arg("tolerance") = py::none(), py::arg("target_height") = py::none(), py::arg("sky_rays") = 0,
-        py::arg("camera") = "", py::arg("distance") = false, py::arg("threads") = 0);
+        py::arg("camera") = py::none(), py::arg("distance") = false, py::arg("threads") = 0);
 }
 
 }  // namespace rayscan::python

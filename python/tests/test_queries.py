@@ -166,7 +166,7 @@ def test_bad_arguments_raise_value_error(uniform_cloud):
         (lambda: rayscan.Octree(uniform_cloud, layout="sparse"), "octree layout 'sparse'"),
         (lambda: rayscan.Octree(uniform_cloud, capacity=0), "capacity must be"),
         (lambda: rayscan.Octree(uniform_cloud, capacity=-5), "capacity must be"),
-        (lambda: rayscan.Octree(uniform_cloud, layout="fixed", depth=22), "depth must be in [0, 21]"),
+        (lambda: rayscan.Octree(uniform_cloud, layout="fixed", depth=22), "depth must be an integer in [0, 21], got 22"),
         (lambda: tree.ray_query(o, np.zeros((4, 3))), "ray 0: Ray: direction must be non-zero"),
         (lambda: tree.ray_query(np.array([[0, 0, 0], [np.nan, 0, 0]]), d[:2]), "ray 1: Ray: origin must be finite"),
         (lambda: tree.ray_query(o, np.ones((3, 3))), "origins has 4 rows but directions has 3"),

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 
 namespace {
 
@@ -24,7 +25,7 @@ constexpr const char* kArgs[3][12] = {
 constexpr const char* kBoxArgs[6] = {"xmin", "ymin", "zmin", "xmax", "ymax", "zmax"};
 
 
-// Every argument finite; the direction/normal (a[3..5]) non-zero.
+// Every argument finite; the direction/normal (a[3..5]) one the core accepts.
 const char* check(rs_function f, const double* a, int n, bool box, char* err) {
   for (int i = 0; i < n; ++i)
     if (!std::isfinite(a[i])) {
@@ -34,13 +35,7 @@ const char* check(rs_function f, const double* a, int n, bool box, char* err) {
                     std::isnan(a[i]) ? "NaN" : "infinite");
       return err;
     }
-  if (a[3] == 0.0 && a[4] == 0.0 && a[5] == 0.0) {
-    std::snprintf(err, RS_ERRBUF, "%s: %s (%s,%s,%s) is zero; expected a non-zero vector",
-                  kNames[f], f == RS_DIST_PLANE ? "normal" : "direction", kArgs[f][3], kArgs[f][4],
-                  kArgs[f][5]);
-    return err;
-  }
-  return nullptr;
+  return rs_check_direction(kNames[f], f == RS_DIST_PLANE, a + 3, err);
 }
 
 AABB make_box(const double* b) { return {Vec3(b[0], b[1], b[2]), Vec3(b[3], b[4], b[5])}; }
@@ -81,6 +76,41 @@ extern "C" const char* rs_eval_bounds(rs_function f, const double a[12], double*
   return nullptr;
 }
 
+extern "C" const char* rs_parse_tuple(const char* s, double* v, int n, const char* type,
+                                      char err[RS_ERRBUF]) {
+  const char* p = s;
+  char* end = nullptr;
+  bool ok = true;
+  while (*p == ' ') ++p;
+  ok = *p++ == '(';
+  for (int i = 0; ok && i < n; ++i) {
+    v[i] = std::strtod(p, &end);
+    ok = end != p;
+    p = end;
+    while (ok && *p == ' ') ++p;
+    ok = ok && *p++ == (i + 1 < n ? ',' : ')');
+  }
+  while (ok && *p == ' ') ++p;
+  if (ok && *p == 0) return nullptr;
+  // The input itself is not repeated: it may be long or hold control characters.
+  std::snprintf(err, RS_ERRBUF, "invalid input syntax for type %s: expected %d comma-separated numbers "
+                "in parentheses", type, n);
+  return err;
+}
+
+extern "C" const char* rs_check_direction(const char* fn, int normal, const double v[3],
+                                          char err[RS_ERRBUF]) {
+  if (rayscan::is_valid_direction(Vec3(v[0], v[1], v[2]))) return nullptr;
+  const char* what = normal ? "normal (nx,ny,nz)" : "direction (dx,dy,dz)";
+  if (v[0] == 0.0 && v[1] == 0.0 && v[2] == 0.0)
+    std::snprintf(err, RS_ERRBUF, "%s: %s is zero; expected a non-zero vector", fn, what);
+  else
+    std::snprintf(err, RS_ERRBUF,
+                  "%s: %s = (%g,%g,%g) cannot be normalised exactly; expected a finite length "
+                  "between about 1.5e-154 and 1.3e154", fn, what, v[0], v[1], v[2]);
+  return err;
+}
+
 extern "C" const char* rs_check_ray(const char* fn, const double o[3], const double d[3], double r,
                                     double t_min, double t_max, char err[RS_ERRBUF]) {
   static const char* names[6] = {"ox", "oy", "oz", "dx", "dy", "dz"};
@@ -92,10 +122,7 @@ extern "C" const char* rs_check_ray(const char* fn, const double o[3], const dou
       return err;
     }
   }
-  if (d[0] == 0.0 && d[1] == 0.0 && d[2] == 0.0) {
-    std::snprintf(err, RS_ERRBUF, "%s: direction (dx,dy,dz) is zero; expected a non-zero vector", fn);
-    return err;
-  }
+  if (const char* e = rs_check_direction(fn, 0, d, err)) return e;
   if (std::isnan(r) || r < 0.0) {
     std::snprintf(err, RS_ERRBUF, "%s: radius r is %s; expected a number >= 0 (NULL: unbounded)",
                   fn, std::isnan(r) ? "NaN" : "negative");

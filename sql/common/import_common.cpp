@@ -15,15 +15,63 @@ bool is_sql_identifier(const std::string& s, std::size_t max_len, bool allow_upp
   return true;
 }
 
+std::string folded_sql_name(std::string s) {
+  for (char& c : s)
+    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  return s;
+}
+
+namespace {
+
+// Column names the engines reserve for their own columns: SQLite's row id (sqlite.org/lang_createtable.html,
+// "ROWID and the INTEGER PRIMARY KEY") and PostgreSQL's system columns (PostgreSQL 15 documentation,
+// section 5.5 "System Columns"; oid up to PostgreSQL 11).
+constexpr const char* kSqliteColumns[] = {"rowid", "oid", "_rowid_"};
+constexpr const char* kPostgresColumns[] = {"tableoid", "xmin", "cmin", "xmax", "cmax", "ctid", "oid"};
+
+// PostgreSQL's key words that cannot name a table or column unquoted: the categories "reserved" and
+// "reserved (can be function or type)" of PostgreSQL 15's Appendix C (catcode R and T of
+// pg_get_keywords(); tests/sql compares the list with a real server's).
+constexpr const char* kPostgresKeywords[] = {
+    "all", "analyse", "analyze", "and", "any", "array", "as", "asc", "asymmetric", "authorization",
+    "binary", "both", "case", "cast", "check", "collate", "collation", "column", "concurrently",
+    "constraint", "create", "cross", "current_catalog", "current_date", "current_role",
+    "current_schema", "current_time", "current_timestamp", "current_user", "default", "deferrable",
+    "desc", "distinct", "do", "else", "end", "except", "false", "fetch", "for", "foreign", "freeze",
+    "from", "full", "grant", "group", "having", "ilike", "in", "initially", "inner", "intersect",
+    "into", "is", "isnull", "join", "lateral", "leading", "left", "like", "limit", "localtime",
+    "localtimestamp", "natural", "not", "notnull", "null", "offset", "on", "only", "or", "order",
+    "outer", "overlaps", "placing", "primary", "references", "returning", "right", "select",
+    "session_user", "similar", "some", "symmetric", "table", "tablesample", "then", "to", "trailing",
+    "true", "union", "unique", "user", "using", "variadic", "verbose", "when", "where", "window",
+    "with"};
+
+template <std::size_t N>
+bool listed(const char* const (&list)[N], const std::string& s) {
+  for (const char* w : list)
+    if (s == w) return true;
+  return false;
+}
+
+}  // namespace
+
+std::string reserved_sql_name(const std::string& name, bool column) {
+  const std::string f = folded_sql_name(name);
+  if (column && listed(kSqliteColumns, f))
+    return "'" + f + "' is SQLite's row id (reserved column names: rowid, oid, _rowid_, tableoid, "
+           "xmin, cmin, xmax, cmax, ctid)";
+  if (column && listed(kPostgresColumns, f))
+    return "'" + f + "' is a system column of PostgreSQL (reserved column names: rowid, oid, "
+           "_rowid_, tableoid, xmin, cmin, xmax, cmax, ctid)";
+  if (listed(kPostgresKeywords, f)) return "'" + f + "' is a reserved key word of PostgreSQL";
+  return "";
+}
+
 void check_attribute_names(const std::vector<std::string>& names, bool pcpatch) {
   // SQL names are case-insensitive: PostgreSQL folds an unquoted name to lower case and SQLite
   // compares names without case, so "GpsTime" and "gpstime", or "X" and the built-in x, would be
   // one column (the database's own error, or two attributes merged).
-  const auto folded = [](std::string s) {
-    for (char& c : s)
-      if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
-    return s;
-  };
+  const auto folded = folded_sql_name;
   struct Taken {
     std::string folded, column, attribute;  // attribute empty: a built-in column
   };
@@ -33,6 +81,8 @@ void check_attribute_names(const std::vector<std::string>& names, bool pcpatch) 
   for (const std::string& n : names) {
     if (!is_sql_identifier(n, 63, true))
       throw std::invalid_argument("attribute '" + n + "': expected an SQL identifier [A-Za-z_][A-Za-z0-9_]*");
+    if (const std::string why = reserved_sql_name(n, true); !why.empty())
+      throw std::invalid_argument("attribute '" + n + "': " + why + "; expected another name");
     const std::vector<std::string> columns =
         n == "rgb" ? std::vector<std::string>{"red", "green", "blue"} : std::vector<std::string>{n};
     for (const std::string& col : columns) {

@@ -55,6 +55,15 @@ struct Conn {
   }
 };
 
+/// `name` as a quoted identifier (PostgreSQL's quote_ident rules, always quoting): in double quotes,
+/// with each double quote doubled. The checked names are lower case, so the quoted name is the one
+/// an unquoted name would fold to.
+std::string quote_ident(const std::string& name) {
+  std::string q = "\"";
+  for (char c : name) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return q + '"';
+}
+
 void append_double(std::string& s, double v) {
   char buf[32];
   auto [p, ec] = std::to_chars(buf, buf + sizeof buf, v);  // shortest round-trip form: exact
@@ -73,13 +82,14 @@ void append_hex(std::string& s, T v) {
   }
 }
 
-// Rows of <table>_sources: each input file's path and point count.
-void insert_sources(Conn& db, const std::string& table, const std::vector<SourceRow>& sources) {
+// Rows of the sources table (`sources`: schema-qualified and quoted): each input file's path and
+// point count.
+void insert_sources(Conn& db, const std::string& sources_table, const std::vector<SourceRow>& sources) {
   for (std::size_t i = 0; i < sources.size(); ++i) {
     const std::string& p = sources[i].path;
     const std::string n = std::to_string(i), cnt = std::to_string(sources[i].points);
     const char* vals[3] = {n.c_str(), p.c_str(), cnt.c_str()};
-    PGresult* r = PQexecParams(db.c, ("INSERT INTO " + table + "_sources VALUES($1,$2,$3)").c_str(), 3,
+    PGresult* r = PQexecParams(db.c, ("INSERT INTO " + sources_table + " VALUES($1,$2,$3)").c_str(), 3,
                                nullptr, vals, nullptr, nullptr, 0);
     const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
     PQclear(r);
@@ -91,7 +101,8 @@ void insert_sources(Conn& db, const std::string& table, const std::vector<Source
 /// transaction. Each step throws std::runtime_error "postgres: <what>: <server message>" (Conn::fail)
 /// on the first failing statement; the transaction then never commits.
 struct PgImport {
-  const std::string& table;
+  const std::string& table;             ///< the table's name as given (checked: lower case)
+  std::string schema;                   ///< current_schema() of the connection, where it is created
   SiteStream& site;
   const std::vector<ColumnInfo>& cols;  ///< the extra columns (attributes)
   ChunkRows c;                          ///< the current chunk (vectors reused)
@@ -99,6 +110,14 @@ struct PgImport {
   Conn db;
 
   PgImport(const std::string& t, SiteStream& s) : table(t), site(s), cols(s.columns()) {}
+
+  /// The table `<table><suffix>` schema-qualified and quoted: what every statement names, so that
+  /// no schema earlier in the search path (pg_catalog: `--table pg_class`) can capture it.
+  [[nodiscard]] std::string name(const char* suffix = "") const {
+    return quote_ident(schema) + "." + quote_ident(table + suffix);
+  }
+  /// An index `<table><suffix>`, quoted (an index is created in its table's schema).
+  [[nodiscard]] std::string index(const char* suffix) const { return quote_ident(table + suffix); }
 
   /// Connects with `conninfo` (libpq connection string), lowers the client's message level and
   /// opens the transaction: all or nothing, a failure (or the server going away) leaves no half
@@ -108,6 +127,15 @@ struct PgImport {
     if (PQstatus(db.c) != CONNECTION_OK) db.fail("cannot connect");
     db.exec("SET client_min_messages = warning");
     db.exec("BEGIN");
+    PGresult* r = PQexec(db.c, "SELECT current_schema()");
+    const bool ok = PQresultStatus(r) == PGRES_TUPLES_OK && PQntuples(r) == 1;
+    const bool none = ok && PQgetisnull(r, 0, 0);
+    if (ok && !none) schema = PQgetvalue(r, 0, 0);
+    PQclear(r);
+    if (!ok) db.fail("current_schema()");
+    if (none)
+      throw std::runtime_error("postgres: no schema to create table '" + table +
+                               "' in: no schema of the search_path exists (SHOW search_path)");
   }
 
   /// The functions come from `CREATE EXTENSION rayscan` (an installed build), or were loaded from a
@@ -164,7 +192,7 @@ struct PgImport {
   /// byte order 1 (NDR), uint32 pcid, uint32 compression 0 (none), uint32 npoints, then the
   /// points in schema order (pgpointcloud README, "Binary Formats"). Sent in ~1 MiB pieces.
   void copy_patches(int pcid) {
-    db.copy_in("COPY " + table + " FROM STDIN");
+    db.copy_in("COPY " + name() + " FROM STDIN");
     std::string buf;
     while (site.next(c)) {
       const std::size_t count = c.size();
@@ -210,26 +238,26 @@ struct PgImport {
   void import_pcpatch() {
     const int pcid = register_pcpatch_schema();
     const std::string id = std::to_string(pcid);
-    db.exec("CREATE TABLE " + table + " (chunk int PRIMARY KEY, pa pcpatch(" + id + ") NOT NULL, box rs_box NOT NULL)");
-    db.exec("CREATE TABLE " + table + "_sources (source int PRIMARY KEY, path text NOT NULL, point_count bigint NOT NULL)");
+    db.exec("CREATE TABLE " + name() + " (chunk int PRIMARY KEY, pa pcpatch(" + id + ") NOT NULL, box rs_box NOT NULL)");
+    db.exec("CREATE TABLE " + name("_sources") + " (source int PRIMARY KEY, path text NOT NULL, point_count bigint NOT NULL)");
     copy_patches(pcid);
-    insert_sources(db, table, site.sources());
-    db.exec("CREATE INDEX " + table + "_box ON " + table + " USING gist (box)");
+    insert_sources(db, name("_sources"), site.sources());
+    db.exec("CREATE INDEX " + index("_box") + " ON " + name() + " USING gist (box)");
     db.exec("COMMIT");
-    db.exec("ANALYZE " + table);
+    db.exec("ANALYZE " + name());
   }
 
   /// The plain-rows tables (docs/sql.md): <table> (point_index, source, chunk, x, y, z,
   /// <attributes>), <table>_chunks (chunk, box, first_row, count), <table>_sources.
   void create_point_tables() {
-    std::string create = "CREATE TABLE " + table +
+    std::string create = "CREATE TABLE " + name() +
                          " (point_index bigint NOT NULL, source int NOT NULL, chunk int NOT NULL, "
                          "x float8 NOT NULL, y float8 NOT NULL, z float8 NOT NULL";
-    for (const auto& col : cols) create += ", " + col.name + (col.integer ? " bigint" : " float8");
+    for (const auto& col : cols) create += ", " + quote_ident(folded_sql_name(col.name)) + (col.integer ? " bigint" : " float8");
     db.exec(create + ")");
-    db.exec("CREATE TABLE " + table + "_chunks (chunk int PRIMARY KEY, box rs_box NOT NULL, "
+    db.exec("CREATE TABLE " + name("_chunks") + " (chunk int PRIMARY KEY, box rs_box NOT NULL, "
             "first_row bigint NOT NULL, count int NOT NULL)");
-    db.exec("CREATE TABLE " + table + "_sources (source int PRIMARY KEY, path text NOT NULL, "
+    db.exec("CREATE TABLE " + name("_sources") + " (source int PRIMARY KEY, path text NOT NULL, "
             "point_count bigint NOT NULL)");
   }
 
@@ -245,7 +273,7 @@ struct PgImport {
   /// Returns the <table>_chunks rows, one short line per chunk, kept for copy_chunks(): one COPY
   /// at a time on a connection.
   std::string copy_points() {
-    db.copy_in("COPY " + table + " FROM STDIN");
+    db.copy_in("COPY " + name() + " FROM STDIN");
     std::string buf;
     std::string chunk_rows;
     while (site.next(c)) {
@@ -286,7 +314,7 @@ struct PgImport {
 
   /// COPY of the chunk rows copy_points() collected into <table>_chunks.
   void copy_chunks(std::string rows) {
-    db.copy_in("COPY " + table + "_chunks FROM STDIN");
+    db.copy_in("COPY " + name("_chunks") + " FROM STDIN");
     flush(rows, true, "COPY points");  // a refused send reports "COPY points", as in copy_points()
     db.copy_end("COPY chunks");
   }
@@ -294,19 +322,19 @@ struct PgImport {
   /// <table>_sources, the chunk index of <table> and the GiST index of the chunk boxes, the
   /// planner's n_distinct of chunk; commits and analyzes.
   void finish_indexes() {
-    insert_sources(db, table, site.sources());
-    db.exec("CREATE INDEX " + table + "_chunk_idx ON " + table + " (chunk)");
+    insert_sources(db, name("_sources"), site.sources());
+    db.exec("CREATE INDEX " + index("_chunk_idx") + " ON " + name() + " (chunk)");
     // The number of distinct chunks is known exactly: tell the planner (ANALYZE's sample estimates it
     // from 30,000 rows, ~4x too few chunks at 2e8 points; the join's row estimate then crossed the
     // JIT and parallel-plan thresholds and a pruned query scanned every chunk; bench/README.md).
     if (sum.points > 0) {
       char nd[40];
       std::snprintf(nd, sizeof nd, "%.17g", -static_cast<double>(sum.chunks) / static_cast<double>(sum.points));
-      db.exec("ALTER TABLE " + table + " ALTER COLUMN chunk SET (n_distinct = " + nd + ")");
+      db.exec("ALTER TABLE " + name() + " ALTER COLUMN chunk SET (n_distinct = " + nd + ")");
     }
-    db.exec("CREATE INDEX " + table + "_chunks_box ON " + table + "_chunks USING gist (box)");
+    db.exec("CREATE INDEX " + index("_chunks_box") + " ON " + name("_chunks") + " USING gist (box)");
     db.exec("COMMIT");
-    db.exec("ANALYZE " + table + "; ANALYZE " + table + "_chunks");
+    db.exec("ANALYZE " + name() + "; ANALYZE " + name("_chunks"));
   }
 };
 
@@ -319,6 +347,8 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
   // Lower case and <= 50: the table's companions (<table>_sources, _chunks, ...) stay within 63.
   if (!is_sql_identifier(table, 50, false))
     throw OptionError({option("table"), " '" + table + "': expected a lower-case SQL identifier [a-z_][a-z0-9_]* (max 50)"});
+  if (const std::string why = reserved_sql_name(table, false); !why.empty())
+    throw OptionError({option("table"), " '" + table + "': " + why + "; expected another name"});
   const std::unique_ptr<SiteStream> site = open_site(paths, options);
   PgImport im(table, *site);
   im.connect_and_begin(conninfo);

@@ -99,27 +99,11 @@ Datum rs_dist_plane_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_DIST_PLA
 
 /* ---- rs_box and rs_ray types ------------------------------------------------------------- */
 
-/* Parses "(v1,...,vn)" into n finite doubles; raises a one-line error naming the type. */
+/* Parses "(v1,...,vn)" into n doubles (rs_parse_tuple); raises a one-line error naming the type. */
 static void parse_tuple(const char* s, double* v, int n, const char* type) {
-  const char* p = s;
-  int i;
-  char* end;
-  while (*p == ' ') ++p;
-  if (*p++ != '(') goto bad;
-  for (i = 0; i < n; ++i) {
-    v[i] = strtod(p, &end);
-    if (end == p) goto bad;
-    p = end;
-    while (*p == ' ') ++p;
-    if (*p++ != (i + 1 < n ? ',' : ')')) goto bad;
-  }
-  while (*p == ' ') ++p;
-  if (*p) goto bad;
-  return;
-bad:
-  ereport(ERROR, (errcode(ERRCODE_INVALID_TEXT_REPRESENTATION),
-                  errmsg("invalid input syntax for type %s: \"%s\" (expected %d comma-separated "
-                         "numbers in parentheses)", type, s, n)));
+  char err[RS_ERRBUF];
+  if (rs_parse_tuple(s, v, n, type, err))
+    ereport(ERROR, (errcode(ERRCODE_INVALID_TEXT_REPRESENTATION), errmsg("%s", err)));
 }
 
 static char* format_tuple(const double* v, int n) {
@@ -137,10 +121,17 @@ static char* format_tuple(const double* v, int n) {
   return s.data;
 }
 
-static void check_box(const RsBox* b) {
+/* Every coordinate finite (a chunk box or a point; an infinite one would pass here and fail in
+ * every later predicate), min <= max on every axis. */
+static void check_box(const RsBox* b, bool point) {
+  static const char* names[2][6] = {{"xmin", "ymin", "zmin", "xmax", "ymax", "zmax"},
+                                    {"x", "y", "z", "x", "y", "z"}};
   int i;
   for (i = 0; i < 6; ++i)
-    if (isnan(b->v[i])) raise("rs_box: a coordinate is NaN; expected numbers");
+    if (!isfinite(b->v[i]))
+      ereport(ERROR, (errcode(ERRCODE_INVALID_PARAMETER_VALUE),
+                      errmsg("rs_box: %s is %s; expected a finite number", names[point][i],
+                             isnan(b->v[i]) ? "NaN" : "infinite")));
   for (i = 0; i < 3; ++i)
     if (b->v[i] > b->v[i + 3]) raise("rs_box: min > max on an axis; expected (xmin,ymin,zmin,xmax,ymax,zmax)");
 }
@@ -155,7 +146,7 @@ PG_FUNCTION_INFO_V1(rs_box_in);
 Datum rs_box_in(PG_FUNCTION_ARGS) {
   RsBox* b = palloc(sizeof(RsBox));
   parse_tuple(PG_GETARG_CSTRING(0), b->v, 6, "rs_box");
-  check_box(b);
+  check_box(b, false);
   PG_RETURN_POINTER(b);
 }
 PG_FUNCTION_INFO_V1(rs_box_out);
@@ -167,7 +158,7 @@ Datum rs_box_make(PG_FUNCTION_ARGS) {
   RsBox* b = palloc(sizeof(RsBox));
   int i;
   for (i = 0; i < 6; ++i) b->v[i] = PG_GETARG_FLOAT8(i);
-  check_box(b);
+  check_box(b, false);
   PG_RETURN_POINTER(b);
 }
 PG_FUNCTION_INFO_V1(rs_ray_in);
@@ -205,17 +196,19 @@ Datum rs_point_box(PG_FUNCTION_ARGS) {
   RsBox* b = palloc(sizeof(RsBox));
   int i;
   for (i = 0; i < 3; ++i) b->v[i] = b->v[i + 3] = PG_GETARG_FLOAT8(i);
-  check_box(b);
+  check_box(b, true);
   PG_RETURN_POINTER(b);
 }
 
 static void check_plane(const RsPlane* h) {
+  char err[RS_ERRBUF];
+  const char* e;
   int i;
   for (i = 0; i < 3; ++i)
     if (!isfinite(h->p[i]) || !isfinite(h->n[i]))
       raise("plane_below: a coordinate is NaN or infinite; expected finite numbers");
-  if (h->n[0] == 0 && h->n[1] == 0 && h->n[2] == 0)
-    raise("plane_below: normal (nx,ny,nz) is zero; expected a non-zero vector");
+  e = rs_check_direction("plane_below", 1, h->n, err);
+  if (e) raise(e);
 }
 PG_FUNCTION_INFO_V1(rs_plane_in);
 Datum rs_plane_in(PG_FUNCTION_ARGS) {

@@ -10,7 +10,9 @@
 //   * the table-valued function ray_query(ox,oy,oz, dx,dy,dz, k, r, t_min, t_max, ord): kNN to
 //     (ord 'ray') or along (ord 'time') the ray over the chunks, nearest chunk first, with the
 //     paper's dynamic k filter (Algorithm 1, step 2); the same rows as `rayscan query`;
-//   * rayscan_stats(): JSON counters of the connection's last ray_query.
+//   * rayscan_stats(): JSON counters of the connection's last ray_query;
+//   * rayscan_error(): the reason of the connection's last ray_prune / plane_prune failure (the
+//     R*Tree API lets a callback return only an error code: SQLite says "SQL logic error").
 // Values come from the core through rayscan/sql/functions.h, so they equal `rayscan query` and the
 // PostgreSQL extension to the last bit.
 #include <sqlite3ext.h>
@@ -90,15 +92,13 @@ void bounds_fn(sqlite3_context* ctx, int argc, sqlite3_value** argv) {
 // ---- R*Tree query callbacks --------------------------------------------------------------------
 
 // Box of an R*Tree node or entry: aCoord = (min_x, max_x, min_y, max_y, min_z, max_z).
-bool rtree_box(const sqlite3_rtree_query_info* p, double box[6]) {
-  if (p->nCoord != 6) return false;
+void rtree_box(const sqlite3_rtree_query_info* p, double box[6]) {
   box[0] = p->aCoord[0];
   box[3] = p->aCoord[1];
   box[1] = p->aCoord[2];
   box[4] = p->aCoord[3];
   box[2] = p->aCoord[4];
   box[5] = p->aCoord[5];
-  return true;
 }
 
 // Parameter i, with NULL (or absent) mapped to `dflt`.
@@ -108,14 +108,78 @@ double param(const sqlite3_rtree_query_info* p, int i, double dflt) {
   return p->aParam[i];
 }
 
+// State of one connection: the counters of its last ray_query (rayscan_stats()) and the reason
+// of its last R*Tree callback failure (rayscan_error()). Owned by the ray_query module (freed
+// when the connection closes).
+// Counters of the last ray_query on a connection (rayscan_stats()).
+struct Stats {
+  long long chunks_total = 0;      // rows of `chunks`
+  long long chunks_candidate = 0;  // chunks the R*Tree callback admitted and ray_query read from it
+  long long chunks_visited = 0;    // chunks whose points were read (after the dynamic k filter)
+  long long points_tested = 0;
+};
+
+struct Conn {
+  Stats stats;              ///< ray_query's counters
+  std::string prune_error;  ///< one line; "" when no callback has failed
+};
+
+// Fails an R*Tree query callback with `msg`. SQLite's R*Tree API carries only an error code out
+// of a callback (the statement fails with "SQL logic error"), so the reason is kept for
+// rayscan_error() and for SQLite's error log.
+int prune_fail(const sqlite3_rtree_query_info* p, const char* msg) {
+  static_cast<Conn*>(p->pContext)->prune_error = msg;
+  sqlite3_log(SQLITE_ERROR, "%s", msg);
+  return SQLITE_ERROR;
+}
+
+// The callback's parameters as numbers: `names` in order, the first `required` not NULL. NULL
+// for an optional parameter keeps its default (param()). Returns nullptr, or the message.
+const char* check_prune_params(const sqlite3_rtree_query_info* p, const char* fn,
+                               const char* const* names, int required, int n_lo, int n_hi,
+                               char err[RS_ERRBUF]) {
+  if (p->nParam < n_lo || p->nParam > n_hi || (n_lo == 7 && p->nParam == 8)) {
+    std::snprintf(err, RS_ERRBUF, "%s: %d arguments; expected %s", fn, p->nParam,
+                  n_lo == 7 ? "ox,oy,oz, dx,dy,dz, r [, t_min, t_max]" : "px,py,pz, nx,ny,nz");
+    return err;
+  }
+  for (int i = 0; p->apSqlParam && i < p->nParam; ++i) {
+    const int t = sqlite3_value_type(p->apSqlParam[i]);
+    if (t == SQLITE_INTEGER || t == SQLITE_FLOAT || (t == SQLITE_NULL && i >= required)) continue;
+    std::snprintf(err, RS_ERRBUF, "%s: argument %s is %s; expected a number", fn, names[i],
+                  t == SQLITE_NULL ? "NULL" : t == SQLITE_TEXT ? "text" : "a blob");
+    return err;
+  }
+  return nullptr;
+}
+
+// The arguments of a MATCH are the same on every R*Tree node of one query: a callback checks them
+// on its first call and then marks the query's pUser (per query, zeroed by SQLite; nothing to free).
+bool checked(const sqlite3_rtree_query_info* p) { return p->pUser != nullptr; }
+void mark_checked(sqlite3_rtree_query_info* p) {
+  static char mark;
+  p->pUser = &mark;
+  p->xDelUser = nullptr;
+}
+
 int ray_prune(sqlite3_rtree_query_info* p) {
-  double box[6];
-  if ((p->nParam != 7 && p->nParam != 9) || !rtree_box(p, box)) return SQLITE_ERROR;
+  static const char* const names[9] = {"ox", "oy", "oz", "dx", "dy", "dz", "r", "t_min", "t_max"};
+  char err[RS_ERRBUF];
+  if (!checked(p)) {
+    if (p->nCoord != 6)
+      return prune_fail(p, "ray_prune: the R*Tree is not 3-dimensional; expected `rayscan db import`'s "
+                           "chunks(id, min_x, max_x, ...)");
+    if (const char* e = check_prune_params(p, "ray_prune", names, 6, 7, 9, err)) return prune_fail(p, e);
+  }
   const double o[3] = {p->aParam[0], p->aParam[1], p->aParam[2]};
   const double d[3] = {p->aParam[3], p->aParam[4], p->aParam[5]};
   const double r = param(p, 6, kInf), t0 = param(p, 7, -kInf), t1 = param(p, 8, kInf);
-  char err[RS_ERRBUF];
-  if (rs_check_ray("ray_prune", o, d, r, t0, t1, err)) return SQLITE_ERROR;
+  if (!checked(p)) {
+    if (const char* e = rs_check_ray("ray_prune", o, d, r, t0, t1, err)) return prune_fail(p, e);
+    mark_checked(p);
+  }
+  double box[6];
+  rtree_box(p, box);
   if (rs_ray_box_misses(o, d, r, t0, t1, box)) {  // most entries of an expanded node: cheap
     p->eWithin = NOT_WITHIN;
     return SQLITE_OK;
@@ -128,12 +192,27 @@ int ray_prune(sqlite3_rtree_query_info* p) {
 }
 
 int plane_prune(sqlite3_rtree_query_info* p) {
+  static const char* const names[6] = {"px", "py", "pz", "nx", "ny", "nz"};
   double box[6];
-  if (p->nParam != 6 || !rtree_box(p, box)) return SQLITE_ERROR;
+  char err[RS_ERRBUF];
+  if (!checked(p)) {
+    if (p->nCoord != 6)
+      return prune_fail(p, "plane_prune: the R*Tree is not 3-dimensional; expected `rayscan db import`'s "
+                           "chunks(id, min_x, max_x, ...)");
+    if (const char* e = check_prune_params(p, "plane_prune", names, 6, 6, 6, err)) return prune_fail(p, e);
+    for (int i = 0; i < 6; ++i)
+      if (!std::isfinite(p->aParam[i])) {
+        std::snprintf(err, RS_ERRBUF, "plane_prune: %s is %s; expected a finite number", names[i],
+                      std::isnan(p->aParam[i]) ? "NaN" : "infinite");
+        return prune_fail(p, err);
+      }
+    const double n[3] = {p->aParam[3], p->aParam[4], p->aParam[5]};
+    if (const char* e = rs_check_direction("plane_prune", 1, n, err)) return prune_fail(p, e);
+    mark_checked(p);
+  }
+  rtree_box(p, box);
   const double o[3] = {p->aParam[0], p->aParam[1], p->aParam[2]};
   const double n[3] = {p->aParam[3], p->aParam[4], p->aParam[5]};
-  char err[RS_ERRBUF];
-  if (rs_check_ray("plane_prune", o, n, 0.0, 0.0, 0.0, err)) return SQLITE_ERROR;
   const rs_within w = rs_plane_box_test(o, n, box);
   p->eWithin = w == RS_NOT_WITHIN ? NOT_WITHIN : w == RS_FULLY_WITHIN ? FULLY_WITHIN : PARTLY_WITHIN;
   // Keep R*Tree order (the parent's score); planes give no "nearest" key.
@@ -142,14 +221,6 @@ int plane_prune(sqlite3_rtree_query_info* p) {
 }
 
 // ---- ray_query table-valued function -----------------------------------------------------------
-
-// Counters of the last ray_query on a connection (rayscan_stats()).
-struct Stats {
-  long long chunks_total = 0;      // rows of `chunks`
-  long long chunks_candidate = 0;  // chunks the R*Tree callback admitted and ray_query read from it
-  long long chunks_visited = 0;    // chunks whose points were read (after the dynamic k filter)
-  long long points_tested = 0;
-};
 
 enum Col {
   kPointIndex, kSource, kX, kY, kZ, kT, kDistance, kRank,
@@ -207,7 +278,7 @@ int vt_connect(sqlite3* db, void* aux, int, const char* const*, sqlite3_vtab** o
   if (rc != SQLITE_OK) return rc;
   auto* v = new VTab;
   v->db = db;
-  v->stats = static_cast<Stats*>(aux);
+  v->stats = &static_cast<Conn*>(aux)->stats;
   *out = &v->base;
   sqlite3_vtab_config(db, SQLITE_VTAB_INNOCUOUS);
   return SQLITE_OK;
@@ -328,13 +399,15 @@ int parse_ray_query_args(VTab* vt, int mask, int argc, sqlite3_value** argv, Arg
   double* a = out.a;
   long long kval = -1;  // -1: k not set (all points)
   int ai = 0;
+  // The six ray arguments are required, NULL or not: ray_query(ox,oy,oz, dx,dy) must report dz as
+  // missing rather than run with dz = 0, and ray_query(1, NULL) is an error, not "NULL in, no rows".
+  for (int i = 0; i < 6; ++i)
+    if (!(mask & (1 << i)))
+      return vt_error(&vt->base, std::string("ray_query: argument ") + kArgNames[i] +
+                                     " is missing; expected ray_query(ox,oy,oz, dx,dy,dz [, k, r, t_min, "
+                                     "t_max, ord])");
   for (int i = 0; i < kNumArgs && ai < argc; ++i) {
-    if (!(mask & (1 << i))) {
-      if (i < 6) return vt_error(&vt->base, std::string("ray_query: argument ") + kArgNames[i] +
-                                                " is missing; expected ray_query(ox,oy,oz, dx,dy,dz"
-                                                " [, k, r, t_min, t_max, ord])");
-      continue;
-    }
+    if (!(mask & (1 << i))) continue;
     sqlite3_value* v = argv[ai++];
     const int t = sqlite3_value_type(v);
     if (t == SQLITE_NULL) {
@@ -362,7 +435,6 @@ int parse_ray_query_args(VTab* vt, int mask, int argc, sqlite3_value** argv, Arg
       kval = sqlite3_value_int64(v);
     }
   }
-  if (!(mask & 0x3f)) return vt_error(&vt->base, "ray_query: expected ray_query(ox,oy,oz, dx,dy,dz [, k, r, t_min, t_max, ord])");
   for (int i = 0; i < 3; ++i) out.o3[i] = a[i], out.d3[i] = a[i + 3];
   out.r = a[7], out.t_min = a[8], out.t_max = a[9];
   char err[RS_ERRBUF];
@@ -606,6 +678,14 @@ sqlite3_module make_module() {
 }
 const sqlite3_module kModule = make_module();
 
+// rayscan_error(): why the connection's most recent ray_prune / plane_prune call failed (SQLite
+// reports only "SQL logic error" for it), or NULL when none has.
+void error_fn(sqlite3_context* ctx, int, sqlite3_value**) {
+  const Conn* c = static_cast<const Conn*>(sqlite3_user_data(ctx));
+  if (c->prune_error.empty()) return sqlite3_result_null(ctx);
+  sqlite3_result_text(ctx, c->prune_error.c_str(), -1, SQLITE_TRANSIENT);
+}
+
 void stats_fn(sqlite3_context* ctx, int, sqlite3_value**) {
   const Stats* s = static_cast<const Stats*>(sqlite3_user_data(ctx));
   char buf[256];
@@ -634,17 +714,20 @@ int init_rayscan(sqlite3* db, char** err, const sqlite3_api_routines* api) {
     if (rc == SQLITE_OK)
       rc = sqlite3_create_function(db, (name + "_max").c_str(), 12, flags, ud, bounds_fn<true>, nullptr, nullptr);
   }
-  // The R*Tree callbacks live in libsqlite3 itself (not in the extension API table): this library
-  // links libsqlite3.so.0, as the Debian sqlite3 shell and Python's sqlite3 module do.
-  if (rc == SQLITE_OK) rc = sqlite3_rtree_query_callback(db, "ray_prune", ray_prune, nullptr, nullptr);
-  if (rc == SQLITE_OK) rc = sqlite3_rtree_query_callback(db, "plane_prune", plane_prune, nullptr, nullptr);
-  auto* stats = new Stats;
+  auto* conn = new Conn;
   if (rc == SQLITE_OK)
-    rc = sqlite3_create_module_v2(db, "ray_query", &kModule, stats, [](void* p) { delete static_cast<Stats*>(p); });
+    rc = sqlite3_create_module_v2(db, "ray_query", &kModule, conn, [](void* p) { delete static_cast<Conn*>(p); });
   else
-    delete stats;
+    delete conn;
   if (rc == SQLITE_OK)
-    rc = sqlite3_create_function(db, "rayscan_stats", 0, SQLITE_UTF8, stats, stats_fn, nullptr, nullptr);
+    rc = sqlite3_create_function(db, "rayscan_stats", 0, SQLITE_UTF8, &conn->stats, stats_fn, nullptr, nullptr);
+  if (rc == SQLITE_OK)
+    rc = sqlite3_create_function(db, "rayscan_error", 0, SQLITE_UTF8, conn, error_fn, nullptr, nullptr);
+  // The R*Tree callbacks live in libsqlite3 itself (not in the extension API table): this library
+  // links libsqlite3.so.0, as the Debian sqlite3 shell and Python's sqlite3 module do. They share
+  // the connection's state (its lifetime is the module's: until the connection closes).
+  if (rc == SQLITE_OK) rc = sqlite3_rtree_query_callback(db, "ray_prune", ray_prune, conn, nullptr);
+  if (rc == SQLITE_OK) rc = sqlite3_rtree_query_callback(db, "plane_prune", plane_prune, conn, nullptr);
   if (rc != SQLITE_OK && err) *err = sqlite3_mprintf("rayscan_sqlite: registration failed: %s", sqlite3_errmsg(db));
   return rc;
 }

@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (one per reader: las, ply, pcd, text, laz, copc, and rsi for the
-# index file) with clang++
+# Builds the libFuzzer targets (one per reader: las, ply, pcd, text, laz, copc, rsi for the
+# index file, and sql for the SQL functions' argument parsing) with clang++
 # -fsanitize=fuzzer,address and runs each for a bounded time on a corpus seeded from tests/data
 # (plus the checked-in regression inputs in tests/fuzz/regressions/<format>/).
 # Usage: tests/fuzz/run.sh [SECONDS_PER_TARGET (default 60)] [BUILD_DIR (default build-fuzz)]
-# FUZZ_TARGETS="laz copc" limits the run to some targets; FUZZ_SEED (default 1) fixes libFuzzer's
+# FUZZ_TARGETS="laz copc" limits the run to some targets (FUZZ_TARGETS=sql compiles only what it needs); FUZZ_SEED (default 1) fixes libFuzzer's
 # random seed so that a failure in CI replays locally with the same command. FUZZ_JOBS (default 2)
 # compiles that many sources and runs that many targets at a time (each target single-threaded).
 # Exit status: 0 when no target crashed, 1 otherwise. Crashing inputs are written to
@@ -29,30 +29,36 @@ JOBS="${FUZZ_JOBS:-2}"
 if [ -z "${FUZZ_BUILD:-}" ]; then
 FLAGS=(-std=c++20 -O1 -g -fno-omit-frame-pointer -ffp-contract=off -fsanitize=address,undefined
        -fno-sanitize-recover=undefined -Ibase/include -Ioctree/include -Iio/include -Iio/src -Isite/include
-       -Icamera/include -I/usr/include/liblzf)
-# base, the core, io and site: the readers call into all of them.
+       -Icamera/include -Isql/common/include -I/usr/include/liblzf)
+# base, the core, io and site: the readers call into all of them. The SQL target links only the SQL
+# functions, the SQLite extension and the core's distance functions (as rayscan_sql_common does).
 SOURCES=(base/src/*.cpp octree/src/*.cpp octree/src/*/*.cpp io/src/*.cpp io/src/*/*.cpp site/src/*.cpp site/src/*/*.cpp)
+SQL_SOURCES=(sql/common/functions.cpp sql/sqlite/extension.cpp)
+if [ "${FUZZ_TARGETS:-}" = sql ]; then  # the SQL target alone: none of the readers' sources
+  SOURCES=(octree/src/query/distance.cpp)
+fi
 objs=()
+sql_objs=("$OUT/obj/octree_src_query_distance.cpp.o")
 running=0
-for s in "${SOURCES[@]}"; do
+for s in "${SOURCES[@]}" "${SQL_SOURCES[@]}"; do
   o="$OUT/obj/$(echo "$s" | tr '/' '_').o"
-  if [ ! -f "$o" ] || [ "$s" -nt "$o" ] || [ -n "$(find base io site octree -newer "$o" -name '*.hpp' 2>/dev/null)" ]; then
+  if [ ! -f "$o" ] || [ "$s" -nt "$o" ] || [ -n "$(find base io site octree sql -newer "$o" -name '*.hpp' -o -newer "$o" -name '*.h' 2>/dev/null)" ]; then
     echo "fuzz: compiling $s"
     "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer-no-link -c "$s" -o "$o.tmp" && mv "$o.tmp" "$o" &
     running=$((running + 1))
     if [ "$running" -ge "$JOBS" ]; then wait -n; running=$((running - 1)); fi
   fi
-  objs+=("$o")
+  case "$s" in sql/*) sql_objs+=("$o") ;; *) objs+=("$o") ;; esac
 done
 wait
-for o in "${objs[@]}"; do [ -f "$o" ] || { echo "fuzz: compiling $o failed"; exit 1; }; done
+for o in "${objs[@]}" "${sql_objs[@]}"; do [ -f "$o" ] || { echo "fuzz: compiling $o failed"; exit 1; }; done
 
 fi
 
 # Link every target and seed its corpus, then run up to FUZZ_JOBS targets at a time (each libFuzzer
 # process is single-threaded, so one at a time left a core idle for the whole bounded run).
 
-TARGETS=(${FUZZ_TARGETS:-las ply pcd text laz copc rsi})
+TARGETS=(${FUZZ_TARGETS:-las ply pcd text laz copc rsi sql})
 for fmt in "${TARGETS[@]}"; do
   if [ -n "${FUZZ_BUILD:-}" ]; then
     [ -x "$FUZZ_BUILD/tests/fuzz/fuzz_$fmt" ] ||
@@ -61,7 +67,11 @@ for fmt in "${TARGETS[@]}"; do
   else
     exe="$OUT/fuzz_$fmt"
     echo "fuzz: linking $exe"
-    "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer "tests/fuzz/fuzz_$fmt.cpp" "${objs[@]}" -lgdal -llzf -lz -ltbb -o "$exe"
+    if [ "$fmt" = sql ]; then
+      "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer tests/fuzz/fuzz_sql.cpp "${sql_objs[@]}" -lsqlite3 -o "$exe"
+    else
+      "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer "tests/fuzz/fuzz_$fmt.cpp" "${objs[@]}" -lgdal -llzf -lz -ltbb -o "$exe"
+    fi
   fi
   corpus="$OUT/corpus/$fmt"
   mkdir -p "$corpus" "tests/fuzz/regressions/$fmt"
@@ -73,6 +83,7 @@ for fmt in "${TARGETS[@]}"; do
     laz) seeds=(tests/data/laz/append-bug.laz) ;;  # + the small LAZ files in regressions/laz
     rsi) seeds=() ;;  # the small index files in regressions/rsi (built by `rayscan index`)
     copc) seeds=(tests/data/laz/*.copc.laz) ;;  # lone-star.copc.laz (bundled, 2.7 MB)
+    sql) seeds=() ;;  # the calls below, and regressions/sql
   esac
   for f in "${seeds[@]}"; do
     # Seeds over 256 KiB are cut to their head (libFuzzer's -max_len); small ones are whole.
@@ -82,6 +93,18 @@ for fmt in "${TARGETS[@]}"; do
     printf 'x,y,z,red,green,blue,intensity\n1.5,2.5,3.5,255,0,10,7\n' > "$corpus/seed-header.csv"
     head -n 50 tests/data/pcd/lamppost.pcd | tail -n 30 > "$corpus/seed-xyz.txt"
     head -n 40 tests/data/pcd/utm17_space.pcd | tail -n 10 > "$corpus/seed-utm.xyz"
+  fi
+  if [ "$fmt" = sql ]; then  # one valid call of each kind (fuzz_sql.cpp: the input format)
+    printf 'dist_ray\n0\n0\n0\n1\n0\n0\n1\n2\n3' > "$corpus/seed-dist_ray"
+    printf 'dist_plane\n0\n0\n0\n0\n0\n1\n1.5\n2\n-3' > "$corpus/seed-dist_plane"
+    printf 'ray_time_max\n0\n0\n0\n1\n1\n0\n0\n0\n0\n1\n1\n1' > "$corpus/seed-ray_time_max"
+    printf 'ray_query\n3.5\n3.5\n5\n0\n0\n-1\n4\n2\nNULL\nNULL\n'"'"'ray' > "$corpus/seed-ray_query"
+    printf 'ray_query\n0\n0\n1\n1\n1\n-0.5\n3\n1.5\n0\n9\n'"'"'time' > "$corpus/seed-ray_query_time"
+    printf 'ray_prune\n3.5\n3.5\n5\n0\n0\n-1\n1\n0\n10' > "$corpus/seed-ray_prune"
+    printf 'plane_prune\n0\n0\n0\n1\n0\n0' > "$corpus/seed-plane_prune"
+    printf 'rs_box\n(0,0,0, 1,2,3)' > "$corpus/seed-rs_box"
+    printf 'rs_ray\n(0,0,0,1,0,0,2,-inf,inf)' > "$corpus/seed-rs_ray"
+    printf 'rs_plane\n( 1e3 ,0,0,0,0,1 )' > "$corpus/seed-rs_plane"
   fi
 done
 

@@ -217,12 +217,36 @@ TEST(Distance, RayPointKernelMatchesTextbookFormulas) {
   }
 }
 
-TEST(Ray, HugeFiniteDirectionIsAccepted) {
-  const Ray r(Vec3(0.0), Vec3(1e300, 1e300, 1.0));
-  EXPECT_NEAR(glm::length(r.direction()), 1.0, 1e-15);
-  EXPECT_NEAR(r.direction().x, std::sqrt(0.5), 1e-15);
-  EXPECT_THROW(Ray(Vec3(0.0), Vec3(std::numeric_limits<double>::infinity(), 0, 0)),
-               std::invalid_argument);
+TEST(Ray, DirectionsWithinTheNormalisableRangeAreAccepted) {
+  // The extremes is_valid_direction admits still give a unit direction.
+  for (const double s : {1e-150, 1e150}) {
+    ASSERT_TRUE(is_valid_direction(Vec3(s, s, s)));
+    const Ray r(Vec3(0.0), Vec3(s, s, s));
+    EXPECT_NEAR(glm::length(r.direction()), 1.0, 1e-15);
+    EXPECT_NEAR(r.direction().x, std::sqrt(1.0 / 3.0), 1e-15);
+  }
+}
+
+// A direction whose squared length underflows (0,0,1e-320) or overflows (1e300,...) cannot be
+// normalised as d / |d| by the distance functions: every ray, SQL function and Python call refuses
+// it through the one rule, with one message.
+TEST(Ray, DirectionsOutsideTheNormalisableRangeAreRejected) {
+  const double inf = std::numeric_limits<double>::infinity(), nan = std::nan("");
+  for (const Vec3& d : {Vec3(0, 0, 1e-320), Vec3(1e-160, 0, 0), Vec3(1e-155, 1e-155, 1e-155),
+                        Vec3(1e300, 1e300, 1.0), Vec3(1e155, 0, 0), Vec3(0.0), Vec3(inf, 0, 0),
+                        Vec3(nan, 1, 0)}) {
+    EXPECT_FALSE(is_valid_direction(d)) << d.x << "," << d.y << "," << d.z;
+    try {
+      (void)Ray(Vec3(0.0), d);
+      ADD_FAILURE() << "accepted " << d.x << "," << d.y << "," << d.z;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_STREQ(e.what(), "Ray: direction must be non-zero and finite with a length between about "
+                             "1.5e-154 and 1.3e154 (so that it normalises exactly)");
+    }
+  }
+  // The boundary: |d|^2 = DBL_MIN is the smallest normal square.
+  EXPECT_TRUE(is_valid_direction(Vec3(std::sqrt(std::numeric_limits<double>::min()), 0, 0)));
+  EXPECT_FALSE(is_valid_direction(Vec3(std::sqrt(std::numeric_limits<double>::min()) * 0.5, 0, 0)));
 }
 
 TEST(Ray, DirectionIsNormalised) {

@@ -5,6 +5,7 @@
 
 #include "rayscan/octree/distance.hpp"
 #include "rayscan/sql/functions.h"
+#include "rayscan/sql/import.hpp"
 
 #include <libpq-fe.h>
 
@@ -544,6 +545,102 @@ TEST_F(Postgres, FailedImportLeavesNoHalfTable) {
                 "' --postgres 'host=/nonexistent port=5432' --table x 2>/dev/null"), 2);
   EXPECT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() + "' --postgres '" +
                 conninfo() + "' --table 'Bad-Name' 2>/dev/null"), 2);
+}
+
+
+/// Runs `cmd` with its stderr in a file; returns the exit code and the stderr text.
+std::pair<int, std::string> run_capture(const std::string& cmd) {
+  const fs::path err = fs::temp_directory_path() / ("rayscan-pgtest-" + std::to_string(::getpid()) + ".err");
+  const int rc = run(cmd + " 2> '" + err.string() + "' > /dev/null");
+  std::ifstream f(err);
+  std::string text((std::istreambuf_iterator<char>(f)), {});
+  fs::remove(err);
+  return {rc, text};
+}
+
+// `--table pg_class`: an unqualified COPY pg_class would reach the catalog (pg_catalog comes
+// first in every search path) while CREATE TABLE makes public.pg_class. Every statement names the
+// table with its schema (current_schema(), here also a schema of the connection's own search_path), so the import
+// lands there whole and the catalog is untouched.
+TEST_F(Postgres, TableNamedLikeACatalogTableLandsInTheCurrentSchema) {
+  Pg pg;
+  const std::string cloud = scan_path("autzen").string(), n = std::to_string(cloud_->size());
+  pg.rows("DROP TABLE IF EXISTS public.pg_class, public.pg_class_chunks, public.pg_class_sources");
+  const std::string catalog = "SELECT count(*) FROM pg_catalog.pg_class WHERE relnamespace = 'pg_catalog'::regnamespace";
+  const std::string catalog_rows = pg.rows(catalog)[0][0];
+  const auto [rc, err] = run_capture(std::string(RAYSCAN_BIN) + " db import '" + cloud + "' --postgres '" +
+                                     conninfo() + "' --table pg_class");
+  ASSERT_EQ(rc, 0) << err;
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM public.pg_class")[0][0], n);
+  EXPECT_EQ(pg.rows("SELECT sum(count) FROM public.pg_class_chunks")[0][0], n);
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM public.pg_class_sources")[0][0], "1");
+  // The catalog's own relations are the same; the new ones (3 tables, 4 indexes) are in public.
+  EXPECT_EQ(pg.rows(catalog)[0][0], catalog_rows);
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM pg_catalog.pg_class WHERE relnamespace = 'public'::regnamespace AND "
+                    "relname LIKE 'pg\\_class%'")[0][0], "7");
+  pg.rows("DROP TABLE public.pg_class, public.pg_class_chunks, public.pg_class_sources");
+  // Another schema first in the connection's search path: the tables are created there.
+  pg.rows("DROP SCHEMA IF EXISTS survey CASCADE; CREATE SCHEMA survey");
+  const auto [rc2, err2] = run_capture(std::string(RAYSCAN_BIN) + " db import '" + cloud + "' --postgres '" +
+                                       conninfo() + " options=-csearch_path=survey,public' --table scan");
+  ASSERT_EQ(rc2, 0) << err2;
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM survey.scan")[0][0], n);
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM survey.scan_chunks")[0][0],
+            pg.rows("SELECT count(DISTINCT chunk) FROM survey.scan")[0][0]);
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM pg_class WHERE relname = 'scan' AND relnamespace = 'public'::regnamespace")[0][0], "0");
+  pg.rows("DROP SCHEMA survey CASCADE");
+}
+
+// A reserved key word as --table (or an attribute) would meet the server's raw syntax error after
+// the whole sort; it is refused before anything is read, with one line (exit 2). The server is the
+// oracle of the list: its key words of category R and T (pg_get_keywords()) are exactly the ones
+// refused, and every system column of a table is a refused column name.
+TEST_F(Postgres, ReservedWordsAndSystemColumnsAreRefusedUpFront) {
+  const std::string bin = RAYSCAN_BIN, cloud = scan_path("autzen").string();
+  const auto [rc, err] = run_capture(bin + " db import '" + cloud + "' --postgres '" + conninfo() + "' --table select");
+  EXPECT_EQ(rc, 2);
+  EXPECT_EQ(err, "rayscan db: --table 'select': 'select' is a reserved key word of PostgreSQL; expected another name\n");
+  const auto [rc2, err2] = run_capture(bin + " db import '" + cloud + "' --postgres '" + conninfo() +
+                                       "' --table ok_name --attributes xmin");
+  EXPECT_EQ(rc2, 2);
+  EXPECT_NE(err2.find("attribute 'xmin': 'xmin' is a system column of PostgreSQL"), std::string::npos) << err2;
+  Pg pg;
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM pg_class WHERE relname IN ('select', 'ok_name')")[0][0], "0");
+  for (const auto& row : pg.rows("SELECT word, catcode FROM pg_get_keywords()")) {
+    const bool reserved = row[1] == "R" || row[1] == "T";
+    EXPECT_EQ(!sql::reserved_sql_name(row[0], false).empty(), reserved) << row[0] << " (" << row[1] << ")";
+  }
+  const auto sys = pg.rows("SELECT attname FROM pg_attribute WHERE attrelid = 'autzen'::regclass AND attnum < 0");
+  EXPECT_GE(sys.size(), 6u);
+  for (const auto& row : sys) EXPECT_NE(sql::reserved_sql_name(row[0], true), "") << row[0];
+}
+
+// A box such as rs_box('Infinity',2,3) would fail only later, in ray_dwithin; non-finite
+// coordinates are refused where a box is made (both constructors and the text input), naming the coordinate.
+TEST_F(Postgres, NonFiniteBoxCoordinatesAreRefusedAtInput) {
+  Pg pg;
+  EXPECT_EQ(pg.error_of("SELECT rs_box('Infinity',2,3)"), "rs_box: x is infinite; expected a finite number");
+  EXPECT_EQ(pg.error_of("SELECT rs_box(1,'-Infinity',3)"), "rs_box: y is infinite; expected a finite number");
+  EXPECT_EQ(pg.error_of("SELECT rs_box(1,2,'NaN')"), "rs_box: z is NaN; expected a finite number");
+  EXPECT_EQ(pg.error_of("SELECT rs_box(0,0,0, 'Infinity',1,1)"), "rs_box: xmax is infinite; expected a finite number");
+  EXPECT_EQ(pg.error_of("SELECT '(0,0,0,1,1,inf)'::rs_box"), "rs_box: zmax is infinite; expected a finite number");
+  EXPECT_EQ(pg.error_of("SELECT '(0,0,0,1,1)'::rs_box"),
+            "invalid input syntax for type rs_box: expected 6 comma-separated numbers in parentheses");
+  EXPECT_EQ(pg.rows("SELECT ray_dwithin(rs_box(1,2,3), 0,0,0, 1,0,0, 3), ray_dwithin(rs_box(1,2,3), 0,0,0, 1,0,0, 3.7)")[0],
+            (std::vector<std::string>{"f", "t"}));  // dist_ray = sqrt(13) = 3.606
+}
+
+// A denormal direction (0,0,1e-320) is not zero but cannot be normalised (its values would be
+// wrong); the core's rule refuses it in every function, with the same text as SQLite.
+TEST_F(Postgres, DirectionsThatCannotBeNormalisedAreErrors) {
+  Pg pg;
+  const std::string tail = " = (0,0,9.99989e-321) cannot be normalised exactly; expected a finite length between "
+                           "about 1.5e-154 and 1.3e154";
+  EXPECT_EQ(pg.error_of("SELECT dist_ray(0,0,0, 0,0,'1e-320', 1,2,3)"), "dist_ray: direction (dx,dy,dz)" + tail);
+  EXPECT_EQ(pg.error_of("SELECT dist_plane(0,0,0, 0,0,'1e-320', 1,2,3)"), "dist_plane: normal (nx,ny,nz)" + tail);
+  EXPECT_EQ(pg.error_of("SELECT ray_within(0,0,0, 0,0,'1e-320', 1)"), "ray_within: direction (dx,dy,dz)" + tail);
+  EXPECT_EQ(pg.error_of("SELECT plane_below(0,0,0, 0,0,'1e-320')"), "plane_below: normal (nx,ny,nz)" + tail);
+  EXPECT_EQ(pg.error_of("SELECT ray_dwithin(rs_box(1,2,3), 0,0,0, 0,0,'1e-320', 1)"), "dist_ray: direction (dx,dy,dz)" + tail);
 }
 
 }  // namespace

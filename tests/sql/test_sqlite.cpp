@@ -12,6 +12,7 @@
 #include <fstream>
 #include <map>
 #include <set>
+#include <tuple>
 
 namespace rayscan::sqltest {
 namespace {
@@ -600,6 +601,141 @@ TEST(SqliteImportCli, StreamingImportEqualsIndexFileImportAndLeavesNoTemporaries
   ASSERT_TRUE(src.step());
   EXPECT_EQ(std::string(reinterpret_cast<const char*>(sqlite3_column_text(src.s, 0))), cloud);
   EXPECT_EQ(src.i64(1), static_cast<long long>(c.size()));
+}
+
+
+/// The text of a file (a command's captured stderr).
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p);
+  return std::string(std::istreambuf_iterator<char>(f), {});
+}
+
+// A direction whose squared length leaves the normal doubles (0,0,1e-320: |d|^2 underflows to 0;
+// 1e300: it overflows) cannot be normalised, and every answer from it would be wrong (ray_query:
+// far points first, dist_ray NULL, dist_plane inf). Every function refuses it through the core's rule with a one-line message; a direction
+// just inside the range answers exactly as its unit multiple (the oracle: the same query with the
+// unit direction).
+TEST(SqliteFunctions, DirectionsThatCannotBeNormalisedAreErrorsNotWrongAnswers) {
+  Db db(site("autzen")->db);
+  const std::string tiny = "direction (dx,dy,dz) = (0,0,9.99989e-321) cannot be normalised exactly; expected "
+                           "a finite length between about 1.5e-154 and 1.3e154";
+  EXPECT_EQ(error_of(db.db, "SELECT dist_ray(0,0,0, 0,0,1e-320, 1,2,3)"), "dist_ray: " + tiny);
+  EXPECT_EQ(error_of(db.db, "SELECT ray_time(0,0,0, 0,0,1e-320, 1,2,3)"), "ray_time: " + tiny);
+  EXPECT_EQ(error_of(db.db, "SELECT dist_plane(0,0,0, 0,0,1e-320, 1,2,3)"),
+            "dist_plane: normal (nx,ny,nz) = (0,0,9.99989e-321) cannot be normalised exactly; expected a "
+            "finite length between about 1.5e-154 and 1.3e154");
+  EXPECT_EQ(error_of(db.db, "SELECT dist_ray_min(0,0,0, 0,0,1e-320, 0,0,0,1,1,1)"), "dist_ray: " + tiny);
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(636500,849000,600, 0,0,1e-320, 5)"), "ray_query: " + tiny);
+  EXPECT_EQ(error_of(db.db, "SELECT dist_ray(0,0,0, 1e300,1e300,1, 1,2,3)"),
+            "dist_ray: direction (dx,dy,dz) = (1e+300,1e+300,1) cannot be normalised exactly; expected a "
+            "finite length between about 1.5e-154 and 1.3e154");
+  // Just inside the range: the same rows, distances and times as the unit direction.
+  const Site& s = *site("autzen");
+  const Ray& ray = s.rays[0];
+  auto rows = [&](double scale) {
+    Stmt st(db.db, "SELECT point_index, distance, t FROM ray_query(?1,?2,?3,?4,?5,?6, 20)");
+    for (int i = 0; i < 3; ++i) st.bind(i + 1, ray.origin()[i]).bind(i + 4, ray.direction()[i] * scale);
+    std::vector<std::tuple<long long, double, double>> out;
+    while (st.step()) out.emplace_back(st.i64(0), st.d(1), st.d(2));
+    return out;
+  };
+  const auto unit = rows(1.0);
+  ASSERT_EQ(unit.size(), 20u);
+  const auto small = rows(1e-150);
+  ASSERT_EQ(small.size(), unit.size());
+  for (std::size_t i = 0; i < unit.size(); ++i) {
+    EXPECT_EQ(std::get<0>(small[i]), std::get<0>(unit[i])) << "rank " << i;
+    EXPECT_NEAR(std::get<1>(small[i]), std::get<1>(unit[i]), 1e-9) << "rank " << i;
+  }
+}
+
+// ray_query's positional arguments fill its hidden columns in order; with five the sixth (dz) is
+// absent, and taking it as 0 would return every point. Each missing ray argument is named.
+TEST(SqliteFunctions, RayQueryWithTooFewArgumentsNamesTheMissingOne) {
+  Db db(site("autzen")->db);
+  const std::string tail = " is missing; expected ray_query(ox,oy,oz, dx,dy,dz [, k, r, t_min, t_max, ord])";
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(636500,849000,600, 0,-1)"), "ray_query: argument dz" + tail);
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(636500,849000,600, 0)"), "ray_query: argument dy" + tail);
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(636500,849000,600)"), "ray_query: argument dx" + tail);
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query()"), "ray_query: argument ox" + tail);
+  // NULL in, no rows, but only for a call with its six ray arguments.
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(3, NULL, 'ray')"), "ray_query: argument dx" + tail);
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(636500,849000,600, 0,-1,0, 3, '2')"),
+            "ray_query: argument r has type text; expected a number");
+}
+
+// ray_prune / plane_prune are R*Tree callbacks, whose API returns only an error code ("SQL logic
+// error"): the reason is rayscan_error()'s. A text radius is an error, not its numeric value.
+TEST(SqliteFunctions, PruneCallbackErrorsKeepTheirReason) {
+  Db db(site("autzen")->db);
+  const auto reason = [&](const std::string& sql) {
+    EXPECT_NE(error_of(db.db, sql), "") << sql;
+    Stmt st(db.db, "SELECT rayscan_error()");
+    EXPECT_TRUE(st.step());
+    const auto* t = sqlite3_column_text(st.s, 0);
+    return t ? std::string(reinterpret_cast<const char*>(t)) : std::string("(null)");
+  };
+  {
+    Stmt st(db.db, "SELECT rayscan_error() IS NULL");
+    ASSERT_TRUE(st.step());
+    EXPECT_EQ(st.i64(0), 1);  // no failure yet
+  }
+  const std::string m = "SELECT id FROM chunks WHERE id MATCH ";
+  EXPECT_EQ(reason(m + "ray_prune(0,0,0, 0,0,0, 1)"), "ray_prune: direction (dx,dy,dz) is zero; expected a non-zero vector");
+  EXPECT_EQ(reason(m + "ray_prune(0,0,0, 1,0,0)"), "ray_prune: 6 arguments; expected ox,oy,oz, dx,dy,dz, r [, t_min, t_max]");
+  EXPECT_EQ(reason(m + "ray_prune(0,0,0, 1,0,0, '1')"), "ray_prune: argument r is text; expected a number");
+  EXPECT_EQ(reason(m + "ray_prune(0,0,0, 1,0,0, 1, 5, 2)"), "ray_prune: t_min/t_max (5, 2): expected t_min <= t_max, not NaN");
+  EXPECT_EQ(reason(m + "ray_prune(0,NULL,0, 1,0,0, 1)"), "ray_prune: argument oy is NULL; expected a number");
+  EXPECT_EQ(reason(m + "ray_prune(0,0,0, 0,0,1e-320, 1)").rfind("ray_prune: direction (dx,dy,dz) = (0,0,", 0), 0u);
+  EXPECT_EQ(reason(m + "plane_prune(0,0,0, 0,0,0)"), "plane_prune: normal (nx,ny,nz) is zero; expected a non-zero vector");
+  EXPECT_EQ(reason(m + "plane_prune(0,0,0, 0,0,x'01')"), "plane_prune: argument nz is a blob; expected a number");
+  // NULL r, t_min, t_max keep their defaults (unbounded), as documented.
+  EXPECT_EQ(error_of(db.db, m + "ray_prune(636500,849000,600, 0,0,-1, NULL, NULL, NULL)"), "");
+}
+
+// An attribute named like a column the engine reserves (a PLY property "rowid") would be SQLite's
+// row id, its values lost. The import refuses such names, before reading, with one line
+// (exit 2). SQLite is the oracle of its reserved names: each is selectable from a table that has
+// no such column.
+TEST(SqliteImportCli, AttributeNamedLikeAReservedColumnIsRefused) {
+  const fs::path ply = tmpdir() / "rowid.ply", out = tmpdir() / "rowid.sqlite", err = tmpdir() / "rowid.err";
+  {
+    std::ofstream f(ply);
+    f << "ply\nformat ascii 1.0\nelement vertex 2000\nproperty float x\nproperty float y\nproperty float z\n"
+         "property float rowid\nend_header\n";
+    for (int i = 0; i < 2000; ++i) f << i % 50 << ' ' << i / 50 << " 0 " << i * 0.5 << '\n';
+  }
+  const std::string bin = RAYSCAN_BIN;
+  for (const std::string attr : {"rowid", "ROWID", "oid", "_rowid_", "ctid", "xmin", "tableoid"}) {
+    EXPECT_EQ(run(bin + " db import " + ply.string() + " -o " + out.string() + " --attributes " + attr + " 2> " +
+                  err.string()), 2) << attr;
+    const std::string e = slurp(err);
+    EXPECT_NE(e.find("attribute '" + attr + "': '"), std::string::npos) << e;
+    EXPECT_NE(e.find("reserved column names: rowid, oid, _rowid_, tableoid, xmin, cmin, xmax, cmax, ctid"),
+              std::string::npos) << e;
+    EXPECT_EQ(std::count(e.begin(), e.end(), '\n'), 1) << e;
+    EXPECT_FALSE(fs::exists(out));
+  }
+  // The same values under a free name are stored whole.
+  {
+    std::ifstream in(ply);
+    std::string text((std::istreambuf_iterator<char>(in)), {});
+    text.replace(text.find("property float rowid"), 20, "property float row_value");
+    std::ofstream(ply) << text;
+  }
+  ASSERT_EQ(run(bin + " db import " + ply.string() + " -o " + out.string() + " --attributes row_value > /dev/null"), 0);
+  Db db(out, false);
+  Stmt st(db.db, "SELECT count(DISTINCT row_value), sum(row_value = point_index * 0.5) FROM points");
+  ASSERT_TRUE(st.step());
+  EXPECT_EQ(st.i64(0), 2000);
+  EXPECT_EQ(st.i64(1), 2000);
+  ASSERT_EQ(sqlite3_exec(db.db, "CREATE TEMP TABLE plain(a)", nullptr, nullptr, nullptr), SQLITE_OK);
+  for (const char* name : {"rowid", "oid", "_rowid_"}) {
+    EXPECT_EQ(error_of(db.db, std::string("SELECT ") + name + " FROM plain"), "") << name;
+    EXPECT_NE(sql::reserved_sql_name(name, true), "") << name;
+    EXPECT_EQ(sql::reserved_sql_name(name, false), "") << name;  // a table may be so named
+  }
+  EXPECT_NE(error_of(db.db, "SELECT row_value FROM plain"), "");  // (the oracle can say no)
 }
 
 }  // namespace

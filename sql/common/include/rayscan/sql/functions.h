@@ -59,7 +59,20 @@ int rs_ray_box_misses(const double o[3], const double d[3], double r, double t_m
 /** Half-space test {p : dist_plane(p0, n, p) <= 0} over a box (a frustum is a set of them). */
 rs_within rs_plane_box_test(const double p0[3], const double n[3], const double box[6]);
 
-/** Checks query arguments: origin and direction finite, direction non-zero, r >= 0 and not NaN,
+/** Parses the text form of the PostgreSQL types rs_box, rs_ray, rs_plane: "(v1,...,vn)" with spaces
+ * allowed around the numbers, each number as strtod reads it (so "inf" and "nan" parse: the types'
+ * own checks refuse them where they are not allowed). Writes n doubles to v. Returns NULL, or
+ * "invalid input syntax for type <type>: expected <n> comma-separated numbers in parentheses". */
+const char* rs_parse_tuple(const char* s, double* v, int n, const char* type, char err[RS_ERRBUF]);
+
+/** Checks a ray direction (normal = 0, named "direction (dx,dy,dz)") or a plane normal (normal = 1,
+ * "normal (nx,ny,nz)") against the core's rule (rayscan::is_valid_direction in
+ * rayscan/octree/ray.hpp): non-zero, finite, and |v|^2 a normal double (about 1.5e-154 <= |v| <=
+ * 1.3e154), so that v / |v| is finite and exact. `fn` names the SQL function in the message.
+ * NULL when valid. */
+const char* rs_check_direction(const char* fn, int normal, const double v[3], char err[RS_ERRBUF]);
+
+/** Checks query arguments: origin and direction finite, direction valid (rs_check_direction), r >= 0 and not NaN,
  * t_min <= t_max, neither NaN. `fn` names the SQL function in the message. NULL when valid. */
 const char* rs_check_ray(const char* fn, const double o[3], const double d[3], double r,
                          double t_min, double t_max, char err[RS_ERRBUF]);

@@ -39,6 +39,19 @@ struct ImportOptions {
 /// names they know.
 [[nodiscard]] bool is_sql_identifier(const std::string& s, std::size_t max_len, bool allow_upper);
 
+/// The name PostgreSQL folds an unquoted identifier to, and the one SQLite compares names by:
+/// ASCII upper case to lower case.
+[[nodiscard]] std::string folded_sql_name(std::string name);
+
+/// The second half of the identifier check (the first is is_sql_identifier): why `name`, compared
+/// without case, cannot name a table (column = false) or a column (column = true) of an import, or
+/// "" when it can. Refused: the engines' own column names (SQLite's row id rowid, oid, _rowid_: a
+/// column so named would be the row id; PostgreSQL's system columns tableoid, xmin, cmin, xmax,
+/// cmax, ctid, oid), for columns only, and PostgreSQL's reserved key words (select, order, user,
+/// ...), which would need quotes in every query. The message reads "'rowid' is SQLite's row id
+/// (reserved column names: ...)".
+[[nodiscard]] std::string reserved_sql_name(const std::string& name, bool column);
+
 /// One extra column of the points table.
 struct AttributeColumn {
   std::string name;  ///< column name (an SQL identifier: [A-Za-z_][A-Za-z0-9_]*)
@@ -48,7 +61,8 @@ struct AttributeColumn {
 };
 
 /// Checks the requested attribute names (`--attributes`) before an import reads anything: each an
-/// SQL identifier (is_sql_identifier, 63 characters), and no two columns they make ("rgb": red,
+/// SQL identifier (is_sql_identifier, 63 characters) that no engine reserves (reserved_sql_name),
+/// and no two columns they make ("rgb": red,
 /// green, blue; any other name: itself) equal but for case to each other or to a built-in column
 /// (point_index, source, chunk, x, y, z), since PostgreSQL folds unquoted names to lower case and
 /// SQLite compares names without case: e.g. an attribute asked twice, "GpsTime" with "gpstime",
@@ -92,6 +106,11 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& clouds,
 ///   attributes as double / int64_t; scale 1, uncompressed) and
 ///   <table>(chunk int primary key, pa pcpatch(pcid), box rs_box) with a GiST index on box: one
 ///   patch per chunk, written as uncompressed patch WKB (pgpointcloud README, "Binary Formats").
+/// Every table lives in the connection's current_schema() (the first existing schema of its
+/// search_path) and every statement names it schema-qualified and quoted, so `--table pg_class`
+/// writes <schema>.pg_class and never the catalog's. `table` must be a lower-case identifier of at
+/// most 50 characters that reserved_sql_name accepts (OptionError "table" otherwise, before
+/// anything is read); attribute columns are the folded (lower-case) names.
 /// Throws as import_sqlite; std::runtime_error ("postgres: <message>") for server errors.
 ImportSummary import_postgres(const std::vector<std::filesystem::path>& clouds,
                               const std::string& conninfo, const std::string& table,

@@ -1,0 +1,102 @@
+"""Argument checking of the module: a value of the wrong type raises TypeError, a value out of range
+(any size of integer, a file name with a NUL byte) ValueError, each with the library's one-line
+message naming the argument and what was expected, never pybind11's "incompatible function
+arguments" or an OSError without a reason. The boundary values themselves are accepted."""
+
+import pathlib
+
+import numpy as np
+import pytest
+
+import rayscan
+from conftest import SOURCE
+
+HUGE = 2**70  # past every C++ integer type
+
+
+def check(call, kind, message):
+    with pytest.raises(kind) as e:
+        call()
+    assert type(e.value) is kind, (type(e.value), str(e.value))
+    assert str(e.value) == message, str(e.value)
+
+
+def test_index_and_query_integers(uniform_cloud):
+    xyz = uniform_cloud
+    tree = rayscan.Octree(xyz)
+    o, d = np.zeros(3), np.ones(3)
+    count = "an integer in [1, 2^32 - 1]"
+    check(lambda: rayscan.Octree(xyz, capacity=HUGE), ValueError, f"capacity must be {count}, got {HUGE}")
+    check(lambda: rayscan.KdTree(xyz, capacity=2**32), ValueError, f"capacity must be {count}, got {2**32}")
+    check(lambda: rayscan.Octree(xyz, capacity=-1), ValueError, f"capacity must be {count}, got -1")
+    check(lambda: rayscan.Octree(xyz, capacity=2.5), TypeError, f"capacity must be {count}, got float")
+    check(lambda: rayscan.KdTree(xyz, capacity="8"), TypeError, f"capacity must be {count}, got str")
+    check(lambda: rayscan.Octree(xyz, capacity=True), TypeError, f"capacity must be {count}, got bool")
+    check(lambda: rayscan.Octree(xyz, depth=-HUGE), ValueError, f"depth must be an integer in [0, 21], got {-HUGE}")
+    check(lambda: rayscan.Octree(xyz, max_depth=None), TypeError, "max_depth must be an integer in [0, 21], got NoneType")
+    threads = "0 (all cores) or a positive count up to 4096"
+    check(lambda: tree.ray_query(o, d, threads=HUGE), ValueError, f"threads must be {threads}, got {HUGE}")
+    check(lambda: tree.knn(o, k=1, threads=-1), ValueError, f"threads must be {threads}, got -1")
+    check(lambda: tree.box(o, d, threads=1.0), TypeError, f"threads must be {threads}, got float")
+    # The boundaries and NumPy integers are accepted.
+    assert rayscan.KdTree(xyz, capacity=2**32 - 1).capacity == 2**32 - 1
+    assert rayscan.Octree(xyz, capacity=np.uint16(7), depth=np.int8(0)).capacity == 7
+    assert len(tree.box(o, d, threads=np.int64(4096)).offsets) == 2
+
+
+def test_direction_that_cannot_be_normalised_is_refused_like_the_cli(uniform_cloud):
+    tree = rayscan.Octree(uniform_cloud)
+    rule = ("Ray: direction must be non-zero and finite with a length between about 1.5e-154 and "
+            "1.3e154 (so that it normalises exactly)")
+    for d in ([0, 0, 1e-320], [1e300, 1e300, 1.0]):
+        check(lambda: tree.ray_query([0.5, 0.5, 2.0], d), ValueError, "ray 0: " + rule)
+    # Just inside the range: the answer of the unit direction.
+    a = tree.ray_query([0.5, 0.5, 2.0], [0, 0, -1e-150], k=5)
+    b = tree.ray_query([0.5, 0.5, 2.0], [0, 0, -1.0], k=5)
+    assert a.indices.tolist() == b.indices.tolist() and len(b.indices) == 5
+
+
+def test_read_arguments(data_dir, tmp_path):
+    las = data_dir / "las" / "autzen_trim.las"
+    check(lambda: rayscan.read(las, [1, 2]), TypeError,
+          "attributes must be a str or a list of str, got a list holding int (item 0)")
+    check(lambda: rayscan.read(las, ["xyz", None]), TypeError,
+          "attributes must be a str or a list of str, got a list holding NoneType (item 1)")
+    check(lambda: rayscan.read(las, 5), TypeError, "attributes must be a str or a list of str, got int")
+    check(lambda: rayscan.read(str(las) + "\0.las"), ValueError,
+          "path " + repr(str(las) + "\0.las") + " contains a NUL byte; expected a file name")
+    check(lambda: rayscan.read(bytes(las)), TypeError, "path must be a file name (str or os.PathLike), got bytes")
+    check(lambda: rayscan.read(12), TypeError, "path must be a file name (str or os.PathLike), got int")
+    # A path-like object and a tuple of names are accepted.
+    pc = rayscan.read(pathlib.Path(las), ("xyz", "intensity"))
+    assert pc.attributes == ["xyz", "intensity"] and len(pc) > 0
+
+
+@pytest.mark.skipif(not hasattr(rayscan, "render"), reason="module built without the library's job API")
+def test_job_arguments(tmp_path):
+    scene = SOURCE / "scenes" / "autzen_overview.json"
+    u64 = "an integer in [0, 2^64 - 1]"
+    check(lambda: rayscan.render(scene, seed=-1), ValueError, f"seed must be {u64}, got -1")
+    check(lambda: rayscan.render(scene, seed=2**64), ValueError, f"seed must be {u64}, got {2**64}")
+    check(lambda: rayscan.render(scene, seed="1"), TypeError, f"seed must be {u64}, got str")
+    size = "None or an integer in [1, 2^32 - 1]"
+    check(lambda: rayscan.render(scene, width=HUGE), ValueError, f"width must be {size}, got {HUGE}")
+    check(lambda: rayscan.render(scene, spp=0), ValueError, f"spp must be {size}, got 0")
+    check(lambda: rayscan.render(scene, aovs=[1]), TypeError,
+          "aovs must be a str or a list of str, got a list holding int (item 0)")
+    check(lambda: rayscan.render(str(scene) + "\0"), ValueError,
+          "scene " + repr(str(scene) + "\0") + " contains a NUL byte; expected a file name")
+    check(lambda: rayscan.render(scene, camera="cam\0.json"), ValueError,
+          "camera 'cam\\x00.json' contains a NUL byte; expected a file name")
+    cloud = SOURCE / "scenes" / "data" / "autzen_trim.las"
+    obs = [[0.0, 0.0, 0.0]]
+    check(lambda: rayscan.visibility(cloud, obs, sky_rays=-1), ValueError,
+          "sky_rays must be an integer in [0, 2^32 - 1], got -1")
+    check(lambda: rayscan.visibility(cloud, obs, sky_rays=HUGE), ValueError,
+          f"sky_rays must be an integer in [0, 2^32 - 1], got {HUGE}")
+    check(lambda: rayscan.visibility("a\0.las", obs), ValueError,
+          "cloud 'a\\x00.las' contains a NUL byte; expected a file name")
+    check(lambda: rayscan.compare("ref\0.png", np.zeros((2, 2))), ValueError,
+          "reference 'ref\\x00.png' contains a NUL byte; expected a file name")
+    check(lambda: rayscan.compare(np.zeros((2, 2)), np.zeros((2, 2)), channels=[3]), TypeError,
+          "channels must be a str or a list of str, got a list holding int (item 0)")
