@@ -19,7 +19,7 @@ Format format_from_extension(const std::filesystem::path& path) {
   if (e == ".xyz" || e == ".csv" || e == ".txt" || e == ".pts") return Format::text;
   if (e == ".f64") return Format::f64;
   throw FormatError(path.string() + ": unknown point cloud extension '" + e +
-                    "' (expected .las, .ply, .pcd, .xyz, .csv, .txt, .pts or .f64)");
+                    "' (expected .las, .laz, .copc.laz, .copc, .ply, .pcd, .xyz, .csv, .txt, .pts or .f64)");
 }
 
 namespace {

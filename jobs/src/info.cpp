@@ -4,6 +4,7 @@
 #include "rayscan/io/point_reader.hpp"
 
 #include <nlohmann/json.hpp>
+#include <ogr_spatialref.h>
 
 #include <algorithm>
 #include <cmath>
@@ -42,6 +43,46 @@ bool same_box(const AABB& a, const AABB& b, const std::optional<Vec3>& scale) {
     if (std::abs(a.lo[k] - b.lo[k]) > tol || std::abs(a.hi[k] - b.hi[k]) > tol) return false;
   }
   return true;
+}
+
+/// Fills r.horizontal_unit, r.vertical_unit and r.warnings from r.crs_wkt and r.bounds through
+/// GDAL's OGRSpatialReference (PROJ's unit names). A WKT GDAL cannot parse leaves them empty.
+void describe_crs(InfoJobResult& r) {
+  if (r.crs_wkt.empty()) return;
+  OGRSpatialReference srs;
+  if (srs.importFromWkt(r.crs_wkt.c_str()) != OGRERR_NONE) return;
+  const char* name = nullptr;
+  if (srs.IsGeographic()) {
+    srs.GetAngularUnits(&name);
+    if (name) r.horizontal_unit = name;
+  } else if (srs.IsProjected() || srs.IsGeocentric()) {
+    srs.GetLinearUnits(&name);
+    if (name) r.horizontal_unit = name;
+  }
+  if (srs.IsCompound() || srs.IsVertical()) {
+    name = nullptr;
+    srs.GetTargetLinearUnits("VERT_CS", &name);
+    if (name) r.vertical_unit = name;
+  }
+  if (r.count == 0) return;
+  const bool degrees_like = std::abs(r.bounds.lo.x) <= 180.0 && std::abs(r.bounds.hi.x) <= 180.0 &&
+                            std::abs(r.bounds.lo.y) <= 90.0 && std::abs(r.bounds.hi.y) <= 90.0;
+  if (srs.IsGeographic() && !degrees_like)
+    r.warnings.push_back("the CRS is geographic (degrees) but the coordinates reach beyond +-180 / +-90: they look "
+                         "projected; the file's CRS is probably wrong");
+  else if (srs.IsGeocentric()) {
+    // Earth-centred coordinates of points on or near the surface lie 6,353-6,384 km from the
+    // centre (the WGS 84 ellipsoid's semi-axes, +-10 km of terrain); the centre of the bounds of a
+    // site does too.
+    const double d = glm::length(0.5 * (r.bounds.lo + r.bounds.hi)) * srs.GetLinearUnits();
+    if (d < 6.34e6 || d > 6.40e6)
+      r.warnings.push_back("the CRS is geocentric (ECEF) but the points lie " + std::to_string(std::lround(d / 1000.0)) +
+                           " km from the Earth's centre (expected about 6,370 km): they look projected; the file's "
+                           "CRS is probably wrong");
+  } else if (srs.IsProjected() && degrees_like)
+    r.warnings.push_back("the CRS is projected (" + r.horizontal_unit +
+                         ") but every coordinate lies within +-180 / +-90: they look like degrees; the file's CRS is "
+                         "probably wrong");
 }
 
 }  // namespace
@@ -86,8 +127,12 @@ InfoJobResult run_info(const InfoJobOptions& options) {
     r.crs_wkt = m.crs_wkt();
     return r;
   }
-  // Streaming: one chunk in memory at a time, whatever the file size (cloud_stats.hpp).
-  const auto reader = open_point_reader(options.file);
+  // Streaming: one chunk in memory at a time, whatever the file size (cloud_stats.hpp). Colour as
+  // stored, as `pdal info` reports it: an 8-bit LAS colour 0..236 is shown as 0..236, not as the
+  // readers' 16-bit rendering of it (x 257).
+  ReadOptions ro;
+  ro.stored_colour = true;
+  const auto reader = open_point_reader(options.file, AttributeSet::all(), ro);
   CloudStats stats = scan_point_cloud(*reader);
   r.info = reader->info();
   r.count = stats.count;
@@ -96,6 +141,7 @@ InfoJobResult run_info(const InfoJobOptions& options) {
   r.classes = std::move(stats.classification_counts);
   r.header_differs = r.info.header_bounds && r.count != 0 && !same_box(*r.info.header_bounds, r.bounds, r.info.scale);
   r.crs_wkt = reader->crs_wkt();
+  describe_crs(r);
   if (r.info.format == "COPC") r.copc = read_copc_info(options.file);
   return r;
 }
@@ -110,7 +156,8 @@ std::string dump_report(nlohmann::ordered_json j) {
     return j.dump(2);
   } catch (const nlohmann::json::type_error&) {
   }
-  j["warnings"] = {"text fields of the file hold bytes that are not UTF-8; each was replaced by U+FFFD"};
+  if (!j.contains("warnings")) j["warnings"] = nlohmann::ordered_json::array();
+  j["warnings"].push_back("text fields of the file hold bytes that are not UTF-8; each was replaced by U+FFFD");
   return j.dump(2, ' ', false, nlohmann::ordered_json::error_handler_t::replace);
 }
 
@@ -229,8 +276,11 @@ std::string info_report_json(const InfoJobResult& r) {
   if (!r.info.crs_source.empty()) crs["source"] = r.info.crs_source;
   if (r.info.epsg != 0) crs["epsg"] = r.info.epsg;
   if (r.info.vertical_epsg != 0) crs["vertical_epsg"] = r.info.vertical_epsg;
+  if (!r.horizontal_unit.empty()) crs["horizontal_unit"] = r.horizontal_unit;
+  if (!r.vertical_unit.empty()) crs["vertical_unit"] = r.vertical_unit;
   crs["wkt"] = r.crs_wkt;
   j["crs"] = crs;
+  if (!r.warnings.empty()) j["warnings"] = r.warnings;
   nlohmann::ordered_json attrs = nlohmann::ordered_json::array();
   for (const AttributeRange& a : r.attributes) attrs.push_back({{"name", a.name}, {"min", a.lo}, {"max", a.hi}});
   j["attributes"] = attrs;
@@ -303,6 +353,10 @@ std::string info_report_text(const InfoJobResult& r) {
     o << " from " << r.info.crs_source;
   }
   o << "\n";
+  if (!r.horizontal_unit.empty())
+    o << "units:             " << r.horizontal_unit << " (horizontal)"
+      << (r.vertical_unit.empty() ? std::string() : ", " + r.vertical_unit + " (vertical)") << "\n";
+  for (const std::string& w : r.warnings) o << "warning:           " << w << "\n";
   if (!r.crs_wkt.empty()) o << "WKT:               " << r.crs_wkt.substr(0, 100) << (r.crs_wkt.size() > 100 ? "..." : "") << "\n";
   if (!r.attributes.empty()) {
     o << "attributes:\n";

@@ -104,6 +104,47 @@ TEST(InfoCli, NonUtf8AndControlBytesOfTheFileAreReplacedOrEscaped) {
   EXPECT_NE(text.find("NAD_1983\\x1bHARN"), std::string::npos) << text;
 }
 
+// Colour as stored (as `pdal info`): autzen_trim stores 8-bit values in the 16-bit fields, shown
+// before as the readers' x 257 rendering (10280..60652). The CRS's units, from its WKT (UNIT
+// ["foot",0.3048]); and lone-star, whose CRS is geocentric (GEOCCS) over UTM-like metres 4,945 km
+// from the Earth's centre, gets a warning (its GeoTIFF showed "Invalid angle"). Oracle: the
+// file's own bytes.
+TEST(InfoCli, ColourAsStoredUnitsAndAGeographicCrsOverProjectedCoordinates) {
+  RAYSCAN_REQUIRE_FILE(p, "las/autzen_trim.las");
+  const auto b = slurp(p);
+  std::uint32_t off = 0, n = 0;
+  std::uint16_t len = 0;
+  std::memcpy(&off, b.data() + 96, 4);
+  std::memcpy(&len, b.data() + 105, 2);
+  std::memcpy(&n, b.data() + 107, 4);
+  ASSERT_EQ(b[104], 3);  // PDRF 3: red at byte 28 of a record
+  std::uint16_t lo = 65535, hi = 0;
+  for (std::uint32_t i = 0; i < n; ++i) {
+    std::uint16_t red = 0;
+    std::memcpy(&red, b.data() + off + std::size_t{i} * len + 28, 2);
+    lo = std::min(lo, red), hi = std::max(hi, red);
+  }
+  const fs::path out = temp_dir() / "units.json", err = temp_dir() / "units.err";
+  ASSERT_EQ(run("info --json '" + p.string() + "'", out, err), 0) << text_of(err);
+  const auto j = nlohmann::json::parse(text_of(out));
+  bool seen = false;
+  for (const auto& a : j["attributes"])
+    if (a["name"] == "red") {
+      seen = true;
+      EXPECT_EQ(a["min"].get<double>(), lo);
+      EXPECT_EQ(a["max"].get<double>(), hi);
+    }
+  EXPECT_TRUE(seen);
+  EXPECT_EQ(j["crs"]["horizontal_unit"], "foot");
+  EXPECT_FALSE(j.contains("warnings")) << j["warnings"];
+  RAYSCAN_REQUIRE_FILE(copc, "laz/lone-star.copc.laz");
+  ASSERT_EQ(run("info --json '" + copc.string() + "'", out, err), 0) << text_of(err);
+  const auto c = nlohmann::json::parse(text_of(out));
+  ASSERT_TRUE(c.contains("warnings")) << c["crs"].dump();
+  EXPECT_NE(c["warnings"][0].get<std::string>().find("the CRS is geocentric (ECEF) but the points lie 4945 km"),
+            std::string::npos) << c["warnings"];
+}
+
 TEST(InfoCli, TextReportsDroppedNanPointsAndDifferingHeaderBounds) {
   RAYSCAN_REQUIRE_FILE(pcd, "pcd/office1.pcd");
   const fs::path out = temp_dir() / "info.txt", err = temp_dir() / "info.err";

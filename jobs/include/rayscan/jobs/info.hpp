@@ -64,6 +64,13 @@ struct InfoJobResult {
   std::vector<AttributeRange> attributes;    ///< every attribute present, in a fixed order
   std::map<int, std::uint64_t> classes;      ///< points per ASPRS class code
   std::string crs_wkt;                       ///< the cloud's CRS as WKT ("" = none)
+  /// Units of the CRS as GDAL/PROJ name them ("metre", "US survey foot", "foot", "degree"):
+  /// horizontal (linear for a projected CRS, angular for a geographic one) and vertical (of a
+  /// compound CRS's vertical part); "" when there is no CRS or no such part.
+  std::string horizontal_unit, vertical_unit;
+  /// What a careful reader should know (a geographic CRS over coordinates that are not degrees,
+  /// or a projected one over coordinates that look like degrees), one sentence each.
+  std::vector<std::string> warnings;
   std::optional<IndexFileSummary> index;     ///< set for an index file (.rsi); then info is mostly empty
   std::optional<CopcInfo> copc;              ///< set for a COPC file: its octree (hierarchy)
 };
