@@ -9,6 +9,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 
 using rayscan::test::data_file;
@@ -107,12 +108,35 @@ TEST(JobCli, VersionReportsTheProjectVersionCommitAndLibraries) {
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["version"], RAYSCAN_PROJECT_VERSION);
   const auto git = run_command("git -C " + quoted(RAYSCAN_SOURCE_DIR) + " rev-parse --short=12 HEAD", false);
-  if (git.code == 0 && git.out.size() > 1)
+  if (git.code == 0 && git.out.size() > 1) {
     EXPECT_EQ(j["git_commit"].get<std::string>().substr(0, 12), git.out.substr(0, 12)) << r.out;
+  }
   for (const char* lib : {"tbb", "gdal", "sqlite", "nlohmann_json"})
     EXPECT_FALSE(j["libraries"][lib].get<std::string>().empty()) << lib;
   const auto v = rayscan_cli("--version");
   EXPECT_EQ(v.code, 0);
   EXPECT_EQ(v.out.rfind(std::string("rayscan ") + RAYSCAN_PROJECT_VERSION + ", ", 0), 0u) << v.out;
   EXPECT_NE(v.out.find(j["simd"].get<std::string>()), std::string::npos) << v.out;
+}
+
+// `rayscan index` with standard error in a log file (not a terminal): plain progress lines, no
+// carriage return (the status line redrawn with \r made one 35 KB line of a 2e8-point build's
+// log), each line a complete "index: <phase> ..." line, and the summary on standard output.
+TEST(JobCli, IndexProgressIntoALogFileIsPlainLines) {
+  const std::filesystem::path dir = temp_dir() / "index_log";
+  std::filesystem::create_directories(dir);
+  const std::filesystem::path log = dir / "err.log";
+  // In a subshell, so that run_command's own redirection of standard error applies outside it.
+  std::string cmd = "(";
+  cmd.append(quoted(RAYSCAN_BIN)).append(" index ").append(quoted(data_file("las/autzen_trim.las")));
+  cmd.append(" -o ").append(quoted(dir / "a.rsi")).append(" 2> ").append(quoted(log)).append(")");
+  const auto r = run_command(cmd, false);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("110000 points"), std::string::npos) << r.out;
+  const std::string text = rayscan::test::file_bytes(log);
+  EXPECT_FALSE(text.empty());  // the build reports at least once
+  EXPECT_EQ(text.find('\r'), std::string::npos) << text;
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);) EXPECT_EQ(line.rfind("index: ", 0), 0u) << line;
+  std::filesystem::remove_all(dir);
 }
