@@ -4,6 +4,7 @@
 #include "processes.hpp"
 
 #include "rayscan/base/byte_size.hpp"
+#include "rayscan/base/file_names.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/jobs/query.hpp"
 #include "atomic_file.hpp"
@@ -63,6 +64,10 @@ int run_query(const QueryOptions& o) {
   if (!o.out.empty() && o.out != "-") {  // checked before the queries, not after them
     const std::filesystem::path out[] = {o.out}, in[] = {o.cloud, o.rays};
     rayscan::require_outputs(out, in);
+    // The hits are CSV: a name promising another format (hits.las) would get CSV text.
+    if (!rayscan::has_extension(o.out, {".csv"}))
+      throw UsageError("--out '" + o.out + "': " + rayscan::extensions_expected({".csv"}) +
+                       " (the hits are CSV; '-' or no --out writes them to standard output)");
   }
   const jobs::QueryJobResult r = jobs::run_query(job);
   if (!is_root()) return 0;  // only rank 0 holds every hit and writes
@@ -108,7 +113,7 @@ Runner add_query_command(CLI::App& app) {
       ->check(CLI::Range(0, 21));
   c->add_flag("--insertion", o->index.insertion,
               "Build the octree by point insertion instead of Morton bulk loading (octrees only)");
-  c->add_option("--out", o->out, "Output CSV (default: standard output)");
+  c->add_option("--out", o->out, "Output CSV, a name ending in .csv (default: standard output)");
   c->add_option("--cache", o->cache,
                 "COPC input: bound on decoded node data kept in memory (LRU; e.g. 2G, 512M). A COPC file is "
                 "queried on its own hierarchy, decoding only the nodes the rays reach")

@@ -140,3 +140,24 @@ TEST(JobCli, IndexProgressIntoALogFileIsPlainLines) {
   for (std::string line; std::getline(lines, line);) EXPECT_EQ(line.rfind("index: ", 0), 0u) << line;
   std::filesystem::remove_all(dir);
 }
+
+// `query --out` writes CSV, so a name promising another format is refused before the queries
+// (it received CSV text); a .csv name and standard output work. Oracle: the file's bytes.
+TEST(JobCli, QueryOutputMustBeCsv) {
+  const std::filesystem::path dir = temp_dir() / "query_out";
+  std::filesystem::create_directories(dir);
+  {
+    std::ofstream r(dir / "rays.csv");
+    r << "ox,oy,oz,dx,dy,dz\n636500,849200,1000,0,0,-1\n";
+  }
+  const std::string base = "query --cloud " + quoted(data_file("las/autzen_trim.las")) + " --rays " +
+                           quoted(dir / "rays.csv") + " --radius 5 --out ";
+  const auto bad = rayscan_cli(base + quoted(dir / "hits.las"));
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.out.find("hits.las': expected a file name ending in .csv"), std::string::npos) << bad.out;
+  EXPECT_FALSE(std::filesystem::exists(dir / "hits.las"));
+  const auto ok = rayscan_cli(base + quoted(dir / "hits.csv"));
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  EXPECT_EQ(rayscan::test::file_bytes(dir / "hits.csv").rfind("ray,", 0), 0u);
+  std::filesystem::remove_all(dir);
+}
