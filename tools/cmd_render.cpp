@@ -42,7 +42,9 @@ int run_render(const RenderCliOptions& o) {
   ov.width = o.width;
   ov.height = o.height;
   ov.seed = o.seed;
-  ov.out = o.out;
+  // A quick look without --out writes <stem>.png in the working directory ("wrote ..." says so).
+  const bool default_out = o.out.empty() && !o.print_scene && !o.ortho_res && o.frames.empty() && is_cloud_input(o.scene);
+  ov.out = default_out ? quick_look_image_name(o.scene).string() : o.out;
   ov.aovs = o.aovs;
   ov.primitive = o.primitive;
   ov.colmap_dir = o.colmap_dir;
@@ -140,7 +142,8 @@ Runner add_render_command(CLI::App& app) {
                 "look: radius auto, colour from RGB if present else elevation, default sky and sun, and (as for a "
                 "scene without a camera) an overview camera framing the whole cloud")->required();
   c->add_option("--camera", o->camera, "Camera file (JSON), replaces the scene's camera");
-  c->add_option("--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image");
+  c->add_option("--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image; a quick look of a "
+                "cloud without it writes <stem>.png in the working directory");
   c->add_option("--spp", o->spp, "Samples per pixel, integer in [1, 1048576] (default: the scene's value, 16 if unset)")->check(CLI::Range(1u, 1u << 20));
   c->add_option("--seed", o->seed, "Random seed, unsigned 64-bit integer; the image is a pure function of it "
                 "(default: the scene's value, 0 if unset)")

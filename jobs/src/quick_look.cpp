@@ -72,18 +72,29 @@ std::optional<CloudSummary> summary_in_place(const std::filesystem::path& path) 
   return std::nullopt;
 }
 
+bool is_cloud_input(const std::filesystem::path& input) {
+  if (io::is_index_file(input)) return true;
+  try {
+    (void)io::format_from_extension(input);
+    return true;
+  } catch (const io::FormatError&) {
+    return false;
+  }
+}
+
+std::filesystem::path quick_look_image_name(const std::filesystem::path& cloud) {
+  std::string stem = cloud.stem().string();
+  if (lower_extension(stem) == ".copc") stem = std::filesystem::path(stem).stem().string();
+  return stem + ".png";
+}
+
 ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverrides& ov,
                             const std::function<CloudSummary(const std::filesystem::path&)>& cloud) {
   namespace fs = std::filesystem;
   ResolvedScene res;
   // A point cloud by its extension (io::format_from_extension); anything else is read as a scene,
   // so its errors (not JSON, a device, missing) are the scene file's.
-  bool is_scene = false;
-  try {
-    (void)io::format_from_extension(input);
-  } catch (const io::FormatError&) {
-    is_scene = !io::is_index_file(input);
-  }
+  const bool is_scene = !is_cloud_input(input);
   const fs::path base = fs::absolute(input);
   json j;
   if (is_scene) {

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <utility>
 
 using rayscan::test::data_file;
 using rayscan::test::run_command;
@@ -159,5 +160,21 @@ TEST(JobCli, QueryOutputMustBeCsv) {
   const auto ok = rayscan_cli(base + quoted(dir / "hits.csv"));
   EXPECT_EQ(ok.code, 0) << ok.out;
   EXPECT_EQ(rayscan::test::file_bytes(dir / "hits.csv").rfind("ray,", 0), 0u);
+  std::filesystem::remove_all(dir);
+}
+
+// The quick look of a cloud without --out writes <stem>.png in the working directory and says so
+// ("wrote ..."); a COPC file's stem drops ".copc". Before, it failed: "/output/image: not set".
+TEST(JobCli, QuickLookWithoutOutWritesStemPngHere) {
+  const std::filesystem::path dir = temp_dir() / "quick_look_cwd";
+  std::filesystem::create_directories(dir);
+  for (const auto& [file, png] : {std::pair<std::string, std::string>{"las/autzen_trim.las", "autzen_trim.png"},
+                                  {"laz/lone-star.copc.laz", "lone-star.png"}}) {
+    const auto r = run_command("cd " + quoted(dir) + " && " + quoted(RAYSCAN_BIN) + " render " + quoted(data_file(file)) +
+                               " -q --spp 1 --width 60");
+    EXPECT_EQ(r.code, 0) << r.out;
+    EXPECT_NE(r.out.find("wrote " + png), std::string::npos) << r.out;
+    EXPECT_EQ(rayscan::test::file_bytes(dir / png).substr(1, 3), "PNG") << png;
+  }
   std::filesystem::remove_all(dir);
 }

@@ -47,6 +47,14 @@ struct CloudSummary {
 /// its quick look renders the points read whole). Throws io::IndexError for a bad index file.
 std::optional<CloudSummary> summary_in_place(const std::filesystem::path& path);
 
+/// True when `input` names a point cloud rather than a scene: an extension the io library reads
+/// (io::format_from_extension) or an index file (.rsi). The one rule of resolve_scene and the CLI.
+bool is_cloud_input(const std::filesystem::path& input);
+
+/// The image a quick look of `cloud` writes when no output is given: "<stem>.png" in the working
+/// directory, the stem without a ".copc" ("lone-star.copc.laz" -> "lone-star.png").
+std::filesystem::path quick_look_image_name(const std::filesystem::path& cloud);
+
 /// The scene a `rayscan render INPUT [flags]` command line means, and its JSON.
 struct ResolvedScene {
   Scene scene;       ///< parsed and with every override applied (what the render job runs)
