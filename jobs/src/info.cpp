@@ -1,6 +1,7 @@
 // The info job (rayscan/jobs/info.hpp): what `pdal info` reports for a point cloud file.
 #include "rayscan/jobs/info.hpp"
 
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/io/point_reader.hpp"
 
 #include <nlohmann/json.hpp>
@@ -161,23 +162,16 @@ std::string dump_report(nlohmann::ordered_json j) {
   return j.dump(2, ' ', false, nlohmann::ordered_json::error_handler_t::replace);
 }
 
-/// `text` with every control character but the line ends written as \xNN, so that a string from
-/// the file (an escape sequence in a VLR description, a carriage return in a WKT) cannot move the
-/// cursor, recolour or clear the user's terminal.
+/// `text` with each line passed through one_line (rayscan/base/input_file.hpp): control
+/// characters from the file (an escape sequence in a VLR description, a carriage return in a WKT)
+/// are written as \xNN and cannot move the cursor, recolour or clear the user's terminal.
 std::string escape_controls(const std::string& text) {
   std::string out;
   out.reserve(text.size());
-  for (const char ch : text) {
-    const auto c = static_cast<unsigned char>(ch);
-    if ((c < 0x20 && c != '\n') || c == 0x7f) {
-      char buf[5];
-      std::snprintf(buf, sizeof buf, "\\x%02x", c);
-      out += buf;
-    } else {
-      out += ch;
-    }
-  }
-  return out;
+  std::size_t b = 0;
+  for (std::size_t e; (e = text.find('\n', b)) != std::string::npos; b = e + 1)
+    out.append(one_line(text.substr(b, e - b))).push_back('\n');
+  return out.append(one_line(text.substr(b)));
 }
 
 std::string index_report_json(const InfoJobResult& r) {

@@ -897,6 +897,26 @@ fs::path small_index(const fs::path& dir) {
   return dir / "a.rsi";
 }
 
+/// Writes the index file bytes `b` to `path` with every section's CRC-32C and the header's made
+/// valid again (docs/index-format.md, "Header" and the section table), so that the structural
+/// checks behind the checksums are what a test reaches.
+void write_with_valid_crcs(std::vector<std::uint8_t> b, const fs::path& path) {
+  std::uint32_t nsec = 0;
+  std::memcpy(&nsec, b.data() + 20, 4);
+  for (std::uint32_t i = 0; i < nsec; ++i) {
+    const std::size_t e = 128 + 32 * i;
+    std::uint64_t off = 0, size = 0;
+    std::memcpy(&off, b.data() + e + 8, 8);
+    std::memcpy(&size, b.data() + e + 16, 8);
+    const std::uint32_t c = io::crc32c(b.data() + off, size);
+    std::memcpy(b.data() + e + 24, &c, 4);
+  }
+  std::memset(b.data() + 120, 0, 4);
+  const std::uint32_t h = io::crc32c(b.data(), 4096);
+  std::memcpy(b.data() + 120, &h, 4);
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+}
+
 std::string open_error(const fs::path& p) {
   try {
     io::MappedIndex::open(p);
@@ -1121,20 +1141,7 @@ TEST(IndexFileBadInput, UnverifiedCorruptNodesAreSanitisedAndVerifyNamesThem) {
               std::string::npos) << e.what();
   }
   // With the section CRCs forged, the record checks name the node; an id >= N names the slot.
-  auto forge = [&](std::vector<std::uint8_t> b) {
-    for (std::uint32_t i = 0; i < nsec; ++i) {
-      const std::size_t e = 128 + 32 * i;
-      std::uint64_t off = 0, size = 0;
-      std::memcpy(&off, b.data() + e + 8, 8);
-      std::memcpy(&size, b.data() + e + 16, 8);
-      const std::uint32_t c = io::crc32c(b.data() + off, size);
-      std::memcpy(b.data() + e + 24, &c, 4);
-    }
-    std::memset(b.data() + 120, 0, 4);
-    const std::uint32_t h = io::crc32c(b.data(), 4096);
-    std::memcpy(b.data() + 120, &h, 4);
-    std::ofstream(bad, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
-  };
+  auto forge = [&](const std::vector<std::uint8_t>& b) { write_with_valid_crcs(b, bad); };
   auto deep_error = [&]() -> std::string {
     try {
       io::MappedIndex::open(bad, full);
@@ -1205,20 +1212,7 @@ TEST(IndexFileBadInput, CorruptRecordsAreRefusedAtOpenAtAnySize) {
   std::memcpy(&n, bytes.data() + 24, 8);
   // Writes `b` with every section CRC and the header CRC made valid again.
   const fs::path bad = dir / "bad.rsi";
-  auto write_forged = [&](std::vector<std::uint8_t> b) {
-    for (std::uint32_t i = 0; i < nsec; ++i) {
-      const std::size_t e = 128 + 32 * i;
-      std::uint64_t off = 0, size = 0;
-      std::memcpy(&off, b.data() + e + 8, 8);
-      std::memcpy(&size, b.data() + e + 16, 8);
-      const std::uint32_t c = io::crc32c(b.data() + off, size);
-      std::memcpy(b.data() + e + 24, &c, 4);
-    }
-    std::memset(b.data() + 120, 0, 4);
-    const std::uint32_t h = io::crc32c(b.data(), 4096);
-    std::memcpy(b.data() + 120, &h, 4);
-    std::ofstream(bad, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
-  };
+  auto write_forged = [&](const std::vector<std::uint8_t>& b) { write_with_valid_crcs(b, bad); };
   io::IndexOpenOptions large;  // the automatic open of a large file: node records, no CRCs
   large.deep_check_bytes = 0;
   io::IndexOpenOptions full;
