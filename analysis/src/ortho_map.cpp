@@ -38,12 +38,14 @@ Raster dsm_from_depth(const OrthoMap& map, std::span<const float> depth) {
 }
 
 void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
-                         std::span<const glm::vec3> beauty, double exposure, const std::string& crs_wkt) {
+                         std::span<const glm::vec3> beauty, std::span<const float> depth, double exposure,
+                         const std::string& crs_wkt) {
   static std::once_flag registered;
   std::call_once(registered, [] { GDALAllRegister(); });
   const GridSpec& g = map.grid;
   const std::size_t n = std::size_t(g.cols) * g.rows;
   if (beauty.size() != n) throw std::invalid_argument(path.string() + ": image size differs from the grid");
+  if (depth.size() != n) throw std::invalid_argument(path.string() + ": depth AOV size differs from the grid");
   CPLPushErrorHandler(CPLQuietErrorHandler);
   struct Pop { ~Pop() { CPLPopErrorHandler(); } } pop;
   auto fail = [&](const std::string& what) {
@@ -62,8 +64,9 @@ void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
   CPLStringList co;
   co.SetNameValue("COMPRESS", "DEFLATE");
   co.SetNameValue("PHOTOMETRIC", "RGB");
+  co.SetNameValue("ALPHA", "UNASSOCIATED");  // band 4: the TIFF ExtraSamples tag marks it as alpha
   co.SetNameValue("TILED", "YES");
-  GDALDataset* ds = drv->Create(file.temp().string().c_str(), int(g.cols), int(g.rows), 3, GDT_Byte, co.List());
+  GDALDataset* ds = drv->Create(file.temp().string().c_str(), int(g.cols), int(g.rows), 4, GDT_Byte, co.List());
   if (!ds) fail("cannot create GeoTIFF");
   std::array<double, 6> gt = g.geotransform();
   bool ok = ds->SetGeoTransform(gt.data()) == CE_None;
@@ -77,6 +80,12 @@ void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
     ok = ds->GetRasterBand(b + 1)->RasterIO(GF_Write, 0, 0, int(g.cols), int(g.rows), band.data(), int(g.cols),
                                             int(g.rows), GDT_Byte, 0, 0) == CE_None;
   }
+  // Alpha: opaque where the cell's ray hit a point (finite depth), transparent where it missed, so
+  // GIS tools show holes as holes instead of the sky colour.
+  for (std::size_t i = 0; i < n; ++i) band[i] = std::isfinite(depth[i]) ? 255 : 0;
+  ok = ok && ds->GetRasterBand(4)->SetColorInterpretation(GCI_AlphaBand) == CE_None;
+  ok = ok && ds->GetRasterBand(4)->RasterIO(GF_Write, 0, 0, int(g.cols), int(g.rows), band.data(), int(g.cols),
+                                            int(g.rows), GDT_Byte, 0, 0) == CE_None;
   if (!ok) {
     GDALClose(ds);
     fail("writing GeoTIFF failed");
@@ -94,7 +103,7 @@ std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, std::spa
                                                    const std::filesystem::path& dsm,
                                                    const std::vector<std::pair<std::string, std::string>>& metadata) {
   std::vector<std::filesystem::path> written;
-  write_ortho_geotiff(image, map, beauty, exposure, crs_wkt);
+  write_ortho_geotiff(image, map, beauty, depth, exposure, crs_wkt);
   written.push_back(image);
   if (!dsm.empty()) {
     GeoTiffOptions go;

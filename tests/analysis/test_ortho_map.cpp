@@ -60,14 +60,26 @@ TEST(OrthoMap, DsmOfATiltedPlaneIsItsAnalyticElevation) {
   EXPECT_GT(checked, 150);
   const auto dir = std::filesystem::temp_directory_path() / ("rayscan_ortho_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
-  analysis::write_ortho_geotiff(dir / "o.tif", map, fb.beauty, 0.0, "");
+  analysis::write_ortho_geotiff(dir / "o.tif", map, fb.beauty, fb.depth, 0.0, "");
   analysis::write_geotiff(dir / "d.tif", dsm, {});
   GDALAllRegister();
   GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen((dir / "o.tif").c_str(), GA_ReadOnly));
   ASSERT_NE(ds, nullptr);
   double gt[6];
   ds->GetGeoTransform(gt);
-  EXPECT_EQ(ds->GetRasterCount(), 3);
+  // RGB plus alpha: the alpha band is 0 exactly on the cells where the DSM has no surface (NaN).
+  ASSERT_EQ(ds->GetRasterCount(), 4);
+  EXPECT_EQ(ds->GetRasterBand(4)->GetColorInterpretation(), GCI_AlphaBand);
+  std::vector<std::uint8_t> alpha(dsm.values.size());
+  ASSERT_EQ(ds->GetRasterBand(4)->RasterIO(GF_Read, 0, 0, int(map.grid.cols), int(map.grid.rows), alpha.data(),
+                                           int(map.grid.cols), int(map.grid.rows), GDT_Byte, 0, 0),
+            CE_None);
+  std::size_t holes = 0;
+  for (std::size_t i = 0; i < alpha.size(); ++i) {
+    EXPECT_EQ(alpha[i], std::isnan(dsm.values[i]) ? 0 : 255) << i;
+    holes += alpha[i] == 0;
+  }
+  EXPECT_GT(holes, 0u);  // the plane does not cover the whole map: some cells must be transparent
   EXPECT_EQ(gt[0], map.grid.x0);
   EXPECT_EQ(gt[3], map.grid.y_top);
   EXPECT_EQ(gt[1], 1.0);

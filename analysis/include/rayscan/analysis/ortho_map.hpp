@@ -34,18 +34,20 @@ OrthoMap ortho_map(const AABB& bounds, double res);
 /// Throws std::invalid_argument when its size differs from the grid.
 Raster dsm_from_depth(const OrthoMap& map, std::span<const float> depth);
 
-/// Writes the beauty image (linear RGB, the renderer's Color) as a 3-band Byte GeoTIFF
-/// (sRGB-encoded after 2^exposure, photometric
-/// RGB, DEFLATE) on map.grid with the CRS `crs_wkt` ("" = none); atomically (temporary file, then
-/// rename). Throws std::runtime_error "<path>: <GDAL's message>", std::invalid_argument for a size
-/// mismatch or an unparsable CRS.
+/// Writes the beauty image (linear RGB, the renderer's Color) as a 4-band Byte GeoTIFF: RGB
+/// (sRGB-encoded after 2^exposure, photometric RGB) plus an alpha band (TIFF ExtraSamples
+/// unassociated alpha, GDAL's GCI_AlphaBand): 255 where the cell's ray hit the cloud (finite
+/// `depth`, the depth AOV), 0 where it missed; DEFLATE, on map.grid with the CRS `crs_wkt` ("" =
+/// none); atomically (temporary file, then rename). Throws std::runtime_error "<path>: <GDAL's
+/// message>", std::invalid_argument for a size mismatch or an unparsable CRS.
 void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
-                         std::span<const glm::vec3> beauty, double exposure, const std::string& crs_wkt);
+                         std::span<const glm::vec3> beauty, std::span<const float> depth, double exposure,
+                         const std::string& crs_wkt);
 
 /// The outputs of `rayscan render --ortho-map RES --out ortho.tif [--dsm dsm.tif]` from a render
-/// through map.camera: the orthophoto (write_ortho_geotiff) at `image` and, when `dsm` is not
-/// empty, the DSM (dsm_from_depth, Float32 GeoTIFF with `metadata`) at `dsm`, both with the CRS
-/// `crs_wkt`. `depth` is the depth AOV (required when `dsm` is set). Returns the files written,
+/// through map.camera: the orthophoto (write_ortho_geotiff, alpha from `depth`) at `image` and,
+/// when `dsm` is not empty, the DSM (dsm_from_depth, Float32 GeoTIFF with `metadata`) at `dsm`, both with the CRS
+/// `crs_wkt`. `depth` is the depth AOV (required). Returns the files written,
 /// orthophoto first. Throws as write_ortho_geotiff, dsm_from_depth and write_geotiff.
 std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, std::span<const glm::vec3> beauty,
                                                    std::span<const float> depth, double exposure,
