@@ -275,7 +275,7 @@ RenderStats render_camera(const Prepared& P, const Camera& camera, const JobCont
   if (scene.primitive == Primitive::surfel) use_surfels(settings, P.surfels);
   const Camera& cam = settings.camera;
   const std::uint64_t tiles = std::uint64_t((cam.width() + 15) / 16) * ((cam.height() + 15) / 16);
-  Progress progress(tiles, ctl.progress && Progress::stderr_is_terminal());
+  Progress progress(tiles, ctl.progress);
   RenderOptions ropt;
   ropt.threads = ctl.threads;
   ropt.progress = &progress;

@@ -53,7 +53,7 @@ TEST(Progress, UnitsArePassedByTheCaller) {
     for (int i = 0; i < 3; ++i) p.tile_done(4096);
   });
   EXPECT_NE(s.find("3/3 chunks 100.0%"), std::string::npos) << s;
-  EXPECT_NE(s.find(" points/s  ETA"), std::string::npos) << s;
+  EXPECT_NE(s.find(" points/s  "), std::string::npos) << s;
   EXPECT_EQ(s.find("tiles"), std::string::npos) << s;
   EXPECT_EQ(s.find("rays/s"), std::string::npos) << s;
 }
@@ -65,4 +65,19 @@ TEST(Progress, DisabledDrawsNothing) {
     p.finish();
   });
   EXPECT_EQ(s, "");
+}
+
+// Into a file (stderr is not a terminal here): plain lines, each ending in a newline, no carriage
+// return, and a final line when the last item is done.
+TEST(Progress, LogFileGetsPlainLines) {
+  const std::string s = capture_stderr([] {
+    Progress p(4, true, ProgressUnits{"chunks", "points/s", 1.0, 0});
+    for (int i = 0; i < 4; ++i) p.tile_done(10);
+    p.finish();
+  });
+  EXPECT_EQ(s.find('\r'), std::string::npos) << s;
+  EXPECT_NE(s.find("progress: 4/4 chunks 100.0%"), std::string::npos) << s;
+  EXPECT_NE(s.find("done in"), std::string::npos) << s;
+  ASSERT_FALSE(s.empty());
+  EXPECT_EQ(s.back(), '\n');
 }

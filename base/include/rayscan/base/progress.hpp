@@ -19,11 +19,16 @@ struct ProgressUnits {
   int decimals = 2;               ///< digits after the decimal point of the printed rate
 };
 
-/// Thread-safe progress bar. Call tile_done() from worker threads; finish() once at the end.
+/// Thread-safe progress report on stderr. Call tile_done() from worker threads; finish() once at
+/// the end. On a terminal a bar redrawn in place (every 0.1 s); into a log file or a pipe (stderr
+/// not a terminal) plain lines, one every kLogLineSeconds and one when the last item is done,
+/// never a carriage return.
 class Progress {
  public:
-  /// `total_items` > 0 (0 is treated as 1). `enabled` = draw the bar (normally: stderr is a
-  /// terminal, see stderr_is_terminal()). `units` labels the items and the rate.
+  /// Seconds between two plain lines when stderr is not a terminal.
+  static constexpr double kLogLineSeconds = 5.0;
+  /// `total_items` > 0 (0 is treated as 1). `enabled` = report (e.g. not --quiet); bar or lines
+  /// by stderr_is_terminal(). `units` labels the items and the rate.
   Progress(std::uint64_t total_items, bool enabled, ProgressUnits units = {});
   /// Record one finished item and `amount` units of work for the rate (a render: ray queries);
   /// redraws when due.
@@ -37,6 +42,7 @@ class Progress {
   void draw(std::uint64_t done, std::uint64_t queries, double elapsed);
   std::uint64_t total_;
   bool enabled_;
+  bool lines_;  ///< plain lines (stderr is not a terminal) instead of the bar
   ProgressUnits units_;
   std::atomic<std::uint64_t> done_{0}, queries_{0};
   std::chrono::steady_clock::time_point start_;
