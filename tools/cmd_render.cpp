@@ -54,9 +54,12 @@ int run_render(const RenderCliOptions& o) {
   std::optional<PointCloud> points;
   const ResolvedScene rs = resolve_scene(o.scene, ov, [&](const std::filesystem::path& f) -> CloudSummary {
     if (std::optional<CloudSummary> s = summary_in_place(f)) return *s;
-    if (!points) points = io::read_point_cloud(f, io::ReadOptions{.scalars = false});
+    io::FileInfo info;
+    if (!points) points = io::read_point_cloud(f, io::ReadOptions{.scalars = false}, &info);
     if (points->empty()) throw UsageError(f.string() + ": the point cloud has no points");
-    return {bounds_of(points->positions), !points->rgb.empty()};
+    std::optional<Vec3> sensor;  // a PCD VIEWPOINT's translation: where the scanner stood
+    if (info.viewpoint) sensor = Vec3((*info.viewpoint)[0], (*info.viewpoint)[1], (*info.viewpoint)[2]);
+    return summarize_cloud(points->positions, !points->rgb.empty(), !points->crs_wkt.empty(), sensor);
   });
   if (o.print_scene) {
     if (o.ortho_res) throw UsageError("--print-scene: not with --ortho-map (the map camera is not a scene camera)");
@@ -79,8 +82,10 @@ int run_render(const RenderCliOptions& o) {
   if (rs.overview && !o.ortho_res) {
     const Camera& c = *job.scene.camera;
     job.control.info("no camera given: overview camera " + std::to_string(c.width()) + "x" +
-                     std::to_string(c.height()) + " from the south-west, 35 degrees down, framing the whole cloud "
+                     std::to_string(c.height()) + " from the south-west (or behind the scanner), " +
+                     std::to_string(int(kOverviewPitchDeg)) + " degrees down, framing the whole cloud "
                      "(--print-scene prints it as a scene to edit)");
+    job.control.info("up axis " + rs.up.how);
   }
   if (!o.frames.empty()) {
     if (o.ortho_res || !o.colmap_dir.empty() || !o.camera.empty())

@@ -6,12 +6,16 @@
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/scene_json.hpp"
 #include "rayscan/site/index_file.hpp"
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/octree/normals.hpp"
+#include "rayscan/octree/point_query.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <stdexcept>
 
@@ -26,6 +30,93 @@ using nlohmann::json;
 
 }  // namespace
 
+namespace {
+
+/// The overview's view frame about `up`: forward f (towards the target), right r, camera up u.
+struct ViewFrame {
+  Vec3 f, r, u;
+};
+
+ViewFrame overview_frame(const Vec3& up, const std::optional<Vec3>& facing) {
+  // "North": +y projected on the plane normal to up (+x when up is +-y); or the given facing,
+  // looked along straight (bearing 0).
+  const Vec3 ref = facing ? *facing : Vec3(0.0, 1.0, 0.0);
+  Vec3 north = ref - glm::dot(ref, up) * up;
+  if (glm::length(north) < 1e-6) north = Vec3(1.0, 0.0, 0.0) - up.x * up;
+  north = glm::normalize(north);
+  const Vec3 east = glm::cross(north, up);
+  const double deg = std::numbers::pi / 180.0;
+  const double az = facing ? 0.0 : kOverviewBearingDeg * deg, el = kOverviewPitchDeg * deg;
+  ViewFrame v;
+  v.f = std::cos(el) * (std::sin(az) * east + std::cos(az) * north) - std::sin(el) * up;
+  v.r = glm::normalize(glm::cross(v.f, up));
+  v.u = glm::cross(v.r, v.f);
+  return v;
+}
+
+/// The smallest D at which every point projects inside the image when the eye is c - D f: point p
+/// projects inside when |x| <= z th and |y| <= z tv with x = (p - c).r, y = (p - c).u,
+/// z = (p - c).f + D.
+double fit_distance(std::span<const Vec3> points, const Vec3& c, const ViewFrame& v, double th, double tv) {
+  double D = 0.0;
+  for (const Vec3& p : points) {
+    const Vec3 d = p - c;
+    const double z0 = glm::dot(d, v.f);
+    D = std::max({D, std::abs(glm::dot(d, v.r)) / th - z0, std::abs(glm::dot(d, v.u)) / tv - z0});
+  }
+  return D;
+}
+
+}  // namespace
+
+LookAtParams overview_view(std::span<const Vec3> points, const UpAxis& axis, std::uint32_t width,
+                           std::uint32_t height) {
+  const Vec3& up_axis = axis.up;
+  if (width == 0 || height == 0) throw std::invalid_argument("overview camera: image size must be at least 1x1");
+  if (points.empty()) throw std::invalid_argument("overview camera: no points to frame");
+  const double up_len = glm::length(up_axis);
+  if (!(up_len > 0.0) || !std::isfinite(up_len)) throw std::invalid_argument("overview camera: the up axis is zero or not finite");
+  const AABB box = bounds_of(points);
+  if (!std::isfinite(box.lo.x + box.lo.y + box.lo.z + box.hi.x + box.hi.y + box.hi.z))
+    throw std::invalid_argument("overview camera: the points are not finite");
+  const Vec3 up = up_axis / up_len;
+  std::vector<Vec3> cube;
+  if (box.max_extent() == 0.0) {  // one position: frame a 1-unit cube around it
+    for (int k = 0; k < 8; ++k)
+      cube.push_back(box.lo + Vec3((k & 1) ? 0.5 : -0.5, (k & 2) ? 0.5 : -0.5, (k & 4) ? 0.5 : -0.5));
+    points = cube;
+  }
+  std::optional<Vec3> facing;
+  if (axis.facing && glm::length(*axis.facing - glm::dot(*axis.facing, up) * up) > 1e-6) facing = axis.facing;
+  const ViewFrame v = overview_frame(up, facing);
+  const double tv = std::tan(0.5 * kOverviewVfovDeg * std::numbers::pi / 180.0);
+  const double th = tv * double(width) / double(height);
+  // Centre the projection: move the target across the view by the middle of the points'
+  // projected extent, seen from the fitted distance (a few rounds: each move changes the fit).
+  Vec3 c = box.center();
+  for (int round = 0; round < 4; ++round) {
+    const double D = fit_distance(points, c, v, th, tv);
+    double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+    for (const Vec3& p : points) {
+      const Vec3 d = p - c;
+      const double z = glm::dot(d, v.f) + D;
+      if (!(z > 0.0)) continue;
+      const double x = glm::dot(d, v.r) / z, y = glm::dot(d, v.u) / z;
+      x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+    }
+    if (!(x0 <= x1)) break;
+    c += D * (0.5 * (x0 + x1) * v.r + 0.5 * (y0 + y1) * v.u);
+  }
+  // 2% margin. Every point then lies in front of the eye (z >= |x| / th >= 0).
+  const double D = 1.02 * fit_distance(points, c, v, th, tv) + 1e-9 * box.max_extent();
+  LookAtParams p;
+  p.position = c - D * v.f;
+  p.look_at = c;
+  p.up = up;
+  p.vfov_deg = kOverviewVfovDeg;
+  return p;
+}
+
 LookAtParams overview_view(const AABB& bounds, std::uint32_t width, std::uint32_t height) {
   if (width == 0 || height == 0) throw std::invalid_argument("overview camera: image size must be at least 1x1");
   const Vec3 lo = bounds.lo, hi = bounds.hi;
@@ -34,32 +125,133 @@ LookAtParams overview_view(const AABB& bounds, std::uint32_t width, std::uint32_
   const Vec3 c = 0.5 * (lo + hi);
   Vec3 half = 0.5 * (hi - lo);
   if (glm::length(half) == 0.0) half = Vec3(0.5);
-  const double deg = std::numbers::pi / 180.0;
-  const double az = kOverviewBearingDeg * deg, el = kOverviewPitchDeg * deg;
-  // Forward f (towards the target), right r, camera up u (right-handed, u has +z component).
-  const Vec3 f(std::cos(el) * std::sin(az), std::cos(el) * std::cos(az), -std::sin(el));
-  const Vec3 r = glm::normalize(glm::cross(f, Vec3(0.0, 0.0, 1.0)));
-  const Vec3 u = glm::cross(r, f);
-  const double tv = std::tan(0.5 * kOverviewVfovDeg * deg);
+  const ViewFrame v = overview_frame(Vec3(0.0, 0.0, 1.0), std::nullopt);
+  const double tv = std::tan(0.5 * kOverviewVfovDeg * std::numbers::pi / 180.0);
   const double th = tv * double(width) / double(height);
-  // The eye is c - D f. Corner p projects inside when |x| <= z th and |y| <= z tv with
-  // x = (p - c).r, y = (p - c).u, z = (p - c).f + D: D >= |x| / th - (p - c).f, likewise for y.
-  double D = 0.0;
-  for (int k = 0; k < 8; ++k) {
-    const Vec3 p = c + Vec3((k & 1) ? half.x : -half.x, (k & 2) ? half.y : -half.y, (k & 4) ? half.z : -half.z);
-    const Vec3 v = p - c;
-    const double z0 = glm::dot(v, f);
-    D = std::max({D, std::abs(glm::dot(v, r)) / th - z0, std::abs(glm::dot(v, u)) / tv - z0});
-  }
+  std::array<Vec3, 8> corners;
+  for (int k = 0; k < 8; ++k)
+    corners[k] = c + Vec3((k & 1) ? half.x : -half.x, (k & 2) ? half.y : -half.y, (k & 4) ? half.z : -half.z);
   // 2% margin. Every corner then lies in front of the eye (z >= |x| / th >= 0), so the eye is
   // outside the box.
-  D = 1.02 * D;
+  const double D = 1.02 * fit_distance(corners, c, v, th, tv);
   LookAtParams p;
-  p.position = c - D * f;
+  p.position = c - D * v.f;
   p.look_at = c;
   p.up = Vec3(0.0, 0.0, 1.0);
   p.vfov_deg = kOverviewVfovDeg;
   return p;
+}
+
+UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const std::optional<Vec3>& sensor) {
+  if (georeferenced) return {Vec3(0.0, 0.0, 1.0), "+z (georeferenced: the CRS's vertical)", std::nullopt};
+  std::optional<Vec3> facing;  // from the scanner towards the points: the scan's own view
+  if (sensor && !sample.empty()) {
+    Vec3 centroid(0.0);
+    for (const Vec3& p : sample) centroid += p;
+    facing = centroid / double(sample.size()) - *sensor;
+  }
+  // A depth camera's cloud (PCD with its scanner position) is in the camera's optical frame: x
+  // right, y down, z forward (ROS REP 103), and the camera is held about level: up is -y, refined
+  // to the dominant plane's normal when that lies within 20 degrees (a tilted camera).
+  const bool optical = facing && facing->z > 0.0;
+  const auto optical_up = [&](const std::optional<Vec3>& plane_normal) -> UpAxis {
+    constexpr double kCos20 = 0.93969262078590838;
+    const Vec3 down(0.0, 1.0, 0.0);
+    if (plane_normal && std::abs(glm::dot(*plane_normal, down)) >= kCos20) {
+      const Vec3 up = glm::dot(*plane_normal, down) > 0.0 ? -*plane_normal : *plane_normal;
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "(%.3f, %.3f, %.3f): -y of the depth camera's optical frame (y down), "
+                    "refined to the dominant plane's normal", up.x, up.y, up.z);
+      return {up, buf, facing};
+    }
+    return {-down, "-y (the depth camera's optical frame: y down, z forward)", facing};
+  };
+  constexpr std::size_t kMinPoints = 64, kNormals = 4096, kCandidates = 256, kNeighbours = 16;
+  constexpr double kCosTol = 0.98480775301220802;  // cos(10 degrees)
+  if (sample.size() < kMinPoints)
+    return optical ? optical_up(std::nullopt) : UpAxis{Vec3(0.0, 0.0, 1.0), "+z (too few points to estimate it)", facing};
+  // PCA normals of up to kNormals sample points from their kNearest neighbours in the sample.
+  const AnyIndex index = make_index(sample, IndexOptions{});
+  const std::size_t step = std::max<std::size_t>(1, sample.size() / kNormals);
+  std::vector<Vec3> normals, at;
+  visit_index(
+      [&](const auto& idx) {
+        for (std::size_t i = 0; i < sample.size(); i += step) {
+          const std::vector<Neighbor> nb = knn(idx, sample[i], kNeighbours);
+          if (nb.size() < 3) continue;
+          Vec3 m(0.0);
+          for (const Neighbor& n : nb) m += sample[n.index];
+          m /= double(nb.size());
+          double a[6] = {0, 0, 0, 0, 0, 0};
+          for (const Neighbor& n : nb) {
+            const Vec3 d = sample[n.index] - m;
+            a[0] += d.x * d.x, a[1] += d.x * d.y, a[2] += d.x * d.z, a[3] += d.y * d.y, a[4] += d.y * d.z,
+                a[5] += d.z * d.z;
+          }
+          if (const std::optional<Vec3> n = smallest_eigenvector(a[0], a[1], a[2], a[3], a[4], a[5])) {
+            normals.push_back(glm::normalize(*n));
+            at.push_back(sample[i]);
+          }
+        }
+      },
+      index);
+  if (normals.size() < kMinPoints)
+    return optical ? optical_up(std::nullopt)
+                   : UpAxis{Vec3(0.0, 0.0, 1.0), "+z (no surface orientation could be estimated)", facing};
+  // The orientation (an axis: n and -n alike) shared by the most normals.
+  std::size_t best_votes = 0;
+  Vec3 axis(0.0, 0.0, 1.0);
+  const std::size_t cstep = std::max<std::size_t>(1, normals.size() / kCandidates);
+  for (std::size_t c = 0; c < normals.size(); c += cstep) {
+    std::size_t votes = 0;
+    for (const Vec3& n : normals) votes += std::abs(glm::dot(n, normals[c])) >= kCosTol;
+    if (votes > best_votes) best_votes = votes, axis = normals[c];
+  }
+  const double share = double(best_votes) / double(normals.size());
+  if (optical) return optical_up(share >= 0.2 ? std::optional<Vec3>(axis) : std::nullopt);
+  if (share < 0.2) return {Vec3(0.0, 0.0, 1.0), "+z (no dominant plane among the points)", facing};
+  // Refine: the mean of the agreeing normals, each turned to the candidate's side.
+  Vec3 mean(0.0);
+  std::vector<double> offsets;
+  for (const Vec3& n : normals)
+    if (std::abs(glm::dot(n, axis)) >= kCosTol) mean += glm::dot(n, axis) >= 0.0 ? n : -n;
+  axis = glm::normalize(mean);
+  for (std::size_t i = 0; i < normals.size(); ++i)
+    if (std::abs(glm::dot(normals[i], axis)) >= kCosTol) offsets.push_back(glm::dot(at[i], axis));
+  // The most populated plane of that orientation: the mode of the offsets n . p in bins of 2% of
+  // their range (the floor or the ground, with the scanner and the scene above it).
+  const auto [lo_it, hi_it] = std::minmax_element(offsets.begin(), offsets.end());
+  const double lo = *lo_it, span = std::max(*hi_it - lo, 1e-12);
+  constexpr int kBins = 50;
+  std::array<std::size_t, kBins> bins{};
+  for (double o : offsets) ++bins[std::min(kBins - 1, int((o - lo) / span * kBins))];
+  const int mode = int(std::max_element(bins.begin(), bins.end()) - bins.begin());
+  const double plane = lo + (mode + 0.5) * span / kBins;
+  Vec3 ref(0.0);
+  if (sensor) {
+    ref = *sensor;
+  } else {
+    for (const Vec3& p : sample) ref += p;
+    ref /= double(sample.size());
+  }
+  if (glm::dot(ref, axis) < plane) axis = -axis;
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "(%.3f, %.3f, %.3f) estimated: the normal of the dominant plane (%.0f%% of the "
+                "sampled normals), towards the %s", axis.x, axis.y, axis.z, 100.0 * share,
+                sensor ? "scanner position (PCD VIEWPOINT)" : "points' centroid");
+  return {axis, buf, facing};
+}
+
+CloudSummary summarize_cloud(std::span<const Vec3> positions, bool has_rgb, bool georeferenced,
+                             const std::optional<Vec3>& sensor) {
+  if (positions.empty()) throw std::invalid_argument("the point cloud has no points");
+  CloudSummary s;
+  s.bounds = bounds_of(positions);
+  s.has_rgb = has_rgb;
+  const std::size_t step = (positions.size() + kOverviewSample - 1) / kOverviewSample;
+  for (std::size_t i = 0; i < positions.size(); i += step) s.sample.push_back(positions[i]);
+  s.up = estimate_up_axis(s.sample, georeferenced, sensor);
+  return s;
 }
 
 std::optional<CloudSummary> summary_in_place(const std::filesystem::path& path) {
@@ -67,7 +259,15 @@ std::optional<CloudSummary> summary_in_place(const std::filesystem::path& path) 
     io::IndexOpenOptions o;
     o.verify = io::IndexOpenOptions::Verify::metadata_only;  // the header is all that is read here
     const io::MappedIndex m = io::MappedIndex::open(path, o);
-    return CloudSummary{m.bounds(), !m.rgb().empty()};
+    // The sample read in place (an even stride over the slots: at most kOverviewSample pages).
+    const PositionView pos = m.positions();
+    CloudSummary s;
+    s.bounds = m.bounds();
+    s.has_rgb = !m.rgb().empty();
+    const std::size_t step = std::max<std::size_t>(1, (pos.size() + kOverviewSample - 1) / kOverviewSample);
+    for (std::size_t i = 0; i < pos.size(); i += step) s.sample.push_back(pos[i]);
+    s.up = estimate_up_axis(s.sample, !m.crs_wkt().empty(), std::nullopt);
+    return s;
   }
   return std::nullopt;
 }
@@ -95,6 +295,11 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
   // A point cloud by its extension (io::format_from_extension); anything else is read as a scene,
   // so its errors (not JSON, a device, missing) are the scene file's.
   const bool is_scene = !is_cloud_input(input);
+  std::optional<CloudSummary> summary;  // asked of `cloud` once: the input's, or the scene's cloud's
+  auto summary_of = [&](const fs::path& f) -> const CloudSummary& {
+    if (!summary) summary = cloud(f);
+    return *summary;
+  };
   const fs::path base = fs::absolute(input);
   json j;
   if (is_scene) {
@@ -103,7 +308,8 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
   } else {
     j = {{"cloud", base.lexically_normal().string()},
          {"radius", "auto"},
-         {"material", {{"color", cloud(base).has_rgb ? "rgb" : "elevation"}}}};
+         {"primitive", "surfel"},
+         {"material", {{"color", summary_of(base).has_rgb ? "rgb" : "elevation"}}}};
   }
   // A camera from the command line replaces the scene's, which is then not read at all.
   if (!ov.camera_file.empty() || !ov.colmap_dir.empty()) j.erase("camera");
@@ -115,7 +321,10 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
   if (!res.scene.camera && ov.camera_file.empty() && ov.colmap_dir.empty()) {
     // The overview camera, at the size the flags ask for (fit_image_size keeps its 3:2 aspect).
     const ImageSize size = fit_image_size({kOverviewWidth, kOverviewHeight}, ov.width, ov.height);
-    const LookAtParams p = overview_view(cloud(res.scene.cloud).bounds, size.width, size.height);
+    const CloudSummary& s = summary_of(res.scene.cloud);
+    const LookAtParams p = s.sample.empty() ? overview_view(s.bounds, size.width, size.height)
+                                            : overview_view(s.sample, s.up, size.width, size.height);
+    res.up = s.sample.empty() ? UpAxis{} : s.up;
     res.scene.camera = Camera::look_at(p, size.width, size.height);
     res.overview = true;
     rest.width.reset();

@@ -84,7 +84,13 @@ TEST(JobCli, IndexFileIsAcceptedWhereverACloudIs) {
   ASSERT_EQ(from_las.code, 0) << from_las.out;
   ASSERT_EQ(from_rsi.code, 0) << from_rsi.out;
   const auto a = nlohmann::json::parse(from_las.out), b = nlohmann::json::parse(from_rsi.out);
-  EXPECT_EQ(a["camera"], b["camera"]);
+  // The overview camera frames a sample of the points, taken in file order from the LAS and in
+  // storage order from the index: the same view to within a thousandth of the site's size.
+  EXPECT_EQ(a["camera"].size(), b["camera"].size());
+  for (const char* key : {"position", "look_at"})
+    for (int k = 0; k < 3; ++k)
+      EXPECT_NEAR(a["camera"][key][k].get<double>(), b["camera"][key][k].get<double>(), 1.5) << key << a << b;
+  EXPECT_EQ(a["camera"]["up"], b["camera"]["up"]);
   EXPECT_EQ(a["material"], b["material"]);
   EXPECT_EQ(b["cloud"], rsi.lexically_normal().string());
   {
@@ -93,7 +99,7 @@ TEST(JobCli, IndexFileIsAcceptedWhereverACloudIs) {
   }
   const auto scene = rayscan_cli("render " + quoted(dir / "scene.json") + " --print-scene");
   ASSERT_EQ(scene.code, 0) << scene.out;
-  EXPECT_EQ(nlohmann::json::parse(scene.out)["camera"], a["camera"]);
+  EXPECT_EQ(nlohmann::json::parse(scene.out)["camera"], b["camera"]);
   const auto r = rayscan_cli("render " + quoted(rsi) + " -q --spp 1 --width 60 --out " + quoted(dir / "q.png"));
   EXPECT_EQ(r.code, 0) << r.out;
   EXPECT_TRUE(std::filesystem::is_regular_file(dir / "q.png"));

@@ -6,6 +6,7 @@
 #include "rayscan/jobs/quick_look.hpp"
 
 #include "../common/run_command.hpp"
+#include "rayscan/io/point_io.hpp"
 
 #include <gtest/gtest.h>
 
@@ -96,11 +97,91 @@ TEST(QuickLook, CloudRendersAndPrintedSceneReproducesTheImage) {
   const auto cmp = test::run_command(bin + " compare " + (d / "a.png").string() + " " + (d / "b.png").string());
   EXPECT_EQ(cmp.code, 0) << cmp.out;  // identical images (idiff default: no pixel over 1e-6)
   // A scene file without a camera gets the same overview camera.
-  std::ofstream(d / "nocam.json") << R"({"cloud": "c.xyz", "radius": "auto", "material": {"color": "elevation"},
+  std::ofstream(d / "nocam.json") << R"({"cloud": "c.xyz", "radius": "auto", "primitive": "surfel", "material": {"color": "elevation"},
     "spp": 2, "output": {"image": "n.png"}})";
   const auto n = test::run_command(bin + " render -q " + (d / "nocam.json").string() + " --width 60");
   ASSERT_EQ(n.code, 0) << n.out;
   const auto cn = test::run_command(bin + " compare " + (d / "a.png").string() + " " + (d / "n.png").string());
   EXPECT_EQ(cn.code, 0) << cn.out;
   fs::remove_all(d);
+}
+
+// "Zoom to extent" on the bundled real scans: every point projects inside the image and the
+// points' projected bounds span at least 80% of the frame's shorter side (the box-corner fit left
+// 40-60%), with the up axis the CLI chooses (+z for georeferenced clouds, -y for a depth camera's
+// PCD). Oracle: the independent pinhole projection `project` of every point.
+TEST(OverviewCamera, ZoomToExtentFillsTheFrameOnRealScans) {
+  for (const std::string name : {"autzen_trim.las", "Haystack_Rock.las", "office1.pcd",
+                                 "table_scene_mug_stereo_textured.pcd"}) {
+    io::FileInfo info;
+    const PointCloud pc = io::read_point_cloud(std::string(RAYSCAN_SCENES_DIR) + "/data/" + name, {}, &info);
+    std::optional<Vec3> sensor;
+    if (info.viewpoint) sensor = Vec3((*info.viewpoint)[0], (*info.viewpoint)[1], (*info.viewpoint)[2]);
+    const CloudSummary s = summarize_cloud(pc.positions, !pc.rgb.empty(), !pc.crs_wkt.empty(), sensor);
+    const std::uint32_t w = kOverviewWidth, h = kOverviewHeight;
+    const LookAtParams c = overview_view(s.sample, s.up, w, h);
+    double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
+    for (const Vec3& p : pc.positions) {  // every point, not only the sample
+      const auto q = project(c, w, h, p);
+      ASSERT_GT(q[2], 0.0) << name;
+      x0 = std::min(x0, q[0]), x1 = std::max(x1, q[0]), y0 = std::min(y0, q[1]), y1 = std::max(y1, q[1]);
+    }
+    // The sample frames the cloud: points outside it stay within a pixel or two of the margin.
+    EXPECT_GE(x0, -1.01) << name;
+    EXPECT_LE(x1, 1.01) << name;
+    EXPECT_GE(y0, -1.01) << name;
+    EXPECT_LE(y1, 1.01) << name;
+    // Extents in pixels; the shorter side is the height (3:2).
+    const double px_w = 0.5 * (x1 - x0) * w, px_h = 0.5 * (y1 - y0) * h;
+    std::printf("%s: up (%.3f, %.3f, %.3f); projected bounds %.0f x %.0f px of %u x %u (%.0f%% of the height)\n",
+                name.c_str(), s.up.up.x, s.up.up.y, s.up.up.z, px_w, px_h, w, h, 100.0 * px_h / h);
+    EXPECT_GE(std::max(px_w / w, px_h / h), 0.95) << name;  // tight along one side (2% margin)
+    EXPECT_GE(px_h / h, 0.8) << name;  // the shorter side
+    // Centred: the margins on opposite sides are equal to within 2% of the frame.
+    EXPECT_NEAR(x0 + x1, 0.0, 0.04) << name;
+    EXPECT_NEAR(y0 + y1, 0.0, 0.04) << name;
+  }
+}
+
+// The up axis: +z for a georeferenced cloud whatever its shape; -y for a depth camera's cloud in
+// its optical frame (office1: the walls and the door are vertical in the camera's image, so the
+// floor-to-ceiling direction is -y); for a cloud without a CRS or scanner, the normal of the
+// dominant plane (a floor tilted by a known rotation, with boxes standing on it: the analytic
+// answer is the rotated +z), turned towards the points' centroid.
+TEST(UpAxis, GeoreferencedDepthCameraAndDominantPlane) {
+  const std::vector<Vec3> few = {Vec3(0, 0, 0), Vec3(1, 0, 0)};
+  EXPECT_EQ(estimate_up_axis(few, true, std::nullopt).up, Vec3(0, 0, 1));
+  EXPECT_EQ(estimate_up_axis(few, false, std::nullopt).up, Vec3(0, 0, 1));  // too few points: +z
+
+  io::FileInfo info;
+  const PointCloud office = io::read_point_cloud(std::string(RAYSCAN_SCENES_DIR) + "/data/office1.pcd", {}, &info);
+  ASSERT_TRUE(info.viewpoint.has_value());
+  const CloudSummary so = summarize_cloud(office.positions, true, false, Vec3(0.0));
+  EXPECT_GE(glm::dot(so.up.up, Vec3(0, -1, 0)), 0.93969262078590838) << so.up.how;  // within 20 degrees of -y
+  ASSERT_TRUE(so.up.facing.has_value());
+  EXPECT_GT(so.up.facing->z, 0.0);  // the scanner looks along +z
+
+  // A tilted floor (rotation by 30 degrees about x, then 20 about z) with boxes on it.
+  const double a = 30.0 * std::numbers::pi / 180.0, b = 20.0 * std::numbers::pi / 180.0;
+  auto rot = [&](const Vec3& p) {
+    const Vec3 q(p.x, std::cos(a) * p.y - std::sin(a) * p.z, std::sin(a) * p.y + std::cos(a) * p.z);
+    return Vec3(std::cos(b) * q.x - std::sin(b) * q.y, std::sin(b) * q.x + std::cos(b) * q.y, q.z);
+  };
+  std::vector<Vec3> pts;
+  for (int i = 0; i < 120; ++i)
+    for (int j = 0; j < 120; ++j) pts.push_back(rot(Vec3(0.1 * i + 0.01 * std::sin(j), 0.1 * j + 0.01 * std::cos(i), 0.0)));
+  for (int k = 0; k < 4; ++k)  // box tops 1 unit above the floor, and their sides
+    for (int i = 0; i < 15; ++i)
+      for (int j = 0; j < 15; ++j) {
+        const double x0 = 1.0 + 3.0 * k, y0 = 2.0 + 2.0 * k;
+        pts.push_back(rot(Vec3(x0 + 0.1 * i, y0 + 0.1 * j, 1.0)));
+        pts.push_back(rot(Vec3(x0, y0 + 0.1 * i, 0.07 * j)));
+      }
+  const UpAxis up = estimate_up_axis(pts, false, std::nullopt);
+  const Vec3 want = rot(Vec3(0, 0, 1));
+  EXPECT_GE(glm::dot(up.up, want), std::cos(2.0 * std::numbers::pi / 180.0)) << up.how;
+  // The same cloud upside down: the centroid is now on the other side, so is the answer.
+  std::vector<Vec3> flipped;
+  for (const Vec3& p : pts) flipped.push_back(-p);
+  EXPECT_GE(glm::dot(estimate_up_axis(flipped, false, std::nullopt).up, -want), std::cos(2.0 * std::numbers::pi / 180.0));
 }

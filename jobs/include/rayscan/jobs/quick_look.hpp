@@ -13,7 +13,9 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <span>
 #include <string>
+#include <vector>
 
 namespace rayscan::jobs {
 
@@ -23,9 +25,12 @@ using render::Scene;
 /// Image size of the overview camera when neither --width nor --height is given, pixels.
 inline constexpr std::uint32_t kOverviewWidth = 600, kOverviewHeight = 400;
 /// Overview view angles: the camera looks north-east (bearing 45 degrees, i.e. it stands
-/// south-west of the cloud) and down at 35 degrees below the horizontal, with a 40 degree vertical
-/// field of view; +z is up.
-inline constexpr double kOverviewBearingDeg = 45.0, kOverviewPitchDeg = 35.0, kOverviewVfovDeg = 40.0;
+/// south-west of the cloud) and down at 45 degrees below the horizontal, with a 40 degree vertical
+/// field of view. "North" is +y and "down" is -up (the cloud's up axis, CloudSummary::up).
+inline constexpr double kOverviewBearingDeg = 45.0, kOverviewPitchDeg = 45.0, kOverviewVfovDeg = 40.0;
+/// At most this many points (an even stride through the cloud) frame the overview camera and
+/// estimate the up axis: enough for the extent of any cloud to within its sampling.
+inline constexpr std::size_t kOverviewSample = 65536;
 
 /// The automatic overview camera of a viewer's "zoom to extent": a look-at camera aimed at the
 /// centre of `bounds` from the direction above (kOverviewBearingDeg, kOverviewPitchDeg), at the
@@ -35,12 +40,54 @@ inline constexpr double kOverviewBearingDeg = 45.0, kOverviewPitchDeg = 35.0, kO
 /// Throws std::invalid_argument for a zero width or height or an empty/non-finite box.
 LookAtParams overview_view(const AABB& bounds, std::uint32_t width, std::uint32_t height);
 
-/// What resolve_scene needs of a point cloud file: its exact bounds (world units) and whether it
-/// stores colours (the quick look's material).
+/// The up axis of a cloud for the overview camera, and how it was found (printed by the CLI).
+struct UpAxis {
+  Vec3 up{0.0, 0.0, 1.0};      ///< unit vector, world frame
+  std::string how;             ///< e.g. "+z (georeferenced: the CRS's vertical)"
+  std::optional<Vec3> facing;  ///< scans with a scanner position: from it towards the points (the
+                               ///< overview looks along it instead of north-east)
+};
+
+/// The overview camera over the points themselves, as a viewer's "zoom to extent": seen from
+/// kOverviewPitchDeg above the horizontal about the unit axis `axis.up`, looking along
+/// `axis.facing` when set, else along bearing kOverviewBearingDeg from the projection of +y on the
+/// plane normal to the up axis (+x when up is +-y), aimed so that the points'
+/// projection is centred in the image, at the smallest distance at which every point projects
+/// inside it (exact per point), then a 2% margin: the points' projected extent spans about 98% of
+/// the image along one axis (the box's empty corners no longer push the camera back). World
+/// coordinates and units. Points that all coincide are framed as a 1-unit cube around them.
+/// Throws std::invalid_argument for a zero width or height, no points, non-finite points or a zero
+/// or non-finite up axis.
+LookAtParams overview_view(std::span<const Vec3> points, const UpAxis& axis, std::uint32_t width,
+                           std::uint32_t height);
+
+/// The up axis of a point cloud: +z when it is georeferenced (`georeferenced`: it has a CRS);
+/// -y for a depth camera's cloud (a `sensor` position with the points in front of it along +z:
+/// the camera's optical frame, x right, y down, z forward, ROS REP 103), refined to the dominant
+/// plane's normal when that lies within 20 degrees of it (a tilted camera); else estimated from
+/// `sample` (points of the cloud, world units): the normal of the dominant
+/// plane, i.e. the PCA normal (16 nearest neighbours) direction shared by the most sample points
+/// within 10 degrees, refined as their mean, its sign chosen so that `sensor` (the scanner
+/// position: a PCD VIEWPOINT's translation) or else the sample's centroid lies above the most
+/// populated plane of that orientation (a floor or the ground: the scanner and the scene stand on
+/// it). Falls back to +z when fewer than 20% of the sample share an orientation or the sample has
+/// fewer than 64 points. With a `sensor`, `facing` is the direction from it to the centroid.
+UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const std::optional<Vec3>& sensor);
+
+/// What resolve_scene needs of a point cloud file: its exact bounds (world units), whether it
+/// stores colours (the quick look's material), a sample of its points and its up axis (the
+/// overview camera's framing and orientation).
 struct CloudSummary {
   AABB bounds;
   bool has_rgb = false;
+  std::vector<Vec3> sample;  ///< at most kOverviewSample points, an even stride through the cloud
+  UpAxis up;
 };
+
+/// The summary of a cloud's points (any order): bounds_of(positions), the strided sample and
+/// estimate_up_axis(sample, georeferenced, sensor). Throws std::invalid_argument for no points.
+CloudSummary summarize_cloud(std::span<const Vec3> positions, bool has_rgb, bool georeferenced,
+                             const std::optional<Vec3>& sensor);
 
 /// The summary of an index file from its checked header (exact bounds, stored colour), without
 /// reading its points; nullopt for any other file, whose points must be read (a COPC file too:
@@ -60,13 +107,16 @@ struct ResolvedScene {
   Scene scene;       ///< parsed and with every override applied (what the render job runs)
   std::string json;  ///< the effective scene as JSON (Scene::to_json), re-readable by `rayscan render`
   bool overview = false;  ///< the camera is the automatic overview camera
+  UpAxis up;              ///< the overview camera's up axis and how it was found (overview only)
 };
 
 /// Resolve a command line's scene. `input` is a point cloud file when its extension is one the io
 /// library reads (io::format_from_extension) or an index file (.rsi), else a scene file; for a cloud the scene is {"cloud": input, "radius": "auto",
-/// "material": {"color": "rgb" if the cloud has colours else "elevation"}} with the default sky
-/// and sun. When the scene has no camera (a cloud, or a scene file without "camera"), the camera
-/// is overview_view() of the cloud's bounds at width x height (default 600 x 400; one of them
+/// "primitive": "surfel", "material": {"color": "rgb" if the cloud has colours else
+/// "elevation"}} with the default sky and sun (surfels: the primitive that measures best on the
+/// fidelity scenes, docs/fidelity.md; --primitive sphere for the paper's). When the scene has no
+/// camera (a cloud, or a scene file without "camera"), the camera is overview_view() of the
+/// summary's sample about its up axis at width x height (default 600 x 400; one of them
 /// keeps the 3:2 aspect, fit_image_size). The other overrides are applied by Scene::apply, and the
 /// JSON is the result's Scene::to_json. `cloud` returns the summary of the file it is given (the
 /// input, or the scene's "cloud"; summary_in_place for an index file, else from its
