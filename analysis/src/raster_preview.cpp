@@ -3,8 +3,6 @@
 #include "rayscan/image/color_ramp.hpp"
 #include "rayscan/image/image_file.hpp"
 
-#include "rayscan/image/image_file.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -23,7 +21,7 @@ std::string fmt(double v) {
 }  // namespace
 
 std::string write_raster_preview(const std::filesystem::path& path, const Raster& raster, double lo,
-                                 double hi, const std::string& title) {
+                                 double hi, const std::string& title, const PreviewStyle& style) {
   if (!std::isfinite(lo) || !std::isfinite(hi) || lo > hi)
     throw std::invalid_argument(path.string() + ": preview range must be finite with lo <= hi");
   const GridSpec& g = raster.grid;
@@ -32,7 +30,7 @@ std::string write_raster_preview(const std::filesystem::path& path, const Raster
   const int s = std::max(1, int(1024 / std::max(g.cols, g.rows)));
   const int map_w = int(g.cols) * s, map_h = int(g.rows) * s;
   const int legend_h = 70, margin = 10;
-  const int W = std::max(map_w, 420), H = map_h + legend_h;
+  const int W = std::max(map_w, 480), H = map_h + legend_h;
 
   Image img = make_image(W, H, {"R", "G", "B"}, 1.0f);  // white
   const float black[3] = {0.0f, 0.0f, 0.0f};
@@ -45,47 +43,86 @@ std::string write_raster_preview(const std::filesystem::path& path, const Raster
     return std::array<float, 3>{c.r, c.g, c.b};
   };
   const double span = hi - lo;
+  const bool categorical = !style.categories.empty();
+  const std::array<float, 3> no_data{kNoDataRgb[0], kNoDataRgb[1], kNoDataRgb[2]};
   for (std::uint32_t r = 0; r < g.rows; ++r)
     for (std::uint32_t c = 0; c < g.cols; ++c) {
       const float v = raster.values[std::size_t(r) * g.cols + c];
-      std::array<float, 3> col;
-      if (std::isnan(v))
-        col = {kNoDataRgb[0], kNoDataRgb[1], kNoDataRgb[2]};
-      else
+      std::array<float, 3> col = no_data;
+      if (categorical) {
+        for (const PreviewCategory& k : style.categories)
+          if (v == k.value) col = k.rgb;
+      } else if (!std::isnan(v)) {
         col = ramp(span > 0 ? (double(v) - lo) / span : 0.5);
+      }
       for (int dy = 0; dy < s; ++dy)
         for (int dx = 0; dx < s; ++dx) put(int(c) * s + dx, int(r) * s + dy, col.data());
     }
+  // Markers: a white disc in a black ring, radius 5 px (or the cell's size), at each point.
+  const int mr = std::max(5, s);
+  auto marker = [&](int cx, int cy) {
+    for (int dy = -mr; dy <= mr; ++dy)
+      for (int dx = -mr; dx <= mr; ++dx) {
+        const int d2 = dx * dx + dy * dy;
+        if (d2 <= (mr - 2) * (mr - 2))
+          put(cx + dx, cy + dy, std::array<float, 3>{1.0f, 1.0f, 1.0f}.data());
+        else if (d2 <= mr * mr)
+          put(cx + dx, cy + dy, black);
+      }
+  };
+  for (const Vec3& m : style.markers) {
+    const double col = (m.x - g.x0) / g.cell, row = (g.y_top - m.y) / g.cell;
+    if (col >= 0 && row >= 0 && col < g.cols && row < g.rows) marker(int(col * s), int(row * s));
+  }
 
-  // Legend: title, colour bar with a 1-px black frame, end and middle values, no-data swatch.
-  const int bar_x = margin, bar_y = map_h + 26, bar_w = std::min(W - 2 * margin - 90, 400), bar_h = 14;
-  for (int x = 0; x < bar_w; ++x) {
-    const auto col = ramp((x + 0.5) / bar_w);
-    for (int y = 0; y < bar_h; ++y) put(bar_x + x, bar_y + y, col.data());
-  }
-  for (int x = bar_x - 1; x <= bar_x + bar_w; ++x) {
-    put(x, bar_y - 1, black);
-    put(x, bar_y + bar_h, black);
-  }
-  for (int y = bar_y - 1; y <= bar_y + bar_h; ++y) {
-    put(bar_x - 1, y, black);
-    put(bar_x + bar_w, y, black);
-  }
-  const int sw_x = bar_x + bar_w + 20;
-  for (int y = 0; y < bar_h; ++y)
-    for (int x = 0; x < bar_h; ++x) put(sw_x + x, bar_y + y, kNoDataRgb);
-
+  // Legend: the title, then a colour bar with a 1-px black frame and its end and middle values
+  // (or one framed swatch per category), a no-data swatch and the marker.
+  const int bar_x = margin, bar_y = map_h + 26, bar_h = 14;
+  auto frame = [&](int x0, int y0, int w, int h) {
+    for (int x = x0 - 1; x <= x0 + w; ++x) put(x, y0 - 1, black), put(x, y0 + h, black);
+    for (int y = y0 - 1; y <= y0 + h; ++y) put(x0 - 1, y, black), put(x0 + w, y, black);
+  };
+  auto swatch = [&](int x0, const std::array<float, 3>& c) {
+    for (int y = 0; y < bar_h; ++y)
+      for (int x = 0; x < bar_h; ++x) put(x0 + x, bar_y + y, c.data());
+    frame(x0, bar_y, bar_h, bar_h);
+  };
   const bool labels = render_text(img, margin, map_h + 18, title, 14, black);
-  if (labels) {
-    const int ty = bar_y + bar_h + 16;
-    render_text(img, bar_x, ty, fmt(lo), 12, black);
-    render_text(img, bar_x + bar_w / 2, ty, fmt(lo + span / 2), 12, black, TextAlign::center);
-    render_text(img, bar_x + bar_w, ty, fmt(hi), 12, black, TextAlign::right);
-    render_text(img, sw_x + bar_h + 4, bar_y + bar_h - 2, "no data", 12, black);
+  std::string legend = title + ": ";
+  int x = bar_x;
+  if (categorical) {
+    for (const PreviewCategory& k : style.categories) {
+      swatch(x, k.rgb);
+      if (labels) render_text(img, x + bar_h + 4, bar_y + bar_h - 2, k.label, 12, black);
+      x += bar_h + 12 + 8 * int(k.label.size());
+      legend += k.label + " (" + fmt(k.value) + "), ";
+    }
+  } else {
+    const int bar_w = std::min(W - 2 * margin - 200, 400);
+    for (int i = 0; i < bar_w; ++i) {
+      const auto col = ramp((i + 0.5) / bar_w);
+      for (int y = 0; y < bar_h; ++y) put(bar_x + i, bar_y + y, col.data());
+    }
+    frame(bar_x, bar_y, bar_w, bar_h);
+    if (labels) {
+      const int ty = bar_y + bar_h + 16;
+      render_text(img, bar_x, ty, fmt(lo), 12, black);
+      render_text(img, bar_x + bar_w / 2, ty, fmt(lo + span / 2), 12, black, TextAlign::center);
+      render_text(img, bar_x + bar_w, ty, fmt(hi), 12, black, TextAlign::right);
+    }
+    x = bar_x + bar_w + 20;
+    legend += heat_ramp_legend(lo, hi) + "; ";
   }
-
-  const std::string legend = title + ": " + heat_ramp_legend(lo, hi) + "; no data: blue; " +
-                             std::to_string(s) + " px per cell of " + fmt(g.cell) + " world units";
+  swatch(x, no_data);
+  if (labels) render_text(img, x + bar_h + 4, bar_y + bar_h - 2, "no data", 12, black);
+  legend += "no data: blue";
+  x += bar_h + 12 + 8 * 7;
+  if (!style.markers.empty()) {
+    marker(x + mr, bar_y + bar_h / 2);
+    if (labels) render_text(img, x + 2 * mr + 4, bar_y + bar_h - 2, style.marker_label, 12, black);
+    legend += "; " + style.marker_label + ": white disc";
+  }
+  legend += "; " + std::to_string(s) + " px per cell of " + fmt(g.cell) + " world units";
   write_image(img, path.string(), PixelFormat::uint8, legend);
   return legend;
 }

@@ -317,7 +317,7 @@ struct VisibilityRun {
     } else if (value == "viewshed") {
       for (std::size_t i = 0; i < v.size(); ++i) v[i] = vis.count[i] > 0;
       red = CellReduce::max;
-      name = "viewshed (1 = some point of the cell is visible)";
+      name = "viewshed (a cell is visible when some point in it is)";
     } else if (value == "count") {
       for (std::size_t i = 0; i < v.size(); ++i) v[i] = vis.count[i];
       red = CellReduce::max;
@@ -368,7 +368,12 @@ struct VisibilityRun {
     if (o.write_preview) {
       std::filesystem::path pv = o.preview;
       if (pv.empty()) pv = std::filesystem::path(o.raster).replace_extension(".png");
-      const std::string legend = write_raster_preview(pv, *r.raster, rv.lo, rv.hi, value + ": " + rv.name);
+      PreviewStyle style;
+      if (value == "viewshed")  // binary: a categorical legend, not a ramp
+        style.categories = {{1.0f, "visible", {1.0f, 0.8f, 0.1f}}, {0.0f, "not visible", {0.3f, 0.3f, 0.3f}}};
+      if (have_observers && value != "sky" && value != "camera")
+        for (const Observer& ob : observers) style.markers.push_back(ob.position);
+      const std::string legend = write_raster_preview(pv, *r.raster, rv.lo, rv.hi, rv.name, style);
       ctl.info("preview legend: " + legend);
       r.written.push_back(pv);
     }
