@@ -89,11 +89,12 @@ Runner add_visibility_command(CLI::App& app) {
   CLI::App* c = app.add_subcommand(
       "visibility",
       "Which points can be seen from where: per-point visible-from counts from observers (line of "
-      "sight through the point spheres), sky view factor, points seen by a camera; written as "
-      "scalar fields to LAS/PLY and as a GeoTIFF map with a PNG preview (analysis/README.md).");
+      "sight over the surface the points sample, as a GIS viewshed; --primitive sphere for the true "
+      "3-D answer), sky view factor, points seen by a camera; written as scalar fields to LAS/PLY "
+      "and as a GeoTIFF map with a PNG preview (docs/visibility.md).");
   c->add_option("cloud", o->cloud, "Point cloud (LAS, PLY, PCD, text)")->required();
   c->add_option("-o,--out", o->out, "Write the cloud with the result fields here (.las, .laz or .ply)");
-  c->add_option("--observers", o->observers_file, "Observer list (.json or .csv; see analysis/README.md)");
+  c->add_option("--observers", o->observers_file, "Observer list (.json or .csv; see docs/visibility.md)");
   c->add_option("--observer", o->observer_args,
                 "An observer X,Y,Z (absolute eye) or X,Y (eye at --height above the local ground); world units "
                 "(the cloud's coordinates); repeatable")
@@ -111,10 +112,10 @@ Runner add_visibility_command(CLI::App& app) {
       ->capture_default_str()
       ->check(positive());
   c->add_option("--primitive", o->job.primitive,
-                "Geometry of each point for line of sight: sphere (the paper's model, one radius) or surfel "
-                "(oriented disc, PCA normal, radius from the local spacing; with target height 0 the "
-                "GIS viewshed of the sampled surface, see analysis/README.md); sky view and camera "
-                "marks use spheres")
+                "Geometry of each point for line of sight: surfel (oriented disc, PCA normal, radius from "
+                "the local spacing; with target height 0 the GIS viewshed of the sampled surface, as "
+                "gdal_viewshed computes on a DSM) or sphere (the paper's model, one radius: the true 3-D "
+                "answer, which sees under tree crowns); sky view and camera marks use spheres")
       ->capture_default_str()
       ->check(CLI::IsMember({"sphere", "surfel"}));
   c->add_option("--tolerance", o->job.tolerance,

@@ -262,7 +262,7 @@ VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec
   for (std::size_t k = 0; k < m; ++k) max_d[k] = observers[k].max_distance.value_or(opts.max_distance);
 
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
-  Progress progress(chunks, opts.progress && Progress::stderr_is_terminal(),
+  Progress progress(chunks, opts.progress,
                             ProgressUnits{"chunks", "points/s", 1.0, 0});
   struct Local {
     std::vector<std::uint64_t> seen;
@@ -362,7 +362,7 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
   std::vector<double> out(n, 0.0);
   if (n == 0) return out;
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
-  Progress progress(chunks, opts.progress && Progress::stderr_is_terminal(),
+  Progress progress(chunks, opts.progress,
                             ProgressUnits{"chunks", "points/s", 1.0, 0});
   std::atomic<std::uint64_t> total{0};
   RayQuery q;
@@ -438,7 +438,7 @@ std::vector<std::uint32_t> camera_first_hits_over(const Index& index, const Came
   q.t_min = 0.0;
   q.t_max = max_distance;
   q.validate();  // (once: ray_first_hit_each does not validate)
-  Progress progress(H, progress_bar && Progress::stderr_is_terminal(),
+  Progress progress(H, progress_bar,
                             ProgressUnits{"rows", "M rays/s", 1e-6, 2});
   const unsigned nthreads = resolve_threads(threads);
   tbb::task_arena arena(static_cast<int>(nthreads));

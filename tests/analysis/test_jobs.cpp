@@ -93,6 +93,7 @@ TEST(VisibilityJob, InMemoryCloudEqualsTheLowerLevelCalls) {
   VisibilityJobOptions o;
   o.cloud = &pc;
   o.radius = 0.08;
+  o.primitive = "sphere";  // compared with the sphere model's lower-level calls below
   Observer eye;
   eye.position = Vec3(0.5, 2.0, 1.7);
   eye.has_z = true;

@@ -340,7 +340,7 @@ TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
   const fs::path csv = write_text("cli_obs.csv", "x,y,height\n0,0,1.7\n-8,8,1.7\n");
   const fs::path las = tmpdir() / "out.las", ply = tmpdir() / "out.ply", tif = tmpdir() / "vis.tif";
   const std::string common = bin() + " visibility " + scene().string() + " --observers " + csv.string() +
-                             " --radius 0.8 --distance --sky-view 16 -q";
+                             " --radius 0.8 --primitive sphere --distance --sky-view 16 -q";
   RunResult r = run_cmd(common + " -o " + las.string() + " --raster " + tif.string() + " --cell 2 --json");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("\"visible_points\""), std::string::npos) << r.out;

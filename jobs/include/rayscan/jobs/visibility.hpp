@@ -39,8 +39,12 @@ struct VisibilityJobOptions {
   IndexOptions index;                   ///< index type (default octree-adaptive)
   std::optional<double> radius;         ///< sphere radius, world units; nullopt = auto
   double radius_factor = 1.0;           ///< auto radius = factor x median NN spacing (choose_radius)
-  std::string primitive = "sphere";     ///< "sphere" (the paper's model) or "surfel" (oriented discs:
-                                        ///< PCA normals, per-point radii; estimate_surfels with `surfel`)
+  std::string primitive = "surfel";     ///< "surfel" (oriented discs: PCA normals, per-point radii,
+                                        ///< estimate_surfels with `surfel`; with the surfel defaults of
+                                        ///< tolerance and target height 0 the GIS viewshed protocol, so
+                                        ///< the default agrees with gdal_viewshed on rayscan's DSM) or
+                                        ///< "sphere" (the paper's model: the true 3-D answer, which sees
+                                        ///< under tree crowns and through gaps)
   SurfelOptions surfel;                 ///< surfel normals and radii (orientation: +z up unless set)
 
   // ---- Observers (line of sight, VisibilityOptions / is_visible).
