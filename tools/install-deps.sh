@@ -11,6 +11,7 @@ PKGS=(
   liblzf-dev libgdal-dev gdal-bin zlib1g-dev
   clang libclang-rt-14-dev
   fonts-dejavu-core
+  help2man groff-base
   cloudcompare xvfb xauth
   python3-dev pybind11-dev python3-numpy python3-pytest python3-matplotlib python3-open3d
   libsqlite3-dev sqlite3 libpq-dev postgresql-15 postgresql-server-dev-15 postgresql-15-pointcloud
