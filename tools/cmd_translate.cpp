@@ -14,13 +14,15 @@ namespace rayscan::cli {
 Runner add_translate_command(CLI::App& app) {
   auto* sub = app.add_subcommand("translate", "Convert point files (like `pdal translate`): LAS <-> LAZ losslessly "
                                               "(same header, VLRs/EVLRs and byte-identical point records); any "
-                                              "readable file to .las, .laz or .ply by OUT's extension");
+                                              "readable file to .las, .laz, .ply, .pcd or text (.xyz, .csv, .txt) by OUT's extension");
   auto in = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto format = std::make_shared<std::string>("auto");
   auto chunk = std::make_shared<std::uint32_t>(50000);
   sub->add_option("IN", *in, "input point file (LAS, LAZ, COPC, PLY, PCD, XYZ/CSV/TXT)")->required();
-  sub->add_option("OUT", *out, "output file: .las, .laz or .ply")->required();
+  sub->add_option("OUT", *out, "output file: .las, .laz, .ply (binary, double x y z), .pcd (binary, double x y z) or "
+                                "text with a header line (.xyz and .txt space-separated, .csv comma-separated)")
+      ->required();
   sub->add_option("--format", *format, "output: auto (by OUT's extension), las or laz")
       ->check(CLI::IsMember({"auto", "las", "laz"}));
   sub->add_option("--chunk-size", *chunk, "points per LAZ chunk")->check(CLI::Range(1u, 0xFFFFFFFEu));
@@ -33,7 +35,12 @@ Runner add_translate_command(CLI::App& app) {
                       : *format == "laz" ? jobs::LasCompression::laz : jobs::LasCompression::by_extension;
     job.chunk_size = *chunk;
     const jobs::TranslateJobResult r = jobs::run_translate(job);
-    const char* written = rayscan::lower_extension(*out) == ".ply" ? "PLY" : r.compressed ? "LAZ" : "LAS";
+    const std::string ext = rayscan::lower_extension(*out);
+    const char* written = job.compression != jobs::LasCompression::by_extension ? (r.compressed ? "LAZ" : "LAS")
+                          : ext == ".ply"                                      ? "PLY"
+                          : ext == ".pcd"                                      ? "PCD"
+                          : ext == ".las" || ext == ".laz"                     ? (r.compressed ? "LAZ" : "LAS")
+                                                                               : "text";
     std::cout << *out << ": " << r.points << " points, " << written << ", " << r.out_bytes
               << " bytes";
     if (r.compressed) std::cout << " in " << r.chunks << " chunks";

@@ -93,7 +93,7 @@ Runner add_visibility_command(CLI::App& app) {
       "3-D answer), sky view factor, points seen by a camera; written as scalar fields to LAS/PLY "
       "and as a GeoTIFF map with a PNG preview (docs/visibility.md).");
   c->add_option("cloud", o->cloud, "Point cloud (LAS, PLY, PCD, text)")->required();
-  c->add_option("-o,--out", o->out, "Write the cloud with the result fields here (.las, .laz or .ply)");
+  c->add_option("-o,--out", o->out, "Write the cloud with the result fields here (.las, .laz, .ply, .pcd, .xyz, .csv or .txt)");
   c->add_option("--observers", o->observers_file, "Observer list (.json or .csv; see docs/visibility.md)");
   c->add_option("--observer", o->observer_args,
                 "An observer X,Y,Z (absolute eye) or X,Y (eye at --height above the local ground); world units "

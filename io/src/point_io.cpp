@@ -68,7 +68,7 @@ PointCloud read_point_cloud(std::span<const std::uint8_t> bytes, Format format, 
 }
 
 const std::vector<std::string>& point_cloud_output_extensions() {
-  static const std::vector<std::string> exts{".las", ".laz", ".ply"};
+  static const std::vector<std::string> exts{".las", ".laz", ".ply", ".pcd", ".xyz", ".csv", ".txt"};
   return exts;
 }
 
@@ -84,7 +84,10 @@ void require_point_cloud_output(const std::filesystem::path& path) {
 
 void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& las) {
   require_point_cloud_output(path);
-  if (lower_extension(path) == ".ply") write_ply(path, cloud);
+  const std::string ext = lower_extension(path);
+  if (ext == ".ply") write_ply(path, cloud);
+  else if (ext == ".pcd") write_pcd(path, cloud);
+  else if (ext == ".xyz" || ext == ".csv" || ext == ".txt") write_text(path, cloud);
   else write_las(path, cloud, las);  // .las or .laz (write_las compresses .laz)
 }
 

@@ -15,20 +15,22 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
   const std::filesystem::path out[] = {options.out}, in[] = {options.in};
   require_outputs(out, in);
   const bool las_in = io::format_from_extension(options.in) == io::Format::las;
-  const bool las_out = options.compression != LasCompression::by_extension || lower_extension(options.out) != ".ply";
+  const std::string ext = lower_extension(options.out);
+  const bool las_out = options.compression != LasCompression::by_extension || ext == ".las" || ext == ".laz";
   if (las_in && las_out) {
     io::TranslateOptions t;
     t.compression = options.compression;
     t.chunk_size = options.chunk_size;
     return io::translate_las(options.in, options.out, t);  // checks chunk_size (OptionError)
   }
-  // Any readable input to LAS/LAZ/PLY: every attribute the readers keep, positions in double
-  // (LAS output quantises them to write_las's scale).
+  // Any readable input to any written format (io::write_point_cloud by the extension): every
+  // attribute the readers keep, positions in double (LAS output quantises them to write_las's
+  // scale).
   const PointCloud cloud = io::read_point_cloud(options.in);
   io::write_point_cloud(options.out, cloud);
   TranslateJobResult r;
   r.points = cloud.size();
-  r.compressed = lower_extension(options.out) == ".laz";
+  r.compressed = ext == ".laz";
   r.in_bytes = std::filesystem::file_size(options.in);
   r.out_bytes = std::filesystem::file_size(options.out);
   return r;

@@ -139,8 +139,8 @@ TEST(VisibilityJob, OptionErrorsComeBeforeAnyWork) {
             "raster 'map.png': expected a file name ending in .tif (GeoTIFF)");
   o.raster = "";
   o.cell.reset();
-  o.out = "x.xyz";
-  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "out 'x.xyz': expected a file name ending in .las, .laz or .ply");
+  o.out = "x.e57";
+  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "out 'x.e57': expected a file name ending in .las, .laz, .ply, .pcd, .xyz, .csv or .txt");
   o.out = "";
   o.raster_value = "count";
   o.raster = "m.tif";

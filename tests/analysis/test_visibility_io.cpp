@@ -407,7 +407,7 @@ TEST_F(VisibilityCli, UserErrorsExitTwoAndWriteNothing) {
   };
   const std::string s = scene().string();
   expect_error(s + " -o " + out.string(), "nothing to compute");
-  expect_error(s + " --observer 0,0,2 -o " + (tmpdir() / "x.xyz").string(), "expected a file name ending in .las, .laz or .ply");
+  expect_error(s + " --observer 0,0,2 -o " + (tmpdir() / "x.e57").string(), "expected a file name ending in .las, .laz, .ply, .pcd, .xyz, .csv or .txt");
   expect_error(s + " --observer 0,0 -o " + out.string(), "--observer '0,0': observer 1: no z and no height");
   expect_error(s + " --observer 50,50 --height 2 -o " + out.string(), "no point within the ground radius");
   expect_error(s + " --observer 0,0,x -o " + out.string(), "is not a finite number");

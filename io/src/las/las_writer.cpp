@@ -136,9 +136,13 @@ struct LasRecordWriter {
     rec_len = base_len + 8 * static_cast<int>(extra.size());
   }
 
-  /// Scale and offset per axis (header section 2.4). An invalid option scale becomes 0.001
-  /// (mm), multiplied by 10 until the bounds fit 32-bit integers (2e9 units); without an option
-  /// offset, the box's low corner rounded down to 1000 scale units.
+  /// Scale and offset per axis (header section 2.4). An invalid option scale is chosen: the
+  /// coarsest decimal grid (1, 0.1, 0.01 or 0.001 units) on which every coordinate of the axis
+  /// reads back bit for bit (X * scale + offset == v, the reader's arithmetic) with the option
+  /// offset, or without one offset 0 or the default below: a cloud that came from LAS on such a
+  /// grid (through PLY, PCD or text) is written back exactly. Otherwise 0.001 (mm), multiplied by
+  /// 10 until the bounds fit 32-bit integers (2e9 units); without an option offset, the box's low
+  /// corner rounded down to 1000 scale units.
   void choose_scale_offset() {
     const AABB box = cloud.bounds();
     scale = options.scale;
@@ -148,11 +152,32 @@ struct LasRecordWriter {
       auto_scale[k] = !(scale[k] > 0.0) || !std::isfinite(scale[k]);
       if (auto_scale[k]) scale[k] = 0.001;
     }
+    auto default_offset = [&](int k, double s) {
+      const double unit = 1000.0 * s;
+      return box.empty() ? 0.0 : std::floor(box.lo[k] / unit) * unit;
+    };
     if (!options.has_offset)
-      for (int k = 0; k < 3; ++k) {
-        const double unit = 1000.0 * scale[k];
-        offset[k] = box.empty() ? 0.0 : std::floor(box.lo[k] / unit) * unit;
-      }
+      for (int k = 0; k < 3; ++k) offset[k] = default_offset(k, scale[k]);
+    for (int k = 0; k < 3; ++k)
+      if (auto_scale[k] && !box.empty())
+        for (const double s : {1.0, 0.1, 0.01, 0.001}) {
+          const double offsets[2] = {options.has_offset ? offset[k] : 0.0, default_offset(k, s)};
+          bool found = false;
+          for (const double off : offsets) {
+            if (std::max(std::abs(box.hi[k] - off), std::abs(box.lo[k] - off)) / s > 2.0e9) continue;
+            bool exact = true;
+            for (std::size_t i = 0; i < n && exact; ++i) {
+              const double v = cloud.positions[i][k];
+              exact = std::round((v - off) / s) * s + off == v;
+            }
+            if (exact) {
+              scale[k] = s, offset[k] = off, auto_scale[k] = false, found = true;
+              break;
+            }
+            if (options.has_offset) break;  // the option offset only
+          }
+          if (found) break;
+        }
     for (int k = 0; k < 3; ++k)
       while (auto_scale[k] && !box.empty() &&
              std::max(std::abs(box.hi[k] - offset[k]), std::abs(box.lo[k] - offset[k])) / scale[k] > 2.0e9)

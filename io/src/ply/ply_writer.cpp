@@ -6,6 +6,7 @@
 #include "rayscan/base/version.hpp"
 
 #include "atomic_writer.hpp"
+#include "field_names.hpp"
 
 #include <algorithm>
 #include <set>
@@ -16,13 +17,7 @@ namespace {
 /// "scalar_<name>" (docs/formats.md "PLY property names"): CloudCompare loads extra properties
 /// only under this prefix (and shows them without it); Open3D takes any name.
 std::string property_name(const std::string& name, std::set<std::string>& used) {
-  std::string s = "scalar_" + (name.empty() ? std::string("field") : name);
-  for (char& c : s)
-    if (!((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_')) c = '_';
-  std::string out = s;
-  for (int k = 1; used.count(out) != 0; ++k) out = s + "_" + std::to_string(k);
-  used.insert(out);
-  return out;
+  return detail::unique_field_name("scalar_", name, used);
 }
 }  // namespace
 
@@ -55,7 +50,7 @@ void write_ply(const std::filesystem::path& path, const PointCloud& cloud) {
 
   detail::AtomicWriter w(path);
   w.write(h.data(), h.size());
-  auto to8 = [](std::uint16_t v) { return static_cast<std::uint8_t>((v + 128u) / 257u); };
+  auto to8 = [](std::uint16_t v) { return detail::colour_to_8bit(v); };
   for (std::size_t i = 0; i < n; ++i) {
     w.put(cloud.positions[i].x);
     w.put(cloud.positions[i].y);

@@ -67,8 +67,10 @@ PointCloud read_point_cloud(std::span<const std::uint8_t> bytes, Format format,
 
 /// Options of write_las().
 struct LasWriteOptions {
-  /// LAS scale factors (x, y, z); 0 = choose: 0.001 (millimetre in metre units), coarsened by
-  /// powers of ten until the cloud's extent fits 32-bit integers.
+  /// LAS scale factors (x, y, z); 0 = choose: the coarsest of 1, 0.1, 0.01, 0.001 on which every
+  /// coordinate of the axis reads back bit for bit (a cloud that came from LAS through PLY, PCD or
+  /// text is written back exactly), else 0.001 (millimetre in metre units), coarsened by powers of
+  /// ten until the cloud's extent fits 32-bit integers.
   Vec3 scale{0.0};
   /// LAS offsets; used only when `has_offset`, otherwise the bounding box minimum rounded down
   /// to a whole multiple of 1000 * scale.
@@ -102,17 +104,36 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud,
 /// Throws std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
 void write_ply(const std::filesystem::path& path, const PointCloud& cloud);
 
-/// The extensions write_point_cloud() writes, lower case with the dot: ".las", ".laz", ".ply".
+/// Writes `cloud` as PCD v0.7 (PCL's format), DATA binary, unorganised (WIDTH = points, HEIGHT
+/// 1, VIEWPOINT identity): FIELDS x y z (F 8: double, so georeferenced coordinates survive), then
+/// normal_x normal_y normal_z (F 4), rgb (PCL's packed 0x00RRGGBB in a 4-byte float field, 16-bit
+/// colour rounded to 8 bit), intensity (F 4), classification (U 1), gps_time (F 8) and one F 8
+/// field per ScalarField (name sanitised to [A-Za-z0-9_], made unique). PCD has no CRS: a cloud's
+/// crs_wkt is not written. Written via temp file + rename. Throws std::invalid_argument for a
+/// cloud failing validate(), std::runtime_error on I/O failure.
+void write_pcd(const std::filesystem::path& path, const PointCloud& cloud);
+
+/// Writes `cloud` as text: a header line naming the columns (x y z, red green blue as 16-bit
+/// values, nx ny nz, intensity, classification, gps_time, then the scalars' sanitised names),
+/// then one point per line; separated by ',' for a .csv name, else by a space (.xyz, .txt). Each
+/// value is the shortest decimal that reads back as the same double, so read_point_cloud returns
+/// the coordinates bit for bit. No CRS. Written via temp file + rename. Throws
+/// std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
+void write_text(const std::filesystem::path& path, const PointCloud& cloud);
+
+/// The extensions write_point_cloud() writes, lower case with the dot: ".las", ".laz", ".ply",
+/// ".pcd", ".xyz", ".csv", ".txt".
 [[nodiscard]] const std::vector<std::string>& point_cloud_output_extensions();
 
-/// Throws std::invalid_argument "<path>: expected a file name ending in .las, .laz or .ply" unless
+/// Throws std::invalid_argument "<path>: expected a file name ending in .las, .laz, .ply, ..." unless
 /// write_point_cloud() can write `path`, and for a name ending in ".copc.laz" (COPC output is
 /// not written yet: a plain LAZ under that name would claim an octree it does not have). For
 /// checking a job's output before its work.
 void require_point_cloud_output(const std::filesystem::path& path);
 
 /// Writes `cloud` in the format its extension names (case-insensitive; the one writer choice of
-/// every job): .las and .laz with write_las (`las`: scale and offset), .ply with write_ply.
+/// every job): .las and .laz with write_las (`las`: scale and offset), .ply with write_ply, .pcd
+/// with write_pcd, .xyz / .csv / .txt with write_text.
 /// Throws what require_point_cloud_output() throws before writing anything, else what the
 /// writer throws.
 void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& las = {});

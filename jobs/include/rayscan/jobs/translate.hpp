@@ -18,7 +18,7 @@ using io::LasCompression;
 struct TranslateJobOptions {
   std::filesystem::path in;   ///< the point file to read (any format read_point_cloud reads)
   std::filesystem::path out;  ///< the file to write (through a temporary file renamed into place)
-  /// Output format: by the output's extension (.las, .laz or .ply: io::write_point_cloud), or las
+  /// Output format: by the output's extension (.las, .laz, .ply, .pcd, .xyz, .csv, .txt: io::write_point_cloud), or las
   /// or laz whatever the name (a LAS/LAZ input is then converted losslessly).
   LasCompression compression = LasCompression::by_extension;
   /// Points per LAZ chunk (LASzip's default 50000): 1 to 4294967294 (0xFFFFFFFF marks

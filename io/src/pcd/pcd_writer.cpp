@@ -1,0 +1,85 @@
+// PCD v0.7 writer (Point Cloud Library, "The PCD (Point Cloud Data) file format",
+// pointclouds.org/documentation/tutorials/pcd_file_format.html): an unorganised cloud (HEIGHT 1),
+// DATA binary (the array-of-structs layout: one record of every field per point, little-endian).
+#include "rayscan/io/point_io.hpp"
+
+#include "atomic_writer.hpp"
+#include "field_names.hpp"
+
+#include <cstring>
+#include <set>
+#include <string>
+#include <vector>
+
+namespace rayscan::io {
+
+namespace {
+
+/// One FIELDS entry: its name, SIZE and TYPE (COUNT is always 1).
+struct PcdOut {
+  std::string name;
+  int size;
+  char type;
+};
+
+}  // namespace
+
+void write_pcd(const std::filesystem::path& path, const PointCloud& cloud) {
+  try {
+    cloud.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(path.string() + ": " + e.what());
+  }
+  const std::size_t n = cloud.size();
+  std::set<std::string> used = {"x", "y", "z"};
+  // Double positions (SIZE 8): a float holds a UTM northing only to half a metre. PCL loads them
+  // into PCLPointCloud2 and Open3D reads them; PCL's float point types take x y z F 4 only.
+  std::vector<PcdOut> f = {{"x", 8, 'F'}, {"y", 8, 'F'}, {"z", 8, 'F'}};
+  if (!cloud.normals.empty()) {
+    f.insert(f.end(), {{"normal_x", 4, 'F'}, {"normal_y", 4, 'F'}, {"normal_z", 4, 'F'}});
+    used.insert({"normal_x", "normal_y", "normal_z"});
+  }
+  // PCL's packed colour: the bits 0x00RRGGBB of a float field named rgb (8 bit per channel).
+  if (!cloud.rgb.empty()) f.push_back({"rgb", 4, 'F'}), used.insert("rgb");
+  if (!cloud.intensity.empty()) f.push_back({detail::unique_field_name("", "intensity", used), 4, 'F'});
+  if (!cloud.classification.empty()) f.push_back({detail::unique_field_name("", "classification", used), 1, 'U'});
+  if (!cloud.gps_time.empty()) f.push_back({detail::unique_field_name("", "gps_time", used), 8, 'F'});
+  for (const ScalarField& s : cloud.scalars) f.push_back({detail::unique_field_name("", s.name, used), 8, 'F'});
+
+  std::string h = "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS";
+  for (const PcdOut& o : f) h += " " + o.name;
+  h += "\nSIZE";
+  for (const PcdOut& o : f) h += " " + std::to_string(o.size);
+  h += "\nTYPE";
+  for (const PcdOut& o : f) h += std::string(" ") + o.type;
+  h += "\nCOUNT";
+  for (std::size_t k = 0; k < f.size(); ++k) h += " 1";
+  h += "\nWIDTH " + std::to_string(n) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(n) +
+       "\nDATA binary\n";
+
+  detail::AtomicWriter w(path);
+  w.write(h.data(), h.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    w.put(cloud.positions[i].x);
+    w.put(cloud.positions[i].y);
+    w.put(cloud.positions[i].z);
+    if (!cloud.normals.empty()) {
+      w.put(cloud.normals[i].x);
+      w.put(cloud.normals[i].y);
+      w.put(cloud.normals[i].z);
+    }
+    if (!cloud.rgb.empty()) {
+      const std::uint32_t packed = (std::uint32_t(detail::colour_to_8bit(cloud.rgb[i].r)) << 16) |
+                                   (std::uint32_t(detail::colour_to_8bit(cloud.rgb[i].g)) << 8) |
+                                   std::uint32_t(detail::colour_to_8bit(cloud.rgb[i].b));
+      w.put(packed);  // the float's bits, written as the 4 bytes they are
+    }
+    if (!cloud.intensity.empty()) w.put(static_cast<float>(cloud.intensity[i]));  // exact: < 2^24
+    if (!cloud.classification.empty()) w.put(cloud.classification[i]);
+    if (!cloud.gps_time.empty()) w.put(cloud.gps_time[i]);
+    for (const ScalarField& s : cloud.scalars) w.put(s.values[i]);
+  }
+  w.commit();
+}
+
+}  // namespace rayscan::io
