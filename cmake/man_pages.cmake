@@ -62,7 +62,8 @@ foreach(entry ${rayscan_man_names})
     "[SEE ALSO]\n${see_also}\n.PP\nThe user's manual: README.md and docs/ (docs/cli.md, docs/rendering.md, docs/visibility.md, docs/sql.md, docs/python.md) in the rayscan sources.\n")
   add_custom_command(OUTPUT ${man_dir}/${page}.1
     COMMAND ${CMAKE_COMMAND} -E make_directory ${man_dir}
-    COMMAND ${HELP2MAN_EXECUTABLE} --no-info --section=1 --version-string=${PROJECT_VERSION}
+    COMMAND ${CMAKE_COMMAND} -E env ASAN_OPTIONS=detect_leaks=0  # a sanitizer build's --help
+            ${HELP2MAN_EXECUTABLE} --no-info --section=1 --version-string=${PROJECT_VERSION}
             "--name=${what}" "--source=rayscan ${PROJECT_VERSION}" "--manual=rayscan manual"
             --include=${man_bin}/${page}.h2m --output=${man_dir}/${page}.1 ${man_bin}/${page}
     DEPENDS rayscan ${man_bin}/${page}.h2m
