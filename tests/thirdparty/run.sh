@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Third-party readers open rayscan's PLY output with every field: CloudCompare
 # (Debian `cloudcompare`, command line under `xvfb-run`) and Open3D (Debian `python3-open3d`).
-# The oracle is the PLY file's own bytes, parsed here with numpy from its header.
+# The oracle is the PLY file's own bytes, parsed here with numpy from its header. Then Open3D
+# reads rayscan's PCD output (check_pcd.py): double coordinates (a georeferenced LAS) through its
+# tensor reader, float ones (a depth camera's PCD) through its legacy reader too.
 # Exit 0 = pass, 1 = a tool missed or changed a field, 77 = skipped (a tool is not installed;
 # CTest reports the test as skipped and prints the reason).
 # Usage: tests/thirdparty/run.sh RAYSCAN_EXE
@@ -30,4 +32,9 @@ print(f'{(mx+mn)/2},{(my+ny_)/2},{mz+10}')")
 (cd "$W" && timeout 120 xvfb-run -a CloudCompare -SILENT -O -GLOBAL_SHIFT AUTO v.ply -C_EXPORT_FMT ASC -ADD_HEADER -SAVE_CLOUDS > cc.log 2>&1)
 asc=$(ls "$W"/v_*.asc 2>/dev/null | head -n 1)
 [ -n "$asc" ] || { echo "FAIL: CloudCompare wrote no ASC export"; cat "$W/cc.log"; exit 1; }
-"$PY" "$HERE/check_ply.py" "$W/v.ply" "$asc"
+"$PY" "$HERE/check_ply.py" "$W/v.ply" "$asc" || exit 1
+"$RAYSCAN" translate "$SRC" "$W/geo.pcd" > /dev/null || exit 1
+"$RAYSCAN" translate "$HERE/../data/pcd/milk.pcd" "$W/cam.pcd" > /dev/null || exit 1
+"$RAYSCAN" translate "$SRC" "$W/geo.xyz" > /dev/null || exit 1
+"$RAYSCAN" translate "$HERE/../data/pcd/milk.pcd" "$W/cam.xyz" > /dev/null || exit 1
+"$PY" "$HERE/check_pcd.py" "$W/geo.pcd" "$W/geo.xyz" "$W/cam.pcd" "$W/cam.xyz"

@@ -32,9 +32,14 @@ void write_pcd(const std::filesystem::path& path, const PointCloud& cloud) {
   }
   const std::size_t n = cloud.size();
   std::set<std::string> used = {"x", "y", "z"};
-  // Double positions (SIZE 8): a float holds a UTM northing only to half a metre. PCL loads them
-  // into PCLPointCloud2 and Open3D reads them; PCL's float point types take x y z F 4 only.
-  std::vector<PcdOut> f = {{"x", 8, 'F'}, {"y", 8, 'F'}, {"z", 8, 'F'}};
+  // Positions as float (F 4, what PCL's point types and Open3D's legacy reader take) when every
+  // coordinate is a float exactly (a depth camera's cloud), else as double (F 8: a float holds a
+  // UTM northing only to half a metre; PCL's PCLPointCloud2 and Open3D's tensor reader read it).
+  bool as_float = true;
+  for (std::size_t i = 0; i < n && as_float; ++i)
+    for (int k = 0; k < 3; ++k) as_float = as_float && double(float(cloud.positions[i][k])) == cloud.positions[i][k];
+  const int ps = as_float ? 4 : 8;
+  std::vector<PcdOut> f = {{"x", ps, 'F'}, {"y", ps, 'F'}, {"z", ps, 'F'}};
   if (!cloud.normals.empty()) {
     f.insert(f.end(), {{"normal_x", 4, 'F'}, {"normal_y", 4, 'F'}, {"normal_z", 4, 'F'}});
     used.insert({"normal_x", "normal_y", "normal_z"});
@@ -60,9 +65,12 @@ void write_pcd(const std::filesystem::path& path, const PointCloud& cloud) {
   detail::AtomicWriter w(path);
   w.write(h.data(), h.size());
   for (std::size_t i = 0; i < n; ++i) {
-    w.put(cloud.positions[i].x);
-    w.put(cloud.positions[i].y);
-    w.put(cloud.positions[i].z);
+    for (int k = 0; k < 3; ++k) {
+      if (as_float)
+        w.put(static_cast<float>(cloud.positions[i][k]));
+      else
+        w.put(cloud.positions[i][k]);
+    }
     if (!cloud.normals.empty()) {
       w.put(cloud.normals[i].x);
       w.put(cloud.normals[i].y);
