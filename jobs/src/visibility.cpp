@@ -129,7 +129,7 @@ struct VisibilityRun {
     if (o.primitive != "sphere" && o.primitive != "surfel")
       throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
     value = o.raster_value;
-    if (value.empty()) value = have_observers ? "fraction" : o.sky_rays ? "sky" : "camera";
+    if (value.empty()) value = have_observers ? "viewshed" : o.sky_rays ? "sky" : "camera";
     static const char* values[] = {"fraction", "viewshed", "count", "distance", "sky", "camera"};
     if (std::find(std::begin(values), std::end(values), value) == std::end(values))
       throw OptionError(

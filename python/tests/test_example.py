@@ -1,4 +1,5 @@
-"""The README's Python example (python/examples/depth_image.py) runs and produces a real image."""
+"""The Python guide's example (python/examples/depth_image.py, shown in docs/python.md) runs and
+produces a real image."""
 
 import os
 import pathlib
@@ -19,8 +20,9 @@ def test_depth_image_example(tmp_path):
 
 
 def test_readme_example_matches_the_file():
-    """The README's code block is the example file's core (same calls, same numbers)."""
-    readme = (SOURCE / "README.md").read_text()
+    """The Python guide's code block (docs/python.md) is the example file's core (same calls, same
+    numbers)."""
+    readme = (SOURCE / "docs" / "python.md").read_text()
     example = (SOURCE / "python" / "examples" / "depth_image.py").read_text()
     for line in ['tree.ray_query(eye, directions, k=1, radius=radius, t_min=0.0, order="sphere_hit")',
                  'radius = 1.5 * float(np.median(nn.distance[1::2]))',

@@ -73,7 +73,8 @@ struct VisibilityJobOptions {
   std::filesystem::path out;            ///< the cloud with the result fields (.las or .ply)
   std::filesystem::path raster;         ///< top-down GeoTIFF (.tif/.tiff); needs `cell`
   std::optional<double> cell;           ///< raster cell edge, world units
-  std::string raster_value;             ///< fraction|viewshed|count|distance|sky|camera; "" = by inputs
+  std::string raster_value;             ///< viewshed|fraction|count|distance|sky|camera; "" = viewshed
+                                        ///< with observers, else sky, else camera
   std::filesystem::path preview;        ///< PNG preview ("" = the raster's name with .png)
   bool write_preview = true;            ///< write the preview next to the raster
 
