@@ -14,17 +14,37 @@ namespace rayscan::io {
 
 namespace {
 
-/// Minimum and maximum of get(e) over a non-empty v (std::min / std::max from the first element,
-/// as before: a NaN first element gives NaN, later NaNs are skipped).
+/// Minimum and maximum of get(e) over a non-empty v (std::min / std::max from the first element:
+/// a NaN first element gives NaN, later NaNs are skipped), and the mean and sum of squared
+/// deviations (two passes over the chunk, which is in memory).
 template <class V, class F>
 AttributeRange range_of(std::string name, const V& v, F get) {
-  double lo = static_cast<double>(get(v[0])), hi = lo;
+  double lo = static_cast<double>(get(v[0])), hi = lo, sum = 0.0;
   for (const auto& e : v) {
     const double x = static_cast<double>(get(e));
     lo = std::min(lo, x);
     hi = std::max(hi, x);
+    sum += x;
   }
-  return {std::move(name), lo, hi};
+  const double mean = sum / double(v.size());
+  double m2 = 0.0;
+  for (const auto& e : v) {
+    const double d = static_cast<double>(get(e)) - mean;
+    m2 += d * d;
+  }
+  return {std::move(name), lo, hi, v.size(), mean, m2};
+}
+
+/// Merges the statistics of b into a (Chan, Golub and LeVeque 1979, the pairwise update of the
+/// mean and the sum of squared deviations).
+void merge(AttributeRange& a, const AttributeRange& b) {
+  a.lo = std::min(a.lo, b.lo);
+  a.hi = std::max(a.hi, b.hi);
+  const double n = double(a.count + b.count);
+  const double delta = b.mean - a.mean;
+  a.m2 += b.m2 + delta * delta * double(a.count) * double(b.count) / n;
+  a.mean += delta * double(b.count) / n;
+  a.count += b.count;
 }
 
 }  // namespace
@@ -68,8 +88,7 @@ CloudStats scan_point_cloud(PointReader& reader, std::size_t chunk_points) {
       if (it == all.end()) {
         all.push_back(std::move(r));
       } else {
-        it->lo = std::min(it->lo, r.lo);
-        it->hi = std::max(it->hi, r.hi);
+        merge(*it, r);
       }
     }
   }

@@ -5,6 +5,7 @@
 #include "rayscan/io/point_reader.hpp"
 
 #include <nlohmann/json.hpp>
+#include <cpl_conv.h>
 #include <ogr_spatialref.h>
 
 #include <algorithm>
@@ -52,6 +53,16 @@ void describe_crs(InfoJobResult& r) {
   if (r.crs_wkt.empty()) return;
   OGRSpatialReference srs;
   if (srs.importFromWkt(r.crs_wkt.c_str()) != OGRERR_NONE) return;
+  // The same CRS as WKT2 (ISO 19162:2019) and PROJJSON, as `pdal info` and `gdalsrsinfo` give it.
+  {
+    char* text = nullptr;
+    const char* wkt2[] = {"FORMAT=WKT2_2019", "MULTILINE=NO", nullptr};
+    if (srs.exportToWkt(&text, wkt2) == OGRERR_NONE && text) r.crs_wkt2 = text;
+    CPLFree(text);
+    text = nullptr;
+    if (srs.exportToPROJJSON(&text, nullptr) == OGRERR_NONE && text) r.crs_projjson = text;
+    CPLFree(text);
+  }
   const char* name = nullptr;
   if (srs.IsGeographic()) {
     srs.GetAngularUnits(&name);
@@ -126,6 +137,7 @@ InfoJobResult run_info(const InfoJobOptions& options) {
     r.count = m.positions().size();
     if (!m.empty()) r.bounds = m.node_bounds(m.root());
     r.crs_wkt = m.crs_wkt();
+    describe_crs(r);
     return r;
   }
   // Streaming: one chunk in memory at a time, whatever the file size (cloud_stats.hpp). Colour as
@@ -139,6 +151,7 @@ InfoJobResult run_info(const InfoJobOptions& options) {
   r.count = stats.count;
   r.bounds = stats.bounds;
   r.attributes = std::move(stats.ranges);
+  r.stats = options.stats;
   r.classes = std::move(stats.classification_counts);
   r.header_differs = r.info.header_bounds && r.count != 0 && !same_box(*r.info.header_bounds, r.bounds, r.info.scale);
   r.crs_wkt = reader->crs_wkt();
@@ -273,10 +286,21 @@ std::string info_report_json(const InfoJobResult& r) {
   if (!r.horizontal_unit.empty()) crs["horizontal_unit"] = r.horizontal_unit;
   if (!r.vertical_unit.empty()) crs["vertical_unit"] = r.vertical_unit;
   crs["wkt"] = r.crs_wkt;
+  if (!r.crs_wkt2.empty()) crs["wkt2"] = r.crs_wkt2;
+  if (!r.crs_projjson.empty()) {
+    // PROJ's text, parsed to nest as an object (not when the file's CRS carries bytes that are
+    // not UTF-8, which the JSON parser refuses: the WKT fields carry it then).
+    nlohmann::ordered_json pj = nlohmann::ordered_json::parse(r.crs_projjson, nullptr, false);
+    if (!pj.is_discarded()) crs["projjson"] = std::move(pj);
+  }
   j["crs"] = crs;
   if (!r.warnings.empty()) j["warnings"] = r.warnings;
   nlohmann::ordered_json attrs = nlohmann::ordered_json::array();
-  for (const AttributeRange& a : r.attributes) attrs.push_back({{"name", a.name}, {"min", a.lo}, {"max", a.hi}});
+  for (const AttributeRange& a : r.attributes) {
+    nlohmann::ordered_json e = {{"name", a.name}, {"min", a.lo}, {"max", a.hi}};
+    if (r.stats) e["count"] = a.count, e["mean"] = a.mean, e["stddev"] = a.stddev();
+    attrs.push_back(e);
+  }
   j["attributes"] = attrs;
   if (!r.classes.empty()) {
     nlohmann::ordered_json cj = nlohmann::ordered_json::object();
@@ -353,10 +377,15 @@ std::string info_report_text(const InfoJobResult& r) {
   for (const std::string& w : r.warnings) o << "warning:           " << w << "\n";
   if (!r.crs_wkt.empty()) o << "WKT:               " << r.crs_wkt.substr(0, 100) << (r.crs_wkt.size() > 100 ? "..." : "") << "\n";
   if (!r.attributes.empty()) {
-    o << "attributes:\n";
+    o << (r.stats ? "attributes:                          min                max               mean             stddev\n"
+                  : "attributes:\n");
     for (const AttributeRange& a : r.attributes) {
       char line[256];
-      std::snprintf(line, sizeof line, "  %-20s %18s %18s\n", a.name.c_str(), decimal(a.lo).c_str(), decimal(a.hi).c_str());
+      if (r.stats)
+        std::snprintf(line, sizeof line, "  %-20s %18s %18s %18s %18s\n", a.name.c_str(), decimal(a.lo).c_str(),
+                      decimal(a.hi).c_str(), decimal(a.mean).c_str(), decimal(a.stddev()).c_str());
+      else
+        std::snprintf(line, sizeof line, "  %-20s %18s %18s\n", a.name.c_str(), decimal(a.lo).c_str(), decimal(a.hi).c_str());
       o << line;
     }
   }

@@ -7,14 +7,21 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <cmath>
 #include <vector>
 
 namespace rayscan::io {
 
-/// Minimum and maximum of one attribute over all points (ranges of X, Y, Z in world units).
+/// Statistics of one attribute over all points (X, Y, Z in world units): minimum, maximum, mean
+/// and standard deviation (population: divided by the count), as `pdal info --stats` reports.
 struct AttributeRange {
   std::string name;  ///< "X", "Y", "Z", "intensity", "red", "normal_x", a scalar's name
   double lo = 0, hi = 0;
+  std::uint64_t count = 0;  ///< values summarised
+  double mean = 0;          ///< arithmetic mean
+  double m2 = 0;            ///< sum of squared deviations from the mean (Chan et al. 1979 merge)
+  /// Population standard deviation sqrt(m2 / count); 0 for no values.
+  [[nodiscard]] double stddev() const { return count ? std::sqrt(m2 / double(count)) : 0.0; }
 };
 
 /// Whole-file statistics gathered in one streaming pass.

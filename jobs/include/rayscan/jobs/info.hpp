@@ -32,6 +32,7 @@ using io::IndexSource;
 struct InfoJobOptions {
   std::filesystem::path file;  ///< point cloud file (any format read_point_cloud reads)
   bool verify = false;         ///< index files: verify every section's checksum (CLI --verify)
+  bool stats = false;          ///< report each attribute's mean and standard deviation (CLI --stats)
   JobControl control;          ///< unused today (the reader is single-threaded)
 };
 
@@ -61,9 +62,13 @@ struct InfoJobResult {
   std::uint64_t count = 0;                   ///< points read
   AABB bounds;                               ///< recomputed from the points (empty box for 0 points)
   bool header_differs = false;               ///< the header's box differs by more than half a scale step
-  std::vector<AttributeRange> attributes;    ///< every attribute present, in a fixed order
+  std::vector<AttributeRange> attributes;    ///< every attribute present, in a fixed order, with its
+                                             ///< min, max, mean and standard deviation (one pass)
+  bool stats = false;                        ///< the reports include the mean and standard deviation
   std::map<int, std::uint64_t> classes;      ///< points per ASPRS class code
   std::string crs_wkt;                       ///< the cloud's CRS as WKT ("" = none)
+  std::string crs_wkt2;                      ///< the same CRS as WKT2 (ISO 19162:2019, GDAL/PROJ)
+  std::string crs_projjson;                  ///< the same CRS as PROJJSON (PROJ's JSON schema)
   /// Units of the CRS as GDAL/PROJ name them ("metre", "US survey foot", "foot", "degree"):
   /// horizontal (linear for a projected CRS, angular for a geographic one) and vertical (of a
   /// compound CRS's vertical part); "" when there is no CRS or no such part.
