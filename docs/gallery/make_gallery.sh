@@ -31,7 +31,7 @@ for scene in "${scenes[@]}"; do
   rows="$rows| \`$name\`$cells |"$'\n'
 done
 quick=""
-for cloud in scenes/data/Haystack_Rock.las scenes/data/autzen_trim.las; do
+for cloud in scenes/data/Haystack_Rock.las scenes/data/autzen_trim.las scenes/data/office1.pcd; do
   name=$(basename "$cloud" | sed 's/\.[^.]*$//')
   "$RAYSCAN" render "$cloud" --width "$W" --spp "$SPP" --out "$OUT/quicklook_${name}.png" -q >/dev/null
   quick="$quick| \`rayscan render $cloud\` | ![](quicklook_${name}.png) |"$'\n'
@@ -49,8 +49,10 @@ $(for s in scenes/*.json; do case " ${scenes[*]} " in *" $s "*) ;; *) printf '`%
 | scene | sphere (the paper's model) | surfel |
 |---|---|---|
 $rows
-Quick look: a point cloud file rendered without a scene (automatic overview camera, colour from
-RGB if present, else elevation; \`--print-scene\` prints the scene it used):
+Quick look: a point cloud file rendered without a scene (surfels, automatic radius, colour from
+RGB if present, else elevation, and the overview camera framing the points about the cloud's up
+axis: +z when georeferenced, -y for a depth camera's PCD such as office1; \`--print-scene\`
+prints the scene it used):
 
 | command | image |
 |---|---|
