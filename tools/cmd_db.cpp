@@ -2,6 +2,7 @@
 // index of chunk bounds (paper section 4.2). Parsing and printing only; the job is
 // rayscan::jobs::run_db_import (rayscan/jobs/db_import.hpp).
 #include "commands.hpp"
+#include "phase_progress.hpp"
 #include "processes.hpp"
 
 #include "rayscan/jobs/db_import.hpp"
@@ -18,7 +19,7 @@ struct DbImportOptions {
   std::vector<std::string> clouds;
   std::string out, postgres, table = "points", attributes, memory, temp_dir;
   std::uint32_t chunk = jobs::DbImportJobOptions::kDefaultChunkSize;
-  bool pcpatch = false;
+  bool pcpatch = false, quiet = false;
 };
 
 int run_import(const DbImportOptions& o) {
@@ -34,7 +35,10 @@ int run_import(const DbImportOptions& o) {
   std::stringstream ss(o.attributes);
   for (std::string a; std::getline(ss, a, ',');)
     if (!a.empty()) job.attributes.push_back(a);
+  const PhaseProgress progress("db import", o.quiet);
+  job.progress = progress;
   const jobs::DbImportJobResult s = jobs::run_db_import(job);
+  progress.finish();
   std::cout << "{\"points\": " << s.points << ", \"chunks\": " << s.chunks << ", \"chunk_size\": "
             << o.chunk << "}\n";
   return 0;
@@ -68,6 +72,7 @@ Runner add_db_command(CLI::App& app) {
   c->add_option("--attributes", o->attributes,
                 "Comma-separated extra columns: intensity, classification, gps_time, rgb or a "
                 "scalar field name");
+  c->add_flag("-q,--quiet", o->quiet, "no progress on stderr");
   return [o] {
     require_single_process("rayscan db");
     return run_import(*o);

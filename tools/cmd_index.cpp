@@ -2,6 +2,7 @@
 // (a site delivered as tiles is one index) out of core. Parsing and printing only; the job is
 // rayscan::jobs::run_index (rayscan/jobs/index.hpp).
 #include "commands.hpp"
+#include "phase_progress.hpp"
 #include "processes.hpp"
 
 #include "rayscan/base/progress.hpp"
@@ -102,46 +103,23 @@ Runner add_index_command(CLI::App& app) {
     auto secs = [t0] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
     // The progress callback runs every few million points in every phase (and once more before
     // the output is renamed into place); it is also where an interrupt stops the build.
-    // On a terminal one status line redrawn in place; into a log file (stderr not a terminal)
-    // plain lines, at most one every 5 s per phase, never a carriage return (a 2e8-point build
-    // once wrote one 35 KB line of \r updates).
-    const bool quiet = o->quiet, tty = Progress::stderr_is_terminal();
-    std::mutex line_mutex;
-    std::string last_phase;
-    double last_line = -1e9;
-    job.progress = [&, quiet, tty](const char* phase, std::uint64_t done, std::uint64_t total) {
+    const PhaseProgress progress("index", o->quiet);
+    job.progress = [progress](const char* phase, std::uint64_t done, std::uint64_t total) {
       if (const int sig = g_interrupt; sig != 0) throw Interrupted(sig);
-      if (quiet) return;
-      const double s = secs();
-      std::lock_guard lock(line_mutex);
-      if (!tty) {
-        if (last_phase == phase && s - last_line < 5.0) return;
-        last_phase = phase;
-        last_line = s;
-      }
-      const char* start = tty ? "\r" : "";
-      const char* end = tty ? "   " : "\n";
-      if (total > 0)
-        std::fprintf(stderr, "%sindex: %-5s %6.1f%%  %llu / %llu points  %.1f M points/s%s", start, phase,
-                     100.0 * static_cast<double>(done) / static_cast<double>(total),
-                     static_cast<unsigned long long>(done), static_cast<unsigned long long>(total),
-                     s > 0 ? static_cast<double>(done) / s / 1e6 : 0.0, end);
-      else
-        std::fprintf(stderr, "%sindex: %-5s %llu points%s", start, phase, static_cast<unsigned long long>(done), end);
-      std::fflush(stderr);
+      progress(phase, done, total);
     };
     catch_interrupts();
     jobs::IndexJobResult r;
     try {
       r = jobs::run_index(job);
     } catch (const Interrupted& e) {
-      if (!o->quiet && tty) std::fprintf(stderr, "\n");
+      progress.finish();
       std::cerr << "rayscan index: " << e.what() << "\n";
       return 128 + e.signal;  // the shell's convention for a command ended by a signal
     }
     const io::IndexBuildStats& st = r.stats;
     const double s = secs();
-    if (!o->quiet && tty) std::fprintf(stderr, "\n");
+    progress.finish();
     for (const std::string& n : st.notes) std::cerr << "note: " << n << "\n";
     std::printf("%s: %llu points, %llu nodes, depth %u, %llu sort runs, %s, positions %s; %.2f bytes/point; %.2f s (%.2f M points/s)\n",
                 o->output.c_str(), static_cast<unsigned long long>(st.points),

@@ -1,6 +1,7 @@
 // `rayscan translate IN OUT`: point file conversion (lossless LAS <-> LAZ; any input to LAS, LAZ, PLY). Parsing
 // and printing only; the job is rayscan::jobs::run_translate (rayscan/jobs/translate.hpp).
 #include "commands.hpp"
+#include "phase_progress.hpp"
 #include "processes.hpp"
 
 #include "rayscan/base/file_names.hpp"
@@ -26,7 +27,9 @@ Runner add_translate_command(CLI::App& app) {
   sub->add_option("--format", *format, "output: auto (by OUT's extension), las or laz")
       ->check(CLI::IsMember({"auto", "las", "laz"}));
   sub->add_option("--chunk-size", *chunk, "points per LAZ chunk")->check(CLI::Range(1u, 0xFFFFFFFEu));
-  return [in, out, format, chunk]() -> int {
+  auto quiet = std::make_shared<bool>(false);
+  sub->add_flag("-q,--quiet", *quiet, "no progress on stderr");
+  return [in, out, format, chunk, quiet]() -> int {
     require_single_process("rayscan translate");
     jobs::TranslateJobOptions job;
     job.in = *in;
@@ -34,7 +37,10 @@ Runner add_translate_command(CLI::App& app) {
     job.compression = *format == "las" ? jobs::LasCompression::las
                       : *format == "laz" ? jobs::LasCompression::laz : jobs::LasCompression::by_extension;
     job.chunk_size = *chunk;
+    const PhaseProgress progress("translate", *quiet);
+    job.progress = progress;
     const jobs::TranslateJobResult r = jobs::run_translate(job);
+    progress.finish();
     const std::string ext = rayscan::lower_extension(*out);
     const char* written = job.compression != jobs::LasCompression::by_extension ? (r.compressed ? "LAZ" : "LAS")
                           : ext == ".ply"                                      ? "PLY"

@@ -30,6 +30,7 @@ sql::ImportOptions import_options(const DbImportJobOptions& o) {
   }
   if (o.pcpatch && o.postgres.empty()) throw OptionError({option("pcpatch"), " needs ", option("postgres"), " CONNINFO"});
   opt.attributes = o.attributes;
+  opt.progress = o.progress;
   return opt;
 }
 

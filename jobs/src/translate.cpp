@@ -21,6 +21,7 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
     io::TranslateOptions t;
     t.compression = options.compression;
     t.chunk_size = options.chunk_size;
+    t.progress = options.progress;
     return io::translate_las(options.in, options.out, t);  // checks chunk_size (OptionError)
   }
   // Any readable input to any written format (io::write_point_cloud by the extension): every

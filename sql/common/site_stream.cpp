@@ -217,6 +217,7 @@ std::unique_ptr<SiteStream> open_site(const std::vector<fs::path>& paths, const 
   build.attributes.add(io::Attribute::id);  // the rows name each point's source and number in it
   build.memory_bytes = options.memory_bytes;
   build.temp_dir = dir;
+  build.progress = options.progress;
   std::optional<io::MappedIndex> index;
   try {
     (void)io::build_index_file(paths, temp, build);

@@ -108,8 +108,10 @@ struct PgImport {
   ChunkRows c;                          ///< the current chunk (vectors reused)
   ImportSummary sum;
   Conn db;
+  InsertProgress progress;              ///< the "insert" phase of ImportOptions::progress
 
-  PgImport(const std::string& t, SiteStream& s) : table(t), site(s), cols(s.columns()) {}
+  PgImport(const std::string& t, SiteStream& s, const ImportOptions& o)
+      : table(t), site(s), cols(s.columns()), progress(o, total_points(s)) {}
 
   /// The table `<table><suffix>` schema-qualified and quoted: what every statement names, so that
   /// no schema earlier in the search path (pg_catalog: `--table pg_class`) can capture it.
@@ -196,6 +198,7 @@ struct PgImport {
     std::string buf;
     while (site.next(c)) {
       const std::size_t count = c.size();
+      progress.add(count);
       buf += std::to_string(c.chunk) + '\t';
       buf += "01";
       append_hex(buf, static_cast<std::uint32_t>(pcid));
@@ -278,6 +281,7 @@ struct PgImport {
     std::string chunk_rows;
     while (site.next(c)) {
       const std::size_t count = c.size();
+      progress.add(count);
       const std::string ci = std::to_string(c.chunk);
       for (std::size_t r = 0; r < count; ++r) {
         const PointRef ref = c.refs[r];
@@ -350,7 +354,7 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
   if (const std::string why = reserved_sql_name(table, false); !why.empty())
     throw OptionError({option("table"), " '" + table + "': " + why + "; expected another name"});
   const std::unique_ptr<SiteStream> site = open_site(paths, options);
-  PgImport im(table, *site);
+  PgImport im(table, *site, options);
   im.connect_and_begin(conninfo);
   im.ensure_extension();
   if (options.pcpatch) {

@@ -114,8 +114,10 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
     if (sqlite3_prepare_v2(db.db, "INSERT INTO chunks VALUES(?,?,?,?,?,?,?,?,?)", -1, &rt.s, nullptr))
       db.fail("prepare");
     ChunkRows c;
+    InsertProgress progress(opt, total_points(*site));
     while (site->next(c)) {
       const std::size_t count = c.size();
+      progress.add(count);
       const auto ci = static_cast<sqlite3_int64>(c.chunk);
       packed.resize(count * sizeof(PackedPoint));
       for (std::size_t r = 0; r < count; ++r) {

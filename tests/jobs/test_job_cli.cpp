@@ -152,6 +152,41 @@ TEST(JobCli, IndexProgressIntoALogFileIsPlainLines) {
   std::filesystem::remove_all(dir);
 }
 
+// The other long jobs report the same way into a log file: `translate` LAS -> LAZ ("translate:
+// encode ... 100.0%"), `db import` (the temporary index's phases, then "insert"), `render` and
+// `visibility` (Progress: "progress: N/N ... done in"): plain lines, never a carriage return, the
+// last one at 100%.
+TEST(JobCli, TranslateDbImportRenderAndVisibilityProgressIntoALogFileIsPlainLines) {
+  const std::filesystem::path dir = temp_dir() / "jobs_log";
+  std::filesystem::create_directories(dir);
+  const std::string las = quoted(data_file("las/autzen_trim.las"));
+  const std::filesystem::path log = dir / "err.log";
+  auto logged = [&](const std::string& args) {
+    std::string cmd = "(";  // appended, not concatenated: GCC 12's -Wrestrict false positive on operator+
+    cmd.append(quoted(RAYSCAN_BIN)).append(" ").append(args).append(" 2> ").append(quoted(log)).append(")");
+    const auto r = run_command(cmd, false);
+    EXPECT_EQ(r.code, 0) << args << "\n" << r.out;
+    const std::string text = rayscan::test::file_bytes(log);
+    EXPECT_EQ(text.find('\r'), std::string::npos) << text;
+    return text;
+  };
+  const std::string tr = logged("translate " + las + " " + quoted(dir / "a.laz"));
+  EXPECT_NE(tr.find("translate: encode  100.0%  110000 / 110000 points"), std::string::npos) << tr;
+  const std::string db = logged("db import " + las + " -o " + quoted(dir / "a.sqlite"));
+  EXPECT_NE(db.find("db import: read"), std::string::npos) << db;
+  EXPECT_NE(db.find("db import: insert  100.0%  110000 / 110000 points"), std::string::npos) << db;
+  const std::string render = logged("render " + las + " --width 60 --spp 1 --out " + quoted(dir / "a.png"));
+  EXPECT_NE(render.find("progress: "), std::string::npos) << render;
+  EXPECT_NE(render.find(" 100.0%"), std::string::npos) << render;
+  EXPECT_NE(render.find("done in"), std::string::npos) << render;
+  const std::string vis = logged("visibility " + las + " --observer 636226.5,849106.5 --height 6 -o " + quoted(dir / "v.las"));
+  EXPECT_NE(vis.find("progress: "), std::string::npos) << vis;
+  EXPECT_NE(vis.find("done in"), std::string::npos) << vis;
+  // -q: nothing on standard error.
+  EXPECT_EQ(logged("translate -q " + las + " " + quoted(dir / "b.laz")), "");
+  std::filesystem::remove_all(dir);
+}
+
 // `query --out` writes CSV, so a name promising another format is refused before the queries
 // (it received CSV text); a .csv name and standard output work. Oracle: the file's bytes.
 TEST(JobCli, QueryOutputMustBeCsv) {

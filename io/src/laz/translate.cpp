@@ -218,11 +218,17 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
   res.points = h.count;
   res.compressed = to_laz;
   std::uint64_t written = head.size();
+  // Progress every 2^21 points (and at the end), not every chunk.
+  const auto report = [&](std::uint64_t before, std::uint64_t after) {
+    if (opt.progress && (before >> 21 != after >> 21 || after == h.count))
+      opt.progress(to_laz ? "encode" : "copy", after, h.count);
+  };
   if (!to_laz) {
     const std::size_t batch = std::max<std::size_t>(1, (8u << 20) / rec);
     for (std::uint64_t i = 0; i < h.count; i += batch) {
       const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(batch, h.count - i));
       f.write(reinterpret_cast<const char*>(src.next(n)), static_cast<std::streamsize>(n * rec));
+      report(i, i + n);
     }
     written += h.count * rec;
   } else {
@@ -241,6 +247,7 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
       f.write(reinterpret_cast<const char*>(chunk.data()), static_cast<std::streamsize>(chunk.size()));
       sizes.push_back(static_cast<std::uint32_t>(chunk.size()));
       written += chunk.size();
+      report(i, i + n);
     }
     // chunk table (LASzip lasreadpoint.cpp read_chunk_table): version 0, count, coded byte sizes
     const std::uint64_t table_at = written;

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 
 namespace rayscan::io {
 
@@ -19,6 +20,9 @@ enum class LasCompression {
 struct TranslateOptions {
   LasCompression compression = LasCompression::by_extension;
   std::uint32_t chunk_size = 50000;  ///< points per LAZ chunk (LASzip's default)
+  /// Called with (phase "copy" or "encode", points done, points in the file) every 2^21 points
+  /// and once at the end (may be empty; a LAZ input is decoded as it is read).
+  std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)> progress;
 };
 
 /// What translate_las() did.

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,9 @@ struct DbImportJobOptions {
   /// field's name.
   std::vector<std::string> attributes;
   bool pcpatch = false;  ///< PostgreSQL only: one pgpointcloud patch per chunk instead of rows
+  /// Called with (phase, points done, points in total): the temporary index's phases, then
+  /// "insert" (sql::ImportOptions::progress). May be empty.
+  std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)> progress;
   /// Memory budget of the external Morton sort, a byte size as parse_byte_size reads it ("4G",
   /// "512M"); empty = that of the index job (4G).
   std::string memory;

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 
 namespace rayscan::jobs {
 
@@ -25,6 +26,9 @@ struct TranslateJobOptions {
   /// variable-sized chunks in a LASzip VLR).
   std::uint32_t chunk_size = 50000;
   JobControl control;  ///< unused today (the conversion streams on one thread)
+  /// LAS <-> LAZ: called with (phase, points done, points in the file) as the conversion streams
+  /// (io::TranslateOptions::progress); may be empty.
+  std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)> progress;
 };
 
 /// Output of run_translate(): points, chunks, compressed, input and output sizes.

@@ -30,6 +30,27 @@ struct ImportOptions {
   /// Folder of the temporary index file and its sort runs. Empty: SQLite uses the output file's
   /// folder, PostgreSQL the system's temporary folder.
   std::filesystem::path temp_dir;
+  /// Called with (phase, points done, points in total) as the import goes: the temporary index's
+  /// phases (io::IndexBuildOptions::progress: scan, read, sort, ...), then "insert" every 2^21
+  /// points and at the end. May be empty.
+  io::IndexProgress progress;
+};
+
+/// Reports the "insert" phase of an import through ImportOptions::progress: add(n) after each
+/// chunk of n rows; calls progress when the count crosses a multiple of 2^21 points or reaches
+/// the total.
+class InsertProgress {
+ public:
+  InsertProgress(const ImportOptions& o, std::uint64_t total) : progress_(o.progress), total_(total) {}
+  void add(std::uint64_t n) {
+    const std::uint64_t before = done_;
+    done_ += n;
+    if (progress_ && (before >> 21 != done_ >> 21 || done_ == total_)) progress_("insert", done_, total_);
+  }
+
+ private:
+  const io::IndexProgress& progress_;
+  std::uint64_t total_, done_ = 0;
 };
 
 /// Whether s has the form of an SQL regular identifier, restricted to ASCII (SQL:2016 section 5.2):

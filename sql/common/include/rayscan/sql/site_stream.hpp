@@ -53,6 +53,13 @@ class SiteStream {
   virtual bool next(ChunkRows& out) = 0;
 };
 
+/// The points of a site: the sum of its sources' counts.
+[[nodiscard]] inline std::uint64_t total_points(const SiteStream& site) {
+  std::uint64_t n = 0;
+  for (const SourceRow& r : site.sources()) n += r.points;
+  return n;
+}
+
 /// Opens `paths` for import with `options` (chunk size, attributes, memory, temp_dir):
 ///  - one `.rsi` index file: its points in storage order (the index's Morton order), chunked;
 ///    attributes must be stored in it (else std::invalid_argument naming the file); each row's
