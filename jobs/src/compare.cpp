@@ -132,7 +132,7 @@ std::string g(double v, int prec = 9) {
 
 Limits Criteria::limits() const {
   Limits l;
-  const bool any = threshold || percent || max_error || min_psnr || min_ssim || max_flip;
+  const bool any = given();
   // The idiff default (fail on any pixel differing by more than 1e-6) applies when no criterion
   // of this level is given; otherwise only the given criteria apply.
   l.pixel_test = threshold || percent || !any;
@@ -223,7 +223,9 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
   }
   res.image_channels = t.channels;
 
-  const Limits fail = o.fail.limits(), warn = o.warn.limits();
+  const Limits fail = o.fail.limits();
+  Limits warn = o.warn.limits();
+  if (o.fail.given() && !o.warn.given()) warn.pixel_test = false;  // the warn level is off (Criteria)
   res.used.fail_threshold = fail.threshold;
   res.used.warn_threshold = warn.threshold;
   res.used.ssim.dynamic_range = o.ssim_range;

@@ -115,6 +115,11 @@ TEST_F(CompareCli, ExitCodesFollowThresholds) {
   EXPECT_EQ(compare(pa, pb, "--fail-psnr " + std::to_string(psnr + 0.01)).code, 1);
   EXPECT_EQ(compare(pa, pb, "--fail-ssim 0.999999").code, 1);
   EXPECT_EQ(compare(pa, pb, "--fail-ssim 0.5").code, 0);
+  // Fail criteria without warn criteria: the verdict is theirs alone (idiff's 1e-6 pixel default
+  // applies to the warn level only when no criterion at all is given).
+  const RunResult ssim_only = compare(pa, pb, "--fail-ssim 0.5");
+  EXPECT_NE(ssim_only.out.find("PASS"), std::string::npos) << ssim_only.out;
+  EXPECT_EQ(ssim_only.out.find("WARNING"), std::string::npos) << ssim_only.out;
   const RunResult w = compare(pa, pb, "--fail 0.2 --warn 0.1");
   EXPECT_EQ(w.code, 0);
   EXPECT_NE(w.out.find("WARNING"), std::string::npos) << w.out;

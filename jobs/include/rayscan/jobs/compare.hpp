@@ -20,6 +20,9 @@ using analysis::Limits;
 
 /// One level (fail or warn) of criteria as given by a user; unset = not given. limits() turns it
 /// into Limits with idiff's rule: with no criterion given, fail on any pixel error over 1e-6.
+/// Exception (run_compare): when fail criteria are given and no warn criterion, the warn level is
+/// off, so a verdict asked for by SSIM or PSNR alone is not turned into a WARNING by idiff's
+/// 1e-6 pixel default.
 struct Criteria {
   std::optional<double> threshold;  ///< pixel error threshold (idiff -fail / -warn)
   std::optional<double> percent;    ///< % of pixels allowed over the threshold (-failpercent)
@@ -29,6 +32,10 @@ struct Criteria {
   std::optional<double> max_flip;   ///< mean FLIP above this triggers
   /// The Limits these criteria mean (see above).
   [[nodiscard]] Limits limits() const;
+  /// Whether any criterion is given.
+  [[nodiscard]] bool given() const {
+    return threshold || percent || max_error || min_psnr || min_ssim || max_flip;
+  }
 };
 
 /// Inputs of run_compare(). An invalid option throws OptionError naming the fields (`flip_ppd`),
