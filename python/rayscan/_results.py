@@ -27,7 +27,12 @@ class _CsrResult:
 
     def first(self, field="indices", fill=None):
         """(M,) array: `field` of each query's best result; queries without a result get `fill`
-        (default -1 for indices, NaN for floats)."""
+        (default -1 for indices, NaN for floats). `field` is one of the result's fields
+        ("index", the CLI's column name, means "indices"); another name raises ValueError."""
+        if field == "index":
+            field = "indices"
+        if field not in self._fields:
+            raise ValueError(f"first: field {field!r} is not one of {', '.join(self._fields)}")
         a = getattr(self, field)
         if fill is None:
             fill = -1 if a.dtype.kind in "iu" else np.nan

@@ -91,6 +91,10 @@ def test_broadcast_origin_and_first(uniform_cloud):
             np.testing.assert_array_equal(res[i], idx)
         else:
             assert np.isnan(res.first("t")[i])
+    # "index" (the CLI's column name) is "indices"; an unknown field names the valid ones.
+    np.testing.assert_array_equal(res.first("index"), res.first("indices"))
+    with pytest.raises(ValueError, match="not one of indices, t, distance"):
+        res.first("depth")
 
 
 def test_knn_and_radius_equal_brute_force(uniform_cloud):
