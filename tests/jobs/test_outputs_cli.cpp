@@ -106,7 +106,7 @@ TEST(OutputsCli, FullFileSystemFailsCleanlyAndKeepsTheOldOutput) {
     EXPECT_EQ(file_bytes(full.dir / "v.tif"), "OLD v.tif");
     EXPECT_EQ(file_bytes(full.dir / "v.png"), "OLD v.png");
   }
-  expect_one_line_error(run_command(kBin + " translate " + q(cloud()) + " " + q(full.dir / "t.laz")), "t.laz", "write");
+  expect_one_line_error(run_command(kBin + " translate -q " + q(cloud()) + " " + q(full.dir / "t.laz")), "t.laz", "write");
   EXPECT_EQ(file_bytes(full.dir / "t.laz"), "OLD t.laz");
   EXPECT_EQ(temporaries(full.dir), std::vector<std::string>{});
 }
