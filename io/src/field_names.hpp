@@ -1,10 +1,25 @@
-// Internal: the attribute names the point writers (PLY, PCD, text) give a cloud's fields.
+// Internal: what the point writers (LAS, PLY, PCD, text) share: the check of the cloud before
+// anything is written, the names they give its fields, the 8-bit colour rule.
 #pragma once
 
+#include "rayscan/octree/point_cloud.hpp"
+
+#include <filesystem>
 #include <set>
+#include <stdexcept>
 #include <string>
 
 namespace rayscan::io::detail {
+
+/// cloud.validate(), its message prefixed with the output `path` ("<path>: <what is wrong>").
+/// Throws std::invalid_argument.
+inline void validate_for_writing(const std::filesystem::path& path, const PointCloud& cloud) {
+  try {
+    cloud.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(path.string() + ": " + e.what());
+  }
+}
 
 /// `prefix` + `name` with every character other than [A-Za-z0-9_] replaced by '_' ("field" for an
 /// empty name), made unique among `used` by a suffix _1, _2, ... and added to it. PLY, PCD and the

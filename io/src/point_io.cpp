@@ -72,14 +72,19 @@ const std::vector<std::string>& point_cloud_output_extensions() {
   return exts;
 }
 
-void require_point_cloud_output(const std::filesystem::path& path) {
+std::string point_cloud_output_problem(const std::filesystem::path& path) {
   std::string name = path.filename().string();
   std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (name.size() > 9 && name.ends_with(".copc.laz"))
-    throw std::invalid_argument(path.string() + ": writing COPC is not supported yet (write .laz, or make a COPC file " +
-                                "from it with PDAL's writers.copc or untwine)");
-  if (!has_extension(path, point_cloud_output_extensions()))
-    throw std::invalid_argument(path.string() + ": " + extensions_expected(point_cloud_output_extensions()));
+    return "writing COPC is not supported yet (write .laz, or make a COPC file from it with PDAL's writers.copc or "
+           "untwine)";
+  if (!has_extension(path, point_cloud_output_extensions())) return extensions_expected(point_cloud_output_extensions());
+  return "";
+}
+
+void require_point_cloud_output(const std::filesystem::path& path) {
+  if (const std::string why = point_cloud_output_problem(path); !why.empty())
+    throw std::invalid_argument(path.string() + ": " + why);
 }
 
 void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& las) {

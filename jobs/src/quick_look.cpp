@@ -67,6 +67,15 @@ double fit_distance(std::span<const Vec3> points, const Vec3& c, const ViewFrame
   return D;
 }
 
+/// At most kOverviewSample of `positions` (a span or a PositionView), an even stride from the first.
+template <class Positions>
+std::vector<Vec3> strided_sample(const Positions& positions) {
+  std::vector<Vec3> out;
+  const std::size_t step = std::max<std::size_t>(1, (positions.size() + kOverviewSample - 1) / kOverviewSample);
+  for (std::size_t i = 0; i < positions.size(); i += step) out.push_back(positions[i]);
+  return out;
+}
+
 }  // namespace
 
 LookAtParams overview_view(std::span<const Vec3> points, const UpAxis& axis, std::uint32_t width,
@@ -144,12 +153,11 @@ LookAtParams overview_view(const AABB& bounds, std::uint32_t width, std::uint32_
 
 UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const std::optional<Vec3>& sensor) {
   if (georeferenced) return {Vec3(0.0, 0.0, 1.0), "+z (georeferenced: the CRS's vertical)", std::nullopt};
+  Vec3 centroid(0.0);
+  for (const Vec3& p : sample) centroid += p;
+  if (!sample.empty()) centroid /= double(sample.size());
   std::optional<Vec3> facing;  // from the scanner towards the points: the scan's own view
-  if (sensor && !sample.empty()) {
-    Vec3 centroid(0.0);
-    for (const Vec3& p : sample) centroid += p;
-    facing = centroid / double(sample.size()) - *sensor;
-  }
+  if (sensor && !sample.empty()) facing = centroid - *sensor;
   // A depth camera's cloud (PCD with its scanner position) is in the camera's optical frame: x
   // right, y down, z forward (ROS REP 103), and the camera is held about level: up is -y, refined
   // to the dominant plane's normal when that lies within 20 degrees (a tilted camera).
@@ -170,8 +178,12 @@ UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const 
   constexpr double kCosTol = 0.98480775301220802;  // cos(10 degrees)
   if (sample.size() < kMinPoints)
     return optical ? optical_up(std::nullopt) : UpAxis{Vec3(0.0, 0.0, 1.0), "+z (too few points to estimate it)", facing};
-  // PCA normals of up to kNormals sample points from their kNearest neighbours in the sample.
+  // PCA normals (detail::surfel_normal, the surfels' own estimate) of up to kNormals sample points
+  // from their kNeighbours nearest in the sample; an undetermined one (collinear neighbours)
+  // comes back as the zero "up" passed in and is left out. Their sign does not matter here.
   const AnyIndex index = make_index(sample, IndexOptions{});
+  SurfelOptions so;
+  so.k_normal = kNeighbours;
   const std::size_t step = std::max<std::size_t>(1, sample.size() / kNormals);
   std::vector<Vec3> normals, at;
   visit_index(
@@ -179,19 +191,10 @@ UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const 
         for (std::size_t i = 0; i < sample.size(); i += step) {
           const std::vector<Neighbor> nb = knn(idx, sample[i], kNeighbours);
           if (nb.size() < 3) continue;
-          Vec3 m(0.0);
-          for (const Neighbor& n : nb) m += sample[n.index];
-          m /= double(nb.size());
-          double a[6] = {0, 0, 0, 0, 0, 0};
-          for (const Neighbor& n : nb) {
-            const Vec3 d = sample[n.index] - m;
-            a[0] += d.x * d.x, a[1] += d.x * d.y, a[2] += d.x * d.z, a[3] += d.y * d.y, a[4] += d.y * d.z,
-                a[5] += d.z * d.z;
-          }
-          if (const std::optional<Vec3> n = smallest_eigenvector(a[0], a[1], a[2], a[3], a[4], a[5])) {
-            normals.push_back(glm::normalize(*n));
-            at.push_back(sample[i]);
-          }
+          const Vec3 n(detail::surfel_normal(sample[i], nb, sample, so, Vec3(0.0), true, glm::vec3(0.0f)));
+          if (glm::length(n) == 0.0) continue;
+          normals.push_back(glm::normalize(n));
+          at.push_back(sample[i]);
         }
       },
       index);
@@ -227,14 +230,7 @@ UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const 
   for (double o : offsets) ++bins[std::min(kBins - 1, int((o - lo) / span * kBins))];
   const int mode = int(std::max_element(bins.begin(), bins.end()) - bins.begin());
   const double plane = lo + (mode + 0.5) * span / kBins;
-  Vec3 ref(0.0);
-  if (sensor) {
-    ref = *sensor;
-  } else {
-    for (const Vec3& p : sample) ref += p;
-    ref /= double(sample.size());
-  }
-  if (glm::dot(ref, axis) < plane) axis = -axis;
+  if (glm::dot(sensor ? *sensor : centroid, axis) < plane) axis = -axis;
   char buf[200];
   std::snprintf(buf, sizeof buf, "(%.3f, %.3f, %.3f) estimated: the normal of the dominant plane (%.0f%% of the "
                 "sampled normals), towards the %s", axis.x, axis.y, axis.z, 100.0 * share,
@@ -248,8 +244,7 @@ CloudSummary summarize_cloud(std::span<const Vec3> positions, bool has_rgb, bool
   CloudSummary s;
   s.bounds = bounds_of(positions);
   s.has_rgb = has_rgb;
-  const std::size_t step = (positions.size() + kOverviewSample - 1) / kOverviewSample;
-  for (std::size_t i = 0; i < positions.size(); i += step) s.sample.push_back(positions[i]);
+  s.sample = strided_sample(positions);
   s.up = estimate_up_axis(s.sample, georeferenced, sensor);
   return s;
 }
@@ -260,12 +255,10 @@ std::optional<CloudSummary> summary_in_place(const std::filesystem::path& path) 
     o.verify = io::IndexOpenOptions::Verify::metadata_only;  // the header is all that is read here
     const io::MappedIndex m = io::MappedIndex::open(path, o);
     // The sample read in place (an even stride over the slots: at most kOverviewSample pages).
-    const PositionView pos = m.positions();
     CloudSummary s;
     s.bounds = m.bounds();
     s.has_rgb = !m.rgb().empty();
-    const std::size_t step = std::max<std::size_t>(1, (pos.size() + kOverviewSample - 1) / kOverviewSample);
-    for (std::size_t i = 0; i < pos.size(); i += step) s.sample.push_back(pos[i]);
+    s.sample = strided_sample(m.positions());
     s.up = estimate_up_axis(s.sample, !m.crs_wkt().empty(), std::nullopt);
     return s;
   }

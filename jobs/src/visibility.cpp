@@ -96,8 +96,9 @@ struct VisibilityRun {
 
   /// Every option checked before any work; resolves `value`.
   void check_options() {
-    if (!o.out.empty() && !has_extension(o.out, io::point_cloud_output_extensions()))
-      throw OptionError({option("out"), " '" + o.out.string() + "': " + extensions_expected(io::point_cloud_output_extensions())});
+    if (!o.out.empty())
+      if (const std::string why = io::point_cloud_output_problem(o.out); !why.empty())
+        throw OptionError({option("out"), " '" + o.out.string() + "': " + why});
     if (!o.raster.empty()) {
       if (!has_extension(o.raster, geotiff_extensions()))
         throw OptionError(

@@ -70,10 +70,10 @@ TEST(TranslateJob, ChunkSizeOutOfRangeNamesTheField) {
 }
 
 // The output's extension decides what is written, for any readable input: LAS -> PLY keeps the
-// positions exactly (double) and the colour; PLY -> LAS keeps them to the LAS grid (half a scale
-// step, 0.0005 at write_las's default 0.001); an extension no writer has (.xyz) or a COPC name
-// is refused before anything is read or written. Before, `translate a.las a.ply` wrote LAS bytes
-// and `translate bunny.ply b.las` failed with "expected file signature LASF". Oracle: the readers.
+// positions exactly (double) and the colour; PLY -> LAS keeps them at least to half a step of
+// write_las's default 0.001 grid; an extension no writer has (.e57, .xyzn) or a COPC name is
+// refused before anything is read or written. Before, `translate a.las a.ply` wrote LAS bytes and
+// `translate bunny.ply b.las` failed with "expected file signature LASF". Oracle: the readers.
 TEST(TranslateJob, WritesWhatTheOutputExtensionSays) {
   const fs::path las = data_file("las/point-color.las");
   const fs::path ply = temp_dir() / "tr.ply", back = temp_dir() / "tr_back.las";

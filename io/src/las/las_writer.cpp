@@ -5,6 +5,7 @@
 #include "rayscan/io/point_io.hpp"
 
 #include "atomic_writer.hpp"
+#include "field_names.hpp"
 #include "bytes.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/version.hpp"
@@ -12,6 +13,7 @@
 
 #include <algorithm>
 #include <array>
+#include <optional>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -158,26 +160,31 @@ struct LasRecordWriter {
     };
     if (!options.has_offset)
       for (int k = 0; k < 3; ++k) offset[k] = default_offset(k, scale[k]);
-    for (int k = 0; k < 3; ++k)
-      if (auto_scale[k] && !box.empty())
-        for (const double s : {1.0, 0.1, 0.01, 0.001}) {
-          const double offsets[2] = {options.has_offset ? offset[k] : 0.0, default_offset(k, s)};
-          bool found = false;
-          for (const double off : offsets) {
-            if (std::max(std::abs(box.hi[k] - off), std::abs(box.lo[k] - off)) / s > 2.0e9) continue;
-            bool exact = true;
-            for (std::size_t i = 0; i < n && exact; ++i) {
-              const double v = cloud.positions[i][k];
-              exact = std::round((v - off) / s) * s + off == v;
-            }
-            if (exact) {
-              scale[k] = s, offset[k] = off, auto_scale[k] = false, found = true;
-              break;
-            }
-            if (options.has_offset) break;  // the option offset only
-          }
-          if (found) break;
+    // Whether every coordinate of axis k reads back bit for bit on the grid (s, off), within the
+    // 32-bit range.
+    auto reads_back = [&](int k, double s, double off) {
+      if (std::max(std::abs(box.hi[k] - off), std::abs(box.lo[k] - off)) / s > 2.0e9) return false;
+      for (std::size_t i = 0; i < n; ++i) {
+        const double v = cloud.positions[i][k];
+        if (std::round((v - off) / s) * s + off != v) return false;
+      }
+      return true;
+    };
+    // The offset on which axis k reads back at scale s: the option offset, else 0 or the default.
+    auto grid_offset = [&](int k, double s) -> std::optional<double> {
+      if (options.has_offset) return reads_back(k, s, offset[k]) ? std::optional<double>(offset[k]) : std::nullopt;
+      for (const double off : {0.0, default_offset(k, s)})
+        if (reads_back(k, s, off)) return off;
+      return std::nullopt;
+    };
+    for (int k = 0; k < 3; ++k) {
+      if (!auto_scale[k] || box.empty()) continue;
+      for (const double s : {1.0, 0.1, 0.01, 0.001})
+        if (const std::optional<double> off = grid_offset(k, s)) {
+          scale[k] = s, offset[k] = *off, auto_scale[k] = false;
+          break;
         }
+    }
     for (int k = 0; k < 3; ++k)
       while (auto_scale[k] && !box.empty() &&
              std::max(std::abs(box.hi[k] - offset[k]), std::abs(box.lo[k] - offset[k])) / scale[k] > 2.0e9)
@@ -348,11 +355,7 @@ struct LasRecordWriter {
 /// The LAS writer proper; `direct` writes `path` without a temporary (see AtomicWriter).
 void write_las_records(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& options,
                        bool direct) {
-  try {
-    cloud.validate();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(path.string() + ": " + e.what());
-  }
+  detail::validate_for_writing(path, cloud);
   LasRecordWriter lw(path, cloud, options);
   lw.split_fields();
   lw.choose_scale_offset();

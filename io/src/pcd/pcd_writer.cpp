@@ -25,11 +25,7 @@ struct PcdOut {
 }  // namespace
 
 void write_pcd(const std::filesystem::path& path, const PointCloud& cloud) {
-  try {
-    cloud.validate();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(path.string() + ": " + e.what());
-  }
+  detail::validate_for_writing(path, cloud);
   const std::size_t n = cloud.size();
   std::set<std::string> used = {"x", "y", "z"};
   // Positions as float (F 4, what PCL's point types and Open3D's legacy reader take) when every

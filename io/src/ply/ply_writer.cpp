@@ -22,11 +22,7 @@ std::string property_name(const std::string& name, std::set<std::string>& used) 
 }  // namespace
 
 void write_ply(const std::filesystem::path& path, const PointCloud& cloud) {
-  try {
-    cloud.validate();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(path.string() + ": " + e.what());
-  }
+  detail::validate_for_writing(path, cloud);
   const std::size_t n = cloud.size();
   std::set<std::string> used = {"x", "y", "z"};
   std::string h = "ply\nformat binary_little_endian 1.0\ncomment written by " + software_name() + "\n";

@@ -16,11 +16,7 @@
 namespace rayscan::io {
 
 void write_text(const std::filesystem::path& path, const PointCloud& cloud) {
-  try {
-    cloud.validate();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(path.string() + ": " + e.what());
-  }
+  detail::validate_for_writing(path, cloud);
   const char sep = lower_extension(path) == ".csv" ? ',' : ' ';
   std::set<std::string> used = {"x", "y", "z"};
   std::string h = "x";

@@ -127,10 +127,14 @@ void write_text(const std::filesystem::path& path, const PointCloud& cloud);
 /// ".pcd", ".xyz", ".csv", ".txt".
 [[nodiscard]] const std::vector<std::string>& point_cloud_output_extensions();
 
-/// Throws std::invalid_argument "<path>: expected a file name ending in .las, .laz, .ply, ..." unless
-/// write_point_cloud() can write `path`, and for a name ending in ".copc.laz" (COPC output is
-/// not written yet: a plain LAZ under that name would claim an octree it does not have). For
-/// checking a job's output before its work.
+/// Why write_point_cloud() cannot write `path`, or "" when it can: "expected a file name ending
+/// in .las, .laz, .ply, ..." for another extension, and a refusal for a name ending in
+/// ".copc.laz" (COPC output is not written yet: a plain LAZ under that name would claim an octree
+/// it does not have). The one rule of require_point_cloud_output() and the jobs' option checks.
+[[nodiscard]] std::string point_cloud_output_problem(const std::filesystem::path& path);
+
+/// Throws std::invalid_argument "<path>: <point_cloud_output_problem(path)>" unless
+/// write_point_cloud() can write `path`. For checking a job's output before its work.
 void require_point_cloud_output(const std::filesystem::path& path);
 
 /// Writes `cloud` in the format its extension names (case-insensitive; the one writer choice of
