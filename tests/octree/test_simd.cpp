@@ -5,6 +5,8 @@
 #include "test_util.hpp"
 
 #include "rayscan/octree/brute_force.hpp"
+#include "rayscan/octree/detail/point_query_impl.hpp"
+#include "rayscan/octree/detail/ray_query_impl.hpp"
 #include "rayscan/octree/distance.hpp"
 #include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/point_cloud.hpp"
