@@ -5,6 +5,8 @@
 #include "test_util.hpp"
 
 #include "rayscan/octree/brute_force.hpp"
+#include "rayscan/octree/detail/point_query_impl.hpp"
+#include "rayscan/octree/detail/ray_query_impl.hpp"
 #include "rayscan/octree/distance.hpp"
 #include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/point_cloud.hpp"
@@ -267,7 +269,7 @@ TEST(Simd, RootKernelNeverRejectsWhatTheRootTestAccepts) {
   }
 }
 
-// round_float_down / round_float_up (ray_query.hpp, stepping in IEEE bits) against their
+// round_float_down / round_float_up (simd.hpp, stepping in IEEE bits) against their
 // definition: the largest float <= x / the least float >= x, found with std::nextafter; doubles
 // of every class (zeros, subnormal and normal floats, float midpoints, past the float range,
 // infinities).
@@ -970,7 +972,7 @@ TEST(Simd, RayQueriesAreBitIdenticalOnEveryPath) {
 
 namespace {
 
-// The per-ISA instances of the traversal (ray_query.hpp: ray_traverse_avx2 / _avx512 and the packet
+// The per-ISA instances of the traversal (detail/ray_dispatch.hpp: ray_traverse_avx2 / _avx512 and the packet
 // ones, compiled with target attributes and their kernels inlined) against the instance that calls
 // the same path's kernels through simd::Kernels, and against the brute-force oracle: bit-identical
 // first hits (key, id, t, d^2), so no rounding of the compiled instance (FMA contraction, vector

@@ -1,8 +1,7 @@
 #include "rayscan/octree/ray_query.hpp"
 
 #include "rayscan/octree/any_index.hpp"
-#include "rayscan/octree/octree.hpp"
-#include "rayscan/octree/point_query.hpp"
+#include "rayscan/octree/detail/ray_query_impl.hpp"
 
 #include <cmath>
 
@@ -25,20 +24,10 @@ void RayQuery::validate() const {
   }
 }
 
-// The table-kernel instances of the core's indexes (declared extern in ray_query.hpp and
-// any_index.hpp).
-namespace detail {
-RAYSCAN_BASE_INSTANCES(template, Octree)
-RAYSCAN_BASE_INSTANCES(template, KdTree)
-RAYSCAN_BASE_INSTANCES(template, BruteForceIndex)
-}  // namespace detail
-
-#if RAYSCAN_SIMD_X86
-// The octree's instances compiled per ISA (declared extern in ray_query.hpp / point_query.hpp).
-namespace detail {
-RAYSCAN_FIRST_HIT_ISA_INSTANCES(template, Octree)
-RAYSCAN_KNN_ISA_INSTANCES(template, Octree)
-}  // namespace detail
-#endif
+// The ray query's entry points for the core's indexes (declared extern in ray_query.hpp), compiled
+// once here from the private definitions.
+RAYSCAN_RAY_QUERY_INSTANCES(template, Octree)
+RAYSCAN_RAY_QUERY_INSTANCES(template, KdTree)
+RAYSCAN_RAY_QUERY_INSTANCES(template, BruteForceIndex)
 
 }  // namespace rayscan

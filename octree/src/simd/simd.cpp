@@ -2,7 +2,7 @@
 // kernels' definitions in simd_kernels.hpp, and the active path.
 #include "rayscan/octree/simd.hpp"
 
-#include "rayscan/octree/simd_kernels.hpp"
+#include "rayscan/octree/detail/simd_kernels.hpp"
 
 #include <cstdio>
 #include <cstdlib>

@@ -13,14 +13,6 @@
 
 namespace rayscan {
 
-// The table-kernel instances of the plain ray query (ray_query.hpp) for the kd-tree and the brute
-// force index, compiled once in the library (octree/src/query/ray_query.cpp); the octree's are declared
-// in ray_query.hpp.
-namespace detail {
-RAYSCAN_BASE_INSTANCES(extern template, KdTree)
-RAYSCAN_BASE_INSTANCES(extern template, BruteForceIndex)
-}  // namespace detail
-
 /// Any of the library's indexes; use std::visit (or visit_index) to call a query template on it.
 using AnyIndex = std::variant<Octree, KdTree, BruteForceIndex>;
 

@@ -24,7 +24,9 @@ template <SpatialIndex I>
 void ray_query_each_parallel(const I& index, std::span<const Ray> rays, const RayQuery& q,
                              std::span<std::vector<RayHit>> out) {
   q.validate();
-  detail::require_one_result_per_ray("ray_query_each_parallel", out.size(), rays.size());
+  if (out.size() != rays.size())
+    throw std::invalid_argument("ray_query_each_parallel: " + std::to_string(out.size()) + " results for " +
+                                std::to_string(rays.size()) + " rays");
   const std::size_t blocks = (rays.size() + kMaxRayPacket - 1) / kMaxRayPacket;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 4), [&](const tbb::blocked_range<std::size_t>& r) {
     const std::size_t b = r.begin() * kMaxRayPacket, e = std::min(rays.size(), r.end() * kMaxRayPacket);

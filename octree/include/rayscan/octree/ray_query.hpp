@@ -1,15 +1,24 @@
 // The ray query of the paper (Teuscher et al., "Ray Queries On Raw Point Clouds", Algorithm 1 and
-// sections 3.1-3.3), written once against the SpatialIndex concept. The types are in
-// ray_query_types.hpp; the traversal in detail/ (ray_scratch, ray_traversal, ray_dispatch,
-// ray_packets).
+// sections 3.1-3.3), written once against the SpatialIndex concept: the public entry points. The
+// types are in ray_query_types.hpp. The traversal (RayTraversal, the per-ISA instances, the
+// packets) is the library's implementation, in its private headers (octree/src/include:
+// detail/ray_query_impl.hpp and the ray_* and simd_kernels* headers beside it); these templates
+// are compiled once per index type of the library (Octree, KdTree, BruteForceIndex in
+// rayscan::octree, io::MappedIndex and io::CopcIndex in rayscan::site: RAYSCAN_RAY_QUERY_INSTANCES
+// below). For another SpatialIndex type, use the generic walks of traverse.hpp (depth_first).
 #pragma once
 
-#include "rayscan/octree/detail/ray_packets.hpp"
+#include "rayscan/octree/brute_force.hpp"
+#include "rayscan/octree/kdtree.hpp"
+#include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/ray_query_types.hpp"
 #include "rayscan/octree/traverse.hpp"
 
-namespace rayscan {
+#include <optional>
+#include <span>
+#include <vector>
 
+namespace rayscan {
 
 /// Ray query (paper Algorithm 1) over any SpatialIndex; results are appended to `out` (cleared
 /// first), sorted by (key, original index) ascending.
@@ -47,22 +56,7 @@ namespace rayscan {
 /// Thread-safe (per-thread scratch, shared with knn_query: a key policy must not query on its thread).
 template <SpatialIndex I, class KeyPolicy = OrderKey>
 void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<RayHit>& out,
-               RayQueryStats* stats = nullptr, const KeyPolicy& key_policy = {}) {
-  q.validate();
-  out.clear();
-  if (index.empty() || q.k == 0) return;
-  detail::Candidate best;
-  if (q.k == 1) {  // first hit: the single-candidate policy (same answer as the k-heap)
-    if (detail::ray_traverse<true>(index, ray, q, best, stats, key_policy))
-      out.push_back(detail::to_ray_hit(best));
-    return;
-  }
-  detail::ray_traverse<false>(index, ray, q, best, stats, key_policy);
-  auto& cands = detail::ray_scratch<typename I::Node>().cands;
-  std::sort(cands.begin(), cands.end(), detail::cand_less);
-  out.reserve(cands.size());
-  for (const detail::Candidate& c : cands) out.push_back(detail::to_ray_hit(c));
-}
+               RayQueryStats* stats = nullptr, const KeyPolicy& key_policy = {});
 
 /// First hit: the result ray_query(index, ray, q) gives with q.k = 1 (whatever q.k says), without a
 /// result vector; nullopt when nothing qualifies. For renderers (cf. Embree's rtcIntersect1).
@@ -70,12 +64,7 @@ void ray_query(const I& index, const Ray& ray, const RayQuery& q, std::vector<Ra
 /// an unchecked invalid query gives an unspecified answer, never undefined behaviour).
 template <SpatialIndex I>
 [[nodiscard]] std::optional<RayHit> ray_first_hit(const I& index, const Ray& ray, const RayQuery& q,
-                                                  RayQueryStats* stats = nullptr) {
-  if (index.empty()) return std::nullopt;
-  detail::Candidate best;
-  if (!detail::ray_traverse<true>(index, ray, q, best, stats)) return std::nullopt;
-  return detail::to_ray_hit(best);
-}
+                                                  RayQueryStats* stats = nullptr);
 
 /// First hits of a batch of rays: out[i] = ray_first_hit(index, rays[i], q, stats) for every i,
 /// bit for bit, with the rays traced two at a time, their traversals interleaved node by node
@@ -87,22 +76,7 @@ template <SpatialIndex I>
 /// out.size() != rays.size(). Thread-safe (per-thread scratch).
 template <SpatialIndex I>
 void ray_first_hit_each(const I& index, std::span<const Ray> rays, const RayQuery& q,
-                        std::span<std::optional<RayHit>> out, RayQueryStats* stats = nullptr) {
-  detail::require_one_result_per_ray("ray_first_hit_each", out.size(), rays.size());
-  if (index.empty()) {
-    std::fill(out.begin(), out.end(), std::nullopt);
-    return;
-  }
-  std::size_t i = 0;
-  for (; i + 2 <= rays.size(); i += 2) {
-    detail::Candidate best[2];
-    const unsigned found = detail::first_hit_pair(index, rays.data() + i, q, best, stats);
-    for (unsigned j = 0; j < 2; ++j)
-      out[i + j] = detail::hit_of(found, best, j);
-  }
-  if (i < rays.size()) out[i] = ray_first_hit(index, rays[i], q, stats);
-}
-
+                        std::span<std::optional<RayHit>> out, RayQueryStats* stats = nullptr);
 
 /// Packet first hit (coherent rays): out[i] = ray_first_hit(index, rays[i], q) for
 /// every i, bit for bit, computed for up to kMaxRayPacket rays at a time with one traversal that
@@ -116,18 +90,7 @@ void ray_first_hit_each(const I& index, std::span<const Ray> rays, const RayQuer
 /// when out.size() != rays.size(). Thread-safe (per-thread scratch).
 template <SpatialIndex I>
 void ray_first_hit_packet(const I& index, std::span<const Ray> rays, const RayQuery& q,
-                          std::span<std::optional<RayHit>> out, RayQueryStats* stats = nullptr) {
-  detail::require_one_result_per_ray("ray_first_hit_packet", out.size(), rays.size());
-  if (index.empty() || q.any_hit) {
-    for (std::size_t i = 0; i < rays.size(); ++i) out[i] = ray_first_hit(index, rays[i], q, stats);
-    return;
-  }
-  detail::for_each_ray_packet(index, rays, q, stats,
-                              [&](std::size_t b, unsigned n, const detail::Candidate* best, std::uint32_t found) {
-                                for (unsigned i = 0; i < n; ++i)
-                                  out[b + i] = detail::hit_of(found, best, i);
-                              });
-}
+                          std::span<std::optional<RayHit>> out, RayQueryStats* stats = nullptr);
 
 /// Packet any hit (shadow rays, coherent rays): out[i] = ray_first_hit(index, rays[i],
 /// q).has_value() for every i: whether anything qualifies along the ray. With q.any_hit each ray
@@ -138,17 +101,20 @@ void ray_first_hit_packet(const I& index, std::span<const Ray> rays, const RayQu
 /// std::invalid_argument when out.size() != rays.size(). Thread-safe (per-thread scratch).
 template <SpatialIndex I>
 void ray_any_hit_packet(const I& index, std::span<const Ray> rays, const RayQuery& q, std::span<bool> out,
-                        RayQueryStats* stats = nullptr) {
-  detail::require_one_result_per_ray("ray_any_hit_packet", out.size(), rays.size());
-  if (index.empty()) {
-    std::fill(out.begin(), out.end(), false);
-    return;
-  }
-  detail::for_each_ray_packet(index, rays, q, stats,
-                              [&](std::size_t b, unsigned n, const detail::Candidate*, std::uint32_t found) {
-                                for (unsigned i = 0; i < n; ++i) out[b + i] = (found >> i) & 1u;
-                              });
-}
+                        RayQueryStats* stats = nullptr);
+
+/// out[i] = ray_query(index, rays[i], q) for every i, bit for bit: with q.k == 1, the rays are
+/// traced two at a time with their traversals interleaved (ray_first_hit_each; the 1e6 camera
+/// rays of bench_rays 1.04-1.11x Embree's rtcIntersect1, where 16-ray packets of consecutive rays
+/// had been 0.88-0.91x of single rays: bench/notes/), other queries
+/// ray by ray. The batch form for callers that pass whole
+/// ray sets (ray_query_batch: the Python module, `rayscan query`; the renderer traces its camera
+/// wavefronts as packets, ray_first_hit_packet). `stats` (optional) sums the work counters.
+/// Throws std::invalid_argument for an invalid q (RayQuery::validate) or out.size() !=
+/// rays.size(). Thread-safe (per-thread scratch).
+template <SpatialIndex I>
+void ray_query_each(const I& index, std::span<const Ray> rays, const RayQuery& q,
+                    std::span<std::vector<RayHit>> out, RayQueryStats* stats = nullptr);
 
 /// Whether ray_first_hit_packet pays for these rays: they share one origin (bit for bit) and every
 /// direction lies within 2 degrees of the first one's: the rays of a pinhole camera's neighbouring
@@ -165,36 +131,6 @@ void ray_any_hit_packet(const I& index, std::span<const Ray> rays, const RayQuer
   for (const Ray& r : rays.subspan(1))
     if (r.origin() != o || !(glm::dot(r.direction(), d) >= kCos2Deg)) return false;
   return true;
-}
-
-/// out[i] = ray_query(index, rays[i], q) for every i, bit for bit: with q.k == 1, the rays are
-/// traced two at a time with their traversals interleaved (ray_first_hit_each; the 1e6 camera
-/// rays of bench_rays 1.04-1.11x Embree's rtcIntersect1, where 16-ray packets of consecutive rays
-/// had been 0.88-0.91x of single rays: bench/notes/), other queries
-/// ray by ray. The batch form for callers that pass whole
-/// ray sets (ray_query_batch: the Python module, `rayscan query`; the renderer traces its camera
-/// wavefronts as packets, ray_first_hit_packet). `stats` (optional) sums the work counters.
-/// Throws std::invalid_argument for an invalid q (RayQuery::validate) or out.size() !=
-/// rays.size(). Thread-safe (per-thread scratch).
-template <SpatialIndex I>
-void ray_query_each(const I& index, std::span<const Ray> rays, const RayQuery& q,
-                    std::span<std::vector<RayHit>> out, RayQueryStats* stats = nullptr) {
-  q.validate();
-  detail::require_one_result_per_ray("ray_query_each", out.size(), rays.size());
-  if (q.k != 1) {
-    for (std::size_t i = 0; i < rays.size(); ++i) ray_query(index, rays[i], q, out[i], stats);
-    return;
-  }
-  constexpr std::size_t kChunk = 64;  // (a multiple of 2: every pair stays a pair)
-  std::optional<RayHit> hit[kChunk];
-  for (std::size_t i = 0; i < rays.size(); i += kChunk) {
-    const std::size_t n = std::min(kChunk, rays.size() - i);
-    ray_first_hit_each(index, rays.subspan(i, n), q, std::span<std::optional<RayHit>>(hit, n), stats);
-    for (std::size_t j = 0; j < n; ++j) {
-      out[i + j].clear();
-      if (hit[j]) out[i + j].push_back(*hit[j]);
-    }
-  }
 }
 
 /// Convenience overload of ray_query returning a new vector; see ray_query above.
@@ -244,46 +180,28 @@ template <SpatialIndex I>
   return out;
 }
 
-/// Declares (KW = `extern template`) or defines (KW = `template`) the plain ray query's instances
-/// with the table kernels for index type I: ray_traverse_base (k = 1 and k > 1),
-/// first_hit_packet_any with OrderKey and first_hit_pair_base. Used inside namespace rayscan::detail, as
-/// RAYSCAN_FIRST_HIT_ISA_INSTANCES below: the headers of the indexes declare them extern and their
-/// libraries define them once (octree/src/query/ray_query.cpp, site/src/query_instances.cpp).
-#define RAYSCAN_BASE_INSTANCES(KW, I)                                                                        \
-  KW bool ray_traverse_base<true, I, OrderKey>(const I&, const Ray&, const RayQuery&, Candidate&,           \
-                                               RayQueryStats*, const OrderKey&);                           \
-  KW bool ray_traverse_base<false, I, OrderKey>(const I&, const Ray&, const RayQuery&, Candidate&,          \
-                                                RayQueryStats*, const OrderKey&);                          \
-  KW unsigned first_hit_packet_any<simd::Kernels, I, OrderKey>(const I&, const Ray*, unsigned,              \
-                                                               const RayQuery&, Candidate*, RayQueryStats*, \
-                                                               const OrderKey*);                           \
-  KW unsigned first_hit_pair_base<I>(const I&, const Ray*, const RayQuery&, Candidate*, RayQueryStats*);
+/// Declares (KW = `extern template`) or defines (KW = `template`) the ray query's entry points for
+/// index type I (plain keys, OrderKey): ray_query, ray_first_hit, ray_first_hit_each,
+/// ray_first_hit_packet, ray_any_hit_packet and ray_query_each. Used inside namespace rayscan:
+/// the headers of the library's indexes declare them extern (here, any_index.hpp, site's
+/// index_file.hpp and copc.hpp) and their libraries define them once
+/// (octree/src/query/ray_query.cpp, site/src/query_instances.cpp), where the traversal's
+/// definitions are.
+#define RAYSCAN_RAY_QUERY_INSTANCES(KW, I)                                                                   \
+  KW void ray_query<I, OrderKey>(const I&, const Ray&, const RayQuery&, std::vector<RayHit>&, RayQueryStats*, \
+                                 const OrderKey&);                                                          \
+  KW std::optional<RayHit> ray_first_hit<I>(const I&, const Ray&, const RayQuery&, RayQueryStats*);         \
+  KW void ray_first_hit_each<I>(const I&, std::span<const Ray>, const RayQuery&,                            \
+                                std::span<std::optional<RayHit>>, RayQueryStats*);                         \
+  KW void ray_first_hit_packet<I>(const I&, std::span<const Ray>, const RayQuery&,                          \
+                                  std::span<std::optional<RayHit>>, RayQueryStats*);                        \
+  KW void ray_any_hit_packet<I>(const I&, std::span<const Ray>, const RayQuery&, std::span<bool>,          \
+                                RayQueryStats*);                                                            \
+  KW void ray_query_each<I>(const I&, std::span<const Ray>, const RayQuery&, std::span<std::vector<RayHit>>, \
+                            RayQueryStats*);
 
-namespace detail {
-RAYSCAN_BASE_INSTANCES(extern template, Octree)
-}  // namespace detail
-
-#if RAYSCAN_SIMD_X86
-/// Declares (KW = `extern template`) or defines (KW = `template`) the first-hit instances compiled
-/// per ISA of index type I (kIsaInstances): ray_traverse_avx2 / _avx512, first_hit_packet_avx2 /
-/// _avx512 with OrderKey and first_hit_pair_avx2 / _avx512. Used inside namespace rayscan::detail: the headers of the indexes declare
-/// them extern and their libraries define them once (octree/src/query/ray_query.cpp,
-/// site/src/query_instances.cpp), instead of every caller's translation unit compiling them.
-#define RAYSCAN_FIRST_HIT_ISA_INSTANCES(KW, I)                                                              \
-  KW bool ray_traverse_avx2<true, I, OrderKey>(const I&, const Ray&, const RayQuery&, Candidate&,          \
-                                               RayQueryStats*, const OrderKey&);                          \
-  KW bool ray_traverse_avx512<true, I, OrderKey>(const I&, const Ray&, const RayQuery&, Candidate&,        \
-                                                 RayQueryStats*, const OrderKey&);                        \
-  KW unsigned first_hit_packet_avx2<I, OrderKey>(const I&, const Ray*, unsigned, const RayQuery&,          \
-                                                 Candidate*, RayQueryStats*, const OrderKey*);            \
-  KW unsigned first_hit_packet_avx512<I, OrderKey>(const I&, const Ray*, unsigned, const RayQuery&,        \
-                                                   Candidate*, RayQueryStats*, const OrderKey*);           \
-  KW unsigned first_hit_pair_avx2<I>(const I&, const Ray*, const RayQuery&, Candidate*, RayQueryStats*);     \
-  KW unsigned first_hit_pair_avx512<I>(const I&, const Ray*, const RayQuery&, Candidate*, RayQueryStats*);
-
-namespace detail {
-RAYSCAN_FIRST_HIT_ISA_INSTANCES(extern template, Octree)
-}  // namespace detail
-#endif
+RAYSCAN_RAY_QUERY_INSTANCES(extern template, Octree)
+RAYSCAN_RAY_QUERY_INSTANCES(extern template, KdTree)
+RAYSCAN_RAY_QUERY_INSTANCES(extern template, BruteForceIndex)
 
 }  // namespace rayscan

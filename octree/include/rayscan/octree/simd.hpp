@@ -8,10 +8,14 @@
 // RAYSCAN_SIMD=scalar|sse2|avx2|avx512 or set_simd_path() forces one (tests, benchmarks).
 // On the avx2 and avx512 paths the first-hit ray traversal, its packets and knn_query run
 // instances of the one traversal compiled for that instruction set with these kernels inlined
-// (simd_kernels.hpp, ray_query.hpp); elsewhere the kernels are called through simd::Kernels.
+// (the library's private detail/simd_kernels.hpp and detail/ray_query_impl.hpp); elsewhere the
+// kernels are called through simd::Kernels.
 #pragma once
 
+#include "rayscan/octree/geometry.hpp"
+
 #include <bit>
+#include <concepts>
 #include <cstdint>
 #include <limits>
 #include <optional>
@@ -37,7 +41,7 @@ SimdPath simd_path();
 /// Returns false (and changes nothing) when the CPU cannot run p.
 bool set_simd_path(SimdPath p);
 /// One line for `rayscan --version`: the active path (and, for avx2 / avx512, that the ray and kNN
-/// traversals run their instances compiled for it: simd_kernels.hpp) and what the CPU supports.
+/// traversals run their instances compiled for it: detail/simd_kernels.hpp) and what the CPU supports.
 std::string simd_description();
 
 namespace simd {
@@ -216,4 +220,36 @@ struct Kernels {
 const Kernels& active_kernels();
 
 }  // namespace simd
+
+namespace detail {
+
+/// An index that exposes its children's float boxes for the SIMD child test (simd.hpp): the optional
+/// extension of SpatialIndex (Octree, io::MappedIndex, io::CopcIndex; others: the scalar node test).
+template <class I>
+concept FloatChildBoxes = requires(const I& idx, typename I::Node n) {
+  { idx.child_boxes_f(n) } -> std::convertible_to<simd::ChildBoxesF>;
+  { idx.float_origin() } -> std::convertible_to<Vec3>;
+  { idx.float_extent() } -> std::convertible_to<double>;
+};
+
+/// Rounds x to float towards -inf (down) or +inf (up): infinities are kept, finite values past
+/// the float range go to -inf / FLT_MAX (down) and -FLT_MAX / +inf (up), NaN stays NaN.
+/// Branch-free: the nearest float, stepped one unit in its IEEE bits (the magnitude up or down by
+/// the sign bit) when it lies on the wrong side of x (a branch on that mispredicted about once per
+/// camera hit: bench/notes/). A nonzero x's nearest float keeps x's sign,
+/// so a +0 only ever steps up to denorm_min and a -0 only down to -denorm_min: the bit step holds.
+inline float round_float_down(double x) {
+  const float f = static_cast<float>(x);
+  const std::uint32_t b = std::bit_cast<std::uint32_t>(f);
+  const std::uint32_t wrong = 0u - static_cast<std::uint32_t>(static_cast<double>(f) > x);  // all ones or 0
+  return std::bit_cast<float>(b + (wrong & (((b >> 31) << 1) - 1u)));  // negative: +1, else -1
+}
+inline float round_float_up(double x) {
+  const float f = static_cast<float>(x);
+  const std::uint32_t b = std::bit_cast<std::uint32_t>(f);
+  const std::uint32_t wrong = 0u - static_cast<std::uint32_t>(static_cast<double>(f) < x);
+  return std::bit_cast<float>(b + (wrong & (1u - ((b >> 31) << 1))));  // negative: -1, else +1
+}
+
+}  // namespace detail
 }  // namespace rayscan

@@ -9,7 +9,8 @@
 // The best-first walks of the kNN query (knn_query_with) and the ray query (RayTraversal,
 // first_hit_packet) keep loops of their own: they expand the nearest child without a push,
 // write their stack entries with SIMD sorting kernels and re-test an entry's bound when it is
-// popped; they share the node tests and point kernels (simd_kernels.hpp) with the walks here.
+// popped; they share the node tests and point kernels (the library's private
+// detail/simd_kernels.hpp) with the walks here.
 #pragma once
 
 #include "rayscan/octree/spatial_index.hpp"

@@ -12,6 +12,7 @@
 #include "rayscan/octree/point_query.hpp"
 #include "rayscan/octree/ray_query.hpp"
 #include "rayscan/octree/spatial_index.hpp"
+#include "rayscan/octree/surfel.hpp"
 
 #include <atomic>
 #include <cstdint>
@@ -304,18 +305,11 @@ static_assert(SpatialIndex<CopcIndex>);
 
 }  // namespace rayscan::io
 
-// The table-kernel instances of the plain ray query (ray_query.hpp), compiled once in the library
-// (site/src/query_instances.cpp) instead of in every caller's translation unit.
-namespace rayscan::detail {
-RAYSCAN_BASE_INSTANCES(extern template, io::CopcIndex)
-}  // namespace rayscan::detail
-
-#if RAYSCAN_SIMD_X86
-// The first-hit and kNN instances compiled per ISA (ray_query.hpp, point_query.hpp) of this index,
-// instantiated once in the library (site/src/query_instances.cpp) instead of in every caller's
-// translation unit.
-namespace rayscan::detail {
-RAYSCAN_FIRST_HIT_ISA_INSTANCES(extern template, io::CopcIndex)
-RAYSCAN_KNN_ISA_INSTANCES(extern template, io::CopcIndex)
-}  // namespace rayscan::detail
-#endif
+// The ray, kNN and surfel queries of this index, compiled once in the library
+// (site/src/query_instances.cpp, site/src/surfel_instances.cpp) where the traversal's definitions are.
+namespace rayscan {
+RAYSCAN_RAY_QUERY_INSTANCES(extern template, io::CopcIndex)
+RAYSCAN_KNN_QUERY_INSTANCES(extern template, io::CopcIndex)
+RAYSCAN_SURFEL_INSTANCES(extern template, io::CopcIndex)
+RAYSCAN_SURFEL_FLOAT_BOX_INSTANCES(extern template, io::CopcIndex)
+}  // namespace rayscan

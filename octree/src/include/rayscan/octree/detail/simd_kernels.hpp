@@ -11,7 +11,7 @@
 // from code of the same target (the table entries, chosen with __builtin_cpu_supports, or the
 // per-ISA traversal instances), so one binary runs on any x86-64 and uses what the CPU has.
 // Every kernel is a conservative filter; the traversal confirms survivors with the exact scalar
-// double code. Builds must use -ffp-contract=off (rayscan_octree's public compile option): a
+// double code. Builds must use -ffp-contract=off (rayscan_octree_impl's compile option): a
 // double expression of the traversal inlined into an FMA target must round as in baseline code.
 #pragma once
 

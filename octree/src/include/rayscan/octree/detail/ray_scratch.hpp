@@ -1,10 +1,10 @@
 // The ray query's per-thread state: the candidate, the k-heap and the node stack, and the child
 // ordering of the depth-first loop.
-// Implementation of ray_query.hpp (include that).
+// Part of the ray query's private implementation (include detail/ray_query_impl.hpp).
 #pragma once
 
 #include "rayscan/octree/ray_query_types.hpp"
-#include "rayscan/octree/simd_kernels.hpp"
+#include "rayscan/octree/detail/simd_kernels.hpp"
 
 namespace rayscan::detail {
 
@@ -58,34 +58,6 @@ struct RayScratch {
   std::vector<std::uint32_t> sel;  // survivors of the SIMD point filter (local slot offsets)
   std::vector<Vec3> block;         // a leaf's positions decoded for the filter (compact encodings)
 };
-
-/// An index that exposes its children's float boxes for the SIMD child test (simd.hpp): the optional
-/// extension of SpatialIndex (Octree, io::MappedIndex, io::CopcIndex; others: the scalar node test).
-template <class I>
-concept FloatChildBoxes = requires(const I& idx, typename I::Node n) {
-  { idx.child_boxes_f(n) } -> std::convertible_to<simd::ChildBoxesF>;
-  { idx.float_origin() } -> std::convertible_to<Vec3>;
-  { idx.float_extent() } -> std::convertible_to<double>;
-};
-
-/// Rounds x to float towards -inf (down) or +inf (up): infinities are kept, finite values past
-/// the float range go to -inf / FLT_MAX (down) and -FLT_MAX / +inf (up), NaN stays NaN.
-/// Branch-free: the nearest float, stepped one unit in its IEEE bits (the magnitude up or down by
-/// the sign bit) when it lies on the wrong side of x (a branch on that mispredicted about once per
-/// camera hit: bench/notes/). A nonzero x's nearest float keeps x's sign,
-/// so a +0 only ever steps up to denorm_min and a -0 only down to -denorm_min: the bit step holds.
-inline float round_float_down(double x) {
-  const float f = static_cast<float>(x);
-  const std::uint32_t b = std::bit_cast<std::uint32_t>(f);
-  const std::uint32_t wrong = 0u - static_cast<std::uint32_t>(static_cast<double>(f) > x);  // all ones or 0
-  return std::bit_cast<float>(b + (wrong & (((b >> 31) << 1) - 1u)));  // negative: +1, else -1
-}
-inline float round_float_up(double x) {
-  const float f = static_cast<float>(x);
-  const std::uint32_t b = std::bit_cast<std::uint32_t>(f);
-  const std::uint32_t wrong = 0u - static_cast<std::uint32_t>(static_cast<double>(f) < x);
-  return std::bit_cast<float>(b + (wrong & (1u - ((b >> 31) << 1))));  // negative: -1, else +1
-}
 
 /// The calling thread's scratch number kSlot (0: every query's; 1: the second ray of
 /// first_hit_pair, whose node stack must be its own).

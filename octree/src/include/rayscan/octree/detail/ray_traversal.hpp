@@ -1,6 +1,6 @@
 // The one traversal of the ray query (paper Algorithm 1): RayTraversal, its node test, leaf work
 // and candidate sink (the policies every single-ray and packet query shares).
-// Implementation of ray_query.hpp (include that).
+// Part of the ray query's private implementation (include detail/ray_query_impl.hpp).
 #pragma once
 
 #include "rayscan/octree/detail/ray_scratch.hpp"

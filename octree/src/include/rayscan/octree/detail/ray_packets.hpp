@@ -1,6 +1,6 @@
 // The packet first hit: up to 16 rays driven down one shared node stack with RayTraversal's node
 // test and leaf work.
-// Implementation of ray_query.hpp (include that).
+// Part of the ray query's private implementation (include detail/ray_query_impl.hpp).
 #pragma once
 
 #include "rayscan/octree/detail/ray_dispatch.hpp"

@@ -1,6 +1,6 @@
 // The traversal's instances per instruction set and the run-time choice between them (root test,
 // ray_traverse, first_hit_pair).
-// Implementation of ray_query.hpp (include that).
+// Part of the ray query's private implementation (include detail/ray_query_impl.hpp).
 #pragma once
 
 #include "rayscan/octree/detail/ray_traversal.hpp"
@@ -65,9 +65,10 @@ __attribute__((always_inline)) inline bool ray_traverse_with(const I& index, con
 
 /// ray_traverse_with with the table kernels (simd::Kernels: the active path's kernels through
 /// function pointers), as one out-of-line function: the instance every path without a per-ISA one
-/// runs (SSE2 and scalar, k > 1, refined keys, indexes without float child boxes). Its OrderKey
-/// instances are compiled once, in the libraries of the indexes (RAYSCAN_BASE_INSTANCES), instead of
-/// in every translation unit that queries (CI build time, bench/notes/).
+/// runs (SSE2 and scalar, k > 1, refined keys, indexes without float child boxes). Its instances
+/// are compiled once per index type, with the ray query's entry points in the libraries of the
+/// indexes (RAYSCAN_RAY_QUERY_INSTANCES), instead of in every translation unit that queries (CI
+/// build time, bench/notes/).
 template <bool kBest1, SpatialIndex I, class KeyPolicy>
 __attribute__((noinline)) bool ray_traverse_base(const I& index, const Ray& ray, const RayQuery& q, Candidate& best,
                                                  RayQueryStats* stats, const KeyPolicy& key_policy) {
@@ -102,8 +103,8 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), flatten, noinline)) bool ray
 /// (k = 1, the renderer's and visibility's query) of the plain ray query (OrderKey)
 /// on indexes with float child boxes. Queries with k > 1 and the refined keys of surfel rendering
 /// keep the table instance: each per-ISA instance is the whole traversal inlined once more, and
-/// instancing every combination made the build 1.75x slower (bench/notes/). The octree's
-/// instances are compiled once, in the library (extern templates at the end of this header).
+/// instancing every combination made the build 1.75x slower (bench/notes/). The instances
+/// are compiled once per index type, in the library (RAYSCAN_RAY_QUERY_INSTANCES).
 template <class I, class KeyPolicy>
 inline constexpr bool kIsaInstances = FloatChildBoxes<I> && std::is_same_v<KeyPolicy, OrderKey>;
 
@@ -174,7 +175,7 @@ __attribute__((always_inline)) inline unsigned first_hit_pair_with(const I& inde
 }
 
 /// first_hit_pair_with with the table kernels (the instance of paths and indexes without per-ISA
-/// ones; compiled once per core index, RAYSCAN_BASE_INSTANCES).
+/// ones; compiled once per index type, RAYSCAN_RAY_QUERY_INSTANCES).
 template <SpatialIndex I>
 __attribute__((noinline)) unsigned first_hit_pair_base(const I& index, const Ray* rays, const RayQuery& q,
                                                        Candidate* best, RayQueryStats* stats) {
