@@ -59,6 +59,7 @@ Runner add_render_command(CLI::App& app);
 Runner add_info_command(CLI::App& app);
 Runner add_compare_command(CLI::App& app);
 Runner add_visibility_command(CLI::App& app);
+Runner add_solar_command(CLI::App& app);
 Runner add_db_command(CLI::App& app);
 Runner add_index_command(CLI::App& app);
 Runner add_translate_command(CLI::App& app);

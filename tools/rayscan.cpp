@@ -69,6 +69,7 @@ int main(int argc, char** argv) {
   reg(rayscan::cli::add_info_command);
   reg(rayscan::cli::add_compare_command);
   reg(rayscan::cli::add_visibility_command);
+  reg(rayscan::cli::add_solar_command);
   reg(rayscan::cli::add_db_command);
   reg(rayscan::cli::add_index_command);
   reg(rayscan::cli::add_translate_command);

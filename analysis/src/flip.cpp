@@ -18,7 +18,7 @@ namespace rayscan::analysis {
 
 namespace {
 
-using Vec3 = std::array<double, 3>;
+using Colour3 = std::array<double, 3>;
 
 // --- colour spaces -------------------------------------------------------------------------
 
@@ -26,51 +26,51 @@ double srgb_to_linear(double c) {  // IEC 61966-2-1, the inverse transfer functi
   return c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4);
 }
 
-Vec3 linear_rgb_to_xyz(const Vec3& c) {
+Colour3 linear_rgb_to_xyz(const Colour3& c) {
   return {0.4124564 * c[0] + 0.3575761 * c[1] + 0.1804375 * c[2],
           0.2126729 * c[0] + 0.7151522 * c[1] + 0.0721750 * c[2],
           0.0193339 * c[0] + 0.1191920 * c[1] + 0.9503041 * c[2]};
 }
 
-Vec3 xyz_to_linear_rgb(const Vec3& x) {
+Colour3 xyz_to_linear_rgb(const Colour3& x) {
   return {3.2404542 * x[0] - 1.5371385 * x[1] - 0.4985314 * x[2],
           -0.9692660 * x[0] + 1.8760108 * x[1] + 0.0415560 * x[2],
           0.0556434 * x[0] - 0.2040259 * x[1] + 1.0572252 * x[2]};
 }
 
 /// The reference white: XYZ of linear RGB (1, 1, 1) (D65).
-const Vec3& white() {
-  static const Vec3 w = linear_rgb_to_xyz({1.0, 1.0, 1.0});
+const Colour3& white() {
+  static const Colour3 w = linear_rgb_to_xyz({1.0, 1.0, 1.0});
   return w;
 }
 
 /// XYZ -> YyCxCz (paper section 4.1, after Johnson & Fairchild): a linear opponent space.
-Vec3 xyz_to_ycxcz(const Vec3& x) {
-  const Vec3& w = white();
+Colour3 xyz_to_ycxcz(const Colour3& x) {
+  const Colour3& w = white();
   const double xr = x[0] / w[0], yr = x[1] / w[1], zr = x[2] / w[2];
   return {116.0 * yr - 16.0, 500.0 * (xr - yr), 200.0 * (yr - zr)};
 }
 
-Vec3 ycxcz_to_xyz(const Vec3& c) {
-  const Vec3& w = white();
+Colour3 ycxcz_to_xyz(const Colour3& c) {
+  const Colour3& w = white();
   const double yr = (c[0] + 16.0) / 116.0;
   return {(c[1] / 500.0 + yr) * w[0], yr * w[1], (yr - c[2] / 200.0) * w[2]};
 }
 
 /// CIE 1976 L*a*b* of an XYZ colour relative to white() (CIE 15:2004, 8.2.1).
-Vec3 xyz_to_lab(const Vec3& x) {
+Colour3 xyz_to_lab(const Colour3& x) {
   constexpr double d = 6.0 / 29.0;
   const auto f = [](double t) { return t > d * d * d ? std::cbrt(t) : t / (3.0 * d * d) + 4.0 / 29.0; };
-  const Vec3& w = white();
+  const Colour3& w = white();
   const double fx = f(x[0] / w[0]), fy = f(x[1] / w[1]), fz = f(x[2] / w[2]);
   return {116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)};
 }
 
 /// Hunt-adjusted CIELAB (paper eq. 4's input): a and b scaled by 0.01 L.
-Vec3 hunt(const Vec3& lab) { return {lab[0], 0.01 * lab[0] * lab[1], 0.01 * lab[0] * lab[2]}; }
+Colour3 hunt(const Colour3& lab) { return {lab[0], 0.01 * lab[0] * lab[1], 0.01 * lab[0] * lab[2]}; }
 
 /// HyAB distance (Abasi et al. 2020, paper eq. 4): |dL| + Euclidean (a, b) distance.
-double hyab(const Vec3& p, const Vec3& q) {
+double hyab(const Colour3& p, const Colour3& q) {
   return std::abs(p[0] - q[0]) + std::hypot(p[1] - q[1], p[2] - q[2]);
 }
 
@@ -231,13 +231,13 @@ Planes to_planes(std::span<const float> rgb, std::size_t n, bool linear_input) {
   p.grey.resize(n);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t i = r.begin(); i < r.end(); ++i) {
-      Vec3 c;
+      Colour3 c;
       for (std::size_t k = 0; k < 3; ++k) {
         double v = rgb[i * 3 + k];
         v = std::isnan(v) ? 0.0 : std::clamp(v, 0.0, 1.0);
         c[k] = linear_input ? v : srgb_to_linear(v);
       }
-      const Vec3 y = xyz_to_ycxcz(linear_rgb_to_xyz(c));
+      const Colour3 y = xyz_to_ycxcz(linear_rgb_to_xyz(c));
       for (std::size_t k = 0; k < 3; ++k) p.ycxcz[k][i] = static_cast<float>(y[k]);
       p.grey[i] = static_cast<float>((y[0] + 16.0) / 116.0);
     }
@@ -246,8 +246,8 @@ Planes to_planes(std::span<const float> rgb, std::size_t n, bool linear_input) {
 }
 
 /// Hunt-adjusted CIELAB of a filtered YyCxCz sample (back through linear RGB clamped to [0, 1]).
-Vec3 filtered_to_hunt_lab(const Vec3& ycxcz) {
-  Vec3 rgb = xyz_to_linear_rgb(ycxcz_to_xyz(ycxcz));
+Colour3 filtered_to_hunt_lab(const Colour3& ycxcz) {
+  Colour3 rgb = xyz_to_linear_rgb(ycxcz_to_xyz(ycxcz));
   for (double& v : rgb) v = std::clamp(v, 0.0, 1.0);
   return hunt(xyz_to_lab(linear_rgb_to_xyz(rgb)));
 }
@@ -262,8 +262,8 @@ double flip_pixels_per_degree(double distance_m, double resolution_x, double mon
 }
 
 double flip_max_colour_difference() {
-  const Vec3 green = hunt(xyz_to_lab(linear_rgb_to_xyz({0.0, 1.0, 0.0})));
-  const Vec3 blue = hunt(xyz_to_lab(linear_rgb_to_xyz({0.0, 0.0, 1.0})));
+  const Colour3 green = hunt(xyz_to_lab(linear_rgb_to_xyz({0.0, 1.0, 0.0})));
+  const Colour3 blue = hunt(xyz_to_lab(linear_rgb_to_xyz({0.0, 0.0, 1.0})));
   return std::pow(hyab(green, blue), kQc);
 }
 
@@ -309,8 +309,8 @@ FlipResult flip(std::span<const float> reference, std::span<const float> test, i
   const double knee = kPc * cmax;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t i = r.begin(); i < r.end(); ++i) {
-      const Vec3 a = filtered_to_hunt_lab({fr[0][i], fr[1][i], fr[2][i]});
-      const Vec3 b = filtered_to_hunt_lab({ft[0][i], ft[1][i], ft[2][i]});
+      const Colour3 a = filtered_to_hunt_lab({fr[0][i], fr[1][i], fr[2][i]});
+      const Colour3 b = filtered_to_hunt_lab({ft[0][i], ft[1][i], ft[2][i]});
       const double d = std::pow(hyab(a, b), kQc);
       const double ec = d < knee ? kPt / knee * d : kPt + (d - knee) / (cmax - knee) * (1.0 - kPt);
       const double df = std::max(std::abs(double(er[i]) - et[i]), std::abs(double(prr[i]) - ptt[i]));

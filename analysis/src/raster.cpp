@@ -52,6 +52,8 @@ Raster rasterize(std::span<const Vec3> positions, std::span<const double> values
                                  : reduce == CellReduce::max ? -std::numeric_limits<double>::infinity()
                                                              : std::numeric_limits<double>::infinity());
   std::vector<std::uint32_t> n(ncell, 0);
+  std::vector<double> top_z;  // CellReduce::top: the z of the point whose value the cell holds
+  if (reduce == CellReduce::top) top_z.assign(ncell, -std::numeric_limits<double>::infinity());
   for (std::size_t i = 0; i < positions.size(); ++i) {
     const double v = values[i];
     if (!std::isfinite(v)) continue;
@@ -62,6 +64,12 @@ Raster rasterize(std::span<const Vec3> positions, std::span<const double> values
       case CellReduce::mean: acc[k] += v; break;
       case CellReduce::max: acc[k] = std::max(acc[k], v); break;
       case CellReduce::min: acc[k] = std::min(acc[k], v); break;
+      case CellReduce::top:
+        if (positions[i].z > top_z[k]) {
+          top_z[k] = positions[i].z;
+          acc[k] = v;
+        }
+        break;
     }
     ++n[k];
   }

@@ -328,6 +328,63 @@ VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec
   return res;
 }
 
+template <class Index>
+void trace_directions_over(const Index& index, std::span<const Vec3> positions, std::span<const Vec3> dirs,
+                           std::span<const Vec3> normals, const VisibilityOptions& opts,
+                           const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit) {
+  check(opts);
+  if (index_size(index) != positions.size())
+    throw std::invalid_argument("directions: the index was not built over these positions");
+  if (opts.surfels && opts.surfels->radii.size() != positions.size())
+    throw std::invalid_argument("directions: surfel attributes were not computed for these positions");
+  if (!normals.empty() && normals.size() != positions.size())
+    throw std::invalid_argument("directions: normals and positions differ in count");
+  const std::size_t n = positions.size(), m = dirs.size(), words = (m + 63) / 64;
+  if (n == 0) return;
+  AABB box;
+  for (const Vec3& p : positions) box.expand(p);
+  // Far enough that every point of the site lies between the observer and P_i.
+  const double far = 2.0 * glm::length(box.extent()) + 1.0;
+  const std::size_t chunks = (n + kChunk - 1) / kChunk;
+  Progress progress(chunks, opts.progress, ProgressUnits{"chunks", "points/s", 1.0, 0});
+  struct Local {
+    std::vector<std::uint64_t> mask;
+    std::vector<RayHit> hits;
+  };
+  tbb::enumerable_thread_specific<Local> locals([words] { return Local{std::vector<std::uint64_t>(words), {}}; });
+  tbb::task_arena arena(static_cast<int>(resolve_threads(opts.threads)));
+  arena.execute([&] {
+    visit_index(
+        [&](const auto& idx) {
+          const auto pos = idx.positions();
+          const IdView ids = idx.ids();
+          tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const auto& range) {
+            Local& L = locals.local();
+            for (std::size_t c = range.begin(); c != range.end(); ++c) {
+              const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
+              for (std::size_t s = s0; s < s1; ++s) {
+                const PointIndex i = ids[s];
+                std::fill(L.mask.begin(), L.mask.end(), 0);
+                for (std::size_t k = 0; k < m; ++k) {
+                  if (!normals.empty() && !(glm::dot(normals[i], dirs[k]) > 0.0)) continue;
+                  Observer sun;
+                  sun.position = pos[s] + far * dirs[k];
+                  bool queried;
+                  double dist;
+                  if (line_of_sight(idx, sun, kInf, pos[s], i, opts, L.hits, queried, dist))
+                    L.mask[k / 64] |= std::uint64_t(1) << (k % 64);
+                }
+                visit(i, L.mask);
+              }
+              progress.tile_done(s1 - s0);
+            }
+          });
+        },
+        index);
+  });
+  progress.finish();
+}
+
 Vec3 sky_direction(std::uint32_t k, std::uint32_t n, double rotation, SkyWeighting weighting) {
   const double u = (double(k) + 0.5) / double(n);  // in (0, 1)
   const double z = weighting == SkyWeighting::uniform ? 1.0 - u : std::sqrt(1.0 - u);
@@ -508,6 +565,14 @@ VisibilityResult compute_visibility(const Site& site, std::span<const Vec3> posi
                                     std::span<const Observer> observers, const VisibilityOptions& opts) {
   return detail::over_site<VisibilityResult>(site, "visibility", [&](const auto& index) {
     return compute_visibility_over(index, positions, observers, opts);
+  });
+}
+void trace_directions(const Site& site, std::span<const Vec3> positions, std::span<const Vec3> dirs,
+                      std::span<const Vec3> normals, const VisibilityOptions& opts,
+                      const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit) {
+  detail::over_site<int>(site, "directions", [&](const auto& index) {
+    trace_directions_over(index, positions, dirs, normals, opts, visit);
+    return 0;
   });
 }
 std::vector<double> compute_sky_view(const Site& site, std::span<const Vec3> positions, const SkyViewOptions& opts,

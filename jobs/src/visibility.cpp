@@ -2,6 +2,8 @@
 // rayscan.visibility() run.
 #include "rayscan/jobs/visibility.hpp"
 
+#include "cloud_site.hpp"
+
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/analysis/geotiff.hpp"
@@ -28,38 +30,8 @@ namespace rayscan::jobs {
 using namespace rayscan::analysis;  // the analysis library's types, which this job speaks in
 using namespace rayscan::io;
 
-namespace {
-
-using std::invalid_argument;
-
-
-void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values) {
-  for (ScalarField& f : cloud.scalars)
-    if (f.name == name) {
-      f.values = std::move(values);
-      return;
-    }
-  cloud.scalars.push_back({name, std::move(values)});
-}
-
-// Output folders must exist before the (possibly long) computation; outputs are written to a
-// temporary sibling and renamed there, so a missing folder would only fail at the very end.
-void check_output_folder(const char* field, const std::filesystem::path& path) {
-  if (path.empty()) return;
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (fs::is_directory(fs::status(path, ec)))
-    throw OptionError({option(field), " '" + path.string() + "': is a folder, expected a file name"});
-  const fs::path dir = path.parent_path();
-  if (dir.empty()) return;  // the current folder
-  const fs::file_status st = fs::status(dir, ec);
-  if (!fs::exists(st))
-    throw OptionError({option(field), " '" + path.string() + "': folder '" + dir.string() + "' does not exist"});
-  if (!fs::is_directory(st))
-    throw OptionError({option(field), " '" + path.string() + "': '" + dir.string() + "' is not a folder"});
-}
-
-}  // namespace
+using detail::check_output_folder;
+using detail::set_scalar;
 
 namespace {
 
@@ -83,8 +55,9 @@ struct VisibilityRun {
   bool have_observers = false, have_camera = false;
   std::vector<Observer>& observers = r.observers;
   std::optional<Camera> camera;
-  std::optional<Site> site;
-  PointCloud& cloud = r.cloud;
+  detail::CloudSite cs;  // the cloud and the site over it; the cloud moves to r.cloud at the end
+  std::optional<Site>& site = cs.site;
+  PointCloud& cloud = cs.cloud;
   double radius = 0.0;
   bool surfel = false;
   SurfelAttributes surfels;
@@ -160,68 +133,19 @@ struct VisibilityRun {
 
   /// The cloud, its index (or the mapped index file), the radius and the surfels.
   void open_site() {
-    t0 = std::chrono::steady_clock::now();
-    r.source = o.cloud ? std::string("(memory)") : o.cloud_file.string();
-    // An index file (.rsi) is queried in place (no tree is built); its points are copied to the
-    // sources' original order (tiles concatenated in build order) as the output cloud, so the
-    // per-point fields line up with the sources.
-    if (o.cloud)
-      r.cloud = *o.cloud;
-    else if (io::is_index_file(o.cloud_file)) {
-      SiteOptions so;
-      so.index_file.read_ahead = true;  // every point is read and many queried: read the file ahead
-      site.emplace(Site::open(o.cloud_file, so));
-      r.cloud = site->index_file()->to_point_cloud();
-    } else {
-      r.cloud = io::read_point_cloud(o.cloud_file, {}, &r.info);
-    }
-    if (cloud.empty()) throw invalid_argument(r.source + ": the point cloud has no points");
-    std::snprintf(buf, sizeof buf, "%s %zu points from %s in %.2f s", site ? "mapped" : "read", cloud.size(),
-                  r.source.c_str(), seconds_since(t0));
-    ctl.info(buf);
-    t0 = std::chrono::steady_clock::now();
-    if (!site) {
-      try {
-        site.emplace(Site::over(cloud, o.index));
-      } catch (const std::invalid_argument& e) {
-        throw OptionError({option("index"), std::string(": ") + e.what()});
-      }
-      std::snprintf(buf, sizeof buf, "built %s index in %.2f s", o.index.type.c_str(), seconds_since(t0));
-      ctl.info(buf);
-    }
-    try {
-      r.radius = choose_radius(o.radius, o.radius_factor, [&] { return median_nn_spacing(*site, cloud.positions); });
-    } catch (const std::invalid_argument&) {
-      if (o.radius)
-        throw OptionError({option("radius"), " " + std::to_string(*o.radius) + ": expected a number > 0 or auto"});
-      if (!(o.radius_factor > 0.0)) throw OptionError({option("radius_factor"), ": expected a number > 0"});
-      throw OptionError({option("radius"), " auto needs at least two distinct points; give a number"});
-    }
+    detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.index, o.radius, o.radius_factor, ctl);
+    r.info = cs.info;
+    r.source = cs.source;
+    r.radius = cs.radius;
     radius = r.radius.radius;
-    if (r.radius.automatic) {
-      std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x %.3g = %.6g",
-                    r.radius.spacing, r.radius.factor, radius);
-      ctl.info(buf);
-    }
     surfel = o.primitive == "surfel";
     r.primitive = o.primitive;
     r.tolerance = o.tolerance.value_or(surfel ? 0.0 : 2.0 * radius);
     r.target_height = o.target_height.value_or(surfel ? 0.0 : radius);
     if (surfel) {
-      t0 = std::chrono::steady_clock::now();
-      SurfelOptions so = o.surfel;
-      so.measure_thickness = false;  // visibility traces no shadow or bounce rays (same_surface with 0)
-      try {
-        surfels = estimate_surfels(*site, cloud.positions, so, cloud.normals);
-      } catch (const std::invalid_argument& e) {
-        throw OptionError({option("primitive"), std::string(" surfel: ") + e.what()});
-      }
+      surfels = detail::estimate_analysis_surfels(cs, o.surfel, ctl);
       r.surfel_median_radius = surfels.median_radius;
       r.surfel_max_radius = surfels.max_radius;
-      std::snprintf(buf, sizeof buf, "surfels: %s normals, median disc radius %.6g, max %.6g, in %.2f s",
-                    cloud.normals.empty() ? "PCA" : "file", surfels.median_radius, surfels.max_radius,
-                    seconds_since(t0));
-      ctl.info(buf);
     }
     r.max_distance = o.max_distance.value_or(kInf);
   }
@@ -387,14 +311,7 @@ struct VisibilityRun {
     if (ctl.distributor && !ctl.distributor->is_root()) return;
     OutputTransaction tx;
     if (!o.out.empty()) {
-      io::LasWriteOptions lo;
-      if ((r.info.format == "LAS" || r.info.format == "LAZ" || r.info.format == "COPC") && r.info.scale &&
-          r.info.offset) {  // keep the source's integer grid
-        lo.scale = *r.info.scale;
-        lo.offset = *r.info.offset;
-        lo.has_offset = true;
-      }
-      io::write_point_cloud(o.out, cloud, lo);
+      detail::write_result_cloud(o.out, cloud, r.info);
       r.written.push_back(o.out);
     }
     if (!o.raster.empty()) write_raster();
@@ -413,6 +330,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   run.sky_view();
   run.camera_marks();
   run.write_outputs();
+  run.r.cloud = std::move(run.cloud);
   return std::move(run.r);
 }
 

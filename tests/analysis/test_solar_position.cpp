@@ -289,7 +289,7 @@ TEST(SolarPositionAstropy, ZenithAzimuthAndEquatorial) {
   double max_zen = 0.0, max_az = 0.0, max_sep = 0.0, max_ra = 0.0, max_dec = 0.0, max_eot = 0.0;
   for (std::size_t i = 0; i < kPositionCases.size(); ++i) {
     const auto& c = kPositionCases[i];
-    const auto& a = answers->at("p" + std::to_string(i));
+    const auto& a = answers->at(std::string("p").append(std::to_string(i)));
     ASSERT_EQ(a.size(), 7u);
     SpaInput in;
     in.time = parse_iso8601_utc(c.time);
@@ -341,7 +341,7 @@ TEST(SolarPositionAstropy, TransitSunriseSunset) {
   double max_transit = 0.0, max_riseset = 0.0;
   for (std::size_t i = 0; i < kRiseSetCases.size(); ++i) {
     const auto& c = kRiseSetCases[i];
-    const auto& a = answers->at("r" + std::to_string(i));
+    const auto& a = answers->at(std::string("r").append(std::to_string(i)));
     ASSERT_EQ(a.size(), 5u);
     SpaInput in;
     in.time = parse_iso8601_utc(c.time);

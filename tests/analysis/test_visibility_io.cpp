@@ -196,6 +196,10 @@ TEST(Raster, GridSnapsToCellMultiplesAndReduces) {
   EXPECT_EQ(r.values[5], 2.0f);  // NaN values are skipped
   EXPECT_EQ(rasterize(pts, v, g, CellReduce::max, "t").values[0], 3.0f);
   EXPECT_EQ(rasterize(pts, v, g, CellReduce::min, "t").values[0], 1.0f);
+  // top: the value of the cell's highest point (a roof over the ground), whatever the order.
+  const std::vector<Vec3> stacked{{10.3, 23.0, 1.0}, {10.5, 23.0, 7.0}, {11.0, 22.5, 3.0}, {10.4, 22.1, 7.0}};
+  const std::vector<double> sv{10, 20, 30, 40};
+  EXPECT_EQ(rasterize(stacked, sv, g, CellReduce::top, "t").values[0], 20.0f);  // z 7 first in point order
   EXPECT_THROW(grid_over(box, 0.0), std::invalid_argument);
   EXPECT_THROW(grid_over(box, 1e-6), std::invalid_argument);  // 4.6e6 x 2.9e6 cells
   EXPECT_THROW(rasterize(pts, std::vector<double>{1}, g, CellReduce::mean, "t"), std::invalid_argument);

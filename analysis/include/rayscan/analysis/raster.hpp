@@ -36,8 +36,10 @@ struct GridSpec {
 /// or a grid of more than `max_cells` cells (naming the size and a cell size that would fit).
 GridSpec grid_over(const AABB& bounds, double cell, std::uint64_t max_cells = 400'000'000ull);
 
-/// How a cell combines the values of its points.
-enum class CellReduce { mean, max, min };
+/// How a cell combines the values of its points. `top`: the value of the cell's highest point
+/// (largest z; the first in point order on a tie), the surface a first-return DSM shows -- a roof,
+/// a crown or the ground, never what lies under it.
+enum class CellReduce { mean, max, min, top };
 
 /// A single-band float raster on a GridSpec, row-major, top row first. NaN = no data.
 struct Raster {

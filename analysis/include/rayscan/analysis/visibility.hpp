@@ -15,6 +15,7 @@
 #include "rayscan/base/work_distributor.hpp"
 
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -95,6 +96,21 @@ bool is_visible(const Site& site, std::span<const Vec3> positions, const Observe
 /// (ids(): the slot when the file has no ids section, docs/index-format.md "Ids").
 VisibilityResult compute_visibility(const Site& site, std::span<const Vec3> positions,
                                     std::span<const Observer> observers, const VisibilityOptions& opts);
+
+/// The open directions of every point: for each point i and world direction d_k (unit length, +z
+/// up), whether something at infinity in that direction -- the sun of one sun-map sector, a patch
+/// of sky -- is seen from P_i by the line-of-sight rule of is_visible() (spheres, or surfels when
+/// opts.surfels is set; opts.target_height and opts.tolerance keep the point's own surface from
+/// shading it), with the observer placed at P_i + L d_k, L beyond the extent of `positions`, so
+/// that every obstacle of the site lies between. With `normals` (indexed like the positions; empty
+/// = none), direction k is traced for point i only when dot(n_i, d_k) > 0 (a surface facing away
+/// receives nothing from it) and its bit stays 0 otherwise. Calls `visit(i, mask)` once per point,
+/// from worker threads (concurrently for different points); bit k % 64 of mask[k / 64] is set for
+/// an open direction. opts.max_distance and opts.distributor are not used (one process).
+/// Throws std::invalid_argument like compute_visibility and for normals of another count.
+void trace_directions(const Site& site, std::span<const Vec3> positions, std::span<const Vec3> dirs,
+                      std::span<const Vec3> normals, const VisibilityOptions& opts,
+                      const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit);
 
 /// Hemisphere sampling of the sky view factor.
 enum class SkyWeighting {

@@ -1,0 +1,40 @@
+// Where on Earth a scanned site lies, from its CRS: the latitude and longitude the sun position
+// needs, and the angle between grid north and true north (the meridian convergence) that turns a
+// compass azimuth into a direction in the cloud's own x, y frame.
+#pragma once
+
+#include "rayscan/octree/geometry.hpp"
+
+#include <numbers>
+#include <string>
+
+namespace rayscan::analysis {
+
+/// One degree in radians.
+inline constexpr double kDegree = std::numbers::pi / 180.0;
+
+/// A site's place on the WGS 84 ellipsoid and the orientation of its projected grid there.
+struct SiteLocation {
+  double latitude_deg = 0.0;    ///< WGS 84 latitude, degrees north
+  double longitude_deg = 0.0;   ///< WGS 84 longitude, degrees east
+  double elevation_m = 0.0;     ///< the given z in metres (the CRS's vertical unit, else its linear unit)
+  /// Meridian convergence: the clockwise angle, degrees, from grid north (+y) to true north at the
+  /// site. A compass azimuth A is the grid bearing A + convergence_deg.
+  double convergence_deg = 0.0;
+  double metres_per_unit = 1.0; ///< the CRS's horizontal linear unit in metres (US survey foot: 0.3048006)
+};
+
+/// The location of the point (x, y, z), given in the projected CRS `crs_wkt` (OGC WKT 1 or 2 as
+/// the cloud's file carries it), transformed to WGS 84 (EPSG:4326) with GDAL/PROJ. The convergence
+/// comes from the grid bearing of a short step due north (1e-5 degrees of latitude).
+/// Throws std::invalid_argument (one line) when the WKT is empty or unparseable, when the CRS is
+/// geographic or geocentric (a sun direction needs a projected x east, y north, z up frame), or
+/// when PROJ cannot transform the point.
+SiteLocation locate_site(const std::string& crs_wkt, const Vec3& point);
+
+/// The unit vector, in the cloud's frame (x grid east, y grid north, z up), towards a body at
+/// compass azimuth `azimuth_deg` (clockwise from true north) and elevation `elevation_deg` above
+/// the horizon, seen from a site with meridian convergence `convergence_deg` (SiteLocation).
+Vec3 direction_from_azimuth(double azimuth_deg, double elevation_deg, double convergence_deg = 0.0);
+
+}  // namespace rayscan::analysis

@@ -1,0 +1,157 @@
+// The solar jobs: where the sun is (NREL SPA on the command line), and how much sun each point
+// of a scanned site receives -- irradiation over a period and shadows at an instant -- with the
+// shadows cast by the points themselves through the ray query. `rayscan solar position`,
+// `rayscan solar` and the Python module wrap run_sun_position() and run_solar(). docs/solar.md.
+#pragma once
+
+#include "rayscan/analysis/raster.hpp"
+#include "rayscan/analysis/site_location.hpp"
+#include "rayscan/analysis/solar_position.hpp"
+#include "rayscan/base/job.hpp"
+#include "rayscan/io/file_info.hpp"
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/octree/normals.hpp"
+#include "rayscan/octree/point_cloud.hpp"
+#include "rayscan/octree/spacing.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rayscan::jobs {
+
+/// Inputs of run_sun_position(): the NREL SPA calculator's (Reda & Andreas 2004, section 3).
+struct SunPositionJobOptions {
+  double latitude = 0.0;                ///< WGS 84, degrees north (-90..90)
+  double longitude = 0.0;               ///< WGS 84, degrees east (-180..180)
+  std::string time;                     ///< ISO 8601 (analysis::parse_iso8601_utc); no offset = UTC
+  double elevation = 0.0;               ///< metres above the ellipsoid
+  double pressure = 1013.25;            ///< mbar, for refraction
+  double temperature = 15.0;            ///< degrees C, for refraction
+  double delta_t = analysis::kDefaultDeltaT;  ///< TT - UT1, seconds
+  double slope = 0.0;                   ///< surface tilt for the incidence angle, degrees
+  double surface_azimuth = 180.0;       ///< direction the surface faces, degrees clockwise from north
+  /// Time zone of the day whose sunrise, transit and sunset are reported, hours east of UTC;
+  /// nullopt = the offset written in `time`, else local mean solar time (longitude / 15).
+  std::optional<double> utc_offset;
+};
+
+/// Output of run_sun_position().
+struct SunPositionJobResult {
+  analysis::UtcInstant time;             ///< the instant, UTC
+  analysis::SolarPosition position;      ///< refracted topocentric position and intermediates
+  analysis::SunRiseTransitSet day;       ///< the local day's events
+  double day_utc_offset = 0.0;           ///< the time zone of `day`, hours east of UTC
+};
+
+/// Runs SPA for the options. Throws OptionError naming the field for a bad time or an input out
+/// of range.
+SunPositionJobResult run_sun_position(const SunPositionJobOptions& options);
+
+/// JSON report of a sun position (`rayscan solar position --json`), indented by 2: time (UTC
+/// ISO 8601), zenith, azimuth, elevation, incidence (degrees), equation of time (minutes),
+/// sunrise / transit / sunset (ISO 8601 with the day's offset; null in polar day or night).
+std::string sun_position_report_json(const SunPositionJobResult& result);
+
+/// ISO 8601 text of a UTC unix time shown at `utc_offset_hours` ("2026-06-21T05:31:12-07:00"),
+/// seconds rounded to the nearest whole second.
+std::string format_iso8601(double unix_seconds, double utc_offset_hours);
+
+/// Inputs of run_solar(). An invalid option throws OptionError naming the fields (`start`), which
+/// the CLI writes as its flags (`--start`).
+struct SolarJobOptions {
+  // ---- Input cloud.
+  std::filesystem::path cloud_file;     ///< point cloud (LAS, LAZ, COPC, PLY, PCD, text) or index file (.rsi)
+  const PointCloud* cloud = nullptr;    ///< in-memory points instead of cloud_file (copied into the result)
+  IndexOptions index;                   ///< index type (default octree-adaptive)
+  std::optional<double> radius;         ///< sphere radius (primitive sphere), world units; nullopt = auto
+  double radius_factor = 1.0;           ///< auto radius = factor x median NN spacing (choose_radius)
+  /// Geometry of each point for shadows: "sphere" (the paper's model, one radius: light passes
+  /// through gaps in crowns, and a crown's top is in the sun) or "surfel" (oriented discs read as
+  /// the height field a DSM samples: solid below, so steep leaf discs shade their neighbours and
+  /// a crown darkens inside). Normals for the irradiance come from the surfels either way.
+  std::string primitive = "sphere";
+  SurfelOptions surfel;                 ///< normals and disc radii (file normals when present, else PCA)
+
+  // ---- Place and time.
+  std::optional<double> latitude;       ///< degrees north; nullopt = from the cloud's CRS
+  std::optional<double> longitude;      ///< degrees east; nullopt = from the cloud's CRS
+  std::optional<double> elevation;      ///< site elevation, metres; nullopt = from the cloud's z
+  /// The period: ISO 8601 date-times (no offset = UTC) or dates alone. A date alone is local mean
+  /// solar midnight (longitude / 15 h east of UTC), and `end` given as a date alone includes that
+  /// whole day, so "--start 2026-01-01 --end 2026-12-31" is the year.
+  std::string start, end;
+  std::string step = "1h";              ///< time step: N min | N h | N d (e.g. 30min, 1h)
+  std::string at;                       ///< one instant instead of a period: shadows and irradiance
+  double delta_t = analysis::kDefaultDeltaT;  ///< TT - UT1, seconds (SPA)
+  double pressure = 1013.25;            ///< mbar (SPA refraction)
+  double temperature = 15.0;            ///< degrees C (SPA refraction)
+
+  // ---- Irradiance model.
+  /// Linke turbidity at air mass 2: one value, or 12 monthly values (January first), r.sun's
+  /// linke_value; 3.0 is a rural mid-latitude annual mean (Šúri & Hofierka 2004).
+  std::vector<double> linke{3.0};
+  double albedo = 0.2;                  ///< ground albedo (r.sun's default)
+  std::filesystem::path weather;        ///< EnergyPlus EPW: measured hourly GHI/DNI/DHI replace the clear sky
+  /// Sun-map sector edge, degrees: the time steps whose sun directions share an azimuth x
+  /// elevation cell share one shadow ray per point (its mean direction). 0 = one ray per step.
+  double sector = 1.0;
+  std::uint32_t sky_rays = 64;          ///< sky-map directions per point (the diffuse's sky view); 0 = open sky
+  std::optional<double> tolerance;      ///< line-of-sight tolerance (visibility; default 2 x radius, surfels 0)
+  std::optional<double> target_height;  ///< shadow rays aim this far above the point (default 1 x radius, surfels 0)
+
+  // ---- Outputs (each written through AtomicFile; "" = not written).
+  std::filesystem::path out;            ///< the cloud with the result fields
+  std::filesystem::path raster;         ///< top-surface GeoTIFF (.tif); needs `cell`
+  std::optional<double> cell;           ///< raster cell edge, world units
+  /// global | beam | diffuse | reflected | sun_hours | sky_view (a period); in_shadow | global |
+  /// beam | diffuse (an instant); "" = global for a period, in_shadow for an instant.
+  std::string raster_value;
+  std::filesystem::path preview;        ///< PNG preview ("" = the raster's name with .png)
+  bool write_preview = true;
+
+  JobControl control;
+};
+
+/// Output of run_solar().
+struct SolarJobResult {
+  /// The input with the result fields. A period: solar_global, solar_beam, solar_diffuse,
+  /// solar_reflected (kWh/m² over the period, on each point's own surface), sun_hours (h) and
+  /// sky_view (fraction of the sky seen, weighted by the surface's cosine). An instant:
+  /// in_shadow (1: the sun is down or the point's ray to the sun is blocked -- a cast shadow,
+  /// whichever way its surface faces), irradiance_global, irradiance_beam, irradiance_diffuse
+  /// (W/m²; a surface facing away from the sun gets no beam).
+  PointCloud cloud;
+  io::FileInfo info;
+  std::string source;
+  RadiusChoice radius;
+  std::string primitive;
+  analysis::SiteLocation location;      ///< where the sun was computed
+  bool location_from_crs = false;
+  double start_unix = 0.0, end_unix = 0.0, step_hours = 0.0;
+  std::size_t steps = 0;                ///< time steps in the period (1 for an instant)
+  std::size_t sun_steps = 0;            ///< steps with the sun above the horizon
+  std::size_t sectors = 0;              ///< shadow directions per point (sun-map sectors)
+  std::uint32_t sky_rays = 0;
+  std::optional<analysis::SolarPosition> sun;  ///< the sun at `at` (an instant)
+  std::uint64_t rays = 0;               ///< directions traced (points x directions, before culling)
+  double trace_seconds = 0.0;
+  std::string weather;                  ///< the EPW's location line, when one was used
+  std::optional<analysis::Raster> raster;
+  std::string raster_value;
+  std::vector<std::filesystem::path> written;
+};
+
+/// Checks every option, reads the cloud, builds the index, estimates the surfels, computes the sun
+/// positions (SPA) and the sky (ESRA clear sky or the EPW file), traces the sun-map and sky-map
+/// directions of every point (analysis::trace_directions) and accumulates the irradiance of every
+/// time step on each point's surface, then writes the outputs. Throws OptionError (options),
+/// io::FormatError (cloud), std::invalid_argument (EPW file), std::runtime_error (I/O).
+SolarJobResult run_solar(const SolarJobOptions& options);
+
+/// JSON report of a run (`rayscan solar --json`), indented by 2.
+std::string solar_report_json(const SolarJobResult& result);
+
+}  // namespace rayscan::jobs

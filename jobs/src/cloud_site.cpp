@@ -1,0 +1,112 @@
+#include "cloud_site.hpp"
+
+#include "rayscan/base/option_error.hpp"
+#include "rayscan/io/point_io.hpp"
+#include "rayscan/site/index_file.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <stdexcept>
+
+namespace rayscan::jobs::detail {
+
+void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const PointCloud* memory,
+                     const IndexOptions& index, std::optional<double> radius, double radius_factor,
+                     const JobControl& ctl) {
+  char buf[512];
+  auto t0 = std::chrono::steady_clock::now();
+  cs.source = memory ? std::string("(memory)") : file.string();
+  // An index file (.rsi) is queried in place (no tree is built); its points are copied to the
+  // sources' original order (tiles concatenated in build order) as the output cloud, so the
+  // per-point fields line up with the sources.
+  if (memory)
+    cs.cloud = *memory;
+  else if (io::is_index_file(file)) {
+    SiteOptions so;
+    so.index_file.read_ahead = true;  // every point is read and many queried: read the file ahead
+    cs.site.emplace(Site::open(file, so));
+    cs.cloud = cs.site->index_file()->to_point_cloud();
+  } else {
+    cs.cloud = io::read_point_cloud(file, {}, &cs.info);
+  }
+  if (cs.cloud.empty()) throw std::invalid_argument(cs.source + ": the point cloud has no points");
+  std::snprintf(buf, sizeof buf, "%s %zu points from %s in %.2f s", cs.site ? "mapped" : "read", cs.cloud.size(),
+                cs.source.c_str(), seconds_since(t0));
+  ctl.info(buf);
+  t0 = std::chrono::steady_clock::now();
+  if (!cs.site) {
+    try {
+      cs.site.emplace(Site::over(cs.cloud, index));
+    } catch (const std::invalid_argument& e) {
+      throw OptionError({option("index"), std::string(": ") + e.what()});
+    }
+    std::snprintf(buf, sizeof buf, "built %s index in %.2f s", index.type.c_str(), seconds_since(t0));
+    ctl.info(buf);
+  }
+  try {
+    cs.radius = choose_radius(radius, radius_factor, [&] { return median_nn_spacing(*cs.site, cs.cloud.positions); });
+  } catch (const std::invalid_argument&) {
+    if (radius) throw OptionError({option("radius"), " " + std::to_string(*radius) + ": expected a number > 0 or auto"});
+    if (!(radius_factor > 0.0)) throw OptionError({option("radius_factor"), ": expected a number > 0"});
+    throw OptionError({option("radius"), " auto needs at least two distinct points; give a number"});
+  }
+  if (cs.radius.automatic) {
+    std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x %.3g = %.6g",
+                  cs.radius.spacing, cs.radius.factor, cs.radius.radius);
+    ctl.info(buf);
+  }
+}
+
+SurfelAttributes estimate_analysis_surfels(const CloudSite& cs, const SurfelOptions& options, const JobControl& ctl) {
+  const auto t0 = std::chrono::steady_clock::now();
+  SurfelOptions so = options;
+  so.measure_thickness = false;  // no shadow or bounce rays leave a surfel here (same_surface with 0)
+  SurfelAttributes surfels;
+  try {
+    surfels = estimate_surfels(*cs.site, cs.cloud.positions, so, cs.cloud.normals);
+  } catch (const std::invalid_argument& e) {
+    throw OptionError({option("primitive"), std::string(" surfel: ") + e.what()});
+  }
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "surfels: %s normals, median disc radius %.6g, max %.6g, in %.2f s",
+                cs.cloud.normals.empty() ? "PCA" : "file", surfels.median_radius, surfels.max_radius,
+                seconds_since(t0));
+  ctl.info(buf);
+  return surfels;
+}
+
+void check_output_folder(const char* field, const std::filesystem::path& path) {
+  if (path.empty()) return;
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::is_directory(fs::status(path, ec)))
+    throw OptionError({option(field), " '" + path.string() + "': is a folder, expected a file name"});
+  const fs::path dir = path.parent_path();
+  if (dir.empty()) return;  // the current folder
+  const fs::file_status st = fs::status(dir, ec);
+  if (!fs::exists(st))
+    throw OptionError({option(field), " '" + path.string() + "': folder '" + dir.string() + "' does not exist"});
+  if (!fs::is_directory(st))
+    throw OptionError({option(field), " '" + path.string() + "': '" + dir.string() + "' is not a folder"});
+}
+
+void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values) {
+  for (ScalarField& f : cloud.scalars)
+    if (f.name == name) {
+      f.values = std::move(values);
+      return;
+    }
+  cloud.scalars.push_back({name, std::move(values)});
+}
+
+void write_result_cloud(const std::filesystem::path& path, const PointCloud& cloud, const io::FileInfo& info) {
+  io::LasWriteOptions lo;
+  if ((info.format == "LAS" || info.format == "LAZ" || info.format == "COPC") && info.scale && info.offset) {
+    lo.scale = *info.scale;  // keep the source's integer grid
+    lo.offset = *info.offset;
+    lo.has_offset = true;
+  }
+  io::write_point_cloud(path, cloud, lo);
+}
+
+}  // namespace rayscan::jobs::detail

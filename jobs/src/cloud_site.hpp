@@ -1,0 +1,62 @@
+// What the point analyses (visibility, solar) share before their own work: the cloud read (or an
+// index file mapped), its index built, the sphere radius chosen, the surfels estimated, the output
+// folders checked, and the cloud with its result fields written on the source's integer grid.
+// Private to rayscan::jobs.
+#pragma once
+
+#include "rayscan/base/job.hpp"
+#include "rayscan/io/file_info.hpp"
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/octree/normals.hpp"
+#include "rayscan/octree/point_cloud.hpp"
+#include "rayscan/octree/spacing.hpp"
+#include "rayscan/site/site.hpp"
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rayscan::jobs::detail {
+
+/// A cloud opened for point analyses: its points (in original order) and the site over them.
+/// Not movable: the site refers to `cloud` (Site::over).
+struct CloudSite {
+  PointCloud cloud;          ///< the points; for an index file, MappedIndex::to_point_cloud()
+  io::FileInfo info;         ///< what the reader found (empty for memory and index files)
+  std::string source;        ///< the file name, or "(memory)"
+  std::optional<Site> site;  ///< the index over `cloud` (or the mapped index file)
+  RadiusChoice radius;       ///< the sphere radius chosen
+
+  CloudSite() = default;
+  CloudSite(const CloudSite&) = delete;
+  CloudSite& operator=(const CloudSite&) = delete;
+};
+
+/// Fills `cs`: reads `file` (or copies `memory` when non-null), or maps an index file in place
+/// (read ahead: every point will be queried); builds the index of type `index`; chooses the sphere
+/// radius (choose_radius). Logs one line per stage through `ctl`. Throws OptionError naming
+/// `index`, `radius` or `radius_factor`, io::FormatError for the file, std::invalid_argument for a
+/// cloud without points.
+void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const PointCloud* memory,
+                     const IndexOptions& index, std::optional<double> radius, double radius_factor,
+                     const JobControl& ctl);
+
+/// The surfels (normals and disc radii) of every point of `cs`, file normals when the cloud has
+/// them; no thickness measure (the analyses trace no bounce rays). Logs one line. Throws
+/// OptionError naming `primitive` when the estimate fails.
+SurfelAttributes estimate_analysis_surfels(const CloudSite& cs, const SurfelOptions& options, const JobControl& ctl);
+
+/// Throws OptionError naming `field` when `path` is a folder or its folder does not exist: outputs
+/// are written to a temporary sibling and renamed, so a missing folder would fail only at the end
+/// of a long run. An empty path is not an output.
+void check_output_folder(const char* field, const std::filesystem::path& path);
+
+/// Sets (or adds) the scalar field `name` of `cloud`.
+void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values);
+
+/// Writes `cloud` to `path` (format by extension); a LAS/LAZ output keeps the integer grid
+/// (scale and offset) of a LAS/LAZ/COPC source described by `info`.
+void write_result_cloud(const std::filesystem::path& path, const PointCloud& cloud, const io::FileInfo& info);
+
+}  // namespace rayscan::jobs::detail

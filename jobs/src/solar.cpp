@@ -1,0 +1,593 @@
+// The solar jobs (rayscan/jobs/solar.hpp): what `rayscan solar position`, `rayscan solar` and
+// rayscan.solar() run.
+#include "rayscan/jobs/solar.hpp"
+
+#include "cloud_site.hpp"
+
+#include "rayscan/analysis/clear_sky.hpp"
+#include "rayscan/analysis/epw.hpp"
+#include "rayscan/analysis/geotiff.hpp"
+#include "rayscan/analysis/raster_preview.hpp"
+#include "rayscan/analysis/solar_irradiation.hpp"
+#include "rayscan/analysis/visibility.hpp"
+#include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/file_names.hpp"
+#include "rayscan/base/option_error.hpp"
+#include "rayscan/image/image_file.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <numbers>
+#include <stdexcept>
+
+namespace rayscan::jobs {
+
+using namespace rayscan::analysis;
+
+namespace {
+
+double unix_of(const UtcInstant& t) { return double(t.unix_seconds) + t.fraction; }
+
+UtcInstant instant_of(double unix_seconds) {
+  const double whole = std::floor(unix_seconds);
+  return {static_cast<std::int64_t>(whole), unix_seconds - whole};
+}
+
+/// `field`'s ISO 8601 text as a UTC unix time; a date alone is local mean solar midnight at
+/// `longitude` (and, for the end of a period, the end of that day).
+double period_time(const char* field, const std::string& text, double longitude, bool end_of_day) {
+  UtcInstant t;
+  try {
+    t = parse_iso8601_utc(text);
+  } catch (const std::invalid_argument& e) {
+    throw OptionError({option(field), std::string(" ") + e.what()});
+  }
+  const bool date_only = text.find_first_of("T :") == std::string::npos;
+  double u = unix_of(t);
+  if (date_only) u += (end_of_day ? 86400.0 : 0.0) - longitude / 15.0 * 3600.0;
+  return u;
+}
+
+/// "30min", "1h", "2 h", "1d" -> seconds.
+double parse_step(const std::string& text) {
+  std::size_t used = 0;
+  double v = 0.0;
+  try {
+    v = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  std::string unit = text.substr(used);
+  unit.erase(0, unit.find_first_not_of(' '));
+  double scale = 0.0;
+  if (unit == "min" || unit == "m") scale = 60.0;
+  else if (unit == "h") scale = 3600.0;
+  else if (unit == "d") scale = 86400.0;
+  if (used == 0 || scale == 0.0 || !(v > 0.0) || !std::isfinite(v) || v * scale < 60.0)
+    throw OptionError({option("step"), " '" + text + "': expected a duration of at least 1 min, e.g. 30min, 1h or 1d"});
+  return v * scale;
+}
+
+int day_of_year(double unix_seconds) {
+  const auto days = std::chrono::sys_days(std::chrono::floor<std::chrono::days>(
+      std::chrono::sys_seconds(std::chrono::seconds(static_cast<std::int64_t>(std::floor(unix_seconds))))));
+  const std::chrono::year_month_day ymd(days);
+  return (days - std::chrono::sys_days(ymd.year() / std::chrono::January / 1)).count() + 1;
+}
+
+int month_of(double unix_seconds) {
+  const std::chrono::year_month_day ymd(std::chrono::floor<std::chrono::days>(
+      std::chrono::sys_seconds(std::chrono::seconds(static_cast<std::int64_t>(std::floor(unix_seconds))))));
+  return static_cast<int>(static_cast<unsigned>(ymd.month()));
+}
+
+}  // namespace
+
+std::string format_iso8601(double unix_seconds, double utc_offset_hours) {
+  const auto local = static_cast<std::int64_t>(std::llround(unix_seconds + utc_offset_hours * 3600.0));
+  const auto tp = std::chrono::sys_seconds(std::chrono::seconds(local));
+  const auto day = std::chrono::floor<std::chrono::days>(tp);
+  const std::chrono::year_month_day ymd(day);
+  const std::chrono::hh_mm_ss hms(tp - day);
+  char buf[64];
+  const long off_min = std::lround(utc_offset_hours * 60.0);
+  if (off_min == 0)
+    std::snprintf(buf, sizeof buf, "%04d-%02u-%02uT%02d:%02d:%02dZ", int(ymd.year()), unsigned(ymd.month()),
+                  unsigned(ymd.day()), int(hms.hours().count()), int(hms.minutes().count()),
+                  int(hms.seconds().count()));
+  else
+    std::snprintf(buf, sizeof buf, "%04d-%02u-%02uT%02d:%02d:%02d%c%02ld:%02ld", int(ymd.year()),
+                  unsigned(ymd.month()), unsigned(ymd.day()), int(hms.hours().count()), int(hms.minutes().count()),
+                  int(hms.seconds().count()), off_min < 0 ? '-' : '+', std::labs(off_min) / 60,
+                  std::labs(off_min) % 60);
+  return buf;
+}
+
+SunPositionJobResult run_sun_position(const SunPositionJobOptions& o) {
+  SunPositionJobResult r;
+  try {
+    r.time = parse_iso8601_utc(o.time);
+  } catch (const std::invalid_argument& e) {
+    throw OptionError({option("time"), std::string(" ") + e.what()});
+  }
+  SpaInput in;
+  in.time = r.time;
+  in.latitude_deg = o.latitude;
+  in.longitude_deg = o.longitude;
+  in.elevation_m = o.elevation;
+  in.pressure_mbar = o.pressure;
+  in.temperature_c = o.temperature;
+  in.delta_t = o.delta_t;
+  in.surface_slope_deg = o.slope;
+  in.surface_azimuth_deg = o.surface_azimuth;
+  // The day's time zone: the one asked for, else the offset written in the time, else local mean
+  // solar time.
+  std::optional<double> offset = o.utc_offset;
+  if (!offset) {
+    const std::size_t t = o.time.find_first_of("T ");
+    if (t != std::string::npos) {
+      const std::string clock = o.time.substr(t + 1);
+      const std::size_t sign = clock.find_first_of("+-Z");
+      if (sign != std::string::npos && clock[sign] != 'Z') {
+        const UtcInstant as_utc = parse_iso8601_utc(o.time.substr(0, t + 1 + sign));
+        offset = (unix_of(as_utc) - unix_of(r.time)) / 3600.0;
+      } else if (sign != std::string::npos) {
+        offset = 0.0;
+      }
+    }
+  }
+  try {
+    r.position = solar_position(in);
+    r.day = sun_rise_transit_set(in, offset);
+  } catch (const std::invalid_argument& e) {
+    throw OptionError({e.what()});
+  }
+  r.day_utc_offset = offset.value_or(o.longitude / 15.0);
+  return r;
+}
+
+std::string sun_position_report_json(const SunPositionJobResult& r) {
+  nlohmann::json j;
+  const SolarPosition& p = r.position;
+  j["time"] = format_iso8601(unix_of(r.time), 0.0);
+  j["zenith"] = p.zenith_deg;
+  j["azimuth"] = p.azimuth_deg;
+  j["elevation"] = p.elevation_deg;
+  j["incidence"] = p.incidence_deg;
+  j["declination"] = p.declination_deg;
+  j["equation_of_time_minutes"] = p.equation_of_time_min;
+  j["julian_day"] = p.julian_day;
+  auto event = [&](const std::optional<double>& t) {
+    return t ? nlohmann::json(format_iso8601(*t, r.day_utc_offset)) : nlohmann::json(nullptr);
+  };
+  j["sunrise"] = event(r.day.sunrise_unix);
+  j["transit"] = event(r.day.transit_unix);
+  j["sunset"] = event(r.day.sunset_unix);
+  j["day"] = r.day.kind == SunDayKind::polar_day     ? "polar day"
+             : r.day.kind == SunDayKind::polar_night ? "polar night"
+                                                     : "rises and sets";
+  j["units"] = {{"angles", "degrees"}, {"azimuth", "clockwise from north"}};
+  return j.dump(2);
+}
+
+namespace {
+
+/// One run_solar call: the steps in order, sharing the options, the result and the site.
+struct SolarRun {
+  const SolarJobOptions& o;
+  const JobControl& ctl;
+  char buf[512];
+  SolarJobResult r;
+  detail::CloudSite cs;
+  PointCloud& cloud = cs.cloud;
+  bool instant = false;
+  std::string value;
+  SurfelAttributes surfels;
+  VisibilityOptions vo;
+  SunMap map;
+  std::vector<Vec3> sky;
+  std::optional<EpwFile> weather;
+
+  explicit SolarRun(const SolarJobOptions& options) : o(options), ctl(options.control) {}
+  SolarRun(const SolarRun&) = delete;
+
+  void check_options() {
+    instant = !o.at.empty();
+    if (instant && (!o.start.empty() || !o.end.empty()))
+      throw OptionError({option("at"), " is one instant: give it, or a period (", option("start"), " and ",
+                         option("end"), "), not both"});
+    if (!instant && (o.start.empty() || o.end.empty()))
+      throw OptionError({"give a period (", option("start"), " and ", option("end"), ") or an instant (",
+                         option("at"), ")"});
+    if (o.latitude.has_value() != o.longitude.has_value())
+      throw OptionError({option("latitude"), " and ", option("longitude"), " go together"});
+    if (o.latitude && !(std::abs(*o.latitude) <= 90.0))
+      throw OptionError({option("latitude"), ": expected degrees in -90..90"});
+    if (o.longitude && !(std::abs(*o.longitude) <= 180.0))
+      throw OptionError({option("longitude"), ": expected degrees in -180..180"});
+    if (o.linke.size() != 1 && o.linke.size() != 12)
+      throw OptionError({option("linke"), ": expected one value or 12 monthly values"});
+    for (double v : o.linke)
+      if (!(v >= 1.0 && v <= 10.0)) throw OptionError({option("linke"), ": expected values in 1..10"});
+    if (!(o.albedo >= 0.0 && o.albedo <= 1.0)) throw OptionError({option("albedo"), ": expected a number in 0..1"});
+    if (!(o.sector >= 0.0 && o.sector <= 30.0))
+      throw OptionError({option("sector"), ": expected degrees in 0..30 (0 = one shadow ray per time step)"});
+    if (o.primitive != "sphere" && o.primitive != "surfel")
+      throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
+    if (!o.out.empty())
+      if (const std::string why = io::point_cloud_output_problem(o.out); !why.empty())
+        throw OptionError({option("out"), " '" + o.out.string() + "': " + why});
+    if (!o.raster.empty()) {
+      if (!has_extension(o.raster, geotiff_extensions()))
+        throw OptionError(
+            {option("raster"), " '" + o.raster.string() + "': expected a file name ending in .tif (GeoTIFF)"});
+      if (!o.cell)
+        throw OptionError({option("raster"), " needs ", option("cell"), " SIZE (cell edge in the cloud's units)"});
+      if (!(*o.cell > 0.0) || !std::isfinite(*o.cell)) throw OptionError({option("cell"), ": expected a number > 0"});
+    } else if (o.cell || !o.raster_value.empty() || !o.preview.empty()) {
+      throw OptionError({option("cell"), ", ", option("raster_value"), " and ", option("preview"), " need ",
+                         option("raster"), " OUT.tif"});
+    }
+    value = o.raster_value.empty() ? (instant ? "in_shadow" : "global") : o.raster_value;
+    static const char* period_values[] = {"global", "beam", "diffuse", "reflected", "sun_hours", "sky_view"};
+    static const char* instant_values[] = {"in_shadow", "global", "beam", "diffuse"};
+    const bool known = instant ? std::find_if(std::begin(instant_values), std::end(instant_values),
+                                              [&](const char* v) { return value == v; }) != std::end(instant_values)
+                               : std::find_if(std::begin(period_values), std::end(period_values),
+                                              [&](const char* v) { return value == v; }) != std::end(period_values);
+    if (!known)
+      throw OptionError({option("raster_value"), " '" + value + "': expected " +
+                                                     (instant ? "in_shadow, global, beam or diffuse (an instant)"
+                                                              : "global, beam, diffuse, reflected, sun_hours or "
+                                                                "sky_view (a period)")});
+    detail::check_output_folder("out", o.out);
+    detail::check_output_folder("raster", o.raster);
+    if (o.write_preview && !o.raster.empty()) {
+      detail::check_output_folder("preview", o.preview);
+      load_image_io();
+    }
+    const std::filesystem::path outs[] = {o.out, o.raster, o.preview};
+    const std::filesystem::path ins[] = {o.cloud_file, o.weather};
+    require_outputs(outs, ins);
+    r.raster_value = value;
+  }
+
+  void open_site() {
+    detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.index, o.radius, o.radius_factor, ctl);
+    r.info = cs.info;
+    r.source = cs.source;
+    r.radius = cs.radius;
+    r.primitive = o.primitive;
+    // Normals for every primitive: the surface each point's irradiance falls on.
+    surfels = detail::estimate_analysis_surfels(cs, o.surfel, ctl);
+    const bool surfel = o.primitive == "surfel";
+    vo.radius = r.radius.radius;
+    vo.tolerance = o.tolerance.value_or(surfel ? 0.0 : 2.0 * vo.radius);
+    vo.target_height = o.target_height.value_or(surfel ? 0.0 : vo.radius);
+    if (surfel) vo.surfels = &surfels;
+    vo.threads = ctl.threads;
+    vo.progress = ctl.progress;
+  }
+
+  void locate() {
+    const AABB box = cloud.bounds();
+    const Vec3 centre = 0.5 * (box.lo + box.hi);
+    if (o.latitude) {
+      r.location.latitude_deg = *o.latitude;
+      r.location.longitude_deg = *o.longitude;
+      r.location.elevation_m = o.elevation.value_or(0.0);
+      // With a CRS, still turn compass azimuths into grid bearings.
+      if (!cloud.crs_wkt.empty()) try {
+          r.location.convergence_deg = locate_site(cloud.crs_wkt, centre).convergence_deg;
+        } catch (const std::invalid_argument&) {
+        }
+    } else {
+      try {
+        r.location = locate_site(cloud.crs_wkt, centre);
+      } catch (const std::invalid_argument& e) {
+        throw OptionError({e.what(), " (", option("latitude"), ", ", option("longitude"), ")"});
+      }
+      r.location_from_crs = true;
+      if (o.elevation) r.location.elevation_m = *o.elevation;
+    }
+    r.location.elevation_m = std::clamp(r.location.elevation_m, -1000.0, 9000.0);
+    std::snprintf(buf, sizeof buf, "site at %.5f %c, %.5f %c, %.0f m (%s); grid north %.3f deg from true north",
+                  std::abs(r.location.latitude_deg), r.location.latitude_deg < 0 ? 'S' : 'N',
+                  std::abs(r.location.longitude_deg), r.location.longitude_deg < 0 ? 'W' : 'E', r.location.elevation_m,
+                  r.location_from_crs ? "from the CRS" : "given", r.location.convergence_deg);
+    ctl.info(buf);
+  }
+
+  SpaInput spa_at(double unix_seconds) const {
+    SpaInput in;
+    in.time = instant_of(unix_seconds);
+    in.latitude_deg = r.location.latitude_deg;
+    in.longitude_deg = r.location.longitude_deg;
+    in.elevation_m = r.location.elevation_m;
+    in.pressure_mbar = o.pressure;
+    in.temperature_c = o.temperature;
+    in.delta_t = o.delta_t;
+    return in;
+  }
+
+  /// The step at `t` (its middle) of `hours`, clear sky or from `record`.
+  SolarStep make_step(double t, double hours, const EpwRecord* record) const {
+    SolarStep s;
+    s.hours = hours;
+    SolarPosition p;
+    try {
+      p = solar_position(spa_at(t));
+    } catch (const std::invalid_argument& e) {
+      throw OptionError({e.what()});
+    }
+    s.direction = direction_from_azimuth(p.azimuth_deg, p.geometric_elevation_deg, r.location.convergence_deg);
+    s.ray_direction = direction_from_azimuth(p.azimuth_deg, p.elevation_deg, r.location.convergence_deg);
+    s.sun = {p.geometric_elevation_deg * kDegree, p.azimuth_deg * kDegree};
+    const int doy = day_of_year(t);
+    if (record) {
+      s.reflected_from_global = true;
+      const double g0 = extraterrestrial_irradiance(doy);
+      auto ok = [](double v) { return std::isfinite(v) ? std::max(0.0, v) : 0.0; };
+      s.global_horizontal = ok(record->ghi);
+      s.beam_normal = s.sun.elevation > 0.0 ? ok(record->dni) : 0.0;
+      s.diffuse_horizontal = ok(record->dhi);
+      s.kb = std::clamp(s.beam_normal / g0, 0.0, 1.0);
+    } else if (s.sun.elevation > 0.0) {
+      const double linke = o.linke.size() == 12 ? o.linke[month_of(t) - 1] : o.linke[0];
+      const HorizontalIrradiance h = clear_sky_horizontal(s.sun.elevation, doy, linke, r.location.elevation_m);
+      s.beam_normal = h.beam / std::sin(s.sun.elevation);
+      s.diffuse_horizontal = h.diffuse;
+      s.global_horizontal = h.global;
+      s.kb = std::clamp(h.beam / (extraterrestrial_irradiance(doy) * std::sin(s.sun.elevation)), 0.0, 1.0);
+    }
+    return s;
+  }
+
+  void sun_and_sky() {
+    std::vector<SolarStep> steps;
+    if (!o.weather.empty()) {
+      if (instant) throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
+      weather = read_epw(o.weather);
+      r.weather = weather->location.city + ", " + weather->location.country;
+      std::snprintf(buf, sizeof buf, "weather: %zu records of %s (%.3f N, %.3f E)", weather->records.size(),
+                    r.weather.c_str(), weather->location.latitude_deg, weather->location.longitude_deg);
+      ctl.info(buf);
+    }
+    if (instant) {
+      r.start_unix = r.end_unix = period_time("at", o.at, r.location.longitude_deg, false);
+      steps.push_back(make_step(r.start_unix, 1.0, nullptr));
+      r.step_hours = 0.0;
+      r.sun = solar_position(spa_at(r.start_unix));
+    } else {
+      r.start_unix = period_time("start", o.start, r.location.longitude_deg, false);
+      r.end_unix = period_time("end", o.end, r.location.longitude_deg, true);
+      if (!(r.end_unix > r.start_unix)) throw OptionError({option("end"), " must be after ", option("start")});
+      const double step = weather ? 3600.0 : parse_step(o.step);
+      if (weather && o.step != "1h")
+        throw OptionError({option("step"), " is the weather file's hour with ", option("weather")});
+      const double n = std::floor((r.end_unix - r.start_unix) / step + 1e-9);
+      if (n < 1.0) throw OptionError({"the period is shorter than one ", option("step")});
+      if (n > 1e6) throw OptionError({"the period has more than 1,000,000 time steps; use a longer ", option("step")});
+      r.step_hours = step / 3600.0;
+      steps.reserve(std::size_t(n));
+      for (std::size_t k = 0; k < std::size_t(n); ++k) {
+        const double t = r.start_unix + (double(k) + 0.5) * step;
+        const EpwRecord* rec = weather ? record_at(t) : nullptr;
+        if (weather && !rec) continue;
+        steps.push_back(make_step(t, r.step_hours, rec));
+      }
+    }
+    r.steps = steps.size();
+    for (const SolarStep& s : steps) r.sun_steps += s.beam_normal > 0.0 && s.ray_direction.z > 0.0;
+    map = build_sun_map(std::move(steps), instant ? 0.0 : o.sector);
+    r.sectors = map.directions.size();
+    r.sky_rays = instant ? 0 : o.sky_rays;
+    for (std::uint32_t k = 0; k < r.sky_rays; ++k) sky.push_back(sky_direction(k, r.sky_rays, 0.0, SkyWeighting::uniform));
+    if (instant) {
+      std::snprintf(buf, sizeof buf, "sun at %s: azimuth %.3f deg, elevation %.3f deg", format_iso8601(r.start_unix, 0).c_str(),
+                    r.sun->azimuth_deg, r.sun->elevation_deg);
+    } else {
+      std::snprintf(buf, sizeof buf,
+                    "%zu time steps of %.4g h from %s to %s, %zu with sun; %zu sun-map sectors of %.3g deg, "
+                    "%u sky-map directions",
+                    r.steps, r.step_hours, format_iso8601(r.start_unix, 0).c_str(),
+                    format_iso8601(r.end_unix, 0).c_str(), r.sun_steps, r.sectors, o.sector, r.sky_rays);
+    }
+    ctl.info(buf);
+  }
+
+  /// The weather record whose hour contains UTC time `t` (the file's month, day and hour, any year).
+  const EpwRecord* record_at(double t) const {
+    const double local = t + weather->location.time_zone_hours * 3600.0;
+    const auto tp = std::chrono::sys_seconds(std::chrono::seconds(static_cast<std::int64_t>(std::floor(local))));
+    const auto day = std::chrono::floor<std::chrono::days>(tp);
+    const std::chrono::year_month_day ymd(day);
+    const int hour = static_cast<int>(std::chrono::floor<std::chrono::hours>(tp - day).count()) + 1;  // ends at hour:00
+    unsigned m = unsigned(ymd.month()), d = unsigned(ymd.day());
+    if (m == 2 && d == 29) d = 28;  // a leap day over a typical year's February
+    for (const EpwRecord& rec : weather->records)
+      if (rec.month == int(m) && rec.day == int(d) && rec.hour == hour) return &rec;
+    return nullptr;
+  }
+
+  void trace_and_sum() {
+    const std::size_t n = cloud.size(), nsec = map.directions.size();
+    std::vector<Vec3> dirs = map.directions;
+    dirs.insert(dirs.end(), sky.begin(), sky.end());
+    std::vector<Vec3> normals(n);
+    for (std::size_t i = 0; i < n; ++i) normals[i] = Vec3(surfels.normals[i]);
+    std::vector<double> beam(n), diffuse(n), reflected(n), hours(n), view(n), shadow(instant ? n : 0);
+    const bool sun_up = instant && nsec == 1;
+    const auto t0 = std::chrono::steady_clock::now();
+    // Over a period, directions behind a surface are not traced: no beam comes from there, and
+    // the sky view weighs them 0. At an instant every point's sun ray is traced: a shadow map
+    // shows cast shadows, whichever way the surface faces.
+    trace_directions(*cs.site, cloud.positions, dirs, instant ? std::span<const Vec3>() : std::span<const Vec3>(normals), vo,
+                     [&](PointIndex i, std::span<const std::uint64_t> open) {
+                       if (instant) shadow[i] = sun_up && (open[0] & 1u) ? 0.0 : 1.0;
+                       const PointIrradiation p =
+                           accumulate_irradiation(map, sky, normals[i], r.location.convergence_deg, o.albedo, open);
+                       beam[i] = p.beam;
+                       diffuse[i] = p.diffuse;
+                       reflected[i] = p.reflected;
+                       hours[i] = p.sun_hours;
+                       view[i] = p.sky_view;
+                     });
+    r.trace_seconds = seconds_since(t0);
+    r.rays = std::uint64_t(n) * dirs.size();
+    if (instant) {
+      if (!sun_up) ctl.info("the sun is below the horizon: every point is in shadow");
+      std::vector<double> global(n);
+      for (std::size_t i = 0; i < n; ++i) global[i] = beam[i] + diffuse[i] + reflected[i];
+      detail::set_scalar(cloud, "in_shadow", std::move(shadow));
+      detail::set_scalar(cloud, "irradiance_global", std::move(global));
+      detail::set_scalar(cloud, "irradiance_beam", std::move(beam));
+      detail::set_scalar(cloud, "irradiance_diffuse", std::move(diffuse));
+    } else {
+      double total = 0.0;
+      std::vector<double> global(n);
+      for (std::size_t i = 0; i < n; ++i) {
+        global[i] = (beam[i] + diffuse[i] + reflected[i]) / 1000.0;  // Wh/m² -> kWh/m²
+        beam[i] /= 1000.0;
+        diffuse[i] /= 1000.0;
+        reflected[i] /= 1000.0;
+        total += global[i];
+      }
+      std::snprintf(buf, sizeof buf, "mean global irradiation %.4g kWh/m² over the period", total / double(n));
+      ctl.info(buf);
+      detail::set_scalar(cloud, "solar_global", std::move(global));
+      detail::set_scalar(cloud, "solar_beam", std::move(beam));
+      detail::set_scalar(cloud, "solar_diffuse", std::move(diffuse));
+      detail::set_scalar(cloud, "solar_reflected", std::move(reflected));
+      detail::set_scalar(cloud, "sun_hours", std::move(hours));
+      detail::set_scalar(cloud, "sky_view", std::move(view));
+    }
+    std::snprintf(buf, sizeof buf, "traced %zu points x %zu directions (%zu sun, %zu sky) in %.2f s", n, dirs.size(),
+                  nsec, sky.size(), r.trace_seconds);
+    ctl.info(buf);
+  }
+
+  /// The field, the legend title and the colour range of the raster value.
+  void write_raster() {
+    static const std::pair<const char*, const char*> fields[] = {
+        {"global", "solar_global"}, {"beam", "solar_beam"}, {"diffuse", "solar_diffuse"},
+        {"reflected", "solar_reflected"}, {"sun_hours", "sun_hours"}, {"sky_view", "sky_view"}};
+    std::string field = value;
+    if (instant) field = value == "in_shadow" ? "in_shadow" : "irradiance_" + value;
+    else
+      for (const auto& [v, f] : fields)
+        if (value == v) field = f;
+    const ScalarField* sf = nullptr;
+    for (const ScalarField& f : cloud.scalars)
+      if (f.name == field) sf = &f;
+    GridSpec grid;
+    try {
+      grid = grid_over(cloud.bounds(), *o.cell);
+    } catch (const std::invalid_argument& e) {
+      throw OptionError({option("cell"), std::string(": ") + e.what()});
+    }
+    std::string title;
+    if (instant)
+      title = value == "in_shadow" ? "shadow at " + format_iso8601(r.start_unix, 0)
+                                   : value + " irradiance at " + format_iso8601(r.start_unix, 0) + " (W/m²)";
+    else if (value == "sun_hours")
+      title = "hours of direct sun";
+    else if (value == "sky_view")
+      title = "sky view factor";
+    else
+      // The period's days in local mean solar time, the end day inclusive.
+      title = value + " irradiation " + format_iso8601(r.start_unix, r.location.longitude_deg / 15.0).substr(0, 10) +
+              " to " + format_iso8601(r.end_unix - 1.0, r.location.longitude_deg / 15.0).substr(0, 10) + " (kWh/m²)";
+    r.raster = rasterize(cloud.positions, sf->values, grid, CellReduce::top, title);
+    GeoTiffOptions go;
+    go.crs_wkt = cloud.crs_wkt;
+    go.metadata = {{"RAYSCAN_VALUE", value}, {"RAYSCAN_SOURCE", r.source}, {"RAYSCAN_UNITS", instant ? (value == "in_shadow" ? "1" : "W/m2") : value == "sun_hours" ? "h" : value == "sky_view" ? "1" : "kWh/m2"}};
+    write_geotiff(o.raster, *r.raster, go);
+    r.written.push_back(o.raster);
+    if (o.write_preview) {
+      std::filesystem::path pv = o.preview;
+      if (pv.empty()) pv = std::filesystem::path(o.raster).replace_extension(".png");
+      PreviewStyle style;
+      double hi = 0.0;
+      for (float v : r.raster->values)
+        if (std::isfinite(v)) hi = std::max(hi, double(v));
+      if (value == "in_shadow")
+        style.categories = {{0.0f, "sun", {1.0f, 0.8f, 0.1f}}, {1.0f, "shadow", {0.15f, 0.15f, 0.3f}}};
+      if (value == "sky_view") hi = 1.0;
+      const std::string legend = write_raster_preview(pv, *r.raster, 0.0, hi, title, style);
+      ctl.info("preview legend: " + legend);
+      r.written.push_back(pv);
+    }
+  }
+
+  void write_outputs() {
+    OutputTransaction tx;
+    if (!o.out.empty()) {
+      detail::write_result_cloud(o.out, cloud, r.info);
+      r.written.push_back(o.out);
+    }
+    if (!o.raster.empty()) write_raster();
+    tx.commit();
+  }
+};
+
+}  // namespace
+
+SolarJobResult run_solar(const SolarJobOptions& o) {
+  SolarRun run(o);
+  run.check_options();
+  run.open_site();
+  run.locate();
+  run.sun_and_sky();
+  run.trace_and_sum();
+  run.write_outputs();
+  run.r.cloud = std::move(run.cloud);
+  return std::move(run.r);
+}
+
+std::string solar_report_json(const SolarJobResult& r) {
+  nlohmann::json j;
+  j["cloud"] = r.source;
+  j["points"] = r.cloud.size();
+  j["primitive"] = r.primitive;
+  j["radius"] = r.radius.radius;
+  j["site"] = {{"latitude", r.location.latitude_deg},
+               {"longitude", r.location.longitude_deg},
+               {"elevation_m", r.location.elevation_m},
+               {"grid_convergence_deg", r.location.convergence_deg},
+               {"from_crs", r.location_from_crs}};
+  j["start"] = format_iso8601(r.start_unix, 0);
+  if (r.sun) {
+    j["sun"] = {{"azimuth", r.sun->azimuth_deg}, {"elevation", r.sun->elevation_deg}, {"zenith", r.sun->zenith_deg}};
+  } else {
+    j["end"] = format_iso8601(r.end_unix, 0);
+    j["step_hours"] = r.step_hours;
+  }
+  j["steps"] = r.steps;
+  j["sun_steps"] = r.sun_steps;
+  j["sectors"] = r.sectors;
+  j["sky_rays"] = r.sky_rays;
+  if (!r.weather.empty()) j["weather"] = r.weather;
+  j["rays"] = r.rays;
+  j["seconds"] = {{"trace", r.trace_seconds}};
+  for (const ScalarField& f : r.cloud.scalars) {
+    if (f.name != "solar_global" && f.name != "in_shadow" && f.name != "sun_hours") continue;
+    double sum = 0.0, lo = kInf, hi = -kInf;
+    for (double v : f.values) {
+      sum += v;
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+    j["fields"][f.name] = {{"mean", sum / double(f.values.size())}, {"min", lo}, {"max", hi}};
+  }
+  nlohmann::json written = nlohmann::json::array();
+  for (const auto& f : r.written) written.push_back(f.string());
+  j["written"] = written;
+  return j.dump(2);
+}
+
+}  // namespace rayscan::jobs

@@ -1,0 +1,171 @@
+// `rayscan solar`: sun and shadow on a scanned site -- per-point irradiation over a period
+// (kWh/m², hours of sun) or shadows at an instant, with the points' own shadows; and
+// `rayscan solar position`, the NREL SPA calculator. The jobs are jobs::run_solar and
+// jobs::run_sun_position (rayscan/jobs/solar.hpp); this file parses options and prints.
+#include "commands.hpp"
+
+#include "rayscan/jobs/solar.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <iostream>
+#include <memory>
+
+namespace rayscan::cli {
+
+namespace {
+
+struct SolarCli {
+  jobs::SolarJobOptions job;
+  jobs::SunPositionJobOptions position;
+  std::string cloud, out, raster, preview, weather, radius = "auto";
+  bool no_preview = false, json = false, quiet = false;
+  CLI::App* position_cmd = nullptr;
+};
+
+int run_position(SolarCli& o) {
+  const jobs::SunPositionJobResult r = jobs::run_sun_position(o.position);
+  if (o.json) {
+    std::cout << jobs::sun_position_report_json(r) << "\n";
+    return 0;
+  }
+  const analysis::SolarPosition& p = r.position;
+  auto event = [&](const std::optional<double>& t) {
+    return t ? jobs::format_iso8601(*t, r.day_utc_offset) : std::string("none");
+  };
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "time      %s\nzenith    %.5f deg\nazimuth   %.5f deg (clockwise from north)\n"
+                "elevation %.5f deg\nincidence %.5f deg\n",
+                jobs::format_iso8601(double(r.time.unix_seconds) + r.time.fraction, 0.0).c_str(), p.zenith_deg,
+                p.azimuth_deg, p.elevation_deg, p.incidence_deg);
+  std::cout << buf;
+  std::cout << "sunrise   " << event(r.day.sunrise_unix) << "\n";
+  std::cout << "transit   " << event(r.day.transit_unix) << "\n";
+  std::cout << "sunset    " << event(r.day.sunset_unix) << "\n";
+  if (r.day.kind != analysis::SunDayKind::rises_and_sets)
+    std::cout << (r.day.kind == analysis::SunDayKind::polar_day ? "polar day" : "polar night") << "\n";
+  return 0;
+}
+
+int run_solar(SolarCli& o) {
+  if (o.position_cmd->parsed()) return run_position(o);
+  if (o.cloud.empty()) throw UsageError("expected a CLOUD, or the subcommand position (see --help)");
+  jobs::SolarJobOptions& job = o.job;
+  if (o.radius != "auto") {
+    char* end = nullptr;
+    const double r = std::strtod(o.radius.c_str(), &end);
+    if (end == o.radius.c_str() || *end || !(r > 0.0) || !std::isfinite(r))
+      throw UsageError("--radius '" + o.radius + "': expected a number > 0 or auto");
+    job.radius = r;
+  }
+  job.cloud_file = o.cloud;
+  job.out = o.out;
+  job.raster = o.raster;
+  job.preview = o.preview;
+  job.weather = o.weather;
+  job.write_preview = !o.no_preview;
+  job.control.progress = !o.quiet;
+  if (!o.quiet) job.control.log = [](const std::string& s) { std::cerr << "rayscan solar: " << s << "\n"; };
+  const jobs::SolarJobResult r = jobs::run_solar(job);
+  if (o.json) {
+    std::cout << jobs::solar_report_json(r) << "\n";
+    return 0;
+  }
+  for (const auto& f : r.written) std::cout << "wrote " << f.string() << "\n";
+  return 0;
+}
+
+}  // namespace
+
+Runner add_solar_command(CLI::App& app) {
+  auto o = std::make_shared<SolarCli>();
+  CLI::App* c = app.add_subcommand(
+      "solar",
+      "Sun and shadow on a scanned site: per-point irradiation over a period (kWh/m², clear sky as "
+      "GRASS r.sun or an EPW weather file) and hours of sun, or shadows at one instant, with the "
+      "shadows the points cast on each other; written as fields of LAS/PLY and a GeoTIFF of the top "
+      "surface with a PNG preview (docs/solar.md). `rayscan solar position` is the NREL SPA "
+      "calculator.");
+  c->add_option("cloud", o->cloud, "Point cloud (LAS, LAZ, COPC, PLY, PCD, text) or index file (.rsi)");
+  c->add_option("--start", o->job.start, "Start of the period (ISO 8601; a date alone is local solar midnight)");
+  c->add_option("--end", o->job.end, "End of the period (ISO 8601; a date alone includes that day)");
+  c->add_option("--step", o->job.step, "Time step (e.g. 15min, 30min, 1h)")->capture_default_str();
+  c->add_option("--at", o->job.at, "One instant instead of a period (ISO 8601; no offset = UTC): shadows");
+  c->add_option("--lat,--latitude", o->job.latitude, "Site latitude, degrees north (default: from the cloud's CRS)")
+      ->check(finite_number(-90, 90));
+  c->add_option("--lon,--longitude", o->job.longitude, "Site longitude, degrees east (default: from the CRS)")
+      ->check(finite_number(-180, 180));
+  c->add_option("--elevation", o->job.elevation, "Site elevation, metres (default: from the cloud)")
+      ->check(finite_number(-1000, 9000));
+  c->add_option("--linke", o->job.linke,
+                "Linke turbidity: one value or 12 monthly values (January first), 1..10")
+      ->delimiter(',')
+      ->capture_default_str();
+  c->add_option("--albedo", o->job.albedo, "Ground albedo, 0..1")->capture_default_str()->check(finite_number(0, 1));
+  c->add_option("--weather", o->weather, "EnergyPlus weather file (.epw): measured hourly GHI, DNI, DHI");
+  c->add_option("--sector", o->job.sector,
+                "Sun-map sector edge in degrees: time steps whose sun directions share a sector share "
+                "one shadow ray per point (0 = one ray per step)")
+      ->capture_default_str()
+      ->check(finite_number(0, 30));
+  c->add_option("--sky-rays", o->job.sky_rays, "Sky-map directions per point for the diffuse's sky view (0 = open sky)")
+      ->capture_default_str()
+      ->check(CLI::Range(0u, 4096u));
+  c->add_option("--primitive", o->job.primitive,
+                "Geometry that casts shadows: sphere (the paper's model: light passes through gaps, crown "
+                "tops are lit) or surfel (the height field a DSM samples: solid below)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"sphere", "surfel"}));
+  c->add_option("--radius", o->radius, "Sphere radius (world units) or auto")->capture_default_str();
+  c->add_option("--tolerance", o->job.tolerance,
+                "A blocker at most this far before the point along the sun ray is its own surface (default "
+                "2 x radius; surfels 0)")
+      ->check(non_negative());
+  c->add_option("--target-height", o->job.target_height,
+                "Shadow rays start this far above each point (default 1 x radius; surfels 0)")
+      ->check(non_negative());
+  c->add_option("--pressure", o->job.pressure, "Annual mean pressure, mbar (refraction)")
+      ->capture_default_str()
+      ->check(finite_number(0, 5000, true));
+  c->add_option("--temperature", o->job.temperature, "Annual mean temperature, degrees C (refraction)")
+      ->capture_default_str()
+      ->check(finite_number(-273, 6000));
+  c->add_option("--delta-t", o->job.delta_t, "TT - UT1 in seconds (SPA)")->capture_default_str();
+  c->add_option("-o,--out", o->out, "Write the cloud with the result fields here (.las, .laz, .ply, .pcd, .xyz, .csv, .txt)");
+  c->add_option("--raster", o->raster, "Write a GeoTIFF of the top surface here (.tif)");
+  c->add_option("--cell", o->job.cell, "Raster cell size (world units; required with --raster)")->check(positive());
+  c->add_option("--raster-value", o->job.raster_value,
+                "A period: global | beam | diffuse | reflected | sun_hours | sky_view (default global); an "
+                "instant: in_shadow | global | beam | diffuse (default in_shadow)");
+  c->add_option("--preview", o->preview, "PNG preview of the raster (default: the raster's name with .png)");
+  c->add_flag("--no-preview", o->no_preview, "Do not write the PNG preview");
+  c->add_option("--index", o->job.index.type, "Index: octree-adaptive, octree-layered, octree-fixed, kdtree, brute")
+      ->capture_default_str();
+  c->add_option("--threads", o->job.control.threads, "Worker threads (default: all cores; results are identical)")
+      ->check(CLI::Range(0u, 1024u));
+  c->add_flag("--json", o->json, "Print a JSON report on stdout");
+  c->add_flag("--quiet,-q", o->quiet, "No log lines or progress bar on stderr");
+
+  CLI::App* p = c->add_subcommand("position", "Where the sun is: NREL's Solar Position Algorithm (Reda & Andreas 2004)");
+  o->position_cmd = p;
+  p->add_option("--lat,--latitude", o->position.latitude, "Latitude, degrees north")->required()->check(finite_number(-90, 90));
+  p->add_option("--lon,--longitude", o->position.longitude, "Longitude, degrees east")->required()->check(finite_number(-180, 180));
+  p->add_option("--time", o->position.time, "Instant, ISO 8601 (e.g. 2026-06-21T12:00:00+02:00; no offset = UTC)")->required();
+  p->add_option("--elevation", o->position.elevation, "Elevation, metres")->capture_default_str();
+  p->add_option("--pressure", o->position.pressure, "Annual mean pressure, mbar")->capture_default_str();
+  p->add_option("--temperature", o->position.temperature, "Annual mean temperature, degrees C")->capture_default_str();
+  p->add_option("--delta-t", o->position.delta_t, "TT - UT1, seconds")->capture_default_str();
+  p->add_option("--slope", o->position.slope, "Surface tilt for the incidence angle, degrees")->capture_default_str();
+  p->add_option("--surface-azimuth", o->position.surface_azimuth,
+                "Direction the surface faces, degrees clockwise from north")
+      ->capture_default_str();
+  p->add_option("--utc-offset", o->position.utc_offset,
+                "Time zone of the reported day, hours east of UTC (default: the time's offset, else local "
+                "solar time)");
+  p->add_flag("--json", o->json, "Print JSON");
+  c->require_subcommand(0, 1);
+  return [o] { return run_solar(*o); };
+}
+
+}  // namespace rayscan::cli
