@@ -26,6 +26,8 @@ set(rayscan_man_names
   "info|describe a point cloud or index file"
   "compare|compare an image with a reference image"
   "visibility|viewshed, per-point visibility, sky view factor"
+  "solar|irradiation and shadows on a point cloud, with the points' own shadows"
+  "solar-position|sun position, sunrise and sunset (NREL SPA)"
   "db|database commands"
   "db-import|import point clouds into SQLite or PostgreSQL for the SQL ray functions"
   "index|build an out-of-core index file (.rsi) of a site"
@@ -54,12 +56,12 @@ foreach(entry ${rayscan_man_names})
     FILE_PERMISSIONS OWNER_READ OWNER_WRITE OWNER_EXECUTE GROUP_READ GROUP_EXECUTE WORLD_READ WORLD_EXECUTE)
   # SEE ALSO: the command's siblings and the documentation.
   if(page STREQUAL "rayscan")
-    set(see_also "rayscan-query(1), rayscan-render(1), rayscan-info(1), rayscan-compare(1), rayscan-visibility(1), rayscan-db-import(1), rayscan-index(1), rayscan-translate(1), rayscan-version(1)")
+    set(see_also "rayscan-query(1), rayscan-render(1), rayscan-info(1), rayscan-compare(1), rayscan-visibility(1), rayscan-solar(1), rayscan-solar-position(1), rayscan-db-import(1), rayscan-index(1), rayscan-translate(1), rayscan-version(1)")
   else()
     set(see_also "rayscan(1)")
   endif()
   file(CONFIGURE OUTPUT ${man_bin}/${page}.h2m CONTENT
-    "[SEE ALSO]\n${see_also}\n.PP\nThe user's manual: README.md and docs/ (docs/cli.md, docs/rendering.md, docs/visibility.md, docs/sql.md, docs/python.md) in the rayscan sources.\n")
+    "[SEE ALSO]\n${see_also}\n.PP\nThe user's manual: README.md and docs/ (docs/cli.md, docs/rendering.md, docs/visibility.md, docs/solar.md, docs/sql.md, docs/python.md) in the rayscan sources.\n")
   add_custom_command(OUTPUT ${man_dir}/${page}.1
     COMMAND ${CMAKE_COMMAND} -E make_directory ${man_dir}
     COMMAND ${CMAKE_COMMAND} -E env ASAN_OPTIONS=detect_leaks=0  # a sanitizer build's --help

@@ -184,23 +184,36 @@ double muneer_diffuse_ratio(const SunDirection& sun, const SurfaceOrientation& s
   csky::check_surface(where, surface);
   csky::require_range(where, "cos_incidence", cos_inc, -1.0, 1.0, "in -1..1");
   csky::require_range(where, "kb", kb, 0.0, 1.0, "in 0..1");
-  const double beta = surface.slope;
-  if (beta == 0.0) return 1.0;                        // r.sun's "plane" branch: D_ic = D_hc
-  const double r_sky = (1.0 + std::cos(beta)) / 2.0;  // eq. (21)
-  const double half_sin = std::sin(beta / 2.0);
-  const double fg =
-      std::sin(beta) - beta * std::cos(beta) - csky::kPi * half_sin * half_sin;  // eq. (20)
-  if (shadowed || cos_inc <= 0.0) return r_sky + 0.252271 * fg;                  // eqs. (19), (22)
+  const MuneerSurfaceTerms t = muneer_surface_terms(surface);
+  if (t.flat) return 1.0;                                                   // r.sun's "plane" branch: D_ic = D_hc
+  if (shadowed || cos_inc <= 0.0) return t.r_sky + kMuneerShadowN * t.fg;  // eqs. (19), (22)
   if (!(sun.elevation > 0.0))
     csky::fail(where, "sun elevation", "> 0 for a sunlit surface", sun.elevation);
-  const double n = 0.00263 - kb * (0.712 + 0.6883 * kb);  // eq. (23)
-  const double f = (n * fg + r_sky) * (1.0 - kb);
+  const double f = (muneer_n(kb) * t.fg + t.r_sky) * (1.0 - kb);
   if (sun.elevation >= kLowSunElevation)
     return f + kb * cos_inc / std::sin(sun.elevation);  // eq. (17)
-  // Eq. (18), the low sun; cos() makes r.sun's wrapping of A_LN into -pi..pi unnecessary.
-  const double a_ln = sun.azimuth - surface.aspect;
-  return f + kb * std::sin(beta) * std::cos(a_ln) / (0.1 - 0.008 * sun.elevation);
+  // Eq. (18), the low sun, with cos(A_LN) = cos(A_sun - aspect) expanded (no wrapping of A_LN
+  // into -pi..pi as r.sun does is needed).
+  const double cos_a_ln = std::cos(sun.azimuth) * t.cos_aspect + std::sin(sun.azimuth) * t.sin_aspect;
+  return f + kb * t.sin_slope * cos_a_ln / (0.1 - 0.008 * sun.elevation);
 }
+
+MuneerSurfaceTerms muneer_surface_terms(const SurfaceOrientation& surface) {
+  csky::check_surface("muneer_surface_terms", surface);
+  MuneerSurfaceTerms t;
+  const double beta = surface.slope;
+  if (beta == 0.0) return t;
+  t.flat = false;
+  t.r_sky = (1.0 + std::cos(beta)) / 2.0;  // eq. (21)
+  const double half_sin = std::sin(beta / 2.0);
+  t.fg = std::sin(beta) - beta * std::cos(beta) - csky::kPi * half_sin * half_sin;  // eq. (20)
+  t.sin_slope = std::sin(beta);
+  t.cos_aspect = std::cos(surface.aspect);
+  t.sin_aspect = std::sin(surface.aspect);
+  return t;
+}
+
+double muneer_n(double kb) { return 0.00263 - kb * (0.712 + 0.6883 * kb); }
 
 HorizontalIrradiance clear_sky_horizontal(double sun_elevation, int day_of_year, double linke,
                                           double site_elevation_m, double solar_constant) {

@@ -53,6 +53,38 @@ SunMap build_sun_map(std::vector<SolarStep> steps, double sector_deg) {
   for (std::size_t k = 0; k < sums.size(); ++k)  // a lone step keeps its exact direction
     map.directions.push_back(count[k] == 1 ? sums[k] : glm::normalize(sums[k]));
   map.steps = std::move(steps);
+  // The sums per sector (and of the steps without beam).
+  map.sums.resize(map.directions.size());
+  for (std::uint32_t t = 0; t < map.steps.size(); ++t) {
+    const SolarStep& s = map.steps[t];
+    const bool beam = s.beam_normal > 0.0 && s.ray_direction.z > 0.0;
+    SectorSums& g = beam ? map.sums[s.sector] : map.no_beam;
+    const double h = s.hours, dh = s.diffuse_horizontal * h;
+    g.steps.push_back(t);
+    g.hours += h;
+    g.diffuse += dh;
+    g.reflect_lit += s.global_horizontal * h;
+    g.reflect_shadow += (s.reflected_from_global ? s.global_horizontal : s.diffuse_horizontal) * h;
+    if (!beam) continue;
+    g.beam += s.beam_normal * h * s.direction;
+    g.axis += s.direction;
+    g.sunlit_a += dh * (1.0 - s.kb);
+    g.sunlit_b += dh * muneer_n(s.kb) * (1.0 - s.kb);
+    if (s.sun.elevation >= kLowSunElevation) {
+      g.sunlit_c += dh * s.kb / std::sin(s.sun.elevation) * s.direction;
+    } else {
+      const double w = dh * s.kb / (0.1 - 0.008 * s.sun.elevation);
+      g.low_cos += w * std::cos(s.sun.azimuth);
+      g.low_sin += w * std::sin(s.sun.azimuth);
+    }
+  }
+  for (SectorSums& g : map.sums) {
+    g.axis = glm::normalize(g.axis);
+    double min_cos = 1.0;
+    for (std::uint32_t t : g.steps) min_cos = std::min(min_cos, glm::dot(g.axis, map.steps[t].direction));
+    // Rounded up a little: the test n . axis > sin_spread must never take a straddling sector whole.
+    g.sin_spread = min_cos <= 0.0 ? 2.0 : std::sqrt(std::max(0.0, 1.0 - min_cos * min_cos)) + 1e-12;
+  }
   return map;
 }
 
@@ -77,24 +109,45 @@ PointIrradiation accumulate_irradiation(const SunMap& map, std::span<const Vec3>
   }
   SurfaceOrientation surface = orientation_from_normal(normal.x, normal.y, normal.z);
   surface.aspect -= convergence_deg * kDegree;  // grid bearing -> compass azimuth
-  const double rr = (1.0 - std::cos(surface.slope)) / 2.0;  // ground view of the tilted plane
-  for (const SolarStep& s : map.steps) {
-    if (!(s.diffuse_horizontal > 0.0) && !(s.beam_normal > 0.0) && !(s.global_horizontal > 0.0)) continue;
+  const MuneerSurfaceTerms m = muneer_surface_terms(surface);
+  const double shadow_ratio = m.flat ? 1.0 : m.r_sky + kMuneerShadowN * m.fg;
+  double diffuse = 0.0, ground = 0.0;  // diffuse before the sky view; the ground-reflected source
+  // One step at a time: the sectors whose steps lie on both sides of the surface's plane.
+  auto step_by_step = [&](const SolarStep& s, bool open) {
     const double c = std::clamp(glm::dot(normal, s.direction), -1.0, 1.0);
-    const bool up = s.beam_normal > 0.0 && s.ray_direction.z > 0.0;
-    const bool lit = up && c > 0.0 && open_bit(open, s.sector);
+    const bool lit = open && s.beam_normal > 0.0 && s.ray_direction.z > 0.0 && c > 0.0;
     if (lit) {
       out.beam += s.beam_normal * c * s.hours;
       out.sun_hours += s.hours;
     }
     if (s.diffuse_horizontal > 0.0) {
-      const double ratio = s.sun.elevation > 0.0 ? muneer_diffuse_ratio(s.sun, surface, c, !lit, s.kb)
-                                                 : muneer_diffuse_ratio(s.sun, surface, -1.0, true, 0.0);
-      out.diffuse += s.diffuse_horizontal * ratio * out.sky_view * s.hours;
+      const double ratio = lit ? muneer_diffuse_ratio(s.sun, surface, c, false, s.kb) : shadow_ratio;
+      diffuse += s.diffuse_horizontal * ratio * s.hours;
     }
-    const double ground = (lit || s.reflected_from_global) ? s.global_horizontal : s.diffuse_horizontal;
-    out.reflected += albedo * ground * rr * s.hours;
+    ground += (lit || s.reflected_from_global ? s.global_horizontal : s.diffuse_horizontal) * s.hours;
+  };
+  for (std::size_t k = 0; k < nsec; ++k) {
+    const SectorSums& g = map.sums[k];
+    const bool open_k = open_bit(open, k);
+    const double facing = glm::dot(normal, g.axis);
+    if (facing > g.sin_spread && open_k) {  // every step in front of the surface, and lit
+      out.beam += glm::dot(normal, g.beam);
+      out.sun_hours += g.hours;
+      diffuse += m.flat ? g.diffuse
+                        : m.r_sky * g.sunlit_a + m.fg * g.sunlit_b + glm::dot(normal, g.sunlit_c) +
+                              m.sin_slope * (m.cos_aspect * g.low_cos + m.sin_aspect * g.low_sin);
+      ground += g.reflect_lit;
+    } else if (facing > g.sin_spread || facing < -g.sin_spread) {  // in shadow, or every step behind
+      diffuse += shadow_ratio * g.diffuse;
+      ground += g.reflect_shadow;
+    } else {
+      for (std::uint32_t t : g.steps) step_by_step(map.steps[t], open_k);
+    }
   }
+  diffuse += shadow_ratio * map.no_beam.diffuse;
+  ground += map.no_beam.reflect_shadow;
+  out.diffuse = diffuse * out.sky_view;
+  out.reflected = albedo * ground * (1.0 - std::cos(surface.slope)) / 2.0;  // the tilted plane's ground view
   return out;
 }
 

@@ -328,6 +328,8 @@ VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec
   return res;
 }
 
+namespace {
+
 template <class Index>
 void trace_directions_over(const Index& index, std::span<const Vec3> positions, std::span<const Vec3> dirs,
                            std::span<const Vec3> normals, const VisibilityOptions& opts,
@@ -350,8 +352,20 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
   struct Local {
     std::vector<std::uint64_t> mask;
     std::vector<RayHit> hits;
+    std::vector<std::uint32_t> traced;  // the point's directions in front of its surface
+    FirstHitBatches batches;
   };
-  tbb::enumerable_thread_specific<Local> locals([words] { return Local{std::vector<std::uint64_t>(words), {}}; });
+  tbb::enumerable_thread_specific<Local> locals([words] { return Local{std::vector<std::uint64_t>(words), {}, {}, {}}; });
+  // Spheres: one first-hit query per direction from the point outward, as the sky view's rays,
+  // starting target_height above the point; a sphere entered within `tolerance` of the start is
+  // the point's own surface.
+  RayQuery q;
+  q.k = 1;
+  q.radius = opts.radius;
+  q.order = RayOrder::sphere_hit;
+  q.t_min = opts.tolerance;
+  q.t_max = kInf;
+  q.validate();
   tbb::task_arena arena(static_cast<int>(resolve_threads(opts.threads)));
   arena.execute([&] {
     visit_index(
@@ -365,14 +379,25 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
               for (std::size_t s = s0; s < s1; ++s) {
                 const PointIndex i = ids[s];
                 std::fill(L.mask.begin(), L.mask.end(), 0);
-                for (std::size_t k = 0; k < m; ++k) {
-                  if (!normals.empty() && !(glm::dot(normals[i], dirs[k]) > 0.0)) continue;
-                  Observer sun;
-                  sun.position = pos[s] + far * dirs[k];
-                  bool queried;
-                  double dist;
-                  if (line_of_sight(idx, sun, kInf, pos[s], i, opts, L.hits, queried, dist))
-                    L.mask[k / 64] |= std::uint64_t(1) << (k % 64);
+                L.traced.clear();
+                for (std::uint32_t k = 0; k < m; ++k)
+                  if (normals.empty() || glm::dot(normals[i], dirs[k]) > 0.0) L.traced.push_back(k);
+                auto open = [&](std::uint32_t k) { L.mask[k / 64] |= std::uint64_t(1) << (k % 64); };
+                if (opts.surfels) {
+                  for (std::uint32_t k : L.traced) {
+                    Observer sun;
+                    sun.position = pos[s] + far * dirs[k];
+                    bool queried;
+                    double dist;
+                    if (line_of_sight(idx, sun, kInf, pos[s], i, opts, L.hits, queried, dist)) open(k);
+                  }
+                } else {
+                  const Vec3 origin = pos[s] + Vec3(0.0, 0.0, opts.target_height);
+                  L.batches.run(
+                      idx, q, L.traced.size(), [&](std::uint64_t j) { return Ray(origin, dirs[L.traced[j]]); },
+                      [&](std::uint64_t j, const std::optional<RayHit>& hit) {
+                        if (!hit || hit->index == i) open(L.traced[j]);
+                      });
                 }
                 visit(i, L.mask);
               }
@@ -384,6 +409,8 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
   });
   progress.finish();
 }
+
+}  // namespace
 
 Vec3 sky_direction(std::uint32_t k, std::uint32_t n, double rotation, SkyWeighting weighting) {
   const double u = (double(k) + 0.5) / double(n);  // in (0, 1)

@@ -140,6 +140,28 @@ double grass_aspect_deg(double compass_aspect);
 double muneer_diffuse_ratio(const SunDirection& sun, const SurfaceOrientation& surface,
                             double cos_incidence, bool shadowed, double kb);
 
+/// Muneer's ratio split into the terms of the surface and of the sky, so that a sum over many
+/// instants is a few products (the sun map of solar_irradiation.hpp):
+///   shadowed: r_i + kMuneerShadowN f_g;
+///   sunlit:   (r_i + N f_g)(1 - Kb) + Kb q, with q = cos_incidence / sin h0 (h0 >= 0.1 rad) or
+///             sin(slope) (cos(sun azimuth) cos(aspect) + sin(sun azimuth) sin(aspect)) /
+///             (0.1 - 0.008 h0) (the low sun),
+/// and exactly 1 for a horizontal surface (`flat`). muneer_diffuse_ratio() evaluates the same.
+struct MuneerSurfaceTerms {
+  bool flat = true;          ///< slope 0: the ratio is 1
+  double r_sky = 1.0;        ///< r_i = (1 + cos slope) / 2
+  double fg = 0.0;           ///< f_g = sin slope - slope cos slope - pi sin^2(slope / 2)
+  double sin_slope = 0.0;
+  double cos_aspect = 0.0, sin_aspect = 0.0;  ///< of the compass aspect
+};
+/// N of a shadowed surface in Muneer's model (Šúri & Hofierka 2004, eq. (19)).
+inline constexpr double kMuneerShadowN = 0.252271;
+/// The surface's terms. Throws std::invalid_argument for a slope outside 0..pi or a non-finite
+/// aspect.
+MuneerSurfaceTerms muneer_surface_terms(const SurfaceOrientation& surface);
+/// N of a sunlit surface, 0.00263 - 0.712 Kb - 0.6883 Kb^2 (eq. (23)); kb in 0..1.
+double muneer_n(double kb);
+
 /// Clear-sky horizontal irradiance (Šúri & Hofierka 2004, eqs. (3), (10), (12)):
 /// B_0c = G0 exp(-0.8662 T_LK m delta_R(m)), B_hc = B_0c sin h0, D_hc = G0 T_n F_d, all 0 when
 /// the sun is at or below the horizon (h0 <= 0, as r.sun).

@@ -37,11 +37,37 @@ struct SolarStep {
   std::uint32_t sector = 0;  ///< index into SunMap::directions (meaningful when beam_normal > 0)
 };
 
-/// The time steps and the directions every point traces.
+/// Sums over a group of steps, each term weighted by the step's hours, from which the sum of
+/// the group's irradiance on any surface follows in a few products (MuneerSurfaceTerms): the
+/// beam n . beam, the sunlit diffuse r_i sunlit_a + f_g sunlit_b + n . sunlit_c + sin(slope)
+/// (cos(aspect) low_cos + sin(aspect) low_sin), the shadowed diffuse (r_i + 0.252271 f_g) diffuse.
+struct SectorSums {
+  Vec3 beam{0.0};             ///< sum of B_0 s (s: the step's true direction), Wh/m²
+  double hours = 0.0;         ///< sum of the steps' hours
+  double diffuse = 0.0;       ///< sum of D_h, Wh/m²
+  double sunlit_a = 0.0;      ///< sum of D_h (1 - Kb)
+  double sunlit_b = 0.0;      ///< sum of D_h N(Kb) (1 - Kb)
+  Vec3 sunlit_c{0.0};         ///< sum of D_h Kb s / sin h0 over the steps with h0 >= 0.1 rad
+  double low_cos = 0.0;       ///< sum of D_h Kb cos(A) / (0.1 - 0.008 h0) over the steps with h0 < 0.1 rad
+  double low_sin = 0.0;       ///< the same with sin(A) (A: the sun's compass azimuth)
+  double reflect_lit = 0.0;   ///< sum of G_h: the ground-reflected source of a lit surface
+  double reflect_shadow = 0.0;  ///< sum of D_h, or G_h for measured steps: that of a surface without beam
+  /// Normalised mean of the steps' true directions, and the sine of the largest angle between it
+  /// and a step's (2 when some step lies 90 degrees or more away): a surface normal n with
+  /// n . axis > sin_spread faces every step of the group, one with n . axis < -sin_spread none.
+  Vec3 axis{0.0, 0.0, 1.0};
+  double sin_spread = 0.0;
+  std::vector<std::uint32_t> steps;  ///< the group's steps (indices into SunMap::steps)
+};
+
+/// The time steps, the directions every point traces, and the sums per sector.
 struct SunMap {
   std::vector<SolarStep> steps;
-  /// The sectors' directions (unit, cloud frame): the normalised mean of their steps' directions.
+  /// The sectors' directions (unit, cloud frame): the normalised mean of their steps' ray
+  /// directions (a lone step keeps its own).
   std::vector<Vec3> directions;
+  std::vector<SectorSums> sums;  ///< per sector, the steps with beam
+  SectorSums no_beam;            ///< the steps without beam (night, or no direct sun measured)
 };
 
 /// Groups the steps with beam (beam_normal > 0 and the sun above the horizon, ray_direction.z > 0)
@@ -61,7 +87,8 @@ struct PointIrradiation {
 
 /// The sum over map.steps of the irradiance on a surface with unit `normal` (cloud frame, pointing
 /// away from the surface into the open) at a site whose grid north lies `convergence_deg` from
-/// true north (SiteLocation): per step, beam B_0c cos(incidence) when the step's sector is open
+/// true north (SiteLocation), from each sector's SectorSums (per step only for a sector whose steps
+/// lie on both sides of the surface's plane): per step, beam B_0c cos(incidence) when the step's sector is open
 /// (bit `sector` of `open`) and the sun is in front of the surface; diffuse D_hc x Muneer's ratio
 /// (muneer_diffuse_ratio, shadowed form without beam) x the sky view; reflected albedo x (G_hc or
 /// D_hc) x (1 - cos slope) / 2 -- clear_sky_irradiance() and measured_irradiance_on_surface() of

@@ -99,10 +99,12 @@ VisibilityResult compute_visibility(const Site& site, std::span<const Vec3> posi
 
 /// The open directions of every point: for each point i and world direction d_k (unit length, +z
 /// up), whether something at infinity in that direction -- the sun of one sun-map sector, a patch
-/// of sky -- is seen from P_i by the line-of-sight rule of is_visible() (spheres, or surfels when
-/// opts.surfels is set; opts.target_height and opts.tolerance keep the point's own surface from
-/// shading it), with the observer placed at P_i + L d_k, L beyond the extent of `positions`, so
-/// that every obstacle of the site lies between. With `normals` (indexed like the positions; empty
+/// of sky -- is seen from P_i. Spheres: the ray from P_i + (0, 0, opts.target_height) along d_k
+/// enters no sphere of radius opts.radius at t >= opts.tolerance (ray_query k = 1, sphere_hit;
+/// spheres containing the start and those entered within the tolerance are the point's own
+/// surface). Surfels (opts.surfels set): the surfel rule of is_visible(), with the observer at
+/// P_i + L d_k, L beyond the extent of `positions`, so that every obstacle of the site lies
+/// between. With `normals` (indexed like the positions; empty
 /// = none), direction k is traced for point i only when dot(n_i, d_k) > 0 (a surface facing away
 /// receives nothing from it) and its bit stays 0 otherwise. Calls `visit(i, mask)` once per point,
 /// from worker threads (concurrently for different points); bit k % 64 of mask[k / 64] is set for
