@@ -333,7 +333,8 @@ namespace {
 template <class Index>
 void trace_directions_over(const Index& index, std::span<const Vec3> positions, std::span<const Vec3> dirs,
                            std::span<const Vec3> normals, const VisibilityOptions& opts,
-                           const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit) {
+                           const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit,
+                           bool cull) {
   check(opts);
   if (index_size(index) != positions.size())
     throw std::invalid_argument("directions: the index was not built over these positions");
@@ -381,7 +382,7 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
                 std::fill(L.mask.begin(), L.mask.end(), 0);
                 L.traced.clear();
                 for (std::uint32_t k = 0; k < m; ++k)
-                  if (normals.empty() || glm::dot(normals[i], dirs[k]) > 0.0) L.traced.push_back(k);
+                  if (!cull || normals.empty() || glm::dot(normals[i], dirs[k]) > 0.0) L.traced.push_back(k);
                 auto open = [&](std::uint32_t k) { L.mask[k / 64] |= std::uint64_t(1) << (k % 64); };
                 if (opts.surfels) {
                   for (std::uint32_t k : L.traced) {
@@ -392,7 +393,7 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
                     if (line_of_sight(idx, sun, kInf, pos[s], i, opts, L.hits, queried, dist)) open(k);
                   }
                 } else {
-                  const Vec3 origin = pos[s] + Vec3(0.0, 0.0, opts.target_height);
+                  const Vec3 origin = pos[s] + opts.target_height * (normals.empty() ? Vec3(0.0, 0.0, 1.0) : normals[i]);
                   L.batches.run(
                       idx, q, L.traced.size(), [&](std::uint64_t j) { return Ray(origin, dirs[L.traced[j]]); },
                       [&](std::uint64_t j, const std::optional<RayHit>& hit) {
@@ -596,11 +597,58 @@ VisibilityResult compute_visibility(const Site& site, std::span<const Vec3> posi
 }
 void trace_directions(const Site& site, std::span<const Vec3> positions, std::span<const Vec3> dirs,
                       std::span<const Vec3> normals, const VisibilityOptions& opts,
-                      const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit) {
+                      const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit,
+                      bool cull) {
   detail::over_site<int>(site, "directions", [&](const auto& index) {
-    trace_directions_over(index, positions, dirs, normals, opts, visit);
+    trace_directions_over(index, positions, dirs, normals, opts, visit, cull);
     return 0;
   });
+}
+
+std::size_t orient_steep_normals(const Site& site, std::span<const Vec3> positions, std::span<Vec3> normals,
+                                 double radius, unsigned threads) {
+  if (!(radius > 0.0) || !std::isfinite(radius))
+    throw std::invalid_argument("normal orientation: the radius must be a finite number > 0");
+  if (normals.size() != positions.size())
+    throw std::invalid_argument("normal orientation: normals and positions differ in count");
+  RayQuery q;
+  q.k = 1;
+  q.radius = radius;
+  q.order = RayOrder::sphere_hit;
+  q.t_min = 2.0 * radius;
+  q.t_max = kInf;
+  q.validate();
+  std::atomic<std::size_t> turned{0};
+  detail::over_site<int>(site, "normal orientation", [&](const auto& index) {
+    visit_index(
+        [&](const auto& idx) {
+          tbb::task_arena arena(static_cast<int>(resolve_threads(threads)));
+          arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, positions.size(), kChunk), [&](const auto& range) {
+              std::size_t local = 0;
+              for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                Vec3& n = normals[i];
+                if (!(std::abs(n.z) < 0.5)) continue;
+                // 20 degrees up: off the ground at once, where a level ray would graze it.
+                const Vec3 h = glm::normalize(Vec3(n.x, n.y, 0.0));
+                const Vec3 up(0.0, 0.0, 0.364);
+                const auto out = ray_first_hit(idx, Ray(positions[i] + radius * h, glm::normalize(h + up)), q);
+                const auto in = ray_first_hit(idx, Ray(positions[i] - radius * h, glm::normalize(up - h)), q);
+                const double t_out = out ? out->t : kInf, t_in = in ? in->t : kInf;
+                if (t_in > t_out) {
+                  n = -n;
+                  ++local;
+                }
+              }
+              turned += local;
+            });
+          });
+          return 0;
+        },
+        index);
+    return 0;
+  });
+  return turned.load();
 }
 std::vector<double> compute_sky_view(const Site& site, std::span<const Vec3> positions, const SkyViewOptions& opts,
                                      std::uint64_t* queries) {

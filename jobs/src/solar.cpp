@@ -21,7 +21,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <numbers>
+#include <regex>
 #include <stdexcept>
 
 namespace rayscan::jobs {
@@ -37,6 +39,12 @@ UtcInstant instant_of(double unix_seconds) {
   return {static_cast<std::int64_t>(whole), unix_seconds - whole};
 }
 
+/// Whether `text` is a calendar date alone, [+-]YYYY[YY]-MM-DD (ISO 8601's extended date).
+bool is_date_only(const std::string& text) {
+  static const std::regex date(R"([+-]?\d{4,6}-\d{2}-\d{2})");
+  return std::regex_match(text, date);
+}
+
 /// `field`'s ISO 8601 text as a UTC unix time; a date alone is local mean solar midnight at
 /// `longitude` (and, for the end of a period, the end of that day).
 double period_time(const char* field, const std::string& text, double longitude, bool end_of_day) {
@@ -46,10 +54,22 @@ double period_time(const char* field, const std::string& text, double longitude,
   } catch (const std::invalid_argument& e) {
     throw OptionError({option(field), std::string(" ") + e.what()});
   }
-  const bool date_only = text.find_first_of("T :") == std::string::npos;
   double u = unix_of(t);
-  if (date_only) u += (end_of_day ? 86400.0 : 0.0) - longitude / 15.0 * 3600.0;
+  if (is_date_only(text)) u += (end_of_day ? 86400.0 : 0.0) - longitude / 15.0 * 3600.0;
   return u;
+}
+
+/// SPA's input errors ("SpaInput.pressure_mbar: ...") with the job's field names.
+OptionError spa_error(const std::invalid_argument& e) {
+  static const std::pair<const char*, const char*> names[] = {
+      {"SpaInput.latitude_deg", "latitude"},   {"SpaInput.longitude_deg", "longitude"},
+      {"SpaInput.elevation_m", "elevation"},   {"SpaInput.pressure_mbar", "pressure"},
+      {"SpaInput.temperature_c", "temperature"}, {"SpaInput.delta_t", "delta_t"},
+      {"SpaInput.surface_slope_deg", "slope"}, {"SpaInput.surface_azimuth_deg", "surface_azimuth"}};
+  const std::string what = e.what();
+  for (const auto& [spa, field] : names)
+    if (what.rfind(spa, 0) == 0) return OptionError({option(field), what.substr(std::strlen(spa))});
+  return OptionError({what});
 }
 
 /// "30min", "1h", "2 h", "1d" -> seconds.
@@ -128,11 +148,11 @@ SunPositionJobResult run_sun_position(const SunPositionJobOptions& o) {
   // solar time.
   std::optional<double> offset = o.utc_offset;
   if (!offset) {
-    const std::size_t t = o.time.find_first_of("T ");
+    const std::size_t t = o.time.find_first_of("Tt ");
     if (t != std::string::npos) {
       const std::string clock = o.time.substr(t + 1);
-      const std::size_t sign = clock.find_first_of("+-Z");
-      if (sign != std::string::npos && clock[sign] != 'Z') {
+      const std::size_t sign = clock.find_first_of("+-Zz");
+      if (sign != std::string::npos && clock[sign] != 'Z' && clock[sign] != 'z') {
         const UtcInstant as_utc = parse_iso8601_utc(o.time.substr(0, t + 1 + sign));
         offset = (unix_of(as_utc) - unix_of(r.time)) / 3600.0;
       } else if (sign != std::string::npos) {
@@ -144,7 +164,7 @@ SunPositionJobResult run_sun_position(const SunPositionJobOptions& o) {
     r.position = solar_position(in);
     r.day = sun_rise_transit_set(in, offset);
   } catch (const std::invalid_argument& e) {
-    throw OptionError({e.what()});
+    throw spa_error(e);
   }
   r.day_utc_offset = offset.value_or(o.longitude / 15.0);
   return r;
@@ -187,6 +207,7 @@ struct SolarRun {
   bool instant = false;
   std::string value;
   SurfelAttributes surfels;
+  std::vector<Vec3> normals;  // unit, each point's surface facing out (the irradiance's surface)
   VisibilityOptions vo;
   SunMap map;
   std::vector<Vec3> sky;
@@ -214,6 +235,16 @@ struct SolarRun {
     for (double v : o.linke)
       if (!(v >= 1.0 && v <= 10.0)) throw OptionError({option("linke"), ": expected values in 1..10"});
     if (!(o.albedo >= 0.0 && o.albedo <= 1.0)) throw OptionError({option("albedo"), ": expected a number in 0..1"});
+    if (o.sky_rays > 4096) throw OptionError({option("sky_rays"), ": expected 0..4096 directions"});
+    if (instant && !o.weather.empty())
+      throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
+    if (!instant && o.weather.empty()) parse_step(o.step);
+    if (!o.weather.empty() && o.step != "1h")
+      throw OptionError({option("step"), " is the weather file's interval with ", option("weather")});
+    // The times' syntax now; their meaning needs the site's longitude (a date alone).
+    period_time("at", o.at.empty() ? "2000-01-01" : o.at, 0.0, false);
+    period_time("start", o.start.empty() ? "2000-01-01" : o.start, 0.0, false);
+    period_time("end", o.end.empty() ? "2000-01-01" : o.end, 0.0, false);
     if (!(o.sector >= 0.0 && o.sector <= 30.0))
       throw OptionError({option("sector"), ": expected degrees in 0..30 (0 = one shadow ray per time step)"});
     if (o.primitive != "sphere" && o.primitive != "surfel")
@@ -264,6 +295,13 @@ struct SolarRun {
     r.primitive = o.primitive;
     // Normals for every primitive: the surface each point's irradiance falls on.
     surfels = detail::estimate_analysis_surfels(cs, o.surfel, ctl);
+    normals.assign(surfels.normals.begin(), surfels.normals.end());
+    if (cloud.normals.empty()) {  // PCA normals point up; a wall's must point out of the building
+      const auto t0 = std::chrono::steady_clock::now();
+      const std::size_t turned = orient_steep_normals(*cs.site, cloud.positions, normals, cs.radius.radius, ctl.threads);
+      std::snprintf(buf, sizeof buf, "steep normals turned to their open side: %zu in %.2f s", turned, seconds_since(t0));
+      ctl.info(buf);
+    }
     const bool surfel = o.primitive == "surfel";
     vo.radius = r.radius.radius;
     vo.tolerance = o.tolerance.value_or(surfel ? 0.0 : 2.0 * vo.radius);
@@ -322,7 +360,7 @@ struct SolarRun {
     try {
       p = solar_position(spa_at(t));
     } catch (const std::invalid_argument& e) {
-      throw OptionError({e.what()});
+      throw spa_error(e);
     }
     s.direction = direction_from_azimuth(p.azimuth_deg, p.geometric_elevation_deg, r.location.convergence_deg);
     s.ray_direction = direction_from_azimuth(p.azimuth_deg, p.elevation_deg, r.location.convergence_deg);
@@ -349,43 +387,29 @@ struct SolarRun {
 
   void sun_and_sky() {
     std::vector<SolarStep> steps;
-    if (!o.weather.empty()) {
-      if (instant) throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
-      weather = read_epw(o.weather);
-      r.weather = weather->location.city + ", " + weather->location.country;
-      std::snprintf(buf, sizeof buf, "weather: %zu records of %s (%.3f N, %.3f E)", weather->records.size(),
-                    r.weather.c_str(), weather->location.latitude_deg, weather->location.longitude_deg);
-      ctl.info(buf);
-    }
+    r.sky_rays = o.sky_rays;
     if (instant) {
       r.start_unix = r.end_unix = period_time("at", o.at, r.location.longitude_deg, false);
       steps.push_back(make_step(r.start_unix, 1.0, nullptr));
       r.step_hours = 0.0;
-      r.sun = solar_position(spa_at(r.start_unix));
+      try {
+        r.sun = solar_position(spa_at(r.start_unix));
+      } catch (const std::invalid_argument& e) {
+        throw spa_error(e);
+      }
     } else {
       r.start_unix = period_time("start", o.start, r.location.longitude_deg, false);
       r.end_unix = period_time("end", o.end, r.location.longitude_deg, true);
       if (!(r.end_unix > r.start_unix)) throw OptionError({option("end"), " must be after ", option("start")});
-      const double step = weather ? 3600.0 : parse_step(o.step);
-      if (weather && o.step != "1h")
-        throw OptionError({option("step"), " is the weather file's hour with ", option("weather")});
-      const double n = std::floor((r.end_unix - r.start_unix) / step + 1e-9);
-      if (n < 1.0) throw OptionError({"the period is shorter than one ", option("step")});
-      if (n > 1e6) throw OptionError({"the period has more than 1,000,000 time steps; use a longer ", option("step")});
-      r.step_hours = step / 3600.0;
-      steps.reserve(std::size_t(n));
-      for (std::size_t k = 0; k < std::size_t(n); ++k) {
-        const double t = r.start_unix + (double(k) + 0.5) * step;
-        const EpwRecord* rec = weather ? record_at(t) : nullptr;
-        if (weather && !rec) continue;
-        steps.push_back(make_step(t, r.step_hours, rec));
-      }
+      if (!o.weather.empty())
+        weather_steps(steps);
+      else
+        clear_sky_steps(steps);
     }
     r.steps = steps.size();
     for (const SolarStep& s : steps) r.sun_steps += s.beam_normal > 0.0 && s.ray_direction.z > 0.0;
     map = build_sun_map(std::move(steps), instant ? 0.0 : o.sector);
     r.sectors = map.directions.size();
-    r.sky_rays = instant ? 0 : o.sky_rays;
     for (std::uint32_t k = 0; k < r.sky_rays; ++k) sky.push_back(sky_direction(k, r.sky_rays, 0.0, SkyWeighting::uniform));
     if (instant) {
       std::snprintf(buf, sizeof buf, "sun at %s: azimuth %.3f deg, elevation %.3f deg", format_iso8601(r.start_unix, 0).c_str(),
@@ -400,34 +424,72 @@ struct SolarRun {
     ctl.info(buf);
   }
 
-  /// The weather record whose hour contains UTC time `t` (the file's month, day and hour, any year).
-  const EpwRecord* record_at(double t) const {
-    const double local = t + weather->location.time_zone_hours * 3600.0;
-    const auto tp = std::chrono::sys_seconds(std::chrono::seconds(static_cast<std::int64_t>(std::floor(local))));
-    const auto day = std::chrono::floor<std::chrono::days>(tp);
-    const std::chrono::year_month_day ymd(day);
-    const int hour = static_cast<int>(std::chrono::floor<std::chrono::hours>(tp - day).count()) + 1;  // ends at hour:00
-    unsigned m = unsigned(ymd.month()), d = unsigned(ymd.day());
-    if (m == 2 && d == 29) d = 28;  // a leap day over a typical year's February
-    for (const EpwRecord& rec : weather->records)
-      if (rec.month == int(m) && rec.day == int(d) && rec.hour == hour) return &rec;
-    return nullptr;
+  /// Clear-sky steps of --step over the period, each at its middle.
+  void clear_sky_steps(std::vector<SolarStep>& steps) {
+    const double step = parse_step(o.step);
+    const double span = r.end_unix - r.start_unix, n = std::round(span / step);
+    if (std::abs(n * step - span) > 1.0)
+      throw OptionError({"the period is not a whole number of ", option("step"), "s (", std::to_string(span / step),
+                         ")"});
+    if (n < 1.0) throw OptionError({"the period is shorter than one ", option("step")});
+    if (n > 1e6) throw OptionError({"the period has more than 1,000,000 time steps; use a longer ", option("step")});
+    r.step_hours = step / 3600.0;
+    steps.reserve(std::size_t(n));
+    for (std::size_t k = 0; k < std::size_t(n); ++k)
+      steps.push_back(make_step(r.start_unix + (double(k) + 0.5) * step, r.step_hours, nullptr));
+  }
+
+  /// The weather file's records whose interval's middle falls in the period, read as the
+  /// period's year (a typical-year file mixes years).
+  void weather_steps(std::vector<SolarStep>& steps) {
+    if (r.end_unix - r.start_unix > 366.0 * 86400.0)
+      throw OptionError({"a period with ", option("weather"), " is at most one year (the file's)"});
+    const auto start_day = std::chrono::floor<std::chrono::days>(
+        std::chrono::sys_seconds(std::chrono::seconds(static_cast<std::int64_t>(std::floor(r.start_unix)))));
+    EpwReadOptions ro;
+    ro.year = int(std::chrono::year_month_day(start_day).year());
+    weather = read_epw(o.weather, ro);
+    const EpwLocation& at = weather->location;
+    r.weather = at.city + ", " + at.country;
+    r.step_hours = 1.0 / weather->records_per_hour;
+    std::size_t missing = 0;
+    for (int pass = 0; pass < 2; ++pass) {  // a period that runs into the next year takes the file again
+      for (const EpwRecord& rec : weather->records) {
+        const double t = double(rec.utc_mid.time_since_epoch().count()) + (pass ? 365.0 * 86400.0 : 0.0);
+        if (t < r.start_unix || t >= r.end_unix) continue;
+        missing += !(std::isfinite(rec.ghi) && std::isfinite(rec.dni) && std::isfinite(rec.dhi));
+        steps.push_back(make_step(t, r.step_hours, &rec));
+      }
+    }
+    if (steps.empty()) throw OptionError({option("weather"), " '" + o.weather.string() + "': no record in the period"});
+    // Great-circle distance between the file's station and the site (haversine).
+    const double p1 = at.latitude_deg * kDegree, p2 = r.location.latitude_deg * kDegree;
+    const double dl = (r.location.longitude_deg - at.longitude_deg) * kDegree;
+    const double h = std::pow(std::sin((p2 - p1) / 2), 2) + std::cos(p1) * std::cos(p2) * std::pow(std::sin(dl / 2), 2);
+    const double km = 2.0 * 6371.0 * std::asin(std::min(1.0, std::sqrt(h)));
+    std::snprintf(buf, sizeof buf, "weather: %zu records of %s (%.3f, %.3f), %.0f km from the site%s", steps.size(),
+                  r.weather.c_str(), at.latitude_deg, at.longitude_deg, km,
+                  km > 100.0 ? ": far; is it the right file?" : "");
+    ctl.info(buf);
+    if (missing) {
+      std::snprintf(buf, sizeof buf, "weather: %zu records with missing radiation count as 0", missing);
+      ctl.info(buf);
+    }
   }
 
   void trace_and_sum() {
     const std::size_t n = cloud.size(), nsec = map.directions.size();
     std::vector<Vec3> dirs = map.directions;
     dirs.insert(dirs.end(), sky.begin(), sky.end());
-    std::vector<Vec3> normals(n);
-    for (std::size_t i = 0; i < n; ++i) normals[i] = Vec3(surfels.normals[i]);
     std::vector<double> beam(n), diffuse(n), reflected(n), hours(n), view(n), shadow(instant ? n : 0);
     const bool sun_up = instant && nsec == 1;
     const auto t0 = std::chrono::steady_clock::now();
     // Over a period, directions behind a surface are not traced: no beam comes from there, and
     // the sky view weighs them 0. At an instant every point's sun ray is traced: a shadow map
     // shows cast shadows, whichever way the surface faces.
-    trace_directions(*cs.site, cloud.positions, dirs, instant ? std::span<const Vec3>() : std::span<const Vec3>(normals), vo,
-                     [&](PointIndex i, std::span<const std::uint64_t> open) {
+    trace_directions(
+        *cs.site, cloud.positions, dirs, normals, vo,
+        [&](PointIndex i, std::span<const std::uint64_t> open) {
                        if (instant) shadow[i] = sun_up && (open[0] & 1u) ? 0.0 : 1.0;
                        const PointIrradiation p =
                            accumulate_irradiation(map, sky, normals[i], r.location.convergence_deg, o.albedo, open);
@@ -436,7 +498,8 @@ struct SolarRun {
                        reflected[i] = p.reflected;
                        hours[i] = p.sun_hours;
                        view[i] = p.sky_view;
-                     });
+                     },
+        !instant);
     r.trace_seconds = seconds_since(t0);
     r.rays = std::uint64_t(n) * dirs.size();
     if (instant) {
@@ -495,7 +558,7 @@ struct SolarRun {
       title = value == "in_shadow" ? "shadow at " + format_iso8601(r.start_unix, 0)
                                    : value + " irradiance at " + format_iso8601(r.start_unix, 0) + " (W/m²)";
     else if (value == "sun_hours")
-      title = "hours of direct sun";
+      title = "hours of direct sun (h)";
     else if (value == "sky_view")
       title = "sky view factor";
     else

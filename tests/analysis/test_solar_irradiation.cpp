@@ -157,6 +157,8 @@ TEST(SolarJob, ShadowOfABoxIsTheBoxProjectedAlongTheSun) {
     o.at = "2026-03-20T10:00:00+01:00";
     o.primitive = primitive;
     o.control.threads = 2;
+    o.sky_rays = 0;  // shadows only
+    if (std::getenv("SOLAR_LOG")) o.control.log = [](const std::string& s) { std::printf("%s\n", s.c_str()); };
     const jobs::SolarJobResult r = jobs::run_solar(o);
     ASSERT_TRUE(r.sun);
     const Vec3 s = direction_from_azimuth(r.sun->azimuth_deg, r.sun->elevation_deg);
@@ -190,8 +192,22 @@ TEST(SolarJob, ShadowOfABoxIsTheBoxProjectedAlongTheSun) {
     const double iou = double(both) / double(either);
     std::printf("box shadow, %s: IoU %.4f (%zu of %zu ground points)\n", primitive, iou, both, either);
     EXPECT_GE(iou, 0.98) << primitive << ": IoU " << iou << " (" << both << " of " << either << ")";
-    // The middle of the roof is in the sun.
+    // The middle of the roof is in the sun; so are the walls the sun faces (south and east), and
+    // the walls facing away from it (north and west) are in the shadow of the box itself.
     EXPECT_NEAR(cloud.positions[roof_centre].x, 0.0, 1e-9);
     EXPECT_EQ((*shadow)[roof_centre], 0.0) << primitive;
+    std::size_t south_lit = 0, north_dark = 0, south = 0, north = 0;
+    for (std::size_t i = ground; i < roof_centre; ++i) {
+      const Vec3& p = cloud.positions[i];
+      if (p.z < 0.5 || p.z > 9.5 || std::abs(p.x) > 4.5) continue;  // away from the edges
+      if (p.y == -5.0) ++south, south_lit += (*shadow)[i] == 0.0;
+      if (p.y == 5.0) ++north, north_dark += (*shadow)[i] == 1.0;
+    }
+    std::printf("box walls, %s: south %.4f lit, north %.4f in shadow\n", primitive, double(south_lit) / double(south),
+                double(north_dark) / double(north));
+    EXPECT_GT(double(north_dark) / double(north), 0.99) << primitive;
+    if (std::string(primitive) == "sphere") {
+      EXPECT_GT(double(south_lit) / double(south), 0.99);
+    }
   }
 }

@@ -99,20 +99,32 @@ VisibilityResult compute_visibility(const Site& site, std::span<const Vec3> posi
 
 /// The open directions of every point: for each point i and world direction d_k (unit length, +z
 /// up), whether something at infinity in that direction -- the sun of one sun-map sector, a patch
-/// of sky -- is seen from P_i. Spheres: the ray from P_i + (0, 0, opts.target_height) along d_k
+/// of sky -- is seen from P_i. Spheres: the ray from P_i + opts.target_height u_i along d_k
 /// enters no sphere of radius opts.radius at t >= opts.tolerance (ray_query k = 1, sphere_hit;
 /// spheres containing the start and those entered within the tolerance are the point's own
-/// surface). Surfels (opts.surfels set): the surfel rule of is_visible(), with the observer at
-/// P_i + L d_k, L beyond the extent of `positions`, so that every obstacle of the site lies
-/// between. With `normals` (indexed like the positions; empty
-/// = none), direction k is traced for point i only when dot(n_i, d_k) > 0 (a surface facing away
-/// receives nothing from it) and its bit stays 0 otherwise. Calls `visit(i, mask)` once per point,
+/// surface), u_i = n_i with `normals`, else +z (off a wall's surface, not up along it). Surfels
+/// (opts.surfels set): the surfel rule of is_visible(), with the observer at P_i + L d_k, L beyond
+/// the extent of `positions`, so that every obstacle of the site lies between. With `normals`
+/// (unit, indexed like the positions; empty = none) and `cull`, direction k is traced for point i
+/// only when dot(n_i, d_k) > 0 (a surface facing away receives nothing from it) and its bit stays
+/// 0 otherwise. Calls `visit(i, mask)` once per point,
 /// from worker threads (concurrently for different points); bit k % 64 of mask[k / 64] is set for
 /// an open direction. opts.max_distance and opts.distributor are not used (one process).
 /// Throws std::invalid_argument like compute_visibility and for normals of another count.
 void trace_directions(const Site& site, std::span<const Vec3> positions, std::span<const Vec3> dirs,
                       std::span<const Vec3> normals, const VisibilityOptions& opts,
-                      const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit);
+                      const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit,
+                      bool cull = true);
+
+/// Turns each steep normal (|n_z| < 0.5: walls, façades, the sides of crowns) towards the side of
+/// its surface that opens: a PCA normal's sign is arbitrary, and turning it up says nothing for a
+/// wall. Two first-hit rays leave the point along +-n, 20 degrees up (ray_query k = 1, sphere_hit,
+/// spheres of `radius`, from P +- radius n, those entered within 2 x radius ignored); the normal
+/// keeps or takes the side whose ray meets nothing, or, when both meet something, the farther
+/// hit (a building's inside ends at its opposite wall). Returns the number of normals turned.
+/// Throws std::invalid_argument for a radius that is not > 0 or normals of another count.
+std::size_t orient_steep_normals(const Site& site, std::span<const Vec3> positions, std::span<Vec3> normals,
+                                 double radius, unsigned threads = 0);
 
 /// Hemisphere sampling of the sky view factor.
 enum class SkyWeighting {

@@ -94,7 +94,9 @@ struct SolarJobOptions {
   /// linke_value; 3.0 is a rural mid-latitude annual mean (Šúri & Hofierka 2004).
   std::vector<double> linke{3.0};
   double albedo = 0.2;                  ///< ground albedo (r.sun's default)
-  std::filesystem::path weather;        ///< EnergyPlus EPW: measured hourly GHI/DNI/DHI replace the clear sky
+  /// EnergyPlus EPW: the measured GHI/DNI/DHI of the file's records whose interval's middle lies
+  /// in the period (the file read as the period's year) replace the clear sky; at most a year.
+  std::filesystem::path weather;
   /// Sun-map sector edge, degrees: the time steps whose sun directions share an azimuth x
   /// elevation cell share one shadow ray per point (its mean direction). 0 = one ray per step.
   double sector = 1.0;
@@ -148,7 +150,7 @@ struct SolarJobResult {
 /// positions (SPA) and the sky (ESRA clear sky or the EPW file), traces the sun-map and sky-map
 /// directions of every point (analysis::trace_directions) and accumulates the irradiance of every
 /// time step on each point's surface, then writes the outputs. Throws OptionError (options),
-/// io::FormatError (cloud), std::invalid_argument (EPW file), std::runtime_error (I/O).
+/// io::FormatError (cloud), std::runtime_error (a malformed EPW file, I/O).
 SolarJobResult run_solar(const SolarJobOptions& options);
 
 /// JSON report of a run (`rayscan solar --json`), indented by 2.
