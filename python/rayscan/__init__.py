@@ -199,6 +199,33 @@ def visibility(cloud, observers=None, radius=None, height=None, max_distance=Non
                                 target_height, sky_rays, camera, distance, threads)
 
 
+def solar(cloud, start=None, end=None, step="1h", at=None, latitude=None, longitude=None,
+          linke=3.0, albedo=0.2, weather=None, sector=1.0, sky_rays=64, primitive="sphere",
+          radius=None, threads=0):
+    """Sun and shadow on every point like `rayscan solar` (jobs::run_solar; docs/solar.md),
+    without writing files.
+
+    cloud: a file path or a PointCloud. A period (start, end: ISO 8601 text, no offset = UTC, a
+    date alone = local mean solar midnight, end inclusive; step "15min", "1h", ...) or one instant
+    (at). latitude/longitude: degrees (default: from the cloud's CRS). linke: one Linke turbidity
+    or 12 monthly values; albedo; weather: an EPW file instead of the clear sky; sector: sun-map
+    sector in degrees (0 = one shadow ray per step); sky_rays: sky-map directions; primitive:
+    "sphere" or "surfel".
+
+    Returns a dict of (N,) float64 arrays: for a period "solar_global", "solar_beam",
+    "solar_diffuse", "solar_reflected" (kWh/m²), "sun_hours" (h), "sky_view"; for an instant
+    "in_shadow" (1/0), "irradiance_global", "irradiance_beam", "irradiance_diffuse" (W/m²), with
+    "sun_azimuth" and "sun_elevation" (degrees); and "latitude", "longitude", "steps", "sectors",
+    "radius". Raises ValueError for a bad option (named as the keyword), OSError for an
+    unreadable file.
+    """
+    if isinstance(linke, (int, float)):
+        linke = [float(linke)]
+    return _rayscan._solar(cloud, start or "", end or "", step, at or "", latitude, longitude,
+                           [float(v) for v in linke], float(albedo), weather, float(sector),
+                           sky_rays, primitive, radius, threads)
+
+
 def compare(reference, image, channels=(), mask=False, alpha=False, resize=False, fail=None,
             fail_percent=None, fail_psnr=None, fail_ssim=None, warn=None):
     """Compare `image` against `reference` like `rayscan compare` (jobs::run_compare;
@@ -215,6 +242,6 @@ def compare(reference, image, channels=(), mask=False, alpha=False, resize=False
 
 
 if not hasattr(_rayscan, "_render"):  # built without the library's job API
-    del render, visibility, compare
+    del render, visibility, solar, compare
 else:
-    __all__ += ["render", "visibility", "compare"]
+    __all__ += ["render", "visibility", "solar", "compare"]

@@ -1,5 +1,5 @@
-// rayscan.render / visibility / compare: the library's job calls (docs/library.md: one options
-// struct in, one result out; jobs::run_render, jobs::run_visibility, jobs::run_compare)
+// rayscan.render / visibility / solar / compare: the library's job calls (docs/library.md: one
+// options struct in, one result out; jobs::run_render, run_visibility, run_solar, run_compare)
 // with NumPy arrays out. Each call converts its arguments with the GIL held, then releases it for
 // the job (TBB inside).
 #include "arrays.hpp"
@@ -7,6 +7,7 @@
 #include "cloud.hpp"
 
 #include "rayscan/jobs/compare.hpp"
+#include "rayscan/jobs/solar.hpp"
 #include "rayscan/jobs/visibility.hpp"
 #include "rayscan/jobs/render.hpp"
 
@@ -246,6 +247,52 @@ py::dict visibility(const py::object& cloud, const py::object& observers, std::o
   return d;
 }
 
+py::dict solar(const py::object& cloud, const std::string& start, const std::string& end, const std::string& step,
+               const std::string& at, std::optional<double> latitude, std::optional<double> longitude,
+               std::vector<double> linke, double albedo, const py::object& weather, double sector, py::handle sky_rays,
+               const std::string& primitive, std::optional<double> radius, py::handle threads) {
+  jobs::SolarJobOptions o;
+  if (py::isinstance<PyCloud>(cloud))
+    o.cloud = &cloud.cast<const PyCloud&>().cloud;
+  else
+    o.cloud_file = path_arg(cloud, "cloud");
+  o.start = start;
+  o.end = end;
+  o.step = step;
+  o.at = at;
+  o.latitude = latitude;
+  o.longitude = longitude;
+  o.linke = std::move(linke);
+  o.albedo = albedo;
+  if (!weather.is_none()) o.weather = path_arg(weather, "weather");
+  o.sector = sector;
+  o.sky_rays = static_cast<std::uint32_t>(int_arg(sky_rays, "sky_rays", 0, 4096, "an integer in [0, 4096]"));
+  o.primitive = primitive;
+  o.radius = radius;
+  o.control.threads = parse_threads(threads);
+  jobs::SolarJobResult r;
+  {
+    py::gil_scoped_release nogil;
+    r = jobs::run_solar(o);
+  }
+  py::dict d;
+  static const char* fields[] = {"solar_global", "solar_beam", "solar_diffuse", "solar_reflected", "sun_hours",
+                                 "sky_view", "in_shadow", "irradiance_global", "irradiance_beam", "irradiance_diffuse"};
+  for (ScalarField& f : r.cloud.scalars)
+    for (const char* name : fields)
+      if (f.name == name) d[py::str(f.name)] = to_numpy(std::move(f.values));
+  d["latitude"] = r.location.latitude_deg;
+  d["longitude"] = r.location.longitude_deg;
+  d["steps"] = r.steps;
+  d["sectors"] = r.sectors;
+  d["radius"] = r.radius.radius;
+  if (r.sun) {
+    d["sun_azimuth"] = r.sun->azimuth_deg;
+    d["sun_elevation"] = r.sun->elevation_deg;
+  }
+  return d;
+}
+
 }  // namespace
 
 void bind_jobs(py::module_& m) {
@@ -260,6 +307,11 @@ void bind_jobs(py::module_& m) {
         py::arg("radius") = py::none(), py::arg("height") = py::none(), py::arg("max_distance") = py::none(),
         py::arg("tolerance") = py::none(), py::arg("target_height") = py::none(), py::arg("sky_rays") = 0,
         py::arg("camera") = py::none(), py::arg("distance") = false, py::arg("threads") = 0);
+  m.def("_solar", &solar, py::arg("cloud"), py::arg("start") = "", py::arg("end") = "", py::arg("step") = "1h",
+        py::arg("at") = "", py::arg("latitude") = py::none(), py::arg("longitude") = py::none(),
+        py::arg("linke") = std::vector<double>{3.0}, py::arg("albedo") = 0.2, py::arg("weather") = py::none(),
+        py::arg("sector") = 1.0, py::arg("sky_rays") = 64, py::arg("primitive") = "sphere",
+        py::arg("radius") = py::none(), py::arg("threads") = 0);
 }
 
 }  // namespace rayscan::python

@@ -91,3 +91,31 @@ def test_visibility_behind_a_wall():
     assert out["per_observer"][0] == int(count.sum())
     with pytest.raises(ValueError):
         rayscan.visibility(f, observers=[[2.0, 10.0, np.nan]], radius=0.3)
+
+
+def test_solar_shadow_of_a_wall_is_its_projection_along_the_sun():
+    """A ground grid and a 6 m wall along y at x = 10; at an instant the shadowed ground points
+    are those whose ray to the sun meets the wall (analytic: the wall projected along the sun)."""
+    g = np.arange(0, 30, 0.25)
+    gx, gy = np.meshgrid(g, g)
+    ground = np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+    wy, wz = np.meshgrid(np.arange(5, 25, 0.1), np.arange(0.1, 6.0001, 0.1))
+    wall = np.column_stack([np.full(wy.size, 10.0), wy.ravel(), wz.ravel()])
+    xyz = np.vstack([ground, wall])
+    path = pytest.importorskip("tempfile").mkdtemp()
+    f = f"{path}/wall.f64"
+    xyz.astype("<f8").tofile(f)
+    out = rayscan.solar(f, at="2026-06-21T16:00:00Z", latitude=48.0, longitude=11.0, sky_rays=0)
+    az, el = np.radians(out["sun_azimuth"]), np.radians(out["sun_elevation"])
+    assert 0.3 < el < 1.2 and out["in_shadow"].shape == (len(xyz),)
+    s = np.array([np.sin(az) * np.cos(el), np.cos(az) * np.cos(el), np.sin(el)])
+    # Where the ray from each ground point along s crosses the wall's plane x = 10.
+    t = (10.0 - ground[:, 0]) / s[0]
+    y, z = ground[:, 1] + t * s[1], t * s[2]
+    analytic = (t > 0) & (y > 5) & (y < 24.9) & (z < 6.0)
+    got = out["in_shadow"][: len(ground)] == 1
+    near_wall = np.abs(ground[:, 0] - 10) < 0.3
+    both, either = np.sum(analytic & got & ~near_wall), np.sum((analytic | got) & ~near_wall)
+    assert either > 500 and both / either > 0.97
+    with pytest.raises(ValueError):
+        rayscan.solar(f, at="2026-13-01", latitude=48.0, longitude=11.0)
