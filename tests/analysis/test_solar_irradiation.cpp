@@ -4,11 +4,20 @@
 // building on a plane, whose shadow is the box projected along the sun direction.
 #include "rayscan/analysis/solar_irradiation.hpp"
 #include "rayscan/analysis/site_location.hpp"
+#include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/solar.hpp"
+
+#include <cpl_conv.h>
+#include <ogr_spatialref.h>
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <sys/wait.h>
+#include <cstdio>
+#include <cstdlib>
 #include <numbers>
 #include <random>
 
@@ -209,5 +218,135 @@ TEST(SolarJob, ShadowOfABoxIsTheBoxProjectedAlongTheSun) {
     if (std::string(primitive) == "sphere") {
       EXPECT_GT(double(south_lit) / double(south), 0.99);
     }
+  }
+}
+
+// The site's place from autzen's CRS (NAD83(HARN) / Oregon GIC Lambert, in feet) against
+// GDAL's own command-line transformation, and the meridian convergence against the Lambert conic's
+// gamma = n (lambda - lambda0), n = (sin phi1 + sin phi2) / 2 for the standard parallels (Snyder
+// 1987, "Map projections: a working manual", eqs. 15-3 and 14-9 on the sphere; the ellipsoid's n
+// differs by less than 1e-4 here).
+TEST(SiteLocation, AutzenMatchesGdaltransformAndTheLambertConvergence) {
+  const PointCloud cloud = io::read_point_cloud(std::string(RAYSCAN_SOURCE_DIR) + "/scenes/data/autzen_trim.las");
+  ASSERT_FALSE(cloud.crs_wkt.empty());
+  const Vec3 p(636226.5, 849106.5, 420.0);
+  const SiteLocation loc = locate_site(cloud.crs_wkt, p);
+  // gdaltransform with the file's own WKT.
+  const std::string wkt = testing::TempDir() + "/autzen.wkt";
+  std::FILE* f = std::fopen(wkt.c_str(), "w");
+  ASSERT_TRUE(f);
+  std::fputs(cloud.crs_wkt.c_str(), f);
+  std::fclose(f);
+  const std::string cmd = "echo '636226.5 849106.5' | gdaltransform -s_srs '" + wkt + "' -t_srs EPSG:4326 -output_xy";
+  std::FILE* pipe = popen(cmd.c_str(), "r");
+  ASSERT_TRUE(pipe);
+  double lon = 0, lat = 0;
+  const int got = std::fscanf(pipe, "%lf %lf", &lon, &lat);
+  pclose(pipe);
+  if (got != 2) GTEST_SKIP() << "gdaltransform is not available";
+  EXPECT_NEAR(loc.longitude_deg, lon, 1e-9);
+  EXPECT_NEAR(loc.latitude_deg, lat, 1e-9);
+  OGRSpatialReference srs;
+  ASSERT_EQ(srs.importFromWkt(cloud.crs_wkt.c_str()), OGRERR_NONE);
+  EXPECT_NEAR(loc.metres_per_unit, 0.3048, 1e-6);  // the file's WKT: the foot
+  EXPECT_NEAR(loc.elevation_m, 420.0 * loc.metres_per_unit, 1e-9);
+  const double phi1 = srs.GetNormProjParm(SRS_PP_STANDARD_PARALLEL_1) * kDegree;
+  const double phi2 = srs.GetNormProjParm(SRS_PP_STANDARD_PARALLEL_2) * kDegree;
+  const double lambda0 = srs.GetNormProjParm(SRS_PP_CENTRAL_MERIDIAN);
+  const double gamma = (std::sin(phi1) + std::sin(phi2)) / 2.0 * (lon - lambda0);  // true -> grid north
+  EXPECT_NEAR(loc.convergence_deg, -gamma, 0.005);  // ours: grid -> true north, clockwise
+  EXPECT_GT(loc.convergence_deg, 1.0);  // west of the central meridian: grid north points west of true north
+  EXPECT_THROW(locate_site("", p), std::invalid_argument);
+  OGRSpatialReference geo;
+  geo.importFromEPSG(4326);
+  char* geo_wkt = nullptr;
+  geo.exportToWkt(&geo_wkt);
+  EXPECT_THROW(locate_site(geo_wkt, p), std::invalid_argument);  // degrees: no sun directions
+  CPLFree(geo_wkt);
+}
+
+// A weather file drives the sky: an overcast day (GHI = DHI = 100 W/m², no direct sun) on an open
+// level plane gives exactly 24 x 100 Wh/m² of diffuse in a day (Muneer's ratio is 1 on the
+// level, the sky view 1, nothing reflected onto it), and no sun hours.
+TEST(SolarJob, AnOvercastWeatherDayOnOpenGroundIsTheSumOfItsDiffuse) {
+  const std::string epw = testing::TempDir() + "/overcast.epw";
+  {
+    std::FILE* f = std::fopen(epw.c_str(), "w");
+    ASSERT_TRUE(f);
+    std::fputs("LOCATION,Test,CA,USA,TMY3,724940,37.62,-122.40,-8.0,2.0\n"
+               "DESIGN CONDITIONS,0\nTYPICAL/EXTREME PERIODS,0\nGROUND TEMPERATURES,0\n"
+               "HOLIDAYS/DAYLIGHT SAVINGS,No,0,0,0\nCOMMENTS 1,overcast test year\nCOMMENTS 2,\n"
+               "DATA PERIODS,1,1,Data,Sunday, 1/ 1,12/31\n",
+               f);
+    constexpr int kDays[] = {31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31};
+    for (int m = 1; m <= 12; ++m)
+      for (int d = 1; d <= kDays[m - 1]; ++d)
+        for (int h = 1; h <= 24; ++h)
+          std::fprintf(f,
+                       "1999,%d,%d,%d,60,?9?9?9?9,10.0,5.0,70,101325,0,0,300,100,0,100,0,0,0,0,180,2.0,10,10,"
+                       "10.0,1000,9,999999999,0,0.1,0,0,999,0.0,0.0\n",
+                       m, d, h);
+    std::fclose(f);
+  }
+  PointCloud cloud;
+  for (double x = -10; x <= 10; x += 0.5)
+    for (double y = -10; y <= 10; y += 0.5) cloud.positions.emplace_back(x, y, 0.0);
+  jobs::SolarJobOptions o;
+  o.cloud = &cloud;
+  o.latitude = 37.62;
+  o.longitude = -122.40;
+  o.start = "2026-03-10";
+  o.end = "2026-03-10";
+  o.weather = epw;
+  o.control.threads = 2;
+  const jobs::SolarJobResult r = jobs::run_solar(o);
+  EXPECT_EQ(r.steps, 24u);
+  for (const ScalarField& f : r.cloud.scalars) {
+    const double want = f.name == "solar_global" || f.name == "solar_diffuse" ? 2.4 : f.name == "sky_view" ? 1.0 : 0.0;
+    for (std::size_t i = 0; i < f.values.size(); i += 97) EXPECT_NEAR(f.values[i], want, 1e-9) << f.name << " " << i;
+  }
+  o.start.clear();
+  o.end.clear();
+  o.at = "2026-03-10T12:00:00Z";
+  EXPECT_THROW(jobs::run_solar(o), std::invalid_argument);  // a weather file needs a period
+}
+
+// Bad input on the command line: one line on stderr naming the flag or the file, exit code 2, no
+// output written.
+TEST(SolarCli, BadInputIsOneLineAndExitCodeTwo) {
+  const std::string las = std::string(RAYSCAN_SOURCE_DIR) + "/scenes/data/autzen_trim.las";
+  const std::string dir = testing::TempDir();
+  const std::string bad_epw = dir + "/bad.epw";
+  {
+    std::FILE* f = std::fopen(bad_epw.c_str(), "w");
+    ASSERT_TRUE(f);
+    std::fputs("LOCATION,Test,CA,USA,TMY3,724940,north,-122.40,-8.0,2.0\n", f);
+    std::fclose(f);
+  }
+  struct Case {
+    std::string args, expect;
+  } cases[] = {
+      {"--start 2026-13-01 --end 2026-12-31", "--start"},
+      {"--start 2026-01-01 --end 2025-12-31", "--end"},
+      {"--start 2026-01-01 --end 2026-01-02 --step 7h", "--step"},
+      {"--at 2026-06-21T12:00Z --start 2026-01-01", "--at"},
+      {"--start 2026-01-01 --end 2026-01-31 --weather " + bad_epw, "bad.epw: line 1"},
+      {"--start 2026-01-01 --end 2026-01-31 --linke 1,2,3", "--linke"},
+      {"--at 2026-06-21T12:00Z --raster " + dir + "/x.png --cell 3", "--raster"},
+  };
+  for (const Case& c : cases) {
+    const std::string out = dir + "/solar_cli_out.las";
+    std::remove(out.c_str());
+    const std::string cmd = std::string(RAYSCAN_BIN) + " solar " + las + " " + c.args + " -q -o " + out + " 2>&1";
+    std::FILE* p = popen(cmd.c_str(), "r");
+    ASSERT_TRUE(p);
+    std::string text;
+    char buf[512];
+    while (std::fgets(buf, sizeof buf, p)) text += buf;
+    const int status = pclose(p);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 2) << c.args << ": " << text;
+    EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1) << c.args << ": " << text;
+    EXPECT_NE(text.find(c.expect), std::string::npos) << c.args << ": " << text;
+    EXPECT_FALSE(std::filesystem::exists(out)) << c.args;
   }
 }
