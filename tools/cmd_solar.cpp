@@ -92,6 +92,14 @@ Runner add_solar_command(CLI::App& app) {
   c->add_option("--end", o->job.end, "End of the period (ISO 8601; a date alone includes that day)");
   c->add_option("--step", o->job.step, "Time step (e.g. 15min, 30min, 1h)")->capture_default_str();
   c->add_option("--at", o->job.at, "One instant instead of a period (ISO 8601; no offset = UTC): shadows");
+  c->add_option("--day", o->job.day,
+                "A day of shadows instead (YYYY-MM-DD): with --raster, a map every --every while the sun is up "
+                "(RASTER_HHMM.tif/.png, numbered frames); per point sun_hours and shadow_hours");
+  c->add_option("--every", o->job.every, "The instants of --day (e.g. 15min, 30min, 1h)")->capture_default_str();
+  c->add_option("--utc-offset", o->job.utc_offset,
+                "Time zone of dates given alone and of the maps' labels, hours east of UTC (default: local "
+                "mean solar time, longitude / 15)")
+      ->check(finite_number(-18, 18));
   c->add_option("--lat,--latitude", o->job.latitude, "Site latitude, degrees north (default: from the cloud's CRS)")
       ->check(finite_number(-90, 90));
   c->add_option("--lon,--longitude", o->job.longitude, "Site longitude, degrees east (default: from the CRS)")

@@ -45,9 +45,9 @@ bool is_date_only(const std::string& text) {
   return std::regex_match(text, date);
 }
 
-/// `field`'s ISO 8601 text as a UTC unix time; a date alone is local mean solar midnight at
-/// `longitude` (and, for the end of a period, the end of that day).
-double period_time(const char* field, const std::string& text, double longitude, bool end_of_day) {
+/// `field`'s ISO 8601 text as a UTC unix time; a date alone is midnight in the time zone
+/// `offset_hours` east of UTC (and, for the end of a period, the end of that day).
+double period_time(const char* field, const std::string& text, double offset_hours, bool end_of_day) {
   UtcInstant t;
   try {
     t = parse_iso8601_utc(text);
@@ -55,7 +55,7 @@ double period_time(const char* field, const std::string& text, double longitude,
     throw OptionError({option(field), std::string(" ") + e.what()});
   }
   double u = unix_of(t);
-  if (is_date_only(text)) u += (end_of_day ? 86400.0 : 0.0) - longitude / 15.0 * 3600.0;
+  if (is_date_only(text)) u += (end_of_day ? 86400.0 : 0.0) - offset_hours * 3600.0;
   return u;
 }
 
@@ -212,18 +212,38 @@ struct SolarRun {
   SunMap map;
   std::vector<Vec3> sky;
   std::optional<EpwFile> weather;
+  bool frames_mode = false;  // --day: shadows through a day
+  struct Frame {
+    std::filesystem::path path;
+    std::string when;
+    std::vector<double> shadow;
+  };
+  std::vector<Frame> frames;
 
   explicit SolarRun(const SolarJobOptions& options) : o(options), ctl(options.control) {}
   SolarRun(const SolarRun&) = delete;
 
   void check_options() {
     instant = !o.at.empty();
-    if (instant && (!o.start.empty() || !o.end.empty()))
+    frames_mode = !o.day.empty();
+    if (frames_mode && (instant || !o.start.empty() || !o.end.empty()))
+      throw OptionError({option("day"), " is a day of shadows: give it alone, without ", option("at"), ", ",
+                         option("start"), " or ", option("end")});
+    if (frames_mode) {
+      if (!is_date_only(o.day)) throw OptionError({option("day"), " '" + o.day + "': expected a date, YYYY-MM-DD"});
+      parse_step(o.every);
+      if (!o.weather.empty()) throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
+    }
+    if (o.utc_offset && !(std::abs(*o.utc_offset) <= 18.0))
+      throw OptionError({option("utc_offset"), ": expected hours in -18..18"});
+    if (frames_mode) {
+      value = "in_shadow";
+    } else if (instant && (!o.start.empty() || !o.end.empty()))
       throw OptionError({option("at"), " is one instant: give it, or a period (", option("start"), " and ",
                          option("end"), "), not both"});
-    if (!instant && (o.start.empty() || o.end.empty()))
-      throw OptionError({"give a period (", option("start"), " and ", option("end"), ") or an instant (",
-                         option("at"), ")"});
+    else if (!instant && (o.start.empty() || o.end.empty()))
+      throw OptionError({"give a period (", option("start"), " and ", option("end"), "), an instant (",
+                         option("at"), ") or a day of shadows (", option("day"), ")"});
     if (o.latitude.has_value() != o.longitude.has_value())
       throw OptionError({option("latitude"), " and ", option("longitude"), " go together"});
     if (o.latitude && !(std::abs(*o.latitude) <= 90.0))
@@ -238,10 +258,11 @@ struct SolarRun {
     if (o.sky_rays > 4096) throw OptionError({option("sky_rays"), ": expected 0..4096 directions"});
     if (instant && !o.weather.empty())
       throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
-    if (!instant && o.weather.empty()) parse_step(o.step);
+    if (!instant && !frames_mode && o.weather.empty()) parse_step(o.step);
     if (!o.weather.empty() && o.step != "1h")
       throw OptionError({option("step"), " is the weather file's interval with ", option("weather")});
     // The times' syntax now; their meaning needs the site's longitude (a date alone).
+    period_time("day", o.day.empty() ? "2000-01-01" : o.day, 0.0, false);
     period_time("at", o.at.empty() ? "2000-01-01" : o.at, 0.0, false);
     period_time("start", o.start.empty() ? "2000-01-01" : o.start, 0.0, false);
     period_time("end", o.end.empty() ? "2000-01-01" : o.end, 0.0, false);
@@ -263,10 +284,13 @@ struct SolarRun {
       throw OptionError({option("cell"), ", ", option("raster_value"), " and ", option("preview"), " need ",
                          option("raster"), " OUT.tif"});
     }
-    value = o.raster_value.empty() ? (instant ? "in_shadow" : "global") : o.raster_value;
+    if (frames_mode && !o.raster_value.empty())
+      throw OptionError({option("raster_value"), " does not apply to ", option("day"), " (its frames are shadows)"});
+    if (!frames_mode) value = o.raster_value.empty() ? (instant ? "in_shadow" : "global") : o.raster_value;
     static const char* period_values[] = {"global", "beam", "diffuse", "reflected", "sun_hours", "sky_view"};
     static const char* instant_values[] = {"in_shadow", "global", "beam", "diffuse"};
-    const bool known = instant ? std::find_if(std::begin(instant_values), std::end(instant_values),
+    const bool known = frames_mode ||
+                       instant ? std::find_if(std::begin(instant_values), std::end(instant_values),
                                               [&](const char* v) { return value == v; }) != std::end(instant_values)
                                : std::find_if(std::begin(period_values), std::end(period_values),
                                               [&](const char* v) { return value == v; }) != std::end(period_values);
@@ -389,7 +413,7 @@ struct SolarRun {
     std::vector<SolarStep> steps;
     r.sky_rays = o.sky_rays;
     if (instant) {
-      r.start_unix = r.end_unix = period_time("at", o.at, r.location.longitude_deg, false);
+      r.start_unix = r.end_unix = period_time("at", o.at, day_offset(), false);
       steps.push_back(make_step(r.start_unix, 1.0, nullptr));
       r.step_hours = 0.0;
       try {
@@ -398,8 +422,8 @@ struct SolarRun {
         throw spa_error(e);
       }
     } else {
-      r.start_unix = period_time("start", o.start, r.location.longitude_deg, false);
-      r.end_unix = period_time("end", o.end, r.location.longitude_deg, true);
+      r.start_unix = period_time("start", o.start, day_offset(), false);
+      r.end_unix = period_time("end", o.end, day_offset(), true);
       if (!(r.end_unix > r.start_unix)) throw OptionError({option("end"), " must be after ", option("start")});
       if (!o.weather.empty())
         weather_steps(steps);
@@ -534,11 +558,46 @@ struct SolarRun {
     ctl.info(buf);
   }
 
-  /// The field, the legend title and the colour range of the raster value.
+  /// The grid of the maps (--cell over the cloud's extent).
+  GridSpec map_grid() const {
+    try {
+      return grid_over(cloud.bounds(), *o.cell);
+    } catch (const std::invalid_argument& e) {
+      throw OptionError({option("cell"), std::string(": ") + e.what()});
+    }
+  }
+
+  /// A top-surface map of per-point `values` as a GeoTIFF at `path` and its PNG preview (beside
+  /// it, or `preview`): a shadow map (`shadow`) with a categorical legend, else the heat ramp
+  /// from 0 to the largest value (`hi` when given).
+  Raster write_map(const std::filesystem::path& path, std::filesystem::path preview, std::span<const double> values,
+                   const std::string& title, const std::string& units, bool shadow, std::optional<double> hi) {
+    Raster map = rasterize(cloud.positions, values, map_grid(), CellReduce::top, title);
+    GeoTiffOptions go;
+    go.crs_wkt = cloud.crs_wkt;
+    go.metadata = {{"RAYSCAN_VALUE", value}, {"RAYSCAN_SOURCE", r.source}, {"RAYSCAN_UNITS", units}};
+    write_geotiff(path, map, go);
+    r.written.push_back(path);
+    if (o.write_preview) {
+      if (preview.empty()) preview = std::filesystem::path(path).replace_extension(".png");
+      PreviewStyle style;
+      double top = 0.0;
+      for (float v : map.values)
+        if (std::isfinite(v)) top = std::max(top, double(v));
+      if (shadow) style.categories = {{0.0f, "sun", {1.0f, 0.8f, 0.1f}}, {1.0f, "shadow", {0.15f, 0.15f, 0.3f}}};
+      const std::string legend = write_raster_preview(preview, map, 0.0, hi.value_or(top), title, style);
+      if (!frames_mode) ctl.info("preview legend: " + legend);
+      r.written.push_back(preview);
+    }
+    return map;
+  }
+
+  /// The raster of --raster-value.
   void write_raster() {
     static const std::pair<const char*, const char*> fields[] = {
         {"global", "solar_global"}, {"beam", "solar_beam"}, {"diffuse", "solar_diffuse"},
-        {"reflected", "solar_reflected"}, {"sun_hours", "sun_hours"}, {"sky_view", "sky_view"}};
+        {"reflected", "solar_reflected"}, {"sun_hours", "sun_hours"}, {"sky_view", "sky_view"},
+        {"shadow_hours", "shadow_hours"}};
     std::string field = value;
     if (instant) field = value == "in_shadow" ? "in_shadow" : "irradiance_" + value;
     else
@@ -547,44 +606,70 @@ struct SolarRun {
     const ScalarField* sf = nullptr;
     for (const ScalarField& f : cloud.scalars)
       if (f.name == field) sf = &f;
-    GridSpec grid;
-    try {
-      grid = grid_over(cloud.bounds(), *o.cell);
-    } catch (const std::invalid_argument& e) {
-      throw OptionError({option("cell"), std::string(": ") + e.what()});
-    }
-    std::string title;
-    if (instant)
+    const double offset = day_offset();
+    std::string title, units = "kWh/m2";
+    std::optional<double> hi;
+    if (instant) {
       title = value == "in_shadow" ? "shadow at " + format_iso8601(r.start_unix, 0)
                                    : value + " irradiance at " + format_iso8601(r.start_unix, 0) + " (W/m²)";
-    else if (value == "sun_hours")
-      title = "hours of direct sun (h)";
-    else if (value == "sky_view")
+      units = value == "in_shadow" ? "1" : "W/m2";
+    } else if (value == "sun_hours" || value == "shadow_hours") {
+      title = std::string(value == "sun_hours" ? "hours of direct sun" : "hours in shadow while the sun is up") + " " +
+              format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
+              format_iso8601(r.end_unix - 1.0, offset).substr(0, 10) + " (h)";
+      units = "h";
+    } else if (value == "sky_view") {
       title = "sky view factor";
-    else
-      // The period's days in local mean solar time, the end day inclusive.
-      title = value + " irradiation " + format_iso8601(r.start_unix, r.location.longitude_deg / 15.0).substr(0, 10) +
-              " to " + format_iso8601(r.end_unix - 1.0, r.location.longitude_deg / 15.0).substr(0, 10) + " (kWh/m²)";
-    r.raster = rasterize(cloud.positions, sf->values, grid, CellReduce::top, title);
-    GeoTiffOptions go;
-    go.crs_wkt = cloud.crs_wkt;
-    go.metadata = {{"RAYSCAN_VALUE", value}, {"RAYSCAN_SOURCE", r.source}, {"RAYSCAN_UNITS", instant ? (value == "in_shadow" ? "1" : "W/m2") : value == "sun_hours" ? "h" : value == "sky_view" ? "1" : "kWh/m2"}};
-    write_geotiff(o.raster, *r.raster, go);
-    r.written.push_back(o.raster);
-    if (o.write_preview) {
-      std::filesystem::path pv = o.preview;
-      if (pv.empty()) pv = std::filesystem::path(o.raster).replace_extension(".png");
-      PreviewStyle style;
-      double hi = 0.0;
-      for (float v : r.raster->values)
-        if (std::isfinite(v)) hi = std::max(hi, double(v));
-      if (value == "in_shadow")
-        style.categories = {{0.0f, "sun", {1.0f, 0.8f, 0.1f}}, {1.0f, "shadow", {0.15f, 0.15f, 0.3f}}};
-      if (value == "sky_view") hi = 1.0;
-      const std::string legend = write_raster_preview(pv, *r.raster, 0.0, hi, title, style);
-      ctl.info("preview legend: " + legend);
-      r.written.push_back(pv);
+      units = "1";
+      hi = 1.0;
+    } else {
+      // The period's days in the day's time zone, the end day inclusive.
+      title = value + " irradiation " + format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
+              format_iso8601(r.end_unix - 1.0, offset).substr(0, 10) + " (kWh/m²)";
     }
+    r.raster = write_map(o.raster, o.preview, sf->values, title, units, instant && value == "in_shadow", hi);
+  }
+
+  /// Hours east of UTC of the days: --utc-offset, else local mean solar time.
+  double day_offset() const { return o.utc_offset.value_or(r.location.longitude_deg / 15.0); }
+
+  /// A day of shadows (--day, --every): the shadow of every instant with the sun up, a map per
+  /// instant (numbered frames), and per point the hours of sun and of shadow.
+  void day_frames() {
+    const double every = parse_step(o.every);
+    r.start_unix = period_time("day", o.day, day_offset(), false);
+    r.end_unix = r.start_unix + 86400.0;
+    r.step_hours = every / 3600.0;
+    const std::size_t n = cloud.size();
+    std::vector<double> sun(n, 0.0), shadow(n, 0.0), frame(n);
+    const std::filesystem::path stem = std::filesystem::path(o.raster).replace_extension();
+    for (double t = r.start_unix; t < r.end_unix - 1e-6; t += every) {
+      const SolarStep step = make_step(t, r.step_hours, nullptr);
+      if (!(step.ray_direction.z > 0.0)) continue;  // night: no frame
+      ++r.steps;
+      ++r.sun_steps;
+      const std::vector<Vec3> dir{step.ray_direction};
+      trace_directions(
+          *cs.site, cloud.positions, dir, normals, vo,
+          [&](PointIndex i, std::span<const std::uint64_t> open) { frame[i] = (open[0] & 1u) ? 0.0 : 1.0; },
+          false);
+      for (std::size_t i = 0; i < n; ++i) {
+        const bool lit = frame[i] == 0.0 && glm::dot(normals[i], step.direction) > 0.0;
+        sun[i] += lit ? r.step_hours : 0.0;
+        shadow[i] += frame[i] * r.step_hours;
+      }
+      if (!o.raster.empty()) {
+        const std::string when = format_iso8601(t, day_offset());
+        const std::string hhmm = when.substr(11, 2) + when.substr(14, 2);
+        frames.push_back({std::filesystem::path(stem.string() + "_" + hhmm + ".tif"), when, frame});
+      }
+    }
+    r.rays = std::uint64_t(n) * r.steps;
+    std::snprintf(buf, sizeof buf, "%zu instants with the sun up, every %.4g h on %s", r.steps, r.step_hours,
+                  format_iso8601(r.start_unix, day_offset()).substr(0, 10).c_str());
+    ctl.info(buf);
+    detail::set_scalar(cloud, "sun_hours", std::move(sun));
+    detail::set_scalar(cloud, "shadow_hours", std::move(shadow));
   }
 
   void write_outputs() {
@@ -593,7 +678,17 @@ struct SolarRun {
       detail::write_result_cloud(o.out, cloud, r.info);
       r.written.push_back(o.out);
     }
-    if (!o.raster.empty()) write_raster();
+    if (frames_mode) {
+      for (const Frame& f : frames)
+        write_map(f.path, {}, f.shadow, "shadow at " + f.when, "1", true, std::nullopt);
+      if (!frames.empty()) {
+        std::snprintf(buf, sizeof buf, "%zu shadow frames %s ... %s (and .png)", frames.size(),
+                      frames.front().path.string().c_str(), frames.back().path.filename().string().c_str());
+        ctl.info(buf);
+      }
+    } else if (!o.raster.empty()) {
+      write_raster();
+    }
     tx.commit();
   }
 };
@@ -605,8 +700,12 @@ SolarJobResult run_solar(const SolarJobOptions& o) {
   run.check_options();
   run.open_site();
   run.locate();
-  run.sun_and_sky();
-  run.trace_and_sum();
+  if (run.frames_mode) {
+    run.day_frames();
+  } else {
+    run.sun_and_sky();
+    run.trace_and_sum();
+  }
   run.write_outputs();
   run.r.cloud = std::move(run.cloud);
   return std::move(run.r);

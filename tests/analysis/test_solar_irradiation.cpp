@@ -350,3 +350,48 @@ TEST(SolarCli, BadInputIsOneLineAndExitCodeTwo) {
     EXPECT_FALSE(std::filesystem::exists(out)) << c.args;
   }
 }
+
+// A day of shadows: a frame for every instant with the sun up (numbered by the clock), and per
+// point the hours of sun and of shadow; open ground far from a wall has every sunny hour, the
+// ground at the wall's north foot has shadow all day at this latitude.
+TEST(SolarJob, ADayOfShadowsWritesAFramePerSunnyInstant) {
+  PointCloud cloud;
+  for (double x = -20; x <= 20; x += 0.5)
+    for (double y = -20; y <= 20; y += 0.5) cloud.positions.emplace_back(x, y, 0.0);
+  for (double x = -10; x <= 10; x += 0.1)
+    for (double z = 0.1; z <= 8.0; z += 0.1) cloud.positions.emplace_back(x, 0.0, z);  // an east-west wall
+  jobs::SolarJobOptions o;
+  o.cloud = &cloud;
+  o.latitude = 48.0;
+  o.longitude = 11.0;
+  o.day = "2026-12-21";
+  o.every = "1h";
+  o.utc_offset = 1.0;
+  o.raster = testing::TempDir() + "/winter.tif";
+  o.cell = 1.0;
+  o.control.threads = 2;
+  const jobs::SolarJobResult r = jobs::run_solar(o);
+  // Winter solstice at 48 N: the sun is up from about 08:00 to 16:20 local time.
+  EXPECT_GE(r.steps, 8u);
+  EXPECT_LE(r.steps, 9u);
+  EXPECT_EQ(r.written.size(), 2 * r.steps);  // a GeoTIFF and a PNG per instant
+  EXPECT_TRUE(std::filesystem::exists(testing::TempDir() + "/winter_1200.tif"));
+  EXPECT_TRUE(std::filesystem::exists(testing::TempDir() + "/winter_1200.png"));
+  const std::vector<double>*sun = nullptr, *shadow = nullptr;
+  for (const ScalarField& f : r.cloud.scalars) {
+    if (f.name == "sun_hours") sun = &f.values;
+    if (f.name == "shadow_hours") shadow = &f.values;
+  }
+  ASSERT_TRUE(sun && shadow);
+  const auto at = [&](double x, double y) {
+    std::size_t best = 0;
+    for (std::size_t i = 0; i < cloud.positions.size(); ++i)
+      if (glm::length(cloud.positions[i] - Vec3(x, y, 0)) < glm::length(cloud.positions[best] - Vec3(x, y, 0))) best = i;
+    return best;
+  };
+  const std::size_t open = at(-18, -18), north_foot = at(0, 2);
+  EXPECT_DOUBLE_EQ((*sun)[open], double(r.steps));
+  EXPECT_DOUBLE_EQ((*shadow)[open], 0.0);
+  EXPECT_DOUBLE_EQ((*sun)[north_foot], 0.0);
+  EXPECT_DOUBLE_EQ((*shadow)[north_foot], double(r.steps));
+}

@@ -85,6 +85,14 @@ struct SolarJobOptions {
   std::string start, end;
   std::string step = "1h";              ///< time step: N min | N h | N d (e.g. 30min, 1h)
   std::string at;                       ///< one instant instead of a period: shadows and irradiance
+  /// A day of shadows instead (a date, YYYY-MM-DD): the shadows every `every` while the sun is up,
+  /// a map per instant with `raster` (RASTER_HHMM.tif and .png: numbered frames of an
+  /// animation), and per point sun_hours and shadow_hours.
+  std::string day;
+  std::string every = "30min";          ///< the instants of `day`
+  /// Hours east of UTC of the days (a date alone in `start`, `end`, `day`, `at` and the maps'
+  /// labels); nullopt = local mean solar time (longitude / 15).
+  std::optional<double> utc_offset;
   double delta_t = analysis::kDefaultDeltaT;  ///< TT - UT1, seconds (SPA)
   double pressure = 1013.25;            ///< mbar (SPA refraction)
   double temperature = 15.0;            ///< degrees C (SPA refraction)
@@ -109,7 +117,8 @@ struct SolarJobOptions {
   std::filesystem::path raster;         ///< top-surface GeoTIFF (.tif); needs `cell`
   std::optional<double> cell;           ///< raster cell edge, world units
   /// global | beam | diffuse | reflected | sun_hours | sky_view (a period); in_shadow | global |
-  /// beam | diffuse (an instant); "" = global for a period, in_shadow for an instant.
+  /// beam | diffuse (an instant); "" = global for a period, in_shadow for an instant; a day's
+  /// frames are shadows.
   std::string raster_value;
   std::filesystem::path preview;        ///< PNG preview ("" = the raster's name with .png)
   bool write_preview = true;
@@ -124,7 +133,8 @@ struct SolarJobResult {
   /// sky_view (fraction of the sky seen, weighted by the surface's cosine). An instant:
   /// in_shadow (1: the sun is down or the point's ray to the sun is blocked -- a cast shadow,
   /// whichever way its surface faces), irradiance_global, irradiance_beam, irradiance_diffuse
-  /// (W/m²; a surface facing away from the sun gets no beam).
+  /// (W/m²; a surface facing away from the sun gets no beam). A day of shadows: sun_hours and
+  /// shadow_hours (h with the sun up and the point's ray to it blocked).
   PointCloud cloud;
   io::FileInfo info;
   std::string source;
