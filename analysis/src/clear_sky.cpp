@@ -3,6 +3,8 @@
 // section 2, which restates ESRA (Rigollier et al. 2000, Solar Energy 68(1)) and Muneer (1990).
 #include "rayscan/analysis/clear_sky.hpp"
 
+#include "rayscan/analysis/angles.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -15,7 +17,6 @@ namespace csky {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-constexpr double kRadToDeg = 180.0 / kPi;
 
 std::string format_value(double v) {
   char buf[64];
@@ -110,7 +111,7 @@ double relative_optical_air_mass(double sun_elevation, double site_elevation_m) 
   const double h_ref = sun_elevation + refraction_correction(sun_elevation);  // eq. (6)
   // Eq. (5): Kasten & Young (1989) with the elevation in degrees inside the power term.
   return pressure_ratio /
-         (std::sin(h_ref) + 0.50572 * std::pow(h_ref * csky::kRadToDeg + 6.07995, -1.6364));
+         (std::sin(h_ref) + 0.50572 * std::pow(h_ref * (1.0 / kDegree) + 6.07995, -1.6364));
 }
 
 double rayleigh_optical_thickness(double air_mass) {
@@ -172,7 +173,7 @@ double grass_aspect_deg(double compass_aspect) {
   csky::require_finite("grass_aspect_deg", "compass_aspect", compass_aspect);
   // r.sun's main.c turns its input (counterclockwise from east) into compass degrees with
   // 90 - a (a < 90) or 450 - a; this is the inverse, kept in (0, 360].
-  double a = std::fmod(90.0 - compass_aspect * csky::kRadToDeg, 360.0);
+  double a = std::fmod(90.0 - compass_aspect * (1.0 / kDegree), 360.0);
   if (a <= 0.0) a += 360.0;
   return a;
 }

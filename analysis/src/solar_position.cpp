@@ -2,6 +2,8 @@
 // Section numbers (3.x, A.x) are the report's; the periodic terms are in spa_tables.hpp.
 #include "rayscan/analysis/solar_position.hpp"
 
+#include "rayscan/analysis/angles.hpp"
+
 #include "spa_tables.hpp"
 
 #include <algorithm>
@@ -28,8 +30,8 @@ constexpr double kJ2000 = 2451545.0;
 // The Sun's angular radius, with atmos_refract_deg it places the apparent horizon h0' (A.2).
 constexpr double kSunRadiusDeg = 0.26667;
 
-double radians(double deg) { return deg * (std::numbers::pi / 180.0); }
-double degrees(double rad) { return rad * (180.0 / std::numbers::pi); }
+double radians(double deg) { return deg * kDegree; }
+double degrees(double rad) { return rad / kDegree; }
 double sind(double deg) { return std::sin(radians(deg)); }
 double cosd(double deg) { return std::cos(radians(deg)); }
 
@@ -563,13 +565,6 @@ UtcInstant parse_iso8601(std::string_view text) {
   return t;
 }
 
-/// sun_direction_enu().
-std::array<double, 3> direction_enu(const SolarPosition& position) {
-  const double zen = radians(position.zenith_deg);
-  const double az = radians(position.azimuth_deg);
-  return {std::sin(zen) * std::sin(az), std::sin(zen) * std::cos(az), std::cos(zen)};
-}
-
 }  // namespace solar_detail
 
 SolarPosition solar_position(const SpaInput& input) { return solar_detail::compute_position(input); }
@@ -580,9 +575,5 @@ SunRiseTransitSet sun_rise_transit_set(const SpaInput& input,
 }
 
 UtcInstant parse_iso8601_utc(std::string_view text) { return solar_detail::parse_iso8601(text); }
-
-std::array<double, 3> sun_direction_enu(const SolarPosition& position) {
-  return solar_detail::direction_enu(position);
-}
 
 }  // namespace rayscan::analysis

@@ -5,6 +5,8 @@
 #
 #   OUT_DIR/rsun_global.tif   the weighted sum of the days' glob_rad, kWh/m^2, Float32, NoData
 #                             -9999, on exactly the DSM's grid and CRS (same geotransform)
+#   OUT_DIR/rsun_beam.tif, rsun_diffuse.tif, rsun_reflected.tif   the same sums of beam_rad,
+#                             diff_rad and refl_rad, when RSUN_COMPONENTS=1
 #
 # and prints one line per day and a summary:
 #
@@ -54,10 +56,10 @@ if [[ "${1:-}" != "--inner" ]]; then
   proj_m=$(sed -E 's/\+units=[a-z-]+//; s/\+to_meter=[0-9.eE+-]+//' <<<"$proj")
   proj_m="$proj_m +units=m"
   # The grid in metres: the same cells, coordinates x unit.
-  read -r ulx uly lrx lry <<<"$(gdalinfo -json "$dsm" | python3 -c '
-import json, sys
-c = json.load(sys.stdin)["cornerCoordinates"]
-print(c["upperLeft"][0], c["upperLeft"][1], c["lowerRight"][0], c["lowerRight"][1])')"
+  corner() { gdalinfo "$dsm" | sed -n "s/^$1 *( *\([-0-9.eE+]*\), *\([-0-9.eE+]*\)).*/\1 \2/p"; }
+  read -r ulx uly <<<"$(corner 'Upper Left')"
+  read -r lrx lry <<<"$(corner 'Lower Right')"
+  [[ -n $ulx && -n $lry ]] || { echo "cannot read the corners of $dsm" >&2; exit 1; }
   read -r mulx muly mlrx mlry <<<"$(awk -v u="$unit" -v a="$ulx" -v b="$uly" -v c="$lrx" -v d="$lry" \
     'BEGIN { printf "%.10f %.10f %.10f %.10f", a * u, b * u, c * u, d * u }')"
   gdal_translate -q -a_srs "$proj_m" -a_ullr "$mulx" "$muly" "$mlrx" "$mlry" "$dsm" "$out/dsm_xy_m.tif"
@@ -66,8 +68,14 @@ print(c["upperLeft"][0], c["upperLeft"][1], c["lowerRight"][0], c["lowerRight"][
   grass -c "$out/dsm_xy_m.tif" -e "$loc/loc" >/dev/null 2>&1
   grass "$loc/loc/PERMANENT" --exec bash "$0" --inner "$out" "$3" "$4" "$5" "$6" "$unit"
   # Back onto the DSM's own grid and CRS (the cells are the same; only the coordinates' unit).
-  gdal_translate -q -a_srs "$dsm" -a_ullr "$ulx" "$uly" "$lrx" "$lry" "$out/rsun_global_m.tif" "$out/rsun_global.tif"
-  rm -f "$out/rsun_global_m.tif" "$out/dsm_xy_m.tif"
+  gdalsrsinfo -o wkt "$dsm" >"$out/dsm_crs.wkt"
+  for name in global beam diffuse reflected; do
+    [[ -f "$out/rsun_${name}_m.tif" ]] || continue
+    gdal_translate -q -a_srs "$out/dsm_crs.wkt" -a_ullr "$ulx" "$uly" "$lrx" "$lry" "$out/rsun_${name}_m.tif" \
+      "$out/rsun_$name.tif"
+    rm -f "$out/rsun_${name}_m.tif"
+  done
+  rm -f "$out/dsm_xy_m.tif" "$out/dsm_crs.wkt"
   exit 0
 fi
 shift
@@ -78,18 +86,25 @@ g.region --quiet raster=dsm_in
 r.mapcalc --quiet --overwrite expression="z = dsm_in * $unit"
 r.slope.aspect --quiet --overwrite elevation=z slope=slope aspect=aspect
 
+components=""
+[[ ${RSUN_COMPONENTS:-0} == 1 ]] && components=1
 expr="0"
 for dw in $days; do
   day=${dw%%:*} weight=${dw##*:}
   t0=$(date +%s.%N)
   r.sun --quiet --overwrite elevation=z slope=slope aspect=aspect linke_value="$linke" \
-    albedo_value="$albedo" day="$day" step="$step" nprocs="${RSUN_NPROCS:-1}" glob_rad="g_$day"
+    albedo_value="$albedo" day="$day" step="$step" nprocs="${RSUN_NPROCS:-1}" glob_rad="g_$day" \
+    ${components:+beam_rad="b_$day" diff_rad="d_$day" refl_rad="r_$day"}
   t1=$(date +%s.%N)
   echo "RSUN_DAY $day $weight $(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.2f", b - a }')"
   expr="$expr + $weight * g_$day"
 done
-r.mapcalc --quiet --overwrite expression="year = float(($expr) / 1000.0)"
-r.out.gdal --quiet --overwrite -c input=year output="$out/rsun_global_m.tif" format=GTiff type=Float32 \
-  nodata=-9999 createopt="COMPRESS=DEFLATE"
-eval "$(r.univar -g map=year)"
+export_sum() {  # map-prefix name
+  r.mapcalc --quiet --overwrite expression="sum_$2 = float((${expr//g_/$1_}) / 1000.0)"
+  r.out.gdal --quiet --overwrite -c input="sum_$2" output="$out/rsun_$2_m.tif" format=GTiff type=Float32 \
+    nodata=-9999 createopt="COMPRESS=DEFLATE"
+}
+export_sum g global
+if [[ -n $components ]]; then export_sum b beam; export_sum d diffuse; export_sum r reflected; fi
+eval "$(r.univar -g map=sum_global)"
 echo "RSUN_CELLS $n $cells"

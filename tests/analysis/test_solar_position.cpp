@@ -2,6 +2,7 @@
 // (Reda & Andreas, NREL/TP-560-34302, A.5) and astropy (ERFA: IAU 2006/2000A precession-nutation,
 // the epv00 Earth ephemeris fitted to JPL DE405), through tests/analysis/solar_astropy.py. Also the
 // ISO 8601 parser, input validation, polar days and nights, and the ENU direction.
+#include "rayscan/analysis/site_location.hpp"
 #include "rayscan/analysis/solar_position.hpp"
 
 #include "../common/run_command.hpp"
@@ -557,7 +558,8 @@ TEST(SolarPositionDirection, Enu) {
     SolarPosition p;
     p.zenith_deg = zenith;
     p.azimuth_deg = azimuth;
-    return sun_direction_enu(p);
+    const rayscan::Vec3 v = direction_from_azimuth(p.azimuth_deg, 90.0 - p.zenith_deg);
+    return std::array<double, 3>{v.x, v.y, v.z};
   };
   const auto expect_dir = [](std::array<double, 3> d, double x, double y, double z) {
     EXPECT_NEAR(d[0], x, 1e-12);
@@ -570,7 +572,9 @@ TEST(SolarPositionDirection, Enu) {
   expect_dir(dir(90.0, 270.0), -1.0, 0.0, 0.0);                   // west horizon
   expect_dir(dir(60.0, 180.0), 0.0, -std::sqrt(3.0) / 2.0, 0.5);  // south, 30 degrees up
   // The example's Sun: south-south-west, 39.9 degrees up.
-  const auto d = sun_direction_enu(solar_position(paper_example()));
+  const SolarPosition sun = solar_position(paper_example());
+  const rayscan::Vec3 v = direction_from_azimuth(sun.azimuth_deg, sun.elevation_deg);
+  const std::array<double, 3> d{v.x, v.y, v.z};
   EXPECT_NEAR(std::hypot(d[0], d[1], d[2]), 1.0, 1e-12);
   EXPECT_NEAR(std::asin(d[2]) * 180.0 / std::numbers::pi, 39.888378, 5e-7);
   EXPECT_NEAR(std::atan2(d[0], d[1]) * 180.0 / std::numbers::pi + 360.0, 194.34024, 5e-6);

@@ -3,15 +3,13 @@
 // compass azimuth into a direction in the cloud's own x, y frame.
 #pragma once
 
+#include "rayscan/analysis/angles.hpp"
 #include "rayscan/octree/geometry.hpp"
 
 #include <numbers>
 #include <string>
 
 namespace rayscan::analysis {
-
-/// One degree in radians.
-inline constexpr double kDegree = std::numbers::pi / 180.0;
 
 /// A site's place on the WGS 84 ellipsoid and the orientation of its projected grid there.
 struct SiteLocation {

@@ -131,8 +131,4 @@ struct SunRiseTransitSet {
 SunRiseTransitSet sun_rise_transit_set(const SpaInput& input,
                                        std::optional<double> utc_offset_hours = std::nullopt);
 
-/// Unit vector towards the Sun in the local ENU frame (x east, y north, z up), from
-/// position.zenith_deg and position.azimuth_deg (refracted when SpaInput::refraction was set).
-std::array<double, 3> sun_direction_enu(const SolarPosition& position);
-
 }  // namespace rayscan::analysis
