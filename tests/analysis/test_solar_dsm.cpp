@@ -14,12 +14,23 @@
 // irradiations x 31, 28, ...), 30 min steps, Linke 3, albedo 0.2 in both programs. On a flat open
 // cell at autzen's latitude that sample is +0.07 % off r.sun's full 365-day sum (rsun_daily.sh).
 //
-// "Open terrain": a cell whose highest point is ground (it holds class-2 points, and its top point
-// is at most kGroundTolerance above the highest of them: no crown or roof in the cell), whose DSM
+// "Open terrain": a cell whose highest point is ground (at most kGroundTolerance above the cell's
+// highest class-2 point, or above the lowest point of the cell and its 8 neighbours: no crown, bank
+// or railing in it; autzen_trim's class 2 is sparse, most of the field is class 1), whose DSM
 // slope (Horn, 3 x 3 valid cells) is below kMaxSlopeDeg and whose DSM horizon (32 azimuths out to
-// kHorizonReach) is below kMaxHorizonDeg everywhere. The other cells are reported by kind: ground
-// next to trees and buildings (obstructed), crowns and roofs, steep cells; where they differ and
-// why is in docs/solar.md.
+// kHorizonReach) is below kMaxHorizonDeg in every direction. The other cells are reported by kind.
+//
+// Measured (this code, GRASS 8.2.1): open terrain 7,811 cells, 99.6 % within 5 %, median -0.32 %
+// (5-95 %: -2.0 .. +1.3 %); those ground by class 2 alone 3,784 cells, 99.2 %. rayscan's diffuse
+// is 1.3 % lower there (its sky view, 0.988 median, scales it; r.sun's diffuse has no sky view),
+// the beam agrees to 0.1 %; the 0.4 % of misses lie near the DSM's holes (the river), where
+// rayscan's points shade what r.sun sees as open. Ground next to trees (horizon >= 20 degrees):
+// 77.5 % within 5 %, median -1.4 %: lower where the crowns also hide sky (diffuse -12 %), higher
+// where sun passes through gaps in the crowns (spheres; the DSM's crowns are solid). Crowns, the
+// bank and the footbridge (raised > 10 ft): 19 % within 5 %: r.sun tilts each cell by the DSM's
+// 3 x 3 slope (a crown's or the bridge's edge is a steep wall facing out), rayscan by the top
+// point's own normal. Time per day, one thread, 2 shared cores: r.sun ~0.7-1.0 s for 46,215
+// cells, rayscan ~3.1-3.4 s for 110,000 points (with 64 sky-view rays per point); about 70 s in all.
 //
 // Skipped when `grass` (Debian grass-core) or GDAL's command line tools are not installed.
 #include <gtest/gtest.h>
@@ -361,7 +372,7 @@ TEST(SolarDsmRsun, YearlyGlobalOfOpenTerrainCellsMatchesGrassRsunOnRayscansOwnDs
   // ground: by class (its highest point at most kGroundTolerance above its highest class-2 point)
   // or by height (at most kGroundTolerance above the lowest point of it and its 8 neighbours;
   // autzen_trim's class 2 is sparse: most of the field's points are class 1). Raised: more than
-  // 10 ft above the lowest point within 30 ft (crowns, roofs, the bridge).
+  // 10 ft above the lowest point within 30 ft (crowns, the footbridge; autzen_trim has no building).
   const auto lowest_within = [&](std::size_t k, int reach) {
     const int r = int(k / std::size_t(dsm.cols)), q = int(k % std::size_t(dsm.cols));
     double low = std::numeric_limits<double>::infinity();
@@ -392,7 +403,7 @@ TEST(SolarDsmRsun, YearlyGlobalOfOpenTerrainCellsMatchesGrassRsunOnRayscansOwnDs
   print("open terrain (ground, slope < 15, horizon < 20)", a_open);
   print("  of which ground by class 2", a_open_class);
   print("ground, slope < 15, horizon >= 20 (obstructed)", agreement(obstructed));
-  print("raised > 10 ft (crowns, roofs, the bridge)", agreement(raised));
+  print("raised > 10 ft (crowns, the footbridge)", agreement(raised));
   print("DSM slope >= 15 or unknown", agreement(steep));
   print("every cell valid in both", agreement(all));
   std::printf("time per day (median of 12, one thread): r.sun %.2f s for %ld cells (%.1f us per cell), rayscan "
