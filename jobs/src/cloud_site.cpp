@@ -1,10 +1,13 @@
 #include "cloud_site.hpp"
 
+#include "rayscan/analysis/geotiff.hpp"
+#include "rayscan/base/file_names.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/site/index_file.hpp"
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <stdexcept>
 
@@ -88,6 +91,19 @@ void check_output_folder(const char* field, const std::filesystem::path& path) {
     throw OptionError({option(field), " '" + path.string() + "': folder '" + dir.string() + "' does not exist"});
   if (!fs::is_directory(st))
     throw OptionError({option(field), " '" + path.string() + "': '" + dir.string() + "' is not a folder"});
+}
+
+void check_raster_options(const std::filesystem::path& raster, std::optional<double> cell,
+                          const std::string& raster_value, const std::filesystem::path& preview) {
+  if (!raster.empty()) {
+    if (!has_extension(raster, analysis::geotiff_extensions()))
+      throw OptionError({option("raster"), " '" + raster.string() + "': expected a file name ending in .tif (GeoTIFF)"});
+    if (!cell) throw OptionError({option("raster"), " needs ", option("cell"), " SIZE (cell edge in the cloud's units)"});
+    if (!(*cell > 0.0) || !std::isfinite(*cell)) throw OptionError({option("cell"), ": expected a number > 0"});
+  } else if (cell || !raster_value.empty() || !preview.empty()) {
+    throw OptionError({option("cell"), ", ", option("raster_value"), " and ", option("preview"), " need ",
+                       option("raster"), " OUT.tif"});
+  }
 }
 
 void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values) {

@@ -52,6 +52,11 @@ SurfelAttributes estimate_analysis_surfels(const CloudSite& cs, const SurfelOpti
 /// of a long run. An empty path is not an output.
 void check_output_folder(const char* field, const std::filesystem::path& path);
 
+/// The options of a top-down map: `raster` a GeoTIFF name (.tif) with a `cell` > 0, and
+/// `raster_value` and `preview` only with a raster. Throws OptionError naming the fields.
+void check_raster_options(const std::filesystem::path& raster, std::optional<double> cell,
+                          const std::string& raster_value, const std::filesystem::path& preview);
+
 /// Sets (or adds) the scalar field `name` of `cloud`.
 void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values);
 

@@ -72,17 +72,7 @@ struct VisibilityRun {
     if (!o.out.empty())
       if (const std::string why = io::point_cloud_output_problem(o.out); !why.empty())
         throw OptionError({option("out"), " '" + o.out.string() + "': " + why});
-    if (!o.raster.empty()) {
-      if (!has_extension(o.raster, geotiff_extensions()))
-        throw OptionError(
-            {option("raster"), " '" + o.raster.string() + "': expected a file name ending in .tif (GeoTIFF)"});
-      if (!o.cell)
-        throw OptionError({option("raster"), " needs ", option("cell"), " SIZE (cell edge in the cloud's units)"});
-      if (!(*o.cell > 0.0) || !std::isfinite(*o.cell)) throw OptionError({option("cell"), ": expected a number > 0"});
-    } else if (o.cell || !o.raster_value.empty() || !o.preview.empty()) {
-      throw OptionError({option("cell"), ", ", option("raster_value"), " and ", option("preview"), " need ",
-                         option("raster"), " OUT.tif"});
-    }
+    detail::check_raster_options(o.raster, o.cell, o.raster_value, o.preview);
     check_output_folder("out", o.out);
     check_output_folder("raster", o.raster);
     if (o.write_preview) {

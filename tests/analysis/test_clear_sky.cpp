@@ -1,6 +1,8 @@
 // ESRA clear-sky model (rayscan/analysis/clear_sky.hpp): its pieces, its validation, the
 // transposition of measured irradiance, and agreement with GRASS GIS r.sun itself, run at test
 // time by tests/analysis/rsun_instant.sh (skipped when `grass` is not installed).
+#include "run_command.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -239,19 +241,7 @@ struct RsunCase {
   double incid_deg = 0, beam = 0, diff = 0, refl = 0, glob = 0, azimuth_deg = 0;
 };
 
-std::string run_output(const std::string& command, int& status) {
-  std::string out;
-  FILE* p = popen(command.c_str(), "r");
-  if (!p) {
-    status = -1;
-    return out;
-  }
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) out.append(buf.data(), n);
-  status = pclose(p);
-  return out;
-}
+using rayscan::test::run_output;
 
 std::vector<RsunCase> parse_rsun(const std::string& text) {
   std::vector<RsunCase> cases;

@@ -33,6 +33,8 @@
 // cells, rayscan ~3.1-3.4 s for 110,000 points (with 64 sky-view rays per point); about 70 s in all.
 //
 // Skipped when `grass` (Debian grass-core) or GDAL's command line tools are not installed.
+#include "run_command.hpp"
+
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -76,20 +78,7 @@ constexpr double kLinke = 3.0, kAlbedo = 0.2;
 constexpr int kYear = 2026;
 constexpr std::array<int, 12> kMonthDays = {31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31};
 
-std::string run_output(const std::string& command, int& status) {
-  std::string out;
-  FILE* p = popen(command.c_str(), "r");
-  if (!p) {
-    status = -1;
-    return out;
-  }
-  std::array<char, 65536> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) out.append(buf.data(), n);
-  const int raw = pclose(p);
-  status = (raw != -1 && WIFEXITED(raw)) ? WEXITSTATUS(raw) : -1;
-  return out;
-}
+using rayscan::test::run_output;
 
 bool installed(const char* program) {
   int status = 0;

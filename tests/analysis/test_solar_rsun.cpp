@@ -5,6 +5,8 @@
 // them (clear sky, exact per-step shadow rays) and reads the per-point fields back from its CSV
 // output; r.sun runs in its daily mode on one-row flat/tilted rasters through
 // tests/analysis/rsun_daily.sh (skipped when `grass` is not installed).
+#include "run_command.hpp"
+
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -48,20 +50,7 @@ constexpr double kTolerance = 0.02;
 // within kCentre of the origin (horizontally), far from the edges.
 constexpr double kHalf = 15.0, kSpacing = 0.5, kCentre = 4.0;
 
-std::string run_output(const std::string& command, int& status) {
-  std::string out;
-  FILE* p = popen(command.c_str(), "r");
-  if (!p) {
-    status = -1;
-    return out;
-  }
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) out.append(buf.data(), n);
-  const int raw = pclose(p);
-  status = (raw != -1 && WIFEXITED(raw)) ? WEXITSTATUS(raw) : -1;
-  return out;
-}
+using rayscan::test::run_output;
 
 bool grass_installed() {
   int status = 0;
