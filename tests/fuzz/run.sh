@@ -58,7 +58,7 @@ fi
 # Link every target and seed its corpus, then run up to FUZZ_JOBS targets at a time (each libFuzzer
 # process is single-threaded, so one at a time left a core idle for the whole bounded run).
 
-TARGETS=(${FUZZ_TARGETS:-las ply pcd text laz copc rsi sql})
+TARGETS=(${FUZZ_TARGETS:-las ply pcd text laz copc rsi sql epw})
 for fmt in "${TARGETS[@]}"; do
   if [ -n "${FUZZ_BUILD:-}" ]; then
     [ -x "$FUZZ_BUILD/tests/fuzz/fuzz_$fmt" ] ||
@@ -69,6 +69,8 @@ for fmt in "${TARGETS[@]}"; do
     echo "fuzz: linking $exe"
     if [ "$fmt" = sql ]; then
       "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer tests/fuzz/fuzz_sql.cpp "${sql_objs[@]}" -lsqlite3 -o "$exe"
+    elif [ "$fmt" = epw ]; then  # the reader alone: it depends on nothing else of rayscan
+      "$CXX" "${FLAGS[@]}" -Ianalysis/include -fsanitize=fuzzer tests/fuzz/fuzz_epw.cpp analysis/src/epw.cpp -o "$exe"
     else
       "$CXX" "${FLAGS[@]}" -fsanitize=fuzzer "tests/fuzz/fuzz_$fmt.cpp" "${objs[@]}" -lgdal -llzf -lz -ltbb -o "$exe"
     fi
@@ -84,6 +86,7 @@ for fmt in "${TARGETS[@]}"; do
     rsi) seeds=() ;;  # the small index files in regressions/rsi (built by `rayscan index`)
     copc) seeds=(tests/data/laz/*.copc.laz) ;;  # lone-star.copc.laz (bundled, 2.7 MB)
     sql) seeds=() ;;  # the calls below, and regressions/sql
+    epw) seeds=() ;;  # a day of a generated file below
   esac
   for f in "${seeds[@]}"; do
     # Seeds over 256 KiB are cut to their head (libFuzzer's -max_len); small ones are whole.
@@ -93,6 +96,17 @@ for fmt in "${TARGETS[@]}"; do
     printf 'x,y,z,red,green,blue,intensity\n1.5,2.5,3.5,255,0,10,7\n' > "$corpus/seed-header.csv"
     head -n 50 tests/data/pcd/lamppost.pcd | tail -n 30 > "$corpus/seed-xyz.txt"
     head -n 40 tests/data/pcd/utm17_space.pcd | tail -n 10 > "$corpus/seed-utm.xyz"
+  fi
+  if [ "$fmt" = epw ]; then  # a valid file of one day (the EPW data dictionary's 8 header lines, 24 records)
+    {
+      echo 'LOCATION,Test,CA,USA,TMY3,724940,37.62,-122.40,-8.0,2.0'
+      printf 'DESIGN CONDITIONS,0\nTYPICAL/EXTREME PERIODS,0\nGROUND TEMPERATURES,0\n'
+      printf 'HOLIDAYS/DAYLIGHT SAVINGS,No,0,0,0\nCOMMENTS 1,fuzz seed\nCOMMENTS 2,\n'
+      echo 'DATA PERIODS,1,1,Data,Sunday, 1/ 1, 1/ 1'
+      for h in $(seq 1 24); do
+        echo "1999,1,1,$h,60,?9?9?9?9,10.0,5.0,70,101325,0,0,300,$((h * 20)),$((h * 15)),$((h * 5)),0,0,0,0,180,2.0,10,10,10.0,1000,9,999999999,0,0.1,0,0,0.2,0.0,0.0"
+      done
+    } > "$corpus/seed-day.epw"
   fi
   if [ "$fmt" = sql ]; then  # one valid call of each kind (fuzz_sql.cpp: the input format)
     printf 'dist_ray\n0\n0\n0\n1\n0\n0\n1\n2\n3' > "$corpus/seed-dist_ray"
