@@ -52,13 +52,7 @@ int run_solar(SolarCli& o) {
   if (o.position_cmd->parsed()) return run_position(o);
   if (o.cloud.empty()) throw UsageError("expected a CLOUD, or the subcommand position (see --help)");
   jobs::SolarJobOptions& job = o.job;
-  if (o.radius != "auto") {
-    char* end = nullptr;
-    const double r = std::strtod(o.radius.c_str(), &end);
-    if (end == o.radius.c_str() || *end || !(r > 0.0) || !std::isfinite(r))
-      throw UsageError("--radius '" + o.radius + "': expected a number > 0 or auto");
-    job.radius = r;
-  }
+  job.radius = parse_radius(o.radius);
   job.cloud_file = o.cloud;
   job.out = o.out;
   job.raster = o.raster;

@@ -31,13 +31,7 @@ struct VisibilityCli {
 
 int run_visibility(VisibilityCli& o) {
   jobs::VisibilityJobOptions& job = o.job;
-  if (o.radius != "auto") {
-    char* end = nullptr;
-    const double r = std::strtod(o.radius.c_str(), &end);
-    if (end == o.radius.c_str() || *end || !(r > 0.0) || !std::isfinite(r))
-      throw UsageError("--radius '" + o.radius + "': expected a number > 0 or auto");
-    job.radius = r;
-  }
+  job.radius = parse_radius(o.radius);
   if (!o.azimuth.empty() && o.azimuth.size() != 2)
     throw UsageError("--azimuth: expected FROM,TO in degrees clockwise from north");
   if (!o.elevation.empty() && o.elevation.size() != 2)

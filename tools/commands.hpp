@@ -5,9 +5,11 @@
 #include <CLI/CLI.hpp>
 
 #include <charconv>
+#include <cstdlib>
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -49,6 +51,17 @@ inline CLI::Validator finite_number(double lo, double hi, bool lo_open = false) 
 inline CLI::Validator non_negative() { return finite_number(0.0, std::numeric_limits<double>::max()); }
 /// finite_number(0, max, open): a finite number > 0 (replaces CLI::PositiveNumber).
 inline CLI::Validator positive() { return finite_number(0.0, std::numeric_limits<double>::max(), true); }
+
+/// The value of --radius: a finite number > 0, or "auto" (nullopt: the job chooses the radius from
+/// the point spacing). Throws UsageError naming the flag.
+inline std::optional<double> parse_radius(const std::string& text) {
+  if (text == "auto") return std::nullopt;
+  char* end = nullptr;
+  const double r = std::strtod(text.c_str(), &end);
+  if (end == text.c_str() || *end || !(r > 0.0) || !std::isfinite(r))
+    throw UsageError("--radius '" + text + "': expected a number > 0 or auto");
+  return r;
+}
 
 /// Registers a subcommand on `app` and returns the callable that runs it after parsing.
 /// The callable returns the process exit code (0 success; 1 "failed a check", e.g. compare).
