@@ -111,6 +111,8 @@ Runner add_solar_command(CLI::App& app) {
                 "one shadow ray per point (0 = one ray per step)")
       ->capture_default_str()
       ->check(finite_number(0, 30));
+  c->add_flag("--monthly", o->job.monthly,
+              "Also each month's global irradiation: fields solar_global_01 .. solar_global_12 (kWh/m²)");
   c->add_option("--sky-rays", o->job.sky_rays, "Sky-map directions per point for the diffuse's sky view (0 = open sky)")
       ->capture_default_str()
       ->check(CLI::Range(0u, 4096u));

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <map>
+#include <tuple>
 #include <numbers>
 #include <stdexcept>
 #include <utility>
@@ -21,7 +22,7 @@ SunMap build_sun_map(std::vector<SolarStep> steps, double sector_deg) {
   if (!(sector_deg >= 0.0) || !std::isfinite(sector_deg))
     throw std::invalid_argument("sun map: the sector size must be a finite number of degrees >= 0");
   SunMap map;
-  std::map<std::pair<long, long>, std::uint32_t> cells;  // (azimuth cell, elevation cell) -> sector
+  std::map<std::tuple<long, long, std::uint32_t>, std::uint32_t> cells;  // (azimuth, elevation, group) -> sector
   std::vector<Vec3> sums;
   std::vector<std::uint32_t> count;
   for (SolarStep& s : steps) {
@@ -39,7 +40,8 @@ SunMap build_sun_map(std::vector<SolarStep> steps, double sector_deg) {
     double az = std::atan2(s.ray_direction.x, s.ray_direction.y) / kDegree;
     if (az < 0.0) az += 360.0;
     const double el = std::asin(std::min(1.0, s.ray_direction.z)) / kDegree;
-    const std::pair<long, long> key{long(std::floor(az / sector_deg)), long(std::floor(el / sector_deg))};
+    const std::tuple<long, long, std::uint32_t> key{long(std::floor(az / sector_deg)), long(std::floor(el / sector_deg)),
+                                                   s.group};
     auto [it, added] = cells.try_emplace(key, static_cast<std::uint32_t>(sums.size()));
     if (added) {
       sums.emplace_back(0.0);
@@ -55,10 +57,15 @@ SunMap build_sun_map(std::vector<SolarStep> steps, double sector_deg) {
   map.steps = std::move(steps);
   // The sums per sector (and of the steps without beam).
   map.sums.resize(map.directions.size());
+  std::uint32_t groups = 1;
+  for (const SolarStep& s : map.steps) groups = std::max(groups, s.group + 1);
+  map.no_beam.resize(groups);
+  for (std::uint32_t k = 0; k < groups; ++k) map.no_beam[k].group = k;
   for (std::uint32_t t = 0; t < map.steps.size(); ++t) {
     const SolarStep& s = map.steps[t];
     const bool beam = s.beam_normal > 0.0 && s.ray_direction.z > 0.0;
-    SectorSums& g = beam ? map.sums[s.sector] : map.no_beam;
+    SectorSums& g = beam ? map.sums[s.sector] : map.no_beam[s.group];
+    g.group = s.group;
     const double h = s.hours, dh = s.diffuse_horizontal * h;
     g.steps.push_back(t);
     g.hours += h;
@@ -90,7 +97,7 @@ SunMap build_sun_map(std::vector<SolarStep> steps, double sector_deg) {
 
 PointIrradiation accumulate_irradiation(const SunMap& map, std::span<const Vec3> sky, const Vec3& normal,
                                         double convergence_deg, double albedo,
-                                        std::span<const std::uint64_t> open) {
+                                        std::span<const std::uint64_t> open, std::span<double> global_by_group) {
   PointIrradiation out;
   const std::size_t nsec = map.directions.size();
   if (open.size() < (nsec + sky.size() + 63) / 64)
@@ -112,6 +119,18 @@ PointIrradiation accumulate_irradiation(const SunMap& map, std::span<const Vec3>
   const MuneerSurfaceTerms m = muneer_surface_terms(surface);
   const double shadow_ratio = m.flat ? 1.0 : m.r_sky + kMuneerShadowN * m.fg;
   double diffuse = 0.0, ground = 0.0;  // diffuse before the sky view; the ground-reflected source
+  const double rr = (1.0 - std::cos(surface.slope)) / 2.0;  // the tilted plane's ground view
+  // What a group of steps added to the sums since the marks: its global irradiation.
+  double beam_mark = 0.0, diffuse_mark = 0.0, ground_mark = 0.0;
+  auto credit = [&](std::uint32_t group) {
+    if (global_by_group.empty()) return;
+    if (group >= global_by_group.size()) throw std::invalid_argument("irradiation: a step group has no entry");
+    global_by_group[group] += (out.beam - beam_mark) + (diffuse - diffuse_mark) * out.sky_view +
+                              albedo * (ground - ground_mark) * rr;
+    beam_mark = out.beam;
+    diffuse_mark = diffuse;
+    ground_mark = ground;
+  };
   // One step at a time: the sectors whose steps lie on both sides of the surface's plane.
   auto step_by_step = [&](const SolarStep& s, bool open) {
     const double c = std::clamp(glm::dot(normal, s.direction), -1.0, 1.0);
@@ -143,11 +162,15 @@ PointIrradiation accumulate_irradiation(const SunMap& map, std::span<const Vec3>
     } else {
       for (std::uint32_t t : g.steps) step_by_step(map.steps[t], open_k);
     }
+    credit(g.group);
   }
-  diffuse += shadow_ratio * map.no_beam.diffuse;
-  ground += map.no_beam.reflect_shadow;
+  for (const SectorSums& g : map.no_beam) {
+    diffuse += shadow_ratio * g.diffuse;
+    ground += g.reflect_shadow;
+    credit(g.group);
+  }
   out.diffuse = diffuse * out.sky_view;
-  out.reflected = albedo * ground * (1.0 - std::cos(surface.slope)) / 2.0;  // the tilted plane's ground view
+  out.reflected = albedo * ground * rr;
   return out;
 }
 

@@ -449,8 +449,11 @@ struct SolarRun {
     if (n > 1e6) throw OptionError({"the period has more than 1,000,000 time steps; use a longer ", option("step")});
     r.step_hours = step / 3600.0;
     steps.reserve(std::size_t(n));
-    for (std::size_t k = 0; k < std::size_t(n); ++k)
-      steps.push_back(make_step(r.start_unix + (double(k) + 0.5) * step, r.step_hours, nullptr));
+    for (std::size_t k = 0; k < std::size_t(n); ++k) {
+      const double t = r.start_unix + (double(k) + 0.5) * step;
+      steps.push_back(make_step(t, r.step_hours, nullptr));
+      if (o.monthly) steps.back().group = static_cast<std::uint32_t>(month_of(t + day_offset() * 3600.0) - 1);
+    }
   }
 
   /// The weather file's records whose interval's middle falls in the period, read as the
@@ -473,6 +476,7 @@ struct SolarRun {
         if (t < r.start_unix || t >= r.end_unix) continue;
         missing += !(std::isfinite(rec.ghi) && std::isfinite(rec.dni) && std::isfinite(rec.dhi));
         steps.push_back(make_step(t, r.step_hours, &rec));
+        if (o.monthly) steps.back().group = static_cast<std::uint32_t>(month_of(t + day_offset() * 3600.0) - 1);
       }
     }
     if (steps.empty()) throw OptionError({option("weather"), " '" + o.weather.string() + "': no record in the period"});
@@ -496,6 +500,8 @@ struct SolarRun {
     std::vector<Vec3> dirs = map.directions;
     dirs.insert(dirs.end(), sky.begin(), sky.end());
     std::vector<double> beam(n), diffuse(n), reflected(n), hours(n), view(n), shadow(instant ? n : 0);
+    const std::size_t groups = o.monthly && !instant ? 12 : 0;
+    std::vector<double> by_month(groups * n, 0.0);  // Wh/m², month-major
     const bool sun_up = instant && nsec == 1;
     const auto t0 = std::chrono::steady_clock::now();
     // Over a period, directions behind a surface are not traced: no beam comes from there, and
@@ -505,8 +511,11 @@ struct SolarRun {
         *cs.site, cloud.positions, dirs, normals, vo,
         [&](PointIndex i, std::span<const std::uint64_t> open) {
                        if (instant) shadow[i] = sun_up && (open[0] & 1u) ? 0.0 : 1.0;
+                       double months[12] = {};
                        const PointIrradiation p =
-                           accumulate_irradiation(map, sky, normals[i], r.location.convergence_deg, o.albedo, open);
+                           accumulate_irradiation(map, sky, normals[i], r.location.convergence_deg, o.albedo, open,
+                                                  std::span<double>(months, groups));
+                       for (std::size_t g = 0; g < groups; ++g) by_month[g * n + i] = months[g];
                        beam[i] = p.beam;
                        diffuse[i] = p.diffuse;
                        reflected[i] = p.reflected;
@@ -542,6 +551,17 @@ struct SolarRun {
       detail::set_scalar(cloud, "solar_reflected", std::move(reflected));
       detail::set_scalar(cloud, "sun_hours", std::move(hours));
       detail::set_scalar(cloud, "sky_view", std::move(view));
+      std::vector<bool> touched(groups, false);
+      if (groups > 0)
+        for (const SolarStep& s : map.steps) touched[s.group] = true;
+      for (std::size_t g = 0; g < groups; ++g) {
+        if (!touched[g]) continue;
+        std::vector<double> v(by_month.begin() + std::ptrdiff_t(g * n), by_month.begin() + std::ptrdiff_t((g + 1) * n));
+        for (double& x : v) x /= 1000.0;
+        char name[48];
+        std::snprintf(name, sizeof name, "solar_global_%02zu", g + 1);
+        detail::set_scalar(cloud, name, std::move(v));
+      }
     }
     std::snprintf(buf, sizeof buf, "traced %zu points x %zu directions (%zu sun, %zu sky) in %.2f s", n, dirs.size(),
                   nsec, sky.size(), r.trace_seconds);

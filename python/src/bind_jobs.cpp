@@ -276,6 +276,8 @@ py::dict solar(const py::object& cloud, const std::string& start, const std::str
     r = jobs::run_solar(o);
   }
   py::dict d;
+  for (ScalarField& f : r.cloud.scalars)
+    if (f.name.rfind("solar_global_", 0) == 0) d[py::str(f.name)] = to_numpy(std::vector<double>(f.values));
   static const char* fields[] = {"solar_global", "solar_beam", "solar_diffuse", "solar_reflected", "sun_hours",
                                  "sky_view", "in_shadow", "irradiance_global", "irradiance_beam", "irradiance_diffuse"};
   for (ScalarField& f : r.cloud.scalars)

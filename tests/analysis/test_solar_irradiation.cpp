@@ -395,3 +395,40 @@ TEST(SolarJob, ADayOfShadowsWritesAFramePerSunnyInstant) {
   EXPECT_DOUBLE_EQ((*sun)[north_foot], 0.0);
   EXPECT_DOUBLE_EQ((*shadow)[north_foot], double(r.steps));
 }
+
+// --monthly: each month's field adds up to the period's global irradiation, and a month alone
+// gives the same field as that month's part of a longer period (its steps never share a sector
+// with another month's).
+TEST(SolarJob, MonthlyFieldsAddUpAndMatchAMonthAlone) {
+  PointCloud cloud;
+  for (double x = -10; x <= 10; x += 1.0)
+    for (double y = -10; y <= 10; y += 1.0) cloud.positions.emplace_back(x, y, 0.02 * x * x);
+  for (double z = 0.25; z <= 6; z += 0.25) cloud.positions.emplace_back(0.0, 3.0, z);  // a pole
+  jobs::SolarJobOptions o;
+  o.cloud = &cloud;
+  o.latitude = 48.0;
+  o.longitude = 11.0;
+  o.start = "2026-01-20";
+  o.end = "2026-03-10";
+  o.monthly = true;
+  o.control.threads = 2;
+  const jobs::SolarJobResult all = jobs::run_solar(o);
+  const auto field = [](const jobs::SolarJobResult& r, const std::string& name) -> const std::vector<double>& {
+    for (const ScalarField& f : r.cloud.scalars)
+      if (f.name == name) return f.values;
+    static const std::vector<double> none;
+    ADD_FAILURE() << "no field " << name;
+    return none;
+  };
+  for (const ScalarField& f : all.cloud.scalars) EXPECT_NE(f.name, "solar_global_04");  // April not touched
+  const std::vector<double>&jan = field(all, "solar_global_01"), &feb = field(all, "solar_global_02"),
+                    &mar = field(all, "solar_global_03"), &total = field(all, "solar_global");
+  ASSERT_EQ(jan.size(), cloud.size());
+  for (std::size_t i = 0; i < cloud.size(); ++i) EXPECT_NEAR(jan[i] + feb[i] + mar[i], total[i], 1e-9 * total[i]);
+  o.start = "2026-02-01";
+  o.end = "2026-02-28";
+  const jobs::SolarJobResult february = jobs::run_solar(o);
+  const std::vector<double>& alone = field(february, "solar_global");
+  for (std::size_t i = 0; i < cloud.size(); ++i) EXPECT_NEAR(alone[i], feb[i], 1e-9 * feb[i]) << i;
+  EXPECT_GT(feb[0], 10.0);  // kWh/m² in a February at 48 N
+}

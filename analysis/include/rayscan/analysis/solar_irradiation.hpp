@@ -35,6 +35,9 @@ struct SolarStep {
   /// shadow_drops_reflected_beam) uses D_hc, true (measured) uses the GHI always.
   bool reflected_from_global = false;
   std::uint32_t sector = 0;  ///< index into SunMap::directions (meaningful when beam_normal > 0)
+  /// The part of the period the step belongs to (e.g. its month, 0..11): steps of different
+  /// groups never share a sector, so that each group's sum can be told apart.
+  std::uint32_t group = 0;
 };
 
 /// Sums over a group of steps, each term weighted by the step's hours, from which the sum of
@@ -58,6 +61,7 @@ struct SectorSums {
   Vec3 axis{0.0, 0.0, 1.0};
   double sin_spread = 0.0;
   std::vector<std::uint32_t> steps;  ///< the group's steps (indices into SunMap::steps)
+  std::uint32_t group = 0;           ///< the steps' SolarStep::group
 };
 
 /// The time steps, the directions every point traces, and the sums per sector.
@@ -66,13 +70,13 @@ struct SunMap {
   /// The sectors' directions (unit, cloud frame): the normalised mean of their steps' ray
   /// directions (a lone step keeps its own).
   std::vector<Vec3> directions;
-  std::vector<SectorSums> sums;  ///< per sector, the steps with beam
-  SectorSums no_beam;            ///< the steps without beam (night, or no direct sun measured)
+  std::vector<SectorSums> sums;     ///< per sector, the steps with beam
+  std::vector<SectorSums> no_beam;  ///< per group, the steps without beam (night, or no direct sun measured)
 };
 
 /// Groups the steps with beam (beam_normal > 0 and the sun above the horizon, ray_direction.z > 0)
-/// into sectors of their ray directions: cells of `sector_deg` in elevation and `sector_deg` in
-/// azimuth, measured in the cloud's frame; sector_deg = 0 gives every such step its own sector (exact casting). Sets
+/// into sectors of their ray directions and SolarStep::group: cells of `sector_deg` in elevation
+/// and `sector_deg` in azimuth, measured in the cloud's frame; sector_deg = 0 gives every such step its own sector (exact casting). Sets
 /// each step's `sector` and returns the map. Throws std::invalid_argument for a negative or
 /// non-finite sector size or a direction that is not unit length.
 SunMap build_sun_map(std::vector<SolarStep> steps, double sector_deg);
@@ -95,9 +99,11 @@ struct PointIrradiation {
 /// each step, summed. The sky view is sum(open_k max(0, n . s_k)) / sum(max(0, n . s_k)) over the
 /// `sky` directions s_k, whose open bits follow the sectors' (bit map.directions.size() + k); an
 /// empty `sky` is the open sky (1). `open` holds (map.directions.size() + sky.size() + 63) / 64
-/// words.
+/// words. With `global_by_group` (one entry per step group, or empty), each group's global
+/// irradiation (Wh/m²) is added to its entry; they sum to the result's global().
 PointIrradiation accumulate_irradiation(const SunMap& map, std::span<const Vec3> sky, const Vec3& normal,
                                         double convergence_deg, double albedo,
-                                        std::span<const std::uint64_t> open);
+                                        std::span<const std::uint64_t> open,
+                                        std::span<double> global_by_group = {});
 
 }  // namespace rayscan::analysis

@@ -108,6 +108,10 @@ struct SolarJobOptions {
   /// Sun-map sector edge, degrees: the time steps whose sun directions share an azimuth x
   /// elevation cell share one shadow ray per point (its mean direction). 0 = one ray per step.
   double sector = 1.0;
+  /// Also the global irradiation of each calendar month in the period (days in the time zone of
+  /// `utc_offset`): fields solar_global_01 .. solar_global_12, kWh/m², for the months the period
+  /// touches; they add up to solar_global.
+  bool monthly = false;
   std::uint32_t sky_rays = 64;          ///< sky-map directions per point (the diffuse's sky view); 0 = open sky
   std::optional<double> tolerance;      ///< line-of-sight tolerance (visibility; default 2 x radius, surfels 0)
   std::optional<double> target_height;  ///< shadow rays aim this far above the point (default 1 x radius, surfels 0)
