@@ -344,10 +344,13 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
     throw std::invalid_argument("directions: normals and positions differ in count");
   const std::size_t n = positions.size(), m = dirs.size(), words = (m + 63) / 64;
   if (n == 0) return;
-  AABB box;
-  for (const Vec3& p : positions) box.expand(p);
-  // Far enough that every point of the site lies between the observer and P_i.
-  const double far = 2.0 * glm::length(box.extent()) + 1.0;
+  // Surfels: far enough that every point of the site lies between the observer and P_i.
+  double far = 0.0;
+  if (opts.surfels) {
+    AABB box;
+    for (const Vec3& p : positions) box.expand(p);
+    far = 2.0 * glm::length(box.extent()) + 1.0;
+  }
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   Progress progress(chunks, opts.progress, ProgressUnits{"chunks", "points/s", 1.0, 0});
   struct Local {

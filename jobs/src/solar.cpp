@@ -92,17 +92,21 @@ double parse_step(const std::string& text) {
   return v * scale;
 }
 
+/// The UTC calendar day of a unix time.
+std::chrono::sys_days day_of(double unix_seconds) {
+  return std::chrono::floor<std::chrono::days>(
+      std::chrono::sys_seconds(std::chrono::seconds(static_cast<std::int64_t>(std::floor(unix_seconds)))));
+}
+
 int day_of_year(double unix_seconds) {
-  const auto days = std::chrono::sys_days(std::chrono::floor<std::chrono::days>(
-      std::chrono::sys_seconds(std::chrono::seconds(static_cast<std::int64_t>(std::floor(unix_seconds))))));
+  const std::chrono::sys_days days = day_of(unix_seconds);
   const std::chrono::year_month_day ymd(days);
   return (days - std::chrono::sys_days(ymd.year() / std::chrono::January / 1)).count() + 1;
 }
 
+/// The month of a unix time, 1..12.
 int month_of(double unix_seconds) {
-  const std::chrono::year_month_day ymd(std::chrono::floor<std::chrono::days>(
-      std::chrono::sys_seconds(std::chrono::seconds(static_cast<std::int64_t>(std::floor(unix_seconds))))));
-  return static_cast<int>(static_cast<unsigned>(ymd.month()));
+  return static_cast<int>(static_cast<unsigned>(std::chrono::year_month_day(day_of(unix_seconds)).month()));
 }
 
 }  // namespace
@@ -452,7 +456,7 @@ struct SolarRun {
     for (std::size_t k = 0; k < std::size_t(n); ++k) {
       const double t = r.start_unix + (double(k) + 0.5) * step;
       steps.push_back(make_step(t, r.step_hours, nullptr));
-      if (o.monthly) steps.back().group = static_cast<std::uint32_t>(month_of(t + day_offset() * 3600.0) - 1);
+      steps.back().group = month_group(t);
     }
   }
 
@@ -461,10 +465,8 @@ struct SolarRun {
   void weather_steps(std::vector<SolarStep>& steps) {
     if (r.end_unix - r.start_unix > 366.0 * 86400.0)
       throw OptionError({"a period with ", option("weather"), " is at most one year (the file's)"});
-    const auto start_day = std::chrono::floor<std::chrono::days>(
-        std::chrono::sys_seconds(std::chrono::seconds(static_cast<std::int64_t>(std::floor(r.start_unix)))));
     EpwReadOptions ro;
-    ro.year = int(std::chrono::year_month_day(start_day).year());
+    ro.year = int(std::chrono::year_month_day(day_of(r.start_unix)).year());
     weather = read_epw(o.weather, ro);
     const EpwLocation& at = weather->location;
     r.weather = at.city + ", " + at.country;
@@ -476,7 +478,7 @@ struct SolarRun {
         if (t < r.start_unix || t >= r.end_unix) continue;
         missing += !(std::isfinite(rec.ghi) && std::isfinite(rec.dni) && std::isfinite(rec.dhi));
         steps.push_back(make_step(t, r.step_hours, &rec));
-        if (o.monthly) steps.back().group = static_cast<std::uint32_t>(month_of(t + day_offset() * 3600.0) - 1);
+        steps.back().group = month_group(t);
       }
     }
     if (steps.empty()) throw OptionError({option("weather"), " '" + o.weather.string() + "': no record in the period"});
@@ -606,8 +608,7 @@ struct SolarRun {
   void write_raster() {
     static const std::pair<const char*, const char*> fields[] = {
         {"global", "solar_global"}, {"beam", "solar_beam"}, {"diffuse", "solar_diffuse"},
-        {"reflected", "solar_reflected"}, {"sun_hours", "sun_hours"}, {"sky_view", "sky_view"},
-        {"shadow_hours", "shadow_hours"}};
+        {"reflected", "solar_reflected"}, {"sun_hours", "sun_hours"}, {"sky_view", "sky_view"}};
     std::string field = value;
     if (instant) field = value == "in_shadow" ? "in_shadow" : "irradiance_" + value;
     else
@@ -623,9 +624,8 @@ struct SolarRun {
       title = value == "in_shadow" ? "shadow at " + format_iso8601(r.start_unix, 0)
                                    : value + " irradiance at " + format_iso8601(r.start_unix, 0) + " (W/m²)";
       units = value == "in_shadow" ? "1" : "W/m2";
-    } else if (value == "sun_hours" || value == "shadow_hours") {
-      title = std::string(value == "sun_hours" ? "hours of direct sun" : "hours in shadow while the sun is up") + " " +
-              format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
+    } else if (value == "sun_hours") {
+      title = "hours of direct sun " + format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
               format_iso8601(r.end_unix - 1.0, offset).substr(0, 10) + " (h)";
       units = "h";
     } else if (value == "sky_view") {
@@ -638,6 +638,11 @@ struct SolarRun {
               format_iso8601(r.end_unix - 1.0, offset).substr(0, 10) + " (kWh/m²)";
     }
     r.raster = write_map(o.raster, o.preview, sf->values, title, units, instant && value == "in_shadow", hi);
+  }
+
+  /// The step group of UTC time `t`: its month (0..11) in the days' time zone with --monthly, else 0.
+  std::uint32_t month_group(double t) const {
+    return o.monthly ? static_cast<std::uint32_t>(month_of(t + day_offset() * 3600.0) - 1) : 0u;
   }
 
   /// Hours east of UTC of the days: --utc-offset, else local mean solar time.

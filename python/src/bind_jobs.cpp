@@ -14,6 +14,7 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
+#include <algorithm>
 #include <optional>
 
 namespace rayscan::python {
@@ -276,13 +277,12 @@ py::dict solar(const py::object& cloud, const std::string& start, const std::str
     r = jobs::run_solar(o);
   }
   py::dict d;
-  for (ScalarField& f : r.cloud.scalars)
-    if (f.name.rfind("solar_global_", 0) == 0) d[py::str(f.name)] = to_numpy(std::vector<double>(f.values));
   static const char* fields[] = {"solar_global", "solar_beam", "solar_diffuse", "solar_reflected", "sun_hours",
                                  "sky_view", "in_shadow", "irradiance_global", "irradiance_beam", "irradiance_diffuse"};
   for (ScalarField& f : r.cloud.scalars)
-    for (const char* name : fields)
-      if (f.name == name) d[py::str(f.name)] = to_numpy(std::move(f.values));
+    if (f.name.rfind("solar_global_", 0) == 0 ||  // --monthly
+        std::find(std::begin(fields), std::end(fields), f.name) != std::end(fields))
+      d[py::str(f.name)] = to_numpy(std::move(f.values));
   d["latitude"] = r.location.latitude_deg;
   d["longitude"] = r.location.longitude_deg;
   d["steps"] = r.steps;
