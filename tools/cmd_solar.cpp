@@ -3,6 +3,7 @@
 // `rayscan solar position`, the NREL SPA calculator. The jobs are jobs::run_solar and
 // jobs::run_sun_position (rayscan/jobs/solar.hpp); this file parses options and prints.
 #include "commands.hpp"
+#include "processes.hpp"
 
 #include "rayscan/jobs/solar.hpp"
 
@@ -49,7 +50,10 @@ int run_position(SolarCli& o) {
 }
 
 int run_solar(SolarCli& o) {
-  if (o.position_cmd->parsed()) return run_position(o);
+  if (o.position_cmd->parsed()) {
+    require_single_process("rayscan solar position");
+    return run_position(o);
+  }
   if (o.cloud.empty()) throw UsageError("expected a CLOUD, or the subcommand position (see --help)");
   jobs::SolarJobOptions& job = o.job;
   job.radius = parse_radius(o.radius);
@@ -59,9 +63,14 @@ int run_solar(SolarCli& o) {
   job.preview = o.preview;
   job.weather = o.weather;
   job.write_preview = !o.no_preview;
-  job.control.progress = !o.quiet;
-  if (!o.quiet) job.control.log = [](const std::string& s) { std::cerr << "rayscan solar: " << s << "\n"; };
+  // MPI (docs/mpi.md): point chunks over the ranks; only rank 0 logs, prints and writes.
+  job.control.distributor = distributor();
+  const bool talk = !o.quiet && is_root();
+  job.control.progress = talk;
+  if (talk) job.control.log = [](const std::string& s) { std::cerr << "rayscan solar: " << s << "\n"; };
   const jobs::SolarJobResult r = jobs::run_solar(job);
+  if (!is_root()) return 0;
+  if (talk && !traffic_summary().empty()) std::cerr << "rayscan solar: " << traffic_summary() << "\n";
   if (o.json) {
     std::cout << jobs::solar_report_json(r) << "\n";
     return 0;

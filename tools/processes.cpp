@@ -38,7 +38,7 @@ void set_command_name(const std::string&) {}
 
 void require_single_process(const std::string& command) {
   if (process_count() > 1)
-    throw UsageError("runs in one process; only render, visibility and query run under mpirun -n " +
+    throw UsageError("runs in one process; only render, visibility, solar and query run under mpirun -n " +
                      std::to_string(process_count()) + " (run '" + command + "' without mpirun or with -n 1)");
 }
 

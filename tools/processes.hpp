@@ -1,5 +1,5 @@
 // The process group of one `rayscan` run: one process, or the ranks of `mpirun -n N rayscan ...`
-// (rayscan::mpi, docs/mpi.md). Commands that can be distributed (render, visibility, query) hand
+// (rayscan::mpi, docs/mpi.md). Commands that can be distributed (render, visibility, solar, query) hand
 // distributor() to their job; only the root prints and writes.
 #pragma once
 

@@ -186,16 +186,18 @@ void check(const VisibilityOptions& o) {
 
 /// Runs `run_chunks(c0, c1)` over the `chunks` point chunks (kChunk slots each, in the index's
 /// storage order `ids`, stored or the identity) through the distributor (MPI, docs/mpi.md): chunks are handed out in
-/// batches of `batch`, and the per-point result fields `fields...` (vectors indexed by original
-/// point id) of each batch's slots travel back to the root, field after field. `what` names the
-/// job in the error for a malformed message. Progress counts points.
-template <class RunChunks, class... Field>
+/// batches of `batch`, and the per-point result `fields` (arrays indexed by original point id) of
+/// each batch's slots travel back to the root, field after field. `what` names the job in the
+/// error for a malformed message. Progress counts points.
+template <class RunChunks>
 void distribute_point_chunks(WorkDistributor& dist, std::size_t n, std::size_t chunks, unsigned batch,
-                             IdView ids, RunChunks& run_chunks, Progress& progress,
-                             const char* what, std::vector<Field>&... fields) {
+                             IdView ids, RunChunks& run_chunks, Progress& progress, const char* what,
+                             std::span<const GatheredField> fields) {
   auto slots = [n](std::uint64_t first, std::uint64_t count) {
     return std::pair{std::size_t(first * kChunk), std::min<std::size_t>(n, (first + count) * kChunk)};
   };
+  std::size_t record = 0;
+  for (const GatheredField& f : fields) record += f.size;
   WorkStage stage;
   stage.items = chunks;
   stage.batch = batch;
@@ -203,20 +205,19 @@ void distribute_point_chunks(WorkDistributor& dist, std::size_t n, std::size_t c
   stage.pack = [&](std::uint64_t first, std::uint64_t count) {
     const auto [s0, s1] = slots(first, count);
     std::vector<std::byte> out;
-    out.reserve((s1 - s0) * (sizeof(Field) + ... + 0));
-    auto pack_field = [&, s0 = s0, s1 = s1](const auto& f) {
-      for (std::size_t s = s0; s < s1; ++s) append_bytes(out, std::span(&f[ids[s]], 1));
-    };
-    (pack_field(fields), ...);
+    out.reserve((s1 - s0) * record);
+    for (const GatheredField& f : fields)
+      for (std::size_t s = s0; s < s1; ++s) {
+        const std::byte* v = f.data + std::size_t(ids[s]) * f.size;
+        out.insert(out.end(), v, v + f.size);
+      }
     return out;
   };
   stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
     const auto [s0, s1] = slots(first, count);
     std::size_t off = 0;
-    auto unpack_field = [&, s0 = s0, s1 = s1](auto& f) {
-      for (std::size_t s = s0; s < s1; ++s) read_values(bytes, off, std::span(&f[ids[s]], 1));
-    };
-    (unpack_field(fields), ...);
+    for (const GatheredField& f : fields)
+      for (std::size_t s = s0; s < s1; ++s) read_bytes(bytes, off, std::span(f.data + std::size_t(ids[s]) * f.size, f.size));
     if (off != bytes.size()) throw std::runtime_error(std::string(what) + ": chunk message has trailing bytes");
     progress.tile_done(s1 - s0);
   };
@@ -310,8 +311,8 @@ VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec
   } else {
     // Point chunks handed out by the distributor; per-point count and distance gathered to the root.
     const IdView ids = visit_index([](const auto& i) -> IdView { return i.ids(); }, index);
-    distribute_point_chunks(*dist, n, chunks, res.threads, ids, run_chunks, progress, "visibility", res.count,
-                            res.nearest);
+    const GatheredField fields[] = {GatheredField::of(res.count), GatheredField::of(res.nearest)};
+    distribute_point_chunks(*dist, n, chunks, res.threads, ids, run_chunks, progress, "visibility", fields);
   }
   res.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   progress.finish();
@@ -334,7 +335,7 @@ template <class Index>
 void trace_directions_over(const Index& index, std::span<const Vec3> positions, std::span<const Vec3> dirs,
                            std::span<const Vec3> normals, const VisibilityOptions& opts,
                            const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit,
-                           bool cull) {
+                           bool cull, std::span<const GatheredField> gather) {
   check(opts);
   if (index_size(index) != positions.size())
     throw std::invalid_argument("directions: the index was not built over these positions");
@@ -370,13 +371,16 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
   q.t_min = opts.tolerance;
   q.t_max = kInf;
   q.validate();
-  tbb::task_arena arena(static_cast<int>(resolve_threads(opts.threads)));
+  const unsigned threads = resolve_threads(opts.threads);
+  tbb::task_arena arena(static_cast<int>(threads));
+  // Chunks [c0, c1) of kChunk points in the index's storage order.
+  auto run_chunks = [&](std::size_t c0, std::size_t c1) {
   arena.execute([&] {
     visit_index(
         [&](const auto& idx) {
           const auto pos = idx.positions();
           const IdView ids = idx.ids();
-          tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const auto& range) {
+          tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
             Local& L = locals.local();
             for (std::size_t c = range.begin(); c != range.end(); ++c) {
               const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
@@ -411,6 +415,15 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
         },
         index);
   });
+  };
+  WorkDistributor* dist = opts.distributor;
+  if (!dist || dist->size() <= 1) {
+    run_chunks(0, chunks);
+  } else {
+    // Point chunks handed out by the distributor; the visitor's per-point results gathered to the root.
+    const IdView ids = visit_index([](const auto& i) -> IdView { return i.ids(); }, index);
+    distribute_point_chunks(*dist, n, chunks, threads, ids, run_chunks, progress, "directions", gather);
+  }
   progress.finish();
 }
 
@@ -499,7 +512,8 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
     run_chunks(0, chunks);
   } else {
     const IdView ids = visit_index([](const auto& i) -> IdView { return i.ids(); }, index);
-    distribute_point_chunks(*dist, n, chunks, threads, ids, run_chunks, progress, "sky view", out);
+    const GatheredField fields[] = {GatheredField::of(out)};
+    distribute_point_chunks(*dist, n, chunks, threads, ids, run_chunks, progress, "sky view", fields);
     std::uint64_t t = total.load();
     dist->sum_to_root(std::span<std::uint64_t>(&t, 1));
     total = t;
@@ -601,9 +615,9 @@ VisibilityResult compute_visibility(const Site& site, std::span<const Vec3> posi
 void trace_directions(const Site& site, std::span<const Vec3> positions, std::span<const Vec3> dirs,
                       std::span<const Vec3> normals, const VisibilityOptions& opts,
                       const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit,
-                      bool cull) {
+                      bool cull, std::span<const GatheredField> gather) {
   detail::over_site<int>(site, "directions", [&](const auto& index) {
-    trace_directions_over(index, positions, dirs, normals, opts, visit, cull);
+    trace_directions_over(index, positions, dirs, normals, opts, visit, cull, gather);
     return 0;
   });
 }

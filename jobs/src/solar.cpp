@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -327,6 +328,7 @@ struct SolarRun {
     if (surfel) vo.surfels = &surfels;
     vo.threads = ctl.threads;
     vo.progress = ctl.progress;
+    vo.distributor = ctl.distributor;
   }
 
   void locate() {
@@ -505,6 +507,11 @@ struct SolarRun {
     const std::size_t groups = o.monthly && !instant ? 12 : 0;
     std::vector<double> by_month(groups * n, 0.0);  // Wh/m², month-major
     const bool sun_up = instant && nsec == 1;
+    // Under MPI the ranks' per-point results travel to the root.
+    std::vector<GatheredField> gathered{GatheredField::of(beam), GatheredField::of(diffuse), GatheredField::of(reflected),
+                                        GatheredField::of(hours), GatheredField::of(view)};
+    if (instant) gathered.push_back(GatheredField::of(shadow));
+    for (std::size_t g = 0; g < groups; ++g) gathered.push_back(GatheredField::of(std::span(by_month).subspan(g * n, n)));
     const auto t0 = std::chrono::steady_clock::now();
     // Over a period, directions behind a surface are not traced: no beam comes from there, and
     // the sky view weighs them 0. At an instant every point's sun ray is traced: a shadow map
@@ -524,8 +531,9 @@ struct SolarRun {
                        hours[i] = p.sun_hours;
                        view[i] = p.sky_view;
                      },
-        !instant);
+        !instant, gathered);
     r.trace_seconds = seconds_since(t0);
+    if (!root()) return;
     r.rays = std::uint64_t(n) * dirs.size();
     if (instant) {
       if (!sun_up) ctl.info("the sun is below the horizon: every point is in shadow");
@@ -667,7 +675,7 @@ struct SolarRun {
       trace_directions(
           *cs.site, cloud.positions, dir, normals, vo,
           [&](PointIndex i, std::span<const std::uint64_t> open) { frame[i] = (open[0] & 1u) ? 0.0 : 1.0; },
-          false);
+          false, std::array{GatheredField::of(frame)});
       for (std::size_t i = 0; i < n; ++i) {
         const bool lit = frame[i] == 0.0 && glm::dot(normals[i], step.direction) > 0.0;
         sun[i] += lit ? r.step_hours : 0.0;
@@ -687,7 +695,12 @@ struct SolarRun {
     detail::set_scalar(cloud, "shadow_hours", std::move(shadow));
   }
 
+  /// True on the process that holds every point's results and writes the outputs: the only one,
+  /// or rank 0 under MPI.
+  bool root() const { return !ctl.distributor || ctl.distributor->is_root(); }
+
   void write_outputs() {
+    if (!root()) return;
     OutputTransaction tx;
     if (!o.out.empty()) {
       detail::write_result_cloud(o.out, cloud, r.info);

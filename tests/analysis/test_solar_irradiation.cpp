@@ -125,6 +125,37 @@ TEST(PointIrradiation, EqualsTheSumOfThePerInstantClearSkyModel) {
  }
 }
 
+// The ground-reflected term follows the traced ground view: a level point whose sky is half
+// hidden (a street canyon, the foot of a wall) receives albedo x the horizontal global x the
+// hidden half, where the open plane receives nothing; a wall with its sky open keeps r.sun's half.
+TEST(PointIrradiation, ReflectedTermFollowsTheTracedGroundView) {
+  const SunMap map = build_sun_map(clear_day(172), 3.0);
+  const std::size_t nsec = map.directions.size();
+  // Sky directions: the zenith and three at 30 degrees elevation, one of them towards the east.
+  const std::vector<Vec3> sky{{0, 0, 1}, {0.866, 0, 0.5}, {-0.866, 0, 0.5}, {0, -0.866, 0.5}};
+  std::vector<std::uint64_t> open((nsec + sky.size() + 63) / 64, 0);
+  for (std::size_t k = 0; k < nsec + sky.size(); ++k) open[k / 64] |= std::uint64_t(1) << (k % 64);
+  double global_h = 0.0;  // the oracle's ground source: every step lit
+  for (const SolarStep& s : map.steps) global_h += s.global_horizontal * s.hours;
+  ASSERT_GT(global_h, 5000.0);
+  const PointIrradiation level_open = accumulate_irradiation(map, sky, {0, 0, 1}, 0.0, 0.2, open);
+  EXPECT_NEAR(level_open.reflected, 0.0, 1e-9);
+  // Hide the zenith and the east direction: the level point sees (0 + 0 + 0.5 + 0.5) / (1 + 1.5).
+  const std::size_t hide[] = {nsec + 0, nsec + 1};
+  for (std::size_t k : hide) open[k / 64] &= ~(std::uint64_t(1) << (k % 64));
+  const PointIrradiation level = accumulate_irradiation(map, sky, {0, 0, 1}, 0.0, 0.2, open);
+  EXPECT_DOUBLE_EQ(level.sky_view, 1.0 / 2.5);
+  EXPECT_NEAR(level.reflected, 0.2 * global_h * (1.0 - 1.0 / 2.5), 1e-9 * global_h);
+  // A south wall with every direction open: the open tilted plane, (1 - cos 90) / 2 = 1/2.
+  std::fill(open.begin(), open.end(), ~std::uint64_t(0));
+  const PointIrradiation wall = accumulate_irradiation(map, sky, {0, -1, 0}, 0.0, 0.2, open);
+  EXPECT_DOUBLE_EQ(wall.sky_view, 1.0);
+  double diffuse_h = 0.0;  // the ground source of a surface the sun never reaches
+  for (const SolarStep& s : map.steps) diffuse_h += s.diffuse_horizontal * s.hours;
+  EXPECT_GE(wall.reflected, 0.2 * 0.5 * diffuse_h * (1 - 1e-12));
+  EXPECT_LE(wall.reflected, 0.2 * 0.5 * global_h * (1 + 1e-12));
+}
+
 TEST(PointIrradiation, SkyViewIsTheCosineWeightedOpenShare) {
   const std::vector<Vec3> sky{{0, 0, 1}, {1, 0, 0}, {0, 0.6, 0.8}, {0, -0.6, 0.8}};
   SunMap map;  // no sun: only the sky bits

@@ -153,6 +153,35 @@ TEST_F(Mpi, VisibilityFieldsAreTheSameBytes) {
   EXPECT_EQ(run(kBin + args + " --out one.las | head -2").out, run(mpirun(2, false) + kBin + args + " --out two.las | head -2").out);
 }
 
+TEST_F(Mpi, SolarFieldsAndShadowFramesAreTheSameBytes) {
+  // 1438 points of autzen (3 chunks of 512 points); the site's latitude and longitude given, as
+  // the text file has no CRS.
+  fs::copy_file(fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz", dir_ / "subset.xyz");
+  const std::string site = " solar -q subset.xyz --lat 44.05 --lon -123.07 --radius 1.5 --threads 1";
+  const std::string period = site + " --start 2026-06-01 --end 2026-06-03 --sector 5 --sky-rays 16 --monthly";
+  ASSERT_EQ(run(kBin + period + " --out one.las").code, 0);
+  CommandResult r = run(mpirun(2, false) + kBin + period + " --out two.las");
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = run(mpirun(3) + kBin + period + " --out three.las");
+  ASSERT_EQ(r.code, 0) << r.out;
+  expect_same_file(dir_ / "one.las", dir_ / "two.las");
+  expect_same_file(dir_ / "one.las", dir_ / "three.las");
+  // A day's shadow frames and the per-point sun and shadow hours.
+  const std::string day = site + " --day 2026-06-21 --every 3h --cell 4";
+  ASSERT_EQ(run(kBin + day + " --out d1.las --raster d1.tif").code, 0);
+  r = run(mpirun(2, false) + kBin + day + " --out d2.las --raster d2.tif");
+  ASSERT_EQ(r.code, 0) << r.out;
+  expect_same_file(dir_ / "d1.las", dir_ / "d2.las");
+  int frames = 0;
+  for (const auto& e : fs::directory_iterator(dir_)) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("d1_", 0) != 0 || e.path().extension() != ".tif") continue;
+    ++frames;
+    expect_same_file(e.path(), dir_ / ("d2_" + name.substr(3)));
+  }
+  EXPECT_GE(frames, 4);
+}
+
 TEST_F(Mpi, QueryHitsAreTheSameBytes) {
   ASSERT_EQ(run(kBin + " index -q autzen.las -o site.rsi").code, 0);
   {
@@ -254,7 +283,7 @@ TEST_F(Mpi, HelpAndUsageErrorsArePrintedOnceByRankZero) {
 TEST_F(Mpi, CommandsThatCannotBeDistributedAreRefused) {
   const CommandResult r = run(mpirun(2) + kBin + " info autzen.las");
   EXPECT_EQ(r.code, 2) << r.out;
-  EXPECT_EQ(lines_equal(r.out, "rayscan info: runs in one process; only render, visibility and query run under "
+  EXPECT_EQ(lines_equal(r.out, "rayscan info: runs in one process; only render, visibility, solar and query run under "
                                 "mpirun -n 2 (run 'rayscan info' without mpirun or with -n 1)"),
             1)
       << r.out;

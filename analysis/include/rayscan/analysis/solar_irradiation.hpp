@@ -94,9 +94,10 @@ struct PointIrradiation {
 /// true north (SiteLocation), from each sector's SectorSums (per step only for a sector whose steps
 /// lie on both sides of the surface's plane): per step, beam B_0c cos(incidence) when the step's sector is open
 /// (bit `sector` of `open`) and the sun is in front of the surface; diffuse D_hc x Muneer's ratio
-/// (muneer_diffuse_ratio, shadowed form without beam) x the sky view; reflected albedo x (G_hc or
-/// D_hc) x (1 - cos slope) / 2 -- clear_sky_irradiance() and measured_irradiance_on_surface() of
-/// each step, summed. The sky view is sum(open_k max(0, n . s_k)) / sum(max(0, n . s_k)) over the
+/// (muneer_diffuse_ratio, shadowed form without beam) x the sky view V; reflected albedo x (G_hc or
+/// D_hc) x the ground view 1 - V (1 + cos slope) / 2, the part of the surface's hemisphere that is
+/// not open sky (for an open surface, V = 1, r.sun's (1 - cos slope) / 2) -- for an open surface,
+/// clear_sky_irradiance() and measured_irradiance_on_surface() of each step, summed. The sky view is sum(open_k max(0, n . s_k)) / sum(max(0, n . s_k)) over the
 /// `sky` directions s_k, whose open bits follow the sectors' (bit map.directions.size() + k); an
 /// empty `sky` is the open sky (1). `open` holds (map.directions.size() + sky.size() + 63) / 64
 /// words. With `global_by_group` (one entry per step group, or empty), each group's global

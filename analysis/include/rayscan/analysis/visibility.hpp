@@ -14,12 +14,32 @@
 #include "rayscan/octree/normals.hpp"
 #include "rayscan/base/work_distributor.hpp"
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <span>
+#include <type_traits>
 #include <vector>
 
 namespace rayscan::analysis {
+
+/// A per-point result array that a job spread over processes gathers to the root (MPI): `size`
+/// bytes for original point index i at data + i * size (a std::vector<T> of trivially copyable T
+/// indexed by point, or one stretch of a larger array).
+struct GatheredField {
+  std::byte* data = nullptr;
+  std::size_t size = 0;
+  /// The elements of `values` (one per point) as a gathered field.
+  template <class T>
+  static GatheredField of(std::span<T> values) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    return {reinterpret_cast<std::byte*>(values.data()), sizeof(T)};
+  }
+  template <class T>
+  static GatheredField of(std::vector<T>& values) {
+    return of(std::span<T>(values));
+  }
+};
 
 /// Parameters of the line-of-sight test.
 struct VisibilityOptions {
@@ -109,12 +129,16 @@ VisibilityResult compute_visibility(const Site& site, std::span<const Vec3> posi
 /// only when dot(n_i, d_k) > 0 (a surface facing away receives nothing from it) and its bit stays
 /// 0 otherwise. Calls `visit(i, mask)` once per point,
 /// from worker threads (concurrently for different points); bit k % 64 of mask[k / 64] is set for
-/// an open direction. opts.max_distance and opts.distributor are not used (one process).
+/// an open direction. opts.max_distance is not used. With opts.distributor over several processes
+/// (MPI, docs/mpi.md) every process calls it with the same arguments; point chunks are handed out,
+/// each process visits the points of its chunks, and the `gather` arrays (what `visit` wrote per
+/// point) of the others' points travel to the root, whose arrays then hold every point's values
+/// as one process would have written them.
 /// Throws std::invalid_argument like compute_visibility and for normals of another count.
 void trace_directions(const Site& site, std::span<const Vec3> positions, std::span<const Vec3> dirs,
                       std::span<const Vec3> normals, const VisibilityOptions& opts,
                       const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit,
-                      bool cull = true);
+                      bool cull = true, std::span<const GatheredField> gather = {});
 
 /// Turns each steep normal (|n_z| < 0.5: walls, façades, the sides of crowns) towards the side of
 /// its surface that opens: a PCA normal's sign is arbitrary, and turning it up says nothing for a

@@ -163,7 +163,10 @@ struct SolarJobResult {
 /// Checks every option, reads the cloud, builds the index, estimates the surfels, computes the sun
 /// positions (SPA) and the sky (ESRA clear sky or the EPW file), traces the sun-map and sky-map
 /// directions of every point (analysis::trace_directions) and accumulates the irradiance of every
-/// time step on each point's surface, then writes the outputs. Throws OptionError (options),
+/// time step on each point's surface, then writes the outputs. With options.control.distributor
+/// over several processes (MPI, docs/mpi.md) every process calls it with the same options; point
+/// chunks are handed out, and only the root's result holds every point's fields and writes the
+/// outputs (byte-identical to one process). Throws OptionError (options),
 /// io::FormatError (cloud), std::runtime_error (a malformed EPW file, I/O).
 SolarJobResult run_solar(const SolarJobOptions& options);
 
