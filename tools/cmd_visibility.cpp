@@ -146,9 +146,11 @@ Runner add_visibility_command(CLI::App& app) {
   c->add_option("--raster", o->raster, "Write a top-down GeoTIFF map here (.tif)");
   c->add_option("--cell", o->job.cell, "Raster cell size (world units; required with --raster)")->check(positive());
   c->add_option("--raster-value", o->job.raster_value,
-                "viewshed (1 = some point of the cell is seen by an observer, 0 = none; the GIS viewshed) | "
-                "fraction (of the cell's points seen) | count (observers that see the cell) | distance | sky | "
-                "camera (default: viewshed with observers, else sky, else camera)");
+                "viewshed (the GIS viewshed: rayscan's DSM of the cloud, as render --ortho-map CELL --dsm "
+                "writes it, and an exact line of sight over it to each cell centre; 1 = seen by an observer, "
+                "0 = not) | viewshed-points (1 = some point of the cell is seen, by the line of sight over the "
+                "points, --primitive) | fraction (of the cell's points seen) | count (observers that see the "
+                "cell) | distance | sky | camera (default: viewshed with observers, else sky, else camera)");
   c->add_option("--preview", o->preview, "PNG preview of the raster (default: the raster's name with .png)");
   c->add_flag("--no-preview", o->no_preview, "Do not write the PNG preview");
   c->add_option("--index", o->job.index.type, "Index: octree-adaptive, octree-layered, octree-fixed, kdtree, brute")

@@ -6,7 +6,9 @@
 
 #include "rayscan/base/option_error.hpp"
 
+#include "rayscan/analysis/dsm_viewshed.hpp"
 #include "rayscan/analysis/geotiff.hpp"
+#include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/analysis/raster_preview.hpp"
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/file_names.hpp"
@@ -14,6 +16,8 @@
 #include "rayscan/camera/camera_file.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/jobs/render.hpp"
+#include "rayscan/render/scene_json.hpp"
 #include "rayscan/base/work_distributor.hpp"
 
 #include <nlohmann/json.hpp>
@@ -94,11 +98,14 @@ struct VisibilityRun {
       throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
     value = o.raster_value;
     if (value.empty()) value = have_observers ? "viewshed" : o.sky_rays ? "sky" : "camera";
-    static const char* values[] = {"fraction", "viewshed", "count", "distance", "sky", "camera"};
+    static const char* values[] = {"viewshed", "viewshed-points", "fraction", "count", "distance", "sky", "camera"};
     if (std::find(std::begin(values), std::end(values), value) == std::end(values))
-      throw OptionError(
-          {option("raster_value"), " '" + value + "': expected fraction, viewshed, count, distance, sky or camera"});
-    if ((value == "fraction" || value == "viewshed" || value == "count" || value == "distance") && !have_observers)
+      throw OptionError({option("raster_value"), " '" + value +
+                                                   "': expected viewshed, viewshed-points, fraction, count, distance, "
+                                                   "sky or camera"});
+    if ((value == "fraction" || value == "viewshed" || value == "viewshed-points" || value == "count" ||
+         value == "distance") &&
+        !have_observers)
       throw OptionError({option("raster_value"), " " + value + " needs observers"});
     if (value == "sky" && o.sky_rays == 0)
       throw OptionError({option("raster_value"), " sky needs ", option("sky_rays"), " N"});
@@ -229,10 +236,10 @@ struct VisibilityRun {
     if (value == "fraction") {
       for (std::size_t i = 0; i < v.size(); ++i) v[i] = vis.count[i] > 0;
       name = "fraction of points visible from at least one observer";
-    } else if (value == "viewshed") {
+    } else if (value == "viewshed-points") {
       for (std::size_t i = 0; i < v.size(); ++i) v[i] = vis.count[i] > 0;
       red = CellReduce::max;
-      name = "viewshed (a cell is visible when some point in it is)";
+      name = "viewshed of the points (a cell is visible when some point in it is)";
     } else if (value == "count") {
       for (std::size_t i = 0; i < v.size(); ++i) v[i] = vis.count[i];
       red = CellReduce::max;
@@ -257,6 +264,41 @@ struct VisibilityRun {
     return out;
   }
 
+  /// The target height of the DSM viewshed: --target-height, else 0 (gdal_viewshed's -tz 0).
+  double dsm_target_height() const { return o.target_height.value_or(0.0); }
+
+  /// The GIS viewshed: rayscan's own DSM of the cloud on `grid` (the depth of a top-down render
+  /// with the quick look's surfels, exactly what `render --ortho-map CELL --dsm` writes), then an
+  /// exact line of sight over it from every observer's eye (dsm_viewshed, R3).
+  Raster viewshed_on_dsm(const GridSpec& grid) {
+    const auto t = std::chrono::steady_clock::now();
+    RenderJobOptions ro;
+    // The points are this job's (`cloud`); the scene names their file for its messages.
+    const nlohmann::json quick_look = {
+        {"cloud", o.cloud_file.string()}, {"radius", "auto"}, {"primitive", "surfel"}, {"spp", 1}};
+    ro.scene = render::parse_scene_json(quick_look, o.cloud_file.string() + ".dsm.json", /*camera_required=*/false);
+    ro.scene.output.aovs = {Aov::depth};
+    ro.cloud = &cloud;
+    ro.write = false;
+    ro.control.threads = ctl.threads;
+    std::optional<OrthoMap> map;
+    ro.camera_for_cloud = [&](const AABB& bounds) {
+      map = ortho_map(bounds, grid.cell);
+      return map->camera;
+    };
+    const RenderJobResult dr = run_render(ro);
+    const Raster dsm = dsm_from_depth(*map, dr.image.depth);
+    if (dsm.grid.cols != grid.cols || dsm.grid.rows != grid.rows || dsm.grid.x0 != grid.x0 || dsm.grid.y_top != grid.y_top)
+      throw std::logic_error("visibility: the DSM's grid is not the raster's");
+    std::vector<Vec3> eyes;
+    for (const Observer& ob : observers) eyes.push_back(ob.position);
+    Raster v = dsm_viewshed(dsm, eyes, dsm_target_height(), ctl.threads);
+    std::snprintf(buf, sizeof buf, "viewshed on the DSM (%ux%u cells of %.6g): %.2f s", grid.cols, grid.rows,
+                  grid.cell, seconds_since(t));
+    ctl.info(buf);
+    return v;
+  }
+
   /// The GeoTIFF map and its preview.
   void write_raster() {
     GridSpec grid;
@@ -265,12 +307,21 @@ struct VisibilityRun {
     } catch (const std::invalid_argument& e) {
       throw OptionError({option("cell"), std::string(": ") + e.what()});
     }
-    const RasterValues rv = raster_values();
-    r.raster = rasterize(cloud.positions, rv.values, grid, rv.reduce, rv.name);
+    RasterValues rv;
+    if (value == "viewshed") {
+      r.raster = viewshed_on_dsm(grid);
+      rv.name = r.raster->name;
+    } else {
+      rv = raster_values();
+      r.raster = rasterize(cloud.positions, rv.values, grid, rv.reduce, rv.name);
+    }
     GeoTiffOptions go;
     go.crs_wkt = cloud.crs_wkt;
     go.metadata = {{"RAYSCAN_VALUE", value}, {"RAYSCAN_SOURCE", r.source}, {"RAYSCAN_RADIUS", std::to_string(radius)}};
-    if (have_observers) {
+    if (value == "viewshed") {
+      go.metadata.emplace_back("RAYSCAN_SURFACE", "DSM (render --ortho-map " + std::to_string(grid.cell) + " --dsm)");
+      go.metadata.emplace_back("RAYSCAN_TARGET_HEIGHT", std::to_string(dsm_target_height()));
+    } else if (have_observers) {
       go.metadata.emplace_back("RAYSCAN_TOLERANCE", std::to_string(r.tolerance));
       go.metadata.emplace_back("RAYSCAN_TARGET_HEIGHT", std::to_string(r.target_height));
     }
@@ -284,7 +335,7 @@ struct VisibilityRun {
       std::filesystem::path pv = o.preview;
       if (pv.empty()) pv = std::filesystem::path(o.raster).replace_extension(".png");
       PreviewStyle style;
-      if (value == "viewshed")  // binary: a categorical legend, not a ramp
+      if (value == "viewshed" || value == "viewshed-points")  // binary: a categorical legend, not a ramp
         style.categories = {{1.0f, "visible", {1.0f, 0.8f, 0.1f}}, {0.0f, "not visible", {0.3f, 0.3f, 0.3f}}};
       if (have_observers && value != "sky" && value != "camera")
         for (const Observer& ob : observers) style.markers.push_back(ob.position);
