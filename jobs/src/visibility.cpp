@@ -275,7 +275,8 @@ struct VisibilityRun {
     RenderJobOptions ro;
     // The points are this job's (`cloud`); the scene names their file for its messages.
     const nlohmann::json quick_look = {
-        {"cloud", o.cloud_file.string()}, {"radius", "auto"}, {"primitive", "surfel"}, {"spp", 1}};
+        {"cloud", o.cloud_file.string()}, {"radius", "auto"},      {"primitive", "surfel"},
+        {"spp", 1},                       {"material", {{"color", "elevation"}}}};  // (only the depth is used)
     ro.scene = render::parse_scene_json(quick_look, o.cloud_file.string() + ".dsm.json", /*camera_required=*/false);
     ro.scene.output.aovs = {Aov::depth};
     ro.cloud = &cloud;
