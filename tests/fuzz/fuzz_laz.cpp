@@ -1,4 +1,5 @@
-// libFuzzer target for the LAZ decoder (LASzip VLR, chunk table, v2 and v3 items): any input must
+// libFuzzer target for the LAZ decoder (LASzip VLR, chunk table, pointwise streams, v1, v2 and v3
+// items; seeded with a v1 pointwise file, a v2 chunked and a v3 layered one): any input must
 // either decode or raise rayscan::io::FormatError; anything else is a bug. Built by run.sh.
 // The records of a successfully read PDRF 6-8 file are also sent through the layered (v3)
 // encoder and decoded back: the result must equal them byte for byte (and, under UBSan, the

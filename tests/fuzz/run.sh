@@ -82,7 +82,7 @@ for fmt in "${TARGETS[@]}"; do
     ply) seeds=(tests/data/ply/*.ply) ;;
     pcd) seeds=(tests/data/pcd/*.pcd) ;;
     text) seeds=() ;;
-    laz) seeds=(tests/data/laz/append-bug.laz) ;;  # + the small LAZ files in regressions/laz
+    laz) seeds=(tests/data/laz/append-bug.laz tests/data/laz/simple-laszip-compressor-version-1.2r0.laz) ;;  # + regressions/laz
     rsi) seeds=() ;;  # the small index files in regressions/rsi (built by `rayscan index`)
     copc) seeds=(tests/data/laz/*.copc.laz) ;;  # lone-star.copc.laz (bundled, 2.7 MB)
     sql) seeds=() ;;  # the calls below, and regressions/sql

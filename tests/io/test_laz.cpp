@@ -1,13 +1,20 @@
 // LAZ decoding against independent oracles: the uncompressed LAS files holding the same records
 // (the shared data README: autzen_trim.laz = autzen_trim.las; las/derived/*.las were decoded
-// from their LAZ by laz-perf), compared byte for byte.
+// from their LAZ by laz-perf; PDAL's simple.las = its LASzip 1.2 pointwise file), compared byte
+// for byte.
 #include "io_test_util.hpp"
+
+#include "laz_v1_test_encoder.hpp"
 
 #include "rayscan/site/copc.hpp"
 #include "rayscan/io/las_records.hpp"
+#include "rayscan/io/translate.hpp"
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <sys/wait.h>
 
 namespace rayscan::test {
 namespace {
@@ -149,6 +156,252 @@ TEST(LazBadInput, CopcHierarchyCycleAndPageOffsetsPastTheEnd) {
       EXPECT_EQ(std::string(ex.what()).rfind("bad.copc.laz: byte " + std::to_string(page + 16), 0), 0u) << ex.what();
     }
   }
+}
+
+}  // namespace
+}  // namespace rayscan::test
+
+// ---- LASzip 1.x: the pointwise compressor (1) and version 1 items (POINT10, GPSTIME11, RGB12,
+// BYTE). Oracle: PDAL's simple.las holds the records that LASzip 1.2 compressed into
+// simple-laszip-compressor-version-1.2r0.laz (compressor 1, chunk size 0, POINT10/GPSTIME11/RGB12
+// version 1). Chunked files with version 1 items (no public sample found) are built with the
+// test encoder laz_v1_test_encoder.hpp, itself checked against LASzip's stream first.
+
+namespace rayscan::test {
+namespace {
+
+constexpr const char* kV1Laz = "laz/simple-laszip-compressor-version-1.2r0.laz";
+constexpr const char* kV1Las = "las/simple.las";
+
+template <typename T>
+T v1_load(const std::vector<std::uint8_t>& b, std::size_t at) {
+  T v;
+  std::memcpy(&v, b.data() + at, sizeof v);
+  return v;
+}
+template <typename T>
+void v1_store(std::vector<std::uint8_t>& b, std::size_t at, T v) {
+  std::memcpy(b.data() + at, &v, sizeof v);
+}
+
+/// Byte offset of the LASzip VLR payload (compressor field) in `b`.
+std::size_t laszip_payload(const std::vector<std::uint8_t>& b) {
+  const std::string key = "laszip encoded";
+  const auto it = std::search(b.begin(), b.end(), key.begin(), key.end());
+  if (it == b.end()) return 0;
+  return static_cast<std::size_t>(it - b.begin()) - 2 + 54;
+}
+
+/// "" when `bytes` decode, else the FormatError's message.
+std::string v1_error_of(const std::vector<std::uint8_t>& bytes) {
+  try {
+    io::read_las_records(bytes, "bad.laz");
+  } catch (const io::FormatError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Laz, LaszipV1PointwiseMatchesLas) {
+  RAYSCAN_REQUIRE_FILE(laz, kV1Laz);
+  RAYSCAN_REQUIRE_FILE(las, kV1Las);
+  // the file is what this test is about: compressor 1, chunk size 0, three version 1 items
+  const auto b = slurp(laz);
+  const std::size_t p = laszip_payload(b);
+  ASSERT_NE(p, 0u);
+  EXPECT_EQ(v1_load<std::uint16_t>(b, p), 1);       // compressor: pointwise
+  EXPECT_EQ(v1_load<std::uint32_t>(b, p + 12), 0u);  // chunk size
+  ASSERT_EQ(v1_load<std::uint16_t>(b, p + 32), 3);
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(v1_load<std::uint16_t>(b, p + 38 + 6 * i), 1) << "item " << i;
+  expect_same_records(kV1Laz, kV1Las);
+}
+
+TEST(Laz, LaszipV1ChunkSizeFieldIsIgnoredByThePointwiseCompressor) {
+  // LASzip 1.0 wrote 1 there (libLAS's 2011 copy of the same file); LASreadPoint::setup ignores
+  // the field for compressor 1
+  RAYSCAN_REQUIRE_FILE(laz, kV1Laz);
+  RAYSCAN_REQUIRE_FILE(las, kV1Las);
+  const auto good = slurp(laz);
+  const auto want = io::read_las_records(las).records;
+  for (std::uint32_t cs : {1u, 50000u, 0xFFFFFFFFu}) {
+    auto b = good;
+    v1_store<std::uint32_t>(b, laszip_payload(b) + 12, cs);
+    const io::LasRecords r = io::read_las_records(b, "v1.laz");
+    EXPECT_EQ(r.chunks, 1u);
+    EXPECT_TRUE(r.records == want) << "chunk size " << cs;
+  }
+}
+
+TEST(Laz, V1TestEncoderReproducesLaszipsStream) {
+  // the independent check of the test encoder used below: LASzip's own bytes
+  RAYSCAN_REQUIRE_FILE(laz, kV1Laz);
+  RAYSCAN_REQUIRE_FILE(las, kV1Las);
+  const auto b = slurp(laz);
+  const io::LasRecords r = io::read_las_records(las);
+  const std::vector<std::uint8_t> ours = lazv1::encode_stream(r.records.data(), r.count, r.record_length, r.pdrf);
+  const std::vector<std::uint8_t> theirs(b.begin() + v1_load<std::uint32_t>(b, 96), b.end());
+  ASSERT_EQ(ours.size(), theirs.size());
+  std::size_t i = 0;
+  while (i < ours.size() && ours[i] == theirs[i]) ++i;
+  EXPECT_EQ(i, ours.size()) << "first differing byte " << i;
+}
+
+/// A compressor 2 LAZ of `las`'s records with version 1 items in chunks of `chunk` points:
+/// header and VLRs from translate_las's output (chunk size, item versions patched), point data
+/// and chunk table (byte sizes; with `variable`, chunk size 0 and the point counts too) here.
+std::vector<std::uint8_t> chunked_v1(const fs::path& las, std::uint32_t chunk, bool variable) {
+  const fs::path tmp = temp_dir() / ("v1src-" + las.filename().string() + ".laz");
+  io::TranslateOptions o;
+  o.chunk_size = chunk;
+  io::translate_las(las, tmp, o);
+  auto b = slurp(tmp);
+  const std::size_t p = laszip_payload(b);
+  const std::uint32_t po = v1_load<std::uint32_t>(b, 96);
+  v1_store<std::uint32_t>(b, p + 12, variable ? 0 : chunk);
+  for (std::uint16_t i = 0; i < v1_load<std::uint16_t>(b, p + 32); ++i) v1_store<std::uint16_t>(b, p + 38 + 6 * i, 1);
+  b.resize(po + 8);
+  const io::LasRecords r = io::read_las_records(las);
+  std::vector<std::uint32_t> counts, sizes;
+  for (std::uint64_t first = 0; first < r.count; first += chunk) {
+    const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(chunk, r.count - first));
+    const auto s = lazv1::encode_stream(r.records.data() + first * r.record_length, n, r.record_length, r.pdrf);
+    b.insert(b.end(), s.begin(), s.end());
+    counts.push_back(static_cast<std::uint32_t>(n));
+    sizes.push_back(static_cast<std::uint32_t>(s.size()));
+  }
+  v1_store<std::int64_t>(b, po, static_cast<std::int64_t>(b.size()));
+  std::vector<std::uint8_t> table(8, 0);
+  v1_store<std::uint32_t>(table, 4, static_cast<std::uint32_t>(sizes.size()));
+  {
+    io::laz::ArithmeticEncoder enc(table);
+    io::laz::IntegerCompressor ic(32, 2);
+    for (std::size_t i = 0; i < sizes.size(); ++i) {
+      if (variable) ic.compress(enc, i ? static_cast<std::int32_t>(counts[i - 1]) : 0, static_cast<std::int32_t>(counts[i]), 0);
+      ic.compress(enc, i ? static_cast<std::int32_t>(sizes[i - 1]) : 0, static_cast<std::int32_t>(sizes[i]), 1);
+    }
+    enc.done();
+  }
+  b.insert(b.end(), table.begin(), table.end());
+  return b;
+}
+
+TEST(Laz, V1ItemsInChunkedFilesMatchLas) {
+  // PDRF 0-3 (POINT10, + GPSTIME11, + RGB12) and PDRF 3 + 27 extra bytes (BYTE), in chunks of 97
+  // points (the last one shorter), fixed and variable (chunk size 0: counts in the table)
+  for (const char* rel : {"las/point10.las", "las/point-time.las", "las/point-color.las", "las/point-color-time.las",
+                          "las/extrabytes.las", kV1Las}) {
+    RAYSCAN_REQUIRE_FILE(las, rel);
+    const std::vector<std::uint8_t> want = io::read_las_records(las).records;
+    for (bool variable : {false, true}) {
+      const auto b = chunked_v1(las, 97, variable);
+      const std::size_t p = laszip_payload(b);
+      EXPECT_EQ(v1_load<std::uint16_t>(b, p), 2);
+      const io::LasRecords r = io::read_las_records(b, "v1-chunked.laz");
+      EXPECT_EQ(r.chunks, (want.size() / r.record_length + 96) / 97) << rel;
+      EXPECT_TRUE(r.notes.empty()) << rel << ": " << r.notes.front();
+      EXPECT_TRUE(r.records == want) << rel << (variable ? " (variable chunks)" : "");
+    }
+  }
+}
+
+TEST(Laz, V1PointwiseThroughTheChunkedReaderAndTranslate) {
+  RAYSCAN_REQUIRE_FILE(laz, kV1Laz);
+  RAYSCAN_REQUIRE_FILE(las, kV1Las);
+  io::FileInfo info;
+  const PointCloud a = read(laz, &info), b = read(las);
+  EXPECT_EQ(info.format, "LAZ");
+  ASSERT_EQ(a.size(), 1065u);
+  EXPECT_TRUE(a.positions == b.positions);
+  EXPECT_TRUE(a.rgb == b.rgb);
+  EXPECT_TRUE(a.gps_time == b.gps_time);
+  EXPECT_TRUE(a.intensity == b.intensity);
+  EXPECT_TRUE(a.classification == b.classification);
+  // `rayscan translate` to LAS: the header (the LASzip VLR dropped) and records of simple.las
+  const fs::path out = temp_dir() / "v1-translated.las", err = temp_dir() / "v1-translate.err";
+  const std::string cmd = std::string("'") + RAYSCAN_EXE + "' translate '" + laz.string() + "' '" + out.string() +
+                          "' >/dev/null 2>'" + err.string() + "'";
+  ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+  EXPECT_TRUE(slurp(out) == slurp(las));  // simple.las is that file, byte for byte
+  // and to a current LAZ (compressor 2, version 2 items): the same records
+  const fs::path v2 = temp_dir() / "v1-to-v2.laz";
+  EXPECT_TRUE(io::translate_las(laz, v2).compressed);
+  EXPECT_TRUE(io::read_las_records(v2).records == io::read_las_records(las).records);
+}
+
+TEST(LazBadInput, UnsupportedCompressorItemCombinationsAreNamed) {
+  RAYSCAN_REQUIRE_FILE(v1, kV1Laz);
+  const auto good = slurp(v1);
+  const std::size_t p = laszip_payload(good);
+  auto expect = [&](std::vector<std::uint8_t> b, std::size_t at, const std::string& what) {
+    const std::string e = v1_error_of(b);
+    EXPECT_EQ(e, "bad.laz: byte " + std::to_string(at) + ": " + what);
+    EXPECT_EQ(e.find("chunk size"), std::string::npos) << e;
+  };
+  {
+    auto b = good;
+    v1_store<std::uint16_t>(b, p, 3);
+    expect(b, p + 34, "LASzip item 0: compressor 3 with item POINT10 version 1 is not supported "
+                      "(LAS 1.0-1.3 items are coded by the pointwise compressors 1 and 2)");
+  }
+  {
+    auto b = good;
+    v1_store<std::uint16_t>(b, p + 34 + 12 + 4, 0);  // RGB12 version 0
+    expect(b, p + 34 + 12, "LASzip item 2: compressor 1 with item RGB12 version 0 is not supported "
+                           "(version 0 marks an uncompressed item)");
+    v1_store<std::uint16_t>(b, p + 34 + 12 + 4, 3);
+    expect(b, p + 34 + 12, "LASzip item 2: compressor 1 with item RGB12 version 3 is not supported "
+                           "(expected version 1 or 2)");
+  }
+  {
+    auto b = good;
+    v1_store<std::uint16_t>(b, p + 34 + 12, 9);  // WAVEPACKET13 in place of RGB12
+    expect(b, p + 34 + 12, "LASzip item 2: compressor 1 with item WAVEPACKET13 version 1 is not supported "
+                           "(waveform packets, PDRF 4/5/9/10 LAZ)");
+  }
+  {
+    auto b = good;  // RGB12 before GPSTIME11: the sizes still add up to 34
+    std::swap_ranges(b.begin() + static_cast<std::ptrdiff_t>(p + 40), b.begin() + static_cast<std::ptrdiff_t>(p + 46),
+                     b.begin() + static_cast<std::ptrdiff_t>(p + 46));
+    expect(b, p + 34 + 12, "LASzip item 2 (GPSTIME11 version 1, 8 bytes): out of order or repeated "
+                           "(LAS 1.0-1.3 records hold POINT10, GPSTIME11, RGB12, then BYTE)");
+  }
+  RAYSCAN_REQUIRE_FILE(l14, "laz/append-bug.laz");  // PDRF 8: POINT14, RGBNIR14, BYTE14 version 3
+  for (std::uint16_t c : {1, 2}) {
+    auto b = slurp(l14);
+    const std::size_t q = laszip_payload(b);
+    v1_store<std::uint16_t>(b, q, c);
+    expect(b, q + 34, "LASzip item 0: compressor " + std::to_string(c) +
+                          " with item POINT14 version 3 is not supported "
+                          "(LAS 1.4 items are coded by the layered-chunked compressor 3)");
+  }
+}
+
+TEST(LazBadInput, TruncatedPointwiseStreamStopsAtItsEnd) {
+  RAYSCAN_REQUIRE_FILE(v1, kV1Laz);
+  const auto good = slurp(v1);
+  for (double frac : {0.3, 0.8}) {
+    const std::vector<std::uint8_t> b(good.begin(), good.begin() + static_cast<std::ptrdiff_t>(frac * good.size()));
+    const std::string e = v1_error_of(b);
+    EXPECT_EQ(e.rfind("bad.laz: byte " + std::to_string(b.size()) + ": LAZ chunk 0: compressed stream needs bytes past its end after record ", 0), 0u) << e;
+  }
+}
+
+TEST(LazBadInput, CliNamesTheUnsupportedCombinationWithExitCode2) {
+  RAYSCAN_REQUIRE_FILE(l14, "laz/append-bug.laz");
+  auto b = slurp(l14);
+  v1_store<std::uint16_t>(b, laszip_payload(b), 1);
+  const fs::path bad = temp_dir() / "pointwise-las14.laz", err = temp_dir() / "pointwise-las14.err";
+  {
+    std::ofstream o(bad, std::ios::binary);
+    o.write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  }
+  const std::string cmd = std::string("'") + RAYSCAN_EXE + "' info '" + bad.string() + "' >/dev/null 2>'" + err.string() + "'";
+  const int rc = std::system(cmd.c_str());
+  EXPECT_EQ(WIFEXITED(rc) ? WEXITSTATUS(rc) : -1, 2);
+  const auto e = slurp(err);
+  const std::string text(e.begin(), e.end());
+  EXPECT_NE(text.find(bad.string() + ": byte "), std::string::npos) << text;
+  EXPECT_NE(text.find("compressor 1 with item POINT14 version 3 is not supported"), std::string::npos) << text;
 }
 
 }  // namespace

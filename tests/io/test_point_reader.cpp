@@ -120,6 +120,20 @@ TEST(PointReader, LazChunksEqualTheSameLas) {
   }
 }
 
+// A LASzip 1.x pointwise LAZ (one stream of all points, decoded in sequence by one decoder kept
+// across reads): every value equals the plain LAS holding its records (tests/data/README.md),
+// for reads of 1, 100 and 4096 points (the colour pass at open restarts the decoder once).
+TEST(PointReader, PointwiseLazReadsInSequenceEqualTheSameLas) {
+  RAYSCAN_REQUIRE_FILE(las, "las/simple.las");
+  RAYSCAN_REQUIRE_FILE(laz, "laz/simple-laszip-compressor-version-1.2r0.laz");
+  const PointCloud whole = io::read_point_cloud(las);
+  for (std::size_t chunk : {std::size_t{1}, std::size_t{100}, std::size_t{4096}}) {
+    auto r = io::open_point_reader(laz);
+    EXPECT_EQ(r->info().format, "LAZ");
+    expect_same(read_chunked(*r, chunk), whole, "pointwise LAZ chunk " + std::to_string(chunk));
+  }
+}
+
 TEST(PointReader, AttributeSubsetKeepsPositionsAndOnlyTheAskedAttributes) {
   for (const fs::path& p : all_data_files()) {
     const PointCloud whole = io::read_point_cloud(p);

@@ -260,6 +260,10 @@ class LasReader final : public PointReader {
   /// LAZ: makes records [first, first + n) available (decoding whole chunks into window_, in
   /// parallel over chunks) and returns a pointer to record `first`; n <= points of the window.
   const std::uint8_t* laz_records(std::uint64_t first, std::size_t n, std::uint32_t layers);
+  /// laz_records for compressor 1 (LASzip 1.x pointwise): the file is one stream of all its
+  /// points, so one decoder kept across calls decodes the records in sequence into a window of
+  /// `n` records (memory: the window, not the file); a request before its position restarts it.
+  const std::uint8_t* laz_stream_records(std::uint64_t first, std::size_t n);
 
   std::shared_ptr<Source> src_;
   FileInfo info_;
@@ -282,12 +286,46 @@ class LasReader final : public PointReader {
   std::size_t win_c0_ = 0, win_c1_ = 0;
   std::uint64_t win_first_ = 0, win_points_ = 0;
   std::uint32_t win_layers_ = 0;
+  std::unique_ptr<laz::ChunkDecoder> stream_;  // compressor 1: the decoder and its next record
+  std::uint64_t stream_next_ = 0;
   // ReadOptions::direct_records: each read()'s records from DirectBlocks, the next read()'s
   // range read ahead.
   std::unique_ptr<DirectBlocks> direct_;
 };
 
+const std::uint8_t* LasReader::laz_stream_records(std::uint64_t first, std::size_t n) {
+  const std::size_t rec = rec_len_;
+  if (win_points_ > 0 && first >= win_first_ && first + n <= win_first_ + win_points_)
+    return window_.data() + (first - win_first_) * rec;
+  const laz::Chunk& c = chunks_.front();
+  const Input& in = src_->in;
+  win_points_ = 0;  // the window is invalid until the decode below succeeds
+  try {
+    if (!stream_ || first < stream_next_) {
+      stream_ = std::make_unique<laz::ChunkDecoder>(lazvlr_);
+      stream_->start(in, 0, c, c.offset + c.bytes);
+      stream_next_ = 0;
+    }
+    resize_huge(window_, std::max<std::size_t>(n, 1) * rec);
+    while (stream_next_ < first) {  // records skipped over are decoded into the window, then dropped
+      const std::size_t k = static_cast<std::size_t>(std::min<std::uint64_t>(std::max<std::size_t>(n, 1), first - stream_next_));
+      stream_->next(k, window_.data());
+      stream_next_ += k;
+    }
+    stream_->next(n, window_.data());
+    stream_next_ += n;
+    if (stream_next_ == c.points) stream_->finish();
+  } catch (...) {
+    stream_.reset();  // its state is unknown after an error: the next request starts over
+    throw;
+  }
+  in.done(stream_->consumed_end());
+  win_first_ = first, win_points_ = n;
+  return window_.data();
+}
+
 const std::uint8_t* LasReader::laz_records(std::uint64_t first, std::size_t n, std::uint32_t layers) {
+  if (lazvlr_.compressor == 1) return laz_stream_records(first, n);
   const bool hit = win_layers_ == layers && win_c1_ > win_c0_ && first >= win_first_ &&
                    first + n <= win_first_ + win_points_;
   if (!hit) {

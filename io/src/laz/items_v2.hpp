@@ -1,4 +1,5 @@
-// Internal: LASzip item decoders of versions 1/2 (pointwise and pointwise-chunked compressors):
+// Internal: LASzip item decoders of version 2 (pointwise and pointwise-chunked compressors;
+// version 1: items_v1.hpp):
 // POINT10 (item type 6, 20 bytes), GPSTIME11 (7, 8 bytes), RGB12 (8, 6 bytes), BYTE (0, n extra
 // bytes). All items of a record share one arithmetic decoder; the first record of a chunk is
 // stored raw and seeds every item's "last" state. Format reference (read, not copied): LASzip

@@ -72,7 +72,10 @@ LaszipVlr parse_laszip_vlr(const std::uint8_t* p, std::uint64_t len, const std::
     fail_at(name, offset, "LASzip compressor " + std::to_string(v.compressor) +
                               " (expected 1 pointwise, 2 pointwise-chunked or 3 layered-chunked)");
   if (v.coder != 0) fail_at(name, offset + 2, "LASzip coder " + std::to_string(v.coder) + " (expected 0, arithmetic)");
-  if (v.chunk_size == 0) fail_at(name, offset + 12, "LASzip chunk size 0");
+  // Compressor 1 has no chunks: LASreadPoint::setup (lasreadpoint.cpp) ignores the chunk size
+  // (LASzip 1.0 wrote 1, 1.2 wrote 0). For compressors 2 and 3 it keeps "variable" (U32_MAX) when
+  // the field is 0, so a 0 there means chunk sizes from the table (variable_chunks()).
+  int last_rank = -1;  // pointwise items in record order: POINT10, GPSTIME11, RGB12, BYTE
   for (std::uint16_t i = 0; i < n; ++i) {
     Item it{load_le<std::uint16_t>(p + 34 + 6 * i), load_le<std::uint16_t>(p + 36 + 6 * i),
             load_le<std::uint16_t>(p + 38 + 6 * i)};
@@ -82,23 +85,36 @@ LaszipVlr parse_laszip_vlr(const std::uint8_t* p, std::uint64_t len, const std::
       fail_at(name, at, "LASzip item " + std::to_string(i) + " (" + item_name(it.type) + " version " +
                             std::to_string(it.version) + ", " + std::to_string(it.size) + " bytes): " + why);
     };
-    if (it.type == kWavePacket13 || it.type == kWavePacket14)
-      bad("waveform packets are not supported (PDRF 4/5/9/10 LAZ)");
+    // a combination of compressor, item type and item version this decoder has no coder for
+    auto unsupported = [&](const std::string& why) {
+      fail_at(name, at, "LASzip item " + std::to_string(i) + ": compressor " + std::to_string(v.compressor) +
+                            " with item " + item_name(it.type) + " version " + std::to_string(it.version) +
+                            " is not supported (" + why + ")");
+    };
     const bool v2item = it.type == kByte || it.type == kPoint10 || it.type == kGpsTime11 || it.type == kRgb12;
     const bool v3item = it.type == kPoint14 || it.type == kRgb14 || it.type == kRgbNir14 || it.type == kByte14;
+    if (it.type == kWavePacket13 || it.type == kWavePacket14)
+      unsupported("waveform packets, PDRF 4/5/9/10 LAZ");
     if (!v2item && !v3item) bad("unknown item type");
-    if (v2item && layered) bad("a LAS 1.0-1.3 item in a layered-chunked (LAS 1.4) stream");
-    if (v3item && !layered) bad("a LAS 1.4 item outside a layered-chunked stream");
-    if (v2item && it.version != 2)
-      bad(it.version == 1 ? "item version 1 (LASzip before 2.0) is not supported; recompress with a current laszip"
-                          : "unknown item version (expected 2)");
-    if (v3item && it.version != 3 && it.version != 4) bad("unknown item version (expected 3 or 4)");
+    if (v2item && layered)
+      unsupported("LAS 1.0-1.3 items are coded by the pointwise compressors 1 and 2");
+    if (v3item && !layered)
+      unsupported("LAS 1.4 items are coded by the layered-chunked compressor 3");
+    if (v2item && it.version != 1 && it.version != 2)
+      unsupported(it.version == 0 ? "version 0 marks an uncompressed item" : "expected version 1 or 2");
+    if (v3item && it.version != 3 && it.version != 4) unsupported("expected version 3 or 4");
     const int want = it.type == kPoint10 ? 20 : it.type == kGpsTime11 ? 8 : it.type == kRgb12 ? 6
                    : it.type == kPoint14 ? 30 : it.type == kRgb14 ? 6 : it.type == kRgbNir14 ? 8 : -1;
     if (want > 0 && it.size != want) bad("expected " + std::to_string(want) + " bytes");
     if (want < 0 && it.size == 0) bad("zero extra bytes");
     if (i == 0 && it.type != kPoint10 && it.type != kPoint14) bad("the first item must be POINT10 or POINT14");
     if (i > 0 && (it.type == kPoint10 || it.type == kPoint14)) bad("a second point item");
+    if (v2item) {  // the pointwise decoder keeps one coder per kind and decodes them in this order
+      const int rank = it.type == kPoint10 ? 0 : it.type == kGpsTime11 ? 1 : it.type == kRgb12 ? 2 : 3;
+      if (rank <= last_rank)
+        bad("out of order or repeated (LAS 1.0-1.3 records hold POINT10, GPSTIME11, RGB12, then BYTE)");
+      last_rank = rank;
+    }
     v.items.push_back(it);
   }
   if (v.items.empty()) fail_at(name, offset + 32, "LASzip VLR lists no items");
@@ -120,12 +136,16 @@ struct ChunkDecoder::Impl {
   const LaszipVlr& vlr;
   std::uint32_t layers;
   std::size_t rec_len;
-  // pointwise (v2)
+  // pointwise (compressors 1 and 2): at most one item of each kind, version 1 or 2
   ArithmeticDecoder dec;
   std::optional<Point10V2> p10;
   std::optional<GpsTime11V2> gps;
   std::optional<Rgb12V2> rgb;
   std::optional<ByteV2> bytes;
+  std::optional<Point10V1> p10_1;
+  std::optional<GpsTime11V1> gps_1;
+  std::optional<Rgb12V1> rgb_1;
+  std::optional<ByteV1> bytes_1;
   std::size_t off_gps = 0, off_rgb = 0, off_bytes = 0;
   // layered (v3/v4): streams in file order
   std::vector<LayerStream> streams;
@@ -166,15 +186,29 @@ struct ChunkDecoder::Impl {
     raw = base + c.offset;
     std::uint64_t pos = c.offset + rec_len;
     if (!vlr.layered()) {
-      p10.emplace();
-      p10->init(raw);
-      std::size_t off = 20;
-      gps.reset(), rgb.reset(), bytes.reset();
-      for (std::size_t i = 1; i < vlr.items.size(); ++i) {
-        const Item& it = vlr.items[i];
-        if (it.type == kGpsTime11) gps.emplace(), gps->init(raw + off), off_gps = off;
-        else if (it.type == kRgb12) rgb.emplace(), rgb->init(raw + off), off_rgb = off;
-        else if (it.type == kByte) bytes.emplace(it.size), bytes->init(raw + off), off_bytes = off;
+      // fresh coders per chunk: LASzip re-initialises every model at a chunk start
+      // (LASreadItemCompressed_*::init), which equals constructing them anew
+      p10.reset(), gps.reset(), rgb.reset(), bytes.reset();
+      p10_1.reset(), gps_1.reset(), rgb_1.reset(), bytes_1.reset();
+      std::size_t off = 0;
+      for (const Item& it : vlr.items) {  // parse_laszip_vlr: one of each kind, in this order
+        const bool v1 = it.version == 1;
+        if (it.type == kPoint10) {
+          if (v1) p10_1.emplace(), p10_1->init(raw);
+          else p10.emplace(), p10->init(raw);
+        } else if (it.type == kGpsTime11) {
+          if (v1) gps_1.emplace(), gps_1->init(raw + off);
+          else gps.emplace(), gps->init(raw + off);
+          off_gps = off;
+        } else if (it.type == kRgb12) {
+          if (v1) rgb_1.emplace(), rgb_1->init(raw + off);
+          else rgb.emplace(), rgb->init(raw + off);
+          off_rgb = off;
+        } else {
+          if (v1) bytes_1.emplace(it.size), bytes_1->init(raw + off);
+          else bytes.emplace(it.size), bytes->init(raw + off);
+          off_bytes = off;
+        }
         off += it.size;
       }
       dec.init(base + pos, base + end);
@@ -255,10 +289,19 @@ struct ChunkDecoder::Impl {
         continue;
       }
       if (!vlr.layered()) {
-        p10->read(dec, out);
+        if (p10) p10->read(dec, out);
+        else p10_1->read(dec, out);
         if (gps) gps->read(dec, out + off_gps);
+        else if (gps_1) gps_1->read(dec, out + off_gps);
         if (rgb) rgb->read(dec, out + off_rgb);
+        else if (rgb_1) rgb_1->read(dec, out + off_rgb);
         if (bytes) bytes->read(dec, out + off_bytes);
+        else if (bytes_1) bytes_1->read(dec, out + off_bytes);
+        // A valid stream never needs bytes past its end (finish()); stopping at once bounds the
+        // work a damaged one costs: a pointwise file is one chunk of all its points.
+        if (dec.overrun > 0)
+          fail(dec_end, "compressed stream needs bytes past its end after record " + std::to_string(done - 1) +
+                            " of " + std::to_string(points) + " (corrupted or truncated chunk)");
       } else {
         p14->read(out);
         const std::uint32_t ctx = p14->context_out;

@@ -1,12 +1,14 @@
 // Internal: LAZ (LASzip-compressed LAS) container: the LASzip VLR, the chunk table and a decoder
 // that turns the compressed chunks back into the LAS point records they came from, byte for
 // byte. Format reference (read, not copied): LASzip src/laszip.cpp (VLR layout, item types),
-// src/lasreadpoint.cpp (read_chunk_table, chunk start, layered chunk header);
+// src/lasreadpoint.cpp (setup: compressor 1 has no chunks; read_chunk_table, chunk start, layered
+// chunk header);
 // laz-perf cpp/lazperf/vlr.cpp, readers.cpp. docs/formats.md "LAZ".
 #pragma once
 
 #include "bytes.hpp"
 #include "readers.hpp"
+#include "laz/items_v1.hpp"
 #include "laz/items_v3.hpp"
 
 #include <cstdint>
@@ -37,11 +39,15 @@ struct LaszipVlr {
   std::uint8_t version_major = 0, version_minor = 0;
   std::uint16_t revision = 0;
   std::uint32_t options = 0;
-  std::uint32_t chunk_size = 0;  ///< points per chunk; 0xFFFFFFFF = variable (from the table)
+  std::uint32_t chunk_size = 0;  ///< points per chunk; 0xFFFFFFFF (or 0) = variable; unused by compressor 1
   std::int64_t special_evlrs = -1, special_evlr_offset = -1;
   std::vector<Item> items;
 
-  [[nodiscard]] bool variable_chunks() const { return chunk_size == 0xFFFFFFFFu; }
+  /// Chunk point counts come from the chunk table: LASreadPoint::setup (lasreadpoint.cpp) leaves
+  /// its chunk size "variable" (U32_MAX) when the VLR stores 0xFFFFFFFF or 0.
+  [[nodiscard]] bool variable_chunks() const {
+    return compressor != 1 && (chunk_size == 0xFFFFFFFFu || chunk_size == 0);
+  }
   [[nodiscard]] bool layered() const { return compressor == 3; }
   /// Sum of the item sizes (must equal the LAS record length).
   [[nodiscard]] std::size_t record_length() const;
@@ -50,7 +56,10 @@ struct LaszipVlr {
 /// Parses and validates the VLR payload `p[0, len)` found at byte `offset` of file `name`,
 /// against the header's point data record format and record length. Throws FormatError naming
 /// the byte of the offending field for a short payload, an unknown compressor/coder, an unknown
-/// item type or version, or items that do not add up to the record length.
+/// item type, a compressor/item type/item version combination without a decoder (the message
+/// names all three), items out of record order, or items that do not add up to the record
+/// length. Accepted: compressor 1 or 2 with POINT10, GPSTIME11, RGB12, BYTE of version 1 or 2
+/// (any mix), compressor 3 with POINT14, RGB14, RGBNIR14, BYTE14 of version 3 or 4.
 LaszipVlr parse_laszip_vlr(const std::uint8_t* p, std::uint64_t len, const std::string& name,
                            std::uint64_t offset, int pdrf, std::size_t record_length);
 
@@ -66,6 +75,8 @@ struct Chunk {
 /// size only) and byte sizes). `data_end` bounds the point data (file size or EVLR start).
 /// A missing or damaged table is rebuilt by walking the chunks when the chunk size is fixed
 /// (a note is appended); otherwise FormatError. Chunk counts must add up to `point_count`.
+/// Compressor 1 (pointwise) has no table and no table offset: one chunk of all points spanning
+/// [point_offset, data_end).
 std::vector<Chunk> read_chunk_table(const Input& in, const LaszipVlr& vlr, std::uint64_t point_offset,
                                     std::uint64_t data_end, std::uint64_t point_count,
                                     std::vector<std::string>& notes);
@@ -73,7 +84,8 @@ std::vector<Chunk> read_chunk_table(const Input& in, const LaszipVlr& vlr, std::
 /// Decodes chunks into LAS point records. One instance decodes one chunk at a time (not thread
 /// safe; use one per thread). `layers` (Layer bits) selects what a layered chunk decodes: X, Y
 /// and the return numbers are always decoded; fields of skipped layers keep the chunk's first
-/// value. Pointwise items always decode everything.
+/// value. Pointwise items (versions 1 and 2) always decode everything; a compressor 1 stream is
+/// decoded as one chunk holding all points.
 class ChunkDecoder {
  public:
   ChunkDecoder(const LaszipVlr& vlr, std::uint32_t layers = kLayerAll);
@@ -86,7 +98,8 @@ class ChunkDecoder {
   /// header is truncated or its layer sizes run past the chunk, or if a layered chunk stores a
   /// point count different from `chunk.points`.
   void start(const Input& in, std::size_t index, const Chunk& chunk, std::uint64_t limit);
-  /// Decodes the next `n` records of the chunk into `out` (n * record_length bytes).
+  /// Decodes the next `n` records of the chunk into `out` (n * record_length bytes). A pointwise
+  /// stream that needs bytes past its end throws FormatError (chunk, byte) at once.
   void next(std::size_t n, std::uint8_t* out);
   /// Checks that the streams of the finished chunk were consumed up to their end: reading past
   /// it, or (when `strict`) leaving more than a few padding bytes unread, means a corrupted
