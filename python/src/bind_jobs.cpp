@@ -1,12 +1,14 @@
 // rayscan.render / visibility / solar / compare: the library's job calls (docs/library.md: one
 // options struct in, one result out; jobs::run_render, run_visibility, run_solar, run_compare)
-// with NumPy arrays out. Each call converts its arguments with the GIL held, then releases it for
-// the job (TBB inside).
+// with NumPy arrays out. A cloud is a file name, a rayscan.PointCloud (passed to the job in
+// memory, not copied) or an (N, 3) array (cloud_arg). Each call converts its arguments with the
+// GIL held, then releases it for the job (TBB inside).
 #include "arrays.hpp"
 #include "bindings.hpp"
 #include "cloud.hpp"
 
 #include "rayscan/jobs/compare.hpp"
+#include "rayscan/jobs/quick_look.hpp"
 #include "rayscan/jobs/solar.hpp"
 #include "rayscan/jobs/visibility.hpp"
 #include "rayscan/jobs/render.hpp"
@@ -40,37 +42,67 @@ py::array_t<std::int64_t> point_ids(const std::vector<std::uint32_t>& v, std::ve
   return to_numpy(std::move(out), std::move(shape));
 }
 
-const PointCloud* in_memory_cloud(const py::object& cloud) {
-  if (cloud.is_none()) return nullptr;
-  if (!py::isinstance<PyCloud>(cloud))
-    throw py::value_error("cloud: expected a rayscan.PointCloud (from rayscan.read) or None");
-  return &cloud.cast<const PyCloud&>().cloud;
-}
-
 /// A count of pixels or samples: an integer in [1, 2^32 - 1], or None.
 std::optional<std::uint32_t> size_arg(py::handle v, const char* name) {
   return opt_int_arg<std::uint32_t>(v, name, 1, 0xFFFFFFFFll, "None or an integer in [1, 2^32 - 1]");
 }
 
-py::dict render(py::handle scene_file, const py::object& cloud, py::handle width, py::handle height,
-                py::handle spp, py::handle seed, py::handle aovs, py::handle camera, py::handle threads) {
+/// The summary of points in memory for the overview camera (summarize_cloud), as the CLI takes it
+/// of a file: georeferenced with a CRS, a PCD VIEWPOINT as the scanner position.
+jobs::CloudSummary summarize_points(const PointCloud& cloud, const io::FileInfo* info) {
+  std::optional<Vec3> sensor;
+  if (info && info->viewpoint) sensor = Vec3((*info->viewpoint)[0], (*info->viewpoint)[1], (*info->viewpoint)[2]);
+  return jobs::summarize_cloud(cloud.positions, !cloud.rgb.empty(), !cloud.crs_wkt.empty(), sensor);
+}
+
+/// `scene` is a scene file or a point cloud file (its quick look, as `rayscan render CLOUD`), a
+/// PointCloud or an (N, 3) array (the quick look of those points), or None with `scene_json` (a
+/// scene dict as JSON text). `cloud` replaces the scene's points.
+py::dict render(py::handle scene, const std::string& scene_json, py::handle cloud, py::handle width,
+                py::handle height, py::handle spp, py::handle seed, py::handle aovs, py::handle camera,
+                py::handle threads) {
   jobs::RenderJobOptions o;
-  o.cloud = in_memory_cloud(cloud);
   o.write = false;
   o.control.threads = parse_threads(threads);
   render::SceneOverrides ov;
-  const std::string scene = path_arg(scene_file, "scene");
   if (!camera.is_none()) ov.camera_file = path_arg(camera, "camera");
   ov.width = size_arg(width, "width");
   ov.height = size_arg(height, "height");
   ov.spp = size_arg(spp, "spp");
   if (!seed.is_none()) ov.seed = uint64_arg(seed, "seed");
   ov.aovs = names_arg(aovs, "aovs");
+  const bool from_text = scene.is_none();
+  const bool quick_look_in_memory = !from_text && !is_path_like(scene);
+  std::optional<CloudArg> points;  // the points given in memory or as cloud=
+  std::string scene_file;
+  if (quick_look_in_memory) {
+    if (!py::isinstance<PyCloud>(scene) && !py::isinstance<py::array>(scene) && !py::isinstance<py::list>(scene) &&
+        !py::isinstance<py::tuple>(scene))
+      throw py::type_error("scene must be a scene or point cloud file name (str or os.PathLike), a scene dict, a "
+                           "rayscan.PointCloud or an (N, 3) array of coordinates, got " + type_name(scene));
+    if (!cloud.is_none()) throw py::type_error("render: the points are `scene` already; do not give cloud= too");
+    points.emplace(cloud_arg(scene, "scene", false));
+  } else {
+    if (!from_text) scene_file = path_arg(scene, "scene");
+    if (!cloud.is_none()) points.emplace(cloud_arg(cloud, "cloud"));
+  }
+  const PointCloud* memory = points ? points->points : nullptr;
+  const io::FileInfo* info = points ? points->info : nullptr;
+  std::optional<PointCloud> read;  // a cloud file read for the overview camera, rendered from memory too
+  const auto summary = [&](const std::filesystem::path& f) -> jobs::CloudSummary {
+    if (memory) return summarize_points(*memory, info);
+    return jobs::summarize_cloud_file(points ? std::filesystem::path(points->path) : f, read);
+  };
   jobs::RenderJobResult r;
   {
     py::gil_scoped_release nogil;
-    o.scene = render::load_scene(scene);
-    o.scene.apply(ov);
+    const jobs::ResolvedScene rs =
+        quick_look_in_memory ? jobs::resolve_quick_look(summary({}), ov)
+        : from_text          ? jobs::resolve_scene_text(scene_json, "scene dict", ov, summary, points.has_value())
+                             : jobs::resolve_scene(scene_file, ov, summary, points.has_value());
+    o.scene = rs.scene;
+    if (points && !memory) o.scene.cloud = std::filesystem::absolute(points->path);
+    o.cloud = memory ? memory : read ? &*read : nullptr;
     r = jobs::run_render(o);
   }
   render::Framebuffer& fb = r.image;
@@ -197,10 +229,9 @@ py::dict visibility(const py::object& cloud, const py::object& observers, std::o
                     std::optional<double> tolerance, std::optional<double> target_height,
                     py::handle sky_rays, py::handle camera, bool distance, py::handle threads) {
   jobs::VisibilityJobOptions o;
-  if (py::isinstance<PyCloud>(cloud))
-    o.cloud = &cloud.cast<const PyCloud&>().cloud;
-  else
-    o.cloud_file = path_arg(cloud, "cloud");
+  const CloudArg c = cloud_arg(cloud, "cloud");
+  o.cloud = c.points;
+  o.cloud_file = c.path;
   if (!observers.is_none()) {
     if (py::isinstance<py::str>(observers) || py::hasattr(observers, "__fspath__")) {
       o.observers_file = path_arg(observers, "observers");
@@ -253,10 +284,9 @@ py::dict solar(const py::object& cloud, const std::string& start, const std::str
                std::vector<double> linke, double albedo, const py::object& weather, double sector, py::handle sky_rays,
                const std::string& primitive, std::optional<double> radius, py::handle threads) {
   jobs::SolarJobOptions o;
-  if (py::isinstance<PyCloud>(cloud))
-    o.cloud = &cloud.cast<const PyCloud&>().cloud;
-  else
-    o.cloud_file = path_arg(cloud, "cloud");
+  const CloudArg c = cloud_arg(cloud, "cloud");
+  o.cloud = c.points;
+  o.cloud_file = c.path;
   o.start = start;
   o.end = end;
   o.step = step;
@@ -298,7 +328,8 @@ py::dict solar(const py::object& cloud, const std::string& start, const std::str
 }  // namespace
 
 void bind_jobs(py::module_& m) {
-  m.def("_render", &render, py::arg("scene"), py::arg("cloud") = py::none(), py::arg("width") = py::none(),
+  m.def("_render", &render, py::arg("scene"), py::arg("scene_json") = "", py::arg("cloud") = py::none(),
+        py::arg("width") = py::none(),
         py::arg("height") = py::none(), py::arg("spp") = py::none(), py::arg("seed") = py::none(),
         py::arg("aovs") = py::tuple(), py::arg("camera") = py::none(), py::arg("threads") = 0);
   m.def("_compare", &compare, py::arg("reference"), py::arg("image"),
