@@ -240,6 +240,24 @@ def render(scene, cloud=None, width=None, height=None, spp=None, seed=None, aovs
                             threads)
 
 
+def ortho_map(cloud, res, spp=None, seed=None, threads=0):
+    """A true orthophoto and digital surface model of the cloud, like `rayscan render CLOUD
+    --ortho-map RES --dsm dsm.tif` without writing GeoTIFFs: the quick look's scene (radius auto,
+    surfels, colour from rgb else elevation) seen by a top-down orthographic camera, one vertical
+    ray per cell of a north-up grid over the cloud's XY extent (analysis::ortho_map).
+
+    cloud: a point cloud file, a PointCloud or an (N, 3) array. res: cell edge, world units per
+    pixel (> 0). spp, seed: samples per pixel and random seed (as in render).
+
+    Returns a dict: "image" (rows, cols, 3) float32 linear radiance, row 0 the north edge;
+    "dsm" (rows, cols) float32 elevation of the first surface per cell (world units, NaN where
+    the ray missed); "geotransform" (x0, res, 0, y_top, 0, -res) as GDAL's (x0, y_top: the
+    grid's west and north edges, snapped to multiples of res); "crs" (WKT or None); "radius".
+    Raises ValueError for a res that is not > 0 or gives more than 65536 cells per side.
+    """
+    return _rayscan._ortho_map(cloud, res, spp, seed, threads)
+
+
 def visibility(cloud, observers=None, radius=None, height=None, max_distance=None, tolerance=None,
                target_height=None, sky_rays=0, camera=None, distance=False, threads=0):
     """Per-point visibility like `rayscan visibility` (jobs::run_visibility; rule in
@@ -303,6 +321,6 @@ def compare(reference, image, channels=(), mask=False, alpha=False, resize=False
 
 
 if not hasattr(_rayscan, "_render"):  # built without the library's job API
-    del render, visibility, solar, compare
+    del render, ortho_map, visibility, solar, compare
 else:
-    __all__ += ["render", "visibility", "solar", "compare"]
+    __all__ += ["render", "ortho_map", "visibility", "solar", "compare"]

@@ -92,6 +92,8 @@ def render(scene: _Path | dict[str, Any] | PointCloud | npt.ArrayLike, cloud: _C
            width: int | None = None, height: int | None = None, spp: int | None = None,
            seed: int | None = None, aovs: Sequence[str] = (), camera: _Path | None = None,
            threads: int = 0) -> dict[str, Any]: ...
+def ortho_map(cloud: _Cloud, res: float, spp: int | None = None, seed: int | None = None,
+              threads: int = 0) -> dict[str, Any]: ...
 def visibility(cloud: _Cloud, observers: _Path | npt.ArrayLike | None = None, radius: float | None = None,
                height: float | None = None, max_distance: float | None = None, tolerance: float | None = None,
                target_height: float | None = None, sky_rays: int = 0, camera: _Path | None = None,

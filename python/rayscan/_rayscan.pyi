@@ -124,6 +124,8 @@ def _write(path: _Path, cloud: PointCloud | _Points, fields: Mapping[str, npt.Ar
 def _render(scene: Any, scene_json: str = "", cloud: Any = None, width: int | None = None,
             height: int | None = None, spp: int | None = None, seed: int | None = None,
             aovs: Sequence[str] = (), camera: _Path | None = None, threads: int = 0) -> dict[str, Any]: ...
+def _ortho_map(cloud: Any, res: float, spp: int | None = None, seed: int | None = None,
+               threads: int = 0) -> dict[str, Any]: ...
 def _visibility(cloud: Any, observers: Any = None, radius: float | None = None, height: float | None = None,
                 max_distance: float | None = None, tolerance: float | None = None,
                 target_height: float | None = None, sky_rays: int = 0, camera: _Path | None = None,
