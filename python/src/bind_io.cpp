@@ -87,7 +87,8 @@ py::array column(py::handle obj, const std::string& name, std::size_t n, std::si
   const std::string want = cols ? "(N, " + std::to_string(cols) + ")" : "(N,)";
   const std::string expected = name + ": expected " + what + " of shape " + want + " with N = " + std::to_string(n) +
                                " (as xyz), got ";
-  if (std::string(kinds).find(a.dtype().kind()) == std::string::npos) throw py::value_error(expected + "dtype " + dtype_text(a));
+  if (std::string(kinds).find(a.dtype().kind()) == std::string::npos)
+    throw py::value_error(expected + "dtype " + dtype_text(a));
   const bool shape_ok = a.ndim() == (cols ? 2 : 1) && static_cast<std::size_t>(a.shape(0)) == n &&
                         (!cols || static_cast<std::size_t>(a.shape(1)) == cols);
   if (!shape_ok) throw py::value_error(expected + "shape " + shape_text(a));
@@ -126,7 +127,9 @@ void check_scalar_name(const std::string& name, const std::string& where) {
 
 /// Sets the scalar field `name` (replacing one of that name).
 void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values) {
-  if (ScalarField* f = const_cast<ScalarField*>(cloud.scalar(name))) f->values = std::move(values);
+  const auto it = std::find_if(cloud.scalars.begin(), cloud.scalars.end(),
+                               [&](const ScalarField& f) { return f.name == name; });
+  if (it != cloud.scalars.end()) it->values = std::move(values);
   else cloud.scalars.push_back({name, std::move(values)});
 }
 
@@ -140,7 +143,8 @@ PyCloud from_arrays(py::handle xyz, py::handle rgb, py::handle intensity, py::ha
   if (!rgb.is_none()) {
     const std::string what = "colours of dtype uint8 (0..255) or uint16 (0..65535)";
     const py::array a = column(rgb, "rgb", n, 3, "u", what);
-    if (a.itemsize() != 1 && a.itemsize() != 2) throw py::value_error("rgb: expected " + what + ", got dtype " + dtype_text(a));
+    if (a.itemsize() != 1 && a.itemsize() != 2)
+      throw py::value_error("rgb: expected " + what + ", got dtype " + dtype_text(a));
     const std::vector<std::uint16_t> v = values_as<std::uint16_t>(a);
     const std::uint16_t scale = a.itemsize() == 1 ? 257 : 1;  // 8-bit colour to the 16-bit range (255 -> 65535)
     pc.rgb.resize(n);
@@ -167,7 +171,8 @@ PyCloud from_arrays(py::handle xyz, py::handle rgb, py::handle intensity, py::ha
       if (!py::isinstance<py::str>(k)) throw py::type_error("scalars: names must be str, got " + type_name(k));
       const std::string name = k.cast<std::string>();
       check_scalar_name(name, "scalars");
-      pc.scalars.push_back({name, values_as<double>(column(v, "scalars['" + name + "']", n, 0, "biuf", "real numbers"))});
+      const py::array values = column(v, "scalars['" + name + "']", n, 0, "biuf", "real numbers");
+      pc.scalars.push_back({name, values_as<double>(values)});
     }
   }
   if (!crs.is_none()) {
@@ -246,13 +251,14 @@ PyCloud from_structured(py::handle obj) {
     if (std::find(used.begin(), used.end(), f) != used.end()) continue;
     const py::array col = a[py::str(f)];
     if (col.ndim() != 1 || std::string("biuf").find(col.dtype().kind()) == std::string::npos)
-      throw py::value_error("from_structured: field '" + f + "' has dtype " + py::str(a.dtype()[py::str(f)]).cast<std::string>() +
-                            "; expected numbers (one per point)");
+      throw py::value_error("from_structured: field '" + f + "' has dtype " +
+                            py::str(a.dtype()[py::str(f)]).cast<std::string>() + "; expected numbers (one per point)");
     std::string name = f;
     for (const auto& [from, to] : kLasScalarNames)
       if (f == from) name = to;
     if (scalars.contains(name))
-      throw py::value_error("from_structured: fields '" + f + "' and another both give the scalar field '" + name + "'");
+      throw py::value_error("from_structured: fields '" + f + "' and another both give the scalar field '" + name +
+                            "'");
     scalars[py::str(name)] = col;
   }
   return from_arrays(xyz, rgb, intensity, classification, gps_time, normals, scalars, py::none());
@@ -306,7 +312,8 @@ std::shared_ptr<PyCloud> take(const PyCloud& c, py::handle indices) {
   if (a.size() > 0 && a.dtype().kind() != 'i' && a.dtype().kind() != 'u')
     throw py::type_error("take: expected integer indices, got dtype " + dtype_text(a) +
                          (a.dtype().kind() == 'b' ? " (use pc[mask] for a boolean mask)" : ""));
-  if (a.ndim() != 1) throw py::value_error("take: expected a one-dimensional array of indices, got shape " + shape_text(a));
+  if (a.ndim() != 1)
+    throw py::value_error("take: expected a one-dimensional array of indices, got shape " + shape_text(a));
   return gather(c, selection(c, a.attr("astype")("int64")));
 }
 
