@@ -8,7 +8,6 @@
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/base/file_names.hpp"
-#include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/quick_look.hpp"
 #include "rayscan/jobs/render.hpp"
 
@@ -52,15 +51,8 @@ int run_render(const RenderCliOptions& o) {
   // A cloud instead of a scene, or a scene without a camera: an index file is summarised from its
   // header (the render maps it); other points are read once, here, for the render too.
   std::optional<PointCloud> points;
-  const ResolvedScene rs = resolve_scene(o.scene, ov, [&](const std::filesystem::path& f) -> CloudSummary {
-    if (std::optional<CloudSummary> s = summary_in_place(f)) return *s;
-    io::FileInfo info;
-    if (!points) points = io::read_point_cloud(f, io::ReadOptions{.scalars = false}, &info);
-    if (points->empty()) throw UsageError(f.string() + ": the point cloud has no points");
-    std::optional<Vec3> sensor;  // a PCD VIEWPOINT's translation: where the scanner stood
-    if (info.viewpoint) sensor = Vec3((*info.viewpoint)[0], (*info.viewpoint)[1], (*info.viewpoint)[2]);
-    return summarize_cloud(points->positions, !points->rgb.empty(), !points->crs_wkt.empty(), sensor);
-  });
+  const ResolvedScene rs = resolve_scene(
+      o.scene, ov, [&](const std::filesystem::path& f) { return summarize_cloud_file(f, points); });
   if (o.print_scene) {
     if (o.ortho_res) throw UsageError("--print-scene: not with --ortho-map (the map camera is not a scene camera)");
     std::cout << rs.json << "\n";

@@ -87,6 +87,16 @@ void require_point_cloud_output(const std::filesystem::path& path) {
     throw std::invalid_argument(path.string() + ": " + why);
 }
 
+LasWriteOptions las_grid_of(const FileInfo& source) {
+  LasWriteOptions lo;
+  if ((source.format == "LAS" || source.format == "LAZ" || source.format == "COPC") && source.scale && source.offset) {
+    lo.scale = *source.scale;
+    lo.offset = *source.offset;
+    lo.has_offset = true;
+  }
+  return lo;
+}
+
 void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& las) {
   require_point_cloud_output(path);
   const std::string ext = lower_extension(path);

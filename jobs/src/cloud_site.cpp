@@ -116,13 +116,7 @@ void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> 
 }
 
 void write_result_cloud(const std::filesystem::path& path, const PointCloud& cloud, const io::FileInfo& info) {
-  io::LasWriteOptions lo;
-  if ((info.format == "LAS" || info.format == "LAZ" || info.format == "COPC") && info.scale && info.offset) {
-    lo.scale = *info.scale;  // keep the source's integer grid
-    lo.offset = *info.offset;
-    lo.has_offset = true;
-  }
-  io::write_point_cloud(path, cloud, lo);
+  io::write_point_cloud(path, cloud, io::las_grid_of(info));
 }
 
 }  // namespace rayscan::jobs::detail

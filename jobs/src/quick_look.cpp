@@ -281,35 +281,36 @@ std::filesystem::path quick_look_image_name(const std::filesystem::path& cloud) 
   return stem + ".png";
 }
 
-ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverrides& ov,
-                            const std::function<CloudSummary(const std::filesystem::path&)>& cloud) {
-  namespace fs = std::filesystem;
+CloudSummary summarize_cloud_file(const std::filesystem::path& file, std::optional<PointCloud>& points) {
+  if (std::optional<CloudSummary> s = summary_in_place(file)) return *s;
+  io::FileInfo info;
+  if (!points) points = io::read_point_cloud(file, io::ReadOptions{.scalars = false}, &info);
+  if (points->empty()) throw std::invalid_argument(file.string() + ": the point cloud has no points");
+  std::optional<Vec3> sensor;  // a PCD VIEWPOINT's translation: where the scanner stood
+  if (info.viewpoint) sensor = Vec3((*info.viewpoint)[0], (*info.viewpoint)[1], (*info.viewpoint)[2]);
+  return summarize_cloud(points->positions, !points->rgb.empty(), !points->crs_wkt.empty(), sensor);
+}
+
+namespace {
+
+/// The quick look's scene of a cloud (`cloud` "" for points in memory: no "cloud" key).
+json quick_look_json(const std::string& cloud, bool has_rgb) {
+  json j = {{"radius", "auto"}, {"primitive", "surfel"}, {"material", {{"color", has_rgb ? "rgb" : "elevation"}}}};
+  if (!cloud.empty()) j["cloud"] = cloud;
+  return j;
+}
+
+/// The common part of the resolve_* calls: scene JSON `j` parsed as if read from `as_file`
+/// (errors naming `name`, "" = the file), the overview camera when it has none (from
+/// `summary_of`, asked with the scene's cloud), the overrides applied.
+ResolvedScene resolve_json(json j, const std::filesystem::path& as_file, const SceneParseOptions& parse,
+                           const SceneOverrides& ov,
+                           const std::function<const CloudSummary&(const std::filesystem::path&)>& summary_of) {
   ResolvedScene res;
-  // A point cloud by its extension (io::format_from_extension); anything else is read as a scene,
-  // so its errors (not JSON, a device, missing) are the scene file's.
-  const bool is_scene = !is_cloud_input(input);
-  std::optional<CloudSummary> summary;  // asked of `cloud` once: the input's, or the scene's cloud's
-  auto summary_of = [&](const fs::path& f) -> const CloudSummary& {
-    if (!summary) summary = cloud(f);
-    return *summary;
-  };
-  const fs::path base = fs::absolute(input);
-  json j;
-  if (is_scene) {
-    j = io::parse_json_file(input);
-    if (!j.is_object()) io::json_fail(input.string(), "", "expected a JSON object (a scene)");
-  } else {
-    j = {{"cloud", base.lexically_normal().string()},
-         {"radius", "auto"},
-         {"primitive", "surfel"},
-         {"material", {{"color", summary_of(base).has_rgb ? "rgb" : "elevation"}}}};
-  }
   // A camera from the command line replaces the scene's, which is then not read at all.
   if (!ov.camera_file.empty() || !ov.colmap_dir.empty()) j.erase("camera");
   // Parsed once (one parser for scene files and quick looks); a scene may lack a camera here.
-  const fs::path as_file = is_scene ? base : base.parent_path() / (base.filename().string() + ".scene.json");
-  res.scene = parse_scene_json(j, as_file, /*camera_required=*/false);
-  if (!is_scene) res.scene.file = fs::path();
+  res.scene = parse_scene_json(j, as_file, parse);
   SceneOverrides rest = ov;
   if (!res.scene.camera && ov.camera_file.empty() && ov.colmap_dir.empty()) {
     // The overview camera, at the size the flags ask for (fit_image_size keeps its 3:2 aspect).
@@ -324,6 +325,66 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
     rest.height.reset();
   }
   res.scene.apply(rest);
+  return res;
+}
+
+/// `cloud` asked at most once (the input's, or the scene's cloud's summary).
+std::function<const CloudSummary&(const std::filesystem::path&)> summary_once(
+    std::optional<CloudSummary>& summary, const std::function<CloudSummary(const std::filesystem::path&)>& cloud) {
+  return [&summary, &cloud](const std::filesystem::path& f) -> const CloudSummary& {
+    if (!summary) summary = cloud(f);
+    return *summary;
+  };
+}
+
+}  // namespace
+
+ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverrides& ov,
+                            const std::function<CloudSummary(const std::filesystem::path&)>& cloud, bool cloud_given) {
+  namespace fs = std::filesystem;
+  // A point cloud by its extension (io::format_from_extension); anything else is read as a scene,
+  // so its errors (not JSON, a device, missing) are the scene file's.
+  const bool is_scene = !is_cloud_input(input);
+  std::optional<CloudSummary> summary;
+  const auto summary_of = summary_once(summary, cloud);
+  const fs::path base = fs::absolute(input);
+  json j;
+  if (is_scene) {
+    j = io::parse_json_file(input);
+    if (!j.is_object()) io::json_fail(input.string(), "", "expected a JSON object (a scene)");
+  } else {
+    j = quick_look_json(base.lexically_normal().string(), summary_of(base).has_rgb);
+  }
+  const fs::path as_file = is_scene ? base : base.parent_path() / (base.filename().string() + ".scene.json");
+  ResolvedScene res = resolve_json(std::move(j), as_file,
+                                   {.camera_required = false, .cloud_required = !cloud_given, .name = ""}, ov,
+                                   summary_of);
+  if (!is_scene) res.scene.file = fs::path();
+  res.json = res.scene.to_json();
+  return res;
+}
+
+ResolvedScene resolve_scene_text(const std::string& text, const std::string& name, const SceneOverrides& ov,
+                                 const std::function<CloudSummary(const std::filesystem::path&)>& cloud,
+                                 bool cloud_given) {
+  const json j = io::parse_json_text(text, name);
+  if (!j.is_object()) io::json_fail(name, "", "expected a JSON object (a scene)");
+  std::optional<CloudSummary> summary;
+  // Relative names resolve against the working directory, as those of a scene file there.
+  ResolvedScene res = resolve_json(j, std::filesystem::absolute("scene.json"),
+                                   {.camera_required = false, .cloud_required = !cloud_given, .name = name}, ov,
+                                   summary_once(summary, cloud));
+  res.scene.file = name;
+  res.json = res.scene.to_json();
+  return res;
+}
+
+ResolvedScene resolve_quick_look(const CloudSummary& summary, const SceneOverrides& ov) {
+  ResolvedScene res =
+      resolve_json(quick_look_json("", summary.has_rgb), std::filesystem::path(),
+                   {.camera_required = false, .cloud_required = false, .name = "(quick look)"}, ov,
+                   [&](const std::filesystem::path&) -> const CloudSummary& { return summary; });
+  res.scene.file = std::filesystem::path();
   res.json = res.scene.to_json();
   return res;
 }

@@ -1,11 +1,14 @@
 """rayscan on NumPy: ray queries on raw point clouds (Teuscher et al., "Ray Queries On Raw Point
-Clouds", Algorithm 1), point queries and the point cloud readers of the rayscan C++ library.
+Clouds", Algorithm 1), point queries, the point cloud readers and writers and the jobs (render,
+visibility, solar, compare) of the rayscan C++ library.
 
     >>> import numpy as np, rayscan
     >>> pc = rayscan.read("tests/data/las/autzen_10k.las")       # doctest: +SKIP
     >>> tree = rayscan.Octree(pc.xyz, layout="adaptive", capacity=64)
     >>> hits = tree.ray_query(origin, directions, k=1, radius=0.5, order="sphere_hit")
     >>> hits.first("t")                                          # depth of each ray, NaN = miss
+    >>> cloud = rayscan.PointCloud(xyz, rgb=rgb_uint8)           # from arrays
+    >>> rayscan.write("out.laz", cloud, visible_count=rayscan.visibility(cloud, eyes)["visible_count"])
 
 Conventions (the C++ library's, see README.md "The library"):
   * Arrays of points, origins and directions are (N, 3) array-likes of real numbers; float64
@@ -25,8 +28,11 @@ Conventions (the C++ library's, see README.md "The library"):
 from . import _rayscan
 from ._results import NeighborResult, RayQueryResult, BoxResult
 
-__all__ = ["read", "PointCloud", "Octree", "KdTree", "BruteForce", "RayQueryResult",
-           "NeighborResult", "BoxResult"]
+__all__ = ["read", "write", "open", "PointCloud", "Octree", "KdTree", "BruteForce", "Site",
+           "RayQueryResult", "NeighborResult", "BoxResult"]
+
+#: The project version (CMakeLists.txt project(VERSION)), compiled into the extension.
+__version__ = _rayscan.__version__
 
 PointCloud = _rayscan.PointCloud
 _INF = float("inf")
@@ -48,6 +54,39 @@ def read(path, attributes=None):
     return _rayscan._read(path, attributes)
 
 
+def write(path, cloud, **fields):
+    """Write a point cloud file in the format its extension names, like `rayscan translate`
+    (io::write_point_cloud): .las / .laz (ASPRS LAS 1.4, point format 6, 7 with rgb; .laz
+    compressed), .ply (binary), .pcd (binary), .xyz / .txt / .csv (text). A .copc.laz name is
+    refused (COPC output is not written).
+
+    cloud: a PointCloud or an (N, 3) array of positions. fields: name=(N,) array of real numbers,
+    added as scalar fields (replacing one of the same name), e.g. the "visible_count" of a
+    visibility result; in LAS they are float64 extra bytes, in PLY/PCD properties, in text columns.
+    Scalar fields named like the LAS reader's (return_number, scan_angle in degrees, user_data,
+    point_source_id, ...) go to the standard LAS fields.
+
+    LAS coordinates are scaled integers: a cloud read from LAS/LAZ (or a subset of one) keeps the
+    file's scale and offset (bit-exact round trip); otherwise the scale is the coarsest of 1,
+    0.1, 0.01, 0.001 that stores every coordinate exactly, else 0.001. Written to a temporary
+    file renamed into place. Raises ValueError for an unsupported extension, a field of the
+    wrong shape or named like a PointCloud attribute, TypeError for another `cloud`, OSError
+    when the file cannot be written.
+    """
+    _rayscan._write(path, cloud, fields)
+
+
+def open(path):  # noqa: A001 - rayscan.open, like gzip.open
+    """Open a point file for queries, without reading it whole where the storage allows:
+    an index file (.rsi, `rayscan index`) is memory-mapped and queried in place, a COPC file
+    (.copc.laz) through its own octree (nodes decoded as queries reach them); any other point
+    file is read and indexed in memory. Returns a Site with the index classes' queries
+    (ray_query, knn, radius, box) answering with the points' original indices.
+    Raises OSError for a missing or malformed file.
+    """
+    return Site(path)
+
+
 def _xyz(points):
     return points.xyz if isinstance(points, PointCloud) else points
 
@@ -56,7 +95,7 @@ class _QueriesMixin:
     """The query methods shared by every index class."""
 
     def ray_query(self, origins, directions, k=None, radius=_INF, t_min=-_INF, t_max=_INF,
-                  order="ray", any_hit=False, threads=0):
+                  order="ray", any_hit=False, threads=0, allow_all=False):
         """Ray query (paper Algorithm 1) for M rays o + t d.
 
         origins, directions: (M, 3) (or (3,), broadcast); directions need not be unit length.
@@ -66,15 +105,18 @@ class _QueriesMixin:
         eq. 2) or 'sphere_hit' (entry into the sphere of `radius` around the point: the first
         surface hit; needs a finite radius). any_hit: stop at the first candidate (occlusion).
         threads: worker threads (0 = all cores); the result does not depend on it.
+        allow_all: with neither k nor a finite radius (nor any_hit) every ray returns every
+        point (N x M hits); that raises ValueError unless allow_all=True.
 
         Returns a RayQueryResult (CSR): ray i's hits are indices[offsets[i]:offsets[i+1]],
         ranked best first, with t (projection parameter, or sphere entry for 'sphere_hit') and
         distance (orthogonal distance to the ray line, not squared).
         Raises ValueError for bad shapes/dtypes, non-finite rays (naming the ray), t_min > t_max,
-        a negative radius or 'sphere_hit' without a radius. Same as `rayscan query`.
+        a negative radius, 'sphere_hit' without a radius, or no bound without allow_all. Same as
+        `rayscan query`.
         """
         return RayQueryResult(**self._ray_query(origins, directions, k, radius, t_min, t_max,
-                                                order, any_hit, threads))
+                                                order, any_hit, allow_all, threads))
 
     def knn(self, points, k, radius=_INF, threads=0):
         """The k nearest points (within `radius` when given) of each of the Q query points
@@ -134,26 +176,28 @@ class BruteForce(_QueriesMixin, _rayscan._BruteForce):
         return f"<rayscan.BruteForce {len(self)} points>"
 
 
+class Site(_QueriesMixin, _rayscan._Site):
+    """A point file opened for queries (see rayscan.open): .storage is "index_file" (an .rsi
+    index mapped, queried in place), "copc" (a COPC file's own octree, nodes decoded as queries
+    reach them, within a 2 GiB cache) or "memory" (another point file, read and indexed as an
+    adaptive octree). Same queries and results as Octree over the same points; indices are the
+    points' original order (the sources' order)."""
+
+    def __init__(self, path):
+        super().__init__(path)
+
+    def __repr__(self):
+        return f"<rayscan.Site {self.path}: {len(self)} points, storage={self.storage}>"
+
+
 # ---- Jobs: render, visibility, compare (the library's job calls, docs/library.md) ------------
 
-def _scene_file(scene, tmpdir):
-    """A scene file path for `scene`: a path as is, or a dict written as JSON into tmpdir with its
-    relative file names (cloud, camera, output.image) made absolute against the working directory,
-    so that a dict means what the same JSON file in the working directory would mean."""
-    import json
+def _json_default(value):
+    """File names in a scene dict may be os.PathLike (pathlib.Path)."""
     import os
-    if not isinstance(scene, dict):
-        return scene  # a file name, checked by the module (path_arg)
-    scene = dict(scene)
-    for key in ("cloud", "camera"):
-        if isinstance(scene.get(key), (str, os.PathLike)):
-            scene[key] = os.path.abspath(scene[key])
-    if isinstance(scene.get("output"), dict) and isinstance(scene["output"].get("image"), str):
-        scene["output"] = dict(scene["output"], image=os.path.abspath(scene["output"]["image"]))
-    path = os.path.join(tmpdir, "scene.json")
-    with open(path, "w") as f:
-        json.dump(scene, f)
-    return path
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    raise TypeError(f"scene dict: a {type(value).__name__} is not a JSON value")
 
 
 def render(scene, cloud=None, width=None, height=None, spp=None, seed=None, aovs=(), camera=None,
@@ -161,23 +205,57 @@ def render(scene, cloud=None, width=None, height=None, spp=None, seed=None, aovs
     """Path-trace a scene (paper section 5.3; schema in scenes/README.md) like `rayscan render`,
     without writing files: jobs::run_render.
 
-    scene: a scene file path, or the same JSON as a dict (relative paths: from the working
-    directory). cloud: a PointCloud to render instead of the scene's "cloud" file. width/height
-    (the other follows the camera's aspect), spp, seed, camera (a camera file) override the scene.
+    scene: one of
+      * a scene file (.json);
+      * a point cloud file (LAS, LAZ, COPC, PLY, PCD, text, .rsi), a PointCloud or an (N, 3) array:
+        the quick look of `rayscan render CLOUD` (radius auto, surfels, colour from rgb if present
+        else elevation, default sky and sun, the overview camera framing the whole cloud, 600 x 400
+        unless width/height say otherwise);
+      * a dict: the same JSON as a scene file, relative file names from the working directory;
+        errors name it "scene dict".
+    A scene without "camera" gets the overview camera, as in the CLI.
+    cloud: the points instead of the scene's "cloud" (a file name, a PointCloud or an (N, 3)
+    array; the scene then needs no "cloud"). width/height (the other follows the camera's
+    aspect), spp, seed, camera (a camera file) override the scene.
     aovs: names from "depth", "normal", "position", "index", "albedo", "cost".
 
     Returns a dict of arrays, row 0 at the top: "beauty" (H, W, 3) float32 linear radiance, and
-    per requested AOV "depth" (H, W) float32 (t of the first hit, inf = miss), "normal" and
-    "albedo" (H, W, 3) float32, "position" (H, W, 3) float32 relative to "position_origin" (3,)
-    float64, "index" (H, W) int64 (-1 = miss), "cost" (H, W) float32 (nodes visited per sample);
-    plus "radius" (the sphere radius used), "points" and "stats" (dict).
-    Raises ValueError for a bad scene or option (file and JSON pointer named), OSError for an
-    unreadable cloud.
+    per requested AOV "depth" (H, W) float32 (t of the first hit, world units; inf = miss),
+    "normal" and "albedo" (H, W, 3) float32, "position" (H, W, 3) float32 relative to
+    "position_origin" (3,) float64, "index" (H, W) int64 (point index, -1 = miss), "cost" (H, W)
+    float32 (nodes visited per sample); plus "radius" (the sphere radius used, world units),
+    "points" and "stats" (dict).
+    Raises ValueError for a bad scene or option (file or "scene dict" and JSON pointer named),
+    TypeError for a `scene` or `cloud` of another type, OSError for an unreadable cloud.
     """
-    import tempfile
-    with tempfile.TemporaryDirectory(prefix="rayscan-scene.") as tmp:
-        return _rayscan._render(_scene_file(scene, tmp), cloud, width, height, spp, seed, aovs,
-                                camera, threads)
+    scene_json = ""
+    if isinstance(scene, dict):
+        import json
+        try:
+            scene_json = json.dumps(scene, default=_json_default, allow_nan=False)
+        except ValueError as e:  # NaN or infinity: not JSON
+            raise ValueError(f"scene dict: {e}") from None
+        scene = None
+    return _rayscan._render(scene, scene_json, cloud, width, height, spp, seed, aovs, camera,
+                            threads)
+
+
+def ortho_map(cloud, res, spp=None, seed=None, threads=0):
+    """A true orthophoto and digital surface model of the cloud, like `rayscan render CLOUD
+    --ortho-map RES --dsm dsm.tif` without writing GeoTIFFs: the quick look's scene (radius auto,
+    surfels, colour from rgb else elevation) seen by a top-down orthographic camera, one vertical
+    ray per cell of a north-up grid over the cloud's XY extent (analysis::ortho_map).
+
+    cloud: a point cloud file, a PointCloud or an (N, 3) array. res: cell edge, world units per
+    pixel (> 0). spp, seed: samples per pixel and random seed (as in render).
+
+    Returns a dict: "image" (rows, cols, 3) float32 linear radiance, row 0 the north edge;
+    "dsm" (rows, cols) float32 elevation of the first surface per cell (world units, NaN where
+    the ray missed); "geotransform" (x0, res, 0, y_top, 0, -res) as GDAL's (x0, y_top: the
+    grid's west and north edges, snapped to multiples of res); "crs" (WKT or None); "radius".
+    Raises ValueError for a res that is not > 0 or gives more than 65536 cells per side.
+    """
+    return _rayscan._ortho_map(cloud, res, spp, seed, threads)
 
 
 def visibility(cloud, observers=None, radius=None, height=None, max_distance=None, tolerance=None,
@@ -185,10 +263,11 @@ def visibility(cloud, observers=None, radius=None, height=None, max_distance=Non
     """Per-point visibility like `rayscan visibility` (jobs::run_visibility; rule in
     analysis/README.md), without writing files.
 
-    cloud: a file path or a PointCloud. observers: a .json/.csv observer file, an (K, 3) array of
-    eye positions, or (K, 2) positions whose eyes stand `height` above the local ground.
-    radius: sphere radius (None = auto from the point spacing). sky_rays > 0 adds the sky view
-    factor; camera (a camera file) adds the pixels whose first hit is each point.
+    cloud: a file path, a PointCloud or an (N, 3) array of positions (world units).
+    observers: a .json/.csv observer file, an (K, 3) array of eye positions, or (K, 2)
+    positions whose eyes stand `height` above the local ground. radius: sphere radius (world
+    units; None = auto from the point spacing). sky_rays > 0 adds the sky view factor; camera
+    (a camera file) adds the pixels whose first hit is each point.
 
     Returns a dict: "visible_count" (N,) (observers that see each point), "visible_distance" (N,)
     (with distance=True; -1 = unseen), "sky_view" (N,), "camera_hits" (N,) when asked, as float64;
@@ -205,12 +284,12 @@ def solar(cloud, start=None, end=None, step="1h", at=None, latitude=None, longit
     """Sun and shadow on every point like `rayscan solar` (jobs::run_solar; docs/solar.md),
     without writing files.
 
-    cloud: a file path or a PointCloud. A period (start, end: ISO 8601 text, no offset = UTC, a
-    date alone = local mean solar midnight, end inclusive; step "15min", "1h", ...) or one instant
-    (at). latitude/longitude: degrees (default: from the cloud's CRS). linke: one Linke turbidity
-    or 12 monthly values; albedo; weather: an EPW file instead of the clear sky; sector: sun-map
-    sector in degrees (0 = one shadow ray per step); sky_rays: sky-map directions; primitive:
-    "sphere" or "surfel".
+    cloud: a file path, a PointCloud or an (N, 3) array of positions (metres). A period (start,
+    end: ISO 8601 text, no offset = UTC, a date alone = local mean solar midnight, end
+    inclusive; step "15min", "1h", ...) or one instant (at). latitude/longitude: degrees
+    (default: from the cloud's CRS). linke: one Linke turbidity or 12 monthly values; albedo;
+    weather: an EPW file instead of the clear sky; sector: sun-map sector in degrees (0 = one
+    shadow ray per step); sky_rays: sky-map directions; primitive: "sphere" or "surfel".
 
     Returns a dict of (N,) float64 arrays: for a period "solar_global", "solar_beam",
     "solar_diffuse", "solar_reflected" (kWh/m²), "sun_hours" (h), "sky_view"; for an instant
@@ -242,6 +321,6 @@ def compare(reference, image, channels=(), mask=False, alpha=False, resize=False
 
 
 if not hasattr(_rayscan, "_render"):  # built without the library's job API
-    del render, visibility, solar, compare
+    del render, ortho_map, visibility, solar, compare
 else:
-    __all__ += ["render", "visibility", "solar", "compare"]
+    __all__ += ["render", "ortho_map", "visibility", "solar", "compare"]

@@ -43,10 +43,11 @@ std::size_t parse_k(const py::object& k) {
   return static_cast<std::size_t>(v.cast<unsigned long long>());
 }
 
-namespace {
-
-/// Python's name of v's type ("float", "str", "NoneType").
 std::string type_name(py::handle v) { return py::str(py::type::handle_of(v).attr("__name__")).cast<std::string>(); }
+
+bool is_path_like(py::handle v) { return py::isinstance<py::str>(v) || py::hasattr(v, "__fspath__"); }
+
+namespace {
 
 /// v as a Python int (operator.index), or TypeError naming the argument.
 py::int_ index_of(py::handle v, const char* name, const std::string& expected) {

@@ -85,6 +85,12 @@ std::optional<T> opt_int_arg(py::handle v, const char* name, long long lo, long 
 /// for a non-integer).
 unsigned parse_threads(py::handle threads);
 
+/// Python's name of v's type ("float", "str", "NoneType").
+std::string type_name(py::handle v);
+
+/// True for a str or an os.PathLike (what path_arg accepts, or refuses with a ValueError).
+bool is_path_like(py::handle v);
+
 /// A file name argument: a str or an os.PathLike giving one. Raises TypeError "<name> must be a
 /// file name (str or os.PathLike), got bytes" and ValueError "<name> '<repr>' contains a NUL
 /// byte; expected a file name" (no file can have such a name; the OS call would fail without

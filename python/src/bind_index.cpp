@@ -1,11 +1,13 @@
-// rayscan.Octree / KdTree / BruteForce and their batch queries (ray, kNN, radius, box) on NumPy
-// arrays. Every batch call converts its arguments while holding the GIL, then releases it and runs
-// the core's TBB batch API (rayscan/octree/batch.hpp); results are flattened into CSR arrays.
+// rayscan.Octree / KdTree / BruteForce, rayscan.open's Site (an index file or a COPC file queried in
+// place) and their batch queries (ray, kNN, radius, box) on NumPy arrays. Every batch call converts
+// its arguments while holding the GIL, then releases it and runs the core's TBB batch API
+// (rayscan/octree/batch.hpp); results are flattened into CSR arrays.
 #include "arrays.hpp"
 #include "bindings.hpp"
 
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/octree/batch.hpp"
+#include "rayscan/site/site.hpp"
 
 #include <pybind11/stl.h>
 #include <tbb/parallel_for.h>
@@ -18,11 +20,34 @@ namespace rayscan::python {
 
 namespace {
 
-/// The index object behind every Python index class.
+/// The index object behind Octree, KdTree and BruteForce.
 struct PyIndex {
   AnyIndex index;
   IndexOptions options;
   std::size_t size = 0;
+
+  /// f(the concrete index), as Site::visit.
+  template <class F>
+  decltype(auto) visit(F&& f) const {
+    return std::visit(std::forward<F>(f), index);
+  }
+  void after_query() const {}
+};
+
+/// The object behind rayscan.Site (rayscan.open): an index file mapped, a COPC file's hierarchy,
+/// or another point file read and indexed in memory (Site::open).
+struct PySite {
+  Site site;
+  std::string path;
+
+  template <class F>
+  decltype(auto) visit(F&& f) const {
+    return site.visit(std::forward<F>(f));
+  }
+  /// A COPC file keeps the nodes its queries decoded: trimmed to the cache budget between calls.
+  void after_query() const {
+    if (io::CopcIndex* c = site.copc()) c->trim_cache();
+  }
 };
 
 RayOrder parse_order(const std::string& s) {
@@ -94,9 +119,10 @@ void csr_fill(const std::vector<std::vector<T>>& r, const std::vector<std::int64
                     });
 }
 
-py::dict ray_query(const PyIndex& self, py::handle origins, py::handle directions,
+template <class Index>
+py::dict ray_query(const Index& self, py::handle origins, py::handle directions,
                    const py::object& k, double radius, double t_min, double t_max,
-                   const std::string& order, bool any_hit, py::handle threads) {
+                   const std::string& order, bool any_hit, bool allow_all, py::handle threads) {
   const unsigned nthreads = parse_threads(threads);
   RayQuery q;
   q.k = parse_k(k);
@@ -112,20 +138,26 @@ py::dict ray_query(const PyIndex& self, py::handle origins, py::handle direction
   std::vector<std::int64_t> off;
   std::vector<std::int64_t> idx;
   std::vector<double> t, dist;
+  std::vector<Ray> rays;
+  rays.reserve(m);
+  for (std::size_t i = 0; i < m; ++i) {
+    try {
+      rays.emplace_back(row(o.rows, i), row(d.rows, i));
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("ray " + std::to_string(i) + ": " + e.what());
+    }
+  }
+  // Checked after the arguments themselves: with neither bound every ray returns every point (N x M
+  // hits), which is almost never meant and can exhaust memory.
+  if (q.k == kAllPoints && !std::isfinite(q.radius) && !q.any_hit && !allow_all)
+    throw py::value_error("ray_query: neither k nor a finite radius: every ray would return every point; give k=, "
+                          "radius= or any_hit=True, or allow_all=True to ask for all of them");
   {
     py::gil_scoped_release nogil;
-    std::vector<Ray> rays;
-    rays.reserve(m);
-    for (std::size_t i = 0; i < m; ++i) {
-      try {
-        rays.emplace_back(row(o.rows, i), row(d.rows, i));
-      } catch (const std::invalid_argument& e) {
-        throw std::invalid_argument("ray " + std::to_string(i) + ": " + e.what());
-      }
-    }
     const auto res = with_threads(nthreads, [&] {
-      return std::visit([&](const auto& ix) { return ray_query_batch(ix, rays, q); }, self.index);
+      return self.visit([&](const auto& ix) { return ray_query_batch(ix, rays, q); });
     });
+    self.after_query();
     off = csr_offsets(res);
     const auto n = static_cast<std::size_t>(off.back());
     idx.resize(n);
@@ -145,7 +177,8 @@ py::dict ray_query(const PyIndex& self, py::handle origins, py::handle direction
   return out;
 }
 
-py::dict knn(const PyIndex& self, py::handle points, const py::object& k, double radius,
+template <class Index>
+py::dict knn(const Index& self, py::handle points, const py::object& k, double radius,
              py::handle threads) {
   const unsigned nthreads = parse_threads(threads);
   const std::size_t kk = parse_k(k);
@@ -155,8 +188,9 @@ py::dict knn(const PyIndex& self, py::handle points, const py::object& k, double
   {
     py::gil_scoped_release nogil;
     const auto res = with_threads(nthreads, [&] {
-      return std::visit([&](const auto& ix) { return knn_query_batch(ix, p.rows, kk, radius); }, self.index);
+      return self.visit([&](const auto& ix) { return knn_query_batch(ix, p.rows, kk, radius); });
     });
+    self.after_query();
     off = csr_offsets(res);
     const auto n = static_cast<std::size_t>(off.back());
     idx.resize(n);
@@ -173,7 +207,8 @@ py::dict knn(const PyIndex& self, py::handle points, const py::object& k, double
   return out;
 }
 
-py::dict box(const PyIndex& self, py::handle lo, py::handle hi, py::handle threads) {
+template <class Index>
+py::dict box(const Index& self, py::handle lo, py::handle hi, py::handle threads) {
   const unsigned nthreads = parse_threads(threads);
   const Vec3Rows l = as_vec3_rows(lo, "lo", true);
   const Vec3Rows h = as_vec3_rows(hi, "hi", true);
@@ -189,8 +224,9 @@ py::dict box(const PyIndex& self, py::handle lo, py::handle hi, py::handle threa
       boxes[i] = AABB{a, b};
     }
     const auto res = with_threads(nthreads, [&] {
-      return std::visit([&](const auto& ix) { return box_query_batch(ix, boxes); }, self.index);
+      return self.visit([&](const auto& ix) { return box_query_batch(ix, boxes); });
     });
+    self.after_query();
     off = csr_offsets(res);
     idx.resize(static_cast<std::size_t>(off.back()));
     csr_fill(res, off, [&](PointIndex v, std::size_t i) { idx[i] = v; });
@@ -199,6 +235,27 @@ py::dict box(const PyIndex& self, py::handle lo, py::handle hi, py::handle threa
   out["offsets"] = to_numpy(std::move(off));
   out["indices"] = to_numpy(std::move(idx));
   return out;
+}
+
+/// The query methods every index class shares (the Python mixin _QueriesMixin calls them).
+template <class Class>
+void def_queries(Class& c) {
+  using Index = typename Class::type;
+  c.def("_ray_query", &ray_query<Index>, py::arg("origins"), py::arg("directions"), py::arg("k") = py::none(),
+        py::arg("radius") = kInf, py::arg("t_min") = -kInf, py::arg("t_max") = kInf, py::arg("order") = "ray",
+        py::arg("any_hit") = false, py::arg("allow_all") = false, py::arg("threads") = 0)
+      .def("_knn", &knn<Index>, py::arg("points"), py::arg("k") = py::none(), py::arg("radius") = kInf,
+           py::arg("threads") = 0)
+      .def("_box", &box<Index>, py::arg("lo"), py::arg("hi"), py::arg("threads") = 0);
+}
+
+const char* storage_name(SiteStorage s) {
+  switch (s) {
+    case SiteStorage::index_file: return "index_file";
+    case SiteStorage::copc: return "copc";
+    case SiteStorage::memory: break;
+  }
+  return "memory";
 }
 
 }  // namespace
@@ -214,12 +271,8 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
                              "Bytes the index holds (positions copy, ids, nodes).")
       .def_property_readonly("type", [](const PyIndex& s) { return s.options.type; },
                              "Index type name as in `rayscan query --index`.")
-      .def("_ray_query", &ray_query, py::arg("origins"), py::arg("directions"), py::arg("k") = py::none(),
-           py::arg("radius") = kInf, py::arg("t_min") = -kInf, py::arg("t_max") = kInf,
-           py::arg("order") = "ray", py::arg("any_hit") = false, py::arg("threads") = 0)
-      .def("_knn", &knn, py::arg("points"), py::arg("k") = py::none(), py::arg("radius") = kInf,
-           py::arg("threads") = 0)
-      .def("_box", &box, py::arg("lo"), py::arg("hi"), py::arg("threads") = 0);
+      ;
+  def_queries(base);
 
   struct PyOctree : PyIndex {};
   py::class_<PyOctree, PyIndex>(m, "_Octree")
@@ -260,6 +313,28 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
     o.type = "brute";
     return PyBrute{build(xyz, o)};
   }), py::arg("xyz"));
+
+  auto site = py::class_<PySite>(m, "_Site", R"doc(
+A point file opened for queries without reading it whole where its storage allows: an index
+file (.rsi, built by `rayscan index`) is memory-mapped and queried in place, a COPC file's own
+octree is queried in place (nodes decoded as queries reach them, kept within a 2 GiB cache); any
+other point file is read and indexed in memory (an adaptive octree). Results use the points'
+original indices (the order of the sources).)doc");
+  site.def(py::init([](py::handle path) {
+             const std::string p = path_arg(path, "path");
+             std::optional<Site> s;
+             {
+               py::gil_scoped_release nogil;
+               s.emplace(Site::open(p));
+             }
+             return PySite{std::move(*s), p};
+           }),
+           py::arg("path"));
+  def_queries(site);
+  site.def("__len__", [](const PySite& s) { return s.site.size(); })
+      .def_property_readonly("storage", [](const PySite& s) { return storage_name(s.site.storage()); },
+                             "\"index_file\" (.rsi, mapped), \"copc\" (in place) or \"memory\" (read and indexed).")
+      .def_property_readonly("path", [](const PySite& s) { return s.path; });
 }
 
 }  // namespace rayscan::python

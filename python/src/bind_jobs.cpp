@@ -1,12 +1,15 @@
-// rayscan.render / visibility / solar / compare: the library's job calls (docs/library.md: one
+// rayscan.render / ortho_map / visibility / solar / compare: the library's job calls (docs/library.md: one
 // options struct in, one result out; jobs::run_render, run_visibility, run_solar, run_compare)
-// with NumPy arrays out. Each call converts its arguments with the GIL held, then releases it for
-// the job (TBB inside).
+// with NumPy arrays out. A cloud is a file name, a rayscan.PointCloud (passed to the job in
+// memory, not copied) or an (N, 3) array (cloud_arg). Each call converts its arguments with the
+// GIL held, then releases it for the job (TBB inside).
 #include "arrays.hpp"
 #include "bindings.hpp"
 #include "cloud.hpp"
 
+#include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/jobs/compare.hpp"
+#include "rayscan/jobs/quick_look.hpp"
 #include "rayscan/jobs/solar.hpp"
 #include "rayscan/jobs/visibility.hpp"
 #include "rayscan/jobs/render.hpp"
@@ -15,6 +18,8 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <optional>
 
 namespace rayscan::python {
@@ -40,37 +45,85 @@ py::array_t<std::int64_t> point_ids(const std::vector<std::uint32_t>& v, std::ve
   return to_numpy(std::move(out), std::move(shape));
 }
 
-const PointCloud* in_memory_cloud(const py::object& cloud) {
-  if (cloud.is_none()) return nullptr;
-  if (!py::isinstance<PyCloud>(cloud))
-    throw py::value_error("cloud: expected a rayscan.PointCloud (from rayscan.read) or None");
-  return &cloud.cast<const PyCloud&>().cloud;
-}
-
 /// A count of pixels or samples: an integer in [1, 2^32 - 1], or None.
 std::optional<std::uint32_t> size_arg(py::handle v, const char* name) {
   return opt_int_arg<std::uint32_t>(v, name, 1, 0xFFFFFFFFll, "None or an integer in [1, 2^32 - 1]");
 }
 
-py::dict render(py::handle scene_file, const py::object& cloud, py::handle width, py::handle height,
-                py::handle spp, py::handle seed, py::handle aovs, py::handle camera, py::handle threads) {
-  jobs::RenderJobOptions o;
-  o.cloud = in_memory_cloud(cloud);
-  o.write = false;
-  o.control.threads = parse_threads(threads);
+/// The points of a render: a PointCloud or an array in memory (`arg`), a cloud file (`arg` with a
+/// path, or the scene's cloud), which is read once for the overview camera and then rendered from
+/// memory, as `rayscan render` does.
+struct RenderPoints {
+  std::optional<CloudArg> arg;     // the points given (as `scene` or cloud=); none: the scene's
+  std::optional<PointCloud> read;  // a cloud file read for the overview camera
+
+  /// The summary resolve_scene asks for (called without the GIL): of the points in memory (with
+  /// a CRS georeferenced, a PCD VIEWPOINT as the scanner position), else of the file.
+  jobs::CloudSummary summary(const std::filesystem::path& scene_cloud) {
+    if (arg && arg->points) {
+      std::optional<Vec3> sensor;
+      if (const io::FileInfo* i = arg->info; i && i->viewpoint)
+        sensor = Vec3((*i->viewpoint)[0], (*i->viewpoint)[1], (*i->viewpoint)[2]);
+      const PointCloud& c = *arg->points;
+      return jobs::summarize_cloud(c.positions, !c.rgb.empty(), !c.crs_wkt.empty(), sensor);
+    }
+    return jobs::summarize_cloud_file(arg ? std::filesystem::path(arg->path) : scene_cloud, read);
+  }
+  /// Gives the job the points: in memory, or the file given as cloud= in place of the scene's.
+  void attach(jobs::RenderJobOptions& o) const {
+    if (arg && !arg->points) o.scene.cloud = std::filesystem::absolute(arg->path);
+    o.cloud = arg && arg->points ? arg->points : read ? &*read : nullptr;
+  }
+};
+
+/// The overrides every render call takes (SceneOverrides; aovs are the caller's).
+render::SceneOverrides render_overrides(py::handle width, py::handle height, py::handle spp, py::handle seed,
+                                        py::handle camera) {
   render::SceneOverrides ov;
-  const std::string scene = path_arg(scene_file, "scene");
   if (!camera.is_none()) ov.camera_file = path_arg(camera, "camera");
   ov.width = size_arg(width, "width");
   ov.height = size_arg(height, "height");
   ov.spp = size_arg(spp, "spp");
   if (!seed.is_none()) ov.seed = uint64_arg(seed, "seed");
+  return ov;
+}
+
+/// `scene` is a scene file or a point cloud file (its quick look, as `rayscan render CLOUD`), a
+/// PointCloud or an (N, 3) array (the quick look of those points), or None with `scene_json` (a
+/// scene dict as JSON text). `cloud` replaces the scene's points.
+py::dict render(py::handle scene, const std::string& scene_json, py::handle cloud, py::handle width,
+                py::handle height, py::handle spp, py::handle seed, py::handle aovs, py::handle camera,
+                py::handle threads) {
+  jobs::RenderJobOptions o;
+  o.write = false;
+  o.control.threads = parse_threads(threads);
+  render::SceneOverrides ov = render_overrides(width, height, spp, seed, camera);
   ov.aovs = names_arg(aovs, "aovs");
+  const bool from_text = scene.is_none();
+  const bool quick_look_in_memory = !from_text && !is_path_like(scene);
+  RenderPoints points;
+  std::string scene_file;
+  if (quick_look_in_memory) {
+    if (!py::isinstance<PyCloud>(scene) && !py::isinstance<py::array>(scene) && !py::isinstance<py::list>(scene) &&
+        !py::isinstance<py::tuple>(scene))
+      throw py::type_error("scene must be a scene or point cloud file name (str or os.PathLike), a scene dict, a "
+                           "rayscan.PointCloud or an (N, 3) array of coordinates, got " + type_name(scene));
+    if (!cloud.is_none()) throw py::type_error("render: the points are `scene` already; do not give cloud= too");
+    points.arg.emplace(cloud_arg(scene, "scene", false));
+  } else {
+    if (!from_text) scene_file = path_arg(scene, "scene");
+    if (!cloud.is_none()) points.arg.emplace(cloud_arg(cloud, "cloud"));
+  }
+  const auto summary = [&](const std::filesystem::path& f) { return points.summary(f); };
+  const bool given = points.arg.has_value();
   jobs::RenderJobResult r;
   {
     py::gil_scoped_release nogil;
-    o.scene = render::load_scene(scene);
-    o.scene.apply(ov);
+    const jobs::ResolvedScene rs = quick_look_in_memory ? jobs::resolve_quick_look(summary({}), ov)
+                                   : from_text ? jobs::resolve_scene_text(scene_json, "scene dict", ov, summary, given)
+                                               : jobs::resolve_scene(scene_file, ov, summary, given);
+    o.scene = rs.scene;
+    points.attach(o);
     r = jobs::run_render(o);
   }
   render::Framebuffer& fb = r.image;
@@ -99,6 +152,53 @@ py::dict render(py::handle scene_file, const py::object& cloud, py::handle width
   stats["index_seconds"] = r.index_seconds;
   stats["read_seconds"] = r.read_seconds;
   out["stats"] = stats;
+  return out;
+}
+
+/// rayscan.ortho_map: `rayscan render CLOUD --ortho-map RES` without files. The quick look's scene
+/// (material, surfels) seen by analysis::ortho_map's top-down camera over the cloud's exact bounds.
+py::dict ortho_map(py::handle cloud, double res, py::handle spp, py::handle seed, py::handle threads) {
+  jobs::RenderJobOptions o;
+  o.write = false;
+  o.control.threads = parse_threads(threads);
+  if (!(res > 0.0) || !std::isfinite(res))
+    throw py::value_error("res: expected a finite number > 0 (world units per pixel), got " + std::to_string(res));
+  render::SceneOverrides ov = render_overrides(py::none(), py::none(), spp, seed, py::none());
+  ov.aovs = {"depth"};  // the DSM
+  RenderPoints points;
+  points.arg.emplace(cloud_arg(cloud, "cloud"));
+  const std::string path = points.arg->path;
+  if (!path.empty() && !jobs::is_cloud_input(path))
+    throw py::value_error("cloud '" + path + "': expected a point cloud file (LAS, LAZ, COPC, PLY, PCD, text, .rsi)");
+  std::optional<analysis::OrthoMap> map;
+  o.camera_for_cloud = [&](const AABB& bounds) {
+    try {
+      map = analysis::ortho_map(bounds, res);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("res: ") + e.what());
+    }
+    return map->camera;
+  };
+  const auto summary = [&](const std::filesystem::path& f) { return points.summary(f); };
+  jobs::RenderJobResult r;
+  analysis::Raster dsm;
+  {
+    py::gil_scoped_release nogil;
+    o.scene = path.empty() ? jobs::resolve_quick_look(summary({}), ov).scene
+                           : jobs::resolve_scene(path, ov, summary).scene;
+    points.attach(o);
+    r = jobs::run_render(o);
+    dsm = analysis::dsm_from_depth(*map, r.image.depth);
+  }
+  const analysis::GridSpec& g = map->grid;
+  const auto h = static_cast<py::ssize_t>(g.rows), w = static_cast<py::ssize_t>(g.cols);
+  py::dict out;
+  out["image"] = own_as<float>(std::move(r.image.beauty), {h, w, 3});
+  out["dsm"] = to_numpy(std::move(dsm.values), {h, w});
+  const std::array<double, 6> gt = g.geotransform();
+  out["geotransform"] = py::make_tuple(gt[0], gt[1], gt[2], gt[3], gt[4], gt[5]);
+  out["crs"] = r.crs_wkt.empty() ? py::object(py::none()) : py::object(py::str(r.crs_wkt));
+  out["radius"] = r.radius.radius;
   return out;
 }
 
@@ -197,10 +297,9 @@ py::dict visibility(const py::object& cloud, const py::object& observers, std::o
                     std::optional<double> tolerance, std::optional<double> target_height,
                     py::handle sky_rays, py::handle camera, bool distance, py::handle threads) {
   jobs::VisibilityJobOptions o;
-  if (py::isinstance<PyCloud>(cloud))
-    o.cloud = &cloud.cast<const PyCloud&>().cloud;
-  else
-    o.cloud_file = path_arg(cloud, "cloud");
+  const CloudArg c = cloud_arg(cloud, "cloud");
+  o.cloud = c.points;
+  o.cloud_file = c.path;
   if (!observers.is_none()) {
     if (py::isinstance<py::str>(observers) || py::hasattr(observers, "__fspath__")) {
       o.observers_file = path_arg(observers, "observers");
@@ -253,10 +352,9 @@ py::dict solar(const py::object& cloud, const std::string& start, const std::str
                std::vector<double> linke, double albedo, const py::object& weather, double sector, py::handle sky_rays,
                const std::string& primitive, std::optional<double> radius, py::handle threads) {
   jobs::SolarJobOptions o;
-  if (py::isinstance<PyCloud>(cloud))
-    o.cloud = &cloud.cast<const PyCloud&>().cloud;
-  else
-    o.cloud_file = path_arg(cloud, "cloud");
+  const CloudArg c = cloud_arg(cloud, "cloud");
+  o.cloud = c.points;
+  o.cloud_file = c.path;
   o.start = start;
   o.end = end;
   o.step = step;
@@ -298,9 +396,12 @@ py::dict solar(const py::object& cloud, const std::string& start, const std::str
 }  // namespace
 
 void bind_jobs(py::module_& m) {
-  m.def("_render", &render, py::arg("scene"), py::arg("cloud") = py::none(), py::arg("width") = py::none(),
+  m.def("_render", &render, py::arg("scene"), py::arg("scene_json") = "", py::arg("cloud") = py::none(),
+        py::arg("width") = py::none(),
         py::arg("height") = py::none(), py::arg("spp") = py::none(), py::arg("seed") = py::none(),
         py::arg("aovs") = py::tuple(), py::arg("camera") = py::none(), py::arg("threads") = 0);
+  m.def("_ortho_map", &ortho_map, py::arg("cloud"), py::arg("res"), py::arg("spp") = py::none(),
+        py::arg("seed") = py::none(), py::arg("threads") = 0);
   m.def("_compare", &compare, py::arg("reference"), py::arg("image"),
         py::arg("channels") = py::tuple(), py::arg("mask") = false, py::arg("alpha") = false,
         py::arg("resize") = false, py::arg("fail") = py::none(), py::arg("fail_percent") = py::none(),

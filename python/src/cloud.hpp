@@ -5,7 +5,10 @@
 #include "rayscan/io/file_info.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 
+#include <pybind11/pybind11.h>
+
 #include <algorithm>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -18,11 +21,11 @@ inline const std::vector<std::string>& standard_attributes() {
   return names;
 }
 
-/// A read cloud plus the file metadata the Python object exposes.
+/// A cloud (read, or built from arrays) plus the file metadata the Python object exposes.
 struct PyCloud {
   PointCloud cloud;
-  io::FileInfo info;
-  std::string path;
+  io::FileInfo info;  ///< what the reader found (format "" for a cloud built from arrays)
+  std::string path;   ///< the file read, "" for a cloud built from arrays
 
   [[nodiscard]] bool has(const std::string& name) const {
     if (name == "xyz") return true;
@@ -52,5 +55,20 @@ struct PyCloud {
   }
 };
 
+/// A job's `cloud` argument: a file name, a rayscan.PointCloud (used in place, not copied) or an
+/// (N, 3) array of positions (copied). Movable; `points` and `info` stay valid while it lives.
+struct CloudArg {
+  std::string path;                    ///< the file name, "" for points in memory
+  const PointCloud* points = nullptr;  ///< the points in memory, nullptr for a file name
+  const io::FileInfo* info = nullptr;  ///< a PointCloud's file metadata, nullptr otherwise
+  pybind11::object keep;               ///< the PointCloud object `points` belongs to
+  std::unique_ptr<PointCloud> owned;   ///< an array's points
+};
+
+/// Converts a job's `cloud` argument named `name`. Raises TypeError "<name> must be a file name
+/// (str or os.PathLike), a rayscan.PointCloud or an (N, 3) array of coordinates, got int" (without
+/// the file name when `allow_path` is false), ValueError for an array of another shape or dtype or
+/// with a non-finite coordinate (naming the point).
+CloudArg cloud_arg(pybind11::handle v, const char* name, bool allow_path = true);
 
 }  // namespace rayscan::python

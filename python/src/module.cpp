@@ -2,7 +2,9 @@
 // Python API (docstrings, result classes) is the package python/rayscan/__init__.py.
 #include "bindings.hpp"
 
+#include "rayscan/base/version.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/site/index_file.hpp"
 #ifdef RAYSCAN_PYTHON_JOBS
 #include "rayscan/analysis/observer.hpp"
 #include "rayscan/render/scene.hpp"
@@ -12,12 +14,15 @@ namespace py = pybind11;
 
 PYBIND11_MODULE(_rayscan, m) {
   m.doc() = "rayscan C++ core (use the `rayscan` package)";
+  m.attr("__version__") = rayscan::version();  // the project version of CMakeLists.txt
   // Library errors keep their one-line messages: bad arguments raise ValueError (pybind11 maps
   // std::invalid_argument and std::length_error), unreadable or malformed files raise OSError.
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const rayscan::io::FormatError& e) {
+      PyErr_SetString(PyExc_OSError, e.what());
+    } catch (const rayscan::io::IndexError& e) {
       PyErr_SetString(PyExc_OSError, e.what());
     }
   });

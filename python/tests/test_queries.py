@@ -151,7 +151,7 @@ def test_empty_inputs():
     res = tree.ray_query([0, 0, 0], [1, 0, 0], k=1)
     assert res.offsets.tolist() == [0, 0] and len(res.indices) == 0
     tree = rayscan.Octree(np.random.default_rng(1).random((10, 3)))
-    res = tree.ray_query(np.zeros((0, 3)), np.zeros((0, 3)))
+    res = tree.ray_query(np.zeros((0, 3)), np.zeros((0, 3)), allow_all=True)
     assert res.offsets.tolist() == [0]
     assert tree.knn(np.zeros((0, 3)), k=2).offsets.tolist() == [0]
 

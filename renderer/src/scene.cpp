@@ -220,15 +220,18 @@ std::string image_file_name_expected() { return extensions_expected(image_extens
 
 Scene load_scene(const std::filesystem::path& file) { return parse_scene_json(parse_file(file), file); }
 
-Scene parse_scene_json(const nlohmann::json& j, const std::filesystem::path& file, bool camera_required) {
-  const std::string f = file.string();
+Scene parse_scene_json(const nlohmann::json& j, const std::filesystem::path& file, const SceneParseOptions& options) {
+  const std::string f = options.name.empty() ? file.string() : options.name;
   Obj o(j, f, "");
   Scene s;
   s.file = file;
-  if (!o.has("cloud")) fail(f, "/cloud", "required: point cloud file (string, relative to the scene file)");
-  const std::string cloud = o.string("cloud", "");
-  if (cloud.empty()) fail(f, "/cloud", "expected a non-empty file name");
-  s.cloud = resolve(file, cloud);
+  if (o.has("cloud")) {
+    const std::string cloud = o.string("cloud", "");
+    if (cloud.empty()) fail(f, "/cloud", "expected a non-empty file name");
+    s.cloud = resolve(file, cloud);
+  } else if (options.cloud_required) {
+    fail(f, "/cloud", "required: point cloud file (string, relative to the scene file)");
+  }
   if (o.has("radius")) {
     const json& r = o.at("radius");
     if (r.is_string() && r.get<std::string>() == "auto") s.radius.reset();
@@ -247,7 +250,7 @@ Scene parse_scene_json(const nlohmann::json& j, const std::filesystem::path& fil
   s.background = parse_background(o);
   s.sun = parse_sun(o, s.up);
   if (!o.has("camera")) {
-    if (camera_required)
+    if (options.camera_required)
       fail(f, "/camera", "required: a camera file name (relative to the scene file) or a camera object");
   } else if (const json& cam = o.at("camera"); cam.is_string()) {
     s.camera_file = resolve(file, cam.get<std::string>());

@@ -152,7 +152,7 @@ ojson output_json(const OutputDesc& o) {
 std::string Scene::to_json() const {
   if (!camera) throw std::invalid_argument("scene: no camera to write");
   ojson j;
-  j["cloud"] = absolute_path(cloud);
+  if (!cloud.empty()) j["cloud"] = absolute_path(cloud);  // none for points given in memory
   if (radius) j["radius"] = *radius;
   else j["radius"] = "auto";
   j["auto_radius_factor"] = auto_radius_factor;

@@ -1,9 +1,11 @@
 // Scene::to_json and io::camera_to_json are the inverses of the parsers: a written scene or camera
 // reads back to the same rays bit for bit (every scene in scenes/, every camera model, resized
 // ones included); Camera::resized equals the camera built at that size; fit_image_size is the one
-// keep-aspect rule; and the quick look's printed scene states the camera it renders.
+// keep-aspect rule; the quick look's printed scene states the camera it renders; and a scene given
+// as text, or points given in memory, resolve as their files do.
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/camera/camera_file.hpp"
+#include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/quick_look.hpp"
 #include "rayscan/render/scene.hpp"
 #include "rayscan/render/scene_json.hpp"
@@ -16,6 +18,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <optional>
+#include <string>
 
 namespace fs = std::filesystem;
 using namespace rayscan;
@@ -146,5 +150,56 @@ TEST(SceneJson, QuickLookPrintsTheCameraItRenders) {
   expect_same_rays(*rs.scene.camera, *printed.camera);
   EXPECT_EQ(printed.output.aovs, std::vector<Aov>{Aov::depth});
   EXPECT_EQ(printed.spp, 3u);
+  fs::remove_all(d);
+}
+
+TEST(SceneJson, TextAndPointsInMemoryResolveLikeTheirFiles) {
+  // A scene given as text means what the same file in the working directory means; errors name it
+  // by the name given. The quick look of points in memory is the quick look of their file.
+  const fs::path d = rayscan::test::process_temp_dir("rayscan_scene_text");
+  PointCloud pc;
+  for (int i = 0; i < 400; ++i) pc.positions.emplace_back(i % 20, i / 20, 0.1 * (i % 7));
+  io::write_point_cloud(d / "c.ply", pc);
+  std::optional<PointCloud> read;
+  const auto summary = [&](const fs::path& f) { return jobs::summarize_cloud_file(f, read); };
+  const jobs::ResolvedScene file = jobs::resolve_scene(d / "c.ply", {}, summary);
+  const jobs::ResolvedScene memory =
+      jobs::resolve_quick_look(jobs::summarize_cloud(pc.positions, false, false, std::nullopt), {});
+  ASSERT_TRUE(file.scene.camera && memory.scene.camera && memory.overview);
+  expect_same_rays(*file.scene.camera, *memory.scene.camera);
+  EXPECT_TRUE(memory.scene.cloud.empty());
+  EXPECT_EQ(memory.scene.primitive, file.scene.primitive);
+
+  const fs::path cwd = fs::current_path();
+  fs::current_path(d);
+  const jobs::ResolvedScene text =
+      jobs::resolve_scene_text(R"({"cloud": "c.ply", "spp": 2})", "scene dict", {}, summary);
+  fs::current_path(cwd);
+  EXPECT_EQ(text.scene.cloud, (d / "c.ply").lexically_normal());
+  EXPECT_EQ(text.scene.spp, 2u);
+  EXPECT_EQ(text.scene.file, fs::path("scene dict"));
+  expect_same_rays(*file.scene.camera, *text.scene.camera);  // no camera: the overview camera
+  const auto message = [&](const std::string& json, bool cloud_given) {
+    try {
+      (void)jobs::resolve_scene_text(json, "scene dict", {}, summary, cloud_given);
+    } catch (const SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message(R"({"cloud": "c.ply", "camera": 5})", false),
+            "scene dict: /camera: expected a camera file name or a camera object");
+  EXPECT_EQ(message(R"({"spp": 1})", false).rfind("scene dict: /cloud: required", 0), 0u);
+  EXPECT_EQ(message("[1]", false), "scene dict: /: expected a JSON object (a scene)");
+  EXPECT_EQ(message("{", false).rfind("scene dict: byte ", 0), 0u);
+  EXPECT_NE(message("{", false).find("invalid JSON"), std::string::npos);
+  // With the points supplied by the caller a scene needs no "cloud".
+  const jobs::ResolvedScene given = jobs::resolve_scene_text(R"({"spp": 1})", "scene dict", {},
+                                                             [&](const fs::path& f) {
+                                                               EXPECT_TRUE(f.empty());
+                                                               return jobs::summarize_cloud_file(d / "c.ply", read);
+                                                             },
+                                                             true);
+  EXPECT_TRUE(given.scene.cloud.empty());
   fs::remove_all(d);
 }

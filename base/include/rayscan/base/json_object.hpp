@@ -45,17 +45,12 @@ inline std::string escape_key(const std::string& k) {  // RFC 6901 escaping
   return s;
 }
 
-inline json parse_json_file(const std::filesystem::path& file) {
-  std::string text;
-  try {
-    text = read_text_file(file);  // the input policy: regular file, size cap
-  } catch (const InputFileError& e) {
-    throw JsonFileError(e.what());
-  }
+/// Parses JSON `text`; errors (JsonFileError) name it `name`: "<name>: byte 12: invalid JSON (...)".
+inline json parse_json_text(const std::string& text, const std::string& name) {
   try {
     return json::parse(text);
   } catch (const json::parse_error& e) {
-    throw JsonFileError(file.string() + ": byte " + std::to_string(e.byte) +
+    throw JsonFileError(name + ": byte " + std::to_string(e.byte) +
                         ": invalid JSON (" + std::string(e.what()) + ")");
   } catch (const json::out_of_range& e) {
     // nlohmann reports a number beyond double (406 "number overflow parsing '1e400'") without a
@@ -69,8 +64,20 @@ inline json parse_json_file(const std::filesystem::path& file) {
     }
     if (what.rfind("[json.exception", 0) == 0 && what.find("] ") != std::string::npos)
       what = what.substr(what.find("] ") + 2);
-    throw JsonFileError(file.string() + ": " + where + ": " + what + " (expected a finite number)");
+    throw JsonFileError(name + ": " + where + ": " + what + " (expected a finite number)");
   }
+}
+
+/// Reads and parses the JSON file `file` (the input policy of read_text_file); errors
+/// (JsonFileError) name the file.
+inline json parse_json_file(const std::filesystem::path& file) {
+  std::string text;
+  try {
+    text = read_text_file(file);  // the input policy: regular file, size cap
+  } catch (const InputFileError& e) {
+    throw JsonFileError(e.what());
+  }
+  return parse_json_text(text, file.string());
 }
 
 /// A JSON object being read: typed getters with range checks, and finish() to reject unknown keys.

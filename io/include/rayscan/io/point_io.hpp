@@ -137,6 +137,11 @@ void write_text(const std::filesystem::path& path, const PointCloud& cloud);
 /// write_point_cloud() can write `path`. For checking a job's output before its work.
 void require_point_cloud_output(const std::filesystem::path& path);
 
+/// The LAS write options that keep the integer grid (scale and offset) of the LAS, LAZ or COPC
+/// source that `source` describes, so that its points written back as LAS/LAZ are bit-exact; the
+/// defaults (scale chosen from the points) for any other source.
+[[nodiscard]] LasWriteOptions las_grid_of(const FileInfo& source);
+
 /// Writes `cloud` in the format its extension names (case-insensitive; the one writer choice of
 /// every job): .las and .laz with write_las (`las`: scale and offset), .ply with write_ply, .pcd
 /// with write_pcd, .xyz / .csv / .txt with write_text.

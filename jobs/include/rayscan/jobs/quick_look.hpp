@@ -94,6 +94,14 @@ CloudSummary summarize_cloud(std::span<const Vec3> positions, bool has_rgb, bool
 /// its quick look renders the points read whole). Throws io::IndexError for a bad index file.
 std::optional<CloudSummary> summary_in_place(const std::filesystem::path& path);
 
+/// The summary of the point cloud file `file`, as `rayscan render` takes it for resolve_scene:
+/// summary_in_place for an index file; else the points are read (no scalar fields) into `points`,
+/// which the caller may keep for the render (RenderJobOptions::cloud), and summarised
+/// (summarize_cloud: georeferenced when the file has a CRS, a PCD VIEWPOINT's translation as the
+/// scanner position). Throws the reader's errors and std::invalid_argument "<file>: the point
+/// cloud has no points".
+CloudSummary summarize_cloud_file(const std::filesystem::path& file, std::optional<PointCloud>& points);
+
 /// True when `input` names a point cloud rather than a scene: an extension the io library reads
 /// (io::format_from_extension) or an index file (.rsi). The one rule of resolve_scene and the CLI.
 bool is_cloud_input(const std::filesystem::path& input);
@@ -123,7 +131,25 @@ struct ResolvedScene {
 /// points, which the caller may keep for the render) and is called only when needed (a cloud
 /// input or a missing camera). Throws SceneError (bad scene file), OptionError (bad override),
 /// and what `cloud` throws (io errors).
+/// With `cloud_given` the caller supplies the points (RenderJobOptions::cloud, or Scene::cloud set
+/// afterwards): a scene file without "cloud" is valid, and `cloud` is asked for the summary with
+/// the scene's "cloud" (empty when it has none) and should summarise the supplied points.
 ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverrides& overrides,
-                            const std::function<CloudSummary(const std::filesystem::path&)>& cloud);
+                            const std::function<CloudSummary(const std::filesystem::path&)>& cloud,
+                            bool cloud_given = false);
+
+/// resolve_scene for scene JSON given as text instead of a file (the Python module's scene dict):
+/// relative file names resolve against the working directory, errors name the scene `name`
+/// ("scene dict: /camera: ..."), and Scene::file is `name`. `cloud` and `cloud_given` as for
+/// resolve_scene. Throws SceneError (invalid JSON, not an object, a bad scene), OptionError, and
+/// what `cloud` throws.
+ResolvedScene resolve_scene_text(const std::string& json, const std::string& name, const SceneOverrides& overrides,
+                                 const std::function<CloudSummary(const std::filesystem::path&)>& cloud,
+                                 bool cloud_given = false);
+
+/// The quick look of points in memory (no file): the scene resolve_scene makes of a point cloud
+/// file, without "cloud" (render it with RenderJobOptions::cloud), its overview camera framing
+/// `summary` (summarize_cloud of those points). Throws OptionError (bad override).
+ResolvedScene resolve_quick_look(const CloudSummary& summary, const SceneOverrides& overrides);
 
 }  // namespace rayscan::jobs

@@ -136,8 +136,9 @@ struct Scene {
 
   /// The scene as scene-file JSON (2-space indent), every value explicit: load_scene of the text
   /// gives this scene back (camera inline, bit for bit; paths absolute, so the file works from
-  /// any folder). What `rayscan render --print-scene` prints. Throws std::invalid_argument when
-  /// the camera has no camera-file form (an orthographic grid, io::camera_to_json) or is unset.
+  /// any folder; no "cloud" when it is empty: points given in memory). What `rayscan render
+  /// --print-scene` prints. Throws std::invalid_argument when the camera has no camera-file form
+  /// (an orthographic grid, io::camera_to_json) or is unset.
   [[nodiscard]] std::string to_json() const;
 };
 
