@@ -273,11 +273,14 @@ struct VisibilityRun {
   Raster viewshed_on_dsm(const GridSpec& grid) {
     const auto t = std::chrono::steady_clock::now();
     RenderJobOptions ro;
-    // The points are this job's (`cloud`); the scene names their file for its messages.
+    // The quick look's geometry over this job's points (`cloud`); only the depth is used.
     const nlohmann::json quick_look = {
-        {"cloud", o.cloud_file.string()}, {"radius", "auto"},      {"primitive", "surfel"},
-        {"spp", 1},                       {"material", {{"color", "elevation"}}}};  // (only the depth is used)
-    ro.scene = render::parse_scene_json(quick_look, o.cloud_file.string() + ".dsm.json", /*camera_required=*/false);
+        {"radius", "auto"}, {"primitive", "surfel"}, {"spp", 1}, {"material", {{"color", "elevation"}}}};
+    render::SceneParseOptions po;
+    po.camera_required = false;
+    po.cloud_required = false;
+    po.name = (o.cloud_file.empty() ? std::string("points in memory") : o.cloud_file.string()) + " (DSM)";
+    ro.scene = render::parse_scene_json(quick_look, o.cloud_file, po);
     ro.scene.output.aovs = {Aov::depth};
     ro.cloud = &cloud;
     ro.write = false;
