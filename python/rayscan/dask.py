@@ -1,0 +1,327 @@
+"""rayscan over Dask collections: ray queries, first hits, visibility for many observers and solar
+instants mapped over the workers of a Dask cluster (local processes or a distributed one).
+
+    >>> from distributed import Client, LocalCluster
+    >>> import dask.array as da, rayscan.dask as rd
+    >>> client = Client(LocalCluster(n_workers=2, threads_per_worker=1))     # doctest: +SKIP
+    >>> o = da.from_array(origins, chunks=(100_000, 3))                        # doctest: +SKIP
+    >>> hit = rd.first_hits("site.rsi", o, directions, radius=0.5)           # doctest: +SKIP
+    >>> index, t = dask.compute(hit["indices"], hit["t"])                     # doctest: +SKIP
+    >>> seen = rd.visibility("site.rsi", observers, chunks=16, compute=True)  # doctest: +SKIP
+
+Every task opens the point file by its path (rayscan.open: an .rsi index file is memory-mapped,
+a COPC file read in place), so nothing is pickled but the path, the options and the query arrays
+of the task; the file must be readable under the same path on every worker (a shared or local
+file system). Each worker process opens a file once and keeps the Site for its later tasks.
+The C++ calls release the GIL, so a worker with several threads runs several chunks at once.
+`threads` is the number of TBB threads of each task (default 1: Dask's workers are the
+parallelism; 0 = all cores of the worker's machine).
+
+Every answer equals the single-process call (rayscan.open(path).ray_query, rayscan.visibility,
+rayscan.solar) bit for bit: each ray, observer or instant is computed alone there too, and the
+merges only concatenate or add integer counts.
+
+Needs Dask (Debian 12: apt-get install python3-dask python3-distributed); `import rayscan` does not.
+"""
+
+try:
+    import dask
+    import dask.array as da
+except ImportError as e:  # rayscan itself never needs Dask; this module does
+    raise ImportError(
+        "rayscan.dask needs Dask: install the Debian packages python3-dask and python3-distributed "
+        "(apt-get install python3-dask python3-distributed) or `pip install dask distributed`") from e
+
+import os
+import threading
+
+import numpy as np
+
+import rayscan
+from ._results import RayQueryResult
+
+__all__ = ["ray_query", "first_hits", "visibility", "solar"]
+
+_INF = float("inf")
+
+# ---- worker side: one Site per file and process ------------------------------------------------
+
+_sites = {}
+_sites_lock = threading.Lock()
+
+
+def _site(path):
+    """The Site of `path` in this process, opened on first use. A COPC Site trims its node cache
+    after each query, which must not overlap another query on the same Site: its queries take
+    a lock (an .rsi or in-memory Site answers concurrent queries from several threads)."""
+    with _sites_lock:
+        entry = _sites.get(path)
+        if entry is None:
+            site = rayscan.open(path)
+            entry = _sites[path] = (site, threading.Lock() if site.storage == "copc" else None)
+    return entry
+
+
+def _ray_block(path, origins, directions, kw):
+    """One chunk of rays on a worker: the CSR arrays of Site.ray_query (dict of NumPy arrays)."""
+    site, lock = _site(path)
+    if lock is None:
+        return site._ray_query(origins, directions, **kw)
+    with lock:
+        return site._ray_query(origins, directions, **kw)
+
+
+def _dense(res, m, k):
+    """CSR hits of m rays as (m, k) arrays, missing ranks filled with -1 (indices) or NaN."""
+    counts = np.diff(res["offsets"])
+    rank = np.arange(len(res["indices"])) - np.repeat(res["offsets"][:-1], counts)
+    rows = np.repeat(np.arange(m), counts)
+    out = {}
+    for name, fill in (("indices", -1), ("t", np.nan), ("distance", np.nan)):
+        a = np.full((m, k), fill, dtype=res[name].dtype)
+        a[rows, rank] = res[name]
+        out[name] = a[:, 0] if k == 1 else a
+    return out
+
+
+def _ray_dense_block(path, origins, directions, kw, m, k):
+    return _dense(_ray_block(path, origins, directions, kw), m, k)
+
+
+def _merge_csr(parts):
+    """Concatenate the CSR results of consecutive ray chunks into one RayQueryResult."""
+    offsets = [np.zeros(1, dtype=np.int64)]
+    base = 0
+    for p in parts:
+        offsets.append(p["offsets"][1:] + base)
+        base += int(p["offsets"][-1])
+    return RayQueryResult(offsets=np.concatenate(offsets),
+                          **{f: np.concatenate([p[f] for p in parts]) for f in ("indices", "t", "distance")})
+
+
+# ---- client side -------------------------------------------------------------------------------
+
+def _path(path):
+    """The absolute path, so that workers with another working directory open the same file."""
+    return os.path.abspath(os.fspath(path))
+
+
+def _row_blocks(origins, directions, chunks):
+    """The ray chunks as (delayed origins, delayed directions, rows) triples. A 2-D argument
+    (M, 3) is split into row chunks (its own Dask chunks, those of the other argument, else
+    `chunks` rows); a (3,) argument is one row shared by every chunk."""
+    def as_rows(a):
+        if isinstance(a, da.Array):
+            return a
+        a = np.asarray(a, dtype=np.float64)
+        return a if a.ndim == 1 else da.from_array(a, chunks=(chunks, 3))
+
+    o, d = as_rows(origins), as_rows(directions)
+    for name, a in (("origins", o), ("directions", d)):
+        if not (a.ndim == 1 and a.shape == (3,)) and not (a.ndim == 2 and a.shape[1] == 3):
+            raise ValueError(f"{name}: expected an (M, 3) array or one (3,) row, got shape {a.shape}")
+    if o.ndim == 1 and d.ndim == 1:  # one ray
+        o, d = (da.asarray(a).reshape(1, 3) for a in (o, d))
+    if o.ndim == 2 and d.ndim == 2:
+        if o.shape[0] != d.shape[0]:
+            raise ValueError(f"origins has {o.shape[0]} rows, directions {d.shape[0]}")
+        o = o.rechunk({1: 3})
+        d = d.rechunk((o.chunks[0], 3))
+        rows = o.chunks[0]
+        return list(zip(o.to_delayed().ravel(), d.to_delayed().ravel(), rows))
+    if o.ndim == 2:
+        o = o.rechunk({1: 3})
+        return [(b, d, r) for b, r in zip(o.to_delayed().ravel(), o.chunks[0])]
+    d = d.rechunk({1: 3})
+    return [(o, b, r) for b, r in zip(d.to_delayed().ravel(), d.chunks[0])]
+
+
+def ray_query(path, origins, directions, k=1, radius=_INF, t_min=-_INF, t_max=_INF, order="ray",
+              any_hit=False, threads=1, chunks=100_000, compute=False):
+    """Site.ray_query of the file at `path` (an .rsi index, a COPC file, or any point file, which
+    each worker then reads and indexes in memory) over chunks of rays, one task per chunk.
+
+    origins, directions: (M, 3) Dask arrays (their row chunks are the tasks; the other argument
+    follows them) or NumPy arrays (split into `chunks` rows), or one (3,) row for all rays.
+    k, radius, t_min, t_max, order, any_hit: as Site.ray_query (world units; t along the unit
+    direction). threads: TBB threads per task (0 = all cores).
+
+    Returns, with compute=False, a dict of Dask arrays chunked like the rays: "indices" int64
+    (original point index, -1 = no hit), "t" and "distance" float64 (NaN = no hit), of shape (M,)
+    for k=1, else (M, k) with the hits of each ray best first (k=None needs compute=True).
+    Compute them in one call (dask.compute(out["indices"], out["t"])) so that each chunk is
+    queried once. With compute=True: the RayQueryResult (CSR) of the single-process call,
+    bit for bit. Raises ValueError as Site.ray_query does (on the workers for the rays' values).
+    """
+    if k is None and not compute:
+        raise ValueError("ray_query: k=None (every hit of each ray) needs compute=True; "
+                         "the lazy result holds k hits per ray")
+    path = _path(path)
+    kw = dict(k=k, radius=radius, t_min=t_min, t_max=t_max, order=order, any_hit=any_hit,
+              allow_all=False, threads=threads)
+    blocks = _row_blocks(origins, directions, chunks)
+    if compute:
+        parts = dask.compute(*[dask.delayed(_ray_block)(path, o, d, kw) for o, d, _ in blocks])
+        return _merge_csr(parts)
+    if not isinstance(k, int) or k < 1:
+        raise ValueError(f"ray_query: k must be an integer >= 1, got {k!r}")
+    out = {"indices": [], "t": [], "distance": []}
+    for o, d, m in blocks:
+        res = dask.delayed(_ray_dense_block)(path, o, d, kw, m, k)
+        shape = (m,) if k == 1 else (m, k)
+        for name, dtype in (("indices", np.int64), ("t", np.float64), ("distance", np.float64)):
+            out[name].append(da.from_delayed(res[name], shape, dtype=dtype))
+    return {name: da.concatenate(parts) for name, parts in out.items()}
+
+
+def first_hits(path, origins, directions, radius, t_min=0.0, t_max=_INF, threads=1,
+               chunks=100_000, compute=False):
+    """The first surface each ray hits: ray_query(k=1, order="sphere_hit") with spheres of
+    `radius` (world units) around the points, from t_min (0: in front of the origin) to t_max.
+    Returns "indices" (-1 = miss) and "t" (depth along the unit direction, NaN = miss) as Dask
+    arrays of shape (M,) (or, with compute=True, the RayQueryResult). See ray_query."""
+    return ray_query(path, origins, directions, k=1, radius=radius, t_min=t_min, t_max=t_max,
+                     order="sphere_hit", threads=threads, chunks=chunks, compute=compute)
+
+
+# ---- visibility: observers split over tasks ----------------------------------------------------
+
+def _visibility_block(path, observers, kw):
+    r = rayscan.visibility(path, observers, **kw)
+    return {name: r[name] for name in ("visible_count", "visible_distance", "sky_view", "per_observer",
+                                       "observers", "radius", "tolerance", "target_height") if name in r}
+
+
+def _merge_visibility(a, b):
+    """Two observer groups' answers as one: counts add (integers, exact in float64), the nearest
+    seeing observer is the nearer of the two (-1 = none), per-observer arrays concatenate."""
+    out = dict(a)
+    out["visible_count"] = a["visible_count"] + b["visible_count"]
+    if "visible_distance" in a:
+        da_, db_ = a["visible_distance"], b["visible_distance"]
+        out["visible_distance"] = np.where(da_ < 0, db_, np.where(db_ < 0, da_, np.minimum(da_, db_)))
+    out["per_observer"] = np.concatenate([a["per_observer"], b["per_observer"]])
+    out["observers"] = np.concatenate([a["observers"], b["observers"]])
+    return out
+
+
+def visibility(path, observers, chunks=8, radius=None, height=None, max_distance=None,
+               tolerance=None, target_height=None, sky_rays=0, distance=False, threads=1,
+               compute=False):
+    """rayscan.visibility of the cloud at `path` for many observers, `chunks` observers per task.
+
+    The observers are split, not the points: every observer's line of sight needs the whole
+    cloud as occluders (the job takes one cloud as both targets and occluders), and each
+    (observer, point) pair is decided alone, so a task answers for its observers on all points
+    and the visible counts of the tasks add up exactly (integers in float64). Each task opens the
+    file and resolves the same automatic radius; pass `radius` to skip that estimate per task.
+
+    observers: (K, 3) eye positions or (K, 2) positions placed `height` above the ground (world
+    units), a NumPy or Dask array; observer files are not split (read them first). sky_rays > 0
+    adds "sky_view", computed once in its own task. Other options as rayscan.visibility.
+
+    Returns a dict: "visible_count" (N,) float64 (observers that see each point), with
+    distance=True "visible_distance" (N,) float64 (nearest seeing observer, -1 = unseen),
+    "sky_view" (N,) when asked, "per_observer" (K,) uint64, "observers" (K, 3) float64 placed
+    eyes; Dask arrays (N is known for an .rsi or COPC file, else NaN until computed) or, with
+    compute=True, NumPy arrays plus "radius", "tolerance", "target_height", equal to
+    rayscan.visibility(path, observers, ...) bit for bit.
+    """
+    if isinstance(observers, (str, os.PathLike)):
+        raise TypeError("observers: an (K, 3) or (K, 2) array (an observer file is not split "
+                        "over tasks; pass rayscan.visibility the file instead)")
+    obs = observers.compute() if isinstance(observers, da.Array) else np.asarray(observers, dtype=np.float64)
+    if obs.ndim != 2 or obs.shape[1] not in (2, 3) or len(obs) == 0:
+        raise ValueError(f"observers: expected a non-empty (K, 3) or (K, 2) array, got shape {obs.shape}")
+    if not isinstance(chunks, int) or chunks < 1:
+        raise ValueError(f"chunks: expected an integer >= 1 (observers per task), got {chunks!r}")
+    path = _path(path)
+    kw = dict(radius=radius, height=height, max_distance=max_distance, tolerance=tolerance,
+              target_height=target_height, distance=distance, threads=threads)
+    parts = [dask.delayed(_visibility_block)(path, obs[i:i + chunks], kw)
+             for i in range(0, len(obs), chunks)]
+    while len(parts) > 1:  # a tree of pairwise merges: each holds two (N,) arrays at a time
+        parts = [dask.delayed(_merge_visibility)(parts[i], parts[i + 1]) if i + 1 < len(parts) else parts[i]
+                 for i in range(0, len(parts), 2)]
+    merged = parts[0]
+    sky = None
+    if sky_rays:
+        sky_kw = dict(radius=radius, max_distance=max_distance, sky_rays=sky_rays, threads=threads)
+        sky = dask.delayed(_visibility_block)(path, None, sky_kw)
+    if compute:
+        merged, sky = dask.compute(merged, sky)
+        if sky is not None:
+            merged["sky_view"] = sky["sky_view"]
+        return merged
+    n = _point_count(path)
+    out = {"visible_count": da.from_delayed(merged["visible_count"], (n,), dtype=np.float64)}
+    if distance:
+        out["visible_distance"] = da.from_delayed(merged["visible_distance"], (n,), dtype=np.float64)
+    if sky is not None:
+        out["sky_view"] = da.from_delayed(sky["sky_view"], (n,), dtype=np.float64)
+    out["per_observer"] = da.from_delayed(merged["per_observer"], (len(obs),), dtype=np.uint64)
+    out["observers"] = da.from_delayed(merged["observers"], (len(obs), 3), dtype=np.float64)
+    return out
+
+
+def _point_count(path):
+    """N of an .rsi or COPC file from its header (mapped, cheap); NaN (unknown) for other files,
+    which rayscan.open would read whole."""
+    lower = path.lower()
+    if lower.endswith(".rsi") or lower.endswith(".copc.laz"):
+        return len(rayscan.open(path))
+    return np.nan
+
+
+# ---- solar: instants (or periods) split over tasks ---------------------------------------------
+
+_SOLAR_INSTANT = ("in_shadow", "irradiance_global", "irradiance_beam", "irradiance_diffuse")
+_SOLAR_PERIOD = ("solar_global", "solar_beam", "solar_diffuse", "solar_reflected", "sun_hours", "sky_view")
+
+
+def _solar_block(path, when, kw):
+    if isinstance(when, str):
+        return rayscan.solar(path, at=when, **kw)
+    return rayscan.solar(path, start=when[0], end=when[1], **kw)
+
+
+def solar(path, at=None, periods=None, threads=1, compute=False, **options):
+    """rayscan.solar of the cloud at `path` for T instants or T periods, one task each.
+
+    at: a list of T instants (ISO 8601 text, as rayscan.solar's `at`); or periods: a list of T
+    (start, end) pairs (as rayscan.solar's start/end, e.g. one per month). options: the other
+    keywords of rayscan.solar (step, latitude, longitude, linke, albedo, weather, sector,
+    sky_rays, primitive, radius); give latitude/longitude when the cloud has no CRS.
+
+    Returns a dict of (T, N) float64 arrays, row i for at[i] / periods[i]: for instants
+    "in_shadow" (1/0), "irradiance_global", "irradiance_beam", "irradiance_diffuse" (W/m²) and
+    (T,) "sun_azimuth", "sun_elevation" (degrees); for periods "solar_global", "solar_beam",
+    "solar_diffuse", "solar_reflected" (kWh/m²), "sun_hours" (h), "sky_view". Dask arrays chunked
+    one row per task, or NumPy with compute=True; row i equals rayscan.solar(path, at=at[i], ...)
+    bit for bit.
+    """
+    if (at is None) == (periods is None):
+        raise ValueError("solar: give either at= (a list of instants) or periods= (a list of (start, end))")
+    whens = [str(w) for w in at] if at is not None else [(str(s), str(e)) for s, e in periods]
+    if not whens:
+        raise ValueError("solar: no instant or period given")
+    path = _path(path)
+    kw = dict(options, threads=threads)
+    tasks = [dask.delayed(_solar_block)(path, w, kw) for w in whens]
+    fields = _SOLAR_INSTANT if at is not None else _SOLAR_PERIOD
+    if at is None and options.get("sky_rays", 64) == 0:
+        fields = fields[:-1]  # no sky view without sky rays
+    if compute:
+        res = dask.compute(*tasks)
+        out = {f: np.stack([r[f] for r in res]) for f in fields if f in res[0]}
+        if at is not None:
+            out["sun_azimuth"] = np.array([r["sun_azimuth"] for r in res])
+            out["sun_elevation"] = np.array([r["sun_elevation"] for r in res])
+        return out
+    n = _point_count(path)
+    out = {f: da.stack([da.from_delayed(t[f], (n,), dtype=np.float64) for t in tasks]) for f in fields}
+    if at is not None:
+        for f in ("sun_azimuth", "sun_elevation"):
+            out[f] = da.concatenate([da.from_delayed(dask.delayed(np.atleast_1d)(t[f]), (1,), dtype=np.float64)
+                                     for t in tasks])
+    return out
