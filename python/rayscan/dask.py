@@ -125,8 +125,12 @@ def _row_blocks(origins, directions, chunks):
     if o.ndim == 2 and d.ndim == 2:
         if o.shape[0] != d.shape[0]:
             raise ValueError(f"origins has {o.shape[0]} rows, directions {d.shape[0]}")
-        o = o.rechunk({1: 3})
-        d = d.rechunk((o.chunks[0], 3))
+        if isinstance(directions, da.Array) and not isinstance(origins, da.Array):
+            d = d.rechunk({1: 3})  # the Dask argument's chunks lead
+            o = o.rechunk((d.chunks[0], 3))
+        else:
+            o = o.rechunk({1: 3})
+            d = d.rechunk((o.chunks[0], 3))
         rows = o.chunks[0]
         return list(zip(o.to_delayed().ravel(), d.to_delayed().ravel(), rows))
     if o.ndim == 2:

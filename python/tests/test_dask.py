@@ -86,6 +86,11 @@ def test_ray_query_and_first_hits(client, site_file, rays):
     assert np.array_equal(hi, first.first("indices"))
     assert np.array_equal(ht, first.first("t"), equal_nan=True)
 
+    # NumPy origins follow the chunks of Dask directions.
+    mixed = rd.first_hits(site_file, o, da.from_array(d, chunks=(1500, 3)), radius=3.0)
+    assert mixed["indices"].chunks == ((1500, 1500, 1500, 500),)
+    assert np.array_equal(mixed["indices"].compute(), first.first("indices"))
+
     # One origin (3,) broadcast against chunks of directions.
     eye = o[0]
     bcast = rd.first_hits(site_file, eye, da.from_array(d, chunks=(2000, 3)), radius=3.0)
