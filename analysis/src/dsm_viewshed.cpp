@@ -15,58 +15,50 @@ namespace rayscan::analysis {
 
 namespace {
 
-// Whether the target at the centre of cell (qt, rt), height zt, is seen from the eye at grid
-// coordinates (fq, fr) (cell centres at integers), height ze: R3 over the crossings of the
-// major axis' centre lines strictly between the two.
-bool seen(const Raster& dsm, double fq, double fr, double ze, std::int64_t qt, std::int64_t rt, double zt) {
-  const GridSpec& g = dsm.grid;
-  const double dq = double(qt) - fq, dr = double(rt) - fr;
-  auto z = [&](std::int64_t q, std::int64_t r) { return dsm.values[std::size_t(r) * g.cols + std::size_t(q)]; };
+// The R3 walk along one axis, the major one: the sight line from the eye at grid coordinates
+// (fa, fb) (cell centres at integers; a along the major axis, b along the minor), height ze, to
+// the target at the centre of cell (at, bt), height zt, with |at - fa| >= |bt - fb|, crosses the
+// centre lines a = const strictly between the two; z(a, b) is the DSM there (na x nb cells).
+template <class Z>
+bool seen_along(double fa, double fb, double ze, std::int64_t at, std::int64_t bt, double zt, std::int64_t na,
+                std::int64_t nb, Z&& z) {
+  const double da = double(at) - fa, db = double(bt) - fb;
+  if (da == 0.0) return true;  // the eye's own cell centre
   // Heights compare with a relative slack so that a surface exactly on the line does not hide.
   const double slack = 1e-9 * (1.0 + std::abs(ze) + std::abs(zt));
-  auto hides = [&](double t, double surface) { return std::isfinite(surface) && surface > ze + t * (zt - ze) + slack; };
   // Interpolation between two centres, a missing one (NaN) standing for the other.
-  auto lerp = [](float a, float b, double f) {
-    if (!std::isfinite(a)) return double(b);
-    if (!std::isfinite(b)) return double(a);
-    return double(a) + f * (double(b) - double(a));
+  auto lerp = [](float u, float v, double f) {
+    if (!std::isfinite(u)) return double(v);
+    if (!std::isfinite(v)) return double(u);
+    return double(u) + f * (double(v) - double(u));
   };
-  if (std::abs(dq) >= std::abs(dr)) {
-    if (dq == 0.0) return true;  // the eye's own cell centre
-    const std::int64_t step = dq > 0 ? 1 : -1;
-    // Columns strictly between the eye and the target.
-    std::int64_t q = dq > 0 ? std::int64_t(std::floor(fq)) + 1 : std::int64_t(std::ceil(fq)) - 1;
-    for (; q != qt; q += step) {
-      if (q < 0 || q >= std::int64_t(g.cols)) continue;
-      const double t = (double(q) - fq) / dq;
-      if (t <= 0.0) continue;
-      const double r = fr + t * dr;
-      std::int64_t r0 = std::int64_t(std::floor(r));
-      const double f = r - double(r0);
-      std::int64_t r1 = r0 + 1;
-      if (r0 < 0) r0 = 0;
-      if (r1 >= std::int64_t(g.rows)) r1 = std::int64_t(g.rows) - 1;
-      if (r0 >= std::int64_t(g.rows) || r1 < 0) continue;
-      if (hides(t, lerp(z(q, r0), z(q, r1), f))) return false;
-    }
-  } else {
-    const std::int64_t step = dr > 0 ? 1 : -1;
-    std::int64_t r = dr > 0 ? std::int64_t(std::floor(fr)) + 1 : std::int64_t(std::ceil(fr)) - 1;
-    for (; r != rt; r += step) {
-      if (r < 0 || r >= std::int64_t(g.rows)) continue;
-      const double t = (double(r) - fr) / dr;
-      if (t <= 0.0) continue;
-      const double q = fq + t * dq;
-      std::int64_t q0 = std::int64_t(std::floor(q));
-      const double f = q - double(q0);
-      std::int64_t q1 = q0 + 1;
-      if (q0 < 0) q0 = 0;
-      if (q1 >= std::int64_t(g.cols)) q1 = std::int64_t(g.cols) - 1;
-      if (q0 >= std::int64_t(g.cols) || q1 < 0) continue;
-      if (hides(t, lerp(z(q0, r), z(q1, r), f))) return false;
-    }
+  const std::int64_t step = da > 0 ? 1 : -1;
+  for (std::int64_t a = da > 0 ? std::int64_t(std::floor(fa)) + 1 : std::int64_t(std::ceil(fa)) - 1; a != at; a += step) {
+    if (a < 0 || a >= na) continue;
+    const double t = (double(a) - fa) / da;
+    if (t <= 0.0) continue;
+    const double b = fb + t * db;
+    std::int64_t b0 = std::int64_t(std::floor(b));
+    const double f = b - double(b0);
+    std::int64_t b1 = b0 + 1;
+    if (b0 < 0) b0 = 0;
+    if (b1 >= nb) b1 = nb - 1;
+    if (b0 >= nb || b1 < 0) continue;
+    const double surface = lerp(z(a, b0), z(a, b1), f);
+    if (std::isfinite(surface) && surface > ze + t * (zt - ze) + slack) return false;
   }
   return true;
+}
+
+// Whether the target at the centre of cell (qt, rt), height zt, is seen from the eye at grid
+// coordinates (fq, fr), height ze: R3 along columns when the line runs more east-west, else rows.
+bool seen(const Raster& dsm, double fq, double fr, double ze, std::int64_t qt, std::int64_t rt, double zt) {
+  const GridSpec& g = dsm.grid;
+  const std::int64_t cols = g.cols, rows = g.rows;
+  auto z = [&](std::int64_t q, std::int64_t r) { return dsm.values[std::size_t(r) * g.cols + std::size_t(q)]; };
+  if (std::abs(double(qt) - fq) >= std::abs(double(rt) - fr))
+    return seen_along(fq, fr, ze, qt, rt, zt, cols, rows, z);
+  return seen_along(fr, fq, ze, rt, qt, zt, rows, cols, [&](std::int64_t r, std::int64_t q) { return z(q, r); });
 }
 
 }  // namespace
