@@ -5,9 +5,9 @@
 # with CORE_SOURCE (the rayscan source tree) the script first configures and builds that tree with
 # -DRAYSCAN_ONLY_CORE=ON (no OpenImageIO, GDAL, nlohmann_json, CLI11) into WORK_DIR/rayscan and
 # installs that build instead.
-# The install is staged with DESTDIR: rules with an absolute destination (the PostgreSQL module
-# into `pg_config --pkglibdir` and --sharedir, as PGXS does) land under WORK_DIR/stage too, so the
-# test writes nothing into system directories.
+# The install is staged with DESTDIR, so that a rule with an absolute destination would land under
+# WORK_DIR/stage too (never in system directories) and be caught: `cmake --install --prefix P` must
+# write nothing outside P (the PostgreSQL extension included; RAYSCAN_PG_SYSTEM_DIRS is off).
 set(stage ${WORK_DIR}/stage)
 set(prefix ${stage}/prefix)
 set(build ${WORK_DIR}/build)
@@ -41,13 +41,23 @@ endif()
 set(ENV{DESTDIR} ${stage})
 run(${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix /prefix)
 unset(ENV{DESTDIR})
+# Every installed file lies under the prefix (the install manifest lists them without DESTDIR).
+file(STRINGS ${BUILD_DIR}/install_manifest.txt manifest)
+foreach(f ${manifest})
+  if(NOT f MATCHES "^/prefix/")
+    message(FATAL_ERROR "cmake --install --prefix /prefix wrote outside the prefix: ${f}")
+  endif()
+endforeach()
 if(NOT ONLY_CORE)
-  # `CREATE EXTENSION rayscan` files: staged under the PostgreSQL paths, not in the system's.
+  # `CREATE EXTENSION rayscan` files: PostgreSQL's layout under the prefix (pg_config's folders
+  # relative to Debian's /usr).
   execute_process(COMMAND pg_config --pkglibdir OUTPUT_VARIABLE pg_lib OUTPUT_STRIP_TRAILING_WHITESPACE)
   execute_process(COMMAND pg_config --sharedir OUTPUT_VARIABLE pg_share OUTPUT_STRIP_TRAILING_WHITESPACE)
-  foreach(f ${pg_lib}/rayscan.so ${pg_share}/extension/rayscan.control)
-    if(NOT EXISTS ${stage}${f})
-      message(FATAL_ERROR "install lacks the PostgreSQL extension file ${stage}${f}")
+  string(REGEX REPLACE "^/usr/" "" pg_lib ${pg_lib})
+  string(REGEX REPLACE "^/usr/" "" pg_share ${pg_share})
+  foreach(f ${pg_lib}/rayscan.so ${pg_share}/extension/rayscan.control ${pg_share}/extension/rayscan--0.1.sql)
+    if(NOT EXISTS ${prefix}/${f})
+      message(FATAL_ERROR "install lacks the PostgreSQL extension file ${prefix}/${f}")
     endif()
   endforeach()
 endif()
