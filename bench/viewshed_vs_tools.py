@@ -16,6 +16,8 @@ import subprocess
 
 import numpy as np
 
+from viewshed_vs_gdal import read_tif
+
 
 def main():
     ap = argparse.ArgumentParser()
@@ -32,18 +34,8 @@ def main():
     def sh(cmd):
         subprocess.run(cmd, shell=True, check=True, cwd=work, stdout=subprocess.DEVNULL)
 
-    def band(name):
-        sh(f"gdal_translate -q -of AAIGrid {name} {name}.asc")
-        with open(os.path.join(work, name + ".asc")) as f:
-            for _ in range(5):
-                f.readline()
-            pos = f.tell()
-            line = f.readline()
-            nodata = float(line.split()[1]) if line.lower().startswith("nodata") else None
-            if nodata is None:
-                f.seek(pos)
-            v = np.loadtxt(f)
-        return np.where(v == nodata, np.nan, v) if nodata is not None else v
+    def band(name):  # the raster as floats, NaN for NoData (the GDAL script's reader)
+        return read_tif(os.path.join(work, name), work)
 
     cloud = os.path.abspath(a.cloud)
     a.rayscan = os.path.abspath(a.rayscan)

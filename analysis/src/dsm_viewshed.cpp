@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <limits>
 #include <stdexcept>
+#include <vector>
 
 namespace rayscan::analysis {
 
@@ -35,8 +36,7 @@ bool seen_along(double fa, double fb, double ze, std::int64_t at, std::int64_t b
   const std::int64_t step = da > 0 ? 1 : -1;
   for (std::int64_t a = da > 0 ? std::int64_t(std::floor(fa)) + 1 : std::int64_t(std::ceil(fa)) - 1; a != at; a += step) {
     if (a < 0 || a >= na) continue;
-    const double t = (double(a) - fa) / da;
-    if (t <= 0.0) continue;
+    const double t = (double(a) - fa) / da;  // > 0: a lies past the eye
     const double b = fb + t * db;
     std::int64_t b0 = std::int64_t(std::floor(b));
     const double f = b - double(b0);
@@ -77,6 +77,11 @@ Raster dsm_viewshed(const Raster& dsm, std::span<const Vec3> eyes, double target
   out.grid = g;
   out.name = "viewshed on the DSM (exact line of sight to the cell centres, R3)";
   out.values.assign(dsm.values.size(), std::numeric_limits<float>::quiet_NaN());
+  struct Eye {
+    double q, r, z;  // grid coordinates (cell centres at integers) and height
+  };
+  std::vector<Eye> at;
+  for (const Vec3& e : eyes) at.push_back({(e.x - g.x0) / g.cell - 0.5, (g.y_top - e.y) / g.cell - 0.5, e.z});
   tbb::task_arena arena(static_cast<int>(resolve_threads(threads)));
   arena.execute([&] {
     tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, g.rows), [&](const auto& range) {
@@ -85,9 +90,8 @@ Raster dsm_viewshed(const Raster& dsm, std::span<const Vec3> eyes, double target
           const float zs = dsm.values[std::size_t(r) * g.cols + q];
           if (!std::isfinite(zs)) continue;
           bool any = false;
-          for (const Vec3& e : eyes) {
-            const double fq = (e.x - g.x0) / g.cell - 0.5, fr = (g.y_top - e.y) / g.cell - 0.5;
-            if (seen(dsm, fq, fr, e.z, q, r, double(zs) + target_height)) {
+          for (const Eye& e : at) {
+            if (seen(dsm, e.q, e.r, e.z, q, r, double(zs) + target_height)) {
               any = true;
               break;
             }

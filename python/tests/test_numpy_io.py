@@ -1,4 +1,4 @@
-"""NumPy in and out (issue 48 section 2): PointCloud from arrays and structured arrays, subsets,
+"""NumPy in and out: PointCloud from arrays and structured arrays, subsets,
 rayscan.write checked by an independent LAS parser (struct, the ASPRS LAS 1.4 R15 record layout)
 and by the readers, rayscan.open on index and COPC files against the in-memory octree, the
 version, and the type stubs against the module."""
