@@ -9,7 +9,7 @@ set(RAYSCAN_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/rayscan)
 
 # Install the public headers under `dir` (a folder holding rayscan/...).
 function(rayscan_install_headers dir)
-  install(DIRECTORY ${dir}/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} FILES_MATCHING PATTERN "*.hpp")
+  install(DIRECTORY ${dir}/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} COMPONENT dev FILES_MATCHING PATTERN "*.hpp")
 endfunction()
 
 # Install and export the library targets that exist, then the package files.
@@ -22,10 +22,10 @@ function(rayscan_install_package)
     endif()
   endforeach()
   install(TARGETS ${targets} EXPORT rayscanTargets
-          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
-          LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
+          LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR} COMPONENT dev
           INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
-  install(EXPORT rayscanTargets NAMESPACE rayscan:: DESTINATION ${RAYSCAN_INSTALL_CMAKEDIR})
+  install(EXPORT rayscanTargets NAMESPACE rayscan:: DESTINATION ${RAYSCAN_INSTALL_CMAKEDIR} COMPONENT dev)
   set(RAYSCAN_PACKAGE_ONLY_CORE ${RAYSCAN_ONLY_CORE})
   set(RAYSCAN_PACKAGE_MPI OFF)
   if(TARGET rayscan_mpi)
@@ -37,7 +37,7 @@ function(rayscan_install_package)
   write_basic_package_version_file(${PROJECT_BINARY_DIR}/rayscanConfigVersion.cmake
                                    VERSION ${PROJECT_VERSION} COMPATIBILITY SameMinorVersion)
   install(FILES ${PROJECT_BINARY_DIR}/rayscanConfig.cmake ${PROJECT_BINARY_DIR}/rayscanConfigVersion.cmake
-          DESTINATION ${RAYSCAN_INSTALL_CMAKEDIR})
+          DESTINATION ${RAYSCAN_INSTALL_CMAKEDIR} COMPONENT dev)
 endfunction()
 
 # rayscan_add_library(<room> SOURCES src...): the library rayscan_<room> of a room (docs/

@@ -36,7 +36,9 @@ set(rayscan_man_names
 
 set(man_dir ${CMAKE_BINARY_DIR}/man/man1)
 set(man_bin ${CMAKE_CURRENT_BINARY_DIR}/man_wrappers)
+set(man_gz_dir ${CMAKE_BINARY_DIR}/man-gz/man1)
 set(man_pages "")
+set(man_pages_gz "")
 foreach(entry ${rayscan_man_names})
   string(FIND "${entry}" "|" bar)
   string(SUBSTRING "${entry}" 0 ${bar} sub)
@@ -70,8 +72,14 @@ foreach(entry ${rayscan_man_names})
             --include=${man_bin}/${page}.h2m --output=${man_dir}/${page}.1 ${man_bin}/${page}
     DEPENDS rayscan ${man_bin}/${page}.h2m
     COMMENT "help2man: ${page}.1" VERBATIM)
+  # Installed compressed, as Debian's policy (section 12.1) asks: gzip -9n, reproducible.
+  add_custom_command(OUTPUT ${man_gz_dir}/${page}.1.gz
+    COMMAND ${CMAKE_COMMAND} -E make_directory ${man_gz_dir}
+    COMMAND sh -c "gzip -9nc '${man_dir}/${page}.1' > '${man_gz_dir}/${page}.1.gz'"
+    DEPENDS ${man_dir}/${page}.1 VERBATIM)
   list(APPEND man_pages ${man_dir}/${page}.1)
+  list(APPEND man_pages_gz ${man_gz_dir}/${page}.1.gz)
 endforeach()
-add_custom_target(rayscan_man_pages ALL DEPENDS ${man_pages})
-install(FILES ${man_pages} DESTINATION ${CMAKE_INSTALL_MANDIR}/man1)
+add_custom_target(rayscan_man_pages ALL DEPENDS ${man_pages} ${man_pages_gz})
+install(FILES ${man_pages_gz} DESTINATION ${CMAKE_INSTALL_MANDIR}/man1 COMPONENT cli)
 set_property(GLOBAL PROPERTY RAYSCAN_MAN_PAGE_FILES "${man_pages}")
