@@ -204,7 +204,7 @@ constexpr std::array<std::pair<const char*, const char*>, 10> kLasScalarNames{{
     {"Infrared", "nir"},
 }};
 
-PyCloud from_structured(py::handle obj) {
+PyCloud from_structured(py::handle obj, py::handle crs) {
   py::module_ np = numpy();
   const py::array a = np.attr("asarray")(obj);
   const py::object names = a.dtype().attr("names");
@@ -261,7 +261,7 @@ PyCloud from_structured(py::handle obj) {
                             "'");
     scalars[py::str(name)] = col;
   }
-  return from_arrays(xyz, rgb, intensity, classification, gps_time, normals, scalars, py::none());
+  return from_arrays(xyz, rgb, intensity, classification, gps_time, normals, scalars, crs);
 }
 
 /// The points `sel` (indices into c, each in [0, N)) of `c` as a new cloud, every attribute kept.
@@ -415,8 +415,9 @@ points with every attribute; pc["name"] gives one attribute.)doc")
            py::arg("xyz"), py::arg("rgb") = py::none(), py::arg("intensity") = py::none(),
            py::arg("classification") = py::none(), py::arg("gps_time") = py::none(), py::arg("normals") = py::none(),
            py::arg("scalars") = py::none(), py::arg("crs") = py::none())
-      .def_static("from_structured", [](py::handle a) { return std::make_shared<PyCloud>(from_structured(a)); },
-                  py::arg("array"), R"doc(
+      .def_static("from_structured",
+                  [](py::handle a, py::handle crs) { return std::make_shared<PyCloud>(from_structured(a, crs)); },
+                  py::arg("array"), py::arg("crs") = py::none(), R"doc(
 A PointCloud from a NumPy structured array (one record per point), as PDAL
 (pipeline.arrays[0]) or laspy-style code gives them. Fields, PDAL's name or laspy's:
 X Y Z / x y z (required), Red Green Blue / red green blue (uint8 or uint16), Intensity /
@@ -425,8 +426,9 @@ nx ny nz. Every other numeric field becomes a scalar field of its name; PDAL's L
 ReturnNumber, NumberOfReturns, ScanDirectionFlag, EdgeOfFlightLine, ScanAngleRank (degrees),
 UserData, PointSourceId, ScanChannel, Infrared (and laspy's scan_angle_rank) take rayscan's
 names (return_number, ..., scan_angle, nir), which rayscan.write stores in the standard LAS
-fields. Raises ValueError for a missing X/Y/Z, both spellings of one field, or a
-non-numeric field.)doc")
+fields. crs: WKT string (a PDAL array carries none: take it from the pipeline's metadata, e.g.
+pipeline.metadata["metadata"]["readers.las"]["comp_spatialreference"]), or None. Raises
+ValueError for a missing X/Y/Z, both spellings of one field, or a non-numeric field.)doc")
       .def("__len__", [](const PyCloud& c) { return c.cloud.size(); })
       .def("__getitem__",
            [](py::object self, py::handle key) -> py::object {

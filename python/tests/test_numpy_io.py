@@ -133,6 +133,15 @@ def test_point_cloud_from_bad_arrays(kwargs, error, message):
         rayscan.PointCloud(**args)
 
 
+def test_from_structured_takes_the_crs_and_write_keeps_it(tmp_path):
+    wkt = rayscan.read(SOURCE / "scenes" / "data" / "autzen_trim.las").crs
+    pc = rayscan.PointCloud.from_structured(structured_points(names="pdal"), crs=wkt)
+    assert pc.crs == wkt
+    assert rayscan.PointCloud.from_structured(structured_points(names="pdal")).crs is None
+    rayscan.write(tmp_path / "crs.las", pc)
+    assert rayscan.read(tmp_path / "crs.las").crs == wkt
+
+
 def test_from_structured_pdal_and_laspy_names_give_the_same_cloud():
     a = structured_points(names="pdal")
     b = structured_points(names="laspy")
