@@ -355,12 +355,12 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   Progress progress(chunks, opts.progress, ProgressUnits{"chunks", "points/s", 1.0, 0});
   struct Local {
-    std::vector<std::uint64_t> mask;
+    std::vector<std::uint64_t> mask;  // the open directions of a group's points, `words` each
     std::vector<RayHit> hits;
-    std::vector<std::uint32_t> traced;  // the point's directions in front of its surface
-    FirstHitBatches batches;
+    std::vector<Ray> rays;
+    std::optional<RayHit> hit[kMaxRayPacket];
   };
-  tbb::enumerable_thread_specific<Local> locals([words] { return Local{std::vector<std::uint64_t>(words), {}, {}, {}}; });
+  tbb::enumerable_thread_specific<Local> locals;
   // Spheres: one first-hit query per direction from the point outward, as the sky view's rays,
   // starting target_height above the point; a sphere entered within `tolerance` of the start is
   // the point's own surface.
@@ -384,30 +384,51 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
             Local& L = locals.local();
             for (std::size_t c = range.begin(); c != range.end(); ++c) {
               const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
-              for (std::size_t s = s0; s < s1; ++s) {
-                const PointIndex i = ids[s];
-                std::fill(L.mask.begin(), L.mask.end(), 0);
-                L.traced.clear();
-                for (std::uint32_t k = 0; k < m; ++k)
-                  if (!cull || normals.empty() || glm::dot(normals[i], dirs[k]) > 0.0) L.traced.push_back(k);
-                auto open = [&](std::uint32_t k) { L.mask[k / 64] |= std::uint64_t(1) << (k % 64); };
-                if (opts.surfels) {
-                  for (std::uint32_t k : L.traced) {
-                    Observer sun;
-                    sun.position = pos[s] + far * dirs[k];
-                    bool queried;
-                    double dist;
-                    if (line_of_sight(idx, sun, kInf, pos[s], i, opts, L.hits, queried, dist)) open(k);
-                  }
-                } else {
-                  const Vec3 origin = pos[s] + opts.target_height * (normals.empty() ? Vec3(0.0, 0.0, 1.0) : normals[i]);
-                  L.batches.run(
-                      idx, q, L.traced.size(), [&](std::uint64_t j) { return Ray(origin, dirs[L.traced[j]]); },
-                      [&](std::uint64_t j, const std::optional<RayHit>& hit) {
-                        if (!hit || hit->index == i) open(L.traced[j]);
-                      });
+              // Groups of up to kMaxRayPacket neighbouring points (storage order: an octree
+              // leaf's points, or neighbouring leaves), traced direction by direction: the
+              // group's rays in one direction are parallel with nearby origins, a coherent packet
+              // (ray_first_hit_packet; with spheres 15 % less CPU than each point's directions
+              // as a batch on autzen at 3-degree sectors, bench/notes/), and the answers are
+              // those of single rays bit for bit.
+              for (std::size_t g0 = s0; g0 < s1; g0 += kMaxRayPacket) {
+                const std::size_t ng = std::min<std::size_t>(kMaxRayPacket, s1 - g0);
+                L.mask.assign(ng * words, 0);
+                PointIndex id[kMaxRayPacket];
+                Vec3 origin[kMaxRayPacket];
+                for (std::size_t j = 0; j < ng; ++j) {
+                  id[j] = ids[g0 + j];
+                  // Spheres: the ray starts target_height above the point; a sphere entered
+                  // within `tolerance` of the start is the point's own surface (q.t_min).
+                  origin[j] = pos[g0 + j] + opts.target_height * (normals.empty() ? Vec3(0.0, 0.0, 1.0) : normals[id[j]]);
                 }
-                visit(i, L.mask);
+                for (std::uint32_t k = 0; k < m; ++k) {
+                  const std::uint64_t bit = std::uint64_t(1) << (k % 64);
+                  std::uint32_t which[kMaxRayPacket], nsel = 0;
+                  for (std::size_t j = 0; j < ng; ++j)  // the points whose surface faces direction k
+                    if (!cull || normals.empty() || glm::dot(normals[id[j]], dirs[k]) > 0.0)
+                      which[nsel++] = static_cast<std::uint32_t>(j);
+                  if (opts.surfels) {
+                    // Surfels: the line of sight from a sun far beyond the site (is_visible's rule).
+                    for (std::uint32_t t = 0; t < nsel; ++t) {
+                      const std::uint32_t j = which[t];
+                      Observer sun;
+                      sun.position = pos[g0 + j] + far * dirs[k];
+                      bool queried;
+                      double dist;
+                      if (line_of_sight(idx, sun, kInf, pos[g0 + j], id[j], opts, L.hits, queried, dist))
+                        L.mask[j * words + k / 64] |= bit;
+                    }
+                    continue;
+                  }
+                  if (nsel == 0) continue;
+                  L.rays.clear();
+                  for (std::uint32_t t = 0; t < nsel; ++t) L.rays.push_back(Ray(origin[which[t]], dirs[k]));
+                  ray_first_hit_packet(idx, std::span<const Ray>(L.rays), q, std::span<std::optional<RayHit>>(L.hit, nsel));
+                  for (std::uint32_t t = 0; t < nsel; ++t)
+                    if (!L.hit[t] || L.hit[t]->index == id[which[t]]) L.mask[which[t] * words + k / 64] |= bit;
+                }
+                for (std::size_t j = 0; j < ng; ++j)
+                  visit(id[j], std::span<const std::uint64_t>(L.mask.data() + j * words, words));
               }
               progress.tile_done(s1 - s0);
             }
