@@ -51,6 +51,7 @@ def qgis_process_command():
 
 def unit_tests(plugin_dir, work):
     """The progress parser and run_rayscan's progress, failure and cancellation, in this interpreter."""
+    sys.dont_write_bytecode = True  # no __pycache__ in the build tree's plugin copy
     sys.path.insert(0, plugin_dir)
     from rayscan_processing.cli_progress import parse_progress
     check(parse_progress("progress: 12/215 chunks   5.6%  341999 points/s  ETA 3 s") == 5.6, "progress line")
@@ -179,21 +180,20 @@ def main():
     check(code == 0 and all("rayscan:" + a in out for a in ALGORITHMS),
           "qgis_process list shows rayscan:" + ", rayscan:".join(ALGORITHMS))
 
-    from osgeo import ogr, osr
+    from osgeo import osr
     info = json.loads(subprocess.check_output([rayscan, "info", "--json", cloud]))
     cloud_srs = osr.SpatialReference()
     cloud_srs.ImportFromWkt(info["crs"]["wkt2"])
 
-    # The observer as a GeoPackage point layer in the cloud's CRS.
-    gpkg = os.path.join(work, "observer.gpkg")
-    ds = ogr.GetDriverByName("GPKG").CreateDataSource(gpkg)
-    layer = ds.CreateLayer("observer", cloud_srs, ogr.wkbPoint)
-    feature = ogr.Feature(layer.GetLayerDefn())
-    point = ogr.Geometry(ogr.wkbPoint)
-    point.AddPoint_2D(*OBSERVER)
-    feature.SetGeometry(point)
-    layer.CreateFeature(feature)
-    ds = layer = feature = None
+    # The observer as a GeoPackage point layer in the cloud's CRS, made as docs/qgis.md makes it:
+    # a CSV, and the cloud's WKT from `rayscan info --json` given to ogr2ogr.
+    csv_path, wkt_path, gpkg = (os.path.join(work, n) for n in ("observer.csv", "autzen.wkt", "observer.gpkg"))
+    with open(csv_path, "w") as f:
+        f.write("x,y,name\n{},{},west\n".format(*OBSERVER))
+    with open(wkt_path, "w") as f:
+        f.write(info["crs"]["wkt2"] + "\n")
+    subprocess.check_call(["ogr2ogr", "-f", "GPKG", gpkg, csv_path, "-oo", "X_POSSIBLE_NAMES=x",
+                           "-oo", "Y_POSSIBLE_NAMES=y", "-a_srs", wkt_path, "-nln", "observer"])
 
     cli_tif = os.path.join(work, "cli_viewshed.tif")
     subprocess.check_call([rayscan, "visibility", cloud, "--observer", "{},{}".format(*OBSERVER),
