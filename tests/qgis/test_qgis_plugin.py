@@ -4,8 +4,9 @@
 Checks: the progress parser and cancellation of runner.py against a stand-in executable; the
 plugin enabled in a throwaway profile; `qgis_process list` shows the five rayscan algorithms;
 `qgis_process run rayscan:viewshed` writes the same GeoTIFF as `rayscan visibility` (cell for cell,
-also with observers in EPSG:4326 that the plugin reprojects); ortho_dsm, quick_look, solar and
-point_visibility outputs open with the cloud's CRS. Exit 77 (skipped) when qgis_process is not
+also with observers in EPSG:4326 that the plugin reprojects); ortho_dsm, solar and
+point_visibility outputs (its point vector layer too) open with the cloud's CRS, quick_look's
+image opens. Exit 77 (skipped) when qgis_process is not
 installed.
 
 Usage: test_qgis_plugin.py RAYSCAN PLUGIN_DIR CLOUD WORK_DIR
@@ -180,7 +181,7 @@ def main():
     check(code == 0 and all("rayscan:" + a in out for a in ALGORITHMS),
           "qgis_process list shows rayscan:" + ", rayscan:".join(ALGORITHMS))
 
-    from osgeo import osr
+    from osgeo import ogr, osr
     info = json.loads(subprocess.check_output([rayscan, "info", "--json", cloud]))
     cloud_srs = osr.SpatialReference()
     cloud_srs.ImportFromWkt(info["crs"]["wkt2"])
@@ -258,13 +259,22 @@ def main():
     fields = json.loads(subprocess.check_output([rayscan, "info", "--json", solar_las])) if code == 0 else {}
     check("in_shadow" in json.dumps(fields.get("attributes", fields)), "solar: the cloud has the field in_shadow")
 
-    pv = os.path.join(work, "visible.laz")
+    pv, pv_layer = os.path.join(work, "visible.laz"), os.path.join(work, "visible.gpkg")
     code, _ = qp("run", "rayscan:point_visibility", "--", "INPUT=" + cloud, "OBSERVERS=" + gpkg,
-                 "HEIGHT={}".format(HEIGHT), "DISTANCE=true", "OUTPUT=" + pv)
-    pinfo = json.loads(subprocess.check_output([rayscan, "info", "--json", pv])) if code == 0 else {}
-    text = json.dumps(pinfo.get("attributes", pinfo))
-    check(pinfo.get("count") == info["count"] and "visible_count" in text and "visible_distance" in text,
+                 "HEIGHT={}".format(HEIGHT), "DISTANCE=true", "OUTPUT=" + pv, "POINTS_LAYER=" + pv_layer)
+    pinfo = json.loads(subprocess.check_output([rayscan, "info", "--json", "--stats", pv])) if code == 0 else {}
+    stats = {a["name"]: a for a in pinfo.get("attributes", [])}
+    check(pinfo.get("count") == info["count"] and "visible_count" in stats and "visible_distance" in stats,
           "point_visibility: {} points with visible_count and visible_distance".format(pinfo.get("count")))
+    ds = ogr.Open(pv_layer) if code == 0 else None
+    layer = ds.GetLayer(0) if ds else None
+    seen = sum(f.GetField("visible_count") for f in layer) if layer else None
+    expected = round(stats["visible_count"]["mean"] * pinfo["count"]) if "visible_count" in stats else None
+    check(layer is not None and layer.GetFeatureCount() == info["count"] and seen == expected
+          and layer.GetSpatialRef().IsSame(cloud_srs),
+          "point_visibility: the point vector layer has every point, the cloud's CRS and the LAS's "
+          "visible_count ({} points seen)".format(seen))
+    layer = ds = None
 
     print("{} failure(s)".format(len(failures)))
     for f in failures:

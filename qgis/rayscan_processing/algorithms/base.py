@@ -1,10 +1,13 @@
 """What the rayscan algorithms share: the cloud input, naming, running the CLI, loading outputs."""
 
+import csv
 import os
 
-from qgis.core import (QgsProcessing, QgsProcessingAlgorithm, QgsProcessingContext,
-                       QgsProcessingException, QgsProcessingParameterFile, QgsProcessingUtils)
-from qgis.PyQt.QtCore import QCoreApplication
+from qgis.core import (QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry, QgsPoint,
+                       QgsProcessing, QgsProcessingAlgorithm, QgsProcessingContext,
+                       QgsProcessingException, QgsProcessingParameterFile, QgsProcessingUtils,
+                       QgsProviderRegistry, QgsWkbTypes)
+from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
 from .. import runner
 
@@ -82,7 +85,50 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
         details.layerTypeHint = hint
         context.addLayerToLoadOnCompletion(path, details)
 
-    @staticmethod
-    def point_cloud_hint():
-        """The layer-type hint for a point cloud file, or UnknownType where QGIS has none."""
-        return getattr(QgsProcessingUtils.LayerHint, "PointCloud", QgsProcessingUtils.LayerHint.UnknownType)
+    def load_cloud_on_completion(self, path, name, output, context, feedback):
+        """Load LAS/LAZ output ``path`` as a point cloud layer where QGIS reads LAS (its PDAL provider).
+
+        Debian 12's QGIS 3.22 is built without PDAL; there the cloud is left on disk and the log
+        says so (the point vector layer output shows the results in QGIS instead).
+        """
+        if not path.lower().endswith((".las", ".laz")):
+            return
+        if QgsProviderRegistry.instance().providerMetadata("pdal") is None:
+            feedback.pushInfo(self.tr("{}: this QGIS has no PDAL provider to open LAS/LAZ as a layer").format(path))
+            return
+        self.load_on_completion(path, name, output, context, QgsProcessingUtils.LayerHint.PointCloud)
+
+    def cloud_to_sink(self, cloud_file, parameters, sink_name, crs, context, feedback):
+        """Copy the points of ``cloud_file`` (with every field) into feature sink ``sink_name``; return its id.
+
+        rayscan translate writes the cloud as CSV (x, y, z, then each attribute), read back here
+        as PointZ features with one double field per attribute.
+        """
+        text = QgsProcessingUtils.generateTempFilename("points.csv")
+        self.run(["translate", cloud_file, text], feedback)
+        with open(text, newline="", encoding="utf-8") as f:
+            total = max(1, sum(1 for _ in f) - 1)
+        with open(text, newline="", encoding="utf-8") as f:
+            rows = csv.reader(f)
+            header = next(rows)
+            if header[:3] != ["x", "y", "z"]:
+                raise QgsProcessingException("{}: unexpected columns {}".format(text, header[:3]))
+            fields = QgsFields()
+            for name in header[3:]:
+                fields.append(QgsField(name, QVariant.Double))
+            sink, dest_id = self.parameterAsSink(parameters, sink_name, context, fields,
+                                                 QgsWkbTypes.PointZ, crs)
+            if sink is None:
+                raise QgsProcessingException(self.invalidSinkError(parameters, sink_name))
+            feedback.pushInfo(self.tr("Writing {} points to the vector layer").format(total))
+            feature = QgsFeature(fields)
+            for i, row in enumerate(rows):
+                if i % 10000 == 0:
+                    if feedback.isCanceled():
+                        break
+                    feedback.setProgress(100.0 * i / total)
+                feature.setGeometry(QgsGeometry(QgsPoint(float(row[0]), float(row[1]), float(row[2]))))
+                feature.setAttributes([float(v) for v in row[3:]])
+                sink.addFeature(feature, QgsFeatureSink.FastInsert)
+        os.remove(text)
+        return dest_id

@@ -49,7 +49,7 @@ def _same_place(transform, extent):
 
 
 def write_observers(alg, parameters, context, feedback, cloud):
-    """Write the observers to a temporary CSV in the cloud's CRS; return (path, count).
+    """Write the observers to a temporary CSV in the cloud's CRS; return (path, count, the cloud's CRS).
 
     The layer is reprojected to the cloud's CRS when both are known and differ, as rayscan reads
     observer coordinates in the cloud's own coordinates.
@@ -103,4 +103,4 @@ def write_observers(alg, parameters, context, feedback, cloud):
     if count == 0:
         raise QgsProcessingException(alg.tr("The observer layer has no points"))
     feedback.pushInfo(alg.tr("{} observers").format(count))
-    return path, count
+    return path, count, target

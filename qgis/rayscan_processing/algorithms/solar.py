@@ -101,7 +101,5 @@ class Solar(RayscanAlgorithm):
         results = {self.OUTPUT: out}
         if points:
             results[self.POINTS] = points
-            if points.lower().endswith((".las", ".laz")):
-                self.load_on_completion(points, self.tr("Solar fields"), self.POINTS, context,
-                                        self.point_cloud_hint())
+            self.load_cloud_on_completion(points, self.tr("Solar fields"), self.POINTS, context, feedback)
         return results
