@@ -27,6 +27,7 @@ OBSERVER = (636226.5, 849106.5)
 HEIGHT = 6
 CELL = 3
 failures = []
+keep_alive = []
 
 
 def check(ok, what):
@@ -126,6 +127,35 @@ def unit_tests(plugin_dir, work):
             os.environ["RAYSCAN_EXECUTABLE"] = saved
 
 
+def desktop_checks(plugin_dir):
+    """The desktop's way in (classFactory, initGui, unload) with the Processing plugin: the provider,
+    its executable option in Processing's settings, and both gone after unload."""
+    from qgis.core import QgsApplication
+    app = QgsApplication([], True)  # offscreen (QT_QPA_PLATFORM)
+    app.initQgis()
+    sys.path[:0] = [os.path.join(QgsApplication.pkgDataPath(), "python", "plugins"), plugin_dir]
+    from processing.core.Processing import Processing
+    from processing.core.ProcessingConfig import ProcessingConfig
+    Processing.initialize()
+    import rayscan_processing
+    plugin = rayscan_processing.classFactory(None)
+    plugin.initGui()
+    registry = QgsApplication.processingRegistry()
+    provider = registry.providerById("rayscan")
+    ids = sorted(a.name() for a in provider.algorithms()) if provider else []
+    check(ids == sorted(ALGORITHMS) and "RAYSCAN_EXECUTABLE" in ProcessingConfig.settings,
+          "desktop: initGui registers the provider {} and its executable option".format(ids))
+    viewshed = registry.algorithmById("rayscan:viewshed")
+    types = {d.name(): d.type() for d in viewshed.parameterDefinitions()} if viewshed else {}
+    check(types.get("INPUT") == "file" and types.get("OBSERVERS") == "source"
+          and types.get("OUTPUT") == "rasterDestination",
+          "desktop: viewshed's parameter types {}".format(types))
+    plugin.unload()
+    check(registry.providerById("rayscan") is None and "RAYSCAN_EXECUTABLE" not in ProcessingConfig.settings,
+          "desktop: unload removes the provider and the option")
+    return app
+
+
 def read_raster(path):
     """(array, geotransform, srs, nodata) of a single-band raster, or None when GDAL cannot open it."""
     from osgeo import gdal, osr
@@ -174,6 +204,7 @@ def main():
         return r.returncode, r.stdout
 
     unit_tests(plugin_dir, work)
+    keep_alive.append(desktop_checks(plugin_dir))  # the QgsApplication, for the transforms below
 
     code, _ = qp("plugins", "enable", "rayscan_processing")
     check(code == 0, "qgis_process plugins enable rayscan_processing")
