@@ -27,7 +27,8 @@ def add_observer_parameters(alg):
         HEIGHT_FIELD, alg.tr("Eye height field (per observer; empty values use the height above)"),
         parentLayerParameterName=OBSERVERS, type=QgsProcessingParameterField.Numeric, optional=True))
     alg.addParameter(QgsProcessingParameterBoolean(
-        USE_Z, alg.tr("The observers' Z is the absolute eye elevation (in the cloud's vertical units)"),
+        USE_Z, alg.tr("The observers' Z is the absolute eye elevation, in the cloud's vertical units "
+                      "(the heights are then unused)"),
         defaultValue=False))
 
 
