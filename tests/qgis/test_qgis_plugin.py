@@ -250,6 +250,15 @@ def main():
 
     same_viewshed(gpkg, ["HEIGHT={}".format(HEIGHT)], "viewshed, observer in the cloud's CRS")
 
+    # The same eye as an absolute Z (the CLI's resolved eye: ground 427.85 ft + 6 ft).
+    csv_z, gpkg_z = os.path.join(work, "observer_z.csv"), os.path.join(work, "observer_z.gpkg")
+    with open(csv_z, "w") as f:
+        f.write("x,y,z,name\n{},{},433.85,west\n".format(*OBSERVER))
+    subprocess.check_call(["ogr2ogr", "-f", "GPKG", gpkg_z, csv_z, "-oo", "X_POSSIBLE_NAMES=x",
+                           "-oo", "Y_POSSIBLE_NAMES=y", "-oo", "Z_POSSIBLE_NAMES=z", "-a_srs", wkt_path,
+                           "-nln", "observer"])
+    same_viewshed(gpkg_z, ["USE_Z=true"], "viewshed, observer's Z as the absolute eye")
+
     # The same observer in EPSG:4326 (GeoJSON), placed with QGIS's own transform so that the
     # plugin's reprojection back lands on the same coordinates; its height from a field.
     from qgis.core import (QgsCoordinateReferenceSystem, QgsCoordinateTransform,
