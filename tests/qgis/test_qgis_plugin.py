@@ -9,7 +9,10 @@ point_visibility outputs (its point vector layer too) open with the cloud's CRS,
 image opens. Exit 77 (skipped) when qgis_process is not
 installed.
 
-Usage: test_qgis_plugin.py RAYSCAN PLUGIN_DIR CLOUD WORK_DIR
+Usage: test_qgis_plugin.py RAYSCAN PLUGIN_DIR PLUGIN_ZIP CLOUD WORK_DIR
+PLUGIN_DIR holds the build's copy rayscan_processing/ (the in-process checks import it); qgis_process
+loads the plugin from PLUGIN_ZIP extracted as QGIS's "Install from ZIP" does, after checking that
+the zip holds the build's copy file for file.
 """
 
 import json
@@ -20,6 +23,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import zipfile
 
 ALGORITHMS = ["quick_look", "ortho_dsm", "viewshed", "point_visibility", "solar"]
 # Autzen is in US survey feet: an eye 6 ft above the ground on open ground, 3-ft cells (docs/visibility.md).
@@ -171,19 +175,31 @@ def read_raster(path):
 
 def main():
     """Run the checks; the exit status is the number of failures (77: skipped)."""
-    rayscan, plugin_dir, cloud, work = (os.path.abspath(a) for a in sys.argv[1:5])
+    rayscan, plugin_dir, plugin_zip, cloud, work = (os.path.abspath(a) for a in sys.argv[1:6])
     qgis_process = qgis_process_command()
     if qgis_process is None:
         print("SKIP: qgis_process is not installed (Debian package qgis; tools/install-deps.sh)")
         return 77
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
+    # The zip: one top folder rayscan_processing/ with the build's copy, byte for byte.
+    installed = os.path.join(work, "plugins")
+    with zipfile.ZipFile(plugin_zip) as z:
+        names = sorted(n for n in z.namelist() if not n.endswith("/"))
+        z.extractall(installed)
+    copy = sorted(os.path.relpath(os.path.join(d, f), plugin_dir).replace(os.sep, "/")
+                  for d, _, fs in os.walk(os.path.join(plugin_dir, "rayscan_processing"))
+                  for f in fs if "__pycache__" not in d)
+    same = names == copy and all(open(os.path.join(installed, n), "rb").read() ==
+                                 open(os.path.join(plugin_dir, n), "rb").read() for n in names)
+    check(same, "the zip {} holds the build's plugin copy ({} files under rayscan_processing/)".format(
+        os.path.basename(plugin_zip), len(names)))
     home = tempfile.mkdtemp(prefix="home-", dir=work)
     # A throwaway profile and headless Qt: the user's QGIS settings are never read or written.
     env = dict(os.environ, HOME=home, XDG_CONFIG_HOME=os.path.join(home, ".config"),
                XDG_DATA_HOME=os.path.join(home, ".local", "share"),
                XDG_CACHE_HOME=os.path.join(home, ".cache"), XDG_RUNTIME_DIR=home,
-               QT_QPA_PLATFORM="offscreen", QGIS_PLUGINPATH=plugin_dir,
+               QT_QPA_PLATFORM="offscreen", QGIS_PLUGINPATH=installed,
                PYTHONDONTWRITEBYTECODE="1", RAYSCAN_EXECUTABLE=rayscan)
     os.environ.update(env)
 
