@@ -15,6 +15,7 @@ PKGS=(
   cloudcompare xvfb xauth
   python3-dev pybind11-dev python3-numpy python3-pytest python3-matplotlib python3-open3d python3-astropy python3-dask python3-distributed
   grass-core
+  qgis python3-gdal
   libsqlite3-dev sqlite3 libpq-dev postgresql-15 postgresql-server-dev-15 postgresql-15-pointcloud
   libopenmpi-dev openmpi-bin
 )

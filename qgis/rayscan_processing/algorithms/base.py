@@ -1,0 +1,134 @@
+"""What the rayscan algorithms share: the cloud input, naming, running the CLI, loading outputs."""
+
+import csv
+import os
+
+from qgis.core import (QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry, QgsPoint,
+                       QgsProcessing, QgsProcessingAlgorithm, QgsProcessingContext,
+                       QgsProcessingException, QgsProcessingParameterFile, QgsProcessingUtils,
+                       QgsProviderRegistry, QgsWkbTypes)
+from qgis.PyQt.QtCore import QCoreApplication, QVariant
+
+from .. import runner
+
+#: The point cloud files rayscan reads (`rayscan info --help`).
+CLOUD_FILTER = ("Point clouds (*.las *.LAS *.laz *.LAZ *.copc.laz *.ply *.pcd *.xyz *.csv *.txt *.rsi);;"
+                "All files (*.*)")
+#: The per-point outputs rayscan writes, by extension.
+POINTS_FILTER = "LAS (*.las);;LAZ (*.laz);;PLY (*.ply);;PCD (*.pcd);;CSV (*.csv);;XYZ (*.xyz)"
+
+
+class RayscanAlgorithm(QgsProcessingAlgorithm):
+    """Base of the rayscan algorithms: subclasses set NAME, DISPLAY and HELP and define the rest."""
+
+    NAME = ""
+    DISPLAY = ""
+    HELP = ""
+    INPUT = "INPUT"
+
+    def tr(self, text):
+        """Translate ``text`` in the plugin's context."""
+        return QCoreApplication.translate("rayscan", text)
+
+    def createInstance(self):  # noqa: N802 (QGIS's name)
+        """A fresh copy, as Processing runs each execution on its own instance."""
+        return type(self)()
+
+    def name(self):
+        """The id after ``rayscan:``."""
+        return self.NAME
+
+    def displayName(self):  # noqa: N802 (QGIS's name)
+        """The name shown in the toolbox."""
+        return self.tr(self.DISPLAY)
+
+    def group(self):
+        """The toolbox group."""
+        return self.tr("Point cloud")
+
+    def groupId(self):  # noqa: N802 (QGIS's name)
+        """The toolbox group's id."""
+        return "pointcloud"
+
+    def shortHelpString(self):  # noqa: N802 (QGIS's name)
+        """The help shown beside the dialog."""
+        return self.tr(self.HELP)
+
+    def add_cloud_parameter(self):
+        """Add the point cloud file input (INPUT)."""
+        self.addParameter(QgsProcessingParameterFile(
+            self.INPUT, self.tr("Point cloud (LAS, LAZ, COPC, PLY, PCD, text, rayscan index)"),
+            behavior=QgsProcessingParameterFile.File, fileFilter=CLOUD_FILTER))
+
+    def cloud(self, parameters, context):
+        """The point cloud path of INPUT, checked to exist."""
+        path = self.parameterAsFile(parameters, self.INPUT, context)
+        if not path or not os.path.isfile(path):
+            raise QgsProcessingException(self.tr("Point cloud file not found: {}").format(path))
+        return path
+
+    def run(self, args, feedback):
+        """Run ``rayscan ARGS`` with the feedback's progress and cancellation; return stdout."""
+        return runner.run_rayscan(args, feedback)
+
+    @staticmethod
+    def check_extension(path, extensions, what):
+        """Raise QgsProcessingException unless ``path`` ends with one of ``extensions``."""
+        if not path.lower().endswith(tuple(extensions)):
+            raise QgsProcessingException("{} must be a {} file: {}".format(what, " or ".join(extensions), path))
+
+    def load_on_completion(self, path, name, output, context, hint):
+        """Load file output ``path`` as a layer when the algorithm ends (file destinations are not loaded by Processing itself)."""
+        if not path or path == QgsProcessing.TEMPORARY_OUTPUT or not os.path.exists(path):
+            return
+        details = QgsProcessingContext.LayerDetails(name, context.project(), output)
+        details.layerTypeHint = hint
+        context.addLayerToLoadOnCompletion(path, details)
+
+    def load_cloud_on_completion(self, path, name, output, context, feedback):
+        """Load LAS/LAZ output ``path`` as a point cloud layer where QGIS reads LAS (its PDAL provider).
+
+        Debian 12's QGIS 3.22 is built without PDAL; there the cloud is left on disk and the log
+        says so (the point vector layer output shows the results in QGIS instead).
+        """
+        if not path.lower().endswith((".las", ".laz")):
+            return
+        if QgsProviderRegistry.instance().providerMetadata("pdal") is None:
+            feedback.pushInfo(self.tr("{}: this QGIS has no PDAL provider to open LAS/LAZ as a layer").format(path))
+            return
+        self.load_on_completion(path, name, output, context, QgsProcessingUtils.LayerHint.PointCloud)
+
+    def cloud_to_sink(self, cloud_file, parameters, sink_name, crs, context, feedback):
+        """Copy the points of ``cloud_file`` (with every field) into feature sink ``sink_name``; return its id.
+
+        rayscan translate writes the cloud as CSV (x, y, z, then each attribute), read back here
+        as PointZ features with one double field per attribute.
+        """
+        text = QgsProcessingUtils.generateTempFilename("points.csv")
+        self.run(["translate", cloud_file, text], feedback)
+        with open(text, newline="", encoding="utf-8") as f:
+            total = max(1, sum(1 for _ in f) - 1)
+        with open(text, newline="", encoding="utf-8") as f:
+            rows = csv.reader(f)
+            header = next(rows)
+            if header[:3] != ["x", "y", "z"]:
+                raise QgsProcessingException("{}: unexpected columns {}".format(text, header[:3]))
+            fields = QgsFields()
+            for name in header[3:]:
+                fields.append(QgsField(name, QVariant.Double))
+            sink, dest_id = self.parameterAsSink(parameters, sink_name, context, fields,
+                                                 QgsWkbTypes.PointZ, crs)
+            if sink is None:
+                raise QgsProcessingException(self.invalidSinkError(parameters, sink_name))
+            feedback.pushInfo(self.tr("Writing {} points to the vector layer").format(total))
+            feature = QgsFeature(fields)
+            for i, row in enumerate(rows):
+                if i % 10000 == 0:
+                    if feedback.isCanceled():
+                        break
+                    feedback.setProgress(100.0 * i / total)
+                feature.setGeometry(QgsGeometry(QgsPoint(float(row[0]), float(row[1]), float(row[2]))))
+                feature.setAttributes([float(v) for v in row[3:]])
+                sink.addFeature(feature, QgsFeatureSink.FastInsert)
+        os.remove(text)
+        return dest_id

@@ -1,0 +1,43 @@
+"""Ortho + DSM: `rayscan render CLOUD --ortho-map CELL --dsm DSM --out ORTHO`."""
+
+from qgis.core import (QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination)
+
+from .base import RayscanAlgorithm
+
+
+class OrthoDsm(RayscanAlgorithm):
+    """A top-down orthophoto (RGB GeoTIFF) and digital surface model (Float32 GeoTIFF) of a cloud."""
+
+    NAME = "ortho_dsm"
+    DISPLAY = "Ortho + DSM"
+    HELP = ("Renders the cloud straight down over its XY extent (rayscan render --ortho-map CELL --dsm): "
+            "an RGB orthophoto and the digital surface model, the elevation of the first surface each "
+            "cell's vertical ray meets (NoData where it misses). Both GeoTIFFs carry the cloud's CRS; "
+            "the cell size is in the cloud's horizontal units. The DSM is the surface the Viewshed "
+            "algorithm sees over.")
+    ORTHO = "ORTHO"
+    DSM = "DSM"
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS's name)
+        """Declare the parameters."""
+        self.add_cloud_parameter()
+        self.addParameter(QgsProcessingParameterNumber(
+            "CELL", self.tr("Cell size (cloud units)"), QgsProcessingParameterNumber.Double, 1.0,
+            minValue=1e-9))
+        self.addParameter(QgsProcessingParameterNumber(
+            "SPP", self.tr("Samples per pixel"), QgsProcessingParameterNumber.Integer, 16,
+            minValue=1, maxValue=1048576))
+        self.addParameter(QgsProcessingParameterRasterDestination(self.ORTHO, self.tr("Orthophoto")))
+        self.addParameter(QgsProcessingParameterRasterDestination(self.DSM, self.tr("DSM")))
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802 (QGIS's name)
+        """Run rayscan render in ortho mode and return both rasters."""
+        cloud = self.cloud(parameters, context)
+        ortho = self.parameterAsOutputLayer(parameters, self.ORTHO, context)
+        dsm = self.parameterAsOutputLayer(parameters, self.DSM, context)
+        self.check_extension(ortho, (".tif", ".tiff"), "The orthophoto")
+        self.check_extension(dsm, (".tif", ".tiff"), "The DSM")
+        self.run(["render", cloud, "--ortho-map", self.parameterAsDouble(parameters, "CELL", context),
+                  "--spp", self.parameterAsInt(parameters, "SPP", context),
+                  "--dsm", dsm, "--out", ortho], feedback)
+        return {self.ORTHO: ortho, self.DSM: dsm}

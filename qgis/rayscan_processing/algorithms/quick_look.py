@@ -1,0 +1,49 @@
+"""Quick look: `rayscan render CLOUD --out IMAGE`, a path-traced overview of the cloud."""
+
+from qgis.core import (QgsProcessingParameterEnum, QgsProcessingParameterFileDestination,
+                       QgsProcessingParameterNumber, QgsProcessingUtils)
+
+from .base import RayscanAlgorithm
+
+_PRIMITIVES = ["surfel", "sphere"]
+
+
+class QuickLook(RayscanAlgorithm):
+    """Render an overview image of a point cloud (perspective, automatic camera)."""
+
+    NAME = "quick_look"
+    DISPLAY = "Quick look render"
+    HELP = ("Path-traces the point cloud from an automatic overview camera framing the whole cloud "
+            "(rayscan render CLOUD): colour from the points' RGB, else elevation; default sky and sun. "
+            "The image is a perspective view, so it has no map coordinates: it loads as a picture "
+            "without a CRS. For a map use Ortho + DSM.")
+    OUTPUT = "OUTPUT"
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS's name)
+        """Declare the parameters."""
+        self.add_cloud_parameter()
+        self.addParameter(QgsProcessingParameterNumber(
+            "WIDTH", self.tr("Image width (pixels; the height follows the camera's aspect ratio)"),
+            QgsProcessingParameterNumber.Integer, 1024, minValue=1, maxValue=65536))
+        self.addParameter(QgsProcessingParameterNumber(
+            "SPP", self.tr("Samples per pixel"), QgsProcessingParameterNumber.Integer, 16,
+            minValue=1, maxValue=1048576))
+        self.addParameter(QgsProcessingParameterEnum(
+            "PRIMITIVE", self.tr("Geometry of each point"), _PRIMITIVES, defaultValue=0))
+        self.addParameter(QgsProcessingParameterFileDestination(
+            self.OUTPUT, self.tr("Quick look image"),
+            "PNG (*.png);;JPEG (*.jpg *.jpeg);;TIFF (*.tif *.tiff);;OpenEXR (*.exr)"))
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802 (QGIS's name)
+        """Run rayscan render and return the image's path."""
+        cloud = self.cloud(parameters, context)
+        out = self.parameterAsFileOutput(parameters, self.OUTPUT, context)
+        self.check_extension(out, (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr"), "The quick look")
+        self.run(["render", cloud, "--out", out,
+                  "--width", self.parameterAsInt(parameters, "WIDTH", context),
+                  "--spp", self.parameterAsInt(parameters, "SPP", context),
+                  "--primitive", _PRIMITIVES[self.parameterAsEnum(parameters, "PRIMITIVE", context)]],
+                 feedback)
+        self.load_on_completion(out, self.tr("Quick look"), self.OUTPUT, context,
+                                QgsProcessingUtils.LayerHint.Raster)
+        return {self.OUTPUT: out}

@@ -1,0 +1,58 @@
+"""Viewshed from points: `rayscan visibility CLOUD --observers CSV --raster MAP.tif --cell C`."""
+
+from qgis.core import (QgsProcessingParameterDefinition, QgsProcessingParameterEnum,
+                       QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination)
+
+from . import observers
+from .base import RayscanAlgorithm
+
+# `rayscan visibility --raster-value`, in the order the dialog lists them.
+_VALUES = ["viewshed", "count", "viewshed-points", "fraction", "distance"]
+
+
+class Viewshed(RayscanAlgorithm):
+    """The viewshed of a point layer of observers over the cloud, as a GeoTIFF."""
+
+    NAME = "viewshed"
+    DISPLAY = "Viewshed from points"
+    HELP = ("The GIS viewshed of the observers over the cloud (rayscan visibility --raster): rayscan "
+            "makes the cloud's DSM (as Ortho + DSM does at this cell size) and casts an exact line of "
+            "sight from each eye to every cell centre. Values: viewshed = 1 where some observer sees "
+            "the cell, 0 where none does; count = observers that see a point of the cell; "
+            "viewshed-points = 1 where some point of the cell is seen (line of sight over the points); "
+            "fraction = share of the cell's points seen; distance = nearest observer that sees the "
+            "cell. NoData -9999 where the cell has no surface. The observers are reprojected to the "
+            "cloud's CRS; heights and cell size are in the cloud's units (autzen: US survey feet). "
+            "The raster carries the cloud's CRS.")
+    OUTPUT = "OUTPUT"
+
+    def initAlgorithm(self, config=None):  # noqa: N802 (QGIS's name)
+        """Declare the parameters."""
+        self.add_cloud_parameter()
+        observers.add_observer_parameters(self)
+        self.addParameter(QgsProcessingParameterNumber(
+            "CELL", self.tr("Cell size (cloud units)"), QgsProcessingParameterNumber.Double, 1.0,
+            minValue=1e-9))
+        self.addParameter(QgsProcessingParameterEnum(
+            "VALUE", self.tr("Cell value"), _VALUES, defaultValue=0))
+        max_distance = QgsProcessingParameterNumber(
+            "MAX_DISTANCE", self.tr("Maximum viewing distance (cloud units; 0 = unlimited)"),
+            QgsProcessingParameterNumber.Double, 0.0, minValue=0.0)
+        max_distance.setFlags(max_distance.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+        self.addParameter(max_distance)
+        self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, self.tr("Viewshed")))
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802 (QGIS's name)
+        """Write the observers, run rayscan visibility and return the raster."""
+        cloud = self.cloud(parameters, context)
+        out = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
+        self.check_extension(out, (".tif", ".tiff"), "The viewshed")
+        csv_path, _, _ = observers.write_observers(self, parameters, context, feedback, cloud)
+        args = ["visibility", cloud, "--observers", csv_path, "--raster", out, "--no-preview",
+                "--cell", self.parameterAsDouble(parameters, "CELL", context),
+                "--raster-value", _VALUES[self.parameterAsEnum(parameters, "VALUE", context)]]
+        max_distance = self.parameterAsDouble(parameters, "MAX_DISTANCE", context)
+        if max_distance > 0:
+            args += ["--max-distance", max_distance]
+        self.run(args, feedback)
+        return {self.OUTPUT: out}

@@ -1,0 +1,127 @@
+"""Running the rayscan executable from an algorithm: locating it, progress, cancellation, the cloud's CRS."""
+
+import json
+import os
+import queue
+import shutil
+import subprocess
+import threading
+
+from qgis.core import QgsCoordinateReferenceSystem, QgsProcessingException, QgsSettings
+
+from .cli_progress import parse_progress
+
+#: Processing's option (Settings > Options > Processing > Providers > rayscan) and the
+#: environment variable that name the executable; both empty means `rayscan` on PATH.
+EXECUTABLE_SETTING = "RAYSCAN_EXECUTABLE"
+EXECUTABLE_ENV = "RAYSCAN_EXECUTABLE"
+# ProcessingConfig keeps provider options under this QgsSettings group; reading the key directly
+# works in qgis_process and in worker threads alike.
+_SETTINGS_KEY = "Processing/Configuration/" + EXECUTABLE_SETTING
+
+# Seconds between SIGTERM and SIGKILL when a run is canceled.
+_TERMINATE_GRACE_S = 5.0
+
+
+def find_executable():
+    """Return the rayscan executable: $RAYSCAN_EXECUTABLE, else the provider option, else PATH.
+
+    Raises QgsProcessingException naming all three places when none holds a runnable program.
+    """
+    env = os.environ.get(EXECUTABLE_ENV, "").strip()
+    option = str(QgsSettings().value(_SETTINGS_KEY, "") or "").strip()
+    for origin, name in (("RAYSCAN_EXECUTABLE", env), ("the rayscan provider option", option)):
+        if name:
+            path = shutil.which(name) or (name if os.access(name, os.X_OK) and os.path.isfile(name) else None)
+            if not path:
+                raise QgsProcessingException(
+                    "rayscan executable {!r} (from {}) does not exist or is not executable".format(name, origin))
+            return path
+    path = shutil.which("rayscan")
+    if not path:
+        raise QgsProcessingException(
+            "The rayscan executable was not found: install the rayscan package (it provides "
+            "/usr/bin/rayscan), put rayscan on PATH, set the environment variable RAYSCAN_EXECUTABLE, "
+            "or set Settings > Options > Processing > Providers > rayscan > rayscan executable")
+    return path
+
+
+def _pump(stream, tag, out):
+    """Copy the lines of ``stream`` into queue ``out`` as (tag, line); (tag, None) at the end."""
+    for line in iter(stream.readline, ""):
+        out.put((tag, line.rstrip("\n")))
+    out.put((tag, None))
+
+
+def run_rayscan(args, feedback, log_stdout=True):
+    """Run ``rayscan ARGS``; return its standard output.
+
+    Standard error goes to the feedback's log, and its progress lines to ``feedback.setProgress``.
+    When the feedback is canceled the process is terminated (then killed after a grace period) and
+    QgsProcessingException is raised; nothing it wrote is deleted: rayscan moves each output into
+    place only when it is complete, so a canceled run leaves the earlier file, or none.
+    A non-zero exit raises QgsProcessingException with the last lines of standard error.
+    """
+    cmd = [find_executable()] + [str(a) for a in args]
+    if feedback is not None:
+        feedback.pushCommandInfo(subprocess.list2cmdline(cmd))
+    try:
+        proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, universal_newlines=True, bufsize=1)
+    except OSError as e:
+        raise QgsProcessingException("cannot run {}: {}".format(cmd[0], e))
+    with proc:
+        lines = queue.Queue()
+        for stream, tag in ((proc.stdout, "out"), (proc.stderr, "err")):
+            threading.Thread(target=_pump, args=(stream, tag, lines), daemon=True).start()
+        out, err_tail, open_streams, canceled = [], [], 2, False
+        while open_streams:
+            if feedback is not None and feedback.isCanceled() and not canceled:
+                canceled = True
+                proc.terminate()
+                try:
+                    proc.wait(_TERMINATE_GRACE_S)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+            try:
+                tag, line = lines.get(timeout=0.2)
+            except queue.Empty:
+                continue
+            if line is None:
+                open_streams -= 1
+            elif tag == "out":
+                out.append(line)
+                if log_stdout and feedback is not None:
+                    feedback.pushConsoleInfo(line)
+            else:
+                err_tail = (err_tail + [line])[-20:]
+                pct = parse_progress(line)
+                if feedback is None:
+                    pass
+                elif pct is not None:
+                    feedback.setProgress(pct)
+                else:
+                    feedback.pushConsoleInfo(line)
+        code = proc.wait()
+    if canceled:
+        raise QgsProcessingException("rayscan was canceled")
+    if code != 0:
+        raise QgsProcessingException("rayscan exited with status {}:\n{}".format(code, "\n".join(err_tail)))
+    return "\n".join(out)
+
+
+def cloud_crs(cloud, feedback=None):
+    """Return the CRS of point cloud file ``cloud`` as ``rayscan info --json`` reads it (invalid if none)."""
+    text = run_rayscan(["info", "--json", cloud], None)
+    try:
+        crs = json.loads(text).get("crs") or {}
+    except ValueError as e:
+        raise QgsProcessingException("rayscan info --json {}: unreadable output ({})".format(cloud, e))
+    for key in ("wkt2", "wkt"):
+        if crs.get(key):
+            result = QgsCoordinateReferenceSystem.fromWkt(crs[key])
+            if result.isValid():
+                return result
+    if feedback is not None:
+        feedback.pushWarning("{} has no CRS: coordinates are used as they are".format(cloud))
+    return QgsCoordinateReferenceSystem()

@@ -1,0 +1,342 @@
+#!/usr/bin/env python3
+"""The QGIS Processing plugin (qgis/rayscan_processing) under Debian's headless qgis_process.
+
+Checks: the progress parser and cancellation of runner.py against a stand-in executable; the
+plugin enabled in a throwaway profile; `qgis_process list` shows the five rayscan algorithms;
+`qgis_process run rayscan:viewshed` writes the same GeoTIFF as `rayscan visibility` (cell for cell,
+also with observers in EPSG:4326 that the plugin reprojects); ortho_dsm, solar and
+point_visibility outputs (its point vector layer too) open with the cloud's CRS, quick_look's
+image opens. Exit 77 (skipped) when qgis_process is not
+installed.
+
+Usage: test_qgis_plugin.py RAYSCAN PLUGIN_DIR PLUGIN_ZIP CLOUD WORK_DIR
+PLUGIN_DIR holds the build's copy rayscan_processing/ (the in-process checks import it); qgis_process
+loads the plugin from PLUGIN_ZIP extracted as QGIS's "Install from ZIP" does, after checking that
+the zip holds the build's copy file for file.
+"""
+
+import json
+import os
+import shutil
+import stat
+import subprocess
+import sys
+import tempfile
+import time
+import zipfile
+
+ALGORITHMS = ["quick_look", "ortho_dsm", "viewshed", "point_visibility", "solar"]
+# Autzen is in US survey feet: an eye 6 ft above the ground on open ground, 3-ft cells (docs/visibility.md).
+OBSERVER = (636226.5, 849106.5)
+HEIGHT = 6
+CELL = 3
+failures = []
+keep_alive = []
+
+
+def check(ok, what):
+    """Record one check; print it either way."""
+    print(("ok    " if ok else "FAIL  ") + what, flush=True)
+    if not ok:
+        failures.append(what)
+
+
+def qgis_process_command():
+    """Debian's qgis_process, or None when it is not installed.
+
+    Debian 12's /usr/bin/qgis_process wrapper passes --noversioncheck (from /etc/default/qgis),
+    which qgis_process 3.22 rejects ("Command --noversioncheck not known!"); the program the
+    wrapper execs, qgis_process.bin, is run directly where it exists.
+    """
+    for name in ("qgis_process.bin", "qgis_process"):
+        path = shutil.which(name)
+        if path:
+            return path
+    return None
+
+
+def unit_tests(plugin_dir, work):
+    """The progress parser and run_rayscan's progress, failure and cancellation, in this interpreter."""
+    sys.dont_write_bytecode = True  # no __pycache__ in the build tree's plugin copy
+    sys.path.insert(0, plugin_dir)
+    from rayscan_processing.cli_progress import parse_progress
+    check(parse_progress("progress: 12/215 chunks   5.6%  341999 points/s  ETA 3 s") == 5.6, "progress line")
+    check(parse_progress("progress: 215/215 chunks 100.0%  341999 points/s  done in 0 s") == 100.0, "last progress line")
+    check(parse_progress("index: sort  42.0%  4200000 / 10000000 points  3.1 M points/s") == 42.0, "phase line")
+    check(parse_progress("db import: insert  100.0%  110000 / 110000 points") == 100.0, "two-word command phase line")
+    check(parse_progress("rayscan visibility: line of sight: 110000 points; 29116 points (26.5 %) seen") is None,
+          "a log line with a percentage is not progress")
+    check(parse_progress("wrote /tmp/a.tif") is None, "other lines are not progress")
+
+    from qgis.core import QgsProcessingException
+    from rayscan_processing import runner
+
+    class Feedback:
+        """The part of QgsProcessingFeedback runner.py uses; cancels once progress reaches cancel_at."""
+
+        def __init__(self, cancel_at=None):
+            self.progress, self.log, self.cancel_at = [], [], cancel_at
+
+        def isCanceled(self):  # noqa: N802
+            return self.cancel_at is not None and any(p >= self.cancel_at for p in self.progress)
+
+        def setProgress(self, p):  # noqa: N802
+            self.progress.append(p)
+
+        def pushConsoleInfo(self, line):  # noqa: N802
+            self.log.append(line)
+
+        pushCommandInfo = pushConsoleInfo
+        pushWarning = pushConsoleInfo
+
+    # A stand-in executable: progress lines as rayscan writes them into a pipe, then a long sleep
+    # that only a cancellation ends early; exit status from its first argument.
+    fake = os.path.join(work, "fake-rayscan")
+    with open(fake, "w") as f:
+        f.write("#!/bin/sh\necho 'fake: starting' >&2\n"
+                "for i in 1 2 3; do echo \"progress: $i/4 chunks  $((i * 25)).0%  10 points/s  ETA 1 s\" >&2; done\n"
+                "echo result\n"
+                "[ \"$1\" = fail ] && { echo 'fake: broken' >&2; exit 3; }\n"
+                "[ \"$1\" = slow ] && exec sleep 60\nexit 0\n")
+    os.chmod(fake, os.stat(fake).st_mode | stat.S_IXUSR)
+    saved = os.environ.get("RAYSCAN_EXECUTABLE")
+    os.environ["RAYSCAN_EXECUTABLE"] = fake
+    try:
+        fb = Feedback()
+        out = runner.run_rayscan(["ok"], fb)
+        check(fb.progress == [25.0, 50.0, 75.0] and out == "result" and "fake: starting" in fb.log,
+              "run_rayscan: progress {} and standard output {!r}".format(fb.progress, out))
+        try:
+            runner.run_rayscan(["fail"], Feedback())
+            check(False, "run_rayscan raises on a non-zero exit")
+        except QgsProcessingException as e:
+            check("status 3" in str(e) and "fake: broken" in str(e), "run_rayscan raises on a non-zero exit: " + str(e).splitlines()[0])
+        start = time.monotonic()
+        try:
+            runner.run_rayscan(["slow"], Feedback(cancel_at=50.0))
+            check(False, "cancellation raises")
+        except QgsProcessingException as e:
+            elapsed = time.monotonic() - start
+            check("canceled" in str(e) and elapsed < 10, "cancellation ends the process ({:.1f} s)".format(elapsed))
+        os.environ["RAYSCAN_EXECUTABLE"] = os.path.join(work, "does-not-exist")
+        try:
+            runner.find_executable()
+            check(False, "a missing executable raises")
+        except QgsProcessingException as e:
+            check("RAYSCAN_EXECUTABLE" in str(e), "a missing executable raises: " + str(e))
+    finally:
+        if saved is None:
+            os.environ.pop("RAYSCAN_EXECUTABLE", None)
+        else:
+            os.environ["RAYSCAN_EXECUTABLE"] = saved
+
+
+def desktop_checks(plugin_dir):
+    """The desktop's way in (classFactory, initGui, unload) with the Processing plugin: the provider,
+    its executable option in Processing's settings, and both gone after unload."""
+    from qgis.core import QgsApplication
+    app = QgsApplication([], True)  # offscreen (QT_QPA_PLATFORM)
+    app.initQgis()
+    sys.path[:0] = [os.path.join(QgsApplication.pkgDataPath(), "python", "plugins"), plugin_dir]
+    from processing.core.Processing import Processing
+    from processing.core.ProcessingConfig import ProcessingConfig
+    Processing.initialize()
+    import rayscan_processing
+    plugin = rayscan_processing.classFactory(None)
+    plugin.initGui()
+    registry = QgsApplication.processingRegistry()
+    provider = registry.providerById("rayscan")
+    ids = sorted(a.name() for a in provider.algorithms()) if provider else []
+    check(ids == sorted(ALGORITHMS) and "RAYSCAN_EXECUTABLE" in ProcessingConfig.settings,
+          "desktop: initGui registers the provider {} and its executable option".format(ids))
+    viewshed = registry.algorithmById("rayscan:viewshed")
+    types = {d.name(): d.type() for d in viewshed.parameterDefinitions()} if viewshed else {}
+    check(types.get("INPUT") == "file" and types.get("OBSERVERS") == "source"
+          and types.get("OUTPUT") == "rasterDestination",
+          "desktop: viewshed's parameter types {}".format(types))
+    plugin.unload()
+    check(registry.providerById("rayscan") is None and "RAYSCAN_EXECUTABLE" not in ProcessingConfig.settings,
+          "desktop: unload removes the provider and the option")
+    return app
+
+
+def read_raster(path):
+    """(array, geotransform, srs, nodata) of a single-band raster, or None when GDAL cannot open it."""
+    from osgeo import gdal, osr
+    ds = gdal.Open(path)
+    if ds is None:
+        return None
+    srs = osr.SpatialReference()
+    if ds.GetProjection():
+        srs.ImportFromWkt(ds.GetProjection())
+    band = ds.GetRasterBand(1)
+    return ds.ReadAsArray(), ds.GetGeoTransform(), srs, band.GetNoDataValue()
+
+
+def main():
+    """Run the checks; the exit status is the number of failures (77: skipped)."""
+    rayscan, plugin_dir, plugin_zip, cloud, work = (os.path.abspath(a) for a in sys.argv[1:6])
+    qgis_process = qgis_process_command()
+    if qgis_process is None:
+        print("SKIP: qgis_process is not installed (Debian package qgis; tools/install-deps.sh)")
+        return 77
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    # The zip: one top folder rayscan_processing/ with the build's copy, byte for byte.
+    installed = os.path.join(work, "plugins")
+    with zipfile.ZipFile(plugin_zip) as z:
+        names = sorted(n for n in z.namelist() if not n.endswith("/"))
+        z.extractall(installed)
+    copy = sorted(os.path.relpath(os.path.join(d, f), plugin_dir).replace(os.sep, "/")
+                  for d, _, fs in os.walk(os.path.join(plugin_dir, "rayscan_processing"))
+                  for f in fs if "__pycache__" not in d)
+    same = names == copy and all(open(os.path.join(installed, n), "rb").read() ==
+                                 open(os.path.join(plugin_dir, n), "rb").read() for n in names)
+    check(same, "the zip {} holds the build's plugin copy ({} files under rayscan_processing/)".format(
+        os.path.basename(plugin_zip), len(names)))
+    home = tempfile.mkdtemp(prefix="home-", dir=work)
+    # A throwaway profile and headless Qt: the user's QGIS settings are never read or written.
+    env = dict(os.environ, HOME=home, XDG_CONFIG_HOME=os.path.join(home, ".config"),
+               XDG_DATA_HOME=os.path.join(home, ".local", "share"),
+               XDG_CACHE_HOME=os.path.join(home, ".cache"), XDG_RUNTIME_DIR=home,
+               QT_QPA_PLATFORM="offscreen", QGIS_PLUGINPATH=installed,
+               PYTHONDONTWRITEBYTECODE="1", RAYSCAN_EXECUTABLE=rayscan)
+    os.environ.update(env)
+
+    def qp(*args):
+        """Run qgis_process ARGS; return (exit status, output), the output echoed.
+
+        Of a successful `list` only the rayscan provider's lines are echoed (QGIS's own run to hundreds).
+        """
+        t0 = time.monotonic()
+        r = subprocess.run([qgis_process] + list(args), env=env, stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT, universal_newlines=True)
+        shown = r.stdout
+        if args[0] == "list" and r.returncode == 0:
+            shown = "".join(line + "\n" for line in r.stdout.splitlines()
+                            if line.startswith("rayscan") or "rayscan:" in line)
+        print("$ qgis_process {}  ({:.1f} s, exit {})\n{}".format(
+            subprocess.list2cmdline(args), time.monotonic() - t0, r.returncode, shown), flush=True)
+        return r.returncode, r.stdout
+
+    unit_tests(plugin_dir, work)
+    keep_alive.append(desktop_checks(plugin_dir))  # the QgsApplication, for the transforms below
+
+    code, _ = qp("plugins", "enable", "rayscan_processing")
+    check(code == 0, "qgis_process plugins enable rayscan_processing")
+    code, out = qp("list")
+    check(code == 0 and all("rayscan:" + a in out for a in ALGORITHMS),
+          "qgis_process list shows rayscan:" + ", rayscan:".join(ALGORITHMS))
+
+    from osgeo import ogr, osr
+    info = json.loads(subprocess.check_output([rayscan, "info", "--json", cloud]))
+    cloud_srs = osr.SpatialReference()
+    cloud_srs.ImportFromWkt(info["crs"]["wkt2"])
+
+    # The observer as a GeoPackage point layer in the cloud's CRS, made as docs/qgis.md makes it:
+    # a CSV, and the cloud's WKT from `rayscan info --json` given to ogr2ogr.
+    csv_path, wkt_path, gpkg = (os.path.join(work, n) for n in ("observer.csv", "autzen.wkt", "observer.gpkg"))
+    with open(csv_path, "w") as f:
+        f.write("x,y,name\n{},{},west\n".format(*OBSERVER))
+    with open(wkt_path, "w") as f:
+        f.write(info["crs"]["wkt2"] + "\n")
+    subprocess.check_call(["ogr2ogr", "-f", "GPKG", gpkg, csv_path, "-oo", "X_POSSIBLE_NAMES=x",
+                           "-oo", "Y_POSSIBLE_NAMES=y", "-a_srs", wkt_path, "-nln", "observer"])
+
+    cli_tif = os.path.join(work, "cli_viewshed.tif")
+    subprocess.check_call([rayscan, "visibility", cloud, "--observer", "{},{}".format(*OBSERVER),
+                           "--height", str(HEIGHT), "--raster", cli_tif, "--cell", str(CELL), "-q"])
+    cli = read_raster(cli_tif)
+
+    def same_viewshed(observers, extra, what):
+        out_tif = os.path.join(work, "qgis_viewshed_{}.tif".format(len(os.listdir(work))))
+        code, _ = qp("run", "rayscan:viewshed", "--", "INPUT=" + cloud, "OBSERVERS=" + observers,
+                     "CELL={}".format(CELL), "OUTPUT=" + out_tif, *extra)
+        got = read_raster(out_tif) if code == 0 else None
+        import numpy
+        equal = (got is not None and got[0].shape == cli[0].shape and numpy.array_equal(got[0], cli[0])
+                 and got[1] == cli[1] and got[3] == cli[3] and got[2].IsSame(cli[2]))
+        detail = ""
+        if got is not None and got[0].shape == cli[0].shape:
+            detail = "{} of {} cells differ".format(int((got[0] != cli[0]).sum()), cli[0].size)
+        check(equal, "{}: same GeoTIFF as rayscan visibility, cell for cell ({}x{} cells, {}; {} visible, {} NoData; "
+              "files byte-identical: {})".format(what, cli[0].shape[1], cli[0].shape[0], detail or "unreadable",
+                                                int((cli[0] == 1).sum()), int((cli[0] == cli[3]).sum()),
+                                                got is not None and open(out_tif, "rb").read() == open(cli_tif, "rb").read()))
+
+    same_viewshed(gpkg, ["HEIGHT={}".format(HEIGHT)], "viewshed, observer in the cloud's CRS")
+
+    # The same eye as an absolute Z (the CLI's resolved eye: ground 427.85 ft + 6 ft).
+    csv_z, gpkg_z = os.path.join(work, "observer_z.csv"), os.path.join(work, "observer_z.gpkg")
+    with open(csv_z, "w") as f:
+        f.write("x,y,z,name\n{},{},433.85,west\n".format(*OBSERVER))
+    subprocess.check_call(["ogr2ogr", "-f", "GPKG", gpkg_z, csv_z, "-oo", "X_POSSIBLE_NAMES=x",
+                           "-oo", "Y_POSSIBLE_NAMES=y", "-oo", "Z_POSSIBLE_NAMES=z", "-a_srs", wkt_path,
+                           "-nln", "observer"])
+    same_viewshed(gpkg_z, ["USE_Z=true"], "viewshed, observer's Z as the absolute eye")
+
+    # The same observer in EPSG:4326 (GeoJSON), placed with QGIS's own transform so that the
+    # plugin's reprojection back lands on the same coordinates; its height from a field.
+    from qgis.core import (QgsCoordinateReferenceSystem, QgsCoordinateTransform,
+                           QgsCoordinateTransformContext, QgsPointXY)
+    to_wgs84 = QgsCoordinateTransform(QgsCoordinateReferenceSystem.fromWkt(info["crs"]["wkt2"]),
+                                      QgsCoordinateReferenceSystem("EPSG:4326"), QgsCoordinateTransformContext())
+    lonlat = to_wgs84.transform(QgsPointXY(*OBSERVER))
+    geojson = os.path.join(work, "observer_wgs84.geojson")
+    with open(geojson, "w") as f:
+        json.dump({"type": "FeatureCollection", "features": [{
+            "type": "Feature", "properties": {"eye": HEIGHT},
+            "geometry": {"type": "Point", "coordinates": [lonlat.x(), lonlat.y()]}}]}, f)
+    same_viewshed(geojson, ["HEIGHT=1", "HEIGHT_FIELD=eye"], "viewshed, observer in EPSG:4326 reprojected, height from a field")
+
+    ortho, dsm = os.path.join(work, "ortho.tif"), os.path.join(work, "dsm.tif")
+    code, _ = qp("run", "rayscan:ortho_dsm", "--", "INPUT=" + cloud, "CELL={}".format(CELL), "SPP=2",
+                 "ORTHO=" + ortho, "DSM=" + dsm)
+    for name, path in (("ortho", ortho), ("DSM", dsm)):
+        r = read_raster(path) if code == 0 else None
+        check(r is not None and r[2].IsSame(cloud_srs) and r[1][1] == CELL,
+              "ortho_dsm: GDAL opens the {} with the cloud's CRS and {}-unit cells".format(name, CELL))
+    r_dsm = read_raster(dsm) if code == 0 else None
+    check(r_dsm is not None and r_dsm[0].shape == cli[0].shape and r_dsm[1] == cli[1],
+          "ortho_dsm: the DSM has the viewshed's grid")
+
+    quick = os.path.join(work, "quick.png")
+    code, _ = qp("run", "rayscan:quick_look", "--", "INPUT=" + cloud, "WIDTH=240", "SPP=2", "OUTPUT=" + quick)
+    r = read_raster(quick) if code == 0 else None
+    # A perspective view has no map coordinates, so no CRS is expected.
+    check(r is not None and r[0].shape[-1] == 240, "quick_look: GDAL opens the 240-pixel-wide image")
+
+    solar_tif, solar_las = os.path.join(work, "shadow.tif"), os.path.join(work, "shadow.las")
+    code, _ = qp("run", "rayscan:solar", "--", "INPUT=" + cloud, "MODE=1", "AT=2026-06-21T13:00-07:00",
+                 "CELL={}".format(CELL), "OUTPUT=" + solar_tif, "POINTS=" + solar_las)
+    r = read_raster(solar_tif) if code == 0 else None
+    check(r is not None and r[2].IsSame(cloud_srs) and set(r[0][r[0] != r[3]].tolist()) <= {0.0, 1.0},
+          "solar: shadow map (0/1) with the cloud's CRS")
+    fields = json.loads(subprocess.check_output([rayscan, "info", "--json", solar_las])) if code == 0 else {}
+    check("in_shadow" in json.dumps(fields.get("attributes", fields)), "solar: the cloud has the field in_shadow")
+
+    pv, pv_layer = os.path.join(work, "visible.laz"), os.path.join(work, "visible.gpkg")
+    code, _ = qp("run", "rayscan:point_visibility", "--", "INPUT=" + cloud, "OBSERVERS=" + gpkg,
+                 "HEIGHT={}".format(HEIGHT), "DISTANCE=true", "OUTPUT=" + pv, "POINTS_LAYER=" + pv_layer)
+    pinfo = json.loads(subprocess.check_output([rayscan, "info", "--json", "--stats", pv])) if code == 0 else {}
+    stats = {a["name"]: a for a in pinfo.get("attributes", [])}
+    check(pinfo.get("count") == info["count"] and "visible_count" in stats and "visible_distance" in stats,
+          "point_visibility: {} points with visible_count and visible_distance".format(pinfo.get("count")))
+    ds = ogr.Open(pv_layer) if code == 0 else None
+    layer = ds.GetLayer(0) if ds else None
+    seen = sum(f.GetField("visible_count") for f in layer) if layer else None
+    expected = round(stats["visible_count"]["mean"] * pinfo["count"]) if "visible_count" in stats else None
+    check(layer is not None and layer.GetFeatureCount() == info["count"] and seen == expected
+          and layer.GetSpatialRef().IsSame(cloud_srs),
+          "point_visibility: the point vector layer has every point, the cloud's CRS and the LAS's "
+          "visible_count ({} points seen)".format(seen))
+    layer = ds = None
+
+    print("{} failure(s)".format(len(failures)))
+    for f in failures:
+        print("  " + f)
+    return min(len(failures), 70)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
