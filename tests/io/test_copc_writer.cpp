@@ -175,7 +175,9 @@ TEST(CopcWriter, CopcJsReadsEveryNodeTheUnionIsTheInputAndNodesLieInTheirCubes) 
     EXPECT_EQ(j["pdrf"], w.pdrf) << c.rel;
     EXPECT_EQ(j["nodes"], w.nodes) << c.rel;
     EXPECT_EQ(j["pages"], w.pages) << c.rel;
-    if (w.depth > 2) EXPECT_GT(w.pages, 1u) << c.rel << ": page_levels 2 wrote one page";
+    if (w.depth > 2) {
+      EXPECT_GT(w.pages, 1u) << c.rel << ": page_levels 2 wrote one page";
+    }
     EXPECT_EQ(j["points_per_level"].get<std::vector<std::uint64_t>>(), w.points_per_level) << c.rel;
     // (c) the union of the nodes' records is the input's, as a multiset
     std::vector<std::string> got;

@@ -3,11 +3,13 @@
 // (copc_tree.cpp), and the file assembly (copc_writer.cpp).
 #pragma once
 
+#include "readers.hpp"
 #include "rayscan/octree/geometry.hpp"
 #include "rayscan/site/copc_writer.hpp"
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -21,13 +23,30 @@ struct CarriedVlr {
   std::vector<std::uint8_t> payload;
 };
 
+/// The mapped file the records are read from: the input itself (an uncompressed LAS of PDRF
+/// 6-8), or a temporary file of converted records, removed when this is destroyed.
+struct RecordFile {
+  std::unique_ptr<detail::MappedFile> map;
+  std::filesystem::path temp;  ///< removed on destruction when not empty
+  RecordFile() = default;
+  RecordFile(const RecordFile&) = delete;
+  RecordFile& operator=(const RecordFile&) = delete;
+  ~RecordFile() {
+    map.reset();
+    std::error_code ec;
+    if (!temp.empty()) std::filesystem::remove(temp, ec);
+  }
+};
+
 /// The input as PDRF 6, 7 or 8 records (plus extra bytes) and the header fields a COPC file
-/// keeps from it.
+/// keeps from it. The records stay on disk (mapped): the build keeps 12 bytes per point in
+/// memory, whatever the record length.
 struct Records {
   int pdrf = 6;                     ///< 6, 7 or 8
   std::uint16_t record_length = 0;  ///< PDRF length + extra bytes
   std::uint64_t count = 0;
-  std::vector<std::uint8_t> bytes;  ///< count * record_length
+  const std::uint8_t* bytes = nullptr;  ///< count * record_length, inside `file`'s mapping
+  std::shared_ptr<RecordFile> file;
   Vec3 scale{0.01}, offset{0.0};
   std::uint16_t file_source_id = 0;
   std::uint16_t global_encoding = 0;  ///< bit 0 (GPS time type) kept from the input; bit 4 set with a WKT
@@ -40,9 +59,12 @@ struct Records {
   std::vector<std::string> notes;
 };
 
-/// Reads `in` into Records (see write_copc() for the conversions). Throws CopcMemoryError when
-/// the records and the build's 20 bytes per point exceed `memory_bytes` (checked from the header
-/// before the points are read), FormatError, std::invalid_argument as write_copc().
+/// Opens `in` as Records (see write_copc() for the conversions): an uncompressed PDRF 6-8 LAS is
+/// mapped as it is; LAZ (decoded in parallel by batches of chunks), PDRF 0-3 (converted) and
+/// other formats (through write_las) are written to a temporary uncompressed file in
+/// `options.temp_dir` first. Throws CopcMemoryError when the build's 12 bytes per point exceed
+/// `memory_bytes` (checked from the header before the points are read), FormatError,
+/// std::invalid_argument as write_copc().
 Records read_records(const std::filesystem::path& in, const CopcWriteOptions& options);
 
 /// The COPC root cube (COPC 1.0 "Info VLR": center and halfsize) in file units.
@@ -52,8 +74,18 @@ struct Cube {
   [[nodiscard]] Vec3 lo() const { return center - Vec3(halfsize); }
 };
 
+/// A point in the build: its Morton code in the root cube and its record index (12 bytes: the
+/// build's whole memory per point).
+#pragma pack(push, 1)
+struct Slot {
+  std::uint64_t key;
+  std::uint32_t index;
+};
+#pragma pack(pop)
+static_assert(sizeof(Slot) == 12);
+
 /// One octree node: VoxelKey, and its points as the range [begin, begin + count) of
-/// Tree::order (record indices, in input order within the node).
+/// Tree::slots (in input order within the node).
 struct Node {
   std::int32_t level = 0, x = 0, y = 0, z = 0;
   std::uint64_t begin = 0;
@@ -65,8 +97,13 @@ struct Node {
 struct Tree {
   Cube cube;
   std::vector<Node> nodes;
-  std::vector<std::uint32_t> order;  ///< record index per slot (nodes' ranges)
+  std::vector<Slot> slots;  ///< the points, grouped by node (nodes' ranges)
 };
+
+/// Bytes per point the build keeps in memory (CopcWriteOptions::memory_bytes).
+inline constexpr std::uint64_t kBytesPerPoint = sizeof(Slot);
+/// Bytes besides: the decode and compression batches (a bound, for the memory check).
+inline constexpr std::uint64_t kBatchBytes = std::uint64_t{256} << 20;
 
 /// Cube of `r`'s points and their distribution over the octree (write_copc()'s rule: a node
 /// above `leaf_points` keeps the point nearest each cell centre of its 128^3 grid).

@@ -4,6 +4,7 @@
 #include "copc_build.hpp"
 
 #include "las/las_header.hpp"
+#include "atomic_writer.hpp"
 #include "laz/laz.hpp"
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -24,15 +25,6 @@ namespace rayscan::io::copc {
 namespace {
 
 using detail::load_le;
-
-/// Removes the intermediate LAS file of a non-LAS input however read_records() leaves.
-struct RemoveOnExit {
-  std::filesystem::path path;
-  ~RemoveOnExit() {
-    std::error_code ec;
-    if (!path.empty()) std::filesystem::remove(path, ec);
-  }
-};
 
 /// Human-readable bytes for the memory message ("5.2 GiB").
 std::string gib(std::uint64_t b) {
@@ -101,9 +93,22 @@ bool is_crs_vlr(const std::string& user, std::uint16_t id) {
   return user == "LASF_Projection" && (id == 2112 || id == 34735 || id == 34736 || id == 34737);
 }
 
-/// The records of the LAS/LAZ file `path`; `name` is the input as the user named it.
-Records read_las_family(const std::filesystem::path& path, const std::string& name, const CopcWriteOptions& opt) {
-  const laz::FileMap map(path);
+/// A temporary file beside the output for the records of `name` ("what": its role).
+std::filesystem::path temp_path(const CopcWriteOptions& opt, const std::string& name, const char* what) {
+  std::string file = ".";
+  file += std::filesystem::path(name).filename().string();
+  file += '.';
+  file += std::to_string(::getpid());
+  file += ".copc-";
+  file += what;  // last: "input.las" keeps the extension the LAS writer and reader go by
+  return (opt.temp_dir.empty() ? std::filesystem::path(".") : opt.temp_dir) / file;
+}
+
+/// The records of the LAS/LAZ file `path`; `name` is the input as the user named it; `file`
+/// holds `path`'s mapping (and, for a converted input, `path` as a temporary to remove).
+Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::filesystem::path& path,
+                        const std::string& name, const CopcWriteOptions& opt) {
+  const detail::MappedFile& map = *file->map;
   const detail::Input in{map.bytes(), name, {}};
   const detail::LasHeader h = detail::parse_las_header(in);
   const std::uint8_t* d = map.bytes().data();
@@ -119,50 +124,81 @@ Records read_las_family(const std::filesystem::path& path, const std::string& na
   if (out_len > 0xFFFF) throw std::invalid_argument(name + ": record length over 65535 bytes after conversion");
   r.record_length = static_cast<std::uint16_t>(out_len);
   r.count = h.count;
-  // Memory: the records, the build's key and index per point, and a decoded copy of legacy
-  // records before their conversion.
-  const bool convert = h.pdrf < 6;
-  const std::uint64_t need = h.count * (out_len + 20) + (convert && h.laszip.present ? h.count * h.record_length : 0);
+  // Memory: the build's 12 bytes per point and the batches; the records stay on disk.
+  const std::uint64_t need = h.count * kBytesPerPoint + kBatchBytes;
   if (need > opt.memory_bytes || h.count >= (std::uint64_t{1} << 32))
     throw CopcMemoryError(name + ": " + std::to_string(h.count) + " points need about " + gib(need) +
-                          " for the in-memory COPC build, over the memory budget of " + gib(opt.memory_bytes) +
-                          " (raise --memory)");
+                          " for the COPC build (12 bytes per point and 256 MiB of batches), over the memory budget of " +
+                          gib(opt.memory_bytes) + " (raise --memory)");
+  const bool convert = h.pdrf < 6;
   if (convert)
     r.notes.push_back("point data record format " + std::to_string(h.pdrf) + " written as " + std::to_string(r.pdrf) +
                       " (COPC allows 6, 7 and 8)");
-
-  // The records in the input's format (decoded when LAZ), then converted when legacy.
-  std::vector<std::uint8_t> legacy;
-  const std::uint8_t* src = nullptr;
-  if (h.laszip.present) {
-    const laz::LaszipVlr vlr =
-        laz::parse_laszip_vlr(d + h.laszip.at, h.laszip.len, name, h.laszip.at, h.pdrf, h.record_length);
-    std::vector<std::string> notes;
-    const std::vector<laz::Chunk> chunks = laz::read_chunk_table(in, vlr, h.point_offset, h.data_end, h.count, notes);
-    std::vector<std::uint8_t>& dst = convert ? legacy : r.bytes;
-    dst.resize(h.count * h.record_length);
-    laz::decompress_all(in, vlr, chunks, dst.data());
-    src = dst.data();
+  if (!h.laszip.present && h.count > (h.data_end - h.point_offset) / h.record_length)
+    detail::fail_at(name, h.version_minor >= 4 ? 247 : 107,
+                    "header announces " + std::to_string(h.count) + " records but only " +
+                        std::to_string(h.data_end - h.point_offset) + " bytes of point data follow");
+  if (!h.laszip.present && !convert) {
+    r.bytes = d + h.point_offset;  // the input's own records, mapped
   } else {
-    if (h.count > (h.data_end - h.point_offset) / h.record_length)
-      detail::fail_at(name, h.version_minor >= 4 ? 247 : 107,
-                      "header announces " + std::to_string(h.count) + " records but only " +
-                          std::to_string(h.data_end - h.point_offset) + " bytes of point data follow");
-    src = d + h.point_offset;
-    if (!convert) r.bytes.assign(src, src + h.count * h.record_length);
-  }
-  if (convert) {
-    r.bytes.resize(h.count * out_len);
-    const std::size_t core = static_cast<std::size_t>(detail::pdrf_length(r.pdrf));
-    std::uint8_t tmp[36];
-    for (std::uint64_t i = 0; i < h.count; ++i) {
-      const std::uint8_t* a = src + i * h.record_length;
-      std::uint8_t* b = r.bytes.data() + i * out_len;
-      legacy_to_14(a, h.pdrf, tmp);
-      std::memcpy(b, tmp, core);
-      std::memcpy(b + core, a + in_len, extra);
+    // Decoded (LAZ, chunks in parallel by batches) and/or converted (PDRF 0-3) by batches into
+    // a temporary file of output records, then mapped.
+    auto out = std::make_shared<RecordFile>();
+    out->temp = temp_path(opt, name, "records");
+    {
+      detail::AtomicWriter w(out->temp, true);
+      std::vector<std::uint8_t> raw, conv;
+      const std::size_t core = static_cast<std::size_t>(detail::pdrf_length(r.pdrf));
+      const auto emit = [&](const std::uint8_t* src, std::uint64_t n) {
+        if (!convert) {
+          w.write(src, n * h.record_length);
+          return;
+        }
+        conv.resize(n * out_len);
+        std::uint8_t tmp[36];
+        for (std::uint64_t i = 0; i < n; ++i) {
+          const std::uint8_t* a = src + i * h.record_length;
+          std::uint8_t* b = conv.data() + i * out_len;
+          legacy_to_14(a, h.pdrf, tmp);
+          std::memcpy(b, tmp, core);
+          std::memcpy(b + core, a + in_len, extra);
+        }
+        w.write(conv.data(), conv.size());
+      };
+      constexpr std::uint64_t kBatch = std::uint64_t{1} << 20;  // points per decode batch
+      if (h.laszip.present) {
+        const laz::LaszipVlr vlr =
+            laz::parse_laszip_vlr(d + h.laszip.at, h.laszip.len, name, h.laszip.at, h.pdrf, h.record_length);
+        std::vector<std::string> notes;
+        const std::vector<laz::Chunk> chunks = laz::read_chunk_table(in, vlr, h.point_offset, h.data_end, h.count, notes);
+        for (std::size_t c0 = 0; c0 < chunks.size();) {
+          std::vector<laz::Chunk> batch;
+          std::uint64_t pts = 0;
+          for (; c0 < chunks.size() && (batch.empty() || pts + chunks[c0].points <= kBatch); ++c0) {
+            laz::Chunk c = chunks[c0];
+            c.first_point = pts;
+            pts += c.points;
+            batch.push_back(c);
+          }
+          raw.resize(pts * h.record_length);
+          laz::decompress_all(in, vlr, batch, raw.data());
+          emit(raw.data(), pts);
+        }
+      } else {
+        for (std::uint64_t i = 0; i < h.count; i += kBatch) {
+          const std::uint64_t n = std::min(kBatch, h.count - i);
+          emit(d + h.point_offset + i * h.record_length, n);
+        }
+      }
+      w.commit();
     }
+    out->map = std::make_unique<detail::MappedFile>(out->temp);
+    if (out->map->bytes().size() != h.count * out_len)
+      throw std::runtime_error(out->temp.string() + ": temporary records file has the wrong size");
+    r.bytes = out->map->bytes().data();
+    r.file = std::move(out);
   }
+  if (!r.file) r.file = file;
 
   r.scale = h.scale;
   r.offset = h.offset;
@@ -202,23 +238,24 @@ Records read_las_family(const std::filesystem::path& path, const std::string& na
 
 Records read_records(const std::filesystem::path& in, const CopcWriteOptions& opt) {
   const std::uint64_t in_bytes = std::filesystem::file_size(in);
+  auto file = std::make_shared<RecordFile>();
   if (format_from_extension(in) == Format::las) {
-    Records r = read_las_family(in, in.string(), opt);
+    file->map = std::make_unique<detail::MappedFile>(in);
+    Records r = read_las_family(file, in, in.string(), opt);
     r.in_bytes = in_bytes;
     return r;
   }
   // Other formats: their attributes mapped onto LAS fields by write_las (PDRF 6/7/8 chosen from
-  // them, scalars as extra bytes) in an intermediate file, then read as LAS.
+  // them, scalars as extra bytes) in an intermediate file, then read as LAS. Read whole: these
+  // readers have no bounded-memory path to COPC.
   const PointCloud cloud = read_point_cloud(in);
   if (cloud.size() == 0) throw std::invalid_argument(in.string() + ": no points to write as COPC");
-  const std::filesystem::path dir = opt.temp_dir.empty() ? std::filesystem::path(".") : opt.temp_dir;
-  std::string name = ".";
-  name += in.filename().string();
-  name += ".copc-input." + std::to_string(::getpid()) + ".las";
-  RemoveOnExit tmp{dir / name};
-  write_las(tmp.path, cloud);
-  Records r = read_las_family(tmp.path, in.string(), opt);
+  file->temp = temp_path(opt, in.string(), "input.las");
+  write_las(file->temp, cloud);
+  file->map = std::make_unique<detail::MappedFile>(file->temp);
+  Records r = read_las_family(file, file->temp, in.string(), opt);
   r.in_bytes = in_bytes;
+  r.creation_day = r.creation_year = 0;  // write_las's date is today's: not a property of the input
   r.notes.push_back("converted from " + in.extension().string() + " through LAS point data record format " +
                     std::to_string(r.pdrf));
   return r;

@@ -27,19 +27,20 @@ using detail::load_le;
 constexpr int kBits = static_cast<int>(kMortonBits);  // 21 bits per axis
 static_assert(kCopcMaxLevel + 7 == kBits, "a level's 128^3 grid must be resolved by the Morton bits");
 
-/// A point in Morton order: its code in the root cube and its record index (ties by index).
-struct Keyed {
-  std::uint64_t key;
-  std::uint32_t index;
-  friend bool operator<(const Keyed& a, const Keyed& b) { return a.key != b.key ? a.key < b.key : a.index < b.index; }
-};
+/// Morton order, ties by record index.
+bool morton_less(const Slot& a, const Slot& b) {
+  const std::uint64_t ka = a.key, kb = b.key;
+  return ka != kb ? ka < kb : a.index < b.index;
+}
+/// Input order.
+bool index_less(const Slot& a, const Slot& b) { return a.index < b.index; }
 
 /// Builds the subtree of the node at `level` with cell (x, y, z) over the Morton-sorted
 /// slots [a, b); returns its nodes in pre-order with `begin` relative to `pts`. Reorders the
 /// range: the node's own points first (then sorted by index), the rest in Morton order.
 class Builder {
  public:
-  Builder(std::vector<Keyed>& pts, std::uint32_t leaf_points) : pts_(pts), leaf_(leaf_points) {}
+  Builder(std::vector<Slot>& pts, std::uint32_t leaf_points) : pts_(pts), leaf_(leaf_points) {}
 
   std::vector<Node> build(int level, std::uint32_t x, std::uint32_t y, std::uint32_t z, std::size_t a, std::size_t b) const {
     Node n;
@@ -51,7 +52,7 @@ class Builder {
     if (b - a <= leaf_ || level == kCopcMaxLevel) {
       n.count = static_cast<std::uint32_t>(b - a);
       std::sort(pts_.begin() + static_cast<std::ptrdiff_t>(a), pts_.begin() + static_cast<std::ptrdiff_t>(b),
-                [](const Keyed& p, const Keyed& q) { return p.index < q.index; });
+                index_less);
       return {n};
     }
     const std::size_t m = select(level, a, b);
@@ -64,7 +65,7 @@ class Builder {
       const auto first = pts_.begin() + static_cast<std::ptrdiff_t>(cut[c]);
       const auto last = pts_.begin() + static_cast<std::ptrdiff_t>(b);
       cut[c + 1] = static_cast<std::size_t>(
-          std::partition_point(first, last, [&](const Keyed& p) { return ((p.key >> shift) & 7u) <= c; }) - pts_.begin());
+          std::partition_point(first, last, [&](const Slot& p) { return ((p.key >> shift) & 7u) <= c; }) - pts_.begin());
     }
     std::array<std::vector<Node>, 8> kids;
     const auto child = [&](unsigned c) {
@@ -82,7 +83,7 @@ class Builder {
     for (std::vector<Node>& k : kids) out.insert(out.end(), k.begin(), k.end());
     // the points of this node in input order (their Morton order is no longer needed)
     std::sort(pts_.begin() + static_cast<std::ptrdiff_t>(a), pts_.begin() + static_cast<std::ptrdiff_t>(a + m),
-              [](const Keyed& p, const Keyed& q) { return p.index < q.index; });
+              index_less);
     return out;
   }
 
@@ -117,7 +118,7 @@ class Builder {
       keep.push_back(best);
     }
     // Pack the rest at the back (walking down keeps their order), then the kept at the front.
-    std::vector<Keyed> kept;
+    std::vector<Slot> kept;
     kept.reserve(keep.size());
     for (std::size_t k : keep) kept.push_back(pts_[k]);
     std::size_t w = b, next = keep.size();
@@ -132,7 +133,7 @@ class Builder {
     return kept.size();
   }
 
-  std::vector<Keyed>& pts_;
+  std::vector<Slot>& pts_;
   std::uint32_t leaf_;
 };
 
@@ -141,7 +142,7 @@ class Builder {
 Tree build_tree(const Records& r, const CopcWriteOptions& opt) {
   const std::size_t rec = r.record_length;
   const std::size_t n = static_cast<std::size_t>(r.count);
-  const std::uint8_t* d = r.bytes.data();
+  const std::uint8_t* d = r.bytes;
   // Bounds of the integer coordinates, then in file units (a negative scale swaps the ends).
   std::int32_t lo[3] = {INT32_MAX, INT32_MAX, INT32_MAX}, hi[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
   for (std::size_t i = 0; i < n; ++i)
@@ -166,7 +167,7 @@ Tree build_tree(const Records& r, const CopcWriteOptions& opt) {
   const double cells = std::ldexp(1.0, kBits);
   const double to_grid = cells / (2.0 * half);
 
-  std::vector<Keyed> pts(n);
+  std::vector<Slot> pts(n);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1 << 16), [&](const tbb::blocked_range<std::size_t>& br) {
     for (std::size_t i = br.begin(); i != br.end(); ++i) {
       std::uint32_t g[3];
@@ -175,15 +176,14 @@ Tree build_tree(const Records& r, const CopcWriteOptions& opt) {
         const double c = std::floor((w - clo[k]) * to_grid);
         g[k] = static_cast<std::uint32_t>(std::clamp(c, 0.0, cells - 1));
       }
-      pts[i] = Keyed{morton_encode(g[0], g[1], g[2]), static_cast<std::uint32_t>(i)};
+      pts[i] = Slot{morton_encode(g[0], g[1], g[2]), static_cast<std::uint32_t>(i)};
     }
   });
-  tbb::parallel_sort(pts.begin(), pts.end());
+  tbb::parallel_sort(pts.begin(), pts.end(), morton_less);
   if (opt.progress) opt.progress("tree", 0, r.count);
   const Builder b(pts, std::max<std::uint32_t>(1, opt.leaf_points));
   t.nodes = b.build(0, 0, 0, 0, 0, n);
-  t.order.resize(n);
-  for (std::size_t i = 0; i < n; ++i) t.order[i] = pts[i].index;
+  t.slots = std::move(pts);
   if (opt.progress) opt.progress("tree", r.count, r.count);
   return t;
 }

@@ -73,7 +73,7 @@ Stats stats_of(const copc::Records& r) {
   s.gps_min = std::numeric_limits<double>::infinity();
   s.gps_max = -s.gps_min;
   for (std::uint64_t i = 0; i < r.count; ++i) {
-    const std::uint8_t* p = r.bytes.data() + i * r.record_length;
+    const std::uint8_t* p = r.bytes + i * r.record_length;
     for (int k = 0; k < 3; ++k) {
       const auto v = load_le<std::int32_t>(p + 4 * k);
       s.lo[k] = std::min(s.lo[k], v);
@@ -200,7 +200,7 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
       const copc::Node& nd = t.nodes[i];
       s.recs.resize(std::size_t{nd.count} * rec);
       for (std::uint32_t k = 0; k < nd.count; ++k)
-        std::memcpy(s.recs.data() + k * rec, r.bytes.data() + std::size_t{t.order[nd.begin + k]} * rec, rec);
+        std::memcpy(s.recs.data() + k * rec, r.bytes + std::size_t{t.slots[nd.begin + k].index} * rec, rec);
       s.enc->encode(s.recs.data(), nd.count, rec, chunks[i - b0]);
     });
     for (std::size_t i = b0; i < b1; ++i) {

@@ -14,9 +14,9 @@ namespace rayscan::io {
 
 /// Options of write_copc().
 struct CopcWriteOptions {
-  /// Memory budget in bytes. The octree is built in memory: the records in the output format
-  /// plus 20 bytes per point (Morton key and index) must fit, else write_copc() throws
-  /// CopcMemoryError before reading any point.
+  /// Memory budget in bytes. The octree is built from 12 bytes per point in memory (Morton code
+  /// and record index; the records stay on disk, mapped): 12 bytes per point plus 256 MiB of
+  /// batches must fit, else write_copc() throws CopcMemoryError before reading any point.
   std::uint64_t memory_bytes = std::uint64_t{4} << 30;
   /// A node whose subtree holds at most this many points keeps them all (a leaf); a larger one
   /// keeps one point per cell of its kCopcGridCells^3 grid and hands the rest to its children.
@@ -25,7 +25,8 @@ struct CopcWriteOptions {
   /// levels); n > 0 = a new page at every level that is a multiple of n (COPC 1.0 "Hierarchy
   /// pages": an entry with point count -1 points to the child page holding that node).
   unsigned page_levels = 0;
-  /// Folder for the intermediate LAS file of a non-LAS input (default: the output's folder).
+  /// Folder for the temporary records file (LAZ, PDRF 0-3 or non-LAS input: the records in the
+  /// output format, uncompressed; removed at the end) (default: the output's folder).
   std::filesystem::path temp_dir;
   /// Called with (phase "tree" or "encode", points done, points in all) now and then (may be empty).
   std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)> progress;
@@ -80,9 +81,11 @@ struct CopcWriteResult {
 /// the lowest Morton code, then the earliest input record), and its other points go down to
 /// its children; so every level is a grid subsample of spacing edge / 128. Within a node points
 /// are in input order. Output bytes depend only on the input and the options (not on threads);
-/// nodes are compressed in parallel (TBB). Memory: the records, 20 bytes per point and the
-/// compressed chunks of one batch (CopcMemoryError beyond `memory_bytes`; no external-memory
-/// build). Written through a temporary file renamed into place (no partial output).
+/// nodes are compressed in parallel (TBB). Memory: 12 bytes per point (the Morton sort and the
+/// octree are built on codes and indices) and bounded batches; the records are read from the
+/// mapped input, or from a temporary uncompressed file of converted records for LAZ, PDRF 0-3
+/// and non-LAS inputs (disk: count x record length); CopcMemoryError beyond `memory_bytes`.
+/// Written through a temporary file renamed into place (no partial output).
 ///
 /// Throws FormatError for an unreadable input, std::invalid_argument for a waveform PDRF
 /// (4, 5, 9, 10) or an empty input, CopcMemoryError (above), std::runtime_error for I/O
