@@ -80,7 +80,7 @@ struct CopcWriteResult {
 /// keeps, in each cell of a 128^3 grid over its cube, the point nearest the cell's centre (ties:
 /// the lowest Morton code, then the earliest input record), and its other points go down to
 /// its children; so every level is a grid subsample of spacing edge / 128. Within a node points
-/// are in input order. Output bytes depend only on the input and the options (not on threads);
+/// are in GPS-time order, ties in input order (as untwine orders a chunk). Output bytes depend only on the input and the options (not on threads);
 /// nodes are compressed in parallel (TBB). Memory: 12 bytes per point (the Morton sort and the
 /// octree are built on codes and indices) and bounded batches; the records are read from the
 /// mapped input, or from a temporary uncompressed file of converted records for LAZ, PDRF 0-3
