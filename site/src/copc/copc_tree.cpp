@@ -10,6 +10,7 @@
 #include "rayscan/octree/morton.hpp"
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 #include <tbb/parallel_sort.h>
 #include <tbb/task_group.h>
 
@@ -27,13 +28,17 @@ using detail::load_le;
 constexpr int kBits = static_cast<int>(kMortonBits);  // 21 bits per axis
 static_assert(kCopcMaxLevel + 7 == kBits, "a level's 128^3 grid must be resolved by the Morton bits");
 
-/// Morton order, ties by record index.
-bool morton_less(const Slot& a, const Slot& b) {
-  const std::uint64_t ka = a.key, kb = b.key;
-  return ka != kb ? ka < kb : a.index < b.index;
-}
+/// Morton order, ties by record index (function objects, so that the sorts inline them).
+struct MortonLess {
+  bool operator()(const Slot& a, const Slot& b) const {
+    const std::uint64_t ka = a.key, kb = b.key;
+    return ka != kb ? ka < kb : a.index < b.index;
+  }
+};
 /// Input order.
-bool index_less(const Slot& a, const Slot& b) { return a.index < b.index; }
+struct IndexLess {
+  bool operator()(const Slot& a, const Slot& b) const { return a.index < b.index; }
+};
 
 /// Builds the subtree of the node at `level` with cell (x, y, z) over the Morton-sorted
 /// slots [a, b); returns its nodes in pre-order with `begin` relative to `pts`. Reorders the
@@ -52,7 +57,7 @@ class Builder {
     if (b - a <= leaf_ || level == kCopcMaxLevel) {
       n.count = static_cast<std::uint32_t>(b - a);
       std::sort(pts_.begin() + static_cast<std::ptrdiff_t>(a), pts_.begin() + static_cast<std::ptrdiff_t>(b),
-                index_less);
+                IndexLess{});
       return {n};
     }
     const std::size_t m = select(level, a, b);
@@ -83,7 +88,7 @@ class Builder {
     for (std::vector<Node>& k : kids) out.insert(out.end(), k.begin(), k.end());
     // the points of this node in input order (their Morton order is no longer needed)
     std::sort(pts_.begin() + static_cast<std::ptrdiff_t>(a), pts_.begin() + static_cast<std::ptrdiff_t>(a + m),
-              index_less);
+              IndexLess{});
     return out;
   }
 
@@ -144,13 +149,26 @@ Tree build_tree(const Records& r, const CopcWriteOptions& opt) {
   const std::size_t n = static_cast<std::size_t>(r.count);
   const std::uint8_t* d = r.bytes;
   // Bounds of the integer coordinates, then in file units (a negative scale swaps the ends).
-  std::int32_t lo[3] = {INT32_MAX, INT32_MAX, INT32_MAX}, hi[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
-  for (std::size_t i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k) {
-      const auto v = load_le<std::int32_t>(d + i * rec + 4 * k);
-      lo[k] = std::min(lo[k], v);
-      hi[k] = std::max(hi[k], v);
-    }
+  struct Box {
+    std::int32_t lo[3] = {INT32_MAX, INT32_MAX, INT32_MAX}, hi[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
+  };
+  const Box box = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, n, 1 << 16), Box{},
+      [&](const tbb::blocked_range<std::size_t>& br, Box b) {
+        for (std::size_t i = br.begin(); i != br.end(); ++i)
+          for (int k = 0; k < 3; ++k) {
+            const auto v = load_le<std::int32_t>(d + i * rec + 4 * k);
+            b.lo[k] = std::min(b.lo[k], v);
+            b.hi[k] = std::max(b.hi[k], v);
+          }
+        return b;
+      },
+      [](Box a, const Box& b) {
+        for (int k = 0; k < 3; ++k) a.lo[k] = std::min(a.lo[k], b.lo[k]), a.hi[k] = std::max(a.hi[k], b.hi[k]);
+        return a;
+      });
+  const std::int32_t* lo = box.lo;
+  const std::int32_t* hi = box.hi;
   Vec3 wlo, whi;
   for (int k = 0; k < 3; ++k) {
     const double u = lo[k] * r.scale[k] + r.offset[k], v = hi[k] * r.scale[k] + r.offset[k];
@@ -179,7 +197,7 @@ Tree build_tree(const Records& r, const CopcWriteOptions& opt) {
       pts[i] = Slot{morton_encode(g[0], g[1], g[2]), static_cast<std::uint32_t>(i)};
     }
   });
-  tbb::parallel_sort(pts.begin(), pts.end(), morton_less);
+  tbb::parallel_sort(pts.begin(), pts.end(), MortonLess{});
   if (opt.progress) opt.progress("tree", 0, r.count);
   const Builder b(pts, std::max<std::uint32_t>(1, opt.leaf_points));
   t.nodes = b.build(0, 0, 0, 0, 0, n);
