@@ -401,6 +401,28 @@ TEST(CopcWriter, PdrfFromTheAttributesAndExtraBytesKept) {
   EXPECT_GT(extra_fields, 5u);
 }
 
+TEST(CopcWriter, AStopInAnyPhaseLeavesNoFiles) {
+  // The progress callback's exception is how `rayscan index` is interrupted: the output's
+  // temporary and the temporary records file of a LAZ input are removed, nothing is renamed.
+  RAYSCAN_REQUIRE_FILE(src, "laz/append-bug.laz");
+  for (const char* stop : {"read", "tree", "encode"}) {
+    const fs::path dir = temp_dir() / (std::string("stop_") + stop);
+    fs::create_directories(dir);
+    io::CopcWriteOptions o;
+    o.leaf_points = 2000;
+    bool seen = false;
+    o.progress = [&](const char* phase, std::uint64_t, std::uint64_t) {
+      if (std::string(phase) == stop) {
+        seen = true;
+        throw std::runtime_error("stop");
+      }
+    };
+    EXPECT_THROW(io::write_copc(src, dir / "x.copc.laz", o), std::runtime_error) << stop;
+    EXPECT_TRUE(seen) << stop;
+    EXPECT_TRUE(fs::is_empty(dir)) << stop << ": files left behind";
+  }
+}
+
 /// Runs the rayscan program; returns its exit code, stdout and stderr in `out`/`err`.
 int run_cli(const std::string& args, std::string& out, std::string& err) {
   const fs::path o = temp_dir() / "cli.out", e = temp_dir() / "cli.err";

@@ -149,7 +149,10 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
       detail::AtomicWriter w(out->temp, true);
       std::vector<std::uint8_t> raw, conv;
       const std::size_t core = static_cast<std::size_t>(detail::pdrf_length(r.pdrf));
+      std::uint64_t done = 0;
       const auto emit = [&](const std::uint8_t* src, std::uint64_t n) {
+        done += n;
+        if (opt.progress) opt.progress("read", done, h.count);
         if (!convert) {
           w.write(src, n * h.record_length);
           return;

@@ -28,7 +28,9 @@ struct CopcWriteOptions {
   /// Folder for the temporary records file (LAZ, PDRF 0-3 or non-LAS input: the records in the
   /// output format, uncompressed; removed at the end) (default: the output's folder).
   std::filesystem::path temp_dir;
-  /// Called with (phase "tree" or "encode", points done, points in all) now and then (may be empty).
+  /// Called with (phase "read" (decoding or converting into the temporary records file), "tree"
+  /// or "encode"; points done; points in all) every batch (may be empty). An exception it
+  /// throws stops the build and removes the temporary files (how `rayscan index` is interrupted).
   std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)> progress;
 };
 
