@@ -67,13 +67,13 @@ Runner add_index_command(CLI::App& app) {
   auto o = std::make_shared<Opts>();
   sub->add_option("CLOUD", o->inputs, "input point cloud files (tiles of one site, same CRS)")->required();
   sub->add_option("-o,--output", o->output, "index file to write (.rsi), or a COPC 1.0 file (.copc.laz; one CLOUD, "
-                                            "built in memory within --memory)")->required();
+                                            "12 bytes per point within --memory)")->required();
   sub->add_option("--attributes", o->attributes,
                   "attributes to store besides positions: id,rgb,intensity,classification,gps_time | all | none "
                   "(id: the original point ids, 4 bytes/point; without it outputs are in index order)")
       ->capture_default_str();
   sub->add_option("--memory", o->memory, "memory budget of the external sort (e.g. 4G, 512M); for .copc.laz of the "
-                                         "in-memory octree build")->capture_default_str();
+                                         "build (12 bytes per point plus 256 MiB)")->capture_default_str();
   sub->add_option("--layout", o->layout, "octree layout: adaptive | fixed")->capture_default_str();
   sub->add_option("--capacity", o->capacity, "adaptive: points per leaf before a split")->capture_default_str();
   sub->add_option("--depth", o->depth, "fixed: leaf depth")->capture_default_str();
@@ -83,7 +83,7 @@ Runner add_index_command(CLI::App& app) {
                   "else float64 | float64: always 24 bytes per point (docs/index-format.md)")
       ->check(CLI::IsMember({"compact", "float64"}))
       ->capture_default_str();
-  sub->add_option("--temp-dir", o->temp_dir, "folder for the sort runs (default: the output's folder)");
+  sub->add_option("--temp-dir", o->temp_dir, "folder for the sort runs, or of a .copc.laz output's temporary records file (default: the output's folder)");
   sub->add_flag("-q,--quiet", o->quiet, "no progress on stderr");
   return [o]() -> int {
     require_single_process("rayscan index");

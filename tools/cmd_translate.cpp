@@ -1,4 +1,4 @@
-// `rayscan translate IN OUT`: point file conversion (lossless LAS <-> LAZ; any input to LAS, LAZ, PLY). Parsing
+// `rayscan translate IN OUT`: point file conversion (lossless LAS <-> LAZ; any input to COPC, LAS, LAZ, PLY, ...). Parsing
 // and printing only; the job is rayscan::jobs::run_translate (rayscan/jobs/translate.hpp).
 #include "commands.hpp"
 #include "copc_summary.hpp"
@@ -16,7 +16,7 @@ namespace rayscan::cli {
 Runner add_translate_command(CLI::App& app) {
   auto* sub = app.add_subcommand("translate", "Convert point files (like `pdal translate`): LAS <-> LAZ losslessly "
                                               "(same header, VLRs/EVLRs and byte-identical point records); any "
-                                              "readable file to .las, .laz, .ply, .pcd or text (.xyz, .csv, .txt) by OUT's extension");
+                                              "readable file to .copc.laz (COPC 1.0), .las, .laz, .ply, .pcd or text (.xyz, .csv, .txt) by OUT's extension");
   auto in = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto format = std::make_shared<std::string>("auto");
@@ -30,7 +30,7 @@ Runner add_translate_command(CLI::App& app) {
   sub->add_option("--format", *format, "output: auto (by OUT's extension), las or laz")
       ->check(CLI::IsMember({"auto", "las", "laz"}));
   sub->add_option("--chunk-size", *chunk, "points per LAZ chunk (not COPC: one chunk per octree node)")->check(CLI::Range(1u, 0xFFFFFFFEu));
-  sub->add_option("--memory", *memory, "COPC output: memory budget of the in-memory octree build (e.g. 4G, 512M)")
+  sub->add_option("--memory", *memory, "COPC output: memory budget of the build: 12 bytes per point plus 256 MiB (e.g. 4G, 512M)")
       ->capture_default_str();
   auto quiet = std::make_shared<bool>(false);
   sub->add_flag("-q,--quiet", *quiet, "no progress on stderr");
