@@ -2,6 +2,7 @@
 // (a site delivered as tiles is one index) out of core. Parsing and printing only; the job is
 // rayscan::jobs::run_index (rayscan/jobs/index.hpp).
 #include "commands.hpp"
+#include "copc_summary.hpp"
 #include "phase_progress.hpp"
 #include "processes.hpp"
 
@@ -65,12 +66,14 @@ Runner add_index_command(CLI::App& app) {
   };
   auto o = std::make_shared<Opts>();
   sub->add_option("CLOUD", o->inputs, "input point cloud files (tiles of one site, same CRS)")->required();
-  sub->add_option("-o,--output", o->output, "index file to write (.rsi)")->required();
+  sub->add_option("-o,--output", o->output, "index file to write (.rsi), or a COPC 1.0 file (.copc.laz; one CLOUD, "
+                                            "12 bytes per point within --memory)")->required();
   sub->add_option("--attributes", o->attributes,
                   "attributes to store besides positions: id,rgb,intensity,classification,gps_time | all | none "
                   "(id: the original point ids, 4 bytes/point; without it outputs are in index order)")
       ->capture_default_str();
-  sub->add_option("--memory", o->memory, "memory budget of the external sort (e.g. 4G, 512M)")->capture_default_str();
+  sub->add_option("--memory", o->memory, "memory budget of the external sort (e.g. 4G, 512M); for .copc.laz of the "
+                                         "build (12 bytes per point plus 256 MiB)")->capture_default_str();
   sub->add_option("--layout", o->layout, "octree layout: adaptive | fixed")->capture_default_str();
   sub->add_option("--capacity", o->capacity, "adaptive: points per leaf before a split")->capture_default_str();
   sub->add_option("--depth", o->depth, "fixed: leaf depth")->capture_default_str();
@@ -80,7 +83,7 @@ Runner add_index_command(CLI::App& app) {
                   "else float64 | float64: always 24 bytes per point (docs/index-format.md)")
       ->check(CLI::IsMember({"compact", "float64"}))
       ->capture_default_str();
-  sub->add_option("--temp-dir", o->temp_dir, "folder for the sort runs (default: the output's folder)");
+  sub->add_option("--temp-dir", o->temp_dir, "folder for the sort runs, or of a .copc.laz output's temporary records file (default: the output's folder)");
   sub->add_flag("-q,--quiet", o->quiet, "no progress on stderr");
   return [o]() -> int {
     require_single_process("rayscan index");
@@ -117,9 +120,14 @@ Runner add_index_command(CLI::App& app) {
       std::cerr << "rayscan index: " << e.what() << "\n";
       return 128 + e.signal;  // the shell's convention for a command ended by a signal
     }
-    const io::IndexBuildStats& st = r.stats;
     const double s = secs();
     progress.finish();
+    if (r.copc) {
+      print_copc_summary(o->output, *r.copc);
+      std::printf("%.2f s (%.2f M points/s)\n", s, s > 0 ? static_cast<double>(r.copc->points) / s / 1e6 : 0.0);
+      return 0;
+    }
+    const io::IndexBuildStats& st = r.stats;
     for (const std::string& n : st.notes) std::cerr << "note: " << n << "\n";
     std::printf("%s: %llu points, %llu nodes, depth %u, %llu sort runs, %s, positions %s; %.2f bytes/point; %.2f s (%.2f M points/s)\n",
                 o->output.c_str(), static_cast<unsigned long long>(st.points),

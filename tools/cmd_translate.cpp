@@ -1,6 +1,7 @@
-// `rayscan translate IN OUT`: point file conversion (lossless LAS <-> LAZ; any input to LAS, LAZ, PLY). Parsing
+// `rayscan translate IN OUT`: point file conversion (lossless LAS <-> LAZ; any input to COPC, LAS, LAZ, PLY, ...). Parsing
 // and printing only; the job is rayscan::jobs::run_translate (rayscan/jobs/translate.hpp).
 #include "commands.hpp"
+#include "copc_summary.hpp"
 #include "phase_progress.hpp"
 #include "processes.hpp"
 
@@ -15,21 +16,25 @@ namespace rayscan::cli {
 Runner add_translate_command(CLI::App& app) {
   auto* sub = app.add_subcommand("translate", "Convert point files (like `pdal translate`): LAS <-> LAZ losslessly "
                                               "(same header, VLRs/EVLRs and byte-identical point records); any "
-                                              "readable file to .las, .laz, .ply, .pcd or text (.xyz, .csv, .txt) by OUT's extension");
+                                              "readable file to .copc.laz (COPC 1.0), .las, .laz, .ply, .pcd or text (.xyz, .csv, .txt) by OUT's extension");
   auto in = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto format = std::make_shared<std::string>("auto");
   auto chunk = std::make_shared<std::uint32_t>(50000);
+  auto memory = std::make_shared<std::string>("4G");
   sub->add_option("IN", *in, "input point file (LAS, LAZ, COPC, PLY, PCD, XYZ/CSV/TXT)")->required();
-  sub->add_option("OUT", *out, "output file: .las, .laz, .ply (binary, double x y z), .pcd (binary, double x y z) or "
+  sub->add_option("OUT", *out, "output file: .las, .laz, .copc.laz (COPC 1.0: LAZ 1.4 with an octree of grid subsamples), "
+                                ".ply (binary, double x y z), .pcd (binary, double x y z) or "
                                 "text with a header line (.xyz and .txt space-separated, .csv comma-separated)")
       ->required();
   sub->add_option("--format", *format, "output: auto (by OUT's extension), las or laz")
       ->check(CLI::IsMember({"auto", "las", "laz"}));
-  sub->add_option("--chunk-size", *chunk, "points per LAZ chunk")->check(CLI::Range(1u, 0xFFFFFFFEu));
+  sub->add_option("--chunk-size", *chunk, "points per LAZ chunk (not COPC: one chunk per octree node)")->check(CLI::Range(1u, 0xFFFFFFFEu));
+  sub->add_option("--memory", *memory, "COPC output: memory budget of the build: 12 bytes per point plus 256 MiB (e.g. 4G, 512M)")
+      ->capture_default_str();
   auto quiet = std::make_shared<bool>(false);
   sub->add_flag("-q,--quiet", *quiet, "no progress on stderr");
-  return [in, out, format, chunk, quiet]() -> int {
+  return [in, out, format, chunk, memory, quiet]() -> int {
     require_single_process("rayscan translate");
     jobs::TranslateJobOptions job;
     job.in = *in;
@@ -37,6 +42,7 @@ Runner add_translate_command(CLI::App& app) {
     job.compression = *format == "las" ? jobs::LasCompression::las
                       : *format == "laz" ? jobs::LasCompression::laz : jobs::LasCompression::by_extension;
     job.chunk_size = *chunk;
+    job.memory = *memory;
     const PhaseProgress progress("translate", *quiet);
     job.progress = progress;
     const jobs::TranslateJobResult r = jobs::run_translate(job);
@@ -47,6 +53,10 @@ Runner add_translate_command(CLI::App& app) {
                           : ext == ".pcd"                                      ? "PCD"
                           : ext == ".las" || ext == ".laz"                     ? (r.compressed ? "LAZ" : "LAS")
                                                                                : "text";
+    if (r.copc) {
+      print_copc_summary(*out, *r.copc);
+      return 0;
+    }
     std::cout << *out << ": " << r.points << " points, " << written << ", " << r.out_bytes
               << " bytes";
     if (r.compressed) std::cout << " in " << r.chunks << " chunks";

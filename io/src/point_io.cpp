@@ -72,12 +72,15 @@ const std::vector<std::string>& point_cloud_output_extensions() {
   return exts;
 }
 
-std::string point_cloud_output_problem(const std::filesystem::path& path) {
+bool is_copc_output(const std::filesystem::path& path) {
   std::string name = path.filename().string();
   std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  if (name.size() > 9 && name.ends_with(".copc.laz"))
-    return "writing COPC is not supported yet (write .laz, or make a COPC file from it with PDAL's writers.copc or "
-           "untwine)";
+  return name.size() > 9 && name.ends_with(".copc.laz");
+}
+
+std::string point_cloud_output_problem(const std::filesystem::path& path) {
+  if (is_copc_output(path))
+    return "writing COPC is not supported by this command (write .laz, then `rayscan translate OUT.laz OUT.copc.laz`)";
   if (!has_extension(path, point_cloud_output_extensions())) return extensions_expected(point_cloud_output_extensions());
   return "";
 }

@@ -5,6 +5,7 @@
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/base/threads.hpp"
+#include "rayscan/io/point_io.hpp"
 
 #include <tbb/task_arena.h>
 
@@ -22,7 +23,7 @@ io::IndexBuildOptions index_build_options(const IndexJobOptions& o) {
   b.attributes = o.attributes == "all" ? io::kIndexAttributes : io::AttributeSet::parse(o.attributes);
   b.compact_positions = o.compact_positions;
   if (!io::is_index_file(o.output))
-    throw OptionError({o.output.string() + ": the index file name must end in .rsi"});
+    throw OptionError({o.output.string() + ": the index file name must end in .rsi (or .copc.laz for a COPC file)"});
   b.temp_dir = o.temp_dir;
   b.progress = o.progress;
   return b;
@@ -31,6 +32,22 @@ io::IndexBuildOptions index_build_options(const IndexJobOptions& o) {
 }  // namespace
 
 IndexJobResult run_index(const IndexJobOptions& options) {
+  if (io::is_copc_output(options.output)) {
+    if (options.inputs.size() != 1)
+      throw OptionError({options.output.string() + ": a COPC output is written from one input file (got " +
+                         std::to_string(options.inputs.size()) + ")"});
+    io::CopcWriteOptions c;
+    c.memory_bytes = parse_byte_size(options.memory);
+    c.temp_dir = options.temp_dir;
+    c.progress = options.progress;
+    const std::filesystem::path out[] = {options.output};
+    require_outputs(out, options.inputs);
+    IndexJobResult result;
+    result.output = options.output;
+    tbb::task_arena arena(static_cast<int>(resolve_threads(options.control.threads)));
+    arena.execute([&] { result.copc = io::write_copc(options.inputs[0], options.output, c); });
+    return result;
+  }
   const io::IndexBuildOptions build = index_build_options(options);
   const std::filesystem::path out[] = {options.output};
   require_outputs(out, options.inputs);

@@ -3,17 +3,36 @@
 #include "rayscan/jobs/translate.hpp"
 
 #include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/byte_size.hpp"
+#include "rayscan/base/threads.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/io/point_io.hpp"
+
+#include <tbb/task_arena.h>
 
 namespace rayscan::jobs {
 
 TranslateJobResult run_translate(const TranslateJobOptions& options) {
   // The output's format is checked before anything is read (a .ply or .xyz name once received
   // LAS bytes with exit 0, a .copc.laz name a plain LAZ).
-  if (options.compression == LasCompression::by_extension) io::require_point_cloud_output(options.out);
+  const bool copc = options.compression == LasCompression::by_extension && io::is_copc_output(options.out);
+  if (options.compression == LasCompression::by_extension && !copc) io::require_point_cloud_output(options.out);
   const std::filesystem::path out[] = {options.out}, in[] = {options.in};
   require_outputs(out, in);
+  if (copc) {
+    io::CopcWriteOptions c;
+    c.memory_bytes = parse_byte_size(options.memory);
+    c.progress = options.progress;
+    TranslateJobResult r;
+    tbb::task_arena arena(static_cast<int>(resolve_threads(options.control.threads)));
+    arena.execute([&] { r.copc = io::write_copc(options.in, options.out, c); });
+    r.points = r.copc->points;
+    r.chunks = r.copc->nodes;
+    r.compressed = true;
+    r.in_bytes = r.copc->in_bytes;
+    r.out_bytes = r.copc->out_bytes;
+    return r;
+  }
   const bool las_in = io::format_from_extension(options.in) == io::Format::las;
   const std::string ext = lower_extension(options.out);
   const bool las_out = options.compression != LasCompression::by_extension || ext == ".las" || ext == ".laz";
@@ -22,7 +41,9 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
     t.compression = options.compression;
     t.chunk_size = options.chunk_size;
     t.progress = options.progress;
-    return io::translate_las(options.in, options.out, t);  // checks chunk_size (OptionError)
+    TranslateJobResult r;
+    static_cast<io::TranslateResult&>(r) = io::translate_las(options.in, options.out, t);  // checks chunk_size (OptionError)
+    return r;
   }
   // Any readable input to any written format (io::write_point_cloud by the extension): every
   // attribute the readers keep, positions in double (LAS output quantises them to write_las's

@@ -142,7 +142,7 @@ TEST(VisibilityJob, OptionErrorsComeBeforeAnyWork) {
   o.out = "x.e57";
   EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "out 'x.e57': expected a file name ending in .las, .laz, .ply, .pcd, .xyz, .csv or .txt");
   o.out = "x.copc.laz";  // a plain LAZ under a COPC name would claim an octree it does not have
-  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }).rfind("out 'x.copc.laz': writing COPC is not supported yet", 0), 0u);
+  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }).rfind("out 'x.copc.laz': writing COPC is not supported by this command", 0), 0u);
   o.out = "";
   o.raster_value = "count";
   o.raster = "m.tif";

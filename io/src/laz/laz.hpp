@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -118,6 +119,18 @@ class ChunkDecoder {
 /// Read-only memory map of a whole file: the streaming readers' detail::MappedFile
 /// (readers.hpp), one mapping class for the LAS, LAZ and COPC code.
 using FileMap = detail::MappedFile;
+
+/// The LASzip VLR payload the writers emit (laszip.cpp LASzip::pack): pointwise-chunked with
+/// version 2 items for `pdrf` 0-3 (LASzip 2.2), layered-chunked with version 3 items for `pdrf`
+/// 6-8 (LASzip 3.4 r3, what laszip and laz-perf write for LAS 1.4 formats), `extra` bytes as a
+/// BYTE/BYTE14 item; `chunk_size` points per chunk, 0xFFFFFFFF for variable chunks (COPC).
+/// Defined in translate.cpp.
+std::vector<std::uint8_t> laszip_vlr_payload(int pdrf, std::size_t extra, std::uint32_t chunk_size);
+
+/// The chunk table read_chunk_table() reads: version 0, the chunk count, then arithmetic-coded
+/// per chunk its point count (only when `points` is non-empty: variable chunks) and its byte size
+/// (`bytes`). Defined in translate.cpp.
+std::vector<std::uint8_t> chunk_table_bytes(std::span<const std::uint32_t> points, std::span<const std::uint32_t> bytes);
 
 /// Decompresses all `count` records of a LAZ file into `out` (count * record_length bytes),
 /// chunks in parallel (TBB; the output is identical for any thread count).

@@ -86,10 +86,37 @@ class RecordSource {
   std::uint64_t left_ = 0, done_ = 0;
 };
 
-/// LASzip VLR payload (laszip.cpp LASzip::pack): pointwise-chunked with version 2 items for
-/// `pdrf` 0-3 (LASzip 2.2), layered-chunked with version 3 items for `pdrf` 6-8 (LASzip 3.4 r3,
-/// what laszip and laz-perf write for LAS 1.4 formats), `extra` bytes as a BYTE/BYTE14 item.
-std::vector<std::uint8_t> laszip_vlr(int pdrf, std::size_t extra, std::uint32_t chunk_size) {
+/// Compresses `n` records into one chunk (first record raw, then the arithmetic-coded rest).
+void encode_chunk_v2(const std::uint8_t* recs, std::size_t n, std::size_t rec, int pdrf, std::size_t extra,
+                     std::vector<std::uint8_t>& out) {
+  out.insert(out.end(), recs, recs + rec);
+  if (n == 1) return;
+  laz::Point10V2Enc p;
+  std::optional<laz::GpsTime11V2Enc> g;
+  std::optional<laz::Rgb12V2Enc> c;
+  std::optional<laz::ByteV2Enc> b;
+  std::size_t off = 20, og = 0, oc = 0, ob = 0;
+  p.init(recs);
+  if (pdrf == 1 || pdrf == 3) g.emplace(), g->init(recs + off), og = off, off += 8;
+  if (pdrf == 2 || pdrf == 3) c.emplace(), c->init(recs + off), oc = off, off += 6;
+  if (extra > 0) b.emplace(extra), b->init(recs + off), ob = off;
+  laz::ArithmeticEncoder enc(out);
+  for (std::size_t i = 1; i < n; ++i) {
+    const std::uint8_t* r = recs + i * rec;
+    p.write(enc, r);
+    if (g) g->write(enc, r + og);
+    if (c) c->write(enc, r + oc);
+    if (b) b->write(enc, r + ob);
+  }
+  enc.done();
+}
+
+}  // namespace
+
+namespace laz {
+
+// LASzip VLR payload (laszip.cpp LASzip::pack): see laz.hpp.
+std::vector<std::uint8_t> laszip_vlr_payload(int pdrf, std::size_t extra, std::uint32_t chunk_size) {
   const bool layered = pdrf >= 6;
   const std::uint16_t iv = layered ? 3 : 2;
   std::vector<std::uint16_t> items;  // type, size pairs
@@ -123,32 +150,30 @@ std::vector<std::uint8_t> laszip_vlr(int pdrf, std::size_t extra, std::uint32_t 
   return v;
 }
 
-/// Compresses `n` records into one chunk (first record raw, then the arithmetic-coded rest).
-void encode_chunk_v2(const std::uint8_t* recs, std::size_t n, std::size_t rec, int pdrf, std::size_t extra,
-                     std::vector<std::uint8_t>& out) {
-  out.insert(out.end(), recs, recs + rec);
-  if (n == 1) return;
-  laz::Point10V2Enc p;
-  std::optional<laz::GpsTime11V2Enc> g;
-  std::optional<laz::Rgb12V2Enc> c;
-  std::optional<laz::ByteV2Enc> b;
-  std::size_t off = 20, og = 0, oc = 0, ob = 0;
-  p.init(recs);
-  if (pdrf == 1 || pdrf == 3) g.emplace(), g->init(recs + off), og = off, off += 8;
-  if (pdrf == 2 || pdrf == 3) c.emplace(), c->init(recs + off), oc = off, off += 6;
-  if (extra > 0) b.emplace(extra), b->init(recs + off), ob = off;
-  laz::ArithmeticEncoder enc(out);
-  for (std::size_t i = 1; i < n; ++i) {
-    const std::uint8_t* r = recs + i * rec;
-    p.write(enc, r);
-    if (g) g->write(enc, r + og);
-    if (c) c->write(enc, r + oc);
-    if (b) b->write(enc, r + ob);
+std::vector<std::uint8_t> chunk_table_bytes(std::span<const std::uint32_t> points, std::span<const std::uint32_t> bytes) {
+  // LASzip lasreadpoint.cpp read_chunk_table: version 0, count, then per chunk the point count
+  // (variable chunks only, context 0) and the byte size (context 1), each against the previous.
+  std::vector<std::uint8_t> table;
+  append_le<std::uint32_t>(table, 0);
+  append_le<std::uint32_t>(table, static_cast<std::uint32_t>(bytes.size()));
+  if (!bytes.empty()) {
+    ArithmeticEncoder enc(table);
+    IntegerCompressor ic(32, 2);
+    std::int32_t prev_points = 0, prev_bytes = 0;
+    for (std::size_t i = 0; i < bytes.size(); ++i) {
+      if (!points.empty()) {
+        ic.compress(enc, prev_points, static_cast<std::int32_t>(points[i]), 0);
+        prev_points = static_cast<std::int32_t>(points[i]);
+      }
+      ic.compress(enc, prev_bytes, static_cast<std::int32_t>(bytes[i]), 1);
+      prev_bytes = static_cast<std::int32_t>(bytes[i]);
+    }
+    enc.done();
   }
-  enc.done();
+  return table;
 }
 
-}  // namespace
+}  // namespace laz
 
 TranslateResult translate_las(const std::filesystem::path& in_path, const std::filesystem::path& out_path,
                               const TranslateOptions& opt) {
@@ -193,7 +218,7 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
   }
   head.insert(head.end(), d + pos, d + h.point_offset);  // bytes between the VLRs and the points
   if (to_laz) {
-    const std::vector<std::uint8_t> payload = laszip_vlr(h.pdrf, extra, opt.chunk_size);
+    const std::vector<std::uint8_t> payload = laz::laszip_vlr_payload(h.pdrf, extra, opt.chunk_size);
     std::vector<std::uint8_t> vh(54, 0);
     std::memcpy(vh.data() + 2, "laszip encoded", 14);
     store_le<std::uint16_t>(vh, 18, 22204);
@@ -249,21 +274,8 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
       written += chunk.size();
       report(i, i + n);
     }
-    // chunk table (LASzip lasreadpoint.cpp read_chunk_table): version 0, count, coded byte sizes
     const std::uint64_t table_at = written;
-    std::vector<std::uint8_t> table;
-    append_le<std::uint32_t>(table, 0);
-    append_le<std::uint32_t>(table, static_cast<std::uint32_t>(sizes.size()));
-    if (!sizes.empty()) {
-      laz::ArithmeticEncoder enc(table);
-      laz::IntegerCompressor ic(32, 2);
-      std::int32_t prev = 0;
-      for (std::uint32_t s : sizes) {
-        ic.compress(enc, prev, static_cast<std::int32_t>(s), 1);
-        prev = static_cast<std::int32_t>(s);
-      }
-      enc.done();
-    }
+    const std::vector<std::uint8_t> table = laz::chunk_table_bytes({}, sizes);
     f.write(reinterpret_cast<const char*>(table.data()), static_cast<std::streamsize>(table.size()));
     written += table.size();
     res.chunks = sizes.size();

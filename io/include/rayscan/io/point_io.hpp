@@ -127,10 +127,15 @@ void write_text(const std::filesystem::path& path, const PointCloud& cloud);
 /// ".pcd", ".xyz", ".csv", ".txt".
 [[nodiscard]] const std::vector<std::string>& point_cloud_output_extensions();
 
+/// True when `path`'s file name ends in ".copc.laz" (ASCII case-insensitive, with a stem before
+/// it): the one rule by which an output is meant to be COPC (rayscan/site/copc_writer.hpp).
+[[nodiscard]] bool is_copc_output(const std::filesystem::path& path);
+
 /// Why write_point_cloud() cannot write `path`, or "" when it can: "expected a file name ending
-/// in .las, .laz, .ply, ..." for another extension, and a refusal for a name ending in
-/// ".copc.laz" (COPC output is not written yet: a plain LAZ under that name would claim an octree
-/// it does not have). The one rule of require_point_cloud_output() and the jobs' option checks.
+/// in .las, .laz, .ply, ..." for another extension, and a refusal for a COPC name
+/// (is_copc_output: COPC is built from a file by `rayscan translate` and `rayscan index`, not from
+/// an in-memory cloud; a plain LAZ under that name would claim an octree it does not have). The
+/// one rule of require_point_cloud_output() and the jobs' option checks.
 [[nodiscard]] std::string point_cloud_output_problem(const std::filesystem::path& path);
 
 /// Throws std::invalid_argument "<path>: <point_cloud_output_problem(path)>" unless

@@ -4,10 +4,12 @@
 
 #include "rayscan/base/job.hpp"
 #include "rayscan/octree/octree.hpp"
+#include "rayscan/site/copc_writer.hpp"
 #include "rayscan/site/index_file.hpp"
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -22,7 +24,10 @@ struct IndexJobOptions {
   /// The point cloud files (any format the io readers read; tiles of one site in one CRS). Their
   /// points get ids 0, 1, ... in this order.
   std::vector<std::filesystem::path> inputs;
-  std::filesystem::path output;  ///< the index file to write; its name must end in .rsi (any case)
+  /// The index file to write; its name must end in .rsi (any case), or in .copc.laz
+  /// (io::is_copc_output) for a COPC 1.0 file instead (one input; io::write_copc with `memory`,
+  /// `temp_dir`, `progress` and `control`; the other options do not apply).
+  std::filesystem::path output;
   /// Attributes stored besides positions, as io::AttributeSet::parse reads them
   /// ("id,rgb,intensity,classification,gps_time", "none"); exactly "all" means every attribute an
   /// index stores (io::kIndexAttributes). `id` stores the original point ids (4 bytes per point).
@@ -44,7 +49,8 @@ struct IndexJobOptions {
 /// Output of run_index().
 struct IndexJobResult {
   std::filesystem::path output;  ///< the index file written
-  IndexBuildStats stats;         ///< points, nodes, depth, sort runs, bytes, encodings, notes for the user
+  IndexBuildStats stats;         ///< points, nodes, depth, sort runs, bytes, encodings, notes for the user (.rsi)
+  std::optional<io::CopcWriteResult> copc;  ///< set instead of `stats` when a COPC file was written
 };
 
 /// Checks the options, then builds the index file (io::build_index_file: an external sort by Morton

@@ -1,14 +1,18 @@
 // The translate job: lossless LAS <-> LAZ conversion (same header, VLRs/EVLRs and byte-identical
-// point records; io::translate_las), and any readable point file to LAS, LAZ or PLY by the
-// output's extension (io::write_point_cloud). `rayscan translate` runs it.
+// point records; io::translate_las), any readable point file to COPC (io::write_copc) for a
+// .copc.laz name, and to LAS, LAZ, PLY, PCD or text by the output's extension
+// (io::write_point_cloud). `rayscan translate` runs it.
 #pragma once
 
 #include "rayscan/base/job.hpp"
 #include "rayscan/io/translate.hpp"
+#include "rayscan/site/copc_writer.hpp"
 
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
+#include <string>
 
 namespace rayscan::jobs {
 
@@ -25,23 +29,30 @@ struct TranslateJobOptions {
   /// Points per LAZ chunk (LASzip's default 50000): 1 to 4294967294 (0xFFFFFFFF marks
   /// variable-sized chunks in a LASzip VLR).
   std::uint32_t chunk_size = 50000;
-  JobControl control;  ///< unused today (the conversion streams on one thread)
+  /// COPC output: the memory budget of the in-memory octree build, a byte size as
+  /// parse_byte_size reads it ("4G", "512M"); unused for other outputs.
+  std::string memory = "4G";
+  JobControl control;  ///< COPC output: threads compressing nodes (0 = all cores); unused otherwise
   /// LAS <-> LAZ: called with (phase, points done, points in the file) as the conversion streams
   /// (io::TranslateOptions::progress); may be empty.
   std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)> progress;
 };
 
-/// Output of run_translate(): points, chunks, compressed, input and output sizes.
-using TranslateJobResult = io::TranslateResult;
+/// Output of run_translate(): points, chunks, compressed, input and output sizes; for COPC
+/// output also the octree written (chunks = nodes).
+struct TranslateJobResult : io::TranslateResult {
+  std::optional<io::CopcWriteResult> copc;  ///< set when a COPC file was written
+};
 
-/// Converts `in` to `out`. LAS/LAZ to LAS/LAZ streams one chunk at a time (memory independent of
+/// Converts `in` to `out`. A name ending in .copc.laz (io::is_copc_output; with the format left
+/// by_extension) is written as COPC 1.0 by io::write_copc (rayscan/site/copc_writer.hpp). LAS/LAZ to LAS/LAZ streams one chunk at a time (memory independent of
 /// the file size; details in rayscan/io/translate.hpp); any other pair reads the cloud whole and
 /// writes it with io::write_point_cloud (PLY output keeps positions exactly; LAS output quantises
 /// them to write_las's scale). The output's format and path are checked before the input is read
 /// (io::require_point_cloud_output, require_outputs). Throws OptionError naming "chunk_size" for
 /// a chunk size outside [1, 4294967294], std::invalid_argument for an output extension with no
-/// writer (or a .copc.laz name) and for an unsupported conversion (LAZ output of the waveform
-/// point formats 4, 5, 9, 10), io::FormatError for a malformed input, OutputFileError or
+/// writer and for an unsupported conversion (LAZ or COPC output of the waveform point formats 4,
+/// 5, 9, 10), io::CopcMemoryError when a COPC build exceeds `memory`, io::FormatError for a malformed input, OutputFileError or
 /// std::runtime_error for I/O failures (the previous output, if any, is then left unchanged).
 TranslateJobResult run_translate(const TranslateJobOptions& options);
 

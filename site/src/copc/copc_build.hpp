@@ -1,0 +1,112 @@
+// Internal: the steps of write_copc() (rayscan/site/copc_writer.hpp): the input's records in a
+// COPC point format (copc_records.cpp), the octree that distributes them over nodes
+// (copc_tree.cpp), and the file assembly (copc_writer.cpp).
+#pragma once
+
+#include "readers.hpp"
+#include "rayscan/octree/geometry.hpp"
+#include "rayscan/site/copc_writer.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace rayscan::io::copc {
+
+/// One (E)VLR carried over from the input: header fields and payload.
+struct CarriedVlr {
+  std::string user;
+  std::uint16_t record = 0;
+  std::string description;
+  std::vector<std::uint8_t> payload;
+};
+
+/// The mapped file the records are read from: the input itself (an uncompressed LAS of PDRF
+/// 6-8), or a temporary file of converted records, removed when this is destroyed.
+struct RecordFile {
+  std::unique_ptr<detail::MappedFile> map;
+  std::filesystem::path temp;  ///< removed on destruction when not empty
+  RecordFile() = default;
+  RecordFile(const RecordFile&) = delete;
+  RecordFile& operator=(const RecordFile&) = delete;
+  ~RecordFile() {
+    map.reset();
+    std::error_code ec;
+    if (!temp.empty()) std::filesystem::remove(temp, ec);
+  }
+};
+
+/// The input as PDRF 6, 7 or 8 records (plus extra bytes) and the header fields a COPC file
+/// keeps from it. The records stay on disk (mapped): the build keeps 12 bytes per point in
+/// memory, whatever the record length.
+struct Records {
+  int pdrf = 6;                     ///< 6, 7 or 8
+  std::uint16_t record_length = 0;  ///< PDRF length + extra bytes
+  std::uint64_t count = 0;
+  const std::uint8_t* bytes = nullptr;  ///< count * record_length, inside `file`'s mapping
+  std::shared_ptr<RecordFile> file;
+  Vec3 scale{0.01}, offset{0.0};
+  std::uint16_t file_source_id = 0;
+  std::uint16_t global_encoding = 0;  ///< bit 0 (GPS time type) kept from the input; bit 4 set with a WKT
+  std::uint8_t guid[16] = {};
+  std::uint16_t creation_day = 0, creation_year = 0;
+  std::string crs_wkt;              ///< OGC WKT of the input's CRS ("" when none)
+  std::vector<CarriedVlr> vlrs;     ///< input VLRs kept (not LASzip, COPC or CRS ones)
+  std::vector<CarriedVlr> evlrs;    ///< input EVLRs kept (not COPC or CRS ones)
+  std::uint64_t in_bytes = 0;
+  std::vector<std::string> notes;
+};
+
+/// Opens `in` as Records (see write_copc() for the conversions): an uncompressed PDRF 6-8 LAS is
+/// mapped as it is; LAZ (decoded in parallel by batches of chunks), PDRF 0-3 (converted) and
+/// other formats (through write_las) are written to a temporary uncompressed file in
+/// `options.temp_dir` first. Throws CopcMemoryError when the build's 12 bytes per point exceed
+/// `memory_bytes` (checked from the header before the points are read), FormatError,
+/// std::invalid_argument as write_copc().
+Records read_records(const std::filesystem::path& in, const CopcWriteOptions& options);
+
+/// The COPC root cube (COPC 1.0 "Info VLR": center and halfsize) in file units.
+struct Cube {
+  Vec3 center{0.0};
+  double halfsize = 0;
+  [[nodiscard]] Vec3 lo() const { return center - Vec3(halfsize); }
+};
+
+/// A point in the build: its Morton code in the root cube and its record index (12 bytes: the
+/// build's whole memory per point).
+#pragma pack(push, 1)
+struct Slot {
+  std::uint64_t key;
+  std::uint32_t index;
+};
+#pragma pack(pop)
+static_assert(sizeof(Slot) == 12);
+
+/// One octree node: VoxelKey, and its points as the range [begin, begin + count) of
+/// Tree::slots (in input order within the node).
+struct Node {
+  std::int32_t level = 0, x = 0, y = 0, z = 0;
+  std::uint64_t begin = 0;
+  std::uint32_t count = 0;
+};
+
+/// The distributed points: nodes in depth-first pre-order (children in Morton digit order),
+/// each with at least one point.
+struct Tree {
+  Cube cube;
+  std::vector<Node> nodes;
+  std::vector<Slot> slots;  ///< the points, grouped by node (nodes' ranges)
+};
+
+/// Bytes per point the build keeps in memory (CopcWriteOptions::memory_bytes).
+inline constexpr std::uint64_t kBytesPerPoint = sizeof(Slot);
+/// Bytes besides: the decode and compression batches (a bound, for the memory check).
+inline constexpr std::uint64_t kBatchBytes = std::uint64_t{256} << 20;
+
+/// Cube of `r`'s points and their distribution over the octree (write_copc()'s rule: a node
+/// above `leaf_points` keeps the point nearest each cell centre of its 128^3 grid).
+Tree build_tree(const Records& r, const CopcWriteOptions& options);
+
+}  // namespace rayscan::io::copc

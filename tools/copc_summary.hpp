@@ -1,0 +1,15 @@
+// The summary `rayscan translate` and `rayscan index` print after writing a COPC file.
+#pragma once
+
+#include "rayscan/site/copc_writer.hpp"
+
+#include <string>
+
+namespace rayscan::cli {
+
+/// Prints on stdout "<out>: N points, COPC 1.0 (PDRF p, r bytes/record), M nodes, depth D, P
+/// hierarchy pages, B bytes (input I bytes)" and one line per level (nodes, points), and the
+/// writer's notes on stderr ("note: ...").
+void print_copc_summary(const std::string& out, const io::CopcWriteResult& r);
+
+}  // namespace rayscan::cli
