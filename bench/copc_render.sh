@@ -3,8 +3,7 @@
 #   bench/copc_render.sh BUILD_DIR FILE.copc.laz [rounds width height spp cache_mb]
 #   bench/copc_render.sh BUILD_DIR site:N [rounds width height spp cache_mb]
 # "site:N" (e.g. site:2e7) generates the file first: BUILD_DIR/bench/make_site writes an N-point
-# LAS site, BUILD_DIR/bench/make_copc turns it into a COPC file (benchmark-only writer: PDAL's
-# writers.copc is not packaged in Debian 12), both under $COPC_SCRATCH (default
+# LAS site, `rayscan translate` turns it into a COPC file, both under $COPC_SCRATCH (default
 # BUILD_DIR/copc-bench-data), deleted at the end. Needs ~50 bytes per point of free disk.
 set -eu
 B=${1:?build dir}; F=${2:?copc file or site:N}; R=${3:-3}; W=${4:-64}; H=${5:-48}; S=${6:-1}; C=${7:-2048}
@@ -21,7 +20,7 @@ case "$F" in
     fi
     trap 'rm -f "$D/site.las" "$D/site.copc.laz"' EXIT
     nice "$B/bench/make_site" "$D/site.las" "$N"
-    nice "$B/bench/make_copc" "$D/site.las" "$D/site.copc.laz"
+    nice "$B/tools/rayscan" translate -q "$D/site.las" "$D/site.copc.laz"
     rm -f "$D/site.las"
     F=$D/site.copc.laz
     ;;

@@ -58,7 +58,7 @@ def write(path, cloud, **fields):
     """Write a point cloud file in the format its extension names, like `rayscan translate`
     (io::write_point_cloud): .las / .laz (ASPRS LAS 1.4, point format 6, 7 with rgb; .laz
     compressed), .ply (binary), .pcd (binary), .xyz / .txt / .csv (text). A .copc.laz name is
-    refused (COPC output is not written).
+    refused: COPC is built from a file (`rayscan translate IN OUT.copc.laz`).
 
     cloud: a PointCloud or an (N, 3) array of positions. fields: name=(N,) array of real numbers,
     added as scalar fields (replacing one of the same name), e.g. the "visible_count" of a
