@@ -39,7 +39,7 @@ TEST(JobCli, IndexErrorsAsBefore) {
   const std::string idx = (temp_dir() / "x.idx").string();
   auto r = rayscan_cli("index -q " + las + " -o '" + idx + "'");
   EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.out, "rayscan index: " + idx + ": the index file name must end in .rsi\n");
+  EXPECT_EQ(r.out, "rayscan index: " + idx + ": the index file name must end in .rsi (or .copc.laz for a COPC file)\n");
   const std::string rsi = (temp_dir() / "x.rsi").string();
   r = rayscan_cli("index -q " + las + " -o '" + rsi + "' --memory 10Q");
   EXPECT_EQ(r.code, 2);
