@@ -28,6 +28,7 @@ constexpr std::array kSpellings{
     Spelling{"db", "memory_bytes", "--memory"},
     Spelling{"db", "chunk_size", "--chunk"},
     Spelling{"db", "out", "-o"},
+    Spelling{"translate", "compression", "--format"},
 };
 
 }  // namespace

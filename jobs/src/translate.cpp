@@ -6,6 +6,7 @@
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/option_error.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <tbb/task_arena.h>
@@ -16,6 +17,11 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
   // The output's format is checked before anything is read (a .ply or .xyz name once received
   // LAS bytes with exit 0, a .copc.laz name a plain LAZ).
   const bool copc = options.compression == LasCompression::by_extension && io::is_copc_output(options.out);
+  // A plain LAS/LAZ under a COPC name would be taken for COPC by every reader that trusts names.
+  if (options.compression != LasCompression::by_extension && io::is_copc_output(options.out))
+    throw OptionError({option("compression"), std::string(options.compression == LasCompression::las ? " las" : " laz") +
+                                             " writes plain LAS/LAZ, not COPC: " + options.out.string() +
+                                             " names a COPC file (leave the format to the name to write COPC)"});
   if (options.compression == LasCompression::by_extension && !copc) io::require_point_cloud_output(options.out);
   const std::filesystem::path out[] = {options.out}, in[] = {options.in};
   require_outputs(out, in);

@@ -461,6 +461,13 @@ TEST(CopcWriter, CliTranslateAndIndexWriteCopcAndFailCleanly) {
   EXPECT_EQ(run_cli("translate -q '" + bad.string() + "' '" + x.string() + "'", out, err), 2);
   EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
   EXPECT_TRUE(fs::is_empty(x.parent_path())) << "a failed COPC write left files behind";
+  // --format las/laz under a COPC name: refused (a plain LAZ named .copc.laz would pass for COPC)
+  const fs::path f = temp_dir() / "cli_f.copc.laz";
+  for (const char* format : {"laz", "las"}) {
+    EXPECT_EQ(run_cli(std::string("translate -q --format ") + format + " '" + src.string() + "' '" + f.string() + "'", out, err), 2);
+    EXPECT_NE(err.find(std::string("--format ") + format + " writes plain LAS/LAZ, not COPC"), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(f));
+  }
   // index: one input only
   EXPECT_EQ(run_cli("index -q '" + src.string() + "' '" + src.string() + "' -o '" + i.string() + "'", out, err), 2);
   EXPECT_NE(err.find("one input"), std::string::npos) << err;
