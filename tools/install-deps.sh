@@ -11,7 +11,7 @@ PKGS=(
   liblzf-dev libgdal-dev gdal-bin zlib1g-dev
   clang libclang-rt-14-dev
   fonts-dejavu-core
-  help2man groff-base mmdebstrap
+  help2man groff-base mmdebstrap file dpkg-dev
   cloudcompare xvfb xauth
   python3-dev pybind11-dev python3-numpy python3-pytest python3-matplotlib python3-open3d python3-astropy python3-dask python3-distributed
   grass-core
