@@ -6,9 +6,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <filesystem>
-#include <unistd.h>
 #include <fstream>
+#include <unistd.h>
 #include <iterator>
 #include <string>
 #include <vector>
@@ -43,5 +44,18 @@ inline std::vector<std::uint8_t> slurp(const fs::path& p) {
 }
 
 inline fs::path temp_dir() { return process_temp_dir("rayscan_io_tests"); }
+
+/// The value of type T stored at byte `at` of `b` (a file's own little-endian bytes, read on a
+/// little-endian host), and its counterpart that overwrites it (to make a damaged or altered file).
+template <class T>
+T load_at(const std::vector<std::uint8_t>& b, std::size_t at) {
+  T v;
+  std::memcpy(&v, b.data() + at, sizeof v);
+  return v;
+}
+template <class T>
+void store_at(std::vector<std::uint8_t>& b, std::size_t at, T v) {
+  std::memcpy(b.data() + at, &v, sizeof v);
+}
 
 }  // namespace rayscan::test

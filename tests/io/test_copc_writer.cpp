@@ -330,10 +330,10 @@ TEST(CopcWriter, HeaderVlrOrderAndInfo) {
   const fs::path out = temp_dir() / "h.copc.laz";
   const io::CopcWriteResult w = io::write_copc(src, out);
   const std::vector<std::uint8_t> f = slurp(out);
-  auto u16 = [&](std::size_t at) { std::uint16_t v; std::memcpy(&v, f.data() + at, 2); return v; };
-  auto u32 = [&](std::size_t at) { std::uint32_t v; std::memcpy(&v, f.data() + at, 4); return v; };
-  auto u64 = [&](std::size_t at) { std::uint64_t v; std::memcpy(&v, f.data() + at, 8); return v; };
-  auto f64 = [&](std::size_t at) { double v; std::memcpy(&v, f.data() + at, 8); return v; };
+  auto u16 = [&](std::size_t at) { return load_at<std::uint16_t>(f, at); };
+  auto u32 = [&](std::size_t at) { return load_at<std::uint32_t>(f, at); };
+  auto u64 = [&](std::size_t at) { return load_at<std::uint64_t>(f, at); };
+  auto f64 = [&](std::size_t at) { return load_at<double>(f, at); };
   EXPECT_EQ(f[24], 1);
   EXPECT_EQ(f[25], 4);
   EXPECT_EQ(u16(94), 375u);

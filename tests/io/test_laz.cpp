@@ -173,16 +173,6 @@ namespace {
 constexpr const char* kV1Laz = "laz/simple-laszip-compressor-version-1.2r0.laz";
 constexpr const char* kV1Las = "las/simple.las";
 
-template <typename T>
-T v1_load(const std::vector<std::uint8_t>& b, std::size_t at) {
-  T v;
-  std::memcpy(&v, b.data() + at, sizeof v);
-  return v;
-}
-template <typename T>
-void v1_store(std::vector<std::uint8_t>& b, std::size_t at, T v) {
-  std::memcpy(b.data() + at, &v, sizeof v);
-}
 
 /// Byte offset of the LASzip VLR payload (compressor field) in `b`.
 std::size_t laszip_payload(const std::vector<std::uint8_t>& b) {
@@ -209,10 +199,10 @@ TEST(Laz, LaszipV1PointwiseMatchesLas) {
   const auto b = slurp(laz);
   const std::size_t p = laszip_payload(b);
   ASSERT_NE(p, 0u);
-  EXPECT_EQ(v1_load<std::uint16_t>(b, p), 1);       // compressor: pointwise
-  EXPECT_EQ(v1_load<std::uint32_t>(b, p + 12), 0u);  // chunk size
-  ASSERT_EQ(v1_load<std::uint16_t>(b, p + 32), 3);
-  for (int i = 0; i < 3; ++i) EXPECT_EQ(v1_load<std::uint16_t>(b, p + 38 + 6 * i), 1) << "item " << i;
+  EXPECT_EQ(load_at<std::uint16_t>(b, p), 1);       // compressor: pointwise
+  EXPECT_EQ(load_at<std::uint32_t>(b, p + 12), 0u);  // chunk size
+  ASSERT_EQ(load_at<std::uint16_t>(b, p + 32), 3);
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(load_at<std::uint16_t>(b, p + 38 + 6 * i), 1) << "item " << i;
   expect_same_records(kV1Laz, kV1Las);
 }
 
@@ -225,7 +215,7 @@ TEST(Laz, LaszipV1ChunkSizeFieldIsIgnoredByThePointwiseCompressor) {
   const auto want = io::read_las_records(las).records;
   for (std::uint32_t cs : {1u, 50000u, 0xFFFFFFFFu}) {
     auto b = good;
-    v1_store<std::uint32_t>(b, laszip_payload(b) + 12, cs);
+    store_at<std::uint32_t>(b, laszip_payload(b) + 12, cs);
     const io::LasRecords r = io::read_las_records(b, "v1.laz");
     EXPECT_EQ(r.chunks, 1u);
     EXPECT_TRUE(r.records == want) << "chunk size " << cs;
@@ -239,7 +229,7 @@ TEST(Laz, V1TestEncoderReproducesLaszipsStream) {
   const auto b = slurp(laz);
   const io::LasRecords r = io::read_las_records(las);
   const std::vector<std::uint8_t> ours = lazv1::encode_stream(r.records.data(), r.count, r.record_length, r.pdrf);
-  const std::vector<std::uint8_t> theirs(b.begin() + v1_load<std::uint32_t>(b, 96), b.end());
+  const std::vector<std::uint8_t> theirs(b.begin() + load_at<std::uint32_t>(b, 96), b.end());
   ASSERT_EQ(ours.size(), theirs.size());
   std::size_t i = 0;
   while (i < ours.size() && ours[i] == theirs[i]) ++i;
@@ -256,9 +246,9 @@ std::vector<std::uint8_t> chunked_v1(const fs::path& las, std::uint32_t chunk, b
   io::translate_las(las, tmp, o);
   auto b = slurp(tmp);
   const std::size_t p = laszip_payload(b);
-  const std::uint32_t po = v1_load<std::uint32_t>(b, 96);
-  v1_store<std::uint32_t>(b, p + 12, variable ? 0 : chunk);
-  for (std::uint16_t i = 0; i < v1_load<std::uint16_t>(b, p + 32); ++i) v1_store<std::uint16_t>(b, p + 38 + 6 * i, 1);
+  const std::uint32_t po = load_at<std::uint32_t>(b, 96);
+  store_at<std::uint32_t>(b, p + 12, variable ? 0 : chunk);
+  for (std::uint16_t i = 0; i < load_at<std::uint16_t>(b, p + 32); ++i) store_at<std::uint16_t>(b, p + 38 + 6 * i, 1);
   b.resize(po + 8);
   const io::LasRecords r = io::read_las_records(las);
   std::vector<std::uint32_t> counts, sizes;
@@ -269,9 +259,9 @@ std::vector<std::uint8_t> chunked_v1(const fs::path& las, std::uint32_t chunk, b
     counts.push_back(static_cast<std::uint32_t>(n));
     sizes.push_back(static_cast<std::uint32_t>(s.size()));
   }
-  v1_store<std::int64_t>(b, po, static_cast<std::int64_t>(b.size()));
+  store_at<std::int64_t>(b, po, static_cast<std::int64_t>(b.size()));
   std::vector<std::uint8_t> table(8, 0);
-  v1_store<std::uint32_t>(table, 4, static_cast<std::uint32_t>(sizes.size()));
+  store_at<std::uint32_t>(table, 4, static_cast<std::uint32_t>(sizes.size()));
   {
     io::laz::ArithmeticEncoder enc(table);
     io::laz::IntegerCompressor ic(32, 2);
@@ -295,7 +285,7 @@ TEST(Laz, V1ItemsInChunkedFilesMatchLas) {
     for (bool variable : {false, true}) {
       const auto b = chunked_v1(las, 97, variable);
       const std::size_t p = laszip_payload(b);
-      EXPECT_EQ(v1_load<std::uint16_t>(b, p), 2);
+      EXPECT_EQ(load_at<std::uint16_t>(b, p), 2);
       const io::LasRecords r = io::read_las_records(b, "v1-chunked.laz");
       EXPECT_EQ(r.chunks, (want.size() / r.record_length + 96) / 97) << rel;
       EXPECT_TRUE(r.notes.empty()) << rel << ": " << r.notes.front();
@@ -339,22 +329,22 @@ TEST(LazBadInput, UnsupportedCompressorItemCombinationsAreNamed) {
   };
   {
     auto b = good;
-    v1_store<std::uint16_t>(b, p, 3);
+    store_at<std::uint16_t>(b, p, 3);
     expect(b, p + 34, "LASzip item 0: compressor 3 with item POINT10 version 1 is not supported "
                       "(LAS 1.0-1.3 items are coded by the pointwise compressors 1 and 2)");
   }
   {
     auto b = good;
-    v1_store<std::uint16_t>(b, p + 34 + 12 + 4, 0);  // RGB12 version 0
+    store_at<std::uint16_t>(b, p + 34 + 12 + 4, 0);  // RGB12 version 0
     expect(b, p + 34 + 12, "LASzip item 2: compressor 1 with item RGB12 version 0 is not supported "
                            "(version 0 marks an uncompressed item)");
-    v1_store<std::uint16_t>(b, p + 34 + 12 + 4, 3);
+    store_at<std::uint16_t>(b, p + 34 + 12 + 4, 3);
     expect(b, p + 34 + 12, "LASzip item 2: compressor 1 with item RGB12 version 3 is not supported "
                            "(expected version 1 or 2)");
   }
   {
     auto b = good;
-    v1_store<std::uint16_t>(b, p + 34 + 12, 9);  // WAVEPACKET13 in place of RGB12
+    store_at<std::uint16_t>(b, p + 34 + 12, 9);  // WAVEPACKET13 in place of RGB12
     expect(b, p + 34 + 12, "LASzip item 2: compressor 1 with item WAVEPACKET13 version 1 is not supported "
                            "(waveform packets, PDRF 4/5/9/10 LAZ)");
   }
@@ -369,7 +359,7 @@ TEST(LazBadInput, UnsupportedCompressorItemCombinationsAreNamed) {
   for (std::uint16_t c : {1, 2}) {
     auto b = slurp(l14);
     const std::size_t q = laszip_payload(b);
-    v1_store<std::uint16_t>(b, q, c);
+    store_at<std::uint16_t>(b, q, c);
     expect(b, q + 34, "LASzip item 0: compressor " + std::to_string(c) +
                           " with item POINT14 version 3 is not supported "
                           "(LAS 1.4 items are coded by the layered-chunked compressor 3)");
@@ -389,7 +379,7 @@ TEST(LazBadInput, TruncatedPointwiseStreamStopsAtItsEnd) {
 TEST(LazBadInput, CliNamesTheUnsupportedCombinationWithExitCode2) {
   RAYSCAN_REQUIRE_FILE(l14, "laz/append-bug.laz");
   auto b = slurp(l14);
-  v1_store<std::uint16_t>(b, laszip_payload(b), 1);
+  store_at<std::uint16_t>(b, laszip_payload(b), 1);
   const fs::path bad = temp_dir() / "pointwise-las14.laz", err = temp_dir() / "pointwise-las14.err";
   {
     std::ofstream o(bad, std::ios::binary);

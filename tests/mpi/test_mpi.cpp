@@ -82,6 +82,17 @@ class Mpi : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
   // Runs a command line in the test folder.
   CommandResult run(const std::string& cmd) const { return run_command("cd " + dir_.string() + " && " + cmd); }
+  // Runs the rayscan command line `args` in one process (--out one.las), under 2 ranks with rank 0
+  // computing nothing (two.las) and under 3 ranks (three.las), and expects the same bytes.
+  void expect_same_las_on_any_ranks(const std::string& args) const {
+    ASSERT_EQ(run(kBin + args + " --out one.las").code, 0);
+    CommandResult r = run(mpirun(2, false) + kBin + args + " --out two.las");
+    ASSERT_EQ(r.code, 0) << r.out;
+    r = run(mpirun(3) + kBin + args + " --out three.las");
+    ASSERT_EQ(r.code, 0) << r.out;
+    expect_same_file(dir_ / "one.las", dir_ / "two.las");
+    expect_same_file(dir_ / "one.las", dir_ / "three.las");
+  }
   fs::path dir_;
 };
 
@@ -142,13 +153,7 @@ TEST_F(Mpi, VisibilityFieldsAreTheSameBytes) {
   const std::string args =
       " visibility -q subset.xyz --observer 636580,849200 --observer 636600,849230 --height 2 --distance"
       " --sky-view 16 --from-camera cam.json --threads 1";
-  ASSERT_EQ(run(kBin + args + " --out one.las").code, 0);
-  CommandResult r = run(mpirun(2, false) + kBin + args + " --out two.las");
-  ASSERT_EQ(r.code, 0) << r.out;
-  r = run(mpirun(3) + kBin + args + " --out three.las");
-  ASSERT_EQ(r.code, 0) << r.out;
-  expect_same_file(dir_ / "one.las", dir_ / "two.las");
-  expect_same_file(dir_ / "one.las", dir_ / "three.las");
+  expect_same_las_on_any_ranks(args);
   // Per-observer counts are summed over the ranks: the printed summary is the same too.
   EXPECT_EQ(run(kBin + args + " --out one.las | head -2").out, run(mpirun(2, false) + kBin + args + " --out two.las | head -2").out);
 }
@@ -159,17 +164,11 @@ TEST_F(Mpi, SolarFieldsAndShadowFramesAreTheSameBytes) {
   fs::copy_file(fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz", dir_ / "subset.xyz");
   const std::string site = " solar -q subset.xyz --lat 44.05 --lon -123.07 --radius 1.5 --threads 1";
   const std::string period = site + " --start 2026-06-01 --end 2026-06-03 --sector 5 --sky-rays 16 --monthly";
-  ASSERT_EQ(run(kBin + period + " --out one.las").code, 0);
-  CommandResult r = run(mpirun(2, false) + kBin + period + " --out two.las");
-  ASSERT_EQ(r.code, 0) << r.out;
-  r = run(mpirun(3) + kBin + period + " --out three.las");
-  ASSERT_EQ(r.code, 0) << r.out;
-  expect_same_file(dir_ / "one.las", dir_ / "two.las");
-  expect_same_file(dir_ / "one.las", dir_ / "three.las");
+  expect_same_las_on_any_ranks(period);
   // A day's shadow frames and the per-point sun and shadow hours.
   const std::string day = site + " --day 2026-06-21 --every 3h --cell 4";
   ASSERT_EQ(run(kBin + day + " --out d1.las --raster d1.tif").code, 0);
-  r = run(mpirun(2, false) + kBin + day + " --out d2.las --raster d2.tif");
+  const CommandResult r = run(mpirun(2, false) + kBin + day + " --out d2.las --raster d2.tif");
   ASSERT_EQ(r.code, 0) << r.out;
   expect_same_file(dir_ / "d1.las", dir_ / "d2.las");
   int frames = 0;
