@@ -33,16 +33,19 @@ version=$(sed -n 's/^project(rayscan VERSION \([0-9.]*\).*/\1/p' "$SRC/CMakeList
 
 cache="${RAYSCAN_ROOT_CACHE:-/var/cache/rayscan}"
 base="$cache/bookworm-apt.tar"
-if [ ! -s "$base" ]; then
+if [ ! -f "$base" ] || [ ! -s "$base" ]; then
   echo "== base root: mmdebstrap --variant=apt bookworm (cached as $base)"
   mkdir -p "$cache"
   # The host's own Debian sources (deb822) when it has them, else Debian's redirector.
   mirror=http://deb.debian.org/debian
   [ -f /etc/apt/sources.list.d/debian.sources ] && mirror=/etc/apt/sources.list.d/debian.sources
   t0=$SECONDS
-  mmdebstrap --quiet --variant=apt --mode=root --aptopt='Acquire::Check-Valid-Until "false"' \
-    bookworm "$base.tmp" "$mirror"
-  mv "$base.tmp" "$base"
+  # A tarball by name (mmdebstrap picks the format from the name), made aside and renamed, so an
+  # interrupted run leaves no cache that looks complete.
+  rm -rf "$base" "$cache/bookworm-apt.part.tar"
+  mmdebstrap --quiet --variant=apt --mode=root --format=tar --aptopt='Acquire::Check-Valid-Until "false"' \
+    bookworm "$cache/bookworm-apt.part.tar" "$mirror"
+  mv "$cache/bookworm-apt.part.tar" "$base"
   echo "base root made in $((SECONDS - t0)) s"
 fi
 
