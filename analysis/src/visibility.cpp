@@ -359,6 +359,7 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
     std::vector<RayHit> hits;
     std::vector<Ray> rays;
     std::optional<RayHit> hit[kMaxRayPacket];
+    Observer sun;  // surfels: the far eye of the current ray (only its position changes)
   };
   tbb::enumerable_thread_specific<Local> locals;
   // Spheres: one first-hit query per direction from the point outward, as the sky view's rays,
@@ -411,8 +412,8 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
                     // Surfels: the line of sight from a sun far beyond the site (is_visible's rule).
                     for (std::uint32_t t = 0; t < nsel; ++t) {
                       const std::uint32_t j = which[t];
-                      Observer sun;
-                      sun.position = pos[g0 + j] + far * dirs[k];
+                      L.sun.position = pos[g0 + j] + far * dirs[k];
+                      const Observer& sun = L.sun;
                       bool queried;
                       double dist;
                       if (line_of_sight(idx, sun, kInf, pos[g0 + j], id[j], opts, L.hits, queried, dist))

@@ -101,7 +101,7 @@ std::filesystem::path temp_path(const CopcWriteOptions& opt, const std::string& 
   file += std::to_string(::getpid());
   file += ".copc-";
   file += what;  // last: "input.las" keeps the extension the LAS writer and reader go by
-  return (opt.temp_dir.empty() ? std::filesystem::path(".") : opt.temp_dir) / file;
+  return opt.temp_dir / file;  // write_copc sets temp_dir (the output's folder by default)
 }
 
 /// The records of the LAS/LAZ file `path`; `name` is the input as the user named it; `file`
@@ -126,7 +126,10 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
   r.count = h.count;
   // Memory: the build's 12 bytes per point and the batches; the records stay on disk.
   const std::uint64_t need = h.count * kBytesPerPoint + kBatchBytes;
-  if (need > opt.memory_bytes || h.count >= (std::uint64_t{1} << 32))
+  if (h.count >= (std::uint64_t{1} << 32))
+    throw CopcMemoryError(name + ": " + std::to_string(h.count) +
+                          " points: the COPC build addresses at most 2^32 - 1 records (32-bit record indices)");
+  if (need > opt.memory_bytes)
     throw CopcMemoryError(name + ": " + std::to_string(h.count) + " points need about " + gib(need) +
                           " for the COPC build (12 bytes per point and 256 MiB of batches), over the memory budget of " +
                           gib(opt.memory_bytes) + " (raise --memory)");

@@ -8,6 +8,7 @@
 
 #include "bytes.hpp"
 #include "rayscan/octree/morton.hpp"
+#include "rayscan/octree/position_view.hpp"
 
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
@@ -98,7 +99,7 @@ class Builder {
   /// grid units, ties to the first in Morton order) and moves them to the front; the others keep
   /// their Morton order behind them. Returns their number.
   std::size_t select(int level, std::size_t a, std::size_t b) const {
-    const int sub = kBits - level - 7;       // bits per axis below a cell
+    const int sub = kBits - level - 7;       // bits per axis below a cell: >= 1, as level < kCopcMaxLevel
     const int shift = 3 * sub;
     const std::int64_t half = std::int64_t{1} << sub;  // cell edge in grid units x 2 / 2
     std::vector<std::size_t> keep;
@@ -108,10 +109,6 @@ class Builder {
       std::size_t best = i;
       std::int64_t best_d = std::numeric_limits<std::int64_t>::max();
       for (; i < b && (pts_[i].key >> shift) == cell; ++i) {
-        if (sub == 0) {
-          if (best_d == std::numeric_limits<std::int64_t>::max()) best_d = 0;
-          continue;
-        }
         // offset from the cell centre, doubled so the centre is an integer: 2 * low - edge
         const std::uint64_t low = pts_[i].key & ((std::uint64_t{1} << shift) - 1);
         const auto dx = 2 * static_cast<std::int64_t>(morton_compact(low)) - half;
@@ -171,7 +168,7 @@ Tree build_tree(const Records& r, const CopcWriteOptions& opt) {
   const std::int32_t* hi = box.hi;
   Vec3 wlo, whi;
   for (int k = 0; k < 3; ++k) {
-    const double u = lo[k] * r.scale[k] + r.offset[k], v = hi[k] * r.scale[k] + r.offset[k];
+    const double u = las_coordinate(lo[k], r.scale[k], r.offset[k]), v = las_coordinate(hi[k], r.scale[k], r.offset[k]);
     wlo[k] = std::min(u, v);
     whi[k] = std::max(u, v);
   }
@@ -190,7 +187,7 @@ Tree build_tree(const Records& r, const CopcWriteOptions& opt) {
     for (std::size_t i = br.begin(); i != br.end(); ++i) {
       std::uint32_t g[3];
       for (int k = 0; k < 3; ++k) {
-        const double w = load_le<std::int32_t>(d + i * rec + 4 * k) * r.scale[k] + r.offset[k];
+        const double w = las_coordinate(load_le<std::int32_t>(d + i * rec + 4 * k), r.scale[k], r.offset[k]);
         const double c = std::floor((w - clo[k]) * to_grid);
         g[k] = static_cast<std::uint32_t>(std::clamp(c, 0.0, cells - 1));
       }

@@ -9,10 +9,12 @@
 #include "rayscan/site/copc_writer.hpp"
 
 #include "copc_build.hpp"
+#include "las/las_header.hpp"
 #include "laz/encoder_v3.hpp"
 #include "laz/laz.hpp"
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/version.hpp"
+#include "rayscan/octree/position_view.hpp"
 #include "rayscan/site/copc.hpp"
 
 #include <tbb/enumerable_thread_specific.h>
@@ -154,7 +156,7 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
   const copc::Tree t = copc::build_tree(r, opt);
   const Stats st = stats_of(r);
   const std::size_t rec = r.record_length;
-  const std::size_t extra = rec - static_cast<std::size_t>(r.pdrf == 6 ? 30 : r.pdrf == 7 ? 36 : 38);
+  const std::size_t extra = rec - static_cast<std::size_t>(detail::pdrf_length(r.pdrf));
 
   // VLRs: the info VLR first (its offsets patched once the hierarchy is placed), LASzip, WKT,
   // the input's others.
@@ -318,7 +320,7 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
   for (int k = 0; k < 3; ++k) h.put<double>(r.scale[k]);
   for (int k = 0; k < 3; ++k) h.put<double>(r.offset[k]);
   for (int k = 0; k < 3; ++k) {
-    const double a = st.lo[k] * r.scale[k] + r.offset[k], b = st.hi[k] * r.scale[k] + r.offset[k];
+    const double a = las_coordinate(st.lo[k], r.scale[k], r.offset[k]), b = las_coordinate(st.hi[k], r.scale[k], r.offset[k]);
     h.put<double>(std::max(a, b));
     h.put<double>(std::min(a, b));
   }

@@ -90,8 +90,9 @@ struct CopcWriteResult {
 /// Written through a temporary file renamed into place (no partial output).
 ///
 /// Throws FormatError for an unreadable input, std::invalid_argument for a waveform PDRF
-/// (4, 5, 9, 10) or an empty input, CopcMemoryError (above), std::runtime_error for I/O
-/// failures. Sources: COPC 1.0 specification (copc.io, sections "Info VLR", "Hierarchy",
+/// (4, 5, 9, 10), an empty input, a record over 65535 bytes after conversion or VLRs too large
+/// for a LAS header, CopcMemoryError (above; also for 2^32 points or more, which the 32-bit
+/// record indices of the build cannot address), std::runtime_error for I/O failures. Sources: COPC 1.0 specification (copc.io, sections "Info VLR", "Hierarchy",
 /// "LAZ chunks"), ASPRS LAS 1.4 R15 sections 2.4-2.7, LASzip (docs/formats.md "LAZ").
 CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesystem::path& out,
                            const CopcWriteOptions& options = {});
