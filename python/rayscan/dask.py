@@ -32,17 +32,21 @@ except ImportError as e:  # rayscan itself never needs Dask; this module does
         "rayscan.dask needs Dask: install the Debian packages python3-dask and python3-distributed "
         "(apt-get install python3-dask python3-distributed) or `pip install dask distributed`") from e
 
+import inspect
 import os
 import threading
 
 import numpy as np
 
 import rayscan
+from rayscan import _INF  # the module's one infinity default
 from ._results import RayQueryResult
 
 __all__ = ["ray_query", "first_hits", "visibility", "solar"]
 
-_INF = float("inf")
+# rayscan.solar's own default, so that the lazy result names the fields the call will return.
+_SOLAR_SKY_RAYS = inspect.signature(rayscan.solar).parameters["sky_rays"].default
+
 
 # ---- worker side: one Site per file and process ------------------------------------------------
 
@@ -313,7 +317,7 @@ def solar(path, at=None, periods=None, threads=1, compute=False, **options):
     kw = dict(options, threads=threads)
     tasks = [dask.delayed(_solar_block)(path, w, kw) for w in whens]
     fields = _SOLAR_INSTANT if at is not None else _SOLAR_PERIOD
-    if at is None and options.get("sky_rays", 64) == 0:
+    if at is None and options.get("sky_rays", _SOLAR_SKY_RAYS) == 0:
         fields = fields[:-1]  # no sky view without sky rays
     if compute:
         res = dask.compute(*tasks)

@@ -135,6 +135,7 @@ def test_point_cloud_from_bad_arrays(kwargs, error, message):
 
 def test_from_structured_takes_the_crs_and_write_keeps_it(tmp_path):
     wkt = rayscan.read(SOURCE / "scenes" / "data" / "autzen_trim.las").crs
+    assert wkt
     pc = rayscan.PointCloud.from_structured(structured_points(names="pdal"), crs=wkt)
     assert pc.crs == wkt
     assert rayscan.PointCloud.from_structured(structured_points(names="pdal")).crs is None

@@ -50,10 +50,12 @@ def _same_place(transform, extent):
 
 
 def write_observers(alg, parameters, context, feedback, cloud):
-    """Write the observers to a temporary CSV in the cloud's CRS; return (path, count, the cloud's CRS).
+    """Write the observers to a temporary CSV in the CRS of the point cloud file `cloud`; return
+    (path, the cloud's CRS).
 
     The layer is reprojected to the cloud's CRS when both are known and differ, as rayscan reads
-    observer coordinates in the cloud's own coordinates.
+    observer coordinates in the cloud's own coordinates. Raises QgsProcessingException for a
+    missing layer, a layer without Z when USE_Z is set, or a layer without points.
     """
     source = alg.parameterAsSource(parameters, OBSERVERS, context)
     if source is None:
@@ -64,7 +66,7 @@ def write_observers(alg, parameters, context, feedback, cloud):
     if use_z and not QgsWkbTypes.hasZ(source.wkbType()):
         raise QgsProcessingException(alg.tr("The observer layer has no Z values"))
 
-    target = runner.cloud_crs(alg.cloud(parameters, context), feedback)
+    target = runner.cloud_crs(cloud, feedback)
     transform = None
     if target.isValid() and source.sourceCrs().isValid() and source.sourceCrs() != target:
         transform = QgsCoordinateTransform(source.sourceCrs(), target, context.transformContext())
@@ -104,4 +106,4 @@ def write_observers(alg, parameters, context, feedback, cloud):
     if count == 0:
         raise QgsProcessingException(alg.tr("The observer layer has no points"))
     feedback.pushInfo(alg.tr("{} observers").format(count))
-    return path, count, target
+    return path, target

@@ -50,7 +50,7 @@ class PointVisibility(RayscanAlgorithm):
         cloud = self.cloud(parameters, context)
         out = self.parameterAsFileOutput(parameters, self.OUTPUT, context)
         self.check_extension(out, (".las", ".laz", ".ply", ".pcd", ".csv", ".xyz"), "The output cloud")
-        csv_path, _, crs = observers.write_observers(self, parameters, context, feedback, cloud)
+        csv_path, crs = observers.write_observers(self, parameters, context, feedback, cloud)
         args = ["visibility", cloud, "--observers", csv_path, "-o", out,
                 "--primitive", _PRIMITIVES[self.parameterAsEnum(parameters, "PRIMITIVE", context)]]
         if self.parameterAsBool(parameters, "DISTANCE", context):

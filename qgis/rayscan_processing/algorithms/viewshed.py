@@ -47,7 +47,7 @@ class Viewshed(RayscanAlgorithm):
         cloud = self.cloud(parameters, context)
         out = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
         self.check_extension(out, (".tif", ".tiff"), "The viewshed")
-        csv_path, _, _ = observers.write_observers(self, parameters, context, feedback, cloud)
+        csv_path, _ = observers.write_observers(self, parameters, context, feedback, cloud)
         args = ["visibility", cloud, "--observers", csv_path, "--raster", out, "--no-preview",
                 "--cell", self.parameterAsDouble(parameters, "CELL", context),
                 "--raster-value", _VALUES[self.parameterAsEnum(parameters, "VALUE", context)]]
