@@ -5,29 +5,28 @@
 # the source with its own GPS times), and on the bundled real scans. Then copc.js
 # (npm copc, with laz-perf) reads the COPC output: node count, points per level.
 # Usage: bench/copc_write.sh [BUILD_DIR (default build)] [N points (default 2e7)] [SCRATCH dir]
-# The scratch folder (default /work/scratch/copc-bench) is deleted at the end.
+# The files go to a new folder inside SCRATCH (default /work/scratch), deleted at the end.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD="${1:-build}"
 N="${2:-2e7}"
-S="${3:-/work/scratch/copc-bench}"
+SCRATCH="${3:-/work/scratch}"
 R="$BUILD/tools/rayscan"
 CACHE="${RAYSCAN_NPM_CACHE:-$HOME/.cache/rayscan-npm}"
-mkdir -p "$S"
+mkdir -p "$SCRATCH"
+S=$(mktemp -d "$SCRATCH/copc-bench.XXXXXX")  # only this folder is deleted
 trap 'rm -rf "$S"' EXIT
 echo "CPU: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores; N=$N"
 "$BUILD/bench/make_site" "$S/site.las" "$N" >/dev/null
-src_points=$(/usr/bin/python3 -c "import struct; print(struct.unpack_from('<I', open('scenes/data/autzen_trim.las', 'rb').read(111), 107)[0])")
+src_points=$("$R" info --json scenes/data/autzen_trim.las | /usr/bin/python3 -c 'import json, sys; print(json.load(sys.stdin)["count"])')
 /usr/bin/python3 bench/las_to_pdrf7.py "$S/site.las" "$S/site7.las" "$src_points"
 run() {  # label, command...: wall seconds, peak RSS, output size
   local label="$1" out="$2"
   shift 2
   /usr/bin/time -f "%e %M" -o "$S/time" "$@" >/dev/null 2>"$S/err" || { cat "$S/err"; return 1; }
   read -r secs kb <"$S/time"
-  local pts
-  pts=$(python3 -c "print(int(float('$N')))")
   printf "%-34s %8.2f s %7.2f M points/s  peak %6.0f MiB  %12d bytes\n" "$label" "$secs" \
-    "$(python3 -c "print($pts/$secs/1e6)")" "$(python3 -c "print($kb/1024)")" "$(stat -c %s "$out")"
+    "$(awk -v n="$N" -v s="$secs" 'BEGIN { print n / s / 1e6 }')" "$(awk -v k="$kb" 'BEGIN { print k / 1024 }')" "$(stat -c %s "$out")"
 }
 run "translate PDRF7 LAS -> LAZ"        "$S/site7.laz"      "$R" translate -q "$S/site7.las" "$S/site7.laz"
 run "translate PDRF7 LAS -> COPC"       "$S/site7.copc.laz" "$R" translate -q "$S/site7.las" "$S/site7.copc.laz"
