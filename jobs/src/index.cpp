@@ -1,5 +1,6 @@
 // The index job (rayscan/jobs/index.hpp): options checked, then the out-of-core build.
 #include "rayscan/jobs/index.hpp"
+#include "copc_output.hpp"
 
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/byte_size.hpp"
@@ -36,16 +37,12 @@ IndexJobResult run_index(const IndexJobOptions& options) {
     if (options.inputs.size() != 1)
       throw OptionError({options.output.string() + ": a COPC output is written from one input file (got " +
                          std::to_string(options.inputs.size()) + ")"});
-    io::CopcWriteOptions c;
-    c.memory_bytes = parse_byte_size(options.memory);
-    c.temp_dir = options.temp_dir;
-    c.progress = options.progress;
     const std::filesystem::path out[] = {options.output};
     require_outputs(out, options.inputs);
     IndexJobResult result;
     result.output = options.output;
-    tbb::task_arena arena(static_cast<int>(resolve_threads(options.control.threads)));
-    arena.execute([&] { result.copc = io::write_copc(options.inputs[0], options.output, c); });
+    result.copc = detail::write_copc_output(options.inputs[0], options.output, options.memory, options.temp_dir,
+                                            options.progress, options.control.threads);
     return result;
   }
   const io::IndexBuildOptions build = index_build_options(options);

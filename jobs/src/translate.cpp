@@ -1,6 +1,7 @@
 // The translate job (rayscan/jobs/translate.hpp): LAS <-> LAZ through io::translate_las, any other
 // pair through the readers and io::write_point_cloud.
 #include "rayscan/jobs/translate.hpp"
+#include "copc_output.hpp"
 
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/byte_size.hpp"
@@ -26,12 +27,9 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
   const std::filesystem::path out[] = {options.out}, in[] = {options.in};
   require_outputs(out, in);
   if (copc) {
-    io::CopcWriteOptions c;
-    c.memory_bytes = parse_byte_size(options.memory);
-    c.progress = options.progress;
     TranslateJobResult r;
-    tbb::task_arena arena(static_cast<int>(resolve_threads(options.control.threads)));
-    arena.execute([&] { r.copc = io::write_copc(options.in, options.out, c); });
+    r.copc = detail::write_copc_output(options.in, options.out, options.memory, {}, options.progress,
+                                       options.control.threads);
     r.points = r.copc->points;
     r.chunks = r.copc->nodes;
     r.compressed = true;
