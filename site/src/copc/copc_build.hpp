@@ -85,7 +85,8 @@ struct Slot {
 static_assert(sizeof(Slot) == 12);
 
 /// One octree node: VoxelKey, and its points as the range [begin, begin + count) of
-/// Tree::slots (in input order within the node).
+/// Tree::slots (within the node in the build's own deterministic order; the writer orders the
+/// records it compresses).
 struct Node {
   std::int32_t level = 0, x = 0, y = 0, z = 0;
   std::uint64_t begin = 0;

@@ -36,14 +36,11 @@ struct MortonLess {
     return ka != kb ? ka < kb : a.index < b.index;
   }
 };
-/// Input order.
-struct IndexLess {
-  bool operator()(const Slot& a, const Slot& b) const { return a.index < b.index; }
-};
 
 /// Builds the subtree of the node at `level` with cell (x, y, z) over the Morton-sorted
 /// slots [a, b); returns its nodes in pre-order with `begin` relative to `pts`. Reorders the
-/// range: the node's own points first (then sorted by index), the rest in Morton order.
+/// range: the node's own points first, the rest in Morton order (the writer orders each node's
+/// records itself).
 class Builder {
  public:
   Builder(std::vector<Slot>& pts, std::uint32_t leaf_points) : pts_(pts), leaf_(leaf_points) {}
@@ -57,8 +54,6 @@ class Builder {
     n.begin = a;
     if (b - a <= leaf_ || level == kCopcMaxLevel) {
       n.count = static_cast<std::uint32_t>(b - a);
-      std::sort(pts_.begin() + static_cast<std::ptrdiff_t>(a), pts_.begin() + static_cast<std::ptrdiff_t>(b),
-                IndexLess{});
       return {n};
     }
     const std::size_t m = select(level, a, b);
@@ -87,9 +82,6 @@ class Builder {
     }
     std::vector<Node> out{n};
     for (std::vector<Node>& k : kids) out.insert(out.end(), k.begin(), k.end());
-    // the points of this node in input order (their Morton order is no longer needed)
-    std::sort(pts_.begin() + static_cast<std::ptrdiff_t>(a), pts_.begin() + static_cast<std::ptrdiff_t>(a + m),
-              IndexLess{});
     return out;
   }
 

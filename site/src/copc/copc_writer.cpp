@@ -210,15 +210,15 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
       if (!s.enc) s.enc.emplace(r.pdrf, extra);
       const copc::Node& nd = t.nodes[i];
       s.recs.resize(std::size_t{nd.count} * rec);
-      // The node's records by GPS time, ties in input order (the slots are in input order): the
-      // acquisition order, which the layered coder predicts best (GPS time, returns, scan
-      // lines), as untwine orders a chunk.
+      // The node's records by GPS time, ties in input order (pairs (time key, record index),
+      // indices unique): the acquisition order, which the layered coder predicts best (GPS time,
+      // returns, scan lines), as untwine orders a chunk.
       s.order.resize(nd.count);
       for (std::uint32_t k = 0; k < nd.count; ++k) {
         const std::uint32_t id = t.slots[nd.begin + k].index;
         s.order[k] = {time_key(r.bytes + std::size_t{id} * rec), id};
       }
-      std::stable_sort(s.order.begin(), s.order.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+      std::sort(s.order.begin(), s.order.end());
       for (std::uint32_t k = 0; k < nd.count; ++k)
         std::memcpy(s.recs.data() + k * rec, r.bytes + std::size_t{s.order[k].second} * rec, rec);
       s.enc->encode(s.recs.data(), nd.count, rec, chunks[i - b0]);
