@@ -5,7 +5,8 @@ import os
 
 from qgis.core import (QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry, QgsPoint,
                        QgsProcessing, QgsProcessingAlgorithm, QgsProcessingContext,
-                       QgsProcessingException, QgsProcessingParameterFile, QgsProcessingUtils,
+                       QgsProcessingException, QgsProcessingParameterFile, QgsProcessingParameterNumber,
+                       QgsProcessingUtils,
                        QgsProviderRegistry, QgsWkbTypes)
 from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
@@ -59,6 +60,18 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
         self.addParameter(QgsProcessingParameterFile(
             self.INPUT, self.tr("Point cloud (LAS, LAZ, COPC, PLY, PCD, text, rayscan index)"),
             behavior=QgsProcessingParameterFile.File, fileFilter=CLOUD_FILTER))
+
+    def add_cell_parameter(self):
+        """Add the raster cell size (CELL, in the cloud's horizontal units, > 0)."""
+        self.addParameter(QgsProcessingParameterNumber(
+            "CELL", self.tr("Cell size (cloud units)"), QgsProcessingParameterNumber.Double, 1.0,
+            minValue=1e-9))
+
+    def add_spp_parameter(self):
+        """Add the path tracer's samples per pixel (SPP, 1 .. 2^20, default 16 as the CLI)."""
+        self.addParameter(QgsProcessingParameterNumber(
+            "SPP", self.tr("Samples per pixel"), QgsProcessingParameterNumber.Integer, 16,
+            minValue=1, maxValue=1048576))
 
     def cloud(self, parameters, context):
         """The point cloud path of INPUT, checked to exist."""

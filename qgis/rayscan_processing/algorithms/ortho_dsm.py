@@ -1,6 +1,6 @@
 """Ortho + DSM: `rayscan render CLOUD --ortho-map CELL --dsm DSM --out ORTHO`."""
 
-from qgis.core import (QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination)
+from qgis.core import QgsProcessingParameterRasterDestination
 
 from .base import RayscanAlgorithm
 
@@ -21,12 +21,8 @@ class OrthoDsm(RayscanAlgorithm):
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS's name)
         """Declare the parameters."""
         self.add_cloud_parameter()
-        self.addParameter(QgsProcessingParameterNumber(
-            "CELL", self.tr("Cell size (cloud units)"), QgsProcessingParameterNumber.Double, 1.0,
-            minValue=1e-9))
-        self.addParameter(QgsProcessingParameterNumber(
-            "SPP", self.tr("Samples per pixel"), QgsProcessingParameterNumber.Integer, 16,
-            minValue=1, maxValue=1048576))
+        self.add_cell_parameter()
+        self.add_spp_parameter()
         self.addParameter(QgsProcessingParameterRasterDestination(self.ORTHO, self.tr("Orthophoto")))
         self.addParameter(QgsProcessingParameterRasterDestination(self.DSM, self.tr("DSM")))
 

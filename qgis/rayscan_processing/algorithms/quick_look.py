@@ -25,9 +25,7 @@ class QuickLook(RayscanAlgorithm):
         self.addParameter(QgsProcessingParameterNumber(
             "WIDTH", self.tr("Image width (pixels; the height follows the camera's aspect ratio)"),
             QgsProcessingParameterNumber.Integer, 1024, minValue=1, maxValue=65536))
-        self.addParameter(QgsProcessingParameterNumber(
-            "SPP", self.tr("Samples per pixel"), QgsProcessingParameterNumber.Integer, 16,
-            minValue=1, maxValue=1048576))
+        self.add_spp_parameter()
         self.addParameter(QgsProcessingParameterEnum(
             "PRIMITIVE", self.tr("Geometry of each point"), _PRIMITIVES, defaultValue=0))
         self.addParameter(QgsProcessingParameterFileDestination(

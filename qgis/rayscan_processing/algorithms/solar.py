@@ -42,9 +42,7 @@ class Solar(RayscanAlgorithm):
         self.addParameter(QgsProcessingParameterString(
             "VALUE", self.tr("Map value (empty: global for a period, in_shadow for an instant)"),
             optional=True))
-        self.addParameter(QgsProcessingParameterNumber(
-            "CELL", self.tr("Cell size (cloud units)"), QgsProcessingParameterNumber.Double, 1.0,
-            minValue=1e-9))
+        self.add_cell_parameter()
         advanced = [
             QgsProcessingParameterNumber("LATITUDE", self.tr("Latitude (degrees; default from the CRS)"),
                                          QgsProcessingParameterNumber.Double, None, True, -90.0, 90.0),

@@ -30,9 +30,7 @@ class Viewshed(RayscanAlgorithm):
         """Declare the parameters."""
         self.add_cloud_parameter()
         observers.add_observer_parameters(self)
-        self.addParameter(QgsProcessingParameterNumber(
-            "CELL", self.tr("Cell size (cloud units)"), QgsProcessingParameterNumber.Double, 1.0,
-            minValue=1e-9))
+        self.add_cell_parameter()
         self.addParameter(QgsProcessingParameterEnum(
             "VALUE", self.tr("Cell value"), _VALUES, defaultValue=0))
         max_distance = QgsProcessingParameterNumber(
