@@ -637,14 +637,15 @@ std::pair<double, double> work_per_ray(const rayscan::AnyIndex& index, std::span
 /// --profile: one query only, one thread, each ray set once (kNN/radius on the slow subset), with
 /// RayQueryStats, so a profiler (valgrind --tool=callgrind) sees nothing else of interest.
 void profile(const std::string& which, const std::vector<Vec3>& pts, const std::vector<std::string>& indexes,
-             const std::vector<RaySet>& sets, double radius) {
+             const std::vector<RaySet>& sets, double radius, int reps) {
   tbb::global_control gc(tbb::global_control::max_allowed_parallelism, 1);
   if (which == "embree") {
     const EmbreeScene es(pts, radius);
     for (const RaySet& set : sets) {
       RayResults res(set.rays.size());
       rb::Stopwatch sw;
-      const auto hits = run_embree(es, set.rays, res);
+      std::uint64_t hits = 0;
+      for (int r = 0; r < reps; ++r) hits = run_embree(es, set.rays, res);
       std::printf("profile embree %s: %zu rays, %" PRIu64 " hits, %.1f ms\n", set.name.c_str(), set.rays.size(),
                   hits, sw.ms());
     }
@@ -659,7 +660,8 @@ void profile(const std::string& which, const std::vector<Vec3>& pts, const std::
       const RayQuery rq = make_query(Q::sphere, radius);
       RayResults res(tiles.size());
       rb::Stopwatch sw;
-      const auto total = run_rayscan_packets(idx, tiles, p, rq, res);
+      std::uint64_t total = 0;
+      for (int r = 0; r < reps; ++r) total = run_rayscan_packets(idx, tiles, p, rq, res);
       const double ms = sw.ms();
       rayscan::RayQueryStats st;
       std::vector<std::optional<RayHit>> out(p);
@@ -683,7 +685,8 @@ void profile(const std::string& which, const std::vector<Vec3>& pts, const std::
       const auto& rays = (q == Q::knn8 || q == Q::radius) ? set.slow : set.rays;
       RayResults res(rays.size());
       rb::Stopwatch sw;
-      const auto total = run_rayscan(idx, rays, make_query(q, radius), res);
+      std::uint64_t total = 0;
+      for (int r = 0; r < reps; ++r) total = run_rayscan(idx, rays, make_query(q, radius), res);
       const double ms = sw.ms();
       const auto [nodes, points] = work_per_ray(idx, rays, make_query(q, radius));
       std::printf("profile %s %s %s: %zu rays, %" PRIu64 " results, %.1f ms; per ray %.1f nodes visited, "
@@ -787,6 +790,7 @@ int main(int argc, char** argv) {
   std::uint64_t seed = 20240601;
   bool no_memory = false, no_build = false, only_build = false;
   std::string profile_query;
+  int profile_reps = 1;
   bool coherence_only = false;
   app.add_option("--points-list", points_list, "comma-separated cloud sizes")->capture_default_str();
   app.add_option("--indexes", index_list,
@@ -817,6 +821,8 @@ int main(int argc, char** argv) {
                  "sphere hits in pixel packets) once per ray set on one thread, with work counters; for "
                  "callgrind/perf")
       ->check(CLI::IsMember({"knn8", "radius", "closest", "sphere", "embree", "sphere2x2", "sphere4x4"}));
+  app.add_option("--profile-reps", profile_reps, "with --profile: passes over each ray set (the times printed "
+                 "are of all passes)")->capture_default_str();
   app.add_option("--mem-child", mem_child, "internal: run one memory probe in this process")->group("");
   app.add_option("--points", points_child, "internal: size of the --mem-child cloud")->group("");
   CLI11_PARSE(app, argc, argv);
@@ -860,7 +866,7 @@ int main(int argc, char** argv) {
     const std::vector<Vec3> pts = rb::uniform_cube(n, seed);
 
     if (!profile_query.empty()) {
-      profile(profile_query, pts, indexes, sets, radius);
+      profile(profile_query, pts, indexes, sets, radius, profile_reps);
       continue;
     }
     if (coherence_only) {

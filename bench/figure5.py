@@ -17,7 +17,11 @@ Each case runs a calibration batch, then enough rays for about --seconds at one 
 
     /usr/bin/python3 bench/figure5.py BUILD [--points 1e6,1e7,1e8] [--threads 1,2]
         [--csv bench/results/figure5.csv] [--png bench/figure5.png] [--scratch DIR]
+        [--driver BUILD/bench/bench_figure5]
 The 1e8 index needs about 4.5 GB of free disk in --scratch (checked first; deleted afterwards).
+--driver measures with the C++ program bench_figure5 instead of the Python module (every size in
+memory, no index file; no rayscan module needed, only NumPy and matplotlib): for machines where
+the module does not run.
 """
 import argparse
 import csv
@@ -61,6 +65,7 @@ def main():
     ap.add_argument("--seconds", type=float, default=0.5, help="target time per measurement (1 thread)")
     ap.add_argument("--repeats", type=int, default=3, help="measurements per thread count (the best is kept)")
     ap.add_argument("--plot-only", action="store_true", help="plot --csv again without measuring")
+    ap.add_argument("--driver", default=None, help="measure with this bench_figure5 program instead of the module")
     a = ap.parse_args()
     if a.plot_only:
         with open(a.csv) as f:
@@ -70,14 +75,19 @@ def main():
         threads = sorted({r["threads"] for r in rows})
         plot(rows, sizes, threads, rows[0]["cpu"], a.png)
         return
-    sys.path.insert(0, os.path.join(a.build, "python"))
-    import rayscan
-
     sizes = [int(float(x)) for x in a.points.split(",")]
     threads = [int(x) for x in a.threads.split(",")]
     rows = []
     cpu = subprocess.run(["sh", "-c", "lscpu | sed -n 's/^Model name: *//p'"], capture_output=True,
                          text=True).stdout.strip()
+    if a.driver:
+        print(f"CPU: {cpu}; {os.cpu_count()} CPUs; measured by {a.driver}")
+        for n in sizes:
+            rows += measure_with_driver(a.driver, n, threads, a.seconds, a.repeats, cpu)
+        write_and_plot(rows, sizes, threads, cpu, a.csv, a.png)
+        return
+    sys.path.insert(0, os.path.join(a.build, "python"))
+    import rayscan
     print(f"CPU: {cpu}; {os.cpu_count()} CPUs; rayscan {rayscan.__version__}")
     for n in sizes:
         scratch = None
@@ -112,22 +122,48 @@ def main():
             o, d = rays(m)
             for th in threads:
                 dt, hits = min(timed(index, o, d, kw, th) for _ in range(a.repeats))  # best of
-                qps = m / dt
-                rows.append(dict(points=n, case=name, threads=th, rays=m, seconds=round(dt, 4),
-                                 queries_per_s=round(qps, 1), per_thread=round(qps / th, 1),
-                                 results_per_ray=round(hits / m, 2), cpu=cpu))
-                print(f"  {name:<22} {th} thread(s): {m:>7} rays in {dt:6.3f} s = {qps:>11,.0f} queries/s "
-                      f"({qps / th:>11,.0f} per thread), {hits / m:9.2f} results per ray")
+                rows.append(row_of(n, name, th, m, dt, hits, cpu))
         del index
         if scratch:
             shutil.rmtree(scratch)
-    os.makedirs(os.path.dirname(a.csv) or ".", exist_ok=True)
-    with open(a.csv, "w", newline="") as f:
+    write_and_plot(rows, sizes, threads, cpu, a.csv, a.png)
+
+
+def row_of(n, name, th, m, dt, hits, cpu):
+    qps = m / dt
+    print(f"  {name:<22} {th} thread(s): {m:>7} rays in {dt:6.3f} s = {qps:>11,.0f} queries/s "
+          f"({qps / th:>11,.0f} per thread), {hits / m:9.2f} results per ray", flush=True)
+    return dict(points=n, case=name, threads=th, rays=m, seconds=round(dt, 4), queries_per_s=round(qps, 1),
+                per_thread=round(qps / th, 1), results_per_ray=round(hits / m, 2), cpu=cpu)
+
+
+def measure_with_driver(driver, n, threads, seconds, repeats, cpu):
+    """One size measured by bench_figure5 on the CASES above (passed as NAME|K|RADIUS|ORDER)."""
+    cmd = [driver, "--points", str(n), "--threads", ",".join(map(str, threads)), "--seconds", str(seconds),
+           "--repeats", str(repeats)]
+    for name, kw in CASES:
+        cmd += ["--case", f"{name}|{kw.get('k', 0)}|{kw.get('radius', 'inf')}|{kw['order']}"]
+    rows = []
+    with subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True) as p:
+        for line in p.stdout:
+            f = line.rstrip("\n").split("\t")
+            if f[0] != "row":
+                print(line, end="", flush=True)
+                continue
+            rows.append(row_of(int(f[1]), f[2], int(f[3]), int(f[4]), float(f[5]), int(f[6]), cpu))
+    if p.returncode:
+        sys.exit(f"figure5: {driver} exited with {p.returncode}")
+    return rows
+
+
+def write_and_plot(rows, sizes, threads, cpu, csv_path, png):
+    os.makedirs(os.path.dirname(csv_path) or ".", exist_ok=True)
+    with open(csv_path, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    plot(rows, sizes, threads, cpu, a.png)
-    print(f"wrote {a.csv} and {a.png}")
+    plot(rows, sizes, threads, cpu, png)
+    print(f"wrote {csv_path} and {png}")
 
 
 def plot(rows, sizes, threads, cpu, png):

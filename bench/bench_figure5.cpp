@@ -1,0 +1,138 @@
+// bench_figure5: the measuring half of bench/figure5.py (Teuscher et al., section 5.2, Figure 5)
+// as one C++ program that links only the octree library, for machines where the Python module
+// cannot run (the lent Intel Xeon has no Debian Python; see bench/device_bundle.sh). It runs
+// figure5.py's cases (passed in by figure5.py with --case, so the case list lives there alone) on
+// N uniform points in the unit cube held in memory (octree-adaptive, make_index's defaults; the
+// Python path's rayscan.Octree) with random rays (origins uniform in the cube, directions uniform
+// on the sphere), calibrates the ray count as figure5.py does, and prints one line per thread count:
+//   row TAB points TAB case TAB threads TAB rays TAB seconds TAB results
+// (seconds: the best of --repeats batches of ray_query_batch, the per-ray result vectors
+// included, as the Python path's time includes its arrays).
+// Usage: bench_figure5 --points N --threads 1,4,16 [--seconds 0.5] [--repeats 3]
+//                      --case 'NAME|K|RADIUS|ORDER' ... (K 0: no k; RADIUS inf: none; ORDER ray|time)
+#include "rayscan/octree/any_index.hpp"
+#include "rayscan/octree/batch.hpp"
+#include "rayscan/octree/ray_query.hpp"
+
+#include <CLI/CLI.hpp>
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+using rayscan::Ray;
+using rayscan::RayQuery;
+using rayscan::Vec3;
+
+/// One figure5.py case: its name (printed back) and the query it stands for.
+struct Case {
+  std::string name;
+  RayQuery q;
+};
+
+/// Parses 'NAME|K|RADIUS|ORDER'; throws std::invalid_argument naming the field that is wrong.
+Case parse_case(const std::string& s) {
+  std::vector<std::string> f;
+  std::stringstream ss(s);
+  for (std::string part; std::getline(ss, part, '|');) f.push_back(part);
+  if (f.size() != 4) throw std::invalid_argument("--case '" + s + "': expected NAME|K|RADIUS|ORDER");
+  Case c{f[0], {}};
+  const unsigned long k = std::stoul(f[1]);
+  if (k) c.q.k = static_cast<std::uint32_t>(k);
+  c.q.radius = f[2] == "inf" ? rayscan::kInf : std::stod(f[2]);
+  if (f[3] == "ray") c.q.order = rayscan::RayOrder::ray;
+  else if (f[3] == "time") c.q.order = rayscan::RayOrder::time;
+  else throw std::invalid_argument("--case '" + s + "': ORDER must be ray or time");
+  c.q.t_min = 0.0;
+  c.q.validate();
+  return c;
+}
+
+std::vector<Ray> random_rays(std::size_t m, std::uint64_t seed) {
+  std::mt19937_64 g(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::normal_distribution<double> n;
+  std::vector<Ray> rays;
+  rays.reserve(m);
+  for (std::size_t i = 0; i < m; ++i) {
+    const Vec3 o{u(g), u(g), u(g)};
+    Vec3 d{n(g), n(g), n(g)};
+    d /= std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+    rays.emplace_back(o, d);
+  }
+  return rays;
+}
+
+/// Seconds for one batch and the number of results it returned.
+std::pair<double, std::size_t> timed(const rayscan::AnyIndex& index, const std::vector<Ray>& rays,
+                                     const RayQuery& q, int threads) {
+  tbb::global_control gc(tbb::global_control::max_allowed_parallelism, static_cast<std::size_t>(threads));
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto res = std::visit([&](const auto& ix) { return rayscan::ray_query_batch(ix, rays, q); }, index);
+  const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::size_t hits = 0;
+  for (const auto& r : res) hits += r.size();
+  return {dt, hits};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Figure 5 of Teuscher et al.: ray query modalities on uniform points (the cases come from figure5.py)"};
+  std::size_t n = 1'000'000;
+  std::string threads_list = "1,2";
+  double seconds = 0.5;
+  int repeats = 3;
+  std::vector<std::string> case_args;
+  app.add_option("--points", n, "number of uniform points in the unit cube")->capture_default_str();
+  app.add_option("--threads", threads_list, "comma-separated thread counts")->capture_default_str();
+  app.add_option("--seconds", seconds, "target time per measurement at one thread")->capture_default_str();
+  app.add_option("--repeats", repeats, "batches per thread count (the best is kept)")->capture_default_str();
+  app.add_option("--case", case_args, "NAME|K|RADIUS|ORDER")->required();
+  CLI11_PARSE(app, argc, argv);
+  try {
+    std::vector<Case> cases;
+    for (const auto& s : case_args) cases.push_back(parse_case(s));
+    std::vector<int> threads;
+    {
+      std::stringstream ss(threads_list);
+      for (std::string t; std::getline(ss, t, ',');) threads.push_back(std::stoi(t));
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<Vec3> pts(n);
+    {
+      std::mt19937_64 g(1);
+      std::uniform_real_distribution<double> u(0.0, 1.0);
+      for (auto& p : pts) p = Vec3{u(g), u(g), u(g)};
+    }
+    const rayscan::AnyIndex index = rayscan::make_index(pts, rayscan::IndexOptions{});
+    std::printf("points %zu in memory (octree-adaptive): ready in %.1f s\n", n,
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    for (const Case& c : cases) {
+      const auto probe = random_rays(256, 5);
+      (void)timed(index, probe, c.q, 1);  // warm-up
+      const auto [dt, hits] = timed(index, probe, c.q, 1);
+      const double per_ray = std::max(dt / 256, 1e-7);
+      const double m = std::min({5e5, std::max(256.0, seconds / per_ray), 2e7 / std::max(1.0, hits / 256.0)});
+      const auto rays = random_rays(static_cast<std::size_t>(m), 5);
+      for (int th : threads) {
+        std::pair<double, std::size_t> best{1e300, 0};
+        for (int r = 0; r < repeats; ++r) best = std::min(best, timed(index, rays, c.q, th));
+        std::printf("row\t%zu\t%s\t%d\t%zu\t%.6f\t%zu\n", n, c.name.c_str(), th, rays.size(), best.first, best.second);
+        std::fflush(stdout);
+      }
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_figure5: %s\n", e.what());
+    return 2;
+  }
+  return 0;
+}
