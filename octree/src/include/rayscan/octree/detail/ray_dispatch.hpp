@@ -34,11 +34,13 @@ __attribute__((always_inline)) inline RootTest root_test(const KernelsOf<K>& ker
 
 /// The traversal of one ray with kernel policy K after root_test found `root` (enter or exact),
 /// from the root. Returns true when `best` was set (kBest1 only).
+/// `scratch`: the per-thread scratch (nullptr: the traversal fetches ray_scratch<Node>() itself).
 template <bool kBest1, class K, SpatialIndex I, class KeyPolicy>
 __attribute__((always_inline)) inline bool ray_traverse_from_root(RootTest root, const I& index, const Ray& ray,
                                                                   const RayQuery& q, Candidate& best,
-                                                                  RayQueryStats* stats, const KeyPolicy& key_policy) {
-  RayTraversal<kBest1, I, KeyPolicy, K> rt(index, ray, q, best, stats, key_policy);
+                                                                  RayQueryStats* stats, const KeyPolicy& key_policy,
+                                                                  RayScratch<typename I::Node>* scratch = nullptr) {
+  RayTraversal<kBest1, I, KeyPolicy, K> rt(index, ray, q, best, stats, key_policy, scratch);
   double lb0;
   if (!rt.enters_root(root, lb0)) {  // missed the root: no further set-up
     if constexpr (!kBest1) rt.scratch.cands.clear();  // (ray_query reads them)
@@ -50,17 +52,19 @@ __attribute__((always_inline)) inline bool ray_traverse_from_root(RootTest root,
 }
 
 /// The ray query for one ray with kernel policy K: the traversal above from the root, the first
-/// hit's after root_test. Returns true when `best` was set (kBest1 only).
+/// hit's after root_test. Returns true when `best` was set (kBest1 only). `scratch` as
+/// ray_traverse_from_root's.
 template <bool kBest1, class K, SpatialIndex I, class KeyPolicy>
 __attribute__((always_inline)) inline bool ray_traverse_with(const I& index, const Ray& ray, const RayQuery& q,
                                                              Candidate& best, RayQueryStats* stats,
-                                                             const KeyPolicy& key_policy) {
+                                                             const KeyPolicy& key_policy,
+                                                             RayScratch<typename I::Node>* scratch = nullptr) {
   RootTest root = RootTest::exact;
   if constexpr (kBest1) {
     root = root_test<K, KeyPolicy>(kernels_of<K>(), index, ray, q);
     if (root == RootTest::miss) return false;
   }
-  return ray_traverse_from_root<kBest1, K>(root, index, ray, q, best, stats, key_policy);
+  return ray_traverse_from_root<kBest1, K>(root, index, ray, q, best, stats, key_policy, scratch);
 }
 
 /// ray_traverse_with with the table kernels (simd::Kernels: the active path's kernels through
@@ -82,18 +86,22 @@ __attribute__((noinline)) bool ray_traverse_base(const I& index, const Ray& ray,
 /// for the scalar double code. Same double arithmetic as the baseline instance (-ffp-contract=off: no
 /// fused multiply-add is formed from the traversal's own expressions), so the answers are
 /// bit-identical. Called only after simd_path() chose avx2 (__builtin_cpu_supports).
+/// `scratch` (ray_scratch<Node>() of the calling thread) is fetched by the caller: a thread_local
+/// with a guard, read in here, made GCC spill the ray's registers and clear the upper halves
+/// (vzeroupper) around the guard's possible call on every ray, a cost the Intel Xeon's profile
+/// showed and the AMD EPYC's hid (bench/notes/).
 template <bool kBest1, SpatialIndex I, class KeyPolicy>
 __attribute__((target("avx2,fma"), flatten, noinline)) bool ray_traverse_avx2(
     const I& index, const Ray& ray, const RayQuery& q, Candidate& best, RayQueryStats* stats,
-    const KeyPolicy& key_policy) {
-  return ray_traverse_with<kBest1, simd::Avx2Kernels>(index, ray, q, best, stats, key_policy);
+    const KeyPolicy& key_policy, RayScratch<typename I::Node>* scratch = nullptr) {
+  return ray_traverse_with<kBest1, simd::Avx2Kernels>(index, ray, q, best, stats, key_policy, scratch);
 }
 /// As ray_traverse_avx2, for the AVX-512 path (F + VL).
 template <bool kBest1, SpatialIndex I, class KeyPolicy>
 __attribute__((target("avx512f,avx512vl,avx2,fma"), flatten, noinline)) bool ray_traverse_avx512(
     const I& index, const Ray& ray, const RayQuery& q, Candidate& best, RayQueryStats* stats,
-    const KeyPolicy& key_policy) {
-  return ray_traverse_with<kBest1, simd::Avx512Kernels>(index, ray, q, best, stats, key_policy);
+    const KeyPolicy& key_policy, RayScratch<typename I::Node>* scratch = nullptr) {
+  return ray_traverse_with<kBest1, simd::Avx512Kernels>(index, ray, q, best, stats, key_policy, scratch);
 }
 #endif
 
@@ -118,8 +126,10 @@ bool ray_traverse(const I& index, const Ray& ray, const RayQuery& q, Candidate& 
 #if RAYSCAN_SIMD_X86
   if constexpr (kBest1 && kIsaInstances<I, KeyPolicy>) {
     switch (simd::active_kernels().path) {
-      case SimdPath::avx2: return ray_traverse_avx2<kBest1>(index, ray, q, best, stats, key_policy);
-      case SimdPath::avx512: return ray_traverse_avx512<kBest1>(index, ray, q, best, stats, key_policy);
+      case SimdPath::avx2:
+        return ray_traverse_avx2<kBest1>(index, ray, q, best, stats, key_policy, &ray_scratch<typename I::Node>());
+      case SimdPath::avx512:
+        return ray_traverse_avx512<kBest1>(index, ray, q, best, stats, key_policy, &ray_scratch<typename I::Node>());
       default: break;
     }
   }

@@ -195,12 +195,15 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
   root.node = index.root();
   root.mask = 0;
   const KernelsOf<K> kern = kernels_of<K>();
+  // The rays share the thread's scratch, fetched once (a thread_local read per ray costs a guard
+  // and, in the per-ISA instances, spills around it: ray_traverse_avx512).
+  RayScratch<Node>* const scratch = &ray_scratch<Node>();
   for (unsigned i = 0; i < n; ++i) {
     // As ray_traverse: a ray that root_test finds missing is never set up, one that misses the
     // root is never prepared, nor read again.
     const RootTest rtest = root_test<K, KeyPolicy>(kern, index, rays[i], q);
     if (rtest == RootTest::miss) continue;
-    st[i] = ::new (static_cast<void*>(states.buf[i])) RT(index, rays[i], q, best[i], stats, key_of(i));
+    st[i] = ::new (static_cast<void*>(states.buf[i])) RT(index, rays[i], q, best[i], stats, key_of(i), scratch);
     states.made |= 1u << i;
     if (st[i]->enters_root(rtest, root.lb[i])) {
       st[i]->prepare();
