@@ -3,6 +3,7 @@
 
 #include "rayscan/io/point_io.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstddef>
@@ -11,6 +12,7 @@
 #include <functional>
 #include <new>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -70,6 +72,48 @@ inline T load_be(const std::uint8_t* p) {
   T v;
   std::memcpy(&v, tmp, sizeof(T));
   return v;
+}
+
+/// Appends v's little-endian bytes to b (the counterpart of load_le, for the writers).
+template <class T>
+inline void append_le(std::vector<std::uint8_t>& b, T v) {
+  static_assert(std::endian::native == std::endian::little && std::is_trivially_copyable_v<T>);
+  const std::size_t at = b.size();
+  b.resize(at + sizeof(T));
+  std::memcpy(b.data() + at, &v, sizeof(T));
+}
+
+/// Overwrites b[at, at + sizeof(T)) (inside b) with v's little-endian bytes.
+template <class T>
+inline void store_le(std::vector<std::uint8_t>& b, std::size_t at, T v) {
+  static_assert(std::endian::native == std::endian::little && std::is_trivially_copyable_v<T>);
+  std::memcpy(b.data() + at, &v, sizeof(T));
+}
+
+/// Appends s as a fixed-width character field of n bytes, NUL-padded (cut at n): the counterpart
+/// of fixed_string.
+inline void append_fixed(std::vector<std::uint8_t>& b, std::string_view s, std::size_t n) {
+  const std::size_t at = b.size();
+  b.resize(at + n, 0);
+  std::memcpy(b.data() + at, s.data(), std::min(n, s.size()));
+}
+
+/// Appends the header of a VLR (LAS 1.4 R15 section 2.5: 54 bytes, record length 16 bit) or, with
+/// `extended`, of an EVLR (section 2.7: 60 bytes, 64 bit): reserved 0, user id (16 bytes), record
+/// id, the payload's length, description (32 bytes). The caller appends the payload. Throws
+/// std::length_error when a VLR's payload exceeds 65,535 bytes.
+inline void append_vlr_header(std::vector<std::uint8_t>& b, std::string_view user, std::uint16_t record,
+                              std::uint64_t length, std::string_view description, bool extended) {
+  append_le<std::uint16_t>(b, 0);
+  append_fixed(b, user, 16);
+  append_le<std::uint16_t>(b, record);
+  if (extended) {
+    append_le<std::uint64_t>(b, length);
+  } else {
+    if (length > 65535) throw std::length_error("VLR payload of " + std::to_string(length) + " bytes (at most 65,535)");
+    append_le<std::uint16_t>(b, static_cast<std::uint16_t>(length));
+  }
+  append_fixed(b, description, 32);
 }
 
 /// A fixed-width, NUL-padded character field as a string (trailing NULs and spaces removed).

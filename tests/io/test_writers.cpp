@@ -196,5 +196,40 @@ TEST(Writers, FailedWriteLeavesNoFile) {
     EXPECT_EQ(de.path().string().find(".tmp."), std::string::npos) << de.path();
 }
 
+// The Extra Bytes VLR's record length is 16 bit (LAS 1.4 R15 section 2.5.6): 341 descriptors of
+// 192 bytes fit, 342 do not; the writer says so before writing anything.
+TEST(Writers, LasRefusesMoreExtraFieldsThanTheExtraBytesVlrHolds) {
+  PointCloud pc;
+  pc.positions = {Vec3(0, 0, 0), Vec3(1, 1, 1)};
+  for (int i = 0; i < 341; ++i) {
+    std::string name = "f";  // (appended, not "f" + ...: GCC 12's -Wrestrict misfires on that)
+    name += std::to_string(i);
+    pc.scalars.push_back({name, {1.0, 2.0}});
+  }
+  const fs::path out = temp_dir() / "extra341.las";
+  fs::remove(out);
+  io::write_las(out, pc);
+  {
+    const PointCloud back = io::read_point_cloud(out);  // (it also holds the PDRF's own fields)
+    std::size_t ours = 0;
+    for (const ScalarField& f : back.scalars)
+      if (f.name.size() > 1 && f.name[0] == 'f' && f.name.find_first_not_of("0123456789", 1) == std::string::npos) {
+        ++ours;
+        EXPECT_EQ(f.values, (std::vector<double>{1.0, 2.0})) << f.name;
+      }
+    EXPECT_EQ(ours, 341u);
+  }
+  pc.scalars.push_back({"f341", {1.0, 2.0}});
+  const fs::path bad = temp_dir() / "extra342.las";
+  fs::remove(bad);
+  try {
+    io::write_las(bad, pc);
+    ADD_FAILURE() << "342 extra fields were written";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("at most 341"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(bad));
+}
+
 }  // namespace
 }  // namespace rayscan::test

@@ -225,6 +225,9 @@ struct LasRecordWriter {
   void plan_vlrs() {
     wkt_evlr = wkt.size() + 1 > 65535;
     if (!wkt.empty() && !wkt_evlr) ++n_vlr, vlr_bytes += 54 + wkt.size() + 1;
+    if (192 * extra.size() > 65535)  // (the Extra Bytes VLR's record length is 16 bit)
+      throw std::invalid_argument(path.string() + ": " + std::to_string(extra.size()) +
+                                  " extra fields; the Extra Bytes VLR of LAS 1.4 holds at most 341");
     if (!extra.empty()) ++n_vlr, vlr_bytes += 54 + 192 * extra.size();
     point_offset = 375 + vlr_bytes;
     if (point_offset > std::numeric_limits<std::uint32_t>::max())
@@ -274,19 +277,17 @@ struct LasRecordWriter {
   /// The VLRs plan_vlrs() counted: OGC WKT (2.5.1, record 2112, NUL-terminated) and Extra Bytes
   /// (2.5.6, record 4 of "LASF_Spec"; one 192-byte descriptor per extra scalar, type 10 double).
   void write_vlrs(detail::AtomicWriter& w) const {
-    auto vlr_header = [&](const char* user, std::uint16_t id, std::uint16_t len, const char* desc) {
-      w.put<std::uint16_t>(0);
-      w.put_fixed(user, 16);
-      w.put<std::uint16_t>(id);
-      w.put<std::uint16_t>(len);
-      w.put_fixed(desc, 32);
+    auto vlr_header = [&](const char* user, std::uint16_t id, std::uint64_t len, const char* desc) {
+      std::vector<std::uint8_t> h;
+      detail::append_vlr_header(h, user, id, len, desc, false);
+      w.write(h.data(), h.size());
     };
     if (!wkt.empty() && !wkt_evlr) {
-      vlr_header("LASF_Projection", 2112, static_cast<std::uint16_t>(wkt.size() + 1), "OGC WKT");
+      vlr_header("LASF_Projection", 2112, wkt.size() + 1, "OGC WKT");
       w.write(wkt.c_str(), wkt.size() + 1);
     }
     if (!extra.empty()) {
-      vlr_header("LASF_Spec", 4, static_cast<std::uint16_t>(192 * extra.size()), "Extra Bytes Record");
+      vlr_header("LASF_Spec", 4, 192 * extra.size(), "Extra Bytes Record");
       for (const ScalarField* f : extra) {
         std::uint8_t e[192] = {};
         e[2] = 10;  // data type: double
@@ -343,11 +344,9 @@ struct LasRecordWriter {
   /// The OGC WKT EVLR (section 2.7: 60-byte header with a 64-bit length) after the points, for
   /// WKT longer than a VLR can hold.
   void write_wkt_evlr(detail::AtomicWriter& w) const {
-    w.put<std::uint16_t>(0);
-    w.put_fixed("LASF_Projection", 16);
-    w.put<std::uint16_t>(2112);
-    w.put<std::uint64_t>(wkt.size() + 1);
-    w.put_fixed("OGC WKT", 32);
+    std::vector<std::uint8_t> h;
+    detail::append_vlr_header(h, "LASF_Projection", 2112, wkt.size() + 1, "OGC WKT", true);
+    w.write(h.data(), h.size());
     w.write(wkt.c_str(), wkt.size() + 1);
   }
 };

@@ -1,6 +1,7 @@
 // translate_las(): see rayscan/io/translate.hpp.
 #include "rayscan/io/translate.hpp"
 
+#include "bytes.hpp"
 #include "laz/encoder_v2.hpp"
 #include "laz/encoder_v3.hpp"
 #include "laz/laz.hpp"
@@ -17,18 +18,9 @@ namespace rayscan::io {
 
 namespace {
 
+using detail::append_le;
 using detail::load_le;
-
-template <class T>
-void store_le(std::vector<std::uint8_t>& b, std::size_t at, T v) {
-  std::memcpy(b.data() + at, &v, sizeof(T));
-}
-template <class T>
-void append_le(std::vector<std::uint8_t>& b, T v) {
-  const std::size_t at = b.size();
-  b.resize(at + sizeof(T));
-  std::memcpy(b.data() + at, &v, sizeof(T));
-}
+using detail::store_le;
 
 /// Sequential source of raw records: from the map (LAS) or decoded chunk by chunk (LAZ).
 class RecordSource {
@@ -219,12 +211,9 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
   head.insert(head.end(), d + pos, d + h.point_offset);  // bytes between the VLRs and the points
   if (to_laz) {
     const std::vector<std::uint8_t> payload = laz::laszip_vlr_payload(h.pdrf, extra, opt.chunk_size);
-    std::vector<std::uint8_t> vh(54, 0);
-    std::memcpy(vh.data() + 2, "laszip encoded", 14);
-    store_le<std::uint16_t>(vh, 18, 22204);
-    store_le<std::uint16_t>(vh, 20, static_cast<std::uint16_t>(payload.size()));
-    const char* desc = h.pdrf >= 6 ? "by rayscan (LASzip 3.4 items)" : "by rayscan (LASzip 2.2 items)";
-    std::memcpy(vh.data() + 22, desc, 29);
+    std::vector<std::uint8_t> vh;
+    detail::append_vlr_header(vh, "laszip encoded", 22204, payload.size(),
+                              h.pdrf >= 6 ? "by rayscan (LASzip 3.4 items)" : "by rayscan (LASzip 2.2 items)", false);
     // insert before the trailing user bytes: right after the last kept VLR
     const std::size_t at = head.size() - (h.point_offset - pos);
     head.insert(head.begin() + static_cast<std::ptrdiff_t>(at), payload.begin(), payload.end());

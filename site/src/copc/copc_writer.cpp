@@ -8,6 +8,7 @@
 // CopcNode (rayscan/site/copc.hpp) read.
 #include "rayscan/site/copc_writer.hpp"
 
+#include "bytes.hpp"
 #include "copc_build.hpp"
 #include "las/las_header.hpp"
 #include "laz/encoder_v3.hpp"
@@ -33,34 +34,23 @@ namespace {
 
 using detail::load_le;
 
-/// Little-endian byte buffer being built.
+/// Little-endian byte buffer being built (the io library's append_le / append_fixed).
 struct Bytes {
   std::vector<std::uint8_t> b;
   template <class T>
   void put(T v) {
-    const std::size_t at = b.size();
-    b.resize(at + sizeof(T));
-    std::memcpy(b.data() + at, &v, sizeof(T));
+    detail::append_le(b, v);
   }
-  void fixed(const std::string& s, std::size_t n) {
-    const std::size_t at = b.size();
-    b.resize(at + n, 0);
-    std::memcpy(b.data() + at, s.data(), std::min(n, s.size()));
-  }
+  void fixed(const std::string& s, std::size_t n) { detail::append_fixed(b, s, n); }
   void raw(const void* p, std::size_t n) {
     const auto* c = static_cast<const std::uint8_t*>(p);
     b.insert(b.end(), c, c + n);
   }
 };
 
-/// A VLR (LAS 1.4 section 2.5: 54-byte header) or EVLR (section 2.7: 60-byte header).
+/// A VLR (LAS 1.4 section 2.5) or EVLR (section 2.7) with its payload.
 void put_vlr(Bytes& o, const copc::CarriedVlr& v, bool extended) {
-  o.put<std::uint16_t>(0);  // reserved
-  o.fixed(v.user, 16);
-  o.put<std::uint16_t>(v.record);
-  if (extended) o.put<std::uint64_t>(v.payload.size());
-  else o.put<std::uint16_t>(static_cast<std::uint16_t>(v.payload.size()));
-  o.fixed(v.description, 32);
+  detail::append_vlr_header(o.b, v.user, v.record, v.payload.size(), v.description, extended);
   o.raw(v.payload.data(), v.payload.size());
 }
 
