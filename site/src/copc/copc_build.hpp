@@ -93,9 +93,23 @@ struct Node {
   std::uint32_t count = 0;
 };
 
+/// Whole-file statistics of the records that the LAS 1.4 header (section 2.4: bounds, points by
+/// return) and the COPC info VLR (GPS time range) need.
+struct RecordStats {
+  std::int32_t lo[3] = {INT32_MAX, INT32_MAX, INT32_MAX};  ///< least integer X, Y, Z
+  std::int32_t hi[3] = {INT32_MIN, INT32_MIN, INT32_MIN};  ///< largest integer X, Y, Z
+  double gps_min = 0, gps_max = 0;    ///< GPS time range, NaN times left out (0, 0: none)
+  std::uint64_t by_return[15] = {};   ///< points with return number 1 to 15
+};
+
+/// RecordStats of `r` (PDRF 6-8 layout: X, Y, Z at bytes 0-11, the return number in the low 4
+/// bits of byte 14, GPS time at byte 22), in one parallel pass (TBB).
+RecordStats record_stats(const Records& r);
+
 /// The distributed points: nodes in depth-first pre-order (children in Morton digit order),
 /// each with at least one point.
 struct Tree {
+  RecordStats stats;  ///< of all the records (its bounds give the cube)
   Cube cube;
   std::vector<Node> nodes;
   std::vector<Slot> slots;  ///< the points, grouped by node (nodes' ranges)

@@ -133,38 +133,58 @@ class Builder {
 
 }  // namespace
 
+RecordStats record_stats(const Records& r) {
+  const std::size_t rec = r.record_length;
+  const std::uint8_t* d = r.bytes;
+  struct Acc {
+    RecordStats s;
+    double tmin = std::numeric_limits<double>::infinity(), tmax = -std::numeric_limits<double>::infinity();
+  };
+  const Acc acc = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, static_cast<std::size_t>(r.count), 1 << 16), Acc{},
+      [&](const tbb::blocked_range<std::size_t>& br, Acc a) {
+        for (std::size_t i = br.begin(); i != br.end(); ++i) {
+          const std::uint8_t* p = d + i * rec;
+          for (int k = 0; k < 3; ++k) {
+            const auto v = load_le<std::int32_t>(p + 4 * k);
+            a.s.lo[k] = std::min(a.s.lo[k], v);
+            a.s.hi[k] = std::max(a.s.hi[k], v);
+          }
+          const double t = load_le<double>(p + 22);
+          if (t < a.tmin) a.tmin = t;  // (NaN times compare false: left out)
+          if (t > a.tmax) a.tmax = t;
+          const unsigned ret = p[14] & 15u;
+          if (ret >= 1) ++a.s.by_return[ret - 1];
+        }
+        return a;
+      },
+      [](Acc a, const Acc& b) {
+        for (int k = 0; k < 3; ++k) a.s.lo[k] = std::min(a.s.lo[k], b.s.lo[k]), a.s.hi[k] = std::max(a.s.hi[k], b.s.hi[k]);
+        a.tmin = std::min(a.tmin, b.tmin);
+        a.tmax = std::max(a.tmax, b.tmax);
+        for (int k = 0; k < 15; ++k) a.s.by_return[k] += b.s.by_return[k];
+        return a;
+      });
+  RecordStats s = acc.s;
+  if (acc.tmin <= acc.tmax) s.gps_min = acc.tmin, s.gps_max = acc.tmax;
+  return s;
+}
+
 Tree build_tree(const Records& r, const CopcWriteOptions& opt) {
   const std::size_t rec = r.record_length;
   const std::size_t n = static_cast<std::size_t>(r.count);
   const std::uint8_t* d = r.bytes;
-  // Bounds of the integer coordinates, then in file units (a negative scale swaps the ends).
-  struct Box {
-    std::int32_t lo[3] = {INT32_MAX, INT32_MAX, INT32_MAX}, hi[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
-  };
-  const Box box = tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, n, 1 << 16), Box{},
-      [&](const tbb::blocked_range<std::size_t>& br, Box b) {
-        for (std::size_t i = br.begin(); i != br.end(); ++i)
-          for (int k = 0; k < 3; ++k) {
-            const auto v = load_le<std::int32_t>(d + i * rec + 4 * k);
-            b.lo[k] = std::min(b.lo[k], v);
-            b.hi[k] = std::max(b.hi[k], v);
-          }
-        return b;
-      },
-      [](Box a, const Box& b) {
-        for (int k = 0; k < 3; ++k) a.lo[k] = std::min(a.lo[k], b.lo[k]), a.hi[k] = std::max(a.hi[k], b.hi[k]);
-        return a;
-      });
-  const std::int32_t* lo = box.lo;
-  const std::int32_t* hi = box.hi;
+  Tree t;
+  t.stats = record_stats(r);
+  // Bounds of the integer coordinates in file units (a negative scale swaps the ends).
+  const std::int32_t* lo = t.stats.lo;
+  const std::int32_t* hi = t.stats.hi;
   Vec3 wlo, whi;
   for (int k = 0; k < 3; ++k) {
     const double u = las_coordinate(lo[k], r.scale[k], r.offset[k]), v = las_coordinate(hi[k], r.scale[k], r.offset[k]);
     wlo[k] = std::min(u, v);
     whi[k] = std::max(u, v);
   }
-  Tree t;
   t.cube.center = (wlo + whi) * 0.5;
   double half = 0.5 * std::max({whi.x - wlo.x, whi.y - wlo.y, whi.z - wlo.z});
   // a single point (or one repeated) still needs a cube of positive size

@@ -54,34 +54,6 @@ void put_vlr(Bytes& o, const copc::CarriedVlr& v, bool extended) {
   o.raw(v.payload.data(), v.payload.size());
 }
 
-/// Whole-file statistics the header and the info VLR need.
-struct Stats {
-  std::int32_t lo[3] = {INT32_MAX, INT32_MAX, INT32_MAX}, hi[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
-  double gps_min = 0, gps_max = 0;
-  std::uint64_t by_return[15] = {};
-};
-
-Stats stats_of(const copc::Records& r) {
-  Stats s;
-  s.gps_min = std::numeric_limits<double>::infinity();
-  s.gps_max = -s.gps_min;
-  for (std::uint64_t i = 0; i < r.count; ++i) {
-    const std::uint8_t* p = r.bytes + i * r.record_length;
-    for (int k = 0; k < 3; ++k) {
-      const auto v = load_le<std::int32_t>(p + 4 * k);
-      s.lo[k] = std::min(s.lo[k], v);
-      s.hi[k] = std::max(s.hi[k], v);
-    }
-    const double t = load_le<double>(p + 22);
-    if (t < s.gps_min) s.gps_min = t;  // NaN times are left out
-    if (t > s.gps_max) s.gps_max = t;
-    const unsigned ret = p[14] & 15u;
-    if (ret >= 1) ++s.by_return[ret - 1];
-  }
-  if (s.gps_min > s.gps_max) s.gps_min = s.gps_max = 0;
-  return s;
-}
-
 /// GPS time as an unsigned key whose order is the doubles' (negatives reversed below the
 /// positives; NaNs at the ends), a total order for sorting a node's records.
 std::uint64_t time_key(const std::uint8_t* rec) {
@@ -144,7 +116,7 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
   if (opt.temp_dir.empty()) opt.temp_dir = out.has_parent_path() ? out.parent_path() : std::filesystem::path(".");
   const copc::Records r = copc::read_records(in, opt);
   const copc::Tree t = copc::build_tree(r, opt);
-  const Stats st = stats_of(r);
+  const copc::RecordStats& st = t.stats;
   const std::size_t rec = r.record_length;
   const std::size_t extra = rec - static_cast<std::size_t>(detail::pdrf_length(r.pdrf));
 
