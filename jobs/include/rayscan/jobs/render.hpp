@@ -57,6 +57,8 @@ struct RenderJobResult {
   double first_tile_seconds = 0.0;     ///< from the call to the first traced tile (run_render)
   std::uint64_t copc_decodes = 0;      ///< COPC input traced in place: node decodes (re-decodes after
                                        ///< eviction included); 0 otherwise
+  std::size_t copc_peak_cache_bytes = 0;  ///< COPC input traced in place: the most bytes of decoded
+                                          ///< nodes resident at once (CopcIndex::peak_resident_bytes)
   ImageMetadata metadata;              ///< what was (or would be) stored in the image header
   std::vector<std::filesystem::path> written;  ///< files written (beauty first)
 };
