@@ -39,7 +39,8 @@ struct RenderJobOptions {
   /// throws propagate unchanged.
   std::function<Camera(const AABB&)> camera_for_cloud;
   JobControl control;                  ///< threads, progress bar, log lines
-  /// COPC input (sphere mode): bytes of decoded nodes kept between tile batches (`--cache`).
+  /// COPC input (sphere mode): bytes of decoded nodes kept resident (`--cache`; trimmed as each
+  /// tile ends, plus the nodes of the tiles in flight).
   std::size_t cache_bytes = std::size_t{2} << 30;
 };
 
