@@ -3,7 +3,7 @@
 // same file read whole (io::read_point_cloud) and rendered through the in-memory octree.
 //   bench_copc_render inplace|whole FILE.copc.laz [width height spp cache]
 // One mode per process (peak RSS is per process); bench/copc_render.sh interleaves the modes.
-// Prints one line: mode first_tile_s total_s decodes nodes maxrss_mb queries.
+// Prints one line: mode first_tile_s total_s decodes nodes maxrss_mb cache_peak_mb queries lit_px radius.
 #include "rayscan/site/copc.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/render.hpp"
@@ -65,9 +65,10 @@ int main(int argc, char** argv) {
   getrusage(RUSAGE_SELF, &ru);
   std::size_t hit = 0;
   for (Color c : r.image.beauty) hit += c.r > 0;
-  std::printf("%s first_tile_s %.3f total_s %.3f decodes %llu nodes %zu maxrss_mb %.1f queries %llu lit_px %zu radius %.4g\n",
+  std::printf("%s first_tile_s %.3f total_s %.3f decodes %llu nodes %zu maxrss_mb %.1f cache_peak_mb %.1f "
+              "queries %llu lit_px %zu radius %.4g\n",
               mode.c_str(), read_s + r.first_tile_seconds, total, (unsigned long long)r.copc_decodes,
-              info.nodes.size(), double(ru.ru_maxrss) / 1024.0, (unsigned long long)r.stats.queries, hit,
-              r.radius.radius);
+              info.nodes.size(), double(ru.ru_maxrss) / 1024.0, double(r.copc_peak_cache_bytes) / 1048576.0,
+              (unsigned long long)r.stats.queries, hit, r.radius.radius);
   return 0;
 }

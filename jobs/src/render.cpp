@@ -324,8 +324,11 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   r.stats = render_camera(*P, *scene.camera, ctl, r.radius.radius, r.image, true);
   if (const io::CopcIndex* copc = P->site->copc()) {
     r.copc_decodes = copc->decodes();
-    std::snprintf(buf0, sizeof buf0, "COPC: %llu node decodes (of %zu nodes), %zu resident after the last trim",
-                  static_cast<unsigned long long>(r.copc_decodes), copc->node_count(), copc->resident_nodes());
+    r.copc_peak_cache_bytes = copc->peak_resident_bytes();
+    std::snprintf(buf0, sizeof buf0,
+                  "COPC: %llu node decodes (of %zu nodes), %zu resident after the last trim, cache peak %.1f MB of %.1f MB",
+                  static_cast<unsigned long long>(r.copc_decodes), copc->node_count(), copc->resident_nodes(),
+                  double(r.copc_peak_cache_bytes) / 1048576.0, double(copc->cache_bytes()) / 1048576.0);
     ctl.info(buf0);
   }
   r.first_tile_seconds = prepared + r.stats.first_tile_seconds;

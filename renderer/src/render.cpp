@@ -14,6 +14,7 @@
 #include <atomic>
 #include <chrono>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <type_traits>
 
@@ -36,6 +37,15 @@ RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
 }
 
 namespace {
+
+// What a tile holds open on its index while it is traced: on a COPC file the cache scope (the
+// nodes the tile reaches stay decoded; its end trims the cache to the budget), nothing elsewhere.
+struct NoScope {};
+template <class I>
+auto tile_scope(const I& idx) {
+  if constexpr (std::is_same_v<I, io::CopcIndex>) return std::make_unique<io::CopcIndex::QueryScope>(idx);
+  else return NoScope{};
+}
 
 // Tiles [first, last) of the T x T tile grid (row-major tile order).
 template <class I>
@@ -72,6 +82,7 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
     std::vector<Sampler> smps;
     smps.reserve(kMaxRayPacket);
     for (std::uint32_t tile = range.begin(); tile != range.end(); ++tile) {
+      const auto scope = tile_scope(idx);
       const std::uint64_t q_before = c.queries;
       const std::uint32_t x0 = (tile % tiles_x) * T, y0 = (tile / tiles_x) * T;
       const std::uint32_t x1 = std::min(W, x0 + T), y1 = std::min(H, y0 + T);
@@ -213,12 +224,8 @@ Framebuffer empty_framebuffer(const Camera& camera, std::span<const Aov> aovs) {
 }
 
 namespace {
-// `after_batch`, when set, runs between batches of `batch` tiles (no query in flight): the
-// COPC cache trim.
 template <class I>
-RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuffer& fb,
-                              const RenderOptions& opt, const std::function<void()>& after_batch = {},
-                              std::uint32_t batch = 0) {
+RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuffer& fb, const RenderOptions& opt) {
   const std::uint32_t W = s.camera.width(), H = s.camera.height();
   const std::size_t n = std::size_t(W) * H;
   fb = empty_framebuffer(s.camera, s.aovs);
@@ -237,12 +244,7 @@ RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuff
   const std::uint32_t tiles = ((W + T - 1) / T) * ((H + T - 1) / T);
   WorkDistributor* dist = opt.distributor;
   if (!dist || dist->size() <= 1) {
-    const std::uint32_t step = after_batch && batch > 0 ? batch : std::max(tiles, 1u);
-    for (std::uint32_t b = 0; b < tiles; b += step) {
-      const std::uint32_t e = tiles - b < step ? tiles : b + step;
-      arena.execute([&] { render_tiles(index, s, fb, opt, stats, b, e, t0, first_done); });
-      if (after_batch) after_batch();
-    }
+    arena.execute([&] { render_tiles(index, s, fb, opt, stats, 0, tiles, t0, first_done); });
   } else {
     // Tiles handed out by the distributor (rayscan::mpi's work queue); the root gathers them.
     WorkStage stage;
@@ -252,7 +254,6 @@ RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuff
       arena.execute([&] {
         render_tiles(index, s, fb, opt, stats, std::uint32_t(first), std::uint32_t(first + count), t0, first_done);
       });
-      if (after_batch) after_batch();
     };
     stage.pack = [&](std::uint64_t first, std::uint64_t count) { return pack_tiles(fb, T, first, count); };
     stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
@@ -280,8 +281,7 @@ RenderStats render_image(const Site& site, const RenderSettings& s, Framebuffer&
     if constexpr (is_copc_index<decltype(index)>) {
       if (s.integrator.primitive != Primitive::sphere)
         throw std::invalid_argument("render: a COPC file is traced in place in sphere mode only");
-      // 64 tiles (16x16 px) per batch: the cache is trimmed 8+ times per 1080p frame.
-      return render_image_impl(index, s, fb, opt, [&] { index.trim_cache(); }, 64);
+      return render_image_impl(index, s, fb, opt);  // each tile a CopcIndex::QueryScope
     } else {
       return render_image_impl(index, s, fb, opt);
     }

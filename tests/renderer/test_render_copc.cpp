@@ -57,7 +57,7 @@ TEST(RenderCopc, InPlaceRenderEqualsTheWholeFileRender) {
     copc.scene.radius = 0.05;  // the auto radius is the next test's
     copc.write = false;
     copc.control.threads = 2;
-    copc.cache_bytes = std::size_t{1} << 20;  // 1 MB: the cache is trimmed between tile batches
+    copc.cache_bytes = std::size_t{1} << 20;  // 1 MB, under one node: tiles' ends evict while others trace
     AABB seen;
     const Camera cam = *copc.scene.camera;
     copc.camera_for_cloud = [&seen, cam](const AABB& box) {
@@ -68,6 +68,7 @@ TEST(RenderCopc, InPlaceRenderEqualsTheWholeFileRender) {
     EXPECT_EQ(seen.lo, b.lo);  // the exact bounds, from one streamed pass
     EXPECT_EQ(seen.hi, b.hi);
     EXPECT_GT(a.copc_decodes, 0u);
+    EXPECT_GT(a.copc_peak_cache_bytes, 0u);
     // The oracle: the same points read whole, the radius the in-place render chose.
     RenderJobOptions whole = copc;
     whole.camera_for_cloud = nullptr;

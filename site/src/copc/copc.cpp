@@ -24,6 +24,7 @@
 #include <map>
 #include <set>
 #include <stdexcept>
+#include <thread>
 #include <tuple>
 
 namespace rayscan::io {
@@ -251,9 +252,14 @@ CopcIndex::CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes)
   pos_ = static_cast<Vec3*>(reserve(slots_ * sizeof(Vec3)));
   ids_ = static_cast<PointIndex*>(reserve(slots_ * sizeof(PointIndex)));
   local_ = std::make_unique<Local[]>(nodes_.size());
-  loaded_ = std::make_unique<std::atomic<std::uint8_t>[]>(nodes_.size());
+  state_ = std::make_unique<std::atomic<std::uint8_t>[]>(nodes_.size());
   touched_ = std::make_unique<std::atomic<std::uint64_t>[]>(nodes_.size());
-  for (std::size_t i = 0; i < nodes_.size(); ++i) loaded_[i].store(0), touched_[i].store(0);
+  node_bytes_ = std::make_unique<std::atomic<std::size_t>[]>(nodes_.size());
+  retired_at_ = std::make_unique<std::atomic<std::uint64_t>[]>(nodes_.size());
+  for (std::size_t i = 0; i < nodes_.size(); ++i)
+    state_[i].store(kAbsent), touched_[i].store(0), node_bytes_[i].store(0), retired_at_[i].store(0);
+  scopes_ = std::make_unique<std::atomic<std::uint64_t>[]>(kScopeSlots);
+  for (unsigned i = 0; i < kScopeSlots; ++i) scopes_[i].store(0);
 }
 
 CopcIndex::~CopcIndex() {
@@ -412,7 +418,12 @@ void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector
 
 void CopcIndex::load(std::uint32_t n) const {
   std::lock_guard<std::mutex> lock(locks_[n % 32]);
-  if (loaded_[n].load(std::memory_order_acquire) != 0) return;
+  const std::uint8_t st = state_[n].load();
+  if (st == kLoaded) return;
+  if (st == kRetired) {  // not released yet: its slots and local tree are intact
+    state_[n].store(kLoaded);
+    return;
+  }
   const NodeData& nd = nodes_[n];
   const CopcNode& e = info_.nodes[nd.entry];
   if (e.point_count > 0) {
@@ -437,7 +448,13 @@ void CopcIndex::load(std::uint32_t n) const {
     }
   }
   decodes_.fetch_add(1);
-  loaded_[n].store(1, std::memory_order_release);
+  const std::size_t bytes = nd.slots.size() * slot_bytes() + local_[n].cells.capacity() * sizeof(Cell) +
+                            local_[n].slot_of.capacity() * sizeof(std::uint32_t);
+  node_bytes_[n].store(bytes);
+  const std::size_t now = resident_bytes_.fetch_add(bytes) + bytes;
+  for (std::size_t peak = peak_bytes_.load(); now > peak && !peak_bytes_.compare_exchange_weak(peak, now);) {
+  }
+  state_[n].store(kLoaded);
 }
 
 std::uint32_t CopcIndex::slot_of(std::uint32_t n, std::uint64_t k) const {
@@ -451,7 +468,12 @@ std::size_t CopcIndex::slot_bytes() const {
 }
 
 void CopcIndex::set_attributes(unsigned attrs) {
-  for (std::size_t i = 0; i < nodes_.size(); ++i) loaded_[i].store(0);  // decode again with the attributes
+  {  // decode again with the attributes (and account for their bytes)
+    const std::lock_guard<std::mutex> trim(trim_mutex_);
+    for (std::uint32_t i = 0; i < nodes_.size(); ++i)
+      if (state_[i].load() != kAbsent) release(i);
+    retired_.clear();
+  }
   const bool pdrf_rgb = info_.pdrf == 7 || info_.pdrf == 8;
   if ((attrs & kRgb) && pdrf_rgb && rgb_ == nullptr && slots_ > 0) {
     // The reader's colour normalisation (las_reader.cpp decide_colour_scale): the largest channel
@@ -547,36 +569,21 @@ Vec3 CopcIndex::position_of(PointIndex id) const {
 
 std::size_t CopcIndex::resident_nodes() const {
   std::size_t k = 0;
-  for (std::size_t i = 0; i < nodes_.size(); ++i) k += loaded_[i].load() != 0;
+  for (std::size_t i = 0; i < nodes_.size(); ++i) k += state_[i].load() != kAbsent;
   return k;
 }
 
-std::size_t CopcIndex::trim_cache() {
-  const std::size_t per_slot = slot_bytes();
-  auto local_bytes = [&](std::uint32_t i) {
-    return local_[i].cells.capacity() * sizeof(Cell) + local_[i].slot_of.capacity() * sizeof(std::uint32_t);
-  };
-  std::vector<std::uint32_t> resident;
-  std::size_t bytes = 0;
-  for (std::uint32_t i = 0; i < nodes_.size(); ++i)
-    if (loaded_[i].load() != 0) {
-      resident.push_back(i);
-      bytes += nodes_[i].slots.size() * per_slot + local_bytes(i);
-    }
-  clock_.fetch_add(1);  // a new batch: what is touched from now on is more recent
-  if (bytes <= cache_bytes_) return 0;
-  std::sort(resident.begin(), resident.end(),
-            [&](std::uint32_t a, std::uint32_t b) { return touched_[a].load() < touched_[b].load(); });
-  std::size_t evicted = 0;
+void CopcIndex::release(std::uint32_t i) const {
+  const SlotRange s = nodes_[i].slots;
   const std::size_t page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
-  for (std::uint32_t i : resident) {
-    if (bytes <= cache_bytes_) break;
-    const SlotRange s = nodes_[i].slots;
-    auto drop = [&](void* base, std::size_t elem) {
-      const auto b = reinterpret_cast<std::uintptr_t>(base) + s.begin * elem;
-      const auto e = (reinterpret_cast<std::uintptr_t>(base) + s.end * elem + page - 1) / page * page;
-      if (e > b) ::madvise(reinterpret_cast<void*>(b), e - b, MADV_DONTNEED);
-    };
+  // Positions and ids: node ranges start on a page (kSlotAlign), so the pages from the first up
+  // to the one holding the last slot are the node's alone.
+  auto drop = [&](void* base, std::size_t elem) {
+    const auto b = reinterpret_cast<std::uintptr_t>(base) + s.begin * elem;
+    const auto e = (reinterpret_cast<std::uintptr_t>(base) + s.end * elem + page - 1) / page * page;
+    if (e > b) ::madvise(reinterpret_cast<void*>(b), e - b, MADV_DONTNEED);
+  };
+  if (s.size() > 0) {
     drop(pos_, sizeof(Vec3));
     drop(ids_, sizeof(PointIndex));
     // Attribute arrays: a node's range is not page-aligned there; release only the whole pages
@@ -590,12 +597,103 @@ std::size_t CopcIndex::trim_cache() {
     drop_inner(rgb_, sizeof(Rgb16));
     drop_inner(int_, sizeof(std::uint16_t));
     drop_inner(cls_, sizeof(std::uint8_t));
-    bytes -= s.size() * per_slot + local_bytes(i);
-    local_[i] = Local{};
-    loaded_[i].store(0);
+  }
+  local_[i] = Local{};
+  resident_bytes_.fetch_sub(node_bytes_[i].exchange(0));
+  state_[i].store(kAbsent);
+}
+
+std::size_t CopcIndex::trim_cache() {
+  const std::lock_guard<std::mutex> trim(trim_mutex_);
+  free_retired();
+  std::vector<std::uint32_t> resident;
+  for (std::uint32_t i = 0; i < nodes_.size(); ++i)
+    if (state_[i].load() != kAbsent) resident.push_back(i);
+  clock_.fetch_add(1);  // a new batch: what is touched from now on is more recent
+  if (resident_bytes_.load() <= cache_bytes_) return 0;
+  std::sort(resident.begin(), resident.end(),
+            [&](std::uint32_t a, std::uint32_t b) { return touched_[a].load() < touched_[b].load(); });
+  std::size_t evicted = 0;
+  for (std::uint32_t i : resident) {
+    if (resident_bytes_.load() <= cache_bytes_) break;
+    const std::lock_guard<std::mutex> lock(locks_[i % 32]);
+    release(i);
     ++evicted;
   }
   return evicted;
+}
+
+CopcIndex::QueryScope::QueryScope(const CopcIndex& index) : index_(index) {
+  index.clock_.fetch_add(1, std::memory_order_relaxed);  // LRU resolution: one scope
+  // A free announcement slot, searched from a per-thread start so that threads rarely collide.
+  thread_local const unsigned start = static_cast<unsigned>(std::hash<std::thread::id>{}(std::this_thread::get_id()));
+  for (unsigned k = 0;; ++k) {
+    const unsigned s = (start + k) % kScopeSlots;
+    std::uint64_t expected = 0;
+    // The announcement is an RMW (sequentially consistent) ordered before every state read of
+    // the scope: a trimmer that reads this slot as free has retired its nodes before them.
+    if (index.scopes_[s].compare_exchange_strong(expected, index.epoch_.load())) {
+      slot_ = s;
+      return;
+    }
+    if (k + 1 == kScopeSlots) std::this_thread::yield(), k = ~0u;  // all slots taken: wait for one
+  }
+}
+
+CopcIndex::QueryScope::~QueryScope() {
+  index_.scopes_[slot_].store(0);  // release: the scope's reads of node data happen before
+  if (index_.resident_bytes_.load(std::memory_order_relaxed) <= index_.cache_bytes_) return;
+  std::unique_lock<std::mutex> trim(index_.trim_mutex_, std::try_to_lock);
+  if (!trim.owns_lock()) return;  // another scope is trimming now
+  try {
+    index_.trim_in_flight();
+  } catch (...) {  // std::bad_alloc of the candidate list: the nodes stay resident until the next trim
+  }
+}
+
+void CopcIndex::free_retired() const {
+  if (retired_.empty()) return;
+  // The oldest announcement of an open scope: a node retired at epoch r is out of reach of
+  // every scope that announced r or later (it read the state after the retirement).
+  std::uint64_t oldest = ~std::uint64_t{0};
+  for (unsigned s = 0; s < kScopeSlots; ++s)
+    if (const std::uint64_t e = scopes_[s].load(); e != 0) oldest = std::min(oldest, e);
+  std::size_t keep = 0;
+  for (const std::uint32_t n : retired_) {
+    const std::lock_guard<std::mutex> lock(locks_[n % 32]);
+    if (state_[n].load() != kRetired) continue;  // revived by a touch (or released)
+    if (retired_at_[n].load() <= oldest) release(n);
+    else retired_[keep++] = n;
+  }
+  retired_.resize(keep);
+}
+
+void CopcIndex::trim_in_flight() const {
+  free_retired();
+  std::size_t pending = 0;  // bytes retired and not released yet
+  for (const std::uint32_t n : retired_) pending += node_bytes_[n].load();
+  // Evict down to 7/8 of the budget, so that a full cache is not trimmed at every scope end.
+  const std::size_t low = cache_bytes_ - cache_bytes_ / 8;
+  if (resident_bytes_.load() - std::min(pending, resident_bytes_.load()) <= low) return;
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> loaded;  // (last touch, node)
+  for (std::uint32_t i = 0; i < nodes_.size(); ++i)
+    if (state_[i].load(std::memory_order_relaxed) == kLoaded) loaded.emplace_back(touched_[i].load(), i);
+  std::sort(loaded.begin(), loaded.end());
+  // Retire every chosen node first, then open a new epoch: scopes announcing it read the
+  // retirements; scopes announced before it keep the nodes until they close.
+  std::size_t live = resident_bytes_.load() - std::min(pending, resident_bytes_.load());
+  const std::uint64_t r = epoch_.load() + 1;
+  for (const auto& [t, n] : loaded) {
+    if (live <= low) break;
+    const std::lock_guard<std::mutex> lock(locks_[n % 32]);
+    if (state_[n].load() != kLoaded) continue;
+    retired_at_[n].store(r);
+    state_[n].store(kRetired);
+    retired_.push_back(n);
+    live -= std::min(live, node_bytes_[n].load());
+  }
+  epoch_.fetch_add(1);
+  free_retired();
 }
 
 }  // namespace rayscan::io

@@ -39,7 +39,8 @@ struct RenderJobOptions {
   /// throws propagate unchanged.
   std::function<Camera(const AABB&)> camera_for_cloud;
   JobControl control;                  ///< threads, progress bar, log lines
-  /// COPC input (sphere mode): bytes of decoded nodes kept between tile batches (`--cache`).
+  /// COPC input (sphere mode): bytes of decoded nodes kept resident (`--cache`; trimmed as each
+  /// tile ends, plus the nodes of the tiles in flight).
   std::size_t cache_bytes = std::size_t{2} << 30;
 };
 
@@ -57,6 +58,8 @@ struct RenderJobResult {
   double first_tile_seconds = 0.0;     ///< from the call to the first traced tile (run_render)
   std::uint64_t copc_decodes = 0;      ///< COPC input traced in place: node decodes (re-decodes after
                                        ///< eviction included); 0 otherwise
+  std::size_t copc_peak_cache_bytes = 0;  ///< COPC input traced in place: the most bytes of decoded
+                                          ///< nodes resident at once (CopcIndex::peak_resident_bytes)
   ImageMetadata metadata;              ///< what was (or would be) stored in the image header
   std::vector<std::filesystem::path> written;  ///< files written (beauty first)
 };

@@ -110,8 +110,9 @@ using rayscan::median_nn_spacing;
 ///    surfel mode needs it (the points in original order, MappedIndex::to_point_cloud()).
 ///  - A COPC file (io::CopcIndex, the file's own octree) is traced in place: nodes are decoded as
 ///    rays reach them; centres by storage slot, the albedo from an AlbedoRule over the index's slot
-///    attributes (CopcIndex::set_attributes). Tiles are traced in batches with trim_cache() between
-///    them, so the decoded nodes stay within the cache budget (plus the nodes one batch touches).
+///    attributes (CopcIndex::set_attributes). Each tile is traced in a CopcIndex::QueryScope
+///    whose end evicts least recently used nodes no tile in flight can reach, so the decoded
+///    nodes stay within the cache budget plus the nodes of the tiles in flight.
 ///    Sphere mode only (settings.integrator.centers empty).
 /// Throws std::invalid_argument when the index, centres and albedo sizes differ, for spp 0, and
 /// for a COPC site in surfel mode.

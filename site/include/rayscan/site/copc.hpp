@@ -98,7 +98,8 @@ class CopcIndex {
   static constexpr std::uint32_t kLeafPoints = 32;
 
   /// Opens `path` (memory-mapped) and reads its header and hierarchy. `cache_bytes` bounds the
-  /// decoded positions and ids kept resident by trim_cache(). Throws FormatError.
+  /// decoded nodes (positions, ids, attributes, local trees) kept resident: by trim_cache()
+  /// between queries, or as QueryScopes end while queries run. Throws FormatError.
   explicit CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes = std::size_t{2} << 30);
   ~CopcIndex();
   CopcIndex(const CopcIndex&) = delete;
@@ -169,16 +170,44 @@ class CopcIndex {
   /// Nodes decoded so far (including re-decodes after eviction) and nodes resident now.
   [[nodiscard]] std::uint64_t decodes() const { return decodes_.load(); }
   [[nodiscard]] std::size_t resident_nodes() const;
+  /// Bytes of decoded nodes resident now (the cache's own accounting: per node its slots times
+  /// the bytes of a slot's positions, ids and decoded attributes, plus its local tree's cells and
+  /// permutation), and the most that were resident at once since opening.
+  [[nodiscard]] std::size_t resident_bytes() const { return resident_bytes_.load(); }
+  [[nodiscard]] std::size_t peak_resident_bytes() const { return peak_bytes_.load(); }
   /// Position of the point with file-order index `id` (the RayHit::index of a query on this
   /// index), decoding its node if needed (slots are in Morton order: found via the node's
   /// permutation). Throws std::out_of_range for id >= the point count,
   /// FormatError for a corrupted chunk.
   [[nodiscard]] Vec3 position_of(PointIndex id) const;
-  /// Releases least recently touched nodes (by batch: the nodes touched since the last call are
-  /// the most recent, in no order among themselves) until the resident positions, ids, attributes and
-  /// local trees fit the cache budget; returns the nodes evicted. Must not run concurrently with queries on this
-  /// index (call it between batches, e.g. between render tiles).
+  /// Releases least recently touched nodes (by batch: the nodes touched since the last call or
+  /// QueryScope are the most recent, in no order among themselves) until the resident positions,
+  /// ids, attributes and local trees fit the cache budget; returns the nodes evicted. Must not
+  /// run concurrently with queries on this index (call it between batches).
   std::size_t trim_cache();
+
+  /// One unit of query work (e.g. a render tile) on one thread, during which the nodes it
+  /// touches stay valid while other threads' scopes end and trim the cache. Opening announces
+  /// the scope; closing withdraws it and, when the resident bytes exceed the budget, evicts least
+  /// recently used nodes: a node that a scope still open might have reached is only retired
+  /// (unpublished: the next touch revives it without a decode) and its memory released by the
+  /// first scope to close after every scope open at its retirement has closed. So while queries
+  /// run in scopes, resident_bytes() stays within cache_bytes() plus what the open scopes decode,
+  /// with no lock or shared write per ray. When scopes are in use, every query running
+  /// concurrently with them must run in one. Nothing in a scope may keep a slot, span or
+  /// position of this index past its end. Not copyable or movable; close it on the thread
+  /// that opened it.
+  class QueryScope {
+   public:
+    explicit QueryScope(const CopcIndex& index);
+    ~QueryScope();
+    QueryScope(const QueryScope&) = delete;
+    QueryScope& operator=(const QueryScope&) = delete;
+
+   private:
+    const CopcIndex& index_;
+    unsigned slot_;
+  };
   /// The cache budget in bytes (the constructor's `cache_bytes`).
   [[nodiscard]] std::size_t cache_bytes() const { return cache_bytes_; }
 
@@ -193,7 +222,8 @@ class CopcIndex {
   /// are dropped. Must not run concurrently with queries. Throws FormatError.
   void set_attributes(unsigned attrs);
   /// Slot-ordered attributes (size positions().size() when decoded, else empty); a slot is valid
-  /// once node_points() returned its node and until the next trim_cache().
+  /// once node_points() returned its node and until the next trim_cache() (or, in a QueryScope,
+  /// until the scope ends).
   [[nodiscard]] std::span<const Rgb16> rgb() const { return {rgb_, rgb_ ? slots_ : 0}; }
   [[nodiscard]] std::span<const std::uint16_t> intensity() const { return {int_, int_ ? slots_ : 0}; }
   [[nodiscard]] std::span<const std::uint8_t> classification() const { return {cls_, cls_ ? slots_ : 0}; }
@@ -258,17 +288,29 @@ class CopcIndex {
   static std::uint32_t hier(Node n) { return static_cast<std::uint32_t>(n); }
   static std::uint32_t part(Node n) { return static_cast<std::uint32_t>(n >> 32); }
   static Node handle(std::uint32_t h, std::uint32_t part) { return Node{part} << 32 | h; }
-  /// Marks hierarchy node h as used in the current batch (the LRU clock is the batch count,
-  /// advanced by trim_cache: no shared counter written per ray) and decodes it on first touch.
+  /// Marks hierarchy node h as used in the current batch (the LRU clock counts trim_cache calls
+  /// and QueryScopes: no shared counter written per ray) and decodes it on first touch.
   void touch(std::uint32_t h) const {
     const std::uint64_t now = clock_.load(std::memory_order_relaxed);
     if (touched_[h].load(std::memory_order_relaxed) != now) touched_[h].store(now, std::memory_order_relaxed);
     ensure_loaded(h);
   }
+  // Node states (state_): not decoded, decoded and published, retired (decoded but unpublished
+  // until no scope open at its retirement can reach it; the next touch publishes it again).
+  static constexpr std::uint8_t kAbsent = 0, kLoaded = 1, kRetired = 2;
+  // The state is read sequentially consistent: with the scope's announcement (an RMW) and the
+  // trimmer's retire-then-read-announcements, a scope either is seen by the trimmer or sees the
+  // retirement (the same instruction as an acquire load on x86-64 and AArch64).
   void ensure_loaded(std::uint32_t h) const {
-    if (loaded_[h].load(std::memory_order_acquire) == 0) load(h);
+    if (state_[h].load(std::memory_order_seq_cst) != kLoaded) load(h);
   }
   void load(std::uint32_t n) const;
+  // Releases node n's pages and local tree (caller holds its lock; no query can reach it).
+  void release(std::uint32_t n) const;
+  // The trim run when a scope closes over budget (caller holds trim_mutex_).
+  void trim_in_flight() const;
+  // Releases the retired nodes no open scope can reach (caller holds trim_mutex_).
+  void free_retired() const;
   // Sorts node n's freshly decoded points (file order: pos[i], i < m) into its slots in Morton
   // order and builds its local tree into local_[n].
   void build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector<std::uint32_t>& order) const;
@@ -295,10 +337,19 @@ class CopcIndex {
   unsigned attrs_ = 0;
   std::size_t cache_bytes_;
   mutable std::unique_ptr<Local[]> local_;  // per hierarchy node, filled by load()
-  mutable std::unique_ptr<std::atomic<std::uint8_t>[]> loaded_;
+  mutable std::unique_ptr<std::atomic<std::uint8_t>[]> state_;
   mutable std::unique_ptr<std::atomic<std::uint64_t>[]> touched_;
+  mutable std::unique_ptr<std::atomic<std::size_t>[]> node_bytes_;     // accounted bytes of a resident node
+  mutable std::unique_ptr<std::atomic<std::uint64_t>[]> retired_at_;  // epoch of a node's retirement
   mutable std::atomic<std::uint64_t> clock_{1}, decodes_{0};
+  mutable std::atomic<std::size_t> resident_bytes_{0}, peak_bytes_{0};
   mutable std::mutex locks_[32];
+  // Scopes: open scopes announce the retirement epoch they started in (0: slot free).
+  static constexpr unsigned kScopeSlots = 256;
+  mutable std::atomic<std::uint64_t> epoch_{1};
+  mutable std::unique_ptr<std::atomic<std::uint64_t>[]> scopes_;
+  mutable std::mutex trim_mutex_;
+  mutable std::vector<std::uint32_t> retired_;  // nodes retired and not yet released (trim_mutex_)
 };
 
 static_assert(SpatialIndex<CopcIndex>);
