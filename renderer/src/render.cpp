@@ -82,7 +82,7 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
     std::vector<Sampler> smps;
     smps.reserve(kMaxRayPacket);
     for (std::uint32_t tile = range.begin(); tile != range.end(); ++tile) {
-      const auto scope = tile_scope(idx);
+      [[maybe_unused]] const auto scope = tile_scope(idx);
       const std::uint64_t q_before = c.queries;
       const std::uint32_t x0 = (tile % tiles_x) * T, y0 = (tile / tiles_x) * T;
       const std::uint32_t x1 = std::min(W, x0 + T), y1 = std::min(H, y0 + T);
