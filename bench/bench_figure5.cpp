@@ -10,6 +10,8 @@
 // included, as the Python path's time includes its arrays).
 // Usage: bench_figure5 --points N --threads 1,4,16 [--seconds 0.5] [--repeats 3]
 //                      --case 'NAME|K|RADIUS|ORDER' ... (K 0: no k; RADIUS inf: none; ORDER ray|time)
+#include "bench_common.hpp"
+
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/octree/batch.hpp"
 #include "rayscan/octree/ray_query.hpp"
@@ -21,7 +23,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -56,17 +57,15 @@ Case parse_case(const std::string& s) {
   return c;
 }
 
+/// m rays with origins uniform in the unit cube and directions uniform on the sphere (bench_common's
+/// generator: the same stream on every standard library).
 std::vector<Ray> random_rays(std::size_t m, std::uint64_t seed) {
-  std::mt19937_64 g(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  std::normal_distribution<double> n;
+  rayscan::bench::Rng rng(seed);
   std::vector<Ray> rays;
   rays.reserve(m);
   for (std::size_t i = 0; i < m; ++i) {
-    const Vec3 o{u(g), u(g), u(g)};
-    Vec3 d{n(g), n(g), n(g)};
-    d /= std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-    rays.emplace_back(o, d);
+    const Vec3 o = rng.point_in_unit_cube();
+    rays.emplace_back(o, rng.unit_vector());
   }
   return rays;
 }
@@ -107,12 +106,7 @@ int main(int argc, char** argv) {
       for (std::string t; std::getline(ss, t, ',');) threads.push_back(std::stoi(t));
     }
     const auto t0 = std::chrono::steady_clock::now();
-    std::vector<Vec3> pts(n);
-    {
-      std::mt19937_64 g(1);
-      std::uniform_real_distribution<double> u(0.0, 1.0);
-      for (auto& p : pts) p = Vec3{u(g), u(g), u(g)};
-    }
+    const std::vector<Vec3> pts = rayscan::bench::uniform_cube(n, 1);
     const rayscan::AnyIndex index = rayscan::make_index(pts, rayscan::IndexOptions{});
     std::printf("points %zu in memory (octree-adaptive): ready in %.1f s\n", n,
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());

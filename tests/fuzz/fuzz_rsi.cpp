@@ -10,6 +10,7 @@
 // checks behind the CRCs (section table, node ranges, sources) are what gets fuzzed; the first
 // inputs whose size is 15 modulo 16 keep their checksums as they are (so the CRC path stays covered).
 // Built and run by tests/fuzz/run.sh.
+#include "bytes.hpp"
 #include "rayscan/octree/batch.hpp"
 #include "rayscan/base/crc32c.hpp"
 #include "rayscan/site/index_file.hpp"
@@ -36,13 +37,11 @@ std::uint32_t crc(const std::uint8_t* p, std::size_t n) {
 }
 template <class T>
 T get(const std::vector<std::uint8_t>& b, std::size_t at) {
-  T v;
-  std::memcpy(&v, b.data() + at, sizeof v);
-  return v;
+  return rayscan::io::detail::load_le<T>(b.data() + at);
 }
 template <class T>
 void put(std::vector<std::uint8_t>& b, std::size_t at, T v) {
-  std::memcpy(b.data() + at, &v, sizeof v);
+  rayscan::io::detail::store_le(b, at, v);
 }
 
 // Offsets of docs/index-format.md "Header".

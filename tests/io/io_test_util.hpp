@@ -2,6 +2,7 @@
 #pragma once
 
 #include "../common/temp_dir.hpp"
+#include "bytes.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <gtest/gtest.h>
@@ -45,17 +46,16 @@ inline std::vector<std::uint8_t> slurp(const fs::path& p) {
 
 inline fs::path temp_dir() { return process_temp_dir("rayscan_io_tests"); }
 
-/// The value of type T stored at byte `at` of `b` (a file's own little-endian bytes, read on a
-/// little-endian host), and its counterpart that overwrites it (to make a damaged or altered file).
+/// The value of type T stored at byte `at` of `b` (a file's own little-endian bytes), and its
+/// counterpart that overwrites it (to make a damaged or altered file): the readers' and writers'
+/// own io::detail::load_le / store_le.
 template <class T>
 T load_at(const std::vector<std::uint8_t>& b, std::size_t at) {
-  T v;
-  std::memcpy(&v, b.data() + at, sizeof v);
-  return v;
+  return io::detail::load_le<T>(b.data() + at);
 }
 template <class T>
 void store_at(std::vector<std::uint8_t>& b, std::size_t at, T v) {
-  std::memcpy(b.data() + at, &v, sizeof v);
+  io::detail::store_le(b, at, v);
 }
 
 }  // namespace rayscan::test
