@@ -60,8 +60,9 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
   const bool want_cost = !fb.cost.empty();
   const Camera& cam = s.camera;
   // Packets of camera rays: not for the cost AOV (node visits are counted per packet,
-  // not per pixel), nor for COPC (nodes decoded as rays reach them; kept single-ray).
-  const bool packets = opt.packets && !want_cost && !std::is_same_v<I, io::CopcIndex>;
+  // not per pixel). On COPC in place too: a packet decodes a node when its first ray reaches it,
+  // as a single ray does, and the answers are the single rays'.
+  const bool packets = opt.packets && !want_cost;
   constexpr std::uint32_t kBlock = 4;  // 4x4 pixels = kMaxRayPacket rays
   // The camera ray of pixel (x, y) for sampler stream smp: pixel jitter (u, v), then the lens
   // sample, in this order on every path (the image depends on it).
