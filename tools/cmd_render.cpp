@@ -159,8 +159,8 @@ Runner add_render_command(CLI::App& app) {
                 "follows the aspect ratio unless given (default: the camera's size)")
       ->check(CLI::Range(1u, 65536u));
   c->add_option("--cache", o->cache,
-                "COPC input (sphere mode): bound on decoded node data (LRU, trimmed as each tile ends; plus the "
-                "nodes of the tiles in flight; e.g. 2G, 512M). A COPC file is traced in place, decoding only the "
+                "COPC input (sphere mode): bound on decoded node data (LRU, trimmed as each 4x4 pixel block ends; "
+                "plus the nodes of the blocks in flight; e.g. 2G, 512M). A COPC file is traced in place, decoding only the "
                 "nodes the rays reach")
       ->capture_default_str();
   c->add_option("--aov", o->aovs, "Extra output: depth, normal, position, index, albedo, cost (repeatable)");

@@ -38,11 +38,12 @@ RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
 
 namespace {
 
-// What a tile holds open on its index while it is traced: on a COPC file the cache scope (the
-// nodes the tile reaches stay decoded; its end trims the cache to the budget), nothing elsewhere.
+// What a pixel block holds open on its index while it is traced: on a COPC file the cache scope
+// (the nodes the block reaches stay decoded; its end trims the cache to the budget), nothing
+// elsewhere.
 struct NoScope {};
 template <class I>
-auto tile_scope(const I& idx) {
+auto block_scope(const I& idx) {
   if constexpr (std::is_same_v<I, io::CopcIndex>) return std::make_unique<io::CopcIndex::QueryScope>(idx);
   else return NoScope{};
 }
@@ -83,16 +84,19 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
     std::vector<Sampler> smps;
     smps.reserve(kMaxRayPacket);
     for (std::uint32_t tile = range.begin(); tile != range.end(); ++tile) {
-      [[maybe_unused]] const auto scope = tile_scope(idx);
       const std::uint64_t q_before = c.queries;
       const std::uint32_t x0 = (tile % tiles_x) * T, y0 = (tile / tiles_x) * T;
       const std::uint32_t x1 = std::min(W, x0 + T), y1 = std::min(H, y0 + T);
-      if (packets) {
-        // Sample j of the pixels of each 4x4 block (row-major) as one packet; each pixel keeps its
-        // own stream Sampler(seed, x, y, j) and sums its samples in the order j = 0, 1, ...
-        for (std::uint32_t by = y0; by < y1; by += kBlock)
-          for (std::uint32_t bx = x0; bx < x1; bx += kBlock) {
-            const std::uint32_t bw = std::min(kBlock, x1 - bx), bh = std::min(kBlock, y1 - by);
+      // 4x4 pixel blocks, each traced within one scope: on COPC the nodes it decodes are held
+      // only while its 16 pixels are traced, so what the threads in flight hold beyond the cache
+      // budget is what a block's rays reach, not a whole tile's.
+      for (std::uint32_t by = y0; by < y1; by += kBlock)
+        for (std::uint32_t bx = x0; bx < x1; bx += kBlock) {
+          [[maybe_unused]] const auto scope = block_scope(idx);
+          const std::uint32_t bw = std::min(kBlock, x1 - bx), bh = std::min(kBlock, y1 - by);
+          if (packets) {
+            // Sample j of the block's pixels (row-major) as one packet; each pixel keeps its own
+            // stream Sampler(seed, x, y, j) and sums its samples in the order j = 0, 1, ...
             const std::size_t n = std::size_t(bw) * bh;
             Color sum[kMaxRayPacket], L[kMaxRayPacket];
             std::fill(sum, sum + n, Color(0.0f));
@@ -109,29 +113,29 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
             for (std::uint32_t k = 0; k < n; ++k)
               fb.beauty[std::size_t(by + k / bw) * W + bx + k % bw] = sum[k] / float(s.spp);
           }
-      }
-      for (std::uint32_t y = y0; y < y1; ++y)
-        for (std::uint32_t x = x0; x < x1; ++x) {
-          const std::size_t p = std::size_t(y) * W + x;
-          if (!packets) {
-            const std::uint64_t nodes_before = c.nodes_visited;
-            Color sum(0.0f);
-            for (std::uint32_t j = 0; j < s.spp; ++j) {
-              Sampler smp(s.seed, x, y, j);
-              sum += tracer.trace(camera_ray(x, y, smp), smp, hits, c);
+          for (std::uint32_t y = by; y < by + bh; ++y)
+            for (std::uint32_t x = bx; x < bx + bw; ++x) {
+              const std::size_t p = std::size_t(y) * W + x;
+              if (!packets) {
+                const std::uint64_t nodes_before = c.nodes_visited;
+                Color sum(0.0f);
+                for (std::uint32_t j = 0; j < s.spp; ++j) {
+                  Sampler smp(s.seed, x, y, j);
+                  sum += tracer.trace(camera_ray(x, y, smp), smp, hits, c);
+                }
+                fb.beauty[p] = sum / float(s.spp);
+                if (want_cost) fb.cost[p] = float(double(c.nodes_visited - nodes_before) / s.spp);
+              }
+              if (!any_aov) continue;
+              SurfaceHit h;  // the AOV ray (after the cost AOV was taken, so not part of it)
+              const bool hit = tracer.intersect(cam.generate_ray(x, y), h, hits, c);
+              if (!fb.depth.empty()) fb.depth[p] = hit ? float(h.t) : std::numeric_limits<float>::infinity();
+              if (!fb.normal.empty()) fb.normal[p] = hit ? glm::vec3(h.normal) : glm::vec3(0.0f);
+              if (!fb.position.empty())
+                fb.position[p] = hit ? glm::vec3(h.position - fb.position_origin) : glm::vec3(0.0f);
+              if (!fb.index.empty()) fb.index[p] = hit ? h.index : kNoPoint;
+              if (!fb.albedo.empty()) fb.albedo[p] = hit ? s.integrator.albedo.at(h.index, h.slot) : Color(0.0f);
             }
-            fb.beauty[p] = sum / float(s.spp);
-            if (want_cost) fb.cost[p] = float(double(c.nodes_visited - nodes_before) / s.spp);
-          }
-          if (!any_aov) continue;
-          SurfaceHit h;  // the AOV ray (after the cost AOV was taken, so not part of it)
-          const bool hit = tracer.intersect(cam.generate_ray(x, y), h, hits, c);
-          if (!fb.depth.empty()) fb.depth[p] = hit ? float(h.t) : std::numeric_limits<float>::infinity();
-          if (!fb.normal.empty()) fb.normal[p] = hit ? glm::vec3(h.normal) : glm::vec3(0.0f);
-          if (!fb.position.empty())
-            fb.position[p] = hit ? glm::vec3(h.position - fb.position_origin) : glm::vec3(0.0f);
-          if (!fb.index.empty()) fb.index[p] = hit ? h.index : kNoPoint;
-          if (!fb.albedo.empty()) fb.albedo[p] = hit ? s.integrator.albedo.at(h.index, h.slot) : Color(0.0f);
         }
       if (opt.progress) opt.progress->tile_done(c.queries - q_before);
       if (!first_done.load(std::memory_order_relaxed) && !first_done.exchange(true))
@@ -282,7 +286,7 @@ RenderStats render_image(const Site& site, const RenderSettings& s, Framebuffer&
     if constexpr (is_copc_index<decltype(index)>) {
       if (s.integrator.primitive != Primitive::sphere)
         throw std::invalid_argument("render: a COPC file is traced in place in sphere mode only");
-      return render_image_impl(index, s, fb, opt);  // each tile a CopcIndex::QueryScope
+      return render_image_impl(index, s, fb, opt);  // each 4x4 pixel block a CopcIndex::QueryScope
     } else {
       return render_image_impl(index, s, fb, opt);
     }

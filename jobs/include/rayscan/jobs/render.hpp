@@ -40,7 +40,7 @@ struct RenderJobOptions {
   std::function<Camera(const AABB&)> camera_for_cloud;
   JobControl control;                  ///< threads, progress bar, log lines
   /// COPC input (sphere mode): bytes of decoded nodes kept resident (`--cache`; trimmed as each
-  /// tile ends, plus the nodes of the tiles in flight).
+  /// 4x4 pixel block ends, plus the nodes of the blocks in flight).
   std::size_t cache_bytes = std::size_t{2} << 30;
 };
 
