@@ -172,7 +172,8 @@ struct SolarJobResult {
                                           ///< resident at once (CopcIndex::peak_resident_bytes)
 };
 
-/// Checks every option, reads the cloud, builds the index, estimates the surfels, computes the sun
+/// Checks every option, reads the cloud, builds the index (none for an index file or a COPC file
+/// queried in place: copc_in_place), estimates the surfels, computes the sun
 /// positions (SPA) and the sky (ESRA clear sky or the EPW file), traces the sun-map and sky-map
 /// directions of every point (analysis::trace_directions) and accumulates the irradiance of every
 /// time step on each point's surface, then writes the outputs. With options.control.distributor

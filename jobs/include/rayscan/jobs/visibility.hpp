@@ -117,7 +117,8 @@ struct VisibilityJobResult {
 };
 
 /// Checks every option (before any work: extensions, output folders, value/input combinations),
-/// reads the cloud, builds the index, chooses the radius, runs the requested analyses and writes
+/// reads the cloud, builds the index (none for an index file or a COPC file queried in place:
+/// copc_in_place), chooses the radius, runs the requested analyses and writes
 /// the outputs. A LAS output keeps the source's scale and offset. Throws std::invalid_argument
 /// (bad option, message naming it), ObserverError, SceneError (camera file), io::FormatError
 /// (cloud), std::runtime_error (I/O).
