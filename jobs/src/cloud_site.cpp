@@ -67,6 +67,7 @@ void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const Poi
     std::snprintf(buf, sizeof buf, "built %s index in %.2f s", index.type.c_str(), seconds_since(t0));
     ctl.info(buf);
   }
+  t0 = std::chrono::steady_clock::now();
   try {
     cs.radius = choose_radius(radius, radius_factor, [&] { return median_nn_spacing(*cs.site, cs.cloud.positions); });
   } catch (const std::invalid_argument&) {
@@ -75,8 +76,8 @@ void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const Poi
     throw OptionError({option("radius"), " auto needs at least two distinct points; give a number"});
   }
   if (cs.radius.automatic) {
-    std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x %.3g = %.6g",
-                  cs.radius.spacing, cs.radius.factor, cs.radius.radius);
+    std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x %.3g = %.6g (%.2f s)",
+                  cs.radius.spacing, cs.radius.factor, cs.radius.radius, seconds_since(t0));
     ctl.info(buf);
   }
 }
