@@ -5,6 +5,8 @@
 #include "commands.hpp"
 #include "processes.hpp"
 
+#include "rayscan/base/byte_size.hpp"
+
 #include "rayscan/jobs/solar.hpp"
 
 #include <cmath>
@@ -20,7 +22,7 @@ namespace {
 struct SolarCli {
   jobs::SolarJobOptions job;
   jobs::SunPositionJobOptions position;
-  std::string cloud, out, raster, preview, weather, radius = "auto";
+  std::string cloud, out, raster, preview, weather, radius = "auto", cache = "2G";
   bool no_preview = false, json = false, quiet = false;
   CLI::App* position_cmd = nullptr;
 };
@@ -63,6 +65,11 @@ int run_solar(SolarCli& o) {
   job.preview = o.preview;
   job.weather = o.weather;
   job.write_preview = !o.no_preview;
+  try {
+    job.cache_bytes = static_cast<std::size_t>(rayscan::parse_byte_size(o.cache));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--cache: ") + e.what());
+  }
   // MPI (docs/mpi.md): point chunks over the ranks; only rank 0 logs, prints and writes.
   job.control.distributor = distributor();
   const bool talk = !o.quiet && is_root();
@@ -153,6 +160,11 @@ Runner add_solar_command(CLI::App& app) {
                 "instant: in_shadow | global | beam | diffuse (default in_shadow)");
   c->add_option("--preview", o->preview, "PNG preview of the raster (default: the raster's name with .png)");
   c->add_flag("--no-preview", o->no_preview, "Do not write the PNG preview");
+  c->add_option("--cache", o->cache,
+                "COPC input: bound on decoded node data kept in memory (LRU, trimmed as each chunk of points "
+                "ends; plus the nodes of the chunks in flight; e.g. 2G, 512M). A COPC file is queried on its own "
+                "octree, decoding only the nodes the rays reach (its points are still read, as the output cloud)")
+      ->capture_default_str();
   c->add_option("--index", o->job.index.type, "Index: octree-adaptive, octree-layered, octree-fixed, kdtree, brute")
       ->capture_default_str();
   c->add_option("--threads", o->job.control.threads, "Worker threads (default: all cores; results are identical)")

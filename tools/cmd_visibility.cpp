@@ -5,6 +5,8 @@
 #include "commands.hpp"
 #include "processes.hpp"
 
+#include "rayscan/base/byte_size.hpp"
+
 #include "rayscan/jobs/visibility.hpp"
 
 #include <cmath>
@@ -22,7 +24,7 @@ namespace an = rayscan::analysis;
 
 struct VisibilityCli {
   jobs::VisibilityJobOptions job;  // options of the same type bind straight to the job
-  std::string cloud, out, observers_file, radius = "auto", raster, preview, camera;
+  std::string cloud, out, observers_file, radius = "auto", raster, preview, camera, cache = "2G";
   std::string sky_weighting = "uniform";
   std::vector<std::string> observer_args;
   std::vector<double> azimuth, elevation;
@@ -49,6 +51,11 @@ int run_visibility(VisibilityCli& o) {
   job.raster = o.raster;
   job.preview = o.preview;
   job.write_preview = !o.no_preview;
+  try {
+    job.cache_bytes = static_cast<std::size_t>(rayscan::parse_byte_size(o.cache));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(std::string("--cache: ") + e.what());
+  }
   // MPI (docs/mpi.md): point chunks over the ranks; only rank 0 logs, prints and writes.
   job.control.distributor = distributor();
   const bool talk = !o.quiet && is_root();
@@ -86,7 +93,7 @@ Runner add_visibility_command(CLI::App& app) {
       "sight over the surface the points sample, as a GIS viewshed; --primitive sphere for the true "
       "3-D answer), sky view factor, points seen by a camera; written as scalar fields to LAS/PLY "
       "and as a GeoTIFF map with a PNG preview (docs/visibility.md).");
-  c->add_option("cloud", o->cloud, "Point cloud (LAS, PLY, PCD, text)")->required();
+  c->add_option("cloud", o->cloud, "Point cloud (LAS, LAZ, COPC, PLY, PCD, text) or index file (.rsi)")->required();
   c->add_option("-o,--out", o->out, "Write the cloud with the result fields here (.las, .laz, .ply, .pcd, .xyz, .csv or .txt)");
   c->add_option("--observers", o->observers_file, "Observer list (.json or .csv; see docs/visibility.md)");
   c->add_option("--observer", o->observer_args,
@@ -153,6 +160,11 @@ Runner add_visibility_command(CLI::App& app) {
                 "cell) | distance | sky | camera (default: viewshed with observers, else sky, else camera)");
   c->add_option("--preview", o->preview, "PNG preview of the raster (default: the raster's name with .png)");
   c->add_flag("--no-preview", o->no_preview, "Do not write the PNG preview");
+  c->add_option("--cache", o->cache,
+                "COPC input: bound on decoded node data kept in memory (LRU, trimmed as each chunk of points "
+                "ends; plus the nodes of the chunks in flight; e.g. 2G, 512M). A COPC file is queried on its own "
+                "octree, decoding only the nodes the rays reach (its points are still read, as the output cloud)")
+      ->capture_default_str();
   c->add_option("--index", o->job.index.type, "Index: octree-adaptive, octree-layered, octree-fixed, kdtree, brute")
       ->capture_default_str();
   c->add_option("--threads", o->job.control.threads, "Worker threads (default: all cores; results are identical)")

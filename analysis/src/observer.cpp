@@ -249,13 +249,19 @@ Observer parse_observer(std::string_view text, std::string source) {
 }
 
 // The lowest point within `radius` of (x, y) among the points whose z lies in [z_lo, z_hi] (the
-// cloud's z range: every point), ground class 2 preferred; NaN when there is none.
+// cloud's z range: every point), ground class 2 preferred; NaN when there is none. The box query
+// returns original ids; positions and classes are read from `cloud` (original order).
 template <class Index>
 double local_ground_in(const Index& index, const PointCloud& cloud, double x, double y, double radius, double z_lo,
                        double z_hi) {
   const AABB cyl{Vec3(x - radius, y - radius, z_lo), Vec3(x + radius, y + radius, z_hi)};
   std::vector<PointIndex> ids;
-  visit_index([&](const auto& idx) { box_query(idx, cyl, ids); }, index);
+  visit_index(
+      [&](const auto& idx) {
+        [[maybe_unused]] const auto scope = detail::chunk_scope(idx);  // the ids outlive it, no position
+        box_query(idx, cyl, ids);
+      },
+      index);
   const bool classified = cloud.classification.size() == cloud.size();
   const double r2 = radius * radius;
   double lowest_any = kInf, lowest_ground = kInf;
@@ -317,13 +323,12 @@ void place_observers_over(std::vector<Observer>& observers, const Index& index, 
 }
 
 double local_ground(const Site& site, const PointCloud& cloud, double x, double y, double radius) {
-  return detail::over_site<double>(site, "local ground",
+  return detail::over_site<double>(site,
                                    [&](const auto& index) { return local_ground_over(index, cloud, x, y, radius); });
 }
 void place_observers(std::vector<Observer>& observers, const Site& site, const PointCloud& cloud,
                      const GroundOptions& options) {
-  detail::over_site<void>(site, "observer placement",
-                          [&](const auto& index) { place_observers_over(observers, index, cloud, options); });
+  detail::over_site<void>(site, [&](const auto& index) { place_observers_over(observers, index, cloud, options); });
 }
 
 bool within_angle_limits(const Observer& o, const Vec3& dir) {

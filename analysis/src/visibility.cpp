@@ -30,7 +30,7 @@ constexpr std::uint32_t kChunk = 512;  // points (or pixel rows' worth of pixels
 
 template <class Index>
 std::size_t index_size(const Index& index) {
-  return visit_index([](const auto& i) { return i.positions().size(); }, index);
+  return visit_index([](const auto& i) { return detail::index_points(i); }, index);
 }
 
 // First hits of `count` rays, ray(k) for k < count, in batches of up to kBatch: two at a time,
@@ -238,6 +238,7 @@ bool is_visible_over(const Index& index, std::span<const Vec3> positions, const 
   double dist;
   return visit_index(
       [&](const auto& idx) {
+        [[maybe_unused]] const auto scope = detail::chunk_scope(idx);
         return line_of_sight(idx, observer, max_d, positions[i], i, opts, scratch, queried, dist);
       },
       index);
@@ -262,6 +263,9 @@ VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec
   std::vector<double> max_d(m);
   for (std::size_t k = 0; k < m; ++k) max_d[k] = observers[k].max_distance.value_or(opts.max_distance);
 
+  // The points' visiting order on a COPC file in place (empty elsewhere: the index's slot order).
+  const std::vector<PointIndex> order =
+      visit_index([&](const auto& i) { return detail::loop_order(i, positions); }, index);
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   Progress progress(chunks, opts.progress,
                             ProgressUnits{"chunks", "points/s", 1.0, 0});
@@ -278,11 +282,12 @@ VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec
     arena.execute([&] {
       visit_index(
           [&](const auto& idx) {
-            const auto pos = idx.positions();
-            const IdView ids = idx.ids();
+            const auto pos = detail::loop_positions(idx, positions, order);
+            const IdView ids = detail::loop_ids(idx, order);
             tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
               Local& L = locals.local();
               for (std::size_t c = range.begin(); c != range.end(); ++c) {
+                [[maybe_unused]] const auto scope = detail::chunk_scope(idx);
                 const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
                 // Observer-major inside a chunk: consecutive rays share most of their nodes.
                 for (std::size_t k = 0; k < m; ++k)
@@ -310,7 +315,7 @@ VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec
     run_chunks(0, chunks);
   } else {
     // Point chunks handed out by the distributor; per-point count and distance gathered to the root.
-    const IdView ids = visit_index([](const auto& i) -> IdView { return i.ids(); }, index);
+    const IdView ids = visit_index([&](const auto& i) { return detail::loop_ids(i, order); }, index);
     const GatheredField fields[] = {GatheredField::of(res.count), GatheredField::of(res.nearest)};
     distribute_point_chunks(*dist, n, chunks, res.threads, ids, run_chunks, progress, "visibility", fields);
   }
@@ -352,6 +357,9 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
     for (const Vec3& p : positions) box.expand(p);
     far = 2.0 * glm::length(box.extent()) + 1.0;
   }
+  // The points' visiting order on a COPC file in place (empty elsewhere: the index's slot order).
+  const std::vector<PointIndex> order =
+      visit_index([&](const auto& i) { return detail::loop_order(i, positions); }, index);
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   Progress progress(chunks, opts.progress, ProgressUnits{"chunks", "points/s", 1.0, 0});
   struct Local {
@@ -379,11 +387,12 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
   arena.execute([&] {
     visit_index(
         [&](const auto& idx) {
-          const auto pos = idx.positions();
-          const IdView ids = idx.ids();
+          const auto pos = detail::loop_positions(idx, positions, order);
+          const IdView ids = detail::loop_ids(idx, order);
           tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
             Local& L = locals.local();
             for (std::size_t c = range.begin(); c != range.end(); ++c) {
+              [[maybe_unused]] const auto scope = detail::chunk_scope(idx);
               const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
               // Groups of up to kMaxRayPacket neighbouring points (storage order: an octree
               // leaf's points, or neighbouring leaves), traced direction by direction: the
@@ -443,7 +452,7 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
     run_chunks(0, chunks);
   } else {
     // Point chunks handed out by the distributor; the visitor's per-point results gathered to the root.
-    const IdView ids = visit_index([](const auto& i) -> IdView { return i.ids(); }, index);
+    const IdView ids = visit_index([&](const auto& i) { return detail::loop_ids(i, order); }, index);
     distribute_point_chunks(*dist, n, chunks, threads, ids, run_chunks, progress, "directions", gather);
   }
   progress.finish();
@@ -484,6 +493,9 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
   const std::size_t n = positions.size();
   std::vector<double> out(n, 0.0);
   if (n == 0) return out;
+  // The points' visiting order on a COPC file in place (empty elsewhere: the index's slot order).
+  const std::vector<PointIndex> order =
+      visit_index([&](const auto& i) { return detail::loop_order(i, positions); }, index);
   const std::size_t chunks = (n + kChunk - 1) / kChunk;
   Progress progress(chunks, opts.progress,
                             ProgressUnits{"chunks", "points/s", 1.0, 0});
@@ -501,11 +513,12 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
     arena.execute([&] {
       visit_index(
           [&](const auto& idx) {
-            const auto pos = idx.positions();
-            const IdView ids = idx.ids();
+            const auto pos = detail::loop_positions(idx, positions, order);
+            const IdView ids = detail::loop_ids(idx, order);
             tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
               FirstHitBatches batches;  // a point's sky rays
               for (std::size_t c = range.begin(); c != range.end(); ++c) {
+                [[maybe_unused]] const auto scope = detail::chunk_scope(idx);
                 const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
                 for (std::size_t s = s0; s < s1; ++s) {
                   const PointIndex i = ids[s];
@@ -533,7 +546,7 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
   if (!dist || dist->size() <= 1) {
     run_chunks(0, chunks);
   } else {
-    const IdView ids = visit_index([](const auto& i) -> IdView { return i.ids(); }, index);
+    const IdView ids = visit_index([&](const auto& i) { return detail::loop_ids(i, order); }, index);
     const GatheredField fields[] = {GatheredField::of(out)};
     distribute_point_chunks(*dist, n, chunks, threads, ids, run_chunks, progress, "sky view", fields);
     std::uint64_t t = total.load();
@@ -573,6 +586,7 @@ std::vector<std::uint32_t> camera_first_hits_over(const Index& index, const Came
             tbb::parallel_for(tbb::blocked_range<std::uint32_t>(y0, y1, 1), [&](const auto& range) {
               FirstHitBatches batches;  // a row's rays
               for (std::uint32_t y = range.begin(); y != range.end(); ++y) {
+                [[maybe_unused]] const auto scope = detail::chunk_scope(idx);
                 batches.run(
                     idx, q, W, [&](std::uint64_t x) { return camera.generate_ray(static_cast<std::uint32_t>(x), y); },
                     [&](std::uint64_t x, const std::optional<RayHit>& hit) {
@@ -624,13 +638,13 @@ std::vector<std::uint32_t> count_pixel_hits(std::span<const std::uint32_t> pixel
 
 bool is_visible(const Site& site, std::span<const Vec3> positions, const Observer& observer, PointIndex i,
                 const VisibilityOptions& opts, std::vector<RayHit>& scratch) {
-  return detail::over_site<bool>(site, "visibility", [&](const auto& index) {
+  return detail::over_site<bool>(site, [&](const auto& index) {
     return is_visible_over(index, positions, observer, i, opts, scratch);
   });
 }
 VisibilityResult compute_visibility(const Site& site, std::span<const Vec3> positions,
                                     std::span<const Observer> observers, const VisibilityOptions& opts) {
-  return detail::over_site<VisibilityResult>(site, "visibility", [&](const auto& index) {
+  return detail::over_site<VisibilityResult>(site, [&](const auto& index) {
     return compute_visibility_over(index, positions, observers, opts);
   });
 }
@@ -638,7 +652,7 @@ void trace_directions(const Site& site, std::span<const Vec3> positions, std::sp
                       std::span<const Vec3> normals, const VisibilityOptions& opts,
                       const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit,
                       bool cull, std::span<const GatheredField> gather) {
-  detail::over_site<int>(site, "directions", [&](const auto& index) {
+  detail::over_site<int>(site, [&](const auto& index) {
     trace_directions_over(index, positions, dirs, normals, opts, visit, cull, gather);
     return 0;
   });
@@ -658,14 +672,17 @@ std::size_t orient_steep_normals(const Site& site, std::span<const Vec3> positio
   q.t_max = kInf;
   q.validate();
   std::atomic<std::size_t> turned{0};
-  detail::over_site<int>(site, "normal orientation", [&](const auto& index) {
+  detail::over_site<int>(site, [&](const auto& index) {
     visit_index(
         [&](const auto& idx) {
+          const std::vector<PointIndex> order = detail::loop_order(idx, positions);  // (COPC; else empty)
           tbb::task_arena arena(static_cast<int>(resolve_threads(threads)));
           arena.execute([&] {
             tbb::parallel_for(tbb::blocked_range<std::size_t>(0, positions.size(), kChunk), [&](const auto& range) {
+              [[maybe_unused]] const auto scope = detail::chunk_scope(idx);
               std::size_t local = 0;
-              for (std::size_t i = range.begin(); i != range.end(); ++i) {
+              for (std::size_t k = range.begin(); k != range.end(); ++k) {
+                const std::size_t i = order.empty() ? k : order[k];
                 Vec3& n = normals[i];
                 if (!(std::abs(n.z) < 0.5)) continue;
                 // 20 degrees up: off the ground at once, where a level ray would graze it.
@@ -691,14 +708,14 @@ std::size_t orient_steep_normals(const Site& site, std::span<const Vec3> positio
 }
 std::vector<double> compute_sky_view(const Site& site, std::span<const Vec3> positions, const SkyViewOptions& opts,
                                      std::uint64_t* queries) {
-  return detail::over_site<std::vector<double>>(site, "sky view", [&](const auto& index) {
+  return detail::over_site<std::vector<double>>(site, [&](const auto& index) {
     return compute_sky_view_over(index, positions, opts, queries);
   });
 }
 std::vector<std::uint32_t> camera_first_hits(const Site& site, const Camera& camera, double radius,
                                              double max_distance, unsigned threads, bool progress_bar,
                                              WorkDistributor* distributor) {
-  return detail::over_site<std::vector<std::uint32_t>>(site, "camera visibility", [&](const auto& index) {
+  return detail::over_site<std::vector<std::uint32_t>>(site, [&](const auto& index) {
     return camera_first_hits_over(index, camera, radius, max_distance, threads, progress_bar, distributor);
   });
 }

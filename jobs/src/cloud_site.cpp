@@ -4,6 +4,7 @@
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/site/copc.hpp"
 #include "rayscan/site/index_file.hpp"
 
 #include <chrono>
@@ -15,10 +16,11 @@ namespace rayscan::jobs::detail {
 
 void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const PointCloud* memory,
                      const IndexOptions& index, std::optional<double> radius, double radius_factor,
-                     const JobControl& ctl) {
+                     const JobControl& ctl, const CopcOpen& copc) {
   char buf[512];
   auto t0 = std::chrono::steady_clock::now();
   cs.source = memory ? std::string("(memory)") : file.string();
+  const char* how = "read";
   // An index file (.rsi) is queried in place (no tree is built); its points are copied to the
   // sources' original order (tiles concatenated in build order) as the output cloud, so the
   // per-point fields line up with the sources.
@@ -29,13 +31,32 @@ void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const Poi
     so.index_file.read_ahead = true;  // every point is read and many queried: read the file ahead
     cs.site.emplace(Site::open(file, so));
     cs.cloud = cs.site->index_file()->to_point_cloud();
+    how = "mapped";
+  } else if (copc.in_place && io::is_copc_file(file)) {
+    // A COPC file is queried on its own hierarchy (nodes decoded as the queries reach them, within
+    // the cache); the per-point fields still need every point, in file order (the order of the
+    // hierarchy's ids), so the points are read whole too, but no tree is built over them.
+    SiteOptions so;
+    so.copc_cache_bytes = copc.cache_bytes;
+    cs.site.emplace(Site::open(file, so));
+    cs.cloud = io::read_point_cloud(file, {}, &cs.info);
+    const std::uint64_t header = cs.site->copc()->info().point_count;
+    if (cs.cloud.size() != header)
+      throw io::FormatError(cs.source + ": " + std::to_string(cs.cloud.size()) +
+                            " point records, the header's COPC hierarchy counts " + std::to_string(header));
+    how = "read (COPC hierarchy queried in place)";
   } else {
     cs.cloud = io::read_point_cloud(file, {}, &cs.info);
   }
   if (cs.cloud.empty()) throw std::invalid_argument(cs.source + ": the point cloud has no points");
-  std::snprintf(buf, sizeof buf, "%s %zu points from %s in %.2f s", cs.site ? "mapped" : "read", cs.cloud.size(),
-                cs.source.c_str(), seconds_since(t0));
+  std::snprintf(buf, sizeof buf, "%s %zu points from %s in %.2f s", how, cs.cloud.size(), cs.source.c_str(),
+                seconds_since(t0));
   ctl.info(buf);
+  if (const io::CopcIndex* c = cs.site ? cs.site->copc() : nullptr) {
+    std::snprintf(buf, sizeof buf, "COPC: %zu nodes, cache %.1f MB", c->node_count(),
+                  double(c->cache_bytes()) / 1048576.0);
+    ctl.info(buf);
+  }
   t0 = std::chrono::steady_clock::now();
   if (!cs.site) {
     try {
@@ -46,6 +67,7 @@ void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const Poi
     std::snprintf(buf, sizeof buf, "built %s index in %.2f s", index.type.c_str(), seconds_since(t0));
     ctl.info(buf);
   }
+  t0 = std::chrono::steady_clock::now();
   try {
     cs.radius = choose_radius(radius, radius_factor, [&] { return median_nn_spacing(*cs.site, cs.cloud.positions); });
   } catch (const std::invalid_argument&) {
@@ -54,10 +76,22 @@ void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const Poi
     throw OptionError({option("radius"), " auto needs at least two distinct points; give a number"});
   }
   if (cs.radius.automatic) {
-    std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x %.3g = %.6g",
-                  cs.radius.spacing, cs.radius.factor, cs.radius.radius);
+    std::snprintf(buf, sizeof buf, "radius auto: median nearest-neighbour spacing %.6g x %.3g = %.6g (%.2f s)",
+                  cs.radius.spacing, cs.radius.factor, cs.radius.radius, seconds_since(t0));
     ctl.info(buf);
   }
+}
+
+void copc_cache_stats(const CloudSite& cs, const JobControl& ctl, std::uint64_t& decodes, std::size_t& peak) {
+  const io::CopcIndex* c = cs.site ? cs.site->copc() : nullptr;
+  if (!c) return;
+  decodes = c->decodes();
+  peak = c->peak_resident_bytes();
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "COPC: %llu node decodes (of %zu nodes), cache peak %.1f MB of %.1f MB",
+                static_cast<unsigned long long>(c->decodes()), c->node_count(),
+                double(c->peak_resident_bytes()) / 1048576.0, double(c->cache_bytes()) / 1048576.0);
+  ctl.info(buf);
 }
 
 SurfelAttributes estimate_analysis_surfels(const CloudSite& cs, const SurfelOptions& options, const JobControl& ctl) {

@@ -1,5 +1,5 @@
 // What the point analyses (visibility, solar) share before their own work: the cloud read (or an
-// index file mapped), its index built, the sphere radius chosen, the surfels estimated, the output
+// index file mapped, or a COPC file's hierarchy opened), its index built, the sphere radius chosen, the surfels estimated, the output
 // folders checked, and the cloud with its result fields written on the source's integer grid.
 // Private to rayscan::jobs.
 #pragma once
@@ -12,6 +12,8 @@
 #include "rayscan/octree/spacing.hpp"
 #include "rayscan/site/site.hpp"
 
+#include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -25,7 +27,8 @@ struct CloudSite {
   PointCloud cloud;          ///< the points; for an index file, MappedIndex::to_point_cloud()
   io::FileInfo info;         ///< what the reader found (empty for memory and index files)
   std::string source;        ///< the file name, or "(memory)"
-  std::optional<Site> site;  ///< the index over `cloud` (or the mapped index file)
+  std::optional<Site> site;  ///< the index over `cloud` (or the mapped index file, or the COPC
+                             ///< file's own hierarchy: SiteStorage::copc)
   RadiusChoice radius;       ///< the sphere radius chosen
 
   CloudSite() = default;
@@ -33,14 +36,31 @@ struct CloudSite {
   CloudSite& operator=(const CloudSite&) = delete;
 };
 
+/// How open_cloud_site opens a COPC file (a LAS/LAZ file with the COPC info VLR).
+struct CopcOpen {
+  /// Query the file's own hierarchy in place (io::CopcIndex, no tree built; the points are still
+  /// read whole, in file order, as the output cloud) or, when false, read it whole and build
+  /// `index` over it like any other point file (SiteOptions::copc_in_place).
+  bool in_place = true;
+  std::size_t cache_bytes = std::size_t{2} << 30;  ///< decoded-node cache budget, bytes (in place)
+};
+
 /// Fills `cs`: reads `file` (or copies `memory` when non-null), or maps an index file in place
-/// (read ahead: every point will be queried); builds the index of type `index`; chooses the sphere
-/// radius (choose_radius). Logs one line per stage through `ctl`. Throws OptionError naming
-/// `index`, `radius` or `radius_factor`, io::FormatError for the file, std::invalid_argument for a
-/// cloud without points.
+/// (read ahead: every point will be queried), or opens a COPC file's hierarchy in place (`copc`)
+/// and reads its points whole as the output cloud; builds the index of type `index` (not for an
+/// index file or a COPC file in place); chooses the sphere radius (choose_radius; on a COPC file
+/// in place the same samples and value as read whole). Logs one line per stage through `ctl`.
+/// Throws OptionError naming `index`, `radius` or `radius_factor`, io::FormatError for the file
+/// (a COPC file whose records disagree with its header's point count included),
+/// std::invalid_argument for a cloud without points.
 void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const PointCloud* memory,
                      const IndexOptions& index, std::optional<double> radius, double radius_factor,
-                     const JobControl& ctl);
+                     const JobControl& ctl, const CopcOpen& copc = {});
+
+/// After the queries of a run on a COPC file in place: sets `decodes` (node decodes, re-decodes
+/// included) and `peak` (CopcIndex::peak_resident_bytes) and logs them with the hierarchy's node
+/// count and the cache budget; nothing for any other storage.
+void copc_cache_stats(const CloudSite& cs, const JobControl& ctl, std::uint64_t& decodes, std::size_t& peak);
 
 /// The surfels (normals and disc radii) of every point of `cs`, file normals when the cloud has
 /// them; no thickness measure (the analyses trace no bounce rays). Logs one line. Throws

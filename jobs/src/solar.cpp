@@ -307,7 +307,8 @@ struct SolarRun {
   }
 
   void open_site() {
-    detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.index, o.radius, o.radius_factor, ctl);
+    detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.index, o.radius, o.radius_factor, ctl,
+                            {o.copc_in_place, o.cache_bytes});
     r.info = cs.info;
     r.source = cs.source;
     r.radius = cs.radius;
@@ -734,6 +735,7 @@ SolarJobResult run_solar(const SolarJobOptions& o) {
     run.sun_and_sky();
     run.trace_and_sum();
   }
+  detail::copc_cache_stats(run.cs, o.control, run.r.copc_decodes, run.r.copc_peak_cache_bytes);
   run.write_outputs();
   run.r.cloud = std::move(run.cloud);
   return std::move(run.r);

@@ -130,7 +130,8 @@ struct VisibilityRun {
 
   /// The cloud, its index (or the mapped index file), the radius and the surfels.
   void open_site() {
-    detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.index, o.radius, o.radius_factor, ctl);
+    detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.index, o.radius, o.radius_factor, ctl,
+                            {o.copc_in_place, o.cache_bytes});
     r.info = cs.info;
     r.source = cs.source;
     r.radius = cs.radius;
@@ -374,6 +375,7 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   run.line_of_sight();
   run.sky_view();
   run.camera_marks();
+  detail::copc_cache_stats(run.cs, o.control, run.r.copc_decodes, run.r.copc_peak_cache_bytes);
   run.write_outputs();
   run.r.cloud = std::move(run.cloud);
   return std::move(run.r);

@@ -259,7 +259,7 @@ def ortho_map(cloud, res, spp=None, seed=None, threads=0):
 
 
 def visibility(cloud, observers=None, radius=None, height=None, max_distance=None, tolerance=None,
-               target_height=None, sky_rays=0, camera=None, distance=False, threads=0):
+               target_height=None, sky_rays=0, camera=None, distance=False, threads=0, cache="2G"):
     """Per-point visibility like `rayscan visibility` (jobs::run_visibility; rule in
     analysis/README.md), without writing files.
 
@@ -267,7 +267,9 @@ def visibility(cloud, observers=None, radius=None, height=None, max_distance=Non
     observers: a .json/.csv observer file, an (K, 3) array of eye positions, or (K, 2)
     positions whose eyes stand `height` above the local ground. radius: sphere radius (world
     units; None = auto from the point spacing). sky_rays > 0 adds the sky view factor; camera
-    (a camera file) adds the pixels whose first hit is each point.
+    (a camera file) adds the pixels whose first hit is each point. A COPC file is queried on its
+    own octree in place (its points still read for the fields; the same answers as read whole),
+    decoded nodes kept within `cache` ("2G", "512M", as `--cache`).
 
     Returns a dict: "visible_count" (N,) (observers that see each point), "visible_distance" (N,)
     (with distance=True; -1 = unseen), "sky_view" (N,), "camera_hits" (N,) when asked, as float64;
@@ -275,12 +277,12 @@ def visibility(cloud, observers=None, radius=None, height=None, max_distance=Non
     (K,) uint64 points each observer sees.
     """
     return _rayscan._visibility(cloud, observers, radius, height, max_distance, tolerance,
-                                target_height, sky_rays, camera, distance, threads)
+                                target_height, sky_rays, camera, distance, threads, cache)
 
 
 def solar(cloud, start=None, end=None, step="1h", at=None, latitude=None, longitude=None,
           linke=3.0, albedo=0.2, weather=None, sector=1.0, sky_rays=64, primitive="sphere",
-          radius=None, threads=0):
+          radius=None, threads=0, cache="2G"):
     """Sun and shadow on every point like `rayscan solar` (jobs::run_solar; docs/solar.md),
     without writing files.
 
@@ -289,7 +291,8 @@ def solar(cloud, start=None, end=None, step="1h", at=None, latitude=None, longit
     inclusive; step "15min", "1h", ...) or one instant (at). latitude/longitude: degrees
     (default: from the cloud's CRS). linke: one Linke turbidity or 12 monthly values; albedo;
     weather: an EPW file instead of the clear sky; sector: sun-map sector in degrees (0 = one
-    shadow ray per step); sky_rays: sky-map directions; primitive: "sphere" or "surfel".
+    shadow ray per step); sky_rays: sky-map directions; primitive: "sphere" or "surfel". A COPC
+    file is queried in place as by visibility(), within `cache`.
 
     Returns a dict of (N,) float64 arrays: for a period "solar_global", "solar_beam",
     "solar_diffuse", "solar_reflected" (kWh/m²), "sun_hours" (h), "sky_view"; for an instant
@@ -302,7 +305,7 @@ def solar(cloud, start=None, end=None, step="1h", at=None, latitude=None, longit
         linke = [float(linke)]
     return _rayscan._solar(cloud, start or "", end or "", step, at or "", latitude, longitude,
                            [float(v) for v in linke], float(albedo), weather, float(sector),
-                           sky_rays, primitive, radius, threads)
+                           sky_rays, primitive, radius, threads, cache)
 
 
 def compare(reference, image, channels=(), mask=False, alpha=False, resize=False, fail=None,

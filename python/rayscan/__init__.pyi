@@ -97,12 +97,12 @@ def ortho_map(cloud: _Cloud, res: float, spp: int | None = None, seed: int | Non
 def visibility(cloud: _Cloud, observers: _Path | npt.ArrayLike | None = None, radius: float | None = None,
                height: float | None = None, max_distance: float | None = None, tolerance: float | None = None,
                target_height: float | None = None, sky_rays: int = 0, camera: _Path | None = None,
-               distance: bool = False, threads: int = 0) -> dict[str, Any]: ...
+               distance: bool = False, threads: int = 0, cache: str = "2G") -> dict[str, Any]: ...
 def solar(cloud: _Cloud, start: str | None = None, end: str | None = None, step: str = "1h",
           at: str | None = None, latitude: float | None = None, longitude: float | None = None,
           linke: float | Sequence[float] = 3.0, albedo: float = 0.2, weather: _Path | None = None,
           sector: float = 1.0, sky_rays: int = 64, primitive: Literal["sphere", "surfel"] = "sphere",
-          radius: float | None = None, threads: int = 0) -> dict[str, Any]: ...
+          radius: float | None = None, threads: int = 0, cache: str = "2G") -> dict[str, Any]: ...
 def compare(reference: _Path | npt.ArrayLike, image: _Path | npt.ArrayLike, channels: Sequence[str] = (),
             mask: bool = False, alpha: bool = False, resize: bool = False, fail: float | None = None,
             fail_percent: float | None = None, fail_psnr: float | None = None, fail_ssim: float | None = None,

@@ -129,11 +129,12 @@ def _ortho_map(cloud: Any, res: float, spp: int | None = None, seed: int | None 
 def _visibility(cloud: Any, observers: Any = None, radius: float | None = None, height: float | None = None,
                 max_distance: float | None = None, tolerance: float | None = None,
                 target_height: float | None = None, sky_rays: int = 0, camera: _Path | None = None,
-                distance: bool = False, threads: int = 0) -> dict[str, Any]: ...
+                distance: bool = False, threads: int = 0, cache: str = "2G") -> dict[str, Any]: ...
 def _solar(cloud: Any, start: str = "", end: str = "", step: str = "1h", at: str = "",
            latitude: float | None = None, longitude: float | None = None, linke: Sequence[float] = ...,
            albedo: float = 0.2, weather: _Path | None = None, sector: float = 1.0, sky_rays: int = 64,
-           primitive: str = "sphere", radius: float | None = None, threads: int = 0) -> dict[str, Any]: ...
+           primitive: str = "sphere", radius: float | None = None, threads: int = 0,
+           cache: str = "2G") -> dict[str, Any]: ...
 def _compare(reference: Any, image: Any, channels: Sequence[str] = (), mask: bool = False, alpha: bool = False,
              resize: bool = False, fail: float | None = None, fail_percent: float | None = None,
              fail_psnr: float | None = None, fail_ssim: float | None = None,

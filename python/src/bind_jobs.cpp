@@ -8,6 +8,7 @@
 #include "cloud.hpp"
 
 #include "rayscan/analysis/ortho_map.hpp"
+#include "rayscan/base/byte_size.hpp"
 #include "rayscan/jobs/compare.hpp"
 #include "rayscan/jobs/quick_look.hpp"
 #include "rayscan/jobs/solar.hpp"
@@ -292,11 +293,24 @@ py::dict compare(const py::object& a, const py::object& b, py::handle channels,
   return d;
 }
 
+/// The `cache` keyword of visibility and solar: a byte size as `--cache` takes it ("2G", "512M";
+/// parse_byte_size), the decoded-node budget of a COPC file queried in place. Raises ValueError
+/// "cache: size '...': expected ...".
+std::size_t cache_arg(const std::string& cache) {
+  try {
+    return static_cast<std::size_t>(parse_byte_size(cache));
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(std::string("cache: ") + e.what());
+  }
+}
+
 py::dict visibility(const py::object& cloud, const py::object& observers, std::optional<double> radius,
                     std::optional<double> height, std::optional<double> max_distance,
                     std::optional<double> tolerance, std::optional<double> target_height,
-                    py::handle sky_rays, py::handle camera, bool distance, py::handle threads) {
+                    py::handle sky_rays, py::handle camera, bool distance, py::handle threads,
+                    const std::string& cache) {
   jobs::VisibilityJobOptions o;
+  o.cache_bytes = cache_arg(cache);
   const CloudArg c = cloud_arg(cloud, "cloud");
   o.cloud = c.points;
   o.cloud_file = c.path;
@@ -350,8 +364,10 @@ py::dict visibility(const py::object& cloud, const py::object& observers, std::o
 py::dict solar(const py::object& cloud, const std::string& start, const std::string& end, const std::string& step,
                const std::string& at, std::optional<double> latitude, std::optional<double> longitude,
                std::vector<double> linke, double albedo, const py::object& weather, double sector, py::handle sky_rays,
-               const std::string& primitive, std::optional<double> radius, py::handle threads) {
+               const std::string& primitive, std::optional<double> radius, py::handle threads,
+               const std::string& cache) {
   jobs::SolarJobOptions o;
+  o.cache_bytes = cache_arg(cache);
   const CloudArg c = cloud_arg(cloud, "cloud");
   o.cloud = c.points;
   o.cloud_file = c.path;
@@ -409,12 +425,13 @@ void bind_jobs(py::module_& m) {
   m.def("_visibility", &visibility, py::arg("cloud"), py::arg("observers") = py::none(),
         py::arg("radius") = py::none(), py::arg("height") = py::none(), py::arg("max_distance") = py::none(),
         py::arg("tolerance") = py::none(), py::arg("target_height") = py::none(), py::arg("sky_rays") = 0,
-        py::arg("camera") = py::none(), py::arg("distance") = false, py::arg("threads") = 0);
+        py::arg("camera") = py::none(), py::arg("distance") = false, py::arg("threads") = 0,
+        py::arg("cache") = "2G");
   m.def("_solar", &solar, py::arg("cloud"), py::arg("start") = "", py::arg("end") = "", py::arg("step") = "1h",
         py::arg("at") = "", py::arg("latitude") = py::none(), py::arg("longitude") = py::none(),
         py::arg("linke") = std::vector<double>{3.0}, py::arg("albedo") = 0.2, py::arg("weather") = py::none(),
         py::arg("sector") = 1.0, py::arg("sky_rays") = 64, py::arg("primitive") = "sphere",
-        py::arg("radius") = py::none(), py::arg("threads") = 0);
+        py::arg("radius") = py::none(), py::arg("threads") = 0, py::arg("cache") = "2G");
 }
 
 }  // namespace rayscan::python

@@ -94,6 +94,8 @@ def test_job_arguments(tmp_path):
           "sky_rays must be an integer in [0, 2^32 - 1], got -1")
     check(lambda: rayscan.visibility(cloud, obs, sky_rays=HUGE), ValueError,
           f"sky_rays must be an integer in [0, 2^32 - 1], got {HUGE}")
+    check(lambda: rayscan.visibility(cloud, obs, cache="lots"), ValueError,
+          "cache: size 'lots': expected a positive number with an optional K, M, G or T suffix")
     check(lambda: rayscan.visibility("a\0.las", obs), ValueError,
           "cloud 'a\\x00.las' contains a NUL byte; expected a file name")
     check(lambda: rayscan.compare("ref\0.png", np.zeros((2, 2))), ValueError,

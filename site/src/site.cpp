@@ -3,10 +3,18 @@
 #include "rayscan/site/site.hpp"
 
 #include "rayscan/base/job.hpp"
+#include "rayscan/octree/morton.hpp"
 #include "rayscan/octree/spacing.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <optional>
+#include <utility>
 #include <stdexcept>
 #include <vector>
 
@@ -79,12 +87,109 @@ Site Site::open(const std::filesystem::path& path, const SiteOptions& options, S
   return s;
 }
 
+namespace {
+
+// median_nn_spacing_of's sample and rule (the points i * N / n of the file-order `positions`, the
+// nearest at a non-zero distance among each one's 8 nearest) answered by the COPC file's own
+// hierarchy: kNN answers do not depend on the index (sorted by distance, then id) and the median
+// not on the order the samples are queried in, so the result is the whole-file path's bit for
+// bit. The samples are queried in copc_point_order, each block of 32 in a QueryScope, so the
+// decoded nodes stay within the cache budget while the queries run in parallel.
+double copc_spacing(const io::CopcIndex& copc, std::span<const Vec3> positions, std::size_t max_samples = 20000) {
+  if (positions.size() < 2 || max_samples == 0) return 0.0;
+  const std::size_t n = std::min(max_samples, positions.size());
+  std::vector<Vec3> samples(n);
+  for (std::size_t i = 0; i < n; ++i) samples[i] = positions[i * positions.size() / n];
+  const std::vector<PointIndex> order = copc_point_order(samples);  // neighbours share a scope's nodes
+  std::vector<double> d(n, 0.0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 32), [&](const auto& r) {
+    const io::CopcIndex::QueryScope scope(copc);
+    std::vector<Neighbor> nb;
+    for (std::size_t k = r.begin(); k != r.end(); ++k) {
+      const std::size_t i = order[k];
+      knn_query(copc, samples[i], 8, kInf, nb);
+      double best = 0.0;
+      for (const Neighbor& x : nb)
+        if (x.distance > 0.0) {
+          best = x.distance;
+          break;
+        }
+      d[i] = best;
+    }
+  });
+  std::erase(d, 0.0);
+  if (d.empty()) return 0.0;
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
+// estimate_surfels_over's per-point work (kNN, radius, PCA or file normal) over a COPC file in
+// place, the points visited in copc_point_order (the index's slots hold only decoded nodes), each
+// block of 1024 points in a QueryScope; positions are read from the file-order `positions`. The same attributes as in memory: the kNN answers are the same (sorted by
+// distance, then id) and each point's arithmetic is the same.
+SurfelAttributes copc_surfels(const io::CopcIndex& copc, std::span<const Vec3> positions, const SurfelOptions& o,
+                              std::span<const glm::vec3> file_normals) {
+  const std::size_t n = static_cast<std::size_t>(copc.info().point_count);
+  detail::check_surfel_arguments(n, positions, o, file_normals);
+  if (o.measure_thickness)
+    throw std::invalid_argument(
+        "surfels: the thickness measure needs the points in storage order; read the COPC file into memory");
+  SurfelAttributes out;
+  out.normals.assign(n, glm::vec3(0.0f, 0.0f, 1.0f));
+  out.radii.assign(n, 0.0f);
+  out.thickness.assign(n, 0.0f);
+  const bool estimate = file_normals.empty();
+  const std::size_t k = std::max<std::size_t>(estimate ? o.k_normal : 0, o.k_radius + 1);
+  const Vec3 up = detail::surfel_up(o);
+  const std::vector<PointIndex> order = copc_point_order(positions);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
+    const io::CopcIndex::QueryScope scope(copc);
+    std::vector<Neighbor> nb;
+    for (std::size_t s = range.begin(); s != range.end(); ++s) {
+      const PointIndex id = order[s];
+      const Vec3& p = positions[id];
+      knn_query(copc, p, k, kInf, nb);
+      if (nb.size() < 2) detail::throw_knn_short(id, nb.size(), n);
+      const std::size_t rk = std::min<std::size_t>(o.k_radius, nb.size() - 1);
+      out.radii[id] = float(nb[rk].distance * o.radius_factor);
+      out.normals[id] =
+          detail::surfel_normal(p, nb, positions, o, up, estimate, estimate ? glm::vec3() : file_normals[id]);
+    }
+  });
+  detail::finish_surfel_radii(out, o);
+  return out;
+}
+
+}  // namespace
+
+std::vector<PointIndex> copc_point_order(std::span<const Vec3> positions) {
+  const std::size_t n = positions.size();
+  std::vector<PointIndex> order(n);
+  if (n == 0) return order;
+  AABB box;
+  for (const Vec3& p : positions) box.expand(p);
+  const double e = box.max_extent();
+  const double scale = e > 0.0 ? double((std::uint32_t{1} << kMortonBits) - 1) / e : 0.0;
+  std::vector<std::pair<std::uint64_t, PointIndex>> keys(n);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, std::size_t{1} << 14), [&](const auto& r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i) {
+      const Vec3 q = (positions[i] - box.lo) * scale;
+      keys[i] = {morton_encode(std::uint32_t(q.x), std::uint32_t(q.y), std::uint32_t(q.z)), PointIndex(i)};
+    }
+  });
+  tbb::parallel_sort(keys.begin(), keys.end());
+  for (std::size_t i = 0; i < n; ++i) order[i] = keys[i].second;
+  return order;
+}
+
 double median_nn_spacing(const Site& site, std::span<const Vec3> positions) {
   switch (site.storage()) {
     case SiteStorage::index_file: return site.index_file()->median_nn_spacing();
     case SiteStorage::copc: {
-      const std::vector<Vec3> samples = site.copc()->spacing_samples(kCopcSpacingSamples);
-      return median_nn_spacing_of(*site.copc(), std::span<const Vec3>(samples), samples.size());
+      const io::CopcIndex& copc = *site.copc();
+      if (!positions.empty() && positions.size() == copc.info().point_count) return copc_spacing(copc, positions);
+      const std::vector<Vec3> samples = copc.spacing_samples(kCopcSpacingSamples);
+      return median_nn_spacing_of(copc, std::span<const Vec3>(samples), samples.size());
     }
     case SiteStorage::memory: break;
   }
@@ -99,7 +204,7 @@ SurfelAttributes estimate_surfels(const Site& site, std::span<const Vec3> positi
     case SiteStorage::index_file: return estimate_surfels_over(*site.index_file(), positions, options, file_normals);
     case SiteStorage::copc: break;
   }
-  throw std::invalid_argument("surfels: a COPC file queried in place is not supported; read it into memory");
+  return copc_surfels(*site.copc(), positions, options, file_normals);
 }
 
 }  // namespace rayscan

@@ -3,15 +3,19 @@
 // compute_sky_view calls, and the geometry of an open plane.
 #include "rayscan/jobs/compare.hpp"
 #include "rayscan/jobs/visibility.hpp"
+#include "rayscan/site/copc.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include "image_test_util.hpp"
+#include "small_copc.hpp"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <unistd.h>
@@ -218,4 +222,144 @@ TEST(VisibilityJob, IndexFileEqualsTheSourceCloudInOriginalOrder) {
     }
   }
   fs::remove_all(dir);
+}
+
+namespace {
+
+// True when the two arrays hold the same values bit for bit (NaN and the sign of zero included).
+template <class T>
+bool same_bits(const std::vector<T>& a, const std::vector<T>& b) {
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+}
+
+// What every comparison of a COPC file in place with the same file read whole checks: the same
+// points in the same order, radius, placed observers and per-point fields.
+void expect_same_visibility(const VisibilityJobResult& a, const VisibilityJobResult& w) {
+  ASSERT_EQ(a.cloud.size(), w.cloud.size());
+  EXPECT_EQ(a.cloud.positions, w.cloud.positions);
+  EXPECT_EQ(a.radius.radius, w.radius.radius);
+  EXPECT_EQ(a.radius.spacing, w.radius.spacing);
+  ASSERT_EQ(a.observers.size(), w.observers.size());
+  for (std::size_t k = 0; k < a.observers.size(); ++k) EXPECT_EQ(a.observers[k].position, w.observers[k].position);
+  EXPECT_EQ(a.surfel_median_radius, w.surfel_median_radius);
+  EXPECT_EQ(a.surfel_max_radius, w.surfel_max_radius);
+  EXPECT_EQ(a.line_of_sight.count, w.line_of_sight.count);
+  EXPECT_EQ(a.line_of_sight.per_observer, w.line_of_sight.per_observer);
+  EXPECT_TRUE(same_bits(a.line_of_sight.nearest, w.line_of_sight.nearest));
+  EXPECT_TRUE(same_bits(a.sky_view, w.sky_view));
+  EXPECT_EQ(a.camera_hits, w.camera_hits);
+  ASSERT_EQ(a.cloud.scalars.size(), w.cloud.scalars.size());
+  for (std::size_t f = 0; f < a.cloud.scalars.size(); ++f) {
+    EXPECT_EQ(a.cloud.scalars[f].name, w.cloud.scalars[f].name);
+    EXPECT_TRUE(same_bits(a.cloud.scalars[f].values, w.cloud.scalars[f].values)) << a.cloud.scalars[f].name;
+  }
+}
+
+// An observer 1.7 m above the local ground at the middle of the small COPC's site.
+Observer copc_observer(const AABB& b) {
+  Observer eye;
+  eye.position = b.center();
+  eye.height = 1.7;
+  return eye;
+}
+
+}  // namespace
+
+// A COPC file is queried in place (io::CopcIndex; its points still read as the output cloud, no
+// tree built). Oracle: the same job on the same file read whole (copc_in_place = false: the
+// in-memory octree). Line of sight (spheres, the ground found by a box query on the hierarchy),
+// distance, sky view and camera marks, the auto radius included, bit for bit, with the default
+// cache and with a cache far smaller than the file, which must stay bounded.
+TEST(VisibilityJob, CopcInPlaceSpheresEqualTheFileReadWhole) {
+  const std::filesystem::path& copc = rayscan::analysis::test::small_copc();
+  const io::CopcIndex probe(copc);
+  const PointCloud pc = io::read_point_cloud(copc, io::ReadOptions{.scalars = false});
+  const AABB b = pc.bounds();
+  VisibilityJobOptions o;
+  o.cloud_file = copc;
+  o.primitive = "sphere";
+  o.observers = {copc_observer(b)};
+  o.distance = true;
+  o.sky_rays = 8;
+  LookAtParams la;
+  la.position = b.center() + Vec3(0.0, -0.6 * (b.hi.y - b.lo.y), 40.0);
+  la.look_at = b.center();
+  o.camera = Camera::look_at(la, 32, 24);
+  o.control.threads = 2;
+  o.copc_in_place = false;
+  const VisibilityJobResult whole = run_visibility(o);
+  EXPECT_EQ(whole.copc_decodes, 0u);
+  o.copc_in_place = true;
+  const VisibilityJobResult in_place = run_visibility(o);
+  EXPECT_GT(in_place.copc_decodes, 0u);
+  expect_same_visibility(in_place, whole);
+  // A cache of 256 KB, a few of the file's nodes: chunks' ends evict while others query.
+  o.cache_bytes = std::size_t{256} << 10;
+  const VisibilityJobResult small = run_visibility(o);
+  expect_same_visibility(small, whole);
+  std::printf("small COPC: %zu nodes; default cache: %llu decodes, peak %zu B; 256 KB cache: %llu decodes, peak %zu B\n",
+              probe.node_count(), static_cast<unsigned long long>(in_place.copc_decodes),
+              in_place.copc_peak_cache_bytes, static_cast<unsigned long long>(small.copc_decodes),
+              small.copc_peak_cache_bytes);
+  // With the default budget every node is decoded once and kept; with 256 KB the ends of the
+  // chunks evict (evicted nodes are decoded again) and the peak stays within the budget plus what
+  // the two chunks in flight reached: here up to every node, as a chunk's sky rays leave its
+  // points in every direction across the site, so the bound is the file's decoded size, the
+  // default run's peak. (The camera test below decodes only part of the file.)
+  EXPECT_EQ(in_place.copc_decodes, probe.node_count());
+  EXPECT_GT(small.copc_decodes, probe.node_count());
+  EXPECT_LE(small.copc_peak_cache_bytes, in_place.copc_peak_cache_bytes);
+  // Not vacuous: some points hidden, some seen, some hit by the camera.
+  const auto& c = whole.line_of_sight.count;
+  EXPECT_GT(std::count(c.begin(), c.end(), 0u), 100);
+  EXPECT_GT(std::count(c.begin(), c.end(), 1u), 100);
+  EXPECT_GT(std::count_if(whole.camera_hits.begin(), whole.camera_hits.end(), [](auto v) { return v > 0; }), 100);
+}
+
+// The default primitive, surfels: their normals and radii by kNN over the hierarchy, the line of
+// sight through the discs' height field, bit for bit as the file read whole, with a small cache.
+TEST(VisibilityJob, CopcInPlaceSurfelsEqualTheFileReadWhole) {
+  const std::filesystem::path& copc = rayscan::analysis::test::small_copc();
+  const PointCloud pc = io::read_point_cloud(copc, io::ReadOptions{.scalars = false});
+  VisibilityJobOptions o;
+  o.cloud_file = copc;
+  o.observers = {copc_observer(pc.bounds())};
+  o.control.threads = 2;
+  o.cache_bytes = std::size_t{256} << 10;
+  o.copc_in_place = false;
+  const VisibilityJobResult whole = run_visibility(o);
+  o.copc_in_place = true;
+  const VisibilityJobResult in_place = run_visibility(o);
+  EXPECT_EQ(in_place.primitive, "surfel");
+  EXPECT_GT(in_place.copc_decodes, 0u);
+  expect_same_visibility(in_place, whole);
+  const auto& c = whole.line_of_sight.count;
+  EXPECT_GT(std::count(c.begin(), c.end(), 0u), 100);
+  EXPECT_GT(std::count(c.begin(), c.end(), 1u), 100);
+}
+
+// Camera marks of a corner of the site with a given radius (no auto radius, no surfels: nothing
+// else reads the hierarchy) decode only the nodes the camera's rays reach.
+TEST(VisibilityJob, CopcInPlaceCameraDecodesOnlyTheNodesItSees) {
+  const std::filesystem::path& copc = rayscan::analysis::test::small_copc();
+  const io::CopcIndex probe(copc);
+  const PointCloud pc = io::read_point_cloud(copc, io::ReadOptions{.scalars = false});
+  const AABB b = pc.bounds();
+  VisibilityJobOptions o;
+  o.cloud_file = copc;
+  o.primitive = "sphere";
+  o.radius = 0.5;
+  LookAtParams la;
+  la.position = b.lo + Vec3(-5.0, -5.0, 30.0);
+  la.look_at = b.lo + 0.15 * (b.hi - b.lo);
+  la.vfov_deg = 25.0;
+  o.camera = Camera::look_at(la, 32, 24);
+  o.control.threads = 2;
+  const VisibilityJobResult in_place = run_visibility(o);
+  EXPECT_GT(in_place.copc_decodes, 0u);
+  EXPECT_LT(in_place.copc_decodes, probe.node_count()) << "a corner view decoded every node";
+  o.copc_in_place = false;
+  const VisibilityJobResult whole = run_visibility(o);
+  expect_same_visibility(in_place, whole);
+  EXPECT_GT(std::count_if(whole.camera_hits.begin(), whole.camera_hits.end(), [](auto v) { return v > 0; }), 50);
 }

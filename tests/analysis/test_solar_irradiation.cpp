@@ -6,6 +6,9 @@
 #include "rayscan/analysis/site_location.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/solar.hpp"
+#include "rayscan/site/copc.hpp"
+
+#include "small_copc.hpp"
 
 #include <cpl_conv.h>
 #include <ogr_spatialref.h>
@@ -18,6 +21,7 @@
 #include <sys/wait.h>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <numbers>
 #include <random>
 
@@ -364,6 +368,7 @@ TEST(SolarCli, BadInputIsOneLineAndExitCodeTwo) {
       {"--start 2026-01-01 --end 2026-01-31 --weather " + bad_epw, "bad.epw: line 1"},
       {"--start 2026-01-01 --end 2026-01-31 --linke 1,2,3", "--linke"},
       {"--at 2026-06-21T12:00Z --raster " + dir + "/x.png --cell 3", "--raster"},
+      {"--at 2026-06-21T12:00Z --cache 12Q", "--cache: "},
   };
   for (const Case& c : cases) {
     const std::string out = dir + "/solar_cli_out.las";
@@ -462,4 +467,54 @@ TEST(SolarJob, MonthlyFieldsAddUpAndMatchAMonthAlone) {
   const std::vector<double>& alone = field(february, "solar_global");
   for (std::size_t i = 0; i < cloud.size(); ++i) EXPECT_NEAR(alone[i], feb[i], 1e-9 * feb[i]) << i;
   EXPECT_GT(feb[0], 10.0);  // kWh/m² in a February at 48 N
+}
+
+// A COPC file is queried in place (io::CopcIndex; its points read as the output cloud, no tree
+// built). Oracle: the same job on the same file read whole (copc_in_place = false: the in-memory
+// octree). An instant (shadows and irradiance) and a day of 3-hour steps (sun map, sky map, the
+// sums), spheres and surfels, every field bit for bit, with a cache far smaller than the file.
+TEST(SolarJob, CopcInPlaceEqualsTheFileReadWhole) {
+  const std::filesystem::path& copc = rayscan::analysis::test::small_copc();
+  const io::CopcIndex probe(copc);
+  struct Case {
+    const char* at;
+    const char* day;
+    const char* primitive;
+  } cases[] = {{"2026-06-21T18:30:00Z", "", "sphere"}, {"", "2026-06-21", "sphere"}, {"2026-06-21T18:30:00Z", "", "surfel"}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(std::string(c.at) + c.day + " " + c.primitive);
+    jobs::SolarJobOptions o;
+    o.cloud_file = copc;
+    o.latitude = 44.05;  // autzen, Eugene (Oregon)
+    o.longitude = -123.07;
+    o.at = c.at;
+    if (*c.day) {
+      o.start = o.end = c.day;
+      o.step = "3h";
+    }
+    o.primitive = c.primitive;
+    o.sky_rays = std::string(c.primitive) == "surfel" ? 0 : 8;  // (surfels: the shadow alone, for time)
+    o.control.threads = 2;
+    o.cache_bytes = std::size_t{256} << 10;
+    o.copc_in_place = false;
+    const jobs::SolarJobResult whole = jobs::run_solar(o);
+    o.copc_in_place = true;
+    const jobs::SolarJobResult in_place = jobs::run_solar(o);
+    EXPECT_EQ(whole.copc_decodes, 0u);
+    EXPECT_GT(in_place.copc_decodes, probe.node_count());  // a small cache: evicted nodes decoded again
+    EXPECT_EQ(in_place.radius.radius, whole.radius.radius);
+    EXPECT_EQ(in_place.sectors, whole.sectors);
+    ASSERT_EQ(in_place.cloud.size(), whole.cloud.size());
+    EXPECT_EQ(in_place.cloud.positions, whole.cloud.positions);
+    ASSERT_EQ(in_place.cloud.scalars.size(), whole.cloud.scalars.size());
+    bool varies = false;
+    for (std::size_t f = 0; f < whole.cloud.scalars.size(); ++f) {
+      const std::vector<double>&a = in_place.cloud.scalars[f].values, &w = whole.cloud.scalars[f].values;
+      EXPECT_EQ(in_place.cloud.scalars[f].name, whole.cloud.scalars[f].name);
+      ASSERT_EQ(a.size(), w.size());
+      EXPECT_EQ(std::memcmp(a.data(), w.data(), a.size() * sizeof(double)), 0) << whole.cloud.scalars[f].name;
+      varies = varies || std::any_of(w.begin(), w.end(), [&](double v) { return v != w[0]; });
+    }
+    EXPECT_TRUE(varies);  // not vacuous: some points in shadow, some in the sun
+  }
 }

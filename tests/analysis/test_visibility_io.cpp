@@ -420,6 +420,7 @@ TEST_F(VisibilityCli, UserErrorsExitTwoAndWriteNothing) {
                    " --cell 1 -o " + out.string(),
                "needs --sky-view");
   expect_error(s + " --observer 0,0,2 --radius -3 -o " + out.string(), "--radius '-3'");
+  expect_error(s + " --observer 0,0,2 --cache lots -o " + out.string(), "--cache: ");
   expect_error((tmpdir() / "missing.las").string() + " --observer 0,0,2 -o " + out.string(), "missing.las");
   expect_error(s + " --from-camera " + (tmpdir() / "nocam.json").string() + " -o " + out.string(), "nocam.json");
   EXPECT_FALSE(fs::exists(tmpdir() / "m.tif"));

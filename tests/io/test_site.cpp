@@ -125,8 +125,12 @@ TEST(Site, CopcOpensInPlaceOrInMemoryWithTheSameAnswers) {
   const auto expected = answers(rayscan::Site(AnyIndex(brute)), mem.cloud()->positions, rays, q);
   EXPECT_EQ(answers(mem, mem.cloud()->positions, rays, q), expected);
   EXPECT_EQ(answers(in_place, {}, rays, q), expected);
-  // Spacing from a sample of the hierarchy's nodes; surfels need the points in memory.
+  // The auto radius: without the points, from a sample of the hierarchy's nodes; given them (file
+  // order), the in-memory value exactly. Surfels are estimated in place too
+  // (tests/analysis/test_jobs.cpp, VisibilityJob.CopcInPlaceSurfels*), but not the thickness,
+  // whose patches are runs of storage slots.
   EXPECT_GT(median_nn_spacing(in_place, {}), 0.0);
+  EXPECT_EQ(median_nn_spacing(in_place, mem.cloud()->positions), median_nn_spacing(mem, mem.cloud()->positions));
   EXPECT_THROW((void)estimate_surfels(in_place, mem.cloud()->positions, SurfelOptions{}), std::invalid_argument);
 }
 

@@ -96,15 +96,14 @@ struct GroundOptions {
 /// holds points of ASPRS class 2 (ground; LAS 1.4 R15 table 17), only those count; points of class 7
 /// (low noise) and 18 (high noise) never count. Returns NaN when the cylinder holds no usable point.
 /// `cloud` holds the site's points in original order (for an index file: by ids(), slot order for
-/// a file built without ids, docs/index-format.md "Ids"). Throws std::invalid_argument for a COPC
-/// site in place.
+/// a file built without ids, docs/index-format.md "Ids"; for a COPC file in place: file order,
+/// read_point_cloud(), its box query running in a CopcIndex::QueryScope).
 double local_ground(const Site& site, const PointCloud& cloud, double x, double y, double radius);
 
 /// Resolves every observer's eye z: observers with a height (or, lacking z and height, the default
 /// height) get z = local_ground + height. Fills ground_z for those. Throws ObserverError naming the
 /// observer when no ground point lies within the radius, or it has neither z nor a height and there
 /// is no default. `cloud` holds the site's points in original order (as for local_ground).
-/// Throws std::invalid_argument for a COPC site in place.
 void place_observers(std::vector<Observer>& observers, const Site& site, const PointCloud& cloud,
                      const GroundOptions& options);
 

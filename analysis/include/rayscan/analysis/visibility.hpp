@@ -103,17 +103,21 @@ struct VisibilityResult {
 /// pruned by the segment's horizontal projection (not the paper's ray query).
 /// `site`'s points are `positions` in original order (for an index file, queried in place: by
 /// ids(), slot order for a file built without ids, docs/index-format.md "Ids"); i <
-/// positions.size(); `scratch` is caller-owned. Throws std::invalid_argument for a COPC site
-/// queried in place (read it into memory: SiteOptions::copc_in_place = false).
+/// positions.size(); `scratch` is caller-owned. A COPC file in place (positions: read_point_cloud()'s
+/// file order, the order of its ids) answers in a CopcIndex::QueryScope of its own.
 bool is_visible(const Site& site, std::span<const Vec3> positions, const Observer& observer,
                 PointIndex i, const VisibilityOptions& opts, std::vector<RayHit>& scratch);
 
 /// is_visible() for every point and observer. Observers must have a resolved z (place_observers).
 /// Throws std::invalid_argument for radius <= 0, a negative or NaN tolerance or max distance, an
-/// site whose size differs from positions, surfel attributes of another size, or a COPC site in
-/// place. An index file is queried in place (no tree is built; `positions`: its points in
-/// original order, MappedIndex::to_point_cloud()). Per-point results are by original index
-/// (ids(): the slot when the file has no ids section, docs/index-format.md "Ids").
+/// site whose size differs from positions (a COPC file: its header's point count) or surfel
+/// attributes of another size. An index file is queried in place (no tree is built;
+/// `positions`: its points in original order, MappedIndex::to_point_cloud()), and so is a COPC
+/// file (`positions`: read_point_cloud()'s file order; each chunk of points runs in a
+/// CopcIndex::QueryScope, so the decoded nodes stay within the cache budget plus what the chunks
+/// in flight decode). Per-point results are by original index (ids(): the slot when the file has
+/// no ids section, docs/index-format.md "Ids"; the file order on a COPC file). The same answers
+/// on every storage of the same points.
 VisibilityResult compute_visibility(const Site& site, std::span<const Vec3> positions,
                                     std::span<const Observer> observers, const VisibilityOptions& opts);
 
@@ -134,7 +138,8 @@ VisibilityResult compute_visibility(const Site& site, std::span<const Vec3> posi
 /// each process visits the points of its chunks, and the `gather` arrays (what `visit` wrote per
 /// point) of the others' points travel to the root, whose arrays then hold every point's values
 /// as one process would have written them.
-/// Throws std::invalid_argument like compute_visibility and for normals of another count.
+/// Throws std::invalid_argument like compute_visibility and for normals of another count. Runs on
+/// every storage as compute_visibility does (a COPC file in place: a QueryScope per point chunk).
 void trace_directions(const Site& site, std::span<const Vec3> positions, std::span<const Vec3> dirs,
                       std::span<const Vec3> normals, const VisibilityOptions& opts,
                       const std::function<void(PointIndex, std::span<const std::uint64_t>)>& visit,
@@ -146,7 +151,8 @@ void trace_directions(const Site& site, std::span<const Vec3> positions, std::sp
 /// spheres of `radius`, from P +- radius n, those entered within 2 x radius ignored); the normal
 /// keeps or takes the side whose ray meets nothing, or, when both meet something, the farther
 /// hit (a building's inside ends at its opposite wall). Returns the number of normals turned.
-/// Throws std::invalid_argument for a radius that is not > 0 or normals of another count.
+/// `positions` in original order (a COPC file in place: file order, a QueryScope per block of
+/// points). Throws std::invalid_argument for a radius that is not > 0 or normals of another count.
 std::size_t orient_steep_normals(const Site& site, std::span<const Vec3> positions, std::span<Vec3> normals,
                                  double radius, unsigned threads = 0);
 
@@ -189,7 +195,8 @@ double sky_rotation(std::uint64_t seed, std::uint64_t i);
 /// sky_direction(k, N, sky_rotation(seed, i)), with no sphere entry in [0, max_distance] (ray_query
 /// k = 1, sphere_hit; spheres containing the origin are ignored). Values are multiples of 1/N in
 /// [0, 1], by original index (an index file is queried in place). Throws std::invalid_argument
-/// for rays == 0, radius <= 0, negative lift or max distance, or a COPC site in place.
+/// for rays == 0, radius <= 0, negative lift or max distance, or a site whose size differs from
+/// positions. A COPC file is queried in place as in compute_visibility.
 std::vector<double> compute_sky_view(const Site& site, std::span<const Vec3> positions,
                                      const SkyViewOptions& opts, std::uint64_t* queries = nullptr);
 
@@ -198,8 +205,10 @@ std::vector<double> compute_sky_view(const Site& site, std::span<const Vec3> pos
 /// camera.generate_ray(x, y) -- the ray of the renderer's point-index AOV, so the result equals
 /// `rayscan render --aov index` for the same radius. Row-major from the top-left pixel;
 /// kNoPoint for a miss. With a `distributor` of several processes (MPI) the rows are handed out
-/// by it and only the root's result is complete. An index file is queried in place. Throws
-/// std::invalid_argument for radius <= 0 or a COPC site in place.
+/// by it and only the root's result is complete. An index file is queried in place, and so is a
+/// COPC file (each image row in a CopcIndex::QueryScope: only the nodes the rays reach are
+/// decoded; pixel values are file-order point indices). Throws std::invalid_argument for
+/// radius <= 0.
 std::vector<std::uint32_t> camera_first_hits(const Site& site, const Camera& camera,
                                              double radius, double max_distance = kInf,
                                              unsigned threads = 0, bool progress = false,

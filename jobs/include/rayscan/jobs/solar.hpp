@@ -66,6 +66,14 @@ struct SolarJobOptions {
   std::filesystem::path cloud_file;     ///< point cloud (LAS, LAZ, COPC, PLY, PCD, text) or index file (.rsi)
   const PointCloud* cloud = nullptr;    ///< in-memory points instead of cloud_file (copied into the result)
   IndexOptions index;                   ///< index type (default octree-adaptive)
+  /// COPC input (a LAS/LAZ file with the COPC info VLR): query the file's own octree in place
+  /// (io::CopcIndex: nodes decoded as the queries reach them, no tree built, `index` ignored) or,
+  /// when false, read it whole and build `index` over it (SiteOptions::copc_in_place). The points
+  /// are read whole either way, in file order (the output cloud); the results are the same.
+  bool copc_in_place = true;
+  /// COPC input in place: bytes of decoded nodes kept resident (`--cache`; trimmed as each chunk
+  /// of points or image row ends, plus the nodes of the chunks in flight).
+  std::size_t cache_bytes = std::size_t{2} << 30;
   std::optional<double> radius;         ///< sphere radius (primitive sphere), world units; nullopt = auto
   double radius_factor = 1.0;           ///< auto radius = factor x median NN spacing (choose_radius)
   /// Geometry of each point for shadows: "sphere" (the paper's model, one radius: light passes
@@ -158,9 +166,14 @@ struct SolarJobResult {
   std::optional<analysis::Raster> raster;
   std::string raster_value;
   std::vector<std::filesystem::path> written;
+  std::uint64_t copc_decodes = 0;       ///< COPC input in place: node decodes (re-decodes after
+                                        ///< eviction included); 0 otherwise
+  std::size_t copc_peak_cache_bytes = 0;  ///< COPC input in place: the most bytes of decoded nodes
+                                          ///< resident at once (CopcIndex::peak_resident_bytes)
 };
 
-/// Checks every option, reads the cloud, builds the index, estimates the surfels, computes the sun
+/// Checks every option, reads the cloud, builds the index (none for an index file or a COPC file
+/// queried in place: copc_in_place), estimates the surfels, computes the sun
 /// positions (SPA) and the sky (ESRA clear sky or the EPW file), traces the sun-map and sky-map
 /// directions of every point (analysis::trace_directions) and accumulates the irradiance of every
 /// time step on each point's surface, then writes the outputs. With options.control.distributor

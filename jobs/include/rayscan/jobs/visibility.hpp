@@ -37,6 +37,14 @@ struct VisibilityJobOptions {
   std::filesystem::path cloud_file;     ///< point cloud to read (LAS, LAZ, COPC, PLY, PCD, text) or index file (.rsi)
   const PointCloud* cloud = nullptr;    ///< in-memory points instead of cloud_file (copied into the result)
   IndexOptions index;                   ///< index type (default octree-adaptive)
+  /// COPC input (a LAS/LAZ file with the COPC info VLR): query the file's own octree in place
+  /// (io::CopcIndex: nodes decoded as the queries reach them, no tree built, `index` ignored) or,
+  /// when false, read it whole and build `index` over it (SiteOptions::copc_in_place). The points
+  /// are read whole either way, in file order (the output cloud); the results are the same.
+  bool copc_in_place = true;
+  /// COPC input in place: bytes of decoded nodes kept resident (`--cache`; trimmed as each chunk
+  /// of points or image row ends, plus the nodes of the chunks in flight).
+  std::size_t cache_bytes = std::size_t{2} << 30;
   std::optional<double> radius;         ///< sphere radius, world units; nullopt = auto
   double radius_factor = 1.0;           ///< auto radius = factor x median NN spacing (choose_radius)
   std::string primitive = "surfel";     ///< "surfel" (oriented discs: PCA normals, per-point radii,
@@ -102,10 +110,15 @@ struct VisibilityJobResult {
   std::optional<Raster> raster;         ///< the map (when `raster` was given)
   std::string raster_value;             ///< what the map shows
   std::vector<std::filesystem::path> written;  ///< files written, in order
+  std::uint64_t copc_decodes = 0;       ///< COPC input in place: node decodes (re-decodes after
+                                        ///< eviction included); 0 otherwise
+  std::size_t copc_peak_cache_bytes = 0;  ///< COPC input in place: the most bytes of decoded nodes
+                                          ///< resident at once (CopcIndex::peak_resident_bytes)
 };
 
 /// Checks every option (before any work: extensions, output folders, value/input combinations),
-/// reads the cloud, builds the index, chooses the radius, runs the requested analyses and writes
+/// reads the cloud, builds the index (none for an index file or a COPC file queried in place:
+/// copc_in_place), chooses the radius, runs the requested analyses and writes
 /// the outputs. A LAS output keeps the source's scale and offset. Throws std::invalid_argument
 /// (bad option, message naming it), ObserverError, SceneError (camera file), io::FormatError
 /// (cloud), std::runtime_error (I/O).

@@ -20,6 +20,7 @@
 #include <type_traits>
 #include <utility>
 #include <variant>
+#include <vector>
 
 namespace rayscan {
 
@@ -144,16 +145,32 @@ inline constexpr std::size_t kCopcSpacingSamples = 2000;
 /// The median nearest-neighbour spacing of the site's points, world units (the auto radius of
 /// paper section 5.3; octree/spacing.hpp): in memory median_nn_spacing(index, positions), with
 /// `positions` the site's points in original order; for an index file the spacing stored at build
-/// (MappedIndex::median_nn_spacing; `positions` unused); for a COPC file in place
-/// median_nn_spacing_of over kCopcSpacingSamples points of at most 64 nodes
-/// (CopcIndex::spacing_samples; `positions` unused). 0 when no two points differ.
+/// (MappedIndex::median_nn_spacing; `positions` unused). For a COPC file in place given its
+/// `positions` (all of them, in file order: read_point_cloud()) the in-memory rule at the same
+/// evenly spaced samples, their kNN answered by the file's hierarchy in CopcIndex::QueryScopes,
+/// so the value is the whole-file path's bit for bit; given no positions (a caller that does not
+/// read the file), median_nn_spacing_of over kCopcSpacingSamples points of at most 64 nodes
+/// (CopcIndex::spacing_samples). 0 when no two points differ.
 [[nodiscard]] double median_nn_spacing(const Site& site, std::span<const Vec3> positions);
+
+/// The order in which work over every point of a COPC file in place visits them (the analyses'
+/// per-point loops, estimate_surfels): the original ids 0..N-1 of `positions`, sorted by the
+/// Morton code of each position on a 2^21 grid over their bounding box (ties by id). The file
+/// order would not do: a COPC node holds a subsample of its whole cube (the root's points are
+/// spread over the site), so a block of consecutive file-order points would reach every node and
+/// a cache smaller than the file would decode the same nodes over and over; in Morton order a
+/// block's points are neighbours, as the slots of the other storages are. Results never depend
+/// on it. O(N log N), parallel (TBB).
+[[nodiscard]] std::vector<PointIndex> copc_point_order(std::span<const Vec3> positions);
 
 /// Surfel normals and radii (estimate_surfels, octree/normals.hpp) of the site's points
 /// `positions` in original order, with `file_normals` (N or none) when compute_normals is off:
-/// the same attributes for the same points in memory or in an index file
-/// (estimate_surfels_over). Throws std::invalid_argument as estimate_surfels does, and for a COPC
-/// file in place (read it into memory: SiteOptions::copc_in_place = false).
+/// the same attributes for the same points in memory, in an index file (estimate_surfels_over)
+/// or in a COPC file in place (`positions`: every point in file order, read_point_cloud(); the
+/// kNN answered by its hierarchy, blocks of 1024 points each in a CopcIndex::QueryScope). Throws
+/// std::invalid_argument as estimate_surfels does, and for a COPC file in place with
+/// options.measure_thickness (its patches are runs of storage slots, which a COPC file in place
+/// does not hold: read it into memory, SiteOptions::copc_in_place = false).
 [[nodiscard]] SurfelAttributes estimate_surfels(const Site& site, std::span<const Vec3> positions,
                                                 const SurfelOptions& options,
                                                 std::span<const glm::vec3> file_normals = {});
