@@ -93,34 +93,18 @@ namespace {
 // nearest at a non-zero distance among each one's 8 nearest) answered by the COPC file's own
 // hierarchy: kNN answers do not depend on the index (sorted by distance, then id) and the median
 // not on the order the samples are queried in, so the result is the whole-file path's bit for
-// bit. The samples are queried in copc_point_order, each block of 32 in a QueryScope, so the
-// decoded nodes stay within the cache budget while the queries run in parallel.
-double copc_spacing(const io::CopcIndex& copc, std::span<const Vec3> positions, std::size_t max_samples = 20000) {
+// bit. The samples are queried in copc_point_order (neighbours share nodes) by
+// median_nn_spacing_of itself, 1024 at a time with the cache trimmed between batches, so the
+// decoded nodes stay within the cache budget plus one batch's.
+double copc_spacing(io::CopcIndex& copc, std::span<const Vec3> positions, std::size_t max_samples = 20000) {
   if (positions.size() < 2 || max_samples == 0) return 0.0;
   const std::size_t n = std::min(max_samples, positions.size());
   std::vector<Vec3> samples(n);
   for (std::size_t i = 0; i < n; ++i) samples[i] = positions[i * positions.size() / n];
-  const std::vector<PointIndex> order = copc_point_order(samples);  // neighbours share a scope's nodes
-  std::vector<double> d(n, 0.0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 32), [&](const auto& r) {
-    const io::CopcIndex::QueryScope scope(copc);
-    std::vector<Neighbor> nb;
-    for (std::size_t k = r.begin(); k != r.end(); ++k) {
-      const std::size_t i = order[k];
-      knn_query(copc, samples[i], 8, kInf, nb);
-      double best = 0.0;
-      for (const Neighbor& x : nb)
-        if (x.distance > 0.0) {
-          best = x.distance;
-          break;
-        }
-      d[i] = best;
-    }
-  });
-  std::erase(d, 0.0);
-  if (d.empty()) return 0.0;
-  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
-  return d[d.size() / 2];
+  const std::vector<PointIndex> order = copc_point_order(samples);
+  std::vector<Vec3> ordered(n);
+  for (std::size_t k = 0; k < n; ++k) ordered[k] = samples[order[k]];
+  return median_nn_spacing_of(copc, std::span<const Vec3>(ordered), n, 1024, [&] { copc.trim_cache(); });
 }
 
 // estimate_surfels_over's per-point work (kNN, radius, PCA or file normal) over a COPC file in
@@ -186,7 +170,7 @@ double median_nn_spacing(const Site& site, std::span<const Vec3> positions) {
   switch (site.storage()) {
     case SiteStorage::index_file: return site.index_file()->median_nn_spacing();
     case SiteStorage::copc: {
-      const io::CopcIndex& copc = *site.copc();
+      io::CopcIndex& copc = *site.copc();
       if (!positions.empty() && positions.size() == copc.info().point_count) return copc_spacing(copc, positions);
       const std::vector<Vec3> samples = copc.spacing_samples(kCopcSpacingSamples);
       return median_nn_spacing_of(copc, std::span<const Vec3>(samples), samples.size());

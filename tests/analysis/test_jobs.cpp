@@ -263,6 +263,19 @@ Observer copc_observer(const AABB& b) {
   return eye;
 }
 
+// The bounds of the points of the COPC file `copc`, read whole.
+AABB copc_bounds(const std::filesystem::path& copc) {
+  return io::read_point_cloud(copc, io::ReadOptions{.scalars = false}).bounds();
+}
+
+// Visibility of the COPC file `copc` with spheres (in place by default).
+VisibilityJobOptions copc_sphere_options(const std::filesystem::path& copc) {
+  VisibilityJobOptions o;
+  o.cloud_file = copc;
+  o.primitive = "sphere";
+  return o;
+}
+
 }  // namespace
 
 // A COPC file is queried in place (io::CopcIndex; its points still read as the output cloud, no
@@ -273,11 +286,8 @@ Observer copc_observer(const AABB& b) {
 TEST(VisibilityJob, CopcInPlaceSpheresEqualTheFileReadWhole) {
   const std::filesystem::path& copc = rayscan::analysis::test::small_copc();
   const io::CopcIndex probe(copc);
-  const PointCloud pc = io::read_point_cloud(copc, io::ReadOptions{.scalars = false});
-  const AABB b = pc.bounds();
-  VisibilityJobOptions o;
-  o.cloud_file = copc;
-  o.primitive = "sphere";
+  const AABB b = copc_bounds(copc);
+  VisibilityJobOptions o = copc_sphere_options(copc);
   o.observers = {copc_observer(b)};
   o.distance = true;
   o.sky_rays = 8;
@@ -343,11 +353,8 @@ TEST(VisibilityJob, CopcInPlaceSurfelsEqualTheFileReadWhole) {
 TEST(VisibilityJob, CopcInPlaceCameraDecodesOnlyTheNodesItSees) {
   const std::filesystem::path& copc = rayscan::analysis::test::small_copc();
   const io::CopcIndex probe(copc);
-  const PointCloud pc = io::read_point_cloud(copc, io::ReadOptions{.scalars = false});
-  const AABB b = pc.bounds();
-  VisibilityJobOptions o;
-  o.cloud_file = copc;
-  o.primitive = "sphere";
+  const AABB b = copc_bounds(copc);
+  VisibilityJobOptions o = copc_sphere_options(copc);
   o.radius = 0.5;
   LookAtParams la;
   la.position = b.lo + Vec3(-5.0, -5.0, 30.0);

@@ -146,10 +146,11 @@ inline constexpr std::size_t kCopcSpacingSamples = 2000;
 /// paper section 5.3; octree/spacing.hpp): in memory median_nn_spacing(index, positions), with
 /// `positions` the site's points in original order; for an index file the spacing stored at build
 /// (MappedIndex::median_nn_spacing; `positions` unused). For a COPC file in place given its
-/// `positions` (all of them, in file order: read_point_cloud()) the in-memory rule at the same
-/// evenly spaced samples, their kNN answered by the file's hierarchy in CopcIndex::QueryScopes,
-/// so the value is the whole-file path's bit for bit; given no positions (a caller that does not
-/// read the file), median_nn_spacing_of over kCopcSpacingSamples points of at most 64 nodes
+/// `positions` (all of them, in file order: read_point_cloud()) median_nn_spacing_of at the same
+/// evenly spaced samples, their kNN answered by the file's hierarchy 1024 at a time with
+/// CopcIndex::trim_cache() between batches (so no other query may run on it meanwhile), so the
+/// value is the whole-file path's bit for bit; given no positions (a caller that does not read
+/// the file), median_nn_spacing_of over kCopcSpacingSamples points of at most 64 nodes
 /// (CopcIndex::spacing_samples). 0 when no two points differ.
 [[nodiscard]] double median_nn_spacing(const Site& site, std::span<const Vec3> positions);
 
