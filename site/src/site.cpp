@@ -107,10 +107,11 @@ double copc_spacing(io::CopcIndex& copc, std::span<const Vec3> positions, std::s
   return median_nn_spacing_of(copc, std::span<const Vec3>(ordered), n, 1024, [&] { copc.trim_cache(); });
 }
 
-// estimate_surfels_over's per-point work (kNN, radius, PCA or file normal) over a COPC file in
-// place, the points visited in copc_point_order (the index's slots hold only decoded nodes), each
-// block of 1024 points in a QueryScope; positions are read from the file-order `positions`. The same attributes as in memory: the kNN answers are the same (sorted by
-// distance, then id) and each point's arithmetic is the same.
+// estimate_surfels_over's per-point step (detail::SurfelEstimator) over a COPC file in place, the
+// points visited in copc_point_order (the index's slots hold only decoded nodes), each block of
+// 1024 points in a QueryScope; positions are read from the file-order `positions`. The same
+// attributes as in memory: the kNN answers are the same (sorted by distance, then id) and each
+// point's arithmetic is the same.
 SurfelAttributes copc_surfels(const io::CopcIndex& copc, std::span<const Vec3> positions, const SurfelOptions& o,
                               std::span<const glm::vec3> file_normals) {
   const std::size_t n = static_cast<std::size_t>(copc.info().point_count);
@@ -118,30 +119,15 @@ SurfelAttributes copc_surfels(const io::CopcIndex& copc, std::span<const Vec3> p
   if (o.measure_thickness)
     throw std::invalid_argument(
         "surfels: the thickness measure needs the points in storage order; read the COPC file into memory");
-  SurfelAttributes out;
-  out.normals.assign(n, glm::vec3(0.0f, 0.0f, 1.0f));
-  out.radii.assign(n, 0.0f);
-  out.thickness.assign(n, 0.0f);
-  const bool estimate = file_normals.empty();
-  const std::size_t k = std::max<std::size_t>(estimate ? o.k_normal : 0, o.k_radius + 1);
-  const Vec3 up = detail::surfel_up(o);
+  detail::SurfelEstimator est(n, positions, o, file_normals);
   const std::vector<PointIndex> order = copc_point_order(positions);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
     const io::CopcIndex::QueryScope scope(copc);
     std::vector<Neighbor> nb;
-    for (std::size_t s = range.begin(); s != range.end(); ++s) {
-      const PointIndex id = order[s];
-      const Vec3& p = positions[id];
-      knn_query(copc, p, k, kInf, nb);
-      if (nb.size() < 2) detail::throw_knn_short(id, nb.size(), n);
-      const std::size_t rk = std::min<std::size_t>(o.k_radius, nb.size() - 1);
-      out.radii[id] = float(nb[rk].distance * o.radius_factor);
-      out.normals[id] =
-          detail::surfel_normal(p, nb, positions, o, up, estimate, estimate ? glm::vec3() : file_normals[id]);
-    }
+    for (std::size_t s = range.begin(); s != range.end(); ++s) est.estimate(copc, positions[order[s]], order[s], nb);
   });
-  detail::finish_surfel_radii(out, o);
-  return out;
+  detail::finish_surfel_radii(est.out, o);
+  return std::move(est.out);
 }
 
 }  // namespace

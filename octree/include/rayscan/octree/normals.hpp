@@ -17,6 +17,7 @@
 #include <cmath>
 #include <optional>
 #include <span>
+#include <utility>
 #include <vector>
 
 namespace rayscan {
@@ -171,6 +172,42 @@ void measure_thickness(const I& index, std::span<const Vec3> positions, SurfelAt
     a.thickness[ids[s]] = float(std::max({0.0, h_hi - h, h - h_lo}));
   }
 }
+
+/// The per-point step of estimate_surfels_over, whatever order the points are visited in: the
+/// attribute arrays (n points, by original id, initialised to +z normals and zero radii), the
+/// neighbour count k and the up axis, and estimate(), which fills point `id` at position `p`
+/// from its k nearest neighbours in `index`. Thread-safe across distinct ids. Throws as
+/// throw_knn_short when the index returns fewer than 2 neighbours.
+struct SurfelEstimator {
+  SurfelAttributes out;
+  const SurfelOptions& o;
+  std::span<const Vec3> positions;   ///< original order (PCA neighbourhoods read them by id)
+  std::span<const glm::vec3> file_normals;
+  std::size_t n, k;
+  Vec3 up;
+  bool pca;  ///< normals by PCA (no file normals)
+
+  SurfelEstimator(std::size_t points, std::span<const Vec3> pos, const SurfelOptions& opt,
+                  std::span<const glm::vec3> normals)
+      : o(opt), positions(pos), file_normals(normals), n(points), up(surfel_up(opt)), pca(normals.empty()) {
+    out.normals.assign(n, glm::vec3(0.0f, 0.0f, 1.0f));
+    out.radii.assign(n, 0.0f);
+    out.thickness.assign(n, 0.0f);
+    k = std::max<std::size_t>(pca ? o.k_normal : 0, o.k_radius + 1);
+  }
+
+  template <SpatialIndex I>
+  void estimate(const I& index, const Vec3& p, PointIndex id, std::vector<Neighbor>& nb) {
+    knn_query(index, p, k, kInf, nb);
+    // k >= 2 and the index holds n >= 2 points, so fewer than 2 neighbours means an index whose
+    // nodes do not reach its points (a corrupted file opened without its node checks).
+    if (nb.size() < 2) throw_knn_short(id, nb.size(), n);
+    // Radius: the k_radius-th neighbour other than the point (nb[0] is the point or a duplicate).
+    const std::size_t rk = std::min<std::size_t>(o.k_radius, nb.size() - 1);
+    out.radii[id] = float(nb[rk].distance * o.radius_factor);
+    out.normals[id] = surfel_normal(p, nb, positions, o, up, pca, pca ? glm::vec3() : file_normals[id]);
+  }
+};
 }  // namespace detail
 
 template <SpatialIndex I>
@@ -178,29 +215,13 @@ SurfelAttributes estimate_surfels_over(const I& index, std::span<const Vec3> pos
                                        std::span<const glm::vec3> file_normals) {
   detail::check_surfel_arguments(index.positions().size(), positions, o, file_normals);
   const std::size_t n = positions.size();
-  SurfelAttributes out;
-  out.normals.assign(n, glm::vec3(0.0f, 0.0f, 1.0f));
-  out.radii.assign(n, 0.0f);
-  out.thickness.assign(n, 0.0f);
-  const bool estimate = file_normals.empty();
-  const std::size_t k = std::max<std::size_t>(estimate ? o.k_normal : 0, o.k_radius + 1);
-  const Vec3 up = detail::surfel_up(o);
+  detail::SurfelEstimator est(n, positions, o, file_normals);
+  SurfelAttributes& out = est.out;
   const auto pos = index.positions();
   const IdView ids = index.ids();
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
     std::vector<Neighbor> nb;
-    for (std::size_t s = range.begin(); s != range.end(); ++s) {
-      const Vec3& p = pos[s];
-      const PointIndex id = ids[s];
-      knn_query(index, p, k, kInf, nb);
-      // k >= 2 and the index holds n >= 2 points, so fewer than 2 neighbours means an index whose
-      // nodes do not reach its points (a corrupted file opened without its node checks).
-      if (nb.size() < 2) detail::throw_knn_short(id, nb.size(), n);
-      // Radius: the k_radius-th neighbour other than the point (nb[0] is the point or a duplicate).
-      const std::size_t rk = std::min<std::size_t>(o.k_radius, nb.size() - 1);
-      out.radii[id] = float(nb[rk].distance * o.radius_factor);
-      out.normals[id] = detail::surfel_normal(p, nb, positions, o, up, estimate, estimate ? glm::vec3() : file_normals[id]);
-    }
+    for (std::size_t s = range.begin(); s != range.end(); ++s) est.estimate(index, pos[s], ids[s], nb);
   });
   detail::finish_surfel_radii(out, o);
   // Thickness with the final radii (a second pass: the clamp needs every radius).
@@ -213,7 +234,7 @@ SurfelAttributes estimate_surfels_over(const I& index, std::span<const Vec3> pos
                                   std::min(n, (k + 1) * detail::kThicknessBlock), gathered);
     });
   }
-  return out;
+  return std::move(out);
 }
 
 }  // namespace rayscan
