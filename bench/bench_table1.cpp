@@ -336,7 +336,7 @@ int main(int argc, char** argv) {
                "Boost.Geometry rtree and nanoflann"};
   std::size_t n = 100000, queries = 1000, k = 8, reps = 7, nano_leaf = 10;
   std::uint64_t seed = 20240601;
-  std::uint32_t capacity = 32, kd_leaf = 16;
+  std::uint32_t capacity = 0, kd_leaf = 16;
   int fixed_depth = -1;
   bool no_insert = false;
   std::string only;
@@ -345,7 +345,10 @@ int main(int argc, char** argv) {
   app.add_option("-k", k, "k of the kNN queries")->capture_default_str();
   app.add_option("--reps", reps, "interleaved repetitions; the median is reported")->capture_default_str();
   app.add_option("--seed", seed, "seed of points and queries")->capture_default_str();
-  app.add_option("--capacity", capacity, "octree node capacity (layered, adaptive), points")->capture_default_str();
+  app.add_option("--capacity", capacity,
+                 "octree node capacity (layered, adaptive), points; 0 = each layout's library default "
+                 "(rayscan::default_capacity: layered 32, adaptive 64), what a user's index has")
+      ->capture_default_str();
   app.add_option("--fixed-depth", fixed_depth,
                  "octree-fixed leaf depth; -1 = ceil(log8(points / capacity))")->capture_default_str();
   app.add_option("--kd-leaf", kd_leaf, "rayscan kd-tree leaf size, points")->capture_default_str();
@@ -375,17 +378,21 @@ int main(int argc, char** argv) {
   }
   for (std::size_t i = 0; i < queries; ++i) w.knn_q.push_back(rng.point_in_unit_cube());
 
+  const auto capacity_of = [capacity](rayscan::OctreeLayout layout) {
+    return capacity != 0 ? capacity : rayscan::default_capacity(layout);
+  };
+  const std::uint32_t leaf_capacity = capacity_of(rayscan::OctreeLayout::adaptive);
   const unsigned depth = fixed_depth >= 0
                              ? static_cast<unsigned>(fixed_depth)
                              : static_cast<unsigned>(std::max(
-                                   0.0, std::ceil(std::log(static_cast<double>(n) / capacity) / std::log(8.0))));
+                                   0.0, std::ceil(std::log(static_cast<double>(n) / leaf_capacity) / std::log(8.0))));
 
   std::vector<Contender> cs;
   for (auto layout : {rayscan::OctreeLayout::layered, rayscan::OctreeLayout::fixed,
                       rayscan::OctreeLayout::adaptive}) {
     rayscan::OctreeConfig cfg;
     cfg.layout = layout;
-    cfg.capacity = capacity;
+    cfg.capacity = capacity_of(layout);
     cfg.depth = depth;
     const std::vector<Vec3>* p = &w.pts;
     std::function<rayscan::Octree()> ins;
@@ -414,9 +421,10 @@ int main(int argc, char** argv) {
   std::printf("bench_table1: %zu uniform points in the unit cube (seed %llu), %zu box queries, "
               "%zu kNN queries (k = %zu), median of %zu interleaved rounds, 1 thread, thread CPU time\n",
               n, static_cast<unsigned long long>(seed), queries, queries, k, reps);
-  std::printf("CPU: %s; octree capacity %u, fixed depth %u, kd-tree leaf %u, nanoflann leaf %zu, "
-              "Boost rtree rstar<16,4>\n",
-              rb::cpu_model().c_str(), capacity, depth, kd_leaf, nano_leaf);
+  std::printf("CPU: %s; octree capacity layered %u / adaptive %u, fixed depth %u, kd-tree leaf %u, "
+              "nanoflann leaf %zu, Boost rtree rstar<16,4>\n",
+              rb::cpu_model().c_str(), capacity_of(rayscan::OctreeLayout::layered), leaf_capacity, depth, kd_leaf,
+              nano_leaf);
   std::fflush(stdout);
 
   cross_check(cs, w);

@@ -5,6 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <stdexcept>
+#include <string>
+
 using namespace rayscan;
 using namespace rayscan::test;
 
@@ -79,3 +82,46 @@ TEST(PointQuery, InvalidArgumentsThrow) {
 }
 
 }  // namespace
+
+namespace {
+
+[[noreturn]] void throw_bad_id(const void* context, std::size_t slot) {
+  throw std::runtime_error(std::string(static_cast<const char*>(context)) + " slot " + std::to_string(slot));
+}
+
+}  // namespace
+
+// IdView::append_to, box_query's bulk copy of a whole node's ids, against operator[] slot by slot
+// on each kind of view: stored, implied (the identity) and checked (an id >= size() throws).
+TEST(IdView, AppendToEqualsOperatorIndexOnEveryKindOfView) {
+  const std::vector<PointIndex> stored{7, 3, 9, 0, 5, 1, 8, 2, 6, 4};
+  const IdView plain{std::span<const PointIndex>(stored)};
+  const IdView implied = IdView::identity(stored.size());
+  const char* what = "ids";
+  const IdView checked = IdView::checked(stored, throw_bad_id, what);
+  for (const IdView& v : {plain, implied, checked})
+    for (std::size_t b = 0; b <= v.size(); ++b)
+      for (std::size_t e = b; e <= v.size(); ++e) {
+        std::vector<PointIndex> got{42};  // appended after what is there
+        v.append_to(got, b, e);
+        std::vector<PointIndex> want{42};
+        for (std::size_t s = b; s < e; ++s) want.push_back(v[s]);
+        ASSERT_EQ(got, want) << b << ".." << e;
+      }
+  std::vector<PointIndex> bad = stored;
+  bad[6] = 10;  // not below size()
+  const IdView checked_bad = IdView::checked(bad, throw_bad_id, what);
+  std::vector<PointIndex> out;
+  checked_bad.append_to(out, 0, 6);
+  EXPECT_EQ(out.size(), 6u);
+  try {
+    checked_bad.append_to(out, 2, 9);
+    FAIL() << "an id >= size() was appended";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "ids slot 6");
+  }
+  // The plain view does not check: the same bytes are copied as they are.
+  out.clear();
+  IdView{std::span<const PointIndex>(bad)}.append_to(out, 5, 8);
+  EXPECT_EQ(out, (std::vector<PointIndex>{1, 10, 2}));
+}

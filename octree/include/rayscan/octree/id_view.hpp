@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 namespace rayscan {
 
@@ -53,6 +54,19 @@ class IdView {
     if (on_bad_ != nullptr && v >= size_) [[unlikely]]
       on_bad_(context_, slot);
     return v;
+  }
+  /// Appends the ids of slots [begin, end) (end <= size()) to `out`, in slot order: one copy of
+  /// the stored ids, a count for the identity, each id checked on a checked view (which throws
+  /// through its handler, `out` then holding a prefix of them). Bulk form of operator[] for
+  /// queries that take a whole node or subtree (box_query).
+  void append_to(std::vector<PointIndex>& out, std::size_t begin, std::size_t end) const {
+    if (data_ == nullptr) {
+      for (std::size_t s = begin; s < end; ++s) out.push_back(static_cast<PointIndex>(s));
+    } else if (on_bad_ == nullptr) {
+      out.insert(out.end(), data_ + begin, data_ + end);
+    } else {
+      for (std::size_t s = begin; s < end; ++s) out.push_back((*this)[s]);
+    }
   }
   /// Number of slots.
   [[nodiscard]] constexpr std::size_t size() const { return size_; }

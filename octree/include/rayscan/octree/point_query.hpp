@@ -42,18 +42,46 @@ void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
       },
       [&](const NodeVisit<Node>& v) {
         const SlotRange sr = v.slots;
+        if (sr.size() == 0) return;
         if (v.whole) {
-          for (std::uint32_t s = sr.begin; s < sr.end; ++s) out.push_back(ids[s]);
+          ids.append_to(out, sr.begin, sr.end);
           return;
         }
-        // A node the box cuts: each point tested without a branch (AABB::contains; the outcome is
-        // unpredictable there), its id written at the end and kept by advancing the end when inside.
-        if (sr.size() == 0) return;
-        std::size_t k = out.size();
-        out.resize(k + sr.size());
-        for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
-          out[k] = ids[s];
-          k += static_cast<std::size_t>(box.contains(pos[s]));
+        // A node the box cuts: its ids copied at the end of `out`, then compacted in place, each
+        // kept by advancing the write position when its point is inside (no branch: the outcome
+        // is unpredictable there). The node's bounds contain its points, so only the box's faces
+        // that cut those bounds need a test; most cut nodes are cut by one face, which is then
+        // the only comparison per point.
+        const AABB nb = index.node_bounds(v.node);
+        unsigned faces = 0, face = 0;
+        for (unsigned a = 0; a < 3; ++a) {
+          if (box.lo[a] > nb.lo[a]) ++faces, face = 2 * a;
+          if (box.hi[a] < nb.hi[a]) ++faces, face = 2 * a + 1;
+        }
+        const std::size_t first = out.size();
+        ids.append_to(out, sr.begin, sr.end);
+        std::size_t k = first;
+        PointIndex* o = out.data();
+        if (faces == 1) {
+          const unsigned a = face / 2;
+          if (face % 2 == 0) {
+            const double lo = box.lo[a];
+            for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+              o[k] = o[first + (s - sr.begin)];
+              k += static_cast<std::size_t>(pos[s][a] >= lo);
+            }
+          } else {
+            const double hi = box.hi[a];
+            for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+              o[k] = o[first + (s - sr.begin)];
+              k += static_cast<std::size_t>(pos[s][a] <= hi);
+            }
+          }
+        } else {
+          for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+            o[k] = o[first + (s - sr.begin)];
+            k += static_cast<std::size_t>(box.contains(pos[s]));
+          }
         }
         out.resize(k);
       });
