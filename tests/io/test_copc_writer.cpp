@@ -189,8 +189,11 @@ TEST(CopcWriter, CopcJsReadsEveryNodeTheUnionIsTheInputAndNodesLieInTheirCubes) 
     std::sort(got.begin(), got.end());
     EXPECT_TRUE(got == keys_of(in.records, in.record_length, in.pdrf)) << c.rel << ": the nodes' records differ from the input's";
     // (d) every node's points lie in its cube (copc.js's root cube, halved per level), and a
-    // node with children holds at most one point per cell of its 128^3 grid
+    // node with children holds at most one point per cell of its 64^3 grid: cells of edge = the
+    // level's spacing (the root edge / 64, as copc.js reads the info VLR)
     const std::vector<double> cube = j["cube"];
+    const double grid = 64;
+    EXPECT_DOUBLE_EQ(j["spacing"].get<double>(), (cube[3] - cube[0]) / grid) << c.rel;
     std::set<std::tuple<int, int, int, int>> keys;
     for (const JsNode& n : nodes) keys.insert({n.level, n.x, n.y, n.z});
     const io::CopcInfo info = io::read_copc_info(out);
@@ -210,7 +213,7 @@ TEST(CopcWriter, CopcJsReadsEveryNodeTheUnionIsTheInputAndNodesLieInTheirCubes) 
           const double eps = 1e-9 * edge * std::ldexp(1.0, n.level);
           ASSERT_GE(wv, lo[k] - eps) << c.rel << " node " << n.level << "-" << n.x << "-" << n.y << "-" << n.z;
           ASSERT_LE(wv, lo[k] + edge + eps) << c.rel << " node " << n.level << "-" << n.x << "-" << n.y << "-" << n.z;
-          cell[k] = std::clamp(static_cast<long>(std::floor((wv - lo[k]) / edge * 128)), 0L, 127L);
+          cell[k] = std::clamp(static_cast<long>(std::floor((wv - lo[k]) / edge * grid)), 0L, static_cast<long>(grid) - 1);
         }
         if (parent) {
           EXPECT_TRUE(cells.insert({cell[0], cell[1], cell[2]}).second)
@@ -218,8 +221,6 @@ TEST(CopcWriter, CopcJsReadsEveryNodeTheUnionIsTheInputAndNodesLieInTheirCubes) 
         }
       }
     }
-    // the spacing is the root edge / 128
-    EXPECT_DOUBLE_EQ(j["spacing"].get<double>(), (cube[3] - cube[0]) / 128) << c.rel;
   }
   EXPECT_GT(ran, 0);
 }
@@ -266,7 +267,7 @@ TEST(CopcWriter, OwnReaderAndQueryAgreeWithABruteForceOverTheInput) {
   EXPECT_EQ(info.hierarchy_pages, w.pages);
   EXPECT_EQ(info.points_per_level, w.points_per_level);
   EXPECT_DOUBLE_EQ(info.halfsize, w.halfsize);
-  EXPECT_DOUBLE_EQ(info.spacing, 2 * w.halfsize / 128);
+  EXPECT_DOUBLE_EQ(info.spacing, 2 * w.halfsize / 64);
   EXPECT_EQ(info.pdrf, 7);
   EXPECT_TRUE(io::is_copc_file(out));
   // the whole file read back: the same positions (as a multiset) as the input

@@ -121,7 +121,7 @@ inline constexpr std::uint64_t kBytesPerPoint = sizeof(Slot);
 inline constexpr std::uint64_t kBatchBytes = std::uint64_t{256} << 20;
 
 /// Cube of `r`'s points and their distribution over the octree (write_copc()'s rule: a node
-/// above `leaf_points` keeps the point nearest each cell centre of its 128^3 grid).
+/// above `leaf_points` keeps the point nearest each cell centre of its kCopcGridCells^3 grid).
 Tree build_tree(const Records& r, const CopcWriteOptions& options);
 
 }  // namespace rayscan::io::copc

@@ -1,9 +1,10 @@
 // build_tree(): the root cube and the distribution of the points over the COPC octree, see
 // copc_build.hpp. COPC 1.0 leaves the choice of a node's points to the writer ("each node holds
 // a subset of the points of its subtree"); as untwine and PDAL's writers.copc do, a node keeps
-// one point per cell of a 128^3 grid over its cube (here the one nearest the cell centre) and
-// its children hold the rest, so each level is a subsample whose spacing halves per level and
-// the info VLR's spacing (root edge / 128) is the root's.
+// one point per cell of a grid over its cube (here the one nearest the cell centre; 64^3 cells,
+// kCopcGridCells, where they use 128^3: why in copc_writer.hpp) and its children hold the rest,
+// so each level is a subsample whose spacing halves per level and the info VLR's spacing (root
+// edge / kCopcGridCells) is the root's.
 #include "copc_build.hpp"
 
 #include "bytes.hpp"
@@ -27,7 +28,7 @@ namespace {
 using detail::load_le;
 
 constexpr int kBits = static_cast<int>(kMortonBits);  // 21 bits per axis
-static_assert(kCopcMaxLevel + 7 == kBits, "a level's 128^3 grid must be resolved by the Morton bits");
+static_assert(kCopcMaxLevel + kCopcGridBits < kBits, "a level's grid cells must be resolved by the Morton bits");
 
 /// Morton order, ties by record index (function objects, so that the sorts inline them).
 struct MortonLess {
@@ -86,12 +87,12 @@ class Builder {
   }
 
  private:
-  /// Keeps in [a, b) the point nearest each cell centre of the node's 128^3 grid (cells are the
-  /// Morton prefixes 7 levels down, contiguous runs of the sorted range; distances in Morton
+  /// Keeps in [a, b) the point nearest each cell centre of the node's grid (kCopcGridCells per
+  /// axis; cells are the Morton prefixes kCopcGridBits levels down, contiguous runs of the sorted range; distances in Morton
   /// grid units, ties to the first in Morton order) and moves them to the front; the others keep
   /// their Morton order behind them. Returns their number.
   std::size_t select(int level, std::size_t a, std::size_t b) const {
-    const int sub = kBits - level - 7;       // bits per axis below a cell: >= 1, as level < kCopcMaxLevel
+    const int sub = kBits - level - kCopcGridBits;  // bits per axis below a cell: >= 1, as level < kCopcMaxLevel
     const int shift = 3 * sub;
     const std::int64_t half = std::int64_t{1} << sub;  // cell edge in grid units x 2 / 2
     std::vector<std::size_t> keep;

@@ -34,12 +34,18 @@ struct CopcWriteOptions {
   std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)> progress;
 };
 
-/// Grid cells per axis of a node's subsample (untwine's and PDAL writers.copc's 128): a node
-/// keeps at most one point per cell, and the info VLR's spacing is the root edge / 128.
-inline constexpr int kCopcGridCells = 128;
+/// Grid cells per axis of a node's subsample, as a power of two: a node keeps at most one point
+/// per cell, and the info VLR's spacing is the root edge / kCopcGridCells. 64, where untwine and
+/// PDAL's writers.copc use 128: an inner node's points lie a cell apart, so the LAZ coder predicts
+/// their coordinates, GPS times and colours worse and they cost about twice a leaf point's bytes;
+/// a 64^3 grid puts about a quarter as many points in inner nodes, which keeps the file within
+/// 10% of plain LAZ of the same records (bench/notes/2026-11-27-copc-grid-64.md).
+inline constexpr int kCopcGridBits = 6;
+inline constexpr int kCopcGridCells = 1 << kCopcGridBits;
 
 /// Deepest octree level write_copc() creates (nodes there are leaves whatever their size): the
-/// 21-bit Morton grid must resolve a level's 128^3 cells (14 + 7 = 21).
+/// 21-bit Morton grid must resolve each level's grid cells (14 + kCopcGridBits < 21; at level 14
+/// a cell is 2 Morton cells wide, so the point nearest its centre is still a choice).
 inline constexpr int kCopcMaxLevel = 14;
 
 /// The input does not fit write_copc()'s in-memory build within CopcWriteOptions::memory_bytes.
@@ -64,7 +70,7 @@ struct CopcWriteResult {
 /// Writes the point file `in` (any format read_point_cloud() reads) to `out` as COPC 1.0:
 /// LAS 1.4 header (global encoding bit 4 and an OGC WKT VLR when the input has a CRS), the COPC
 /// info VLR first (user "copc", record 1, 160 bytes: root cube centre and half size, spacing =
-/// root edge / 128, root hierarchy page, GPS time range), the LASzip VLR (layered-chunked
+/// root edge / kCopcGridCells, root hierarchy page, GPS time range), the LASzip VLR (layered-chunked
 /// compressor 3, item version 3, variable chunk size 0xFFFFFFFF), the input's other VLRs
 /// (Extra Bytes kept), one LAZ chunk per octree node, the chunk table, then the hierarchy EVLR
 /// (user "copc", record 1000; pages of 32-byte entries) and the input's other EVLRs.
@@ -79,9 +85,9 @@ struct CopcWriteResult {
 /// Octree: the root cube is the cube around the points' bounding box (centre of the box, half
 /// its largest edge). Points are sorted by their 21-bit Morton code in the root cube; a node
 /// whose subtree has more than `leaf_points` points (and whose level is below kCopcMaxLevel)
-/// keeps, in each cell of a 128^3 grid over its cube, the point nearest the cell's centre (ties:
-/// the lowest Morton code, then the earliest input record), and its other points go down to
-/// its children; so every level is a grid subsample of spacing edge / 128. Within a node points
+/// keeps, in each cell of a 64^3 grid (kCopcGridCells) over its cube, the point nearest the cell's
+/// centre (ties: the lowest Morton code, then the earliest input record), and its other points go
+/// down to its children; so every level is a grid subsample of spacing edge / 64. Within a node points
 /// are in GPS-time order, ties in input order (as untwine orders a chunk). Output bytes depend only on the input and the options (not on threads);
 /// nodes are compressed in parallel (TBB). Memory: 12 bytes per point (the Morton sort and the
 /// octree are built on codes and indices) and bounded batches; the records are read from the
