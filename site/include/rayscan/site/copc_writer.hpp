@@ -39,7 +39,7 @@ struct CopcWriteOptions {
 /// PDAL's writers.copc use 128: an inner node's points lie a cell apart, so the LAZ coder predicts
 /// their coordinates, GPS times and colours worse and they cost about twice a leaf point's bytes;
 /// a 64^3 grid puts about a quarter as many points in inner nodes, which keeps the file within
-/// 10% of plain LAZ of the same records (bench/notes/2026-11-27-copc-grid-64.md).
+/// 10% of plain LAZ of the same records (bench/notes/2026-11-27-table1-box-faces-copc-grid.md).
 inline constexpr int kCopcGridBits = 6;
 inline constexpr int kCopcGridCells = 1 << kCopcGridBits;
 
