@@ -186,7 +186,7 @@ void* reserve(std::size_t bytes) {
 }  // namespace
 
 CopcIndex::CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes)
-    : name_(path.string()), map_(std::make_unique<Map>(path)), cache_bytes_(cache_bytes) {
+    : name_(path.string()), map_(std::make_unique<Map>(path)), cache_bytes_(cache_bytes), reserve_(cache_bytes / 8) {
   const detail::Input in{map_->bytes(), name_, {}};
   const detail::LasHeader h = detail::parse_las_header(in);
   info_ = parse_copc(in, h);
@@ -623,6 +623,22 @@ std::size_t CopcIndex::trim_cache() {
   return evicted;
 }
 
+std::size_t CopcIndex::trim_threshold() const {
+  return cache_bytes_ - std::min(reserve_.load(std::memory_order_relaxed), cache_bytes_ / 2);
+}
+
+void CopcIndex::grow_reserve(std::size_t excess) const {
+  if (over_reach_.load(std::memory_order_relaxed)) return;
+  const std::size_t r = reserve_.load(std::memory_order_relaxed);
+  if (r + excess > cache_bytes_ / 2) {  // the scopes in flight reach about what the budget holds
+    over_reach_.store(true, std::memory_order_relaxed);
+    reserve_.store(0, std::memory_order_relaxed);
+    return;
+  }
+  for (std::size_t m = r; r + excess > m && !reserve_.compare_exchange_weak(m, r + excess, std::memory_order_relaxed);) {
+  }
+}
+
 CopcIndex::QueryScope::QueryScope(const CopcIndex& index) : index_(index) {
   index.clock_.fetch_add(1, std::memory_order_relaxed);  // LRU resolution: one scope
   // A free announcement slot, searched from a per-thread start so that threads rarely collide.
@@ -642,7 +658,9 @@ CopcIndex::QueryScope::QueryScope(const CopcIndex& index) : index_(index) {
 
 CopcIndex::QueryScope::~QueryScope() {
   index_.scopes_[slot_].store(0);  // release: the scope's reads of node data happen before
-  if (index_.resident_bytes_.load(std::memory_order_relaxed) <= index_.cache_bytes_) return;
+  const std::size_t res = index_.resident_bytes_.load(std::memory_order_relaxed);
+  if (res > index_.cache_bytes_) index_.grow_reserve(res - index_.cache_bytes_);
+  if (res <= index_.trim_threshold()) return;
   std::unique_lock<std::mutex> trim(index_.trim_mutex_, std::try_to_lock);
   if (!trim.owns_lock()) return;  // another scope is trimming now
   try {
@@ -672,8 +690,10 @@ void CopcIndex::trim_in_flight() const {
   free_retired();
   std::size_t pending = 0;  // bytes retired and not released yet
   for (const std::uint32_t n : retired_) pending += node_bytes_[n].load();
-  // Evict down to 7/8 of the budget, so that a full cache is not trimmed at every scope end.
-  const std::size_t low = cache_bytes_ - cache_bytes_ / 8;
+  // Evict down to the threshold less 1/8 of the budget, so that a full cache is not trimmed at
+  // every scope end.
+  const std::size_t threshold = trim_threshold();
+  const std::size_t low = threshold - std::min(threshold, cache_bytes_ / 8);
   if (resident_bytes_.load() - std::min(pending, resident_bytes_.load()) <= low) return;
   std::vector<std::pair<std::uint64_t, std::uint32_t>> loaded;  // (last touch, node)
   for (std::uint32_t i = 0; i < nodes_.size(); ++i)

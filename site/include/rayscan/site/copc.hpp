@@ -188,12 +188,18 @@ class CopcIndex {
 
   /// One unit of query work (e.g. a render tile) on one thread, during which the nodes it
   /// touches stay valid while other threads' scopes end and trim the cache. Opening announces
-  /// the scope; closing withdraws it and, when the resident bytes exceed the budget, evicts least
+  /// the scope; closing withdraws it and, when the resident bytes near the budget, evicts least
   /// recently used nodes: a node that a scope still open might have reached is only retired
   /// (unpublished: the next touch revives it without a decode) and its memory released by the
-  /// first scope to close after every scope open at its retirement has closed. So while queries
-  /// run in scopes, resident_bytes() stays within cache_bytes() plus what the open scopes decode,
-  /// with no lock or shared write per ray. When scopes are in use, every query running
+  /// first scope to close after every scope open at its retirement has closed. The open scopes'
+  /// nodes cannot be evicted, so closing scopes keep a reserve for what they decode: they trim
+  /// once the resident bytes pass the budget less the reserve (an eighth of the budget, grown by
+  /// each excess over the budget a closing scope sees, up to a half). So while queries run in
+  /// scopes, resident_bytes() stays within cache_bytes() once the reserve has learnt what the
+  /// scopes in flight decode, unless they decode more than half the budget (a budget
+  /// below what the open scopes reach: the reserve is then dropped, the budget exceeded by
+  /// about what they reach, and nodes not evicted early only to be decoded again), with no
+  /// lock or shared write per ray. When scopes are in use, every query running
   /// concurrently with them must run in one. Nothing in a scope may keep a slot, span or
   /// position of this index past its end. Not copyable or movable; close it on the thread
   /// that opened it.
@@ -343,6 +349,17 @@ class CopcIndex {
   mutable std::unique_ptr<std::atomic<std::uint64_t>[]> retired_at_;  // epoch of a node's retirement
   mutable std::atomic<std::uint64_t> clock_{1}, decodes_{0};
   mutable std::atomic<std::size_t> resident_bytes_{0}, peak_bytes_{0};
+  // The room kept for the nodes the open scopes decode (QueryScope): an eighth of the budget at
+  // first, grown by each excess over the budget a closing scope sees, up to a half.
+  mutable std::atomic<std::size_t> reserve_;
+  // Set when an excess would take the reserve past half the budget: the scopes in flight
+  // alone reach about what the budget holds, so no reserve can keep it, and one only evicts
+  // nodes to decode them again; the reserve is then 0 for good (trims at the budget itself).
+  mutable std::atomic<bool> over_reach_{false};
+  // Bytes above which a closing scope trims: the budget less the reserve.
+  std::size_t trim_threshold() const;
+  // Grows the reserve by `excess` (bytes over the budget at a scope's close); see over_reach_.
+  void grow_reserve(std::size_t excess) const;
   mutable std::mutex locks_[32];
   // Scopes: open scopes announce the retirement epoch they started in (0: slot free).
   static constexpr unsigned kScopeSlots = 256;
