@@ -42,7 +42,7 @@ struct CopcOpen {
   /// read whole, in file order, as the output cloud) or, when false, read it whole and build
   /// `index` over it like any other point file (SiteOptions::copc_in_place).
   bool in_place = true;
-  std::size_t cache_bytes = std::size_t{2} << 30;  ///< decoded-node cache budget, bytes (in place)
+  std::size_t cache_bytes = io::kCopcDefaultCacheBytes;  ///< decoded-node cache budget, bytes (in place)
 };
 
 /// Fills `cs`: reads `file` (or copies `memory` when non-null), or maps an index file in place

@@ -3,12 +3,12 @@
 #include "rayscan/site/site.hpp"
 
 #include "rayscan/base/job.hpp"
-#include "rayscan/octree/morton.hpp"
+#include "rayscan/octree/morton_sort.hpp"
+#include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/spacing.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <chrono>
@@ -96,9 +96,9 @@ namespace {
 // bit. The samples are queried in copc_point_order (neighbours share nodes) by
 // median_nn_spacing_of itself, 1024 at a time with the cache trimmed between batches, so the
 // decoded nodes stay within the cache budget plus one batch's.
-double copc_spacing(io::CopcIndex& copc, std::span<const Vec3> positions, std::size_t max_samples = 20000) {
-  if (positions.size() < 2 || max_samples == 0) return 0.0;
-  const std::size_t n = std::min(max_samples, positions.size());
+double copc_spacing(io::CopcIndex& copc, std::span<const Vec3> positions) {
+  if (positions.size() < 2) return 0.0;
+  const std::size_t n = std::min(kSpacingSamples, positions.size());
   std::vector<Vec3> samples(n);
   for (std::size_t i = 0; i < n; ++i) samples[i] = positions[i * positions.size() / n];
   const std::vector<PointIndex> order = copc_point_order(samples);
@@ -138,17 +138,11 @@ std::vector<PointIndex> copc_point_order(std::span<const Vec3> positions) {
   if (n == 0) return order;
   AABB box;
   for (const Vec3& p : positions) box.expand(p);
-  const double e = box.max_extent();
-  const double scale = e > 0.0 ? double((std::uint32_t{1} << kMortonBits) - 1) / e : 0.0;
-  std::vector<std::pair<std::uint64_t, PointIndex>> keys(n);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, std::size_t{1} << 14), [&](const auto& r) {
-    for (std::size_t i = r.begin(); i != r.end(); ++i) {
-      const Vec3 q = (positions[i] - box.lo) * scale;
-      keys[i] = {morton_encode(std::uint32_t(q.x), std::uint32_t(q.y), std::uint32_t(q.z)), PointIndex(i)};
-    }
-  });
-  tbb::parallel_sort(keys.begin(), keys.end());
-  for (std::size_t i = 0; i < n; ++i) order[i] = keys[i].second;
+  // The octree builders' quantisation and Morton sort (the same codes and (code, id) order).
+  const OctreeRules::Quantizer qz(OctreeRules::root_cell(box).lo, OctreeRules::root_side(box));
+  std::vector<MortonKey> keys(n);
+  sort_morton_keys(n, [&](std::size_t i) { return qz.code(positions[i]); }, keys.data());
+  for (std::size_t i = 0; i < n; ++i) order[i] = keys[i].idx;
   return order;
 }
 

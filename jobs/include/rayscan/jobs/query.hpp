@@ -2,6 +2,7 @@
 // runs, as one library call.
 #pragma once
 
+#include "rayscan/site/copc.hpp"
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/base/job.hpp"
@@ -25,7 +26,7 @@ struct QueryJobOptions {
   /// COPC input (a LAZ file with the COPC info VLR): the bound on decoded node data kept by the
   /// CopcIndex LRU cache, bytes (`--cache`). The query runs on the file's own hierarchy
   /// (io::CopcIndex, the paper's layered organisation); `index` is then ignored.
-  std::size_t cache_bytes = std::size_t{2} << 30;
+  std::size_t cache_bytes = io::kCopcDefaultCacheBytes;
   JobControl control;                    ///< threads, log
 };
 

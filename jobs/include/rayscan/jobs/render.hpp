@@ -3,6 +3,7 @@
 // rayscan.render() are thin wrappers over run_render().
 #pragma once
 
+#include "rayscan/site/copc.hpp"
 #include "rayscan/base/job.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 #include "rayscan/image/aov.hpp"
@@ -41,7 +42,7 @@ struct RenderJobOptions {
   JobControl control;                  ///< threads, progress bar, log lines
   /// COPC input (sphere mode): bytes of decoded nodes kept resident (`--cache`; trimmed as each
   /// 4x4 pixel block ends, plus the nodes of the blocks in flight).
-  std::size_t cache_bytes = std::size_t{2} << 30;
+  std::size_t cache_bytes = io::kCopcDefaultCacheBytes;
 };
 
 /// Output of run_render().

@@ -4,6 +4,7 @@
 // `rayscan solar` and the Python module wrap run_sun_position() and run_solar(). docs/solar.md.
 #pragma once
 
+#include "rayscan/site/copc.hpp"
 #include "rayscan/analysis/raster.hpp"
 #include "rayscan/analysis/site_location.hpp"
 #include "rayscan/analysis/solar_position.hpp"
@@ -73,7 +74,7 @@ struct SolarJobOptions {
   bool copc_in_place = true;
   /// COPC input in place: bytes of decoded nodes kept resident (`--cache`; trimmed as each chunk
   /// of points or image row ends, plus the nodes of the chunks in flight).
-  std::size_t cache_bytes = std::size_t{2} << 30;
+  std::size_t cache_bytes = io::kCopcDefaultCacheBytes;
   std::optional<double> radius;         ///< sphere radius (primitive sphere), world units; nullopt = auto
   double radius_factor = 1.0;           ///< auto radius = factor x median NN spacing (choose_radius)
   /// Geometry of each point for shadows: "sphere" (the paper's model, one radius: light passes

@@ -4,6 +4,7 @@
 // Python module's rayscan.visibility() are thin wrappers over run_visibility().
 #pragma once
 
+#include "rayscan/site/copc.hpp"
 #include "rayscan/analysis/observer.hpp"
 #include "rayscan/analysis/raster.hpp"
 #include "rayscan/analysis/visibility.hpp"
@@ -44,7 +45,7 @@ struct VisibilityJobOptions {
   bool copc_in_place = true;
   /// COPC input in place: bytes of decoded nodes kept resident (`--cache`; trimmed as each chunk
   /// of points or image row ends, plus the nodes of the chunks in flight).
-  std::size_t cache_bytes = std::size_t{2} << 30;
+  std::size_t cache_bytes = io::kCopcDefaultCacheBytes;
   std::optional<double> radius;         ///< sphere radius, world units; nullopt = auto
   double radius_factor = 1.0;           ///< auto radius = factor x median NN spacing (choose_radius)
   std::string primitive = "surfel";     ///< "surfel" (oriented discs: PCA normals, per-point radii,

@@ -18,12 +18,16 @@
 
 namespace rayscan {
 
+/// Sample size of the median nearest-neighbour spacing (the functions below): points i * N / n,
+/// i < n = min(N, kSpacingSamples), of N in original order.
+inline constexpr std::size_t kSpacingSamples = 20000;
+
 /// Median distance from a point to its nearest other point (kNN with k = 8, skipping duplicates
 /// at distance 0), over an evenly spaced sample of at most `max_samples` points (deterministic,
 /// parallel over TBB). World units; 0 for fewer than 2 distinct points. `index` must be built over
 /// `positions`.
 [[nodiscard]] double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions,
-                                       std::size_t max_samples = 20000);
+                                       std::size_t max_samples = kSpacingSamples);
 
 /// The same over any index satisfying SpatialIndex (e.g. io::MappedIndex, an index file): the
 /// median over up to `max_samples` evenly spaced positions of the distance to the nearest point
@@ -33,7 +37,7 @@ namespace rayscan {
 /// same.
 template <class I>
 [[nodiscard]] double median_nn_spacing_of(const I& index, std::span<const Vec3> positions,
-                                          std::size_t max_samples = 20000, std::size_t batch = 0,
+                                          std::size_t max_samples = kSpacingSamples, std::size_t batch = 0,
                                           const std::function<void()>& after_batch = {}) {
   if (positions.size() < 2 || max_samples == 0) return 0.0;
   const std::size_t n = std::min(max_samples, positions.size());
@@ -74,7 +78,7 @@ template <class I>
 /// ids, after every 1,024 samples read by slot). `batch`
 /// and `after_batch` are median_nn_spacing_of's.
 template <class I>
-[[nodiscard]] double median_nn_spacing_by_id(const I& index, std::size_t max_samples = 20000,
+[[nodiscard]] double median_nn_spacing_by_id(const I& index, std::size_t max_samples = kSpacingSamples,
                                              const std::function<void(std::size_t)>& scanned = {},
                                              std::size_t batch = 0, const std::function<void()>& after_batch = {}) {
   const auto pos = index.positions();

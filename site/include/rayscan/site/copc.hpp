@@ -91,6 +91,10 @@ bool is_copc_file(const std::filesystem::path& path);
 /// children). The cells and the slot permutation are cached with the node's points and counted
 /// in the cache budget. Node handles: low 32 bits the hierarchy node, high 32 bits 0 (the
 /// hierarchy node), kGroup (its group) or 1 + a cell index of its local tree.
+/// The default budget of a CopcIndex's decoded nodes, bytes (2 GiB: `--cache` of the commands
+/// that open a COPC file in place).
+inline constexpr std::size_t kCopcDefaultCacheBytes = std::size_t{2} << 30;
+
 class CopcIndex {
  public:
   using Node = std::uint64_t;
@@ -100,7 +104,7 @@ class CopcIndex {
   /// Opens `path` (memory-mapped) and reads its header and hierarchy. `cache_bytes` bounds the
   /// decoded nodes (positions, ids, attributes, local trees) kept resident: by trim_cache()
   /// between queries, or as QueryScopes end while queries run. Throws FormatError.
-  explicit CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes = std::size_t{2} << 30);
+  explicit CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes = kCopcDefaultCacheBytes);
   ~CopcIndex();
   CopcIndex(const CopcIndex&) = delete;
   CopcIndex& operator=(const CopcIndex&) = delete;

@@ -44,7 +44,7 @@ struct SiteOptions {
   /// and build `index` over them (false).
   bool copc_in_place = true;
   /// COPC in place: the decoded-node cache budget, bytes (CopcIndex).
-  std::size_t copc_cache_bytes = std::size_t{2} << 30;
+  std::size_t copc_cache_bytes = io::kCopcDefaultCacheBytes;
 };
 
 /// Seconds Site::open spent, for the caller's log.
@@ -156,7 +156,8 @@ inline constexpr std::size_t kCopcSpacingSamples = 2000;
 
 /// The order in which work over every point of a COPC file in place visits them (the analyses'
 /// per-point loops, estimate_surfels): the original ids 0..N-1 of `positions`, sorted by the
-/// Morton code of each position on a 2^21 grid over their bounding box (ties by id). The file
+/// Morton code of each position in the octree's root cell over their bounding box
+/// (OctreeRules::Quantizer, sorted by sort_morton_keys: ties by id). The file
 /// order would not do: a COPC node holds a subsample of its whole cube (the root's points are
 /// spread over the site), so a block of consecutive file-order points would reach every node and
 /// a cache smaller than the file would decode the same nodes over and over; in Morton order a
