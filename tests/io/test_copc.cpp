@@ -221,6 +221,65 @@ TEST(Copc, LocalTreesPartitionEachNodeAndPositionOfFollowsThePermutation) {
   }
 }
 
+TEST(Copc, EachPointLivesInTheDeepestNodeWhoseCubeHoldsIt) {
+  // A ray should cross one local tree, not one per level: a hierarchy node's points node holds
+  // no point that lies inside one of its existing children's cubes (each level's subsample is
+  // pushed down), so the leaves hold their ancestors' points in their cubes. Oracle: the voxel
+  // cubes from the hierarchy keys (COPC 1.0), shrunk by two scale steps (the bounds are the
+  // cubes grown by one; a point on a face may go either way).
+  RAYSCAN_REQUIRE_FILE(p, "laz/lone-star.copc.laz");
+  io::CopcIndex idx(p);
+  const io::CopcInfo& info = idx.info();
+  const Vec3 margin = Vec3(2 * std::abs(info.scale.x), 2 * std::abs(info.scale.y), 2 * std::abs(info.scale.z));
+  std::size_t checked = 0, at_root = 0, at_deepest = 0;
+  std::vector<std::pair<io::CopcIndex::Node, int>> hier{{idx.root(), 0}};  // (handle, level)
+  while (!hier.empty()) {
+    const auto [h, level] = hier.back();
+    hier.pop_back();
+    // the handle's children: its points node (part 1) and its hierarchy children (part 0),
+    // perhaps under a group (part kGroup)
+    std::vector<io::CopcIndex::Node> kids, pts;
+    std::vector<io::CopcIndex::Node> todo{h};
+    while (!todo.empty()) {
+      const io::CopcIndex::Node n = todo.back();
+      todo.pop_back();
+      for (unsigned c = 0; c < idx.child_count(n); ++c) {
+        const io::CopcIndex::Node k = idx.child(n, c);
+        const std::uint32_t part = static_cast<std::uint32_t>(k >> 32);
+        if (part == 0) kids.push_back(k);
+        else if (part == 1) pts.push_back(k);
+        else todo.push_back(k);
+      }
+    }
+    std::vector<AABB> inner;
+    for (io::CopcIndex::Node k : kids) {
+      AABB b = idx.node_bounds(k);
+      b.lo = b.lo + margin;
+      b.hi = b.hi - margin;
+      inner.push_back(b);
+      hier.emplace_back(k, level + 1);
+    }
+    std::size_t here = 0;
+    for (std::vector<io::CopcIndex::Node> cells = pts; !cells.empty();) {
+      const io::CopcIndex::Node c = cells.back();
+      cells.pop_back();
+      const SlotRange s = idx.node_points(c);
+      for (std::uint32_t k = s.begin; k < s.end; ++k, ++here) {
+        for (const AABB& b : inner) ASSERT_FALSE(b.contains(idx.positions()[k])) << "point id " << idx.ids()[k];
+        ++checked;
+      }
+      for (unsigned j = 0; j < idx.child_count(c); ++j) cells.push_back(idx.child(c, j));
+    }
+    if (level == 0) at_root = here;
+    if (level + 1 == info.depth) at_deepest += here;
+  }
+  EXPECT_EQ(checked, info.point_count);
+  // the root's subsample went down to its children; the deepest nodes (leaves) hold their own
+  // chunks and points from above
+  EXPECT_LT(at_root, info.points_per_level.front());
+  EXPECT_GT(at_deepest, info.points_per_level.back());
+}
+
 TEST(Copc, QueryJobRunsOnTheHierarchyAndEqualsTheWholeFilePath) {
   // run_query on a COPC file goes through CopcIndex (decoding only the nodes the rays reach); the
   // same rays on the whole decoded cloud with the brute-force index are the oracle.

@@ -214,29 +214,47 @@ CopcIndex::CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes)
   nodes_.reserve(info_.nodes.size());
   std::vector<std::uint32_t> queue{entry_of.at(Key{0, 0, 0, 0})};
   const Vec3 grow = Vec3(std::abs(info_.scale.x), std::abs(info_.scale.y), std::abs(info_.scale.z));
+  std::size_t holders = 0;  // nodes with a points node
   for (std::size_t q = 0; q < queue.size(); ++q) {
     const CopcNode& n = info_.nodes[queue[q]];
     NodeData nd;
     nd.entry = queue[q];
+    nd.own = static_cast<std::uint32_t>(n.point_count);
     nd.first_id = first_id[queue[q]];
+    nd.level = n.level;
     nd.box = info_.node_cube(n);
     nd.box.lo = nd.box.lo - grow;
     nd.box.hi = nd.box.hi + grow;
-    nd.slots.begin = static_cast<std::uint32_t>(slots_);
-    nd.slots.end = static_cast<std::uint32_t>(slots_ + static_cast<std::size_t>(n.point_count));
-    slots_ = (nd.slots.end + kSlotAlign - 1) / kSlotAlign * kSlotAlign;
-    if (slots_ > 0xFFFFFFFFull) throw FormatError(name_ + ": COPC slot space exceeds 2^32");
+    if (n.level <= static_cast<int>(kMortonBits)) {
+      const unsigned shift = 3 * (kMortonBits - static_cast<unsigned>(n.level));
+      const std::uint64_t prefix = morton_encode(static_cast<std::uint32_t>(n.x), static_cast<std::uint32_t>(n.y),
+                                                 static_cast<std::uint32_t>(n.z));
+      nd.code_lo = prefix << shift;
+      nd.code_hi = (prefix + 1) << shift;
+    }
     for (int c = 0; c < 8; ++c) {
       auto it = entry_of.find(Key{n.level + 1, 2 * n.x + (c & 1), 2 * n.y + ((c >> 1) & 1), 2 * n.z + (c >> 2)});
       if (it == entry_of.end()) continue;
+      nd.in_octant[c] = static_cast<std::uint32_t>(queue.size());
       nd.children[nd.child_count++] = static_cast<std::uint32_t>(queue.size());
       queue.push_back(it->second);
     }
-    // the handle's children: the points node (if any) and the hierarchy children, grouped when 9
-    const unsigned pts = nd.slots.size() > 0 ? 1u : 0u;
-    nd.top_count = pts + nd.child_count <= 8 ? pts + nd.child_count : 2u;
+    nd.pushes = nd.child_count > 0 && n.level < static_cast<int>(kMortonBits);
     nodes_.push_back(nd);
   }
+  for (std::uint32_t i = 0; i < nodes_.size(); ++i) {
+    NodeData& nd = nodes_[i];
+    for (unsigned c = 0; c < nd.child_count; ++c) nodes_[nd.children[c]].parent = i;
+    // breadth-first: a parent comes before its children
+    nd.has_points = nd.own > 0 || (nd.parent != kNone && nodes_[nd.parent].has_points);
+    holders += nd.has_points;
+    // the handle's children: the points node (if any) and the hierarchy children, grouped when 9
+    const unsigned pts = nd.has_points ? 1u : 0u;
+    nd.top_count = pts + nd.child_count <= 8 ? pts + nd.child_count : 2u;
+  }
+  // The owned sets partition the points: their ranges, each aligned, fit in this many slots.
+  slots_ = static_cast<std::size_t>(acc) + holders * kSlotAlign;
+  if (slots_ > 0xFFFFFFFFull) throw FormatError(name_ + ": COPC slot space exceeds 2^32");
   const Vec3 origin = float_origin();
   fboxes_.assign(nodes_.size() * kBoxesPerNode, FBox{});
   for (std::uint32_t i = 0; i < nodes_.size(); ++i) {
@@ -246,12 +264,14 @@ CopcIndex::CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes)
     for (unsigned c = 0; c < nd.child_count; ++c) f[1 + c] = float_box(nodes_[nd.children[c]].box, origin);
   }
   for (std::uint32_t i = 0; i < nodes_.size(); ++i)
-    if (nodes_[i].slots.size() > 0) by_first_id_.push_back(i);
+    if (nodes_[i].own > 0) by_first_id_.push_back(i);
   std::sort(by_first_id_.begin(), by_first_id_.end(),
             [&](std::uint32_t a, std::uint32_t b) { return nodes_[a].first_id < nodes_[b].first_id; });
   pos_ = static_cast<Vec3*>(reserve(slots_ * sizeof(Vec3)));
   ids_ = static_cast<PointIndex*>(reserve(slots_ * sizeof(PointIndex)));
   local_ = std::make_unique<Local[]>(nodes_.size());
+  range_ = std::make_unique<SlotRange[]>(nodes_.size());
+  ranged_ = std::make_unique<bool[]>(nodes_.size());
   state_ = std::make_unique<std::atomic<std::uint8_t>[]>(nodes_.size());
   touched_ = std::make_unique<std::atomic<std::uint64_t>[]>(nodes_.size());
   node_bytes_ = std::make_unique<std::atomic<std::size_t>[]>(nodes_.size());
@@ -324,8 +344,8 @@ CopcIndex::FBox CopcIndex::float_box(const AABB& b, const Vec3& origin) {
   return f;
 }
 
-void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector<std::uint32_t>& order) const {
-  const SlotRange slots = nodes_[n].slots;
+void CopcIndex::build_local(std::uint32_t n, SlotRange slots, std::vector<Vec3>& pos,
+                            std::vector<std::uint32_t>& order) const {
   const std::uint32_t m = slots.size();
   Local& L = local_[n];
   L.cells.clear();
@@ -342,8 +362,8 @@ void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector
     const FBox f = float_box(c.box, origin);
     std::copy(f.v, f.v + 8, c.f);
   };
-  if (m <= kLeafPoints) {  // one leaf cell, file order kept
-    L.cells.push_back(Cell{{}, box_of(0, m), slots, 0, 0});
+  if (m <= kLeafPoints) {  // one leaf cell, candidate order kept (an empty one bounded by the cube)
+    L.cells.push_back(Cell{{}, m > 0 ? box_of(0, m) : nodes_[n].box, slots, 0, 0});
     set_float(L.cells[0]);
     return;
   }
@@ -416,7 +436,32 @@ void CopcIndex::build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector
   for (Cell& c : L.cells) set_float(c);
 }
 
+std::uint32_t CopcIndex::owner(const Vec3& p, std::uint64_t code, std::uint32_t from) const {
+  std::uint32_t n = from;
+  while (nodes_[n].pushes) {
+    const std::uint32_t c = nodes_[n].in_octant[OctreeRules::octant(code, static_cast<unsigned>(nodes_[n].level))];
+    if (c == kNone || !nodes_[c].box.contains(p)) break;
+    n = c;
+  }
+  return n;
+}
+
+std::size_t CopcIndex::Source::bytes() const {
+  return code.capacity() * sizeof(std::uint64_t) + pos.capacity() * sizeof(Vec3) + id.capacity() * sizeof(PointIndex) +
+         rgb.capacity() * sizeof(Rgb16) + intensity.capacity() * sizeof(std::uint16_t) + classification.capacity() +
+         index_of.capacity() * sizeof(std::uint32_t);
+}
+
 void CopcIndex::load(std::uint32_t n) const {
+  const NodeData& nd = nodes_[n];
+  // The ancestors' sorted points, which this node takes its share of, root first (each load
+  // takes only its own node's lock, so no two locks are ever held together). A node retired
+  // meanwhile stays intact until the caller's scope ends.
+  std::uint32_t path[64];
+  unsigned depth = 0;
+  if (nd.level <= static_cast<int>(kMortonBits))
+    for (std::uint32_t a = nd.parent; a != kNone && depth < 64; a = nodes_[a].parent) path[depth++] = a;
+  for (unsigned d = depth; d-- > 0;) touch(path[d]);
   std::lock_guard<std::mutex> lock(locks_[n % 32]);
   const std::uint8_t st = state_[n].load();
   if (st == kLoaded) return;
@@ -424,32 +469,99 @@ void CopcIndex::load(std::uint32_t n) const {
     state_[n].store(kLoaded);
     return;
   }
-  const NodeData& nd = nodes_[n];
-  const CopcNode& e = info_.nodes[nd.entry];
-  if (e.point_count > 0) {
-    thread_local std::vector<std::uint8_t> buf;
-    thread_local std::vector<Vec3> pos;
-    thread_local std::vector<std::uint32_t> order;
+  Local& L = local_[n];
+  L = Local{};
+  thread_local std::vector<std::uint8_t> buf;
+  thread_local std::vector<Vec3> pos;
+  thread_local std::vector<PointIndex> id;
+  thread_local std::vector<Rgb16> rgb;
+  thread_local std::vector<std::uint16_t> inten;
+  thread_local std::vector<std::uint8_t> cls;
+  thread_local std::vector<std::uint32_t> order;
+  thread_local std::vector<MortonKey> keys, tmp;
+  pos.clear(), id.clear(), rgb.clear(), inten.clear(), cls.clear();
+  const std::size_t rec = info_.record_length;
+  // Morton codes of the root cube (the hierarchy's own cells: a node's cube is one code range)
+  const OctreeRules::Quantizer qz(info_.center - Vec3(info_.halfsize), 2.0 * info_.halfsize);
+  if (nd.own > 0) {
     decode_records(n, layers_of(attrs_), buf);
-    const std::size_t rec = info_.record_length;
-    const std::uint32_t m = static_cast<std::uint32_t>(e.point_count);
-    pos.resize(m);
-    for (std::uint32_t i = 0; i < m; ++i) pos[i] = record_position(info_, buf.data() + std::size_t{i} * rec);
-    build_local(n, pos, order);
+    const std::uint32_t m = nd.own;
+    if (nd.pushes) {  // sorted by (code, file order) for the descendants; kept what stays here
+      keys.resize(m);
+      for (std::uint32_t i = 0; i < m; ++i) keys[i] = {qz.code(record_position(info_, buf.data() + std::size_t{i} * rec)), i};
+      std::sort(keys.begin(), keys.end());
+      Source& S = L.src;
+      S.code.resize(m), S.pos.resize(m), S.id.resize(m), S.index_of.resize(m);
+      if (rgb_ != nullptr) S.rgb.resize(m);
+      if (int_ != nullptr) S.intensity.resize(m);
+      if (cls_ != nullptr) S.classification.resize(m);
+      for (std::uint32_t j = 0; j < m; ++j) {
+        const std::uint32_t i = keys[j].idx;
+        const std::uint8_t* rp = buf.data() + std::size_t{i} * rec;
+        S.code[j] = keys[j].code;
+        S.pos[j] = record_position(info_, rp);
+        S.id[j] = static_cast<PointIndex>(nd.first_id + i);
+        S.index_of[i] = j;
+        if (rgb_ != nullptr) S.rgb[j] = record_rgb(rp, rgb_mul_);
+        if (int_ != nullptr) S.intensity[j] = detail::load_le<std::uint16_t>(rp + kIntensityAt);
+        if (cls_ != nullptr) S.classification[j] = rp[kClassAt];
+      }
+      // the own points that stay (in file order: slot_of's first entries are not needed here)
+      for (std::uint32_t i = 0; i < m; ++i) {
+        const std::uint32_t j = S.index_of[i];
+        if (owner(S.pos[j], S.code[j], n) != n) continue;
+        pos.push_back(S.pos[j]), id.push_back(S.id[j]);
+        if (rgb_ != nullptr) rgb.push_back(S.rgb[j]);
+        if (int_ != nullptr) inten.push_back(S.intensity[j]);
+        if (cls_ != nullptr) cls.push_back(S.classification[j]);
+      }
+    } else {  // a leaf keeps every own point, first and in file order (slot_of[k] for own point k)
+      for (std::uint32_t i = 0; i < m; ++i) {
+        const std::uint8_t* rp = buf.data() + std::size_t{i} * rec;
+        pos.push_back(record_position(info_, rp)), id.push_back(static_cast<PointIndex>(nd.first_id + i));
+        if (rgb_ != nullptr) rgb.push_back(record_rgb(rp, rgb_mul_));
+        if (int_ != nullptr) inten.push_back(detail::load_le<std::uint16_t>(rp + kIntensityAt));
+        if (cls_ != nullptr) cls.push_back(rp[kClassAt]);
+      }
+    }
+  }
+  // The ancestors' points in this node's cube (one code range of each) that end here.
+  for (unsigned d = 0; d < depth; ++d) {
+    const std::uint32_t a = path[d];
+    const Source& S = local_[a].src;
+    const auto b = std::lower_bound(S.code.begin(), S.code.end(), nd.code_lo) - S.code.begin();
+    const auto e = std::lower_bound(S.code.begin(), S.code.end(), nd.code_hi) - S.code.begin();
+    for (auto j = b; j < e; ++j) {
+      if (owner(S.pos[j], S.code[j], a) != n) continue;
+      pos.push_back(S.pos[j]), id.push_back(S.id[j]);
+      if (rgb_ != nullptr) rgb.push_back(S.rgb[j]);
+      if (int_ != nullptr) inten.push_back(S.intensity[j]);
+      if (cls_ != nullptr) cls.push_back(S.classification[j]);
+    }
+  }
+  const std::uint32_t m = static_cast<std::uint32_t>(pos.size());
+  if (!ranged_[n]) {  // first decode: the node's slots, kept for every later decode
+    const std::size_t begin = next_slot_.fetch_add((std::size_t{m} + kSlotAlign - 1) / kSlotAlign * kSlotAlign);
+    if (begin + m > slots_) throw std::logic_error(name_ + ": COPC owned points exceed the slot space");
+    range_[n] = SlotRange{static_cast<std::uint32_t>(begin), static_cast<std::uint32_t>(begin + m)};
+    ranged_[n] = true;
+  } else if (range_[n].size() != m) {
+    throw std::logic_error(name_ + ": COPC node decoded with a different point count");
+  }
+  if (nd.has_points) {
+    build_local(n, range_[n], pos, order);
     for (std::uint32_t r = 0; r < m; ++r) {  // slot begin + r holds the point of Morton rank r
-      const std::uint32_t i = order[r];
-      const std::uint8_t* rp = buf.data() + std::size_t{i} * rec;
-      const std::uint32_t s = nd.slots.begin + r;
-      pos_[s] = pos[i];
-      ids_[s] = static_cast<PointIndex>(nd.first_id + i);
-      if (int_ != nullptr) int_[s] = detail::load_le<std::uint16_t>(rp + kIntensityAt);
-      if (cls_ != nullptr) cls_[s] = rp[kClassAt];
-      if (rgb_ != nullptr) rgb_[s] = record_rgb(rp, rgb_mul_);
+      const std::uint32_t j = order[r], s = range_[n].begin + r;
+      pos_[s] = pos[j];
+      ids_[s] = id[j];
+      if (int_ != nullptr) int_[s] = inten[j];
+      if (cls_ != nullptr) cls_[s] = cls[j];
+      if (rgb_ != nullptr) rgb_[s] = rgb[j];
     }
   }
   decodes_.fetch_add(1);
-  const std::size_t bytes = nd.slots.size() * slot_bytes() + local_[n].cells.capacity() * sizeof(Cell) +
-                            local_[n].slot_of.capacity() * sizeof(std::uint32_t);
+  const std::size_t bytes = std::size_t{m} * slot_bytes() + L.cells.capacity() * sizeof(Cell) +
+                            L.slot_of.capacity() * sizeof(std::uint32_t) + L.src.bytes();
   node_bytes_[n].store(bytes);
   const std::size_t now = resident_bytes_.fetch_add(bytes) + bytes;
   for (std::size_t peak = peak_bytes_.load(); now > peak && !peak_bytes_.compare_exchange_weak(peak, now);) {
@@ -457,9 +569,10 @@ void CopcIndex::load(std::uint32_t n) const {
   state_[n].store(kLoaded);
 }
 
-std::uint32_t CopcIndex::slot_of(std::uint32_t n, std::uint64_t k) const {
-  const std::vector<std::uint32_t>& perm = local_[n].slot_of;
-  return nodes_[n].slots.begin + static_cast<std::uint32_t>(perm.empty() ? k : perm[k]);
+Vec3 CopcIndex::own_position(std::uint32_t n, std::uint64_t k) const {
+  const Local& L = local_[n];
+  if (nodes_[n].pushes) return L.src.pos[L.src.index_of[k]];
+  return pos_[range_[n].begin + static_cast<std::uint32_t>(L.slot_of.empty() ? k : L.slot_of[k])];
 }
 
 std::size_t CopcIndex::slot_bytes() const {
@@ -550,8 +663,8 @@ std::vector<Vec3> CopcIndex::spacing_samples(std::size_t max_samples, std::size_
   const std::size_t per = std::max<std::size_t>(1, max_samples / picked.size());
   for (std::uint32_t n : picked) {
     touch(n);
-    const std::size_t cnt = nodes_[n].slots.size(), m = std::min(per, cnt);
-    for (std::size_t j = 0; j < m && out.size() < max_samples; ++j) out.push_back(pos_[slot_of(n, j * cnt / m)]);
+    const std::size_t cnt = nodes_[n].own, m = std::min(per, cnt);
+    for (std::size_t j = 0; j < m && out.size() < max_samples; ++j) out.push_back(own_position(n, j * cnt / m));
   }
   return out;
 }
@@ -563,8 +676,8 @@ Vec3 CopcIndex::position_of(PointIndex id) const {
   const std::uint32_t n = *--it;
   touch(n);
   const std::uint64_t k = static_cast<std::uint64_t>(id) - nodes_[n].first_id;
-  if (k >= nodes_[n].slots.size()) throw std::out_of_range(name_ + ": no point " + std::to_string(id));
-  return pos_[slot_of(n, k)];
+  if (k >= nodes_[n].own) throw std::out_of_range(name_ + ": no point " + std::to_string(id));
+  return own_position(n, k);
 }
 
 std::size_t CopcIndex::resident_nodes() const {
@@ -574,7 +687,7 @@ std::size_t CopcIndex::resident_nodes() const {
 }
 
 void CopcIndex::release(std::uint32_t i) const {
-  const SlotRange s = nodes_[i].slots;
+  const SlotRange s = range_[i];
   const std::size_t page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
   // Positions and ids: node ranges start on a page (kSlotAlign), so the pages from the first up
   // to the one holding the last slot are the node's alone.

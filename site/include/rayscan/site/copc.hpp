@@ -69,28 +69,39 @@ CopcInfo read_copc_info(const std::filesystem::path& path);
 bool is_copc_file(const std::filesystem::path& path);
 
 /// A COPC file as a SpatialIndex (layered octree). Node 0 is the root; a node's children are
-/// the existing keys one level down. Slots: each node owns a contiguous slot range (aligned to
-/// 1024 slots so that its pages can be released on eviction); ids() are the points' indices in
-/// file order, the order read_point_cloud() returns them in. positions() spans reserved virtual
-/// memory: a node's slots are filled on first touch (thread-safe), which decodes only the node's
-/// X, Y and Z layers. Coordinates: x = X * scale + offset in double, exactly as
-/// read_point_cloud(). Node bounds are the COPC voxel cubes, grown by one scale step (points on a
-/// face may be rounded outside by the LAS quantisation).
+/// the existing keys one level down. ids() are the points' indices in file order, the order
+/// read_point_cloud() returns them in. positions() spans reserved virtual memory: a node's slots
+/// are filled on first touch (thread-safe), which decodes only the node's X, Y and Z layers.
+/// Coordinates: x = X * scale + offset in double, exactly as read_point_cloud(). Node bounds are
+/// the COPC voxel cubes, grown by one scale step (points on a face may be rounded outside by the
+/// LAS quantisation).
 ///
-/// Local index (a node sub-indexed when decoded): a COPC node holds a subsample of
-/// its subtree, tens of thousands of points in practice, and Algorithm 1 would test each of them
-/// for every ray that enters the node's cube. So when a node is decoded its points are sorted in
-/// Morton order within their bounding box (a node's slots then hold them in that order, not in
-/// file order) and a small octree of cells over them is built (cells split at the Morton digits
+/// Points pushed down (a ray crosses one local tree, not one per level): every level of a COPC
+/// hierarchy is a subsample of the whole cube, so a ray reaching a point at the deepest level
+/// would otherwise descend one local tree per level above it. Each point is instead *owned* by
+/// the deepest existing hierarchy node on its Morton path whose grown cube holds it, from the
+/// node its chunk stores it in downwards (Morton codes of the root cube's 2^21 cells per axis,
+/// OctreeRules::Quantizer; no descent below level 21). A node's points node holds exactly the
+/// points it owns: its own chunk's points that no child takes, and its ancestors' points that
+/// end at it. So a hierarchy node whose 8 children exist owns (almost) nothing, and a leaf owns
+/// its chunk's points and its ancestors' points in its cube. Decoding a node therefore needs its
+/// ancestors decoded: each keeps its own points sorted by Morton code (a node's cube is one code
+/// range) for its descendants to take their share, counted in the cache budget.
+///
+/// Local index (a node sub-indexed when decoded): the owned points, tens of thousands in
+/// practice, are sorted in Morton order within their bounding box (a node's slots hold them in
+/// that order) and a small octree of cells over them is built (cells split at the Morton digits
 /// until at most kLeafPoints points, single-child chains collapsed, each cell's box the tight
 /// bounds of its points; cf. the adaptive organisation of the paper, section 4). The cells are
 /// virtual nodes of this index: a hierarchy node stores no point itself; its children are a
 /// "points" node (the root cell of its local tree, bounded by the voxel cube so that it needs no
 /// decode until a ray reaches it) and its hierarchy children (under one extra "group" node,
 /// bounded by the voxel cube, when there are 8 of them, so that no node has more than 8
-/// children). The cells and the slot permutation are cached with the node's points and counted
-/// in the cache budget. Node handles: low 32 bits the hierarchy node, high 32 bits 0 (the
-/// hierarchy node), kGroup (its group) or 1 + a cell index of its local tree.
+/// children). A node's slot range (aligned to 1024 slots so that its pages can be released on
+/// eviction) is assigned at its first decode and kept. The cells and the slot permutation are
+/// cached with the node's points and counted in the cache budget. Node handles: low 32 bits the
+/// hierarchy node, high 32 bits 0 (the hierarchy node), kGroup (its group) or 1 + a cell index
+/// of its local tree.
 /// The default budget of a CopcIndex's decoded nodes, bytes (2 GiB: `--cache` of the commands
 /// that open a COPC file in place).
 inline constexpr std::size_t kCopcDefaultCacheBytes = std::size_t{2} << 30;
@@ -121,7 +132,7 @@ class CopcIndex {
   /// corrupted chunk).
   [[nodiscard]] SlotRange node_points(Node n) const {
     const std::uint32_t h = hier(n), c = part(n);
-    if (c == 0 || c == kGroup) return SlotRange{nodes_[h].slots.begin, nodes_[h].slots.begin};
+    if (c == 0 || c == kGroup) return SlotRange{0, 0};
     if (c == 1) touch(h);
     return local_[h].cells[c - 1].slots;
   }
@@ -136,7 +147,7 @@ class CopcIndex {
     const std::uint32_t h = hier(n), c = part(n);
     const NodeData& nd = nodes_[h];
     if (c == 0) {
-      const bool pts = nd.slots.size() > 0;
+      const bool pts = nd.has_points;
       if (pts && i == 0) return handle(h, 1);
       if (nd.top_count == 2 && nd.child_count == 8) return handle(h, kGroup);
       return handle(nd.children[i - (pts ? 1u : 0u)], 0);
@@ -156,7 +167,7 @@ class CopcIndex {
     const float* f = &fboxes_[std::size_t{h} * kBoxesPerNode].v[0];
     constexpr unsigned stride = sizeof(FBox) / sizeof(float);
     if (c == 0) {
-      const bool pts = nd.slots.size() > 0;
+      const bool pts = nd.has_points;
       if (pts && nd.top_count == 2 && nd.child_count == 8) return {f + 9 * stride, stride, 2};
       return {pts ? f : f + stride, stride, nd.top_count};
     }
@@ -263,14 +274,21 @@ class CopcIndex {
   [[nodiscard]] std::vector<Vec3> spacing_samples(std::size_t max_samples = 20000, std::size_t max_nodes = 64) const;
 
  private:
+  static constexpr std::uint32_t kNone = 0xFFFFFFFFu;
   struct NodeData {
     AABB box;
-    SlotRange slots;
-    std::uint32_t entry = 0;       // index into info_.nodes
-    std::uint64_t first_id = 0;    // file-order index of the node's first point
+    std::uint32_t entry = 0;         // index into info_.nodes
+    std::uint32_t own = 0;           // points its chunk stores
+    std::uint64_t first_id = 0;      // file-order index of the node's first point
+    std::uint32_t parent = kNone;    // nodes_ index
     std::uint32_t children[8] = {};  // hierarchy children (nodes_ indices)
+    std::uint32_t in_octant[8] = {kNone, kNone, kNone, kNone, kNone, kNone, kNone, kNone};  // child per Morton digit
     unsigned child_count = 0;        // hierarchy children
     unsigned top_count = 0;          // children of the hierarchy node's handle (see the class doc)
+    int level = 0;
+    bool has_points = false;         // it or an ancestor stores points: it has a points node
+    bool pushes = false;             // its points may move to its children (children, level < 21)
+    std::uint64_t code_lo = 0, code_hi = 0;  // Morton codes of its cube: [code_lo, code_hi)
   };
   /// One cell of a node's local tree: tight box, its slots (absolute; empty unless a leaf), its
   /// children (contiguous cells from first_child).
@@ -281,11 +299,26 @@ class CopcIndex {
     std::uint32_t first_child = 0;
     std::uint32_t child_count = 0;
   };
-  /// A decoded node's local tree and slot permutation (slot_of[file-order k] = slot - begin;
-  /// empty when the node is small enough to stay in file order).
+  /// A decoded node's own points sorted by (Morton code, file order), kept while it is resident
+  /// when its children may take some of them (NodeData::pushes); index_of[k] = the sorted
+  /// position of its file-order point k.
+  struct Source {
+    std::vector<std::uint64_t> code;
+    std::vector<Vec3> pos;
+    std::vector<PointIndex> id;
+    std::vector<Rgb16> rgb;
+    std::vector<std::uint16_t> intensity;
+    std::vector<std::uint8_t> classification;
+    std::vector<std::uint32_t> index_of;
+    [[nodiscard]] std::size_t bytes() const;
+  };
+  /// A decoded node's local tree over the points it owns, the slot permutation (slot_of[j] =
+  /// slot - begin of owned candidate j, the node's own points first in file order; empty when
+  /// the node is small enough to stay in that order) and, when it pushes, its Source.
   struct Local {
     std::vector<Cell> cells;
     std::vector<std::uint32_t> slot_of;
+    Source src;
   };
   static constexpr std::uint32_t kGroup = 0xFFFFFFFFu;
   /// Float boxes of a hierarchy node's children: [points node, 8 hierarchy children, points
@@ -321,11 +354,13 @@ class CopcIndex {
   void trim_in_flight() const;
   // Releases the retired nodes no open scope can reach (caller holds trim_mutex_).
   void free_retired() const;
-  // Sorts node n's freshly decoded points (file order: pos[i], i < m) into its slots in Morton
-  // order and builds its local tree into local_[n].
-  void build_local(std::uint32_t n, std::vector<Vec3>& pos, std::vector<std::uint32_t>& order) const;
-  // Slot of the k-th point (file order) of decoded hierarchy node n.
-  [[nodiscard]] std::uint32_t slot_of(std::uint32_t n, std::uint64_t k) const;
+  // Orders the points node n owns (pos[j], j < slots.size()) in Morton order for its slots and
+  // builds its local tree into local_[n] (order[r] = the candidate at slot slots.begin + r).
+  void build_local(std::uint32_t n, SlotRange slots, std::vector<Vec3>& pos, std::vector<std::uint32_t>& order) const;
+  // The node owning a point with Morton code `code` stored by (or pushed to) node `from`.
+  [[nodiscard]] std::uint32_t owner(const Vec3& p, std::uint64_t code, std::uint32_t from) const;
+  // Position of the k-th point (file order) of decoded hierarchy node n.
+  [[nodiscard]] Vec3 own_position(std::uint32_t n, std::uint64_t k) const;
   // Decodes node n's records (layers: laz Layer bits) into `buf`.
   void decode_records(std::uint32_t n, std::uint32_t layers, std::vector<std::uint8_t>& buf) const;
   [[nodiscard]] std::size_t slot_bytes() const;
@@ -347,6 +382,11 @@ class CopcIndex {
   unsigned attrs_ = 0;
   std::size_t cache_bytes_;
   mutable std::unique_ptr<Local[]> local_;  // per hierarchy node, filled by load()
+  // Slot range of each node's owned points, assigned at its first decode (a node owns the same
+  // points at every decode) from next_slot_; the owned sets partition the file's points.
+  mutable std::unique_ptr<SlotRange[]> range_;
+  mutable std::unique_ptr<bool[]> ranged_;
+  mutable std::atomic<std::size_t> next_slot_{0};
   mutable std::unique_ptr<std::atomic<std::uint8_t>[]> state_;
   mutable std::unique_ptr<std::atomic<std::uint64_t>[]> touched_;
   mutable std::unique_ptr<std::atomic<std::size_t>[]> node_bytes_;     // accounted bytes of a resident node
