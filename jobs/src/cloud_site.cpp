@@ -82,16 +82,23 @@ void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const Poi
   }
 }
 
+std::string copc_cache_report(const io::CopcIndex& c) {
+  char buf[320];
+  const double peak = double(c.peak_resident_bytes()) / 1048576.0, budget = double(c.cache_bytes()) / 1048576.0;
+  std::snprintf(buf, sizeof buf, "COPC: %llu node decodes (of %zu nodes), cache peak %.1f MB of %.1f MB%s",
+                static_cast<unsigned long long>(c.decodes()), c.node_count(), peak, budget,
+                c.peak_resident_bytes() > c.cache_bytes()
+                    ? " (the nodes the rays in flight hold together passed the budget: raise --cache or lower --threads)"
+                    : "");
+  return buf;
+}
+
 void copc_cache_stats(const CloudSite& cs, const JobControl& ctl, std::uint64_t& decodes, std::size_t& peak) {
   const io::CopcIndex* c = cs.site ? cs.site->copc() : nullptr;
   if (!c) return;
   decodes = c->decodes();
   peak = c->peak_resident_bytes();
-  char buf[256];
-  std::snprintf(buf, sizeof buf, "COPC: %llu node decodes (of %zu nodes), cache peak %.1f MB of %.1f MB",
-                static_cast<unsigned long long>(c->decodes()), c->node_count(),
-                double(c->peak_resident_bytes()) / 1048576.0, double(c->cache_bytes()) / 1048576.0);
-  ctl.info(buf);
+  ctl.info(copc_cache_report(*c));
 }
 
 SurfelAttributes estimate_analysis_surfels(const CloudSite& cs, const SurfelOptions& options, const JobControl& ctl) {

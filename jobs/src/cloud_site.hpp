@@ -57,9 +57,15 @@ void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const Poi
                      const IndexOptions& index, std::optional<double> radius, double radius_factor,
                      const JobControl& ctl, const CopcOpen& copc = {});
 
+/// One log line on a COPC index after its queries: node decodes (re-decodes included) of the
+/// hierarchy's nodes and the decoded bytes' peak against the `--cache` budget, with the remedy
+/// when the peak passed it (the nodes the queries in flight hold cannot be evicted, so a budget
+/// below what they reach together is exceeded by about that much).
+std::string copc_cache_report(const io::CopcIndex& c);
+
 /// After the queries of a run on a COPC file in place: sets `decodes` (node decodes, re-decodes
-/// included) and `peak` (CopcIndex::peak_resident_bytes) and logs them with the hierarchy's node
-/// count and the cache budget; nothing for any other storage.
+/// included) and `peak` (CopcIndex::peak_resident_bytes) and logs copc_cache_report; nothing
+/// for any other storage.
 void copc_cache_stats(const CloudSite& cs, const JobControl& ctl, std::uint64_t& decodes, std::size_t& peak);
 
 /// The surfels (normals and disc radii) of every point of `cs`, file normals when the cloud has

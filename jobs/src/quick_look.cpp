@@ -191,7 +191,7 @@ UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const 
         for (std::size_t i = 0; i < sample.size(); i += step) {
           const std::vector<Neighbor> nb = knn(idx, sample[i], kNeighbours);
           if (nb.size() < 3) continue;
-          const Vec3 n(detail::surfel_normal(sample[i], nb, sample, so, Vec3(0.0), true, glm::vec3(0.0f)));
+          const Vec3 n(rayscan::detail::surfel_normal(sample[i], nb, sample, so, Vec3(0.0), true, glm::vec3(0.0f)));
           if (glm::length(n) == 0.0) continue;
           normals.push_back(glm::normalize(n));
           at.push_back(sample[i]);

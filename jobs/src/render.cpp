@@ -1,6 +1,8 @@
 // The render job (rayscan/jobs/render.hpp): what `rayscan render` and rayscan.render() run.
 #include "rayscan/jobs/render.hpp"
 
+#include "cloud_site.hpp"
+
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/option_error.hpp"
 
@@ -320,16 +322,11 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   const Scene& scene = P->scene;
   const JobControl& ctl = o.control;
   const double prepared = seconds_since(P->started);
-  char buf0[200];
   r.stats = render_camera(*P, *scene.camera, ctl, r.radius.radius, r.image, true);
   if (const io::CopcIndex* copc = P->site->copc()) {
     r.copc_decodes = copc->decodes();
     r.copc_peak_cache_bytes = copc->peak_resident_bytes();
-    std::snprintf(buf0, sizeof buf0,
-                  "COPC: %llu node decodes (of %zu nodes), %zu resident after the last trim, cache peak %.1f MB of %.1f MB",
-                  static_cast<unsigned long long>(r.copc_decodes), copc->node_count(), copc->resident_nodes(),
-                  double(r.copc_peak_cache_bytes) / 1048576.0, double(copc->cache_bytes()) / 1048576.0);
-    ctl.info(buf0);
+    ctl.info(detail::copc_cache_report(*copc));
   }
   r.first_tile_seconds = prepared + r.stats.first_tile_seconds;
   char buf[160];
