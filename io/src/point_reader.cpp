@@ -46,6 +46,14 @@ MappedFile::~MappedFile() {
   if (fd_ >= 0) ::close(fd_);
 }
 
+void MappedFile::drop(std::uint64_t begin, std::uint64_t end) const {
+  const std::uint64_t page = static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
+  end = std::min<std::uint64_t>(end, size_);
+  if (data_ == nullptr || begin >= end) return;
+  const std::uint64_t b = begin / page * page, e = std::min<std::uint64_t>((end + page - 1) / page * page, size_);
+  ::madvise(const_cast<std::uint8_t*>(data_) + b, e - b, MADV_DONTNEED);
+}
+
 void MappedFile::release(std::uint64_t upto) {
   const std::uint64_t page = static_cast<std::uint64_t>(::sysconf(_SC_PAGESIZE));
   const std::uint64_t end = std::min<std::uint64_t>(upto, size_) / page * page;

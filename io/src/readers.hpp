@@ -22,6 +22,10 @@ class MappedFile {
   /// for the next 256 MiB to be read ahead (MADV_WILLNEED). A call with a smaller `upto` than
   /// before starts a new pass.
   void release(std::uint64_t upto);
+  /// Drops the pages holding bytes [begin, end) from the resident set (they stay in the page
+  /// cache; a later read faults them in again): for a reader done with one part of the file
+  /// while other threads may read the rest, since the mapping is read-only.
+  void drop(std::uint64_t begin, std::uint64_t end) const;
 
  private:
   int fd_ = -1;

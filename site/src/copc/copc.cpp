@@ -186,7 +186,7 @@ void* reserve(std::size_t bytes) {
 }  // namespace
 
 CopcIndex::CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes)
-    : name_(path.string()), map_(std::make_unique<Map>(path)), cache_bytes_(cache_bytes), reserve_(cache_bytes / 8) {
+    : name_(path.string()), map_(std::make_unique<Map>(path)), cache_bytes_(cache_bytes), reserve_(cache_bytes / 4) {
   const detail::Input in{map_->bytes(), name_, {}};
   const detail::LasHeader h = detail::parse_las_header(in);
   info_ = parse_copc(in, h);
@@ -305,6 +305,9 @@ void CopcIndex::decode_records(std::uint32_t n, std::uint32_t layers, std::vecto
   dec.start(in, n, c, e.offset + static_cast<std::uint64_t>(e.byte_size));
   dec.next(static_cast<std::size_t>(e.point_count), buf.data());
   dec.finish();
+  // The chunk's pages leave the process's resident set (not the page cache): what stays is the
+  // decoded node, which the cache budget counts, so the peak memory follows --cache.
+  map_->drop(e.offset, e.offset + static_cast<std::uint64_t>(e.byte_size));
 }
 
 namespace {
@@ -437,6 +440,9 @@ void CopcIndex::build_local(std::uint32_t n, SlotRange slots, std::vector<Vec3>&
 }
 
 std::uint32_t CopcIndex::owner(const Vec3& p, std::uint64_t code, std::uint32_t from) const {
+  // A point stored outside its node's cube (within the grown box) has another cube's code: it
+  // stays, since no descendant's code range, where the gather looks, would hold it.
+  if (!nodes_[from].pushes || code < nodes_[from].code_lo || code >= nodes_[from].code_hi) return from;
   std::uint32_t n = from;
   while (nodes_[n].pushes) {
     const std::uint32_t c = nodes_[n].in_octant[OctreeRules::octant(code, static_cast<unsigned>(nodes_[n].level))];
@@ -461,13 +467,21 @@ void CopcIndex::load(std::uint32_t n) const {
   unsigned depth = 0;
   if (nd.level <= static_cast<int>(kMortonBits))
     for (std::uint32_t a = nd.parent; a != kNone && depth < 64; a = nodes_[a].parent) path[depth++] = a;
-  for (unsigned d = depth; d-- > 0;) touch(path[d]);
-  std::lock_guard<std::mutex> lock(locks_[n % 32]);
-  const std::uint8_t st = state_[n].load();
-  if (st == kLoaded) return;
-  if (st == kRetired) {  // not released yet: its slots and local tree are intact
-    state_[n].store(kLoaded);
-    return;
+  std::unique_lock<std::mutex> lock(locks_[n % 32]);
+  for (bool ancestors = false;;) {
+    const std::uint8_t st = state_[n].load();
+    if (st == kLoaded) return;
+    if (st == kRetired) {  // not released yet: its slots and local tree are intact
+      state_[n].store(kLoaded);
+      return;
+    }
+    if (ancestors) break;
+    // absent: its ancestors first (without this lock), then look again (another thread may
+    // have decoded it meanwhile)
+    lock.unlock();
+    for (unsigned d = depth; d-- > 0;) touch(path[d]);
+    lock.lock();
+    ancestors = true;
   }
   Local& L = local_[n];
   L = Local{};
@@ -478,7 +492,7 @@ void CopcIndex::load(std::uint32_t n) const {
   thread_local std::vector<std::uint16_t> inten;
   thread_local std::vector<std::uint8_t> cls;
   thread_local std::vector<std::uint32_t> order;
-  thread_local std::vector<MortonKey> keys, tmp;
+  thread_local std::vector<MortonKey> keys;
   pos.clear(), id.clear(), rgb.clear(), inten.clear(), cls.clear();
   const std::size_t rec = info_.record_length;
   // Morton codes of the root cube (the hierarchy's own cells: a node's cube is one code range)
@@ -560,7 +574,12 @@ void CopcIndex::load(std::uint32_t n) const {
     }
   }
   decodes_.fetch_add(1);
-  const std::size_t bytes = std::size_t{m} * slot_bytes() + L.cells.capacity() * sizeof(Cell) +
+  // the slot arrays' whole pages (a node's range starts on a page of positions and ids)
+  const std::size_t page = static_cast<std::size_t>(::sysconf(_SC_PAGESIZE));
+  auto pages = [&](std::size_t b) { return (b + page - 1) / page * page; };
+  const std::size_t bytes = pages(std::size_t{m} * sizeof(Vec3)) + pages(std::size_t{m} * sizeof(PointIndex)) +
+                            std::size_t{m} * (slot_bytes() - sizeof(Vec3) - sizeof(PointIndex)) +
+                            L.cells.capacity() * sizeof(Cell) +
                             L.slot_of.capacity() * sizeof(std::uint32_t) + L.src.bytes();
   node_bytes_[n].store(bytes);
   const std::size_t now = resident_bytes_.fetch_add(bytes) + bytes;

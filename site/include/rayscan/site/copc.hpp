@@ -71,7 +71,8 @@ bool is_copc_file(const std::filesystem::path& path);
 /// A COPC file as a SpatialIndex (layered octree). Node 0 is the root; a node's children are
 /// the existing keys one level down. ids() are the points' indices in file order, the order
 /// read_point_cloud() returns them in. positions() spans reserved virtual memory: a node's slots
-/// are filled on first touch (thread-safe), which decodes only the node's X, Y and Z layers.
+/// are filled on first touch (thread-safe), which decodes only the X, Y and Z layers of the node
+/// and of those of its ancestors not resident.
 /// Coordinates: x = X * scale + offset in double, exactly as read_point_cloud(). Node bounds are
 /// the COPC voxel cubes, grown by one scale step (points on a face may be rounded outside by the
 /// LAS quantisation).
@@ -128,8 +129,8 @@ class CopcIndex {
     return c == 0 || c == kGroup || c == 1 ? nodes_[h].box : local_[h].cells[c - 1].box;
   }
   /// The slots of the points stored at a cell (none at hierarchy and group nodes). A points node
-  /// (the root cell) decodes its hierarchy node on first touch (throws FormatError for a
-  /// corrupted chunk).
+  /// (the root cell) decodes its hierarchy node (and its ancestors) on first touch (throws
+  /// FormatError for a corrupted chunk).
   [[nodiscard]] SlotRange node_points(Node n) const {
     const std::uint32_t h = hier(n), c = part(n);
     if (c == 0 || c == kGroup) return SlotRange{0, 0};
@@ -185,9 +186,10 @@ class CopcIndex {
   /// Nodes decoded so far (including re-decodes after eviction) and nodes resident now.
   [[nodiscard]] std::uint64_t decodes() const { return decodes_.load(); }
   [[nodiscard]] std::size_t resident_nodes() const;
-  /// Bytes of decoded nodes resident now (the cache's own accounting: per node its slots times
-  /// the bytes of a slot's positions, ids and decoded attributes, plus its local tree's cells and
-  /// permutation), and the most that were resident at once since opening.
+  /// Bytes of decoded nodes resident now (the cache's own accounting: per node the whole pages
+  /// of its slots' positions and ids, its slots' decoded attributes, its local tree's cells and
+  /// permutation, and the sorted copy of its own points a node with children keeps), and the
+  /// most that were resident at once since opening.
   [[nodiscard]] std::size_t resident_bytes() const { return resident_bytes_.load(); }
   [[nodiscard]] std::size_t peak_resident_bytes() const { return peak_bytes_.load(); }
   /// Position of the point with file-order index `id` (the RayHit::index of a query on this
@@ -208,7 +210,7 @@ class CopcIndex {
   /// (unpublished: the next touch revives it without a decode) and its memory released by the
   /// first scope to close after every scope open at its retirement has closed. The open scopes'
   /// nodes cannot be evicted, so closing scopes keep a reserve for what they decode: they trim
-  /// once the resident bytes pass the budget less the reserve (an eighth of the budget, grown by
+  /// once the resident bytes pass the budget less the reserve (a quarter of the budget, grown by
   /// each excess over the budget a closing scope sees, up to a half). So while queries run in
   /// scopes, resident_bytes() stays within cache_bytes() once the reserve has learnt what the
   /// scopes in flight decode, unless they decode more than half the budget (a budget
@@ -270,7 +272,7 @@ class CopcIndex {
   /// as those holding the file-order points i * N / max_nodes (so a node is picked with
   /// probability proportional to its point count, as the whole-file evenly spaced sample picks
   /// its points), and within them evenly spaced points, at most `max_samples` in all. Decodes
-  /// only those nodes. Deterministic.
+  /// only those nodes and their ancestors. Deterministic.
   [[nodiscard]] std::vector<Vec3> spacing_samples(std::size_t max_samples = 20000, std::size_t max_nodes = 64) const;
 
  private:
@@ -393,7 +395,7 @@ class CopcIndex {
   mutable std::unique_ptr<std::atomic<std::uint64_t>[]> retired_at_;  // epoch of a node's retirement
   mutable std::atomic<std::uint64_t> clock_{1}, decodes_{0};
   mutable std::atomic<std::size_t> resident_bytes_{0}, peak_bytes_{0};
-  // The room kept for the nodes the open scopes decode (QueryScope): an eighth of the budget at
+  // The room kept for the nodes the open scopes decode (QueryScope): a quarter of the budget at
   // first, grown by each excess over the budget a closing scope sees, up to a half.
   mutable std::atomic<std::size_t> reserve_;
   // Set when an excess would take the reserve past half the budget: the scopes in flight
