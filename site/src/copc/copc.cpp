@@ -271,7 +271,7 @@ CopcIndex::CopcIndex(const std::filesystem::path& path, std::size_t cache_bytes)
   ids_ = static_cast<PointIndex*>(reserve(slots_ * sizeof(PointIndex)));
   local_ = std::make_unique<Local[]>(nodes_.size());
   range_ = std::make_unique<SlotRange[]>(nodes_.size());
-  ranged_ = std::make_unique<bool[]>(nodes_.size());
+  std::fill_n(range_.get(), nodes_.size(), SlotRange{kNone, kNone});
   state_ = std::make_unique<std::atomic<std::uint8_t>[]>(nodes_.size());
   touched_ = std::make_unique<std::atomic<std::uint64_t>[]>(nodes_.size());
   node_bytes_ = std::make_unique<std::atomic<std::size_t>[]>(nodes_.size());
@@ -452,6 +452,17 @@ std::uint32_t CopcIndex::owner(const Vec3& p, std::uint64_t code, std::uint32_t 
   return n;
 }
 
+void CopcIndex::Points::clear() {
+  pos.clear(), id.clear(), rgb.clear(), intensity.clear(), classification.clear();
+}
+
+void CopcIndex::Points::append(const Points& from, std::size_t j) {
+  pos.push_back(from.pos[j]), id.push_back(from.id[j]);
+  if (!from.rgb.empty()) rgb.push_back(from.rgb[j]);
+  if (!from.intensity.empty()) intensity.push_back(from.intensity[j]);
+  if (!from.classification.empty()) classification.push_back(from.classification[j]);
+}
+
 std::size_t CopcIndex::Source::bytes() const {
   return code.capacity() * sizeof(std::uint64_t) + pos.capacity() * sizeof(Vec3) + id.capacity() * sizeof(PointIndex) +
          rgb.capacity() * sizeof(Rgb16) + intensity.capacity() * sizeof(std::uint16_t) + classification.capacity() +
@@ -486,58 +497,42 @@ void CopcIndex::load(std::uint32_t n) const {
   Local& L = local_[n];
   L = Local{};
   thread_local std::vector<std::uint8_t> buf;
-  thread_local std::vector<Vec3> pos;
-  thread_local std::vector<PointIndex> id;
-  thread_local std::vector<Rgb16> rgb;
-  thread_local std::vector<std::uint16_t> inten;
-  thread_local std::vector<std::uint8_t> cls;
+  thread_local Points own, owned;  // the node's chunk in file order; the points it owns
   thread_local std::vector<std::uint32_t> order;
-  thread_local std::vector<MortonKey> keys;
-  pos.clear(), id.clear(), rgb.clear(), inten.clear(), cls.clear();
-  const std::size_t rec = info_.record_length;
-  // Morton codes of the root cube (the hierarchy's own cells: a node's cube is one code range)
-  const OctreeRules::Quantizer qz(info_.center - Vec3(info_.halfsize), 2.0 * info_.halfsize);
+  thread_local std::vector<MortonKey> keys, tmp;
+  own.clear(), owned.clear();
   if (nd.own > 0) {
     decode_records(n, layers_of(attrs_), buf);
-    const std::uint32_t m = nd.own;
-    if (nd.pushes) {  // sorted by (code, file order) for the descendants; kept what stays here
-      keys.resize(m);
-      for (std::uint32_t i = 0; i < m; ++i) keys[i] = {qz.code(record_position(info_, buf.data() + std::size_t{i} * rec)), i};
-      std::sort(keys.begin(), keys.end());
-      Source& S = L.src;
-      S.code.resize(m), S.pos.resize(m), S.id.resize(m), S.index_of.resize(m);
-      if (rgb_ != nullptr) S.rgb.resize(m);
-      if (int_ != nullptr) S.intensity.resize(m);
-      if (cls_ != nullptr) S.classification.resize(m);
-      for (std::uint32_t j = 0; j < m; ++j) {
-        const std::uint32_t i = keys[j].idx;
-        const std::uint8_t* rp = buf.data() + std::size_t{i} * rec;
-        S.code[j] = keys[j].code;
-        S.pos[j] = record_position(info_, rp);
-        S.id[j] = static_cast<PointIndex>(nd.first_id + i);
-        S.index_of[i] = j;
-        if (rgb_ != nullptr) S.rgb[j] = record_rgb(rp, rgb_mul_);
-        if (int_ != nullptr) S.intensity[j] = detail::load_le<std::uint16_t>(rp + kIntensityAt);
-        if (cls_ != nullptr) S.classification[j] = rp[kClassAt];
-      }
-      // the own points that stay (in file order: slot_of's first entries are not needed here)
-      for (std::uint32_t i = 0; i < m; ++i) {
-        const std::uint32_t j = S.index_of[i];
-        if (owner(S.pos[j], S.code[j], n) != n) continue;
-        pos.push_back(S.pos[j]), id.push_back(S.id[j]);
-        if (rgb_ != nullptr) rgb.push_back(S.rgb[j]);
-        if (int_ != nullptr) inten.push_back(S.intensity[j]);
-        if (cls_ != nullptr) cls.push_back(S.classification[j]);
-      }
-    } else {  // a leaf keeps every own point, first and in file order (slot_of[k] for own point k)
-      for (std::uint32_t i = 0; i < m; ++i) {
-        const std::uint8_t* rp = buf.data() + std::size_t{i} * rec;
-        pos.push_back(record_position(info_, rp)), id.push_back(static_cast<PointIndex>(nd.first_id + i));
-        if (rgb_ != nullptr) rgb.push_back(record_rgb(rp, rgb_mul_));
-        if (int_ != nullptr) inten.push_back(detail::load_le<std::uint16_t>(rp + kIntensityAt));
-        if (cls_ != nullptr) cls.push_back(rp[kClassAt]);
-      }
+    const std::size_t rec = info_.record_length;
+    for (std::uint32_t i = 0; i < nd.own; ++i) {
+      const std::uint8_t* rp = buf.data() + std::size_t{i} * rec;
+      own.pos.push_back(record_position(info_, rp)), own.id.push_back(static_cast<PointIndex>(nd.first_id + i));
+      if (rgb_ != nullptr) own.rgb.push_back(record_rgb(rp, rgb_mul_));
+      if (int_ != nullptr) own.intensity.push_back(detail::load_le<std::uint16_t>(rp + kIntensityAt));
+      if (cls_ != nullptr) own.classification.push_back(rp[kClassAt]);
     }
+  }
+  if (nd.pushes) {
+    // Sorted by (code, file order) for the descendants (Morton codes of the root cube: the
+    // hierarchy's own cells, so a node's cube is one code range); kept here what no child takes.
+    const OctreeRules::Quantizer qz(info_.center - Vec3(info_.halfsize), 2.0 * info_.halfsize);
+    const std::uint32_t m = nd.own;
+    keys.resize(m), tmp.resize(m);
+    for (std::uint32_t i = 0; i < m; ++i) keys[i] = {qz.code(own.pos[i]), i};
+    if (m > 0) radix_sort_low_bits(keys.data(), m, tmp.data(), 3 * kMortonBits);
+    Source& S = L.src;
+    S.code.resize(m), S.index_of.resize(m);
+    S.pos.reserve(m), S.id.reserve(m);  // kept while resident and counted: no growth slack
+    S.rgb.reserve(own.rgb.size()), S.intensity.reserve(own.intensity.size()), S.classification.reserve(own.classification.size());
+    for (std::uint32_t j = 0; j < m; ++j) {
+      S.code[j] = keys[j].code;
+      S.index_of[keys[j].idx] = j;
+      S.append(own, keys[j].idx);
+    }
+    for (std::uint32_t i = 0; i < m; ++i)  // file order
+      if (const std::uint32_t j = S.index_of[i]; owner(S.pos[j], S.code[j], n) == n) owned.append(S, j);
+  } else {
+    std::swap(owned, own);  // a leaf keeps every own point, first and in file order (slot_of[k])
   }
   // The ancestors' points in this node's cube (one code range of each) that end here.
   for (unsigned d = 0; d < depth; ++d) {
@@ -545,32 +540,26 @@ void CopcIndex::load(std::uint32_t n) const {
     const Source& S = local_[a].src;
     const auto b = std::lower_bound(S.code.begin(), S.code.end(), nd.code_lo) - S.code.begin();
     const auto e = std::lower_bound(S.code.begin(), S.code.end(), nd.code_hi) - S.code.begin();
-    for (auto j = b; j < e; ++j) {
-      if (owner(S.pos[j], S.code[j], a) != n) continue;
-      pos.push_back(S.pos[j]), id.push_back(S.id[j]);
-      if (rgb_ != nullptr) rgb.push_back(S.rgb[j]);
-      if (int_ != nullptr) inten.push_back(S.intensity[j]);
-      if (cls_ != nullptr) cls.push_back(S.classification[j]);
-    }
+    for (auto j = b; j < e; ++j)
+      if (owner(S.pos[j], S.code[j], a) == n) owned.append(S, static_cast<std::size_t>(j));
   }
-  const std::uint32_t m = static_cast<std::uint32_t>(pos.size());
-  if (!ranged_[n]) {  // first decode: the node's slots, kept for every later decode
+  const std::uint32_t m = static_cast<std::uint32_t>(owned.pos.size());
+  if (range_[n].begin == kNone) {  // first decode: the node's slots, kept for every later decode
     const std::size_t begin = next_slot_.fetch_add((std::size_t{m} + kSlotAlign - 1) / kSlotAlign * kSlotAlign);
     if (begin + m > slots_) throw std::logic_error(name_ + ": COPC owned points exceed the slot space");
     range_[n] = SlotRange{static_cast<std::uint32_t>(begin), static_cast<std::uint32_t>(begin + m)};
-    ranged_[n] = true;
   } else if (range_[n].size() != m) {
     throw std::logic_error(name_ + ": COPC node decoded with a different point count");
   }
   if (nd.has_points) {
-    build_local(n, range_[n], pos, order);
+    build_local(n, range_[n], owned.pos, order);
     for (std::uint32_t r = 0; r < m; ++r) {  // slot begin + r holds the point of Morton rank r
       const std::uint32_t j = order[r], s = range_[n].begin + r;
-      pos_[s] = pos[j];
-      ids_[s] = id[j];
-      if (int_ != nullptr) int_[s] = inten[j];
-      if (cls_ != nullptr) cls_[s] = cls[j];
-      if (rgb_ != nullptr) rgb_[s] = rgb[j];
+      pos_[s] = owned.pos[j];
+      ids_[s] = owned.id[j];
+      if (int_ != nullptr) int_[s] = owned.intensity[j];
+      if (cls_ != nullptr) cls_[s] = owned.classification[j];
+      if (rgb_ != nullptr) rgb_[s] = owned.rgb[j];
     }
   }
   decodes_.fetch_add(1);

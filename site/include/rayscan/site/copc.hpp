@@ -301,16 +301,23 @@ class CopcIndex {
     std::uint32_t first_child = 0;
     std::uint32_t child_count = 0;
   };
-  /// A decoded node's own points sorted by (Morton code, file order), kept while it is resident
-  /// when its children may take some of them (NodeData::pushes); index_of[k] = the sorted
-  /// position of its file-order point k.
-  struct Source {
-    std::vector<std::uint64_t> code;
+  /// Decoded points column by column: position, file-order id and the decoded attributes (an
+  /// attribute column is empty when not decoded).
+  struct Points {
     std::vector<Vec3> pos;
     std::vector<PointIndex> id;
     std::vector<Rgb16> rgb;
     std::vector<std::uint16_t> intensity;
     std::vector<std::uint8_t> classification;
+    void clear();
+    /// Appends point j of `from` (its non-empty columns).
+    void append(const Points& from, std::size_t j);
+  };
+  /// A decoded node's own points sorted by (Morton code, file order), kept while it is resident
+  /// when its children may take some of them (NodeData::pushes); index_of[k] = the sorted
+  /// position of its file-order point k.
+  struct Source : Points {
+    std::vector<std::uint64_t> code;
     std::vector<std::uint32_t> index_of;
     [[nodiscard]] std::size_t bytes() const;
   };
@@ -385,9 +392,9 @@ class CopcIndex {
   std::size_t cache_bytes_;
   mutable std::unique_ptr<Local[]> local_;  // per hierarchy node, filled by load()
   // Slot range of each node's owned points, assigned at its first decode (a node owns the same
-  // points at every decode) from next_slot_; the owned sets partition the file's points.
+  // points at every decode) from next_slot_ ({kNone, kNone} before); the owned sets partition
+  // the file's points.
   mutable std::unique_ptr<SlotRange[]> range_;
-  mutable std::unique_ptr<bool[]> ranged_;
   mutable std::atomic<std::size_t> next_slot_{0};
   mutable std::unique_ptr<std::atomic<std::uint8_t>[]> state_;
   mutable std::unique_ptr<std::atomic<std::uint64_t>[]> touched_;
