@@ -617,6 +617,76 @@ TEST(Simd, PointFilterNeverDropsAPointThatPasses) {
   EXPECT_GT(dropped, 1000u);
 }
 
+// The packet filter (SIMD over up to 16 rays) keeps, for each ray of its mask, exactly the points
+// the same path's single-ray filter keeps with that ray's constants (the same expressions), so
+// never one fewer than the exact predicate; no ray outside the mask, no point twice, in order.
+TEST(Simd, PacketPointFilterKeepsWhatEachRaysOwnFilterKeeps) {
+  PathGuard guard;
+  const std::vector<Vec3> pts = make_points(301, Dist::utm_mm, 7);  // large magnitudes, mm lattice
+  std::mt19937_64 rng(23);
+  const AABB box = bounds_of(pts);
+  std::size_t paths = 0, kept = 0;
+  for_each_point_filter([&](const simd::Kernels& k, SimdPath path) {
+    if (!k.packet_point_filter) return;
+    ++paths;
+    for (int trial = 0; trial < 60; ++trial) {
+      alignas(64) simd::PointFilterPacketD pk;
+      simd::PointFilterD single[16];
+      const double vmax = glm::length(box.hi - box.lo) * 4.0;
+      for (unsigned i = 0; i < 16; ++i) {
+        // Every third origin inside the box, the others outside it.
+        const Ray ray = random_ray(rng, box, (trial + i) % 3 == 0);
+        const Vec3 o = ray.origin(), d = ray.direction();
+        const double r2 = std::pow(0.004 * (1 + (trial + i) % 5), 2);
+        const double t_lo = ((trial + i) % 3) ? -kInf : 0.0, t_hi = (i % 4 == 3) ? 0.5 * vmax : kInf;
+        single[i] = simd::PointFilterD{{o.x, o.y, o.z}, {d.x, d.y, d.z}, r2 + 1e-12 * vmax * vmax,
+                                       t_lo - 1e-12 * vmax, t_hi};
+        for (int a = 0; a < 3; ++a) {
+          pk.o[a][i] = single[i].o[a];
+          pk.d[a][i] = single[i].d[a];
+        }
+        pk.d2_max[i] = single[i].d2_max;
+        pk.t_lo[i] = single[i].t_lo;
+        pk.t_hi[i] = single[i].t_hi;
+      }
+      // Ray masks: all, one half, the other, sparse, a single ray.
+      const std::uint32_t masks[] = {0xFFFFu, 0x00FFu, 0xFF00u, 0x8421u, 1u << (trial % 16),
+                                     static_cast<std::uint32_t>(rng()) & 0xFFFFu};
+      const std::uint32_t rays = masks[trial % 6] ? masks[trial % 6] : 1u;
+      const unsigned off = static_cast<unsigned>(trial % 5);
+      const unsigned count = static_cast<unsigned>(pts.size()) - off - static_cast<unsigned>(trial % 11) * 20;
+      std::vector<std::uint32_t> idx(count), got(count);
+      const unsigned n = k.packet_point_filter(&pts[off].x, count, pk, rays, idx.data(), got.data());
+      ASSERT_LE(n, count);
+      std::vector<std::uint32_t> per_point(count, 0);
+      for (unsigned j = 0; j < n; ++j) {
+        ASSERT_LT(idx[j], count) << to_string(path);
+        if (j > 0) ASSERT_LT(idx[j - 1], idx[j]) << to_string(path) << ": points out of order or twice";
+        ASSERT_NE(got[j], 0u) << to_string(path) << ": a point kept for no ray";
+        ASSERT_EQ(got[j] & ~rays, 0u) << to_string(path) << ": a ray outside the mask";
+        per_point[idx[j]] = got[j];
+      }
+      const std::vector<Vec3> sub(pts.begin() + off, pts.begin() + off + count);
+      for (unsigned i = 0; i < 16; ++i) {
+        if (!((rays >> i) & 1u)) continue;
+        const std::vector<char> in = filter_kept(k, sub, 0, single[i]);
+        for (unsigned j = 0; j < count; ++j) {
+          const bool packet = (per_point[j] >> i) & 1u;
+          ASSERT_EQ(packet, in[j] != 0) << to_string(path) << ": ray " << i << ", point " << j << ", trial " << trial;
+          kept += packet;
+          const RayPointTerms pt = ray_point_terms(Vec3(single[i].o[0], single[i].o[1], single[i].o[2]),
+                                                   Vec3(single[i].d[0], single[i].d[1], single[i].d[2]), sub[j]);
+          if (pt.d2 <= single[i].d2_max - 1e-12 * vmax * vmax && pt.t >= single[i].t_lo + 1e-12 * vmax &&
+              pt.t <= single[i].t_hi)
+            ASSERT_TRUE(packet) << to_string(path) << ": ray " << i << " dropped point " << j;
+        }
+      }
+    }
+  });
+  if (paths == 0) GTEST_SKIP() << "no SIMD path with the packet point filter on this CPU";
+  EXPECT_GT(kept, 200u);
+}
+
 // The filter with a radius per point (PointFilterD::radii, surfel rendering's disc radii): never
 // drops a point within its own radius (oracle: d^2 <= r_i^2 in scalar double, as DiscKey::reject)
 // nor, with t_lo_own, one whose t_p lies within its own radius before the floor; and drops most

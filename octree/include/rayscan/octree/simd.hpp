@@ -175,6 +175,26 @@ using PacketChildSlabFn = void (*)(const ChildBoxesF& boxes, const SlabPacketF& 
 using PointFilterFn = unsigned (*)(const double* xyz, unsigned count, const PointFilterD& f,
                                    std::uint32_t* out);
 
+/// The point filter's per-ray constants for the rays of a packet, one lane per ray (up to 16):
+/// lane i holds ray i's PointFilterD o, d, d2_max, t_lo and t_hi (already widened; no per-point
+/// radii or normals), so that one point is tested against every ray at once (SIMD over the rays).
+struct PointFilterPacketD {
+  alignas(64) double o[3][16];
+  alignas(64) double d[3][16];
+  alignas(64) double d2_max[16];
+  alignas(64) double t_lo[16];
+  alignas(64) double t_hi[16];
+};
+
+/// Point filter of a packet over positions xyz[0..count) (AoS doubles, 3 per point): point j may
+/// pass for ray i (a bit of `rays`, i < 16) when it passes lane i's test of PointFilterFn (the
+/// same expressions in the same order, so the same points pass as with lane i's PointFilterD
+/// alone). Writes, for each point that may pass for some ray, idx[n] = j and masks[n] = those
+/// rays, in ascending j, and returns n. idx and masks have room for count entries; entries past
+/// n may be overwritten. Lanes outside `rays` are not read into the result.
+using PacketPointFilterFn = unsigned (*)(const double* xyz, unsigned count, const PointFilterPacketD& f,
+                                         std::uint32_t rays, std::uint32_t* idx, std::uint32_t* masks);
+
 /// Lower bounds of the squared distance (MINDIST^2) from q (relative to the boxes' origin) to up to
 /// 8 child boxes: each axis gap is shrunk by `margin` (position space, covering the float rounding
 /// of q and of the differences) and the sum scaled down by 2^-20 relative. Writes lb2[0..count).
@@ -214,6 +234,7 @@ struct Kernels {
   SortKeys8Fn sort_keys8;               ///< nullptr for the scalar and sse2 paths
   SortPushKeys8Fn sort_push_keys8;      ///< nullptr for the scalar and sse2 paths
   RayBoxFn ray_box;                     ///< nullptr for the scalar and sse2 paths
+  PacketPointFilterFn packet_point_filter;  ///< nullptr for the scalar and sse2 paths
 };
 
 /// The kernels of the active path (simd_path()).

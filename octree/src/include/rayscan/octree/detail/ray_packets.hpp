@@ -86,6 +86,86 @@ __attribute__((always_inline)) inline bool packet_lanes_over_rays([[maybe_unused
   return false;
 }
 
+/// first_hit_packet's leaf test policy: true (and `f` filled: lane i of each ray of `mask`, the
+/// other lanes a filter nothing passes) when a node's points may be filtered SIMD over the rays
+/// (packet_point_filter), which needs every ray's point filter plain (no per-point radii or
+/// normals, no per-node radius: those change the filter per point or per node); false: each ray
+/// filters the points alone (RayTraversal::eval_points).
+template <class RT, class K>
+__attribute__((always_inline)) inline bool packet_leaf_over_rays([[maybe_unused]] const KernelsOf<K>& kern,
+                                                                 RT* const* st, std::uint32_t mask,
+                                                                 simd::PointFilterPacketD& f) {
+  if (RT::per_node || !has_kernel(kern.packet_point_filter)) return false;
+  for (std::uint32_t m = mask; m; m &= m - 1) {
+    const RT& r = *st[__builtin_ctz(m)];
+    if (r.radii_filter || r.normals_filter) return false;
+  }
+  for (unsigned i = 0; i < 16; ++i) {  // lanes without a ray: t_lo > t_hi (never read into a mask)
+    for (int a = 0; a < 3; ++a) f.o[a][i] = f.d[a][i] = 0.0;
+    f.d2_max[i] = 0.0;
+    f.t_lo[i] = 1.0;
+    f.t_hi[i] = 0.0;
+  }
+  for (std::uint32_t m = mask; m; m &= m - 1) st[__builtin_ctz(m)]->set_filter_lane(f, __builtin_ctz(m));
+  return true;
+}
+
+/// Whether the leaf test over the rays (packet_point_filter of kernel policy K) pays for the rays
+/// `act`: the kernel computes every lane of each group of W rays (W = 8 on AVX-512, 4 else) that
+/// holds one of them, each ray alone costs about twice a lane, so it pays when at least half of
+/// the computed lanes are rays of `act`.
+template <class K>
+__attribute__((always_inline)) inline bool packet_leaf_pays(const KernelsOf<K>& kern, std::uint32_t act) {
+  const unsigned w = kern.path == SimdPath::avx512 ? 8u : 4u;
+  unsigned groups = 0;
+  for (unsigned l = 0; l < 16; l += w) groups += ((act >> l) & ((1u << w) - 1u)) != 0;
+  return 2u * static_cast<unsigned>(__builtin_popcount(act)) >= groups * w;
+}
+
+/// The points of `node` for the rays `act` (at least two), SIMD over the rays: the packet filter
+/// (lanes f, packet_leaf_over_rays) and then each survivor's exact test for each ray that kept it
+/// (RayTraversal::eval_slot), in slot order per ray as eval_points; the lanes of a ray whose
+/// bound moved are refreshed (f and, when over_rays, the child test's `lanes`).
+template <class RT, class K, SpatialIndex I>
+__attribute__((always_inline)) inline void packet_eval_points(const I& index, const KernelsOf<K>& kern, RT* const* st,
+                                                              std::uint32_t act, typename I::Node node,
+                                                              SlotRange range, simd::PointFilterPacketD& f,
+                                                              bool over_rays, simd::SlabPacketF& lanes) {
+  const RT& r0 = *st[__builtin_ctz(act)];
+  auto& scratch = r0.scratch;
+  if (r0.stats) {
+    const unsigned nr = static_cast<unsigned>(__builtin_popcount(act));
+    r0.stats->nodes_visited += nr;
+    r0.stats->points_tested += std::uint64_t{nr} * range.size();
+  }
+  double before[16];
+  for (std::uint32_t m = act; m; m &= m - 1) before[__builtin_ctz(m)] = st[__builtin_ctz(m)]->worst;
+  auto& sel = scratch.sel;
+  auto& rays = scratch.sel_rays;
+  if (sel.size() < range.size()) sel.resize(range.size());
+  if (rays.size() < range.size()) rays.resize(range.size());
+  const double* xyz = position_block(r0.pos, range.begin, range.size(), scratch.block);
+  const unsigned n = kern.packet_point_filter(xyz, range.size(), f, act, sel.data(), rays.data());
+  for (unsigned j = 0; j < n; ++j) {
+    const double* p = xyz + 3 * std::size_t{sel[j]};
+    const Vec3 pv(p[0], p[1], p[2]);
+    for (std::uint32_t m = rays[j]; m; m &= m - 1) {
+      RT& r = *st[__builtin_ctz(m)];
+      if (!r.done) r.eval_slot(range.begin + sel[j], pv, false);
+    }
+  }
+  for (std::uint32_t m = act; m; m &= m - 1) {
+    const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+    const RT& r = *st[i];
+    if (r.worst == before[i]) continue;
+    r.set_filter_lane(f, i);
+    if constexpr (FloatChildBoxes<I>)
+      if (over_rays) set_packet_lane(lanes, r, i);
+  }
+  (void)index;
+  (void)node;
+}
+
 /// The child hits of a packet node: for the nc <= 8 children of `node` and the live rays `act`,
 /// cm[c] = the rays whose node test enters child c, lbc[c][i] = ray i's lower bound of it;
 /// returns the mask of children entered by any ray. SIMD over the rays when over_rays (the lanes
@@ -214,6 +294,8 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
   if (root.mask) stack.push_back(root);
   alignas(64) simd::SlabPacketF lanes;
   const bool over_rays = packet_lanes_over_rays<RT, K, I>(kern, st, root.mask, lanes);
+  alignas(64) simd::PointFilterPacketD filters;
+  const bool leaf_over_rays = root.mask && packet_leaf_over_rays<RT, K>(kern, st, root.mask, filters);
   double lbc[8][N];     // lbc[c][i]: ray i's bound of child c
   std::uint32_t cm[8];  // cm[c]: the rays that hit child c
   while (!stack.empty()) {
@@ -227,17 +309,31 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
     if (!act) continue;
     if ((act & (act - 1)) == 0) {  // one ray left: diverged, it finishes the subtree alone
       const unsigned i = static_cast<unsigned>(__builtin_ctz(act));
-      st[i]->traverse_from(e.node, e.lb[i]);
-      continue;
-    }
-    for (std::uint32_t m = act; m; m &= m - 1) {
-      const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
       RT& r = *st[i];
       const double before = r.worst;
-      r.enter_node(e.node);
-      r.eval_points(e.node);
+      r.traverse_from(e.node, e.lb[i]);
+      // (The ray may still be in entries below: its lanes follow its bound, as after its leaves.)
+      if (before == r.worst) continue;
+      if (leaf_over_rays) r.set_filter_lane(filters, i);
       if constexpr (FloatChildBoxes<I>)
-        if (over_rays && r.worst != before) set_packet_lane(lanes, r, i);
+        if (over_rays) set_packet_lane(lanes, r, i);
+      continue;
+    }
+    const SlotRange range = index.node_points(e.node);
+    if (leaf_over_rays && range.size() >= 4 && packet_leaf_pays<K>(kern, act)) {
+      packet_eval_points<RT, K>(index, kern, st, act, e.node, range, filters, over_rays, lanes);
+    } else {
+      for (std::uint32_t m = act; m; m &= m - 1) {
+        const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
+        RT& r = *st[i];
+        const double before = r.worst;
+        r.enter_node(e.node);
+        r.eval_points(e.node);
+        if (before == r.worst) continue;
+        if (leaf_over_rays) r.set_filter_lane(filters, i);
+        if constexpr (FloatChildBoxes<I>)
+          if (over_rays) set_packet_lane(lanes, r, i);
+      }
     }
     const unsigned nc = index.child_count(e.node);
     if (nc == 0) continue;

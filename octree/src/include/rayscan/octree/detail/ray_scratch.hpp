@@ -56,6 +56,7 @@ struct RayScratch {
   std::size_t top = 0;
   std::vector<Candidate> cands;
   std::vector<std::uint32_t> sel;  // survivors of the SIMD point filter (local slot offsets)
+  std::vector<std::uint32_t> sel_rays;  // packet point filter: each survivor's rays (a mask)
   std::vector<Vec3> block;         // a leaf's positions decoded for the filter (compact encodings)
 };
 

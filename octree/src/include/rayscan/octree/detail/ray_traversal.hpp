@@ -220,6 +220,18 @@ struct RayTraversal {
     if (bounded && !ray_order) sr.enter_max = sr_box.enter_max = round_float_up(worst + tol);
   }
 
+  /// Sets lane i of a packet's point filter constants to this ray's (pf; first_hit_packet's leaf
+  /// test over the rays, which needs the plain filter: no per-point radii or normals).
+  void set_filter_lane(simd::PointFilterPacketD& f, unsigned i) const {
+    for (int a = 0; a < 3; ++a) {
+      f.o[a][i] = pf.o[a];
+      f.d[a][i] = pf.d[a];
+    }
+    f.d2_max[i] = pf.d2_max;
+    f.t_lo[i] = pf.t_lo;
+    f.t_hi[i] = pf.t_hi;
+  }
+
   /// Per-node radius policy: pad becomes the node's own bound (never above the query radius).
   void set_node_pad([[maybe_unused]] Node n) {
     if constexpr (per_node) {
@@ -379,6 +391,48 @@ struct RayTraversal {
     }
   }
 
+  /// The exact test of the point in slot s and its push (push_candidate) when it qualifies.
+  /// p: the position of slot s (pos[s], bit for bit: from the SIMD filter's decoded block, so a
+  /// compact encoding is decoded once per leaf, not again per survivor).
+  /// radius_filtered: the point passed the SIMD filter with the policy's per-slot radii, which
+  /// already made reject()'s test (up to the filter's slack; the key functor decides exactly).
+  __attribute__((always_inline)) void eval_slot(std::uint32_t s, const Vec3& p, bool radius_filtered) {
+    if constexpr (KeyPolicy::refines && requires { key_policy.key.exact_key(s, PointIndex{}, p); }) {
+      // A key that decides alone (RefinedKey, exact_key): no projection terms, sphere key or
+      // base-key tests before it; the terms only for a point it keeps (RayHit::t, distance).
+      if (!has_planes && sphere) {
+        const PointIndex id = ids[s];
+        const double key = key_policy.key.exact_key(s, id, p);
+        if (!(key <= worst) || !(key < kInf)) return;
+        const RayPointTerms pt = ray_point_terms(o, d, p);
+        push_candidate({key, id, s, sphere ? sphere_entry(pt.t, pt.d2, radius) : pt.t, pt.d2});
+        return;
+      }
+    }
+    const RayPointTerms pt = ray_point_terms(o, d, p);
+    if (pt.d2 > r2) return;
+    if constexpr (KeyPolicy::refines) {
+      // The policy's early rejection by storage slot (RefinedKey), before any per-point work.
+      if constexpr (requires { key_policy.key.reject(s, pt.d2); })
+        if (!radius_filtered && key_policy.key.reject(s, pt.d2)) return;
+    }
+    const double t = sphere ? sphere_entry(pt.t, pt.d2, radius) : pt.t;
+    if (t < q.t_min || t > q.t_max) return;
+    if (has_planes) {
+      bool inside = true;
+      for (const Plane& pl : q.planes)
+        if (dist_plane(pl.point, pl.normal, p) > 0.0) { inside = false; break; }
+      if (!inside) return;
+    }
+    double key = ray_order ? std::sqrt(pt.d2) : t;
+    if (key > worst) return;
+    if constexpr (KeyPolicy::refines) {
+      key = key_policy.key(ids[s], pt.t, pt.d2, key);
+      if (!(key <= worst) || !(key < kInf)) return;
+    }
+    push_candidate({key, ids[s], s, t, pt.d2});
+  }
+
   /// Leaf work: the points stored at node n (every node of a layered octree holds some).
   __attribute__((always_inline)) void eval_points(Node n) {
     const SlotRange range = index.node_points(n);
@@ -386,46 +440,6 @@ struct RayTraversal {
       ++stats->nodes_visited;
       stats->points_tested += range.size();
     }
-    // p: the position of slot s (pos[s], bit for bit: from the SIMD filter's decoded block, so a
-    // compact encoding is decoded once per leaf, not again per survivor).
-    // radius_filtered: the point passed the SIMD filter with the policy's per-slot radii, which
-    // already made reject()'s test (up to the filter's slack; the key functor decides exactly).
-    auto eval_slot = [&](std::uint32_t s, const Vec3& p, bool radius_filtered) __attribute__((always_inline)) {
-      if constexpr (KeyPolicy::refines && requires { key_policy.key.exact_key(s, PointIndex{}, p); }) {
-        // A key that decides alone (RefinedKey, exact_key): no projection terms, sphere key or
-        // base-key tests before it; the terms only for a point it keeps (RayHit::t, distance).
-        if (!has_planes && sphere) {
-          const PointIndex id = ids[s];
-          const double key = key_policy.key.exact_key(s, id, p);
-          if (!(key <= worst) || !(key < kInf)) return;
-          const RayPointTerms pt = ray_point_terms(o, d, p);
-          push_candidate({key, id, s, sphere ? sphere_entry(pt.t, pt.d2, radius) : pt.t, pt.d2});
-          return;
-        }
-      }
-      const RayPointTerms pt = ray_point_terms(o, d, p);
-      if (pt.d2 > r2) return;
-      if constexpr (KeyPolicy::refines) {
-        // The policy's early rejection by storage slot (RefinedKey), before any per-point work.
-        if constexpr (requires { key_policy.key.reject(s, pt.d2); })
-          if (!radius_filtered && key_policy.key.reject(s, pt.d2)) return;
-      }
-      const double t = sphere ? sphere_entry(pt.t, pt.d2, radius) : pt.t;
-      if (t < q.t_min || t > q.t_max) return;
-      if (has_planes) {
-        bool inside = true;
-        for (const Plane& pl : q.planes)
-          if (dist_plane(pl.point, pl.normal, p) > 0.0) { inside = false; break; }
-        if (!inside) return;
-      }
-      double key = ray_order ? std::sqrt(pt.d2) : t;
-      if (key > worst) return;
-      if constexpr (KeyPolicy::refines) {
-        key = key_policy.key(ids[s], pt.t, pt.d2, key);
-        if (!(key <= worst) || !(key < kInf)) return;
-      }
-      push_candidate({key, ids[s], s, t, pt.d2});
-    };
     if (has_kernel(kern.point_filter) && range.size() >= 4) {
       // SIMD filter, then the exact test on the survivors only (in slot order, as below).
       auto& sel = scratch.sel;

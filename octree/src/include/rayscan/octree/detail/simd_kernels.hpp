@@ -33,6 +33,7 @@ struct Avx2Kernels {
   static constexpr SortKeys8Fn sort_keys8 = kernels::sort_keys8_avx2;
   static constexpr SortPushKeys8Fn sort_push_keys8 = kernels::sort_push_keys8_avx2;
   static constexpr RayBoxFn ray_box = kernels::ray_box_avx2;
+  static constexpr PacketPointFilterFn packet_point_filter = kernels::packet_point_filter_avx2;
 };
 
 /// Compile-time kernel policy of the AVX-512 (F + VL) path: the child tests stay 8-wide (an octree
@@ -48,6 +49,7 @@ struct Avx512Kernels {
   static constexpr SortKeys8Fn sort_keys8 = kernels::sort_keys8_avx2;
   static constexpr SortPushKeys8Fn sort_push_keys8 = kernels::sort_push_keys8_avx512;
   static constexpr RayBoxFn ray_box = kernels::ray_box_avx2;
+  static constexpr PacketPointFilterFn packet_point_filter = kernels::packet_point_filter_avx512;
 };
 #endif
 

@@ -383,6 +383,44 @@ inline __attribute__((target("avx2,fma"))) unsigned point_filter_avx2(const doub
   return f.radii ? point_filter_avx2_impl<true>(xyz, count, f, out) : point_filter_avx2_impl<false>(xyz, count, f, out);
 }
 
+// PacketPointFilterFn (simd.hpp) on AVX2: each point broadcast against the rays in groups of 4
+// lanes (only the groups holding a ray of `rays`), with filter_step4's expressions in its order.
+inline __attribute__((target("avx2,fma"))) unsigned packet_point_filter_avx2(const double* xyz, unsigned count,
+                                                                             const PointFilterPacketD& f,
+                                                                             std::uint32_t rays, std::uint32_t* idx,
+                                                                             std::uint32_t* masks) {
+  unsigned group[4], ng = 0;
+  for (unsigned g = 0; g < 4; ++g)
+    if ((rays >> (4 * g)) & 0xFu) group[ng++] = 4 * g;
+  unsigned n = 0;
+  for (unsigned j = 0; j < count; ++j) {
+    const double* p = xyz + 3 * static_cast<std::size_t>(j);
+    const __m256d px = _mm256_broadcast_sd(p), py = _mm256_broadcast_sd(p + 1), pz = _mm256_broadcast_sd(p + 2);
+    std::uint32_t m = 0;
+    for (unsigned k = 0; k < ng; ++k) {
+      const unsigned l = group[k];
+      const __m256d vx = _mm256_sub_pd(px, _mm256_load_pd(f.o[0] + l));
+      const __m256d vy = _mm256_sub_pd(py, _mm256_load_pd(f.o[1] + l));
+      const __m256d vz = _mm256_sub_pd(pz, _mm256_load_pd(f.o[2] + l));
+      const __m256d t = _mm256_fmadd_pd(vz, _mm256_load_pd(f.d[2] + l),
+                                        _mm256_fmadd_pd(vy, _mm256_load_pd(f.d[1] + l),
+                                                        _mm256_mul_pd(vx, _mm256_load_pd(f.d[0] + l))));
+      const __m256d vv = _mm256_fmadd_pd(vz, vz, _mm256_fmadd_pd(vy, vy, _mm256_mul_pd(vx, vx)));
+      const __m256d d2 = _mm256_fnmadd_pd(t, t, vv);
+      const __m256d ok =
+          _mm256_and_pd(_mm256_cmp_pd(d2, _mm256_load_pd(f.d2_max + l), _CMP_LE_OQ),
+                        _mm256_and_pd(_mm256_cmp_pd(t, _mm256_load_pd(f.t_lo + l), _CMP_GE_OQ),
+                                      _mm256_cmp_pd(t, _mm256_load_pd(f.t_hi + l), _CMP_LE_OQ)));
+      m |= static_cast<std::uint32_t>(_mm256_movemask_pd(ok)) << l;
+    }
+    m &= rays;
+    idx[n] = j;
+    masks[n] = m;
+    n += m != 0;
+  }
+  return n;
+}
+
 #endif
 
 }  // namespace rayscan::simd::kernels

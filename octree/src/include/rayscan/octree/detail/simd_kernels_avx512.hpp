@@ -236,6 +236,63 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) void sort_push_keys8
   _mm512_storeu_pd(o, _mm512_permutex2var_pd(lb, _mm512_setr_epi64(0, 8, 1, 9, 2, 10, 3, 11), nd));
   _mm512_storeu_pd(o + 8, _mm512_permutex2var_pd(lb, _mm512_setr_epi64(4, 12, 5, 13, 6, 14, 7, 15), nd));
 }
+// PacketPointFilterFn (simd.hpp) on AVX-512: each point broadcast against the rays in halves of 8
+// lanes (only the halves holding a ray of `rays`), with filter_step8's expressions in its order.
+// One half's constants (lanes l .. l + 7) and the rays of `rays` among them.
+struct PacketHalf8 {
+  __m512d o[3], d[3], d2max, tlo, thi;
+  __mmask8 live;
+};
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline void load_packet_half8(
+    const PointFilterPacketD& f, unsigned l, std::uint32_t rays, PacketHalf8& h) {
+  for (int a = 0; a < 3; ++a) {
+    h.o[a] = _mm512_load_pd(f.o[a] + l);
+    h.d[a] = _mm512_load_pd(f.d[a] + l);
+  }
+  h.d2max = _mm512_load_pd(f.d2_max + l);
+  h.tlo = _mm512_load_pd(f.t_lo + l);
+  h.thi = _mm512_load_pd(f.t_hi + l);
+  h.live = static_cast<__mmask8>(rays >> l);
+}
+// The lanes of half h whose ray may keep the point (px, py, pz) (broadcast).
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline std::uint32_t test_packet_half8(
+    const PacketHalf8& h, __m512d px, __m512d py, __m512d pz) {
+  const __m512d vx = _mm512_sub_pd(px, h.o[0]), vy = _mm512_sub_pd(py, h.o[1]), vz = _mm512_sub_pd(pz, h.o[2]);
+  const __m512d t = _mm512_fmadd_pd(vz, h.d[2], _mm512_fmadd_pd(vy, h.d[1], _mm512_mul_pd(vx, h.d[0])));
+  const __m512d vv = _mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx)));
+  const __m512d d2 = _mm512_fnmadd_pd(t, t, vv);
+  __mmask8 k = _mm512_mask_cmp_pd_mask(h.live, d2, h.d2max, _CMP_LE_OQ);
+  k = _mm512_mask_cmp_pd_mask(k, t, h.tlo, _CMP_GE_OQ);
+  return static_cast<std::uint32_t>(_mm512_mask_cmp_pd_mask(k, t, h.thi, _CMP_LE_OQ));
+}
+template <bool kLo, bool kHi>
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned packet_point_filter8(
+    const double* xyz, unsigned count, const PointFilterPacketD& f, std::uint32_t rays, std::uint32_t* idx,
+    std::uint32_t* masks) {
+  PacketHalf8 lo, hi;
+  if constexpr (kLo) load_packet_half8(f, 0, rays, lo);
+  if constexpr (kHi) load_packet_half8(f, 8, rays, hi);
+  unsigned n = 0;
+  for (unsigned j = 0; j < count; ++j) {
+    const double* p = xyz + 3 * static_cast<std::size_t>(j);
+    const __m512d px = _mm512_set1_pd(p[0]), py = _mm512_set1_pd(p[1]), pz = _mm512_set1_pd(p[2]);
+    std::uint32_t m = 0;
+    if constexpr (kLo) m = test_packet_half8(lo, px, py, pz);
+    if constexpr (kHi) m |= test_packet_half8(hi, px, py, pz) << 8;
+    idx[n] = j;
+    masks[n] = m;
+    n += m != 0;
+  }
+  return n;
+}
+inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned packet_point_filter_avx512(
+    const double* xyz, unsigned count, const PointFilterPacketD& f, std::uint32_t rays, std::uint32_t* idx,
+    std::uint32_t* masks) {
+  const bool lo = (rays & 0xFFu) != 0, hi = (rays & 0xFF00u) != 0;
+  if (lo && hi) return packet_point_filter8<true, true>(xyz, count, f, rays, idx, masks);
+  if (hi) return packet_point_filter8<false, true>(xyz, count, f, rays, idx, masks);
+  return packet_point_filter8<true, false>(xyz, count, f, rays, idx, masks);
+}
 #pragma GCC diagnostic pop  // (also _mm512_cvtps_pd / _mm512_min_pd of the per-point radii)
 #endif
 
