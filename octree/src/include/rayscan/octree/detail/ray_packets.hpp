@@ -5,6 +5,8 @@
 
 #include "rayscan/octree/detail/ray_dispatch.hpp"
 
+#include <cstring>
+
 namespace rayscan::detail {
 
 /// The packet first hit of up to N <= 16 rays (kBest1 policy, OrderKey). One traversal state per
@@ -122,15 +124,14 @@ __attribute__((always_inline)) inline bool packet_leaf_pays(const KernelsOf<K>& 
   return 2u * static_cast<unsigned>(__builtin_popcount(act)) >= groups * w;
 }
 
-/// The points of `node` for the rays `act` (at least two), SIMD over the rays: the packet filter
-/// (lanes f, packet_leaf_over_rays) and then each survivor's exact test for each ray that kept it
-/// (RayTraversal::eval_slot), in slot order per ray as eval_points; the lanes of a ray whose
-/// bound moved are refreshed (f and, when over_rays, the child test's `lanes`).
-template <class RT, class K, SpatialIndex I>
-__attribute__((always_inline)) inline void packet_eval_points(const I& index, const KernelsOf<K>& kern, RT* const* st,
-                                                              std::uint32_t act, typename I::Node node,
-                                                              SlotRange range, simd::PointFilterPacketD& f,
-                                                              bool over_rays, simd::SlabPacketF& lanes) {
+/// The points of a node (slots `range`) for the rays `act` (at least two), SIMD over the rays:
+/// the packet filter (lanes f, packet_leaf_over_rays) and then each survivor's exact test for each
+/// ray that kept it (RayTraversal::eval_slot), in slot order per ray as eval_points. The caller
+/// refreshes the lanes of the rays whose bound moved.
+template <class RT, class K>
+__attribute__((always_inline)) inline void packet_eval_points(const KernelsOf<K>& kern, RT* const* st,
+                                                              std::uint32_t act, SlotRange range,
+                                                              const simd::PointFilterPacketD& f) {
   const RT& r0 = *st[__builtin_ctz(act)];
   auto& scratch = r0.scratch;
   if (r0.stats) {
@@ -138,8 +139,6 @@ __attribute__((always_inline)) inline void packet_eval_points(const I& index, co
     r0.stats->nodes_visited += nr;
     r0.stats->points_tested += std::uint64_t{nr} * range.size();
   }
-  double before[16];
-  for (std::uint32_t m = act; m; m &= m - 1) before[__builtin_ctz(m)] = st[__builtin_ctz(m)]->worst;
   auto& sel = scratch.sel;
   auto& rays = scratch.sel_rays;
   if (sel.size() < range.size()) sel.resize(range.size());
@@ -154,27 +153,29 @@ __attribute__((always_inline)) inline void packet_eval_points(const I& index, co
       if (!r.done) r.eval_slot(range.begin + sel[j], pv, false);
     }
   }
-  for (std::uint32_t m = act; m; m &= m - 1) {
-    const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-    const RT& r = *st[i];
-    if (r.worst == before[i]) continue;
-    r.set_filter_lane(f, i);
-    if constexpr (FloatChildBoxes<I>)
-      if (over_rays) set_packet_lane(lanes, r, i);
-  }
-  (void)index;
-  (void)node;
+}
+
+/// The rays of lanes [0, N) whose bound lb[i] is not above bound[i] (RayTraversal::live with
+/// bound[i] = worst + tol, as a mask; a NaN bound counts as live, as there). Written lane by lane
+/// over the whole packet so that it compiles to vector compares.
+template <unsigned N>
+__attribute__((always_inline)) inline std::uint32_t lanes_live(const double* lb, const double* bound) {
+  std::uint32_t m = 0;
+  for (unsigned i = 0; i < N; ++i) m |= static_cast<std::uint32_t>(!(lb[i] > bound[i])) << i;
+  return m;
 }
 
 /// The child hits of a packet node: for the nc <= 8 children of `node` and the live rays `act`,
 /// cm[c] = the rays whose node test enters child c, lbc[c][i] = ray i's lower bound of it;
 /// returns the mask of children entered by any ray. SIMD over the rays when over_rays (the lanes
 /// of packet_lanes_over_rays), else each ray's test_children.
+/// `bound`: each ray's live() bound (worst + tol; first_hit_packet keeps them per lane).
 template <unsigned N, class RT, class K, SpatialIndex I>
 __attribute__((always_inline)) inline std::uint32_t packet_test_children(
     const I& index, [[maybe_unused]] const KernelsOf<K>& kern, const RayQuery& q, RT* const* st,
     typename I::Node node, unsigned nc, std::uint32_t act, [[maybe_unused]] bool over_rays,
-    [[maybe_unused]] const simd::SlabPacketF& lanes, std::uint32_t* cm, double (*lbc)[N]) {
+    [[maybe_unused]] const simd::SlabPacketF& lanes, [[maybe_unused]] const double* bound, std::uint32_t* cm,
+    double (*lbc)[N]) {
   std::uint32_t any = 0;
   for (unsigned c = 0; c < nc; ++c) cm[c] = 0;
   if constexpr (FloatChildBoxes<I>) {
@@ -185,15 +186,14 @@ __attribute__((always_inline)) inline std::uint32_t packet_test_children(
         kern.packet_child_slab(st[__builtin_ctz(act)]->key_policy.child_boxes_f_of(node), lanes, N, hits, entry);
       else
         kern.packet_child_slab(index.child_boxes_f(node), lanes, N, hits, entry);
-      for (unsigned c = 0; c < nc; ++c)
-        for (std::uint32_t m = hits[c] & act; m; m &= m - 1) {
-          const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-          const double lb = std::max(static_cast<double>(entry[16 * c + i]), q.t_min);  // as test_children
-          if (!st[i]->live(lb)) continue;
-          cm[c] |= 1u << i;
-          lbc[c][i] = lb;
-          any |= 1u << c;
-        }
+      // Every lane's bound (as test_children: the entry raised to t_min) and live() at once; the
+      // lanes outside a child's rays hold values nothing reads.
+      for (unsigned c = 0; c < nc; ++c) {
+        if (!(hits[c] & act)) continue;
+        for (unsigned i = 0; i < N; ++i) lbc[c][i] = std::max(static_cast<double>(entry[16 * c + i]), q.t_min);
+        cm[c] = hits[c] & act & lanes_live<N>(lbc[c], bound);
+        any |= static_cast<std::uint32_t>(cm[c] != 0) << c;
+      }
       return any;
     }
   }
@@ -210,37 +210,38 @@ __attribute__((always_inline)) inline std::uint32_t packet_test_children(
   return any;
 }
 
-/// Pushes one entry per child of `node` in `any` (rays cm[c], bounds lbc[c]) onto `stack`,
-/// far-to-near by the smallest bound of its rays, so that the nearest is popped first.
+/// Pushes one entry per child of `node` in `any` (rays cm[c], bounds lbc[c]: every lane copied)
+/// onto the stack [0, top) of capacity >= top + 8, far-to-near by the smallest bound of its rays,
+/// so that the nearest is popped first; returns the new top.
 template <unsigned N, SpatialIndex I>
-__attribute__((always_inline)) inline void push_packet_children(const I& index, typename I::Node node,
-                                                                std::uint32_t any, const std::uint32_t* cm,
-                                                                const double (*lbc)[N],
-                                                                std::vector<PacketEntry<typename I::Node, N>>& stack) {
-  PacketEntry<typename I::Node, N> kids[8];
+__attribute__((always_inline)) inline std::size_t push_packet_children(const I& index, typename I::Node node,
+                                                                       std::uint32_t any, const std::uint32_t* cm,
+                                                                       const double (*lbc)[N],
+                                                                       PacketEntry<typename I::Node, N>* stack,
+                                                                       std::size_t top) {
+  unsigned order[8];
   double key[8];
   unsigned nk = 0;
   for (; any; any &= any - 1) {
     const unsigned c = static_cast<unsigned>(__builtin_ctz(any));
-    PacketEntry<typename I::Node, N> k;
-    k.node = index.child(node, c);
-    k.mask = cm[c];
     double kmin = kInf;
-    for (std::uint32_t m = cm[c]; m; m &= m - 1) {
-      const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-      k.lb[i] = lbc[c][i];
-      kmin = std::min(kmin, lbc[c][i]);
-    }
+    for (unsigned i = 0; i < N; ++i) kmin = std::min(kmin, (cm[c] >> i) & 1u ? lbc[c][i] : kInf);
     unsigned j = nk++;
-    while (j > 0 && key[j - 1] < kmin) {
-      kids[j] = kids[j - 1];
+    while (j > 0 && key[j - 1] < kmin) {  // descending by bound
+      order[j] = order[j - 1];
       key[j] = key[j - 1];
       --j;
     }
-    kids[j] = k;
+    order[j] = c;
     key[j] = kmin;
   }
-  for (unsigned j = 0; j < nk; ++j) stack.push_back(kids[j]);
+  for (unsigned j = 0; j < nk; ++j) {
+    PacketEntry<typename I::Node, N>& k = stack[top++];
+    k.node = index.child(node, order[j]);
+    k.mask = cm[order[j]];
+    std::memcpy(k.lb, lbc[order[j]], sizeof k.lb);
+  }
+  return top;
 }
 
 template <unsigned N, class K, SpatialIndex I, class KeyPolicy>
@@ -290,66 +291,78 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
       root.mask |= 1u << i;
     }
   }
-  stack.clear();
-  if (root.mask) stack.push_back(root);
   alignas(64) simd::SlabPacketF lanes;
   const bool over_rays = packet_lanes_over_rays<RT, K, I>(kern, st, root.mask, lanes);
   alignas(64) simd::PointFilterPacketD filters;
   const bool leaf_over_rays = root.mask && packet_leaf_over_rays<RT, K>(kern, st, root.mask, filters);
-  double lbc[8][N];     // lbc[c][i]: ray i's bound of child c
+  // Each ray's live() bound (worst + tol: kBest1 is bounded) and the rays that are done (any_hit
+  // answered), per lane, so that a popped entry's and a child's live rays are masks of compares.
+  alignas(64) double bound[N];
+  std::uint32_t done = 0;
+  for (unsigned i = 0; i < N; ++i) bound[i] = (root.mask >> i) & 1u ? st[i]->worst + st[i]->tol : kInf;
+  // After ray i evaluated points (its bound was `before`): its lanes follow its bound.
+  auto follow = [&](unsigned i, double before) __attribute__((always_inline)) {
+    const RT& r = *st[i];
+    done |= static_cast<std::uint32_t>(r.done) << i;
+    if (r.worst == before) return;
+    bound[i] = r.worst + r.tol;
+    if (leaf_over_rays) r.set_filter_lane(filters, i);
+    if constexpr (FloatChildBoxes<I>)
+      if (over_rays) set_packet_lane(lanes, r, i);
+  };
+  alignas(64) double lbc[8][N] = {};  // lbc[c][i]: ray i's bound of child c
   std::uint32_t cm[8];  // cm[c]: the rays that hit child c
-  while (!stack.empty()) {
-    const Entry e = stack.back();
-    stack.pop_back();
-    std::uint32_t act = 0;
-    for (std::uint32_t m = e.mask; m; m &= m - 1) {
-      const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-      if (!st[i]->done && st[i]->live(e.lb[i])) act |= 1u << i;  // (done: any_hit answered)
-    }
+  // The node stack: entries [0, top) of the thread's vector, whose size is the capacity (grown
+  // before a node's pushes).
+  for (unsigned i = 0; i < N; ++i)
+    if (!((root.mask >> i) & 1u)) root.lb[i] = 0.0;  // (every lane defined: whole rows are copied)
+  if (stack.size() < 64) stack.resize(64);
+  std::size_t top = 0;
+  if (root.mask) stack[top++] = root;
+  while (top > 0) {
+    const Entry& e = stack[--top];  // (read before any push overwrites it)
+    const Node node = e.node;
+    const std::uint32_t act = e.mask & ~done & lanes_live<N>(e.lb, bound);
     if (!act) continue;
     if ((act & (act - 1)) == 0) {  // one ray left: diverged, it finishes the subtree alone
       const unsigned i = static_cast<unsigned>(__builtin_ctz(act));
       RT& r = *st[i];
       const double before = r.worst;
-      r.traverse_from(e.node, e.lb[i]);
-      // (The ray may still be in entries below: its lanes follow its bound, as after its leaves.)
-      if (before == r.worst) continue;
-      if (leaf_over_rays) r.set_filter_lane(filters, i);
-      if constexpr (FloatChildBoxes<I>)
-        if (over_rays) set_packet_lane(lanes, r, i);
+      r.traverse_from(node, e.lb[i]);
+      follow(i, before);  // (the ray may still be in entries below)
       continue;
     }
-    const SlotRange range = index.node_points(e.node);
+    double before[N];
+    for (std::uint32_t m = act; m; m &= m - 1) before[__builtin_ctz(m)] = st[__builtin_ctz(m)]->worst;
+    const SlotRange range = index.node_points(node);
     if (leaf_over_rays && range.size() >= 4 && packet_leaf_pays<K>(kern, act)) {
-      packet_eval_points<RT, K>(index, kern, st, act, e.node, range, filters, over_rays, lanes);
+      packet_eval_points<RT, K>(kern, st, act, range, filters);
     } else {
       for (std::uint32_t m = act; m; m &= m - 1) {
-        const unsigned i = static_cast<unsigned>(__builtin_ctz(m));
-        RT& r = *st[i];
-        const double before = r.worst;
-        r.enter_node(e.node);
-        r.eval_points(e.node);
-        if (before == r.worst) continue;
-        if (leaf_over_rays) r.set_filter_lane(filters, i);
-        if constexpr (FloatChildBoxes<I>)
-          if (over_rays) set_packet_lane(lanes, r, i);
+        RT& r = *st[__builtin_ctz(m)];
+        r.enter_node(node);
+        r.eval_points(node);
       }
     }
-    const unsigned nc = index.child_count(e.node);
+    for (std::uint32_t m = act; m; m &= m - 1) follow(__builtin_ctz(m), before[__builtin_ctz(m)]);
+    const unsigned nc = index.child_count(node);
     if (nc == 0) continue;
     if (nc > 8) {  // (no index here has more than 8 children): each ray alone below this node
-      for (std::uint32_t m = act; m; m &= m - 1) {
+      for (std::uint32_t m = act & ~done; m; m &= m - 1) {
         RT& r = *st[__builtin_ctz(m)];
+        const double was = r.worst;
         for (unsigned c = 0; c < nc; ++c) {
           double lb;
-          if (r.test_child(index.child(e.node, c), lb)) r.traverse_from(index.child(e.node, c), lb);
+          if (r.test_child(index.child(node, c), lb)) r.traverse_from(index.child(node, c), lb);
         }
+        follow(__builtin_ctz(m), was);
       }
       continue;
     }
-    const std::uint32_t any =
-        packet_test_children<N, RT, K>(index, kern, q, st, e.node, nc, act, over_rays, lanes, cm, lbc);
-    push_packet_children<N>(index, e.node, any, cm, lbc, stack);
+    if (top + 8 > stack.size()) stack.resize(stack.size() * 2);
+    const std::uint32_t any = packet_test_children<N, RT, K>(index, kern, q, st, node, nc, act & ~done, over_rays,
+                                                             lanes, bound, cm, lbc);
+    top = push_packet_children<N>(index, node, any, cm, lbc, stack.data(), top);
   }
   std::uint32_t found = 0;
   for (std::uint32_t m = states.made; m; m &= m - 1)
