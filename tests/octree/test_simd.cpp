@@ -178,7 +178,7 @@ TEST(Simd, RootKernelNeverRejectsWhatTheRootTestAccepts) {
     const simd::Kernels& k = simd::active_kernels();
     std::mt19937_64 rng(35);
     std::uniform_real_distribution<double> u(0.0, 1.0);
-    std::size_t kept = 0, missed = 0, within_tolerance = 0, answer = 0;
+    std::size_t kept = 0, missed = 0, within_tolerance = 0, answer = 0, packet_lanes = 0;
     for (int cloud = 0; cloud < 200; ++cloud) {
       const double size = cloud % 5 == 0 ? 1e-3 : cloud % 5 == 1 ? 300.0 : 1.0;
       const Vec3 offset = cloud % 3 == 0 ? Vec3(4.5e5, 5.3e6, 120.0) : cloud % 3 == 1 ? Vec3(-2.0, 0.5, 1e3) : Vec3(0.0);
@@ -246,6 +246,23 @@ TEST(Simd, RootKernelNeverRejectsWhatTheRootTestAccepts) {
           }
         }
       }
+      // The packet root test (SIMD over up to 16 rays): lane by lane the single-ray kernel's answer.
+      if (k.ray_box && k.packet_ray_box && q.radius < kInf) {
+        for (std::size_t first = 0; first < rays.size(); first += 16) {
+          const unsigned n = static_cast<unsigned>(std::min<std::size_t>(16 - cloud % 3, rays.size() - first));
+          const std::uint32_t got = k.packet_ray_box(&b.lo.x, &b.hi.x, &rays[first].origin().x,
+                                                     &rays[first].direction().x, sizeof(Ray) / sizeof(double), n,
+                                                     q.radius, q.t_min, q.t_max + q.radius);
+          ASSERT_EQ(got >> n, 0u) << to_string(path) << ": a bit past the packet";
+          for (unsigned i = 0; i < n; ++i) {
+            const Ray& r = rays[first + i];
+            const bool one = k.ray_box(&b.lo.x, &b.hi.x, &r.origin().x, &r.direction().x, q.radius, q.t_min,
+                                       q.t_max + q.radius);
+            ASSERT_EQ(((got >> i) & 1u) != 0, one) << to_string(path) << " cloud " << cloud << " ray " << first + i;
+            ++packet_lanes;
+          }
+        }
+      }
       // End to end: single rays, pairs and packets answer as the scalar path (no root kernel).
       std::vector<std::optional<RayHit>> each(rays.size()), packet(rays.size());
       ray_first_hit_each(oc, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(each));
@@ -266,6 +283,7 @@ TEST(Simd, RootKernelNeverRejectsWhatTheRootTestAccepts) {
     EXPECT_GT(kept, 4000u) << to_string(path);
     EXPECT_GT(missed, 1500u) << to_string(path);
     EXPECT_GT(within_tolerance, 50u) << to_string(path);  // rays the tolerance alone lets in were reached
+    if (k.packet_ray_box) EXPECT_GT(packet_lanes, 4000u) << to_string(path);
   }
 }
 

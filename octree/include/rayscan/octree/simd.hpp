@@ -222,6 +222,13 @@ using ChildDist2KeysFn = unsigned (*)(const ChildBoxesF& boxes, const float* q, 
 using RayBoxFn = bool (*)(const double* lo, const double* hi, const double* o, const double* d, double pad,
                           double t_lo, double t_hi);
 
+/// RayBoxFn for the n <= 16 rays of a packet at once: bit i of the result is set when RayBoxFn
+/// would return true for ray i (the same expressions lane by lane), whose origin is the 3 doubles
+/// at o + i * stride and whose direction those at d + i * stride (stride in doubles; e.g. an
+/// array of Ray). Bits from n on are 0.
+using PacketRayBoxFn = std::uint32_t (*)(const double* lo, const double* hi, const double* o, const double* d,
+                                         std::size_t stride, unsigned n, double pad, double t_lo, double t_hi);
+
 /// The kernels of one path.
 struct Kernels {
   SimdPath path;
@@ -235,6 +242,7 @@ struct Kernels {
   SortPushKeys8Fn sort_push_keys8;      ///< nullptr for the scalar and sse2 paths
   RayBoxFn ray_box;                     ///< nullptr for the scalar and sse2 paths
   PacketPointFilterFn packet_point_filter;  ///< nullptr for the scalar and sse2 paths
+  PacketRayBoxFn packet_ray_box;            ///< AVX-512 only (else nullptr: ray_box per ray)
 };
 
 /// The kernels of the active path (simd_path()).

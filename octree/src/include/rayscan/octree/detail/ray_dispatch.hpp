@@ -17,14 +17,21 @@ namespace rayscan::detail {
 /// only RayQueryStats may count the root for a ray within the kernel's wider margin. Most of
 /// bench_rays' camera misses (~47% of its rays) are decided here: 356 -> 183 instructions each,
 /// and hits no slower (bench/notes/). KeyPolicy: the traversal's.
+/// Whether root_test decides by the ray_box kernel for query q (else it answers exact).
+template <class K, class KeyPolicy>
+__attribute__((always_inline)) inline bool root_kernel_applies(const KernelsOf<K>& kern, const RayQuery& q) {
+  if (!has_kernel(kern.ray_box) || !(q.radius < kInf)) return false;
+  // (Per-node radii with order ray: the traversal's constructor refuses the query, for every ray.)
+  if constexpr (KeyPolicy::node_radius)
+    if (q.order == RayOrder::ray) return false;
+  return true;
+}
+
 template <class K, class KeyPolicy, SpatialIndex I>
 __attribute__((always_inline)) inline RootTest root_test(const KernelsOf<K>& kern, const I& index, const Ray& ray,
                                                          const RayQuery& q) {
   static_assert(sizeof(Vec3) == 3 * sizeof(double));  // (the kernel reads 3 doubles from &v.x)
-  if (!has_kernel(kern.ray_box) || !(q.radius < kInf)) return RootTest::exact;
-  // (Per-node radii with order ray: the traversal's constructor refuses the query, for every ray.)
-  if constexpr (KeyPolicy::node_radius)
-    if (q.order == RayOrder::ray) return RootTest::exact;
+  if (!root_kernel_applies<K, KeyPolicy>(kern, q)) return RootTest::exact;
   const AABB b = index.node_bounds(index.root());
   // t_max + radius bounds the traversal's t_hi for every order (sphere keys: t_p <= key + r).
   return kern.ray_box(&b.lo.x, &b.hi.x, &ray.origin().x, &ray.direction().x, q.radius, q.t_min, q.t_max + q.radius)

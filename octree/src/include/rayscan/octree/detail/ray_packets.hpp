@@ -88,6 +88,16 @@ __attribute__((always_inline)) inline bool packet_lanes_over_rays([[maybe_unused
   return false;
 }
 
+/// Whether kernel policy K may have the packet root test (the run-time table, or a compile-time
+/// policy whose packet_ray_box is not null), so that no call through a null constant is compiled.
+template <class K>
+inline constexpr bool kMayHavePacketRayBox = [] {
+  if constexpr (std::is_same_v<K, simd::Kernels>)
+    return true;
+  else
+    return K::packet_ray_box != nullptr;
+}();
+
 /// first_hit_packet's leaf test policy: true (and `f` filled: lane i of each ray of `mask`, the
 /// other lanes a filter nothing passes) when a node's points may be filtered SIMD over the rays
 /// (packet_point_filter), which needs every ray's point filter plain (no per-point radii or
@@ -279,10 +289,24 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
   // The rays share the thread's scratch, fetched once (a thread_local read per ray costs a guard
   // and, in the per-ISA instances, spills around it: ray_traverse_avx512).
   RayScratch<Node>* const scratch = &ray_scratch<Node>();
+  // The root test of every ray at once where the path has the packet kernel (the same test as
+  // root_test's ray_box, SIMD over the rays: most of a camera's misses end here).
+  std::uint32_t root_in = ~0u;
+  bool root_by_packet = false;
+  if constexpr (kMayHavePacketRayBox<K>) {
+    if (has_kernel(kern.packet_ray_box) && root_kernel_applies<K, KeyPolicy>(kern, q)) {
+      static_assert(sizeof(Ray) % sizeof(double) == 0);
+      const AABB b = index.node_bounds(index.root());
+      root_in = kern.packet_ray_box(&b.lo.x, &b.hi.x, &rays[0].origin().x, &rays[0].direction().x,
+                                    sizeof(Ray) / sizeof(double), n, q.radius, q.t_min, q.t_max + q.radius);
+      root_by_packet = true;
+    }
+  }
   for (unsigned i = 0; i < n; ++i) {
     // As ray_traverse: a ray that root_test finds missing is never set up, one that misses the
     // root is never prepared, nor read again.
-    const RootTest rtest = root_test<K, KeyPolicy>(kern, index, rays[i], q);
+    if (!((root_in >> i) & 1u)) continue;
+    const RootTest rtest = root_by_packet ? RootTest::enter : root_test<K, KeyPolicy>(kern, index, rays[i], q);
     if (rtest == RootTest::miss) continue;
     st[i] = ::new (static_cast<void*>(states.buf[i])) RT(index, rays[i], q, best[i], stats, key_of(i), scratch);
     states.made |= 1u << i;

@@ -34,6 +34,7 @@ struct Avx2Kernels {
   static constexpr SortPushKeys8Fn sort_push_keys8 = kernels::sort_push_keys8_avx2;
   static constexpr RayBoxFn ray_box = kernels::ray_box_avx2;
   static constexpr PacketPointFilterFn packet_point_filter = kernels::packet_point_filter_avx2;
+  static constexpr PacketRayBoxFn packet_ray_box = nullptr;
 };
 
 /// Compile-time kernel policy of the AVX-512 (F + VL) path: the child tests stay 8-wide (an octree
@@ -50,6 +51,7 @@ struct Avx512Kernels {
   static constexpr SortPushKeys8Fn sort_push_keys8 = kernels::sort_push_keys8_avx512;
   static constexpr RayBoxFn ray_box = kernels::ray_box_avx2;
   static constexpr PacketPointFilterFn packet_point_filter = kernels::packet_point_filter_avx512;
+  static constexpr PacketRayBoxFn packet_ray_box = kernels::packet_ray_box_avx512;
 };
 #endif
 

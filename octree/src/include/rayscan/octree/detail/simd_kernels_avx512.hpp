@@ -293,6 +293,46 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned packet_poin
   if (hi) return packet_point_filter8<false, true>(xyz, count, f, rays, idx, masks);
   return packet_point_filter8<true, false>(xyz, count, f, rays, idx, masks);
 }
+// PacketRayBoxFn (simd.hpp) on AVX-512: ray_box_avx2's expressions with the rays in the lanes
+// (8 per register; the axes one after the other), the origins and directions gathered.
+inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) std::uint32_t packet_ray_box_avx512(
+    const double* lo, const double* hi, const double* o, const double* d, std::size_t stride, unsigned n, double pad,
+    double t_lo, double t_hi) {
+  double box_mag = 0.0;  // (the largest of exact magnitudes: the same whatever the order)
+  for (int a = 0; a < 3; ++a) box_mag = std::max({box_mag, std::abs(lo[a]), std::abs(hi[a])});
+  const __m512i abs_mask = _mm512_set1_epi64(0x7FFFFFFFFFFFFFFFLL);
+  const long long s = static_cast<long long>(stride);
+  const __m512i idx = _mm512_setr_epi64(0, s, 2 * s, 3 * s, 4 * s, 5 * s, 6 * s, 7 * s);
+  const double inf = std::numeric_limits<double>::infinity();
+  std::uint32_t out = 0;
+  for (unsigned h = 0; h < n && h < 16; h += 8) {
+    const __mmask8 live = static_cast<__mmask8>(n - h >= 8 ? 0xFFu : (1u << (n - h)) - 1u);
+    __m512d vo[3], vd[3];
+    for (int a = 0; a < 3; ++a) {  // (lanes past n: origin 0, direction 1)
+      vo[a] = _mm512_mask_i64gather_pd(_mm512_setzero_pd(), live, idx, o + h * stride + a, 8);
+      vd[a] = _mm512_mask_i64gather_pd(_mm512_set1_pd(1.0), live, idx, d + h * stride + a, 8);
+    }
+    __m512d mag = _mm512_set1_pd(box_mag);
+    for (int a = 0; a < 3; ++a)
+      mag = _mm512_max_pd(mag, _mm512_castsi512_pd(_mm512_and_si512(_mm512_castpd_si512(vo[a]), abs_mask)));
+    // node_test_tolerance_bound(mag) = 2^-26 mag + 1e-299 (a product, then a sum: no fused step).
+    const __m512d tol = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(0x1p-26), mag), _mm512_set1_pd(1e-299));
+    const __m512d grow = _mm512_add_pd(_mm512_set1_pd(pad), tol);
+    __m512d near = _mm512_set1_pd(-inf), far = _mm512_set1_pd(inf);
+    for (int a = 0; a < 3; ++a) {
+      const __m512d inv = _mm512_div_pd(_mm512_set1_pd(1.0), vd[a]);
+      const __m512d ta = _mm512_mul_pd(_mm512_sub_pd(_mm512_set1_pd(lo[a]), _mm512_add_pd(vo[a], grow)), inv);
+      const __m512d tb = _mm512_mul_pd(_mm512_sub_pd(_mm512_set1_pd(hi[a]), _mm512_sub_pd(vo[a], grow)), inv);
+      const __mmask8 skip = _mm512_cmp_pd_mask(ta, tb, _CMP_UNORD_Q);  // NaN in either: the axis says nothing
+      near = _mm512_max_pd(near, _mm512_mask_blend_pd(skip, _mm512_min_pd(ta, tb), _mm512_set1_pd(-inf)));
+      far = _mm512_min_pd(far, _mm512_mask_blend_pd(skip, _mm512_max_pd(ta, tb), _mm512_set1_pd(inf)));
+    }
+    const __m512d t_near = _mm512_max_pd(near, _mm512_sub_pd(_mm512_set1_pd(t_lo), tol));
+    const __m512d t_far = _mm512_min_pd(far, _mm512_add_pd(_mm512_set1_pd(t_hi), tol));
+    out |= static_cast<std::uint32_t>(_mm512_mask_cmp_pd_mask(live, t_near, t_far, _CMP_NGT_UQ)) << h;
+  }
+  return out;
+}
 #pragma GCC diagnostic pop  // (also _mm512_cvtps_pd / _mm512_min_pd of the per-point radii)
 #endif
 
