@@ -168,11 +168,28 @@ __attribute__((always_inline)) inline void packet_eval_points(const KernelsOf<K>
 /// The rays of lanes [0, N) whose bound lb[i] is not above bound[i] (RayTraversal::live with
 /// bound[i] = worst + tol, as a mask; a NaN bound counts as live, as there). Written lane by lane
 /// over the whole packet so that it compiles to vector compares.
-template <unsigned N>
+template <unsigned N, class K>
 __attribute__((always_inline)) inline std::uint32_t lanes_live(const double* lb, const double* bound) {
-  std::uint32_t m = 0;
-  for (unsigned i = 0; i < N; ++i) m |= static_cast<std::uint32_t>(!(lb[i] > bound[i])) << i;
-  return m;
+  if constexpr (N == 16 && requires { K::lanes_not_above16; }) {
+    return K::lanes_not_above16(lb, bound);
+  } else {
+    std::uint32_t m = 0;
+    for (unsigned i = 0; i < N; ++i) m |= static_cast<std::uint32_t>(!(lb[i] > bound[i])) << i;
+    return m;
+  }
+}
+
+/// The least v[i] over the lanes i < N of `mask` (+inf for none; any order of the minima: it
+/// only orders the children's pushes).
+template <unsigned N, class K>
+__attribute__((always_inline)) inline double masked_min(const double* v, std::uint32_t mask) {
+  if constexpr (N == 16 && requires { K::masked_min16; }) {
+    return K::masked_min16(v, mask);
+  } else {
+    double r = kInf;
+    for (unsigned i = 0; i < N; ++i) r = std::min(r, (mask >> i) & 1u ? v[i] : kInf);
+    return r;
+  }
 }
 
 /// The child hits of a packet node: for the nc <= 8 children of `node` and the live rays `act`,
@@ -201,7 +218,7 @@ __attribute__((always_inline)) inline std::uint32_t packet_test_children(
       for (unsigned c = 0; c < nc; ++c) {
         if (!(hits[c] & act)) continue;
         for (unsigned i = 0; i < N; ++i) lbc[c][i] = std::max(static_cast<double>(entry[16 * c + i]), q.t_min);
-        cm[c] = hits[c] & act & lanes_live<N>(lbc[c], bound);
+        cm[c] = hits[c] & act & lanes_live<N, K>(lbc[c], bound);
         any |= static_cast<std::uint32_t>(cm[c] != 0) << c;
       }
       return any;
@@ -223,7 +240,7 @@ __attribute__((always_inline)) inline std::uint32_t packet_test_children(
 /// Pushes one entry per child of `node` in `any` (rays cm[c], bounds lbc[c]: every lane copied)
 /// onto the stack [0, top) of capacity >= top + 8, far-to-near by the smallest bound of its rays,
 /// so that the nearest is popped first; returns the new top.
-template <unsigned N, SpatialIndex I>
+template <unsigned N, class K, SpatialIndex I>
 __attribute__((always_inline)) inline std::size_t push_packet_children(const I& index, typename I::Node node,
                                                                        std::uint32_t any, const std::uint32_t* cm,
                                                                        const double (*lbc)[N],
@@ -234,8 +251,7 @@ __attribute__((always_inline)) inline std::size_t push_packet_children(const I& 
   unsigned nk = 0;
   for (; any; any &= any - 1) {
     const unsigned c = static_cast<unsigned>(__builtin_ctz(any));
-    double kmin = kInf;
-    for (unsigned i = 0; i < N; ++i) kmin = std::min(kmin, (cm[c] >> i) & 1u ? lbc[c][i] : kInf);
+    const double kmin = masked_min<N, K>(lbc[c], cm[c]);
     unsigned j = nk++;
     while (j > 0 && key[j - 1] < kmin) {  // descending by bound
       order[j] = order[j - 1];
@@ -346,7 +362,7 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
   while (top > 0) {
     const Entry& e = stack[--top];  // (read before any push overwrites it)
     const Node node = e.node;
-    const std::uint32_t act = e.mask & ~done & lanes_live<N>(e.lb, bound);
+    const std::uint32_t act = e.mask & ~done & lanes_live<N, K>(e.lb, bound);
     if (!act) continue;
     if ((act & (act - 1)) == 0) {  // one ray left: diverged, it finishes the subtree alone
       const unsigned i = static_cast<unsigned>(__builtin_ctz(act));
@@ -386,7 +402,7 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
     if (top + 8 > stack.size()) stack.resize(stack.size() * 2);
     const std::uint32_t any = packet_test_children<N, RT, K>(index, kern, q, st, node, nc, act & ~done, over_rays,
                                                              lanes, bound, cm, lbc);
-    top = push_packet_children<N>(index, node, any, cm, lbc, stack.data(), top);
+    top = push_packet_children<N, K>(index, node, any, cm, lbc, stack.data(), top);
   }
   std::uint32_t found = 0;
   for (std::uint32_t m = states.made; m; m &= m - 1)

@@ -383,6 +383,39 @@ inline __attribute__((target("avx2,fma"))) unsigned point_filter_avx2(const doub
   return f.radii ? point_filter_avx2_impl<true>(xyz, count, f, out) : point_filter_avx2_impl<false>(xyz, count, f, out);
 }
 
+// The largest / least of the four lanes of v, in every lane.
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d lanes_max4(__m256d v) {
+  v = _mm256_max_pd(v, _mm256_permute4x64_pd(v, 0x4E));
+  return _mm256_max_pd(v, _mm256_permute_pd(v, 0x5));
+}
+__attribute__((target("avx2,fma"), always_inline)) inline __m256d lanes_min4(__m256d v) {
+  v = _mm256_min_pd(v, _mm256_permute4x64_pd(v, 0x4E));
+  return _mm256_min_pd(v, _mm256_permute_pd(v, 0x5));
+}
+
+// The packet loop's lane helpers on AVX2 (first_hit_packet with 16 rays): the lanes i < 16
+// where !(lb[i] > bound[i]), as bits; and the least v[i] over the lanes of `mask` (+inf for none;
+// any order of the minima: it only orders pushes).
+inline __attribute__((target("avx2,fma"))) std::uint32_t lanes_not_above16_avx2(const double* lb,
+                                                                                              const double* bound) {
+  std::uint32_t m = 0;
+  for (unsigned l = 0; l < 16; l += 4)
+    m |= static_cast<std::uint32_t>(
+             _mm256_movemask_pd(_mm256_cmp_pd(_mm256_loadu_pd(lb + l), _mm256_loadu_pd(bound + l), _CMP_NGT_UQ)))
+         << l;
+  return m;
+}
+inline __attribute__((target("avx2,fma"))) double masked_min16_avx2(const double* v, std::uint32_t mask) {
+  const __m256d inf = _mm256_set1_pd(std::numeric_limits<double>::infinity());
+  const __m256i bit = _mm256_setr_epi64x(1, 2, 4, 8);
+  __m256d r = inf;
+  for (unsigned l = 0; l < 16; l += 4) {
+    const __m256i sel = _mm256_cmpeq_epi64(_mm256_and_si256(_mm256_set1_epi64x((mask >> l) & 0xFu), bit), bit);
+    r = _mm256_min_pd(r, _mm256_blendv_pd(inf, _mm256_loadu_pd(v + l), _mm256_castsi256_pd(sel)));
+  }
+  return _mm256_cvtsd_f64(lanes_min4(r));
+}
+
 // PacketPointFilterFn (simd.hpp) on AVX2: each point broadcast against the rays in groups of 4
 // lanes (only the groups holding a ray of `rays`), with filter_step4's expressions in its order.
 inline __attribute__((target("avx2,fma"))) unsigned packet_point_filter_avx2(const double* xyz, unsigned count,

@@ -47,16 +47,6 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) void packet_child_sl
   }
 }
 
-// The largest / least of the four lanes of v, in every lane.
-__attribute__((target("avx2,fma"), always_inline)) inline __m256d lanes_max4(__m256d v) {
-  v = _mm256_max_pd(v, _mm256_permute4x64_pd(v, 0x4E));
-  return _mm256_max_pd(v, _mm256_permute_pd(v, 0x5));
-}
-__attribute__((target("avx2,fma"), always_inline)) inline __m256d lanes_min4(__m256d v) {
-  v = _mm256_min_pd(v, _mm256_permute4x64_pd(v, 0x4E));
-  return _mm256_min_pd(v, _mm256_permute_pd(v, 0x5));
-}
-
 // RayBoxFn (simd.hpp) on AVX2: the three axes in the lanes 0-2 of one register (lane 3 repeats z,
 // and its 1 / d is made NaN: an ignored axis). The first-hit traversals' root test (ray_query.hpp,
 // root_test, where its effect is measured).
@@ -293,6 +283,22 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned packet_poin
   if (hi) return packet_point_filter8<false, true>(xyz, count, f, rays, idx, masks);
   return packet_point_filter8<true, false>(xyz, count, f, rays, idx, masks);
 }
+// The packet loop's lane helpers (as lanes_not_above16_avx2 / masked_min16_avx2) on AVX-512.
+inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) std::uint32_t lanes_not_above16_avx512(
+    const double* lb, const double* bound) {
+  const std::uint32_t lo = _mm512_cmp_pd_mask(_mm512_loadu_pd(lb), _mm512_loadu_pd(bound), _CMP_NGT_UQ);
+  const std::uint32_t hi = _mm512_cmp_pd_mask(_mm512_loadu_pd(lb + 8), _mm512_loadu_pd(bound + 8), _CMP_NGT_UQ);
+  return lo | hi << 8;
+}
+inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) double masked_min16_avx512(
+    const double* v, std::uint32_t mask) {
+  const __m512d inf = _mm512_set1_pd(std::numeric_limits<double>::infinity());
+  const __m512d r = _mm512_min_pd(_mm512_mask_loadu_pd(inf, static_cast<__mmask8>(mask), v),
+                                  _mm512_mask_loadu_pd(inf, static_cast<__mmask8>(mask >> 8), v + 8));
+  const __m256d r4 = _mm256_min_pd(_mm512_castpd512_pd256(r), _mm512_extractf64x4_pd(r, 1));
+  return _mm256_cvtsd_f64(lanes_min4(r4));
+}
+
 // PacketRayBoxFn (simd.hpp) on AVX-512: ray_box_avx2's expressions with the rays in the lanes
 // (8 per register; the axes one after the other), the origins and directions gathered.
 inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) std::uint32_t packet_ray_box_avx512(
