@@ -318,14 +318,16 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
       root_by_packet = true;
     }
   }
+  const RT* prev = nullptr;  // the last ray set up (RayTraversal's sibling)
   for (unsigned i = 0; i < n; ++i) {
     // As ray_traverse: a ray that root_test finds missing is never set up, one that misses the
     // root is never prepared, nor read again.
     if (!((root_in >> i) & 1u)) continue;
     const RootTest rtest = root_by_packet ? RootTest::enter : root_test<K, KeyPolicy>(kern, index, rays[i], q);
     if (rtest == RootTest::miss) continue;
-    st[i] = ::new (static_cast<void*>(states.buf[i])) RT(index, rays[i], q, best[i], stats, key_of(i), scratch);
+    st[i] = ::new (static_cast<void*>(states.buf[i])) RT(index, rays[i], q, best[i], stats, key_of(i), scratch, prev);
     states.made |= 1u << i;
+    prev = st[i];
     if (st[i]->enters_root(rtest, root.lb[i])) {
       st[i]->prepare();
       root.mask |= 1u << i;
@@ -372,19 +374,25 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
       follow(i, before);  // (the ray may still be in entries below)
       continue;
     }
-    double before[N];
-    for (std::uint32_t m = act; m; m &= m - 1) before[__builtin_ctz(m)] = st[__builtin_ctz(m)]->worst;
     const SlotRange range = index.node_points(node);
-    if (leaf_over_rays && range.size() >= 4 && packet_leaf_pays<K>(kern, act)) {
-      packet_eval_points<RT, K>(kern, st, act, range, filters);
+    if (range.size() == 0 && !RT::per_node) {
+      // No points (the interior nodes of an adaptive octree): nothing for a ray to evaluate, and
+      // without per-node radii nothing of it to set for the node (enter_node).
+      if (stats) stats->nodes_visited += static_cast<unsigned>(__builtin_popcount(act));
     } else {
-      for (std::uint32_t m = act; m; m &= m - 1) {
-        RT& r = *st[__builtin_ctz(m)];
-        r.enter_node(node);
-        r.eval_points(node);
+      double before[N];
+      for (std::uint32_t m = act; m; m &= m - 1) before[__builtin_ctz(m)] = st[__builtin_ctz(m)]->worst;
+      if (leaf_over_rays && range.size() >= 4 && packet_leaf_pays<K>(kern, act)) {
+        packet_eval_points<RT, K>(kern, st, act, range, filters);
+      } else {
+        for (std::uint32_t m = act; m; m &= m - 1) {
+          RT& r = *st[__builtin_ctz(m)];
+          r.enter_node(node);
+          r.eval_points(node);
+        }
       }
+      for (std::uint32_t m = act; m; m &= m - 1) follow(__builtin_ctz(m), before[__builtin_ctz(m)]);
     }
-    for (std::uint32_t m = act; m; m &= m - 1) follow(__builtin_ctz(m), before[__builtin_ctz(m)]);
     const unsigned nc = index.child_count(node);
     if (nc == 0) continue;
     if (nc > 8) {  // (no index here has more than 8 children): each ray alone below this node

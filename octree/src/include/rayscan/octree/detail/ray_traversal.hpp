@@ -80,19 +80,29 @@ struct RayTraversal {
   bool normals_filter = false;  // ... and its per-slot disc normals (filter_normals)
 
   /// `scratch_`: the per-thread scratch to use (node stack, survivors), by default ray_scratch<Node>().
+  /// `sibling`: a traversal of the same index and query (first_hit_packet's previous ray), or
+  /// nullptr: its root box is taken instead of read again, and, when its origin is this ray's
+  /// (the rays of a pinhole camera), its distance to the root's centre and tolerance instead of
+  /// computed (the same values: the same expressions of the same inputs).
   RayTraversal(const I& index_, const Ray& ray, const RayQuery& q_, Candidate& best_, RayQueryStats* stats_,
-               const KeyPolicy& key_policy_, RayScratch<Node>* scratch_ = nullptr)
+               const KeyPolicy& key_policy_, RayScratch<Node>* scratch_ = nullptr,
+               const RayTraversal* sibling = nullptr)
       : index(index_), q(q_), best(best_), stats(stats_), key_policy(key_policy_), o(ray.origin()),
         d(ray.direction()), inv_d(1.0 / d), pos(index_.positions()), ids(index_.ids()),
         bounded(kBest1 || q_.k != kAllPoints), sphere(q_.order == RayOrder::sphere_hit),
         ray_order(q_.order == RayOrder::ray), exact(q_.node_distance == NodeDistance::exact),
         has_planes(!q_.planes.empty()), radius(q_.radius), r2(q_.radius * q_.radius),
-        root_box(index_.node_bounds(index_.root())), scratch(scratch_ ? *scratch_ : detail::ray_scratch<Node>()),
-        kern(kernels_of<K>()) {
+        root_box(sibling ? sibling->root_box : index_.node_bounds(index_.root())),
+        scratch(scratch_ ? *scratch_ : detail::ray_scratch<Node>()), kern(kernels_of<K>()) {
     if (per_node && ray_order)
       throw std::invalid_argument("ray query: per-node radii need order time or sphere_hit");
-    dist_center = glm::length(o - root_box.center());
-    tol = node_test_tolerance(o, root_box, dist_center);  // (distance.hpp: with the coordinates' magnitude)
+    if (sibling && sibling->o == o) {
+      dist_center = sibling->dist_center;
+      tol = sibling->tol;
+    } else {
+      dist_center = glm::length(o - root_box.center());
+      tol = node_test_tolerance(o, root_box, dist_center);  // (distance.hpp: with the coordinates' magnitude)
+    }
     pad = radius;
     o_plus = o + (pad + tol);
     o_minus = o - (pad + tol);
