@@ -18,9 +18,15 @@ namespace rayscan::detail {
 /// node is left with a single live ray the packet has diverged there and that ray finishes the
 /// subtree alone (RayTraversal::traverse_from, the single-ray loop itself).
 ///
+/// SIMD over the rays where the path has the kernels: the root test of every ray at once
+/// (packet_ray_box), the children's slab test (packet_child_slab), each ray's live() bound kept per
+/// lane (a popped entry's live rays are one mask of compares), and a leaf's points filtered for
+/// all live rays at once (packet_point_filter, when they fill half of the lanes it computes); each
+/// kernel keeps exactly what the single-ray test keeps, or more.
+///
 /// Why a loop of its own rather than a policy of traverse_from: the stack entries carry a ray
-/// mask and a bound per ray, and the child order is chosen for the packet; everything a node or a
-/// point is tested with is the single-ray code. Each ray's answer is the exact minimum (key, id)
+/// mask and a bound per ray, and the child order is chosen for the packet; every exact test of a
+/// node or a point is the single-ray code. Each ray's answer is the exact minimum (key, id)
 /// over every candidate, which conservative pruning always reaches, so it is bit-identical to
 /// ray_first_hit on that ray whatever order the nodes are visited in. Returns the mask of rays
 /// that found a hit (best[i] set).
