@@ -283,7 +283,9 @@ TEST(Simd, RootKernelNeverRejectsWhatTheRootTestAccepts) {
     EXPECT_GT(kept, 4000u) << to_string(path);
     EXPECT_GT(missed, 1500u) << to_string(path);
     EXPECT_GT(within_tolerance, 50u) << to_string(path);  // rays the tolerance alone lets in were reached
-    if (k.packet_ray_box) EXPECT_GT(packet_lanes, 4000u) << to_string(path);
+    if (k.packet_ray_box) {
+      EXPECT_GT(packet_lanes, 4000u) << to_string(path);
+    }
   }
 }
 
@@ -679,7 +681,9 @@ TEST(Simd, PacketPointFilterKeepsWhatEachRaysOwnFilterKeeps) {
       std::vector<std::uint32_t> per_point(count, 0);
       for (unsigned j = 0; j < n; ++j) {
         ASSERT_LT(idx[j], count) << to_string(path);
-        if (j > 0) ASSERT_LT(idx[j - 1], idx[j]) << to_string(path) << ": points out of order or twice";
+        if (j > 0) {
+          ASSERT_LT(idx[j - 1], idx[j]) << to_string(path) << ": points out of order or twice";
+        }
         ASSERT_NE(got[j], 0u) << to_string(path) << ": a point kept for no ray";
         ASSERT_EQ(got[j] & ~rays, 0u) << to_string(path) << ": a ray outside the mask";
         per_point[idx[j]] = got[j];
@@ -695,8 +699,9 @@ TEST(Simd, PacketPointFilterKeepsWhatEachRaysOwnFilterKeeps) {
           const RayPointTerms pt = ray_point_terms(Vec3(single[i].o[0], single[i].o[1], single[i].o[2]),
                                                    Vec3(single[i].d[0], single[i].d[1], single[i].d[2]), sub[j]);
           if (pt.d2 <= single[i].d2_max - 1e-12 * vmax * vmax && pt.t >= single[i].t_lo + 1e-12 * vmax &&
-              pt.t <= single[i].t_hi)
+              pt.t <= single[i].t_hi) {
             ASSERT_TRUE(packet) << to_string(path) << ": ray " << i << " dropped point " << j;
+          }
         }
       }
     }

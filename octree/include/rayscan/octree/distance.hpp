@@ -127,6 +127,11 @@ namespace rayscan {
   return 1e-9 * (dist_to_centre + b.max_extent()) + 0x1p-48 * mag + 1e-300;
 }
 
+/// node_test_tolerance_bound's coefficients (relative to the magnitude, and absolute, world
+/// units), for the SIMD kernels that evaluate it lane by lane.
+inline constexpr double kNodeTestToleranceBoundRel = 0x1p-26;
+inline constexpr double kNodeTestToleranceBoundAbs = 1e-299;
+
 /// An upper bound of node_test_tolerance(o, b) for every origin o and box b with coordinates of
 /// magnitude at most `mag` (|o_i|, |b.lo_i|, |b.hi_i| <= mag), with a factor 2 to spare for the
 /// rounding of either: |o - b.center()| <= 2 sqrt(3) mag and b.max_extent() <= 2 mag give
@@ -134,7 +139,9 @@ namespace rayscan {
 /// 1e308, where node_test_tolerance itself stays finite). World units. For a
 /// test that must accept whatever the node test accepts without computing the tolerance itself
 /// (simd::RayBoxFn, the first-hit traversals' root test).
-[[nodiscard]] constexpr double node_test_tolerance_bound(double mag) { return 0x1p-26 * mag + 1e-299; }
+[[nodiscard]] constexpr double node_test_tolerance_bound(double mag) {
+  return kNodeTestToleranceBoundRel * mag + kNodeTestToleranceBoundAbs;
+}
 
 /// node_test_tolerance with |o - b.center()| computed here.
 [[nodiscard]] inline double node_test_tolerance(const Vec3& o, const AABB& b) {

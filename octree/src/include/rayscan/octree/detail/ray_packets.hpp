@@ -94,16 +94,6 @@ __attribute__((always_inline)) inline bool packet_lanes_over_rays([[maybe_unused
   return false;
 }
 
-/// Whether kernel policy K may have the packet root test (the run-time table, or a compile-time
-/// policy whose packet_ray_box is not null), so that no call through a null constant is compiled.
-template <class K>
-inline constexpr bool kMayHavePacketRayBox = [] {
-  if constexpr (std::is_same_v<K, simd::Kernels>)
-    return true;
-  else
-    return K::packet_ray_box != nullptr;
-}();
-
 /// first_hit_packet's leaf test policy: true (and `f` filled: lane i of each ray of `mask`, the
 /// other lanes a filter nothing passes) when a node's points may be filtered SIMD over the rays
 /// (packet_point_filter), which needs every ray's point filter plain (no per-point radii or
@@ -315,14 +305,12 @@ __attribute__((always_inline)) inline unsigned first_hit_packet(const I& index, 
   // root_test's ray_box, SIMD over the rays: most of a camera's misses end here).
   std::uint32_t root_in = ~0u;
   bool root_by_packet = false;
-  if constexpr (kMayHavePacketRayBox<K>) {
-    if (has_kernel(kern.packet_ray_box) && root_kernel_applies<K, KeyPolicy>(kern, q)) {
-      static_assert(sizeof(Ray) % sizeof(double) == 0);
-      const AABB b = index.node_bounds(index.root());
-      root_in = kern.packet_ray_box(&b.lo.x, &b.hi.x, &rays[0].origin().x, &rays[0].direction().x,
-                                    sizeof(Ray) / sizeof(double), n, q.radius, q.t_min, q.t_max + q.radius);
-      root_by_packet = true;
-    }
+  if (has_kernel(kern.packet_ray_box) && root_kernel_applies<K, KeyPolicy>(kern, q)) {
+    static_assert(sizeof(Ray) % sizeof(double) == 0);
+    const AABB b = index.node_bounds(index.root());
+    root_in = kern.packet_ray_box(&b.lo.x, &b.hi.x, &rays[0].origin().x, &rays[0].direction().x,
+                                  sizeof(Ray) / sizeof(double), n, q.radius, q.t_min, q.t_max + q.radius);
+    root_by_packet = true;
   }
   const RT* prev = nullptr;  // the last ray set up (RayTraversal's sibling)
   for (unsigned i = 0; i < n; ++i) {

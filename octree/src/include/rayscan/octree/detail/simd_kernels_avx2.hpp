@@ -262,6 +262,19 @@ __attribute__((target("avx2,fma"), always_inline)) inline void deinterleave4(__m
   z = _mm256_shuffle_pd(Q, R, 0b1010);
 }
 
+// The point filter's terms of v = p - o against the unit direction d, 4 lanes: t = v.d and
+// d^2 = |v|^2 - t^2, |v|^2 computed beside t, so the distance waits on one fused step after t
+// instead of four; it differs from |v - t d|^2 by a few ulps of |v|^2, far inside the filter's
+// slack (PointFilterD: 1e-12 of the largest |v|^2). Every filter (one ray, or a packet's rays in
+// the lanes) uses these expressions, so they keep the same points.
+__attribute__((target("avx2,fma"), always_inline)) inline void filter_terms4(__m256d vx, __m256d vy, __m256d vz,
+                                                                             __m256d dx, __m256d dy, __m256d dz,
+                                                                             __m256d& t, __m256d& d2) {
+  t = _mm256_fmadd_pd(vz, dz, _mm256_fmadd_pd(vy, dy, _mm256_mul_pd(vx, dx)));
+  const __m256d vv = _mm256_fmadd_pd(vz, vz, _mm256_fmadd_pd(vy, vy, _mm256_mul_pd(vx, vx)));
+  d2 = _mm256_fnmadd_pd(t, t, vv);
+}
+
 __attribute__((target("avx2,fma"), always_inline)) inline void load_rel4(const double* p, __m256d ox, __m256d oy,
                                                                          __m256d oz, __m256d& vx, __m256d& vy,
                                                                          __m256d& vz) {
@@ -342,12 +355,8 @@ __attribute__((target("avx2,fma"), always_inline)) inline unsigned filter_step4(
   const __m256d dx = _mm256_set1_pd(f.d[0]), dy = _mm256_set1_pd(f.d[1]), dz = _mm256_set1_pd(f.d[2]);
   __m256d vx, vy, vz;
   load_rel4(xyz + 3 * static_cast<std::size_t>(i), ox, oy, oz, vx, vy, vz);
-  const __m256d t = _mm256_fmadd_pd(vz, dz, _mm256_fmadd_pd(vy, dy, _mm256_mul_pd(vx, dx)));
-  // d^2 = |v|^2 - t^2 (unit d): |v|^2 computed beside t, so the distance waits on one fused step
-  // after t instead of four; it differs from |v - t d|^2 by a few ulps of |v|^2, far inside the
-  // filter's slack (PointFilterD: 1e-12 of the largest |v|^2).
-  const __m256d vv = _mm256_fmadd_pd(vz, vz, _mm256_fmadd_pd(vy, vy, _mm256_mul_pd(vx, vx)));
-  const __m256d d2 = _mm256_fnmadd_pd(t, t, vv);
+  __m256d t, d2;
+  filter_terms4(vx, vy, vz, dx, dy, dz, t, d2);
   const __m256d d2max = _mm256_set1_pd(f.d2_max), tlo = _mm256_set1_pd(f.t_lo);
   __m256d lim = d2max, tl = tlo;
   if constexpr (kRadii) {  // each point's own radius as well (PointFilterD::radii, t_lo_own)
@@ -417,7 +426,7 @@ inline __attribute__((target("avx2,fma"))) double masked_min16_avx2(const double
 }
 
 // PacketPointFilterFn (simd.hpp) on AVX2: each point broadcast against the rays in groups of 4
-// lanes (only the groups holding a ray of `rays`), with filter_step4's expressions in its order.
+// lanes (only the groups holding a ray of `rays`), with filter_step4's terms (filter_terms4).
 inline __attribute__((target("avx2,fma"))) unsigned packet_point_filter_avx2(const double* xyz, unsigned count,
                                                                              const PointFilterPacketD& f,
                                                                              std::uint32_t rays, std::uint32_t* idx,
@@ -435,11 +444,9 @@ inline __attribute__((target("avx2,fma"))) unsigned packet_point_filter_avx2(con
       const __m256d vx = _mm256_sub_pd(px, _mm256_load_pd(f.o[0] + l));
       const __m256d vy = _mm256_sub_pd(py, _mm256_load_pd(f.o[1] + l));
       const __m256d vz = _mm256_sub_pd(pz, _mm256_load_pd(f.o[2] + l));
-      const __m256d t = _mm256_fmadd_pd(vz, _mm256_load_pd(f.d[2] + l),
-                                        _mm256_fmadd_pd(vy, _mm256_load_pd(f.d[1] + l),
-                                                        _mm256_mul_pd(vx, _mm256_load_pd(f.d[0] + l))));
-      const __m256d vv = _mm256_fmadd_pd(vz, vz, _mm256_fmadd_pd(vy, vy, _mm256_mul_pd(vx, vx)));
-      const __m256d d2 = _mm256_fnmadd_pd(t, t, vv);
+      __m256d t, d2;
+      filter_terms4(vx, vy, vz, _mm256_load_pd(f.d[0] + l), _mm256_load_pd(f.d[1] + l), _mm256_load_pd(f.d[2] + l),
+                    t, d2);
       const __m256d ok =
           _mm256_and_pd(_mm256_cmp_pd(d2, _mm256_load_pd(f.d2_max + l), _CMP_LE_OQ),
                         _mm256_and_pd(_mm256_cmp_pd(t, _mm256_load_pd(f.t_lo + l), _CMP_GE_OQ),

@@ -140,6 +140,14 @@ struct TripleMasks8 {
   }
 };
 
+// filter_terms4 (simd_kernels_avx2.hpp) in 8 lanes: the same expressions.
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline void filter_terms8(
+    __m512d vx, __m512d vy, __m512d vz, __m512d dx, __m512d dy, __m512d dz, __m512d& t, __m512d& d2) {
+  t = _mm512_fmadd_pd(vz, dz, _mm512_fmadd_pd(vy, dy, _mm512_mul_pd(vx, dx)));
+  const __m512d vv = _mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx)));
+  d2 = _mm512_fnmadd_pd(t, t, vv);
+}
+
 // The lane mask of points [i, i + 8) of the AVX-512 point filter, or of the first `valid` of them
 // (kMasked: masked loads, nothing read past them; the other lanes unset).
 template <bool kMasked>
@@ -162,10 +170,8 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
     return lanes & lane_to_point_mask(_mm512_cmp_pd_mask(
                        _mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx))), d2max, _CMP_LE_OQ));
   const __m512d dx = _mm512_set1_pd(f.d[0]), dy = _mm512_set1_pd(f.d[1]), dz = _mm512_set1_pd(f.d[2]);
-  const __m512d t = _mm512_fmadd_pd(vz, dz, _mm512_fmadd_pd(vy, dy, _mm512_mul_pd(vx, dx)));
-  // d^2 = |v|^2 - t^2, as filter_step4.
-  const __m512d vv = _mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx)));
-  const __m512d d2 = _mm512_fnmadd_pd(t, t, vv);
+  __m512d t, d2;
+  filter_terms8(vx, vy, vz, dx, dy, dz, t, d2);
   const __m512d tlo = _mm512_set1_pd(f.t_lo);
   __m512d lim = d2max, tl = tlo, r = _mm512_setzero_pd();
   if (f.radii) {  // each point's own radius as well (PointFilterD::radii, t_lo_own)
@@ -227,7 +233,7 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) void sort_push_keys8
   _mm512_storeu_pd(o + 8, _mm512_permutex2var_pd(lb, _mm512_setr_epi64(4, 12, 5, 13, 6, 14, 7, 15), nd));
 }
 // PacketPointFilterFn (simd.hpp) on AVX-512: each point broadcast against the rays in halves of 8
-// lanes (only the halves holding a ray of `rays`), with filter_step8's expressions in its order.
+// lanes (only the halves holding a ray of `rays`), with filter_step8's terms (filter_terms8).
 // One half's constants (lanes l .. l + 7) and the rays of `rays` among them.
 struct PacketHalf8 {
   __m512d o[3], d[3], d2max, tlo, thi;
@@ -248,9 +254,8 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline void 
 __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline std::uint32_t test_packet_half8(
     const PacketHalf8& h, __m512d px, __m512d py, __m512d pz) {
   const __m512d vx = _mm512_sub_pd(px, h.o[0]), vy = _mm512_sub_pd(py, h.o[1]), vz = _mm512_sub_pd(pz, h.o[2]);
-  const __m512d t = _mm512_fmadd_pd(vz, h.d[2], _mm512_fmadd_pd(vy, h.d[1], _mm512_mul_pd(vx, h.d[0])));
-  const __m512d vv = _mm512_fmadd_pd(vz, vz, _mm512_fmadd_pd(vy, vy, _mm512_mul_pd(vx, vx)));
-  const __m512d d2 = _mm512_fnmadd_pd(t, t, vv);
+  __m512d t, d2;
+  filter_terms8(vx, vy, vz, h.d[0], h.d[1], h.d[2], t, d2);
   __mmask8 k = _mm512_mask_cmp_pd_mask(h.live, d2, h.d2max, _CMP_LE_OQ);
   k = _mm512_mask_cmp_pd_mask(k, t, h.tlo, _CMP_GE_OQ);
   return static_cast<std::uint32_t>(_mm512_mask_cmp_pd_mask(k, t, h.thi, _CMP_LE_OQ));
@@ -321,8 +326,9 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) std::uint32_t packet
     __m512d mag = _mm512_set1_pd(box_mag);
     for (int a = 0; a < 3; ++a)
       mag = _mm512_max_pd(mag, _mm512_castsi512_pd(_mm512_and_si512(_mm512_castpd_si512(vo[a]), abs_mask)));
-    // node_test_tolerance_bound(mag) = 2^-26 mag + 1e-299 (a product, then a sum: no fused step).
-    const __m512d tol = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(0x1p-26), mag), _mm512_set1_pd(1e-299));
+    // node_test_tolerance_bound(mag), lane by lane (a product, then a sum: no fused step).
+    const __m512d tol = _mm512_add_pd(_mm512_mul_pd(_mm512_set1_pd(kNodeTestToleranceBoundRel), mag),
+                                      _mm512_set1_pd(kNodeTestToleranceBoundAbs));
     const __m512d grow = _mm512_add_pd(_mm512_set1_pd(pad), tol);
     __m512d near = _mm512_set1_pd(-inf), far = _mm512_set1_pd(inf);
     for (int a = 0; a < 3; ++a) {
