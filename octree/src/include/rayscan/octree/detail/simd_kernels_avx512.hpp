@@ -202,6 +202,18 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filte
                                                                                  std::uint32_t* out) {
   const bool dist_only = distance_only(f);
   unsigned i = 0, n = 0;
+  if (dist_only) {
+    // knn_query's steps keep some points as often as none, so append_lanes' early exit would
+    // mispredict: the kept indices compressed into one register and stored whole instead (out
+    // has room: n <= i and i + 8 <= count).
+    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    for (; i + 8 <= count; i += 8) {
+      const unsigned m = filter_step8<false>(xyz, i, 8, f, true);
+      const __m256i idx = _mm256_add_epi32(lane, _mm256_set1_epi32(static_cast<int>(i)));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + n), _mm256_maskz_compress_epi32(static_cast<__mmask8>(m), idx));
+      n += static_cast<unsigned>(__builtin_popcount(m));
+    }
+  }
   for (; i + 8 <= count; i += 8) n = append_lanes<8>(filter_step8<false>(xyz, i, 8, f, dist_only), i, out, n);
   if (i == count) return n;
   if (count >= 8) {
