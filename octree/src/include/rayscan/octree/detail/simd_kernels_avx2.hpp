@@ -335,12 +335,32 @@ __attribute__((target("avx2,fma"), always_inline)) inline unsigned dist_step4(co
 // (bench/notes/).
 [[nodiscard]] inline unsigned tail_lanes4(unsigned i, unsigned count) { return 0xFu << (i - (count - 4)); }
 
+// For each 4-lane mask: its set lanes in ascending order (then zeros), and how many there are.
+struct Compact4 {
+  alignas(16) std::uint32_t lanes[16][4];
+  std::uint32_t count[16];
+  constexpr Compact4() : lanes{}, count{} {
+    for (unsigned m = 0; m < 16; ++m)
+      for (unsigned l = 0; l < 4; ++l)
+        if ((m >> l) & 1u) lanes[m][count[m]++] = l;
+  }
+};
+inline constexpr Compact4 kCompact4{};
+
+// The distance-only loop (knn_query's leaves): the kept indices of a step written as one 4-lane
+// store from kCompact4 (room: n <= i and i + 4 <= count), no early exit on an empty step, which
+// mispredicts in kNN (steps keep points about as often as not; as the AVX-512 kernel's compress).
 inline __attribute__((target("avx2,fma"))) unsigned dist_filter_avx2(const double* xyz, unsigned count,
                                                               const PointFilterD& f, std::uint32_t* out) {
   const __m256d ox = _mm256_set1_pd(f.o[0]), oy = _mm256_set1_pd(f.o[1]), oz = _mm256_set1_pd(f.o[2]);
   const __m256d d2max = _mm256_set1_pd(f.d2_max);
   unsigned i = 0, n = 0;
-  for (; i + 4 <= count; i += 4) n = append_lanes<4>(dist_step4(xyz, i, ox, oy, oz, d2max), i, out, n);
+  for (; i + 4 <= count; i += 4) {
+    const unsigned m = dist_step4(xyz, i, ox, oy, oz, d2max);
+    const __m128i lanes = _mm_load_si128(reinterpret_cast<const __m128i*>(kCompact4.lanes[m]));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + n), _mm_add_epi32(lanes, _mm_set1_epi32(static_cast<int>(i))));
+    n += kCompact4.count[m];
+  }
   if (i < count && count >= 4)
     return append_lanes<4>(dist_step4(xyz, count - 4, ox, oy, oz, d2max) & tail_lanes4(i, count), count - 4, out, n);
   for (; i < count; ++i) out[n++] = i;  // (count < 4) left to the exact test
