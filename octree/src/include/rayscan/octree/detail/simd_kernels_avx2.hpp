@@ -347,20 +347,25 @@ struct Compact4 {
 };
 inline constexpr Compact4 kCompact4{};
 
-// The distance-only loop (knn_query's leaves): the kept indices of a step written as one 4-lane
-// store from kCompact4 (room: n <= i and i + 4 <= count), no early exit on an empty step, which
-// mispredicts in kNN (steps keep points about as often as not; as the AVX-512 kernel's compress).
+// append_lanes<4> for a full step without its early exit, which mispredicts where steps keep
+// points about as often as not (as store_kept8 on AVX-512, which compresses; AVX2 has no
+// compress): the kept indices as one 4-lane store from kCompact4 at out[n, n + 4). Needs n <= i
+// and i + 4 <= the point count (out's room).
+__attribute__((target("avx2,fma"), always_inline)) inline unsigned store_kept4(unsigned m, unsigned i,
+                                                                               std::uint32_t* out, unsigned n) {
+  const __m128i lanes = _mm_load_si128(reinterpret_cast<const __m128i*>(kCompact4.lanes[m]));
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(out + n), _mm_add_epi32(lanes, _mm_set1_epi32(static_cast<int>(i))));
+  return n + kCompact4.count[m];
+}
+
+// The distance-only filter (knn_query's leaves, whose steps keep points about as often as not:
+// store_kept4).
 inline __attribute__((target("avx2,fma"))) unsigned dist_filter_avx2(const double* xyz, unsigned count,
                                                               const PointFilterD& f, std::uint32_t* out) {
   const __m256d ox = _mm256_set1_pd(f.o[0]), oy = _mm256_set1_pd(f.o[1]), oz = _mm256_set1_pd(f.o[2]);
   const __m256d d2max = _mm256_set1_pd(f.d2_max);
   unsigned i = 0, n = 0;
-  for (; i + 4 <= count; i += 4) {
-    const unsigned m = dist_step4(xyz, i, ox, oy, oz, d2max);
-    const __m128i lanes = _mm_load_si128(reinterpret_cast<const __m128i*>(kCompact4.lanes[m]));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + n), _mm_add_epi32(lanes, _mm_set1_epi32(static_cast<int>(i))));
-    n += kCompact4.count[m];
-  }
+  for (; i + 4 <= count; i += 4) n = store_kept4(dist_step4(xyz, i, ox, oy, oz, d2max), i, out, n);
   if (i < count && count >= 4)
     return append_lanes<4>(dist_step4(xyz, count - 4, ox, oy, oz, d2max) & tail_lanes4(i, count), count - 4, out, n);
   for (; i < count; ++i) out[n++] = i;  // (count < 4) left to the exact test

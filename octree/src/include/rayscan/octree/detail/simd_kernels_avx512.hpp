@@ -197,24 +197,27 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
   return lanes & lane_to_point_mask(m);
 }
 
+// append_lanes<8> for a full step without its early exit, which mispredicts where steps keep
+// points about as often as not: the kept indices (i + each set bit of the point-order mask m,
+// ascending) compressed into one register and stored whole at out[n, n + 8). Needs n <= i and
+// i + 8 <= the point count (out's room).
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned store_kept8(
+    unsigned m, unsigned i, std::uint32_t* out, unsigned n) {
+  const __m256i idx = _mm256_add_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(static_cast<int>(i)));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + n), _mm256_maskz_compress_epi32(static_cast<__mmask8>(m), idx));
+  return n + static_cast<unsigned>(__builtin_popcount(m));
+}
+
 inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx512(const double* xyz, unsigned count,
                                                                                  const PointFilterD& f,
                                                                                  std::uint32_t* out) {
   const bool dist_only = distance_only(f);
   unsigned i = 0, n = 0;
-  if (dist_only) {
-    // knn_query's steps keep some points as often as none, so append_lanes' early exit would
-    // mispredict: the kept indices compressed into one register and stored whole instead (out
-    // has room: n <= i and i + 8 <= count).
-    const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    for (; i + 8 <= count; i += 8) {
-      const unsigned m = filter_step8<false>(xyz, i, 8, f, true);
-      const __m256i idx = _mm256_add_epi32(lane, _mm256_set1_epi32(static_cast<int>(i)));
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + n), _mm256_maskz_compress_epi32(static_cast<__mmask8>(m), idx));
-      n += static_cast<unsigned>(__builtin_popcount(m));
-    }
+  if (dist_only) {  // knn_query's leaves: steps keep points about as often as not (store_kept8)
+    for (; i + 8 <= count; i += 8) n = store_kept8(filter_step8<false>(xyz, i, 8, f, true), i, out, n);
+  } else {  // a ray's thin tube: most steps keep nothing (append_lanes' early exit predicts well)
+    for (; i + 8 <= count; i += 8) n = append_lanes<8>(filter_step8<false>(xyz, i, 8, f, false), i, out, n);
   }
-  for (; i + 8 <= count; i += 8) n = append_lanes<8>(filter_step8<false>(xyz, i, 8, f, dist_only), i, out, n);
   if (i == count) return n;
   if (count >= 8) {
     // The last count % 8 points: one overlapping step over the last 8, the lanes before i cleared
