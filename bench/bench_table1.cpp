@@ -11,6 +11,7 @@
 #include "rayscan/octree/kdtree.hpp"
 #include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/point_query.hpp"
+#include "rayscan/octree/simd.hpp"
 
 #include <CLI/CLI.hpp>
 #include <boost/geometry.hpp>
@@ -339,7 +340,7 @@ int main(int argc, char** argv) {
   std::uint32_t capacity = 0, kd_leaf = 16;
   int fixed_depth = -1;
   bool no_insert = false;
-  std::string only;
+  std::string only, simd_paths;
   app.add_option("--points", n, "number of uniform points in the unit cube")->capture_default_str();
   app.add_option("--queries", queries, "box queries and kNN queries (each)")->capture_default_str();
   app.add_option("-k", k, "k of the kNN queries")->capture_default_str();
@@ -357,7 +358,23 @@ int main(int argc, char** argv) {
   app.add_option("--only", only,
                  "run only the contenders whose name contains this text (e.g. \"octree layered\"; for "
                  "valgrind --tool=callgrind --toggle-collect on one index's queries)");
+  app.add_option("--simd-paths", simd_paths,
+                 "comma-separated SIMD paths (scalar,sse2,avx2,avx512): each rayscan contender runs once per "
+                 "path, named \"... [path]\", interleaved with the others in every round (an A/B of the "
+                 "kernels in one process, where a shared machine's noise would swamp separate runs)");
   CLI11_PARSE(app, argc, argv);
+  std::vector<rayscan::SimdPath> paths;
+  for (std::size_t b = 0; !simd_paths.empty() && b <= simd_paths.size();) {
+    const std::size_t e = std::min(simd_paths.find(',', b), simd_paths.size());
+    const std::optional<rayscan::SimdPath> p = rayscan::parse_simd_path(simd_paths.substr(b, e - b));
+    if (!p || !rayscan::simd_path_supported(*p)) {
+      std::cerr << "bench_table1: --simd-paths: \"" << simd_paths.substr(b, e - b)
+                << "\" is not a path this CPU runs (scalar|sse2|avx2|avx512)\n";
+      return 2;
+    }
+    paths.push_back(*p);
+    b = e + 1;
+  }
   if (reps == 0 || n == 0) {
     std::cerr << "bench_table1: --reps and --points must be >= 1\n";
     return 2;
@@ -409,6 +426,25 @@ int main(int argc, char** argv) {
   cs.push_back(boost_contender(w));
   if (no_insert) cs.back().build_insert = {};
   cs.push_back(nanoflann_contender(w, nano_leaf));
+  if (!paths.empty()) {  // each rayscan contender once per path, the path set before each of its steps
+    std::vector<Contender> per_path;
+    for (const Contender& c : cs) {
+      if (c.peer) {
+        per_path.push_back(c);
+        continue;
+      }
+      for (const rayscan::SimdPath p : paths) {
+        Contender d = c;
+        d.name += std::string(" [") + rayscan::to_string(p) + "]";
+        d.run_box = [p, f = c.run_box] { rayscan::set_simd_path(p); return f(); };
+        d.run_knn = [p, f = c.run_knn] { rayscan::set_simd_path(p); return f(); };
+        d.box_ids = [p, f = c.box_ids](const AABB& b) { rayscan::set_simd_path(p); return f(b); };
+        d.knn_ids = [p, f = c.knn_ids](const Vec3& q) { rayscan::set_simd_path(p); return f(q); };
+        per_path.push_back(std::move(d));
+      }
+    }
+    cs = std::move(per_path);
+  }
   if (!only.empty()) {
     std::erase_if(cs, [&](const Contender& c) { return c.name.find(only) == std::string::npos; });
     if (cs.empty()) {

@@ -17,6 +17,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -1026,6 +1027,169 @@ TEST(Simd, DistanceFilterNeverDropsAPointWithinTheBound) {
   });
   EXPECT_GT(kept, 50u);
   EXPECT_GT(dropped, 10000u);
+}
+
+// Query boxes over pts for the box kernels: random boxes, boxes whose faces lie exactly on data
+// points' coordinates (ties: the closed box keeps them), thin slabs, a degenerate box (one point)
+// and boxes with a NaN face (keep nothing, as AABB::contains).
+std::vector<AABB> box_kernel_queries(const std::vector<Vec3>& pts, std::mt19937_64& rng) {
+  const AABB all = bounds_of(pts);
+  std::uniform_real_distribution<double> u(-0.1, 1.1);
+  std::uniform_int_distribution<std::size_t> pick(0, pts.size() - 1);
+  const auto at = [&](double x, double y, double z) { return all.lo + (all.hi - all.lo) * Vec3(x, y, z); };
+  std::vector<AABB> boxes;
+  for (int i = 0; i < 40; ++i) {
+    AABB b;
+    b.expand(at(u(rng), u(rng), u(rng)));
+    b.expand(i % 2 ? pts[pick(rng)] : at(u(rng), u(rng), u(rng)));
+    boxes.push_back(b);
+  }
+  for (int i = 0; i < 10; ++i) {  // every face on a data point's coordinate
+    AABB b;
+    b.expand(pts[pick(rng)]);
+    b.expand(pts[pick(rng)]);
+    boxes.push_back(b);
+  }
+  AABB slab = all;
+  slab.lo.y = slab.hi.y = pts[pick(rng)].y;
+  boxes.push_back(slab);
+  boxes.push_back(AABB{pts[0], pts[0]});
+  AABB nan_box = all;
+  nan_box.lo.z = std::nan("");
+  boxes.push_back(nan_box);
+  return boxes;
+}
+
+// BoxPointsFn is exact: on every path that has it, the kept local indices are those of the points
+// AABB::contains keeps, ascending, for any start and count (the 8- and 4-wide steps, the
+// overlapping last step and the masked or scalar short runs).
+TEST(Simd, BoxPointsKeepExactlyThePointsInTheBox) {
+  PathGuard guard;
+  const std::vector<Vec3> pts = make_points(1003, Dist::utm_mm, 7);
+  std::mt19937_64 rng(21);
+  const std::vector<AABB> boxes = box_kernel_queries(pts, rng);
+  std::size_t kept = 0, dropped = 0;
+  for (SimdPath path : supported_paths()) {
+    set_simd_path(path);
+    const simd::Kernels& k = simd::active_kernels();
+    ASSERT_EQ(k.box_points == nullptr, path < SimdPath::avx2) << to_string(path);
+    if (!k.box_points) continue;
+    for (std::size_t bi = 0; bi < boxes.size(); ++bi) {
+      const AABB& b = boxes[bi];
+      for (const unsigned off : {0u, 1u, 5u, 17u})
+        for (const unsigned count : {0u, 1u, 2u, 3u, 4u, 5u, 7u, 8u, 9u, 12u, 15u, 16u, 23u, 64u, 986u}) {
+          std::vector<std::uint32_t> want;
+          for (unsigned j = 0; j < count; ++j)
+            if (b.contains(pts[off + j])) want.push_back(j);
+          std::vector<std::uint32_t> got(count + 1, 0xdeadbeefu);  // one guard entry past the room
+          const unsigned n = k.box_points(&pts[off].x, count, &b.lo.x, &b.hi.x, got.data());
+          ASSERT_EQ(got[count], 0xdeadbeefu) << to_string(path) << " wrote past its room, count " << count;
+          ASSERT_LE(n, count) << to_string(path);
+          got.resize(n);
+          ASSERT_EQ(got, want) << to_string(path) << " box " << bi << " off " << off << " count " << count;
+          kept += want.size();
+          dropped += count - want.size();
+        }
+    }
+  }
+  if (simd_path_supported(SimdPath::avx2)) {  // neither side of the comparison is vacuous
+    EXPECT_GT(kept, 10000u);
+    EXPECT_GT(dropped, 10000u);
+  }
+}
+
+// ChildBoxOverlapFn equals box_query's scalar node test (AABB::overlaps, AABB::contains of both
+// corners on node_bounds) child by child, on the interior nodes of each octree layout, including
+// query boxes whose faces lie exactly on a child's bounds.
+TEST(Simd, ChildBoxOverlapEqualsTheScalarNodeTest) {
+  PathGuard guard;
+  const std::vector<Vec3> pts = make_points(20000, Dist::utm_mm, 8);
+  std::mt19937_64 rng(22);
+  std::vector<AABB> boxes = box_kernel_queries(pts, rng);
+  std::size_t meets = 0, insides = 0, misses = 0;
+  for (const OctreeLayout layout : {OctreeLayout::layered, OctreeLayout::fixed, OctreeLayout::adaptive}) {
+    OctreeConfig cfg;
+    cfg.layout = layout;
+    const Octree tree = Octree::build_bulk(pts, cfg);
+    static_assert(detail::ExactFloatChildBoxes<Octree>);
+    std::vector<Octree::Node> interior;
+    for (Octree::Node n = 0; n < tree.node_count(); ++n)
+      if (tree.child_count(n) > 0) interior.push_back(n);
+    ASSERT_GT(interior.size(), 10u);
+    // Boxes with faces on child bounds: a child's own box, and one face of it moved to a sibling's.
+    std::vector<AABB> qs = boxes;
+    for (int i = 0; i < 20; ++i) {
+      const Octree::Node n = interior[(static_cast<std::size_t>(i) * 7919) % interior.size()];
+      const AABB c0 = tree.node_bounds(tree.child(n, 0));
+      const AABB cl = tree.node_bounds(tree.child(n, tree.child_count(n) - 1));
+      qs.push_back(c0);
+      AABB grown = c0;
+      grown.hi.x = cl.hi.x;
+      qs.push_back(grown);
+    }
+    for (SimdPath path : supported_paths()) {
+      set_simd_path(path);
+      const simd::Kernels& k = simd::active_kernels();
+      ASSERT_EQ(k.child_box_overlap == nullptr, path < SimdPath::avx2) << to_string(path);
+      if (!k.child_box_overlap) continue;
+      for (const AABB& q : qs)
+        for (const Octree::Node n : interior) {
+          std::uint32_t inside = 0xdeadbeefu;
+          const unsigned meet = k.child_box_overlap(tree.child_boxes_f(n), &tree.float_origin().x, &q.lo.x, &q.hi.x, inside);
+          unsigned want_meet = 0, want_inside = 0;
+          for (unsigned i = 0; i < tree.child_count(n); ++i) {
+            const AABB cb = tree.node_bounds(tree.child(n, i));
+            const bool m = q.overlaps(cb);
+            want_meet |= unsigned{m} << i;
+            want_inside |= unsigned{m && q.contains(cb.lo) && q.contains(cb.hi)} << i;
+          }
+          ASSERT_EQ(meet, want_meet) << to_string(path) << " node " << n;
+          ASSERT_EQ(inside, want_inside) << to_string(path) << " node " << n;
+          meets += std::popcount(want_meet);
+          insides += std::popcount(want_inside);
+          misses += tree.child_count(n) - std::popcount(want_meet);
+        }
+    }
+  }
+  if (simd_path_supported(SimdPath::avx2)) {  // every answer occurs
+    EXPECT_GT(meets, 1000u);
+    EXPECT_GT(insides, 1000u);
+    EXPECT_GT(misses, 1000u);
+  }
+}
+
+// box_query's output (its order included) is the same on every path, on each octree layout.
+TEST(Simd, BoxQueryIsIdenticalOnEveryPath) {
+  PathGuard guard;
+  const std::vector<Vec3> pts = make_points(20000, Dist::clustered, 9);
+  std::mt19937_64 rng(23);
+  const std::vector<AABB> boxes = box_kernel_queries(pts, rng);
+  std::size_t total = 0;
+  for (const OctreeLayout layout : {OctreeLayout::layered, OctreeLayout::fixed, OctreeLayout::adaptive}) {
+    OctreeConfig cfg;
+    cfg.layout = layout;
+    const Octree tree = Octree::build_bulk(pts, cfg);
+    for (std::size_t bi = 0; bi < boxes.size(); ++bi) {
+      std::vector<PointIndex> want;
+      for (std::size_t j = 0; j < pts.size(); ++j)
+        if (boxes[bi].contains(pts[j])) want.push_back(static_cast<PointIndex>(j));
+      std::optional<std::vector<PointIndex>> first;
+      for (SimdPath path : supported_paths()) {
+        set_simd_path(path);
+        std::vector<PointIndex> got;
+        box_query(tree, boxes[bi], got);
+        if (!first) {
+          first = got;
+          std::sort(got.begin(), got.end());
+          ASSERT_EQ(got, want) << to_string(path) << " box " << bi;  // the brute-force answer
+          total += want.size();
+        } else {
+          ASSERT_EQ(got, *first) << to_string(path) << " box " << bi;  // in the same order
+        }
+      }
+    }
+  }
+  EXPECT_GT(total, 10000u);
 }
 
 TEST(Simd, RayQueriesAreBitIdenticalOnEveryPath) {

@@ -68,6 +68,19 @@ class IdView {
       for (std::size_t s = begin; s < end; ++s) out.push_back((*this)[s]);
     }
   }
+  /// Replaces each of the n local slot numbers v[j] (slots base + v[j] < size(), as a SIMD box
+  /// test writes them) by that slot's id, in place: v[j] = (*this)[base + v[j]]. Checked as
+  /// operator[] on a checked view (a bad id throws, v then partly mapped).
+  void map_slots(PointIndex* v, std::size_t n, std::size_t base) const {
+    if (data_ == nullptr) {
+      for (std::size_t j = 0; j < n; ++j) v[j] = static_cast<PointIndex>(base + v[j]);
+    } else if (on_bad_ == nullptr) {
+      const PointIndex* d = data_ + base;
+      for (std::size_t j = 0; j < n; ++j) v[j] = d[v[j]];
+    } else {
+      for (std::size_t j = 0; j < n; ++j) v[j] = (*this)[base + v[j]];
+    }
+  }
   /// Number of slots.
   [[nodiscard]] constexpr std::size_t size() const { return size_; }
   /// True when no slot.

@@ -233,6 +233,53 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filte
   }
   return n;
 }
+// The lane mask of points [i, i + 8) inside the closed box [lo, hi] (AABB::contains'
+// comparisons), or of the first `valid` of them (kMasked: masked loads; the other lanes unset).
+template <bool kMasked>
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned box_step8(
+    const double* xyz, unsigned i, unsigned valid, const __m512d* lo, const __m512d* hi) {
+  const TripleMasks8 mk(kMasked ? valid : 8u);
+  const double* p = xyz + 3 * static_cast<std::size_t>(i);
+  __m512d v[3];
+  if constexpr (kMasked)
+    deinterleave8(_mm512_maskz_loadu_pd(mk.a, p), _mm512_maskz_loadu_pd(mk.b, p + 8), _mm512_maskz_loadu_pd(mk.c, p + 16),
+                  v[0], v[1], v[2]);
+  else
+    deinterleave8(_mm512_loadu_pd(p), _mm512_loadu_pd(p + 8), _mm512_loadu_pd(p + 16), v[0], v[1], v[2]);
+  __mmask8 m = _mm512_cmp_pd_mask(v[0], lo[0], _CMP_GE_OQ);
+  m = _mm512_mask_cmp_pd_mask(m, v[0], hi[0], _CMP_LE_OQ);
+  for (unsigned a = 1; a < 3; ++a) {
+    m = _mm512_mask_cmp_pd_mask(m, v[a], lo[a], _CMP_GE_OQ);
+    m = _mm512_mask_cmp_pd_mask(m, v[a], hi[a], _CMP_LE_OQ);
+  }
+  return (kMasked ? mk.lanes : 0xFFu) & lane_to_point_mask(m);
+}
+
+// BoxPointsFn (simd.hpp) on AVX-512: 8 points per step, the kept indices compressed and stored
+// whole (store_kept8), the last count % 8 points as one overlapping step, fewer than 8 points as
+// one masked step.
+inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned box_points_avx512(const double* xyz,
+                                                                                       unsigned count,
+                                                                                       const double* lo,
+                                                                                       const double* hi,
+                                                                                       std::uint32_t* out) {
+  const __m512d l[3] = {_mm512_set1_pd(lo[0]), _mm512_set1_pd(lo[1]), _mm512_set1_pd(lo[2])};
+  const __m512d h[3] = {_mm512_set1_pd(hi[0]), _mm512_set1_pd(hi[1]), _mm512_set1_pd(hi[2])};
+  unsigned i = 0, n = 0;
+  for (; i + 8 <= count; i += 8) n = store_kept8(box_step8<false>(xyz, i, 8, l, h), i, out, n);
+  if (i == count) return n;
+  if (count >= 8) {
+    const unsigned base = count - 8;  // (the lanes before i are appended already)
+    return append_lanes<8>(box_step8<false>(xyz, base, 8, l, h) & (0xFFu << (i - base)), base, out, n);
+  }
+  const unsigned m = box_step8<true>(xyz, 0, count, l, h);
+  for (unsigned j = 0; j < count; ++j) {
+    out[n] = j;
+    n += (m >> j) & 1u;
+  }
+  return n;
+}
+
 // SortPushKeys8Fn (simd.hpp) on AVX-512: as sort_push_keys8_avx2, the 8 entries interleaved by two
 // two-source permutes into two 512-bit stores.
 inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) void sort_push_keys8_avx512(const std::uint32_t* keys,
