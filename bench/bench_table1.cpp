@@ -341,6 +341,7 @@ int main(int argc, char** argv) {
   int fixed_depth = -1;
   bool no_insert = false;
   std::string only, simd_paths;
+  double box_edge = 0.0;
   app.add_option("--points", n, "number of uniform points in the unit cube")->capture_default_str();
   app.add_option("--queries", queries, "box queries and kNN queries (each)")->capture_default_str();
   app.add_option("-k", k, "k of the kNN queries")->capture_default_str();
@@ -358,6 +359,12 @@ int main(int argc, char** argv) {
   app.add_option("--only", only,
                  "run only the contenders whose name contains this text (e.g. \"octree layered\"; for "
                  "valgrind --tool=callgrind --toggle-collect on one index's queries)");
+  app.add_option("--box-edge", box_edge,
+                 "box queries as cubes of this edge around uniform centres (a neighbourhood, as normals "
+                 "and observers query) instead of the paper's boxes spanned by two random points; 0 = "
+                 "the paper's")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--simd-paths", simd_paths,
                  "comma-separated SIMD paths (scalar,sse2,avx2,avx512): each rayscan contender runs once per "
                  "path, named \"... [path]\", interleaved with the others in every round (an A/B of the "
@@ -389,8 +396,9 @@ int main(int argc, char** argv) {
   rb::Rng rng(seed + 1);
   for (std::size_t i = 0; i < queries; ++i) {
     AABB b;
-    b.expand(rng.point_in_unit_cube());
-    b.expand(rng.point_in_unit_cube());
+    const Vec3 c = rng.point_in_unit_cube();
+    b.expand(box_edge > 0.0 ? c - 0.5 * box_edge : c);
+    b.expand(box_edge > 0.0 ? c + 0.5 * box_edge : rng.point_in_unit_cube());
     w.boxes.push_back(b);
   }
   for (std::size_t i = 0; i < queries; ++i) w.knn_q.push_back(rng.point_in_unit_cube());
@@ -454,9 +462,11 @@ int main(int argc, char** argv) {
   }
 
   std::printf("load average: %s\n", rb::loadavg().c_str());
-  std::printf("bench_table1: %zu uniform points in the unit cube (seed %llu), %zu box queries, "
+  std::printf("bench_table1: %zu uniform points in the unit cube (seed %llu), %zu box queries (%s), "
               "%zu kNN queries (k = %zu), median of %zu interleaved rounds, 1 thread, thread CPU time\n",
-              n, static_cast<unsigned long long>(seed), queries, queries, k, reps);
+              n, static_cast<unsigned long long>(seed), queries,
+              box_edge > 0.0 ? ("cubes of edge " + std::to_string(box_edge)).c_str() : "spanned by two random points",
+              queries, k, reps);
   std::printf("CPU: %s; octree capacity layered %u / adaptive %u, fixed depth %u, kd-tree leaf %u, "
               "nanoflann leaf %zu, Boost rtree rstar<16,4>\n",
               rb::cpu_model().c_str(), capacity_of(rayscan::OctreeLayout::layered), leaf_capacity, depth, kd_leaf,

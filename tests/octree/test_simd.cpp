@@ -1098,66 +1098,6 @@ TEST(Simd, BoxPointsKeepExactlyThePointsInTheBox) {
   }
 }
 
-// ChildBoxOverlapFn equals box_query's scalar node test (AABB::overlaps, AABB::contains of both
-// corners on node_bounds) child by child, on the interior nodes of each octree layout, including
-// query boxes whose faces lie exactly on a child's bounds.
-TEST(Simd, ChildBoxOverlapEqualsTheScalarNodeTest) {
-  PathGuard guard;
-  const std::vector<Vec3> pts = make_points(20000, Dist::utm_mm, 8);
-  std::mt19937_64 rng(22);
-  std::vector<AABB> boxes = box_kernel_queries(pts, rng);
-  std::size_t meets = 0, insides = 0, misses = 0;
-  for (const OctreeLayout layout : {OctreeLayout::layered, OctreeLayout::fixed, OctreeLayout::adaptive}) {
-    OctreeConfig cfg;
-    cfg.layout = layout;
-    const Octree tree = Octree::build_bulk(pts, cfg);
-    static_assert(detail::ExactFloatChildBoxes<Octree>);
-    std::vector<Octree::Node> interior;
-    for (Octree::Node n = 0; n < tree.node_count(); ++n)
-      if (tree.child_count(n) > 0) interior.push_back(n);
-    ASSERT_GT(interior.size(), 10u);
-    // Boxes with faces on child bounds: a child's own box, and one face of it moved to a sibling's.
-    std::vector<AABB> qs = boxes;
-    for (int i = 0; i < 20; ++i) {
-      const Octree::Node n = interior[(static_cast<std::size_t>(i) * 7919) % interior.size()];
-      const AABB c0 = tree.node_bounds(tree.child(n, 0));
-      const AABB cl = tree.node_bounds(tree.child(n, tree.child_count(n) - 1));
-      qs.push_back(c0);
-      AABB grown = c0;
-      grown.hi.x = cl.hi.x;
-      qs.push_back(grown);
-    }
-    for (SimdPath path : supported_paths()) {
-      set_simd_path(path);
-      const simd::Kernels& k = simd::active_kernels();
-      ASSERT_EQ(k.child_box_overlap == nullptr, path < SimdPath::avx2) << to_string(path);
-      if (!k.child_box_overlap) continue;
-      for (const AABB& q : qs)
-        for (const Octree::Node n : interior) {
-          std::uint32_t inside = 0xdeadbeefu;
-          const unsigned meet = k.child_box_overlap(tree.child_boxes_f(n), &tree.float_origin().x, &q.lo.x, &q.hi.x, inside);
-          unsigned want_meet = 0, want_inside = 0;
-          for (unsigned i = 0; i < tree.child_count(n); ++i) {
-            const AABB cb = tree.node_bounds(tree.child(n, i));
-            const bool m = q.overlaps(cb);
-            want_meet |= unsigned{m} << i;
-            want_inside |= unsigned{m && q.contains(cb.lo) && q.contains(cb.hi)} << i;
-          }
-          ASSERT_EQ(meet, want_meet) << to_string(path) << " node " << n;
-          ASSERT_EQ(inside, want_inside) << to_string(path) << " node " << n;
-          meets += std::popcount(want_meet);
-          insides += std::popcount(want_inside);
-          misses += tree.child_count(n) - std::popcount(want_meet);
-        }
-    }
-  }
-  if (simd_path_supported(SimdPath::avx2)) {  // every answer occurs
-    EXPECT_GT(meets, 1000u);
-    EXPECT_GT(insides, 1000u);
-    EXPECT_GT(misses, 1000u);
-  }
-}
-
 // box_query's output (its order included) is the same on every path, on each octree layout.
 TEST(Simd, BoxQueryIsIdenticalOnEveryPath) {
   PathGuard guard;

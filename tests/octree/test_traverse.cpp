@@ -187,7 +187,7 @@ struct BatchSphereTest {
   Enter operator()(Octree::Node n) const {
     return distance2_point_box(c, t.node_bounds(n)) <= r * r ? Enter::yes : Enter::no;
   }
-  bool children(Octree::Node n, unsigned nc, std::uint32_t& mask, std::uint32_t& /*whole*/) {
+  bool children(Octree::Node n, unsigned nc, std::uint32_t& mask) {
     ++batches;
     for (unsigned i = 0; i < nc; ++i) mask |= std::uint32_t{(*this)(t.child(n, i)) == Enter::yes} << i;
     return true;

@@ -56,7 +56,7 @@ template <class K>
 constexpr Kernels table_of() {
   return Kernels{K::path,        K::child_slab,      K::point_filter,    K::child_dist2, K::child_dist2_keys,
                  K::packet_child_slab, K::child_slab_keys, K::sort_keys8, K::sort_push_keys8, K::ray_box,
-                 K::packet_point_filter, K::packet_ray_box, K::box_points, K::child_box_overlap};
+                 K::packet_point_filter, K::packet_ray_box, K::box_points};
 }
 
 const Kernels& kernels_for(SimdPath p) {
@@ -64,11 +64,11 @@ const Kernels& kernels_for(SimdPath p) {
   // than the scalar test on Table 1 kNN and was disabled; the in-register transpose (as in
   // child_slab) brought it back (bench/notes/).
   static const Kernels k_scalar{SimdPath::scalar, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr,
-                                nullptr,          nullptr, nullptr, nullptr, nullptr, nullptr, nullptr};
+                                nullptr,          nullptr, nullptr, nullptr, nullptr, nullptr};
 #if RAYSCAN_SIMD_X86
   static const Kernels k_sse2{SimdPath::sse2, kernels::child_slab_sse2, kernels::point_filter_sse2,
                               kernels::child_dist2_sse2, nullptr, kernels::packet_child_slab_sse2, nullptr,
-                              nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr};
+                              nullptr, nullptr, nullptr, nullptr, nullptr, nullptr};
   static const Kernels k_avx2 = table_of<Avx2Kernels>();
   static const Kernels k_avx512 = table_of<Avx512Kernels>();
   switch (p) {

@@ -178,8 +178,6 @@ class Octree {
   /// magnitude of a float box coordinate (the root cell's edge).
   [[nodiscard]] const Vec3& float_origin() const { return cell_.lo; }
   [[nodiscard]] double float_extent() const { return cell_.max_extent(); }
-  /// node_bounds(c) is float_origin() plus c's float box in double (detail::ExactFloatChildBoxes).
-  static constexpr bool kExactFloatBoxes = true;
 
   // Octree specifics ---------------------------------------------------------------------------
   /// The Warren & Salmon id (depth + Morton code) of node n.

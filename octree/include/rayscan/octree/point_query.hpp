@@ -21,45 +21,13 @@ struct Neighbor {
   double distance;   ///< Euclidean distance to the query point (not squared; world units)
 };
 
-namespace detail {
-
-/// box_query's node test: no where the node's box misses the query box, whole where the query box
-/// contains it, else yes. On an index whose float child boxes are its node bounds
-/// (ExactFloatChildBoxes) the children of a node are tested at once by the active path's
-/// simd::ChildBoxOverlapFn, whose answers are these bit for bit (so the walk, and the output order,
-/// is the same on every path).
-template <SpatialIndex I>
-struct BoxNodeTest {
-  const I& index;
-  const AABB& box;
-  const simd::Kernels& kern;
-  Enter operator()(typename I::Node n) const {
-    const AABB nb = index.node_bounds(n);
-    if (!box.overlaps(nb)) return Enter::no;
-    return box.contains(nb.lo) && box.contains(nb.hi) ? Enter::whole : Enter::yes;
-  }
-  bool children([[maybe_unused]] typename I::Node n, [[maybe_unused]] unsigned nc, [[maybe_unused]] std::uint32_t& enter,
-                [[maybe_unused]] std::uint32_t& whole) const {
-    if constexpr (ExactFloatChildBoxes<I>) {
-      if (kern.child_box_overlap != nullptr && nc <= 8) {
-        const Vec3 origin = index.float_origin();
-        enter = kern.child_box_overlap(index.child_boxes_f(n), &origin.x, &box.lo.x, &box.hi.x, whole);
-        return true;
-      }
-    }
-    return false;
-  }
-};
-
-}  // namespace detail
-
 /// Box range query: the original indices of all points p with box.lo <= p <= box.hi (inclusive on
 /// every side), in the index's storage order (deterministic, the same on every SIMD path; sort the
 /// result if ascending indices are needed: the peers Boost.Geometry rtree and nanoflann also
 /// return tree order). Nodes inside the box are taken whole (contiguous slots) without per-point
 /// tests. An empty box (lo > hi on an axis) returns nothing. On the AVX2 and AVX-512 paths the
-/// points of a node the box cuts are tested by simd::BoxPointsFn and, on an Octree or index file,
-/// a node's children by simd::ChildBoxOverlapFn (both exact: the same comparisons).
+/// points of a node the box cuts (of more than 16 points) are tested by simd::BoxPointsFn
+/// (exact: the comparisons of AABB::contains).
 template <SpatialIndex I>
 void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
   out.clear();
@@ -68,60 +36,70 @@ void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
   const auto pos = index.positions();
   const IdView ids = index.ids();
   const simd::Kernels& kern = simd::active_kernels();
-  depth_first(index, detail::BoxNodeTest<I>{index, box, kern}, [&](const NodeVisit<Node>& v) {
-    const SlotRange sr = v.slots;
-    if (sr.size() == 0) return;
-    if (v.whole) {
-      ids.append_to(out, sr.begin, sr.end);
-      return;
-    }
-    const std::size_t first = out.size();
-    if (kern.box_points != nullptr) {
-      // The kept slots (local numbers) written at the end of `out`, then mapped to their ids.
-      out.resize(first + sr.size());
-      PointIndex* o = out.data() + first;
-      const unsigned n = kern.box_points(position_block(pos, sr.begin, sr.size()), sr.size(), &box.lo.x, &box.hi.x, o);
-      ids.map_slots(o, n, sr.begin);
-      out.resize(first + n);
-      return;
-    }
-    // Scalar: the node's ids copied at the end of `out`, then compacted in place, each kept by
-    // advancing the write position when its point is inside (no branch: the outcome is
-    // unpredictable there). The node's bounds contain its points, so only the box's faces that
-    // cut those bounds need a test; most cut nodes are cut by one face, which is then the only
-    // comparison per point.
-    const AABB nb = index.node_bounds(v.node);
-    unsigned faces = 0, face = 0;
-    for (unsigned a = 0; a < 3; ++a) {
-      if (box.lo[a] > nb.lo[a]) ++faces, face = 2 * a;
-      if (box.hi[a] < nb.hi[a]) ++faces, face = 2 * a + 1;
-    }
-    ids.append_to(out, sr.begin, sr.end);
-    std::size_t k = first;
-    PointIndex* o = out.data();
-    if (faces == 1) {
-      const unsigned a = face / 2;
-      if (face % 2 == 0) {
-        const double lo = box.lo[a];
-        for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
-          o[k] = o[first + (s - sr.begin)];
-          k += static_cast<std::size_t>(pos[s][a] >= lo);
+  depth_first(
+      index,
+      [&](Node n) {
+        const AABB nb = index.node_bounds(n);
+        if (!box.overlaps(nb)) return Enter::no;
+        return box.contains(nb.lo) && box.contains(nb.hi) ? Enter::whole : Enter::yes;
+      },
+      [&](const NodeVisit<Node>& v) {
+        const SlotRange sr = v.slots;
+        if (sr.size() == 0) return;
+        if (v.whole) {
+          ids.append_to(out, sr.begin, sr.end);
+          return;
         }
-      } else {
-        const double hi = box.hi[a];
-        for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
-          o[k] = o[first + (s - sr.begin)];
-          k += static_cast<std::size_t>(pos[s][a] <= hi);
+        const std::size_t first = out.size();
+        // The kernel for nodes of more than 16 points: on smaller ones (a kd-tree's leaves) the
+        // call and the second pass over the kept ids cost more than the vector steps save
+        // (bench/notes/2026-11-28-box-points-kernel.md).
+        if (kern.box_points != nullptr && sr.size() > 16) {
+          // The kept slots (local numbers) written at the end of `out`, then mapped to their ids.
+          out.resize(first + sr.size());
+          PointIndex* o = out.data() + first;
+          const unsigned n = kern.box_points(position_block(pos, sr.begin, sr.size()), sr.size(), &box.lo.x, &box.hi.x, o);
+          ids.map_slots(o, n, sr.begin);
+          out.resize(first + n);
+          return;
         }
-      }
-    } else {
-      for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
-        o[k] = o[first + (s - sr.begin)];
-        k += static_cast<std::size_t>(box.contains(pos[s]));
-      }
-    }
-    out.resize(k);
-  });
+        // Scalar: the node's ids copied at the end of `out`, then compacted in place, each kept by
+        // advancing the write position when its point is inside (no branch: the outcome is
+        // unpredictable there). The node's bounds contain its points, so only the box's faces that
+        // cut those bounds need a test; most cut nodes are cut by one face, which is then the only
+        // comparison per point.
+        const AABB nb = index.node_bounds(v.node);
+        unsigned faces = 0, face = 0;
+        for (unsigned a = 0; a < 3; ++a) {
+          if (box.lo[a] > nb.lo[a]) ++faces, face = 2 * a;
+          if (box.hi[a] < nb.hi[a]) ++faces, face = 2 * a + 1;
+        }
+        ids.append_to(out, sr.begin, sr.end);
+        std::size_t k = first;
+        PointIndex* o = out.data();
+        if (faces == 1) {
+          const unsigned a = face / 2;
+          if (face % 2 == 0) {
+            const double lo = box.lo[a];
+            for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+              o[k] = o[first + (s - sr.begin)];
+              k += static_cast<std::size_t>(pos[s][a] >= lo);
+            }
+          } else {
+            const double hi = box.hi[a];
+            for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+              o[k] = o[first + (s - sr.begin)];
+              k += static_cast<std::size_t>(pos[s][a] <= hi);
+            }
+          }
+        } else {
+          for (std::uint32_t s = sr.begin; s < sr.end; ++s) {
+            o[k] = o[first + (s - sr.begin)];
+            k += static_cast<std::size_t>(box.contains(pos[s]));
+          }
+        }
+        out.resize(k);
+      });
 }
 
 /// kNN with optional radius: the at most k points nearest to q with distance <= radius (inclusive),

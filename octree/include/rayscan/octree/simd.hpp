@@ -237,16 +237,6 @@ using PacketRayBoxFn = std::uint32_t (*)(const double* lo, const double* hi, con
 /// entries; out[ret, count) may be overwritten.
 using BoxPointsFn = unsigned (*)(const double* xyz, unsigned count, const double* lo, const double* hi,
                                  std::uint32_t* out);
-/// Box test of up to 8 child boxes, each the double box origin + (its float box) (each float
-/// converted exactly, then added in double: the value of node_bounds on an index whose float
-/// boxes are its node bounds, detail::ExactFloatChildBoxes): returns the mask of the children
-/// i < count whose box meets the closed query box [lo, hi] (AABB::overlaps) and sets `inside` to
-/// those of them whose two corners the query box contains (AABB::contains), with the comparisons
-/// of those functions, so that the answers equal box_query's scalar node test bit for bit. origin,
-/// lo, hi: 3 doubles each, world coordinates.
-using ChildBoxOverlapFn = unsigned (*)(const ChildBoxesF& boxes, const double* origin, const double* lo,
-                                       const double* hi, std::uint32_t& inside);
-
 /// The kernels of one path.
 struct Kernels {
   SimdPath path;
@@ -262,7 +252,6 @@ struct Kernels {
   PacketPointFilterFn packet_point_filter;  ///< nullptr for the scalar and sse2 paths
   PacketRayBoxFn packet_ray_box;            ///< AVX-512 only (else nullptr: ray_box per ray)
   BoxPointsFn box_points;                   ///< nullptr for the scalar and sse2 paths
-  ChildBoxOverlapFn child_box_overlap;      ///< nullptr for the scalar and sse2 paths
 };
 
 /// The kernels of the active path (simd_path()).
@@ -280,15 +269,6 @@ concept FloatChildBoxes = requires(const I& idx, typename I::Node n) {
   { idx.float_origin() } -> std::convertible_to<Vec3>;
   { idx.float_extent() } -> std::convertible_to<double>;
 };
-
-/// A FloatChildBoxes index whose node bounds are its float boxes made double:
-/// node_bounds(child) == float_origin() + Vec3(that child's float box), lo and hi, computed in
-/// double (Octree, io::MappedIndex: the float offsets are the stored bounds), declared by a static
-/// member kExactFloatBoxes = true. Its child tests may then be decided exactly on the float
-/// boxes (box_query's simd::ChildBoxOverlapFn); elsewhere (CopcIndex: outward-rounded copies of
-/// double boxes) they are only conservative.
-template <class I>
-concept ExactFloatChildBoxes = FloatChildBoxes<I> && requires { requires I::kExactFloatBoxes; };
 
 /// Rounds x to float towards -inf (down) or +inf (up): infinities are kept, finite values past
 /// the float range go to -inf / FLT_MAX (down) and -FLT_MAX / +inf (up), NaN stays NaN.

@@ -74,12 +74,11 @@ concept SubtreePoints = requires(const I& idx, typename I::Node n) {
 };
 
 /// A node-test policy that can also test all children of a node at once (a SIMD child bound):
-/// `children(parent, nc, enter, whole)` sets bit i of enter to enter child i (with Enter::yes, or
-/// Enter::whole where bit i of whole is set too) and returns true, or returns false to have each
-/// child tested alone. Both masks start at 0.
+/// `children(parent, nc, mask)` sets bit i of mask to enter child i with Enter::yes and returns
+/// true, or returns false to have each child tested alone.
 template <class T, class Node>
-concept ChildBatchTest = requires(T& t, Node n, unsigned nc, std::uint32_t& enter, std::uint32_t& whole) {
-  { t.children(n, nc, enter, whole) } -> std::convertible_to<bool>;
+concept ChildBatchTest = requires(T& t, Node n, unsigned nc, std::uint32_t& mask) {
+  { t.children(n, nc, mask) } -> std::convertible_to<bool>;
 };
 
 /// Calls the leaf callback; true when it asks to stop (a callback returning void never does).
@@ -99,9 +98,8 @@ __attribute__((always_inline)) inline bool visit_leaf(Leaf& leaf, Node n, SlotRa
 ///  - `test(node) -> Enter`: the node test, called once for the root and for each child of an
 ///    entered node before it is pushed (a pure function of the node: the walks here test boxes
 ///    against the query's shape in world coordinates). A test object may also have the member
-///    `bool children(Node parent, unsigned nc, std::uint32_t& enter, std::uint32_t& whole)`
-///    (detail::ChildBatchTest) that tests the nc <= 32 children of an entered node at once, with
-///    the answers test(child) would give.
+///    `bool children(Node parent, unsigned nc, std::uint32_t& mask)` (detail::ChildBatchTest) that
+///    tests the nc <= 32 children of an entered node at once.
 ///  - `leaf(const NodeVisit<Node>&)`: the per-node point work, called for every entered node
 ///    (also those without points of their own), returning void or bool (true: stop the walk, as
 ///    any hit and line of sight do; bvh v2's convention).
@@ -138,10 +136,10 @@ bool depth_first(const I& index, NodeTest&& test, Leaf&& leaf) {
     const unsigned nc = index.child_count(e.node);
     if (nc == 0) continue;
     if constexpr (detail::ChildBatchTest<std::remove_reference_t<NodeTest>, Node>) {
-      std::uint32_t enter = 0, whole = 0;
-      if (nc <= 32 && test.children(e.node, nc, enter, whole)) {
+      std::uint32_t mask = 0;
+      if (nc <= 32 && test.children(e.node, nc, mask)) {
         for (unsigned i = 0; i < nc; ++i)
-          if ((enter >> i) & 1u) stack.push_back({index.child(e.node, i), (whole >> i) & 1u ? Enter::whole : Enter::yes});
+          if ((mask >> i) & 1u) stack.push_back({index.child(e.node, i), Enter::yes});
         continue;
       }
     }

@@ -239,8 +239,6 @@ class MappedIndex {
   [[nodiscard]] const Vec3& float_origin() const { return cell_.lo; }
   /// See float_origin().
   [[nodiscard]] double float_extent() const { return cell_.max_extent(); }
-  /// node_bounds(c) is float_origin() plus c's float box in double (detail::ExactFloatChildBoxes).
-  static constexpr bool kExactFloatBoxes = true;
   /// Positions by slot, decoded from the file's encoding (float64 in place, float32 or the LAS
   /// int32 grid: docs/index-format.md "Positions"), bit-identical to the sources' readers.
   [[nodiscard]] PositionView positions() const { return positions_; }

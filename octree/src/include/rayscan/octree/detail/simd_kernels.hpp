@@ -36,7 +36,6 @@ struct Avx2Kernels {
   static constexpr PacketPointFilterFn packet_point_filter = kernels::packet_point_filter_avx2;
   static constexpr PacketRayBoxFn packet_ray_box = nullptr;
   static constexpr BoxPointsFn box_points = kernels::box_points_avx2;
-  static constexpr ChildBoxOverlapFn child_box_overlap = kernels::child_box_overlap_avx2;
   // The packet loop's lane helpers (first_hit_packet's 16-ray instance only; no run-time entry).
   static constexpr std::uint32_t (*lanes_not_above16)(const double*, const double*) = kernels::lanes_not_above16_avx2;
   static constexpr double (*masked_min16)(const double*, std::uint32_t) = kernels::masked_min16_avx2;
@@ -58,7 +57,6 @@ struct Avx512Kernels {
   static constexpr PacketPointFilterFn packet_point_filter = kernels::packet_point_filter_avx512;
   static constexpr PacketRayBoxFn packet_ray_box = kernels::packet_ray_box_avx512;
   static constexpr BoxPointsFn box_points = kernels::box_points_avx512;
-  static constexpr ChildBoxOverlapFn child_box_overlap = kernels::child_box_overlap_avx2;
   static constexpr std::uint32_t (*lanes_not_above16)(const double*, const double*) = kernels::lanes_not_above16_avx512;
   static constexpr double (*masked_min16)(const double*, std::uint32_t) = kernels::masked_min16_avx512;
 };

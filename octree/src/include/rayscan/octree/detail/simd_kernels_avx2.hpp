@@ -406,35 +406,6 @@ inline __attribute__((target("avx2,fma"))) unsigned box_points_avx2(const double
   return n;
 }
 
-// ChildBoxOverlapFn (simd.hpp) on AVX2 (also the AVX-512 path's: a node has 8 children): the 8
-// float boxes made double 4 lanes at a time (origin + the float, exact conversion then one
-// correctly rounded add: node_bounds' value), compared as AABB::overlaps and AABB::contains do.
-inline __attribute__((target("avx2,fma"))) unsigned child_box_overlap_avx2(const ChildBoxesF& b, const double* origin,
-                                                                           const double* lo, const double* hi,
-                                                                           std::uint32_t& inside) {
-  __m256 flo[3], fhi[3];
-  transpose_boxes8(b, flo, fhi);
-  unsigned meet = 0, in = 0;
-  for (unsigned half = 0; half < 2; ++half) {
-    __m256d m = _mm256_castsi256_pd(_mm256_set1_epi64x(-1)), c = m;
-    for (unsigned a = 0; a < 3; ++a) {
-      const __m128 fl = half ? _mm256_extractf128_ps(flo[a], 1) : _mm256_castps256_ps128(flo[a]);
-      const __m128 fh = half ? _mm256_extractf128_ps(fhi[a], 1) : _mm256_castps256_ps128(fhi[a]);
-      const __m256d o = _mm256_set1_pd(origin[a]);
-      const __m256d clo = _mm256_add_pd(o, _mm256_cvtps_pd(fl)), chi = _mm256_add_pd(o, _mm256_cvtps_pd(fh));
-      const __m256d qlo = _mm256_set1_pd(lo[a]), qhi = _mm256_set1_pd(hi[a]);
-      m = _mm256_and_pd(m, _mm256_and_pd(_mm256_cmp_pd(qlo, chi, _CMP_LE_OQ), _mm256_cmp_pd(clo, qhi, _CMP_LE_OQ)));
-      c = _mm256_and_pd(c, _mm256_and_pd(_mm256_and_pd(_mm256_cmp_pd(clo, qlo, _CMP_GE_OQ), _mm256_cmp_pd(clo, qhi, _CMP_LE_OQ)),
-                                         _mm256_and_pd(_mm256_cmp_pd(chi, qlo, _CMP_GE_OQ), _mm256_cmp_pd(chi, qhi, _CMP_LE_OQ))));
-    }
-    meet |= static_cast<unsigned>(_mm256_movemask_pd(m)) << (4 * half);
-    in |= static_cast<unsigned>(_mm256_movemask_pd(c)) << (4 * half);
-  }
-  meet &= (1u << b.count) - 1u;  // b.count <= 8
-  inside = in & meet;
-  return meet;
-}
-
 // The lane mask of points [i, i + 4) of an AVX2 point filter step (kRadii: with f.radii).
 template <bool kRadii>
 __attribute__((target("avx2,fma"), always_inline)) inline unsigned filter_step4(const double* xyz, unsigned i,

@@ -55,8 +55,7 @@ void cover_descent(const I& index, const SurfelView& s, const Vec3& x, double de
     Enter operator()(Node n) const {
       return distance2_point_box(x, index.node_bounds(n)) <= reach_of(n) ? Enter::yes : Enter::no;
     }
-    bool children([[maybe_unused]] Node n, [[maybe_unused]] unsigned nc, [[maybe_unused]] std::uint32_t& mask,
-                  std::uint32_t& /*whole: never (Enter::yes or no)*/) const {
+    bool children([[maybe_unused]] Node n, [[maybe_unused]] unsigned nc, [[maybe_unused]] std::uint32_t& mask) const {
       if constexpr (rayscan::detail::FloatChildBoxes<I>) {
         if (kern.child_dist2 && nc <= 8) {
           float lb2[8];
