@@ -5,6 +5,8 @@
 
 #include "rayscan/octree/detail/simd_kernels_avx2.hpp"
 
+#include <type_traits>
+
 namespace rayscan::simd::kernels {
 
 #if RAYSCAN_SIMD_X86
@@ -208,6 +210,28 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
   return n + static_cast<unsigned>(__builtin_popcount(m));
 }
 
+// The points after an 8-wide kernel's full steps (i of count done, n kept so far): the last
+// count % 8 points as one overlapping step over the last 8 with the lanes before i cleared
+// (append_lanes then writes below count, as in the AVX2 kernels' tail_lanes4), or, for fewer than
+// 8 points, one masked step whose indices are written for the valid lanes only (out holds count).
+// step(std::bool_constant<kMasked>, first, valid) returns the point-order lane mask of points
+// [first, first + valid) (filter_step8, box_step8).
+template <class Step>
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned finish_steps8(
+    const Step& step, unsigned i, unsigned count, std::uint32_t* out, unsigned n) {
+  if (i == count) return n;
+  if (count >= 8) {
+    const unsigned base = count - 8;
+    return append_lanes<8>(step(std::false_type{}, base, 8u) & (0xFFu << (i - base)), base, out, n);
+  }
+  const unsigned m = step(std::true_type{}, 0u, count);
+  for (unsigned j = 0; j < count; ++j) {
+    out[n] = j;
+    n += (m >> j) & 1u;
+  }
+  return n;
+}
+
 inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filter_avx512(const double* xyz, unsigned count,
                                                                                  const PointFilterD& f,
                                                                                  std::uint32_t* out) {
@@ -218,20 +242,11 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filte
   } else {  // a ray's thin tube: most steps keep nothing (append_lanes' early exit predicts well)
     for (; i + 8 <= count; i += 8) n = append_lanes<8>(filter_step8<false>(xyz, i, 8, f, false), i, out, n);
   }
-  if (i == count) return n;
-  if (count >= 8) {
-    // The last count % 8 points: one overlapping step over the last 8, the lanes before i cleared
-    // (append_lanes then writes below count, as in the AVX2 kernel's tail_lanes4).
-    const unsigned base = count - 8;
-    return append_lanes<8>(filter_step8<false>(xyz, base, 8, f, dist_only) & (0xFFu << (i - base)), base, out, n);
-  }
-  // Fewer than 8 points: one masked step; its indices written for the valid lanes only (out holds count).
-  const unsigned m = filter_step8<true>(xyz, 0, count, f, dist_only);
-  for (unsigned j = 0; j < count; ++j) {
-    out[n] = j;
-    n += (m >> j) & 1u;
-  }
-  return n;
+  return finish_steps8(
+      [&](auto masked, unsigned first, unsigned valid) __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) {
+        return filter_step8<decltype(masked)::value>(xyz, first, valid, f, dist_only);
+      },
+      i, count, out, n);
 }
 // The lane mask of points [i, i + 8) inside the closed box [lo, hi] (AABB::contains'
 // comparisons), or of the first `valid` of them (kMasked: masked loads; the other lanes unset).
@@ -267,17 +282,11 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned box_points_
   const __m512d h[3] = {_mm512_set1_pd(hi[0]), _mm512_set1_pd(hi[1]), _mm512_set1_pd(hi[2])};
   unsigned i = 0, n = 0;
   for (; i + 8 <= count; i += 8) n = store_kept8(box_step8<false>(xyz, i, 8, l, h), i, out, n);
-  if (i == count) return n;
-  if (count >= 8) {
-    const unsigned base = count - 8;  // (the lanes before i are appended already)
-    return append_lanes<8>(box_step8<false>(xyz, base, 8, l, h) & (0xFFu << (i - base)), base, out, n);
-  }
-  const unsigned m = box_step8<true>(xyz, 0, count, l, h);
-  for (unsigned j = 0; j < count; ++j) {
-    out[n] = j;
-    n += (m >> j) & 1u;
-  }
-  return n;
+  return finish_steps8(
+      [&](auto masked, unsigned first, unsigned valid) __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) {
+        return box_step8<decltype(masked)::value>(xyz, first, valid, l, h);
+      },
+      i, count, out, n);
 }
 
 // SortPushKeys8Fn (simd.hpp) on AVX-512: as sort_push_keys8_avx2, the 8 entries interleaved by two
