@@ -444,6 +444,8 @@ int main(int argc, char** argv) {
       for (const rayscan::SimdPath p : paths) {
         Contender d = c;
         d.name += std::string(" [") + rayscan::to_string(p) + "]";
+        d.build_bulk = [p, f = c.build_bulk] { rayscan::set_simd_path(p); f(); };
+        if (c.build_insert) d.build_insert = [p, f = c.build_insert] { rayscan::set_simd_path(p); f(); };
         d.run_box = [p, f = c.run_box] { rayscan::set_simd_path(p); return f(); };
         d.run_knn = [p, f = c.run_knn] { rayscan::set_simd_path(p); return f(); };
         d.box_ids = [p, f = c.box_ids](const AABB& b) { rayscan::set_simd_path(p); return f(b); };

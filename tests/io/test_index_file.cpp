@@ -250,8 +250,8 @@ TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
     const auto ra = radius_search(m, q, 0.7), rb = radius_search(bf, q, 0.7);
     ASSERT_EQ(ra.size(), rb.size());
     for (std::size_t j = 0; j < ra.size(); ++j) EXPECT_EQ(ra[j].index, rb[j].index);
-    // Box range: the in-memory tree's answer in its order (the SIMD child test on the mapped
-    // float boxes decides as on the octree's), and brute force's set.
+    // Box range: the in-memory tree's answer in its order (the same walk over the same nodes),
+    // and brute force's set.
     AABB qb;
     qb.expand(q + Vec3(2.0 * u(rng), 2.0 * u(rng), u(rng)));
     qb.expand(order[static_cast<std::size_t>(i) * 977 % order.size()]);

@@ -125,3 +125,31 @@ TEST(IdView, AppendToEqualsOperatorIndexOnEveryKindOfView) {
   IdView{std::span<const PointIndex>(bad)}.append_to(out, 5, 8);
   EXPECT_EQ(out, (std::vector<PointIndex>{1, 10, 2}));
 }
+
+// IdView::map_slots, box_query's mapping of a kernel's kept local slots to ids, against
+// operator[] on each kind of view; a checked view throws on a bad id as operator[] does.
+TEST(IdView, MapSlotsEqualsOperatorIndexOnEveryKindOfView) {
+  const std::vector<PointIndex> stored{7, 3, 9, 0, 5, 1, 8, 2, 6, 4};
+  const char* what = "ids";
+  const IdView plain{std::span<const PointIndex>(stored)};
+  const IdView checked = IdView::checked(stored, throw_bad_id, what);
+  for (const IdView& v : {plain, IdView::identity(stored.size()), checked})
+    for (std::size_t base = 0; base < v.size(); ++base) {
+      std::vector<PointIndex> local;  // every other slot from base, descending (any order maps)
+      for (std::size_t s = v.size(); s-- > base;)
+        if ((s - base) % 2 == 0) local.push_back(static_cast<PointIndex>(s - base));
+      std::vector<PointIndex> want;
+      for (PointIndex j : local) want.push_back(v[base + j]);
+      v.map_slots(local.data(), local.size(), base);
+      ASSERT_EQ(local, want) << "base " << base;
+    }
+  std::vector<PointIndex> bad = stored;
+  bad[6] = 10;  // not below size()
+  std::vector<PointIndex> local{0, 1, 2};
+  try {
+    IdView::checked(bad, throw_bad_id, what).map_slots(local.data(), local.size(), 4);
+    FAIL() << "an id >= size() was mapped";
+  } catch (const std::runtime_error& e) {
+    EXPECT_STREQ(e.what(), "ids slot 6");
+  }
+}

@@ -1057,6 +1057,9 @@ std::vector<AABB> box_kernel_queries(const std::vector<Vec3>& pts, std::mt19937_
   AABB nan_box = all;
   nan_box.lo.z = std::nan("");
   boxes.push_back(nan_box);
+  nan_box = all;
+  nan_box.hi.x = std::nan("");
+  boxes.push_back(nan_box);
   return boxes;
 }
 
@@ -1065,9 +1068,11 @@ std::vector<AABB> box_kernel_queries(const std::vector<Vec3>& pts, std::mt19937_
 // overlapping last step and the masked or scalar short runs).
 TEST(Simd, BoxPointsKeepExactlyThePointsInTheBox) {
   PathGuard guard;
-  const std::vector<Vec3> pts = make_points(1003, Dist::utm_mm, 7);
+  std::vector<Vec3> pts = make_points(1003, Dist::utm_mm, 7);
   std::mt19937_64 rng(21);
   const std::vector<AABB> boxes = box_kernel_queries(pts, rng);
+  pts[3].y = std::nan("");  // a point with a NaN coordinate is in no box
+  pts[20].z = std::nan("");
   std::size_t kept = 0, dropped = 0;
   for (SimdPath path : supported_paths()) {
     set_simd_path(path);
@@ -1081,8 +1086,12 @@ TEST(Simd, BoxPointsKeepExactlyThePointsInTheBox) {
           std::vector<std::uint32_t> want;
           for (unsigned j = 0; j < count; ++j)
             if (b.contains(pts[off + j])) want.push_back(j);
-          std::vector<std::uint32_t> got(count + 1, 0xdeadbeefu);  // one guard entry past the room
-          const unsigned n = k.box_points(&pts[off].x, count, &b.lo.x, &b.hi.x, got.data());
+          // The run in a buffer of exactly its size (a read past it is a heap overflow under
+          // ASan) and one guard entry past the output's room.
+          const std::vector<Vec3> run(pts.begin() + off, pts.begin() + off + count);
+          std::vector<std::uint32_t> got(count + 1, 0xdeadbeefu);
+          const unsigned n = k.box_points(reinterpret_cast<const double*>(run.data()), count, &b.lo.x, &b.hi.x,
+                                          got.data());
           ASSERT_EQ(got[count], 0xdeadbeefu) << to_string(path) << " wrote past its room, count " << count;
           ASSERT_LE(n, count) << to_string(path);
           got.resize(n);

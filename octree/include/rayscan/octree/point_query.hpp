@@ -27,7 +27,8 @@ struct Neighbor {
 /// return tree order). Nodes inside the box are taken whole (contiguous slots) without per-point
 /// tests. An empty box (lo > hi on an axis) returns nothing. On the AVX2 and AVX-512 paths the
 /// points of a node the box cuts (of more than 16 points) are tested by simd::BoxPointsFn
-/// (exact: the comparisons of AABB::contains).
+/// (exact: the comparisons of AABB::contains). Throws what the index's checked ids throw (an
+/// io::MappedIndex of an unverified file with a bad id); `out` then holds unspecified values.
 template <SpatialIndex I>
 void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
   out.clear();
@@ -51,10 +52,11 @@ void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
           return;
         }
         const std::size_t first = out.size();
-        // The kernel for nodes of more than 16 points: on smaller ones (a kd-tree's leaves) the
-        // call and the second pass over the kept ids cost more than the vector steps save
-        // (bench/notes/2026-11-28-box-points-kernel.md).
-        if (kern.box_points != nullptr && sr.size() > 16) {
+        // The kernel for nodes of more than kScalarMaxPoints points: on smaller ones (a kd-tree's
+        // leaves) the call and the second pass over the kept ids cost more than the vector steps
+        // save (bench/notes/2026-11-28-box-points-kernel.md).
+        constexpr std::uint32_t kScalarMaxPoints = 16;
+        if (kern.box_points != nullptr && sr.size() > kScalarMaxPoints) {
           // The kept slots (local numbers) written at the end of `out`, then mapped to their ids.
           out.resize(first + sr.size());
           PointIndex* o = out.data() + first;

@@ -213,8 +213,8 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
 // The points after an 8-wide kernel's full steps (i of count done, n kept so far): the last
 // count % 8 points as one overlapping step over the last 8 with the lanes before i cleared
 // (append_lanes then writes below count, as in the AVX2 kernels' tail_lanes4), or, for fewer than
-// 8 points, one masked step whose indices are written for the valid lanes only (out holds count).
-// step(std::bool_constant<kMasked>, first, valid) returns the point-order lane mask of points
+// 8 points (then no full step ran: i == 0), one masked step whose indices are written for the
+// valid lanes only (out holds count). step(std::bool_constant<kMasked>, first, valid) returns the point-order lane mask of points
 // [first, first + valid) (filter_step8, box_step8).
 template <class Step>
 __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned finish_steps8(
