@@ -340,7 +340,8 @@ int main(int argc, char** argv) {
   std::uint32_t capacity = 0, kd_leaf = 16;
   int fixed_depth = -1;
   bool no_insert = false;
-  std::string only, simd_paths;
+  std::string only;
+  std::vector<std::string> simd_paths;
   double box_edge = 0.0;
   app.add_option("--points", n, "number of uniform points in the unit cube")->capture_default_str();
   app.add_option("--queries", queries, "box queries and kNN queries (each)")->capture_default_str();
@@ -368,19 +369,17 @@ int main(int argc, char** argv) {
   app.add_option("--simd-paths", simd_paths,
                  "comma-separated SIMD paths (scalar,sse2,avx2,avx512): each rayscan contender runs once per "
                  "path, named \"... [path]\", interleaved with the others in every round (an A/B of the "
-                 "kernels in one process, where a shared machine's noise would swamp separate runs)");
+                 "kernels in one process, where a shared machine's noise would swamp separate runs)")
+      ->delimiter(',');
   CLI11_PARSE(app, argc, argv);
   std::vector<rayscan::SimdPath> paths;
-  for (std::size_t b = 0; !simd_paths.empty() && b <= simd_paths.size();) {
-    const std::size_t e = std::min(simd_paths.find(',', b), simd_paths.size());
-    const std::optional<rayscan::SimdPath> p = rayscan::parse_simd_path(simd_paths.substr(b, e - b));
+  for (const std::string& name : simd_paths) {
+    const std::optional<rayscan::SimdPath> p = rayscan::parse_simd_path(name);
     if (!p || !rayscan::simd_path_supported(*p)) {
-      std::cerr << "bench_table1: --simd-paths: \"" << simd_paths.substr(b, e - b)
-                << "\" is not a path this CPU runs (scalar|sse2|avx2|avx512)\n";
+      std::cerr << "bench_table1: --simd-paths: \"" << name << "\" is not a path this CPU runs (scalar|sse2|avx2|avx512)\n";
       return 2;
     }
     paths.push_back(*p);
-    b = e + 1;
   }
   if (reps == 0 || n == 0) {
     std::cerr << "bench_table1: --reps and --points must be >= 1\n";

@@ -397,11 +397,12 @@ inline __attribute__((target("avx2,fma"))) unsigned box_points_avx2(const double
   for (; i + 4 <= count; i += 4) n = store_kept4(box_step4(xyz, i, l, h), i, out, n);
   if (i < count && count >= 4)
     return append_lanes<4>(box_step4(xyz, count - 4, l, h) & tail_lanes4(i, count), count - 4, out, n);
+  if (i == count) return n;
+  const AABB box{Vec3(lo[0], lo[1], lo[2]), Vec3(hi[0], hi[1], hi[2])};  // (count < 4)
   for (; i < count; ++i) {
     const double* p = xyz + 3 * static_cast<std::size_t>(i);
     out[n] = i;
-    n += static_cast<unsigned>((p[0] >= lo[0]) & (p[0] <= hi[0]) & (p[1] >= lo[1]) & (p[1] <= hi[1]) &
-                               (p[2] >= lo[2]) & (p[2] <= hi[2]));
+    n += static_cast<unsigned>(box.contains(Vec3(p[0], p[1], p[2])));
   }
   return n;
 }

@@ -142,6 +142,19 @@ struct TripleMasks8 {
   }
 };
 
+// Points [i, i + 8) of AoS positions xyz as x, y and z lanes (deinterleave8's order), or the
+// first mk's valid of them (kMasked: masked loads, nothing read past them; the other lanes 0).
+template <bool kMasked>
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline void load_points8(
+    const double* xyz, unsigned i, const TripleMasks8& mk, __m512d& x, __m512d& y, __m512d& z) {
+  const double* p = xyz + 3 * static_cast<std::size_t>(i);
+  if constexpr (kMasked)
+    deinterleave8(_mm512_maskz_loadu_pd(mk.a, p), _mm512_maskz_loadu_pd(mk.b, p + 8), _mm512_maskz_loadu_pd(mk.c, p + 16),
+                  x, y, z);
+  else
+    deinterleave8(_mm512_loadu_pd(p), _mm512_loadu_pd(p + 8), _mm512_loadu_pd(p + 16), x, y, z);
+}
+
 // filter_terms4 (simd_kernels_avx2.hpp) in 8 lanes: the same expressions.
 __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline void filter_terms8(
     __m512d vx, __m512d vy, __m512d vz, __m512d dx, __m512d dy, __m512d dz, __m512d& t, __m512d& d2) {
@@ -156,13 +169,8 @@ template <bool kMasked>
 __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned filter_step8(
     const double* xyz, unsigned i, unsigned valid, const PointFilterD& f, bool dist_only) {
   const TripleMasks8 mk(kMasked ? valid : 8u);
-  const double* p = xyz + 3 * static_cast<std::size_t>(i);
   __m512d vx, vy, vz;
-  if constexpr (kMasked)
-    deinterleave8(_mm512_maskz_loadu_pd(mk.a, p), _mm512_maskz_loadu_pd(mk.b, p + 8), _mm512_maskz_loadu_pd(mk.c, p + 16),
-                  vx, vy, vz);
-  else
-    deinterleave8(_mm512_loadu_pd(p), _mm512_loadu_pd(p + 8), _mm512_loadu_pd(p + 16), vx, vy, vz);
+  load_points8<kMasked>(xyz, i, mk, vx, vy, vz);
   vx = _mm512_sub_pd(vx, _mm512_set1_pd(f.o[0]));
   vy = _mm512_sub_pd(vy, _mm512_set1_pd(f.o[1]));
   vz = _mm512_sub_pd(vz, _mm512_set1_pd(f.o[2]));
@@ -214,8 +222,8 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
 // count % 8 points as one overlapping step over the last 8 with the lanes before i cleared
 // (append_lanes then writes below count, as in the AVX2 kernels' tail_lanes4), or, for fewer than
 // 8 points (then no full step ran: i == 0), one masked step whose indices are written for the
-// valid lanes only (out holds count). step(std::bool_constant<kMasked>, first, valid) returns the point-order lane mask of points
-// [first, first + valid) (filter_step8, box_step8).
+// valid lanes only (out holds count). step(std::bool_constant<kMasked>, first, valid) returns
+// the point-order lane mask of points [first, first + valid) (filter_step8, box_step8).
 template <class Step>
 __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned finish_steps8(
     const Step& step, unsigned i, unsigned count, std::uint32_t* out, unsigned n) {
@@ -248,19 +256,15 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned point_filte
       },
       i, count, out, n);
 }
+
 // The lane mask of points [i, i + 8) inside the closed box [lo, hi] (AABB::contains'
 // comparisons), or of the first `valid` of them (kMasked: masked loads; the other lanes unset).
 template <bool kMasked>
 __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned box_step8(
     const double* xyz, unsigned i, unsigned valid, const __m512d* lo, const __m512d* hi) {
   const TripleMasks8 mk(kMasked ? valid : 8u);
-  const double* p = xyz + 3 * static_cast<std::size_t>(i);
   __m512d v[3];
-  if constexpr (kMasked)
-    deinterleave8(_mm512_maskz_loadu_pd(mk.a, p), _mm512_maskz_loadu_pd(mk.b, p + 8), _mm512_maskz_loadu_pd(mk.c, p + 16),
-                  v[0], v[1], v[2]);
-  else
-    deinterleave8(_mm512_loadu_pd(p), _mm512_loadu_pd(p + 8), _mm512_loadu_pd(p + 16), v[0], v[1], v[2]);
+  load_points8<kMasked>(xyz, i, mk, v[0], v[1], v[2]);
   __mmask8 m = _mm512_cmp_pd_mask(v[0], lo[0], _CMP_GE_OQ);
   m = _mm512_mask_cmp_pd_mask(m, v[0], hi[0], _CMP_LE_OQ);
   for (unsigned a = 1; a < 3; ++a) {
