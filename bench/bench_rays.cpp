@@ -43,6 +43,7 @@
 #include <sstream>
 #include <tuple>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <unistd.h>
 #include <variant>
@@ -416,9 +417,18 @@ std::uint64_t run_embree_packets(const EmbreeScene& es, std::span<const Ray> ray
   return total.load();
 }
 
+/// The suffix of a --indexes entry whose first hits run without the entry-point search
+/// (rayscan::set_entry_point_search(false) around each of its timed runs): its A/B in one process.
+constexpr std::string_view kNoEntrySuffix = "/no-entry";
+
+/// Whether a --indexes entry runs its first hits with the entry-point search (no kNoEntrySuffix).
+bool entry_search_of(const std::string& type) { return !type.ends_with(kNoEntrySuffix); }
+
 /// Index options of a --indexes entry: a make_index type, optionally with ":capacity" (octree
-/// node capacity / kd-tree leaf size, e.g. "octree-adaptive:8", for leaf-capacity sweeps).
-rayscan::IndexOptions index_options(const std::string& type) {
+/// node capacity / kd-tree leaf size, e.g. "octree-adaptive:8", for leaf-capacity sweeps) and
+/// kNoEntrySuffix.
+rayscan::IndexOptions index_options(std::string type) {
+  if (!entry_search_of(type)) type.resize(type.size() - kNoEntrySuffix.size());
   rayscan::IndexOptions o;
   const std::size_t colon = type.find(':');
   o.type = type.substr(0, colon);
@@ -795,7 +805,9 @@ int main(int argc, char** argv) {
   app.add_option("--points-list", points_list, "comma-separated cloud sizes")->capture_default_str();
   app.add_option("--indexes", index_list,
                  "comma-separated rayscan indexes: octree-adaptive, octree-layered, octree-fixed, kdtree; "
-                 "NAME:C sets the node capacity / leaf size C (default: make_index's, index_capacity)")
+                 "NAME:C sets the node capacity / leaf size C (default: make_index's, index_capacity); "
+                 "NAME/no-entry: the same index with its first hits' entry-point search off "
+                 "(rayscan::set_entry_point_search), for an A/B of it in one process")
       ->capture_default_str();
   app.add_option("--threads", threads_list, "comma-separated thread counts (tbb::global_control)")
       ->capture_default_str();
@@ -1048,9 +1060,10 @@ int main(int argc, char** argv) {
                                : run.packet == 4                       ? set.tiles2
                                                                        : set.tiles4;
             RayResults res(rays.size());
+            const bool em = run.b == built.size();
+            if (!em) rayscan::set_entry_point_search(entry_search_of(indexes[run.b]));
             rb::Stopwatch sw;
             rb::ThreadCpuStopwatch cpu;
-            const bool em = run.b == built.size();
             const std::uint64_t tot =
                 run.packet == 0 ? (em ? run_embree(es, rays, res)
                                       : run_rayscan(built[run.b], rays, make_query(run.q, radius), res))

@@ -4,15 +4,19 @@
 // rest (camera, shading, sampling), measured by timing every ray_query call.
 //
 // Usage: bench_render [SCENE.json] [--tiles N] [--spp S] [--threads T] [--no-timing]
-//                     [--packets on|off|both] [--rounds R]
+//                     [--packets on|off|both] [--entry-search on|off|both] [--rounds R]
 //   default scene: scenes/autzen_overview.json; --tiles N renders an N x N tiling of the cloud
 //   (N = 9 gives 8.9 million points for autzen_trim), seen by a camera scaled to cover it.
 //   --packets: camera and shadow rays of 4x4 pixel blocks as ray packets (on, the
 //   default), single rays (off), or both, alternating in each of R rounds (default 1) of the same
 //   process, with the two images compared byte by byte and queries/s per thread by wall clock and
-//   by process CPU time (the fair figure on a loaded machine) for each render.
+//   by process CPU time (the fair figure on a loaded machine) for each render. --entry-search: the
+//   first hits' entry-point search (rayscan::set_entry_point_search) on (the default), off, or
+//   both, the same way (each combination with --packets once per round; every image must equal the
+//   first byte for byte).
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/material.hpp"
+#include "rayscan/octree/ray_query.hpp"
 #include "rayscan/render/render.hpp"
 
 #include <chrono>
@@ -20,6 +24,8 @@
 #include <ctime>
 #include <cstring>
 #include <string>
+#include <utility>
+#include <vector>
 
 using namespace rayscan;
 using namespace rayscan::render;
@@ -29,7 +35,7 @@ int main(int argc, char** argv) {
   int tiles = 1;
   unsigned spp = 50, threads = 0;
   bool timing = true;
-  std::string packets = "on";
+  std::string packets = "on", entry = "on";
   int rounds = 1;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--tiles") && i + 1 < argc) tiles = std::atoi(argv[++i]);
@@ -37,6 +43,7 @@ int main(int argc, char** argv) {
     else if (!std::strcmp(argv[i], "--threads") && i + 1 < argc) threads = unsigned(std::atoi(argv[++i]));
     else if (!std::strcmp(argv[i], "--no-timing")) timing = false;
     else if (!std::strcmp(argv[i], "--packets") && i + 1 < argc) packets = argv[++i];
+    else if (!std::strcmp(argv[i], "--entry-search") && i + 1 < argc) entry = argv[++i];
     else if (!std::strcmp(argv[i], "--rounds") && i + 1 < argc) rounds = std::max(1, std::atoi(argv[++i]));
     else scene_path = argv[i];
   }
@@ -79,10 +86,11 @@ int main(int argc, char** argv) {
     const AnyIndex index = make_index(cloud.positions, scene.index);
     const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const double radius = choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor).radius;
-    if (packets != "on" && packets != "off" && packets != "both") {
-      std::fprintf(stderr, "bench_render: --packets '%s': expected on, off or both\n", packets.c_str());
-      return 2;
-    }
+    for (const auto& [flag, v] : {std::pair{"--packets", &packets}, std::pair{"--entry-search", &entry}})
+      if (*v != "on" && *v != "off" && *v != "both") {
+        std::fprintf(stderr, "bench_render: %s '%s': expected on, off or both\n", flag, v->c_str());
+        return 2;
+      }
     const RenderSettings settings = make_settings(scene, cloud.positions, albedo, radius);
     std::printf("scene %s, tiles %dx%d: %zu points, %s build %.2f s, radius %.4g\n", scene_path.c_str(),
                 tiles, tiles, cloud.size(), scene.index.type.c_str(), build_s, radius);
@@ -91,12 +99,15 @@ int main(int argc, char** argv) {
       clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
       return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
     };
-    std::vector<bool> modes;
-    if (packets != "on") modes.push_back(false);
-    if (packets != "off") modes.push_back(true);
-    std::vector<Color> first_image[2];
+    std::vector<std::pair<bool, bool>> modes;  // (packets, entry-point search)
+    for (const bool es : {false, true})
+      if (entry == "both" || (entry == "on") == es)
+        for (const bool pk : {false, true})
+          if (packets == "both" || (packets == "on") == pk) modes.emplace_back(pk, es);
+    std::vector<Color> first_image;
     for (int round = 0; round < rounds; ++round)
-      for (const bool pk : modes) {
+      for (const auto& [pk, es] : modes) {
+        set_entry_point_search(es);
         RenderOptions opt;
         opt.threads = threads;
         opt.time_queries = timing;
@@ -106,8 +117,9 @@ int main(int argc, char** argv) {
         const RenderStats st = render_image(index, settings, fb, opt);
         const double cpu = cpu_now() - c0;
         const double qps = double(st.queries) / st.seconds;
-        std::printf("round %d, packets %s: %ux%u px, %u spp, %u threads: %.2f s, %llu primary rays, %llu ray queries\n",
-                    round + 1, pk ? "on" : "off", fb.width, fb.height, scene.spp, st.threads, st.seconds,
+        std::printf("round %d, packets %s, entry-point search %s: %ux%u px, %u spp, %u threads: %.2f s, %llu primary "
+                    "rays, %llu ray queries\n",
+                    round + 1, pk ? "on" : "off", es ? "on" : "off", fb.width, fb.height, scene.spp, st.threads, st.seconds,
                     (unsigned long long)st.primary_rays, (unsigned long long)st.queries);
         std::printf("  ray queries/s: %.3g total, %.3g per thread (wall); %.3g per CPU-second; "
                     "nodes visited/query %.1f, points tested/query %.1f\n",
@@ -119,17 +131,14 @@ int main(int argc, char** argv) {
                       "timer overhead) %.1f%%\n",
                       100.0 * st.query_seconds / busy, 100.0 * (1.0 - st.query_seconds / busy));
         }
-        std::vector<Color>& ref = first_image[pk ? 1 : 0];
-        if (ref.empty()) ref = fb.beauty;
-        const std::vector<Color>& other = first_image[pk ? 0 : 1];
-        for (const std::vector<Color>* cmp : {static_cast<const std::vector<Color>*>(&ref), &other})
-          if (!cmp->empty() && (cmp->size() != fb.beauty.size() ||
-                                std::memcmp(cmp->data(), fb.beauty.data(), fb.beauty.size() * sizeof(Color)) != 0)) {
-            std::fprintf(stderr, "bench_render: round %d: the image differs from an earlier render\n", round + 1);
-            return 1;
-          }
+        if (first_image.empty()) first_image = fb.beauty;
+        if (first_image.size() != fb.beauty.size() ||
+            std::memcmp(first_image.data(), fb.beauty.data(), fb.beauty.size() * sizeof(Color)) != 0) {
+          std::fprintf(stderr, "bench_render: round %d: the image differs from the first render\n", round + 1);
+          return 1;
+        }
       }
-    if (modes.size() == 2) std::printf("images identical byte for byte (packets on vs off, every round)\n");
+    if (modes.size() > 1 || rounds > 1) std::printf("images identical byte for byte (every render)\n");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_render: %s\n", e.what());
     return 2;

@@ -192,6 +192,73 @@ TEST(Octree, ChildBlocksAreTheChildRecordsTransposed) {
     }
 }
 
+TEST(Octree, EntryGridsHoldTheDeepestNodeOfEachCell) {
+  // Every cell (i, j, k) of every level l of the entry grids names the deepest node whose cell
+  // contains it (its Warren & Salmon id a prefix of the cell's, and no child of it with a longer
+  // one), and every point's cell at every level (from the point's own Morton code) names a node
+  // whose subtree holds that point: the property the entry-point search relies on. Depth
+  // min(depth - 1, 5); none for the layered layout (its nodes above hold points of their own) or a
+  // single node.
+  for (OctreeLayout layout : {OctreeLayout::fixed, OctreeLayout::adaptive, OctreeLayout::layered})
+    for (Dist d : {Dist::uniform, Dist::clustered, Dist::grid}) {
+      const auto pts = make_points(30000, d, 29);
+      OctreeConfig cfg = OctreeConfig::for_layout(layout);
+      cfg.capacity = 16;
+      const Octree trees[] = {Octree::build_bulk(pts, cfg), Octree::build_by_insertion(pts, cfg)};
+      for (const Octree& t : trees) {
+        const std::string ctx = std::string(to_string(layout)) + " " + name(d);
+        const Octree::EntryGrid g = t.entry_grid();
+        if (layout == OctreeLayout::layered) {
+          EXPECT_EQ(g.cells, nullptr) << ctx;
+          EXPECT_EQ(g.depth, 0u) << ctx;
+          continue;
+        }
+        ASSERT_NE(g.cells, nullptr) << ctx;
+        ASSERT_EQ(g.depth, std::min(t.depth() - 1, Octree::kEntryGridMaxDepth)) << ctx;
+        ASSERT_GE(g.depth, 2u) << ctx;
+        EXPECT_EQ(g.lo, t.root_cell().lo);
+        for (unsigned l = 0; l <= g.depth; ++l) {
+          const std::uint32_t w = 1u << l;
+          for (std::uint32_t k = 0; k < w; ++k)
+            for (std::uint32_t j = 0; j < w; ++j)
+              for (std::uint32_t i = 0; i < w; ++i) {
+                const Octree::EntryCell c = g.level(l)[i + (j << l) + (std::size_t{k} << (2 * l))];
+                const OctreeNodeId id = t.node_id(c.node);
+                ASSERT_EQ(c.depth, id.depth()) << ctx;
+                ASSERT_LE(c.depth, l) << ctx;
+                const unsigned sh = l - c.depth;
+                const std::uint64_t m = morton_encode(i >> sh, j >> sh, k >> sh);
+                ASSERT_EQ(id.morton(), m) << ctx << " level " << l << " cell " << i << "," << j << "," << k;
+                if (c.depth < l) {
+                  const std::uint64_t below = morton_encode(i >> (sh - 1), j >> (sh - 1), k >> (sh - 1));
+                  for (unsigned ch = 0; ch < t.child_count(c.node); ++ch) {
+                    ASSERT_NE(t.node_id(t.child(c.node, ch)).morton(), below)
+                        << ctx << ": a deeper node holds level " << l << " cell " << i << "," << j << "," << k;
+                  }
+                }
+              }
+        }
+        AABB bounds;
+        for (const Vec3& p : pts) bounds.expand(p);
+        const OctreeRules::Quantizer quant(t.root_cell().lo, OctreeRules::root_side(bounds));
+        const auto pos = t.positions();
+        for (std::uint32_t s = 0; s < pos.size(); s += 7) {
+          const std::uint64_t code = quant.code(pos[s]);
+          for (unsigned l = 0; l <= g.depth; ++l) {
+            const std::uint64_t cell = code >> (3 * (kMortonBits - l));
+            const auto i = static_cast<std::uint32_t>(morton_compact(cell)), j = static_cast<std::uint32_t>(morton_compact(cell >> 1)),
+                       k = static_cast<std::uint32_t>(morton_compact(cell >> 2));
+            const Octree::Node n = g.level(l)[i + (j << l) + (std::size_t{k} << (2 * l))].node;
+            const SlotRange sub = t.subtree_points(n);
+            ASSERT_TRUE(s >= sub.begin && s < sub.end) << ctx << ": slot " << s << " level " << l;
+          }
+        }
+      }
+    }
+  const std::vector<Vec3> one{Vec3(1, 2, 3)};
+  EXPECT_EQ(Octree::build_bulk(one).entry_grid().cells, nullptr);
+}
+
 TEST(Octree, DuplicatesDoNotSplitEndlessly) {
   std::vector<Vec3> pts(50000, Vec3(1.5, -2.0, 3.25));
   pts.emplace_back(1.0, 1.0, 1.0);  // one distinct point forces a real root split

@@ -734,3 +734,85 @@ TEST(RayQuery, PacketAnyHitEqualsOracleExistence) {
 }
 
 }  // namespace
+
+TEST(RayQuery, EntryPointSearchEqualsTheRootTraversalAndTheOracle) {
+  // The first hits' entry-point search (Octree::EntryGrid) against the same queries with it off
+  // (every field, bit for bit) and the brute-force oracle, single rays and interleaved pairs, on
+  // the rays that stress its test of finality: hits just inside and just past a grid cell's face
+  // (lattice points on the faces, axis-parallel rays along them and origins on them), radii from
+  // a fraction of the deepest cell to twice it (S grown past several cells), t_min inside the
+  // cloud, origins inside, and UTM magnitudes; orders sphere_hit and time, with any_hit (which
+  // returns some qualifying point: only its existence is compared). The search must be at work:
+  // fewer nodes visited with it than without, over each cloud's queries (but the lattice's, whose
+  // points all lie on grid faces: there it goes back up on almost every ray).
+  for (const Dist dist : {Dist::uniform, Dist::grid, Dist::clustered, Dist::utm_mm}) {
+    const auto pts = make_points(20000, dist, 53);
+    OctreeConfig cfg;
+    cfg.capacity = 8;
+    const Octree tree = Octree::build_bulk(pts, cfg);
+    const Octree::EntryGrid g = tree.entry_grid();
+    ASSERT_NE(g.cells, nullptr) << name(dist);
+    const double cell = g.side / static_cast<double>(1u << g.depth);
+    AABB box;
+    for (const Vec3& p : pts) box.expand(p);
+    std::mt19937_64 rng(61);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::vector<Ray> rays;
+    for (int i = 0; i < 150; ++i) rays.push_back(random_ray(rng, box, i % 4 == 0));
+    // Axis-parallel rays along grid faces (and a cell's width off them), from outside and inside.
+    for (int i = 0; i < 60; ++i) {
+      const int a = i % 3, b = (a + 1) % 3, c = (a + 2) % 3;
+      Vec3 o = box.lo + draw3([&] { return u(rng); }) * (box.hi - box.lo);
+      o[b] = g.lo[b] + cell * std::floor((o[b] - g.lo[b]) / cell) + (i % 2 ? 0.0 : 0.5 * cell);
+      o[c] = g.lo[c] + cell * std::floor((o[c] - g.lo[c]) / cell);
+      Vec3 dir(0.0);
+      dir[a] = i % 4 < 2 ? 1.0 : -1.0;
+      if (i % 5 != 0) o[a] = dir[a] > 0 ? box.lo[a] - 0.3 * box.max_extent() : box.hi[a] + 0.3 * box.max_extent();
+      rays.emplace_back(o, dir);
+    }
+    std::size_t hits = 0;
+    std::uint64_t nodes_on = 0, nodes_off = 0;
+    for (const double rel : {0.05, 0.4, 2.0})
+      for (const RayOrder order : {RayOrder::sphere_hit, RayOrder::time})
+        for (const bool mid_t : {false, true})
+          for (const bool any : {false, true}) {
+            RayQuery q;
+            q.radius = rel * cell;
+            q.order = order;
+            q.k = 1;
+            q.any_hit = any;
+            q.t_min = mid_t ? 0.5 : 0.0;  // (rays' directions are not unit: half way along some)
+            q.validate();
+            RayQueryStats on_st, off_st;
+            std::vector<std::optional<RayHit>> on(rays.size()), off(rays.size()), on_each(rays.size());
+            set_entry_point_search(false);
+            for (std::size_t r = 0; r < rays.size(); ++r) off[r] = ray_first_hit(tree, rays[r], q, &off_st);
+            set_entry_point_search(true);
+            for (std::size_t r = 0; r < rays.size(); ++r) on[r] = ray_first_hit(tree, rays[r], q, &on_st);
+            ray_first_hit_each(tree, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(on_each));
+            for (std::size_t r = 0; r < rays.size(); ++r) {
+              const std::string ctx = std::string(name(dist)) + " ray " + std::to_string(r) + " r/cell " +
+                                      std::to_string(rel) + " " + describe(q);
+              expect_same_answer(on_each[r], on[r], ctx);
+              const auto want = oracle_ray_query(pts, rays[r], q);
+              ASSERT_EQ(on[r].has_value(), !want.empty()) << ctx;
+              if (any) {
+                ASSERT_EQ(off[r].has_value(), on[r].has_value()) << ctx;
+                continue;
+              }
+              expect_same_answer(on[r], off[r], ctx);
+              if (on[r]) {
+                ++hits;
+                expect_same({*on[r]}, want, ctx);
+              }
+              if (::testing::Test::HasFailure()) return;
+            }
+            nodes_on += on_st.nodes_visited;
+            nodes_off += off_st.nodes_visited;
+          }
+    EXPECT_GT(hits, 300u) << name(dist);
+    if (dist != Dist::grid) {
+      EXPECT_LT(nodes_on, nodes_off) << name(dist);
+    }
+  }
+}

@@ -565,6 +565,45 @@ void Octree::build_child_blocks() {
       }
     }
   });
+
+  // The entry grids: the top gd levels walked from the root, each node's cells written on every
+  // level from its own depth down after its parent's, so the deepest node of each grid cell is the
+  // one left there. None when a node above the grid's depth holds points of its own (the layered
+  // layout): then a grid cell's node would not hold every point of its cell, which the
+  // entry-point search relies on.
+  entry_cells_.clear();
+  entry_depth_ = 0;
+  if (depth_ <= 1 || n == 0) return;
+  const unsigned gd = std::min(depth_ - 1, kEntryGridMaxDepth);
+  entry_depth_ = gd;
+  entry_cells_.assign(((std::size_t{1} << (3 * (gd + 1))) - 1) / 7, EntryCell{root(), 0});
+  const EntryGrid g = entry_grid();
+  std::vector<Node> stack{root()};
+  while (!stack.empty()) {
+    const Node nd = stack.back();
+    stack.pop_back();
+    const OctreeNodeId id = node_id(nd);
+    const unsigned d = id.depth();
+    const std::uint64_t m = id.morton();
+    for (unsigned l = d; l <= gd; ++l) {
+      EntryCell* level = entry_cells_.data() + (g.level(l) - g.cells);
+      const unsigned sh = l - d, w = 1u << sh;
+      const auto i0 = static_cast<unsigned>(morton_compact(m)) << sh;
+      const auto j0 = static_cast<unsigned>(morton_compact(m >> 1)) << sh;
+      const auto k0 = static_cast<unsigned>(morton_compact(m >> 2)) << sh;
+      for (unsigned k = k0; k < k0 + w; ++k)
+        for (unsigned j = j0; j < j0 + w; ++j)
+          for (unsigned i = i0; i < i0 + w; ++i) level[i + (j << l) + (std::size_t{k} << (2 * l))] = {nd, d};
+    }
+    if (d < gd && child_count(nd) != 0) {
+      if (node_points(nd).size() != 0) {
+        entry_cells_.clear();
+        entry_depth_ = 0;
+        return;
+      }
+      for (unsigned c = 0; c < child_count(nd); ++c) stack.push_back(child(nd, c));
+    }
+  }
 }
 
 std::optional<Octree::Node> Octree::find(OctreeNodeId id) const {
@@ -611,7 +650,7 @@ AABB Octree::cell_bounds(Node n) const {
 std::size_t Octree::memory_bytes() const {
   return pos_.capacity() * sizeof(Vec3) + ids_.capacity() * sizeof(PointIndex) +
          nodes_.capacity() * sizeof(NodeRec) + child_soa_.capacity() * sizeof(float) +
-         block_of_.capacity() * sizeof(std::uint32_t);
+         block_of_.capacity() * sizeof(std::uint32_t) + entry_cells_.capacity() * sizeof(EntryCell);
 }
 
 bool Octree::same_structure(const Octree& o) const {

@@ -3,9 +3,12 @@
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/octree/detail/ray_query_impl.hpp"
 
+#include <atomic>
 #include <cmath>
 
 namespace rayscan {
+
+void set_entry_point_search(bool on) { detail::g_entry_point_search.store(on, std::memory_order_relaxed); }
 
 void RayQuery::validate() const {
   if (std::isnan(radius) || std::isnan(t_min) || std::isnan(t_max))

@@ -179,6 +179,39 @@ class Octree {
   [[nodiscard]] const Vec3& float_origin() const { return cell_.lo; }
   [[nodiscard]] double float_extent() const { return cell_.max_extent(); }
 
+  /// One cell of an entry grid: the deepest node whose cell contains the grid cell, and its depth.
+  struct EntryCell {
+    Node node;
+    std::uint32_t depth;
+  };
+  /// The entry grids (entry-point search: a ray starts at the node of the cell where it enters
+  /// instead of at the root; Havran's thesis, section 5.3, and the entry points of Reshetov,
+  /// Soupikov & Hurley, "Multi-level ray tracing algorithm", SIGGRAPH 2005): for each level l in
+  /// [0, depth], the 2^l cells per axis of the root cell at depth l, cell (i, j, k) of level l at
+  /// level(l)[i + (j << l) + (k << 2 l)]. Every point inside a grid cell's node's cell is in that
+  /// node's subtree. Depth 0 (cells == nullptr) where the tree has none: a tree of depth <= 1, or
+  /// nodes above the grid's depth with points of their own (the layered layout: a subtree there
+  /// does not hold every point of its cell).
+  struct EntryGrid {
+    const EntryCell* cells;  ///< the levels 0..depth one after the other
+    unsigned depth;
+    Vec3 lo;          ///< the root cell's minimum corner
+    double side;      ///< the root cell's edge, as cell_bounds() divides it
+    double inv_cell;  ///< cells of the deepest level per world unit (2^depth / side)
+    /// The cells of level l <= depth.
+    [[nodiscard]] const EntryCell* level(unsigned l) const {
+      return cells + ((std::size_t{1} << (3 * l)) - 1) / 7;  // (8^0 + ... + 8^(l-1))
+    }
+  };
+  /// The deepest entry grid: 2^15 cells of 8 bytes (with the coarser levels 293 KB, within a
+  /// core's L2).
+  static constexpr unsigned kEntryGridMaxDepth = 5;
+  /// The entry grids, built with the tree, down to depth min(depth() - 1, kEntryGridMaxDepth): one
+  /// level above the deepest leaves (bench/notes/).
+  [[nodiscard]] EntryGrid entry_grid() const {
+    return {entry_cells_.empty() ? nullptr : entry_cells_.data(), entry_depth_, cell_.lo, cell_.hi.x - cell_.lo.x,
+            static_cast<double>(1u << entry_depth_) / (cell_.hi.x - cell_.lo.x)};
+  }
   // Octree specifics ---------------------------------------------------------------------------
   /// The Warren & Salmon id (depth + Morton code) of node n.
   [[nodiscard]] OctreeNodeId node_id(Node n) const { return OctreeNodeId::from_bits(nodes_[n].key); }
@@ -237,8 +270,11 @@ class Octree {
   DefaultInitVector<PointIndex> ids_;
   DefaultInitVector<float> child_soa_;          // child blocks (child_boxes_f's soa)
   DefaultInitVector<std::uint32_t> block_of_;  // node -> its child block (interior nodes)
+  DefaultInitVector<EntryCell> entry_cells_;  // entry_grid()
+  unsigned entry_depth_ = 0;
   std::unique_ptr<LevelMaps> levels_;  // lazily filled per level
-  /// Fills child_soa_ and block_of_ from the node records (the builders' last step).
+  /// Fills child_soa_ and block_of_ from the node records, then the entry grid (the builders'
+  /// last step).
   void build_child_blocks();
 };
 

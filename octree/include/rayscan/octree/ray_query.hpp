@@ -66,6 +66,15 @@ template <SpatialIndex I>
 [[nodiscard]] std::optional<RayHit> ray_first_hit(const I& index, const Ray& ray, const RayQuery& q,
                                                   RayQueryStats* stats = nullptr);
 
+/// Turns the first hits' entry-point search on or off for the whole process (default on): on an
+/// index with an entry grid (Octree::entry_grid), the first hits of orders time and sphere_hit
+/// without planes (ray_first_hit, ray_first_hit_each, ray_query with k = 1) start a ray at the node
+/// of the grid cell where it enters and go up only as far as a point outside that cell could still
+/// be hit first (Havran's entry-point search). Answers are the same either way (with q.any_hit,
+/// which qualifying point is returned may differ, as any_hit allows; RayQueryStats differ); for
+/// benchmarks that compare both in one process. Thread-safe.
+void set_entry_point_search(bool on);
+
 /// First hits of a batch of rays: out[i] = ray_first_hit(index, rays[i], q, stats) for every i,
 /// bit for bit, with the rays traced two at a time, their traversals interleaved node by node
 /// (detail::first_hit_pair: the single ray's loop is latency-bound, and two independent chains

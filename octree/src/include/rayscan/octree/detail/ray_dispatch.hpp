@@ -54,7 +54,10 @@ __attribute__((always_inline)) inline bool ray_traverse_from_root(RootTest root,
     return false;
   }
   rt.prepare();
-  rt.traverse_from(index.root(), lb0);
+  if constexpr (kBest1)
+    rt.traverse_first_hit(lb0);
+  else
+    rt.traverse_from(index.root(), lb0);
   return rt.found;
 }
 
@@ -155,6 +158,7 @@ template <class K, SpatialIndex I>
 __attribute__((always_inline)) inline unsigned first_hit_pair_with(const I& index, const Ray* rays, const RayQuery& q,
                                                                    Candidate* best, RayQueryStats* stats) {
   using Traversal = RayTraversal<true, I, OrderKey, K>;
+  using Node = typename I::Node;
   const OrderKey key_policy;
   const KernelsOf<K> kern = kernels_of<K>();
   const RootTest root0 = root_test<K, OrderKey>(kern, index, rays[0], q);
@@ -165,27 +169,45 @@ __attribute__((always_inline)) inline unsigned first_hit_pair_with(const I& inde
     return ray_traverse_from_root<true, K>(j ? root1 : root0, index, rays[j], q, best[j], stats, key_policy) ? 1u << j
                                                                                                            : 0u;
   }
+  // Each ray's steps: from its entry grid node first where the entry-point search applies, then
+  // from the root unless that node's hit is final (RayTraversal::entry_node, entry_final).
+  auto advance = [](Traversal& r, typename Traversal::Cursor& c, bool& from_entry, Node entry, double lb_root) {
+    if (r.step(c)) return true;
+    if (!from_entry) return false;
+    from_entry = false;
+    r.end(c);
+    Node restart = r.index.root();
+    if (r.entry_final(entry, restart, lb_root)) return false;
+    c = r.begin_at(restart, lb_root);
+    return true;
+  };
   Traversal r0(index, rays[0], q, best[0], stats, key_policy);
   Traversal r1(index, rays[1], q, best[1], stats, key_policy, &ray_scratch<typename I::Node, 1>());
   double lb0, lb1;
   bool a0 = r0.enters_root(root0, lb0);  // (a ray that misses the root: no further set-up)
   bool a1 = r1.enters_root(root1, lb1);
   typename Traversal::Cursor c0{}, c1{};
+  Node n0{}, n1{};
+  bool e0 = false, e1 = false;  // stepping from the entry node
   if (a0) {
     r0.prepare();
-    c0 = r0.begin_at(index.root(), lb0);
+    double lb;
+    e0 = r0.entry_search_applies() && r0.entry_node(n0, lb);
+    c0 = e0 ? r0.begin_at(n0, lb) : r0.begin_at(index.root(), lb0);
   }
   if (a1) {
     r1.prepare();
-    c1 = r1.begin_at(index.root(), lb1);
+    double lb;
+    e1 = r1.entry_search_applies() && r1.entry_node(n1, lb);
+    c1 = e1 ? r1.begin_at(n1, lb) : r1.begin_at(index.root(), lb1);
   }
   const bool s0 = a0, s1 = a1;
   while (a0 && a1) {
-    a0 = r0.step(c0);
-    a1 = r1.step(c1);
+    a0 = advance(r0, c0, e0, n0, lb0);
+    a1 = advance(r1, c1, e1, n1, lb1);
   }
-  while (a0) a0 = r0.step(c0);
-  while (a1) a1 = r1.step(c1);
+  while (a0) a0 = advance(r0, c0, e0, n0, lb0);
+  while (a1) a1 = advance(r1, c1, e1, n1, lb1);
   if (s0) r0.end(c0);
   if (s1) r1.end(c1);
   return (r0.found ? 1u : 0u) | (r1.found ? 2u : 0u);

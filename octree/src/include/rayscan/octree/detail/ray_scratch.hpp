@@ -6,6 +6,8 @@
 #include "rayscan/octree/ray_query_types.hpp"
 #include "rayscan/octree/detail/simd_kernels.hpp"
 
+#include <atomic>
+
 namespace rayscan::detail {
 
 struct Candidate {
@@ -46,6 +48,20 @@ static_assert(sizeof(NodeEntry<std::uint32_t>) == 16 && offsetof(NodeEntry<std::
 /// pushes with one kernel (simd::SortPushKeys8Fn).
 template <class I>
 concept ContiguousChildren32 = sizeof(typename I::Node) == 4 && requires { requires I::kContiguousChildren; };
+
+/// Indexes with an entry grid (Octree::entry_grid(): cells, depth, lo, side, inv_cell): the first
+/// hit starts at the node of the cell where the ray enters (RayTraversal::entry_node, entry_final).
+template <class I>
+concept EntryGridIndex = requires(const I& idx) {
+  idx.entry_grid().cells->node;
+  idx.entry_grid().depth;
+};
+
+/// Whether the first hit's entry-point search is on (set_entry_point_search; default on). A
+/// variable, not a function defined elsewhere: a call in the per-ISA traversals would make the
+/// compiler save the ray's registers around it on every ray.
+inline std::atomic<bool> g_entry_point_search{true};
+inline bool entry_point_search_enabled() { return g_entry_point_search.load(std::memory_order_relaxed); }
 
 /// Reusable per-thread scratch so that a query allocates nothing once warm.
 template <class Node>

@@ -5,6 +5,8 @@
 
 #include "rayscan/octree/detail/ray_scratch.hpp"
 
+#include <bit>
+
 namespace rayscan::detail {
 
 /// The one traversal of the ray query (see ray_query for the semantics), as the per-ray state and
@@ -76,6 +78,10 @@ struct RayTraversal {
   bool slab_is_final = false;  // children whose SIMD slab result is final (else it only prefilters)
   bool child_keys = false;     // traverse_from's child step on child order keys (child_slab_keys)
   bool prepared = false;       // prepare() ran
+  Node skip = static_cast<Node>(-1);  // entry_final: a subtree already traversed (not again)
+  double entry_t0 = 0;                // entry_node: the ray's entry into the grown root box
+  unsigned entry_ijk[3] = {0, 0, 0};  // entry_node: its cell in the deepest grid
+  unsigned entry_depth = 0;           // entry_node: its node's depth
   bool radii_filter = false;   // the SIMD point filter applies the key functor's per-slot radii
   bool normals_filter = false;  // ... and its per-slot disc normals (filter_normals)
 
@@ -262,6 +268,112 @@ struct RayTraversal {
     lb0 = -kInf;
     if (root == RootTest::enter && !has_planes && !ray_order && !per_node) return true;
     return test_node(root_box, lb0);
+  }
+
+  /// Whether the entry-point search (entry_node, entry_final) applies: a first hit (kBest1) of the
+  /// plain keys (OrderKey: a refined key need not be the ray parameter of its hit) ordered along
+  /// the ray (orders time and sphere_hit: every key is a ray parameter), without planes, on an
+  /// index with an entry grid, unless turned off (set_entry_point_search).
+  [[nodiscard]] bool entry_search_applies() const {
+    if constexpr (kBest1 && std::is_same_v<KeyPolicy, OrderKey> && EntryGridIndex<I>)
+      return !ray_order && !has_planes && entry_point_search_enabled();
+    return false;
+  }
+
+  /// Entry-point search, first part (after prepare): the node of the deepest entry grid's cell
+  /// (Octree::EntryGrid) where the ray enters the root's box grown by the radius, when the ray
+  /// passes its node test (n and its bound lb); false: none, the traversal starts at the root.
+  /// The node's subtree is traversed first (traverse_from or steps from begin_at), then
+  /// entry_final says whether its first hit is final or where to go on: so most rays skip the
+  /// steps from the root down to it and the stack entries of their other children (Havran's
+  /// entry-point search; the entry points of Reshetov et al.'s multi-level ray tracing,
+  /// SIGGRAPH 2005).
+  bool entry_node(Node& n, double& lb) {
+    if constexpr (EntryGridIndex<I>) {
+      const auto g = index.entry_grid();
+      if (g.cells == nullptr) return false;
+      const Interval iv = slab_interval_grown(o_plus, o_minus, inv_d, root_box, t_lo, t_hi);
+      if (iv.empty()) return false;
+      entry_t0 = std::max(iv.lo, q.t_min);
+      const Vec3 p0 = o + d * entry_t0;
+      for (int a = 0; a < 3; ++a) entry_ijk[a] = grid_coord(g, p0[a], g.lo[a]);
+      const auto cell = g.level(g.depth)[entry_ijk[0] + (entry_ijk[1] << g.depth) +
+                                         (std::size_t{entry_ijk[2]} << (2 * g.depth))];
+      if (cell.node == index.root() || !test_node(index.node_bounds(cell.node), lb)) return false;
+      entry_depth = cell.depth;
+      n = cell.node;
+      return true;
+    }
+    return false;
+  }
+
+  /// Entry-point search, second part, once the subtree of entry_node's n has been traversed:
+  /// true when `best` is final; false when the traversal must go on from `restart` with bound
+  /// `lb` (on entry: the root and its bound, kept when the root it is), skipping n, whose points
+  /// were all tested, with the hit found, if any, as its bound.
+  /// Why this is exact: a better point comes within the radius of the ray at a parameter in
+  /// S = [t0, t1] (t0: the entry into the grown root box, below which no key lies; t1: the hit's
+  /// key, above which no key is better), so it lies in the region R = S grown by the radius (and
+  /// rounding allowances), clipped to the root's box, which holds every point. The smallest grid
+  /// cell holding both R and the entry cell holds every better point, and its node's subtree
+  /// every point of that cell (EntryGrid): when that is n's cell or inside it, nothing better
+  /// exists; else the traversal from that cell's node (an ancestor of n) finds it.
+  bool entry_final(Node n, Node& restart, double& lb) {
+    skip = n;
+    if (!found) return false;
+    if (done) return true;  // any_hit: any hit will do
+    if constexpr (EntryGridIndex<I>) {
+      const auto g = index.entry_grid();
+      const Vec3 p0 = o + d * entry_t0, p1 = o + d * best.key;
+      // The radius, the node test's allowance for rounding on the ray, and the rounding of a
+      // point's cell (its Morton code truncates (p - lo) / cell edge: a few ulps of the root edge).
+      const double m = radius + 2.0 * tol + 0x1p-40 * g.side;
+      unsigned level = g.depth;  // the deepest level whose cell holds R and the entry cell
+      unsigned ijk[3];
+      for (int a = 0; a < 3; ++a) {
+        const double lo = std::max(std::min(p0[a], p1[a]) - m, root_box.lo[a]);
+        const double hi = std::min(std::max(p0[a], p1[a]) + m, root_box.hi[a]);
+        const unsigned c0 = grid_coord(g, lo, g.lo[a]), c1 = grid_coord(g, hi, g.lo[a]);
+        const unsigned diff = (c0 ^ c1) | (c0 ^ entry_ijk[a]);
+        if (diff) level = std::min(level, g.depth - static_cast<unsigned>(std::bit_width(diff)));
+        ijk[a] = c0;
+      }
+      if (level >= entry_depth) return true;
+      const unsigned sh = g.depth - level;
+      const auto cell = g.level(level)[(ijk[0] >> sh) + ((ijk[1] >> sh) << level) +
+                                       (std::size_t{ijk[2] >> sh} << (2 * level))];
+      if (cell.node == index.root()) return false;
+      restart = cell.node;
+      if (!test_node(index.node_bounds(restart), lb)) lb = -kInf;  // (conservative: it holds the hit)
+      return false;
+    }
+    return true;
+  }
+
+  /// The traversal of a first hit from the root (after prepare; the root passed with bound lb0):
+  /// through the entry-point search where it applies (entry_node, entry_final), else
+  /// traverse_from the root.
+  void traverse_first_hit(double lb0) {
+    Node n;
+    double lb;
+    if (entry_search_applies() && entry_node(n, lb)) {
+      traverse_from(n, lb);
+      Node restart = index.root();
+      lb = lb0;
+      if (entry_final(n, restart, lb)) return;
+      traverse_from(restart, lb);
+      return;
+    }
+    traverse_from(index.root(), lb0);
+  }
+
+  /// The cell index along one axis of coordinate v in the deepest level of grid g (origin lo),
+  /// clamped to the grid (NaN: 0).
+  template <class Grid>
+  static unsigned grid_coord(const Grid& g, double v, double lo) {
+    const double last = static_cast<double>((1u << g.depth) - 1);
+    const double f = std::floor((v - lo) * g.inv_cell);
+    return static_cast<unsigned>(f >= 0.0 ? (f <= last ? f : last) : 0.0);
   }
 
   /// Node test (section 3.3): false prunes the node; otherwise lb receives a lower bound of the key
@@ -544,6 +656,8 @@ struct RayTraversal {
       if (!live(e.lb)) return true;
     }
     next = false;
+    if constexpr (EntryGridIndex<I>)
+      if (e.node == skip) return true;
     // Per-node radii: the node's subtree bound for its own points' SIMD filter and (without
     // float geometry boxes) its children's SIMD slab prefilter (test_children); with per-slot
     // radii in the filter and float geometry boxes, nothing (see enter_node).
