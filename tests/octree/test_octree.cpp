@@ -197,8 +197,8 @@ TEST(Octree, EntryGridsHoldTheDeepestNodeOfEachCell) {
   // contains it (its Warren & Salmon id a prefix of the cell's, and no child of it with a longer
   // one), and every point's cell at every level (from the point's own Morton code) names a node
   // whose subtree holds that point: the property the entry-point search relies on. Depth
-  // min(depth - 1, 5); none for the layered layout (its nodes above hold points of their own) or a
-  // single node.
+  // min(depth - 1, 5), at most 8 cells a node; none for the layered layout (its nodes above hold
+  // points of their own) or a single node. A small deep tree keeps a small grid.
   for (OctreeLayout layout : {OctreeLayout::fixed, OctreeLayout::adaptive, OctreeLayout::layered})
     for (Dist d : {Dist::uniform, Dist::clustered, Dist::grid}) {
       const auto pts = make_points(30000, d, 29);
@@ -214,7 +214,9 @@ TEST(Octree, EntryGridsHoldTheDeepestNodeOfEachCell) {
           continue;
         }
         ASSERT_NE(g.cells, nullptr) << ctx;
-        ASSERT_EQ(g.depth, std::min(t.depth() - 1, Octree::kEntryGridMaxDepth)) << ctx;
+        unsigned want = std::min(t.depth() - 1, Octree::kEntryGridMaxDepth);
+        while (want > 1 && (std::size_t{1} << (3 * want)) > 8 * t.node_count()) --want;
+        ASSERT_EQ(g.depth, want) << ctx;
         ASSERT_GE(g.depth, 2u) << ctx;
         EXPECT_EQ(g.lo, t.root_cell().lo);
         for (unsigned l = 0; l <= g.depth; ++l) {
@@ -241,6 +243,7 @@ TEST(Octree, EntryGridsHoldTheDeepestNodeOfEachCell) {
         AABB bounds;
         for (const Vec3& p : pts) bounds.expand(p);
         const OctreeRules::Quantizer quant(t.root_cell().lo, OctreeRules::root_side(bounds));
+        EXPECT_EQ(t.quantizer().scale, quant.scale) << ctx;
         const auto pos = t.positions();
         for (std::uint32_t s = 0; s < pos.size(); s += 7) {
           const std::uint64_t code = quant.code(pos[s]);
@@ -257,6 +260,14 @@ TEST(Octree, EntryGridsHoldTheDeepestNodeOfEachCell) {
     }
   const std::vector<Vec3> one{Vec3(1, 2, 3)};
   EXPECT_EQ(Octree::build_bulk(one).entry_grid().cells, nullptr);
+  const auto few = make_points(60, Dist::clustered, 31);
+  OctreeConfig deep;
+  deep.capacity = 1;
+  const Octree small = Octree::build_bulk(few, deep);
+  ASSERT_GE(small.depth(), 7u);
+  const unsigned gd = small.entry_grid().depth;
+  EXPECT_LT(gd, Octree::kEntryGridMaxDepth);
+  EXPECT_LE(std::size_t{1} << (3 * gd), 8 * small.node_count());
 }
 
 TEST(Octree, DuplicatesDoNotSplitEndlessly) {

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <sstream>
 
 using namespace rayscan;
@@ -813,6 +814,72 @@ TEST(RayQuery, EntryPointSearchEqualsTheRootTraversalAndTheOracle) {
     EXPECT_GT(hits, 300u) << name(dist);
     if (dist != Dist::grid) {
       EXPECT_LT(nodes_on, nodes_off) << name(dist);
+    }
+  }
+}
+
+TEST(RayQuery, EntryPointSearchWhereTheRootEdgeRoundsUp) {
+  // A cloud a millimetre wide at x = 5e6: the root cell's edge (hi - lo, two rounded corners) is
+  // 4.7e-10 longer than the edge the points' Morton codes were computed with, so a point just
+  // above a cell face by its code can lie below it by the cell edge: the grid must take its
+  // cells from the points' own quantizer (Octree::quantizer). The point at height v (id 3) is
+  // the first hit, in the upper z half by its Morton code; a ray between it and a point below
+  // (id 2) must return it with the search on as with it off.
+  const double x = 5e6;
+  double e = 0, gap = 0;
+  for (int i = 0; i < 200000; ++i) {
+    const double ei = 0.001 + i * 1e-12;
+    AABB b;
+    b.expand(Vec3(x, 0, 0));
+    b.expand(Vec3(x, ei, 0));
+    const AABB c = OctreeRules::root_cell(b);
+    if (const double g = (c.hi.x - c.lo.x) - OctreeRules::root_side(b); g > gap) gap = g, e = ei;
+  }
+  ASSERT_GT(gap, 0.0);
+  AABB b;
+  b.expand(Vec3(x, 0, 0));
+  b.expand(Vec3(x, e, 0));
+  const double side = OctreeRules::root_side(b), cube = OctreeRules::root_cell(b).max_extent();
+  double v = side / 2;  // the least height in the upper half by the Morton code
+  while (v * (static_cast<double>(1u << kMortonBits) / side) < static_cast<double>(1u << (kMortonBits - 1)))
+    v = std::nextafter(v, 1.0);
+  ASSERT_LT(v * (2.0 / cube), 1.0);  // (below the face by the root cell's own edge)
+  const double r = 0.1 * e, y0 = 0.2 * e;
+  const std::vector<Vec3> pts{{x, 0, 0}, {x, e, 0}, {x + 0.3 * e, y0, v - 0.9 * r}, {x + 0.1 * e, y0, v},
+                              {x + 0.9 * e, 0.9 * e, 0.1 * e}};
+  const Ray ray(Vec3(x - e, y0, v - 0.5 * r), Vec3(1, 0, 0));
+  OctreeConfig fixed2, fixed6, adaptive1;
+  fixed2.layout = fixed6.layout = OctreeLayout::fixed;
+  fixed2.depth = 2;
+  fixed6.depth = 6;
+  adaptive1.capacity = 1;
+  for (const OctreeConfig& cfg : {fixed2, fixed6, adaptive1}) {
+    const Octree tree = Octree::build_bulk(pts, cfg);
+    ASSERT_NE(tree.entry_grid().cells, nullptr);
+    for (const RayOrder order : {RayOrder::time, RayOrder::sphere_hit}) {
+      RayQuery q;
+      q.radius = r;
+      q.order = order;
+      q.k = 1;
+      const std::string ctx = "depth " + std::to_string(tree.depth()) + " " + describe(q);
+      const auto want = oracle_ray_query(pts, ray, q);
+      ASSERT_EQ(want.size(), 1u);
+      ASSERT_EQ(want[0].index, 3u);
+      set_entry_point_search(false);
+      const auto off = ray_first_hit(tree, ray, q);
+      set_entry_point_search(true);
+      const auto on = ray_first_hit(tree, ray, q);
+      std::vector<std::optional<RayHit>> each(2);
+      const std::vector<Ray> two{ray, ray};
+      ray_first_hit_each(tree, std::span<const Ray>(two), q, std::span<std::optional<RayHit>>(each));
+      expect_same_answer(on, off, ctx);
+      expect_same_answer(each[1], off, ctx);
+      ASSERT_TRUE(on.has_value()) << ctx;
+      EXPECT_EQ(on->index, 3u) << ctx;
+      const auto node = tree.locate(pts[3]);  // (the same quantizer: the deepest node holding it)
+      ASSERT_TRUE(node.has_value());
+      const SlotRange sub = tree.subtree_points(*node);
+      EXPECT_TRUE(on->slot >= sub.begin && on->slot < sub.end) << ctx;
     }
   }
 }

@@ -130,7 +130,8 @@ struct OctreeBuilder {
                                   " has a non-finite coordinate");
     const AABB& b = scan.box;
     t.cell_ = OctreeRules::root_cell(b);
-    const Quantizer qz(t.cell_.lo, OctreeRules::root_side(b));
+    t.side_ = OctreeRules::root_side(b);
+    const Quantizer qz = t.quantizer();
     codes.resize(pts.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pts.size(), 1 << 16),
                       [&](const tbb::blocked_range<std::size_t>& r) {
@@ -574,7 +575,10 @@ void Octree::build_child_blocks() {
   entry_cells_.clear();
   entry_depth_ = 0;
   if (depth_ <= 1 || n == 0) return;
-  const unsigned gd = std::min(depth_ - 1, kEntryGridMaxDepth);
+  // Not finer than the tree: at most 8 grid cells per node at the deepest level, so that a small
+  // tree (a tile's, a notebook's) does not carry the whole 293 KB.
+  unsigned gd = std::min(depth_ - 1, kEntryGridMaxDepth);
+  while (gd > 1 && (std::size_t{1} << (3 * gd)) > 8 * n) --gd;
   entry_depth_ = gd;
   entry_cells_.assign(((std::size_t{1} << (3 * (gd + 1))) - 1) / 7, EntryCell{root(), 0});
   const EntryGrid g = entry_grid();
@@ -625,8 +629,7 @@ std::optional<Octree::Node> Octree::find(OctreeNodeId id) const {
 
 std::optional<Octree::Node> Octree::locate(const Vec3& p) const {
   if (nodes_.empty() || !cell_.contains(p)) return std::nullopt;
-  const Quantizer qz(cell_.lo, cell_.hi.x - cell_.lo.x);
-  const std::uint64_t code = qz.code(p);
+  const std::uint64_t code = quantizer().code(p);
   Node best = 0;
   for (unsigned d = 1; d <= depth_; ++d) {
     const auto n = find(OctreeNodeId(d, code >> (3 * (kMortonBits - d))));

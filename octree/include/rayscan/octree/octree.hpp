@@ -8,6 +8,7 @@
 #include "rayscan/octree/simd.hpp"
 #include "rayscan/octree/spatial_index.hpp"
 
+#include <cmath>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -192,12 +193,16 @@ class Octree {
   /// node's subtree. Depth 0 (cells == nullptr) where the tree has none: a tree of depth <= 1, or
   /// nodes above the grid's depth with points of their own (the layered layout: a subtree there
   /// does not hold every point of its cell).
+  /// The grid cell of a coordinate v on axis a at the deepest level is floor((v - lo[a]) *
+  /// inv_cell), clamped to [0, 2^depth): inv_cell is the points' Morton scale (quantizer()) divided
+  /// by 2^(21 - depth), exactly, so that cell is the top bits of the coordinate's Morton code on
+  /// that axis, bit for bit: the cell a point of that coordinate was sorted into.
   struct EntryGrid {
     const EntryCell* cells;  ///< the levels 0..depth one after the other
     unsigned depth;
     Vec3 lo;          ///< the root cell's minimum corner
-    double side;      ///< the root cell's edge, as cell_bounds() divides it
-    double inv_cell;  ///< cells of the deepest level per world unit (2^depth / side)
+    double side;      ///< the quantizer's root edge (OctreeRules::root_side)
+    double inv_cell;  ///< cells of the deepest level per world unit
     /// The cells of level l <= depth.
     [[nodiscard]] const EntryCell* level(unsigned l) const {
       return cells + ((std::size_t{1} << (3 * l)) - 1) / 7;  // (8^0 + ... + 8^(l-1))
@@ -207,10 +212,10 @@ class Octree {
   /// core's L2).
   static constexpr unsigned kEntryGridMaxDepth = 5;
   /// The entry grids, built with the tree, down to depth min(depth() - 1, kEntryGridMaxDepth): one
-  /// level above the deepest leaves (bench/notes/).
+  /// level above the deepest leaves (bench/notes/), and no deeper than 8 cells per node.
   [[nodiscard]] EntryGrid entry_grid() const {
-    return {entry_cells_.empty() ? nullptr : entry_cells_.data(), entry_depth_, cell_.lo, cell_.hi.x - cell_.lo.x,
-            static_cast<double>(1u << entry_depth_) / (cell_.hi.x - cell_.lo.x)};
+    return {entry_cells_.empty() ? nullptr : entry_cells_.data(), entry_depth_, cell_.lo, side_,
+            std::ldexp(quantizer().scale, static_cast<int>(entry_depth_) - static_cast<int>(kMortonBits))};
   }
   // Octree specifics ---------------------------------------------------------------------------
   /// The Warren & Salmon id (depth + Morton code) of node n.
@@ -224,6 +229,10 @@ class Octree {
   [[nodiscard]] AABB cell_bounds(Node n) const;
   /// The root cell (a cube).
   [[nodiscard]] const AABB& root_cell() const { return cell_; }
+  /// The quantizer the points' Morton codes (and so their cells) were computed with: corner
+  /// root_cell().lo, edge OctreeRules::root_side of the points' bounds (which may differ in the
+  /// last bits from root_cell()'s edge, the difference of two rounded corners).
+  [[nodiscard]] OctreeRules::Quantizer quantizer() const { return {cell_.lo, side_}; }
   /// Number of nodes.
   [[nodiscard]] std::size_t node_count() const { return nodes_.size(); }
   /// Depth of the deepest node.
@@ -262,6 +271,7 @@ class Octree {
   struct LevelMaps;
   OctreeConfig config_;
   AABB cell_;                       // root cube
+  double side_ = 1.0;               // the quantizer's root edge (quantizer())
   unsigned depth_ = 0;
   // resize() leaves them uninitialised (default_init_vector.hpp): the bulk build's parallel
   // passes are the first to touch them.

@@ -325,8 +325,9 @@ struct RayTraversal {
     if constexpr (EntryGridIndex<I>) {
       const auto g = index.entry_grid();
       const Vec3 p0 = o + d * entry_t0, p1 = o + d * best.key;
-      // The radius, the node test's allowance for rounding on the ray, and the rounding of a
-      // point's cell (its Morton code truncates (p - lo) / cell edge: a few ulps of the root edge).
+      // The radius, the node test's allowance for rounding on the ray (p0, p1, and a point's
+      // distance to the ray) and some to spare. A coordinate's grid cell is its Morton cell
+      // (EntryGrid), so a point between R's faces on an axis has its cell between theirs.
       const double m = radius + 2.0 * tol + 0x1p-40 * g.side;
       unsigned level = g.depth;  // the deepest level whose cell holds R and the entry cell
       unsigned ijk[3];
@@ -368,7 +369,7 @@ struct RayTraversal {
   }
 
   /// The cell index along one axis of coordinate v in the deepest level of grid g (origin lo),
-  /// clamped to the grid (NaN: 0).
+  /// clamped to the grid (NaN: 0): the top bits of v's Morton code on that axis (EntryGrid).
   template <class Grid>
   static unsigned grid_coord(const Grid& g, double v, double lo) {
     const double last = static_cast<double>((1u << g.depth) - 1);
