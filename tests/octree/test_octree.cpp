@@ -218,13 +218,13 @@ TEST(Octree, EntryGridsHoldTheDeepestNodeOfEachCell) {
         while (want > 1 && (std::size_t{1} << (3 * want)) > 8 * t.node_count()) --want;
         ASSERT_EQ(g.depth, want) << ctx;
         ASSERT_GE(g.depth, 2u) << ctx;
-        EXPECT_EQ(g.lo, t.root_cell().lo);
+        EXPECT_EQ(g.quant.lo, t.root_cell().lo);
         for (unsigned l = 0; l <= g.depth; ++l) {
           const std::uint32_t w = 1u << l;
           for (std::uint32_t k = 0; k < w; ++k)
             for (std::uint32_t j = 0; j < w; ++j)
               for (std::uint32_t i = 0; i < w; ++i) {
-                const Octree::EntryCell c = g.level(l)[i + (j << l) + (std::size_t{k} << (2 * l))];
+                const Octree::EntryCell c = g.at(l, i, j, k);
                 const OctreeNodeId id = t.node_id(c.node);
                 ASSERT_EQ(c.depth, id.depth()) << ctx;
                 ASSERT_LE(c.depth, l) << ctx;
@@ -251,7 +251,7 @@ TEST(Octree, EntryGridsHoldTheDeepestNodeOfEachCell) {
             const std::uint64_t cell = code >> (3 * (kMortonBits - l));
             const auto i = static_cast<std::uint32_t>(morton_compact(cell)), j = static_cast<std::uint32_t>(morton_compact(cell >> 1)),
                        k = static_cast<std::uint32_t>(morton_compact(cell >> 2));
-            const Octree::Node n = g.level(l)[i + (j << l) + (std::size_t{k} << (2 * l))].node;
+            const Octree::Node n = g.at(l, i, j, k).node;
             const SlotRange sub = t.subtree_points(n);
             ASSERT_TRUE(s >= sub.begin && s < sub.end) << ctx << ": slot " << s << " level " << l;
           }

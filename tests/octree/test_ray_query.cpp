@@ -764,8 +764,8 @@ TEST(RayQuery, EntryPointSearchEqualsTheRootTraversalAndTheOracle) {
     for (int i = 0; i < 60; ++i) {
       const int a = i % 3, b = (a + 1) % 3, c = (a + 2) % 3;
       Vec3 o = box.lo + draw3([&] { return u(rng); }) * (box.hi - box.lo);
-      o[b] = g.lo[b] + cell * std::floor((o[b] - g.lo[b]) / cell) + (i % 2 ? 0.0 : 0.5 * cell);
-      o[c] = g.lo[c] + cell * std::floor((o[c] - g.lo[c]) / cell);
+      o[b] = g.quant.lo[b] + cell * std::floor((o[b] - g.quant.lo[b]) / cell) + (i % 2 ? 0.0 : 0.5 * cell);
+      o[c] = g.quant.lo[c] + cell * std::floor((o[c] - g.quant.lo[c]) / cell);
       Vec3 dir(0.0);
       dir[a] = i % 4 < 2 ? 1.0 : -1.0;
       if (i % 5 != 0) o[a] = dir[a] > 0 ? box.lo[a] - 0.3 * box.max_extent() : box.hi[a] + 0.3 * box.max_extent();

@@ -581,7 +581,6 @@ void Octree::build_child_blocks() {
   while (gd > 1 && (std::size_t{1} << (3 * gd)) > 8 * n) --gd;
   entry_depth_ = gd;
   entry_cells_.assign(((std::size_t{1} << (3 * (gd + 1))) - 1) / 7, EntryCell{root(), 0});
-  const EntryGrid g = entry_grid();
   std::vector<Node> stack{root()};
   while (!stack.empty()) {
     const Node nd = stack.back();
@@ -590,14 +589,13 @@ void Octree::build_child_blocks() {
     const unsigned d = id.depth();
     const std::uint64_t m = id.morton();
     for (unsigned l = d; l <= gd; ++l) {
-      EntryCell* level = entry_cells_.data() + (g.level(l) - g.cells);
       const unsigned sh = l - d, w = 1u << sh;
       const auto i0 = static_cast<unsigned>(morton_compact(m)) << sh;
       const auto j0 = static_cast<unsigned>(morton_compact(m >> 1)) << sh;
       const auto k0 = static_cast<unsigned>(morton_compact(m >> 2)) << sh;
       for (unsigned k = k0; k < k0 + w; ++k)
         for (unsigned j = j0; j < j0 + w; ++j)
-          for (unsigned i = i0; i < i0 + w; ++i) level[i + (j << l) + (std::size_t{k} << (2 * l))] = {nd, d};
+          for (unsigned i = i0; i < i0 + w; ++i) entry_cells_[EntryGrid::slot(l, i, j, k)] = {nd, d};
     }
     if (d < gd && child_count(nd) != 0) {
       if (node_points(nd).size() != 0) {

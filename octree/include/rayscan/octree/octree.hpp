@@ -8,7 +8,6 @@
 #include "rayscan/octree/simd.hpp"
 #include "rayscan/octree/spatial_index.hpp"
 
-#include <cmath>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -78,15 +77,17 @@ struct OctreeRules {
     double scale;  ///< cells per world unit
     /// Cells of the root cell with corner `lo` and edge `side` (root_side()).
     Quantizer(const Vec3& lo, double side);
-    [[nodiscard]] std::uint64_t code(const Vec3& p) const {
+    /// The cell in [0, 2^21) of coordinate v on axis a (0 x, 1 y, 2 z): truncated, clamped to the
+    /// border cells (NaN: 0).
+    [[nodiscard]] std::uint32_t cell(double v, unsigned a) const {
       constexpr std::uint32_t kCells = 1u << kMortonBits;
-      auto q = [&](double v, double l) {
-        const double f = (v - l) * scale;  // truncation == floor for f >= 0
-        if (!(f >= 0.0)) return std::uint32_t{0};
-        if (f >= kCells - 1) return kCells - 1;
-        return static_cast<std::uint32_t>(f);
-      };
-      return morton_encode(q(p.x, lo.x), q(p.y, lo.y), q(p.z, lo.z));
+      const double f = (v - lo[a]) * scale;  // truncation == floor for f >= 0
+      if (!(f >= 0.0)) return 0;
+      if (f >= kCells - 1) return kCells - 1;
+      return static_cast<std::uint32_t>(f);
+    }
+    [[nodiscard]] std::uint64_t code(const Vec3& p) const {
+      return morton_encode(cell(p.x, 0), cell(p.y, 1), cell(p.z, 2));
     }
   };
   /// Whether a node at `depth` holding `count` points (all with one Morton code when `all_same`)
@@ -180,7 +181,8 @@ class Octree {
   [[nodiscard]] const Vec3& float_origin() const { return cell_.lo; }
   [[nodiscard]] double float_extent() const { return cell_.max_extent(); }
 
-  /// One cell of an entry grid: the deepest node whose cell contains the grid cell, and its depth.
+  /// One cell of an entry grid: the deepest node whose cell contains the grid cell, and its depth
+  /// (node_id(node).depth(), kept here so that the search reads one cache line, not the node's).
   struct EntryCell {
     Node node;
     std::uint32_t depth;
@@ -189,24 +191,27 @@ class Octree {
   /// instead of at the root; Havran's thesis, section 5.3, and the entry points of Reshetov,
   /// Soupikov & Hurley, "Multi-level ray tracing algorithm", SIGGRAPH 2005): for each level l in
   /// [0, depth], the 2^l cells per axis of the root cell at depth l, cell (i, j, k) of level l at
-  /// level(l)[i + (j << l) + (k << 2 l)]. Every point inside a grid cell's node's cell is in that
-  /// node's subtree. Depth 0 (cells == nullptr) where the tree has none: a tree of depth <= 1, or
-  /// nodes above the grid's depth with points of their own (the layered layout: a subtree there
-  /// does not hold every point of its cell).
-  /// The grid cell of a coordinate v on axis a at the deepest level is floor((v - lo[a]) *
-  /// inv_cell), clamped to [0, 2^depth): inv_cell is the points' Morton scale (quantizer()) divided
-  /// by 2^(21 - depth), exactly, so that cell is the top bits of the coordinate's Morton code on
-  /// that axis, bit for bit: the cell a point of that coordinate was sorted into.
+  /// at(l, i, j, k). Every point inside a grid cell's node's cell is in that node's subtree. Depth 0
+  /// (cells == nullptr) where the tree has none: a tree of depth <= 1, or nodes above the grid's
+  /// depth with points of their own (the layered layout: a subtree there does not hold every point
+  /// of its cell).
   struct EntryGrid {
-    const EntryCell* cells;  ///< the levels 0..depth one after the other
+    const EntryCell* cells;  ///< the levels 0..depth one after the other (slot())
     unsigned depth;
-    Vec3 lo;          ///< the root cell's minimum corner
-    double side;      ///< the quantizer's root edge (OctreeRules::root_side)
-    double inv_cell;  ///< cells of the deepest level per world unit
-    /// The cells of level l <= depth.
-    [[nodiscard]] const EntryCell* level(unsigned l) const {
-      return cells + ((std::size_t{1} << (3 * l)) - 1) / 7;  // (8^0 + ... + 8^(l-1))
+    OctreeRules::Quantizer quant;  ///< the points' quantizer (Octree::quantizer())
+    double side;                   ///< its root edge (OctreeRules::root_side), world units
+    /// The position of cell (i, j, k) of level l in `cells`: levels 0..l-1 before it, then
+    /// i + 2^l j + 4^l k.
+    [[nodiscard]] static std::size_t slot(unsigned l, unsigned i, unsigned j, unsigned k) {
+      return ((std::size_t{1} << (3 * l)) - 1) / 7 + i + (std::size_t{j} << l) + (std::size_t{k} << (2 * l));
     }
+    /// Cell (i, j, k) of level l <= depth (each index < 2^l).
+    [[nodiscard]] const EntryCell& at(unsigned l, unsigned i, unsigned j, unsigned k) const {
+      return cells[slot(l, i, j, k)];
+    }
+    /// The deepest level's cell index of coordinate v on axis a: the top `depth` bits of its
+    /// Morton cell (Quantizer::cell), so the cell a point of that coordinate was sorted into.
+    [[nodiscard]] unsigned coord(double v, unsigned a) const { return quant.cell(v, a) >> (kMortonBits - depth); }
   };
   /// The deepest entry grid: 2^15 cells of 8 bytes (with the coarser levels 293 KB, within a
   /// core's L2).
@@ -214,8 +219,7 @@ class Octree {
   /// The entry grids, built with the tree, down to depth min(depth() - 1, kEntryGridMaxDepth): one
   /// level above the deepest leaves (bench/notes/), and no deeper than 8 cells per node.
   [[nodiscard]] EntryGrid entry_grid() const {
-    return {entry_cells_.empty() ? nullptr : entry_cells_.data(), entry_depth_, cell_.lo, side_,
-            std::ldexp(quantizer().scale, static_cast<int>(entry_depth_) - static_cast<int>(kMortonBits))};
+    return {entry_cells_.empty() ? nullptr : entry_cells_.data(), entry_depth_, quantizer(), side_};
   }
   // Octree specifics ---------------------------------------------------------------------------
   /// The Warren & Salmon id (depth + Morton code) of node n.

@@ -296,9 +296,8 @@ struct RayTraversal {
       if (iv.empty()) return false;
       entry_t0 = std::max(iv.lo, q.t_min);
       const Vec3 p0 = o + d * entry_t0;
-      for (int a = 0; a < 3; ++a) entry_ijk[a] = grid_coord(g, p0[a], g.lo[a]);
-      const auto cell = g.level(g.depth)[entry_ijk[0] + (entry_ijk[1] << g.depth) +
-                                         (std::size_t{entry_ijk[2]} << (2 * g.depth))];
+      for (unsigned a = 0; a < 3; ++a) entry_ijk[a] = g.coord(p0[a], a);
+      const auto cell = g.at(g.depth, entry_ijk[0], entry_ijk[1], entry_ijk[2]);
       if (cell.node == index.root() || !test_node(index.node_bounds(cell.node), lb)) return false;
       entry_depth = cell.depth;
       n = cell.node;
@@ -331,18 +330,17 @@ struct RayTraversal {
       const double m = radius + 2.0 * tol + 0x1p-40 * g.side;
       unsigned level = g.depth;  // the deepest level whose cell holds R and the entry cell
       unsigned ijk[3];
-      for (int a = 0; a < 3; ++a) {
+      for (unsigned a = 0; a < 3; ++a) {
         const double lo = std::max(std::min(p0[a], p1[a]) - m, root_box.lo[a]);
         const double hi = std::min(std::max(p0[a], p1[a]) + m, root_box.hi[a]);
-        const unsigned c0 = grid_coord(g, lo, g.lo[a]), c1 = grid_coord(g, hi, g.lo[a]);
+        const unsigned c0 = g.coord(lo, a), c1 = g.coord(hi, a);
         const unsigned diff = (c0 ^ c1) | (c0 ^ entry_ijk[a]);
         if (diff) level = std::min(level, g.depth - static_cast<unsigned>(std::bit_width(diff)));
         ijk[a] = c0;
       }
       if (level >= entry_depth) return true;
       const unsigned sh = g.depth - level;
-      const auto cell = g.level(level)[(ijk[0] >> sh) + ((ijk[1] >> sh) << level) +
-                                       (std::size_t{ijk[2] >> sh} << (2 * level))];
+      const auto cell = g.at(level, ijk[0] >> sh, ijk[1] >> sh, ijk[2] >> sh);
       if (cell.node == index.root()) return false;
       restart = cell.node;
       if (!test_node(index.node_bounds(restart), lb)) lb = -kInf;  // (conservative: it holds the hit)
@@ -366,15 +364,6 @@ struct RayTraversal {
       return;
     }
     traverse_from(index.root(), lb0);
-  }
-
-  /// The cell index along one axis of coordinate v in the deepest level of grid g (origin lo),
-  /// clamped to the grid (NaN: 0): the top bits of v's Morton code on that axis (EntryGrid).
-  template <class Grid>
-  static unsigned grid_coord(const Grid& g, double v, double lo) {
-    const double last = static_cast<double>((1u << g.depth) - 1);
-    const double f = std::floor((v - lo) * g.inv_cell);
-    return static_cast<unsigned>(f >= 0.0 ? (f <= last ? f : last) : 0.0);
   }
 
   /// Node test (section 3.3): false prunes the node; otherwise lb receives a lower bound of the key
