@@ -345,7 +345,8 @@ std::uint64_t run_rayscan_packets(const rayscan::AnyIndex& index, std::span<cons
 }
 
 /// First sphere hits of the row-major camera rays by ray_first_hit_each: two consecutive rays at
-/// a time, their traversals interleaved node by node. Returns the hit count.
+/// a time, their traversals interleaved node by node (the caller turns rayscan::interleaved_pairs
+/// on). Returns the hit count.
 std::uint64_t run_rayscan_pairs(const rayscan::AnyIndex& index, std::span<const Ray> rays, const RayQuery& rq,
                                 RayResults& res) {
   return sum_over_blocks(index, rays.size(), 64, [&](const auto& idx, const tbb::blocked_range<std::size_t>& br) {
@@ -855,6 +856,8 @@ int main(int argc, char** argv) {
   std::printf("Embree %d.%d.%d, RTC_GEOMETRY_TYPE_SPHERE_POINT (float4), rtcIntersect1 per ray, "
               "default build quality; rayscan: double precision, per-thread result vectors\n",
               RTC_VERSION_MAJOR, RTC_VERSION_MINOR, RTC_VERSION_PATCH);
+  std::printf("ray_first_hit_each's default on this CPU (rayscan::interleaved_pairs): %s\n",
+              rayscan::interleaved_pairs_default() ? "interleaved pairs" : "single rays");
   std::printf("rayscan indexes from make_index with its defaults unless NAME:C: capacity %u (octree-adaptive, "
               "-fixed), %u (octree-layered), kd-tree leaf %u; bulk build; queries use t_min = 0\n",
               rayscan::default_capacity(rayscan::OctreeLayout::adaptive),
@@ -1062,6 +1065,9 @@ int main(int argc, char** argv) {
             RayResults res(rays.size());
             const bool em = run.b == built.size();
             if (!em) rayscan::set_entry_point_search(entry_search_of(indexes[run.b]));
+            // The pairs row measures the interleaved pairs whatever this CPU's default (single
+            // rays on Intel: rayscan::interleaved_pairs); ray_query_each keeps the default.
+            rayscan::set_interleaved_pairs(run.packet == 2 || rayscan::interleaved_pairs_default());
             rb::Stopwatch sw;
             rb::ThreadCpuStopwatch cpu;
             const std::uint64_t tot =
@@ -1137,7 +1143,9 @@ int main(int argc, char** argv) {
                                                                         : "rtcIntersect1")
                                  : "rayscan " + indexes[run.b] +
                                        (run.packet == 0   ? " single rays"
-                                        : run.packet == 1 ? " ray_query_each, row-major (two rays interleaved)"
+                                        : run.packet == 1 ? (rayscan::interleaved_pairs_default()
+                                                                 ? " ray_query_each, row-major (two rays interleaved)"
+                                                                 : " ray_query_each, row-major (rays one by one)")
                                         : run.packet == 2 ? " ray_first_hit_each, row-major (two rays interleaved)"
                                         : run.packet == 4 ? " packets 2x2"
                                                           : " packets 4x4");

@@ -4,7 +4,8 @@
 // rest (camera, shading, sampling), measured by timing every ray_query call.
 //
 // Usage: bench_render [SCENE.json] [--tiles N] [--spp S] [--threads T] [--no-timing]
-//                     [--packets on|off|both] [--entry-search on|off|both] [--rounds R]
+//                     [--packets on|off|both] [--entry-search on|off|both] [--pairs on|off|both]
+//                     [--rounds R]
 //   default scene: scenes/autzen_overview.json; --tiles N renders an N x N tiling of the cloud
 //   (N = 9 gives 8.9 million points for autzen_trim), seen by a camera scaled to cover it.
 //   --packets: camera and shadow rays of 4x4 pixel blocks as ray packets (on, the
@@ -13,7 +14,9 @@
 //   by process CPU time (the fair figure on a loaded machine) for each render. --entry-search: the
 //   first hits' entry-point search (rayscan::set_entry_point_search) on (the default), off, or
 //   both, the same way (each combination with --packets once per round; every image must equal the
-//   first byte for byte).
+//   first byte for byte). --pairs: the bounce and shadow rays' ray_first_hit_each in interleaved
+//   pairs (rayscan::set_interleaved_pairs) on, off, or both, likewise; by default this CPU's
+//   default (rayscan::interleaved_pairs_default: on for AMD).
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/octree/ray_query.hpp"
@@ -35,7 +38,7 @@ int main(int argc, char** argv) {
   int tiles = 1;
   unsigned spp = 50, threads = 0;
   bool timing = true;
-  std::string packets = "on", entry = "on";
+  std::string packets = "on", entry = "on", pairs = interleaved_pairs_default() ? "on" : "off";
   int rounds = 1;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--tiles") && i + 1 < argc) tiles = std::atoi(argv[++i]);
@@ -44,6 +47,7 @@ int main(int argc, char** argv) {
     else if (!std::strcmp(argv[i], "--no-timing")) timing = false;
     else if (!std::strcmp(argv[i], "--packets") && i + 1 < argc) packets = argv[++i];
     else if (!std::strcmp(argv[i], "--entry-search") && i + 1 < argc) entry = argv[++i];
+    else if (!std::strcmp(argv[i], "--pairs") && i + 1 < argc) pairs = argv[++i];
     else if (!std::strcmp(argv[i], "--rounds") && i + 1 < argc) rounds = std::max(1, std::atoi(argv[++i]));
     else scene_path = argv[i];
   }
@@ -86,7 +90,8 @@ int main(int argc, char** argv) {
     const AnyIndex index = make_index(cloud.positions, scene.index);
     const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const double radius = choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor).radius;
-    for (const auto& [flag, v] : {std::pair{"--packets", &packets}, std::pair{"--entry-search", &entry}})
+    for (const auto& [flag, v] :
+         {std::pair{"--packets", &packets}, std::pair{"--entry-search", &entry}, std::pair{"--pairs", &pairs}})
       if (*v != "on" && *v != "off" && *v != "both") {
         std::fprintf(stderr, "bench_render: %s '%s': expected on, off or both\n", flag, v->c_str());
         return 2;
@@ -99,15 +104,20 @@ int main(int argc, char** argv) {
       clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
       return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
     };
-    std::vector<std::pair<bool, bool>> modes;  // (packets, entry-point search)
+    struct Mode {
+      bool packets, entry_search, pairs;
+    };
+    std::vector<Mode> modes;
+    auto chosen = [](const std::string& v, bool on) { return v == "both" || (v == "on") == on; };
     for (const bool es : {false, true})
-      if (entry == "both" || (entry == "on") == es)
+      for (const bool pr : {false, true})
         for (const bool pk : {false, true})
-          if (packets == "both" || (packets == "on") == pk) modes.emplace_back(pk, es);
+          if (chosen(entry, es) && chosen(pairs, pr) && chosen(packets, pk)) modes.push_back({pk, es, pr});
     std::vector<Color> first_image;
     for (int round = 0; round < rounds; ++round)
-      for (const auto& [pk, es] : modes) {
+      for (const auto& [pk, es, pr] : modes) {
         set_entry_point_search(es);
+        set_interleaved_pairs(pr);
         RenderOptions opt;
         opt.threads = threads;
         opt.time_queries = timing;
@@ -117,9 +127,9 @@ int main(int argc, char** argv) {
         const RenderStats st = render_image(index, settings, fb, opt);
         const double cpu = cpu_now() - c0;
         const double qps = double(st.queries) / st.seconds;
-        std::printf("round %d, packets %s, entry-point search %s: %ux%u px, %u spp, %u threads: %.2f s, %llu primary "
-                    "rays, %llu ray queries\n",
-                    round + 1, pk ? "on" : "off", es ? "on" : "off", fb.width, fb.height, scene.spp, st.threads, st.seconds,
+        std::printf("round %d, packets %s, entry-point search %s, pairs %s: %ux%u px, %u spp, %u threads: %.2f s, "
+                    "%llu primary rays, %llu ray queries\n",
+                    round + 1, pk ? "on" : "off", es ? "on" : "off", pr ? "on" : "off", fb.width, fb.height, scene.spp, st.threads, st.seconds,
                     (unsigned long long)st.primary_rays, (unsigned long long)st.queries);
         std::printf("  ray queries/s: %.3g total, %.3g per thread (wall); %.3g per CPU-second; "
                     "nodes visited/query %.1f, points tested/query %.1f\n",

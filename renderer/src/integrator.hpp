@@ -269,8 +269,8 @@ class PathTracer {
   /// small wavefront): the camera rays go through ray_first_hit_packet, the shadow rays of their
   /// hits, which all point at the sun from within the block's footprint, through
   /// ray_any_hit_packet, the bounce rays, which are incoherent (in packets they measured no
-  /// faster: bench/README.md) and their shadow rays, two at a time with their traversals
-  /// interleaved (ray_first_hit_each); then each path scatters.
+  /// faster: bench/README.md) and their shadow rays, through ray_first_hit_each (two at a time,
+  /// interleaved, on CPUs that gain from it: interleaved_pairs()); then each path scatters.
   /// Every stage consumes a path's sampler stream in the order trace() does and adds to its L in
   /// the same order, and the packet and pair answers are ray_first_hit's, so nothing depends on
   /// which paths share a packet.
@@ -363,8 +363,8 @@ class PathTracer {
           vertex(j, hit, h);
         }
       } else {
-        // The camera rays as one packet; the bounce rays, which are incoherent, two at a time with
-        // their traversals interleaved (ray_first_hit_each). Each answer is the one-ray query's (as
+        // The camera rays as one packet; the bounce rays, which are incoherent, through
+        // ray_first_hit_each (interleaved pairs where the CPU gains). Each answer is the one-ray query's (as
         // trace()'s intersect).
         std::optional<RayHit> rh[kMaxRayPacket];
         if (camera)
@@ -381,8 +381,8 @@ class PathTracer {
       }
       // The shadow rays of the hits (all towards the sun): a packet for the camera rays' hits,
       // whose origins lie within the block's footprint; after a bounce (the origins are
-      // scattered: in packets they measured slower, bench/README.md) two at a time, interleaved
-      // (ray_first_hit_each), or one by one in surfel mode.
+      // scattered: in packets they measured slower, bench/README.md) through ray_first_hit_each,
+      // or one by one in surfel mode.
       if (shadowed && !camera && surfel) {
         for (std::size_t i = 0; i < n; ++i)
           if (((shadowed >> i) & 1u) && !occluded(p[i]->shadow, hits, c, &p[i]->from)) add_sun(*p[i]);

@@ -360,6 +360,7 @@ TEST(RayQuery, BatchFirstHitsEqualSingleRayCallsAndOracle) {
   // oracle, for camera rays (one origin, a narrow cone), one wide ray among them, and random rays,
   // on every index and for orders sphere_hit, time and ray (and every forced SIMD path:
   // simd_*_properties).
+  const PairsGuard pairs(true);
   const auto pts = make_points(3000, Dist::clustered, 29);
   AABB box;
   double s = 0;
@@ -400,7 +401,7 @@ TEST(RayQuery, BatchFirstHitsEqualSingleRayCallsAndOracle) {
 }
 
 TEST(RayQuery, RayQueryEachEqualsSingleCallsForEveryQueryKind) {
-  // ray_query_each on coherent camera rays (interleaved pairs for k = 1) equals ray_query per
+  // ray_query_each on coherent camera rays (ray_first_hit_each for k = 1) equals ray_query per
   // ray for k = 1 with a plane, any_hit (one candidate, whichever the order), k = 3 and no k, on
   // an octree and an empty index; and rejects a length mismatch and an invalid query.
   const auto pts = make_points(2000, Dist::clustered, 37);
@@ -593,8 +594,11 @@ TEST(RayQuery, FirstHitEachInterleavedPairsEqualSingleRaysAndOracle) {
   // infinite float reciprocal), rays that miss the root box paired with rays that enter it, random
   // rays through and from inside the box, spans of odd and even lengths (a lone last ray), on
   // every index, for orders sphere_hit, time and ray, with and without a plane and any_hit, on
-  // every forced SIMD path (simd_*_properties).
+  // every forced SIMD path (simd_*_properties); and with the pairs off (interleaved_pairs(): the
+  // rays one by one), which must give the same.
+  for (const bool pairs_on : {true, false})
   for (const Dist dist : {Dist::clustered, Dist::grid}) {
+    const PairsGuard pairs(pairs_on);
     const auto pts = make_points(3000, dist, 41);
     AABB box;
     double s = 0;
@@ -746,6 +750,7 @@ TEST(RayQuery, EntryPointSearchEqualsTheRootTraversalAndTheOracle) {
   // returns some qualifying point: only its existence is compared). The search must be at work:
   // fewer nodes visited with it than without, over each cloud's queries (but the lattice's, whose
   // points all lie on grid faces: there it goes back up on almost every ray).
+  const PairsGuard pairs(true);  // (ray_first_hit_each below: its pairs)
   for (const Dist dist : {Dist::uniform, Dist::grid, Dist::clustered, Dist::utm_mm}) {
     const auto pts = make_points(20000, dist, 53);
     OctreeConfig cfg;
@@ -825,6 +830,7 @@ TEST(RayQuery, EntryPointSearchWhereTheRootEdgeRoundsUp) {
   // cells from the points' own quantizer (Octree::quantizer). The point at height v (id 3) is
   // the first hit, in the upper z half by its Morton code; a ray between it and a point below
   // (id 2) must return it with the search on as with it off.
+  const PairsGuard pairs(true);  // (ray_first_hit_each below: its pairs)
   const double x = 5e6;
   double e = 0, gap = 0;
   for (int i = 0; i < 200000; ++i) {

@@ -173,6 +173,7 @@ TEST(Simd, ChildSlabNeverRejectsWhatTheDoubleSlabAccepts) {
 // answer those rays as the scalar path does, which has no kernel. Counted per path.
 TEST(Simd, RootKernelNeverRejectsWhatTheRootTestAccepts) {
   PathGuard guard;
+  const PairsGuard pairs(true);  // (ray_first_hit_each's pairs, whatever this CPU's default)
   std::vector<std::optional<RayHit>> scalar_answers;
   for (SimdPath path : supported_paths()) {
     set_simd_path(path);

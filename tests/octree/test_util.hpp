@@ -149,4 +149,14 @@ inline void expect_same_answer(const std::optional<RayHit>& got, const std::opti
   EXPECT_EQ(got->key, one->key) << ctx;
 }
 
+/// Sets interleaved_pairs() for a scope and restores the value before it: tests of the pairs
+/// (ray_first_hit_each) force them on, as the CPU's default may be single rays.
+struct PairsGuard {
+  bool saved = interleaved_pairs();
+  explicit PairsGuard(bool on) { set_interleaved_pairs(on); }
+  ~PairsGuard() { set_interleaved_pairs(saved); }
+  PairsGuard(const PairsGuard&) = delete;
+  PairsGuard& operator=(const PairsGuard&) = delete;
+};
+
 }  // namespace rayscan::test

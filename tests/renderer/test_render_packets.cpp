@@ -1,6 +1,6 @@
 // The renderer traces the camera rays of each 4x4 pixel block (one sample
 // index at a time) and their shadow rays as packets (ray_first_hit_packet / ray_any_hit_packet),
-// and the bounce rays and theirs two at a time, interleaved (ray_first_hit_each).
+// and the bounce rays and theirs through ray_first_hit_each (forced here to its interleaved pairs).
 // Oracle: the same render with packets off (every ray traced alone with ray_first_hit, the path
 // loop of PathTracer::trace); the images must be identical byte for byte, on the index types that
 // take packets (octree, index file) and one that does not (kd-tree: per-ray child tests inside the
@@ -39,6 +39,9 @@ Scene packet_scene() {
 template <class I>
 void expect_packets_identical(const I& index, const RenderSettings& set, unsigned tile, const std::string& what) {
   SCOPED_TRACE(what);
+  // The bounce rays' pairs (ray_first_hit_each) on, whatever this CPU's default.
+  const bool saved_pairs = interleaved_pairs();
+  set_interleaved_pairs(true);
   Framebuffer fb[2];
   for (int k = 0; k < 2; ++k) {
     RenderOptions o;
@@ -47,6 +50,7 @@ void expect_packets_identical(const I& index, const RenderSettings& set, unsigne
     o.packets = k == 1;
     render_image(index, set, fb[k], o);
   }
+  set_interleaved_pairs(saved_pairs);
   ASSERT_EQ(fb[0].beauty.size(), fb[1].beauty.size());
   EXPECT_EQ(std::memcmp(fb[0].beauty.data(), fb[1].beauty.data(), fb[0].beauty.size() * sizeof(Color)), 0);
   EXPECT_EQ(fb[0].depth.size(), fb[1].depth.size());

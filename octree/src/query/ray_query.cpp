@@ -10,6 +10,29 @@ namespace rayscan {
 
 void set_entry_point_search(bool on) { detail::g_entry_point_search.store(on, std::memory_order_relaxed); }
 
+namespace {
+// interleaved_pairs(): -1 until set or first read (then the CPU's default), else 0 / 1.
+std::atomic<int> g_interleaved_pairs{-1};
+}  // namespace
+
+bool interleaved_pairs_default() {
+  // (__builtin_cpu_init first: this may run before the constructors that initialise the CPU model)
+  __builtin_cpu_init();
+  return __builtin_cpu_is("amd");
+}
+
+bool interleaved_pairs() {
+  int v = g_interleaved_pairs.load(std::memory_order_relaxed);
+  if (v < 0) {
+    int unset = -1;
+    const int d = interleaved_pairs_default() ? 1 : 0;
+    v = g_interleaved_pairs.compare_exchange_strong(unset, d, std::memory_order_relaxed) ? d : unset;
+  }
+  return v != 0;
+}
+
+void set_interleaved_pairs(bool on) { g_interleaved_pairs.store(on ? 1 : 0, std::memory_order_relaxed); }
+
 void RayQuery::validate() const {
   if (std::isnan(radius) || std::isnan(t_min) || std::isnan(t_max))
     throw std::invalid_argument("ray query: radius, t_min and t_max must not be NaN");

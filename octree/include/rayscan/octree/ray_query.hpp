@@ -75,11 +75,26 @@ template <SpatialIndex I>
 /// benchmarks that compare both in one process. Thread-safe.
 void set_entry_point_search(bool on);
 
+/// Whether ray_first_hit_each traces its rays two at a time with their traversals interleaved
+/// (true) or one by one (false). The default depends on the CPU family, as measured with
+/// `bench_rays` (its `ray_first_hit_each` row against single rays, same process): AMD (Zen 5)
+/// gains from the pairs (1.06-1.13x), Intel Xeons lose (0.89-0.96x on a 16-core Sapphire-Rapids
+/// class Xeon at 1 to 16 threads, 0.80-1.0x on a 2-core one): pairs on AMD CPUs, single rays on
+/// every other (bench/notes/2026-11-28-pairs-by-cpu-family.md). Answers are the same either way.
+/// Thread-safe.
+[[nodiscard]] bool interleaved_pairs();
+/// Sets interleaved_pairs() for the whole process (benchmarks compare both in one process).
+/// Thread-safe.
+void set_interleaved_pairs(bool on);
+/// interleaved_pairs()'s default on this CPU (true on AMD: __builtin_cpu_is("amd")).
+[[nodiscard]] bool interleaved_pairs_default();
+
 /// First hits of a batch of rays: out[i] = ray_first_hit(index, rays[i], q, stats) for every i,
-/// bit for bit, with the rays traced two at a time, their traversals interleaved node by node
-/// (detail::first_hit_pair: the single ray's loop is latency-bound, and two independent chains
-/// fill the core's idle slots; the 1e6 camera rays of bench_rays 1.06-1.09x the single calls,
-/// bench/notes/). The batch form of ray_first_hit for callers with many rays
+/// bit for bit. Where interleaved_pairs() (the default on AMD CPUs) the rays are traced two at a
+/// time, their traversals interleaved node by node (detail::first_hit_pair: the single ray's loop
+/// is latency-bound, and two independent chains fill the core's idle slots; on Zen 5 the 1e6
+/// camera rays of bench_rays 1.06-1.09x the single calls), else one by one (on Intel Xeons the
+/// pairs measured slower; bench/notes/). The batch form of ray_first_hit for callers with many rays
 /// (ray_query_each, the renderer's wavefronts, bench_rays). `stats` (optional) sums the work
 /// counters. As ray_first_hit, `q` must have been validated. Throws std::invalid_argument when
 /// out.size() != rays.size(). Thread-safe (per-thread scratch).
@@ -112,10 +127,9 @@ template <SpatialIndex I>
 void ray_any_hit_packet(const I& index, std::span<const Ray> rays, const RayQuery& q, std::span<bool> out,
                         RayQueryStats* stats = nullptr);
 
-/// out[i] = ray_query(index, rays[i], q) for every i, bit for bit: with q.k == 1, the rays are
-/// traced two at a time with their traversals interleaved (ray_first_hit_each; the 1e6 camera
-/// rays of bench_rays 1.04-1.11x Embree's rtcIntersect1, where 16-ray packets of consecutive rays
-/// had been 0.88-0.91x of single rays: bench/notes/), other queries
+/// out[i] = ray_query(index, rays[i], q) for every i, bit for bit: with q.k == 1 through
+/// ray_first_hit_each (interleaved pairs where the CPU gains from them, interleaved_pairs(); 16-ray
+/// packets of consecutive rays had been 0.88-0.91x of single rays: bench/notes/), other queries
 /// ray by ray. The batch form for callers that pass whole
 /// ray sets (ray_query_batch: the Python module, `rayscan query`; the renderer traces its camera
 /// wavefronts as packets, ray_first_hit_packet). `stats` (optional) sums the work counters.

@@ -49,6 +49,10 @@ void ray_first_hit_each(const I& index, std::span<const Ray> rays, const RayQuer
     return;
   }
   std::size_t i = 0;
+  if (!interleaved_pairs()) {
+    for (; i < rays.size(); ++i) out[i] = ray_first_hit(index, rays[i], q, stats);
+    return;
+  }
   for (; i + 2 <= rays.size(); i += 2) {
     detail::Candidate best[2];
     const unsigned found = detail::first_hit_pair(index, rays.data() + i, q, best, stats);
