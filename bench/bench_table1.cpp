@@ -11,6 +11,7 @@
 #include "rayscan/octree/kdtree.hpp"
 #include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/point_query.hpp"
+#include "rayscan/octree/ray_query.hpp"
 #include "rayscan/octree/simd.hpp"
 
 #include <CLI/CLI.hpp>
@@ -343,6 +344,7 @@ int main(int argc, char** argv) {
   std::string only;
   std::vector<std::string> simd_paths;
   double box_edge = 0.0;
+  bool entry_ab = false;
   app.add_option("--points", n, "number of uniform points in the unit cube")->capture_default_str();
   app.add_option("--queries", queries, "box queries and kNN queries (each)")->capture_default_str();
   app.add_option("-k", k, "k of the kNN queries")->capture_default_str();
@@ -371,6 +373,10 @@ int main(int argc, char** argv) {
                  "path, named \"... [path]\", interleaved with the others in every round (an A/B of the "
                  "kernels in one process, where a shared machine's noise would swamp separate runs)")
       ->delimiter(',');
+  app.add_flag("--entry-ab", entry_ab,
+               "each rayscan octree contender also without the kNN's entry-point search "
+               "(rayscan::set_entry_point_search(false)), named \"... /no-entry\", interleaved with the others "
+               "in every round (an A/B in one process)");
   CLI11_PARSE(app, argc, argv);
   std::vector<rayscan::SimdPath> paths;
   for (const std::string& name : simd_paths) {
@@ -453,6 +459,27 @@ int main(int argc, char** argv) {
       }
     }
     cs = std::move(per_path);
+  }
+  if (entry_ab) {  // each octree contender twice, the search set before each of its steps
+    std::vector<Contender> ab;
+    for (const Contender& c : cs) {
+      if (c.peer || c.name.find("octree") == std::string::npos) {
+        ab.push_back(c);
+        continue;
+      }
+      for (const bool on : {true, false}) {
+        Contender d = c;
+        if (!on) d.name += " /no-entry";
+        d.build_bulk = [on, f = c.build_bulk] { rayscan::set_entry_point_search(on); f(); };
+        if (c.build_insert) d.build_insert = [on, f = c.build_insert] { rayscan::set_entry_point_search(on); f(); };
+        d.run_box = [on, f = c.run_box] { rayscan::set_entry_point_search(on); return f(); };
+        d.run_knn = [on, f = c.run_knn] { rayscan::set_entry_point_search(on); return f(); };
+        d.box_ids = [on, f = c.box_ids](const AABB& b) { rayscan::set_entry_point_search(on); return f(b); };
+        d.knn_ids = [on, f = c.knn_ids](const Vec3& q) { rayscan::set_entry_point_search(on); return f(q); };
+        ab.push_back(std::move(d));
+      }
+    }
+    cs = std::move(ab);
   }
   if (!only.empty()) {
     std::erase_if(cs, [&](const Contender& c) { return c.name.find(only) == std::string::npos; });

@@ -1,7 +1,9 @@
 // Box range, kNN, radius and k+r point queries against brute force on every index.
 #include "test_util.hpp"
 
+#include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/point_query.hpp"
+#include "rayscan/octree/ray_query.hpp"
 
 #include <gtest/gtest.h>
 
@@ -70,6 +72,78 @@ TEST(PointQuery, MatchBruteForceOnEveryIndex) {
         }
       }
     }
+}
+
+TEST(PointQuery, KnnEntryPointSearchEqualsTheRootSearchAndTheOracle) {
+  // knn_query with the entry-point search (the subtree of q's grid cell first, then the cells the
+  // ball of the k-th distance reaches, or the node of the smallest cell holding it) against the
+  // search from the root (set_entry_point_search(false)) bit for bit and the brute-force oracle:
+  // uniform, clustered (empty cells: their nodes lie above the grid's depth), lattice and UTM
+  // clouds, adaptive and fixed octrees of a few depths; queries at random, on data points, exactly
+  // on the grid's cell faces, edges and corners, and outside the root cell; k = 1, 8, 9 (k <= 8
+  // in vector lanes), 40 (a heap) and more than the points, radius unlimited or small.
+  struct Restore {
+    ~Restore() { set_entry_point_search(true); }
+  } restore;
+  std::size_t grids = 0, queries = 0;
+  for (const Dist d : {Dist::uniform, Dist::clustered, Dist::grid, Dist::utm_mm})
+    for (const auto& [layout, cap] : {std::pair{OctreeLayout::adaptive, 64u}, {OctreeLayout::adaptive, 8u},
+                                      {OctreeLayout::fixed, 64u}}) {
+      const auto pts = make_points(20000, d, 61);
+      OctreeConfig cfg = OctreeConfig::for_layout(layout);
+      cfg.capacity = cap;
+      cfg.depth = 4;
+      const Octree tree = Octree::build_bulk(pts, cfg);
+      const auto g = tree.entry_grid();
+      const std::string ctx0 = std::string(name(d)) + " cap " + std::to_string(cap) +
+                               (layout == OctreeLayout::fixed ? " fixed" : " adaptive");
+      if (d == Dist::uniform) {
+        ASSERT_GE(g.depth, 2u) << ctx0 << ": a tree this deep has entry grids";
+      }
+      grids += g.cells != nullptr;
+      const AABB cell = tree.root_cell();
+      const double s = cell.max_extent();
+      const double step = g.cells ? g.side / double(1u << g.depth) : s / 8.0;
+      std::mt19937_64 rng(67);
+      std::uniform_real_distribution<double> u(0, 1);
+      std::uniform_int_distribution<int> lattice(0, 1 << std::max(g.depth, 3u));
+      for (int i = 0; i < 60; ++i) {
+        Vec3 q;
+        switch (i % 4) {
+          case 0: q = pts[(i * 7919) % pts.size()]; break;
+          case 1: q = cell.lo + Vec3(u(rng), u(rng), u(rng)) * s; break;
+          case 2:  // a grid cell's corner, or a point on one of its faces or edges
+            for (int a = 0; a < 3; ++a)
+              q[a] = cell.lo[a] + (a == i % 3 && i % 8 < 4 ? u(rng) * s : step * lattice(rng));
+            break;
+          default: q = cell.lo + Vec3(u(rng) * 1.4 - 0.2, u(rng), u(rng) * 1.4 - 0.2) * s; break;  // also outside
+        }
+        const auto all = oracle_knn(pts, q, pts.size(), kInf);  // (every point, nearest first)
+        for (const auto& [k, r] : {std::pair<std::size_t, double>{1, kInf}, {8, kInf}, {9, kInf}, {40, kInf},
+                                   {8, 0.02 * s}, {pts.size() + 1, 0.01 * s}}) {
+          const std::string ctx = ctx0 + " query " + std::to_string(i) + " k=" + std::to_string(k) +
+                                  " r=" + std::to_string(r);
+          std::vector<Neighbor> on, off;
+          set_entry_point_search(true);
+          knn_query(tree, q, k, r, on);
+          set_entry_point_search(false);
+          knn_query(tree, q, k, r, off);
+          std::vector<Neighbor> want;
+          for (const Neighbor& nb : all)
+            if (want.size() < k && glm::dot(pts[nb.index] - q, pts[nb.index] - q) <= r * r) want.push_back(nb);
+          ASSERT_EQ(on.size(), want.size()) << ctx;
+          ASSERT_EQ(off.size(), want.size()) << ctx;
+          for (std::size_t j = 0; j < want.size(); ++j) {
+            ASSERT_EQ(on[j].index, want[j].index) << ctx << " rank " << j;
+            ASSERT_EQ(on[j].distance, want[j].distance) << ctx << " rank " << j;
+            ASSERT_EQ(off[j].index, want[j].index) << ctx << " rank " << j;
+          }
+          ++queries;
+        }
+      }
+    }
+  EXPECT_GE(grids, 8u);
+  EXPECT_EQ(queries, 4u * 3u * 60u * 6u);
 }
 
 TEST(PointQuery, InvalidArgumentsThrow) {

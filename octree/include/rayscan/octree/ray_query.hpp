@@ -72,7 +72,8 @@ template <SpatialIndex I>
 /// of the grid cell where it enters and go up only as far as a point outside that cell could still
 /// be hit first (Havran's entry-point search). Answers are the same either way (with q.any_hit,
 /// which qualifying point is returned may differ, as any_hit allows; RayQueryStats differ); for
-/// benchmarks that compare both in one process. Thread-safe.
+/// benchmarks that compare both in one process. The same switch turns off knn_query's use of the
+/// grid (point_query.hpp). Thread-safe.
 void set_entry_point_search(bool on);
 
 /// Whether ray_first_hit_each traces its rays two at a time with their traversals interleaved
