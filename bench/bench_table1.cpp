@@ -109,6 +109,33 @@ struct Contender {
   std::vector<double> t_insert, t_bulk, t_box, t_knn;
 };
 
+/// The contenders with each one `pick` accepts replaced by `count` variants: variant i (of
+/// setting(i) = {name suffix, set-up}) runs the set-up before each of its steps (an A/B of a
+/// process-wide switch, interleaved in every round).
+template <class Pick, class Setting>
+std::vector<Contender> variants(const std::vector<Contender>& cs, Pick pick, std::size_t count, Setting setting) {
+  std::vector<Contender> out;
+  for (const Contender& c : cs) {
+    if (!pick(c)) {
+      out.push_back(c);
+      continue;
+    }
+    for (std::size_t i = 0; i < count; ++i) {
+      const auto [suffix, set] = setting(i);
+      Contender d = c;
+      d.name += suffix;
+      d.build_bulk = [set, f = c.build_bulk] { set(); f(); };
+      if (c.build_insert) d.build_insert = [set, f = c.build_insert] { set(); f(); };
+      d.run_box = [set, f = c.run_box] { set(); return f(); };
+      d.run_knn = [set, f = c.run_knn] { set(); return f(); };
+      d.box_ids = [set, f = c.box_ids](const AABB& b) { set(); return f(b); };
+      d.knn_ids = [set, f = c.knn_ids](const Vec3& q) { set(); return f(q); };
+      out.push_back(std::move(d));
+    }
+  }
+  return out;
+}
+
 std::uint64_t fold(std::uint64_t acc, PointIndex id) { return acc * 1000003u + id + 1; }
 
 // A set-valued checksum (independent of result order): count and sum of ids.
@@ -440,46 +467,18 @@ int main(int argc, char** argv) {
   if (no_insert) cs.back().build_insert = {};
   cs.push_back(nanoflann_contender(w, nano_leaf));
   if (!paths.empty()) {  // each rayscan contender once per path, the path set before each of its steps
-    std::vector<Contender> per_path;
-    for (const Contender& c : cs) {
-      if (c.peer) {
-        per_path.push_back(c);
-        continue;
-      }
-      for (const rayscan::SimdPath p : paths) {
-        Contender d = c;
-        d.name += std::string(" [") + rayscan::to_string(p) + "]";
-        d.build_bulk = [p, f = c.build_bulk] { rayscan::set_simd_path(p); f(); };
-        if (c.build_insert) d.build_insert = [p, f = c.build_insert] { rayscan::set_simd_path(p); f(); };
-        d.run_box = [p, f = c.run_box] { rayscan::set_simd_path(p); return f(); };
-        d.run_knn = [p, f = c.run_knn] { rayscan::set_simd_path(p); return f(); };
-        d.box_ids = [p, f = c.box_ids](const AABB& b) { rayscan::set_simd_path(p); return f(b); };
-        d.knn_ids = [p, f = c.knn_ids](const Vec3& q) { rayscan::set_simd_path(p); return f(q); };
-        per_path.push_back(std::move(d));
-      }
-    }
-    cs = std::move(per_path);
+    cs = variants(cs, [](const Contender& c) { return !c.peer; }, paths.size(), [&](std::size_t i) {
+      const rayscan::SimdPath p = paths[i];
+      return std::pair{std::string(" [") + rayscan::to_string(p) + "]", std::function<void()>([p] { rayscan::set_simd_path(p); })};
+    });
   }
-  if (entry_ab) {  // each octree contender twice, the search set before each of its steps
-    std::vector<Contender> ab;
-    for (const Contender& c : cs) {
-      if (c.peer || c.name.find("octree") == std::string::npos) {
-        ab.push_back(c);
-        continue;
-      }
-      for (const bool on : {true, false}) {
-        Contender d = c;
-        if (!on) d.name += " /no-entry";
-        d.build_bulk = [on, f = c.build_bulk] { rayscan::set_entry_point_search(on); f(); };
-        if (c.build_insert) d.build_insert = [on, f = c.build_insert] { rayscan::set_entry_point_search(on); f(); };
-        d.run_box = [on, f = c.run_box] { rayscan::set_entry_point_search(on); return f(); };
-        d.run_knn = [on, f = c.run_knn] { rayscan::set_entry_point_search(on); return f(); };
-        d.box_ids = [on, f = c.box_ids](const AABB& b) { rayscan::set_entry_point_search(on); return f(b); };
-        d.knn_ids = [on, f = c.knn_ids](const Vec3& q) { rayscan::set_entry_point_search(on); return f(q); };
-        ab.push_back(std::move(d));
-      }
-    }
-    cs = std::move(ab);
+  if (entry_ab) {  // each octree contender with and without the search, set before each of its steps
+    cs = variants(cs, [](const Contender& c) { return !c.peer && c.name.find("octree") != std::string::npos; }, 2,
+                  [](std::size_t i) {
+                    const bool on = i == 0;
+                    return std::pair{std::string(on ? "" : " /no-entry"),
+                                     std::function<void()>([on] { rayscan::set_entry_point_search(on); })};
+                  });
   }
   if (!only.empty()) {
     std::erase_if(cs, [&](const Contender& c) { return c.name.find(only) == std::string::npos; });
