@@ -146,6 +146,33 @@ TEST(PointQuery, KnnEntryPointSearchEqualsTheRootSearchAndTheOracle) {
   EXPECT_EQ(queries, 4u * 3u * 60u * 6u);
 }
 
+TEST(PointQuery, KnnFromAQueryPointFarOutside) {
+  // A query point 1e19-1e20 from the cloud: its squared distances (about 1e39) pass float's range,
+  // so the float child bounds of the SIMD paths cannot prune by them; every point ties or nearly
+  // ties, and the answer must still be brute force's (smallest squared distance, then index), on
+  // every forced path (simd_*_properties), with and without the entry-point search.
+  std::vector<Vec3> pts;
+  for (int i = 0; i < 64; ++i) pts.emplace_back(i % 4, (i / 4) % 4, i / 16);
+  OctreeConfig cfg;
+  cfg.capacity = 1;
+  const Octree tree = Octree::build_bulk(pts, cfg);
+  struct Restore {
+    ~Restore() { set_entry_point_search(true); }
+  } restore;
+  for (const double m : {1e18, 2e19, 1e20, -3e19})
+    for (const bool on : {true, false})
+      for (const std::size_t k : {std::size_t{1}, std::size_t{5}}) {
+        set_entry_point_search(on);
+        const Vec3 q(m, 0.5 * m, m);
+        std::vector<Neighbor> got;
+        knn_query(tree, q, k, kInf, got);
+        const auto want = oracle_knn(pts, q, k, kInf);
+        ASSERT_EQ(got.size(), want.size()) << m;
+        for (std::size_t j = 0; j < want.size(); ++j)
+          EXPECT_EQ(got[j].index, want[j].index) << "q at " << m << ", search " << on << ", k " << k << ", rank " << j;
+      }
+}
+
 TEST(PointQuery, InvalidArgumentsThrow) {
   const auto pts = make_points(10, Dist::uniform);
   const Octree t = Octree::build_bulk(pts);

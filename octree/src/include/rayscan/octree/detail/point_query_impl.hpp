@@ -91,10 +91,13 @@ inline constexpr std::size_t kKnnSortedMax = 32;
 /// A query point in the float frame of an index's child boxes, the inputs of simd child_dist2:
 /// q - float_origin() rounded to float, and the position-space margin covering that rounding and
 /// the boxes' own (2^-20 of the magnitudes involved, rounded up). Zero on indexes without
-/// FloatChildBoxes (unused there).
+/// FloatChildBoxes (unused there). `usable` is false where those magnitudes pass 2^60 (a query
+/// point 1e18 from the cloud): a squared distance in float could then overflow to inf and prune
+/// a child the double bound keeps, so the callers take their double child bounds instead.
 struct FloatQueryPoint {
   float q[3] = {0.0f, 0.0f, 0.0f};
   float margin = 0.0f;
+  bool usable = false;
 };
 template <SpatialIndex I>
 __attribute__((always_inline)) inline FloatQueryPoint float_query_point([[maybe_unused]] const I& index, [[maybe_unused]] const Vec3& q) {
@@ -104,6 +107,7 @@ __attribute__((always_inline)) inline FloatQueryPoint float_query_point([[maybe_
     for (int a = 0; a < 3; ++a) f.q[a] = static_cast<float>(q_rel[a]);
     const double mag = std::max({std::abs(q_rel.x), std::abs(q_rel.y), std::abs(q_rel.z)}) + index.float_extent();
     f.margin = round_float_up(0x1p-20 * mag);
+    f.usable = mag <= 0x1p60;
   }
   return f;
 }
@@ -130,7 +134,7 @@ __attribute__((always_inline)) inline bool knn_push_children(const I& index, con
                                                              KnnEntry<typename I::Node>* st, std::size_t& top) {
   using Node = typename I::Node;
   if constexpr (FloatChildBoxes<I>) {
-    if (has_kernel(kern.child_dist2_keys) && nc <= 8) {
+    if (qf.usable && has_kernel(kern.child_dist2_keys) && nc <= 8) {
       // The children's bounds as keys (simd.hpp, ChildDist2KeysFn) against the bound rounded up
       // to float: the mask may keep a child knn_within() drops (dropped when popped, or expanded
       // for nothing when nearest), never the reverse. The farther children pushed as
@@ -160,7 +164,7 @@ __attribute__((always_inline)) inline bool knn_push_children(const I& index, con
   };
   bool done = false;
   if constexpr (FloatChildBoxes<I>) {
-    if (has_kernel(kern.child_dist2) && nc <= 8) {
+    if (qf.usable && has_kernel(kern.child_dist2) && nc <= 8) {
       float lb2[8];
       kern.child_dist2(index.child_boxes_f(e.node), qf.q, qf.margin, lb2);
       for (unsigned i = 0; i < nc; ++i) add(lb2[i], index.child(e.node, i));

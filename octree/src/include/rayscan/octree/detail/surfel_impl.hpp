@@ -57,7 +57,7 @@ void cover_descent(const I& index, const SurfelView& s, const Vec3& x, double de
     }
     bool children([[maybe_unused]] Node n, [[maybe_unused]] unsigned nc, [[maybe_unused]] std::uint32_t& mask) const {
       if constexpr (rayscan::detail::FloatChildBoxes<I>) {
-        if (kern.child_dist2 && nc <= 8) {
+        if (xf.usable && kern.child_dist2 && nc <= 8) {
           float lb2[8];
           kern.child_dist2(index.child_boxes_f(n), xf.q, xf.margin, lb2);
           for (unsigned i = 0; i < nc; ++i)
