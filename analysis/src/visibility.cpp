@@ -34,8 +34,8 @@ std::size_t index_size(const Index& index) {
 }
 
 // First hits of `count` rays, ray(k) for k < count, in batches of up to kBatch for
-// ray_first_hit_each (interleaved pairs where the CPU gains from them; each answer is the single
-// query's, so the batching changes no result), use(k, hit) for each k in order. One per thread (its ray buffer is reused).
+// ray_first_hit_each (each answer is the single query's, so the batching changes no result),
+// use(k, hit) for each k in order. One per thread (its ray buffer is reused).
 struct FirstHitBatches {
   static constexpr std::uint32_t kBatch = 64;
   std::vector<Ray> rays;

@@ -364,8 +364,7 @@ class PathTracer {
         }
       } else {
         // The camera rays as one packet; the bounce rays, which are incoherent, through
-        // ray_first_hit_each (interleaved pairs where the CPU gains). Each answer is the one-ray query's (as
-        // trace()'s intersect).
+        // ray_first_hit_each. Each answer is the one-ray query's (as trace()'s intersect).
         std::optional<RayHit> rh[kMaxRayPacket];
         if (camera)
           ray_first_hit_packet(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);

@@ -82,9 +82,7 @@ TEST(PointQuery, KnnEntryPointSearchEqualsTheRootSearchAndTheOracle) {
   // clouds, adaptive and fixed octrees of a few depths; queries at random, on data points, exactly
   // on the grid's cell faces, edges and corners, and outside the root cell; k = 1, 8, 9 (k <= 8
   // in vector lanes), 40 (a heap) and more than the points, radius unlimited or small.
-  struct Restore {
-    ~Restore() { set_entry_point_search(true); }
-  } restore;
+  const EntrySearchGuard entry_guard;
   std::size_t grids = 0, queries = 0;
   for (const Dist d : {Dist::uniform, Dist::clustered, Dist::grid, Dist::utm_mm})
     for (const auto& [layout, cap] : {std::pair{OctreeLayout::adaptive, 64u}, {OctreeLayout::adaptive, 8u},
@@ -156,9 +154,7 @@ TEST(PointQuery, KnnFromAQueryPointFarOutside) {
   OctreeConfig cfg;
   cfg.capacity = 1;
   const Octree tree = Octree::build_bulk(pts, cfg);
-  struct Restore {
-    ~Restore() { set_entry_point_search(true); }
-  } restore;
+  const EntrySearchGuard entry_guard;
   for (const double m : {1e18, 2e19, 1e20, -3e19})
     for (const bool on : {true, false})
       for (const std::size_t k : {std::size_t{1}, std::size_t{5}}) {

@@ -751,6 +751,7 @@ TEST(RayQuery, EntryPointSearchEqualsTheRootTraversalAndTheOracle) {
   // fewer nodes visited with it than without, over each cloud's queries (but the lattice's, whose
   // points all lie on grid faces: there it goes back up on almost every ray).
   const PairsGuard pairs(true);  // (ray_first_hit_each below: its pairs)
+  const EntrySearchGuard entry_guard;
   for (const Dist dist : {Dist::uniform, Dist::grid, Dist::clustered, Dist::utm_mm}) {
     const auto pts = make_points(20000, dist, 53);
     OctreeConfig cfg;
@@ -831,6 +832,7 @@ TEST(RayQuery, EntryPointSearchWhereTheRootEdgeRoundsUp) {
   // the first hit, in the upper z half by its Morton code; a ray between it and a point below
   // (id 2) must return it with the search on as with it off.
   const PairsGuard pairs(true);  // (ray_first_hit_each below: its pairs)
+  const EntrySearchGuard entry_guard;
   const double x = 5e6;
   double e = 0, gap = 0;
   for (int i = 0; i < 200000; ++i) {

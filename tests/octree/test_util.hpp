@@ -149,6 +149,15 @@ inline void expect_same_answer(const std::optional<RayHit>& got, const std::opti
   EXPECT_EQ(got->key, one->key) << ctx;
 }
 
+/// Turns the entry-point search (set_entry_point_search) back on, its default, at the end of a
+/// scope that switches it.
+struct EntrySearchGuard {
+  EntrySearchGuard() = default;
+  ~EntrySearchGuard() { set_entry_point_search(true); }
+  EntrySearchGuard(const EntrySearchGuard&) = delete;
+  EntrySearchGuard& operator=(const EntrySearchGuard&) = delete;
+};
+
 /// Sets interleaved_pairs() for a scope and restores the value before it: tests of the pairs
 /// (ray_first_hit_each) force them on, as the CPU's default may be single rays.
 struct PairsGuard {

@@ -16,9 +16,8 @@
 namespace rayscan {
 
 /// out[i] = ray_query(index, rays[i], q) for all i, in parallel (tbb::parallel_for over runs of
-/// whole kMaxRayPacket-ray blocks counted from rays[0], a grain that keeps every pair whole, each
-/// run answered by ray_query_each: ray_first_hit_each's interleaved pairs of rays where
-/// interleaved_pairs()). Identical to the single-ray
+/// whole kMaxRayPacket-ray blocks counted from rays[0], a grain that keeps every pair of
+/// ray_first_hit_each whole, each run answered by ray_query_each). Identical to the single-ray
 /// calls for any thread count. Throws std::invalid_argument (before any work) for an invalid q or
 /// out.size() != rays.size().
 template <SpatialIndex I>
@@ -36,8 +35,8 @@ void ray_query_each_parallel(const I& index, std::span<const Ray> rays, const Ra
 }
 
 /// Answer `rays[i]` with ray_query(index, rays[i], q) into result[i], for all i in parallel
-/// (ray_query_each_parallel). Results are identical to the single-ray calls for any thread count. Throws
-/// std::invalid_argument (before any work) for an invalid q.
+/// (ray_query_each_parallel). Results are identical to the single-ray calls for any thread count.
+/// Throws std::invalid_argument (before any work) for an invalid q.
 template <SpatialIndex I>
 [[nodiscard]] std::vector<std::vector<RayHit>> ray_query_batch(const I& index,
                                                                std::span<const Ray> rays,

@@ -8,6 +8,8 @@
 #include "rayscan/octree/simd.hpp"
 #include "rayscan/octree/spatial_index.hpp"
 
+#include <algorithm>
+#include <bit>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -212,6 +214,11 @@ class Octree {
     /// The deepest level's cell index of coordinate v on axis a: the top `depth` bits of its
     /// Morton cell (Quantizer::cell), so the cell a point of that coordinate was sorted into.
     [[nodiscard]] unsigned coord(double v, unsigned a) const { return quant.cell(v, a) >> (kMortonBits - depth); }
+    /// The deepest level whose cells hold deepest-level cell indices that differ in the bits
+    /// `diff` (their XOR; OR-ed over the axes for a box): depth - bit_width(diff), depth for 0.
+    [[nodiscard]] unsigned shared_level(unsigned diff) const {
+      return depth - std::min(depth, static_cast<unsigned>(std::bit_width(diff)));
+    }
   };
   /// The deepest entry grid: 2^15 cells of 8 bytes (with the coarser levels 293 KB, within a
   /// core's L2).

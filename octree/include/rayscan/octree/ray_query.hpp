@@ -77,11 +77,12 @@ template <SpatialIndex I>
 void set_entry_point_search(bool on);
 
 /// Whether ray_first_hit_each traces its rays two at a time with their traversals interleaved
-/// (true) or one by one (false). The default depends on the CPU family, as measured with
-/// `bench_rays` (its `ray_first_hit_each` row against single rays, same process): AMD (Zen 5)
-/// gains from the pairs (1.06-1.13x), Intel Xeons lose (0.89-0.96x on a 16-core Sapphire-Rapids
-/// class Xeon at 1 to 16 threads, 0.80-1.0x on a 2-core one): pairs on AMD CPUs, single rays on
-/// every other (bench/notes/2026-11-28-pairs-by-cpu-family.md). Answers are the same either way.
+/// (true) or one by one (false). The default depends on the CPU family, as measured against
+/// single rays in one process (`bench_rays`' `ray_first_hit_each` row; a driver alternating the
+/// two): AMD (Zen 5) gains from the pairs (1.06-1.13x), Intel Xeons lose (0.89-0.96x on a 16-core
+/// Sapphire-Rapids class Xeon at 1 to 16 threads, 0.80-1.0x on a 2-core one): pairs on AMD CPUs,
+/// single rays on every other (bench/notes/2026-11-28-pairs-by-cpu-family.md). Answers are the
+/// same either way.
 /// Thread-safe.
 [[nodiscard]] bool interleaved_pairs();
 /// Sets interleaved_pairs() for the whole process (benchmarks compare both in one process).

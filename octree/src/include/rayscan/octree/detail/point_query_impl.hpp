@@ -325,76 +325,67 @@ __attribute__((always_inline)) inline void knn_query_with(const I& index, const 
     }
   };
   constexpr Node kNoNode = static_cast<Node>(-1);
-  bool searched = false;
-  if constexpr (EntryGridIndex<I>) {
-    // The entry-point search (as the first hit's, RayTraversal::entry_node): the subtree of H, the
-    // node of the deepest grid cell holding q, first, which leaves the k-th distance as a bound;
-    // then, unless the ball of that radius around q is inside H's cell, the other cells the ball
-    // reaches (or the node of the smallest grid cell holding it, without H). A point's grid cell
-    // is its Morton cell's top bits (EntryGrid::coord), monotone in each coordinate, so every
-    // point in the ball's box lies in the grid cells between its corners'. Later points only
-    // shrink the ball, so one such step suffices.
-    const auto g = index.entry_grid();
-    if (g.cells != nullptr && bounded && entry_point_search_enabled()) {
+  // The entry-point search (as the first hit's, RayTraversal::entry_node), or false where it does
+  // not apply: the subtree of H, the node of the deepest grid cell holding q, first, which leaves
+  // the k-th distance as a bound; then, unless the ball of that radius around q is inside H's
+  // cell, the other cells the ball reaches (or the node of the smallest grid cell holding it,
+  // without H). A point's grid cell is its Morton cell's top bits (EntryGrid::coord), monotone in
+  // each coordinate, so every point in the ball's box lies in the grid cells between its corners'.
+  // Later points only shrink the ball, so one such step suffices.
+  auto search_from_entry_grid = [&]() __attribute__((always_inline)) -> bool {
+    if constexpr (EntryGridIndex<I>) {
+      const auto g = index.entry_grid();
+      if (g.cells == nullptr || !bounded || !entry_point_search_enabled()) return false;
       unsigned c[3];
       for (unsigned a = 0; a < 3; ++a) c[a] = g.coord(q[a], a);
       const auto& hc = g.at(g.depth, c[0], c[1], c[2]);
       search(hc.node, distance2_point_box(q, index.node_bounds(hc.node)), kNoNode);
-      searched = true;
-      if (hc.node != index.root()) {
-        // The ball's box, grown past every rounding of the distances (knn_within's 1e-12) and of
-        // its corners.
-        const double rad = bound < kInf ? std::sqrt(bound) * (1.0 + 1e-9) + 0x1p-40 * (g.side + vmax) : kInf;
-        unsigned l = 0, lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
-        if (rad < kInf) {
-          unsigned diff = 0;
-          for (unsigned a = 0; a < 3; ++a) {
-            lo[a] = g.coord(q[a] - rad, a);
-            hi[a] = g.coord(q[a] + rad, a);
-            diff |= lo[a] ^ hi[a];
-          }
-          // The deepest level whose cell indices (the top l bits of depth) agree.
-          l = diff == 0 ? g.depth : g.depth - std::min<unsigned>(g.depth, std::bit_width(diff));
-        }
-        if (l < hc.depth) {
-          // The ball's box spans a few cells of the deepest level, each its own node at that depth
-          // (distinct cells, none above another): their nodes but H, nearest first. Else the
-          // node of the smallest cell holding the box, without H.
-          bool done = false;
-          if (rad < kInf && hc.depth == g.depth &&
-              (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1) <= 8) {
-            detail::KnnEntry<Node> nb[8];
-            unsigned m = 0;
-            bool own_cells = true;
-            for (unsigned k2 = lo[2]; k2 <= hi[2] && own_cells; ++k2)
-              for (unsigned j = lo[1]; j <= hi[1] && own_cells; ++j)
-                for (unsigned i = lo[0]; i <= hi[0]; ++i) {
-                  const auto& cc = g.at(g.depth, i, j, k2);
-                  if (cc.node == hc.node) continue;
-                  if (cc.depth != g.depth) {
-                    own_cells = false;
-                    break;
-                  }
-                  nb[m++] = {distance2_point_box(q, index.node_bounds(cc.node)), cc.node, false};
-                }
-            if (own_cells) {
-              for (unsigned j = 1; j < m; ++j)  // (insertion: at most 7 entries)
-                for (unsigned i = j; i > 0 && nb[i].lb < nb[i - 1].lb; --i) std::swap(nb[i], nb[i - 1]);
-              for (unsigned j = 0; j < m; ++j)
-                if (detail::knn_within(nb[j].lb, bound)) search(nb[j].node, nb[j].lb, kNoNode);
-              done = true;
+      if (hc.node == index.root()) return true;
+      if (!(bound < kInf)) {  // fewer than k points in H and no radius: the rest of the tree
+        search(index.root(), distance2_point_box(q, root_box), hc.node);
+        return true;
+      }
+      // The ball's box, grown past every rounding of the distances (knn_within's 1e-12) and of
+      // its corners.
+      const double rad = std::sqrt(bound) * (1.0 + 1e-9) + 0x1p-40 * (g.side + vmax);
+      unsigned lo[3], hi[3], diff = 0;
+      for (unsigned a = 0; a < 3; ++a) {
+        lo[a] = g.coord(q[a] - rad, a);
+        hi[a] = g.coord(q[a] + rad, a);
+        diff |= lo[a] ^ hi[a];
+      }
+      const unsigned l = g.shared_level(diff);
+      if (l >= hc.depth) return true;  // the ball is inside H's cell
+      // A box over at most 8 cells of the deepest level, each its own node at that depth
+      // (distinct cells, none above another): their nodes but H, nearest first.
+      if (hc.depth == g.depth && (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1) <= 8) {
+        detail::KnnEntry<Node> nb[8];  // (H's cell is in the box: at most 7 others)
+        unsigned m = 0;
+        bool own_cells = true;
+        for (unsigned k2 = lo[2]; k2 <= hi[2]; ++k2)
+          for (unsigned j = lo[1]; j <= hi[1]; ++j)
+            for (unsigned i = lo[0]; i <= hi[0]; ++i) {
+              const auto& cc = g.at(g.depth, i, j, k2);
+              own_cells = own_cells && cc.depth == g.depth;
+              if (cc.node != hc.node) nb[m++] = {distance2_point_box(q, index.node_bounds(cc.node)), cc.node, false};
             }
-          }
-          if (!done) {
-            const unsigned sh = g.depth - l;
-            const auto& ac = g.at(l, c[0] >> sh, c[1] >> sh, c[2] >> sh);
-            search(ac.node, distance2_point_box(q, index.node_bounds(ac.node)), hc.node);
-          }
+        if (own_cells) {
+          for (unsigned j = 1; j < m; ++j)  // (insertion: at most 7 entries)
+            for (unsigned i = j; i > 0 && nb[i].lb < nb[i - 1].lb; --i) std::swap(nb[i], nb[i - 1]);
+          for (unsigned j = 0; j < m; ++j)
+            if (detail::knn_within(nb[j].lb, bound)) search(nb[j].node, nb[j].lb, kNoNode);
+          return true;
         }
       }
+      const unsigned sh = g.depth - l;
+      const auto& ac = g.at(l, c[0] >> sh, c[1] >> sh, c[2] >> sh);
+      search(ac.node, distance2_point_box(q, index.node_bounds(ac.node)), hc.node);
+      return true;
+    } else {
+      return false;
     }
-  }
-  if (!searched) search(index.root(), distance2_point_box(q, root_box), kNoNode);
+  };
+  if (!search_from_entry_grid()) search(index.root(), distance2_point_box(q, root_box), kNoNode);
   if (!sorted_set) {
     std::sort(cands.begin(), cands.end(), detail::knn_less);
     held = cands.size();

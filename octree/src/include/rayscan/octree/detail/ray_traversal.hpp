@@ -335,7 +335,7 @@ struct RayTraversal {
         const double hi = std::min(std::max(p0[a], p1[a]) + m, root_box.hi[a]);
         const unsigned c0 = g.coord(lo, a), c1 = g.coord(hi, a);
         const unsigned diff = (c0 ^ c1) | (c0 ^ entry_ijk[a]);
-        if (diff) level = std::min(level, g.depth - static_cast<unsigned>(std::bit_width(diff)));
+        level = std::min(level, g.shared_level(diff));
         ijk[a] = c0;
       }
       if (level >= entry_depth) return true;
