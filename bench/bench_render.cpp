@@ -16,7 +16,7 @@
 //   both, the same way (each combination with --packets once per round; every image must equal the
 //   first byte for byte). --pairs: the bounce and shadow rays' ray_first_hit_each in interleaved
 //   pairs (rayscan::set_interleaved_pairs) on, off, or both, likewise; by default this CPU's
-//   default (rayscan::interleaved_pairs_default: on for AMD).
+//   default (rayscan::interleaved_pairs_default: on for Zen 5).
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/octree/ray_query.hpp"
