@@ -1090,13 +1090,20 @@ TEST(Simd, BoxPointsKeepExactlyThePointsInTheBox) {
           // The run in a buffer of exactly its size (a read past it is a heap overflow under
           // ASan) and one guard entry past the output's room.
           const std::vector<Vec3> run(pts.begin() + off, pts.begin() + off + count);
-          std::vector<std::uint32_t> got(count + 1, 0xdeadbeefu);
-          const unsigned n = k.box_points(reinterpret_cast<const double*>(run.data()), count, &b.lo.x, &b.hi.x,
-                                          got.data());
-          ASSERT_EQ(got[count], 0xdeadbeefu) << to_string(path) << " wrote past its room, count " << count;
-          ASSERT_LE(n, count) << to_string(path);
-          got.resize(n);
-          ASSERT_EQ(got, want) << to_string(path) << " box " << bi << " off " << off << " count " << count;
+          // With ids (an exact-size buffer as well): each kept index's id instead of the index.
+          std::vector<std::uint32_t> run_ids(count), want_ids;
+          for (unsigned j = 0; j < count; ++j) run_ids[j] = 2654435761u * (off + j + 1);
+          for (const std::uint32_t j : want) want_ids.push_back(run_ids[j]);
+          for (const bool with_ids : {false, true}) {
+            std::vector<std::uint32_t> got(count + 1, 0xdeadbeefu);
+            const unsigned n = k.box_points(reinterpret_cast<const double*>(run.data()), count, &b.lo.x, &b.hi.x,
+                                            with_ids ? run_ids.data() : nullptr, got.data());
+            ASSERT_EQ(got[count], 0xdeadbeefu) << to_string(path) << " wrote past its room, count " << count;
+            ASSERT_LE(n, count) << to_string(path);
+            got.resize(n);
+            ASSERT_EQ(got, with_ids ? want_ids : want)
+                << to_string(path) << " box " << bi << " off " << off << " count " << count << " ids " << with_ids;
+          }
           kept += want.size();
           dropped += count - want.size();
         }

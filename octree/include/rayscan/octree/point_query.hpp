@@ -57,11 +57,14 @@ void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
         // save (bench/notes/2026-11-28-box-points-kernel.md).
         constexpr std::uint32_t kScalarMaxPoints = 16;
         if (kern.box_points != nullptr && sr.size() > kScalarMaxPoints) {
-          // The kept slots (local numbers) written at the end of `out`, then mapped to their ids.
+          // The kept points' ids written at the end of `out` by the kernel where the ids are
+          // stored unchecked, else their slots (local numbers), then mapped to their ids.
           out.resize(first + sr.size());
           PointIndex* o = out.data() + first;
-          const unsigned n = kern.box_points(position_block(pos, sr.begin, sr.size()), sr.size(), &box.lo.x, &box.hi.x, o);
-          ids.map_slots(o, n, sr.begin);
+          const PointIndex* raw = ids.unchecked_data();
+          const unsigned n = kern.box_points(position_block(pos, sr.begin, sr.size()), sr.size(), &box.lo.x, &box.hi.x,
+                                             raw ? raw + sr.begin : nullptr, o);
+          if (!raw) ids.map_slots(o, n, sr.begin);
           out.resize(first + n);
           return;
         }

@@ -233,10 +233,12 @@ using PacketRayBoxFn = std::uint32_t (*)(const double* lo, const double* hi, con
 /// local indices of the points with lo <= p <= hi on every axis (the closed box of
 /// AABB::contains, lo and hi 3 doubles each) to out in ascending order and returns how many. Exact,
 /// not a filter: the same double comparisons as AABB::contains (a NaN coordinate fails), so every
-/// path keeps the same points (box_query's nodes the query box cuts). out has room for count
-/// entries; out[ret, count) may be overwritten.
+/// path keeps the same points (box_query's nodes the query box cuts). With `ids` (not null: the
+/// points' ids, ids[0..count)) it writes ids[j] instead of each kept index j, moved with the mask
+/// as the indices are (no second pass over the kept indices). out has room for count entries;
+/// out[ret, count) may be overwritten.
 using BoxPointsFn = unsigned (*)(const double* xyz, unsigned count, const double* lo, const double* hi,
-                                 std::uint32_t* out);
+                                 const std::uint32_t* ids, std::uint32_t* out);
 /// The kernels of one path.
 struct Kernels {
   SimdPath path;

@@ -385,25 +385,40 @@ __attribute__((target("avx2,fma"), always_inline)) inline unsigned box_step4(con
   return static_cast<unsigned>(_mm256_movemask_pd(m));
 }
 
-// BoxPointsFn (simd.hpp) on AVX2: 4 points per step, the kept indices stored whole (store_kept4:
-// a cut node's steps keep points about as often as not), the last count % 4 points as one
-// overlapping step; fewer than 4 points compared one by one.
+// BoxPointsFn (simd.hpp) on AVX2: 4 points per step, the kept indices (or their ids, permuted
+// by the same lane table) stored whole (store_kept4: a cut node's steps keep points about as often
+// as not), the last count % 4 points as one overlapping step; fewer than 4 points compared one by
+// one.
 inline __attribute__((target("avx2,fma"))) unsigned box_points_avx2(const double* xyz, unsigned count,
                                                                     const double* lo, const double* hi,
-                                                                    std::uint32_t* out) {
+                                                                    const std::uint32_t* ids, std::uint32_t* out) {
   const __m256d l[3] = {_mm256_set1_pd(lo[0]), _mm256_set1_pd(lo[1]), _mm256_set1_pd(lo[2])};
   const __m256d h[3] = {_mm256_set1_pd(hi[0]), _mm256_set1_pd(hi[1]), _mm256_set1_pd(hi[2])};
   unsigned i = 0, n = 0;
-  for (; i + 4 <= count; i += 4) n = store_kept4(box_step4(xyz, i, l, h), i, out, n);
-  if (i < count && count >= 4)
-    return append_lanes<4>(box_step4(xyz, count - 4, l, h) & tail_lanes4(i, count), count - 4, out, n);
-  if (i == count) return n;
-  const AABB box{Vec3(lo[0], lo[1], lo[2]), Vec3(hi[0], hi[1], hi[2])};  // (count < 4)
-  for (; i < count; ++i) {
-    const double* p = xyz + 3 * static_cast<std::size_t>(i);
-    out[n] = i;
-    n += static_cast<unsigned>(box.contains(Vec3(p[0], p[1], p[2])));
+  if (ids) {
+    for (; i + 4 <= count; i += 4) {
+      const unsigned m = box_step4(xyz, i, l, h);
+      const __m128i lanes = _mm_load_si128(reinterpret_cast<const __m128i*>(kCompact4.lanes[m]));
+      const __m128 v = _mm_castsi128_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ids + i)));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(out + n), _mm_castps_si128(_mm_permutevar_ps(v, lanes)));
+      n += kCompact4.count[m];
+    }
+  } else {
+    for (; i + 4 <= count; i += 4) n = store_kept4(box_step4(xyz, i, l, h), i, out, n);
   }
+  const unsigned full = n;
+  if (i < count && count >= 4) {
+    n = append_lanes<4>(box_step4(xyz, count - 4, l, h) & tail_lanes4(i, count), count - 4, out, n);
+  } else if (i < count) {
+    const AABB box{Vec3(lo[0], lo[1], lo[2]), Vec3(hi[0], hi[1], hi[2])};  // (count < 4)
+    for (; i < count; ++i) {
+      const double* p = xyz + 3 * static_cast<std::size_t>(i);
+      out[n] = i;
+      n += static_cast<unsigned>(box.contains(Vec3(p[0], p[1], p[2])));
+    }
+  }
+  if (ids)
+    for (unsigned k = full; k < n; ++k) out[k] = ids[out[k]];
   return n;
 }
 

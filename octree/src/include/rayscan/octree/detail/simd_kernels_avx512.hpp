@@ -274,23 +274,34 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
   return (kMasked ? mk.lanes : 0xFFu) & lane_to_point_mask(m);
 }
 
-// BoxPointsFn (simd.hpp) on AVX-512: 8 points per step, the kept indices compressed and stored
-// whole (store_kept8), the last count % 8 points as one overlapping step, fewer than 8 points as
-// one masked step.
-inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned box_points_avx512(const double* xyz,
-                                                                                       unsigned count,
-                                                                                       const double* lo,
-                                                                                       const double* hi,
-                                                                                       std::uint32_t* out) {
+// BoxPointsFn (simd.hpp) on AVX-512: 8 points per step, the kept indices (or their ids)
+// compressed and stored whole (store_kept8), the last count % 8 points as one overlapping step,
+// fewer than 8 points as one masked step (their indices then mapped to ids one by one).
+inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned box_points_avx512(
+    const double* xyz, unsigned count, const double* lo, const double* hi, const std::uint32_t* ids,
+    std::uint32_t* out) {
   const __m512d l[3] = {_mm512_set1_pd(lo[0]), _mm512_set1_pd(lo[1]), _mm512_set1_pd(lo[2])};
   const __m512d h[3] = {_mm512_set1_pd(hi[0]), _mm512_set1_pd(hi[1]), _mm512_set1_pd(hi[2])};
   unsigned i = 0, n = 0;
-  for (; i + 8 <= count; i += 8) n = store_kept8(box_step8<false>(xyz, i, 8, l, h), i, out, n);
-  return finish_steps8(
+  if (ids) {
+    for (; i + 8 <= count; i += 8) {
+      const unsigned m = box_step8<false>(xyz, i, 8, l, h);
+      const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(ids + i));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + n), _mm256_maskz_compress_epi32(static_cast<__mmask8>(m), v));
+      n += static_cast<unsigned>(__builtin_popcount(m));
+    }
+  } else {
+    for (; i + 8 <= count; i += 8) n = store_kept8(box_step8<false>(xyz, i, 8, l, h), i, out, n);
+  }
+  const unsigned full = n;
+  n = finish_steps8(
       [&](auto masked, unsigned first, unsigned valid) __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) {
         return box_step8<decltype(masked)::value>(xyz, first, valid, l, h);
       },
       i, count, out, n);
+  if (ids)
+    for (unsigned k = full; k < n; ++k) out[k] = ids[out[k]];
+  return n;
 }
 
 // SortPushKeys8Fn (simd.hpp) on AVX-512: as sort_push_keys8_avx2, the 8 entries interleaved by two
