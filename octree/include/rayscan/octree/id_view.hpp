@@ -68,9 +68,6 @@ class IdView {
       for (std::size_t s = begin; s < end; ++s) out.push_back((*this)[s]);
     }
   }
-  /// The stored ids when reading them needs no check (slot s's id at [s]), else nullptr (the
-  /// identity, or a checked view): for kernels that move ids with their points (box_query).
-  [[nodiscard]] constexpr const PointIndex* unchecked_data() const { return on_bad_ == nullptr ? data_ : nullptr; }
   /// Replaces each of the n local slot numbers v[j] (slots base + v[j] < size(), as a SIMD box
   /// test writes them) by that slot's id, in place: v[j] = (*this)[base + v[j]]. Checked as
   /// operator[] on a checked view (a bad id throws, v then partly mapped).
@@ -94,6 +91,9 @@ class IdView {
   /// The stored ids (null for the identity or an empty view). Raw: not checked, even on a
   /// checked view (read through operator[] where the ids may be untrusted).
   [[nodiscard]] constexpr const PointIndex* data() const { return data_; }
+  /// data() where reading them needs no check, else nullptr (the identity, or a checked
+  /// view): for kernels that move ids with their points (box_query).
+  [[nodiscard]] constexpr const PointIndex* unchecked_data() const { return on_bad_ == nullptr ? data_ : nullptr; }
 
  private:
   const PointIndex* data_ = nullptr;

@@ -351,6 +351,15 @@ inline constexpr Compact4 kCompact4{};
 // points about as often as not (as store_kept8 on AVX-512, which compresses; AVX2 has no
 // compress): the kept indices as one 4-lane store from kCompact4 at out[n, n + 4). Needs n <= i
 // and i + 4 <= the point count (out's room).
+// store_kept4 of any 4 values of the step (as a box kernel's ids): the lanes of `values` in m,
+// permuted by the same table (vpermilps) and stored whole at out[n, n + 4).
+__attribute__((target("avx2,fma"), always_inline)) inline unsigned store_kept4_of(unsigned m, __m128i values,
+                                                                                  std::uint32_t* out, unsigned n) {
+  const __m128i lanes = _mm_load_si128(reinterpret_cast<const __m128i*>(kCompact4.lanes[m]));
+  _mm_storeu_si128(reinterpret_cast<__m128i*>(out + n),
+                   _mm_castps_si128(_mm_permutevar_ps(_mm_castsi128_ps(values), lanes)));
+  return n + kCompact4.count[m];
+}
 __attribute__((target("avx2,fma"), always_inline)) inline unsigned store_kept4(unsigned m, unsigned i,
                                                                                std::uint32_t* out, unsigned n) {
   const __m128i lanes = _mm_load_si128(reinterpret_cast<const __m128i*>(kCompact4.lanes[m]));
@@ -395,16 +404,10 @@ inline __attribute__((target("avx2,fma"))) unsigned box_points_avx2(const double
   const __m256d l[3] = {_mm256_set1_pd(lo[0]), _mm256_set1_pd(lo[1]), _mm256_set1_pd(lo[2])};
   const __m256d h[3] = {_mm256_set1_pd(hi[0]), _mm256_set1_pd(hi[1]), _mm256_set1_pd(hi[2])};
   unsigned i = 0, n = 0;
-  if (ids) {
-    for (; i + 4 <= count; i += 4) {
-      const unsigned m = box_step4(xyz, i, l, h);
-      const __m128i lanes = _mm_load_si128(reinterpret_cast<const __m128i*>(kCompact4.lanes[m]));
-      const __m128 v = _mm_castsi128_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(ids + i)));
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(out + n), _mm_castps_si128(_mm_permutevar_ps(v, lanes)));
-      n += kCompact4.count[m];
-    }
-  } else {
-    for (; i + 4 <= count; i += 4) n = store_kept4(box_step4(xyz, i, l, h), i, out, n);
+  for (; i + 4 <= count; i += 4) {
+    const unsigned m = box_step4(xyz, i, l, h);
+    n = ids ? store_kept4_of(m, _mm_loadu_si128(reinterpret_cast<const __m128i*>(ids + i)), out, n)
+            : store_kept4(m, i, out, n);
   }
   const unsigned full = n;
   if (i < count && count >= 4) {
@@ -417,8 +420,7 @@ inline __attribute__((target("avx2,fma"))) unsigned box_points_avx2(const double
       n += static_cast<unsigned>(box.contains(Vec3(p[0], p[1], p[2])));
     }
   }
-  if (ids)
-    for (unsigned k = full; k < n; ++k) out[k] = ids[out[k]];
+  if (ids) map_kept_to_ids(out, full, n, ids);
   return n;
 }
 

@@ -211,11 +211,17 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
 // points about as often as not: the kept indices (i + each set bit of the point-order mask m,
 // ascending) compressed into one register and stored whole at out[n, n + 8). Needs n <= i and
 // i + 8 <= the point count (out's room).
+// store_kept8 of any 8 values of the step (as a box kernel's ids): the lanes of `values` in m,
+// compressed and stored whole at out[n, n + 8).
+__attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned store_kept8_of(
+    unsigned m, __m256i values, std::uint32_t* out, unsigned n) {
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + n), _mm256_maskz_compress_epi32(static_cast<__mmask8>(m), values));
+  return n + static_cast<unsigned>(__builtin_popcount(m));
+}
 __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned store_kept8(
     unsigned m, unsigned i, std::uint32_t* out, unsigned n) {
-  const __m256i idx = _mm256_add_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(static_cast<int>(i)));
-  _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + n), _mm256_maskz_compress_epi32(static_cast<__mmask8>(m), idx));
-  return n + static_cast<unsigned>(__builtin_popcount(m));
+  return store_kept8_of(
+      m, _mm256_add_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(static_cast<int>(i))), out, n);
 }
 
 // The points after an 8-wide kernel's full steps (i of count done, n kept so far): the last
@@ -283,15 +289,10 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned box_points_
   const __m512d l[3] = {_mm512_set1_pd(lo[0]), _mm512_set1_pd(lo[1]), _mm512_set1_pd(lo[2])};
   const __m512d h[3] = {_mm512_set1_pd(hi[0]), _mm512_set1_pd(hi[1]), _mm512_set1_pd(hi[2])};
   unsigned i = 0, n = 0;
-  if (ids) {
-    for (; i + 8 <= count; i += 8) {
-      const unsigned m = box_step8<false>(xyz, i, 8, l, h);
-      const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(ids + i));
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + n), _mm256_maskz_compress_epi32(static_cast<__mmask8>(m), v));
-      n += static_cast<unsigned>(__builtin_popcount(m));
-    }
-  } else {
-    for (; i + 8 <= count; i += 8) n = store_kept8(box_step8<false>(xyz, i, 8, l, h), i, out, n);
+  for (; i + 8 <= count; i += 8) {
+    const unsigned m = box_step8<false>(xyz, i, 8, l, h);
+    n = ids ? store_kept8_of(m, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(ids + i)), out, n)
+            : store_kept8(m, i, out, n);
   }
   const unsigned full = n;
   n = finish_steps8(
@@ -299,8 +300,7 @@ inline __attribute__((target("avx512f,avx512vl,avx2,fma"))) unsigned box_points_
         return box_step8<decltype(masked)::value>(xyz, first, valid, l, h);
       },
       i, count, out, n);
-  if (ids)
-    for (unsigned k = full; k < n; ++k) out[k] = ids[out[k]];
+  if (ids) map_kept_to_ids(out, full, n, ids);
   return n;
 }
 

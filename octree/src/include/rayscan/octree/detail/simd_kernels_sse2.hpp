@@ -156,6 +156,12 @@ template <unsigned W>
   return n;
 }
 
+// The kept local indices out[from, n) of a box kernel's tail steps replaced by their ids
+// (BoxPointsFn with ids: the full steps moved the ids themselves).
+inline void map_kept_to_ids(std::uint32_t* out, unsigned from, unsigned n, const std::uint32_t* ids) {
+  for (unsigned k = from; k < n; ++k) out[k] = ids[out[k]];
+}
+
 // Two AoS points p[0..5] (x0 y0 z0 x1 y1 z1) as x, y and z lanes relative to (ox, oy, oz).
 inline void load_rel2(const double* p, __m128d ox, __m128d oy, __m128d oz, __m128d& vx, __m128d& vy, __m128d& vz) {
   const __m128d a = _mm_loadu_pd(p), b = _mm_loadu_pd(p + 2), c = _mm_loadu_pd(p + 4);
