@@ -590,22 +590,11 @@ TEST(RayQuery, PacketFirstHitEqualsSingleRayAndOracle) {
 
 TEST(RayQuery, InterleavedPairsDefaultIsOnForZen5Only) {
   // The CPU-family default of ray_first_hit_each's pairs against the kernel's own decoding of
-  // CPUID (/proc/cpuinfo: vendor_id and "cpu family", the base plus extended family): pairs on
-  // AuthenticAMD family 26 (Zen 5) only.
-  std::ifstream in("/proc/cpuinfo");
-  if (!in) GTEST_SKIP() << "no /proc/cpuinfo";
-  std::string line, vendor;
-  int family = -1;
-  while (std::getline(in, line) && (vendor.empty() || family < 0)) {
-    const auto colon = line.find(':');
-    if (colon == std::string::npos || colon + 2 > line.size()) continue;
-    const std::string key = line.substr(0, line.find_last_not_of(" \t", colon - 1) + 1);
-    if (key == "vendor_id") vendor = line.substr(colon + 2);
-    if (key == "cpu family") family = std::stoi(line.substr(colon + 2));
-  }
-  if (vendor.empty() || family < 0) GTEST_SKIP() << "no x86 vendor_id / cpu family in /proc/cpuinfo";
-  EXPECT_EQ(interleaved_pairs_default(), vendor == "AuthenticAMD" && family == 26)
-      << vendor << " family " << family;
+  // CPUID (/proc/cpuinfo): pairs on AuthenticAMD family 26 (Zen 5) only.
+  const auto cpu = cpu_identity_from_proc();
+  if (!cpu) GTEST_SKIP() << "no x86 vendor_id / cpu family in /proc/cpuinfo";
+  EXPECT_EQ(interleaved_pairs_default(), cpu->vendor == "AuthenticAMD" && cpu->family == 26)
+      << cpu->vendor << " family " << cpu->family;
 }
 
 TEST(RayQuery, FirstHitEachInterleavedPairsEqualSingleRaysAndOracle) {

@@ -1064,9 +1064,10 @@ std::vector<AABB> box_kernel_queries(const std::vector<Vec3>& pts, std::mt19937_
   return boxes;
 }
 
-// BoxPointsFn is exact: on every path that has it, the kept local indices are those of the points
-// AABB::contains keeps, ascending, for any start and count (the 8- and 4-wide steps, the
-// overlapping last step and the masked or scalar short runs).
+// BoxPointsFn is exact: each ISA's kernel (whichever path's table holds it) keeps the local
+// indices of the points AABB::contains keeps, ascending, for any start and count (the 8- and
+// 4-wide steps, the overlapping last step and the masked or scalar short runs); the paths from
+// AVX2 on have one.
 TEST(Simd, BoxPointsKeepExactlyThePointsInTheBox) {
   PathGuard guard;
   std::vector<Vec3> pts = make_points(1003, Dist::utm_mm, 7);
@@ -1077,9 +1078,14 @@ TEST(Simd, BoxPointsKeepExactlyThePointsInTheBox) {
   std::size_t kept = 0, dropped = 0;
   for (SimdPath path : supported_paths()) {
     set_simd_path(path);
-    const simd::Kernels& k = simd::active_kernels();
-    ASSERT_EQ(k.box_points == nullptr, path < SimdPath::avx2) << to_string(path);
-    if (!k.box_points) continue;
+    ASSERT_EQ(simd::active_kernels().box_points == nullptr, path < SimdPath::avx2) << to_string(path);
+  }
+  std::vector<std::pair<SimdPath, simd::BoxPointsFn>> kernels;
+#if RAYSCAN_SIMD_X86
+  if (simd_path_supported(SimdPath::avx2)) kernels.emplace_back(SimdPath::avx2, simd::Avx2Kernels::box_points);
+  if (simd_path_supported(SimdPath::avx512)) kernels.emplace_back(SimdPath::avx512, simd::Avx512Kernels::box_points);
+#endif
+  for (const auto& [path, box_points] : kernels) {
     for (std::size_t bi = 0; bi < boxes.size(); ++bi) {
       const AABB& b = boxes[bi];
       for (const unsigned off : {0u, 1u, 5u, 17u})
@@ -1096,8 +1102,8 @@ TEST(Simd, BoxPointsKeepExactlyThePointsInTheBox) {
           for (const std::uint32_t j : want) want_ids.push_back(run_ids[j]);
           for (const bool with_ids : {false, true}) {
             std::vector<std::uint32_t> got(count + 1, 0xdeadbeefu);
-            const unsigned n = k.box_points(reinterpret_cast<const double*>(run.data()), count, &b.lo.x, &b.hi.x,
-                                            with_ids ? run_ids.data() : nullptr, got.data());
+            const unsigned n = box_points(reinterpret_cast<const double*>(run.data()), count, &b.lo.x, &b.hi.x,
+                                          with_ids ? run_ids.data() : nullptr, got.data());
             ASSERT_EQ(got[count], 0xdeadbeefu) << to_string(path) << " wrote past its room, count " << count;
             ASSERT_LE(n, count) << to_string(path);
             got.resize(n);
@@ -1113,6 +1119,28 @@ TEST(Simd, BoxPointsKeepExactlyThePointsInTheBox) {
     EXPECT_GT(kept, 10000u);
     EXPECT_GT(dropped, 10000u);
   }
+}
+
+// The CPU family behind the per-family kernel choices (simd::amd_cpu_family) is the kernel's
+// decoding of CPUID (/proc/cpuinfo); the AVX-512 path's table holds the AVX2 box kernel on Zen 4
+// (AuthenticAMD family 25 with AVX-512) and its own elsewhere, and its own ray and point kernels
+// everywhere.
+TEST(Simd, Avx512PathTakesTheAvx2BoxKernelOnZen4Only) {
+  const auto cpu = cpu_identity_from_proc();
+  if (!cpu) GTEST_SKIP() << "no x86 vendor_id / cpu family in /proc/cpuinfo";
+  const bool amd = cpu->vendor == "AuthenticAMD";
+  EXPECT_EQ(simd::amd_cpu_family(), amd ? static_cast<unsigned>(cpu->family) : 0u) << cpu->vendor;
+#if RAYSCAN_SIMD_X86
+  if (!simd_path_supported(SimdPath::avx512)) GTEST_SKIP() << "no AVX-512";
+  PathGuard guard;
+  set_simd_path(SimdPath::avx512);
+  const simd::Kernels& k = simd::active_kernels();
+  const bool zen4 = amd && cpu->family == 25;
+  EXPECT_EQ(k.box_points, zen4 ? simd::Avx2Kernels::box_points : simd::Avx512Kernels::box_points)
+      << cpu->vendor << " family " << cpu->family;
+  EXPECT_EQ(k.point_filter, simd::Avx512Kernels::point_filter);
+  EXPECT_EQ(k.child_slab_keys, simd::Avx512Kernels::child_slab_keys);
+#endif
 }
 
 // box_query's output (its order included) is the same on every path, on each octree layout.

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <fstream>
 #include <optional>
 #include <random>
 #include <string>
@@ -167,5 +168,27 @@ struct PairsGuard {
   PairsGuard(const PairsGuard&) = delete;
   PairsGuard& operator=(const PairsGuard&) = delete;
 };
+
+/// The CPU's vendor and family as the kernel decodes CPUID for /proc/cpuinfo (vendor_id, and
+/// "cpu family": the base plus the extended family), an oracle independent of
+/// simd::amd_cpu_family; nullopt where the file has neither (not x86, or no /proc).
+struct CpuIdentity {
+  std::string vendor;
+  int family = -1;
+};
+inline std::optional<CpuIdentity> cpu_identity_from_proc() {
+  std::ifstream in("/proc/cpuinfo");
+  CpuIdentity id;
+  std::string line;
+  while (in && std::getline(in, line) && (id.vendor.empty() || id.family < 0)) {
+    const auto colon = line.find(':');
+    if (colon == std::string::npos || colon == 0 || colon + 2 > line.size()) continue;
+    const std::string key = line.substr(0, line.find_last_not_of(" \t", colon - 1) + 1);
+    if (key == "vendor_id") id.vendor = line.substr(colon + 2);
+    if (key == "cpu family") id.family = std::stoi(line.substr(colon + 2));
+  }
+  if (id.vendor.empty() || id.family < 0) return std::nullopt;
+  return id;
+}
 
 }  // namespace rayscan::test

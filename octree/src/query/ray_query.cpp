@@ -6,10 +6,6 @@
 #include <atomic>
 #include <cmath>
 
-#if RAYSCAN_SIMD_X86
-#include <cpuid.h>
-#endif
-
 namespace rayscan {
 
 void set_entry_point_search(bool on) { detail::g_entry_point_search.store(on, std::memory_order_relaxed); }
@@ -19,22 +15,7 @@ namespace {
 std::atomic<int> g_interleaved_pairs{-1};
 }  // namespace
 
-bool interleaved_pairs_default() {
-#if RAYSCAN_SIMD_X86
-  // (__builtin_cpu_init first: this may run before the constructors that initialise the CPU model)
-  __builtin_cpu_init();
-  if (!__builtin_cpu_is("amd")) return false;
-  // The family of CPUID leaf 1 (AMD64 APM vol. 3, "CPUID Fn0000_0001_EAX": base family 0xF plus
-  // the extended family): 0x1A is Zen 5. GCC 12's __builtin_cpu_is names no Zen 4 or 5.
-  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
-  if (!__get_cpuid(1, &eax, &ebx, &ecx, &edx)) return false;
-  const unsigned base = (eax >> 8) & 0xFu;
-  const unsigned family = base == 0xFu ? base + ((eax >> 20) & 0xFFu) : base;
-  return family == 0x1Au;
-#else
-  return false;
-#endif
-}
+bool interleaved_pairs_default() { return simd::amd_cpu_family() == 0x1Au; }  // Zen 5
 
 bool interleaved_pairs() {
   int v = g_interleaved_pairs.load(std::memory_order_relaxed);

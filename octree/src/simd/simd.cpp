@@ -7,6 +7,10 @@
 #include <cstdio>
 #include <cstdlib>
 
+#if RAYSCAN_SIMD_X86
+#include <cpuid.h>
+#endif
+
 namespace rayscan {
 
 const char* to_string(SimdPath p) {
@@ -59,6 +63,20 @@ constexpr Kernels table_of() {
                  K::packet_point_filter, K::packet_ray_box, K::box_points};
 }
 
+#if RAYSCAN_SIMD_X86
+// The AVX-512 table, with the AVX2 box kernel on Zen 4 (AMD family 19h; Zen 3, the same family,
+// has no AVX-512): Zen 4 runs each 512-bit operation as two 256-bit halves, and there the 8-wide
+// kernel's deinterleaving blends and rotations cost more than the 4-wide kernel's lane table
+// (Table 1's boxes 1.05-1.10x faster with the AVX2 kernel; on the Intel Xeon the AVX-512 kernel is
+// the faster: bench/notes/2026-11-28-box-kernel-on-zen-4.md). The ray and kNN kernels stay 8-wide
+// there (the ray traversal's AVX-512 instance measured 1.06-1.17x faster than its AVX2 one).
+Kernels avx512_table() {
+  Kernels k = table_of<Avx512Kernels>();
+  if (amd_cpu_family() == 0x19u) k.box_points = Avx2Kernels::box_points;
+  return k;
+}
+#endif
+
 const Kernels& kernels_for(SimdPath p) {
   // child_dist2 (knn_query's child lower bounds): the gathering version measured 1.35x slower
   // than the scalar test on Table 1 kNN and was disabled; the in-register transpose (as in
@@ -70,7 +88,7 @@ const Kernels& kernels_for(SimdPath p) {
                               kernels::child_dist2_sse2, nullptr, kernels::packet_child_slab_sse2, nullptr,
                               nullptr, nullptr, nullptr, nullptr, nullptr, nullptr};
   static const Kernels k_avx2 = table_of<Avx2Kernels>();
-  static const Kernels k_avx512 = table_of<Avx512Kernels>();
+  static const Kernels k_avx512 = avx512_table();
   switch (p) {
     case SimdPath::scalar: return k_scalar;
     case SimdPath::sse2: return k_sse2;
@@ -102,6 +120,20 @@ const Kernels*& active() {
 }  // namespace
 
 const Kernels& active_kernels() { return *active(); }
+
+unsigned amd_cpu_family() {
+#if RAYSCAN_SIMD_X86
+  // (__builtin_cpu_init first: this may run before the constructors that initialise the CPU model)
+  __builtin_cpu_init();
+  if (!__builtin_cpu_is("amd")) return 0;
+  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+  if (!__get_cpuid(1, &eax, &ebx, &ecx, &edx)) return 0;
+  const unsigned base = (eax >> 8) & 0xFu;
+  return base == 0xFu ? base + ((eax >> 20) & 0xFFu) : base;
+#else
+  return 0;
+#endif
+}
 
 ChildDist2Fn child_dist2_kernel(SimdPath p) {
 #if RAYSCAN_SIMD_X86

@@ -256,8 +256,16 @@ struct Kernels {
   BoxPointsFn box_points;                   ///< nullptr for the scalar and sse2 paths
 };
 
-/// The kernels of the active path (simd_path()).
+/// The kernels of the active path (simd_path()). Per CPU family (amd_cpu_family), a path's table
+/// may take one kernel from a narrower path where that was measured faster (the AVX-512 table's
+/// box_points on Zen 4: the AVX2 kernel); every kernel of a slot keeps the same answers.
 const Kernels& active_kernels();
+
+/// The family of this CPU when its vendor is AMD, from CPUID leaf 1 (AMD64 Architecture
+/// Programmer's Manual vol. 3, "CPUID Fn0000_0001_EAX": the base family, plus the extended family
+/// when the base is 0xF): 0x19 for Zen 3 and Zen 4, 0x1A for Zen 5; 0 for other vendors and off
+/// x86. (GCC 12's __builtin_cpu_is names neither Zen 4 nor Zen 5.)
+unsigned amd_cpu_family();
 
 }  // namespace simd
 
