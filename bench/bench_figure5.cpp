@@ -10,13 +10,13 @@
 // included, as the Python path's time includes its arrays).
 // Usage: bench_figure5 --points N --threads 1,4,16 [--seconds 0.5] [--repeats 3]
 //                      --case 'NAME|K|RADIUS|ORDER' ... (K 0: no k; RADIUS inf: none; ORDER ray|time)
+#include "bench_cli.hpp"
 #include "bench_common.hpp"
 
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/octree/batch.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
-#include <CLI/CLI.hpp>
 #include <tbb/global_control.h>
 
 #include <algorithm>
@@ -96,7 +96,7 @@ int main(int argc, char** argv) {
   app.add_option("--seconds", seconds, "target time per measurement at one thread")->capture_default_str();
   app.add_option("--repeats", repeats, "batches per thread count (the best is kept)")->capture_default_str();
   app.add_option("--case", case_args, "NAME|K|RADIUS|ORDER")->required();
-  CLI11_PARSE(app, argc, argv);
+  rayscan::bench::parse_or_exit(app, argc, argv);
   try {
     std::vector<Case> cases;
     for (const auto& s : case_args) cases.push_back(parse_case(s));

@@ -7,11 +7,11 @@
 // Rays: from 200 m above the site's box to uniform points of the box (seeded). One thread; the
 // thread's CPU time is reported (on the shared machine wall time mostly measures preemption).
 // Page cache: the files are read once before the first round (warm). bench/README.md.
+#include "bench_cli.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
-#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <cstdio>
@@ -59,7 +59,7 @@ int main(int argc, char** argv) {
   app.add_option("SITE", files, "index files (.rsi) of the same points; the first gives the octree")->required();
   app.add_option("--rays", nrays, "rays per query type")->capture_default_str();
   app.add_option("--rounds", rounds, "interleaved rounds")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  rayscan::bench::parse_or_exit(app, argc, argv);
 
   std::vector<io::MappedIndex> maps;
   for (const std::string& f : files) maps.push_back(io::MappedIndex::open(f));

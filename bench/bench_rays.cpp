@@ -20,12 +20,12 @@
 // and the row-major camera rays through ray_first_hit_each (two rays at a time, their traversals
 // interleaved node by node) and ray_query_each, the batch API's path (the same pairs, with result
 // vectors).
+#include "bench_cli.hpp"
 #include "bench_common.hpp"
 
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
-#include <CLI/CLI.hpp>
 #include <embree3/rtcore.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
@@ -838,7 +838,7 @@ int main(int argc, char** argv) {
                  "are of all passes)")->capture_default_str();
   app.add_option("--mem-child", mem_child, "internal: run one memory probe in this process")->group("");
   app.add_option("--points", points_child, "internal: size of the --mem-child cloud")->group("");
-  CLI11_PARSE(app, argc, argv);
+  rayscan::bench::parse_or_exit(app, argc, argv);
   if (!mem_child.empty()) return memory_child(mem_child, points_child, seed, radius);
 
   std::vector<std::size_t> sizes;

@@ -17,6 +17,7 @@
 //   first byte for byte). --pairs: the bounce and shadow rays' ray_first_hit_each in interleaved
 //   pairs (rayscan::set_interleaved_pairs) on, off, or both, likewise; by default this CPU's
 //   default (rayscan::interleaved_pairs_default: on for Zen 5).
+#include "bench_cli.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/octree/ray_query.hpp"
@@ -40,17 +41,23 @@ int main(int argc, char** argv) {
   bool timing = true;
   std::string packets = "on", entry = "on", pairs = interleaved_pairs_default() ? "on" : "off";
   int rounds = 1;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--tiles") && i + 1 < argc) tiles = std::atoi(argv[++i]);
-    else if (!std::strcmp(argv[i], "--spp") && i + 1 < argc) spp = unsigned(std::atoi(argv[++i]));
-    else if (!std::strcmp(argv[i], "--threads") && i + 1 < argc) threads = unsigned(std::atoi(argv[++i]));
-    else if (!std::strcmp(argv[i], "--no-timing")) timing = false;
-    else if (!std::strcmp(argv[i], "--packets") && i + 1 < argc) packets = argv[++i];
-    else if (!std::strcmp(argv[i], "--entry-search") && i + 1 < argc) entry = argv[++i];
-    else if (!std::strcmp(argv[i], "--pairs") && i + 1 < argc) pairs = argv[++i];
-    else if (!std::strcmp(argv[i], "--rounds") && i + 1 < argc) rounds = std::max(1, std::atoi(argv[++i]));
-    else scene_path = argv[i];
-  }
+  CLI::App app{"bench_render: rayscan render of a scene, ray queries per second and thread, the ray query's share"};
+  const auto modes = CLI::IsMember({"on", "off", "both"});
+  app.add_option("SCENE", scene_path, "scene file (.json)")->capture_default_str();
+  app.add_option("--tiles", tiles, "render an N x N tiling of the cloud (the camera pulled back to cover it)")
+      ->check(CLI::Range(1, 64))->capture_default_str();
+  app.add_option("--spp", spp, "samples per pixel")->check(CLI::Range(1u, 1u << 20))->capture_default_str();
+  app.add_option("--threads", threads, "threads (0: all)")->capture_default_str();
+  bool no_timing = false;
+  app.add_flag("--no-timing", no_timing, "do not time each ray query (no cost split)");
+  app.add_option("--packets", packets, "camera and shadow rays of 4x4 pixel blocks as packets")->check(modes)->capture_default_str();
+  app.add_option("--entry-search", entry, "the first hits' entry-point search")->check(modes)->capture_default_str();
+  app.add_option("--pairs", pairs, "bounce and shadow rays in interleaved pairs (default: this CPU's)")
+      ->check(modes)->capture_default_str();
+  app.add_option("--rounds", rounds, "rounds, each running every combination once")->check(CLI::Range(1, 1000))
+      ->capture_default_str();
+  rayscan::bench::parse_or_exit(app, argc, argv);
+  timing = !no_timing;
   try {
     Scene scene = load_scene(scene_path);
     scene.spp = spp;
@@ -90,12 +97,6 @@ int main(int argc, char** argv) {
     const AnyIndex index = make_index(cloud.positions, scene.index);
     const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const double radius = choose_radius(index, cloud.positions, scene.radius, scene.auto_radius_factor).radius;
-    for (const auto& [flag, v] :
-         {std::pair{"--packets", &packets}, std::pair{"--entry-search", &entry}, std::pair{"--pairs", &pairs}})
-      if (*v != "on" && *v != "off" && *v != "both") {
-        std::fprintf(stderr, "bench_render: %s '%s': expected on, off or both\n", flag, v->c_str());
-        return 2;
-      }
     const RenderSettings settings = make_settings(scene, cloud.positions, albedo, radius);
     std::printf("scene %s, tiles %dx%d: %zu points, %s build %.2f s, radius %.4g\n", scene_path.c_str(),
                 tiles, tiles, cloud.size(), scene.index.type.c_str(), build_s, radius);

@@ -9,13 +9,13 @@
 //             inside radius 3r; ray_dwithin(rs_box(x,y,z), ...) on the points' own GiST index
 //             (the planner-support form; the bench creates <table>_pt) (only with --postgres).
 // Prints time per query and chunks touched / total, and counts result mismatches vs the octree.
+#include "bench_cli.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/ray_query.hpp"
 #include "rayscan/sql/import.hpp"
 
-#include <CLI/CLI.hpp>
 #include <libpq-fe.h>
 #include <sqlite3.h>
 
@@ -69,7 +69,7 @@ int main(int argc, char** argv) {
                                                "index (building it on 1e8+ rows takes hours)");
   app.add_option("--only", only, "Run only the radius or only the kNN queries (for profiling one case)")
       ->check(CLI::IsMember({"radius", "knn"}));
-  CLI11_PARSE(app, argc, argv);
+  rayscan::bench::parse_or_exit(app, argc, argv);
 
   // The octree: built in memory from the cloud, or the mapped index file of the same cloud.
   PointCloud cloud;

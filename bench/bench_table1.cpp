@@ -6,6 +6,7 @@
 // nanoflann (KDTreeSingleIndexAdaptor). Repetitions are interleaved (every contender once per
 // round, the starting contender rotating) and the median is reported. Before timing, every answer
 // of every contender is cross-checked against the others; a disagreement aborts (exit 3).
+#include "bench_cli.hpp"
 #include "bench_common.hpp"
 
 #include "rayscan/octree/kdtree.hpp"
@@ -14,7 +15,6 @@
 #include "rayscan/octree/ray_query.hpp"
 #include "rayscan/octree/simd.hpp"
 
-#include <CLI/CLI.hpp>
 #include <boost/geometry.hpp>
 #include <boost/geometry/index/rtree.hpp>
 #include <nanoflann.hpp>
@@ -404,7 +404,7 @@ int main(int argc, char** argv) {
                "each rayscan octree contender also without the kNN's entry-point search "
                "(rayscan::set_entry_point_search(false)), named \"... /no-entry\", interleaved with the others "
                "in every round (an A/B in one process)");
-  CLI11_PARSE(app, argc, argv);
+  rayscan::bench::parse_or_exit(app, argc, argv);
   std::vector<rayscan::SimdPath> paths;
   for (const std::string& name : simd_paths) {
     const std::optional<rayscan::SimdPath> p = rayscan::parse_simd_path(name);

@@ -8,6 +8,7 @@
 // Usage: bench_visibility [CLOUD] [--threads T] [--repeat R] [--observers M] [--sky N]
 //   CLOUD defaults to scenes/data/autzen_trim.las. CPU seconds (user + system of the process) are
 //   printed too, because the benchmark machine is shared.
+#include "bench_cli.hpp"
 #include "rayscan/analysis/observer.hpp"
 #include "rayscan/analysis/visibility.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -18,7 +19,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <cstring>
 #include <string>
 
 using namespace rayscan;
@@ -37,13 +37,14 @@ double cpu_seconds() {
 int main(int argc, char** argv) {
   std::string path = RAYSCAN_SCENES_DIR "/data/autzen_trim.las";
   unsigned threads = 0, repeat = 3, nobs = 10, sky = 0;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--threads") && i + 1 < argc) threads = unsigned(std::atoi(argv[++i]));
-    else if (!std::strcmp(argv[i], "--repeat") && i + 1 < argc) repeat = unsigned(std::max(1, std::atoi(argv[++i])));
-    else if (!std::strcmp(argv[i], "--observers") && i + 1 < argc) nobs = unsigned(std::max(1, std::atoi(argv[++i])));
-    else if (!std::strcmp(argv[i], "--sky") && i + 1 < argc) sky = unsigned(std::max(0, std::atoi(argv[++i])));
-    else path = argv[i];
-  }
+  CLI::App app{"bench_visibility: line of sight from observers to every point of a cloud, points/s and pairs/s"};
+  app.add_option("CLOUD", path, "point cloud")->capture_default_str();
+  app.add_option("--threads", threads, "threads (0: all)")->capture_default_str();
+  app.add_option("--repeat", repeat, "timed passes")->check(CLI::Range(1u, 1000u))->capture_default_str();
+  app.add_option("--observers", nobs, "observers (8 at eye height, then masts)")->check(CLI::Range(1u, 10000u))
+      ->capture_default_str();
+  app.add_option("--sky", sky, "also time the sky view factor with N rays per point (0: not)")->capture_default_str();
+  rayscan::bench::parse_or_exit(app, argc, argv);
   try {
     const PointCloud cloud = io::read_point_cloud(path);
     auto t0 = std::chrono::steady_clock::now();
@@ -121,7 +122,7 @@ int main(int argc, char** argv) {
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_visibility: %s\n", e.what());
-    return 1;
+    return 2;
   }
   return 0;
 }

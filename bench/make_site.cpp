@@ -6,7 +6,10 @@
 // then tile 1's, ...), as a site delivered in tiles and concatenated would be; by default they
 // go round the 16 tiles, so every stretch of the file covers the whole site. Check free disk
 // first (1e9 points = 20 GB at PDRF 0), delete after.
+#include "bench_cli.hpp"
+
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstdio>
@@ -18,37 +21,46 @@
 #include <vector>
 
 int main(int argc, char** argv) {
-  std::vector<std::string> args;
+  std::string out, n_text, src_path = std::string(RAYSCAN_SOURCE_DIR) + "/scenes/data/autzen_trim.las";
   int pdrf = 3;
   bool tile_major = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--pdrf" && i + 1 < argc) pdrf = std::atoi(argv[++i]);
-    else if (a == "--tile-major") tile_major = true;
-    else args.push_back(a);
-  }
-  if (args.size() < 2 || (pdrf != 0 && pdrf != 3)) {
-    std::cerr << "usage: make_site OUT.las N [SOURCE.las] [--pdrf 0|3] [--tile-major]\n";
+  CLI::App app{"make_site: the index-file benchmark site, the bundled autzen scan tiled 4 x 4 and repeated to N points"};
+  app.add_option("OUT", out, "output LAS 1.2 file")->required();
+  app.add_option("N", n_text, "points (e.g. 2e7; at most 2^32 - 1)")->required();
+  app.add_option("SOURCE", src_path, "LAS PDRF 3 source (34-byte records)")->capture_default_str();
+  app.add_option("--pdrf", pdrf, "point data record format of the output: 3 (34 bytes) or 0 (20 bytes)")
+      ->check(CLI::IsMember({0, 3}))->capture_default_str();
+  app.add_flag("--tile-major", tile_major, "write the copies tile by tile (default: round the 16 tiles)");
+  rayscan::bench::parse_or_exit(app, argc, argv);
+  // N as a number of points: "2e7" as well as "20000000".
+  char* end = nullptr;
+  const double nd = std::strtod(n_text.c_str(), &end);
+  if (end == n_text.c_str() || *end != '\0' || !(nd >= 1.0) || nd > 4294967295.0 || nd != std::floor(nd)) {
+    std::cerr << "make_site: N: expected a whole number of points from 1 to 2^32 - 1 (LAS 1.2 point count), got '"
+              << n_text << "'\n";
     return 2;
   }
-  const std::string out = args[0];
-  const auto n = static_cast<std::uint64_t>(std::stod(args[1]));
-  if (n > 0xFFFFFFFFull) {
-    std::cerr << "make_site: at most 2^32 - 1 points (LAS 1.2 point count)\n";
-    return 2;
-  }
+  const auto n = static_cast<std::uint64_t>(nd);
   const std::size_t rl = pdrf == 0 ? 20 : 34;  // output record length
-  const std::string src_path = args.size() > 2 ? args[2] : std::string(RAYSCAN_SOURCE_DIR) + "/scenes/data/autzen_trim.las";
   std::ifstream in(src_path, std::ios::binary);
+  if (!in) {
+    std::cerr << src_path << ": cannot open file\n";
+    return 2;
+  }
   std::vector<char> src((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   auto u32 = [&](std::size_t o) { std::uint32_t v; std::memcpy(&v, src.data() + o, 4); return v; };
   auto u16 = [&](std::size_t o) { std::uint16_t v; std::memcpy(&v, src.data() + o, 2); return v; };
   auto f64 = [&](std::size_t o) { double v; std::memcpy(&v, src.data() + o, 8); return v; };
-  if (src.size() < 227 || (src[104] & 0x3F) != 3 || u16(105) != 34) {
-    std::cerr << src_path << ": expected LAS PDRF 3 with 34-byte records\n";
+  if (src.size() < 227 || (src[104] & 0x3F) != 3 || u16(105) != 34 || !(f64(131) >= 1e-9)) {
+    std::cerr << src_path << ": expected LAS PDRF 3 with 34-byte records and an x scale of at least 1e-9\n";
     return 2;
   }
   const std::uint32_t off = u32(96), count = u32(107);
+  if (count == 0 || off < 227 || std::uint64_t{off} + std::uint64_t{count} * 34 > src.size()) {
+    std::cerr << src_path << ": byte 96: point data at offset " << off << " with " << count
+              << " records of 34 bytes, expected at least one record within the file's " << src.size() << " bytes\n";
+    return 2;
+  }
   const char* recs = src.data() + off;
   std::int32_t lo[3] = {INT32_MAX, INT32_MAX, INT32_MAX}, hi[3] = {INT32_MIN, INT32_MIN, INT32_MIN};
   for (std::uint32_t i = 0; i < count; ++i)
@@ -63,7 +75,10 @@ int main(int argc, char** argv) {
   std::uniform_int_distribution<int> J(-jit, jit);
   const std::string tmp = out + ".tmp";
   std::FILE* f = std::fopen(tmp.c_str(), "wb");
-  if (!f) return 2;
+  if (!f) {
+    std::perror(tmp.c_str());
+    return 1;
+  }
   std::vector<char> hdr(src.begin(), src.begin() + 227);
   hdr[104] = static_cast<char>(pdrf);
   const auto rl16 = static_cast<std::uint16_t>(rl);
@@ -112,10 +127,12 @@ int main(int argc, char** argv) {
     std::memcpy(hdr.data() + 179 + 16 * k, &mx, 8);
     std::memcpy(hdr.data() + 187 + 16 * k, &mn, 8);
   }
-  std::fseek(f, 0, SEEK_SET);
-  std::fwrite(hdr.data(), 1, 227, f);
-  if (std::fclose(f) != 0) return 1;
-  std::rename(tmp.c_str(), out.c_str());
+  const bool header_written = std::fseek(f, 0, SEEK_SET) == 0 && std::fwrite(hdr.data(), 1, 227, f) == 227;
+  if (std::fclose(f) != 0 || !header_written || std::rename(tmp.c_str(), out.c_str()) != 0) {
+    std::perror(out.c_str());
+    std::remove(tmp.c_str());
+    return 1;
+  }
   std::cout << out << ": " << n << " points\n";
   return 0;
 }
