@@ -3,7 +3,7 @@
 # bench/README.md for what each measures and the figures of the reference machine).
 #   bench/run.sh BUILD_DIR           full run (bench_rays at 1e6 and 1e7 points: several minutes)
 #   bench/run.sh BUILD_DIR --quick   smaller sizes and fewer rounds (about a minute)
-# Extra benchmark programs (bench_io, bench_render, ...) are run with their default arguments.
+# Then bench_render, bench_io, bench_visibility and bench_sql with their default arguments.
 set -euo pipefail
 if [ $# -lt 1 ] || [ ! -d "$1" ]; then
   echo "usage: $0 BUILD_DIR [--quick]" >&2
@@ -37,10 +37,10 @@ else
   run bench_table1
   run bench_rays
 fi
-for prog in "$dir"/bench_*; do
-  name=$(basename "$prog")
-  case "$name" in bench_table1 | bench_rays) continue ;; esac
-  [ -f "$prog" ] && [ -x "$prog" ] && run "$name"
+# The programs that run on their defaults (bench_laz, bench_copc_render, bench_index_rays and
+# bench_figure5 take files or cases: bench/laz.sh, copc_render.sh, index_open.sh, figure5.py).
+for name in bench_render bench_io bench_visibility bench_sql; do
+  run "$name"
 done
 # The Python module: Python batch vs C++ batch, NumPy brute force, Open3D kNN.
 if [ -f "$1/python/rayscan/__init__.py" ] && [ -x "$dir/python_batch_peer" ]; then
