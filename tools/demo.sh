@@ -5,7 +5,8 @@
 # Usage: tools/demo.sh [BUILD_DIR]   (default: build)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BUILD="${1:-build}"
+. tools/script_args.sh
+script_args build "$@"
 ./tools/build.sh "$BUILD"
 mkdir -p out
 "$BUILD/tools/rayscan" render scenes/autzen_overview.json --out out/autzen_overview.png

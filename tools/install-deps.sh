@@ -2,6 +2,8 @@
 # Installs rayscan's build and test dependencies from Debian 12 packages when any is missing.
 # Idempotent; needs root (or sudo) only when something must be installed.
 set -euo pipefail
+. "$(dirname "$0")/script_args.sh"
+script_no_args "$@"
 PKGS=(
   build-essential cmake ninja-build pkg-config
   libglm-dev libtbb-dev nlohmann-json3-dev libcli11-dev

@@ -9,7 +9,8 @@
 # Usage: tools/package.sh [BUILD_DIR]   (default: build)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BUILD="${1:-build}"
+. tools/script_args.sh
+script_args build "$@"
 SKIP_BUILD="${PACKAGE_SKIP_BUILD:-0}"  # 1: package what BUILD_DIR holds (the test's own call)
 [ "$SKIP_BUILD" = 1 ] || ./tools/build.sh "$BUILD"
 rm -rf "$BUILD/packages"

@@ -3,6 +3,7 @@
 # Usage: tools/test.sh [BUILD_DIR]   (default: build)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BUILD="${1:-build}"
+. tools/script_args.sh
+script_args build "$@"
 ./tools/build.sh "$BUILD"
 ctest --test-dir "$BUILD" --output-on-failure -j "$(nproc)"
