@@ -46,9 +46,28 @@ Case parse_case(const std::string& s) {
   for (std::string part; std::getline(ss, part, '|');) f.push_back(part);
   if (f.size() != 4) throw std::invalid_argument("--case '" + s + "': expected NAME|K|RADIUS|ORDER");
   Case c{f[0], {}};
-  const unsigned long k = std::stoul(f[1]);
+  // Whole fields only: "8x" or "" is refused rather than read as 8 or 0.
+  std::size_t used = 0;
+  unsigned long k = 0;
+  try {
+    k = std::stoul(f[1], &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != f[1].size() || k > 0xFFFFFFFFul || f[1][0] == '-')
+    throw std::invalid_argument("--case '" + s + "': K must be a whole number (0: no limit), got '" + f[1] + "'");
   if (k) c.q.k = static_cast<std::uint32_t>(k);
-  c.q.radius = f[2] == "inf" ? rayscan::kInf : std::stod(f[2]);
+  if (f[2] == "inf") {
+    c.q.radius = rayscan::kInf;
+  } else {
+    try {
+      c.q.radius = std::stod(f[2], &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != f[2].size() || !(c.q.radius > 0.0))
+      throw std::invalid_argument("--case '" + s + "': RADIUS must be a positive number or inf, got '" + f[2] + "'");
+  }
   if (f[3] == "ray") c.q.order = rayscan::RayOrder::ray;
   else if (f[3] == "time") c.q.order = rayscan::RayOrder::time;
   else throw std::invalid_argument("--case '" + s + "': ORDER must be ray or time");
@@ -87,24 +106,23 @@ std::pair<double, std::size_t> timed(const rayscan::AnyIndex& index, const std::
 int main(int argc, char** argv) {
   CLI::App app{"Figure 5 of Teuscher et al.: ray query modalities on uniform points (the cases come from figure5.py)"};
   std::size_t n = 1'000'000;
-  std::string threads_list = "1,2";
+  std::vector<int> threads{1, 2};
   double seconds = 0.5;
   int repeats = 3;
   std::vector<std::string> case_args;
-  app.add_option("--points", n, "number of uniform points in the unit cube")->capture_default_str();
-  app.add_option("--threads", threads_list, "comma-separated thread counts")->capture_default_str();
-  app.add_option("--seconds", seconds, "target time per measurement at one thread")->capture_default_str();
-  app.add_option("--repeats", repeats, "batches per thread count (the best is kept)")->capture_default_str();
+  app.add_option("--points", n, "number of uniform points in the unit cube")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 31))->capture_default_str();
+  app.add_option("--threads", threads, "comma-separated thread counts")->delimiter(',')->check(CLI::Range(1, 4096))
+      ->capture_default_str();
+  app.add_option("--seconds", seconds, "target time per measurement at one thread")->check(CLI::Range(1e-3, 3600.0))
+      ->capture_default_str();
+  app.add_option("--repeats", repeats, "batches per thread count (the best is kept)")->check(CLI::Range(1, 1000))
+      ->capture_default_str();
   app.add_option("--case", case_args, "NAME|K|RADIUS|ORDER")->required();
   rayscan::bench::parse_or_exit(app, argc, argv);
   try {
     std::vector<Case> cases;
     for (const auto& s : case_args) cases.push_back(parse_case(s));
-    std::vector<int> threads;
-    {
-      std::stringstream ss(threads_list);
-      for (std::string t; std::getline(ss, t, ',');) threads.push_back(std::stoi(t));
-    }
     const auto t0 = std::chrono::steady_clock::now();
     const std::vector<Vec3> pts = rayscan::bench::uniform_cube(n, 1);
     const rayscan::AnyIndex index = rayscan::make_index(pts, rayscan::IndexOptions{});

@@ -60,69 +60,74 @@ int main(int argc, char** argv) {
   app.add_option("--rays", nrays, "rays per query type")->capture_default_str();
   app.add_option("--rounds", rounds, "interleaved rounds")->capture_default_str();
   rayscan::bench::parse_or_exit(app, argc, argv);
+  try {
 
-  std::vector<io::MappedIndex> maps;
-  for (const std::string& f : files) maps.push_back(io::MappedIndex::open(f));
-  const io::MappedIndex& m0 = maps.front();
-  const double t_build = thread_cpu();
-  const Octree tree = Octree::build_bulk(m0.to_point_cloud().positions, m0.config());
-  std::printf("in-memory octree: %zu points, %zu nodes (%.1f s CPU incl. to_point_cloud)\n", tree.positions().size(),
-              tree.node_count(), thread_cpu() - t_build);
-  for (std::size_t k = 0; k < maps.size(); ++k)
-    std::printf("index %zu: %s, positions %s, %.2f bytes/point\n", k, files[k].c_str(),
-                to_string(maps[k].position_encoding()),
-                static_cast<double>(maps[k].file_bytes()) / static_cast<double>(maps[k].positions().size()));
-  volatile double sink = 0;  // warm the page cache: touch every position once
-  for (const io::MappedIndex& m : maps)
-    for (std::size_t s = 0; s < m.positions().size(); s += 97) sink = sink + m.positions()[s].x;
+    std::vector<io::MappedIndex> maps;
+    for (const std::string& f : files) maps.push_back(io::MappedIndex::open(f));
+    const io::MappedIndex& m0 = maps.front();
+    const double t_build = thread_cpu();
+    const Octree tree = Octree::build_bulk(m0.to_point_cloud().positions, m0.config());
+    std::printf("in-memory octree: %zu points, %zu nodes (%.1f s CPU incl. to_point_cloud)\n", tree.positions().size(),
+                tree.node_count(), thread_cpu() - t_build);
+    for (std::size_t k = 0; k < maps.size(); ++k)
+      std::printf("index %zu: %s, positions %s, %.2f bytes/point\n", k, files[k].c_str(),
+                  to_string(maps[k].position_encoding()),
+                  static_cast<double>(maps[k].file_bytes()) / static_cast<double>(maps[k].positions().size()));
+    volatile double sink = 0;  // warm the page cache: touch every position once
+    for (const io::MappedIndex& m : maps)
+      for (std::size_t s = 0; s < m.positions().size(); s += 97) sink = sink + m.positions()[s].x;
 
-  const AABB b = m0.bounds();
-  std::mt19937_64 rng(42);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  auto in_box = [&] { return b.lo + Vec3(u(rng), u(rng), u(rng)) * (b.hi - b.lo); };
-  std::vector<Ray> rays;
-  for (std::size_t i = 0; i < nrays; ++i) {
-    const Vec3 t = in_box();
-    const Vec3 o(b.lo.x + u(rng) * (b.hi.x - b.lo.x), b.lo.y + u(rng) * (b.hi.y - b.lo.y), b.hi.z + 200.0);
-    rays.emplace_back(o, t - o);
-  }
-  const double sp = m0.median_nn_spacing();
-  struct QueryKind {
-    const char* name;
-    RayQuery q;
-  };
-  std::vector<QueryKind> kinds(2);
-  kinds[0].name = "first hit (sphere_hit, k=1)";
-  kinds[0].q.order = RayOrder::sphere_hit;
-  kinds[0].q.k = 1;
-  kinds[0].q.radius = sp;
-  kinds[1].name = "kNN to the ray (k=8)";
-  kinds[1].q.order = RayOrder::ray;
-  kinds[1].q.k = 8;
-  kinds[1].q.radius = 4 * sp;
-
-  const std::size_t nc = 1 + maps.size();  // contender 0: the in-memory octree
-  for (const QueryKind& kind : kinds) {
-    std::vector<std::vector<double>> secs(nc);
-    std::vector<std::vector<std::vector<RayHit>>> hits(nc);
-    bool equal = true;
-    for (int r = 0; r < rounds; ++r)
-      for (std::size_t j = 0; j < nc; ++j) {
-        const std::size_t c = (j + static_cast<std::size_t>(r)) % nc;
-        secs[c].push_back(c == 0 ? run(tree, rays, kind.q, hits[c]) : run(maps[c - 1], rays, kind.q, hits[c]));
-        if (c != 0 && !hits[0].empty()) equal = equal && same(hits[c], hits[0]);
-      }
-    std::printf("%s, %zu rays, %d rounds, radius %.4g: hits equal to the octree's: %s\n", kind.name, rays.size(), rounds,
-                kind.q.radius, equal ? "yes" : "NO");
-    std::vector<double> med(nc);
-    for (std::size_t c = 0; c < nc; ++c) {
-      std::sort(secs[c].begin(), secs[c].end());
-      med[c] = secs[c][secs[c].size() / 2];
+    const AABB b = m0.bounds();
+    std::mt19937_64 rng(42);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    auto in_box = [&] { return b.lo + Vec3(u(rng), u(rng), u(rng)) * (b.hi - b.lo); };
+    std::vector<Ray> rays;
+    for (std::size_t i = 0; i < nrays; ++i) {
+      const Vec3 t = in_box();
+      const Vec3 o(b.lo.x + u(rng) * (b.hi.x - b.lo.x), b.lo.y + u(rng) * (b.hi.y - b.lo.y), b.hi.z + 200.0);
+      rays.emplace_back(o, t - o);
     }
-    for (std::size_t c = 0; c < nc; ++c)
-      std::printf("  %-40s %10.0f rays/s  (median %.3f s CPU; min %.3f, max %.3f)  %.3fx the octree\n",
-                  c == 0 ? "in-memory octree" : (files[c - 1] + " (" + to_string(maps[c - 1].position_encoding()) + ")").c_str(),
-                  static_cast<double>(rays.size()) / med[c], med[c], secs[c].front(), secs[c].back(), med[0] / med[c]);
+    const double sp = m0.median_nn_spacing();
+    struct QueryKind {
+      const char* name;
+      RayQuery q;
+    };
+    std::vector<QueryKind> kinds(2);
+    kinds[0].name = "first hit (sphere_hit, k=1)";
+    kinds[0].q.order = RayOrder::sphere_hit;
+    kinds[0].q.k = 1;
+    kinds[0].q.radius = sp;
+    kinds[1].name = "kNN to the ray (k=8)";
+    kinds[1].q.order = RayOrder::ray;
+    kinds[1].q.k = 8;
+    kinds[1].q.radius = 4 * sp;
+
+    const std::size_t nc = 1 + maps.size();  // contender 0: the in-memory octree
+    for (const QueryKind& kind : kinds) {
+      std::vector<std::vector<double>> secs(nc);
+      std::vector<std::vector<std::vector<RayHit>>> hits(nc);
+      bool equal = true;
+      for (int r = 0; r < rounds; ++r)
+        for (std::size_t j = 0; j < nc; ++j) {
+          const std::size_t c = (j + static_cast<std::size_t>(r)) % nc;
+          secs[c].push_back(c == 0 ? run(tree, rays, kind.q, hits[c]) : run(maps[c - 1], rays, kind.q, hits[c]));
+          if (c != 0 && !hits[0].empty()) equal = equal && same(hits[c], hits[0]);
+        }
+      std::printf("%s, %zu rays, %d rounds, radius %.4g: hits equal to the octree's: %s\n", kind.name, rays.size(), rounds,
+                  kind.q.radius, equal ? "yes" : "NO");
+      std::vector<double> med(nc);
+      for (std::size_t c = 0; c < nc; ++c) {
+        std::sort(secs[c].begin(), secs[c].end());
+        med[c] = secs[c][secs[c].size() / 2];
+      }
+      for (std::size_t c = 0; c < nc; ++c)
+        std::printf("  %-40s %10.0f rays/s  (median %.3f s CPU; min %.3f, max %.3f)  %.3fx the octree\n",
+                    c == 0 ? "in-memory octree" : (files[c - 1] + " (" + to_string(maps[c - 1].position_encoding()) + ")").c_str(),
+                    static_cast<double>(rays.size()) / med[c], med[c], secs[c].front(), secs[c].back(), med[0] / med[c]);
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_index_rays: %s\n", e.what());
+    return 2;
   }
   return 0;
 }

@@ -20,6 +20,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -58,24 +59,28 @@ struct Result {
 template <class F>
 Result in_child(F work) {
   int fds[2];
-  if (::pipe(fds) != 0) std::exit(1);
+  if (::pipe(fds) != 0) throw std::runtime_error("pipe: cannot create");
   const pid_t pid = ::fork();
   if (pid == 0) {
     ::close(fds[0]);
-    Result r = work();
+    Result r;
+    try {
+      r = work();
+    } catch (const std::exception& e) {  // (the child never returns into main: _Exit, no flush)
+      std::fprintf(stderr, "bench_io: %s\n", e.what());
+      std::_Exit(1);
+    }
     if (::write(fds[1], &r, sizeof r) != static_cast<ssize_t>(sizeof r)) std::_Exit(1);
     std::_Exit(0);
   }
   ::close(fds[1]);
   Result r;
-  if (::read(fds[0], &r, sizeof r) != static_cast<ssize_t>(sizeof r)) {
-    std::fprintf(stderr, "bench_io: child failed\n");
-    std::exit(1);
-  }
+  const bool got = ::read(fds[0], &r, sizeof r) == static_cast<ssize_t>(sizeof r);
   ::close(fds[0]);
   int status = 0;
   rusage ru{};
   ::wait4(pid, &status, 0, &ru);
+  if (!got) throw std::runtime_error("a read in its child process failed");
   r.peak_rss_kb = ru.ru_maxrss;
   return r;
 }
@@ -101,8 +106,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--keep", keep, "keep the generated file");
   rayscan::bench::parse_or_exit(app, argc, argv);
+  const std::string las = (dir / ("rayscan_bench_" + std::to_string(n) + ".las")).string();
   try {
-    const std::string las = (dir / ("rayscan_bench_" + std::to_string(n) + ".las")).string();
 
     // Synthetic airborne-like scan: UTM coordinates, colour, intensity, class, GPS time, returns.
     double write_s = 0;
@@ -169,8 +174,7 @@ int main(int argc, char** argv) {
         if (cold) evict(las);
         const Result r = in_child(reader(scalars));
         if (r.points != n) {
-          std::fprintf(stderr, "bench_io: read %zu points, expected %zu\n", r.points, n);
-          return 1;
+          throw std::runtime_error("read " + std::to_string(r.points) + " points, expected " + std::to_string(n));
         }
         std::printf("read_point_cloud %-4s %-8s %7.2f s  %7.0f MB/s  %6.1f Mpts/s  peak RSS %6.0f MB"
                     " = output %6.0f MB + %4.0f MB (process start %3.0f MB)\n",
@@ -183,7 +187,9 @@ int main(int argc, char** argv) {
     else std::filesystem::remove(las);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_io: %s\n", e.what());
-    return 1;
+    std::error_code ec;
+    if (!keep) std::filesystem::remove(las, ec);  // (the generated file, when there is one)
+    return 2;
   }
   return 0;
 }

@@ -791,7 +791,8 @@ void coherence(const std::vector<Vec3>& pts, const std::string& index_name, cons
 
 int main(int argc, char** argv) {
   CLI::App app{"rayscan benchmark: ray-query throughput, first hit vs Embree 3, build time, memory"};
-  std::string points_list = "1000000,10000000", threads_list = "1,2";
+  std::vector<std::size_t> sizes{1000000, 10000000};
+  std::vector<int> threads{1, 2};
   std::string index_list = "octree-adaptive,kdtree";
   std::string mem_child;
   int width = 600, height = 400;
@@ -803,25 +804,29 @@ int main(int argc, char** argv) {
   std::string profile_query;
   int profile_reps = 1;
   bool coherence_only = false;
-  app.add_option("--points-list", points_list, "comma-separated cloud sizes")->capture_default_str();
+  app.add_option("--points-list", sizes, "comma-separated cloud sizes")
+      ->delimiter(',')->check(CLI::Range(std::size_t{1}, std::size_t{1} << 31))->capture_default_str();
   app.add_option("--indexes", index_list,
                  "comma-separated rayscan indexes: octree-adaptive, octree-layered, octree-fixed, kdtree; "
                  "NAME:C sets the node capacity / leaf size C (default: make_index's, index_capacity); "
                  "NAME/no-entry: the same index with its first hits' entry-point search off "
                  "(rayscan::set_entry_point_search), for an A/B of it in one process")
       ->capture_default_str();
-  app.add_option("--threads", threads_list, "comma-separated thread counts (tbb::global_control)")
-      ->capture_default_str();
-  app.add_option("--width", width, "camera image width, pixels")->capture_default_str();
-  app.add_option("--height", height, "camera image height, pixels")->capture_default_str();
-  app.add_option("--random-rays", random_n, "number of random rays through the cube")->capture_default_str();
+  app.add_option("--threads", threads, "comma-separated thread counts (tbb::global_control)")
+      ->delimiter(',')->check(CLI::Range(1, 4096))->capture_default_str();
+  app.add_option("--width", width, "camera image width, pixels")->check(CLI::Range(1, 1 << 15))->capture_default_str();
+  app.add_option("--height", height, "camera image height, pixels")->check(CLI::Range(1, 1 << 15))->capture_default_str();
+  app.add_option("--random-rays", random_n, "number of random rays through the cube")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1} << 30))->capture_default_str();
   app.add_option("--slow-rays", slow_rays,
                  "rays (an even stride over each set) timed for the kNN and radius queries; 0 = all")
       ->capture_default_str();
   app.add_option("--radius", radius, "r of radius, closest and sphere_hit (and Embree's spheres), world units")
-      ->capture_default_str();
-  app.add_option("--reps", reps, "interleaved rounds per throughput figure (median reported)")->capture_default_str();
-  app.add_option("--build-reps", build_reps, "interleaved rounds of the build-time comparison")->capture_default_str();
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--reps", reps, "interleaved rounds per throughput figure (median reported)")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1000}))->capture_default_str();
+  app.add_option("--build-reps", build_reps, "interleaved rounds of the build-time comparison")
+      ->check(CLI::Range(std::size_t{1}, std::size_t{1000}))->capture_default_str();
   app.add_option("--seed", seed, "seed of points and random rays")->capture_default_str();
   app.add_flag("--no-memory", no_memory, "skip the per-index memory probes");
   app.add_flag("--no-build", no_build, "skip the build-time comparison");
@@ -835,16 +840,12 @@ int main(int argc, char** argv) {
                  "callgrind/perf")
       ->check(CLI::IsMember({"knn8", "radius", "closest", "sphere", "embree", "sphere2x2", "sphere4x4"}));
   app.add_option("--profile-reps", profile_reps, "with --profile: passes over each ray set (the times printed "
-                 "are of all passes)")->capture_default_str();
+                 "are of all passes)")->check(CLI::Range(1, 100000))->capture_default_str();
   app.add_option("--mem-child", mem_child, "internal: run one memory probe in this process")->group("");
   app.add_option("--points", points_child, "internal: size of the --mem-child cloud")->group("");
   rayscan::bench::parse_or_exit(app, argc, argv);
   if (!mem_child.empty()) return memory_child(mem_child, points_child, seed, radius);
 
-  std::vector<std::size_t> sizes;
-  for (const auto& s : split_list(points_list)) sizes.push_back(std::stoull(s));
-  std::vector<int> threads;
-  for (const auto& s : split_list(threads_list)) threads.push_back(std::stoi(s));
   const std::vector<std::string> indexes = split_list(index_list);
   const int hw = static_cast<int>(std::thread::hardware_concurrency());
   char self[4096];

@@ -9,6 +9,7 @@
 #include "bench_cli.hpp"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -76,8 +77,8 @@ int main(int argc, char** argv) {
   const std::string tmp = out + ".tmp";
   std::FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) {
-    std::perror(tmp.c_str());
-    return 1;
+    std::cerr << out << ": cannot write (" << std::strerror(errno) << ")\n";
+    return 2;
   }
   std::vector<char> hdr(src.begin(), src.begin() + 227);
   hdr[104] = static_cast<char>(pdrf);
@@ -108,10 +109,10 @@ int main(int argc, char** argv) {
       std::memcpy(r, xyz, 12);
     }
     if (std::fwrite(block.data(), rl, m, f) != m) {
-      std::perror(tmp.c_str());
+      std::cerr << out << ": write failed (" << std::strerror(errno) << ")\n";
       std::fclose(f);
       std::remove(tmp.c_str());
-      return 1;
+      return 2;
     }
     done += m;
   }
@@ -129,9 +130,9 @@ int main(int argc, char** argv) {
   }
   const bool header_written = std::fseek(f, 0, SEEK_SET) == 0 && std::fwrite(hdr.data(), 1, 227, f) == 227;
   if (std::fclose(f) != 0 || !header_written || std::rename(tmp.c_str(), out.c_str()) != 0) {
-    std::perror(out.c_str());
+    std::cerr << out << ": write failed (" << std::strerror(errno) << ")\n";
     std::remove(tmp.c_str());
-    return 1;
+    return 2;
   }
   std::cout << out << ": " << n << " points\n";
   return 0;

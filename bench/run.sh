@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Runs every benchmark program that exists in BUILD_DIR/bench and prints its figures (see
-# bench/README.md for what each measures and the figures of the reference machine).
+# Runs the benchmark programs of BUILD_DIR/bench that need no input file and prints their figures
+# (see bench/README.md for what each measures and the figures of the reference machine).
 #   bench/run.sh BUILD_DIR           full run (bench_rays at 1e6 and 1e7 points: several minutes)
 #   bench/run.sh BUILD_DIR --quick   smaller sizes and fewer rounds (about a minute)
 # Then bench_render, bench_io, bench_visibility and bench_sql with their default arguments.

@@ -2,9 +2,9 @@
 # The sanitizer job: the whole test suite built with -fsanitize=address,undefined (RelWithDebInfo,
 # benchmarks off) in its own build folder and run by CTest. RelWithDebInfo here means -O1 -g1
 # (optimised, line tables only) instead of CMake's -O2 -g: the level the AddressSanitizer
-# documentation recommends, about half the compile time of -O2 -g with both sanitizers, and
-# file:line in every sanitizer stack trace. Built with Clang unless SANITIZE_CXX names another
-# compiler (below); its build and suite times are in bench/notes/2026-11-28-sanitize-job.md.
+# documentation recommends, far faster to compile than -O2 -g with both sanitizers, and file:line
+# in every sanitizer stack trace. Built with Clang unless the environment variable SANITIZE_CXX
+# names another compiler; build and suite times: bench/notes/2026-11-28-sanitize-job.md.
 # Any sanitizer report fails the test that triggered it (UBSan halts on the first error; ASan
 # always does), and a failing test fails the job (and CI). LeakSanitizer is off: GDAL/PROJ and
 # OpenImageIO keep process-lifetime caches that it would report. ccache is used when installed.

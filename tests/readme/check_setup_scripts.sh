@@ -6,7 +6,9 @@
 # configured or built (a typo never becomes a build folder). Run from any directory.
 set -uo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
-cd "$(mktemp -d)"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+cd "$tmp"
 fail=0
 check() {  # check NAME WANT_RC WANT_TEXT ARGS...: exit status, and WANT_TEXT in the output
   local name="$1" want="$2" text="$3"
