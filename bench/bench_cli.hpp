@@ -3,6 +3,8 @@
 // a missing argument) prints one line "PROGRAM: message (see --help)" and exits 2.
 #pragma once
 
+#include "rayscan/base/input_file.hpp"
+
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
@@ -18,9 +20,7 @@ inline void parse_or_exit(CLI::App& app, int argc, char** argv) {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) std::exit(app.exit(e));  // --help
-    std::string msg = e.what();
-    for (char& c : msg)
-      if (c == '\n' || c == '\r') c = ' ';
+    const std::string msg = one_line(e.what());  // (as the rayscan program's usage errors)
     const std::string& name = app.get_name();  // (argv[0] unless the app was given a name)
     std::fprintf(stderr, "%s: %s (see --help)\n", name.substr(name.find_last_of('/') + 1).c_str(), msg.c_str());
     std::exit(2);

@@ -347,10 +347,6 @@ struct Compact4 {
 };
 inline constexpr Compact4 kCompact4{};
 
-// append_lanes<4> for a full step without its early exit, which mispredicts where steps keep
-// points about as often as not (as store_kept8 on AVX-512, which compresses; AVX2 has no
-// compress): the kept indices as one 4-lane store from kCompact4 at out[n, n + 4). Needs n <= i
-// and i + 4 <= the point count (out's room).
 // store_kept4 of any 4 values of the step (as a box kernel's ids): the lanes of `values` in m,
 // permuted by the same table (vpermilps) and stored whole at out[n, n + 4).
 __attribute__((target("avx2,fma"), always_inline)) inline unsigned store_kept4_of(unsigned m, __m128i values,
@@ -360,6 +356,10 @@ __attribute__((target("avx2,fma"), always_inline)) inline unsigned store_kept4_o
                    _mm_castps_si128(_mm_permutevar_ps(_mm_castsi128_ps(values), lanes)));
   return n + kCompact4.count[m];
 }
+// append_lanes<4> for a full step without its early exit, which mispredicts where steps keep
+// points about as often as not (as store_kept8 on AVX-512, which compresses; AVX2 has no
+// compress): the kept indices as one 4-lane store from kCompact4 at out[n, n + 4). Needs n <= i
+// and i + 4 <= the point count (out's room).
 __attribute__((target("avx2,fma"), always_inline)) inline unsigned store_kept4(unsigned m, unsigned i,
                                                                                std::uint32_t* out, unsigned n) {
   const __m128i lanes = _mm_load_si128(reinterpret_cast<const __m128i*>(kCompact4.lanes[m]));

@@ -207,10 +207,6 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
   return lanes & lane_to_point_mask(m);
 }
 
-// append_lanes<8> for a full step without its early exit, which mispredicts where steps keep
-// points about as often as not: the kept indices (i + each set bit of the point-order mask m,
-// ascending) compressed into one register and stored whole at out[n, n + 8). Needs n <= i and
-// i + 8 <= the point count (out's room).
 // store_kept8 of any 8 values of the step (as a box kernel's ids): the lanes of `values` in m,
 // compressed and stored whole at out[n, n + 8).
 __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned store_kept8_of(
@@ -218,6 +214,10 @@ __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsig
   _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + n), _mm256_maskz_compress_epi32(static_cast<__mmask8>(m), values));
   return n + static_cast<unsigned>(__builtin_popcount(m));
 }
+// append_lanes<8> for a full step without its early exit, which mispredicts where steps keep
+// points about as often as not: the kept indices (i + each set bit of the point-order mask m,
+// ascending) compressed into one register and stored whole at out[n, n + 8). Needs n <= i and
+// i + 8 <= the point count (out's room).
 __attribute__((target("avx512f,avx512vl,avx2,fma"), always_inline)) inline unsigned store_kept8(
     unsigned m, unsigned i, std::uint32_t* out, unsigned n) {
   return store_kept8_of(
