@@ -3,17 +3,23 @@
 // layout and capacity: the same tree) on the same rays, interleaved in rounds
 // (the first contender rotating), median of the rounds. Every index file is checked to return the
 // octree's hits bit for bit (index, t, distance). Queries: the renderer's first hit (sphere_hit,
-// k = 1, r = the stored median spacing) and kNN to the ray (order ray, k = 8, r = 4 x spacing).
-// Rays: from 200 m above the site's box to uniform points of the box (seeded). One thread; the
+// k = 1, r = the stored median spacing) on rays from 200 m above the site's box to uniform points
+// of the box and on bounce-like rays (from 4 spacings above a stored point, directions uniform
+// over the sphere above z = -0.3), kNN to the ray (order ray, k = 8, r = 4 x spacing) on the
+// first rays, and kNN of points (k = 8) at stored points moved by up to a spacing (all seeded). One thread; the
 // thread's CPU time is reported (on the shared machine wall time mostly measures preemption).
-// Page cache: the files are read once before the first round (warm). bench/README.md.
+// Page cache: the files are read once before the first round (warm). --entry-ab: each file also
+// without the first hit's entry-point search (set_entry_point_search(false) around its runs).
+// bench/README.md.
 #include "bench_cli.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/octree/octree.hpp"
+#include "rayscan/octree/point_query.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <random>
@@ -38,6 +44,19 @@ double run(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, std::v
   return thread_cpu() - t0;
 }
 
+/// kNN of each point (k = q.k), its neighbours kept as hits (index and distance; t 0, so `same`
+/// compares them).
+template <class I>
+double run_points(const I& idx, const std::vector<Vec3>& points, const RayQuery& q, std::vector<std::vector<RayHit>>& out) {
+  out.resize(points.size());
+  const double t0 = thread_cpu();
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    out[i].clear();
+    for (const auto& nb : knn(idx, points[i], q.k)) out[i].push_back({nb.index, 0, 0.0, nb.distance, nb.distance});
+  }
+  return thread_cpu() - t0;
+}
+
 bool same(const std::vector<std::vector<RayHit>>& a, const std::vector<std::vector<RayHit>>& b) {
   if (a.size() != b.size()) return false;
   for (std::size_t i = 0; i < a.size(); ++i) {
@@ -56,9 +75,11 @@ int main(int argc, char** argv) {
   std::vector<std::string> files;
   std::size_t nrays = 100000;
   int rounds = 5;
+  bool entry_ab = false;
   app.add_option("SITE", files, "index files (.rsi) of the same points; the first gives the octree")->required();
   app.add_option("--rays", nrays, "rays per query type")->capture_default_str();
-  app.add_option("--rounds", rounds, "interleaved rounds")->capture_default_str();
+  app.add_option("--rounds", rounds, "interleaved rounds")->capture_default_str()->check(CLI::Range(1, 1000));
+  app.add_flag("--entry-ab", entry_ab, "each file also without the entry-point search (its grid built at open)");
   rayscan::bench::parse_or_exit(app, argc, argv);
   try {
 
@@ -88,21 +109,57 @@ int main(int argc, char** argv) {
       rays.emplace_back(o, t - o);
     }
     const double sp = m0.median_nn_spacing();
+    std::vector<Ray> bounces;
+    std::vector<Vec3> points;
+    for (std::size_t i = 0; i < nrays; ++i) {
+      const Vec3 p = m0.positions()[static_cast<std::size_t>(u(rng) * static_cast<double>(m0.positions().size() - 1))];
+      const double z = u(rng) * 1.3 - 0.3, phi = 6.283185307179586 * u(rng), s = std::sqrt(1.0 - z * z);
+      bounces.emplace_back(p + Vec3(0.0, 0.0, 4.0 * sp), Vec3(s * std::cos(phi), s * std::sin(phi), z));
+      points.push_back(p + sp * Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5));
+    }
     struct QueryKind {
       const char* name;
       RayQuery q;
+      const std::vector<Ray>* rays;  // null: kNN of `points`
     };
-    std::vector<QueryKind> kinds(2);
-    kinds[0].name = "first hit (sphere_hit, k=1)";
-    kinds[0].q.order = RayOrder::sphere_hit;
-    kinds[0].q.k = 1;
-    kinds[0].q.radius = sp;
-    kinds[1].name = "kNN to the ray (k=8)";
-    kinds[1].q.order = RayOrder::ray;
-    kinds[1].q.k = 8;
-    kinds[1].q.radius = 4 * sp;
+    std::vector<QueryKind> kinds(4);
+    kinds[0].name = "first hit (sphere_hit, k=1), rays from above";
+    kinds[1].name = "first hit (sphere_hit, k=1), bounce-like rays";
+    for (int k = 0; k < 2; ++k) {
+      kinds[k].q.order = RayOrder::sphere_hit;
+      kinds[k].q.k = 1;
+      kinds[k].q.radius = sp;
+    }
+    kinds[0].rays = &rays;
+    kinds[1].rays = &bounces;
+    kinds[2].name = "kNN to the ray (k=8)";
+    kinds[2].q.order = RayOrder::ray;
+    kinds[2].q.k = 8;
+    kinds[2].q.radius = 4 * sp;
+    kinds[2].rays = &rays;
+    kinds[3].name = "kNN of points (k=8)";
+    kinds[3].q.k = 8;
+    kinds[3].q.radius = kInf;  // (no radius: the 8 nearest)
+    kinds[3].rays = nullptr;
 
-    const std::size_t nc = 1 + maps.size();  // contender 0: the in-memory octree
+    // Contender 0: the in-memory octree; 1..F: the files; with --entry-ab, F+1..2F: the files
+    // without the entry-point search.
+    const std::size_t nf = maps.size(), nc = 1 + (entry_ab ? 2 : 1) * nf;
+    auto label = [&](std::size_t c) {
+      if (c == 0) return std::string("in-memory octree");
+      const std::size_t f = (c - 1) % nf;
+      return files[f] + " (" + to_string(maps[f].position_encoding()) + (c > nf ? ", no entry search)" : ")");
+    };
+    auto run_on = [&](const auto& idx, const QueryKind& kind, std::vector<std::vector<RayHit>>& out) {
+      return kind.rays ? run(idx, *kind.rays, kind.q, out) : run_points(idx, points, kind.q, out);
+    };
+    auto run_contender = [&](std::size_t c, const QueryKind& kind, std::vector<std::vector<RayHit>>& out) {
+      if (c == 0) return run_on(tree, kind, out);
+      set_entry_point_search(c <= nf);
+      const double t = run_on(maps[(c - 1) % nf], kind, out);
+      set_entry_point_search(true);
+      return t;
+    };
     for (const QueryKind& kind : kinds) {
       std::vector<std::vector<double>> secs(nc);
       std::vector<std::vector<std::vector<RayHit>>> hits(nc);
@@ -110,10 +167,11 @@ int main(int argc, char** argv) {
       for (int r = 0; r < rounds; ++r)
         for (std::size_t j = 0; j < nc; ++j) {
           const std::size_t c = (j + static_cast<std::size_t>(r)) % nc;
-          secs[c].push_back(c == 0 ? run(tree, rays, kind.q, hits[c]) : run(maps[c - 1], rays, kind.q, hits[c]));
+          secs[c].push_back(run_contender(c, kind, hits[c]));
           if (c != 0 && !hits[0].empty()) equal = equal && same(hits[c], hits[0]);
         }
-      std::printf("%s, %zu rays, %d rounds, radius %.4g: hits equal to the octree's: %s\n", kind.name, rays.size(), rounds,
+      const std::size_t nq = kind.rays ? kind.rays->size() : points.size();
+      std::printf("%s, %zu queries, %d rounds, radius %.4g: hits equal to the octree's: %s\n", kind.name, nq, rounds,
                   kind.q.radius, equal ? "yes" : "NO");
       std::vector<double> med(nc);
       for (std::size_t c = 0; c < nc; ++c) {
@@ -121,9 +179,9 @@ int main(int argc, char** argv) {
         med[c] = secs[c][secs[c].size() / 2];
       }
       for (std::size_t c = 0; c < nc; ++c)
-        std::printf("  %-40s %10.0f rays/s  (median %.3f s CPU; min %.3f, max %.3f)  %.3fx the octree\n",
-                    c == 0 ? "in-memory octree" : (files[c - 1] + " (" + to_string(maps[c - 1].position_encoding()) + ")").c_str(),
-                    static_cast<double>(rays.size()) / med[c], med[c], secs[c].front(), secs[c].back(), med[0] / med[c]);
+        std::printf("  %-40s %10.0f queries/s  (median %.3f s CPU; min %.3f, max %.3f)  %.3fx the octree\n",
+                    label(c).c_str(),
+                    static_cast<double>(nq) / med[c], med[c], secs[c].front(), secs[c].back(), med[0] / med[c]);
     }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "bench_index_rays: %s\n", e.what());

@@ -4,6 +4,7 @@
 // in-memory octree and the brute-force oracle. Bad files: truncated, corrupted, wrong version,
 // changed source, each a one-line IndexError naming the file.
 #include "io_test_util.hpp"
+#include "../common/entry_search_guard.hpp"
 
 #include "rayscan/octree/batch.hpp"
 #include "rayscan/octree/brute_force.hpp"
@@ -155,6 +156,18 @@ void expect_same_tree(const io::MappedIndex& m, const Octree& t) {
   }
   EXPECT_TRUE(m.float_origin() == t.float_origin());
   EXPECT_EQ(m.float_extent(), t.float_extent());
+  // The entry grids (the entry-point search): built at open from the records, the octree's cells.
+  const EntryGrid gm = m.entry_grid(), gt = t.entry_grid();
+  ASSERT_EQ(gm.depth, gt.depth);
+  ASSERT_EQ(gm.cells == nullptr, gt.cells == nullptr);
+  EXPECT_TRUE(gm.quant.lo == gt.quant.lo);
+  EXPECT_EQ(gm.quant.scale, gt.quant.scale);
+  EXPECT_EQ(gm.side, gt.side);
+  if (gt.cells != nullptr)
+    for (std::size_t c = 0; c < EntryGrid::slot(gt.depth + 1, 0, 0, 0); ++c) {
+      ASSERT_EQ(gm.cells[c].node, gt.cells[c].node) << "cell " << c;
+      ASSERT_EQ(gm.cells[c].depth, gt.cells[c].depth) << "cell " << c;
+    }
   ASSERT_EQ(m.positions().size(), t.positions().size());
   for (std::size_t i = 0; i < t.positions().size(); ++i) {  // decoded bit for bit
     const Vec3 a = m.positions()[i];
@@ -242,6 +255,35 @@ TEST_P(IndexFile, ExternalBuildEqualsInMemoryOctreeAndQueriesEqualBruteForce) {
     }
   }
   EXPECT_GT(hits, 500u);  // the comparison is not vacuous
+  {
+    // First hits: the file's entry grid (built at open) starts them at the node of the cell where
+    // each ray enters; the same answers as without it and as brute force, with fewer nodes.
+    RayQuery q;
+    q.order = RayOrder::sphere_hit;
+    q.radius = 0.5;
+    q.k = 1;
+    const EntrySearchGuard guard;
+    RayQueryStats on, off;
+    std::size_t first_hits = 0;
+    for (std::size_t i = 0; i < rays.size(); ++i) {
+      set_entry_point_search(true);
+      const auto a = ray_first_hit(m, rays[i], q, &on);
+      set_entry_point_search(false);
+      const auto b = ray_first_hit(m, rays[i], q, &off);
+      const auto c = ray_first_hit(bf, rays[i], q);
+      ASSERT_EQ(a.has_value(), c.has_value()) << "ray " << i;
+      ASSERT_EQ(b.has_value(), c.has_value()) << "ray " << i;
+      if (!c) continue;
+      ++first_hits;
+      EXPECT_TRUE(a->index == c->index && a->t == c->t) << "ray " << i;
+      EXPECT_TRUE(b->index == c->index && b->t == c->t) << "ray " << i;
+    }
+    EXPECT_GT(first_hits, 10u);  // (about a third of the 60 rays hit a sphere)
+    if (cfg.layout == OctreeLayout::adaptive) {  // (the fixed layout's 5 levels: the grid is 4 deep)
+      ASSERT_NE(m.entry_grid().cells, nullptr);
+      EXPECT_LT(on.nodes_visited, off.nodes_visited);
+    }
+  }
   for (int i = 0; i < 40; ++i) {
     const Vec3 q = order[static_cast<std::size_t>(i) * 613 % order.size()] + Vec3(0.01 * u(rng));
     const auto a = knn(m, q, 10), b = knn(bf, q, 10);

@@ -4,6 +4,7 @@
 
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/octree/ray_query.hpp"
+#include "../common/entry_search_guard.hpp"
 
 #include <gtest/gtest.h>
 
@@ -149,15 +150,6 @@ inline void expect_same_answer(const std::optional<RayHit>& got, const std::opti
   EXPECT_EQ(got->distance, one->distance) << ctx;
   EXPECT_EQ(got->key, one->key) << ctx;
 }
-
-/// Turns the entry-point search (set_entry_point_search) back on, its default, at the end of a
-/// scope that switches it.
-struct EntrySearchGuard {
-  EntrySearchGuard() = default;
-  ~EntrySearchGuard() { set_entry_point_search(true); }
-  EntrySearchGuard(const EntrySearchGuard&) = delete;
-  EntrySearchGuard& operator=(const EntrySearchGuard&) = delete;
-};
 
 /// Sets interleaved_pairs() for a scope and restores the value before it: tests of the pairs
 /// (ray_first_hit_each) force them on, as the CPU's default may be single rays.

@@ -567,45 +567,8 @@ void Octree::build_child_blocks() {
     }
   });
 
-  // The entry grids: the top gd levels walked from the root, each node's cells written on every
-  // level from its own depth down after its parent's, so the deepest node of each grid cell is the
-  // one left there. None when a node above the grid's depth holds points of its own (the layered
-  // layout): then a grid cell's node would not hold every point of its cell, which the
-  // entry-point search relies on.
-  entry_cells_.clear();
-  entry_depth_ = 0;
-  if (depth_ <= 1 || n == 0) return;
-  // Not finer than the tree: at most 8 grid cells per node at the deepest level, so that a small
-  // tree (a tile's, a notebook's) does not carry the whole 293 KB.
-  unsigned gd = std::min(depth_ - 1, kEntryGridMaxDepth);
-  while (gd > 1 && (std::size_t{1} << (3 * gd)) > 8 * n) --gd;
-  entry_depth_ = gd;
-  entry_cells_.assign(((std::size_t{1} << (3 * (gd + 1))) - 1) / 7, EntryCell{root(), 0});
-  std::vector<Node> stack{root()};
-  while (!stack.empty()) {
-    const Node nd = stack.back();
-    stack.pop_back();
-    const OctreeNodeId id = node_id(nd);
-    const unsigned d = id.depth();
-    const std::uint64_t m = id.morton();
-    for (unsigned l = d; l <= gd; ++l) {
-      const unsigned sh = l - d, w = 1u << sh;
-      const auto i0 = static_cast<unsigned>(morton_compact(m)) << sh;
-      const auto j0 = static_cast<unsigned>(morton_compact(m >> 1)) << sh;
-      const auto k0 = static_cast<unsigned>(morton_compact(m >> 2)) << sh;
-      for (unsigned k = k0; k < k0 + w; ++k)
-        for (unsigned j = j0; j < j0 + w; ++j)
-          for (unsigned i = i0; i < i0 + w; ++i) entry_cells_[EntryGrid::slot(l, i, j, k)] = {nd, d};
-    }
-    if (d < gd && child_count(nd) != 0) {
-      if (node_points(nd).size() != 0) {
-        entry_cells_.clear();
-        entry_depth_ = 0;
-        return;
-      }
-      for (unsigned c = 0; c < child_count(nd); ++c) stack.push_back(child(nd, c));
-    }
-  }
+  // The entry grids (entry_grid.hpp), from the node ids' octant digits.
+  entry_ = build_entry_grid(*this, depth_, n, [&](Node c) { return static_cast<unsigned>(nodes_[c].key & 7u); });
 }
 
 std::optional<Octree::Node> Octree::find(OctreeNodeId id) const {
@@ -651,7 +614,7 @@ AABB Octree::cell_bounds(Node n) const {
 std::size_t Octree::memory_bytes() const {
   return pos_.capacity() * sizeof(Vec3) + ids_.capacity() * sizeof(PointIndex) +
          nodes_.capacity() * sizeof(NodeRec) + child_soa_.capacity() * sizeof(float) +
-         block_of_.capacity() * sizeof(std::uint32_t) + entry_cells_.capacity() * sizeof(EntryCell);
+         block_of_.capacity() * sizeof(std::uint32_t) + entry_.cells.capacity() * sizeof(EntryCell);
 }
 
 bool Octree::same_structure(const Octree& o) const {

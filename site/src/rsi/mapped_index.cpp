@@ -395,6 +395,11 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   // reads outside the mapping.
   if (opt.verify != IndexOpenOptions::Verify::metadata_only) x.verify_nodes(by_id[kNodes]->offset);
   if (verify_all) x.check_ids();
+  // The entry grids from the top levels' records (the pass above has just read them; after a
+  // metadata_only open, at most 37,449 records are faulted in). The accessors' checks hold here
+  // too, so the walk stays inside the nodes section on any records.
+  x.side_ = OctreeRules::root_side(x.bounds_);
+  x.entry_ = build_entry_grid(x, x.depth_, x.node_count_, [&](Node c) { return x.node_octant(c); });
 
   x.sources_ = read_sources(std::string_view(reinterpret_cast<const char*>(at(kSources)), by_id[kSources]->size),
                             by_id[kSources]->offset, x.points_, fail);

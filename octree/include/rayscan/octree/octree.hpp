@@ -3,7 +3,9 @@
 #pragma once
 
 #include "rayscan/base/default_init_vector.hpp"
+#include "rayscan/octree/entry_grid.hpp"
 #include "rayscan/octree/morton.hpp"
+#include "rayscan/octree/octree_rules.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 #include "rayscan/octree/simd.hpp"
 #include "rayscan/octree/spatial_index.hpp"
@@ -18,91 +20,6 @@
 #include <vector>
 
 namespace rayscan {
-
-/// Data organisation of an octree (paper section 4.1).
-enum class OctreeLayout {
-  layered,   ///< every node keeps up to `capacity` points (the first inserted, i.e. the smallest
-             ///< original indices) and passes the rest down: each level is a subsample (LOD)
-  fixed,     ///< all points in the leaves at depth `depth`: a regular grid
-  adaptive   ///< a leaf splits when it holds more than `capacity` points, up to `max_depth`
-};
-
-/// Parses "layered" | "fixed" | "adaptive"; throws std::invalid_argument otherwise.
-OctreeLayout parse_octree_layout(const std::string& s);
-/// The name parse_octree_layout accepts.
-const char* to_string(OctreeLayout layout);
-
-/// The node capacity (points) of a layout when none is given: the one default of OctreeConfig,
-/// IndexOptions, scene files, `rayscan index` / `rayscan query` and the Python Octree.
-/// - adaptive: 64 points per leaf. Measured against 32 (bench/notes/):
-///   first sphere hits 1.05-1.6x faster on uniform clouds of 1e6 and 1e7 points (32 leaves cells of
-///   ~31 points split into eight leaves of ~4), renders of the bundled Autzen scan 2-11% faster,
-///   fewer node records.
-/// - layered: 32 points per node, the paper's Table 1 configuration (64 measured ~10% slower for
-///   first hits, as every node's points are tested on the way down).
-/// - fixed: unused (every point sits in a leaf at `depth`); 64, as adaptive.
-[[nodiscard]] constexpr std::uint32_t default_capacity(OctreeLayout layout) {
-  return layout == OctreeLayout::layered ? 32u : 64u;
-}
-
-/// Octree build parameters. The default capacity is the default layout's; a caller that sets
-/// another layout takes default_capacity(layout) (or for_layout) for its capacity.
-struct OctreeConfig {
-  OctreeLayout layout = OctreeLayout::adaptive;
-  std::uint32_t capacity = default_capacity(OctreeLayout::adaptive);  ///< points per node (layered) / per leaf before a split (adaptive)
-  unsigned max_depth = 21;      ///< deepest level for layered and adaptive (<= 21)
-  unsigned depth = 6;           ///< leaf depth for fixed (<= 21)
-  /// Throws std::invalid_argument for capacity 0 or a depth above 21.
-  void validate() const;
-  /// The defaults of `layout`: its default_capacity, max_depth 21, depth 6.
-  [[nodiscard]] static OctreeConfig for_layout(OctreeLayout layout) {
-    OctreeConfig c;
-    c.layout = layout;
-    c.capacity = default_capacity(layout);
-    return c;
-  }
-};
-
-/// The construction rules every builder of the octree shares, defined once: the in-memory builders
-/// below and the external-memory index file build (rayscan/site/index_file.hpp) call these, so
-/// their trees are identical node for node.
-struct OctreeRules {
-  /// The root cell of points whose bounding box is `bounds`: the cube of edge max_extent grown by
-  /// 1e-9 relative (edge 1 for a single point or an empty box) anchored at bounds.lo.
-  static AABB root_cell(const AABB& bounds);
-  /// The edge length of root_cell(bounds) as computed before adding it to the corner.
-  static double root_side(const AABB& bounds);
-  /// Quantises positions to the 2^21 cells per axis of a root cell and returns their 63-bit
-  /// Morton code (coordinates are truncated; outside points clamp to the border cells).
-  struct Quantizer {
-    Vec3 lo;
-    double scale;  ///< cells per world unit
-    /// Cells of the root cell with corner `lo` and edge `side` (root_side()).
-    Quantizer(const Vec3& lo, double side);
-    /// The cell in [0, 2^21) of coordinate v on axis a (0 x, 1 y, 2 z): truncated, clamped to the
-    /// border cells (NaN: 0).
-    [[nodiscard]] std::uint32_t cell(double v, unsigned a) const {
-      constexpr std::uint32_t kCells = 1u << kMortonBits;
-      const double f = (v - lo[a]) * scale;  // truncation == floor for f >= 0
-      if (!(f >= 0.0)) return 0;
-      if (f >= kCells - 1) return kCells - 1;
-      return static_cast<std::uint32_t>(f);
-    }
-    [[nodiscard]] std::uint64_t code(const Vec3& p) const {
-      return morton_encode(cell(p.x, 0), cell(p.y, 1), cell(p.z, 2));
-    }
-  };
-  /// Whether a node at `depth` holding `count` points (all with one Morton code when `all_same`)
-  /// is split (layout rules of paper section 4.1; the adaptive duplicate guard).
-  static bool splits(const OctreeConfig& c, unsigned depth, std::size_t count, bool all_same);
-  /// A float bound strictly below (up = false) or above (up = true) the double offset `off`
-  /// from the root cell corner, so that a stored float box always contains the points.
-  static float float_bound(double off, bool up);
-  /// Octant digit of a 63-bit Morton code when descending from `depth` to depth + 1.
-  static unsigned octant(std::uint64_t code, unsigned depth) {
-    return static_cast<unsigned>((code >> (3 * (kMortonBits - depth - 1))) & 7u);
-  }
-};
 
 /// An octree index satisfying SpatialIndex.
 ///
@@ -183,50 +100,14 @@ class Octree {
   [[nodiscard]] const Vec3& float_origin() const { return cell_.lo; }
   [[nodiscard]] double float_extent() const { return cell_.max_extent(); }
 
-  /// One cell of an entry grid: the deepest node whose cell contains the grid cell, and its depth
-  /// (node_id(node).depth(), kept here so that the search reads one cache line, not the node's).
-  struct EntryCell {
-    Node node;
-    std::uint32_t depth;
-  };
-  /// The entry grids (entry-point search: a ray starts at the node of the cell where it enters
-  /// instead of at the root; Havran's thesis, section 5.3, and the entry points of Reshetov,
-  /// Soupikov & Hurley, "Multi-level ray tracing algorithm", SIGGRAPH 2005): for each level l in
-  /// [0, depth], the 2^l cells per axis of the root cell at depth l, cell (i, j, k) of level l at
-  /// at(l, i, j, k). Every point inside a grid cell's node's cell is in that node's subtree. Depth 0
-  /// (cells == nullptr) where the tree has none: a tree of depth <= 1, or nodes above the grid's
-  /// depth with points of their own (the layered layout: a subtree there does not hold every point
-  /// of its cell).
-  struct EntryGrid {
-    const EntryCell* cells;  ///< the levels 0..depth one after the other (slot())
-    unsigned depth;
-    OctreeRules::Quantizer quant;  ///< the points' quantizer (Octree::quantizer())
-    double side;                   ///< its root edge (OctreeRules::root_side), world units
-    /// The position of cell (i, j, k) of level l in `cells`: levels 0..l-1 before it, then
-    /// i + 2^l j + 4^l k.
-    [[nodiscard]] static std::size_t slot(unsigned l, unsigned i, unsigned j, unsigned k) {
-      return ((std::size_t{1} << (3 * l)) - 1) / 7 + i + (std::size_t{j} << l) + (std::size_t{k} << (2 * l));
-    }
-    /// Cell (i, j, k) of level l <= depth (each index < 2^l).
-    [[nodiscard]] const EntryCell& at(unsigned l, unsigned i, unsigned j, unsigned k) const {
-      return cells[slot(l, i, j, k)];
-    }
-    /// The deepest level's cell index of coordinate v on axis a: the top `depth` bits of its
-    /// Morton cell (Quantizer::cell), so the cell a point of that coordinate was sorted into.
-    [[nodiscard]] unsigned coord(double v, unsigned a) const { return quant.cell(v, a) >> (kMortonBits - depth); }
-    /// The deepest level whose cells hold deepest-level cell indices that differ in the bits
-    /// `diff` (their XOR; OR-ed over the axes for a box): depth - bit_width(diff), depth for 0.
-    [[nodiscard]] unsigned shared_level(unsigned diff) const {
-      return depth - std::min(depth, static_cast<unsigned>(std::bit_width(diff)));
-    }
-  };
-  /// The deepest entry grid: 2^15 cells of 8 bytes (with the coarser levels 293 KB, within a
-  /// core's L2).
-  static constexpr unsigned kEntryGridMaxDepth = 5;
-  /// The entry grids, built with the tree, down to depth min(depth() - 1, kEntryGridMaxDepth): one
-  /// level above the deepest leaves (bench/notes/), and no deeper than 8 cells per node.
+  /// The entry grid's types (entry_grid.hpp), as members of the index that has them.
+  using EntryCell = rayscan::EntryCell;
+  using EntryGrid = rayscan::EntryGrid;
+  static constexpr unsigned kEntryGridMaxDepth = rayscan::kEntryGridMaxDepth;
+  /// The entry grids (EntryGrid), built with the tree by build_entry_grid: down to depth
+  /// min(depth() - 1, kEntryGridMaxDepth), no deeper than 8 cells per node.
   [[nodiscard]] EntryGrid entry_grid() const {
-    return {entry_cells_.empty() ? nullptr : entry_cells_.data(), entry_depth_, quantizer(), side_};
+    return {entry_.cells.empty() ? nullptr : entry_.cells.data(), entry_.depth, quantizer(), side_};
   }
   // Octree specifics ---------------------------------------------------------------------------
   /// The Warren & Salmon id (depth + Morton code) of node n.
@@ -291,8 +172,7 @@ class Octree {
   DefaultInitVector<PointIndex> ids_;
   DefaultInitVector<float> child_soa_;          // child blocks (child_boxes_f's soa)
   DefaultInitVector<std::uint32_t> block_of_;  // node -> its child block (interior nodes)
-  DefaultInitVector<EntryCell> entry_cells_;  // entry_grid()
-  unsigned entry_depth_ = 0;
+  EntryCells entry_;  // entry_grid()
   std::unique_ptr<LevelMaps> levels_;  // lazily filled per level
   /// Fills child_soa_ and block_of_ from the node records, then the entry grid (the builders'
   /// last step).

@@ -67,7 +67,7 @@ template <SpatialIndex I>
                                                   RayQueryStats* stats = nullptr);
 
 /// Turns the first hits' entry-point search on or off for the whole process (default on): on an
-/// index with an entry grid (Octree::entry_grid), the first hits of orders time and sphere_hit
+/// index with an entry grid (Octree and MappedIndex: entry_grid), the first hits of orders time and sphere_hit
 /// without planes (ray_first_hit, ray_first_hit_each, ray_query with k = 1) start a ray at the node
 /// of the grid cell where it enters and go up only as far as a point outside that cell could still
 /// be hit first (Havran's entry-point search). Answers are the same either way (with q.any_hit,

@@ -6,6 +6,7 @@
 #pragma once
 
 #include "rayscan/io/point_reader.hpp"
+#include "rayscan/octree/entry_grid.hpp"
 #include "rayscan/octree/id_view.hpp"
 #include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/rgb_view.hpp"
@@ -239,6 +240,14 @@ class MappedIndex {
   [[nodiscard]] const Vec3& float_origin() const { return cell_.lo; }
   /// See float_origin().
   [[nodiscard]] double float_extent() const { return cell_.max_extent(); }
+  /// The entry grids of the tree (EntryGrid: the first hit's and the kNN's entry-point search, as
+  /// on Octree), built at open from the node records of its top levels (build_entry_grid) and the
+  /// quantizer of the build (the root cell's corner, OctreeRules::root_side of the stored point
+  /// bounds): the same cells as Octree::entry_grid of the same points. None (cells null) for a
+  /// tree of depth <= 1.
+  [[nodiscard]] EntryGrid entry_grid() const {
+    return {entry_.cells.empty() ? nullptr : entry_.cells.data(), entry_.depth, OctreeRules::Quantizer(cell_.lo, side_), side_};
+  }
   /// Positions by slot, decoded from the file's encoding (float64 in place, float32 or the LAS
   /// int32 grid: docs/index-format.md "Positions"), bit-identical to the sources' readers.
   [[nodiscard]] PositionView positions() const { return positions_; }
@@ -329,6 +338,8 @@ class MappedIndex {
   std::size_t points_ = 0, node_count_ = 0;
   double spacing_ = 0.0;
   AABB bounds_;
+  double side_ = 1.0;  ///< the build's quantizer edge: OctreeRules::root_side(bounds_)
+  EntryCells entry_;   ///< entry_grid()
   bool verified_ = false;
   std::vector<IndexSectionInfo> sections_;
   const IndexNodeRecord* nodes_ = nullptr;

@@ -49,7 +49,7 @@ static_assert(sizeof(NodeEntry<std::uint32_t>) == 16 && offsetof(NodeEntry<std::
 template <class I>
 concept ContiguousChildren32 = sizeof(typename I::Node) == 4 && requires { requires I::kContiguousChildren; };
 
-/// Indexes with an entry grid (Octree::entry_grid(): cells, depth, at, coord, side): the first
+/// Indexes with an entry grid (entry_grid(): an EntryGrid, on Octree and MappedIndex): the first
 /// hit starts at the node of the cell where the ray enters (RayTraversal::entry_node, entry_final).
 template <class I>
 concept EntryGridIndex = requires(const I& idx) {

@@ -281,7 +281,7 @@ struct RayTraversal {
   }
 
   /// Entry-point search, first part (after prepare): the node of the deepest entry grid's cell
-  /// (Octree::EntryGrid) where the ray enters the root's box grown by the radius, when the ray
+  /// (EntryGrid) where the ray enters the root's box grown by the radius, when the ray
   /// passes its node test (n and its bound lb); false: none, the traversal starts at the root.
   /// The node's subtree is traversed first (traverse_from or steps from begin_at), then
   /// entry_final says whether its first hit is final or where to go on: so most rays skip the

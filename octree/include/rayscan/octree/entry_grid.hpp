@@ -1,0 +1,118 @@
+// The entry grids of an octree (the first hit's and the kNN's entry-point search): which node
+// holds each cell of the top levels' regular grids, built the one way for every octree storage
+// (the in-memory Octree, the mapped index file).
+#pragma once
+
+#include "rayscan/octree/morton.hpp"
+#include "rayscan/octree/octree_rules.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace rayscan {
+
+/// One cell of an entry grid: the deepest node whose cell contains the grid cell, and its depth
+/// (the node's Warren & Salmon depth, kept here so that the search reads one cache line, not the
+/// node's).
+struct EntryCell {
+  std::uint32_t node;
+  std::uint32_t depth;
+};
+
+/// The entry grids of an octree (entry-point search: a ray starts at the node of the cell where it
+/// enters instead of at the root; Havran's thesis, section 5.3, and the entry points of Reshetov,
+/// Soupikov & Hurley, "Multi-level ray tracing algorithm", SIGGRAPH 2005): for each level l in
+/// [0, depth], the 2^l cells per axis of the root cell at depth l, cell (i, j, k) of level l at
+/// at(l, i, j, k). Every point inside a grid cell's node's cell is in that node's subtree. Depth 0
+/// (cells == nullptr) where the tree has none: a tree of depth <= 1, or nodes above the grid's
+/// depth with points of their own (the layered layout: a subtree there does not hold every point
+/// of its cell). A view: the cells belong to the index.
+struct EntryGrid {
+  const EntryCell* cells;  ///< the levels 0..depth one after the other (slot())
+  unsigned depth;
+  OctreeRules::Quantizer quant;  ///< the quantizer the points were sorted into cells with
+  double side;                   ///< its root edge (OctreeRules::root_side), world units
+  /// The position of cell (i, j, k) of level l in `cells`: levels 0..l-1 before it, then
+  /// i + 2^l j + 4^l k.
+  [[nodiscard]] static std::size_t slot(unsigned l, unsigned i, unsigned j, unsigned k) {
+    return ((std::size_t{1} << (3 * l)) - 1) / 7 + i + (std::size_t{j} << l) + (std::size_t{k} << (2 * l));
+  }
+  /// Cell (i, j, k) of level l <= depth (each index < 2^l).
+  [[nodiscard]] const EntryCell& at(unsigned l, unsigned i, unsigned j, unsigned k) const {
+    return cells[slot(l, i, j, k)];
+  }
+  /// The deepest level's cell index of coordinate v on axis a: the top `depth` bits of its
+  /// Morton cell (Quantizer::cell), so the cell a point of that coordinate was sorted into.
+  [[nodiscard]] unsigned coord(double v, unsigned a) const { return quant.cell(v, a) >> (kMortonBits - depth); }
+  /// The deepest level whose cells hold deepest-level cell indices that differ in the bits
+  /// `diff` (their XOR; OR-ed over the axes for a box): depth - bit_width(diff), depth for 0.
+  [[nodiscard]] unsigned shared_level(unsigned diff) const {
+    return depth - std::min(depth, static_cast<unsigned>(std::bit_width(diff)));
+  }
+};
+
+/// The deepest entry grid: 2^15 cells of 8 bytes (with the coarser levels 293 KB, within a core's
+/// L2).
+inline constexpr unsigned kEntryGridMaxDepth = 5;
+
+/// The cells of an octree's entry grids (EntryGrid::cells, level after level) and their depth;
+/// empty with depth 0 where the tree has none.
+struct EntryCells {
+  std::vector<EntryCell> cells;
+  unsigned depth = 0;
+};
+
+/// The entry grids of an octree index (EntryGrid), down to depth min(tree_depth - 1,
+/// kEntryGridMaxDepth): one level above the deepest leaves, and no deeper than 8 cells per node
+/// (so that a small tree, a tile's or a notebook's, does not carry the whole 293 KB).
+/// `index`: root(), child_count(n), child(n, i) and node_points(n) of the tree (a checked
+/// accessor's answers are taken as they are: the walk only goes down, to depth at most 5, so it
+/// ends on any records); `tree_depth`: its deepest node's depth; `node_count`: its nodes;
+/// `octant_of(c)`: child c's Morton digit (0..7) in its parent's cell (paper section 4.1: a
+/// child's Warren & Salmon id is its parent's times 8 plus the digit).
+/// The top levels are walked from the root, each node's cells written on every level from its own
+/// depth down after its parent's, so the deepest node of each grid cell is the one left there.
+/// None when a node above the grid's depth holds points of its own (the layered layout): then a
+/// grid cell's node would not hold every point of its cell, which the entry-point search relies on.
+template <class I, class OctantOf>
+[[nodiscard]] EntryCells build_entry_grid(const I& index, unsigned tree_depth, std::size_t node_count,
+                                          OctantOf octant_of) {
+  if (tree_depth <= 1 || node_count == 0) return {};
+  unsigned gd = std::min(tree_depth - 1, kEntryGridMaxDepth);
+  while (gd > 1 && (std::size_t{1} << (3 * gd)) > 8 * node_count) --gd;
+  EntryCells out;
+  out.depth = gd;
+  out.cells.assign(((std::size_t{1} << (3 * (gd + 1))) - 1) / 7, EntryCell{index.root(), 0});
+  struct Item {
+    std::uint32_t node;
+    unsigned depth;
+    std::uint64_t morton;  // the node's Morton code at its depth (3 bits a level)
+  };
+  std::vector<Item> stack{{index.root(), 0, 0}};
+  while (!stack.empty()) {
+    const Item it = stack.back();
+    stack.pop_back();
+    for (unsigned l = it.depth; l <= gd; ++l) {
+      const unsigned sh = l - it.depth, w = 1u << sh;
+      const auto i0 = static_cast<unsigned>(morton_compact(it.morton)) << sh;
+      const auto j0 = static_cast<unsigned>(morton_compact(it.morton >> 1)) << sh;
+      const auto k0 = static_cast<unsigned>(morton_compact(it.morton >> 2)) << sh;
+      for (unsigned k = k0; k < k0 + w; ++k)
+        for (unsigned j = j0; j < j0 + w; ++j)
+          for (unsigned i = i0; i < i0 + w; ++i) out.cells[EntryGrid::slot(l, i, j, k)] = {it.node, it.depth};
+    }
+    if (it.depth < gd && index.child_count(it.node) != 0) {
+      if (index.node_points(it.node).size() != 0) return {};
+      for (unsigned c = 0; c < index.child_count(it.node); ++c) {
+        const std::uint32_t ch = index.child(it.node, c);
+        stack.push_back({ch, it.depth + 1, (it.morton << 3) | (octant_of(ch) & 7u)});
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace rayscan
