@@ -66,7 +66,7 @@ Runner add_index_command(CLI::App& app) {
   };
   auto o = std::make_shared<Opts>();
   sub->add_option("CLOUD", o->inputs, "input point cloud files (tiles of one site, same CRS)")->required();
-  sub->add_option("-o,--output", o->output, "index file to write (.rsi), or a COPC 1.0 file (.copc.laz; one CLOUD, "
+  sub->add_option("-o,--out,--output", o->output, "index file to write (.rsi), or a COPC 1.0 file (.copc.laz; one CLOUD, "
                                             "12 bytes per point within --memory)")->required();
   sub->add_option("--attributes", o->attributes,
                   "attributes to store besides positions: id,rgb,intensity,classification,gps_time | all | none "

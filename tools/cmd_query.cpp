@@ -113,7 +113,7 @@ Runner add_query_command(CLI::App& app) {
       ->check(CLI::Range(0, 21));
   c->add_flag("--insertion", o->index.insertion,
               "Build the octree by point insertion instead of Morton bulk loading (octrees only)");
-  c->add_option("--out", o->out, "Output CSV, a name ending in .csv (default: standard output)");
+  c->add_option("-o,--out", o->out, "Output CSV, a name ending in .csv (default: standard output)");
   c->add_option("--cache", o->cache,
                 "COPC input: bound on decoded node data kept in memory (LRU; e.g. 2G, 512M). A COPC file is "
                 "queried on its own hierarchy, decoding only the nodes the rays reach")

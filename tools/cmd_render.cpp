@@ -139,7 +139,7 @@ Runner add_render_command(CLI::App& app) {
                 "look: radius auto, colour from RGB if present else elevation, default sky and sun, and (as for a "
                 "scene without a camera) an overview camera framing the whole cloud")->required();
   c->add_option("--camera", o->camera, "Camera file (JSON), replaces the scene's camera");
-  c->add_option("--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image; a quick look of a "
+  c->add_option("-o,--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image; a quick look of a "
                 "cloud without it writes <stem>.png in the working directory");
   c->add_option("--spp", o->spp, "Samples per pixel, integer in [1, 1048576] (default: the scene's value, 16 if unset)")->check(CLI::Range(1u, 1u << 20));
   c->add_option("--seed", o->seed, "Random seed, unsigned 64-bit integer; the image is a pure function of it "

@@ -68,6 +68,29 @@ TEST(JobCli, DbImportErrorsAsBefore) {
   EXPECT_EQ(r.out, "rayscan db: --pcpatch needs --postgres CONNINFO\n");
 }
 
+// Every command that writes one output file names it with -o or --out (index also --output), as
+// its help says: `render CLOUD -o IMG.png` and `index CLOUD --out SITE.rsi` are refused no longer.
+TEST(JobCli, EveryCommandThatWritesAFileTakesDashOAndDashDashOut) {
+  for (const char* command : {"render", "query", "index", "visibility", "solar", "db import"}) {
+    const auto help = rayscan_cli(std::string(command) + " --help");
+    ASSERT_EQ(help.code, 0) << command;
+    EXPECT_NE(help.out.find("  -o,--out"), std::string::npos) << command << ":\n" << help.out;
+  }
+  const std::filesystem::path las = data_file("las/autzen_trim.las");
+  const std::filesystem::path dir = temp_dir() / "dash_o";
+  std::filesystem::create_directories(dir);
+  auto r = rayscan_cli("render " + quoted(las) + " -q --spp 1 --width 40 -o " + quoted(dir / "q.png"));
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_TRUE(std::filesystem::is_regular_file(dir / "q.png"));
+  for (const char* flag : {"-o", "--out", "--output"}) {
+    const std::filesystem::path rsi = dir / (std::string("i") + std::to_string(std::string(flag).size()) + ".rsi");
+    r = rayscan_cli("index -q " + quoted(las) + " " + flag + " " + quoted(rsi));
+    EXPECT_EQ(r.code, 0) << flag << ": " << r.out;
+    EXPECT_TRUE(std::filesystem::is_regular_file(rsi)) << flag;
+  }
+  std::filesystem::remove_all(dir);
+}
+
 // An index file works wherever a point cloud path is accepted: `render a.rsi` is the quick look of
 // its points (it was read as a scene: "invalid JSON"), and a scene whose "cloud" is the index and
 // which has no camera gets the overview camera (it was "unknown point cloud extension"). Oracle:
