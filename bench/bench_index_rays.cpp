@@ -9,8 +9,8 @@
 // first rays, and kNN of points (k = 8) at stored points moved by up to a spacing (all seeded). One thread; the
 // thread's CPU time is reported (on the shared machine wall time mostly measures preemption).
 // Page cache: the files are read once before the first round (warm). --entry-ab: each file also
-// without the first hit's entry-point search (set_entry_point_search(false) around its runs).
-// bench/README.md.
+// with the entry-point search forced on first hits (EntryPointSearch::always) and without it (off:
+// first hits and point kNN from the root), set around its runs. bench/README.md.
 #include "bench_cli.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/octree/octree.hpp"
@@ -79,7 +79,8 @@ int main(int argc, char** argv) {
   app.add_option("SITE", files, "index files (.rsi) of the same points; the first gives the octree")->required();
   app.add_option("--rays", nrays, "rays per query type")->capture_default_str();
   app.add_option("--rounds", rounds, "interleaved rounds")->capture_default_str()->check(CLI::Range(1, 1000));
-  app.add_flag("--entry-ab", entry_ab, "each file also without the entry-point search (its grid built at open)");
+  app.add_flag("--entry-ab", entry_ab,
+               "each file also with the entry-point search forced on first hits, and without the search");
   rayscan::bench::parse_or_exit(app, argc, argv);
   try {
 
@@ -142,22 +143,27 @@ int main(int argc, char** argv) {
     kinds[3].q.radius = kInf;  // (no radius: the 8 nearest)
     kinds[3].rays = nullptr;
 
-    // Contender 0: the in-memory octree; 1..F: the files; with --entry-ab, F+1..2F: the files
-    // without the entry-point search.
-    const std::size_t nf = maps.size(), nc = 1 + (entry_ab ? 2 : 1) * nf;
+    // Contender 0: the in-memory octree; 1..F: the files (the default search); with --entry-ab,
+    // F+1..2F: the files with the search forced on first hits, 2F+1..3F: without the search.
+    const std::size_t nf = maps.size(), nc = 1 + (entry_ab ? 3 : 1) * nf;
+    auto mode_of = [&](std::size_t c) {
+      return c <= nf ? EntryPointSearch::automatic : c <= 2 * nf ? EntryPointSearch::always : EntryPointSearch::off;
+    };
     auto label = [&](std::size_t c) {
       if (c == 0) return std::string("in-memory octree");
       const std::size_t f = (c - 1) % nf;
-      return files[f] + " (" + to_string(maps[f].position_encoding()) + (c > nf ? ", no entry search)" : ")");
+      const EntryPointSearch e = mode_of(c);
+      return files[f] + " (" + to_string(maps[f].position_encoding()) +
+             (e == EntryPointSearch::always ? ", entry search always)" : e == EntryPointSearch::off ? ", no entry search)" : ")");
     };
     auto run_on = [&](const auto& idx, const QueryKind& kind, std::vector<std::vector<RayHit>>& out) {
       return kind.rays ? run(idx, *kind.rays, kind.q, out) : run_points(idx, points, kind.q, out);
     };
     auto run_contender = [&](std::size_t c, const QueryKind& kind, std::vector<std::vector<RayHit>>& out) {
       if (c == 0) return run_on(tree, kind, out);
-      set_entry_point_search(c <= nf);
+      set_entry_point_search(mode_of(c));
       const double t = run_on(maps[(c - 1) % nf], kind, out);
-      set_entry_point_search(true);
+      set_entry_point_search(EntryPointSearch::automatic);
       return t;
     };
     for (const QueryKind& kind : kinds) {

@@ -12,8 +12,8 @@
 //   default), single rays (off), or both, alternating in each of R rounds (default 1) of the same
 //   process, with the two images compared byte by byte and queries/s per thread by wall clock and
 //   by process CPU time (the fair figure on a loaded machine) for each render. --entry-search: the
-//   first hits' entry-point search (rayscan::set_entry_point_search) on (the default), off, or
-//   both, the same way (each combination with --packets once per round; every image must equal the
+//   entry-point search (rayscan::set_entry_point_search) on (EntryPointSearch::automatic, the
+//   default: kNN, and first hits where the grid is for them), off, or both, the same way (each combination with --packets once per round; every image must equal the
 //   first byte for byte). --pairs: the bounce and shadow rays' ray_first_hit_each in interleaved
 //   pairs (rayscan::set_interleaved_pairs) on, off, or both, likewise; by default this CPU's
 //   default (rayscan::interleaved_pairs_default: on for Zen 5).

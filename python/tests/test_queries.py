@@ -236,7 +236,7 @@ def test_first_batch_of_a_fresh_process_equals_brute_force(tmp_path):
 
 
 def test_default_capacities_follow_the_layout(uniform_cloud):
-    # capacity=None takes each index type's default (octree.hpp default_capacity, as documented in
+    # capacity=None takes each index type's default (octree_rules.hpp default_capacity, as documented in
     # the docstrings): adaptive 64, layered 32, kd-tree 32; the property reports the built one.
     adaptive = rayscan.Octree(uniform_cloud)
     assert adaptive.capacity == 64

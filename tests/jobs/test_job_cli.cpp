@@ -69,7 +69,7 @@ TEST(JobCli, DbImportErrorsAsBefore) {
 }
 
 // Every command that writes one output file names it with -o or --out (index also --output), as
-// its help says: `render CLOUD -o IMG.png` and `index CLOUD --out SITE.rsi` are refused no longer.
+// its help says: `render CLOUD -o IMG.png` and `index CLOUD --out SITE.rsi` write their files.
 TEST(JobCli, EveryCommandThatWritesAFileTakesDashOAndDashDashOut) {
   for (const char* command : {"render", "query", "index", "visibility", "solar", "db import"}) {
     const auto help = rayscan_cli(std::string(command) + " --help");

@@ -218,6 +218,13 @@ TEST(Octree, EntryGridsHoldTheDeepestNodeOfEachCell) {
         while (want > 1 && (std::size_t{1} << (3 * want)) > 8 * t.node_count()) --want;
         ASSERT_EQ(g.depth, want) << ctx;
         ASSERT_GE(g.depth, 2u) << ctx;
+        // First hits use the grid where the cloud fills its cube (uniform: a node in almost every
+        // deepest cell), not where most cells are empty (five small clusters).
+        if (d == Dist::uniform) {
+          EXPECT_TRUE(g.first_hits) << ctx;
+        } else if (d == Dist::clustered) {
+          EXPECT_FALSE(g.first_hits) << ctx;
+        }
         EXPECT_EQ(g.quant.lo, t.root_cell().lo);
         for (unsigned l = 0; l <= g.depth; ++l) {
           const std::uint32_t w = 1u << l;

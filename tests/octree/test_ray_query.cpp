@@ -751,7 +751,7 @@ TEST(RayQuery, PacketAnyHitEqualsOracleExistence) {
 }  // namespace
 
 TEST(RayQuery, EntryPointSearchEqualsTheRootTraversalAndTheOracle) {
-  // The first hits' entry-point search (Octree::EntryGrid) against the same queries with it off
+  // The first hits' entry-point search (EntryGrid; forced: EntryPointSearch::always) against the same queries with it off
   // (every field, bit for bit) and the brute-force oracle, single rays and interleaved pairs, on
   // the rays that stress its test of finality: hits just inside and just past a grid cell's face
   // (lattice points on the faces, axis-parallel rays along them and origins on them), radii from
@@ -804,7 +804,7 @@ TEST(RayQuery, EntryPointSearchEqualsTheRootTraversalAndTheOracle) {
             std::vector<std::optional<RayHit>> on(rays.size()), off(rays.size()), on_each(rays.size());
             set_entry_point_search(false);
             for (std::size_t r = 0; r < rays.size(); ++r) off[r] = ray_first_hit(tree, rays[r], q, &off_st);
-            set_entry_point_search(true);
+            set_entry_point_search(EntryPointSearch::always);  // (also on the clouds whose grid is not for first hits)
             for (std::size_t r = 0; r < rays.size(); ++r) on[r] = ray_first_hit(tree, rays[r], q, &on_st);
             ray_first_hit_each(tree, std::span<const Ray>(rays), q, std::span<std::optional<RayHit>>(on_each));
             for (std::size_t r = 0; r < rays.size(); ++r) {
@@ -885,7 +885,7 @@ TEST(RayQuery, EntryPointSearchWhereTheRootEdgeRoundsUp) {
       ASSERT_EQ(want[0].index, 3u);
       set_entry_point_search(false);
       const auto off = ray_first_hit(tree, ray, q);
-      set_entry_point_search(true);
+      set_entry_point_search(EntryPointSearch::always);
       const auto on = ray_first_hit(tree, ray, q);
       std::vector<std::optional<RayHit>> each(2);
       const std::vector<Ray> two{ray, ray};

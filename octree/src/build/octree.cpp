@@ -51,7 +51,6 @@ Octree& Octree::operator=(Octree&&) noexcept = default;
 
 namespace {
 
-constexpr std::uint32_t kCells = 1u << kMortonBits;
 using Quantizer = OctreeRules::Quantizer;
 inline unsigned octant(std::uint64_t code, unsigned depth) { return OctreeRules::octant(code, depth); }
 
@@ -68,7 +67,6 @@ AABB OctreeRules::root_cell(const AABB& bounds) {
   return AABB{lo, lo + Vec3(root_side(bounds))};
 }
 
-OctreeRules::Quantizer::Quantizer(const Vec3& corner, double side) : lo(corner), scale(kCells / side) {}
 
 bool OctreeRules::splits(const OctreeConfig& c, unsigned depth, std::size_t count, bool all_same) {
   switch (c.layout) {
@@ -569,6 +567,7 @@ void Octree::build_child_blocks() {
 
   // The entry grids (entry_grid.hpp), from the node ids' octant digits.
   entry_ = build_entry_grid(*this, depth_, n, [&](Node c) { return static_cast<unsigned>(nodes_[c].key & 7u); });
+  entry_view_ = {entry_.cells.empty() ? nullptr : entry_.cells.data(), entry_.depth, quantizer(), side_, entry_.first_hits};
 }
 
 std::optional<Octree::Node> Octree::find(OctreeNodeId id) const {

@@ -8,7 +8,10 @@
 
 namespace rayscan {
 
-void set_entry_point_search(bool on) { detail::g_entry_point_search.store(on, std::memory_order_relaxed); }
+void set_entry_point_search(EntryPointSearch mode) {
+  detail::g_entry_point_search.store(static_cast<int>(mode), std::memory_order_relaxed);
+}
+void set_entry_point_search(bool on) { set_entry_point_search(on ? EntryPointSearch::automatic : EntryPointSearch::off); }
 
 namespace {
 // interleaved_pairs(): -1 until set or first read (then the CPU's default), else 0 / 1.

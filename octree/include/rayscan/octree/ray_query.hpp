@@ -66,14 +66,17 @@ template <SpatialIndex I>
 [[nodiscard]] std::optional<RayHit> ray_first_hit(const I& index, const Ray& ray, const RayQuery& q,
                                                   RayQueryStats* stats = nullptr);
 
-/// Turns the first hits' entry-point search on or off for the whole process (default on): on an
-/// index with an entry grid (Octree and MappedIndex: entry_grid), the first hits of orders time and sphere_hit
-/// without planes (ray_first_hit, ray_first_hit_each, ray_query with k = 1) start a ray at the node
-/// of the grid cell where it enters and go up only as far as a point outside that cell could still
-/// be hit first (Havran's entry-point search). Answers are the same either way (with q.any_hit,
-/// which qualifying point is returned may differ, as any_hit allows; RayQueryStats differ); for
-/// benchmarks that compare both in one process. The same switch turns off knn_query's use of the
-/// grid (point_query.hpp). Thread-safe.
+
+/// Sets the entry-point search for the whole process (default EntryPointSearch::automatic): on an
+/// index with an entry grid (Octree and MappedIndex: entry_grid), the first hits of orders time
+/// and sphere_hit without planes (ray_first_hit, ray_first_hit_each, ray_query with k = 1) start a
+/// ray at the node of the grid cell where it enters and go up only as far as a point outside that
+/// cell could still be hit first (Havran's entry-point search), and knn_query starts at the node
+/// of q's cell (point_query.hpp). Answers are the same in every setting (with q.any_hit, which
+/// qualifying point is returned may differ, as any_hit allows; RayQueryStats differ); for
+/// benchmarks and tests that compare them in one process. Thread-safe.
+void set_entry_point_search(EntryPointSearch mode);
+/// set_entry_point_search(on ? EntryPointSearch::automatic : EntryPointSearch::off).
 void set_entry_point_search(bool on);
 
 /// Whether ray_first_hit_each traces its rays two at a time with their traversals interleaved

@@ -207,4 +207,12 @@ struct RefinedKey {
 /// Rays per packet of ray_first_hit_packet: at most this many rays share one traversal.
 inline constexpr std::size_t kMaxRayPacket = 16;
 
+/// The setting of the entry-point search (set_entry_point_search).
+enum class EntryPointSearch {
+  off,        ///< every query starts at the root
+  automatic,  ///< the default: knn_query always, first hits where the grid is for them
+              ///< (EntryGrid::first_hits: a cloud that fills its cube, not a scan of surfaces)
+  always,     ///< first hits on every grid too (tests and benchmarks of the search itself)
+};
+
 }  // namespace rayscan

@@ -57,11 +57,18 @@ concept EntryGridIndex = requires(const I& idx) {
   idx.entry_grid().depth;
 };
 
-/// Whether the first hit's entry-point search is on (set_entry_point_search; default on). A
-/// variable, not a function defined elsewhere: a call in the per-ISA traversals would make the
-/// compiler save the ray's registers around it on every ray.
-inline std::atomic<bool> g_entry_point_search{true};
-inline bool entry_point_search_enabled() { return g_entry_point_search.load(std::memory_order_relaxed); }
+/// The entry-point search's setting (set_entry_point_search: an EntryPointSearch as int; default
+/// automatic). A variable, not a function defined elsewhere: a call in the per-ISA traversals
+/// would make the compiler save the ray's registers around it on every ray.
+inline std::atomic<int> g_entry_point_search{static_cast<int>(EntryPointSearch::automatic)};
+/// Whether the search is on at all (not EntryPointSearch::off).
+inline bool entry_point_search_enabled() {
+  return g_entry_point_search.load(std::memory_order_relaxed) != static_cast<int>(EntryPointSearch::off);
+}
+/// Whether first hits use every grid, also one not for them (EntryPointSearch::always).
+inline bool entry_point_search_always() {
+  return g_entry_point_search.load(std::memory_order_relaxed) == static_cast<int>(EntryPointSearch::always);
+}
 
 /// Reusable per-thread scratch so that a query allocates nothing once warm.
 template <class Node>

@@ -282,7 +282,8 @@ struct RayTraversal {
 
   /// Entry-point search, first part (after prepare): the node of the deepest entry grid's cell
   /// (EntryGrid) where the ray enters the root's box grown by the radius, when the ray
-  /// passes its node test (n and its bound lb); false: none, the traversal starts at the root.
+  /// passes its node test (n and its bound lb); false: none (also where the grid is not for first
+  /// hits, EntryGrid::first_hits, unless EntryPointSearch::always), the traversal starts at the root.
   /// The node's subtree is traversed first (traverse_from or steps from begin_at), then
   /// entry_final says whether its first hit is final or where to go on: so most rays skip the
   /// steps from the root down to it and the stack entries of their other children (Havran's
@@ -291,7 +292,7 @@ struct RayTraversal {
   bool entry_node(Node& n, double& lb) {
     if constexpr (EntryGridIndex<I>) {
       const auto g = index.entry_grid();
-      if (g.cells == nullptr) return false;
+      if (g.cells == nullptr || !(g.first_hits || entry_point_search_always())) return false;
       const Interval iv = slab_interval_grown(o_plus, o_minus, inv_d, root_box, t_lo, t_hi);
       if (iv.empty()) return false;
       entry_t0 = std::max(iv.lo, q.t_min);
