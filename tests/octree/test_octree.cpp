@@ -277,6 +277,32 @@ TEST(Octree, EntryGridsHoldTheDeepestNodeOfEachCell) {
   EXPECT_LE(std::size_t{1} << (3 * gd), 8 * small.node_count());
 }
 
+// build_entry_grid checks the octants it is given against the nodes' bounds: the tree's own digits
+// give the tree's grid; digits that name other cells (a damaged index file's octants: siblings'
+// shifted by one, or one child's alone) give no grid, so queries start at the root.
+TEST(Octree, EntryGridOfOctantsThatDoNotMatchTheBoundsIsNone) {
+  const auto pts = make_points(20000, Dist::uniform, 37);
+  const Octree t = Octree::build_bulk(pts);
+  const EntryGrid g = t.entry_grid();
+  ASSERT_NE(g.cells, nullptr);
+  const std::size_t cells = EntryGrid::slot(g.depth + 1, 0, 0, 0);
+  auto digit = [&](Octree::Node c) { return static_cast<unsigned>(t.node_id(c).bits() & 7u); };
+  const EntryCells same = build_entry_grid(t, t.depth(), t.node_count(), digit, t.root_cell().lo, g.side);
+  ASSERT_EQ(same.cells.size(), cells);
+  for (std::size_t c = 0; c < cells; ++c) ASSERT_EQ(same.cells[c].node, g.cells[c].node) << c;
+  // Node 1 is the root's first child; its digit, or every depth-2 digit, moved by one.
+  const EntryCells one = build_entry_grid(t, t.depth(), t.node_count(),
+                                          [&](Octree::Node c) { return c == 1 ? (digit(c) + 1) & 7u : digit(c); },
+                                          t.root_cell().lo, g.side);
+  EXPECT_TRUE(one.cells.empty());
+  EXPECT_EQ(one.depth, 0u);
+  const EntryCells shifted = build_entry_grid(
+      t, t.depth(), t.node_count(),
+      [&](Octree::Node c) { return t.node_id(c).depth() == 2 ? (digit(c) + 1) & 7u : digit(c); }, t.root_cell().lo,
+      g.side);
+  EXPECT_TRUE(shifted.cells.empty());
+}
+
 TEST(Octree, DuplicatesDoNotSplitEndlessly) {
   std::vector<Vec3> pts(50000, Vec3(1.5, -2.0, 3.25));
   pts.emplace_back(1.0, 1.0, 1.0);  // one distinct point forces a real root split

@@ -566,7 +566,8 @@ void Octree::build_child_blocks() {
   });
 
   // The entry grids (entry_grid.hpp), from the node ids' octant digits.
-  entry_ = build_entry_grid(*this, depth_, n, [&](Node c) { return static_cast<unsigned>(nodes_[c].key & 7u); });
+  entry_ = build_entry_grid(*this, depth_, n, [&](Node c) { return static_cast<unsigned>(nodes_[c].key & 7u); },
+                            cell_.lo, side_);
   entry_view_ = {entry_.cells.empty() ? nullptr : entry_.cells.data(), entry_.depth, quantizer(), side_, entry_.first_hits};
 }
 

@@ -403,7 +403,8 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   x.side_ = OctreeRules::root_side(x.bounds_);
   const AABB built_cell = OctreeRules::root_cell(x.bounds_);
   if (x.points_ > 0 && built_cell.lo == x.cell_.lo && built_cell.hi == x.cell_.hi)
-    x.entry_ = build_entry_grid(x, x.depth_, x.node_count_, [&](Node c) { return x.node_octant(c); });
+    x.entry_ = build_entry_grid(x, x.depth_, x.node_count_, [&](Node c) { return x.node_octant(c); }, x.cell_.lo,
+                                x.side_);
   x.entry_view_ = {x.entry_.cells.empty() ? nullptr : x.entry_.cells.data(), x.entry_.depth,
                    OctreeRules::Quantizer(x.cell_.lo, x.side_), x.side_, x.entry_.first_hits};
 

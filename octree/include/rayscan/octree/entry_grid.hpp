@@ -100,9 +100,13 @@ inline constexpr double kEntryGridFirstHitsShare = 0.5;
 /// depth down after its parent's, so the deepest node of each grid cell is the one left there.
 /// None when a node above the grid's depth holds points of its own (the layered layout): then a
 /// grid cell's node would not hold every point of its cell, which the entry-point search relies on.
+/// None either when a walked node's bounds (node_bounds, world units) leave the cell its octants
+/// name, by more than 2^-20 of the root edge (float bounds are rounded outwards by less): octants
+/// that do not match the points (a damaged index file) would send a query to the wrong subtree.
+/// `corner`, `side`: the quantizer's root cell corner and edge (OctreeRules::Quantizer).
 template <class I, class OctantOf>
 [[nodiscard]] EntryCells build_entry_grid(const I& index, unsigned tree_depth, std::size_t node_count,
-                                          OctantOf octant_of) {
+                                          OctantOf octant_of, const Vec3& corner, double side) {
   if (tree_depth <= 1 || node_count == 0) return {};
   unsigned gd = std::min(tree_depth - 1, kEntryGridMaxDepth);
   while (gd > 1 && (std::size_t{1} << (3 * gd)) > 8 * node_count) --gd;
@@ -115,9 +119,19 @@ template <class I, class OctantOf>
     std::uint64_t morton;  // the node's Morton code at its depth (3 bits a level)
   };
   std::vector<Item> stack{{index.root(), 0, 0}};
+  const double margin = 0x1p-20 * side;
   while (!stack.empty()) {
     const Item it = stack.back();
     stack.pop_back();
+    {
+      const double edge = side / static_cast<double>(std::uint64_t{1} << it.depth);
+      const Vec3 lo = corner + Vec3(static_cast<double>(morton_compact(it.morton)),
+                                    static_cast<double>(morton_compact(it.morton >> 1)),
+                                    static_cast<double>(morton_compact(it.morton >> 2))) * edge;
+      const AABB b = index.node_bounds(it.node);
+      for (int a = 0; a < 3; ++a)
+        if (!(b.lo[a] >= lo[a] - margin) || !(b.hi[a] <= lo[a] + edge + margin)) return {};
+    }
     for (unsigned l = it.depth; l <= gd; ++l) {
       const unsigned sh = l - it.depth, w = 1u << sh;
       const auto i0 = static_cast<unsigned>(morton_compact(it.morton)) << sh;
