@@ -6,8 +6,9 @@
 // k = 1, r = the stored median spacing) on rays from 200 m above the site's box to uniform points
 // of the box and on bounce-like rays (from 4 spacings above a stored point, directions uniform
 // over the sphere above z = -0.3), kNN to the ray (order ray, k = 8, r = 4 x spacing) on the
-// first rays, and kNN of points (k = 8) at stored points moved by up to a spacing (all seeded). One thread; the
-// thread's CPU time is reported (on the shared machine wall time mostly measures preemption).
+// first rays, and kNN of points (k = 8) at stored points moved by up to a spacing (all seeded).
+// One thread; the thread's CPU time is reported (on the shared machine wall time mostly measures
+// preemption).
 // Page cache: the files are read once before the first round (warm). --entry-ab: each file also
 // with the entry-point search forced on first hits (EntryPointSearch::always) and without it (off:
 // first hits and point kNN from the root), set around its runs. bench/README.md.
@@ -16,7 +17,6 @@
 #include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/point_query.hpp"
 #include "rayscan/octree/ray_query.hpp"
-
 
 #include <algorithm>
 #include <cmath>
@@ -47,7 +47,8 @@ double run(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, std::v
 /// kNN of each point (k = q.k), its neighbours kept as hits (index and distance; t 0, so `same`
 /// compares them).
 template <class I>
-double run_points(const I& idx, const std::vector<Vec3>& points, const RayQuery& q, std::vector<std::vector<RayHit>>& out) {
+double run_points(const I& idx, const std::vector<Vec3>& points, const RayQuery& q,
+                  std::vector<std::vector<RayHit>>& out) {
   out.resize(points.size());
   const double t0 = thread_cpu();
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -83,7 +84,6 @@ int main(int argc, char** argv) {
                "each file also with the entry-point search forced on first hits, and without the search");
   rayscan::bench::parse_or_exit(app, argc, argv);
   try {
-
     std::vector<io::MappedIndex> maps;
     for (const std::string& f : files) maps.push_back(io::MappedIndex::open(f));
     const io::MappedIndex& m0 = maps.front();

@@ -287,18 +287,18 @@ TEST(Octree, EntryGridOfOctantsThatDoNotMatchTheBoundsIsNone) {
   ASSERT_NE(g.cells, nullptr);
   const std::size_t cells = EntryGrid::slot(g.depth + 1, 0, 0, 0);
   auto digit = [&](Octree::Node c) { return static_cast<unsigned>(t.node_id(c).bits() & 7u); };
-  const EntryCells same = build_entry_grid(t, t.depth(), t.node_count(), digit, t.root_cell().lo, g.side);
+  const EntryCells same = build_entry_grid(t, t.depth(), t.node_count(), digit, t.quantizer(), g.side);
   ASSERT_EQ(same.cells.size(), cells);
   for (std::size_t c = 0; c < cells; ++c) ASSERT_EQ(same.cells[c].node, g.cells[c].node) << c;
   // Node 1 is the root's first child; its digit, or every depth-2 digit, moved by one.
   const EntryCells one = build_entry_grid(t, t.depth(), t.node_count(),
                                           [&](Octree::Node c) { return c == 1 ? (digit(c) + 1) & 7u : digit(c); },
-                                          t.root_cell().lo, g.side);
+                                          t.quantizer(), g.side);
   EXPECT_TRUE(one.cells.empty());
   EXPECT_EQ(one.depth, 0u);
   const EntryCells shifted = build_entry_grid(
       t, t.depth(), t.node_count(),
-      [&](Octree::Node c) { return t.node_id(c).depth() == 2 ? (digit(c) + 1) & 7u : digit(c); }, t.root_cell().lo,
+      [&](Octree::Node c) { return t.node_id(c).depth() == 2 ? (digit(c) + 1) & 7u : digit(c); }, t.quantizer(),
       g.side);
   EXPECT_TRUE(shifted.cells.empty());
 }

@@ -67,7 +67,6 @@ AABB OctreeRules::root_cell(const AABB& bounds) {
   return AABB{lo, lo + Vec3(root_side(bounds))};
 }
 
-
 bool OctreeRules::splits(const OctreeConfig& c, unsigned depth, std::size_t count, bool all_same) {
   switch (c.layout) {
     case OctreeLayout::fixed: return depth < c.depth;
@@ -567,8 +566,7 @@ void Octree::build_child_blocks() {
 
   // The entry grids (entry_grid.hpp), from the node ids' octant digits.
   entry_ = build_entry_grid(*this, depth_, n, [&](Node c) { return static_cast<unsigned>(nodes_[c].key & 7u); },
-                            cell_.lo, side_);
-  entry_view_ = {entry_.cells.empty() ? nullptr : entry_.cells.data(), entry_.depth, quantizer(), side_, entry_.first_hits};
+                            quantizer(), side_);
 }
 
 std::optional<Octree::Node> Octree::find(OctreeNodeId id) const {

@@ -400,13 +400,11 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   // too, so the walk stays inside the nodes section on any records.
   // None where the header's root cell is not the one its bounds give (a file not written by the
   // build): the grid's cells would then not be the points' cells.
-  x.side_ = OctreeRules::root_side(x.bounds_);
+  const double side = OctreeRules::root_side(x.bounds_);
   const AABB built_cell = OctreeRules::root_cell(x.bounds_);
   if (x.points_ > 0 && built_cell.lo == x.cell_.lo && built_cell.hi == x.cell_.hi)
-    x.entry_ = build_entry_grid(x, x.depth_, x.node_count_, [&](Node c) { return x.node_octant(c); }, x.cell_.lo,
-                                x.side_);
-  x.entry_view_ = {x.entry_.cells.empty() ? nullptr : x.entry_.cells.data(), x.entry_.depth,
-                   OctreeRules::Quantizer(x.cell_.lo, x.side_), x.side_, x.entry_.first_hits};
+    x.entry_ = build_entry_grid(x, x.depth_, x.node_count_, [&](Node c) { return x.node_octant(c); },
+                                OctreeRules::Quantizer(x.cell_.lo, side), side);
 
   x.sources_ = read_sources(std::string_view(reinterpret_cast<const char*>(at(kSources)), by_id[kSources]->size),
                             by_id[kSources]->offset, x.points_, fail);

@@ -65,12 +65,19 @@ struct EntryGrid {
 /// L2).
 inline constexpr unsigned kEntryGridMaxDepth = 5;
 
-/// The cells of an octree's entry grids (EntryGrid::cells, level after level), their depth and
-/// EntryGrid::first_hits; empty with depth 0 where the tree has none.
+/// An index's entry grids as it keeps them (build_entry_grid): the cells (EntryGrid::cells, level
+/// after level; empty with depth 0 where the tree has none), their depth, EntryGrid::first_hits
+/// and the quantizer and root edge they were built with.
 struct EntryCells {
   std::vector<EntryCell> cells;
   unsigned depth = 0;
   bool first_hits = false;
+  OctreeRules::Quantizer quant{Vec3(0.0), 1.0};
+  double side = 1.0;
+  /// The EntryGrid over these cells (what an index's entry_grid() returns; valid while they are).
+  [[nodiscard]] EntryGrid view() const {
+    return {cells.empty() ? nullptr : cells.data(), depth, quant, side, first_hits};
+  }
 };
 
 /// The share of the deepest level's cells with a node of their own (EntryCell::depth == depth)
@@ -103,14 +110,18 @@ inline constexpr double kEntryGridFirstHitsShare = 0.5;
 /// None either when a walked node's bounds (node_bounds, world units) leave the cell its octants
 /// name, by more than 2^-20 of the root edge (float bounds are rounded outwards by less): octants
 /// that do not match the points (a damaged index file) would send a query to the wrong subtree.
-/// `corner`, `side`: the quantizer's root cell corner and edge (OctreeRules::Quantizer).
+/// `quant`, `side`: the quantizer the points were sorted into cells with and its root edge
+/// (OctreeRules::root_side).
 template <class I, class OctantOf>
 [[nodiscard]] EntryCells build_entry_grid(const I& index, unsigned tree_depth, std::size_t node_count,
-                                          OctantOf octant_of, const Vec3& corner, double side) {
-  if (tree_depth <= 1 || node_count == 0) return {};
+                                          OctantOf octant_of, const OctreeRules::Quantizer& quant, double side) {
+  EntryCells none;
+  none.quant = quant;
+  none.side = side;
+  if (tree_depth <= 1 || node_count == 0) return none;
   unsigned gd = std::min(tree_depth - 1, kEntryGridMaxDepth);
   while (gd > 1 && (std::size_t{1} << (3 * gd)) > 8 * node_count) --gd;
-  EntryCells out;
+  EntryCells out = none;
   out.depth = gd;
   out.cells.assign(((std::size_t{1} << (3 * (gd + 1))) - 1) / 7, EntryCell{index.root(), 0});
   struct Item {
@@ -123,26 +134,24 @@ template <class I, class OctantOf>
   while (!stack.empty()) {
     const Item it = stack.back();
     stack.pop_back();
-    {
-      const double edge = side / static_cast<double>(std::uint64_t{1} << it.depth);
-      const Vec3 lo = corner + Vec3(static_cast<double>(morton_compact(it.morton)),
-                                    static_cast<double>(morton_compact(it.morton >> 1)),
-                                    static_cast<double>(morton_compact(it.morton >> 2))) * edge;
-      const AABB b = index.node_bounds(it.node);
-      for (int a = 0; a < 3; ++a)
-        if (!(b.lo[a] >= lo[a] - margin) || !(b.hi[a] <= lo[a] + edge + margin)) return {};
+    const unsigned ijk[3] = {static_cast<unsigned>(morton_compact(it.morton)),
+                             static_cast<unsigned>(morton_compact(it.morton >> 1)),
+                             static_cast<unsigned>(morton_compact(it.morton >> 2))};
+    const double edge = side / static_cast<double>(std::uint64_t{1} << it.depth);
+    const AABB b = index.node_bounds(it.node);
+    for (int a = 0; a < 3; ++a) {
+      const double lo = quant.lo[a] + static_cast<double>(ijk[a]) * edge;
+      if (!(b.lo[a] >= lo - margin) || !(b.hi[a] <= lo + edge + margin)) return none;
     }
     for (unsigned l = it.depth; l <= gd; ++l) {
       const unsigned sh = l - it.depth, w = 1u << sh;
-      const auto i0 = static_cast<unsigned>(morton_compact(it.morton)) << sh;
-      const auto j0 = static_cast<unsigned>(morton_compact(it.morton >> 1)) << sh;
-      const auto k0 = static_cast<unsigned>(morton_compact(it.morton >> 2)) << sh;
+      const unsigned i0 = ijk[0] << sh, j0 = ijk[1] << sh, k0 = ijk[2] << sh;
       for (unsigned k = k0; k < k0 + w; ++k)
         for (unsigned j = j0; j < j0 + w; ++j)
           for (unsigned i = i0; i < i0 + w; ++i) out.cells[EntryGrid::slot(l, i, j, k)] = {it.node, it.depth};
     }
     if (it.depth < gd && index.child_count(it.node) != 0) {
-      if (index.node_points(it.node).size() != 0) return {};
+      if (index.node_points(it.node).size() != 0) return none;
       for (unsigned c = 0; c < index.child_count(it.node); ++c) {
         const std::uint32_t ch = index.child(it.node, c);
         stack.push_back({ch, it.depth + 1, (it.morton << 3) | (octant_of(ch) & 7u)});

@@ -107,7 +107,7 @@ class Octree {
   /// The entry grids (EntryGrid), built with the tree by build_entry_grid: down to depth
   /// min(depth() - 1, kEntryGridMaxDepth), no deeper than 8 cells per node.
   [[nodiscard]] EntryGrid entry_grid() const {
-    return entry_view_;
+    return entry_.view();
   }
   // Octree specifics ---------------------------------------------------------------------------
   /// The Warren & Salmon id (depth + Morton code) of node n.
@@ -172,10 +172,7 @@ class Octree {
   DefaultInitVector<PointIndex> ids_;
   DefaultInitVector<float> child_soa_;          // child blocks (child_boxes_f's soa)
   DefaultInitVector<std::uint32_t> block_of_;  // node -> its child block (interior nodes)
-  EntryCells entry_;  // entry_grid()'s cells
-  // entry_grid() itself, set with the cells (a query reads it: no quantizer to build per query;
-  // a move of the tree moves the cells' buffer, which it points into).
-  EntryGrid entry_view_{nullptr, 0, OctreeRules::Quantizer(Vec3(0.0), 1.0), 1.0, false};
+  EntryCells entry_;  // entry_grid()
   std::unique_ptr<LevelMaps> levels_;  // lazily filled per level
   /// Fills child_soa_ and block_of_ from the node records, then the entry grid (the builders'
   /// last step).

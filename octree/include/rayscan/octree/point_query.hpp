@@ -124,10 +124,11 @@ void box_query(const I& index, const AABB& box, std::vector<PointIndex>& out) {
 /// tested after the nearest subtree has tightened the k-th distance, so the filter rejects nearly
 /// all of them. The k best are kept in vectors filled without a branch (k <= 8, on AVX2 /
 /// AVX-512 and FloatChildBoxes indexes), a sorted array (k <= 32) or a heap (bench/notes/: kNN
-/// without mispredicted branches). On an index with an entry grid (Octree and MappedIndex: entry_grid; unless
-/// set_entry_point_search(false)) the search starts at the node of q's grid cell instead of the
-/// root and then visits the other grid cells the k-th distance reaches (Havran's entry-point
-/// search, as for first hits; bench/notes/2026-11-28-knn-entry-point-search.md); the answer is the same.
+/// without mispredicted branches). On an index with an entry grid (Octree and MappedIndex:
+/// entry_grid; unless set_entry_point_search(false)) the search starts at the node of q's grid
+/// cell instead of the root and then visits the other grid cells the k-th distance reaches
+/// (Havran's entry-point search, as for first hits; bench/notes/2026-11-28-knn-entry-point-search.md);
+/// the answer is the same.
 /// Throws std::invalid_argument for a NaN/negative radius or a non-finite q.
 template <SpatialIndex I>
 void knn_query(const I& index, const Vec3& q, std::size_t k, double radius, std::vector<Neighbor>& out);

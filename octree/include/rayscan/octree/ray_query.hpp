@@ -66,7 +66,6 @@ template <SpatialIndex I>
 [[nodiscard]] std::optional<RayHit> ray_first_hit(const I& index, const Ray& ray, const RayQuery& q,
                                                   RayQueryStats* stats = nullptr);
 
-
 /// Sets the entry-point search for the whole process (default EntryPointSearch::automatic): on an
 /// index with an entry grid (Octree and MappedIndex: entry_grid), the first hits of orders time
 /// and sphere_hit without planes (ray_first_hit, ray_first_hit_each, ray_query with k = 1) start a

@@ -243,11 +243,9 @@ class MappedIndex {
   /// The entry grids of the tree (EntryGrid: the first hit's and the kNN's entry-point search, as
   /// on Octree), built at open from the node records of its top levels (build_entry_grid) and the
   /// quantizer of the build (the root cell's corner, OctreeRules::root_side of the stored point
-  /// bounds): the same cells as Octree::entry_grid of the same points and config. None (cells null) for a
-  /// tree of depth <= 1.
-  [[nodiscard]] EntryGrid entry_grid() const {
-    return entry_view_;
-  }
+  /// bounds): the same cells as Octree::entry_grid of the same points and config. None (cells
+  /// null) for a tree of depth <= 1.
+  [[nodiscard]] EntryGrid entry_grid() const { return entry_.view(); }
   /// Positions by slot, decoded from the file's encoding (float64 in place, float32 or the LAS
   /// int32 grid: docs/index-format.md "Positions"), bit-identical to the sources' readers.
   [[nodiscard]] PositionView positions() const { return positions_; }
@@ -338,11 +336,7 @@ class MappedIndex {
   std::size_t points_ = 0, node_count_ = 0;
   double spacing_ = 0.0;
   AABB bounds_;
-  double side_ = 1.0;  ///< the build's quantizer edge: OctreeRules::root_side(bounds_)
-  EntryCells entry_;   ///< entry_grid()'s cells
-  /// entry_grid() itself, set at open (a query reads it: no quantizer to build per query; a move
-  /// of the index moves the cells' buffer, which it points into).
-  EntryGrid entry_view_{nullptr, 0, OctreeRules::Quantizer(Vec3(0.0), 1.0), 1.0, false};
+  EntryCells entry_;  ///< entry_grid()
   bool verified_ = false;
   std::vector<IndexSectionInfo> sections_;
   const IndexNodeRecord* nodes_ = nullptr;
