@@ -118,13 +118,15 @@ class PathTracer {
                 const LeavingSurface* from = nullptr) const {
     RayQueryStats st;
     if (in_.primitive == Primitive::surfel) {
-      const SurfelHit sh = first_surfel_hit<I, SurfelTables::best>(index_, in_.surfels, ray, 0.0, kInf, from, true, hits, st);
+      SurfelHit sh;
+      timed(c, [&] { sh = first_surfel_hit<I, SurfelTables::best>(index_, in_.surfels, ray, 0.0, kInf, from, true, hits, st); });
       c.queries += sh.queries;
       c.nodes_visited += st.nodes_visited;
       c.points_tested += st.points_tested;
       return sh.t < kInf;
     }
-    const bool blocked = ray_first_hit(index_, ray, shadow_query_, &st).has_value();
+    bool blocked;
+    timed(c, [&] { blocked = ray_first_hit(index_, ray, shadow_query_, &st).has_value(); });
     ++c.queries;
     c.nodes_visited += st.nodes_visited;
     c.points_tested += st.points_tested;
@@ -138,14 +140,7 @@ class PathTracer {
     RayQueryStats st;
     if (in_.primitive == Primitive::surfel) return intersect_surfel(ray, h, hits, c, from);
     std::optional<RayHit> rh;
-    if (time_) {
-      const auto t0 = std::chrono::steady_clock::now();
-      rh = ray_first_hit(index_, ray, query_, &st);
-      c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
-                        std::chrono::steady_clock::now() - t0).count();
-    } else {
-      rh = ray_first_hit(index_, ray, query_, &st);
-    }
+    timed(c, [&] { rh = ray_first_hit(index_, ray, query_, &st); });
     ++c.queries;
     c.nodes_visited += st.nodes_visited;
     c.points_tested += st.points_tested;
@@ -176,14 +171,7 @@ class PathTracer {
                         const LeavingSurface* from) const {
     RayQueryStats st;
     SurfelHit sh;
-    if (time_) {
-      const auto t0 = std::chrono::steady_clock::now();
-      sh = first_surfel_hit<I, SurfelTables::best>(index_, in_.surfels, ray, 0.0, kInf, from, false, hits, st);
-      c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
-                        std::chrono::steady_clock::now() - t0).count();
-    } else {
-      sh = first_surfel_hit<I, SurfelTables::best>(index_, in_.surfels, ray, 0.0, kInf, from, false, hits, st);
-    }
+    timed(c, [&] { sh = first_surfel_hit<I, SurfelTables::best>(index_, in_.surfels, ray, 0.0, kInf, from, false, hits, st); });
     c.queries += sh.queries;
     c.nodes_visited += st.nodes_visited;
     c.points_tested += st.points_tested;
@@ -315,22 +303,13 @@ class PathTracer {
         if (!hit_vertex(q, hit, h, s[lane[j]], nullptr)) live &= ~(1u << lane[j]);
         else if (q.shadow_pending) shadowed |= 1u << lane[j];
       };
-      // (The surfel bounce rays go through intersect(), which times its own queries.)
-      const auto t0 = time_ && !(surfel && !camera) ? std::chrono::steady_clock::now()
-                                                    : std::chrono::steady_clock::time_point{};
-      // The query time only (not the shading below). t0 is unset in the surfel bounce branch,
-      // which never calls this.
-      const auto query_done = [&] {
-        if (time_)
-          c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(
-                            std::chrono::steady_clock::now() - t0).count();
-      };
       if (surfel && camera) {
         // The camera rays as one packet (each ray's answer is the one-ray query's).
         SurfelHit sh[kMaxRayPacket];
-        first_surfel_hit_packet<I, SurfelTables::best>(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf, {}, false,
-                                std::span(sh, m), hits, st);
-        query_done();
+        timed(c, [&] {
+          first_surfel_hit_packet<I, SurfelTables::best>(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf, {},
+                                                         false, std::span(sh, m), hits, st);
+        });
         // One cover cache per pixel of the packet (the caller traces the samples of one pixel
         // block in turn), each also serving the other lanes' hits within its reach: a pointer's
         // worth of static TLS, the caches on the heap.
@@ -366,11 +345,12 @@ class PathTracer {
         // The camera rays as one packet; the bounce rays, which are incoherent, through
         // ray_first_hit_each. Each answer is the one-ray query's (as trace()'s intersect).
         std::optional<RayHit> rh[kMaxRayPacket];
-        if (camera)
-          ray_first_hit_packet(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
-        else
-          ray_first_hit_each(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
-        query_done();
+        timed(c, [&] {
+          if (camera)
+            ray_first_hit_packet(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
+          else
+            ray_first_hit_each(index_, std::span<const Ray>(wave), query_, std::span(rh, m), &st);
+        });
         for (std::size_t j = 0; j < m; ++j) {
           SurfaceHit h;
           if (rh[j]) surface_at(wave[j], *rh[j], h);
@@ -398,15 +378,17 @@ class PathTracer {
         bool blocked[kMaxRayPacket];
         if (surfel) {
           SurfelHit sh[kMaxRayPacket];
-          first_surfel_hit_packet<I, SurfelTables::best>(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf,
-                                  std::span<const LeavingSurface* const>(from, ns), true, std::span(sh, ns), hits,
-                                  st);
+          timed(c, [&] {
+            first_surfel_hit_packet<I, SurfelTables::best>(index_, in_.surfels, std::span<const Ray>(wave), 0.0, kInf,
+                                                           std::span<const LeavingSurface* const>(from, ns), true,
+                                                           std::span(sh, ns), hits, st);
+          });
           for (std::size_t j = 0; j < ns; ++j) blocked[j] = sh[j].t < kInf;
         } else if (camera) {
-          ray_any_hit_packet(index_, std::span<const Ray>(wave), shadow_query_, std::span(blocked, ns), &st);
+          timed(c, [&] { ray_any_hit_packet(index_, std::span<const Ray>(wave), shadow_query_, std::span(blocked, ns), &st); });
         } else {
           std::optional<RayHit> rh[kMaxRayPacket];
-          ray_first_hit_each(index_, std::span<const Ray>(wave), shadow_query_, std::span(rh, ns), &st);
+          timed(c, [&] { ray_first_hit_each(index_, std::span<const Ray>(wave), shadow_query_, std::span(rh, ns), &st); });
           for (std::size_t j = 0; j < ns; ++j) blocked[j] = rh[j].has_value();
         }
         c.queries += ns;
@@ -435,6 +417,20 @@ class PathTracer {
   }
 
  private:
+  /// Runs the ray query `query()` and, when timing (RenderOptions::time_queries: bench_render's
+  /// cost split), adds its time to c.query_ns: every query of a path (camera, bounce and shadow
+  /// rays, single or in packets) goes through here, so the split covers them all.
+  template <class F>
+  __attribute__((always_inline)) void timed(TraceCounters& c, F&& query) const {
+    if (!time_) {
+      query();
+      return;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    query();
+    c.query_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count();
+  }
+
   /// The path loop of trace() from p.ray at p.depth: intersect, hit_vertex, the shadow ray, scatter.
   void continue_path(Path& p, Sampler& s, std::vector<RayHit>& hits, TraceCounters& c, SurfaceHit* first) const {
     const bool surfel = in_.primitive == Primitive::surfel;
