@@ -4,6 +4,9 @@
 
 #include "rayscan/base/atomic_file.hpp"
 
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iostream>
 #include <memory>
@@ -11,6 +14,24 @@
 #include <string>
 
 namespace rayscan::cli {
+
+/// "<what>: write failed", with the system's reason when errno holds one (a full disk: "No space
+/// left on device").
+[[nodiscard]] inline std::string write_failed(const std::string& what) {
+  const int e = errno;
+  return what + ": write failed" + (e != 0 ? std::string(" (") + std::strerror(e) + ")" : std::string());
+}
+
+/// Flushes standard output (std::cout and the C stream under it) and throws std::runtime_error
+/// ("standard output: write failed (...)") when any write to it failed: a full disk, /dev/full,
+/// a file size limit. Called once after every command, so that no command exits 0 with its
+/// output lost.
+inline void check_standard_output() {
+  errno = 0;
+  std::cout.flush();
+  const bool flushed = std::fflush(stdout) == 0;
+  if (!std::cout || !flushed || std::ferror(stdout)) throw std::runtime_error(write_failed("standard output"));
+}
 
 /// A text output stream bound to `path` ("" or "-" = standard output). commit() moves the finished
 /// file into place; destruction without commit() leaves no file behind. Throws std::runtime_error
@@ -28,13 +49,14 @@ class AtomicOutput {
   /// Flush and move the finished file into place.
   void commit() {
     if (!file_) {
-      std::cout.flush();
+      check_standard_output();
       return;
     }
+    errno = 0;
     out_.flush();
-    if (!out_) throw std::runtime_error(file_->path().string() + ": write failed");
+    if (!out_) throw std::runtime_error(write_failed(file_->path().string()));
     out_.close();  // the last buffer's write error shows here
-    if (!out_) throw std::runtime_error(file_->path().string() + ": write failed");
+    if (!out_) throw std::runtime_error(write_failed(file_->path().string()));
     file_->commit();
   }
 

@@ -1,4 +1,5 @@
 // The `rayscan` command line: one program, PDAL-style subcommands.
+#include "atomic_file.hpp"
 #include "commands.hpp"
 #include "option_names.hpp"
 #include "processes.hpp"
@@ -37,6 +38,18 @@ int fail(const std::string& line) {
 #endif
   std::cerr << line << "\n";
   return 2;
+}
+
+// `code`, or 2 with one line when the help or version text just printed could not be written
+// (rayscan --help > /dev/full); no MPI abort: every rank ends the same way.
+int output_checked(int code) {
+  try {
+    rayscan::cli::check_standard_output();
+  } catch (const std::exception& e) {
+    std::cerr << "rayscan: " << e.what() << "\n";
+    return 2;
+  }
+  return code;
 }
 
 }  // namespace
@@ -98,12 +111,13 @@ int main(int argc, char** argv) {
     }
   }
 #ifdef RAYSCAN_HAVE_MPI
-  if (const std::optional<int> code = session->agree_on_start({end, end_code, end_out, end_err})) return *code;
+  if (const std::optional<int> code = session->agree_on_start({end, end_code, end_out, end_err}))
+    return output_checked(*code);
 #else
   if (end) {
     std::cout << end_out << std::flush;
     if (!end_err.empty()) std::cerr << end_err << "\n";
-    return end_code;
+    return output_checked(end_code);
   }
 #endif
   for (auto& [sub, run] : commands) {
@@ -111,6 +125,7 @@ int main(int argc, char** argv) {
     try {
       rayscan::cli::set_command_name("rayscan " + sub->get_name());
       const int code = run();
+      rayscan::cli::check_standard_output();  // (a command's report lost on a full disk is a failure)
 #ifdef RAYSCAN_HAVE_MPI
       session->finish();
 #endif

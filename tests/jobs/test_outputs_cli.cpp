@@ -111,6 +111,34 @@ TEST(OutputsCli, FullFileSystemFailsCleanlyAndKeepsTheOldOutput) {
   EXPECT_EQ(temporaries(full.dir), std::vector<std::string>{});
 }
 
+// Standard output on a device that refuses every write (/dev/full: ENOSPC, as a full disk under
+// a redirection): every command that prints its result exits 2 with one line on standard error,
+// never 0 with its output lost; the same commands exit 0 into /dev/null.
+TEST(OutputsCli, StandardOutputThatCannotBeWrittenFails) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full on this system; skipped";
+  const fs::path dir = temp_dir() / "stdout";
+  fs::create_directories(dir);
+  std::ofstream(dir / "rays.csv") << "ox,oy,oz,dx,dy,dz\n636500,849200,1000,0,0,-1\n";
+  const std::vector<std::string> commands = {
+      kBin + " info " + q(cloud()),
+      kBin + " info --json " + q(cloud()),
+      kBin + " query --cloud " + q(cloud()) + " --rays " + q(dir / "rays.csv") + " --radius 1000 --threads 1",
+      kBin + " query --cloud " + q(cloud()) + " --rays " + q(dir / "rays.csv") + " --radius 1000 --threads 1 -o -",
+      kBin + " render " + q(cloud()) + " --print-scene",
+      kBin + " --version",
+      kBin + " --help",
+  };
+  for (const std::string& cmd : commands) {
+    SCOPED_TRACE(cmd);
+    ASSERT_EQ(run_command(cmd + " > /dev/null", false).code, 0);
+    const CommandResult r = run_command("(" + cmd + " > /dev/full)");  // (its standard error captured)
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+    EXPECT_NE(r.out.find("standard output: write failed"), std::string::npos) << r.out;
+  }
+  fs::remove_all(dir);
+}
+
 // An output directory this process cannot write is refused before the work (the message names
 // the directory), and nothing is created.
 TEST(OutputsCli, ReadOnlyDirectoryIsRefusedFirst) {
