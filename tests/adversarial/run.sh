@@ -90,6 +90,8 @@ if (ulimit -t 20 2>/dev/null; timeout 20 "$RAYSCAN" info "$HERE/huge_count_no_pr
 else
   echo "FAIL ply-2e40-items-no-properties: not read within 20 s"; fails=$((fails + 1))
 fi
+# An ascii value its declared integer type cannot hold (uchar 99999): refused, not rescaled.
+expect_error ply-uchar-99999 "uchar_out_of_range.ply" "line 15" "red" "0..255" -- info "$HERE/uchar_out_of_range.ply"
 expect_error ply-2e63-items "huge_count.ply" "line" "9223372036854775807" -- info "$HERE/huge_count.ply"
 expect_error las-truncated "truncated.las" "byte 96" "past end of file" -- info "$HERE/truncated.las"
 expect_error png-header-claims-10000x10000 "huge_header.png" "10000x10000" -- compare "$HERE/huge_header.png" "$HERE/huge_header.png"

@@ -47,6 +47,20 @@ const char* type_name(PlyType t) {
   return n[static_cast<int>(t)];
 }
 
+/// The least and greatest value of an integer type (PLY 1.0: char 1-byte signed ... uint 4-byte
+/// unsigned); float types have no such range here (any number, as the binary body can hold).
+bool integer_range(PlyType t, double& lo, double& hi) {
+  switch (t) {
+    case PlyType::i8: lo = -128.0, hi = 127.0; return true;
+    case PlyType::u8: lo = 0.0, hi = 255.0; return true;
+    case PlyType::i16: lo = -32768.0, hi = 32767.0; return true;
+    case PlyType::u16: lo = 0.0, hi = 65535.0; return true;
+    case PlyType::i32: lo = -2147483648.0, hi = 2147483647.0; return true;
+    case PlyType::u32: lo = 0.0, hi = 4294967295.0; return true;
+    default: return false;
+  }
+}
+
 template <bool BigEndian>
 double load(const std::uint8_t* p, PlyType t) {
   auto ld = [p]<class T>(T) { return BigEndian ? load_be<T>(p) : load_le<T>(p); };
@@ -129,6 +143,14 @@ struct AsciiCursor {
     if (ec != std::errc() || q != e || (count && (v < 0 || v != std::floor(v))))
       fail_line(in.name, line, (count ? "expected a list count for '" : "expected a number for '") +
                                    p.name + "', got '" + std::string(t.substr(0, 40)) + "'");
+    // A value of an integer property must be one its declared type holds (the binary body cannot
+    // hold another): an integer in its range.
+    double lo = 0, hi = 0;
+    if (const PlyType ty = count ? p.count_type : p.type; integer_range(ty, lo, hi) && !(v >= lo && v <= hi && v == std::floor(v)))
+      fail_line(in.name, line, "property '" + p.name + "' is " + type_name(ty) + ": expected an integer in " +
+                                   std::to_string(static_cast<long long>(lo)) + ".." +
+                                   std::to_string(static_cast<long long>(hi)) + ", got '" +
+                                   std::string(t.substr(0, 40)) + "'");
     return v;
   }
 };
