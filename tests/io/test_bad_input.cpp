@@ -144,14 +144,31 @@ TEST(BadInput, DuplicateColumnsAndProperties) {
 
 TEST(BadInput, OutOfRangeAttributeValuesAreClampedNotUndefined) {
   // Found by fuzz_ply (tests/fuzz/regressions/ply/): "nan" in an ascii uchar intensity was cast
-  // to an integer; huge doubles were cast to float (both undefined behaviour).
-  const std::string ply = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
-                          "property float z\nproperty uchar intensity\nproperty double nx\nproperty double ny\n"
-                          "property double nz\nproperty double red\nproperty double green\nproperty double blue\n"
-                          "end_header\n0 0 0 nan 1e300 0 0 1e300 0 0\n1 1 1 300 0 1 0 0 0 1e300\n";
-  const PointCloud pc = io::read_point_cloud(std::vector<std::uint8_t>(ply.begin(), ply.end()), io::Format::ply, "r.ply");
+  // to an integer; huge doubles were cast to float (both undefined behaviour). A value its
+  // declared integer type cannot hold is an error naming the line and property; values of a
+  // float type that do not fit their destination are clamped.
+  const std::string head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                           "property float z\nproperty uchar intensity\nproperty double nx\nproperty double ny\n"
+                           "property double nz\nproperty double red\nproperty double green\nproperty double blue\n"
+                           "end_header\n";
+  auto read = [&](const std::string& body) {
+    const std::string ply = head + body;
+    return io::read_point_cloud(std::vector<std::uint8_t>(ply.begin(), ply.end()), io::Format::ply, "r.ply");
+  };
+  for (const std::string v : {"nan", "300", "-1", "1.5"}) {
+    SCOPED_TRACE(v);
+    try {
+      (void)read("0 0 0 7 1e300 0 0 1e300 0 0\n1 1 1 " + v + " 0 1 0 0 0 1e300\n");
+      ADD_FAILURE() << "accepted";
+    } catch (const io::FormatError& e) {
+      const std::string m = e.what();
+      EXPECT_NE(m.find("r.ply: line 16: property 'intensity' is uchar: expected an integer in 0..255, got '" + v + "'"),
+                std::string::npos) << m;
+    }
+  }
+  const PointCloud pc = read("0 0 0 7 1e300 0 0 1e300 0 0\n1 1 1 255 0 1 0 0 0 1e300\n");
   pc.validate();
-  EXPECT_EQ(pc.intensity, (std::vector<std::uint16_t>{0, 300}));
+  EXPECT_EQ(pc.intensity, (std::vector<std::uint16_t>{7, 255}));
   EXPECT_EQ(pc.normals[1], glm::vec3(0, 1, 0));
   EXPECT_GT(pc.normals[0].x, 3e38f);
   EXPECT_EQ(pc.rgb[0].r, pc.rgb[1].b);  // both channels hold the (clamped) maximum
