@@ -174,6 +174,19 @@ TEST(BadInput, OutOfRangeAttributeValuesAreClampedNotUndefined) {
   EXPECT_EQ(pc.rgb[0].r, pc.rgb[1].b);  // both channels hold the (clamped) maximum
 }
 
+TEST(BadInput, LasEvlrStartBeforeThePointDataIsRefused) {
+  // An EVLR start inside the VLRs read their bytes as an EVLR (and translate copied it).
+  auto b = slurp(data_file("las/conformance/1_4_w_evlr.las"));
+  std::uint64_t start = 0;
+  std::uint32_t offset = 0;
+  std::memcpy(&start, &b[235], 8);
+  std::memcpy(&offset, &b[96], 4);
+  ASSERT_GE(start, offset);  // the file as written is valid
+  poke<std::uint64_t>(b, 235, 400);
+  expect_one_line(error_of(b, io::Format::las),
+                  "byte 235: EVLR start 400 lies before the point data at byte " + std::to_string(offset));
+}
+
 TEST(BadInput, FileThatDoesNotExistOrHasAnUnknownExtension) {
   EXPECT_THROW(io::read_point_cloud("/nonexistent/x.las"), io::FormatError);
   EXPECT_THROW(io::read_point_cloud(data_file("las/conformance/point10.las").replace_extension(".e57")), io::FormatError);

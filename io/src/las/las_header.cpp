@@ -100,7 +100,12 @@ LasHeader parse_las_header(const Input& in) {
     if (evlr_start > in.size() || n_evlr > (in.size() - evlr_start) / 60)
       fail_at(nm, 235, "EVLR start " + std::to_string(evlr_start) + " with " + std::to_string(n_evlr) +
                            " EVLRs lies past end of file (size " + std::to_string(in.size()) + ")");
-    if (evlr_start >= h.point_offset) h.data_end = evlr_start;
+    // EVLRs follow the point data (LAS 1.4 R15 section 2.7): a start inside the header or the
+    // VLRs would read their bytes as EVLRs (and translate would copy them as such).
+    if (evlr_start < h.point_offset)
+      fail_at(nm, 235, "EVLR start " + std::to_string(evlr_start) + " lies before the point data at byte " +
+                           std::to_string(h.point_offset) + " (EVLRs follow the point records)");
+    h.data_end = evlr_start;
     std::uint64_t ep = evlr_start;
     for (std::uint32_t i = 0; i < n_evlr; ++i) {
       in.need(ep, 60, "EVLR " + std::to_string(i) + " header");
