@@ -1,6 +1,7 @@
 // Internal: bounds-checked access to a file's bytes and the one-line error format of all readers.
 #pragma once
 
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <algorithm>
@@ -23,15 +24,16 @@
 
 namespace rayscan::io::detail {
 
-/// Throws FormatError "<name>: byte <offset>: <what>".
+/// Throws FormatError "<name>: byte <offset>: <what>", control bytes escaped (one_line): a quoted
+/// token of a binary file could hold a NUL, which would end the message (what() is a C string).
 [[noreturn]] inline void fail_at(const std::string& name, std::uint64_t offset,
                                  const std::string& what) {
-  throw FormatError(name + ": byte " + std::to_string(offset) + ": " + what);
+  throw FormatError(one_line(name + ": byte " + std::to_string(offset) + ": " + what));
 }
-/// Throws FormatError "<name>: line <line>: <what>".
+/// Throws FormatError "<name>: line <line>: <what>", escaped as fail_at's.
 [[noreturn]] inline void fail_line(const std::string& name, std::uint64_t line,
                                    const std::string& what) {
-  throw FormatError(name + ": line " + std::to_string(line) + ": " + what);
+  throw FormatError(one_line(name + ": line " + std::to_string(line) + ": " + what));
 }
 
 /// The bytes of one input file plus its name (for errors). `release(upto)` tells the source that

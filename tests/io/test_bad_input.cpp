@@ -187,6 +187,15 @@ TEST(BadInput, LasEvlrStartBeforeThePointDataIsRefused) {
                   "byte 235: EVLR start 400 lies before the point data at byte " + std::to_string(offset));
 }
 
+TEST(BadInput, ControlBytesInAQuotedTokenAreEscapedNotTheEndOfTheMessage) {
+  // A NUL in the quoted token ended what() there ("... got '"), cutting the message.
+  std::string t = "x y z\n1 2 3\n4 5 ";
+  t += std::string("6\0\x01z", 4);
+  t += "\n";
+  const std::string e = error_of(t, io::Format::text);
+  expect_one_line(e, "line 3: column 3: expected a finite number, got '6\\x00\\x01z'");
+}
+
 TEST(BadInput, FileThatDoesNotExistOrHasAnUnknownExtension) {
   EXPECT_THROW(io::read_point_cloud("/nonexistent/x.las"), io::FormatError);
   EXPECT_THROW(io::read_point_cloud(data_file("las/conformance/point10.las").replace_extension(".e57")), io::FormatError);
