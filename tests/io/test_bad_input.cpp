@@ -113,6 +113,14 @@ TEST(BadInput, PcdDataBeforeFieldsAndCountsBeyondTheFile) {
                            "HEIGHT 1\nPOINTS 100000\nDATA binary_compressed\n\x10\0\0\0\x80\x4f\x12\0abcdefghijklmnop"s,
                            io::Format::pcd),
                   "impossible for 16 bytes of LZF data");
+  // A back reference before the start of the output (liblzf: EINVAL), and a literal run of 32
+  // bytes into the 12 bytes stated (E2BIG): each named, not "decompresses to 0 bytes".
+  const std::string one_point = "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nHEIGHT 1\nPOINTS 1\n"
+                                "DATA binary_compressed\n";
+  expect_one_line(error_of(one_point + "\x02\0\0\0\x0c\0\0\0\x20\x00"s, io::Format::pcd),
+                  "LZF data is corrupt: a back reference or literal run past its bounds");
+  expect_one_line(error_of(one_point + "\x21\0\0\0\x0c\0\0\0\x1f"s + std::string(32, 'a'), io::Format::pcd),
+                  "LZF data is corrupt: it decodes to more than the 12 bytes stated");
   expect_one_line(error_of(std::string("VERSION .7\nFIELDS x y z h\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 900000\n"
                                        "WIDTH 1\nPOINTS 1\nDATA ascii\n"),
                            io::Format::pcd),

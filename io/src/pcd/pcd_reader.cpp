@@ -16,6 +16,7 @@ extern "C" {
 }
 
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
@@ -362,7 +363,14 @@ struct PcdBody {
                                 std::to_string(csize) + " bytes of LZF data");
     decompressed.resize(usize);
     if (usize > 0) {
+      errno = 0;
       const unsigned got = lzf_decompress(base + 8, csize, decompressed.data(), usize);
+      // liblzf returns 0 on a bad stream: E2BIG, it decodes to more than the stated size;
+      // EINVAL, a back reference before the start of the output or past the input.
+      if (got == 0)
+        fail_at(nm, body + 8, std::string("LZF data is corrupt: ") +
+                                  (errno == E2BIG ? "it decodes to more than the " + std::to_string(usize) + " bytes stated"
+                                                  : "a back reference or literal run past its bounds"));
       if (got != usize)
         fail_at(nm, body + 8, "LZF data decompresses to " + std::to_string(got) + " bytes, expected " +
                                   std::to_string(usize));
