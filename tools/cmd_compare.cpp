@@ -96,7 +96,9 @@ Runner add_compare_command(CLI::App& app) {
       ->check(non_negative());
   sub->add_option("--fail-psnr", o->fail_psnr, "Fail if PSNR is below this many dB (default: off)");
   sub->add_option("--fail-ssim", o->fail_ssim, "Fail if SSIM is below this (default: off)")->check(finite_number(-1.0, 1.0));
-  sub->add_option("--warn", o->warn_t, "Pixel error threshold for a warning (default 1e-6)")
+  sub->add_option("--warn", o->warn_t,
+                  "Pixel error threshold for a warning (default 1e-6; the warning level is off when fail "
+                  "criteria are given and no --warn* option is)")
       ->check(non_negative());
   sub->add_option("--warn-percent", o->warn_pct, "Warn if more than this % of pixels exceed --warn (default 0)")
       ->check(finite_number(0.0, 100.0));

@@ -19,7 +19,7 @@ import rayscan.dask as rd
 def main(out, tmp):
     # %% An index file (.rsi) of the cloud: the workers map it instead of each reading the LAS file
     # and building a tree. `--attributes id` keeps the original point order in every answer.
-    las = "tests/data/las/autzen_trim.las"            # 110,000 points, US survey feet
+    las = "tests/data/las/autzen_trim.las"            # 110,000 points, international feet
     rsi = os.path.join(tmp, "autzen.rsi")
     cli = os.environ.get("RAYSCAN_CLI", "build/tools/rayscan")
     subprocess.run([cli, "index", "-q", "--attributes", "id", "-o", rsi, las], check=True)

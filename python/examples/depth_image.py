@@ -12,7 +12,7 @@ import numpy as np
 
 import rayscan
 
-pc = rayscan.read("tests/data/las/autzen_trim.las")   # 110,000 points, US survey feet
+pc = rayscan.read("tests/data/las/autzen_trim.las")   # 110,000 points, international feet
 tree = rayscan.Octree(pc.xyz)
 
 # Sphere radius: 1.5 x the median distance to the nearest other point (kNN with k = 2: the point

@@ -30,7 +30,7 @@ def client():
 
 @pytest.fixture(scope="module")
 def site_file(tmp_path_factory, data_dir, cli):
-    """Every 4th point of autzen_trim.las (27,500 points, US survey feet) as an .rsi index with
+    """Every 4th point of autzen_trim.las (27,500 points, international feet) as an .rsi index with
     the original ids: small enough for a few seconds of visibility."""
     d = tmp_path_factory.mktemp("dask")
     pc = rayscan.read(data_dir / "las" / "autzen_trim.las")

@@ -58,7 +58,7 @@ TEST(Site, OpenChoosesTheStorageAndEveryStorageAnswersAsBruteForce) {
   const std::vector<Ray> rays = rays_over(bounds_of(cloud.positions), 200);
   RayQuery q;
   q.k = 4;
-  q.radius = 3.0;  // US survey feet: about a point spacing
+  q.radius = 3.0;  // international feet: about a point spacing
   const auto expected = answers(rayscan::Site(AnyIndex(brute)), cloud.positions, rays, q);
   std::size_t hits = 0;
   for (const auto& h : expected) hits += h.size();

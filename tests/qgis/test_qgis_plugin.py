@@ -26,7 +26,7 @@ import time
 import zipfile
 
 ALGORITHMS = ["quick_look", "ortho_dsm", "viewshed", "point_visibility", "solar"]
-# Autzen is in US survey feet: an eye 6 ft above the ground on open ground, 3-ft cells (docs/visibility.md).
+# Autzen is in international feet: an eye 6 ft above the ground on open ground, 3-ft cells (docs/visibility.md).
 OBSERVER = (636226.5, 849106.5)
 HEIGHT = 6
 CELL = 3

@@ -22,7 +22,7 @@ class Viewshed(RayscanAlgorithm):
             "viewshed-points = 1 where some point of the cell is seen (line of sight over the points); "
             "fraction = share of the cell's points seen; distance = nearest observer that sees the "
             "cell. NoData -9999 where the cell has no surface. The observers are reprojected to the "
-            "cloud's CRS; heights and cell size are in the cloud's units (autzen: US survey feet). "
+            "cloud's CRS; heights and cell size are in the cloud's units (autzen: international feet). "
             "The raster carries the cloud's CRS.")
     OUTPUT = "OUTPUT"
 
