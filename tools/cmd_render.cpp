@@ -172,7 +172,7 @@ Runner add_render_command(CLI::App& app) {
                 "view of the photo given with --image (PINHOLE, SIMPLE_PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV)");
   c->add_option("--image", o->colmap_image, "Image NAME in the COLMAP model's images.txt (with --colmap)");
   c->add_option("--ortho-map", o->ortho_res, "Top-down orthophoto over the cloud's XY extent at RES world "
-                "units per pixel, written as a georeferenced RGB GeoTIFF (--out .tif) with the cloud's CRS")
+                "units per pixel, written as a georeferenced RGBA GeoTIFF (--out .tif; alpha 0 where no point was hit) with the cloud's CRS")
       ->check(CLI::PositiveNumber);
   c->add_option("--dsm", o->dsm, "With --ortho-map: also write the digital surface model (elevation of the "
                 "first surface per cell, NoData where the ray missed) as a Float32 GeoTIFF");

@@ -24,7 +24,7 @@ Runner add_translate_command(CLI::App& app) {
   auto memory = std::make_shared<std::string>("4G");
   sub->add_option("IN", *in, "input point file (LAS, LAZ, COPC, PLY, PCD, XYZ/CSV/TXT)")->required();
   sub->add_option("OUT", *out, "output file: .las, .laz, .copc.laz (COPC 1.0: LAZ 1.4 with an octree of grid subsamples), "
-                                ".ply (binary, double x y z), .pcd (binary, double x y z) or "
+                                ".ply (binary, double x y z), .pcd (binary; x y z float when exact, else double) or "
                                 "text with a header line (.xyz and .txt space-separated, .csv comma-separated)")
       ->required();
   sub->add_option("--format", *format, "output: auto (by OUT's extension), las or laz")

@@ -331,7 +331,9 @@ std::string info_report_text(const InfoJobResult& r) {
   std::ostringstream o;
   o << "file:              " << r.file << "\n";
   o << "format:            " << r.info.format;
-  if (!r.info.version.empty()) o << " " << r.info.version;
+  // A COPC file's version is the COPC specification's (1.0, the only one) over its LAS version.
+  if (!r.info.version.empty())
+    o << (r.info.format == "COPC" ? " 1.0 (LAS " + r.info.version + ")" : " " + r.info.version);
   if (!r.info.encoding.empty()) o << " (" << r.info.encoding << ")";
   o << "\n";
   if (r.info.point_format >= 0) {
