@@ -16,16 +16,17 @@
 namespace rayscan::cli {
 
 /// "<what>: write failed", with the system's reason when errno holds one (a full disk: "No space
-/// left on device").
+/// left on device"; callers clear errno before the call whose failure they report).
 [[nodiscard]] inline std::string write_failed(const std::string& what) {
   const int e = errno;
   return what + ": write failed" + (e != 0 ? std::string(" (") + std::strerror(e) + ")" : std::string());
 }
 
 /// Flushes standard output (std::cout and the C stream under it) and throws std::runtime_error
-/// ("standard output: write failed (...)") when any write to it failed: a full disk, /dev/full,
-/// a file size limit. Called once after every command, so that no command exits 0 with its
-/// output lost.
+/// ("standard output: write failed") when any write to it failed: a full disk, /dev/full, a file
+/// size limit. The reason is named when this last flush is the call that failed; an earlier
+/// failed write left only the stream's error flag. Called once after every command, so that no
+/// command exits 0 with its output lost.
 inline void check_standard_output() {
   errno = 0;
   std::cout.flush();

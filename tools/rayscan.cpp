@@ -41,7 +41,8 @@ int fail(const std::string& line) {
 }
 
 // `code`, or 2 with one line when the help or version text just printed could not be written
-// (rayscan --help > /dev/full); no MPI abort: every rank ends the same way.
+// (rayscan --help > /dev/full). Under MPI only rank 0 prints, so only it can fail here; no abort
+// is needed, as no rank goes on to work.
 int output_checked(int code) {
   try {
     rayscan::cli::check_standard_output();

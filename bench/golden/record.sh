@@ -15,7 +15,7 @@ rm -rf "$OUT"; mkdir -p "$OUT"
 OUT="$(cd "$OUT" && pwd)"
 run() { "$@" >>"$OUT/log.txt" 2>&1 || { echo "record: failed: $*" >&2; tail -5 "$OUT/log.txt" >&2; exit 1; }; }
 
-# Rays: a fixed grid over autzen_trim (US survey feet) and lone-star, downward and slanted.
+# Rays: a fixed grid over autzen_trim (international feet) and lone-star, downward and slanted.
 python3 - "$OUT" <<'PY'
 import sys
 out = sys.argv[1]

@@ -121,6 +121,9 @@ TEST(BadInput, PcdDataBeforeFieldsAndCountsBeyondTheFile) {
                   "LZF data is corrupt: a back reference or literal run past its bounds");
   expect_one_line(error_of(one_point + "\x21\0\0\0\x0c\0\0\0\x1f"s + std::string(32, 'a'), io::Format::pcd),
                   "LZF data is corrupt: it decodes to more than the 12 bytes stated");
+  // An empty stream for 12 bytes: refused before liblzf, which would read a control byte past it.
+  expect_one_line(error_of(one_point + "\0\0\0\0\x0c\0\0\0"s, io::Format::pcd),
+                  "compressed size 0 for 12 bytes of point data");
   expect_one_line(error_of(std::string("VERSION .7\nFIELDS x y z h\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 900000\n"
                                        "WIDTH 1\nPOINTS 1\nDATA ascii\n"),
                            io::Format::pcd),
@@ -150,7 +153,7 @@ TEST(BadInput, DuplicateColumnsAndProperties) {
   EXPECT_EQ(pc.scalar("scalar_intensity")->values, (std::vector<double>{5, 10}));
 }
 
-TEST(BadInput, OutOfRangeAttributeValuesAreClampedNotUndefined) {
+TEST(BadInput, AsciiIntegersOutsideTheirTypeAreRefusedFloatsPastTheirFieldClamped) {
   // Found by fuzz_ply (tests/fuzz/regressions/ply/): "nan" in an ascii uchar intensity was cast
   // to an integer; huge doubles were cast to float (both undefined behaviour). A value its
   // declared integer type cannot hold is an error naming the line and property; values of a

@@ -57,6 +57,12 @@ TEST(InfoCli, CopcReportsTheOctreeFromItsHierarchy) {
     EXPECT_EQ(j["copc"]["nodes_per_level"][l], np.first) << "level " << l;
     EXPECT_EQ(j["copc"]["points_per_level"][l], np.second) << "level " << l;
   }
+  // The text report names the COPC specification's version over the file's LAS version (header
+  // bytes 24-25: major, minor).
+  ASSERT_EQ(run("info '" + p.string() + "'", out, err), 0) << text_of(err);
+  const std::string las_version = std::to_string(int(bytes[24])) + "." + std::to_string(int(bytes[25]));
+  EXPECT_NE(text_of(out).find("format:            COPC 1.0 (LAS " + las_version + ")\n"), std::string::npos)
+      << text_of(out);
 }
 
 TEST(InfoCli, JsonReportsFormatCountsBoundsAttributesAndCrs) {

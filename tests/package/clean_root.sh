@@ -119,7 +119,7 @@ assert np.array_equal(got, want), np.flatnonzero(got != want)[:10]
 print(f"ray query: {np.count_nonzero(want >= 0)} of {len(want)} rays hit; all equal the brute force")
 PY
 
-# A vertical ray through the Autzen scan (US survey feet), as in docs/sql.md.
+# A vertical ray through the Autzen scan (international feet), as in docs/sql.md.
 ray="636500, 849200, 600,  0, 0, -1"
 echo "== sqlite3: .load rayscan_sqlite"
 rayscan db import data/autzen_trim.las -o out/autzen.sqlite >/dev/null

@@ -361,13 +361,17 @@ struct PcdBody {
     if (usize > 90ull * csize + 1024)
       fail_at(nm, body + 4, "uncompressed size " + std::to_string(usize) + " impossible for " +
                                 std::to_string(csize) + " bytes of LZF data");
+    // (liblzf's loop reads a control byte before it tests the input's end: an empty stream would
+    // be read one byte past the file.)
+    if (usize > 0 && csize == 0)
+      fail_at(nm, body, "compressed size 0 for " + std::to_string(usize) + " bytes of point data");
     decompressed.resize(usize);
     if (usize > 0) {
       errno = 0;
       const unsigned got = lzf_decompress(base + 8, csize, decompressed.data(), usize);
-      // liblzf returns 0 on a bad stream: E2BIG, it decodes to more than the stated size;
-      // EINVAL, a back reference before the start of the output or past the input.
-      if (got == 0)
+      // liblzf returns 0 on a bad stream and says why in errno: E2BIG, it decodes to more than the
+      // stated size; EINVAL, a back reference or literal run past its bounds.
+      if (got == 0 && (errno == E2BIG || errno == EINVAL))
         fail_at(nm, body + 8, std::string("LZF data is corrupt: ") +
                                   (errno == E2BIG ? "it decodes to more than the " + std::to_string(usize) + " bytes stated"
                                                   : "a back reference or literal run past its bounds"));

@@ -147,7 +147,8 @@ struct AsciiCursor {
     // hold another): an integer in its range.
     double lo = 0, hi = 0;
     if (const PlyType ty = count ? p.count_type : p.type; integer_range(ty, lo, hi) && !(v >= lo && v <= hi && v == std::floor(v)))
-      fail_line(in.name, line, "property '" + p.name + "' is " + type_name(ty) + ": expected an integer in " +
+      fail_line(in.name, line, std::string(count ? "the list count of '" : "property '") + p.name + "' is " +
+                                   type_name(ty) + ": expected an integer in " +
                                    std::to_string(static_cast<long long>(lo)) + ".." +
                                    std::to_string(static_cast<long long>(hi)) + ", got '" +
                                    std::string(t.substr(0, 40)) + "'");
