@@ -155,6 +155,13 @@ TEST(OutputsCli, ReadOnlyDirectoryIsRefusedFirst) {
   expect_one_line_error(v, "v.las", "cannot write in directory");
   if (!ro.mounted) fs::permissions(dir, fs::perms::owner_all);
   EXPECT_TRUE(fs::is_empty(dir));
+  // A directory whose permission bits let root in but whose file system takes no new files
+  // (procfs): refused before the work too (the computation's report lines never appear).
+  if (fs::exists("/proc/self")) {
+    const CommandResult p = run_command(kBin + " visibility " + q(cloud()) + " --observers 636500,849200 --out /proc/v.las");
+    expect_one_line_error(p, "/proc/v.las", "cannot write in directory '/proc'");
+    EXPECT_EQ(p.out.find("line of sight"), std::string::npos) << p.out;
+  }
 }
 
 // A replaced read-only output keeps its mode (as `cp` onto an existing file does).
