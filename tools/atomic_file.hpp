@@ -47,10 +47,11 @@ class AtomicOutput {
   }
   /// The stream to write to.
   std::ostream& stream() { return file_ ? out_ : std::cout; }
-  /// Flush and move the finished file into place.
+  /// Flush and move the finished file into place (standard output: flushed; main() checks it
+  /// once after every command, check_standard_output).
   void commit() {
     if (!file_) {
-      check_standard_output();
+      std::cout.flush();
       return;
     }
     errno = 0;

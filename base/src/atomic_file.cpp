@@ -53,19 +53,16 @@ void require_outputs(std::span<const std::filesystem::path> outputs, std::span<c
     if (out.empty()) continue;
     require_replaceable_output(out);
     const std::filesystem::path dir = out.parent_path().empty() ? "." : out.parent_path();
-    if (::access(dir.c_str(), W_OK) != 0)
-      refuse_output(out, "cannot write in directory '" + one_line(dir.string()) + "': " + std::strerror(errno));
-    // access() answers from the permission bits, which root passes everywhere; a file system that
-    // takes no new files (procfs, sysfs) only says so when one is created. So one is, and removed.
-    std::string probe = ".";  // (built by append, as AtomicFile's temporary name)
-    probe.append(out.filename().string()).append(".probe.").append(std::to_string(::getpid()));
-    const std::filesystem::path probe_path = dir / probe;
-    ::unlink(probe_path.c_str());
-    const int fd = ::open(probe_path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+    // A file created there and removed: permission bits (access(2)) pass root everywhere, while a
+    // file system that takes no new files (procfs, sysfs, a read-only mount) only says so when one
+    // is created. A short fixed name, so that a long output name cannot make it too long.
+    const std::filesystem::path probe = dir / (".rayscan-probe." + std::to_string(::getpid()));
+    ::unlink(probe.c_str());  // a stale probe of this pid (or a planted link): removed, not followed
+    const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
     if (fd < 0)
       refuse_output(out, "cannot write in directory '" + one_line(dir.string()) + "': " + std::strerror(errno));
     ::close(fd);
-    ::unlink(probe_path.c_str());
+    ::unlink(probe.c_str());
     struct stat os {};
     if (::stat(out.c_str(), &os) != 0) continue;  // a new file cannot be an input
     for (const std::filesystem::path& in : inputs) {

@@ -31,11 +31,11 @@ void require_replaceable_output(const std::filesystem::path& path);
 
 /// The checks a job runs on its outputs before any long work, so that a bad output path fails
 /// in a second, not after the computation: each output replaceable (require_replaceable_output),
-/// its directory writable by this process (access(2) W_OK, then a probe file created with
-/// O_EXCL and removed: a read-only directory or mount, and a file system that takes no new files
-/// such as procfs even for root, are refused), and none the same file as an input (same device and inode, so another spelling, a
-/// hard link or a symbolic link to the input is caught: writing there would replace the input
-/// it is read from). Empty paths are skipped. Throws OutputFileError "<output>: <reason>".
+/// its directory writable by this process (a probe file created with O_EXCL and removed: a
+/// read-only directory or mount, and a file system that takes no new files such as procfs even
+/// for root, are refused), and none the same file as an input (same device and inode, so another
+/// spelling, a hard link or a symbolic link to the input is caught: writing there would replace
+/// the input it is read from). Empty paths are skipped. Throws OutputFileError "<output>: <reason>".
 void require_outputs(std::span<const std::filesystem::path> outputs, std::span<const std::filesystem::path> inputs = {});
 
 class AtomicFile;

@@ -38,9 +38,8 @@ struct EntryGrid {
   /// Whether first hits start from the grid (the kNN always does): when at least half the
   /// deepest level's cells have a node of their own (entry_grid_fills_cube), as in a cloud that
   /// fills its cube. In a scan of surfaces most cells are empty and map to shallow nodes, so a
-  /// ray's entry node seldom holds its hit and the restart costs more than the levels it skips:
-  /// first hits 0.70-0.98x with the search on six real scans, 0.98-1.17x on uniform clouds
-  /// (bench/notes/2026-11-29-entry-grid-on-index-files.md).
+  /// ray's entry node seldom holds its hit and the restart costs more than the levels it skips
+  /// (measured: bench/notes/2026-11-29-entry-grid-on-index-files.md).
   bool first_hits;
   /// The position of cell (i, j, k) of level l in `cells`: levels 0..l-1 before it, then
   /// i + 2^l j + 4^l k.
@@ -81,8 +80,8 @@ struct EntryCells {
 };
 
 /// The share of the deepest level's cells with a node of their own (EntryCell::depth == depth)
-/// above which first hits use the grid (EntryGrid::first_hits): the real scans measured have
-/// 1.5-17%, uniform clouds 100%.
+/// above which first hits use the grid (EntryGrid::first_hits): it separates the real scans
+/// measured (far below) from clouds that fill their cube (all cells).
 inline constexpr double kEntryGridFirstHitsShare = 0.5;
 
 /// Whether at least kEntryGridFirstHitsShare of the deepest level's cells of `g` (cells, depth)

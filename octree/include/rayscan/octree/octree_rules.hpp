@@ -69,8 +69,7 @@ struct OctreeRules {
   struct Quantizer {
     Vec3 lo;
     double scale;  ///< cells per world unit
-    /// Cells of the root cell with corner `lo` and edge `side` (root_side()). Inline: the entry
-    /// grids build one per query (EntryGrid).
+    /// Cells of the root cell with corner `lo` and edge `side` (root_side()).
     Quantizer(const Vec3& corner, double side)
         : lo(corner), scale(static_cast<double>(std::uint32_t{1} << kMortonBits) / side) {}
     /// The cell in [0, 2^21) of coordinate v on axis a (0 x, 1 y, 2 z): truncated, clamped to the
