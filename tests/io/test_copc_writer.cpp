@@ -4,6 +4,7 @@
 // nodes' records equals the input's records as a multiset; every node's points lie in its cube;
 // rayscan's COPC reader and a query on the output agree with a brute force over the input.
 #include "io_test_util.hpp"
+#include "npm_tools.hpp"
 
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -29,28 +30,6 @@
 
 namespace rayscan::test {
 namespace {
-
-/// node_modules of an npm cache outside the repository holding laz-perf and copc (installed on
-/// first use); "" when node or npm is unavailable (`why` says which).
-fs::path npm_modules(std::string& why) {
-  const char* home = std::getenv("HOME");
-  const fs::path cache = fs::path(std::getenv("RAYSCAN_NPM_CACHE") ? std::getenv("RAYSCAN_NPM_CACHE")
-                                  : (home ? std::string(home) + "/.cache/rayscan-npm" : "/tmp/rayscan-npm"));
-  if (std::system("node --version >/dev/null 2>&1") != 0) {
-    why = "node is not installed";
-    return {};
-  }
-  if (!fs::exists(cache / "node_modules" / "laz-perf") || !fs::exists(cache / "node_modules" / "copc")) {
-    fs::create_directories(cache);
-    const std::string cmd = "cd '" + cache.string() +
-                            "' && timeout 180 npm install --no-audit --no-fund laz-perf@0.0.7 copc@0.0.8 >/dev/null 2>&1";
-    if (std::system(cmd.c_str()) != 0 || !fs::exists(cache / "node_modules" / "copc")) {
-      why = "npm could not install laz-perf and copc into " + cache.string() + " (registry unreachable?)";
-      return {};
-    }
-  }
-  return cache / "node_modules";
-}
 
 std::string text_of(const fs::path& p) {
   std::ifstream f(p);

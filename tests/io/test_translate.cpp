@@ -3,6 +3,7 @@
 // LAZ -> LAS gives the original back byte for byte; our LAZ decodes to the same records with an
 // independent decoder (npm laz-perf under Node), and is within 5% of LASzip's size.
 #include "io_test_util.hpp"
+#include "npm_tools.hpp"
 
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/io/point_reader.hpp"
@@ -193,17 +194,9 @@ TEST(Translate, LayeredEncoderSizeComparesWithLaszip) {
 }
 
 TEST(Translate, LazPerfUnderNodeDecodesOurLaz) {
-  // npm laz-perf (WASM) is installed into a cache outside the repository.
-  const char* home = std::getenv("HOME");
-  const fs::path cache = fs::path(std::getenv("RAYSCAN_NPM_CACHE") ? std::getenv("RAYSCAN_NPM_CACHE")
-                                  : (home ? std::string(home) + "/.cache/rayscan-npm" : "/tmp/rayscan-npm"));
-  if (std::system("node --version >/dev/null 2>&1") != 0) GTEST_SKIP() << "node is not installed";
-  if (!fs::exists(cache / "node_modules" / "laz-perf")) {
-    fs::create_directories(cache);
-    const std::string cmd = "cd '" + cache.string() + "' && timeout 120 npm install --no-audit --no-fund laz-perf@0.0.7 >/dev/null 2>&1";
-    if (std::system(cmd.c_str()) != 0 || !fs::exists(cache / "node_modules" / "laz-perf"))
-      GTEST_SKIP() << "npm could not install laz-perf into " << cache << " (registry unreachable?)";
-  }
+  std::string why;
+  const fs::path modules = npm_modules(why);
+  if (modules.empty()) GTEST_SKIP() << why;
   for (const char* rel : {"las/conformance/point-color-time.las", "las/conformance/extrabytes.las", "las/autzen_trim.las",
                           "las/test1_4.las", "las/autzen_trim_7.las", "laz/append-bug.laz"}) {
     const fs::path src = data_file(rel);
@@ -212,7 +205,7 @@ TEST(Translate, LazPerfUnderNodeDecodesOurLaz) {
     io::translate_las(src, las);  // plain LAS reference (identity for a LAS input)
     io::translate_las(las, laz);
     const std::string cmd = "node '" + std::string(RAYSCAN_SOURCE_DIR) + "/tests/io/lazperf_decode.js' '" +
-                            (cache / "node_modules").string() + "' '" + laz.string() + "' '" + rec.string() + "' >/dev/null";
+                            modules.string() + "' '" + laz.string() + "' '" + rec.string() + "' >/dev/null";
     ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
     EXPECT_TRUE(slurp(rec) == io::read_las_records(las).records) << rel;
   }
