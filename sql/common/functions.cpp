@@ -40,19 +40,32 @@ const char* check(rs_function f, const double* a, int n, bool box, char* err) {
 
 AABB make_box(const double* b) { return {Vec3(b[0], b[1], b[2]), Vec3(b[3], b[4], b[5])}; }
 
+// The scalar function f at a[0..9) (checked arguments).
+double value(rs_function f, const double* a) {
+  const Vec3 o(a[0], a[1], a[2]), d(a[3], a[4], a[5]), p(a[6], a[7], a[8]);
+  switch (f) {
+    case RS_DIST_RAY: return rayscan::dist_ray(o, d, p);
+    // The t of `rayscan query`: the projection on the ray's unit direction, normalised as the
+    // core Ray does, through the one per-point function every index uses.
+    case RS_RAY_TIME: return rayscan::ray_point_terms(o, rayscan::Ray(o, d).direction(), p).t;
+    case RS_DIST_PLANE: return rayscan::dist_plane(o, d, p);
+  }
+  return 0.0;
+}
+
 }  // namespace
 
 extern "C" const char* rs_function_name(rs_function f) { return kNames[f]; }
 
 extern "C" const char* rs_eval(rs_function f, const double a[9], double* out, char err[RS_ERRBUF]) {
   if (const char* e = check(f, a, 9, false, err)) return e;
-  const Vec3 o(a[0], a[1], a[2]), d(a[3], a[4], a[5]), p(a[6], a[7], a[8]);
-  switch (f) {
-    case RS_DIST_RAY: *out = rayscan::dist_ray(o, d, p); break;
-    // The t of `rayscan query`: the projection on the ray's unit direction, normalised as the
-    // core Ray does, through the one per-point function every index uses.
-    case RS_RAY_TIME: *out = rayscan::ray_point_terms(o, rayscan::Ray(o, d).direction(), p).t; break;
-    case RS_DIST_PLANE: *out = rayscan::dist_plane(o, d, p); break;
+  *out = value(f, a);
+  // Finite inputs near the double range can overflow the core's squares and products (1e155 and
+  // up): an error rather than an infinite or NaN distance passed off as a value.
+  if (!std::isfinite(*out)) {
+    std::snprintf(err, RS_ERRBUF, "%s: the result overflows double precision; expected coordinates and "
+                  "vector components of magnitude below about 1e150", kNames[f]);
+    return err;
   }
   return nullptr;
 }
@@ -71,8 +84,19 @@ extern "C" const char* rs_eval_bounds(rs_function f, const double a[12], double*
   // ray_time's t is dist_plane with p0 = o, n = d (eq. 4: the projected time interval).
   const Interval iv = f == RS_DIST_RAY ? rayscan::dist_ray_bounds(o, d, b)
                                        : rayscan::dist_plane_bounds(o, d, b);
-  *lo = iv.lo;
-  *hi = iv.hi;
+  // The exact bounds are computed in double too, and the scalar function at a point of the box
+  // rounds differently (on a one-point box of autzen, dist_ray_min exceeded dist_ray by 7e-11 for
+  // half the points): widened by the octree node test's rounding allowance, [lo, hi] holds what
+  // the scalar function returns at every point of the box, so `dist_ray_min(...) <= r` never
+  // prunes a box holding a point with `dist_ray(...) <= r`.
+  const double tol = rayscan::node_test_tolerance(o, b);
+  *lo = f == RS_DIST_RAY ? std::max(0.0, iv.lo - tol) : iv.lo - tol;
+  *hi = iv.hi + tol;
+  if (!std::isfinite(*lo) || !std::isfinite(*hi)) {
+    std::snprintf(err, RS_ERRBUF, "%s_bounds: the result overflows double precision; expected coordinates "
+                  "and vector components of magnitude below about 1e150", kNames[f]);
+    return err;
+  }
   return nullptr;
 }
 
@@ -144,7 +168,15 @@ extern "C" rs_within rs_ray_box_test(const double o_[3], const double d_[3], dou
   const double tol = rayscan::node_test_tolerance(o, b);
   const Interval dr = rayscan::dist_ray_bounds(o, d, b);
   const Interval tb = rayscan::dist_plane_bounds(o, d, b);
-  *score = order_time ? std::max(tb.lo, t_min) : dr.lo;
+  // The GiST distance: for a one-point box the scalar function's own value (so `ORDER BY <->`
+  // orders as `ORDER BY dist_ray` / `ray_time` does), else the bound widened by the rounding
+  // allowance, below the value at every point inside (a lower bound, as index order needs).
+  if (b.lo == b.hi) {
+    const double a[9] = {o_[0], o_[1], o_[2], d_[0], d_[1], d_[2], b.lo.x, b.lo.y, b.lo.z};
+    *score = order_time ? std::max(value(RS_RAY_TIME, a), t_min) : value(RS_DIST_RAY, a);
+  } else {
+    *score = order_time ? std::max(tb.lo - tol, t_min) : std::max(0.0, dr.lo - tol);
+  }
   if (dr.empty() || dr.lo > r + tol || tb.hi < t_min - tol || tb.lo > t_max + tol)
     return RS_NOT_WITHIN;
   if (dr.hi <= r - tol && tb.lo >= t_min + tol && tb.hi <= t_max - tol) return RS_FULLY_WITHIN;

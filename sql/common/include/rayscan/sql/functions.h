@@ -30,9 +30,10 @@ const char* rs_function_name(rs_function f);
 const char* rs_eval(rs_function f, const double a[9], double* out, char err[RS_ERRBUF]);
 
 /** Bounds evaluation (section 4.2) of f over the box a[6..11] = (xmin,ymin,zmin,xmax,ymax,zmax)
- * with a[0..5] as in rs_eval: [*lo, *hi] holds every value f takes for a point of the box (exact
- * up to rounding; pruning adds rs_tolerance). SQL names: <name>_min / <name>_max. Errors as
- * rs_eval, plus a box with min > max on an axis. */
+ * with a[0..5] as in rs_eval: [*lo, *hi] holds every value rs_eval returns for a point of the
+ * box (the exact bounds widened by the octree node test's rounding allowance, node_test_tolerance:
+ * about 1e-9 of the distance from o to the box plus its extent; dist_ray's lo is at least 0).
+ * SQL names: <name>_min / <name>_max. Errors as rs_eval, plus a box with min > max on an axis. */
 const char* rs_eval_bounds(rs_function f, const double a[12], double* lo, double* hi,
                            char err[RS_ERRBUF]);
 
@@ -44,7 +45,9 @@ typedef enum rs_within { RS_NOT_WITHIN = 0, RS_PARTLY_WITHIN = 1, RS_FULLY_WITHI
  * xmax,ymax,zmax): NOT_WITHIN when the bounds exclude every point (with tolerance, so rounding
  * never prunes a qualifying point), FULLY_WITHIN when they admit every point, else PARTLY_WITHIN.
  * *score receives a lower bound of the distance (order_time = 0) or of the time (order_time = 1)
- * of any qualifying point: the "nearest first" key. Arguments must have passed rs_check_ray. */
+ * of any qualifying point, below rs_eval's value at every point of the box; for a one-point box,
+ * rs_eval's value itself: the "nearest first" key (the GiST distance). Arguments must have passed
+ * rs_check_ray. */
 rs_within rs_ray_box_test(const double o[3], const double d[3], double r, double t_min,
                           double t_max, int order_time, const double box[6], double* score);
 
