@@ -67,10 +67,19 @@ TEST(RenderCli, AnImageModuleThatDoesNotLoadStopsTheRenderBeforeItStarts) {
 }
 
 TEST(RenderCli, OutAcceptsEveryImageExtension) {
-  // Positive control for the test above: the same command with a listed extension succeeds.
+  // Positive control for the test above: every extension --help lists (in either case) writes a
+  // file of that format, told by its own first bytes (PNG, JPEG, TIFF and OpenEXR signatures).
   const fs::path scene = small_scene_file();
-  const fs::path out = cli_temp_dir() / "x.PNG";
-  const RunResult r = run("render -q " + scene.string() + " --out " + out.string());
-  EXPECT_EQ(r.code, 0) << r.out;
-  EXPECT_TRUE(fs::exists(out));
+  const std::pair<const char*, std::string> kinds[] = {
+      {"x.png", "\x89PNG"}, {"x.PNG", "\x89PNG"}, {"x.jpg", "\xFF\xD8\xFF"}, {"x.jpeg", "\xFF\xD8\xFF"},
+      {"x.tif", "II*"}, {"x.tiff", "II*"}, {"x.exr", "\x76\x2F\x31\x01"}};
+  for (const auto& [name, magic] : kinds) {
+    const fs::path out = cli_temp_dir() / name;
+    const RunResult r = run("render -q " + scene.string() + " --spp 1 --out " + out.string());
+    EXPECT_EQ(r.code, 0) << name << ": " << r.out;
+    std::ifstream f(out, std::ios::binary);
+    std::string head(magic.size(), '\0');
+    f.read(head.data(), static_cast<std::streamsize>(head.size()));
+    EXPECT_EQ(head, magic) << name;
+  }
 }
