@@ -231,13 +231,15 @@ TEST_F(Mpi, ARankThatDiesEndsTheJobWithoutOutputAndWithoutHanging) {
 }
 
 TEST_F(Mpi, ASilentRankEndsTheJobAfterTheTimeout) {
-  // Rank 1 stands for a hung rank: the same job but 65536 samples per pixel, so its first tile
-  // takes minutes; rank 0 (a dedicated master here) waits RAYSCAN_MPI_TIMEOUT = 2 s for the results.
+  // Rank 1 is a hung rank: the same job at 65536 samples per pixel, stopped (SIGSTOP, by GNU
+  // timeout, which continues and ends it when mpirun ends the job) one second in, whatever the
+  // machine's speed, long before it could have rendered its tiles; rank 0 (a dedicated master
+  // here) waits RAYSCAN_MPI_TIMEOUT = 2 s for the results.
   const fs::path out = dir_ / "never.png";
   std::string m = mpirun(1, false);
   m.replace(m.find("RAYSCAN_MPI_TIMEOUT=60"), 22, "RAYSCAN_MPI_TIMEOUT=2");
-  const CommandResult r = run(m + kBin + " render -q scene.json --out " + out.string() + " : -n 1 " + kBin +
-                              " render -q scene.json --spp 65536 --out " + out.string());
+  const CommandResult r = run(m + kBin + " render -q scene.json --out " + out.string() + " : -n 1 timeout -s STOP 1 " +
+                              kBin + " render -q scene.json --spp 65536 --out " + out.string());
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_EQ(lines_equal(r.out, "rayscan render: rank 1 of 2 sent nothing for 2 s while owing work-queue results "
                                 "(dead, hung, or slower than RAYSCAN_MPI_TIMEOUT)"),
