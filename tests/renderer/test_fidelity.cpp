@@ -2,7 +2,7 @@
 // field) sampled with a scanner-like 1 x 3 pattern (spacing s along one axis, 3 s across) and
 // noise of 0.05 s, rendered in both primitive modes; depth and normal AOVs are compared with the
 // analytic ray cast of the true surface, and a sun-lit plane with the analytic Lambert shading.
-// The table printed here is the one in README.md ("Surfels").
+// The table printed here is the one in docs/fidelity.md (summarised in docs/rendering.md).
 #include "rayscan/octree/normals.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/render.hpp"
@@ -272,6 +272,14 @@ TEST(Fidelity, AnalyticScenesInBothModes) {
         EXPECT_LT(holes, 0.001) << sc.name;            // goal: holes < 0.1%
         EXPECT_LT(m.normal_median, 3.0) << sc.name;    // median normal error < 3 degrees
         EXPECT_LT(m.depth_median, 0.25) << sc.name;    // within a quarter spacing
+      } else {
+        // The sphere rows are the baseline the docs quote (0.6-5.8% holes, median normal errors
+        // of 46-50 degrees: a sphere's normal is the direction from its centre, not the
+        // surface's): a result outside these bands means those figures need measuring again.
+        EXPECT_GT(holes, 0.003) << sc.name;
+        EXPECT_LT(holes, 0.10) << sc.name;
+        EXPECT_GT(m.normal_median, 35.0) << sc.name;
+        EXPECT_LT(m.normal_median, 60.0) << sc.name;
       }
     }
   }
