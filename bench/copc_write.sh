@@ -12,7 +12,7 @@ BUILD="${1:-build}"
 N="${2:-2e7}"
 SCRATCH="${3:-/work/scratch}"
 R="$BUILD/tools/rayscan"
-CACHE="${RAYSCAN_NPM_CACHE:-$HOME/.cache/rayscan-npm}"
+CACHE="${RAYSCAN_NPM_CACHE:-$HOME/.cache/rayscan-npm-ci}"  # (tests/common/npm_tools.hpp installs it)
 mkdir -p "$SCRATCH"
 S=$(mktemp -d "$SCRATCH/copc-bench.XXXXXX")  # only this folder is deleted
 trap 'rm -rf "$S"' EXIT
@@ -46,5 +46,5 @@ a, b = os.path.getsize('$S/site7.copc.laz'), os.path.getsize('$S/site7.laz')
 print(f'COPC / LAZ (same PDRF 7 records): {a / b:.3f}')"
 if command -v node >/dev/null && [ -d "$CACHE/node_modules/copc" ]; then
   echo "copc.js on site7.copc.laz:"
-  node tests/io/copcjs_read.js "$CACHE/node_modules" "$S/site7.copc.laz"
+  node tests/site/copcjs_read.js "$CACHE/node_modules" "$S/site7.copc.laz"
 fi

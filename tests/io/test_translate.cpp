@@ -3,7 +3,7 @@
 // LAZ -> LAS gives the original back byte for byte; our LAZ decodes to the same records with an
 // independent decoder (npm laz-perf under Node), and is within 5% of LASzip's size.
 #include "io_test_util.hpp"
-#include "npm_tools.hpp"
+#include "../common/npm_tools.hpp"
 
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/io/point_reader.hpp"

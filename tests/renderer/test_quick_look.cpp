@@ -79,10 +79,10 @@ TEST(QuickLook, CloudRendersAndPrintedSceneReproducesTheImage) {
       for (int j = 0; j < 20; ++j) xyz << i * 0.5 << " " << j * 0.5 << " " << 0.1 * std::sin(i + j) << "\n";
   }
   const std::string bin = RAYSCAN_BIN;
-  const auto a = test::run_command(bin + " render -q " + (d / "c.xyz").string() + " --spp 2 --width 60 --out " +
+  const auto a = rayscan::test::run_command(bin + " render -q " + (d / "c.xyz").string() + " --spp 2 --width 60 --out " +
                                    (d / "a.png").string());
   ASSERT_EQ(a.code, 0) << a.out;
-  const auto p = test::run_command(bin + " render " + (d / "c.xyz").string() + " --spp 2 --width 60 --out " +
+  const auto p = rayscan::test::run_command(bin + " render " + (d / "c.xyz").string() + " --spp 2 --width 60 --out " +
                                        (d / "b.png").string() + " --print-scene",
                                    false);
   ASSERT_EQ(p.code, 0) << p.out;
@@ -92,16 +92,16 @@ TEST(QuickLook, CloudRendersAndPrintedSceneReproducesTheImage) {
   EXPECT_NE(p.out.find("\"height\": 40"), std::string::npos) << p.out;  // 3:2 kept
   EXPECT_NE(p.out.find("\"color\": \"elevation\""), std::string::npos) << p.out;  // no RGB in the file
   // Rendered from another folder: paths in the printed scene are absolute.
-  const auto b = test::run_command("cd / && " + bin + " render -q " + (d / "printed.json").string());
+  const auto b = rayscan::test::run_command("cd / && " + bin + " render -q " + (d / "printed.json").string());
   ASSERT_EQ(b.code, 0) << b.out;
-  const auto cmp = test::run_command(bin + " compare " + (d / "a.png").string() + " " + (d / "b.png").string());
+  const auto cmp = rayscan::test::run_command(bin + " compare " + (d / "a.png").string() + " " + (d / "b.png").string());
   EXPECT_EQ(cmp.code, 0) << cmp.out;  // identical images (idiff default: no pixel over 1e-6)
   // A scene file without a camera gets the same overview camera.
   std::ofstream(d / "nocam.json") << R"({"cloud": "c.xyz", "radius": "auto", "primitive": "surfel", "material": {"color": "elevation"},
     "spp": 2, "output": {"image": "n.png"}})";
-  const auto n = test::run_command(bin + " render -q " + (d / "nocam.json").string() + " --width 60");
+  const auto n = rayscan::test::run_command(bin + " render -q " + (d / "nocam.json").string() + " --width 60");
   ASSERT_EQ(n.code, 0) << n.out;
-  const auto cn = test::run_command(bin + " compare " + (d / "a.png").string() + " " + (d / "n.png").string());
+  const auto cn = rayscan::test::run_command(bin + " compare " + (d / "a.png").string() + " " + (d / "n.png").string());
   EXPECT_EQ(cn.code, 0) << cn.out;
   fs::remove_all(d);
 }

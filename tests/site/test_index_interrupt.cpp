@@ -2,7 +2,7 @@
 // the output path; a demanding user also expects no temporary output or sort runs left beside
 // it). The real CLI is started on a real LAS file, signalled as soon as its temporary files exist,
 // and the folder is then listed: the oracle is the file system.
-#include "io_test_util.hpp"
+#include "../io/io_test_util.hpp"
 
 #include "rayscan/io/point_io.hpp"
 

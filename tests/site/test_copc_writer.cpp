@@ -3,8 +3,8 @@
 // laz-perf's LASZip reader decodes the whole file through the chunk table; the union of the
 // nodes' records equals the input's records as a multiset; every node's points lie in its cube;
 // rayscan's COPC reader and a query on the output agree with a brute force over the input.
-#include "io_test_util.hpp"
-#include "npm_tools.hpp"
+#include "../io/io_test_util.hpp"
+#include "../common/npm_tools.hpp"
 
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -47,7 +47,7 @@ struct JsNode {
 /// Runs copcjs_read.js on `copc`: its JSON summary, and the nodes it decoded.
 nlohmann::json copcjs(const fs::path& modules, const fs::path& copc, std::vector<JsNode>* nodes) {
   const fs::path bin = temp_dir() / "copcjs.nodes", js = temp_dir() / "copcjs.json";
-  const std::string cmd = "node '" + std::string(RAYSCAN_SOURCE_DIR) + "/tests/io/copcjs_read.js' '" + modules.string() +
+  const std::string cmd = "node '" + std::string(RAYSCAN_SOURCE_DIR) + "/tests/site/copcjs_read.js' '" + modules.string() +
                           "' '" + copc.string() + "' '" + bin.string() + "' > '" + js.string() + "'";
   if (std::system(cmd.c_str()) != 0) {
     ADD_FAILURE() << "copc.js failed: " << cmd;

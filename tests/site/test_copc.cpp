@@ -1,6 +1,6 @@
 // COPC: the info VLR and hierarchy of the shared COPC file, and CopcIndex (the layered octree read
 // straight from the file) against the brute-force oracle on the same decoded points.
-#include "io_test_util.hpp"
+#include "../io/io_test_util.hpp"
 
 #include "rayscan/octree/brute_force.hpp"
 #include "rayscan/site/copc.hpp"

@@ -1,6 +1,6 @@
 // Site: Site::open chooses the storage from the file, and every storage of the same points answers
 // a ray query as the brute-force oracle over the points read whole does.
-#include "io_test_util.hpp"
+#include "../io/io_test_util.hpp"
 
 #include "rayscan/octree/brute_force.hpp"
 #include "rayscan/octree/ray_query.hpp"

@@ -1,36 +1,12 @@
-// The rules every job shares, defined once in the core (docs/library.md): extension tests, thread
-// counts, the auto radius, AOV names, the "no point" id.
-#include "rayscan/base/file_names.hpp"
+// The automatic radius (spacing.hpp: median nearest-neighbour spacing and choose_radius), the one
+// radius heuristic every job calls.
 #include "rayscan/octree/spacing.hpp"
-#include "rayscan/base/threads.hpp"
-
-#include <tbb/global_control.h>
 
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <set>
 
 using namespace rayscan;
-
-TEST(FileNames, LowerExtensionFoldsAsciiCaseOnly) {
-  EXPECT_EQ(lower_extension("a/b/Cloud.LAS"), ".las");
-  EXPECT_EQ(lower_extension("x.tar.GZ"), ".gz");
-  EXPECT_EQ(lower_extension("noext"), "");
-  EXPECT_EQ(lower_extension(".hidden"), "");  // a dot file has no extension (std::filesystem)
-  EXPECT_TRUE(has_extension("m.TIFF", {".tif", ".tiff"}));
-  EXPECT_FALSE(has_extension("m.tif.png", {".tif", ".tiff"}));
-  EXPECT_FALSE(has_extension("tif", {".tif"}));
-  EXPECT_EQ(extensions_expected({".las"}), "expected a file name ending in .las");
-  EXPECT_EQ(extensions_expected({".las", ".ply"}), "expected a file name ending in .las or .ply");
-  EXPECT_EQ(extensions_expected({".a", ".b", ".c"}), "expected a file name ending in .a, .b or .c");
-}
-
-TEST(Threads, ZeroMeansTheArenaLimit) {
-  EXPECT_EQ(resolve_threads(3), 3u);
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
-  EXPECT_EQ(resolve_threads(0), 1u);
-}
 
 TEST(Spacing, AutoRadiusOnAGridIsTheGridStep) {
   // A 2-D grid with step 0.25 and a duplicate of every point: the nearest other distinct point is

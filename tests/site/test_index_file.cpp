@@ -3,7 +3,7 @@
 // points, and the mmap'd index answers ray, kNN, radius, box and batch queries exactly like the
 // in-memory octree and the brute-force oracle. Bad files: truncated, corrupted, wrong version,
 // changed source, each a one-line IndexError naming the file.
-#include "io_test_util.hpp"
+#include "../io/io_test_util.hpp"
 #include "../common/entry_search_guard.hpp"
 
 #include "rayscan/octree/batch.hpp"
