@@ -1,6 +1,8 @@
 """Batch query results in CSR layout (as scipy.sparse.csr_matrix rows): query i's results are
 the slice offsets[i]:offsets[i+1] of each flat array, ranked best first."""
 
+import operator
+
 import numpy as np
 
 
@@ -22,7 +24,18 @@ class _CsrResult:
         return np.diff(self.offsets)
 
     def __getitem__(self, i):
-        """Original point indices of query i's results, ranked."""
+        """Original point indices of query i's results, ranked: an integer in [-M, M), negative
+        counting from the end as in a list. Raises IndexError outside that range, TypeError for
+        another type."""
+        try:
+            i = operator.index(i)
+        except TypeError:
+            raise TypeError(f"query index must be an integer, got {type(i).__name__}") from None
+        n = len(self)
+        if not -n <= i < n:
+            raise IndexError(f"query index {i} is out of range for {n} queries")
+        if i < 0:
+            i += n
         return self.indices[self.offsets[i]:self.offsets[i + 1]]
 
     def first(self, field="indices", fill=None):

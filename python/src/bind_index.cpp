@@ -67,6 +67,14 @@ unsigned parse_depth(py::handle v, const char* name) {
 
 PyIndex build(py::handle xyz, const IndexOptions& opts) {
   const Vec3Rows pts = as_vec3_rows(xyz, "xyz");
+  // The trees refuse a non-finite point ("octree: point 5 has a non-finite coordinate"); the brute
+  // force scan would keep it and return it as a result, so it is refused here in the same words.
+  if (opts.type == "brute")
+    for (std::size_t i = 0; i < pts.rows.size(); ++i) {
+      const Vec3& p = pts.rows[i];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        throw py::value_error("brute: point " + std::to_string(i) + " has a non-finite coordinate");
+    }
   PyIndex out{BruteForceIndex(std::span<const Vec3>{}), opts, pts.rows.size()};
   {
     py::gil_scoped_release nogil;
@@ -87,15 +95,15 @@ auto with_threads(unsigned threads, F&& f) {
 /// Row i of a broadcast pair: a one-row array repeats.
 inline const Vec3& row(std::span<const Vec3> a, std::size_t i) { return a.size() == 1 ? a[0] : a[i]; }
 
-/// Number of queries of two broadcast (M, 3) / (3,) arguments; ValueError when they disagree.
+/// Number of queries of two broadcast (M, 3) / (3,) arguments, as NumPy broadcasts them: equal
+/// counts, or one row that repeats (also over zero rows: an empty batch gives no queries).
+/// ValueError when they disagree.
 std::size_t broadcast_count(const Vec3Rows& a, const char* an, const Vec3Rows& b, const char* bn) {
-  const std::size_t m = std::max(a.rows.size(), b.rows.size());
-  if ((a.rows.size() != m && a.rows.size() != 1) || (b.rows.size() != m && b.rows.size() != 1))
-    throw py::value_error(std::string(an) + " has " + std::to_string(a.rows.size()) + " rows but " +
-                          bn + " has " + std::to_string(b.rows.size()) +
-                          " (expected equal counts, or one row to broadcast)");
-  if (a.rows.empty() || b.rows.empty()) return 0;
-  return m;
+  const std::size_t na = a.rows.size(), nb = b.rows.size();
+  if (na == nb || nb == 1) return na;
+  if (na == 1) return nb;
+  throw py::value_error(std::string(an) + " has " + std::to_string(na) + " rows but " + bn + " has " +
+                        std::to_string(nb) + " (expected equal counts, or one row to broadcast)");
 }
 
 /// Prefix sums of the per-query result counts: offsets (M + 1,).
@@ -219,7 +227,10 @@ py::dict box(const Index& self, py::handle lo, py::handle hi, py::handle threads
     std::vector<AABB> boxes(m);
     for (std::size_t i = 0; i < m; ++i) {
       const Vec3 a = row(l.rows, i), b = row(h.rows, i);
-      if (std::isnan(a.x + a.y + a.z + b.x + b.y + b.z))
+      // Infinite bounds are half-open boxes; only NaN (no order) is refused. Tested per coordinate:
+      // a sum of -inf and inf would be NaN.
+      if (std::isnan(a.x) || std::isnan(a.y) || std::isnan(a.z) || std::isnan(b.x) || std::isnan(b.y) ||
+          std::isnan(b.z))
         throw std::invalid_argument("box " + std::to_string(i) + ": lo and hi must not be NaN");
       boxes[i] = AABB{a, b};
     }

@@ -245,3 +245,67 @@ def test_default_capacities_follow_the_layout(uniform_cloud):
     assert rayscan.Octree(uniform_cloud, layout="layered").capacity == 32
     assert rayscan.KdTree(uniform_cloud).capacity == 32
     assert rayscan.Octree(uniform_cloud, capacity=7).capacity == 7
+
+
+def test_brute_force_refuses_a_non_finite_point_like_the_trees():
+    """Every index refuses NaN and infinite coordinates with the same message; the brute force
+    used to keep them and return them as results."""
+    for make, name in ((rayscan.Octree, "octree"), (rayscan.KdTree, "kdtree"), (rayscan.BruteForce, "brute")):
+        for bad in (np.nan, np.inf, -np.inf):
+            with pytest.raises(ValueError) as e:
+                make([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.5, bad, 0.5]])
+            assert str(e.value) == f"{name}: point 2 has a non-finite coordinate"
+
+
+def test_result_indexing_follows_python_sequences(uniform_cloud):
+    """r[i] for i in [-M, M) is query i's hits (negative from the end, as in a list) against a
+    NumPy oracle; outside that range IndexError naming the index and the query count."""
+    qs = uniform_cloud[:3]
+    for make in INDEXES:
+        r = make(uniform_cloud).knn(qs, k=2)
+        oracle = []
+        for q in qs:
+            v = uniform_cloud - q
+            d2 = v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2]
+            oracle.append(np.lexsort((np.arange(len(d2)), d2))[:2].tolist())
+        for i in range(-3, 3):
+            assert r[i].tolist() == oracle[i], i
+        assert [hits.tolist() for hits in r] == oracle  # iteration stops at the end
+        for i in (3, -4, 2**70):
+            with pytest.raises(IndexError) as e:
+                r[i]
+            assert str(e.value) == f"query index {i} is out of range for 3 queries"
+        assert r[np.int64(-1)].tolist() == oracle[2]
+        with pytest.raises(TypeError, match="query index must be an integer, got float"):
+            r[1.0]
+
+
+def test_box_with_infinite_bounds_is_half_open(uniform_cloud):
+    """Infinite corners bound nothing on their side (NumPy's comparisons are the oracle); NaN
+    is still refused."""
+    inf = np.inf
+    lo = np.array([[-inf, -inf, 0.5], [-inf, -inf, -inf], [0.2, -inf, 0.3], [inf, 0, 0]])
+    hi = np.array([[inf, inf, inf], [inf, inf, inf], [0.6, 0.4, inf], [inf, 1, 1]])
+    for make in INDEXES:
+        res = make(uniform_cloud).box(lo, hi)
+        for i in range(len(lo)):
+            mask = np.all((uniform_cloud >= lo[i]) & (uniform_cloud <= hi[i]), axis=1)
+            np.testing.assert_array_equal(np.sort(res[i]), np.nonzero(mask)[0])
+        assert res.counts[1] == len(uniform_cloud) and res.counts[3] == 0 and 0 < res.counts[0] < len(uniform_cloud)
+    with pytest.raises(ValueError, match="box 0: lo and hi must not be NaN"):
+        rayscan.Octree(uniform_cloud).box([-inf, np.nan, 0], [inf, inf, inf])
+
+
+def test_empty_batch_broadcasts_against_one_row(uniform_cloud):
+    """(0, 3) against a (3,) row is zero queries, as NumPy broadcasts (0, 3) with (3,)."""
+    tree = rayscan.Octree(uniform_cloud)
+    none = np.zeros((0, 3))
+    assert np.broadcast_shapes(none.shape, (3,)) == (0, 3)
+    for res in (tree.ray_query(none, [0, 0, 1], k=1, radius=0.1),
+                tree.ray_query([0, 0, 0], none, k=1, radius=0.1),
+                tree.box(none, [1, 1, 1]), tree.box([0, 0, 0], none)):
+        assert len(res) == 0 and res.offsets.tolist() == [0] and len(res.indices) == 0
+    with pytest.raises(ValueError, match="origins has 0 rows but directions has 2"):
+        tree.ray_query(none, np.ones((2, 3)), k=1)
+    with pytest.raises(ValueError, match="lo has 2 rows but hi has 0"):
+        tree.box(np.zeros((2, 3)), none)
