@@ -13,6 +13,7 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -292,6 +293,14 @@ void place_observers_over(std::vector<Observer>& observers, const Index& index, 
                      const GroundOptions& options) {
   if (!(options.radius > 0.0) || !std::isfinite(options.radius))
     throw ObserverError("ground radius must be a finite number > 0");
+  // A NaN eye height would put every eye at NaN (no point seen, no error); infinity would fail
+  // later in a ray without naming the option.
+  if (options.default_height && !std::isfinite(*options.default_height)) {
+    char got[32];
+    std::snprintf(got, sizeof got, "%g", *options.default_height);
+    throw ObserverError({option("height"), std::string(": expected a finite number (eye height above the local "
+                                                       "ground), got ") + got});
+  }
   std::optional<AABB> bounds;  // the cloud's z range, computed once (an O(N) pass), when needed
   for (std::size_t k = 0; k < observers.size(); ++k) {
     Observer& o = observers[k];

@@ -119,3 +119,23 @@ def test_solar_shadow_of_a_wall_is_its_projection_along_the_sun():
     assert either > 500 and both / either > 0.97
     with pytest.raises(ValueError):
         rayscan.solar(f, at="2026-13-01", latitude=48.0, longitude=11.0)
+
+
+def flat_ground(spacing=0.5, size=20.0):
+    g = np.arange(0, size, spacing)
+    gx, gy = np.meshgrid(g, g)
+    return np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+
+
+def test_visibility_refuses_a_non_finite_eye_height():
+    """height places eyes given as (x, y) above the local ground: a finite one puts the eye at
+    ground + height (flat ground at z = 0: z = height); NaN would place every eye at NaN and see
+    nothing without an error, infinity would fail in a ray without naming the option."""
+    xyz = flat_ground()
+    out = rayscan.visibility(xyz, observers=[[5.0, 5.0]], height=1.7, radius=0.3)
+    assert out["observers"].tolist() == [[5.0, 5.0, 1.7]] and out["visible_count"].sum() > 0
+    for bad, text in ((np.nan, "nan"), (np.inf, "inf"), (-np.inf, "-inf")):
+        with pytest.raises(ValueError) as e:
+            rayscan.visibility(xyz, observers=[[5.0, 5.0]], height=bad, radius=0.3)
+        assert str(e.value) == ("height: expected a finite number (eye height above the local ground), "
+                                f"got {text}")

@@ -83,7 +83,7 @@ struct GroundOptions {
   /// Horizontal search radius around the observer's (x, y), world units (> 0).
   double radius = 5.0;
   /// Height used for observers that have neither z nor a height; unset = such observers are an
-  /// error.
+  /// error. Must be finite (place_observers throws ObserverError naming `height` otherwise).
   std::optional<double> default_height;
   /// When set (> 0), the ground is first searched within this smaller radius (the surface right
   /// under the eye: on a slope the lowest point within `radius` lies downhill, putting the eye too
@@ -103,7 +103,8 @@ double local_ground(const Site& site, const PointCloud& cloud, double x, double 
 /// Resolves every observer's eye z: observers with a height (or, lacking z and height, the default
 /// height) get z = local_ground + height. Fills ground_z for those. Throws ObserverError naming the
 /// observer when no ground point lies within the radius, or it has neither z nor a height and there
-/// is no default. `cloud` holds the site's points in original order (as for local_ground).
+/// is no default; naming `height` when the default height is not finite. `cloud` holds the site's
+/// points in original order (as for local_ground).
 void place_observers(std::vector<Observer>& observers, const Site& site, const PointCloud& cloud,
                      const GroundOptions& options);
 
