@@ -18,11 +18,14 @@ Conventions (the C++ library's, see README.md "The library"):
     distances are in the same units (ray directions are normalised).
   * Batch queries run on all cores (TBB) with the GIL released; every result equals the
     single-query C++ call bit for bit (and the brute force).
-  * Bad arguments raise ValueError (a value out of range: capacity=2**70, seed=-1, a file name
-    with a NUL byte) or TypeError (a value of the wrong type: a float or str where an integer is
-    expected, a list of numbers for attribute names), unreadable or malformed files raise OSError,
-    each with the C++ library's one-line message naming the argument (or file, byte offset, row)
-    and what was expected.
+  * Bad arguments raise ValueError (a value out of range: capacity=2**70, seed=-1, height=nan, a
+    file name with a NUL byte) or TypeError (a value of the wrong type: None, a float or str where
+    an integer is expected, a str where a number is, a list of numbers for attribute names). A
+    file that cannot be opened (missing, unreadable, a directory) raises OSError, and so does a
+    malformed point cloud, index, image or weather file; a malformed scene, camera or observer
+    file (JSON or CSV content) raises ValueError, like a bad option. Each carries the C++
+    library's one-line message naming the argument (or file, byte offset, row, JSON pointer) and
+    what was expected.
 """
 
 from . import _rayscan
@@ -225,8 +228,10 @@ def render(scene, cloud=None, width=None, height=None, spp=None, seed=None, aovs
     "position_origin" (3,) float64, "index" (H, W) int64 (point index, -1 = miss), "cost" (H, W)
     float32 (nodes visited per sample); plus "radius" (the sphere radius used, world units),
     "points" and "stats" (dict).
-    Raises ValueError for a bad scene or option (file or "scene dict" and JSON pointer named),
-    TypeError for a `scene` or `cloud` of another type, OSError for an unreadable cloud.
+    Raises ValueError for a bad scene or option (file or "scene dict" and JSON pointer named;
+    also for a camera file named inside the scene that cannot be opened), TypeError for a `scene`
+    or `cloud` of another type (None included), OSError for a scene, camera= or cloud file that
+    cannot be opened and for a malformed cloud file.
     """
     scene_json = ""
     if isinstance(scene, dict):
@@ -275,6 +280,15 @@ def visibility(cloud, observers=None, radius=None, height=None, max_distance=Non
     (with distance=True; -1 = unseen), "sky_view" (N,), "camera_hits" (N,) when asked, as float64;
     "radius", "tolerance", "target_height" used, "observers" (K, 3) placed eyes and "per_observer"
     (K,) uint64 points each observer sees.
+
+    height: eye height above the local ground (world units) of observers given without z (the
+    (K, 2) rows, file rows without z); a finite number. max_distance: viewing range (world units;
+    None = unlimited). tolerance: a point counts as seen when the first sphere the ray meets lies
+    at most this far before it (None = 2 x radius; surfels 0). target_height: rays aim this far
+    above each point (None = 1 x radius). threads: worker threads (0 = all cores).
+    Raises ValueError for a bad option (named as the keyword: "height: expected a finite number
+    ...") or a malformed observer file, TypeError for an argument of the wrong type, OSError for a
+    cloud, observer or camera file that cannot be opened and for a malformed cloud file.
     """
     return _rayscan._visibility(cloud, observers, radius, height, max_distance, tolerance,
                                 target_height, sky_rays, camera, distance, threads, cache)
@@ -298,14 +312,13 @@ def solar(cloud, start=None, end=None, step="1h", at=None, latitude=None, longit
     "solar_diffuse", "solar_reflected" (kWh/m²), "sun_hours" (h), "sky_view"; for an instant
     "in_shadow" (1/0), "irradiance_global", "irradiance_beam", "irradiance_diffuse" (W/m²), with
     "sun_azimuth" and "sun_elevation" (degrees); and "latitude", "longitude", "steps", "sectors",
-    "radius". Raises ValueError for a bad option (named as the keyword), OSError for an
-    unreadable file.
+    "radius". radius: sphere radius (world units; None = auto from the point spacing). threads:
+    worker threads (0 = all cores). Raises ValueError for a bad option (named as the keyword),
+    TypeError for an argument of the wrong type (at=datetime: pass at.isoformat()), OSError for
+    a cloud or weather file that cannot be opened or is malformed.
     """
-    if isinstance(linke, (int, float)):
-        linke = [float(linke)]
-    return _rayscan._solar(cloud, start or "", end or "", step, at or "", latitude, longitude,
-                           [float(v) for v in linke], float(albedo), weather, float(sector),
-                           sky_rays, primitive, radius, threads, cache)
+    return _rayscan._solar(cloud, start, end, step, at, latitude, longitude, linke, albedo, weather,
+                           sector, sky_rays, primitive, radius, threads, cache)
 
 
 def compare(reference, image, channels=(), mask=False, alpha=False, resize=False, fail=None,
@@ -318,6 +331,9 @@ def compare(reference, image, channels=(), mask=False, alpha=False, resize=False
     (x, y, c), "ssim", "flip" (mean LDR-FLIP; NaN unless R,G,B or Y), "percent_over_fail",
     "pixels_compared", "per_channel" {name: {...}},
     "verdict" ("pass", "warn", "fail") and "reasons".
+    Raises ValueError for an array of another shape or a bad option, TypeError for a `reference`
+    or `image` that is neither a file name nor an array (None), OSError for an image file that
+    cannot be opened or decoded. compare takes no `threads`.
     """
     return _rayscan._compare(reference, image, channels, mask, alpha, resize, fail,
                              fail_percent, fail_psnr, fail_ssim, warn)

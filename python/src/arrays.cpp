@@ -1,5 +1,6 @@
 #include "arrays.hpp"
 
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
 namespace rayscan::python {
@@ -76,6 +77,25 @@ std::uint64_t uint64_arg(py::handle v, const char* name) {
   return i.cast<std::uint64_t>();
 }
 
+double float_arg(py::handle v, const char* name, const std::string& expected) {
+  const bool number = !py::isinstance<py::bool_>(v) && !py::isinstance<py::str>(v) && !py::isinstance<py::bytes>(v) &&
+                      (py::hasattr(v, "__float__") || py::hasattr(v, "__index__"));
+  if (!number) throw py::type_error(std::string(name) + " must be " + expected + ", got " + type_name(v));
+  const double d = PyFloat_AsDouble(v.ptr());
+  if (d == -1.0 && PyErr_Occurred()) throw py::error_already_set();  // __float__ raised, an int too large
+  return d;
+}
+
+std::optional<double> opt_float_arg(py::handle v, const char* name, const std::string& expected) {
+  if (v.is_none()) return std::nullopt;
+  return float_arg(v, name, expected);
+}
+
+std::string str_arg(py::handle v, const char* name, const std::string& expected) {
+  if (!py::isinstance<py::str>(v)) throw py::type_error(std::string(name) + " must be " + expected + ", got " + type_name(v));
+  return v.cast<std::string>();
+}
+
 unsigned parse_threads(py::handle threads) {
   return static_cast<unsigned>(
       int_arg(threads, "threads", 0, 4096, "0 (all cores) or a positive count up to 4096"));
@@ -90,6 +110,12 @@ std::string path_arg(py::handle v, const char* name) {
   if (path.find('\0') != std::string::npos)
     throw py::value_error(std::string(name) + " " + py::repr(s).cast<std::string>() +
                           " contains a NUL byte; expected a file name");
+  return path;
+}
+
+std::string input_path_arg(py::handle v, const char* name) {
+  std::string path = path_arg(v, name);
+  const InputFile probe(path);  // InputFileError (OSError, module.cpp) when it cannot be opened
   return path;
 }
 

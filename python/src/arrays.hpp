@@ -80,6 +80,18 @@ std::optional<T> opt_int_arg(py::handle v, const char* name, long long lo, long 
   return static_cast<T>(int_arg(v, name, lo, hi, expected));
 }
 
+/// The real-number argument `name`: a Python int or float, or anything with __float__ (NumPy
+/// scalars), not a bool or str. Raises TypeError "<name> must be <expected>, got str" instead of
+/// pybind11's "incompatible function arguments". Values are not range-checked here (the job names
+/// an out-of-range one).
+double float_arg(py::handle v, const char* name, const std::string& expected);
+
+/// As float_arg with None allowed (returns nullopt).
+std::optional<double> opt_float_arg(py::handle v, const char* name, const std::string& expected);
+
+/// The text argument `name`: a str. Raises TypeError "<name> must be <expected>, got datetime".
+std::string str_arg(py::handle v, const char* name, const std::string& expected);
+
 /// Check a `threads` argument: 0 (every core) or a positive count up to 4096; returns it. Raises
 /// ValueError "threads must be 0 (all cores) or a positive count up to 4096, got -1" (TypeError
 /// for a non-integer).
@@ -96,6 +108,13 @@ bool is_path_like(py::handle v);
 /// byte; expected a file name" (no file can have such a name; the OS call would fail without
 /// saying why).
 std::string path_arg(py::handle v, const char* name);
+
+/// An input file name argument: path_arg, then the file opened as the library's input policy
+/// opens it (rayscan/base/input_file.hpp: an existing, readable regular file) and closed again.
+/// A file that cannot be opened raises OSError "<path>: cannot open file: No such file or
+/// directory" here, where the job behind a scene, camera, observer, image or weather file would
+/// report it inside a content error (ValueError) or a RuntimeError.
+std::string input_path_arg(py::handle v, const char* name);
 
 /// A list of names: one str, or an iterable of str (list, tuple). Raises TypeError "<name> must be
 /// a str or a list of str, got a list holding int (item 0)".

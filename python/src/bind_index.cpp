@@ -50,6 +50,9 @@ struct PySite {
   }
 };
 
+/// What a query's radius is, for its TypeError.
+constexpr const char* kRadiusExpected = "a number >= 0 (world units; inf for no limit)";
+
 RayOrder parse_order(const std::string& s) {
   if (s == "ray") return RayOrder::ray;
   if (s == "time") return RayOrder::time;
@@ -129,15 +132,15 @@ void csr_fill(const std::vector<std::vector<T>>& r, const std::vector<std::int64
 
 template <class Index>
 py::dict ray_query(const Index& self, py::handle origins, py::handle directions,
-                   const py::object& k, double radius, double t_min, double t_max,
-                   const std::string& order, bool any_hit, bool allow_all, py::handle threads) {
+                   const py::object& k, py::handle radius, py::handle t_min, py::handle t_max,
+                   py::handle order, bool any_hit, bool allow_all, py::handle threads) {
   const unsigned nthreads = parse_threads(threads);
   RayQuery q;
   q.k = parse_k(k);
-  q.radius = radius;
-  q.t_min = t_min;
-  q.t_max = t_max;
-  q.order = parse_order(order);
+  q.radius = float_arg(radius, "radius", kRadiusExpected);
+  q.t_min = float_arg(t_min, "t_min", "a number (world units along the ray)");
+  q.t_max = float_arg(t_max, "t_max", "a number (world units along the ray)");
+  q.order = parse_order(str_arg(order, "order", "'ray', 'time' or 'sphere_hit'"));
   q.any_hit = any_hit;
   q.validate();
   const Vec3Rows o = as_vec3_rows(origins, "origins", true);
@@ -186,10 +189,11 @@ py::dict ray_query(const Index& self, py::handle origins, py::handle directions,
 }
 
 template <class Index>
-py::dict knn(const Index& self, py::handle points, const py::object& k, double radius,
+py::dict knn(const Index& self, py::handle points, const py::object& k, py::handle radius_arg,
              py::handle threads) {
   const unsigned nthreads = parse_threads(threads);
   const std::size_t kk = parse_k(k);
+  const double radius = float_arg(radius_arg, "radius", kRadiusExpected);
   const Vec3Rows p = as_vec3_rows(points, "points", true);
   std::vector<std::int64_t> off, idx;
   std::vector<double> dist;

@@ -21,7 +21,10 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <initializer_list>
 #include <optional>
+#include <stdexcept>
+#include <string_view>
 
 namespace rayscan::python {
 
@@ -44,6 +47,26 @@ py::array_t<std::int64_t> point_ids(const std::vector<std::uint32_t>& v, std::ve
   std::vector<std::int64_t> out(v.size());
   for (std::size_t i = 0; i < v.size(); ++i) out[i] = v[i] == kNoPoint ? -1 : static_cast<std::int64_t>(v[i]);
   return to_numpy(std::move(out), std::move(shape));
+}
+
+/// Runs the job `f` without the GIL. The image and EPW readers report a file they cannot read or
+/// decode as a std::runtime_error "<file>: ..."; one naming a file of `files` ("" = none) raises
+/// OSError, as the point readers' errors do (module.cpp). Anything else passes unchanged.
+template <class F>
+void run_reading_files(F&& f, std::initializer_list<std::string> files) {
+  try {
+    py::gil_scoped_release nogil;
+    f();
+  } catch (const std::runtime_error& e) {
+    const std::string_view what = e.what();
+    for (const std::string& file : files)
+      if (!file.empty() && what.size() > file.size() && what.substr(0, file.size()) == file &&
+          what.substr(file.size(), 2) == ": ") {
+        PyErr_SetString(PyExc_OSError, e.what());
+        throw py::error_already_set();
+      }
+    throw;
+  }
 }
 
 /// A count of pixels or samples: an integer in [1, 2^32 - 1], or None.
@@ -81,7 +104,7 @@ struct RenderPoints {
 render::SceneOverrides render_overrides(py::handle width, py::handle height, py::handle spp, py::handle seed,
                                         py::handle camera) {
   render::SceneOverrides ov;
-  if (!camera.is_none()) ov.camera_file = path_arg(camera, "camera");
+  if (!camera.is_none()) ov.camera_file = input_path_arg(camera, "camera");
   ov.width = size_arg(width, "width");
   ov.height = size_arg(height, "height");
   ov.spp = size_arg(spp, "spp");
@@ -90,8 +113,8 @@ render::SceneOverrides render_overrides(py::handle width, py::handle height, py:
 }
 
 /// `scene` is a scene file or a point cloud file (its quick look, as `rayscan render CLOUD`), a
-/// PointCloud or an (N, 3) array (the quick look of those points), or None with `scene_json` (a
-/// scene dict as JSON text). `cloud` replaces the scene's points.
+/// PointCloud or an (N, 3) array (the quick look of those points); with a non-empty `scene_json`
+/// (a scene dict as JSON text) it is not used. `cloud` replaces the scene's points.
 py::dict render(py::handle scene, const std::string& scene_json, py::handle cloud, py::handle width,
                 py::handle height, py::handle spp, py::handle seed, py::handle aovs, py::handle camera,
                 py::handle threads) {
@@ -100,7 +123,7 @@ py::dict render(py::handle scene, const std::string& scene_json, py::handle clou
   o.control.threads = parse_threads(threads);
   render::SceneOverrides ov = render_overrides(width, height, spp, seed, camera);
   ov.aovs = names_arg(aovs, "aovs");
-  const bool from_text = scene.is_none();
+  const bool from_text = !scene_json.empty();
   const bool quick_look_in_memory = !from_text && !is_path_like(scene);
   RenderPoints points;
   std::string scene_file;
@@ -112,7 +135,7 @@ py::dict render(py::handle scene, const std::string& scene_json, py::handle clou
     if (!cloud.is_none()) throw py::type_error("render: the points are `scene` already; do not give cloud= too");
     points.arg.emplace(cloud_arg(scene, "scene", false));
   } else {
-    if (!from_text) scene_file = path_arg(scene, "scene");
+    if (!from_text) scene_file = input_path_arg(scene, "scene");
     if (!cloud.is_none()) points.arg.emplace(cloud_arg(cloud, "cloud"));
   }
   const auto summary = [&](const std::filesystem::path& f) { return points.summary(f); };
@@ -158,10 +181,11 @@ py::dict render(py::handle scene, const std::string& scene_json, py::handle clou
 
 /// rayscan.ortho_map: `rayscan render CLOUD --ortho-map RES` without files. The quick look's scene
 /// (material, surfels) seen by analysis::ortho_map's top-down camera over the cloud's exact bounds.
-py::dict ortho_map(py::handle cloud, double res, py::handle spp, py::handle seed, py::handle threads) {
+py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::handle seed, py::handle threads) {
   jobs::RenderJobOptions o;
   o.write = false;
   o.control.threads = parse_threads(threads);
+  const double res = float_arg(res_arg, "res", "a number > 0 (world units per pixel)");
   if (!(res > 0.0) || !std::isfinite(res))
     throw py::value_error("res: expected a finite number > 0 (world units per pixel), got " + std::to_string(res));
   render::SceneOverrides ov = render_overrides(py::none(), py::none(), spp, seed, py::none());
@@ -204,11 +228,15 @@ py::dict ortho_map(py::handle cloud, double res, py::handle spp, py::handle seed
 }
 
 /// An (H, W) or (H, W, C) array as an rayscan::Image: channels Y (C = 1), R G B (3), R G B A (4),
-/// else c0, c1, ...; float32 samples.
+/// else c0, c1, ...; float32 samples. Raises TypeError for an object that is no array of numbers
+/// (None, a dict), ValueError for an array of another shape or dtype.
 rayscan::Image to_image(py::handle obj, const std::string& name) {
   py::module_ np = py::module_::import("numpy");
   py::array a = np.attr("asarray")(obj);
   const char kind = a.dtype().kind();
+  if (kind == 'O' || kind == 'S' || kind == 'V')  // NumPy's wrapping of a non-numeric object
+    throw py::type_error(name + " must be an image file name (str or os.PathLike) or an (H, W) or (H, W, C) "
+                                "array of numbers, got " + type_name(obj));
   if ((kind != 'f' && kind != 'i' && kind != 'u' && kind != 'b') || (a.ndim() != 2 && a.ndim() != 3))
     throw py::value_error(name + ": expected a file name or an (H, W) or (H, W, C) array of numbers");
   auto f = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
@@ -223,41 +251,40 @@ rayscan::Image to_image(py::handle obj, const std::string& name) {
   else if (c == 4) {
     img.channels = {"R", "G", "B", "A"};
     img.alpha_channel = 3;
-  } else
-    for (int i = 0; i < c; ++i) img.channels.push_back("c" + std::to_string(i));
+  } else {
+    // std::string first: GCC 12 at -O3 warns (-Wrestrict, a false positive) on "c" + std::string here.
+    for (int i = 0; i < c; ++i) img.channels.push_back(std::string(1, 'c') + std::to_string(i));
+  }
   img.pixels.assign(f.data(), f.data() + f.size());
   img.source = name;
   return img;
 }
 
 py::dict compare(const py::object& a, const py::object& b, py::handle channels,
-                 bool mask, bool alpha, bool resize, std::optional<double> fail,
-                 std::optional<double> fail_percent, std::optional<double> fail_psnr,
-                 std::optional<double> fail_ssim, std::optional<double> warn) {
+                 bool mask, bool alpha, bool resize, py::handle fail,
+                 py::handle fail_percent, py::handle fail_psnr,
+                 py::handle fail_ssim, py::handle warn) {
   jobs::CompareJobOptions o;
   std::optional<rayscan::Image> ia, ib;
-  if (py::isinstance<py::str>(a) || py::hasattr(a, "__fspath__"))
-    o.reference_file = path_arg(a, "reference");
+  if (is_path_like(a))
+    o.reference_file = input_path_arg(a, "reference");
   else
     o.reference = &ia.emplace(to_image(a, "reference"));
-  if (py::isinstance<py::str>(b) || py::hasattr(b, "__fspath__"))
-    o.image_file = path_arg(b, "image");
+  if (is_path_like(b))
+    o.image_file = input_path_arg(b, "image");
   else
     o.image = &ib.emplace(to_image(b, "image"));
   o.channels = names_arg(channels, "channels");
   o.mask = mask;
   o.alpha = alpha;
   o.resize = resize;
-  o.fail.threshold = fail;
-  o.fail.percent = fail_percent;
-  o.fail.min_psnr = fail_psnr;
-  o.fail.min_ssim = fail_ssim;
-  o.warn.threshold = warn;
+  o.fail.threshold = opt_float_arg(fail, "fail", "None or a number (absolute error per sample)");
+  o.fail.percent = opt_float_arg(fail_percent, "fail_percent", "None or a number (percent of samples)");
+  o.fail.min_psnr = opt_float_arg(fail_psnr, "fail_psnr", "None or a number (dB)");
+  o.fail.min_ssim = opt_float_arg(fail_ssim, "fail_ssim", "None or a number (SSIM, at most 1)");
+  o.warn.threshold = opt_float_arg(warn, "warn", "None or a number (absolute error per sample)");
   jobs::CompareJobResult r;
-  {
-    py::gil_scoped_release nogil;
-    r = jobs::run_compare(o);
-  }
+  run_reading_files([&] { r = jobs::run_compare(o); }, {o.reference_file, o.image_file});
   const analysis::CompareMetrics& m = r.metrics;
   py::dict d;
   d["width"] = m.width;
@@ -293,10 +320,14 @@ py::dict compare(const py::object& a, const py::object& b, py::handle channels,
   return d;
 }
 
+/// What a sphere radius argument is, for its TypeError.
+constexpr const char* kRadiusExpected = "None (auto) or a number > 0 (world units)";
+
 /// The `cache` keyword of visibility and solar: a byte size as `--cache` takes it ("2G", "512M";
 /// parse_byte_size), the decoded-node budget of a COPC file queried in place. Raises ValueError
-/// "cache: size '...': expected ...".
-std::size_t cache_arg(const std::string& cache) {
+/// "cache: size '...': expected ...", TypeError for another type than str.
+std::size_t cache_arg(py::handle cache_obj) {
+  const std::string cache = str_arg(cache_obj, "cache", "a byte size as text (\"2G\", \"512M\")");
   try {
     return static_cast<std::size_t>(parse_byte_size(cache));
   } catch (const std::invalid_argument& e) {
@@ -304,19 +335,18 @@ std::size_t cache_arg(const std::string& cache) {
   }
 }
 
-py::dict visibility(const py::object& cloud, const py::object& observers, std::optional<double> radius,
-                    std::optional<double> height, std::optional<double> max_distance,
-                    std::optional<double> tolerance, std::optional<double> target_height,
+py::dict visibility(const py::object& cloud, const py::object& observers, py::handle radius,
+                    py::handle height, py::handle max_distance, py::handle tolerance, py::handle target_height,
                     py::handle sky_rays, py::handle camera, bool distance, py::handle threads,
-                    const std::string& cache) {
+                    py::handle cache) {
   jobs::VisibilityJobOptions o;
   o.cache_bytes = cache_arg(cache);
   const CloudArg c = cloud_arg(cloud, "cloud");
   o.cloud = c.points;
   o.cloud_file = c.path;
   if (!observers.is_none()) {
-    if (py::isinstance<py::str>(observers) || py::hasattr(observers, "__fspath__")) {
-      o.observers_file = path_arg(observers, "observers");
+    if (is_path_like(observers)) {
+      o.observers_file = input_path_arg(observers, "observers");
     } else {
       py::module_ np = py::module_::import("numpy");
       py::array a = np.attr("asarray")(observers);
@@ -332,13 +362,13 @@ py::dict visibility(const py::object& cloud, const py::object& observers, std::o
       }
     }
   }
-  o.radius = radius;
-  o.height = height;
-  o.max_distance = max_distance;
-  o.tolerance = tolerance;
-  o.target_height = target_height;
+  o.radius = opt_float_arg(radius, "radius", kRadiusExpected);
+  o.height = opt_float_arg(height, "height", "None or a number (eye height above the local ground, world units)");
+  o.max_distance = opt_float_arg(max_distance, "max_distance", "None or a number >= 0 (world units)");
+  o.tolerance = opt_float_arg(tolerance, "tolerance", "None or a number >= 0 (world units)");
+  o.target_height = opt_float_arg(target_height, "target_height", "None or a number >= 0 (world units)");
   o.sky_rays = static_cast<std::uint32_t>(int_arg(sky_rays, "sky_rays", 0, 0xFFFFFFFFll, "an integer in [0, 2^32 - 1]"));
-  if (!camera.is_none()) o.camera_file = path_arg(camera, "camera");
+  if (!camera.is_none()) o.camera_file = input_path_arg(camera, "camera");
   o.distance = distance;
   o.control.threads = parse_threads(threads);
   jobs::VisibilityJobResult r;
@@ -361,35 +391,43 @@ py::dict visibility(const py::object& cloud, const py::object& observers, std::o
   return d;
 }
 
-py::dict solar(const py::object& cloud, const std::string& start, const std::string& end, const std::string& step,
-               const std::string& at, std::optional<double> latitude, std::optional<double> longitude,
-               std::vector<double> linke, double albedo, const py::object& weather, double sector, py::handle sky_rays,
-               const std::string& primitive, std::optional<double> radius, py::handle threads,
-               const std::string& cache) {
+/// An optional ISO 8601 time argument of solar: None (not given) or a str.
+std::string time_arg(py::handle v, const char* name) {
+  if (v.is_none()) return {};
+  return str_arg(v, name, "None or ISO 8601 text (\"2024-06-21T12:00\"; a datetime's isoformat())");
+}
+
+py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::handle step, py::handle at,
+               py::handle latitude, py::handle longitude, py::handle linke, py::handle albedo,
+               const py::object& weather, py::handle sector, py::handle sky_rays, py::handle primitive,
+               py::handle radius, py::handle threads, py::handle cache) {
   jobs::SolarJobOptions o;
   o.cache_bytes = cache_arg(cache);
   const CloudArg c = cloud_arg(cloud, "cloud");
   o.cloud = c.points;
   o.cloud_file = c.path;
-  o.start = start;
-  o.end = end;
-  o.step = step;
-  o.at = at;
-  o.latitude = latitude;
-  o.longitude = longitude;
-  o.linke = std::move(linke);
-  o.albedo = albedo;
-  if (!weather.is_none()) o.weather = path_arg(weather, "weather");
-  o.sector = sector;
+  o.start = time_arg(start, "start");
+  o.end = time_arg(end, "end");
+  o.step = str_arg(step, "step", "a duration as text (\"15min\", \"1h\")");
+  o.at = time_arg(at, "at");
+  o.latitude = opt_float_arg(latitude, "latitude", "None or a number (degrees north)");
+  o.longitude = opt_float_arg(longitude, "longitude", "None or a number (degrees east)");
+  const std::string linke_expected = "a number or a list of 12 numbers (Linke turbidity)";
+  if (py::isinstance<py::str>(linke) || py::isinstance<py::bytes>(linke) || !py::hasattr(linke, "__iter__")) {
+    o.linke = {float_arg(linke, "linke", linke_expected)};
+  } else {
+    o.linke.clear();
+    for (py::handle v : linke) o.linke.push_back(float_arg(v, "linke", linke_expected));
+  }
+  o.albedo = float_arg(albedo, "albedo", "a number in [0, 1]");
+  if (!weather.is_none()) o.weather = input_path_arg(weather, "weather");
+  o.sector = float_arg(sector, "sector", "a number of degrees (0 = one shadow ray per step)");
   o.sky_rays = static_cast<std::uint32_t>(int_arg(sky_rays, "sky_rays", 0, 4096, "an integer in [0, 4096]"));
-  o.primitive = primitive;
-  o.radius = radius;
+  o.primitive = str_arg(primitive, "primitive", "\"sphere\" or \"surfel\"");
+  o.radius = opt_float_arg(radius, "radius", kRadiusExpected);
   o.control.threads = parse_threads(threads);
   jobs::SolarJobResult r;
-  {
-    py::gil_scoped_release nogil;
-    r = jobs::run_solar(o);
-  }
+  run_reading_files([&] { r = jobs::run_solar(o); }, {o.weather.string()});
   py::dict d;
   static const char* fields[] = {"solar_global", "solar_beam", "solar_diffuse", "solar_reflected", "sun_hours",
                                  "sky_view", "in_shadow", "irradiance_global", "irradiance_beam", "irradiance_diffuse"};
@@ -427,9 +465,9 @@ void bind_jobs(py::module_& m) {
         py::arg("tolerance") = py::none(), py::arg("target_height") = py::none(), py::arg("sky_rays") = 0,
         py::arg("camera") = py::none(), py::arg("distance") = false, py::arg("threads") = 0,
         py::arg("cache") = "2G");
-  m.def("_solar", &solar, py::arg("cloud"), py::arg("start") = "", py::arg("end") = "", py::arg("step") = "1h",
-        py::arg("at") = "", py::arg("latitude") = py::none(), py::arg("longitude") = py::none(),
-        py::arg("linke") = std::vector<double>{3.0}, py::arg("albedo") = 0.2, py::arg("weather") = py::none(),
+  m.def("_solar", &solar, py::arg("cloud"), py::arg("start") = py::none(), py::arg("end") = py::none(),
+        py::arg("step") = "1h", py::arg("at") = py::none(), py::arg("latitude") = py::none(),
+        py::arg("longitude") = py::none(), py::arg("linke") = 3.0, py::arg("albedo") = 0.2, py::arg("weather") = py::none(),
         py::arg("sector") = 1.0, py::arg("sky_rays") = 64, py::arg("primitive") = "sphere",
         py::arg("radius") = py::none(), py::arg("threads") = 0, py::arg("cache") = "2G");
 }

@@ -2,6 +2,7 @@
 // Python API (docstrings, result classes) is the package python/rayscan/__init__.py.
 #include "bindings.hpp"
 
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/base/version.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/site/index_file.hpp"
@@ -20,6 +21,8 @@ PYBIND11_MODULE(_rayscan, m) {
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
+    } catch (const rayscan::InputFileError& e) {  // missing, unreadable, not a regular file
+      PyErr_SetString(PyExc_OSError, e.what());
     } catch (const rayscan::io::FormatError& e) {
       PyErr_SetString(PyExc_OSError, e.what());
     } catch (const rayscan::io::IndexError& e) {

@@ -102,3 +102,50 @@ def test_job_arguments(tmp_path):
           "reference 'ref\\x00.png' contains a NUL byte; expected a file name")
     check(lambda: rayscan.compare(np.zeros((2, 2)), np.zeros((2, 2)), channels=[3]), TypeError,
           "channels must be a str or a list of str, got a list holding int (item 0)")
+
+
+def test_numbers_and_text_of_the_wrong_type_name_the_argument(uniform_cloud):
+    """None, a str or a datetime where a number or text is expected: a TypeError naming the
+    argument, never pybind11's "incompatible function arguments"; NumPy scalars are numbers."""
+    import datetime
+    tree = rayscan.Octree(uniform_cloud)
+    o, d = np.zeros(3), np.ones(3)
+    radius = "a number >= 0 (world units; inf for no limit)"
+    check(lambda: tree.ray_query(o, d, k=1, radius=None), TypeError, f"radius must be {radius}, got NoneType")
+    check(lambda: tree.ray_query(o, d, k=1, t_min="0"), TypeError,
+          "t_min must be a number (world units along the ray), got str")
+    check(lambda: tree.ray_query(o, d, k=1, order=1), TypeError,
+          "order must be 'ray', 'time' or 'sphere_hit', got int")
+    check(lambda: tree.knn(o, k=1, radius="1"), TypeError, f"radius must be {radius}, got str")
+    check(lambda: tree.radius(o, True), TypeError, f"radius must be {radius}, got bool")
+    a = tree.ray_query(o, d, k=3, radius=np.float32(0.25), t_max=np.int64(5))
+    b = tree.ray_query(o, d, k=3, radius=0.25, t_max=5.0)
+    assert a.indices.tolist() == b.indices.tolist() and len(a.indices) == 3
+    if not hasattr(rayscan, "render"):
+        return
+    xyz = uniform_cloud
+    auto = "None (auto) or a number > 0 (world units)"
+    check(lambda: rayscan.visibility(xyz, [[0.5, 0.5, 2.0]], radius="1"), TypeError, f"radius must be {auto}, got str")
+    check(lambda: rayscan.visibility(xyz, [[0.5, 0.5]], height="2"), TypeError,
+          "height must be None or a number (eye height above the local ground, world units), got str")
+    check(lambda: rayscan.visibility(xyz, [[0.5, 0.5, 2.0]], cache=2**30), TypeError,
+          'cache must be a byte size as text ("2G", "512M"), got int')
+    when = datetime.datetime(2026, 6, 21, 12)
+    check(lambda: rayscan.solar(xyz, at=when, latitude=48.0, longitude=11.0), TypeError,
+          'at must be None or ISO 8601 text ("2024-06-21T12:00"; a datetime\'s isoformat()), got datetime')
+    check(lambda: rayscan.solar(xyz, at="2026-06-21T12:00", latitude=48.0, longitude=11.0, radius="1"), TypeError,
+          f"radius must be {auto}, got str")
+    check(lambda: rayscan.solar(xyz, at="2026-06-21T12:00", latitude="48", longitude=11.0), TypeError,
+          "latitude must be None or a number (degrees north), got str")
+    check(lambda: rayscan.solar(xyz, at="2026-06-21T12:00", latitude=48.0, longitude=11.0, albedo=None), TypeError,
+          "albedo must be a number in [0, 1], got NoneType")
+    check(lambda: rayscan.solar(xyz, at="2026-06-21T12:00", latitude=48.0, longitude=11.0, linke=[3, "4"]),
+          TypeError, "linke must be a number or a list of 12 numbers (Linke turbidity), got str")
+    check(lambda: rayscan.compare(np.zeros((2, 2)), np.zeros((2, 2)), fail="0.1"), TypeError,
+          "fail must be None or a number (absolute error per sample), got str")
+    check(lambda: rayscan.ortho_map(xyz, None), TypeError, "res must be a number > 0 (world units per pixel), got NoneType")
+    # The same instant as text and from the datetime's isoformat(), NumPy numbers for the floats.
+    s1 = rayscan.solar(xyz, at=when.isoformat(), latitude=np.float64(48.0), longitude=11, sky_rays=0, radius=0.05)
+    s2 = rayscan.solar(xyz, at="2026-06-21T12:00:00", latitude=48.0, longitude=11.0, sky_rays=0, radius=0.05)
+    np.testing.assert_array_equal(s1["in_shadow"], s2["in_shadow"])
+    assert s1["sun_elevation"] == s2["sun_elevation"] > 0

@@ -139,3 +139,75 @@ def test_visibility_refuses_a_non_finite_eye_height():
             rayscan.visibility(xyz, observers=[[5.0, 5.0]], height=bad, radius=0.3)
         assert str(e.value) == ("height: expected a finite number (eye height above the local ground), "
                                 f"got {text}")
+
+
+def test_files_that_cannot_be_opened_raise_oserror(tmp_path):
+    """Whichever argument names it, a missing file or a directory is an OSError with the input
+    policy's message (rayscan/base/input_file.hpp), as for point clouds."""
+    xyz = flat_ground()
+    img = np.zeros((4, 4, 3), dtype=np.float32)
+    calls = {  # the file's extension, the call naming a file of that name
+        "compare reference": (".png", lambda f: rayscan.compare(f, img)),
+        "compare image": (".png", lambda f: rayscan.compare(img, f)),
+        "render scene": (".json", lambda f: rayscan.render(f)),
+        "render camera": (".json", lambda f: rayscan.render(xyz, camera=f)),
+        "visibility observers": (".csv", lambda f: rayscan.visibility(xyz, observers=f, radius=0.3)),
+        "visibility camera": (".json", lambda f: rayscan.visibility(xyz, observers=[[1.0, 1.0, 2.0]], camera=f)),
+        "solar weather": (".epw", lambda f: rayscan.solar(xyz, start="2026-06-21", end="2026-06-21", latitude=48.0,
+                                                          longitude=11.0, weather=f, sky_rays=0)),
+        "visibility cloud": (".las", lambda f: rayscan.visibility(f, observers=[[1.0, 1.0, 2.0]])),
+    }
+    for name, (ext, call) in calls.items():
+        missing = str(tmp_path / ("missing" + ext))
+        with pytest.raises(OSError) as e:
+            call(missing)
+        assert str(e.value) == f"{missing}: cannot open file: No such file or directory", (name, str(e.value))
+        folder = tmp_path / ("folder" + ext)
+        folder.mkdir(exist_ok=True)
+        with pytest.raises(OSError) as e:
+            call(str(folder))
+        assert str(e.value) == (f"{folder}: is a directory, not a regular file (rayscan reads regular files "
+                                "only)"), (name, str(e.value))
+
+
+def test_malformed_files_raise_as_documented(tmp_path):
+    """A malformed scene or observer file is a ValueError naming the file (bad content, like a
+    bad option); a malformed image or weather file is an OSError naming it (as a point file)."""
+    xyz = flat_ground()
+    scene = tmp_path / "scene.json"
+    scene.write_text("{")
+    with pytest.raises(ValueError) as e:
+        rayscan.render(scene)
+    assert type(e.value) is ValueError and str(e.value).startswith(f"{scene}: byte 2: invalid JSON"), str(e.value)
+    obs = tmp_path / "obs.csv"
+    obs.write_text("x,y,z\n1,2,abc\n")
+    with pytest.raises(ValueError) as e:
+        rayscan.visibility(xyz, observers=obs, radius=0.3)
+    assert type(e.value) is ValueError and str(e.value).startswith(f"{obs}: line 2"), str(e.value)
+    epw = tmp_path / "weather.epw"
+    epw.write_text("not a weather file\n")
+    with pytest.raises(OSError) as e:
+        rayscan.solar(xyz, start="2026-06-21", end="2026-06-21", latitude=48.0, longitude=11.0, weather=epw,
+                      sky_rays=0)
+    assert str(e.value).startswith(f"{epw}: line 1: expected the header line starting with 'LOCATION,'")
+    png = tmp_path / "image.png"
+    png.write_bytes(b"not an image")
+    with pytest.raises((OSError, RuntimeError)) as e:
+        rayscan.compare(png, np.zeros((4, 4, 3), dtype=np.float32))
+    if "OpenImageIO module" in str(e.value):
+        pytest.skip("built without the OpenImageIO module: image files cannot be read at all")
+    assert type(e.value) is OSError and str(e.value).startswith(f"{png}: "), str(e.value)
+
+
+def test_none_for_the_scene_or_an_image_is_a_type_error():
+    img = np.zeros((4, 4, 3), dtype=np.float32)
+    with pytest.raises(TypeError) as e:
+        rayscan.render(None)
+    assert str(e.value) == ("scene must be a scene or point cloud file name (str or os.PathLike), a scene dict, a "
+                            "rayscan.PointCloud or an (N, 3) array of coordinates, got NoneType")
+    expected = "must be an image file name (str or os.PathLike) or an (H, W) or (H, W, C) array of numbers, got "
+    for args, name, got in (((None, img), "reference", "NoneType"), ((img, None), "image", "NoneType"),
+                            (({}, img), "reference", "dict")):
+        with pytest.raises(TypeError) as e:
+            rayscan.compare(*args)
+        assert str(e.value) == name + " " + expected + got
