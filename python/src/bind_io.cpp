@@ -40,6 +40,15 @@ py::object attribute(py::object self, const std::string& name) {
   return view_rows(pc.scalar(name)->values.data(), n, 0, self);
 }
 
+/// A view of the scalar field `name` (None when absent). A file may hold a scalar field named like
+/// an absent standard attribute (a PLY float "intensity" property is not the uint16 intensity),
+/// which attribute() would not find.
+py::object scalar_attribute(py::object self, const std::string& name) {
+  const PyCloud& c = self.cast<const PyCloud&>();
+  const ScalarField* f = c.cloud.scalar(name);
+  return f ? view_rows(f->values.data(), c.cloud.size(), 0, self) : py::object(py::none());
+}
+
 PyCloud read(const std::string& path, const py::object& attributes) {
   std::optional<std::vector<std::string>> keep;
   if (!attributes.is_none()) keep = names_arg(attributes, "attributes");
@@ -436,6 +445,7 @@ ValueError for a missing X/Y/Z, both spellings of one field, or a non-numeric fi
              if (py::isinstance<py::str>(key)) {
                const std::string name = key.cast<std::string>();
                py::object a = attribute(self, name);
+               if (a.is_none()) a = scalar_attribute(self, name);
                if (a.is_none()) throw py::key_error(name);
                return a;
              }
@@ -461,9 +471,11 @@ ValueError for a missing X/Y/Z, both spellings of one field, or a non-numeric fi
                              [](py::object s) {
                                py::dict d;
                                for (const ScalarField& f : s.cast<const PyCloud&>().cloud.scalars)
-                                 d[py::str(f.name)] = attribute(s, f.name);
+                                 d[py::str(f.name)] = scalar_attribute(s, f.name);
                                return d;
-                             })
+                             },
+                             "Dict name -> (N,) float64 of every other per-point field (LAS extra bytes, "
+                             "return_number, scan_angle in degrees, PLY/PCD properties); {} when none.")
       .def_property_readonly("attributes", &PyCloud::attributes,
                              "Names of the attributes present (xyz first, then rgb, ..., scalars).")
       .def_property_readonly("crs",
