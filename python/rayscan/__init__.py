@@ -2,15 +2,35 @@
 Clouds", Algorithm 1), point queries, the point cloud readers and writers and the jobs (render,
 visibility, solar, compare) of the rayscan C++ library.
 
-    >>> import numpy as np, rayscan
-    >>> pc = rayscan.read("tests/data/las/autzen_10k.las")       # doctest: +SKIP
-    >>> tree = rayscan.Octree(pc.xyz, layout="adaptive", capacity=64)
-    >>> hits = tree.ray_query(origin, directions, k=1, radius=0.5, order="sphere_hit")
-    >>> hits.first("t")                                          # depth of each ray, NaN = miss
-    >>> cloud = rayscan.PointCloud(xyz, rgb=rgb_uint8)           # from arrays
-    >>> rayscan.write("out.laz", cloud, visible_count=rayscan.visibility(cloud, eyes)["visible_count"])
+From the source tree (autzen_trim.las: 110,000 points, coordinates in international feet):
 
-Conventions (the C++ library's, see README.md "The library"):
+    >>> import os, tempfile
+    >>> import numpy as np, rayscan
+    >>> pc = rayscan.read("tests/data/las/autzen_trim.las")
+    >>> len(pc), pc.xyz.dtype, pc.rgb.dtype
+    (110000, dtype('float64'), dtype('uint16'))
+    >>> tree = rayscan.Octree(pc.xyz, layout="adaptive", capacity=64)
+    >>> lo, hi = pc.bounds                                        # corners of the cloud
+    >>> eye = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, hi[2] + 100.0])
+    >>> down_and_up = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])
+    >>> hits = tree.ray_query(eye, down_and_up, k=1, radius=2.0, t_min=0.0, order="sphere_hit")
+    >>> hits.first()                                              # point hit by each ray, -1 = miss
+    array([46903,    -1])
+    >>> hits.first("t").round(2)                                  # depth along each ray, NaN = miss
+    array([191.52,    nan])
+    >>> seen = rayscan.visibility(pc, observers=[eye[:2]], height=6.0)   # an eye 6 ft above ground
+    >>> int(np.count_nonzero(seen["visible_count"]))              # points it sees
+    2351
+    >>> out = os.path.join(tempfile.mkdtemp(), "seen.laz")
+    >>> rayscan.write(out, pc, visible_count=seen["visible_count"])
+    >>> float(rayscan.read(out).scalars["visible_count"].sum())
+    2351.0
+    >>> low = rayscan.PointCloud(pc.xyz[pc.xyz[:, 2] < 420.0])  # a cloud from arrays
+    >>> len(rayscan.BruteForce(low).box(lo, hi)[0]) == len(low)
+    True
+
+Conventions (the C++ library's, docs/library.md "Conventions"; the Python guide is
+docs/python.md):
   * Arrays of points, origins and directions are (N, 3) array-likes of real numbers; float64
     C-contiguous arrays are used without a copy, anything else is converted once. A (3,) array
     is one row and broadcasts against the other argument.
@@ -70,8 +90,10 @@ def write(path, cloud, **fields):
     point_source_id, ...) go to the standard LAS fields.
 
     LAS coordinates are scaled integers: a cloud read from LAS/LAZ (or a subset of one) keeps the
-    file's scale and offset (bit-exact round trip); otherwise the scale is the coarsest of 1,
-    0.1, 0.01, 0.001 that stores every coordinate exactly, else 0.001. Written to a temporary
+    file's scale and offset (bit-exact round trip); otherwise each axis gets the coarsest of 1,
+    0.1, 0.01, 0.001 that stores every coordinate exactly, else 0.001, coarsened to 0.01, 0.1,
+    ... while the axis spans more than 2e9 steps (32-bit integers): an axis spanning more than
+    2,000,000 units is stored at 0.01 or coarser, no longer to the nearest 0.001. Written to a temporary
     file renamed into place. Raises ValueError for an unsupported extension, a field of the
     wrong shape or named like a PointCloud attribute, TypeError for another `cloud`, OSError
     when the file cannot be written.

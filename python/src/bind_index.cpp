@@ -303,11 +303,16 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
            }),
            py::arg("xyz"), py::arg("layout") = "adaptive", py::arg("capacity") = py::none(),
            py::arg("depth") = 6, py::arg("max_depth") = 21, py::arg("insertion") = false)
-      .def_property_readonly("layout", [](const PyOctree& s) { return s.options.type.substr(7); })
-      .def_property_readonly("capacity", [](const PyOctree& s) { return index_capacity(s.options); })
+      .def_property_readonly("layout", [](const PyOctree& s) { return s.options.type.substr(7); },
+                             "\"adaptive\", \"layered\" or \"fixed\".")
+      .def_property_readonly("capacity", [](const PyOctree& s) { return index_capacity(s.options); },
+                             "The capacity built with: most points per leaf (adaptive) or per node (layered); "
+                             "the layout's default when None was given.")
       .def_property_readonly("node_count",
-                             [](const PyOctree& s) { return std::get<Octree>(s.index).node_count(); })
-      .def_property_readonly("depth", [](const PyOctree& s) { return std::get<Octree>(s.index).depth(); });
+                             [](const PyOctree& s) { return std::get<Octree>(s.index).node_count(); },
+                             "Number of nodes, inner nodes and leaves.")
+      .def_property_readonly("depth", [](const PyOctree& s) { return std::get<Octree>(s.index).depth(); },
+                             "Depth of the deepest node (the root is depth 0).");
 
   struct PyKdTree : PyIndex {};
   py::class_<PyKdTree, PyIndex>(m, "_KdTree")
@@ -318,9 +323,11 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
              return PyKdTree{build(xyz, o)};
            }),
            py::arg("xyz"), py::arg("capacity") = py::none())
-      .def_property_readonly("capacity", [](const PyKdTree& s) { return index_capacity(s.options); })
+      .def_property_readonly("capacity", [](const PyKdTree& s) { return index_capacity(s.options); },
+                             "Most points per leaf the tree was built with (32 when None was given).")
       .def_property_readonly("node_count",
-                             [](const PyKdTree& s) { return std::get<KdTree>(s.index).node_count(); });
+                             [](const PyKdTree& s) { return std::get<KdTree>(s.index).node_count(); },
+                             "Number of nodes, inner nodes and leaves.");
 
   struct PyBrute : PyIndex {};
   py::class_<PyBrute, PyIndex>(m, "_BruteForce").def(py::init([](py::handle xyz) {
@@ -349,7 +356,7 @@ original indices (the order of the sources).)doc");
   site.def("__len__", [](const PySite& s) { return s.site.size(); })
       .def_property_readonly("storage", [](const PySite& s) { return storage_name(s.site.storage()); },
                              "\"index_file\" (.rsi, mapped), \"copc\" (in place) or \"memory\" (read and indexed).")
-      .def_property_readonly("path", [](const PySite& s) { return s.path; });
+      .def_property_readonly("path", [](const PySite& s) { return s.path; }, "The file name given to rayscan.open.");
 }
 
 }  // namespace rayscan::python

@@ -461,12 +461,18 @@ ValueError for a missing X/Y/Z, both spellings of one field, or a non-numeric fi
            "A new PointCloud of the points `indices` ((K,) integers in [-N, N), in that order, repeats "
            "allowed) with every attribute. Raises TypeError for non-integer indices, IndexError out of range.")
       .def("__contains__", [](const PyCloud& c, const std::string& name) { return c.has(name); })
-      .def_property_readonly("xyz", [](py::object s) { return attribute(s, "xyz"); })
-      .def_property_readonly("rgb", [](py::object s) { return attribute(s, "rgb"); })
-      .def_property_readonly("intensity", [](py::object s) { return attribute(s, "intensity"); })
-      .def_property_readonly("classification", [](py::object s) { return attribute(s, "classification"); })
-      .def_property_readonly("gps_time", [](py::object s) { return attribute(s, "gps_time"); })
-      .def_property_readonly("normals", [](py::object s) { return attribute(s, "normals"); })
+      .def_property_readonly("xyz", [](py::object s) { return attribute(s, "xyz"); },
+                             "(N, 3) float64 positions in the cloud's world frame and units (a view of the cloud's memory).")
+      .def_property_readonly("rgb", [](py::object s) { return attribute(s, "rgb"); },
+                             "(N, 3) uint16 colour, 0..65535 per channel, or None when the cloud has none.")
+      .def_property_readonly("intensity", [](py::object s) { return attribute(s, "intensity"); },
+                             "(N,) uint16 return intensity as stored, or None.")
+      .def_property_readonly("classification", [](py::object s) { return attribute(s, "classification"); },
+                             "(N,) uint8 ASPRS class code, or None.")
+      .def_property_readonly("gps_time", [](py::object s) { return attribute(s, "gps_time"); },
+                             "(N,) float64 GPS time in seconds as in the file, or None.")
+      .def_property_readonly("normals", [](py::object s) { return attribute(s, "normals"); },
+                             "(N, 3) float32 unit normals, or None.")
       .def_property_readonly("scalars",
                              [](py::object s) {
                                py::dict d;
@@ -482,12 +488,14 @@ ValueError for a missing X/Y/Z, both spellings of one field, or a non-numeric fi
                              [](const PyCloud& c) -> py::object {
                                if (c.cloud.crs_wkt.empty()) return py::none();
                                return py::str(c.cloud.crs_wkt);
-                             })
+                             },
+                             "The coordinate reference system as WKT, or None when unknown.")
       .def_property_readonly("epsg",
                              [](const PyCloud& c) -> py::object {
                                if (c.info.epsg == 0) return py::none();
                                return py::int_(c.info.epsg);
-                             })
+                             },
+                             "EPSG code from the LAS GeoKeys (int), or None when the file names none.")
       .def_property_readonly("format",
                              [](const PyCloud& c) -> py::object {
                                if (c.info.format.empty()) return py::none();

@@ -226,6 +226,21 @@ def test_write_las_from_structured_array_reads_back_exactly(tmp_path):
         np.testing.assert_array_equal(back.scalars["visible_count"], count)
 
 
+def test_write_las_scale_coarsens_past_two_million_units(tmp_path):
+    """Coordinates off every decimal grid get 0.001 per axis, coarsened tenfold while the axis
+    spans more than 2e9 steps (32-bit integers): x spanning 3e6 units gets 0.01, y and z 0.001."""
+    rng = np.random.default_rng(11)
+    xyz = rng.random((200, 3)) * [3.0e6, 1000.0, 10.0] + [5.0e5, 4.0e6, 100.0]
+    xyz[0, 0], xyz[1, 0] = 5.0e5, 3.5e6 + 0.123456  # the full x span
+    rayscan.write(tmp_path / "wide.las", xyz)
+    las = parse_las(tmp_path / "wide.las")
+    np.testing.assert_array_equal(las["scale"], [0.01, 0.001, 0.001])
+    back = las["X"] * las["scale"] + las["offset"]
+    assert np.all(np.abs(back - xyz).max(axis=0) <= np.array([0.005, 0.0005, 0.0005]) * (1 + 1e-6))
+    assert np.abs(back[:, 0] - xyz[:, 0]).max() > 0.0005  # no longer to the nearest 0.001
+    np.testing.assert_array_equal(rayscan.read(tmp_path / "wide.las").xyz, back)
+
+
 @pytest.mark.parametrize("name", ["out.ply", "out.pcd", "out.xyz", "out.txt", "out.csv"])
 def test_write_other_formats_round_trip(tmp_path, name):
     rng = np.random.default_rng(9)

@@ -248,8 +248,8 @@ def test_default_capacities_follow_the_layout(uniform_cloud):
 
 
 def test_brute_force_refuses_a_non_finite_point_like_the_trees():
-    """Every index refuses NaN and infinite coordinates with the same message; the brute force
-    used to keep them and return them as results."""
+    """Every index refuses NaN and infinite coordinates with the same message (a brute force scan
+    that kept them would return them as hits)."""
     for make, name in ((rayscan.Octree, "octree"), (rayscan.KdTree, "kdtree"), (rayscan.BruteForce, "brute")):
         for bad in (np.nan, np.inf, -np.inf):
             with pytest.raises(ValueError) as e:
