@@ -101,15 +101,16 @@ def write(path, cloud, **fields):
     _rayscan._write(path, cloud, fields)
 
 
-def open(path):  # noqa: A001 - rayscan.open, like gzip.open
+def open(path, cache="2G"):  # noqa: A001 - rayscan.open, like gzip.open
     """Open a point file for queries, without reading it whole where the storage allows:
     an index file (.rsi, `rayscan index`) is memory-mapped and queried in place, a COPC file
-    (.copc.laz) through its own octree (nodes decoded as queries reach them); any other point
-    file is read and indexed in memory. Returns a Site with the index classes' queries
-    (ray_query, knn, radius, box) answering with the points' original indices.
-    Raises OSError for a missing or malformed file.
+    (.copc.laz) through its own octree (nodes decoded as queries reach them, kept within
+    `cache`: "2G", "512M", as the CLI's --cache); any other point file is read and indexed in
+    memory. Returns a Site with the index classes' queries (ray_query, knn, radius, box)
+    answering with the points' original indices; its queries may run from several threads.
+    Raises OSError for a missing or malformed file, ValueError for a bad cache size.
     """
-    return Site(path)
+    return Site(path, cache)
 
 
 def _xyz(points):
@@ -204,12 +205,13 @@ class BruteForce(_QueriesMixin, _rayscan._BruteForce):
 class Site(_QueriesMixin, _rayscan._Site):
     """A point file opened for queries (see rayscan.open): .storage is "index_file" (an .rsi
     index mapped, queried in place), "copc" (a COPC file's own octree, nodes decoded as queries
-    reach them, within a 2 GiB cache) or "memory" (another point file, read and indexed as an
-    adaptive octree). Same queries and results as Octree over the same points; indices are the
-    points' original order (the sources' order)."""
+    reach them, within `cache`, "2G" by default) or "memory" (another point file, read and
+    indexed as an adaptive octree). Same queries and results as Octree over the same points;
+    indices are the points' original order (the sources' order). Queries may run from several
+    Python threads at once (each releases the GIL)."""
 
-    def __init__(self, path):
-        super().__init__(path)
+    def __init__(self, path, cache="2G"):
+        super().__init__(path, cache)
 
     def __repr__(self):
         return f"<rayscan.Site {self.path}: {len(self)} points, storage={self.storage}>"

@@ -1,5 +1,6 @@
 #include "arrays.hpp"
 
+#include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/input_file.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
@@ -131,6 +132,15 @@ std::vector<std::string> names_arg(py::handle v, const char* name) {
     out.push_back(item.cast<std::string>());
   }
   return out;
+}
+
+std::size_t cache_arg(py::handle cache_obj) {
+  const std::string cache = str_arg(cache_obj, "cache", "a byte size as text (\"2G\", \"512M\")");
+  try {
+    return static_cast<std::size_t>(parse_byte_size(cache));
+  } catch (const std::invalid_argument& e) {
+    throw py::value_error(std::string("cache: ") + e.what());
+  }
 }
 
 }  // namespace rayscan::python

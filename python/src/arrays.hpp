@@ -100,6 +100,11 @@ unsigned parse_threads(py::handle threads);
 /// Python's name of v's type ("float", "str", "NoneType").
 std::string type_name(py::handle v);
 
+/// The `cache` keyword of Site, visibility and solar: a byte size as `--cache` takes it ("2G",
+/// "512M"; parse_byte_size), the decoded-node budget of a COPC file queried in place. Raises
+/// ValueError "cache: size '...': expected ...", TypeError for another type than str.
+std::size_t cache_arg(py::handle cache_obj);
+
 /// True for a str or an os.PathLike (what path_arg accepts, or refuses with a ValueError).
 bool is_path_like(py::handle v);
 

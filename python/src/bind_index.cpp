@@ -14,6 +14,9 @@
 #include <tbb/task_arena.h>
 
 #include <cmath>
+#include <memory>
+#include <mutex>
+#include <shared_mutex>
 #include <optional>
 
 namespace rayscan::python {
@@ -36,17 +39,26 @@ struct PyIndex {
 
 /// The object behind rayscan.Site (rayscan.open): an index file mapped, a COPC file's hierarchy,
 /// or another point file read and indexed in memory (Site::open).
+/// Queries from several Python threads may run at once (each releases the GIL): each holds
+/// `queries` shared while it runs, and the trim of a COPC file's node cache, which must not run
+/// during a query (CopcIndex::trim_cache), takes it exclusively, or is left to a later call when
+/// another thread's query is running.
 struct PySite {
   Site site;
   std::string path;
+  std::unique_ptr<std::shared_mutex> queries = std::make_unique<std::shared_mutex>();
 
   template <class F>
   decltype(auto) visit(F&& f) const {
+    std::shared_lock running(*queries);
     return site.visit(std::forward<F>(f));
   }
   /// A COPC file keeps the nodes its queries decoded: trimmed to the cache budget between calls.
   void after_query() const {
-    if (io::CopcIndex* c = site.copc()) c->trim_cache();
+    if (io::CopcIndex* c = site.copc()) {
+      std::unique_lock alone(*queries, std::try_to_lock);
+      if (alone) c->trim_cache();
+    }
   }
 };
 
@@ -339,19 +351,22 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
   auto site = py::class_<PySite>(m, "_Site", R"doc(
 A point file opened for queries without reading it whole where its storage allows: an index
 file (.rsi, built by `rayscan index`) is memory-mapped and queried in place, a COPC file's own
-octree is queried in place (nodes decoded as queries reach them, kept within a 2 GiB cache); any
+octree is queried in place (nodes decoded as queries reach them, kept within `cache`, "2G" by
+default); any
 other point file is read and indexed in memory (an adaptive octree). Results use the points'
 original indices (the order of the sources).)doc");
-  site.def(py::init([](py::handle path) {
+  site.def(py::init([](py::handle path, py::handle cache) {
              const std::string p = path_arg(path, "path");
+             SiteOptions options;
+             options.copc_cache_bytes = cache_arg(cache);
              std::optional<Site> s;
              {
                py::gil_scoped_release nogil;
-               s.emplace(Site::open(p));
+               s.emplace(Site::open(p, options));
              }
              return PySite{std::move(*s), p};
            }),
-           py::arg("path"));
+           py::arg("path"), py::arg("cache") = "2G");
   def_queries(site);
   site.def("__len__", [](const PySite& s) { return s.site.size(); })
       .def_property_readonly("storage", [](const PySite& s) { return storage_name(s.site.storage()); },

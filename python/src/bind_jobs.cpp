@@ -323,18 +323,6 @@ py::dict compare(const py::object& a, const py::object& b, py::handle channels,
 /// What a sphere radius argument is, for its TypeError.
 constexpr const char* kRadiusExpected = "None (auto) or a number > 0 (world units)";
 
-/// The `cache` keyword of visibility and solar: a byte size as `--cache` takes it ("2G", "512M";
-/// parse_byte_size), the decoded-node budget of a COPC file queried in place. Raises ValueError
-/// "cache: size '...': expected ...", TypeError for another type than str.
-std::size_t cache_arg(py::handle cache_obj) {
-  const std::string cache = str_arg(cache_obj, "cache", "a byte size as text (\"2G\", \"512M\")");
-  try {
-    return static_cast<std::size_t>(parse_byte_size(cache));
-  } catch (const std::invalid_argument& e) {
-    throw py::value_error(std::string("cache: ") + e.what());
-  }
-}
-
 py::dict visibility(const py::object& cloud, const py::object& observers, py::handle radius,
                     py::handle height, py::handle max_distance, py::handle tolerance, py::handle target_height,
                     py::handle sky_rays, py::handle camera, bool distance, py::handle threads,

@@ -443,6 +443,26 @@ def test_open_copc_queries_in_place(data_dir):
     np.testing.assert_array_equal(ra.t, rb.t)
 
 
+def test_open_copc_from_threads_with_a_small_cache(data_dir):
+    # Queries from four threads at once on a COPC site whose 1 MiB cache is trimmed after every
+    # call (while other threads' queries run): the answers equal one thread's on an in-memory
+    # octree of the same points, batch by batch.
+    from concurrent.futures import ThreadPoolExecutor
+    path = data_dir / "laz" / "lone-star.copc.laz"
+    site = rayscan.open(path, cache="1M")
+    pc = rayscan.read(path)
+    tree = rayscan.Octree(pc)
+    rng = np.random.default_rng(5)
+    batches = [pc.xyz[rng.integers(0, len(pc), 400)] for _ in range(16)]
+    want = [tree.knn(b, k=4).distance for b in batches]
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(lambda b: site.knn(b, k=4, threads=1).distance, batches))
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(g, w)
+    with pytest.raises(ValueError, match="cache"):
+        rayscan.open(path, cache="lots")
+
+
 # ---- Version and type stubs --------------------------------------------------------------------
 
 def test_version_is_the_project_version(cli):
