@@ -10,6 +10,10 @@
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -152,6 +156,30 @@ std::unique_ptr<ImageReader> open(const std::string& path, std::string& why) {
   return std::make_unique<OiioReader>(std::move(in));
 }
 
+/// encode's TIFF path: OpenImageIO 2.4's TIFF writer, given an IOProxy, points the file's first
+/// directory at the EXIF directory it writes at close, and no reader opens the result; to a file
+/// it writes a valid TIFF. So the TIFF is written to a temporary file (checked at every step:
+/// libtiff reports failed writes), read back into `bytes` and removed.
+void encode_through_file(OIIO::ImageOutput& out, const std::string& name, const OIIO::ImageSpec& spec,
+                         OIIO::TypeDesc type, const void* pixels, std::vector<unsigned char>& bytes) {
+  std::string path = (std::filesystem::temp_directory_path() / "rayscan-tiff-XXXXXX.tif").string();
+  const int fd = ::mkstemps(path.data(), 4);
+  if (fd < 0) throw std::runtime_error(name + ": cannot create a temporary file in " + path + " (" + std::strerror(errno) + ")");
+  ::close(fd);
+  struct Remove {
+    const std::string& p;
+    ~Remove() { ::unlink(p.c_str()); }
+  } remove{path};
+  if (!out.open(path, spec)) throw std::runtime_error(name + ": cannot encode the image (" + out.geterror() + ")");
+  if (!(out.write_image(type, pixels) && out.close())) throw std::runtime_error(name + ": encoding failed (" + out.geterror() + ")");
+  std::ifstream f(path, std::ios::binary | std::ios::ate);
+  const std::streamoff size = f ? static_cast<std::streamoff>(f.tellg()) : -1;
+  if (size < 0) throw std::runtime_error(name + ": cannot read the encoded image back from " + path);
+  bytes.resize(static_cast<std::size_t>(size));
+  f.seekg(0);
+  if (!f.read(reinterpret_cast<char*>(bytes.data()), size)) throw std::runtime_error(name + ": cannot read the encoded image back from " + path);
+}
+
 void encode(const Image& img, const std::string& name, const std::vector<PixelFormat>& formats,
             const ImageWriteOptions& o, bool zip, std::vector<unsigned char>& bytes) {
   const std::size_t n = img.npixels(), nf = img.channels.size(), ni = img.id_channels.size();
@@ -211,6 +239,10 @@ void encode(const Image& img, const std::string& name, const std::vector<PixelFo
     }
   }
   bytes.clear();
+  if (std::strcmp(out->format_name(), "tiff") == 0) {
+    encode_through_file(*out, name, spec, mixed ? OIIO::TypeDesc::UNKNOWN : types[0], buf.data(), bytes);
+    return;
+  }
   OIIO::Filesystem::IOVecOutput memory(bytes);
   if (!out->set_ioproxy(&memory)) throw std::runtime_error(name + ": the image writer cannot encode into memory");
   if (!out->open(name, spec)) throw std::runtime_error(name + ": cannot encode the image (" + out->geterror() + ")");

@@ -94,6 +94,47 @@ TEST(ImageOutput, PngIsSrgbEncodedAt16Bit) {
   EXPECT_EQ(px[5], 65535);  // clamped
 }
 
+// Every image format the writer offers decodes with OpenImageIO to the written pixels: the 8-bit
+// formats to the sRGB encoding of each value, EXR to the half-float values (JPEG within its loss).
+// A TIFF that OpenImageIO's own TIFF writer had encoded through an in-memory proxy had its first
+// directory pointing at the EXIF one: a valid signature, and no reader opened it.
+TEST(ImageOutput, EveryFormatDecodesToTheWrittenPixels) {
+  Framebuffer fb;
+  fb.width = 4;
+  fb.height = 3;
+  for (int i = 0; i < 12; ++i) fb.beauty.push_back(Color(0.05f * float(i), 0.5f, 1.0f - 0.08f * float(i)));
+  for (const char* name : {"e.png", "e.tif", "e.tiff", "e.TIF", "e.jpg", "e.jpeg", "e.exr"}) {
+    OutputDesc out;
+    out.image = files_temp_dir() / name;
+    write_image(fb, out, {});
+    auto in = OIIO::ImageInput::open(out.image.string());
+    ASSERT_TRUE(in) << name << ": " << OIIO::geterror();
+    ASSERT_EQ(in->spec().width, 4) << name;
+    ASSERT_EQ(in->spec().height, 3) << name;
+    ASSERT_GE(in->spec().nchannels, 3) << name;
+    const int nc = in->spec().nchannels;
+    std::vector<float> px(std::size_t(12 * nc));
+    ASSERT_TRUE(in->read_image(0, 0, 0, nc, OIIO::TypeDesc::FLOAT, px.data())) << name;
+    const bool exr = fs::path(name).extension() == ".exr";
+    const bool jpeg = fs::path(name).extension().string().find("jp") != std::string::npos;
+    const auto srgb = [](float v) {
+      return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+    };
+    for (int c = 0; c < 3; ++c) {
+      double got_mean = 0.0, want_mean = 0.0;
+      for (int i = 0; i < 12; ++i) {
+        const float v = fb.beauty[std::size_t(i)][c];
+        const float want = exr ? v : srgb(v);
+        got_mean += px[std::size_t(i * nc + c)] / 12.0;
+        want_mean += want / 12.0;
+        // JPEG's chroma subsampling blurs a 4 x 3 gradient pixel by pixel: its means are checked.
+        if (!jpeg) EXPECT_NEAR(px[std::size_t(i * nc + c)], want, exr ? 1e-3f : 0.5f / 255.0f) << name << " " << i << "," << c;
+      }
+      EXPECT_NEAR(got_mean, want_mean, jpeg ? 0.03 : exr ? 1e-3 : 0.5 / 255.0 + 1e-6) << name << " channel " << c;
+    }
+  }
+}
+
 TEST(RenderJob, WritesTheImageAndAovsItNames) {
   const fs::path dir = rayscan::test::process_temp_dir("rayscan_render_job");
   RenderJobOptions o;
