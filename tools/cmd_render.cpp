@@ -4,6 +4,7 @@
 #include "commands.hpp"
 #include "processes.hpp"
 
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/analysis/ortho_map.hpp"
@@ -100,6 +101,12 @@ int run_render(const RenderCliOptions& o) {
       throw UsageError("--ortho-map: the map's size comes from RES; do not give --width, --height, --camera or --colmap");
     if (!o.dsm.empty() && !analysis::is_geotiff_name(o.dsm))
       throw UsageError("--dsm '" + o.dsm + "': " + extensions_expected(analysis::geotiff_extensions()));
+    // The map's files are written here, not by run_render (job.write is off): checked before the
+    // render, as every job checks its outputs, not after it.
+    std::vector<std::filesystem::path> outs{job.scene.output.image};
+    if (!o.dsm.empty()) outs.emplace_back(o.dsm);
+    const std::filesystem::path ins[] = {job.scene.cloud, job.scene.file};
+    require_outputs(outs, ins);
     job.write = false;
     if (std::find(job.scene.output.aovs.begin(), job.scene.output.aovs.end(), Aov::depth) == job.scene.output.aovs.end())
       job.scene.output.aovs.push_back(Aov::depth);

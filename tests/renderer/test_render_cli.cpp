@@ -83,3 +83,14 @@ TEST(RenderCli, OutAcceptsEveryImageExtension) {
     EXPECT_EQ(head, magic) << name;
   }
 }
+
+TEST(RenderCli, OrthoMapOutputsAreCheckedBeforeTheRender) {
+  // The orthophoto and DSM are written by the command, not the render job: their directories are
+  // checked before the render (one line, exit 2, nothing written), as every job checks its outputs.
+  const std::string cloud = std::string(RAYSCAN_TEST_DATA) + "/las/autzen_trim.las";
+  const fs::path ortho = cli_temp_dir() / "o.tif";
+  const RunResult r = run("render " + cloud + " --ortho-map 3 --out " + ortho.string() + " --dsm /nonexistent-dir/d.tif");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out, "rayscan render: /nonexistent-dir/d.tif: output directory '/nonexistent-dir' does not exist\n");
+  EXPECT_FALSE(fs::exists(ortho));
+}
