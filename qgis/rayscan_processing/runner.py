@@ -106,7 +106,11 @@ def run_rayscan(args, feedback, log_stdout=True):
     if canceled:
         raise QgsProcessingException("rayscan was canceled")
     if code != 0:
-        raise QgsProcessingException("rayscan exited with status {}:\n{}".format(code, "\n".join(err_tail)))
+        # The program's own one-line error ("rayscan COMMAND: ..."), without the log and progress
+        # lines before it; the whole tail only when it printed none (a crash, say).
+        errors = [line for line in err_tail if line.startswith("rayscan")]
+        raise QgsProcessingException(errors[-1] if errors else
+                                     "rayscan exited with status {}:\n{}".format(code, "\n".join(err_tail)))
     return "\n".join(out)
 
 

@@ -131,9 +131,11 @@ def unit_tests(plugin_dir, work):
             os.environ["RAYSCAN_EXECUTABLE"] = saved
 
 
-def desktop_checks(plugin_dir):
+def desktop_checks(plugin_dir, cloud, work):
     """The desktop's way in (classFactory, initGui, unload) with the Processing plugin: the provider,
-    its executable option in Processing's settings, and both gone after unload."""
+    its executable option in Processing's settings, an algorithm run as the Python console runs it
+    (processing.run) and as the batch dialog does (QgsProcessingAlgorithm.run), and the provider and
+    option gone after unload."""
     from qgis.core import QgsApplication
     app = QgsApplication([], True)  # offscreen (QT_QPA_PLATFORM)
     app.initQgis()
@@ -154,6 +156,23 @@ def desktop_checks(plugin_dir):
     check(types.get("INPUT") == "file" and types.get("OBSERVERS") == "source"
           and types.get("OUTPUT") == "rasterDestination",
           "desktop: viewshed's parameter types {}".format(types))
+    import processing
+    from qgis.core import QgsProcessingContext, QgsProcessingFeedback
+    from osgeo import gdal
+    for how, output, call in [
+            ("processing.run", "console.tif",
+             lambda p: processing.run("rayscan:quick_look", p)),
+            ("QgsProcessingAlgorithm.run (the batch dialog)", "batch.png",
+             lambda p: registry.createAlgorithmById("rayscan:quick_look").run(
+                 p, QgsProcessingContext(), QgsProcessingFeedback()))]:
+        path = os.path.join(work, output)
+        try:
+            call({"INPUT": cloud, "WIDTH": 64, "SPP": 1, "OUTPUT": path})
+            raster = gdal.Open(path)
+            ok, why = raster is not None and raster.RasterXSize == 64, "GDAL opened {}".format(raster is not None)
+        except Exception as e:  # the check's subject: any exception is the failure it reports
+            ok, why = False, "{}: {}".format(type(e).__name__, e)
+        check(ok, "desktop: {} runs rayscan:quick_look to a 64-pixel {} ({})".format(how, output, why))
     plugin.unload()
     check(registry.providerById("rayscan") is None and "RAYSCAN_EXECUTABLE" not in ProcessingConfig.settings,
           "desktop: unload removes the provider and the option")
@@ -220,7 +239,7 @@ def main():
         return r.returncode, r.stdout
 
     unit_tests(plugin_dir, work)
-    keep_alive.append(desktop_checks(plugin_dir))  # the QgsApplication, for the transforms below
+    keep_alive.append(desktop_checks(plugin_dir, cloud, work))  # the QgsApplication, for the transforms below
 
     code, _ = qp("plugins", "enable", "rayscan_processing")
     check(code == 0, "qgis_process plugins enable rayscan_processing")

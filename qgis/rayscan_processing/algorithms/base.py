@@ -80,8 +80,12 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
             raise QgsProcessingException(self.tr("Point cloud file not found: {}").format(path))
         return path
 
-    def run(self, args, feedback):
-        """Run ``rayscan ARGS`` with the feedback's progress and cancellation; return stdout."""
+    def run_cli(self, args, feedback):
+        """Run ``rayscan ARGS`` with the feedback's progress and cancellation; return stdout.
+
+        (Not named ``run``: that is QgsProcessingAlgorithm.run, which processing.run and the batch
+        dialog call.)
+        """
         return runner.run_rayscan(args, feedback)
 
     @staticmethod
@@ -118,7 +122,15 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
         as PointZ features with one double field per attribute.
         """
         text = QgsProcessingUtils.generateTempFilename("points.csv")
-        self.run(["translate", cloud_file, text], feedback)
+        try:
+            return self._csv_to_sink(text, cloud_file, parameters, sink_name, crs, context, feedback)
+        finally:
+            if os.path.exists(text):
+                os.remove(text)
+
+    def _csv_to_sink(self, text, cloud_file, parameters, sink_name, crs, context, feedback):
+        """cloud_to_sink's work, through the temporary CSV file ``text`` (removed by the caller)."""
+        self.run_cli(["translate", cloud_file, text], feedback)
         with open(text, newline="", encoding="utf-8") as f:
             total = max(1, sum(1 for _ in f) - 1)
         with open(text, newline="", encoding="utf-8") as f:
@@ -138,10 +150,11 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
             for i, row in enumerate(rows):
                 if i % 10000 == 0:
                     if feedback.isCanceled():
-                        break
+                        # A canceled run is an error, so Processing neither reports success nor
+                        # loads the part written so far.
+                        raise QgsProcessingException(self.tr("Canceled while writing {}").format(sink_name))
                     feedback.setProgress(100.0 * i / total)
                 feature.setGeometry(QgsGeometry(QgsPoint(float(row[0]), float(row[1]), float(row[2]))))
                 feature.setAttributes([float(v) for v in row[3:]])
                 sink.addFeature(feature, QgsFeatureSink.FastInsert)
-        os.remove(text)
         return dest_id

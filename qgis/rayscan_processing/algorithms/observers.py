@@ -84,7 +84,7 @@ def write_observers(alg, parameters, context, feedback, cloud):
         out.writerow(["x", "y", "z", "name"] if use_z else ["x", "y", "height", "name"])
         for feature in source.getFeatures(QgsFeatureRequest()):
             if feedback.isCanceled():
-                break
+                raise QgsProcessingException(alg.tr("Canceled while reading the observers"))
             geometry = feature.geometry()
             if geometry.isNull() or geometry.isEmpty():
                 feedback.pushWarning(alg.tr("Observer {} has no geometry: skipped").format(feature.id()))
@@ -95,7 +95,14 @@ def write_observers(alg, parameters, context, feedback, cloud):
             if field:
                 value = feature[field]
                 if value is not None and str(value) != "NULL":
-                    h = float(value)
+                    try:
+                        h = float(value)
+                    except (TypeError, ValueError):
+                        h = math.nan
+                    if not math.isfinite(h):
+                        raise QgsProcessingException(alg.tr(
+                            "Height field '{}' of observer {}: '{}' is not a finite number (eye height, "
+                            "cloud units)").format(field, feature.id(), value))
             for part, vertex in enumerate(geometry.vertices()):
                 if not (math.isfinite(vertex.x()) and math.isfinite(vertex.y())):
                     continue

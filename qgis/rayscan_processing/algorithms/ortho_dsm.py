@@ -6,12 +6,12 @@ from .base import RayscanAlgorithm
 
 
 class OrthoDsm(RayscanAlgorithm):
-    """A top-down orthophoto (RGB GeoTIFF) and digital surface model (Float32 GeoTIFF) of a cloud."""
+    """A top-down orthophoto (RGBA GeoTIFF) and digital surface model (Float32 GeoTIFF) of a cloud."""
 
     NAME = "ortho_dsm"
     DISPLAY = "Ortho + DSM"
     HELP = ("Renders the cloud straight down over its XY extent (rayscan render --ortho-map CELL --dsm): "
-            "an RGB orthophoto and the digital surface model, the elevation of the first surface each "
+            "an RGBA orthophoto (alpha 0 where no point was hit) and the digital surface model, the elevation of the first surface each "
             "cell's vertical ray meets (NoData where it misses). Both GeoTIFFs carry the cloud's CRS; "
             "the cell size is in the cloud's horizontal units. The DSM is the surface the Viewshed "
             "algorithm sees over.")
@@ -33,7 +33,7 @@ class OrthoDsm(RayscanAlgorithm):
         dsm = self.parameterAsOutputLayer(parameters, self.DSM, context)
         self.check_extension(ortho, (".tif", ".tiff"), "The orthophoto")
         self.check_extension(dsm, (".tif", ".tiff"), "The DSM")
-        self.run(["render", cloud, "--ortho-map", self.parameterAsDouble(parameters, "CELL", context),
+        self.run_cli(["render", cloud, "--ortho-map", self.parameterAsDouble(parameters, "CELL", context),
                   "--spp", self.parameterAsInt(parameters, "SPP", context),
                   "--dsm", dsm, "--out", ortho], feedback)
         return {self.ORTHO: ortho, self.DSM: dsm}

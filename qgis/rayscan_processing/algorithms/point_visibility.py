@@ -58,7 +58,7 @@ class PointVisibility(RayscanAlgorithm):
         max_distance = self.parameterAsDouble(parameters, "MAX_DISTANCE", context)
         if max_distance > 0:
             args += ["--max-distance", max_distance]
-        self.run(args, feedback)
+        self.run_cli(args, feedback)
         results = {self.OUTPUT: out}
         self.load_cloud_on_completion(out, self.tr("Per-point visibility"), self.OUTPUT, context, feedback)
         if parameters.get(self.POINTS_LAYER) is not None:

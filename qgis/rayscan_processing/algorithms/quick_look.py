@@ -37,7 +37,7 @@ class QuickLook(RayscanAlgorithm):
         cloud = self.cloud(parameters, context)
         out = self.parameterAsFileOutput(parameters, self.OUTPUT, context)
         self.check_extension(out, (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr"), "The quick look")
-        self.run(["render", cloud, "--out", out,
+        self.run_cli(["render", cloud, "--out", out,
                   "--width", self.parameterAsInt(parameters, "WIDTH", context),
                   "--spp", self.parameterAsInt(parameters, "SPP", context),
                   "--primitive", _PRIMITIVES[self.parameterAsEnum(parameters, "PRIMITIVE", context)]],

@@ -95,7 +95,7 @@ class Solar(RayscanAlgorithm):
         points = self.parameterAsFileOutput(parameters, self.POINTS, context)
         if points:
             args += ["-o", points]
-        self.run(args, feedback)
+        self.run_cli(args, feedback)
         results = {self.OUTPUT: out}
         if points:
             results[self.POINTS] = points

@@ -52,5 +52,5 @@ class Viewshed(RayscanAlgorithm):
         max_distance = self.parameterAsDouble(parameters, "MAX_DISTANCE", context)
         if max_distance > 0:
             args += ["--max-distance", max_distance]
-        self.run(args, feedback)
+        self.run_cli(args, feedback)
         return {self.OUTPUT: out}
