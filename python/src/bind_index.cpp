@@ -107,6 +107,32 @@ auto with_threads(unsigned threads, F&& f) {
   return arena.execute(std::forward<F>(f));
 }
 
+/// Queries per call of a batch between two checks for Ctrl-C (KeyboardInterrupt): a second or
+/// less of work on a large site, a negligible share of it spent re-entering the interpreter.
+constexpr std::size_t kInterruptChunk = std::size_t{1} << 15;
+
+/// A batch of n queries answered in chunks of kInterruptChunk, f(first, count) returning one
+/// vector of results per query of the chunk, on `threads` threads; between chunks the GIL is
+/// taken back briefly to look for a pending signal, so Ctrl-C in a notebook stops a long batch
+/// (raised as KeyboardInterrupt) instead of waiting for its end. Call with the GIL released.
+template <class F>
+auto interruptible_batch(std::size_t n, unsigned threads, F&& f) {
+  decltype(f(std::size_t{0}, std::size_t{0})) all;
+  all.reserve(n);
+  std::size_t first = 0;
+  do {
+    const std::size_t count = std::min(kInterruptChunk, n - first);
+    auto part = with_threads(threads, [&] { return f(first, count); });
+    for (auto& r : part) all.push_back(std::move(r));
+    first += count;
+    if (first < n) {
+      py::gil_scoped_acquire gil;
+      if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+    }
+  } while (first < n);
+  return all;
+}
+
 /// Row i of a broadcast pair: a one-row array repeats.
 inline const Vec3& row(std::span<const Vec3> a, std::size_t i) { return a.size() == 1 ? a[0] : a[i]; }
 
@@ -177,8 +203,9 @@ py::dict ray_query(const Index& self, py::handle origins, py::handle directions,
                           "radius= or any_hit=True, or allow_all=True to ask for all of them");
   {
     py::gil_scoped_release nogil;
-    const auto res = with_threads(nthreads, [&] {
-      return self.visit([&](const auto& ix) { return ray_query_batch(ix, rays, q); });
+    const auto res = interruptible_batch(rays.size(), nthreads, [&](std::size_t first, std::size_t count) {
+      const std::span<const Ray> part(rays.data() + first, count);
+      return self.visit([&](const auto& ix) { return ray_query_batch(ix, part, q); });
     });
     self.after_query();
     off = csr_offsets(res);
@@ -211,8 +238,9 @@ py::dict knn(const Index& self, py::handle points, const py::object& k, py::hand
   std::vector<double> dist;
   {
     py::gil_scoped_release nogil;
-    const auto res = with_threads(nthreads, [&] {
-      return self.visit([&](const auto& ix) { return knn_query_batch(ix, p.rows, kk, radius); });
+    const auto res = interruptible_batch(p.rows.size(), nthreads, [&](std::size_t first, std::size_t count) {
+      const std::span<const Vec3> part(p.rows.data() + first, count);
+      return self.visit([&](const auto& ix) { return knn_query_batch(ix, part, kk, radius); });
     });
     self.after_query();
     off = csr_offsets(res);
@@ -250,8 +278,9 @@ py::dict box(const Index& self, py::handle lo, py::handle hi, py::handle threads
         throw std::invalid_argument("box " + std::to_string(i) + ": lo and hi must not be NaN");
       boxes[i] = AABB{a, b};
     }
-    const auto res = with_threads(nthreads, [&] {
-      return self.visit([&](const auto& ix) { return box_query_batch(ix, boxes); });
+    const auto res = interruptible_batch(boxes.size(), nthreads, [&](std::size_t first, std::size_t count) {
+      const std::span<const AABB> part(boxes.data() + first, count);
+      return self.visit([&](const auto& ix) { return box_query_batch(ix, part); });
     });
     self.after_query();
     off = csr_offsets(res);

@@ -309,3 +309,33 @@ def test_empty_batch_broadcasts_against_one_row(uniform_cloud):
         tree.ray_query(none, np.ones((2, 3)), k=1)
     with pytest.raises(ValueError, match="lo has 2 rows but hi has 0"):
         tree.box(np.zeros((2, 3)), none)
+
+
+def test_ctrl_c_stops_a_long_batch():
+    # A batch of 2^19 rays against 20,000 points by brute force (16 chunks between the checks for
+    # a signal), interrupted as Ctrl-C would once it runs: KeyboardInterrupt after the running
+    # chunk, not at the end of the batch. Its CPU time, against one chunk's measured in the same
+    # process, says how much of the batch ran (all 16 chunks without the checks); the index then
+    # answers the next call.
+    import os
+    import signal
+    import threading
+    import time
+    rng = np.random.default_rng(3)
+    b = rayscan.BruteForce(rng.random((20000, 3)))
+    n = 1 << 19
+    o, d = rng.random((n, 3)), rng.normal(size=(n, 3))
+    c0 = time.process_time()
+    b.ray_query(o[: n // 16], d[: n // 16], k=1, radius=0.01, threads=1)
+    chunk = time.process_time() - c0
+    timer = threading.Timer(min(0.2, chunk), os.kill, (os.getpid(), signal.SIGINT))
+    c0 = time.process_time()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            b.ray_query(o, d, k=1, radius=0.01, threads=1)
+    finally:
+        timer.cancel()
+    assert time.process_time() - c0 < 6 * chunk
+    r = b.ray_query(o[:3], d[:3], k=1, radius=0.01)
+    assert len(r) == 3
