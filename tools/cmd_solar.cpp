@@ -100,7 +100,7 @@ Runner add_solar_command(CLI::App& app) {
   c->add_option("cloud", o->cloud, "Point cloud (LAS, LAZ, COPC, PLY, PCD, text) or index file (.rsi)");
   c->add_option("--start", o->job.start, "Start of the period (ISO 8601; a date alone is local solar midnight)");
   c->add_option("--end", o->job.end, "End of the period (ISO 8601; a date alone includes that day)");
-  c->add_option("--step", o->job.step, "Time step (e.g. 15min, 30min, 1h)")->capture_default_str();
+  c->add_option("--step", o->job.step, "Time step of the integration, at most 1h (e.g. 15min, 30min, 1h)")->capture_default_str();
   c->add_option("--at", o->job.at, "One instant instead of a period (ISO 8601; no offset = UTC): shadows");
   c->add_option("--day", o->job.day,
                 "A day of shadows instead (YYYY-MM-DD): with --raster, a map every --every while the sun is up "

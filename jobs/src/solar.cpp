@@ -73,8 +73,8 @@ OptionError spa_error(const std::invalid_argument& e) {
   return OptionError({what});
 }
 
-/// "30min", "1h", "2 h", "1d" -> seconds.
-double parse_step(const std::string& text) {
+/// "30min", "1h", "2 h", "1d" -> seconds; `name`: the option it came from, for the error.
+double parse_step(const std::string& text, const char* name = "step") {
   std::size_t used = 0;
   double v = 0.0;
   try {
@@ -89,8 +89,23 @@ double parse_step(const std::string& text) {
   else if (unit == "h") scale = 3600.0;
   else if (unit == "d") scale = 86400.0;
   if (used == 0 || scale == 0.0 || !(v > 0.0) || !std::isfinite(v) || v * scale < 60.0)
-    throw OptionError({option("step"), " '" + text + "': expected a duration of at least 1 min, e.g. 30min, 1h or 1d"});
+    throw OptionError({option(name), " '" + text + "': expected a duration of at least 1 min, e.g. 30min, 1h or 1d"});
   return v * scale;
+}
+
+/// The longest integration step: the sun is sampled once per step, at its middle, and the step's
+/// irradiation is that sample times the step's length. Over an hour the sun moves 15 degrees and
+/// the midpoint rule stays within a few percent of the day's total; a day-long step samples solar
+/// noon only (three times the day's irradiation, 24 sun hours).
+constexpr double kMaxIntegrationStep = 3600.0;
+
+/// --step as an integration step (parse_step, at most kMaxIntegrationStep).
+double parse_integration_step(const std::string& text) {
+  const double step = parse_step(text);
+  if (step > kMaxIntegrationStep)
+    throw OptionError({option("step"), " '" + text + "': the sun is sampled once per step, at its middle, so a "
+                       "step longer than 1h misweights the day; expected at most 1h (e.g. 15min, 30min, 1h)"});
+  return step;
 }
 
 /// The UTC calendar day of a unix time.
@@ -236,7 +251,7 @@ struct SolarRun {
                          option("start"), " or ", option("end")});
     if (frames_mode) {
       if (!is_date_only(o.day)) throw OptionError({option("day"), " '" + o.day + "': expected a date, YYYY-MM-DD"});
-      parse_step(o.every);
+      parse_step(o.every, "every");
       if (!o.weather.empty()) throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
     }
     if (o.utc_offset && !(std::abs(*o.utc_offset) <= 18.0))
@@ -263,7 +278,7 @@ struct SolarRun {
     if (o.sky_rays > 4096) throw OptionError({option("sky_rays"), ": expected 0..4096 directions"});
     if (instant && !o.weather.empty())
       throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
-    if (!instant && !frames_mode && o.weather.empty()) parse_step(o.step);
+    if (!instant && !frames_mode && o.weather.empty()) parse_integration_step(o.step);
     if (!o.weather.empty() && o.step != "1h")
       throw OptionError({option("step"), " is the weather file's interval with ", option("weather")});
     // The times' syntax now; their meaning needs the site's longitude (a date alone).
@@ -447,7 +462,7 @@ struct SolarRun {
 
   /// Clear-sky steps of --step over the period, each at its middle.
   void clear_sky_steps(std::vector<SolarStep>& steps) {
-    const double step = parse_step(o.step);
+    const double step = parse_integration_step(o.step);
     const double span = r.end_unix - r.start_unix, n = std::round(span / step);
     if (std::abs(n * step - span) > 1.0)
       throw OptionError({"the period is not a whole number of ", option("step"), "s (", std::to_string(span / step),
@@ -660,7 +675,7 @@ struct SolarRun {
   /// A day of shadows (--day, --every): the shadow of every instant with the sun up, a map per
   /// instant (numbered frames), and per point the hours of sun and of shadow.
   void day_frames() {
-    const double every = parse_step(o.every);
+    const double every = parse_step(o.every, "every");
     r.start_unix = period_time("day", o.day, day_offset(), false);
     r.end_unix = r.start_unix + 86400.0;
     r.step_hours = every / 3600.0;

@@ -246,3 +246,18 @@ TEST(JobCli, QuickLookWithoutOutWritesStemPngHere) {
   }
   std::filesystem::remove_all(dir);
 }
+
+TEST(JobCli, SolarIntegrationStepIsAtMostAnHour) {
+  // Each step is sampled at its middle: a day-long step would sample solar noon only and give
+  // about three times the day's irradiation with 24 sun hours, so steps past 1h are refused.
+  const std::string las = quoted(data_file("las/autzen_trim.las"));
+  const std::string out = (temp_dir() / "sun.las").string();
+  auto r = rayscan_cli("solar -q " + las + " --start 2026-06-21 --end 2026-06-21 --step 1d -o '" + out + "'");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan solar: --step '1d': the sun is sampled once per step, at its middle, so a step longer than "
+                   "1h misweights the day; expected at most 1h (e.g. 15min, 30min, 1h)\n");
+  EXPECT_FALSE(std::filesystem::exists(out));
+  r = rayscan_cli("solar -q " + las + " --day 2026-06-21 --every 0 -o '" + out + "'");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan solar: --every '0': expected a duration of at least 1 min, e.g. 30min, 1h or 1d\n");
+}
