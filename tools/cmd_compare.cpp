@@ -94,7 +94,8 @@ Runner add_compare_command(CLI::App& app) {
       ->check(finite_number(0.0, 100.0));
   sub->add_option("--fail-max", o->fail_max, "Fail if any pixel error exceeds this (idiff -hardfail; default: off)")
       ->check(non_negative());
-  sub->add_option("--fail-psnr", o->fail_psnr, "Fail if PSNR is below this many dB (default: off)");
+  sub->add_option("--fail-psnr", o->fail_psnr, "Fail if PSNR is below this many dB (default: off)")
+      ->check(any_finite());
   sub->add_option("--fail-ssim", o->fail_ssim, "Fail if SSIM is below this (default: off)")->check(finite_number(-1.0, 1.0));
   sub->add_option("--warn", o->warn_t,
                   "Pixel error threshold for a warning (default 1e-6; the warning level is off when fail "
@@ -103,7 +104,8 @@ Runner add_compare_command(CLI::App& app) {
   sub->add_option("--warn-percent", o->warn_pct, "Warn if more than this % of pixels exceed --warn (default 0)")
       ->check(finite_number(0.0, 100.0));
   sub->add_option("--warn-max", o->warn_max, "Warn if any pixel error exceeds this (default: off)")->check(non_negative());
-  sub->add_option("--warn-psnr", o->warn_psnr, "Warn if PSNR is below this many dB (default: off)");
+  sub->add_option("--warn-psnr", o->warn_psnr, "Warn if PSNR is below this many dB (default: off)")
+      ->check(any_finite());
   sub->add_option("--warn-ssim", o->warn_ssim, "Warn if SSIM is below this (default: off)")->check(finite_number(-1.0, 1.0));
   sub->add_option("--ssim-range", o->ssim_range,
                   "Dynamic range L of the SSIM signal (C1 = (0.01 L)^2, C2 = (0.03 L)^2)")

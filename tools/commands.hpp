@@ -33,8 +33,10 @@ inline CLI::Validator finite_number(double lo, double hi, bool lo_open = false) 
     s << v;
     return s.str();
   };
-  if (has_hi) want += std::string(" in ") + (lo_open ? "(" : "[") + g(lo) + ", " + g(hi) + "]";
-  else want += (lo_open ? " > " : " >= ") + g(lo);
+  const bool has_lo = lo > -std::numeric_limits<double>::max();
+  if (has_hi && has_lo) want += std::string(" in ") + (lo_open ? "(" : "[") + g(lo) + ", " + g(hi) + "]";
+  else if (has_lo) want += (lo_open ? " > " : " >= ") + g(lo);
+  else if (has_hi) want += " <= " + g(hi);
   return CLI::Validator(
       [=](const std::string& s) {
         double v = 0;
@@ -46,6 +48,10 @@ inline CLI::Validator finite_number(double lo, double hi, bool lo_open = false) 
         return ok ? std::string() : "expected " + want + ", got '" + s + "'";
       },
       want, "FINITE");
+}
+/// finite_number(-max, max): any finite number.
+inline CLI::Validator any_finite() {
+  return finite_number(-std::numeric_limits<double>::max(), std::numeric_limits<double>::max());
 }
 /// finite_number(0, max): a finite number >= 0 (replaces CLI::NonNegativeNumber).
 inline CLI::Validator non_negative() { return finite_number(0.0, std::numeric_limits<double>::max()); }

@@ -2,11 +2,13 @@
 // rayscan.compare() run. Pass/fail follows OpenImageIO's idiff.
 #include "rayscan/jobs/compare.hpp"
 
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/image/color_ramp.hpp"
 #include "rayscan/analysis/flip.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/render/scene.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -146,6 +148,16 @@ Limits Criteria::limits() const {
 }
 
 CompareJobResult run_compare(const CompareJobOptions& o) {
+  // The heat maps' paths checked before any work: an image format, a writable place, neither an
+  // input (--diff ref.png would replace the reference) nor each other.
+  for (const auto& [path, name] : {std::pair{&o.diff, "diff"}, std::pair{&o.flip_map, "flip_map"}})
+    if (!path->empty() && !render::is_image_file_name(*path))
+      throw OptionError({option(name), " '" + *path + "': " + render::image_file_name_expected()});
+  {
+    const std::filesystem::path outs[] = {o.diff, o.flip_map};
+    const std::filesystem::path ins[] = {o.reference_file, o.image_file, o.mask_index};
+    require_outputs(outs, ins);
+  }
   CompareJobResult res;
   Image ref = o.reference ? *o.reference : read_image(o.reference_file);
   Image test = o.image ? *o.image : read_image(o.image_file);

@@ -11,6 +11,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <random>
 #include <regex>
 #include <string>
@@ -385,4 +387,34 @@ TEST_F(CompareCli, RealRenderDepthAndIndexAovs) {
   const RunResult bad = compare(a, b, "--channel dpeth", true);
   EXPECT_EQ(bad.code, 2);
   EXPECT_NE(bad.out.find("no channel 'dpeth'"), std::string::npos) << bad.out;
+}
+
+TEST_F(CompareCli, HeatMapsNeverReplaceAnInputNorEachOther) {
+  // Checked before the images are read: --diff over the reference would have replaced it with the
+  // heat map, two maps at one path would share one temporary file, and an unknown extension
+  // failed only after the first map was written. The reference's bytes are the oracle.
+  const fs::path pa = write("a.png", noise_image(24, 16, {"R", "G", "B"}, 1, 0, 1), PixelFormat::uint8);
+  const fs::path pb = write("b.png", noise_image(24, 16, {"R", "G", "B"}, 2, 0, 1), PixelFormat::uint8);
+  const auto bytes = [](const fs::path& p) {
+    std::ifstream f(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(f), {});
+  };
+  const std::string before = bytes(pa);
+  RunResult r = compare(pa, pb, "--no-flip --diff " + q(pa), true);
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out, "rayscan compare: " + pa.string() + ": is the same file as the input '" + pa.string() +
+                       "' (write the output to another path)\n");
+  EXPECT_EQ(bytes(pa), before);
+  const fs::path d = dir_ / "d.png";
+  r = compare(pa, pb, "--diff " + q(d) + " --flip-map " + q(dir_ / "." / "d.png"), true);
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("is also the command's output"), std::string::npos) << r.out;
+  r = compare(pa, pb, "--flip-map " + q(d) + " --diff " + q(dir_ / "d.xyz"), true);
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out, "rayscan compare: --diff '" + (dir_ / "d.xyz").string() +
+                       "': expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr\n");
+  EXPECT_FALSE(fs::exists(d));
+  r = compare(pa, pb, "--fail-psnr nan", true);
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out, "rayscan compare: --fail-psnr: expected a finite number, got 'nan' (see --help)\n");
 }

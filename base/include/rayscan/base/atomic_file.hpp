@@ -35,7 +35,8 @@ void require_replaceable_output(const std::filesystem::path& path);
 /// read-only directory or mount, and a file system that takes no new files such as procfs even
 /// for root, are refused), and none the same file as an input (same device and inode, so another
 /// spelling, a hard link or a symbolic link to the input is caught: writing there would replace
-/// the input it is read from). Empty paths are skipped. Throws OutputFileError "<output>: <reason>".
+/// the input it is read from), and no two outputs at one path (another spelling or a link included).
+/// Empty paths are skipped. Throws OutputFileError "<output>: <reason>".
 void require_outputs(std::span<const std::filesystem::path> outputs, std::span<const std::filesystem::path> inputs = {});
 
 class AtomicFile;
