@@ -78,6 +78,13 @@ void write_geotiff(const std::filesystem::path& path, const Raster& raster, cons
   GDALRasterBand* band = ds->GetRasterBand(1);
   ok = ok && band->SetNoDataValue(options.nodata) == CE_None;
   band->SetDescription(raster.name.c_str());
+  std::string unit = options.unit;
+  if (options.unit_is_crs_length && has_crs) {
+    const char* name = nullptr;
+    srs.GetLinearUnits(&name);
+    unit = name ? name : "";
+  }
+  if (!unit.empty()) ok = ok && band->SetUnitType(unit.c_str()) == CE_None;
   std::vector<float> data(raster.values);
   const float nd = static_cast<float>(options.nodata);
   for (float& v : data)

@@ -109,6 +109,7 @@ std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, std::spa
     GeoTiffOptions go;
     go.crs_wkt = crs_wkt;
     go.metadata = metadata;
+    go.unit_is_crs_length = true;  // elevations, in the cloud's units
     write_geotiff(dsm, dsm_from_depth(map, depth), go);
     written.push_back(dsm);
   }

@@ -612,6 +612,7 @@ struct SolarRun {
     GeoTiffOptions go;
     go.crs_wkt = cloud.crs_wkt;
     go.metadata = {{"RAYSCAN_VALUE", value}, {"RAYSCAN_SOURCE", r.source}, {"RAYSCAN_UNITS", units}};
+    go.unit = units;
     write_geotiff(path, map, go);
     r.written.push_back(path);
     if (o.write_preview) {

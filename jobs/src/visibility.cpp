@@ -323,6 +323,9 @@ struct VisibilityRun {
     GeoTiffOptions go;
     go.crs_wkt = cloud.crs_wkt;
     go.metadata = {{"RAYSCAN_VALUE", value}, {"RAYSCAN_SOURCE", r.source}, {"RAYSCAN_RADIUS", std::to_string(radius)}};
+    // Distances in the cloud's units; the other values are counts, 0/1 flags or fractions.
+    if (value == "distance") go.unit_is_crs_length = true;
+    else go.unit = value == "count" ? "observers" : "1";
     if (value == "viewshed") {
       go.metadata.emplace_back("RAYSCAN_SURFACE", "DSM (render --ortho-map " + std::to_string(grid.cell) + " --dsm)");
       go.metadata.emplace_back("RAYSCAN_TARGET_HEIGHT", std::to_string(dsm_target_height()));

@@ -326,7 +326,7 @@ def solar(cloud, start=None, end=None, step="1h", at=None, latitude=None, longit
 
     cloud: a file path, a PointCloud or an (N, 3) array of positions (metres). A period (start,
     end: ISO 8601 text, no offset = UTC, a date alone = local mean solar midnight, end
-    inclusive; step "15min", "1h", ...) or one instant (at). latitude/longitude: degrees
+    inclusive; step "15min", "30min" or "1h", at most "1h") or one instant (at). latitude/longitude: degrees
     (default: from the cloud's CRS). linke: one Linke turbidity or 12 monthly values; albedo;
     weather: an EPW file instead of the clear sky; sector: sun-map sector in degrees (0 = one
     shadow ray per step); sky_rays: sky-map directions; primitive: "sphere" or "surfel". A COPC

@@ -490,7 +490,7 @@ TEST(SolarJob, CopcInPlaceEqualsTheFileReadWhole) {
     o.at = c.at;
     if (*c.day) {
       o.start = o.end = c.day;
-      o.step = "3h";
+      o.step = "1h";  // (the longest step: --step is at most 1h)
     }
     o.primitive = c.primitive;
     o.sky_rays = std::string(c.primitive) == "surfel" ? 0 : 8;  // (surfels: the shadow alone, for time)

@@ -23,6 +23,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <sys/wait.h>
 
 using namespace rayscan;
@@ -203,6 +204,34 @@ TEST(Raster, GridSnapsToCellMultiplesAndReduces) {
   EXPECT_THROW(grid_over(box, 0.0), std::invalid_argument);
   EXPECT_THROW(grid_over(box, 1e-6), std::invalid_argument);  // 4.6e6 x 2.9e6 cells
   EXPECT_THROW(rasterize(pts, std::vector<double>{1}, g, CellReduce::mean, "t"), std::invalid_argument);
+}
+
+TEST(GeoTiff, BandUnitIsTheGivenOneOrTheCrsLengthUnit) {
+  // gdalinfo's "Unit Type" and QGIS's band unit: autzen's WKT says international feet, so a DSM's
+  // elevations and a visibility distance are in "foot"; a given unit is written as given; without
+  // a CRS a length has no unit to name.
+  const PointCloud cloud = io::read_point_cloud(std::string(RAYSCAN_TEST_DATA) + "/las/autzen_trim.las");
+  const GridSpec g = grid_over(cloud.bounds(), 100.0);
+  const Raster r = rasterize(cloud.positions, std::vector<double>(cloud.size(), 1.0), g, CellReduce::max, "v");
+  GDALAllRegister();
+  const auto unit_of = [&](const GeoTiffOptions& go) {
+    const fs::path out = tmpdir() / "unit.tif";
+    write_geotiff(out, r, go);
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(out.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+    return ds ? std::string(ds->GetRasterBand(1)->GetUnitType()) : std::string("(not opened)");
+  };
+  GeoTiffOptions go;
+  go.crs_wkt = cloud.crs_wkt;
+  go.unit_is_crs_length = true;
+  EXPECT_EQ(unit_of(go), "foot");
+  go.unit_is_crs_length = false;
+  go.unit = "kWh/m2";
+  EXPECT_EQ(unit_of(go), "kWh/m2");
+  go.unit.clear();
+  EXPECT_EQ(unit_of(go), "");
+  go.crs_wkt.clear();
+  go.unit_is_crs_length = true;
+  EXPECT_EQ(unit_of(go), "");
 }
 
 TEST(GeoTiff, ReopensWithGeotransformCrsNoDataAndValues) {

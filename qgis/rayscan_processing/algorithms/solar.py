@@ -36,7 +36,7 @@ class Solar(RayscanAlgorithm):
         self.addParameter(QgsProcessingParameterString(
             "END", self.tr("Period end (ISO 8601, e.g. 2026-06-30)"), optional=True))
         self.addParameter(QgsProcessingParameterString(
-            "STEP", self.tr("Period time step (e.g. 15min, 1h)"), defaultValue="1h"))
+            "STEP", self.tr("Period time step (15min, 30min or 1h; at most 1h)"), defaultValue="1h"))
         self.addParameter(QgsProcessingParameterString(
             "AT", self.tr("Instant (ISO 8601, e.g. 2026-06-21T13:00-07:00)"), optional=True))
         self.addParameter(QgsProcessingParameterString(

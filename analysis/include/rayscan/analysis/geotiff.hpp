@@ -15,12 +15,19 @@ struct GeoTiffOptions {
   std::string crs_wkt;   ///< the cloud's CRS (PointCloud::crs_wkt, WKT1 or WKT2); "" = none written
   double nodata = -9999.0;  ///< value stored for NaN cells and declared as the band's NoData value
   std::vector<std::pair<std::string, std::string>> metadata;  ///< dataset metadata items (key, value)
+  /// The band's unit (GDALRasterBand::SetUnitType, which gdalinfo prints and QGIS shows), e.g.
+  /// "kWh/m2", "W/m2", "h", "1" for a ratio or a flag; "" = none.
+  std::string unit;
+  /// The band holds lengths in the CRS's linear unit (a DSM's elevations, distances): the unit is
+  /// that unit's name from the WKT ("metre", "foot", "US survey foot"), none without a CRS.
+  bool unit_is_crs_length = false;
 };
 
 /// Writes `raster` as a single-band Float32 GeoTIFF: geotransform from raster.grid (north-up,
 /// pixel-is-area), the CRS from options.crs_wkt (GDALDataset::SetSpatialRef after
 /// OGRSpatialReference::importFromWkt, traditional GIS axis order), NaN cells as options.nodata
-/// (declared with GDALRasterBand::SetNoDataValue), raster.name as the band description, DEFLATE
+/// (declared with GDALRasterBand::SetNoDataValue), raster.name as the band description, the unit
+/// (options.unit or unit_is_crs_length) as the band's unit type, DEFLATE
 /// compression with floating-point predictor (3) and 256 x 256 tiles. Written to a temporary
 /// sibling "<path>.tmp.<pid>" and renamed into place, so a failure never leaves a partial file.
 /// Throws std::runtime_error "<path>: <GDAL's message>" on failure, std::invalid_argument
