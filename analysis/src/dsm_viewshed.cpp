@@ -2,6 +2,8 @@
 
 #include "rayscan/base/threads.hpp"
 
+#include <glm/geometric.hpp>
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -63,7 +65,13 @@ bool seen(const Raster& dsm, double fq, double fr, double ze, std::int64_t qt, s
 
 }  // namespace
 
-Raster dsm_viewshed(const Raster& dsm, std::span<const Vec3> eyes, double target_height, unsigned threads) {
+namespace {
+
+// dsm_viewshed's work for the eyes `eyes`; admits(k, p): whether eye k's limits admit the cell's
+// surface point p (world coordinates).
+template <class Admits>
+Raster viewshed_of(const Raster& dsm, std::span<const Vec3> eyes, double target_height, unsigned threads,
+                   Admits&& admits) {
   const GridSpec& g = dsm.grid;
   if (dsm.values.size() != std::size_t(g.cols) * g.rows)
     throw std::invalid_argument("dsm viewshed: the DSM has " + std::to_string(dsm.values.size()) +
@@ -89,18 +97,37 @@ Raster dsm_viewshed(const Raster& dsm, std::span<const Vec3> eyes, double target
         for (std::uint32_t q = 0; q < g.cols; ++q) {
           const float zs = dsm.values[std::size_t(r) * g.cols + q];
           if (!std::isfinite(zs)) continue;
+          const Vec3 p(g.x0 + (q + 0.5) * g.cell, g.y_top - (r + 0.5) * g.cell, double(zs));
           bool any = false;
-          for (const Eye& e : at) {
-            if (seen(dsm, e.q, e.r, e.z, q, r, double(zs) + target_height)) {
-              any = true;
-              break;
-            }
-          }
+          for (std::size_t k = 0; k < at.size() && !any; ++k)
+            any = admits(k, p) && seen(dsm, at[k].q, at[k].r, at[k].z, q, r, double(zs) + target_height);
           out.values[std::size_t(r) * g.cols + q] = any ? 1.0f : 0.0f;
         }
     });
   });
   return out;
+}
+
+}  // namespace
+
+Raster dsm_viewshed(const Raster& dsm, std::span<const Vec3> eyes, double target_height, unsigned threads) {
+  return viewshed_of(dsm, eyes, target_height, threads, [](std::size_t, const Vec3&) { return true; });
+}
+
+Raster dsm_viewshed(const Raster& dsm, std::span<const Observer> observers, double max_distance,
+                    double target_height, unsigned threads) {
+  if (!(max_distance >= 0.0)) throw std::invalid_argument("dsm viewshed: max distance must be >= 0");
+  std::vector<Vec3> eyes;
+  std::vector<double> max_d;
+  for (const Observer& o : observers) {
+    eyes.push_back(o.position);
+    max_d.push_back(o.max_distance.value_or(max_distance));
+  }
+  return viewshed_of(dsm, eyes, target_height, threads, [&](std::size_t k, const Vec3& p) {
+    const Observer& o = observers[k];
+    const Vec3 v = p - o.position;
+    return glm::length(v) <= max_d[k] && (!(o.azimuth || o.elevation) || within_angle_limits(o, v));
+  });
 }
 
 }  // namespace rayscan::analysis

@@ -295,9 +295,8 @@ struct VisibilityRun {
     const Raster dsm = dsm_from_depth(*map, dr.image.depth);
     if (dsm.grid.cols != grid.cols || dsm.grid.rows != grid.rows || dsm.grid.x0 != grid.x0 || dsm.grid.y_top != grid.y_top)
       throw std::logic_error("visibility: the DSM's grid is not the raster's");
-    std::vector<Vec3> eyes;
-    for (const Observer& ob : observers) eyes.push_back(ob.position);
-    Raster v = dsm_viewshed(dsm, eyes, dsm_target_height(), ctl.threads);
+    // The observers' ranges and angle limits as the per-point line of sight applies them.
+    Raster v = dsm_viewshed(dsm, observers, r.max_distance, dsm_target_height(), ctl.threads);
     std::snprintf(buf, sizeof buf, "viewshed on the DSM (%ux%u cells of %.6g): %.2f s", grid.cols, grid.rows,
                   grid.cell, seconds_since(t));
     ctl.info(buf);

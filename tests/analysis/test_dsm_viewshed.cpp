@@ -82,3 +82,45 @@ TEST(DsmViewshed, ACellIsVisibleWhenAnyEyeSeesIt) {
 }
 
 }  // namespace
+
+namespace {
+
+// Eye 2 above the centre of a flat 41 x 41 DSM: every cell is seen without limits, so the limits
+// alone decide. A cell counts when its centre (on the surface, z 0) lies within the range (3-D
+// distance from the eye) and its compass bearing from the eye inside the azimuth range; computed
+// here from the geometry, the oracle.
+TEST(DsmViewshed, ObserversLimitsAsThePerPointLineOfSightAppliesThem) {
+  const Raster dsm = flat(41, 41);
+  Observer o;
+  o.position = Vec3(20.5, 20.5, 2.0);
+  o.azimuth = AngleRange{0.0, 90.0};  // north to east, clockwise
+  o.max_distance = 10.0;
+  Observer far = o;
+  far.max_distance.reset();  // the run's maximum distance applies
+  far.azimuth.reset();
+  const std::vector<Observer> one{o};
+  const Raster v = dsm_viewshed(dsm, one, std::numeric_limits<double>::infinity(), 0.0, 1);
+  std::size_t seen = 0;
+  for (std::uint32_t r = 0; r < 41; ++r)
+    for (std::uint32_t q = 0; q < 41; ++q) {
+      const double dx = q + 0.5 - 20.5, dy = (41.0 - r - 0.5) - 20.5;
+      const double bearing = std::fmod(std::atan2(dx, dy) * 180.0 / M_PI + 360.0, 360.0);
+      const bool in_range = std::sqrt(dx * dx + dy * dy + 4.0) <= 10.0;
+      const bool in_azimuth = (dx == 0.0 && dy == 0.0) || (bearing >= 0.0 && bearing <= 90.0);
+      const bool expected = in_range && in_azimuth;
+      seen += expected;
+      EXPECT_EQ(v.values[r * 41 + q], expected ? 1.0f : 0.0f) << "cell " << q << "," << r;
+    }
+  EXPECT_GT(seen, 50u);
+  // Without its own limits an observer takes the run's maximum distance, 5 here.
+  const std::vector<Observer> other{far};
+  const Raster w = dsm_viewshed(dsm, other, 5.0, 0.0, 1);
+  for (std::uint32_t r = 0; r < 41; ++r)
+    for (std::uint32_t q = 0; q < 41; ++q) {
+      const double dx = q + 0.5 - 20.5, dy = (41.0 - r - 0.5) - 20.5;
+      EXPECT_EQ(w.values[r * 41 + q], std::sqrt(dx * dx + dy * dy + 4.0) <= 5.0 ? 1.0f : 0.0f) << q << "," << r;
+    }
+  EXPECT_THROW(dsm_viewshed(dsm, other, -1.0, 0.0, 1), std::invalid_argument);
+}
+
+}  // namespace

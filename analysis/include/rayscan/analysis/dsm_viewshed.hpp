@@ -4,6 +4,7 @@
 // the surface; the per-point line of sight over the points themselves is visibility.hpp.
 #pragma once
 
+#include "rayscan/analysis/observer.hpp"
 #include "rayscan/analysis/raster.hpp"
 #include "rayscan/octree/geometry.hpp"
 
@@ -25,5 +26,14 @@ namespace rayscan::analysis {
 /// spread over `threads` (0 = all cores). Throws std::invalid_argument when the DSM's value count
 /// is not cols x rows, a target height is negative or not finite, or an eye is not finite.
 Raster dsm_viewshed(const Raster& dsm, std::span<const Vec3> eyes, double target_height, unsigned threads = 0);
+
+/// dsm_viewshed from `observers` (their positions as the eyes) within their limits, as the
+/// per-point line of sight applies them (visibility.hpp): a cell counts for an observer only when
+/// its surface point at the cell centre lies within the observer's max_distance (else
+/// `max_distance`; world units, the 3-D distance from the eye; +inf = no limit) and inside its
+/// azimuth and elevation limits (within_angle_limits). Throws as dsm_viewshed, and
+/// std::invalid_argument for a negative or NaN max_distance.
+Raster dsm_viewshed(const Raster& dsm, std::span<const Observer> observers, double max_distance,
+                    double target_height, unsigned threads = 0);
 
 }  // namespace rayscan::analysis
