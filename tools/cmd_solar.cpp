@@ -176,7 +176,7 @@ Runner add_solar_command(CLI::App& app) {
   o->position_cmd = p;
   p->add_option("--lat,--latitude", o->position.latitude, "Latitude, degrees north")->required()->check(finite_number(-90, 90));
   p->add_option("--lon,--longitude", o->position.longitude, "Longitude, degrees east")->required()->check(finite_number(-180, 180));
-  p->add_option("--time", o->position.time, "Instant, ISO 8601 (e.g. 2026-06-21T12:00:00+02:00; no offset = UTC)")->required();
+  p->add_option("--time", o->position.time, "Instant, ISO 8601 (e.g. 2026-06-21T12:00:00+02:00; no offset = UTC; a date alone = its midnight in --utc-offset, else local mean solar time)")->required();
   p->add_option("--elevation", o->position.elevation, "Elevation, metres")->capture_default_str();
   p->add_option("--pressure", o->position.pressure, "Annual mean pressure, mbar")->capture_default_str();
   p->add_option("--temperature", o->position.temperature, "Annual mean temperature, degrees C")->capture_default_str();

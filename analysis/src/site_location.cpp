@@ -62,6 +62,12 @@ SiteLocation locate_site(const std::string& crs_wkt, const Vec3& point) {
   return loc;
 }
 
+bool is_unprojected_crs(const std::string& crs_wkt) {
+  if (crs_wkt.empty()) return false;
+  OGRSpatialReference src;
+  return src.importFromWkt(crs_wkt.c_str()) == OGRERR_NONE && (src.IsGeographic() || src.IsGeocentric());
+}
+
 Vec3 direction_from_azimuth(double azimuth_deg, double elevation_deg, double convergence_deg) {
   const double a = (azimuth_deg + convergence_deg) * kDegree, e = elevation_deg * kDegree;
   return {std::sin(a) * std::cos(e), std::cos(a) * std::cos(e), std::sin(e)};

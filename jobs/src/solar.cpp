@@ -154,6 +154,10 @@ SunPositionJobResult run_sun_position(const SunPositionJobOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw OptionError({option("time"), std::string(" ") + e.what()});
   }
+  // A date alone is that day's midnight in the day's time zone (--utc-offset, else local mean
+  // solar time), as the periods of `rayscan solar` read it: not UTC midnight, which west of
+  // Greenwich is the evening before.
+  if (is_date_only(o.time)) r.time = instant_of(unix_of(r.time) - o.utc_offset.value_or(o.longitude / 15.0) * 3600.0);
   SpaInput in;
   in.time = r.time;
   in.latitude_deg = o.latitude;
@@ -353,12 +357,20 @@ struct SolarRun {
     if (o.latitude) {
       r.location.latitude_deg = *o.latitude;
       r.location.longitude_deg = *o.longitude;
-      r.location.elevation_m = o.elevation.value_or(0.0);
-      // With a CRS, still turn compass azimuths into grid bearings.
+      // x and y in degrees are no frame for sun directions, whatever the site's position.
+      if (is_unprojected_crs(cloud.crs_wkt))
+        throw OptionError({"the cloud's CRS is geographic or geocentric: sun directions need a projected CRS (x east, "
+                           "y north, z up); reproject the cloud"});
+      // With a CRS, still turn compass azimuths into grid bearings, and take the site's height
+      // from the centre's z in metres (as without --latitude); without one, z's unit is unknown.
+      r.location.elevation_m = 0.0;
       if (!cloud.crs_wkt.empty()) try {
-          r.location.convergence_deg = locate_site(cloud.crs_wkt, centre).convergence_deg;
+          const SiteLocation at = locate_site(cloud.crs_wkt, centre);
+          r.location.convergence_deg = at.convergence_deg;
+          r.location.elevation_m = at.elevation_m;
         } catch (const std::invalid_argument&) {
         }
+      if (o.elevation) r.location.elevation_m = *o.elevation;
     } else {
       try {
         r.location = locate_site(cloud.crs_wkt, centre);

@@ -261,3 +261,31 @@ TEST(JobCli, SolarIntegrationStepIsAtMostAnHour) {
   EXPECT_EQ(r.code, 2);
   EXPECT_EQ(r.out, "rayscan solar: --every '0': expected a duration of at least 1 min, e.g. 30min, 1h or 1d\n");
 }
+
+TEST(JobCli, SolarPositionReadsADateAloneAsItsLocalMidnight) {
+  // As the periods of `rayscan solar` do: midnight in --utc-offset hours east of UTC (-7: 07:00Z),
+  // else in local mean solar time (longitude / 15 = -8.2047 h: 08:12:17Z), and the sun's day is
+  // that date (sunrise 2026-06-21, not the evening before's UTC date).
+  auto r = rayscan_cli("solar position --lat 44.05 --lon -123.07 --time 2026-06-21 --utc-offset -7 --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["time"], "2026-06-21T07:00:00Z");
+  EXPECT_EQ(j["sunrise"].get<std::string>().substr(0, 10), "2026-06-21");
+  r = rayscan_cli("solar position --lat 44.05 --lon -123.07 --time 2026-06-21 --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["time"], "2026-06-21T08:12:17Z");  // 123.07 / 15 h = 8 h 12 min 16.8 s, to the second
+  EXPECT_EQ(j["sunrise"].get<std::string>().substr(0, 10), "2026-06-21");
+}
+
+TEST(JobCli, SolarSiteHeightWithLatitudeAndLongitudeIsTheCentresZInMetres) {
+  // autzen: z 406.26 .. 520.51 international feet (its README), so the centre is 463.385 ft =
+  // 141.2397 m, with --lat/--lon given as without them.
+  const std::string las = quoted(data_file("las/autzen_trim.las"));
+  const std::string out = (temp_dir() / "sunlatlon.las").string();
+  auto r = rayscan_cli("solar -q " + las + " --at 2026-06-21T20:00Z --lat 44.0507 --lon -123.0712 --sky-rays 0 -o '" +
+                       out + "' --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out.substr(r.out.find('{')));
+  EXPECT_NEAR(j["site"]["elevation_m"].get<double>(), 463.385 * 0.3048, 1e-6) << r.out;
+}

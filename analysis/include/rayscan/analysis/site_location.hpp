@@ -30,6 +30,11 @@ struct SiteLocation {
 /// when PROJ cannot transform the point.
 SiteLocation locate_site(const std::string& crs_wkt, const Vec3& point);
 
+/// True when `crs_wkt` parses as a geographic or geocentric CRS (coordinates in degrees or from the
+/// earth's centre: no x east, y north, z up frame for sun or view directions); false for a
+/// projected, an empty or an unparseable one.
+bool is_unprojected_crs(const std::string& crs_wkt);
+
 /// The unit vector, in the cloud's frame (x grid east, y grid north, z up), towards a body at
 /// compass azimuth `azimuth_deg` (clockwise from true north) and elevation `elevation_deg` above
 /// the horizon, seen from a site with meridian convergence `convergence_deg` (SiteLocation).
