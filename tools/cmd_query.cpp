@@ -22,6 +22,7 @@ struct QueryOptions {
   long long k = -1;
   double radius = kInf, t_min = -kInf, t_max = kInf;
   bool depth_given = false;
+  bool all = false;  // --all: no --k and no finite --radius is meant (every point on every ray)
   unsigned threads = 0;
 };
 
@@ -69,6 +70,7 @@ int run_query(const QueryOptions& o) {
       throw UsageError("--out '" + o.out + "': " + rayscan::extensions_expected({".csv"}) +
                        " (the hits are CSV; '-' or no --out writes them to standard output)");
   }
+  job.allow_unbounded = o.all;
   const jobs::QueryJobResult r = jobs::run_query(job);
   if (!is_root()) return 0;  // only rank 0 holds every hit and writes
   AtomicOutput out(o.out);
@@ -89,8 +91,9 @@ Runner add_query_command(CLI::App& app) {
   c->add_option("--rays", o->rays,
                 "Rays: CSV with header ox,oy,oz,dx,dy,dz, or .f64 (6 little-endian float64 per ray)")
       ->required();
-  c->add_option("--k", o->k, "Keep the k best results per ray (default: all)")
+  c->add_option("--k", o->k, "Keep the k best results per ray (default: no limit; give --k or --radius, or --all)")
       ->check(non_negative());
+  c->add_flag("--all", o->all, "Without --k or a finite --radius: return every point on every ray (otherwise refused)");
   c->add_option("--radius", o->radius,
                 "Max orthogonal distance to the ray line, world units (default: infinite)");
   c->add_option("--t-min", o->t_min, "Lower end of the time interval, world units (default: -inf)");

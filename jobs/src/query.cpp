@@ -4,6 +4,7 @@
 #include "rayscan/octree/batch.hpp"
 #include "rayscan/site/site.hpp"
 #include "rayscan/io/rays.hpp"
+#include "rayscan/base/option_error.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/base/work_distributor.hpp"
 
@@ -86,6 +87,10 @@ QueryJobResult run_query(const QueryJobOptions& o) {
   QueryJobResult r;
   // Rays first: a malformed rays file is reported before a large cloud is read.
   r.rays = o.rays.empty() && !o.rays_file.empty() ? read_rays(o.rays_file) : o.rays;
+  if (!o.allow_unbounded && o.query.k == kAllPoints && !(o.query.radius < kInf) && !o.query.any_hit)
+    throw OptionError({"neither ", option("k"), " nor a finite ", option("radius"),
+                       ": every ray would return every point; give ", option("k"), ", ", option("radius"), ", or ",
+                       option("all"), " to ask for all of them"});
   const auto t0 = std::chrono::steady_clock::now();
   std::optional<Site> site;
   if (!o.cloud && (is_index_file(o.cloud_file) || is_copc_file(o.cloud_file))) {

@@ -79,7 +79,7 @@ expect_error scene-dev-zero "/dev/zero" "character device" -- render -q /dev/zer
 expect_error scene-fifo "fifo.json" "FIFO" -- render -q "$W/fifo.json" --out "$W/old.png"
 expect_error visibility-camera-dev-zero "/dev/zero" "character device" -- visibility -q "$W/c.xyz" --from-camera /dev/zero -o "$W/old.las"
 expect_error observers-symlink-dev-zero "observers.csv" "character device" -- visibility -q "$W/c.xyz" --observers "$W/observers.csv" -o "$W/old.las"
-expect_error rays-symlink-dev-zero "rays.csv" "character device" -- query --cloud "$W/c.xyz" --rays "$W/rays.csv" --out "$W/old.csv"
+expect_error rays-symlink-dev-zero "rays.csv" "character device" -- query --cloud "$W/c.xyz" --rays "$W/rays.csv" --radius 1 --out "$W/old.csv"
 expect_error info-fifo "fifo.pcd" "FIFO" -- info "$W/fifo.pcd"
 expect_error compare-dev-zero "/dev/zero" "character device" -- compare /dev/zero "$W/old.png"
 # ---- Huge counts and lying sizes.

@@ -289,3 +289,23 @@ TEST(JobCli, SolarSiteHeightWithLatitudeAndLongitudeIsTheCentresZInMetres) {
   const nlohmann::json j = nlohmann::json::parse(r.out.substr(r.out.find('{')));
   EXPECT_NEAR(j["site"]["elevation_m"].get<double>(), 463.385 * 0.3048, 1e-6) << r.out;
 }
+
+TEST(JobCli, QueryWithoutABoundIsRefusedUnlessAllIsAsked) {
+  // Without --k or a finite --radius each ray returns every point: refused, --all asks for it
+  // (the Python module's allow_all=True). 2 rays x 110,000 points.
+  const auto dir = temp_dir() / "query_all";
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "rays.csv") << "ox,oy,oz,dx,dy,dz\n636500,849200,1000,0,0,-1\n636600,849300,1000,0,0,-1\n";
+  const std::string base = "query --cloud " + quoted(data_file("las/autzen_trim.las")) + " --rays " + quoted(dir / "rays.csv");
+  auto r = rayscan_cli(base + " --out " + quoted(dir / "hits.csv"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan query: neither --k nor a finite --radius: every ray would return every point; give --k, "
+                   "--radius, or --all to ask for all of them\n");
+  EXPECT_FALSE(std::filesystem::exists(dir / "hits.csv"));
+  r = rayscan_cli(base + " --all --out " + quoted(dir / "hits.csv"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream f(dir / "hits.csv");
+  std::size_t rows = 0;
+  for (std::string line; std::getline(f, line);) ++rows;
+  EXPECT_EQ(rows, 1u + 2u * 110000u);  // the header, then every point for each ray
+}

@@ -154,10 +154,10 @@ TEST_F(QueryCli, BadInputExitsTwoWithOneLineError) {
   r = run("query --cloud " + cloud + " --rays " + rays + " --t-min 2 --t-max 1");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.out.find("t_min"), std::string::npos) << r.out;
-  r = run("query --cloud " + cloud + " --rays " + rays + " --index rtree");
+  r = run("query --cloud " + cloud + " --rays " + rays + " --k 1 --index rtree");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.out.find("rtree"), std::string::npos) << r.out;
-  r = run("query --cloud " + (dir_ / "missing.csv").string() + " --rays " + rays);
+  r = run("query --cloud " + (dir_ / "missing.csv").string() + " --rays " + rays + " --k 1");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.out.find("missing.csv"), std::string::npos) << r.out;
   r = run("query --cloud " + cloud + " --rays " + rays + " --order sphere_hit");

@@ -27,6 +27,10 @@ struct QueryJobOptions {
   /// CopcIndex LRU cache, bytes (`--cache`). The query runs on the file's own hierarchy
   /// (io::CopcIndex, the paper's layered organisation); `index` is then ignored.
   std::size_t cache_bytes = io::kCopcDefaultCacheBytes;
+  /// A query without k and without a finite radius returns every point for every ray (1e8 rows per
+  /// ray on a 1e8-point site), almost never what is meant: false refuses it (OptionError, after the
+  /// rays are read and before the cloud is), as `rayscan query` does unless --all.
+  bool allow_unbounded = true;
   JobControl control;                    ///< threads, log
 };
 
