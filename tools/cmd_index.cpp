@@ -77,7 +77,9 @@ Runner add_index_command(CLI::App& app) {
   sub->add_option("--layout", o->layout, "octree layout: adaptive | fixed")->capture_default_str();
   sub->add_option("--capacity", o->capacity, "adaptive: points per leaf before a split")->capture_default_str();
   sub->add_option("--depth", o->depth, "fixed: leaf depth")->capture_default_str();
-  sub->add_option("--max-depth", o->max_depth, "adaptive: deepest level (<= 21)")->capture_default_str();
+  sub->add_option("--max-depth", o->max_depth, "adaptive: deepest level, 1..21")
+      ->capture_default_str()
+      ->check(CLI::Range(1u, 21u));
   sub->add_option("--positions", o->positions,
                   "compact: the LAS int32 grid (LAS/LAZ inputs on one scale/offset) or float32 when exact, "
                   "else float64 | float64: always 24 bytes per point (docs/index-format.md)")

@@ -180,7 +180,7 @@ Runner add_render_command(CLI::App& app) {
   c->add_option("--image", o->colmap_image, "Image NAME in the COLMAP model's images.txt (with --colmap)");
   c->add_option("--ortho-map", o->ortho_res, "Top-down orthophoto over the cloud's XY extent at RES world "
                 "units per pixel, written as a georeferenced RGBA GeoTIFF (--out .tif; alpha 0 where no point was hit) with the cloud's CRS")
-      ->check(CLI::PositiveNumber);
+      ->check(positive());
   c->add_option("--dsm", o->dsm, "With --ortho-map: also write the digital surface model (elevation of the "
                 "first surface per cell, NoData where the ray missed) as a Float32 GeoTIFF");
   c->add_flag("--print-scene", o->print_scene, "Print the effective scene (after every flag, with the automatic "

@@ -57,6 +57,9 @@ int run_solar(SolarCli& o) {
     return run_position(o);
   }
   if (o.cloud.empty()) throw UsageError("expected a CLOUD, or the subcommand position (see --help)");
+  // The whole trace, then nothing written or printed: refused before the work.
+  if (o.out.empty() && o.raster.empty() && !o.json)
+    throw UsageError("nothing to write: give -o OUT (the cloud with the result fields), --raster MAP.tif, or --json");
   jobs::SolarJobOptions& job = o.job;
   job.radius = parse_radius(o.radius);
   job.cloud_file = o.cloud;
@@ -177,17 +180,30 @@ Runner add_solar_command(CLI::App& app) {
   p->add_option("--lat,--latitude", o->position.latitude, "Latitude, degrees north")->required()->check(finite_number(-90, 90));
   p->add_option("--lon,--longitude", o->position.longitude, "Longitude, degrees east")->required()->check(finite_number(-180, 180));
   p->add_option("--time", o->position.time, "Instant, ISO 8601 (e.g. 2026-06-21T12:00:00+02:00; no offset = UTC; a date alone = its midnight in --utc-offset, else local mean solar time)")->required();
-  p->add_option("--elevation", o->position.elevation, "Elevation, metres")->capture_default_str();
-  p->add_option("--pressure", o->position.pressure, "Annual mean pressure, mbar")->capture_default_str();
-  p->add_option("--temperature", o->position.temperature, "Annual mean temperature, degrees C")->capture_default_str();
-  p->add_option("--delta-t", o->position.delta_t, "TT - UT1, seconds")->capture_default_str();
-  p->add_option("--slope", o->position.slope, "Surface tilt for the incidence angle, degrees")->capture_default_str();
+  // The ranges of `rayscan solar`'s same options (SPA's own limits where it has them).
+  p->add_option("--elevation", o->position.elevation, "Elevation, metres, -1000..9000")
+      ->capture_default_str()
+      ->check(finite_number(-1000, 9000));
+  p->add_option("--pressure", o->position.pressure, "Annual mean pressure, mbar, > 0")
+      ->capture_default_str()
+      ->check(finite_number(0, 5000, true));
+  p->add_option("--temperature", o->position.temperature, "Annual mean temperature, degrees C, -273..6000")
+      ->capture_default_str()
+      ->check(finite_number(-273, 6000));
+  p->add_option("--delta-t", o->position.delta_t, "TT - UT1, seconds, -8000..8000")
+      ->capture_default_str()
+      ->check(finite_number(-8000, 8000));
+  p->add_option("--slope", o->position.slope, "Surface tilt for the incidence angle, degrees, 0..180")
+      ->capture_default_str()
+      ->check(finite_number(0, 180));
   p->add_option("--surface-azimuth", o->position.surface_azimuth,
-                "Direction the surface faces, degrees clockwise from north")
-      ->capture_default_str();
+                "Direction the surface faces, degrees clockwise from north, -360..360")
+      ->capture_default_str()
+      ->check(finite_number(-360, 360));
   p->add_option("--utc-offset", o->position.utc_offset,
-                "Time zone of the reported day, hours east of UTC (default: the time's offset, else local "
-                "solar time)");
+                "Time zone of the reported day, hours east of UTC, -18..18 (default: the time's offset, else "
+                "local mean solar time)")
+      ->check(finite_number(-18, 18));
   p->add_flag("--json", o->json, "Print JSON");
   c->require_subcommand(0, 1);
   return [o] { return run_solar(*o); };

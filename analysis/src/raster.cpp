@@ -28,7 +28,7 @@ GridSpec grid_over(const AABB& bounds, double cell, std::uint64_t max_cells) {
     const double extent = std::max(bounds.hi.x - bounds.lo.x, bounds.hi.y - bounds.lo.y);
     char buf[256];
     std::snprintf(buf, sizeof buf,
-                  "raster: cell size %.6g gives %.0f x %.0f cells (limit %llu); use a cell of at least %.6g",
+                  "raster: cell size %.6g gives %.6g x %.6g cells (limit %llu); use a cell of at least %.6g",
                   cell, cols, rows, static_cast<unsigned long long>(max_cells),
                   extent / std::sqrt(double(max_cells)) * 1.01);
     throw std::invalid_argument(buf);

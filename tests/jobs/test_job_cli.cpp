@@ -309,3 +309,30 @@ TEST(JobCli, QueryWithoutABoundIsRefusedUnlessAllIsAsked) {
   for (std::string line; std::getline(f, line);) ++rows;
   EXPECT_EQ(rows, 1u + 2u * 110000u);  // the header, then every point for each ray
 }
+
+TEST(JobCli, OptionLimitsAreCheckedWhereTheyAreParsed) {
+  // Each refused in one line before any work: a zero or tiny ortho-map cell (the message names the
+  // cell count in a few digits), a leaf depth of 0, solar position's time zone past 18 h, and a
+  // solar run with nothing to write.
+  const std::string las = quoted(data_file("las/autzen_trim.las"));
+  const auto out = temp_dir() / "limits";
+  std::filesystem::create_directories(out);
+  auto r = rayscan_cli("render " + las + " --ortho-map 0 -o " + quoted(out / "o.tif"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan render: --ortho-map: expected a finite number > 0, got '0' (see --help)\n");
+  r = rayscan_cli("render -q " + las + " --ortho-map 1e-300 -o " + quoted(out / "o.tif"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("gives 1.17746e+303 x 5.627e+302 cells (limit 400000000); use a cell of at least"), std::string::npos)
+      << r.out;
+  r = rayscan_cli("index -q " + las + " -o " + quoted(out / "x.rsi") + " --max-depth 0");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan index: --max-depth: Value 0 not in range 1 to 21 (see --help)\n");
+  r = rayscan_cli("solar position --lat 44 --lon -123 --time 2026-06-21 --utc-offset 99");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan solar: --utc-offset: expected a finite number in [-18, 18], got '99' (see --help)\n");
+  r = rayscan_cli("solar " + las + " --at 2026-06-21T20:00Z");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan solar: nothing to write: give -o OUT (the cloud with the result fields), --raster MAP.tif, "
+                   "or --json\n");
+  EXPECT_TRUE(std::filesystem::is_empty(out));
+}
