@@ -57,7 +57,7 @@ Runner add_db_command(CLI::App& app) {
   c->add_option("CLOUD", o->clouds, "Point cloud files (one world frame)")->required();
   c->add_option("-o,--out", o->out, "Output SQLite file (replaced atomically)");
   c->add_option("--postgres", o->postgres, "libpq connection string (instead of -o)");
-  c->add_option("--table", o->table, "PostgreSQL table name")->capture_default_str();
+  CLI::Option* table = c->add_option("--table", o->table, "PostgreSQL table name (with --postgres)")->capture_default_str();
   c->add_option("--chunk", o->chunk, "Points per chunk")->capture_default_str()->check(CLI::Range(1u, 1u << 24));
   c->add_flag("--pcpatch", o->pcpatch,
               "PostgreSQL: one pgpointcloud patch (pcpatch, double X/Y/Z) per chunk in TABLE, with "
@@ -73,8 +73,12 @@ Runner add_db_command(CLI::App& app) {
                 "Comma-separated extra columns: intensity, classification, gps_time, rgb or a "
                 "scalar field name");
   c->add_flag("-q,--quiet", o->quiet, "no progress on stderr");
-  return [o] {
+  return [o, table] {
     require_single_process("rayscan db");
+    // A SQLite import writes the tables points and chunks: a --table given there was silently lost.
+    if (table->count() > 0 && o->postgres.empty())
+      throw UsageError("--table names the PostgreSQL table (with --postgres); a SQLite import (-o) writes the "
+                       "tables points and chunks");
     return run_import(*o);
   };
 }

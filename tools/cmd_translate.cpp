@@ -6,6 +6,7 @@
 #include "processes.hpp"
 
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/translate.hpp"
 
 #include <iostream>
@@ -39,6 +40,15 @@ Runner add_translate_command(CLI::App& app) {
     jobs::TranslateJobOptions job;
     job.in = *in;
     job.out = *out;
+    // --format sets LAS or LAZ for a name that does not say which; a name that says the other
+    // format (x.laz with --format las) would be a file whose name lies.
+    if (*format != "auto" && !io::is_copc_output(*out)) {  // (a .copc.laz name: the job's own message)
+      const std::string ext = rayscan::lower_extension(*out);
+      if (ext != "." + *format && (ext == ".las" || ext == ".laz" || ext == ".ply" || ext == ".pcd" || ext == ".xyz" ||
+                                   ext == ".txt" || ext == ".csv"))
+        throw UsageError("--format " + *format + ": OUT '" + *out + "' names another format (" + ext +
+                         "); give a ." + *format + " name, or --format auto");
+    }
     job.compression = *format == "las" ? jobs::LasCompression::las
                       : *format == "laz" ? jobs::LasCompression::laz : jobs::LasCompression::by_extension;
     job.chunk_size = *chunk;

@@ -4,6 +4,7 @@
 
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/byte_size.hpp"
+#include "rayscan/base/file_names.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/sql/import.hpp"
 
@@ -40,6 +41,10 @@ DbImportJobResult run_db_import(const DbImportJobOptions& options) {
   const sql::ImportOptions opt = import_options(options);
   const std::filesystem::path out[] = {options.out};
   require_outputs(out, options.clouds);
+  // A SQLite database under a point cloud's or an image's name would mislead every tool after.
+  if (!options.out.empty() && !has_extension(options.out, {".sqlite", ".sqlite3", ".db"}))
+    throw OptionError({option("out"), " '" + options.out.string() + "': " +
+                                          extensions_expected({".sqlite", ".sqlite3", ".db"}) + " (a SQLite database)"});
   const sql::ImportSummary s = options.postgres.empty()
                                    ? sql::import_sqlite(options.clouds, options.out, opt)
                                    : sql::import_postgres(options.clouds, options.postgres, options.table, opt);

@@ -336,3 +336,24 @@ TEST(JobCli, OptionLimitsAreCheckedWhereTheyAreParsed) {
                    "or --json\n");
   EXPECT_TRUE(std::filesystem::is_empty(out));
 }
+
+TEST(JobCli, OutputNamesSayTheirFormat) {
+  // A SQLite database named .las, a LAS file named .laz, and a --table that a SQLite import would
+  // drop: refused before any work, nothing written.
+  const std::string las = quoted(data_file("las/point-color.las"));
+  const auto dir = temp_dir() / "names";
+  std::filesystem::create_directories(dir);
+  auto r = rayscan_cli("db import " + las + " -o " + quoted(dir / "x.las"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan db: -o '" + (dir / "x.las").string() +
+                       "': expected a file name ending in .sqlite, .sqlite3 or .db (a SQLite database)\n");
+  r = rayscan_cli("db import " + las + " -o " + quoted(dir / "x.sqlite") + " --table t");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan db: --table names the PostgreSQL table (with --postgres); a SQLite import (-o) writes the "
+                   "tables points and chunks\n");
+  r = rayscan_cli("translate " + las + " " + quoted(dir / "t.laz") + " --format las");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan translate: --format las: OUT '" + (dir / "t.laz").string() +
+                       "' names another format (.laz); give a .las name, or --format auto\n");
+  EXPECT_TRUE(std::filesystem::is_empty(dir));
+}
