@@ -44,8 +44,7 @@ Runner add_translate_command(CLI::App& app) {
     // format (x.laz with --format las) would be a file whose name lies.
     if (*format != "auto" && !io::is_copc_output(*out)) {  // (a .copc.laz name: the job's own message)
       const std::string ext = rayscan::lower_extension(*out);
-      if (ext != "." + *format && (ext == ".las" || ext == ".laz" || ext == ".ply" || ext == ".pcd" || ext == ".xyz" ||
-                                   ext == ".txt" || ext == ".csv"))
+      if (ext != "." + *format && rayscan::has_extension(*out, io::point_cloud_output_extensions()))
         throw UsageError("--format " + *format + ": OUT '" + *out + "' names another format (" + ext +
                          "); give a ." + *format + " name, or --format auto");
     }

@@ -42,9 +42,10 @@ DbImportJobResult run_db_import(const DbImportJobOptions& options) {
   const std::filesystem::path out[] = {options.out};
   require_outputs(out, options.clouds);
   // A SQLite database under a point cloud's or an image's name would mislead every tool after.
-  if (!options.out.empty() && !has_extension(options.out, {".sqlite", ".sqlite3", ".db"}))
-    throw OptionError({option("out"), " '" + options.out.string() + "': " +
-                                          extensions_expected({".sqlite", ".sqlite3", ".db"}) + " (a SQLite database)"});
+  static const std::vector<std::string> kSqlite{".sqlite", ".sqlite3", ".db"};
+  if (!options.out.empty() && !has_extension(options.out, kSqlite))
+    throw OptionError({option("out"), " '" + options.out.string() + "': " + extensions_expected(kSqlite) +
+                                          " (a SQLite database)"});
   const sql::ImportSummary s = options.postgres.empty()
                                    ? sql::import_sqlite(options.clouds, options.out, opt)
                                    : sql::import_postgres(options.clouds, options.postgres, options.table, opt);

@@ -155,9 +155,10 @@ SunPositionJobResult run_sun_position(const SunPositionJobOptions& o) {
     throw OptionError({option("time"), std::string(" ") + e.what()});
   }
   // A date alone is that day's midnight in the day's time zone (--utc-offset, else local mean
-  // solar time), as the periods of `rayscan solar` read it: not UTC midnight, which west of
-  // Greenwich is the evening before.
-  if (is_date_only(o.time)) r.time = instant_of(unix_of(r.time) - o.utc_offset.value_or(o.longitude / 15.0) * 3600.0);
+  // solar time), as the periods of `rayscan solar` read it (period_time): not UTC midnight, which
+  // west of Greenwich is the evening before.
+  if (is_date_only(o.time))
+    r.time = instant_of(period_time("time", o.time, o.utc_offset.value_or(o.longitude / 15.0), false));
   SpaInput in;
   in.time = r.time;
   in.latitude_deg = o.latitude;

@@ -17,6 +17,8 @@
 #include <memory>
 #include <mutex>
 #include <shared_mutex>
+#include <atomic>
+#include <type_traits>
 #include <optional>
 
 namespace rayscan::python {
@@ -41,23 +43,53 @@ struct PyIndex {
 /// or another point file read and indexed in memory (Site::open).
 /// Queries from several Python threads may run at once (each releases the GIL): each holds
 /// `queries` shared while it runs, and the trim of a COPC file's node cache, which must not run
-/// during a query (CopcIndex::trim_cache), takes it exclusively, or is left to a later call when
-/// another thread's query is running.
+/// during a query (CopcIndex::trim_cache), takes it exclusively. A trim that finds another
+/// thread's query running stays pending and is done by the next query part to end alone, so the
+/// cache returns to its budget as soon as the queries pause.
 struct PySite {
   Site site;
   std::string path;
   std::unique_ptr<std::shared_mutex> queries = std::make_unique<std::shared_mutex>();
+  std::unique_ptr<std::atomic<bool>> trim_pending = std::make_unique<std::atomic<bool>>(false);
 
   template <class F>
   decltype(auto) visit(F&& f) const {
+    struct Done {
+      const PySite& s;
+      ~Done() { s.trim_if_pending(); }
+    } done{*this};
     std::shared_lock running(*queries);
     return site.visit(std::forward<F>(f));
   }
-  /// A COPC file keeps the nodes its queries decoded: trimmed to the cache budget between calls.
+  /// A COPC file keeps the nodes its queries decoded: trimmed to the cache budget after each call.
   void after_query() const {
-    if (io::CopcIndex* c = site.copc()) {
-      std::unique_lock alone(*queries, std::try_to_lock);
-      if (alone) c->trim_cache();
+    if (site.copc()) {
+      trim_pending->store(true);
+      trim_if_pending();
+    }
+  }
+  /// The pending trim, when no other query runs (else left pending). Never throws: a query's own
+  /// error, or KeyboardInterrupt, must not be replaced by the trim's.
+  void trim_if_pending() const noexcept {
+    if (!trim_pending->load()) return;
+    std::unique_lock alone(*queries, std::try_to_lock);
+    if (!alone || !trim_pending->exchange(false)) return;
+    try {
+      if (io::CopcIndex* c = site.copc()) c->trim_cache();
+    } catch (...) {
+      trim_pending->store(true);
+    }
+  }
+};
+
+/// Runs `self.after_query()` when the scope ends, also when a batch ends in KeyboardInterrupt.
+template <class Self>
+struct AfterQuery {
+  const Self& self;
+  ~AfterQuery() {
+    try {
+      self.after_query();
+    } catch (...) {
     }
   }
 };
@@ -203,11 +235,11 @@ py::dict ray_query(const Index& self, py::handle origins, py::handle directions,
                           "radius= or any_hit=True, or allow_all=True to ask for all of them");
   {
     py::gil_scoped_release nogil;
+    const AfterQuery<std::remove_cvref_t<decltype(self)>> trim_after{self};
     const auto res = interruptible_batch(rays.size(), nthreads, [&](std::size_t first, std::size_t count) {
       const std::span<const Ray> part(rays.data() + first, count);
       return self.visit([&](const auto& ix) { return ray_query_batch(ix, part, q); });
     });
-    self.after_query();
     off = csr_offsets(res);
     const auto n = static_cast<std::size_t>(off.back());
     idx.resize(n);
@@ -238,11 +270,11 @@ py::dict knn(const Index& self, py::handle points, const py::object& k, py::hand
   std::vector<double> dist;
   {
     py::gil_scoped_release nogil;
+    const AfterQuery<std::remove_cvref_t<decltype(self)>> trim_after{self};
     const auto res = interruptible_batch(p.rows.size(), nthreads, [&](std::size_t first, std::size_t count) {
       const std::span<const Vec3> part(p.rows.data() + first, count);
       return self.visit([&](const auto& ix) { return knn_query_batch(ix, part, kk, radius); });
     });
-    self.after_query();
     off = csr_offsets(res);
     const auto n = static_cast<std::size_t>(off.back());
     idx.resize(n);
@@ -278,11 +310,11 @@ py::dict box(const Index& self, py::handle lo, py::handle hi, py::handle threads
         throw std::invalid_argument("box " + std::to_string(i) + ": lo and hi must not be NaN");
       boxes[i] = AABB{a, b};
     }
+    const AfterQuery<std::remove_cvref_t<decltype(self)>> trim_after{self};
     const auto res = interruptible_batch(boxes.size(), nthreads, [&](std::size_t first, std::size_t count) {
       const std::span<const AABB> part(boxes.data() + first, count);
       return self.visit([&](const auto& ix) { return box_query_batch(ix, part); });
     });
-    self.after_query();
     off = csr_offsets(res);
     idx.resize(static_cast<std::size_t>(off.back()));
     csr_fill(res, off, [&](PointIndex v, std::size_t i) { idx[i] = v; });

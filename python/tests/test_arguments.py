@@ -102,6 +102,11 @@ def test_job_arguments(tmp_path):
           "reference 'ref\\x00.png' contains a NUL byte; expected a file name")
     check(lambda: rayscan.compare(np.zeros((2, 2)), np.zeros((2, 2)), channels=[3]), TypeError,
           "channels must be a str or a list of str, got a list holding int (item 0)")
+    # A NaN limit compares false with every metric and would pass any pair.
+    check(lambda: rayscan.compare(np.zeros((4, 4, 3)), np.ones((4, 4, 3)), fail_psnr=float("nan")), ValueError,
+          "fail_psnr: expected a finite number, got nan")
+    check(lambda: rayscan.compare(np.zeros((4, 4, 3)), np.ones((4, 4, 3)), fail=float("nan")), ValueError,
+          "fail: expected a finite number, got nan")
 
 
 def test_numbers_and_text_of_the_wrong_type_name_the_argument(uniform_cloud):

@@ -237,7 +237,7 @@ def test_write_las_scale_coarsens_past_two_million_units(tmp_path):
     np.testing.assert_array_equal(las["scale"], [0.01, 0.001, 0.001])
     back = las["X"] * las["scale"] + las["offset"]
     assert np.all(np.abs(back - xyz).max(axis=0) <= np.array([0.005, 0.0005, 0.0005]) * (1 + 1e-6))
-    assert np.abs(back[:, 0] - xyz[:, 0]).max() > 0.0005  # no longer to the nearest 0.001
+    assert np.abs(back[:, 0] - xyz[:, 0]).max() > 0.0005  # not to the nearest 0.001
     np.testing.assert_array_equal(rayscan.read(tmp_path / "wide.las").xyz, back)
 
 
@@ -444,9 +444,9 @@ def test_open_copc_queries_in_place(data_dir):
 
 
 def test_open_copc_from_threads_with_a_small_cache(data_dir):
-    # Queries from four threads at once on a COPC site whose 1 MiB cache is trimmed after every
-    # call (while other threads' queries run): the answers equal one thread's on an in-memory
-    # octree of the same points, batch by batch.
+    # Queries from four threads at once on a COPC site with a 1 MiB cache, which is trimmed
+    # between the threads' calls (never during one): the answers equal one thread's on an
+    # in-memory octree of the same points, batch by batch.
     from concurrent.futures import ThreadPoolExecutor
     path = data_dir / "laz" / "lone-star.copc.laz"
     site = rayscan.open(path, cache="1M")

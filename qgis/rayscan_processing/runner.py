@@ -60,7 +60,8 @@ def run_rayscan(args, feedback, log_stdout=True):
     When the feedback is canceled the process is terminated (then killed after a grace period) and
     QgsProcessingException is raised; nothing it wrote is deleted: rayscan moves each output into
     place only when it is complete, so a canceled run leaves the earlier file, or none.
-    A non-zero exit raises QgsProcessingException with the last lines of standard error.
+    A non-zero exit raises QgsProcessingException: rayscan's own one-line error for exit status 2
+    (its last line of standard error), else the status and the last lines of standard error.
     """
     cmd = [find_executable()] + [str(a) for a in args]
     if feedback is not None:
@@ -106,11 +107,12 @@ def run_rayscan(args, feedback, log_stdout=True):
     if canceled:
         raise QgsProcessingException("rayscan was canceled")
     if code != 0:
-        # The program's own one-line error ("rayscan COMMAND: ..."), without the log and progress
-        # lines before it; the whole tail only when it printed none (a crash, say).
-        errors = [line for line in err_tail if line.startswith("rayscan")]
-        raise QgsProcessingException(errors[-1] if errors else
-                                     "rayscan exited with status {}:\n{}".format(code, "\n".join(err_tail)))
+        # Exit status 2 is a refusal whose reason is rayscan's last line ("rayscan COMMAND: ..."):
+        # that line alone, without the log and progress lines before it. Any other status (a crash,
+        # a kill) with the tail, since its last line may be an ordinary log line.
+        if code == 2 and err_tail and err_tail[-1].startswith("rayscan "):
+            raise QgsProcessingException(err_tail[-1])
+        raise QgsProcessingException("rayscan exited with status {}:\n{}".format(code, "\n".join(err_tail)))
     return "\n".join(out)
 
 

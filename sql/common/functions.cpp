@@ -60,8 +60,8 @@ extern "C" const char* rs_function_name(rs_function f) { return kNames[f]; }
 extern "C" const char* rs_eval(rs_function f, const double a[9], double* out, char err[RS_ERRBUF]) {
   if (const char* e = check(f, a, 9, false, err)) return e;
   *out = value(f, a);
-  // Finite inputs near the double range can overflow the core's squares and products (1e155 and
-  // up): an error rather than an infinite or NaN distance passed off as a value.
+  // Finite inputs near the double range can overflow the core's squares and products (from about
+  // 1e150): an error rather than an infinite or NaN distance passed off as a value.
   if (!std::isfinite(*out)) {
     std::snprintf(err, RS_ERRBUF, "%s: the result overflows double precision; expected coordinates and "
                   "vector components of magnitude below about 1e150", kNames[f]);
@@ -85,8 +85,8 @@ extern "C" const char* rs_eval_bounds(rs_function f, const double a[12], double*
   const Interval iv = f == RS_DIST_RAY ? rayscan::dist_ray_bounds(o, d, b)
                                        : rayscan::dist_plane_bounds(o, d, b);
   // The exact bounds are computed in double too, and the scalar function at a point of the box
-  // rounds differently (on a one-point box of autzen, dist_ray_min exceeded dist_ray by 7e-11 for
-  // half the points): widened by the octree node test's rounding allowance, [lo, hi] holds what
+  // rounds differently (by some ulps of the coordinates' magnitude): widened by the octree node
+  // test's rounding allowance, [lo, hi] holds what
   // the scalar function returns at every point of the box, so `dist_ray_min(...) <= r` never
   // prunes a box holding a point with `dist_ray(...) <= r`.
   const double tol = rayscan::node_test_tolerance(o, b);

@@ -390,9 +390,9 @@ TEST_F(CompareCli, RealRenderDepthAndIndexAovs) {
 }
 
 TEST_F(CompareCli, HeatMapsNeverReplaceAnInputNorEachOther) {
-  // Checked before the images are read: --diff over the reference would have replaced it with the
-  // heat map, two maps at one path would share one temporary file, and an unknown extension
-  // failed only after the first map was written. The reference's bytes are the oracle.
+  // Checked before the images are read: --diff over the reference must not replace it with the
+  // heat map, two maps at one path must not share one temporary file, and an unknown extension
+  // must not be found after the first map is written. The reference's bytes are the oracle.
   const fs::path pa = write("a.png", noise_image(24, 16, {"R", "G", "B"}, 1, 0, 1), PixelFormat::uint8);
   const fs::path pb = write("b.png", noise_image(24, 16, {"R", "G", "B"}, 2, 0, 1), PixelFormat::uint8);
   const auto bytes = [](const fs::path& p) {

@@ -363,7 +363,8 @@ TEST(SolarCli, BadInputIsOneLineAndExitCodeTwo) {
   } cases[] = {
       {"--start 2026-13-01 --end 2026-12-31", "--start"},
       {"--start 2026-01-01 --end 2025-12-31", "--end"},
-      {"--start 2026-01-01 --end 2026-01-02 --step 7h", "--step"},
+      {"--start 2026-01-01 --end 2026-01-02 --step 50min", "whole number of --steps"},
+      {"--start 2026-01-01 --end 2026-01-02 --step 2h", "at most 1h"},
       {"--at 2026-06-21T12:00Z --start 2026-01-01", "--at"},
       {"--start 2026-01-01 --end 2026-01-31 --weather " + bad_epw, "bad.epw: line 1"},
       {"--start 2026-01-01 --end 2026-01-31 --linke 1,2,3", "--linke"},

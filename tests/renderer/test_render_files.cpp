@@ -96,8 +96,8 @@ TEST(ImageOutput, PngIsSrgbEncodedAt16Bit) {
 
 // Every image format the writer offers decodes with OpenImageIO to the written pixels: the 8-bit
 // formats to the sRGB encoding of each value, EXR to the half-float values (JPEG within its loss).
-// A TIFF that OpenImageIO's own TIFF writer had encoded through an in-memory proxy had its first
-// directory pointing at the EXIF one: a valid signature, and no reader opened it.
+// Decoding, not the signature bytes: OpenImageIO's TIFF writer through an in-memory proxy writes a
+// file with a valid signature whose first directory points at the EXIF one, which no reader opens.
 TEST(ImageOutput, EveryFormatDecodesToTheWrittenPixels) {
   Framebuffer fb;
   fb.width = 4;

@@ -298,8 +298,9 @@ TEST_F(Postgres, RayDwithinSupportFunctionUsesTheGistIndex) {
     EXPECT_FALSE(chunks.empty());
   }
   // The radius at the boundary: r = the distance of a chunk's nearest point keeps that chunk
-  // (ray_dwithin on its box); the rounding of the exact bounds once dropped such chunks. The first
-  // ray is one where that happened (chunk 166 of autzen at chunk size 512).
+  // (ray_dwithin on its box), which bounds rounded as the exact ones would not guarantee. The
+  // first ray is one where the exact bounds exceed that distance (chunk 166 of autzen at chunk
+  // size 512).
   std::vector<Ray> boundary_rays = query_rays(*cloud_, 3, 11);
   boundary_rays.insert(boundary_rays.begin(), Ray(Vec3(636671.1536259624, 849606.67960656, 600),
                                                   Vec3(0.22834017597878464, -0.015290736389950065, -1)));
