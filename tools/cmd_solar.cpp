@@ -93,6 +93,12 @@ int run_solar(SolarCli& o) {
 
 Runner add_solar_command(CLI::App& app) {
   auto o = std::make_shared<SolarCli>();
+  // The site, clock and atmosphere ranges `solar` and `solar position` share: the limits SPA
+  // checks (analysis/src/solar_position.cpp, require_range), a site's elevation -1000..9000 m.
+  const CLI::Validator utc_offset = finite_number(-18, 18), latitude = finite_number(-90, 90),
+                       longitude = finite_number(-180, 180), elevation = finite_number(-1000, 9000),
+                       pressure = finite_number(0, 5000, true), temperature = finite_number(-273, 6000),
+                       delta_t = finite_number(-8000, 8000);
   CLI::App* c = app.add_subcommand(
       "solar",
       "Sun and shadow on a scanned site: per-point irradiation over a period (kWh/m², clear sky as "
@@ -112,13 +118,13 @@ Runner add_solar_command(CLI::App& app) {
   c->add_option("--utc-offset", o->job.utc_offset,
                 "Time zone of dates given alone and of the maps' labels, hours east of UTC (default: local "
                 "mean solar time, longitude / 15)")
-      ->check(finite_number(-18, 18));
+      ->check(utc_offset);
   c->add_option("--lat,--latitude", o->job.latitude, "Site latitude, degrees north (default: from the cloud's CRS)")
-      ->check(finite_number(-90, 90));
+      ->check(latitude);
   c->add_option("--lon,--longitude", o->job.longitude, "Site longitude, degrees east (default: from the CRS)")
-      ->check(finite_number(-180, 180));
+      ->check(longitude);
   c->add_option("--elevation", o->job.elevation, "Site elevation, metres (default: from the cloud)")
-      ->check(finite_number(-1000, 9000));
+      ->check(elevation);
   c->add_option("--linke", o->job.linke,
                 "Linke turbidity: one value or 12 monthly values (January first), 1..10")
       ->delimiter(',')
@@ -150,11 +156,11 @@ Runner add_solar_command(CLI::App& app) {
       ->check(non_negative());
   c->add_option("--pressure", o->job.pressure, "Annual mean pressure, mbar (refraction)")
       ->capture_default_str()
-      ->check(finite_number(0, 5000, true));
+      ->check(pressure);
   c->add_option("--temperature", o->job.temperature, "Annual mean temperature, degrees C (refraction)")
       ->capture_default_str()
-      ->check(finite_number(-273, 6000));
-  c->add_option("--delta-t", o->job.delta_t, "TT - UT1 in seconds (SPA)")->capture_default_str();
+      ->check(temperature);
+  c->add_option("--delta-t", o->job.delta_t, "TT - UT1 in seconds (SPA), -8000..8000")->capture_default_str()->check(delta_t);
   c->add_option("-o,--out", o->out, "Write the cloud with the result fields here (.las, .laz, .ply, .pcd, .xyz, .csv, .txt)");
   c->add_option("--raster", o->raster, "Write a GeoTIFF of the top surface here (.tif)");
   c->add_option("--cell", o->job.cell, "Raster cell size (world units; required with --raster)")->check(positive());
@@ -177,22 +183,21 @@ Runner add_solar_command(CLI::App& app) {
 
   CLI::App* p = c->add_subcommand("position", "Where the sun is: NREL's Solar Position Algorithm (Reda & Andreas 2004)");
   o->position_cmd = p;
-  p->add_option("--lat,--latitude", o->position.latitude, "Latitude, degrees north")->required()->check(finite_number(-90, 90));
-  p->add_option("--lon,--longitude", o->position.longitude, "Longitude, degrees east")->required()->check(finite_number(-180, 180));
+  p->add_option("--lat,--latitude", o->position.latitude, "Latitude, degrees north")->required()->check(latitude);
+  p->add_option("--lon,--longitude", o->position.longitude, "Longitude, degrees east")->required()->check(longitude);
   p->add_option("--time", o->position.time, "Instant, ISO 8601 (e.g. 2026-06-21T12:00:00+02:00; no offset = UTC; a date alone = its midnight in --utc-offset, else local mean solar time)")->required();
-  // The ranges of `rayscan solar`'s same options (SPA's own limits where it has them).
   p->add_option("--elevation", o->position.elevation, "Elevation, metres, -1000..9000")
       ->capture_default_str()
-      ->check(finite_number(-1000, 9000));
+      ->check(elevation);
   p->add_option("--pressure", o->position.pressure, "Annual mean pressure, mbar, > 0")
       ->capture_default_str()
-      ->check(finite_number(0, 5000, true));
+      ->check(pressure);
   p->add_option("--temperature", o->position.temperature, "Annual mean temperature, degrees C, -273..6000")
       ->capture_default_str()
-      ->check(finite_number(-273, 6000));
+      ->check(temperature);
   p->add_option("--delta-t", o->position.delta_t, "TT - UT1, seconds, -8000..8000")
       ->capture_default_str()
-      ->check(finite_number(-8000, 8000));
+      ->check(delta_t);
   p->add_option("--slope", o->position.slope, "Surface tilt for the incidence angle, degrees, 0..180")
       ->capture_default_str()
       ->check(finite_number(0, 180));
@@ -203,7 +208,7 @@ Runner add_solar_command(CLI::App& app) {
   p->add_option("--utc-offset", o->position.utc_offset,
                 "Time zone of the reported day, hours east of UTC, -18..18 (default: the time's offset, else "
                 "local mean solar time)")
-      ->check(finite_number(-18, 18));
+      ->check(utc_offset);
   p->add_flag("--json", o->json, "Print JSON");
   c->require_subcommand(0, 1);
   return [o] { return run_solar(*o); };

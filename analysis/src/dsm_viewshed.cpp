@@ -118,15 +118,10 @@ Raster dsm_viewshed(const Raster& dsm, std::span<const Observer> observers, doub
                     double target_height, unsigned threads) {
   if (!(max_distance >= 0.0)) throw std::invalid_argument("dsm viewshed: max distance must be >= 0");
   std::vector<Vec3> eyes;
-  std::vector<double> max_d;
-  for (const Observer& o : observers) {
-    eyes.push_back(o.position);
-    max_d.push_back(o.max_distance.value_or(max_distance));
-  }
+  for (const Observer& o : observers) eyes.push_back(o.position);
   return viewshed_of(dsm, eyes, target_height, threads, [&](std::size_t k, const Vec3& p) {
-    const Observer& o = observers[k];
-    const Vec3 v = p - o.position;
-    return glm::length(v) <= max_d[k] && (!(o.azimuth || o.elevation) || within_angle_limits(o, v));
+    const Vec3 v = p - observers[k].position;
+    return within_view_limits(observers[k], max_distance, v, glm::length(v));
   });
 }
 

@@ -356,6 +356,11 @@ bool within_angle_limits(const Observer& o, const Vec3& dir) {
   return true;
 }
 
+bool within_view_limits(const Observer& o, double max_distance, const Vec3& v, double length) {
+  if (!(length <= o.max_distance.value_or(max_distance))) return false;
+  return !(o.azimuth || o.elevation) || within_angle_limits(o, v);
+}
+
 std::string observer_label(const Observer& o, std::size_t number) {
   return o.name.empty() ? "observer " + std::to_string(number) : "observer '" + o.name + "'";
 }

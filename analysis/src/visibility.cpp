@@ -143,8 +143,7 @@ bool line_of_sight(const I& idx, const Observer& obs, double max_d,
   const Vec3 v = p - obs.position;
   const double D = glm::length(v);
   dist = D;
-  if (!(D <= max_d)) return false;
-  if ((obs.azimuth || obs.elevation) && !within_angle_limits(obs, v)) return false;
+  if (!within_view_limits(obs, max_d, v, D)) return false;
   const double r = opts.radius;
   if (D <= r) return true;
   const Vec3 aim = v + Vec3(0.0, 0.0, opts.target_height);  // towards P' = P + h_t z

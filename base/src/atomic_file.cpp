@@ -12,6 +12,7 @@
 #include <cerrno>
 #include <cstring>
 #include <string>
+#include <vector>
 
 namespace rayscan {
 
@@ -51,15 +52,16 @@ void require_replaceable_output(const std::filesystem::path& path) {
 void require_outputs(std::span<const std::filesystem::path> outputs, std::span<const std::filesystem::path> inputs) {
   // Two outputs of one command at one path would share a temporary file, and the second would
   // replace the first: refused, by their paths with every link and `..` resolved.
-  const auto resolved = [](const std::filesystem::path& p) {
+  std::vector<std::filesystem::path> resolved;
+  for (const std::filesystem::path& p : outputs) {
     std::error_code ec;
     const std::filesystem::path a = std::filesystem::absolute(p, ec).lexically_normal();
     const std::filesystem::path r = std::filesystem::weakly_canonical(a, ec);
-    return ec ? a : r;
-  };
+    resolved.push_back(ec ? a : r);
+  }
   for (std::size_t j = 0; j < outputs.size(); ++j)
     for (std::size_t i = 0; i < j; ++i)
-      if (!outputs[i].empty() && !outputs[j].empty() && resolved(outputs[i]) == resolved(outputs[j]))
+      if (!outputs[i].empty() && !outputs[j].empty() && resolved[i] == resolved[j])
         refuse_output(outputs[j], "is also the command's output '" + one_line(outputs[i].string()) +
                                       "' (give each output its own path)");
   for (const std::filesystem::path& out : outputs) {

@@ -147,16 +147,18 @@ Limits Criteria::limits() const {
   return l;
 }
 
+void Criteria::require_finite(const std::string& level) const {
+  for (const auto& [v, name] : {std::pair{&threshold, ""}, std::pair{&percent, "_percent"}, std::pair{&max_error, "_max"},
+                                std::pair{&min_psnr, "_psnr"}, std::pair{&min_ssim, "_ssim"}, std::pair{&max_flip, "_flip"}})
+    if (*v && !std::isfinite(**v))
+      throw OptionError({option(level + name), std::string(": expected a finite number, got ") +
+                                                   (std::isnan(**v) ? "nan" : "inf")});
+}
+
 CompareJobResult run_compare(const CompareJobOptions& o) {
-  // A NaN limit compares false with every metric, so it would pass any pair: every criterion a
-  // finite number, for every front end (the CLI's parser, Python's keywords).
-  for (const auto& [c, level] : {std::pair{&o.fail, "fail"}, std::pair{&o.warn, "warn"}})
-    for (const auto& [v, name] : {std::pair{&c->threshold, ""}, std::pair{&c->percent, "_percent"},
-                                  std::pair{&c->max_error, "_max"}, std::pair{&c->min_psnr, "_psnr"},
-                                  std::pair{&c->min_ssim, "_ssim"}, std::pair{&c->max_flip, "_flip"}})
-      if (*v && !std::isfinite(**v))
-        throw OptionError({option(std::string(level) + name), ": expected a finite number, got " +
-                                                                  std::string(std::isnan(**v) ? "nan" : "inf")});
+  // Every front end's limits (the CLI's parser, Python's keywords).
+  o.fail.require_finite("fail");
+  o.warn.require_finite("warn");
   // The heat maps' paths checked before any work: an image format, a writable place, neither an
   // input (--diff ref.png would replace the reference) nor each other.
   for (const auto& [path, name] : {std::pair{&o.diff, "diff"}, std::pair{&o.flip_map, "flip_map"}})

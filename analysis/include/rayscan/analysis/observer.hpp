@@ -113,6 +113,12 @@ void place_observers(std::vector<Observer>& observers, const Site& site, const P
 /// azimuth limit. Inclusive bounds.
 bool within_angle_limits(const Observer& o, const Vec3& dir);
 
+/// The observer's field of view as every line of sight applies it: a target at `v` from the eye
+/// (world units; `length` = |v|, which the caller has) is in view when `length` <= max_distance
+/// (the observer's own max_distance when set, else the run's; +inf = no limit) and `v` lies inside
+/// its angle limits (within_angle_limits). NaN lengths are out of view.
+bool within_view_limits(const Observer& o, double max_distance, const Vec3& v, double length);
+
 /// The observer's label: its name, or "observer <number>" (1-based `number`).
 std::string observer_label(const Observer& o, std::size_t number);
 

@@ -32,6 +32,10 @@ struct Criteria {
   std::optional<double> max_flip;   ///< mean FLIP above this triggers
   /// The Limits these criteria mean (see above).
   [[nodiscard]] Limits limits() const;
+  /// Throws OptionError naming the option (`level` "fail" or "warn", then "_percent", "_psnr", ...)
+  /// of a criterion that is NaN or infinite: a NaN limit compares false with every metric, so it
+  /// would pass any pair of images.
+  void require_finite(const std::string& level) const;
   /// Whether any criterion is given.
   [[nodiscard]] bool given() const {
     return threshold || percent || max_error || min_psnr || min_ssim || max_flip;
