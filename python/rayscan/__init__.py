@@ -170,8 +170,9 @@ class Octree(_QueriesMixin, _rayscan._Octree):
     'layered' (every node keeps up to `capacity` points: a level-of-detail subsample) or 'fixed'
     (all points in leaves at `depth`). insertion=True builds by point insertion as the paper
     measures (same tree as the default Morton bulk load). capacity=None takes the layout's default
-    (64 for adaptive, 32 for layered). Raises ValueError for a non-finite
-    point (naming it), a bad layout or capacity < 1."""
+    (64 for adaptive, 32 for layered). depth: 0..21; max_depth: 1..21 for every layout, as
+    `rayscan index --max-depth` (0 would leave one leaf holding every point). Raises ValueError
+    for a non-finite point (naming it), a bad layout, capacity < 1 or a depth out of its range."""
 
     def __init__(self, xyz, layout="adaptive", capacity=None, depth=6, max_depth=21, insertion=False):
         super().__init__(_xyz(xyz), layout, capacity, depth, max_depth, insertion)

@@ -108,8 +108,9 @@ std::uint32_t parse_count(py::handle v, const char* name) {
   return static_cast<std::uint32_t>(int_arg(v, name, 1, 0xFFFFFFFFll, "an integer in [1, 2^32 - 1]"));
 }
 
-unsigned parse_depth(py::handle v, const char* name) {
-  return static_cast<unsigned>(int_arg(v, name, 0, 21, "an integer in [0, 21]"));
+/// An octree depth argument in [lo, 21] (depth: 0..21; max_depth: 1..21, as OctreeConfig::validate).
+unsigned parse_depth(py::handle v, const char* name, long long lo) {
+  return static_cast<unsigned>(int_arg(v, name, lo, 21, "an integer in [" + std::to_string(lo) + ", 21]"));
 }
 
 PyIndex build(py::handle xyz, const IndexOptions& opts) {
@@ -369,8 +370,8 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
              IndexOptions o;
              o.type = "octree-" + std::string(to_string(parse_octree_layout(layout)));
              if (!capacity.is_none()) o.capacity = parse_count(capacity, "capacity");
-             o.depth = parse_depth(depth, "depth");
-             o.max_depth = parse_depth(max_depth, "max_depth");
+             o.depth = parse_depth(depth, "depth", 0);
+             o.max_depth = parse_depth(max_depth, "max_depth", 1);
              o.insertion = insertion;
              return PyOctree{build(xyz, o)};
            }),

@@ -363,6 +363,43 @@ TEST(Octree, RejectsBadInput) {
   EXPECT_THROW(parse_octree_layout("grid"), std::invalid_argument);
 }
 
+// max_depth has the range of `rayscan index --max-depth` (1..21) for every layout and both
+// builders, and make_index (the scene files' and Python's path) inherits it; the bounds build.
+TEST(Octree, MaxDepthRangeIsTheCliRange) {
+  const auto pts = make_points(500, Dist::uniform, 3);
+  for (OctreeLayout l : {OctreeLayout::adaptive, OctreeLayout::layered, OctreeLayout::fixed}) {
+    SCOPED_TRACE(to_string(l));
+    for (unsigned bad : {0u, 22u}) {
+      OctreeConfig c = OctreeConfig::for_layout(l);
+      c.max_depth = bad;
+      const std::string want = "octree: max_depth must be in 1..21, got " + std::to_string(bad);
+      for (bool insertion : {false, true}) {
+        try {
+          (void)(insertion ? Octree::build_by_insertion(pts, c) : Octree::build_bulk(pts, c));
+          ADD_FAILURE() << "max_depth " << bad << " was accepted";
+        } catch (const std::invalid_argument& e) {
+          EXPECT_EQ(std::string(e.what()), want);
+        }
+      }
+      IndexOptions o;
+      o.type = std::string("octree-") + to_string(l);
+      o.max_depth = bad;
+      EXPECT_THROW((void)make_index(pts, o), std::invalid_argument);
+    }
+    for (unsigned good : {1u, 21u}) {
+      OctreeConfig c = OctreeConfig::for_layout(l);
+      c.max_depth = good;
+      c.capacity = 4;
+      const Octree t = Octree::build_bulk(pts, c);
+      EXPECT_EQ(t.ids().size(), pts.size());
+      // 500 points over capacity 4: an adaptive or layered tree splits down to max_depth 1.
+      if (l != OctreeLayout::fixed && good == 1) {
+        EXPECT_EQ(t.depth(), 1u);
+      }
+    }
+  }
+}
+
 // make_index without a capacity builds each layout at its own default (default_capacity: the
 // layered octree must not inherit the adaptive leaf size of OctreeConfig{}); a given capacity wins,
 // and index_capacity reports what was built.

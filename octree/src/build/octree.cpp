@@ -34,8 +34,10 @@ const char* to_string(OctreeLayout layout) {
 
 void OctreeConfig::validate() const {
   if (capacity == 0) throw std::invalid_argument("octree: capacity must be >= 1");
-  if (max_depth > kMortonBits)
-    throw std::invalid_argument("octree: max_depth must be <= 21, got " + std::to_string(max_depth));
+  // max_depth 0 would make the root the only leaf: every query a scan of all points. Refused for
+  // every layout, as `rayscan index --max-depth` refuses it, so no front end builds such a tree.
+  if (max_depth < 1 || max_depth > kMortonBits)
+    throw std::invalid_argument("octree: max_depth must be in 1..21, got " + std::to_string(max_depth));
   if (depth > kMortonBits)
     throw std::invalid_argument("octree: depth must be <= 21, got " + std::to_string(depth));
 }

@@ -33,7 +33,7 @@ struct IndexOptions {
   /// Octree node capacity / kd-tree leaf size (points); unset: the type's default (index_capacity).
   std::optional<std::uint32_t> capacity{};
   unsigned depth = 6;            ///< octree-fixed leaf depth
-  unsigned max_depth = 21;       ///< octree-adaptive/layered maximum depth
+  unsigned max_depth = 21;       ///< octree-adaptive/layered maximum depth, 1..21
   bool insertion = false;        ///< octree: build by insertion instead of bulk loading
 };
 

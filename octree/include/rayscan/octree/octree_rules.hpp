@@ -42,9 +42,10 @@ const char* to_string(OctreeLayout layout);
 struct OctreeConfig {
   OctreeLayout layout = OctreeLayout::adaptive;
   std::uint32_t capacity = default_capacity(OctreeLayout::adaptive);  ///< points per node (layered) / per leaf before a split (adaptive)
-  unsigned max_depth = 21;      ///< deepest level for layered and adaptive (<= 21)
-  unsigned depth = 6;           ///< leaf depth for fixed (<= 21)
-  /// Throws std::invalid_argument for capacity 0 or a depth above 21.
+  unsigned max_depth = 21;      ///< deepest level for layered and adaptive (1..21)
+  unsigned depth = 6;           ///< leaf depth for fixed (0..21)
+  /// Throws std::invalid_argument (naming the field and its range) for capacity 0, max_depth
+  /// outside 1..21 (checked for every layout) or depth above 21.
   void validate() const;
   /// The defaults of `layout`: its default_capacity, max_depth 21, depth 6.
   [[nodiscard]] static OctreeConfig for_layout(OctreeLayout layout) {
