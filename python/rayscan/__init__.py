@@ -147,14 +147,19 @@ class _QueriesMixin:
     def knn(self, points, k, radius=_INF, threads=0):
         """The k nearest points (within `radius` when given) of each of the Q query points
         ((Q, 3) or (3,)). Returns a NeighborResult (CSR: offsets (Q+1,), indices, distance),
-        each query's neighbours sorted by (distance, index). threads: as in ray_query."""
+        each query's neighbours sorted by (distance, index). threads: as in ray_query.
+        k: an integer >= 0 of any size; a k at or above the point count N returns every point
+        (within `radius`): N per query, as nothing is sized by k. Raises ValueError for k < 0,
+        None or a non-integer, and for a negative or NaN radius."""
         if k is None:
             raise ValueError("knn: k must be an integer >= 0 (use radius() for all points within r)")
         return NeighborResult(**self._knn(points, k, radius, threads))
 
     def radius(self, points, r, threads=0):
-        """Every point within distance r (inclusive) of each query point; NeighborResult sorted by
-        (distance, index) per query."""
+        """Every point within distance r (inclusive, world units) of each query point;
+        NeighborResult sorted by (distance, index) per query. r=inf returns all N points for
+        each of the Q queries (Q x N results: mind the memory). Raises ValueError for a negative
+        or NaN r."""
         return NeighborResult(**self._knn(points, None, r, threads))
 
     def box(self, lo, hi, threads=0):

@@ -88,7 +88,17 @@ def _dense(res, m, k):
     return out
 
 
+def _k_past_points(k, n, path):
+    return ValueError(f"ray_query: k={k} is more than the {n} points of {path}: the lazy result has k columns "
+                      f"per ray, those past {n} always empty; give k <= {n}, or compute=True for the CSR result")
+
+
 def _ray_dense_block(path, origins, directions, kw, m, k):
+    # Before the (m, k) arrays: a k past the point count would only size empty columns (k=10**9
+    # asks for gigabytes per chunk).
+    site, _ = _site(path)
+    if k > 1 and k > len(site):  # (k=1 is one column, (m,), also over an empty cloud)
+        raise _k_past_points(k, len(site), path)
     return _dense(_ray_block(path, origins, directions, kw), m, k)
 
 
@@ -156,7 +166,9 @@ def ray_query(path, origins, directions, k=1, radius=_INF, t_min=-_INF, t_max=_I
 
     Returns, with compute=False, a dict of Dask arrays chunked like the rays: "indices" int64
     (original point index, -1 = no hit), "t" and "distance" float64 (NaN = no hit), of shape (M,)
-    for k=1, else (M, k) with the hits of each ray best first (k=None needs compute=True).
+    for k=1, else (M, k) with the hits of each ray best first (k=None needs compute=True; a k
+    above the point count raises ValueError, as its last columns could hold no hit: here for an
+    .rsi or COPC file, else when the chunks are computed).
     Compute them in one call (dask.compute(out["indices"], out["t"])) so that each chunk is
     queried once. With compute=True: the RayQueryResult (CSR) of the single-process call,
     bit for bit. Raises ValueError as Site.ray_query does (on the workers for the rays' values).
@@ -173,6 +185,9 @@ def ray_query(path, origins, directions, k=1, radius=_INF, t_min=-_INF, t_max=_I
         return _merge_csr(parts)
     if not isinstance(k, int) or k < 1:
         raise ValueError(f"ray_query: k must be an integer >= 1, got {k!r}")
+    n = _point_count(path)  # NaN (not known without reading the file): checked by each task
+    if k > 1 and k > n:
+        raise _k_past_points(k, n, path)
     out = {"indices": [], "t": [], "distance": []}
     for o, d, m in blocks:
         res = dask.delayed(_ray_dense_block)(path, o, d, kw, m, k)

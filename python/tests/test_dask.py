@@ -131,3 +131,26 @@ def test_missing_arguments_raise(site_file):
         rd.visibility(site_file, "observers.csv")
     with pytest.raises(ValueError, match="at="):
         rd.solar(site_file)
+
+
+
+def test_lazy_k_above_the_point_count_is_refused(client, tmp_path, cli):
+    """The lazy result has k columns per ray: a k above the point count would only size columns
+    that can hold no hit (k=10**9 would ask for gigabytes per chunk), so it raises ValueError, at
+    the call for an .rsi file (its count is in the header) and in the task for another file. k
+    equal to the count is kept."""
+    xyz = np.array([[0.0, 0, 0], [0, 0, 1], [0, 0, 2]])
+    ply = tmp_path / "three.ply"
+    rayscan.write(ply, xyz)
+    rsi = tmp_path / "three.rsi"
+    subprocess.run([cli, "index", "-q", "--attributes", "id", "-o", str(rsi), str(ply)], check=True)
+    o, d = np.array([[0.0, 0, -1]]), np.array([[0.0, 0, 1]])
+    for k in (4, 10**30):
+        with pytest.raises(ValueError, match=rf"k={k} is more than the 3 points of .*three\.rsi"):
+            rd.ray_query(rsi, o, d, k=k, radius=0.5)
+        lazy = rd.ray_query(ply, o, d, k=k, radius=0.5)  # the count of a PLY needs a full read
+        with pytest.raises(ValueError, match=rf"k={k} is more than the 3 points of .*three\.ply"):
+            dask.compute(lazy["indices"])
+    for path in (rsi, ply):
+        idx, = dask.compute(rd.ray_query(path, o, d, k=3, radius=0.5)["indices"])
+        assert idx.tolist() == [[0, 1, 2]]

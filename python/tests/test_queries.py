@@ -118,6 +118,39 @@ def test_knn_and_radius_equal_brute_force(uniform_cloud):
         assert rad.counts.sum() > 0
 
 
+def test_k_past_the_point_count_and_infinite_radius_return_every_point(cli, tmp_path):
+    """k larger than N (up to any size: 10**30 is past every C++ integer) means no k limit, and an
+    infinite radius no distance limit: each query gets all N points ranked by (distance, index),
+    as NumPy ranks them, on every index and on a Site (an .rsi index with ids, a file indexed in
+    memory). The result is CSR, so nothing is sized by k."""
+    rng = np.random.default_rng(11)
+    xyz = rng.random((300, 3))
+    xyz[200:203] = xyz[7]  # ties broken by index
+    qs = np.vstack([xyz[7], rng.random((4, 3)) * 3 - 1])
+    ply = tmp_path / "small.ply"
+    rayscan.write(str(ply), xyz)
+    rsi = tmp_path / "small.rsi"
+    subprocess.run([cli, "index", "-q", "--attributes", "id", "-o", str(rsi), str(ply)], check=True)
+    indexes = [make(xyz) for make in INDEXES] + [rayscan.open(str(rsi)), rayscan.open(str(ply))]
+    assert [s.storage for s in indexes[-2:]] == ["index_file", "memory"]
+    for index in indexes:
+        answers = [index.knn(qs, k) for k in (len(xyz), len(xyz) + 1, 2**32, 2**64, 10**30)]
+        answers += [index.radius(qs, np.inf), index.radius(qs, float("inf")), index.knn(qs, 10**30, radius=np.inf)]
+        for res in answers:
+            assert res.offsets.tolist() == [len(xyz) * i for i in range(len(qs) + 1)]
+            for i, q in enumerate(qs):
+                v = xyz - q
+                d2 = v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2]
+                order = np.lexsort((np.arange(len(d2)), d2))
+                np.testing.assert_array_equal(res[i], order)
+                np.testing.assert_array_equal(res.distance[res.offsets[i]:res.offsets[i + 1]], np.sqrt(d2[order]))
+        # A finite k below N still limits, a huge k with a finite radius keeps the radius.
+        assert index.knn(qs, 299).counts.tolist() == [299] * len(qs)
+        near = index.knn(qs[:1], 10**30, radius=0.2)
+        v = xyz - qs[0]
+        assert len(near.indices) == np.count_nonzero(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2] <= 0.2 * 0.2)
+
+
 def test_box_equals_numpy_mask(uniform_cloud):
     rng = np.random.default_rng(4)
     lo = rng.random((20, 3)) * 0.7
