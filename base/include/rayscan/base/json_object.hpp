@@ -1,9 +1,9 @@
 // A JSON object reader for the project's JSON files (scenes, cameras): every value is read
 // through JsonObject, which records the JSON pointer (RFC 6901) of what it reads so that an error
-// names the exact field, and rejects keys it was not asked about. Header-only (nlohmann_json).
+// names the exact field, and rejects keys it was not asked about. Header-only: its users link
+// nlohmann_json; vectors are GLM's (glm::dvec3 is the octree's Vec3), so base needs no other room.
 #pragma once
 
-#include "rayscan/octree/geometry.hpp"
 #include "rayscan/base/input_file.hpp"
 
 #include <glm/vec3.hpp>
@@ -135,20 +135,20 @@ class JsonObject {
       json_fail(file_, p, "expected one of " + list + ", got \"" + s + "\"");
     return s;
   }
-  Vec3 vec3(const std::string& k, const Vec3& def, bool nonzero = false) {
+  glm::dvec3 vec3(const std::string& k, const glm::dvec3& def, bool nonzero = false) {
     if (!has(k)) return def;
     return vec3_at(j_.at(k), ptr(k), nonzero);
   }
-  Vec3 vec3_at(const json& v, const std::string& p, bool nonzero) const {
+  glm::dvec3 vec3_at(const json& v, const std::string& p, bool nonzero) const {
     const char* what = nonzero ? "expected an array of 3 finite numbers, not all zero"
                                : "expected an array of 3 finite numbers";
     if (!v.is_array() || v.size() != 3) json_fail(file_, p, what);
-    Vec3 r;
+    glm::dvec3 r;
     for (int i = 0; i < 3; ++i) {
       if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) json_fail(file_, p + "/" + std::to_string(i), what);
       r[i] = v[i].get<double>();
     }
-    if (nonzero && r == Vec3(0.0)) json_fail(file_, p, what);
+    if (nonzero && r == glm::dvec3(0.0)) json_fail(file_, p, what);
     return r;
   }
   glm::vec3 color(const std::string& k, const glm::vec3& def, float hi) {
