@@ -45,11 +45,12 @@ const Api* load() {
     if (!std::filesystem::is_regular_file(path, ec)) continue;
     void* handle = ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);  // never closed
     const char* err = handle == nullptr ? ::dlerror() : nullptr;
+    std::string why = err != nullptr ? err : "not loadable";
     if (handle != nullptr) {
       if (auto entry = reinterpret_cast<EntryPoint>(::dlsym(handle, kEntryPoint))) return entry();
-      err = "no entry point rayscan_oiio_module_v2 (a module of another rayscan version)";
+      why = std::string("no entry point ") + kEntryPoint + " (a module of another rayscan version)";
     }
-    tried += (tried.empty() ? "" : "; ") + path + ": " + (err != nullptr ? err : "not loadable");
+    tried += (tried.empty() ? "" : "; ") + path + ": " + why;
   }
   if (tried.empty()) {
     for (const std::string& path : candidates) tried += (tried.empty() ? "" : ", ") + path;
@@ -160,8 +161,8 @@ void write_image(const Image& img, const std::filesystem::path& path, const Imag
   const oiio_module::Api& oiio = oiio_module::api();  // loaded before the temporary file exists
   AtomicFile file(path);
   std::vector<unsigned char> bytes;
-  oiio.encode(img, name, formats, o, lower_extension(path) == ".exr", bytes);
-  file.write_all(bytes);
+  if (!oiio.encode(img, name, file.temp().string(), formats, o, lower_extension(path) == ".exr", bytes))
+    file.write_all(bytes);
   file.commit();
 }
 

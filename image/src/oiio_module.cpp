@@ -10,10 +10,7 @@
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cstdlib>
-#include <filesystem>
-#include <fstream>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -158,29 +155,23 @@ std::unique_ptr<ImageReader> open(const std::string& path, std::string& why) {
 
 /// encode's TIFF path: OpenImageIO 2.4's TIFF writer, given an IOProxy, points the file's first
 /// directory at the EXIF directory it writes at close, and no reader opens the result; to a file
-/// it writes a valid TIFF. So the TIFF is written to a temporary file (checked at every step:
-/// libtiff reports failed writes), read back into `bytes` and removed.
-void encode_through_file(OIIO::ImageOutput& out, const std::string& name, const OIIO::ImageSpec& spec,
-                         OIIO::TypeDesc type, const void* pixels, std::vector<unsigned char>& bytes) {
-  std::string path = (std::filesystem::temp_directory_path() / "rayscan-tiff-XXXXXX.tif").string();
-  const int fd = ::mkstemps(path.data(), 4);
-  if (fd < 0) throw std::runtime_error(name + ": cannot create a temporary file in " + path + " (" + std::strerror(errno) + ")");
-  ::close(fd);
-  struct Remove {
-    const std::string& p;
-    ~Remove() { ::unlink(p.c_str()); }
-  } remove{path};
-  if (!out.open(path, spec)) throw std::runtime_error(name + ": cannot encode the image (" + out.geterror() + ")");
+/// it writes a valid TIFF. So the TIFF is written straight to `file`, the caller's temporary
+/// beside the output (same file system, renamed by the caller). Failed strip writes are reported
+/// by libtiff; the directory written at close is not (TIFFOutput::close cannot fail: TIFFClose
+/// returns no status), so the file's header is read back and checked against the image.
+void encode_to_file(OIIO::ImageOutput& out, const std::string& name, const std::string& file,
+                    const OIIO::ImageSpec& spec, OIIO::TypeDesc type, const void* pixels) {
+  if (!out.open(file, spec)) throw std::runtime_error(name + ": cannot encode the image (" + out.geterror() + ")");
   if (!(out.write_image(type, pixels) && out.close())) throw std::runtime_error(name + ": encoding failed (" + out.geterror() + ")");
-  std::ifstream f(path, std::ios::binary | std::ios::ate);
-  const std::streamoff size = f ? static_cast<std::streamoff>(f.tellg()) : -1;
-  if (size < 0) throw std::runtime_error(name + ": cannot read the encoded image back from " + path);
-  bytes.resize(static_cast<std::size_t>(size));
-  f.seekg(0);
-  if (!f.read(reinterpret_cast<char*>(bytes.data()), size)) throw std::runtime_error(name + ": cannot read the encoded image back from " + path);
+  auto in = OIIO::ImageInput::open(file);
+  const bool whole = in && in->spec().width == spec.width && in->spec().height == spec.height &&
+                     in->spec().nchannels == spec.nchannels;
+  const std::string why = in ? std::string("the written header does not match the image") : OIIO::geterror();
+  if (in) in->close();
+  if (!whole) throw std::runtime_error(name + ": encoding failed (" + why + "; is the disk full?)");
 }
 
-void encode(const Image& img, const std::string& name, const std::vector<PixelFormat>& formats,
+bool encode(const Image& img, const std::string& name, const std::string& file, const std::vector<PixelFormat>& formats,
             const ImageWriteOptions& o, bool zip, std::vector<unsigned char>& bytes) {
   const std::size_t n = img.npixels(), nf = img.channels.size(), ni = img.id_channels.size();
   // The plugin is chosen from the final name; the data goes to the temporary sibling.
@@ -240,14 +231,15 @@ void encode(const Image& img, const std::string& name, const std::vector<PixelFo
   }
   bytes.clear();
   if (std::strcmp(out->format_name(), "tiff") == 0) {
-    encode_through_file(*out, name, spec, mixed ? OIIO::TypeDesc::UNKNOWN : types[0], buf.data(), bytes);
-    return;
+    encode_to_file(*out, name, file, spec, mixed ? OIIO::TypeDesc::UNKNOWN : types[0], buf.data());
+    return true;
   }
   OIIO::Filesystem::IOVecOutput memory(bytes);
   if (!out->set_ioproxy(&memory)) throw std::runtime_error(name + ": the image writer cannot encode into memory");
   if (!out->open(name, spec)) throw std::runtime_error(name + ": cannot encode the image (" + out->geterror() + ")");
   const bool ok = out->write_image(mixed ? OIIO::TypeDesc::UNKNOWN : types[0], buf.data()) && out->close();
   if (!ok) throw std::runtime_error(name + ": encoding failed (" + out->geterror() + ")");
+  return false;
 }
 
 OIIO::ImageSpec spec_of(const Image& img) {
@@ -289,6 +281,6 @@ constexpr Api kApi{&open, &encode, &resize, &render_text};
 
 }  // namespace rayscan::oiio_module
 
-extern "C" __attribute__((visibility("default"))) const rayscan::oiio_module::Api* rayscan_oiio_module_v2() {
+extern "C" __attribute__((visibility("default"))) const rayscan::oiio_module::Api* rayscan_oiio_module_v3() {
   return &rayscan::oiio_module::kApi;
 }

@@ -52,13 +52,17 @@ struct Api {
   /// cannot open it.
   std::unique_ptr<ImageReader> (*open)(const std::string& path, std::string& why);
   /// Encodes `img` (already checked: buffers match its size; `formats` has one entry per float
-  /// channel) into `bytes` (cleared first) with the writer OpenImageIO chooses from `name`'s
-  /// extension, through an in-memory IOProxy: the caller writes the file with checked writes
-  /// (AtomicFile::write_all), because the PNG and JPEG plugins do not report a short fwrite (a
-  /// full disk gave a truncated PNG and exit 0, and libjpeg's own exit). `zip`: ZIP compression
-  /// (EXR). Throws std::runtime_error "<name>: <reason>".
-  void (*encode)(const Image& img, const std::string& name, const std::vector<PixelFormat>& formats,
-                 const ImageWriteOptions& options, bool zip, std::vector<unsigned char>& bytes);
+  /// channel) with the writer OpenImageIO chooses from `name`'s extension. Returns false with the
+  /// file in `bytes` (cleared first), encoded through an in-memory IOProxy: the caller writes it
+  /// with checked writes (AtomicFile::write_all), because the PNG and JPEG plugins do not report a
+  /// short fwrite (a full disk gave a truncated PNG and exit 0, and libjpeg's own exit). Returns
+  /// true when the writer wrote `file` itself instead (TIFF: its IOProxy output is unreadable in
+  /// OpenImageIO 2.4): `file` is the caller's temporary beside the output, already created, and
+  /// the written header is read back as the check of the close. `zip`: ZIP compression (EXR).
+  /// Throws std::runtime_error "<name>: <reason>".
+  bool (*encode)(const Image& img, const std::string& name, const std::string& file,
+                 const std::vector<PixelFormat>& formats, const ImageWriteOptions& options, bool zip,
+                 std::vector<unsigned char>& bytes);
   /// ImageBufAlgo::resize of `img`'s float channels to width x height with `filter`. Throws
   /// std::runtime_error naming the filter.
   Image (*resize)(const Image& img, int width, int height, const std::string& filter);
@@ -71,7 +75,7 @@ struct Api {
 
 /// The module's entry point (extern "C", so dlsym finds it by this name); the version in the name
 /// changes with Api, so a stale module is refused instead of called.
-inline constexpr const char* kEntryPoint = "rayscan_oiio_module_v2";
+inline constexpr const char* kEntryPoint = "rayscan_oiio_module_v3";
 using EntryPoint = const Api* (*)();
 
 /// The loaded module's table (dlopen on the first call; thread-safe). When RAYSCAN_OIIO_MODULE is

@@ -2,6 +2,7 @@
 // uint32 id plane, quantisation and metadata, checked against the file as OpenImageIO reads it
 // back in its stored types (the oracle is the file's own samples, not rayscan's reader).
 #include "../common/temp_dir.hpp"
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/image/image_file.hpp"
 #include "rayscan/octree/spatial_index.hpp"
 
@@ -9,10 +10,22 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <sys/mount.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <csignal>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <limits>
+#include <optional>
+#include <string>
+#include <vector>
 
 namespace fs = std::filesystem;
 
@@ -96,4 +109,136 @@ TEST(ImageFile, RejectsMismatchedBuffersWithoutWriting) {
   EXPECT_THROW(rayscan::write_image(img, p, rayscan::ImageWriteOptions{}), std::invalid_argument);
   EXPECT_FALSE(fs::exists(p));
   fs::remove_all(p.parent_path());
+}
+
+namespace {
+
+/// The names in `dir`, sorted.
+std::vector<std::string> names_in(const fs::path& dir) {
+  std::vector<std::string> v;
+  for (const auto& e : fs::directory_iterator(dir)) v.push_back(e.path().filename().string());
+  std::sort(v.begin(), v.end());
+  return v;
+}
+
+/// A 16x8 RGB test pattern whose 8-bit samples are exact (k / 255).
+rayscan::Image pattern() {
+  rayscan::Image img = rayscan::make_image(16, 8, {"R", "G", "B"});
+  for (std::size_t i = 0; i < img.pixels.size(); ++i) img.pixels[i] = float((i * 37) % 256) / 255.0f;
+  return img;
+}
+
+/// Sets an environment variable for the scope and restores the old value.
+struct ScopedEnv {
+  std::string name;
+  std::optional<std::string> old;
+  ScopedEnv(std::string n, const std::string& value) : name(std::move(n)) {
+    if (const char* v = std::getenv(name.c_str())) old = v;
+    ::setenv(name.c_str(), value.c_str(), 1);
+  }
+  ~ScopedEnv() {
+    if (old) ::setenv(name.c_str(), old->c_str(), 1);
+    else ::unsetenv(name.c_str());
+  }
+};
+
+}  // namespace
+
+// A TIFF is encoded into the temporary beside its output and renamed, like every other format:
+// with the system's temporary folder unusable (TMPDIR naming no folder) it is still written, its
+// pixels read back through OpenImageIO, and the folder holds the final file and nothing else.
+TEST(ImageFile, TiffIsWrittenBesideItsOutputNotInTheSystemTemp) {
+  const fs::path dir = temp_dir() / "tiff_beside";
+  fs::create_directories(dir);
+  const rayscan::Image img = pattern();
+  {
+    const ScopedEnv tmp("TMPDIR", (dir / "no_such_folder").string());
+    rayscan::write_image(img, (dir / "p.tif").string(), rayscan::PixelFormat::uint8);
+    rayscan::write_image(img, (dir / "p.tiff").string(), rayscan::PixelFormat::uint8);  // replaced in place too
+    rayscan::write_image(img, (dir / "p.tiff").string(), rayscan::PixelFormat::uint8);
+  }
+  EXPECT_EQ(names_in(dir), (std::vector<std::string>{"p.tif", "p.tiff"}));
+  for (const char* name : {"p.tif", "p.tiff"}) {
+    auto in = OIIO::ImageInput::open((dir / name).string());
+    ASSERT_TRUE(in) << OIIO::geterror();
+    EXPECT_EQ(std::string(in->format_name()), "tiff");
+    ASSERT_EQ(in->spec().width, 16);
+    ASSERT_EQ(in->spec().nchannels, 3);
+    std::vector<std::uint8_t> v(img.pixels.size());
+    ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, v.data()));
+    for (std::size_t i = 0; i < v.size(); ++i) ASSERT_EQ(v[i], (i * 37) % 256) << name << " sample " << i;
+  }
+  fs::remove_all(dir);
+}
+
+// A file size limit at every byte count short of the whole TIFF (the strips, or the directory
+// libtiff writes at close, cut short): each write throws naming the output, the old file stays
+// byte-identical and no temporary is left; at the full size the write succeeds.
+TEST(ImageFile, TiffCutShortAtAnySizeFailsAndKeepsTheOldFile) {
+  const fs::path dir = temp_dir() / "tiff_short";
+  fs::create_directories(dir);
+  const fs::path out = dir / "t.tif", probe = dir / "probe.tif";
+  rayscan::ImageWriteOptions o;
+  o.formats = {rayscan::PixelFormat::uint8};
+  const rayscan::Image img = pattern();
+  rayscan::write_image(img, probe, o);
+  const auto full = static_cast<rlim_t>(fs::file_size(probe));
+  fs::remove(probe);
+  { std::ofstream(out) << "OLD"; }
+  struct rlimit before {};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &before), 0);
+  if (before.rlim_max != RLIM_INFINITY && before.rlim_max < full) GTEST_SKIP() << "hard file size limit too low";
+  void (*old_handler)(int) = std::signal(SIGXFSZ, SIG_IGN);  // a write past the limit fails with EFBIG
+  int failures = 0;
+  for (rlim_t limit = 1; limit <= full; ++limit) {
+    struct rlimit r = before;
+    r.rlim_cur = limit;
+    ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &r), 0);
+    std::string error;
+    try {
+      rayscan::write_image(img, out, o);
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+    ::setrlimit(RLIMIT_FSIZE, &before);
+    if (limit < full) {
+      ++failures;
+      EXPECT_NE(error.find(out.string()), std::string::npos) << "limit " << limit << ": '" << error << "'";
+      std::ifstream f(out);
+      EXPECT_EQ(std::string(std::istreambuf_iterator<char>(f), {}), "OLD") << "limit " << limit;
+    } else {
+      EXPECT_EQ(error, "");
+    }
+    EXPECT_EQ(names_in(dir), std::vector<std::string>{"t.tif"}) << "limit " << limit;
+  }
+  std::signal(SIGXFSZ, old_handler);
+  EXPECT_EQ(failures, int(full) - 1);
+  fs::remove_all(dir);
+}
+
+// An output in a directory that takes no files (a read-only tmpfs mounted by the test as root, a
+// 0555 folder otherwise) fails with an error naming the output path and leaves nothing behind.
+TEST(ImageFile, ReadOnlyDirectoryFailsNamingThePathAndLeavesNothing) {
+  const fs::path dir = temp_dir() / "ro";
+  fs::create_directories(dir);
+  bool mounted = false;
+  if (::geteuid() == 0) {
+    mounted = ::mount("tmpfs", dir.c_str(), "tmpfs", MS_RDONLY, "size=64k") == 0;
+    if (!mounted) GTEST_SKIP() << "cannot mount a read-only tmpfs as root; skipped";
+  } else {
+    fs::permissions(dir, fs::perms::owner_read | fs::perms::owner_exec);
+  }
+  for (const char* name : {"r.tif", "r.png", "r.exr"}) {
+    const fs::path out = dir / name;
+    try {
+      rayscan::write_image(pattern(), out.string(), rayscan::PixelFormat::uint8);
+      ADD_FAILURE() << name << ": written into a read-only directory";
+    } catch (const rayscan::OutputFileError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(out.string() + ": cannot create output file", 0), 0u) << e.what();
+    }
+  }
+  EXPECT_TRUE(fs::is_empty(dir));
+  if (mounted) ::umount2(dir.c_str(), MNT_DETACH);
+  else fs::permissions(dir, fs::perms::owner_all);
+  fs::remove_all(dir);
 }
