@@ -94,7 +94,8 @@ def write(path, cloud, **fields):
     0.1, 0.01, 0.001 that stores every coordinate exactly, else 0.001, coarsened to 0.01, 0.1,
     ... while the axis spans more than 2e9 steps (32-bit integers): an axis spanning more than
     2,000,000 units is stored at 0.01 or coarser, not to the nearest 0.001. Written to a temporary
-    file renamed into place. Raises ValueError for an unsupported extension, a field of the
+    file renamed into place, with the GIL released; with `fields`, a PointCloud's arrays are
+    copied once (the file gets them, `cloud` keeps its own), also without the GIL. Raises ValueError for an unsupported extension, a field of the
     wrong shape or named like a PointCloud attribute, TypeError for another `cloud`, OSError
     when the file cannot be written.
     """

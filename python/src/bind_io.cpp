@@ -340,12 +340,18 @@ CloudArg cloud_arg(py::handle v, const char* name, bool allow_path) {
   } else if (py::isinstance<py::array>(v) || py::isinstance<py::list>(v) || py::isinstance<py::tuple>(v)) {
     const Vec3Rows rows = as_vec3_rows(v, name);
     a.owned = std::make_unique<PointCloud>();
-    a.owned->positions.assign(rows.rows.begin(), rows.rows.end());
-    try {
-      a.owned->validate();
-    } catch (const std::invalid_argument& e) {
-      throw py::value_error(std::string(name) + ": " + e.what());
+    std::string bad;
+    {
+      // The copy and the finiteness scan need no Python (rows.keep holds the array).
+      py::gil_scoped_release nogil;
+      a.owned->positions.assign(rows.rows.begin(), rows.rows.end());
+      try {
+        a.owned->validate();
+      } catch (const std::invalid_argument& e) {
+        bad = e.what();
+      }
     }
+    if (!bad.empty()) throw py::value_error(std::string(name) + ": " + bad);
     a.points = a.owned.get();
   } else {
     throw py::type_error(std::string(name) + " must be " + (allow_path ? "a file name (str or os.PathLike), " : "") +
@@ -356,24 +362,35 @@ CloudArg cloud_arg(py::handle v, const char* name, bool allow_path) {
 
 namespace {
 
+/// rayscan.write. The writer takes one PointCloud, which owns its arrays, so `fields` cannot be
+/// added to a PointCloud object's cloud as views: that cloud is copied (another Python thread may
+/// read it meanwhile, so it is not borrowed and given back), with the GIL released, as the write
+/// itself; `c.keep` holds the object for both. An array's cloud is already the call's own copy and
+/// takes the fields in place. The fields are converted to float64 first, with the GIL (NumPy).
 void write(py::handle path, py::handle cloud, const py::dict& fields) {
   const std::string file = path_arg(path, "path");
-  const CloudArg c = cloud_arg(cloud, "cloud", /*allow_path=*/false);
-  const PointCloud* pc = c.points;
-  PointCloud with;  // the cloud plus `fields`
-  if (!fields.empty()) {
-    with = *pc;
-    for (auto [k, v] : fields) {
-      const std::string name = py::str(k).cast<std::string>();
-      check_scalar_name(name, "write");
-      set_scalar(with, name, values_as<double>(column(v, name, pc->size(), 0, "biuf", "real numbers")));
-    }
-    pc = &with;
+  CloudArg c = cloud_arg(cloud, "cloud", /*allow_path=*/false);
+  std::vector<ScalarField> extra;
+  for (auto [k, v] : fields) {
+    const std::string name = py::str(k).cast<std::string>();
+    check_scalar_name(name, "write");
+    extra.push_back({name, values_as<double>(column(v, name, c.points->size(), 0, "biuf", "real numbers"))});
   }
   const io::LasWriteOptions las = c.info ? io::las_grid_of(*c.info) : io::LasWriteOptions{};
   std::string io_error;  // an I/O failure is an OSError, like an unreadable file
   {
     py::gil_scoped_release nogil;
+    const PointCloud* pc = c.points;
+    PointCloud copy;  // a PointCloud object's cloud plus `fields`
+    if (!extra.empty()) {
+      PointCloud* target = c.owned.get();
+      if (!target) {
+        copy = *pc;
+        target = &copy;
+      }
+      for (ScalarField& f : extra) set_scalar(*target, f.name, std::move(f.values));
+      pc = target;
+    }
     try {
       io::write_point_cloud(file, *pc, las);
     } catch (const std::invalid_argument&) {

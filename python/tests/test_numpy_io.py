@@ -253,6 +253,35 @@ def test_write_other_formats_round_trip(tmp_path, name):
     np.testing.assert_array_equal(back.scalars["score"], xyz[:, 0] / 3)
 
 
+def test_write_fields_go_to_the_file_not_to_the_cloud(tmp_path):
+    """write(path, cloud, **fields) writes the cloud plus the fields (a field replacing a scalar of
+    its name) and leaves the PointCloud, its views and an array argument as they were."""
+    rng = np.random.default_rng(5)
+    xyz = rng.random((40, 3)) * 100
+    score, other, new = xyz[:, 0] / 7, xyz[:, 1] / 3, np.arange(40) * 0.5
+    pc = rayscan.PointCloud(xyz, intensity=np.arange(40), scalars={"score": score, "other": other})
+    view = pc.scalars["score"]
+    rayscan.write(tmp_path / "pc.ply", pc, score=new, extra=-new)
+    back = rayscan.read(tmp_path / "pc.ply")
+    assert list(back.scalars) == ["score", "other", "extra"]
+    np.testing.assert_array_equal(back.xyz, xyz)
+    np.testing.assert_array_equal(back.intensity, np.arange(40))
+    np.testing.assert_array_equal(back.scalars["score"], new)
+    np.testing.assert_array_equal(back.scalars["other"], other)
+    np.testing.assert_array_equal(back.scalars["extra"], -new)
+    assert list(pc.scalars) == ["score", "other"]
+    np.testing.assert_array_equal(pc.scalars["score"], score)
+    np.testing.assert_array_equal(view, score)
+    copy = xyz.copy()
+    rayscan.write(tmp_path / "array.ply", xyz, extra=new)  # an array's cloud takes the field in place
+    back = rayscan.read(tmp_path / "array.ply")
+    np.testing.assert_array_equal(back.xyz, copy)
+    np.testing.assert_array_equal(back.scalars["extra"], new)
+    np.testing.assert_array_equal(xyz, copy)
+    with pytest.raises(ValueError, match=r"^cloud: PointCloud: point 1 has a non-finite coordinate"):
+        rayscan.write(tmp_path / "nan.ply", np.array([[0.0, 0, 0], [np.nan, 0, 0]]), extra=[1.0, 2.0])
+
+
 def test_write_keeps_the_source_grid_and_refuses_bad_requests(data_dir, tmp_path):
     src = data_dir / "las" / "autzen_trim.las"
     pc = rayscan.read(src)
