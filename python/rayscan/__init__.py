@@ -68,7 +68,11 @@ def read(path, attributes=None):
     attributes: None (everything the file has) or a list of names to keep, from "xyz", "rgb",
     "intensity", "classification", "gps_time", "normals" and the file's scalar fields (see
     PointCloud.attributes). Asking for an attribute the file lacks raises ValueError. Leaving
-    the scalar fields out saves 8 bytes per point and field.
+    the scalar fields out saves 8 bytes per point and field. A PLY, PCD or text field named
+    intensity, classification or gps_time fills that attribute when its values fit it (integers
+    in 0..65535 for intensity, 0..255 for classification), else it stays a float64 scalar field
+    of that name (docs/formats.md), with or without `attributes`: a PLY float intensity of 0..1
+    gives .intensity None and .scalars["intensity"]; pc["intensity"] gives either.
 
     Returns a PointCloud whose arrays (.xyz (N, 3) float64, .rgb (N, 3) uint16, .intensity,
     .classification, .gps_time, .normals, .scalars, .crs) are views of the reader's memory.

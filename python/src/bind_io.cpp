@@ -49,14 +49,30 @@ py::object scalar_attribute(py::object self, const std::string& name) {
   return f ? view_rows(f->values.data(), c.cloud.size(), 0, self) : py::object(py::none());
 }
 
+/// True when the reader of `path` delivers intensity, classification or GPS time as a named field
+/// first (PLY, PCD, text: docs/formats.md "Dedicated fields from named values"): the field moves
+/// to its dedicated attribute only when its values fit, else stays a scalar of that name, and
+/// either needs the scalars read. LAS and .f64 have no such fields (nor does a name no reader
+/// takes, which read_point_cloud refuses).
+bool named_core_fields(const std::string& path) {
+  try {
+    const io::Format f = io::format_from_extension(path);
+    return f == io::Format::ply || f == io::Format::pcd || f == io::Format::text;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
 PyCloud read(const std::string& path, const py::object& attributes) {
   std::optional<std::vector<std::string>> keep;
   if (!attributes.is_none()) keep = names_arg(attributes, "attributes");
   io::ReadOptions opts;
   if (keep) {
     const auto& std_names = standard_attributes();
+    const bool named_core = named_core_fields(path);
     opts.scalars = std::any_of(keep->begin(), keep->end(), [&](const std::string& n) {
-      return std::find(std_names.begin(), std_names.end(), n) == std_names.end();
+      const bool core = n == "intensity" || n == "classification" || n == "gps_time";
+      return (core && named_core) || std::find(std_names.begin(), std_names.end(), n) == std_names.end();
     });
   }
   PyCloud c;
@@ -67,7 +83,7 @@ PyCloud read(const std::string& path, const py::object& attributes) {
   }
   if (keep) {
     for (const std::string& n : *keep)
-      if (!c.has(n)) {
+      if (!c.has(n) && !c.cloud.scalar(n)) {  // (a scalar "intensity" whose values do not fit uint16)
         std::string have;
         for (const std::string& a : c.attributes()) have += (have.empty() ? "" : ", ") + a;
         throw py::value_error(path + ": no attribute '" + n + "' (the file has: " + have + ")");

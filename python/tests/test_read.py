@@ -139,6 +139,37 @@ def test_ply_vertices_equal_file_text(data_dir):
         np.testing.assert_array_equal(pc[name], vertices[:, k])
 
 
+@pytest.mark.parametrize("kind, values, dedicated", [
+    ("float", [0.25, 0.5, 1.0], False),        # the Stanford scanner's 0..1: stays a scalar
+    ("float", [1.0, 2.0, 300.0], True),         # whole and within uint16: the intensity
+    ("double", [1.0, 70000.0, 2.0], False),     # past uint16: stays a scalar
+    ("int", [1, 2, 65535], True),               # an integer type wider than 16 bits, values in range
+])
+def test_ply_named_intensity_as_the_reader_documents_it(tmp_path, kind, values, dedicated):
+    """A PLY `intensity` property that is not a 16-bit integer becomes the intensity when its values
+    fit uint16, else a float64 scalar of that name (docs/formats.md), and attributes=["intensity"]
+    gives what the whole read gives, never "no attribute 'intensity'"; other fields are left out."""
+    path = tmp_path / f"{kind}.ply"
+    body = "".join(f"{i} 0 {2 * i} {v} 0.5\n" for i, v in enumerate(values))
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                    f"property float z\nproperty {kind} intensity\nproperty float confidence\nend_header\n" + body)
+    full = rayscan.read(path)
+    only = rayscan.read(path, attributes=["intensity"])
+    assert only.attributes == ["xyz", "intensity"] and full.attributes == ["xyz", "intensity", "confidence"]
+    np.testing.assert_array_equal(only.xyz, [[0, 0, 0], [1, 0, 2], [2, 0, 4]])
+    for pc in (full, only):
+        np.testing.assert_array_equal(pc["intensity"], values)
+        if dedicated:
+            assert pc.intensity.dtype == np.uint16 and "intensity" not in pc.scalars
+            np.testing.assert_array_equal(pc.intensity, values)
+        else:
+            assert pc.intensity is None and pc.scalars["intensity"].dtype == np.float64
+            np.testing.assert_array_equal(pc.scalars["intensity"], values)
+    assert "confidence" not in only.scalars
+    with pytest.raises(ValueError, match=r"no attribute 'rgb' \(the file has: xyz, intensity, confidence\)"):
+        rayscan.read(path, attributes=["intensity", "rgb"])
+
+
 def test_file_errors_raise_oserror(tmp_path, data_dir):
     with pytest.raises(OSError, match="(?i)no such file"):
         rayscan.read(tmp_path / "missing.las")
