@@ -67,7 +67,7 @@ IndexOptions parse_index(Obj& parent, const std::string& key, NodeDistance& nd) 
   if (type == "octree") {
     opt.type = "octree-" + o.string("layout", "adaptive", {"adaptive", "layered", "fixed"});
     opt.depth = static_cast<unsigned>(o.integer("depth", 6, 0, 21));
-    opt.max_depth = static_cast<unsigned>(o.integer("max_depth", 21, 0, 21));
+    opt.max_depth = static_cast<unsigned>(o.integer("max_depth", 21, 1, 21));
     opt.insertion = o.string("build", "bulk", {"bulk", "insertion"}) == "insertion";
   } else {
     opt.type = type;

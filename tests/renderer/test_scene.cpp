@@ -110,6 +110,11 @@ TEST(Scene, BadFieldsNameFileAndJsonPointer) {
     "K": [[100, 0, 30], [0, 100, 20], [0, 0, 1]], "R": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "t": [0, 0, "a"]}})");
   EXPECT_EQ(error_of(p9), p9.string() + ": /camera/t/2: expected an array of 3 finite numbers");
 
+  // The index's depth range is the library's (OctreeConfig::validate, the CLI's --max-depth), named
+  // by its pointer here rather than failing later inside the build.
+  const fs::path p10 = write("e10.json", std::string(R"({"cloud": "x.xyz", "index": {"max_depth": 0}, )") + kCam + "}");
+  EXPECT_EQ(error_of(p10), p10.string() + ": /index/max_depth: expected an integer in [1, 21]");
+
   EXPECT_NE(error_of(scene_temp_dir() / "missing.json").find("missing.json: cannot open file"), std::string::npos);
 }
 
