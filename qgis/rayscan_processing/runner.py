@@ -3,6 +3,7 @@
 import json
 import os
 import queue
+import re
 import shutil
 import subprocess
 import threading
@@ -53,15 +54,33 @@ def _pump(stream, tag, out):
     out.put((tag, None))
 
 
-def run_rayscan(args, feedback, log_stdout=True):
+def name_options(line, labels):
+    """Refusal ``line`` of rayscan in an algorithm's terms: each option spelling that ``labels`` maps
+    (``--lat``, ``-o``) replaced by its label (the parameter), and CLI11's `` (see --help)`` dropped.
+
+    A spelling is replaced only as a whole word, so ``--lat`` leaves ``--latitude`` (its own entry)
+    and a path such as ``a--lat.las`` alone.
+    """
+    if line.endswith(" (see --help)"):
+        line = line[:-len(" (see --help)")]
+    if not labels:
+        return line
+    spellings = sorted(labels, key=len, reverse=True)
+    pattern = r"(?<![\w-])(" + "|".join(re.escape(s) for s in spellings) + r")(?![\w-])"
+    return re.sub(pattern, lambda m: labels[m.group(1)], line)
+
+
+def run_rayscan(args, feedback, log_stdout=True, labels=None):
     """Run ``rayscan ARGS``; return its standard output.
 
-    Standard error goes to the feedback's log, and its progress lines to ``feedback.setProgress``.
+    Standard error goes to the feedback's log (its options named by ``labels`` as in the error
+    below), and its progress lines to ``feedback.setProgress``.
     When the feedback is canceled the process is terminated (then killed after a grace period) and
     QgsProcessingException is raised; nothing it wrote is deleted: rayscan moves each output into
     place only when it is complete, so a canceled run leaves the earlier file, or none.
     A non-zero exit raises QgsProcessingException: rayscan's own one-line error for exit status 2
-    (its last line of standard error), else the status and the last lines of standard error.
+    (its last line of standard error, its options named by ``labels``: see name_options), else the
+    status and the last lines of standard error.
     """
     cmd = [find_executable()] + [str(a) for a in args]
     if feedback is not None:
@@ -102,7 +121,7 @@ def run_rayscan(args, feedback, log_stdout=True):
                 elif pct is not None:
                     feedback.setProgress(pct)
                 else:
-                    feedback.pushConsoleInfo(line)
+                    feedback.pushConsoleInfo(name_options(line, labels))
         code = proc.wait()
     if canceled:
         raise QgsProcessingException("rayscan was canceled")
@@ -111,7 +130,7 @@ def run_rayscan(args, feedback, log_stdout=True):
         # that line alone, without the log and progress lines before it. Any other status (a crash,
         # a kill) with the tail, since its last line may be an ordinary log line.
         if code == 2 and err_tail and err_tail[-1].startswith("rayscan "):
-            raise QgsProcessingException(err_tail[-1])
+            raise QgsProcessingException(name_options(err_tail[-1], labels))
         raise QgsProcessingException("rayscan exited with status {}:\n{}".format(code, "\n".join(err_tail)))
     return "\n".join(out)
 

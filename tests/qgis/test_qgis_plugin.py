@@ -1,13 +1,14 @@
 #!/usr/bin/env python3
 """The QGIS Processing plugin (qgis/rayscan_processing) under Debian's headless qgis_process.
 
-Checks: the progress parser and cancellation of runner.py against a stand-in executable; the
-plugin enabled in a throwaway profile; `qgis_process list` shows the five rayscan algorithms;
+Checks: the progress parser, cancellation and refusals of runner.py against a stand-in executable;
+the plugin enabled in a throwaway profile; `qgis_process list` shows the five rayscan algorithms;
 `qgis_process run rayscan:viewshed` writes the same GeoTIFF as `rayscan visibility` (cell for cell,
-also with observers in EPSG:4326 that the plugin reprojects); ortho_dsm, solar and
-point_visibility outputs (its point vector layer too) open with the cloud's CRS, quick_look's
-image opens. Exit 77 (skipped) when qgis_process is not
-installed.
+also with observers in EPSG:4326 that the plugin reprojects, and without a CRS, with a warning);
+ortho_dsm, solar and point_visibility outputs (its point vector layer too) open with the cloud's
+CRS, quick_look's image opens; PRIMITIVE and solar's VALUE offer the CLI's own values (its --help),
+and rayscan's refusals reach the user naming the parameters, not the CLI's options. Exit 77
+(skipped) when qgis_process is not installed.
 
 Usage: test_qgis_plugin.py RAYSCAN PLUGIN_DIR PLUGIN_ZIP CLOUD WORK_DIR
 PLUGIN_DIR holds the build's copy rayscan_processing/ (the in-process checks import it); qgis_process
@@ -97,6 +98,7 @@ def unit_tests(plugin_dir, work):
                 "for i in 1 2 3; do echo \"progress: $i/4 chunks  $((i * 25)).0%  10 points/s  ETA 1 s\" >&2; done\n"
                 "echo result\n"
                 "[ \"$1\" = fail ] && { echo 'fake: broken' >&2; exit 3; }\n"
+                "[ \"$1\" = refuse ] && { echo \"$2\" >&2; exit 2; }\n"
                 "[ \"$1\" = slow ] && exec sleep 60\nexit 0\n")
     os.chmod(fake, os.stat(fake).st_mode | stat.S_IXUSR)
     saved = os.environ.get("RAYSCAN_EXECUTABLE")
@@ -111,6 +113,26 @@ def unit_tests(plugin_dir, work):
             check(False, "run_rayscan raises on a non-zero exit")
         except QgsProcessingException as e:
             check("status 3" in str(e) and "fake: broken" in str(e), "run_rayscan raises on a non-zero exit: " + str(e).splitlines()[0])
+        # A refusal (exit 2) names the parameters that the labels give for the options' spellings:
+        # CLI11 names an option by its first spelling (--lat), the job's checks by its long one.
+        labels = {"--lat": "Latitude [LATITUDE]", "--latitude": "Latitude [LATITUDE]", "-o": "Points [POINTS]",
+                  "--out": "Points [POINTS]"}
+        for line, expected in [
+                ("rayscan solar: --lat: expected a finite number in [-90, 90], got '95' (see --help)",
+                 "rayscan solar: Latitude [LATITUDE]: expected a finite number in [-90, 90], got '95'"),
+                ("rayscan solar: --latitude and --longitude go together",
+                 "rayscan solar: Latitude [LATITUDE] and --longitude go together"),
+                ("rayscan solar: --out 'x--lat-o.foo': expected a file name ending in .las",
+                 "rayscan solar: Points [POINTS] 'x--lat-o.foo': expected a file name ending in .las")]:
+            fb = Feedback()
+            try:
+                runner.run_rayscan(["refuse", line], fb, labels=labels)
+                got = None
+            except QgsProcessingException as e:
+                got = str(e)
+            # The log has the refusal line in the same terms (its lines from two pipes, in either order).
+            check(got == expected and expected in fb.log and line not in fb.log,
+                  "run_rayscan: refusal {!r} reads {!r}, in the log too".format(line, got))
         start = time.monotonic()
         try:
             runner.run_rayscan(["slow"], Feedback(cancel_at=50.0))
@@ -131,11 +153,27 @@ def unit_tests(plugin_dir, work):
             os.environ["RAYSCAN_EXECUTABLE"] = saved
 
 
-def desktop_checks(plugin_dir, cloud, work):
+def cli_choices(rayscan, command, option):
+    """The values `rayscan COMMAND --help` gives for OPTION: CLI11's {a,b} set and its =default (or
+    None); else the words of the description's "a | b | c" lists, in order, each once, and None."""
+    import re
+    text = subprocess.check_output([rayscan, command, "--help"], universal_newlines=True)
+    m = re.search(r"^\s*{} TEXT:\{{([^}}]*)\}}(?:=(\S+))?".format(re.escape(option)), text, re.M)
+    if m:
+        return m.group(1).split(","), m.group(2)
+    m = re.search(r"^\s*{} TEXT\s+(.*)$".format(re.escape(option)), text, re.M)
+    words = []
+    for run in re.findall(r"\w+(?: \| \w+)+", m.group(1) if m else ""):
+        words += [w for w in run.split(" | ") if w not in words]
+    return words, None
+
+
+def desktop_checks(plugin_dir, cloud, work, rayscan):
     """The desktop's way in (classFactory, initGui, unload) with the Processing plugin: the provider,
-    its executable option in Processing's settings, an algorithm run as the Python console runs it
-    (processing.run) and as the batch dialog does (QgsProcessingAlgorithm.run), and the provider and
-    option gone after unload."""
+    its executable option in Processing's settings, the parameters that mirror CLI options (each
+    option table entry a parameter, PRIMITIVE and solar's VALUE the CLI's values), an algorithm run
+    as the Python console runs it (processing.run) and as the batch dialog does
+    (QgsProcessingAlgorithm.run), and the provider and option gone after unload."""
     from qgis.core import QgsApplication
     app = QgsApplication([], True)  # offscreen (QT_QPA_PLATFORM)
     app.initQgis()
@@ -156,6 +194,24 @@ def desktop_checks(plugin_dir, cloud, work):
     check(types.get("INPUT") == "file" and types.get("OBSERVERS") == "source"
           and types.get("OUTPUT") == "rasterDestination",
           "desktop: viewshed's parameter types {}".format(types))
+    algs = {a: registry.createAlgorithmById("rayscan:" + a) for a in ALGORITHMS}
+    for a, alg in algs.items():
+        missing = [n for n in alg.FLAGS if alg.parameterDefinition(n) is None]
+        check(alg.FLAGS and not missing, "desktop: {}'s option table names its parameters (missing: {})".format(a, missing))
+    # PRIMITIVE: one numbering everywhere, the CLI's values, and each algorithm's default the CLI's.
+    for a, command in (("quick_look", "render"), ("point_visibility", "visibility"), ("solar", "solar")):
+        d = algs[a].parameterDefinition("PRIMITIVE")
+        values, default = cli_choices(rayscan, command, "--primitive")
+        options = d.options() if d else []
+        check(options == ["surfel", "sphere"] and sorted(options) == sorted(values)
+              and (default is None or options[d.defaultValue()] == default),
+              "desktop: {}'s PRIMITIVE {} (default {}) has rayscan {} --primitive's values {} (default {})".format(
+                  a, options, d.defaultValue() if d else None, command, values, default))
+    d = algs["solar"].parameterDefinition("VALUE")
+    values, _ = cli_choices(rayscan, "solar", "--raster-value")
+    check(d is not None and d.type() == "enum" and d.options()[1:] == values and d.defaultValue() == 0,
+          "desktop: solar's VALUE is 'default' then rayscan solar --raster-value's {}: {}".format(
+              values, d.options() if d else None))
     import processing
     from qgis.core import QgsProcessingContext, QgsProcessingFeedback
     from osgeo import gdal
@@ -239,7 +295,7 @@ def main():
         return r.returncode, r.stdout
 
     unit_tests(plugin_dir, work)
-    keep_alive.append(desktop_checks(plugin_dir, cloud, work))  # the QgsApplication, for the transforms below
+    keep_alive.append(desktop_checks(plugin_dir, cloud, work, rayscan))  # the QgsApplication, for the transforms below
 
     code, _ = qp("plugins", "enable", "rayscan_processing")
     check(code == 0, "qgis_process plugins enable rayscan_processing")
@@ -267,9 +323,10 @@ def main():
                            "--height", str(HEIGHT), "--raster", cli_tif, "--cell", str(CELL), "-q"])
     cli = read_raster(cli_tif)
 
-    def same_viewshed(observers, extra, what):
+    def same_viewshed(observers, extra, what, expect=()):
+        """Run rayscan:viewshed; check its GeoTIFF against the CLI's, and its output for each text of ``expect``."""
         out_tif = os.path.join(work, "qgis_viewshed_{}.tif".format(len(os.listdir(work))))
-        code, _ = qp("run", "rayscan:viewshed", "--", "INPUT=" + cloud, "OBSERVERS=" + observers,
+        code, out = qp("run", "rayscan:viewshed", "--", "INPUT=" + cloud, "OBSERVERS=" + observers,
                      "CELL={}".format(CELL), "OUTPUT=" + out_tif, *extra)
         got = read_raster(out_tif) if code == 0 else None
         import numpy
@@ -278,7 +335,7 @@ def main():
         detail = ""
         if got is not None and got[0].shape == cli[0].shape:
             detail = "{} of {} cells differ".format(int((got[0] != cli[0]).sum()), cli[0].size)
-        check(equal, "{}: same GeoTIFF as rayscan visibility, cell for cell ({}x{} cells, {}; {} visible, {} NoData; "
+        check(equal and all(w in out for w in expect), "{}: same GeoTIFF as rayscan visibility, cell for cell ({}x{} cells, {}; {} visible, {} NoData; "
               "files byte-identical: {})".format(what, cli[0].shape[1], cli[0].shape[0], detail or "unreadable",
                                                 int((cli[0] == 1).sum()), int((cli[0] == cli[3]).sum()),
                                                 got is not None and open(out_tif, "rb").read() == open(cli_tif, "rb").read()))
@@ -308,6 +365,16 @@ def main():
             "geometry": {"type": "Point", "coordinates": [lonlat.x(), lonlat.y()]}}]}, f)
     same_viewshed(geojson, ["HEIGHT=1", "HEIGHT_FIELD=eye"], "viewshed, observer in EPSG:4326 reprojected, height from a field")
 
+    # The observer in the cloud's coordinates in a shapefile without a .prj: no CRS. It is taken
+    # to be in the cloud's CRS, as QGIS's own algorithms take an unknown CRS, and the log says so.
+    shp = os.path.join(work, "observer_nocrs.shp")
+    subprocess.check_call(["ogr2ogr", "-f", "ESRI Shapefile", shp, csv_path, "-oo", "X_POSSIBLE_NAMES=x",
+                           "-oo", "Y_POSSIBLE_NAMES=y"])
+    check(not os.path.exists(shp[:-4] + ".prj"), "the shapefile observer_nocrs has no .prj")
+    same_viewshed(shp, ["HEIGHT={}".format(HEIGHT)], "viewshed, observer layer without a CRS (warned)",
+                  expect=("WARNING:\tObserver layer 'observer_nocrs' has no CRS: its coordinates are taken to "
+                          "be in the cloud's CRS",))
+
     ortho, dsm = os.path.join(work, "ortho.tif"), os.path.join(work, "dsm.tif")
     code, _ = qp("run", "rayscan:ortho_dsm", "--", "INPUT=" + cloud, "CELL={}".format(CELL), "SPP=2",
                  "ORTHO=" + ortho, "DSM=" + dsm)
@@ -334,6 +401,25 @@ def main():
           "solar: shadow map (0/1) with the cloud's CRS")
     fields = json.loads(subprocess.check_output([rayscan, "info", "--json", solar_las])) if code == 0 else {}
     check("in_shadow" in json.dumps(fields.get("attributes", fields)), "solar: the cloud has the field in_shadow")
+
+    # rayscan's refusals name the parameters: the solar job refuses a latitude without a longitude
+    # (naming --latitude where the plugin passed --lat) and an instant's map value that only a
+    # period has. The command line in the log carries PRIMITIVE's value.
+    refused = os.path.join(work, "refused.tif")
+    raster_values, _ = cli_choices(rayscan, "solar", "--raster-value")
+    for extra, command_has, error_has in [
+            (["LATITUDE=45"], "--primitive sphere",
+             "rayscan solar: Latitude (degrees; default from the CRS) [LATITUDE] and "
+             "Longitude (degrees; default from the CRS) [LONGITUDE] go together"),
+            (["VALUE={}".format(1 + raster_values.index("sun_hours")), "PRIMITIVE=0"], "--primitive surfel",
+             "rayscan solar: Map value [VALUE] 'sun_hours': expected in_shadow, global, beam or diffuse")]:
+        code, out = qp("run", "rayscan:solar", "--", "INPUT=" + cloud, "MODE=1", "AT=2026-06-21T13:00-07:00",
+                       "CELL={}".format(CELL), "OUTPUT=" + refused, *extra)
+        errors = [line for line in out.splitlines() if line.startswith("ERROR:")]
+        commands = [line for line in out.splitlines() if line.startswith(rayscan + " solar ")]
+        check(code != 0 and len(errors) == 1 and error_has in errors[0] and " -" not in errors[0]
+              and len(commands) == 1 and command_has in commands[0] and not os.path.exists(refused),
+              "solar {}: refused, naming the parameters: {}; command {}".format(" ".join(extra), errors, commands))
 
     pv, pv_layer = os.path.join(work, "visible.laz"), os.path.join(work, "visible.gpkg")
     code, _ = qp("run", "rayscan:point_visibility", "--", "INPUT=" + cloud, "OBSERVERS=" + gpkg,

@@ -5,8 +5,9 @@ import os
 
 from qgis.core import (QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry, QgsPoint,
                        QgsProcessing, QgsProcessingAlgorithm, QgsProcessingContext,
-                       QgsProcessingException, QgsProcessingParameterFile, QgsProcessingParameterNumber,
-                       QgsProcessingUtils,
+                       QgsProcessingException, QgsProcessingParameterDefinition,
+                       QgsProcessingParameterEnum, QgsProcessingParameterFile,
+                       QgsProcessingParameterNumber, QgsProcessingUtils,
                        QgsProviderRegistry, QgsWkbTypes)
 from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
@@ -17,6 +18,9 @@ CLOUD_FILTER = ("Point clouds (*.las *.LAS *.laz *.LAZ *.copc.laz *.ply *.pcd *.
                 "All files (*.*)")
 #: The per-point outputs rayscan writes, by extension.
 POINTS_FILTER = "LAS (*.las);;LAZ (*.laz);;PLY (*.ply);;PCD (*.pcd);;CSV (*.csv);;XYZ (*.xyz)"
+#: The values of `--primitive` (render, visibility, solar), numbered alike in every algorithm's
+#: PRIMITIVE so that one index means one geometry in models and scripts.
+PRIMITIVES = ["surfel", "sphere"]
 
 
 class RayscanAlgorithm(QgsProcessingAlgorithm):
@@ -26,6 +30,12 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
     DISPLAY = ""
     HELP = ""
     INPUT = "INPUT"
+    #: The rayscan options the algorithm sets from its parameters, defined once: parameter name ->
+    #: the option's spellings as the CLI declares them, comma-separated ("--lat,--latitude"). The
+    #: first spelling goes on the command line (option(), flag()); rayscan's refusals name either
+    #: (CLI11 the first it declares, the job's checks the long one), and run_cli replaces each by
+    #: the parameter (option_labels()).
+    FLAGS = {}
 
     def tr(self, text):
         """Translate ``text`` in the plugin's context."""
@@ -73,6 +83,31 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
             "SPP", self.tr("Samples per pixel"), QgsProcessingParameterNumber.Integer, 16,
             minValue=1, maxValue=1048576))
 
+    def add_primitive_parameter(self, description, default, advanced=False):
+        """Add PRIMITIVE, an enum over PRIMITIVES (rayscan's `--primitive`), defaulting to ``default``."""
+        p = QgsProcessingParameterEnum("PRIMITIVE", self.tr(description), PRIMITIVES,
+                                       defaultValue=PRIMITIVES.index(default))
+        if advanced:
+            p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+        self.addParameter(p)
+
+    def flag(self, name):
+        """The command-line option that parameter ``name`` sets (the first spelling in FLAGS)."""
+        return self.FLAGS[name].split(",")[0]
+
+    def option(self, name, value):
+        """``[flag, value]``: the option that parameter ``name`` sets, with ``value``."""
+        return [self.flag(name), value]
+
+    def option_labels(self):
+        """Each spelling of each option in FLAGS -> its parameter as the user sees it, "Description [NAME]"."""
+        labels = {}
+        for name, spellings in self.FLAGS.items():
+            label = "{} [{}]".format(self.parameterDefinition(name).description(), name)
+            for spelling in spellings.split(","):
+                labels[spelling] = label
+        return labels
+
     def cloud(self, parameters, context):
         """The point cloud path of INPUT, checked to exist."""
         path = self.parameterAsFile(parameters, self.INPUT, context)
@@ -83,10 +118,11 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
     def run_cli(self, args, feedback):
         """Run ``rayscan ARGS`` with the feedback's progress and cancellation; return stdout.
 
-        (Not named ``run``: that is QgsProcessingAlgorithm.run, which processing.run and the batch
-        dialog call.)
+        A refusal (QgsProcessingException) names the algorithm's parameters where rayscan names
+        the options of FLAGS. (Not named ``run``: that is QgsProcessingAlgorithm.run, which
+        processing.run and the batch dialog call.)
         """
-        return runner.run_rayscan(args, feedback)
+        return runner.run_rayscan(args, feedback, labels=self.option_labels())
 
     @staticmethod
     def check_extension(path, extensions, what):
@@ -130,7 +166,7 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
 
     def _csv_to_sink(self, text, cloud_file, parameters, sink_name, crs, context, feedback):
         """cloud_to_sink's work, through the temporary CSV file ``text`` (removed by the caller)."""
-        self.run_cli(["translate", cloud_file, text], feedback)
+        runner.run_rayscan(["translate", cloud_file, text], feedback)
         with open(text, newline="", encoding="utf-8") as f:
             total = max(1, sum(1 for _ in f) - 1)
         with open(text, newline="", encoding="utf-8") as f:

@@ -54,7 +54,8 @@ def write_observers(alg, parameters, context, feedback, cloud):
     (path, the cloud's CRS).
 
     The layer is reprojected to the cloud's CRS when both are known and differ, as rayscan reads
-    observer coordinates in the cloud's own coordinates. Raises QgsProcessingException for a
+    observer coordinates in the cloud's own coordinates; a layer without a CRS is taken to be in
+    the cloud's, with a warning naming the layer. Raises QgsProcessingException for a
     missing layer, a layer without Z when USE_Z is set, or a layer without points.
     """
     source = alg.parameterAsSource(parameters, OBSERVERS, context)
@@ -68,7 +69,12 @@ def write_observers(alg, parameters, context, feedback, cloud):
 
     target = runner.cloud_crs(cloud, feedback)
     transform = None
-    if target.isValid() and source.sourceCrs().isValid() and source.sourceCrs() != target:
+    if target.isValid() and not source.sourceCrs().isValid():
+        # As QGIS's own algorithms do (an unknown CRS matches any, a transform from it does
+        # nothing), but said, since a layer in other coordinates lands elsewhere or nowhere.
+        feedback.pushWarning(alg.tr("Observer layer '{}' has no CRS: its coordinates are taken to be in the "
+                                    "cloud's CRS {}").format(source.sourceName(), target.userFriendlyIdentifier()))
+    elif target.isValid() and source.sourceCrs() != target:
         transform = QgsCoordinateTransform(source.sourceCrs(), target, context.transformContext())
         if _same_place(transform, source.sourceExtent()):
             transform = None

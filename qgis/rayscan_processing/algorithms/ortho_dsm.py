@@ -17,6 +17,7 @@ class OrthoDsm(RayscanAlgorithm):
             "algorithm sees over.")
     ORTHO = "ORTHO"
     DSM = "DSM"
+    FLAGS = {"CELL": "--ortho-map", "SPP": "--spp", "DSM": "--dsm", "ORTHO": "--out,-o"}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS's name)
         """Declare the parameters."""
@@ -33,7 +34,7 @@ class OrthoDsm(RayscanAlgorithm):
         dsm = self.parameterAsOutputLayer(parameters, self.DSM, context)
         self.check_extension(ortho, (".tif", ".tiff"), "The orthophoto")
         self.check_extension(dsm, (".tif", ".tiff"), "The DSM")
-        self.run_cli(["render", cloud, "--ortho-map", self.parameterAsDouble(parameters, "CELL", context),
-                  "--spp", self.parameterAsInt(parameters, "SPP", context),
-                  "--dsm", dsm, "--out", ortho], feedback)
+        self.run_cli(["render", cloud] + self.option("CELL", self.parameterAsDouble(parameters, "CELL", context))
+                     + self.option("SPP", self.parameterAsInt(parameters, "SPP", context))
+                     + self.option("DSM", dsm) + self.option("ORTHO", ortho), feedback)
         return {self.ORTHO: ortho, self.DSM: dsm}

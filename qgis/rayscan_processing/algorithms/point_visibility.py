@@ -1,14 +1,11 @@
 """Per-point visibility: `rayscan visibility CLOUD --observers CSV -o OUT.las`."""
 
-from qgis.core import (QgsProcessing, QgsProcessingParameterBoolean,
-                       QgsProcessingParameterDefinition, QgsProcessingParameterEnum,
+from qgis.core import (QgsProcessing, QgsProcessingParameterBoolean, QgsProcessingParameterDefinition,
                        QgsProcessingParameterFeatureSink, QgsProcessingParameterFileDestination,
                        QgsProcessingParameterNumber)
 
 from . import observers
-from .base import POINTS_FILTER, RayscanAlgorithm
-
-_PRIMITIVES = ["surfel", "sphere"]
+from .base import POINTS_FILTER, PRIMITIVES, RayscanAlgorithm
 
 
 class PointVisibility(RayscanAlgorithm):
@@ -25,13 +22,14 @@ class PointVisibility(RayscanAlgorithm):
             "(fine for thousands to a few million points).")
     OUTPUT = "OUTPUT"
     POINTS_LAYER = "POINTS_LAYER"
+    FLAGS = {observers.OBSERVERS: "--observers", "OUTPUT": "-o,--out", "PRIMITIVE": "--primitive",
+             "DISTANCE": "--distance", "MAX_DISTANCE": "--max-distance"}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS's name)
         """Declare the parameters."""
         self.add_cloud_parameter()
         observers.add_observer_parameters(self)
-        self.addParameter(QgsProcessingParameterEnum(
-            "PRIMITIVE", self.tr("Geometry of each point"), _PRIMITIVES, defaultValue=0))
+        self.add_primitive_parameter("Geometry of each point", "surfel")
         self.addParameter(QgsProcessingParameterBoolean(
             "DISTANCE", self.tr("Add the field visible_distance"), defaultValue=False))
         max_distance = QgsProcessingParameterNumber(
@@ -51,13 +49,13 @@ class PointVisibility(RayscanAlgorithm):
         out = self.parameterAsFileOutput(parameters, self.OUTPUT, context)
         self.check_extension(out, (".las", ".laz", ".ply", ".pcd", ".csv", ".xyz"), "The output cloud")
         csv_path, crs = observers.write_observers(self, parameters, context, feedback, cloud)
-        args = ["visibility", cloud, "--observers", csv_path, "-o", out,
-                "--primitive", _PRIMITIVES[self.parameterAsEnum(parameters, "PRIMITIVE", context)]]
+        args = (["visibility", cloud] + self.option(observers.OBSERVERS, csv_path) + self.option("OUTPUT", out)
+                + self.option("PRIMITIVE", PRIMITIVES[self.parameterAsEnum(parameters, "PRIMITIVE", context)]))
         if self.parameterAsBool(parameters, "DISTANCE", context):
-            args.append("--distance")
+            args.append(self.flag("DISTANCE"))
         max_distance = self.parameterAsDouble(parameters, "MAX_DISTANCE", context)
         if max_distance > 0:
-            args += ["--max-distance", max_distance]
+            args += self.option("MAX_DISTANCE", max_distance)
         self.run_cli(args, feedback)
         results = {self.OUTPUT: out}
         self.load_cloud_on_completion(out, self.tr("Per-point visibility"), self.OUTPUT, context, feedback)

@@ -1,11 +1,8 @@
 """Quick look: `rayscan render CLOUD --out IMAGE`, a path-traced overview of the cloud."""
 
-from qgis.core import (QgsProcessingParameterEnum, QgsProcessingParameterFileDestination,
-                       QgsProcessingParameterNumber, QgsProcessingUtils)
+from qgis.core import QgsProcessingParameterFileDestination, QgsProcessingParameterNumber, QgsProcessingUtils
 
-from .base import RayscanAlgorithm
-
-_PRIMITIVES = ["surfel", "sphere"]
+from .base import PRIMITIVES, RayscanAlgorithm
 
 
 class QuickLook(RayscanAlgorithm):
@@ -18,6 +15,7 @@ class QuickLook(RayscanAlgorithm):
             "The image is a perspective view, so it has no map coordinates: it loads as a picture "
             "without a CRS. For a map use Ortho + DSM.")
     OUTPUT = "OUTPUT"
+    FLAGS = {"WIDTH": "--width", "SPP": "--spp", "PRIMITIVE": "--primitive", "OUTPUT": "--out,-o"}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS's name)
         """Declare the parameters."""
@@ -26,8 +24,7 @@ class QuickLook(RayscanAlgorithm):
             "WIDTH", self.tr("Image width (pixels; the height follows the camera's aspect ratio)"),
             QgsProcessingParameterNumber.Integer, 1024, minValue=1, maxValue=65536))
         self.add_spp_parameter()
-        self.addParameter(QgsProcessingParameterEnum(
-            "PRIMITIVE", self.tr("Geometry of each point"), _PRIMITIVES, defaultValue=0))
+        self.add_primitive_parameter("Geometry of each point", "surfel")
         self.addParameter(QgsProcessingParameterFileDestination(
             self.OUTPUT, self.tr("Quick look image"),
             "PNG (*.png);;JPEG (*.jpg *.jpeg);;TIFF (*.tif *.tiff);;OpenEXR (*.exr)"))
@@ -37,11 +34,11 @@ class QuickLook(RayscanAlgorithm):
         cloud = self.cloud(parameters, context)
         out = self.parameterAsFileOutput(parameters, self.OUTPUT, context)
         self.check_extension(out, (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr"), "The quick look")
-        self.run_cli(["render", cloud, "--out", out,
-                  "--width", self.parameterAsInt(parameters, "WIDTH", context),
-                  "--spp", self.parameterAsInt(parameters, "SPP", context),
-                  "--primitive", _PRIMITIVES[self.parameterAsEnum(parameters, "PRIMITIVE", context)]],
-                 feedback)
+        self.run_cli(["render", cloud] + self.option("OUTPUT", out)
+                     + self.option("WIDTH", self.parameterAsInt(parameters, "WIDTH", context))
+                     + self.option("SPP", self.parameterAsInt(parameters, "SPP", context))
+                     + self.option("PRIMITIVE", PRIMITIVES[self.parameterAsEnum(parameters, "PRIMITIVE", context)]),
+                     feedback)
         self.load_on_completion(out, self.tr("Quick look"), self.OUTPUT, context,
                                 QgsProcessingUtils.LayerHint.Raster)
         return {self.OUTPUT: out}

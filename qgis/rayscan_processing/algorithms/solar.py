@@ -5,10 +5,12 @@ from qgis.core import (QgsProcessingException, QgsProcessingParameterDefinition,
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
                        QgsProcessingParameterString)
 
-from .base import POINTS_FILTER, RayscanAlgorithm
+from .base import POINTS_FILTER, PRIMITIVES, RayscanAlgorithm
 
 _MODES = ["period (irradiation, kWh/m²)", "instant (shadows)"]
-_PRIMITIVES = ["sphere", "surfel"]
+# `rayscan solar --raster-value` (its help): a period's values, then the one only an instant has
+# (an instant also takes global, beam and diffuse). The CLI refuses a value the mode lacks.
+_VALUES = ["global", "beam", "diffuse", "reflected", "sun_hours", "sky_view", "in_shadow"]
 
 
 class Solar(RayscanAlgorithm):
@@ -26,6 +28,10 @@ class Solar(RayscanAlgorithm):
             "the optional cloud output carries every per-point field.")
     OUTPUT = "OUTPUT"
     POINTS = "POINTS"
+    FLAGS = {"START": "--start", "END": "--end", "STEP": "--step", "AT": "--at", "VALUE": "--raster-value",
+             "CELL": "--cell", "LATITUDE": "--lat,--latitude", "LONGITUDE": "--lon,--longitude",
+             "LINKE": "--linke", "SECTOR": "--sector", "PRIMITIVE": "--primitive", "OUTPUT": "--raster",
+             "POINTS": "-o,--out"}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS's name)
         """Declare the parameters."""
@@ -39,9 +45,9 @@ class Solar(RayscanAlgorithm):
             "STEP", self.tr("Period time step (15min, 30min or 1h; at most 1h)"), defaultValue="1h"))
         self.addParameter(QgsProcessingParameterString(
             "AT", self.tr("Instant (ISO 8601, e.g. 2026-06-21T13:00-07:00)"), optional=True))
-        self.addParameter(QgsProcessingParameterString(
-            "VALUE", self.tr("Map value (empty: global for a period, in_shadow for an instant)"),
-            optional=True))
+        self.addParameter(QgsProcessingParameterEnum(
+            "VALUE", self.tr("Map value"),
+            [self.tr("default (global for a period, in_shadow for an instant)")] + _VALUES, defaultValue=0))
         self.add_cell_parameter()
         advanced = [
             QgsProcessingParameterNumber("LATITUDE", self.tr("Latitude (degrees; default from the CRS)"),
@@ -52,12 +58,12 @@ class Solar(RayscanAlgorithm):
                                          QgsProcessingParameterNumber.Double, 3.0, False, 1.0, 10.0),
             QgsProcessingParameterNumber("SECTOR", self.tr("Sun-map sector edge (degrees; 0 = one ray per step)"),
                                          QgsProcessingParameterNumber.Double, 1.0, False, 0.0, 30.0),
-            QgsProcessingParameterEnum("PRIMITIVE", self.tr("Geometry that casts shadows"), _PRIMITIVES,
-                                       defaultValue=0),
         ]
         for p in advanced:
             p.setFlags(p.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
             self.addParameter(p)
+        # The CLI's default geometry for shadows is the sphere.
+        self.add_primitive_parameter("Geometry that casts shadows", "sphere", advanced=True)
         self.addParameter(QgsProcessingParameterRasterDestination(self.OUTPUT, self.tr("Solar map")))
         self.addParameter(QgsProcessingParameterFileDestination(
             self.POINTS, self.tr("Cloud with solar fields"), POINTS_FILTER, optional=True,
@@ -68,33 +74,33 @@ class Solar(RayscanAlgorithm):
         cloud = self.cloud(parameters, context)
         out = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
         self.check_extension(out, (".tif", ".tiff"), "The solar map")
-        args = ["solar", cloud, "--raster", out, "--no-preview",
-                "--cell", self.parameterAsDouble(parameters, "CELL", context),
-                "--linke", self.parameterAsDouble(parameters, "LINKE", context),
-                "--sector", self.parameterAsDouble(parameters, "SECTOR", context),
-                "--primitive", _PRIMITIVES[self.parameterAsEnum(parameters, "PRIMITIVE", context)]]
+        args = (["solar", cloud] + self.option("OUTPUT", out) + ["--no-preview"]
+                + self.option("CELL", self.parameterAsDouble(parameters, "CELL", context))
+                + self.option("LINKE", self.parameterAsDouble(parameters, "LINKE", context))
+                + self.option("SECTOR", self.parameterAsDouble(parameters, "SECTOR", context))
+                + self.option("PRIMITIVE", PRIMITIVES[self.parameterAsEnum(parameters, "PRIMITIVE", context)]))
         if self.parameterAsEnum(parameters, "MODE", context) == 0:
             start = self.parameterAsString(parameters, "START", context).strip()
             end = self.parameterAsString(parameters, "END", context).strip()
             if not start or not end:
                 raise QgsProcessingException(self.tr("A period needs a start and an end"))
-            args += ["--start", start, "--end", end,
-                     "--step", self.parameterAsString(parameters, "STEP", context).strip() or "1h"]
+            args += (self.option("START", start) + self.option("END", end)
+                     + self.option("STEP", self.parameterAsString(parameters, "STEP", context).strip() or "1h"))
         else:
             at = self.parameterAsString(parameters, "AT", context).strip()
             if not at:
                 raise QgsProcessingException(self.tr("An instant needs a time (AT)"))
-            args += ["--at", at]
-        value = self.parameterAsString(parameters, "VALUE", context).strip()
-        if value:
-            args += ["--raster-value", value]
-        for name, flag in (("LATITUDE", "--lat"), ("LONGITUDE", "--lon")):
+            args += self.option("AT", at)
+        value = self.parameterAsEnum(parameters, "VALUE", context)
+        if value > 0:
+            args += self.option("VALUE", _VALUES[value - 1])
+        for name in ("LATITUDE", "LONGITUDE"):
             given = parameters.get(name)
             if given is not None and str(given) not in ("", "NULL"):
-                args += [flag, self.parameterAsDouble(parameters, name, context)]
+                args += self.option(name, self.parameterAsDouble(parameters, name, context))
         points = self.parameterAsFileOutput(parameters, self.POINTS, context)
         if points:
-            args += ["-o", points]
+            args += self.option("POINTS", points)
         self.run_cli(args, feedback)
         results = {self.OUTPUT: out}
         if points:
