@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <exception>
 #include <iostream>
+#include <new>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -136,9 +137,11 @@ int main(int argc, char** argv) {
       // library names by its field is printed as this command's flag.
       const std::string name = sub->get_name();
       const auto* option_error = dynamic_cast<const rayscan::OptionError*>(&e);
+      // An allocation that failed (std::bad_alloc from any step of the job) says so in words.
       const std::string message =
           option_error ? option_error->spelled([&](std::string_view f) { return rayscan::cli::flag_for(name, f); })
-                       : std::string(e.what());
+          : dynamic_cast<const std::bad_alloc*>(&e) ? "out of memory (" + std::string(e.what()) + ")"
+                                                  : std::string(e.what());
       return fail("rayscan " + name + ": " + rayscan::one_line(message));
     }
   }

@@ -4,6 +4,7 @@
 #include "cloud_site.hpp"
 
 #include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/file_names.hpp"
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/camera/camera_file.hpp"
@@ -27,6 +28,8 @@
 #include <optional>
 #include <utility>
 
+#include <unistd.h>
+
 namespace rayscan::jobs {
 
 using namespace rayscan::render;  // the renderer library's types, which this job speaks in
@@ -38,6 +41,56 @@ std::string num17(double v) {
   char b[64];
   std::snprintf(b, sizeof b, "%.17g", v);
   return b;
+}
+
+// True in one process and on the root of several (the process that writes the image).
+bool is_root(const JobControl& ctl) { return !ctl.distributor || ctl.distributor->is_root(); }
+
+// The machine's physical memory in bytes (sysconf), 0 when the system does not say.
+std::uint64_t physical_memory_bytes() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
+  return pages > 0 && page > 0 ? std::uint64_t(pages) * std::uint64_t(page) : 0;
+}
+
+// Bytes per pixel that a render of `aovs` holds at its peak: the framebuffer (beauty 12, depth 4,
+// normal 12, position 12, index 4, albedo 12, cost 4; render::Framebuffer) and, when the image is
+// written to `image`, render::write_image's copies beside it: the exposure-scaled beauty (12) and
+// the float image of the larger file it interleaves (4 per channel, the index as 4-byte ids; an
+// .exr holds beauty and AOVs in one file, other formats beauty, then the AOVs apart). The points,
+// the index and the image library's encoder buffers are not counted: a lower bound.
+std::uint64_t render_bytes_per_pixel(std::span<const Aov> aovs, bool write, const std::filesystem::path& image) {
+  std::uint64_t fb = 12, aov_channels = 0;  // float AOV channels, as write_image interleaves them
+  bool index = false;
+  for (Aov a : aovs) switch (a) {
+      case Aov::depth: fb += 4, aov_channels += 1; break;
+      case Aov::normal: fb += 12, aov_channels += 3; break;
+      case Aov::position: fb += 12, aov_channels += 3; break;
+      case Aov::index: fb += 4, index = true; break;
+      case Aov::albedo: fb += 12, aov_channels += 3; break;
+      case Aov::cost: fb += 4, aov_channels += 1; break;
+    }
+  if (!write) return fb;
+  const std::uint64_t aov_image = 4 * aov_channels + (index ? 4 : 0);
+  const std::uint64_t file_image = lower_extension(image) == ".exr" ? 12 + aov_image : std::max<std::uint64_t>(12, aov_image);
+  return fb + 12 + file_image;
+}
+
+// Refuses, before anything is allocated, an image whose buffers (render_bytes_per_pixel) exceed
+// the machine's physical memory: such a render ends in std::bad_alloc or, with overcommit, in the
+// kernel's OOM killer part way through. Throws OptionError naming width and height.
+void check_render_memory(const Camera& camera, std::span<const Aov> aovs, bool write, const std::filesystem::path& image) {
+  const std::uint64_t have = physical_memory_bytes();
+  if (have == 0) return;
+  const double need = double(camera.width()) * double(camera.height()) * double(render_bytes_per_pixel(aovs, write, image));
+  if (need <= double(have)) return;
+  const double gib = double(std::uint64_t{1} << 30);
+  char buf[256];
+  std::snprintf(buf, sizeof buf,
+                "an image of %u x %u pixels%s needs about %.1f GiB of buffers, more than this machine's %.1f GiB "
+                "of memory; give a smaller ",
+                unsigned(camera.width()), unsigned(camera.height()), aovs.empty() ? "" : " with AOVs", need / gib,
+                double(have) / gib);
+  throw OptionError({buf, option("width"), " or ", option("height")});
 }
 
 }  // namespace
@@ -78,6 +131,7 @@ void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
       return true;
     });
     scene.camera = o.camera_for_cloud(b);
+    check_render_memory(*scene.camera, scene.output.aovs, o.write && is_root(o.control), scene.output.image);
   }
   auto t0 = std::chrono::steady_clock::now();
   const ColorMode mode = scene.material.mode;
@@ -145,6 +199,8 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
     const std::filesystem::path out[] = {scene.output.image}, in[] = {scene.cloud, scene.file};
     require_outputs(out, in);
   }
+  // The image's size is known before the cloud is read unless the camera follows from its bounds.
+  if (!o.camera_for_cloud) check_render_memory(*scene.camera, scene.output.aovs, o.write && is_root(o.control), scene.output.image);
   const JobControl& ctl = o.control;
   char buf[512];
 
@@ -197,6 +253,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   r.crs_wkt = mapped ? mapped->crs_wkt() : cloud->crs_wkt;
   if (o.camera_for_cloud) {
     scene.camera = o.camera_for_cloud(cloud ? bounds_of(cloud->positions) : mapped->bounds());  // stored: no pass
+    check_render_memory(*scene.camera, scene.output.aovs, o.write && is_root(ctl), scene.output.image);
   }
   t0 = std::chrono::steady_clock::now();
   try {
@@ -312,8 +369,6 @@ void log_stats(const JobControl& ctl, const RenderStats& st, const Camera& cam, 
   ctl.info(buf);
 }
 
-bool is_root(const JobControl& ctl) { return !ctl.distributor || ctl.distributor->is_root(); }
-
 }  // namespace
 
 RenderJobResult run_render(const RenderJobOptions& o) {
@@ -390,6 +445,8 @@ RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const 
     throw OptionError({(o.scene.file.empty() ? std::string("(scene)") : o.scene.file.string()) +
                            ": /output/image: not set; give it in the scene or set the ",
                        option("out"), " option"});
+  for (const Camera& c : cameras)
+    check_render_memory(c, o.scene.output.aovs, o.write && is_root(o.control), o.scene.output.image);
   RenderJobOptions first = o;
   if (!first.scene.camera) first.scene.camera = cameras.front();  // prepare() needs a camera
   RenderFramesResult fr;

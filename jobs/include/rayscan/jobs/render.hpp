@@ -71,7 +71,10 @@ struct RenderJobResult {
 /// image (render_image) and, when `write` and scene.output.image are set, writes it (write_image).
 /// Throws SceneError "<scene file>: <JSON pointer>: <what was expected>" for a missing camera or
 /// cloud, an unreadable or empty cloud, a bad material range or index option, or an impossible
-/// auto radius, "<scene file>: /surfel: ..." when surfels cannot be estimated; std::runtime_error naming the file when an image cannot be written.
+/// auto radius, "<scene file>: /surfel: ..." when surfels cannot be estimated; std::runtime_error naming the file when an image cannot be written;
+/// OptionError naming width and height, with the estimate in GiB, before the image's buffers are
+/// allocated when they would exceed the machine's physical memory (sysconf; per pixel the
+/// framebuffer of beauty and AOVs plus, when writing, the writer's copies: docs/cli.md, render).
 /// With options.control.distributor over several processes (MPI, docs/mpi.md) every process calls
 /// it with the same options; the tiles are handed out by the distributor, only the root's `image`
 /// is complete and only the root writes (stats: ray queries summed over the processes).
@@ -93,8 +96,8 @@ struct RenderFramesResult {
 /// (JobControl::distributor, MPI) of N processes: more frames than processes -> whole frames are
 /// the work items of the queue (each rank renders a frame with its own threads, the root writes
 /// it as it arrives); otherwise frame after frame with tiles distributed. Images are identical to
-/// run_render() with each camera. Throws like run_render(), and std::invalid_argument for an empty
-/// camera list.
+/// run_render() with each camera. Throws like run_render() (the memory check for every camera
+/// before the cloud is read), and std::invalid_argument for an empty camera list.
 RenderFramesResult run_render_frames(const RenderJobOptions& options, std::span<const Camera> cameras);
 
 /// Reads a camera list (a fly-through): a JSON array whose elements are camera objects (the

@@ -1,0 +1,88 @@
+// `rayscan render`'s memory limits through the command line: an image whose buffers exceed the
+// machine's physical memory is refused with the estimate, and an allocation that fails anyway is
+// one line and exit code 2, never an abort.
+#include <gtest/gtest.h>
+
+#include "../common/run_command.hpp"
+#include "jobs_test_util.hpp"
+
+#include <unistd.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+
+using rayscan::test::data_file;
+using rayscan::test::run_command;
+using rayscan::test::temp_dir;
+
+namespace {
+
+/// `p` in single quotes, for the shell.
+std::string quoted(const std::filesystem::path& p) {
+  std::string q = "'";
+  q += p.string();
+  q += '\'';
+  return q;
+}
+
+/// Runs `rayscan ARGS` and returns its exit code and the output of stdout and stderr.
+rayscan::test::CommandResult rayscan_cli(const std::string& args) {
+  return run_command(quoted(RAYSCAN_BIN) + " " + args);
+}
+
+/// The machine's physical memory in GiB (sysconf).
+double physical_memory_gib() {
+  return double(::sysconf(_SC_PHYS_PAGES)) * double(::sysconf(_SC_PAGESIZE)) / double(std::uint64_t{1} << 30);
+}
+
+}  // namespace
+
+TEST(RenderMemoryCli, RefusesAnImageWhoseBuffersExceedTheMachinesMemory) {
+  // 65536 x 65536 pixels, every AOV, one .exr: the framebuffer holds 12 (beauty) + 4 + 12 + 12 + 4
+  // + 12 + 4 bytes a pixel, the writer an exposure-scaled beauty (12) and the interleaved float
+  // image of beauty, the 14 float AOV channels and the 4-byte ids (12 + 56 + 4): 132 bytes, 528 GiB.
+  const double need_gib = 65536.0 * 65536.0 * 132.0 / double(std::uint64_t{1} << 30);
+  ASSERT_DOUBLE_EQ(need_gib, 528.0);
+  if (physical_memory_gib() >= need_gib) GTEST_SKIP() << "this machine holds 528 GiB";
+  const auto dir = temp_dir() / "render_memory";
+  std::filesystem::create_directories(dir);
+  char have[32];
+  std::snprintf(have, sizeof have, "%.1f", physical_memory_gib());
+  const std::string ply = quoted(data_file("ply/cube_binary.ply"));
+  auto r = rayscan_cli("render -q " + ply + " --width 65536 --height 65536 -o " + quoted(dir / "big.exr") +
+                       " --aov depth --aov normal --aov position --aov index --aov albedo --aov cost");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan render: an image of 65536 x 65536 pixels with AOVs needs about 528.0 GiB of buffers, more "
+                   "than this machine's " + std::string(have) + " GiB of memory; give a smaller --width or --height\n");
+  // A PNG without AOVs: beauty (12), its scaled copy (12) and the float RGB image (12), 144 GiB.
+  if (physical_memory_gib() < 144.0) {
+    r = rayscan_cli("render -q " + ply + " --width 65536 --height 65536 -o " + quoted(dir / "big.png"));
+    EXPECT_EQ(r.code, 2);
+    EXPECT_EQ(r.out, "rayscan render: an image of 65536 x 65536 pixels needs about 144.0 GiB of buffers, more than "
+                     "this machine's " + std::string(have) + " GiB of memory; give a smaller --width or --height\n");
+  }
+  EXPECT_TRUE(std::filesystem::is_empty(dir));
+}
+
+TEST(RenderMemoryCli, AFailedAllocationIsOneLineAndExitCode2) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer reserves its shadow memory beyond any ulimit -v";
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(memory_sanitizer) || __has_feature(thread_sanitizer)
+  GTEST_SKIP() << "a sanitizer reserves its shadow memory beyond any ulimit -v";
+#endif
+#endif
+  // 16384 x 16384 pixels for a PNG: 36 bytes a pixel, 9 GiB, within the memory check on a machine
+  // of more than 9 GiB; a 2 GB address-space limit makes the 3 GiB framebuffer's allocation fail.
+  if (physical_memory_gib() <= 9.0) GTEST_SKIP() << "the memory check refuses this image here";
+  const auto dir = temp_dir() / "render_bad_alloc";
+  std::filesystem::create_directories(dir);
+  const auto r = run_command("ulimit -v 2000000 && " + quoted(RAYSCAN_BIN) + " render -q " +
+                             quoted(data_file("ply/cube_binary.ply")) + " --width 16384 --height 16384 -o " +
+                             quoted(dir / "mid.png"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan render: out of memory (std::bad_alloc)\n");
+  EXPECT_TRUE(std::filesystem::is_empty(dir));
+}
