@@ -40,7 +40,7 @@ int run_position(SolarCli& o) {
   char buf[256];
   std::snprintf(buf, sizeof buf, "time      %s\nzenith    %.5f deg\nazimuth   %.5f deg (clockwise from north)\n"
                 "elevation %.5f deg\nincidence %.5f deg\n",
-                jobs::format_iso8601(double(r.time.unix_seconds) + r.time.fraction, 0.0).c_str(), p.zenith_deg,
+                jobs::format_iso8601(double(r.time.unix_seconds) + r.time.fraction, r.time_utc_offset).c_str(), p.zenith_deg,
                 p.azimuth_deg, p.elevation_deg, p.incidence_deg);
   std::cout << buf;
   std::cout << "sunrise   " << event(r.day.sunrise_unix) << "\n";
@@ -107,17 +107,22 @@ Runner add_solar_command(CLI::App& app) {
       "surface with a PNG preview (docs/solar.md). `rayscan solar position` is the NREL SPA "
       "calculator.");
   c->add_option("cloud", o->cloud, "Point cloud (LAS, LAZ, COPC, PLY, PCD, text) or index file (.rsi)");
-  c->add_option("--start", o->job.start, "Start of the period (ISO 8601; a date alone is local solar midnight)");
-  c->add_option("--end", o->job.end, "End of the period (ISO 8601; a date alone includes that day)");
+  c->add_option("--start", o->job.start,
+                "Start of the period (ISO 8601; without an offset: local time at --utc-offset, else UTC; a date "
+                "alone is midnight at --utc-offset, else local mean solar midnight)");
+  c->add_option("--end", o->job.end, "End of the period (ISO 8601, as --start; a date alone includes that day)");
   c->add_option("--step", o->job.step, "Time step of the integration, at most 1h (e.g. 15min, 30min, 1h)")->capture_default_str();
-  c->add_option("--at", o->job.at, "One instant instead of a period (ISO 8601; no offset = UTC): shadows");
+  c->add_option("--at", o->job.at,
+                "One instant instead of a period: shadows (ISO 8601, e.g. 2026-06-21T12:00 with --utc-offset 2, or "
+                "2026-06-21T12:00+02:00; without an offset: local time at --utc-offset, else UTC)");
   c->add_option("--day", o->job.day,
                 "A day of shadows instead (YYYY-MM-DD): with --raster, a map every --every while the sun is up "
                 "(RASTER_HHMM.tif/.png, numbered frames); per point sun_hours and shadow_hours");
   c->add_option("--every", o->job.every, "The instants of --day (e.g. 15min, 30min, 1h)")->capture_default_str();
   c->add_option("--utc-offset", o->job.utc_offset,
-                "Time zone of dates given alone and of the maps' labels, hours east of UTC (default: local "
-                "mean solar time, longitude / 15)")
+                "Local standard time, hours east of UTC (e.g. 2, -7, 5.5): the zone of --start, --end, --at and "
+                "--day written without an offset, and of the times and dates the maps and logs state (default: "
+                "a time without an offset is UTC, a date alone local mean solar time, longitude / 15)")
       ->check(utc_offset);
   c->add_option("--lat,--latitude", o->job.latitude, "Site latitude, degrees north (default: from the cloud's CRS)")
       ->check(latitude);
@@ -185,7 +190,10 @@ Runner add_solar_command(CLI::App& app) {
   o->position_cmd = p;
   p->add_option("--lat,--latitude", o->position.latitude, "Latitude, degrees north")->required()->check(latitude);
   p->add_option("--lon,--longitude", o->position.longitude, "Longitude, degrees east")->required()->check(longitude);
-  p->add_option("--time", o->position.time, "Instant, ISO 8601 (e.g. 2026-06-21T12:00:00+02:00; no offset = UTC; a date alone = its midnight in --utc-offset, else local mean solar time)")->required();
+  p->add_option("--time", o->position.time,
+                "Instant, ISO 8601 (e.g. 2026-06-21T12:00:00+02:00; without an offset: local time at --utc-offset, "
+                "else UTC; a date alone = its midnight at --utc-offset, else in local mean solar time)")
+      ->required();
   p->add_option("--elevation", o->position.elevation, "Elevation, metres, -1000..9000")
       ->capture_default_str()
       ->check(elevation);
@@ -206,8 +214,9 @@ Runner add_solar_command(CLI::App& app) {
       ->capture_default_str()
       ->check(finite_number(-360, 360));
   p->add_option("--utc-offset", o->position.utc_offset,
-                "Time zone of the reported day, hours east of UTC, -18..18 (default: the time's offset, else "
-                "local mean solar time)")
+                "Local standard time, hours east of UTC, -18..18: the zone of --time written without an offset, "
+                "of the printed time and of the reported day (default: --time without an offset is UTC; the day "
+                "is in the time's offset, else local mean solar time)")
       ->check(utc_offset);
   p->add_flag("--json", o->json, "Print JSON");
   c->require_subcommand(0, 1);

@@ -32,10 +32,13 @@ SiteLocation locate_site(const std::string& crs_wkt, const Vec3& point) {
   CPLErrorReset();
   if (src.importFromWkt(crs_wkt.c_str()) != OGRERR_NONE)
     throw std::invalid_argument("the cloud's CRS: GDAL cannot parse its WKT (" + gdal_error() + ")");
+  if (is_unprojected_crs(crs_wkt))
+    throw std::invalid_argument("the cloud's CRS is geographic or geocentric: sun directions need a projected CRS "
+                                "(x east, y north, z up); reproject the cloud");
+  // A local (engineering) frame may well be x east, y north, but has no place on the Earth.
   if (!src.IsProjected())
-    throw std::invalid_argument(std::string("the cloud's CRS is ") +
-                                (src.IsGeographic() ? "geographic (degrees)" : "not projected") +
-                                ": sun directions need a projected CRS (x east, y north, z up); reproject the cloud");
+    throw std::invalid_argument("the cloud's CRS is not projected: no place on the Earth to find the sun from; "
+                                "give the site's latitude and longitude");
   src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   OGRSpatialReference wgs84;
   wgs84.importFromEPSG(4326);

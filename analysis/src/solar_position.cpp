@@ -493,9 +493,10 @@ void require_field(const IsoReader& r, const char* name, int value, int lo, int 
            ".." + std::to_string(hi) + note);
 }
 
-/// Reads the optional UTC offset (Z, +-hh, +-hhmm, +-hh:mm); returns it in seconds east of UTC.
-int read_offset_seconds(IsoReader& r) {
-  if (r.done()) return 0;
+/// Reads the optional UTC offset (Z, +-hh, +-hhmm, +-hh:mm); returns it in seconds east of UTC,
+/// nullopt at the end of the text (none written).
+std::optional<int> read_offset_seconds(IsoReader& r) {
+  if (r.done()) return std::nullopt;
   if (r.eat('Z') || r.eat('z')) return 0;
   const bool negative = r.eat('-');
   if (!negative && !r.eat('+')) r.fail_here("'Z', '+' or '-' (the UTC offset)");
@@ -512,8 +513,8 @@ int read_offset_seconds(IsoReader& r) {
 
 }  // namespace
 
-/// parse_iso8601_utc().
-UtcInstant parse_iso8601(std::string_view text) {
+/// parse_iso8601().
+Iso8601Time parse_iso8601(std::string_view text) {
   using namespace std::chrono;
   IsoReader r(text);
   const bool negative_year = r.eat('-');
@@ -534,7 +535,9 @@ UtcInstant parse_iso8601(std::string_view text) {
 
   int hour = 0, minute = 0, second = 0;
   double frac = 0.0;
-  if (!r.done()) {
+  Iso8601Time out;
+  out.date_only = r.done();
+  if (!out.date_only) {
     if (!r.eat('T') && !r.eat('t') && !r.eat(' ')) r.fail_here("'T' or ' ' before the time");
     hour = r.digits(2, "the hour (2 digits)");
     r.expect(':', "':' after the hour");
@@ -549,20 +552,20 @@ UtcInstant parse_iso8601(std::string_view text) {
     if (hour == 24 && (minute != 0 || second != 0 || frac != 0.0))
       r.fail("hour 24 is only allowed as 24:00:00 (the end of the day)");
   }
-  const int offset_s = read_offset_seconds(r);
+  out.offset_seconds = read_offset_seconds(r);
   if (!r.done()) r.fail_here("the end of the text");
 
   const sys_days date{year{year_value} / month{static_cast<unsigned>(month_value)} /
                       day{static_cast<unsigned>(day_value)}};
-  UtcInstant t;
+  UtcInstant& t = out.clock;
   t.unix_seconds = static_cast<std::int64_t>(date.time_since_epoch().count()) * 86400 +
-                   hour * 3600 + minute * 60 + second - offset_s;
+                   hour * 3600 + minute * 60 + second;
   t.fraction = frac;
   if (t.fraction >= 1.0) {  // ".9999999999999999999" rounds up to a whole second
     t.fraction = 0.0;
     ++t.unix_seconds;
   }
-  return t;
+  return out;
 }
 
 }  // namespace solar_detail
@@ -574,6 +577,12 @@ SunRiseTransitSet sun_rise_transit_set(const SpaInput& input,
   return solar_detail::compute_rise_transit_set(input, utc_offset_hours);
 }
 
-UtcInstant parse_iso8601_utc(std::string_view text) { return solar_detail::parse_iso8601(text); }
+Iso8601Time parse_iso8601(std::string_view text) { return solar_detail::parse_iso8601(text); }
+
+UtcInstant parse_iso8601_utc(std::string_view text) {
+  Iso8601Time t = solar_detail::parse_iso8601(text);
+  t.clock.unix_seconds -= t.offset_seconds.value_or(0);
+  return t.clock;
+}
 
 }  // namespace rayscan::analysis

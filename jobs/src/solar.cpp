@@ -24,7 +24,6 @@
 #include <cstdio>
 #include <cstring>
 #include <numbers>
-#include <regex>
 #include <stdexcept>
 
 namespace rayscan::jobs {
@@ -40,24 +39,44 @@ UtcInstant instant_of(double unix_seconds) {
   return {static_cast<std::int64_t>(whole), unix_seconds - whole};
 }
 
-/// Whether `text` is a calendar date alone, [+-]YYYY[YY]-MM-DD (ISO 8601's extended date).
-bool is_date_only(const std::string& text) {
-  static const std::regex date(R"([+-]?\d{4,6}-\d{2}-\d{2})");
-  return std::regex_match(text, date);
-}
+/// The time zones of a time option written without an offset. With --utc-offset (`utc_offset`,
+/// hours east of UTC) every such text is that zone's clock, as a planner's local standard time
+/// (PVGIS, pvlib). Without it a date-time is UTC (a cloud has no time zone, and the machine's must
+/// not change a result) and a date alone is midnight in local mean solar time (`longitude_deg` / 15).
+struct LocalZone {
+  std::optional<double> utc_offset;
+  double longitude_deg = 0.0;
+};
 
-/// `field`'s ISO 8601 text as a UTC unix time; a date alone is midnight in the time zone
-/// `offset_hours` east of UTC (and, for the end of a period, the end of that day).
-double period_time(const char* field, const std::string& text, double offset_hours, bool end_of_day) {
-  UtcInstant t;
+/// A time option read by option_time().
+struct OptionTime {
+  double unix_seconds = 0.0;               ///< the instant, UTC
+  std::optional<double> written_offset;    ///< the offset the text names, hours east of UTC
+  bool date_only = false;                  ///< a date alone
+};
+
+/// `field`'s ISO 8601 text as a UTC instant: a text naming its offset ('Z', +hh:mm) is exactly
+/// that instant; one without is read in `zone` (LocalZone). A date alone is its midnight there
+/// and, for the end of a period (`end_of_day`), the next midnight: the day is included whole.
+/// Throws OptionError naming the field for text that is not ISO 8601.
+OptionTime option_time(const char* field, const std::string& text, const LocalZone& zone, bool end_of_day) {
+  Iso8601Time t;
   try {
-    t = parse_iso8601_utc(text);
+    t = parse_iso8601(text);
   } catch (const std::invalid_argument& e) {
     throw OptionError({option(field), std::string(" ") + e.what()});
   }
-  double u = unix_of(t);
-  if (is_date_only(text)) u += (end_of_day ? 86400.0 : 0.0) - offset_hours * 3600.0;
-  return u;
+  OptionTime out;
+  out.date_only = t.date_only;
+  double offset_hours = 0.0;
+  if (t.offset_seconds) {
+    out.written_offset = *t.offset_seconds / 3600.0;
+    offset_hours = *out.written_offset;
+  } else {
+    offset_hours = zone.utc_offset.value_or(t.date_only ? zone.longitude_deg / 15.0 : 0.0);
+  }
+  out.unix_seconds = unix_of(t.clock) - offset_hours * 3600.0 + (t.date_only && end_of_day ? 86400.0 : 0.0);
+  return out;
 }
 
 /// SPA's input errors ("SpaInput.pressure_mbar: ...") with the job's field names.
@@ -147,18 +166,32 @@ std::string format_iso8601(double unix_seconds, double utc_offset_hours) {
   return buf;
 }
 
+namespace {
+
+/// format_iso8601() for metadata, where the text must name the instant: ISO 8601 offsets are whole
+/// minutes, so an offset that is not (local mean solar time, longitude / 15 h) is written as UTC.
+std::string exact_iso8601(double unix_seconds, double utc_offset_hours) {
+  const double minutes = utc_offset_hours * 60.0;
+  return format_iso8601(unix_seconds, minutes == std::round(minutes) ? utc_offset_hours : 0.0);
+}
+
+}  // namespace
+
+std::string format_time_label(double unix_seconds, double utc_offset_hours) {
+  const std::string iso = format_iso8601(unix_seconds, utc_offset_hours);
+  const std::size_t t = iso.find('T');  // YYYY-MM-DDThh:mm:ss, then Z or +hh:mm
+  std::string label = iso.substr(0, t) + " " + iso.substr(t + 1, 5);
+  if (iso.compare(t + 7, 2, "00") != 0) label += iso.substr(t + 6, 3);
+  return label + " UTC" + (iso.back() == 'Z' ? std::string() : iso.substr(t + 9));
+}
+
 SunPositionJobResult run_sun_position(const SunPositionJobOptions& o) {
   SunPositionJobResult r;
-  try {
-    r.time = parse_iso8601_utc(o.time);
-  } catch (const std::invalid_argument& e) {
-    throw OptionError({option("time"), std::string(" ") + e.what()});
-  }
-  // A date alone is that day's midnight in the day's time zone (--utc-offset, else local mean
-  // solar time), as the periods of `rayscan solar` read it (period_time): not UTC midnight, which
-  // west of Greenwich is the evening before.
-  if (is_date_only(o.time))
-    r.time = instant_of(period_time("time", o.time, o.utc_offset.value_or(o.longitude / 15.0), false));
+  // Read as `rayscan solar` reads its times (option_time): a date alone is that day's midnight in
+  // the day's time zone, not UTC midnight, which west of Greenwich is the evening before.
+  const OptionTime time = option_time("time", o.time, {o.utc_offset, o.longitude}, false);
+  r.time = instant_of(time.unix_seconds);
+  r.time_utc_offset = o.utc_offset.value_or(time.written_offset.value_or(0.0));
   SpaInput in;
   in.time = r.time;
   in.latitude_deg = o.latitude;
@@ -171,20 +204,7 @@ SunPositionJobResult run_sun_position(const SunPositionJobOptions& o) {
   in.surface_azimuth_deg = o.surface_azimuth;
   // The day's time zone: the one asked for, else the offset written in the time, else local mean
   // solar time.
-  std::optional<double> offset = o.utc_offset;
-  if (!offset) {
-    const std::size_t t = o.time.find_first_of("Tt ");
-    if (t != std::string::npos) {
-      const std::string clock = o.time.substr(t + 1);
-      const std::size_t sign = clock.find_first_of("+-Zz");
-      if (sign != std::string::npos && clock[sign] != 'Z' && clock[sign] != 'z') {
-        const UtcInstant as_utc = parse_iso8601_utc(o.time.substr(0, t + 1 + sign));
-        offset = (unix_of(as_utc) - unix_of(r.time)) / 3600.0;
-      } else if (sign != std::string::npos) {
-        offset = 0.0;
-      }
-    }
-  }
+  const std::optional<double> offset = o.utc_offset ? o.utc_offset : time.written_offset;
   try {
     r.position = solar_position(in);
     r.day = sun_rise_transit_set(in, offset);
@@ -198,7 +218,7 @@ SunPositionJobResult run_sun_position(const SunPositionJobOptions& o) {
 std::string sun_position_report_json(const SunPositionJobResult& r) {
   nlohmann::json j;
   const SolarPosition& p = r.position;
-  j["time"] = format_iso8601(unix_of(r.time), 0.0);
+  j["time"] = exact_iso8601(unix_of(r.time), r.time_utc_offset);
   j["zenith"] = p.zenith_deg;
   j["azimuth"] = p.azimuth_deg;
   j["elevation"] = p.elevation_deg;
@@ -240,7 +260,7 @@ struct SolarRun {
   bool frames_mode = false;  // --day: shadows through a day
   struct Frame {
     std::filesystem::path path;
-    std::string when;
+    double unix_seconds;  // the instant, UTC
     std::vector<double> shadow;
   };
   std::vector<Frame> frames;
@@ -255,7 +275,8 @@ struct SolarRun {
       throw OptionError({option("day"), " is a day of shadows: give it alone, without ", option("at"), ", ",
                          option("start"), " or ", option("end")});
     if (frames_mode) {
-      if (!is_date_only(o.day)) throw OptionError({option("day"), " '" + o.day + "': expected a date, YYYY-MM-DD"});
+      if (!option_time("day", o.day, {}, false).date_only)
+        throw OptionError({option("day"), " '" + o.day + "': expected a date, YYYY-MM-DD"});
       parse_step(o.every, "every");
       if (!o.weather.empty()) throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
     }
@@ -287,10 +308,8 @@ struct SolarRun {
     if (!o.weather.empty() && o.step != "1h")
       throw OptionError({option("step"), " is the weather file's interval with ", option("weather")});
     // The times' syntax now; their meaning needs the site's longitude (a date alone).
-    period_time("day", o.day.empty() ? "2000-01-01" : o.day, 0.0, false);
-    period_time("at", o.at.empty() ? "2000-01-01" : o.at, 0.0, false);
-    period_time("start", o.start.empty() ? "2000-01-01" : o.start, 0.0, false);
-    period_time("end", o.end.empty() ? "2000-01-01" : o.end, 0.0, false);
+    for (const auto& [field, text] : {std::pair{"at", &o.at}, {"start", &o.start}, {"end", &o.end}})
+      if (!text->empty()) option_time(field, *text, {}, false);
     if (!(o.sector >= 0.0 && o.sector <= 30.0))
       throw OptionError({option("sector"), ": expected degrees in 0..30 (0 = one shadow ray per time step)"});
     if (o.primitive != "sphere" && o.primitive != "surfel")
@@ -358,10 +377,6 @@ struct SolarRun {
     if (o.latitude) {
       r.location.latitude_deg = *o.latitude;
       r.location.longitude_deg = *o.longitude;
-      // x and y in degrees are no frame for sun directions, whatever the site's position.
-      if (is_unprojected_crs(cloud.crs_wkt))
-        throw OptionError({"the cloud's CRS is geographic or geocentric: sun directions need a projected CRS (x east, "
-                           "y north, z up); reproject the cloud"});
       // With a CRS, still turn compass azimuths into grid bearings, and take the site's height
       // from the centre's z in metres (as without --latitude); without one, z's unit is unknown.
       r.location.elevation_m = 0.0;
@@ -369,7 +384,10 @@ struct SolarRun {
           const SiteLocation at = locate_site(cloud.crs_wkt, centre);
           r.location.convergence_deg = at.convergence_deg;
           r.location.elevation_m = at.elevation_m;
-        } catch (const std::invalid_argument&) {
+        } catch (const std::invalid_argument& e) {
+          // x and y in degrees are no frame for sun directions, whatever the site's position: refused
+          // with locate_site's reason. A CRS PROJ cannot place (a local one) keeps grid north.
+          if (is_unprojected_crs(cloud.crs_wkt)) throw OptionError({e.what()});
         }
       if (o.elevation) r.location.elevation_m = *o.elevation;
     } else {
@@ -438,7 +456,9 @@ struct SolarRun {
     std::vector<SolarStep> steps;
     r.sky_rays = o.sky_rays;
     if (instant) {
-      r.start_unix = r.end_unix = period_time("at", o.at, day_offset(), false);
+      const OptionTime at = option_time("at", o.at, zone(), false);
+      r.start_unix = r.end_unix = at.unix_seconds;
+      r.utc_offset = o.utc_offset.value_or(at.written_offset.value_or(0.0));
       steps.push_back(make_step(r.start_unix, 1.0, nullptr));
       r.step_hours = 0.0;
       try {
@@ -447,8 +467,9 @@ struct SolarRun {
         throw spa_error(e);
       }
     } else {
-      r.start_unix = period_time("start", o.start, day_offset(), false);
-      r.end_unix = period_time("end", o.end, day_offset(), true);
+      r.start_unix = option_time("start", o.start, zone(), false).unix_seconds;
+      r.end_unix = option_time("end", o.end, zone(), true).unix_seconds;
+      r.utc_offset = o.utc_offset.value_or(0.0);
       if (!(r.end_unix > r.start_unix)) throw OptionError({option("end"), " must be after ", option("start")});
       if (!o.weather.empty())
         weather_steps(steps);
@@ -461,14 +482,14 @@ struct SolarRun {
     r.sectors = map.directions.size();
     for (std::uint32_t k = 0; k < r.sky_rays; ++k) sky.push_back(sky_direction(k, r.sky_rays, 0.0, SkyWeighting::uniform));
     if (instant) {
-      std::snprintf(buf, sizeof buf, "sun at %s: azimuth %.3f deg, elevation %.3f deg", format_iso8601(r.start_unix, 0).c_str(),
-                    r.sun->azimuth_deg, r.sun->elevation_deg);
+      std::snprintf(buf, sizeof buf, "sun at %s: azimuth %.3f deg, elevation %.3f deg",
+                    format_time_label(r.start_unix, r.utc_offset).c_str(), r.sun->azimuth_deg, r.sun->elevation_deg);
     } else {
       std::snprintf(buf, sizeof buf,
                     "%zu time steps of %.4g h from %s to %s, %zu with sun; %zu sun-map sectors of %.3g deg, "
                     "%u sky-map directions",
-                    r.steps, r.step_hours, format_iso8601(r.start_unix, 0).c_str(),
-                    format_iso8601(r.end_unix, 0).c_str(), r.sun_steps, r.sectors, o.sector, r.sky_rays);
+                    r.steps, r.step_hours, format_time_label(r.start_unix, r.utc_offset).c_str(),
+                    format_time_label(r.end_unix, r.utc_offset).c_str(), r.sun_steps, r.sectors, o.sector, r.sky_rays);
     }
     ctl.info(buf);
   }
@@ -618,13 +639,16 @@ struct SolarRun {
 
   /// A top-surface map of per-point `values` as a GeoTIFF at `path` and its PNG preview (beside
   /// it, or `preview`): a shadow map (`shadow`) with a categorical legend, else the heat ramp
-  /// from 0 to the largest value (`hi` when given).
+  /// from 0 to the largest value (`hi` when given). The title is the band's description; a map of
+  /// an instant (`at`, UTC unix seconds) also carries it as RAYSCAN_TIME, ISO 8601 with an offset.
   Raster write_map(const std::filesystem::path& path, std::filesystem::path preview, std::span<const double> values,
-                   const std::string& title, const std::string& units, bool shadow, std::optional<double> hi) {
+                   const std::string& title, const std::string& units, bool shadow, std::optional<double> hi,
+                   std::optional<double> at) {
     Raster map = rasterize(cloud.positions, values, map_grid(), CellReduce::top, title);
     GeoTiffOptions go;
     go.crs_wkt = cloud.crs_wkt;
     go.metadata = {{"RAYSCAN_VALUE", value}, {"RAYSCAN_SOURCE", r.source}, {"RAYSCAN_UNITS", units}};
+    if (at) go.metadata.push_back({"RAYSCAN_TIME", exact_iso8601(*at, r.utc_offset)});
     go.unit = units;
     write_geotiff(path, map, go);
     r.written.push_back(path);
@@ -659,8 +683,8 @@ struct SolarRun {
     std::string title, units = "kWh/m2";
     std::optional<double> hi;
     if (instant) {
-      title = value == "in_shadow" ? "shadow at " + format_iso8601(r.start_unix, 0)
-                                   : value + " irradiance at " + format_iso8601(r.start_unix, 0) + " (W/m²)";
+      const std::string when = format_time_label(r.start_unix, r.utc_offset);
+      title = value == "in_shadow" ? "shadow at " + when : value + " irradiance at " + when + " (W/m²)";
       units = value == "in_shadow" ? "1" : "W/m2";
     } else if (value == "sun_hours") {
       title = "hours of direct sun " + format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
@@ -675,7 +699,8 @@ struct SolarRun {
       title = value + " irradiation " + format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
               format_iso8601(r.end_unix - 1.0, offset).substr(0, 10) + " (kWh/m²)";
     }
-    r.raster = write_map(o.raster, o.preview, sf->values, title, units, instant && value == "in_shadow", hi);
+    r.raster = write_map(o.raster, o.preview, sf->values, title, units, instant && value == "in_shadow", hi,
+                         instant ? std::optional<double>(r.start_unix) : std::nullopt);
   }
 
   /// The step group of UTC time `t`: its month (0..11) in the days' time zone with --monthly, else 0.
@@ -686,11 +711,15 @@ struct SolarRun {
   /// Hours east of UTC of the days: --utc-offset, else local mean solar time.
   double day_offset() const { return o.utc_offset.value_or(r.location.longitude_deg / 15.0); }
 
+  /// The time zones of the time options written without an offset, at the site.
+  LocalZone zone() const { return {o.utc_offset, r.location.longitude_deg}; }
+
   /// A day of shadows (--day, --every): the shadow of every instant with the sun up, a map per
   /// instant (numbered frames), and per point the hours of sun and of shadow.
   void day_frames() {
     const double every = parse_step(o.every, "every");
-    r.start_unix = period_time("day", o.day, day_offset(), false);
+    r.start_unix = option_time("day", o.day, zone(), false).unix_seconds;
+    r.utc_offset = day_offset();
     r.end_unix = r.start_unix + 86400.0;
     r.step_hours = every / 3600.0;
     const std::size_t n = cloud.size();
@@ -712,9 +741,10 @@ struct SolarRun {
         shadow[i] += frame[i] * r.step_hours;
       }
       if (!o.raster.empty()) {
-        const std::string when = format_iso8601(t, day_offset());
-        const std::string hhmm = when.substr(11, 2) + when.substr(14, 2);
-        frames.push_back({std::filesystem::path(stem.string() + "_" + hhmm + ".tif"), when, frame});
+        const std::string when = format_iso8601(t, r.utc_offset);
+        const std::size_t clock = when.find('T') + 1;
+        const std::string hhmm = when.substr(clock, 2) + when.substr(clock + 3, 2);
+        frames.push_back({std::filesystem::path(stem.string() + "_" + hhmm + ".tif"), t, frame});
       }
     }
     r.rays = std::uint64_t(n) * r.steps;
@@ -738,7 +768,8 @@ struct SolarRun {
     }
     if (frames_mode) {
       for (const Frame& f : frames)
-        write_map(f.path, {}, f.shadow, "shadow at " + f.when, "1", true, std::nullopt);
+        write_map(f.path, {}, f.shadow, "shadow at " + format_time_label(f.unix_seconds, r.utc_offset), "1", true,
+                  std::nullopt, f.unix_seconds);
       if (!frames.empty()) {
         std::snprintf(buf, sizeof buf, "%zu shadow frames %s ... %s (and .png)", frames.size(),
                       frames.front().path.string().c_str(), frames.back().path.filename().string().c_str());
@@ -781,11 +812,11 @@ std::string solar_report_json(const SolarJobResult& r) {
                {"elevation_m", r.location.elevation_m},
                {"grid_convergence_deg", r.location.convergence_deg},
                {"from_crs", r.location_from_crs}};
-  j["start"] = format_iso8601(r.start_unix, 0);
+  j["start"] = exact_iso8601(r.start_unix, r.utc_offset);
   if (r.sun) {
     j["sun"] = {{"azimuth", r.sun->azimuth_deg}, {"elevation", r.sun->elevation_deg}, {"zenith", r.sun->zenith_deg}};
   } else {
-    j["end"] = format_iso8601(r.end_unix, 0);
+    j["end"] = exact_iso8601(r.end_unix, r.utc_offset);
     j["step_hours"] = r.step_hours;
   }
   j["steps"] = r.steps;

@@ -11,13 +11,18 @@
 #include "small_copc.hpp"
 
 #include <cpl_conv.h>
+#include <gdal_priv.h>
 #include <ogr_spatialref.h>
+
+#include <nlohmann/json.hpp>
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <optional>
 #include <sys/wait.h>
 #include <cstdio>
 #include <cstdlib>
@@ -518,4 +523,180 @@ TEST(SolarJob, CopcInPlaceEqualsTheFileReadWhole) {
     }
     EXPECT_TRUE(varies);  // not vacuous: some points in shadow, some in the sun
   }
+}
+
+namespace solar_time_test {
+
+// Open ground with an east-west wall: shadows that move with the sun.
+PointCloud ground_and_wall() {
+  PointCloud cloud;
+  for (double x = -10; x <= 10; x += 0.5)
+    for (double y = -10; y <= 10; y += 0.5) cloud.positions.emplace_back(x, y, 0.0);
+  for (double x = -5; x <= 5; x += 0.1)
+    for (double z = 0.1; z <= 4.0; z += 0.1) cloud.positions.emplace_back(x, 0.0, z);
+  return cloud;
+}
+
+std::string bytes_of(const std::filesystem::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(f), {});
+}
+
+const std::vector<double>& field_of(const jobs::SolarJobResult& r, const std::string& name) {
+  for (const ScalarField& f : r.cloud.scalars)
+    if (f.name == name) return f.values;
+  static const std::vector<double> none;
+  ADD_FAILURE() << "no field " << name;
+  return none;
+}
+
+}  // namespace solar_time_test
+
+// With --utc-offset a time written without an offset is that zone's clock (a planner's local
+// standard time); one written with 'Z' or +hh:mm stays as written. Oracle: 2026-06-21T12:00 at
+// UTC+02:00 is 10:00Z = 1782036000 s (2026-06-21T12:00Z = 1782043200 s, SolarPositionIso8601),
+// so "12:00" with the offset, "10:00Z" with it and "10:00Z" without it are one instant: the same
+// fields, and with the offset the same map and preview byte for byte; the map states the local
+// time with its offset, read back with GDAL.
+TEST(SolarJob, ATimeWithoutAnOffsetIsTheClockAtUtcOffset) {
+  const PointCloud cloud = solar_time_test::ground_and_wall();
+  const std::filesystem::path dir = std::filesystem::path(testing::TempDir()) / "solar_utc_offset";
+  std::filesystem::create_directories(dir);
+  const auto run = [&](const std::string& at, std::optional<double> utc_offset, const std::string& name) {
+    jobs::SolarJobOptions o;
+    o.cloud = &cloud;
+    o.latitude = 48.0;
+    o.longitude = 11.0;
+    o.at = at;
+    o.utc_offset = utc_offset;
+    o.sky_rays = 0;
+    o.raster = dir / (name + ".tif");
+    o.cell = 1.0;
+    o.control.threads = 2;
+    return jobs::run_solar(o);
+  };
+  const jobs::SolarJobResult local = run("2026-06-21T12:00", 2.0, "local");
+  const jobs::SolarJobResult zulu = run("2026-06-21T10:00Z", 2.0, "zulu");
+  const jobs::SolarJobResult utc = run("2026-06-21T10:00Z", std::nullopt, "utc");
+  const jobs::SolarJobResult noon = run("2026-06-21T12:00", std::nullopt, "noon");  // no offset: UTC
+  EXPECT_EQ(local.start_unix, 1782036000.0);
+  EXPECT_EQ(zulu.start_unix, 1782036000.0);
+  EXPECT_EQ(utc.start_unix, 1782036000.0);
+  EXPECT_EQ(noon.start_unix, 1782043200.0);
+  ASSERT_TRUE(local.sun && utc.sun && noon.sun);
+  EXPECT_EQ(local.sun->azimuth_deg, utc.sun->azimuth_deg);
+  EXPECT_EQ(local.sun->elevation_deg, utc.sun->elevation_deg);
+  EXPECT_NE(local.sun->azimuth_deg, noon.sun->azimuth_deg);
+  for (const char* f : {"in_shadow", "irradiance_global"}) {
+    EXPECT_EQ(solar_time_test::field_of(local, f), solar_time_test::field_of(utc, f)) << f;
+    EXPECT_NE(solar_time_test::field_of(local, f), solar_time_test::field_of(noon, f)) << f;
+  }
+  const std::string tif = solar_time_test::bytes_of(dir / "local.tif");
+  ASSERT_GT(tif.size(), 100u);
+  EXPECT_EQ(tif, solar_time_test::bytes_of(dir / "zulu.tif"));
+  EXPECT_EQ(solar_time_test::bytes_of(dir / "local.png"), solar_time_test::bytes_of(dir / "zulu.png"));
+
+  GDALAllRegister();
+  const auto read_back = [&](const std::string& name, const std::string& title, const std::string& iso) {
+    GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen((dir / (name + ".tif")).c_str(), GA_ReadOnly));
+    ASSERT_NE(ds, nullptr) << name;
+    EXPECT_EQ(std::string(ds->GetRasterBand(1)->GetDescription()), title) << name;
+    const char* time = ds->GetMetadataItem("RAYSCAN_TIME");
+    ASSERT_NE(time, nullptr) << name;
+    EXPECT_EQ(std::string(time), iso) << name;
+    EXPECT_EQ(parse_iso8601_utc(time).unix_seconds, 1782036000) << name;  // the instant, unambiguous
+    GDALClose(ds);
+  };
+  read_back("local", "shadow at 2026-06-21 12:00 UTC+02:00", "2026-06-21T12:00:00+02:00");
+  read_back("utc", "shadow at 2026-06-21 10:00 UTC", "2026-06-21T10:00:00Z");
+  // Without --utc-offset, a time naming its own offset is stated in it.
+  run("2026-06-21T13:00+03:00", std::nullopt, "own");
+  read_back("own", "shadow at 2026-06-21 13:00 UTC+03:00", "2026-06-21T13:00:00+03:00");
+  std::filesystem::remove_all(dir);
+}
+
+// A day as a period is midnight to midnight in --utc-offset's zone: the dates alone, the same
+// clock times written without an offset, and the UTC instants (22:00Z the evening before, at
+// UTC+02:00) give the same steps and the same fields bit for bit.
+TEST(SolarJob, ADateAlonePeriodIsLocalMidnightToMidnight) {
+  const PointCloud cloud = solar_time_test::ground_and_wall();
+  const auto run = [&](const std::string& start, const std::string& end, std::optional<double> utc_offset) {
+    jobs::SolarJobOptions o;
+    o.cloud = &cloud;
+    o.latitude = 48.0;
+    o.longitude = 11.0;
+    o.start = start;
+    o.end = end;
+    o.utc_offset = utc_offset;
+    o.sky_rays = 0;
+    o.control.threads = 2;
+    return jobs::run_solar(o);
+  };
+  const double midnight = 1782043200.0 - 14 * 3600.0;  // 2026-06-21T00:00+02:00
+  const jobs::SolarJobResult dates = run("2026-06-21", "2026-06-21", 2.0);
+  const jobs::SolarJobResult clock = run("2026-06-21T00:00", "2026-06-22T00:00", 2.0);
+  const jobs::SolarJobResult zulu = run("2026-06-20T22:00Z", "2026-06-21T22:00Z", std::nullopt);
+  for (const jobs::SolarJobResult* r : {&dates, &clock, &zulu}) {
+    EXPECT_EQ(r->start_unix, midnight);
+    EXPECT_EQ(r->end_unix, midnight + 86400.0);
+    EXPECT_EQ(r->steps, 24u);
+  }
+  for (const char* f : {"solar_global", "sun_hours"}) {
+    EXPECT_EQ(solar_time_test::field_of(dates, f), solar_time_test::field_of(clock, f)) << f;
+    EXPECT_EQ(solar_time_test::field_of(dates, f), solar_time_test::field_of(zulu, f)) << f;
+  }
+  const nlohmann::json j = nlohmann::json::parse(jobs::solar_report_json(dates));
+  EXPECT_EQ(j["start"], "2026-06-21T00:00:00+02:00");
+  EXPECT_EQ(j["end"], "2026-06-22T00:00:00+02:00");
+}
+
+// One rule says whether a CRS is a frame for sun directions (is_unprojected_crs): geographic and
+// geocentric are not, with or without --lat/--lon; a local (engineering) frame is one, but has no
+// place on the Earth for locate_site.
+TEST(SiteLocation, GeographicAndGeocentricAreRefusedByOneRule) {
+  const auto wkt_of = [](int epsg) {
+    OGRSpatialReference srs;
+    srs.importFromEPSG(epsg);
+    char* text = nullptr;
+    srs.exportToWkt(&text);
+    const std::string wkt = text;
+    CPLFree(text);
+    return wkt;
+  };
+  const std::string geographic = wkt_of(4326), geocentric = wkt_of(4978), projected = wkt_of(32632);
+  const std::string local = R"(LOCAL_CS["site",LOCAL_DATUM["site",0],UNIT["metre",1],AXIS["X",EAST],AXIS["Y",NORTH]])";
+  EXPECT_TRUE(is_unprojected_crs(geographic));
+  EXPECT_TRUE(is_unprojected_crs(geocentric));
+  EXPECT_FALSE(is_unprojected_crs(projected));
+  EXPECT_FALSE(is_unprojected_crs(local));
+  EXPECT_FALSE(is_unprojected_crs(""));
+  const auto why = [](const std::string& wkt) {
+    try {
+      locate_site(wkt, Vec3(0.0));
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(why(geographic).find("geographic or geocentric"), std::string::npos) << why(geographic);
+  EXPECT_NE(why(geocentric).find("geographic or geocentric"), std::string::npos) << why(geocentric);
+  EXPECT_NE(why(local).find("not projected"), std::string::npos) << why(local);
+  // The job gives the same reason with --lat/--lon, and runs on the local frame.
+  PointCloud cloud = solar_time_test::ground_and_wall();
+  jobs::SolarJobOptions o;
+  o.cloud = &cloud;
+  o.latitude = 48.0;
+  o.longitude = 11.0;
+  o.at = "2026-06-21T10:00Z";
+  o.sky_rays = 0;
+  o.control.threads = 2;
+  cloud.crs_wkt = geocentric;
+  try {
+    jobs::run_solar(o);
+    ADD_FAILURE() << "a geocentric cloud was traced";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()), why(geocentric));
+  }
+  cloud.crs_wkt = local;
+  EXPECT_NO_THROW(jobs::run_solar(o));
 }

@@ -373,6 +373,25 @@ TEST(SolarPositionAstropy, TransitSunriseSunset) {
             << max_transit << " s, max |dsunrise|, |dsunset| " << max_riseset << " s\n";
 }
 
+// parse_iso8601 keeps the clock as written and the offset apart, so that a caller can read a text
+// without one in a zone of its choosing; a written offset (Z included) is reported, none is nullopt.
+TEST(SolarPositionIso8601, ClockAndOffsetApart) {
+  const Iso8601Time local = parse_iso8601("2026-06-21T12:00");
+  EXPECT_EQ(local.clock.unix_seconds, 1782043200);
+  EXPECT_FALSE(local.offset_seconds.has_value());
+  EXPECT_FALSE(local.date_only);
+  const Iso8601Time east = parse_iso8601("2026-06-21T12:00+02:00");
+  EXPECT_EQ(east.clock.unix_seconds, 1782043200);  // the clock, the offset not applied
+  EXPECT_EQ(east.offset_seconds, 7200);
+  EXPECT_EQ(parse_iso8601("2026-06-21T12:00Z").offset_seconds, 0);
+  EXPECT_EQ(parse_iso8601("2026-06-21T12:00:00-0530").offset_seconds, -(5 * 3600 + 1800));
+  const Iso8601Time date = parse_iso8601("2026-06-21");
+  EXPECT_TRUE(date.date_only);
+  EXPECT_FALSE(date.offset_seconds.has_value());
+  EXPECT_EQ(date.clock.unix_seconds, 1782043200 - 12 * 3600);
+  EXPECT_THROW(parse_iso8601("2026-06-21Z"), std::invalid_argument);  // a date names no offset
+}
+
 TEST(SolarPositionIso8601, Forms) {
   const auto t = [](const char* s) { return parse_iso8601_utc(s); };
   EXPECT_EQ(t("1970-01-01T00:00:00Z").unix_seconds, 0);

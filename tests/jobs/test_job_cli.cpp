@@ -269,13 +269,39 @@ TEST(JobCli, SolarPositionReadsADateAloneAsItsLocalMidnight) {
   auto r = rayscan_cli("solar position --lat 44.05 --lon -123.07 --time 2026-06-21 --utc-offset -7 --json");
   ASSERT_EQ(r.code, 0) << r.out;
   nlohmann::json j = nlohmann::json::parse(r.out);
-  EXPECT_EQ(j["time"], "2026-06-21T07:00:00Z");
+  EXPECT_EQ(j["time"], "2026-06-21T00:00:00-07:00");  // stated at --utc-offset
   EXPECT_EQ(j["sunrise"].get<std::string>().substr(0, 10), "2026-06-21");
   r = rayscan_cli("solar position --lat 44.05 --lon -123.07 --time 2026-06-21 --json");
   ASSERT_EQ(r.code, 0) << r.out;
   j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["time"], "2026-06-21T08:12:17Z");  // 123.07 / 15 h = 8 h 12 min 16.8 s, to the second
   EXPECT_EQ(j["sunrise"].get<std::string>().substr(0, 10), "2026-06-21");
+}
+
+TEST(JobCli, SolarPositionReadsATimeWithoutAnOffsetAtUtcOffset) {
+  // 12:00 at --utc-offset 2 is 10:00Z: the same sun to the last digit, stated as local time with
+  // its offset; a time naming its offset ('Z') is read as written whatever --utc-offset says, and
+  // without --utc-offset a time without an offset is UTC.
+  const auto sun = [](const std::string& args) {
+    const auto r = rayscan_cli("solar position --lat 48 --lon 11 --json " + args);
+    EXPECT_EQ(r.code, 0) << args << ": " << r.out;
+    return nlohmann::json::parse(r.out);
+  };
+  const nlohmann::json local = sun("--time 2026-06-21T12:00 --utc-offset 2");
+  const nlohmann::json zulu = sun("--time 2026-06-21T10:00Z");
+  const nlohmann::json zulu_offset = sun("--time 2026-06-21T10:00Z --utc-offset 2");
+  const nlohmann::json noon = sun("--time 2026-06-21T12:00");
+  EXPECT_EQ(local["time"], "2026-06-21T12:00:00+02:00");
+  EXPECT_EQ(zulu["time"], "2026-06-21T10:00:00Z");
+  EXPECT_EQ(zulu_offset["time"], "2026-06-21T12:00:00+02:00");
+  EXPECT_EQ(noon["time"], "2026-06-21T12:00:00Z");
+  for (const char* k : {"zenith", "azimuth", "julian_day"}) {
+    EXPECT_EQ(local[k].get<double>(), zulu[k].get<double>()) << k;
+    EXPECT_EQ(zulu_offset[k].get<double>(), zulu[k].get<double>()) << k;
+  }
+  EXPECT_NEAR(noon["julian_day"].get<double>() - zulu["julian_day"].get<double>(), 2.0 / 24.0, 1e-8);  // 2 h later
+  const auto text = rayscan_cli("solar position --lat 48 --lon 11 --time 2026-06-21T12:00 --utc-offset 2");
+  EXPECT_EQ(text.out.substr(0, text.out.find('\n')), "time      2026-06-21T12:00:00+02:00");
 }
 
 TEST(JobCli, SolarSiteHeightWithLatitudeAndLongitudeIsTheCentresZInMetres) {

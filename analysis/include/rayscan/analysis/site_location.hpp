@@ -26,13 +26,15 @@ struct SiteLocation {
 /// the cloud's file carries it), transformed to WGS 84 (EPSG:4326) with GDAL/PROJ. The convergence
 /// comes from the grid bearing of a short step due north (1e-5 degrees of latitude).
 /// Throws std::invalid_argument (one line) when the WKT is empty or unparseable, when the CRS is
-/// geographic or geocentric (a sun direction needs a projected x east, y north, z up frame), or
-/// when PROJ cannot transform the point.
+/// geographic or geocentric (is_unprojected_crs: a sun direction needs a projected x east, y north,
+/// z up frame), when it is otherwise not projected (a local frame), or when PROJ cannot transform
+/// the point.
 SiteLocation locate_site(const std::string& crs_wkt, const Vec3& point);
 
 /// True when `crs_wkt` parses as a geographic or geocentric CRS (coordinates in degrees or from the
 /// earth's centre: no x east, y north, z up frame for sun or view directions); false for a
-/// projected, an empty or an unparseable one.
+/// projected, a local, an empty or an unparseable one. The one statement of that rule (locate_site
+/// refuses by it).
 bool is_unprojected_crs(const std::string& crs_wkt);
 
 /// The unit vector, in the cloud's frame (x grid east, y grid north, z up), towards a body at

@@ -21,16 +21,29 @@ struct UtcInstant {
   double fraction = 0.0;          ///< fraction of that second, 0 <= fraction < 1
 };
 
-/// Parses an ISO 8601 date-time to UTC:
+/// An ISO 8601 date-time as written (parse_iso8601): its wall clock and, apart, the UTC offset the
+/// text names, so that a caller can read a text without one in a time zone of its choosing.
+struct Iso8601Time {
+  /// The date and time of day as written, taken as if at UTC: no offset applied.
+  UtcInstant clock;
+  /// The offset the text names, seconds east of UTC ('Z' = 0); nullopt when it names none.
+  std::optional<int> offset_seconds;
+  bool date_only = false;  ///< a date alone, no time of day (never with an offset)
+};
+
+/// Parses an ISO 8601 date-time:
 ///   "2026-06-21T12:00:00Z", "2026-06-21T12:00+02:00", "2026-06-21 12:00:00.25", "2026-06-21".
 /// Forms: [-]YYYY-MM-DD, optionally followed by 'T' or ' ' and hh:mm[:ss[.fff]] ('.' or ',' before
 /// any number of fraction digits), optionally followed by 'Z' or an offset +-hh[:mm] / +-hhmm
-/// (|offset| <= 18 h). Text without an offset is UTC, not local time: a point cloud has no time
-/// zone of its own, and a machine's zone must not change a result. A date alone is its 00:00 UTC;
-/// 24:00 is the next day's 00:00; second 60 (a leap second) reads as the next day's first second,
-/// as POSIX time has it. Years are astronomical (0 = 1 BC).
+/// (|offset| <= 18 h). 24:00 is the next day's 00:00; second 60 (a leap second) reads as the next
+/// day's first second, as POSIX time has it. Years are astronomical (0 = 1 BC).
 /// Throws std::invalid_argument with one line naming the text and what was expected, e.g.
 /// "'2026-13-01': month 13 is not in 1..12".
+Iso8601Time parse_iso8601(std::string_view text);
+
+/// parse_iso8601()'s instant in UTC, a text without an offset read as UTC, not local time: a point
+/// cloud has no time zone of its own, and a machine's zone must not change a result. A date alone
+/// is its 00:00 UTC. Throws as parse_iso8601().
 UtcInstant parse_iso8601_utc(std::string_view text);
 
 /// Default ΔT = TT - UT1 in seconds: 32.184 s (TT - TAI) + 37 s (TAI - UTC, unchanged since

@@ -27,21 +27,28 @@ namespace rayscan::jobs {
 struct SunPositionJobOptions {
   double latitude = 0.0;                ///< WGS 84, degrees north (-90..90)
   double longitude = 0.0;               ///< WGS 84, degrees east (-180..180)
-  std::string time;                     ///< ISO 8601 (analysis::parse_iso8601_utc); no offset = UTC
+  /// ISO 8601 (analysis::parse_iso8601). A time naming its offset ('Z', +02:00) is that instant;
+  /// one without is the clock at `utc_offset` when given, else UTC; a date alone is its midnight
+  /// at `utc_offset`, else in local mean solar time.
+  std::string time;
   double elevation = 0.0;               ///< metres above the ellipsoid
   double pressure = 1013.25;            ///< mbar, for refraction
   double temperature = 15.0;            ///< degrees C, for refraction
   double delta_t = analysis::kDefaultDeltaT;  ///< TT - UT1, seconds
   double slope = 0.0;                   ///< surface tilt for the incidence angle, degrees
   double surface_azimuth = 180.0;       ///< direction the surface faces, degrees clockwise from north
-  /// Time zone of the day whose sunrise, transit and sunset are reported, hours east of UTC;
-  /// nullopt = the offset written in `time`, else local mean solar time (longitude / 15).
+  /// Hours east of UTC: the time zone of `time` written without an offset, and of the day whose
+  /// sunrise, transit and sunset are reported; nullopt = `time` without an offset is UTC, and the
+  /// day is in the offset written in `time`, else local mean solar time (longitude / 15).
   std::optional<double> utc_offset;
 };
 
 /// Output of run_sun_position().
 struct SunPositionJobResult {
   analysis::UtcInstant time;             ///< the instant, UTC
+  /// The time zone `time` is shown in, hours east of UTC: `utc_offset`, else the one written in the
+  /// time, else 0 (UTC).
+  double time_utc_offset = 0.0;
   analysis::SolarPosition position;      ///< refracted topocentric position and intermediates
   analysis::SunRiseTransitSet day;       ///< the local day's events
   double day_utc_offset = 0.0;           ///< the time zone of `day`, hours east of UTC
@@ -51,14 +58,18 @@ struct SunPositionJobResult {
 /// of range.
 SunPositionJobResult run_sun_position(const SunPositionJobOptions& options);
 
-/// JSON report of a sun position (`rayscan solar position --json`), indented by 2: time (UTC
-/// ISO 8601), zenith, azimuth, elevation, incidence (degrees), equation of time (minutes),
+/// JSON report of a sun position (`rayscan solar position --json`), indented by 2: time (ISO 8601
+/// with time_utc_offset, in UTC where that is not whole minutes), zenith, azimuth, elevation, incidence (degrees), equation of time (minutes),
 /// sunrise / transit / sunset (ISO 8601 with the day's offset; null in polar day or night).
 std::string sun_position_report_json(const SunPositionJobResult& result);
 
 /// ISO 8601 text of a UTC unix time shown at `utc_offset_hours` ("2026-06-21T05:31:12-07:00"),
-/// seconds rounded to the nearest whole second.
+/// seconds rounded to the nearest whole second; the offset is written to the minute.
 std::string format_iso8601(double unix_seconds, double utc_offset_hours);
+
+/// A time for people, as maps' titles and log lines state it: the local clock with its offset,
+/// "2026-06-21 12:00 UTC+02:00", seconds only when not zero, "2026-06-21 10:00 UTC" at offset 0.
+std::string format_time_label(double unix_seconds, double utc_offset_hours);
 
 /// Inputs of run_solar(). An invalid option throws OptionError naming the fields (`start`), which
 /// the CLI writes as its flags (`--start`).
@@ -88,19 +99,23 @@ struct SolarJobOptions {
   std::optional<double> latitude;       ///< degrees north; nullopt = from the cloud's CRS
   std::optional<double> longitude;      ///< degrees east; nullopt = from the cloud's CRS
   std::optional<double> elevation;      ///< site elevation, metres; nullopt = from the cloud's z
-  /// The period: ISO 8601 date-times (no offset = UTC) or dates alone. A date alone is local mean
-  /// solar midnight (longitude / 15 h east of UTC), and `end` given as a date alone includes that
-  /// whole day, so "--start 2026-01-01 --end 2026-12-31" is the year.
+  /// The period: ISO 8601 date-times or dates alone. A time naming its offset ('Z', -07:00) is that
+  /// instant; one without is the clock at `utc_offset` when given, else UTC. A date alone is its
+  /// midnight at `utc_offset`, else in local mean solar time (longitude / 15 h east of UTC), and
+  /// `end` given as a date alone includes that whole day, so "--start 2026-01-01 --end 2026-12-31"
+  /// is the year.
   std::string start, end;
   std::string step = "1h";              ///< time step: N min | N h | N d (e.g. 30min, 1h)
-  std::string at;                       ///< one instant instead of a period: shadows and irradiance
+  std::string at;                       ///< one instant instead of a period (read as `start`): shadows and irradiance
   /// A day of shadows instead (a date, YYYY-MM-DD): the shadows every `every` while the sun is up,
   /// a map per instant with `raster` (RASTER_HHMM.tif and .png: numbered frames of an
   /// animation), and per point sun_hours and shadow_hours.
   std::string day;
   std::string every = "30min";          ///< the instants of `day`
-  /// Hours east of UTC of the days (a date alone in `start`, `end`, `day`, `at` and the maps'
-  /// labels); nullopt = local mean solar time (longitude / 15).
+  /// Hours east of UTC: the time zone of `start`, `end`, `at` and `day` written without an offset
+  /// (a planner's local standard time), of the days (monthly fields, the maps' dates) and of the
+  /// times the maps and the report state. nullopt = a date-time without an offset is UTC, and a
+  /// date alone and the days are in local mean solar time (longitude / 15).
   std::optional<double> utc_offset;
   double delta_t = analysis::kDefaultDeltaT;  ///< TT - UT1, seconds (SPA)
   double pressure = 1013.25;            ///< mbar (SPA refraction)
@@ -156,6 +171,10 @@ struct SolarJobResult {
   analysis::SiteLocation location;      ///< where the sun was computed
   bool location_from_crs = false;
   double start_unix = 0.0, end_unix = 0.0, step_hours = 0.0;
+  /// Hours east of UTC the times are stated in (maps' titles and RAYSCAN_TIME, the report's start
+  /// and end): `utc_offset`; else, at an instant, the offset written in `at`, over a day of shadows
+  /// local mean solar time, else 0 (UTC).
+  double utc_offset = 0.0;
   std::size_t steps = 0;                ///< time steps in the period (1 for an instant)
   std::size_t sun_steps = 0;            ///< steps with the sun above the horizon
   std::size_t sectors = 0;              ///< shadow directions per point (sun-map sectors)
