@@ -25,17 +25,18 @@ constexpr const char* kArgs[3][12] = {
 constexpr const char* kBoxArgs[6] = {"xmin", "ymin", "zmin", "xmax", "ymax", "zmax"};
 
 
-// Every argument finite; the direction/normal (a[3..5]) one the core accepts.
-const char* check(rs_function f, const double* a, int n, bool box, char* err) {
+// Every argument finite; the direction/normal (a[3..5]) one the core accepts. `fn` is the SQL
+// function the user called, which every message names.
+const char* check(const char* fn, rs_function f, const double* a, int n, bool box, char* err) {
   for (int i = 0; i < n; ++i)
     if (!std::isfinite(a[i])) {
       const char* name = (box && i >= 6) ? kBoxArgs[i - 6] : kArgs[f][i];
-      std::snprintf(err, RS_ERRBUF, "%s%s: argument %d (%s) is %s; expected a finite number",
-                    kNames[f], box ? "_bounds" : "", i + 1, name,
+      std::snprintf(err, RS_ERRBUF, "%s: argument %d (%s) is %s; expected a finite number", fn,
+                    i + 1, name,
                     std::isnan(a[i]) ? "NaN" : "infinite");
       return err;
     }
-  return rs_check_direction(kNames[f], f == RS_DIST_PLANE, a + 3, err);
+  return rs_check_direction(fn, f == RS_DIST_PLANE, a + 3, err);
 }
 
 AABB make_box(const double* b) { return {Vec3(b[0], b[1], b[2]), Vec3(b[3], b[4], b[5])}; }
@@ -57,26 +58,27 @@ double value(rs_function f, const double* a) {
 
 extern "C" const char* rs_function_name(rs_function f) { return kNames[f]; }
 
-extern "C" const char* rs_eval(rs_function f, const double a[9], double* out, char err[RS_ERRBUF]) {
-  if (const char* e = check(f, a, 9, false, err)) return e;
+extern "C" const char* rs_eval(const char* fn, rs_function f, const double a[9], double* out,
+                               char err[RS_ERRBUF]) {
+  if (const char* e = check(fn, f, a, 9, false, err)) return e;
   *out = value(f, a);
   // Finite inputs near the double range can overflow the core's squares and products (from about
   // 1e150): an error rather than an infinite or NaN distance passed off as a value.
   if (!std::isfinite(*out)) {
     std::snprintf(err, RS_ERRBUF, "%s: the result overflows double precision; expected coordinates and "
-                  "vector components of magnitude below about 1e150", kNames[f]);
+                  "vector components of magnitude below about 1e150", fn);
     return err;
   }
   return nullptr;
 }
 
-extern "C" const char* rs_eval_bounds(rs_function f, const double a[12], double* lo, double* hi,
-                                      char err[RS_ERRBUF]) {
-  if (const char* e = check(f, a, 12, true, err)) return e;
+extern "C" const char* rs_eval_bounds(const char* fn, rs_function f, const double a[12], double* lo,
+                                      double* hi, char err[RS_ERRBUF]) {
+  if (const char* e = check(fn, f, a, 12, true, err)) return e;
   for (int i = 0; i < 3; ++i)
     if (a[6 + i] > a[9 + i]) {
-      std::snprintf(err, RS_ERRBUF, "%s_bounds: box %s > %s; expected min <= max on every axis",
-                    kNames[f], kBoxArgs[i], kBoxArgs[i + 3]);
+      std::snprintf(err, RS_ERRBUF, "%s: box %s > %s; expected min <= max on every axis", fn,
+                    kBoxArgs[i], kBoxArgs[i + 3]);
       return err;
     }
   const Vec3 o(a[0], a[1], a[2]), d(a[3], a[4], a[5]);
@@ -93,8 +95,8 @@ extern "C" const char* rs_eval_bounds(rs_function f, const double a[12], double*
   *lo = f == RS_DIST_RAY ? std::max(0.0, iv.lo - tol) : iv.lo - tol;
   *hi = iv.hi + tol;
   if (!std::isfinite(*lo) || !std::isfinite(*hi)) {
-    std::snprintf(err, RS_ERRBUF, "%s_bounds: the result overflows double precision; expected coordinates "
-                  "and vector components of magnitude below about 1e150", kNames[f]);
+    std::snprintf(err, RS_ERRBUF, "%s: the result overflows double precision; expected coordinates "
+                  "and vector components of magnitude below about 1e150", fn);
     return err;
   }
   return nullptr;

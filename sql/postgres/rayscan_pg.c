@@ -3,8 +3,9 @@
  * rs_box, the ray predicate rs_ray (ray_within(...)), the operators
  *   rs_box && rs_ray   (the box may hold a point with dist_ray <= r and t in [t_min, t_max])
  *   rs_box <-> rs_ray  (lower bound of dist_ray over the box: index-ordered kNN of chunks)
- * and a GiST operator class rs_box_ops whose consistent and distance methods are that bounds
- * evaluation. Values come from the core through rayscan/sql/functions.h (C interface over the C++
+ * a GiST operator class rs_box_ops whose consistent and distance methods are that bounds
+ * evaluation, and for rs_box itself =, a B-tree and a hash operator class (DISTINCT, GROUP BY)
+ * and binary I/O. Values come from the core through rayscan/sql/functions.h (C interface over the C++
  * core), so they equal the SQLite extension and `rayscan query` to the last bit.
  * GiST interface: PostgreSQL 15 documentation, chapter 68.3 "Extensibility". */
 #include "postgres.h"
@@ -13,7 +14,9 @@
 #include "access/stratnum.h"
 #include "catalog/namespace.h"
 #include "catalog/pg_type.h"
+#include "common/hashfn.h"
 #include "fmgr.h"
+#include "libpq/pqformat.h"
 #include "nodes/makefuncs.h"
 #include "nodes/pathnodes.h"
 #include "nodes/supportnodes.h"
@@ -62,18 +65,19 @@ static Datum point_fn(FunctionCallInfo fcinfo, rs_function f) {
   const char* e;
   int i;
   for (i = 0; i < 9; ++i) a[i] = PG_GETARG_FLOAT8(i);
-  e = rs_eval(f, a, &v, err);
+  e = rs_eval(rs_function_name(f), f, a, &v, err);
   if (e) raise(e);
   PG_RETURN_FLOAT8(v);
 }
 
-static Datum bounds_fn(FunctionCallInfo fcinfo, rs_function f, int want_max) {
+/* <name>_min / <name>_max: `fn` is that SQL name, which the error messages carry. */
+static Datum bounds_fn(FunctionCallInfo fcinfo, const char* fn, rs_function f, int want_max) {
   double a[12], lo, hi;
   char err[RS_ERRBUF];
   const char* e;
   int i;
   for (i = 0; i < 12; ++i) a[i] = PG_GETARG_FLOAT8(i);
-  e = rs_eval_bounds(f, a, &lo, &hi, err);
+  e = rs_eval_bounds(fn, f, a, &lo, &hi, err);
   if (e) raise(e);
   PG_RETURN_FLOAT8(want_max ? hi : lo);
 }
@@ -85,17 +89,17 @@ Datum rs_ray_time(PG_FUNCTION_ARGS) { return point_fn(fcinfo, RS_RAY_TIME); }
 PG_FUNCTION_INFO_V1(rs_dist_plane);
 Datum rs_dist_plane(PG_FUNCTION_ARGS) { return point_fn(fcinfo, RS_DIST_PLANE); }
 PG_FUNCTION_INFO_V1(rs_dist_ray_min);
-Datum rs_dist_ray_min(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_DIST_RAY, 0); }
+Datum rs_dist_ray_min(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, "dist_ray_min", RS_DIST_RAY, 0); }
 PG_FUNCTION_INFO_V1(rs_dist_ray_max);
-Datum rs_dist_ray_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_DIST_RAY, 1); }
+Datum rs_dist_ray_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, "dist_ray_max", RS_DIST_RAY, 1); }
 PG_FUNCTION_INFO_V1(rs_ray_time_min);
-Datum rs_ray_time_min(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_RAY_TIME, 0); }
+Datum rs_ray_time_min(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, "ray_time_min", RS_RAY_TIME, 0); }
 PG_FUNCTION_INFO_V1(rs_ray_time_max);
-Datum rs_ray_time_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_RAY_TIME, 1); }
+Datum rs_ray_time_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, "ray_time_max", RS_RAY_TIME, 1); }
 PG_FUNCTION_INFO_V1(rs_dist_plane_min);
-Datum rs_dist_plane_min(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_DIST_PLANE, 0); }
+Datum rs_dist_plane_min(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, "dist_plane_min", RS_DIST_PLANE, 0); }
 PG_FUNCTION_INFO_V1(rs_dist_plane_max);
-Datum rs_dist_plane_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, RS_DIST_PLANE, 1); }
+Datum rs_dist_plane_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, "dist_plane_max", RS_DIST_PLANE, 1); }
 
 /* ---- rs_box and rs_ray types ------------------------------------------------------------- */
 
@@ -136,9 +140,10 @@ static void check_box(const RsBox* b, bool point) {
     if (b->v[i] > b->v[i + 3]) raise("rs_box: min > max on an axis; expected (xmin,ymin,zmin,xmax,ymax,zmax)");
 }
 
-static void check_ray(RsRay* q) {
+/* `fn` is what the user called: ray_within(...), or the type's text input ('(...)'::rs_ray). */
+static void check_ray(const RsRay* q, const char* fn) {
   char err[RS_ERRBUF];
-  const char* e = rs_check_ray("ray_within", q->o, q->d, q->r, q->t_min, q->t_max, err);
+  const char* e = rs_check_ray(fn, q->o, q->d, q->r, q->t_min, q->t_max, err);
   if (e) raise(e);
 }
 
@@ -161,13 +166,75 @@ Datum rs_box_make(PG_FUNCTION_ARGS) {
   check_box(b, false);
   PG_RETURN_POINTER(b);
 }
+/* Binary I/O (COPY ... (FORMAT binary), libpq's binary results): the six coordinates as float8 in
+ * network byte order, PostgreSQL's own float8send format, so a client reads them as it reads
+ * float8. The receiver refuses a value of another size and applies check_box, as the text input
+ * does: a corrupt or hand-made value cannot put a NaN or an inverted box into a table. */
+PG_FUNCTION_INFO_V1(rs_box_send);
+Datum rs_box_send(PG_FUNCTION_ARGS) {
+  const RsBox* b = (const RsBox*)PG_GETARG_POINTER(0);
+  StringInfoData buf;
+  int i;
+  pq_begintypsend(&buf);
+  for (i = 0; i < 6; ++i) pq_sendfloat8(&buf, b->v[i]);
+  PG_RETURN_BYTEA_P(pq_endtypsend(&buf));
+}
+PG_FUNCTION_INFO_V1(rs_box_recv);
+Datum rs_box_recv(PG_FUNCTION_ARGS) {
+  StringInfo buf = (StringInfo)PG_GETARG_POINTER(0);
+  RsBox* b = palloc(sizeof(RsBox));
+  int i;
+  if (buf->len - buf->cursor != (int)sizeof(RsBox))
+    ereport(ERROR, (errcode(ERRCODE_INVALID_BINARY_REPRESENTATION),
+                    errmsg("invalid binary value for type rs_box: %d bytes; expected 48 (six float8 in "
+                           "network byte order)", buf->len - buf->cursor)));
+  for (i = 0; i < 6; ++i) b->v[i] = pq_getmsgfloat8(buf);
+  check_box(b, false);
+  PG_RETURN_POINTER(b);
+}
+
+/* Comparison for DISTINCT, GROUP BY, count(DISTINCT box), UNION, ORDER BY box and hash or merge
+ * joins (the default operator classes rs_box_btree_ops and rs_box_hash_ops, as PostGIS gives
+ * geometry both a B-tree and a hash class): two boxes are equal when their six coordinates are
+ * equal as float8 (so -0 = 0; a box holds no NaN), and ordered lexicographically by (xmin, ymin,
+ * zmin, xmax, ymax, zmax). The order is only a total order for sorting and grouping, not a
+ * spatial relation. */
+static int box_cmp(const RsBox* a, const RsBox* b) {
+  int i;
+  for (i = 0; i < 6; ++i)
+    if (a->v[i] != b->v[i]) return a->v[i] < b->v[i] ? -1 : 1;
+  return 0;
+}
+#define RS_BOX_CMP_ARGS box_cmp((const RsBox*)PG_GETARG_POINTER(0), (const RsBox*)PG_GETARG_POINTER(1))
+PG_FUNCTION_INFO_V1(rs_box_cmp);
+Datum rs_box_cmp(PG_FUNCTION_ARGS) { PG_RETURN_INT32(RS_BOX_CMP_ARGS); }
+PG_FUNCTION_INFO_V1(rs_box_eq);
+Datum rs_box_eq(PG_FUNCTION_ARGS) { PG_RETURN_BOOL(RS_BOX_CMP_ARGS == 0); }
+PG_FUNCTION_INFO_V1(rs_box_lt);
+Datum rs_box_lt(PG_FUNCTION_ARGS) { PG_RETURN_BOOL(RS_BOX_CMP_ARGS < 0); }
+PG_FUNCTION_INFO_V1(rs_box_le);
+Datum rs_box_le(PG_FUNCTION_ARGS) { PG_RETURN_BOOL(RS_BOX_CMP_ARGS <= 0); }
+PG_FUNCTION_INFO_V1(rs_box_ge);
+Datum rs_box_ge(PG_FUNCTION_ARGS) { PG_RETURN_BOOL(RS_BOX_CMP_ARGS >= 0); }
+PG_FUNCTION_INFO_V1(rs_box_gt);
+Datum rs_box_gt(PG_FUNCTION_ARGS) { PG_RETURN_BOOL(RS_BOX_CMP_ARGS > 0); }
+/* Hash consistent with box_cmp's equality: -0 hashed as 0 (as hashfloat8 does), then the 48 bytes. */
+PG_FUNCTION_INFO_V1(rs_box_hash);
+Datum rs_box_hash(PG_FUNCTION_ARGS) {
+  const RsBox* b = (const RsBox*)PG_GETARG_POINTER(0);
+  double v[6];
+  int i;
+  for (i = 0; i < 6; ++i) v[i] = b->v[i] == 0.0 ? 0.0 : b->v[i];
+  return hash_any((const unsigned char*)v, sizeof v);
+}
+
 PG_FUNCTION_INFO_V1(rs_ray_in);
 Datum rs_ray_in(PG_FUNCTION_ARGS) {
   RsRay* q = palloc(sizeof(RsRay));
   double v[9];
   parse_tuple(PG_GETARG_CSTRING(0), v, 9, "rs_ray");
   memcpy(q, v, sizeof v);
-  check_ray(q);
+  check_ray(q, "rs_ray");
   PG_RETURN_POINTER(q);
 }
 PG_FUNCTION_INFO_V1(rs_ray_out);
@@ -186,7 +253,7 @@ Datum rs_ray_make(PG_FUNCTION_ARGS) {
   q->r = PG_NARGS() > 6 && !PG_ARGISNULL(6) ? PG_GETARG_FLOAT8(6) : get_float8_infinity();
   q->t_min = PG_NARGS() > 7 && !PG_ARGISNULL(7) ? PG_GETARG_FLOAT8(7) : -get_float8_infinity();
   q->t_max = PG_NARGS() > 8 && !PG_ARGISNULL(8) ? PG_GETARG_FLOAT8(8) : get_float8_infinity();
-  check_ray(q);
+  check_ray(q, "ray_within");
   PG_RETURN_POINTER(q);
 }
 
@@ -200,14 +267,16 @@ Datum rs_point_box(PG_FUNCTION_ARGS) {
   PG_RETURN_POINTER(b);
 }
 
-static void check_plane(const RsPlane* h) {
+/* `fn` as check_ray's: plane_below(...) or the text input of rs_plane. */
+static void check_plane(const RsPlane* h, const char* fn) {
   char err[RS_ERRBUF];
   const char* e;
   int i;
   for (i = 0; i < 3; ++i)
     if (!isfinite(h->p[i]) || !isfinite(h->n[i]))
-      raise("plane_below: a coordinate is NaN or infinite; expected finite numbers");
-  e = rs_check_direction("plane_below", 1, h->n, err);
+      ereport(ERROR, (errcode(ERRCODE_INVALID_PARAMETER_VALUE),
+                      errmsg("%s: a coordinate is NaN or infinite; expected finite numbers", fn)));
+  e = rs_check_direction(fn, 1, h->n, err);
   if (e) raise(e);
 }
 PG_FUNCTION_INFO_V1(rs_plane_in);
@@ -216,7 +285,7 @@ Datum rs_plane_in(PG_FUNCTION_ARGS) {
   double v[6];
   parse_tuple(PG_GETARG_CSTRING(0), v, 6, "rs_plane");
   memcpy(h, v, sizeof v);
-  check_plane(h);
+  check_plane(h, "rs_plane");
   PG_RETURN_POINTER(h);
 }
 PG_FUNCTION_INFO_V1(rs_plane_out);
@@ -229,7 +298,7 @@ Datum rs_plane_make(PG_FUNCTION_ARGS) {
   RsPlane* h = palloc(sizeof(RsPlane));
   int i;
   for (i = 0; i < 6; ++i) (i < 3 ? h->p : h->n)[i % 3] = PG_GETARG_FLOAT8(i);
-  check_plane(h);
+  check_plane(h, "plane_below");
   PG_RETURN_POINTER(h);
 }
 
@@ -414,14 +483,19 @@ Datum rs_ray_dwithin(PG_FUNCTION_ARGS) {
   const double r = PG_GETARG_FLOAT8(7);
   if (isnan(r) || r < 0) raise("ray_dwithin: radius r is negative or NaN; expected a number >= 0");
   for (i = 0; i < 6; ++i) a[i] = PG_GETARG_FLOAT8(i + 1);
+  /* The ray checked here, by name (ox, ..., dz): rs_eval would number the arguments by its own
+   * layout, not ray_dwithin's. The box is valid wherever it was made (check_box). What is left
+   * to fail below is the overflow of the result, reported as ray_dwithin's too. */
+  e = rs_check_ray("ray_dwithin", a, a + 3, r, -get_float8_infinity(), get_float8_infinity(), err);
+  if (e) raise(e);
   if (b->v[0] == b->v[3] && b->v[1] == b->v[4] && b->v[2] == b->v[5]) {
     for (i = 0; i < 3; ++i) a[6 + i] = b->v[i];
-    e = rs_eval(RS_DIST_RAY, a, &v, err);
+    e = rs_eval("ray_dwithin", RS_DIST_RAY, a, &v, err);
     if (e) raise(e);
     PG_RETURN_BOOL(v <= r);
   }
   for (i = 0; i < 6; ++i) a[6 + i] = b->v[i];
-  e = rs_eval_bounds(RS_DIST_RAY, a, &lo, &hi, err);
+  e = rs_eval_bounds("ray_dwithin", RS_DIST_RAY, a, &lo, &hi, err);
   if (e) raise(e);
   PG_RETURN_BOOL(lo <= r);
 }

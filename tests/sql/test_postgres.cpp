@@ -10,8 +10,12 @@
 #include <libpq-fe.h>
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <fstream>
+#include <limits>
 #include <set>
 
 #include <unistd.h>
@@ -169,7 +173,7 @@ TEST_F(Postgres, NullInNullOutAndTheSameErrorsAsSqlite) {
   EXPECT_EQ(pg.error_of("SELECT dist_ray(0,0,0, 1,0,0, 'NaN',2,3)"),
             "dist_ray: argument 7 (x) is NaN; expected a finite number");
   EXPECT_EQ(pg.error_of("SELECT dist_ray_min(0,0,0, 1,0,0, 2,0,0, 1,1,1)"),
-            "dist_ray_bounds: box xmin > xmax; expected min <= max on every axis");
+            "dist_ray_min: box xmin > xmax; expected min <= max on every axis");
   EXPECT_NE(pg.error_of("SELECT dist_ray(0,0,0, 1,0,0, 1,2)"), "");      // no such function
   EXPECT_NE(pg.error_of("SELECT dist_ray(0,0,0, 1,0,0, 'a',2,3)"), "");  // invalid float8
   EXPECT_EQ(pg.error_of("SELECT ray_within(0,0,0, 1,0,0, -1)"),
@@ -666,7 +670,188 @@ TEST_F(Postgres, DirectionsThatCannotBeNormalisedAreErrors) {
   EXPECT_EQ(pg.error_of("SELECT dist_plane(0,0,0, 0,0,'1e-320', 1,2,3)"), "dist_plane: normal (nx,ny,nz)" + tail);
   EXPECT_EQ(pg.error_of("SELECT ray_within(0,0,0, 0,0,'1e-320', 1)"), "ray_within: direction (dx,dy,dz)" + tail);
   EXPECT_EQ(pg.error_of("SELECT plane_below(0,0,0, 0,0,'1e-320')"), "plane_below: normal (nx,ny,nz)" + tail);
-  EXPECT_EQ(pg.error_of("SELECT ray_dwithin(rs_box(1,2,3), 0,0,0, 0,0,'1e-320', 1)"), "dist_ray: direction (dx,dy,dz)" + tail);
+  EXPECT_EQ(pg.error_of("SELECT ray_dwithin(rs_box(1,2,3), 0,0,0, 0,0,'1e-320', 1)"), "ray_dwithin: direction (dx,dy,dz)" + tail);
+}
+
+// Every error names the SQL function the user called, also where the message comes from the
+// shared bounds evaluation (rs_eval_bounds) or a check the function shares with another.
+TEST_F(Postgres, ErrorsNameTheFunctionTheUserCalled) {
+  Pg pg;
+  EXPECT_EQ(pg.error_of("SELECT dist_ray_max(0,0,0, 1,0,0, 0,2,0, 1,1,1)"),
+            "dist_ray_max: box ymin > ymax; expected min <= max on every axis");
+  EXPECT_EQ(pg.error_of("SELECT ray_time_min(0,0,0, 0,0,0, 0,0,0, 1,1,1)"),
+            "ray_time_min: direction (dx,dy,dz) is zero; expected a non-zero vector");
+  EXPECT_EQ(pg.error_of("SELECT dist_plane_max(0,0,0, 0,0,1, 'NaN',0,0, 1,1,1)"),
+            "dist_plane_max: argument 7 (xmin) is NaN; expected a finite number");
+  EXPECT_EQ(pg.error_of("SELECT dist_plane_min(0,0,0, 0,0,1, 0,0,0, 1,1,'Infinity')"),
+            "dist_plane_min: argument 12 (zmax) is infinite; expected a finite number");
+  const std::string overflow = ": the result overflows double precision; expected coordinates and vector components "
+                               "of magnitude below about 1e150";
+  EXPECT_EQ(pg.error_of("SELECT dist_ray_min(0,0,0, 1,0,0, 0,0,0, 1e300,1,1)"), "dist_ray_min" + overflow);
+  // ray_dwithin: a point box is evaluated with dist_ray, a larger box with dist_ray_min; the
+  // message is ray_dwithin's either way, and its ray arguments are named as ray_dwithin has them.
+  EXPECT_EQ(pg.error_of("SELECT ray_dwithin(rs_box(0,0,0, 1,1,1), 0,0,0, 0,0,0, 1)"),
+            "ray_dwithin: direction (dx,dy,dz) is zero; expected a non-zero vector");
+  EXPECT_EQ(pg.error_of("SELECT ray_dwithin(rs_box(1,2,3), 0,0,0, 0,0,0, 1)"),
+            "ray_dwithin: direction (dx,dy,dz) is zero; expected a non-zero vector");
+  EXPECT_EQ(pg.error_of("SELECT ray_dwithin(rs_box(1,2,3), 0,'NaN',0, 1,0,0, 1)"),
+            "ray_dwithin: oy is NaN; expected a finite number");
+  EXPECT_EQ(pg.error_of("SELECT ray_dwithin(rs_box(0,0,0, 1e300,1,1), 0,0,0, 1,0,0, 1)"), "ray_dwithin" + overflow);
+  EXPECT_EQ(pg.error_of("SELECT ray_dwithin(rs_box(0,1e155,0), 0,0,0, 1,0,0, 1)"), "ray_dwithin" + overflow);
+  // The text input of rs_ray / rs_plane is the type's, not ray_within's or plane_below's.
+  EXPECT_EQ(pg.error_of("SELECT '(0,0,0, 0,0,0, 1,0,1)'::rs_ray"),
+            "rs_ray: direction (dx,dy,dz) is zero; expected a non-zero vector");
+  EXPECT_EQ(pg.error_of("SELECT '(0,0,0, 0,0,0)'::rs_plane"), "rs_plane: normal (nx,ny,nz) is zero; expected a non-zero vector");
+  EXPECT_EQ(pg.error_of("SELECT '(0,0,nan, 0,0,1)'::rs_plane"),
+            "rs_plane: a coordinate is NaN or infinite; expected finite numbers");
+  EXPECT_EQ(pg.error_of("SELECT plane_below(0,0,'NaN', 0,0,1)"),
+            "plane_below: a coordinate is NaN or infinite; expected finite numbers");
+}
+
+// rs_box has = with a default B-tree and hash operator class: DISTINCT, GROUP BY, count(DISTINCT),
+// UNION, ORDER BY and hash or merge joins on boxes work and agree with the oracle: equal means the
+// same six float8 values (-0 = 0), the order is lexicographic on (xmin,ymin,zmin,xmax,ymax,zmax).
+TEST_F(Postgres, BoxEqualityServesDistinctGroupByAndJoins) {
+  Pg pg;
+  pg.rows("DROP TABLE IF EXISTS boxes_eq");
+  pg.rows("CREATE TABLE boxes_eq (id int, box rs_box)");
+  // Groups: {1,2,3} the unit box (3 with xmin -0), {4,5,6} the point (1,2,3), {7} a box one ulp
+  // larger than the unit box in zmax.
+  pg.rows("INSERT INTO boxes_eq VALUES (4, rs_box(1,2,3)), (1, rs_box(0,0,0,1,1,1)), (7, rs_box(0,0,0,1,1,1.0000000000000002)), "
+          "(2, '(0,0,0,1,1,1)'), (5, rs_box(1,2,3,1,2,3)), (3, rs_box('-0',0,0,1,1,1)), (6, '(1,2,3,1,2,3)')");
+  using Rows = std::vector<std::vector<std::string>>;
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM (SELECT DISTINCT box FROM boxes_eq) d")[0][0], "3");
+  EXPECT_EQ(pg.rows("SELECT count(DISTINCT box) FROM boxes_eq")[0][0], "3");
+  EXPECT_EQ(pg.rows("SELECT array_agg(id ORDER BY id)::text FROM boxes_eq GROUP BY box ORDER BY box"),
+            (Rows{{"{1,2,3}"}, {"{7}"}, {"{4,5,6}"}}));
+  EXPECT_EQ(pg.rows("SELECT string_agg(id::text, ',' ORDER BY box, id) FROM boxes_eq")[0][0], "1,2,3,7,4,5,6");
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM (SELECT box FROM boxes_eq UNION SELECT rs_box(1,2,3)) u")[0][0], "3");
+  EXPECT_EQ(pg.rows("SELECT rs_box(0,0,0,1,1,1) = rs_box(0,0,0,1,1,1.0000000000000002), rs_box(1,2,3) = '(1,2,3,1,2,3)', "
+                    "rs_box(0,0,0,1,1,1) < rs_box(0,0,0,1,1,1.0000000000000002), rs_box(0,0,0,2,2,2) < rs_box(0,0,1,1,1,1)")[0],
+            (std::vector<std::string>{"f", "t", "t", "t"}));
+  // Both aggregation strategies, and both join strategies: a join pairs every box with every
+  // equal one, 3*3 + 3*3 + 1*1 pairs, so the hash of -0 must equal the hash of 0.
+  for (const char* off : {"enable_hashagg", "enable_sort"}) {
+    pg.rows(std::string("SET ") + off + " = off");
+    EXPECT_EQ(pg.rows("SELECT count(*) FROM boxes_eq GROUP BY box ORDER BY 1"), (Rows{{"1"}, {"3"}, {"3"}})) << off;
+    pg.rows(std::string("RESET ") + off);
+  }
+  pg.rows("SET enable_nestloop = off");
+  for (const auto& [off, node] : {std::pair{"enable_mergejoin", "Hash Join"}, std::pair{"enable_hashjoin", "Merge Join"}}) {
+    pg.rows(std::string("SET ") + off + " = off");
+    const std::string join = "SELECT count(*) FROM boxes_eq a JOIN boxes_eq b ON a.box = b.box";
+    std::string plan;
+    for (const auto& row : pg.rows("EXPLAIN " + join)) plan += row[0] + "\n";
+    EXPECT_NE(plan.find(node), std::string::npos) << plan;
+    EXPECT_EQ(pg.rows(join)[0][0], "19") << node;
+    pg.rows(std::string("RESET ") + off);
+  }
+  // The import's chunk boxes: as many distinct boxes as distinct exact texts (float8out is
+  // shortest-exact, and no chunk coordinate is -0 here).
+  EXPECT_EQ(pg.rows("SELECT count(DISTINCT box) = count(DISTINCT box::text), count(DISTINCT box) > 1 FROM autzen_chunks"),
+            (Rows{{"t", "t"}}));
+  pg.rows("DROP TABLE boxes_eq");
+}
+
+/// The bytes `COPY (sql) TO STDOUT (FORMAT binary)` writes (fails the test on an error).
+std::string copy_out_binary(Pg& pg, const std::string& sql) {
+  PGresult* r = PQexec(pg.c, ("COPY (" + sql + ") TO STDOUT (FORMAT binary)").c_str());
+  EXPECT_EQ(PQresultStatus(r), PGRES_COPY_OUT) << PQerrorMessage(pg.c);
+  PQclear(r);
+  std::string out;
+  char* buf = nullptr;
+  int n;
+  while ((n = PQgetCopyData(pg.c, &buf, 0)) > 0) {
+    out.append(buf, std::size_t(n));
+    PQfreemem(buf);
+  }
+  while ((r = PQgetResult(pg.c))) {
+    EXPECT_EQ(PQresultStatus(r), PGRES_COMMAND_OK) << PQerrorMessage(pg.c);
+    PQclear(r);
+  }
+  return out;
+}
+
+/// Sends `data` with `COPY table FROM STDIN (FORMAT binary)`; the primary error message, "" on success.
+std::string copy_in_binary(Pg& pg, const std::string& table, const std::string& data) {
+  PGresult* r = PQexec(pg.c, ("COPY " + table + " FROM STDIN (FORMAT binary)").c_str());
+  EXPECT_EQ(PQresultStatus(r), PGRES_COPY_IN) << PQerrorMessage(pg.c);
+  PQclear(r);
+  EXPECT_EQ(PQputCopyData(pg.c, data.data(), int(data.size())), 1);
+  EXPECT_EQ(PQputCopyEnd(pg.c, nullptr), 1);
+  std::string m;
+  while ((r = PQgetResult(pg.c))) {
+    if (PQresultStatus(r) == PGRES_FATAL_ERROR) {
+      const char* p = PQresultErrorField(r, PG_DIAG_MESSAGE_PRIMARY);
+      m = p ? p : "?";
+    }
+    PQclear(r);
+  }
+  return m;
+}
+
+/// A binary COPY file of one rs_box column (PostgreSQL documentation, COPY, "Binary Format"):
+/// the signature, flags and extension length, per row a field count of 1, the field's length
+/// and its bytes, then the trailer -1. Each box is written as six IEEE doubles, big-endian.
+std::string binary_copy_of_boxes(const std::vector<std::array<double, 6>>& boxes, int field_len = 48) {
+  std::string s("PGCOPY\n\377\r\n\0", 11);
+  auto be = [&s](std::uint64_t v, int bytes) {
+    for (int i = bytes - 1; i >= 0; --i) s.push_back(char((v >> (8 * i)) & 0xff));
+  };
+  be(0, 4);
+  be(0, 4);
+  for (const auto& b : boxes) {
+    be(1, 2);
+    be(std::uint32_t(field_len), 4);
+    for (int i = 0; i < field_len / 8; ++i) be(std::bit_cast<std::uint64_t>(b[std::size_t(i)]), 8);
+  }
+  be(0xffff, 2);
+  return s;
+}
+
+// Binary I/O of rs_box: COPY ... (FORMAT binary) writes each box as six network-order float8
+// (checked against a file built here from the doubles), reads those bytes back into the same
+// values, and refuses a corrupt value with an error naming rs_box.
+TEST_F(Postgres, BoxBinaryCopyRoundTripsAndRefusesCorruptValues) {
+  Pg pg;
+  const std::vector<std::array<double, 6>> boxes = {
+      {0, 0, 0, 1, 1, 1},
+      {-0.0, 1.0 / 3.0, -1e-300, 636500.123456789, 0.5, 1e300},
+      {636500, 849200, -2.5, 636500, 849200, -2.5}};
+  pg.rows("DROP TABLE IF EXISTS boxes_bin, boxes_bin2");
+  pg.rows("CREATE TABLE boxes_bin (id int, box rs_box)");
+  pg.rows("CREATE TABLE boxes_bin2 (box rs_box)");
+  for (std::size_t i = 0; i < boxes.size(); ++i) {
+    std::string v;
+    for (double c : boxes[i]) v.append(v.empty() ? "" : ",").append(num(c));
+    pg.rows("INSERT INTO boxes_bin VALUES (" + std::to_string(i) + ", rs_box(" + v + "))");
+  }
+  const std::string want = binary_copy_of_boxes(boxes);
+  const std::string out = copy_out_binary(pg, "SELECT box FROM boxes_bin ORDER BY id");
+  EXPECT_EQ(out, want);
+  EXPECT_EQ(copy_in_binary(pg, "boxes_bin2", out), "");
+  EXPECT_EQ(copy_out_binary(pg, "SELECT box FROM boxes_bin2"), want);
+  // -0 keeps its sign through the round trip (the bytes above), and the values equal the text form's.
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM boxes_bin a JOIN boxes_bin2 b ON a.box::text = b.box::text")[0][0], "3");
+  // The import's chunk boxes round-trip byte for byte too.
+  pg.rows("TRUNCATE boxes_bin2");
+  const std::string chunks = copy_out_binary(pg, "SELECT box FROM autzen_chunks ORDER BY chunk");
+  EXPECT_EQ(copy_in_binary(pg, "boxes_bin2", chunks), "");
+  EXPECT_EQ(copy_out_binary(pg, "SELECT box FROM boxes_bin2"), chunks);
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM boxes_bin2")[0][0], pg.rows("SELECT count(*) FROM autzen_chunks")[0][0]);
+  // Corrupt values: nothing is stored.
+  pg.rows("TRUNCATE boxes_bin2");
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(copy_in_binary(pg, "boxes_bin2", binary_copy_of_boxes({{0, 0, 0, 1, 1, 1}, {nan, 0, 0, 1, 1, 1}})),
+            "rs_box: xmin is NaN; expected a finite number");
+  EXPECT_EQ(copy_in_binary(pg, "boxes_bin2", binary_copy_of_boxes({{0, 0, 0, 1, kInf, 1}})),
+            "rs_box: ymax is infinite; expected a finite number");
+  EXPECT_EQ(copy_in_binary(pg, "boxes_bin2", binary_copy_of_boxes({{0, 0, 2, 1, 1, 1}})),
+            "rs_box: min > max on an axis; expected (xmin,ymin,zmin,xmax,ymax,zmax)");
+  EXPECT_EQ(copy_in_binary(pg, "boxes_bin2", binary_copy_of_boxes({{0, 0, 0, 1, 1, 1}}, 40)),
+            "invalid binary value for type rs_box: 40 bytes; expected 48 (six float8 in network byte order)");
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM boxes_bin2")[0][0], "0");
+  pg.rows("DROP TABLE boxes_bin, boxes_bin2");
 }
 
 }  // namespace

@@ -362,6 +362,25 @@ TEST(SqliteFunctions, OverflowingDistancesAreErrors) {
   EXPECT_DOUBLE_EQ(ok.d(0), 1e140);
 }
 
+// The bounds functions share one evaluation (rs_eval_bounds); each error names the function called.
+TEST(SqliteFunctions, BoundsErrorsNameTheFunctionTheUserCalled) {
+  Db db(site("autzen")->db);
+  EXPECT_EQ(error_of(db.db, "SELECT dist_ray_max(0,0,0, 1,0,0, 0,2,0, 1,1,1)"),
+            "dist_ray_max: box ymin > ymax; expected min <= max on every axis");
+  EXPECT_EQ(error_of(db.db, "SELECT ray_time_min(0,0,0, 0,0,0, 0,0,0, 1,1,1)"),
+            "ray_time_min: direction (dx,dy,dz) is zero; expected a non-zero vector");
+  EXPECT_EQ(error_of(db.db, "SELECT ray_time_max(0,0,0, 1,0,0, 0,0,0, 1,1,1)"), "");
+  EXPECT_EQ(error_of(db.db, "SELECT dist_plane_max(0,0,0, 0,0,1, 0,0,0, 1,1,9e999)"),
+            "dist_plane_max: argument 12 (zmax) is infinite; expected a finite number");
+  EXPECT_EQ(error_of(db.db, "SELECT dist_plane_min(0,0,0, 0,0,0, 0,0,0, 1,1,1)"),
+            "dist_plane_min: normal (nx,ny,nz) is zero; expected a non-zero vector");
+  EXPECT_EQ(error_of(db.db, "SELECT dist_ray_min(0,0,0, 1,0,0, 0,0,0, 1e300,1,1)"),
+            "dist_ray_min: the result overflows double precision; expected coordinates and vector components of "
+            "magnitude below about 1e150");
+  EXPECT_EQ(error_of(db.db, "SELECT dist_ray_max(0,0,0, 1,0,0, 0,0,0, 1,'a',1)"),
+            "dist_ray_max: argument 11 has type text; expected a number");
+}
+
 TEST(SqliteFunctions, NullInNullOutAndClearErrors) {
   Db db(site("autzen")->db);
   Stmt n(db.db, "SELECT dist_ray(NULL,0,0,1,0,0,1,1,1) IS NULL, ray_time(0,0,0,1,0,0,1,1,NULL) IS NULL, "
@@ -382,7 +401,7 @@ TEST(SqliteFunctions, NullInNullOutAndClearErrors) {
             "dist_ray: argument 7 has type text; expected a number");
   EXPECT_EQ(error_of(db.db, "SELECT dist_ray(0,0,0, 1,0,0, 1,2)"), "wrong number of arguments to function dist_ray()");
   EXPECT_EQ(error_of(db.db, "SELECT dist_ray_min(0,0,0, 1,0,0, 2,0,0, 1,1,1)"),
-            "dist_ray_bounds: box xmin > xmax; expected min <= max on every axis");
+            "dist_ray_min: box xmin > xmax; expected min <= max on every axis");
   EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(0,0,0, 1,0,0, -1)"),
             "ray_query: k must be an integer >= 0 (NULL: all points)");
   EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(0,0,0, 1,0,0, 1, -2)"),
@@ -659,7 +678,7 @@ TEST(SqliteFunctions, DirectionsThatCannotBeNormalisedAreErrorsNotWrongAnswers) 
   EXPECT_EQ(error_of(db.db, "SELECT dist_plane(0,0,0, 0,0,1e-320, 1,2,3)"),
             "dist_plane: normal (nx,ny,nz) = (0,0,9.99989e-321) cannot be normalised exactly; expected a "
             "finite length between about 1.5e-154 and 1.3e154");
-  EXPECT_EQ(error_of(db.db, "SELECT dist_ray_min(0,0,0, 0,0,1e-320, 0,0,0,1,1,1)"), "dist_ray: " + tiny);
+  EXPECT_EQ(error_of(db.db, "SELECT dist_ray_min(0,0,0, 0,0,1e-320, 0,0,0,1,1,1)"), "dist_ray_min: " + tiny);
   EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(636500,849000,600, 0,0,1e-320, 5)"), "ray_query: " + tiny);
   EXPECT_EQ(error_of(db.db, "SELECT dist_ray(0,0,0, 1e300,1e300,1, 1,2,3)"),
             "dist_ray: direction (dx,dy,dz) = (1e+300,1e+300,1) cannot be normalised exactly; expected a "

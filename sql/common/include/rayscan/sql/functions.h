@@ -24,17 +24,21 @@ typedef enum rs_function {
 /** SQL name of f ("dist_ray", "ray_time", "dist_plane"). */
 const char* rs_function_name(rs_function f);
 
-/** Evaluates f at a[0..8] into *out. Returns NULL on success, else a one-line message in err
- * (e.g. "dist_ray: argument 7 (x) is NaN; expected a finite number",
- * "dist_ray: direction (dx,dy,dz) is zero; expected a non-zero vector"). */
-const char* rs_eval(rs_function f, const double a[9], double* out, char err[RS_ERRBUF]);
+/** Evaluates f at a[0..8] into *out. Returns NULL on success, else a one-line message in err that
+ * starts with `fn`, the SQL function the user called (the messages name the caller, not the shared
+ * code: "dist_ray: argument 7 (x) is NaN; expected a finite number",
+ * "ray_dwithin: the result overflows double precision; ..."). Argument numbers in the message are
+ * positions in a[], so a caller whose own arguments are laid out differently checks them first. */
+const char* rs_eval(const char* fn, rs_function f, const double a[9], double* out, char err[RS_ERRBUF]);
 
 /** Bounds evaluation (section 4.2) of f over the box a[6..11] = (xmin,ymin,zmin,xmax,ymax,zmax)
  * with a[0..5] as in rs_eval: [*lo, *hi] holds every value rs_eval returns for a point of the
  * box (the exact bounds widened by the octree node test's rounding allowance, node_test_tolerance:
  * about 1e-9 of the distance from o to the box plus its extent; dist_ray's lo is at least 0).
- * SQL names: <name>_min / <name>_max. Errors as rs_eval, plus a box with min > max on an axis. */
-const char* rs_eval_bounds(rs_function f, const double a[12], double* lo, double* hi,
+ * SQL names: <name>_min / <name>_max. Errors as rs_eval (starting with `fn`, e.g.
+ * "dist_ray_min: box xmin > xmax; expected min <= max on every axis"), plus a box with min > max
+ * on an axis. */
+const char* rs_eval_bounds(const char* fn, rs_function f, const double a[12], double* lo, double* hi,
                            char err[RS_ERRBUF]);
 
 /** Outcome of testing a chunk box against a ray predicate (SQLite's R*Tree eWithin values). */
