@@ -20,6 +20,56 @@ std::string fmt(double v) {
 
 }  // namespace
 
+int draw_legend(Image& img, int top, const std::string& title, std::optional<std::pair<double, double>> ramp,
+                std::span<const LegendSwatch> swatches) {
+  const int W = img.width;
+  if (img.channels != std::vector<std::string>{"R", "G", "B"} || img.pixels.size() != img.npixels() * 3)
+    throw std::invalid_argument("draw_legend: expected a complete R,G,B image");
+  if (W < kLegendMinWidth || top < 0 || top + kLegendHeight > img.height)
+    throw std::invalid_argument("draw_legend: a " + std::to_string(W) + "x" + std::to_string(img.height) +
+                                " image has no " + std::to_string(kLegendMinWidth) + "x" + std::to_string(kLegendHeight) +
+                                " legend strip at row " + std::to_string(top));
+  if (ramp && (!std::isfinite(ramp->first) || !std::isfinite(ramp->second) || ramp->first > ramp->second))
+    throw std::invalid_argument("draw_legend: the ramp's range must be finite with lo <= hi");
+  const float black[3] = {0.0f, 0.0f, 0.0f};
+  auto put = [&](int x, int y, const float* c) {
+    if (x < 0 || y < 0 || x >= W || y >= img.height) return;
+    std::copy(c, c + 3, img.pixels.begin() + (std::ptrdiff_t(y) * W + x) * 3);
+  };
+  const int bar_x = kLegendBarX, bar_y = top + kLegendBarTop, bar_h = kLegendBarHeight;
+  auto frame = [&](int x0, int y0, int w, int h) {
+    for (int x = x0 - 1; x <= x0 + w; ++x) put(x, y0 - 1, black), put(x, y0 + h, black);
+    for (int y = y0 - 1; y <= y0 + h; ++y) put(x0 - 1, y, black), put(x0 + w, y, black);
+  };
+  const bool labels = render_text(img, kLegendBarX, top + 18, title, 14, black);
+  int x = bar_x;
+  if (ramp) {
+    const auto [lo, hi] = *ramp;
+    const int bar_w = legend_bar_width(W);
+    for (int i = 0; i < bar_w; ++i) {
+      const Rgb c = heat_ramp((i + 0.5) / bar_w);
+      const float col[3] = {c.r, c.g, c.b};
+      for (int y = 0; y < bar_h; ++y) put(bar_x + i, bar_y + y, col);
+    }
+    frame(bar_x, bar_y, bar_w, bar_h);
+    if (labels) {
+      const int ty = bar_y + bar_h + 16;
+      render_text(img, bar_x, ty, fmt(lo), 12, black);
+      render_text(img, bar_x + bar_w / 2, ty, fmt(lo + (hi - lo) / 2), 12, black, TextAlign::center);
+      render_text(img, bar_x + bar_w, ty, fmt(hi), 12, black, TextAlign::right);
+    }
+    x = bar_x + bar_w + 20;
+  }
+  for (const LegendSwatch& s : swatches) {
+    for (int y = 0; y < bar_h; ++y)
+      for (int dx = 0; dx < bar_h; ++dx) put(x + dx, bar_y + y, s.rgb.data());
+    frame(x, bar_y, bar_h, bar_h);
+    if (labels) render_text(img, x + bar_h + 4, bar_y + bar_h - 2, s.label, 12, black);
+    x += bar_h + 12 + 8 * int(s.label.size());
+  }
+  return x;
+}
+
 std::string write_raster_preview(const std::filesystem::path& path, const Raster& raster, double lo,
                                  double hi, const std::string& title, const PreviewStyle& style) {
   if (!std::isfinite(lo) || !std::isfinite(hi) || lo > hi)
@@ -29,8 +79,7 @@ std::string write_raster_preview(const std::filesystem::path& path, const Raster
     throw std::invalid_argument(path.string() + ": raster size does not match its grid");
   const int s = std::max(1, int(1024 / std::max(g.cols, g.rows)));
   const int map_w = int(g.cols) * s, map_h = int(g.rows) * s;
-  const int legend_h = 70, margin = 10;
-  const int W = std::max(map_w, 480), H = map_h + legend_h;
+  const int W = std::max(map_w, kLegendMinWidth), H = map_h + kLegendHeight;
 
   Image img = make_image(W, H, {"R", "G", "B"}, 1.0f);  // white
   const float black[3] = {0.0f, 0.0f, 0.0f};
@@ -75,51 +124,22 @@ std::string write_raster_preview(const std::filesystem::path& path, const Raster
     if (col >= 0 && row >= 0 && col < g.cols && row < g.rows) marker(int(col * s), int(row * s));
   }
 
-  // Legend: the title, then a colour bar with a 1-px black frame and its end and middle values
-  // (or one framed swatch per category), a no-data swatch and the marker.
-  const int bar_x = margin, bar_y = map_h + 26, bar_h = 14;
-  auto frame = [&](int x0, int y0, int w, int h) {
-    for (int x = x0 - 1; x <= x0 + w; ++x) put(x, y0 - 1, black), put(x, y0 + h, black);
-    for (int y = y0 - 1; y <= y0 + h; ++y) put(x0 - 1, y, black), put(x0 + w, y, black);
-  };
-  auto swatch = [&](int x0, const std::array<float, 3>& c) {
-    for (int y = 0; y < bar_h; ++y)
-      for (int x = 0; x < bar_h; ++x) put(x0 + x, bar_y + y, c.data());
-    frame(x0, bar_y, bar_h, bar_h);
-  };
-  const bool labels = render_text(img, margin, map_h + 18, title, 14, black);
+  // Legend: the title, the colour bar (or one swatch per category), the no-data swatch and the
+  // marker.
+  std::vector<LegendSwatch> swatches;
   std::string legend = title + ": ";
-  int x = bar_x;
-  if (categorical) {
-    for (const PreviewCategory& k : style.categories) {
-      swatch(x, k.rgb);
-      if (labels) render_text(img, x + bar_h + 4, bar_y + bar_h - 2, k.label, 12, black);
-      x += bar_h + 12 + 8 * int(k.label.size());
-      legend += k.label + " (" + fmt(k.value) + "), ";
-    }
-  } else {
-    const int bar_w = std::min(W - 2 * margin - 200, 400);
-    for (int i = 0; i < bar_w; ++i) {
-      const auto col = ramp((i + 0.5) / bar_w);
-      for (int y = 0; y < bar_h; ++y) put(bar_x + i, bar_y + y, col.data());
-    }
-    frame(bar_x, bar_y, bar_w, bar_h);
-    if (labels) {
-      const int ty = bar_y + bar_h + 16;
-      render_text(img, bar_x, ty, fmt(lo), 12, black);
-      render_text(img, bar_x + bar_w / 2, ty, fmt(lo + span / 2), 12, black, TextAlign::center);
-      render_text(img, bar_x + bar_w, ty, fmt(hi), 12, black, TextAlign::right);
-    }
-    x = bar_x + bar_w + 20;
-    legend += heat_ramp_legend(lo, hi) + "; ";
+  for (const PreviewCategory& k : style.categories) {
+    swatches.push_back({k.rgb, k.label});
+    legend += k.label + " (" + fmt(k.value) + "), ";
   }
-  swatch(x, no_data);
-  if (labels) render_text(img, x + bar_h + 4, bar_y + bar_h - 2, "no data", 12, black);
+  if (!categorical) legend += heat_ramp_legend(lo, hi) + "; ";
+  swatches.push_back({no_data, "no data"});
   legend += "no data: blue";
-  x += bar_h + 12 + 8 * 7;
+  const int x = draw_legend(img, map_h, title, categorical ? std::nullopt : std::optional(std::pair{lo, hi}), swatches);
   if (!style.markers.empty()) {
+    const int bar_y = map_h + kLegendBarTop, bar_h = kLegendBarHeight;
     marker(x + mr, bar_y + bar_h / 2);
-    if (labels) render_text(img, x + 2 * mr + 4, bar_y + bar_h - 2, style.marker_label, 12, black);
+    render_text(img, x + 2 * mr + 4, bar_y + bar_h - 2, style.marker_label, 12, black);  // false: no font
     legend += "; " + style.marker_label + ": white disc";
   }
   legend += "; " + std::to_string(s) + " px per cell of " + fmt(g.cell) + " world units";

@@ -7,6 +7,7 @@
 
 #include "rayscan/image/color_ramp.hpp"
 #include "rayscan/analysis/flip.hpp"
+#include "rayscan/analysis/raster_preview.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/render/scene.hpp"
 
@@ -128,6 +129,30 @@ std::string g(double v, int prec = 9) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.*g", prec, v);
   return buf;
+}
+
+/// Writes a heat map (error_heatmap's colours over [0, vmax]; masked pixels blue). An EXR holds
+/// the bare map at the images' size in half floats, so that it overlays them pixel for pixel in
+/// a compositor or a script; an 8-bit picture (PNG, JPEG, TIFF) is for viewing: the map at its top
+/// left, its pixels unchanged, and below it the legend strip (draw_legend, shared with the raster
+/// previews) with `title` (the metric and its unit), the ramp's values and, when pixels were
+/// masked, the masked colour. `description` goes to the file's ImageDescription.
+void write_heat_map(const Image& heat, const std::string& path, const std::string& title, double vmax, bool masked,
+                    std::string description) {
+  if (lower_extension(path) == ".exr") {
+    write_image(heat, path, PixelFormat::half, description);
+    return;
+  }
+  Image pic = make_image(std::max(heat.width, kLegendMinWidth), heat.height + kLegendHeight, {"R", "G", "B"}, 1.0f);
+  for (int y = 0; y < heat.height; ++y)
+    std::copy_n(heat.pixels.begin() + std::ptrdiff_t(y) * heat.width * 3, std::size_t(heat.width) * 3,
+                pic.pixels.begin() + std::ptrdiff_t(y) * pic.width * 3);
+  const LegendSwatch masked_swatch{{0.0f, 0.0f, 1.0f}, "masked"};
+  draw_legend(pic, heat.height, title, std::pair{0.0, vmax},
+              masked ? std::span(&masked_swatch, 1) : std::span<const LegendSwatch>());
+  description += "; the map is the top left " + std::to_string(heat.width) + "x" + std::to_string(heat.height) +
+                 " pixels, the legend below it";
+  write_image(pic, path, PixelFormat::uint8, description);
 }
 
 }  // namespace
@@ -276,10 +301,10 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
                                 (ref_linear ? "linear" : "sRGB") + ", image " + (img_linear ? "linear" : "sRGB");
       res.flip_ppd = o.flip_ppd;
       if (!o.flip_map.empty()) {
-        const Image heat = error_heatmap(fr.error, r.width, r.height, 1.0);
-        write_image(heat, o.flip_map, lower_extension(o.flip_map) == ".exr" ? PixelFormat::half : PixelFormat::uint8,
-                    "rayscan compare LDR-FLIP error map (Andersson et al. 2020): " + heat_ramp_legend(0.0, 1.0) +
-                        "; masked pixels blue");
+        write_heat_map(error_heatmap(fr.error, r.width, r.height, 1.0), o.flip_map, "LDR-FLIP error (0-1, unitless)",
+                       1.0, res.masked,
+                       "rayscan compare LDR-FLIP error map (Andersson et al. 2020): " + heat_ramp_legend(0.0, 1.0) +
+                           "; masked pixels blue");
         res.flip_map = o.flip_map;
       }
     }
@@ -299,10 +324,10 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
         if (std::isfinite(e)) vmax = std::max(vmax, static_cast<double>(e));
       if (vmax == 0.0) vmax = 1.0;  // identical images: an all-black map over [0, 1]
     }
-    const Image heat = error_heatmap(err, r.width, r.height, vmax);
-    write_image(heat, o.diff, lower_extension(o.diff) == ".exr" ? PixelFormat::half : PixelFormat::uint8,
-                "rayscan compare error heat map: max channel |image - reference| per pixel; " +
-                    heat_ramp_legend(0.0, vmax) + "; masked pixels blue");
+    write_heat_map(error_heatmap(err, r.width, r.height, vmax), o.diff,
+                   "Pixel error |image - reference|, max over channels (image units)", vmax, res.masked,
+                   "rayscan compare error heat map: max channel |image - reference| per pixel; " +
+                       heat_ramp_legend(0.0, vmax) + "; masked pixels blue");
     res.diff = o.diff;
     res.diff_max = vmax;
   }

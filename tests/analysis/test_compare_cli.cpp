@@ -5,9 +5,15 @@
 
 #include "../common/run_command.hpp"
 
+#include "rayscan/analysis/raster_preview.hpp"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <sys/mount.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -224,6 +230,43 @@ TEST_F(CompareCli, AgreesWithIdiff) {
   }
 }
 
+namespace {
+
+/// Checks the legend strip of a heat-map picture whose map is map_w x map_h: the picture is
+/// max(map_w, kLegendMinWidth) wide and kLegendHeight rows taller, white beside the map, and the
+/// colour bar (raster_preview.hpp's layout) follows the heat ramp as published -- black 0, red
+/// 1/3, yellow 2/3, white 1, linear in the encoded values between the stops -- column by column
+/// from black to white, framed in black; a blue "masked" swatch after it only when `masked`.
+void expect_legend(const Image& h, int map_w, int map_h, bool masked) {
+  ASSERT_EQ(h.nchannels(), 3);
+  ASSERT_EQ(h.width, std::max(map_w, kLegendMinWidth));
+  ASSERT_EQ(h.height, map_h + kLegendHeight);
+  for (int y = 0; y < map_h; ++y)
+    for (int x = map_w; x < h.width; ++x)
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(h.at(x, y, c), 1.0f) << x << "," << y;
+  const int top = map_h + kLegendBarTop, bar_w = legend_bar_width(h.width);
+  for (int i = 0; i < bar_w; ++i) {
+    const double t = (i + 0.5) / bar_w;
+    const double want[3] = {std::min(1.0, 3 * t), std::clamp(3 * t - 1, 0.0, 1.0), std::clamp(3 * t - 2, 0.0, 1.0)};
+    for (int y = top; y < top + kLegendBarHeight; ++y)
+      for (int c = 0; c < 3; ++c) ASSERT_NEAR(h.at(kLegendBarX + i, y, c), want[c], 0.5 / 255 + 1e-6) << i << "," << y;
+  }
+  EXPECT_LT(h.at(kLegendBarX, top, 0), 2.0f / 255);                // black end
+  EXPECT_GT(h.at(kLegendBarX + bar_w - 1, top, 2), 253.0f / 255);  // white end
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_EQ(h.at(kLegendBarX - 1, top, c), 0.0f);     // frame, left
+    EXPECT_EQ(h.at(kLegendBarX + bar_w, top, c), 0.0f);  // frame, right
+    EXPECT_EQ(h.at(kLegendBarX, top - 1, c), 0.0f);     // frame, top
+  }
+  // The swatch's inside, after the bar and its 20-px gap (its frame included).
+  const int sx = kLegendBarX + bar_w + 20 + kLegendBarHeight / 2, sy = top + kLegendBarHeight / 2;
+  EXPECT_EQ(h.at(sx, sy, 0), masked ? 0.0f : 1.0f);
+  EXPECT_EQ(h.at(sx, sy, 1), masked ? 0.0f : 1.0f);
+  EXPECT_EQ(h.at(sx, sy, 2), 1.0f);
+}
+
+}  // namespace
+
 TEST_F(CompareCli, DiffHeatMapAndLegend) {
   Image a = make_image(30, 20, {"R", "G", "B"}, 0.5f), b = a;
   px(b, 4, 5, 1) = 0.75f;   // max error 0.25 -> white
@@ -233,16 +276,72 @@ TEST_F(CompareCli, DiffHeatMapAndLegend) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("white 0.25"), std::string::npos) << r.out;
   const Image h = read_image(diff.string());
-  ASSERT_EQ(h.width, 30);
-  ASSERT_EQ(h.nchannels(), 3);
+  expect_legend(h, 30, 20, false);
   EXPECT_EQ(h.at(4, 5, 0) + h.at(4, 5, 1) + h.at(4, 5, 2), 3.0f);
   EXPECT_NEAR(h.at(10, 3, 0), 1.0f, 1.0f / 255);
   EXPECT_NEAR(h.at(10, 3, 1), 0.0f, 1.0f / 255);
   EXPECT_EQ(h.at(0, 0, 0) + h.at(0, 0, 1) + h.at(0, 0, 2), 0.0f);
-  for (const auto& e : fs::directory_iterator(dir_))
-    EXPECT_EQ(e.path().string().find(".tmp."), std::string::npos) << e.path();
+  // An EXR map is the bare map at the images' size (for overlays), and the picture's map area
+  // holds its pixels unchanged; a TIFF is the same picture as the PNG.
+  const fs::path exr = dir_ / "diff.exr", tif = dir_ / "diff.tif";
+  ASSERT_EQ(compare(pa, pb, "--diff " + q(exr)).code, 1);
+  ASSERT_EQ(compare(pa, pb, "--diff " + q(tif)).code, 1);
+  const Image e = read_image(exr.string()), t = read_image(tif.string());
+  ASSERT_EQ(e.width, 30);
+  ASSERT_EQ(e.height, 20);
+  for (int y = 0; y < 20; ++y)
+    for (int x = 0; x < 30; ++x)
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(h.at(x, y, c), e.at(x, y, c), 1.0 / 255) << x << "," << y;
+  EXPECT_EQ(t.pixels, h.pixels);
+  for (const auto& f : fs::directory_iterator(dir_))
+    EXPECT_EQ(f.path().string().find(".tmp."), std::string::npos) << f.path();
   // An unwritable destination is an error and leaves nothing behind.
   EXPECT_EQ(compare(pa, pb, "--diff " + q(dir_ / "no_dir" / "d.png")).code, 2);
+}
+
+// The FLIP map as a picture: its legend over [0, 1], the masked swatch when pixels are masked
+// (reference alpha 0), masked pixels blue in the map.
+TEST_F(CompareCli, FlipMapLegendAndMaskedSwatch) {
+  Image a = noise_image(500, 12, {"R", "G", "B", "A"}, 7, 0, 1), b = a;
+  for (int y = 0; y < 12; ++y)
+    for (int x = 0; x < 500; ++x) px(a, x, y, 3) = px(b, x, y, 3) = 1.0f;
+  px(a, 3, 4, 3) = 0.0f;  // masked
+  px(b, 9, 9, 0) = 1.0f - px(b, 9, 9, 0);
+  const fs::path pa = write("a.png", a, PixelFormat::uint8), pb = write("b.png", b, PixelFormat::uint8);
+  const fs::path f1 = dir_ / "f1.png", f2 = dir_ / "f2.png";
+  ASSERT_EQ(compare(pa, pb, "--flip-map " + q(f1)).code, 1);
+  ASSERT_EQ(compare(pa, pb, "--mask --flip-map " + q(f2)).code, 1);
+  const Image m1 = read_image(f1.string()), m2 = read_image(f2.string());
+  expect_legend(m1, 500, 12, false);
+  expect_legend(m2, 500, 12, true);
+  EXPECT_EQ(m2.at(3, 4, 0) + m2.at(3, 4, 1), 0.0f);
+  EXPECT_EQ(m2.at(3, 4, 2), 1.0f);
+}
+
+// A heat map into a directory that takes no files (a read-only tmpfs mounted by the test as root,
+// a 0555 folder otherwise): exit 2 with one line naming the output, and nothing written there.
+TEST_F(CompareCli, HeatMapIntoReadOnlyDirectoryFails) {
+  const fs::path pa = write("a.png", noise_image(16, 16, {"R", "G", "B"}, 1, 0, 1), PixelFormat::uint8);
+  const fs::path pb = write("b.png", noise_image(16, 16, {"R", "G", "B"}, 2, 0, 1), PixelFormat::uint8);
+  const fs::path ro = dir_ / "ro";
+  fs::create_directories(ro);
+  bool mounted = false;
+  if (::geteuid() == 0) {
+    mounted = ::mount("tmpfs", ro.c_str(), "tmpfs", MS_RDONLY, "size=64k") == 0;
+    if (!mounted) GTEST_SKIP() << "cannot mount a read-only tmpfs as root; skipped";
+  } else {
+    fs::permissions(ro, fs::perms::owner_read | fs::perms::owner_exec);
+  }
+  for (const char* opt : {"--diff", "--flip-map"}) {
+    const fs::path out = ro / "d.tif";
+    const RunResult r = compare(pa, pb, std::string(opt) + " " + q(out), true);
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+    EXPECT_EQ(r.out.rfind("rayscan compare: " + out.string() + ": ", 0), 0u) << r.out;
+  }
+  EXPECT_TRUE(fs::is_empty(ro));
+  if (mounted) ::umount2(ro.c_str(), MNT_DETACH);
+  else fs::permissions(ro, fs::perms::owner_all);
 }
 
 TEST_F(CompareCli, MaskIgnoresMissesAndTransparentReference) {

@@ -3,9 +3,11 @@
 #include "rayscan/image/image_file.hpp"
 #include "image_test_util.hpp"
 #include "rayscan/analysis/image_compare.hpp"
+#include "rayscan/analysis/raster_preview.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <random>
@@ -174,6 +176,24 @@ TEST(HeatMap, RampStopsAndMaskColour) {
   EXPECT_EQ(h.at(1, 1, 2), 1.0f);
   EXPECT_EQ(h.at(1, 1, 0), 0.0f);
   EXPECT_THROW(error_heatmap(err, 2, 2, 0.0), std::invalid_argument);
+}
+
+// The legend drawer draws into a strip it was given and nothing else: it refuses an image that
+// is not R,G,B, too narrow or without the rows, and a ramp range that is not finite or reversed.
+TEST(Legend, DrawsOnlyIntoItsStripAndRefusesBadInput) {
+  Image img = make_image(kLegendMinWidth, 10 + kLegendHeight, {"R", "G", "B"}, 1.0f);
+  const std::vector<float> before(img.pixels.begin(), img.pixels.begin() + 10 * kLegendMinWidth * 3);
+  const LegendSwatch s{{0.0f, 0.0f, 1.0f}, "masked"};
+  const int x = draw_legend(img, 10, "t", std::pair{0.0, 2.0}, std::span(&s, 1));
+  EXPECT_EQ(x, kLegendBarX + legend_bar_width(kLegendMinWidth) + 20 + kLegendBarHeight + 12 + 8 * 6);
+  EXPECT_TRUE(std::equal(before.begin(), before.end(), img.pixels.begin()));  // rows above the strip untouched
+  EXPECT_THROW(draw_legend(img, 11, "t", std::nullopt, {}), std::invalid_argument);  // strip past the bottom
+  Image narrow = make_image(kLegendMinWidth - 1, kLegendHeight, {"R", "G", "B"}, 1.0f);
+  EXPECT_THROW(draw_legend(narrow, 0, "t", std::nullopt, {}), std::invalid_argument);
+  Image grey = make_image(kLegendMinWidth, kLegendHeight, {"Y"}, 1.0f);
+  EXPECT_THROW(draw_legend(grey, 0, "t", std::nullopt, {}), std::invalid_argument);
+  EXPECT_THROW(draw_legend(img, 10, "t", std::pair{1.0, 0.0}, {}), std::invalid_argument);
+  EXPECT_THROW(draw_legend(img, 10, "t", std::pair{0.0, std::nan("")}, {}), std::invalid_argument);
 }
 
 TEST(ImageIo, RoundTripResizeAndIndexMisses) {

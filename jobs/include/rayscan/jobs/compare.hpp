@@ -85,7 +85,8 @@ struct CompareJobResult {
 /// Reads both images, picks channels, builds the mask, resizes if asked, computes the metrics
 /// (compare_images) and mean FLIP (flip(); R,G,B or Y channels only: PNG/JPEG/TIFF samples are
 /// taken as sRGB-encoded, EXR/HDR ones as linear and encoded first), judges them (judge) and
-/// writes the heat map and the FLIP map. Throws std::invalid_argument
+/// writes the heat map and the FLIP map (PNG, JPEG, TIFF: the map with a legend strip below it,
+/// raster_preview.hpp's draw_legend; EXR: the bare map at the images' size). Throws std::invalid_argument
 /// for a user error (missing channel, size mismatch without resize, bad mask, SSIM limit on a tiny
 /// image; one line), std::runtime_error "<file>: <reason>" for unreadable or unwritable files.
 CompareJobResult run_compare(const CompareJobOptions& options);
