@@ -8,7 +8,11 @@
 
 #include "jobs_test_util.hpp"
 
+#include <algorithm>
+#include <cstdint>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -116,5 +120,96 @@ TEST(TranslateJob, WritesWhatTheOutputExtensionSays) {
     o.out = temp_dir() / name;
     EXPECT_ANY_THROW(jobs::run_translate(o)) << name;
     EXPECT_FALSE(fs::exists(temp_dir() / name));
+  }
+}
+
+namespace {
+
+/// The colour fields of every record of a LAS file, as stored (ASPRS LAS 1.4 R15 section 2.6:
+/// red, green, blue at byte 20 of PDRF 2, 28 of PDRF 3 and 5, 30 of PDRF 7, 8 and 10).
+std::vector<std::uint16_t> stored_rgb(const fs::path& las) {
+  const io::LasRecords r = io::read_las_records(las);
+  const std::size_t at = r.pdrf == 2 ? 20 : (r.pdrf == 3 || r.pdrf == 5) ? 28 : 30;
+  std::vector<std::uint16_t> v;
+  for (std::uint64_t i = 0; i < r.count; ++i)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::uint8_t* p = r.records.data() + i * r.record_length + at + 2 * k;
+      v.push_back(static_cast<std::uint16_t>(p[0] | p[1] << 8));
+    }
+  return v;
+}
+
+/// The red, green and blue columns of a text file with a header line, point after point, as the
+/// file spells them (whole numbers).
+std::vector<std::uint16_t> text_rgb(const fs::path& text) {
+  std::istringstream in(file_bytes(text));
+  std::string line;
+  std::getline(in, line);
+  std::istringstream header(line);
+  std::vector<std::string> names;
+  for (std::string n; header >> n;) names.push_back(n);
+  const auto column = [&](const std::string& n) {
+    return static_cast<std::size_t>(std::find(names.begin(), names.end(), n) - names.begin());
+  };
+  const std::size_t cols[3] = {column("red"), column("green"), column("blue")};
+  EXPECT_LT(cols[2], names.size()) << line;
+  std::vector<std::uint16_t> v;
+  while (std::getline(in, line)) {
+    std::istringstream values(line);
+    std::vector<std::string> f;
+    for (std::string s; values >> s;) f.push_back(s);
+    for (std::size_t c : cols) {
+      EXPECT_EQ(f.at(c).find_first_not_of("0123456789"), std::string::npos) << line;
+      v.push_back(static_cast<std::uint16_t>(std::stoul(f.at(c))));
+    }
+  }
+  return v;
+}
+
+/// `in` translated to `out` by the job.
+void translate(const fs::path& in, const fs::path& out) {
+  jobs::TranslateJobOptions o;
+  o.in = in;
+  o.out = out;
+  jobs::run_translate(o);
+}
+
+}  // namespace
+
+TEST(TranslateJob, TextColourIsTheSourcesOwnValuesBothWays) {
+  // autzen_trim.las holds 8-bit colour (max 236) in its 16-bit fields: the text says the file's
+  // own values, and a LAS file made from the text stores them again.
+  const fs::path las = data_file("las/autzen_trim.las");
+  const fs::path xyz = temp_dir() / "autzen_rgb.xyz", back = temp_dir() / "autzen_rgb_back.las",
+                 xyz2 = temp_dir() / "autzen_rgb_back.xyz";
+  const std::vector<std::uint16_t> own = stored_rgb(las);
+  ASSERT_EQ(own.size(), 3u * 110000u);
+  ASSERT_EQ(*std::max_element(own.begin(), own.end()), 236);
+  translate(las, xyz);
+  EXPECT_EQ(text_rgb(xyz), own);
+  translate(xyz, back);
+  EXPECT_EQ(stored_rgb(back), own);
+  translate(back, xyz2);
+  EXPECT_EQ(text_rgb(xyz2), own);
+
+  // Text -> LAS -> text keeps a text file's own colour values, 8-bit and 16-bit alike.
+  for (const std::string& rgb : {std::string("236 10 0\n100 200 255\n"), std::string("60652 2570 0\n256 65535 1\n")}) {
+    SCOPED_TRACE(rgb);
+    const fs::path src = temp_dir() / "rgb_src.xyz", mid = temp_dir() / "rgb_mid.las", out = temp_dir() / "rgb_out.xyz";
+    std::istringstream lines(rgb);
+    std::string text = "x y z red green blue\n";
+    std::vector<std::uint16_t> want;
+    int k = 0;
+    for (std::string line; std::getline(lines, line); ++k) {
+      text += std::to_string(k) + " 2 3 " + line + "\n";
+      std::istringstream v(line);
+      for (unsigned c; v >> c;) want.push_back(static_cast<std::uint16_t>(c));
+    }
+    std::ofstream(src, std::ios::binary) << text;
+    ASSERT_EQ(text_rgb(src), want);
+    translate(src, mid);
+    EXPECT_EQ(stored_rgb(mid), want);
+    translate(mid, out);
+    EXPECT_EQ(text_rgb(out), want);
   }
 }

@@ -141,6 +141,9 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
     std::string note;
     const double s = colour_scale(mx, colour_float, note);
     if (!note.empty()) info.notes.push_back(note);
+    // 8-bit colour is kept as such by the writers that store 16-bit values (LAS, text): a text
+    // file's 236 becomes 236 in a LAS file and in the text written back from it.
+    pc.rgb_from_8bit_las = s == 257.0;
     pc.rgb.resize(pc.positions.size());
     for (std::size_t i = 0; i < pc.rgb.size(); ++i) {
       auto q = [&](float c) { return to_u16(c * s); };

@@ -1,7 +1,9 @@
 // XYZ / CSV / TXT writer: the column layout the text reader (text_reader.cpp), CloudCompare,
 // PDAL's readers.text and LAStools' txt2las read: a header line naming the columns, then one
 // point per line. Values are the shortest decimal that reads back as the same double
-// (std::to_chars), so a round trip keeps every coordinate bit for bit.
+// (std::to_chars), so a round trip keeps every coordinate bit for bit. Colour is written as the
+// source held it: 16-bit values, or the 8-bit values of a source whose colour the reader scaled by
+// 257 (PointCloud::rgb_from_8bit_las, as write_las does), which the text reader scales by 257 again.
 #include "rayscan/io/point_io.hpp"
 
 #include "rayscan/base/file_names.hpp"
@@ -42,12 +44,14 @@ void write_text(const std::filesystem::path& path, const PointCloud& cloud) {
     line += sep;
     num(v);
   };
+  const bool colour_8bit = cloud.rgb_from_8bit_las;
+  auto colour = [&](std::uint16_t v) -> unsigned { return colour_8bit ? detail::colour_to_8bit(v) : v; };
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     line.clear();
     num(cloud.positions[i].x);
     next(cloud.positions[i].y);
     next(cloud.positions[i].z);
-    if (!cloud.rgb.empty()) next(cloud.rgb[i].r), next(cloud.rgb[i].g), next(cloud.rgb[i].b);
+    if (!cloud.rgb.empty()) next(colour(cloud.rgb[i].r)), next(colour(cloud.rgb[i].g)), next(colour(cloud.rgb[i].b));
     if (!cloud.normals.empty()) next(cloud.normals[i].x), next(cloud.normals[i].y), next(cloud.normals[i].z);
     if (!cloud.intensity.empty()) next(cloud.intensity[i]);
     if (!cloud.classification.empty()) next(cloud.classification[i]);

@@ -82,7 +82,7 @@ struct LasWriteOptions {
 /// Writes `cloud` as ASPRS LAS 1.4 R15: point data record format 6 (7 with rgb, 8 with rgb and a
 /// scalar called "nir"). Scalars named return_number, number_of_returns, classification_flags,
 /// scanner_channel, scan_direction_flag, edge_of_flight_line, scan_angle (degrees), user_data,
-/// point_source_id go to their standard fields; colour read as 8-bit LAS values
+/// point_source_id go to their standard fields; colour read from 8-bit values of a LAS or text file
 /// (PointCloud::rgb_from_8bit_las) is written back as those values; every other ScalarField becomes a
 /// float64 extra byte described in an Extra Bytes VLR (section 2.5.6); crs_wkt becomes an OGC WKT
 /// VLR (2112). Positions are quantised to the scale: a point read from LAS and written back with
@@ -115,11 +115,14 @@ void write_ply(const std::filesystem::path& path, const PointCloud& cloud);
 /// cloud failing validate(), std::runtime_error on I/O failure.
 void write_pcd(const std::filesystem::path& path, const PointCloud& cloud);
 
-/// Writes `cloud` as text: a header line naming the columns (x y z, red green blue as 16-bit
-/// values, nx ny nz, intensity, classification, gps_time, then the scalars' sanitised names),
+/// Writes `cloud` as text: a header line naming the columns (x y z, red green blue, nx ny nz,
+/// intensity, classification, gps_time, then the scalars' sanitised names),
 /// then one point per line; separated by ',' for a .csv name, else by a space (.xyz, .txt). Each
 /// value is the shortest decimal that reads back as the same double, so read_point_cloud returns
-/// the coordinates bit for bit. No CRS. Written via temp file + rename. Throws
+/// the coordinates bit for bit. Colour as the source held it: 16-bit values, or, for colour read
+/// from 8-bit values (PointCloud::rgb_from_8bit_las: a LAS file's or a text file's), those 8-bit
+/// values, which read_point_cloud scales by 257 again (docs/formats.md). No CRS. Written via temp
+/// file + rename. Throws
 /// std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
 void write_text(const std::filesystem::path& path, const PointCloud& cloud);
 
