@@ -74,7 +74,7 @@ Runner add_db_command(CLI::App& app) {
                 "scalar field name");
   c->add_flag("-q,--quiet", o->quiet, "no progress on stderr");
   return [o, table] {
-    require_single_process("rayscan db");
+    require_single_process("rayscan db import");
     // A SQLite import writes the tables points and chunks: a --table there would have no effect.
     if (table->count() > 0 && o->postgres.empty())
       throw UsageError("--table names the PostgreSQL table (with --postgres); a SQLite import (-o) writes the "
