@@ -19,6 +19,8 @@
 #include <cstring>
 #include <exception>
 #include <fstream>
+#include <memory>
+#include <new>
 #include <sstream>
 #include <string>
 #include <string_view>
@@ -52,18 +54,26 @@ struct MappedIndex::Map {
   /// land in the page cache, not in this process's resident set, and the queries' faults find
   /// them there. (MADV_WILLNEED in 64 MiB steps was tried: a cold 2e8 render took 24 s against
   /// 31 s without and 7.2 s with these reads; bench/notes/.)
-  void start_read_ahead(std::uint64_t first, std::uint64_t len, bool whole) {
-    ahead = std::thread([this, first, len, whole] {
-      constexpr std::uint64_t kStep = std::uint64_t{4} << 20;
-      std::vector<std::uint8_t> buf(kStep);
-      const auto ask = [&](std::uint64_t b, std::uint64_t e) {
-        for (std::uint64_t o = b / 4096 * 4096; o < e && !stop.load(std::memory_order_relaxed); o += kStep)
-          if (::pread(fd, buf.data(), static_cast<std::size_t>(std::min(kStep, n - o)), static_cast<off_t>(o)) <= 0) return;
-      };
-      const std::uint64_t end = std::min<std::uint64_t>(n, first + len);
-      ask(first, end);
-      if (whole) ask(0, first), ask(end, n);
-    });
+  /// The read-ahead only warms the page cache, so a thread that cannot start or a buffer that
+  /// cannot be allocated skips it rather than failing the open (or terminating the process: an
+  /// exception leaving a thread's function would).
+  void start_read_ahead(std::uint64_t first, std::uint64_t len, bool whole) noexcept {
+    try {
+      ahead = std::thread([this, first, len, whole]() noexcept { read_ahead(first, len, whole); });
+    } catch (const std::exception&) {  // (std::system_error: no thread; std::bad_alloc)
+    }
+  }
+  void read_ahead(std::uint64_t first, std::uint64_t len, bool whole) noexcept {
+    constexpr std::uint64_t kStep = std::uint64_t{4} << 20;
+    std::unique_ptr<std::uint8_t[]> buf(new (std::nothrow) std::uint8_t[kStep]);
+    if (!buf) return;
+    const auto ask = [&](std::uint64_t b, std::uint64_t e) {
+      for (std::uint64_t o = b / 4096 * 4096; o < e && !stop.load(std::memory_order_relaxed); o += kStep)
+        if (::pread(fd, buf.get(), static_cast<std::size_t>(std::min(kStep, n - o)), static_cast<off_t>(o)) <= 0) return;
+    };
+    const std::uint64_t end = std::min<std::uint64_t>(n, first + len);
+    ask(first, end);
+    if (whole) ask(0, first), ask(end, n);
   }
   ~Map() {
     stop = true;
