@@ -157,7 +157,8 @@ Runner add_solar_command(CLI::App& app) {
                 "2 x radius; surfels 0)")
       ->check(non_negative());
   c->add_option("--target-height", o->job.target_height,
-                "Shadow rays start this far above each point (default 1 x radius; surfels 0)")
+                "Shadow rays start this far from each point along its normal, straight up without normals "
+                "(default 1 x radius; surfels 0)")
       ->check(non_negative());
   c->add_option("--pressure", o->job.pressure, "Annual mean pressure, mbar (refraction)")
       ->capture_default_str()

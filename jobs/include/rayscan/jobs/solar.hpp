@@ -138,7 +138,7 @@ struct SolarJobOptions {
   bool monthly = false;
   std::uint32_t sky_rays = 64;          ///< sky-map directions per point (the diffuse's sky view); 0 = open sky
   std::optional<double> tolerance;      ///< line-of-sight tolerance (visibility; default 2 x radius, surfels 0)
-  std::optional<double> target_height;  ///< shadow rays aim this far above the point (default 1 x radius, surfels 0)
+  std::optional<double> target_height;  ///< shadow rays start this far from the point along its normal (+z without normals); world units (default 1 x radius, surfels 0)
 
   // ---- Outputs (each written through AtomicFile; "" = not written).
   std::filesystem::path out;            ///< the cloud with the result fields
