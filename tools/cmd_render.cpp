@@ -1,18 +1,13 @@
 // `rayscan render`: path-trace a scanned site from a JSON scene (paper section 5.3); the job is
-// jobs::run_render (rayscan/jobs/render.hpp); --ortho-map renders through
-// analysis::ortho_map's camera and writes with analysis::write_ortho_map.
+// jobs::run_render (rayscan/jobs/render.hpp), jobs::run_ortho_map for --ortho-map and
+// jobs::run_render_frames for --frames.
 #include "commands.hpp"
 #include "processes.hpp"
 
-#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/byte_size.hpp"
-#include "rayscan/analysis/geotiff.hpp"
-#include "rayscan/analysis/ortho_map.hpp"
-#include "rayscan/base/file_names.hpp"
 #include "rayscan/jobs/quick_look.hpp"
 #include "rayscan/jobs/render.hpp"
 
-#include <algorithm>
 #include <iostream>
 #include <memory>
 #include <optional>
@@ -92,43 +87,23 @@ int run_render(const RenderCliOptions& o) {
       for (const auto& f : fr.job.written) std::cout << "wrote " << f.string() << "\n";
     return 0;
   }
-  std::optional<analysis::OrthoMap> map;
   if (o.ortho_res) {
-    if (!analysis::is_geotiff_name(job.scene.output.image))
-      throw UsageError("--ortho-map: --out '" + job.scene.output.image.string() + "': " +
-                       extensions_expected(analysis::geotiff_extensions()) + " (GeoTIFF)");
     if (o.width || o.height || !o.colmap_dir.empty() || !o.camera.empty())
       throw UsageError("--ortho-map: the map's size comes from RES; do not give --width, --height, --camera or --colmap");
-    if (!o.dsm.empty() && !analysis::is_geotiff_name(o.dsm))
-      throw UsageError("--dsm '" + o.dsm + "': " + extensions_expected(analysis::geotiff_extensions()));
-    // The map's files are written here, not by run_render (job.write is off): checked before the
-    // render, as every job checks its outputs, not after it.
-    std::vector<std::filesystem::path> outs{job.scene.output.image};
-    if (!o.dsm.empty()) outs.emplace_back(o.dsm);
-    const std::filesystem::path ins[] = {job.scene.cloud, job.scene.file};
-    require_outputs(outs, ins);
-    job.write = false;
-    if (std::find(job.scene.output.aovs.begin(), job.scene.output.aovs.end(), Aov::depth) == job.scene.output.aovs.end())
-      job.scene.output.aovs.push_back(Aov::depth);
-    job.camera_for_cloud = [&](const AABB& bounds) {
-      try {
-        map = analysis::ortho_map(bounds, *o.ortho_res);
-      } catch (const std::invalid_argument& e) {
-        throw UsageError(std::string("--ortho-map: ") + e.what());
-      }
-      job.control.info("ortho map: " + std::to_string(map->grid.cols) + " x " + std::to_string(map->grid.rows) +
-                       " cells, top-down");
-      return map->camera;
-    };
-  } else if (!o.dsm.empty()) {
-    throw UsageError("--dsm: needs --ortho-map RES");
+    OrthoMapJobOptions map;
+    map.render = std::move(job);
+    map.ortho_map = *o.ortho_res;
+    map.dsm = o.dsm;
+    const OrthoMapJobResult r = run_ortho_map(map);
+    if (!is_root()) return 0;
+    if (talk && !traffic_summary().empty()) std::cerr << "rayscan render: " << traffic_summary() << "\n";
+    for (const auto& f : r.render.written) std::cout << "wrote " << f.string() << "\n";
+    return 0;
   }
+  if (!o.dsm.empty()) throw UsageError("--dsm: needs --ortho-map RES");
   RenderJobResult r = run_render(job);
   if (!is_root()) return 0;
   if (talk && !traffic_summary().empty()) std::cerr << "rayscan render: " << traffic_summary() << "\n";
-  if (map)
-    r.written = analysis::write_ortho_map(*map, r.image.beauty, r.image.depth, job.scene.output.exposure, r.crs_wkt,
-                                          job.scene.output.image, o.dsm, r.metadata);
   for (const auto& f : r.written) std::cout << "wrote " << f.string() << "\n";
   return 0;
 }

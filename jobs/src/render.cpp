@@ -15,6 +15,7 @@
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/surfel_setup.hpp"
 #include "rayscan/base/work_distributor.hpp"
+#include "rayscan/analysis/geotiff.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -392,6 +393,51 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   if (o.write && !scene.output.image.empty() && is_root(ctl))
     r.written = write_image(r.image, scene.output, r.metadata);
   log_stats(ctl, r.stats, *scene.camera, scene.spp, "");
+  return r;
+}
+
+OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
+  const double res = o.ortho_map;
+  if (!(res > 0.0) || !std::isfinite(res))
+    throw OptionError({option("ortho_map"), ": expected a finite number > 0 (world units per pixel), got " + num17(res)});
+  if (o.render.camera_for_cloud)
+    throw std::invalid_argument("ortho map: render.camera_for_cloud is set; the job sets it to the map's camera");
+  RenderJobOptions job = o.render;
+  const std::filesystem::path image = job.scene.output.image;
+  if (job.write) {
+    if (!analysis::is_geotiff_name(image))
+      throw OptionError({option("ortho_map"), ": ", option("out"),
+                         " '" + image.string() + "': " + extensions_expected(analysis::geotiff_extensions()) + " (GeoTIFF)"});
+    if (!o.dsm.empty() && !analysis::is_geotiff_name(o.dsm))
+      throw OptionError({option("dsm"), " '" + o.dsm.string() + "': " + extensions_expected(analysis::geotiff_extensions())});
+    // The map's files are written here (analysis::write_ortho_map), not by run_render: checked
+    // before the render, as run_render checks its image.
+    std::vector<std::filesystem::path> outs{image};
+    if (!o.dsm.empty()) outs.push_back(o.dsm);
+    const std::filesystem::path ins[] = {job.scene.cloud, job.scene.file};
+    require_outputs(outs, ins);
+  }
+  job.write = false;
+  std::vector<Aov>& aovs = job.scene.output.aovs;
+  if (std::find(aovs.begin(), aovs.end(), Aov::depth) == aovs.end()) aovs.push_back(Aov::depth);
+  OrthoMapJobResult r;
+  job.camera_for_cloud = [&](const AABB& bounds) {
+    try {
+      r.map = analysis::ortho_map(bounds, res);
+    } catch (const std::invalid_argument& e) {
+      throw OptionError({option("ortho_map"), std::string(": ") + e.what()});
+    }
+    job.control.info("ortho map: " + std::to_string(r.map->grid.cols) + " x " + std::to_string(r.map->grid.rows) +
+                     " cells, top-down");
+    return r.map->camera;
+  };
+  r.render = run_render(job);
+  if (!is_root(job.control)) return r;  // only the root's image is complete
+  r.dsm = analysis::dsm_from_depth(*r.map, r.render.image.depth);
+  if (o.render.write)
+    r.render.written = analysis::write_ortho_map(*r.map, r.render.image.beauty, r.render.image.depth,
+                                                 job.scene.output.exposure, r.render.crs_wkt, image, o.dsm,
+                                                 r.render.metadata);
   return r;
 }
 

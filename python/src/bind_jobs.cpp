@@ -9,6 +9,7 @@
 
 #include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/base/byte_size.hpp"
+#include "rayscan/base/option_error.hpp"
 #include "rayscan/jobs/compare.hpp"
 #include "rayscan/jobs/quick_look.hpp"
 #include "rayscan/jobs/solar.hpp"
@@ -179,51 +180,46 @@ py::dict render(py::handle scene, const std::string& scene_json, py::handle clou
   return out;
 }
 
-/// rayscan.ortho_map: `rayscan render CLOUD --ortho-map RES` without files. The quick look's scene
-/// (material, surfels) seen by analysis::ortho_map's top-down camera over the cloud's exact bounds.
+/// rayscan.ortho_map: `rayscan render CLOUD --ortho-map RES` without files (jobs::run_ortho_map,
+/// write off): the quick look's scene (material, surfels) seen by the map's top-down camera over
+/// the cloud's exact bounds.
 py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::handle seed, py::handle threads) {
-  jobs::RenderJobOptions o;
-  o.write = false;
-  o.control.threads = parse_threads(threads);
+  jobs::OrthoMapJobOptions o;
+  o.render.write = false;
+  o.render.control.threads = parse_threads(threads);
   const double res = float_arg(res_arg, "res", "a number > 0 (world units per pixel)");
   if (!(res > 0.0) || !std::isfinite(res))
     throw py::value_error("res: expected a finite number > 0 (world units per pixel), got " + std::to_string(res));
-  render::SceneOverrides ov = render_overrides(py::none(), py::none(), spp, seed, py::none());
-  ov.aovs = {"depth"};  // the DSM
+  o.ortho_map = res;
+  const render::SceneOverrides ov = render_overrides(py::none(), py::none(), spp, seed, py::none());
   RenderPoints points;
   points.arg.emplace(cloud_arg(cloud, "cloud"));
   const std::string path = points.arg->path;
   if (!path.empty() && !jobs::is_cloud_input(path))
     throw py::value_error("cloud '" + path + "': expected a point cloud file (LAS, LAZ, COPC, PLY, PCD, text, .rsi)");
-  std::optional<analysis::OrthoMap> map;
-  o.camera_for_cloud = [&](const AABB& bounds) {
-    try {
-      map = analysis::ortho_map(bounds, res);
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("res: ") + e.what());
-    }
-    return map->camera;
-  };
   const auto summary = [&](const std::filesystem::path& f) { return points.summary(f); };
-  jobs::RenderJobResult r;
-  analysis::Raster dsm;
+  jobs::OrthoMapJobResult r;
   {
     py::gil_scoped_release nogil;
-    o.scene = path.empty() ? jobs::resolve_quick_look(summary({}), ov).scene
-                           : jobs::resolve_scene(path, ov, summary).scene;
-    points.attach(o);
-    r = jobs::run_render(o);
-    dsm = analysis::dsm_from_depth(*map, r.image.depth);
+    o.render.scene = path.empty() ? jobs::resolve_quick_look(summary({}), ov).scene
+                                  : jobs::resolve_scene(path, ov, summary).scene;
+    points.attach(o.render);
+    try {
+      r = jobs::run_ortho_map(o);
+    } catch (const OptionError& e) {  // the job's cell size is this call's `res`
+      throw std::invalid_argument(
+          e.spelled([](std::string_view f) { return f == "ortho_map" ? std::string("res") : std::string(f); }));
+    }
   }
-  const analysis::GridSpec& g = map->grid;
+  const analysis::GridSpec& g = r.map->grid;
   const auto h = static_cast<py::ssize_t>(g.rows), w = static_cast<py::ssize_t>(g.cols);
   py::dict out;
-  out["image"] = own_as<float>(std::move(r.image.beauty), {h, w, 3});
-  out["dsm"] = to_numpy(std::move(dsm.values), {h, w});
+  out["image"] = own_as<float>(std::move(r.render.image.beauty), {h, w, 3});
+  out["dsm"] = to_numpy(std::move(r.dsm.values), {h, w});
   const std::array<double, 6> gt = g.geotransform();
   out["geotransform"] = py::make_tuple(gt[0], gt[1], gt[2], gt[3], gt[4], gt[5]);
-  out["crs"] = r.crs_wkt.empty() ? py::object(py::none()) : py::object(py::str(r.crs_wkt));
-  out["radius"] = r.radius.radius;
+  out["crs"] = r.render.crs_wkt.empty() ? py::object(py::none()) : py::object(py::str(r.render.crs_wkt));
+  out["radius"] = r.render.radius.radius;
   return out;
 }
 

@@ -85,8 +85,9 @@ TEST(RenderCli, OutAcceptsEveryImageExtension) {
 }
 
 TEST(RenderCli, OrthoMapOutputsAreCheckedBeforeTheRender) {
-  // The orthophoto and DSM are written by the command, not the render job: their directories are
-  // checked before the render (one line, exit 2, nothing written), as every job checks its outputs.
+  // The orthophoto and DSM are written by the ortho-map job, not as the render's image: their
+  // directories are checked before the render (one line, exit 2, nothing written), as every job
+  // checks its outputs.
   const std::string cloud = std::string(RAYSCAN_TEST_DATA) + "/las/autzen_trim.las";
   const fs::path ortho = cli_temp_dir() / "o.tif";
   const RunResult r = run("render " + cloud + " --ortho-map 3 --out " + ortho.string() + " --dsm /nonexistent-dir/d.tif");

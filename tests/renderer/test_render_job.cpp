@@ -1,15 +1,20 @@
 // The render job as a library call (rayscan/jobs/render.hpp). Oracles: the lower-level
 // calls it composes (compute_albedo, make_index, median_nn_spacing, render_image) run by hand.
-// The files it writes, read back through OpenImageIO: test_render_files.cpp.
+// The files it writes, read back through OpenImageIO: test_render_files.cpp; the ortho map's
+// GeoTIFFs read back through GDAL here.
 #include "render_test_data.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/jobs/render.hpp"
 
+#include <gdal_priv.h>
 #include <gtest/gtest.h>
 
+#include <array>
+#include <cmath>
 #include <cstring>
 #include <functional>
+#include <memory>
 #include <unistd.h>
 
 using namespace rayscan;
@@ -219,5 +224,86 @@ TEST(RenderJob, IndexFileAlbedoAtShadingTimeEqualsThePerPointArray) {
       EXPECT_GT(hit, r[1].image.index.size() / 4);
     }
   }
+  fs::remove_all(dir);
+}
+
+// run_ortho_map as a library call, no CLI: the orthophoto and DSM it writes, read back through
+// GDAL, lie on the footprint worked out by hand from grid_over's snapping rule (x0 = floor(x_min /
+// c) c, y_top = (floor(y_max / c) + 1) c, one cell per started multiple of c) for a plane z = 5
+// over x in [0.3, 19.8], y in [-3.7, 6.05] at c = 0.75: 27 x 14 cells from (0, 6.75). The DSM file
+// holds the result's elevations (NoData where the ray missed), which are the plane's height (up to
+// one sphere radius above it) inside the cloud, and the orthophoto's alpha is 255 exactly where
+// the DSM has a surface. A non-GeoTIFF name is refused naming the fields, before any work.
+TEST(RenderJob, OrthoMapJobWritesGeoTiffsOnTheCloudsFootprint) {
+  const fs::path dir = fs::temp_directory_path() / ("rayscan_render_ortho_job_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  PointCloud plane;
+  for (int j = 0; j <= 65; ++j)  // y = -3.7 .. 6.05
+    for (int i = 0; i <= 130; ++i) plane.positions.emplace_back(0.3 + 0.15 * i, -3.7 + 0.15 * j, 5.0);
+  OrthoMapJobOptions o;
+  o.render.scene.material.mode = ColorMode::elevation;
+  o.render.scene.spp = 1;
+  o.render.scene.output.image = dir / "o.tif";
+  o.render.cloud = &plane;
+  o.render.control.threads = 2;
+  o.ortho_map = 0.75;
+  o.dsm = dir / "d.tif";
+  const OrthoMapJobResult r = run_ortho_map(o);
+  const std::array<double, 6> gt{0.0, 0.75, 0.0, 6.75, 0.0, -0.75};
+  const int cols = 27, rows = 14;
+  ASSERT_TRUE(r.map);
+  EXPECT_EQ(r.map->grid.geotransform(), gt);
+  EXPECT_EQ(r.render.written, (std::vector<fs::path>{dir / "o.tif", dir / "d.tif"}));
+  ASSERT_EQ(r.dsm.values.size(), std::size_t(cols * rows));
+
+  GDALAllRegister();
+  const auto open = [](const fs::path& f) {
+    return std::unique_ptr<GDALDataset, void (*)(GDALDataset*)>(
+        static_cast<GDALDataset*>(GDALOpen(f.c_str(), GA_ReadOnly)), [](GDALDataset* d) { GDALClose(d); });
+  };
+  const auto ortho = open(dir / "o.tif"), dsm = open(dir / "d.tif");
+  ASSERT_TRUE(ortho && dsm);
+  for (GDALDataset* d : {ortho.get(), dsm.get()}) {
+    EXPECT_EQ(d->GetRasterXSize(), cols);
+    EXPECT_EQ(d->GetRasterYSize(), rows);
+    std::array<double, 6> file_gt{};
+    ASSERT_EQ(d->GetGeoTransform(file_gt.data()), CE_None);
+    EXPECT_EQ(file_gt, gt);
+  }
+  ASSERT_EQ(ortho->GetRasterCount(), 4);
+  ASSERT_EQ(dsm->GetRasterCount(), 1);
+  std::vector<float> z(std::size_t(cols * rows));
+  std::vector<std::uint8_t> alpha(z.size());
+  ASSERT_EQ(dsm->GetRasterBand(1)->RasterIO(GF_Read, 0, 0, cols, rows, z.data(), cols, rows, GDT_Float32, 0, 0), CE_None);
+  ASSERT_EQ(ortho->GetRasterBand(4)->RasterIO(GF_Read, 0, 0, cols, rows, alpha.data(), cols, rows, GDT_Byte, 0, 0),
+            CE_None);
+  int has_nodata = 0;
+  const double nodata = dsm->GetRasterBand(1)->GetNoDataValue(&has_nodata);
+  ASSERT_TRUE(has_nodata);
+  std::size_t inside = 0;
+  for (int row = 0; row < rows; ++row)
+    for (int col = 0; col < cols; ++col) {
+      const std::size_t k = std::size_t(row) * cols + col;
+      const float v = r.dsm.values[k];
+      SCOPED_TRACE("cell " + std::to_string(col) + ", " + std::to_string(row));
+      if (std::isnan(v)) EXPECT_EQ(z[k], float(nodata));
+      else EXPECT_EQ(z[k], v);
+      EXPECT_EQ(alpha[k], std::isnan(v) ? 0 : 255);
+      const double x = 0.375 + 0.75 * col, y = 6.375 - 0.75 * row;  // the cell's centre
+      if (x > 0.5 && x < 19.6 && y > -3.5 && y < 5.85) {
+        ++inside;
+        EXPECT_GE(v, 5.0 - 1e-4);
+        EXPECT_LE(v, 5.0 + r.render.radius.radius + 1e-4);
+      }
+    }
+  EXPECT_EQ(inside, std::size_t(25 * 13));  // columns 1..25, rows 1..13
+
+  OrthoMapJobOptions png = o;
+  png.render.scene.output.image = dir / "o.png";
+  png.dsm = dir / "d2.tif";
+  EXPECT_EQ(what_of([&] { (void)run_ortho_map(png); }),
+            "ortho_map: out '" + (dir / "o.png").string() + "': expected a file name ending in .tif or .tiff (GeoTIFF)");
+  EXPECT_FALSE(fs::exists(dir / "o.png") || fs::exists(dir / "d2.tif"));
   fs::remove_all(dir);
 }

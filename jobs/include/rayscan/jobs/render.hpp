@@ -1,8 +1,10 @@
 // The render job: a scene (file or built in code) and its cloud (file or in memory) to an image
 // with AOVs, as one library call (paper section 5.3). `rayscan render` and the Python module's
-// rayscan.render() are thin wrappers over run_render().
+// rayscan.render() are thin wrappers over run_render(); `rayscan render --ortho-map` and
+// rayscan.ortho_map() over run_ortho_map().
 #pragma once
 
+#include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/site/copc.hpp"
 #include "rayscan/base/job.hpp"
 #include "rayscan/octree/point_cloud.hpp"
@@ -36,7 +38,7 @@ struct RenderJobOptions {
   bool write = true;                   ///< write scene.output.image (+ AOVs) when it is set
   /// When set, called once the cloud is read with its exact bounds (the AABB of its points); the
   /// camera it returns replaces scene.camera (the scene then needs no camera). E.g. a top-down map
-  /// over the cloud's extent (analysis::ortho_map, `rayscan render --ortho-map`). Exceptions it
+  /// over the cloud's extent (analysis::ortho_map, as run_ortho_map sets it). Exceptions it
   /// throws propagate unchanged.
   std::function<Camera(const AABB&)> camera_for_cloud;
   JobControl control;                  ///< threads, progress bar, log lines
@@ -79,6 +81,42 @@ struct RenderJobResult {
 /// it with the same options; the tiles are handed out by the distributor, only the root's `image`
 /// is complete and only the root writes (stats: ray queries summed over the processes).
 RenderJobResult run_render(const RenderJobOptions& options);
+
+/// Inputs of run_ortho_map(): a render through a top-down camera over the cloud's exact XY extent.
+struct OrthoMapJobOptions {
+  /// The scene, its cloud (file or `cloud` in memory), control and cache as for run_render(). The
+  /// scene's camera is not used (the map's replaces it); camera_for_cloud must be unset (the job
+  /// sets it). With `write`, scene.output.image is the orthophoto (.tif or .tiff); the depth AOV
+  /// is added to scene.output.aovs when missing (the DSM and the alpha band come from it).
+  RenderJobOptions render;
+  double ortho_map = 0.0;      ///< the map's cell size (analysis::ortho_map's res), world units per pixel, > 0
+  std::filesystem::path dsm;   ///< with render.write: also the DSM GeoTIFF here (.tif or .tiff); "" = none
+};
+
+/// Output of run_ortho_map().
+struct OrthoMapJobResult {
+  RenderJobResult render;      ///< the render through map.camera (image: beauty, depth and the
+                               ///< requested AOVs; written: the orthophoto, then the DSM)
+  /// The grid over the cloud's exact bounds and its camera: set whenever run_ortho_map returns
+  /// (optional only because a Camera has no empty state).
+  std::optional<analysis::OrthoMap> map;
+  analysis::Raster dsm;        ///< elevation per cell (analysis::dsm_from_depth; NaN = no surface);
+                               ///< empty on the non-root processes of a distributed render
+};
+
+/// Renders a true orthophoto and digital surface model (`rayscan render --ortho-map RES [--dsm F]`,
+/// rayscan.ortho_map()): run_render() with the camera analysis::ortho_map(bounds, ortho_map) over
+/// the cloud's exact bounds (logged as "ortho map: C x R cells, top-down"), the DSM from the depth
+/// AOV and, when render.write, the files (analysis::write_ortho_map: the RGBA orthophoto at
+/// scene.output.image, the Float32 DSM at `dsm` when set, both with the cloud's CRS and the
+/// render's metadata), written on the root only. The outputs' names and folders are checked before
+/// the render. Throws OptionError naming `ortho_map` for a cell size that is not finite and
+/// > 0 or that gives too large a grid (analysis::ortho_map's message), naming `ortho_map` and `out`
+/// for an orthophoto name that is not a GeoTIFF, `dsm` for such a DSM name; OutputFileError
+/// (require_outputs) for an output that cannot be written, is an input or is the other output;
+/// std::invalid_argument when render.camera_for_cloud is set; otherwise as run_render() and
+/// analysis::write_ortho_map.
+OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& options);
 
 /// Output of run_render_frames().
 struct RenderFramesResult {
