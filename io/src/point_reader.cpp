@@ -1,6 +1,7 @@
 // open_point_reader(): the chunked readers of every format, and the memory map they read from.
 #include "rayscan/io/point_reader.hpp"
 
+#include "field_names.hpp"
 #include "readers.hpp"
 
 #include "rayscan/base/input_file.hpp"
@@ -83,8 +84,19 @@ namespace {
 using detail::Source;
 
 /// Moves scalars that are really intensity / classification / GPS time into their dedicated
-/// fields when their values fit exactly (e.g. PCD "intensity" F4 holding 0..246 integers).
+/// fields when their values fit exactly (e.g. PCD "intensity" F4 holding 0..246 integers), and
+/// renames the other LAS fields spelt as PDAL does (ReturnNumber, ...) to the names write_las
+/// stores in the standard LAS fields (detail::las_standard_scalar_name); a name already taken by
+/// another field stays as it is.
 void promote_scalars(PointCloud& pc, const ReadOptions& opt, FileInfo& info) {
+  std::string renamed;
+  for (ScalarField& f : pc.scalars) {
+    const char* las = opt.scalars ? detail::las_standard_scalar_name(f.name) : nullptr;
+    if (las == nullptr || f.name == las || pc.scalar(las) != nullptr) continue;
+    renamed += (renamed.empty() ? "" : ", ") + f.name + " as " + las;
+    f.name = las;
+  }
+  if (!renamed.empty()) info.notes.push_back("LAS fields read by their other names: " + renamed);
   for (std::size_t k = 0; k < pc.scalars.size();) {
     ScalarField& f = pc.scalars[k];
     const std::string n = detail::lower(f.name);

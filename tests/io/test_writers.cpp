@@ -4,8 +4,13 @@
 
 #include "rayscan/io/las_records.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <fstream>
 #include <random>
+#include <sstream>
+#include <utility>
 
 namespace rayscan::test {
 namespace {
@@ -147,13 +152,32 @@ TEST(Writers, PcdAndTextRoundTripKeepCoordinatesBitForBitAndEveryAttribute) {
   }
 }
 
+/// The colour fields of every record, as stored (ASPRS LAS 1.4 R15 section 2.6: red, green, blue
+/// at byte 20 of PDRF 2, 28 of PDRF 3 and 5, 30 of PDRF 7, 8 and 10).
+std::vector<std::uint16_t> stored_rgb(const io::LasRecords& r) {
+  const std::size_t at = r.pdrf == 2 ? 20 : (r.pdrf == 3 || r.pdrf == 5) ? 28 : 30;
+  std::vector<std::uint16_t> v;
+  for (std::uint64_t i = 0; i < r.count; ++i)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::uint8_t* q = r.records.data() + i * r.record_length + at + 2 * k;
+      v.push_back(static_cast<std::uint16_t>(q[0] | q[1] << 8));
+    }
+  return v;
+}
+
 // LAS -> PLY / PCD / text -> LAS: the last LAS holds the source's coordinates bit for bit (the
-// writer finds the source's 0.01-unit grid instead of its 0.001 default) and, through PLY, every
-// standard attribute (the source is the oracle, read back by the same LAS reader).
+// writer finds the source's 0.01-unit grid instead of its 0.001 default), the source's own colour
+// values (autzen_trim.las holds 8-bit values, max 236, in its 16-bit fields: PLY's uchar, PCD's
+// packed rgb and the text columns carry them, and the LAS written from those stores them again,
+// as PDAL does) and, through PLY, every standard attribute (the source is the oracle: its records'
+// bytes, and the cloud read back by the same LAS reader).
 TEST(Writers, LasThroughPlyPcdAndTextBackToLasIsBitExact) {
   RAYSCAN_REQUIRE_FILE(p, "las/autzen_trim.las");
   io::FileInfo src_info;
   const PointCloud src = io::read_point_cloud(p, {}, &src_info);
+  const std::vector<std::uint16_t> own_rgb = stored_rgb(io::read_las_records(p));
+  ASSERT_EQ(own_rgb.size(), 3 * src.size());
+  ASSERT_EQ(*std::max_element(own_rgb.begin(), own_rgb.end()), 236);
   for (const char* ext : {".ply", ".pcd", ".xyz"}) {
     const fs::path mid = temp_dir() / (std::string("autzen_mid") + ext), las = temp_dir() / "autzen_back.las";
     io::write_point_cloud(mid, src);
@@ -163,6 +187,7 @@ TEST(Writers, LasThroughPlyPcdAndTextBackToLasIsBitExact) {
     EXPECT_EQ(back.positions, src.positions) << ext;
     EXPECT_EQ(*info.scale, *src_info.scale) << ext;
     EXPECT_EQ(back.rgb, src.rgb) << ext;
+    EXPECT_TRUE(stored_rgb(io::read_las_records(las)) == own_rgb) << ext;
     if (std::string(ext) == ".ply") {
       EXPECT_EQ(back.intensity, src.intensity);
       EXPECT_EQ(back.classification, src.classification);
@@ -170,6 +195,65 @@ TEST(Writers, LasThroughPlyPcdAndTextBackToLasIsBitExact) {
       EXPECT_EQ(back.crs_wkt, src.crs_wkt);
     }
     fs::remove(mid);
+    fs::remove(las);
+  }
+}
+
+// PDAL names the LAS fields ReturnNumber, NumberOfReturns, ScanAngleRank, ... (readers.las; its
+// writers.pcd/.ply/.text write those names): a PCD, PLY or text file with those names, or their
+// snake_case forms, gives a LAS file that stores them in the standard fields of the point records,
+// not as extra bytes. Oracle: the values written into the input, and the LAS records' own bytes
+// (ASPRS LAS 1.4 R15 table 15, PDRF 6).
+TEST(Writers, PdalNamesOfLasFieldsBecomeTheStandardLasFields) {
+  struct Point {
+    int ret, nret, scan_dir, edge, cls, user, psid;
+    double angle;  // degrees: a whole number of 0.006-degree units
+  };
+  const Point pts[] = {{2, 3, 1, 0, 6, 7, 4321, -12.0}, {3, 3, 0, 1, 2, 255, 65535, 30.0}, {1, 1, 0, 0, 1, 0, 0, 0.0}};
+  auto row = [](const Point& p, int i, const char* sep) {
+    std::ostringstream o;
+    o << i << sep << 2 * i << sep << 0.5 << sep << p.ret << sep << p.nret << sep << p.scan_dir << sep << p.edge << sep
+      << p.cls << sep << p.angle << sep << p.user << sep << p.psid << "\n";
+    return o.str();
+  };
+  std::string pcd =
+      "VERSION 0.7\nFIELDS X Y Z ReturnNumber NumberOfReturns ScanDirectionFlag EdgeOfFlightLine Classification "
+      "ScanAngleRank UserData PointSourceId\nSIZE 8 8 8 1 1 1 1 1 4 1 2\nTYPE F F F U U U U U F U U\n"
+      "COUNT 1 1 1 1 1 1 1 1 1 1 1\nWIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n";
+  std::string csv =
+      "x,y,z,return_number,number_of_returns,scan_direction_flag,edge_of_flight_line,classification,"
+      "scan_angle_rank,user_data,point_source_id\n";
+  std::string ply =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty double x\nproperty double y\nproperty double z\n"
+      "property uchar scalar_ReturnNumber\nproperty uchar scalar_NumberOfReturns\nproperty uchar "
+      "scalar_ScanDirectionFlag\nproperty uchar scalar_EdgeOfFlightLine\nproperty uchar classification\n"
+      "property float scalar_ScanAngleRank\nproperty uchar scalar_UserData\nproperty ushort scalar_PointSourceId\n"
+      "end_header\n";
+  for (int i = 0; i < 3; ++i) pcd += row(pts[i], i, " "), csv += row(pts[i], i, ","), ply += row(pts[i], i, " ");
+  for (const auto& [name, text] : {std::pair<std::string, std::string>{"pdal_names.pcd", pcd},
+                                   {"pdal_names.csv", csv}, {"pdal_names.ply", ply}}) {
+    SCOPED_TRACE(name);
+    const fs::path in = temp_dir() / name, las = temp_dir() / "pdal_names.las";
+    std::ofstream(in, std::ios::binary) << text;
+    io::FileInfo info;
+    io::write_point_cloud(las, io::read_point_cloud(in, {}, &info));
+    const io::LasRecords r = io::read_las_records(las);
+    ASSERT_EQ(r.pdrf, 6);
+    EXPECT_EQ(r.record_length, 30);  // no extra bytes: every field has its place in the record
+    ASSERT_EQ(r.count, 3u);
+    for (int i = 0; i < 3; ++i) {
+      const Point& p = pts[i];
+      const std::uint8_t* b = r.records.data() + static_cast<std::size_t>(i) * r.record_length;
+      EXPECT_EQ(b[14] & 15, p.ret) << i;
+      EXPECT_EQ(b[14] >> 4, p.nret) << i;
+      EXPECT_EQ((b[15] >> 6) & 1, p.scan_dir) << i;
+      EXPECT_EQ(b[15] >> 7, p.edge) << i;
+      EXPECT_EQ(b[16], p.cls) << i;
+      EXPECT_EQ(b[17], p.user) << i;
+      EXPECT_EQ(io::detail::load_le<std::int16_t>(b + 18), std::lround(p.angle / 0.006)) << i;
+      EXPECT_EQ(io::detail::load_le<std::uint16_t>(b + 20), p.psid) << i;
+    }
+    fs::remove(in);
     fs::remove(las);
   }
 }

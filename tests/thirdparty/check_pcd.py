@@ -23,8 +23,10 @@ def check(pcd, xyz, legacy):
         print(f"FAIL: {pcd}: Open3D's tensor reader gives other positions than {xyz}")
         return False
     if "red" in names:
-        rgb16 = data[:, names.index("red"):names.index("red") + 3]
-        want8 = np.floor((rgb16 + 128) / 257)
+        # The text columns hold the source's colour values: 8-bit ones as they are (all <= 255,
+        # the readers' rule, docs/formats.md), else 16-bit ones, which the PCD stores rounded.
+        rgb = data[:, names.index("red"):names.index("red") + 3]
+        want8 = rgb if rgb.max() <= 255 else np.floor((rgb + 128) / 257)
         got8 = t.point.colors.numpy().astype(np.float64)
         if got8.max() <= 1.0:  # some Open3D versions give colours in [0, 1]
             got8 = np.round(got8 * 255)

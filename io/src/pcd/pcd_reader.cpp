@@ -526,10 +526,13 @@ struct PcdBody {
   }
 
   /// PointCloud::rgb from packed colour (0x??RRGGBB, 8 bit scaled by 257) or from separate
-  /// channels (scaled by colour_scale(), its note added to info.notes).
+  /// channels (scaled by colour_scale(), its note added to info.notes). 8-bit colour (scaled by
+  /// 257) is marked PointCloud::rgb_from_8bit_las: write_las stores it as those values, as PDAL's
+  /// writers.las does, so LAS -> PCD -> LAS keeps the LAS file's own colour values.
   void finish_colour() {
     const std::size_t n = pc.positions.size();
     if (roles.has_packed) {
+      pc.rgb_from_8bit_las = true;
       pc.rgb.resize(n);
       for (std::size_t i = 0; i < n; ++i) {
         const std::uint32_t v = packed[i];
@@ -543,6 +546,7 @@ struct PcdBody {
       std::string note;
       const double s = colour_scale(mx, roles.ch_float, note);
       if (!note.empty()) info.notes.push_back(note);
+      pc.rgb_from_8bit_las = s == 257.0;
       pc.rgb.resize(n);
       for (std::size_t i = 0; i < n; ++i) {
         auto q = [&](float c) { return to_u16(c * s); };

@@ -502,7 +502,7 @@ struct PlyBody {
   }
 
   /// PointCloud::rgb from the colour properties, scaled by colour_scale() (its note added to
-  /// info.notes).
+  /// info.notes); 8-bit colour (scaled by 257) is marked PointCloud::rgb_from_8bit_las.
   void finish_colour() {
     if (!roles.has_rgb) return;
     float mx = 0;
@@ -510,6 +510,9 @@ struct PlyBody {
     std::string note;
     const double s = colour_scale(mx, roles.rgb_float, note);
     if (!note.empty()) info.notes.push_back(note);
+    // write_las stores 8-bit colour as those values, as PDAL's writers.las does with a PLY's
+    // uchar red: LAS -> PLY -> LAS keeps the LAS file's own colour values.
+    pc.rgb_from_8bit_las = s == 257.0;
     pc.rgb.resize(pc.positions.size());
     for (std::size_t i = 0; i < pc.rgb.size(); ++i) {
       auto q = [&](float c) { return to_u16(c * s); };
