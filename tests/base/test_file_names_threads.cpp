@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include <sched.h>
+
 using namespace rayscan;
 
 TEST(FileNames, LowerExtensionFoldsAsciiCaseOnly) {
@@ -22,8 +24,18 @@ TEST(FileNames, LowerExtensionFoldsAsciiCaseOnly) {
   EXPECT_EQ(extensions_expected({".a", ".b", ".c"}), "expected a file name ending in .a, .b or .c");
 }
 
-TEST(Threads, ZeroMeansTheArenaLimit) {
-  EXPECT_EQ(resolve_threads(3), 3u);
+TEST(Threads, ZeroMeansTheArenaLimitAndLargerRequestsAreCappedAtIt) {
+  // The process's CPU affinity (the kernel's own count) bounds what TBB runs at once.
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  ASSERT_EQ(sched_getaffinity(0, sizeof set, &set), 0);
+  const unsigned cpus = static_cast<unsigned>(CPU_COUNT(&set));
+  EXPECT_EQ(resolve_threads(1), 1u);
+  EXPECT_GE(resolve_threads(0), 1u);
+  EXPECT_LE(resolve_threads(0), cpus);
+  EXPECT_EQ(resolve_threads(1024), resolve_threads(0));  // more than any core count here: capped
+  EXPECT_EQ(resolve_threads(cpus + 1), resolve_threads(0));
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
   EXPECT_EQ(resolve_threads(0), 1u);
+  EXPECT_EQ(resolve_threads(3), 1u);  // the global limit caps a request too
 }
