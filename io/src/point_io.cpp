@@ -92,11 +92,14 @@ void require_point_cloud_output(const std::filesystem::path& path) {
 
 LasWriteOptions las_grid_of(const FileInfo& source) {
   LasWriteOptions lo;
-  if ((source.format == "LAS" || source.format == "LAZ" || source.format == "COPC") && source.scale && source.offset) {
+  if (source.format != "LAS" && source.format != "LAZ" && source.format != "COPC") return lo;
+  if (source.scale && source.offset) {
     lo.scale = *source.scale;
     lo.offset = *source.offset;
     lo.has_offset = true;
   }
+  lo.adjusted_standard_gps_time = (source.global_encoding & 1u) != 0;
+  lo.project_guid = source.project_guid;
   return lo;
 }
 

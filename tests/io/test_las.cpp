@@ -1,9 +1,15 @@
 // LAS reader behaviour on real files, checked against independent oracles: other files holding
 // the same points, the file's own header and VLR bytes, and the shared-data README.
 #include "io_test_util.hpp"
+#include "../common/run_command.hpp"
+
+#include "rayscan/io/las_records.hpp"
+#include "rayscan/io/point_reader.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cstring>
+#include <tuple>
 
 namespace rayscan::test {
 namespace {
@@ -214,6 +220,178 @@ TEST(Las, CompressionBitWithoutLaszipVlrIsRefused) {
     EXPECT_NE(std::string(e.what()).find("no LASzip VLR"), std::string::npos) << e.what();
     EXPECT_EQ(std::string(e.what()).rfind("x.laz: byte 104", 0), 0u) << e.what();
   }
+}
+
+// ---- Derived LAS files: header fields, normals and Extra Bytes names.
+
+/// The Extra Bytes descriptors of a LAS file, from its own bytes (LAS 1.4 R15 table 24): data type
+/// and the 32-byte name of each, over every "LASF_Spec"/4 VLR in file order.
+struct LasEbDescriptor {
+  int type = 0;
+  std::string name;
+};
+std::vector<LasEbDescriptor> las_eb_descriptors(const std::vector<std::uint8_t>& b) {
+  std::vector<LasEbDescriptor> out;
+  std::size_t pos = load_at<std::uint16_t>(b, 94);
+  const std::uint32_t n = load_at<std::uint32_t>(b, 100);
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const std::string user(reinterpret_cast<const char*>(&b[pos + 2]), strnlen(reinterpret_cast<const char*>(&b[pos + 2]), 16));
+    const std::uint16_t id = load_at<std::uint16_t>(b, pos + 18), len = load_at<std::uint16_t>(b, pos + 20);
+    if (user == "LASF_Spec" && id == 4)
+      for (std::size_t k = 0; k + 192 <= len; k += 192) {
+        const char* nm = reinterpret_cast<const char*>(&b[pos + 54 + k + 4]);
+        out.push_back({b[pos + 54 + k + 2], std::string(nm, strnlen(nm, 32))});
+      }
+    pos += 54 + len;
+  }
+  return out;
+}
+
+TEST(LasDerived, KeepsTheSourcesGpsTimeTypeAndProjectGuid) {
+  // Oracle: the source file's own header bytes (global encoding bit 0 at byte 6, GUID bytes
+  // 8-23): test1_4 says adjusted standard GPS time (17), vegetation_1_3 has a GUID.
+  for (const char* rel : {"las/test1_4.las", "las/vegetation_1_3.las"}) {
+    const fs::path src = data_file(rel);
+    ASSERT_FALSE(src.empty()) << rel;
+    io::FileInfo info;
+    const PointCloud pc = read(src, &info);
+    const auto a = slurp(src);
+    for (const char* ext : {".las", ".laz"}) {
+      const fs::path out = temp_dir() / (fs::path(rel).stem().string() + "_derived" + ext);
+      io::write_point_cloud(out, pc, io::las_grid_of(info));
+      const auto b = slurp(out);  // the LAZ header is the LAS one (translate copies it)
+      EXPECT_EQ(b[6] & 1, a[6] & 1) << out;
+      EXPECT_TRUE(std::equal(a.begin() + 8, a.begin() + 24, b.begin() + 8)) << out << ": GUID";
+      EXPECT_EQ(b[6] & 0x10, 0x10) << out << ": WKT bit";
+    }
+  }
+  // Through the command that writes derived clouds (`visibility -o`, write_result_cloud).
+  for (const auto& [rel, observer] : {std::pair{"las/test1_4.las", "1694300,1816495"},
+                                      std::pair{"las/vegetation_1_3.las", "-98449,-55972"}}) {
+    const fs::path src = data_file(rel), out = temp_dir() / "vis_derived.las";
+    const CommandResult r = run_command(std::string("'") + RAYSCAN_EXE + "' visibility -q '" + src.string() +
+                                        "' --observer " + observer + " --height 2 -o '" + out.string() + "'");
+    ASSERT_EQ(r.code, 0) << r.out;
+    const auto a = slurp(src), b = slurp(out);
+    EXPECT_EQ(b[6] & 1, a[6] & 1) << rel;
+    EXPECT_TRUE(std::equal(a.begin() + 8, a.begin() + 24, b.begin() + 8)) << rel << ": GUID";
+  }
+  // A cloud with no LAS source: GPS week time (bit 0 clear), zero GUID.
+  PointCloud pc;
+  pc.positions = {Vec3(1, 2, 3)};
+  const fs::path out = temp_dir() / "no_source.las";
+  io::write_las(out, pc);
+  const auto b = slurp(out);
+  EXPECT_EQ(load_at<std::uint16_t>(b, 6), 16u);
+  EXPECT_TRUE(std::all_of(b.begin() + 8, b.begin() + 24, [](std::uint8_t c) { return c == 0; }));
+}
+
+TEST(LasDerived, NormalsAreWrittenAsPdalExtraBytesAndReadBack) {
+  // cloud_bin_0.pcd (3903 points with normal_x/y/z) written as LAS and LAZ. Oracles: the file's
+  // own Extra Bytes descriptors (PDAL's dimension names NormalX/Y/Z, type 10 = double) and record
+  // bytes, and the PCD's normals for the read back.
+  RAYSCAN_REQUIRE_FILE(pcd, "pcd/cloud_bin_0.pcd");
+  PointCloud pc = read(pcd);
+  ASSERT_EQ(pc.normals.size(), pc.size());
+  pc.scalars.push_back({"visible_count", std::vector<double>(pc.size(), 2.0)});
+  for (const char* ext : {".las", ".laz"}) {
+    const fs::path out = temp_dir() / (std::string("normals") + ext);
+    io::write_las(out, pc);
+    const io::LasRecords recs = io::read_las_records(out);
+    const auto b = slurp(out);
+    const auto eb = las_eb_descriptors(b);
+    ASSERT_EQ(eb.size(), 4u);
+    const char* names[3] = {"NormalX", "NormalY", "NormalZ"};
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(eb[a].name, names[a]);
+      EXPECT_EQ(eb[a].type, 10);
+    }
+    const std::size_t rec = load_at<std::uint16_t>(b, 105), core = rec - 8 * 4;
+    ASSERT_EQ(recs.records.size(), rec * pc.size());
+    for (std::size_t i = 0; i < pc.size(); ++i)
+      for (int a = 0; a < 3; ++a) {
+        double v;
+        std::memcpy(&v, recs.records.data() + i * rec + core + 8 * a, 8);
+        ASSERT_EQ(v, static_cast<double>(pc.normals[i][a])) << ext << " point " << i;
+      }
+    const PointCloud back = read(out);
+    EXPECT_TRUE(back.normals == pc.normals) << ext;
+    EXPECT_EQ(back.scalar("NormalX"), nullptr);
+    ASSERT_NE(back.scalar("visible_count"), nullptr);
+    // Normals alone, without the scalars, as a renderer asks for them.
+    auto r = io::open_point_reader(out, io::AttributeSet::none().add(io::Attribute::normals), io::ReadOptions{.scalars = false});
+    PointCloud chunk;
+    ASSERT_EQ(r->read(chunk, pc.size()), pc.size());
+    EXPECT_TRUE(chunk.normals == pc.normals) << ext;
+  }
+  // COPC built from the PCD (`rayscan translate`, through write_las): the same normals, reordered.
+  const fs::path copc = temp_dir() / "normals.copc.laz";
+  const CommandResult r = run_command(std::string("'") + RAYSCAN_EXE + "' translate -q '" + pcd.string() + "' '" + copc.string() + "'");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const PointCloud c = read(copc);
+  auto sorted = [](std::vector<glm::vec3> v) {
+    std::sort(v.begin(), v.end(), [](const glm::vec3& p, const glm::vec3& q) {
+      return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z);
+    });
+    return v;
+  };
+  ASSERT_EQ(c.normals.size(), pc.size());
+  EXPECT_TRUE(sorted(c.normals) == sorted(pc.normals));
+}
+
+TEST(LasDerived, ExtraBytesNamesLongerThan32BytesStayDistinct) {
+  // Oracle: the descriptors' 32-byte name fields in the file; the read back by those names.
+  PointCloud pc;
+  pc.positions = {Vec3(1, 2, 3), Vec3(4, 5, 6)};
+  pc.scalars = {{"this_is_a_very_long_attribute_name_one", {1, 2}},
+                {"this_is_a_very_long_attribute_name_two", {3, 4}},
+                {"short", {5, 6}},
+                {"short", {7, 8}},
+                {"this_is_a_very_long_attribute_~1", {9, 10}}};  // a real name equal to a candidate
+  const fs::path out = temp_dir() / "long_names.las";
+  io::write_las(out, pc);
+  const auto eb = las_eb_descriptors(slurp(out));
+  ASSERT_EQ(eb.size(), 5u);
+  const std::vector<std::string> want = {"this_is_a_very_long_attribute_~2", "this_is_a_very_long_attribute_~3", "short",
+                                         "short~1", "this_is_a_very_long_attribute_~1"};
+  for (std::size_t k = 0; k < want.size(); ++k) {
+    EXPECT_EQ(eb[k].name, want[k]);
+    EXPECT_LE(eb[k].name.size(), 32u);
+  }
+  const PointCloud back = read(out);
+  for (std::size_t k = 0; k < want.size(); ++k) {
+    const ScalarField* f = back.scalar(want[k]);
+    ASSERT_NE(f, nullptr) << want[k];
+    EXPECT_EQ(f->values, pc.scalars[k].values) << want[k];
+  }
+}
+
+TEST(Las, ExtraBytesDescribedByTwoVlrsKeepTheirOffsets) {
+  // append-bug.las (PDRF 8, 41-byte records: 3 extra bytes) describes its extra bytes in two
+  // Extra Bytes VLRs: Deviation (uint16, bytes 38-39) and confidence (uint8, byte 40). Its extra
+  // bytes are all zero, so a copy gets distinct values there. Oracle: the record bytes at those
+  // offsets.
+  RAYSCAN_REQUIRE_FILE(p, "las/append-bug.las");
+  auto b = slurp(p);
+  ASSERT_EQ(load_at<std::uint16_t>(b, 105), 41u);
+  const std::size_t off = load_at<std::uint32_t>(b, 96);
+  const std::size_t n = load_at<std::uint64_t>(b, 247);
+  for (std::size_t i = 0; i < n; ++i) {
+    store_at<std::uint16_t>(b, off + i * 41 + 38, static_cast<std::uint16_t>(1000 + i));
+    b[off + i * 41 + 40] = static_cast<std::uint8_t>(i * 7 + 3);
+  }
+  io::FileInfo info;
+  const PointCloud pc = io::read_point_cloud(b, io::Format::las, "append-bug.las", {}, &info);
+  const ScalarField* dev = pc.scalar("Deviation");
+  const ScalarField* conf = pc.scalar("confidence");
+  ASSERT_NE(dev, nullptr);
+  ASSERT_NE(conf, nullptr);
+  ASSERT_EQ(pc.size(), n);
+  for (std::size_t i = 0; i < n; ++i) {
+    ASSERT_EQ(dev->values[i], load_at<std::uint16_t>(b, off + i * 41 + 38)) << "point " << i;
+    ASSERT_EQ(conf->values[i], b[off + i * 41 + 40]) << "point " << i;
+  }
+  for (const std::string& note : info.notes) EXPECT_EQ(note.find("Extra Bytes"), std::string::npos) << note;
 }
 
 }  // namespace

@@ -70,6 +70,38 @@ std::size_t core_length(int pdrf) {
   return kLen[pdrf];
 }
 
+TEST(Translate, InternalWaveformRecordIsCopiedAndAddressed) {
+  // simple1_3.las: LAS 1.3, PDRF 4, global encoding bit 1 (waveform packets internal), its
+  // 160-byte waveform data packet record after the 999 records (header byte 227). Oracle: the
+  // input's own bytes; LAS -> LAS keeps every byte, so the output equals the input.
+  RAYSCAN_REQUIRE_FILE(in, "las/simple1_3.las");
+  const auto a = slurp(in);
+  ASSERT_EQ(load_at<std::uint16_t>(a, 6) & 2u, 2u);
+  const fs::path out = temp_dir() / "simple1_3_copy.las";
+  io::translate_las(in, out);
+  expect_same_file(out, in);
+  const auto b = slurp(out);
+  const std::uint64_t wave = load_at<std::uint64_t>(b, 227);
+  ASSERT_LT(wave + 60, b.size());
+  EXPECT_EQ(load_at<std::uint16_t>(b, wave + 18), 65535u);  // the waveform record's EVLR-style header
+  // LAZ cannot hold it: refused with one line, no file left.
+  const fs::path laz = temp_dir() / "simple1_3.laz";
+  EXPECT_THROW(io::translate_las(in, laz), std::invalid_argument);
+  EXPECT_FALSE(fs::exists(laz));
+  // A start that is not after the point records is malformed: named at byte 227.
+  auto bad = a;
+  store_at<std::uint64_t>(bad, 227, 1000);
+  const fs::path bad_in = temp_dir() / "simple1_3_bad_wave.las", bad_out = temp_dir() / "bad_wave_out.las";
+  { std::ofstream(bad_in, std::ios::binary).write(reinterpret_cast<const char*>(bad.data()), static_cast<std::streamsize>(bad.size())); }
+  try {
+    io::translate_las(bad_in, bad_out);
+    FAIL() << "waveform start inside the header accepted";
+  } catch (const io::FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("byte 227"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(bad_out));
+}
+
 TEST(Translate, Las14FormatsRoundTripThroughTheLayeredEncoder) {
   // PDRF 6 (three files), 7 (autzen in LAS 1.4) and 8 + 3 extra bytes (append-bug, via its LAZ)
   for (const char* rel : {"las/test1_4.las", "las/1_4_w_evlr.las", "las/file_with_both_wkt_and_geotiff_vlrs.las",

@@ -22,7 +22,10 @@ void note_vlr(LasHeader& h, const VlrInfo& v) {
   if (v.user_id == "copc" && v.record_id == 1000 && v.extended) h.copc_hierarchy = f;
   if (v.user_id == "LASF_Projection" && v.record_id == 2112) h.wkt = f;
   if (v.user_id == "LASF_Projection" && v.record_id == 34735) h.geokeys = f;
-  if (v.user_id == "LASF_Spec" && v.record_id == 4) h.extra_bytes = f;
+  if (v.user_id == "LASF_Spec" && v.record_id == 4) {
+    h.extra_bytes = f;
+    h.extra_bytes_all.push_back(f);
+  }
 }
 
 }  // namespace
@@ -38,6 +41,7 @@ LasHeader parse_las_header(const Input& in) {
   if (vmaj != 1 || vmin > 4) fail_at(nm, 24, "unsupported LAS version " + version + " (expected 1.0 to 1.4)");
   h.version_minor = vmin;
   h.global_encoding = load_le<std::uint16_t>(d + 6);
+  std::memcpy(h.project_guid.data(), d + 8, 16);
   h.system_id = fixed_string(d + 26, 32);
   h.software = fixed_string(d + 58, 32);
   h.creation_day = load_le<std::uint16_t>(d + 90);
@@ -59,6 +63,7 @@ LasHeader parse_las_header(const Input& in) {
     fail_at(nm, 94, "header size " + std::to_string(h.header_size) + " smaller than the " +
                         std::to_string(min_header) + " bytes LAS " + version + " requires");
   in.need(0, h.header_size, "LAS public header block");
+  if (vmin >= 3) h.waveform_start = load_le<std::uint64_t>(d + 227);
   std::uint64_t evlr_start = 0;
   std::uint32_t n_evlr = 0;
   if (vmin >= 4) {

@@ -6,11 +6,17 @@
 #include "readers.hpp"
 #include "rayscan/io/file_info.hpp"
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
 
 namespace rayscan::io::detail {
+
+/// The Extra Bytes names (section 2.5.6) of PointCloud::normals' x, y, z: PDAL's dimension names
+/// (pdal/Dimension.json), which its writers.las writes with extra_dims=all. write_las writes
+/// normals under them and the LAS reader reads the three back into PointCloud::normals.
+inline constexpr const char* kLasNormalNames[3] = {"NormalX", "NormalY", "NormalZ"};
 
 /// Byte length of the fields point data record format `f` defines (section 2.6, tables 7-17);
 /// -1 outside 0..10.
@@ -21,6 +27,8 @@ int pdrf_length(int f);
 struct LasHeader {
   int version_minor = 0;         ///< 0..4 (the major version is checked to be 1)
   std::uint16_t global_encoding = 0;
+  std::array<std::uint8_t, 16> project_guid{};  ///< Project ID (GUID) bytes 8-23 as stored
+  std::uint64_t waveform_start = 0;  ///< start of waveform data packet record (LAS 1.3+, byte 227)
   std::string system_id, software;
   std::uint16_t creation_day = 0, creation_year = 0;
   std::uint16_t header_size = 0;  ///< public header block size (>= 227/235/375 by version)
@@ -43,7 +51,9 @@ struct LasHeader {
   Found copc_hierarchy;  ///< "copc" 1000 (COPC 1.0 hierarchy EVLR)
   Found wkt;             ///< "LASF_Projection" 2112 (OGC WKT, section 2.5.1)
   Found geokeys;         ///< "LASF_Projection" 34735 (GeoKeyDirectoryTag, section 2.5.2)
-  Found extra_bytes;     ///< "LASF_Spec" 4 (Extra Bytes descriptors, section 2.5.6)
+  Found extra_bytes;     ///< "LASF_Spec" 4 (Extra Bytes descriptors, section 2.5.6), the last one
+  /// Every Extra Bytes VLR/EVLR in file order (a file may split its descriptors over several).
+  std::vector<Found> extra_bytes_all;
   std::vector<std::string> notes;  ///< tolerated oddities (e.g. LASzip VLR without compression bits)
 };
 

@@ -48,6 +48,18 @@ struct ExtraField {
   double scale = 1.0, add = 0.0;
 };
 
+/// Bytes an Extra Bytes descriptor `e` (192 bytes, table 24) occupies in the record: the data
+/// type's size (types 1-10), times 2 or 3 for the deprecated arrays 11-30, the options field for
+/// type 0 (undocumented bytes); -1 for a reserved type (> 30), whose size is unknown.
+int extra_bytes_width(const std::uint8_t* e) {
+  static constexpr int base_size[11] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 4, 8};
+  const int type = e[2];
+  if (type > 30) return -1;
+  if (type == 0) return e[3];
+  if (type <= 10) return base_size[type];
+  return base_size[(type - 1) % 10 + 1] * (type <= 20 ? 2 : 3);
+}
+
 double load_typed(const std::uint8_t* p, int type) {
   switch (type) {
     case 1: return load_le<std::uint8_t>(p);
@@ -74,6 +86,7 @@ struct Out {
   double *ret = nullptr, *nret = nullptr, *angle = nullptr, *udata = nullptr, *psid = nullptr, *nir = nullptr;
   double *cflags = nullptr, *channel = nullptr, *scan_dir = nullptr, *edge = nullptr;
   std::vector<double*> extra;
+  glm::vec3* normals = nullptr;
 };
 struct Decoder {
   const std::uint8_t* base;
@@ -81,6 +94,7 @@ struct Decoder {
   Vec3 scale, offset;
   int gps_off, rgb_off;
   const std::vector<ExtraField>* extras;
+  const ExtraField* normal_fields;  ///< NormalX, NormalY, NormalZ (used when out.normals is set)
   Out out;
 };
 struct Reduction {
@@ -136,6 +150,11 @@ void decode(const Decoder& dc, std::size_t i0, std::size_t i1, Reduction& red) {
       for (std::size_t k = 0; k < ex.size(); ++k)
         o.extra[k][i] = load_typed(r + ex[k].offset, ex[k].type) * ex[k].scale + ex[k].add;
     }
+    if (o.normals != nullptr) {
+      const ExtraField* nf = dc.normal_fields;
+      for (int a = 0; a < 3; ++a)
+        o.normals[i][a] = static_cast<float>(load_typed(r + nf[a].offset, nf[a].type) * nf[a].scale + nf[a].add);
+    }
   }
 }
 
@@ -148,6 +167,7 @@ std::uint32_t laz_layers(AttributeSet a) {
   if (a.has(Attribute::intensity)) l |= laz::kLayerIntensity;
   if (a.has(Attribute::classification)) l |= laz::kLayerClassification;
   if (a.has(Attribute::gps_time)) l |= laz::kLayerGpsTime;
+  if (a.has(Attribute::normals)) l |= laz::kLayerExtraBytes;
   if (a.has(Attribute::scalars))
     l |= laz::kLayerFlags | laz::kLayerScanAngle | laz::kLayerUserData | laz::kLayerPointSource |
          laz::kLayerNir | laz::kLayerExtraBytes;
@@ -275,6 +295,8 @@ class LasReader final : public PointReader {
   int pdrf_ = 0;
   Vec3 scale_, offset_;
   std::vector<ExtraField> extras_;
+  ExtraField normal_fields_[3];  ///< the NormalX/Y/Z extra bytes when has_normals_
+  bool has_normals_ = false;
   std::vector<std::string> scalar_names_;
   bool scalars_ = false, has_gps_ = false, has_rgb_ = false, has_nir_ = false;
   std::uint16_t rgb_mul_ = 1;  // 257 when the file stores 8-bit colour
@@ -378,6 +400,7 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
   info.format = h.laszip.present ? (h.copc_info.present ? "COPC" : "LAZ") : "LAS";
   info.version = "1." + std::to_string(h.version_minor);
   info.global_encoding = h.global_encoding;
+  info.project_guid = h.project_guid;
   info.system_id = h.system_id;
   info.software = h.software;
   info.creation_day = h.creation_day;
@@ -395,8 +418,6 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
   const std::uint64_t count = h.count, point_offset = h.point_offset;
   const int need_len = pdrf_length(pdrf);
   info.extra_bytes_per_point = rec_len - need_len;
-  const std::uint8_t* extra_vlr = h.extra_bytes.present ? d + h.extra_bytes.at : nullptr;
-  const std::uint64_t extra_len = h.extra_bytes.len;
   // Point count against the file size: never allocate from an unchecked count.
   const std::uint64_t avail = h.data_end - point_offset;
   if (h.laszip.present) {
@@ -412,53 +433,99 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
                 std::to_string(avail) + " bytes of point data follow (room for " +
                 std::to_string(avail / rec_len) + ")");
 
-  // Extra Bytes VLR descriptors (192 bytes each).
-  std::vector<ExtraField> extras;
-  if (extra_vlr != nullptr && opt.scalars) {
-    int off = need_len;
-    for (std::uint64_t k = 0; k + 192 <= extra_len; k += 192) {
-      const std::uint8_t* e = extra_vlr + k;
-      const int type = e[2];
-      const int options = e[3];
-      static constexpr int base_size[11] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 4, 8};
-      const std::string name = fixed_string(e + 4, 32);
-      if (type > 30) {  // reserved data types (table 25): the layout is unknown from here on
-        info.notes.push_back("Extra Bytes VLR field '" + name + "' has reserved data type " +
-                             std::to_string(type) + ": it and later extra bytes are skipped");
-        break;
+  // Extra Bytes descriptors (192 bytes each). A file may split them over several Extra Bytes
+  // VLRs (append-bug.las: one per field); their descriptors follow each other in the record when
+  // their widths add up to the extra bytes of the record, else only the last VLR is used.
+  std::vector<std::pair<const std::uint8_t*, std::uint64_t>> eb_vlrs;  // payloads whose descriptors apply
+  if (h.extra_bytes.present) {
+    std::uint64_t sum = 0;
+    bool known = true;
+    for (const LasHeader::Found& f : h.extra_bytes_all)
+      for (std::uint64_t k = 0; k + 192 <= f.len; k += 192) {
+        const int w = extra_bytes_width(d + f.at + k);
+        if (w < 0) known = false;
+        else sum += static_cast<std::uint64_t>(w);
       }
-      int base = type, n = 1;
-      if (type >= 11 && type <= 30) {
-        base = (type - 1) % 10 + 1;
-        n = type <= 20 ? 2 : 3;
-      }
-      const int width = type == 0 ? options : base_size[base] * n;
-      if (off + width > rec_len) {
-        info.notes.push_back("Extra Bytes VLR field '" + name + "' runs past the " +
-                             std::to_string(rec_len) + "-byte record: extra bytes ignored");
-        extras.clear();
-        break;
-      }
-      if (type != 0) {
-        for (int j = 0; j < n; ++j) {
-          ExtraField f;
-          f.name = n == 1 ? name : name + "[" + std::to_string(j) + "]";
-          f.type = base;
-          f.size = base_size[base];
-          f.offset = off + j * f.size;
-          if (options & 0x08) f.scale = load_le<double>(e + 112 + 8 * std::min(j, 2));
-          if (options & 0x10) f.add = load_le<double>(e + 136 + 8 * std::min(j, 2));
-          if (!std::isfinite(f.scale) || !std::isfinite(f.add)) f.scale = 1.0, f.add = 0.0;
-          extras.push_back(f);
-        }
-      }
-      off += width;
+    if (h.extra_bytes_all.size() > 1 && known && sum == static_cast<std::uint64_t>(info.extra_bytes_per_point)) {
+      for (const LasHeader::Found& f : h.extra_bytes_all) eb_vlrs.emplace_back(d + f.at, f.len);
+    } else {
+      eb_vlrs.emplace_back(d + h.extra_bytes.at, h.extra_bytes.len);
+      if (h.extra_bytes_all.size() > 1)
+        info.notes.push_back(std::to_string(h.extra_bytes_all.size()) + " Extra Bytes VLRs whose fields do not add up to the " +
+                             std::to_string(info.extra_bytes_per_point) + " extra bytes per record: the last one used");
     }
   }
-  if (info.extra_bytes_per_point > 0 && extras.empty())
+  std::vector<ExtraField> extras;
+  {
+    int off = need_len;
+    bool stop = false;
+    for (const auto& [payload, len] : eb_vlrs) {
+      for (std::uint64_t k = 0; k + 192 <= len && !stop; k += 192) {
+        const std::uint8_t* e = payload + k;
+        const int type = e[2];
+        const int options = e[3];
+        static constexpr int base_size[11] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 4, 8};
+        const std::string name = fixed_string(e + 4, 32);
+        const int width = extra_bytes_width(e);
+        if (width < 0) {  // reserved data types (table 25): the layout is unknown from here on
+          info.notes.push_back("Extra Bytes VLR field '" + name + "' has reserved data type " +
+                               std::to_string(type) + ": it and later extra bytes are skipped");
+          stop = true;
+          break;
+        }
+        int base = type, n = 1;
+        if (type >= 11 && type <= 30) {
+          base = (type - 1) % 10 + 1;
+          n = type <= 20 ? 2 : 3;
+        }
+        if (off + width > rec_len) {
+          info.notes.push_back("Extra Bytes VLR field '" + name + "' runs past the " +
+                               std::to_string(rec_len) + "-byte record: extra bytes ignored");
+          extras.clear();
+          stop = true;
+          break;
+        }
+        if (type != 0) {
+          for (int j = 0; j < n; ++j) {
+            ExtraField f;
+            f.name = n == 1 ? name : name + "[" + std::to_string(j) + "]";
+            f.type = base;
+            f.size = base_size[base];
+            f.offset = off + j * f.size;
+            if (options & 0x08) f.scale = load_le<double>(e + 112 + 8 * std::min(j, 2));
+            if (options & 0x10) f.add = load_le<double>(e + 136 + 8 * std::min(j, 2));
+            if (!std::isfinite(f.scale) || !std::isfinite(f.add)) f.scale = 1.0, f.add = 0.0;
+            extras.push_back(f);
+          }
+        }
+        off += width;
+      }
+      if (stop) break;
+    }
+  }
+  // Normals: the three fields PDAL's writers.las names NormalX, NormalY, NormalZ (its Dimension
+  // names; write_las writes PointCloud::normals under them) become PointCloud::normals, not
+  // scalars; the other fields are scalars when ReadOptions::scalars asks for them.
+  {
+    int at[3] = {-1, -1, -1};
+    for (std::size_t k = 0; k < extras.size(); ++k)
+      for (int a = 0; a < 3; ++a)
+        if (extras[k].name == kLasNormalNames[a] && at[a] < 0) at[a] = static_cast<int>(k);
+    if (at[0] >= 0 && at[1] >= 0 && at[2] >= 0) {
+      for (int a = 0; a < 3; ++a) normal_fields_[a] = extras[static_cast<std::size_t>(at[a])];
+      has_normals_ = true;
+      std::vector<ExtraField> rest;
+      for (std::size_t k = 0; k < extras.size(); ++k)
+        if (static_cast<int>(k) != at[0] && static_cast<int>(k) != at[1] && static_cast<int>(k) != at[2])
+          rest.push_back(extras[k]);
+      extras = std::move(rest);
+    }
+  }
+  if (!opt.scalars) extras.clear();
+  if (info.extra_bytes_per_point > 0 && extras.empty() && !has_normals_)
     info.notes.push_back(std::to_string(info.extra_bytes_per_point) +
                          " extra bytes per record " +
-                         (extra_vlr ? std::string("not kept") : "not described by an Extra Bytes VLR") +
+                         (h.extra_bytes.present ? std::string("not kept") : "not described by an Extra Bytes VLR") +
                          ": skipped");
 
   // CRS: the OGC WKT VLR when it holds text, else the GeoKeys.
@@ -502,6 +569,8 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
   if (has_rgb_) info.fields.insert(info.fields.end(), {"red", "green", "blue"});
   if (has_nir_) info.fields.push_back("nir");
   for (const ExtraField& f : extras_) info.fields.push_back(f.name);
+  if (has_normals_)
+    for (const char* nm : kLasNormalNames) info.fields.emplace_back(nm);
 }
 
 void LasReader::decide_colour_scale(std::uint16_t mx) {
@@ -520,6 +589,7 @@ void LasReader::setup(AttributeSet want, const ReadOptions& opt) {
   have.add(Attribute::intensity).add(Attribute::classification);
   if (has_gps_) have.add(Attribute::gps_time);
   if (has_rgb_) have.add(Attribute::rgb);
+  if (has_normals_) have.add(Attribute::normals);
   if (opt.scalars) have.add(Attribute::scalars);
   attrs_ = want & have;
   scalars_ = attrs_.has(Attribute::scalars);
@@ -591,7 +661,7 @@ std::size_t LasReader::read(PointCloud& pc, std::size_t max_points) {
   fit(pc.classification, attrs_.has(Attribute::classification));
   fit(pc.gps_time, attrs_.has(Attribute::gps_time));
   fit(pc.rgb, attrs_.has(Attribute::rgb));
-  pc.normals.clear();
+  fit(pc.normals, attrs_.has(Attribute::normals));
   pc.crs_wkt.clear();
   if (scalars_) {
     pc.scalars.resize(scalar_names_.size());
@@ -609,6 +679,7 @@ std::size_t LasReader::read(PointCloud& pc, std::size_t max_points) {
   out.cls = pc.classification.empty() ? nullptr : pc.classification.data();
   out.gps = pc.gps_time.empty() ? nullptr : pc.gps_time.data();
   out.rgb = pc.rgb.empty() ? nullptr : pc.rgb.data();
+  out.normals = pc.normals.empty() ? nullptr : pc.normals.data();
   if (scalars_) {
     out.ret = pc.scalars[0].values.data();
     out.nret = pc.scalars[1].values.data();
@@ -638,7 +709,7 @@ std::size_t LasReader::read(PointCloud& pc, std::size_t max_points) {
     first_rec = in.bytes.data() + point_offset_ + next_ * rec_len_;
   }
   Decoder dec{first_rec, rec_len_, scale_, offset_,
-              pdrf_ >= 6 ? 22 : 20, pdrf_rgb_offset(pdrf_), &extras_, out};
+              pdrf_ >= 6 ? 22 : 20, pdrf_rgb_offset(pdrf_), &extras_, normal_fields_, out};
   using DecodeFn = void (*)(const Decoder&, std::size_t, std::size_t, Reduction&);
   DecodeFn fn = nullptr;
   const bool gps = out.gps != nullptr, rgb = out.rgb != nullptr;

@@ -7,6 +7,7 @@
 #include "atomic_writer.hpp"
 #include "field_names.hpp"
 #include "bytes.hpp"
+#include "las/las_header.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/version.hpp"
 #include "rayscan/io/translate.hpp"
@@ -34,6 +35,48 @@ struct Standard {
   const std::vector<double>* scan_dir = nullptr;
   const std::vector<double>* edge = nullptr;
 };
+
+/// One float64 Extra Bytes field of the output: a ScalarField, or one axis of the normals.
+struct ExtraOut {
+  std::string name;                           ///< name in the descriptor (<= 32 bytes, unique)
+  const std::vector<double>* values = nullptr;  ///< the scalar's values, or null for a normal axis
+  int normal_axis = -1;                       ///< 0, 1, 2: PointCloud::normals' x, y or z
+};
+
+/// The Extra Bytes descriptor names (LAS 1.4 R15 table 24: 32 bytes, NUL-padded) for `names`, in
+/// order, each one distinct so that readers keep every field apart: a name of at most 32 bytes
+/// not used by an earlier field is kept; a longer name, or a repeated one, ends in "~1", "~2", ...
+/// (the smallest number giving a name no other field has) after as much of the name as fits,
+/// cut at a UTF-8 character boundary.
+std::vector<std::string> unique_extra_names(const std::vector<std::string>& names) {
+  std::vector<std::string> out;
+  out.reserve(names.size());
+  auto used = [&](const std::string& c) {
+    if (std::find(out.begin(), out.end(), c) != out.end()) return true;
+    // a later field that keeps its own name must not be pre-empted
+    for (const std::string& n : names)
+      if (n == c) return true;
+    return false;
+  };
+  for (const std::string& name : names) {
+    if (name.size() <= 32 && std::find(out.begin(), out.end(), name) == out.end()) {
+      out.push_back(name);
+      continue;
+    }
+    for (std::size_t k = 1;; ++k) {
+      std::string suffix = "~";  // built by appending (GCC 12 -Wrestrict false positive on "~" + s)
+      suffix += std::to_string(k);
+      std::size_t cut = std::min(name.size(), 32 - suffix.size());
+      while (cut > 0 && cut < name.size() && (static_cast<unsigned char>(name[cut]) & 0xC0) == 0x80) --cut;
+      const std::string cand = name.substr(0, cut) + suffix;
+      if (!used(cand)) {
+        out.push_back(cand);
+        break;
+      }
+    }
+  }
+  return out;
+}
 
 template <class T>
 T clamp_to(double v) {
@@ -95,7 +138,7 @@ struct LasRecordWriter {
   const std::size_t n;          ///< points
   const std::string& wkt;       ///< the cloud's CRS as WKT ("" for none)
   Standard st;                  ///< standard fields the reader carries as named scalars
-  std::vector<const ScalarField*> extra;  ///< the other scalars: Extra Bytes (double each)
+  std::vector<ExtraOut> extra;  ///< normals, then the other scalars: Extra Bytes (double each)
   bool rgb = false;             ///< the cloud has colour: PDRF 7 (8 with NIR)
   int pdrf = 6;
   int base_len = 30;            ///< bytes of the PDRF's own fields (30, 36 or 38)
@@ -113,9 +156,13 @@ struct LasRecordWriter {
       : path(p), cloud(c), options(o), n(c.size()), wkt(c.crs_wkt) {}
 
   /// Sorts the scalars into standard fields and extra bytes and picks the PDRF: 8 with NIR
-  /// (and colour), 7 with colour, else 6 (tables 13-15). Throws std::invalid_argument when the
-  /// extra bytes make a record longer than 65535 bytes.
+  /// (and colour), 7 with colour, else 6 (tables 13-15). Normals become the extra bytes NormalX,
+  /// NormalY, NormalZ (PDAL's dimension names, which the LAS reader maps back to normals), first.
+  /// Names are made unique within 32 bytes (unique_extra_names). Throws std::invalid_argument
+  /// when the extra bytes make a record longer than 65535 bytes.
   void split_fields() {
+    if (!cloud.normals.empty())
+      for (int a = 0; a < 3; ++a) extra.push_back({detail::kLasNormalNames[a], nullptr, a});
     for (const ScalarField& f : cloud.scalars) {
       if (f.name == "return_number") st.ret = &f.values;
       else if (f.name == "number_of_returns") st.nret = &f.values;
@@ -127,7 +174,13 @@ struct LasRecordWriter {
       else if (f.name == "scan_direction_flag") st.scan_dir = &f.values;
       else if (f.name == "edge_of_flight_line") st.edge = &f.values;
       else if (f.name == "nir" && !cloud.rgb.empty()) st.nir = &f.values;
-      else extra.push_back(&f);
+      else extra.push_back({f.name, &f.values, -1});
+    }
+    {
+      std::vector<std::string> names;
+      for (const ExtraOut& e : extra) names.push_back(e.name);
+      names = unique_extra_names(names);
+      for (std::size_t k = 0; k < extra.size(); ++k) extra[k].name = std::move(names[k]);
     }
     rgb = !cloud.rgb.empty();
     pdrf = st.nir != nullptr ? 8 : (rgb ? 7 : 6);
@@ -236,12 +289,15 @@ struct LasRecordWriter {
   }
 
   /// Public header block (section 2.4, table 3; 375 bytes): version 1.4, WKT global encoding bit
-  /// (required for PDRF 6-10), creation day/year of today, legacy point counts 0.
+  /// (required for PDRF 6-10) and the options' GPS time type bit and project GUID, creation
+  /// day/year of today, legacy point counts 0.
   void write_header(detail::AtomicWriter& w) const {
     w.write("LASF", 4);
     w.put<std::uint16_t>(0);                         // file source id
-    w.put<std::uint16_t>(1u << 4);                   // global encoding: WKT CRS (required for PDRF 6-10)
-    w.put_fixed("", 16);                             // project GUID
+    // Global encoding (table 4): bit 4 WKT CRS (required for PDRF 6-10), bit 0 the GPS time
+    // type of the source, so that derived files' GPS times keep their meaning.
+    w.put<std::uint16_t>(static_cast<std::uint16_t>((1u << 4) | (options.adjusted_standard_gps_time ? 1u : 0u)));
+    w.write(options.project_guid.data(), 16);        // project GUID (the source's, else zeros)
     w.put<std::uint8_t>(1);
     w.put<std::uint8_t>(4);
     w.put_fixed(options.system_id, 32);
@@ -288,12 +344,12 @@ struct LasRecordWriter {
     }
     if (!extra.empty()) {
       vlr_header("LASF_Spec", 4, 192 * extra.size(), "Extra Bytes Record");
-      for (const ScalarField* f : extra) {
+      for (const ExtraOut& f : extra) {
         std::uint8_t e[192] = {};
         e[2] = 10;  // data type: double
         e[3] = 0;   // options: no no_data/min/max/scale/offset
-        std::memcpy(e + 4, f->name.data(), std::min<std::size_t>(32, f->name.size()));
-        const char* desc = "rayscan per-point scalar";
+        std::memcpy(e + 4, f.name.data(), std::min<std::size_t>(32, f.name.size()));
+        const char* desc = f.normal_axis >= 0 ? "rayscan point normal" : "rayscan per-point scalar";
         std::memcpy(e + 160, desc, std::strlen(desc));
         w.write(e, 192);
       }
@@ -338,7 +394,11 @@ struct LasRecordWriter {
       const std::uint16_t v = clamp_to<std::uint16_t>((*st.nir)[i]);
       std::memcpy(r + 36, &v, 2);
     }
-    for (std::size_t k = 0; k < extra.size(); ++k) std::memcpy(r + base_len + 8 * k, &extra[k]->values[i], 8);
+    for (std::size_t k = 0; k < extra.size(); ++k) {
+      const ExtraOut& e = extra[k];
+      const double v = e.values != nullptr ? (*e.values)[i] : static_cast<double>(cloud.normals[i][e.normal_axis]);
+      std::memcpy(r + base_len + 8 * k, &v, 8);
+    }
   }
 
   /// The OGC WKT EVLR (section 2.7: 60-byte header with a 64-bit length) after the points, for

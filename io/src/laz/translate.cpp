@@ -191,6 +191,28 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
                                 " (waveform packets) is not implemented (the writer covers PDRF 0-3 and 6-8 with extra bytes)");
   std::vector<std::string> notes;
   RecordSource src(in, h, notes);
+  // Waveform data packets stored in the file (global encoding bit 1, LAS 1.3+; section 2.4 table
+  // 4): the point records' wave packet descriptors address them by their offset from the start of
+  // the waveform data packet record, so a LAS output copies that record byte for byte and points
+  // header byte 227 at its new place. In a LAS 1.3 file it follows the point records; in 1.4 it is
+  // an EVLR (copied with the other EVLRs below). LAZ holds no waveform record (LASzip writes
+  // waveforms to a separate file), so LAZ input or output of such a file is refused.
+  const bool waveform_internal = h.version_minor >= 3 && (h.global_encoding & 2u) != 0 && h.waveform_start != 0;
+  const std::uint64_t points_end = h.point_offset + h.count * rec;  // (LAS input: count checked by src)
+  bool waveform_after_points = false;  // the record lies in [points_end, data_end): copied with those bytes
+  if (waveform_internal) {
+    if (h.laszip.present || to_laz)
+      throw std::invalid_argument("translate: " + in.name + ": waveform data packets stored inside the file "
+                                  "(global encoding bit 1) cannot be kept in LAZ (LAS to LAS only)");
+    bool at_evlr = false;
+    for (const VlrInfo& v : h.vlrs) at_evlr = at_evlr || (v.extended && v.offset == h.waveform_start);
+    waveform_after_points = h.waveform_start >= points_end && h.waveform_start < h.data_end;
+    if (!at_evlr && !waveform_after_points)
+      detail::fail_at(in.name, 227, "start of waveform data packet record " + std::to_string(h.waveform_start) +
+                                        " is neither after the point records (bytes " + std::to_string(points_end) +
+                                        " to " + std::to_string(h.data_end) + ") nor at an EVLR");
+  }
+  std::uint64_t waveform_out = 0;  // where the waveform data packet record lands in the output
 
   // Header and VLRs: everything but the LASzip VLR and COPC records, plus a new LASzip VLR.
   std::vector<std::uint8_t> head(d, d + h.header_size);
@@ -245,6 +267,11 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
       report(i, i + n);
     }
     written += h.count * rec;
+    if (waveform_after_points) {  // the bytes from the end of the records to the EVLRs or the end
+      waveform_out = written + (h.waveform_start - points_end);
+      f.write(reinterpret_cast<const char*>(d + points_end), static_cast<std::streamsize>(h.data_end - points_end));
+      written += h.data_end - points_end;
+    }
   } else {
     std::vector<std::uint8_t> table_ptr(8, 0);
     f.write(reinterpret_cast<const char*>(table_ptr.data()), 8);
@@ -283,6 +310,7 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
       const std::string user = detail::fixed_string(d + ep + 2, 16);
       const std::uint64_t len = load_le<std::uint64_t>(d + ep + 20);
       if (user != "copc") {
+        if (waveform_internal && ep == h.waveform_start) waveform_out = written;
         f.write(reinterpret_cast<const char*>(d + ep), static_cast<std::streamsize>(60 + len));
         written += 60 + len;
         ++n_evlr;
@@ -293,6 +321,10 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
     const std::uint64_t start = n_evlr > 0 ? evlr_start : 0;
     f.write(reinterpret_cast<const char*>(&start), 8);
     f.write(reinterpret_cast<const char*>(&n_evlr), 4);
+  }
+  if (waveform_internal) {
+    f.seekp(227);
+    f.write(reinterpret_cast<const char*>(&waveform_out), 8);
   }
   f.close();
   if (!f) throw std::runtime_error(out_path.string() + ": write failed");

@@ -43,6 +43,7 @@ struct FileInfo {
   std::string system_id, software;  ///< LAS system identifier and generating software
   std::uint16_t creation_year = 0, creation_day = 0;  ///< LAS file creation year / day of year
   std::uint16_t global_encoding = 0;                  ///< LAS global encoding bits
+  std::array<std::uint8_t, 16> project_guid{};        ///< LAS Project ID (GUID), header bytes 8-23 as stored
   std::vector<VlrInfo> vlrs;                          ///< LAS VLRs then EVLRs in file order
   std::uint64_t width = 0, height = 0;  ///< PCD WIDTH/HEIGHT (organized when height > 1)
   /// PCD VIEWPOINT tx ty tz qw qx qy qz: the acquisition pose. Reported, not applied to positions.

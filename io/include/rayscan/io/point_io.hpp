@@ -5,6 +5,7 @@
 #include "rayscan/io/file_info.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <span>
@@ -77,15 +78,24 @@ struct LasWriteOptions {
   Vec3 offset{0.0};
   bool has_offset = false;
   std::string system_id = "rayscan";  ///< header System Identifier (max 32 characters)
+  /// Global encoding bit 0, the meaning of the GPS time field (LAS 1.4 R15 table 4): true =
+  /// Adjusted Standard GPS Time (GPS seconds - 1e9), false = GPS Week Time (seconds of the week).
+  /// A derived file takes it from its LAS source (las_grid_of) so its GPS times keep their meaning.
+  bool adjusted_standard_gps_time = false;
+  /// Header Project ID (GUID), bytes 8-23 as the source stored them; zeros when there is none.
+  std::array<std::uint8_t, 16> project_guid{};
 };
 
 /// Writes `cloud` as ASPRS LAS 1.4 R15: point data record format 6 (7 with rgb, 8 with rgb and a
 /// scalar called "nir"). Scalars named return_number, number_of_returns, classification_flags,
 /// scanner_channel, scan_direction_flag, edge_of_flight_line, scan_angle (degrees), user_data,
 /// point_source_id go to their standard fields; colour read from 8-bit values of a LAS or text file
-/// (PointCloud::rgb_from_8bit_las) is written back as those values; every other ScalarField becomes a
-/// float64 extra byte described in an Extra Bytes VLR (section 2.5.6); crs_wkt becomes an OGC WKT
-/// VLR (2112). Positions are quantised to the scale: a point read from LAS and written back with
+/// (PointCloud::rgb_from_8bit_las) is written back as those values; normals become the float64
+/// extra bytes NormalX, NormalY, NormalZ (PDAL's names; the reader maps them back to normals);
+/// every other ScalarField becomes a float64 extra byte described in an Extra Bytes VLR (section
+/// 2.5.6), a name longer than the descriptor's 32 bytes or already used ending in "~1", "~2", ...
+/// so that every field stays distinct; crs_wkt becomes an OGC WKT VLR (2112). The header's GPS
+/// time type bit and project GUID come from `options` (las_grid_of: the source's). Positions are quantised to the scale: a point read from LAS and written back with
 /// the same scale and offset is bit-exact. Written to "<dir>/.<name>.tmp.<pid>" (rayscan::AtomicFile) and renamed into place.
 /// A path ending in .laz (case-insensitive) is written as LAZ: the same records compressed by
 /// translate_las (LASzip layered-chunked compressor, item version 3; docs/formats.md "LAZ" 5).
@@ -146,8 +156,10 @@ void write_text(const std::filesystem::path& path, const PointCloud& cloud);
 void require_point_cloud_output(const std::filesystem::path& path);
 
 /// The LAS write options that keep the integer grid (scale and offset) of the LAS, LAZ or COPC
-/// source that `source` describes, so that its points written back as LAS/LAZ are bit-exact; the
-/// defaults (scale chosen from the points) for any other source.
+/// source that `source` describes, so that its points written back as LAS/LAZ are bit-exact, and
+/// its header's GPS time type (global encoding bit 0) and project GUID, so that a derived file's
+/// GPS times keep their meaning; the defaults (scale chosen from the points, GPS week time, zero
+/// GUID) for any other source.
 [[nodiscard]] LasWriteOptions las_grid_of(const FileInfo& source);
 
 /// Writes `cloud` in the format its extension names (case-insensitive; the one writer choice of
