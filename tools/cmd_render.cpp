@@ -23,7 +23,7 @@ struct RenderCliOptions {
   unsigned threads = 0;
   std::vector<std::string> aovs;
   std::string primitive, colmap_dir, colmap_image, dsm, frames, cache = "2G";
-  std::optional<double> ortho_res;
+  std::optional<double> ortho_res, exposure;
   bool quiet = false, print_scene = false;
 };
 
@@ -37,6 +37,7 @@ int run_render(const RenderCliOptions& o) {
   ov.width = o.width;
   ov.height = o.height;
   ov.seed = o.seed;
+  ov.exposure = o.exposure;
   // A quick look without --out writes <stem>.png in the working directory ("wrote ..." says so).
   const bool default_out = o.out.empty() && !o.print_scene && !o.ortho_res && o.frames.empty() && is_cloud_input(o.scene);
   ov.out = default_out ? quick_look_image_name(o.scene).string() : o.out;
@@ -55,7 +56,10 @@ int run_render(const RenderCliOptions& o) {
     return 0;
   }
   job.scene = rs.scene;
-  if (points) job.cloud = &*points;
+  if (points) {
+    job.cloud = &*points;  // read from rs.scene.cloud by summarize_cloud_file
+    job.cloud_read_from_scene = true;
+  }
   job.control.threads = o.threads;
   try {
     job.cache_bytes = static_cast<std::size_t>(rayscan::parse_byte_size(o.cache));
@@ -118,8 +122,9 @@ Runner add_render_command(CLI::App& app) {
       "file directly (automatic overview camera). Each point is a sphere or surfel hit through the "
       "octree ray query; writes PNG/JPEG/TIFF/EXR with optional AOVs.");
   c->add_option("scene", o->scene, "Scene file (.json), or a point cloud file (LAS, LAZ, PLY, PCD, ...) for a quick "
-                "look: radius auto, colour from RGB if present else elevation, default sky and sun, and (as for a "
-                "scene without a camera) an overview camera framing the whole cloud")->required();
+                "look: surfels, radius auto, colour from RGB if present else elevation, the default sky gradient and no "
+                "sun, and (as for a scene without a camera) an overview camera framing the whole cloud, 600x400 unless "
+                "--width/--height")->required();
   c->add_option("--camera", o->camera, "Camera file (JSON), replaces the scene's camera");
   c->add_option("-o,--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image; a quick look of a "
                 "cloud without it writes <stem>.png in the working directory");
@@ -131,8 +136,8 @@ Runner add_render_command(CLI::App& app) {
                    ? std::string()
                    : "expected an unsigned 64-bit integer, got '" + v + "'";
       });
-  c->add_option("--threads", o->threads, "Worker threads, 0 = all cores; the image is identical for any count "
-                "(default: all cores)")
+  c->add_option("--threads", o->threads, "Worker threads, 0 = all cores; a larger count runs on all cores (the log "
+                "says how many); the image is identical for any count (default: all cores)")
       ->check(CLI::Range(0u, 1024u));
   c->add_option("--width", o->width, "Image width in pixels, in [1, 65536]; keeps the field of view, and the height "
                 "follows the aspect ratio unless given (default: the camera's size)")
@@ -145,13 +150,18 @@ Runner add_render_command(CLI::App& app) {
                 "plus the nodes of the blocks in flight; e.g. 2G, 512M). A COPC file is traced in place, decoding only the "
                 "nodes the rays reach")
       ->capture_default_str();
-  c->add_option("--aov", o->aovs, "Extra output: depth, normal, position, index, albedo, cost (repeatable)");
+  c->add_option("--aov", o->aovs, "Extra output: depth, normal, position, index, albedo, cost (repeatable, each "
+                "name once)");
+  c->add_option("--exposure", o->exposure, "Exposure in stops, in [-30, 30]: pixel values x 2^EV before PNG/JPEG/TIFF "
+                "clip them to [0, 1] (EXR keeps linear values); replaces /output/exposure (default: the scene's "
+                "value, 0 if unset)")
+      ->check(CLI::Range(-30.0, 30.0));
   c->add_option("--primitive", o->primitive, "Geometry of each point: sphere (the paper's model, one "
                 "radius) or surfel (oriented disc with a PCA normal and a radius from the local "
-                "spacing); replaces /primitive")
+                "spacing); replaces /primitive (default: the scene's value, sphere if unset; a cloud's quick look: surfel)")
       ->check(CLI::IsMember({"sphere", "surfel"}));
   c->add_option("--colmap", o->colmap_dir, "COLMAP text model folder (cameras.txt, images.txt): render the "
-                "view of the photo given with --image (PINHOLE, SIMPLE_PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV)");
+                "view of the photo given with --image (PINHOLE, SIMPLE_PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV); replaces the scene's camera, not with --camera");
   c->add_option("--image", o->colmap_image, "Image NAME in the COLMAP model's images.txt (with --colmap)");
   c->add_option("--ortho-map", o->ortho_res, "Top-down orthophoto over the cloud's XY extent at RES world "
                 "units per pixel, written as a georeferenced RGBA GeoTIFF (--out .tif; alpha 0 where no point was hit) with the cloud's CRS")

@@ -343,17 +343,29 @@ RenderStats render_camera(const Prepared& P, const Camera& camera, const JobCont
   return render_image(*P.site, settings, image, ropt);
 }
 
+// The image header's record of a render (scenes/README.md, "Image metadata"): the scene file
+// (none for a quick look), the cloud file as an absolute path ("(memory)" for points given in
+// memory that are not scene.cloud's, RenderJobOptions::cloud_read_from_scene), the camera the
+// image was traced through as camera-file JSON (none for a top-down map's grid, which the
+// GeoTIFF's georeferencing describes) and the file it came from, if any.
 ImageMetadata render_metadata(const RenderJobOptions& o, const Scene& scene, const RenderJobResult& r,
-                              const std::filesystem::path& camera_file) {
-  ImageMetadata m = {{"rayscan:scene", scene.file.string()},
-                     {"rayscan:cloud", o.cloud ? std::string("(memory)") : scene.cloud.string()},
-                     {"rayscan:spp", std::to_string(scene.spp)},
-                     {"rayscan:seed", std::to_string(scene.seed)},
-                     {"rayscan:radius", num17(r.radius.radius)},
-                     {"rayscan:primitive", scene.primitive == Primitive::surfel ? "surfel" : "sphere"}};
+                              const Camera* camera, const std::filesystem::path& camera_file) {
+  const auto absolute = [](const std::filesystem::path& p) {
+    return std::filesystem::absolute(p).lexically_normal().string();
+  };
+  ImageMetadata m;
+  if (!scene.file.empty()) m.emplace_back("rayscan:scene", scene.file.string());
+  const bool file = !scene.cloud.empty() && (!o.cloud || o.cloud_read_from_scene);
+  m.emplace_back("rayscan:cloud", file ? absolute(scene.cloud) : std::string("(memory)"));
+  m.emplace_back("rayscan:spp", std::to_string(scene.spp));
+  m.emplace_back("rayscan:seed", std::to_string(scene.seed));
+  m.emplace_back("rayscan:radius", num17(r.radius.radius));
+  m.emplace_back("rayscan:primitive", scene.primitive == Primitive::surfel ? "surfel" : "sphere");
   // No render time in the file: two renders of the same scene and seed are identical
   // byte for byte (`cmp`); the time is in RenderJobResult::stats and the log.
-  if (!camera_file.empty()) m.emplace_back("rayscan:camera", camera_file.string());
+  if (camera && camera->description().model != CameraModel::orthographic_grid)
+    m.emplace_back("rayscan:camera", io::camera_to_json(*camera).dump());
+  if (!camera_file.empty()) m.emplace_back("rayscan:camera_file", absolute(camera_file));
   return m;
 }
 
@@ -389,7 +401,9 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   std::snprintf(buf, sizeof buf, "first tile traced %.2f s after the start (%.2f s to set up, %.2f s of tracing)",
                 r.first_tile_seconds, prepared, r.stats.first_tile_seconds);
   ctl.info(buf);
-  r.metadata = render_metadata(o, scene, r, scene.camera_file);
+  // A camera from camera_for_cloud (a map's grid) is not the scene's camera file's.
+  r.metadata = render_metadata(o, scene, r, &*scene.camera,
+                               o.camera_for_cloud ? std::filesystem::path() : scene.camera_file);
   if (o.write && !scene.output.image.empty() && is_root(ctl))
     r.written = write_image(r.image, scene.output, r.metadata);
   log_stats(ctl, r.stats, *scene.camera, scene.spp, "");
@@ -522,7 +536,7 @@ RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const 
     }
     OutputDesc out = scene.output;
     out.image = frame_file_name(scene.output.image, f);
-    ImageMetadata m = render_metadata(o, scene, r, {});
+    ImageMetadata m = render_metadata(o, scene, r, &cameras[f], {});
     m.emplace_back("rayscan:frame", std::to_string(f));
     const auto w = write_image(fb, out, m);
     fr.job.written.insert(fr.job.written.end(), w.begin(), w.end());
@@ -587,7 +601,7 @@ RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const 
     }
   }
   r.stats.seconds = seconds_since(t0);
-  r.metadata = render_metadata(o, scene, r, {});
+  r.metadata = render_metadata(o, scene, r, nullptr, {});
   char buf[256];
   std::snprintf(buf, sizeof buf, "%zu frames in %.2f s (%.3g frames/s), %llu ray queries", cameras.size(),
                 r.stats.seconds, double(cameras.size()) / r.stats.seconds, (unsigned long long)r.stats.queries);

@@ -111,6 +111,15 @@ std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const Outp
   ImageWriteOptions aov_opt;  // the AOV file carries the same metadata
   aov_opt.metadata = opt.metadata;
   if (jpeg) opt.jpeg_quality = 95;
+  if (jpeg || ext == ".tif" || ext == ".tiff") {
+    // TIFF and JPEG headers keep no free-form keys (OpenImageIO drops "rayscan:*"): the rayscan
+    // keys go to the one free-text field both have, ImageDescription (TIFF tag 270, JPEG COM),
+    // one "key: value" line each.
+    std::string text;
+    for (const auto& [k, v] : opt.metadata)
+      if (k.rfind("rayscan:", 0) == 0) text += (text.empty() ? "" : "\n") + k + ": " + v;
+    if (!text.empty()) opt.metadata.emplace_back("ImageDescription", text);
+  }
   std::filesystem::path aov = out.image;
   aov.replace_extension(".aovs.exr");
   require_replaceable_output(out.image);

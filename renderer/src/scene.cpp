@@ -176,6 +176,8 @@ OutputDesc parse_output(Obj& parent, const std::filesystem::path& scene_file) {
   }
   out.bit_depth = static_cast<unsigned>(o.integer("bit_depth", 8, 8, 16));
   if (out.bit_depth != 8 && out.bit_depth != 16) fail(o.file(), o.ptr("bit_depth"), "expected 8 or 16");
+  if (out.bit_depth == 16 && is_jpeg_file_name(out.image))
+    fail(o.file(), o.ptr("bit_depth"), "expected 8 with a JPEG image (8 bits per channel); 16 needs a .png or .tif image");
   out.exr_half = o.string("exr_pixel_type", "half", {"half", "float"}) == "half";
   out.exposure = o.number("exposure", 0.0, -30.0, 30.0, false, false);
   if (o.has("aovs")) {
@@ -216,6 +218,8 @@ const std::vector<std::string>& image_extensions() {
 
 bool is_image_file_name(const std::filesystem::path& file) { return has_extension(file, image_extensions()); }
 
+bool is_jpeg_file_name(const std::filesystem::path& file) { return has_extension(file, {".jpg", ".jpeg"}); }
+
 std::string image_file_name_expected() { return extensions_expected(image_extensions()); }
 
 Scene load_scene(const std::filesystem::path& file) { return parse_scene_json(parse_file(file), file); }
@@ -243,6 +247,9 @@ Scene parse_scene_json(const nlohmann::json& j, const std::filesystem::path& fil
                                                                              : HitMode::closest_point;
   s.primitive = o.string("primitive", "sphere", {"sphere", "surfel"}) == "surfel" ? Primitive::surfel
                                                                                  : Primitive::sphere;
+  // Discs are hit exactly (first_surfel_hit); the naive closest-point order is a sphere mode.
+  if (s.hit == HitMode::closest_point && s.primitive == Primitive::surfel)
+    fail(f, "/hit", "\"closest_point\" applies to primitive \"sphere\" only; primitive is \"surfel\" (discs are hit exactly)");
   parse_surfel(o, s);
   s.index = parse_index(o, "index", s.node_distance);
   s.material = parse_material(o);

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <sched.h>
 #include <sys/wait.h>
 
 #include <cstdio>
@@ -94,4 +95,49 @@ TEST(RenderCli, OrthoMapOutputsAreCheckedBeforeTheRender) {
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_EQ(r.out, "rayscan render: /nonexistent-dir/d.tif: output directory '/nonexistent-dir' does not exist\n");
   EXPECT_FALSE(fs::exists(ortho));
+}
+
+TEST(RenderCli, ThreadsAboveTheCoresRunOnTheCoresWithoutTbbsWarning) {
+  // TBB runs no more threads than the process may use (its CPU affinity): a larger --threads is
+  // capped, so TBB prints no "number of workers is currently limited" warning, even with -q, and
+  // the log gives the count really used.
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  ASSERT_EQ(sched_getaffinity(0, sizeof set, &set), 0);
+  const int cpus = CPU_COUNT(&set);
+  const fs::path scene = small_scene_file();
+  const fs::path out = cli_temp_dir() / "t.png";
+  const RunResult quiet = run("render -q " + scene.string() + " --threads 1024 --out " + out.string());
+  EXPECT_EQ(quiet.code, 0) << quiet.out;
+  EXPECT_EQ(quiet.out, "wrote " + out.string() + "\n");
+  const RunResult r = run("render " + scene.string() + " --threads 1024 --out " + out.string());
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.find("TBB"), std::string::npos) << r.out;
+  const std::size_t at = r.out.find(" threads, ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const int used = std::stoi(r.out.substr(r.out.rfind(' ', at - 1) + 1));
+  EXPECT_GE(used, 1);
+  EXPECT_LE(used, cpus);
+}
+
+TEST(RenderCli, CombinationsWithoutMeaningAreRefusedNamingTheFlags) {
+  const fs::path scene = small_scene_file();
+  const fs::path out = cli_temp_dir() / "c.png";
+  // Two cameras: the COLMAP photo's would win silently.
+  RunResult r = run("render " + scene.string() + " --colmap some-model --image a.jpg --camera cam.json --out " + out.string());
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out, "rayscan render: --colmap: the camera is the COLMAP photo's; do not give --camera too\n");
+  // An AOV named twice, as a scene file's output.aovs refuses it.
+  r = run("render " + scene.string() + " --aov depth --aov depth --out " + out.string());
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out, "rayscan render: --aov 'depth': given twice\n");
+  EXPECT_FALSE(fs::exists(out));
+  // --exposure is the scene's output.exposure, as --print-scene shows; outside [-30, 30] refused.
+  r = rayscan::test::run_command(std::string(RAYSCAN_BIN) + " render " + scene.string() + " --exposure -2.5 --print-scene",
+                                 false);
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("\"exposure\": -2.5"), std::string::npos) << r.out;
+  r = run("render " + scene.string() + " --exposure 31 --out " + out.string());
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--exposure"), std::string::npos) << r.out;
 }

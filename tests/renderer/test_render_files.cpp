@@ -11,10 +11,13 @@
 #include "rayscan/jobs/render.hpp"
 
 #include <OpenImageIO/imageio.h>
+#include <nlohmann/json.hpp>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
+#include <fstream>
 
 using namespace rayscan;
 using namespace rayscan::render;
@@ -94,6 +97,69 @@ TEST(ImageOutput, PngIsSrgbEncodedAt16Bit) {
   EXPECT_EQ(px[5], 65535);  // clamped
 }
 
+TEST(ImageOutput, ExposureScalesThenEightBitClipsAndExrKeepsLinear) {
+  // 0.3 x 2^2 = 1.2 clips to 1 in PNG (no tone mapping); 0.3 x 2^-1 = 0.15 is sRGB-encoded:
+  // 1.055 * 0.15^(1/2.4) - 0.055 = 0.423268...; EXR keeps 1.2 (float).
+  Framebuffer fb;
+  fb.width = 1;
+  fb.height = 1;
+  fb.beauty = {Color(0.3f)};
+  OutputDesc out;
+  out.exposure = 2.0;
+  out.image = files_temp_dir() / "bright.png";
+  write_image(fb, out, {});
+  std::uint8_t px[3];
+  auto in = OIIO::ImageInput::open(out.image.string());
+  ASSERT_TRUE(in);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, px));
+  EXPECT_EQ(px[0], 255);
+  in->close();
+  out.exposure = -1.0;
+  out.image = files_temp_dir() / "dim.png";
+  write_image(fb, out, {});
+  in = OIIO::ImageInput::open(out.image.string());
+  ASSERT_TRUE(in);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, px));
+  EXPECT_EQ(px[0], std::lround(0.42326790 * 255));
+  in->close();
+  out.exposure = 2.0;
+  out.exr_half = false;
+  out.image = files_temp_dir() / "bright.exr";
+  write_image(fb, out, {});
+  float f[3];
+  in = OIIO::ImageInput::open(out.image.string());
+  ASSERT_TRUE(in);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::FLOAT, f));
+  EXPECT_FLOAT_EQ(f[0], 1.2f);
+}
+
+TEST(ImageOutput, TiffAndJpegCarryTheRayscanKeysAsTheirDescription) {
+  // TIFF and JPEG keep no free-form keys: the rayscan:* entries are one "key: value" line each of
+  // the ImageDescription (TIFF tag 270, JPEG COM), read back by OpenImageIO; PNG keeps the keys.
+  Framebuffer fb;
+  fb.width = 2;
+  fb.height = 2;
+  fb.beauty.assign(4, Color(0.5f));
+  const ImageMetadata meta = {{"rayscan:spp", "4"}, {"rayscan:camera", R"({"width":2,"height":2})"}};
+  for (const char* name : {"d.tif", "d.jpg", "d.png"}) {
+    SCOPED_TRACE(name);
+    OutputDesc out;
+    out.image = files_temp_dir() / name;
+    write_image(fb, out, meta);
+    auto in = OIIO::ImageInput::open(out.image.string());
+    ASSERT_TRUE(in);
+    const OIIO::ImageSpec& spec = in->spec();
+    if (std::string(name) == "d.png") {
+      EXPECT_EQ(spec.get_string_attribute("rayscan:spp"), "4");
+      EXPECT_EQ(spec.get_string_attribute("rayscan:camera"), R"({"width":2,"height":2})");
+      EXPECT_EQ(spec.get_string_attribute("ImageDescription"), "");
+    } else {
+      EXPECT_EQ(spec.get_string_attribute("ImageDescription"),
+                "rayscan:spp: 4\nrayscan:camera: {\"width\":2,\"height\":2}");
+    }
+  }
+}
+
 // Every image format the writer offers decodes with OpenImageIO to the written pixels: the 8-bit
 // formats to the sRGB encoding of each value, EXR to the half-float values (JPEG within its loss).
 // Decoding, not the signature bytes: OpenImageIO's TIFF writer through an in-memory proxy writes a
@@ -155,7 +221,64 @@ TEST(RenderJob, WritesTheImageAndAovsItNames) {
   EXPECT_GE(spec.channelindex(aov_channels(Aov::index)[0]), 0);
   EXPECT_GE(spec.channelindex(aov_channels(Aov::depth)[0]), 0);
   EXPECT_EQ(spec.get_string_attribute("rayscan:radius"), "0.90000000000000002");
+  // Points given only in memory; no scene file; the camera as camera-file JSON, which reads back
+  // as the camera the image was traced through (the same rays, parse_camera's inverse).
+  EXPECT_EQ(spec.get_string_attribute("rayscan:cloud"), "(memory)");
+  EXPECT_EQ(spec.get_string_attribute("rayscan:scene", "(none)"), "(none)");
+  const std::string cam = spec.get_string_attribute("rayscan:camera");
+  const Camera back = io::parse_camera(nlohmann::json::parse(cam), "rayscan:camera", "");
+  EXPECT_EQ(io::camera_to_json(back).dump(), io::camera_to_json(*o.scene.camera).dump());
+  in->close();
+  // The file the in-memory points were read from (as `rayscan render` reads a quick look's) is
+  // named, absolute.
+  RenderJobOptions named = o;
+  named.scene.cloud = fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz";
+  named.cloud_read_from_scene = true;
+  named.scene.output.image = dir / "b.exr";
+  (void)run_render(named);
+  in = OIIO::ImageInput::open((dir / "b.exr").string());
+  ASSERT_TRUE(in);
+  EXPECT_EQ(in->spec().get_string_attribute("rayscan:cloud"),
+            fs::absolute(named.scene.cloud).lexically_normal().string());
   in->close();
   fs::remove_all(dir);
 }
 
+
+TEST(RenderCli, OutputsRecordTheCloudFileAndTheCameraUsed) {
+  // A quick look reads its cloud once for the overview camera and the render; its image names that
+  // file (absolute, not "(memory)"), no scene file, and the camera as camera-file JSON, which
+  // --print-scene's "camera" (the same command line) is. Each --frames image records its own camera.
+  const fs::path dir = rayscan::test::process_temp_dir("rayscan_render_meta_cli");
+  const fs::path cloud = fs::path(RAYSCAN_TEST_DATA) / "las" / "simple.las";
+  const std::string cmd = std::string(RAYSCAN_BIN) + " render " + cloud.string() + " --width 30 --spp 1 -q";
+  const auto run = [](const std::string& c) {
+    std::string out;
+    FILE* p = ::popen((c + " 2>/dev/null").c_str(), "r");
+    char buf[4096];
+    for (std::size_t n; p && (n = std::fread(buf, 1, sizeof buf, p)) > 0;) out.append(buf, n);
+    const int st = p ? ::pclose(p) : -1;
+    EXPECT_EQ(st, 0) << c;
+    return out;
+  };
+  const nlohmann::json printed = nlohmann::json::parse(run(cmd + " --print-scene"));
+  (void)run(cmd + " --out " + (dir / "q.png").string());
+  auto in = OIIO::ImageInput::open((dir / "q.png").string());
+  ASSERT_TRUE(in);
+  EXPECT_EQ(in->spec().get_string_attribute("rayscan:cloud"), fs::absolute(cloud).lexically_normal().string());
+  EXPECT_EQ(in->spec().get_string_attribute("rayscan:scene", "(none)"), "(none)");
+  EXPECT_EQ(nlohmann::json::parse(in->spec().get_string_attribute("rayscan:camera", "null")), printed["camera"]);
+  in->close();
+  nlohmann::json second = printed["camera"];
+  second["vfov_deg"] = 20.0;
+  std::ofstream(dir / "frames.json") << nlohmann::json::array({printed["camera"], second}).dump();
+  (void)run(cmd + " --frames " + (dir / "frames.json").string() + " --out " + (dir / "f.png").string());
+  for (int f = 0; f < 2; ++f) {
+    in = OIIO::ImageInput::open((dir / ("f_000" + std::to_string(f) + ".png")).string());
+    ASSERT_TRUE(in);
+    EXPECT_EQ(nlohmann::json::parse(in->spec().get_string_attribute("rayscan:camera", "null")),
+              f == 0 ? printed["camera"] : second);
+    in->close();
+  }
+  fs::remove_all(dir);
+}

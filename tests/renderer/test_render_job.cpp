@@ -13,6 +13,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <functional>
 #include <memory>
 #include <unistd.h>
@@ -116,6 +117,76 @@ TEST(RenderJob, OverridesCheckEachValue) {
             "aovs 'colour': expected depth, normal, position, index, albedo or cost");
   EXPECT_EQ(what_of([&] { s.apply(bad_out); }),
             "out 'x.bmp': expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr");
+}
+
+TEST(RenderJob, OverridesRefuseWhatHasNoMeaning) {
+  // Each AOV once, as in a scene file's output.aovs; one the scene already lists is kept once.
+  Scene s = small_scene();
+  SceneOverrides twice;
+  twice.aovs = {"normal", "normal"};
+  EXPECT_EQ(what_of([&] { s.apply(twice); }), "aovs 'normal': given twice");
+  SceneOverrides again;
+  again.aovs = {"depth"};
+  s.apply(again);
+  EXPECT_EQ(s.output.aovs, (std::vector<Aov>{Aov::index, Aov::depth}));
+  // One camera: a camera file and a COLMAP photo together are refused before either is read.
+  SceneOverrides both;
+  both.camera_file = "no-such-camera.json";
+  both.colmap_dir = "no-such-model";
+  both.colmap_image = "a.jpg";
+  EXPECT_EQ(what_of([&] { s.apply(both); }),
+            "colmap_dir: the camera is the COLMAP photo's; do not give camera_file too");
+  // Surfels are hit exactly: the scene's closest-point order has no meaning for them.
+  Scene cp = small_scene();
+  cp.hit = HitMode::closest_point;
+  SceneOverrides surfel;
+  surfel.primitive = "surfel";
+  EXPECT_EQ(what_of([&] { cp.apply(surfel); }),
+            "primitive 'surfel': the scene's /hit \"closest_point\" applies to spheres only");
+  // JPEG holds 8 bits per channel: a 16-bit scene cannot be written as .jpg, and can as .png.
+  Scene deep = small_scene();
+  deep.output.bit_depth = 16;
+  SceneOverrides jpg, png;
+  jpg.out = "x.JPG";
+  png.out = "x.png";
+  EXPECT_EQ(what_of([&] { deep.apply(jpg); }),
+            "out 'x.JPG': a JPEG image has 8 bits per channel; the scene's /output/bit_depth is 16");
+  deep.apply(png);
+  EXPECT_EQ(deep.output.image, fs::path("x.png"));
+}
+
+TEST(RenderJob, ColmapViewNamesItsModelAbsolutely) {
+  // The image metadata names the camera's file (rayscan:camera_file): a COLMAP model given by a
+  // relative folder is recorded absolute, so the record holds from any working directory.
+  const fs::path dir = fs::temp_directory_path() / ("rayscan_render_colmap_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "cameras.txt") << "1 PINHOLE 100 80 90 90 50 40\n";
+  std::ofstream(dir / "images.txt") << "1 1 0 0 0 0 0 0 1 a.jpg\n\n";
+  Scene s = small_scene();
+  SceneOverrides ov;
+  ov.colmap_dir = fs::relative(dir);
+  ov.colmap_image = "a.jpg";
+  ASSERT_TRUE(ov.colmap_dir.is_relative());
+  s.apply(ov);
+  EXPECT_EQ(s.camera_file, fs::weakly_canonical(dir) / "images.txt");
+  EXPECT_EQ(s.camera->width(), 100u);
+  fs::remove_all(dir);
+}
+
+TEST(RenderJob, ExposureOverrideIsTheScenesOutputExposure) {
+  Scene s = small_scene();
+  SceneOverrides ov;
+  ov.exposure = -1.5;
+  s.apply(ov);
+  EXPECT_EQ(s.output.exposure, -1.5);
+  // --print-scene's JSON carries it, and reads back as the same value.
+  EXPECT_NE(s.to_json().find("\"exposure\": -1.5"), std::string::npos) << s.to_json();
+  for (double bad : {-30.5, 31.0, std::nan("")}) {
+    SceneOverrides b;
+    b.exposure = bad;
+    EXPECT_EQ(what_of([&] { s.apply(b); }), "exposure: expected a number in [-30, 30] (stops)");
+  }
+  EXPECT_EQ(s.output.exposure, -1.5);
 }
 
 // Rendering the index file (.rsi) of a cloud gives the image of the cloud itself, bit

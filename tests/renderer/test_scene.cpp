@@ -118,6 +118,19 @@ TEST(Scene, BadFieldsNameFileAndJsonPointer) {
   EXPECT_NE(error_of(scene_temp_dir() / "missing.json").find("missing.json: cannot open file"), std::string::npos);
 }
 
+TEST(Scene, CombinationsWithoutMeaningNameTheirPointer) {
+  // JPEG stores 8 bits per channel: a 16-bit depth there would be written as 8 bits.
+  const fs::path j16 = write("j16.json", std::string(R"({"cloud": "x.xyz", "output": {"image": "a.jpeg", "bit_depth": 16}, )") + kCam + "}");
+  EXPECT_EQ(error_of(j16), j16.string() + ": /output/bit_depth: expected 8 with a JPEG image (8 bits per channel); 16 needs a .png or .tif image");
+  const Scene p16 = load_scene(write("p16.json", std::string(R"({"cloud": "x.xyz", "output": {"image": "a.png", "bit_depth": 16}, )") + kCam + "}"));
+  EXPECT_EQ(p16.output.bit_depth, 16u);
+  // Discs are hit exactly (first_surfel_hit): the sphere's closest-point order does not apply.
+  const fs::path cs = write("cs.json", std::string(R"({"cloud": "x.xyz", "hit": "closest_point", "primitive": "surfel", )") + kCam + "}");
+  EXPECT_EQ(error_of(cs), cs.string() + ": /hit: \"closest_point\" applies to primitive \"sphere\" only; primitive is \"surfel\" (discs are hit exactly)");
+  EXPECT_EQ(load_scene(write("ss.json", std::string(R"({"cloud": "x.xyz", "hit": "sphere", "primitive": "surfel", )") + kCam + "}")).primitive,
+            Primitive::surfel);
+}
+
 TEST(Scene, LookAtCameraRejectsPinholeKeys) {
   // K/R/t are pinhole keys: with an explicit look-at model they must not be silently ignored.
   const fs::path p = write("la_k.json", R"({"cloud": "x.xyz", "camera": {"model": "look_at", "width": 60,

@@ -121,7 +121,7 @@ struct ResolvedScene {
 /// Resolve a command line's scene. `input` is a point cloud file when its extension is one the io
 /// library reads (io::format_from_extension) or an index file (.rsi), else a scene file; for a cloud the scene is {"cloud": input, "radius": "auto",
 /// "primitive": "surfel", "material": {"color": "rgb" if the cloud has colours else
-/// "elevation"}} with the default sky and sun (surfels: the primitive that measures best on the
+/// "elevation"}} with the default sky gradient and no sun (surfels: the primitive that measures best on the
 /// fidelity scenes, docs/fidelity.md; --primitive sphere for the paper's). When the scene has no
 /// camera (a cloud, or a scene file without "camera"), the camera is overview_view() of the
 /// summary's sample about its up axis at width x height (default 600 x 400; one of them

@@ -35,6 +35,10 @@ using render::SceneOverrides;  // applied by Scene::apply
 struct RenderJobOptions {
   Scene scene;                         ///< the render description (scenes/README.md)
   const PointCloud* cloud = nullptr;   ///< in-memory points instead of scene.cloud (not copied)
+  /// `cloud` holds the points of the file scene.cloud, read by the caller (`rayscan render`
+  /// reads a quick look's cloud once for its summary and the render): the image metadata then
+  /// names that file instead of "(memory)".
+  bool cloud_read_from_scene = false;
   bool write = true;                   ///< write scene.output.image (+ AOVs) when it is set
   /// When set, called once the cloud is read with its exact bounds (the AABB of its points); the
   /// camera it returns replaces scene.camera (the scene then needs no camera). E.g. a top-down map
@@ -64,6 +68,7 @@ struct RenderJobResult {
   std::size_t copc_peak_cache_bytes = 0;  ///< COPC input traced in place: the most bytes of decoded
                                           ///< nodes resident at once (CopcIndex::peak_resident_bytes)
   ImageMetadata metadata;              ///< what was (or would be) stored in the image header
+                                       ///< (scenes/README.md, "Image metadata")
   std::vector<std::filesystem::path> written;  ///< files written (beauty first)
 };
 

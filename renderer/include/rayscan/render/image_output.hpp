@@ -24,7 +24,10 @@ using rayscan::ImageMetadata;
 ///    normal "N.X N.Y N.Z", position "P.X P.Y P.Z" (float; relative to fb.position_origin, which is
 ///    recorded as "rayscan:position_origin"), index "id" (uint32, 0xFFFFFFFF for a miss), albedo
 ///    "albedo.R albedo.G albedo.B", cost "cost" (float).
-/// Pixel values are scaled by 2^out.exposure first. Each file is written by rayscan::write_image
+/// `metadata` is stored in every file's header (PNG text chunks, EXR string attributes); TIFF and
+/// JPEG, which keep no free-form keys, get its "rayscan:*" entries as the ImageDescription, one
+/// "key: value" line each. Pixel values are scaled by 2^out.exposure first; 8/16-bit formats then
+/// clip them to [0, 1] (no tone mapping) before the sRGB transfer, EXR keeps them linear. Each file is written by rayscan::write_image
 /// to a temporary sibling; the image and its AOV file form one OutputTransaction
 /// (rayscan/base/atomic_file.hpp): both are renamed into place only when both were written, so a
 /// failure leaves the old files intact. Paths that are not regular files (device, FIFO,

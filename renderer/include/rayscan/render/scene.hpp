@@ -78,7 +78,7 @@ using rayscan::to_string;
 /// Output file(s).
 struct OutputDesc {
   std::filesystem::path image;        ///< beauty image; format from the extension (.png .jpg .tif .exr)
-  unsigned bit_depth = 8;             ///< PNG/TIFF: 8 or 16 (JPEG: 8)
+  unsigned bit_depth = 8;             ///< PNG/TIFF: 8 or 16 (JPEG: 8 only; EXR: exr_half instead)
   bool exr_half = true;               ///< OpenEXR pixel type: half (true) or float
   std::vector<Aov> aovs;              ///< extra outputs
   double exposure = 0.0;              ///< stops: pixel values are multiplied by 2^exposure
@@ -95,7 +95,9 @@ struct SceneOverrides {
   std::optional<std::uint32_t> width, height;  ///< image size, pixels (fit_image_size)
   std::optional<std::uint64_t> seed;  ///< sampler seed
   std::filesystem::path out;          ///< output image (is_image_file_name)
-  std::vector<std::string> aovs;      ///< extra AOVs by name (parse_aov); duplicates ignored
+  std::vector<std::string> aovs;      ///< extra AOVs by name (parse_aov), each at most once; one the
+                                      ///< scene already lists is kept once
+  std::optional<double> exposure;     ///< output.exposure, stops in [-30, 30]
 };
 
 /// A fully parsed render description. Paths are absolute or relative to the working directory
@@ -127,11 +129,14 @@ struct Scene {
 
   /// Applies `overrides`, checking each: a camera file (replaces the camera), the camera of a
   /// COLMAP photo (load_colmap_camera(colmap_dir, colmap_image)), the primitive, samples per
-  /// pixel, seed, output image, extra AOVs, and an image size (Camera::resized: one of width and
-  /// height given, the other follows the camera's aspect ratio; the field of view is kept; the
-  /// camera is then inline, camera_file "").
+  /// pixel, seed, output image, exposure, extra AOVs, and an image size (Camera::resized: one of
+  /// width and height given, the other follows the camera's aspect ratio; the field of view is
+  /// kept; the camera is then inline, camera_file "").
   /// Throws SceneError (camera file, COLMAP model) or OptionError naming the field of
-  /// SceneOverrides ("aovs 'x': expected ...", written by the CLI as its flag, "--aov 'x': ...").
+  /// SceneOverrides ("aovs 'x': expected ...", written by the CLI as its flag, "--aov 'x': ..."):
+  /// a camera file and a COLMAP photo together, an AOV named twice, an exposure outside
+  /// [-30, 30], primitive surfel over the scene's hit "closest_point" (a sphere mode), a JPEG
+  /// `out` over the scene's output.bit_depth 16.
   void apply(const SceneOverrides& overrides);
 
   /// The scene as scene-file JSON (2-space indent), every value explicit: load_scene of the text
@@ -163,6 +168,9 @@ const std::vector<std::string>& image_extensions();
 
 /// True when `file` ends in one of image_extensions() (case-insensitive).
 bool is_image_file_name(const std::filesystem::path& file);
+
+/// True when `file` ends in .jpg or .jpeg (case-insensitive): an image of 8 bits per channel only.
+bool is_jpeg_file_name(const std::filesystem::path& file);
 
 /// The error text for a name failing is_image_file_name():
 /// "expected a file name ending in .png, .jpg, .jpeg, .tif, .tiff or .exr".
