@@ -7,9 +7,11 @@
 #include "rayscan/site/copc.hpp"
 #include "rayscan/site/index_file.hpp"
 
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <stdexcept>
 
 namespace rayscan::jobs::detail {
@@ -156,8 +158,37 @@ void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> 
   cloud.scalars.push_back({name, std::move(values)});
 }
 
+std::optional<io::ExtraBytesInfo> result_field_info(const std::string& name) {
+  // Descriptions fit the Extra Bytes descriptor's 32 bytes; units are ASCII for every reader.
+  static const std::map<std::string, io::ExtraBytesInfo, std::less<>> kFields = {
+      {"visible_count", {"observers that see the point", {}}},
+      {"visible_distance", {"distance to nearest observer", -1.0}},
+      {"sky_view", {"sky view factor, 0-1", {}}},
+      {"camera_hits", {"cameras that see the point", {}}},
+      {"in_shadow", {"1 shadow (or night), 0 sun", {}}},
+      {"irradiance_global", {"global irradiance, W/m2", {}}},
+      {"irradiance_beam", {"beam irradiance, W/m2", {}}},
+      {"irradiance_diffuse", {"diffuse irradiance, W/m2", {}}},
+      {"solar_global", {"global irradiation, kWh/m2", {}}},
+      {"solar_beam", {"beam irradiation, kWh/m2", {}}},
+      {"solar_diffuse", {"diffuse irradiation, kWh/m2", {}}},
+      {"solar_reflected", {"reflected irradiation, kWh/m2", {}}},
+      {"sun_hours", {"hours of direct sun, h", {}}},
+      {"shadow_hours", {"hours in shadow (sun up), h", {}}},
+  };
+  if (const auto it = kFields.find(name); it != kFields.end()) return it->second;
+  // solar_global_01 .. solar_global_12: the months of the period.
+  if (name.size() == 15 && name.rfind("solar_global_", 0) == 0 && std::isdigit(static_cast<unsigned char>(name[13])) &&
+      std::isdigit(static_cast<unsigned char>(name[14])))
+    return io::ExtraBytesInfo{"global irrad. month " + name.substr(13) + ", kWh/m2", {}};
+  return std::nullopt;
+}
+
 void write_result_cloud(const std::filesystem::path& path, const PointCloud& cloud, const io::FileInfo& info) {
-  io::write_point_cloud(path, cloud, io::las_grid_of(info));
+  io::LasWriteOptions las = io::las_grid_of(info);
+  for (const ScalarField& f : cloud.scalars)
+    if (auto d = result_field_info(f.name)) las.extra_bytes[f.name] = std::move(*d);
+  io::write_point_cloud(path, cloud, las);
 }
 
 }  // namespace rayscan::jobs::detail

@@ -6,6 +6,7 @@
 
 #include "rayscan/base/job.hpp"
 #include "rayscan/io/file_info.hpp"
+#include "rayscan/io/point_io.hpp"
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/octree/normals.hpp"
 #include "rayscan/octree/point_cloud.hpp"
@@ -86,8 +87,14 @@ void check_raster_options(const std::filesystem::path& raster, std::optional<dou
 /// Sets (or adds) the scalar field `name` of `cloud`.
 void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values);
 
+/// The meaning, unit and no-data value of a per-point result field of the point analyses
+/// (visibility, solar), as their LAS outputs describe it in the Extra Bytes VLR; none for another
+/// name (a field of the source cloud).
+std::optional<io::ExtraBytesInfo> result_field_info(const std::string& name);
+
 /// Writes `cloud` to `path` (format by extension); a LAS/LAZ output keeps the integer grid
-/// (scale and offset) of a LAS/LAZ/COPC source described by `info`.
+/// (scale and offset), GPS time type and project GUID of a LAS/LAZ/COPC source described by
+/// `info`, and describes the analyses' result fields (result_field_info: unit, no-data value).
 void write_result_cloud(const std::filesystem::path& path, const PointCloud& cloud, const io::FileInfo& info);
 
 }  // namespace rayscan::jobs::detail

@@ -21,8 +21,11 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <map>
 #include <memory>
 #include <sys/wait.h>
 
@@ -428,6 +431,38 @@ TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
     }
     EXPECT_GT(hidden, 0u);
   }
+
+  // The LAS file describes its result fields (LAS 1.4 R15 table 24, from the file's own bytes):
+  // visible_distance declares -1, the value of the points no observer sees, as its no-data value.
+  std::ifstream fin(las, std::ios::binary);
+  const std::string b((std::istreambuf_iterator<char>(fin)), std::istreambuf_iterator<char>());
+  const auto u32 = [&](std::size_t at) { std::uint32_t v; std::memcpy(&v, b.data() + at, 4); return v; };
+  const auto u16 = [&](std::size_t at) { std::uint16_t v; std::memcpy(&v, b.data() + at, 2); return v; };
+  std::map<std::string, std::string> desc;  // field name -> its 192-byte descriptor
+  std::size_t pos = u16(94);
+  for (std::uint32_t i = 0, n = u32(100); i < n; ++i) {
+    const std::uint16_t len = u16(pos + 20);
+    if (b.compare(pos + 2, 10, std::string("LASF_Spec\0", 10)) == 0 && u16(pos + 18) == 4)
+      for (std::size_t k = 0; k + 192 <= len; k += 192) {
+        const std::string d = b.substr(pos + 54 + k, 192);
+        desc[std::string(d.c_str() + 4, strnlen(d.c_str() + 4, 32))] = d;
+      }
+    pos += 54 + len;
+  }
+  ASSERT_TRUE(desc.count("visible_distance") && desc.count("visible_count") && desc.count("sky_view"));
+  const std::string& vd = desc["visible_distance"];
+  EXPECT_EQ(vd[3] & 1, 1) << "no_data bit";
+  double nd;
+  std::memcpy(&nd, vd.data() + 40, 8);
+  EXPECT_EQ(nd, -1.0);
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    if (res.count[i] == 0) {
+      EXPECT_EQ(res.nearest[i], nd) << "point " << i;
+    }
+  }
+  EXPECT_EQ(std::string(vd.c_str() + 160), "distance to nearest observer");
+  EXPECT_EQ(desc["visible_count"][3] & 1, 0) << "every count is a value";
+  EXPECT_EQ(std::string(desc["sky_view"].c_str() + 160), "sky view factor, 0-1");
 }
 
 TEST_F(VisibilityCli, UserErrorsExitTwoAndWriteNothing) {

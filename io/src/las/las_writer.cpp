@@ -39,6 +39,7 @@ struct Standard {
 /// One float64 Extra Bytes field of the output: a ScalarField, or one axis of the normals.
 struct ExtraOut {
   std::string name;                           ///< name in the descriptor (<= 32 bytes, unique)
+  const ExtraBytesInfo* info = nullptr;         ///< its description and no-data value, when given
   const std::vector<double>* values = nullptr;  ///< the scalar's values, or null for a normal axis
   int normal_axis = -1;                       ///< 0, 1, 2: PointCloud::normals' x, y or z
 };
@@ -162,7 +163,7 @@ struct LasRecordWriter {
   /// when the extra bytes make a record longer than 65535 bytes.
   void split_fields() {
     if (!cloud.normals.empty())
-      for (int a = 0; a < 3; ++a) extra.push_back({detail::kLasNormalNames[a], nullptr, a});
+      for (int a = 0; a < 3; ++a) extra.push_back({detail::kLasNormalNames[a], nullptr, nullptr, a});
     for (const ScalarField& f : cloud.scalars) {
       if (f.name == "return_number") st.ret = &f.values;
       else if (f.name == "number_of_returns") st.nret = &f.values;
@@ -174,7 +175,10 @@ struct LasRecordWriter {
       else if (f.name == "scan_direction_flag") st.scan_dir = &f.values;
       else if (f.name == "edge_of_flight_line") st.edge = &f.values;
       else if (f.name == "nir" && !cloud.rgb.empty()) st.nir = &f.values;
-      else extra.push_back({f.name, &f.values, -1});
+      else {
+        const auto it = options.extra_bytes.find(f.name);
+        extra.push_back({f.name, it == options.extra_bytes.end() ? nullptr : &it->second, &f.values, -1});
+      }
     }
     {
       std::vector<std::string> names;
@@ -347,10 +351,17 @@ struct LasRecordWriter {
       for (const ExtraOut& f : extra) {
         std::uint8_t e[192] = {};
         e[2] = 10;  // data type: double
-        e[3] = 0;   // options: no no_data/min/max/scale/offset
+        e[3] = 0;   // options (bit 0: no_data given; no min/max/scale/offset)
         std::memcpy(e + 4, f.name.data(), std::min<std::size_t>(32, f.name.size()));
-        const char* desc = f.normal_axis >= 0 ? "rayscan point normal" : "rayscan per-point scalar";
-        std::memcpy(e + 160, desc, std::strlen(desc));
+        if (f.info != nullptr && f.info->no_data) {
+          e[3] |= 1u;
+          const double nd = *f.info->no_data;
+          std::memcpy(e + 40, &nd, 8);  // no_data (table 24: the field's own type, double here)
+        }
+        const std::string desc = f.info != nullptr && !f.info->description.empty() ? f.info->description
+                                 : f.normal_axis >= 0                           ? "rayscan point normal"
+                                                                                : "rayscan per-point scalar";
+        std::memcpy(e + 160, desc.data(), std::min<std::size_t>(32, desc.size()));
         w.write(e, 192);
       }
     }

@@ -8,6 +8,8 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <map>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -67,6 +69,17 @@ PointCloud read_point_cloud(std::span<const std::uint8_t> bytes, Format format,
                             FileInfo* info = nullptr);
 
 /// Options of write_las().
+/// What an Extra Bytes descriptor (LAS 1.4 R15 section 2.5.6, table 24) says of one field besides
+/// its name and type, for readers such as PDAL, QGIS and CloudCompare to show.
+struct ExtraBytesInfo {
+  /// The descriptor's description: the field's meaning and unit, e.g. "global irradiation, kWh/m2";
+  /// at most 32 bytes are stored (a longer text is cut).
+  std::string description;
+  /// The value that means "no value" for this field (descriptor options bit 0 and its no_data
+  /// field), e.g. -1 for a distance to an observer that sees nothing; none when every value is one.
+  std::optional<double> no_data;
+};
+
 struct LasWriteOptions {
   /// LAS scale factors (x, y, z); 0 = choose: the coarsest of 1, 0.1, 0.01, 0.001 on which every
   /// coordinate of the axis reads back bit for bit (a cloud that came from LAS through PLY, PCD or
@@ -84,6 +97,9 @@ struct LasWriteOptions {
   bool adjusted_standard_gps_time = false;
   /// Header Project ID (GUID), bytes 8-23 as the source stored them; zeros when there is none.
   std::array<std::uint8_t, 16> project_guid{};
+  /// Extra Bytes descriptions by ScalarField name (a field not named here is described as
+  /// "rayscan per-point scalar", without a no-data value).
+  std::map<std::string, ExtraBytesInfo> extra_bytes;
 };
 
 /// Writes `cloud` as ASPRS LAS 1.4 R15: point data record format 6 (7 with rgb, 8 with rgb and a
