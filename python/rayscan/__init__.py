@@ -247,7 +247,7 @@ def render(scene, cloud=None, width=None, height=None, spp=None, seed=None, aovs
       * a scene file (.json);
       * a point cloud file (LAS, LAZ, COPC, PLY, PCD, text, .rsi), a PointCloud or an (N, 3) array:
         the quick look of `rayscan render CLOUD` (radius auto, surfels, colour from rgb if present
-        else elevation, default sky and sun, the overview camera framing the whole cloud, 600 x 400
+        else elevation, the default sky gradient and no sun, the overview camera framing the whole cloud, 600 x 400
         unless width/height say otherwise);
       * a dict: the same JSON as a scene file, relative file names from the working directory;
         errors name it "scene dict".

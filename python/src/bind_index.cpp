@@ -5,6 +5,7 @@
 #include "arrays.hpp"
 #include "bindings.hpp"
 
+#include "rayscan/base/threads.hpp"
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/octree/batch.hpp"
 #include "rayscan/site/site.hpp"
@@ -136,7 +137,7 @@ PyIndex build(py::handle xyz, const IndexOptions& opts) {
 template <class F>
 auto with_threads(unsigned threads, F&& f) {
   if (threads == 0) return f();
-  tbb::task_arena arena(static_cast<int>(threads));
+  tbb::task_arena arena(static_cast<int>(resolve_threads(threads)));  // (the jobs' rule: capped at the cores)
   return arena.execute(std::forward<F>(f));
 }
 

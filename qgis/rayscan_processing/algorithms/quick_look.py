@@ -11,7 +11,7 @@ class QuickLook(RayscanAlgorithm):
     NAME = "quick_look"
     DISPLAY = "Quick look render"
     HELP = ("Path-traces the point cloud from an automatic overview camera framing the whole cloud "
-            "(rayscan render CLOUD): colour from the points' RGB, else elevation; default sky and sun. "
+            "(rayscan render CLOUD): colour from the points' RGB, else elevation; the default sky gradient, no sun. "
             "The image is a perspective view, so it has no map coordinates: it loads as a picture "
             "without a CRS. For a map use Ortho + DSM.")
     OUTPUT = "OUTPUT"

@@ -19,7 +19,7 @@ namespace rayscan::analysis {
 /// The grid and the camera of a top-down map.
 struct OrthoMap {
   GridSpec grid;         ///< north-up cells (grid_over(bounds, res))
-  Camera camera;         ///< one vertical ray per cell centre, pointing to -z
+  Camera camera;         ///< orthographic, pointing to -z: a pixel per cell (its spp samples jittered within the cell)
   double z_top = 0.0;    ///< height of the ray origins (above the cloud), world units
 };
 
