@@ -160,3 +160,24 @@ def test_numbers_and_text_of_the_wrong_type_name_the_argument(uniform_cloud):
     s2 = rayscan.solar(xyz, at="2026-06-21T12:00:00", latitude=48.0, longitude=11.0, sky_rays=0, radius=0.05)
     np.testing.assert_array_equal(s1["in_shadow"], s2["in_shadow"])
     assert s1["sun_elevation"] == s2["sun_elevation"] > 0
+
+
+def test_threads_above_the_cores_run_on_the_cores_without_a_warning():
+    """threads= larger than the machine runs on every core, as the jobs' --threads does: same
+    answers, and no TBB warning on stderr (TBB prints one for an arena larger than its workers)."""
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import numpy as np, rayscan\n"
+        "rng = np.random.default_rng(3)\n"
+        "tree = rayscan.Octree(rng.random((2000, 3)))\n"
+        "o = rng.random((500, 3)); d = rng.normal(size=(500, 3))\n"
+        "a = tree.ray_query(o, d, k=1, radius=0.05, threads=1).first()\n"
+        "b = tree.ray_query(o, d, k=1, radius=0.05, threads=%d).first()\n"
+        "assert (a == b).all()\n" % (8 * (os.cpu_count() or 1))
+    )
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "TBB Warning" not in r.stderr, r.stderr
