@@ -4,6 +4,7 @@
 #include "commands.hpp"
 #include "processes.hpp"
 
+#include "rayscan/io/point_extensions.hpp"
 #include "rayscan/jobs/info.hpp"
 
 #include <iostream>
@@ -20,7 +21,8 @@ Runner add_info_command(CLI::App& app) {
   auto verify = std::make_shared<bool>(false);
   auto stats = std::make_shared<bool>(false);
   sub->add_option("FILE", *file,
-                  "point cloud file (.las .laz .copc.laz .ply .pcd .xyz .csv .txt .f64) or index file (.rsi)")
+                  "point cloud file (" + io::extension_list(io::point_cloud_input_extensions()) +
+                      ") or index file (.rsi)")
       ->required();
   sub->add_flag("--json", *json, "print one JSON object instead of text");
   sub->add_flag("--verify", *verify, "index files: verify the checksum of every section");

@@ -6,6 +6,7 @@
 #include "processes.hpp"
 
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/io/point_extensions.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/translate.hpp"
 
@@ -23,7 +24,9 @@ Runner add_translate_command(CLI::App& app) {
   auto format = std::make_shared<std::string>("auto");
   auto chunk = std::make_shared<std::uint32_t>(50000);
   auto memory = std::make_shared<std::string>("4G");
-  sub->add_option("IN", *in, "input point file (LAS, LAZ, COPC, PLY, PCD, XYZ/CSV/TXT)")->required();
+  sub->add_option("IN", *in, "input point file (" + io::extension_list(io::point_cloud_input_extensions()) +
+                                 ") or index file (.rsi: its points in the sources' order, with the attributes it stores)")
+      ->required();
   sub->add_option("OUT", *out, "output file: .las, .laz, .copc.laz (COPC 1.0: LAZ 1.4 with an octree of grid subsamples), "
                                 ".ply (binary, double x y z), .pcd (binary; x y z float when exact, else double) or "
                                 "text with a header line (.xyz and .txt space-separated, .csv comma-separated)")

@@ -1,8 +1,10 @@
 // Internal: what the point writers (LAS, PLY, PCD, text) share: the check of the cloud before
-// anything is written, the names they give its fields, the 8-bit colour rule; and the other
-// spellings of the LAS fields' names that the PLY, PCD and text readers take.
+// anything is written, the names they give its fields, the 8-bit colour rule; and the names the
+// PLY, PCD and text readers give dedicated fields (the LAS fields' other spellings are public:
+// rayscan/io/field_names.hpp).
 #pragma once
 
+#include "rayscan/io/field_names.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 
 #include <filesystem>
@@ -10,7 +12,6 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
-#include <utility>
 
 namespace rayscan::io::detail {
 
@@ -26,13 +27,15 @@ inline void validate_for_writing(const std::filesystem::path& path, const PointC
 
 /// `prefix` + `name` with every character other than [A-Za-z0-9_] replaced by '_' ("field" for an
 /// empty name), made unique among `used` by a suffix _1, _2, ... and added to it. PLY, PCD and the
-/// text header all take such a name as one token.
-inline std::string unique_field_name(const std::string& prefix, const std::string& name, std::set<std::string>& used) {
+/// text header all take such a name as one token. A name for which `reserved` (when given) is true
+/// takes a suffix too: a scalar whose name the format's reader would take for another field.
+inline std::string unique_field_name(const std::string& prefix, const std::string& name, std::set<std::string>& used,
+                                     bool (*reserved)(std::string_view) = nullptr) {
   std::string s = prefix + (name.empty() ? std::string("field") : name);
   for (char& c : s)
     if (!((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_')) c = '_';
   std::string out = s;
-  for (int k = 1; used.count(out) != 0; ++k) out = s + "_" + std::to_string(k);
+  for (int k = 1; used.count(out) != 0 || (reserved != nullptr && reserved(out)); ++k) out = s + "_" + std::to_string(k);
   used.insert(out);
   return out;
 }
@@ -40,34 +43,16 @@ inline std::string unique_field_name(const std::string& prefix, const std::strin
 /// 16-bit colour to 8 bit (the nearest of v / 257), as the 8-bit formats store it.
 inline unsigned char colour_to_8bit(unsigned v) { return static_cast<unsigned char>((v + 128u) / 257u); }
 
-/// The scalar name that write_las stores in a standard LAS point field (the name rayscan's LAS
-/// reader gives the field) for the field `name` of a PLY, PCD or text file, or nullptr for
-/// another name. Matched ignoring case and '_', so that PDAL's dimension names (ReturnNumber,
-/// NumberOfReturns, ScanDirectionFlag, EdgeOfFlightLine, ScanAngleRank, UserData, PointSourceId,
-/// ScanChannel, Infrared: PDAL's Dimension.json, as readers.las names them and writers.pcd,
-/// writers.ply and writers.text write them), their snake_case forms and rayscan's own names all
-/// match. PDAL's ScanAngleRank is in degrees, as rayscan's scan_angle is.
-inline const char* las_standard_scalar_name(std::string_view name) {
-  std::string key;
-  for (char c : name)
-    if (c != '_') key += (c >= 'A' && c <= 'Z') ? static_cast<char>(c - 'A' + 'a') : c;
-  static constexpr std::pair<std::string_view, const char*> kNames[] = {
-      {"returnnumber", "return_number"},
-      {"numberofreturns", "number_of_returns"},
-      {"scandirectionflag", "scan_direction_flag"},
-      {"edgeofflightline", "edge_of_flight_line"},
-      {"scanangle", "scan_angle"},
-      {"scananglerank", "scan_angle"},
-      {"userdata", "user_data"},
-      {"pointsourceid", "point_source_id"},
-      {"scannerchannel", "scanner_channel"},
-      {"scanchannel", "scanner_channel"},
-      {"classificationflags", "classification_flags"},
-      {"nir", "nir"},
-      {"infrared", "nir"},
-  };
-  for (const auto& [k, scalar] : kNames)
-    if (key == k) return scalar;
+/// The PointCloud field that a PLY, PCD or text field called `name` is read into when its values
+/// fit it (promote_scalars, point_reader.cpp): "intensity", "classification" or "gps_time" (also
+/// spelt "gpstime"), matched ignoring ASCII case; nullptr for any other name.
+inline const char* dedicated_field_name(std::string_view name) {
+  std::string n(name);
+  for (char& c : n)
+    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  if (n == "intensity") return "intensity";
+  if (n == "classification") return "classification";
+  if (n == "gps_time" || n == "gpstime") return "gps_time";
   return nullptr;
 }
 

@@ -2,6 +2,7 @@
 #include "rayscan/io/point_io.hpp"
 
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/io/point_extensions.hpp"
 #include "rayscan/io/point_reader.hpp"
 #include "readers.hpp"
 
@@ -11,6 +12,18 @@
 
 namespace rayscan::io {
 
+const std::vector<std::string>& point_cloud_input_extensions() {
+  static const std::vector<std::string> exts{".las", ".laz", ".copc.laz", ".copc", ".ply", ".pcd",
+                                             ".xyz", ".csv", ".txt", ".pts", ".f64"};
+  return exts;
+}
+
+std::string extension_list(const std::vector<std::string>& extensions) {
+  std::string s;
+  for (const std::string& e : extensions) s += (s.empty() ? "" : " ") + e;
+  return s;
+}
+
 Format format_from_extension(const std::filesystem::path& path) {
   const std::string e = lower_extension(path);
   if (e == ".las" || e == ".laz" || e == ".copc") return Format::las;
@@ -18,8 +31,11 @@ Format format_from_extension(const std::filesystem::path& path) {
   if (e == ".pcd") return Format::pcd;
   if (e == ".xyz" || e == ".csv" || e == ".txt" || e == ".pts") return Format::text;
   if (e == ".f64") return Format::f64;
-  throw FormatError(path.string() + ": unknown point cloud extension '" + e +
-                    "' (expected .las, .laz, .copc.laz, .copc, .ply, .pcd, .xyz, .csv, .txt, .pts or .f64)");
+  // An index file is read by MappedIndex (rayscan/site/index_file.hpp), not by the point readers:
+  // say so rather than call it unknown.
+  const std::string what = e == ".rsi" ? "'.rsi' is a rayscan index file, not a point cloud file"
+                                       : "unknown point cloud extension '" + e + "'";
+  throw FormatError(path.string() + ": " + what + " (" + extensions_expected(point_cloud_input_extensions()) + ")");
 }
 
 namespace {

@@ -86,12 +86,13 @@ using detail::Source;
 /// Moves scalars that are really intensity / classification / GPS time into their dedicated
 /// fields when their values fit exactly (e.g. PCD "intensity" F4 holding 0..246 integers), and
 /// renames the other LAS fields spelt as PDAL does (ReturnNumber, ...) to the names write_las
-/// stores in the standard LAS fields (detail::las_standard_scalar_name); a name already taken by
-/// another field stays as it is.
+/// stores in the standard LAS fields (las_standard_scalar_name); a name already taken by
+/// another field stays as it is. The names are those of detail::dedicated_field_name, which the
+/// text writer avoids for its scalars.
 void promote_scalars(PointCloud& pc, const ReadOptions& opt, FileInfo& info) {
   std::string renamed;
   for (ScalarField& f : pc.scalars) {
-    const char* las = opt.scalars ? detail::las_standard_scalar_name(f.name) : nullptr;
+    const char* las = opt.scalars ? las_standard_scalar_name(f.name) : nullptr;
     if (las == nullptr || f.name == las || pc.scalar(las) != nullptr) continue;
     renamed += (renamed.empty() ? "" : ", ") + f.name + " as " + las;
     f.name = las;
@@ -99,7 +100,8 @@ void promote_scalars(PointCloud& pc, const ReadOptions& opt, FileInfo& info) {
   if (!renamed.empty()) info.notes.push_back("LAS fields read by their other names: " + renamed);
   for (std::size_t k = 0; k < pc.scalars.size();) {
     ScalarField& f = pc.scalars[k];
-    const std::string n = detail::lower(f.name);
+    const char* dedicated = detail::dedicated_field_name(f.name);
+    const std::string n = dedicated != nullptr ? dedicated : "";
     bool moved = false;
     auto integral_in = [&](double hi) {
       return std::all_of(f.values.begin(), f.values.end(),
@@ -111,7 +113,7 @@ void promote_scalars(PointCloud& pc, const ReadOptions& opt, FileInfo& info) {
     } else if (n == "classification" && pc.classification.empty() && integral_in(255.0)) {
       pc.classification.assign(f.values.begin(), f.values.end());
       moved = true;
-    } else if ((n == "gpstime" || n == "gps_time") && pc.gps_time.empty()) {
+    } else if (n == "gps_time" && pc.gps_time.empty()) {
       pc.gps_time = std::move(f.values);
       moved = true;
     }

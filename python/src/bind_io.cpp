@@ -6,6 +6,7 @@
 #include "bindings.hpp"
 #include "cloud.hpp"
 
+#include "rayscan/io/field_names.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <pybind11/stl.h>
@@ -214,21 +215,6 @@ struct Spelling {
   const char* laspy;
 };
 
-/// LAS dimensions whose PDAL (or laspy) name differs from the scalar field name rayscan's LAS
-/// reader and writer use (docs/formats.md): these become the standard LAS fields when written.
-constexpr std::array<std::pair<const char*, const char*>, 10> kLasScalarNames{{
-    {"ReturnNumber", "return_number"},
-    {"NumberOfReturns", "number_of_returns"},
-    {"ScanDirectionFlag", "scan_direction_flag"},
-    {"EdgeOfFlightLine", "edge_of_flight_line"},
-    {"ScanAngleRank", "scan_angle"},
-    {"scan_angle_rank", "scan_angle"},
-    {"UserData", "user_data"},
-    {"PointSourceId", "point_source_id"},
-    {"ScanChannel", "scanner_channel"},
-    {"Infrared", "nir"},
-}};
-
 PyCloud from_structured(py::handle obj, py::handle crs) {
   py::module_ np = numpy();
   const py::array a = np.attr("asarray")(obj);
@@ -278,9 +264,10 @@ PyCloud from_structured(py::handle obj, py::handle crs) {
     if (col.ndim() != 1 || std::string("biuf").find(col.dtype().kind()) == std::string::npos)
       throw py::value_error("from_structured: field '" + f + "' has dtype " +
                             py::str(a.dtype()[py::str(f)]).cast<std::string>() + "; expected numbers (one per point)");
-    std::string name = f;
-    for (const auto& [from, to] : kLasScalarNames)
-      if (f == from) name = to;
+    // PDAL's (or laspy's) names of the other LAS fields take the names write_las stores in the
+    // standard fields: the readers' rule (io::las_standard_scalar_name).
+    const char* las = io::las_standard_scalar_name(f);
+    const std::string name = las != nullptr ? las : f;
     if (scalars.contains(name))
       throw py::value_error("from_structured: fields '" + f + "' and another both give the scalar field '" + name +
                             "'");

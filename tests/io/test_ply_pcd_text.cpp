@@ -1,8 +1,11 @@
 // PLY, PCD and text readers on real files, checked against the files' own text/bytes and against
 // the same data re-encoded in another variant of the format (ascii vs binary, big vs little endian).
 #include "io_test_util.hpp"
+#include "rayscan/base/file_names.hpp"
+#include "rayscan/io/point_extensions.hpp"
 
 #include <bit>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <sstream>
@@ -196,6 +199,65 @@ TEST(Text, HeaderlessWhitespaceColumnsAreXyzThenScalars) {
   EXPECT_EQ(pc.positions[1], Vec3(4, 5, 6));
   ASSERT_NE(pc.scalar("col4"), nullptr);
   EXPECT_EQ(pc.scalar("col4")->values[1], 0.25);
+}
+
+// A Leica PTS file: a line with the point count before each scan's rows, rows of x y z
+// intensity r g b with the intensity in -2048..2047, read as PDAL's readers.pts reads it
+// (intensity + 2048). Oracle: the values of the text, PDAL's rule.
+TEST(Text, PtsCountLinesAreSkippedAndSevenColumnsAreIntensityAndColour) {
+  io::FileInfo info;
+  const std::string pts = "2\n1.5 2 3 -2048 255 0 128\n4 5 6 2047 0 10 20\n1\n7 8 9 0 1 2 3\n";
+  const std::vector<std::uint8_t> b(pts.begin(), pts.end());
+  const PointCloud pc = io::read_point_cloud(b, io::Format::text, "scan.pts", {}, &info);
+  ASSERT_EQ(pc.size(), 3u);
+  EXPECT_EQ(pc.positions[0], Vec3(1.5, 2, 3));
+  EXPECT_EQ(pc.positions[2], Vec3(7, 8, 9));
+  EXPECT_EQ(pc.intensity, (std::vector<std::uint16_t>{0, 4095, 2048}));
+  EXPECT_EQ(pc.rgb[0], (Rgb16{65535, 0, 128 * 257}));
+  EXPECT_EQ(pc.rgb[2], (Rgb16{257, 2 * 257, 3 * 257}));
+  EXPECT_TRUE(pc.scalars.empty());
+  for (const std::string& n : info.notes) EXPECT_EQ(n.find("PTS"), std::string::npos) << n;  // counts agree
+
+  // x y z intensity rows; a count that disagrees with the rows is noted.
+  const std::string four = "3\n1 2 3 100\n4 5 6 -100\n";
+  const std::vector<std::uint8_t> b4(four.begin(), four.end());
+  io::FileInfo info4;
+  const PointCloud pc4 = io::read_point_cloud(b4, io::Format::text, "x.PTS", {}, &info4);
+  EXPECT_EQ(pc4.intensity, (std::vector<std::uint16_t>{2148, 1948}));
+  EXPECT_TRUE(pc4.rgb.empty());
+  ASSERT_FALSE(info4.notes.empty());
+  EXPECT_EQ(info4.notes[0], "the PTS count line gives 3 points; 2 rows read");
+
+  // A one-number line is a count only in a .pts file.
+  EXPECT_THROW(read_text("2\n1 2 3\n", io::Format::text), io::FormatError);
+}
+
+// ---------------------------------------------------------------- extensions
+
+// The list the help and error lines print is the list format_from_extension reads: every listed
+// extension (any case) is read, and an unknown one, or an index file's, is refused naming them all.
+TEST(Extensions, EveryListedInputExtensionIsReadAndTheRefusalListsThemAll) {
+  const std::vector<std::string>& exts = io::point_cloud_input_extensions();
+  EXPECT_EQ(io::extension_list(exts), ".las .laz .copc.laz .copc .ply .pcd .xyz .csv .txt .pts .f64");
+  for (const std::string& e : exts) {
+    EXPECT_NO_THROW((void)io::format_from_extension("a" + e)) << e;
+    std::string upper = e;
+    for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    EXPECT_NO_THROW((void)io::format_from_extension("a" + upper)) << upper;
+  }
+  for (const std::string& bad : {std::string("x.e57"), std::string("x.rsi")}) {
+    try {
+      (void)io::format_from_extension(bad);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const io::FormatError& e) {
+      const std::string m = e.what();
+      EXPECT_NE(m.find(bad + ": "), std::string::npos) << m;
+      EXPECT_NE(m.find(extensions_expected(exts)), std::string::npos) << m;
+      if (bad == "x.rsi") {
+        EXPECT_NE(m.find("index file"), std::string::npos) << m;
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -152,6 +152,36 @@ TEST(Writers, PcdAndTextRoundTripKeepCoordinatesBitForBitAndEveryAttribute) {
   }
 }
 
+// A scalar whose name the text reader takes for a column of its own (an Extra Bytes field
+// "Intensity" beside LAS intensity; "X"; "red") or moves into a dedicated field ("gpstime",
+// "Classification" with integral values) is written under a suffix, so the file reads back with
+// every field as it was. Oracle: the values put into the cloud, and the header line written.
+TEST(Writers, TextScalarsNamedLikeTheReadersColumnsReadBackUnderASuffix) {
+  PointCloud src;
+  src.positions = {Vec3(1, 2, 3), Vec3(4, 5, 6)};
+  src.intensity = {10, 20};
+  src.scalars = {{"Intensity", {0.5, 7}}, {"X", {1, 2}},       {"red", {3, 4}},
+                 {"gpstime", {5, 6}},     {"Classification", {1, 2}}, {"other", {9, 8}}};
+  const fs::path out = temp_dir() / "reserved_names.csv";
+  io::write_point_cloud(out, src);
+  const std::vector<std::uint8_t> bytes = slurp(out);
+  const std::string text(bytes.begin(), bytes.end());
+  EXPECT_EQ(text.substr(0, text.find('\n')), "x,y,z,intensity,Intensity_1,X_1,red_1,gpstime_1,Classification_1,other");
+  const PointCloud back = io::read_point_cloud(out);
+  EXPECT_EQ(back.positions, src.positions);
+  EXPECT_EQ(back.intensity, src.intensity);
+  EXPECT_TRUE(back.rgb.empty());
+  EXPECT_TRUE(back.classification.empty());
+  EXPECT_TRUE(back.gps_time.empty());
+  ASSERT_EQ(back.scalars.size(), src.scalars.size());
+  for (std::size_t k = 0; k < src.scalars.size(); ++k) {
+    const std::string want = src.scalars[k].name == "other" ? "other" : src.scalars[k].name + "_1";
+    EXPECT_EQ(back.scalars[k].name, want);
+    EXPECT_EQ(back.scalars[k].values, src.scalars[k].values) << want;
+  }
+  fs::remove(out);
+}
+
 /// The colour fields of every record, as stored (ASPRS LAS 1.4 R15 section 2.6: red, green, blue
 /// at byte 20 of PDRF 2, 28 of PDRF 3 and 5, 30 of PDRF 7, 8 and 10).
 std::vector<std::uint16_t> stored_rgb(const io::LasRecords& r) {

@@ -2,6 +2,7 @@
 // bytes of the input, read back by the io reader.
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/jobs/index.hpp"
 #include "rayscan/jobs/translate.hpp"
 
 #include <gtest/gtest.h>
@@ -109,7 +110,9 @@ TEST(TranslateJob, WritesWhatTheOutputExtensionSays) {
     } catch (const std::invalid_argument& e) {
       const std::string m = e.what();
       EXPECT_NE(m.find(name), std::string::npos) << m;
-      EXPECT_NE(m.find("expected a file name ending in .las, .laz, .ply, .pcd, .xyz, .csv or .txt"), std::string::npos) << m;
+      // Every name the job writes, .copc.laz included.
+      EXPECT_NE(m.find("expected a file name ending in .las, .laz, .copc.laz, .ply, .pcd, .xyz, .csv or .txt"),
+                std::string::npos) << m;
     }
     EXPECT_FALSE(fs::exists(temp_dir() / name));
   }
@@ -212,4 +215,90 @@ TEST(TranslateJob, TextColourIsTheSourcesOwnValuesBothWays) {
     translate(mid, out);
     EXPECT_EQ(text_rgb(out), want);
   }
+}
+
+namespace {
+
+/// Record i's bytes [at, at + n) of a LAS file's records.
+std::string record_bytes(const io::LasRecords& r, std::uint64_t i, std::size_t at, std::size_t n) {
+  return {reinterpret_cast<const char*>(r.records.data() + i * r.record_length + at), n};
+}
+
+}  // namespace
+
+// extrabytes.las has an Extra Bytes field "Intensity" beside the standard intensity: LAS -> csv ->
+// LAS keeps both, the extra field under "Intensity_1" (the text reader would take a second
+// "intensity" column for the same attribute). Oracle: the source's records (X, Y, Z and
+// intensity bytes) and the cloud the LAS reader gives of the source.
+TEST(TranslateJob, LasToCsvToLasKeepsAnExtraFieldNamedLikeAStandardOne) {
+  const fs::path las = data_file("las/extrabytes.las");
+  const fs::path csv = temp_dir() / "extrabytes.csv", back = temp_dir() / "extrabytes_back.las";
+  translate(las, csv);
+  const std::string text = file_bytes(csv);
+  const std::string header = "," + text.substr(0, text.find('\n')) + ",";
+  EXPECT_NE(header.find(",intensity,"), std::string::npos) << header;
+  EXPECT_NE(header.find(",Intensity_1,"), std::string::npos) << header;
+  translate(csv, back);
+
+  const io::LasRecords a = io::read_las_records(las), b = io::read_las_records(back);
+  ASSERT_EQ(b.count, a.count);
+  for (std::uint64_t i = 0; i < a.count; ++i)  // X, Y, Z (same 0.01 grid, offset 0) and intensity
+    ASSERT_EQ(record_bytes(b, i, 0, 14), record_bytes(a, i, 0, 14)) << "record " << i;
+  const PointCloud src = io::read_point_cloud(las), out = io::read_point_cloud(back);
+  EXPECT_EQ(out.positions, src.positions);
+  EXPECT_EQ(out.intensity, src.intensity);
+  EXPECT_EQ(out.classification, src.classification);
+  EXPECT_EQ(out.gps_time, src.gps_time);
+  EXPECT_EQ(out.rgb, src.rgb);
+  ASSERT_NE(src.scalar("Intensity"), nullptr);
+  for (const ScalarField& f : src.scalars) {
+    std::string name = f.name == "Intensity" ? "Intensity_1" : f.name;
+    for (char& c : name)
+      if (c == '[' || c == ']') c = '_';  // "Colors[0]" is written as the token "Colors_0_"
+    const ScalarField* g = out.scalar(name);
+    ASSERT_NE(g, nullptr) << name;
+    ASSERT_EQ(g->values.size(), f.values.size()) << name;
+    // PDRF 0-5's whole-degree scan angle is stored in PDRF 6's 0.006-degree steps (formats.md).
+    const double tol = f.name == "scan_angle" ? 0.003 : 0.0;
+    for (std::size_t i = 0; i < f.values.size(); ++i) ASSERT_NEAR(g->values[i], f.values[i], tol) << name << " " << i;
+  }
+}
+
+// An index file translates like the files it was built from: its points in the sources' order,
+// the attributes it stores, and LAS positions on the sources' grid (bit-exact records). Oracle:
+// the source's records and the cloud the LAS reader gives of it.
+TEST(TranslateJob, IndexFileToLasGivesTheSourcesPointsAndStoredAttributes) {
+  const fs::path src_las = data_file("las/autzen_trim.las");
+  const fs::path rsi = temp_dir() / "autzen_translate.rsi", out = temp_dir() / "autzen_from_rsi.las";
+  jobs::IndexJobOptions io_opt;
+  io_opt.inputs = {src_las};
+  io_opt.output = rsi;
+  io_opt.attributes = "id,rgb,intensity,classification,gps_time";
+  jobs::run_index(io_opt);
+  jobs::TranslateJobOptions o;
+  o.in = rsi;
+  o.out = out;
+  const jobs::TranslateJobResult r = jobs::run_translate(o);
+  const PointCloud src = io::read_point_cloud(src_las), back = io::read_point_cloud(out);
+  EXPECT_EQ(r.points, src.size());
+  EXPECT_EQ(back.positions, src.positions);
+  EXPECT_EQ(back.rgb, src.rgb);
+  EXPECT_EQ(back.intensity, src.intensity);
+  EXPECT_EQ(back.classification, src.classification);
+  EXPECT_EQ(back.gps_time, src.gps_time);
+  EXPECT_EQ(back.crs_wkt, src.crs_wkt);
+  const io::LasRecords a = io::read_las_records(src_las), b = io::read_las_records(out);
+  ASSERT_EQ(b.count, a.count);
+  for (std::uint64_t i = 0; i < a.count; ++i) ASSERT_EQ(record_bytes(b, i, 0, 12), record_bytes(a, i, 0, 12)) << i;
+  EXPECT_EQ(stored_rgb(out), stored_rgb(src_las));  // the source's 8-bit values (max 236), not x 257
+
+  // COPC is written from point files only: refused before anything is written, naming the input.
+  o.out = temp_dir() / "autzen_from_rsi.copc.laz";
+  try {
+    jobs::run_translate(o);
+    ADD_FAILURE() << "COPC output of an index file accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(rsi.string() + ": COPC output of an index file"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(o.out));
 }

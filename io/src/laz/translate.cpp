@@ -187,7 +187,7 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
                                       std::to_string(h.pdrf) + " needs (" + std::to_string(kLen[h.pdrf]) + ")");
   const std::size_t extra = rec - static_cast<std::size_t>(kLen[h.pdrf]);
   if (to_laz && (h.pdrf == 4 || h.pdrf == 5 || h.pdrf > 8))
-    throw std::invalid_argument("translate: LAZ output of point data record format " + std::to_string(h.pdrf) +
+    throw std::invalid_argument(in.name + ": LAZ output of point data record format " + std::to_string(h.pdrf) +
                                 " (waveform packets) is not implemented (the writer covers PDRF 0-3 and 6-8 with extra bytes)");
   std::vector<std::string> notes;
   RecordSource src(in, h, notes);
@@ -202,7 +202,7 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
   bool waveform_after_points = false;  // the record lies in [points_end, data_end): copied with those bytes
   if (waveform_internal) {
     if (h.laszip.present || to_laz)
-      throw std::invalid_argument("translate: " + in.name + ": waveform data packets stored inside the file "
+      throw std::invalid_argument(in.name + ": waveform data packets stored inside the file "
                                   "(global encoding bit 1) cannot be kept in LAZ (LAS to LAS only)");
     bool at_evlr = false;
     for (const VlrInfo& v : h.vlrs) at_evlr = at_evlr || (v.extended && v.offset == h.waveform_start);

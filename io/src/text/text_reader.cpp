@@ -1,10 +1,16 @@
-// XYZ/CSV/TXT reader (no formal specification; the common ASCII column layout that CloudCompare,
-// PDAL's text reader and LAStools' txt2las read): one point per line, values separated by
-// whitespace, commas or semicolons; '#' starts a comment line; an optional first line naming the
-// columns (x, y, z, r/red, g/green, b/blue, i/intensity in any order, case-insensitive; other
-// names become scalars). Without a header the columns are x y z, then scalars col4, col5, ...
+// XYZ/CSV/TXT/PTS reader (no formal specification; the common ASCII column layout that
+// CloudCompare, PDAL's text reader and LAStools' txt2las read): one point per line, values
+// separated by whitespace, commas or semicolons; '#' starts a comment line; an optional first line
+// naming the columns (text_column: x, y, z, r/red, g/green, b/blue, i/intensity in any order,
+// case-insensitive; other names become scalars). Without a header the columns are x y z, then
+// scalars col4, col5, ... A .pts file (Leica Cyclone's layout, as PDAL's readers.pts reads it) may
+// start each scan with a line holding its point count; its rows are then x y z, x y z intensity or
+// x y z intensity r g b, the intensity in -2048..2047 stored + 2048 as PDAL does.
 // Every value is parsed as double (a float32 cannot hold UTM northings to the centimetre).
 #include "readers.hpp"
+#include "text_columns.hpp"
+
+#include "rayscan/base/file_names.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -26,6 +32,26 @@ bool parse_double(std::string_view s, double& v) {
 
 enum class Col { skip, x, y, z, r, g, b, intensity, scalar };
 
+Col col_of(TextColumn c) {
+  switch (c) {
+    case TextColumn::x: return Col::x;
+    case TextColumn::y: return Col::y;
+    case TextColumn::z: return Col::z;
+    case TextColumn::r: return Col::r;
+    case TextColumn::g: return Col::g;
+    case TextColumn::b: return Col::b;
+    case TextColumn::intensity: return Col::intensity;
+    case TextColumn::scalar: break;
+  }
+  return Col::scalar;
+}
+
+/// True when `s` is a whole non-negative decimal integer (a PTS count line), stored in `v`.
+bool parse_count(std::string_view s, std::uint64_t& v) {
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  return ec == std::errc() && p == s.data() + s.size();
+}
+
 }  // namespace
 
 PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
@@ -41,21 +67,18 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
   bool first = true;
   std::vector<std::string_view> f;
   std::uint64_t pos = 0, lineno = 0;
+  // PTS: the sum of the count lines (one per scan) and how many there were.
+  const bool pts = lower_extension(nm) == ".pts";
+  std::uint64_t pts_count = 0, pts_count_lines = 0;
+  double intensity_add = 0.0;  // PTS intensity: -2048..2047 stored as 0..4095 (PDAL readers.pts)
   pc.positions.reserve(static_cast<std::size_t>(std::min<std::uint64_t>(in.size() / 16, 1u << 20)));
   auto setup = [&](const std::vector<std::string>& names) {
     cols.assign(names.size(), Col::skip);
     scalar_of.assign(names.size(), 0);
     int have = 0;
     for (std::size_t i = 0; i < names.size(); ++i) {
-      const std::string n = lower(names[i]);
-      Col c = Col::scalar;
-      if (n == "x" || n == "//x") c = Col::x, have |= 1;
-      else if (n == "y") c = Col::y, have |= 2;
-      else if (n == "z") c = Col::z, have |= 4;
-      else if (n == "r" || n == "red") c = Col::r;
-      else if (n == "g" || n == "green") c = Col::g;
-      else if (n == "b" || n == "blue") c = Col::b;
-      else if (n == "i" || n == "intensity") c = Col::intensity;
+      Col c = col_of(text_column(names[i]));
+      have |= c == Col::x ? 1 : c == Col::y ? 2 : c == Col::z ? 4 : 0;
       if (c != Col::scalar)
         for (std::size_t j = 0; j < i; ++j)
           if (cols[j] == c)
@@ -89,6 +112,14 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
       i = j;
     }
     if (f.empty() || f[0][0] == '#') continue;
+    if (pts && f.size() == 1) {  // a PTS count line: before the first row, and before each further scan
+      std::uint64_t c = 0;
+      if (parse_count(f[0], c)) {
+        pts_count += c;
+        ++pts_count_lines;
+        continue;
+      }
+    }
     if (first) {
       first = false;
       double tmp;
@@ -101,7 +132,12 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
         continue;
       }
       std::vector<std::string> names = {"x", "y", "z"};
-      for (std::size_t i = 3; i < f.size(); ++i) names.push_back("col" + std::to_string(i + 1));
+      if (pts_count_lines > 0 && (f.size() == 4 || f.size() == 7)) {  // PTS rows, as PDAL's readers.pts reads them
+        names.push_back("intensity");
+        if (f.size() == 7) names.insert(names.end(), {"red", "green", "blue"});
+        intensity_add = 2048.0;
+      }
+      for (std::size_t i = names.size(); i < f.size(); ++i) names.push_back("col" + std::to_string(i + 1));
       setup(names);
       ncols_min = 3;
     }
@@ -124,7 +160,7 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
         case Col::r: c3[0] = v; colour_float |= f[k].find('.') != std::string_view::npos; break;
         case Col::g: c3[1] = v; colour_float |= f[k].find('.') != std::string_view::npos; break;
         case Col::b: c3[2] = v; colour_float |= f[k].find('.') != std::string_view::npos; break;
-        case Col::intensity: pc.intensity.push_back(to_u16(v)); break;
+        case Col::intensity: pc.intensity.push_back(to_u16(v + intensity_add)); break;
         case Col::scalar: pc.scalars[scalar_of[k]].values.push_back(v); break;
         case Col::skip: break;
       }
@@ -135,6 +171,10 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
     if (has_rgb) colour.insert(colour.end(), {to_f32(c3[0]), to_f32(c3[1]), to_f32(c3[2])});
   }
   info.header_point_count = pc.positions.size();
+  if (pts_count_lines > 0 && pts_count != pc.positions.size())
+    info.notes.push_back("the PTS count line" + std::string(pts_count_lines > 1 ? "s give " : " gives ") +
+                         std::to_string(pts_count) + " points; " + std::to_string(pc.positions.size()) +
+                         " rows read");
   if (has_rgb) {
     float mx = 0;
     for (float c : colour) mx = std::max(mx, c);

@@ -1,15 +1,21 @@
 // XYZ / CSV / TXT writer: the column layout the text reader (text_reader.cpp), CloudCompare,
 // PDAL's readers.text and LAStools' txt2las read: a header line naming the columns, then one
 // point per line. Values are the shortest decimal that reads back as the same double
-// (std::to_chars), so a round trip keeps every coordinate bit for bit. Colour is written as the
+// (std::to_chars), so a round trip keeps every coordinate bit for bit: a LAS point's coordinate is
+// the double X * scale + offset, which for scale 0.01 can be 849087.7000000001, not the double
+// nearest 849087.70 (rounding it to the scale's decimals would read back as another double, and the
+// LAS writer finds a source's grid only from the exact doubles). Colour is written as the
 // source held it: 16-bit values, or the 8-bit values of a source whose colour the reader scaled by
 // 257 (PointCloud::rgb_from_8bit_las, as write_las does), which the text reader scales by 257 again.
+// A scalar whose name the reader would take for another field (text_name_reserved: an extra-bytes
+// field "Intensity" beside the intensity column) is written with a suffix, "Intensity_1".
 #include "rayscan/io/point_io.hpp"
 
 #include "rayscan/base/file_names.hpp"
 
 #include "atomic_writer.hpp"
 #include "field_names.hpp"
+#include "text_columns.hpp"
 
 #include <charconv>
 #include <set>
@@ -29,7 +35,8 @@ void write_text(const std::filesystem::path& path, const PointCloud& cloud) {
   if (!cloud.intensity.empty()) col("intensity");
   if (!cloud.classification.empty()) col("classification");
   if (!cloud.gps_time.empty()) col("gps_time");
-  for (const ScalarField& s : cloud.scalars) col(s.name);
+  for (const ScalarField& s : cloud.scalars)
+    h += sep, h += detail::unique_field_name("", s.name, used, detail::text_name_reserved);
   h += '\n';
 
   detail::AtomicWriter w(path);

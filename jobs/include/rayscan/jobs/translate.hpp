@@ -1,7 +1,7 @@
 // The translate job: lossless LAS <-> LAZ conversion (same header, VLRs/EVLRs and byte-identical
 // point records; io::translate_las), any readable point file to COPC (io::write_copc) for a
-// .copc.laz name, and to LAS, LAZ, PLY, PCD or text by the output's extension
-// (io::write_point_cloud). `rayscan translate` runs it.
+// .copc.laz name, and any readable point file or index file to LAS, LAZ, PLY, PCD or text by the
+// output's extension (io::write_point_cloud). `rayscan translate` runs it.
 #pragma once
 
 #include "rayscan/base/job.hpp"
@@ -13,6 +13,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace rayscan::jobs {
 
@@ -21,7 +22,9 @@ using io::LasCompression;
 
 /// Inputs of run_translate().
 struct TranslateJobOptions {
-  std::filesystem::path in;   ///< the point file to read (any format read_point_cloud reads)
+  /// The file to read: any format read_point_cloud reads, or an index file (.rsi,
+  /// io::is_index_file: its points in the sources' order with the attributes it stores).
+  std::filesystem::path in;
   std::filesystem::path out;  ///< the file to write (through a temporary file renamed into place)
   /// Output format: by the output's extension (.las, .laz, .ply, .pcd, .xyz, .csv, .txt: io::write_point_cloud), or las
   /// or laz whatever the name (a LAS/LAZ input is then converted losslessly).
@@ -44,16 +47,26 @@ struct TranslateJobResult : io::TranslateResult {
   std::optional<io::CopcWriteResult> copc;  ///< set when a COPC file was written
 };
 
+/// The output extensions run_translate writes by the name, lower case with the dot, in the order
+/// its messages list them: io::point_cloud_output_extensions() with ".copc.laz" after ".laz".
+[[nodiscard]] const std::vector<std::string>& translate_output_extensions();
+
 /// Converts `in` to `out`. A name ending in .copc.laz (io::is_copc_output; with the format left
 /// by_extension) is written as COPC 1.0 by io::write_copc (rayscan/site/copc_writer.hpp). LAS/LAZ to LAS/LAZ streams one chunk at a time (memory independent of
 /// the file size; details in rayscan/io/translate.hpp); any other pair reads the cloud whole and
 /// writes it with io::write_point_cloud (PLY output keeps positions exactly; LAS output quantises
-/// them to write_las's scale). The output's format and path are checked before the input is read
-/// (io::require_point_cloud_output, require_outputs). Throws OptionError naming "chunk_size" for
-/// a chunk size outside [1, 4294967294], std::invalid_argument for an output extension with no
-/// writer and for an unsupported conversion (LAZ or COPC output of the waveform point formats 4,
-/// 5, 9, 10), io::CopcMemoryError when a COPC build exceeds `memory`, io::FormatError for a malformed input, OutputFileError or
-/// std::runtime_error for I/O failures (the previous output, if any, is then left unchanged).
+/// them to the source's LAS grid, io::las_grid_of, or an index file's LAS-integer positions' grid,
+/// else to write_las's scale). An index file gives its points in the sources' order
+/// (MappedIndex::to_point_cloud: positions, colour, intensity, classification, GPS time and CRS,
+/// the attributes an index stores; colour stored as byte x 257 is written back as 8-bit values).
+/// The output's format and path are checked before the input is read (translate_output_extensions,
+/// require_outputs). Throws OptionError naming "chunk_size" for a chunk size outside
+/// [1, 4294967294], std::invalid_argument for an output extension with no writer ("<out>: expected
+/// a file name ending in .las, .laz, .copc.laz, ...") and for an unsupported conversion (LAZ or COPC
+/// output of the waveform point formats 4, 5, 9, 10; COPC output of an index file), io::IndexError
+/// for a malformed index file, io::CopcMemoryError when a COPC build exceeds `memory`,
+/// io::FormatError for a malformed input, OutputFileError or std::runtime_error for I/O failures
+/// (the previous output, if any, is then left unchanged).
 TranslateJobResult run_translate(const TranslateJobOptions& options);
 
 }  // namespace rayscan::jobs
