@@ -68,32 +68,49 @@ Runner add_index_command(CLI::App& app) {
   sub->add_option("CLOUD", o->inputs, "input point cloud files (tiles of one site, same CRS)")->required();
   sub->add_option("-o,--out,--output", o->output, "index file to write (.rsi), or a COPC 1.0 file (.copc.laz; one CLOUD, "
                                             "12 bytes per point within --memory)")->required();
-  sub->add_option("--attributes", o->attributes,
+  CLI::Option* attributes = sub->add_option("--attributes", o->attributes,
                   "attributes to store besides positions: id,rgb,intensity,classification,gps_time | all | none "
                   "(id: the original point ids, 4 bytes/point; without it outputs are in index order)")
       ->capture_default_str();
   sub->add_option("--memory", o->memory, "memory budget of the external sort (e.g. 4G, 512M); for .copc.laz of the "
                                          "build (12 bytes per point plus 256 MiB)")->capture_default_str();
-  sub->add_option("--layout", o->layout, "octree layout: adaptive | fixed")->capture_default_str();
-  sub->add_option("--capacity", o->capacity, "adaptive: points per leaf before a split")->capture_default_str();
-  sub->add_option("--depth", o->depth, "fixed: leaf depth")->capture_default_str();
-  sub->add_option("--max-depth", o->max_depth, "adaptive: deepest level, 1..21")
-      ->capture_default_str()
-      ->check(CLI::Range(1u, 21u));
-  sub->add_option("--positions", o->positions,
+  CLI::Option* layout_opt = sub->add_option("--layout", o->layout, "octree layout: adaptive | fixed")->capture_default_str();
+  CLI::Option* capacity = sub->add_option("--capacity", o->capacity, "adaptive: points per leaf before a split (fixed: an error)")
+                              ->capture_default_str()
+                              ->check(integer_in(1, 0xFFFFFFFF));
+  CLI::Option* depth = sub->add_option("--depth", o->depth, "fixed: leaf depth, 0..21 (adaptive: an error)")
+                           ->capture_default_str()
+                           ->check(CLI::Range(0u, 21u));
+  CLI::Option* max_depth = sub->add_option("--max-depth", o->max_depth, "adaptive: deepest level, 1..21 (fixed: an error)")
+                               ->capture_default_str()
+                               ->check(CLI::Range(1u, 21u));
+  CLI::Option* positions = sub->add_option("--positions", o->positions,
                   "compact: the LAS int32 grid (LAS/LAZ inputs on one scale/offset) or float32 when exact, "
                   "else float64 | float64: always 24 bytes per point (docs/index-format.md)")
       ->check(CLI::IsMember({"compact", "float64"}))
       ->capture_default_str();
   sub->add_option("--temp-dir", o->temp_dir, "folder for the sort runs, or of a .copc.laz output's temporary records file (default: the output's folder)");
-  sub->add_flag("-q,--quiet", o->quiet, "no progress on stderr");
-  return [o]() -> int {
+  sub->add_flag("-q,--quiet", o->quiet, "no progress or notes on stderr");
+  return [o, attributes, layout_opt, capacity, depth, max_depth, positions]() -> int {
     require_single_process("rayscan index");
     jobs::IndexJobOptions job;
     try {
       job.config.layout = parse_octree_layout(o->layout);
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
+    }
+    // An option the chosen layout does not use is refused rather than ignored (query refuses
+    // --depth without --index octree-fixed the same way). A COPC output has its own octree.
+    const std::string layout = "--layout " + o->layout;
+    if (io::is_copc_output(o->output)) {
+      for (const CLI::Option* opt : {attributes, layout_opt, capacity, depth, max_depth, positions})
+        if (opt->count() > 0)
+          throw UsageError(opt->get_name() + " applies to an index file (.rsi), not to a COPC output (.copc.laz)");
+    } else if (job.config.layout == OctreeLayout::fixed) {
+      for (const CLI::Option* opt : {capacity, max_depth})
+        if (opt->count() > 0) throw UsageError(opt->get_name() + " applies to --layout adaptive only (got " + layout + ")");
+    } else if (job.config.layout == OctreeLayout::adaptive && depth->count() > 0) {
+      throw UsageError("--depth applies to --layout fixed only (got " + layout + ")");
     }
     job.config.capacity = o->capacity;
     job.config.depth = o->depth;
@@ -118,19 +135,20 @@ Runner add_index_command(CLI::App& app) {
     try {
       r = jobs::run_index(job);
     } catch (const Interrupted& e) {
-      progress.finish();
+      progress.finish(false);
       std::cerr << "rayscan index: " << e.what() << "\n";
       return 128 + e.signal;  // the shell's convention for a command ended by a signal
     }
     const double s = secs();
     progress.finish();
     if (r.copc) {
-      print_copc_summary(o->output, *r.copc);
+      print_copc_summary(o->output, *r.copc, o->quiet);
       std::printf("%.2f s (%.2f M points/s)\n", s, s > 0 ? static_cast<double>(r.copc->points) / s / 1e6 : 0.0);
       return 0;
     }
     const io::IndexBuildStats& st = r.stats;
-    for (const std::string& n : st.notes) std::cerr << "note: " << n << "\n";
+    if (!o->quiet)
+      for (const std::string& n : st.notes) std::cerr << "note: " << n << "\n";
     std::printf("%s: %llu points, %llu nodes, depth %u, %llu sort runs, %s, positions %s; %.2f bytes/point; %.2f s (%.2f M points/s)\n",
                 o->output.c_str(), static_cast<unsigned long long>(st.points),
                 static_cast<unsigned long long>(st.nodes), st.depth, static_cast<unsigned long long>(st.runs),

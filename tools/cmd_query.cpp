@@ -34,8 +34,13 @@ RayOrder parse_order(const std::string& s) {
 }
 
 int run_query(const QueryOptions& o) {
+  // An option the chosen index does not use is refused rather than ignored (index refuses
+  // --capacity with --layout fixed and --depth with --layout adaptive the same way).
   if (o.depth_given && o.index.type != "octree-fixed")
     throw UsageError("--depth applies to --index octree-fixed only (got --index " + o.index.type + ")");
+  if (o.capacity > 0 && (o.index.type == "octree-fixed" || o.index.type == "brute"))
+    throw UsageError("--capacity applies to --index octree-adaptive, octree-layered and kdtree only (got --index " +
+                     o.index.type + ")");
   if (o.index.insertion && o.index.type.rfind("octree-", 0) != 0)
     throw UsageError("--insertion applies to the octree indexes only (got --index " + o.index.type + ")");
   RayQuery q;
@@ -44,11 +49,7 @@ int run_query(const QueryOptions& o) {
   q.radius = o.radius;
   q.t_min = o.t_min;
   q.t_max = o.t_max;
-  try {
-    q.validate();
-  } catch (const std::invalid_argument& e) {
-    throw UsageError(e.what());
-  }
+  q.validate();  // (an OptionError: printed with the flags' names)
   jobs::QueryJobOptions job;
   job.cloud_file = o.cloud;
   job.rays_file = o.rays;
@@ -91,8 +92,8 @@ Runner add_query_command(CLI::App& app) {
   c->add_option("--rays", o->rays,
                 "Rays: CSV with header ox,oy,oz,dx,dy,dz, or .f64 (6 little-endian float64 per ray)")
       ->required();
-  c->add_option("--k", o->k, "Keep the k best results per ray (default: no limit; give --k or --radius, or --all)")
-      ->check(non_negative());
+  c->add_option("--k", o->k, "Keep the k best results per ray, an integer >= 1 (default: no limit; give --k or --radius, or --all)")
+      ->check(integer_in(1));
   c->add_flag("--all", o->all, "Without --k or a finite --radius: return every point on every ray (otherwise refused)");
   c->add_option("--radius", o->radius,
                 "Max orthogonal distance to the ray line, world units (default: infinite)");
@@ -109,8 +110,8 @@ Runner add_query_command(CLI::App& app) {
                 "Octree node capacity / kd-tree leaf size, points (default: the index's own, " +
                     std::to_string(default_capacity(OctreeLayout::adaptive)) + " for octree-adaptive, " +
                     std::to_string(default_capacity(OctreeLayout::layered)) + " for octree-layered, " +
-                    std::to_string(kDefaultKdTreeLeaf) + " for kdtree)")
-      ->check(positive());
+                    std::to_string(kDefaultKdTreeLeaf) + " for kdtree; octree-fixed and brute: an error)")
+      ->check(integer_in(1, 0xFFFFFFFF));
   CLI::Option* depth_opt = c->add_option("--depth", o->index.depth, "Leaf depth of octree-fixed (0..21; other indexes: an error)")
       ->capture_default_str()
       ->check(CLI::Range(0, 21));

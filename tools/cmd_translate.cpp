@@ -37,7 +37,7 @@ Runner add_translate_command(CLI::App& app) {
   sub->add_option("--memory", *memory, "COPC output: memory budget of the build: 12 bytes per point plus 256 MiB (e.g. 4G, 512M)")
       ->capture_default_str();
   auto quiet = std::make_shared<bool>(false);
-  sub->add_flag("-q,--quiet", *quiet, "no progress on stderr");
+  sub->add_flag("-q,--quiet", *quiet, "no progress or notes on stderr");
   return [in, out, format, chunk, memory, quiet]() -> int {
     require_single_process("rayscan translate");
     jobs::TranslateJobOptions job;
@@ -66,7 +66,7 @@ Runner add_translate_command(CLI::App& app) {
                           : ext == ".las" || ext == ".laz"                     ? (r.compressed ? "LAZ" : "LAS")
                                                                                : "text";
     if (r.copc) {
-      print_copc_summary(*out, *r.copc);
+      print_copc_summary(*out, *r.copc, *quiet);
       return 0;
     }
     std::cout << *out << ": " << r.points << " points, " << written << ", " << r.out_bytes

@@ -49,6 +49,25 @@ inline CLI::Validator finite_number(double lo, double hi, bool lo_open = false) 
       },
       want, "FINITE");
 }
+/// A CLI11 validator for a whole number in [lo, hi], checked on the text before CLI11 converts it
+/// (whose own line for "1.5" is "Could not convert"): "expected an integer >= 1, got '1.5'" (the
+/// range in full when `hi` is below the largest long long).
+inline CLI::Validator integer_in(long long lo, long long hi = std::numeric_limits<long long>::max()) {
+  const std::string want = "an integer " + (hi == std::numeric_limits<long long>::max()
+                                                ? ">= " + std::to_string(lo)
+                                                : "in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  return CLI::Validator(
+      [=](const std::string& s) {
+        long long v = 0;
+        const char* b = s.data();
+        const char* e = b + s.size();
+        if (b < e && *b == '+') ++b;
+        const auto [p, ec] = std::from_chars(b, e, v);
+        const bool ok = ec == std::errc() && p == e && v >= lo && v <= hi;
+        return ok ? std::string() : "expected " + want + ", got '" + s + "'";
+      },
+      want, "INT");
+}
 /// finite_number(-max, max): any finite number.
 inline CLI::Validator any_finite() {
   return finite_number(-std::numeric_limits<double>::max(), std::numeric_limits<double>::max());

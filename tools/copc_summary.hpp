@@ -8,8 +8,8 @@
 namespace rayscan::cli {
 
 /// Prints on stdout "<out>: N points, COPC 1.0 (PDRF p, r bytes/record), M nodes, depth D, P
-/// hierarchy pages, B bytes (input I bytes)" and one line per level (nodes, points), and the
-/// writer's notes on stderr ("note: ...").
-void print_copc_summary(const std::string& out, const io::CopcWriteResult& r);
+/// hierarchy pages, B bytes (input I bytes)" and one line per level (nodes, points), and, unless
+/// `quiet` (the command's -q), the writer's notes on stderr ("note: ...").
+void print_copc_summary(const std::string& out, const io::CopcWriteResult& r, bool quiet);
 
 }  // namespace rayscan::cli

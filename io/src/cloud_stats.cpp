@@ -1,11 +1,15 @@
 // scan_point_cloud(): one streaming pass over a PointReader.
 #include "rayscan/io/cloud_stats.hpp"
 
+#include "rayscan/octree/position_view.hpp"
+
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdint>
 #include <functional>
 #include <string>
 #include <vector>
@@ -99,6 +103,27 @@ CloudStats scan_point_cloud(PointReader& reader, std::size_t chunk_points) {
   for (int k = 0; k < 256; ++k)
     if (cls[k] != 0) st.classification_counts[k] = cls[k];
   return st;
+}
+
+AABB header_box_on_grid(const AABB& header, const Vec3& scale, const Vec3& offset) {
+  auto snap = [](double v, double scale, double offset) {
+    const double q = std::nearbyint((v - offset) / scale);
+    if (!(std::abs(q) <= 2147483647.0)) return v;  // (NaN too)
+    return las_coordinate(static_cast<std::int32_t>(q), scale, offset);
+  };
+  AABB b = header;
+  for (int k = 0; k < 3; ++k) {
+    b.lo[k] = snap(header.lo[k], scale[k], offset[k]);
+    b.hi[k] = snap(header.hi[k], scale[k], offset[k]);
+  }
+  return b;
+}
+
+bool header_bounds_differ(const FileInfo& info, const AABB& points) {
+  if (!info.header_bounds || points.empty()) return false;
+  const AABB h = info.scale && info.offset ? header_box_on_grid(*info.header_bounds, *info.scale, *info.offset)
+                                           : *info.header_bounds;
+  return h.lo != points.lo || h.hi != points.hi;
 }
 
 }  // namespace rayscan::io

@@ -4,11 +4,18 @@
 
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/byte_size.hpp"
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <tbb/task_arena.h>
+
+#include <sys/stat.h>
+
+#include <filesystem>
+#include <map>
+#include <utility>
 
 namespace rayscan::jobs {
 
@@ -30,6 +37,22 @@ io::IndexBuildOptions index_build_options(const IndexJobOptions& o) {
   return b;
 }
 
+/// Throws OptionError when two inputs are the same file (same device and inode, as
+/// require_outputs compares: "a.las" and "./a.las", a symbolic or hard link to it): its points
+/// would be indexed twice, each copy with its own ids. An input that cannot be stat'ed is left to
+/// its reader's error.
+void require_distinct_inputs(const std::vector<std::filesystem::path>& inputs) {
+  std::map<std::pair<dev_t, ino_t>, std::size_t> seen;
+  for (std::size_t i = 0; i < inputs.size(); ++i) {
+    struct stat st {};
+    if (::stat(inputs[i].c_str(), &st) != 0) continue;
+    const auto [it, fresh] = seen.emplace(std::pair{st.st_dev, st.st_ino}, i);
+    if (!fresh)
+      throw OptionError({one_line(inputs[i].string()) + ": the same file as input " + std::to_string(it->second + 1) +
+                         " ('" + one_line(inputs[it->second].string()) + "'): give each input file once"});
+  }
+}
+
 }  // namespace
 
 IndexJobResult run_index(const IndexJobOptions& options) {
@@ -45,6 +68,7 @@ IndexJobResult run_index(const IndexJobOptions& options) {
                                             options.progress, options.control.threads);
     return result;
   }
+  require_distinct_inputs(options.inputs);
   const io::IndexBuildOptions build = index_build_options(options);
   const std::filesystem::path out[] = {options.output};
   require_outputs(out, options.inputs);

@@ -2,6 +2,7 @@
 #include "rayscan/jobs/info.hpp"
 
 #include "rayscan/base/input_file.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/io/point_reader.hpp"
 
 #include <nlohmann/json.hpp>
@@ -9,9 +10,11 @@
 #include <ogr_spatialref.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <string_view>
 
 namespace rayscan::jobs {
 
@@ -24,27 +27,45 @@ std::string decimal(double v) {
   std::snprintf(buf, sizeof buf, "%.10g", v);
   return buf;
 }
-/// A coordinate printed to the file's resolution: the decimals of the LAS scale, else 10
-/// significant digits.
+
+/// Decimals of `scale` as it is written shortest (0.00025 -> 5, 0.01 -> 2, 1 -> 0, 0.5 -> 1): the
+/// digits that show one step of the grid exactly, as lasinfo prints coordinates. -1 for a scale
+/// that is not a short decimal (1/3: more than 12 decimals) or not > 0.
+int scale_decimals(double scale) {
+  if (!(scale > 0) || !std::isfinite(scale)) return -1;
+  char buf[400];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, scale, std::chars_format::fixed);
+  if (ec != std::errc()) return -1;
+  const std::string_view t(buf, static_cast<std::size_t>(end - buf));
+  const std::size_t dot = t.find('.');
+  const int dec = dot == std::string_view::npos ? 0 : static_cast<int>(t.size() - dot - 1);
+  return dec <= 12 ? dec : -1;
+}
+
+/// A coordinate printed to the file's resolution: with the decimals of the LAS scale
+/// (scale_decimals), else the shortest text that reads back as the same double.
 std::string coord(double v, const std::optional<Vec3>& scale, int axis) {
-  char buf[64];
-  if (scale && (*scale)[axis] > 0) {
-    const int dec = std::clamp(static_cast<int>(std::ceil(-std::log10((*scale)[axis]) - 1e-9)), 0, 12);
-    std::snprintf(buf, sizeof buf, "%.*f", dec, v);
-  } else {
-    std::snprintf(buf, sizeof buf, "%.10g", v);
-  }
+  const int dec = scale ? scale_decimals((*scale)[axis]) : -1;
+  if (dec < 0) return shortest_text(v);
+  char buf[400];
+  std::snprintf(buf, sizeof buf, "%.*f", dec, v);
   return buf;
 }
 
+/// The three coordinates of `v`, space-separated (coord).
+std::string coords(const Vec3& v, const std::optional<Vec3>& scale) {
+  return coord(v.x, scale, 0) + " " + coord(v.y, scale, 1) + " " + coord(v.z, scale, 2);
+}
+
+/// The three values of `v`, shortest text each (exact: a LAS offset as stored).
+std::string exact3(const Vec3& v) { return shortest_text(v.x) + " " + shortest_text(v.y) + " " + shortest_text(v.z); }
+
 nlohmann::ordered_json vec_json(const Vec3& v) { return {v.x, v.y, v.z}; }
 
-bool same_box(const AABB& a, const AABB& b, const std::optional<Vec3>& scale) {
-  for (int k = 0; k < 3; ++k) {
-    const double tol = scale ? 0.5 * std::abs((*scale)[k]) : 1e-9 * std::max(1.0, std::abs(a.hi[k]));
-    if (std::abs(a.lo[k] - b.lo[k]) > tol || std::abs(a.hi[k] - b.hi[k]) > tol) return false;
-  }
-  return true;
+/// The bounds as JSON {"min": [x, y, z], "max": [...]}, or null for no points (an empty box).
+nlohmann::ordered_json bounds_json(const AABB& b, std::uint64_t count) {
+  if (count == 0) return nullptr;
+  return {{"min", vec_json(b.lo)}, {"max", vec_json(b.hi)}};
 }
 
 /// Fills r.horizontal_unit, r.vertical_unit and r.warnings from r.crs_wkt and r.bounds through
@@ -53,6 +74,7 @@ void describe_crs(InfoJobResult& r) {
   if (r.crs_wkt.empty()) return;
   OGRSpatialReference srs;
   if (srs.importFromWkt(r.crs_wkt.c_str()) != OGRERR_NONE) return;
+  if (const char* name = srs.GetName()) r.crs_name = name;
   // The same CRS as WKT2 (ISO 19162:2019) and PROJJSON, as `pdal info` and `gdalsrsinfo` give it.
   {
     char* text = nullptr;
@@ -118,9 +140,7 @@ InfoJobResult run_info(const InfoJobOptions& options) {
     x.attributes = m.attributes().to_string();
     x.positions = to_string(m.position_encoding());
     if (m.position_encoding() == PositionEncoding::las_int32)
-      x.positions += " (scale " + decimal(m.positions().scale().x) + " " + decimal(m.positions().scale().y) + " " +
-                     decimal(m.positions().scale().z) + ", offset " + decimal(m.positions().offset().x) + " " +
-                     decimal(m.positions().offset().y) + " " + decimal(m.positions().offset().z) + ")";
+      x.positions += " (scale " + exact3(m.positions().scale()) + ", offset " + exact3(m.positions().offset()) + ")";
     x.ids = m.has_ids() ? "stored (original order)" : "not stored (points in index order)";
     if (!m.rgb().empty())
       x.rgb = m.rgb().multiplier() != 0
@@ -135,7 +155,8 @@ InfoJobResult run_info(const InfoJobOptions& options) {
     r.index = std::move(x);
     r.info.format = "rayscan index";
     r.count = m.positions().size();
-    if (!m.empty()) r.bounds = m.node_bounds(m.root());
+    if (!m.empty()) r.bounds = m.bounds();  // the header's exact bounds, not the root node's float box
+    if (m.position_encoding() == PositionEncoding::las_int32) r.info.scale = m.positions().scale();
     r.crs_wkt = m.crs_wkt();
     describe_crs(r);
     return r;
@@ -153,7 +174,7 @@ InfoJobResult run_info(const InfoJobOptions& options) {
   r.attributes = std::move(stats.ranges);
   r.stats = options.stats;
   r.classes = std::move(stats.classification_counts);
-  r.header_differs = r.info.header_bounds && r.count != 0 && !same_box(*r.info.header_bounds, r.bounds, r.info.scale);
+  r.header_differs = header_bounds_differ(r.info, r.bounds);
   r.crs_wkt = reader->crs_wkt();
   describe_crs(r);
   if (r.info.format == "COPC") r.copc = read_copc_info(options.file);
@@ -187,6 +208,41 @@ std::string escape_controls(const std::string& text) {
   return out.append(one_line(text.substr(b)));
 }
 
+/// The "crs" object of the JSON reports: source, name, epsg, vertical_epsg, horizontal_unit,
+/// vertical_unit, wkt, wkt2, projjson (each only when known; wkt always, "" for none).
+nlohmann::ordered_json crs_json(const InfoJobResult& r) {
+  nlohmann::ordered_json crs = nlohmann::ordered_json::object();
+  if (!r.info.crs_source.empty()) crs["source"] = r.info.crs_source;
+  if (!r.crs_name.empty()) crs["name"] = r.crs_name;
+  if (r.info.epsg != 0) crs["epsg"] = r.info.epsg;
+  if (r.info.vertical_epsg != 0) crs["vertical_epsg"] = r.info.vertical_epsg;
+  if (!r.horizontal_unit.empty()) crs["horizontal_unit"] = r.horizontal_unit;
+  if (!r.vertical_unit.empty()) crs["vertical_unit"] = r.vertical_unit;
+  crs["wkt"] = r.crs_wkt;
+  if (!r.crs_wkt2.empty()) crs["wkt2"] = r.crs_wkt2;
+  if (!r.crs_projjson.empty()) {
+    // PROJ's text, parsed to nest as an object (not when the file's CRS carries bytes that are
+    // not UTF-8, which the JSON parser refuses: the WKT fields carry it then).
+    nlohmann::ordered_json pj = nlohmann::ordered_json::parse(r.crs_projjson, nullptr, false);
+    if (!pj.is_discarded()) crs["projjson"] = std::move(pj);
+  }
+  return crs;
+}
+
+/// The CRS in a few words: its name (GDAL's, from the WKT) and EPSG codes, e.g.
+/// "NAD83(HARN) / Oregon GIC Lambert (ft) (EPSG:2994)", "unnamed (no EPSG code)".
+std::string crs_label(const InfoJobResult& r) {
+  std::string s = r.crs_name.empty() ? std::string("(unnamed)") : r.crs_name;
+  s += r.info.epsg ? " (EPSG:" + std::to_string(r.info.epsg) : std::string(" (no EPSG code");
+  if (r.info.vertical_epsg) s += " + EPSG:" + std::to_string(r.info.vertical_epsg) + " vertical";
+  return s + ")";
+}
+
+/// The WKT's first 100 characters ("..." when longer).
+std::string wkt_excerpt(const InfoJobResult& r) {
+  return r.crs_wkt.substr(0, 100) + (r.crs_wkt.size() > 100 ? "..." : "");
+}
+
 std::string index_report_json(const InfoJobResult& r) {
   const IndexFileSummary& x = *r.index;
   nlohmann::ordered_json j;
@@ -205,7 +261,7 @@ std::string index_report_json(const InfoJobResult& r) {
   j["ids"] = x.ids;
   if (!x.rgb.empty()) j["rgb"] = x.rgb;
   j["root_cell"] = {{"min", vec_json(x.root_cell.lo)}, {"max", vec_json(x.root_cell.hi)}};
-  if (r.count != 0) j["bounds"] = {{"min", vec_json(r.bounds.lo)}, {"max", vec_json(r.bounds.hi)}};
+  j["bounds"] = bounds_json(r.bounds, r.count);
   j["checksums"] = x.checksums;
   j["spacing"] = x.spacing;
   nlohmann::ordered_json secs = nlohmann::ordered_json::array();
@@ -217,7 +273,7 @@ std::string index_report_json(const InfoJobResult& r) {
   for (const IndexSource& s : x.sources)
     src.push_back({{"path", s.path}, {"format", s.format}, {"points", s.points}, {"first_id", s.first_id}, {"bytes", s.size}});
   j["sources"] = src;
-  j["crs"] = {{"wkt", r.crs_wkt}};
+  j["crs"] = crs_json(r);
   return dump_report(j);
 }
 
@@ -237,13 +293,18 @@ std::string index_report_text(const InfoJobResult& r) {
   o << "positions:         " << x.positions << "\n";
   o << "ids:               " << x.ids << "\n";
   if (!x.rgb.empty()) o << "rgb:               " << x.rgb << "\n";
+  if (r.count != 0) {
+    o << "bounds min:        " << coords(r.bounds.lo, r.info.scale) << "\n";
+    o << "bounds max:        " << coords(r.bounds.hi, r.info.scale) << "\n";
+  }
   o << "sections:         ";
   for (const IndexSectionInfo& s : x.sections)
     o << " " << s.name << " " << decimal(r.count ? static_cast<double>(s.bytes) / static_cast<double>(r.count) : 0.0);
   o << " (bytes/point)\n";
   o << "spacing:           " << decimal(x.spacing) << " (median nearest-neighbour distance: the auto radius)\n";
   o << "checksums:         " << x.checksums << "\n";
-  o << "CRS:               " << (r.crs_wkt.empty() ? std::string("none") : r.crs_wkt.substr(0, 100)) << "\n";
+  o << "CRS:               " << (r.crs_wkt.empty() ? std::string("none") : crs_label(r)) << "\n";
+  if (!r.crs_wkt.empty()) o << "WKT:               " << wkt_excerpt(r) << "\n";
   for (const IndexSource& s : x.sources)
     o << "source:            " << s.path << " (" << s.format << ", " << s.points << " points)\n";
   return escape_controls(o.str());
@@ -270,7 +331,7 @@ std::string info_report_json(const InfoJobResult& r) {
   j["count"] = r.count;
   j["header_count"] = r.info.header_point_count;
   j["dropped_nonfinite"] = r.info.dropped_nonfinite;
-  if (r.count != 0) j["bounds"] = {{"min", vec_json(r.bounds.lo)}, {"max", vec_json(r.bounds.hi)}};
+  j["bounds"] = bounds_json(r.bounds, r.count);
   if (r.info.header_bounds)
     j["header_bounds"] = {{"min", vec_json(r.info.header_bounds->lo)},
                           {"max", vec_json(r.info.header_bounds->hi)},
@@ -279,21 +340,7 @@ std::string info_report_json(const InfoJobResult& r) {
   if (r.info.offset) j["offset"] = vec_json(*r.info.offset);
   if (r.info.width != 0) j["width"] = r.info.width, j["height"] = r.info.height;
   if (r.info.viewpoint) j["viewpoint"] = *r.info.viewpoint;
-  nlohmann::ordered_json crs = nlohmann::ordered_json::object();
-  if (!r.info.crs_source.empty()) crs["source"] = r.info.crs_source;
-  if (r.info.epsg != 0) crs["epsg"] = r.info.epsg;
-  if (r.info.vertical_epsg != 0) crs["vertical_epsg"] = r.info.vertical_epsg;
-  if (!r.horizontal_unit.empty()) crs["horizontal_unit"] = r.horizontal_unit;
-  if (!r.vertical_unit.empty()) crs["vertical_unit"] = r.vertical_unit;
-  crs["wkt"] = r.crs_wkt;
-  if (!r.crs_wkt2.empty()) crs["wkt2"] = r.crs_wkt2;
-  if (!r.crs_projjson.empty()) {
-    // PROJ's text, parsed to nest as an object (not when the file's CRS carries bytes that are
-    // not UTF-8, which the JSON parser refuses: the WKT fields carry it then).
-    nlohmann::ordered_json pj = nlohmann::ordered_json::parse(r.crs_projjson, nullptr, false);
-    if (!pj.is_discarded()) crs["projjson"] = std::move(pj);
-  }
-  j["crs"] = crs;
+  j["crs"] = crs_json(r);
   if (!r.warnings.empty()) j["warnings"] = r.warnings;
   nlohmann::ordered_json attrs = nlohmann::ordered_json::array();
   for (const AttributeRange& a : r.attributes) {
@@ -353,41 +400,39 @@ std::string info_report_text(const InfoJobResult& r) {
     o << "(tx ty tz qw qx qy qz; reported, not applied)\n";
   }
   if (r.count != 0) {
-    o << "bounds min:        " << coord(r.bounds.lo.x, r.info.scale, 0) << " " << coord(r.bounds.lo.y, r.info.scale, 1) << " "
-      << coord(r.bounds.lo.z, r.info.scale, 2) << "\n";
-    o << "bounds max:        " << coord(r.bounds.hi.x, r.info.scale, 0) << " " << coord(r.bounds.hi.y, r.info.scale, 1) << " "
-      << coord(r.bounds.hi.z, r.info.scale, 2) << "\n";
+    o << "bounds min:        " << coords(r.bounds.lo, r.info.scale) << "\n";
+    o << "bounds max:        " << coords(r.bounds.hi, r.info.scale) << "\n";
   }
   if (r.header_differs) {
+    // As stored (shortest text): the header's own values, which are off the grid.
     const AABB& h = *r.info.header_bounds;
-    o << "header bounds min: " << decimal(h.lo.x) << " " << decimal(h.lo.y) << " " << decimal(h.lo.z) << "  (differs)\n";
-    o << "header bounds max: " << decimal(h.hi.x) << " " << decimal(h.hi.y) << " " << decimal(h.hi.z) << "\n";
+    o << "header bounds min: " << exact3(h.lo) << "  (differs)\n";
+    o << "header bounds max: " << exact3(h.hi) << "\n";
   }
-  if (r.info.scale) o << "scale:             " << decimal(r.info.scale->x) << " " << decimal(r.info.scale->y) << " " << decimal(r.info.scale->z) << "\n";
-  if (r.info.offset) o << "offset:            " << decimal(r.info.offset->x) << " " << decimal(r.info.offset->y) << " " << decimal(r.info.offset->z) << "\n";
-  o << "CRS:               ";
-  if (r.info.crs_source.empty()) o << "none";
-  else {
-    o << (r.info.epsg ? "EPSG:" + std::to_string(r.info.epsg) : std::string("(no EPSG code)"));
-    if (r.info.vertical_epsg) o << " + EPSG:" << r.info.vertical_epsg << " (vertical)";
-    o << " from " << r.info.crs_source;
-  }
-  o << "\n";
+  if (r.info.scale) o << "scale:             " << exact3(*r.info.scale) << "\n";
+  if (r.info.offset) o << "offset:            " << exact3(*r.info.offset) << "\n";
+  o << "CRS:               " << (r.info.crs_source.empty() ? std::string("none") : crs_label(r) + " from " + r.info.crs_source)
+    << "\n";
   if (!r.horizontal_unit.empty())
     o << "units:             " << r.horizontal_unit << " (horizontal)"
       << (r.vertical_unit.empty() ? std::string() : ", " + r.vertical_unit + " (vertical)") << "\n";
   for (const std::string& w : r.warnings) o << "warning:           " << w << "\n";
-  if (!r.crs_wkt.empty()) o << "WKT:               " << r.crs_wkt.substr(0, 100) << (r.crs_wkt.size() > 100 ? "..." : "") << "\n";
+  if (!r.crs_wkt.empty()) o << "WKT:               " << wkt_excerpt(r) << "\n";
   if (!r.attributes.empty()) {
     o << (r.stats ? "attributes:                          min                max               mean             stddev\n"
                   : "attributes:\n");
     for (const AttributeRange& a : r.attributes) {
-      char line[256];
+      // X, Y, Z to the file's resolution, as the bounds; the other minima and maxima are values of
+      // the file's points (integers, GPS times), exact; means and deviations to 10 digits.
+      const int axis = a.name == "X" ? 0 : a.name == "Y" ? 1 : a.name == "Z" ? 2 : -1;
+      const std::string lo = axis >= 0 ? coord(a.lo, r.info.scale, axis) : shortest_text(a.lo);
+      const std::string hi = axis >= 0 ? coord(a.hi, r.info.scale, axis) : shortest_text(a.hi);
+      char line[1024];
       if (r.stats)
-        std::snprintf(line, sizeof line, "  %-20s %18s %18s %18s %18s\n", a.name.c_str(), decimal(a.lo).c_str(),
-                      decimal(a.hi).c_str(), decimal(a.mean).c_str(), decimal(a.stddev()).c_str());
+        std::snprintf(line, sizeof line, "  %-20s %18s %18s %18s %18s\n", a.name.c_str(), lo.c_str(), hi.c_str(),
+                      decimal(a.mean).c_str(), decimal(a.stddev()).c_str());
       else
-        std::snprintf(line, sizeof line, "  %-20s %18s %18s\n", a.name.c_str(), decimal(a.lo).c_str(), decimal(a.hi).c_str());
+        std::snprintf(line, sizeof line, "  %-20s %18s %18s\n", a.name.c_str(), lo.c_str(), hi.c_str());
       o << line;
     }
   }

@@ -4,6 +4,7 @@
 #include "rayscan/octree/batch.hpp"
 #include "rayscan/site/site.hpp"
 #include "rayscan/io/rays.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/base/work_distributor.hpp"
@@ -145,34 +146,33 @@ QueryJobResult run_query(const QueryJobOptions& o) {
   return r;
 }
 
+namespace {
+
+/// One CSV row "ray,rank,index,x,y,z,t,distance", each number the shortest text that reads back
+/// as the same double (shortest_text): exact, and an input coordinate 636500.92 prints as such.
+void write_hit_row(std::ostream& os, std::size_t ray, std::size_t rank, const RayHit& h, const Vec3& p) {
+  os << ray << ',' << rank << ',' << h.index << ',' << shortest_text(p.x) << ',' << shortest_text(p.y) << ','
+     << shortest_text(p.z) << ',' << shortest_text(h.t) << ',' << shortest_text(h.distance) << '\n';
+}
+
+constexpr const char* kHitsHeader = "ray,rank,index,x,y,z,t,distance\n";
+
+}  // namespace
+
 void write_hits_csv(std::ostream& os, std::span<const Vec3> positions,
                     const std::vector<std::vector<RayHit>>& hits) {
-  const auto precision = os.precision(17);
-  os << "ray,rank,index,x,y,z,t,distance\n";
+  os << kHitsHeader;
   for (std::size_t r = 0; r < hits.size(); ++r)
-    for (std::size_t k = 0; k < hits[r].size(); ++k) {
-      const RayHit& h = hits[r][k];
-      const Vec3& p = positions[h.index];
-      os << r << ',' << k << ',' << h.index << ',' << p.x << ',' << p.y << ',' << p.z << ',' << h.t << ','
-         << h.distance << '\n';
-    }
-  os.precision(precision);
+    for (std::size_t k = 0; k < hits[r].size(); ++k) write_hit_row(os, r, k, hits[r][k], positions[hits[r][k].index]);
 }
 
 void write_hits_csv(std::ostream& os, const QueryJobResult& r) {
   if (r.hit_positions.empty()) return write_hits_csv(os, r.cloud.positions, r.hits);
   // Index-file input: hit_positions follows hits flattened (ray by ray, best first).
-  const auto precision = os.precision(17);
-  os << "ray,rank,index,x,y,z,t,distance\n";
+  os << kHitsHeader;
   std::size_t slot = 0;
   for (std::size_t k = 0; k < r.hits.size(); ++k)
-    for (std::size_t j = 0; j < r.hits[k].size(); ++j) {
-      const RayHit& h = r.hits[k][j];
-      const Vec3& p = r.hit_positions[slot++];
-      os << k << ',' << j << ',' << h.index << ',' << p.x << ',' << p.y << ',' << p.z << ',' << h.t << ','
-         << h.distance << '\n';
-    }
-  os.precision(precision);
+    for (std::size_t j = 0; j < r.hits[k].size(); ++j) write_hit_row(os, k, j, r.hits[k][j], r.hit_positions[slot++]);
 }
 
 }  // namespace rayscan::jobs

@@ -13,6 +13,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <map>
+#include <sstream>
 #include <sys/wait.h>
 
 namespace rayscan::test {
@@ -239,6 +240,155 @@ TEST(InfoCli, TextReportsDroppedNanPointsAndDifferingHeaderBounds) {
   RAYSCAN_REQUIRE_FILE(las, "las/conformance/simple1_3.las");
   ASSERT_EQ(run("info '" + las.string() + "'", out, err), 0) << text_of(err);
   EXPECT_NE(text_of(out).find("(differs)"), std::string::npos) << text_of(out);
+}
+
+/// The whitespace-separated values after `label` on its line of `text` ("" when absent).
+std::vector<std::string> values_of(const std::string& text, const std::string& label) {
+  const std::size_t at = text.find("\n" + label);
+  if (at == std::string::npos) return {};
+  const std::size_t b = at + 1 + label.size(), e = text.find('\n', b);
+  std::istringstream in(text.substr(b, e - b));
+  std::vector<std::string> v;
+  for (std::string t; in >> t;) v.push_back(t);
+  return v;
+}
+
+/// Digits after the decimal point of `t` (0 without one).
+int decimals_of(const std::string& t) {
+  const std::size_t dot = t.find('.');
+  return dot == std::string::npos ? 0 : static_cast<int>(t.size() - dot - 1);
+}
+
+// The text report prints the LAS offsets and scales exactly (they read back bit-identical to the
+// header's doubles: lone-star's y offset 4918360.74375 once printed as 4918360.744), and the
+// bounds and the X, Y, Z ranges with the decimals of the scale (0.00025: 5), to within float
+// rounding of the header's own min/max. Oracle: the header bytes (LAS 1.4 R15 table 3: scale at
+// 131, offset at 155, max/min x y z at 179..227).
+TEST(InfoCli, TextPrintsOffsetsExactlyAndCoordinatesToTheScalesResolution) {
+  RAYSCAN_REQUIRE_FILE(p, "laz/lone-star.copc.laz");
+  const auto b = slurp(p);
+  const fs::path out = temp_dir() / "lone.txt", err = temp_dir() / "lone.err";
+  ASSERT_EQ(run("info '" + p.string() + "'", out, err), 0) << text_of(err);
+  const std::string t = text_of(out);
+  const auto scale = values_of(t, "scale:"), offset = values_of(t, "offset:");
+  const auto lo = values_of(t, "bounds min:"), hi = values_of(t, "bounds max:");
+  ASSERT_EQ(scale.size(), 3u) << t;
+  ASSERT_EQ(offset.size(), 3u) << t;
+  ASSERT_EQ(lo.size(), 3u) << t;
+  ASSERT_EQ(hi.size(), 3u) << t;
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(std::strtod(scale[k].c_str(), nullptr), load_at<double>(b, 131 + 8 * k)) << scale[k];
+    EXPECT_EQ(std::strtod(offset[k].c_str(), nullptr), load_at<double>(b, 155 + 8 * k)) << offset[k];
+    ASSERT_EQ(load_at<double>(b, 131 + 8 * k), 0.00025);
+    EXPECT_EQ(decimals_of(lo[k]), 5) << lo[k];
+    EXPECT_EQ(decimals_of(hi[k]), 5) << hi[k];
+    EXPECT_NEAR(std::strtod(hi[k].c_str(), nullptr), load_at<double>(b, 179 + 16 * k), 1e-9) << hi[k];
+    EXPECT_NEAR(std::strtod(lo[k].c_str(), nullptr), load_at<double>(b, 187 + 16 * k), 1e-9) << lo[k];
+  }
+  // The X row of the attributes: the same numbers as the bounds.
+  const auto x = values_of(t, "  X");
+  ASSERT_EQ(x.size(), 2u) << t;
+  EXPECT_EQ(x[0], lo[0]);
+  EXPECT_EQ(x[1], hi[0]);
+}
+
+/// Brute force over a LAS file's own point records (uncompressed, any PDRF): the box of
+/// X * scale + offset per axis, in double as the LAS specification defines the coordinates.
+AABB las_points_box(const std::vector<std::uint8_t>& b) {
+  const std::uint32_t off = load_at<std::uint32_t>(b, 96);
+  const std::uint16_t len = load_at<std::uint16_t>(b, 105);
+  const std::uint32_t n = load_at<std::uint32_t>(b, 107);
+  AABB box;
+  for (std::uint32_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const double v = static_cast<double>(load_at<std::int32_t>(b, off + std::size_t{i} * len + 4 * k)) *
+                           load_at<double>(b, 131 + 8 * k) +
+                       load_at<double>(b, 155 + 8 * k);
+      box.lo[k] = std::min(box.lo[k], v);
+      box.hi[k] = std::max(box.hi[k], v);
+    }
+  return box;
+}
+
+// `info` of an index file reports the exact bounds its header stores (not the root node's float
+// box), in JSON and as text; `info` and `index` apply one rule to a LAS header's box: autzen's
+// header stores max x 637179.2200000001 for points whose largest x decodes to 637179.22 (half a
+// step is 0.005), so info says it does not differ and a several-run index build (whose grid comes
+// from the headers) trusts it, with no note; a header one step off is reported by both. Oracle:
+// the LAS file's own records (las_points_box) and header bytes.
+TEST(InfoCli, IndexFileBoundsAreExactAndInfoAndIndexJudgeTheLasHeaderAlike) {
+  RAYSCAN_REQUIRE_FILE(las, "las/autzen_trim.las");
+  auto b = slurp(las);
+  const AABB want = las_points_box(b);
+  const fs::path rsi = temp_dir() / "bounds.rsi", out = temp_dir() / "bounds.out", err = temp_dir() / "bounds.err";
+  ASSERT_EQ(run("index '" + las.string() + "' -o '" + rsi.string() + "' --memory 1M", out, err), 0) << text_of(err);
+  // Several sort runs: the runs' grid comes from the header.
+  EXPECT_EQ(text_of(out).find(" 1 sort runs"), std::string::npos) << text_of(out);
+  EXPECT_EQ(text_of(err).find("note:"), std::string::npos) << text_of(err);
+  ASSERT_EQ(run("info --json '" + las.string() + "'", out, err), 0) << text_of(err);
+  EXPECT_FALSE(nlohmann::json::parse(text_of(out))["header_bounds"]["differs"].get<bool>());
+
+  ASSERT_EQ(run("info --json '" + rsi.string() + "'", out, err), 0) << text_of(err);
+  const auto j = nlohmann::json::parse(text_of(out));
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(j["bounds"]["min"][k].get<double>(), want.lo[k]) << k;
+    EXPECT_EQ(j["bounds"]["max"][k].get<double>(), want.hi[k]) << k;
+  }
+  ASSERT_EQ(run("info '" + rsi.string() + "'", out, err), 0) << text_of(err);
+  char line[256];
+  std::snprintf(line, sizeof line, "\nbounds min:        %.2f %.2f %.2f\nbounds max:        %.2f %.2f %.2f\n", want.lo.x,
+                want.lo.y, want.lo.z, want.hi.x, want.hi.y, want.hi.z);
+  EXPECT_NE(text_of(out).find(line), std::string::npos) << text_of(out);
+
+  // The header's max x one step (0.01) too large: both say so.
+  store_at<double>(b, 179, load_at<double>(b, 179) + 0.01);
+  const fs::path off = temp_dir() / "off_by_one_step.las";
+  std::ofstream(off, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  ASSERT_EQ(run("info --json '" + off.string() + "'", out, err), 0) << text_of(err);
+  EXPECT_TRUE(nlohmann::json::parse(text_of(out))["header_bounds"]["differs"].get<bool>());
+  ASSERT_EQ(run("index '" + off.string() + "' -o '" + rsi.string() + "' --memory 1M", out, err), 0) << text_of(err);
+  EXPECT_NE(text_of(err).find("note: the LAS headers' bounds differ from the points' bounds"), std::string::npos)
+      << text_of(err);
+  // -q: no progress and no note.
+  ASSERT_EQ(run("index -q '" + off.string() + "' -o '" + rsi.string() + "' --memory 1M", out, err), 0) << text_of(err);
+  EXPECT_EQ(text_of(err), "");
+}
+
+// The CRS's name, as GDAL reads it from the WKT, beside its EPSG code (text) and as crs.name
+// (JSON), for a cloud and for its index file. Oracle: the name in the WKT VLR's own bytes
+// (PROJCS["<name>", ...).
+TEST(InfoCli, CrsNameFromTheWktInTextAndJson) {
+  RAYSCAN_REQUIRE_FILE(las, "las/autzen_trim.las");
+  const auto b = slurp(las);
+  const std::string bytes(b.begin(), b.end()), key = "PROJCS[\"";
+  const std::size_t at = bytes.find(key);
+  ASSERT_NE(at, std::string::npos);
+  const std::string name = bytes.substr(at + key.size(), bytes.find('"', at + key.size()) - at - key.size());
+  ASSERT_FALSE(name.empty());
+  const fs::path out = temp_dir() / "crs.out", err = temp_dir() / "crs.err", rsi = temp_dir() / "crs.rsi";
+  ASSERT_EQ(run("info '" + las.string() + "'", out, err), 0) << text_of(err);
+  EXPECT_NE(text_of(out).find("\nCRS:               " + name + " (no EPSG code) from WKT VLR\n"), std::string::npos)
+      << text_of(out);
+  ASSERT_EQ(run("info --json '" + las.string() + "'", out, err), 0) << text_of(err);
+  EXPECT_EQ(nlohmann::json::parse(text_of(out))["crs"]["name"], name);
+  ASSERT_EQ(run("index -q '" + las.string() + "' -o '" + rsi.string() + "'", out, err), 0) << text_of(err);
+  ASSERT_EQ(run("info --json '" + rsi.string() + "'", out, err), 0) << text_of(err);
+  EXPECT_EQ(nlohmann::json::parse(text_of(out))["crs"]["name"], name);
+}
+
+// A file without points: "bounds" is null in the JSON (a key a script can rely on), and the
+// text has no bounds lines. Oracle: the header's point count (bytes 107-110) is 0.
+TEST(InfoCli, EmptyFileJsonBoundsIsNull) {
+  RAYSCAN_REQUIRE_FILE(las, "las/no-points-1.3.las");
+  ASSERT_EQ(load_at<std::uint32_t>(slurp(las), 107), 0u);
+  const fs::path out = temp_dir() / "empty.out", err = temp_dir() / "empty.err";
+  ASSERT_EQ(run("info --json '" + las.string() + "'", out, err), 0) << text_of(err);
+  const auto j = nlohmann::json::parse(text_of(out));
+  EXPECT_EQ(j["count"], 0);
+  ASSERT_TRUE(j.contains("bounds"));
+  EXPECT_TRUE(j["bounds"].is_null());
+  ASSERT_EQ(run("info '" + las.string() + "'", out, err), 0) << text_of(err);
+  EXPECT_EQ(text_of(out).find("bounds min:"), std::string::npos) << text_of(out);
 }
 
 TEST(InfoCli, BadFileExitsWithCode2AndOneLine) {

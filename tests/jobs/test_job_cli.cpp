@@ -7,11 +7,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <utility>
+#include <vector>
 
 using rayscan::test::data_file;
 using rayscan::test::run_command;
@@ -52,6 +54,43 @@ TEST(JobCli, IndexErrorsAsBefore) {
   r = rayscan_cli("index -q " + las + " -o '" + rsi + "' --layout layered");
   EXPECT_EQ(r.code, 2);
   EXPECT_EQ(r.out, "rayscan index: --layout layered: not supported by the external-memory index build (use adaptive or fixed)\n");
+}
+
+// Options the chosen layout does not use are refused, not ignored (as query refuses --depth
+// without --index octree-fixed); an input given twice, however spelled, is refused; the octree's
+// own checks name the option. Each is one line and exit code 2, and no index is written.
+TEST(JobCli, IndexRefusesOptionsItsLayoutIgnoresAndDuplicateInputs) {
+  const std::filesystem::path las = data_file("las/point-color.las");
+  const std::filesystem::path rsi = temp_dir() / "refused.rsi";
+  const std::string base = "index -q " + quoted(las) + " -o " + quoted(rsi) + " ";
+  const std::pair<std::string, std::string> cases[] = {
+      {"--depth 3", "--depth applies to --layout fixed only (got --layout adaptive)"},
+      {"--layout fixed --capacity 8", "--capacity applies to --layout adaptive only (got --layout fixed)"},
+      {"--layout fixed --max-depth 8", "--max-depth applies to --layout adaptive only (got --layout fixed)"},
+      {"--capacity 0", "--capacity: expected an integer in [1, 4294967295], got '0' (see --help)"},
+      {"--capacity 1.5", "--capacity: expected an integer in [1, 4294967295], got '1.5' (see --help)"},
+  };
+  for (const auto& [args, message] : cases) {
+    const auto r = rayscan_cli(base + args);
+    EXPECT_EQ(r.code, 2) << args;
+    EXPECT_EQ(r.out, "rayscan index: " + message + "\n") << args;
+    EXPECT_FALSE(std::filesystem::exists(rsi)) << args;
+  }
+  const std::filesystem::path copc = temp_dir() / "refused.copc.laz";
+  auto r = rayscan_cli("index -q " + quoted(las) + " -o " + quoted(copc) + " --capacity 8");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan index: --capacity applies to an index file (.rsi), not to a COPC output (.copc.laz)\n");
+  // The same file twice: by the same name and by another spelling of it.
+  const std::filesystem::path again = las.parent_path() / "." / las.filename();
+  r = rayscan_cli("index -q " + quoted(las) + " " + quoted(again) + " -o " + quoted(rsi));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan index: " + again.string() + ": the same file as input 1 ('" + las.string() +
+                       "'): give each input file once\n");
+  EXPECT_FALSE(std::filesystem::exists(rsi));
+  // The fixed layout takes --depth.
+  r = rayscan_cli(base + "--layout fixed --depth 3");
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("depth 3"), std::string::npos) << r.out;
 }
 
 TEST(JobCli, DbImportErrorsAsBefore) {
@@ -155,7 +194,44 @@ TEST(JobCli, VersionReportsTheProjectVersionCommitAndLibraries) {
 
 // `rayscan index` with standard error in a log file (not a terminal): plain progress lines, no
 // carriage return (the status line redrawn with \r made one 35 KB line of a 2e8-point build's
-// log), each line a complete "index: <phase> ..." line, and the summary on standard output.
+// log), each line a complete "index: <phase> ..." line, and the summary on standard output. A
+// phase's line is written when it ends, at 100% of the points it processed (the points of the
+// file: 110000), once per phase; a phase the build skips ("scan": the header gives the grid) has
+// none.
+TEST(JobCli, IndexProgressIntoALogFileIsOneLinePerPhaseAtItsEnd) {
+  const std::filesystem::path dir = temp_dir() / "index_phases";
+  std::filesystem::create_directories(dir);
+  const std::filesystem::path log = dir / "err.log";
+  std::string cmd = "(";
+  cmd.append(quoted(RAYSCAN_BIN)).append(" index ").append(quoted(data_file("las/autzen_trim.las")));
+  cmd.append(" -o ").append(quoted(dir / "a.rsi")).append(" --memory 1M 2> ").append(quoted(log)).append(")");
+  const auto r = run_command(cmd, false);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::istringstream lines(rayscan::test::file_bytes(log));
+  std::vector<std::string> phases;
+  for (std::string line; std::getline(lines, line);) {
+    std::istringstream words(line);
+    std::string command, phase, percent;
+    words >> command >> phase >> percent;
+    EXPECT_EQ(command, "index:") << line;
+    EXPECT_EQ(percent, "100.0%") << line;
+    if (phase != "spacing") {
+      EXPECT_NE(line.find("  110000 / 110000 points"), std::string::npos) << line;
+    }
+    phases.push_back(phase);
+  }
+  // Each phase once, in the build's order (a several-run build: read, merge, then the nodes when
+  // they are not built during the merge, spacing, done); never "scan".
+  ASSERT_GE(phases.size(), 4u);
+  EXPECT_EQ(phases.front(), "read");
+  EXPECT_EQ(phases[1], "merge");
+  EXPECT_EQ(phases.back(), "done");
+  for (std::size_t i = 0; i < phases.size(); ++i)
+    for (std::size_t j = i + 1; j < phases.size(); ++j) EXPECT_NE(phases[i], phases[j]);
+  EXPECT_EQ(std::count(phases.begin(), phases.end(), "scan"), 0);
+  std::filesystem::remove_all(dir);
+}
+
 TEST(JobCli, IndexProgressIntoALogFileIsPlainLines) {
   const std::filesystem::path dir = temp_dir() / "index_log";
   std::filesystem::create_directories(dir);

@@ -1,6 +1,7 @@
 // `rayscan query` end to end: the CSV it writes equals the library's answer (itself checked against
-// brute force), every index gives the same rows, and bad input exits with code 2 and a one-line
-// error naming the file and line.
+// brute force), each number the shortest text that reads back as the same double (std::to_chars),
+// every index gives the same rows, and bad input exits with code 2 and a one-line error naming the
+// file and line or the option.
 #include "rayscan/octree/brute_force.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
@@ -10,6 +11,7 @@
 
 #include <sys/wait.h>
 
+#include <charconv>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -67,17 +69,22 @@ class QueryCli : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
+  /// The shortest text of `v` that reads back as `v` (std::to_chars, the C++ standard's rule).
+  static std::string shortest(double v) {
+    char buf[32];
+    return std::string(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
+  }
+
   std::string expected_csv(const RayQuery& q) const {
     const BruteForceIndex bf(pts_);
     std::ostringstream os;
-    os.precision(17);
     os << "ray,rank,index,x,y,z,t,distance\n";
     for (std::size_t r = 0; r < rays_.size(); ++r) {
       const auto hits = ray_query(bf, rays_[r], q);
       for (std::size_t k = 0; k < hits.size(); ++k) {
         const Vec3& p = pts_[hits[k].index];
-        os << r << ',' << k << ',' << hits[k].index << ',' << p.x << ',' << p.y << ',' << p.z << ','
-           << hits[k].t << ',' << hits[k].distance << '\n';
+        os << r << ',' << k << ',' << hits[k].index << ',' << shortest(p.x) << ',' << shortest(p.y) << ','
+           << shortest(p.z) << ',' << shortest(hits[k].t) << ',' << shortest(hits[k].distance) << '\n';
       }
     }
     return os.str();
@@ -151,9 +158,26 @@ TEST_F(QueryCli, BadInputExitsTwoWithOneLineError) {
   r = run("query --cloud " + cloud + " --rays " + (dir_ / "zero_dir.csv").string());
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.out.find("zero_dir.csv: line 2"), std::string::npos) << r.out;
+  // The library's checks name the options, with plain numbers.
   r = run("query --cloud " + cloud + " --rays " + rays + " --t-min 2 --t-max 1");
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.out.find("t_min"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out, "rayscan query: ray query: --t-min 2 must not exceed --t-max 1\n");
+  r = run("query --cloud " + cloud + " --rays " + rays + " --radius -1.5");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan query: ray query: --radius must be >= 0, got -1.5\n");
+  // --k is a whole number >= 1 (0 would return no hits; 1.5 is not a count).
+  for (const char* k : {"0", "1.5"}) {
+    r = run("query --cloud " + cloud + " --rays " + rays + " --k " + k);
+    EXPECT_EQ(r.code, 2);
+    EXPECT_EQ(r.out, std::string("rayscan query: --k: expected an integer >= 1, got '") + k + "' (see --help)\n");
+  }
+  // --capacity with an index that has none is refused, not ignored.
+  for (const char* index : {"octree-fixed", "brute"}) {
+    r = run("query --cloud " + cloud + " --rays " + rays + " --k 1 --capacity 8 --index " + index);
+    EXPECT_EQ(r.code, 2);
+    EXPECT_EQ(r.out, std::string("rayscan query: --capacity applies to --index octree-adaptive, octree-layered and "
+                                 "kdtree only (got --index ") + index + ")\n");
+  }
   r = run("query --cloud " + cloud + " --rays " + rays + " --k 1 --index rtree");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.out.find("rtree"), std::string::npos) << r.out;

@@ -1,5 +1,6 @@
 #include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/morton_sort.hpp"
+#include "rayscan/base/option_error.hpp"
 
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
@@ -33,13 +34,14 @@ const char* to_string(OctreeLayout layout) {
 }
 
 void OctreeConfig::validate() const {
-  if (capacity == 0) throw std::invalid_argument("octree: capacity must be >= 1");
+  // OptionErrors naming the fields: each front end writes them as its own options.
+  if (capacity == 0) throw OptionError({"octree: ", option("capacity"), " must be >= 1"});
   // max_depth 0 would make the root the only leaf: every query a scan of all points. Refused for
   // every layout, as `rayscan index --max-depth` refuses it, so no front end builds such a tree.
   if (max_depth < 1 || max_depth > kMortonBits)
-    throw std::invalid_argument("octree: max_depth must be in 1..21, got " + std::to_string(max_depth));
+    throw OptionError({"octree: ", option("max_depth"), " must be in 1..21, got " + std::to_string(max_depth)});
   if (depth > kMortonBits)
-    throw std::invalid_argument("octree: depth must be <= 21, got " + std::to_string(depth));
+    throw OptionError({"octree: ", option("depth"), " must be <= 21, got " + std::to_string(depth)});
 }
 
 struct Octree::LevelMaps {

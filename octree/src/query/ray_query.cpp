@@ -2,6 +2,8 @@
 
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/octree/detail/ray_query_impl.hpp"
+#include "rayscan/base/number_text.hpp"
+#include "rayscan/base/option_error.hpp"
 
 #include <atomic>
 #include <cmath>
@@ -33,15 +35,18 @@ bool interleaved_pairs() {
 void set_interleaved_pairs(bool on) { g_interleaved_pairs.store(on ? 1 : 0, std::memory_order_relaxed); }
 
 void RayQuery::validate() const {
-  if (std::isnan(radius) || std::isnan(t_min) || std::isnan(t_max))
-    throw std::invalid_argument("ray query: radius, t_min and t_max must not be NaN");
+  // OptionErrors naming the fields, so that each front end writes them as its own options
+  // (--radius, --t-min for the CLI; radius=, t_min= for Python).
+  if (std::isnan(radius)) throw OptionError({"ray query: ", option("radius"), " must not be NaN"});
+  if (std::isnan(t_min)) throw OptionError({"ray query: ", option("t_min"), " must not be NaN"});
+  if (std::isnan(t_max)) throw OptionError({"ray query: ", option("t_max"), " must not be NaN"});
   if (radius < 0.0)
-    throw std::invalid_argument("ray query: radius must be >= 0, got " + std::to_string(radius));
+    throw OptionError({"ray query: ", option("radius"), " must be >= 0, got " + shortest_text(radius)});
   if (t_min > t_max)
-    throw std::invalid_argument("ray query: t_min (" + std::to_string(t_min) +
-                                ") must not exceed t_max (" + std::to_string(t_max) + ")");
+    throw OptionError({"ray query: ", option("t_min"), " " + shortest_text(t_min) + " must not exceed ",
+                       option("t_max"), " " + shortest_text(t_max)});
   if (order == RayOrder::sphere_hit && !(radius < kInf))
-    throw std::invalid_argument("ray query: order sphere_hit requires a finite radius");
+    throw OptionError({"ray query: order sphere_hit requires a finite ", option("radius")});
   for (const Plane& pl : planes) {
     const double len = glm::length(pl.normal);
     if (!(len > 0.0) || !std::isfinite(len) || !std::isfinite(glm::length(pl.point)))

@@ -4,6 +4,7 @@
 #include "index_build.hpp"
 #include "rayscan/base/option_error.hpp"
 
+#include "rayscan/io/cloud_stats.hpp"
 #include "rayscan/octree/spacing.hpp"
 
 #include <tbb/parallel_for.h>
@@ -132,16 +133,18 @@ void IndexBuild::plan_runs() {
   // a bounds pass first (the runs need the Morton grid), sorted runs on disk and a k-way merge.
   in_memory = announced <= run_cap;
   // The Morton grid of the runs (multi-run build) needs the bounds before the read pass. LAS
-  // headers state them (min/max x, y, z): when every input is LAS, their union is taken on trust
-  // and checked against the exact bounds of the read pass, which is repeated on the exact grid
-  // when the headers were wrong (the tree must be build_bulk's, whose grid is the exact bounds).
-  // Other inputs get a bounds pass first (positions only).
+  // headers state them (min/max x, y, z): when every input is LAS, the union of their boxes on
+  // the files' grids (header_box_on_grid, the rule `rayscan info` reports "differs" by) is taken
+  // on trust and checked against the exact bounds of the read pass, which is repeated on the exact
+  // grid when the headers were wrong (the tree must be build_bulk's, whose grid is the exact
+  // bounds). Other inputs get a bounds pass first (positions only).
   grid_from_headers = !in_memory;
   for (const fs::path& in : inputs) {
     if (!grid_from_headers) break;
     auto r = open_point_reader(in, AttributeSet::none(), ReadOptions{.scalars = false});
-    if (!r->integer_grid() || !r->info().header_bounds || r->point_count() == 0) grid_from_headers = false;
-    else grid_bounds.expand(*r->info().header_bounds);
+    const auto grid = r->integer_grid();
+    if (!grid || !r->info().header_bounds || r->point_count() == 0) grid_from_headers = false;
+    else grid_bounds.expand(header_box_on_grid(*r->info().header_bounds, grid->first, grid->second));
   }
   if (!in_memory && !grid_from_headers) {
     grid_bounds = AABB{};

@@ -36,4 +36,17 @@ struct CloudStats {
 /// chunk. Throws FormatError from the reader.
 CloudStats scan_point_cloud(PointReader& reader, std::size_t chunk_points = kDefaultChunkPoints);
 
+/// A header's bounding box on the file's integer grid (LAS/LAZ/COPC: coordinate = X * scale +
+/// offset, ASPRS LAS 1.4 R15 section 2.4): each bound rounded to the nearest grid step and decoded
+/// by las_coordinate, the readers' own expression. A header right to within half a step (a writer
+/// that stored min/max as decimal text, or computed them in another order) gives exactly the box of
+/// the points the readers deliver; a bound off the int32 grid, or not finite, is kept as stored.
+[[nodiscard]] AABB header_box_on_grid(const AABB& header, const Vec3& scale, const Vec3& offset);
+
+/// Whether a file's header bounding box misstates `points` (the box of its points as read): the
+/// header box on the file's grid (header_box_on_grid, when the file has a scale and offset)
+/// differs from `points`, exactly. False when the header states no box or there are no points.
+/// The one rule of `rayscan info`'s "differs" and of the index build's trust in LAS headers.
+[[nodiscard]] bool header_bounds_differ(const FileInfo& info, const AABB& points);
+
 }  // namespace rayscan::io

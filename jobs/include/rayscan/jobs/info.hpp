@@ -60,13 +60,18 @@ struct InfoJobResult {
   std::string file;                          ///< the file described
   FileInfo info;                             ///< what the reader found
   std::uint64_t count = 0;                   ///< points read
-  AABB bounds;                               ///< recomputed from the points (empty box for 0 points)
-  bool header_differs = false;               ///< the header's box differs by more than half a scale step
+  /// Recomputed from the points (empty box for 0 points); for an index file the exact bounds its
+  /// header stores.
+  AABB bounds;
+  /// The header's box misstates the points' (io::header_bounds_differ: on the file's grid, more
+  /// than half a scale step off; the index build's rule too).
+  bool header_differs = false;
   std::vector<AttributeRange> attributes;    ///< every attribute present, in a fixed order, with its
                                              ///< min, max, mean and standard deviation (one pass)
   bool stats = false;                        ///< the reports include the mean and standard deviation
   std::map<int, std::uint64_t> classes;      ///< points per ASPRS class code
   std::string crs_wkt;                       ///< the cloud's CRS as WKT ("" = none)
+  std::string crs_name;                      ///< its name as GDAL reads it from the WKT ("" = none or unreadable)
   std::string crs_wkt2;                      ///< the same CRS as WKT2 (ISO 19162:2019, GDAL/PROJ)
   std::string crs_projjson;                  ///< the same CRS as PROJJSON (PROJ's JSON schema)
   /// Units of the CRS as GDAL/PROJ name them ("metre", "US survey foot", "foot", "degree"):
@@ -76,7 +81,9 @@ struct InfoJobResult {
   /// What a careful reader should know (a geographic CRS over coordinates that are not degrees,
   /// or a projected one over coordinates that look like degrees), one sentence each.
   std::vector<std::string> warnings;
-  std::optional<IndexFileSummary> index;     ///< set for an index file (.rsi); then info is mostly empty
+  /// Set for an index file (.rsi); then info is mostly empty (info.scale: the positions' LAS grid
+  /// when they are stored on one).
+  std::optional<IndexFileSummary> index;
   std::optional<CopcInfo> copc;              ///< set for a COPC file: its octree (hierarchy)
 };
 

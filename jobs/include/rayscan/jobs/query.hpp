@@ -56,7 +56,8 @@ struct QueryJobResult {
 /// (and `hit_positions`) are complete.
 QueryJobResult run_query(const QueryJobOptions& options);
 
-/// Writes the hits as CSV "ray,rank,index,x,y,z,t,distance" (17 significant digits) to `out`;
+/// Writes the hits as CSV "ray,rank,index,x,y,z,t,distance" to `out`, every number the shortest
+/// text that reads back as the same double (exact; 636500.92, not 636500.92000000004);
 /// `positions` are the positions of the cloud queried (to print x, y, z).
 void write_hits_csv(std::ostream& out, std::span<const Vec3> positions,
                     const std::vector<std::vector<RayHit>>& hits);
