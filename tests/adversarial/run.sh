@@ -102,7 +102,7 @@ expect_error scene-radius-1e400 "s_huge_radius.json" "byte" "1e400" -- render -q
 expect_error width-wraps-height "--width" "65536" -- render -q "$W/s.json" --camera "$W/tall.json" --width 65536 --out "$W/old.png"
 expect_error seed-negative "--seed" "-1" -- render -q "$W/s.json" --seed -1 --out "$W/old.png"
 expect_error fail-nan "--fail" "nan" -- compare "$W/old.png" "$W/old.png" --fail nan
-expect_error capacity-inf "--capacity" "finite" -- query --cloud "$W/c.xyz" --rays "$W/rays_ok.csv" --capacity inf
+expect_error capacity-inf "--capacity" "an integer in" -- query --cloud "$W/c.xyz" --rays "$W/rays_ok.csv" --capacity inf
 expect_error max-distance-huge "--max-distance" "finite" -- visibility -q "$W/c.xyz" --observer 0.5,0.5,3 --max-distance 1e400
 expect_error spp-zero "--spp" -- render -q "$W/s.json" --spp 0 --out "$W/old.png"
 expect_error newline-in-path 'new\nline.xyz' -- render -q "$W/s.json" --camera "$NL" --out "$W/old.png"

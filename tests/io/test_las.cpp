@@ -207,6 +207,25 @@ TEST(Las, EmptyWktVlrIsSurvivedWithNoCrs) {
   EXPECT_EQ(pc.size(), 3000u);
 }
 
+TEST(Las, LegacyCountThatDiffersFromThe64BitCountIsNoted) {
+  // Oracle: the header's own counts (LAS 1.4 R15 table 3: byte 107 legacy, byte 247 64-bit) on a
+  // copy of a real 1.4 file whose two counts agree (1000): the 64-bit one is read, the
+  // disagreement is noted as lasinfo warns of it.
+  RAYSCAN_REQUIRE_FILE(p, "las/test1_4.las");
+  auto bytes = slurp(p);
+  io::FileInfo info;
+  EXPECT_EQ(io::read_point_cloud(bytes, io::Format::las, "x.las", {}, &info).size(), 1000u);
+  for (const std::string& note : info.notes) EXPECT_EQ(note.find("legacy point count"), std::string::npos) << note;
+  const std::uint32_t legacy = 999;
+  std::memcpy(bytes.data() + 107, &legacy, 4);
+  io::FileInfo info2;
+  EXPECT_EQ(io::read_point_cloud(bytes, io::Format::las, "x.las", {}, &info2).size(), 1000u);
+  bool noted = false;
+  for (const std::string& note : info2.notes)
+    noted |= note.find("legacy point count 999 (byte 107) differs from the point count 1000 (byte 247)") != std::string::npos;
+  EXPECT_TRUE(noted);
+}
+
 TEST(Las, CompressionBitWithoutLaszipVlrIsRefused) {
   // Oracle: the compression bit of the PDRF byte (LASzip sets bit 7) on a copy of a real file
   // that has no LASzip VLR: LAZ is detected by the VLR, so the bit alone is an inconsistency.

@@ -141,6 +141,14 @@ runuser -u postgres -- "$pgbin/initdb" -D /tmp/pg/data -A trust -U postgres >/de
 runuser -u postgres -- "$pgbin/pg_ctl" -D /tmp/pg/data -o "-k /tmp/pg -c listen_addresses=''" -l /tmp/pg/log -w start >/dev/null
 export PGHOST=/tmp/pg PGUSER=postgres PGDATABASE=postgres
 psql -qAt -v ON_ERROR_STOP=1 -c "CREATE EXTENSION rayscan" -c "SELECT extname || ' ' || extversion FROM pg_extension WHERE extname = 'rayscan'"
+# A database made with the first released version updates in place (rayscan--0.1--0.2.sql): the
+# update's box equality then serves DISTINCT.
+psql -qAt -v ON_ERROR_STOP=1 -c "CREATE DATABASE updated"
+up=$(psql -d updated -qAt -v ON_ERROR_STOP=1 -c "CREATE EXTENSION rayscan VERSION '0.1'" -c "ALTER EXTENSION rayscan UPDATE" \
+  -c "SELECT extversion FROM pg_extension WHERE extname = 'rayscan'" \
+  -c "SELECT count(DISTINCT b) FROM (VALUES (rs_box(1, 2, 3)), (rs_box(1, 2, 3)), (rs_box(0, 0, 0))) v(b)" | tr '\n' ' ')
+[ "$up" = "0.2 2 " ] || { echo "postgresql: 0.1 -> 0.2 update gave '$up', expected version 0.2 and 2 distinct boxes"; exit 1; }
+echo "extension updated from 0.1: $up"
 rayscan db import data/autzen_trim.las --postgres "host=/tmp/pg user=postgres dbname=postgres" --table autzen >/dev/null
 psql -qAt -v ON_ERROR_STOP=1 >out/pg.txt <<SQL
 CREATE INDEX autzen_pt ON autzen USING gist (rs_box(x, y, z));
@@ -178,6 +186,12 @@ unshare --mount --pid --fork --propagation private bash -euo pipefail -c '
 ' bash "$root" "$version"
 
 echo "== the quick look of the package against the build tree's"
-cmp "$t/out/quicklook.png" "$work/quicklook_build.png"
-echo "byte-identical ($(stat -c %s "$work/quicklook_build.png") bytes)"
+# Pixels identical (OpenImageIO's idiff, no tolerance) and every metadata item equal except the
+# cloud's path, which names the file where each run found it (inside and outside the root).
+idiff -fail 0 -failpercent 0 -warn 0 "$t/out/quicklook.png" "$work/quicklook_build.png" >/dev/null ||
+  { echo "the package's quick look differs from the build tree's in its pixels"; exit 1; }
+meta() { oiiotool --info -v "$1" | grep -v -e '^Reading ' -e 'rayscan:cloud' | sed "s|^$1 *:|image:|"; }
+diff <(meta "$t/out/quicklook.png") <(meta "$work/quicklook_build.png") ||
+  { echo "the package's quick look differs from the build tree's in its metadata"; exit 1; }
+echo "identical pixels and metadata ($(stat -c %s "$work/quicklook_build.png") bytes)"
 echo "clean_root: all checks passed"

@@ -194,7 +194,9 @@ TEST(ImageOutput, EveryFormatDecodesToTheWrittenPixels) {
         got_mean += px[std::size_t(i * nc + c)] / 12.0;
         want_mean += want / 12.0;
         // JPEG's chroma subsampling blurs a 4 x 3 gradient pixel by pixel: its means are checked.
-        if (!jpeg) EXPECT_NEAR(px[std::size_t(i * nc + c)], want, exr ? 1e-3f : 0.5f / 255.0f) << name << " " << i << "," << c;
+        if (!jpeg) {
+          EXPECT_NEAR(px[std::size_t(i * nc + c)], want, exr ? 1e-3f : 0.5f / 255.0f) << name << " " << i << "," << c;
+        }
       }
       EXPECT_NEAR(got_mean, want_mean, jpeg ? 0.03 : exr ? 1e-3 : 0.5 / 255.0 + 1e-6) << name << " channel " << c;
     }

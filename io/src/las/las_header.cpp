@@ -70,7 +70,13 @@ LasHeader parse_las_header(const Input& in) {
     evlr_start = load_le<std::uint64_t>(d + 235);
     n_evlr = load_le<std::uint32_t>(d + 243);
     const std::uint64_t count64 = load_le<std::uint64_t>(d + 247);
+    // LAS 1.4 R15 table 3: the legacy count (byte 107) is 0 or equal to the 64-bit one; a file
+    // where they differ was written by a tool that updated one of them only.
+    const std::uint32_t legacy = h.count;
     if (count64 != 0 || h.count == 0) h.count = count64;
+    if (legacy != 0 && count64 != 0 && legacy != count64)
+      h.notes.push_back("legacy point count " + std::to_string(legacy) + " (byte 107) differs from the point count " +
+                        std::to_string(count64) + " (byte 247): " + std::to_string(count64) + " read");
   }
 
   // VLRs (section 2.5): 54-byte headers, between the public header and the point data.

@@ -68,7 +68,6 @@ PointCloud read_point_cloud(std::span<const std::uint8_t> bytes, Format format,
                             const std::string& name, const ReadOptions& options = {},
                             FileInfo* info = nullptr);
 
-/// Options of write_las().
 /// What an Extra Bytes descriptor (LAS 1.4 R15 section 2.5.6, table 24) says of one field besides
 /// its name and type, for readers such as PDAL, QGIS and CloudCompare to show.
 struct ExtraBytesInfo {
@@ -80,6 +79,7 @@ struct ExtraBytesInfo {
   std::optional<double> no_data;
 };
 
+/// Options of write_las().
 struct LasWriteOptions {
   /// LAS scale factors (x, y, z); 0 = choose: the coarsest of 1, 0.1, 0.01, 0.001 on which every
   /// coordinate of the axis reads back bit for bit (a cloud that came from LAS through PLY, PCD or
