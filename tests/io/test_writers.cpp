@@ -152,6 +152,31 @@ TEST(Writers, PcdAndTextRoundTripKeepCoordinatesBitForBitAndEveryAttribute) {
   }
 }
 
+// Normals written by the text writer (columns nx ny nz) read back as normals, bit for bit (the
+// float values as the writer printed them); one or two normal-like columns alone stay scalars.
+// Oracle: the normals put into the cloud.
+TEST(Writers, TextNormalsReadBackAsNormals) {
+  PointCloud src;
+  src.positions = {Vec3(1, 2, 3), Vec3(4, 5, 6), Vec3(-7, 8.5, 0.25)};
+  src.normals = {glm::vec3(0, 0, 1), glm::vec3(0.6f, -0.8f, 0), glm::vec3(0.267261f, 0.534522f, 0.801784f)};
+  for (const char* ext : {".xyz", ".csv", ".txt"}) {
+    const fs::path out = temp_dir() / (std::string("normals_rt") + ext);
+    io::write_point_cloud(out, src);
+    const PointCloud back = io::read_point_cloud(out);
+    EXPECT_EQ(back.positions, src.positions) << ext;
+    EXPECT_EQ(back.normals, src.normals) << ext;
+    EXPECT_TRUE(back.scalars.empty()) << ext;
+    fs::remove(out);
+  }
+  const fs::path two = temp_dir() / "two_normal_columns.csv";
+  std::ofstream(two) << "x,y,z,NormalX,ny\n1,2,3,0.5,0.25\n";
+  const PointCloud b2 = io::read_point_cloud(two);
+  EXPECT_TRUE(b2.normals.empty());
+  ASSERT_NE(b2.scalar("NormalX"), nullptr);
+  EXPECT_EQ(b2.scalar("NormalX")->values, std::vector<double>{0.5});
+  fs::remove(two);
+}
+
 // A scalar whose name the text reader takes for a column of its own (an Extra Bytes field
 // "Intensity" beside LAS intensity; "X"; "red") or moves into a dedicated field ("gpstime",
 // "Classification" with integral values) is written under a suffix, so the file reads back with

@@ -11,10 +11,12 @@
 namespace rayscan::io::detail {
 
 /// What a text column holds, by its header name.
-enum class TextColumn { x, y, z, r, g, b, intensity, scalar };
+enum class TextColumn { x, y, z, r, g, b, intensity, nx, ny, nz, scalar };
 
 /// The column a header name names, ignoring ASCII case: x (also CloudCompare's "//x"), y, z,
-/// r/red, g/green, b/blue, i/intensity; any other name is a scalar.
+/// r/red, g/green, b/blue, i/intensity, nx/ny/nz (also PDAL's NormalX/NormalY/NormalZ: the
+/// reader takes them as normals when all three are there, else as scalars); any other name is a
+/// scalar.
 inline TextColumn text_column(std::string_view name) {
   std::string n(name);
   for (char& c : n)
@@ -26,6 +28,9 @@ inline TextColumn text_column(std::string_view name) {
   if (n == "g" || n == "green") return TextColumn::g;
   if (n == "b" || n == "blue") return TextColumn::b;
   if (n == "i" || n == "intensity") return TextColumn::intensity;
+  if (n == "nx" || n == "normalx") return TextColumn::nx;
+  if (n == "ny" || n == "normaly") return TextColumn::ny;
+  if (n == "nz" || n == "normalz") return TextColumn::nz;
   return TextColumn::scalar;
 }
 

@@ -30,7 +30,7 @@ bool parse_double(std::string_view s, double& v) {
   return ec == std::errc() && p == e;
 }
 
-enum class Col { skip, x, y, z, r, g, b, intensity, scalar };
+enum class Col { skip, x, y, z, r, g, b, intensity, nx, ny, nz, scalar };
 
 Col col_of(TextColumn c) {
   switch (c) {
@@ -41,6 +41,9 @@ Col col_of(TextColumn c) {
     case TextColumn::g: return Col::g;
     case TextColumn::b: return Col::b;
     case TextColumn::intensity: return Col::intensity;
+    case TextColumn::nx: return Col::nx;
+    case TextColumn::ny: return Col::ny;
+    case TextColumn::nz: return Col::nz;
     case TextColumn::scalar: break;
   }
   return Col::scalar;
@@ -62,7 +65,7 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
   std::vector<Col> cols;
   std::vector<std::size_t> scalar_of;
   std::vector<float> colour;
-  bool colour_float = false, has_rgb = false;
+  bool colour_float = false, has_rgb = false, has_normals = false;
   std::size_t ncols_min = 3;
   bool first = true;
   std::vector<std::string_view> f;
@@ -75,9 +78,18 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
   auto setup = [&](const std::vector<std::string>& names) {
     cols.assign(names.size(), Col::skip);
     scalar_of.assign(names.size(), 0);
+    // Normal columns are normals only as a set of three (the text writer's nx ny nz); one or two
+    // of them are scalars like any other column.
+    int nbits = 0;
+    for (const std::string& n : names) {
+      const TextColumn t = text_column(n);
+      nbits |= t == TextColumn::nx ? 1 : t == TextColumn::ny ? 2 : t == TextColumn::nz ? 4 : 0;
+    }
+    has_normals = nbits == 7;
     int have = 0;
     for (std::size_t i = 0; i < names.size(); ++i) {
       Col c = col_of(text_column(names[i]));
+      if (!has_normals && (c == Col::nx || c == Col::ny || c == Col::nz)) c = Col::scalar;
       have |= c == Col::x ? 1 : c == Col::y ? 2 : c == Col::z ? 4 : 0;
       if (c != Col::scalar)
         for (std::size_t j = 0; j < i; ++j)
@@ -143,7 +155,7 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
     }
     if (f.size() < ncols_min)
       fail_line(nm, lineno, "expected " + std::to_string(ncols_min) + " columns, got " + std::to_string(f.size()));
-    double x = 0, y = 0, z = 0, c3[3] = {0, 0, 0};
+    double x = 0, y = 0, z = 0, c3[3] = {0, 0, 0}, n3[3] = {0, 0, 0};
     for (std::size_t k = 0; k < cols.size(); ++k) {
       if (cols[k] == Col::skip) continue;
       double v = 0;
@@ -161,6 +173,9 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
         case Col::g: c3[1] = v; colour_float |= f[k].find('.') != std::string_view::npos; break;
         case Col::b: c3[2] = v; colour_float |= f[k].find('.') != std::string_view::npos; break;
         case Col::intensity: pc.intensity.push_back(to_u16(v + intensity_add)); break;
+        case Col::nx: n3[0] = v; break;
+        case Col::ny: n3[1] = v; break;
+        case Col::nz: n3[2] = v; break;
         case Col::scalar: pc.scalars[scalar_of[k]].values.push_back(v); break;
         case Col::skip: break;
       }
@@ -169,6 +184,7 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
       fail_line(nm, lineno, "non-finite coordinate (expected finite x, y, z)");
     pc.positions.emplace_back(x, y, z);
     if (has_rgb) colour.insert(colour.end(), {to_f32(c3[0]), to_f32(c3[1]), to_f32(c3[2])});
+    if (has_normals) pc.normals.emplace_back(to_f32(n3[0]), to_f32(n3[1]), to_f32(n3[2]));
   }
   info.header_point_count = pc.positions.size();
   if (pts_count_lines > 0 && pts_count != pc.positions.size())
