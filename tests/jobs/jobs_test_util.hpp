@@ -2,6 +2,7 @@
 // OptionError names.
 #pragma once
 
+#include "../common/run_command.hpp"
 #include "../common/temp_dir.hpp"
 #include "rayscan/base/option_error.hpp"
 
@@ -18,6 +19,18 @@ namespace rayscan::test {
 
 /// A file of tests/data (e.g. "las/simple1_3.las").
 inline std::filesystem::path data_file(const std::string& rel) { return std::filesystem::path(RAYSCAN_TEST_DATA) / rel; }
+
+/// `p` in single quotes, for the shell. (Appended piecewise: `"'" + s + "'"` sets off GCC 12's
+/// -Wrestrict false positive at -O3.)
+inline std::string quoted(const std::filesystem::path& p) {
+  std::string q = "'";
+  q += p.string();
+  q += '\'';
+  return q;
+}
+
+/// Runs `rayscan ARGS` (the build's program) and returns its exit code and its stdout and stderr.
+inline CommandResult rayscan_cli(const std::string& args) { return run_command(quoted(RAYSCAN_BIN) + " " + args); }
 
 /// This test process's scratch folder.
 inline std::filesystem::path temp_dir() { return process_temp_dir("rayscan_jobs_tests"); }

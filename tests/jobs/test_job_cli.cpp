@@ -17,24 +17,9 @@
 
 using rayscan::test::data_file;
 using rayscan::test::run_command;
+using rayscan::test::quoted;
+using rayscan::test::rayscan_cli;
 using rayscan::test::temp_dir;
-
-namespace {
-
-/// `p` in single quotes, for the shell.
-std::string quoted(const std::filesystem::path& p) {
-  std::string q = "'";
-  q += p.string();
-  q += '\'';
-  return q;
-}
-
-/// Runs `rayscan ARGS` and returns its exit code and the output of stdout and stderr.
-rayscan::test::CommandResult rayscan_cli(const std::string& args) {
-  return run_command(quoted(RAYSCAN_BIN) + " " + args);
-}
-
-}  // namespace
 
 TEST(JobCli, IndexErrorsAsBefore) {
   const std::string las = quoted(data_file("las/point-color.las"));

@@ -15,22 +15,11 @@
 
 using rayscan::test::data_file;
 using rayscan::test::run_command;
+using rayscan::test::quoted;
+using rayscan::test::rayscan_cli;
 using rayscan::test::temp_dir;
 
 namespace {
-
-/// `p` in single quotes, for the shell.
-std::string quoted(const std::filesystem::path& p) {
-  std::string q = "'";
-  q += p.string();
-  q += '\'';
-  return q;
-}
-
-/// Runs `rayscan ARGS` and returns its exit code and the output of stdout and stderr.
-rayscan::test::CommandResult rayscan_cli(const std::string& args) {
-  return run_command(quoted(RAYSCAN_BIN) + " " + args);
-}
 
 /// The machine's physical memory in GiB (sysconf).
 double physical_memory_gib() {
