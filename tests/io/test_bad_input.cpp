@@ -1,9 +1,21 @@
 // Malformed input: every case raises io::FormatError with one line naming the file and the byte
 // offset or line, never crashes and never allocates from an unchecked count.
 #include "io_test_util.hpp"
+#include "rayscan/base/crc32c.hpp"
+#include "rayscan/io/las_records.hpp"
+#include "rayscan/octree/batch.hpp"
+#include "rayscan/octree/normals.hpp"
+#include "rayscan/octree/point_query.hpp"
+#include "rayscan/octree/ray_query.hpp"
+#include "rayscan/site/copc.hpp"
+#include "rayscan/site/index_file.hpp"
 
+#include <cmath>
 #include <cstring>
+#include <functional>
+#include <map>
 #include <random>
+#include <set>
 
 namespace rayscan::test {
 namespace {
@@ -229,24 +241,204 @@ TEST(BadInput, ExtraBytesDescriptorWithReservedTypeIsSkippedWithANote) {
   EXPECT_TRUE(noted);
 }
 
+// The replay of tests/fuzz/regressions/ below runs each finding through the reader calls of the
+// libFuzzer target that found it (tests/fuzz/fuzz_<format>.cpp), as far as they are reachable from
+// this executable: the SQL target calls the SQLite extension's functions, which only
+// rayscan_sqlite_tests loads, so regressions/sql is not replayed here.
+
+/// Recomputes the CRC-32C of every section that lies inside `b` and then the header's, exactly as
+/// tests/fuzz/fuzz_rsi.cpp does before it opens an input (docs/index-format.md, "Header": the
+/// section count at byte 20, the 32-byte table entries from byte 128 with the CRC at +24, the
+/// header CRC at byte 120): the structural checks behind the CRCs are what a finding exercises.
+void fix_index_crcs(std::vector<std::uint8_t>& b) {
+  constexpr std::size_t kHeader = 4096, kTable = 128, kEntry = 32;
+  if (b.size() < kHeader) return;
+  const std::uint32_t sections = load_at<std::uint32_t>(b, 20);
+  for (std::uint32_t i = 0; i < sections && i < 16; ++i) {
+    const std::size_t e = kTable + i * kEntry;
+    const auto off = load_at<std::uint64_t>(b, e + 8), size = load_at<std::uint64_t>(b, e + 16);
+    if (off <= b.size() && size <= b.size() - off) store_at<std::uint32_t>(b, e + 24, io::crc32c(b.data() + off, size));
+  }
+  store_at<std::uint32_t>(b, 120, 0);
+  store_at<std::uint32_t>(b, 120, io::crc32c(b.data(), kHeader));
+}
+
+/// fuzz_rsi.cpp's three ways of opening an input (it picks one by the input's size modulo 3; the
+/// replay uses all three): 0 every check, 1 the node records without CRCs or ids (a file above
+/// deep_check_bytes), 2 no record checks at all.
+io::IndexOpenOptions fuzz_index_open_options(int mode) {
+  io::IndexOpenOptions opt;
+  if (mode == 0) opt.verify = io::IndexOpenOptions::Verify::always;
+  if (mode == 1) opt.deep_check_bytes = 0;
+  if (mode == 2) opt.verify = io::IndexOpenOptions::Verify::metadata_only;
+  opt.check_sources = false;  // the inputs name files of the machine that built them
+  return opt;
+}
+
+/// The root box fuzz_rsi.cpp queries around: the root node's bounds when they are finite, ordered
+/// and under 1e12 wide, else the unit box (unverified bounds may be anything; a negative radius
+/// derived from them would be the harness's error, not the library's).
+AABB fuzz_query_box(const AABB& root) {
+  bool sane = true;
+  for (int a = 0; a < 3; ++a)
+    sane = sane && std::isfinite(root.lo[a]) && std::isfinite(root.hi[a]) && root.lo[a] <= root.hi[a] &&
+           root.hi[a] - root.lo[a] < 1e12;
+  return sane ? root : AABB{Vec3(0.0), Vec3(1.0)};
+}
+
+/// Opens the index file `path` as fuzz_rsi.cpp does in `mode` and runs its calls: ray queries in
+/// both orders, kNN, radius search, to_point_cloud, the per-slot accessors and (after an open that
+/// checked the node records) the surfel set-up. Throws IndexError as the library does.
+void replay_index(const fs::path& path, int mode) {
+  const io::MappedIndex m = io::MappedIndex::open(path, fuzz_index_open_options(mode));
+  if (m.empty()) return;
+  const AABB box = fuzz_query_box(m.node_bounds(m.root()));
+  const Vec3 c = (box.lo + box.hi) * 0.5;
+  std::vector<Ray> rays;
+  rays.emplace_back(box.lo - Vec3(1.0), (box.hi - box.lo) + Vec3(1e-3));
+  rays.emplace_back(Vec3(c.x, c.y, box.hi.z + 1.0), Vec3(0.0, 0.0, -1.0));
+  for (RayOrder order : {RayOrder::ray, RayOrder::sphere_hit}) {
+    RayQuery q;
+    q.order = order;
+    q.radius = 0.05 * (box.hi.x - box.lo.x) + 1e-3;
+    q.k = 8;
+    (void)ray_query_batch(m, rays, q);
+  }
+  (void)knn(m, c, 5);
+  (void)radius_search(m, c, 0.1 * (box.hi.x - box.lo.x) + 1e-3);
+  const PointCloud pc = m.to_point_cloud();
+  (void)m.points_per_level();
+  for (std::size_t s = 0; s < m.positions().size() && s < 64; ++s) {
+    (void)m.positions()[s];
+    if (!m.rgb().empty()) (void)m.rgb()[s];
+    (void)m.ids()[s];
+  }
+  if (mode != 2 && pc.size() >= 2 && pc.size() <= 4096) {
+    try {
+      (void)estimate_surfels_over(m, std::span<const Vec3>(pc.positions), SurfelOptions{});
+    } catch (const std::runtime_error& e) {
+      if (std::string(e.what()).find("surfels:") == std::string::npos) throw;
+    }
+  }
+}
+
+/// fuzz_copc.cpp's calls on a COPC file: its info VLR and hierarchy, the z layer of its records,
+/// then the file opened in place and walked (at most 4096 nodes, every slot's position), the first
+/// and last point's positions and one ray query. Throws FormatError as the library does.
+void replay_copc(const fs::path& path) {
+  const std::vector<std::uint8_t> b = slurp(path);
+  const std::string name = path.filename().string();
+  (void)io::read_copc_info(b, name);
+  (void)io::read_las_records(b, name, io::las_layers::z);
+  io::CopcIndex idx(path, std::size_t{64} << 20);
+  if (idx.empty()) return;
+  std::vector<io::CopcIndex::Node> todo{idx.root()};
+  for (std::size_t seen = 0; !todo.empty() && seen < 4096; ++seen) {
+    const io::CopcIndex::Node n = todo.back();
+    todo.pop_back();
+    const SlotRange s = idx.node_points(n);
+    for (std::uint32_t k = s.begin; k < s.end; ++k) (void)idx.positions()[k];
+    for (unsigned c = 0; c < idx.child_count(n); ++c) todo.push_back(idx.child(n, c));
+  }
+  const std::uint64_t count = idx.info().point_count;
+  (void)idx.position_of(0);
+  (void)idx.position_of(static_cast<PointIndex>(count - 1));
+  const AABB box = idx.node_bounds(idx.root());
+  std::vector<RayHit> hits;
+  RayQuery q;
+  q.k = 4;
+  q.radius = box.max_extent() / 16 + 1e-9;
+  ray_query(idx, Ray(box.lo - Vec3(1.0), Vec3(1.0, 1.0, 1.0)), q, hits);
+}
+
+/// Runs `call` on the regression input `file`: it must return, or throw `Refusal`, the project's
+/// error for bad input of that kind (FormatError; IndexError for an index file), naming the input.
+/// Any other exception fails the test with the file's name.
+template <class Refusal>
+void reads_or_fails_cleanly(const std::string& file, const std::function<void()>& call) {
+  try {
+    call();
+  } catch (const Refusal& e) {
+    EXPECT_NE(std::string(e.what()).find(file), std::string::npos) << e.what();
+    // A finding refused for its format version no longer reaches what it was kept for (it must
+    // be made again on a file of the current version).
+    EXPECT_EQ(std::string(e.what()).find("index format version"), std::string::npos) << e.what();
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << file << ": not the reader's error for bad input: " << e.what();
+  }
+}
+
 TEST(BadInput, CheckedInFuzzerFindingsReadOrFailCleanly) {
-  const std::pair<const char*, io::Format> dirs[] = {
-      {"las", io::Format::las}, {"ply", io::Format::ply}, {"pcd", io::Format::pcd}, {"text", io::Format::text}};
-  std::size_t replayed = 0;
-  for (const auto& [dir, fmt] : dirs) {
-    const fs::path d = fs::path(RAYSCAN_FUZZ_REGRESSIONS) / dir;
-    ASSERT_TRUE(fs::is_directory(d)) << d;
-    for (const auto& de : fs::directory_iterator(d)) {
-      ++replayed;
-      try {
-        io::read_point_cloud(slurp(de.path()), fmt, de.path().filename().string()).validate();
-      } catch (const io::FormatError& e) {
-        // A refusal names the input, as every format error does.
-        EXPECT_NE(std::string(e.what()).find(de.path().filename().string()), std::string::npos) << e.what();
+  const fs::path root(RAYSCAN_FUZZ_REGRESSIONS);
+  const std::map<std::string, std::function<void(const fs::path&, const std::string&)>> replays = {
+      {"las", [](const fs::path& p, const std::string& n) { io::read_point_cloud(slurp(p), io::Format::las, n).validate(); }},
+      {"ply", [](const fs::path& p, const std::string& n) { io::read_point_cloud(slurp(p), io::Format::ply, n).validate(); }},
+      {"pcd", [](const fs::path& p, const std::string& n) { io::read_point_cloud(slurp(p), io::Format::pcd, n).validate(); }},
+      {"text", [](const fs::path& p, const std::string& n) { io::read_point_cloud(slurp(p), io::Format::text, n).validate(); }},
+      {"laz",  // fuzz_laz.cpp's reader call, then the whole cloud as read_point_cloud decodes it
+       [](const fs::path& p, const std::string& n) {
+         const std::vector<std::uint8_t> b = slurp(p);
+         (void)io::read_las_records(b, n);
+         io::read_point_cloud(b, io::Format::las, n).validate();
+       }},
+      {"copc", [](const fs::path& p, const std::string&) { replay_copc(p); }},
+  };
+  const std::set<std::string> not_here = {"sql"};  // see the note above fix_index_crcs
+  std::map<std::string, std::size_t> replayed;
+  for (const auto& dir : fs::directory_iterator(root)) {
+    const std::string format = dir.path().filename().string();
+    if (not_here.count(format) != 0) continue;
+    // Every folder of findings is replayed: one with no entry here fails until it has one.
+    EXPECT_TRUE(replays.count(format) != 0 || format == "rsi") << "tests/fuzz/regressions/" << format << " is not replayed";
+    for (const auto& de : fs::directory_iterator(dir.path())) {
+      const std::string name = de.path().filename().string();
+      SCOPED_TRACE(format + "/" + name);
+      ++replayed[format];
+      if (format != "rsi") {
+        if (replays.count(format) != 0) reads_or_fails_cleanly<io::FormatError>(name, [&] { replays.at(format)(de.path(), name); });
+        continue;
+      }
+      // fuzz_rsi.cpp recomputes the checksums of an input unless its size is 15 modulo 16.
+      std::vector<std::uint8_t> b = slurp(de.path());
+      if (b.size() % 16 != 15) fix_index_crcs(b);
+      const fs::path copy = temp_dir() / (name + ".rsi");
+      {
+        std::ofstream out(copy, std::ios::binary | std::ios::trunc);
+        out.write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+        ASSERT_TRUE(out.good()) << copy;
+      }
+      for (int mode = 0; mode < 3; ++mode) {
+        SCOPED_TRACE("open mode " + std::to_string(mode));
+        reads_or_fails_cleanly<io::IndexError>(name, [&] { replay_index(copy, mode); });
       }
     }
   }
-  EXPECT_GE(replayed, 4u);  // (one finding or more per format folder)
+  for (const char* format : {"las", "ply", "pcd", "text", "laz", "copc", "rsi"})
+    EXPECT_GE(replayed[format], 1u) << "no finding replayed from tests/fuzz/regressions/" << format;
+}
+
+// The finding rsi-crash-6b17b69c... is an index whose root node record holds finite bounds that are
+// reversed on every axis and up to 6e19 (node checks refuse only NaN bounds): fuzz_rsi.cpp derived
+// a negative query radius from them and ray_query_batch threw OptionError out of the harness,
+// which now queries around fuzz_query_box's unit box instead. The file must keep reaching that
+// branch: open in every mode, with root bounds that the guard replaces.
+TEST(BadInput, IndexFindingWithReversedRootBoundsReachesTheHarnessGuard) {
+  const fs::path p = fs::path(RAYSCAN_FUZZ_REGRESSIONS) / "rsi" / "rsi-crash-6b17b69c28ea146fa82667e447263d19a461a135";
+  std::vector<std::uint8_t> b = slurp(p);
+  ASSERT_FALSE(b.empty()) << p;
+  ASSERT_NE(b.size() % 16, 15u);  // so the fuzz target recomputes its checksums, as done here
+  fix_index_crcs(b);
+  EXPECT_TRUE(b == slurp(p)) << "the file is stored with its checksums right";
+  for (int mode = 0; mode < 3; ++mode) {
+    SCOPED_TRACE("open mode " + std::to_string(mode));
+    const io::MappedIndex m = io::MappedIndex::open(p, fuzz_index_open_options(mode));
+    ASSERT_FALSE(m.empty());
+    const AABB root = m.node_bounds(m.root());
+    EXPECT_GT(root.lo.x, root.hi.x);
+    EXPECT_LT(0.05 * (root.hi.x - root.lo.x) + 1e-3, 0.0) << "the radius the harness derived before its guard";
+    EXPECT_EQ(fuzz_query_box(root).lo, Vec3(0.0));
+    EXPECT_EQ(fuzz_query_box(root).hi, Vec3(1.0));
+  }
 }
 
 /// Deterministic mutation sweep over real files of every format: truncations and byte flips must
