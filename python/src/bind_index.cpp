@@ -148,7 +148,9 @@ constexpr std::size_t kInterruptChunk = std::size_t{1} << 15;
 /// A batch of n queries answered in chunks of kInterruptChunk, f(first, count) returning one
 /// vector of results per query of the chunk, on `threads` threads; between chunks the GIL is
 /// taken back briefly to look for a pending signal, so Ctrl-C in a notebook stops a long batch
-/// (raised as KeyboardInterrupt) instead of waiting for its end. Call with the GIL released.
+/// (raised as KeyboardInterrupt) instead of waiting for its end. The exception carries a note
+/// (PEP 678, Python 3.11+) "interrupted after D of N queries": how much of the batch ran, its
+/// answers dropped with the exception. Call with the GIL released.
 template <class F>
 auto interruptible_batch(std::size_t n, unsigned threads, F&& f) {
   decltype(f(std::size_t{0}, std::size_t{0})) all;
@@ -161,7 +163,13 @@ auto interruptible_batch(std::size_t n, unsigned threads, F&& f) {
     first += count;
     if (first < n) {
       py::gil_scoped_acquire gil;
-      if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+      if (PyErr_CheckSignals() != 0) {
+        py::error_already_set e;
+        if (py::hasattr(e.value(), "add_note"))
+          e.value().attr("add_note")("interrupted after " + std::to_string(first) + " of " + std::to_string(n) +
+                                     " queries");
+        throw e;
+      }
     }
   } while (first < n);
   return all;

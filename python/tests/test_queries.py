@@ -345,30 +345,47 @@ def test_empty_batch_broadcasts_against_one_row(uniform_cloud):
 
 
 def test_ctrl_c_stops_a_long_batch():
-    # A batch of 2^19 rays against 20,000 points by brute force (16 chunks between the checks for
-    # a signal), interrupted as Ctrl-C would once it runs: KeyboardInterrupt after the running
-    # chunk, not at the end of the batch. Its CPU time, against one chunk's measured in the same
-    # process, says how much of the batch ran (all 16 chunks without the checks); the index then
-    # answers the next call.
+    # A batch of 2^19 rays against 20,000 points by brute force (16 chunks of 32,768 with a check
+    # for a signal between them), interrupted as Ctrl-C would once the call has begun: a helper
+    # thread sends SIGINT when the call is entered (it gets the GIL when the batch releases it).
+    # KeyboardInterrupt comes after the running chunk, not at the end of the batch: its note says
+    # how many queries ran, a whole number of chunks short of the batch. The index then answers the
+    # next call.
     import os
+    import re
     import signal
     import threading
-    import time
     rng = np.random.default_rng(3)
     b = rayscan.BruteForce(rng.random((20000, 3)))
-    n = 1 << 19
+    n, chunk = 1 << 19, 1 << 15
     o, d = rng.random((n, 3)), rng.normal(size=(n, 3))
-    c0 = time.process_time()
-    b.ray_query(o[: n // 16], d[: n // 16], k=1, radius=0.01, threads=1)
-    chunk = time.process_time() - c0
-    timer = threading.Timer(min(0.2, chunk), os.kill, (os.getpid(), signal.SIGINT))
-    c0 = time.process_time()
-    timer.start()
+    entered, run, never_entered = threading.Event(), b._ray_query, []
+
+    def entering(*args):
+        entered.set()
+        return run(*args)
+
+    def send():
+        entered.wait()
+        if not never_entered:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    b._ray_query = entering
+    sender = threading.Thread(target=send)
+    sender.start()
     try:
-        with pytest.raises(KeyboardInterrupt):
+        with pytest.raises(KeyboardInterrupt) as interrupted:
             b.ray_query(o, d, k=1, radius=0.01, threads=1)
     finally:
-        timer.cancel()
-    assert time.process_time() - c0 < 6 * chunk
+        if not entered.is_set():  # the call failed before the batch: release the sender unused
+            never_entered.append(True)
+            entered.set()
+        sender.join()
+        del b._ray_query
+    notes = getattr(interrupted.value, "__notes__", [])
+    m = re.fullmatch(r"interrupted after (\d+) of (\d+) queries", notes[0] if notes else "")
+    assert m, "KeyboardInterrupt without the batch's note (raised outside the batch?): {}".format(notes)
+    done, total = int(m[1]), int(m[2])
+    assert total == n and 0 < done < n and done % chunk == 0, (done, total)
     r = b.ray_query(o[:3], d[:3], k=1, radius=0.01)
     assert len(r) == 3
