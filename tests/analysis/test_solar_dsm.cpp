@@ -86,7 +86,14 @@ bool installed(const char* program) {
   return status == 0;
 }
 
-std::string quoted(const fs::path& p) { return "'" + p.string() + "'"; }
+// `p` in single quotes, for the shell. Appended piecewise: `"'" + s + "'"` sets off GCC 12's
+// -Wrestrict false positive at -O3 (an error under RAYSCAN_WERROR).
+std::string quoted(const fs::path& p) {
+  std::string q = "'";
+  q += p.string();
+  q += '\'';
+  return q;
+}
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

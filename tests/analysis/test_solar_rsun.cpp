@@ -58,7 +58,14 @@ bool grass_installed() {
   return status == 0;
 }
 
-std::string quoted(const fs::path& p) { return "'" + p.string() + "'"; }
+// `p` in single quotes, for the shell. Appended piecewise: `"'" + s + "'"` sets off GCC 12's
+// -Wrestrict false positive at -O3 (an error under RAYSCAN_WERROR).
+std::string quoted(const fs::path& p) {
+  std::string q = "'";
+  q += p.string();
+  q += '\'';
+  return q;
+}
 
 // Daily (or summed) irradiation on one surface, Wh/m^2.
 struct Irradiation {

@@ -28,8 +28,6 @@ namespace fs = std::filesystem;
 
 const std::string kBin = RAYSCAN_BIN;
 
-std::string q(const fs::path& p) { return "'" + p.string() + "'"; }
-
 /// The names in `dir` that look like an output's temporary (".<name>.tmp.<pid>").
 std::vector<std::string> temporaries(const fs::path& dir) {
   std::vector<std::string> out;
@@ -92,21 +90,22 @@ TEST(OutputsCli, FullFileSystemFailsCleanlyAndKeepsTheOldOutput) {
     std::ofstream(full.dir / ("v.png")) << "OLD v.png";
   }
   fill(full.dir);
-  const std::string render = kBin + " render " + q(cloud()) + " -q --spp 1 --width 300 --out ";
+  const std::string render = kBin + " render " + quoted(cloud()) + " -q --spp 1 --width 300 --out ";
   for (const std::string& name : {std::string("r.png"), std::string("r.jpg")}) {
     SCOPED_TRACE(name);
-    expect_one_line_error(run_command(render + q(full.dir / name)), name, "No space left on device");
+    expect_one_line_error(run_command(render + quoted(full.dir / name)), name, "No space left on device");
     EXPECT_EQ(file_bytes(full.dir / name), "OLD " + name);
   }
   {
-    const CommandResult r = run_command(kBin + " visibility " + q(cloud()) + " -q --observers 636500,849200 --cell 5 --raster " +
-                                        q(full.dir / "v.tif"));
+    const CommandResult r = run_command(kBin + " visibility " + quoted(cloud()) +
+                                        " -q --observers 636500,849200 --cell 5 --raster " + quoted(full.dir / "v.tif"));
     EXPECT_EQ(r.code, 2) << r.out;
     EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
     EXPECT_EQ(file_bytes(full.dir / "v.tif"), "OLD v.tif");
     EXPECT_EQ(file_bytes(full.dir / "v.png"), "OLD v.png");
   }
-  expect_one_line_error(run_command(kBin + " translate -q " + q(cloud()) + " " + q(full.dir / "t.laz")), "t.laz", "write");
+  expect_one_line_error(run_command(kBin + " translate -q " + quoted(cloud()) + " " + quoted(full.dir / "t.laz")), "t.laz",
+                        "write");
   EXPECT_EQ(file_bytes(full.dir / "t.laz"), "OLD t.laz");
   EXPECT_EQ(temporaries(full.dir), std::vector<std::string>{});
 }
@@ -120,11 +119,11 @@ TEST(OutputsCli, StandardOutputThatCannotBeWrittenFails) {
   fs::create_directories(dir);
   std::ofstream(dir / "rays.csv") << "ox,oy,oz,dx,dy,dz\n636500,849200,1000,0,0,-1\n";
   const std::vector<std::string> commands = {
-      kBin + " info " + q(cloud()),
-      kBin + " info --json " + q(cloud()),
-      kBin + " query --cloud " + q(cloud()) + " --rays " + q(dir / "rays.csv") + " --radius 1000 --threads 1",
-      kBin + " query --cloud " + q(cloud()) + " --rays " + q(dir / "rays.csv") + " --radius 1000 --threads 1 -o -",
-      kBin + " render " + q(cloud()) + " --print-scene",
+      kBin + " info " + quoted(cloud()),
+      kBin + " info --json " + quoted(cloud()),
+      kBin + " query --cloud " + quoted(cloud()) + " --rays " + quoted(dir / "rays.csv") + " --radius 1000 --threads 1",
+      kBin + " query --cloud " + quoted(cloud()) + " --rays " + quoted(dir / "rays.csv") + " --radius 1000 --threads 1 -o -",
+      kBin + " render " + quoted(cloud()) + " --print-scene",
       kBin + " --version",
       kBin + " --help",
   };
@@ -148,17 +147,19 @@ TEST(OutputsCli, ReadOnlyDirectoryIsRefusedFirst) {
     if (::geteuid() == 0) GTEST_SKIP() << "cannot mount a read-only tmpfs; skipped";
     fs::permissions(dir, fs::perms::owner_read | fs::perms::owner_exec);
   }
-  const CommandResult r = run_command(kBin + " render " + q(cloud()) + " -q --spp 1 --width 64 --out " + q(dir / "r.png"));
+  const CommandResult r =
+      run_command(kBin + " render " + quoted(cloud()) + " -q --spp 1 --width 64 --out " + quoted(dir / "r.png"));
   expect_one_line_error(r, "r.png", "cannot write in directory");
-  const CommandResult v = run_command(kBin + " visibility " + q(cloud()) + " -q --observers 636500,849200 --out " +
-                                      q(dir / "v.las"));
+  const CommandResult v = run_command(kBin + " visibility " + quoted(cloud()) + " -q --observers 636500,849200 --out " +
+                                      quoted(dir / "v.las"));
   expect_one_line_error(v, "v.las", "cannot write in directory");
   if (!ro.mounted) fs::permissions(dir, fs::perms::owner_all);
   EXPECT_TRUE(fs::is_empty(dir));
   // A directory whose permission bits let root in but whose file system takes no new files
   // (procfs): refused before the work too (the computation's report lines never appear).
   if (fs::exists("/proc/self")) {
-    const CommandResult p = run_command(kBin + " visibility " + q(cloud()) + " --observers 636500,849200 --out /proc/v.las");
+    const CommandResult p =
+        run_command(kBin + " visibility " + quoted(cloud()) + " --observers 636500,849200 --out /proc/v.las");
     expect_one_line_error(p, "/proc/v.las", "cannot write in directory '/proc'");
     EXPECT_EQ(p.out.find("line of sight"), std::string::npos) << p.out;
   }
@@ -171,7 +172,7 @@ TEST(OutputsCli, ReplacedOutputKeepsItsMode) {
   const fs::path out = dir / "t.laz";
   std::ofstream(out) << "OLD";
   ::chmod(out.c_str(), 0444);
-  const CommandResult r = run_command(kBin + " translate " + q(cloud()) + " " + q(out));
+  const CommandResult r = run_command(kBin + " translate " + quoted(cloud()) + " " + quoted(out));
   ASSERT_EQ(r.code, 0) << r.out;
   struct stat st {};
   ASSERT_EQ(::stat(out.c_str(), &st), 0);
@@ -194,14 +195,14 @@ TEST(OutputsCli, OutputThatIsAnInputIsRefused) {
     r << "ox,oy,oz,dx,dy,dz\n636500,849200,1000,0,0,-1\n";
   }
   const std::string same = "is the same file as the input";
-  expect_one_line_error(run_command(kBin + " query --cloud " + q(las) + " --rays " + q(dir / "rays.csv") +
-                                    " --radius 1 --out " + q(las)),
+  expect_one_line_error(run_command(kBin + " query --cloud " + quoted(las) + " --rays " + quoted(dir / "rays.csv") +
+                                    " --radius 1 --out " + quoted(las)),
                         "q.las", same);
-  expect_one_line_error(run_command(kBin + " query --cloud " + q(las) + " --rays " + q(dir / "rays.csv") +
-                                    " --radius 1 --out " + q(dir / "." / "link.las")),
+  expect_one_line_error(run_command(kBin + " query --cloud " + quoted(las) + " --rays " + quoted(dir / "rays.csv") +
+                                    " --radius 1 --out " + quoted(dir / "." / "link.las")),
                         "link.las", same);
-  expect_one_line_error(run_command(kBin + " db import " + q(las) + " -o " + q(las)), "q.las", same);
-  expect_one_line_error(run_command(kBin + " translate " + q(las) + " " + q(dir / "link.las")), "link.las", same);
+  expect_one_line_error(run_command(kBin + " db import " + quoted(las) + " -o " + quoted(las)), "q.las", same);
+  expect_one_line_error(run_command(kBin + " translate " + quoted(las) + " " + quoted(dir / "link.las")), "link.las", same);
   EXPECT_EQ(file_bytes(las), before);
   EXPECT_EQ(temporaries(dir), std::vector<std::string>{});
   fs::remove_all(dir);
