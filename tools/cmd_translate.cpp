@@ -10,10 +10,38 @@
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/translate.hpp"
 
+#include <algorithm>
+#include <charconv>
+#include <cmath>
 #include <iostream>
 #include <memory>
+#include <vector>
 
 namespace rayscan::cli {
+
+namespace {
+
+/// The numbers of `text`, comma-separated (no spaces), for the option `flag`; `expected` says what
+/// the option takes. Throws UsageError naming the flag for anything else.
+std::vector<double> parse_numbers(const std::string& flag, const std::string& text, const std::string& expected) {
+  std::vector<double> v;
+  std::size_t at = 0;
+  while (true) {
+    const std::size_t end = std::min(text.find(',', at), text.size());
+    const char* b = text.data() + at;
+    const char* e = text.data() + end;
+    if (b < e && *b == '+') ++b;
+    double x = 0;
+    const auto [p, ec] = std::from_chars(b, e, x);
+    if (ec != std::errc() || p != e || !std::isfinite(x))
+      throw UsageError(flag + " '" + text + "': expected " + expected);
+    v.push_back(x);
+    if (end == text.size()) return v;
+    at = end + 1;
+  }
+}
+
+}  // namespace
 
 Runner add_translate_command(CLI::App& app) {
   auto* sub = app.add_subcommand("translate", "Convert point files (like `pdal translate`): LAS <-> LAZ losslessly "
@@ -36,9 +64,18 @@ Runner add_translate_command(CLI::App& app) {
   sub->add_option("--chunk-size", *chunk, "points per LAZ chunk (not COPC: one chunk per octree node)")->check(CLI::Range(1u, 0xFFFFFFFEu));
   sub->add_option("--memory", *memory, "COPC output: memory budget of the build: 12 bytes per point plus 256 MiB (e.g. 4G, 512M)")
       ->capture_default_str();
+  auto scale = std::make_shared<std::string>();
+  auto offset = std::make_shared<std::string>();
+  sub->add_option("--scale", *scale,
+                  "LAS, LAZ and COPC output: the coordinates' step in file units, S for x, y and z or SX,SY,SZ "
+                  "(as PDAL writers.las scale_x; e.g. 0.0001). Default: the input's LAS scale, else the coarsest "
+                  "of 1, 0.1, 0.01, 0.001 the points lie on, else 0.001");
+  sub->add_option("--offset", *offset,
+                  "LAS, LAZ and COPC output: auto (the points' low corner rounded down to 1000 steps) or X,Y,Z "
+                  "(file units; as writers.las offset_x). Default: the input's LAS offset with its scale, else auto");
   auto quiet = std::make_shared<bool>(false);
   sub->add_flag("-q,--quiet", *quiet, "no progress or notes on stderr");
-  return [in, out, format, chunk, memory, quiet]() -> int {
+  return [in, out, format, chunk, memory, scale, offset, quiet]() -> int {
     require_single_process("rayscan translate");
     jobs::TranslateJobOptions job;
     job.in = *in;
@@ -55,6 +92,14 @@ Runner add_translate_command(CLI::App& app) {
                       : *format == "laz" ? jobs::LasCompression::laz : jobs::LasCompression::by_extension;
     job.chunk_size = *chunk;
     job.memory = *memory;
+    if (!scale->empty()) job.scale = parse_numbers("--scale", *scale, "S or SX,SY,SZ (numbers > 0)");
+    if (*offset == "auto") {
+      job.auto_offset = true;
+    } else if (!offset->empty()) {
+      const std::vector<double> v = parse_numbers("--offset", *offset, "auto or X,Y,Z (three finite numbers)");
+      if (v.size() != 3) throw UsageError("--offset '" + *offset + "': expected auto or X,Y,Z (three finite numbers)");
+      job.offset = Vec3(v[0], v[1], v[2]);
+    }
     const PhaseProgress progress("translate", *quiet);
     job.progress = progress;
     const jobs::TranslateJobResult r = jobs::run_translate(job);

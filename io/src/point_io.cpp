@@ -124,7 +124,7 @@ void write_point_cloud(const std::filesystem::path& path, const PointCloud& clou
   const std::string ext = lower_extension(path);
   if (ext == ".ply") write_ply(path, cloud);
   else if (ext == ".pcd") write_pcd(path, cloud);
-  else if (ext == ".xyz" || ext == ".csv" || ext == ".txt") write_text(path, cloud);
+  else if (ext == ".xyz" || ext == ".csv" || ext == ".txt") write_text(path, cloud, las);
   else write_las(path, cloud, las);  // .las or .laz (write_las compresses .laz)
 }
 

@@ -28,24 +28,10 @@ std::string decimal(double v) {
   return buf;
 }
 
-/// Decimals of `scale` as it is written shortest (0.00025 -> 5, 0.01 -> 2, 1 -> 0, 0.5 -> 1): the
-/// digits that show one step of the grid exactly, as lasinfo prints coordinates. -1 for a scale
-/// that is not a short decimal (1/3: more than 12 decimals) or not > 0.
-int scale_decimals(double scale) {
-  if (!(scale > 0) || !std::isfinite(scale)) return -1;
-  char buf[400];
-  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, scale, std::chars_format::fixed);
-  if (ec != std::errc()) return -1;
-  const std::string_view t(buf, static_cast<std::size_t>(end - buf));
-  const std::size_t dot = t.find('.');
-  const int dec = dot == std::string_view::npos ? 0 : static_cast<int>(t.size() - dot - 1);
-  return dec <= 12 ? dec : -1;
-}
-
 /// A coordinate printed to the file's resolution: with the decimals of the LAS scale
-/// (scale_decimals), else the shortest text that reads back as the same double.
+/// (step_decimals), else the shortest text that reads back as the same double.
 std::string coord(double v, const std::optional<Vec3>& scale, int axis) {
-  const int dec = scale ? scale_decimals((*scale)[axis]) : -1;
+  const int dec = scale ? step_decimals((*scale)[axis]) : -1;
   if (dec < 0) return shortest_text(v);
   char buf[400];
   std::snprintf(buf, sizeof buf, "%.*f", dec, v);

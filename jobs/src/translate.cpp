@@ -7,6 +7,7 @@
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/site/index_file.hpp"
@@ -14,6 +15,8 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <cmath>
+#include <unistd.h>
 
 namespace rayscan::jobs {
 
@@ -45,6 +48,98 @@ PointCloud read_index_points(const std::filesystem::path& path, io::LasWriteOpti
   return cloud;
 }
 
+/// Whether the options ask for a LAS grid of their own (scale, offset or automatic offset).
+bool grid_requested(const TranslateJobOptions& o) { return !o.scale.empty() || o.offset || o.auto_offset; }
+
+/// Checks scale, offset and auto_offset before anything is read; `grid_output`: the output is
+/// LAS, LAZ or COPC, the outputs that have a grid. Throws OptionError (run_translate).
+void check_grid_options(const TranslateJobOptions& o, bool grid_output) {
+  if (!grid_requested(o)) return;
+  const char* named = !o.scale.empty() ? "scale" : "offset";
+  if (!grid_output)
+    throw OptionError({option(named), " applies to LAS, LAZ and COPC output, not to " + o.out.string()});
+  if (!o.scale.empty() && o.scale.size() != 1 && o.scale.size() != 3)
+    throw OptionError({option("scale"), ": expected one value (x, y and z) or three (x,y,z), got " +
+                                            std::to_string(o.scale.size())});
+  for (const double s : o.scale)
+    if (!(s > 0.0) || !std::isfinite(s))
+      throw OptionError({option("scale"), " " + shortest_text(s) + ": expected a finite number > 0"});
+  if (o.offset && o.auto_offset)
+    throw OptionError({option("offset"), ": expected auto or X,Y,Z, not both"});
+  if (o.offset)
+    for (int k = 0; k < 3; ++k)
+      if (!std::isfinite((*o.offset)[k]))
+        throw OptionError({option("offset"), std::string(" ") + "XYZ"[k] + " = " + shortest_text((*o.offset)[k]) +
+                                                 ": expected a finite number"});
+}
+
+/// `grid` (the source's, or the defaults) with the scale and offsets the options ask for: a new
+/// scale gets automatic offsets unless they are given.
+void apply_grid_options(const TranslateJobOptions& o, io::LasWriteOptions& grid) {
+  if (!o.scale.empty()) {
+    grid.scale = o.scale.size() == 1 ? Vec3(o.scale[0]) : Vec3(o.scale[0], o.scale[1], o.scale[2]);
+    grid.has_offset = false;
+  }
+  if (o.offset) grid.offset = *o.offset, grid.has_offset = true;
+  if (o.auto_offset) grid.has_offset = false;
+}
+
+/// `e`'s message with the path `from` at its start replaced by `to` (an error of a temporary file
+/// told of the file the user named).
+std::string renamed(const std::exception& e, const std::filesystem::path& from, const std::filesystem::path& to) {
+  std::string what = e.what();
+  if (what.rfind(from.string(), 0) == 0) what = to.string() + what.substr(from.string().size());
+  return what;
+}
+
+/// LAZ or COPC output (`copc`) of `cloud` on `grid`: written by io::write_las into a hidden LAS
+/// file beside the output, then that file compressed by io::translate_las (the job's chunk size
+/// and progress) or written as COPC (its records and grid copied as they are); the temporary is
+/// always removed, and errors name the files the user gave.
+TranslateJobResult write_through_las(const TranslateJobOptions& options, const PointCloud& cloud,
+                                     const io::LasWriteOptions& grid, bool copc) {
+  if (copc && cloud.size() == 0) throw std::invalid_argument(options.in.string() + ": no points to write as COPC");
+  std::string name = ".";  // built by appending (GCC 12 -Wrestrict false positive on "." + s)
+  name += options.out.filename().string();
+  name += '.';
+  name += std::to_string(::getpid());
+  name += ".grid.las";  // last: the extension the LAS writer and write_copc go by
+  const std::filesystem::path temp = options.out.parent_path() / name;
+  struct Remove {
+    std::filesystem::path p;
+    ~Remove() {
+      std::error_code ec;
+      std::filesystem::remove(p, ec);
+    }
+  } guard{temp};
+  try {
+    io::write_las(temp, cloud, grid);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(renamed(e, temp, options.out));
+  }
+  TranslateJobResult r;
+  try {
+    if (copc) {
+      r.copc = detail::write_copc_output(temp, options.out, options.memory, {}, options.progress, options.control.threads);
+      r.copc->in_bytes = std::filesystem::file_size(options.in);
+    } else {
+      io::TranslateOptions t;
+      t.compression = LasCompression::laz;
+      t.chunk_size = options.chunk_size;
+      t.progress = options.progress;
+      static_cast<io::TranslateResult&>(r) = io::translate_las(temp, options.out, t);
+      r.in_bytes = std::filesystem::file_size(options.in);
+    }
+  } catch (const io::CopcMemoryError& e) {
+    throw io::CopcMemoryError(renamed(e, temp, options.in));
+  } catch (const OptionError&) {
+    throw;
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(renamed(e, temp, options.in));
+  }
+  return r;
+}
+
 }  // namespace
 
 TranslateJobResult run_translate(const TranslateJobOptions& options) {
@@ -61,27 +156,31 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
   if (options.compression == LasCompression::by_extension && !copc &&
       !has_extension(options.out, io::point_cloud_output_extensions()))
     throw std::invalid_argument(options.out.string() + ": " + extensions_expected(translate_output_extensions()));
+  const std::string ext = lower_extension(options.out);
+  const bool las_out = options.compression != LasCompression::by_extension || ext == ".las" || ext == ".laz";
+  check_grid_options(options, las_out || copc);
   const std::filesystem::path out[] = {options.out}, in[] = {options.in};
   require_outputs(out, in);
   const bool index_in = io::is_index_file(options.in);
   if (copc && index_in)
     throw std::invalid_argument(options.in.string() + ": COPC output of an index file is not supported: translate it to "
                                                       ".las first, then that file to .copc.laz");
-  if (copc) {
+  // The result of a COPC write.
+  const auto copc_result = [](const io::CopcWriteResult& c) {
     TranslateJobResult r;
-    r.copc = detail::write_copc_output(options.in, options.out, options.memory, {}, options.progress,
-                                       options.control.threads);
-    r.points = r.copc->points;
-    r.chunks = r.copc->nodes;
+    r.copc = c;
+    r.points = c.points;
+    r.chunks = c.nodes;
     r.compressed = true;
-    r.in_bytes = r.copc->in_bytes;
-    r.out_bytes = r.copc->out_bytes;
+    r.in_bytes = c.in_bytes;
+    r.out_bytes = c.out_bytes;
     return r;
-  }
+  };
+  if (copc && !grid_requested(options))
+    return copc_result(detail::write_copc_output(options.in, options.out, options.memory, {}, options.progress,
+                                                 options.control.threads));
   const bool las_in = !index_in && io::format_from_extension(options.in) == io::Format::las;
-  const std::string ext = lower_extension(options.out);
-  const bool las_out = options.compression != LasCompression::by_extension || ext == ".las" || ext == ".laz";
-  if (las_in && las_out) {
+  if (las_in && las_out && !grid_requested(options)) {
     io::TranslateOptions t;
     t.compression = options.compression;
     t.chunk_size = options.chunk_size;
@@ -92,7 +191,8 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
   }
   // Any readable input to any written format (io::write_point_cloud by the extension): every
   // attribute the readers keep (an index file: those it stores), positions in double (LAS output
-  // quantises them to the source's LAS grid when it has one, else to write_las's scale).
+  // quantises them to the grid the options give, else the source's LAS grid when it has one, else
+  // to write_las's scale; text prints coordinates on the source's grid with its decimals).
   io::LasWriteOptions grid;
   PointCloud cloud;
   if (index_in) {
@@ -101,6 +201,13 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
     io::FileInfo info;
     cloud = io::read_point_cloud(options.in, {}, &info);
     grid = io::las_grid_of(info);
+  }
+  apply_grid_options(options, grid);
+  const bool laz_out = options.compression == LasCompression::laz ||
+                       (options.compression == LasCompression::by_extension && ext == ".laz");
+  if (grid_requested(options) && (copc || laz_out)) {
+    TranslateJobResult r = write_through_las(options, cloud, grid, copc);
+    return copc ? copc_result(*r.copc) : r;
   }
   io::write_point_cloud(options.out, cloud, grid);
   TranslateJobResult r;

@@ -5,8 +5,11 @@
 #include "rayscan/io/las_records.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <random>
 #include <sstream>
@@ -252,6 +255,94 @@ TEST(Writers, LasThroughPlyPcdAndTextBackToLasIsBitExact) {
     fs::remove(mid);
     fs::remove(las);
   }
+}
+
+// Coordinates given as decimal text (a cloud that came from LAS through write_text) that the
+// reader's arithmetic X * scale + offset does not give bit for bit: the writer still finds their
+// grid (x 2 decimals, y 3, z 1) and stores the decimals' own integers, where an exact-only search
+// falls back to 0.001 for x and z. Oracle: the integers the decimals were made from.
+TEST(Writers, LasFindsTheGridOfDecimalTextThatTheReadersArithmeticMisses) {
+  std::mt19937_64 rng(3);
+  std::uniform_int_distribution<std::int64_t> qx(0, 99999999), qy(0, 999999999), qz(0, 99999);
+  PointCloud pc;
+  std::vector<std::array<std::int64_t, 3>> q;
+  auto decimal = [](std::int64_t n, int dec) {  // n / 10^dec as text, then the double nearest it
+    long long p = 1;
+    for (int d = 0; d < dec; ++d) p *= 10;
+    char t[48];
+    std::snprintf(t, sizeof t, "%lld.%0*lld", static_cast<long long>(n) / p, dec, static_cast<long long>(n) % p);
+    return std::strtod(t, nullptr);
+  };
+  // Whether the reader's value of some coordinate's integer on the grid `step` (offset 0) is
+  // another double than the coordinate, on the axis' own grid and every finer one the writer tries.
+  bool inexact[3][3] = {};
+  const double steps[3] = {0.01, 0.001, 0.1}, tried[3] = {0.1, 0.01, 0.001};
+  for (int i = 0; i < 2000; ++i) {
+    q.push_back({qx(rng), qy(rng), qz(rng)});
+    pc.positions.emplace_back(decimal(q.back()[0], 2), decimal(q.back()[1], 3), decimal(q.back()[2], 1));
+    for (int k = 0; k < 3; ++k)
+      for (int t = 0; t < 3; ++t) {
+        const double v = pc.positions.back()[k];
+        inexact[k][t] |= std::round(v / tried[t]) * tried[t] != v;
+      }
+  }
+  pc.positions.emplace_back(0.0, 0.0, 0.0);  // the box starts at 0: the automatic offset is 0 too
+  q.push_back({0, 0, 0});
+  for (int k = 0; k < 3; ++k)
+    for (int t = 0; t < 3; ++t)
+      if (tried[t] <= steps[k]) {
+        ASSERT_TRUE(inexact[k][t]) << "axis " << k << " step " << tried[t];
+      }
+  const fs::path out = temp_dir() / "decimal_text.las";
+  io::write_las(out, pc);
+  io::FileInfo info;
+  const PointCloud back = io::read_point_cloud(out, {}, &info);
+  EXPECT_EQ(*info.scale, Vec3(0.01, 0.001, 0.1));
+  EXPECT_EQ(*info.offset, Vec3(0.0));
+  ASSERT_EQ(back.size(), q.size());
+  for (std::size_t i = 0; i < q.size(); ++i)
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(std::llround(back.positions[i][k] / steps[k]), q[i][k]) << i << " " << k;
+  fs::remove(out);
+}
+
+// write_text with the LAS grid of the cloud's source prints an axis whose coordinates all lie on
+// it with the grid's decimals (scale 0.00025: 5; offset 0.125 with scale 0.01: 3, the offset's),
+// an axis with one point off the grid, or a grid of 1/3, in the shortest form that reads back bit
+// for bit. Oracle: the integers the coordinates were made from.
+TEST(Writers, TextPrintsGridCoordinatesWithTheGridsDecimals) {
+  io::LasWriteOptions grid;
+  grid.scale = Vec3(0.00025, 0.01, 1.0 / 3);
+  grid.offset = Vec3(500.0, 0.125, 7.0);
+  grid.has_offset = true;
+  PointCloud pc;
+  for (int i = 0; i < 50; ++i) {  // as the LAS reader computes them: integer x scale + offset
+    const double q = 1000.0 + 37.0 * i;
+    pc.positions.emplace_back(q * grid.scale.x + grid.offset.x, q * grid.scale.y + grid.offset.y,
+                              q * grid.scale.z + grid.offset.z);
+  }
+  const fs::path out = temp_dir() / "grid_decimals.xyz";
+  io::write_text(out, pc, grid);
+  const PointCloud back = io::read_point_cloud(out);
+  const std::vector<std::uint8_t> bytes = slurp(out);
+  std::istringstream in(std::string(bytes.begin(), bytes.end()));
+  std::string line;
+  std::getline(in, line);
+  for (int i = 0; std::getline(in, line); ++i) {
+    std::istringstream v(line);
+    std::string x, y, z;
+    v >> x >> y >> z;
+    EXPECT_EQ(x.size() - x.find('.') - 1, 5u) << line;
+    EXPECT_EQ(y.size() - y.find('.') - 1, 3u) << line;
+    const double q = 1000.0 + 37.0 * i;
+    EXPECT_EQ(std::llround((back.positions[i].x - 500.0) / 0.00025), q) << line;
+    EXPECT_EQ(std::llround((back.positions[i].y - 0.125) / 0.01), q) << line;
+    EXPECT_EQ(back.positions[i].z, pc.positions[i].z) << line;  // 1/3: shortest, bit for bit
+  }
+  pc.positions[7].y += 0.001;  // off the grid: the whole axis in the shortest form
+  io::write_text(out, pc, grid);
+  const PointCloud moved = io::read_point_cloud(out);
+  for (std::size_t i = 0; i < pc.size(); ++i) EXPECT_EQ(moved.positions[i].y, pc.positions[i].y) << i;
+  fs::remove(out);
 }
 
 // PDAL names the LAS fields ReturnNumber, NumberOfReturns, ScanAngleRank, ... (readers.las; its

@@ -1,5 +1,6 @@
 // The translate job (rayscan/jobs/translate.hpp) on real files; oracle: the point records and
-// bytes of the input, read back by the io reader.
+// bytes of the input, read back by the io reader, and the output's header bytes.
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/index.hpp"
@@ -10,11 +11,15 @@
 #include "jobs_test_util.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 using namespace rayscan;
@@ -242,10 +247,18 @@ TEST(TranslateJob, LasToCsvToLasKeepsAnExtraFieldNamedLikeAStandardOne) {
 
   const io::LasRecords a = io::read_las_records(las), b = io::read_las_records(back);
   ASSERT_EQ(b.count, a.count);
-  for (std::uint64_t i = 0; i < a.count; ++i)  // X, Y, Z (same 0.01 grid, offset 0) and intensity
-    ASSERT_EQ(record_bytes(b, i, 0, 14), record_bytes(a, i, 0, 14)) << "record " << i;
+  for (std::uint64_t i = 0; i < a.count; ++i)  // intensity
+    ASSERT_EQ(record_bytes(b, i, 12, 2), record_bytes(a, i, 12, 2)) << "record " << i;
   const PointCloud src = io::read_point_cloud(las), out = io::read_point_cloud(back);
-  EXPECT_EQ(out.positions, src.positions);
+  // X, Y, Z: the text's 2 decimals on the source's 0.01 grid (offset 0), the writer's grid found
+  // from them (its offset may differ), so the same coordinates when rounded to the scale.
+  ASSERT_EQ(out.size(), a.count);
+  for (std::uint64_t i = 0; i < a.count; ++i)
+    for (int k = 0; k < 3; ++k) {
+      std::int32_t q = 0;
+      std::memcpy(&q, a.records.data() + i * a.record_length + 4 * k, 4);
+      ASSERT_EQ(std::llround(out.positions[i][k] / 0.01), q) << "record " << i;
+    }
   EXPECT_EQ(out.intensity, src.intensity);
   EXPECT_EQ(out.classification, src.classification);
   EXPECT_EQ(out.gps_time, src.gps_time);
@@ -301,4 +314,260 @@ TEST(TranslateJob, IndexFileToLasGivesTheSourcesPointsAndStoredAttributes) {
     EXPECT_NE(std::string(e.what()).find(rsi.string() + ": COPC output of an index file"), std::string::npos) << e.what();
   }
   EXPECT_FALSE(fs::exists(o.out));
+}
+
+namespace {
+
+/// The header's scale factors and offsets, X Y Z each (ASPRS LAS 1.4 R15 table 3: doubles at
+/// bytes 131, 139, 147 and 155, 163, 171; the same in LAS 1.2, and a LAZ or COPC header is not
+/// compressed).
+std::pair<Vec3, Vec3> header_grid(const fs::path& las) {
+  const std::string b = file_bytes(las);
+  EXPECT_GE(b.size(), 179u) << las;
+  Vec3 scale(0.0), offset(0.0);
+  for (int k = 0; k < 3 && b.size() >= 179; ++k) {
+    std::memcpy(&scale[k], b.data() + 131 + 8 * k, 8);
+    std::memcpy(&offset[k], b.data() + 155 + 8 * k, 8);
+  }
+  return {scale, offset};
+}
+
+/// A 0.5-unit float scan (a small object in metres): 3000 float coordinates off every decimal grid,
+/// around (12.3, -4.5, 0.8), written as binary PLY.
+fs::path small_float_scan() {
+  const fs::path ply = temp_dir() / "small_object.ply";
+  PointCloud pc;
+  std::uint32_t h = 12345;
+  auto u = [&] {  // a fixed sequence in [0, 0.5) (xorshift), as floats like a scanner's
+    h ^= h << 13, h ^= h >> 17, h ^= h << 5;
+    return static_cast<double>(static_cast<float>((h % 1000000) * 5e-7));
+  };
+  for (int i = 0; i < 3000; ++i)
+    pc.positions.emplace_back(static_cast<float>(12.3 + u()), static_cast<float>(-4.5 + u()), static_cast<float>(0.8 + u()));
+  io::write_ply(ply, pc);
+  return ply;
+}
+
+/// The largest |a - b| per axis of two clouds of the same size.
+Vec3 max_error(const PointCloud& a, const PointCloud& b) {
+  EXPECT_EQ(a.size(), b.size());
+  Vec3 e(0.0);
+  for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i)
+    for (int k = 0; k < 3; ++k) e[k] = std::max(e[k], std::abs(a.positions[i][k] - b.positions[i][k]));
+  return e;
+}
+
+}  // namespace
+
+// --scale / --offset (PDAL writers.las scale_x, offset_x): LAS, LAZ and COPC output of a small
+// float scan carry the asked grid in their header, and every point reads back within half a step.
+// The automatic rule (0.001 here: the floats lie on no decimal grid) keeps only half a millimetre.
+// Oracle: the header's own bytes and the PLY's coordinates.
+TEST(TranslateJob, ScaleAndOffsetAreTheHeadersAndPointsReadBackWithinHalfAStep) {
+  const fs::path ply = small_float_scan();
+  const PointCloud src = io::read_point_cloud(ply);
+  jobs::TranslateJobOptions o;
+  o.in = ply;
+  o.out = temp_dir() / "small_auto.las";
+  jobs::run_translate(o);
+  EXPECT_EQ(header_grid(o.out).first, Vec3(0.001));
+  EXPECT_GT(max_error(io::read_point_cloud(o.out), src).x, 1e-4);  // millimetres only
+
+  for (const char* name : {"small_1e-6.las", "small_1e-6.laz", "small_1e-6.copc.laz"}) {
+    SCOPED_TRACE(name);
+    o.out = temp_dir() / name;
+    o.scale = {1e-6};
+    o.offset = Vec3(12, -5, 0.5);
+    o.chunk_size = 1000;
+    const jobs::TranslateJobResult r = jobs::run_translate(o);
+    EXPECT_EQ(r.points, src.size());
+    const auto [scale, offset] = header_grid(o.out);
+    EXPECT_EQ(scale, Vec3(1e-6));
+    EXPECT_EQ(offset, Vec3(12, -5, 0.5));
+    const Vec3 e = max_error(io::read_point_cloud(o.out), src);
+    for (int k = 0; k < 3; ++k) EXPECT_LE(e[k], 0.5e-6 * (1 + 1e-6)) << k;
+    if (std::string(name) == "small_1e-6.laz") {
+      EXPECT_EQ(r.chunks, 3u);  // the job's chunk size
+    }
+  }
+  for (const auto& de : fs::directory_iterator(temp_dir()))  // no temporary left behind
+    EXPECT_EQ(de.path().filename().string().find(".grid.las"), std::string::npos) << de.path();
+
+  // Three scales with automatic offsets: each at or below the axis' lowest point, within 1000 steps.
+  o.out = temp_dir() / "small_xyz.las";
+  o.scale = {1e-5, 2e-5, 1e-4};
+  o.offset.reset();
+  jobs::run_translate(o);
+  const auto [scale, offset] = header_grid(o.out);
+  EXPECT_EQ(scale, Vec3(1e-5, 2e-5, 1e-4));
+  const PointCloud back = io::read_point_cloud(o.out);
+  const AABB box = src.bounds();
+  const Vec3 e = max_error(back, src);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_LE(offset[k], box.lo[k]) << k;
+    EXPECT_GT(offset[k] + 1000 * scale[k], box.lo[k]) << k;
+    EXPECT_LE(e[k], 0.5 * scale[k] * (1 + 1e-6)) << k;
+  }
+}
+
+// A LAS input keeps its own grid unless asked: the lossless LAS -> LAZ copy keeps the header
+// (autzen_trim.las: 0.01, offset 0); --offset alone keeps the input's scale with the given
+// offsets, --offset auto the input's scale with the low corner rounded down to 1000 steps (10
+// units), and the points keep their values. Oracle: the header bytes of input and output.
+TEST(TranslateJob, LasInputKeepsItsScaleAndTakesAGivenOrAutomaticOffset) {
+  const fs::path las = data_file("las/autzen_trim.las");
+  const auto [in_scale, in_offset] = header_grid(las);
+  ASSERT_EQ(in_scale, Vec3(0.01));
+  ASSERT_EQ(in_offset, Vec3(0.0));
+  const PointCloud src = io::read_point_cloud(las);
+  jobs::TranslateJobOptions o;
+  o.in = las;
+  o.out = temp_dir() / "autzen_keep.laz";
+  jobs::run_translate(o);
+  EXPECT_EQ(header_grid(o.out), header_grid(las));
+
+  o.out = temp_dir() / "autzen_offset.las";
+  o.offset = Vec3(636000, 848900, 400);
+  jobs::run_translate(o);
+  EXPECT_EQ(header_grid(o.out), std::make_pair(Vec3(0.01), Vec3(636000, 848900, 400)));
+  Vec3 e = max_error(io::read_point_cloud(o.out), src);
+  for (int k = 0; k < 3; ++k) EXPECT_LE(e[k], 1e-9) << k;  // the same decimals, to the last place
+
+  o.out = temp_dir() / "autzen_auto.las";
+  o.offset.reset();
+  o.auto_offset = true;
+  jobs::run_translate(o);
+  const AABB box = src.bounds();  // 636001.76 848935.20 406.26 (rayscan info)
+  EXPECT_EQ(header_grid(o.out), std::make_pair(Vec3(0.01), Vec3(std::floor(box.lo.x / 10) * 10,
+                                                                  std::floor(box.lo.y / 10) * 10,
+                                                                  std::floor(box.lo.z / 10) * 10)));
+  EXPECT_EQ(header_grid(o.out).second, Vec3(636000, 848930, 400));
+  e = max_error(io::read_point_cloud(o.out), src);
+  for (int k = 0; k < 3; ++k) EXPECT_LE(e[k], 1e-9) << k;
+}
+
+// Refused before anything is written: a scale <= 0 or not finite, two scales, a non-finite
+// offset, an offset with auto, a grid for an output without one; and a point whose
+// (value - offset) / scale does not fit a 32-bit integer (autzen's X = 636001.76 at 1e-6 from
+// offset 0: 6.4e11), naming the axis and the value.
+TEST(TranslateJob, BadScaleOrOffsetIsRefusedNamingTheOption) {
+  const fs::path las = data_file("las/autzen_trim.las");
+  jobs::TranslateJobOptions o;
+  o.in = las;
+  o.out = temp_dir() / "never_scaled.las";
+  const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
+  for (const std::vector<double>& s : std::vector<std::vector<double>>{{0.0}, {-0.01}, {nan}, {inf}, {0.01, 0.01}}) {
+    o.scale = s;
+    EXPECT_EQ(fields_of_option_error([&] { jobs::run_translate(o); }), std::vector<std::string>{"scale"});
+  }
+  o.scale.clear();
+  o.offset = Vec3(0, nan, 0);
+  EXPECT_EQ(fields_of_option_error([&] { jobs::run_translate(o); }), std::vector<std::string>{"offset"});
+  o.offset = Vec3(0.0);
+  o.auto_offset = true;
+  EXPECT_EQ(fields_of_option_error([&] { jobs::run_translate(o); }), std::vector<std::string>{"offset"});
+  o.auto_offset = false;
+  o.out = temp_dir() / "never_scaled.ply";
+  EXPECT_EQ(fields_of_option_error([&] { jobs::run_translate(o); }), std::vector<std::string>{"offset"});
+  EXPECT_FALSE(fs::exists(o.out));
+
+  const PointCloud src = io::read_point_cloud(las);
+  for (const char* name : {"never_scaled.las", "never_scaled.laz", "never_scaled.copc.laz"}) {
+    o.out = temp_dir() / name;
+    o.scale = {1e-6};
+    o.offset = Vec3(0.0);
+    try {
+      jobs::run_translate(o);
+      ADD_FAILURE() << name << ": accepted";
+    } catch (const std::invalid_argument& e) {
+      const std::string m = e.what();
+      EXPECT_EQ(m.rfind(o.out.string() + ": point 0 coordinate X = " + shortest_text(src.positions[0].x), 0), 0u) << m;
+      EXPECT_NE(m.find("does not fit a 32-bit LAS integer (scale 1e-06, offset 0)"), std::string::npos) << m;
+    }
+    EXPECT_FALSE(fs::exists(o.out)) << name;
+  }
+  for (const auto& de : fs::directory_iterator(temp_dir()))
+    EXPECT_EQ(de.path().filename().string().find(".grid.las"), std::string::npos) << de.path();
+}
+
+// The command line: --scale S or SX,SY,SZ and --offset auto|X,Y,Z reach the header; bad values
+// are one line and exit 2, with nothing written.
+TEST(TranslateJob, CliScaleAndOffset) {
+  const fs::path ply = small_float_scan(), dir = temp_dir() / "cli_grid";
+  fs::create_directories(dir);
+  auto r = test::rayscan_cli("translate -q " + test::quoted(ply) + " " + test::quoted(dir / "a.las") +
+                             " --scale 1e-5,2e-5,1e-4 --offset 12,-5,0.5");
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(header_grid(dir / "a.las"), std::make_pair(Vec3(1e-5, 2e-5, 1e-4), Vec3(12, -5, 0.5)));
+  fs::remove(dir / "a.las");
+  const std::string base = "translate -q " + test::quoted(ply) + " " + test::quoted(dir / "b.las");
+  r = test::rayscan_cli(base + " --scale 0");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan translate: --scale 0: expected a finite number > 0\n");
+  r = test::rayscan_cli(base + " --scale 0.1,x,0.1");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan translate: --scale '0.1,x,0.1': expected S or SX,SY,SZ (numbers > 0)\n");
+  r = test::rayscan_cli(base + " --scale 0.1,0.1");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan translate: --scale: expected one value (x, y and z) or three (x,y,z), got 2\n");
+  r = test::rayscan_cli(base + " --offset 1,2");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan translate: --offset '1,2': expected auto or X,Y,Z (three finite numbers)\n");
+  r = test::rayscan_cli(base + " --scale 1e-9 --offset 0,0,0");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_NE(r.out.find(": point 0 coordinate X = "), std::string::npos) << r.out;
+  r = test::rayscan_cli("translate -q " + test::quoted(ply) + " " + test::quoted(dir / "c.xyz") + " --scale 0.01");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan translate: --scale applies to LAS, LAZ and COPC output, not to " + (dir / "c.xyz").string() + "\n");
+  EXPECT_TRUE(fs::is_empty(dir));
+}
+
+// LAS -> text prints each coordinate with the decimals of the file's scale (autzen_trim.las:
+// 0.01, 2 decimals), as las2txt does, not the reader's double (849393.9500000001): every X, Y, Z
+// is the record's integer x scale + offset when rounded to the scale, and no coordinate has more
+// decimals. Text -> LAS stores the same integers again. A source with no LAS grid (PLY floats)
+// keeps the shortest form that reads back bit for bit. Oracle: the LAS records' own bytes and
+// the header's scale and offset (table 3).
+TEST(TranslateJob, TextOfLasHasTheDecimalsOfTheScale) {
+  const fs::path las = data_file("las/autzen_trim.las");
+  const fs::path txt = temp_dir() / "autzen_grid.txt", back = temp_dir() / "autzen_grid_back.las";
+  translate(las, txt);
+  const auto [scale, offset] = header_grid(las);
+  ASSERT_EQ(scale, Vec3(0.01));
+  const io::LasRecords rec = io::read_las_records(las);
+  std::istringstream in(file_bytes(txt));
+  std::string line;
+  std::getline(in, line);
+  ASSERT_EQ(line.substr(0, 6), "x y z ");
+  std::uint64_t i = 0;
+  for (; std::getline(in, line) && i < rec.count; ++i) {
+    std::istringstream values(line);
+    for (int k = 0; k < 3; ++k) {
+      std::string t;
+      values >> t;
+      const std::size_t dot = t.find('.');
+      ASSERT_NE(dot, std::string::npos) << line;
+      ASSERT_EQ(t.size() - dot - 1, 2u) << "record " << i << ": " << t;
+      std::int32_t q = 0;
+      std::memcpy(&q, rec.records.data() + i * rec.record_length + 4 * k, 4);
+      ASSERT_EQ(std::llround((std::stod(t) - offset[k]) / scale[k]), q) << "record " << i << ": " << t;
+    }
+  }
+  EXPECT_EQ(i, rec.count);
+  // Text -> LAS: the same 0.01 grid found from the decimals, and the same coordinates on it.
+  translate(txt, back);
+  EXPECT_EQ(header_grid(back).first, Vec3(0.01));
+  const PointCloud b = io::read_point_cloud(back);
+  ASSERT_EQ(b.size(), rec.count);
+  for (std::uint64_t j = 0; j < rec.count; ++j)
+    for (int k = 0; k < 3; ++k) {
+      std::int32_t q = 0;
+      std::memcpy(&q, rec.records.data() + j * rec.record_length + 4 * k, 4);
+      ASSERT_EQ(std::llround((b.positions[j][k] - offset[k]) / scale[k]), q) << "record " << j;
+    }
+
+  const fs::path ply = small_float_scan(), xyz = temp_dir() / "small_object.xyz";
+  translate(ply, xyz);
+  EXPECT_EQ(io::read_point_cloud(xyz).positions, io::read_point_cloud(ply).positions);
 }

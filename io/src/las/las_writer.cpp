@@ -7,8 +7,10 @@
 #include "atomic_writer.hpp"
 #include "field_names.hpp"
 #include "bytes.hpp"
+#include "las/las_grid.hpp"
 #include "las/las_header.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/version.hpp"
 #include "rayscan/io/translate.hpp"
 
@@ -199,9 +201,11 @@ struct LasRecordWriter {
   /// coarsest decimal grid (1, 0.1, 0.01 or 0.001 units) on which every coordinate of the axis
   /// reads back bit for bit (X * scale + offset == v, the reader's arithmetic) with the option
   /// offset, or without one offset 0 or the default below: a cloud that came from LAS on such a
-  /// grid (through PLY, PCD or text) is written back exactly. Otherwise 0.001 (mm), multiplied by
-  /// 10 until the bounds fit 32-bit integers (2e9 units); without an option offset, the box's low
-  /// corner rounded down to 1000 scale units.
+  /// grid (through PLY or PCD) is written back exactly. Failing that, the coarsest on which every
+  /// coordinate lies to within the rounding of decimal text (detail::OnGrid::decimal): a cloud
+  /// that came from LAS through text, which prints the grid's decimals (write_text), gets its
+  /// integers back. Otherwise 0.001 (mm), multiplied by 10 until the bounds fit 32-bit integers
+  /// (2e9 units); without an option offset, the box's low corner rounded down to 1000 scale units.
   void choose_scale_offset() {
     const AABB box = cloud.bounds();
     scale = options.scale;
@@ -217,30 +221,34 @@ struct LasRecordWriter {
     };
     if (!options.has_offset)
       for (int k = 0; k < 3; ++k) offset[k] = default_offset(k, scale[k]);
-    // Whether every coordinate of axis k reads back bit for bit on the grid (s, off), within the
-    // 32-bit range.
-    auto reads_back = [&](int k, double s, double off) {
+    // Whether every coordinate of axis k lies on the grid (s, off) as closely as `how` asks,
+    // within the 32-bit range.
+    auto reads_back = [&](int k, double s, double off, detail::OnGrid how) {
       if (std::max(std::abs(box.hi[k] - off), std::abs(box.lo[k] - off)) / s > 2.0e9) return false;
-      for (std::size_t i = 0; i < n; ++i) {
-        const double v = cloud.positions[i][k];
-        if (std::round((v - off) / s) * s + off != v) return false;
-      }
+      for (std::size_t i = 0; i < n; ++i)
+        if (!detail::on_las_grid(cloud.positions[i][k], s, off, how)) return false;
       return true;
     };
     // The offset on which axis k reads back at scale s: the option offset, else 0 or the default.
-    auto grid_offset = [&](int k, double s) -> std::optional<double> {
-      if (options.has_offset) return reads_back(k, s, offset[k]) ? std::optional<double>(offset[k]) : std::nullopt;
+    auto grid_offset = [&](int k, double s, detail::OnGrid how) -> std::optional<double> {
+      if (options.has_offset)
+        return reads_back(k, s, offset[k], how) ? std::optional<double>(offset[k]) : std::nullopt;
       for (const double off : {0.0, default_offset(k, s)})
-        if (reads_back(k, s, off)) return off;
+        if (reads_back(k, s, off, how)) return off;
       return std::nullopt;
     };
     for (int k = 0; k < 3; ++k) {
       if (!auto_scale[k] || box.empty()) continue;
-      for (const double s : {1.0, 0.1, 0.01, 0.001})
-        if (const std::optional<double> off = grid_offset(k, s)) {
-          scale[k] = s, offset[k] = *off, auto_scale[k] = false;
-          break;
-        }
+      // Exact first on every grid, so that a cloud with an exact grid keeps its bits even where a
+      // coarser grid would match to the last place.
+      for (const detail::OnGrid how : {detail::OnGrid::exact, detail::OnGrid::decimal}) {
+        for (const double s : {1.0, 0.1, 0.01, 0.001})
+          if (const std::optional<double> off = grid_offset(k, s, how)) {
+            scale[k] = s, offset[k] = *off, auto_scale[k] = false;
+            break;
+          }
+        if (!auto_scale[k]) break;
+      }
     }
     for (int k = 0; k < 3; ++k)
       while (auto_scale[k] && !box.empty() &&
@@ -253,9 +261,11 @@ struct LasRecordWriter {
   [[nodiscard]] std::int32_t quantise(double v, int k, std::size_t i) const {
     const double q = std::round((v - offset[k]) / scale[k]);
     if (!(q >= -2147483648.0 && q <= 2147483647.0))
-      throw std::invalid_argument(path.string() + ": point " + std::to_string(i) + " coordinate " +
-                                  "XYZ"[k] + " = " + std::to_string(v) + " does not fit 32-bit LAS integers with scale " +
-                                  std::to_string(scale[k]) + " and offset " + std::to_string(offset[k]));
+      throw std::invalid_argument(path.string() + ": point " + std::to_string(i) + " coordinate " + "XYZ"[k] +
+                                  " = " + shortest_text(v) + ": (" + "XYZ"[k] + " - offset) / scale = " +
+                                  shortest_text((v - offset[k]) / scale[k]) +
+                                  " does not fit a 32-bit LAS integer (scale " + shortest_text(scale[k]) +
+                                  ", offset " + shortest_text(offset[k]) + ")");
     return static_cast<std::int32_t>(q);
   }
 

@@ -1,29 +1,52 @@
 // XYZ / CSV / TXT writer: the column layout the text reader (text_reader.cpp), CloudCompare,
 // PDAL's readers.text and LAStools' txt2las read: a header line naming the columns, then one
-// point per line. Values are the shortest decimal that reads back as the same double
-// (std::to_chars), so a round trip keeps every coordinate bit for bit: a LAS point's coordinate is
-// the double X * scale + offset, which for scale 0.01 can be 849087.7000000001, not the double
-// nearest 849087.70 (rounding it to the scale's decimals would read back as another double, and the
-// LAS writer finds a source's grid only from the exact doubles). Colour is written as the
-// source held it: 16-bit values, or the 8-bit values of a source whose colour the reader scaled by
-// 257 (PointCloud::rgb_from_8bit_las, as write_las does), which the text reader scales by 257 again.
+// point per line. Coordinates that lie on the LAS grid of their source (a LAS point's coordinate
+// is the double X * scale + offset, e.g. 849087.7000000001 for scale 0.01) are printed with the
+// grid's decimals (849087.70), as las2txt and lasinfo print them: the text a surveyor expects,
+// and the LAS writer finds the grid again from the decimals (detail::OnGrid::decimal) and stores
+// the same integers. Every other value is the shortest decimal that reads back as the same double
+// (std::to_chars), so a round trip keeps it bit for bit. Colour is written as the source held it:
+// 16-bit values, or the 8-bit values of a source whose colour the reader scaled by 257
+// (PointCloud::rgb_from_8bit_las, as write_las does), which the text reader scales by 257 again.
 // A scalar whose name the reader would take for another field (text_name_reserved: an extra-bytes
 // field "Intensity" beside the intensity column) is written with a suffix, "Intensity_1".
 #include "rayscan/io/point_io.hpp"
 
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/number_text.hpp"
 
 #include "atomic_writer.hpp"
 #include "field_names.hpp"
+#include "las/las_grid.hpp"
 #include "text_columns.hpp"
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <set>
 #include <string>
 
 namespace rayscan::io {
 
-void write_text(const std::filesystem::path& path, const PointCloud& cloud) {
+namespace {
+
+/// The decimals to print axis k of `cloud` with: those of the grid of `grid` (the scale's
+/// step_decimals, or the offset's when it has more) when `grid` has a scale and offset and every
+/// coordinate of the axis lies on that grid exactly (a value straight from the LAS reader); -1
+/// (shortest round-trip form) otherwise, e.g. for a scale such as 1/3 or a cloud moved off it.
+int grid_decimals(const PointCloud& cloud, const LasWriteOptions& grid, int k) {
+  const double s = grid.scale[k], off = grid.offset[k];
+  if (!grid.has_offset || !std::isfinite(off)) return -1;
+  const int ds = step_decimals(s), doff = off == 0.0 ? 0 : step_decimals(std::abs(off));
+  if (ds < 0 || doff < 0) return -1;
+  for (const Vec3& p : cloud.positions)
+    if (!detail::on_las_grid(p[k], s, off, detail::OnGrid::exact)) return -1;
+  return std::max(ds, doff);
+}
+
+}  // namespace
+
+void write_text(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& grid) {
   detail::validate_for_writing(path, cloud);
   const char sep = lower_extension(path) == ".csv" ? ',' : ' ';
   std::set<std::string> used = {"x", "y", "z"};
@@ -51,13 +74,32 @@ void write_text(const std::filesystem::path& path, const PointCloud& cloud) {
     line += sep;
     num(v);
   };
+  const int decimals[3] = {grid_decimals(cloud, grid, 0), grid_decimals(cloud, grid, 1), grid_decimals(cloud, grid, 2)};
+  char fixed[400];  // (a double in fixed notation has at most 309 integer digits)
+  // Coordinate k of a point: with the grid's decimals when the text reads back onto the same grid
+  // integer (beyond about 15 significant digits it might not), else shortest.
+  auto coord = [&](double v, int k) {
+    if (decimals[k] >= 0) {
+      const auto r = std::to_chars(fixed, fixed + sizeof fixed, v, std::chars_format::fixed, decimals[k]);
+      double back = 0;
+      const double s = grid.scale[k], off = grid.offset[k];
+      if (r.ec == std::errc() && std::from_chars(fixed, r.ptr, back).ec == std::errc() &&
+          std::round((back - off) / s) == std::round((v - off) / s)) {
+        line.append(fixed, r.ptr);
+        return;
+      }
+    }
+    num(v);
+  };
   const bool colour_8bit = cloud.rgb_from_8bit_las;
   auto colour = [&](std::uint16_t v) -> unsigned { return colour_8bit ? detail::colour_to_8bit(v) : v; };
   for (std::size_t i = 0; i < cloud.size(); ++i) {
     line.clear();
-    num(cloud.positions[i].x);
-    next(cloud.positions[i].y);
-    next(cloud.positions[i].z);
+    coord(cloud.positions[i].x, 0);
+    line += sep;
+    coord(cloud.positions[i].y, 1);
+    line += sep;
+    coord(cloud.positions[i].z, 2);
     if (!cloud.rgb.empty()) next(colour(cloud.rgb[i].r)), next(colour(cloud.rgb[i].g)), next(colour(cloud.rgb[i].b));
     if (!cloud.normals.empty()) next(cloud.normals[i].x), next(cloud.normals[i].y), next(cloud.normals[i].z);
     if (!cloud.intensity.empty()) next(cloud.intensity[i]);

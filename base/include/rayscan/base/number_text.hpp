@@ -4,7 +4,9 @@
 #pragma once
 
 #include <charconv>
+#include <cmath>
 #include <string>
+#include <string_view>
 
 namespace rayscan {
 
@@ -14,6 +16,21 @@ namespace rayscan {
   char buf[32];  // the longest shortest form of a double is 24 characters ("-2.2250738585072014e-308")
   const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
   return ec == std::errc() ? std::string(buf, end) : std::string();
+}
+
+/// Decimals of the grid step `step` written shortest in fixed notation (0.00025 -> 5, 0.01 -> 2,
+/// 1 -> 0, 0.5 -> 1): the digits that show every multiple of the step exactly, as lasinfo prints a
+/// LAS file's coordinates to its scale. -1 for a step that is not a short decimal (1/3: more than
+/// 12 decimals), not finite or not > 0.
+[[nodiscard]] inline int step_decimals(double step) {
+  if (!(step > 0) || !std::isfinite(step)) return -1;
+  char buf[400];  // fixed notation of the largest double is 309 digits
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, step, std::chars_format::fixed);
+  if (ec != std::errc()) return -1;
+  const std::string_view t(buf, static_cast<std::size_t>(end - buf));
+  const std::size_t dot = t.find('.');
+  const int dec = dot == std::string_view::npos ? 0 : static_cast<int>(t.size() - dot - 1);
+  return dec <= 12 ? dec : -1;
 }
 
 }  // namespace rayscan

@@ -82,9 +82,11 @@ struct ExtraBytesInfo {
 /// Options of write_las().
 struct LasWriteOptions {
   /// LAS scale factors (x, y, z); 0 = choose: the coarsest of 1, 0.1, 0.01, 0.001 on which every
-  /// coordinate of the axis reads back bit for bit (a cloud that came from LAS through PLY, PCD or
-  /// text is written back exactly), else 0.001 (millimetre in metre units), coarsened by powers of
-  /// ten until the cloud's extent fits 32-bit integers.
+  /// coordinate of the axis reads back bit for bit (a cloud that came from LAS through PLY or PCD
+  /// is written back exactly), failing that the coarsest on which every coordinate lies to within
+  /// the rounding of decimal text (a cloud that came from LAS through write_text's decimals gets
+  /// its integers back), else 0.001 (millimetre in metre units), coarsened by powers of ten until
+  /// the cloud's extent fits 32-bit integers.
   Vec3 scale{0.0};
   /// LAS offsets; used only when `has_offset`, otherwise the bounding box minimum rounded down
   /// to a whole multiple of 1000 * scale.
@@ -143,14 +145,18 @@ void write_pcd(const std::filesystem::path& path, const PointCloud& cloud);
 
 /// Writes `cloud` as text: a header line naming the columns (x y z, red green blue, nx ny nz,
 /// intensity, classification, gps_time, then the scalars' sanitised names),
-/// then one point per line; separated by ',' for a .csv name, else by a space (.xyz, .txt). Each
-/// value is the shortest decimal that reads back as the same double, so read_point_cloud returns
-/// the coordinates bit for bit. Colour as the source held it: 16-bit values, or, for colour read
+/// then one point per line; separated by ',' for a .csv name, else by a space (.xyz, .txt).
+/// Coordinates of an axis that all lie exactly on the LAS grid of `grid` (its scale and offset,
+/// when has_offset: las_grid_of the source) are printed with the grid's decimals, as las2txt does
+/// (scale 0.01: 849087.70, not the reader's double 849087.7000000001; a scale of 0.00025: 5
+/// decimals; the offset's decimals when it has more); each other value is the shortest decimal
+/// that reads back as the same double, so read_point_cloud returns it bit for bit, and write_las
+/// stores grid coordinates on the same integers again. Colour as the source held it: 16-bit values, or, for colour read
 /// from 8-bit values (PointCloud::rgb_from_8bit_las: a LAS file's or a text file's), those 8-bit
 /// values, which read_point_cloud scales by 257 again (docs/formats.md). No CRS. Written via temp
 /// file + rename. Throws
 /// std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
-void write_text(const std::filesystem::path& path, const PointCloud& cloud);
+void write_text(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& grid = {});
 
 /// The extensions write_point_cloud() writes, lower case with the dot: ".las", ".laz", ".ply",
 /// ".pcd", ".xyz", ".csv", ".txt".
@@ -180,7 +186,7 @@ void require_point_cloud_output(const std::filesystem::path& path);
 
 /// Writes `cloud` in the format its extension names (case-insensitive; the one writer choice of
 /// every job): .las and .laz with write_las (`las`: scale and offset), .ply with write_ply, .pcd
-/// with write_pcd, .xyz / .csv / .txt with write_text.
+/// with write_pcd, .xyz / .csv / .txt with write_text (`las`: the grid whose decimals it prints).
 /// Throws what require_point_cloud_output() throws before writing anything, else what the
 /// writer throws.
 void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& las = {});

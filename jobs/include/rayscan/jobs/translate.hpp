@@ -6,6 +6,7 @@
 
 #include "rayscan/base/job.hpp"
 #include "rayscan/io/translate.hpp"
+#include "rayscan/octree/geometry.hpp"
 #include "rayscan/site/copc_writer.hpp"
 
 #include <cstdint>
@@ -36,6 +37,20 @@ struct TranslateJobOptions {
   /// parse_byte_size reads it ("4G", "512M"); unused for other outputs.
   std::string memory = "4G";
   JobControl control;  ///< COPC output: threads compressing nodes (0 = all cores); unused otherwise
+  /// LAS, LAZ and COPC output: the scale factors, the size of one step of the records' X, Y, Z
+  /// integers in file units (PDAL writers.las scale_x, scale_y, scale_z): one value for all three
+  /// axes, or three; each finite and > 0. Empty: the source's grid (a LAS, LAZ or COPC input's,
+  /// or an index file's LAS integers), else io::write_las's automatic choice. With a scale the
+  /// offsets are automatic unless `offset` gives them, and a LAS/LAZ input is read and rewritten
+  /// by io::write_las (PDRF 6-8) instead of copied.
+  std::vector<double> scale;
+  /// LAS, LAZ and COPC output: the offsets X, Y, Z in file units (writers.las offset_x, ...).
+  /// Unset: the source's with the source's scale, else automatic.
+  std::optional<Vec3> offset;
+  /// LAS, LAZ and COPC output: automatic offsets (writers.las offset_x "auto": the points' low
+  /// corner rounded down to 1000 scale steps, io::LasWriteOptions::offset), also where the
+  /// source's grid would be kept. Not with `offset`.
+  bool auto_offset = false;
   /// LAS <-> LAZ: called with (phase, points done, points in the file) as the conversion streams
   /// (io::TranslateOptions::progress); may be empty.
   std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)> progress;
@@ -56,7 +71,9 @@ struct TranslateJobResult : io::TranslateResult {
 /// the file size; details in rayscan/io/translate.hpp); any other pair reads the cloud whole and
 /// writes it with io::write_point_cloud (PLY output keeps positions exactly; LAS output quantises
 /// them to the source's LAS grid, io::las_grid_of, or an index file's LAS-integer positions' grid,
-/// else to write_las's scale). An index file gives its points in the sources' order
+/// else to write_las's scale; `scale` and `offset` replace that grid, for COPC output through a
+/// temporary LAS file beside the output; text output prints coordinates on the source's grid with
+/// its decimals, io::write_text). An index file gives its points in the sources' order
 /// (MappedIndex::to_point_cloud: positions, colour, intensity, classification, GPS time and CRS,
 /// the attributes an index stores; colour stored as byte x 257 is written back as 8-bit values).
 /// The output's format and path are checked before the input is read (translate_output_extensions,
@@ -64,7 +81,11 @@ struct TranslateJobResult : io::TranslateResult {
 /// [1, 4294967294], std::invalid_argument for an output extension with no writer ("<out>: expected
 /// a file name ending in .las, .laz, .copc.laz, ...") and for an unsupported conversion (LAZ or COPC
 /// output of the waveform point formats 4, 5, 9, 10; COPC output of an index file), io::IndexError
-/// for a malformed index file, io::CopcMemoryError when a COPC build exceeds `memory`,
+/// for a malformed index file, OptionError naming "scale" or "offset" for a scale that is not
+/// finite and > 0, a count other than 1 or 3, an offset that is not finite, `offset` with
+/// `auto_offset`, or either with an output that is not LAS, LAZ or COPC, std::invalid_argument
+/// (from io::write_las: point, axis, value) for a coordinate whose (value - offset) / scale does not
+/// fit a 32-bit integer, io::CopcMemoryError when a COPC build exceeds `memory`,
 /// io::FormatError for a malformed input, OutputFileError or std::runtime_error for I/O failures
 /// (the previous output, if any, is then left unchanged).
 TranslateJobResult run_translate(const TranslateJobOptions& options);
