@@ -24,12 +24,15 @@ struct RenderCliOptions {
   std::vector<std::string> aovs;
   std::string primitive, colmap_dir, colmap_image, dsm, frames, cache = "2G";
   std::optional<double> ortho_res, exposure;
+  std::string ortho_colour = "albedo";
+  CLI::Option* ortho_colour_option = nullptr;  // given or not: it needs --ortho-map
   bool quiet = false, print_scene = false;
 };
 
 int run_render(const RenderCliOptions& o) {
   using namespace rayscan::render;
   using namespace rayscan::jobs;
+  if (o.ortho_colour_option->count() > 0 && !o.ortho_res) throw UsageError("--ortho-colour: needs --ortho-map RES");
   RenderJobOptions job;
   SceneOverrides ov;
   ov.camera_file = o.camera;
@@ -98,6 +101,7 @@ int run_render(const RenderCliOptions& o) {
     map.render = std::move(job);
     map.ortho_map = *o.ortho_res;
     map.dsm = o.dsm;
+    map.ortho_colour = *analysis::parse_ortho_colour(o.ortho_colour);  // CLI11 checked the name
     const OrthoMapJobResult r = run_ortho_map(map);
     if (!is_root()) return 0;
     if (talk && !traffic_summary().empty()) std::cerr << "rayscan render: " << traffic_summary() << "\n";
@@ -166,6 +170,13 @@ Runner add_render_command(CLI::App& app) {
   c->add_option("--ortho-map", o->ortho_res, "Top-down orthophoto over the cloud's XY extent at RES world "
                 "units per pixel, written as a georeferenced RGBA GeoTIFF (--out .tif; alpha 0 where no point was hit) with the cloud's CRS")
       ->check(positive());
+  o->ortho_colour_option =
+      c->add_option("--ortho-colour", o->ortho_colour, "With --ortho-map: what each cell shows: albedo (the unshaded "
+                    "colour of the first point hit by the ray through the cell centre: its RGB as stored in 8-bit sRGB, "
+                    "else the scene's material, for a quick look the elevation ramp; --spp and --exposure do not "
+                    "apply) or shaded (the path-traced render: sky light and shading, --spp samples per cell)")
+          ->check(CLI::IsMember({"albedo", "shaded"}))
+          ->capture_default_str();
   c->add_option("--dsm", o->dsm, "With --ortho-map: also write the digital surface model (elevation of the "
                 "first surface per cell, NoData where the ray missed) as a Float32 GeoTIFF");
   c->add_flag("--print-scene", o->print_scene, "Print the effective scene (after every flag, with the automatic "

@@ -10,11 +10,39 @@
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
+#include <cctype>
 #include <cmath>
 #include <mutex>
 #include <stdexcept>
 
 namespace rayscan::analysis {
+
+namespace {
+
+// A render's image metadata keys ("rayscan:spp") as GDAL metadata keys ("RAYSCAN_SPP"): GDAL
+// splits an item at its first ':' or '=', so "rayscan:spp" would become the item "rayscan" and
+// every render item would overwrite the one before.
+std::vector<std::pair<std::string, std::string>> gdal_metadata_items(
+    const std::vector<std::pair<std::string, std::string>>& metadata) {
+  std::vector<std::pair<std::string, std::string>> out;
+  out.reserve(metadata.size());
+  for (const auto& [key, value] : metadata) {
+    std::string k = key;
+    for (char& c : k) c = c == ':' || c == '=' ? '_' : char(std::toupper(static_cast<unsigned char>(c)));
+    out.emplace_back(std::move(k), value);
+  }
+  return out;
+}
+
+}  // namespace
+
+const char* to_string(OrthoColour colour) { return colour == OrthoColour::shaded ? "shaded" : "albedo"; }
+
+std::optional<OrthoColour> parse_ortho_colour(std::string_view name) {
+  if (name == "albedo") return OrthoColour::albedo;
+  if (name == "shaded") return OrthoColour::shaded;
+  return std::nullopt;
+}
 
 OrthoMap ortho_map(const AABB& bounds, double res) {
   const GridSpec g = grid_over(bounds, res);
@@ -38,13 +66,14 @@ Raster dsm_from_depth(const OrthoMap& map, std::span<const float> depth) {
 }
 
 void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
-                         std::span<const glm::vec3> beauty, std::span<const float> depth, double exposure,
-                         const std::string& crs_wkt) {
+                         std::span<const glm::vec3> colour, std::span<const float> depth, double exposure,
+                         const std::string& crs_wkt,
+                         const std::vector<std::pair<std::string, std::string>>& metadata) {
   static std::once_flag registered;
   std::call_once(registered, [] { GDALAllRegister(); });
   const GridSpec& g = map.grid;
   const std::size_t n = std::size_t(g.cols) * g.rows;
-  if (beauty.size() != n) throw std::invalid_argument(path.string() + ": image size differs from the grid");
+  if (colour.size() != n) throw std::invalid_argument(path.string() + ": image size differs from the grid");
   if (depth.size() != n) throw std::invalid_argument(path.string() + ": depth AOV size differs from the grid");
   CPLPushErrorHandler(CPLQuietErrorHandler);
   struct Pop { ~Pop() { CPLPopErrorHandler(); } } pop;
@@ -72,11 +101,12 @@ void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
   bool ok = ds->SetGeoTransform(gt.data()) == CE_None;
   if (!crs_wkt.empty()) ok = ok && ds->SetSpatialRef(&srs) == CE_None;
   ds->SetMetadataItem("AREA_OR_POINT", "Area");
+  for (const auto& [key, value] : metadata) ok = ok && ds->SetMetadataItem(key.c_str(), value.c_str()) == CE_None;
   const float scale = float(std::exp2(exposure));
   std::vector<std::uint8_t> band(n);
   for (int b = 0; b < 3 && ok; ++b) {
     for (std::size_t i = 0; i < n; ++i)
-      band[i] = std::uint8_t(std::lround(255.0f * linear_to_srgb(beauty[i][b] * scale)));
+      band[i] = std::uint8_t(std::lround(255.0f * linear_to_srgb(colour[i][b] * scale)));
     ok = ds->GetRasterBand(b + 1)->RasterIO(GF_Write, 0, 0, int(g.cols), int(g.rows), band.data(), int(g.cols),
                                             int(g.rows), GDT_Byte, 0, 0) == CE_None;
   }
@@ -96,19 +126,24 @@ void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
   file.commit();
 }
 
-std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, std::span<const glm::vec3> beauty,
+std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, OrthoColour kind,
+                                                   std::span<const glm::vec3> colour,
                                                    std::span<const float> depth, double exposure,
                                                    const std::string& crs_wkt,
                                                    const std::filesystem::path& image,
                                                    const std::filesystem::path& dsm,
                                                    const std::vector<std::pair<std::string, std::string>>& metadata) {
   std::vector<std::filesystem::path> written;
-  write_ortho_geotiff(image, map, beauty, depth, exposure, crs_wkt);
+  const std::vector<std::pair<std::string, std::string>> items = gdal_metadata_items(metadata);
+  std::vector<std::pair<std::string, std::string>> ortho_items = items;
+  ortho_items.emplace_back("RAYSCAN_ORTHO_COLOUR", to_string(kind));
+  // Exposure is a scale of light; an albedo is a reflectance and is written as it is.
+  write_ortho_geotiff(image, map, colour, depth, kind == OrthoColour::shaded ? exposure : 0.0, crs_wkt, ortho_items);
   written.push_back(image);
   if (!dsm.empty()) {
     GeoTiffOptions go;
     go.crs_wkt = crs_wkt;
-    go.metadata = metadata;
+    go.metadata = items;
     go.unit_is_crs_length = true;  // elevations, in the cloud's units
     write_geotiff(dsm, dsm_from_depth(map, depth), go);
     written.push_back(dsm);

@@ -432,9 +432,18 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
     require_outputs(outs, ins);
   }
   job.write = false;
+  const bool albedo = o.ortho_colour == analysis::OrthoColour::albedo;
   std::vector<Aov>& aovs = job.scene.output.aovs;
-  if (std::find(aovs.begin(), aovs.end(), Aov::depth) == aovs.end()) aovs.push_back(Aov::depth);
+  for (const Aov a : {Aov::depth, Aov::albedo})
+    if ((a == Aov::depth || albedo) && std::find(aovs.begin(), aovs.end(), a) == aovs.end()) aovs.push_back(a);
+  if (albedo) {
+    // The albedo and depth AOVs are traced by their own ray through each cell centre; the beauty
+    // is not used, so it gets the least light transport the renderer allows.
+    job.scene.spp = 1;
+    job.scene.max_depth = 1;
+  }
   OrthoMapJobResult r;
+  r.ortho_colour = o.ortho_colour;
   job.camera_for_cloud = [&](const AABB& bounds) {
     try {
       r.map = analysis::ortho_map(bounds, res);
@@ -442,14 +451,14 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
       throw OptionError({option("ortho_map"), std::string(": ") + e.what()});
     }
     job.control.info("ortho map: " + std::to_string(r.map->grid.cols) + " x " + std::to_string(r.map->grid.rows) +
-                     " cells, top-down");
+                     " cells, top-down, colour " + analysis::to_string(o.ortho_colour));
     return r.map->camera;
   };
   r.render = run_render(job);
   if (!is_root(job.control)) return r;  // only the root's image is complete
   r.dsm = analysis::dsm_from_depth(*r.map, r.render.image.depth);
   if (o.render.write)
-    r.render.written = analysis::write_ortho_map(*r.map, r.render.image.beauty, r.render.image.depth,
+    r.render.written = analysis::write_ortho_map(*r.map, o.ortho_colour, r.colour(), r.render.image.depth,
                                                  job.scene.output.exposure, r.render.crs_wkt, image, o.dsm,
                                                  r.render.metadata);
   return r;

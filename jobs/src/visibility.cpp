@@ -268,13 +268,14 @@ struct VisibilityRun {
   /// The target height of the DSM viewshed: --target-height, else 0 (gdal_viewshed's -tz 0).
   double dsm_target_height() const { return o.target_height.value_or(0.0); }
 
-  /// The GIS viewshed: rayscan's own DSM of the cloud on `grid` (the depth of a top-down render
-  /// with the quick look's surfels, exactly what `render --ortho-map CELL --dsm` writes), then an
-  /// exact line of sight over it from every observer's eye (dsm_viewshed, R3).
+  /// The GIS viewshed: rayscan's own DSM of the cloud on `grid` (run_ortho_map over the quick
+  /// look's surfels, exactly what `render --ortho-map CELL --dsm` writes), then an exact line of
+  /// sight over it from every observer's eye (dsm_viewshed, R3).
   Raster viewshed_on_dsm(const GridSpec& grid) {
     const auto t = std::chrono::steady_clock::now();
-    RenderJobOptions ro;
-    // The quick look's geometry over this job's points (`cloud`); only the depth is used.
+    OrthoMapJobOptions mo;
+    RenderJobOptions& ro = mo.render;
+    // The quick look's geometry over this job's points (`cloud`); only the DSM is used.
     const nlohmann::json quick_look = {
         {"radius", "auto"}, {"primitive", "surfel"}, {"spp", 1}, {"material", {{"color", "elevation"}}}};
     render::SceneParseOptions po;
@@ -282,17 +283,20 @@ struct VisibilityRun {
     po.cloud_required = false;
     po.name = (o.cloud_file.empty() ? std::string("points in memory") : o.cloud_file.string()) + " (DSM)";
     ro.scene = render::parse_scene_json(quick_look, o.cloud_file, po);
-    ro.scene.output.aovs = {Aov::depth};
     ro.cloud = &cloud;
     ro.write = false;
     ro.control.threads = ctl.threads;
-    std::optional<OrthoMap> map;
-    ro.camera_for_cloud = [&](const AABB& bounds) {
-      map = ortho_map(bounds, grid.cell);
-      return map->camera;
-    };
-    const RenderJobResult dr = run_render(ro);
-    const Raster dsm = dsm_from_depth(*map, dr.image.depth);
+    mo.ortho_map = grid.cell;
+    OrthoMapJobResult dr;
+    try {
+      dr = run_ortho_map(mo);
+    } catch (const OptionError& e) {  // the map's cell size is this job's `cell`
+      std::vector<OptionError::Part> parts = e.parts();
+      for (OptionError::Part& p : parts)
+        if (OptionName* n = std::get_if<OptionName>(&p); n && n->field == "ortho_map") n->field = "cell";
+      throw OptionError(std::move(parts));
+    }
+    const Raster& dsm = dr.dsm;
     if (dsm.grid.cols != grid.cols || dsm.grid.rows != grid.rows || dsm.grid.x0 != grid.x0 || dsm.grid.y_top != grid.y_top)
       throw std::logic_error("visibility: the DSM's grid is not the raster's");
     // The observers' ranges and angle limits as the per-point line of sight applies them.

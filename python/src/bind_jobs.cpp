@@ -180,13 +180,21 @@ py::dict render(py::handle scene, const std::string& scene_json, py::handle clou
   return out;
 }
 
-/// rayscan.ortho_map: `rayscan render CLOUD --ortho-map RES` without files (jobs::run_ortho_map,
-/// write off): the quick look's scene (material, surfels) seen by the map's top-down camera over
-/// the cloud's exact bounds.
-py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::handle seed, py::handle threads) {
+/// rayscan.ortho_map: `rayscan render CLOUD --ortho-map RES --ortho-colour COLOUR` without files
+/// (jobs::run_ortho_map, write off): the quick look's scene (material, surfels) seen by the map's
+/// top-down camera over the cloud's exact bounds. `colour` is "albedo" or "shaded"
+/// (analysis::OrthoColour); anything else raises ValueError (TypeError for a non-string).
+py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::handle seed, py::handle threads,
+                   py::handle colour) {
   jobs::OrthoMapJobOptions o;
   o.render.write = false;
   o.render.control.threads = parse_threads(threads);
+  if (!py::isinstance<py::str>(colour))
+    throw py::type_error("colour must be \"albedo\" or \"shaded\", got " + type_name(colour));
+  const std::string colour_name = colour.cast<std::string>();
+  const std::optional<analysis::OrthoColour> kind = analysis::parse_ortho_colour(colour_name);
+  if (!kind) throw py::value_error("colour '" + colour_name + "': expected albedo or shaded");
+  o.ortho_colour = *kind;
   const double res = float_arg(res_arg, "res", "a number > 0 (world units per pixel)");
   if (!(res > 0.0) || !std::isfinite(res))
     throw py::value_error("res: expected a finite number > 0 (world units per pixel), got " + std::to_string(res));
@@ -214,7 +222,9 @@ py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::han
   const analysis::GridSpec& g = r.map->grid;
   const auto h = static_cast<py::ssize_t>(g.rows), w = static_cast<py::ssize_t>(g.cols);
   py::dict out;
-  out["image"] = own_as<float>(std::move(r.render.image.beauty), {h, w, 3});
+  std::vector<render::Color>& colour_of =
+      *kind == analysis::OrthoColour::albedo ? r.render.image.albedo : r.render.image.beauty;
+  out["image"] = own_as<float>(std::move(colour_of), {h, w, 3});
   out["dsm"] = to_numpy(std::move(r.dsm.values), {h, w});
   const std::array<double, 6> gt = g.geotransform();
   out["geotransform"] = py::make_tuple(gt[0], gt[1], gt[2], gt[3], gt[4], gt[5]);
@@ -439,7 +449,7 @@ void bind_jobs(py::module_& m) {
         py::arg("height") = py::none(), py::arg("spp") = py::none(), py::arg("seed") = py::none(),
         py::arg("aovs") = py::tuple(), py::arg("camera") = py::none(), py::arg("threads") = 0);
   m.def("_ortho_map", &ortho_map, py::arg("cloud"), py::arg("res"), py::arg("spp") = py::none(),
-        py::arg("seed") = py::none(), py::arg("threads") = 0);
+        py::arg("seed") = py::none(), py::arg("threads") = 0, py::arg("colour") = "albedo");
   m.def("_compare", &compare, py::arg("reference"), py::arg("image"),
         py::arg("channels") = py::tuple(), py::arg("mask") = false, py::arg("alpha") = false,
         py::arg("resize") = false, py::arg("fail") = py::none(), py::arg("fail_percent") = py::none(),

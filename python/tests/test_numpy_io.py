@@ -415,6 +415,40 @@ def test_ortho_map_dsm_of_a_flat_roof_is_its_height(tmp_path):
         rayscan.ortho_map(SOURCE / "scenes" / "autzen_overview.json", 1.0)
 
 
+@pytestmark_jobs
+def test_ortho_map_image_is_the_points_own_colour():
+    """Two flat 10 x 10 squares of 16-bit colours v * 257 (left) and v * 256 (right): with the
+    default colour="albedo" every cell more than a cell from the squares' edges holds its
+    square's 8-bit sRGB colour v (+-1) once the linear image is sRGB-encoded with the standard's
+    formula; colour="shaded" is the lit render, not those colours; another colour is refused."""
+    colours = np.array([[200, 60, 30], [40, 120, 230]])
+    g = np.arange(0.125, 20, 0.25)
+    gx, gy = np.meshgrid(g, np.arange(0.125, 10, 0.25))
+    left = gx.ravel() < 10
+    rgb = np.where(left[:, None], colours[0] * 257, colours[1] * 256).astype(np.uint16)
+    cloud = rayscan.PointCloud(np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, 3.0)]), rgb=rgb)
+    out = rayscan.ortho_map(cloud, 1.0)
+    shaded = rayscan.ortho_map(cloud, 1.0, spp=4, colour="shaded")
+    assert out["image"].shape == shaded["image"].shape == (10, 20, 3)
+    x0, res, _, y_top, _, _ = out["geotransform"]
+    cx = x0 + (np.arange(20) + 0.5) * res
+    cy = y_top - (np.arange(10) + 0.5) * res
+
+    def srgb8(linear):
+        v = np.clip(linear.astype(np.float64), 0, 1)
+        return np.round(255 * np.where(v <= 0.0031308, 12.92 * v, 1.055 * v ** (1 / 2.4) - 0.055))
+
+    inner = (cy[:, None] > 1) & (cy[:, None] < 9) & (cx[None, :] > 1) & (cx[None, :] < 19) \
+        & (np.abs(cx[None, :] - 10) > 1)
+    want = np.where((cx[None, :] < 10)[..., None], colours[0], colours[1]) * np.ones((10, 1, 1))
+    assert inner.sum() == 128
+    np.testing.assert_allclose(srgb8(out["image"])[inner], want[inner], atol=1)
+    assert (np.abs(srgb8(shaded["image"])[inner] - want[inner]).max(axis=1) > 10).all()
+    np.testing.assert_array_equal(shaded["dsm"], out["dsm"])
+    with pytest.raises(ValueError, match="colour 'flat': expected albedo or shaded"):
+        rayscan.ortho_map(cloud, 1.0, colour="flat")
+
+
 # ---- Names: first("index"), ray_query's bound --------------------------------------------------
 
 def test_ray_query_without_a_bound_raises_unless_allow_all(uniform_cloud, random_rays):

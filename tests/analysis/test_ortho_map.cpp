@@ -12,8 +12,11 @@
 
 #include <gdal_priv.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <unistd.h>
 
 using namespace rayscan;
@@ -129,5 +132,108 @@ TEST(OrthoMap, CliWritesOrthophotoAndDsm) {
   EXPECT_EQ(rayscan::test::run_command(base + " --dsm " + (dir / "x.tif").string()).code, 2);
   EXPECT_EQ(rayscan::test::run_command(base + " --ortho-map 1 --out " + (dir / "x.png").string()).code, 2);
   EXPECT_FALSE(std::filesystem::exists(dir / "x.tif"));
+  std::filesystem::remove_all(dir);
+}
+
+namespace {
+
+// Band `b` (1-based) of a GDAL raster as bytes, row-major; empty when it cannot be read.
+std::vector<std::uint8_t> byte_band(GDALDataset* ds, int b) {
+  const int cols = ds->GetRasterXSize(), rows = ds->GetRasterYSize();
+  std::vector<std::uint8_t> v(std::size_t(cols) * rows);
+  if (ds->GetRasterBand(b)->RasterIO(GF_Read, 0, 0, cols, rows, v.data(), cols, rows, GDT_Byte, 0, 0) != CE_None)
+    v.clear();
+  return v;
+}
+
+std::string metadata_item(GDALDataset* ds, const char* key) {
+  const char* v = ds->GetMetadataItem(key);
+  return v ? v : "";
+}
+
+}  // namespace
+
+// The orthophoto is a map of the points' own colours: a LAS of two flat 10 x 10 squares side by
+// side, one coloured (200, 60, 30) stored as 16-bit v * 257, the other (40, 120, 230) stored as
+// v * 256 (the two scalings writers use), rendered by `rayscan render CLOUD --ortho-map 1`: every
+// cell whose centre lies more than a cell from the squares' edges holds its square's 8-bit colour
+// (+-1, the 16-bit scaling) with alpha 255, whatever the sky. The shaded render of the same cloud
+// (--ortho-colour shaded) is not those colours; each file says which it holds
+// (RAYSCAN_ORTHO_COLOUR), the DSM carries the render's metadata as GDAL items (RAYSCAN_SPP), and
+// the colour option is refused without --ortho-map or with an unknown value.
+TEST(OrthoMap, OrthophotoCellsHoldThePointsOwnColours) {
+  const auto dir = std::filesystem::temp_directory_path() / ("rayscan_ortho_rgb_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const int colours[2][3] = {{200, 60, 30}, {40, 120, 230}};
+  const int scale[2] = {257, 256};
+  PointCloud pc;
+  for (int j = 0; j < 40; ++j)
+    for (int i = 0; i < 80; ++i) {
+      const int sq = i < 40 ? 0 : 1;  // x < 10: square 0
+      pc.positions.push_back(Vec3(0.125 + 0.25 * i, 0.125 + 0.25 * j, 3.0));
+      pc.rgb.push_back({std::uint16_t(colours[sq][0] * scale[sq]), std::uint16_t(colours[sq][1] * scale[sq]),
+                        std::uint16_t(colours[sq][2] * scale[sq])});
+    }
+  io::write_las(dir / "squares.las", pc);
+  const std::string base = std::string(RAYSCAN_BIN) + " render -q " + (dir / "squares.las").string() + " --ortho-map 1";
+  const auto albedo = rayscan::test::run_command(base + " --out " + (dir / "a.tif").string() + " --dsm " +
+                                                 (dir / "d.tif").string());
+  ASSERT_EQ(albedo.code, 0) << albedo.out;
+  const auto shaded = rayscan::test::run_command(base + " --ortho-colour shaded --out " + (dir / "s.tif").string());
+  ASSERT_EQ(shaded.code, 0) << shaded.out;
+
+  GDALAllRegister();
+  const auto open = [](const std::filesystem::path& f) {
+    return std::unique_ptr<GDALDataset, void (*)(GDALDataset*)>(
+        static_cast<GDALDataset*>(GDALOpen(f.c_str(), GA_ReadOnly)), [](GDALDataset* d) { GDALClose(d); });
+  };
+  const auto a = open(dir / "a.tif"), s = open(dir / "s.tif"), d = open(dir / "d.tif");
+  ASSERT_TRUE(a && s && d);
+  EXPECT_EQ(metadata_item(a.get(), "RAYSCAN_ORTHO_COLOUR"), "albedo");
+  EXPECT_EQ(metadata_item(s.get(), "RAYSCAN_ORTHO_COLOUR"), "shaded");
+  EXPECT_EQ(metadata_item(d.get(), "RAYSCAN_SPP"), "1");  // albedo: one ray per cell
+  EXPECT_EQ(metadata_item(s.get(), "RAYSCAN_PRIMITIVE"), "surfel");
+  double gt[6];
+  ASSERT_EQ(a->GetGeoTransform(gt), CE_None);
+  ASSERT_EQ(gt[0], 0.0);
+  ASSERT_EQ(gt[3], 10.0);
+  const int cols = a->GetRasterXSize(), rows = a->GetRasterYSize();
+  ASSERT_EQ(cols, 20);
+  ASSERT_EQ(rows, 10);
+  std::vector<std::uint8_t> ab[4], sb[3];
+  for (int b = 0; b < 4; ++b) {
+    ab[b] = byte_band(a.get(), b + 1);
+    ASSERT_EQ(ab[b].size(), std::size_t(cols * rows));
+    if (b < 3) sb[b] = byte_band(s.get(), b + 1);
+  }
+  int checked[2] = {0, 0}, shaded_differs = 0;
+  for (int row = 0; row < rows; ++row)
+    for (int col = 0; col < cols; ++col) {
+      const double x = col + 0.5, y = 10.0 - (row + 0.5);
+      if (y < 1.0 || y > 9.0 || x < 1.0 || x > 19.0 || std::abs(x - 10.0) < 1.0) continue;
+      const int sq = x < 10.0 ? 0 : 1;
+      const std::size_t k = std::size_t(row) * cols + col;
+      SCOPED_TRACE("cell " + std::to_string(col) + ", " + std::to_string(row));
+      EXPECT_EQ(ab[3][k], 255);
+      int off = 0;
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(int(ab[c][k]), colours[sq][c], 1);
+        off = std::max(off, std::abs(int(sb[c][k]) - colours[sq][c]));
+      }
+      shaded_differs += off > 10;
+      ++checked[sq];
+    }
+  EXPECT_EQ(checked[0], 8 * 8);
+  EXPECT_EQ(checked[1], 8 * 8);
+  EXPECT_EQ(shaded_differs, checked[0] + checked[1]);  // sky light and shading change every cell
+
+  const auto refused = [&](const std::string& args) { return rayscan::test::run_command(base + args).code; };
+  EXPECT_EQ(refused(" --ortho-colour flat --out " + (dir / "x.tif").string()), 2);
+  EXPECT_EQ(rayscan::test::run_command(std::string(RAYSCAN_BIN) + " render -q " + (dir / "squares.las").string() +
+                                       " --ortho-colour shaded --out " + (dir / "x.png").string())
+                .code,
+            2);
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.tif") || std::filesystem::exists(dir / "x.png"));
   std::filesystem::remove_all(dir);
 }

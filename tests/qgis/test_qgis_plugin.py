@@ -6,7 +6,8 @@ the plugin enabled in a throwaway profile; `qgis_process list` shows the five ra
 `qgis_process run rayscan:viewshed` writes the same GeoTIFF as `rayscan visibility` (cell for cell,
 also with observers in EPSG:4326 that the plugin reprojects, and without a CRS, with a warning);
 ortho_dsm, solar and point_visibility outputs (its point vector layer too) open with the cloud's
-CRS, quick_look's image opens; PRIMITIVE and solar's VALUE offer the CLI's own values (its --help),
+CRS, quick_look's image opens, ortho_dsm's COLOUR reaches the orthophoto; PRIMITIVE, ortho_dsm's
+COLOUR and solar's VALUE offer the CLI's own values (its --help),
 and rayscan's refusals reach the user naming the parameters, not the CLI's options. Exit 77
 (skipped) when qgis_process is not installed.
 
@@ -220,6 +221,12 @@ def desktop_checks(plugin_dir, cloud, work, rayscan):
               and (default is None or options[d.defaultValue()] == default),
               "desktop: {}'s PRIMITIVE {} (default {}) has rayscan {} --primitive's values {} (default {})".format(
                   a, options, d.defaultValue() if d else None, command, values, default))
+    d = algs["ortho_dsm"].parameterDefinition("COLOUR")
+    values, default = cli_choices(rayscan, "render", "--ortho-colour")
+    check(d is not None and d.type() == "enum" and d.options() == values and default is not None
+          and d.options()[d.defaultValue()] == default,
+          "desktop: ortho_dsm's COLOUR {} is rayscan render --ortho-colour's {} (default {})".format(
+              d.options() if d else None, values, default))
     d = algs["solar"].parameterDefinition("VALUE")
     values, _ = cli_choices(rayscan, "solar", "--raster-value")
     check(d is not None and d.type() == "enum" and d.options()[1:] == values and d.defaultValue() == 0,
@@ -398,6 +405,14 @@ def main():
     r_dsm = read_raster(dsm) if code == 0 else None
     check(r_dsm is not None and r_dsm[0].shape == cli[0].shape and r_dsm[1] == cli[1],
           "ortho_dsm: the DSM has the viewshed's grid")
+    from osgeo import gdal
+    shaded = os.path.join(work, "ortho_shaded.tif")
+    code_shaded, _ = qp("run", "rayscan:ortho_dsm", "--", "INPUT=" + cloud, "CELL={}".format(CELL), "COLOUR=1",
+                        "SPP=2", "ORTHO=" + shaded, "DSM=" + os.path.join(work, "dsm_shaded.tif"))
+    kinds = [gdal.Open(f).GetMetadataItem("RAYSCAN_ORTHO_COLOUR") if c == 0 and gdal.Open(f) else None
+             for f, c in ((ortho, code), (shaded, code_shaded))]
+    check(kinds == ["albedo", "shaded"], "ortho_dsm: the orthophoto's colour is albedo by default, shaded with "
+          "COLOUR=1 (RAYSCAN_ORTHO_COLOUR: {})".format(kinds))
 
     quick = os.path.join(work, "quick.png")
     code, _ = qp("run", "rayscan:quick_look", "--", "INPUT=" + cloud, "WIDTH=240", "SPP=2", "OUTPUT=" + quick)

@@ -1,8 +1,11 @@
-"""Ortho + DSM: `rayscan render CLOUD --ortho-map CELL --dsm DSM --out ORTHO`."""
+"""Ortho + DSM: `rayscan render CLOUD --ortho-map CELL --ortho-colour COLOUR --dsm DSM --out ORTHO`."""
 
-from qgis.core import QgsProcessingParameterRasterDestination
+from qgis.core import QgsProcessingParameterEnum, QgsProcessingParameterRasterDestination
 
 from .base import RayscanAlgorithm
+
+#: The values of `rayscan render --ortho-colour`, in the CLI's order; the first is its default.
+COLOURS = ["albedo", "shaded"]
 
 
 class OrthoDsm(RayscanAlgorithm):
@@ -12,17 +15,21 @@ class OrthoDsm(RayscanAlgorithm):
     DISPLAY = "Ortho + DSM"
     HELP = ("Renders the cloud straight down over its XY extent (rayscan render --ortho-map CELL --dsm): "
             "an RGBA orthophoto (alpha 0 where no point was hit) and the digital surface model, the elevation of the first surface each "
-            "cell's vertical ray meets (NoData where it misses). Both GeoTIFFs carry the cloud's CRS; "
+            "cell's vertical ray meets (NoData where it misses). Colour 'albedo' (the default) gives each cell the "
+            "unshaded colour of the point its centre ray hits: the point's RGB as stored (8-bit sRGB), or the "
+            "elevation ramp for a cloud without RGB; 'shaded' gives the path-traced render instead (sky light and "
+            "shading, Samples per pixel). Both GeoTIFFs carry the cloud's CRS; "
             "the cell size is in the cloud's horizontal units. The DSM is the surface the Viewshed "
             "algorithm sees over.")
     ORTHO = "ORTHO"
     DSM = "DSM"
-    FLAGS = {"CELL": "--ortho-map", "SPP": "--spp", "DSM": "--dsm", "ORTHO": "--out,-o"}
+    FLAGS = {"CELL": "--ortho-map", "COLOUR": "--ortho-colour", "SPP": "--spp", "DSM": "--dsm", "ORTHO": "--out,-o"}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS's name)
         """Declare the parameters."""
         self.add_cloud_parameter()
         self.add_cell_parameter()
+        self.addParameter(QgsProcessingParameterEnum("COLOUR", self.tr("Colour"), COLOURS, defaultValue=0))
         self.add_spp_parameter()
         self.addParameter(QgsProcessingParameterRasterDestination(self.ORTHO, self.tr("Orthophoto")))
         self.addParameter(QgsProcessingParameterRasterDestination(self.DSM, self.tr("DSM")))
@@ -35,6 +42,7 @@ class OrthoDsm(RayscanAlgorithm):
         self.check_extension(ortho, (".tif", ".tiff"), "The orthophoto")
         self.check_extension(dsm, (".tif", ".tiff"), "The DSM")
         self.run_cli(["render", cloud] + self.option("CELL", self.parameterAsDouble(parameters, "CELL", context))
+                     + self.option("COLOUR", COLOURS[self.parameterAsEnum(parameters, "COLOUR", context)])
                      + self.option("SPP", self.parameterAsInt(parameters, "SPP", context))
                      + self.option("DSM", dsm) + self.option("ORTHO", ortho), feedback)
         return {self.ORTHO: ortho, self.DSM: dsm}

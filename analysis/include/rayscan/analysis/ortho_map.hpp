@@ -1,6 +1,7 @@
 // True orthophotos and digital surface models from the renderer: a top-down
 // orthographic camera whose pixels are the cells of a north-up grid over the cloud's XY extent,
-// the beauty image written as a georeferenced RGB GeoTIFF and the depth AOV as elevations.
+// the colour of each cell (the points' own colour by default, OrthoColour) written as a
+// georeferenced RGBA GeoTIFF and the depth AOV as elevations.
 #pragma once
 
 #include "rayscan/analysis/raster.hpp"
@@ -9,8 +10,10 @@
 #include <glm/vec3.hpp>
 
 #include <filesystem>
+#include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -29,27 +32,53 @@ struct OrthoMap {
 /// wider or taller than 65536 pixels.
 OrthoMap ortho_map(const AABB& bounds, double res);
 
+/// What an orthophoto's cells show.
+enum class OrthoColour {
+  /// The material colour of the first surface the cell-centre ray hits (the render's albedo AOV),
+  /// unshaded: a point's own RGB for a cloud with colours (8-bit sRGB, as stored), else the
+  /// scene's material (a quick look: the elevation ramp). What PDAL's writers.gdal over
+  /// Red/Green/Blue or CloudCompare's rasterize give: a map of the points' colours.
+  albedo,
+  /// The path-traced beauty (sky light, sun, shading; the scene's spp and exposure): a picture
+  /// seen from above rather than a map of colours.
+  shaded,
+};
+
+/// "albedo" or "shaded" (the CLI's and Python's value).
+const char* to_string(OrthoColour colour);
+
+/// The OrthoColour called `name` (exact, lower case), or nullopt.
+std::optional<OrthoColour> parse_ortho_colour(std::string_view name);
+
 /// The digital surface model: elevation z_top - depth per cell, NaN where the ray missed (no
 /// surface). `depth` is the depth AOV of the render (row-major, grid.cols x grid.rows).
 /// Throws std::invalid_argument when its size differs from the grid.
 Raster dsm_from_depth(const OrthoMap& map, std::span<const float> depth);
 
-/// Writes the beauty image (linear RGB, the renderer's Color) as a 4-band Byte GeoTIFF: RGB
-/// (sRGB-encoded after 2^exposure, photometric RGB) plus an alpha band (TIFF ExtraSamples
-/// unassociated alpha, GDAL's GCI_AlphaBand): 255 where the cell's ray hit the cloud (finite
-/// `depth`, the depth AOV), 0 where it missed; DEFLATE, on map.grid with the CRS `crs_wkt` ("" =
-/// none); atomically (temporary file, then rename). Throws std::runtime_error "<path>: <GDAL's
-/// message>", std::invalid_argument for a size mismatch or an unparsable CRS.
+/// Writes the orthophoto `colour` (linear RGB per cell: the albedo AOV or the beauty image) as a
+/// 4-band Byte GeoTIFF: RGB (sRGB-encoded after 2^exposure, photometric RGB; an 8-bit sRGB colour
+/// converted to linear by the renderer comes back as itself) plus an alpha band (TIFF
+/// ExtraSamples unassociated alpha, GDAL's GCI_AlphaBand): 255 where the cell's ray hit the cloud
+/// (finite `depth`, the depth AOV), 0 where it missed; DEFLATE, on map.grid with the CRS
+/// `crs_wkt` ("" = none) and the dataset metadata items `metadata` (keys without ':', which GDAL
+/// reads as the end of a key); atomically (temporary file, then rename). Throws
+/// std::runtime_error "<path>: <GDAL's message>", std::invalid_argument for a size mismatch or an
+/// unparsable CRS.
 void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
-                         std::span<const glm::vec3> beauty, std::span<const float> depth, double exposure,
-                         const std::string& crs_wkt);
+                         std::span<const glm::vec3> colour, std::span<const float> depth, double exposure,
+                         const std::string& crs_wkt,
+                         const std::vector<std::pair<std::string, std::string>>& metadata = {});
 
 /// The outputs of `rayscan render --ortho-map RES --out ortho.tif [--dsm dsm.tif]` from a render
-/// through map.camera: the orthophoto (write_ortho_geotiff, alpha from `depth`) at `image` and,
-/// when `dsm` is not empty, the DSM (dsm_from_depth, Float32 GeoTIFF with `metadata`) at `dsm`, both with the CRS
-/// `crs_wkt`. `depth` is the depth AOV (required). Returns the files written,
-/// orthophoto first. Throws as write_ortho_geotiff, dsm_from_depth and write_geotiff.
-std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, std::span<const glm::vec3> beauty,
+/// through map.camera: the orthophoto of `colour` (write_ortho_geotiff, alpha from `depth`, with
+/// the item RAYSCAN_ORTHO_COLOUR = to_string(kind)) at `image` and, when `dsm` is not empty, the
+/// DSM (dsm_from_depth, Float32 GeoTIFF) at `dsm`, both with the CRS `crs_wkt` and the render's
+/// image `metadata` as GDAL items ("rayscan:spp" -> "RAYSCAN_SPP"). `depth` is the depth AOV
+/// (required); `exposure` applies to the shaded colour only (an albedo is written as it is).
+/// Returns the files written, orthophoto first. Throws as write_ortho_geotiff, dsm_from_depth and
+/// write_geotiff.
+std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, OrthoColour kind,
+                                                   std::span<const glm::vec3> colour,
                                                    std::span<const float> depth, double exposure,
                                                    const std::string& crs_wkt,
                                                    const std::filesystem::path& image,

@@ -92,35 +92,53 @@ struct OrthoMapJobOptions {
   /// The scene, its cloud (file or `cloud` in memory), control and cache as for run_render(). The
   /// scene's camera is not used (the map's replaces it); camera_for_cloud must be unset (the job
   /// sets it). With `write`, scene.output.image is the orthophoto (.tif or .tiff); the depth AOV
-  /// is added to scene.output.aovs when missing (the DSM and the alpha band come from it).
+  /// is added to scene.output.aovs when missing (the DSM and the alpha band come from it), and
+  /// for the albedo colour the albedo AOV.
   RenderJobOptions render;
   double ortho_map = 0.0;      ///< the map's cell size (analysis::ortho_map's res), world units per pixel, > 0
   std::filesystem::path dsm;   ///< with render.write: also the DSM GeoTIFF here (.tif or .tiff); "" = none
+  /// What the orthophoto's cells show: the unshaded material colour of the first surface hit
+  /// (albedo, the default: the points' RGB, else the scene's material) or the path-traced beauty
+  /// (shaded). For albedo no light is traced: the render runs at 1 sample per pixel and one ray
+  /// per path (scene.spp and max_depth are set so), since only its AOVs are used.
+  analysis::OrthoColour ortho_colour = analysis::OrthoColour::albedo;
 };
 
 /// Output of run_ortho_map().
 struct OrthoMapJobResult {
   RenderJobResult render;      ///< the render through map.camera (image: beauty, depth and the
-                               ///< requested AOVs; written: the orthophoto, then the DSM)
+                               ///< requested AOVs, albedo too for the albedo colour; written: the
+                               ///< orthophoto, then the DSM)
   /// The grid over the cloud's exact bounds and its camera: set whenever run_ortho_map returns
   /// (optional only because a Camera has no empty state).
   std::optional<analysis::OrthoMap> map;
   analysis::Raster dsm;        ///< elevation per cell (analysis::dsm_from_depth; NaN = no surface);
                                ///< empty on the non-root processes of a distributed render
+  analysis::OrthoColour ortho_colour = analysis::OrthoColour::albedo;  ///< options.ortho_colour
+
+  /// The orthophoto's colour per cell, linear RGB, row-major from the north-west cell: the albedo
+  /// AOV (0 where the ray missed) or the beauty, as ortho_colour says (a view of render.image);
+  /// complete on the root only of a distributed render.
+  [[nodiscard]] std::span<const render::Color> colour() const {
+    return ortho_colour == analysis::OrthoColour::albedo ? std::span<const render::Color>(render.image.albedo)
+                                                         : std::span<const render::Color>(render.image.beauty);
+  }
 };
 
-/// Renders a true orthophoto and digital surface model (`rayscan render --ortho-map RES [--dsm F]`,
-/// rayscan.ortho_map()): run_render() with the camera analysis::ortho_map(bounds, ortho_map) over
-/// the cloud's exact bounds (logged as "ortho map: C x R cells, top-down"), the DSM from the depth
-/// AOV and, when render.write, the files (analysis::write_ortho_map: the RGBA orthophoto at
-/// scene.output.image, the Float32 DSM at `dsm` when set, both with the cloud's CRS and the
-/// render's metadata), written on the root only. The outputs' names and folders are checked before
-/// the render. Throws OptionError naming `ortho_map` for a cell size that is not finite and
-/// > 0 or that gives too large a grid (analysis::ortho_map's message), naming `ortho_map` and `out`
-/// for an orthophoto name that is not a GeoTIFF, `dsm` for such a DSM name; OutputFileError
-/// (require_outputs) for an output that cannot be written, is an input or is the other output;
-/// std::invalid_argument when render.camera_for_cloud is set; otherwise as run_render() and
-/// analysis::write_ortho_map.
+/// Renders a true orthophoto and digital surface model (`rayscan render --ortho-map RES [--dsm F]
+/// [--ortho-colour albedo|shaded]`, rayscan.ortho_map()): run_render() with the camera
+/// analysis::ortho_map(bounds, ortho_map) over the cloud's exact bounds (logged as "ortho map: C x
+/// R cells, top-down, colour albedo"), the DSM from the depth AOV, the colour from the albedo AOV
+/// or the beauty (ortho_colour) and, when render.write, the files (analysis::write_ortho_map: the
+/// RGBA orthophoto at scene.output.image, the Float32 DSM at `dsm` when set, both with the cloud's
+/// CRS and the render's metadata), written on the root only. This is the one definition of a
+/// cloud's DSM on a grid (the visibility job's DSM viewshed calls it too). The outputs' names and
+/// folders are checked before the render. Throws OptionError naming `ortho_map` for a cell size
+/// that is not finite and > 0 or that gives too large a grid (analysis::ortho_map's message),
+/// naming `ortho_map` and `out` for an orthophoto name that is not a GeoTIFF, `dsm` for such a DSM
+/// name; OutputFileError (require_outputs) for an output that cannot be written, is an input or is
+/// the other output; std::invalid_argument when render.camera_for_cloud is set; otherwise as
+/// run_render() and analysis::write_ortho_map.
 OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& options);
 
 /// Output of run_render_frames().
