@@ -120,9 +120,10 @@ Runner add_solar_command(CLI::App& app) {
                 "(RASTER_HHMM.tif/.png, numbered frames); per point sun_hours and shadow_hours");
   c->add_option("--every", o->job.every, "The instants of --day (e.g. 15min, 30min, 1h)")->capture_default_str();
   c->add_option("--utc-offset", o->job.utc_offset,
-                "Local standard time, hours east of UTC (e.g. 2, -7, 5.5): the zone of --start, --end, --at and "
-                "--day written without an offset, and of the times and dates the maps and logs state (default: "
-                "a time without an offset is UTC, a date alone local mean solar time, longitude / 15)")
+                "Local standard time, hours east of UTC in whole minutes (e.g. 2, -7, 5.5): the zone of --start, "
+                "--end, --at and --day written without an offset, and of the times and dates the maps and logs "
+                "state (default: a time without an offset is UTC, a date alone local mean solar time, longitude / "
+                "15 to the minute)")
       ->check(utc_offset);
   c->add_option("--lat,--latitude", o->job.latitude, "Site latitude, degrees north (default: from the cloud's CRS)")
       ->check(latitude);
@@ -215,9 +216,9 @@ Runner add_solar_command(CLI::App& app) {
       ->capture_default_str()
       ->check(finite_number(-360, 360));
   p->add_option("--utc-offset", o->position.utc_offset,
-                "Local standard time, hours east of UTC, -18..18: the zone of --time written without an offset, "
-                "of the printed time and of the reported day (default: --time without an offset is UTC; the day "
-                "is in the time's offset, else local mean solar time)")
+                "Local standard time, hours east of UTC, -18..18, whole minutes: the zone of --time written without "
+                "an offset, of the printed time and of the reported day (default: --time without an offset is UTC; "
+                "the day is in the time's offset, else local mean solar time to the minute)")
       ->check(utc_offset);
   p->add_flag("--json", o->json, "Print JSON");
   c->require_subcommand(0, 1);

@@ -26,19 +26,30 @@ std::string gdal_error() {
 
 }  // namespace
 
-SiteLocation locate_site(const std::string& crs_wkt, const Vec3& point) {
+void check_site_crs(const std::string& crs_wkt) {
   if (crs_wkt.empty()) throw std::invalid_argument("the cloud has no CRS: give the site's latitude and longitude");
   OGRSpatialReference src;
   CPLErrorReset();
   if (src.importFromWkt(crs_wkt.c_str()) != OGRERR_NONE)
     throw std::invalid_argument("the cloud's CRS: GDAL cannot parse its WKT (" + gdal_error() + ")");
+  // Degrees are no frame for a direction whatever latitude and longitude are given, so the remedy
+  // is a projected CRS: the cloud reprojected, or, where the coordinates are projected already and
+  // the file names the wrong CRS, the right one written in its place.
   if (is_unprojected_crs(crs_wkt))
     throw std::invalid_argument("the cloud's CRS is geographic or geocentric: sun directions need a projected CRS "
-                                "(x east, y north, z up); reproject the cloud");
+                                "(x east, y north, z up); reproject the cloud (e.g. pdal translate with "
+                                "filters.reprojection), or, if its coordinates are projected and only the CRS "
+                                "is wrong, assign the right one (e.g. pdal translate with --writers.las.a_srs)");
   // A local (engineering) frame may well be x east, y north, but has no place on the Earth.
   if (!src.IsProjected())
     throw std::invalid_argument("the cloud's CRS is not projected: no place on the Earth to find the sun from; "
                                 "give the site's latitude and longitude");
+}
+
+SiteLocation locate_site(const std::string& crs_wkt, const Vec3& point) {
+  check_site_crs(crs_wkt);
+  OGRSpatialReference src;
+  src.importFromWkt(crs_wkt.c_str());
   src.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   OGRSpatialReference wgs84;
   wgs84.importFromEPSG(4326);

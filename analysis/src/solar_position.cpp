@@ -340,7 +340,7 @@ SunRiseTransitSet compute_rise_transit_set(const SpaInput& in,
                                            std::optional<double> utc_offset_hours) {
   validate(in);
   if (utc_offset_hours) require_range("utc_offset_hours", *utc_offset_hours, -18.0, 18.0);
-  const double offset_s = utc_offset_hours.value_or(in.longitude_deg / 15.0) * 3600.0;
+  const double offset_s = utc_offset_hours.value_or(local_mean_time_offset(in.longitude_deg)) * 3600.0;
 
   // The local day: local midnight before the instant, in UTC and then UT1 unix seconds.
   const double local_s = static_cast<double>(in.time.unix_seconds) + in.time.fraction + offset_s;
@@ -571,6 +571,8 @@ Iso8601Time parse_iso8601(std::string_view text) {
 }  // namespace solar_detail
 
 SolarPosition solar_position(const SpaInput& input) { return solar_detail::compute_position(input); }
+
+double local_mean_time_offset(double longitude_deg) { return std::round(longitude_deg * 4.0) / 60.0; }
 
 SunRiseTransitSet sun_rise_transit_set(const SpaInput& input,
                                        std::optional<double> utc_offset_hours) {

@@ -14,6 +14,8 @@
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/image/image_file.hpp"
+#include "rayscan/io/point_reader.hpp"
+#include "rayscan/site/index_file.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -42,7 +44,8 @@ UtcInstant instant_of(double unix_seconds) {
 /// The time zones of a time option written without an offset. With --utc-offset (`utc_offset`,
 /// hours east of UTC) every such text is that zone's clock, as a planner's local standard time
 /// (PVGIS, pvlib). Without it a date-time is UTC (a cloud has no time zone, and the machine's must
-/// not change a result) and a date alone is midnight in local mean solar time (`longitude_deg` / 15).
+/// not change a result) and a date alone is midnight in local mean solar time
+/// (local_mean_time_offset: longitude / 15 h to the minute).
 struct LocalZone {
   std::optional<double> utc_offset;
   double longitude_deg = 0.0;
@@ -73,7 +76,7 @@ OptionTime option_time(const char* field, const std::string& text, const LocalZo
     out.written_offset = *t.offset_seconds / 3600.0;
     offset_hours = *out.written_offset;
   } else {
-    offset_hours = zone.utc_offset.value_or(t.date_only ? zone.longitude_deg / 15.0 : 0.0);
+    offset_hours = zone.utc_offset.value_or(t.date_only ? local_mean_time_offset(zone.longitude_deg) : 0.0);
   }
   out.unix_seconds = unix_of(t.clock) - offset_hours * 3600.0 + (t.date_only && end_of_day ? 86400.0 : 0.0);
   return out;
@@ -90,6 +93,32 @@ OptionError spa_error(const std::invalid_argument& e) {
   for (const auto& [spa, field] : names)
     if (what.rfind(spa, 0) == 0) return OptionError({option(field), what.substr(std::strlen(spa))});
   return OptionError({what});
+}
+
+/// Refuses a `utc_offset` outside -18..18 h or not a whole number of minutes: ISO 8601 writes an
+/// offset in whole minutes, and every time the jobs state is written with it.
+void check_utc_offset(const std::optional<double>& hours) {
+  if (!hours) return;
+  const double minutes = *hours * 60.0;
+  if (!(std::abs(*hours) <= 18.0) || std::abs(minutes - std::round(minutes)) > 1e-9)
+    throw OptionError({option("utc_offset"), ": expected hours east of UTC in -18..18, in whole minutes (e.g. -7, "
+                                             "5.5, 5.75)"});
+}
+
+/// The CRS a cloud file names, from its header alone, before any point is read: an index file's
+/// checked metadata, or the header a LAS/LAZ/COPC reader parses at open (as `rayscan info` does).
+/// nullopt for the other formats, whose readers decode the whole file at open (io::PointReader):
+/// their CRS comes with their points. Throws io::FormatError / io::IndexError for a bad header.
+std::optional<std::string> header_crs(const std::filesystem::path& file) {
+  if (io::is_index_file(file)) {
+    io::IndexOpenOptions oo;
+    oo.verify = io::IndexOpenOptions::Verify::metadata_only;  // the nodes are checked when the site opens
+    return io::MappedIndex::open(file, oo).crs_wkt();
+  }
+  if (io::format_from_extension(file) != io::Format::las) return std::nullopt;
+  io::ReadOptions ro;
+  ro.stored_colour = true;  // no pass over the colours at open
+  return io::open_point_reader(file, io::AttributeSet::none(), ro)->crs_wkt();
 }
 
 /// "30min", "1h", "2 h", "1d" -> seconds; `name`: the option it came from, for the error.
@@ -147,13 +176,15 @@ int month_of(double unix_seconds) {
 }  // namespace
 
 std::string format_iso8601(double unix_seconds, double utc_offset_hours) {
-  const auto local = static_cast<std::int64_t>(std::llround(unix_seconds + utc_offset_hours * 3600.0));
+  // An offset ISO 8601 cannot write (not whole minutes) would make the text name another instant.
+  const double minutes = utc_offset_hours * 60.0;
+  const long off_min = std::abs(minutes - std::round(minutes)) <= 1e-9 ? std::lround(minutes) : 0;
+  const auto local = static_cast<std::int64_t>(std::llround(unix_seconds)) + std::int64_t{off_min} * 60;
   const auto tp = std::chrono::sys_seconds(std::chrono::seconds(local));
   const auto day = std::chrono::floor<std::chrono::days>(tp);
   const std::chrono::year_month_day ymd(day);
   const std::chrono::hh_mm_ss hms(tp - day);
   char buf[64];
-  const long off_min = std::lround(utc_offset_hours * 60.0);
   if (off_min == 0)
     std::snprintf(buf, sizeof buf, "%04d-%02u-%02uT%02d:%02d:%02dZ", int(ymd.year()), unsigned(ymd.month()),
                   unsigned(ymd.day()), int(hms.hours().count()), int(hms.minutes().count()),
@@ -166,17 +197,6 @@ std::string format_iso8601(double unix_seconds, double utc_offset_hours) {
   return buf;
 }
 
-namespace {
-
-/// format_iso8601() for metadata, where the text must name the instant: ISO 8601 offsets are whole
-/// minutes, so an offset that is not (local mean solar time, longitude / 15 h) is written as UTC.
-std::string exact_iso8601(double unix_seconds, double utc_offset_hours) {
-  const double minutes = utc_offset_hours * 60.0;
-  return format_iso8601(unix_seconds, minutes == std::round(minutes) ? utc_offset_hours : 0.0);
-}
-
-}  // namespace
-
 std::string format_time_label(double unix_seconds, double utc_offset_hours) {
   const std::string iso = format_iso8601(unix_seconds, utc_offset_hours);
   const std::size_t t = iso.find('T');  // YYYY-MM-DDThh:mm:ss, then Z or +hh:mm
@@ -187,6 +207,7 @@ std::string format_time_label(double unix_seconds, double utc_offset_hours) {
 
 SunPositionJobResult run_sun_position(const SunPositionJobOptions& o) {
   SunPositionJobResult r;
+  check_utc_offset(o.utc_offset);
   // Read as `rayscan solar` reads its times (option_time): a date alone is that day's midnight in
   // the day's time zone, not UTC midnight, which west of Greenwich is the evening before.
   const OptionTime time = option_time("time", o.time, {o.utc_offset, o.longitude}, false);
@@ -211,14 +232,14 @@ SunPositionJobResult run_sun_position(const SunPositionJobOptions& o) {
   } catch (const std::invalid_argument& e) {
     throw spa_error(e);
   }
-  r.day_utc_offset = offset.value_or(o.longitude / 15.0);
+  r.day_utc_offset = offset.value_or(local_mean_time_offset(o.longitude));
   return r;
 }
 
 std::string sun_position_report_json(const SunPositionJobResult& r) {
   nlohmann::json j;
   const SolarPosition& p = r.position;
-  j["time"] = exact_iso8601(unix_of(r.time), r.time_utc_offset);
+  j["time"] = format_iso8601(unix_of(r.time), r.time_utc_offset);
   j["zenith"] = p.zenith_deg;
   j["azimuth"] = p.azimuth_deg;
   j["elevation"] = p.elevation_deg;
@@ -280,8 +301,7 @@ struct SolarRun {
       parse_step(o.every, "every");
       if (!o.weather.empty()) throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
     }
-    if (o.utc_offset && !(std::abs(*o.utc_offset) <= 18.0))
-      throw OptionError({option("utc_offset"), ": expected hours in -18..18"});
+    check_utc_offset(o.utc_offset);
     if (frames_mode) {
       value = "in_shadow";
     } else if (instant && (!o.start.empty() || !o.end.empty()))
@@ -345,9 +365,32 @@ struct SolarRun {
     r.raster_value = value;
   }
 
+  /// Refuses a CRS that cannot place the site or give sun directions a frame (check_site_crs). With
+  /// --latitude/--longitude only a geographic or geocentric one is refused (degrees are no frame
+  /// for a direction wherever the site is); any other then turns compass azimuths into the grid
+  /// where PROJ can, and keeps grid north where it cannot (a local frame).
+  void check_crs(const std::string& wkt) const {
+    if (o.latitude && !is_unprojected_crs(wkt)) return;
+    try {
+      check_site_crs(wkt);
+    } catch (const std::invalid_argument& e) {
+      if (is_unprojected_crs(wkt)) throw OptionError({e.what()});
+      throw OptionError({e.what(), " (", option("latitude"), ", ", option("longitude"), ")"});
+    }
+  }
+
+  /// The CRS checked before the points are read, indexed and their normals estimated: from the
+  /// file's header (header_crs) or the cloud in memory. A format whose CRS comes only with its
+  /// points is checked in open_site(), before its normals.
+  void check_header_crs() const {
+    if (o.cloud) check_crs(o.cloud->crs_wkt);
+    else if (const std::optional<std::string> wkt = header_crs(o.cloud_file)) check_crs(*wkt);
+  }
+
   void open_site() {
     detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.index, o.radius, o.radius_factor, ctl,
                             {o.copc_in_place, o.cache_bytes});
+    check_crs(cloud.crs_wkt);
     r.info = cs.info;
     r.source = cs.source;
     r.radius = cs.radius;
@@ -384,10 +427,9 @@ struct SolarRun {
           const SiteLocation at = locate_site(cloud.crs_wkt, centre);
           r.location.convergence_deg = at.convergence_deg;
           r.location.elevation_m = at.elevation_m;
-        } catch (const std::invalid_argument& e) {
-          // x and y in degrees are no frame for sun directions, whatever the site's position: refused
-          // with locate_site's reason. A CRS PROJ cannot place (a local one) keeps grid north.
-          if (is_unprojected_crs(cloud.crs_wkt)) throw OptionError({e.what()});
+        } catch (const std::invalid_argument&) {
+          // A CRS PROJ cannot place (a local one) keeps grid north; a geographic or geocentric one
+          // was refused by check_crs.
         }
       if (o.elevation) r.location.elevation_m = *o.elevation;
     } else {
@@ -648,7 +690,7 @@ struct SolarRun {
     GeoTiffOptions go;
     go.crs_wkt = cloud.crs_wkt;
     go.metadata = {{"RAYSCAN_VALUE", value}, {"RAYSCAN_SOURCE", r.source}, {"RAYSCAN_UNITS", units}};
-    if (at) go.metadata.push_back({"RAYSCAN_TIME", exact_iso8601(*at, r.utc_offset)});
+    if (at) go.metadata.push_back({"RAYSCAN_TIME", format_iso8601(*at, r.utc_offset)});
     go.unit = units;
     write_geotiff(path, map, go);
     r.written.push_back(path);
@@ -709,7 +751,7 @@ struct SolarRun {
   }
 
   /// Hours east of UTC of the days: --utc-offset, else local mean solar time.
-  double day_offset() const { return o.utc_offset.value_or(r.location.longitude_deg / 15.0); }
+  double day_offset() const { return o.utc_offset.value_or(local_mean_time_offset(r.location.longitude_deg)); }
 
   /// The time zones of the time options written without an offset, at the site.
   LocalZone zone() const { return {o.utc_offset, r.location.longitude_deg}; }
@@ -787,6 +829,7 @@ struct SolarRun {
 SolarJobResult run_solar(const SolarJobOptions& o) {
   SolarRun run(o);
   run.check_options();
+  run.check_header_crs();
   run.open_site();
   run.locate();
   if (run.frames_mode) {
@@ -812,11 +855,11 @@ std::string solar_report_json(const SolarJobResult& r) {
                {"elevation_m", r.location.elevation_m},
                {"grid_convergence_deg", r.location.convergence_deg},
                {"from_crs", r.location_from_crs}};
-  j["start"] = exact_iso8601(r.start_unix, r.utc_offset);
+  j["start"] = format_iso8601(r.start_unix, r.utc_offset);
   if (r.sun) {
     j["sun"] = {{"azimuth", r.sun->azimuth_deg}, {"elevation", r.sun->elevation_deg}, {"zenith", r.sun->zenith_deg}};
   } else {
-    j["end"] = exact_iso8601(r.end_unix, r.utc_offset);
+    j["end"] = format_iso8601(r.end_unix, r.utc_offset);
     j["step_hours"] = r.step_hours;
   }
   j["steps"] = r.steps;

@@ -1,13 +1,15 @@
 // The sun map and the per-point irradiation sum against the per-instant models they stand for
 // (clear_sky_irradiance, measured_irradiance_on_surface, themselves checked against GRASS r.sun
 // in test_clear_sky.cpp), and the shadows of the solar job against analytic geometry: a box
-// building on a plane, whose shadow is the box projected along the sun direction.
+// building on a plane, whose shadow is the box projected along the sun direction; the times the
+// job states (read back as instants) and its refusal of a CRS from the file's header.
 #include "rayscan/analysis/solar_irradiation.hpp"
 #include "rayscan/analysis/site_location.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/solar.hpp"
 #include "rayscan/site/copc.hpp"
 
+#include "../common/run_command.hpp"
 #include "small_copc.hpp"
 
 #include <cpl_conv.h>
@@ -19,7 +21,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <optional>
@@ -29,6 +33,8 @@
 #include <cstring>
 #include <numbers>
 #include <random>
+#include <string>
+#include <vector>
 
 using namespace rayscan;
 using namespace rayscan::analysis;
@@ -699,4 +705,171 @@ TEST(SiteLocation, GeographicAndGeocentricAreRefusedByOneRule) {
   }
   cloud.crs_wkt = local;
   EXPECT_NO_THROW(jobs::run_solar(o));
+}
+
+namespace solar_time_test {
+
+// An ISO 8601 "YYYY-MM-DDThh:mm:ss" with 'Z' or "+hh:mm" / "-hh:mm" as UTC unix seconds, read with
+// sscanf and std::chrono's civil calendar rather than the library's own parser.
+std::int64_t unix_of_iso(const std::string& text) {
+  int y = 0, mo = 0, d = 0, h = 0, mi = 0, s = 0;
+  char zone[8] = {};
+  if (std::sscanf(text.c_str(), "%d-%d-%dT%d:%d:%d%7s", &y, &mo, &d, &h, &mi, &s, zone) != 7) {
+    ADD_FAILURE() << "not ISO 8601 with an offset: '" << text << "'";
+    return 0;
+  }
+  int offset = 0;
+  if (std::string(zone) != "Z") {
+    char sign = 0;
+    int oh = 0, om = 0;
+    if (std::sscanf(zone, "%c%d:%d", &sign, &oh, &om) != 3 || (sign != '+' && sign != '-'))
+      ADD_FAILURE() << "no offset in '" << text << "'";
+    offset = (sign == '-' ? -60 : 60) * (oh * 60 + om);
+  }
+  const std::chrono::sys_days day = std::chrono::year{y} / std::chrono::month(unsigned(mo)) / std::chrono::day(unsigned(d));
+  return std::int64_t{day.time_since_epoch().count()} * 86400 + h * 3600 + mi * 60 + s - offset;
+}
+
+}  // namespace solar_time_test
+
+// ISO 8601 writes an offset in whole minutes, so local mean solar time is longitude / 15 h to the
+// minute: -8:12 at 123.07 W (the mean time itself is -8:12:16.8). Every instant `solar position`
+// prints, read back, is the instant itself to the second: the date alone's midnight is 08:12:00Z,
+// which is also the Julian day SPA was given, and sunrise, transit and sunset are those the same day
+// prints at --utc-offset -8 (a whole hour) and, for sunrise and transit, at UTC.
+TEST(SolarCli, EveryInstantStatedInLocalMeanSolarTimeIsExact) {
+  using solar_time_test::unix_of_iso;
+  const auto run = [](const std::string& extra) {
+    const auto r = rayscan::test::run_command(
+        std::string(RAYSCAN_BIN) + " solar position --lat 44.05 --lon -123.07 --time 2026-06-21 --json" + extra, false);
+    EXPECT_EQ(r.code, 0) << extra << ": " << r.out;
+    return nlohmann::json::parse(r.out);
+  };
+  const nlohmann::json mean = run(""), pst = run(" --utc-offset -8"), utc = run(" --utc-offset 0");
+  const std::int64_t midnight = unix_of_iso("2026-06-21T00:00:00Z") + 8 * 3600 + 12 * 60;
+  EXPECT_EQ(unix_of_iso(mean["time"]), midnight) << mean["time"];
+  EXPECT_NEAR(mean["julian_day"].get<double>(), 2440587.5 + double(midnight) / 86400.0, 1e-8);  // JD of unix 0
+  for (const char* event : {"sunrise", "transit", "sunset"}) {
+    const std::string text = mean[event];
+    EXPECT_EQ(text.substr(0, 10), "2026-06-21") << event;  // the local day's events
+    EXPECT_EQ(text.substr(19), "-08:12") << event;
+    EXPECT_EQ(unix_of_iso(text), unix_of_iso(pst[event])) << text << " vs " << pst[event];
+  }
+  for (const char* event : {"sunrise", "transit"})
+    EXPECT_EQ(unix_of_iso(mean[event]), unix_of_iso(utc[event])) << mean[event] << " vs " << utc[event];
+}
+
+// A day of shadows without --utc-offset is numbered and titled in local mean solar time to the
+// minute: each frame's title and RAYSCAN_TIME (read back with GDAL) name its clock, and that clock
+// at -08:12 is the instant the frame shows: the noon frame's cells equal those of a map at the same
+// instant given in UTC (20:12Z).
+TEST(SolarJob, ADayOfShadowsInLocalMeanSolarTimeStatesExactInstants) {
+  using solar_time_test::unix_of_iso;
+  const PointCloud cloud = solar_time_test::ground_and_wall();
+  const std::filesystem::path dir = std::filesystem::path(testing::TempDir()) / "solar_mean_time";
+  std::filesystem::create_directories(dir);
+  jobs::SolarJobOptions o;
+  o.cloud = &cloud;
+  o.latitude = 44.05;
+  o.longitude = -123.07;
+  o.sky_rays = 0;
+  o.cell = 1.0;
+  o.control.threads = 2;
+  jobs::SolarJobOptions day = o;
+  day.day = "2026-12-21";
+  day.every = "1h";
+  day.raster = dir / "winter.tif";
+  const jobs::SolarJobResult r = jobs::run_solar(day);
+  const std::int64_t midnight = unix_of_iso("2026-12-21T00:00:00Z") + 8 * 3600 + 12 * 60;
+  EXPECT_EQ(r.start_unix, double(midnight));
+  EXPECT_EQ(nlohmann::json::parse(jobs::solar_report_json(r))["start"], "2026-12-21T00:00:00-08:12");
+
+  GDALAllRegister();
+  const auto band = [](const std::filesystem::path& tif, std::string* title, std::string* time) {
+    std::vector<float> cells;
+    GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen(tif.c_str(), GA_ReadOnly));
+    if (!ds) {
+      ADD_FAILURE() << tif;
+      return cells;
+    }
+    GDALRasterBand* b = ds->GetRasterBand(1);
+    if (title) *title = b->GetDescription();
+    if (time) *time = ds->GetMetadataItem("RAYSCAN_TIME") ? ds->GetMetadataItem("RAYSCAN_TIME") : "";
+    cells.resize(std::size_t(ds->GetRasterXSize()) * std::size_t(ds->GetRasterYSize()));
+    EXPECT_EQ(b->RasterIO(GF_Read, 0, 0, ds->GetRasterXSize(), ds->GetRasterYSize(), cells.data(),
+                          ds->GetRasterXSize(), ds->GetRasterYSize(), GDT_Float32, 0, 0),
+              CE_None);
+    GDALClose(ds);
+    return cells;
+  };
+  std::size_t frames = 0;
+  for (int hour = 0; hour < 24; ++hour) {
+    char hh[3];
+    std::snprintf(hh, sizeof hh, "%02d", hour % 100);
+    const std::filesystem::path tif = dir / ("winter_" + std::string(hh) + "00.tif");
+    if (!std::filesystem::exists(tif)) continue;
+    ++frames;
+    std::string title, time;
+    band(tif, &title, &time);
+    EXPECT_EQ(title, "shadow at 2026-12-21 " + std::string(hh) + ":00 UTC-08:12");
+    EXPECT_EQ(time, "2026-12-21T" + std::string(hh) + ":00:00-08:12");
+    EXPECT_EQ(unix_of_iso(time), midnight + hour * 3600) << time;
+  }
+  EXPECT_EQ(frames, r.steps);
+  ASSERT_TRUE(std::filesystem::exists(dir / "winter_1200.tif"));
+
+  jobs::SolarJobOptions at = o;
+  at.at = "2026-12-21T20:12:00Z";
+  at.raster = dir / "at.tif";
+  jobs::run_solar(at);
+  std::string time;
+  const std::vector<float> shadow_at = band(dir / "at.tif", nullptr, &time);
+  EXPECT_EQ(unix_of_iso(time), midnight + 12 * 3600) << time;
+  EXPECT_EQ(band(dir / "winter_1200.tif", nullptr, nullptr), shadow_at);
+  std::filesystem::remove_all(dir);
+}
+
+// A CRS that gives sun directions no frame is refused from the file's header, before any point is
+// read: a LAS file naming WGS 84 (geographic) whose point records cannot be read (an x scale of
+// 1e308 takes every x, 515000 and more, past infinity, which only reading the records finds, as
+// `rayscan info` shows) gets the CRS's refusal, one line and no log line of reading. --lat/--lon do
+// not make degrees a frame, so they do not help, and the line does not offer them.
+TEST(SolarCli, AGeographicCrsIsRefusedFromTheHeaderBeforeThePointsAreRead) {
+  const std::filesystem::path dir = std::filesystem::path(testing::TempDir()) / "solar_geographic";
+  std::filesystem::create_directories(dir);
+  const std::filesystem::path las = dir / "geographic.las", out = dir / "out.las";
+  PointCloud cloud;
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) cloud.positions.emplace_back(515000.0 + i, 4918000.0 + j, 2300.0);
+  OGRSpatialReference wgs84;
+  wgs84.importFromEPSG(4326);
+  char* wkt = nullptr;
+  wgs84.exportToWkt(&wkt);
+  cloud.crs_wkt = wkt;
+  CPLFree(wkt);
+  io::write_point_cloud(las, cloud);
+  {
+    std::fstream f(las, std::ios::in | std::ios::out | std::ios::binary);
+    const double scale = 1e308;
+    f.seekp(131);  // the header's x scale factor (LAS 1.2-1.4), little-endian float64
+    f.write(reinterpret_cast<const char*>(&scale), sizeof scale);
+  }
+  const auto info = rayscan::test::run_command(std::string(RAYSCAN_BIN) + " info '" + las.string() + "'");
+  EXPECT_EQ(info.code, 2) << info.out;
+  EXPECT_NE(info.out.find("overflows to infinity"), std::string::npos) << info.out;
+  for (const std::string extra : {"", " --lat 44.4 --lon -110.8"}) {
+    const auto r = rayscan::test::run_command(std::string(RAYSCAN_BIN) + " solar '" + las.string() +
+                                              "' --at 2026-06-21T12:00Z -o '" + out.string() + "'" + extra);
+    EXPECT_EQ(r.code, 2) << extra << ": " << r.out;
+    EXPECT_EQ(r.out.rfind("rayscan solar: the cloud's CRS is geographic or geocentric: sun directions need a "
+                          "projected CRS (x east, y north, z up); reproject the cloud",
+                          0),
+              0u)
+        << extra << ": " << r.out;
+    EXPECT_NE(r.out.find("assign the right one"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("--lat"), std::string::npos) << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+    EXPECT_FALSE(std::filesystem::exists(out));
+  }
+  std::filesystem::remove_all(dir);
 }

@@ -325,7 +325,7 @@ TEST(JobCli, SolarIntegrationStepIsAtMostAnHour) {
 
 TEST(JobCli, SolarPositionReadsADateAloneAsItsLocalMidnight) {
   // As the periods of `rayscan solar` do: midnight in --utc-offset hours east of UTC (-7: 07:00Z),
-  // else in local mean solar time (longitude / 15 = -8.2047 h: 08:12:17Z), and the sun's day is
+  // else in local mean solar time (longitude / 15 to the minute = -8:12: 08:12:00Z), and the sun's day is
   // that date (sunrise 2026-06-21, not the evening before's UTC date).
   auto r = rayscan_cli("solar position --lat 44.05 --lon -123.07 --time 2026-06-21 --utc-offset -7 --json");
   ASSERT_EQ(r.code, 0) << r.out;
@@ -335,7 +335,7 @@ TEST(JobCli, SolarPositionReadsADateAloneAsItsLocalMidnight) {
   r = rayscan_cli("solar position --lat 44.05 --lon -123.07 --time 2026-06-21 --json");
   ASSERT_EQ(r.code, 0) << r.out;
   j = nlohmann::json::parse(r.out);
-  EXPECT_EQ(j["time"], "2026-06-21T08:12:17Z");  // 123.07 / 15 h = 8 h 12 min 16.8 s, to the second
+  EXPECT_EQ(j["time"], "2026-06-21T08:12:00Z");  // 123.07 / 15 h = 8 h 12 min 16.8 s, to the minute
   EXPECT_EQ(j["sunrise"].get<std::string>().substr(0, 10), "2026-06-21");
 }
 

@@ -22,13 +22,19 @@ struct SiteLocation {
   double metres_per_unit = 1.0; ///< the CRS's horizontal linear unit in metres (US survey foot: 0.3048006)
 };
 
+/// Checks that `crs_wkt` (OGC WKT 1 or 2) can place a site, from the WKT alone: no point is needed,
+/// so a job can check a cloud's CRS from its file's header before reading its points. Throws
+/// std::invalid_argument (one line) when the WKT is empty or unparseable, when the CRS is
+/// geographic or geocentric (is_unprojected_crs: a sun direction needs a projected x east, y north,
+/// z up frame; the text names the remedies, reprojecting the cloud or assigning the right CRS), or
+/// when it is otherwise not projected (a local frame: no place on the Earth).
+void check_site_crs(const std::string& crs_wkt);
+
 /// The location of the point (x, y, z), given in the projected CRS `crs_wkt` (OGC WKT 1 or 2 as
 /// the cloud's file carries it), transformed to WGS 84 (EPSG:4326) with GDAL/PROJ. The convergence
 /// comes from the grid bearing of a short step due north (1e-5 degrees of latitude).
-/// Throws std::invalid_argument (one line) when the WKT is empty or unparseable, when the CRS is
-/// geographic or geocentric (is_unprojected_crs: a sun direction needs a projected x east, y north,
-/// z up frame), when it is otherwise not projected (a local frame), or when PROJ cannot transform
-/// the point.
+/// Throws std::invalid_argument (one line) for a CRS check_site_crs refuses, or when PROJ cannot
+/// transform the point.
 SiteLocation locate_site(const std::string& crs_wkt, const Vec3& point);
 
 /// True when `crs_wkt` parses as a geographic or geocentric CRS (coordinates in degrees or from the

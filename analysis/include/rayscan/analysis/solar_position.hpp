@@ -131,9 +131,15 @@ struct SunRiseTransitSet {
   SunDayKind kind = SunDayKind::rises_and_sets;
 };
 
+/// Local mean solar time as a time zone, hours east of UTC: longitude / 15, rounded to whole
+/// minutes (123.07 W: -8:12, where the mean time itself is -8:12:16.8). ISO 8601 and RFC 3339
+/// write an offset in whole minutes, so a time in this zone is written exactly with its offset,
+/// and local midnight, the clock and the offset agree; the rounding moves midnight by at most 30 s.
+double local_mean_time_offset(double longitude_deg);
+
 /// Sun transit, sunrise and sunset (A.2) of the local day that contains input.time: the calendar
 /// day in the time zone UTC + utc_offset_hours (|offset| <= 18), from local midnight to the next.
-/// Without an offset the day is local mean solar time (offset = longitude / 15 h), so that noon
+/// Without an offset the day is local mean solar time (local_mean_time_offset), so that noon
 /// falls near the middle of the day wherever the cloud is. With utc_offset_hours = 0 the day is
 /// the UTC day, which is the report's own convention (A.2 works from 0 UT). Each event is found
 /// once, within that day: a sunset just after local midnight is the previous evening's. As in A.2

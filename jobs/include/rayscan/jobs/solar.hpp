@@ -37,9 +37,11 @@ struct SunPositionJobOptions {
   double delta_t = analysis::kDefaultDeltaT;  ///< TT - UT1, seconds
   double slope = 0.0;                   ///< surface tilt for the incidence angle, degrees
   double surface_azimuth = 180.0;       ///< direction the surface faces, degrees clockwise from north
-  /// Hours east of UTC: the time zone of `time` written without an offset, and of the day whose
-  /// sunrise, transit and sunset are reported; nullopt = `time` without an offset is UTC, and the
-  /// day is in the offset written in `time`, else local mean solar time (longitude / 15).
+  /// Hours east of UTC, -18..18 in whole minutes (ISO 8601 writes no finer offset): the time zone
+  /// of `time` written without an offset, and of the day whose sunrise, transit and sunset are
+  /// reported; nullopt = `time` without an offset is UTC, and the day is in the offset written in
+  /// `time`, else local mean solar time (analysis::local_mean_time_offset: longitude / 15 h, to the
+  /// minute).
   std::optional<double> utc_offset;
 };
 
@@ -54,21 +56,24 @@ struct SunPositionJobResult {
   double day_utc_offset = 0.0;           ///< the time zone of `day`, hours east of UTC
 };
 
-/// Runs SPA for the options. Throws OptionError naming the field for a bad time or an input out
-/// of range.
+/// Runs SPA for the options. Throws OptionError naming the field for a bad time, an input out of
+/// range or a `utc_offset` that is not whole minutes.
 SunPositionJobResult run_sun_position(const SunPositionJobOptions& options);
 
 /// JSON report of a sun position (`rayscan solar position --json`), indented by 2: time (ISO 8601
-/// with time_utc_offset, in UTC where that is not whole minutes), zenith, azimuth, elevation, incidence (degrees), equation of time (minutes),
-/// sunrise / transit / sunset (ISO 8601 with the day's offset; null in polar day or night).
+/// with time_utc_offset), zenith, azimuth, elevation, incidence (degrees), equation of time
+/// (minutes), sunrise / transit / sunset (ISO 8601 with the day's offset; null in polar day or
+/// night). Every time is the exact instant to the second (format_iso8601).
 std::string sun_position_report_json(const SunPositionJobResult& result);
 
 /// ISO 8601 text of a UTC unix time shown at `utc_offset_hours` ("2026-06-21T05:31:12-07:00"),
-/// seconds rounded to the nearest whole second; the offset is written to the minute.
+/// rounded to the nearest whole second. ISO 8601 writes an offset in whole minutes, so an offset
+/// that is not a whole number of minutes is shown as UTC ('Z'): the text always names the instant.
 std::string format_iso8601(double unix_seconds, double utc_offset_hours);
 
 /// A time for people, as maps' titles and log lines state it: the local clock with its offset,
-/// "2026-06-21 12:00 UTC+02:00", seconds only when not zero, "2026-06-21 10:00 UTC" at offset 0.
+/// "2026-06-21 12:00 UTC+02:00", seconds only when not zero, "2026-06-21 10:00 UTC" at offset 0
+/// (and, as format_iso8601, at an offset that is not whole minutes).
 std::string format_time_label(double unix_seconds, double utc_offset_hours);
 
 /// Inputs of run_solar(). An invalid option throws OptionError naming the fields (`start`), which
@@ -101,7 +106,8 @@ struct SolarJobOptions {
   std::optional<double> elevation;      ///< site elevation, metres; nullopt = from the cloud's z
   /// The period: ISO 8601 date-times or dates alone. A time naming its offset ('Z', -07:00) is that
   /// instant; one without is the clock at `utc_offset` when given, else UTC. A date alone is its
-  /// midnight at `utc_offset`, else in local mean solar time (longitude / 15 h east of UTC), and
+  /// midnight at `utc_offset`, else in local mean solar time (analysis::local_mean_time_offset:
+  /// longitude / 15 h east of UTC, to the minute), and
   /// `end` given as a date alone includes that whole day, so "--start 2026-01-01 --end 2026-12-31"
   /// is the year.
   std::string start, end;
@@ -112,10 +118,11 @@ struct SolarJobOptions {
   /// animation), and per point sun_hours and shadow_hours.
   std::string day;
   std::string every = "30min";          ///< the instants of `day`
-  /// Hours east of UTC: the time zone of `start`, `end`, `at` and `day` written without an offset
-  /// (a planner's local standard time), of the days (monthly fields, the maps' dates) and of the
-  /// times the maps and the report state. nullopt = a date-time without an offset is UTC, and a
-  /// date alone and the days are in local mean solar time (longitude / 15).
+  /// Hours east of UTC, -18..18 in whole minutes: the time zone of `start`, `end`, `at` and `day`
+  /// written without an offset (a planner's local standard time), of the days (monthly fields, the
+  /// maps' dates) and of the times the maps and the report state. nullopt = a date-time without an
+  /// offset is UTC, and a date alone and the days are in local mean solar time (longitude / 15 h,
+  /// to the minute).
   std::optional<double> utc_offset;
   double delta_t = analysis::kDefaultDeltaT;  ///< TT - UT1, seconds (SPA)
   double pressure = 1013.25;            ///< mbar (SPA refraction)
@@ -173,7 +180,7 @@ struct SolarJobResult {
   double start_unix = 0.0, end_unix = 0.0, step_hours = 0.0;
   /// Hours east of UTC the times are stated in (maps' titles and RAYSCAN_TIME, the report's start
   /// and end): `utc_offset`; else, at an instant, the offset written in `at`, over a day of shadows
-  /// local mean solar time, else 0 (UTC).
+  /// local mean solar time (to the minute), else 0 (UTC). Always whole minutes.
   double utc_offset = 0.0;
   std::size_t steps = 0;                ///< time steps in the period (1 for an instant)
   std::size_t sun_steps = 0;            ///< steps with the sun above the horizon
@@ -192,7 +199,9 @@ struct SolarJobResult {
                                           ///< resident at once (CopcIndex::peak_resident_bytes)
 };
 
-/// Checks every option, reads the cloud, builds the index (none for an index file or a COPC file
+/// Checks every option and the cloud's CRS (from the file's header for LAS, LAZ, COPC and index
+/// files, so that a CRS that cannot place the site is refused before any point is read; for other
+/// formats once read), reads the cloud, builds the index (none for an index file or a COPC file
 /// queried in place: copc_in_place), estimates the surfels, computes the sun
 /// positions (SPA) and the sky (ESRA clear sky or the EPW file), traces the sun-map and sky-map
 /// directions of every point (analysis::trace_directions) and accumulates the irradiance of every
