@@ -66,6 +66,7 @@ PointCloud read_all(PointReader& r, FileInfo* info) {
     for (std::size_t k = 0; k < chunk.scalars.size(); ++k) append(pc.scalars[k].values, chunk.scalars[k].values);
   }
   pc.crs_wkt = r.crs_wkt();
+  pc.viewpoint = r.info().viewpoint;
   if (info != nullptr) *info = r.info();
   return pc;
 }

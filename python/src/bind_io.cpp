@@ -303,6 +303,7 @@ std::shared_ptr<PyCloud> gather(const PyCloud& c, const py::array_t<std::int64_t
   }
   dst.crs_wkt = src.crs_wkt;
   dst.rgb_from_8bit_las = src.rgb_from_8bit_las;
+  dst.viewpoint = src.viewpoint;
   return out;
 }
 

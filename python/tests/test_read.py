@@ -121,6 +121,22 @@ def test_pcd_positions_and_normals_equal_file_bytes(data_dir):
     np.testing.assert_array_equal(pc.normals, np.column_stack([rec["normal_x"], rec["normal_y"], rec["normal_z"]]))
 
 
+def test_pcd_viewpoint_line_survives_write_and_selection(tmp_path):
+    # The source's VIEWPOINT line (shortest decimals) is the written file's own line again, for the
+    # whole cloud and for a selection of its points; positions are not moved by it.
+    line = "VIEWPOINT 1.5 -2.25 0.125 0.7071067811865476 0.7071067811865476 0 0"
+    src = tmp_path / "vp.pcd"
+    src.write_text("VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
+                   + line + "\nPOINTS 3\nDATA ascii\n1 2 3\n4 5 6\n7 8 9\n")
+    pc = rayscan.read(src)
+    for name, cloud in (("all.pcd", pc), ("some.pcd", pc[np.array([True, False, True])])):
+        rayscan.write(tmp_path / name, cloud)
+        header = (tmp_path / name).read_bytes().partition(b"DATA binary\n")[0].decode("ascii")
+        assert [l for l in header.splitlines() if l.startswith("VIEWPOINT ")] == [line], name
+        np.testing.assert_array_equal(rayscan.read(tmp_path / name).xyz, cloud.xyz)
+    np.testing.assert_array_equal(pc.xyz, [[1, 2, 3], [4, 5, 6], [7, 8, 9]])
+
+
 def test_ply_vertices_equal_file_text(data_dir):
     path = data_dir / "ply" / "bunny.ply"  # ASCII: element vertex 1889 (x y z confidence intensity), then faces
     header, _, body = path.read_bytes().partition(b"end_header\n")

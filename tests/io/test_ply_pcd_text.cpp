@@ -8,6 +8,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <sstream>
 
 namespace rayscan::test {
@@ -174,6 +175,70 @@ TEST(Pcd, RgbaU4AndUpperCaseMixedTypeFields) {
   EXPECT_EQ(hi, 249 * 257);
   EXPECT_EQ(*std::max_element(a.intensity.begin(), a.intensity.end()), 254);
   EXPECT_EQ(a.gps_time.size(), a.size());
+}
+
+/// The line of `bytes` (a PCD file's own bytes) that starts with "`key` ", without its newline;
+/// "" when there is none.
+std::string header_line(const std::vector<std::uint8_t>& bytes, const std::string& key) {
+  const std::string s(bytes.begin(), bytes.end());
+  std::string start = "\n";
+  start += key;
+  start += ' ';
+  const std::size_t at = s.rfind(start, s.find("\nDATA "));
+  if (at == std::string::npos) return "";
+  return s.substr(at + 1, s.find('\n', at + 1) - at - 1);
+}
+
+TEST(Pcd, PcdToPcdKeepsTheSourcesViewpointLine) {
+  // A stereo camera's cloud whose pose is a 180 degree turn about x (VIEWPOINT 0 0 0 0 1 0 0),
+  // read and written as translate does (read_point_cloud, write_point_cloud by the extension).
+  RAYSCAN_REQUIRE_FILE(p, "pcd/table_scene_mug_stereo_textured.pcd");
+  const std::string line = header_line(slurp(p), "VIEWPOINT");
+  ASSERT_EQ(line, "VIEWPOINT 0 0 0 0 1 0 0");
+  const PointCloud pc = read(p);
+  const fs::path out = temp_dir() / "mug_viewpoint.pcd";
+  io::write_point_cloud(out, pc);
+  EXPECT_EQ(header_line(slurp(out), "VIEWPOINT"), line);
+  // Still not applied: the positions come back as the source stored them.
+  io::FileInfo info;
+  const PointCloud back = read(out, &info);
+  EXPECT_EQ(back.positions, pc.positions);
+  EXPECT_EQ(info.viewpoint, pc.viewpoint);
+}
+
+TEST(Pcd, AViewpointOfFractionsAndANegativeTranslationReadsBackBitForBit) {
+  // Values in their shortest decimal form, so that the written line is the source's line.
+  const std::string line = "VIEWPOINT 636500.25 -849200.125 12.75 0.7071067811865476 0 0.7071067811865476 0";
+  const fs::path src = temp_dir() / "viewpoint_src.pcd";
+  std::ofstream(src) << "VERSION 0.7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+                     << line << "\nPOINTS 2\nDATA ascii\n636501.5 849201.5 13.5\n636502.5 849202.5 14.5\n";
+  const PointCloud pc = read(src);
+  const fs::path once = temp_dir() / "viewpoint_once.pcd", twice = temp_dir() / "viewpoint_twice.pcd";
+  io::write_point_cloud(once, pc);
+  EXPECT_EQ(header_line(slurp(once), "VIEWPOINT"), line);
+  io::write_point_cloud(twice, read(once));
+  EXPECT_EQ(header_line(slurp(twice), "VIEWPOINT"), line);
+  // A cloud that never had a VIEWPOINT (a LAS source) is written with PCL's identity.
+  const fs::path plain = temp_dir() / "viewpoint_none.pcd";
+  PointCloud none = pc;
+  none.viewpoint.reset();
+  io::write_point_cloud(plain, none);
+  EXPECT_EQ(header_line(slurp(plain), "VIEWPOINT"), "VIEWPOINT 0 0 0 1 0 0 0");
+}
+
+TEST(Pcd, ANonFiniteViewpointValueIsRefusedNamingIt) {
+  for (const std::string v : {"nan", "inf", "-inf"}) {
+    const std::string text = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\n"
+                             "VIEWPOINT 0 0 " + v + " 1 0 0 0\nPOINTS 1\nDATA ascii\n1 2 3\n";
+    try {
+      (void)read_text(text, io::Format::pcd);
+      ADD_FAILURE() << v << " accepted";
+    } catch (const io::FormatError& e) {
+      const std::string m = e.what();
+      EXPECT_NE(m.find("VIEWPOINT value '" + v + "' is not a finite number"), std::string::npos) << m;
+      EXPECT_EQ(m.find('\n'), std::string::npos) << m;
+    }
+  }
 }
 
 // ---------------------------------------------------------------- text

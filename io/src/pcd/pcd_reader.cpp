@@ -149,6 +149,10 @@ void parse_header_entry(const std::string& nm, const std::vector<std::string>& w
       auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), vp[static_cast<std::size_t>(k)]);
       if (ec != std::errc() || p != s.data() + s.size())
         fail_line(nm, line, "VIEWPOINT value '" + s + "' is not a number");
+      // A pose is a place and a rotation: "nan" or "inf" (which from_chars accepts) is none, and
+      // would be written back into every PCD made from this cloud.
+      if (!std::isfinite(vp[static_cast<std::size_t>(k)]))
+        fail_line(nm, line, "VIEWPOINT value '" + s + "' is not a finite number");
     }
     info.viewpoint = vp;
   } else if (key == "POINTS") {

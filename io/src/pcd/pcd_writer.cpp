@@ -5,7 +5,9 @@
 
 #include "atomic_writer.hpp"
 #include "field_names.hpp"
+#include "rayscan/base/number_text.hpp"
 
+#include <array>
 #include <cstring>
 #include <set>
 #include <string>
@@ -47,16 +49,24 @@ void write_pcd(const std::filesystem::path& path, const PointCloud& cloud) {
   if (!cloud.gps_time.empty()) f.push_back({detail::unique_field_name("", "gps_time", used), 8, 'F'});
   for (const ScalarField& s : cloud.scalars) f.push_back({detail::unique_field_name("", s.name, used), 8, 'F'});
 
+  // Built by appending (`" " + std::to_string(...)` sets off GCC 12's -Wrestrict false positive
+  // at -O3 when this file is compiled alone).
   std::string h = "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS";
-  for (const PcdOut& o : f) h += " " + o.name;
+  for (const PcdOut& o : f) h += ' ', h += o.name;
   h += "\nSIZE";
-  for (const PcdOut& o : f) h += " " + std::to_string(o.size);
+  for (const PcdOut& o : f) h += ' ', h += std::to_string(o.size);
   h += "\nTYPE";
-  for (const PcdOut& o : f) h += std::string(" ") + o.type;
+  for (const PcdOut& o : f) h += ' ', h += o.type;
   h += "\nCOUNT";
   for (std::size_t k = 0; k < f.size(); ++k) h += " 1";
-  h += "\nWIDTH " + std::to_string(n) + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + std::to_string(n) +
-       "\nDATA binary\n";
+  h += "\nWIDTH ", h += std::to_string(n);
+  h += "\nHEIGHT 1\nVIEWPOINT";
+  // The source's pose as it was read (shortest decimals, which read back bit for bit), else PCL's
+  // default, the identity.
+  for (const double v : cloud.viewpoint.value_or(std::array<double, 7>{0, 0, 0, 1, 0, 0, 0}))
+    h += ' ', h += shortest_text(v);
+  h += "\nPOINTS ", h += std::to_string(n);
+  h += "\nDATA binary\n";
 
   detail::AtomicWriter w(path);
   w.write(h.data(), h.size());

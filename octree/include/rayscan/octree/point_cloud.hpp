@@ -3,7 +3,9 @@
 
 #include "rayscan/octree/geometry.hpp"
 
+#include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -46,6 +48,11 @@ struct PointCloud {
   /// scaled them by 257 (docs/formats.md); io::write_las divides by 257 again, so a LAS file
   /// derived from such a source keeps its colour values unchanged.
   bool rgb_from_8bit_las = false;
+  /// A PCD source's VIEWPOINT tx ty tz qw qx qy qz (PCD v0.7: the acquisition pose, translation
+  /// in the positions' units and frame, then a unit quaternion), as read; never applied to the
+  /// positions. Kept with the cloud like crs_wkt so that io::write_pcd writes it back (PCD -> PCD
+  /// keeps the sensor pose); the other writers have no place for it. None for other sources.
+  std::optional<std::array<double, 7>> viewpoint;
 
   /// Number of points.
   [[nodiscard]] std::size_t size() const { return positions.size(); }
