@@ -136,11 +136,11 @@ void write_ply(const std::filesystem::path& path, const PointCloud& cloud);
 /// 1, VIEWPOINT: the cloud's viewpoint, a PCD source's, else the identity): FIELDS x y z (F 4
 /// when every coordinate is a float exactly, as PCL's point types and Open3D's legacy reader
 /// need; else F 8, so georeferenced coordinates survive: PCL's PCLPointCloud2 and Open3D's tensor
-/// reader read it), then normal_x normal_y normal_z (F 4), rgb (PCL's packed 0x00RRGGBB in a 4-byte float field, 16-bit
-/// colour rounded to 8 bit), intensity (F 4), classification (U 1), gps_time (F 8) and one F 8
-/// field per ScalarField (name sanitised to [A-Za-z0-9_], made unique). PCD has no CRS: a cloud's
-/// crs_wkt is not written. Written via temp file + rename. Throws std::invalid_argument for a
-/// cloud failing validate(), std::runtime_error on I/O failure.
+/// reader read it), then normal_x normal_y normal_z (F 4), rgb (PCL's packed 0x00RRGGBB in a
+/// 4-byte float field, 16-bit colour rounded to 8 bit), intensity (F 4), classification (U 1),
+/// gps_time (F 8) and one F 8 field per ScalarField (name sanitised to [A-Za-z0-9_], made
+/// unique). PCD has no CRS: a cloud's crs_wkt is not written. Written via temp file + rename.
+/// Throws std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
 void write_pcd(const std::filesystem::path& path, const PointCloud& cloud);
 
 /// Writes `cloud` as text: a header line naming the columns (x y z, red green blue, nx ny nz,
