@@ -11,9 +11,13 @@
 #include "rayscan/octree/point_query.hpp"
 
 #include <nlohmann/json.hpp>
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -67,13 +71,86 @@ double fit_distance(std::span<const Vec3> points, const Vec3& c, const ViewFrame
   return D;
 }
 
-/// At most kOverviewSample of `positions` (a span or a PositionView), an even stride from the first.
+/// The fmix64 finaliser of MurmurHash3: a bijective 64-bit mix, so that a point's sample key is
+/// uniform whatever its coordinates' bit patterns.
+constexpr std::uint64_t fmix64(std::uint64_t v) {
+  v ^= v >> 33;
+  v *= 0xff51afd7ed558ccdULL;
+  v ^= v >> 33;
+  v *= 0xc4ceb9fe1a85ec53ULL;
+  return v ^ (v >> 33);
+}
+
+/// A point's sample key: a hash of its coordinates' bits, then the bits themselves (distinct
+/// positions never tie). A function of the position alone, so the sample does not depend on the
+/// order the points are stored in (a file's order, an index file's Morton order).
+struct SampleKey {
+  std::uint64_t hash = 0, x = 0, y = 0, z = 0;
+  SampleKey() = default;
+  explicit SampleKey(const Vec3& p)
+      : x(std::bit_cast<std::uint64_t>(p.x)), y(std::bit_cast<std::uint64_t>(p.y)),
+        z(std::bit_cast<std::uint64_t>(p.z)) {
+    hash = fmix64(fmix64(fmix64(x) ^ y) ^ z);
+  }
+  auto operator<=>(const SampleKey&) const = default;
+};
+
+/// The kOverviewSample smallest of the SampleKeys added to it, in bounded memory: the candidates
+/// are cut back to the smallest kOverviewSample whenever they reach twice that, and a key whose
+/// hash exceeds the last cut's largest is not kept at all.
+struct SmallestKeys {
+  std::vector<SampleKey> kept;
+  std::uint64_t cut = ~std::uint64_t{0};
+
+  void add(const SampleKey& key) {
+    if (key.hash > cut) return;
+    if (kept.capacity() == 0) kept.reserve(2 * kOverviewSample);
+    kept.push_back(key);
+    if (kept.size() == 2 * kOverviewSample) keep_smallest();
+  }
+  void keep_smallest() {
+    if (kept.size() <= kOverviewSample) return;
+    const auto kth = kept.begin() + std::ptrdiff_t(kOverviewSample - 1);
+    std::nth_element(kept.begin(), kth, kept.end());
+    kept.resize(kOverviewSample);
+    cut = kth->hash;  // the kOverviewSample-th smallest key
+  }
+};
+
+/// The kOverviewSample points of `positions` (a span or a PositionView) with the smallest
+/// SampleKey, in key order (all of them when there are fewer): a uniform random sample that is
+/// the same for the same points in any order, duplicates included. One parallel pass; the
+/// selection is exact, so the result does not depend on how the pass is split either.
 template <class Positions>
-std::vector<Vec3> strided_sample(const Positions& positions) {
+std::vector<Vec3> order_free_sample(const Positions& positions) {
+  tbb::enumerable_thread_specific<SmallestKeys> part;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, positions.size(), 1 << 16), [&](const auto& r) {
+    SmallestKeys& mine = part.local();
+    for (std::size_t i = r.begin(); i != r.end(); ++i) mine.add(SampleKey(positions[i]));
+  });
+  SmallestKeys all;
+  for (const SmallestKeys& p : part)
+    for (const SampleKey& key : p.kept) all.add(key);
+  all.keep_smallest();
+  std::sort(all.kept.begin(), all.kept.end());
   std::vector<Vec3> out;
-  const std::size_t step = std::max<std::size_t>(1, (positions.size() + kOverviewSample - 1) / kOverviewSample);
-  for (std::size_t i = 0; i < positions.size(); i += step) out.push_back(positions[i]);
+  out.reserve(all.kept.size());
+  for (const SampleKey& key : all.kept)
+    out.emplace_back(std::bit_cast<double>(key.x), std::bit_cast<double>(key.y), std::bit_cast<double>(key.z));
   return out;
+}
+
+/// `v` normalised to a fixed point of glm::normalize: the scene parser normalises "up", so the
+/// quick look's up axis must come back unchanged from --print-scene's JSON (the same image).
+/// normalize(normalize(v)) may differ from normalize(v) in the last bit; a few rounds settle it.
+Vec3 stable_unit(Vec3 v) {
+  v = glm::normalize(v);
+  for (int round = 0; round < 8; ++round) {
+    const Vec3 w = glm::normalize(v);
+    if (w == v) break;
+    v = w;
+  }
+  return v;
 }
 
 }  // namespace
@@ -166,7 +243,7 @@ UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const 
     constexpr double kCos20 = 0.93969262078590838;
     const Vec3 down(0.0, 1.0, 0.0);
     if (plane_normal && std::abs(glm::dot(*plane_normal, down)) >= kCos20) {
-      const Vec3 up = glm::dot(*plane_normal, down) > 0.0 ? -*plane_normal : *plane_normal;
+      const Vec3 up = stable_unit(glm::dot(*plane_normal, down) > 0.0 ? -*plane_normal : *plane_normal);
       char buf[160];
       std::snprintf(buf, sizeof buf, "(%.3f, %.3f, %.3f): -y of the depth camera's optical frame (y down), "
                     "refined to the dominant plane's normal", up.x, up.y, up.z);
@@ -218,7 +295,7 @@ UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const 
   std::vector<double> offsets;
   for (const Vec3& n : normals)
     if (std::abs(glm::dot(n, axis)) >= kCosTol) mean += glm::dot(n, axis) >= 0.0 ? n : -n;
-  axis = glm::normalize(mean);
+  axis = stable_unit(mean);
   for (std::size_t i = 0; i < normals.size(); ++i)
     if (std::abs(glm::dot(normals[i], axis)) >= kCosTol) offsets.push_back(glm::dot(at[i], axis));
   // The most populated plane of that orientation: the mode of the offsets n . p in bins of 2% of
@@ -244,7 +321,7 @@ CloudSummary summarize_cloud(std::span<const Vec3> positions, bool has_rgb, bool
   CloudSummary s;
   s.bounds = bounds_of(positions);
   s.has_rgb = has_rgb;
-  s.sample = strided_sample(positions);
+  s.sample = order_free_sample(positions);
   s.up = estimate_up_axis(s.sample, georeferenced, sensor);
   return s;
 }
@@ -252,13 +329,16 @@ CloudSummary summarize_cloud(std::span<const Vec3> positions, bool has_rgb, bool
 std::optional<CloudSummary> summary_in_place(const std::filesystem::path& path) {
   if (io::is_index_file(path)) {
     io::IndexOpenOptions o;
-    o.verify = io::IndexOpenOptions::Verify::metadata_only;  // the header is all that is read here
+    // The header's checks only: the positions are read once for the sample below, and the render
+    // opens the file again with the full checks.
+    o.verify = io::IndexOpenOptions::Verify::metadata_only;
     const io::MappedIndex m = io::MappedIndex::open(path, o);
-    // The sample read in place (an even stride over the slots: at most kOverviewSample pages).
+    // The sample read in place: one pass over the stored positions, the same sample as of the
+    // source cloud's points (order_free_sample does not depend on their Morton order).
     CloudSummary s;
     s.bounds = m.bounds();
     s.has_rgb = !m.rgb().empty();
-    s.sample = strided_sample(m.positions());
+    s.sample = order_free_sample(m.positions());
     s.up = estimate_up_axis(s.sample, !m.crs_wkt().empty(), std::nullopt);
     return s;
   }
@@ -293,9 +373,14 @@ CloudSummary summarize_cloud_file(const std::filesystem::path& file, std::option
 
 namespace {
 
-/// The quick look's scene of a cloud (`cloud` "" for points in memory: no "cloud" key).
-json quick_look_json(const std::string& cloud, bool has_rgb) {
-  json j = {{"radius", "auto"}, {"primitive", "surfel"}, {"material", {{"color", has_rgb ? "rgb" : "elevation"}}}};
+/// The quick look's scene of a cloud (`cloud` "" for points in memory: no "cloud" key): its "up"
+/// (the elevation ramp's and the sky's axis) is the up axis the overview camera stands on.
+json quick_look_json(const std::string& cloud, const CloudSummary& summary) {
+  const Vec3 up = summary.up.up + Vec3(0.0);  // -0.0 printed as 0.0
+  json j = {{"radius", "auto"},
+            {"primitive", "surfel"},
+            {"material", {{"color", summary.has_rgb ? "rgb" : "elevation"}}},
+            {"up", {up.x, up.y, up.z}}};
   if (!cloud.empty()) j["cloud"] = cloud;
   return j;
 }
@@ -353,7 +438,7 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
     j = io::parse_json_file(input);
     if (!j.is_object()) io::json_fail(input.string(), "", "expected a JSON object (a scene)");
   } else {
-    j = quick_look_json(base.lexically_normal().string(), summary_of(base).has_rgb);
+    j = quick_look_json(base.lexically_normal().string(), summary_of(base));
   }
   const fs::path as_file = is_scene ? base : base.parent_path() / (base.filename().string() + ".scene.json");
   ResolvedScene res = resolve_json(std::move(j), as_file,
@@ -381,7 +466,7 @@ ResolvedScene resolve_scene_text(const std::string& text, const std::string& nam
 
 ResolvedScene resolve_quick_look(const CloudSummary& summary, const SceneOverrides& ov) {
   ResolvedScene res =
-      resolve_json(quick_look_json("", summary.has_rgb), std::filesystem::path(),
+      resolve_json(quick_look_json("", summary), std::filesystem::path(),
                    {.camera_required = false, .cloud_required = false, .name = "(quick look)"}, ov,
                    [&](const std::filesystem::path&) -> const CloudSummary& { return summary; });
   res.scene.file = std::filesystem::path();

@@ -1,15 +1,23 @@
 // The quick look: the automatic overview camera frames the cloud's bounding box
 // (checked by projecting the box corners with Camera::look_at's own rays' geometry: an
-// independent pinhole projection from the look-at parameters), and `--print-scene` prints a scene
-// that renders the same image when fed back (the render is a pure function of the scene and seed).
+// independent pinhole projection from the look-at parameters), `--print-scene` prints a scene
+// that renders the same image when fed back (the render is a pure function of the scene and seed),
+// the scene's up is the up axis the camera stands on, and an index file renders the same quick
+// look as its source.
 #include "../common/temp_dir.hpp"
 #include "rayscan/jobs/quick_look.hpp"
 
 #include "../common/run_command.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/render/material.hpp"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <bit>
+#include <random>
+#include <set>
 
 #include <cmath>
 #include <filesystem>
@@ -96,9 +104,11 @@ TEST(QuickLook, CloudRendersAndPrintedSceneReproducesTheImage) {
   ASSERT_EQ(b.code, 0) << b.out;
   const auto cmp = rayscan::test::run_command(bin + " compare " + (d / "a.png").string() + " " + (d / "b.png").string());
   EXPECT_EQ(cmp.code, 0) << cmp.out;  // identical images (idiff default: no pixel over 1e-6)
-  // A scene file without a camera gets the same overview camera.
+  // A scene file without a camera gets the same overview camera (and with the quick look's up,
+  // the same image).
+  const nlohmann::json printed = nlohmann::json::parse(p.out);
   std::ofstream(d / "nocam.json") << R"({"cloud": "c.xyz", "radius": "auto", "primitive": "surfel", "material": {"color": "elevation"},
-    "spp": 2, "output": {"image": "n.png"}})";
+    "spp": 2, "output": {"image": "n.png"}, "up": )" << printed.at("up").dump() << "}";
   const auto n = rayscan::test::run_command(bin + " render -q " + (d / "nocam.json").string() + " --width 60");
   ASSERT_EQ(n.code, 0) << n.out;
   const auto cn = rayscan::test::run_command(bin + " compare " + (d / "a.png").string() + " " + (d / "n.png").string());
@@ -184,4 +194,184 @@ TEST(UpAxis, GeoreferencedDepthCameraAndDominantPlane) {
   std::vector<Vec3> flipped;
   for (const Vec3& p : pts) flipped.push_back(-p);
   EXPECT_GE(glm::dot(estimate_up_axis(flipped, false, std::nullopt).up, -want), std::cos(2.0 * std::numbers::pi / 180.0));
+}
+
+namespace {
+
+/// A floor tilted by 30 degrees about x, then 20 about z, with four boxes standing on it (tops 1
+/// unit above the floor): the analytic up axis is the rotated +z.
+struct TiltedFloor {
+  double a = 30.0 * std::numbers::pi / 180.0, b = 20.0 * std::numbers::pi / 180.0;
+  Vec3 rot(const Vec3& p) const {
+    const Vec3 q(p.x, std::cos(a) * p.y - std::sin(a) * p.z, std::sin(a) * p.y + std::cos(a) * p.z);
+    return Vec3(std::cos(b) * q.x - std::sin(b) * q.y, std::sin(b) * q.x + std::cos(b) * q.y, q.z);
+  }
+  std::vector<Vec3> floor, tops, sides;
+  TiltedFloor() {
+    for (int i = 0; i < 120; ++i)
+      for (int j = 0; j < 120; ++j)
+        floor.push_back(rot(Vec3(0.1 * i + 0.01 * std::sin(j), 0.1 * j + 0.01 * std::cos(i), 0.0)));
+    for (int k = 0; k < 4; ++k)
+      for (int i = 0; i < 15; ++i)
+        for (int j = 0; j < 15; ++j) {
+          const double x0 = 1.0 + 3.0 * k, y0 = 2.0 + 2.0 * k;
+          tops.push_back(rot(Vec3(x0 + 0.1 * i, y0 + 0.1 * j, 1.0)));
+          sides.push_back(rot(Vec3(x0, y0 + 0.1 * i, 0.07 * j)));
+        }
+  }
+  std::vector<Vec3> all() const {
+    std::vector<Vec3> v = floor;
+    v.insert(v.end(), tops.begin(), tops.end());
+    v.insert(v.end(), sides.begin(), sides.end());
+    return v;
+  }
+};
+
+/// Largest difference of one channel between any two of `colours`.
+float colour_spread(std::span<const Color> colours) {
+  float spread = 0.0f;
+  for (int c = 0; c < 3; ++c) {
+    const auto [lo, hi] = std::minmax_element(colours.begin(), colours.end(),
+                                              [c](const Color& x, const Color& y) { return x[c] < y[c]; });
+    spread = std::max(spread, (*hi)[c] - (*lo)[c]);
+  }
+  return spread;
+}
+
+}  // namespace
+
+// The quick look's scene up (the elevation ramp's and the sky's axis) is the up axis its camera
+// stands on and the CLI prints: on a tilted floor with boxes (no CRS) it is the analytic floor
+// normal, so the elevation colour of the level floor is one colour and that of the box tops
+// another (the reviewer's level table top and floor); along +z, the old scene up, the same floor
+// spans most of the ramp. Oracle: the analytic normal and the points' known heights above the floor.
+TEST(QuickLook, SceneUpIsThePrintedUpAxis) {
+  const TiltedFloor t;
+  const std::vector<Vec3> pts = t.all();
+  const Vec3 want = t.rot(Vec3(0, 0, 1));
+  const CloudSummary s = summarize_cloud(pts, false, false, std::nullopt);
+  const ResolvedScene q = resolve_quick_look(s, SceneOverrides{});
+  EXPECT_EQ(q.scene.up, s.up.up);  // the estimate itself, unchanged by the scene parser's normalisation
+  EXPECT_EQ(q.up.up, s.up.up);
+  EXPECT_GE(glm::dot(q.scene.up, want), std::cos(0.5 * std::numbers::pi / 180.0)) << s.up.how;
+  // --print-scene's JSON reads back to the same up, and the camera stands on it.
+  const nlohmann::json j = nlohmann::json::parse(q.json);
+  const auto vec = [](const nlohmann::json& v) { return Vec3(v[0].get<double>(), v[1].get<double>(), v[2].get<double>()); };
+  EXPECT_EQ(vec(j.at("up")), q.scene.up);
+  EXPECT_GE(glm::dot(glm::normalize(vec(j.at("camera").at("up"))), q.scene.up), 1.0 - 1e-12);
+
+  PointCloud pc;
+  pc.positions = pts;
+  const std::vector<Color> albedo = compute_albedo(pc, q.scene.material, q.scene.up);
+  const std::span<const Color> floor(albedo.data(), t.floor.size()), tops(albedo.data() + t.floor.size(), t.tops.size());
+  const std::vector<Color> along_z = compute_albedo(pc, q.scene.material, Vec3(0, 0, 1));
+  std::printf("colour spread: floor %.3f, box tops %.3f; floor along +z %.3f\n", colour_spread(floor),
+              colour_spread(tops), colour_spread(std::span<const Color>(along_z.data(), t.floor.size())));
+  EXPECT_LE(colour_spread(floor), 0.06f);
+  EXPECT_LE(colour_spread(tops), 0.06f);  // the estimate is within about 0.2 degrees of the analytic axis
+  EXPECT_GE(glm::length(floor[0] - tops[0]), 0.3f);  // the ramp's two ends
+  EXPECT_GE(colour_spread(std::span<const Color>(along_z.data(), t.floor.size())), 0.5f);
+
+  // The CLI prints the same axis (to 3 decimals) as the scene's up.
+  const fs::path d = quick_look_temp_dir();
+  {
+    std::ofstream xyz(d / "tilted.xyz");
+    xyz.precision(17);
+    for (const Vec3& p : pts) xyz << p.x << " " << p.y << " " << p.z << "\n";
+  }
+  const std::string bin = RAYSCAN_BIN;
+  const auto r = rayscan::test::run_command(bin + " render " + (d / "tilted.xyz").string() +
+                                            " --spp 1 --width 30 --out " + (d / "t.png").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  double x = 0, y = 0, z = 0;
+  const std::size_t at = r.out.find("up axis (");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  ASSERT_EQ(std::sscanf(r.out.c_str() + at, "up axis (%lf, %lf, %lf)", &x, &y, &z), 3) << r.out;
+  const auto ps = rayscan::test::run_command(bin + " render " + (d / "tilted.xyz").string() + " --print-scene", false);
+  ASSERT_EQ(ps.code, 0) << ps.out;
+  const nlohmann::json printed = nlohmann::json::parse(ps.out);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(printed.at("up")[k].get<double>(), (std::array{x, y, z})[k], 5.1e-4) << r.out;
+  fs::remove_all(d);
+}
+
+// The sample, up axis and overview camera are functions of the points, not of their order (an
+// index file stores them in Morton order): autzen's points without their CRS (so the up axis is
+// estimated from the sample), reversed and shuffled, give bit-identical summaries. The sample is
+// kOverviewSample of the points themselves (each one of them, distinct ones distinct), and a cloud
+// of few distinct positions repeated many times is sampled the same in any order too.
+TEST(QuickLook, SummaryDoesNotDependOnThePointsOrder) {
+  const PointCloud pc = io::read_point_cloud(std::string(RAYSCAN_TEST_DATA) + "/las/autzen_trim.las", {});
+  ASSERT_GT(pc.size(), kOverviewSample);
+  std::vector<Vec3> reversed(pc.positions.rbegin(), pc.positions.rend()), shuffled = pc.positions;
+  std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937_64(7));
+  const CloudSummary a = summarize_cloud(pc.positions, false, false, std::nullopt);
+  ASSERT_EQ(a.sample.size(), kOverviewSample);
+  EXPECT_NE(a.up.up, Vec3(0, 0, 1)) << a.up.how;  // estimated, not a fallback
+  const auto bits = [](const Vec3& p) {
+    return std::array{std::bit_cast<std::uint64_t>(p.x), std::bit_cast<std::uint64_t>(p.y), std::bit_cast<std::uint64_t>(p.z)};
+  };
+  std::set<std::array<std::uint64_t, 3>> cloud, sample;
+  for (const Vec3& p : pc.positions) cloud.insert(bits(p));
+  for (const Vec3& p : a.sample) {
+    EXPECT_TRUE(cloud.count(bits(p))) << "a sample point that is not a point of the cloud";
+    sample.insert(bits(p));
+  }
+  EXPECT_EQ(sample.size(), a.sample.size());  // autzen has no duplicate positions
+  const LookAtParams ca = overview_view(a.sample, a.up, kOverviewWidth, kOverviewHeight);
+  for (const std::vector<Vec3>* other : {&reversed, &shuffled}) {
+    const CloudSummary b = summarize_cloud(*other, false, false, std::nullopt);
+    EXPECT_EQ(b.sample, a.sample);
+    EXPECT_EQ(b.up.up, a.up.up);
+    const LookAtParams cb = overview_view(b.sample, b.up, kOverviewWidth, kOverviewHeight);
+    EXPECT_EQ(cb.position, ca.position);
+    EXPECT_EQ(cb.look_at, ca.look_at);
+  }
+  // 8 distinct positions, 25,000 copies of each: kOverviewSample of the copies, the same in any order.
+  std::vector<Vec3> copies;
+  for (int c = 0; c < 25000; ++c)
+    for (int k = 0; k < 8; ++k) copies.push_back(Vec3(k & 1, (k >> 1) & 1, k >> 2));
+  const CloudSummary ra = summarize_cloud(copies, false, false, std::nullopt);
+  std::shuffle(copies.begin(), copies.end(), std::mt19937_64(11));
+  const CloudSummary rb = summarize_cloud(copies, false, false, std::nullopt);
+  EXPECT_EQ(ra.sample.size(), kOverviewSample);
+  EXPECT_EQ(ra.sample, rb.sample);
+  // Fewer points than kOverviewSample: all of them.
+  const std::vector<Vec3> few(pc.positions.begin(), pc.positions.begin() + 1000);
+  EXPECT_EQ(summarize_cloud(few, false, false, std::nullopt).sample.size(), 1000u);
+}
+
+// An index file with the source's ids and colours renders the same quick look as its source, bit
+// for bit (the reviewer's autzen case, 110,000 points: more than kOverviewSample, so a sample
+// taken in storage order would differ), for a georeferenced LAS file (up +z) and for the same
+// points as a text file without a CRS (up estimated). Oracle: `rayscan compare` of the two PNGs
+// (exit 0: no pixel differs) and the two printed scenes' cameras.
+TEST(QuickLook, IndexFileRendersTheSameQuickLookAsItsSource) {
+  const fs::path d = quick_look_temp_dir();
+  const std::string bin = RAYSCAN_BIN;
+  const fs::path las = fs::path(RAYSCAN_TEST_DATA) / "las" / "autzen_trim.las";
+  const auto tr = rayscan::test::run_command(bin + " translate " + las.string() + " " + (d / "autzen.xyz").string());
+  ASSERT_EQ(tr.code, 0) << tr.out;
+  for (const fs::path& src : {las, d / "autzen.xyz"}) {
+    const std::string rsi = (d / (src.filename().string() + ".rsi")).string();
+    const auto ix = rayscan::test::run_command(bin + " index " + src.string() + " -o " + rsi + " --attributes id,rgb -q");
+    ASSERT_EQ(ix.code, 0) << ix.out;
+    nlohmann::json cams[2];
+    int k = 0;
+    for (const std::string& in : {src.string(), rsi}) {
+      const std::string look = bin + " render " + in + " --spp 1 --width 60";
+      const auto r = rayscan::test::run_command(look + " -q --out " + (d / ("q" + std::to_string(k) + ".png")).string());
+      ASSERT_EQ(r.code, 0) << r.out;
+      const auto ps = rayscan::test::run_command(look + " --print-scene", false);
+      ASSERT_EQ(ps.code, 0) << ps.out;
+      const nlohmann::json j = nlohmann::json::parse(ps.out);
+      EXPECT_EQ(j.at("material").at("color"), "rgb") << in;
+      if (src == las) EXPECT_EQ(j.at("up"), nlohmann::json::parse("[0.0, 0.0, 1.0]"));  // georeferenced: +z
+      else EXPECT_NE(j.at("up"), nlohmann::json::parse("[0.0, 0.0, 1.0]"));  // estimated
+      cams[k++] = j.at("camera");
+    }
+    EXPECT_EQ(cams[0], cams[1]) << src;
+    const auto cmp = rayscan::test::run_command(bin + " compare " + (d / "q0.png").string() + " " + (d / "q1.png").string());
+    EXPECT_EQ(cmp.code, 0) << src << "\n" << cmp.out;
+  }
+  fs::remove_all(d);
 }

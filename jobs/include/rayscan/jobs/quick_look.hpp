@@ -28,8 +28,10 @@ inline constexpr std::uint32_t kOverviewWidth = 600, kOverviewHeight = 400;
 /// south-west of the cloud) and down at 45 degrees below the horizontal, with a 40 degree vertical
 /// field of view. "North" is +y and "down" is -up (the cloud's up axis, CloudSummary::up).
 inline constexpr double kOverviewBearingDeg = 45.0, kOverviewPitchDeg = 45.0, kOverviewVfovDeg = 40.0;
-/// At most this many points (an even stride through the cloud) frame the overview camera and
-/// estimate the up axis: enough for the extent of any cloud to within its sampling.
+/// At most this many points frame the overview camera and estimate the up axis: enough for the
+/// extent of any cloud to within its sampling. They are the points with the smallest hash of their
+/// coordinates' bits, a uniform sample that is the same whatever order the points are stored in
+/// (a cloud file and its index file give the same camera and up axis).
 inline constexpr std::size_t kOverviewSample = 65536;
 
 /// The automatic overview camera of a viewer's "zoom to extent": a look-at camera aimed at the
@@ -80,18 +82,20 @@ UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const 
 struct CloudSummary {
   AABB bounds;
   bool has_rgb = false;
-  std::vector<Vec3> sample;  ///< at most kOverviewSample points, an even stride through the cloud
+  std::vector<Vec3> sample;  ///< at most kOverviewSample points, chosen by their coordinates alone
   UpAxis up;
 };
 
-/// The summary of a cloud's points (any order): bounds_of(positions), the strided sample and
+/// The summary of a cloud's points (any order, the same summary for every order):
+/// bounds_of(positions), the sample (kOverviewSample; one pass over the positions) and
 /// estimate_up_axis(sample, georeferenced, sensor). Throws std::invalid_argument for no points.
 CloudSummary summarize_cloud(std::span<const Vec3> positions, bool has_rgb, bool georeferenced,
                              const std::optional<Vec3>& sensor);
 
-/// The summary of an index file from its checked header (exact bounds, stored colour), without
-/// reading its points; nullopt for any other file, whose points must be read (a COPC file too:
-/// its quick look renders the points read whole). Throws io::IndexError for a bad index file.
+/// The summary of an index file from its checked header (exact bounds, stored colour) and one
+/// pass over its mapped positions (the sample: equal to summarize_cloud's of the source cloud);
+/// nullopt for any other file, whose points must be read (a COPC file too: its quick look renders
+/// the points read whole). Throws io::IndexError for a bad index file.
 std::optional<CloudSummary> summary_in_place(const std::filesystem::path& path);
 
 /// The summary of the point cloud file `file`, as `rayscan render` takes it for resolve_scene:
@@ -121,7 +125,8 @@ struct ResolvedScene {
 /// Resolve a command line's scene. `input` is a point cloud file when its extension is one the io
 /// library reads (io::format_from_extension) or an index file (.rsi), else a scene file; for a cloud the scene is {"cloud": input, "radius": "auto",
 /// "primitive": "surfel", "material": {"color": "rgb" if the cloud has colours else
-/// "elevation"}} with the default sky gradient and no sun (surfels: the primitive that measures best on the
+/// "elevation"}, "up": the summary's up axis (the elevation ramp's, the sky's and the overview
+/// camera's)} with the default sky gradient and no sun (surfels: the primitive that measures best on the
 /// fidelity scenes, docs/fidelity.md; --primitive sphere for the paper's). When the scene has no
 /// camera (a cloud, or a scene file without "camera"), the camera is overview_view() of the
 /// summary's sample about its up axis at width x height (default 600 x 400; one of them
