@@ -5,10 +5,14 @@
 
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/job.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/jobs/query.hpp"
 #include "atomic_file.hpp"
 
+#include <chrono>
+#include <cstdio>
+#include <iostream>
 #include <memory>
 
 namespace rayscan::cli {
@@ -23,6 +27,7 @@ struct QueryOptions {
   double radius = kInf, t_min = -kInf, t_max = kInf;
   bool depth_given = false;
   bool all = false;  // --all: no --k and no finite --radius is meant (every point on every ray)
+  bool quiet = false;
   unsigned threads = 0;
 };
 
@@ -72,11 +77,34 @@ int run_query(const QueryOptions& o) {
                        " (the hits are CSV; '-' or no --out writes them to standard output)");
   }
   job.allow_unbounded = o.all;
+  // Everything said goes to stderr: with no --out the hits on stdout stay the CSV alone.
+  const bool talk = !o.quiet && is_root();
+  job.control.progress = talk;
+  if (talk) job.control.log = [](const std::string& s) { std::cerr << "rayscan query: " << s << "\n"; };
+  const auto t0 = std::chrono::steady_clock::now();
   const jobs::QueryJobResult r = jobs::run_query(job);
   if (!is_root()) return 0;  // only rank 0 holds every hit and writes
   AtomicOutput out(o.out);
   jobs::write_hits_csv(out.stream(), r);
   out.commit();
+  const bool to_stdout = o.out.empty() || o.out == "-";
+  if (to_stdout) check_standard_output();  // a failed write is reported instead of the summary
+  if (talk) {
+    // The summary: counts from what was written, the thread count actually used (--threads above
+    // the cores runs on all of them), the time in all and the query rate.
+    std::uint64_t rows = 0;
+    for (const auto& h : r.hits) rows += h.size();
+    const auto plural = [](std::uint64_t n, const char* one) { return std::to_string(n) + " " + one + (n == 1 ? "" : "s"); };
+    std::string line = plural(r.rays.size(), "ray") + ", " + plural(rows, "result") + " written to " +
+                       (to_stdout ? std::string("standard output") : "'" + o.out + "'") + "; " +
+                       plural(r.threads, "thread");
+    if (process_count() > 1) line += " on each of " + std::to_string(process_count()) + " processes";
+    char buf[160];
+    std::snprintf(buf, sizeof buf, ", %.2f s in all (%.2f s answering the rays, %.0f rays/s)", rayscan::seconds_since(t0),
+                  r.query_seconds, r.query_seconds > 0 ? static_cast<double>(r.rays.size()) / r.query_seconds : 0.0);
+    std::cerr << "rayscan query: " << line << buf << "\n";
+    if (!traffic_summary().empty()) std::cerr << "rayscan query: " << traffic_summary() << "\n";
+  }
   return 0;
 }
 
@@ -124,6 +152,7 @@ Runner add_query_command(CLI::App& app) {
       ->capture_default_str();
   c->add_option("--threads", o->threads, "Worker threads, 0 = all cores; the hits are identical for any count")
       ->check(CLI::Range(0u, 1024u));
+  c->add_flag("--quiet,-q", o->quiet, "No log lines, progress bar or summary line on stderr");
   return [o, depth_opt] {
     o->depth_given = depth_opt->count() > 0;
     return run_query(*o);

@@ -1,19 +1,19 @@
 // The ray-query job (rayscan/jobs/query.hpp).
 #include "rayscan/jobs/query.hpp"
 
-#include "rayscan/octree/batch.hpp"
 #include "rayscan/site/site.hpp"
 #include "rayscan/io/rays.hpp"
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
+#include "rayscan/base/progress.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/base/work_distributor.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <optional>
@@ -26,35 +26,52 @@ using namespace rayscan::io;  // the io library's types, which this job speaks i
 
 namespace {
 
-constexpr std::uint64_t kRaysPerItem = 256;  // rays per work item of the distributed batch
+constexpr std::uint64_t kRaysPerItem = 256;  // rays per block: the unit of the progress bar and of the MPI queue
 
-// ray_query_batch over TBB, or, with a distributor of several processes, blocks of kRaysPerItem
-// rays handed out by it and gathered to the root (hit lists serialised as count + RayHits).
+// Answers the ray blocks [b0, b1) (kRaysPerItem rays each, counted from rays[0]) in parallel, one
+// ray_query_each per block (bit for bit the single ray_query calls, so the hits do not depend on
+// the split), each block counted on `progress` when done.
 template <class I>
-void answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, const JobControl& ctl,
-                 std::vector<std::vector<RayHit>>& hits) {
-  const unsigned threads = resolve_threads(ctl.threads);
+void answer_blocks(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, std::uint64_t b0, std::uint64_t b1,
+                   std::vector<std::vector<RayHit>>& hits, Progress& progress) {
+  const std::uint64_t n = rays.size();
+  tbb::parallel_for(tbb::blocked_range<std::uint64_t>(b0, b1, 1), [&](const tbb::blocked_range<std::uint64_t>& r) {
+    for (std::uint64_t b = r.begin(); b != r.end(); ++b) {
+      const std::uint64_t first = b * kRaysPerItem, count = std::min(n, first + kRaysPerItem) - first;
+      ray_query_each(idx, std::span<const Ray>(rays).subspan(first, count), q,
+                     std::span<std::vector<RayHit>>(hits).subspan(first, count));
+      progress.tile_done(count);
+    }
+  });
+}
+
+// Every ray's hits, over TBB on `threads` threads, or, with a distributor of several processes,
+// blocks of kRaysPerItem rays handed out by it and gathered to the root (hit lists serialised as
+// count + RayHits). The progress bar (JobControl::progress) counts the blocks: on the root its own
+// and those it unpacks.
+template <class I>
+void answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, unsigned threads, bool show_progress,
+                 WorkDistributor* dist, std::vector<std::vector<RayHit>>& hits) {
+  q.validate();
+  const std::uint64_t n = rays.size();
+  const std::uint64_t blocks = (n + kRaysPerItem - 1) / kRaysPerItem;
+  // "ray blocks", not "blocks of 256 rays": the bar must fit the 90 columns Progress::finish clears.
+  Progress progress(blocks, show_progress, ProgressUnits{"ray blocks", "rays/s", 1.0, 0});
   tbb::task_arena arena(static_cast<int>(threads));
-  WorkDistributor* dist = ctl.distributor;
+  hits.assign(n, {});
   if (!dist || dist->size() <= 1) {
-    arena.execute([&] { hits = ray_query_batch(idx, rays, q); });
+    arena.execute([&] { answer_blocks(idx, rays, q, 0, blocks, hits, progress); });
+    progress.finish();
     return;
   }
-  q.validate();
-  hits.assign(rays.size(), {});
-  const std::uint64_t n = rays.size();
-  WorkStage stage;
-  stage.items = (n + kRaysPerItem - 1) / kRaysPerItem;
-  stage.batch = threads;
   auto range = [&](std::uint64_t first, std::uint64_t count) {
     return std::pair{first * kRaysPerItem, std::min(n, (first + count) * kRaysPerItem)};
   };
+  WorkStage stage;
+  stage.items = blocks;
+  stage.batch = threads;
   stage.compute = [&](std::uint64_t first, std::uint64_t count) {
-    const auto ab = range(first, count);  // not a structured binding: clang 14 cannot capture those
-    arena.execute([&] {
-      ray_query_each_parallel(idx, std::span<const Ray>(rays).subspan(ab.first, ab.second - ab.first), q,
-                              std::span<std::vector<RayHit>>(hits).subspan(ab.first, ab.second - ab.first));
-    });
+    arena.execute([&] { answer_blocks(idx, rays, q, first, first + count, hits, progress); });
   };
   stage.pack = [&](std::uint64_t first, std::uint64_t count) {
     const auto [a, b] = range(first, count);
@@ -77,8 +94,11 @@ void answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, 
       read_values(bytes, off, std::span<RayHit>(hits[i]));
     }
     if (off != bytes.size()) throw std::runtime_error("query: ray block message has trailing bytes");
+    for (std::uint64_t c = first; c < first + count; ++c)
+      progress.tile_done(std::min(n, (c + 1) * kRaysPerItem) - c * kRaysPerItem);  // the block's rays
   };
   dist->run(stage);
+  progress.finish();
 }
 
 }  // namespace
@@ -107,14 +127,18 @@ QueryJobResult run_query(const QueryJobOptions& o) {
     std::snprintf(buf, sizeof buf, "read %zu points and %zu rays in %.2f s", cloud.size(), r.rays.size(),
                   seconds_since(t0));
     o.control.info(buf);
+    const auto t_build = std::chrono::steady_clock::now();
     site.emplace(Site::over(cloud, o.index));
+    std::snprintf(buf, sizeof buf, "%s index built in %.2f s", o.index.type.c_str(), seconds_since(t_build));
+    o.control.info(buf);
   }
+  r.threads = resolve_threads(o.control.threads);
+  const auto t_query = std::chrono::steady_clock::now();
   site->visit([&](auto& idx) {
     using I = std::remove_cvref_t<decltype(idx)>;
     if constexpr (std::is_same_v<I, CopcIndex>) {
       // The batch runs here (no distributed work queue for COPC files).
-      tbb::task_arena arena(static_cast<int>(resolve_threads(o.control.threads)));
-      arena.execute([&] { r.hits = ray_query_batch(idx, r.rays, o.query); });
+      answer_rays(idx, r.rays, o.query, r.threads, o.control.progress, nullptr, r.hits);
       for (const auto& h : r.hits)
         for (const RayHit& x : h) r.hit_positions.push_back(idx.position_of(x.index));
       r.copc_decodes = idx.decodes();
@@ -125,7 +149,7 @@ QueryJobResult run_query(const QueryJobOptions& o) {
                     r.rays.size(), seconds_since(t0));
       o.control.info(msg);
     } else if constexpr (std::is_same_v<I, MappedIndex>) {
-      answer_rays(idx, r.rays, o.query, o.control, r.hits);
+      answer_rays(idx, r.rays, o.query, r.threads, o.control.progress, o.control.distributor, r.hits);
       if (o.control.distributor && !o.control.distributor->is_root()) return;
       // Positions of the hits by one sequential scan of the ids (no inverse permutation in memory).
       std::unordered_map<PointIndex, Vec3> hit_pos;
@@ -140,9 +164,11 @@ QueryJobResult run_query(const QueryJobOptions& o) {
       for (const auto& h : r.hits)
         for (const RayHit& x : h) r.hit_positions.push_back(hit_pos.at(x.index));
     } else {
-      answer_rays(idx, r.rays, o.query, o.control, r.hits);  // positions from the cloud in memory
+      // Positions from the cloud in memory.
+      answer_rays(idx, r.rays, o.query, r.threads, o.control.progress, o.control.distributor, r.hits);
     }
   });
+  r.query_seconds = seconds_since(t_query);
   return r;
 }
 

@@ -121,8 +121,8 @@ TEST(OutputsCli, StandardOutputThatCannotBeWrittenFails) {
   const std::vector<std::string> commands = {
       kBin + " info " + quoted(cloud()),
       kBin + " info --json " + quoted(cloud()),
-      kBin + " query --cloud " + quoted(cloud()) + " --rays " + quoted(dir / "rays.csv") + " --radius 1000 --threads 1",
-      kBin + " query --cloud " + quoted(cloud()) + " --rays " + quoted(dir / "rays.csv") + " --radius 1000 --threads 1 -o -",
+      kBin + " query --cloud " + quoted(cloud()) + " --rays " + quoted(dir / "rays.csv") + " --radius 1000 --threads 1 -q",
+      kBin + " query --cloud " + quoted(cloud()) + " --rays " + quoted(dir / "rays.csv") + " --radius 1000 --threads 1 -q -o -",
       kBin + " render " + quoted(cloud()) + " --print-scene",
       kBin + " --version",
       kBin + " --help",

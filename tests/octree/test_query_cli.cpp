@@ -1,7 +1,7 @@
 // `rayscan query` end to end: the CSV it writes equals the library's answer (itself checked against
 // brute force), each number the shortest text that reads back as the same double (std::to_chars),
-// every index gives the same rows, and bad input exits with code 2 and a one-line error naming the
-// file and line or the option.
+// every index gives the same rows, the summary on standard error counts what was read and written,
+// and bad input exits with code 2 and a one-line error naming the file and line or the option.
 #include "rayscan/octree/brute_force.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
@@ -9,13 +9,16 @@
 
 #include <gtest/gtest.h>
 
+#include <sched.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <regex>
 #include <sstream>
 
 using namespace rayscan;
@@ -134,11 +137,88 @@ TEST_F(QueryCli, BinaryRaysAndTimeRange) {
   q.t_max = 0.5;
   q.radius = 0.03;
   q.order = RayOrder::time;
-  const RunResult r = run("query --cloud " + (dir_ / "cloud.csv").string() + " --rays " +
-                          (dir_ / "rays.f64").string() +
-                          " --t-min 0.25 --t-max 0.5 --radius 0.03 --order time");
+  // Standard output alone (the progress and summary lines go to standard error).
+  const RunResult r = rayscan::test::run_command(std::string(RAYSCAN_BIN) + " query --cloud " +
+                                                     (dir_ / "cloud.csv").string() + " --rays " +
+                                                     (dir_ / "rays.f64").string() +
+                                                     " --t-min 0.25 --t-max 0.5 --radius 0.03 --order time",
+                                                 false);
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(r.out, expected_csv(q));
+}
+
+// The report on standard error: a progress line over the blocks of 256 rays (a pipe: the line of
+// the last block) and a summary whose counts are the rays file's and the CSV's, with the threads
+// used (--threads above the cores: the cores this process may use, its CPU affinity); standard
+// output keeps the CSV alone, and -q silences standard error. Oracles: the 600 rays written here
+// (30 copies of the fixture's 20: 3 blocks), their brute-force rows, sched_getaffinity.
+TEST_F(QueryCli, SummaryLineCountsTheRaysFileAndTheRowsWritten) {
+  {
+    std::ofstream f(dir_ / "rays600.f64", std::ios::binary);
+    for (int copy = 0; copy < 30; ++copy)
+      for (const Ray& r : rays_) {
+        const double v[6] = {r.origin().x, r.origin().y, r.origin().z, r.direction().x, r.direction().y,
+                             r.direction().z};
+        f.write(reinterpret_cast<const char*>(v), sizeof v);
+      }
+  }
+  RayQuery q;
+  q.k = 2;
+  q.radius = 0.05;
+  const std::string one = expected_csv(q);  // the 20 rays' rows, after the header line
+  const long rows20 = std::count(one.begin(), one.end(), '\n') - 1;
+  ASSERT_GT(rows20, 10);
+  const long rows = 30 * rows20;
+  const std::string base = std::string(RAYSCAN_BIN) + " query --cloud " + (dir_ / "cloud.csv").string() +
+                           " --rays " + (dir_ / "rays600.f64").string() + " --k 2 --radius 0.05";
+  const fs::path err = dir_ / "err.txt", out = dir_ / "hits.csv";
+  // Standard error into a file, standard output captured: the summary is the last line.
+  auto run_split = [&](const std::string& args) {
+    return rayscan::test::run_command("(" + base + args + " 2>'" + err.string() + "')", false);
+  };
+  const std::regex summary(R"(rayscan query: (\d+) rays, (\d+) results written to (.*); (\d+) threads?, )"
+                           R"(\d+\.\d\d s in all \(\d+\.\d\d s answering the rays, \d+ rays/s\)\n$)");
+  std::smatch m;
+
+  RunResult r = run_split(" --threads 1 --out '" + out.string() + "'");
+  ASSERT_EQ(r.code, 0) << slurp(err);
+  EXPECT_EQ(r.out, "");
+  std::string e = slurp(err);
+  ASSERT_TRUE(std::regex_search(e, m, summary)) << e;
+  EXPECT_EQ(m[1], "600");
+  const std::string csv = slurp(out);
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n') - 1, rows);
+  EXPECT_EQ(m[2], std::to_string(rows));
+  EXPECT_EQ(m[3], "'" + out.string() + "'");
+  EXPECT_EQ(m[4], "1");
+  EXPECT_NE(e.find("\nprogress: 3/3 ray blocks 100.0%"), std::string::npos) << e;
+
+  r = run_split(" --threads 1024");
+  ASSERT_EQ(r.code, 0) << slurp(err);
+  EXPECT_EQ(r.out, csv);  // standard output: the same CSV, nothing else
+  e = slurp(err);
+  ASSERT_TRUE(std::regex_search(e, m, summary)) << e;
+  EXPECT_EQ(m[1], "600");
+  EXPECT_EQ(m[2], std::to_string(rows));
+  EXPECT_EQ(m[3], "standard output");
+  cpu_set_t cpus;
+  ASSERT_EQ(::sched_getaffinity(0, sizeof cpus, &cpus), 0);
+  EXPECT_EQ(m[4], std::to_string(CPU_COUNT(&cpus)));
+
+  r = run_split(" -q");
+  ASSERT_EQ(r.code, 0) << slurp(err);
+  EXPECT_EQ(r.out, csv);
+  EXPECT_EQ(slurp(err), "");
+
+  // Standard output that takes no byte (/dev/full: a full disk): the write error ends the report,
+  // not a summary of rows that were never written.
+  if (fs::exists("/dev/full")) {
+    r = rayscan::test::run_command("(" + base + " > /dev/full 2>'" + err.string() + "')", false);
+    EXPECT_EQ(r.code, 2);
+    e = slurp(err);
+    EXPECT_EQ(e.find(" written to "), std::string::npos) << e;
+    EXPECT_EQ(e.substr(e.rfind("rayscan query: ")).rfind("rayscan query: standard output: write failed", 0), 0u) << e;
+  }
 }
 
 TEST_F(QueryCli, BadInputExitsTwoWithOneLineError) {
@@ -204,7 +284,7 @@ TEST(QueryCliHelp, ListsEveryOptionWithDefaults) {
   const RunResult r = run("query --help");
   EXPECT_EQ(r.code, 0);
   for (const char* opt : {"--cloud", "--rays", "--k", "--radius", "--t-min", "--t-max", "--order",
-                          "--index", "--capacity", "--depth", "--insertion", "--out"})
+                          "--index", "--capacity", "--depth", "--insertion", "--out", "--quiet"})
     EXPECT_NE(r.out.find(opt), std::string::npos) << opt;
 }
 

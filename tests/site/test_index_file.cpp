@@ -1484,7 +1484,8 @@ TEST(IndexFileCli, IndexThenQueryEqualsQueryOnTheCloudAndInfoDescribesIt) {
       r << p.x + 0.3 << ',' << p.y << ',' << p.z + 200 << ",0.001,0,-1\n";
     }
   }
-  const std::string q = " --rays '" + (dir / "rays.csv").string() + "' --radius 3 --k 20 --order sphere_hit";
+  // -q: standard error (the progress and summary lines) goes into the same files as the CSV.
+  const std::string q = " --rays '" + (dir / "rays.csv").string() + "' --radius 3 --k 20 --order sphere_hit -q";
   ASSERT_EQ(run_cli("query --cloud '" + las.string() + "'" + q, dir / "a.csv"), 0) << text(dir / "a.csv");
   ASSERT_EQ(run_cli("query --cloud '" + rsi.string() + "'" + q, dir / "b.csv"), 0) << text(dir / "b.csv");
   EXPECT_EQ(text(dir / "a.csv"), text(dir / "b.csv"));

@@ -31,7 +31,9 @@ struct QueryJobOptions {
   /// ray on a 1e8-point site), almost never what is meant: false refuses it (OptionError, after the
   /// rays are read and before the cloud is), as `rayscan query` does unless --all.
   bool allow_unbounded = true;
-  JobControl control;                    ///< threads, log
+  /// threads; progress: a bar over the blocks of 256 rays answered; log: the read and the index
+  /// build (their sizes and seconds), COPC nodes decoded
+  JobControl control;
 };
 
 /// Output of run_query().
@@ -45,12 +47,15 @@ struct QueryJobResult {
   /// COPC input: node chunks decoded (CopcIndex::decodes()) and nodes in the hierarchy; the
   /// hit positions are in `hit_positions` as for an index file. Both 0 otherwise.
   std::uint64_t copc_decodes = 0, copc_nodes = 0;
+  unsigned threads = 0;      ///< worker threads per process that answered the rays (resolve_threads)
+  double query_seconds = 0;  ///< wall-clock seconds answering the rays (after reading and indexing)
 };
 
 /// Reads the rays (first, so a malformed rays file is reported before a large cloud is read) and
-/// the cloud, builds the index and answers every ray (ray_query_batch: TBB, identical for any
-/// thread count). Throws std::invalid_argument for an invalid query or index option (e.g. depth
-/// with another index than octree-fixed), io::FormatError for a malformed input file.
+/// the cloud, builds the index and answers every ray (ray_query_each over blocks of 256 rays in
+/// parallel with TBB, identical for any thread count; control.progress draws a bar over the
+/// blocks). Throws std::invalid_argument for an invalid query or index option (e.g. depth with
+/// another index than octree-fixed), io::FormatError for a malformed input file.
 /// With options.control.distributor over several processes (MPI, docs/mpi.md), every process
 /// calls it; blocks of 256 rays are handed out by the distributor and only the root's `hits`
 /// (and `hit_positions`) are complete.
