@@ -1,7 +1,10 @@
 // CRS handling for LAS: GeoKeys (LAS 1.4 R15 section 2.5.2, GeoTIFF 1.0 section 2.4 "GeoKey
-// directory" and 6.3 key codes) to EPSG codes, and EPSG codes to WKT through GDAL/OSR (PROJ
-// database). GDAL stays inside rayscan_io; the core library never sees it.
+// directory" and 6.3 key codes) to EPSG codes, EPSG codes to WKT through GDAL/OSR (PROJ
+// database), and back from a WKT to its EPSG codes (rayscan/io/crs.hpp). GDAL stays inside
+// rayscan_io; the core library never sees it.
 #include "readers.hpp"
+
+#include "rayscan/io/crs.hpp"
 
 #include <gdal/cpl_conv.h>
 #include <gdal/cpl_error.h>
@@ -114,3 +117,21 @@ int epsg_from_wkt(const std::string& wkt) {
 }
 
 }  // namespace rayscan::io::detail
+
+namespace rayscan::io {
+
+EpsgCodes epsg_codes_from_wkt(const std::string& wkt) {
+  EpsgCodes codes;
+  codes.horizontal = detail::epsg_from_wkt(wkt);
+  detail::Srs srs(OSRNewSpatialReference(nullptr));
+  auto* h = static_cast<OGRSpatialReferenceH>(srs.get());
+  std::string copy = wkt;  // ImportFromWkt, as epsg_from_wkt: never a file name or URL
+  char* p = copy.data();
+  if (OSRImportFromWkt(h, &p) != OGRERR_NONE) return codes;
+  const char* auth = OSRGetAuthorityName(h, "VERT_CS");
+  const char* code = OSRGetAuthorityCode(h, "VERT_CS");
+  if (auth != nullptr && code != nullptr && std::string(auth) == "EPSG") codes.vertical = std::atoi(code);
+  return codes;
+}
+
+}  // namespace rayscan::io

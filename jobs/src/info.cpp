@@ -3,6 +3,7 @@
 
 #include "rayscan/base/input_file.hpp"
 #include "rayscan/base/number_text.hpp"
+#include "rayscan/io/crs.hpp"
 #include "rayscan/io/point_reader.hpp"
 
 #include <nlohmann/json.hpp>
@@ -54,10 +55,26 @@ nlohmann::ordered_json bounds_json(const AABB& b, std::uint64_t count) {
   return {{"min", vec_json(b.lo)}, {"max", vec_json(b.hi)}};
 }
 
-/// Fills r.horizontal_unit, r.vertical_unit and r.warnings from r.crs_wkt and r.bounds through
-/// GDAL's OGRSpatialReference (PROJ's unit names). A WKT GDAL cannot parse leaves them empty.
+/// The one description of a CRS, for a cloud and an index file alike: fills the EPSG codes
+/// (r.info.epsg, r.info.vertical_epsg: the GeoKeys' for a CRS from GeoKeys, else those
+/// io::epsg_codes_from_wkt identifies in the WKT, as the LAS reader does a WKT VLR's), and
+/// r.crs_name, r.crs_wkt2, r.crs_projjson, r.horizontal_unit, r.vertical_unit and r.warnings from
+/// r.crs_wkt and r.bounds through GDAL's OGRSpatialReference (PROJ's unit names). A WKT GDAL cannot
+/// parse leaves these empty and has no codes of its own.
 void describe_crs(InfoJobResult& r) {
   if (r.crs_wkt.empty()) return;
+  // The codes of the CRS described. A CRS from GeoKeys keeps their codes; its WKT, made from them,
+  // names the same ones, which is all an index file built from the file keeps. A CRS given as
+  // text (a WKT VLR, a PLY comment, an index file) gets the codes identified in that text, not
+  // those of GeoKeys a LAS file may carry besides, which can name another CRS.
+  const io::EpsgCodes codes = io::epsg_codes_from_wkt(r.crs_wkt);
+  if (r.info.crs_source != "GeoKeys") {
+    r.info.epsg = codes.horizontal;
+    r.info.vertical_epsg = codes.vertical;
+  } else {
+    if (r.info.epsg == 0) r.info.epsg = codes.horizontal;
+    if (r.info.vertical_epsg == 0) r.info.vertical_epsg = codes.vertical;
+  }
   OGRSpatialReference srs;
   if (srs.importFromWkt(r.crs_wkt.c_str()) != OGRERR_NONE) return;
   if (const char* name = srs.GetName()) r.crs_name = name;
@@ -144,6 +161,7 @@ InfoJobResult run_info(const InfoJobOptions& options) {
     if (!m.empty()) r.bounds = m.bounds();  // the header's exact bounds, not the root node's float box
     if (m.position_encoding() == PositionEncoding::las_int32) r.info.scale = m.positions().scale();
     r.crs_wkt = m.crs_wkt();
+    if (!r.crs_wkt.empty()) r.info.crs_source = "index file";
     describe_crs(r);
     return r;
   }
@@ -229,6 +247,20 @@ std::string wkt_excerpt(const InfoJobResult& r) {
   return r.crs_wkt.substr(0, 100) + (r.crs_wkt.size() > 100 ? "..." : "");
 }
 
+/// The CRS lines of both text reports (a cloud's and an index file's): "CRS:" (crs_label and
+/// where the CRS came from, or "none"), "units:", one "warning:" per warning, "WKT:".
+std::string crs_text(const InfoJobResult& r) {
+  std::ostringstream o;
+  o << "CRS:               " << (r.info.crs_source.empty() ? std::string("none") : crs_label(r) + " from " + r.info.crs_source)
+    << "\n";
+  if (!r.horizontal_unit.empty())
+    o << "units:             " << r.horizontal_unit << " (horizontal)"
+      << (r.vertical_unit.empty() ? std::string() : ", " + r.vertical_unit + " (vertical)") << "\n";
+  for (const std::string& w : r.warnings) o << "warning:           " << w << "\n";
+  if (!r.crs_wkt.empty()) o << "WKT:               " << wkt_excerpt(r) << "\n";
+  return o.str();
+}
+
 std::string index_report_json(const InfoJobResult& r) {
   const IndexFileSummary& x = *r.index;
   nlohmann::ordered_json j;
@@ -260,6 +292,7 @@ std::string index_report_json(const InfoJobResult& r) {
     src.push_back({{"path", s.path}, {"format", s.format}, {"points", s.points}, {"first_id", s.first_id}, {"bytes", s.size}});
   j["sources"] = src;
   j["crs"] = crs_json(r);
+  if (!r.warnings.empty()) j["warnings"] = r.warnings;
   return dump_report(j);
 }
 
@@ -289,8 +322,7 @@ std::string index_report_text(const InfoJobResult& r) {
   o << " (bytes/point)\n";
   o << "spacing:           " << decimal(x.spacing) << " (median nearest-neighbour distance: the auto radius)\n";
   o << "checksums:         " << x.checksums << "\n";
-  o << "CRS:               " << (r.crs_wkt.empty() ? std::string("none") : crs_label(r)) << "\n";
-  if (!r.crs_wkt.empty()) o << "WKT:               " << wkt_excerpt(r) << "\n";
+  o << crs_text(r);
   for (const IndexSource& s : x.sources)
     o << "source:            " << s.path << " (" << s.format << ", " << s.points << " points)\n";
   return escape_controls(o.str());
@@ -397,13 +429,7 @@ std::string info_report_text(const InfoJobResult& r) {
   }
   if (r.info.scale) o << "scale:             " << exact3(*r.info.scale) << "\n";
   if (r.info.offset) o << "offset:            " << exact3(*r.info.offset) << "\n";
-  o << "CRS:               " << (r.info.crs_source.empty() ? std::string("none") : crs_label(r) + " from " + r.info.crs_source)
-    << "\n";
-  if (!r.horizontal_unit.empty())
-    o << "units:             " << r.horizontal_unit << " (horizontal)"
-      << (r.vertical_unit.empty() ? std::string() : ", " + r.vertical_unit + " (vertical)") << "\n";
-  for (const std::string& w : r.warnings) o << "warning:           " << w << "\n";
-  if (!r.crs_wkt.empty()) o << "WKT:               " << wkt_excerpt(r) << "\n";
+  o << crs_text(r);
   if (!r.attributes.empty()) {
     o << (r.stats ? "attributes:                          min                max               mean             stddev\n"
                   : "attributes:\n");

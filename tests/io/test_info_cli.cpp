@@ -376,6 +376,92 @@ TEST(InfoCli, CrsNameFromTheWktInTextAndJson) {
   EXPECT_EQ(nlohmann::json::parse(text_of(out))["crs"]["name"], name);
 }
 
+// The "CRS:" line of a text report without where the CRS came from (" from GeoKeys"), and the
+// "units:" and "warning:" lines.
+std::vector<std::string> crs_lines(const std::string& report) {
+  std::vector<std::string> lines;
+  std::istringstream in(report);
+  for (std::string l; std::getline(in, l);) {
+    if (l.rfind("CRS:", 0) == 0) lines.push_back(l.substr(0, l.rfind(" from ")));
+    if (l.rfind("units:", 0) == 0 || l.rfind("warning:", 0) == 0) lines.push_back(l);
+  }
+  return lines;
+}
+
+// Key id -> value of the GeoKeys held in their entry (location 0) of a LAS file's
+// GeoKeyDirectoryTag VLR (LASF_Projection 34735), read from the bytes: VLR headers of 54 bytes
+// after the public header (LAS 1.4 R15 section 2.5: record id at 18, length at 20), the directory
+// {version, revision, minor, count} then {id, location, count, value} (GeoTIFF 1.0 section 2.4).
+std::map<int, int> geokeys(const std::vector<std::uint8_t>& b) {
+  auto u16 = [&](std::size_t at) { return int(b[at] | (b[at + 1] << 8)); };
+  std::uint32_t vlrs = 0;
+  std::memcpy(&vlrs, b.data() + 100, 4);
+  std::map<int, int> keys;
+  for (std::size_t at = std::size_t(u16(94)), v = 0; v < vlrs; ++v) {
+    const std::size_t data = at + 54, len = std::size_t(u16(at + 20));
+    if (std::string(reinterpret_cast<const char*>(b.data() + at + 2), 16).rfind("LASF_Projection", 0) == 0 &&
+        u16(at + 18) == 34735)
+      for (int k = 0; k < u16(data + 6); ++k)
+        if (u16(data + 8 + 8 * k + 2) == 0) keys[u16(data + 8 + 8 * k)] = u16(data + 8 + 8 * k + 6);
+    at = data + len;
+  }
+  return keys;
+}
+
+// `info` of an index file describes its CRS as `info` of the file it was built from: the same
+// name, EPSG codes, units and warnings (text and JSON), although the index keeps only the WKT.
+// Haystack_Rock's CRS comes from GeoKeys (oracle: the codes in its GeoKeyDirectoryTag bytes,
+// compound with a vertical CRS), lone-star.copc's from a WKT VLR (geocentric over projected
+// coordinates: a warning), and a PLY written here carries WGS 84 (AUTHORITY EPSG 4326) over
+// coordinates that are not degrees (a warning).
+TEST(InfoCli, IndexFileDescribesItsCrsAsItsSourceDoes) {
+  RAYSCAN_REQUIRE_FILE(haystack, "las/Haystack_Rock.las");
+  RAYSCAN_REQUIRE_FILE(copc, "laz/lone-star.copc.laz");
+  const std::map<int, int> keys = geokeys(slurp(haystack));
+  ASSERT_TRUE(keys.count(3072) && keys.count(4096));  // ProjectedCSTypeGeoKey, VerticalCSTypeGeoKey
+  const fs::path ply = temp_dir() / "wgs84.ply";
+  std::ofstream(ply) << "ply\nformat ascii 1.0\ncomment crs GEOGCS[\"WGS 84\",DATUM[\"WGS_1984\",SPHEROID[\"WGS 84\","
+                        "6378137,298.257223563,AUTHORITY[\"EPSG\",\"7030\"]],AUTHORITY[\"EPSG\",\"6326\"]],PRIMEM["
+                        "\"Greenwich\",0,AUTHORITY[\"EPSG\",\"8901\"]],UNIT[\"degree\",0.0174532925199433,AUTHORITY["
+                        "\"EPSG\",\"9122\"]],AUTHORITY[\"EPSG\",\"4326\"]]\nelement vertex 3\nproperty double x\n"
+                        "property double y\nproperty double z\nend_header\n515368.6 4918340.4 2322.9\n"
+                        "515401.0 4918381.1 2338.6\n515380.5 4918360.2 2330.1\n";
+  struct Case {
+    fs::path file;
+    std::string label;  // in the CRS line
+    bool warns;
+  };
+  const Case cases[] = {
+      {haystack, "(EPSG:" + std::to_string(keys.at(3072)) + " + EPSG:" + std::to_string(keys.at(4096)) + " vertical)",
+       false},
+      {copc, "unnamed (no EPSG code)", true},
+      {ply, "WGS 84 (EPSG:4326)", true},
+  };
+  const fs::path out = temp_dir() / "crs_rsi.out", err = temp_dir() / "crs_rsi.err", rsi = temp_dir() / "crs.rsi";
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.file.string());
+    ASSERT_EQ(run("info '" + c.file.string() + "'", out, err), 0) << text_of(err);
+    const std::vector<std::string> source = crs_lines(text_of(out));
+    ASSERT_EQ(run("info --json '" + c.file.string() + "'", out, err), 0) << text_of(err);
+    const auto sj = nlohmann::json::parse(text_of(out));
+    ASSERT_EQ(run("index -q '" + c.file.string() + "' -o '" + rsi.string() + "'", out, err), 0) << text_of(err);
+    ASSERT_EQ(run("info '" + rsi.string() + "'", out, err), 0) << text_of(err);
+    const std::string index_text = text_of(out);
+    ASSERT_EQ(run("info --json '" + rsi.string() + "'", out, err), 0) << text_of(err);
+    const auto ij = nlohmann::json::parse(text_of(out));
+
+    ASSERT_FALSE(source.empty());
+    EXPECT_NE(source[0].find(c.label), std::string::npos) << source[0];
+    EXPECT_EQ(source[1].rfind("units:", 0), 0u) << source[1];
+    EXPECT_EQ(source.size() == 3 && source[2].rfind("warning:", 0) == 0, c.warns) << ::testing::PrintToString(source);
+    EXPECT_EQ(crs_lines(index_text), source) << index_text;
+    EXPECT_NE(index_text.find(" from index file\n"), std::string::npos) << index_text;
+    for (const char* key : {"name", "epsg", "vertical_epsg", "horizontal_unit", "vertical_unit", "wkt"})
+      EXPECT_EQ(ij["crs"].value(key, nlohmann::json()), sj["crs"].value(key, nlohmann::json())) << key;
+    EXPECT_EQ(ij.value("warnings", nlohmann::json()), sj.value("warnings", nlohmann::json()));
+  }
+}
+
 // A file without points: "bounds" is null in the JSON (a key a script can rely on), and the
 // text has no bounds lines. Oracle: the header's point count (bytes 107-110) is 0.
 TEST(InfoCli, EmptyFileJsonBoundsIsNull) {

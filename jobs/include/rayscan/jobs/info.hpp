@@ -70,7 +70,10 @@ struct InfoJobResult {
                                              ///< min, max, mean and standard deviation (one pass)
   bool stats = false;                        ///< the reports include the mean and standard deviation
   std::map<int, std::uint64_t> classes;      ///< points per ASPRS class code
-  std::string crs_wkt;                       ///< the cloud's CRS as WKT ("" = none)
+  /// The cloud's CRS as WKT ("" = none). info.epsg and info.vertical_epsg are its codes: the
+  /// GeoKeys' when the CRS came from them (info.crs_source "GeoKeys"), else identified in this WKT
+  /// (io::epsg_codes_from_wkt), so that a cloud and its index file report the same ones.
+  std::string crs_wkt;
   std::string crs_name;                      ///< its name as GDAL reads it from the WKT ("" = none or unreadable)
   std::string crs_wkt2;                      ///< the same CRS as WKT2 (ISO 19162:2019, GDAL/PROJ)
   std::string crs_projjson;                  ///< the same CRS as PROJJSON (PROJ's JSON schema)
@@ -82,7 +85,8 @@ struct InfoJobResult {
   /// or a projected one over coordinates that look like degrees), one sentence each.
   std::vector<std::string> warnings;
   /// Set for an index file (.rsi); then info is mostly empty (info.scale: the positions' LAS grid
-  /// when they are stored on one).
+  /// when they are stored on one; info.crs_source "index file" when it stores a CRS, whose EPSG
+  /// codes, units and warnings are found as for a cloud's).
   std::optional<IndexFileSummary> index;
   std::optional<CopcInfo> copc;              ///< set for a COPC file: its octree (hierarchy)
 };

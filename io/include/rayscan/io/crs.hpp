@@ -1,0 +1,21 @@
+// EPSG codes of a CRS given as WKT: what `rayscan info` reports beside the CRS's name for any
+// file whose CRS is text (a LAS WKT VLR, a PLY comment, an index file's crs section).
+#pragma once
+
+#include <string>
+
+namespace rayscan::io {
+
+/// EPSG codes of a CRS; 0 where there is none.
+struct EpsgCodes {
+  int horizontal = 0;  ///< the projected or geographic CRS (of a compound CRS: its horizontal part)
+  int vertical = 0;    ///< the vertical CRS of a compound (or vertical) CRS
+};
+
+/// The EPSG codes of the CRS in `wkt` (WKT1 or WKT2, read with GDAL's OGRSpatialReference, never
+/// as a file name or URL): the horizontal one as the LAS reader identifies a WKT VLR's (the
+/// PROJCS / GEOGCS authority, else PROJ's identification of the definition), the vertical one
+/// from the vertical part's EPSG authority. {0, 0} for text GDAL cannot read; never throws.
+[[nodiscard]] EpsgCodes epsg_codes_from_wkt(const std::string& wkt);
+
+}  // namespace rayscan::io
