@@ -6,13 +6,13 @@
 #include "phase_progress.hpp"
 #include "processes.hpp"
 
+#include "rayscan/base/interrupt.hpp"
 #include "rayscan/base/progress.hpp"
 #include "rayscan/jobs/index.hpp"
 
 #include <signal.h>
 
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -24,12 +24,6 @@ namespace rayscan::cli {
 
 namespace {
 
-/// The signal that interrupted `rayscan index` (0: none). Set by the handler, read by the build's
-/// progress callback.
-volatile std::sig_atomic_t g_interrupt = 0;
-
-extern "C" void on_interrupt(int sig) { g_interrupt = sig; }
-
 /// Thrown by the progress callback once SIGINT, SIGTERM or SIGHUP arrived: the build unwinds, and
 /// its temporary output and sort runs are removed by their owners (AtomicFile, the runs folder),
 /// so an interrupted build leaves nothing behind, like a failed one.
@@ -40,17 +34,6 @@ struct Interrupted : std::runtime_error {
                            ": temporary files removed, no index written"),
         signal(s) {}
 };
-
-/// Catches SIGINT/SIGTERM/SIGHUP for the build (one-shot: SA_RESETHAND, so a second signal
-/// terminates at once, as a user pressing Ctrl-C twice expects; SA_RESTART: reads and writes
-/// in progress are not cut short).
-void catch_interrupts() {
-  struct sigaction sa {};
-  sa.sa_handler = on_interrupt;
-  sigemptyset(&sa.sa_mask);
-  sa.sa_flags = SA_RESETHAND | SA_RESTART;
-  for (const int s : {SIGINT, SIGTERM, SIGHUP}) ::sigaction(s, &sa, nullptr);
-}
 
 }  // namespace
 
@@ -89,7 +72,7 @@ Runner add_index_command(CLI::App& app) {
                   "else float64 | float64: always 24 bytes per point (docs/index-format.md)")
       ->check(CLI::IsMember({"compact", "float64"}))
       ->capture_default_str();
-  sub->add_option("--temp-dir", o->temp_dir, "folder for the sort runs, or of a .copc.laz output's temporary records file (default: the output's folder)");
+  sub->add_option("--temp-dir", o->temp_dir, "existing folder for the sort runs, or of a .copc.laz output's temporary records file (default: the output's folder)");
   sub->add_flag("-q,--quiet", o->quiet, "no progress or notes on stderr");
   return [o, attributes, layout_opt, capacity, depth, max_depth, positions]() -> int {
     require_single_process("rayscan index");
@@ -124,13 +107,15 @@ Runner add_index_command(CLI::App& app) {
     const auto t0 = std::chrono::steady_clock::now();
     auto secs = [t0] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
     // The progress callback runs every few million points in every phase (and once more before
-    // the output is renamed into place); it is also where an interrupt stops the build.
+    // the output is renamed into place); it is also where an interrupt stops the build: the first
+    // SIGINT, SIGTERM or SIGHUP is only recorded (defer_interrupts), a second one ends the process
+    // at once, as a user pressing Ctrl-C twice expects, its temporaries removed by the handler.
     const PhaseProgress progress("index", o->quiet);
     job.progress = [progress](const char* phase, std::uint64_t done, std::uint64_t total) {
-      if (const int sig = g_interrupt; sig != 0) throw Interrupted(sig);
+      if (const int sig = pending_interrupt(); sig != 0) throw Interrupted(sig);
       progress(phase, done, total);
     };
-    catch_interrupts();
+    defer_interrupts();
     jobs::IndexJobResult r;
     try {
       r = jobs::run_index(job);

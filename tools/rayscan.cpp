@@ -6,6 +6,7 @@
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/base/input_file.hpp"
+#include "rayscan/base/interrupt.hpp"
 #include "rayscan/base/version.hpp"
 #include "rayscan/octree/simd.hpp"
 
@@ -68,6 +69,9 @@ int main(int argc, char** argv) {
   }
   rayscan::cli::g_session = &*session;
 #endif
+  // SIGINT, SIGTERM and SIGHUP remove every command's temporary files before they end it (the
+  // program's, not the library's: the Python module leaves its host's signals alone).
+  rayscan::install_interrupt_handler();
   CLI::App app{"rayscan: ray queries, rendering and analysis of raw point clouds "
                "(after Teuscher et al., \"Ray Queries On Raw Point Clouds\")"};
   app.require_subcommand(1);

@@ -95,29 +95,29 @@ OutputTransaction::OutputTransaction() : outer_(g_current) {
 
 OutputTransaction::~OutputTransaction() {
   if (g_current == this) g_current = nullptr;
-  for (const auto& [tmp, path] : pending_) {
+  for (const Pending& p : pending_) {
     std::error_code ec;
-    std::filesystem::remove(tmp, ec);
+    std::filesystem::remove(p.temp, ec);
   }
 }
 
 OutputTransaction* OutputTransaction::current() { return g_current; }
 
-void OutputTransaction::adopt(std::filesystem::path temp, std::filesystem::path path) {
-  pending_.emplace_back(std::move(temp), std::move(path));
+void OutputTransaction::adopt(std::filesystem::path temp, std::filesystem::path path, RemoveOnInterrupt mark) {
+  pending_.push_back({std::move(temp), std::move(path), std::move(mark)});
 }
 
 void OutputTransaction::commit() {
   if (outer_ != nullptr) return;  // joined: the outer transaction renames
   if (g_current == this) g_current = nullptr;
-  for (const auto& [tmp, path] : pending_) require_replaceable_output(path);  // re-checked: may have changed
+  for (const Pending& p : pending_) require_replaceable_output(p.path);  // re-checked: may have changed
   while (!pending_.empty()) {
-    auto [tmp, path] = pending_.front();
-    keep_mode(tmp, path);
+    const Pending& p = pending_.front();
+    keep_mode(p.temp, p.path);
     std::error_code ec;
-    std::filesystem::rename(tmp, path, ec);
-    if (ec) refuse_output(path, "cannot move the finished file into place: " + ec.message());
-    pending_.erase(pending_.begin());
+    std::filesystem::rename(p.temp, p.path, ec);
+    if (ec) refuse_output(p.path, "cannot move the finished file into place: " + ec.message());
+    pending_.erase(pending_.begin());  // (its mark with it: the temporary is gone)
   }
 }
 
@@ -126,6 +126,7 @@ AtomicFile::AtomicFile(std::filesystem::path path) : path_(std::move(path)) {
   std::string name = ".";  // built by append: GCC 12 warns falsely (-Wrestrict) on operator+
   name.append(path_.filename().string()).append(".tmp.").append(std::to_string(::getpid()));
   tmp_ = path_.parent_path() / name;
+  mark_ = RemoveOnInterrupt(tmp_);  // before the file exists: no moment uncovered
   ::unlink(tmp_.c_str());  // a stale temporary of this pid (or a planted link): removed, not followed
   const int fd = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
   if (fd < 0) refuse_output(path_, std::string("cannot create output file: ") + std::strerror(errno));
@@ -166,7 +167,7 @@ void AtomicFile::commit() {
   ::close(fd);
   if (!synced) refuse_output(path_, std::string("cannot write: ") + std::strerror(sync_errno));
   if (OutputTransaction* tx = OutputTransaction::current()) {
-    tx->adopt(tmp_, path_);
+    tx->adopt(tmp_, path_, std::move(mark_));
     committed_ = true;  // the transaction owns the temporary now
     return;
   }

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/interrupt.hpp"
 
 #include <cerrno>
 #include <cstdint>
@@ -21,18 +22,24 @@ namespace rayscan::io::detail {
 class AtomicWriter {
  public:
   /// `direct`: write straight to `path` (no temporary, no rename; for an intermediate file the
-  /// caller removes itself, e.g. the plain LAS that write_las compresses into a .laz output).
+  /// caller removes itself, e.g. the plain LAS that write_las compresses into a .laz output). A
+  /// direct file is marked for removal by the interrupt handler (RemoveOnInterrupt) while this
+  /// writer lives; a caller that keeps the file longer marks it itself.
   explicit AtomicWriter(const std::filesystem::path& path, bool direct = false) : path_(path) {
     if (!direct) {
       file_.emplace(path);
       f_ = std::fopen(file_->temp().c_str(), "wb");
     } else {  // created exclusively, never through a planted link (as AtomicFile's temporary)
+      mark_ = RemoveOnInterrupt(path);
       std::error_code ec;
       std::filesystem::remove(path, ec);
       const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
       if (fd >= 0 && (f_ = ::fdopen(fd, "wb")) == nullptr) ::close(fd);
     }
-    if (f_ == nullptr) throw std::runtime_error(path.string() + ": cannot create output file");
+    if (f_ == nullptr) {
+      if (direct) require_replaceable_output(path);  // a missing folder is named as for every output
+      throw std::runtime_error(path.string() + ": cannot create output file");
+    }
     buf_.reserve(kBuffer);
   }
   AtomicWriter(const AtomicWriter&) = delete;
@@ -74,6 +81,7 @@ class AtomicWriter {
   }
   std::filesystem::path path_;
   std::optional<AtomicFile> file_;
+  RemoveOnInterrupt mark_;  // a direct file's
   std::FILE* f_ = nullptr;
   std::vector<std::uint8_t> buf_;
 };

@@ -1,5 +1,6 @@
 // The index job (rayscan/jobs/index.hpp) on a real file; oracle: the cloud read by the io reader
 // and the index file read back through its memory map.
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/index.hpp"
 #include "rayscan/site/index_file.hpp"
@@ -106,6 +107,33 @@ TEST(IndexJob, BadOptionsThrowAndWriteNothing) {
   o.config.layout = OctreeLayout::layered;
   EXPECT_EQ(fields_of_option_error([&] { jobs::run_index(o); }), std::vector<std::string>{"layout"});
   EXPECT_TRUE(entries(dir).empty());
+}
+
+// A temporary folder that does not exist is refused as an output's missing folder is (the rule
+// db import's temporary index meets too), before anything is written, and it is not created: a
+// mistyped --temp-dir must not leave a chain of new folders behind. Both outputs: the sort runs
+// of an index file, the records file of a COPC output (PDRF 2 is converted into one).
+TEST(IndexJob, MissingTempDirIsRefusedAndNotCreated) {
+  const fs::path dir = temp_dir() / "missing_temp_dir";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path missing = dir / "nx" / "a";
+  for (const char* name : {"site.rsi", "site.copc.laz"}) {
+    SCOPED_TRACE(name);
+    jobs::IndexJobOptions o = index_options(dir / name);
+    o.temp_dir = missing;
+    std::string what;
+    try {
+      jobs::run_index(o);
+    } catch (const OutputFileError& e) {
+      what = e.what();
+    }
+    // "<temporary in that folder>: output directory '<folder>' does not exist"
+    EXPECT_EQ(what.rfind(missing.string() + "/.", 0), 0u) << what;
+    EXPECT_TRUE(what.ends_with(": output directory '" + missing.string() + "' does not exist")) << what;
+    EXPECT_TRUE(entries(dir).empty());
+  }
+  fs::remove_all(dir);
 }
 
 // What a front end's cancel does: the progress callback throws, the exception reaches the caller

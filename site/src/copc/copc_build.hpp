@@ -4,6 +4,7 @@
 #pragma once
 
 #include "readers.hpp"
+#include "rayscan/base/interrupt.hpp"
 #include "rayscan/octree/geometry.hpp"
 #include "rayscan/site/copc_writer.hpp"
 
@@ -24,10 +25,13 @@ struct CarriedVlr {
 };
 
 /// The mapped file the records are read from: the input itself (an uncompressed LAS of PDRF
-/// 6-8), or a temporary file of converted records, removed when this is destroyed.
+/// 6-8), or a temporary file of converted records, removed when this is destroyed (and by the
+/// interrupt handler should a signal end the program: `mark`, set with `temp`, before the file
+/// is created).
 struct RecordFile {
   std::unique_ptr<detail::MappedFile> map;
   std::filesystem::path temp;  ///< removed on destruction when not empty
+  RemoveOnInterrupt mark;      ///< temp's mark
   RecordFile() = default;
   RecordFile(const RecordFile&) = delete;
   RecordFile& operator=(const RecordFile&) = delete;

@@ -148,6 +148,7 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
     // a temporary file of output records, then mapped.
     auto out = std::make_shared<RecordFile>();
     out->temp = temp_path(opt, name, "records");
+    out->mark = RemoveOnInterrupt(out->temp);
     {
       detail::AtomicWriter w(out->temp, true);
       std::vector<std::uint8_t> raw, conv;
@@ -257,6 +258,7 @@ Records read_records(const std::filesystem::path& in, const CopcWriteOptions& op
   const PointCloud cloud = read_point_cloud(in);
   if (cloud.size() == 0) throw std::invalid_argument(in.string() + ": no points to write as COPC");
   file->temp = temp_path(opt, in.string(), "input.las");
+  file->mark = RemoveOnInterrupt(file->temp);
   write_las(file->temp, cloud);
   file->map = std::make_unique<detail::MappedFile>(file->temp);
   Records r = read_las_family(file, file->temp, in.string(), opt);

@@ -2,6 +2,7 @@
 // sorted runs, the encodings, the section placement, the nodes and the header. The point sections
 // themselves are merge.cpp's. docs/index-format.md, "Build (external memory)".
 #include "index_build.hpp"
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/io/cloud_stats.hpp"
@@ -29,6 +30,17 @@ std::string crs_label(const PointReader& r) {
   if (r.info().epsg != 0) return "EPSG:" + std::to_string(r.info().epsg);
   if (r.crs_wkt().empty()) return "no CRS";
   return "WKT \"" + r.crs_wkt().substr(0, 40) + "...\"";
+}
+
+/// The folder of the sort runs, "<temp_dir>/.<output name>.runs.<pid>" (temp_dir empty: the
+/// output's folder).
+fs::path runs_folder(const fs::path& output, const IndexBuildOptions& opt) {
+  fs::path dir = opt.temp_dir.empty() ? output.parent_path() : opt.temp_dir;
+  if (dir.empty()) dir = ".";
+  std::string name = ".";
+  name += output.filename().string();
+  name += ".runs." + std::to_string(::getpid());
+  return dir / name;
 }
 
 }  // namespace
@@ -85,6 +97,9 @@ void IndexBuild::check_options() {
     if (!ec) input_bytes += size;
   }
   ropt = ReadOptions{.scalars = false, .stored_colour = raw_colour, .direct_records = input_bytes > opt.memory_bytes};
+  // The runs folder is created in the temporary folder, never the folders above it: a missing
+  // (mistyped) temporary folder is refused before any long work, by the rule of every output.
+  require_replaceable_output(runs_folder(output, opt));
 }
 
 void IndexBuild::open_inputs() {
@@ -164,12 +179,7 @@ void IndexBuild::plan_runs() {
 
 void IndexBuild::create_output() {
   out.emplace(output);
-  fs::path tmp_dir = opt.temp_dir.empty() ? output.parent_path() : opt.temp_dir;
-  if (tmp_dir.empty()) tmp_dir = ".";
-  std::string name = ".";
-  name += output.filename().string();
-  name += ".runs." + std::to_string(::getpid());
-  runs_dir.emplace(tmp_dir / name);
+  runs_dir.emplace(runs_folder(output, opt));
 }
 
 void IndexBuild::read_pass() {

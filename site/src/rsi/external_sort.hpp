@@ -5,6 +5,7 @@
 
 #include "codecs.hpp"
 #include "direct_io.hpp"
+#include "rayscan/base/interrupt.hpp"
 #include "rayscan/octree/morton_sort.hpp"
 
 #include <tbb/parallel_for.h>
@@ -58,12 +59,14 @@ struct RunLayout {
   }
 };
 
-/// A folder of temporary files removed (with its contents) on destruction.
+/// A folder of temporary files removed (with its contents) on destruction, and by the interrupt
+/// handler should a signal end the program. Its parent must exist: only the folder is created.
 struct TempDir {
   fs::path path;
-  explicit TempDir(fs::path p) : path(std::move(p)) {
+  RemoveOnInterrupt mark;  // marked before the folder exists
+  explicit TempDir(fs::path p) : path(std::move(p)), mark(path, RemoveOnInterrupt::Kind::folder) {
     std::error_code ec;
-    fs::create_directories(path, ec);
+    fs::create_directory(path, ec);
     if (ec) throw std::runtime_error(path.string() + ": cannot create the temporary folder: " + ec.message());
   }
   TempDir(const TempDir&) = delete;

@@ -4,8 +4,11 @@
 // socket, directory or symbolic link at the output path is refused before anything is written.
 // Outputs that belong together (an image and its AOV file, a LAS file and its raster) are written
 // inside an OutputTransaction: every temporary is written first, and the renames happen only when
-// all of them succeeded.
+// all of them succeeded. Every temporary is marked for removal should a signal end the program
+// (RemoveOnInterrupt, rayscan/base/interrupt.hpp), so an interrupted command leaves none either.
 #pragma once
+
+#include "rayscan/base/interrupt.hpp"
 
 #include <filesystem>
 #include <span>
@@ -62,8 +65,12 @@ class OutputTransaction {
 
  private:
   friend class AtomicFile;
-  void adopt(std::filesystem::path temp, std::filesystem::path path);
-  std::vector<std::pair<std::filesystem::path, std::filesystem::path>> pending_;  // temp, final
+  struct Pending {
+    std::filesystem::path temp, path;
+    RemoveOnInterrupt mark;  // the temporary's, handed over by its AtomicFile
+  };
+  void adopt(std::filesystem::path temp, std::filesystem::path path, RemoveOnInterrupt mark);
+  std::vector<Pending> pending_;
   OutputTransaction* outer_ = nullptr;  // non-null: this one joined an outer transaction
 };
 
@@ -72,7 +79,9 @@ class OutputTransaction {
 /// return), the destructor removes the temporary, so `path` is either the old file or the complete
 /// new one. The constructor applies require_replaceable_output() and creates the temporary
 /// exclusively (O_EXCL | O_NOFOLLOW, after removing a stale one of the same name), so writing
-/// never follows a planted link. Throws OutputFileError.
+/// never follows a planted link. The temporary is marked for removal by the interrupt handler
+/// (RemoveOnInterrupt) until it is renamed or removed, or handed to an OutputTransaction, which
+/// keeps the mark. Throws OutputFileError.
 class AtomicFile {
  public:
   explicit AtomicFile(std::filesystem::path path);
@@ -97,6 +106,7 @@ class AtomicFile {
  private:
   std::filesystem::path path_;
   std::filesystem::path tmp_;
+  RemoveOnInterrupt mark_;  // destroyed after the destructor removed the temporary
   bool committed_ = false;
 };
 

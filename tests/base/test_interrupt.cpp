@@ -1,0 +1,128 @@
+// The interrupt handler (rayscan/base/interrupt.hpp) in a child process that installs it, marks
+// paths and signals itself: the oracles are the file system (what is left in the folder) and the
+// child's wait status (ended by the signal, or exited).
+#include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/interrupt.hpp"
+
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+using rayscan::RemoveOnInterrupt;
+
+/// A fresh folder for one test.
+fs::path fresh_dir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("rayscan_interrupt_" + std::to_string(::getpid()) + "_" + name);
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+/// Names of the entries of `d`.
+std::set<std::string> listing(const fs::path& d) {
+  std::set<std::string> s;
+  for (const auto& e : fs::directory_iterator(d)) s.insert(e.path().filename().string());
+  return s;
+}
+
+void touch(const fs::path& p) { std::ofstream(p) << "x"; }
+
+/// Runs `body` in a child process (which ends with exit code 0 if `body` returns) and returns the
+/// child's wait status.
+template <class F>
+int in_child(F body) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    // The test may have been started with a signal ignored; the handler keeps such a signal ignored.
+    for (const int s : {SIGINT, SIGTERM, SIGHUP}) ::signal(s, SIG_DFL);
+    body();
+    ::_exit(0);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return status;
+}
+
+}  // namespace
+
+TEST(Interrupt, SignalRemovesTheMarkedPathsOnlyAndEndsTheProcessByIt) {
+  const fs::path dir = fresh_dir("marks");
+  const int status = in_child([&] {
+    rayscan::install_interrupt_handler();
+    touch(dir / "unmarked");
+    RemoveOnInterrupt file(dir / "file");
+    touch(dir / "file");
+    // A folder of more entries than one getdents64 buffer holds.
+    RemoveOnInterrupt folder(dir / "runs", RemoveOnInterrupt::Kind::folder);
+    fs::create_directory(dir / "runs");
+    for (int i = 0; i < 400; ++i) touch(dir / "runs" / ("run" + std::to_string(i)));
+    {
+      RemoveOnInterrupt released(dir / "released");  // its mark ends before the signal: kept
+      touch(dir / "released");
+    }
+    RemoveOnInterrupt from(dir / "moved");
+    touch(dir / "moved");
+    const RemoveOnInterrupt moved = std::move(from);  // the mark moves with it
+    // An AtomicFile's temporary, and one handed to an OutputTransaction by an AtomicFile that is gone.
+    const rayscan::AtomicFile out(dir / "out.txt");
+    rayscan::OutputTransaction tx;
+    {
+      rayscan::AtomicFile in_tx(dir / "tx.txt");
+      const unsigned char bytes[] = {'x'};
+      in_tx.write_all(bytes);
+      in_tx.commit();
+    }
+    if (listing(dir).size() != 7) ::_exit(3);  // the files exist before the signal
+    ::raise(SIGTERM);
+    ::_exit(4);  // not reached
+  });
+  ASSERT_TRUE(WIFSIGNALED(status)) << "status " << status;
+  EXPECT_EQ(WTERMSIG(status), SIGTERM);
+  EXPECT_EQ(listing(dir), (std::set<std::string>{"released", "unmarked"}));
+  fs::remove_all(dir);
+}
+
+TEST(Interrupt, DeferredFirstSignalIsOnlyRecordedTheSecondEndsTheProcess) {
+  const fs::path dir = fresh_dir("deferred");
+  const int status = in_child([&] {
+    rayscan::install_interrupt_handler();
+    rayscan::defer_interrupts();
+    RemoveOnInterrupt file(dir / "file");
+    touch(dir / "file");
+    if (rayscan::pending_interrupt() != 0) ::_exit(3);
+    ::raise(SIGINT);
+    if (rayscan::pending_interrupt() != SIGINT || !fs::exists(dir / "file")) ::_exit(4);
+    ::raise(SIGHUP);
+    ::_exit(5);  // not reached
+  });
+  ASSERT_TRUE(WIFSIGNALED(status)) << "status " << (WIFEXITED(status) ? WEXITSTATUS(status) : status);
+  EXPECT_EQ(WTERMSIG(status), SIGHUP);
+  EXPECT_TRUE(listing(dir).empty());
+  fs::remove_all(dir);
+}
+
+TEST(Interrupt, SignalIgnoredAtInstallStaysIgnored) {
+  // `nohup rayscan ...` ignores SIGHUP: the handler must not take it over.
+  const fs::path dir = fresh_dir("ignored");
+  const int status = in_child([&] {
+    ::signal(SIGHUP, SIG_IGN);
+    rayscan::install_interrupt_handler();
+    RemoveOnInterrupt file(dir / "file");
+    touch(dir / "file");
+    ::raise(SIGHUP);
+  });
+  ASSERT_TRUE(WIFEXITED(status)) << "status " << status;
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  EXPECT_EQ(listing(dir), std::set<std::string>{"file"});
+  fs::remove_all(dir);
+}
