@@ -11,6 +11,7 @@
 #include "las/las_header.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/number_text.hpp"
+#include "rayscan/base/interrupt.hpp"
 #include "rayscan/base/version.hpp"
 #include "rayscan/io/translate.hpp"
 
@@ -111,6 +112,7 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
   const std::filesystem::path plain = path.parent_path() / plain_name;
   struct Remove {
     std::filesystem::path p;
+    RemoveOnInterrupt on_signal{p};  // (removed by a signal too, while it is compressed)
     ~Remove() {
       std::error_code ec;
       std::filesystem::remove(p, ec);
