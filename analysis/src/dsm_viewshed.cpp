@@ -1,5 +1,6 @@
 #include "rayscan/analysis/dsm_viewshed.hpp"
 
+#include "rayscan/base/progress.hpp"
 #include "rayscan/base/threads.hpp"
 
 #include <glm/geometric.hpp>
@@ -71,7 +72,7 @@ namespace {
 // surface point p (world coordinates).
 template <class Admits>
 Raster viewshed_of(const Raster& dsm, std::span<const Vec3> eyes, double target_height, unsigned threads,
-                   Admits&& admits) {
+                   bool progress_bar, Admits&& admits) {
   const GridSpec& g = dsm.grid;
   if (dsm.values.size() != std::size_t(g.cols) * g.rows)
     throw std::invalid_argument("dsm viewshed: the DSM has " + std::to_string(dsm.values.size()) +
@@ -90,10 +91,12 @@ Raster viewshed_of(const Raster& dsm, std::span<const Vec3> eyes, double target_
   };
   std::vector<Eye> at;
   for (const Vec3& e : eyes) at.push_back({(e.x - g.x0) / g.cell - 0.5, (g.y_top - e.y) / g.cell - 0.5, e.z});
+  // A grid of millions of cells takes minutes: the rows done, each counting its cells for the rate.
+  Progress progress(g.rows, progress_bar, ProgressUnits{"rows", "cells/s", 1.0, 0});
   tbb::task_arena arena(static_cast<int>(resolve_threads(threads)));
   arena.execute([&] {
     tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, g.rows), [&](const auto& range) {
-      for (std::uint32_t r = range.begin(); r != range.end(); ++r)
+      for (std::uint32_t r = range.begin(); r != range.end(); ++r) {
         for (std::uint32_t q = 0; q < g.cols; ++q) {
           const float zs = dsm.values[std::size_t(r) * g.cols + q];
           if (!std::isfinite(zs)) continue;
@@ -103,23 +106,27 @@ Raster viewshed_of(const Raster& dsm, std::span<const Vec3> eyes, double target_
             any = admits(k, p) && seen(dsm, at[k].q, at[k].r, at[k].z, q, r, double(zs) + target_height);
           out.values[std::size_t(r) * g.cols + q] = any ? 1.0f : 0.0f;
         }
+        progress.tile_done(g.cols);
+      }
     });
   });
+  progress.finish();
   return out;
 }
 
 }  // namespace
 
-Raster dsm_viewshed(const Raster& dsm, std::span<const Vec3> eyes, double target_height, unsigned threads) {
-  return viewshed_of(dsm, eyes, target_height, threads, [](std::size_t, const Vec3&) { return true; });
+Raster dsm_viewshed(const Raster& dsm, std::span<const Vec3> eyes, double target_height, unsigned threads,
+                    bool progress) {
+  return viewshed_of(dsm, eyes, target_height, threads, progress, [](std::size_t, const Vec3&) { return true; });
 }
 
 Raster dsm_viewshed(const Raster& dsm, std::span<const Observer> observers, double max_distance,
-                    double target_height, unsigned threads) {
+                    double target_height, unsigned threads, bool progress) {
   if (!(max_distance >= 0.0)) throw std::invalid_argument("dsm viewshed: max distance must be >= 0");
   std::vector<Vec3> eyes;
   for (const Observer& o : observers) eyes.push_back(o.position);
-  return viewshed_of(dsm, eyes, target_height, threads, [&](std::size_t k, const Vec3& p) {
+  return viewshed_of(dsm, eyes, target_height, threads, progress, [&](std::size_t k, const Vec3& p) {
     const Vec3 v = p - observers[k].position;
     return within_view_limits(observers[k], max_distance, v, glm::length(v));
   });

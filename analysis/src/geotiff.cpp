@@ -35,6 +35,17 @@ class QuietGdal {
 
 }  // namespace
 
+std::string geotiff_band_unit(const GeoTiffOptions& options) {
+  if (!options.unit_is_crs_length) return options.unit;
+  if (options.crs_wkt.empty()) return "";
+  QuietGdal quiet;
+  OGRSpatialReference srs;
+  if (srs.importFromWkt(options.crs_wkt.c_str()) != OGRERR_NONE) return "";
+  const char* name = nullptr;
+  srs.GetLinearUnits(&name);
+  return name ? name : "";
+}
+
 void write_geotiff(const std::filesystem::path& path, const Raster& raster, const GeoTiffOptions& options) {
   static std::once_flag registered;
   std::call_once(registered, [] { GDALAllRegister(); });
@@ -78,12 +89,7 @@ void write_geotiff(const std::filesystem::path& path, const Raster& raster, cons
   GDALRasterBand* band = ds->GetRasterBand(1);
   ok = ok && band->SetNoDataValue(options.nodata) == CE_None;
   band->SetDescription(raster.name.c_str());
-  std::string unit = options.unit;
-  if (options.unit_is_crs_length && has_crs) {
-    const char* name = nullptr;
-    srs.GetLinearUnits(&name);
-    unit = name ? name : "";
-  }
+  const std::string unit = geotiff_band_unit(options);
   if (!unit.empty()) ok = ok && band->SetUnitType(unit.c_str()) == CE_None;
   std::vector<float> data(raster.values);
   const float nd = static_cast<float>(options.nodata);

@@ -102,27 +102,39 @@ void describe_crs(InfoJobResult& r) {
     if (name) r.vertical_unit = name;
   }
   if (r.count == 0) return;
-  const bool degrees_like = std::abs(r.bounds.lo.x) <= 180.0 && std::abs(r.bounds.hi.x) <= 180.0 &&
-                            std::abs(r.bounds.lo.y) <= 90.0 && std::abs(r.bounds.hi.y) <= 90.0;
+  const std::vector<std::string> w = crs_warnings(r.crs_wkt, r.bounds);
+  r.warnings.insert(r.warnings.end(), w.begin(), w.end());
+}
+
+}  // namespace
+
+std::vector<std::string> crs_warnings(const std::string& crs_wkt, const AABB& bounds) {
+  std::vector<std::string> warnings;
+  OGRSpatialReference srs;
+  if (crs_wkt.empty() || srs.importFromWkt(crs_wkt.c_str()) != OGRERR_NONE) return warnings;
+  const char* name = nullptr;
+  if (srs.IsProjected()) srs.GetLinearUnits(&name);
+  const std::string unit_name = name ? name : "";
+  const bool degrees_like = std::abs(bounds.lo.x) <= 180.0 && std::abs(bounds.hi.x) <= 180.0 &&
+                            std::abs(bounds.lo.y) <= 90.0 && std::abs(bounds.hi.y) <= 90.0;
   if (srs.IsGeographic() && !degrees_like)
-    r.warnings.push_back("the CRS is geographic (degrees) but the coordinates reach beyond +-180 / +-90: they look "
+    warnings.push_back("the CRS is geographic (degrees) but the coordinates reach beyond +-180 / +-90: they look "
                          "projected; the file's CRS is probably wrong");
   else if (srs.IsGeocentric()) {
     // Earth-centred coordinates of points on or near the surface lie 6,353-6,384 km from the
     // centre (the WGS 84 ellipsoid's semi-axes, +-10 km of terrain); the centre of the bounds of a
     // site does too.
-    const double d = glm::length(0.5 * (r.bounds.lo + r.bounds.hi)) * srs.GetLinearUnits();
+    const double d = glm::length(0.5 * (bounds.lo + bounds.hi)) * srs.GetLinearUnits();
     if (d < 6.34e6 || d > 6.40e6)
-      r.warnings.push_back("the CRS is geocentric (ECEF) but the points lie " + std::to_string(std::lround(d / 1000.0)) +
+      warnings.push_back("the CRS is geocentric (ECEF) but the points lie " + std::to_string(std::lround(d / 1000.0)) +
                            " km from the Earth's centre (expected about 6,370 km): they look projected; the file's "
                            "CRS is probably wrong");
   } else if (srs.IsProjected() && degrees_like)
-    r.warnings.push_back("the CRS is projected (" + r.horizontal_unit +
+    warnings.push_back("the CRS is projected (" + unit_name +
                          ") but every coordinate lies within +-180 / +-90: they look like degrees; the file's CRS is "
                          "probably wrong");
+  return warnings;
 }
-
-}  // namespace
 
 InfoJobResult run_info(const InfoJobOptions& options) {
   InfoJobResult r;

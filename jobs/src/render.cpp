@@ -11,6 +11,7 @@
 #include "rayscan/site/copc.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/image/image_file.hpp"
+#include "rayscan/jobs/info.hpp"
 #include "rayscan/io/point_reader.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/surfel_setup.hpp"
@@ -29,6 +30,7 @@
 #include <optional>
 #include <utility>
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 namespace rayscan::jobs {
@@ -47,10 +49,23 @@ std::string num17(double v) {
 // True in one process and on the root of several (the process that writes the image).
 bool is_root(const JobControl& ctl) { return !ctl.distributor || ctl.distributor->is_root(); }
 
-// The machine's physical memory in bytes (sysconf), 0 when the system does not say.
-std::uint64_t physical_memory_bytes() {
+// The memory this process can allocate and how a message names it: the machine's physical memory
+// (sysconf) or, when lower, the process's address-space limit (RLIMIT_AS, `ulimit -v`), which
+// fails any allocation past it whatever the machine holds. bytes 0 when the system does not say.
+struct MemoryLimit {
+  std::uint64_t bytes = 0;
+  bool address_space = false;  // the limit is RLIMIT_AS, not the physical memory
+};
+MemoryLimit memory_limit() {
+  MemoryLimit m;
   const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
-  return pages > 0 && page > 0 ? std::uint64_t(pages) * std::uint64_t(page) : 0;
+  if (pages > 0 && page > 0) m.bytes = std::uint64_t(pages) * std::uint64_t(page);
+  rlimit as{};
+  if (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY && (m.bytes == 0 || as.rlim_cur < m.bytes)) {
+    m.bytes = std::uint64_t(as.rlim_cur);
+    m.address_space = true;
+  }
+  return m;
 }
 
 // Bytes per pixel that a render of `aovs` holds at its peak: the framebuffer (beauty 12, depth 4,
@@ -77,24 +92,32 @@ std::uint64_t render_bytes_per_pixel(std::span<const Aov> aovs, bool write, cons
 }
 
 // Refuses, before anything is allocated, an image whose buffers (render_bytes_per_pixel) exceed
-// the machine's physical memory: such a render ends in std::bad_alloc or, with overcommit, in the
-// kernel's OOM killer part way through. Throws OptionError naming width and height.
+// the memory this process can allocate (check_image_memory). Throws OptionError naming width and
+// height.
 void check_render_memory(const Camera& camera, std::span<const Aov> aovs, bool write, const std::filesystem::path& image) {
-  const std::uint64_t have = physical_memory_bytes();
-  if (have == 0) return;
-  const double need = double(camera.width()) * double(camera.height()) * double(render_bytes_per_pixel(aovs, write, image));
-  if (need <= double(have)) return;
-  const double gib = double(std::uint64_t{1} << 30);
-  char buf[256];
-  std::snprintf(buf, sizeof buf,
-                "an image of %u x %u pixels%s needs about %.1f GiB of buffers, more than this machine's %.1f GiB "
-                "of memory; give a smaller ",
-                unsigned(camera.width()), unsigned(camera.height()), aovs.empty() ? "" : " with AOVs", need / gib,
-                double(have) / gib);
-  throw OptionError({buf, option("width"), " or ", option("height")});
+  check_image_memory(camera.width(), camera.height(), render_bytes_per_pixel(aovs, write, image),
+                     {option("width"), " or ", option("height")}, "", aovs.empty() ? "" : " with AOVs");
 }
 
 }  // namespace
+
+void check_image_memory(std::uint32_t width, std::uint32_t height, std::uint64_t bytes_per_pixel,
+                        std::vector<OptionError::Part> remedy, const std::string& lead, const std::string& detail) {
+  const MemoryLimit have = memory_limit();
+  if (have.bytes == 0) return;
+  const double need = double(width) * double(height) * double(bytes_per_pixel);
+  if (need <= double(have.bytes)) return;
+  const double gib = double(std::uint64_t{1} << 30);
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "%san image of %u x %u pixels%s needs about %.1f GiB of buffers, more than %s%.1f GiB%s; give a "
+                "smaller ",
+                lead.c_str(), unsigned(width), unsigned(height), detail.c_str(), need / gib,
+                have.address_space ? "the " : "this machine's ", double(have.bytes) / gib,
+                have.address_space ? " of address space this process may use (ulimit -v)" : " of memory");
+  remedy.insert(remedy.begin(), std::string(buf));
+  throw OptionError(std::move(remedy));
+}
 
 namespace {
 
@@ -444,7 +467,9 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   }
   OrthoMapJobResult r;
   r.ortho_colour = o.ortho_colour;
+  AABB cloud_bounds;  // for the CRS's plausibility (crs_warnings)
   job.camera_for_cloud = [&](const AABB& bounds) {
+    cloud_bounds = bounds;
     try {
       r.map = analysis::ortho_map(bounds, res);
     } catch (const std::invalid_argument& e) {
@@ -457,6 +482,10 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   r.render = run_render(job);
   if (!is_root(job.control)) return r;  // only the root's image is complete
   r.dsm = analysis::dsm_from_depth(*r.map, r.render.image.depth);
+  if (o.render.write)  // the files copy the cloud's CRS: `rayscan info`'s doubts about it too
+    for (const std::string& w : crs_warnings(r.render.crs_wkt, cloud_bounds))
+      job.control.info("warning: " + w + (o.dsm.empty() ? "; the GeoTIFF carries" : "; the GeoTIFFs carry") +
+                       " it as it is");
   if (o.render.write)
     r.render.written = analysis::write_ortho_map(*r.map, o.ortho_colour, r.colour(), r.render.image.depth,
                                                  job.scene.output.exposure, r.render.crs_wkt, image, o.dsm,

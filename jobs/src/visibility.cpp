@@ -16,6 +16,7 @@
 #include "rayscan/camera/camera_file.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/jobs/info.hpp"
 #include "rayscan/jobs/render.hpp"
 #include "rayscan/render/scene_json.hpp"
 #include "rayscan/base/work_distributor.hpp"
@@ -126,6 +127,16 @@ struct VisibilityRun {
     }
     camera = o.camera;
     if (!camera && !o.camera_file.empty()) camera = io::load_camera(o.camera_file);
+    // The camera marks hold one 4-byte point index a pixel (camera_first_hits): refused up front
+    // when that cannot be allocated, as a render's image is, rather than failing after the cloud
+    // is read.
+    if (camera) {
+      const bool file = !o.camera && !o.camera_file.empty();
+      check_image_memory(camera->width(), camera->height(), sizeof(std::uint32_t),
+                         {file ? "width and height in the camera file" : "camera width and height"},
+                         file ? o.camera_file.string() + ": " : std::string("camera: "),
+                         " (a 4-byte point index a pixel)");
+    }
   }
 
   /// The cloud, its index (or the mapped index file), the radius and the surfels.
@@ -286,6 +297,7 @@ struct VisibilityRun {
     ro.cloud = &cloud;
     ro.write = false;
     ro.control.threads = ctl.threads;
+    ro.control.progress = ctl.progress;  // the DSM's render takes seconds to minutes on a large grid
     mo.ortho_map = grid.cell;
     OrthoMapJobResult dr;
     try {
@@ -300,7 +312,7 @@ struct VisibilityRun {
     if (dsm.grid.cols != grid.cols || dsm.grid.rows != grid.rows || dsm.grid.x0 != grid.x0 || dsm.grid.y_top != grid.y_top)
       throw std::logic_error("visibility: the DSM's grid is not the raster's");
     // The observers' ranges and angle limits as the per-point line of sight applies them.
-    Raster v = dsm_viewshed(dsm, observers, r.max_distance, dsm_target_height(), ctl.threads);
+    Raster v = dsm_viewshed(dsm, observers, r.max_distance, dsm_target_height(), ctl.threads, ctl.progress);
     std::snprintf(buf, sizeof buf, "viewshed on the DSM (%ux%u cells of %.6g): %.2f s", grid.cols, grid.rows,
                   grid.cell, seconds_since(t));
     ctl.info(buf);
@@ -309,19 +321,12 @@ struct VisibilityRun {
 
   /// The GeoTIFF map and its preview.
   void write_raster() {
+    const AABB bounds = cloud.bounds();
     GridSpec grid;
     try {
-      grid = grid_over(cloud.bounds(), *o.cell);
+      grid = grid_over(bounds, *o.cell);
     } catch (const std::invalid_argument& e) {
       throw OptionError({option("cell"), std::string(": ") + e.what()});
-    }
-    RasterValues rv;
-    if (value == "viewshed") {
-      r.raster = viewshed_on_dsm(grid);
-      rv.name = r.raster->name;
-    } else {
-      rv = raster_values();
-      r.raster = rasterize(cloud.positions, rv.values, grid, rv.reduce, rv.name);
     }
     GeoTiffOptions go;
     go.crs_wkt = cloud.crs_wkt;
@@ -329,6 +334,20 @@ struct VisibilityRun {
     // Distances in the cloud's units; the other values are counts, 0/1 flags or fractions.
     if (value == "distance") go.unit_is_crs_length = true;
     else go.unit = value == "count" ? "observers" : "1";
+    RasterValues rv;
+    if (value == "viewshed") {
+      r.raster = viewshed_on_dsm(grid);
+      rv.name = r.raster->name;
+    } else {
+      rv = raster_values();
+      // A length names its unit in the band description, the preview's legend and the log, the
+      // band's own unit (the CRS's linear unit) where the CRS gives one.
+      if (go.unit_is_crs_length) {
+        const std::string unit = geotiff_band_unit(go);
+        rv.name += " (" + (unit.empty() ? std::string("the cloud's units; it has no CRS") : unit) + ")";
+      }
+      r.raster = rasterize(cloud.positions, rv.values, grid, rv.reduce, rv.name);
+    }
     if (value == "viewshed") {
       go.metadata.emplace_back("RAYSCAN_SURFACE", "DSM (render --ortho-map " + std::to_string(grid.cell) + " --dsm)");
       go.metadata.emplace_back("RAYSCAN_TARGET_HEIGHT", std::to_string(dsm_target_height()));
@@ -339,6 +358,8 @@ struct VisibilityRun {
     write_geotiff(o.raster, *r.raster, go);
     r.written.push_back(o.raster);
     if (cloud.crs_wkt.empty()) ctl.info("the cloud has no CRS; the GeoTIFF has a geotransform but no CRS");
+    for (const std::string& w : crs_warnings(cloud.crs_wkt, bounds))  // `rayscan info`'s doubts, as it is copied
+      ctl.info("warning: " + w + "; the GeoTIFF carries it as it is");
     std::snprintf(buf, sizeof buf, "raster %ux%u cells of %.6g, origin (%.6f, %.6f)", grid.cols, grid.rows, grid.cell,
                   grid.x0, grid.y_top);
     ctl.info(buf);

@@ -12,6 +12,7 @@
 #include "rayscan/camera/camera_file.hpp"
 #include "rayscan/io/las_records.hpp"
 
+#include <cpl_conv.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
@@ -539,6 +540,120 @@ TEST_F(VisibilityCli, FromCameraMarksThePointsItSees) {
     }
   }
   EXPECT_GT(total, 64 * 48 / 4);
+}
+
+// The raster viewshed's two long phases report progress as the line of sight does: into a pipe
+// (not a terminal) plain lines, the last at 100% -- the DSM's render ("tiles") and the viewshed
+// over its rows ("rows", as many as the grid has, read from the job's own log line).
+TEST_F(VisibilityCli, RasterViewshedReportsTheDsmAndViewshedProgress) {
+  const fs::path tif = tmpdir() / "progress.tif";
+  const RunResult r = run_cmd(bin() + " visibility " + scene().string() + " --observer 0,0,1.7 --raster " +
+                              tif.string() + " --cell 0.5 --no-preview");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.find('\r'), std::string::npos) << r.out;
+  unsigned cols = 0, rows = 0;
+  const std::size_t at = r.out.find("viewshed on the DSM (");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  ASSERT_EQ(std::sscanf(r.out.c_str() + at, "viewshed on the DSM (%ux%u cells", &cols, &rows), 2) << r.out;
+  const std::size_t tiles = std::size_t((cols + 15) / 16) * ((rows + 15) / 16);  // the render's 16 x 16 tiles
+  const std::string n = std::to_string(tiles), m = std::to_string(rows);
+  EXPECT_NE(r.out.find("progress: " + n + "/" + n + " tiles 100.0%"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("progress: " + m + "/" + m + " rows 100.0%"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(" cells/s  done in "), std::string::npos) << r.out;
+  // -q: none of it.
+  const RunResult q = run_cmd(bin() + " visibility -q " + scene().string() + " --observer 0,0,1.7 --raster " +
+                              tif.string() + " --cell 0.5 --no-preview");
+  ASSERT_EQ(q.code, 0) << q.out;
+  EXPECT_EQ(q.out.find("progress:"), std::string::npos) << q.out;
+}
+
+// A distance map names its unit where the GeoTIFF does: autzen's CRS is in international feet, and
+// the band's unit as GDAL reads it back ("foot") ends the band description, the preview legend
+// (the log line and the PNG's own bytes, where the legend is its description).
+TEST(VisibilityCliData, DistanceMapNamesTheCrsUnitInItsLegend) {
+  const fs::path tif = tmpdir() / "autzen_distance.tif", png = tmpdir() / "autzen_distance.png";
+  const RunResult r = run_cmd(std::string(RAYSCAN_BIN) + " visibility " + RAYSCAN_TEST_DATA +
+                              "/las/autzen_trim.las --observer 636226.5,849106.5 --height 6 --raster-value "
+                              "distance --raster " + tif.string() + " --cell 20");
+  ASSERT_EQ(r.code, 0) << r.out;
+  GDALAllRegister();
+  std::string unit, description;
+  {
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(tif.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+    ASSERT_TRUE(ds);
+    unit = ds->GetRasterBand(1)->GetUnitType();
+    description = ds->GetRasterBand(1)->GetDescription();
+  }
+  EXPECT_EQ(unit, "foot");
+  const std::string title = "distance to the nearest observer that sees the cell (" + unit + ")";
+  EXPECT_EQ(description, title);
+  EXPECT_NE(r.out.find("preview legend: " + title + ": black 0 -> "), std::string::npos) << r.out;
+  std::ifstream in(png, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(bytes.find(title + ": black 0 -> "), std::string::npos);
+  EXPECT_EQ(r.out.find("warning:"), std::string::npos) << r.out;  // a CRS that fits the coordinates
+}
+
+// A CRS that cannot describe the coordinates (geographic WGS 84 over coordinates in the millions)
+// is copied into the GeoTIFFs of `visibility --raster` and `render --ortho-map` with the warning
+// `rayscan info` gives for the file, word for word (the oracle: info's own "warning:" line).
+TEST_F(VisibilityCli, ImplausibleCrsIsWarnedAsInfoWarnsIt) {
+  PointCloud c = io::read_point_cloud(scene());
+  for (Vec3& p : c.positions) p += Vec3(515000.0, 4918000.0, 0.0);
+  OGRSpatialReference wgs84;
+  ASSERT_EQ(wgs84.importFromEPSG(4326), OGRERR_NONE);
+  char* wkt = nullptr;
+  ASSERT_EQ(wgs84.exportToWkt(&wkt), OGRERR_NONE);
+  c.crs_wkt = wkt;
+  CPLFree(wkt);
+  const fs::path ply = tmpdir() / "wgs84_projected.ply";
+  io::write_ply(ply, c);
+  const RunResult info = run_cmd(bin() + " info " + ply.string());
+  ASSERT_EQ(info.code, 0) << info.out;
+  const std::size_t w = info.out.find("warning:");
+  ASSERT_NE(w, std::string::npos) << info.out;
+  const std::size_t text = info.out.find_first_not_of(' ', w + 8);
+  const std::string warning = info.out.substr(text, info.out.find('\n', text) - text);
+  EXPECT_NE(warning.find("the CRS is geographic"), std::string::npos) << warning;
+  const RunResult vis = run_cmd(bin() + " visibility " + ply.string() + " --observer 515000,4918000,1.7 --raster " +
+                                (tmpdir() / "wgs84_vis.tif").string() + " --cell 1 --no-preview");
+  ASSERT_EQ(vis.code, 0) << vis.out;
+  EXPECT_NE(vis.out.find("rayscan visibility: warning: " + warning + "; the GeoTIFF carries it as it is\n"),
+            std::string::npos) << vis.out;
+  const RunResult ortho = run_cmd(bin() + " render " + ply.string() + " --ortho-map 1 --out " +
+                                  (tmpdir() / "wgs84_ortho.tif").string());
+  ASSERT_EQ(ortho.code, 0) << ortho.out;
+  EXPECT_NE(ortho.out.find("rayscan render: warning: " + warning + "; the GeoTIFF carries it as it is\n"),
+            std::string::npos) << ortho.out;
+  // Without a GeoTIFF nothing copies the CRS: no warning.
+  const RunResult las = run_cmd(bin() + " visibility " + ply.string() + " --observer 515000,4918000,1.7 -o " +
+                                (tmpdir() / "wgs84_vis.las").string());
+  ASSERT_EQ(las.code, 0) << las.out;
+  EXPECT_EQ(las.out.find("warning:"), std::string::npos) << las.out;
+}
+
+// A camera whose marks cannot be allocated (4 bytes a pixel: 16 GiB for 65536 x 65536) is refused
+// before the cloud is read, naming the camera file, as `render` refuses such an image: here under
+// a 4000000 KiB address-space limit (ulimit -v), which is 3.8 GiB.
+TEST_F(VisibilityCli, FromCameraRefusesMarksBeyondTheMemoryLimit) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer reserves its shadow memory beyond any ulimit -v";
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(memory_sanitizer) || __has_feature(thread_sanitizer)
+  GTEST_SKIP() << "a sanitizer reserves its shadow memory beyond any ulimit -v";
+#endif
+#endif
+  const fs::path cam = write_text("cam_huge.json", R"({"width": 65536, "height": 65536, "position": [-9, 0, 4],
+    "look_at": [5, 0, 1], "up": [0, 0, 1], "vfov_deg": 50})");
+  const fs::path out = tmpdir() / "cam_huge.ply";
+  const RunResult r = run_cmd("ulimit -v 4000000 && " + bin() + " visibility " + scene().string() +
+                              " --from-camera " + cam.string() + " -o " + out.string());
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out, "rayscan visibility: " + cam.string() +
+                       ": an image of 65536 x 65536 pixels (a 4-byte point index a pixel) needs about 16.0 GiB of "
+                       "buffers, more than the 3.8 GiB of address space this process may use (ulimit -v); give a "
+                       "smaller width and height in the camera file\n");
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST(Observers, InnerGroundRadiusKeepsTheEyeOnASlope) {

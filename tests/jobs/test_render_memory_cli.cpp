@@ -64,14 +64,20 @@ TEST(RenderMemoryCli, AFailedAllocationIsOneLineAndExitCode2) {
 #endif
 #endif
   // 16384 x 16384 pixels for a PNG: 36 bytes a pixel, 9 GiB, within the memory check on a machine
-  // of more than 9 GiB; a 2 GB address-space limit makes the 3 GiB framebuffer's allocation fail.
+  // of more than 9 GiB. A 2 GB data-size limit (ulimit -d, which the check does not read) makes the
+  // 3 GiB framebuffer's allocation fail; a 2 GB address-space limit (ulimit -v) is the check's own
+  // limit: refused up front with the estimate.
   if (physical_memory_gib() <= 9.0) GTEST_SKIP() << "the memory check refuses this image here";
   const auto dir = temp_dir() / "render_bad_alloc";
   std::filesystem::create_directories(dir);
-  const auto r = run_command("ulimit -v 2000000 && " + quoted(RAYSCAN_BIN) + " render -q " +
-                             quoted(data_file("ply/cube_binary.ply")) + " --width 16384 --height 16384 -o " +
-                             quoted(dir / "mid.png"));
+  const std::string args = " render -q " + quoted(data_file("ply/cube_binary.ply")) +
+                           " --width 16384 --height 16384 -o " + quoted(dir / "mid.png");
+  auto r = run_command("ulimit -d 2000000 && " + quoted(RAYSCAN_BIN) + args);
   EXPECT_EQ(r.code, 2);
   EXPECT_EQ(r.out, "rayscan render: out of memory (std::bad_alloc)\n");
+  r = run_command("ulimit -v 2000000 && " + quoted(RAYSCAN_BIN) + args);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan render: an image of 16384 x 16384 pixels needs about 9.0 GiB of buffers, more than the "
+                   "1.9 GiB of address space this process may use (ulimit -v); give a smaller --width or --height\n");
   EXPECT_TRUE(std::filesystem::is_empty(dir));
 }

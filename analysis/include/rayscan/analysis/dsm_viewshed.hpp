@@ -23,9 +23,12 @@ namespace rayscan::analysis {
 /// linear interpolation between the two cell centres it passes between, and the target is hidden
 /// when one of them lies above the sight line. Cells without a value do not block. No earth
 /// curvature or refraction (gdal_viewshed -cc 0). O(cells x cells along a line) per eye, the rows
-/// spread over `threads` (0 = all cores). Throws std::invalid_argument when the DSM's value count
-/// is not cols x rows, a target height is negative or not finite, or an eye is not finite.
-Raster dsm_viewshed(const Raster& dsm, std::span<const Vec3> eyes, double target_height, unsigned threads = 0);
+/// spread over `threads` (0 = all cores). `progress`: report the rows done on stderr (Progress,
+/// rayscan/base/progress.hpp: "rows", the rate in cells/s). Throws std::invalid_argument when the
+/// DSM's value count is not cols x rows, a target height is negative or not finite, or an eye is
+/// not finite.
+Raster dsm_viewshed(const Raster& dsm, std::span<const Vec3> eyes, double target_height, unsigned threads = 0,
+                    bool progress = false);
 
 /// dsm_viewshed from `observers` (their positions as the eyes) within their limits, as the
 /// per-point line of sight applies them (visibility.hpp): a cell counts for an observer only when
@@ -34,6 +37,6 @@ Raster dsm_viewshed(const Raster& dsm, std::span<const Vec3> eyes, double target
 /// azimuth and elevation limits (within_angle_limits). Throws as dsm_viewshed, and
 /// std::invalid_argument for a negative or NaN max_distance.
 Raster dsm_viewshed(const Raster& dsm, std::span<const Observer> observers, double max_distance,
-                    double target_height, unsigned threads = 0);
+                    double target_height, unsigned threads = 0, bool progress = false);
 
 }  // namespace rayscan::analysis

@@ -23,6 +23,12 @@ struct GeoTiffOptions {
   bool unit_is_crs_length = false;
 };
 
+/// The unit write_geotiff gives the band for `options`: options.unit, or with unit_is_crs_length
+/// the CRS's linear unit as GDAL names it from options.crs_wkt ("metre", "foot", "US survey
+/// foot"; "" without a CRS or for a WKT GDAL cannot read). For a picture's legend or a log line
+/// that must name the same unit as the file.
+std::string geotiff_band_unit(const GeoTiffOptions& options);
+
 /// Writes `raster` as a single-band Float32 GeoTIFF: geotransform from raster.grid (north-up,
 /// pixel-is-area), the CRS from options.crs_wkt (GDALDataset::SetSpatialRef after
 /// OGRSpatialReference::importFromWkt, traditional GIS axis order), NaN cells as options.nodata

@@ -91,6 +91,15 @@ struct InfoJobResult {
   std::optional<CopcInfo> copc;              ///< set for a COPC file: its octree (hierarchy)
 };
 
+/// The warnings `rayscan info` gives when a CRS cannot describe the coordinates it is attached to,
+/// one sentence each ending "the file's CRS is probably wrong": a geographic CRS (degrees) over
+/// coordinates beyond +-180 / +-90, a geocentric (ECEF) one over points that do not lie near the
+/// Earth's surface, a projected one over coordinates that all lie within +-180 / +-90. `bounds`:
+/// the points' bounds in the file's coordinates. None for an empty `crs_wkt` or a WKT GDAL cannot
+/// read; never throws for those. Other jobs that copy a cloud's CRS into an output (a GeoTIFF) give
+/// the same warnings.
+std::vector<std::string> crs_warnings(const std::string& crs_wkt, const AABB& bounds);
+
 /// Reads `file` (read_point_cloud with all scalars) and summarises it. Throws io::FormatError for a
 /// malformed or unsupported file.
 InfoJobResult run_info(const InfoJobOptions& options);

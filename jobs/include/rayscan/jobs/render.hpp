@@ -7,6 +7,7 @@
 #include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/site/copc.hpp"
 #include "rayscan/base/job.hpp"
+#include "rayscan/base/option_error.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 #include "rayscan/image/aov.hpp"
 #include "rayscan/render/image_output.hpp"
@@ -19,6 +20,7 @@
 #include <functional>
 #include <optional>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace rayscan::jobs {
@@ -80,12 +82,24 @@ struct RenderJobResult {
 /// cloud, an unreadable or empty cloud, a bad material range or index option, or an impossible
 /// auto radius, "<scene file>: /surfel: ..." when surfels cannot be estimated; std::runtime_error naming the file when an image cannot be written;
 /// OptionError naming width and height, with the estimate in GiB, before the image's buffers are
-/// allocated when they would exceed the machine's physical memory (sysconf; per pixel the
-/// framebuffer of beauty and AOVs plus, when writing, the writer's copies: docs/cli.md, render).
+/// allocated when they would exceed the memory the process can allocate (check_image_memory; per
+/// pixel the framebuffer of beauty and AOVs plus, when writing, the writer's copies: docs/cli.md,
+/// render).
 /// With options.control.distributor over several processes (MPI, docs/mpi.md) every process calls
 /// it with the same options; the tiles are handed out by the distributor, only the root's `image`
 /// is complete and only the root writes (stats: ray queries summed over the processes).
 RenderJobResult run_render(const RenderJobOptions& options);
+
+/// Refuses, before anything is allocated, an image of `width` x `height` pixels whose buffers of
+/// `bytes_per_pixel` (a lower bound of what the job holds per pixel) exceed the memory this process
+/// can allocate: the machine's physical memory (sysconf) or, when lower, the process's
+/// address-space limit (RLIMIT_AS, `ulimit -v`). Such a job would end in std::bad_alloc or, with
+/// overcommit, in the kernel's OOM killer part way through. Throws OptionError "<lead>an image of
+/// W x H pixels<detail> needs about N GiB of buffers, more than this machine's M GiB of memory
+/// (or: the M GiB of address space this process may use (ulimit -v)); give a smaller <remedy>".
+void check_image_memory(std::uint32_t width, std::uint32_t height, std::uint64_t bytes_per_pixel,
+                        std::vector<OptionError::Part> remedy, const std::string& lead = "",
+                        const std::string& detail = "");
 
 /// Inputs of run_ortho_map(): a render through a top-down camera over the cloud's exact XY extent.
 struct OrthoMapJobOptions {
@@ -131,7 +145,8 @@ struct OrthoMapJobResult {
 /// R cells, top-down, colour albedo"), the DSM from the depth AOV, the colour from the albedo AOV
 /// or the beauty (ortho_colour) and, when render.write, the files (analysis::write_ortho_map: the
 /// RGBA orthophoto at scene.output.image, the Float32 DSM at `dsm` when set, both with the cloud's
-/// CRS and the render's metadata), written on the root only. This is the one definition of a
+/// CRS and the render's metadata), written on the root only; crs_warnings about that CRS are
+/// logged ("warning: ..."), as the files copy it unchanged. This is the one definition of a
 /// cloud's DSM on a grid (the visibility job's DSM viewshed calls it too). The outputs' names and
 /// folders are checked before the render. Throws OptionError naming `ortho_map` for a cell size
 /// that is not finite and > 0 or that gives too large a grid (analysis::ortho_map's message),

@@ -120,9 +120,11 @@ struct VisibilityJobResult {
 /// Checks every option (before any work: extensions, output folders, value/input combinations),
 /// reads the cloud, builds the index (none for an index file or a COPC file queried in place:
 /// copc_in_place), chooses the radius, runs the requested analyses and writes
-/// the outputs. A LAS output keeps the source's scale and offset. Throws std::invalid_argument
-/// (bad option, message naming it), ObserverError, SceneError (camera file), io::FormatError
-/// (cloud), std::runtime_error (I/O).
+/// the outputs. A LAS output keeps the source's scale and offset; a GeoTIFF copies the cloud's CRS
+/// unchanged and logs crs_warnings about it ("warning: ..."). Throws std::invalid_argument (bad
+/// option, message naming it; check_image_memory's OptionError, before the cloud is read, for a
+/// camera whose marks, 4 bytes a pixel, exceed the memory), ObserverError, SceneError (camera
+/// file), io::FormatError (cloud), std::runtime_error (I/O).
 /// With options.control.distributor over several processes (MPI, docs/mpi.md) every process calls
 /// it with the same options; point chunks (and camera rows) are handed out by the distributor,
 /// and only the root's result is complete and only the root writes the outputs.
