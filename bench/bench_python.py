@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""bench_python: the `rayscan` Python module (issue 14, section 2).
+"""bench_python: the `rayscan` Python module against the C++ batch, NumPy and Open3D.
 
 1. Python batch ray query vs the C++ batch (python_batch_peer: rayscan::ray_query_batch) on the
    same points and rays, same index: throughput ratio Python / C++ (goal >= 0.95).
