@@ -309,13 +309,18 @@ def visibility(cloud, observers=None, radius=None, height=None, max_distance=Non
     """Per-point visibility like `rayscan visibility` (jobs::run_visibility; rule in
     analysis/README.md), without writing files.
 
+    Line of sight runs on surfels, the CLI's default `--primitive surfel`: each point an oriented
+    disc (PCA normal, radius from its neighbours' spacing), solid below.
+
     cloud: a file path, a PointCloud or an (N, 3) array of positions (world units).
     observers: a .json/.csv observer file, an (K, 3) array of eye positions, or (K, 2)
     positions whose eyes stand `height` above the local ground. radius: sphere radius (world
-    units; None = auto from the point spacing). sky_rays > 0 adds the sky view factor; camera
-    (a camera file) adds the pixels whose first hit is each point. A COPC file is queried on its
-    own octree in place (its points still read for the fields; the same answers as read whole),
-    decoded nodes kept within `cache` ("2G", "512M", as `--cache`).
+    units; None = auto from the point spacing) of the sky view and camera marks, which use
+    spheres; for line of sight it scales the default ground search radius (5 x radius).
+    sky_rays > 0 adds the sky view factor; camera (a camera file) adds the pixels whose first hit
+    is each point. A COPC file is queried on its own octree in place (its points still read for
+    the fields; the same answers as read whole), decoded nodes kept within `cache` ("2G",
+    "512M", as `--cache`).
 
     Returns a dict: "visible_count" (N,) (observers that see each point), "visible_distance" (N,)
     (with distance=True; -1 = unseen), "sky_view" (N,), "camera_hits" (N,) when asked, as float64;
@@ -324,9 +329,9 @@ def visibility(cloud, observers=None, radius=None, height=None, max_distance=Non
 
     height: eye height above the local ground (world units) of observers given without z (the
     (K, 2) rows, file rows without z); a finite number. max_distance: viewing range (world units;
-    None = unlimited). tolerance: a point counts as seen when the first sphere the ray meets lies
-    at most this far before it (None = 2 x radius; surfels 0). target_height: rays aim this far
-    above each point (None = 1 x radius). threads: worker threads (0 = all cores).
+    None = unlimited). tolerance: a point counts as seen when the first surface the ray meets
+    lies at most this far before it (None = 0). target_height: rays aim this far above each
+    point (None = 0: at the point, as GIS viewsheds). threads: worker threads (0 = all cores).
     Raises ValueError for a bad option (named as the keyword: "height: expected a finite number
     ...") or a malformed observer file, TypeError for an argument of the wrong type, OSError for a
     cloud, observer or camera file that cannot be opened and for a malformed cloud file.
