@@ -108,6 +108,7 @@ struct Limits {
   double max_flip = std::numeric_limits<double>::infinity();  ///< mean FLIP above this triggers
 };
 
+/// The outcome of a comparison: no limit triggered, a warn limit triggered, or a fail limit.
 enum class Verdict { pass, warn, fail };
 
 /// Outcome of judge(): the verdict and a human-readable reason per triggered test.

@@ -49,15 +49,6 @@ struct LegendSwatch {
 int draw_legend(Image& img, int top, const std::string& title, std::optional<std::pair<double, double>> ramp,
                 std::span<const LegendSwatch> swatches);
 
-/// Writes an 8-bit RGB image (format by extension, normally .png) of `raster`: each cell becomes an
-/// s x s block (s = the largest integer with max(cols, rows) s <= 1024, at least 1), north up,
-/// coloured by heat_ramp((v - lo) / (hi - lo)) (values outside [lo, hi] clamp; lo == hi maps to
-/// the ramp's middle), or by `style.categories` when given; no-data cells kNoDataRgb;
-/// `style.markers` drawn over the map. Below the map a legend (draw_legend): the title (once), a
-/// colour bar with the values at its ends and middle (or one swatch per category), a no-data
-/// swatch and the marker's symbol. The legend text is also stored as the file's ImageDescription and returned.
-/// Written through write_image (temp file + rename). Throws std::invalid_argument for lo > hi or
-/// non-finite bounds, std::runtime_error for I/O failures.
 /// A class of a categorical preview: cells whose value equals `value` get colour `rgb` (linear
 /// RGB in [0, 1]) and the legend names them `label`.
 struct PreviewCategory {
@@ -77,6 +68,15 @@ struct PreviewStyle {
   std::string marker_label = "observer";
 };
 
+/// Writes an 8-bit RGB image (format by extension, normally .png) of `raster`: each cell becomes an
+/// s x s block (s = the largest integer with max(cols, rows) s <= 1024, at least 1), north up,
+/// coloured by heat_ramp((v - lo) / (hi - lo)) (values outside [lo, hi] clamp; lo == hi maps to
+/// the ramp's middle), or by `style.categories` when given; no-data cells kNoDataRgb;
+/// `style.markers` drawn over the map. Below the map a legend (draw_legend): the title (once), a
+/// colour bar with the values at its ends and middle (or one swatch per category), a no-data
+/// swatch and the marker's symbol. The legend text is also stored as the file's ImageDescription
+/// and returned. Written through write_image (temp file + rename). Throws std::invalid_argument
+/// for lo > hi or non-finite bounds, std::runtime_error for I/O failures.
 std::string write_raster_preview(const std::filesystem::path& path, const Raster& raster, double lo,
                                  double hi, const std::string& title, const PreviewStyle& style = {});
 

@@ -35,6 +35,7 @@ struct GatheredField {
     static_assert(std::is_trivially_copyable_v<T>);
     return {reinterpret_cast<std::byte*>(values.data()), sizeof(T)};
   }
+  /// The elements of `values` (one per point) as a gathered field.
   template <class T>
   static GatheredField of(std::vector<T>& values) {
     return of(std::span<T>(values));

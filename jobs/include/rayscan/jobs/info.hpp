@@ -33,10 +33,9 @@ struct InfoJobOptions {
   std::filesystem::path file;  ///< point cloud file (any format read_point_cloud reads)
   bool verify = false;         ///< index files: verify every section's checksum (CLI --verify)
   bool stats = false;          ///< report each attribute's mean and standard deviation (CLI --stats)
-  JobControl control;          ///< unused today (the reader is single-threaded)
+  JobControl control;          ///< the jobs' common controls; run_info reads none (one reader thread)
 };
 
-/// Output of run_info().
 /// What `rayscan info` reports for an index file (.rsi, rayscan/site/index_file.hpp).
 struct IndexFileSummary {
   std::string layout;                          ///< octree organisation ("adaptive", ...)
@@ -56,6 +55,7 @@ struct IndexFileSummary {
   std::vector<IndexSource> sources;            ///< the files the index was built from
 };
 
+/// Output of run_info(): what `rayscan info` prints, as text or JSON.
 struct InfoJobResult {
   std::string file;                          ///< the file described
   FileInfo info;                             ///< what the reader found

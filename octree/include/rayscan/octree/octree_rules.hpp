@@ -82,6 +82,7 @@ struct OctreeRules {
       if (f >= kCells - 1) return kCells - 1;
       return static_cast<std::uint32_t>(f);
     }
+    /// The 63-bit Morton code of the cells of `p` (cell() per axis, x in the lowest bit).
     [[nodiscard]] std::uint64_t code(const Vec3& p) const {
       return morton_encode(cell(p.x, 0), cell(p.y, 1), cell(p.z, 2));
     }

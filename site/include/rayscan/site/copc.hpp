@@ -68,6 +68,10 @@ CopcInfo read_copc_info(const std::filesystem::path& path);
 /// headers; false for any other or unreadable file (the caller's reader reports why).
 bool is_copc_file(const std::filesystem::path& path);
 
+/// The default budget of a CopcIndex's decoded nodes, bytes (2 GiB: `--cache` of the commands
+/// that open a COPC file in place).
+inline constexpr std::size_t kCopcDefaultCacheBytes = std::size_t{2} << 30;
+
 /// A COPC file as a SpatialIndex (layered octree). Node 0 is the root; a node's children are
 /// the existing keys one level down. ids() are the points' indices in file order, the order
 /// read_point_cloud() returns them in. positions() spans reserved virtual memory: a node's slots
@@ -103,10 +107,6 @@ bool is_copc_file(const std::filesystem::path& path);
 /// cached with the node's points and counted in the cache budget. Node handles: low 32 bits the
 /// hierarchy node, high 32 bits 0 (the hierarchy node), kGroup (its group) or 1 + a cell index
 /// of its local tree.
-/// The default budget of a CopcIndex's decoded nodes, bytes (2 GiB: `--cache` of the commands
-/// that open a COPC file in place).
-inline constexpr std::size_t kCopcDefaultCacheBytes = std::size_t{2} << 30;
-
 class CopcIndex {
  public:
   using Node = std::uint64_t;

@@ -257,8 +257,8 @@ class MappedIndex {
   /// compared with N), because every consumer indexes per-point arrays by id (normals,
   /// visibility, query, the renderer's radii, ray hits' `index`). Reading a corrupted id throws
   /// IndexError naming the file, the byte offset and the slot; queries that never read it are
-  /// answered exactly. (Before, the first call checked all N ids: at 1e9 points that pass held
-  /// the first rendered tile for a second or more.) The view must not outlive the index.
+  /// answered exactly. (Checking all N ids up front would hold the first rendered tile of a
+  /// 1e9-point file for a second or more.) The view must not outlive the index.
   [[nodiscard]] IdView ids() const;
   /// True when the file holds the ids section (built with `--attributes id`).
   [[nodiscard]] bool has_ids() const { return ids_ != nullptr; }
@@ -267,9 +267,13 @@ class MappedIndex {
   /// The octant (0..7, Morton digit) of node n in its parent's cell; 0 for the root. A node's
   /// Warren & Salmon id is its parent's id times 8 plus this (not stored: IndexNodeRecord).
   [[nodiscard]] unsigned node_octant(Node n) const { return nodes_[n].octant(); }
+  /// The octree's root cube (world units), from the header.
   [[nodiscard]] const AABB& root_cell() const { return cell_; }
+  /// Nodes in the node table (node handles are 0 .. node_count() - 1, the root 0).
   [[nodiscard]] std::size_t node_count() const { return node_count_; }
+  /// The depth of the deepest node (the root is depth 0), from the header.
   [[nodiscard]] unsigned depth() const { return depth_; }
+  /// The organisation the index was built with (layout, capacity, depths).
   [[nodiscard]] const OctreeConfig& config() const { return config_; }
   /// Points stored per depth (index = depth).
   [[nodiscard]] std::vector<std::uint64_t> points_per_level() const;
@@ -285,13 +289,17 @@ class MappedIndex {
   [[nodiscard]] std::span<const double> gps_time() const { return gps_; }
   /// The stored attributes (Attribute::id when the ids section is present).
   [[nodiscard]] AttributeSet attributes() const { return attrs_; }
+  /// The files the index was built from (each with its range of ids).
   [[nodiscard]] const std::vector<IndexSource>& sources() const { return sources_; }
+  /// The CRS of the stored coordinates as WKT (the crs section; "" = none).
   [[nodiscard]] const std::string& crs_wkt() const { return crs_; }
+  /// Size of the mapped file, bytes.
   [[nodiscard]] std::uint64_t file_bytes() const;
   /// Drops the map's resident pages from the process (MADV_DONTNEED on the shared read-only map:
   /// the data stays in the page cache and is faulted in again when touched), so a long pass of
   /// scattered reads keeps a bounded resident set. Never changes what the index reads.
   void release_pages() const;
+  /// The path the index was opened from.
   [[nodiscard]] const std::filesystem::path& path() const { return path_; }
   /// The median nearest-neighbour spacing of the stored points (world units; 0 below two distinct
   /// points), computed at build time by median_nn_spacing_by_id (rayscan/octree/spacing.hpp) over this
