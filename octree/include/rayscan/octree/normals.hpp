@@ -50,7 +50,6 @@ struct SurfelOptions {
   double max_radius_factor = 4.0; ///< radii are clamped to this factor x their median (isolated
                                   ///< points would otherwise give huge discs), > 0
   NormalOrientation orientation;  ///< sign of the normals
-  bool compute_normals = true;    ///< false: keep `normals` given to estimate_surfels (file normals)
   bool measure_thickness = true;  ///< false: leave SurfelAttributes::thickness zero (callers that
                                   ///< do not trace shadow or bounce rays, e.g. visibility)
 };
@@ -99,10 +98,10 @@ SurfelAttributes estimate_surfels_over(const I& index, std::span<const Vec3> pos
                                        std::span<const glm::vec3> file_normals = {});
 
 namespace detail {
-/// Argument checks of estimate_surfels (throws std::invalid_argument, see there).
 /// Throws std::runtime_error: the kNN of the point with id `id` found `found` < 2 neighbours
 /// among `points` (the index's nodes do not reach its points).
 [[noreturn]] void throw_knn_short(std::size_t id, std::size_t found, std::size_t points);
+/// Argument checks of estimate_surfels (throws std::invalid_argument, see there).
 void check_surfel_arguments(std::size_t index_points, std::span<const Vec3> positions, const SurfelOptions& o,
                             std::span<const glm::vec3> file_normals);
 /// The unit up axis of `o.orientation` ((0, 0, 1) when it is zero), computed once per estimate.

@@ -166,7 +166,7 @@ inline constexpr std::size_t kCopcSpacingSamples = 2000;
 [[nodiscard]] std::vector<PointIndex> copc_point_order(std::span<const Vec3> positions);
 
 /// Surfel normals and radii (estimate_surfels, octree/normals.hpp) of the site's points
-/// `positions` in original order, with `file_normals` (N or none) when compute_normals is off:
+/// `positions` in original order, oriented `file_normals` instead of PCA when given (N, or none):
 /// the same attributes for the same points in memory, in an index file (estimate_surfels_over)
 /// or in a COPC file in place (`positions`: every point in file order, read_point_cloud(); the
 /// kNN answered by its hierarchy, blocks of 1024 points each in a CopcIndex::QueryScope). Throws
