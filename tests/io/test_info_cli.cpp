@@ -85,9 +85,10 @@ TEST(InfoCli, JsonReportsFormatCountsBoundsAttributesAndCrs) {
 }
 
 // Strings of the file that are not UTF-8 or hold control characters: a WKT VLR with a Latin-1
-// byte (0xE9) made `info --json` exit 2 with nlohmann's "invalid UTF-8 byte" naming neither file
-// nor field; an escape character in the WKT reached the terminal raw. Now the JSON is valid
-// (strictly parsed) with the byte replaced and a warning, and the text shows \x1b.
+// byte (0xE9) must not stop `info --json` (nlohmann's dump throws "invalid UTF-8 byte", naming
+// neither file nor field), and an escape character in the WKT must not reach the terminal raw:
+// the JSON is valid (strictly parsed) with the byte replaced and a warning, and the text shows
+// \x1b.
 TEST(InfoCli, NonUtf8AndControlBytesOfTheFileAreReplacedOrEscaped) {
   RAYSCAN_REQUIRE_FILE(src, "las/autzen_trim.las");
   auto b = slurp(src);

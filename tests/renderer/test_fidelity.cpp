@@ -297,7 +297,8 @@ TEST(Fidelity, SunLitPlaneHasNoAcneWithSurfels) {
 /// Acne on a real depth-quantised scan: the lit wall of the bundled Kinect scan
 /// office1 (scenes/data/office1.pcd, 640x480 organised). At 5 m a Kinect's depth comes in
 /// disparity steps of ~7 cm (7 x the point spacing): the wall is a staircase of flat terraces, and
-/// shadow rays leaving one terrace used to hit the discs of the next (15-22% of the lit samples).
+/// without the measured thickness shadow rays leaving one terrace hit the discs of the next
+/// (15-22% of the lit samples).
 /// Oracle, independent of the renderer: the wall plane z = a x + b y + c fitted by least squares
 /// to the crop's points; pixels whose hit lies within 10 cm of it are wall pixels, and the sun is
 /// truly blocked at one only if some point of the crop lies off the wall (> 10 cm in front of the
@@ -383,7 +384,7 @@ TEST(Fidelity, KinectScanWallHasNoAcneWithSurfels) {
   };
   std::size_t judged = 0, judged0 = 0;
   const double frac = acne_of(attrs, judged);
-  SurfelAttributes thin = attrs;  // the rule without the measured thickness (before the fix)
+  SurfelAttributes thin = attrs;  // the control: the rule without the measured thickness
   std::fill(thin.thickness.begin(), thin.thickness.end(), 0.0f);
   const double frac0 = acne_of(thin, judged0);
   ASSERT_GT(judged, 1000u);

@@ -243,8 +243,8 @@ float colour_spread(std::span<const Color> colours) {
 // The quick look's scene up (the elevation ramp's and the sky's axis) is the up axis its camera
 // stands on and the CLI prints: on a tilted floor with boxes (no CRS) it is the analytic floor
 // normal, so the elevation colour of the level floor is one colour and that of the box tops
-// another (the reviewer's level table top and floor); along +z, the old scene up, the same floor
-// spans most of the ramp. Oracle: the analytic normal and the points' known heights above the floor.
+// another (as a level table top and floor); along +z, a fixed scene up, the same floor would span
+// most of the ramp. Oracle: the analytic normal and the points' known heights above the floor.
 TEST(QuickLook, SceneUpIsThePrintedUpAxis) {
   const TiltedFloor t;
   const std::vector<Vec3> pts = t.all();
@@ -341,7 +341,7 @@ TEST(QuickLook, SummaryDoesNotDependOnThePointsOrder) {
 }
 
 // An index file with the source's ids and colours renders the same quick look as its source, bit
-// for bit (the reviewer's autzen case, 110,000 points: more than kOverviewSample, so a sample
+// for bit (autzen, 110,000 points: more than kOverviewSample, so a sample
 // taken in storage order would differ), for a georeferenced LAS file (up +z) and for the same
 // points as a text file without a CRS (up estimated). Oracle: `rayscan compare` of the two PNGs
 // (exit 0: no pixel differs) and the two printed scenes' cameras.

@@ -221,9 +221,9 @@ struct OctreeBuilder {
     std::vector<Item> kept;
   };
 
-  // The items {codes[i], i} sorted by (code, index) (sort_morton_keys; it replaced
-  // tbb::parallel_sort, which was the largest part of the 1e7-point build after the gather:
-  // bench/notes/).
+  // The items {codes[i], i} sorted by (code, index) with sort_morton_keys, a bucket sort: a
+  // comparison sort (tbb::parallel_sort) was a quarter of the 1e7-point build
+  // (bench/notes/2026-11-22-packets-knn-build-remeasure.md).
   static DefaultInitVector<Item> sorted_items(const DefaultInitVector<std::uint64_t>& codes) {
     DefaultInitVector<Item> items(codes.size());  // uninitialised: first touched by the scatter
     sort_morton_keys(codes.size(), [&](std::size_t i) { return codes[i]; }, items.data());

@@ -38,7 +38,7 @@ struct DbImportJobOptions {
   /// Folder of the temporary index file and its sort runs; empty = the SQLite output's folder, or
   /// the system's temporary folder for PostgreSQL.
   std::filesystem::path temp_dir;
-  JobControl control;  ///< unused today
+  JobControl control;  ///< the jobs' common controls; run_db_import reads none (progress: above)
 };
 
 /// Output of run_db_import().

@@ -56,8 +56,9 @@ struct UpAxis {
 /// plane normal to the up axis (+x when up is +-y), aimed so that the points'
 /// projection is centred in the image, at the smallest distance at which every point projects
 /// inside it (exact per point), then a 2% margin: the points' projected extent spans about 98% of
-/// the image along one axis (the box's empty corners no longer push the camera back). World
-/// coordinates and units. Points that all coincide are framed as a 1-unit cube around them.
+/// the image along one axis (framing the points, not their box, whose empty corners would push the
+/// camera back). World coordinates and units. Points that all coincide are framed as a 1-unit
+/// cube around them.
 /// Throws std::invalid_argument for a zero width or height, no points, non-finite points or a zero
 /// or non-finite up axis.
 LookAtParams overview_view(std::span<const Vec3> points, const UpAxis& axis, std::uint32_t width,

@@ -104,10 +104,10 @@ __attribute__((always_inline)) inline bool visit_leaf(Leaf& leaf, Node n, SlotRa
 ///    (also those without points of their own), returning void or bool (true: stop the walk, as
 ///    any hit and line of sight do; bvh v2's convention).
 /// Order: a node's own points before its children's; the children a test enters are pushed in
-/// index order on a stack, so child nc - 1 is visited first (the order of the hand-written walks
-/// this replaced: box_query's output order is this visiting order). Under an Enter::whole node the
-/// subtree is visited in storage order (own points, then children 0, 1, ... recursively), or
-/// handed over at once as its subtree_points() range where the index has it (Octree, KdTree).
+/// index order on a stack, so child nc - 1 is visited first (box_query's output order is this
+/// visiting order). Under an Enter::whole node the subtree is visited in storage order (own
+/// points, then children 0, 1, ... recursively), or handed over at once as its subtree_points()
+/// range where the index has it (Octree, KdTree).
 /// Returns true when the leaf callback stopped the walk, false when it ran out (or the index is
 /// empty). Allocates nothing once warm (the stack is per thread and node type, shared by nested
 /// walks); exceptions from the policies propagate, the stack is restored.
