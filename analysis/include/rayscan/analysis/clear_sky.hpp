@@ -6,9 +6,10 @@
 // given there. Also the transposition of measured (weather-file) horizontal irradiance onto a
 // tilted surface with the same diffuse and ground-reflected models.
 //
-// "eq. (n)" below is Šúri & Hofierka 2004's numbering. NOTE: those numbers were written without
-// the printed paper at hand and want checking against it; the formulas themselves are checked
-// against GRASS r.sun 8.2 (to 1e-6) by tests/analysis/test_clear_sky.cpp.
+// Each formula below is cited by the quantity ESRA and Šúri & Hofierka 2004 name and by the GRASS
+// r.sun function that evaluates it (raster/r.sun/rsunlib.c: com_sol_const() the extraterrestrial
+// irradiance, brad() the air mass and the beam, drad() the diffuse and Muneer's ratio); the
+// formulas are checked against GRASS r.sun 8.2 (to 1e-6) by tests/analysis/test_clear_sky.cpp.
 //
 // Conventions used throughout:
 //  * angles are in radians;
@@ -28,12 +29,12 @@
 
 namespace rayscan::analysis {
 
-/// Solar constant I0 = 1367 W/m^2 (Šúri & Hofierka 2004, eq. (1); r.sun's default
-/// solar_constant).
+/// Solar constant I0 = 1367 W/m^2 (Šúri & Hofierka 2004, the extraterrestrial irradiance; r.sun's
+/// default solar_constant).
 inline constexpr double kSolarConstant = 1367.0;
 
 /// Sun elevation below which r.sun and Šúri & Hofierka use the low-sun form of the sunlit
-/// inclined diffuse (eq. (18)): 0.1 rad (5.7 degrees).
+/// inclined diffuse (Muneer's model; r.sun's drad()): 0.1 rad (5.7 degrees).
 inline constexpr double kLowSunElevation = 0.1;
 
 /// Direction of the sun as seen from the site.
@@ -66,35 +67,37 @@ struct SurfaceIrradiance {
 };
 
 /// Extraterrestrial irradiance normal to the sun, G0 = I0 * epsilon with the eccentricity
-/// correction epsilon = 1 + 0.03344 cos(2 pi j / 365.25 - 0.048869) (Šúri & Hofierka 2004,
-/// eqs. (1)-(2); GRASS r.sun's com_sol_const()). day_of_year j: 1..366. solar_constant > 0.
-/// Throws std::invalid_argument for an argument out of range.
+/// correction epsilon = 1 + 0.03344 cos(2 pi j / 365.25 - 0.048869) (Šúri & Hofierka 2004, the
+/// extraterrestrial irradiance; GRASS r.sun's com_sol_const()). day_of_year j: 1..366.
+/// solar_constant > 0. Throws std::invalid_argument for an argument out of range.
 double extraterrestrial_irradiance(int day_of_year, double solar_constant = kSolarConstant);
 
-/// Atmospheric refraction correction of the sun elevation, radians (Šúri & Hofierka 2004,
-/// eq. (7); ESRA, after Kasten & Young 1989): 0.061359 (0.1594 + 1.123 h0 + 0.065656 h0^2) /
-/// (1 + 28.9344 h0 + 277.3971 h0^2), h0 in radians. sun_elevation: 0..pi/2, else
-/// std::invalid_argument.
+/// Atmospheric refraction correction of the sun elevation, radians (ESRA and Šúri & Hofierka 2004,
+/// the corrected solar altitude, after Kasten & Young 1989; r.sun's brad()): 0.061359 (0.1594 +
+/// 1.123 h0 + 0.065656 h0^2) / (1 + 28.9344 h0 + 277.3971 h0^2), h0 in radians. sun_elevation:
+/// 0..pi/2, else std::invalid_argument.
 double refraction_correction(double sun_elevation);
 
-/// Relative optical air mass, corrected for the site elevation (Šúri & Hofierka 2004,
-/// eqs. (4)-(6); Kasten & Young 1989 as in ESRA): m = (p/p0) / (sin h0ref + 0.50572
-/// (h0ref_deg + 6.07995)^-1.6364) with h0ref = h0 + refraction_correction(h0) and
-/// p/p0 = exp(-z / 8434.5). sun_elevation: 0..pi/2 radians; site_elevation_m: -1000..10000 m.
-/// Throws std::invalid_argument for an argument out of range.
+/// Relative optical air mass, corrected for the site elevation (ESRA and Šúri & Hofierka 2004, the
+/// relative optical air mass; Kasten & Young 1989; r.sun's brad()): m = (p/p0) / (sin h0ref +
+/// 0.50572 (h0ref_deg + 6.07995)^-1.6364) with h0ref = h0 + refraction_correction(h0) and p/p0 =
+/// exp(-z / 8434.5). sun_elevation: 0..pi/2 radians; site_elevation_m: -1000..10000 m. Throws
+/// std::invalid_argument for an argument out of range.
 double relative_optical_air_mass(double sun_elevation, double site_elevation_m);
 
-/// Rayleigh optical thickness at air mass m (Šúri & Hofierka 2004, eqs. (8)-(9); ESRA):
+/// Rayleigh optical thickness at air mass m (ESRA and Šúri & Hofierka 2004, after Kasten 1996;
+/// r.sun's brad()):
 /// 1 / (6.6296 + 1.7513 m - 0.1202 m^2 + 0.0065 m^3 - 0.00013 m^4) for m <= 20,
 /// 1 / (10.4 + 0.718 m) for m > 20. air_mass: > 0 and finite, else std::invalid_argument.
 double rayleigh_optical_thickness(double air_mass);
 
 /// Diffuse transmission function at zenith, T_n(T_LK) = -0.015843 + 0.030543 T_LK +
-/// 0.0003797 T_LK^2 (Šúri & Hofierka 2004, eq. (13); ESRA's T_rd). linke: 1..10, else
+/// 0.0003797 T_LK^2 (Šúri & Hofierka 2004's T_n, ESRA's T_rd; r.sun's drad()). linke: 1..10, else
 /// std::invalid_argument (see clear_sky_horizontal for the range).
 double diffuse_transmission(double linke);
 
-/// Coefficients of the diffuse angular function F_d (Šúri & Hofierka 2004, eqs. (15)-(16)):
+/// Coefficients of the diffuse angular function F_d (ESRA and Šúri & Hofierka 2004; r.sun's
+/// drad()):
 /// A1' = 0.26463 - 0.061581 T_LK + 0.0031408 T_LK^2, A1 = 0.0022 / T_n when A1' T_n < 0.0022
 /// (r.sun's drad() tests the same product), else A1 = A1'. Within 1..10 this bound acts for
 /// turbid atmospheres, T_LK above about 5.8, where A1' falls towards and below 0 (it would also
@@ -106,8 +109,8 @@ struct DiffuseAngularCoefficients {
 };
 DiffuseAngularCoefficients diffuse_angular_coefficients(double linke);
 
-/// Diffuse angular function F_d(h0) = A1 + A2 sin h0 + A3 sin^2 h0 (Šúri & Hofierka 2004,
-/// eq. (14)), with the true (unrefracted) elevation as r.sun's drad() uses it.
+/// Diffuse angular function F_d(h0) = A1 + A2 sin h0 + A3 sin^2 h0 (ESRA and Šúri & Hofierka
+/// 2004), with the true (unrefracted) elevation as r.sun's drad() uses it.
 /// sun_elevation: 0..pi/2 radians; linke: 1..10. Throws std::invalid_argument.
 double diffuse_angular_function(double sun_elevation, double linke);
 
@@ -128,7 +131,8 @@ SurfaceOrientation orientation_from_normal(double east, double north, double up)
 double grass_aspect_deg(double compass_aspect);
 
 /// Muneer's (1990) ratio D_ic / D_hc of the sky diffuse on an inclined surface to the diffuse on
-/// the horizontal, as r.sun's drad() evaluates it (Šúri & Hofierka 2004, eqs. (17)-(23)):
+/// the horizontal, as r.sun's drad() evaluates it (Šúri & Hofierka 2004, the diffuse irradiance
+/// on inclined surfaces):
 ///   shadowed (or sun behind the plane, cos_incidence <= 0): F = r_i + 0.252271 f_g;
 ///   sunlit, h0 >= 0.1 rad: F (1 - Kb) + Kb cos_incidence / sin h0;
 ///   sunlit, h0 <  0.1 rad: F (1 - Kb) + Kb sin(slope) cos(A_LN) / (0.1 - 0.008 h0),
@@ -154,15 +158,17 @@ struct MuneerSurfaceTerms {
   double sin_slope = 0.0;
   double cos_aspect = 0.0, sin_aspect = 0.0;  ///< of the compass aspect
 };
-/// N of a shadowed surface in Muneer's model (Šúri & Hofierka 2004, eq. (19)).
+/// N of a shadowed surface in Muneer's model (Šúri & Hofierka 2004; r.sun's drad()).
 inline constexpr double kMuneerShadowN = 0.252271;
 /// The surface's terms. Throws std::invalid_argument for a slope outside 0..pi or a non-finite
 /// aspect.
 MuneerSurfaceTerms muneer_surface_terms(const SurfaceOrientation& surface);
-/// N of a sunlit surface, 0.00263 - 0.712 Kb - 0.6883 Kb^2 (eq. (23)); kb in 0..1.
+/// N of a sunlit surface, 0.00263 - 0.712 Kb - 0.6883 Kb^2 (Muneer's model as r.sun's drad());
+/// kb in 0..1.
 double muneer_n(double kb);
 
-/// Clear-sky horizontal irradiance (Šúri & Hofierka 2004, eqs. (3), (10), (12)):
+/// Clear-sky horizontal irradiance (ESRA and Šúri & Hofierka 2004, the beam and diffuse
+/// components on a horizontal surface; r.sun's brad() and drad()):
 /// B_0c = G0 exp(-0.8662 T_LK m delta_R(m)), B_hc = B_0c sin h0, D_hc = G0 T_n F_d, all 0 when
 /// the sun is at or below the horizon (h0 <= 0, as r.sun).
 /// sun_elevation: radians, -pi/2..pi/2. day_of_year: 1..366. linke: Linke turbidity factor at air
@@ -191,12 +197,12 @@ struct ClearSkyInput {
   double solar_constant = kSolarConstant;  ///< I0, W/m^2, > 0
 };
 
-/// Clear-sky irradiance on a surface as r.sun's instantaneous mode computes it:
-/// beam B_ic = B_0c cos(incidence) (0 when in_shadow or cos_incidence <= 0; Šúri & Hofierka 2004
-/// eq. (11)); diffuse D_hc * muneer_diffuse_ratio(...) with Kb = B_hc / (G0 sin h0);
-/// ground-reflected R_i = rho_g G_hc (1 - cos slope) / 2 (eqs. (24)-(25); see
-/// shadow_drops_reflected_beam). All components are 0 when h0 <= 0.
-/// Throws std::invalid_argument (one line naming the parameter and its range).
+/// Clear-sky irradiance on a surface as r.sun's instantaneous mode computes it: beam B_ic = B_0c
+/// cos(incidence) (0 when in_shadow or cos_incidence <= 0; Šúri & Hofierka 2004, the beam
+/// irradiance on an inclined surface); diffuse D_hc * muneer_diffuse_ratio(...) with Kb = B_hc /
+/// (G0 sin h0); ground-reflected R_i = rho_g G_hc (1 - cos slope) / 2 (Šúri & Hofierka 2004, the
+/// ground-reflected irradiance; r.sun's drad(); see shadow_drops_reflected_beam). All components
+/// are 0 when h0 <= 0. Throws std::invalid_argument (one line naming the parameter and its range).
 SurfaceIrradiance clear_sky_irradiance(const ClearSkyInput& in);
 
 /// Inputs of measured_irradiance_on_surface(): measured (e.g. EPW hourly mean) horizontal
