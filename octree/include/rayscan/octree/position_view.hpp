@@ -20,8 +20,13 @@ namespace rayscan {
 /// One coordinate of a LAS point record: `X * scale + offset` in double (ASPRS LAS 1.4 R15 section
 /// 2.4, "X, Y and Z scale factors" / "offsets"). The ONE expression every LAS/LAZ/COPC reader and
 /// the index file's int32 grid decode with, so decoded values are bit-identical to the reader's.
-/// The build has CMAKE_CXX_EXTENSIONS OFF (-std=c++20: GCC's -ffp-contract=off), so the
-/// multiply and add are never fused into an FMA in any translation unit or target clone.
+/// That holds only while the multiply and the add round separately: GCC and Clang fuse them into
+/// an FMA in C++ by default (-std=c++20 included) wherever the target has one (aarch64,
+/// -march=native). The targets that decode LAS coordinates therefore compile with
+/// -ffp-contract=off: io (the readers), octree and site (rayscan_octree_impl: index file, COPC),
+/// jobs and the SQL import. The renderer and analysis keep their own flags for speed, so on an FMA
+/// build a sphere centre they decode inline (hit normals, the height-field walk) may differ in the
+/// last bit from the reader's.
 [[nodiscard]] inline double las_coordinate(std::int32_t v, double scale, double offset) {
   return static_cast<double>(v) * scale + offset;
 }
