@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstring>
 #include <tuple>
 
@@ -75,6 +76,34 @@ TEST(Las, FirstRecordDecodedByHandFromTheFileBytes) {
   EXPECT_EQ(pc.classification[0], bytes[off + 15] & 31);
   EXPECT_EQ(pc.gps_time[0], f64(off + 20));
   EXPECT_EQ(pc.rgb[0].r, u16(off + 28) * 257);  // 8-bit values in 16-bit fields: scaled by 257
+}
+
+TEST(Las, EveryCoordinateIsScaleTimesXRoundedThenPlusOffsetRounded) {
+  // Oracle: the LAS specification's double arithmetic (LAS 1.4 R15 section 2.4) on the file's own
+  // bytes, X * scale rounded, then + offset rounded; the product goes through a volatile so that
+  // no compiler fuses the oracle itself. A reader whose multiply-add is fused into an FMA (one
+  // rounding: what GCC and Clang emit for a * b + c on an FMA target without -ffp-contract=off)
+  // differs in the last bit wherever std::fma does: on 5% of this file's coordinates (non-zero
+  // offsets; with offset 0 both round alike), counted here so that the test tells them apart.
+  RAYSCAN_REQUIRE_FILE(p, "las/Haystack_Rock.las");
+  const auto bytes = slurp(p);
+  auto u32 = [&](std::size_t o) { std::uint32_t v; std::memcpy(&v, &bytes[o], 4); return v; };
+  auto i32 = [&](std::size_t o) { std::int32_t v; std::memcpy(&v, &bytes[o], 4); return v; };
+  auto u16 = [&](std::size_t o) { std::uint16_t v; std::memcpy(&v, &bytes[o], 2); return v; };
+  auto f64 = [&](std::size_t o) { double v; std::memcpy(&v, &bytes[o], 8); return v; };
+  const std::size_t off = u32(96), len = u16(105), n = u32(107);
+  const PointCloud pc = read(p);
+  ASSERT_EQ(pc.size(), n);
+  std::size_t fused_differs = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const double x = i32(off + i * len + 4 * k), scale = f64(131 + 8 * k), offset = f64(155 + 8 * k);
+      volatile double product = x * scale;
+      const double expect = product + offset;
+      ASSERT_EQ(pc.positions[i][k], expect) << "point " << i << " axis " << k;
+      if (std::fma(x, scale, offset) != expect) ++fused_differs;
+    }
+  EXPECT_GT(fused_differs, n / 100);
 }
 
 TEST(Las, EightBitColourIsScaledSixteenBitKeptAllZeroDropped) {
