@@ -3,6 +3,8 @@
 #include "../common/temp_dir.hpp"
 #include "rayscan/render/scene.hpp"
 
+#include "rayscan/jobs/render.hpp"
+
 #include "rayscan/io/point_io.hpp"
 
 #include <gtest/gtest.h>
@@ -129,6 +131,48 @@ TEST(Scene, CombinationsWithoutMeaningNameTheirPointer) {
   EXPECT_EQ(error_of(cs), cs.string() + ": /hit: \"closest_point\" applies to primitive \"sphere\" only; primitive is \"surfel\" (discs are hit exactly)");
   EXPECT_EQ(load_scene(write("ss.json", std::string(R"({"cloud": "x.xyz", "hit": "sphere", "primitive": "surfel", )") + kCam + "}")).primitive,
             Primitive::surfel);
+}
+
+// A key given twice in one object is refused, in every JSON input, with the pointer of the key
+// (its object's pointer, then the key); nlohmann alone would keep the last one silently.
+TEST(Scene, DuplicateKeysNameTheirObjectAndKey) {
+  const fs::path top = write("dup_top.json", std::string(R"({"cloud": "nonexist.xyz", "cloud": "x.xyz", )") + kCam + "}");
+  EXPECT_EQ(error_of(top), top.string() + ": /cloud: duplicate key (given twice in the object /; expected each key once)");
+  const fs::path nested = write("dup_cam.json", R"({"cloud": "x.xyz", "camera": {"width": 60, "height": 40,
+    "position": [0, -10, 2], "look_at": [0, 0, 0], "position": [9, 9, 9]}})");
+  EXPECT_EQ(error_of(nested),
+            nested.string() + ": /camera/position: duplicate key (given twice in the object /camera; expected each key once)");
+  // RFC 6901 escaping of '/' and '~' in the key and in the path to it; an unknown key given twice
+  // is reported as the duplicate it is (the parse sees it first).
+  const fs::path esc = write("dup_esc.json", R"({"cloud": "x.xyz", "a/b": {"c~d": 1, "c~d": 2}})");
+  EXPECT_EQ(error_of(esc), esc.string() + ": /a~1b/c~0d: duplicate key (given twice in the object /a~1b; expected each key once)");
+  // The same key in different objects is no duplicate.
+  EXPECT_EQ(error_of(write("same_key.json", std::string(R"({"cloud": "x.xyz", "material": {"color": [1, 1, 1]},
+    "background": {"type": "constant", "color": [1, 1, 1]}, )") + kCam + "}")), "(no error)");
+
+  // A camera file.
+  const fs::path cam = write("dup_camera.json", R"({"width": 60, "height": 40, "width": 80,
+    "position": [0, -10, 2], "look_at": [0, 0, 0]})");
+  try {
+    load_camera(cam);
+    ADD_FAILURE() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()), cam.string() + ": /width: duplicate key (given twice in the object /; expected each key once)");
+  }
+
+  // A camera list (render --frames): the pointer counts the array's elements, nested arrays
+  // included; elements with the same keys are no duplicates.
+  const std::string c = R"({"width": 8, "height": 6, "position": [0, -10, 2], "look_at": [0, 0, 0]})";
+  EXPECT_EQ(jobs::load_camera_list(write("list_ok.json", "[" + c + ", " + c + "]")).size(), 2u);
+  const fs::path list = write("dup_list.json", R"({"cameras": [)" + c + ", " + c + R"(, {"width": 8, "height": 6,
+    "position": [0, -10, 2], "look_at": [0, 0, 0], "up": [0, 0, 1], "up": [0, 1, 0]}]})");
+  try {
+    jobs::load_camera_list(list);
+    ADD_FAILURE() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              list.string() + ": /cameras/2/up: duplicate key (given twice in the object /cameras/2; expected each key once)");
+  }
 }
 
 TEST(Scene, LookAtCameraRejectsPinholeKeys) {

@@ -1,7 +1,9 @@
-// A JSON object reader for the project's JSON files (scenes, cameras): every value is read
-// through JsonObject, which records the JSON pointer (RFC 6901) of what it reads so that an error
-// names the exact field, and rejects keys it was not asked about. Header-only: its users link
-// nlohmann_json; vectors are GLM's (glm::dvec3 is the octree's Vec3), so base needs no other room.
+// A JSON object reader for the project's JSON files (scenes, cameras, camera lists, observers):
+// every file is parsed by parse_json_text, which rejects a key given twice in one object, and the
+// values of scenes and cameras are read through JsonObject, which records the JSON pointer
+// (RFC 6901) of what it reads so that an error names the exact field, and rejects keys it was not
+// asked about. Header-only: its users link nlohmann_json; vectors are GLM's (glm::dvec3 is the
+// octree's Vec3), so base needs no other room.
 #pragma once
 
 #include "rayscan/base/input_file.hpp"
@@ -46,9 +48,65 @@ inline std::string escape_key(const std::string& k) {  // RFC 6901 escaping
 }
 
 /// Parses JSON `text`; errors (JsonFileError) name it `name`: "<name>: byte 12: invalid JSON (...)".
+/// A key given twice in one object is an error, "<name>: /camera/position: duplicate key (given twice
+/// in the object /camera; expected each key once)": nlohmann would keep the last one silently, and
+/// a repeated key is as likely a slip as the unknown keys the readers reject. Every JSON input
+/// (scene, camera, camera list, observers) is parsed here.
 inline json parse_json_text(const std::string& text, const std::string& name) {
+  // Where the parser is: one frame per open object (its keys so far, the current one) or array
+  // (the index of its current element), so that a duplicate is named by its JSON pointer.
+  struct Frame {
+    bool object = false;
+    std::set<std::string> keys;
+    std::string key;
+    std::size_t index = 0;
+    bool any = false;
+  };
+  std::vector<Frame> path;
+  const auto element_begins = [&path] {
+    if (path.empty() || path.back().object) return;
+    Frame& a = path.back();
+    if (a.any) ++a.index;
+    a.any = true;
+  };
+  const auto object_pointer = [&path] {  // the innermost open object's pointer
+    std::string p;
+    for (std::size_t i = 0; i + 1 < path.size(); ++i) {
+      p += '/';
+      p += path[i].object ? escape_key(path[i].key) : std::to_string(path[i].index);
+    }
+    return p;
+  };
+  const json::parser_callback_t check = [&](int, json::parse_event_t event, json& parsed) {
+    switch (event) {
+      case json::parse_event_t::object_start:
+      case json::parse_event_t::array_start:
+        element_begins();
+        path.push_back(Frame{event == json::parse_event_t::object_start, {}, {}, 0, false});
+        break;
+      case json::parse_event_t::object_end:
+      case json::parse_event_t::array_end:
+        path.pop_back();
+        break;
+      case json::parse_event_t::key: {
+        std::string k = parsed.get<std::string>();
+        if (!path.back().keys.insert(k).second) {
+          const std::string object = object_pointer();
+          json_fail(name, object + "/" + escape_key(k),
+                    "duplicate key (given twice in the object " + (object.empty() ? "/" : object) +
+                        "; expected each key once)");
+        }
+        path.back().key = std::move(k);
+        break;
+      }
+      case json::parse_event_t::value:
+        element_begins();
+        break;
+    }
+    return true;
+  };
   try {
-    return json::parse(text);
+    return json::parse(text, check);
   } catch (const json::parse_error& e) {
     throw JsonFileError(name + ": byte " + std::to_string(e.byte) +
                         ": invalid JSON (" + std::string(e.what()) + ")");
