@@ -98,12 +98,12 @@ Runner add_visibility_command(CLI::App& app) {
   c->add_option("--observers", o->observers_file, "Observer list (.json or .csv; see docs/visibility.md)");
   c->add_option("--observer", o->observer_args,
                 "An observer X,Y,Z (absolute eye) or X,Y (eye at --height above the local ground); world units "
-                "(the cloud's coordinates); repeatable")
+                "(the cloud's coordinates, each -1e9..1e9); repeatable")
       ->expected(1)
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   c->add_option("--height", o->job.height, "Eye height above the local ground for observers without z (world units; default: none, so "
                 "such observers need their own height)")
-      ->check(finite_number(-1e9, 1e9));
+      ->check(finite_number(-an::kMaxObserverCoordinate, an::kMaxObserverCoordinate));
   c->add_option("--ground-radius", o->job.ground_radius,
                 "Local ground = lowest (class-2 if classified) point within this horizontal distance "
                 "(default 5 x radius)")

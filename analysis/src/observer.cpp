@@ -4,6 +4,7 @@
 #include "rayscan/base/file_names.hpp"
 
 #include "rayscan/base/input_file.hpp"
+#include "rayscan/base/json_object.hpp"
 #include "rayscan/octree/point_query.hpp"
 
 #include <type_traits>
@@ -54,6 +55,16 @@ std::optional<double> to_number(const std::string& s) {
 
 bool angle_ok(double a) { return a >= 0.0 && a <= 360.0; }
 
+// A coordinate or eye height within +-kMaxObserverCoordinate (false for NaN), and the expectation
+// every message about one states: "a finite number in [-1e+09, 1e+09] (world units)".
+bool coordinate_ok(double v) { return std::abs(v) <= kMaxObserverCoordinate; }
+std::string coordinate_expected() {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "a finite number in [%g, %g] (world units)", -kMaxObserverCoordinate,
+                kMaxObserverCoordinate);
+  return buf;
+}
+
 Observer from_json(const nlohmann::json& j, const std::string& where) {
   if (!j.is_object()) throw ObserverError(where + ": expected an object with \"position\"");
   Observer o;
@@ -61,6 +72,11 @@ Observer from_json(const nlohmann::json& j, const std::string& where) {
     if (!v.is_number()) throw ObserverError(where + "/" + ptr + ": expected a number");
     const double d = v.get<double>();
     if (!std::isfinite(d)) throw ObserverError(where + "/" + ptr + ": expected a finite number");
+    return d;
+  };
+  auto coordinate = [&](const nlohmann::json& v, const std::string& ptr) {
+    const double d = number(v, ptr);
+    if (!coordinate_ok(d)) throw ObserverError(where + "/" + ptr + ": expected " + coordinate_expected());
     return d;
   };
   auto pair = [&](const nlohmann::json& v, const std::string& ptr) {
@@ -75,14 +91,14 @@ Observer from_json(const nlohmann::json& j, const std::string& where) {
     } else if (key == "position") {
       if (!v.is_array() || v.size() < 2 || v.size() > 3)
         throw ObserverError(where + "/position: expected [x, y, z] or [x, y] (with \"height\")");
-      o.position.x = number(v[0], "position/0");
-      o.position.y = number(v[1], "position/1");
+      o.position.x = coordinate(v[0], "position/0");
+      o.position.y = coordinate(v[1], "position/1");
       if (v.size() == 3) {
-        o.position.z = number(v[2], "position/2");
+        o.position.z = coordinate(v[2], "position/2");
         o.has_z = true;
       }
     } else if (key == "height") {
-      o.height = number(v, "height");
+      o.height = coordinate(v, "height");
     } else if (key == "azimuth") {
       o.azimuth = pair(v, "azimuth");
     } else if (key == "elevation") {
@@ -103,10 +119,9 @@ Observer from_json(const nlohmann::json& j, const std::string& where) {
 std::vector<Observer> read_json(const std::filesystem::path& path, const std::string& text) {
   nlohmann::json doc;
   try {
-    doc = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw ObserverError(path.string() + ": JSON syntax error at byte " + std::to_string(e.byte) +
-                        ": expected an observer list");
+    doc = io::parse_json_text(text, path.string());  // syntax, numbers beyond double, duplicate keys
+  } catch (const io::JsonFileError& e) {
+    throw ObserverError(e.what());
   }
   std::string base;
   const nlohmann::json* list = &doc;
@@ -161,21 +176,22 @@ std::vector<Observer> read_csv(const std::filesystem::path& path, const std::str
                           std::to_string(cells.size()));
     std::map<std::string, std::string> row;
     for (std::size_t c = 0; c < header.size(); ++c) row[header[c]] = cells[c];
-    auto num = [&](const char* col) -> std::optional<double> {
+    auto num = [&](const char* col, bool coordinate = false) -> std::optional<double> {
       const auto it = row.find(col);
       if (it == row.end() || it->second.empty()) return std::nullopt;
       const auto v = to_number(it->second);
-      if (!v)
-        throw ObserverError(where + ": column '" + col + "': expected a finite number, got '" +
+      if (!v || (coordinate && !coordinate_ok(*v)))
+        throw ObserverError(where + ": column '" + col + "': expected " +
+                            (coordinate ? coordinate_expected() : std::string("a finite number")) + ", got '" +
                             it->second + "'");
       return v;
     };
     Observer o;
-    const auto x = num("x"), y = num("y"), z = num("z");
+    const auto x = num("x", true), y = num("y", true), z = num("z", true);
     if (!x || !y) throw ObserverError(where + ": columns x and y must not be empty");
     o.position = Vec3(*x, *y, z.value_or(0.0));
     o.has_z = z.has_value();
-    o.height = num("height");
+    o.height = num("height", true);
     if (row.count("name")) o.name = row["name"];
     const auto a0 = num("azimuth_from"), a1 = num("azimuth_to");
     if (a0.has_value() != a1.has_value())
@@ -197,12 +213,22 @@ std::vector<Observer> read_csv(const std::filesystem::path& path, const std::str
 }  // namespace
 
 void validate_observer(const Observer& o, const std::string& where) {
-  if (!std::isfinite(o.position.x) || !std::isfinite(o.position.y) || !std::isfinite(o.position.z))
-    throw ObserverError(where + ": position must be finite");
+  // The readers check each value where they parse it (naming its JSON pointer or CSV column); this
+  // covers observers built in code (the Python module's arrays), whose far coordinates would
+  // otherwise fail inside a ray without naming the observer.
+  auto check = [&](double v, const char* what) {
+    if (coordinate_ok(v)) return;
+    char got[32];
+    std::snprintf(got, sizeof got, "%g", v);
+    throw ObserverError(where + ": " + what + ": expected " + coordinate_expected() + ", got " + got);
+  };
+  check(o.position.x, "x");
+  check(o.position.y, "y");
+  check(o.position.z, "z");
   if (o.has_z && o.height)
     throw ObserverError(where + ": give either z (absolute eye position) or height (above the local "
                         "ground), not both");
-  if (o.height && !std::isfinite(*o.height)) throw ObserverError(where + ": height must be finite");
+  if (o.height) check(*o.height, "height");
   if (o.azimuth && (!angle_ok(o.azimuth->lo) || !angle_ok(o.azimuth->hi)))
     throw ObserverError(where + ": azimuth: expected degrees in [0, 360] (clockwise from north, +Y)");
   if (o.elevation && !(o.elevation->lo >= -90.0 && o.elevation->hi <= 90.0 &&
@@ -242,6 +268,8 @@ Observer parse_observer(std::string_view text, std::string source) {
   for (std::size_t i = 0; i < parts.size(); ++i) {
     const auto v = to_number(parts[i]);
     if (!v) throw ObserverError(where + ": '" + parts[i] + "' is not a finite number");
+    if (!coordinate_ok(*v))
+      throw ObserverError(where + ": " + "xyz"[i] + ": expected " + coordinate_expected() + ", got '" + parts[i] + "'");
     o.position[static_cast<int>(i)] = *v;
   }
   o.has_z = parts.size() == 3;
@@ -293,13 +321,13 @@ void place_observers_over(std::vector<Observer>& observers, const Index& index, 
                      const GroundOptions& options) {
   if (!(options.radius > 0.0) || !std::isfinite(options.radius))
     throw ObserverError("ground radius must be a finite number > 0");
-  // A NaN eye height would put every eye at NaN (no point seen, no error); infinity would fail
-  // later in a ray without naming the option.
-  if (options.default_height && !std::isfinite(*options.default_height)) {
+  // A NaN eye height would put every eye at NaN (no point seen, no error); infinity or a huge
+  // height would fail later in a ray without naming the option.
+  if (options.default_height && !coordinate_ok(*options.default_height)) {
     char got[32];
     std::snprintf(got, sizeof got, "%g", *options.default_height);
-    throw ObserverError({option("height"), std::string(": expected a finite number (eye height above the local "
-                                                       "ground), got ") + got});
+    throw ObserverError({option("height"), ": expected an eye height above the local ground, " +
+                                               coordinate_expected() + ", got " + got});
   }
   std::optional<AABB> bounds;  // the cloud's z range, computed once (an O(N) pass), when needed
   for (std::size_t k = 0; k < observers.size(); ++k) {

@@ -130,15 +130,25 @@ def flat_ground(spacing=0.5, size=20.0):
 def test_visibility_refuses_a_non_finite_eye_height():
     """height places eyes given as (x, y) above the local ground: a finite one puts the eye at
     ground + height (flat ground at z = 0: z = height); NaN would place every eye at NaN and see
-    nothing without an error, infinity would fail in a ray without naming the option."""
+    nothing without an error, infinity or a huge height would fail in a ray without naming the
+    option. The bound is the command line's --height range, +-1e9."""
     xyz = flat_ground()
     out = rayscan.visibility(xyz, observers=[[5.0, 5.0]], height=1.7, radius=0.3)
     assert out["observers"].tolist() == [[5.0, 5.0, 1.7]] and out["visible_count"].sum() > 0
-    for bad, text in ((np.nan, "nan"), (np.inf, "inf"), (-np.inf, "-inf")):
+    for bad, text in ((np.nan, "nan"), (np.inf, "inf"), (-np.inf, "-inf"), (1e300, "1e+300")):
         with pytest.raises(ValueError) as e:
             rayscan.visibility(xyz, observers=[[5.0, 5.0]], height=bad, radius=0.3)
-        assert str(e.value) == ("height: expected a finite number (eye height above the local ground), "
-                                f"got {text}")
+        assert str(e.value) == ("height: expected an eye height above the local ground, a finite number "
+                                f"in [-1e+09, 1e+09] (world units), got {text}")
+
+
+def test_visibility_refuses_far_observer_coordinates():
+    """An observer array's coordinates are checked as a file's are (+-1e9, world units), naming
+    the row and the coordinate, instead of failing inside a ray."""
+    with pytest.raises(ValueError) as e:
+        rayscan.visibility(flat_ground(), observers=[[5.0, 5.0, 2.0], [0.5, 1e160, 3.0]], radius=0.3)
+    assert str(e.value) == ("observers[1]: observer 2: y: expected a finite number in [-1e+09, 1e+09] "
+                            "(world units), got 1e+160")
 
 
 def test_files_that_cannot_be_opened_raise_oserror(tmp_path):

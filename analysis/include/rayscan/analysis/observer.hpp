@@ -25,6 +25,12 @@ struct ObserverError : OptionError {
   explicit ObserverError(std::vector<Part> parts) : OptionError(std::move(parts)) {}
 };
 
+/// The largest magnitude of an observer's coordinates (x, y, z) and eye height, world units (the
+/// bound of `visibility --height` too). It is far beyond any projected or geocentric coordinate on
+/// Earth in metres or feet, and far enough inside what a ray accepts (a direction length below
+/// about 1.3e154) that a line of sight from an accepted eye never fails inside the ray code.
+inline constexpr double kMaxObserverCoordinate = 1e9;
+
 /// A closed range of angles in degrees.
 ///  - Azimuth (horizontal): compass bearing, clockwise from grid north (+Y) towards east (+X), the
 ///    GIS/ArcGIS viewshed convention (AZIMUTH1/AZIMUTH2). The range runs clockwise from `lo` to
@@ -64,18 +70,21 @@ struct Observer {
 /// max_distance. Empty cells are unset. Lines starting with '#' and blank lines are skipped.
 ///
 /// Every observer needs z or height (or neither when `default_height` will be given to
-/// place_observers); z and height together are an error. Throws ObserverError (one line: file,
-/// line or JSON pointer, expectation) for unreadable or malformed files, non-finite numbers,
-/// angles out of range or a negative max_distance.
+/// place_observers); z and height together are an error. A key given twice in one JSON object is
+/// an error (io::parse_json_text). Throws ObserverError (one line: file, line or JSON pointer,
+/// expectation) for unreadable or malformed files, non-finite numbers, coordinates or heights
+/// beyond +-kMaxObserverCoordinate, angles out of range or a negative max_distance.
 std::vector<Observer> read_observers(const std::filesystem::path& path);
 
 /// Parse one observer given as text, "x,y,z" (absolute) or "x,y" (height from place_observers'
 /// default). `source` names it in messages and in Observer::source (default: "observer 'TEXT'").
-/// Throws ObserverError naming it.
+/// Throws ObserverError naming it and the coordinate when one is not a finite number within
+/// +-kMaxObserverCoordinate.
 Observer parse_observer(std::string_view text, std::string source = {});
 
-/// Checks one observer's values (finite coordinates, angle ranges, max_distance >= 0, not both z
-/// and height). `where` prefixes the message. Throws ObserverError.
+/// Checks one observer's values (coordinates and height finite and within
+/// +-kMaxObserverCoordinate, angle ranges, max_distance >= 0, not both z and height). `where`
+/// prefixes the message. Throws ObserverError.
 void validate_observer(const Observer& o, const std::string& where);
 
 /// How the local ground under an observer is found.
@@ -83,7 +92,8 @@ struct GroundOptions {
   /// Horizontal search radius around the observer's (x, y), world units (> 0).
   double radius = 5.0;
   /// Height used for observers that have neither z nor a height; unset = such observers are an
-  /// error. Must be finite (place_observers throws ObserverError naming `height` otherwise).
+  /// error. Must be finite and within +-kMaxObserverCoordinate (place_observers throws
+  /// ObserverError naming `height` otherwise).
   std::optional<double> default_height;
   /// When set (> 0), the ground is first searched within this smaller radius (the surface right
   /// under the eye: on a slope the lowest point within `radius` lies downhill, putting the eye too
@@ -103,8 +113,9 @@ double local_ground(const Site& site, const PointCloud& cloud, double x, double 
 /// Resolves every observer's eye z: observers with a height (or, lacking z and height, the default
 /// height) get z = local_ground + height. Fills ground_z for those. Throws ObserverError naming the
 /// observer when no ground point lies within the radius, or it has neither z nor a height and there
-/// is no default; naming `height` when the default height is not finite. `cloud` holds the site's
-/// points in original order (as for local_ground).
+/// is no default; naming `height` when the default height is not finite or beyond
+/// +-kMaxObserverCoordinate. `cloud` holds the site's points in original order (as for
+/// local_ground).
 void place_observers(std::vector<Observer>& observers, const Site& site, const PointCloud& cloud,
                      const GroundOptions& options);
 
