@@ -10,10 +10,13 @@
 #include "rayscan/jobs/query.hpp"
 #include "atomic_file.hpp"
 
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
 #include <memory>
+#include <optional>
+#include <string_view>
 
 namespace rayscan::cli {
 
@@ -81,19 +84,29 @@ int run_query(const QueryOptions& o) {
   const bool talk = !o.quiet && is_root();
   job.control.progress = talk;
   if (talk) job.control.log = [](const std::string& s) { std::cerr << "rayscan query: " << s << "\n"; };
+  const bool to_stdout = o.out.empty() || o.out == "-";
+  // Only rank 0 writes: the rows as the rays are answered (a query may return more than memory
+  // holds), into the output's temporary, so that a failure on the way leaves no file.
+  std::optional<AtomicOutput> out;
+  if (is_root()) {
+    out.emplace(o.out);
+    job.csv = [&](std::string_view text) {
+      std::ostream& s = out->stream();
+      errno = 0;
+      s.write(text.data(), static_cast<std::streamsize>(text.size()));
+      // A full disk ends the run at once, not after the last ray.
+      if (!s) throw std::runtime_error(write_failed(to_stdout ? std::string("standard output") : o.out));
+    };
+  }
   const auto t0 = std::chrono::steady_clock::now();
   const jobs::QueryJobResult r = jobs::run_query(job);
-  if (!is_root()) return 0;  // only rank 0 holds every hit and writes
-  AtomicOutput out(o.out);
-  jobs::write_hits_csv(out.stream(), r);
-  out.commit();
-  const bool to_stdout = o.out.empty() || o.out == "-";
+  if (!is_root()) return 0;
+  out->commit();
   if (to_stdout) check_standard_output();  // a failed write is reported instead of the summary
   if (talk) {
     // The summary: counts from what was written, the thread count actually used (--threads above
     // the cores runs on all of them), the time in all and the query rate.
-    std::uint64_t rows = 0;
-    for (const auto& h : r.hits) rows += h.size();
+    const std::uint64_t rows = r.rows;
     const auto plural = [](std::uint64_t n, const char* one) { return std::to_string(n) + " " + one + (n == 1 ? "" : "s"); };
     std::string line = plural(r.rays.size(), "ray") + ", " + plural(rows, "result") + " written to " +
                        (to_stdout ? std::string("standard output") : "'" + o.out + "'") + "; " +

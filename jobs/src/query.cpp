@@ -2,8 +2,8 @@
 #include "rayscan/jobs/query.hpp"
 
 #include "rayscan/site/site.hpp"
+#include "rayscan/io/grid_text.hpp"
 #include "rayscan/io/rays.hpp"
-#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/base/progress.hpp"
 #include "rayscan/base/threads.hpp"
@@ -11,14 +11,19 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cstdio>
+#include <functional>
+#include <map>
+#include <mutex>
 #include <optional>
+#include <string>
 #include <type_traits>
-#include <unordered_map>
 
 namespace rayscan::jobs {
 
@@ -27,43 +32,114 @@ using namespace rayscan::io;  // the io library's types, which this job speaks i
 namespace {
 
 constexpr std::uint64_t kRaysPerItem = 256;  // rays per block: the unit of the progress bar and of the MPI queue
+// The most results the rays answered together in one run may hold by their bound (--k, the
+// points): a run is a whole block when its rays return few results each, down to one ray when
+// each may return tens of thousands, so that the runs in flight, not the whole answer, are held.
+constexpr std::uint64_t kHitsPerRun = std::uint64_t{1} << 14;
 
-// Answers the ray blocks [b0, b1) (kRaysPerItem rays each, counted from rays[0]) in parallel, one
-// ray_query_each per block (bit for bit the single ray_query calls, so the hits do not depend on
-// the split), each block counted on `progress` when done.
-template <class I>
-void answer_blocks(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, std::uint64_t b0, std::uint64_t b1,
-                   std::vector<std::vector<RayHit>>& hits, Progress& progress) {
-  const std::uint64_t n = rays.size();
-  tbb::parallel_for(tbb::blocked_range<std::uint64_t>(b0, b1, 1), [&](const tbb::blocked_range<std::uint64_t>& r) {
-    for (std::uint64_t b = r.begin(); b != r.end(); ++b) {
-      const std::uint64_t first = b * kRaysPerItem, count = std::min(n, first + kRaysPerItem) - first;
-      ray_query_each(idx, std::span<const Ray>(rays).subspan(first, count), q,
-                     std::span<std::vector<RayHit>>(hits).subspan(first, count));
-      progress.tile_done(count);
-    }
-  });
-}
+/// What becomes of the answers of a run of consecutive rays.
+struct RunSink {
+  /// Called concurrently for disjoint runs: the output of the rays [first, first + hits.size())
+  /// from their hits (best first): their CSV rows, or nothing once the hits are kept elsewhere
+  /// (it may take them).
+  std::function<std::string(std::uint64_t first, std::span<std::vector<RayHit>> hits)> render;
+  /// Called one run at a time, in ray order, with render's output.
+  std::function<void(const std::string&)> write;
+};
 
-// Every ray's hits, over TBB on `threads` threads, or, with a distributor of several processes,
-// blocks of kRaysPerItem rays handed out by it and gathered to the root (hit lists serialised as
-// count + RayHits). The progress bar (JobControl::progress) counts the blocks: on the root its own
-// and those it unpacks.
+/// Rays in block b (the last block may be short).
+std::uint64_t block_rays(std::uint64_t b, std::uint64_t n) { return std::min(n, (b + 1) * kRaysPerItem) - b * kRaysPerItem; }
+
+/// Answers every ray, over TBB on `threads` threads, handing each run of consecutive rays' hits to
+/// `sink` as soon as it and the runs before it are answered, so that only the runs in flight are
+/// held: a TBB pipeline of up to 2 x threads runs (each at most a block, kHitsPerRun results by
+/// `max_hits_per_ray`, at least one ray), answered by ray_query_each (bit for bit the single
+/// ray_query calls, so the hits do not depend on the split) and written in order. With a
+/// distributor of several processes, blocks of kRaysPerItem rays handed out by it and gathered to
+/// the root (hit lists serialised as count + RayHits), where each block is rendered and written
+/// once the blocks before it are (those ahead of it wait, as text). The progress bar
+/// (JobControl::progress) counts the blocks: on the root its own and those it unpacks. Returns
+/// the results counted (on the root: all of them).
 template <class I>
-void answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, unsigned threads, bool show_progress,
-                 WorkDistributor* dist, std::vector<std::vector<RayHit>>& hits) {
+std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, unsigned threads,
+                          bool show_progress, WorkDistributor* dist, std::uint64_t max_hits_per_ray,
+                          const RunSink& sink) {
   q.validate();
   const std::uint64_t n = rays.size();
   const std::uint64_t blocks = (n + kRaysPerItem - 1) / kRaysPerItem;
   // "ray blocks", not "blocks of 256 rays": the bar must fit the 90 columns Progress::finish clears.
   Progress progress(blocks, show_progress, ProgressUnits{"ray blocks", "rays/s", 1.0, 0});
   tbb::task_arena arena(static_cast<int>(threads));
-  hits.assign(n, {});
+  const auto answer = [&](std::uint64_t first, std::uint64_t count) {
+    std::vector<std::vector<RayHit>> hits(count);
+    ray_query_each(idx, std::span<const Ray>(rays).subspan(first, count), q, std::span<std::vector<RayHit>>(hits));
+    return hits;
+  };
+  const auto count_rows = [](std::span<const std::vector<RayHit>> hits) {
+    std::uint64_t k = 0;
+    for (const auto& h : hits) k += h.size();
+    return k;
+  };
+  std::uint64_t rows = 0;
   if (!dist || dist->size() <= 1) {
-    arena.execute([&] { answer_blocks(idx, rays, q, 0, blocks, hits, progress); });
+    const std::uint64_t run_rays =
+        std::clamp<std::uint64_t>(kHitsPerRun / std::max<std::uint64_t>(max_hits_per_ray, 1), 1, kRaysPerItem);
+    struct Run {
+      std::uint64_t first = 0, count = 0, rows = 0;
+      std::string text;
+    };
+    std::uint64_t next = 0;
+    arena.execute([&] {
+      tbb::parallel_pipeline(
+          2 * std::size_t{threads},
+          tbb::make_filter<void, Run>(tbb::filter_mode::serial_in_order,
+                                      [&](tbb::flow_control& fc) {
+                                        Run run;
+                                        if (next == n) {
+                                          fc.stop();
+                                          return run;
+                                        }
+                                        // Within one block: the bar counts whole blocks.
+                                        const std::uint64_t block_end = std::min(n, (next / kRaysPerItem + 1) * kRaysPerItem);
+                                        run.first = next;
+                                        run.count = std::min(run_rays, block_end - next);
+                                        next += run.count;
+                                        return run;
+                                      }) &
+              tbb::make_filter<Run, Run>(tbb::filter_mode::parallel,
+                                         [&](Run run) {
+                                           std::vector<std::vector<RayHit>> hits = answer(run.first, run.count);
+                                           run.rows = count_rows(hits);
+                                           run.text = sink.render(run.first, std::span<std::vector<RayHit>>(hits));
+                                           return run;
+                                         }) &
+              tbb::make_filter<Run, void>(tbb::filter_mode::serial_in_order, [&](Run run) {
+                sink.write(run.text);
+                rows += run.rows;
+                const std::uint64_t end = run.first + run.count;
+                if (end % kRaysPerItem == 0 || end == n) progress.tile_done(block_rays((end - 1) / kRaysPerItem, n));
+              }));
+    });
     progress.finish();
-    return;
+    return rows;
   }
+  // Several processes. Root: blocks answered (here or elsewhere) wait in `ahead` until the
+  // blocks before them are written. Others: the hits of the batch being answered, until packed.
+  std::mutex write_mutex;
+  std::map<std::uint64_t, std::string> ahead;
+  std::uint64_t next_block = 0;
+  std::vector<std::vector<RayHit>> hits;
+  if (!dist->is_root()) hits.resize(n);
+  const auto done = [&](std::uint64_t b, std::span<std::vector<RayHit>> block_hits) {  // root
+    const std::uint64_t k = count_rows(block_hits);
+    std::string text = sink.render(b * kRaysPerItem, block_hits);
+    const std::lock_guard<std::mutex> lock(write_mutex);
+    rows += k;
+    ahead.emplace(b, std::move(text));
+    for (auto it = ahead.begin(); it != ahead.end() && it->first == next_block; it = ahead.erase(it), ++next_block)
+      sink.write(it->second);
+    progress.tile_done(block_rays(b, n));
+  };
   auto range = [&](std::uint64_t first, std::uint64_t count) {
     return std::pair{first * kRaysPerItem, std::min(n, (first + count) * kRaysPerItem)};
   };
@@ -71,7 +147,20 @@ void answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, 
   stage.items = blocks;
   stage.batch = threads;
   stage.compute = [&](std::uint64_t first, std::uint64_t count) {
-    arena.execute([&] { answer_blocks(idx, rays, q, first, first + count, hits, progress); });
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<std::uint64_t>(first, first + count, 1),
+                        [&](const tbb::blocked_range<std::uint64_t>& r) {
+                          for (std::uint64_t b = r.begin(); b != r.end(); ++b) {
+                            std::vector<std::vector<RayHit>> h = answer(b * kRaysPerItem, block_rays(b, n));
+                            if (dist->is_root()) {
+                              done(b, std::span<std::vector<RayHit>>(h));
+                            } else {
+                              std::move(h.begin(), h.end(), hits.begin() + static_cast<std::ptrdiff_t>(b * kRaysPerItem));
+                              progress.tile_done(block_rays(b, n));
+                            }
+                          }
+                        });
+    });
   };
   stage.pack = [&](std::uint64_t first, std::uint64_t count) {
     const auto [a, b] = range(first, count);
@@ -80,26 +169,54 @@ void answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, 
       const std::uint64_t k = hits[i].size();
       append_bytes(out, std::span<const std::uint64_t>(&k, 1));
       append_bytes(out, std::span<const RayHit>(hits[i]));
+      std::vector<RayHit>().swap(hits[i]);  // sent: freed
     }
     return out;
   };
   stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
-    const auto [a, b] = range(first, count);
     std::size_t off = 0;
-    for (std::uint64_t i = a; i < b; ++i) {
-      std::uint64_t k = 0;
-      read_values(bytes, off, std::span<std::uint64_t>(&k, 1));
-      if (k > (bytes.size() - off) / sizeof(RayHit)) throw std::runtime_error("query: ray block message is short");
-      hits[i].resize(k);
-      read_values(bytes, off, std::span<RayHit>(hits[i]));
+    for (std::uint64_t c = first; c < first + count; ++c) {
+      std::vector<std::vector<RayHit>> h(block_rays(c, n));
+      for (std::vector<RayHit>& ray_hits : h) {
+        std::uint64_t k = 0;
+        read_values(bytes, off, std::span<std::uint64_t>(&k, 1));
+        if (k > (bytes.size() - off) / sizeof(RayHit)) throw std::runtime_error("query: ray block message is short");
+        ray_hits.resize(k);
+        read_values(bytes, off, std::span<RayHit>(ray_hits));
+      }
+      done(c, std::span<std::vector<RayHit>>(h));
     }
     if (off != bytes.size()) throw std::runtime_error("query: ray block message has trailing bytes");
-    for (std::uint64_t c = first; c < first + count; ++c)
-      progress.tile_done(std::min(n, (c + 1) * kRaysPerItem) - c * kRaysPerItem);  // the block's rays
   };
   dist->run(stage);
   progress.finish();
+  return rows;
 }
+
+/// Appends one CSV row "ray,rank,index,x,y,z,t,distance" to `out`: x, y, z by `grid` (on the
+/// source's LAS grid: its decimals), every other number the shortest text that reads back as the
+/// same double (std::to_chars: exact).
+void append_hit_row(std::string& out, std::uint64_t ray, std::uint64_t rank, const RayHit& h, const Vec3& p,
+                    const io::GridText& grid) {
+  char buf[32];  // the longest shortest form of a double is 24 characters
+  const auto number = [&](auto v) { out.append(buf, std::to_chars(buf, buf + sizeof buf, v).ptr); };
+  number(ray);
+  out += ',';
+  number(rank);
+  out += ',';
+  number(h.index);
+  for (int k = 0; k < 3; ++k) {
+    out += ',';
+    grid.append(out, p[k], k);
+  }
+  out += ',';
+  number(h.t);
+  out += ',';
+  number(h.distance);
+  out += '\n';
+}
+
+constexpr const char* kHitsHeader = "ray,rank,index,x,y,z,t,distance\n";
 
 }  // namespace
 
@@ -133,14 +250,51 @@ QueryJobResult run_query(const QueryJobOptions& o) {
     o.control.info(buf);
   }
   r.threads = resolve_threads(o.control.threads);
+  WorkDistributor* const dist = o.control.distributor;
+  const bool root = !dist || dist->is_root();
+  // Streamed: only the runs of rays in flight are held (a query may return more than memory).
+  const bool stream = o.csv && root;
+  if (!stream) r.hits.assign(r.rays.size(), {});
+  const PointCloud* const cloud = o.cloud ? o.cloud : &r.cloud;
   const auto t_query = std::chrono::steady_clock::now();
   site->visit([&](auto& idx) {
     using I = std::remove_cvref_t<decltype(idx)>;
-    if constexpr (std::is_same_v<I, CopcIndex>) {
-      // The batch runs here (no distributed work queue for COPC files).
-      answer_rays(idx, r.rays, o.query, r.threads, o.control.progress, nullptr, r.hits);
+    constexpr bool copc = std::is_same_v<I, CopcIndex>, mapped = std::is_same_v<I, MappedIndex>;
+    const auto pos = idx.positions();
+    // A hit's position: by its slot in an index file's storage, from the COPC file's decoded
+    // node, or from the cloud in memory.
+    const auto position = [&](const RayHit& h) -> Vec3 {
+      if constexpr (copc) return idx.position_of(h.index);
+      else if constexpr (mapped) return pos[h.slot];
+      else return cloud->positions[h.index];
+    };
+    RunSink sink;
+    if (stream) {
+      sink.render = [&](std::uint64_t first, std::span<std::vector<RayHit>> hits) {
+        std::string text;
+        for (std::size_t i = 0; i < hits.size(); ++i)
+          for (std::size_t k = 0; k < hits[i].size(); ++k)
+            append_hit_row(text, first + i, k, hits[i][k], position(hits[i][k]), r.grid);
+        return text;
+      };
+      sink.write = [&](const std::string& text) {
+        if (!text.empty()) o.csv(text);
+      };
+      o.csv(kHitsHeader);
+    } else {
+      sink.render = [&](std::uint64_t first, std::span<std::vector<RayHit>> hits) {
+        std::move(hits.begin(), hits.end(), r.hits.begin() + static_cast<std::ptrdiff_t>(first));
+        return std::string();
+      };
+      sink.write = [](const std::string&) {};
+    }
+    const std::uint64_t max_hits = o.query.any_hit ? 1 : std::min<std::uint64_t>(o.query.k, pos.size());
+    // A COPC file's batch runs here (no distributed work queue for COPC files).
+    r.rows = answer_rays(idx, r.rays, o.query, r.threads, o.control.progress, copc ? nullptr : dist, max_hits, sink);
+    if (!stream && (copc || (mapped && root)))
       for (const auto& h : r.hits)
-        for (const RayHit& x : h) r.hit_positions.push_back(idx.position_of(x.index));
+        for (const RayHit& x : h) r.hit_positions.push_back(position(x));
+    if constexpr (copc) {
       r.copc_decodes = idx.decodes();
       r.copc_nodes = idx.node_count();
       char msg[256];
@@ -148,24 +302,6 @@ QueryJobResult run_query(const QueryJobOptions& o) {
                     static_cast<unsigned long long>(r.copc_decodes), static_cast<unsigned long long>(r.copc_nodes),
                     r.rays.size(), seconds_since(t0));
       o.control.info(msg);
-    } else if constexpr (std::is_same_v<I, MappedIndex>) {
-      answer_rays(idx, r.rays, o.query, r.threads, o.control.progress, o.control.distributor, r.hits);
-      if (o.control.distributor && !o.control.distributor->is_root()) return;
-      // Positions of the hits by one sequential scan of the ids (no inverse permutation in memory).
-      std::unordered_map<PointIndex, Vec3> hit_pos;
-      for (const auto& h : r.hits)
-        for (const RayHit& x : h) hit_pos.emplace(x.index, Vec3(0.0));
-      const IdView ids = idx.ids();
-      const auto pos = idx.positions();
-      if (ids.is_identity())  // an index without ids: a hit's index is its slot
-        for (auto& [id, p] : hit_pos) p = pos[id];
-      for (std::size_t s = 0; s < ids.size() && !ids.is_identity() && !hit_pos.empty(); ++s)
-        if (auto it = hit_pos.find(ids[s]); it != hit_pos.end()) it->second = pos[s];
-      for (const auto& h : r.hits)
-        for (const RayHit& x : h) r.hit_positions.push_back(hit_pos.at(x.index));
-    } else {
-      // Positions from the cloud in memory.
-      answer_rays(idx, r.rays, o.query, r.threads, o.control.progress, o.control.distributor, r.hits);
     }
   });
   r.query_seconds = seconds_since(t_query);
@@ -174,31 +310,35 @@ QueryJobResult run_query(const QueryJobOptions& o) {
 
 namespace {
 
-/// One CSV row "ray,rank,index,x,y,z,t,distance", each number the shortest text that reads back
-/// as the same double (shortest_text): exact, and an input coordinate 636500.92 prints as such.
-void write_hit_row(std::ostream& os, std::size_t ray, std::size_t rank, const RayHit& h, const Vec3& p) {
-  os << ray << ',' << rank << ',' << h.index << ',' << shortest_text(p.x) << ',' << shortest_text(p.y) << ','
-     << shortest_text(p.z) << ',' << shortest_text(h.t) << ',' << shortest_text(h.distance) << '\n';
+/// The CSV of `hits` (hits[r]: ray r's, best first) to `os`: the header, then one row per hit, its
+/// position position(hit, flat) (flat: its place in `hits` flattened, ray by ray).
+template <class Position>
+void write_rows(std::ostream& os, const std::vector<std::vector<RayHit>>& hits, const io::GridText& grid,
+                const Position& position) {
+  os << kHitsHeader;
+  std::string row;
+  std::size_t flat = 0;
+  for (std::size_t r = 0; r < hits.size(); ++r)
+    for (std::size_t k = 0; k < hits[r].size(); ++k, ++flat) {
+      row.clear();
+      append_hit_row(row, r, k, hits[r][k], position(hits[r][k], flat), grid);
+      os << row;
+    }
 }
-
-constexpr const char* kHitsHeader = "ray,rank,index,x,y,z,t,distance\n";
 
 }  // namespace
 
 void write_hits_csv(std::ostream& os, std::span<const Vec3> positions,
                     const std::vector<std::vector<RayHit>>& hits) {
-  os << kHitsHeader;
-  for (std::size_t r = 0; r < hits.size(); ++r)
-    for (std::size_t k = 0; k < hits[r].size(); ++k) write_hit_row(os, r, k, hits[r][k], positions[hits[r][k].index]);
+  write_rows(os, hits, {}, [&](const RayHit& h, std::size_t) { return positions[h.index]; });
 }
 
 void write_hits_csv(std::ostream& os, const QueryJobResult& r) {
-  if (r.hit_positions.empty()) return write_hits_csv(os, r.cloud.positions, r.hits);
-  // Index-file input: hit_positions follows hits flattened (ray by ray, best first).
-  os << kHitsHeader;
-  std::size_t slot = 0;
-  for (std::size_t k = 0; k < r.hits.size(); ++k)
-    for (std::size_t j = 0; j < r.hits[k].size(); ++j) write_hit_row(os, k, j, r.hits[k][j], r.hit_positions[slot++]);
+  // Index-file and COPC input: hit_positions follows hits flattened.
+  if (r.hit_positions.empty())
+    write_rows(os, r.hits, r.grid, [&](const RayHit& h, std::size_t) { return r.cloud.positions[h.index]; });
+  else
+    write_rows(os, r.hits, r.grid, [&](const RayHit&, std::size_t flat) { return r.hit_positions[flat]; });
 }
 
 }  // namespace rayscan::jobs

@@ -78,12 +78,15 @@ class QueryCli : public ::testing::Test {
     return std::string(buf, std::to_chars(buf, buf + sizeof buf, v).ptr);
   }
 
-  std::string expected_csv(const RayQuery& q) const {
+  std::string expected_csv(const RayQuery& q) const { return expected_csv(q, rays_); }
+
+  /// The brute-force rows of `rays`.
+  std::string expected_csv(const RayQuery& q, const std::vector<Ray>& rays) const {
     const BruteForceIndex bf(pts_);
     std::ostringstream os;
     os << "ray,rank,index,x,y,z,t,distance\n";
-    for (std::size_t r = 0; r < rays_.size(); ++r) {
-      const auto hits = ray_query(bf, rays_[r], q);
+    for (std::size_t r = 0; r < rays.size(); ++r) {
+      const auto hits = ray_query(bf, rays[r], q);
       for (std::size_t k = 0; k < hits.size(); ++k) {
         const Vec3& p = pts_[hits[k].index];
         os << r << ',' << k << ',' << hits[k].index << ',' << shortest(p.x) << ',' << shortest(p.y) << ','
@@ -98,6 +101,20 @@ class QueryCli : public ::testing::Test {
     std::stringstream ss;
     ss << in.rdbuf();
     return ss.str();
+  }
+
+  /// Writes `copies` copies of the fixture's 20 rays as `name` (.f64) and returns them.
+  std::vector<Ray> write_copies(const std::string& name, int copies) const {
+    std::vector<Ray> all;
+    std::ofstream f(dir_ / name, std::ios::binary);
+    for (int copy = 0; copy < copies; ++copy)
+      for (const Ray& r : rays_) {
+        const double v[6] = {r.origin().x, r.origin().y, r.origin().z, r.direction().x, r.direction().y,
+                             r.direction().z};
+        f.write(reinterpret_cast<const char*>(v), sizeof v);
+        all.push_back(r);
+      }
+    return all;
   }
 
   fs::path dir_;
@@ -219,6 +236,55 @@ TEST_F(QueryCli, SummaryLineCountsTheRaysFileAndTheRowsWritten) {
     EXPECT_EQ(e.find(" written to "), std::string::npos) << e;
     EXPECT_EQ(e.substr(e.rfind("rayscan query: ")).rfind("rayscan query: standard output: write failed", 0), 0u) << e;
   }
+}
+
+// The rows are written as the rays are answered, run by run: a run is a whole block of 256 rays
+// when each ray returns few results, fewer rays when each may return many (no --k: up to the
+// cloud's 2000 points, so runs of 8 rays here), and one thread writes them in ray order. Oracle:
+// the brute-force rows of the 600 rays (2 whole blocks and a short one), for 1 and 3 threads.
+TEST_F(QueryCli, RunsOfRaysAreWrittenInRayOrderForAnyThreadCount) {
+  const std::vector<Ray> rays = write_copies("rays600.f64", 30);
+  RayQuery q;
+  q.radius = 0.05;
+  q.order = RayOrder::time;
+  const std::string want = expected_csv(q, rays);
+  ASSERT_GT(std::count(want.begin(), want.end(), '\n'), 600);
+  for (const char* threads : {"1", "3"}) {
+    const RunResult r = rayscan::test::run_command(std::string(RAYSCAN_BIN) + " query -q --cloud " +
+                                                       (dir_ / "cloud.csv").string() + " --rays " +
+                                                       (dir_ / "rays600.f64").string() +
+                                                       " --radius 0.05 --order time --threads " + threads,
+                                                   false);
+    ASSERT_EQ(r.code, 0);
+    EXPECT_EQ(r.out, want) << threads << " threads";
+  }
+}
+
+// Memory holds the runs of rays in flight, not the whole answer: 2000 rays x --all over the 2000
+// points are 4 million rows (160 MB of hits held at once if they were collected before writing),
+// and the query completes within an address-space limit (ulimit -v) 40 MiB above what the same
+// rays with --k 1 need. Oracle: the row count on standard output, 2000 x 2000 + the header.
+// (MALLOC_ARENA_MAX=1: every thread allocates from one heap, so the limit does not also catch
+// the 64 MiB address ranges glibc reserves for each thread's own heap, which vary by run.)
+TEST_F(QueryCli, AllResultsOfManyRaysStreamWithinAMemoryLimit) {
+  write_copies("rays2000.f64", 100);
+  const auto rows_within = [&](long kib, const std::string& bound) {
+    const RunResult r = rayscan::test::run_command(
+        "MALLOC_ARENA_MAX=1 sh -c 'ulimit -v " + std::to_string(kib) + " && exec " + RAYSCAN_BIN + " query -q --cloud " +
+            (dir_ / "cloud.csv").string() + " --rays " + (dir_ / "rays2000.f64").string() + " --threads 2 " + bound +
+            "' 2>/dev/null | wc -l",
+        false);
+    return std::stol(r.out);
+  };
+  // The least limit (to 4 MiB) in which the small query completes: the program, its libraries and
+  // the threads' stacks.
+  long lo = 16 << 10, hi = 4 << 20;
+  ASSERT_EQ(rows_within(hi, "--k 1"), 2001);
+  while (hi - lo > (4 << 10)) {
+    const long mid = (lo + hi) / 2;
+    (rows_within(mid, "--k 1") == 2001 ? hi : lo) = mid;
+  }
+  EXPECT_EQ(rows_within(hi + (40 << 10), "--all"), 2000L * 2000 + 1);
 }
 
 TEST_F(QueryCli, BadInputExitsTwoWithOneLineError) {

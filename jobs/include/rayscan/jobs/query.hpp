@@ -4,12 +4,16 @@
 
 #include "rayscan/site/copc.hpp"
 #include "rayscan/octree/any_index.hpp"
+#include "rayscan/io/grid_text.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/base/job.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
+#include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <ostream>
+#include <string_view>
 #include <vector>
 
 namespace rayscan::jobs {
@@ -31,6 +35,14 @@ struct QueryJobOptions {
   /// ray on a 1e8-point site), almost never what is meant: false refuses it (OptionError, after the
   /// rays are read and before the cloud is), as `rayscan query` does unless --all.
   bool allow_unbounded = true;
+  /// When set, the hits are not kept (QueryJobResult::hits and hit_positions stay empty) but
+  /// written here as CSV text, as write_hits_csv writes them, while the rays are answered: the
+  /// header once the cloud and index are ready, then the rows of each run of rays once it and the
+  /// runs before it are answered, one call at a time, in ray order. Only the runs in flight are
+  /// held: at most 2 x threads runs, each up to 256 rays and about 16,384 results by the bound of
+  /// `query` (--k, the points), one ray at least. With a distributor, only the root writes. An
+  /// exception it throws (a failed write) ends the job.
+  std::function<void(std::string_view)> csv;
   /// threads; progress: a bar over the blocks of 256 rays answered; log: the read and the index
   /// build (their sizes and seconds), COPC nodes decoded
   JobControl control;
@@ -40,10 +52,13 @@ struct QueryJobOptions {
 struct QueryJobResult {
   PointCloud cloud;                          ///< the cloud read from cloud_file (empty for in-memory input)
   std::vector<Ray> rays;                     ///< the rays answered
-  std::vector<std::vector<RayHit>> hits;     ///< hits[r]: the results of ray r, best first
+  std::vector<std::vector<RayHit>> hits;     ///< hits[r]: the results of ray r, best first (empty with `csv`)
+  std::uint64_t rows = 0;                    ///< the results of all rays (the CSV rows; with a distributor: on the root)
   /// Index-file input (.rsi, rayscan/site/index_file.hpp): the position of every hit, in the order
   /// of `hits` flattened (ray by ray, best first); `cloud` then stays empty. Empty otherwise.
   std::vector<Vec3> hit_positions;
+  /// How write_hits_csv prints x, y and z: on the LAS grid the cloud came with, none by default.
+  io::GridText grid;
   /// COPC input: node chunks decoded (CopcIndex::decodes()) and nodes in the hierarchy; the
   /// hit positions are in `hit_positions` as for an index file. Both 0 otherwise.
   std::uint64_t copc_decodes = 0, copc_nodes = 0;
@@ -52,13 +67,15 @@ struct QueryJobResult {
 };
 
 /// Reads the rays (first, so a malformed rays file is reported before a large cloud is read) and
-/// the cloud, builds the index and answers every ray (ray_query_each over blocks of 256 rays in
+/// the cloud, builds the index and answers every ray (ray_query_each over runs of rays in
 /// parallel with TBB, identical for any thread count; control.progress draws a bar over the
-/// blocks). Throws std::invalid_argument for an invalid query or index option (e.g. depth with
-/// another index than octree-fixed), io::FormatError for a malformed input file.
+/// blocks of 256 rays), keeping the hits in the result or, with options.csv, writing them as
+/// they are answered. Throws std::invalid_argument for an invalid query or index option (e.g.
+/// depth with another index than octree-fixed), io::FormatError for a malformed input file.
 /// With options.control.distributor over several processes (MPI, docs/mpi.md), every process
 /// calls it; blocks of 256 rays are handed out by the distributor and only the root's `hits`
-/// (and `hit_positions`) are complete.
+/// (and `hit_positions`) are complete, or only the root writes the CSV (each block once the
+/// blocks before it are written).
 QueryJobResult run_query(const QueryJobOptions& options);
 
 /// Writes the hits as CSV "ray,rank,index,x,y,z,t,distance" to `out`, every number the shortest
