@@ -88,7 +88,8 @@ double extraterrestrial_irradiance(int day_of_year, double solar_constant) {
   csky::check_day(where, day_of_year);
   if (!(solar_constant > 0.0) || !std::isfinite(solar_constant))
     csky::fail(where, "solar_constant", "a finite number > 0 W/m^2", solar_constant);
-  // Eq. (2): day angle j' = 2 pi j / 365.25 and the perihelion offset 0.048869 rad.
+  // Extraterrestrial irradiance (r.sun com_sol_const()): day angle j' = 2 pi j / 365.25 and the
+  // perihelion offset 0.048869 rad.
   const double day_angle = 2.0 * csky::kPi * day_of_year / 365.25;
   return solar_constant * (1.0 + 0.03344 * std::cos(day_angle - 0.048869));
 }
@@ -97,7 +98,7 @@ double refraction_correction(double sun_elevation) {
   csky::require_range("refraction_correction", "sun_elevation", sun_elevation, 0.0, csky::kPi / 2,
                       "in 0..pi/2 radians");
   const double h = sun_elevation;
-  // Eq. (7), h0 in radians.
+  // Refraction correction of the elevation (ESRA; r.sun brad()), h0 in radians.
   return 0.061359 * (0.1594 + h * (1.123 + 0.065656 * h)) / (1.0 + h * (28.9344 + 277.3971 * h));
 }
 
@@ -107,9 +108,10 @@ double relative_optical_air_mass(double sun_elevation, double site_elevation_m) 
                       "in 0..pi/2 radians");
   csky::require_range(where, "site_elevation_m", site_elevation_m, -1000.0, 10000.0,
                       "in -1000..10000 m");
-  const double pressure_ratio = std::exp(-site_elevation_m / 8434.5);         // eq. (4)
-  const double h_ref = sun_elevation + refraction_correction(sun_elevation);  // eq. (6)
-  // Eq. (5): Kasten & Young (1989) with the elevation in degrees inside the power term.
+  // Station-height pressure correction p/p0 and the refraction-corrected elevation (ESRA; r.sun brad()).
+  const double pressure_ratio = std::exp(-site_elevation_m / 8434.5);
+  const double h_ref = sun_elevation + refraction_correction(sun_elevation);
+  // Relative optical air mass: Kasten & Young (1989) with the elevation in degrees inside the power term.
   return pressure_ratio /
          (std::sin(h_ref) + 0.50572 * std::pow(h_ref * (1.0 / kDegree) + 6.07995, -1.6364));
 }
@@ -118,25 +120,26 @@ double rayleigh_optical_thickness(double air_mass) {
   if (!(air_mass > 0.0) || !std::isfinite(air_mass))
     csky::fail("rayleigh_optical_thickness", "air_mass", "a finite number > 0", air_mass);
   const double m = air_mass;
-  if (m <= 20.0)  // eq. (8)
+  if (m <= 20.0)  // Rayleigh optical thickness, air mass <= 20 (ESRA)
     return 1.0 / (6.6296 + m * (1.7513 + m * (-0.1202 + m * (0.0065 - m * 0.00013))));
-  return 1.0 / (10.4 + 0.718 * m);  // eq. (9)
+  return 1.0 / (10.4 + 0.718 * m);  // Rayleigh optical thickness, air mass > 20
 }
 
 double diffuse_transmission(double linke) {
   csky::check_linke("diffuse_transmission", linke);
-  return -0.015843 + linke * (0.030543 + 0.0003797 * linke);  // eq. (13)
+  // Diffuse transmission function Trd (ESRA; r.sun drad()).
+  return -0.015843 + linke * (0.030543 + 0.0003797 * linke);
 }
 
 DiffuseAngularCoefficients diffuse_angular_coefficients(double linke) {
   csky::check_linke("diffuse_angular_coefficients", linke);
   const double tn = diffuse_transmission(linke);
   DiffuseAngularCoefficients c;
-  // Eq. (15): A1' and its lower bound A1 T_n >= 0.0022 (r.sun's drad() tests A1' * T_n).
+  // Diffuse angular coefficient A1' and its lower bound A1 T_n >= 0.0022 (r.sun's drad() tests A1' * T_n).
   const double a1_prime = 0.26463 + linke * (-0.061581 + 0.0031408 * linke);
   c.a1 = a1_prime * tn < 0.0022 ? 0.0022 / tn : a1_prime;
-  c.a2 = 2.04020 + linke * (0.018945 - 0.011161 * linke);   // eq. (16)
-  c.a3 = -1.3025 + linke * (0.039231 + 0.0085079 * linke);  // eq. (16)
+  c.a2 = 2.04020 + linke * (0.018945 - 0.011161 * linke);   // diffuse angular function coefficient (ESRA)
+  c.a3 = -1.3025 + linke * (0.039231 + 0.0085079 * linke);  // diffuse angular function coefficient (ESRA)
   return c;
 }
 
@@ -145,7 +148,7 @@ double diffuse_angular_function(double sun_elevation, double linke) {
                       csky::kPi / 2, "in 0..pi/2 radians");
   const DiffuseAngularCoefficients c = diffuse_angular_coefficients(linke);
   const double s = std::sin(sun_elevation);
-  return c.a1 + s * (c.a2 + s * c.a3);  // eq. (14)
+  return c.a1 + s * (c.a2 + s * c.a3);  // diffuse angular function Fd (ESRA)
 }
 
 double cos_incidence(const SunDirection& sun, const SurfaceOrientation& surface) {
@@ -192,9 +195,9 @@ double muneer_diffuse_ratio(const SunDirection& sun, const SurfaceOrientation& s
     csky::fail(where, "sun elevation", "> 0 for a sunlit surface", sun.elevation);
   const double f = (muneer_n(kb) * t.fg + t.r_sky) * (1.0 - kb);
   if (sun.elevation >= kLowSunElevation)
-    return f + kb * cos_inc / std::sin(sun.elevation);  // eq. (17)
-  // Eq. (18), the low sun, with cos(A_LN) = cos(A_sun - aspect) expanded (no wrapping of A_LN
-  // into -pi..pi as r.sun does is needed).
+    return f + kb * cos_inc / std::sin(sun.elevation);  // Muneer's sky-diffuse function, sunlit surface (r.sun drad())
+  // Muneer's sky-diffuse function for the low sun (r.sun drad()), with cos(A_LN) =
+  // cos(A_sun - aspect) expanded (no wrapping of A_LN into -pi..pi as r.sun does is needed).
   const double cos_a_ln = std::cos(sun.azimuth) * t.cos_aspect + std::sin(sun.azimuth) * t.sin_aspect;
   return f + kb * t.sin_slope * cos_a_ln / (0.1 - 0.008 * sun.elevation);
 }
@@ -205,9 +208,10 @@ MuneerSurfaceTerms muneer_surface_terms(const SurfaceOrientation& surface) {
   const double beta = surface.slope;
   if (beta == 0.0) return t;
   t.flat = false;
-  t.r_sky = (1.0 + std::cos(beta)) / 2.0;  // eq. (21)
+  t.r_sky = (1.0 + std::cos(beta)) / 2.0;  // sky view of a tilted plane (r.sun drad())
   const double half_sin = std::sin(beta / 2.0);
-  t.fg = std::sin(beta) - beta * std::cos(beta) - csky::kPi * half_sin * half_sin;  // eq. (20)
+  // Muneer's N function term (r.sun drad()).
+  t.fg = std::sin(beta) - beta * std::cos(beta) - csky::kPi * half_sin * half_sin;
   t.sin_slope = std::sin(beta);
   t.cos_aspect = std::cos(surface.aspect);
   t.sin_aspect = std::sin(surface.aspect);
@@ -255,13 +259,15 @@ SurfaceIrradiance clear_sky_irradiance(const ClearSkyInput& in) {
   out.horizontal = {beam.horizontal, diffuse_h, beam.horizontal + diffuse_h};
 
   const bool shadowed = in.in_shadow || cos_inc <= 0.0;
-  out.beam = shadowed ? 0.0 : beam.normal * cos_inc;  // eq. (11)
-  // Kb = B_hc / (G0 sin h0) (eq. (24)) = B_0c / G0, computed as r.sun does from the beam.
+  out.beam = shadowed ? 0.0 : beam.normal * cos_inc;  // beam on the inclined surface
+  // Kb = B_hc / (G0 sin h0) = B_0c / G0, the beam's share (r.sun drad()), computed as r.sun does
+  // from the beam.
   const double kb = std::clamp(beam.normal / g0, 0.0, 1.0);
   out.diffuse = diffuse_h * muneer_diffuse_ratio(in.sun, in.surface, cos_inc, shadowed, kb);
   const double ground =
       (shadowed && in.shadow_drops_reflected_beam) ? diffuse_h : out.horizontal.global;
-  out.reflected = in.albedo * ground * (1.0 - std::cos(in.surface.slope)) / 2.0;  // eq. (25)
+  // Ground-reflected irradiance (r.sun drad()).
+  out.reflected = in.albedo * ground * (1.0 - std::cos(in.surface.slope)) / 2.0;
   out.global = out.beam + out.diffuse + out.reflected;
   return out;
 }

@@ -121,8 +121,8 @@ PointIrradiation accumulate_irradiation(const SunMap& map, std::span<const Vec3>
   double diffuse = 0.0, ground = 0.0;  // diffuse before the sky view; the ground-reflected source
   // The ground view: the share of the surface's cosine-weighted hemisphere that is not open sky.
   // The sky part of a tilted plane's hemisphere is (1 + cos slope) / 2 and the traced sky view is
-  // the open fraction of it, so an open plane keeps r.sun's (1 - cos slope) / 2 (eq. (25)), and a
-  // wall, a tree or a street canyon that hides the sky reflects onto the point instead.
+  // the open fraction of it, so an open plane keeps r.sun's ground view (1 - cos slope) / 2
+  // (drad()), and a wall, a tree or a street canyon that hides the sky reflects onto the point instead.
   const double rr = 1.0 - out.sky_view * (1.0 + std::cos(surface.slope)) / 2.0;
   // What a group of steps added to the sums since the marks: its global irradiation.
   double beam_mark = 0.0, diffuse_mark = 0.0, ground_mark = 0.0;

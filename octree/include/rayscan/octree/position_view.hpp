@@ -24,9 +24,8 @@ namespace rayscan {
 /// an FMA in C++ by default (-std=c++20 included) wherever the target has one (aarch64,
 /// -march=native). The targets that decode LAS coordinates therefore compile with
 /// -ffp-contract=off: io (the readers), octree and site (rayscan_octree_impl: index file, COPC),
-/// jobs and the SQL import. The renderer and analysis keep their own flags for speed, so on an FMA
-/// build a sphere centre they decode inline (hit normals, the height-field walk) may differ in the
-/// last bit from the reader's.
+/// jobs, the SQL import, and the renderer and analysis (which decode sphere centres inline: hit
+/// normals, the height-field walk).
 [[nodiscard]] inline double las_coordinate(std::int32_t v, double scale, double offset) {
   return static_cast<double>(v) * scale + offset;
 }
