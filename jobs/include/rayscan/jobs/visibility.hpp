@@ -1,7 +1,8 @@
 // The visibility job: which points of a cloud can be seen from where, as one
 // library call -- line of sight from observers, sky view factor, camera marks; per-point fields,
-// a LAS/PLY copy of the cloud, a GeoTIFF map and its PNG preview. `rayscan visibility` and the
-// Python module's rayscan.visibility() are thin wrappers over run_visibility().
+// a copy of the cloud with them (any point format rayscan writes), a GeoTIFF map and its PNG
+// preview. `rayscan visibility` and the Python module's rayscan.visibility() are thin wrappers
+// over run_visibility().
 #pragma once
 
 #include "rayscan/site/copc.hpp"
@@ -79,10 +80,10 @@ struct VisibilityJobOptions {
   std::filesystem::path camera_file;    ///< or a camera file (scenes/README.md schema)
 
   // ---- Outputs (each written through AtomicFile; "" = not written).
-  std::filesystem::path out;            ///< the cloud with the result fields (.las or .ply)
+  std::filesystem::path out;            ///< the cloud with the result fields (io::point_cloud_output_extensions)
   std::filesystem::path raster;         ///< top-down GeoTIFF (.tif/.tiff); needs `cell`
   std::optional<double> cell;           ///< raster cell edge, world units
-  std::string raster_value;             ///< viewshed|fraction|count|distance|sky|camera; "" = viewshed
+  std::string raster_value;             ///< viewshed|viewshed-points|fraction|count|distance|sky|camera; "" = viewshed
                                         ///< with observers, else sky, else camera
   std::filesystem::path preview;        ///< PNG preview ("" = the raster's name with .png)
   bool write_preview = true;            ///< write the preview next to the raster
