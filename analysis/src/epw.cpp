@@ -2,16 +2,16 @@
 // "Weather Converter Program", "EnergyPlus Weather File (EPW) Data Dictionary").
 #include "rayscan/analysis/epw.hpp"
 
+#include "rayscan/base/input_file.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cctype>
-#include <cerrno>
 #include <charconv>
 #include <cmath>
-#include <cstring>
-#include <fstream>
 #include <istream>
 #include <limits>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -491,8 +491,9 @@ EpwFile parse_epw(std::istream& in, std::string_view name, const EpwReadOptions&
 }
 
 EpwFile read_epw(const std::filesystem::path& path, const EpwReadOptions& options) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path.string() + ": cannot open (" + std::strerror(errno) + ")");
+  // The input policy (regular file, never a blocking open, 256 MiB cap): a year of one-minute
+  // records is about 80 MB.
+  std::istringstream in(read_text_file(path));
   return parse_epw(in, path.string(), options);
 }
 

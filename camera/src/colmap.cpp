@@ -1,13 +1,15 @@
 #include "rayscan/camera/colmap.hpp"
 
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/base/json_object.hpp"
 
 #include <glm/gtc/quaternion.hpp>
 
+#include <charconv>
 #include <cmath>
-#include <fstream>
 #include <map>
 #include <sstream>
+#include <string_view>
 #include <vector>
 
 namespace rayscan::render {
@@ -18,10 +20,23 @@ namespace {
   throw io::JsonFileError(f.string() + (line ? ":" + std::to_string(line) : std::string()) + ": " + what);
 }
 
-std::ifstream open(const std::filesystem::path& f) {
-  std::ifstream in(f);
-  if (!in) fail(f, 0, "cannot open (a COLMAP text model needs cameras.txt and images.txt)");
-  return in;
+// The model file as a stream, read under the input policy (a regular file, never a blocking
+// open, 256 MiB cap); a missing one says which files the model needs.
+std::istringstream open(const std::filesystem::path& f) {
+  std::error_code ec;
+  if (!std::filesystem::exists(f, ec)) fail(f, 0, "cannot open (a COLMAP text model needs cameras.txt and images.txt)");
+  try {
+    return std::istringstream(read_text_file(f));
+  } catch (const InputFileError& e) {
+    throw io::JsonFileError(e.what());
+  }
+}
+
+// A whole token as a number of type T (no sign for an unsigned type, no trailing text).
+template <class T>
+bool parse_token(std::string_view t, T& v) {
+  const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+  return ec == std::errc() && end == t.data() + t.size();
 }
 
 struct ColmapCamera {
@@ -35,7 +50,7 @@ struct ColmapCamera {
 Camera load_colmap_camera(const std::filesystem::path& dir, const std::string& image_name) {
   // images.txt: two lines per image (the second, POINTS2D, may be empty); comments start with #.
   const std::filesystem::path images = dir / "images.txt";
-  std::ifstream in = open(images);
+  std::istringstream in = open(images);
   std::string line;
   std::size_t no = 0;
   bool header = true, found = false;
@@ -65,7 +80,7 @@ Camera load_colmap_camera(const std::filesystem::path& dir, const std::string& i
   if (!(qn > 0.0) || !std::isfinite(qn)) fail(images, no, "expected a non-zero quaternion QW QX QY QZ");
 
   const std::filesystem::path cameras = dir / "cameras.txt";
-  std::ifstream cin_ = open(cameras);
+  std::istringstream cin_ = open(cameras);
   ColmapCamera cam;
   bool have = false;
   std::size_t cno = 0;
@@ -74,11 +89,27 @@ Camera load_colmap_camera(const std::filesystem::path& dir, const std::string& i
     if (line.empty() || line[0] == '#' || line.find_first_not_of(" \t\r") == std::string::npos) continue;
     std::istringstream ls(line);
     long id;
-    if (!(ls >> id >> cam.model >> cam.width >> cam.height))
+    std::string width, height;
+    if (!(ls >> id >> cam.model >> width >> height))
       fail(cameras, cno, "expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]");
     if (id != cam_id) continue;
-    double v;
-    while (ls >> v) cam.params.push_back(v);
+    // Each field as a whole token: a stream would read "-8" as an unsigned 2^32 - 8 and stop at
+    // "nan", leaving the parameters after it uncounted.
+    const auto size = [&](const std::string& t, const char* name) {
+      std::uint32_t v = 0;
+      if (!parse_token(t, v) || v < 1 || v > 65536)
+        fail(cameras, cno, std::string(name) + " '" + one_line(t) + "': expected an integer in [1, 65536] (pixels)");
+      return v;
+    };
+    cam.width = size(width, "WIDTH");
+    cam.height = size(height, "HEIGHT");
+    for (std::string t; ls >> t;) {
+      double v = 0.0;
+      if (!parse_token(t, v) || !std::isfinite(v))
+        fail(cameras, cno, "model " + cam.model + ": parameter " + std::to_string(cam.params.size() + 1) + " '" +
+                               one_line(t) + "': expected a finite number");
+      cam.params.push_back(v);
+    }
     have = true;
     break;
   }

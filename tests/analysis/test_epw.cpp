@@ -2,6 +2,7 @@
 // a year of hourly records with known values) read back exactly, and every validation path with
 // its exact one-line message.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -340,14 +341,32 @@ TEST(Epw, RecordCountAndOrderErrors) {
             "weather.epw: line 8745: more data records than DATA PERIODS declares (8736)");
 }
 
-TEST(Epw, MissingFileIsOneLine) {
+std::string read_error(const std::filesystem::path& path) {
   try {
-    read_epw("/nonexistent/dir/weather.epw");
-    FAIL() << "no exception";
+    read_epw(path);
   } catch (const std::runtime_error& e) {
-    EXPECT_EQ(std::string(e.what()),
-              "/nonexistent/dir/weather.epw: cannot open (No such file or directory)");
+    return e.what();
   }
+  return "(no exception)";
+}
+
+TEST(Epw, MissingFileIsOneLine) {
+  EXPECT_EQ(read_error("/nonexistent/dir/weather.epw"),
+            "/nonexistent/dir/weather.epw: cannot open file: No such file or directory");
+}
+
+TEST(Epw, AFifoOrADirectoryIsRefusedWithoutReading) {
+  // A FIFO without a writer: a plain open would wait for one forever; the input policy refuses
+  // it at once, naming the file (the ctest timeout catches a hang).
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("rayscan_test_epw_kinds_" + std::to_string(getpid()));
+  std::filesystem::create_directories(dir / "d.epw");
+  ASSERT_EQ(::mkfifo((dir / "f.epw").c_str(), 0600), 0);
+  EXPECT_EQ(read_error(dir / "f.epw"),
+            (dir / "f.epw").string() + ": is a FIFO, not a regular file (rayscan reads regular files only)");
+  EXPECT_EQ(read_error(dir / "d.epw"),
+            (dir / "d.epw").string() + ": is a directory, not a regular file (rayscan reads regular files only)");
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

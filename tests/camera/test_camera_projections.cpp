@@ -6,6 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <glm/gtc/quaternion.hpp>
 
 #include <filesystem>
@@ -120,4 +123,52 @@ TEST(Colmap, OpencvModelViewOfAPhotoMatchesItsProjection) {
   { std::ofstream c(dir / "cameras.txt"); c << "2 FISHEYE 10 10 1 2 3\n"; }
   EXPECT_THROW(load_colmap_camera(dir, "DSC_0042.JPG"), SceneError);
   std::filesystem::remove_all(dir);
+}
+
+TEST(Colmap, EachBadFieldOfACameraLineIsNamed) {
+  const auto dir = std::filesystem::temp_directory_path() / ("rayscan_colmap_fields_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "images.txt") << "1 1 0 0 0 0 0 5 1 a.png\n\n";
+  const auto error_for = [&](const std::string& camera_line) {
+    std::ofstream(dir / "cameras.txt") << camera_line << "\n";
+    try {
+      (void)load_colmap_camera(dir, "a.png");
+    } catch (const SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  const std::string at = (dir / "cameras.txt").string() + ":1: ";
+  EXPECT_EQ(error_for("1 PINHOLE 8 6 500 500 4 3"), "(no error)");
+  EXPECT_EQ(error_for("1 PINHOLE 8 6 nan 500 4 3"), at + "model PINHOLE: parameter 1 'nan': expected a finite number");
+  EXPECT_EQ(error_for("1 PINHOLE 8 6 500 500 4 inf"), at + "model PINHOLE: parameter 4 'inf': expected a finite number");
+  EXPECT_EQ(error_for("1 PINHOLE 8 6 500 1e400 4 3"), at + "model PINHOLE: parameter 2 '1e400': expected a finite number");
+  EXPECT_EQ(error_for("1 PINHOLE 8 6 500 500 4"), at + "model PINHOLE: expected 4 parameters, got 3");
+  EXPECT_EQ(error_for("1 PINHOLE -8 6 500 500 4 3"), at + "WIDTH '-8': expected an integer in [1, 65536] (pixels)");
+  EXPECT_EQ(error_for("1 PINHOLE 8 0 500 500 4 3"), at + "HEIGHT '0': expected an integer in [1, 65536] (pixels)");
+  EXPECT_EQ(error_for("1 PINHOLE 65537 6 500 500 4 3"), at + "WIDTH '65537': expected an integer in [1, 65536] (pixels)");
+  EXPECT_EQ(error_for("1 PINHOLE 8.5 6 500 500 4 3"), at + "WIDTH '8.5': expected an integer in [1, 65536] (pixels)");
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Colmap, AFifoOrADirectoryAsAModelFileIsRefusedWithoutReading) {
+  // FIFOs without a writer: a plain open would wait forever (the ctest timeout catches a hang).
+  const auto dir = std::filesystem::temp_directory_path() / ("rayscan_colmap_kinds_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  ASSERT_EQ(::mkfifo((dir / "images.txt").c_str(), 0600), 0);
+  std::filesystem::create_directories(dir / "cameras.txt");
+  const auto error = [&] {
+    try {
+      (void)load_colmap_camera(dir, "a.png");
+    } catch (const SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  EXPECT_EQ(error(), (dir / "images.txt").string() + ": is a FIFO, not a regular file (rayscan reads regular files only)");
+  std::filesystem::remove(dir / "images.txt");
+  std::ofstream(dir / "images.txt") << "1 1 0 0 0 0 0 5 1 a.png\n\n";
+  EXPECT_EQ(error(), (dir / "cameras.txt").string() + ": is a directory, not a regular file (rayscan reads regular files only)");
+  std::filesystem::remove_all(dir);
+  EXPECT_EQ(error(), (dir / "images.txt").string() + ": cannot open (a COLMAP text model needs cameras.txt and images.txt)");
 }

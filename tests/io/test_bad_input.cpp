@@ -52,6 +52,17 @@ TEST(BadInput, LasWrongMagicAndTruncatedHeader) {
   const auto full = las_bytes();
   expect_one_line(error_of(std::vector<std::uint8_t>(full.begin(), full.begin() + 100), io::Format::las),
                   "byte 0: file ends");
+  // A header cut short is told the least size of its own version (LAS 1.4 R15 table 3 and the
+  // 1.2 / 1.3 specifications: 227, 235, 375 bytes), from the version bytes 24-25 it still holds.
+  for (const auto& [minor, need] : {std::pair{2, 227}, {3, 235}, {4, 375}}) {
+    std::vector<std::uint8_t> cut(full.begin(), full.begin() + 100);
+    cut[25] = std::uint8_t(minor);
+    EXPECT_EQ(error_of(cut, io::Format::las), "bad: byte 0: file ends (size 100) inside LAS 1." + std::to_string(minor) +
+                                                  " public header block (needs " + std::to_string(need) + " bytes)");
+  }
+  // Too short to hold the version: the least size of any version.
+  EXPECT_EQ(error_of(std::vector<std::uint8_t>(full.begin(), full.begin() + 20), io::Format::las),
+            "bad: byte 0: file ends (size 20) inside LAS public header block (needs 227 bytes)");
 }
 
 TEST(BadInput, LasPointCountLargerThanTheFile) {

@@ -12,6 +12,8 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cstring>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <thread>
@@ -357,6 +359,31 @@ TEST(Copc, QueryJobRunsOnTheHierarchyAndEqualsTheWholeFilePath) {
   std::ostringstream csv;
   jobs::write_hits_csv(csv, a);
   EXPECT_NE(csv.str().find("ray,rank,index"), std::string::npos);
+}
+
+TEST(Copc, ARootCubeFieldOutOfRangeIsNamedAtItsOwnByte) {
+  const fs::path p = deep_copc();
+  if (p.empty()) GTEST_SKIP() << "las/autzen_trim.las not found";
+  const std::vector<std::uint8_t> good = slurp(p);
+  // COPC 1.0: the info VLR is the first VLR after the 375-byte LAS 1.4 header, so its payload
+  // starts at byte 375 + 54 = 429 with center_x, center_y, center_z and halfsize (doubles).
+  const auto error_with = [&](std::size_t at, double v) {
+    std::vector<std::uint8_t> b = good;
+    std::memcpy(&b[at], &v, sizeof v);
+    try {
+      (void)io::read_copc_info(b, "t.copc.laz");
+    } catch (const io::FormatError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  const double inf = std::numeric_limits<double>::infinity(), nan = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(error_with(429, inf), "t.copc.laz: byte 429: COPC root cube has center_x inf (expected a finite number)");
+  EXPECT_EQ(error_with(437, nan), "t.copc.laz: byte 437: COPC root cube has center_y nan (expected a finite number)");
+  EXPECT_EQ(error_with(445, -inf), "t.copc.laz: byte 445: COPC root cube has center_z -inf (expected a finite number)");
+  EXPECT_EQ(error_with(453, -1.5),
+            "t.copc.laz: byte 453: COPC root cube has halfsize -1.5 (expected a finite number > 0)");
+  EXPECT_EQ(error_with(453, 0.0), "t.copc.laz: byte 453: COPC root cube has halfsize 0 (expected a finite number > 0)");
 }
 
 }  // namespace

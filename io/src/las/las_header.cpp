@@ -34,11 +34,16 @@ LasHeader parse_las_header(const Input& in) {
   LasHeader h;
   const std::uint8_t* d = in.bytes.data();
   const std::string& nm = in.name;
-  in.need(0, 227, "LAS public header block (227 bytes for LAS 1.0-1.2)");
+  // The version (bytes 24-25) sets the header's least size (table 3: 227 bytes for LAS 1.0-1.2,
+  // 235 for 1.3, 375 for 1.4): read first, so that a file cut short is told what its own version
+  // needs. Shorter than the version, it is told the least size of any version.
+  if (in.size() < 26) in.need(0, 227, "LAS public header block");
   if (std::memcmp(d, "LASF", 4) != 0) fail_at(nm, 0, "expected file signature \"LASF\"");
   const int vmaj = d[24], vmin = d[25];
   const std::string version = std::to_string(vmaj) + "." + std::to_string(vmin);
   if (vmaj != 1 || vmin > 4) fail_at(nm, 24, "unsupported LAS version " + version + " (expected 1.0 to 1.4)");
+  const std::uint16_t min_header = vmin <= 2 ? 227 : (vmin == 3 ? 235 : 375);
+  in.need(0, min_header, "LAS " + version + " public header block");
   h.version_minor = vmin;
   h.global_encoding = load_le<std::uint16_t>(d + 6);
   std::memcpy(h.project_guid.data(), d + 8, 16);
@@ -58,7 +63,6 @@ LasHeader parse_las_header(const Input& in) {
   h.header_bounds.hi = Vec3(load_le<double>(d + 179), load_le<double>(d + 195), load_le<double>(d + 211));
   h.header_bounds.lo = Vec3(load_le<double>(d + 187), load_le<double>(d + 203), load_le<double>(d + 219));
 
-  const std::uint16_t min_header = vmin <= 2 ? 227 : (vmin == 3 ? 235 : 375);
   if (h.header_size < min_header)
     fail_at(nm, 94, "header size " + std::to_string(h.header_size) + " smaller than the " +
                         std::to_string(min_header) + " bytes LAS " + version + " requires");

@@ -10,6 +10,7 @@
 #include "laz/laz.hpp"
 #include "las/las_header.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/octree/morton_sort.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
@@ -58,9 +59,15 @@ CopcInfo parse_copc(const detail::Input& in, const detail::LasHeader& h) {
   c.point_count = h.count;
   c.pdrf = h.pdrf;
   c.record_length = h.record_length;
-  if (!(c.halfsize > 0) || !std::isfinite(c.halfsize) || !std::isfinite(c.center.x) ||
-      !std::isfinite(c.center.y) || !std::isfinite(c.center.z))
-    fail_at(nm, h.copc_info.at + 24, "COPC root cube has halfsize " + std::to_string(c.halfsize) + " (expected > 0, finite)");
+  // The root cube: the info VLR's center_x, center_y, center_z and halfsize (8 bytes each, from
+  // its first byte), each named at its own byte.
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(c.center[k]))
+      fail_at(nm, h.copc_info.at + 8 * k, std::string("COPC root cube has center_") + "xyz"[k] + " " +
+                                              shortest_text(c.center[k]) + " (expected a finite number)");
+  if (!(c.halfsize > 0) || !std::isfinite(c.halfsize))
+    fail_at(nm, h.copc_info.at + 24,
+            "COPC root cube has halfsize " + shortest_text(c.halfsize) + " (expected a finite number > 0)");
   // Walk the hierarchy pages breadth-first from the root page.
   std::vector<std::pair<std::uint64_t, std::uint64_t>> todo{{c.root_hier_offset, c.root_hier_size}};
   std::set<std::uint64_t> seen_pages;

@@ -95,7 +95,9 @@ struct EpwFile {
 ///    missing), albedo 0..1 (999 = missing). Fields not listed here are not checked;
 ///  * CR LF line ends are accepted; a line over 1 MiB, a NUL byte, blank lines between records
 ///    and an empty file are errors. Blank lines after the last record are ignored.
-/// Throws std::runtime_error also when the file cannot be opened.
+/// The file is read under the input policy (rayscan/base/input_file.hpp): a regular file of at
+/// most 256 MiB, else InputFileError (a std::runtime_error) "<path>: <reason>", e.g. "is a FIFO,
+/// not a regular file"; the same when the file cannot be opened.
 EpwFile read_epw(const std::filesystem::path& path, const EpwReadOptions& options = {});
 
 /// As read_epw, from a stream; `name` stands for the path in messages.

@@ -58,7 +58,9 @@ struct CopcInfo {
 /// Reads the COPC info VLR and walks the hierarchy EVLR pages (record 1000) from the root page.
 /// Throws FormatError naming the file and byte offset for: no COPC VLR, a page or chunk range
 /// past the end of the file, a page visited twice (cycle), a duplicate or out-of-range key, a
-/// node without its parent, a negative point count other than the -1 page marker.
+/// node without its parent, a negative point count other than the -1 page marker, a root cube
+/// centre coordinate that is not finite or a halfsize that is not finite and > 0 (each named at
+/// its own byte).
 CopcInfo read_copc_info(std::span<const std::uint8_t> bytes, const std::string& name);
 /// Same for a file (reads only the header, VLRs and hierarchy pages).
 CopcInfo read_copc_info(const std::filesystem::path& path);
