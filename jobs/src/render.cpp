@@ -5,6 +5,7 @@
 
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/json_object.hpp"
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/camera/camera_file.hpp"
@@ -24,7 +25,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -92,11 +92,13 @@ std::uint64_t render_bytes_per_pixel(std::span<const Aov> aovs, bool write, cons
 }
 
 // Refuses, before anything is allocated, an image whose buffers (render_bytes_per_pixel) exceed
-// the memory this process can allocate (check_image_memory). Throws OptionError naming width and
-// height.
-void check_render_memory(const Camera& camera, std::span<const Aov> aovs, bool write, const std::filesystem::path& image) {
-  check_image_memory(camera.width(), camera.height(), render_bytes_per_pixel(aovs, write, image),
-                     {option("width"), " or ", option("height")}, "", aovs.empty() ? "" : " with AOVs");
+// the memory this process can allocate (check_image_memory). Throws OptionError "...; give a
+// smaller " + `remedy`: by default the width or height; a job whose image size follows from
+// another option (the ortho map's cell) names that one.
+void check_render_memory(const Camera& camera, std::span<const Aov> aovs, bool write, const std::filesystem::path& image,
+                         std::vector<OptionError::Part> remedy = {option("width"), " or ", option("height")}) {
+  check_image_memory(camera.width(), camera.height(), render_bytes_per_pixel(aovs, write, image), std::move(remedy),
+                     "", aovs.empty() ? "" : " with AOVs");
 }
 
 }  // namespace
@@ -475,6 +477,8 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
     } catch (const std::invalid_argument& e) {
       throw OptionError({option("ortho_map"), std::string(": ") + e.what()});
     }
+    // The map's size follows from its cell: the width and height options do not apply to it.
+    check_render_memory(r.map->camera, job.scene.output.aovs, false, {}, {"map (a larger ", option("ortho_map"), " cell)"});
     job.control.info("ortho map: " + std::to_string(r.map->grid.cols) + " x " + std::to_string(r.map->grid.rows) +
                      " cells, top-down, colour " + analysis::to_string(o.ortho_colour));
     return r.map->camera;
@@ -495,14 +499,7 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
 
 std::vector<Camera> load_camera_list(const std::filesystem::path& file) {
   const std::string f = file.string();
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw SceneError(f + ": cannot open the camera list");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw SceneError(f + ": byte " + std::to_string(e.byte) + ": expected JSON (a list of cameras)");
-  }
+  nlohmann::json j = io::parse_json_file(file);  // the input policy of every JSON input, its messages
   std::string base;
   if (j.is_object()) {
     if (j.size() != 1 || !j.contains("cameras"))
@@ -545,6 +542,10 @@ RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const 
                        option("out"), " option"});
   for (const Camera& c : cameras)
     check_render_memory(c, o.scene.output.aovs, o.write && is_root(o.control), o.scene.output.image);
+  // Every frame's name is checked before the cloud is read: a directory or FIFO at a later
+  // frame's name fails now, not after the frames before it were rendered and then discarded.
+  if (o.write && is_root(o.control))
+    for (std::size_t f = 0; f < cameras.size(); ++f) require_replaceable_output(frame_file_name(o.scene.output.image, f));
   RenderJobOptions first = o;
   if (!first.scene.camera) first.scene.camera = cameras.front();  // prepare() needs a camera
   RenderFramesResult fr;
@@ -558,6 +559,13 @@ RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const 
   fr.frames = cameras.size();
   if (!o.write && root) fr.images.resize(cameras.size());
   std::mutex write_mutex;
+  // The frames are one output, all or nothing (as solar's --day maps): each is written to its
+  // temporary, and all are renamed once the last is written, so a failure at any frame leaves
+  // the old files and none of this run's. A transaction gathers the files written on its thread:
+  // the root's compute thread (whole frames over MPI) gets one of its own, committed with this
+  // one; that thread ends with the stage, before they are committed or destroyed.
+  OutputTransaction frames_tx;
+  std::vector<std::unique_ptr<OutputTransaction>> thread_tx;
   const auto t0 = std::chrono::steady_clock::now();
   // Writes frame f (root only) and accumulates its statistics.
   auto finish_frame = [&](std::size_t f, const Framebuffer& fb, const RenderStats& st) {
@@ -572,6 +580,7 @@ RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const 
       fr.images[f] = fb;
       return;
     }
+    if (!OutputTransaction::current()) thread_tx.push_back(std::make_unique<OutputTransaction>());
     OutputDesc out = scene.output;
     out.image = frame_file_name(scene.output.image, f);
     ImageMetadata m = render_metadata(o, scene, r, &cameras[f], {});
@@ -638,6 +647,8 @@ RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const 
       if (f + 1 == cameras.size()) r.image = std::move(fb);
     }
   }
+  frames_tx.commit();
+  for (const std::unique_ptr<OutputTransaction>& tx : thread_tx) tx->commit();
   r.stats.seconds = seconds_since(t0);
   r.metadata = render_metadata(o, scene, r, nullptr, {});
   char buf[256];

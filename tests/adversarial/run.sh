@@ -63,7 +63,9 @@ cat > "$W/tall.json" <<'J'
 J
 sed 's/"radius": 0.5/"radius": 1e400/' "$W/s.json" > "$W/s_huge_radius.json"
 touch "$W/old.png" "$W/old.las"
-mkfifo "$W/fifo.pcd" "$W/fifo.png" "$W/fifo.json"
+mkfifo "$W/fifo.pcd" "$W/fifo.png" "$W/fifo.json" "$W/fifo.epw"
+mkdir "$W/dir.json" "$W/dir.epw" "$W/colmap"
+mkfifo "$W/colmap/images.txt" "$W/colmap/cameras.txt"
 ln -s /dev/zero "$W/observers.csv"
 ln -s /dev/zero "$W/rays.csv"
 ln -s "$W/old.png" "$W/link.png"
@@ -82,6 +84,12 @@ expect_error observers-symlink-dev-zero "observers.csv" "character device" -- vi
 expect_error rays-symlink-dev-zero "rays.csv" "character device" -- query --cloud "$W/c.xyz" --rays "$W/rays.csv" --radius 1 --out "$W/old.csv"
 expect_error info-fifo "fifo.pcd" "FIFO" -- info "$W/fifo.pcd"
 expect_error compare-dev-zero "/dev/zero" "character device" -- compare /dev/zero "$W/old.png"
+expect_error frames-fifo "fifo.json" "is a FIFO" -- render -q "$W/s.json" --frames "$W/fifo.json" --out "$W/old.png"
+expect_error frames-directory "dir.json" "is a directory" -- render -q "$W/s.json" --frames "$W/dir.json" --out "$W/old.png"
+expect_error colmap-fifo "colmap/images.txt" "is a FIFO" -- render -q "$W/s.json" --colmap "$W/colmap" --image a.png --out "$W/old.png"
+SOLAR=(solar -q "$W/c.xyz" --lat 44 --lon -123 --start 2026-06-01 --end 2026-06-02 -o "$W/old.las")
+expect_error weather-fifo "fifo.epw" "is a FIFO" -- "${SOLAR[@]}" --weather "$W/fifo.epw"
+expect_error weather-directory "dir.epw" "is a directory" -- "${SOLAR[@]}" --weather "$W/dir.epw"
 # ---- Huge counts and lying sizes.
 # A 130-byte PLY reproducer (2^40 face items without properties before its one vertex; walking
 # them took about an hour): valid, so info reads exactly that vertex. The 60 s timeout of every

@@ -81,3 +81,27 @@ TEST(RenderMemoryCli, AFailedAllocationIsOneLineAndExitCode2) {
                    "1.9 GiB of address space this process may use (ulimit -v); give a smaller --width or --height\n");
   EXPECT_TRUE(std::filesystem::is_empty(dir));
 }
+
+TEST(RenderMemoryCli, AnOrthoMapBeyondTheLimitNamesItsCell) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer reserves its shadow memory beyond any ulimit -v";
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(memory_sanitizer) || __has_feature(thread_sanitizer)
+  GTEST_SKIP() << "a sanitizer reserves its shadow memory beyond any ulimit -v";
+#endif
+#endif
+  // simple.las spans x 635619.85 .. 638982.55, y 848899.70 .. 853535.43 (`rayscan info`); cells of
+  // 0.4 on the grid of its multiples: floor(hi / 0.4) - floor(lo / 0.4) + 1 = 1597456 - 1589049 + 1
+  // = 8408 columns and 2133838 - 2122249 + 1 = 11590 rows. The map's buffers (beauty 12, depth 4,
+  // albedo 12 bytes a pixel) are 2.5 GiB, over a 2 GB address-space limit. The map's size follows
+  // from --ortho-map, which the message names (the map takes no --width or --height).
+  const auto dir = temp_dir() / "render_memory_ortho";
+  std::filesystem::create_directories(dir);
+  const auto r = run_command("ulimit -v 2000000 && " + quoted(RAYSCAN_BIN) + " render -q " +
+                             quoted(data_file("las/simple.las")) + " --ortho-map 0.4 -o " + quoted(dir / "o.tif"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan render: an image of 8408 x 11590 pixels with AOVs needs about 2.5 GiB of buffers, more than "
+                   "the 1.9 GiB of address space this process may use (ulimit -v); give a smaller map (a larger "
+                   "--ortho-map cell)\n");
+  EXPECT_TRUE(std::filesystem::is_empty(dir));
+}

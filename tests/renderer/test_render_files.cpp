@@ -3,6 +3,7 @@
 // the files the render job writes. A test binary of its own, so that only these tests load
 // OpenImageIO's ~260 libraries at process start (0.4 s each; every other render test process is
 // spared it).
+#include "../common/run_command.hpp"
 #include "../common/temp_dir.hpp"
 #include "render_test_data.hpp"
 #include "rayscan/render/image_output.hpp"
@@ -14,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -282,5 +284,62 @@ TEST(RenderCli, OutputsRecordTheCloudFileAndTheCameraUsed) {
               f == 0 ? printed["camera"] : second);
     in->close();
   }
+  fs::remove_all(dir);
+}
+
+TEST(RenderCli, FramesAreWrittenAllOrNothing) {
+  // Two small frames and a large one: a file-size limit (RLIMIT_FSIZE, SIGXFSZ ignored, so the
+  // write fails with EFBIG) between their sizes makes the third frame's write fail after the first
+  // two were written. The frames are one output: the old files stay, no new frame and no
+  // temporary is left.
+  const fs::path dir = rayscan::test::process_temp_dir("rayscan_render_frames_all_or_nothing");
+  const fs::path cloud = fs::path(RAYSCAN_TEST_DATA) / "las" / "simple.las";
+  std::ofstream(dir / "frames.json") << R"([
+      {"width": 8, "height": 6, "position": [637300, 847000, 1500], "look_at": [637300, 851200, 500]},
+      {"width": 8, "height": 6, "position": [637400, 847000, 1500], "look_at": [637300, 851200, 500]},
+      {"width": 200, "height": 150, "position": [637300, 847000, 1500], "look_at": [637300, 851200, 500]}])";
+  const auto render = [&](const std::string& limit, const fs::path& out) {
+    // stderr only: the written files' names go to stdout
+    return rayscan::test::run_command("(trap '' XFSZ; " + limit + std::string(RAYSCAN_BIN) + " render -q " +
+                                          cloud.string() + " --spp 1 --frames " + (dir / "frames.json").string() +
+                                          " --out " + out.string() + " 2>&1 >/dev/null)",
+                                      false);
+  };
+  fs::create_directories(dir / "free");
+  ASSERT_EQ(render("", dir / "free" / "f.png").code, 0);
+  const std::uintmax_t limit = 8192;
+  ASSERT_LT(fs::file_size(dir / "free" / "f_0001.png"), limit);
+  ASSERT_GT(fs::file_size(dir / "free" / "f_0002.png"), limit);
+
+  const fs::path out = dir / "capped";
+  fs::create_directories(out);
+  std::ofstream(out / "f_0000.png") << "old frame 0";
+  std::ofstream(out / "f_0001.png") << "old frame 1";
+  const rayscan::test::CommandResult r = render("prlimit --fsize=" + std::to_string(limit) + " ", out / "f.png");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out.rfind("rayscan render: " + (out / "f_0002.png").string() + ": cannot write", 0), 0u) << r.out;
+  EXPECT_NE(r.out.find("File too large"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  std::vector<std::string> left;
+  for (const fs::directory_entry& e : fs::directory_iterator(out)) left.push_back(e.path().filename().string());
+  std::sort(left.begin(), left.end());
+  EXPECT_EQ(left, (std::vector<std::string>{"f_0000.png", "f_0001.png"}));
+  const auto text = [](const fs::path& p) {
+    std::ifstream in(p);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  EXPECT_EQ(text(out / "f_0000.png"), "old frame 0");
+  EXPECT_EQ(text(out / "f_0001.png"), "old frame 1");
+
+  // A name that cannot be written (a directory at the third frame's name) is refused before any
+  // frame is rendered.
+  fs::remove(out / "f_0001.png");
+  fs::create_directories(out / "f_0002.png");
+  const rayscan::test::CommandResult d = render("", out / "f.png");
+  EXPECT_EQ(d.code, 2);
+  EXPECT_EQ(d.out, "rayscan render: " + (out / "f_0002.png").string() +
+                       ": is a directory; refusing to replace it (outputs go to a new path or over a regular file)\n");
+  EXPECT_EQ(text(out / "f_0000.png"), "old frame 0");
+  EXPECT_FALSE(fs::exists(out / "f_0001.png"));
   fs::remove_all(dir);
 }

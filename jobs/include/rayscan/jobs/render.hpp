@@ -172,13 +172,18 @@ struct RenderFramesResult {
 /// (JobControl::distributor, MPI) of N processes: more frames than processes -> whole frames are
 /// the work items of the queue (each rank renders a frame with its own threads, the root writes
 /// it as it arrives); otherwise frame after frame with tiles distributed. Images are identical to
-/// run_render() with each camera. Throws like run_render() (the memory check for every camera
-/// before the cloud is read), and std::invalid_argument for an empty camera list.
+/// run_render() with each camera. The frames are written all or nothing: each to a temporary
+/// sibling, all renamed into place after the last, so a failure at any frame leaves the old files
+/// and none of the run's. Throws like run_render() (the memory check for every camera and the
+/// check of every frame's output name before the cloud is read), and std::invalid_argument for
+/// an empty camera list.
 RenderFramesResult run_render_frames(const RenderJobOptions& options, std::span<const Camera> cameras);
 
 /// Reads a camera list (a fly-through): a JSON array whose elements are camera objects (the
 /// camera file schema, scenes/README.md) or camera file names (relative to the list's folder), or
-/// {"cameras": [...]} of the same. Throws SceneError "<file>: <JSON pointer>: <expected>".
+/// {"cameras": [...]} of the same. The list and the camera files are read as every JSON input
+/// (io::parse_json_file: a regular file, at most 256 MiB). Throws SceneError "<file>: <JSON
+/// pointer>: <expected>", or "<file>: <reason>" for a file that is missing or not a regular file.
 std::vector<Camera> load_camera_list(const std::filesystem::path& file);
 
 /// The output name of frame `frame`: "<stem>_<frame, 4+ digits><extension>" beside `image`
