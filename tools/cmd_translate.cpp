@@ -59,20 +59,27 @@ Runner add_translate_command(CLI::App& app) {
                                 ".ply (binary, double x y z), .pcd (binary; x y z float when exact, else double) or "
                                 "text with a header line (.xyz and .txt space-separated, .csv comma-separated)")
       ->required();
-  sub->add_option("--format", *format, "output: auto (by OUT's extension), las or laz")
-      ->check(CLI::IsMember({"auto", "las", "laz"}));
-  sub->add_option("--chunk-size", *chunk, "points per LAZ chunk (not COPC: one chunk per octree node)")->check(CLI::Range(1u, 0xFFFFFFFEu));
+  sub->add_option("--format", *format,
+                  "the output's compression: auto (by OUT's extension), las or laz; an OUT whose extension names "
+                  "the other format is refused")
+      ->check(CLI::IsMember({"auto", "las", "laz"}))
+      ->capture_default_str();
+  sub->add_option("--chunk-size", *chunk, "points per LAZ chunk (not COPC: one chunk per octree node)")
+      ->check(CLI::Range(1u, 0xFFFFFFFEu))
+      ->capture_default_str();
   sub->add_option("--memory", *memory, "COPC output: memory budget of the build: 12 bytes per point plus 256 MiB (e.g. 4G, 512M)")
       ->capture_default_str();
   auto scale = std::make_shared<std::string>();
   auto offset = std::make_shared<std::string>();
   sub->add_option("--scale", *scale,
                   "LAS, LAZ and COPC output: the coordinates' step in file units, S for x, y and z or SX,SY,SZ "
-                  "(as PDAL writers.las scale_x; e.g. 0.0001). Default: the input's LAS scale, else the coarsest "
-                  "of 1, 0.1, 0.01, 0.001 the points lie on, else 0.001");
+                  "(each a finite number > 0; as PDAL writers.las scale_x; e.g. 0.0001). Default: the input's LAS "
+                  "scale, else the coarsest of 1, 0.1, 0.01, 0.001 the points lie on, else 0.001 (coarsened "
+                  "tenfold until the extent fits 32-bit integers). Refused for other outputs");
   sub->add_option("--offset", *offset,
                   "LAS, LAZ and COPC output: auto (the points' low corner rounded down to 1000 steps) or X,Y,Z "
-                  "(file units; as writers.las offset_x). Default: the input's LAS offset with its scale, else auto");
+                  "(file units; as writers.las offset_x). Default: the input's LAS offset with its scale, else auto "
+                  "(also when --scale is given)");
   auto quiet = std::make_shared<bool>(false);
   sub->add_flag("-q,--quiet", *quiet, "no progress or notes on stderr");
   return [in, out, format, chunk, memory, scale, offset, quiet]() -> int {
