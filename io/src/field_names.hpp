@@ -1,10 +1,13 @@
 // Internal: what the point writers (LAS, PLY, PCD, text) share: the check of the cloud before
-// anything is written, the names they give its fields, the 8-bit colour rule; and the names the
+// anything is written, the names they give its fields and the comments that describe them, the
+// 8-bit colour rule; and the names the
 // PLY, PCD and text readers give dedicated fields (the LAS fields' other spellings are public:
 // rayscan/io/field_names.hpp).
 #pragma once
 
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/io/field_names.hpp"
+#include "rayscan/io/point_io.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 
 #include <filesystem>
@@ -38,6 +41,21 @@ inline std::string unique_field_name(const std::string& prefix, const std::strin
   for (int k = 1; used.count(out) != 0 || (reserved != nullptr && reserved(out)); ++k) out = s + "_" + std::to_string(k);
   used.insert(out);
   return out;
+}
+
+/// The header comment describing the field that a file names `written_name` (after
+/// unique_field_name), from the description the LAS writer puts in the field's Extra Bytes
+/// descriptor: "field scalar_solar_global: global irradiation, kWh/m2", and "; no data -1" when
+/// `info` declares a no-data value; line breaks in the description become spaces, so it stays
+/// one line. "" when `info` says nothing. PLY writes it after "comment ", PCD after "# ": the free
+/// text each format allows in its header, which PCL, Open3D, CloudCompare and rayscan's readers
+/// skip.
+inline std::string field_comment(const std::string& written_name, const ExtraBytesInfo& info) {
+  std::string d = info.description;
+  for (char& c : d)
+    if (c == '\n' || c == '\r') c = ' ';
+  if (info.no_data) d += (d.empty() ? "" : "; ") + std::string("no data ") + shortest_text(*info.no_data);
+  return d.empty() ? std::string() : "field " + written_name + ": " + d;
 }
 
 /// 16-bit colour to 8 bit (the nearest of v / 257), as the 8-bit formats store it.

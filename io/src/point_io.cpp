@@ -123,8 +123,8 @@ LasWriteOptions las_grid_of(const FileInfo& source) {
 void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& las) {
   require_point_cloud_output(path);
   const std::string ext = lower_extension(path);
-  if (ext == ".ply") write_ply(path, cloud);
-  else if (ext == ".pcd") write_pcd(path, cloud);
+  if (ext == ".ply") write_ply(path, cloud, las.extra_bytes);
+  else if (ext == ".pcd") write_pcd(path, cloud, las.extra_bytes);
   else if (ext == ".xyz" || ext == ".csv" || ext == ".txt") write_text(path, cloud, las);
   else write_las(path, cloud, las);  // .las or .laz (write_las compresses .laz)
 }

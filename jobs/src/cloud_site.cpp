@@ -158,29 +158,52 @@ void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> 
   cloud.scalars.push_back({name, std::move(values)});
 }
 
-std::optional<io::ExtraBytesInfo> result_field_info(const std::string& name) {
-  // Descriptions fit the Extra Bytes descriptor's 32 bytes; units are ASCII for every reader.
-  static const std::map<std::string, io::ExtraBytesInfo, std::less<>> kFields = {
-      {"visible_count", {"observers that see the point", {}}},
-      {"visible_distance", {"distance to nearest observer", -1.0}},
-      {"sky_view", {"sky view factor, 0-1", {}}},
-      {"camera_hits", {"cameras that see the point", {}}},
-      {"in_shadow", {"1 shadow (or night), 0 sun", {}}},
-      {"irradiance_global", {"global irradiance, W/m2", {}}},
-      {"irradiance_beam", {"beam irradiance, W/m2", {}}},
-      {"irradiance_diffuse", {"diffuse irradiance, W/m2", {}}},
-      {"solar_global", {"global irradiation, kWh/m2", {}}},
-      {"solar_beam", {"beam irradiation, kWh/m2", {}}},
-      {"solar_diffuse", {"diffuse irradiation, kWh/m2", {}}},
-      {"solar_reflected", {"reflected irradiation, kWh/m2", {}}},
-      {"sun_hours", {"hours of direct sun, h", {}}},
-      {"shadow_hours", {"hours in shadow (sun up), h", {}}},
+namespace {
+
+/// What result_field_info and result_field_unit say of one field.
+struct ResultField {
+  io::ExtraBytesInfo info;
+  const char* unit;
+};
+
+/// The one table of the analyses' result fields. Descriptions fit the Extra Bytes descriptor's 32
+/// bytes and end with the unit where there is one; units are ASCII for every reader, written as
+/// the GeoTIFF bands write theirs ("1" for a ratio or a flag; "" for a length, which is in the
+/// cloud's own units).
+std::optional<ResultField> result_field(const std::string& name) {
+  static const std::map<std::string, ResultField, std::less<>> kFields = {
+      {"visible_count", {{"observers that see the point", {}}, "observers"}},
+      {"visible_distance", {{"distance to nearest observer", -1.0}, ""}},
+      {"sky_view", {{"sky view factor, 0-1", {}}, "1"}},
+      {"camera_hits", {{"camera pixels seeing the point", {}}, "pixels"}},
+      {"in_shadow", {{"1 shadow (or night), 0 sun", {}}, "1"}},
+      {"irradiance_global", {{"global irradiance, W/m2", {}}, "W/m2"}},
+      {"irradiance_beam", {{"beam irradiance, W/m2", {}}, "W/m2"}},
+      {"irradiance_diffuse", {{"diffuse irradiance, W/m2", {}}, "W/m2"}},
+      {"solar_global", {{"global irradiation, kWh/m2", {}}, "kWh/m2"}},
+      {"solar_beam", {{"beam irradiation, kWh/m2", {}}, "kWh/m2"}},
+      {"solar_diffuse", {{"diffuse irradiation, kWh/m2", {}}, "kWh/m2"}},
+      {"solar_reflected", {{"reflected irradiation, kWh/m2", {}}, "kWh/m2"}},
+      {"sun_hours", {{"hours of direct sun, h", {}}, "h"}},
+      {"shadow_hours", {{"hours in shadow (sun up), h", {}}, "h"}},
   };
   if (const auto it = kFields.find(name); it != kFields.end()) return it->second;
   // solar_global_01 .. solar_global_12: the months of the period.
   if (name.size() == 15 && name.rfind("solar_global_", 0) == 0 && std::isdigit(static_cast<unsigned char>(name[13])) &&
       std::isdigit(static_cast<unsigned char>(name[14])))
-    return io::ExtraBytesInfo{"global irrad. month " + name.substr(13) + ", kWh/m2", {}};
+    return ResultField{{"global irrad. month " + name.substr(13) + ", kWh/m2", {}}, "kWh/m2"};
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<io::ExtraBytesInfo> result_field_info(const std::string& name) {
+  if (auto f = result_field(name)) return std::move(f->info);
+  return std::nullopt;
+}
+
+std::optional<std::string> result_field_unit(const std::string& name) {
+  if (const auto f = result_field(name)) return std::string(f->unit);
   return std::nullopt;
 }
 

@@ -88,13 +88,19 @@ void check_raster_options(const std::filesystem::path& raster, std::optional<dou
 void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values);
 
 /// The meaning, unit and no-data value of a per-point result field of the point analyses
-/// (visibility, solar), as their LAS outputs describe it in the Extra Bytes VLR; none for another
-/// name (a field of the source cloud).
+/// (visibility, solar), as their LAS outputs describe it in the Extra Bytes VLR and their PLY and
+/// PCD outputs in header comments; none for another name (a field of the source cloud).
 std::optional<io::ExtraBytesInfo> result_field_info(const std::string& name);
+
+/// The unit alone of a result field, from the table of result_field_info: "kWh/m2", "W/m2", "h",
+/// "observers", "pixels", "1" for a ratio or a flag, "" for a length (the cloud's own units);
+/// none for another name. For reports (`solar --json`).
+std::optional<std::string> result_field_unit(const std::string& name);
 
 /// Writes `cloud` to `path` (format by extension); a LAS/LAZ output keeps the integer grid
 /// (scale and offset), GPS time type and project GUID of a LAS/LAZ/COPC source described by
-/// `info`, and describes the analyses' result fields (result_field_info: unit, no-data value).
+/// `info`, and LAS/LAZ, PLY and PCD outputs describe the analyses' result fields
+/// (result_field_info: meaning, unit, no-data value; text has no place for them).
 void write_result_cloud(const std::filesystem::path& path, const PointCloud& cloud, const io::FileInfo& info);
 
 }  // namespace rayscan::jobs::detail

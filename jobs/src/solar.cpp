@@ -878,6 +878,9 @@ std::string solar_report_json(const SolarJobResult& r) {
       hi = std::max(hi, v);
     }
     j["fields"][f.name] = {{"mean", sum / double(f.values.size())}, {"min", lo}, {"max", hi}};
+    // The unit and meaning the output file's LAS descriptor or PLY/PCD comment gives the field.
+    if (const auto unit = detail::result_field_unit(f.name)) j["fields"][f.name]["unit"] = *unit;
+    if (const auto d = detail::result_field_info(f.name)) j["fields"][f.name]["description"] = d->description;
   }
   nlohmann::json written = nlohmann::json::array();
   for (const auto& f : r.written) written.push_back(f.string());

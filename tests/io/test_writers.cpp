@@ -14,6 +14,7 @@
 #include <random>
 #include <sstream>
 #include <utility>
+#include <vector>
 
 namespace rayscan::test {
 namespace {
@@ -153,6 +154,79 @@ TEST(Writers, PcdAndTextRoundTripKeepCoordinatesBitForBitAndEveryAttribute) {
     }
     fs::remove(out);
   }
+}
+
+/// The header lines of a PLY file (up to end_header) or a PCD file (up to DATA), from its bytes.
+std::vector<std::string> header_lines(const fs::path& p, const std::string& last) {
+  std::ifstream in(p, std::ios::binary);
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);) {
+    lines.push_back(l);
+    if (l.rfind(last, 0) == 0) break;
+  }
+  return lines;
+}
+
+// The descriptions a LAS output puts in its Extra Bytes descriptors (LasWriteOptions::extra_bytes)
+// reach PLY and PCD as header comments naming each field as the file names it; a field without a
+// description gets none; text keeps its one header line of column names. Oracle: the files' own
+// header lines; the readers still read every value and keep the comments.
+TEST(Writers, PlyAndPcdDescribeFieldsInHeaderComments) {
+  PointCloud src;
+  src.positions = {Vec3(1.5, 2.0, 3.0), Vec3(-4.0, 5.25, 6.0)};
+  src.scalars = {{"solar_global", {12.5, 0.0}}, {"visible distance", {7.0, -1.0}}, {"plain", {1.0, 2.0}}};
+  io::LasWriteOptions opt;
+  opt.extra_bytes["solar_global"] = {"global irradiation, kWh/m2", {}};
+  opt.extra_bytes["visible distance"] = {"distance to\nnearest observer", -1.0};
+  const fs::path ply = temp_dir() / "described.ply", pcd = temp_dir() / "described.pcd",
+                 csv = temp_dir() / "described.csv";
+  io::write_point_cloud(ply, src, opt);
+  io::write_point_cloud(pcd, src, opt);
+  io::write_point_cloud(csv, src, opt);
+
+  const std::vector<std::string> ph = header_lines(ply, "end_header");
+  const auto has = [](const std::vector<std::string>& h, const std::string& l) {
+    return std::find(h.begin(), h.end(), l) != h.end();
+  };
+  EXPECT_TRUE(has(ph, "comment field scalar_solar_global: global irradiation, kWh/m2"));
+  EXPECT_TRUE(has(ph, "comment field scalar_visible_distance: distance to nearest observer; no data -1"));
+  EXPECT_TRUE(has(ph, "property double scalar_visible_distance"));
+  const auto comments = [](const std::vector<std::string>& h, const std::string& start) {
+    return std::count_if(h.begin(), h.end(), [&](const std::string& l) { return l.rfind(start, 0) == 0; });
+  };
+  EXPECT_EQ(comments(ph, "comment field "), 2);  // none for "plain"
+  // PLY comments belong before the element they describe (PLY 1.0 header order).
+  const auto at = [&](const std::string& l) { return std::find(ph.begin(), ph.end(), l) - ph.begin(); };
+  EXPECT_LT(at("comment field scalar_solar_global: global irradiation, kWh/m2"), at("element vertex 2"));
+
+  const std::vector<std::string> dh = header_lines(pcd, "DATA");
+  ASSERT_GE(dh.size(), 4u);
+  EXPECT_EQ(dh[0], "# .PCD v0.7 - Point Cloud Data file format");
+  EXPECT_EQ(dh[1], "# field solar_global: global irradiation, kWh/m2");
+  EXPECT_EQ(dh[2], "# field visible_distance: distance to nearest observer; no data -1");
+  EXPECT_EQ(dh[3], "VERSION 0.7");
+  EXPECT_EQ(comments(dh, "# field "), 2);
+
+  for (const fs::path& p : {ply, pcd}) {
+    io::FileInfo info;
+    const PointCloud back = io::read_point_cloud(p, {}, &info);
+    EXPECT_EQ(back.positions, src.positions) << p;
+    for (const ScalarField& f : src.scalars) {
+      const std::string name = f.name == "visible distance" ? "visible_distance" : f.name;  // as written
+      ASSERT_NE(back.scalar(name), nullptr) << p << " " << name;
+      EXPECT_EQ(back.scalar(name)->values, f.values) << p << " " << name;
+    }
+    const std::string want = p == ply ? "comment field scalar_solar_global: global irradiation, kWh/m2"
+                                      : "# field solar_global: global irradiation, kWh/m2";
+    EXPECT_TRUE(has(info.comments, want)) << p;  // the whole line, as `rayscan info` prints it
+  }
+
+  // Text: the column header alone (PDAL's readers.text and QGIS take the first line as names).
+  std::ifstream t(csv);
+  std::string first;
+  std::getline(t, first);
+  EXPECT_EQ(first, "x,y,z,solar_global,visible_distance,plain");
+  for (const fs::path& p : {ply, pcd, csv}) fs::remove(p);
 }
 
 // Normals written by the text writer (columns nx ny nz) read back as normals, bit for bit (the

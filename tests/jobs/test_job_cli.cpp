@@ -374,6 +374,56 @@ TEST(JobCli, SolarSiteHeightWithLatitudeAndLongitudeIsTheCentresZInMetres) {
   EXPECT_NEAR(j["site"]["elevation_m"].get<double>(), 463.385 * 0.3048, 1e-6) << r.out;
 }
 
+// Solar's result fields keep their units outside LAS: `--json` gives each reported field's unit
+// and description, and PLY and PCD outputs describe every result field in a header comment with
+// the description the LAS Extra Bytes descriptor holds. Oracle: the JSON parsed and the written
+// files' own header lines, the units as docs/solar.md tabulates them.
+TEST(JobCli, SolarFieldsCarryTheirUnitsIntoJsonPlyAndPcd) {
+  const std::string las = quoted(data_file("las/simple.las"));
+  const std::string site = " --lat 44 --lon -123 --sky-rays 0 --json -o '";
+  const auto ply = temp_dir() / "sun_units.ply", pcd = temp_dir() / "sun_units.pcd";
+  auto r = rayscan_cli("solar -q " + las + " --start 2026-06-21 --end 2026-06-21" + site + ply.string() + "'");
+  ASSERT_EQ(r.code, 0) << r.out;
+  nlohmann::json j = nlohmann::json::parse(r.out.substr(r.out.find('{')));
+  EXPECT_EQ(j["fields"]["solar_global"]["unit"], "kWh/m2") << r.out;
+  EXPECT_EQ(j["fields"]["solar_global"]["description"], "global irradiation, kWh/m2");
+  EXPECT_EQ(j["fields"]["sun_hours"]["unit"], "h");
+  EXPECT_EQ(j["fields"]["sun_hours"]["description"], "hours of direct sun, h");
+  r = rayscan_cli("solar -q " + las + " --at 2026-06-21T20:00Z" + site + pcd.string() + "'");
+  ASSERT_EQ(r.code, 0) << r.out;
+  j = nlohmann::json::parse(r.out.substr(r.out.find('{')));
+  EXPECT_EQ(j["fields"]["in_shadow"]["unit"], "1");
+
+  const auto header = [](const std::filesystem::path& p, const std::string& last) {
+    std::ifstream in(p, std::ios::binary);
+    std::vector<std::string> lines;
+    for (std::string l; std::getline(in, l) && l.rfind(last, 0) != 0;) lines.push_back(l);
+    return lines;
+  };
+  const auto has = [](const std::vector<std::string>& h, const std::string& l) {
+    return std::find(h.begin(), h.end(), l) != h.end();
+  };
+  const std::vector<std::string> ph = header(ply, "end_header");
+  EXPECT_TRUE(has(ph, "comment field scalar_solar_global: global irradiation, kWh/m2"));
+  EXPECT_TRUE(has(ph, "comment field scalar_solar_beam: beam irradiation, kWh/m2"));
+  EXPECT_TRUE(has(ph, "comment field scalar_sun_hours: hours of direct sun, h"));
+  EXPECT_TRUE(has(ph, "property double scalar_solar_global"));
+  const std::vector<std::string> dh = header(pcd, "DATA");
+  EXPECT_TRUE(has(dh, "# field irradiance_global: global irradiance, W/m2"));
+  EXPECT_TRUE(has(dh, "# field in_shadow: 1 shadow (or night), 0 sun"));
+  // Fields of the source cloud (simple.las: return_number, ...) have no description, so no comment.
+  EXPECT_FALSE(std::any_of(dh.begin(), dh.end(), [](const std::string& l) { return l.rfind("# field return_number", 0) == 0; }));
+  // The readers still read both files.
+  r = rayscan_cli("info " + quoted(ply));
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("comment field scalar_solar_global: global irradiation, kWh/m2"), std::string::npos) << r.out;
+  r = rayscan_cli("info " + quoted(pcd));
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("# field in_shadow: 1 shadow (or night), 0 sun"), std::string::npos) << r.out;
+  std::filesystem::remove(ply);
+  std::filesystem::remove(pcd);
+}
+
 TEST(JobCli, QueryWithoutABoundIsRefusedUnlessAllIsAsked) {
   // Without --k or a finite --radius each ray returns every point: refused, --all asks for it
   // (the Python module's allow_all=True). 2 rays x 110,000 points.

@@ -1,6 +1,8 @@
 """Open3D reads rayscan's PCD output: positions and colours equal rayscan's own text export of the
 same cloud (shortest round-trip decimals: the oracle is independent of the PCD bytes).
-Usage: check_pcd.py GEO.pcd GEO.xyz CAM.pcd CAM.xyz  (GEO: double coordinates, CAM: float)."""
+Usage: check_pcd.py GEO.pcd GEO.xyz CAM.pcd CAM.xyz VIS.pcd VIS.xyz  (GEO: double coordinates, CAM:
+float, VIS: a visibility output, whose header has '#' comment lines describing visible_count and
+visible_distance: those fields too)."""
 import sys
 
 import numpy as np
@@ -14,7 +16,7 @@ def text_cloud(path):
     return names, data
 
 
-def check(pcd, xyz, legacy):
+def check(pcd, xyz, legacy, fields=()):
     names, data = text_cloud(xyz)
     want = data[:, :3]
     t = o3d.t.io.read_point_cloud(pcd)
@@ -33,14 +35,24 @@ def check(pcd, xyz, legacy):
         if not np.array_equal(got8, want8):
             print(f"FAIL: {pcd}: colours differ from {xyz}")
             return False
+    for name in fields:
+        if name not in t.point:
+            print(f"FAIL: {pcd}: Open3D's tensor reader has no field {name}")
+            return False
+        got = t.point[name].numpy().astype(np.float64).ravel()
+        if not np.array_equal(got, data[:, names.index(name)]):
+            print(f"FAIL: {pcd}: field {name} differs from {xyz}")
+            return False
     if legacy:
         p = np.asarray(o3d.io.read_point_cloud(pcd).points)
         if not np.array_equal(p, want):
             print(f"FAIL: {pcd}: Open3D's legacy reader gives other positions than {xyz}")
             return False
-    print(f"ok: {pcd}: {len(want)} points, positions{' and colours' if 'red' in names else ''} as in {xyz}")
+    print(f"ok: {pcd}: {len(want)} points, positions{' and colours' if 'red' in names else ''}"
+          f"{''.join(', ' + n for n in fields)} as in {xyz}")
     return True
 
 
-ok = check(sys.argv[1], sys.argv[2], legacy=False) and check(sys.argv[3], sys.argv[4], legacy=True)
+ok = (check(sys.argv[1], sys.argv[2], legacy=False) and check(sys.argv[3], sys.argv[4], legacy=True)
+      and check(sys.argv[5], sys.argv[6], legacy=False, fields=("visible_count", "visible_distance")))
 sys.exit(0 if ok else 1)

@@ -3,7 +3,8 @@
 # (Debian `cloudcompare`, command line under `xvfb-run`) and Open3D (Debian `python3-open3d`).
 # The oracle is the PLY file's own bytes, parsed here with numpy from its header. Then Open3D
 # reads rayscan's PCD output (check_pcd.py): double coordinates (a georeferenced LAS) through its
-# tensor reader, float ones (a depth camera's PCD) through its legacy reader too.
+# tensor reader, float ones (a depth camera's PCD) through its legacy reader too, and a visibility
+# output whose header describes its fields in comment lines through the tensor reader with them.
 # Exit 0 = pass, 1 = a tool missed or changed a field, 77 = skipped (a tool is not installed;
 # CTest reports the test as skipped and prints the reason).
 # Usage: tests/thirdparty/run.sh RAYSCAN_EXE
@@ -35,6 +36,12 @@ asc=$(ls "$W"/v_*.asc 2>/dev/null | head -n 1)
 "$PY" "$HERE/check_ply.py" "$W/v.ply" "$asc" || exit 1
 "$RAYSCAN" translate "$SRC" "$W/geo.pcd" > /dev/null || exit 1
 "$RAYSCAN" translate "$HERE/../data/pcd/milk.pcd" "$W/cam.pcd" > /dev/null || exit 1
-"$RAYSCAN" translate "$SRC" "$W/geo.xyz" > /dev/null || exit 1
+# The text oracle is written from the PCD as our reader reads it: from the LAS directly, text
+# prints the LAS grid's decimals (849087.70), which read back as a neighbouring double.
+"$RAYSCAN" translate "$W/geo.pcd" "$W/geo.xyz" > /dev/null || exit 1
 "$RAYSCAN" translate "$HERE/../data/pcd/milk.pcd" "$W/cam.xyz" > /dev/null || exit 1
-"$PY" "$HERE/check_pcd.py" "$W/geo.pcd" "$W/geo.xyz" "$W/cam.pcd" "$W/cam.xyz"
+# The analysis fields described in '#' comment lines of the PCD header (their units), against
+# our text export of that PCD.
+"$RAYSCAN" visibility -q "$SRC" --observer "$obs" --distance -o "$W/v.pcd" || exit 1
+"$RAYSCAN" translate "$W/v.pcd" "$W/v.xyz" > /dev/null || exit 1
+"$PY" "$HERE/check_pcd.py" "$W/geo.pcd" "$W/geo.xyz" "$W/cam.pcd" "$W/cam.xyz" "$W/v.pcd" "$W/v.xyz"

@@ -9,6 +9,7 @@
 
 #include <array>
 #include <cstring>
+#include <map>
 #include <set>
 #include <string>
 #include <vector>
@@ -26,7 +27,8 @@ struct PcdOut {
 
 }  // namespace
 
-void write_pcd(const std::filesystem::path& path, const PointCloud& cloud) {
+void write_pcd(const std::filesystem::path& path, const PointCloud& cloud,
+               const std::map<std::string, ExtraBytesInfo>& descriptions) {
   detail::validate_for_writing(path, cloud);
   const std::size_t n = cloud.size();
   std::set<std::string> used = {"x", "y", "z"};
@@ -47,11 +49,21 @@ void write_pcd(const std::filesystem::path& path, const PointCloud& cloud) {
   if (!cloud.intensity.empty()) f.push_back({detail::unique_field_name("", "intensity", used), 4, 'F'});
   if (!cloud.classification.empty()) f.push_back({detail::unique_field_name("", "classification", used), 1, 'U'});
   if (!cloud.gps_time.empty()) f.push_back({detail::unique_field_name("", "gps_time", used), 8, 'F'});
-  for (const ScalarField& s : cloud.scalars) f.push_back({detail::unique_field_name("", s.name, used), 8, 'F'});
+  // What a field is and its unit, as '#' comment lines (PCD has no field for a unit; PCL's and
+  // Open3D's header parsers skip any line whose first word starts with '#').
+  std::string comments;
+  for (const ScalarField& s : cloud.scalars) {
+    f.push_back({detail::unique_field_name("", s.name, used), 8, 'F'});
+    if (const auto it = descriptions.find(s.name); it != descriptions.end())
+      if (const std::string c = detail::field_comment(f.back().name, it->second); !c.empty())
+        comments += "# ", comments += c, comments += '\n';
+  }
 
   // Built by appending (`" " + std::to_string(...)` sets off GCC 12's -Wrestrict false positive
   // at -O3 when this file is compiled alone).
-  std::string h = "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS";
+  std::string h = "# .PCD v0.7 - Point Cloud Data file format\n";
+  h += comments;
+  h += "VERSION 0.7\nFIELDS";
   for (const PcdOut& o : f) h += ' ', h += o.name;
   h += "\nSIZE";
   for (const PcdOut& o : f) h += ' ', h += std::to_string(o.size);

@@ -9,7 +9,9 @@
 #include "field_names.hpp"
 
 #include <algorithm>
+#include <map>
 #include <set>
+#include <string>
 
 namespace rayscan::io {
 
@@ -21,7 +23,8 @@ std::string property_name(const std::string& name, std::set<std::string>& used) 
 }
 }  // namespace
 
-void write_ply(const std::filesystem::path& path, const PointCloud& cloud) {
+void write_ply(const std::filesystem::path& path, const PointCloud& cloud,
+               const std::map<std::string, ExtraBytesInfo>& descriptions) {
   detail::validate_for_writing(path, cloud);
   const std::size_t n = cloud.size();
   std::set<std::string> used = {"x", "y", "z"};
@@ -32,17 +35,23 @@ void write_ply(const std::filesystem::path& path, const PointCloud& cloud) {
     std::replace(one_line.begin(), one_line.end(), '\r', ' ');
     h += "comment crs " + one_line + "\n";
   }
-  h += "element vertex " + std::to_string(n) + "\n";
-  h += "property double x\nproperty double y\nproperty double z\n";
-  if (!cloud.normals.empty()) h += "property float nx\nproperty float ny\nproperty float nz\n", used.insert({"nx", "ny", "nz"});
+  std::string props = "property double x\nproperty double y\nproperty double z\n";
+  if (!cloud.normals.empty())
+    props += "property float nx\nproperty float ny\nproperty float nz\n", used.insert({"nx", "ny", "nz"});
   if (!cloud.rgb.empty())
-    h += "property uchar red\nproperty uchar green\nproperty uchar blue\n", used.insert({"red", "green", "blue"});
+    props += "property uchar red\nproperty uchar green\nproperty uchar blue\n", used.insert({"red", "green", "blue"});
   // Types both CloudCompare and Open3D (0.16: uchar, float, double; not ushort) load.
-  if (!cloud.intensity.empty()) h += "property float " + property_name("intensity", used) + "\n";
-  if (!cloud.classification.empty()) h += "property uchar " + property_name("classification", used) + "\n";
-  if (!cloud.gps_time.empty()) h += "property double " + property_name("gps_time", used) + "\n";
-  for (const ScalarField& f : cloud.scalars) h += "property double " + property_name(f.name, used) + "\n";
-  h += "end_header\n";
+  if (!cloud.intensity.empty()) props += "property float " + property_name("intensity", used) + "\n";
+  if (!cloud.classification.empty()) props += "property uchar " + property_name("classification", used) + "\n";
+  if (!cloud.gps_time.empty()) props += "property double " + property_name("gps_time", used) + "\n";
+  for (const ScalarField& f : cloud.scalars) {
+    const std::string name = property_name(f.name, used);
+    props += "property double " + name + "\n";
+    // A comment, not a property: PLY has no field for a unit, and readers skip comments.
+    if (const auto it = descriptions.find(f.name); it != descriptions.end())
+      if (const std::string c = detail::field_comment(name, it->second); !c.empty()) h += "comment " + c + "\n";
+  }
+  h += "element vertex " + std::to_string(n) + "\n" + props + "end_header\n";
 
   detail::AtomicWriter w(path);
   w.write(h.data(), h.size());

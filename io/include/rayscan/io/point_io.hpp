@@ -128,9 +128,13 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud,
 /// property "scalar_<name>" per ScalarField (characters other than [A-Za-z0-9_] replaced by '_').
 /// The names and types are the ones CloudCompare (scalar_ prefix) and Open3D (uchar, float,
 /// double) both load (docs/formats.md, "PLY property names"); read_point_cloud strips the prefix
-/// again. Written via temp file + rename.
+/// again. Each ScalarField named in `descriptions` (the LAS writer's Extra Bytes descriptions,
+/// LasWriteOptions::extra_bytes) gets a header line "comment field scalar_<name>: <description>"
+/// (and "; no data <value>" when it declares one), so a unit travels with the file; readers skip
+/// comments (read_point_cloud keeps them in FileInfo::comments). Written via temp file + rename.
 /// Throws std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
-void write_ply(const std::filesystem::path& path, const PointCloud& cloud);
+void write_ply(const std::filesystem::path& path, const PointCloud& cloud,
+               const std::map<std::string, ExtraBytesInfo>& descriptions = {});
 
 /// Writes `cloud` as PCD v0.7 (PCL's format), DATA binary, unorganised (WIDTH = points, HEIGHT
 /// 1, VIEWPOINT: the cloud's viewpoint, a PCD source's, else the identity): FIELDS x y z (F 4
@@ -139,9 +143,12 @@ void write_ply(const std::filesystem::path& path, const PointCloud& cloud);
 /// reader read it), then normal_x normal_y normal_z (F 4), rgb (PCL's packed 0x00RRGGBB in a
 /// 4-byte float field, 16-bit colour rounded to 8 bit), intensity (F 4), classification (U 1),
 /// gps_time (F 8) and one F 8 field per ScalarField (name sanitised to [A-Za-z0-9_], made
-/// unique). PCD has no CRS: a cloud's crs_wkt is not written. Written via temp file + rename.
+/// unique). Each ScalarField named in `descriptions` (as for write_ply) gets a comment line
+/// "# field <name>: <description>" after the first line, before VERSION. PCD has no CRS: a
+/// cloud's crs_wkt is not written. Written via temp file + rename.
 /// Throws std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
-void write_pcd(const std::filesystem::path& path, const PointCloud& cloud);
+void write_pcd(const std::filesystem::path& path, const PointCloud& cloud,
+               const std::map<std::string, ExtraBytesInfo>& descriptions = {});
 
 /// Writes `cloud` as text: a header line naming the columns (x y z, red green blue, nx ny nz,
 /// intensity, classification, gps_time, then the scalars' sanitised names),
@@ -186,7 +193,9 @@ void require_point_cloud_output(const std::filesystem::path& path);
 
 /// Writes `cloud` in the format its extension names (case-insensitive; the one writer choice of
 /// every job): .las and .laz with write_las (`las`: scale and offset), .ply with write_ply, .pcd
-/// with write_pcd, .xyz / .csv / .txt with write_text (`las`: the grid whose decimals it prints).
+/// with write_pcd (both describing the fields of `las.extra_bytes` in header comments), .xyz /
+/// .csv / .txt with write_text (`las`: the grid whose decimals it prints; the one header line
+/// names the columns only, so the descriptions are not written).
 /// Throws what require_point_cloud_output() throws before writing anything, else what the
 /// writer throws.
 void write_point_cloud(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& las = {});
