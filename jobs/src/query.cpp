@@ -238,7 +238,12 @@ QueryJobResult run_query(const QueryJobOptions& o) {
     so.copc_cache_bytes = o.cache_bytes;
     site.emplace(Site::open(o.cloud_file, so));
   } else {
-    if (!o.cloud) r.cloud = read_point_cloud(o.cloud_file, ReadOptions{.scalars = false});
+    if (!o.cloud) {
+      FileInfo info;
+      r.cloud = read_point_cloud(o.cloud_file, ReadOptions{.scalars = false}, &info);
+      // A LAS or LAZ file's coordinates print on its grid (las2txt's decimals).
+      if (const LasWriteOptions g = las_grid_of(info); g.has_offset) r.grid = GridText::of(g.scale, g.offset);
+    }
     const PointCloud& cloud = o.cloud ? *o.cloud : r.cloud;
     char buf[256];
     std::snprintf(buf, sizeof buf, "read %zu points and %zu rays in %.2f s", cloud.size(), r.rays.size(),
@@ -261,6 +266,11 @@ QueryJobResult run_query(const QueryJobOptions& o) {
     using I = std::remove_cvref_t<decltype(idx)>;
     constexpr bool copc = std::is_same_v<I, CopcIndex>, mapped = std::is_same_v<I, MappedIndex>;
     const auto pos = idx.positions();
+    // A COPC file's grid is its header's; an index file's the sources' when it stores their LAS
+    // integers (positions las_int32; float64 positions have none).
+    if constexpr (copc) r.grid = GridText::of(idx.info().scale, idx.info().offset);
+    if constexpr (mapped)
+      if (idx.position_encoding() == PositionEncoding::las_int32) r.grid = GridText::of(pos.scale(), pos.offset());
     // A hit's position: by its slot in an index file's storage, from the COPC file's decoded
     // node, or from the cloud in memory.
     const auto position = [&](const RayHit& h) -> Vec3 {

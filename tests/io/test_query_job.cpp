@@ -1,14 +1,18 @@
 // The ray-query job and ray files as library calls (rayscan/jobs/query.hpp, rays.hpp); oracle:
 // the brute-force index and the bytes written by the test itself.
 #include "rayscan/octree/brute_force.hpp"
+#include "rayscan/jobs/index.hpp"
 #include "rayscan/jobs/info.hpp"
 #include "rayscan/jobs/query.hpp"
+#include "rayscan/io/las_records.hpp"
 #include "rayscan/io/rays.hpp"
 
 #include "io_test_util.hpp"
 
 #include <gtest/gtest.h>
 
+#include <charconv>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <random>
@@ -107,6 +111,111 @@ TEST(QueryJob, InMemoryCloudMatchesBruteForce) {
   o.query.k = 0;
   o.query.radius = -1.0;
   EXPECT_THROW((void)run_query(o), std::invalid_argument);
+}
+
+namespace {
+
+/// The CSV a query job writes through QueryJobOptions::csv.
+std::string streamed_csv(QueryJobOptions o) {
+  std::string text;
+  o.csv = [&](std::string_view s) { text += s; };
+  const QueryJobResult r = run_query(o);
+  EXPECT_TRUE(r.hits.empty());  // not kept
+  return text;
+}
+
+/// Checks the CSV `csv` of a query on the LAS records of `las` (hit index = record number): x,
+/// y, z have `decimals` decimals each and name the record's own integers on the grid of the
+/// header (scale at byte 131, offset at 155: LAS 1.4 table 3), t and distance are `want`'s in the
+/// shortest text, and the CSV equals write_hits_csv of the hits kept in memory. Returns the rows.
+std::size_t expect_grid_csv(const std::string& csv, const std::filesystem::path& las, std::size_t decimals,
+                            const QueryJobResult& want) {
+  const std::vector<std::uint8_t> head = rayscan::test::slurp(las);
+  Vec3 scale(0.0), offset(0.0);
+  for (int k = 0; k < 3; ++k) {
+    std::memcpy(&scale[k], head.data() + 131 + 8 * k, 8);
+    std::memcpy(&offset[k], head.data() + 155 + 8 * k, 8);
+  }
+  const LasRecords rec = read_las_records(las);
+  std::ostringstream kept;
+  write_hits_csv(kept, want);
+  EXPECT_EQ(csv, kept.str()) << las;
+  std::istringstream in(csv);
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "ray,rank,index,x,y,z,t,distance");
+  std::size_t rows = 0;
+  for (std::size_t ray = 0; ray < want.hits.size(); ++ray)
+    for (std::size_t rank = 0; rank < want.hits[ray].size(); ++rank, ++rows) {
+      if (!std::getline(in, line)) {
+        ADD_FAILURE() << las << ": " << rows << " rows only";
+        return rows;
+      }
+      std::istringstream row(line);
+      std::string f[8];
+      for (std::string& v : f) std::getline(row, v, ',');
+      const RayHit& h = want.hits[ray][rank];
+      EXPECT_EQ(f[0] + "," + f[1] + "," + f[2], std::to_string(ray) + "," + std::to_string(rank) + "," + std::to_string(h.index));
+      for (int k = 0; k < 3; ++k) {
+        const std::string& t = f[3 + k];
+        if (t.find('.') == std::string::npos) {
+          ADD_FAILURE() << "no decimals: " << line;
+          continue;
+        }
+        EXPECT_EQ(t.size() - t.find('.') - 1, decimals) << line;
+        std::int32_t q = 0;
+        std::memcpy(&q, rec.records.data() + std::size_t{h.index} * rec.record_length + 4 * k, 4);
+        EXPECT_EQ(std::llround((std::stod(t) - offset[k]) / scale[k]), q) << line;
+      }
+      char buf[2][32];
+      EXPECT_EQ(f[6], std::string(buf[0], std::to_chars(buf[0], buf[0] + 32, h.t).ptr)) << line;
+      EXPECT_EQ(f[7], std::string(buf[1], std::to_chars(buf[1], buf[1] + 32, h.distance).ptr)) << line;
+    }
+  EXPECT_FALSE(std::getline(in, line)) << line;
+  return rows;
+}
+
+/// Rays straight down through 40 of `cloud`'s points (every 997th), from 50 units above.
+std::vector<Ray> rays_down_through(const PointCloud& cloud) {
+  std::vector<Ray> rays;
+  for (std::size_t i = 0; i < cloud.size() && rays.size() < 40; i += 997)
+    rays.emplace_back(cloud.positions[i] + Vec3(0, 0, 50), Vec3(0, 0, -1));
+  return rays;
+}
+
+}  // namespace
+
+// The query CSV prints the coordinates of a LAS, COPC or index-file source on its LAS grid, with
+// the grid's decimals (autzen_trim.las: scale 0.01, 2 decimals: 636191.20, not the reader's double
+// 636191.2000000001; lone-star.copc.laz: scale 0.00025 and offset 515384.8225, 5), as the text
+// writer and las2txt do; t and distance stay the shortest round-trip text. The CSV streamed while
+// the rays are answered equals the one written from the hits kept in memory. Oracle: the files'
+// own records and header bytes.
+TEST(QueryJob, CsvCoordinatesOfLasCopcAndIndexSourcesHaveTheGridsDecimals) {
+  RAYSCAN_REQUIRE_FILE(las, "las/autzen_trim.las");
+  QueryJobOptions o;
+  o.cloud_file = las;
+  o.rays = rays_down_through(io::read_point_cloud(las));
+  o.query.k = 3;
+  o.query.radius = 1.0;
+  o.control.threads = 2;
+  EXPECT_GE(expect_grid_csv(streamed_csv(o), las, 2, run_query(o)), 40u);
+
+  // The index file of it, with ids (hit index = record number): positions stored as the LAS
+  // integers, so the same grid.
+  IndexJobOptions index;
+  index.inputs = {las};
+  index.output = temp_dir() / "grid_query.rsi";
+  index.attributes = "id";
+  (void)run_index(index);
+  o.cloud_file = index.output;
+  EXPECT_GE(expect_grid_csv(streamed_csv(o), las, 2, run_query(o)), 40u);
+
+  RAYSCAN_REQUIRE_FILE(copc, "laz/lone-star.copc.laz");
+  o.cloud_file = copc;
+  o.rays = rays_down_through(io::read_point_cloud(copc, io::ReadOptions{.scalars = false}));
+  o.query.radius = 0.05;
+  EXPECT_GE(expect_grid_csv(streamed_csv(o), copc, 5, run_query(o)), 40u);
 }
 
 TEST(InfoJob, CountsAndBoundsOfATestFile) {

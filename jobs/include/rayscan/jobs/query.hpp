@@ -57,7 +57,8 @@ struct QueryJobResult {
   /// Index-file input (.rsi, rayscan/site/index_file.hpp): the position of every hit, in the order
   /// of `hits` flattened (ray by ray, best first); `cloud` then stays empty. Empty otherwise.
   std::vector<Vec3> hit_positions;
-  /// How write_hits_csv prints x, y and z: on the LAS grid the cloud came with, none by default.
+  /// How the CSV prints x, y and z: on the LAS grid of a LAS, LAZ or COPC file (its header's scale
+  /// and offset) or of an index file storing the sources' LAS integers; none for other input.
   io::GridText grid;
   /// COPC input: node chunks decoded (CopcIndex::decodes()) and nodes in the hierarchy; the
   /// hit positions are in `hit_positions` as for an index file. Both 0 otherwise.
@@ -80,12 +81,15 @@ QueryJobResult run_query(const QueryJobOptions& options);
 
 /// Writes the hits as CSV "ray,rank,index,x,y,z,t,distance" to `out`, every number the shortest
 /// text that reads back as the same double (exact; 636500.92, not 636500.92000000004);
-/// `positions` are the positions of the cloud queried (to print x, y, z).
+/// `positions` are the positions of the cloud queried (to print x, y, z; no LAS grid).
 void write_hits_csv(std::ostream& out, std::span<const Vec3> positions,
                     const std::vector<std::vector<RayHit>>& hits);
 
 /// The same for a job's result: positions from `result.cloud`, or `result.hit_positions` for an
-/// index-file input. (For in-memory input, use the overload above with the caller's positions.)
+/// index-file or COPC input, x, y and z on `result.grid` (a LAS source's: with the grid's
+/// decimals, 637173.82, not the reader's double 637173.8200000001; io::GridText); the bytes
+/// QueryJobOptions::csv receives. (For in-memory input, use the overload above with the caller's
+/// positions.)
 void write_hits_csv(std::ostream& out, const QueryJobResult& result);
 
 
