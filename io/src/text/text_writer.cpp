@@ -14,6 +14,7 @@
 
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/number_text.hpp"
+#include "rayscan/io/grid_text.hpp"
 
 #include "atomic_writer.hpp"
 #include "field_names.hpp"
@@ -30,18 +31,17 @@ namespace rayscan::io {
 
 namespace {
 
-/// The decimals to print axis k of `cloud` with: those of the grid of `grid` (the scale's
-/// step_decimals, or the offset's when it has more) when `grid` has a scale and offset and every
-/// coordinate of the axis lies on that grid exactly (a value straight from the LAS reader); -1
-/// (shortest round-trip form) otherwise, e.g. for a scale such as 1/3 or a cloud moved off it.
+/// The decimals to print axis k of `cloud` with: io::grid_decimals of the grid of `grid` when it
+/// has a scale and offset and every coordinate of the axis lies on that grid exactly (a value
+/// straight from the LAS reader); -1 (shortest round-trip form) otherwise, e.g. for a scale such
+/// as 1/3 or a cloud moved off it.
 int grid_decimals(const PointCloud& cloud, const LasWriteOptions& grid, int k) {
-  const double s = grid.scale[k], off = grid.offset[k];
-  if (!grid.has_offset || !std::isfinite(off)) return -1;
-  const int ds = step_decimals(s), doff = off == 0.0 ? 0 : step_decimals(std::abs(off));
-  if (ds < 0 || doff < 0) return -1;
+  if (!grid.has_offset) return -1;
+  const int d = io::grid_decimals(grid.scale[k], grid.offset[k]);
+  if (d < 0) return -1;
   for (const Vec3& p : cloud.positions)
-    if (!detail::on_las_grid(p[k], s, off, detail::OnGrid::exact)) return -1;
-  return std::max(ds, doff);
+    if (!detail::on_las_grid(p[k], grid.scale[k], grid.offset[k], detail::OnGrid::exact)) return -1;
+  return d;
 }
 
 }  // namespace
@@ -75,22 +75,9 @@ void write_text(const std::filesystem::path& path, const PointCloud& cloud, cons
     num(v);
   };
   const int decimals[3] = {grid_decimals(cloud, grid, 0), grid_decimals(cloud, grid, 1), grid_decimals(cloud, grid, 2)};
-  char fixed[400];  // (a double in fixed notation has at most 309 integer digits)
   // Coordinate k of a point: with the grid's decimals when the text reads back onto the same grid
   // integer (beyond about 15 significant digits it might not), else shortest.
-  auto coord = [&](double v, int k) {
-    if (decimals[k] >= 0) {
-      const auto r = std::to_chars(fixed, fixed + sizeof fixed, v, std::chars_format::fixed, decimals[k]);
-      double back = 0;
-      const double s = grid.scale[k], off = grid.offset[k];
-      if (r.ec == std::errc() && std::from_chars(fixed, r.ptr, back).ec == std::errc() &&
-          std::round((back - off) / s) == std::round((v - off) / s)) {
-        line.append(fixed, r.ptr);
-        return;
-      }
-    }
-    num(v);
-  };
+  auto coord = [&](double v, int k) { append_grid_coordinate(line, v, grid.scale[k], grid.offset[k], decimals[k]); };
   const bool colour_8bit = cloud.rgb_from_8bit_las;
   auto colour = [&](std::uint16_t v) -> unsigned { return colour_8bit ? detail::colour_to_8bit(v) : v; };
   for (std::size_t i = 0; i < cloud.size(); ++i) {
