@@ -303,15 +303,43 @@ UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const 
   const auto [lo_it, hi_it] = std::minmax_element(offsets.begin(), offsets.end());
   const double lo = *lo_it, span = std::max(*hi_it - lo, 1e-12);
   constexpr int kBins = 50;
+  const auto bin_of = [&](double o) { return std::min(kBins - 1, int((o - lo) / span * kBins)); };
   std::array<std::size_t, kBins> bins{};
-  for (double o : offsets) ++bins[std::min(kBins - 1, int((o - lo) / span * kBins))];
+  for (double o : offsets) ++bins[bin_of(o)];
   const int mode = int(std::max_element(bins.begin(), bins.end()) - bins.begin());
-  const double plane = lo + (mode + 0.5) * span / kBins;
-  if (glm::dot(sensor ? *sensor : centroid, axis) < plane) axis = -axis;
-  char buf[200];
+  double plane = 0.0;  // the mean offset in the fullest bin: the plane itself, not its bin's centre
+  for (double o : offsets)
+    if (bin_of(o) == mode) plane += o;
+  plane /= double(bins[mode]);
+  // The scanner or the centroid tells up from down only when it lies off that plane by more than
+  // the plane's thickness: 3 x the median distance of the points of that orientation from it (a
+  // scan's noise), and at least 0.1% of the sample's size (rounding on a flat cloud).
+  std::vector<double> dist(offsets.size());
+  for (std::size_t i = 0; i < offsets.size(); ++i) dist[i] = std::abs(offsets[i] - plane);
+  const auto mid = dist.begin() + std::ptrdiff_t(dist.size() / 2);
+  std::nth_element(dist.begin(), mid, dist.end());
+  const AABB box = bounds_of(sample);
+  const double thickness = std::max(3.0 * *mid, 1e-3 * glm::length(box.hi - box.lo));
+  const double above = glm::dot(sensor ? *sensor : centroid, axis) - plane;
+  std::string sign;
+  if (std::abs(above) > thickness) {
+    if (above < 0.0) axis = -axis;
+    sign = sensor ? "towards the scanner position (PCD VIEWPOINT)" : "towards the points' centroid";
+  } else {
+    // The points lie in that plane (a flat cloud): nothing in them tells up from down, so the
+    // convention of scanners and meshes decides: +z up, else +y, else +x, i.e. the normal's
+    // largest component positive (ties: z, then y, then x).
+    int k = 2;
+    for (const int c : {1, 0})
+      if (std::abs(axis[c]) > std::abs(axis[k])) k = c;
+    if (axis[k] < 0.0) axis = -axis;
+    sign = std::string("its largest component (") + "xyz"[k] +
+           ") positive: the points lie in that plane, with nothing to tell up from down";
+  }
+  const Vec3 shown = axis + Vec3(0.0);  // -0.0 printed as 0.000
+  char buf[300];
   std::snprintf(buf, sizeof buf, "(%.3f, %.3f, %.3f) estimated: the normal of the dominant plane (%.0f%% of the "
-                "sampled normals), towards the %s", axis.x, axis.y, axis.z, 100.0 * share,
-                sensor ? "scanner position (PCD VIEWPOINT)" : "points' centroid");
+                "sampled normals), %s", shown.x, shown.y, shown.z, 100.0 * share, sign.c_str());
   return {axis, buf, facing};
 }
 

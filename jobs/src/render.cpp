@@ -123,6 +123,27 @@ void check_image_memory(std::uint32_t width, std::uint32_t height, std::uint64_t
 
 namespace {
 
+// What the elevation colours mean, logged when the material colours by elevation (a quick look of
+// a cloud without colours): the axis, the ramp and the heights at its ends (AlbedoRule::range),
+// in the CRS's linear unit as the DSM's band names it (geotiff_band_unit), "coordinate units"
+// without a CRS, e.g. "colour: elevation along up (0, 0, 1), viridis, 408.73 (dark) .. 485.04
+// (bright) foot, the 2nd and 98th percentiles of the points' heights".
+void log_elevation_ramp(const JobControl& ctl, const Scene& scene, const AlbedoRule& rule, const std::string& crs_wkt) {
+  if (scene.material.mode != ColorMode::elevation) return;
+  analysis::GeoTiffOptions g;
+  g.crs_wkt = crs_wkt;
+  g.unit_is_crs_length = true;
+  std::string unit = analysis::geotiff_band_unit(g);
+  if (unit.empty()) unit = "coordinate units";
+  const Vec3 up = glm::normalize(scene.up) + Vec3(0.0);  // -0.0 printed as 0
+  char buf[512];
+  std::snprintf(buf, sizeof buf, "colour: elevation along up (%.3g, %.3g, %.3g), %s, %.7g (dark) .. %.7g (bright) %s, %s",
+                up.x, up.y, up.z, ramp_names()[std::size_t(scene.material.ramp)].c_str(), rule.range()[0],
+                rule.range()[1], unit.c_str(),
+                scene.material.range ? "the material's range" : "the 2nd and 98th percentiles of the points' heights");
+  ctl.info(buf);
+}
+
 // What every frame of a render job shares: the scene, the cloud or the mapped index file, the
 // albedo, the index and the radius. Heap-allocated (spans into `owned`, `albedo`, `rule` must not
 // move).
@@ -132,7 +153,7 @@ struct Prepared {
   PointCloud owned;                   // the read cloud (or, for surfels over an index file, its points)
   const PointCloud* cloud = nullptr;  // points in original order; null when tracing straight from a file
   std::vector<Color> albedo;          // by original index (in-memory clouds, surfel mode)
-  AlbedoRule rule;                    // sphere mode over a file traced in place: applied at shading time
+  AlbedoRule rule;                    // the material's statistics; applied at shading time to a file traced in place
   AlbedoSource albedo_source;
   SurfelAttributes surfels;
   std::chrono::steady_clock::time_point started;  // job start (time to the first traced tile)
@@ -180,6 +201,7 @@ void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
   } catch (const std::invalid_argument& e) {
     throw SceneError(f + ": /material/color: " + e.what());
   }
+  log_elevation_ramp(ctl, scene, P.rule, r.crs_wkt);
   const AlbedoAttributes slots{copc.positions(), copc.rgb(), copc.intensity(), copc.classification()};
   P.albedo_source = {{}, &P.rule, slots, copc.positions().size()};
   std::snprintf(buf, sizeof buf, "albedo at shading time from the decoded node attributes (statistics in %.2f s)",
@@ -284,7 +306,8 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   t0 = std::chrono::steady_clock::now();
   try {
     if (cloud) {
-      P->albedo = compute_albedo(*cloud, scene.material, scene.up);
+      P->rule = AlbedoRule(albedo_attributes(*cloud), cloud->size(), scene.material, scene.up);
+      P->albedo = compute_albedo(*cloud, P->rule);
       P->albedo_source.by_index = P->albedo;
     } else {
       const AlbedoAttributes slots{mapped->positions(), mapped->rgb(), mapped->intensity(), mapped->classification()};
@@ -294,6 +317,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   } catch (const std::invalid_argument& e) {
     throw SceneError(f + ": /material/color: " + e.what());
   }
+  log_elevation_ramp(ctl, scene, P->rule, r.crs_wkt);
   if (mapped && !cloud) {
     std::snprintf(buf, sizeof buf, "albedo at shading time from the stored attributes (statistics in %.2f s)",
                   seconds_since(t0));
@@ -442,6 +466,11 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   if (o.render.camera_for_cloud)
     throw std::invalid_argument("ortho map: render.camera_for_cloud is set; the job sets it to the map's camera");
   RenderJobOptions job = o.render;
+  // The map's camera looks straight down -z in the cloud's frame, so the sky gradient, the
+  // elevation ramp and surfels oriented "up" run along +z whatever the scene's up: a quick look's
+  // up axis, estimated for a cloud without a CRS, may point elsewhere, and its sky would then
+  // light the map from below. (A sun keeps the direction the scene gave it.)
+  job.scene.up = Vec3(0.0, 0.0, 1.0);
   const std::filesystem::path image = job.scene.output.image;
   if (job.write) {
     if (!analysis::is_geotiff_name(image))

@@ -128,8 +128,11 @@ AlbedoAttributes albedo_attributes(const PointCloud& cloud) {
 }
 
 std::vector<Color> compute_albedo(const PointCloud& cloud, const MaterialDesc& m, const Vec3& up) {
+  return compute_albedo(cloud, AlbedoRule(albedo_attributes(cloud), cloud.size(), m, up));
+}
+
+std::vector<Color> compute_albedo(const PointCloud& cloud, const AlbedoRule& rule) {
   const AlbedoAttributes a = albedo_attributes(cloud);
-  const AlbedoRule rule(a, cloud.size(), m, up);
   std::vector<Color> albedo(cloud.size());
   for (std::size_t i = 0; i < albedo.size(); ++i) albedo[i] = rule.at(a, i);
   return albedo;

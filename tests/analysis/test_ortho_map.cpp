@@ -237,3 +237,50 @@ TEST(OrthoMap, OrthophotoCellsHoldThePointsOwnColours) {
   EXPECT_FALSE(std::filesystem::exists(dir / "x.tif") || std::filesystem::exists(dir / "x.png"));
   std::filesystem::remove_all(dir);
 }
+
+// The map's elevation colours run along +z, the axis its camera looks down, even for a cloud
+// without a CRS whose quick look estimates another up axis: a plane z = 3 + 0.5 x (no colours, no
+// CRS; its estimated up is its own normal, along which every point has the same height) maps to
+// the elevation ramp rising west to east. Oracle: the plane's heights, which are equal along each
+// north-south column of cells and grow with x: every interior column holds one colour (+-2), and
+// viridis's green, which rises monotonically over the ramp, rises from each column to the next and
+// spans most of its range (a map coloured along the normal would be one colour).
+TEST(OrthoMap, ElevationColoursRunAlongZWhateverTheQuickLookUpAxis) {
+  const auto dir = std::filesystem::temp_directory_path() / ("rayscan_ortho_up_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  PointCloud pc;
+  for (int j = 0; j < 40; ++j)
+    for (int i = 0; i < 80; ++i) {
+      const double x = 0.125 + 0.25 * i;
+      pc.positions.push_back(Vec3(x, 0.125 + 0.25 * j, 3.0 + 0.5 * x));
+    }
+  io::write_las(dir / "slope.las", pc);
+  const auto r = rayscan::test::run_command(std::string(RAYSCAN_BIN) + " render " + (dir / "slope.las").string() +
+                                            " --ortho-map 1 --out " + (dir / "a.tif").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("colour: elevation along up (0, 0, 1)"), std::string::npos) << r.out;
+  GDALAllRegister();
+  const std::unique_ptr<GDALDataset, void (*)(GDALDataset*)> a(
+      static_cast<GDALDataset*>(GDALOpen((dir / "a.tif").c_str(), GA_ReadOnly)), [](GDALDataset* d) { GDALClose(d); });
+  ASSERT_TRUE(a);
+  const int cols = a->GetRasterXSize(), rows = a->GetRasterYSize();
+  ASSERT_EQ(cols, 20);
+  ASSERT_EQ(rows, 10);
+  std::vector<std::uint8_t> band[4];
+  for (int b = 0; b < 4; ++b) band[b] = byte_band(a.get(), b + 1);
+  int previous_green = -1, first_green = -1;
+  for (int col = 1; col < cols - 1; ++col) {
+    for (int row = 1; row < rows - 1; ++row) {
+      const std::size_t k = std::size_t(row) * cols + col, top = std::size_t(1) * cols + col;
+      EXPECT_EQ(band[3][k], 255) << col << "," << row;
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(int(band[c][k]), int(band[c][top]), 2) << col << "," << row;
+    }
+    const int green = band[1][std::size_t(rows / 2) * cols + col];
+    if (first_green < 0) first_green = green;
+    EXPECT_GT(green, previous_green) << "column " << col;
+    previous_green = green;
+  }
+  EXPECT_GT(previous_green - first_green, 150);
+  std::filesystem::remove_all(dir);
+}

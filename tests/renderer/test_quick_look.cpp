@@ -22,7 +22,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <numbers>
+#include <string>
 
 namespace fs = std::filesystem;
 using namespace rayscan;
@@ -372,6 +374,163 @@ TEST(QuickLook, IndexFileRendersTheSameQuickLookAsItsSource) {
     EXPECT_EQ(cams[0], cams[1]) << src;
     const auto cmp = rayscan::test::run_command(bin + " compare " + (d / "q0.png").string() + " " + (d / "q1.png").string());
     EXPECT_EQ(cmp.code, 0) << src << "\n" << cmp.out;
+  }
+  fs::remove_all(d);
+}
+
+namespace {
+
+/// True when estimate_up_axis chose the sign by the convention (its reason text says which rule).
+bool sign_by_convention(const UpAxis& u) { return u.how.find("largest component") != std::string::npos; }
+
+/// An 80 x 40 grid of points 0.25 apart through `origin` along the unit vectors `a` and `b`, each
+/// point moved `noise(i, j)` along `a` x `b`.
+std::vector<Vec3> grid_plane(const Vec3& origin, const Vec3& a, const Vec3& b,
+                             const std::function<double(int, int)>& noise = {}) {
+  std::vector<Vec3> v;
+  const Vec3 n = glm::cross(a, b);
+  for (int j = 0; j < 40; ++j)
+    for (int i = 0; i < 80; ++i)
+      v.push_back(origin + (0.125 + 0.25 * i) * a + (0.125 + 0.25 * j) * b + (noise ? noise(i, j) : 0.0) * n);
+  return v;
+}
+
+}  // namespace
+
+// A flat cloud without a CRS has nothing to tell up from down (its centroid lies in its plane):
+// its up axis is the plane's normal with the largest-magnitude component positive, the +z / +y /
+// +x convention of scanners and meshes, wherever the plane lies and whichever way its points are
+// listed. Oracle: the planes' analytic normals. A cloud with relief off its dominant plane keeps
+// the centroid's side (UpAxis.GeoreferencedDepthCameraAndDominantPlane: the flipped tilted floor).
+TEST(UpAxis, AFlatCloudTakesTheSignOfItsNormalsLargestComponent) {
+  const double deg = std::cos(1.0 * std::numbers::pi / 180.0);
+  const auto expect_up = [&](const std::vector<Vec3>& pts, const Vec3& want, const char* what) {
+    const UpAxis u = estimate_up_axis(pts, false, std::nullopt);
+    EXPECT_GE(glm::dot(u.up, want), deg) << what << ": " << u.how;
+    EXPECT_TRUE(sign_by_convention(u)) << what << ": " << u.how;
+    std::vector<Vec3> mirrored;  // the same points through the origin: the same plane orientation
+    for (const Vec3& p : pts) mirrored.push_back(-p);
+    const UpAxis m = estimate_up_axis(mirrored, false, std::nullopt);
+    EXPECT_GE(glm::dot(m.up, want), deg) << what << " mirrored: " << m.how;
+  };
+  const Vec3 x(1, 0, 0), y(0, 1, 0), z(0, 0, 1);
+  expect_up(grid_plane(Vec3(0, 0, 3), x, y), z, "level at z = 3");
+  expect_up(grid_plane(Vec3(0, 0, 3), y, x), z, "level at z = 3, listed along y first");
+  expect_up(grid_plane(Vec3(0, 0, -3), x, y), z, "level at z = -3");
+  expect_up(grid_plane(Vec3(0, 5, 0), x, z), y, "a wall at y = 5");
+  expect_up(grid_plane(Vec3(-7, 0, 0), y, z), x, "a wall at x = -7");
+  // Noise of +-0.03 off the plane (a scan's; 0.13% of the grid's size, above the 0.1% floor): the
+  // plane's thickness is then the points' median distance from it.
+  expect_up(grid_plane(Vec3(0, 0, 3), x, y, [](int i, int j) { return 0.03 * std::sin(12.9898 * i + 78.233 * j); }),
+            z, "level with noise");
+  // The tilted floor without its boxes: its normal rot(+z) = (0.17, -0.47, 0.87) keeps z positive.
+  const TiltedFloor t;
+  expect_up(t.floor, t.rot(z), "tilted floor");
+  // A georeferenced flat cloud: exactly +z, the CRS's vertical.
+  EXPECT_EQ(estimate_up_axis(grid_plane(Vec3(0, 0, 3), x, y), true, std::nullopt).up, z);
+}
+
+// The CLI's quick look of a flat cloud without a CRS (80 x 40 points on z = 3) prints and uses up
+// +z with the camera above the plane looking down; the log says what the elevation colours mean.
+// Oracle: the points' known heights: the ramp's ends are their 2nd and 98th percentile (ranks
+// n * 2 / 100 and n * 98 / 100 of the sorted heights), in "coordinate units" without a CRS and in
+// the CRS's unit for autzen (international foot, EPSG:2992) through an index file without colours.
+TEST(QuickLook, FlatCloudIsSeenFromAboveAndTheElevationColoursAreLogged) {
+  const fs::path d = quick_look_temp_dir() / "flat";
+  fs::create_directories(d);
+  {
+    std::ofstream xyz(d / "sq.xyz");
+    for (const Vec3& p : grid_plane(Vec3(0, 0, 3), Vec3(1, 0, 0), Vec3(0, 1, 0))) xyz << p.x << " " << p.y << " " << p.z << "\n";
+  }
+  const std::string bin = RAYSCAN_BIN;
+  const auto p = rayscan::test::run_command(bin + " render " + (d / "sq.xyz").string() + " --print-scene", false);
+  ASSERT_EQ(p.code, 0) << p.out;
+  const nlohmann::json j = nlohmann::json::parse(p.out);
+  EXPECT_EQ(j.at("up"), nlohmann::json::parse("[0.0, 0.0, 1.0]")) << p.out;
+  EXPECT_GT(j.at("camera").at("position")[2].get<double>(), 3.0) << p.out;  // above the plane
+  EXPECT_GT(j.at("camera").at("up")[2].get<double>(), 0.0) << p.out;
+
+  // The log line's axis, ramp, ends and unit.
+  struct LoggedRamp {
+    Vec3 up;
+    std::string ramp, unit;
+    double lo = 0.0, hi = 0.0;
+  };
+  const auto logged = [&](const std::string& cloud) {
+    const auto r = rayscan::test::run_command(bin + " render " + cloud + " --width 30 --spp 1 --out " + (d / "x.png").string());
+    EXPECT_EQ(r.code, 0) << r.out;
+    const std::string key = "colour: elevation along up (";
+    const std::size_t at = r.out.find(key);
+    LoggedRamp g;
+    if (at == std::string::npos) {
+      ADD_FAILURE() << "no elevation colour line: " << r.out;
+      return g;
+    }
+    const std::string line = r.out.substr(at, r.out.find('\n', at) - at);
+    char ramp[32] = {}, unit[64] = {};
+    EXPECT_EQ(std::sscanf(line.c_str() + key.size(), "%lf, %lf, %lf), %31[^,], %lf (dark) .. %lf (bright) %63[^,]", &g.up.x,
+                          &g.up.y, &g.up.z, ramp, &g.lo, &g.hi, unit),
+              7)
+        << line;
+    g.ramp = ramp;
+    g.unit = unit;
+    EXPECT_NE(line.find("the 2nd and 98th percentiles of the points' heights"), std::string::npos) << line;
+    return g;
+  };
+  const auto percentiles = [](std::vector<double> h) {
+    std::sort(h.begin(), h.end());
+    return std::array<double, 2>{h[h.size() * 2 / 100], h[h.size() * 98 / 100]};
+  };
+  {
+    // Every height is 3: the ramp spans 3 .. 3 + 1 (a range needs two ends), all points dark.
+    const LoggedRamp g = logged((d / "sq.xyz").string());
+    EXPECT_EQ(g.up, Vec3(0, 0, 1));
+    EXPECT_EQ(g.ramp, "viridis");
+    EXPECT_EQ(g.unit, "coordinate units");
+    EXPECT_EQ(g.lo, 3.0);
+    EXPECT_EQ(g.hi, 4.0);
+  }
+  {
+    // A rough floor (+-0.002) with three boxes' tops at 1, 1.7 and 2.4: the ends are the 2nd and
+    // 98th percentile of the heights along the printed up axis.
+    std::vector<Vec3> pts = grid_plane(Vec3(0.0), Vec3(1, 0, 0), Vec3(0, 1, 0),
+                                       [](int i, int j) { return 0.002 * std::sin(12.9898 * i + 78.233 * j); });
+    for (int k = 0; k < 3; ++k)
+      for (int i = 0; i < 8; ++i)
+        for (int j = 0; j < 8; ++j) pts.push_back(Vec3(2.0 + 6.0 * k + 0.25 * i, 3.0 + 0.25 * j, 1.0 + 0.7 * k));
+    {
+      std::ofstream xyz(d / "boxes.xyz");
+      xyz.precision(17);
+      for (const Vec3& q : pts) xyz << q.x << " " << q.y << " " << q.z << "\n";
+    }
+    const auto ps = rayscan::test::run_command(bin + " render " + (d / "boxes.xyz").string() + " --print-scene", false);
+    ASSERT_EQ(ps.code, 0) << ps.out;
+    const nlohmann::json u = nlohmann::json::parse(ps.out).at("up");
+    const Vec3 up(u[0].get<double>(), u[1].get<double>(), u[2].get<double>());
+    ASSERT_GE(up.z, 0.999) << ps.out;  // the floor's normal, towards the boxes
+    std::vector<double> h;
+    for (const Vec3& q : pts) h.push_back(glm::dot(q, up));
+    const LoggedRamp g = logged((d / "boxes.xyz").string());
+    const auto want = percentiles(h);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(g.up[c], up[c], 5e-3) << c;  // printed to 3 digits
+    EXPECT_NEAR(g.lo, want[0], 1e-6);
+    EXPECT_NEAR(g.hi, want[1], 1e-6);
+    EXPECT_LT(want[0], 0.0);   // from the floor's roughness
+    EXPECT_GT(want[1], 1.65);  // from the second box's top
+    EXPECT_EQ(g.unit, "coordinate units");
+  }
+  {
+    const fs::path las = fs::path(RAYSCAN_TEST_DATA) / "las" / "autzen_trim.las";
+    const auto idx = rayscan::test::run_command(bin + " index -q " + las.string() + " -o " + (d / "a.rsi").string());
+    ASSERT_EQ(idx.code, 0) << idx.out;
+    std::vector<double> h;
+    for (const Vec3& q : io::read_point_cloud(las).positions) h.push_back(q.z);
+    const LoggedRamp g = logged((d / "a.rsi").string());
+    const auto want = percentiles(h);
+    EXPECT_EQ(g.up, Vec3(0, 0, 1));
+    EXPECT_NEAR(g.lo, want[0], 1e-6 * std::abs(want[0]));
+    EXPECT_NEAR(g.hi, want[1], 1e-6 * std::abs(want[1]));
+    EXPECT_EQ(g.unit, "foot");
   }
   fs::remove_all(d);
 }

@@ -73,8 +73,13 @@ LookAtParams overview_view(std::span<const Vec3> points, const UpAxis& axis, std
 /// within 10 degrees, refined as their mean, its sign chosen so that `sensor` (the scanner
 /// position: a PCD VIEWPOINT's translation) or else the sample's centroid lies above the most
 /// populated plane of that orientation (a floor or the ground: the scanner and the scene stand on
-/// it). Falls back to +z when fewer than 20% of the sample share an orientation or the sample has
-/// fewer than 64 points. With a `sensor`, `facing` is the direction from it to the centroid.
+/// it). When that point lies within the plane's thickness (3 x the median distance of the points
+/// of that orientation from the plane, at least 0.1% of the sample's bounding-box diagonal), as
+/// for a flat cloud, the points cannot tell up from down and the sign is the convention of
+/// scanners and meshes (+z up, else +y, else +x): the normal's largest-magnitude component
+/// positive, ties going to z, then y. Falls back to +z when fewer than 20% of the sample share an
+/// orientation or the sample has fewer than 64 points. With a `sensor`, `facing` is the direction
+/// from it to the centroid.
 UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const std::optional<Vec3>& sensor);
 
 /// What resolve_scene needs of a point cloud file: its exact bounds (world units), whether it

@@ -142,7 +142,9 @@ struct OrthoMapJobResult {
 /// Renders a true orthophoto and digital surface model (`rayscan render --ortho-map RES [--dsm F]
 /// [--ortho-colour albedo|shaded]`, rayscan.ortho_map()): run_render() with the camera
 /// analysis::ortho_map(bounds, ortho_map) over the cloud's exact bounds (logged as "ortho map: C x
-/// R cells, top-down, colour albedo"), the DSM from the depth AOV, the colour from the albedo AOV
+/// R cells, top-down, colour albedo") and the scene's up set to +z, the axis that camera looks
+/// down (the sky gradient and the elevation ramp along it, whatever up the scene or a quick look
+/// of a cloud without a CRS gives), the DSM from the depth AOV, the colour from the albedo AOV
 /// or the beauty (ortho_colour) and, when render.write, the files (analysis::write_ortho_map: the
 /// RGBA orthophoto at scene.output.image, the Float32 DSM at `dsm` when set, both with the cloud's
 /// CRS and the render's metadata), written on the root only; crs_warnings about that CRS are

@@ -73,6 +73,12 @@ class AlbedoRule {
     return glm::clamp(c * material_.albedo_scale, Color(0.0f), Color(1.0f));
   }
 
+  /// The scalar values at the ramp's ends (intensity, or elevation along `up` in the coordinates'
+  /// unit): material.range, else the 2nd and 98th percentile of the cloud's values ([1] = [0] + 1
+  /// when those are equal). A value at or below [0] gets the ramp's first colour, at or above [1]
+  /// its last. {0, 1} for the other modes, which use no range.
+  [[nodiscard]] const std::array<double, 2>& range() const { return range_; }
+
  private:
   void set_rgb_scale(bool wide);
   [[nodiscard]] Color scalar(double v) const {
@@ -109,6 +115,11 @@ struct AlbedoSource {
 /// cloud, applied to each point. Throws std::invalid_argument when the mode needs an attribute
 /// the cloud lacks (naming it).
 std::vector<Color> compute_albedo(const PointCloud& cloud, const MaterialDesc& material, const Vec3& up);
+
+/// Albedo of every point of `cloud` by a rule already resolved over that same cloud (e.g. one
+/// kept for its range()): equal to compute_albedo with the rule's material and up, without the
+/// statistics' second pass.
+std::vector<Color> compute_albedo(const PointCloud& cloud, const AlbedoRule& rule);
 
 /// The cloud's attributes in original order (spans into `cloud`).
 [[nodiscard]] AlbedoAttributes albedo_attributes(const PointCloud& cloud);
