@@ -9,6 +9,7 @@
 #include "rayscan/octree/batch.hpp"
 #include "rayscan/octree/brute_force.hpp"
 #include "rayscan/base/crc32c.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_reader.hpp"
 #include "rayscan/octree/normals.hpp"
@@ -1359,6 +1360,121 @@ TEST(IndexFileBadInput, CorruptRecordsAreRefusedAtOpenAtAnySize) {
   EXPECT_NE(error_of(full).find("bad.rsi: byte " + std::to_string(ids_off + 24) + ": section ids: slot 6 holds id " +
                                 std::to_string(id6) + ", as slot 5 does"),
             std::string::npos) << error_of(full);
+  fs::remove_all(dir);
+}
+
+// Node boxes: finite but reversed or far too large ones passed every check (only NaN was refused),
+// and a query could then derive a negative radius from them. The root's box is checked at every
+// open (reversed, or outside the header's point bounds beyond float rounding), every other box
+// with the node records (reversed, or outside its parent's). Cases: the fuzz finding whose root
+// box is reversed with values up to 6e19 (checksums made valid as fuzz_rsi.cpp does), then boxes
+// of a built index rewritten by hand. Oracle: the offsets and values read from the files' bytes.
+TEST(IndexFileBadInput, ReversedOrOutsideNodeBoxesAreRefused) {
+  const fs::path dir = temp_dir() / "node_boxes";
+  fs::create_directories(dir);
+  const fs::path bad = dir / "bad.rsi";
+  using V = io::IndexOpenOptions::Verify;
+  auto error_of = [&](V v) -> std::string {
+    io::IndexOpenOptions o;
+    o.verify = v;
+    o.check_sources = false;
+    try {
+      io::MappedIndex::open(bad, o);
+    } catch (const io::IndexError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  auto f32 = [](const std::vector<std::uint8_t>& b, std::uint64_t at) { return load_at<float>(b, at); };
+  auto f64 = [](const std::vector<std::uint8_t>& b, std::uint64_t at) { return load_at<double>(b, at); };
+  auto node_section = [](const std::vector<std::uint8_t>& b) {
+    for (std::uint32_t i = 0; i < load_at<std::uint32_t>(b, 20); ++i)
+      if (load_at<std::uint32_t>(b, 128 + 32 * i) == 9) return load_at<std::uint64_t>(b, 128 + 32 * i + 8);
+    return std::uint64_t{0};
+  };
+  // "[lo, hi]" of axis k of the record at byte `rec`, in world units (the root cell's corner at
+  // header byte 40 + 8k added to the stored floats).
+  auto world = [&](const std::vector<std::uint8_t>& b, std::uint64_t rec, int k) {
+    const double corner = f64(b, 40 + 8 * k);
+    std::string s(1, '[');
+    s += shortest_text(corner + f32(b, rec + 4 * k)) + ", " + shortest_text(corner + f32(b, rec + 12 + 4 * k)) + "]";
+    return s;
+  };
+
+  // The fuzz finding: the root's box reversed on axis 0. Every open mode refuses it at open, and
+  // so do `rayscan query` (no output file) and `rayscan info --verify` (one line, exit 2).
+  {
+    const auto b = slurp(fs::path(RAYSCAN_SOURCE_DIR) / "tests/fuzz/regressions/rsi/rsi-crash-6b17b69c28ea146fa82667e447263d19a461a135");
+    const std::uint64_t node_off = node_section(b);
+    ASSERT_EQ(node_off, 12288u);
+    ASSERT_GT(f32(b, node_off), f32(b, node_off + 12));  // the finding as kept: lo.x > hi.x
+    write_with_valid_crcs(b, bad);
+    const std::string want = bad.string() + ": byte 12288: node 0 (the root): box of axis 0 " + world(b, node_off, 0) +
+                             " (expected minimum <= maximum)";
+    for (V v : {V::always, V::automatic, V::metadata_only}) EXPECT_EQ(error_of(v), want) << static_cast<int>(v);
+    const fs::path rays = dir / "rays.csv", out = dir / "out.txt";
+    std::ofstream(rays) << "ox,oy,oz,dx,dy,dz\n630300,4834540,200,0,0,-1\n";
+    EXPECT_EQ(run_cli("query -q --cloud '" + bad.string() + "' --rays '" + rays.string() + "' --k 1 -o '" +
+                          (dir / "hits.csv").string() + "'", out), 2);
+    EXPECT_NE(text(out).find(want), std::string::npos) << text(out);
+    EXPECT_FALSE(fs::exists(dir / "hits.csv"));
+    EXPECT_EQ(run_cli("info --verify '" + bad.string() + "'", out), 2);
+    EXPECT_NE(text(out).find(want), std::string::npos) << text(out);
+  }
+
+  const fs::path good = small_index(dir);
+  const auto bytes = slurp(good);
+  const std::uint64_t node_off = node_section(bytes);
+  ASSERT_GT(node_off, 0u);
+  write_with_valid_crcs(bytes, bad);
+  for (V v : {V::always, V::automatic, V::metadata_only}) ASSERT_EQ(error_of(v), "");
+  // The root's box rounds the header's bounds outwards; one more float step either way is rounding.
+  auto b = bytes;
+  for (int k = 0; k < 3; ++k) {
+    store_at<float>(b, node_off + 4 * k, std::nextafter(f32(b, node_off + 4 * k), -1e30f));
+    store_at<float>(b, node_off + 12 + 4 * k, std::nextafter(f32(b, node_off + 12 + 4 * k), 1e30f));
+  }
+  write_with_valid_crcs(b, bad);
+  EXPECT_EQ(error_of(V::always), "");
+
+  // The root's maximum y grown by 1% of the points' extent: outside the header's point bounds.
+  const double bounds_lo_y = f64(bytes, 640 + 8), bounds_hi_y = f64(bytes, 664 + 8);
+  ASSERT_LT(bounds_lo_y, bounds_hi_y);
+  b = bytes;
+  store_at<float>(b, node_off + 16, f32(b, node_off + 16) + static_cast<float>(0.01 * (bounds_hi_y - bounds_lo_y)));
+  write_with_valid_crcs(b, bad);
+  const std::string outside = bad.string() + ": byte " + std::to_string(node_off + 16) + ": node 0 (the root): box of axis 1 " +
+                              world(b, node_off, 1) + " (expected inside the header's point bounds [" +
+                              shortest_text(bounds_lo_y) + ", " + shortest_text(bounds_hi_y) + "], to float rounding)";
+  for (V v : {V::always, V::automatic, V::metadata_only}) EXPECT_EQ(error_of(v), outside) << static_cast<int>(v);
+
+  // An inner node (the root's second child) with its box reversed on axis 2 (lo.z and hi.z
+  // swapped): refused with the node records (`info --verify` and the default open), not by the
+  // O(1) check of an open without them.
+  ASSERT_NE(load_at<std::uint32_t>(bytes, node_off + 28) >> 31, 0u);  // the root has children
+  ASSERT_GE(load_at<std::uint32_t>(bytes, node_off + 28) & 0xFFFFFFFu, 2u);
+  const std::uint32_t child = load_at<std::uint32_t>(bytes, node_off + 24) + 1;
+  const std::uint64_t rec = node_off + 32 * std::uint64_t{child};
+  ASSERT_LT(f32(bytes, rec + 8), f32(bytes, rec + 20));
+  b = bytes;
+  store_at<float>(b, rec + 8, f32(bytes, rec + 20));
+  store_at<float>(b, rec + 20, f32(bytes, rec + 8));
+  write_with_valid_crcs(b, bad);
+  const std::string reversed = bad.string() + ": byte " + std::to_string(rec + 8) + ": node " + std::to_string(child) +
+                               ": box of axis 2 " + world(b, rec, 2) + " (expected minimum <= maximum)";
+  EXPECT_EQ(error_of(V::always), reversed);
+  EXPECT_EQ(error_of(V::automatic), reversed);
+  EXPECT_EQ(error_of(V::metadata_only), "");
+  EXPECT_EQ(run_cli("info --verify '" + bad.string() + "'", dir / "out.txt"), 2);
+  EXPECT_NE(text(dir / "out.txt").find(reversed), std::string::npos) << text(dir / "out.txt");
+
+  // The same node's minimum x moved below its parent's (the root's) minimum x.
+  b = bytes;
+  store_at<float>(b, rec, f32(bytes, node_off) - 1.0f);
+  write_with_valid_crcs(b, bad);
+  EXPECT_EQ(error_of(V::always), bad.string() + ": byte " + std::to_string(rec) + ": node " + std::to_string(child) +
+                                     ": box of axis 0 " + world(b, rec, 0) + " (expected inside its parent node 0's " +
+                                     world(b, node_off, 0) + ")");
   fs::remove_all(dir);
 }
 

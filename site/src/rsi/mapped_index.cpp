@@ -4,6 +4,7 @@
 #include "format.hpp"
 
 #include "rayscan/base/input_file.hpp"
+#include "rayscan/base/number_text.hpp"
 
 #include <sys/mman.h>
 #include <unistd.h>
@@ -279,6 +280,38 @@ std::uint32_t check_section_set(const std::uint8_t* b, const Header& hd, const S
   return rgb_mul;
 }
 
+/// "[lo, hi]" of axis `k` of the node record `r` in world units (the root cell's corner `origin`
+/// added back, as MappedIndex::node_bounds does), for the node box messages.
+std::string world_interval(const IndexNodeRecord& r, const Vec3& origin, int k) {
+  std::string s(1, '[');
+  s += shortest_text(origin[k] + static_cast<double>(r.lo[k])) + ", " +
+       shortest_text(origin[k] + static_cast<double>(r.hi[k])) + "]";
+  return s;
+}
+
+/// The root node's box (docs/index-format.md, "Opening and validation" 1), at every open: on each
+/// axis minimum <= maximum and inside the header's exact point bounds, which it rounds outwards
+/// (OctreeRules::float_bound: one float ulp past the float nearest to the offset from the root
+/// cell's corner). The allowance, 2^-20 of the offsets plus 2^-48 of the absolute coordinates, is
+/// well above that rounding and the double subtractions' (the entry grid's 2^-20 of the root
+/// edge, likewise). O(1): one record; the boxes below it are checked with the other records
+/// (verify_nodes). `node_off`: the nodes section's byte offset. Throws IndexError.
+void check_root_box(const IndexNodeRecord& r, const Header& hd, std::uint64_t node_off, const Fail& fail) {
+  for (int k = 0; k < 3; ++k) {
+    const std::string what = "node 0 (the root): box of axis " + std::to_string(k) + " ";
+    if (!(r.lo[k] <= r.hi[k]))
+      fail(node_off + 4 * k, what + world_interval(r, hd.cell.lo, k) + " (expected minimum <= maximum)");
+    const double lo = hd.bounds.lo[k] - hd.cell.lo[k], hi = hd.bounds.hi[k] - hd.cell.lo[k];
+    const double coord = std::max({std::abs(hd.bounds.lo[k]), std::abs(hd.bounds.hi[k]), std::abs(hd.cell.lo[k])});
+    const double tol = std::ldexp(std::max(std::abs(lo), std::abs(hi)), -20) + std::ldexp(coord, -48);
+    const bool below = !(static_cast<double>(r.lo[k]) >= lo - tol), above = !(static_cast<double>(r.hi[k]) <= hi + tol);
+    if (below || above)
+      fail(node_off + (below ? 0 : 12) + 4 * k,
+           what + world_interval(r, hd.cell.lo, k) + " (expected inside the header's point bounds [" +
+               shortest_text(hd.bounds.lo[k]) + ", " + shortest_text(hd.bounds.hi[k]) + "], to float rounding)");
+  }
+}
+
 /// The sources section: "size \t mtime_ns \t points \t first_id \t format \t path" lines whose
 /// points sum to the header's N. `off`: the section's byte offset (error messages).
 std::vector<IndexSource> read_sources(std::string_view text, std::uint64_t off, std::uint64_t points, const Fail& fail) {
@@ -403,6 +436,7 @@ MappedIndex MappedIndex::open(const fs::path& path, const IndexOpenOptions& opt)
   // first query. With metadata_only (a file this process just wrote) the accessors still
   // sanitise every record they return (MappedIndex::child_count / node_points), so no traversal
   // reads outside the mapping.
+  if (x.node_count_ > 0) check_root_box(x.nodes_[0], hd, by_id[kNodes]->offset, fail);
   if (opt.verify != IndexOpenOptions::Verify::metadata_only) x.verify_nodes(by_id[kNodes]->offset);
   if (verify_all) x.check_ids();
   // The entry grids from the top levels' records (the pass above has just read them; after a
@@ -455,6 +489,10 @@ void MappedIndex::verify_nodes(std::uint64_t node_off) const {
     }
     for (int k = 0; k < 3; ++k)
       if (std::isnan(r.lo[k]) || std::isnan(r.hi[k])) fail(o, "node " + std::to_string(n) + ": NaN bounds");
+    for (int k = 0; k < 3; ++k)
+      if (r.lo[k] > r.hi[k])
+        fail(o + 4 * k, "node " + std::to_string(n) + ": box of axis " + std::to_string(k) + " " +
+                            world_interval(r, cell_.lo, k) + " (expected minimum <= maximum)");
   }
   if (x.node_count_ > 0 && x.nodes_[0].octant() != 0) fail(node_off + 28, "root node octant must be 0");
   // Structure (Warren & Salmon ids, paper section 4.1): every node but the root is the child of
@@ -478,6 +516,15 @@ void MappedIndex::verify_nodes(std::uint64_t node_off) const {
                                                  std::to_string(x.nodes_[k].octant()) + " is not the next child of node " +
                                                  std::to_string(n));
       depth_of[k] = static_cast<std::uint8_t>(depth_of[n] + 1);
+      // A box is its own points' float box widened by its children's (OctreeRules::float_bound,
+      // then min / max), so a child's lies inside its parent's exactly, with no rounding allowance;
+      // from the root's (check_root_box), every box is then finite and inside the point bounds.
+      const IndexNodeRecord& ck = x.nodes_[k];
+      for (int a = 0; a < 3; ++a)
+        if (ck.lo[a] < r.lo[a] || ck.hi[a] > r.hi[a])
+          fail(node_off + k * kNodeBytes + (ck.lo[a] < r.lo[a] ? 0 : 12) + 4 * a,
+               "node " + std::to_string(k) + ": box of axis " + std::to_string(a) + " " + world_interval(ck, cell_.lo, a) +
+                   " (expected inside its parent node " + std::to_string(n) + "'s " + world_interval(r, cell_.lo, a) + ")");
     }
   }
   // The header's points per level agree with the records.

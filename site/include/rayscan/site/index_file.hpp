@@ -131,9 +131,10 @@ IndexBuildStats build_index_file(const std::vector<std::filesystem::path>& input
 
 /// Options of MappedIndex::open().
 struct IndexOpenOptions {
-  /// What open() checks besides the header, the section table and the small metadata sections
-  /// (sources, crs), which are always checked. `always`: every section's CRC-32C and every node
-  /// record and id (docs/index-format.md, "Opening and validation"; `rayscan info --verify`).
+  /// What open() checks besides the header, the section table, the small metadata sections
+  /// (sources, crs) and the root node's box, which are always checked. `always`: every
+  /// section's CRC-32C and every node record and id (docs/index-format.md, "Opening and
+  /// validation"; `rayscan info --verify`).
   /// `automatic` (default): the same when the file is at most 256 MiB; above, the node records
   /// only (one pass over the nodes section, about 2 bytes per point), so a corrupted file is an error
   /// and no query's work grows past that of the well-formed tree. `metadata_only`: neither (for a
@@ -325,8 +326,9 @@ class MappedIndex {
  private:
   MappedIndex() = default;
   /// The node record checks of open() (docs/index-format.md, "Opening and validation" 2): point
-  /// and child ranges, a tree (every node but the root the child of exactly one earlier node,
-  /// octants increasing), no node below the header's depth, and the header's points per level.
+  /// and child ranges, boxes (minimum <= maximum, inside the parent's), a tree (every node but the
+  /// root the child of exactly one earlier node, octants increasing), no node below the header's
+  /// depth, and the header's points per level.
   /// `node_offset`: the nodes section's byte offset (messages). Throws IndexError.
   void verify_nodes(std::uint64_t node_offset) const;
   /// Throws IndexError for the first stored id >= N or the first slot repeating an earlier slot's
