@@ -237,8 +237,11 @@ UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const 
   if (sensor && !sample.empty()) facing = centroid - *sensor;
   // A depth camera's cloud (PCD with its scanner position) is in the camera's optical frame: x
   // right, y down, z forward (ROS REP 103), and the camera is held about level: up is -y, refined
-  // to the dominant plane's normal when that lies within 20 degrees (a tilted camera).
-  const bool optical = facing && facing->z > 0.0;
+  // to the dominant plane's normal when that lies within 20 degrees (a tilted camera). The points
+  // must lie ahead of it, within 45 degrees of its optical axis (+z): the identity VIEWPOINT is
+  // also what every PCD writer puts in a georeferenced cloud's header (PDAL, PCL), whose points,
+  // hundreds of kilometres east and north of the origin, are no camera's view.
+  const bool optical = facing && facing->z > std::max(std::abs(facing->x), std::abs(facing->y));
   const auto optical_up = [&](const std::optional<Vec3>& plane_normal) -> UpAxis {
     constexpr double kCos20 = 0.93969262078590838;
     const Vec3 down(0.0, 1.0, 0.0);
@@ -320,11 +323,14 @@ UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const 
   std::nth_element(dist.begin(), mid, dist.end());
   const AABB box = bounds_of(sample);
   const double thickness = std::max(3.0 * *mid, 1e-3 * glm::length(box.hi - box.lo));
-  const double above = glm::dot(sensor ? *sensor : centroid, axis) - plane;
+  // A VIEWPOINT at the origin is a scanner position only for a camera's view (optical): PCD
+  // writers put the identity in every header, and a georeferenced cloud's origin lies anywhere.
+  const bool scanner = sensor && (optical || *sensor != Vec3(0.0));
+  const double above = glm::dot(scanner ? *sensor : centroid, axis) - plane;
   std::string sign;
   if (std::abs(above) > thickness) {
     if (above < 0.0) axis = -axis;
-    sign = sensor ? "towards the scanner position (PCD VIEWPOINT)" : "towards the points' centroid";
+    sign = scanner ? "towards the scanner position (PCD VIEWPOINT)" : "towards the points' centroid";
   } else {
     // The points lie in that plane (a flat cloud): nothing in them tells up from down, so the
     // convention of scanners and meshes decides: +z up, else +y, else +x, i.e. the normal's

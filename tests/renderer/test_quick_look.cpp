@@ -198,6 +198,23 @@ TEST(UpAxis, GeoreferencedDepthCameraAndDominantPlane) {
   EXPECT_GE(glm::dot(estimate_up_axis(flipped, false, std::nullopt).up, -want), std::cos(2.0 * std::numbers::pi / 180.0));
 }
 
+// A PCD of an airborne scan in UTM metres (autzen-utm.pcd: no CRS, the identity VIEWPOINT every
+// PCD writer puts in its header) is no depth camera's view: its points lie ~1e6 m east and north
+// of the origin, not ahead of it along +z. Its up is the ground's normal pointing away from the
+// ground (the centroid's side, not the origin's, which lies 100 m below it): within 2 degrees of +z.
+TEST(UpAxis, AnIdentityViewpointFarFromThePointsIsNoCameraAndNoScanner) {
+  io::FileInfo info;
+  const PointCloud utm = io::read_point_cloud(std::string(RAYSCAN_TEST_DATA) + "/pcd/autzen-utm.pcd", {}, &info);
+  ASSERT_TRUE(info.viewpoint.has_value());
+  const Vec3 origin((*info.viewpoint)[0], (*info.viewpoint)[1], (*info.viewpoint)[2]);
+  ASSERT_EQ(origin, Vec3(0.0));
+  ASSERT_TRUE(utm.crs_wkt.empty());
+  const CloudSummary s = summarize_cloud(utm.positions, true, false, origin);
+  EXPECT_GE(glm::dot(s.up.up, Vec3(0, 0, 1)), std::cos(2.0 * std::numbers::pi / 180.0)) << s.up.how;
+  EXPECT_EQ(s.up.how.find("depth camera"), std::string::npos) << s.up.how;
+  EXPECT_EQ(s.up.how.find("scanner"), std::string::npos) << s.up.how;
+}
+
 namespace {
 
 /// A floor tilted by 30 degrees about x, then 20 about z, with four boxes standing on it (tops 1

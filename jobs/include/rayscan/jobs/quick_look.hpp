@@ -65,13 +65,15 @@ LookAtParams overview_view(std::span<const Vec3> points, const UpAxis& axis, std
                            std::uint32_t height);
 
 /// The up axis of a point cloud: +z when it is georeferenced (`georeferenced`: it has a CRS);
-/// -y for a depth camera's cloud (a `sensor` position with the points in front of it along +z:
-/// the camera's optical frame, x right, y down, z forward, ROS REP 103), refined to the dominant
+/// -y for a depth camera's cloud (a `sensor` position with the points' centroid ahead of it,
+/// within 45 degrees of +z: the camera's optical frame, x right, y down, z forward, ROS REP 103;
+/// not a georeferenced PCD's default identity VIEWPOINT far from its points), refined to the dominant
 /// plane's normal when that lies within 20 degrees of it (a tilted camera); else estimated from
 /// `sample` (points of the cloud, world units): the normal of the dominant
 /// plane, i.e. the PCA normal (16 nearest neighbours) direction shared by the most sample points
 /// within 10 degrees, refined as their mean, its sign chosen so that `sensor` (the scanner
-/// position: a PCD VIEWPOINT's translation) or else the sample's centroid lies above the most
+/// position: a PCD VIEWPOINT's translation, unless it is the origin of a cloud that is not a
+/// camera's view) or else the sample's centroid lies above the most
 /// populated plane of that orientation (a floor or the ground: the scanner and the scene stand on
 /// it). When that point lies within the plane's thickness (3 x the median distance of the points
 /// of that orientation from the plane, at least 0.1% of the sample's bounding-box diagonal), as
