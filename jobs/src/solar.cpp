@@ -12,6 +12,7 @@
 #include "rayscan/analysis/visibility.hpp"
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/image/image_file.hpp"
 #include "rayscan/io/point_reader.hpp"
@@ -362,6 +363,9 @@ struct SolarRun {
     const std::filesystem::path outs[] = {o.out, o.raster, o.preview};
     const std::filesystem::path ins[] = {o.cloud_file, o.weather};
     require_outputs(outs, ins);
+    // The weather file is read once the site is known (weather_steps), after the points: its
+    // kind is checked now, so a FIFO or a folder is refused before any work ("-": standard input).
+    if (!o.weather.empty() && o.weather != "-") require_regular_file(o.weather);
     r.raster_value = value;
   }
 

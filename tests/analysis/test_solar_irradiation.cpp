@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <sys/stat.h>
 #include <optional>
 #include <sys/wait.h>
 #include <cstdio>
@@ -834,6 +835,42 @@ TEST(SolarJob, ADayOfShadowsInLocalMeanSolarTimeStatesExactInstants) {
 // 1e308 takes every x, 515000 and more, past infinity, which only reading the records finds, as
 // `rayscan info` shows) gets the CRS's refusal, one line and no log line of reading. --lat/--lon do
 // not make degrees a frame, so they do not help, and the line does not offer them.
+// A weather file that is a FIFO (or a folder) is refused before the points are read: the cloud
+// here has an x scale of 1e308, so reading its points fails ("overflows to infinity"); the one
+// error line is the weather file's.
+TEST(SolarCli, AWeatherFileThatIsNoRegularFileIsRefusedBeforeThePointsAreRead) {
+  const std::filesystem::path dir = std::filesystem::path(testing::TempDir()) / "solar_weather_fifo";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::filesystem::path las = dir / "c.las", fifo = dir / "w.epw", out = dir / "out.las";
+  PointCloud cloud;
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) cloud.positions.emplace_back(i, j, 0.0);
+  io::write_point_cloud(las, cloud);
+  {
+    std::fstream f(las, std::ios::in | std::ios::out | std::ios::binary);
+    const double scale = 1e308;
+    f.seekp(131);  // the header's x scale factor (LAS 1.2-1.4), little-endian float64
+    f.write(reinterpret_cast<const char*>(&scale), sizeof scale);
+  }
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const std::string base = std::string(RAYSCAN_BIN) + " solar '" + las.string() +
+                           "' --lat 44 --lon -123 --start 2026-06-01 --end 2026-06-02 -o '" + out.string() + "'";
+  const auto points = rayscan::test::run_command(base);
+  EXPECT_EQ(points.code, 2) << points.out;
+  EXPECT_NE(points.out.find("overflows to infinity"), std::string::npos) << points.out;
+  for (const std::filesystem::path& w : {fifo, dir}) {
+    const auto r = rayscan::test::run_command(base + " --weather '" + w.string() + "'");
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_NE(r.out.find(w.string() + ": is a"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("not a regular file"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("overflows"), std::string::npos) << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  }
+  EXPECT_FALSE(std::filesystem::exists(out));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(SolarCli, AGeographicCrsIsRefusedFromTheHeaderBeforeThePointsAreRead) {
   const std::filesystem::path dir = std::filesystem::path(testing::TempDir()) / "solar_geographic";
   std::filesystem::create_directories(dir);
