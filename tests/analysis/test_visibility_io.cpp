@@ -1,6 +1,7 @@
 // Visibility inputs and outputs: observer files, local ground, raster grid and reductions, the
 // GeoTIFF read back through GDAL (geotransform, CRS, NoData, values), the PNG preview, and
 // `rayscan visibility` end to end (fields in LAS/PLY, exit codes, no partial files).
+#include "../common/sanitizers.hpp"
 #include "../common/temp_dir.hpp"
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/image/image_file.hpp"
@@ -693,13 +694,7 @@ TEST_F(VisibilityCli, ImplausibleCrsIsWarnedAsInfoWarnsIt) {
 // before the cloud is read, naming the camera file, as `render` refuses such an image: here under
 // a 4000000 KiB address-space limit (ulimit -v), which is 3.8 GiB.
 TEST_F(VisibilityCli, FromCameraRefusesMarksBeyondTheMemoryLimit) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "AddressSanitizer reserves its shadow memory beyond any ulimit -v";
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(memory_sanitizer) || __has_feature(thread_sanitizer)
-  GTEST_SKIP() << "a sanitizer reserves its shadow memory beyond any ulimit -v";
-#endif
-#endif
+  if (rayscan::test::kSanitized) GTEST_SKIP() << "a sanitizer reserves its shadow memory beyond any ulimit -v";
   const fs::path cam = write_text("cam_huge.json", R"({"width": 65536, "height": 65536, "position": [-9, 0, 4],
     "look_at": [5, 0, 1], "up": [0, 0, 1], "vfov_deg": 50})");
   const fs::path out = tmpdir() / "cam_huge.ply";

@@ -1,6 +1,8 @@
 // The interrupt handler (rayscan/base/interrupt.hpp) in a child process that installs it, marks
 // paths and signals itself: the oracles are the file system (what is left in the folder) and the
 // child's wait status (ended by the signal, or exited).
+#include "../common/temp_dir.hpp"
+
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/interrupt.hpp"
 
@@ -19,21 +21,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using rayscan::RemoveOnInterrupt;
-
-/// A fresh folder for one test.
-fs::path fresh_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("rayscan_interrupt_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
-
-/// Names of the entries of `d`.
-std::set<std::string> listing(const fs::path& d) {
-  std::set<std::string> s;
-  for (const auto& e : fs::directory_iterator(d)) s.insert(e.path().filename().string());
-  return s;
-}
 
 void touch(const fs::path& p) { std::ofstream(p) << "x"; }
 
@@ -56,7 +43,7 @@ int in_child(F body) {
 }  // namespace
 
 TEST(Interrupt, SignalRemovesTheMarkedPathsOnlyAndEndsTheProcessByIt) {
-  const fs::path dir = fresh_dir("marks");
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_interrupt_marks");
   const int status = in_child([&] {
     rayscan::install_interrupt_handler();
     touch(dir / "unmarked");
@@ -82,18 +69,18 @@ TEST(Interrupt, SignalRemovesTheMarkedPathsOnlyAndEndsTheProcessByIt) {
       in_tx.write_all(bytes);
       in_tx.commit();
     }
-    if (listing(dir).size() != 7) ::_exit(3);  // the files exist before the signal
+    if (rayscan::test::entry_names(dir).size() != 7) ::_exit(3);  // the files exist before the signal
     ::raise(SIGTERM);
     ::_exit(4);  // not reached
   });
   ASSERT_TRUE(WIFSIGNALED(status)) << "status " << status;
   EXPECT_EQ(WTERMSIG(status), SIGTERM);
-  EXPECT_EQ(listing(dir), (std::set<std::string>{"released", "unmarked"}));
+  EXPECT_EQ(rayscan::test::entry_names(dir), (std::set<std::string>{"released", "unmarked"}));
   fs::remove_all(dir);
 }
 
 TEST(Interrupt, DeferredFirstSignalIsOnlyRecordedTheSecondEndsTheProcess) {
-  const fs::path dir = fresh_dir("deferred");
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_interrupt_deferred");
   const int status = in_child([&] {
     rayscan::install_interrupt_handler();
     rayscan::defer_interrupts();
@@ -107,13 +94,13 @@ TEST(Interrupt, DeferredFirstSignalIsOnlyRecordedTheSecondEndsTheProcess) {
   });
   ASSERT_TRUE(WIFSIGNALED(status)) << "status " << (WIFEXITED(status) ? WEXITSTATUS(status) : status);
   EXPECT_EQ(WTERMSIG(status), SIGHUP);
-  EXPECT_TRUE(listing(dir).empty());
+  EXPECT_TRUE(rayscan::test::entry_names(dir).empty());
   fs::remove_all(dir);
 }
 
 TEST(Interrupt, SignalIgnoredAtInstallStaysIgnored) {
   // `nohup rayscan ...` ignores SIGHUP: the handler must not take it over.
-  const fs::path dir = fresh_dir("ignored");
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_interrupt_ignored");
   const int status = in_child([&] {
     ::signal(SIGHUP, SIG_IGN);
     rayscan::install_interrupt_handler();
@@ -123,6 +110,6 @@ TEST(Interrupt, SignalIgnoredAtInstallStaysIgnored) {
   });
   ASSERT_TRUE(WIFEXITED(status)) << "status " << status;
   EXPECT_EQ(WEXITSTATUS(status), 0);
-  EXPECT_EQ(listing(dir), std::set<std::string>{"file"});
+  EXPECT_EQ(rayscan::test::entry_names(dir), std::set<std::string>{"file"});
   fs::remove_all(dir);
 }

@@ -28,13 +28,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// Names of the entries of `d`.
-std::set<std::string> listing(const fs::path& d) {
-  std::set<std::string> s;
-  for (const auto& e : fs::directory_iterator(d)) s.insert(e.path().filename().string());
-  return s;
-}
-
 /// Starts `rayscan ARGS` (standard streams to /dev/null), sends `sig` as soon as an entry appears
 /// in the empty folder `out_dir`, and returns the wait status; the status of a command that ended
 /// before anything appeared is a test failure.
@@ -54,7 +47,7 @@ int run_and_signal(const std::vector<std::string>& args, const fs::path& out_dir
   // A guard against a hang only: the signal goes out when the first file appears.
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(300);
   int status = 0;
-  while (listing(out_dir).empty()) {
+  while (rayscan::test::entry_names(out_dir).empty()) {
     if (::waitpid(pid, &status, WNOHANG) == pid) {
       ADD_FAILURE() << "the command ended before a file appeared (status " << status << ")";
       return status;
@@ -104,8 +97,8 @@ class InterruptCli : public ::testing::Test {
     const int status = run_and_signal(args, out, sig);
     ASSERT_TRUE(WIFSIGNALED(status)) << "status " << (WIFEXITED(status) ? WEXITSTATUS(status) : status);
     EXPECT_EQ(WTERMSIG(status), sig) << "a shell would report " << 128 + WTERMSIG(status);
-    EXPECT_EQ(listing(out), std::set<std::string>{});
-    EXPECT_EQ(listing(dir_ / "in"), (std::set<std::string>{"big.las", "big.laz", "ray.csv"}));
+    EXPECT_EQ(rayscan::test::entry_names(out), std::set<std::string>{});
+    EXPECT_EQ(rayscan::test::entry_names(dir_ / "in"), (std::set<std::string>{"big.las", "big.laz", "ray.csv"}));
   }
 
   static fs::path dir_;
@@ -167,7 +160,7 @@ TEST_F(InterruptCli, TheSameCommandsNotInterruptedWriteTheirOutputs) {
     }
     const CommandResult r = run_command(cmd + " > /dev/null");
     EXPECT_EQ(r.code, 0) << cmd << "\n" << r.out;
-    EXPECT_EQ(listing(out), std::set<std::string>{c.output}) << cmd;
+    EXPECT_EQ(rayscan::test::entry_names(out), std::set<std::string>{c.output}) << cmd;
   }
 }
 

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "../common/run_command.hpp"
+#include "../common/sanitizers.hpp"
 #include "jobs_test_util.hpp"
 
 #include <unistd.h>
@@ -56,13 +57,7 @@ TEST(RenderMemoryCli, RefusesAnImageWhoseBuffersExceedTheMachinesMemory) {
 }
 
 TEST(RenderMemoryCli, AFailedAllocationIsOneLineAndExitCode2) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "AddressSanitizer reserves its shadow memory beyond any ulimit -v";
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(memory_sanitizer) || __has_feature(thread_sanitizer)
-  GTEST_SKIP() << "a sanitizer reserves its shadow memory beyond any ulimit -v";
-#endif
-#endif
+  if (rayscan::test::kSanitized) GTEST_SKIP() << "a sanitizer reserves its shadow memory beyond any ulimit -v";
   // 16384 x 16384 pixels for a PNG: 36 bytes a pixel, 9 GiB, within the memory check on a machine
   // of more than 9 GiB. A 2 GB data-size limit (ulimit -d, which the check does not read) makes the
   // 3 GiB framebuffer's allocation fail; a 2 GB address-space limit (ulimit -v) is the check's own
@@ -83,13 +78,7 @@ TEST(RenderMemoryCli, AFailedAllocationIsOneLineAndExitCode2) {
 }
 
 TEST(RenderMemoryCli, AnOrthoMapBeyondTheLimitNamesItsCell) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "AddressSanitizer reserves its shadow memory beyond any ulimit -v";
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(memory_sanitizer) || __has_feature(thread_sanitizer)
-  GTEST_SKIP() << "a sanitizer reserves its shadow memory beyond any ulimit -v";
-#endif
-#endif
+  if (rayscan::test::kSanitized) GTEST_SKIP() << "a sanitizer reserves its shadow memory beyond any ulimit -v";
   // simple.las spans x 635619.85 .. 638982.55, y 848899.70 .. 853535.43 (`rayscan info`); cells of
   // 0.4 on the grid of its multiples: floor(hi / 0.4) - floor(lo / 0.4) + 1 = 1597456 - 1589049 + 1
   // = 8408 columns and 2133838 - 2122249 + 1 = 11590 rows. The map's buffers (beauty 12, depth 4,

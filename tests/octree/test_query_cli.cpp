@@ -6,6 +6,7 @@
 #include "rayscan/octree/ray_query.hpp"
 
 #include "../common/run_command.hpp"
+#include "../common/sanitizers.hpp"
 
 #include <gtest/gtest.h>
 
@@ -267,13 +268,7 @@ TEST_F(QueryCli, RunsOfRaysAreWrittenInRayOrderForAnyThreadCount) {
 // (MALLOC_ARENA_MAX=1: every thread allocates from one heap, so the limit does not also catch
 // the 64 MiB address ranges glibc reserves for each thread's own heap, which vary by run.)
 TEST_F(QueryCli, AllResultsOfManyRaysStreamWithinAMemoryLimit) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "AddressSanitizer reserves its shadow memory beyond any ulimit -v";
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(memory_sanitizer) || __has_feature(thread_sanitizer)
-  GTEST_SKIP() << "a sanitizer reserves its shadow memory beyond any ulimit -v";
-#endif
-#endif
+  if (rayscan::test::kSanitized) GTEST_SKIP() << "a sanitizer reserves its shadow memory beyond any ulimit -v";
   write_copies("rays2000.f64", 100);
   const auto rows_within = [&](long kib, const std::string& bound) {
     const RunResult r = rayscan::test::run_command(

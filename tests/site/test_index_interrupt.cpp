@@ -2,6 +2,7 @@
 // the output path; a demanding user also expects no temporary output or sort runs left beside
 // it). The real CLI is started on a real LAS file, signalled as soon as its temporary files exist,
 // and the folder is then listed: the oracle is the file system.
+#include "../common/temp_dir.hpp"
 #include "../io/io_test_util.hpp"
 
 #include "rayscan/io/point_io.hpp"
@@ -24,21 +25,6 @@
 namespace {
 
 namespace fs = std::filesystem;
-
-/// A fresh folder for one test (removed first if a previous process of the same id left it).
-fs::path fresh_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("rayscan_index_interrupt_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
-
-/// Names of the entries of `d`.
-std::set<std::string> listing(const fs::path& d) {
-  std::set<std::string> s;
-  for (const auto& e : fs::directory_iterator(d)) s.insert(e.path().filename().string());
-  return s;
-}
 
 /// 2e6 uniform points in a 1 km box, as LAS (about 60 MB): enough for a build of many sort runs
 /// with `--memory 8M`, so the signal arrives while it runs.
@@ -75,7 +61,7 @@ int index_and_signal(const fs::path& dir, const fs::path& las, const fs::path& o
       ADD_FAILURE() << "rayscan index ended before a temporary file was seen (status " << status << ")";
       return status;
     }
-    if (listing(dir).size() > 1) break;
+    if (rayscan::test::entry_names(dir).size() > 1) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
   ::kill(pid, sig);
@@ -91,7 +77,7 @@ std::string slurp_text(const fs::path& p) {
 }  // namespace
 
 TEST(IndexInterrupt, SigtermAndSigintLeaveNoOutputAndNoTemporaryFiles) {
-  const fs::path dir = fresh_dir("sig");
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_index_interrupt_sig");
   const fs::path las = dir / "site.las", out = dir / "site.rsi";
   const fs::path err = fs::temp_directory_path() / ("rayscan_index_interrupt_" + std::to_string(::getpid()) + ".err");
   write_site(las);
@@ -105,12 +91,12 @@ TEST(IndexInterrupt, SigtermAndSigintLeaveNoOutputAndNoTemporaryFiles) {
     const std::string text = slurp_text(err);
     EXPECT_NE(text.find(sig == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT"), std::string::npos) << text;
     // Nothing left but the input: no index, no temporary output, no runs folder.
-    EXPECT_EQ(listing(dir), std::set<std::string>{"site.las"});
+    EXPECT_EQ(rayscan::test::entry_names(dir), std::set<std::string>{"site.las"});
   }
   // The same command not interrupted writes the index (the signal, not the options, stopped it).
   const std::string cmd = std::string(RAYSCAN_EXE) + " index " + las.string() + " -o " + out.string() + " --memory 8M -q > /dev/null";
   EXPECT_EQ(std::system(cmd.c_str()), 0);
-  EXPECT_EQ(listing(dir), (std::set<std::string>{"site.las", "site.rsi"}));
+  EXPECT_EQ(rayscan::test::entry_names(dir), (std::set<std::string>{"site.las", "site.rsi"}));
   fs::remove_all(dir);
   fs::remove(err);
 }
