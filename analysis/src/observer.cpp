@@ -5,6 +5,7 @@
 
 #include "rayscan/base/input_file.hpp"
 #include "rayscan/base/json_object.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/octree/point_query.hpp"
 
 #include <type_traits>
@@ -218,9 +219,7 @@ void validate_observer(const Observer& o, const std::string& where) {
   // otherwise fail inside a ray without naming the observer.
   auto check = [&](double v, const char* what) {
     if (coordinate_ok(v)) return;
-    char got[32];
-    std::snprintf(got, sizeof got, "%g", v);
-    throw ObserverError(where + ": " + what + ": expected " + coordinate_expected() + ", got " + got);
+    throw ObserverError(where + ": " + what + ": expected " + coordinate_expected() + ", got " + shortest_text(v));
   };
   check(o.position.x, "x");
   check(o.position.y, "y");
@@ -324,10 +323,8 @@ void place_observers_over(std::vector<Observer>& observers, const Index& index, 
   // A NaN eye height would put every eye at NaN (no point seen, no error); infinity or a huge
   // height would fail later in a ray without naming the option.
   if (options.default_height && !coordinate_ok(*options.default_height)) {
-    char got[32];
-    std::snprintf(got, sizeof got, "%g", *options.default_height);
     throw ObserverError({option("height"), ": expected an eye height above the local ground, " +
-                                               coordinate_expected() + ", got " + got});
+                                               coordinate_expected() + ", got " + shortest_text(*options.default_height)});
   }
   std::optional<AABB> bounds;  // the cloud's z range, computed once (an O(N) pass), when needed
   for (std::size_t k = 0; k < observers.size(); ++k) {

@@ -7,6 +7,7 @@
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/interrupt.hpp"
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -107,6 +108,7 @@ TranslateJobResult write_through_las(const TranslateJobOptions& options, const P
   const std::filesystem::path temp = options.out.parent_path() / name;
   struct Remove {
     std::filesystem::path p;
+    RemoveOnInterrupt on_signal{p};  // (removed by a signal too, while it is compressed)
     ~Remove() {
       std::error_code ec;
       std::filesystem::remove(p, ec);

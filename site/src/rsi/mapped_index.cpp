@@ -487,12 +487,12 @@ void MappedIndex::verify_nodes(std::uint64_t node_off) const {
       fail(o + 24, "node " + std::to_string(n) + ": point range [" + std::to_string(r.first) + ", +" +
                        std::to_string(r.count()) + ") outside the " + std::to_string(x.points_) + " points");
     }
-    for (int k = 0; k < 3; ++k)
+    for (int k = 0; k < 3; ++k) {
       if (std::isnan(r.lo[k]) || std::isnan(r.hi[k])) fail(o, "node " + std::to_string(n) + ": NaN bounds");
-    for (int k = 0; k < 3; ++k)
       if (r.lo[k] > r.hi[k])
         fail(o + 4 * k, "node " + std::to_string(n) + ": box of axis " + std::to_string(k) + " " +
                             world_interval(r, cell_.lo, k) + " (expected minimum <= maximum)");
+    }
   }
   if (x.node_count_ > 0 && x.nodes_[0].octant() != 0) fail(node_off + 28, "root node octant must be 0");
   // Structure (Warren & Salmon ids, paper section 4.1): every node but the root is the child of
