@@ -33,6 +33,7 @@
 // cells, rayscan ~3.1-3.4 s for 110,000 points (with 64 sky-view rays per point); about 70 s in all.
 //
 // Skipped when `grass` (Debian grass-core) or GDAL's command line tools are not installed.
+#include "../common/run_command.hpp"
 #include "run_command.hpp"
 
 #include <gtest/gtest.h>
@@ -86,14 +87,7 @@ bool installed(const char* program) {
   return status == 0;
 }
 
-// `p` in single quotes, for the shell. Appended piecewise: `"'" + s + "'"` sets off GCC 12's
-// -Wrestrict false positive at -O3 (an error under RAYSCAN_WERROR).
-std::string quoted(const fs::path& p) {
-  std::string q = "'";
-  q += p.string();
-  q += '\'';
-  return q;
-}
+using rayscan::test::quoted;
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

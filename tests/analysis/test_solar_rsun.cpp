@@ -5,6 +5,7 @@
 // them (clear sky, exact per-step shadow rays) and reads the per-point fields back from its CSV
 // output; r.sun runs in its daily mode on one-row flat/tilted rasters through
 // tests/analysis/rsun_daily.sh (skipped when `grass` is not installed).
+#include "../common/run_command.hpp"
 #include "run_command.hpp"
 
 #include <gtest/gtest.h>
@@ -58,14 +59,7 @@ bool grass_installed() {
   return status == 0;
 }
 
-// `p` in single quotes, for the shell. Appended piecewise: `"'" + s + "'"` sets off GCC 12's
-// -Wrestrict false positive at -O3 (an error under RAYSCAN_WERROR).
-std::string quoted(const fs::path& p) {
-  std::string q = "'";
-  q += p.string();
-  q += '\'';
-  return q;
-}
+using rayscan::test::quoted;
 
 // Daily (or summed) irradiation on one surface, Wh/m^2.
 struct Irradiation {

@@ -4,9 +4,19 @@
 #include <sys/wait.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <string>
 
 namespace rayscan::test {
+
+/// `p` in single quotes, for the shell. (Appended piecewise: `"'" + s + "'"` sets off GCC 12's
+/// -Wrestrict false positive at -O3, an error under RAYSCAN_WERROR.)
+inline std::string quoted(const std::filesystem::path& p) {
+  std::string q = "'";
+  q += p.string();
+  q += '\'';
+  return q;
+}
 
 /// Exit code (-1 when the process did not exit normally) and captured output of a command.
 struct CommandResult {

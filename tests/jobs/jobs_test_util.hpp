@@ -20,15 +20,6 @@ namespace rayscan::test {
 /// A file of tests/data (e.g. "las/simple1_3.las").
 inline std::filesystem::path data_file(const std::string& rel) { return std::filesystem::path(RAYSCAN_TEST_DATA) / rel; }
 
-/// `p` in single quotes, for the shell. (Appended piecewise: `"'" + s + "'"` sets off GCC 12's
-/// -Wrestrict false positive at -O3.)
-inline std::string quoted(const std::filesystem::path& p) {
-  std::string q = "'";
-  q += p.string();
-  q += '\'';
-  return q;
-}
-
 /// Runs `rayscan ARGS` (the build's program) and returns its exit code and its stdout and stderr.
 inline CommandResult rayscan_cli(const std::string& args) { return run_command(quoted(RAYSCAN_BIN) + " " + args); }
 
