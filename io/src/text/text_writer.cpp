@@ -31,17 +31,21 @@ namespace rayscan::io {
 
 namespace {
 
-/// The decimals to print axis k of `cloud` with: io::grid_decimals of the grid of `grid` when it
-/// has a scale and offset and every coordinate of the axis lies on that grid exactly (a value
-/// straight from the LAS reader); -1 (shortest round-trip form) otherwise, e.g. for a scale such
-/// as 1/3 or a cloud moved off it.
-int grid_decimals(const PointCloud& cloud, const LasWriteOptions& grid, int k) {
-  if (!grid.has_offset) return -1;
-  const int d = io::grid_decimals(grid.scale[k], grid.offset[k]);
-  if (d < 0) return -1;
-  for (const Vec3& p : cloud.positions)
-    if (!detail::on_las_grid(p[k], grid.scale[k], grid.offset[k], detail::OnGrid::exact)) return -1;
-  return d;
+/// How to print the coordinates of `cloud`: per axis, the text of the grid of `grid`
+/// (GridText) when it has a scale and offset and every coordinate of the axis lies on that grid
+/// exactly (a value straight from the LAS reader); the shortest round-trip form otherwise, e.g.
+/// for a scale such as 1/3 or a cloud moved off it.
+GridText text_of(const PointCloud& cloud, const LasWriteOptions& grid) {
+  if (!grid.has_offset) return {};
+  GridText g = GridText::of(grid.scale, grid.offset);
+  for (std::size_t k = 0; k < 3; ++k)
+    if (g.decimals[k] >= 0)
+      for (const Vec3& p : cloud.positions)
+        if (!detail::on_las_grid(p[int(k)], grid.scale[int(k)], grid.offset[int(k)], detail::OnGrid::exact)) {
+          g.decimals[k] = -1;
+          break;
+        }
+  return g;
 }
 
 }  // namespace
@@ -74,10 +78,10 @@ void write_text(const std::filesystem::path& path, const PointCloud& cloud, cons
     line += sep;
     num(v);
   };
-  const int decimals[3] = {grid_decimals(cloud, grid, 0), grid_decimals(cloud, grid, 1), grid_decimals(cloud, grid, 2)};
   // Coordinate k of a point: with the grid's decimals when the text reads back onto the same grid
   // integer (beyond about 15 significant digits it might not), else shortest.
-  auto coord = [&](double v, int k) { append_grid_coordinate(line, v, grid.scale[k], grid.offset[k], decimals[k]); };
+  const GridText grid_text = text_of(cloud, grid);
+  auto coord = [&](double v, int k) { grid_text.append(line, v, k); };
   const bool colour_8bit = cloud.rgb_from_8bit_las;
   auto colour = [&](std::uint16_t v) -> unsigned { return colour_8bit ? detail::colour_to_8bit(v) : v; };
   for (std::size_t i = 0; i < cloud.size(); ++i) {
