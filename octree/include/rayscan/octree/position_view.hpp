@@ -22,10 +22,8 @@ namespace rayscan {
 /// the index file's int32 grid decode with, so decoded values are bit-identical to the reader's.
 /// That holds only while the multiply and the add round separately: GCC and Clang fuse them into
 /// an FMA in C++ by default (-std=c++20 included) wherever the target has one (aarch64,
-/// -march=native). The targets that decode LAS coordinates therefore compile with
-/// -ffp-contract=off: io (the readers), octree and site (rayscan_octree_impl: index file, COPC),
-/// jobs, the SQL import, and the renderer and analysis (which decode sphere centres inline: hit
-/// normals, the height-field walk).
+/// -march=native). So -ffp-contract=off is a usage requirement of rayscan::octree (its CMake
+/// target): every target that includes this header compiles without contraction.
 [[nodiscard]] inline double las_coordinate(std::int32_t v, double scale, double offset) {
   return static_cast<double>(v) * scale + offset;
 }
