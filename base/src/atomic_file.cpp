@@ -2,6 +2,7 @@
 #include "rayscan/base/atomic_file.hpp"
 
 #include "rayscan/base/input_file.hpp"
+#include "rayscan/base/interrupt.hpp"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -72,12 +73,15 @@ void require_outputs(std::span<const std::filesystem::path> outputs, std::span<c
     // file system that takes no new files (procfs, sysfs, a read-only mount) only says so when one
     // is created. A short fixed name, so that a long output name cannot make it too long.
     const std::filesystem::path probe = dir / (".rayscan-probe." + std::to_string(::getpid()));
-    ::unlink(probe.c_str());  // a stale probe of this pid (or a planted link): removed, not followed
-    const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
-    if (fd < 0)
-      refuse_output(out, "cannot write in directory '" + one_line(dir.string()) + "': " + std::strerror(errno));
-    ::close(fd);
-    ::unlink(probe.c_str());
+    {
+      const RemoveOnInterrupt on_signal(probe);  // a signal between open and unlink removes it too
+      ::unlink(probe.c_str());  // a stale probe of this pid (or a planted link): removed, not followed
+      const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+      if (fd < 0)
+        refuse_output(out, "cannot write in directory '" + one_line(dir.string()) + "': " + std::strerror(errno));
+      ::close(fd);
+      ::unlink(probe.c_str());
+    }
     struct stat os {};
     if (::stat(out.c_str(), &os) != 0) continue;  // a new file cannot be an input
     for (const std::filesystem::path& in : inputs) {
