@@ -398,7 +398,7 @@ TEST(BadInput, CheckedInFuzzerFindingsReadOrFailCleanly) {
   std::map<std::string, std::size_t> replayed;
   for (const auto& dir : fs::directory_iterator(root)) {
     const std::string format = dir.path().filename().string();
-    if (not_here.count(format) != 0) continue;
+    if (not_here.count(format) != 0 || fs::is_empty(dir.path())) continue;
     // Every folder of findings is replayed: one with no entry here fails until it has one.
     EXPECT_TRUE(replays.count(format) != 0 || format == "rsi") << "tests/fuzz/regressions/" << format << " is not replayed";
     for (const auto& de : fs::directory_iterator(dir.path())) {
