@@ -6,13 +6,13 @@
 //
 // CRC-32C fix-up: a mutated file almost never keeps valid section checksums, so the fuzzer would
 // only ever exercise the CRC check. Like PNG fuzz harnesses, the target recomputes every section's
-// CRC (for sections inside the input) and then the header CRC before opening, so the structural
+// CRC (for sections inside the input) and then the header CRC before opening (fix_index_crcs,
+// tests/common/index_crcs.hpp, which the replay of the findings shares), so the structural
 // checks behind the CRCs (section table, node ranges, sources) are what gets fuzzed; the first
 // inputs whose size is 15 modulo 16 keep their checksums as they are (so the CRC path stays covered).
 // Built and run by tests/fuzz/run.sh.
-#include "bytes.hpp"
+#include "../common/index_crcs.hpp"
 #include "rayscan/octree/batch.hpp"
-#include "rayscan/base/crc32c.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/octree/normals.hpp"
 #include "rayscan/octree/point_query.hpp"
@@ -30,41 +30,10 @@
 #include <unistd.h>
 #include <vector>
 
-namespace {
-
-std::uint32_t crc(const std::uint8_t* p, std::size_t n) {
-  return rayscan::io::crc32c(p, n);
-}
-template <class T>
-T get(const std::vector<std::uint8_t>& b, std::size_t at) {
-  return rayscan::io::detail::load_le<T>(b.data() + at);
-}
-template <class T>
-void put(std::vector<std::uint8_t>& b, std::size_t at, T v) {
-  rayscan::io::detail::store_le(b, at, v);
-}
-
-// Offsets of docs/index-format.md "Header".
-constexpr std::size_t kHeader = 4096, kSectionCount = 20, kHeaderCrc = 120, kTable = 128, kEntry = 32;
-
-void fix_crcs(std::vector<std::uint8_t>& b) {
-  if (b.size() < kHeader) return;
-  const std::uint32_t sections = get<std::uint32_t>(b, kSectionCount);
-  for (std::uint32_t i = 0; i < sections && i < 16; ++i) {
-    const std::size_t e = kTable + i * kEntry;
-    const auto off = get<std::uint64_t>(b, e + 8), size = get<std::uint64_t>(b, e + 16);
-    if (off <= b.size() && size <= b.size() - off) put<std::uint32_t>(b, e + 24, crc(b.data() + off, size));
-  }
-  put<std::uint32_t>(b, kHeaderCrc, 0);
-  put<std::uint32_t>(b, kHeaderCrc, crc(b.data(), kHeader));
-}
-
-}  // namespace
-
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const bool keep_crcs = size % 16 == 15;  // 1 in 16 inputs: the raw checksums
   std::vector<std::uint8_t> b(data, data + size);
-  if (!keep_crcs) fix_crcs(b);
+  if (!keep_crcs) rayscan::test::fix_index_crcs(b);
 
   static const std::string path = "/tmp/fuzz-rsi-" + std::to_string(::getpid()) + ".rsi";
   if (std::FILE* f = std::fopen(path.c_str(), "wb")) {

@@ -1,7 +1,7 @@
 // Malformed input: every case raises io::FormatError with one line naming the file and the byte
 // offset or line, never crashes and never allocates from an unchecked count.
 #include "io_test_util.hpp"
-#include "rayscan/base/crc32c.hpp"
+#include "../common/index_crcs.hpp"
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/octree/batch.hpp"
 #include "rayscan/octree/normals.hpp"
@@ -257,23 +257,6 @@ TEST(BadInput, ExtraBytesDescriptorWithReservedTypeIsSkippedWithANote) {
 // this executable: the SQL target calls the SQLite extension's functions, which only
 // rayscan_sqlite_tests loads, so regressions/sql is not replayed here.
 
-/// Recomputes the CRC-32C of every section that lies inside `b` and then the header's, exactly as
-/// tests/fuzz/fuzz_rsi.cpp does before it opens an input (docs/index-format.md, "Header": the
-/// section count at byte 20, the 32-byte table entries from byte 128 with the CRC at +24, the
-/// header CRC at byte 120): the structural checks behind the CRCs are what a finding exercises.
-void fix_index_crcs(std::vector<std::uint8_t>& b) {
-  constexpr std::size_t kHeader = 4096, kTable = 128, kEntry = 32;
-  if (b.size() < kHeader) return;
-  const std::uint32_t sections = load_at<std::uint32_t>(b, 20);
-  for (std::uint32_t i = 0; i < sections && i < 16; ++i) {
-    const std::size_t e = kTable + i * kEntry;
-    const auto off = load_at<std::uint64_t>(b, e + 8), size = load_at<std::uint64_t>(b, e + 16);
-    if (off <= b.size() && size <= b.size() - off) store_at<std::uint32_t>(b, e + 24, io::crc32c(b.data() + off, size));
-  }
-  store_at<std::uint32_t>(b, 120, 0);
-  store_at<std::uint32_t>(b, 120, io::crc32c(b.data(), kHeader));
-}
-
 /// fuzz_rsi.cpp's three ways of opening an input (it picks one by the input's size modulo 3; the
 /// replay uses all three): 0 every check, 1 the node records without CRCs or ids (a file above
 /// deep_check_bytes), 2 no record checks at all.
@@ -394,7 +377,7 @@ TEST(BadInput, CheckedInFuzzerFindingsReadOrFailCleanly) {
        }},
       {"copc", [](const fs::path& p, const std::string&) { replay_copc(p); }},
   };
-  const std::set<std::string> not_here = {"sql"};  // see the note above fix_index_crcs
+  const std::set<std::string> not_here = {"sql"};  // see the note above fuzz_index_open_options
   std::map<std::string, std::size_t> replayed;
   for (const auto& dir : fs::directory_iterator(root)) {
     const std::string format = dir.path().filename().string();
