@@ -4,6 +4,7 @@
 #include "rayscan/base/input_file.hpp"
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/io/crs.hpp"
+#include "rayscan/io/grid_text.hpp"
 #include "rayscan/io/point_reader.hpp"
 
 #include <nlohmann/json.hpp>
@@ -29,19 +30,24 @@ std::string decimal(double v) {
   return buf;
 }
 
-/// A coordinate printed to the file's resolution: with the decimals of the LAS scale
-/// (step_decimals), else the shortest text that reads back as the same double.
-std::string coord(double v, const std::optional<Vec3>& scale, int axis) {
-  const int dec = scale ? step_decimals((*scale)[axis]) : -1;
-  if (dec < 0) return shortest_text(v);
-  char buf[400];
-  std::snprintf(buf, sizeof buf, "%.*f", dec, v);
-  return buf;
+/// How the report prints coordinates: to the file's LAS grid (io::GridText, the rule of the text
+/// writer and the query CSV: the decimals of the scale, or of the offset when it has more, so that
+/// scale 0.01 with offset 0.005 prints x.xx5) when it has a scale, else shortest text (no grid).
+GridText grid_text_of(const FileInfo& info) {
+  return info.scale ? GridText::of(*info.scale, info.offset.value_or(Vec3(0.0))) : GridText{};
+}
+
+/// Coordinate `axis` (0..2) of a point as `grid` prints it (GridText::append: a value off the
+/// grid prints shortest).
+std::string coord(double v, const GridText& grid, int axis) {
+  std::string s;
+  grid.append(s, v, axis);
+  return s;
 }
 
 /// The three coordinates of `v`, space-separated (coord).
-std::string coords(const Vec3& v, const std::optional<Vec3>& scale) {
-  return coord(v.x, scale, 0) + " " + coord(v.y, scale, 1) + " " + coord(v.z, scale, 2);
+std::string coords(const Vec3& v, const GridText& grid) {
+  return coord(v.x, grid, 0) + " " + coord(v.y, grid, 1) + " " + coord(v.z, grid, 2);
 }
 
 /// The three values of `v`, shortest text each (exact: a LAS offset as stored).
@@ -171,7 +177,10 @@ InfoJobResult run_info(const InfoJobOptions& options) {
     r.info.format = "rayscan index";
     r.count = m.positions().size();
     if (!m.empty()) r.bounds = m.bounds();  // the header's exact bounds, not the root node's float box
-    if (m.position_encoding() == PositionEncoding::las_int32) r.info.scale = m.positions().scale();
+    if (m.position_encoding() == PositionEncoding::las_int32) {
+      r.info.scale = m.positions().scale();
+      r.info.offset = m.positions().offset();
+    }
     r.crs_wkt = m.crs_wkt();
     if (!r.crs_wkt.empty()) r.info.crs_source = "index file";
     describe_crs(r);
@@ -325,8 +334,9 @@ std::string index_report_text(const InfoJobResult& r) {
   o << "ids:               " << x.ids << "\n";
   if (!x.rgb.empty()) o << "rgb:               " << x.rgb << "\n";
   if (r.count != 0) {
-    o << "bounds min:        " << coords(r.bounds.lo, r.info.scale) << "\n";
-    o << "bounds max:        " << coords(r.bounds.hi, r.info.scale) << "\n";
+    const GridText grid = grid_text_of(r.info);
+    o << "bounds min:        " << coords(r.bounds.lo, grid) << "\n";
+    o << "bounds max:        " << coords(r.bounds.hi, grid) << "\n";
   }
   o << "sections:         ";
   for (const IndexSectionInfo& s : x.sections)
@@ -429,9 +439,10 @@ std::string info_report_text(const InfoJobResult& r) {
     for (double v : *r.info.viewpoint) o << decimal(v) << " ";
     o << "(tx ty tz qw qx qy qz; reported, not applied)\n";
   }
+  const GridText grid = grid_text_of(r.info);
   if (r.count != 0) {
-    o << "bounds min:        " << coords(r.bounds.lo, r.info.scale) << "\n";
-    o << "bounds max:        " << coords(r.bounds.hi, r.info.scale) << "\n";
+    o << "bounds min:        " << coords(r.bounds.lo, grid) << "\n";
+    o << "bounds max:        " << coords(r.bounds.hi, grid) << "\n";
   }
   if (r.header_differs) {
     // As stored (shortest text): the header's own values, which are off the grid.
@@ -449,8 +460,8 @@ std::string info_report_text(const InfoJobResult& r) {
       // X, Y, Z to the file's resolution, as the bounds; the other minima and maxima are values of
       // the file's points (integers, GPS times), exact; means and deviations to 10 digits.
       const int axis = a.name == "X" ? 0 : a.name == "Y" ? 1 : a.name == "Z" ? 2 : -1;
-      const std::string lo = axis >= 0 ? coord(a.lo, r.info.scale, axis) : shortest_text(a.lo);
-      const std::string hi = axis >= 0 ? coord(a.hi, r.info.scale, axis) : shortest_text(a.hi);
+      const std::string lo = axis >= 0 ? coord(a.lo, grid, axis) : shortest_text(a.lo);
+      const std::string hi = axis >= 0 ? coord(a.hi, grid, axis) : shortest_text(a.hi);
       char line[1024];
       if (r.stats)
         std::snprintf(line, sizeof line, "  %-20s %18s %18s %18s %18s\n", a.name.c_str(), lo.c_str(), hi.c_str(),

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <cstdlib>
@@ -291,6 +292,118 @@ TEST(InfoCli, TextPrintsOffsetsExactlyAndCoordinatesToTheScalesResolution) {
   ASSERT_EQ(x.size(), 2u) << t;
   EXPECT_EQ(x[0], lo[0]);
   EXPECT_EQ(x[1], hi[0]);
+}
+
+/// A decimal written as text ("0.005", "-2.5"): its digits without the point, as an integer, and
+/// the number of digits after the point.
+struct DecimalText {
+  std::int64_t digits = 0;
+  int decimals = 0;
+};
+DecimalText decimal_text_of(const std::string& t) {
+  const std::size_t dot = t.find('.');
+  std::string d = t;
+  if (dot != std::string::npos) d.erase(dot, 1);
+  return {std::stoll(d), dot == std::string::npos ? 0 : static_cast<int>(t.size() - dot - 1)};
+}
+
+/// The value with `decimals` decimals whose digits, without the point, are `units` ("-6.775" for
+/// -6775 and 3): decimal text made with integers only.
+std::string fixed_point_text(std::int64_t units, int decimals) {
+  std::int64_t p = 1;
+  for (int i = 0; i < decimals; ++i) p *= 10;
+  const std::int64_t a = units < 0 ? -units : units;
+  std::string frac = std::to_string(a % p);
+  frac.insert(0, static_cast<std::size_t>(decimals) - frac.size(), '0');
+  std::string t = units < 0 ? "-" : "";
+  t += std::to_string(a / p);
+  if (decimals > 0) t += '.', t += frac;
+  return t;
+}
+
+// A LAS grid whose offset has more decimals than its scale (x: scale 0.01, offset 0.005, points at
+// x.xx5) prints its bounds and X, Y, Z ranges with the offset's decimals, not rounded off the grid
+// to the scale's (123.455 once printed as 123.45 or 123.46), in the file's text report and in its
+// index file's; the JSON keeps the exact doubles. Oracle: the file is built here (LAS 1.2, PDRF 0:
+// ASPRS LAS 1.4 R15 table 3 offsets, 20-byte records) and each expected text is made from the
+// record's integer and the scale and offset written as decimal text, with integers only.
+TEST(InfoCli, BoundsPrintWithTheDecimalsOfAnOffsetFinerThanTheScale) {
+  const std::array<std::string, 3> scale_text = {"0.01", "0.001", "0.01"};
+  const std::array<std::string, 3> offset_text = {"0.005", "-20.0005", "100"};
+  const std::vector<std::array<std::int32_t, 3>> ints = {{12345, -4321, 150}, {-678, 99999, -25}, {1000000, 7, 3}};
+  const std::uint32_t n = static_cast<std::uint32_t>(ints.size());
+  std::vector<std::uint8_t> b(227, 0);
+  std::memcpy(&b[0], "LASF", 4);
+  b[24] = 1, b[25] = 2;
+  store_at<std::uint16_t>(b, 94, 227);          // header size
+  store_at<std::uint32_t>(b, 96, 227);          // offset to the points (no VLRs)
+  b[104] = 0;                                   // PDRF 0
+  store_at<std::uint16_t>(b, 105, 20);          // record length
+  store_at<std::uint32_t>(b, 107, n);           // legacy point count
+  store_at<std::uint32_t>(b, 111, n);           // all first returns
+  std::array<std::int32_t, 3> lo_int{}, hi_int{};
+  for (int k = 0; k < 3; ++k) {
+    store_at<double>(b, 131 + 8 * k, std::strtod(scale_text[k].c_str(), nullptr));
+    store_at<double>(b, 155 + 8 * k, std::strtod(offset_text[k].c_str(), nullptr));
+    lo_int[k] = hi_int[k] = ints[0][k];
+    for (const auto& p : ints) lo_int[k] = std::min(lo_int[k], p[k]), hi_int[k] = std::max(hi_int[k], p[k]);
+  }
+  // X * scale + offset in double, as ASPRS defines the coordinates (and the header's min and max).
+  const auto coordinate = [&](std::int32_t v, int k) {
+    return static_cast<double>(v) * load_at<double>(b, 131 + 8 * k) + load_at<double>(b, 155 + 8 * k);
+  };
+  for (int k = 0; k < 3; ++k) {
+    store_at<double>(b, 179 + 16 * k, coordinate(hi_int[k], k));
+    store_at<double>(b, 187 + 16 * k, coordinate(lo_int[k], k));
+  }
+  for (const auto& p : ints) {
+    const std::size_t at = b.size();
+    b.resize(at + 20, 0);
+    for (int k = 0; k < 3; ++k) store_at<std::int32_t>(b, at + 4 * static_cast<std::size_t>(k), p[k]);
+    b[at + 14] = 0x09;  // return 1 of 1
+  }
+  const fs::path las = temp_dir() / "offset_grid.las";
+  std::ofstream(las, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+
+  // The expected text of grid integer `v` on axis k: in units of 10^-d, d the larger of the scale's
+  // and the offset's decimals, v * scale + offset is an integer.
+  const auto grid_text = [&](std::int32_t v, int k) {
+    const DecimalText s = decimal_text_of(scale_text[k]), o = decimal_text_of(offset_text[k]);
+    const int d = std::max(s.decimals, o.decimals);
+    std::int64_t ps = 1, po = 1;
+    for (int i = s.decimals; i < d; ++i) ps *= 10;
+    for (int i = o.decimals; i < d; ++i) po *= 10;
+    return fixed_point_text(std::int64_t{v} * s.digits * ps + o.digits * po, d);
+  };
+  const std::vector<std::string> want_lo = {grid_text(lo_int[0], 0), grid_text(lo_int[1], 1), grid_text(lo_int[2], 2)};
+  const std::vector<std::string> want_hi = {grid_text(hi_int[0], 0), grid_text(hi_int[1], 1), grid_text(hi_int[2], 2)};
+  ASSERT_EQ(want_lo[0], "-6.775");  // the oracle itself: -678 * 0.01 + 0.005
+  ASSERT_EQ(want_hi[1], "79.9985");  // 99999 * 0.001 - 20.0005
+
+  const fs::path out = temp_dir() / "offset_grid.out", err = temp_dir() / "offset_grid.err";
+  ASSERT_EQ(run("info '" + las.string() + "'", out, err), 0) << text_of(err);
+  std::string t = text_of(out);
+  EXPECT_EQ(values_of(t, "bounds min:"), want_lo) << t;
+  EXPECT_EQ(values_of(t, "bounds max:"), want_hi) << t;
+  const char* names[] = {"  X", "  Y", "  Z"};
+  for (int k = 0; k < 3; ++k)
+    EXPECT_EQ(values_of(t, names[k]), (std::vector<std::string>{want_lo[k], want_hi[k]})) << t;
+
+  ASSERT_EQ(run("info --json '" + las.string() + "'", out, err), 0) << text_of(err);
+  const auto j = nlohmann::json::parse(text_of(out));
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(j["bounds"]["min"][k].get<double>(), coordinate(lo_int[k], k)) << k;
+    EXPECT_EQ(j["bounds"]["max"][k].get<double>(), coordinate(hi_int[k], k)) << k;
+  }
+
+  // Its index file stores the LAS integers on the same grid and prints its bounds alike.
+  const fs::path rsi = temp_dir() / "offset_grid.rsi";
+  ASSERT_EQ(run("index -q '" + las.string() + "' -o '" + rsi.string() + "'", out, err), 0) << text_of(err);
+  ASSERT_EQ(run("info '" + rsi.string() + "'", out, err), 0) << text_of(err);
+  t = text_of(out);
+  ASSERT_NE(t.find("positions:         las_int32"), std::string::npos) << t;
+  EXPECT_EQ(values_of(t, "bounds min:"), want_lo) << t;
+  EXPECT_EQ(values_of(t, "bounds max:"), want_hi) << t;
 }
 
 /// Brute force over a LAS file's own point records (uncompressed, any PDRF): the box of

@@ -84,9 +84,9 @@ struct InfoJobResult {
   /// What a careful reader should know (a geographic CRS over coordinates that are not degrees,
   /// or a projected one over coordinates that look like degrees), one sentence each.
   std::vector<std::string> warnings;
-  /// Set for an index file (.rsi); then info is mostly empty (info.scale: the positions' LAS grid
-  /// when they are stored on one; info.crs_source "index file" when it stores a CRS, whose EPSG
-  /// codes, units and warnings are found as for a cloud's).
+  /// Set for an index file (.rsi); then info is mostly empty (info.scale and info.offset: the
+  /// positions' LAS grid when they are stored on one; info.crs_source "index file" when it stores a
+  /// CRS, whose EPSG codes, units and warnings are found as for a cloud's).
   std::optional<IndexFileSummary> index;
   std::optional<CopcInfo> copc;              ///< set for a COPC file: its octree (hierarchy)
 };
