@@ -6,6 +6,7 @@
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/job.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/jobs/query.hpp"
 #include "atomic_file.hpp"
@@ -106,14 +107,12 @@ int run_query(const QueryOptions& o) {
   if (talk) {
     // The summary: counts from what was written, the thread count actually used (--threads above
     // the cores runs on all of them), the time in all and the query rate.
-    const std::uint64_t rows = r.rows;
-    const auto plural = [](std::uint64_t n, const char* one) { return std::to_string(n) + " " + one + (n == 1 ? "" : "s"); };
-    std::string line = plural(r.rays.size(), "ray") + ", " + plural(rows, "result") + " written to " +
-                       (to_stdout ? std::string("standard output") : "'" + o.out + "'") + "; " +
-                       plural(r.threads, "thread");
+    std::string line = rayscan::count_text(r.rays.size(), "ray") + ", " + rayscan::count_text(r.rows, "result") +
+                       " written to " + (to_stdout ? std::string("standard output") : "'" + o.out + "'") + "; " +
+                       rayscan::count_text(r.threads, "thread");
     if (process_count() > 1) line += " on each of " + std::to_string(process_count()) + " processes";
     char buf[160];
-    std::snprintf(buf, sizeof buf, ", %.2f s in all (%.2f s answering the rays, %.0f rays/s)", rayscan::seconds_since(t0),
+    std::snprintf(buf, sizeof buf, ", %.2f s in all (%.2f s querying, %.0f rays/s)", rayscan::seconds_since(t0),
                   r.query_seconds, r.query_seconds > 0 ? static_cast<double>(r.rays.size()) / r.query_seconds : 0.0);
     std::cerr << "rayscan query: " << line << buf << "\n";
     if (!traffic_summary().empty()) std::cerr << "rayscan query: " << traffic_summary() << "\n";

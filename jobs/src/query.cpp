@@ -4,6 +4,7 @@
 #include "rayscan/site/site.hpp"
 #include "rayscan/io/grid_text.hpp"
 #include "rayscan/io/rays.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/base/progress.hpp"
 #include "rayscan/base/threads.hpp"
@@ -246,9 +247,8 @@ QueryJobResult run_query(const QueryJobOptions& o) {
     }
     const PointCloud& cloud = o.cloud ? *o.cloud : r.cloud;
     char buf[256];
-    std::snprintf(buf, sizeof buf, "read %zu points and %zu rays in %.2f s", cloud.size(), r.rays.size(),
-                  seconds_since(t0));
-    o.control.info(buf);
+    std::snprintf(buf, sizeof buf, " in %.2f s", seconds_since(t0));
+    o.control.info("read " + count_text(cloud.size(), "point") + " and " + count_text(r.rays.size(), "ray") + buf);
     const auto t_build = std::chrono::steady_clock::now();
     site.emplace(Site::over(cloud, o.index));
     std::snprintf(buf, sizeof buf, "%s index built in %.2f s", o.index.type.c_str(), seconds_since(t_build));
@@ -307,11 +307,10 @@ QueryJobResult run_query(const QueryJobOptions& o) {
     if constexpr (copc) {
       r.copc_decodes = idx.decodes();
       r.copc_nodes = idx.node_count();
-      char msg[256];
-      std::snprintf(msg, sizeof msg, "COPC: %llu of %llu nodes decoded, %zu rays in %.2f s",
-                    static_cast<unsigned long long>(r.copc_decodes), static_cast<unsigned long long>(r.copc_nodes),
-                    r.rays.size(), seconds_since(t0));
-      o.control.info(msg);
+      char secs[64];
+      std::snprintf(secs, sizeof secs, " in %.2f s", seconds_since(t0));
+      o.control.info("COPC: " + std::to_string(r.copc_decodes) + " of " + count_text(r.copc_nodes, "node") +
+                     " decoded, " + count_text(r.rays.size(), "ray") + secs);
     }
   });
   r.query_seconds = seconds_since(t_query);

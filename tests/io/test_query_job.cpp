@@ -237,3 +237,23 @@ TEST(InfoJob, CountsAndBoundsOfATestFile) {
   EXPECT_NE(info_report_text(r).find("points:            110000"), std::string::npos);
   EXPECT_NE(info_report_json(r).find("\"count\": 110000"), std::string::npos);
 }
+
+// A COPC file queried in place logs its node decodes with the rays, one ray in the singular.
+// Oracle: lone-star.copc.laz's 15 hierarchy nodes (docs/visibility.md) and the job's own decode
+// count, a ray down through one of its points (--k 1: one hit).
+TEST(QueryJob, CopcLogLineOfOneRayIsSingular) {
+  RAYSCAN_REQUIRE_FILE(copc, "laz/lone-star.copc.laz");
+  QueryJobOptions o;
+  o.cloud_file = copc;
+  o.rays = {rays_down_through(io::read_point_cloud(copc, io::ReadOptions{.scalars = false})).front()};
+  o.query.k = 1;
+  std::vector<std::string> log;
+  o.control.log = [&](const std::string& line) { log.push_back(line); };
+  const QueryJobResult r = run_query(o);
+  ASSERT_EQ(r.hits.size(), 1u);
+  EXPECT_EQ(r.hits[0].size(), 1u);
+  EXPECT_EQ(r.copc_nodes, 15u);
+  ASSERT_EQ(log.size(), 1u);
+  const std::string want = "COPC: " + std::to_string(r.copc_decodes) + " of 15 nodes decoded, 1 ray in ";
+  EXPECT_EQ(log[0].substr(0, want.size()), want) << log[0];
+}

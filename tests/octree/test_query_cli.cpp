@@ -195,7 +195,7 @@ TEST_F(QueryCli, SummaryLineCountsTheRaysFileAndTheRowsWritten) {
     return rayscan::test::run_command("(" + base + args + " 2>'" + err.string() + "')", false);
   };
   const std::regex summary(R"(rayscan query: (\d+) rays, (\d+) results written to (.*); (\d+) threads?, )"
-                           R"(\d+\.\d\d s in all \(\d+\.\d\d s answering the rays, \d+ rays/s\)\n$)");
+                           R"(\d+\.\d\d s in all \(\d+\.\d\d s querying, \d+ rays/s\)\n$)");
   std::smatch m;
 
   RunResult r = run_split(" --threads 1 --out '" + out.string() + "'");
@@ -237,6 +237,28 @@ TEST_F(QueryCli, SummaryLineCountsTheRaysFileAndTheRowsWritten) {
     EXPECT_EQ(e.find(" written to "), std::string::npos) << e;
     EXPECT_EQ(e.substr(e.rfind("rayscan query: ")).rfind("rayscan query: standard output: write failed", 0), 0u) << e;
   }
+}
+
+// One point, one ray: every count on standard error in the singular ("1 point", "1 ray", "1
+// result", "1 thread"), never "1 rays". Oracle: the counts of the two files written here and --k 1
+// (with no radius the one ray's nearest point is always a hit: one row).
+TEST_F(QueryCli, OneRayIsSingularInTheLogAndTheSummary) {
+  std::ofstream(dir_ / "one_point.csv") << "x,y,z\n600000.5,5300000.5,0.5\n";
+  std::ofstream(dir_ / "one_ray.csv") << "ox,oy,oz,dx,dy,dz\n599999,5300000.5,0.5,1,0,0\n";
+  const fs::path err = dir_ / "err.txt", out = dir_ / "one.csv";
+  const RunResult r = rayscan::test::run_command(
+      "(" + std::string(RAYSCAN_BIN) + " query --cloud '" + (dir_ / "one_point.csv").string() + "' --rays '" +
+          (dir_ / "one_ray.csv").string() + "' --k 1 --threads 1 --out '" + out.string() + "' 2>'" + err.string() + "')",
+      false);
+  ASSERT_EQ(r.code, 0) << slurp(err);
+  EXPECT_EQ(slurp(out), "ray,rank,index,x,y,z,t,distance\n0,0,0,600000.5,5300000.5,0.5,1.5,0\n");
+  const std::string e = slurp(err);
+  EXPECT_TRUE(std::regex_search(e, std::regex(R"(^rayscan query: read 1 point and 1 ray in \d+\.\d\d s\n)"))) << e;
+  EXPECT_TRUE(std::regex_search(e, std::regex("\nrayscan query: 1 ray, 1 result written to '" + out.string() +
+                                              R"('; 1 thread, \d+\.\d\d s in all \(\d+\.\d\d s querying, \d+ rays/s\)\n$)")))
+      << e;
+  // No count of one in the plural anywhere (a rate such as "9601 rays/s" is a unit, not a count).
+  EXPECT_FALSE(std::regex_search(e, std::regex(R"((^|[^0-9.])1 (ray|point|result|thread)s($|[^/]))"))) << e;
 }
 
 // The rows are written as the rays are answered, run by run: a run is a whole block of 256 rays

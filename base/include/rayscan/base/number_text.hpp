@@ -1,10 +1,12 @@
 // Numbers as text for reports and messages: the shortest decimal that reads back as the same
 // double (std::to_chars), so a value printed and parsed again is bit-identical, and a value that
-// came from decimal text (636500.92) prints as it was written, not as 636500.92000000004.
+// came from decimal text (636500.92) prints as it was written, not as 636500.92000000004. Counts
+// with their noun, singular for one ("1 ray", "2 rays").
 #pragma once
 
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <string>
 #include <string_view>
 
@@ -31,6 +33,17 @@ namespace rayscan {
   const std::size_t dot = t.find('.');
   const int dec = dot == std::string_view::npos ? 0 : static_cast<int>(t.size() - dot - 1);
   return dec <= 12 ? dec : -1;
+}
+
+/// `n` and the noun `one`, in the plural unless `n` is 1: count_text(1, "ray") is "1 ray",
+/// count_text(0, "ray") "0 rays". The plural appends "s": for nouns that form it so (ray, point,
+/// result, thread, node), not for others (a "process" would read "processs").
+[[nodiscard]] inline std::string count_text(std::uint64_t n, std::string_view one) {
+  std::string s = std::to_string(n);
+  s += ' ';
+  s += one;
+  if (n != 1) s += 's';
+  return s;
 }
 
 }  // namespace rayscan
