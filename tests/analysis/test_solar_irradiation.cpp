@@ -832,11 +832,11 @@ TEST(SolarJob, ADayOfShadowsInLocalMeanSolarTimeStatesExactInstants) {
 
 // A CRS that gives sun directions no frame is refused from the file's header, before any point is
 // read: a LAS file naming WGS 84 (geographic) whose point records cannot be read (an x scale of
-// 1e308 takes every x, 515000 and more, past infinity, which only reading the records finds, as
+// 1e308 takes x past the coordinate bound, 1e9, which only reading the records finds, as
 // `rayscan info` shows) gets the CRS's refusal, one line and no log line of reading. --lat/--lon do
 // not make degrees a frame, so they do not help, and the line does not offer them.
 // A weather file that is a FIFO (or a folder) is refused before the points are read: the cloud
-// here has an x scale of 1e308, so reading its points fails ("overflows to infinity"); the one
+// here has an x scale of 1e308, so reading its points fails ("the coordinate bound"); the one
 // error line is the weather file's.
 TEST(SolarCli, AWeatherFileThatIsNoRegularFileIsRefusedBeforeThePointsAreRead) {
   const std::filesystem::path dir = std::filesystem::path(testing::TempDir()) / "solar_weather_fifo";
@@ -858,13 +858,13 @@ TEST(SolarCli, AWeatherFileThatIsNoRegularFileIsRefusedBeforeThePointsAreRead) {
                            "' --lat 44 --lon -123 --start 2026-06-01 --end 2026-06-02 -o '" + out.string() + "'";
   const auto points = rayscan::test::run_command(base);
   EXPECT_EQ(points.code, 2) << points.out;
-  EXPECT_NE(points.out.find("overflows to infinity"), std::string::npos) << points.out;
+  EXPECT_NE(points.out.find("the coordinate bound"), std::string::npos) << points.out;
   for (const std::filesystem::path& w : {fifo, dir}) {
     const auto r = rayscan::test::run_command(base + " --weather '" + w.string() + "'");
     EXPECT_EQ(r.code, 2) << r.out;
     EXPECT_NE(r.out.find(w.string() + ": is a"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("not a regular file"), std::string::npos) << r.out;
-    EXPECT_EQ(r.out.find("overflows"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("coordinate bound"), std::string::npos) << r.out;
     EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
   }
   EXPECT_FALSE(std::filesystem::exists(out));
@@ -893,7 +893,7 @@ TEST(SolarCli, AGeographicCrsIsRefusedFromTheHeaderBeforeThePointsAreRead) {
   }
   const auto info = rayscan::test::run_command(std::string(RAYSCAN_BIN) + " info '" + las.string() + "'");
   EXPECT_EQ(info.code, 2) << info.out;
-  EXPECT_NE(info.out.find("overflows to infinity"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("the coordinate bound"), std::string::npos) << info.out;
   for (const std::string extra : {"", " --lat 44.4 --lon -110.8"}) {
     const auto r = rayscan::test::run_command(std::string(RAYSCAN_BIN) + " solar '" + las.string() +
                                               "' --at 2026-06-21T12:00Z -o '" + out.string() + "'" + extra);

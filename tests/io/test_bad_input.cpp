@@ -104,6 +104,47 @@ TEST(BadInput, LasNonFiniteScale) {
   expect_one_line(error_of(b, io::Format::las), "byte 139: scale factor Y");
 }
 
+// The coordinate bound (rayscan::kMaxCoordinate, 1e9 world units) is inclusive: a coordinate of
+// exactly +-1e9 reads, one step beyond is refused naming the point, the axis and the value; an
+// offset beyond the bound is refused at the header. Oracle: the LAS formula X x scale + offset on
+// integers and scales/offsets chosen here, exact in double.
+TEST(BadInput, LasCoordinateBoundIsInclusiveAndAnOffsetBeyondItIsRefused) {
+  auto b = las_bytes();
+  const std::uint32_t at = load_at<std::uint32_t>(b, 96);
+  const std::uint16_t len = load_at<std::uint16_t>(b, 105);
+  const std::uint32_t count = load_at<std::uint32_t>(b, 107);
+  ASSERT_GE(count, 3u);
+  // Scale 1 on X and Y, offsets 10 inside the bound, every stored X and Y 0 (the offsets).
+  poke<double>(b, 131, 1.0);
+  poke<double>(b, 139, 1.0);
+  poke<double>(b, 155, 1e9 - 10);
+  poke<double>(b, 163, -(1e9 - 10));
+  for (std::uint32_t i = 0; i < count; ++i) {
+    poke<std::int32_t>(b, at + std::size_t{i} * len, 0);
+    poke<std::int32_t>(b, at + std::size_t{i} * len + 4, 0);
+  }
+  poke<std::int32_t>(b, at + std::size_t{1} * len, 10);       // point 1: X = 1e9
+  poke<std::int32_t>(b, at + std::size_t{2} * len + 4, -10);  // point 2: Y = -1e9
+  const PointCloud pc = io::read_point_cloud(b, io::Format::las, "bad");
+  ASSERT_EQ(pc.positions.size(), count);
+  EXPECT_EQ(pc.positions[1].x, 1e9);
+  EXPECT_EQ(pc.positions[2].y, -1e9);
+
+  auto beyond = b;
+  poke<std::int32_t>(beyond, at + std::size_t{1} * len, 11);
+  expect_one_line(error_of(beyond, io::Format::las),
+                  "byte " + std::to_string(at + len) + ": point 1: X coordinate is 1000000001 (stored integer 11 x scale 1 + "
+                  "offset 999999990; expected within +-1e+09");
+  beyond = b;
+  poke<std::int32_t>(beyond, at + std::size_t{2} * len + 4, -11);
+  expect_one_line(error_of(beyond, io::Format::las), "point 2: Y coordinate is -1000000001");
+
+  // An offset beyond the bound is refused at its header field, before any point is read.
+  beyond = b;
+  poke<double>(beyond, 171, -1.5e9);
+  expect_one_line(error_of(beyond, io::Format::las), "byte 171: offset Z is -1.5e+09 (expected within +-1e+09");
+}
+
 TEST(BadInput, PlyUnknownTypeTruncatedBodyAndNanCoordinate) {
   expect_one_line(error_of(std::string("ply\nformat ascii 1.0\nelement vertex 1\nproperty float128 x\nend_header\n"),
                            io::Format::ply),

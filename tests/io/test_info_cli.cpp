@@ -591,6 +591,42 @@ TEST(InfoCli, EmptyFileJsonBoundsIsNull) {
   EXPECT_EQ(text_of(out).find("bounds min:"), std::string::npos) << text_of(out);
 }
 
+// A LAS or LAZ file whose scale puts a point beyond the coordinate bound (1e9 world units) is
+// refused by `info` with exit code 2 and one line naming the file, the point, the axis, the value
+// and the bound; the same file with its own scale reads, points at +-1e8 included. Oracle: the
+// stored integers are the coordinates themselves (scale 1, offset 0, chosen here), so point 1's
+// X becomes 1 x 1e290 + 0 once the header's X scale (byte 131, outside the LAZ compression) is
+// overwritten.
+TEST(InfoCli, ScaleThatPutsAPointBeyondTheCoordinateBoundExitsWith2) {
+  PointCloud cloud;
+  cloud.positions = {Vec3(0, 0, 0), Vec3(1, 2, 3), Vec3(1e8, -1e8, 1e8)};
+  io::LasWriteOptions opt;
+  opt.scale = Vec3(1.0);
+  opt.offset = Vec3(0.0);
+  opt.has_offset = true;
+  for (const std::string ext : {".las", ".laz"}) {
+    const fs::path p = temp_dir() / ("beyond_bound" + ext), out = temp_dir() / "bound.out", err = temp_dir() / "bound.err";
+    io::write_las(p, cloud, opt);
+    ASSERT_EQ(run("info --json '" + p.string() + "'", out, err), 0) << ext << ": " << text_of(err);
+    const auto j = nlohmann::json::parse(text_of(out));
+    EXPECT_EQ(j["bounds"]["max"][0].get<double>(), 1e8) << ext;
+    EXPECT_EQ(j["bounds"]["min"][1].get<double>(), -1e8) << ext;
+    auto b = slurp(p);
+    ASSERT_EQ(load_at<double>(b, 131), 1.0) << ext;
+    store_at<double>(b, 131, 1e290);
+    std::ofstream(p, std::ios::binary | std::ios::trunc).write(reinterpret_cast<const char*>(b.data()),
+                                                               static_cast<std::streamsize>(b.size()));
+    EXPECT_EQ(run("info '" + p.string() + "'", out, err), 2) << ext << ": " << text_of(out);
+    const std::string e = text_of(err);
+    EXPECT_EQ(e.rfind("rayscan info: " + p.string() + ": byte ", 0), 0u) << e;
+    EXPECT_NE(e.find(": point 1: X coordinate is 1e+290 (stored integer 1 x scale 1e+290 + offset 0; expected "
+                     "within +-1e+09, the coordinate bound in world units)"),
+              std::string::npos)
+        << e;
+    EXPECT_EQ(std::count(e.begin(), e.end(), '\n'), 1) << e;
+  }
+}
+
 TEST(InfoCli, BadFileExitsWithCode2AndOneLine) {
   const fs::path bad = temp_dir() / "bad.las";
   {

@@ -1,5 +1,7 @@
 // parse_las_header(): see las_header.hpp. ASPRS LAS 1.4 R15 section 2.4 (table 3), 2.5, 2.7.
 #include "las/las_header.hpp"
+#include "rayscan/base/coordinate_bound.hpp"
+#include "rayscan/base/number_text.hpp"
 
 #include <cmath>
 #include <cstring>
@@ -157,6 +159,13 @@ LasHeader parse_las_header(const Input& in) {
       fail_at(nm, 131 + 8 * k, std::string("scale factor ") + "XYZ"[k] + " is " + std::to_string(h.scale[k]) +
                                    " (expected a finite non-zero number)");
     if (!std::isfinite(h.offset[k])) fail_at(nm, 155 + 8 * k, std::string("offset ") + "XYZ"[k] + " is not finite");
+    // An offset beyond the bound puts the file's first coordinates there too (a stored 0 is the
+    // offset itself). The scale is not bounded here: a large scale is refused point by point, as
+    // a file whose stored integers are all small may still lie within the bound.
+    if (std::abs(h.offset[k]) > kMaxCoordinate)
+      fail_at(nm, 155 + 8 * k, std::string("offset ") + "XYZ"[k] + " is " + shortest_text(h.offset[k]) +
+                                   " (expected within +-" + shortest_text(kMaxCoordinate) +
+                                   ", the coordinate bound in world units)");
   }
   return h;
 }

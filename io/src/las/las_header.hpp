@@ -37,7 +37,7 @@ struct LasHeader {
   int pdrf = 0;                   ///< point data record format 0..10
   std::uint16_t record_length = 0;///< >= pdrf_length(pdrf)
   std::uint64_t count = 0;        ///< point count (legacy 32-bit, or the 1.4 64-bit one when set)
-  Vec3 scale{1.0}, offset{0.0};   ///< finite, scale non-zero
+  Vec3 scale{1.0}, offset{0.0};   ///< finite, scale non-zero, |offset| <= kMaxCoordinate
   AABB header_bounds;             ///< max/min x, y, z as stored (never trusted)
   std::uint64_t data_end = 0;     ///< end of the point data: the EVLR start, else the file size
   std::vector<VlrInfo> vlrs;      ///< VLRs in file order, then EVLRs (payload at offset + 54 / + 60)
@@ -61,8 +61,9 @@ struct LasHeader {
 /// Throws FormatError "file: byte N: what was expected" on a bad signature or version, a header
 /// smaller than its version requires, a point offset outside [header size, file size], an (E)VLR
 /// running past its region, the compression bits set without a LASzip VLR, a PDRF outside 0..10,
-/// a record length shorter than the PDRF's fields, or a non-finite/zero scale or offset. The point
-/// count is not checked against the file size here (LAZ bounds it by its chunk table).
+/// a record length shorter than the PDRF's fields, a non-finite/zero scale, or an offset that is
+/// not finite or beyond +-kMaxCoordinate (rayscan/base/coordinate_bound.hpp). The point count is
+/// not checked against the file size here (LAZ bounds it by its chunk table).
 LasHeader parse_las_header(const Input& in);
 
 }  // namespace rayscan::io::detail

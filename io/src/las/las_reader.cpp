@@ -6,6 +6,8 @@
 #include "readers.hpp"
 #include "rayscan/octree/position_view.hpp"
 #include "laz/laz.hpp"
+#include "rayscan/base/coordinate_bound.hpp"
+#include "rayscan/base/number_text.hpp"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -112,7 +114,9 @@ void decode(const Decoder& dc, std::size_t i0, std::size_t i1, Reduction& red) {
     const double x = las_coordinate(load_le<std::int32_t>(r), dc.scale.x, dc.offset.x);
     const double y = las_coordinate(load_le<std::int32_t>(r + 4), dc.scale.y, dc.offset.y);
     const double z = las_coordinate(load_le<std::int32_t>(r + 8), dc.scale.z, dc.offset.z);
-    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) red.first_bad = std::min(red.first_bad, i);
+    // One compare per axis on the decoded doubles; false for an overflow to infinity too.
+    if (!(std::abs(x) <= kMaxCoordinate && std::abs(y) <= kMaxCoordinate && std::abs(z) <= kMaxCoordinate))
+      red.first_bad = std::min(red.first_bad, i);
     o.pos[i] = Vec3(x, y, z);
     if (o.intensity != nullptr) o.intensity[i] = load_le<std::uint16_t>(r + 12);
     if (o.cls != nullptr) o.cls[i] = Legacy ? (r[15] & 0x1F) : r[16];
@@ -280,6 +284,11 @@ class LasReader final : public PointReader {
   /// LAZ: makes records [first, first + n) available (decoding whole chunks into window_, in
   /// parallel over chunks) and returns a pointer to record `first`; n <= points of the window.
   const std::uint8_t* laz_records(std::uint64_t first, std::size_t n, std::uint32_t layers);
+  /// Throws FormatError for point `index`, whose record `r` decodes to a coordinate beyond
+  /// +-kMaxCoordinate: "file: byte B: point N: X coordinate is V (stored integer I x scale S +
+  /// offset O; expected within +-1e+09, ...)", or "overflows to infinity" for V; B is the
+  /// record's byte offset in the file.
+  [[noreturn]] void refuse_coordinate(const std::uint8_t* r, std::uint64_t index) const;
   /// laz_records for compressor 1 (LASzip 1.x pointwise): the file is one stream of all its
   /// points, so one decoder kept across calls decodes the records in sequence into a window of
   /// `n` records (memory: the window, not the file); a request before its position restarts it.
@@ -573,6 +582,23 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
     for (const char* nm : kLasNormalNames) info.fields.emplace_back(nm);
 }
 
+void LasReader::refuse_coordinate(const std::uint8_t* r, std::uint64_t index) const {
+  for (int k = 0; k < 3; ++k) {
+    const std::int32_t stored = load_le<std::int32_t>(r + 4 * k);
+    const double v = las_coordinate(stored, scale_[k], offset_[k]);
+    if (std::abs(v) <= kMaxCoordinate) continue;
+    const std::string how = std::isfinite(v) ? "is " + shortest_text(v) : std::string("overflows to infinity");
+    fail_at(src_->in.name, point_offset_ + index * rec_len_,
+            "point " + std::to_string(index) + ": " + "XYZ"[k] + " coordinate " + how + " (stored integer " +
+                std::to_string(stored) + " x scale " + shortest_text(scale_[k]) + " + offset " +
+                shortest_text(offset_[k]) + "; expected within +-" + shortest_text(kMaxCoordinate) +
+                ", the coordinate bound in world units)");
+  }
+  // Not reached: decode() computes the same expression (las_coordinate, no FP contraction).
+  fail_at(src_->in.name, point_offset_ + index * rec_len_,
+          "point " + std::to_string(index) + ": coordinate beyond +-" + shortest_text(kMaxCoordinate));
+}
+
 void LasReader::decide_colour_scale(std::uint16_t mx) {
   if (mx == 0) {
     attrs_ = AttributeSet{attrs_.bits & ~static_cast<std::uint32_t>(Attribute::rgb)};
@@ -736,9 +762,7 @@ std::size_t LasReader::read(PointCloud& pc, std::size_t max_points) {
           return x;
         });
     if (r.first_bad != Reduction{}.first_bad)
-      fail_at(in.name, point_offset_ + (next_ + r.first_bad) * rec_len_,
-              "point " + std::to_string(next_ + r.first_bad) +
-                  ": coordinate overflows to infinity (scale/offset)");
+      refuse_coordinate(first_rec + r.first_bad * rec_len_, next_ + r.first_bad);
     if (!laszip_ && !direct_) in.done(point_offset_ + (next_ + b1) * rec_len_);
   }
   // Colour normalisation (docs/formats.md), decided at open (setup()).

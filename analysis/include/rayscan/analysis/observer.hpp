@@ -2,6 +2,7 @@
 // optionally given as a height above the local ground, each with optional angle and range limits.
 #pragma once
 
+#include "rayscan/base/coordinate_bound.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/site/site.hpp"
 #include "rayscan/octree/point_cloud.hpp"
@@ -26,10 +27,10 @@ struct ObserverError : OptionError {
 };
 
 /// The largest magnitude of an observer's coordinates (x, y, z) and eye height, world units (the
-/// bound of `visibility --height` too). It is far beyond any projected or geocentric coordinate on
-/// Earth in metres or feet, and far enough inside what a ray accepts (a direction length below
-/// about 1.3e154) that a line of sight from an accepted eye never fails inside the ray code.
-inline constexpr double kMaxObserverCoordinate = 1e9;
+/// bound of `visibility --height` too): the point readers' bound, kMaxCoordinate, so that an eye
+/// may sit anywhere a point may, and a line of sight from an accepted eye never fails inside the
+/// ray code.
+inline constexpr double kMaxObserverCoordinate = kMaxCoordinate;
 
 /// A closed range of angles in degrees.
 ///  - Azimuth (horizontal): compass bearing, clockwise from grid north (+Y) towards east (+X), the
