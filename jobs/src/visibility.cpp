@@ -452,6 +452,16 @@ std::string visibility_report_json(const VisibilityJobResult& r) {
     report["seconds"]["camera"] = r.camera_seconds;
     report["camera_points"] = seen;
   }
+  // The result fields the output carries, each with the unit, meaning and no-data value the
+  // output file's LAS descriptor or PLY/PCD comment gives it (the fields of the source cloud have
+  // none), as solar --json lists its own.
+  report["fields"] = nlohmann::json::object();
+  for (const ScalarField& f : r.cloud.scalars)
+    if (const auto d = detail::result_field_info(f.name)) {
+      nlohmann::json& field = report["fields"][f.name];
+      field = {{"unit", detail::result_field_unit(f.name).value_or("")}, {"description", d->description}};
+      if (d->no_data) field["no_data"] = *d->no_data;
+    }
   nlohmann::json written = nlohmann::json::array();
   for (const auto& f : r.written) written.push_back(f.string());
   report["written"] = written;

@@ -19,6 +19,8 @@
 
 #include "../common/run_command.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -29,6 +31,8 @@
 #include <iterator>
 #include <map>
 #include <memory>
+#include <string>
+#include <vector>
 #include <sys/wait.h>
 
 using namespace rayscan;
@@ -513,6 +517,58 @@ TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
   EXPECT_EQ(std::string(vd.c_str() + 160), "distance to nearest observer");
   EXPECT_EQ(desc["visible_count"][3] & 1, 0) << "every count is a value";
   EXPECT_EQ(std::string(desc["sky_view"].c_str() + 160), "sky view factor, 0-1");
+}
+
+// `--json` lists the result fields the output carries, each with the unit, the description and
+// the no-data value the output file gives it, as `solar --json` does; a field of the source cloud
+// is no result field. Oracle: the PLY's own header (its "comment field" lines and properties) and the units as
+// docs/visibility.md gives them.
+TEST_F(VisibilityCli, JsonListsTheResultFieldsTheOutputFileDescribes) {
+  PointCloud c = io::read_point_cloud(scene());
+  std::vector<double> reflectance(c.size());
+  for (std::size_t i = 0; i < c.size(); ++i) reflectance[i] = double(i % 7);
+  c.scalars.push_back({"reflectance", reflectance});
+  const fs::path in = tmpdir() / "json_fields_in.ply", ply = tmpdir() / "json_fields.ply";
+  io::write_ply(in, c);
+  const RunResult r = rayscan::test::run_command(bin() + " visibility -q " + in.string() +
+                                                     " --observer 0,0,1.7 --radius 0.8 --primitive sphere --distance "
+                                                     "--sky-view 8 --json -o " + ply.string(),
+                                                 false);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  // The header: "comment field scalar_NAME: DESCRIPTION" for each described field, and which
+  // scalar properties the file holds.
+  std::map<std::string, std::string> described;
+  std::vector<std::string> properties;
+  std::ifstream f(ply, std::ios::binary);
+  for (std::string line; std::getline(f, line) && line != "end_header";) {
+    const std::string comment = "comment field scalar_", property = "property double scalar_";
+    if (line.rfind(comment, 0) == 0) {
+      const std::size_t colon = line.find(": ", comment.size());
+      ASSERT_NE(colon, std::string::npos) << line;
+      described[line.substr(comment.size(), colon - comment.size())] = line.substr(colon + 2);
+    } else if (line.rfind(property, 0) == 0) {
+      properties.push_back(line.substr(property.size()));
+    }
+  }
+  EXPECT_EQ(properties, (std::vector<std::string>{"reflectance", "visible_count", "visible_distance", "sky_view"}));
+  ASSERT_EQ(described.size(), 3u);
+  ASSERT_TRUE(j.contains("fields")) << r.out;
+  ASSERT_EQ(j["fields"].size(), described.size()) << r.out;
+  for (const auto& [name, description] : described) {
+    ASSERT_TRUE(j["fields"].contains(name)) << name << "\n" << r.out;
+    // The comment is the descriptor's description, then "; no data -1" for visible_distance, the
+    // one field with a no-data value.
+    const bool no_data = name == "visible_distance";
+    EXPECT_EQ(j["fields"][name]["description"].get<std::string>() + (no_data ? "; no data -1" : ""), description)
+        << name;
+    if (no_data) EXPECT_EQ(j["fields"][name]["no_data"], -1.0);
+    else EXPECT_FALSE(j["fields"][name].contains("no_data")) << name;
+  }
+  EXPECT_FALSE(j["fields"].contains("reflectance"));
+  EXPECT_EQ(j["fields"]["visible_count"]["unit"], "observers");
+  EXPECT_EQ(j["fields"]["visible_distance"]["unit"], "");  // a length, in the cloud's units
+  EXPECT_EQ(j["fields"]["sky_view"]["unit"], "1");
 }
 
 TEST_F(VisibilityCli, UserErrorsExitTwoAndWriteNothing) {

@@ -132,7 +132,8 @@ struct VisibilityJobResult {
 VisibilityJobResult run_visibility(const VisibilityJobOptions& options);
 
 /// The pdal-info-style JSON report of a run (cloud, points, radius, seconds, observers, sky view,
-/// camera, written files), as printed by `rayscan visibility --json`, indented by 2.
+/// camera, the result fields with their unit, description and no-data value, written files), as
+/// printed by `rayscan visibility --json`, indented by 2.
 std::string visibility_report_json(const VisibilityJobResult& result);
 
 }  // namespace rayscan::jobs
