@@ -685,11 +685,17 @@ struct SolarRun {
 
   /// A top-surface map of per-point `values` as a GeoTIFF at `path` and its PNG preview (beside
   /// it, or `preview`): a shadow map (`shadow`) with a categorical legend, else the heat ramp
-  /// from 0 to the largest value (`hi` when given). The title is the band's description; a map of
-  /// an instant (`at`, UTC unix seconds) also carries it as RAYSCAN_TIME, ISO 8601 with an offset.
+  /// from 0 to the largest value (`hi` when given). The title is the band's description; the
+  /// band's unit is the one the point outputs give the result field `field` (result_field_unit),
+  /// so the map and the cloud cannot disagree. A map of an instant (`at`, UTC unix seconds) also
+  /// carries it as RAYSCAN_TIME, ISO 8601 with an offset. Throws std::logic_error for a `field`
+  /// that is no result field.
   Raster write_map(const std::filesystem::path& path, std::filesystem::path preview, std::span<const double> values,
-                   const std::string& title, const std::string& units, bool shadow, std::optional<double> hi,
+                   const std::string& title, const std::string& field, bool shadow, std::optional<double> hi,
                    std::optional<double> at) {
+    const std::optional<std::string> unit = detail::result_field_unit(field);
+    if (!unit) throw std::logic_error("solar: the map of '" + field + "' has no result field unit");
+    const std::string& units = *unit;
     Raster map = rasterize(cloud.positions, values, map_grid(), CellReduce::top, title);
     GeoTiffOptions go;
     go.crs_wkt = cloud.crs_wkt;
@@ -726,26 +732,23 @@ struct SolarRun {
     for (const ScalarField& f : cloud.scalars)
       if (f.name == field) sf = &f;
     const double offset = day_offset();
-    std::string title, units = "kWh/m2";
+    std::string title;
     std::optional<double> hi;
     if (instant) {
       const std::string when = format_time_label(r.start_unix, r.utc_offset);
       title = value == "in_shadow" ? "shadow at " + when : value + " irradiance at " + when + " (W/m²)";
-      units = value == "in_shadow" ? "1" : "W/m2";
     } else if (value == "sun_hours") {
       title = "hours of direct sun " + format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
               format_iso8601(r.end_unix - 1.0, offset).substr(0, 10) + " (h)";
-      units = "h";
     } else if (value == "sky_view") {
       title = "sky view factor";
-      units = "1";
       hi = 1.0;
     } else {
       // The period's days in the day's time zone, the end day inclusive.
       title = value + " irradiation " + format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
               format_iso8601(r.end_unix - 1.0, offset).substr(0, 10) + " (kWh/m²)";
     }
-    r.raster = write_map(o.raster, o.preview, sf->values, title, units, instant && value == "in_shadow", hi,
+    r.raster = write_map(o.raster, o.preview, sf->values, title, field, instant && value == "in_shadow", hi,
                          instant ? std::optional<double>(r.start_unix) : std::nullopt);
   }
 
@@ -814,8 +817,8 @@ struct SolarRun {
     }
     if (frames_mode) {
       for (const Frame& f : frames)
-        write_map(f.path, {}, f.shadow, "shadow at " + format_time_label(f.unix_seconds, r.utc_offset), "1", true,
-                  std::nullopt, f.unix_seconds);
+        write_map(f.path, {}, f.shadow, "shadow at " + format_time_label(f.unix_seconds, r.utc_offset), "in_shadow",
+                  true, std::nullopt, f.unix_seconds);
       if (!frames.empty()) {
         std::snprintf(buf, sizeof buf, "%zu shadow frames %s ... %s (and .png)", frames.size(),
                       frames.front().path.string().c_str(), frames.back().path.filename().string().c_str());

@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <sys/stat.h>
 #include <optional>
 #include <sys/wait.h>
@@ -908,5 +909,60 @@ TEST(SolarCli, AGeographicCrsIsRefusedFromTheHeaderBeforeThePointsAreRead) {
     EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
     EXPECT_FALSE(std::filesystem::exists(out));
   }
+  std::filesystem::remove_all(dir);
+}
+
+// The GeoTIFF's band unit is the unit the JSON report (and so the point outputs' descriptions)
+// gives the field the map shows: a period's global irradiation and hours of sun, an instant's
+// shadow, and the shadow frames of a day. Oracle: the band's unit as GDAL reads it back
+// (GetUnitType) against `--json`'s fields of the same run, and the PLY's own header comment.
+TEST(SolarCli, RasterBandUnitIsTheFieldsUnitInTheJsonReport) {
+  const std::filesystem::path dir = std::filesystem::path(testing::TempDir()) / "solar_band_unit";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::filesystem::path tif = dir / "map.tif", ply = dir / "out.ply";
+  const std::string base = std::string(RAYSCAN_BIN) + " solar -q '" + RAYSCAN_TEST_DATA +
+                           "/las/simple.las' --lat 44 --lon -123 --sky-rays 0 --cell 200 --no-preview --json";
+  GDALAllRegister();
+  const auto band_unit = [](const std::filesystem::path& p) {
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(p.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+    return ds ? std::string(ds->GetRasterBand(1)->GetUnitType()) : std::string("(not opened: " + p.string() + ")");
+  };
+  struct Case {
+    std::string args, field;
+  };
+  const Case cases[] = {{" --start 2026-06-21 --end 2026-06-21", "solar_global"},
+                        {" --start 2026-06-21 --end 2026-06-21 --raster-value sun_hours", "sun_hours"},
+                        {" --at 2026-06-21T20:00Z", "in_shadow"}};
+  std::string shadow_unit;
+  for (const Case& c : cases) {
+    const auto r = rayscan::test::run_command(base + c.args + " --raster '" + tif.string() + "' -o '" +
+                                              ply.string() + "'", false);
+    ASSERT_EQ(r.code, 0) << c.args << ": " << r.out;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    ASSERT_TRUE(j["fields"].contains(c.field)) << r.out;
+    const std::string unit = j["fields"][c.field]["unit"].get<std::string>();
+    EXPECT_FALSE(unit.empty()) << c.field;
+    EXPECT_EQ(band_unit(tif), unit) << c.field;
+    if (c.field == "in_shadow") shadow_unit = unit;
+    if (c.field != "in_shadow") {  // the PLY describes the field with its unit at the end
+      std::ifstream in(ply, std::ios::binary);
+      std::string line, comment;
+      while (std::getline(in, line) && line != "end_header")
+        if (line.rfind("comment field scalar_" + c.field + ": ", 0) == 0) comment = line;
+      EXPECT_TRUE(comment.ends_with(", " + unit)) << c.field << ": " << comment;
+    }
+  }
+  // A day's shadow frames (map_HHMM.tif) are shadow maps: the in_shadow unit.
+  const auto r = rayscan::test::run_command(base + " --day 2026-06-21 --every 6h --raster '" + tif.string() + "'",
+                                            false);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::size_t frames = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    if (e.path().filename().string().rfind("map_", 0) == 0 && e.path().extension() == ".tif") {
+      ++frames;
+      EXPECT_EQ(band_unit(e.path()), shadow_unit) << e.path();
+    }
+  EXPECT_GE(frames, 2u);
   std::filesystem::remove_all(dir);
 }
