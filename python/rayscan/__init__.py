@@ -253,8 +253,9 @@ def render(scene, cloud=None, width=None, height=None, spp=None, seed=None, aovs
         errors name it "scene dict".
     A scene without "camera" gets the overview camera, as in the CLI.
     cloud: the points instead of the scene's "cloud" (a file name, a PointCloud or an (N, 3)
-    array; the scene then needs no "cloud"). width/height (the other follows the camera's
-    aspect), spp, seed, camera (a camera file) override the scene.
+    array; the scene then needs no "cloud"). width/height (pixels, 1..65536 as `--width`; the
+    other follows the camera's aspect), spp (1..1048576), seed, camera (a camera file) override
+    the scene.
     aovs: names from "depth", "normal", "position", "index", "albedo", "cost".
 
     Returns a dict of arrays, row 0 at the top: "beauty" (H, W, 3) float32 linear radiance, and
@@ -264,7 +265,8 @@ def render(scene, cloud=None, width=None, height=None, spp=None, seed=None, aovs
     float32 (nodes visited per sample); plus "radius" (the sphere radius used, world units),
     "points" and "stats" (dict).
     Raises ValueError for a bad scene or option (file or "scene dict" and JSON pointer named;
-    also for a camera file named inside the scene that cannot be opened), TypeError for a `scene`
+    also for a camera file named inside the scene that cannot be opened; an option named as the
+    keyword) or a PointCloud with a non-finite coordinate (naming its row), TypeError for a `scene`
     or `cloud` of another type (None included), OSError for a scene, camera= or cloud file that
     cannot be opened and for a malformed cloud file.
     """
@@ -298,14 +300,16 @@ def ortho_map(cloud, res, spp=None, seed=None, threads=0, colour="albedo"):
     cols) float32 elevation of the first surface per cell (world units, NaN where the ray
     missed); "geotransform" (x0, res, 0, y_top, 0, -res) as GDAL's (x0, y_top: the grid's west
     and north edges, snapped to multiples of res); "crs" (WKT or None); "radius".
-    Raises ValueError for a res that is not > 0 or gives more than 65536 cells per side, or a
-    colour other than "albedo" or "shaded".
+    Raises ValueError for a res that is not > 0 or gives more than 65536 cells per side, a
+    colour other than "albedo" or "shaded", or a PointCloud with a non-finite coordinate (naming
+    its row).
     """
     return _rayscan._ortho_map(cloud, res, spp, seed, threads, colour)
 
 
 def visibility(cloud, observers=None, radius=None, height=None, max_distance=None, tolerance=None,
-               target_height=None, sky_rays=0, camera=None, distance=False, threads=0, cache="2G"):
+               target_height=None, sky_rays=0, camera=None, distance=False, threads=0, cache="2G",
+               ground_radius=None):
     """Per-point visibility like `rayscan visibility` (jobs::run_visibility; rule in
     analysis/README.md), without writing files.
 
@@ -328,16 +332,22 @@ def visibility(cloud, observers=None, radius=None, height=None, max_distance=Non
     (K,) uint64 points each observer sees.
 
     height: eye height above the local ground (world units) of observers given without z (the
-    (K, 2) rows, file rows without z); a finite number. max_distance: viewing range (world units;
-    None = unlimited). tolerance: a point counts as seen when the first surface the ray meets
-    lies at most this far before it (None = 0). target_height: rays aim this far above each
-    point (None = 0: at the point, as GIS viewsheds). threads: worker threads (0 = all cores).
+    (K, 2) rows, file rows without z); a finite number. ground_radius: that local ground is the
+    lowest point (of class 2, ground, when classified) within this horizontal distance of the
+    eye (world units, > 0, as `--ground-radius`; None = 5 x radius, searched first within the
+    median surfel radius, right under the eye). max_distance: viewing range (world units; None =
+    unlimited). tolerance: a point counts as seen when the first surface the ray meets lies at
+    most this far before it (None = 0). target_height: rays aim this far above each point (None
+    = 0: at the point, as GIS viewsheds). threads: worker threads (0 = all cores).
     Raises ValueError for a bad option (named as the keyword: "height: expected a finite number
-    ...") or a malformed observer file, TypeError for an argument of the wrong type, OSError for a
-    cloud, observer or camera file that cannot be opened and for a malformed cloud file.
+    ...", "observers[2]: no point within the ground radius ...; move it or raise ground_radius",
+    rows numbered from 0), a malformed observer file or a PointCloud with a non-finite coordinate,
+    TypeError for an argument of the wrong type, OSError for a cloud, observer or camera file that
+    cannot be opened and for a malformed cloud file.
     """
     return _rayscan._visibility(cloud, observers, radius, height, max_distance, tolerance,
-                                target_height, sky_rays, camera, distance, threads, cache)
+                                target_height, sky_rays, camera, distance, threads, cache,
+                                ground_radius)
 
 
 def solar(cloud, start=None, end=None, step="1h", at=None, latitude=None, longitude=None,

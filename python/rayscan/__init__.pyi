@@ -97,7 +97,8 @@ def ortho_map(cloud: _Cloud, res: float, spp: int | None = None, seed: int | Non
 def visibility(cloud: _Cloud, observers: _Path | npt.ArrayLike | None = None, radius: float | None = None,
                height: float | None = None, max_distance: float | None = None, tolerance: float | None = None,
                target_height: float | None = None, sky_rays: int = 0, camera: _Path | None = None,
-               distance: bool = False, threads: int = 0, cache: str = "2G") -> dict[str, Any]: ...
+               distance: bool = False, threads: int = 0, cache: str = "2G",
+               ground_radius: float | None = None) -> dict[str, Any]: ...
 def solar(cloud: _Cloud, start: str | None = None, end: str | None = None, step: str = "1h",
           at: str | None = None, latitude: float | None = None, longitude: float | None = None,
           linke: float | Sequence[float] = 3.0, albedo: float = 0.2, weather: _Path | None = None,

@@ -129,7 +129,8 @@ def _ortho_map(cloud: Any, res: float, spp: int | None = None, seed: int | None 
 def _visibility(cloud: Any, observers: Any = None, radius: float | None = None, height: float | None = None,
                 max_distance: float | None = None, tolerance: float | None = None,
                 target_height: float | None = None, sky_rays: int = 0, camera: _Path | None = None,
-                distance: bool = False, threads: int = 0, cache: str = "2G") -> dict[str, Any]: ...
+                distance: bool = False, threads: int = 0, cache: str = "2G",
+                ground_radius: float | None = None) -> dict[str, Any]: ...
 def _solar(cloud: Any, start: str | None = None, end: str | None = None, step: str = "1h", at: str | None = None,
            latitude: float | None = None, longitude: float | None = None, linke: float | Sequence[float] = 3.0,
            albedo: float = 0.2, weather: _Path | None = None, sector: float = 1.0, sky_rays: int = 64,

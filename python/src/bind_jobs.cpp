@@ -9,6 +9,7 @@
 
 #include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/base/byte_size.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/jobs/compare.hpp"
 #include "rayscan/jobs/quick_look.hpp"
@@ -70,9 +71,61 @@ void run_reading_files(F&& f, std::initializer_list<std::string> files) {
   }
 }
 
-/// A count of pixels or samples: an integer in [1, 2^32 - 1], or None.
-std::optional<std::uint32_t> size_arg(py::handle v, const char* name) {
-  return opt_int_arg<std::uint32_t>(v, name, 1, 0xFFFFFFFFll, "None or an integer in [1, 2^32 - 1]");
+/// The largest image side a camera takes (fit_image_size; `rayscan render --width`), pixels.
+constexpr long long kMaxImageSide = 65536;
+/// The most samples per pixel a scene takes (Scene::apply; `rayscan render --spp`).
+constexpr long long kMaxSpp = 1 << 20;
+
+/// An image side (width, height) in pixels: None or an integer in [1, 65536], the command
+/// line's range, checked here so that a side out of it is named as given rather than by the
+/// aspect-ratio rule that derives a missing one.
+std::optional<std::uint32_t> side_arg(py::handle v, const char* name) {
+  return opt_int_arg<std::uint32_t>(v, name, 1, kMaxImageSide, "None or an integer in [1, 65536]");
+}
+
+/// The keyword of rayscan.<job> (`job`: "render", "ortho_map", "visibility", "solar") that sets
+/// the job option `field`, for an OptionError's message: the fields these calls take under another
+/// name, else the field itself (the keywords are the options' field names).
+std::string keyword_for(std::string_view job, std::string_view field) {
+  struct Spelling {
+    std::string_view job, field, keyword;
+  };
+  static constexpr Spelling kSpellings[] = {
+      {"render", "camera_file", "camera"},
+      {"ortho_map", "ortho_map", "res"},
+      {"visibility", "observers_file", "observers"},
+      {"visibility", "camera_file", "camera"},
+  };
+  for (const Spelling& s : kSpellings)
+    if (s.job == job && s.field == field) return std::string(s.keyword);
+  return std::string(field);
+}
+
+/// Runs the job `f` (GIL released or not, as the caller holds it) and rethrows an OptionError it
+/// throws (a bad option or combination, an observer error) as std::invalid_argument, i.e.
+/// ValueError, with each option written as the keyword of rayscan.<job> (keyword_for); `edit`
+/// may then rewrite that message. Other exceptions pass unchanged.
+template <class F, class Edit = std::string (*)(std::string)>
+void run_naming_keywords(std::string_view job, F&& f, Edit edit = [](std::string m) { return m; }) {
+  try {
+    f();
+  } catch (const OptionError& e) {
+    throw std::invalid_argument(edit(e.spelled([&](std::string_view field) { return keyword_for(job, field); })));
+  }
+}
+
+/// Refuses a PointCloud given to a job when a coordinate is not finite: ValueError "<name>:
+/// PointCloud: point I has a non-finite coordinate", I the caller's row, as for an array
+/// (cloud_arg). The jobs would refuse it later but name the point by its place in what they
+/// build first (the quick look's sample, in hash order, for a cloud without a CRS) and blame their
+/// own steps ("overview camera", the index). Call without the GIL.
+void require_finite_points(const CloudArg& a, const std::string& name) {
+  if (!a.points || a.owned) return;  // a file, or an array's copy that cloud_arg checked
+  try {
+    a.points->validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(name + ": " + e.what());
+  }
 }
 
 /// The points of a render: a PointCloud or an array in memory (`arg`), a cloud file (`arg` with a
@@ -106,9 +159,9 @@ render::SceneOverrides render_overrides(py::handle width, py::handle height, py:
                                         py::handle camera) {
   render::SceneOverrides ov;
   if (!camera.is_none()) ov.camera_file = input_path_arg(camera, "camera");
-  ov.width = size_arg(width, "width");
-  ov.height = size_arg(height, "height");
-  ov.spp = size_arg(spp, "spp");
+  ov.width = side_arg(width, "width");
+  ov.height = side_arg(height, "height");
+  ov.spp = opt_int_arg<std::uint32_t>(spp, "spp", 1, kMaxSpp, "None or an integer in [1, 1048576]");
   if (!seed.is_none()) ov.seed = uint64_arg(seed, "seed");
   return ov;
 }
@@ -144,12 +197,15 @@ py::dict render(py::handle scene, const std::string& scene_json, py::handle clou
   jobs::RenderJobResult r;
   {
     py::gil_scoped_release nogil;
-    const jobs::ResolvedScene rs = quick_look_in_memory ? jobs::resolve_quick_look(summary({}), ov)
-                                   : from_text ? jobs::resolve_scene_text(scene_json, "scene dict", ov, summary, given)
-                                               : jobs::resolve_scene(scene_file, ov, summary, given);
-    o.scene = rs.scene;
-    points.attach(o);
-    r = jobs::run_render(o);
+    if (points.arg) require_finite_points(*points.arg, quick_look_in_memory ? "scene" : "cloud");
+    run_naming_keywords("render", [&] {
+      const jobs::ResolvedScene rs = quick_look_in_memory ? jobs::resolve_quick_look(summary({}), ov)
+                                     : from_text ? jobs::resolve_scene_text(scene_json, "scene dict", ov, summary, given)
+                                                 : jobs::resolve_scene(scene_file, ov, summary, given);
+      o.scene = rs.scene;
+      points.attach(o);
+      r = jobs::run_render(o);
+    });
   }
   render::Framebuffer& fb = r.image;
   const auto h = static_cast<py::ssize_t>(fb.height), w = static_cast<py::ssize_t>(fb.width);
@@ -209,15 +265,13 @@ py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::han
   jobs::OrthoMapJobResult r;
   {
     py::gil_scoped_release nogil;
-    o.render.scene = path.empty() ? jobs::resolve_quick_look(summary({}), ov).scene
-                                  : jobs::resolve_scene(path, ov, summary).scene;
-    points.attach(o.render);
-    try {
+    require_finite_points(*points.arg, "cloud");
+    run_naming_keywords("ortho_map", [&] {
+      o.render.scene = path.empty() ? jobs::resolve_quick_look(summary({}), ov).scene
+                                    : jobs::resolve_scene(path, ov, summary).scene;
+      points.attach(o.render);
       r = jobs::run_ortho_map(o);
-    } catch (const OptionError& e) {  // the job's cell size is this call's `res`
-      throw std::invalid_argument(
-          e.spelled([](std::string_view f) { return f == "ortho_map" ? std::string("res") : std::string(f); }));
-    }
+    });
   }
   const analysis::GridSpec& g = r.map->grid;
   const auto h = static_cast<py::ssize_t>(g.rows), w = static_cast<py::ssize_t>(g.cols);
@@ -329,10 +383,12 @@ py::dict compare(const py::object& a, const py::object& b, py::handle channels,
 /// What a sphere radius argument is, for its TypeError.
 constexpr const char* kRadiusExpected = "None (auto) or a number > 0 (world units)";
 
+/// rayscan.visibility. Observer rows are named "observers[i]" in messages (0-based, as the caller
+/// indexes them), without the job's own 1-based "observer i+1".
 py::dict visibility(const py::object& cloud, const py::object& observers, py::handle radius,
                     py::handle height, py::handle max_distance, py::handle tolerance, py::handle target_height,
                     py::handle sky_rays, py::handle camera, bool distance, py::handle threads,
-                    py::handle cache) {
+                    py::handle cache, py::handle ground_radius) {
   jobs::VisibilityJobOptions o;
   o.cache_bytes = cache_arg(cache);
   const CloudArg c = cloud_arg(cloud, "cloud");
@@ -361,14 +417,34 @@ py::dict visibility(const py::object& cloud, const py::object& observers, py::ha
   o.max_distance = opt_float_arg(max_distance, "max_distance", "None or a number >= 0 (world units)");
   o.tolerance = opt_float_arg(tolerance, "tolerance", "None or a number >= 0 (world units)");
   o.target_height = opt_float_arg(target_height, "target_height", "None or a number >= 0 (world units)");
+  // The job takes any ground radius and refuses a bad one only when an eye is placed, in the
+  // ground search's words; `--ground-radius` is checked as it is parsed, and so is this.
+  o.ground_radius = opt_float_arg(ground_radius, "ground_radius", "None (5 x radius) or a number > 0 (world units)");
+  if (o.ground_radius && !(*o.ground_radius > 0.0 && std::isfinite(*o.ground_radius)))
+    throw py::value_error("ground_radius: expected a finite number > 0 (world units), got " +
+                          shortest_text(*o.ground_radius));
   o.sky_rays = static_cast<std::uint32_t>(int_arg(sky_rays, "sky_rays", 0, 0xFFFFFFFFll, "an integer in [0, 2^32 - 1]"));
   if (!camera.is_none()) o.camera_file = input_path_arg(camera, "camera");
   o.distance = distance;
   o.control.threads = parse_threads(threads);
+  // The job's own message names the command line's forms (a file or X,Y[,Z] text).
+  if (o.observers.empty() && o.observers_file.empty() && o.sky_rays == 0 && o.camera_file.empty())
+    throw py::value_error("nothing to compute: give observers (an observer file, or (K, 3) or (K, 2) positions), "
+                          "sky_rays > 0 or camera (a camera file)");
+  // "observers[i]: observer i+1: ..." (the row, then the job's label of the observer) becomes
+  // "observers[i]: ...": one number, the caller's.
+  const auto one_row_number = [&](std::string m) {
+    for (std::size_t k = 0; k < o.observers.size(); ++k) {
+      const std::string where = analysis::observer_where(o.observers[k], k + 1);
+      if (m.compare(0, where.size(), where) == 0) return o.observers[k].source + m.substr(where.size());
+    }
+    return m;
+  };
   jobs::VisibilityJobResult r;
   {
     py::gil_scoped_release nogil;
-    r = jobs::run_visibility(o);
+    require_finite_points(c, "cloud");
+    run_naming_keywords("visibility", [&] { r = jobs::run_visibility(o); }, one_row_number);
   }
   py::dict d;
   for (ScalarField& f : r.cloud.scalars)
@@ -420,8 +496,19 @@ py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::ha
   o.primitive = str_arg(primitive, "primitive", "\"sphere\" or \"surfel\"");
   o.radius = opt_float_arg(radius, "radius", kRadiusExpected);
   o.control.threads = parse_threads(threads);
+  // The job also offers a day of shadows (`rayscan solar --day`), frames written as files, which
+  // this call does not write; its message would name that option.
+  if (o.at.empty() && (o.start.empty() || o.end.empty()))
+    throw py::value_error("give a period (start and end) or an instant (at)");
   jobs::SolarJobResult r;
-  run_reading_files([&] { r = jobs::run_solar(o); }, {o.weather.string()});
+  run_naming_keywords("solar", [&] {
+    run_reading_files(
+        [&] {
+          require_finite_points(c, "cloud");
+          r = jobs::run_solar(o);
+        },
+        {o.weather.string()});
+  });
   py::dict d;
   static const char* fields[] = {"solar_global", "solar_beam", "solar_diffuse", "solar_reflected", "sun_hours",
                                  "sky_view", "in_shadow", "irradiance_global", "irradiance_beam", "irradiance_diffuse"};
@@ -458,7 +545,7 @@ void bind_jobs(py::module_& m) {
         py::arg("radius") = py::none(), py::arg("height") = py::none(), py::arg("max_distance") = py::none(),
         py::arg("tolerance") = py::none(), py::arg("target_height") = py::none(), py::arg("sky_rays") = 0,
         py::arg("camera") = py::none(), py::arg("distance") = false, py::arg("threads") = 0,
-        py::arg("cache") = "2G");
+        py::arg("cache") = "2G", py::arg("ground_radius") = py::none());
   m.def("_solar", &solar, py::arg("cloud"), py::arg("start") = py::none(), py::arg("end") = py::none(),
         py::arg("step") = "1h", py::arg("at") = py::none(), py::arg("latitude") = py::none(),
         py::arg("longitude") = py::none(), py::arg("linke") = 3.0, py::arg("albedo") = 0.2, py::arg("weather") = py::none(),

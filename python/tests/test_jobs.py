@@ -147,7 +147,7 @@ def test_visibility_refuses_far_observer_coordinates():
     the row and the coordinate, instead of failing inside a ray."""
     with pytest.raises(ValueError) as e:
         rayscan.visibility(flat_ground(), observers=[[5.0, 5.0, 2.0], [0.5, 1e160, 3.0]], radius=0.3)
-    assert str(e.value) == ("observers[1]: observer 2: y: expected a finite number in [-1e+09, 1e+09] "
+    assert str(e.value) == ("observers[1]: y: expected a finite number in [-1e+09, 1e+09] "
                             "(world units), got 1e+160")
 
 

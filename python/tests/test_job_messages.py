@@ -1,0 +1,132 @@
+"""The jobs' error messages in Python's terms: every option they name is a keyword the call takes
+(never a command-line spelling or a field of the C++ options struct), observer rows are numbered
+once, from 0, as the caller indexes them, and a non-finite point is named by the caller's row.
+Each expected message is checked whole; the keywords it names are checked against the call's
+own signature."""
+
+import inspect
+
+import numpy as np
+import pytest
+
+import rayscan
+from conftest import SOURCE
+
+pytestmark = pytest.mark.skipif(not hasattr(rayscan, "render"),
+                                reason="module built without the library's job API")
+
+AUTZEN = SOURCE / "scenes" / "data" / "autzen_trim.las"
+
+
+def message(call, kind=ValueError):
+    with pytest.raises(kind) as e:
+        call()
+    assert type(e.value) is kind, (type(e.value), str(e.value))
+    return str(e.value)
+
+
+def keywords(function):
+    return set(inspect.signature(function).parameters)
+
+
+def flat_ground(spacing=0.5, size=20.0):
+    """A square of ground points at z = 0, x and y in [0, size - spacing]."""
+    g = np.arange(0, size, spacing)
+    gx, gy = np.meshgrid(g, g)
+    return np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)])
+
+
+def test_ground_radius_is_a_keyword_and_bounds_the_ground_search():
+    # Ground points reach x = 19.5; an eye at (25, 5) is 5.5 from the nearest. Within a ground
+    # radius of 5 no point lies under it: the message names the caller's row (1, the second
+    # observer) once and the keyword that widens the search; with 6 the eye stands `height` above
+    # the flat ground (z = 0).
+    xyz = flat_ground()
+    eyes = [[5.0, 5.0], [25.0, 5.0]]
+    text = message(lambda: rayscan.visibility(xyz, observers=eyes, height=2.0, radius=0.3, ground_radius=5.0))
+    assert text == ("observers[1]: no point within the ground radius 5 of (25.000000, 5.000000) to put the "
+                    "eye above; move it or raise ground_radius")
+    assert "ground_radius" in keywords(rayscan.visibility)
+    out = rayscan.visibility(xyz, observers=eyes, height=2.0, radius=0.3, ground_radius=6.0)
+    assert out["observers"].tolist() == [[5.0, 5.0, 2.0], [25.0, 5.0, 2.0]]
+    # Without it, the default is 5 x radius: 1.5 here.
+    text = message(lambda: rayscan.visibility(xyz, observers=eyes, height=2.0, radius=0.3))
+    assert text.startswith("observers[1]: no point within the ground radius 1.5 of (25.000000, 5.000000)"), text
+    for bad, shown in ((0.0, "0"), (-1.0, "-1"), (float("nan"), "nan"), (float("inf"), "inf")):
+        assert message(lambda: rayscan.visibility(xyz, observers=eyes, height=2.0, ground_radius=bad)) == (
+            f"ground_radius: expected a finite number > 0 (world units), got {shown}")
+    assert message(lambda: rayscan.visibility(xyz, observers=eyes, height=2.0, ground_radius="5"), TypeError) == (
+        "ground_radius must be None (5 x radius) or a number > 0 (world units), got str")
+
+
+def test_observer_rows_are_numbered_once_from_zero():
+    xyz = flat_ground()
+    # A coordinate out of range in the third row (the bound itself is test_jobs.py's).
+    text = message(lambda: rayscan.visibility(xyz, observers=[[1.0, 1.0, 2.0], [2.0, 2.0, 2.0], [3.0, 1e300, 2.0]],
+                                              radius=0.3))
+    assert text.startswith("observers[2]: y: expected a finite number"), text
+    # (K, 2) rows without a height to place them: the first is named.
+    text = message(lambda: rayscan.visibility(xyz, observers=[[1.0, 1.0], [3.0, 3.0]], radius=0.3))
+    assert text == "observers[0]: no z and no height; give z, a height, or a default height (height)"
+    assert "height" in keywords(rayscan.visibility)
+
+
+def test_nothing_to_compute_names_the_keywords():
+    xyz = flat_ground()
+    for observers in (None, np.zeros((0, 2))):
+        assert message(lambda: rayscan.visibility(xyz, observers=observers)) == (
+            "nothing to compute: give observers (an observer file, or (K, 3) or (K, 2) positions), sky_rays > 0 "
+            "or camera (a camera file)")
+    assert {"observers", "sky_rays", "camera"} <= keywords(rayscan.visibility)
+
+
+def test_solar_without_a_time_names_its_keywords():
+    xyz = flat_ground()
+    expected = "give a period (start and end) or an instant (at)"
+    for kw in ({}, {"start": "2024-06-21"}, {"end": "2024-06-21"}):
+        assert message(lambda: rayscan.solar(xyz, latitude=45.0, longitude=0.0, **kw)) == expected
+    assert {"start", "end", "at"} <= keywords(rayscan.solar)
+
+
+def test_render_size_is_checked_as_given():
+    # The command line's range, 1..65536, for each side given, named as the keyword; a side that
+    # the camera's aspect ratio derives from the other is named by that rule.
+    cloud = flat_ground()
+    expected = "None or an integer in [1, 65536]"
+    assert message(lambda: rayscan.render(AUTZEN, width=70000, height=100)) == f"width must be {expected}, got 70000"
+    assert message(lambda: rayscan.render(AUTZEN, width=100, height=65537)) == f"height must be {expected}, got 65537"
+    assert message(lambda: rayscan.render(AUTZEN, width=0)) == f"width must be {expected}, got 0"
+    assert message(lambda: rayscan.render(AUTZEN, height=65536)) == (
+        "the camera's aspect ratio 600:400 gives an image width of 98304 pixels, expected 1 to 65536; give both "
+        "width and height")
+    assert message(lambda: rayscan.render(AUTZEN, spp=(1 << 20) + 1)) == (
+        "spp must be None or an integer in [1, 1048576], got 1048577")
+    out = rayscan.render(cloud, width=65536, height=1, spp=1)
+    assert out["beauty"].shape == (1, 65536, 3)
+
+
+@pytest.mark.parametrize("georeferenced", [False, True])
+def test_a_non_finite_point_is_named_by_the_callers_row(georeferenced):
+    # 1000 points of Autzen, one made infinite, another NaN later on: the first bad row is the
+    # one named (NumPy's own finiteness test is the oracle), whichever job and however the job
+    # orders the points it looks at first (the quick look samples a cloud without a CRS in hash
+    # order; a georeferenced one is framed from its bounds).
+    src = rayscan.read(AUTZEN)[:1000]
+    pc = src if georeferenced else rayscan.PointCloud(src.xyz.copy())
+    assert (pc.crs is not None) == georeferenced
+    pc.xyz[5] = np.inf
+    pc.xyz[700, 2] = np.nan
+    row = int(np.flatnonzero(~np.isfinite(pc.xyz).all(axis=1))[0])
+    assert row == 5
+    bad = f"PointCloud: point {row} has a non-finite coordinate"
+    calls = {
+        "scene": lambda: rayscan.render(pc, width=8, height=8, spp=1),
+        "cloud": lambda: rayscan.ortho_map(pc, 5.0),
+    }
+    for name, call in calls.items():
+        assert message(call) == f"{name}: {bad}"
+    assert message(lambda: rayscan.render(SOURCE / "scenes" / "autzen_overview.json", cloud=pc, width=8, spp=1)) == (
+        f"cloud: {bad}")
+    assert message(lambda: rayscan.visibility(pc, sky_rays=4)) == f"cloud: {bad}"
+    assert message(lambda: rayscan.solar(pc, at="2024-06-21T20:00", latitude=44.0, longitude=-123.0)) == (
+        f"cloud: {bad}")
