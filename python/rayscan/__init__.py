@@ -112,8 +112,11 @@ def open(path, cache="2G"):  # noqa: A001 - rayscan.open, like gzip.open
     (.copc.laz) through its own octree (nodes decoded as queries reach them, kept within
     `cache`: "2G", "512M", as the CLI's --cache); any other point file is read and indexed in
     memory. Returns a Site with the index classes' queries (ray_query, knn, radius, box)
-    answering with the points' original indices; its queries may run from several threads.
-    Raises OSError for a missing or malformed file, ValueError for a bad cache size.
+    answering with the points' original indices, except for an index file built without ids
+    (`rayscan index` without `--attributes id`), which answers with index slots (depth-first node
+    order): Site.has_ids says which. Its queries may run from several threads.
+    Raises OSError for a missing or malformed file, ValueError for a bad cache size, TypeError
+    for a path or cache of another type.
     """
     return Site(path, cache)
 
@@ -137,14 +140,16 @@ class _QueriesMixin:
         surface hit; needs a finite radius). any_hit: stop at the first candidate (occlusion).
         threads: worker threads (0 = all cores); the result does not depend on it.
         allow_all: with neither k nor a finite radius (nor any_hit) every ray returns every
-        point (N x M hits); that raises ValueError unless allow_all=True.
+        point (N x M hits); that raises ValueError unless allow_all=True. any_hit and allow_all
+        are True or False (a NumPy bool too).
 
         Returns a RayQueryResult (CSR): ray i's hits are indices[offsets[i]:offsets[i+1]],
         ranked best first, with t (projection parameter, or sphere entry for 'sphere_hit') and
         distance (orthogonal distance to the ray line, not squared).
-        Raises ValueError for bad shapes/dtypes, non-finite rays (naming the ray), t_min > t_max,
-        a negative radius, 'sphere_hit' without a radius, or no bound without allow_all. Same as
-        `rayscan query`.
+        Raises ValueError for bad shapes, non-finite rays (naming the ray), t_min > t_max,
+        a negative radius or k, 'sphere_hit' without a radius, or no bound without allow_all;
+        TypeError for an argument of the wrong type (a float or str k, a str radius or array, an
+        array of str, any_hit='no'), naming it. Same as `rayscan query`.
         """
         return RayQueryResult(**self._ray_query(origins, directions, k, radius, t_min, t_max,
                                                 order, any_hit, allow_all, threads))
@@ -154,10 +159,11 @@ class _QueriesMixin:
         ((Q, 3) or (3,)). Returns a NeighborResult (CSR: offsets (Q+1,), indices, distance),
         each query's neighbours sorted by (distance, index). threads: as in ray_query.
         k: an integer >= 0 of any size; a k at or above the point count N returns every point
-        (within `radius`): N per query, as nothing is sized by k. Raises ValueError for k < 0,
-        None or a non-integer, and for a negative or NaN radius."""
+        (within `radius`): N per query, as nothing is sized by k. Raises ValueError for k < 0
+        and for a negative or NaN radius, TypeError for a k that is None or not an integer
+        (3.0, '3') and for points that are not an array of real numbers."""
         if k is None:
-            raise ValueError("knn: k must be an integer >= 0 (use radius() for all points within r)")
+            raise TypeError("knn: k must be an integer >= 0 (use radius() for all points within r)")
         return NeighborResult(**self._knn(points, k, radius, threads))
 
     def radius(self, points, r, threads=0):
@@ -180,16 +186,21 @@ class Octree(_QueriesMixin, _rayscan._Octree):
     'layered' (every node keeps up to `capacity` points: a level-of-detail subsample) or 'fixed'
     (all points in leaves at `depth`). insertion=True builds by point insertion as the paper
     measures (same tree as the default Morton bulk load). capacity=None takes the layout's default
-    (64 for adaptive, 32 for layered). depth: 0..21; max_depth: 1..21 for every layout, as
-    `rayscan index --max-depth` (0 would leave one leaf holding every point). Raises ValueError
-    for a non-finite point (naming it), a bad layout, capacity < 1 or a depth out of its range."""
+    (64 for adaptive, 32 for layered). depth: 0..21, layout 'fixed' only (None: 6); max_depth:
+    1..21, layouts 'adaptive' and 'layered' only (None: 21), as `rayscan index --max-depth` (0
+    would leave one leaf holding every point). An argument the layout does not use (capacity or
+    max_depth with 'fixed', depth with another) raises ValueError, as `rayscan query` and
+    `rayscan index` refuse it, rather than being ignored. Raises ValueError for a non-finite point
+    (naming it), a bad layout, capacity < 1 or a depth out of its range; TypeError for an
+    argument of the wrong type (a file name for xyz: use rayscan.read or rayscan.open)."""
 
-    def __init__(self, xyz, layout="adaptive", capacity=None, depth=6, max_depth=21, insertion=False):
+    def __init__(self, xyz, layout="adaptive", capacity=None, depth=None, max_depth=None, insertion=False):
         super().__init__(_xyz(xyz), layout, capacity, depth, max_depth, insertion)
 
     def __repr__(self):
+        capacity = "" if self.capacity is None else f"capacity={self.capacity}, "
         return (f"<rayscan.Octree {len(self)} points, layout={self.layout}, "
-                f"capacity={self.capacity}, {self.node_count} nodes, depth {self.depth}>")
+                f"{capacity}{self.node_count} nodes, depth {self.depth}>")
 
 
 class KdTree(_QueriesMixin, _rayscan._KdTree):
@@ -218,8 +229,10 @@ class Site(_QueriesMixin, _rayscan._Site):
     index mapped, queried in place), "copc" (a COPC file's own octree, nodes decoded as queries
     reach them, within `cache`, "2G" by default) or "memory" (another point file, read and
     indexed as an adaptive octree). Same queries and results as Octree over the same points;
-    indices are the points' original order (the sources' order). Queries may run from several
-    Python threads at once (each releases the GIL)."""
+    indices are the points' original order (the sources' order), except on an index file built
+    without ids (`rayscan index` without `--attributes id`): there they are index slots
+    (depth-first node order). .has_ids is True when they are the original order. Queries may run
+    from several Python threads at once (each releases the GIL)."""
 
     def __init__(self, path, cache="2G"):
         super().__init__(path, cache)

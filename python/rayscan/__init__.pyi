@@ -38,13 +38,13 @@ class _QueriesMixin:
 
 class Octree(_QueriesMixin):
     def __init__(self, xyz: _Points | PointCloud, layout: Literal["adaptive", "layered", "fixed"] = "adaptive",
-                 capacity: int | None = None, depth: int = 6, max_depth: int = 21,
+                 capacity: int | None = None, depth: int | None = None, max_depth: int | None = None,
                  insertion: bool = False) -> None: ...
     def __len__(self) -> int: ...
     @property
     def layout(self) -> str: ...
     @property
-    def capacity(self) -> int: ...
+    def capacity(self) -> int | None: ...  # None for layout "fixed"
     @property
     def node_count(self) -> int: ...
     @property
@@ -84,6 +84,8 @@ class Site(_QueriesMixin):
     def storage(self) -> Literal["index_file", "copc", "memory"]: ...
     @property
     def path(self) -> str: ...
+    @property
+    def has_ids(self) -> bool: ...  # False: results are index slots (an .rsi built without ids)
 
 
 # Jobs (present when the module is built with the library's job API). Each returns a dict of

@@ -10,9 +10,18 @@ Vec3Rows as_vec3_rows(py::handle obj, const std::string& name, bool allow_single
   py::module_ np = py::module_::import("numpy");
   py::array a = np.attr("asarray")(obj);  // ragged input raises ValueError in NumPy itself
   const char kind = a.dtype().kind();
-  if (kind != 'f' && kind != 'i' && kind != 'u')
-    throw py::value_error(name + ": expected an array of real numbers, got dtype " +
-                          py::str(a.dtype()).cast<std::string>());
+  if (kind != 'f' && kind != 'i' && kind != 'u') {
+    // A scalar (None, a str) is named by its type, an array by its dtype; a file name is the
+    // likely slip where points are expected, so the message says what takes one.
+    const std::string got = a.ndim() == 0 && !py::isinstance<py::array>(obj)
+                                ? type_name(obj)
+                                : "dtype " + py::str(a.dtype()).cast<std::string>();
+    const std::string hint =
+        is_path_like(obj) ? " (a point file is read by rayscan.read(path) or opened for queries by rayscan.open(path))"
+                          : "";
+    throw py::type_error(name + ": expected an (N, 3)" + std::string(allow_single ? " or (3,)" : "") +
+                         " array of real numbers, got " + got + hint);
+  }
   const bool single = allow_single && a.ndim() == 1 && a.shape(0) == 3;
   if (!single && (a.ndim() != 2 || a.shape(1) != 3)) {
     std::string shape = "(";
@@ -28,21 +37,6 @@ Vec3Rows as_vec3_rows(py::handle obj, const std::string& name, bool allow_single
   Vec3Rows out{c, {}};
   out.rows = std::span<const Vec3>(reinterpret_cast<const Vec3*>(c.data()), n);
   return out;
-}
-
-std::size_t parse_k(const py::object& k) {
-  if (k.is_none()) return kAllPoints;
-  const std::string bad = "k must be None or an integer >= 0, got " + py::repr(k).cast<std::string>();
-  if (py::isinstance<py::bool_>(k)) throw py::value_error(bad);
-  PyObject* i = PyNumber_Index(k.ptr());  // int, numpy integer, anything with __index__
-  if (!i) {
-    PyErr_Clear();
-    throw py::value_error(bad);
-  }
-  const py::int_ v = py::reinterpret_steal<py::int_>(i);
-  if (py::int_(0) > v) throw py::value_error(bad);
-  if (v > py::int_(static_cast<unsigned long long>(kAllPoints) - 1)) return kAllPoints;
-  return static_cast<std::size_t>(v.cast<unsigned long long>());
 }
 
 std::string type_name(py::handle v) { return py::str(py::type::handle_of(v).attr("__name__")).cast<std::string>(); }
@@ -62,6 +56,21 @@ py::int_ index_of(py::handle v, const char* name, const std::string& expected) {
 }
 
 }  // namespace
+
+std::size_t parse_k(const py::object& k) {
+  if (k.is_none()) return kAllPoints;
+  const std::string expected = "None or an integer >= 0";
+  const py::int_ v = index_of(k, "k", expected);
+  if (py::int_(0) > v) throw py::value_error("k must be " + expected + ", got " + py::repr(v).cast<std::string>());
+  if (v > py::int_(static_cast<unsigned long long>(kAllPoints) - 1)) return kAllPoints;
+  return static_cast<std::size_t>(v.cast<unsigned long long>());
+}
+
+bool bool_arg(py::handle v, const char* name) {
+  if (PyBool_Check(v.ptr())) return v.ptr() == Py_True;
+  if (py::isinstance(v, py::module_::import("numpy").attr("bool_"))) return PyObject_IsTrue(v.ptr()) == 1;
+  throw py::type_error(std::string(name) + " must be True or False, got " + type_name(v));
+}
 
 long long int_arg(py::handle v, const char* name, long long lo, long long hi, const std::string& expected) {
   const py::int_ i = index_of(v, name, expected);

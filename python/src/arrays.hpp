@@ -29,10 +29,12 @@ struct Vec3Rows {
 };
 
 /// View `obj` (anything numpy.asarray accepts) as (N, 3) float64 rows. Integer and floating
-/// dtypes are accepted (converted to float64 when needed), any other dtype, another shape or a
-/// ragged sequence raises ValueError "<name>: expected ...". With `allow_single`, a shape (3,)
-/// array is accepted as one row. Values are not checked for finiteness here (the callee names
-/// the bad row).
+/// dtypes are accepted (converted to float64 when needed). Another type raises TypeError
+/// "<name>: expected an (N, 3) array of real numbers, got dtype <U3" (None, a str, an array of
+/// str, bool, complex or objects); a str or os.PathLike adds that a point file is read by
+/// rayscan.read or opened by rayscan.open. Another shape, or a ragged sequence (NumPy's own
+/// message), raises ValueError. With `allow_single`, a shape (3,) array is accepted as one row.
+/// Values are not checked for finiteness here (the callee names the bad row).
 Vec3Rows as_vec3_rows(py::handle obj, const std::string& name, bool allow_single = false);
 
 /// Move `v` into a new NumPy array of the given shape (no copy: the array owns the vector).
@@ -59,9 +61,17 @@ py::array view_rows(const T* data, std::size_t n, std::size_t cols, py::handle b
   return py::array_t<T>(shape, data, base);
 }
 
-/// Check that a Python int `k` (None = no limit) is a valid result count; returns kAllPoints for
-/// None. Raises ValueError "k must be None or an integer >= 0".
+/// Check that a Python int `k` (None = no limit; or anything with __index__, not a bool) is a
+/// valid result count; returns kAllPoints for None, and for any k at or above it. Raises
+/// TypeError "k must be None or an integer >= 0, got float" for another type, ValueError "..., got
+/// -1" for a negative k.
 std::size_t parse_k(const py::object& k);
+
+/// The flag argument `name`: True or False (a Python bool or a NumPy bool). Raises TypeError
+/// "<name> must be True or False, got str" for anything else (also 0, 1 and None, which pybind11's
+/// bool conversion would take, and 'no', which it would refuse with its "incompatible function
+/// arguments" listing).
+bool bool_arg(py::handle v, const char* name);
 
 /// The integer argument `name`: a Python int or anything with __index__ (NumPy integers), not a
 /// bool, within [lo, hi]. `expected` says what is allowed ("an integer in [1, 2^32 - 1]").

@@ -109,9 +109,24 @@ std::uint32_t parse_count(py::handle v, const char* name) {
   return static_cast<std::uint32_t>(int_arg(v, name, 1, 0xFFFFFFFFll, "an integer in [1, 2^32 - 1]"));
 }
 
-/// An octree depth argument in [lo, 21] (depth: 0..21; max_depth: 1..21, as OctreeConfig::validate).
-unsigned parse_depth(py::handle v, const char* name, long long lo) {
-  return static_cast<unsigned>(int_arg(v, name, lo, 21, "an integer in [" + std::to_string(lo) + ", 21]"));
+/// An octree depth argument in [lo, 21] (depth: 0..21; max_depth: 1..21, as OctreeConfig::validate),
+/// None for the default.
+std::optional<unsigned> parse_depth(py::handle v, const char* name, long long lo) {
+  return opt_int_arg<unsigned>(v, name, lo, 21, "None or an integer in [" + std::to_string(lo) + ", 21]");
+}
+
+/// Refuses an Octree argument its layout does not use, as `rayscan query` and `rayscan index`
+/// refuse --capacity and --max-depth with a fixed layout and --depth with another: a fixed tree
+/// splits every node down to `depth` whatever it holds, the others split by capacity up to
+/// max_depth, so the ignored value would only mislead (and a repr showing it would lie).
+void check_layout_arguments(OctreeLayout layout, bool capacity, bool depth, bool max_depth) {
+  const std::string got = " (got layout='" + std::string(to_string(layout)) + "')";
+  if (layout == OctreeLayout::fixed) {
+    if (capacity) throw py::value_error("capacity applies to layout='adaptive' and 'layered' only" + got);
+    if (max_depth) throw py::value_error("max_depth applies to layout='adaptive' and 'layered' only" + got);
+  } else if (depth) {
+    throw py::value_error("depth applies to layout='fixed' only" + got);
+  }
 }
 
 PyIndex build(py::handle xyz, const IndexOptions& opts) {
@@ -213,8 +228,10 @@ void csr_fill(const std::vector<std::vector<T>>& r, const std::vector<std::int64
 template <class Index>
 py::dict ray_query(const Index& self, py::handle origins, py::handle directions,
                    const py::object& k, py::handle radius, py::handle t_min, py::handle t_max,
-                   py::handle order, bool any_hit, bool allow_all, py::handle threads) {
+                   py::handle order, py::handle any_hit_arg, py::handle allow_all_arg, py::handle threads) {
   const unsigned nthreads = parse_threads(threads);
+  const bool any_hit = bool_arg(any_hit_arg, "any_hit");
+  const bool allow_all = bool_arg(allow_all_arg, "allow_all");
   RayQuery q;
   q.k = parse_k(k);
   q.radius = float_arg(radius, "radius", kRadiusExpected);
@@ -374,23 +391,33 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
 
   struct PyOctree : PyIndex {};
   py::class_<PyOctree, PyIndex>(m, "_Octree")
-      .def(py::init([](py::handle xyz, const std::string& layout, py::handle capacity,
-                       py::handle depth, py::handle max_depth, bool insertion) {
+      .def(py::init([](py::handle xyz, py::handle layout_arg, py::handle capacity,
+                       py::handle depth_arg, py::handle max_depth_arg, py::handle insertion) {
+             const OctreeLayout layout =
+                 parse_octree_layout(str_arg(layout_arg, "layout", "'adaptive', 'layered' or 'fixed'"));
              IndexOptions o;
-             o.type = "octree-" + std::string(to_string(parse_octree_layout(layout)));
+             o.type = "octree-" + std::string(to_string(layout));
              if (!capacity.is_none()) o.capacity = parse_count(capacity, "capacity");
-             o.depth = parse_depth(depth, "depth", 0);
-             o.max_depth = parse_depth(max_depth, "max_depth", 1);
-             o.insertion = insertion;
+             const std::optional<unsigned> depth = parse_depth(depth_arg, "depth", 0);
+             const std::optional<unsigned> max_depth = parse_depth(max_depth_arg, "max_depth", 1);
+             o.insertion = bool_arg(insertion, "insertion");
+             check_layout_arguments(layout, o.capacity.has_value(), depth.has_value(), max_depth.has_value());
+             if (depth) o.depth = *depth;
+             if (max_depth) o.max_depth = *max_depth;
              return PyOctree{build(xyz, o)};
            }),
            py::arg("xyz"), py::arg("layout") = "adaptive", py::arg("capacity") = py::none(),
-           py::arg("depth") = 6, py::arg("max_depth") = 21, py::arg("insertion") = false)
+           py::arg("depth") = py::none(), py::arg("max_depth") = py::none(), py::arg("insertion") = false)
       .def_property_readonly("layout", [](const PyOctree& s) { return s.options.type.substr(7); },
                              "\"adaptive\", \"layered\" or \"fixed\".")
-      .def_property_readonly("capacity", [](const PyOctree& s) { return index_capacity(s.options); },
+      .def_property_readonly("capacity",
+                             [](const PyOctree& s) -> std::optional<std::uint32_t> {
+                               if (s.options.type == "octree-fixed") return std::nullopt;
+                               return index_capacity(s.options);
+                             },
                              "The capacity built with: most points per leaf (adaptive) or per node (layered); "
-                             "the layout's default when None was given.")
+                             "the layout's default when None was given. None for layout 'fixed', which has "
+                             "no capacity (its leaves lie at `depth` whatever they hold).")
       .def_property_readonly("node_count",
                              [](const PyOctree& s) { return std::get<Octree>(s.index).node_count(); },
                              "Number of nodes, inner nodes and leaves.")
@@ -425,7 +452,8 @@ file (.rsi, built by `rayscan index`) is memory-mapped and queried in place, a C
 octree is queried in place (nodes decoded as queries reach them, kept within `cache`, "2G" by
 default); any
 other point file is read and indexed in memory (an adaptive octree). Results use the points'
-original indices (the order of the sources).)doc");
+original indices (the order of the sources), except on an index file built without ids (`rayscan
+index` without `--attributes id`), whose results are index slots: has_ids says which.)doc");
   site.def(py::init([](py::handle path, py::handle cache) {
              const std::string p = path_arg(path, "path");
              SiteOptions options;
@@ -442,7 +470,17 @@ original indices (the order of the sources).)doc");
   site.def("__len__", [](const PySite& s) { return s.site.size(); })
       .def_property_readonly("storage", [](const PySite& s) { return storage_name(s.site.storage()); },
                              "\"index_file\" (.rsi, mapped), \"copc\" (in place) or \"memory\" (read and indexed).")
-      .def_property_readonly("path", [](const PySite& s) { return s.path; }, "The file name given to rayscan.open.");
+      .def_property_readonly("path", [](const PySite& s) { return s.path; }, "The file name given to rayscan.open.")
+      .def_property_readonly("has_ids",
+                             [](const PySite& s) {
+                               const io::MappedIndex* m = s.site.index_file();
+                               return m == nullptr || m->has_ids();
+                             },
+                             "True when query results name points by their original ids (their number in the "
+                             "source files, in order, as rayscan.read numbers them): always for a COPC or "
+                             "another point file, and for an index file built with `rayscan index --attributes id`. "
+                             "False for an index file without the ids section: results are index slots (depth-first "
+                             "node order), as `rayscan info` says \"ids: not stored (points in index order)\".");
 }
 
 }  // namespace rayscan::python

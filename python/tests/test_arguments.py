@@ -32,13 +32,14 @@ def test_index_and_query_integers(uniform_cloud):
     check(lambda: rayscan.Octree(xyz, capacity=2.5), TypeError, f"capacity must be {count}, got float")
     check(lambda: rayscan.KdTree(xyz, capacity="8"), TypeError, f"capacity must be {count}, got str")
     check(lambda: rayscan.Octree(xyz, capacity=True), TypeError, f"capacity must be {count}, got bool")
-    check(lambda: rayscan.Octree(xyz, depth=-HUGE), ValueError, f"depth must be an integer in [0, 21], got {-HUGE}")
-    check(lambda: rayscan.Octree(xyz, max_depth=None), TypeError, "max_depth must be an integer in [1, 21], got NoneType")
+    check(lambda: rayscan.Octree(xyz, layout="fixed", depth=-HUGE), ValueError,
+          f"depth must be None or an integer in [0, 21], got {-HUGE}")
+    check(lambda: rayscan.Octree(xyz, max_depth=1.0), TypeError, "max_depth must be None or an integer in [1, 21], got float")
     # max_depth 0 (one leaf holding every point) is refused as `rayscan index --max-depth` refuses it.
     for layout in ("adaptive", "layered", "fixed"):
         check(lambda: rayscan.Octree(xyz, layout=layout, max_depth=0), ValueError,
-              "max_depth must be an integer in [1, 21], got 0")
-    check(lambda: rayscan.Octree(xyz, max_depth=22), ValueError, "max_depth must be an integer in [1, 21], got 22")
+              "max_depth must be None or an integer in [1, 21], got 0")
+    check(lambda: rayscan.Octree(xyz, max_depth=22), ValueError, "max_depth must be None or an integer in [1, 21], got 22")
     assert rayscan.Octree(xyz, capacity=4, max_depth=1).depth == 1
     threads = "0 (all cores) or a positive count up to 4096"
     check(lambda: tree.ray_query(o, d, threads=HUGE), ValueError, f"threads must be {threads}, got {HUGE}")
@@ -46,7 +47,8 @@ def test_index_and_query_integers(uniform_cloud):
     check(lambda: tree.box(o, d, threads=1.0), TypeError, f"threads must be {threads}, got float")
     # The boundaries and NumPy integers are accepted.
     assert rayscan.KdTree(xyz, capacity=2**32 - 1).capacity == 2**32 - 1
-    assert rayscan.Octree(xyz, capacity=np.uint16(7), depth=np.int8(0)).capacity == 7
+    assert rayscan.Octree(xyz, capacity=np.uint16(7), max_depth=np.int8(1)).capacity == 7
+    assert rayscan.Octree(xyz, layout="fixed", depth=np.int8(0)).depth == 0
     assert len(tree.box(o, d, threads=np.int64(4096)).offsets) == 2
 
 
