@@ -172,9 +172,10 @@ Runner add_render_command(CLI::App& app) {
       ->check(positive());
   o->ortho_colour_option =
       c->add_option("--ortho-colour", o->ortho_colour, "With --ortho-map: what each cell shows: albedo (the unshaded "
-                    "colour of the first point hit by the ray through the cell centre: its RGB as stored in 8-bit sRGB, "
-                    "else the scene's material, for a quick look the elevation ramp; --spp and --exposure do not "
-                    "apply) or shaded (the path-traced render: sky light and shading, --spp samples per cell)")
+                    "colour of the points seen from above, the mean over the cell of the first points hit by --spp "
+                    "stratified rays, over those that hit; --spp 1: the point under the cell centre; a point's RGB as "
+                    "stored in 8-bit sRGB, else the scene's material, for a quick look the elevation ramp; --exposure "
+                    "does not apply) or shaded (the path-traced render: sky light and shading, --spp samples per cell)")
           ->check(CLI::IsMember({"albedo", "shaded"}))
           ->capture_default_str();
   c->add_option("--dsm", o->dsm, "With --ortho-map: also write the digital surface model (elevation of the "

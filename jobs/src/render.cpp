@@ -155,6 +155,7 @@ struct Prepared {
   std::vector<Color> albedo;          // by original index (in-memory clouds, surfel mode)
   AlbedoRule rule;                    // the material's statistics; applied at shading time to a file traced in place
   AlbedoSource albedo_source;
+  std::uint32_t albedo_samples = 1;   // RenderJobOptions::albedo_samples
   SurfelAttributes surfels;
   std::chrono::steady_clock::time_point started;  // job start (time to the first traced tile)
 };
@@ -237,6 +238,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   auto P = std::make_unique<Prepared>();
   P->started = std::chrono::steady_clock::now();
   P->scene = o.scene;  // small: the camera may be replaced by camera_for_cloud
+  P->albedo_samples = o.albedo_samples;
   Scene& scene = P->scene;
   const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
   if (!scene.camera && !o.camera_for_cloud) throw SceneError(f + ": /camera: not set; give a camera in the scene or a camera file");
@@ -381,6 +383,7 @@ RenderStats render_camera(const Prepared& P, const Camera& camera, const JobCont
   RenderSettings settings =
       make_settings(scene, P.cloud ? std::span<const Vec3>(P.cloud->positions) : std::span<const Vec3>{}, {}, radius);
   settings.integrator.albedo = P.albedo_source;
+  settings.albedo_samples = P.albedo_samples;
   if (scene.primitive == Primitive::surfel) use_surfels(settings, P.surfels);
   const Camera& cam = settings.camera;
   const std::uint64_t tiles = std::uint64_t((cam.width() + 15) / 16) * ((cam.height() + 15) / 16);
@@ -490,9 +493,14 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   std::vector<Aov>& aovs = job.scene.output.aovs;
   for (const Aov a : {Aov::depth, Aov::albedo})
     if ((a == Aov::depth || albedo) && std::find(aovs.begin(), aovs.end(), a) == aovs.end()) aovs.push_back(a);
+  const std::uint32_t albedo_samples = job.scene.spp;
   if (albedo) {
-    // The albedo and depth AOVs are traced by their own ray through each cell centre; the beauty
-    // is not used, so it gets the least light transport the renderer allows.
+    // The depth AOV is traced by its own ray through each cell centre (the DSM's elevation and
+    // the alpha band), the albedo by the scene's spp stratified rays per cell, averaged over
+    // those that hit: the cell's mean colour, like a GIS rasterizer's mean of the cell's points,
+    // where one ray would show whichever colour lies under the centre. The beauty is not used, so
+    // it gets the least light transport the renderer allows.
+    job.albedo_samples = albedo_samples;
     job.scene.spp = 1;
     job.scene.max_depth = 1;
   }
@@ -509,11 +517,15 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
     // The map's size follows from its cell: the width and height options do not apply to it.
     check_render_memory(r.map->camera, job.scene.output.aovs, false, {}, {"map (a larger ", option("ortho_map"), " cell)"});
     job.control.info("ortho map: " + std::to_string(r.map->grid.cols) + " x " + std::to_string(r.map->grid.rows) +
-                     " cells, top-down, colour " + analysis::to_string(o.ortho_colour));
+                     " cells, top-down, colour " + analysis::to_string(o.ortho_colour) +
+                     (albedo ? " (mean of " + std::to_string(albedo_samples) + " rays per cell)" : std::string()));
     return r.map->camera;
   };
   r.render = run_render(job);
   if (!is_root(job.control)) return r;  // only the root's image is complete
+  if (albedo)  // the map's samples per cell are the albedo's, not the unused beauty's
+    for (auto& [key, value] : r.render.metadata)
+      if (key == "rayscan:spp") value = std::to_string(albedo_samples);
   r.dsm = analysis::dsm_from_depth(*r.map, r.render.image.depth);
   if (o.render.write)  // the files copy the cloud's CRS: `rayscan info`'s doubts about it too
     for (const std::string& w : crs_warnings(r.render.crs_wkt, cloud_bounds))

@@ -299,17 +299,19 @@ def ortho_map(cloud, res, spp=None, seed=None, threads=0, colour="albedo"):
     """A true orthophoto and digital surface model of the cloud, like `rayscan render CLOUD
     --ortho-map RES --dsm dsm.tif --ortho-colour COLOUR` without writing GeoTIFFs: the quick look's
     scene (radius auto, surfels, colour from rgb else elevation) seen by a top-down orthographic
-    camera, one vertical ray per cell of a north-up grid over the cloud's XY extent
+    camera, vertical rays through the cells of a north-up grid over the cloud's XY extent
     (analysis::ortho_map).
 
     cloud: a point cloud file, a PointCloud or an (N, 3) array. res: cell edge, world units per
-    pixel (> 0). colour: "albedo" (default: the unshaded colour of the first point each cell's
-    centre ray hits, the point's rgb, else the elevation ramp) or "shaded" (the path-traced
-    render: sky light and shading). spp, seed: samples per pixel and random seed of the shaded
-    render (as in render; albedo traces one ray per cell).
+    pixel (> 0). colour: "albedo" (default: the unshaded colour of the points seen from above,
+    the point's rgb, else the elevation ramp, as the cell's mean: that of the points first hit by
+    spp stratified rays through the cell, over the rays that hit, averaged sRGB-encoded as the
+    colours are stored; spp=1: the point under the cell centre, its colour as stored) or "shaded"
+    (the path-traced render: sky light and shading). spp, seed: rays per cell (default 16) and
+    random seed (as in render).
 
     Returns a dict: "image" (rows, cols, 3) float32 linear RGB, row 0 the north edge (albedo: the
-    points' colours converted from sRGB, 0 where the ray missed; shaded: radiance); "dsm" (rows,
+    cell's mean colour converted from sRGB, 0 where no ray hit; shaded: radiance); "dsm" (rows,
     cols) float32 elevation of the first surface per cell (world units, NaN where the ray
     missed); "geotransform" (x0, res, 0, y_top, 0, -res) as GDAL's (x0, y_top: the grid's west
     and north edges, snapped to multiples of res); "crs" (WKT or None); "radius".

@@ -2,6 +2,8 @@
 
 #include "integrator.hpp"
 
+#include "rayscan/render/color.hpp"
+
 #include "rayscan/octree/point_query.hpp"
 #include "rayscan/base/threads.hpp"
 
@@ -13,6 +15,7 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -36,7 +39,29 @@ RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
   return s;
 }
 
+PixelSample stratified_pixel_point(std::uint32_t j, std::uint32_t n, double ju, double jv) {
+  if (n == 0 || j >= n)
+    throw std::invalid_argument("stratified_pixel_point: point " + std::to_string(j) + " of " + std::to_string(n));
+  std::uint32_t rows = std::uint32_t(std::sqrt(double(n)));
+  while (std::uint64_t(rows) * rows > n) --rows;
+  while (std::uint64_t(rows + 1) * (rows + 1) <= n) ++rows;
+  const std::uint32_t q = n / rows, narrow = rows - n % rows;  // rows of q strata, then of q + 1
+  std::uint32_t row, col, cols;
+  if (j < narrow * q) {
+    row = j / q, col = j % q, cols = q;
+  } else {
+    const std::uint32_t k = j - narrow * q;
+    row = narrow + k / (q + 1), col = k % (q + 1), cols = q + 1;
+  }
+  return {(col + ju) / cols - 0.5, (row + jv) / rows - 0.5, 1.0 / (double(rows) * cols)};
+}
+
 namespace {
+
+// The sample index of albedo ray j's stream, Sampler(seed, x, y, kAlbedoStream + j): apart from
+// the beauty's samples 0 .. spp - 1 (a scene's spp is at most 2^20), so the albedo's jitter does not repeat the
+// beauty's camera rays.
+constexpr std::uint32_t kAlbedoStream = 1u << 31;
 
 // What a pixel block holds open on its index while it is traced: on a COPC file the cache scope
 // (the nodes the block reaches stay decoded; its end trims the cache to the budget), nothing
@@ -73,6 +98,31 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
     return cam.generate_ray(u, v, lu, lv);
   };
   static_assert(kBlock * kBlock == kMaxRayPacket);
+  // The albedo AOV of pixel (x, y) over s.albedo_samples stratified rays: the stratum-area-weighted
+  // mean of the hits' albedos, averaged sRGB-encoded (RenderSettings::albedo_samples says why).
+  // Hits of one colour give it back as it is, not through the round trip to sRGB and back.
+  auto mean_albedo = [&](std::uint32_t x, std::uint32_t y, std::vector<RayHit>& hits, TraceCounters& c) {
+    const std::uint32_t n = s.albedo_samples;
+    double sum[3] = {0.0, 0.0, 0.0}, area = 0.0;
+    Color first(0.0f);
+    bool one_colour = true;
+    for (std::uint32_t j = 0; j < n; ++j) {
+      Sampler smp(s.seed, x, y, kAlbedoStream + j);
+      const double ju = smp.uniform(), jv = smp.uniform();
+      const PixelSample ps = stratified_pixel_point(j, n, ju, jv);
+      SurfaceHit h;
+      if (!tracer.intersect(cam.generate_ray(x + ps.dx, y + ps.dy), h, hits, c)) continue;
+      const Color a = s.integrator.albedo.at(h.index, h.slot);
+      if (area == 0.0) first = a;
+      one_colour = one_colour && a == first;
+      for (int k = 0; k < 3; ++k) sum[k] += ps.area * double(linear_to_srgb(a[k]));
+      area += ps.area;
+    }
+    if (area == 0.0 || one_colour) return first;
+    Color m;
+    for (int k = 0; k < 3; ++k) m[k] = srgb_to_linear(float(sum[k] / area));
+    return m;
+  };
   std::mutex stats_mutex;
 
   tbb::parallel_for(tbb::blocked_range<std::uint32_t>(first, last, 1), [&](const auto& range) {
@@ -134,7 +184,10 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
               if (!fb.position.empty())
                 fb.position[p] = hit ? glm::vec3(h.position - fb.position_origin) : glm::vec3(0.0f);
               if (!fb.index.empty()) fb.index[p] = hit ? h.index : kNoPoint;
-              if (!fb.albedo.empty()) fb.albedo[p] = hit ? s.integrator.albedo.at(h.index, h.slot) : Color(0.0f);
+              if (!fb.albedo.empty())
+                fb.albedo[p] = s.albedo_samples > 1 ? mean_albedo(x, y, hits, c)
+                               : hit                ? s.integrator.albedo.at(h.index, h.slot)
+                                                    : Color(0.0f);
             }
         }
       if (opt.progress) opt.progress->tile_done(c.queries - q_before);
@@ -238,6 +291,8 @@ RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuff
   if ((!s.integrator.centers.empty() && npts != s.integrator.centers.size()) || !s.integrator.albedo.covers(npts))
     throw std::invalid_argument("render: index, centres and albedo sizes differ");
   if (s.spp == 0) throw std::invalid_argument("render: spp must be >= 1");
+  if (s.albedo_samples == 0 || s.albedo_samples > (1u << 20))
+    throw std::invalid_argument("render: albedo_samples must be in [1, 1048576], got " + std::to_string(s.albedo_samples));
 
   RenderStats stats;
   const unsigned threads = resolve_threads(opt.threads);
@@ -274,7 +329,8 @@ RenderStats render_image_impl(const I& index, const RenderSettings& s, Framebuff
     stats.points_tested = totals[2];
   }
   stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  stats.primary_rays = std::uint64_t(n) * (s.spp + (s.aovs.empty() ? 0 : 1));
+  const bool albedo_rays = s.albedo_samples > 1 && !fb.albedo.empty();
+  stats.primary_rays = std::uint64_t(n) * (s.spp + (s.aovs.empty() ? 0 : 1) + (albedo_rays ? s.albedo_samples : 0));
   if (opt.progress) opt.progress->finish();
   return stats;
 }

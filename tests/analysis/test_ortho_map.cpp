@@ -192,7 +192,7 @@ TEST(OrthoMap, OrthophotoCellsHoldThePointsOwnColours) {
   ASSERT_TRUE(a && s && d);
   EXPECT_EQ(metadata_item(a.get(), "RAYSCAN_ORTHO_COLOUR"), "albedo");
   EXPECT_EQ(metadata_item(s.get(), "RAYSCAN_ORTHO_COLOUR"), "shaded");
-  EXPECT_EQ(metadata_item(d.get(), "RAYSCAN_SPP"), "1");  // albedo: one ray per cell
+  EXPECT_EQ(metadata_item(d.get(), "RAYSCAN_SPP"), "16");  // albedo: the mean of 16 rays per cell by default
   EXPECT_EQ(metadata_item(s.get(), "RAYSCAN_PRIMITIVE"), "surfel");
   double gt[6];
   ASSERT_EQ(a->GetGeoTransform(gt), CE_None);

@@ -1,6 +1,7 @@
 // Rendering real data: determinism across thread counts, depth AOV against a brute-force
-// ray/sphere oracle, image write errors, and every scene in scenes/ renders at reduced size. The
-// files read back through OpenImageIO are in test_render_files.cpp.
+// ray/sphere oracle, image write errors, every scene in scenes/ renders at reduced size, and the
+// strata of the albedo AOV's sub-pixel rays. The files read back through OpenImageIO are in
+// test_render_files.cpp.
 #include "render_test_data.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/image_output.hpp"
@@ -9,8 +10,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 using namespace rayscan;
 using namespace rayscan::render;
@@ -160,4 +165,47 @@ TEST(Albedo, EightBitColourOfAnIndexFileNeedsNoPassAndEqualsTheSixteenBitForm) {
   std::size_t bright = 0;
   for (std::size_t i = 0; i < n; ++i) bright += narrow_rule.at(narrow_a, i).r > 0.9f;
   EXPECT_GT(bright, 0u);
+}
+
+// The albedo AOV's sub-pixel points (stratified_pixel_point) for every n up to 64: the strata,
+// each one's rectangle from its jitter corners (0, 0) and (1, 1), lie in the pixel, do not overlap
+// pairwise and their areas sum to 1, so they cut the pixel into n pieces (area by area, an
+// analytic partition); each stratum's reported area is its rectangle's; n = 16 is the 4 x 4 grid.
+TEST(Render, StratifiedPixelPointsCutThePixelIntoNStrata) {
+  struct Rect {
+    double x0, y0, x1, y1;
+  };
+  for (std::uint32_t n = 1; n <= 64; ++n) {
+    SCOPED_TRACE("n = " + std::to_string(n));
+    std::vector<Rect> strata;
+    double total = 0.0;
+    for (std::uint32_t j = 0; j < n; ++j) {
+      const PixelSample lo = stratified_pixel_point(j, n, 0.0, 0.0), hi = stratified_pixel_point(j, n, 1.0, 1.0);
+      const PixelSample mid = stratified_pixel_point(j, n, 0.5, 0.25);
+      const Rect r{lo.dx, lo.dy, hi.dx, hi.dy};
+      EXPECT_GE(r.x0, -0.5);
+      EXPECT_GE(r.y0, -0.5);
+      EXPECT_LE(r.x1, 0.5 + 1e-12);
+      EXPECT_LE(r.y1, 0.5 + 1e-12);
+      EXPECT_NEAR(lo.area, (r.x1 - r.x0) * (r.y1 - r.y0), 1e-12);
+      EXPECT_EQ(mid.area, lo.area);
+      EXPECT_NEAR(mid.dx, r.x0 + 0.5 * (r.x1 - r.x0), 1e-12);  // the jitter runs across the stratum
+      EXPECT_NEAR(mid.dy, r.y0 + 0.25 * (r.y1 - r.y0), 1e-12);
+      for (const Rect& o : strata) {
+        const double w = std::min(r.x1, o.x1) - std::max(r.x0, o.x0), h = std::min(r.y1, o.y1) - std::max(r.y0, o.y0);
+        EXPECT_FALSE(w > 1e-12 && h > 1e-12) << "stratum " << j << " overlaps stratum " << (&o - strata.data());
+      }
+      strata.push_back(r);
+      total += lo.area;
+    }
+    EXPECT_NEAR(total, 1.0, 1e-12);
+  }
+  for (std::uint32_t j = 0; j < 16; ++j) {
+    const PixelSample p = stratified_pixel_point(j, 16, 0.0, 0.0);
+    EXPECT_EQ(p.dx, -0.5 + 0.25 * (j % 4));
+    EXPECT_EQ(p.dy, -0.5 + 0.25 * (j / 4));
+    EXPECT_EQ(p.area, 1.0 / 16);
+  }
+  EXPECT_THROW((void)stratified_pixel_point(0, 0, 0.5, 0.5), std::invalid_argument);
+  EXPECT_THROW((void)stratified_pixel_point(5, 5, 0.5, 0.5), std::invalid_argument);
 }

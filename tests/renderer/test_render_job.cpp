@@ -378,3 +378,82 @@ TEST(RenderJob, OrthoMapJobWritesGeoTiffsOnTheCloudsFootprint) {
   EXPECT_FALSE(fs::exists(dir / "o.png") || fs::exists(dir / "d2.tif"));
   fs::remove_all(dir);
 }
+
+// An orthophoto cell's colour is the mean over the cell, not the colour under its centre. A flat
+// 1 x 1 square of points (spacing s = 1/32, spheres of radius s: each vertical ray shows the point
+// nearest it in xy, so a colour edge between two columns of points lies exactly halfway between
+// them) coloured A = (200, 60, 30) for x < 1/2 and B = (40, 120, 230) beyond (16-bit v x 257),
+// mapped as ONE cell (ortho_map 1). Oracle: the area-weighted mean of the stored 8-bit values,
+// A + f (B - A) for the fraction f of the hit area that is B, +-1 (8-bit rounding), with f only
+// as uncertain as the strata of the cell's rays leave it (render::stratified_pixel_point):
+//  - 16 rays, a 4 x 4 grid of strata whose column boundary is the edge: f = 1/2 exactly;
+//  - 9 rays, 3 x 3: the middle column straddles the edge and each of its 3 rays falls either
+//    side, so f is in [1/3, 2/3] (one ray, the old rule, gives f = 0 or 1);
+//  - 1 ray, through the centre: one point's colour as stored, A or B exactly.
+// A half-empty cell (points only over x < 1/2: A, then B from x = 1/4) averages over the hits,
+// not over the rays: 16 rays, the first column A, the second B, and the third column's 4 rays hit
+// (B) only where the last spheres reach past x = 1/2, so f is in [1/2, 2/3] (misses counted as
+// black would halve every channel); its centre ray hits, so its alpha (and DSM) is set. Each file
+// records its rays per cell as RAYSCAN_SPP.
+TEST(RenderJob, OrthoMapAlbedoIsTheCellsAreaWeightedMean) {
+  const fs::path dir = fs::temp_directory_path() / ("rayscan_render_ortho_mean_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const double s = 1.0 / 32;
+  const std::array<int, 3> A{200, 60, 30}, B{40, 120, 230};
+  const auto square = [&](int columns, double b_from) {
+    PointCloud pc;
+    for (int j = 0; j < 32; ++j)
+      for (int i = 0; i < columns; ++i) {
+        const double x = (i + 0.5) * s;
+        const std::array<int, 3>& c = x < b_from ? A : B;
+        pc.positions.emplace_back(x, (j + 0.5) * s, 2.0);
+        pc.rgb.push_back({std::uint16_t(c[0] * 257), std::uint16_t(c[1] * 257), std::uint16_t(c[2] * 257)});
+      }
+    return pc;
+  };
+  const PointCloud halves = square(32, 0.5), half_empty = square(16, 0.25);
+  GDALAllRegister();
+  // The one cell's RGBA bytes as GDAL reads them from the orthophoto of `cloud` at `spp` rays.
+  const auto cell = [&](const PointCloud& cloud, std::uint32_t spp, const std::string& name) {
+    OrthoMapJobOptions o;
+    o.render.scene.spp = spp;
+    o.render.scene.radius = s;
+    o.render.scene.output.image = dir / (name + ".tif");
+    o.render.cloud = &cloud;
+    o.render.control.threads = 1;
+    o.ortho_map = 1.0;
+    (void)run_ortho_map(o);
+    std::array<int, 4> rgba{-1, -1, -1, -1};
+    const std::unique_ptr<GDALDataset, void (*)(GDALDataset*)> ds(
+        static_cast<GDALDataset*>(GDALOpen((dir / (name + ".tif")).c_str(), GA_ReadOnly)),
+        [](GDALDataset* d) { GDALClose(d); });
+    EXPECT_TRUE(ds && ds->GetRasterXSize() == 1 && ds->GetRasterYSize() == 1 && ds->GetRasterCount() == 4) << name;
+    if (!ds) return rgba;
+    const char* rays = ds->GetMetadataItem("RAYSCAN_SPP");
+    EXPECT_EQ(std::string(rays ? rays : ""), std::to_string(spp)) << name;
+    for (int b = 0; b < 4; ++b) {
+      std::uint8_t v = 0;
+      EXPECT_EQ(ds->GetRasterBand(b + 1)->RasterIO(GF_Read, 0, 0, 1, 1, &v, 1, 1, GDT_Byte, 0, 0), CE_None);
+      rgba[b] = v;
+    }
+    return rgba;
+  };
+  // Each channel within A + f (B - A) for f in [f_lo, f_hi], +-1.
+  const auto expect_mean = [&](const std::array<int, 4>& got, double f_lo, double f_hi, const std::string& what) {
+    EXPECT_EQ(got[3], 255) << what;
+    for (int c = 0; c < 3; ++c) {
+      const double a = A[c] + f_lo * (B[c] - A[c]), b = A[c] + f_hi * (B[c] - A[c]);
+      EXPECT_GE(got[c], std::min(a, b) - 1.0) << what << ", channel " << c;
+      EXPECT_LE(got[c], std::max(a, b) + 1.0) << what << ", channel " << c;
+    }
+  };
+  expect_mean(cell(halves, 16, "halves16"), 0.5, 0.5, "16 rays");
+  expect_mean(cell(halves, 9, "halves9"), 1.0 / 3, 2.0 / 3, "9 rays");
+  const std::array<int, 4> one = cell(halves, 1, "halves1");
+  EXPECT_EQ(one[3], 255);
+  EXPECT_TRUE((std::array<int, 3>{one[0], one[1], one[2]} == A || std::array<int, 3>{one[0], one[1], one[2]} == B))
+      << one[0] << ", " << one[1] << ", " << one[2];
+  expect_mean(cell(half_empty, 16, "half_empty16"), 0.5, 2.0 / 3, "half-empty cell, 16 rays");
+  fs::remove_all(dir);
+}

@@ -34,10 +34,12 @@ OrthoMap ortho_map(const AABB& bounds, double res);
 
 /// What an orthophoto's cells show.
 enum class OrthoColour {
-  /// The material colour of the first surface the cell-centre ray hits (the render's albedo AOV),
-  /// unshaded: a point's own RGB for a cloud with colours (8-bit sRGB, as stored), else the
-  /// scene's material (a quick look: the elevation ramp). What PDAL's writers.gdal over
-  /// Red/Green/Blue or CloudCompare's rasterize give: a map of the points' colours.
+  /// The material colour of the surface seen from above (the render's albedo AOV), unshaded: a
+  /// point's own RGB for a cloud with colours (8-bit sRGB, as stored), else the scene's material
+  /// (a quick look: the elevation ramp), the mean over the scene's spp rays per cell
+  /// (render::RenderSettings::albedo_samples; 1 = the point under the cell centre). What PDAL's
+  /// writers.gdal `mean` over Red/Green/Blue or CloudCompare's rasterize give: a map of the points'
+  /// colours.
   albedo,
   /// The path-traced beauty (sky light, sun, shading; the scene's spp and exposure): a picture
   /// seen from above rather than a map of colours.

@@ -51,6 +51,9 @@ struct RenderJobOptions {
   /// COPC input (sphere mode): bytes of decoded nodes kept resident (`--cache`; trimmed as each
   /// 4x4 pixel block ends, plus the nodes of the blocks in flight).
   std::size_t cache_bytes = io::kCopcDefaultCacheBytes;
+  /// Rays per pixel of the albedo AOV (render::RenderSettings::albedo_samples: 1 = the ray through
+  /// the pixel centre, n > 1 = the mean over n stratified rays); run_ortho_map sets it.
+  std::uint32_t albedo_samples = 1;
 };
 
 /// Output of run_render().
@@ -111,10 +114,12 @@ struct OrthoMapJobOptions {
   RenderJobOptions render;
   double ortho_map = 0.0;      ///< the map's cell size (analysis::ortho_map's res), world units per pixel, > 0
   std::filesystem::path dsm;   ///< with render.write: also the DSM GeoTIFF here (.tif or .tiff); "" = none
-  /// What the orthophoto's cells show: the unshaded material colour of the first surface hit
-  /// (albedo, the default: the points' RGB, else the scene's material) or the path-traced beauty
-  /// (shaded). For albedo no light is traced: the render runs at 1 sample per pixel and one ray
-  /// per path (scene.spp and max_depth are set so), since only its AOVs are used.
+  /// What the orthophoto's cells show: the unshaded material colour of the surface (albedo, the
+  /// default: the points' RGB, else the scene's material), the mean over scene.spp stratified rays
+  /// per cell of the first surface each hits (render.albedo_samples; 1 = the cell-centre ray, one
+  /// point's colour exactly), or the path-traced beauty (shaded). For albedo no light is traced:
+  /// the beauty runs at 1 sample per pixel and one ray per path (scene.spp and max_depth are set
+  /// so), since only its AOVs are used; the image metadata's spp is the albedo's.
   analysis::OrthoColour ortho_colour = analysis::OrthoColour::albedo;
 };
 

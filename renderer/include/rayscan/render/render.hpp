@@ -38,7 +38,8 @@ struct IntegratorInputs {
 
 /// The rendered image and its AOVs, row-major from the top-left pixel. AOV vectors are empty
 /// unless requested. AOVs describe the ray through the pixel centre (lens centre), not averaged
-/// over samples, so they are exact per pixel; `cost` is averaged over all samples.
+/// over samples, so they are exact per pixel; `cost` is averaged over all samples, and `albedo`
+/// over RenderSettings::albedo_samples rays when that is above 1.
 struct Framebuffer {
   std::uint32_t width = 0, height = 0;
   std::vector<Color> beauty;            ///< mean radiance over spp samples (linear)
@@ -47,7 +48,8 @@ struct Framebuffer {
   std::vector<glm::vec3> position;      ///< first hit minus position_origin (float), 0 for a miss
   Vec3 position_origin{0.0};            ///< double origin subtracted from `position` (camera centre)
   std::vector<std::uint32_t> index;     ///< original point index hit, kNoPoint (0xFFFFFFFF, = -1) for a miss
-  std::vector<Color> albedo;            ///< albedo at the first hit, 0 for a miss
+  std::vector<Color> albedo;            ///< albedo at the first hit, 0 for a miss (linear; the mean
+                                        ///< over the pixel's hits: RenderSettings::albedo_samples)
   std::vector<float> cost;              ///< index nodes visited per sample (all rays of the path)
 };
 
@@ -70,7 +72,8 @@ struct RenderOptions {
 /// Totals of one render.
 struct RenderStats {
   double seconds = 0.0;             ///< wall time of the pixel loop
-  std::uint64_t primary_rays = 0;   ///< camera rays (spp per pixel + 1 AOV ray when AOVs are on)
+  std::uint64_t primary_rays = 0;   ///< camera rays (spp per pixel + 1 AOV ray when AOVs are on
+                                    ///< + RenderSettings::albedo_samples when above 1 and the albedo AOV is on)
   std::uint64_t queries = 0;        ///< all ray queries (camera, bounce, shadow)
   std::uint64_t nodes_visited = 0;
   std::uint64_t points_tested = 0;
@@ -89,6 +92,14 @@ struct RenderSettings {
   std::uint32_t spp = 16;
   std::uint64_t seed = 0;
   std::vector<Aov> aovs;
+  /// Rays per pixel of the albedo AOV, in [1, 2^20]. 1: the AOV ray through the pixel centre, so
+  /// a pixel holds one point's albedo exactly. n > 1: the mean albedo of the first hits of n rays
+  /// through stratified jittered points of the pixel (stratified_pixel_point), over the rays that
+  /// hit (0 where none does), a map's colour per cell (jobs::run_ortho_map). The colours are
+  /// averaged sRGB-encoded, as 8-bit colours are stored and as PDAL's writers.gdal `mean` and
+  /// GDAL's `average` resampling average them, and returned linear; a pixel whose hits all show
+  /// one albedo holds it exactly. The other AOVs keep the centre ray.
+  std::uint32_t albedo_samples = 1;
 };
 
 /// The scene's settings for a loaded cloud, albedo (by original index) and radius (spans must
@@ -98,6 +109,22 @@ RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
 
 /// The auto radius lives in the core (rayscan/octree/spacing.hpp); this keeps render::median_nn_spacing.
 using rayscan::median_nn_spacing;
+
+/// A point of a pixel as offsets from its centre, in pixels (x right, y down), and the area of
+/// the stratum it was drawn in (a fraction of the pixel).
+struct PixelSample {
+  double dx = 0.0, dy = 0.0;  ///< in [-0.5, 0.5)
+  double area = 1.0;          ///< in (0, 1]; the n strata of a pixel sum to 1
+};
+
+/// Point j of n stratified points of a pixel, at the jitter (ju, jv) in [0, 1)^2 within its stratum
+/// (the albedo AOV's rays, RenderSettings::albedo_samples). The pixel is cut into r = floor(sqrt(n))
+/// rows of equal height, the first r - n % r rows into n / r equal strata and the others into one
+/// more (n = k^2: a k x k grid); point j lies in stratum j, row-major. Each stratum holding one
+/// point, an edge across the pixel is found at its area fraction to within one row or column of
+/// strata, where independent jitter leaves it to chance; weighting each point by its stratum's area
+/// keeps the mean unbiased when the rows differ. Throws std::invalid_argument for n = 0 or j >= n.
+PixelSample stratified_pixel_point(std::uint32_t j, std::uint32_t n, double ju, double jv);
 
 /// Render into `fb` (resized to the camera). Pixels are traced in 16x16 tiles by tbb::parallel_for;
 /// sample j of pixel (x, y) uses Sampler(seed, x, y, j) only, so the image is bit-identical for
@@ -114,8 +141,8 @@ using rayscan::median_nn_spacing;
 ///    whose end evicts least recently used nodes no tile in flight can reach, so the decoded
 ///    nodes stay within the cache budget plus the nodes of the tiles in flight.
 ///    Sphere mode only (settings.integrator.centers empty).
-/// Throws std::invalid_argument when the index, centres and albedo sizes differ, for spp 0, and
-/// for a COPC site in surfel mode.
+/// Throws std::invalid_argument when the index, centres and albedo sizes differ, for spp 0 or
+/// albedo_samples outside [1, 2^20], and for a COPC site in surfel mode.
 RenderStats render_image(const Site& site, const RenderSettings& settings, Framebuffer& fb,
                          const RenderOptions& options = {});
 
