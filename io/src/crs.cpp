@@ -1,7 +1,8 @@
 // CRS handling for LAS: GeoKeys (LAS 1.4 R15 section 2.5.2, GeoTIFF 1.0 section 2.4 "GeoKey
 // directory" and 6.3 key codes) to EPSG codes, EPSG codes to WKT through GDAL/OSR (PROJ
-// database), and back from a WKT to its EPSG codes (rayscan/io/crs.hpp). GDAL stays inside
-// rayscan_io; the core library never sees it.
+// database) with the unit keys applied as GDAL's GeoTIFF reader applies them (GeoTIFF 1.1, OGC
+// 19-008r4, clause 7.5), and back from a WKT to its EPSG codes (rayscan/io/crs.hpp). GDAL and PROJ
+// stay inside rayscan_io; the core library never sees them.
 #include "readers.hpp"
 
 #include "rayscan/io/crs.hpp"
@@ -9,17 +10,29 @@
 #include <gdal/cpl_conv.h>
 #include <gdal/cpl_error.h>
 #include <gdal/ogr_srs_api.h>
+#include <proj.h>
 
+#include <algorithm>
+#include <cmath>
+#include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 
 namespace rayscan::io::detail {
 
 namespace {
 
-constexpr std::uint16_t kGeographicType = 2048;  // GeographicTypeGeoKey
-constexpr std::uint16_t kProjectedCSType = 3072;  // ProjectedCSTypeGeoKey
-constexpr std::uint16_t kVerticalCSType = 4096;   // VerticalCSTypeGeoKey
+// GeoKey ids (GeoTIFF 1.0 section 6.2; GeoTIFF 1.1, OGC 19-008r4, clause 7 names them
+// GeodeticCRSGeoKey, ProjectedCRSGeoKey and VerticalGeoKey).
+constexpr std::uint16_t kGeographicType = 2048;    // GeographicTypeGeoKey
+constexpr std::uint16_t kGeogAngularUnits = 2054;  // GeogAngularUnitsGeoKey
+constexpr std::uint16_t kProjectedCSType = 3072;   // ProjectedCSTypeGeoKey
+constexpr std::uint16_t kProjLinearUnits = 3076;   // ProjLinearUnitsGeoKey
+constexpr std::uint16_t kProjLinearUnitSize = 3077;  // ProjLinearUnitSizeGeoKey (a double, metres)
+constexpr std::uint16_t kVerticalCSType = 4096;    // VerticalCSTypeGeoKey
+constexpr std::uint16_t kVerticalUnits = 4099;     // VerticalUnitsGeoKey
+constexpr std::uint16_t kGeoDoubleParamsTag = 34736;
 constexpr std::uint16_t kUserDefined = 32767;
 
 struct SrsDeleter {
@@ -49,9 +62,188 @@ std::string wkt_for(const std::string& user_input) {
   return to_wkt(h);
 }
 
+/// The CRS of an EPSG code, or null when the PROJ database does not know it.
+Srs srs_for_epsg(int code) {
+  quiet_gdal();
+  Srs srs(OSRNewSpatialReference(nullptr));
+  const std::string text = "EPSG:" + std::to_string(code);
+  if (OSRSetFromUserInput(static_cast<OGRSpatialReferenceH>(srs.get()), text.c_str()) != OGRERR_NONE)
+    return nullptr;
+  return srs;
+}
+
+/// A unit of measure: its name and size in the SI unit of its kind (metres, radians).
+struct Unit {
+  std::string name;
+  double to_si = 0.0;
+  std::string kind;  ///< PROJ's category: "linear", "angular", "scale", ...
+};
+
+/// The EPSG unit `code` from PROJ's database (the one GDAL's CRSs come from), or nullopt.
+std::optional<Unit> epsg_unit(int code) {
+  // A context of its own: PROJ's default context may not be used from several threads at once,
+  // and its log would print an unknown code on stderr, which the caller reports as a note.
+  PJ_CONTEXT* ctx = proj_context_create();
+  proj_log_level(ctx, PJ_LOG_NONE);
+  const char* name = nullptr;
+  const char* kind = nullptr;
+  double to_si = 0.0;
+  std::optional<Unit> unit;
+  if (proj_uom_get_info_from_database(ctx, "EPSG", std::to_string(code).c_str(), &name, &to_si, &kind) != 0 &&
+      name != nullptr && kind != nullptr && std::isfinite(to_si) && to_si > 0.0)
+    unit = Unit{name, to_si, kind};
+  proj_context_destroy(ctx);
+  return unit;
+}
+
+/// Whether two unit sizes are the same unit: equal but for the rounding of a WKT's 15 digits.
+bool same_size(double a, double b) { return std::abs(a - b) <= 1e-12 * std::max(a, b); }
+
+/// The GeoKeys of a GeoKeyDirectoryTag: each key's {TIFFTagLocation, Count, Value_Offset}.
+class GeoKeys {
+ public:
+  struct Entry {
+    std::uint16_t location = 0, count = 0, value = 0;
+  };
+
+  void add(std::uint16_t id, Entry e) { entries_[id] = e; }
+
+  /// A SHORT key's value (TIFFTagLocation 0), 0 when absent or stored in another tag (doubles,
+  /// ASCII: no code).
+  [[nodiscard]] int code(std::uint16_t id) const {
+    const auto it = entries_.find(id);
+    return it != entries_.end() && it->second.location == 0 ? it->second.value : 0;
+  }
+
+  /// A DOUBLE key's value: the GeoDoubleParamsTag entry at its Value_Offset (an index, not a byte
+  /// offset), nullopt when the key, the tag or that entry is missing.
+  [[nodiscard]] std::optional<double> real(std::uint16_t id, const GeoDoubles& doubles) const {
+    const auto it = entries_.find(id);
+    if (it == entries_.end() || it->second.location != kGeoDoubleParamsTag || it->second.count < 1 ||
+        doubles.data == nullptr || it->second.value >= doubles.len / 8)
+      return std::nullopt;
+    return load_le<double>(doubles.data + 8ull * it->second.value);
+  }
+
+ private:
+  std::map<std::uint16_t, Entry> entries_;
+};
+
+/// Applies ProjLinearUnitsGeoKey to `h`, the projected CRS of ProjectedCSTypeGeoKey `epsg`, as
+/// GDAL's GeoTIFF reader does (GTIFGetOGISDefn): a unit that differs from the CRS's replaces it,
+/// the parameters that are lengths (false easting and northing) converted to it
+/// (OSRSetLinearUnitsAndUpdateParameters), and the CRS loses its EPSG code, being no longer the
+/// registered one. GeoTIFF 1.1 (OGC 19-008r4) clause 7.5.1 "Requirements Class Units GeoKeys" and
+/// 7.5.2 "Unit Size GeoKeys": the key holds an EPSG unit code, or 32767 with the unit's size in
+/// metres in ProjLinearUnitSizeGeoKey. True when the unit changed.
+bool apply_linear_unit(OGRSpatialReferenceH h, const GeoKeys& keys, const GeoDoubles& doubles, int epsg,
+                       FileInfo& info) {
+  const int code = keys.code(kProjLinearUnits);
+  if (code == 0) return false;
+  const std::string crs = "EPSG:" + std::to_string(epsg);
+  std::optional<Unit> unit;
+  if (code == kUserDefined) {
+    const std::optional<double> size = keys.real(kProjLinearUnitSize, doubles);
+    if (size && std::isfinite(*size) && *size > 0.0)
+      unit = Unit{"unknown", *size, "linear"};  // GDAL's name for a unit known by its size alone
+    else
+      info.notes.push_back("GeoKeys: ProjLinearUnitsGeoKey is user-defined (32767) without a positive "
+                           "ProjLinearUnitSizeGeoKey: the unit of " + crs + " kept");
+  } else {
+    unit = epsg_unit(code);
+    if (!unit || unit->kind != "linear") {
+      info.notes.push_back("GeoKeys: ProjLinearUnitsGeoKey " + std::to_string(code) +
+                           " is not an EPSG linear unit: the unit of " + crs + " kept");
+      unit.reset();
+    }
+  }
+  if (!unit) return false;
+  char* old_name = nullptr;
+  const double old_size = OSRGetLinearUnits(h, &old_name);
+  const std::string old = old_name != nullptr ? old_name : "unit";
+  if (same_size(old_size, unit->to_si)) return false;
+  OSRSetLinearUnitsAndUpdateParameters(h, unit->name.c_str(), unit->to_si);
+  if (code != kUserDefined) OSRSetAuthority(h, "PROJCS|UNIT", "EPSG", code);
+  info.notes.push_back("GeoKeys: " + crs + " in " + unit->name + " (ProjLinearUnitsGeoKey), not its " + old +
+                       ", as GDAL reads them: a CRS without an EPSG code");
+  return true;
+}
+
+/// Applies GeogAngularUnitsGeoKey to `h`, the geographic CRS of GeographicTypeGeoKey `epsg`, as
+/// GDAL's GeoTIFF reader does: an EPSG angular unit that differs from the CRS's replaces it
+/// (GeoTIFF 1.1 clause 7.5.1). A user-defined one (32767, GeogAngularUnitSizeGeoKey) is not read.
+/// True when the unit changed.
+bool apply_angular_unit(OGRSpatialReferenceH h, const GeoKeys& keys, int epsg, FileInfo& info) {
+  const int code = keys.code(kGeogAngularUnits);
+  if (code == 0) return false;
+  const std::string crs = "EPSG:" + std::to_string(epsg);
+  const std::optional<Unit> unit = code == kUserDefined ? std::nullopt : epsg_unit(code);
+  if (!unit || unit->kind != "angular") {
+    info.notes.push_back("GeoKeys: GeogAngularUnitsGeoKey " + std::to_string(code) +
+                         " is not an EPSG angular unit: the unit of " + crs + " kept");
+    return false;
+  }
+  char* old_name = nullptr;
+  const double old_size = OSRGetAngularUnits(h, &old_name);
+  const std::string old = old_name != nullptr ? old_name : "unit";
+  if (same_size(old_size, unit->to_si)) return false;
+  OSRSetAngularUnits(h, unit->name.c_str(), unit->to_si);
+  info.notes.push_back("GeoKeys: " + crs + " in " + unit->name + " (GeogAngularUnitsGeoKey), not its " + old +
+                       ", as GDAL reads them");
+  return true;
+}
+
+/// A vertical CRS named `name` on datum `datum` whose heights are in `unit` (EPSG `code`).
+Srs make_vertical(const char* name, const char* datum, const Unit& unit, int code) {
+  Srs vert(OSRNewSpatialReference(nullptr));
+  auto* v = static_cast<OGRSpatialReferenceH>(vert.get());
+  OSRSetVertCS(v, name, datum, 2005);  // 2005: orthometric height (OGC 01-009 VD_ORTHOMETRIC), as GDAL
+  OSRSetLinearUnits(v, unit.name.c_str(), unit.to_si);
+  OSRSetAuthority(v, "VERT_CS|UNIT", "EPSG", code);
+  return vert;
+}
+
+/// The vertical CRS of the GeoKeys, or null: VerticalCSTypeGeoKey's EPSG CRS (info.vertical_epsg),
+/// its unit replaced by VerticalUnitsGeoKey's where they differ (it then loses its code:
+/// info.vertical_epsg = 0); or, with VerticalUnitsGeoKey alone, an "unknown" vertical CRS in that
+/// unit, as GDAL's GeoTIFF reader builds it when it reports compound CRSs
+/// (GTIFF_REPORT_COMPD_CS=YES): the unit of the heights is known where their datum is not.
+/// GeoTIFF 1.1 clause 7.5.1; clause 7.5.2 has no size key for a user-defined vertical unit, so
+/// 32767 is not read. `custom`: set when the result is not the EPSG CRS.
+Srs vertical_crs(const GeoKeys& keys, FileInfo& info, bool& custom) {
+  Srs vert;
+  if (info.vertical_epsg != 0 && !(vert = srs_for_epsg(info.vertical_epsg))) return nullptr;
+  const int code = keys.code(kVerticalUnits);
+  if (code == 0) return vert;
+  const std::optional<Unit> unit = code == kUserDefined ? std::nullopt : epsg_unit(code);
+  if (!unit || unit->kind != "linear") {
+    info.notes.push_back("GeoKeys: VerticalUnitsGeoKey " + std::to_string(code) +
+                         " is not an EPSG linear unit: ignored");
+    return vert;
+  }
+  custom = true;
+  if (!vert) return make_vertical("unknown", "unknown", *unit, code);
+  auto* v = static_cast<OGRSpatialReferenceH>(vert.get());
+  char* old_name = nullptr;
+  const double old_size = OSRGetLinearUnits(v, &old_name);
+  const std::string old = old_name != nullptr ? old_name : "unit";
+  if (same_size(old_size, unit->to_si)) {
+    custom = false;
+    return vert;
+  }
+  // GDAL 3.6 keeps the registered unit here. The heights are in the unit the keys name: what a LAS
+  // writer means by US survey feet beside NAVD88 (EPSG:5703, metres).
+  const char* name = OSRGetAttrValue(v, "VERT_CS", 0);
+  const char* datum = OSRGetAttrValue(v, "VERT_DATUM", 0);
+  info.notes.push_back("GeoKeys: vertical EPSG:" + std::to_string(info.vertical_epsg) + " in " + unit->name +
+                       " (VerticalUnitsGeoKey), not its " + old + ": a vertical CRS without an EPSG code");
+  info.vertical_epsg = 0;
+  return make_vertical(name != nullptr ? name : "unknown", datum != nullptr ? datum : "unknown", *unit, code);
+}
+
 }  // namespace
 
-std::string crs_from_geokeys(const std::uint8_t* data, std::uint64_t len, FileInfo& info) {
+std::string crs_from_geokeys(const std::uint8_t* data, std::uint64_t len, FileInfo& info, GeoDoubles doubles) {
   // GeoKeyDirectoryTag: header {KeyDirectoryVersion, KeyRevision, MinorRevision, NumberOfKeys}
   // then NumberOfKeys entries {KeyID, TIFFTagLocation, Count, Value_Offset}, all uint16.
   if (len < 8) {
@@ -64,17 +256,14 @@ std::string crs_from_geokeys(const std::uint8_t* data, std::uint64_t len, FileIn
                          " keys but holds " + std::to_string((len - 8) / 8) + ": ignored");
     return "";
   }
-  int projected = 0, geographic = 0, vertical = 0;
+  GeoKeys keys;
   for (std::uint16_t k = 0; k < nkeys; ++k) {
     const std::uint8_t* e = data + 8 + 8 * k;
-    const std::uint16_t id = load_le<std::uint16_t>(e);
-    const std::uint16_t loc = load_le<std::uint16_t>(e + 2);
-    const std::uint16_t value = load_le<std::uint16_t>(e + 6);
-    if (loc != 0) continue;  // value stored in another tag (doubles/ASCII): not an EPSG code
-    if (id == kProjectedCSType) projected = value;
-    if (id == kGeographicType) geographic = value;
-    if (id == kVerticalCSType) vertical = value;
+    keys.add(load_le<std::uint16_t>(e),
+             {load_le<std::uint16_t>(e + 2), load_le<std::uint16_t>(e + 4), load_le<std::uint16_t>(e + 6)});
   }
+  const int projected = keys.code(kProjectedCSType), geographic = keys.code(kGeographicType),
+            vertical = keys.code(kVerticalCSType);
   const int horizontal = (projected != 0 && projected != kUserDefined)
                              ? projected
                              : (geographic != 0 && geographic != kUserDefined ? geographic : 0);
@@ -85,13 +274,38 @@ std::string crs_from_geokeys(const std::uint8_t* data, std::uint64_t len, FileIn
   }
   info.epsg = horizontal;
   if (vertical != 0 && vertical != kUserDefined) info.vertical_epsg = vertical;
-  std::string wkt;
-  if (info.vertical_epsg != 0)
-    wkt = wkt_for("EPSG:" + std::to_string(horizontal) + "+" + std::to_string(info.vertical_epsg));
-  if (wkt.empty()) wkt = wkt_for("EPSG:" + std::to_string(horizontal));
-  if (wkt.empty())
+  const Srs horiz = srs_for_epsg(horizontal);
+  if (!horiz) {
     info.notes.push_back("EPSG:" + std::to_string(horizontal) + " unknown to the PROJ database: no WKT");
-  return wkt;
+    return "";
+  }
+  auto* h = static_cast<OGRSpatialReferenceH>(horiz.get());
+  bool custom = false;
+  if (OSRIsProjected(h)) {
+    custom = apply_linear_unit(h, keys, doubles, horizontal, info);
+    if (custom) info.epsg = 0;
+  } else if (OSRIsGeographic(h)) {
+    custom = apply_angular_unit(h, keys, horizontal, info);
+  }
+  bool custom_vertical = false;
+  const Srs vert = vertical_crs(keys, info, custom_vertical);
+  if (!custom && !custom_vertical) {
+    // The registered CRSs as they are: the compound one as PROJ builds "EPSG:h+v".
+    std::string wkt;
+    if (vert) wkt = wkt_for("EPSG:" + std::to_string(horizontal) + "+" + std::to_string(info.vertical_epsg));
+    return wkt.empty() ? to_wkt(h) : wkt;
+  }
+  if (!vert) return to_wkt(h);
+  // The compound CRS, named as "EPSG:h+v" names it: the two parts' names joined by " + ".
+  auto* v = static_cast<OGRSpatialReferenceH>(vert.get());
+  const char* hname = OSRGetName(h);
+  const char* vname = OSRGetName(v);
+  const std::string name =
+      std::string(hname != nullptr ? hname : "unknown") + " + " + (vname != nullptr ? vname : "unknown");
+  const Srs compound(OSRNewSpatialReference(nullptr));
+  auto* c = static_cast<OGRSpatialReferenceH>(compound.get());
+  if (OSRSetCompoundCS(c, name.c_str(), h, v) != OGRERR_NONE) return to_wkt(h);
+  return to_wkt(c);
 }
 
 int epsg_from_wkt(const std::string& wkt) {

@@ -52,9 +52,24 @@ PointCloud read_pcd(const Input& in, const ReadOptions& opt, FileInfo& info);
 /// XYZ/CSV/TXT columns. See text_reader.cpp.
 PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info);
 
+/// The payload of a GeoDoubleParamsTag VLR ("LASF_Projection" 34736): little-endian doubles that
+/// GeoKeys with TIFFTagLocation 34736 index. {nullptr, 0} when the file has none.
+struct GeoDoubles {
+  const std::uint8_t* data = nullptr;
+  std::uint64_t len = 0;  ///< bytes; a trailing partial double is not read
+};
+
 /// CRS from the GeoKeys of a GeoKeyDirectoryTag VLR (LAS 1.4 R15 section 2.5.2; GeoTIFF 1.0
-/// section 2.7): fills info.epsg / vertical_epsg; returns WKT when GDAL/OSR can build it, else "".
-std::string crs_from_geokeys(const std::uint8_t* data, std::uint64_t len, FileInfo& info);
+/// section 2.7): the EPSG projected, geographic and vertical CRSs of ProjectedCSTypeGeoKey,
+/// GeographicTypeGeoKey and VerticalCSTypeGeoKey (PROJ database through GDAL/OSR), with the unit
+/// keys applied as GDAL's GeoTIFF reader applies them: ProjLinearUnitsGeoKey (an EPSG unit, or
+/// 32767 with ProjLinearUnitSizeGeoKey from `doubles`) and GeogAngularUnitsGeoKey replace the
+/// CRS's unit where they differ; VerticalUnitsGeoKey that of the vertical CRS, or makes an unnamed
+/// vertical CRS in that unit where there is none. Fills info.epsg / vertical_epsg (0 for a CRS
+/// whose unit was replaced) and info.notes (a unit replaced, a key ignored); returns WKT1 when
+/// GDAL/OSR can build it, else "". Never throws.
+std::string crs_from_geokeys(const std::uint8_t* data, std::uint64_t len, FileInfo& info,
+                             GeoDoubles doubles = {});
 /// EPSG code identified from a WKT string (0 when OSR cannot identify it).
 int epsg_from_wkt(const std::string& wkt);
 
