@@ -54,12 +54,21 @@ std::string to_wkt(OGRSpatialReferenceH h) {
   return wkt;
 }
 
-std::string wkt_for(const std::string& user_input) {
+/// WKT of `user_input` (OSRSetFromUserInput); with `wkt2_fallback`, WKT2_2019 where WKT1 cannot
+/// express the CRS. "" when GDAL cannot read it.
+std::string wkt_for(const std::string& user_input, bool wkt2_fallback = false) {
   quiet_gdal();
   Srs srs(OSRNewSpatialReference(nullptr));
   auto* h = static_cast<OGRSpatialReferenceH>(srs.get());
   if (OSRSetFromUserInput(h, user_input.c_str()) != OGRERR_NONE) return "";
-  return to_wkt(h);
+  std::string wkt = to_wkt(h);
+  if (wkt.empty() && wkt2_fallback) {
+    char* out = nullptr;
+    const char* opts[] = {"FORMAT=WKT2_2019", nullptr};
+    if (OSRExportToWktEx(h, &out, opts) == OGRERR_NONE && out != nullptr) wkt = out;
+    CPLFree(out);
+  }
+  return wkt;
 }
 
 /// The CRS of an EPSG code, or null when the PROJ database does not know it.
@@ -333,6 +342,17 @@ int epsg_from_wkt(const std::string& wkt) {
 }  // namespace rayscan::io::detail
 
 namespace rayscan::io {
+
+std::string crs_wkt_from_user_input(const std::string& user_input) {
+  // WKT that GDAL reads is kept as given: the source's own text (an ESRI-flavoured WKT1, a WKT2
+  // with details WKT1 lacks) is what the writers store and `rayscan info` shows.
+  detail::quiet_gdal();
+  detail::Srs srs(OSRNewSpatialReference(nullptr));
+  std::string copy = user_input;  // ImportFromWkt: never a file name or URL
+  char* p = copy.data();
+  if (OSRImportFromWkt(static_cast<OGRSpatialReferenceH>(srs.get()), &p) == OGRERR_NONE) return user_input;
+  return detail::wkt_for(user_input, /*wkt2_fallback=*/true);
+}
 
 EpsgCodes epsg_codes_from_wkt(const std::string& wkt) {
   EpsgCodes codes;

@@ -76,7 +76,9 @@ def read(path, attributes=None):
 
     Returns a PointCloud whose arrays (.xyz (N, 3) float64, .rgb (N, 3) uint16, .intensity,
     .classification, .gps_time, .normals, .scalars, .crs) are views of the reader's memory.
-    Raises OSError for a missing, unreadable or malformed file (the reader's one-line message).
+    Raises FileNotFoundError for a missing file (errno ENOENT, filename set, as open() raises
+    it; PermissionError, NotADirectoryError likewise), OSError for a malformed file (the reader's
+    one-line message).
     """
     return _rayscan._read(path, attributes)
 
@@ -91,7 +93,10 @@ def write(path, cloud, **fields):
     added as scalar fields (replacing one of the same name), e.g. the "visible_count" of a
     visibility result; in LAS they are float64 extra bytes, in PLY/PCD properties, in text columns.
     Scalar fields named like the LAS reader's (return_number, scan_angle in degrees, user_data,
-    point_source_id, ...) go to the standard LAS fields.
+    point_source_id, ...) go to the standard LAS fields. LAS and PLY read every field back under
+    its own name; for PLY, PCD and text a name their readers take for a dedicated field (Intensity,
+    gpstime: another spelling of an attribute; ReturnNumber: PDAL's name of return_number) raises
+    ValueError.
 
     LAS coordinates are scaled integers: a cloud read from LAS/LAZ (or a subset of one) keeps the
     file's scale and offset (bit-exact round trip); otherwise each axis gets the coarsest of 1,

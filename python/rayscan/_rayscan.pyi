@@ -48,7 +48,7 @@ class PointCloud:
     @property
     def normals(self) -> npt.NDArray[np.float32] | None: ...  # (N, 3) unit vectors
     @property
-    def scalars(self) -> dict[str, npt.NDArray[np.float64]]: ...  # name -> (N,)
+    def scalars(self) -> Mapping[str, npt.NDArray[np.float64]]: ...  # name -> (N,), read-only
     @property
     def attributes(self) -> list[str]: ...
     @property

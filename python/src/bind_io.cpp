@@ -6,13 +6,20 @@
 #include "bindings.hpp"
 #include "cloud.hpp"
 
+#include "rayscan/io/crs.hpp"
 #include "rayscan/io/field_names.hpp"
 #include "rayscan/io/point_io.hpp"
 
+#include <pybind11/eval.h>
 #include <pybind11/stl.h>
+
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
+#include <cerrno>
+#include <cstring>
 #include <memory>
 #include <optional>
 #include <utility>
@@ -64,6 +71,22 @@ bool named_core_fields(const std::string& path) {
   }
 }
 
+/// When `path` is missing or unreadable, raises the OSError subclass Python's open() raises for it
+/// (FileNotFoundError, PermissionError, NotADirectoryError) with errno and filename set; returns
+/// otherwise. The reader reports a file it cannot open as a message only (OSError without errno),
+/// so the reason is asked again: stat(2) for the path, access(2) for read permission.
+void raise_os_error_of(const std::string& path) {
+  struct stat st {};
+  int err = 0;
+  if (::stat(path.c_str(), &st) != 0) err = errno;
+  else if (S_ISREG(st.st_mode) && ::access(path.c_str(), R_OK) != 0) err = errno;
+  if (err == 0) return;
+  // OSError(errno, strerror, filename) constructs the subclass for errno, as open() does.
+  const py::object e = py::reinterpret_borrow<py::object>(PyExc_OSError)(err, std::strerror(err), path);
+  PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(e.ptr())), e.ptr());
+  throw py::error_already_set();
+}
+
 PyCloud read(const std::string& path, const py::object& attributes) {
   std::optional<std::vector<std::string>> keep;
   if (!attributes.is_none()) keep = names_arg(attributes, "attributes");
@@ -78,9 +101,12 @@ PyCloud read(const std::string& path, const py::object& attributes) {
   }
   PyCloud c;
   c.path = path;
-  {
+  try {
     py::gil_scoped_release nogil;
     c.cloud = io::read_point_cloud(path, opts, &c.info);
+  } catch (const std::exception&) {
+    raise_os_error_of(path);
+    throw;  // a file that opens (or a directory, a FIFO): the library's error and message
   }
   if (keep) {
     for (const std::string& n : *keep)
@@ -202,8 +228,18 @@ PyCloud from_arrays(py::handle xyz, py::handle rgb, py::handle intensity, py::ha
     }
   }
   if (!crs.is_none()) {
-    if (!py::isinstance<py::str>(crs)) throw py::type_error("crs must be a WKT string or None, got " + type_name(crs));
-    pc.crs_wkt = crs.cast<std::string>();
+    const std::string expected = "a CRS as GDAL reads it (\"EPSG:2992\", WKT, PROJJSON, a PROJ string) or None";
+    if (!py::isinstance<py::str>(crs)) throw py::type_error("crs must be " + expected + ", got " + type_name(crs));
+    const std::string text = crs.cast<std::string>();
+    {
+      py::gil_scoped_release nogil;  // the PROJ database lookup
+      pc.crs_wkt = io::crs_wkt_from_user_input(text);
+    }
+    if (pc.crs_wkt.empty()) {
+      const std::string shown = text.size() > 60 ? text.substr(0, 60) + "..." : text;
+      throw py::value_error("crs: GDAL cannot read " + py::repr(py::str(shown)).cast<std::string>() +
+                            " as a CRS; expected " + expected);
+    }
   }
   pc.validate();  // non-finite positions: ValueError naming the point
   return c;
@@ -276,8 +312,12 @@ PyCloud from_structured(py::handle obj, py::handle crs) {
   return from_arrays(xyz, rgb, intensity, classification, gps_time, normals, scalars, crs);
 }
 
+/// Indices as gather() walks them: one C-contiguous run of int64 (a slice with a step, or a
+/// reversed one, is a strided view of NumPy's arange; forcecast makes it one run).
+using IndexArray = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>;
+
 /// The points `sel` (indices into c, each in [0, N)) of `c` as a new cloud, every attribute kept.
-std::shared_ptr<PyCloud> gather(const PyCloud& c, const py::array_t<std::int64_t>& sel) {
+std::shared_ptr<PyCloud> gather(const PyCloud& c, const IndexArray& sel) {
   auto out = std::make_shared<PyCloud>();
   out->info = c.info;  // the source's format and LAS grid: rayscan.write keeps it
   out->path = c.path;
@@ -308,16 +348,29 @@ std::shared_ptr<PyCloud> gather(const PyCloud& c, const py::array_t<std::int64_t
 }
 
 /// NumPy's selection `key` (a boolean mask, integer indices, a slice) of the point indices 0..N-1,
-/// as int64 indices in [0, N). NumPy raises IndexError for a mask of another length or an index
-/// out of range.
-py::array_t<std::int64_t> selection(const PyCloud& c, py::handle key) {
+/// as int64 indices in [0, N), C-contiguous. NumPy raises IndexError for a mask of another length
+/// or an index out of range. Unsigned indices are checked here first: NumPy casts uint64 indices
+/// to intp, so 2**64 - 1 would select the last point as -1 does.
+IndexArray selection(const PyCloud& c, py::handle key) {
   py::module_ np = numpy();
-  const py::object all = np.attr("arange")(static_cast<std::int64_t>(c.cloud.size()), "dtype"_a = "int64");
+  const auto n = static_cast<std::int64_t>(c.cloud.size());
+  if (py::isinstance<py::array>(key)) {
+    const py::array k = py::reinterpret_borrow<py::array>(key);
+    if (k.dtype().kind() == 'u' && k.size() > 0) {
+      const py::int_ hi(k.attr("max")());
+      if (hi >= py::int_(n))
+        throw py::index_error("index " + py::repr(hi).cast<std::string>() + " is out of bounds for a cloud of " +
+                              std::to_string(n) + " points");
+    }
+  }
+  const py::object all = np.attr("arange")(n, "dtype"_a = "int64");
   const py::array sel = all[key];
   if (sel.ndim() != 1)
     throw py::type_error("PointCloud: a selection must give a one-dimensional array of points (a boolean mask of "
                          "length N, integer indices or a slice), got shape " + shape_text(sel));
-  return py::array_t<std::int64_t>::ensure(sel);
+  IndexArray out = IndexArray::ensure(sel);
+  if (!out) throw py::error_already_set();
+  return out;
 }
 
 std::shared_ptr<PyCloud> take(const PyCloud& c, py::handle indices) {
@@ -327,7 +380,9 @@ std::shared_ptr<PyCloud> take(const PyCloud& c, py::handle indices) {
                          (a.dtype().kind() == 'b' ? " (use pc[mask] for a boolean mask)" : ""));
   if (a.ndim() != 1)
     throw py::value_error("take: expected a one-dimensional array of indices, got shape " + shape_text(a));
-  return gather(c, selection(c, a.attr("astype")("int64")));
+  // An unsigned array goes to selection() as it is, which checks its range (astype would wrap
+  // 2**64 - 1 to -1); an empty one of any dtype is cast, as NumPy indexes only with integers.
+  return gather(c, selection(c, a.size() > 0 ? py::object(a) : a.attr("astype")("int64")));
 }
 
 }  // namespace
@@ -366,6 +421,40 @@ CloudArg cloud_arg(py::handle v, const char* name, bool allow_path) {
 
 namespace {
 
+/// True when `path` names a PLY, PCD or text output, whose reader takes a field spelt like a
+/// dedicated attribute or a LAS field for that field (docs/formats.md "Dedicated fields from
+/// named values"); LAS keeps every extra-bytes name as it is.
+bool output_renames_fields(const std::string& path) {
+  try {
+    const io::Format f = io::format_from_extension(path);
+    return f == io::Format::ply || f == io::Format::pcd || f == io::Format::text;
+  } catch (const std::exception&) {
+    return false;  // the writer names the bad extension
+  }
+}
+
+/// Refuses a field of rayscan.write that `path`'s reader would give back under another name:
+/// another spelling of intensity, classification or GPS time (any case, "gpstime"), which the
+/// reader moves into that attribute, or of a LAS field (PDAL's "ReturnNumber"), which it renames
+/// (io::las_standard_scalar_name). Raises ValueError "write: field 'gpstime' would read back from
+/// out.ply as the gps_time attribute; ...".
+void check_name_reads_back(const std::string& name, const std::string& path) {
+  std::string key = name;
+  for (char& ch : key)
+    if (ch >= 'A' && ch <= 'Z') ch = static_cast<char>(ch - 'A' + 'a');
+  const char* attribute = key == "intensity"                       ? "intensity"
+                          : key == "classification"                ? "classification"
+                          : key == "gps_time" || key == "gpstime" ? "gps_time"
+                                                                   : nullptr;
+  if (attribute != nullptr)
+    throw py::value_error("write: field '" + name + "' would read back from " + path + " as the " + attribute +
+                          " attribute; give it as PointCloud(..., " + attribute + "=...) or use another name");
+  const char* las = io::las_standard_scalar_name(name);
+  if (las != nullptr && name != las)
+    throw py::value_error("write: field '" + name + "' would read back from " + path + " as '" + las +
+                          "' (the LAS field's name); write it as " + las + "=...");
+}
+
 /// rayscan.write. The writer takes one PointCloud, which owns its arrays, so `fields` cannot be
 /// added to a PointCloud object's cloud as views: that cloud is copied (another Python thread may
 /// read it meanwhile, so it is not borrowed and given back), with the GIL released, as the write
@@ -375,9 +464,11 @@ void write(py::handle path, py::handle cloud, const py::dict& fields) {
   const std::string file = path_arg(path, "path");
   CloudArg c = cloud_arg(cloud, "cloud", /*allow_path=*/false);
   std::vector<ScalarField> extra;
+  const bool renaming_reader = output_renames_fields(file);
   for (auto [k, v] : fields) {
     const std::string name = py::str(k).cast<std::string>();
     check_scalar_name(name, "write");
+    if (renaming_reader) check_name_reads_back(name, file);
     extra.push_back({name, values_as<double>(column(v, name, c.points->size(), 0, "biuf", "real numbers"))});
   }
   const io::LasWriteOptions las = c.info ? io::las_grid_of(*c.info) : io::LasWriteOptions{};
@@ -411,7 +502,52 @@ void write(py::handle path, py::handle cloud, const py::dict& fields) {
 
 }  // namespace
 
+/// Defines rayscan.ScalarFields in `m`: the read-only mapping PointCloud.scalars returns (a
+/// collections.abc.Mapping: len, iteration, in, get, keys, items, == with a dict). Read-only
+/// because a PointCloud's fields are fixed once made (a job may be reading the cloud in another
+/// thread with the GIL released); assignment raises TypeError naming the calls that add a field.
+/// The arrays themselves are views of the cloud, as every attribute is.
+void define_scalar_fields(py::module_& m) {
+  py::dict scope;
+  scope["__name__"] = m.attr("__name__");
+  py::exec(R"py(
+import collections.abc
+
+class ScalarFields(collections.abc.Mapping):
+    """PointCloud.scalars: name -> (N,) float64 view of each scalar field, read-only. A new
+    field is added by PointCloud(xyz, ..., scalars={name: values}) or written by
+    rayscan.write(path, pc, name=values)."""
+
+    __slots__ = ("_fields",)
+
+    def __init__(self, fields):
+        self._fields = fields
+
+    def __getitem__(self, name):
+        return self._fields[name]
+
+    def __iter__(self):
+        return iter(self._fields)
+
+    def __len__(self):
+        return len(self._fields)
+
+    def __repr__(self):
+        return "ScalarFields(" + repr(self._fields) + ")"
+
+    def __setitem__(self, name, values):
+        raise TypeError("PointCloud.scalars is read-only: give a new field as PointCloud(xyz, ..., "
+                        "scalars={...}) or write it with rayscan.write(path, pc, " + str(name) + "=values)")
+
+    def __delitem__(self, name):
+        raise TypeError("PointCloud.scalars is read-only: keep fewer fields with rayscan.read(path, "
+                        "attributes=[...])")
+)py", scope);
+  m.attr("ScalarFields") = scope["ScalarFields"];
+}
+
 void bind_io(py::module_& m) {
+  define_scalar_fields(m);
   py::class_<PyCloud, std::shared_ptr<PyCloud>>(m, "PointCloud", R"doc(
 A point cloud: read by rayscan.read() (arrays are NumPy views of the reader's memory, no copy,
 kept alive by this object) or built from NumPy arrays (copied):
@@ -428,14 +564,16 @@ kept alive by this object) or built from NumPy arrays (copied):
   gps_time       (N,)   float64  GPS time, seconds as in the file
   normals        (N, 3) float32  unit normals (PLY nx ny nz, PCD normal_*)
   scalars        dict name -> (N,) float64: every other per-point field (LAS extra bytes,
-                 return_number, scan_angle in degrees, PLY/PCD properties)
-  crs            WKT string, or None when unknown
+                 return_number, scan_angle in degrees, PLY/PCD properties); .scalars is a
+                 read-only mapping of views
+  crs            the CRS as GDAL reads it ("EPSG:2992", WKT, PROJJSON, a PROJ string), kept
+                 as WKT (WKT as given); None when unknown. Text GDAL cannot read: ValueError
   epsg           EPSG code from LAS GeoKeys, or None
 
 Absent attributes are None. Bad shapes, dtypes or values raise ValueError naming the argument,
 a non-finite position ValueError naming the point, an argument of the wrong type TypeError.
-pc[mask] (bool (N,)), pc[indices], pc[start:stop] and pc.take(indices) give a new cloud of those
-points with every attribute; pc["name"] gives one attribute.)doc")
+pc[mask] (bool (N,)), pc[indices], pc[start:stop:step] and pc.take(indices) give a new cloud of
+those points with every attribute, as NumPy indexes each array; pc["name"] gives one attribute.)doc")
       .def(py::init(
                [](py::handle xyz, py::handle rgb, py::handle intensity, py::handle classification, py::handle gps_time,
                   py::handle normals, py::handle scalars, py::handle crs) {
@@ -456,8 +594,9 @@ nx ny nz. Every other numeric field becomes a scalar field of its name; PDAL's L
 ReturnNumber, NumberOfReturns, ScanDirectionFlag, EdgeOfFlightLine, ScanAngleRank (degrees),
 UserData, PointSourceId, ScanChannel, Infrared (and laspy's scan_angle_rank) take rayscan's
 names (return_number, ..., scan_angle, nir), which rayscan.write stores in the standard LAS
-fields. crs: WKT string (a PDAL array carries none: take it from the pipeline's metadata, e.g.
-pipeline.metadata["metadata"]["readers.las"]["comp_spatialreference"]), or None. Raises
+fields. crs: as PointCloud's ("EPSG:2992", WKT, ...; a PDAL array carries none: take it from the
+pipeline's metadata, e.g. pipeline.metadata["metadata"]["readers.las"]["comp_spatialreference"]),
+or None. Raises
 ValueError for a missing X/Y/Z, both spellings of one field, or a non-numeric field.)doc")
       .def("__len__", [](const PyCloud& c) { return c.cloud.size(); })
       .def("__getitem__",
@@ -477,7 +616,8 @@ ValueError for a missing X/Y/Z, both spellings of one field, or a non-numeric fi
            },
            py::arg("key"),
            "pc[\"name\"]: one attribute (KeyError when absent). pc[mask] (bool (N,)), pc[indices] (int), "
-           "pc[start:stop]: a new PointCloud of those points (NumPy's indexing rules; IndexError out of range).")
+           "pc[start:stop:step]: a new PointCloud of those points (NumPy's indexing rules; IndexError out of range, "
+           "unsigned indices too).")
       .def("take", &take, py::arg("indices"),
            "A new PointCloud of the points `indices` ((K,) integers in [-N, N), in that order, repeats "
            "allowed) with every attribute. Raises TypeError for non-integer indices, IndexError out of range.")
@@ -495,14 +635,16 @@ ValueError for a missing X/Y/Z, both spellings of one field, or a non-numeric fi
       .def_property_readonly("normals", [](py::object s) { return attribute(s, "normals"); },
                              "(N, 3) float32 unit normals, or None.")
       .def_property_readonly("scalars",
-                             [](py::object s) {
+                             [scalar_fields = py::object(m.attr("ScalarFields"))](py::object s) {
                                py::dict d;
                                for (const ScalarField& f : s.cast<const PyCloud&>().cloud.scalars)
                                  d[py::str(f.name)] = scalar_attribute(s, f.name);
-                               return d;
+                               return scalar_fields(d);
                              },
-                             "Dict name -> (N,) float64 of every other per-point field (LAS extra bytes, "
-                             "return_number, scan_angle in degrees, PLY/PCD properties); {} when none.")
+                             "Read-only mapping name -> (N,) float64 view of every other "
+                             "per-point field (LAS extra bytes, return_number, scan_angle in degrees, PLY/PCD "
+                             "properties); empty when none. Assigning to it raises TypeError: add a field with "
+                             "PointCloud(..., scalars={...}) or rayscan.write(path, pc, name=values).")
       .def_property_readonly("attributes", &PyCloud::attributes,
                              "Names of the attributes present (xyz first, then rgb, ..., scalars).")
       .def_property_readonly("crs",
@@ -510,7 +652,8 @@ ValueError for a missing X/Y/Z, both spellings of one field, or a non-numeric fi
                                if (c.cloud.crs_wkt.empty()) return py::none();
                                return py::str(c.cloud.crs_wkt);
                              },
-                             "The coordinate reference system as WKT, or None when unknown.")
+                             "The coordinate reference system as WKT (a crs given as \"EPSG:2992\" or PROJJSON "
+                             "is converted), or None when unknown.")
       .def_property_readonly("epsg",
                              [](const PyCloud& c) -> py::object {
                                if (c.info.epsg == 0) return py::none();

@@ -124,7 +124,7 @@ def test_point_cloud_from_arrays_keeps_every_attribute():
     (dict(scalars=[1, 2]), TypeError, "scalars must be a dict"),
     (dict(scalars={"rgb": np.zeros(4)}), ValueError, "'rgb' is a PointCloud attribute"),
     (dict(scalars={"s": np.zeros(3)}), ValueError, r"scalars\['s'\]: expected"),
-    (dict(crs=4326), TypeError, "crs must be a WKT string or None, got int"),
+    (dict(crs=4326), TypeError, "crs must be a CRS as GDAL reads it .* or None, got int"),
 ])
 def test_point_cloud_from_bad_arrays(kwargs, error, message):
     args = dict(xyz=np.zeros((4, 3)))

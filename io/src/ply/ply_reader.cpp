@@ -96,17 +96,25 @@ enum class Role { skip, x, y, z, nx, ny, nz, r, g, b, intensity, classification,
 Role role_of(const Property& p) {
   if (p.is_list) return Role::skip;
   std::string n = lower(p.name);
-  if (n.rfind("scalar_", 0) == 0) n = n.substr(7);  // CloudCompare prefixes scalar fields
-  if (n == "x") return Role::x;
-  if (n == "y") return Role::y;
-  if (n == "z") return Role::z;
-  if (n == "nx" || n == "normal_x") return Role::nx;
-  if (n == "ny" || n == "normal_y") return Role::ny;
-  if (n == "nz" || n == "normal_z") return Role::nz;
-  if (n == "red" || n == "r" || n == "diffuse_red") return Role::r;
-  if (n == "green" || n == "g" || n == "diffuse_green") return Role::g;
-  if (n == "blue" || n == "b" || n == "diffuse_blue") return Role::b;
-  if (n == "alpha" || n == "a" || n == "diffuse_alpha") return Role::skip;
+  // CloudCompare (and rayscan's writer) give scalar fields the prefix "scalar_": such a property
+  // may still be the intensity, classification or GPS time both write under it, but never a
+  // position, normal or colour channel (written unprefixed), nor the alpha that is dropped, so a
+  // scalar field named "nx", "red" or "a" reads back as that scalar.
+  const bool prefixed = n.rfind("scalar_", 0) == 0;
+  if (prefixed) {
+    n = n.substr(7);
+  } else {
+    if (n == "x") return Role::x;
+    if (n == "y") return Role::y;
+    if (n == "z") return Role::z;
+    if (n == "nx" || n == "normal_x") return Role::nx;
+    if (n == "ny" || n == "normal_y") return Role::ny;
+    if (n == "nz" || n == "normal_z") return Role::nz;
+    if (n == "red" || n == "r" || n == "diffuse_red") return Role::r;
+    if (n == "green" || n == "g" || n == "diffuse_green") return Role::g;
+    if (n == "blue" || n == "b" || n == "diffuse_blue") return Role::b;
+    if (n == "alpha" || n == "a" || n == "diffuse_alpha") return Role::skip;
+  }
   // Integer intensities (LAS-style, up to 16 bit) fill the intensity field; floating-point ones
   // (e.g. the Stanford scanner's 0..1 "intensity") stay a named scalar so no value is rounded.
   if (n == "intensity" && !is_float(p.type) && type_size(p.type) <= 2) return Role::intensity;

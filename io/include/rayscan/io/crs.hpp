@@ -18,4 +18,10 @@ struct EpsgCodes {
 /// from the vertical part's EPSG authority. {0, 0} for text GDAL cannot read; never throws.
 [[nodiscard]] EpsgCodes epsg_codes_from_wkt(const std::string& wkt);
 
+/// The CRS that `user_input` names, as WKT: WKT that GDAL reads is returned as given; any other
+/// form GDAL's OSRSetFromUserInput takes ("EPSG:2992", PROJJSON, a PROJ string) as WKT1, or WKT2
+/// where WKT1 cannot express it. What the writers store and the LAS reader identifies by EPSG
+/// code. "" for text GDAL cannot read; never throws.
+[[nodiscard]] std::string crs_wkt_from_user_input(const std::string& user_input);
+
 }  // namespace rayscan::io

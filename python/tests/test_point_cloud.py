@@ -1,0 +1,191 @@
+"""PointCloud subsets by any slice, the PLY round trip of named fields, the crs argument, the
+read-only scalars mapping and the errors of read and take, each against an independent oracle:
+NumPy's own indexing, the PLY file's own header and bytes, GDAL's osr and `rayscan info`, errno."""
+
+import errno
+import json
+import pathlib
+import subprocess
+
+import numpy as np
+import pytest
+
+import rayscan
+
+SLICES = [slice(None, None, s) for s in (-3, -2, -1, 1, 2, 3)] + [
+    slice(3, 0, -1), slice(0, 3, -1), slice(5, 5), slice(7, 2), slice(-4, None, 2), slice(None, -4, -3),
+    slice(-100, 100, 2), slice(100, -100, -3), slice(2, 1000), slice(1000, 2000), slice(-1000, -900, -1),
+    slice(None, None, 7), slice(1, -1, 3),
+]
+
+
+def small_cloud(n=11):
+    """A cloud of n points with every attribute, each column distinct per point."""
+    i = np.arange(n)
+    return rayscan.PointCloud(
+        np.column_stack([i * 1.5, i * 2.0 + 1, -i * 0.25]),
+        rgb=np.column_stack([i, i + 100, i + 200]).astype(np.uint16) * 7,
+        intensity=i * 3, classification=i % 7, gps_time=i * 0.5 + 1e5,
+        normals=np.column_stack([np.cos(i), np.sin(i), np.zeros(n)]),
+        scalars={"score": i ** 2.0, "flag": i % 2 == 0})
+
+
+@pytest.mark.parametrize("s", SLICES, ids=str)
+def test_slice_equals_numpy_slicing_of_every_attribute(s):
+    pc = small_cloud()
+    sub = pc[s]
+    assert len(sub) == len(pc.xyz[s])
+    # An empty cloud has no place for an attribute's absence besides an empty array, so only the
+    # positions and scalar fields of an empty subset are there.
+    kept = pc.attributes if len(sub) else ["xyz", "score", "flag"]
+    assert sub.attributes == kept
+    for name in kept:
+        np.testing.assert_array_equal(sub[name], pc[name][s], err_msg=name)
+
+
+@pytest.mark.parametrize("s", [slice(None, None, -1), slice(None, None, 2), slice(-5, 10, -7)], ids=str)
+def test_slice_of_a_read_cloud_equals_numpy_slicing(data_dir, s):
+    pc = rayscan.read(data_dir / "las" / "autzen_trim.las")
+    sub = pc[s]
+    for name in pc.attributes:
+        np.testing.assert_array_equal(sub[name], pc[name][s], err_msg=name)
+
+
+def test_unsigned_indices_past_the_end_raise_index_error():
+    pc = small_cloud()
+    for bad in (np.array([2 ** 64 - 1], np.uint64), np.array([len(pc)], np.uint64), np.array([0, 11], np.uint8)):
+        with pytest.raises(IndexError, match=f"index {bad.max()} is out of bounds"):
+            pc.take(bad)
+        with pytest.raises(IndexError, match=f"index {bad.max()} is out of bounds"):
+            pc[bad]
+    ok = np.array([10, 0, 10], np.uint64)
+    np.testing.assert_array_equal(pc.take(ok).xyz, pc.xyz[ok.astype(np.int64)])
+    np.testing.assert_array_equal(pc[ok].xyz, pc.xyz[ok.astype(np.int64)])
+
+
+def ply_body(path):
+    """The vertex properties (name, dtype) and values of a binary little-endian PLY file, parsed
+    from its own header (the PLY 1.0 layout), independent of rayscan's reader."""
+    b = pathlib.Path(path).read_bytes()
+    end = b.index(b"end_header\n") + len(b"end_header\n")
+    types = {"double": "<f8", "float": "<f4", "uchar": "u1"}
+    props, n = [], None
+    for line in b[:end].decode().splitlines():
+        w = line.split()
+        if w[:2] == ["element", "vertex"]:
+            n = int(w[2])
+        elif w[0] == "property":
+            props.append((w[2], types[w[1]]))
+    return props, np.frombuffer(b, dtype=np.dtype(props), count=n, offset=end)
+
+
+# Names a PLY reader takes for positions, normals, colour or alpha when unprefixed.
+ROLE_NAMES = ["a", "alpha", "nx", "ny", "nz", "normal_x", "red", "green", "blue", "r", "g", "b",
+              "diffuse_red", "x", "y", "z", "class", "scalar_x", "visible_count", "Amplitude"]
+
+
+def test_ply_round_trip_keeps_every_field_name(tmp_path):
+    rng = np.random.default_rng(5)
+    xyz = rng.uniform(-100, 100, (9, 3))
+    fields = {name: rng.normal(size=9) * (k + 1) for k, name in enumerate(ROLE_NAMES)}
+    out = tmp_path / "n.ply"
+    rayscan.write(out, rayscan.PointCloud(xyz), **fields)
+    props, body = ply_body(out)
+    assert [p for p, _ in props] == ["x", "y", "z"] + ["scalar_" + n for n in ROLE_NAMES]
+    back = rayscan.read(out)
+    assert back.attributes == ["xyz"] + ROLE_NAMES
+    assert back.normals is None and back.rgb is None
+    np.testing.assert_array_equal(back.xyz, np.column_stack([body["x"], body["y"], body["z"]]))
+    for name, values in fields.items():
+        np.testing.assert_array_equal(body["scalar_" + name], values, err_msg=name)
+        np.testing.assert_array_equal(back.scalars[name], values, err_msg=name)
+
+
+def test_ply_with_real_normals_and_colour_keeps_same_named_fields(tmp_path):
+    pc = small_cloud(6)
+    out = tmp_path / "both.ply"
+    nx, red = np.linspace(-1, 1, 6), np.arange(6) * 0.5
+    rayscan.write(out, pc, nx=nx, red=red)
+    back = rayscan.read(out)
+    np.testing.assert_array_equal(back.normals, pc.normals)
+    np.testing.assert_array_equal(back.rgb, pc.rgb // 257 * 257 + (pc.rgb % 257 >= 129) * 257)
+    np.testing.assert_array_equal(back.scalars["nx"], nx)
+    np.testing.assert_array_equal(back.scalars["red"], red)
+
+
+@pytest.mark.parametrize("name, becomes", [
+    ("gpstime", "as the gps_time attribute"), ("GPS_Time", "as the gps_time attribute"),
+    ("Intensity", "as the intensity attribute"), ("CLASSIFICATION", "as the classification attribute"),
+    ("ReturnNumber", "as 'return_number'"), ("ScanAngleRank", "as 'scan_angle'"), ("Infrared", "as 'nir'"),
+])
+@pytest.mark.parametrize("ext", ["ply", "pcd", "xyz"])
+def test_write_refuses_a_name_that_reads_back_as_another_field(tmp_path, name, becomes, ext):
+    out = tmp_path / f"c.{ext}"
+    with pytest.raises(ValueError, match=f"^write: field '{name}' would read back from .*c.{ext} {becomes}"):
+        rayscan.write(out, np.zeros((3, 3)), **{name: np.arange(3.0)})
+    assert not out.exists()
+    # LAS keeps an extra-bytes field by its own name.
+    las = tmp_path / "c.las"
+    rayscan.write(las, np.zeros((3, 3)), **{name: np.arange(3.0)})
+    np.testing.assert_array_equal(rayscan.read(las).scalars[name], np.arange(3.0))
+
+
+def test_crs_given_as_epsg_is_stored_as_wkt(cli, tmp_path):
+    osr = pytest.importorskip("osgeo.osr")
+    pc = rayscan.PointCloud(np.array([[1e6, 5e5, 100.0], [1e6 + 10, 5e5 + 10, 110.0]]), crs="EPSG:2992")
+    expected = osr.SpatialReference()
+    expected.ImportFromEPSG(2992)
+    got = osr.SpatialReference()
+    assert got.ImportFromWkt(pc.crs) == 0 and got.IsSame(expected)
+    out = tmp_path / "c.las"
+    rayscan.write(out, pc)
+    back = rayscan.read(out)
+    assert back.epsg == 2992 and back.crs == pc.crs
+    info = json.loads(subprocess.run([cli, "info", "--json", str(out)], check=True, capture_output=True,
+                                     text=True).stdout)
+    assert info["crs"]["epsg"] == 2992 and info["crs"]["source"] == "WKT VLR"
+    # WKT2 and PROJJSON name the same CRS.
+    for text in (expected.ExportToWkt(["FORMAT=WKT2_2019"]), expected.ExportToPROJJSON()):
+        other = osr.SpatialReference()
+        assert other.ImportFromWkt(rayscan.PointCloud(pc.xyz, crs=text).crs) == 0 and other.IsSame(expected)
+
+
+@pytest.mark.parametrize("bad", ["garbage", "EPSG:99999999", "", "PROJCS[broken"])
+def test_crs_gdal_cannot_read_raises_value_error(bad):
+    with pytest.raises(ValueError, match="^crs: GDAL cannot read .* as a CRS"):
+        rayscan.PointCloud(np.zeros((1, 3)), crs=bad)
+    with pytest.raises(TypeError, match="^crs must be"):
+        rayscan.PointCloud(np.zeros((1, 3)), crs=2992)
+
+
+def test_scalars_is_a_read_only_mapping_of_views():
+    pc = small_cloud()
+    s = pc.scalars
+    assert list(s) == ["score", "flag"] and len(s) == 2 and "score" in s and s.get("nope") is None
+    np.testing.assert_array_equal(dict(s.items())["score"], np.arange(11) ** 2.0)
+    with pytest.raises(TypeError, match="read-only.*PointCloud\\(xyz, ..., scalars=.*rayscan.write\\(path, pc, h=values"):
+        s["h"] = np.zeros(len(pc))
+    with pytest.raises(TypeError, match="read-only"):
+        del s["score"]
+    assert list(pc.scalars) == ["score", "flag"]
+    assert rayscan.PointCloud(np.zeros((2, 3))).scalars == {}
+    # The arrays are views of the cloud, as every attribute is.
+    s["score"][0] = 42.0
+    assert pc.scalars["score"][0] == 42.0
+
+
+def test_read_of_a_missing_file_raises_file_not_found(tmp_path):
+    missing = tmp_path / "nope.las"
+    with pytest.raises(FileNotFoundError) as e:
+        rayscan.read(missing)
+    assert e.value.errno == errno.ENOENT and e.value.filename == str(missing)
+    with pytest.raises(NotADirectoryError) as e:
+        (tmp_path / "file").write_bytes(b"")
+        rayscan.read(tmp_path / "file" / "x.las")
+    assert e.value.errno == errno.ENOTDIR
+    # A file that opens but is malformed keeps the reader's message, no errno.
+    bad = tmp_path / "bad.las"
+    bad.write_bytes(b"LASF" + bytes(50))
+    with pytest.raises(OSError, match="bad.las") as e:
+        rayscan.read(bad)
+    assert e.value.errno is None and type(e.value) is OSError
