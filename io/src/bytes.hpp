@@ -1,6 +1,7 @@
 // Internal: bounds-checked access to a file's bytes and the one-line error format of all readers.
 #pragma once
 
+#include "rayscan/base/coordinate_bound.hpp"
 #include "rayscan/base/input_file.hpp"
 #include "rayscan/io/point_io.hpp"
 
@@ -34,6 +35,34 @@ namespace rayscan::io::detail {
 [[noreturn]] inline void fail_line(const std::string& name, std::uint64_t line,
                                    const std::string& what) {
   throw FormatError(one_line(name + ": line " + std::to_string(line) + ": " + what));
+}
+
+/// Whether x, y and z all lie within +-kMaxCoordinate (rayscan/base/coordinate_bound.hpp), the
+/// bound every point reader and writer holds a world coordinate to: one compare per axis, false
+/// for NaN and infinities too, so a reader's loop tests each point once and sorts out the rare
+/// failure afterwards.
+[[nodiscard]] inline bool within_coordinate_bound(double x, double y, double z) {
+  return std::abs(x) <= kMaxCoordinate && std::abs(y) <= kMaxCoordinate && std::abs(z) <= kMaxCoordinate;
+}
+
+/// The refusal of point `index` (0-based, in file order) whose `axis` (0 X, 1 Y, 2 Z) coordinate
+/// `v` lies beyond +-kMaxCoordinate, as it follows the reader's "file: byte B: " or "file: line L: "
+/// (or a writer's "file: "): "point N: X coordinate is V (<source>; expected within +-1e+09, the
+/// coordinate bound in world units)", "overflows to infinity" for an infinite V; `source` says how
+/// the file gives V (a LAS record's integer, scale and offset) and is left out when empty.
+[[nodiscard]] inline std::string beyond_coordinate_bound(std::uint64_t index, int axis, double v,
+                                                         const std::string& source = {}) {
+  return "point " + std::to_string(index) + ": " + "XYZ"[axis] + " coordinate " +
+         (std::isinf(v) ? std::string("overflows to infinity") : "is " + shortest_text(v)) + " (" +
+         (source.empty() ? source : source + "; ") + coordinate_bound_expected() + ")";
+}
+
+/// beyond_coordinate_bound for the first axis of (x, y, z) beyond the bound (finite or infinite;
+/// the caller has sorted out NaN by its own rule); Z when none is (not reached by a caller that
+/// found within_coordinate_bound false for finite values).
+[[nodiscard]] inline std::string beyond_coordinate_bound(std::uint64_t index, double x, double y, double z) {
+  const int axis = !(std::abs(x) <= kMaxCoordinate) ? 0 : !(std::abs(y) <= kMaxCoordinate) ? 1 : 2;
+  return beyond_coordinate_bound(index, axis, axis == 0 ? x : axis == 1 ? y : z);
 }
 
 /// The bytes of one input file plus its name (for errors). `release(upto)` tells the source that

@@ -5,6 +5,7 @@
 // rayscan/io/field_names.hpp).
 #pragma once
 
+#include "bytes.hpp"
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/io/field_names.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -18,13 +19,20 @@
 
 namespace rayscan::io::detail {
 
-/// cloud.validate(), its message prefixed with the output `path` ("<path>: <what is wrong>").
-/// Throws std::invalid_argument.
+/// cloud.validate(), its message prefixed with the output `path` ("<path>: <what is wrong>"), and
+/// every position within +-kMaxCoordinate: a file is written only if the readers will read it
+/// back ("<path>: point N: X coordinate is V (expected within +-1e+09, ...)", the readers' text).
+/// Throws std::invalid_argument before anything is written.
 inline void validate_for_writing(const std::filesystem::path& path, const PointCloud& cloud) {
   try {
     cloud.validate();
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(path.string() + ": " + e.what());
+  }
+  for (std::size_t i = 0; i < cloud.positions.size(); ++i) {
+    const Vec3& p = cloud.positions[i];
+    if (!within_coordinate_bound(p.x, p.y, p.z))
+      throw std::invalid_argument(path.string() + ": " + beyond_coordinate_bound(i, p.x, p.y, p.z));
   }
 }
 

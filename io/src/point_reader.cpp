@@ -129,7 +129,8 @@ void promote_scalars(PointCloud& pc, const ReadOptions& opt, FileInfo& info) {
   }
 }
 
-/// Headerless little-endian float64 x,y,z triples, streamed straight from the map.
+/// Headerless little-endian float64 x,y,z triples, streamed straight from the map. A point with a
+/// non-finite coordinate, or one beyond +-kMaxCoordinate, is refused naming its byte.
 class F64Reader final : public PointReader {
  public:
   explicit F64Reader(std::shared_ptr<Source> src) : src_(std::move(src)) {
@@ -155,9 +156,11 @@ class F64Reader final : public PointReader {
     if (n > 0) std::memcpy(pc.positions.data(), in.bytes.data() + next_ * 24, n * 24);
     for (std::size_t i = 0; i < n; ++i) {
       const Vec3& p = pc.positions[i];
+      if (detail::within_coordinate_bound(p.x, p.y, p.z)) continue;  // one compare per axis
       if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
         detail::fail_at(in.name, (next_ + i) * 24,
                         "point " + std::to_string(next_ + i) + " has a non-finite coordinate");
+      detail::fail_at(in.name, (next_ + i) * 24, detail::beyond_coordinate_bound(next_ + i, p.x, p.y, p.z));
     }
     next_ += n;
     in.done(next_ * 24);

@@ -5,6 +5,7 @@
 
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/byte_size.hpp"
+#include "rayscan/base/coordinate_bound.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/interrupt.hpp"
@@ -52,8 +53,9 @@ PointCloud read_index_points(const std::filesystem::path& path, io::LasWriteOpti
 /// Whether the options ask for a LAS grid of their own (scale, offset or automatic offset).
 bool grid_requested(const TranslateJobOptions& o) { return !o.scale.empty() || o.offset || o.auto_offset; }
 
-/// Checks scale, offset and auto_offset before anything is read; `grid_output`: the output is
-/// LAS, LAZ or COPC, the outputs that have a grid. Throws OptionError (run_translate).
+/// Checks scale, offset (finite, within +-kMaxCoordinate) and auto_offset before anything is
+/// read; `grid_output`: the output is LAS, LAZ or COPC, the outputs that have a grid. Throws
+/// OptionError (run_translate).
 void check_grid_options(const TranslateJobOptions& o, bool grid_output) {
   if (!grid_requested(o)) return;
   const char* named = !o.scale.empty() ? "scale" : "offset";
@@ -67,11 +69,14 @@ void check_grid_options(const TranslateJobOptions& o, bool grid_output) {
       throw OptionError({option("scale"), " " + shortest_text(s) + ": expected a finite number > 0"});
   if (o.offset && o.auto_offset)
     throw OptionError({option("offset"), ": expected auto or X,Y,Z, not both"});
+  // An offset beyond the coordinate bound is a LAS header the readers refuse (its stored 0 lies
+  // there): refused here, before anything is read or written.
   if (o.offset)
     for (int k = 0; k < 3; ++k)
-      if (!std::isfinite((*o.offset)[k]))
-        throw OptionError({option("offset"), std::string(" ") + "XYZ"[k] + " = " + shortest_text((*o.offset)[k]) +
-                                                 ": expected a finite number"});
+      if (const double v = (*o.offset)[k]; !(std::abs(v) <= kMaxCoordinate))
+        throw OptionError({option("offset"), std::string(" ") + "XYZ"[k] + " = " + shortest_text(v) + ": " +
+                                                 (std::isfinite(v) ? coordinate_bound_expected()
+                                                                   : std::string("expected a finite number"))});
 }
 
 /// `grid` (the source's, or the defaults) with the scale and offsets the options ask for: a new

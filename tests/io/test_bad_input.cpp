@@ -202,6 +202,59 @@ TEST(BadInput, TextNonNumberAndMissingColumns) {
   expect_one_line(error_of(std::string("1 2 inf\n"), io::Format::text), "line 1: non-finite coordinate");
 }
 
+// PCD, text and .f64 points hold the LAS reader's coordinate bound (rayscan::kMaxCoordinate, 1e9
+// world units, inclusive): a finite coordinate beyond it is refused naming the point (0-based in
+// file order, a dropped NaN point counted), the axis and the value, at the point's line (ascii),
+// record byte (binary, .f64) or the LZF data (binary_compressed); PCD still drops a NaN point.
+// Oracle: the values written here, and the byte of record i = end of header + i x record length.
+TEST(BadInput, PcdTextAndF64CoordinatesBeyondTheBoundAreRefused) {
+  using namespace std::string_literals;
+  const std::string tail = " (expected within +-1e+09, the coordinate bound in world units)";
+  const std::string ascii = "VERSION .7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nWIDTH 3\nHEIGHT 1\nPOINTS 3\n"
+                            "DATA ascii\n1e9 -1e9 0\nnan 0 0\n";
+  io::FileInfo info;
+  const std::string inside = ascii + "0 0 1e9\n";
+  const PointCloud pc = io::read_point_cloud(std::vector<std::uint8_t>(inside.begin(), inside.end()), io::Format::pcd,
+                                             "bad", {}, &info);
+  ASSERT_EQ(pc.positions.size(), 2u);
+  EXPECT_EQ(pc.positions[0], Vec3(1e9, -1e9, 0));
+  EXPECT_EQ(pc.positions[1], Vec3(0, 0, 1e9));
+  EXPECT_EQ(info.dropped_nonfinite, 1u);
+  EXPECT_EQ(error_of(ascii + "0 0 -1000000001\n", io::Format::pcd),
+            "bad: line 11: point 2: Z coordinate is -1000000001" + tail);
+
+  // binary: three points of 24 bytes after the header; point 2's Y is 2e9.
+  std::string bin = "VERSION .7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nWIDTH 3\nHEIGHT 1\nPOINTS 3\nDATA binary\n";
+  const std::size_t body = bin.size();
+  const double v[9] = {1, 2, 3, std::nan(""), 0, 0, 4, 2e9, 6};
+  bin.append(reinterpret_cast<const char*>(v), sizeof v);
+  EXPECT_EQ(error_of(bin, io::Format::pcd), "bad: byte " + std::to_string(body + 2 * 24) + ": point 2: Y coordinate is 2e+09" + tail);
+
+  // binary_compressed, one point (its struct of arrays is its record): an LZF literal run of 24
+  // bytes (control byte 23), named at the LZF data, 8 bytes after the header.
+  std::string lzf = "VERSION .7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary_compressed\n";
+  const std::size_t cbody = lzf.size();
+  const double w[3] = {-3e9, 0, 0};
+  lzf += "\x19\0\0\0\x18\0\0\0\x17"s;
+  lzf.append(reinterpret_cast<const char*>(w), sizeof w);
+  EXPECT_EQ(error_of(lzf, io::Format::pcd), "bad: byte " + std::to_string(cbody + 8) + ": point 0: X coordinate is -3e+09" + tail);
+
+  // text: line 3 is the second point (the header names the columns); exactly 1e9 reads.
+  const std::string text = "x y z\n1000000000 -1000000000 0\n0 -1000000000.5 0\n";
+  EXPECT_EQ(error_of(text, io::Format::text), "bad: line 3: point 1: Y coordinate is -1000000000.5" + tail);
+  expect_one_line(error_of(std::string("1 2 inf\n"), io::Format::text), "line 1: non-finite coordinate");
+
+  // .f64: headerless x, y, z doubles; point 1 (byte 24) has X beyond the bound.
+  std::vector<std::uint8_t> f64(48);
+  const double u[6] = {1e9, 0, -1e9, 1.5e9, 0, 0};
+  std::memcpy(f64.data(), u, sizeof u);
+  EXPECT_EQ(error_of(f64, io::Format::f64), "bad: byte 24: point 1: X coordinate is 1.5e+09" + tail);
+  poke<double>(f64, 24, 0.0);
+  const PointCloud ok = io::read_point_cloud(f64, io::Format::f64, "ok");
+  ASSERT_EQ(ok.positions.size(), 2u);
+  EXPECT_EQ(ok.positions[0], Vec3(1e9, 0, -1e9));
+}
+
 TEST(BadInput, DuplicateColumnsAndProperties) {
   // Found by fuzz_text (tests/fuzz/regressions/text/): "i" and "intensity" both filled intensity.
   expect_one_line(error_of(std::string("x,y,z,i,intensity\n1,2,3,4,5\n"), io::Format::text),

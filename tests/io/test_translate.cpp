@@ -26,6 +26,43 @@ void expect_same_file(const fs::path& a, const fs::path& b) {
   EXPECT_EQ(i, x.size()) << "first differing byte " << i;
 }
 
+// LAS <-> LAZ copies records as they are, so a file whose scale takes a point beyond the
+// coordinate bound (1e9) would become a file every reader refuses: translate_las refuses it with
+// the LAS reader's own line (oracle: the reader's error on the same file) and writes nothing.
+TEST(Translate, ARecordBeyondTheCoordinateBoundIsRefusedAsTheReaderRefusesIt) {
+  PointCloud pc;
+  pc.positions = {Vec3(0, 0, 0), Vec3(0, 0, 0), Vec3(3, 0, 0)};
+  io::LasWriteOptions grid;
+  grid.scale = Vec3(1.0);
+  grid.has_offset = true;
+  const fs::path las = temp_dir() / "beyond_bound_in.las";
+  io::write_las(las, pc, grid);
+  auto b = slurp(las);
+  const double scale = 5e8;  // point 2: 3 x 5e8 = 1.5e9; points 0 and 1 stay 0
+  std::memcpy(&b[131], &scale, sizeof scale);
+  std::ofstream(las, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  std::string reader;
+  try {
+    (void)io::read_point_cloud(las);
+  } catch (const io::FormatError& e) {
+    reader = e.what();
+  }
+  ASSERT_NE(reader.find(": point 2: X coordinate is 1.5e+09 (stored integer 3 x scale 5e+08"), std::string::npos)
+      << reader;
+  for (const char* name : {"beyond_bound.laz", "beyond_bound.las"}) {
+    const fs::path out = temp_dir() / name;
+    fs::remove(out);
+    try {
+      io::translate_las(las, out);
+      ADD_FAILURE() << name << ": written";
+    } catch (const io::FormatError& e) {
+      EXPECT_EQ(std::string(e.what()), reader) << name;
+    }
+    EXPECT_FALSE(fs::exists(out)) << name;
+  }
+}
+
 TEST(Translate, LazToLasEqualsTheDerivedFiles) {
   for (const char* name : {"lone-star", "append-bug"}) {
     const fs::path laz = data_file(std::string("laz/") + name + ".laz");

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <random>
 #include <sstream>
 #include <utility>
@@ -498,6 +499,64 @@ TEST(Writers, FailedWriteLeavesNoFile) {
   EXPECT_FALSE(fs::exists(out));
   for (const auto& de : fs::directory_iterator(temp_dir()))
     EXPECT_EQ(de.path().string().find(".tmp."), std::string::npos) << de.path();
+}
+
+// The writers hold the readers' coordinate bound (rayscan::kMaxCoordinate, 1e9 world units,
+// inclusive), so that what they write reads back: a position beyond it, a LAS offset beyond it,
+// or a LAS coordinate rounded onto its grid beyond it is refused with one line before any file
+// exists. Oracle: the written files read back (positions at exactly +-1e9 equal), the header's
+// own offset bytes, and the LAS arithmetic on the values chosen here (999999999 / 6 =
+// 166666666.5 rounds to 166666667, x 6 = 1000000002).
+TEST(Writers, NothingBeyondTheCoordinateBoundIsWritten) {
+  const std::string tail = " (expected within +-1e+09, the coordinate bound in world units)";
+  auto error_of = [](const std::function<void()>& f) -> std::string {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return e.what();
+    }
+    return "";
+  };
+  PointCloud pc;
+  pc.positions = {Vec3(1e9, -1e9, 0), Vec3(0, 2e9, 0)};
+  for (const char* name : {"beyond.las", "beyond.laz", "beyond.ply", "beyond.pcd", "beyond.xyz", "beyond.csv"}) {
+    const fs::path out = temp_dir() / name;
+    fs::remove(out);
+    EXPECT_EQ(error_of([&] { io::write_point_cloud(out, pc); }), out.string() + ": point 1: Y coordinate is 2e+09" + tail);
+    EXPECT_FALSE(fs::exists(out)) << name;
+    pc.positions[1] = Vec3(0, 0, 1e9);
+    io::write_point_cloud(out, pc);
+    EXPECT_EQ(io::read_point_cloud(out).positions, pc.positions) << name;
+    pc.positions[1] = Vec3(0, 2e9, 0);
+  }
+
+  const fs::path las = temp_dir() / "beyond_grid.las";
+  fs::remove(las);
+  pc.positions = {Vec3(0, 0, 0), Vec3(1, 2, 3)};
+  io::LasWriteOptions opt;
+  opt.scale = Vec3(10);
+  opt.offset = Vec3(5e9, 0, 0);  // the stored integers (-5e8) would fit, the header would not read
+  opt.has_offset = true;
+  EXPECT_EQ(error_of([&] { io::write_las(las, pc, opt); }), las.string() + ": offset X is 5e+09" + tail);
+  EXPECT_FALSE(fs::exists(las));
+  pc.positions = {Vec3(0, 0, 0), Vec3(999999999, 0, 0)};
+  opt.scale = Vec3(6);
+  opt.offset = Vec3(0.0);
+  EXPECT_EQ(error_of([&] { io::write_las(las, pc, opt); }),
+            las.string() + ": point 1: X coordinate is 1000000002 (stored integer 166666667 x scale 6 + offset 0, from "
+                           "999999999; expected within +-1e+09, the coordinate bound in world units)");
+  EXPECT_FALSE(fs::exists(las));
+
+  // An automatic offset near -1e9 on a scale of 7 (1000 steps: 7000) rounds towards zero instead
+  // of down past the bound: floor(-999999997 / 7000) x 7000 = -1000006000, trunc -999999000.
+  pc.positions = {Vec3(-999999997, 0, 0), Vec3(0, 0, 0)};
+  opt.scale = Vec3(7);
+  opt.has_offset = false;
+  io::write_las(las, pc, opt);
+  EXPECT_EQ(load_at<double>(slurp(las), 155), -999999000.0);
+  const PointCloud back = io::read_point_cloud(las);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back.positions[0].x, -999999994.0);  // -999999000 + round(-997 / 7) x 7
 }
 
 // The Extra Bytes VLR's record length is 16 bit (LAS 1.4 R15 section 2.5.6): 341 descriptors of

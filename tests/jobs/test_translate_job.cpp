@@ -513,6 +513,11 @@ TEST(TranslateJob, CliScaleAndOffset) {
   r = test::rayscan_cli(base + " --offset 1,2");
   EXPECT_EQ(r.code, 2);
   EXPECT_EQ(r.out, "rayscan translate: --offset '1,2': expected auto or X,Y,Z (three finite numbers)\n");
+  // An offset beyond the readers' coordinate bound (1e9) would write a header they refuse, though
+  // the stored integers fit at this scale ((0 - 5e9) / 10 = -5e8).
+  r = test::rayscan_cli(base + " --scale 10 --offset 0,5e9,0");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan translate: --offset Y = 5e+09: expected within +-1e+09, the coordinate bound in world units\n");
   r = test::rayscan_cli(base + " --scale 1e-9 --offset 0,0,0");
   EXPECT_EQ(r.code, 2);
   EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;

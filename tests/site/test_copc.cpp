@@ -11,7 +11,10 @@
 #include <sys/mman.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
+#include <fstream>
+#include <functional>
 #include <cstring>
 #include <limits>
 #include <random>
@@ -359,6 +362,90 @@ TEST(Copc, QueryJobRunsOnTheHierarchyAndEqualsTheWholeFilePath) {
   std::ostringstream csv;
   jobs::write_hits_csv(csv, a);
   EXPECT_NE(csv.str().find("ray,rank,index"), std::string::npos);
+}
+
+// COPC queried in place holds the LAS reader's coordinate bound (1e9 world units): the node
+// holding a point beyond it is refused when it is decoded, with the reader's line for that point,
+// at the byte where the node's chunk starts; the other nodes still decode. The file: two clusters
+// of 250 points, about (0, 0, 0) and (1e6, 1e6, 1e6), written as COPC on scale 1 in nodes of up
+// to 16 points, then its X scale (header byte 131, outside the compressed chunks) set to 1000, so
+// that only the point stored at X = 1000001 lies beyond the bound (1000001000). Oracle: the LAS
+// reader's refusal of the same file (its point number and text) and the file's own hierarchy
+// (chunk offsets and point counts, file order by offset).
+TEST(Copc, APointBeyondTheCoordinateBoundIsRefusedInPlaceAsTheReaderRefusesIt) {
+  PointCloud pc;
+  for (std::uint64_t i = 0; i < 500; ++i) {
+    const double base = i < 250 ? 0.0 : 999000.0;
+    pc.positions.emplace_back(base + double(i * 7919 % 1000), base + double(i * 104729 % 1000),
+                              base + double(i * 1299709 % 1000));
+  }
+  pc.positions[321].x = 1000001;
+  io::LasWriteOptions grid;
+  grid.scale = Vec3(1.0);
+  grid.offset = Vec3(0.0);
+  grid.has_offset = true;
+  const fs::path las = temp_dir() / "bound_src.las", copc = temp_dir() / "bound.copc.laz";
+  io::write_las(las, pc, grid);
+  io::CopcWriteOptions o;
+  o.leaf_points = 16;
+  io::write_copc(las, copc, o);
+  std::vector<std::uint8_t> b = slurp(copc);
+  ASSERT_EQ(load_at<double>(b, 131), 1.0);
+  const double scale = 1000;
+  std::memcpy(&b[131], &scale, sizeof scale);
+  std::ofstream(copc, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+
+  std::string reader;
+  try {
+    (void)io::read_point_cloud(copc);
+  } catch (const io::FormatError& e) {
+    reader = e.what();
+  }
+  const std::size_t at = reader.find(": point ");
+  ASSERT_NE(at, std::string::npos) << reader;
+  const std::string point = reader.substr(at + 2);
+  const std::uint64_t id = std::stoull(point.substr(6));
+  EXPECT_EQ(point, "point " + std::to_string(id) + ": X coordinate is 1000001000 (stored integer 1000001 x scale 1000 + "
+                   "offset 0; expected within +-1e+09, the coordinate bound in world units)");
+
+  io::CopcIndex idx(copc);
+  std::vector<io::CopcNode> nodes = idx.info().nodes;
+  ASSERT_GT(nodes.size(), 2u);
+  std::sort(nodes.begin(), nodes.end(), [](const io::CopcNode& a, const io::CopcNode& c) { return a.offset < c.offset; });
+  std::uint64_t first = 0, chunk = 0, root_first = 0;
+  bool bad_in_root = false;
+  for (const io::CopcNode& n : nodes) {
+    const std::uint64_t end = first + static_cast<std::uint64_t>(n.point_count);
+    if (id >= first && id < end) chunk = n.offset, bad_in_root = n.level == 0;
+    if (n.level == 0) root_first = first;
+    first = end;
+  }
+  ASSERT_GT(chunk, 0u);
+  const std::string expected = copc.string() + ": byte " + std::to_string(chunk) + ": " + point;
+  const auto error_of = [](const std::function<void()>& f) {
+    try {
+      f();
+    } catch (const io::FormatError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  // The root decodes first (every node's ancestor): a point of its own reads as the reader's
+  // arithmetic gives it, when the point beyond lies deeper.
+  EXPECT_FALSE(bad_in_root) << "the test wants the point beyond the bound below the root";
+  if (!bad_in_root) {
+    const Vec3 p = idx.position_of(static_cast<PointIndex>(root_first));
+    EXPECT_LE(std::abs(p.x), 1e9);
+    EXPECT_EQ(std::fmod(p.x, 1000.0), 0.0) << p.x;  // stored integer x 1000
+  }
+  EXPECT_EQ(error_of([&] { (void)idx.position_of(static_cast<PointIndex>(id)); }), expected);
+  // A query job whose ray crosses the point's cube meets the same refusal.
+  jobs::QueryJobOptions q;
+  q.cloud_file = copc;
+  q.query.radius = 1;
+  q.rays = {Ray(Vec3(-1, pc.positions[321].y, pc.positions[321].z), Vec3(1, 0, 0))};
+  EXPECT_EQ(error_of([&] { (void)jobs::run_query(q); }), expected);
 }
 
 TEST(Copc, ARootCubeFieldOutOfRangeIsNamedAtItsOwnByte) {

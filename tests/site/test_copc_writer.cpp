@@ -127,6 +127,39 @@ constexpr Case kCases[] = {{"las/autzen_trim_7.las", 7}, {"las/test1_4.las", 6},
                            {"laz/append-bug.laz", 8},    {"las/autzen_trim.las", 7},    {"las/point-time.las", 6},
                            {"laz/lone-star.copc.laz", 6}};
 
+// write_copc copies a LAS input's records as they are: one whose scale takes a point beyond the
+// coordinate bound (1e9) is refused with the LAS reader's own line for it (oracle: the reader's
+// error on the same file) before the output exists.
+TEST(CopcWriter, AnInputPointBeyondTheCoordinateBoundIsRefusedAsTheReaderRefusesIt) {
+  PointCloud pc;
+  pc.positions = {Vec3(0, 0, 0), Vec3(2, 0, 0), Vec3(0, 0, 0)};
+  io::LasWriteOptions grid;
+  grid.scale = Vec3(1.0);
+  grid.has_offset = true;
+  const fs::path las = temp_dir() / "copc_beyond_in.las", out = temp_dir() / "copc_beyond.copc.laz";
+  io::write_las(las, pc, grid);
+  auto b = slurp(las);
+  const double scale = -6e8;  // point 1: 2 x -6e8 = -1.2e9
+  std::memcpy(&b[131], &scale, sizeof scale);
+  std::ofstream(las, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  std::string reader;
+  try {
+    (void)io::read_point_cloud(las);
+  } catch (const io::FormatError& e) {
+    reader = e.what();
+  }
+  ASSERT_NE(reader.find(": point 1: X coordinate is -1.2e+09"), std::string::npos) << reader;
+  fs::remove(out);
+  try {
+    io::write_copc(las, out);
+    ADD_FAILURE() << "written";
+  } catch (const io::FormatError& e) {
+    EXPECT_EQ(std::string(e.what()), reader);
+  }
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST(CopcWriter, CopcJsReadsEveryNodeTheUnionIsTheInputAndNodesLieInTheirCubes) {
   std::string why;
   const fs::path modules = npm_modules(why);

@@ -2,6 +2,7 @@
 #include "las/las_header.hpp"
 #include "rayscan/base/coordinate_bound.hpp"
 #include "rayscan/base/number_text.hpp"
+#include "rayscan/octree/position_view.hpp"
 
 #include <cmath>
 #include <cstring>
@@ -163,11 +164,25 @@ LasHeader parse_las_header(const Input& in) {
     // offset itself). The scale is not bounded here: a large scale is refused point by point, as
     // a file whose stored integers are all small may still lie within the bound.
     if (std::abs(h.offset[k]) > kMaxCoordinate)
-      fail_at(nm, 155 + 8 * k, std::string("offset ") + "XYZ"[k] + " is " + shortest_text(h.offset[k]) +
-                                   " (expected within +-" + shortest_text(kMaxCoordinate) +
-                                   ", the coordinate bound in world units)");
+      fail_at(nm, 155 + 8 * k, std::string("offset ") + "XYZ"[k] + " is " + shortest_text(h.offset[k]) + " (" +
+                                   coordinate_bound_expected() + ")");
   }
   return h;
+}
+
+void refuse_las_coordinate(const std::string& name, std::uint64_t byte, std::uint64_t index, const std::uint8_t* r,
+                           const Vec3& scale, const Vec3& offset) {
+  for (int k = 0; k < 3; ++k) {
+    const std::int32_t stored = load_le<std::int32_t>(r + 4 * k);
+    const double v = las_coordinate(stored, scale[k], offset[k]);
+    if (std::abs(v) <= kMaxCoordinate) continue;
+    fail_at(name, byte,
+            beyond_coordinate_bound(index, k, v,
+                                    "stored integer " + std::to_string(stored) + " x scale " + shortest_text(scale[k]) +
+                                        " + offset " + shortest_text(offset[k])));
+  }
+  // Not reached from a caller that decoded the record with las_coordinate (no FP contraction).
+  fail_at(name, byte, "point " + std::to_string(index) + ": coordinate beyond +-" + shortest_text(kMaxCoordinate));
 }
 
 }  // namespace rayscan::io::detail

@@ -66,4 +66,14 @@ struct LasHeader {
 /// not checked against the file size here (LAZ bounds it by its chunk table).
 LasHeader parse_las_header(const Input& in);
 
+/// The refusal of a point record whose coordinates decode beyond +-kMaxCoordinate, shared by the
+/// LAS/LAZ reader and COPC queried in place so that both name a point alike. `r` is the record
+/// (X, Y, Z int32 at bytes 0, 4, 8, as in every PDRF), `index` the point's 0-based number in file
+/// order, `byte` where the file holds it (the record, or the compressed chunk holding it).
+/// Throws FormatError "file: byte B: point N: X coordinate is V (stored integer I x scale S +
+/// offset O; expected within +-1e+09, the coordinate bound in world units)" for the first axis
+/// beyond the bound ("overflows to infinity" for V).
+[[noreturn]] void refuse_las_coordinate(const std::string& name, std::uint64_t byte, std::uint64_t index,
+                                        const std::uint8_t* r, const Vec3& scale, const Vec3& offset);
+
 }  // namespace rayscan::io::detail

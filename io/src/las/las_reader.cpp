@@ -6,8 +6,6 @@
 #include "readers.hpp"
 #include "rayscan/octree/position_view.hpp"
 #include "laz/laz.hpp"
-#include "rayscan/base/coordinate_bound.hpp"
-#include "rayscan/base/number_text.hpp"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -115,8 +113,7 @@ void decode(const Decoder& dc, std::size_t i0, std::size_t i1, Reduction& red) {
     const double y = las_coordinate(load_le<std::int32_t>(r + 4), dc.scale.y, dc.offset.y);
     const double z = las_coordinate(load_le<std::int32_t>(r + 8), dc.scale.z, dc.offset.z);
     // One compare per axis on the decoded doubles; false for an overflow to infinity too.
-    if (!(std::abs(x) <= kMaxCoordinate && std::abs(y) <= kMaxCoordinate && std::abs(z) <= kMaxCoordinate))
-      red.first_bad = std::min(red.first_bad, i);
+    if (!within_coordinate_bound(x, y, z)) red.first_bad = std::min(red.first_bad, i);
     o.pos[i] = Vec3(x, y, z);
     if (o.intensity != nullptr) o.intensity[i] = load_le<std::uint16_t>(r + 12);
     if (o.cls != nullptr) o.cls[i] = Legacy ? (r[15] & 0x1F) : r[16];
@@ -285,9 +282,8 @@ class LasReader final : public PointReader {
   /// parallel over chunks) and returns a pointer to record `first`; n <= points of the window.
   const std::uint8_t* laz_records(std::uint64_t first, std::size_t n, std::uint32_t layers);
   /// Throws FormatError for point `index`, whose record `r` decodes to a coordinate beyond
-  /// +-kMaxCoordinate: "file: byte B: point N: X coordinate is V (stored integer I x scale S +
-  /// offset O; expected within +-1e+09, ...)", or "overflows to infinity" for V; B is the
-  /// record's byte offset in the file.
+  /// +-kMaxCoordinate (refuse_las_coordinate, las_header.hpp); the byte named is the record's
+  /// offset in the uncompressed layout (point data offset + index x record length).
   [[noreturn]] void refuse_coordinate(const std::uint8_t* r, std::uint64_t index) const;
   /// laz_records for compressor 1 (LASzip 1.x pointwise): the file is one stream of all its
   /// points, so one decoder kept across calls decodes the records in sequence into a window of
@@ -583,20 +579,7 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
 }
 
 void LasReader::refuse_coordinate(const std::uint8_t* r, std::uint64_t index) const {
-  for (int k = 0; k < 3; ++k) {
-    const std::int32_t stored = load_le<std::int32_t>(r + 4 * k);
-    const double v = las_coordinate(stored, scale_[k], offset_[k]);
-    if (std::abs(v) <= kMaxCoordinate) continue;
-    const std::string how = std::isfinite(v) ? "is " + shortest_text(v) : std::string("overflows to infinity");
-    fail_at(src_->in.name, point_offset_ + index * rec_len_,
-            "point " + std::to_string(index) + ": " + "XYZ"[k] + " coordinate " + how + " (stored integer " +
-                std::to_string(stored) + " x scale " + shortest_text(scale_[k]) + " + offset " +
-                shortest_text(offset_[k]) + "; expected within +-" + shortest_text(kMaxCoordinate) +
-                ", the coordinate bound in world units)");
-  }
-  // Not reached: decode() computes the same expression (las_coordinate, no FP contraction).
-  fail_at(src_->in.name, point_offset_ + index * rec_len_,
-          "point " + std::to_string(index) + ": coordinate beyond +-" + shortest_text(kMaxCoordinate));
+  refuse_las_coordinate(src_->in.name, point_offset_ + index * rec_len_, index, r, scale_, offset_);
 }
 
 void LasReader::decide_colour_scale(std::uint16_t mx) {

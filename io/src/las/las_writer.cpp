@@ -217,9 +217,13 @@ struct LasRecordWriter {
       auto_scale[k] = !(scale[k] > 0.0) || !std::isfinite(scale[k]);
       if (auto_scale[k]) scale[k] = 0.001;
     }
+    // Rounded towards zero instead where rounding down would leave the coordinate bound (a low
+    // corner near -1e9 on a scale such as 7), which the readers hold a LAS offset to.
     auto default_offset = [&](int k, double s) {
       const double unit = 1000.0 * s;
-      return box.empty() ? 0.0 : std::floor(box.lo[k] / unit) * unit;
+      if (box.empty()) return 0.0;
+      const double down = std::floor(box.lo[k] / unit) * unit;
+      return std::abs(down) <= kMaxCoordinate ? down : std::trunc(box.lo[k] / unit) * unit;
     };
     if (!options.has_offset)
       for (int k = 0; k < 3; ++k) offset[k] = default_offset(k, scale[k]);
@@ -256,6 +260,11 @@ struct LasRecordWriter {
       while (auto_scale[k] && !box.empty() &&
              std::max(std::abs(box.hi[k] - offset[k]), std::abs(box.lo[k] - offset[k])) / scale[k] > 2.0e9)
         scale[k] *= 10.0;
+    // The readers refuse a header offset beyond the bound (parse_las_header): not written.
+    for (int k = 0; k < 3; ++k)
+      if (!(std::abs(offset[k]) <= kMaxCoordinate))
+        throw std::invalid_argument(path.string() + ": offset " + "XYZ"[k] + " is " + shortest_text(offset[k]) +
+                                    " (" + coordinate_bound_expected() + ")");
   }
 
   /// Coordinate v of axis k (0 X, 1 Y, 2 Z) of point i as the record's 32-bit integer.
@@ -272,13 +281,24 @@ struct LasRecordWriter {
   }
 
   /// The header's bounds (of the quantised coordinates, as readers will see them) and points
-  /// by return; checks that every coordinate quantises.
+  /// by return; checks that every coordinate quantises, and reads back within +-kMaxCoordinate
+  /// (a coordinate inside the bound may round to the grid beyond it): std::invalid_argument
+  /// "<path>: point N: X coordinate is V (stored integer I x scale S + offset O, from P; expected
+  /// within +-1e+09, the coordinate bound in world units)" otherwise.
   void first_pass() {
     qlo = Vec3(std::numeric_limits<double>::infinity());
     qhi = Vec3(-std::numeric_limits<double>::infinity());
     for (std::size_t i = 0; i < n; ++i) {
       for (int k = 0; k < 3; ++k) {
-        const double v = quantise(cloud.positions[i][k], k, i) * scale[k] + offset[k];
+        const std::int32_t q = quantise(cloud.positions[i][k], k, i);
+        const double v = las_coordinate(q, scale[k], offset[k]);  // the readers' expression
+        if (!(std::abs(v) <= kMaxCoordinate))
+          throw std::invalid_argument(
+              path.string() + ": " +
+              detail::beyond_coordinate_bound(i, k, v,
+                                              "stored integer " + std::to_string(q) + " x scale " +
+                                                  shortest_text(scale[k]) + " + offset " + shortest_text(offset[k]) +
+                                                  ", from " + shortest_text(cloud.positions[i][k])));
         qlo[k] = std::min(qlo[k], v);
         qhi[k] = std::max(qhi[k], v);
       }

@@ -8,6 +8,7 @@
 #include "las/las_header.hpp"
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/option_error.hpp"
+#include "rayscan/octree/position_view.hpp"
 
 #include <fstream>
 #include <optional>
@@ -37,11 +38,14 @@ class RecordSource {
                           std::to_string(h.data_end - h.point_offset) + " bytes of point data follow");
     }
   }
-  /// Pointer to the next `n` records (valid until the next call).
+  /// Pointer to the next `n` records (valid until the next call). Throws FormatError, as the LAS
+  /// reader does, for a record whose coordinates decode beyond +-kMaxCoordinate: a copy that
+  /// keeps the records as they are would otherwise write a file every reader refuses.
   const std::uint8_t* next(std::size_t n) {
     const std::size_t rec = h_.record_length;
     if (!vlr_) {
       const std::uint8_t* p = in_.bytes.data() + h_.point_offset + done_ * rec;
+      check_coordinates(p, n);
       done_ += n;
       return p;
     }
@@ -63,11 +67,26 @@ class RecordSource {
       // error, as in the other decoding paths, instead of a record invented from padding.
       if (left_ == 0) dec_->finish();
     }
+    check_coordinates(buf_.data(), n);
     done_ += n;
     return buf_.data();
   }
 
  private:
+  /// The `n` records at `p` (points done_ onwards), one compare per axis; the first beyond the
+  /// bound is refused with the reader's line (detail::refuse_las_coordinate), at the byte the
+  /// reader names.
+  void check_coordinates(const std::uint8_t* p, std::size_t n) const {
+    const std::size_t rec = h_.record_length;
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint8_t* r = p + i * rec;
+      if (!detail::within_coordinate_bound(las_coordinate(load_le<std::int32_t>(r), h_.scale.x, h_.offset.x),
+                                           las_coordinate(load_le<std::int32_t>(r + 4), h_.scale.y, h_.offset.y),
+                                           las_coordinate(load_le<std::int32_t>(r + 8), h_.scale.z, h_.offset.z)))
+        detail::refuse_las_coordinate(in_.name, h_.point_offset + (done_ + i) * rec, done_ + i, r, h_.scale, h_.offset);
+    }
+  }
+
   const detail::Input& in_;
   const detail::LasHeader& h_;
   std::optional<laz::LaszipVlr> vlr_;

@@ -5,7 +5,8 @@
 // pcl::PCDWriter::writeBinaryCompressed: uint32 compressed size, uint32 uncompressed size, LZF
 // stream of the struct-of-arrays layout). Packed colour: "rgb" (F 4) / "rgba" (U 4) hold
 // 0x00RRGGBB / 0xAARRGGBB. Points with a non-finite x, y or z (invalid pixels of organized
-// clouds) are dropped and counted in FileInfo::dropped_nonfinite. VIEWPOINT is reported in
+// clouds) are dropped and counted in FileInfo::dropped_nonfinite; a finite one beyond
+// +-kMaxCoordinate is refused, as the LAS reader refuses it. VIEWPOINT is reported in
 // FileInfo, not applied (positions stay in the file's frame).
 // read_pcd's steps make their checks in a fixed order (header lines, field layout, roles, data),
 // which decides the error a file with several defects reports.
@@ -404,9 +405,12 @@ struct PcdBody {
     packed_bits.assign(nf, 0);
   }
 
-  /// Appends the point in `vals` / `packed_bits`; false (and counted in info.dropped_nonfinite)
-  /// when x, y or z is not finite.
-  bool emit() {
+  /// Appends point `index` (file order) in `vals` / `packed_bits`; false (and counted in
+  /// info.dropped_nonfinite) when x, y or z is not finite. A finite coordinate beyond
+  /// +-kMaxCoordinate is refused as the LAS reader refuses it: `fail` (a FormatError thrower
+  /// naming the point's line or byte) gets beyond_coordinate_bound's text.
+  template <class Fail>
+  bool emit(std::uint64_t index, Fail&& fail) {
     double x = 0, y = 0, z = 0, n3[3] = {0, 0, 0}, c3[3] = {0, 0, 0};
     std::uint32_t pk = 0;
     const std::size_t nf = h.fields.size();
@@ -426,9 +430,12 @@ struct PcdBody {
         default: break;
       }
     }
-    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) {
-      ++info.dropped_nonfinite;
-      return false;
+    if (!within_coordinate_bound(x, y, z)) {  // one compare per axis; NaN and infinities too
+      if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) {
+        ++info.dropped_nonfinite;
+        return false;
+      }
+      fail(beyond_coordinate_bound(index, x, y, z));
     }
     pc.positions.emplace_back(x, y, z);
     if (roles.has_n) pc.normals.emplace_back(to_f32(n3[0]), to_f32(n3[1]), to_f32(n3[2]));
@@ -502,7 +509,7 @@ struct PcdBody {
           fail_line(nm, ln, "more values than the " + std::to_string(first[nf]) + " that FIELDS/COUNT declare");
         ++p;
       }
-      emit();
+      emit(done, [&](const std::string& what) { fail_line(nm, ln, what); });
       ++done;
     }
   }
@@ -524,7 +531,8 @@ struct PcdBody {
         for (std::uint64_t j = 0; j < ne; ++j) vals[first[k] + j] = load_field(fp + j * f.size, f);
         if (role == PcdRole::packed) packed_bits[k] = load_le<std::uint32_t>(fp);
       }
-      emit();
+      // The point's record, or for binary_compressed (no record in the file) the LZF data.
+      emit(i, [&](const std::string& what) { fail_at(in.name, soa ? h.body + 8 : h.body + i * h.point_size, what); });
       if (!soa && (i + 1) % 65536 == 0) in.done(h.body + (i + 1) * h.point_size);
     }
   }

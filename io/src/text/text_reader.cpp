@@ -6,7 +6,9 @@
 // scalars col4, col5, ... A .pts file (Leica Cyclone's layout, as PDAL's readers.pts reads it) may
 // start each scan with a line holding its point count; its rows are then x y z, x y z intensity or
 // x y z intensity r g b, the intensity in -2048..2047 stored + 2048 as PDAL does.
-// Every value is parsed as double (a float32 cannot hold UTM northings to the centimetre).
+// Every value is parsed as double (a float32 cannot hold UTM northings to the centimetre). A
+// non-finite x, y or z is refused, and so is a finite one beyond +-kMaxCoordinate, as the LAS
+// reader refuses it ("line L: point N: ...", N counting the rows read).
 #include "readers.hpp"
 #include "text_columns.hpp"
 
@@ -180,8 +182,11 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
         case Col::skip: break;
       }
     }
-    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
-      fail_line(nm, lineno, "non-finite coordinate (expected finite x, y, z)");
+    if (!within_coordinate_bound(x, y, z)) {  // one compare per axis; NaN and infinities too
+      if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
+        fail_line(nm, lineno, "non-finite coordinate (expected finite x, y, z)");
+      fail_line(nm, lineno, beyond_coordinate_bound(pc.positions.size(), x, y, z));
+    }
     pc.positions.emplace_back(x, y, z);
     if (has_rgb) colour.insert(colour.end(), {to_f32(c3[0]), to_f32(c3[1]), to_f32(c3[2])});
     if (has_normals) pc.normals.emplace_back(to_f32(n3[0]), to_f32(n3[1]), to_f32(n3[2]));

@@ -321,11 +321,18 @@ namespace {
 // LAS 1.4 R15 tables 13-17 (PDRF 6-8): intensity at byte 12, classification at 16, RGB at 30.
 constexpr std::size_t kIntensityAt = 12, kClassAt = 16, kRgbAt = 30;
 
-// X/Y/Z of one point record (int32 at bytes 0, 4, 8 of every PDRF), scaled and offset: world units.
-Vec3 record_position(const CopcInfo& info, const std::uint8_t* r) {
-  return Vec3(las_coordinate(detail::load_le<std::int32_t>(r), info.scale.x, info.offset.x),
-              las_coordinate(detail::load_le<std::int32_t>(r + 4), info.scale.y, info.offset.y),
-              las_coordinate(detail::load_le<std::int32_t>(r + 8), info.scale.z, info.offset.z));
+// X/Y/Z of point `index` (file order), record `r` (int32 at bytes 0, 4, 8 of every PDRF), scaled
+// and offset: world units. A coordinate beyond the bound is refused as the LAS reader refuses it
+// (detail::refuse_las_coordinate), naming `chunk`, the byte where the node's compressed chunk
+// starts: a query of the file in place meets the point the reader would refuse.
+Vec3 record_position(const CopcInfo& info, const std::uint8_t* r, const std::string& name, std::uint64_t chunk,
+                     std::uint64_t index) {
+  const double x = las_coordinate(detail::load_le<std::int32_t>(r), info.scale.x, info.offset.x);
+  const double y = las_coordinate(detail::load_le<std::int32_t>(r + 4), info.scale.y, info.offset.y);
+  const double z = las_coordinate(detail::load_le<std::int32_t>(r + 8), info.scale.z, info.offset.z);
+  if (!detail::within_coordinate_bound(x, y, z))
+    detail::refuse_las_coordinate(name, chunk, index, r, info.scale, info.offset);
+  return Vec3(x, y, z);
 }
 
 // The record's colour times `mul` (257 for 8-bit colour stored in the 16-bit fields, else 1).
@@ -513,7 +520,8 @@ void CopcIndex::load(std::uint32_t n) const {
     const std::size_t rec = info_.record_length;
     for (std::uint32_t i = 0; i < nd.own; ++i) {
       const std::uint8_t* rp = buf.data() + std::size_t{i} * rec;
-      own.pos.push_back(record_position(info_, rp)), own.id.push_back(static_cast<PointIndex>(nd.first_id + i));
+      own.pos.push_back(record_position(info_, rp, name_, info_.nodes[nd.entry].offset, nd.first_id + i));
+      own.id.push_back(static_cast<PointIndex>(nd.first_id + i));
       if (rgb_ != nullptr) own.rgb.push_back(record_rgb(rp, rgb_mul_));
       if (int_ != nullptr) own.intensity.push_back(detail::load_le<std::uint16_t>(rp + kIntensityAt));
       if (cls_ != nullptr) own.classification.push_back(rp[kClassAt]);
@@ -644,6 +652,7 @@ void CopcIndex::scan(unsigned attrs, const std::function<bool(const NodeBlock&)>
     tbb::parallel_for(b0, b1, [&](std::size_t k) { decode_records(by_first_id_[k], layers, bufs[k - b0]); });
     for (std::size_t k = b0; k < b1; ++k) {
       const std::vector<std::uint8_t>& buf = bufs[k - b0];
+      const NodeData& nd = nodes_[by_first_id_[k]];
       const std::size_t rec = info_.record_length, m = buf.size() / rec;
       pos.resize(m);
       col.resize(rgb ? m : 0);
@@ -651,7 +660,7 @@ void CopcIndex::scan(unsigned attrs, const std::function<bool(const NodeBlock&)>
       cls.resize(attrs & kClassification ? m : 0);
       for (std::size_t i = 0; i < m; ++i) {
         const std::uint8_t* r = buf.data() + i * rec;
-        pos[i] = record_position(info_, r);
+        pos[i] = record_position(info_, r, name_, info_.nodes[nd.entry].offset, nd.first_id + i);
         if (!inten.empty()) inten[i] = detail::load_le<std::uint16_t>(r + kIntensityAt);
         if (!cls.empty()) cls[i] = r[kClassAt];
         if (!col.empty())

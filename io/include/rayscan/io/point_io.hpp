@@ -58,7 +58,8 @@ Format format_from_extension(const std::filesystem::path& path);
 /// arrays plus a bounded window. Fills `info` when non-null. Positions are finite doubles in the
 /// file's own world frame and units; the cloud satisfies PointCloud::validate().
 /// Throws FormatError (one line: file, byte offset or line, what was expected) for unreadable,
-/// malformed or unsupported (LAZ/COPC) files.
+/// malformed or unsupported (LAZ/COPC) files, and (LAS, LAZ, PCD, text, .f64) for a point with a
+/// coordinate beyond +-kMaxCoordinate (rayscan/base/coordinate_bound.hpp).
 PointCloud read_point_cloud(const std::filesystem::path& path, const ReadOptions& options = {},
                             FileInfo* info = nullptr);
 
@@ -89,7 +90,7 @@ struct LasWriteOptions {
   /// the cloud's extent fits 32-bit integers.
   Vec3 scale{0.0};
   /// LAS offsets; used only when `has_offset`, otherwise the bounding box minimum rounded down
-  /// to a whole multiple of 1000 * scale.
+  /// to a whole multiple of 1000 * scale (towards zero where that would leave kMaxCoordinate).
   Vec3 offset{0.0};
   bool has_offset = false;
   std::string system_id = "rayscan";  ///< header System Identifier (max 32 characters)
@@ -117,8 +118,11 @@ struct LasWriteOptions {
 /// the same scale and offset is bit-exact. Written to "<dir>/.<name>.tmp.<pid>" (rayscan::AtomicFile) and renamed into place.
 /// A path ending in .laz (case-insensitive) is written as LAZ: the same records compressed by
 /// translate_las (LASzip layered-chunked compressor, item version 3; docs/formats.md "LAZ" 5).
-/// Throws std::invalid_argument for a cloud failing validate() or coordinates that do not fit the
-/// 32-bit integer grid, std::runtime_error for I/O failures (no partial file is left).
+/// Throws std::invalid_argument, before the file is created, for a cloud failing validate() or
+/// holding a position beyond +-kMaxCoordinate (rayscan/base/coordinate_bound.hpp, the readers'
+/// bound), an offset beyond that bound, or coordinates that do not fit the 32-bit integer grid
+/// or read back from it beyond the bound; std::runtime_error for I/O failures (no partial file
+/// is left).
 void write_las(const std::filesystem::path& path, const PointCloud& cloud,
                const LasWriteOptions& options = {});
 
@@ -132,7 +136,8 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud,
 /// LasWriteOptions::extra_bytes) gets a header line "comment field scalar_<name>: <description>"
 /// (and "; no data <value>" when it declares one), so a unit travels with the file; readers skip
 /// comments (read_point_cloud keeps them in FileInfo::comments). Written via temp file + rename.
-/// Throws std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
+/// Throws std::invalid_argument for a cloud failing validate() or holding a position beyond
+/// +-kMaxCoordinate (nothing is written), std::runtime_error on I/O failure.
 void write_ply(const std::filesystem::path& path, const PointCloud& cloud,
                const std::map<std::string, ExtraBytesInfo>& descriptions = {});
 
@@ -146,7 +151,8 @@ void write_ply(const std::filesystem::path& path, const PointCloud& cloud,
 /// unique). Each ScalarField named in `descriptions` (as for write_ply) gets a comment line
 /// "# field <name>: <description>" after the first line, before VERSION. PCD has no CRS: a
 /// cloud's crs_wkt is not written. Written via temp file + rename.
-/// Throws std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
+/// Throws std::invalid_argument for a cloud failing validate() or holding a position beyond
+/// +-kMaxCoordinate (nothing is written), std::runtime_error on I/O failure.
 void write_pcd(const std::filesystem::path& path, const PointCloud& cloud,
                const std::map<std::string, ExtraBytesInfo>& descriptions = {});
 
@@ -162,7 +168,8 @@ void write_pcd(const std::filesystem::path& path, const PointCloud& cloud,
 /// from 8-bit values (PointCloud::rgb_from_8bit_las: a LAS file's or a text file's), those 8-bit
 /// values, which read_point_cloud scales by 257 again (docs/formats.md). No CRS. Written via temp
 /// file + rename. Throws
-/// std::invalid_argument for a cloud failing validate(), std::runtime_error on I/O failure.
+/// std::invalid_argument for a cloud failing validate() or holding a position beyond
+/// +-kMaxCoordinate (nothing is written), std::runtime_error on I/O failure.
 void write_text(const std::filesystem::path& path, const PointCloud& cloud, const LasWriteOptions& grid = {});
 
 /// The extensions write_point_cloud() writes, lower case with the dot: ".las", ".laz", ".ply",

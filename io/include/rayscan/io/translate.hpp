@@ -41,7 +41,8 @@ struct TranslateResult {
 /// compressor with item version 3 (POINT14, RGB14, RGBNIR14, BYTE14; one arithmetic coder per
 /// layer). Writes through a temporary file renamed into place (AtomicFile). Throws FormatError
 /// for malformed input (e.g. a waveform data packet record start, byte 227, neither after the
-/// point records nor at an EVLR), std::invalid_argument for an unsupported conversion (LAZ output
+/// point records nor at an EVLR; a point whose coordinates decode beyond +-kMaxCoordinate, named
+/// as the LAS reader names it, so no output the readers refuse is written), std::invalid_argument for an unsupported conversion (LAZ output
 /// of the waveform formats 4, 5, 9, 10; LAZ input or output of a file holding its waveform data
 /// packets, global encoding bit 1, which LAS -> LAS copies and re-addresses), OptionError naming "chunk_size" for 0 or 0xFFFFFFFF (the
 /// LASzip VLR's variable-chunk marker), std::runtime_error for I/O failures. Sources:

@@ -82,10 +82,11 @@ struct TranslateJobResult : io::TranslateResult {
 /// a file name ending in .las, .laz, .copc.laz, ...") and for an unsupported conversion (LAZ or COPC
 /// output of the waveform point formats 4, 5, 9, 10; COPC output of an index file), io::IndexError
 /// for a malformed index file, OptionError naming "scale" or "offset" for a scale that is not
-/// finite and > 0, a count other than 1 or 3, an offset that is not finite, `offset` with
+/// finite and > 0, a count other than 1 or 3, an offset that is not finite or beyond
+/// +-kMaxCoordinate (rayscan/base/coordinate_bound.hpp, the readers' bound), `offset` with
 /// `auto_offset`, or either with an output that is not LAS, LAZ or COPC, std::invalid_argument
 /// (from io::write_las: point, axis, value) for a coordinate whose (value - offset) / scale does not
-/// fit a 32-bit integer, io::CopcMemoryError when a COPC build exceeds `memory`,
+/// fit a 32-bit integer or reads back beyond +-kMaxCoordinate, io::CopcMemoryError when a COPC build exceeds `memory`,
 /// io::FormatError for a malformed input, OutputFileError or std::runtime_error for I/O failures
 /// (the previous output, if any, is then left unchanged).
 TranslateJobResult run_translate(const TranslateJobOptions& options);

@@ -79,9 +79,11 @@ inline constexpr std::size_t kCopcDefaultCacheBytes = std::size_t{2} << 30;
 /// read_point_cloud() returns them in. positions() spans reserved virtual memory: a node's slots
 /// are filled on first touch (thread-safe), which decodes only the X, Y and Z layers of the node
 /// and of those of its ancestors not resident.
-/// Coordinates: x = X * scale + offset in double, exactly as read_point_cloud(). Node bounds are
-/// the COPC voxel cubes, grown by one scale step (points on a face may be rounded outside by the
-/// LAS quantisation).
+/// Coordinates: x = X * scale + offset in double, exactly as read_point_cloud(); a node holding a
+/// point beyond +-kMaxCoordinate (rayscan/base/coordinate_bound.hpp) throws FormatError when it is
+/// decoded, the reader's one-line refusal naming the point (its byte: the node's chunk). Node
+/// bounds are the COPC voxel cubes, grown by one scale step (points on a face may be rounded
+/// outside by the LAS quantisation).
 ///
 /// Points pushed down (a ray crosses one local tree, not one per level): every level of a COPC
 /// hierarchy is a subsample of the whole cube, so a ray reaching a point at the deepest level

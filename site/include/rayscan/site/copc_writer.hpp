@@ -95,7 +95,8 @@ struct CopcWriteResult {
 /// and non-LAS inputs (disk: count x record length); CopcMemoryError beyond `memory_bytes`.
 /// Written through a temporary file renamed into place (no partial output).
 ///
-/// Throws FormatError for an unreadable input, std::invalid_argument for a waveform PDRF
+/// Throws FormatError for an unreadable input or one whose points decode beyond +-kMaxCoordinate
+/// (the LAS reader's line for the first, before the output is created), std::invalid_argument for a waveform PDRF
 /// (4, 5, 9, 10), an empty input, a record over 65535 bytes after conversion or VLRs too large
 /// for a LAS header, CopcMemoryError (above; also for 2^32 points or more, which the 32-bit
 /// record indices of the build cannot address), std::runtime_error for I/O failures. Sources: COPC 1.0 specification (copc.io, sections "Info VLR", "Hierarchy",
