@@ -9,6 +9,7 @@
 #include "rayscan/base/interrupt.hpp"
 #include "rayscan/base/progress.hpp"
 #include "rayscan/jobs/index.hpp"
+#include "rayscan/octree/any_index.hpp"
 
 #include <signal.h>
 
@@ -82,18 +83,23 @@ Runner add_index_command(CLI::App& app) {
     } catch (const std::invalid_argument& e) {
       throw UsageError(e.what());
     }
-    // An option the chosen layout does not use is refused rather than ignored (query refuses
-    // --depth without --index octree-fixed the same way). A COPC output has its own octree.
-    const std::string layout = "--layout " + o->layout;
+    // An option the chosen layout does not use is refused rather than ignored, by the library's
+    // rule (check_applicable; its OptionError is printed with the flags' names; the job refuses
+    // the layered layout, which the external-memory build lacks). A COPC output has its own octree.
     if (io::is_copc_output(o->output)) {
       for (const CLI::Option* opt : {attributes, layout_opt, capacity, depth, max_depth, positions})
         if (opt->count() > 0)
           throw UsageError(opt->get_name() + " applies to an index file (.rsi), not to a COPC output (.copc.laz)");
-    } else if (job.config.layout == OctreeLayout::fixed) {
-      for (const CLI::Option* opt : {capacity, max_depth})
-        if (opt->count() > 0) throw UsageError(opt->get_name() + " applies to --layout adaptive only (got " + layout + ")");
-    } else if (job.config.layout == OctreeLayout::adaptive && depth->count() > 0) {
-      throw UsageError("--depth applies to --layout fixed only (got " + layout + ")");
+    } else {
+      GivenIndexOptions given;
+      given.capacity = capacity->count() > 0;
+      given.max_depth = max_depth->count() > 0;
+      given.depth = depth->count() > 0;
+      IndexChoiceWords words;
+      words.option = "--layout ";
+      words.layouts = true;
+      words.types = {"octree-adaptive", "octree-fixed"};
+      check_applicable("octree-" + std::string(to_string(job.config.layout)), given, words);
     }
     job.config.capacity = o->capacity;
     job.config.depth = o->depth;

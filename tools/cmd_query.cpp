@@ -43,15 +43,15 @@ RayOrder parse_order(const std::string& s) {
 }
 
 int run_query(const QueryOptions& o) {
-  // An option the chosen index does not use is refused rather than ignored (index refuses
-  // --capacity with --layout fixed and --depth with --layout adaptive the same way).
-  if (o.depth_given && o.index.type != "octree-fixed")
-    throw UsageError("--depth applies to --index octree-fixed only (got --index " + o.index.type + ")");
-  if (o.capacity > 0 && (o.index.type == "octree-fixed" || o.index.type == "brute"))
-    throw UsageError("--capacity applies to --index octree-adaptive, octree-layered and kdtree only (got --index " +
-                     o.index.type + ")");
-  if (o.index.insertion && o.index.type.rfind("octree-", 0) != 0)
-    throw UsageError("--insertion applies to the octree indexes only (got --index " + o.index.type + ")");
+  // An option the chosen index does not use is refused rather than ignored, by the library's rule
+  // (check_applicable; its OptionError is printed with the flags' names).
+  GivenIndexOptions given;
+  given.capacity = o.capacity > 0;
+  given.depth = o.depth_given;
+  given.insertion = o.index.insertion;
+  IndexChoiceWords words;
+  words.option = "--index ";
+  check_applicable(o.index.type, given, words);
   RayQuery q;
   q.order = parse_order(o.order);
   if (o.k >= 0) q.k = static_cast<std::size_t>(o.k);

@@ -115,20 +115,6 @@ std::optional<unsigned> parse_depth(py::handle v, const char* name, long long lo
   return opt_int_arg<unsigned>(v, name, lo, 21, "None or an integer in [" + std::to_string(lo) + ", 21]");
 }
 
-/// Refuses an Octree argument its layout does not use, as `rayscan query` and `rayscan index`
-/// refuse --capacity and --max-depth with a fixed layout and --depth with another: a fixed tree
-/// splits every node down to `depth` whatever it holds, the others split by capacity up to
-/// max_depth, so the ignored value would only mislead (and a repr showing it would lie).
-void check_layout_arguments(OctreeLayout layout, bool capacity, bool depth, bool max_depth) {
-  const std::string got = " (got layout='" + std::string(to_string(layout)) + "')";
-  if (layout == OctreeLayout::fixed) {
-    if (capacity) throw py::value_error("capacity applies to layout='adaptive' and 'layered' only" + got);
-    if (max_depth) throw py::value_error("max_depth applies to layout='adaptive' and 'layered' only" + got);
-  } else if (depth) {
-    throw py::value_error("depth applies to layout='fixed' only" + got);
-  }
-}
-
 PyIndex build(py::handle xyz, const IndexOptions& opts) {
   const Vec3Rows pts = as_vec3_rows(xyz, "xyz");
   // The trees refuse a non-finite point ("octree: point 5 has a non-finite coordinate"); the brute
@@ -401,7 +387,19 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
              const std::optional<unsigned> depth = parse_depth(depth_arg, "depth", 0);
              const std::optional<unsigned> max_depth = parse_depth(max_depth_arg, "max_depth", 1);
              o.insertion = bool_arg(insertion, "insertion");
-             check_layout_arguments(layout, o.capacity.has_value(), depth.has_value(), max_depth.has_value());
+             // An argument the layout does not use is refused rather than ignored (a repr showing it
+             // would lie), by the rule `rayscan query` and `rayscan index` apply: ValueError naming
+             // the keyword (the option's field name) and the layouts that take it.
+             GivenIndexOptions given;
+             given.capacity = o.capacity.has_value();
+             given.max_depth = max_depth.has_value();
+             given.depth = depth.has_value();
+             given.insertion = o.insertion;
+             IndexChoiceWords words;
+             words.option = "layout=";
+             words.layouts = true;
+             words.quote = "'";
+             check_applicable(o.type, given, words);
              if (depth) o.depth = *depth;
              if (max_depth) o.max_depth = *max_depth;
              return PyOctree{build(xyz, o)};
@@ -412,7 +410,7 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
                              "\"adaptive\", \"layered\" or \"fixed\".")
       .def_property_readonly("capacity",
                              [](const PyOctree& s) -> std::optional<std::uint32_t> {
-                               if (s.options.type == "octree-fixed") return std::nullopt;
+                               if (!index_option_applies(s.options.type, IndexOption::capacity)) return std::nullopt;
                                return index_capacity(s.options);
                              },
                              "The capacity built with: most points per leaf (adaptive) or per node (layered); "

@@ -348,6 +348,11 @@ TEST_F(QueryCli, BadInputExitsTwoWithOneLineError) {
     EXPECT_EQ(r.out, std::string("rayscan query: --capacity applies to --index octree-adaptive, octree-layered and "
                                  "kdtree only (got --index ") + index + ")\n");
   }
+  // --insertion is a way to build an octree: refused with the other indexes (check_applicable).
+  r = run("query --cloud " + cloud + " --rays " + rays + " --k 1 --insertion --index kdtree");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan query: --insertion applies to --index octree-adaptive, octree-layered and octree-fixed "
+                   "only (got --index kdtree)\n");
   r = run("query --cloud " + cloud + " --rays " + rays + " --k 1 --index rtree");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.out.find("rtree"), std::string::npos) << r.out;

@@ -8,8 +8,10 @@
 
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <variant>
+#include <vector>
 
 namespace rayscan {
 
@@ -36,6 +38,58 @@ struct IndexOptions {
   unsigned max_depth = 21;       ///< octree-adaptive/layered maximum depth, 1..21
   bool insertion = false;        ///< octree: build by insertion instead of bulk loading
 };
+
+/// A build option of IndexOptions that only some index types use, named by its field (to_string),
+/// as an OptionError names it: each front end writes it as its own option (`--max-depth`,
+/// `max_depth=`).
+enum class IndexOption { capacity, max_depth, depth, insertion };
+
+/// The field of IndexOptions (and OctreeConfig) that sets `o`: "capacity", "max_depth", "depth"
+/// or "insertion".
+const char* to_string(IndexOption o);
+
+/// Whether building an index of type `type` (IndexOptions::type) uses option `o`: the one rule by
+/// which `rayscan query`, `rayscan index` and the Python Octree refuse an option rather than
+/// ignore it (make_index builds the same index whatever value an unused option holds).
+/// - capacity: octree-adaptive and octree-layered (points per leaf / node), kdtree (leaf size);
+///   not octree-fixed, which splits every node down to `depth` whatever it holds, nor brute.
+/// - max_depth: octree-adaptive and octree-layered (octree-fixed stops at `depth`).
+/// - depth: octree-fixed.
+/// - insertion: the three octrees (the kd-tree and brute have one build).
+/// False for an unknown type.
+[[nodiscard]] bool index_option_applies(std::string_view type, IndexOption o);
+
+/// The options of IndexOptions a caller set itself rather than left at their defaults: the ones
+/// check_applicable refuses when the index type does not use them.
+struct GivenIndexOptions {
+  bool capacity = false;
+  bool max_depth = false;
+  bool depth = false;
+  bool insertion = false;
+};
+
+/// How a front end writes its choice of index in check_applicable's message, so that the message
+/// names the index as the user chose it.
+struct IndexChoiceWords {
+  /// The option choosing the index, with what joins it to its value: "--index ", "layout=".
+  std::string option = "index type ";
+  /// Values are octree layouts ("fixed"), the type less its "octree-" (`rayscan index --layout`,
+  /// the Python Octree), instead of the type itself ("octree-fixed").
+  bool layouts = false;
+  /// Written around each value ("'" for Python's layout='fixed').
+  std::string quote;
+  /// The types the front end offers (IndexOptions::type), in the order the message lists them;
+  /// empty: every type, or with `layouts` the three octrees.
+  std::vector<std::string> types;
+};
+
+/// Refuses an option given for an index type that does not use it (index_option_applies), the
+/// first of capacity, max_depth, depth and insertion: throws OptionError "<option> applies to
+/// <choice> <the offered types that use it> only (got <choice> <type>)", the option named by its
+/// field for the front end to spell, e.g. "--capacity applies to --index octree-adaptive,
+/// octree-layered and kdtree only (got --index brute)". A type not among the offered ones (or
+/// unknown) is not checked: the front end or make_index refuses it, naming the types it accepts.
+void check_applicable(std::string_view type, const GivenIndexOptions& given, const IndexChoiceWords& words = {});
 
 /// The kd-tree's leaf size when none is given (points).
 inline constexpr std::uint32_t kDefaultKdTreeLeaf = 32;
