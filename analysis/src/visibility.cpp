@@ -1,6 +1,7 @@
 #include "rayscan/analysis/visibility.hpp"
 #include "site_dispatch.hpp"
 
+#include "rayscan/base/job.hpp"
 #include "rayscan/base/progress.hpp"
 #include "rayscan/octree/surfel.hpp"
 #include "rayscan/octree/traverse.hpp"
@@ -286,6 +287,7 @@ VisibilityResult compute_visibility_over(const Index& index, std::span<const Vec
             tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
               Local& L = locals.local();
               for (std::size_t c = range.begin(); c != range.end(); ++c) {
+                throw_if_cancelled(opts.cancel);  // out of the loop: TBB skips the ranges not started
                 [[maybe_unused]] const auto scope = detail::chunk_scope(idx);
                 const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
                 // Observer-major inside a chunk: consecutive rays share most of their nodes.
@@ -391,6 +393,7 @@ void trace_directions_over(const Index& index, std::span<const Vec3> positions, 
           tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
             Local& L = locals.local();
             for (std::size_t c = range.begin(); c != range.end(); ++c) {
+              throw_if_cancelled(opts.cancel);
               [[maybe_unused]] const auto scope = detail::chunk_scope(idx);
               const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
               // Groups of up to kMaxRayPacket neighbouring points (storage order: an octree
@@ -517,6 +520,7 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
             tbb::parallel_for(tbb::blocked_range<std::size_t>(c0, c1, 1), [&](const auto& range) {
               FirstHitBatches batches;  // a point's sky rays
               for (std::size_t c = range.begin(); c != range.end(); ++c) {
+                throw_if_cancelled(opts.cancel);
                 [[maybe_unused]] const auto scope = detail::chunk_scope(idx);
                 const std::size_t s0 = c * kChunk, s1 = std::min(n, s0 + kChunk);
                 for (std::size_t s = s0; s < s1; ++s) {
@@ -560,7 +564,8 @@ std::vector<double> compute_sky_view_over(const Index& index, std::span<const Ve
 template <class Index>
 std::vector<std::uint32_t> camera_first_hits_over(const Index& index, const Camera& camera,
                                              double radius, double max_distance, unsigned threads,
-                                             bool progress_bar, WorkDistributor* distributor) {
+                                             bool progress_bar, WorkDistributor* distributor,
+                                             const std::atomic<bool>* cancel) {
   if (!(radius > 0.0) || !std::isfinite(radius))
     throw std::invalid_argument("camera visibility: sphere radius must be a finite number > 0");
   if (!(max_distance >= 0.0)) throw std::invalid_argument("camera visibility: max distance must be >= 0");
@@ -585,6 +590,7 @@ std::vector<std::uint32_t> camera_first_hits_over(const Index& index, const Came
             tbb::parallel_for(tbb::blocked_range<std::uint32_t>(y0, y1, 1), [&](const auto& range) {
               FirstHitBatches batches;  // a row's rays
               for (std::uint32_t y = range.begin(); y != range.end(); ++y) {
+                throw_if_cancelled(cancel);
                 [[maybe_unused]] const auto scope = detail::chunk_scope(idx);
                 batches.run(
                     idx, q, W, [&](std::uint64_t x) { return camera.generate_ray(static_cast<std::uint32_t>(x), y); },
@@ -713,9 +719,9 @@ std::vector<double> compute_sky_view(const Site& site, std::span<const Vec3> pos
 }
 std::vector<std::uint32_t> camera_first_hits(const Site& site, const Camera& camera, double radius,
                                              double max_distance, unsigned threads, bool progress_bar,
-                                             WorkDistributor* distributor) {
+                                             WorkDistributor* distributor, const std::atomic<bool>* cancel) {
   return detail::over_site<std::vector<std::uint32_t>>(site, [&](const auto& index) {
-    return camera_first_hits_over(index, camera, radius, max_distance, threads, progress_bar, distributor);
+    return camera_first_hits_over(index, camera, radius, max_distance, threads, progress_bar, distributor, cancel);
   });
 }
 

@@ -392,6 +392,7 @@ RenderStats render_camera(const Prepared& P, const Camera& camera, const JobCont
   ropt.threads = ctl.threads;
   ropt.progress = &progress;
   ropt.distributor = distribute ? ctl.distributor : nullptr;
+  ropt.cancel = ctl.cancel;
   return render_image(*P.site, settings, image, ropt);
 }
 
@@ -522,6 +523,7 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
     return r.map->camera;
   };
   r.render = run_render(job);
+  job.control.check_cancel();  // set after the last tile: the map is not written either
   if (!is_root(job.control)) return r;  // only the root's image is complete
   if (albedo)  // the map's samples per cell are the albedo's, not the unused beauty's
     for (auto& [key, value] : r.render.metadata)

@@ -416,6 +416,7 @@ struct SolarRun {
     vo.threads = ctl.threads;
     vo.progress = ctl.progress;
     vo.distributor = ctl.distributor;
+    vo.cancel = ctl.cancel;
   }
 
   void locate() {
@@ -838,6 +839,9 @@ SolarJobResult run_solar(const SolarJobOptions& o) {
   run.check_options();
   run.check_header_crs();
   run.open_site();
+  // Between the stages too: the normals' estimate and orientation (open_site) have no check of
+  // their own.
+  o.control.check_cancel();
   run.locate();
   if (run.frames_mode) {
     run.day_frames();
@@ -845,6 +849,7 @@ SolarJobResult run_solar(const SolarJobOptions& o) {
     run.sun_and_sky();
     run.trace_and_sum();
   }
+  o.control.check_cancel();
   detail::copc_cache_stats(run.cs, o.control, run.r.copc_decodes, run.r.copc_peak_cache_bytes);
   run.write_outputs();
   run.r.cloud = std::move(run.cloud);

@@ -178,6 +178,7 @@ struct VisibilityRun {
       vo.threads = ctl.threads;
       vo.progress = ctl.progress;
       vo.distributor = ctl.distributor;
+      vo.cancel = ctl.cancel;
       vis = compute_visibility(*site, cloud.positions, observers, vo);
       std::uint64_t seen = 0;
       for (std::uint32_t c : vis.count) seen += c > 0;
@@ -206,6 +207,7 @@ struct VisibilityRun {
       so.threads = ctl.threads;
       so.progress = ctl.progress;
       so.distributor = ctl.distributor;
+      so.cancel = ctl.cancel;
       t0 = std::chrono::steady_clock::now();
       r.sky_view = compute_sky_view(*site, cloud.positions, so, &r.sky_queries);
       r.sky_seconds = seconds_since(t0);
@@ -225,7 +227,8 @@ struct VisibilityRun {
     if (camera) {
       t0 = std::chrono::steady_clock::now();
       const std::vector<std::uint32_t> px =
-          camera_first_hits(*site, *camera, radius, r.max_distance, ctl.threads, ctl.progress, ctl.distributor);
+          camera_first_hits(*site, *camera, radius, r.max_distance, ctl.threads, ctl.progress, ctl.distributor,
+                            ctl.cancel);
       r.camera_hits = count_pixel_hits(px, cloud.size());
       r.camera_seconds = seconds_since(t0);
       std::uint64_t seen = 0;
@@ -298,6 +301,7 @@ struct VisibilityRun {
     ro.write = false;
     ro.control.threads = ctl.threads;
     ro.control.progress = ctl.progress;  // the DSM's render takes seconds to minutes on a large grid
+    ro.control.cancel = ctl.cancel;
     mo.ortho_map = grid.cell;
     OrthoMapJobResult dr;
     try {
@@ -399,9 +403,12 @@ VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   run.check_options();
   run.gather_observers();
   run.open_site();
+  // Between the stages too: the surfels' estimate (open_site) has no check of its own.
+  o.control.check_cancel();
   run.line_of_sight();
   run.sky_view();
   run.camera_marks();
+  o.control.check_cancel();
   detail::copc_cache_stats(run.cs, o.control, run.r.copc_decodes, run.r.copc_peak_cache_bytes);
   run.write_outputs();
   run.r.cloud = std::move(run.cloud);

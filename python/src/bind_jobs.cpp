@@ -2,13 +2,15 @@
 // options struct in, one result out; jobs::run_render, run_visibility, run_solar, run_compare)
 // with NumPy arrays out. A cloud is a file name, a rayscan.PointCloud (passed to the job in
 // memory, not copied) or an (N, 3) array (cloud_arg). Each call converts its arguments with the
-// GIL held, then releases it for the job (TBB inside).
+// GIL held, then runs the job without it: compare on the calling thread, the others on a worker
+// thread while the calling thread watches for Ctrl-C (run_interruptible).
 #include "arrays.hpp"
 #include "bindings.hpp"
 #include "cloud.hpp"
 
 #include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/base/byte_size.hpp"
+#include "rayscan/base/job.hpp"
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/jobs/compare.hpp"
@@ -22,11 +24,17 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <exception>
 #include <initializer_list>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <string_view>
+#include <thread>
 
 namespace rayscan::python {
 
@@ -51,13 +59,13 @@ py::array_t<std::int64_t> point_ids(const std::vector<std::uint32_t>& v, std::ve
   return to_numpy(std::move(out), std::move(shape));
 }
 
-/// Runs the job `f` without the GIL. The image and EPW readers report a file they cannot read or
-/// decode as a std::runtime_error "<file>: ..."; one naming a file of `files` ("" = none) raises
-/// OSError, as the point readers' errors do (module.cpp). Anything else passes unchanged.
+/// Runs `f` (with the GIL held: `f` releases it for the job). The image and EPW readers report a
+/// file they cannot read or decode as a std::runtime_error "<file>: ..."; one naming a file of
+/// `files` ("" = none) raises OSError, as the point readers' errors do (module.cpp). Anything else
+/// passes unchanged.
 template <class F>
 void run_reading_files(F&& f, std::initializer_list<std::string> files) {
   try {
-    py::gil_scoped_release nogil;
     f();
   } catch (const std::runtime_error& e) {
     const std::string_view what = e.what();
@@ -69,6 +77,86 @@ void run_reading_files(F&& f, std::initializer_list<std::string> files) {
       }
     throw;
   }
+}
+
+/// How often the calling thread looks for a signal while a job runs: Ctrl-C is answered within
+/// this and the job's check interval (a render tile, a chunk of points), without a measurable
+/// cost to the job.
+constexpr std::chrono::milliseconds kSignalPoll{50};
+
+/// Runs the job `f` (the one whose options hold `ctl`) on a worker thread and waits for it on the
+/// calling thread, which holds the GIL: the wait releases it in steps of kSignalPoll, and between
+/// steps PyErr_CheckSignals runs the Python handlers of the signals that came (the main thread
+/// only; elsewhere the job runs to its end). When one raises (KeyboardInterrupt at Ctrl-C),
+/// ctl.cancel is set, the job stops at its next check by throwing rayscan::Cancelled, and once the
+/// worker has ended the handler's exception is raised, with the note "<job> interrupted before its
+/// end" (PEP 678, Python 3.11+) when the job did stop early; the job's result is dropped. A job
+/// that ends with an error raises it here as if run on this thread. `f` must not touch Python
+/// objects. The batch queries look for signals between chunks instead (bind_index.cpp): they run
+/// on the calling thread already.
+template <class F>
+void run_interruptible(JobControl& ctl, const char* job, F&& f) {
+  std::atomic<bool> stop{false};
+  ctl.cancel = &stop;
+  std::mutex m;
+  std::condition_variable cv;
+  bool done = false;
+  std::exception_ptr error;
+  std::thread worker([&] {
+    try {
+      f();
+    } catch (...) {
+      error = std::current_exception();
+    }
+    std::lock_guard lock(m);
+    done = true;
+    cv.notify_one();
+  });
+  // Joined on every way out, an exception of this thread's included (a joinable std::thread's
+  // destructor ends the process); the job is stopped first so that the join is short.
+  struct Join {
+    std::thread& t;
+    std::atomic<bool>& stop;
+    ~Join() {
+      stop = true;
+      py::gil_scoped_release nogil;
+      t.join();
+    }
+  } join{worker, stop};
+  std::optional<py::error_already_set> interrupted;
+  for (;;) {
+    bool finished;
+    {
+      py::gil_scoped_release nogil;
+      std::unique_lock lock(m);
+      finished = cv.wait_for(lock, kSignalPoll, [&] { return done; });
+    }
+    if (finished) break;
+    if (PyErr_CheckSignals() != 0) {
+      interrupted.emplace();  // takes the handler's exception
+      break;
+    }
+  }
+  if (interrupted) {
+    stop = true;
+    {
+      py::gil_scoped_release nogil;
+      std::unique_lock lock(m);
+      cv.wait(lock, [&] { return done; });
+    }
+    bool cancelled = false;
+    try {
+      if (error) std::rethrow_exception(error);
+    } catch (const Cancelled&) {
+      cancelled = true;
+    } catch (...) {
+      // The job's own error, come before it saw the flag: the signal's exception wins.
+    }
+    if (cancelled && py::hasattr(interrupted->value(), "add_note"))
+      interrupted->value().attr("add_note")(std::string(job) + " interrupted before its end");
+    throw std::move(*interrupted);
+  }
+  if (error) std::rethrow_exception(error);
 }
 
 /// The largest image side a camera takes (fit_image_size; `rayscan render --width`), pixels.
@@ -195,8 +283,7 @@ py::dict render(py::handle scene, const std::string& scene_json, py::handle clou
   const auto summary = [&](const std::filesystem::path& f) { return points.summary(f); };
   const bool given = points.arg.has_value();
   jobs::RenderJobResult r;
-  {
-    py::gil_scoped_release nogil;
+  run_interruptible(o.control, "render", [&] {
     if (points.arg) require_finite_points(*points.arg, quick_look_in_memory ? "scene" : "cloud");
     run_naming_keywords("render", [&] {
       const jobs::ResolvedScene rs = quick_look_in_memory ? jobs::resolve_quick_look(summary({}), ov)
@@ -206,7 +293,7 @@ py::dict render(py::handle scene, const std::string& scene_json, py::handle clou
       points.attach(o);
       r = jobs::run_render(o);
     });
-  }
+  });
   render::Framebuffer& fb = r.image;
   const auto h = static_cast<py::ssize_t>(fb.height), w = static_cast<py::ssize_t>(fb.width);
   py::dict out;
@@ -263,8 +350,7 @@ py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::han
     throw py::value_error("cloud '" + path + "': expected a point cloud file (LAS, LAZ, COPC, PLY, PCD, text, .rsi)");
   const auto summary = [&](const std::filesystem::path& f) { return points.summary(f); };
   jobs::OrthoMapJobResult r;
-  {
-    py::gil_scoped_release nogil;
+  run_interruptible(o.render.control, "ortho_map", [&] {
     require_finite_points(*points.arg, "cloud");
     run_naming_keywords("ortho_map", [&] {
       o.render.scene = path.empty() ? jobs::resolve_quick_look(summary({}), ov).scene
@@ -272,7 +358,7 @@ py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::han
       points.attach(o.render);
       r = jobs::run_ortho_map(o);
     });
-  }
+  });
   const analysis::GridSpec& g = r.map->grid;
   const auto h = static_cast<py::ssize_t>(g.rows), w = static_cast<py::ssize_t>(g.cols);
   py::dict out;
@@ -289,12 +375,15 @@ py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::han
 
 /// An (H, W) or (H, W, C) array as an rayscan::Image: channels Y (C = 1), R G B (3), R G B A (4),
 /// else c0, c1, ...; float32 samples. Raises TypeError for an object that is no array of numbers
-/// (None, a dict), ValueError for an array of another shape or dtype.
+/// (None, a dict) and for a scalar (3.5, True: no image at all), ValueError for an array of
+/// another shape or dtype.
 rayscan::Image to_image(py::handle obj, const std::string& name) {
   py::module_ np = py::module_::import("numpy");
   py::array a = np.attr("asarray")(obj);
   const char kind = a.dtype().kind();
-  if (kind == 'O' || kind == 'S' || kind == 'V')  // NumPy's wrapping of a non-numeric object
+  // NumPy's wrapping of a non-numeric object, or of one number (a 0-d array given as such is an
+  // array of the wrong shape).
+  if (kind == 'O' || kind == 'S' || kind == 'V' || (a.ndim() == 0 && !py::isinstance<py::array>(obj)))
     throw py::type_error(name + " must be an image file name (str or os.PathLike) or an (H, W) or (H, W, C) "
                                 "array of numbers, got " + type_name(obj));
   if ((kind != 'f' && kind != 'i' && kind != 'u' && kind != 'b') || (a.ndim() != 2 && a.ndim() != 3))
@@ -321,7 +410,7 @@ rayscan::Image to_image(py::handle obj, const std::string& name) {
 }
 
 py::dict compare(const py::object& a, const py::object& b, py::handle channels,
-                 bool mask, bool alpha, bool resize, py::handle fail,
+                 py::handle mask, py::handle alpha, py::handle resize, py::handle fail,
                  py::handle fail_percent, py::handle fail_psnr,
                  py::handle fail_ssim, py::handle warn) {
   jobs::CompareJobOptions o;
@@ -335,16 +424,21 @@ py::dict compare(const py::object& a, const py::object& b, py::handle channels,
   else
     o.image = &ib.emplace(to_image(b, "image"));
   o.channels = names_arg(channels, "channels");
-  o.mask = mask;
-  o.alpha = alpha;
-  o.resize = resize;
+  o.mask = bool_arg(mask, "mask");
+  o.alpha = bool_arg(alpha, "alpha");
+  o.resize = bool_arg(resize, "resize");
   o.fail.threshold = opt_float_arg(fail, "fail", "None or a number (absolute error per sample)");
   o.fail.percent = opt_float_arg(fail_percent, "fail_percent", "None or a number (percent of samples)");
   o.fail.min_psnr = opt_float_arg(fail_psnr, "fail_psnr", "None or a number (dB)");
   o.fail.min_ssim = opt_float_arg(fail_ssim, "fail_ssim", "None or a number (SSIM, at most 1)");
   o.warn.threshold = opt_float_arg(warn, "warn", "None or a number (absolute error per sample)");
   jobs::CompareJobResult r;
-  run_reading_files([&] { r = jobs::run_compare(o); }, {o.reference_file, o.image_file});
+  run_reading_files(
+      [&] {
+        py::gil_scoped_release nogil;
+        r = jobs::run_compare(o);
+      },
+      {o.reference_file, o.image_file});
   const analysis::CompareMetrics& m = r.metrics;
   py::dict d;
   d["width"] = m.width;
@@ -387,7 +481,7 @@ constexpr const char* kRadiusExpected = "None (auto) or a number > 0 (world unit
 /// indexes them), without the job's own 1-based "observer i+1".
 py::dict visibility(const py::object& cloud, const py::object& observers, py::handle radius,
                     py::handle height, py::handle max_distance, py::handle tolerance, py::handle target_height,
-                    py::handle sky_rays, py::handle camera, bool distance, py::handle threads,
+                    py::handle sky_rays, py::handle camera, py::handle distance, py::handle threads,
                     py::handle cache, py::handle ground_radius) {
   jobs::VisibilityJobOptions o;
   o.cache_bytes = cache_arg(cache);
@@ -425,7 +519,7 @@ py::dict visibility(const py::object& cloud, const py::object& observers, py::ha
                           shortest_text(*o.ground_radius));
   o.sky_rays = static_cast<std::uint32_t>(int_arg(sky_rays, "sky_rays", 0, 0xFFFFFFFFll, "an integer in [0, 2^32 - 1]"));
   if (!camera.is_none()) o.camera_file = input_path_arg(camera, "camera");
-  o.distance = distance;
+  o.distance = bool_arg(distance, "distance");
   o.control.threads = parse_threads(threads);
   // The job's own message names the command line's forms (a file or X,Y[,Z] text).
   if (o.observers.empty() && o.observers_file.empty() && o.sky_rays == 0 && o.camera_file.empty())
@@ -441,11 +535,10 @@ py::dict visibility(const py::object& cloud, const py::object& observers, py::ha
     return m;
   };
   jobs::VisibilityJobResult r;
-  {
-    py::gil_scoped_release nogil;
+  run_interruptible(o.control, "visibility", [&] {
     require_finite_points(c, "cloud");
     run_naming_keywords("visibility", [&] { r = jobs::run_visibility(o); }, one_row_number);
-  }
+  });
   py::dict d;
   for (ScalarField& f : r.cloud.scalars)
     if (f.name == "visible_count" || f.name == "visible_distance" || f.name == "sky_view" ||
@@ -504,8 +597,10 @@ py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::ha
   run_naming_keywords("solar", [&] {
     run_reading_files(
         [&] {
-          require_finite_points(c, "cloud");
-          r = jobs::run_solar(o);
+          run_interruptible(o.control, "solar", [&] {
+            require_finite_points(c, "cloud");
+            r = jobs::run_solar(o);
+          });
         },
         {o.weather.string()});
   });
@@ -531,6 +626,15 @@ py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::ha
 }  // namespace
 
 void bind_jobs(py::module_& m) {
+  // A job stopped by its cancel flag (run_interruptible raises the signal's own exception
+  // instead; this covers a Cancelled that reaches Python otherwise).
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const Cancelled&) {
+      PyErr_SetNone(PyExc_KeyboardInterrupt);
+    }
+  });
   m.def("_render", &render, py::arg("scene"), py::arg("scene_json") = "", py::arg("cloud") = py::none(),
         py::arg("width") = py::none(),
         py::arg("height") = py::none(), py::arg("spp") = py::none(), py::arg("seed") = py::none(),

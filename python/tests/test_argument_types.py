@@ -1,4 +1,5 @@
-"""The argument contract of the index classes, their queries and rayscan.open: a value of the
+"""The argument contract of the index classes, their queries, rayscan.open and the jobs (render,
+ortho_map, visibility, solar, compare): a value of the
 wrong type raises TypeError with one line that names the argument (never pybind11's "incompatible
 function arguments" listing of a private method, never a ValueError), whatever the argument's
 kind: integer, number, text, flag, array or file name. An Octree argument its layout does not use
@@ -13,7 +14,7 @@ import numpy as np
 import pytest
 
 import rayscan
-from conftest import DATA
+from conftest import DATA, SOURCE
 
 LAS = DATA / "las" / "autzen_trim.las"
 XYZ = np.random.default_rng(7).random((300, 3))
@@ -31,6 +32,17 @@ WRONG = {
     "array": ["abc", None, b"abc", np.array([["a", "b", "c"]]), np.ones((2, 3), bool),
               np.zeros((2, 3), complex), [[1, "a", 3]], [[None, None, None]]],
     "path": [3, None, b"cloud.las", [str(LAS)]],
+    # The jobs' kinds: None means "not given" for the optional ones.
+    "opt_number": ["1", b"1", [1.0], True],
+    "opt_text": [1, b"2026-06-21", ["2026-06-21"]],
+    "opt_path": [3, b"camera.json", [str(LAS)]],
+    "names": [3, None, b"depth", [3], ["depth", None]],
+    "cloud": [3, None, b"cloud.las", {"x": 1.0}, np.array([["a", "b", "c"]])],
+    "opt_cloud": [3, b"cloud.las", {"x": 1.0}, np.array([["a", "b", "c"]])],
+    "scene": [3, None, b"scene.json", {1, 2}],
+    "observers": [b"abc", np.array([["a", "b", "c"]]), np.ones((2, 3), bool), [[1, "a", 3]], [[None, None, None]]],
+    "image": [3.5, 3, None, True, b"reference.png", {"x": 1.0}],
+    "linke": ["3", None, b"3", True, ["3"] * 12],
 }
 
 
@@ -82,6 +94,72 @@ QUERIES = [
 ]
 
 
+# Every typed argument of the jobs, each in a call that is valid but for it (a job that accepted the
+# wrong value would run on XYZ in a moment).
+SUN = dict(at="2026-06-21T12:00", latitude=44.0, longitude=-123.0, sky_rays=0)
+EYE = [[0.5, 0.5, 2.0]]
+IMG = np.zeros((4, 4, 3))
+JOBS = [
+    ("scene", "scene", lambda v: rayscan.render(v, width=8, height=8, spp=1)),
+    ("cloud", "opt_cloud", lambda v: rayscan.render(SOURCE / "scenes" / "autzen_overview.json", cloud=v,
+                                                    width=8, spp=1)),
+    ("width", "opt_int", lambda v: rayscan.render(XYZ, width=v, height=8, spp=1)),
+    ("height", "opt_int", lambda v: rayscan.render(XYZ, width=8, height=v, spp=1)),
+    ("spp", "opt_int", lambda v: rayscan.render(XYZ, width=8, height=8, spp=v)),
+    ("seed", "opt_int", lambda v: rayscan.render(XYZ, width=8, height=8, spp=1, seed=v)),
+    ("aovs", "names", lambda v: rayscan.render(XYZ, width=8, height=8, spp=1, aovs=v)),
+    ("camera", "opt_path", lambda v: rayscan.render(XYZ, width=8, height=8, spp=1, camera=v)),
+    ("threads", "int", lambda v: rayscan.render(XYZ, width=8, height=8, spp=1, threads=v)),
+    ("cloud", "cloud", lambda v: rayscan.ortho_map(v, 0.25, spp=1)),
+    ("res", "number", lambda v: rayscan.ortho_map(XYZ, v, spp=1)),
+    ("spp", "opt_int", lambda v: rayscan.ortho_map(XYZ, 0.25, spp=v)),
+    ("seed", "opt_int", lambda v: rayscan.ortho_map(XYZ, 0.25, spp=1, seed=v)),
+    ("threads", "int", lambda v: rayscan.ortho_map(XYZ, 0.25, spp=1, threads=v)),
+    ("colour", "text", lambda v: rayscan.ortho_map(XYZ, 0.25, spp=1, colour=v)),
+    ("cloud", "cloud", lambda v: rayscan.visibility(v, observers=EYE)),
+    ("observers", "observers", lambda v: rayscan.visibility(XYZ, observers=v)),
+    ("radius", "opt_number", lambda v: rayscan.visibility(XYZ, observers=EYE, radius=v)),
+    ("height", "opt_number", lambda v: rayscan.visibility(XYZ, observers=EYE, height=v)),
+    ("max_distance", "opt_number", lambda v: rayscan.visibility(XYZ, observers=EYE, max_distance=v)),
+    ("tolerance", "opt_number", lambda v: rayscan.visibility(XYZ, observers=EYE, tolerance=v)),
+    ("target_height", "opt_number", lambda v: rayscan.visibility(XYZ, observers=EYE, target_height=v)),
+    ("sky_rays", "int", lambda v: rayscan.visibility(XYZ, observers=EYE, sky_rays=v)),
+    ("camera", "opt_path", lambda v: rayscan.visibility(XYZ, observers=EYE, camera=v)),
+    ("distance", "flag", lambda v: rayscan.visibility(XYZ, observers=EYE, distance=v)),
+    ("threads", "int", lambda v: rayscan.visibility(XYZ, observers=EYE, threads=v)),
+    ("cache", "text", lambda v: rayscan.visibility(XYZ, observers=EYE, cache=v)),
+    ("ground_radius", "opt_number", lambda v: rayscan.visibility(XYZ, observers=EYE, ground_radius=v)),
+    ("cloud", "cloud", lambda v: rayscan.solar(v, **SUN)),
+    ("start", "opt_text", lambda v: rayscan.solar(XYZ, start=v, end="2026-06-22", latitude=44.0, longitude=-123.0)),
+    ("end", "opt_text", lambda v: rayscan.solar(XYZ, start="2026-06-21", end=v, latitude=44.0, longitude=-123.0)),
+    ("step", "text", lambda v: rayscan.solar(XYZ, start="2026-06-21", end="2026-06-21", step=v, latitude=44.0,
+                                             longitude=-123.0, sky_rays=0)),
+    ("at", "opt_text", lambda v: rayscan.solar(XYZ, at=v, latitude=44.0, longitude=-123.0)),
+    ("latitude", "opt_number", lambda v: rayscan.solar(XYZ, **{**SUN, "latitude": v})),
+    ("longitude", "opt_number", lambda v: rayscan.solar(XYZ, **{**SUN, "longitude": v})),
+    ("linke", "linke", lambda v: rayscan.solar(XYZ, linke=v, **SUN)),
+    ("albedo", "number", lambda v: rayscan.solar(XYZ, albedo=v, **SUN)),
+    ("weather", "opt_path", lambda v: rayscan.solar(XYZ, weather=v, **SUN)),
+    ("sector", "number", lambda v: rayscan.solar(XYZ, sector=v, **SUN)),
+    ("sky_rays", "int", lambda v: rayscan.solar(XYZ, **{**SUN, "sky_rays": v})),
+    ("primitive", "text", lambda v: rayscan.solar(XYZ, primitive=v, **SUN)),
+    ("radius", "opt_number", lambda v: rayscan.solar(XYZ, radius=v, **SUN)),
+    ("threads", "int", lambda v: rayscan.solar(XYZ, threads=v, **SUN)),
+    ("cache", "text", lambda v: rayscan.solar(XYZ, cache=v, **SUN)),
+    ("reference", "image", lambda v: rayscan.compare(v, IMG)),
+    ("image", "image", lambda v: rayscan.compare(IMG, v)),
+    ("channels", "names", lambda v: rayscan.compare(IMG, IMG, channels=v)),
+    ("mask", "flag", lambda v: rayscan.compare(IMG, IMG, mask=v)),
+    ("alpha", "flag", lambda v: rayscan.compare(IMG, IMG, alpha=v)),
+    ("resize", "flag", lambda v: rayscan.compare(IMG, IMG, resize=v)),
+    ("fail", "opt_number", lambda v: rayscan.compare(IMG, IMG, fail=v)),
+    ("fail_percent", "opt_number", lambda v: rayscan.compare(IMG, IMG, fail_percent=v)),
+    ("fail_psnr", "opt_number", lambda v: rayscan.compare(IMG, IMG, fail_psnr=v)),
+    ("fail_ssim", "opt_number", lambda v: rayscan.compare(IMG, IMG, fail_ssim=v)),
+    ("warn", "opt_number", lambda v: rayscan.compare(IMG, IMG, warn=v)),
+]
+
+
 def expect_type_error(call, name):
     with pytest.raises(Exception) as e:
         call()
@@ -108,6 +186,33 @@ def test_query_arguments_of_the_wrong_type_raise_type_error(indexes, index, name
     # knn without k: None has no meaning there (radius() is the query without a count).
     if name == "k" and kind == "k":
         expect_type_error(lambda: ix.knn(O, k=None), "k")
+
+
+@pytest.mark.skipif(not hasattr(rayscan, "render"), reason="module built without the library's job API")
+@pytest.mark.parametrize("name,kind,call", JOBS, ids=[f"{i}-{c[0]}" for i, c in enumerate(JOBS)])
+def test_job_arguments_of_the_wrong_type_raise_type_error(name, kind, call):
+    for value in WRONG[kind]:
+        expect_type_error(lambda: call(value), name)
+
+
+def test_job_flags_of_the_right_type_reach_the_job():
+    # NumPy bools are flags, as for the queries. The one pixel that differs is transparent in the
+    # reference: the mask ignores it, and only with alpha is the alpha channel compared.
+    ref = np.zeros((4, 4, 4))
+    ref[..., 3] = 1.0
+    ref[0, 0, 3] = 0.0
+    img = ref.copy()
+    img[0, 0, :3] = 1.0
+    assert rayscan.compare(ref, img, mask=np.False_)["max_error"] == 1.0
+    masked = rayscan.compare(ref, img, mask=np.True_)
+    assert masked["pixels_ignored"] == 1 and masked["max_error"] == 0.0
+    assert "A" not in rayscan.compare(ref, img)["per_channel"]
+    assert "A" in rayscan.compare(ref, img, alpha=np.bool_(True))["per_channel"]
+    near = rayscan.visibility(XYZ, observers=EYE, distance=np.True_)["visible_distance"]
+    seen = near >= 0
+    assert seen.any()
+    np.testing.assert_allclose(near[seen], np.linalg.norm(XYZ[seen] - EYE, axis=1), rtol=1e-12)
+    assert "visible_distance" not in rayscan.visibility(XYZ, observers=EYE, distance=False)
 
 
 def test_right_types_are_accepted_including_numpy_scalars(indexes):

@@ -5,6 +5,7 @@
 #include "rayscan/render/color.hpp"
 
 #include "rayscan/octree/point_query.hpp"
+#include "rayscan/base/job.hpp"
 #include "rayscan/base/threads.hpp"
 
 #include <tbb/blocked_range.h>
@@ -134,6 +135,8 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
     std::vector<Sampler> smps;
     smps.reserve(kMaxRayPacket);
     for (std::uint32_t tile = range.begin(); tile != range.end(); ++tile) {
+      // Thrown out of the parallel loop: TBB skips the ranges not started and rethrows it here.
+      throw_if_cancelled(opt.cancel);
       const std::uint64_t q_before = c.queries;
       const std::uint32_t x0 = (tile % tiles_x) * T, y0 = (tile / tiles_x) * T;
       const std::uint32_t x1 = std::min(W, x0 + T), y1 = std::min(H, y0 + T);

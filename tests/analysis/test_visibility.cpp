@@ -1,11 +1,13 @@
 // Visibility: hand-built scenes with known answers, and the per-point
 // result against an independent brute-force ray/sphere oracle on a real scan (autzen crop).
 #include "rayscan/analysis/visibility.hpp"
+#include "rayscan/base/job.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <numbers>
 
@@ -385,6 +387,50 @@ TEST(CameraVisibility, FirstHitsEqualBruteForce) {
   // A range shorter than the eye's distance to everything sees nothing.
   const std::vector<std::uint32_t> none = camera_first_hits(idx, cam, r, 1.0);
   EXPECT_TRUE(std::all_of(none.begin(), none.end(), [](auto v) { return v == kNoPoint; }));
+}
+
+// Each loop checks its cancel flag (rayscan/base/job.hpp) per chunk of points or image row: set,
+// the call throws Cancelled; there but clear, the result is that of a call without one.
+TEST(Visibility, EveryLoopThrowsCancelledWhenItsFlagIsSet) {
+  std::vector<Vec3> pts;
+  add_grid(pts, Vec3(-20, -20, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), 41, 41);
+  add_grid(pts, Vec3(2, -20, 0), Vec3(0, 1, 0), Vec3(0, 0, 1), 41, 10);  // a wall: some points hidden
+  const AnyIndex idx = octree(pts);
+  const Observer o = eye(Vec3(-10, 0, 5));
+  const std::vector<Vec3> dirs{glm::normalize(Vec3(1, 0, 1)), glm::normalize(Vec3(-1, 1, 2))};
+  LookAtParams lp;
+  lp.position = Vec3(-30, 0, 20);
+  lp.look_at = Vec3(0, 0, 0);
+  const Camera cam = Camera::look_at(lp, 16, 12);
+  std::atomic<bool> stop{false};
+  VisibilityOptions vo;
+  vo.radius = 0.8;
+  SkyViewOptions so;
+  so.radius = 0.8;
+  so.rays = 8;
+  const auto masks = [&](const VisibilityOptions& opts) {
+    std::vector<std::uint64_t> m(pts.size());
+    trace_directions(idx, pts, dirs, {}, opts, [&](PointIndex i, std::span<const std::uint64_t> w) { m[i] = w[0]; },
+                     false, {});
+    return m;
+  };
+  const VisibilityResult vis = compute_visibility(idx, pts, std::span(&o, 1), vo);
+  const std::vector<double> sky = compute_sky_view(idx, pts, so);
+  const std::vector<std::uint64_t> open = masks(vo);
+  const std::vector<std::uint32_t> px = camera_first_hits(idx, cam, 0.8);
+  ASSERT_GT(vis.per_observer[0], 0u);
+  ASSERT_LT(vis.per_observer[0], pts.size());
+
+  vo.cancel = so.cancel = &stop;
+  EXPECT_EQ(compute_visibility(idx, pts, std::span(&o, 1), vo).count, vis.count);
+  EXPECT_EQ(compute_sky_view(idx, pts, so), sky);
+  EXPECT_EQ(masks(vo), open);
+  EXPECT_EQ(camera_first_hits(idx, cam, 0.8, kInf, 0, false, nullptr, &stop), px);
+  stop = true;
+  EXPECT_THROW(compute_visibility(idx, pts, std::span(&o, 1), vo), Cancelled);
+  EXPECT_THROW(compute_sky_view(idx, pts, so), Cancelled);
+  EXPECT_THROW(masks(vo), Cancelled);
+  EXPECT_THROW(camera_first_hits(idx, cam, 0.8, kInf, 0, false, nullptr, &stop), Cancelled);
 }
 
 TEST(Visibility, BadOptionsThrow) {

@@ -3,6 +3,7 @@
 // The files it writes, read back through OpenImageIO: test_render_files.cpp; the ortho map's
 // GeoTIFFs read back through GDAL here.
 #include "render_test_data.hpp"
+#include "../common/temp_dir.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/jobs/render.hpp"
@@ -11,6 +12,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -295,6 +297,53 @@ TEST(RenderJob, IndexFileAlbedoAtShadingTimeEqualsThePerPointArray) {
       EXPECT_GT(hit, r[1].image.index.size() / 4);
     }
   }
+  fs::remove_all(dir);
+}
+
+// A job whose cancel flag is set stops with rayscan::Cancelled and writes nothing: neither its
+// image (nor the ortho map's GeoTIFFs) nor a temporary, the folder stays empty. With the flag
+// there but clear, the same job writes the image of a render without one, byte for byte. The
+// renderer's own check, per tile: render_image throws too.
+TEST(RenderJob, ACancelledJobThrowsAndWritesNothing) {
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_render_cancel");
+  std::atomic<bool> stop{true};
+  RenderJobOptions o;
+  o.scene = small_scene();
+  o.scene.output.image = dir / "cancelled.exr";
+  o.cloud = &subset();
+  o.control.threads = 2;
+  o.control.cancel = &stop;
+  EXPECT_THROW((void)run_render(o), Cancelled);
+  OrthoMapJobOptions m;
+  m.render.scene.material.mode = ColorMode::elevation;
+  m.render.scene.spp = 1;
+  m.render.scene.output.image = dir / "map.tif";
+  m.render.cloud = &subset();
+  m.render.control = o.control;
+  m.ortho_map = 2.0;
+  m.dsm = dir / "dsm.tif";
+  EXPECT_THROW((void)run_ortho_map(m), Cancelled);
+  EXPECT_EQ(rayscan::test::entry_names(dir), std::set<std::string>{});
+
+  stop = false;
+  o.scene.output.image = dir / "clear.exr";
+  EXPECT_EQ(run_render(o).written.front(), dir / "clear.exr");
+  o.control.cancel = nullptr;
+  o.scene.output.image = dir / "none.exr";
+  (void)run_render(o);
+  const auto bytes = [](const fs::path& f) {
+    std::ifstream in(f, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  EXPECT_EQ(bytes(dir / "clear.exr"), bytes(dir / "none.exr"));
+
+  const AnyIndex index = make_index(subset().positions, o.scene.index);
+  RenderOptions ro;
+  stop = true;
+  ro.cancel = &stop;
+  Framebuffer fb;
+  const std::vector<Color> albedo = compute_albedo(subset(), o.scene.material, o.scene.up);
+  EXPECT_THROW(render_image(index, make_settings(o.scene, subset().positions, albedo, 1.0), fb, ro), Cancelled);
   fs::remove_all(dir);
 }
 

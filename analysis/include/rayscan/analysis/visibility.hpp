@@ -14,6 +14,7 @@
 #include "rayscan/octree/normals.hpp"
 #include "rayscan/base/work_distributor.hpp"
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -57,6 +58,9 @@ struct VisibilityOptions {
   /// Spreads the point chunks over processes (rayscan::mpi, docs/mpi.md); nullptr = all here.
   /// With several processes, only the root's result is complete (per_observer, queries summed).
   WorkDistributor* distributor = nullptr;
+  /// Checked before each chunk of points: once set, compute_visibility and trace_directions throw
+  /// rayscan::Cancelled (base/job.hpp); nullptr = never. JobControl::cancel. Not owned.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 /// Per-point results of compute_visibility(), indexed like the cloud's positions.
@@ -178,6 +182,9 @@ struct SkyViewOptions {
   /// Spreads the point chunks over processes (rayscan::mpi); nullptr = all here. With several,
   /// only the root's values (and query count) are complete.
   WorkDistributor* distributor = nullptr;
+  /// Checked before each chunk of points: once set, compute_sky_view throws rayscan::Cancelled
+  /// (base/job.hpp); nullptr = never. JobControl::cancel. Not owned.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 /// Direction k of the N-direction set (+z up, unit length): a spherical Fibonacci lattice
@@ -209,11 +216,13 @@ std::vector<double> compute_sky_view(const Site& site, std::span<const Vec3> pos
 /// by it and only the root's result is complete. An index file is queried in place, and so is a
 /// COPC file (each image row in a CopcIndex::QueryScope: only the nodes the rays reach are
 /// decoded; pixel values are file-order point indices). Throws std::invalid_argument for
-/// radius <= 0.
+/// radius <= 0, rayscan::Cancelled once `cancel` is set (checked before each image row; nullptr =
+/// never).
 std::vector<std::uint32_t> camera_first_hits(const Site& site, const Camera& camera,
                                              double radius, double max_distance = kInf,
                                              unsigned threads = 0, bool progress = false,
-                                             WorkDistributor* distributor = nullptr);
+                                             WorkDistributor* distributor = nullptr,
+                                             const std::atomic<bool>* cancel = nullptr);
 
 /// Number of pixels whose first hit is each point (`npoints` entries) from camera_first_hits()'s
 /// output. Throws std::out_of_range for an index >= npoints other than the miss value.

@@ -13,6 +13,7 @@
 #include "rayscan/octree/spacing.hpp"
 #include "rayscan/base/work_distributor.hpp"
 
+#include <atomic>
 #include <cstdint>
 #include <vector>
 
@@ -67,6 +68,9 @@ struct RenderOptions {
   /// Spreads the tiles over processes (rayscan::mpi's work queue, docs/mpi.md); nullptr or a
   /// single process = all tiles here. With several, only the root's framebuffer is complete.
   WorkDistributor* distributor = nullptr;
+  /// Checked before each tile: once set, render_image throws rayscan::Cancelled (base/job.hpp)
+  /// after the tiles in flight; nullptr = never. JobControl::cancel of the job. Not owned.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 /// Totals of one render.
@@ -142,7 +146,8 @@ PixelSample stratified_pixel_point(std::uint32_t j, std::uint32_t n, double ju, 
 ///    nodes stay within the cache budget plus the nodes of the tiles in flight.
 ///    Sphere mode only (settings.integrator.centers empty).
 /// Throws std::invalid_argument when the index, centres and albedo sizes differ, for spp 0 or
-/// albedo_samples outside [1, 2^20], and for a COPC site in surfel mode.
+/// albedo_samples outside [1, 2^20], and for a COPC site in surfel mode; rayscan::Cancelled when
+/// options.cancel is set (fb then holds part of the image).
 RenderStats render_image(const Site& site, const RenderSettings& settings, Framebuffer& fb,
                          const RenderOptions& options = {});
 
