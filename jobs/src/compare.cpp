@@ -9,6 +9,7 @@
 #include "rayscan/analysis/flip.hpp"
 #include "rayscan/analysis/raster_preview.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/render/scene.hpp"
 
 #include <nlohmann/json.hpp>
@@ -312,6 +313,8 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
       throw OptionError({option("flip_map"), ": FLIP needs R,G,B or Y channels (compared: " + join(r.channels) + ")"});
   }
   res.judgement = judge(res.metrics, fail, warn);  // std::invalid_argument for an SSIM limit without SSIM
+  res.fail_limits = fail;
+  res.warn_limits = warn;
 
   // Heat map of the per-pixel error.
   if (!o.diff.empty()) {
@@ -412,10 +415,17 @@ std::string compare_report_text(const CompareJobResult& res) {
       s << "  channel " << c.name << std::string(c.name.size() < 8 ? 8 - c.name.size() : 0, ' ') << "MAE "
         << g(c.mae, 6) << "  RMSE " << g(c.rmse, 6) << "  max " << g(c.max_error, 6) << "\n";
   if (m.nonfinite_mismatches) s << "  non-finite      " << m.nonfinite_mismatches << " samples NaN/Inf on one side only\n";
-  s << "  " << m.over_fail << " pixels (" << g(m.percent_over_fail(), 6) << "%) over " << g(m.fail_threshold, 6)
-    << " (fail threshold)\n";
-  s << "  " << m.over_warn << " pixels (" << g(m.percent_over_warn(), 6) << "%) over " << g(m.warn_threshold, 6)
-    << " (warn threshold)\n";
+  // The pixels over a level's threshold only where that level has a pixel test: a count over a
+  // threshold nothing judges would read as the cause of a verdict it cannot have caused.
+  const auto over = [&](const Limits& l, std::size_t pixels, double percent, double threshold, const char* level) {
+    if (l.pixel_test)
+      s << "  " << count_text(pixels, "pixel") << " (" << g(percent, 6) << "%) over " << g(threshold, 6) << " (" << level
+        << " threshold)\n";
+    else
+      s << "  " << level << " threshold  off (no pixel test at this level)\n";
+  };
+  over(res.fail_limits, m.over_fail, m.percent_over_fail(), m.fail_threshold, "fail");
+  over(res.warn_limits, m.over_warn, m.percent_over_warn(), m.warn_threshold, "warn");
   if (!res.diff.empty())
     s << "  diff            " << res.diff << ": per-pixel max channel error, " << heat_ramp_legend(0.0, res.diff_max)
       << " (and above); masked pixels blue\n";

@@ -92,6 +92,59 @@ TEST(CompareJob, InMemoryImagesMetricsVerdictAndMask) {
             "image sizes differ: (memory) is 16x16, (memory) is 8x8 (use resize to compare at the reference's size)");
 }
 
+// The text report counts the pixels over a level's threshold only where that level has a pixel
+// test (docs/cli.md: the warning level is off when fail criteria are given and no warning one is);
+// otherwise the line says the threshold is off. Oracle: one sample off by 0.5 of 256 pixels, so
+// exactly 1 pixel (0.390625%) is over any threshold below 0.5.
+TEST(CompareJob, ReportCountsPixelsOnlyOverThresholdsInEffect) {
+  const Image ref = make_image(16, 16, {"R", "G", "B"}, 0.25f);
+  Image img = make_image(16, 16, {"R", "G", "B"}, 0.25f);
+  px(img, 3, 5, 1) = 0.75f;
+  CompareJobOptions o;
+  o.reference = &ref;
+  o.image = &img;
+  const std::string kFailOver = "  1 pixel (0.390625%) over 0.1 (fail threshold)\n";
+  const std::string kWarnOver = "  1 pixel (0.390625%) over 0.1 (warn threshold)\n";
+  const std::string kFailOff = "  fail threshold  off (no pixel test at this level)\n";
+  const std::string kWarnOff = "  warn threshold  off (no pixel test at this level)\n";
+  const auto has = [](const std::string& text, const std::string& line) { return text.find(line) != std::string::npos; };
+
+  // Fail criteria alone: the warn level is off, so no count over its default 1e-6.
+  o.fail.threshold = 0.1;
+  o.fail.percent = 10.0;
+  CompareJobResult r = run_compare(o);
+  std::string t = compare_report_text(r);
+  EXPECT_EQ(r.judgement.verdict, Verdict::pass);
+  EXPECT_TRUE(has(t, kFailOver)) << t;
+  EXPECT_TRUE(has(t, kWarnOff)) << t;
+  EXPECT_FALSE(has(t, "(warn threshold)")) << t;
+  EXPECT_TRUE(t.ends_with("\nPASS\n")) << t;
+
+  // A warn threshold given: its count is reported, and it decides the verdict.
+  o.warn.threshold = 0.1;
+  r = run_compare(o);
+  t = compare_report_text(r);
+  EXPECT_EQ(r.judgement.verdict, Verdict::warn);
+  EXPECT_TRUE(has(t, kFailOver)) << t;
+  EXPECT_TRUE(has(t, kWarnOver)) << t;
+  EXPECT_TRUE(t.ends_with("\nWARNING\n")) << t;
+
+  // An SSIM limit alone: neither level has a pixel test.
+  o.fail = {};
+  o.warn = {};
+  o.fail.min_ssim = -1.0;
+  t = compare_report_text(run_compare(o));
+  EXPECT_TRUE(has(t, kFailOff)) << t;
+  EXPECT_TRUE(has(t, kWarnOff)) << t;
+
+  // No criterion: idiff's defaults, both levels counting over 1e-6.
+  o.fail = {};
+  t = compare_report_text(run_compare(o));
+  EXPECT_TRUE(has(t, "  1 pixel (0.390625%) over 1e-06 (fail threshold)\n")) << t;
+  EXPECT_TRUE(has(t, "  1 pixel (0.390625%) over 1e-06 (warn threshold)\n")) << t;
+  EXPECT_TRUE(t.ends_with("\nFAILURE\n")) << t;
+}
+
 TEST(VisibilityJob, InMemoryCloudEqualsTheLowerLevelCalls) {
   const PointCloud pc = plane_with_wall();
   VisibilityJobOptions o;

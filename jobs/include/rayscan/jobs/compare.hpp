@@ -71,6 +71,9 @@ struct CompareJobResult {
   CompareMetrics metrics;                      ///< MAE, RMSE, PSNR, max error, SSIM, pixels over thresholds
   Judgement judgement;                         ///< verdict and reasons
   CompareOptions used;                         ///< thresholds and SSIM parameters used
+  /// The limits judged with, fail and warn (Criteria::limits with run_compare's exception): a
+  /// level whose `pixel_test` is false has no pixel threshold, whatever `used` holds.
+  Limits fail_limits, warn_limits;
   std::vector<std::string> image_channels;     ///< the image's channels compared (metrics.channels: reference's)
   bool masked = false;                         ///< a mask was applied
   std::string mask_sources;                    ///< what the mask came from ("ref.png:A == 0 or r.exr:id miss (-1)")
