@@ -5,7 +5,10 @@
 #include "phase_progress.hpp"
 #include "processes.hpp"
 
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/jobs/db_import.hpp"
+
+#include <nlohmann/json.hpp>
 
 #include <iostream>
 #include <memory>
@@ -19,7 +22,7 @@ struct DbImportOptions {
   std::vector<std::string> clouds;
   std::string out, postgres, table = "points", attributes, memory, temp_dir;
   std::uint32_t chunk = jobs::DbImportJobOptions::kDefaultChunkSize;
-  bool pcpatch = false, quiet = false;
+  bool pcpatch = false, quiet = false, json = false;
 };
 
 int run_import(const DbImportOptions& o) {
@@ -39,8 +42,15 @@ int run_import(const DbImportOptions& o) {
   job.progress = progress;
   const jobs::DbImportJobResult s = jobs::run_db_import(job);
   progress.finish();
-  std::cout << "{\"points\": " << s.points << ", \"chunks\": " << s.chunks << ", \"chunk_size\": "
-            << o.chunk << "}\n";
+  // What was written, on stdout as `index` and `translate` report theirs; --json as the commands
+  // with a report give it.
+  if (o.json) {
+    nlohmann::ordered_json j = {{"points", s.points}, {"chunks", s.chunks}, {"chunk_size", o.chunk}};
+    std::cout << j.dump(2) << "\n";
+  } else {
+    std::cout << (o.postgres.empty() ? o.out : "PostgreSQL table " + o.table) << ": " << count_text(s.points, "point")
+              << " in " << count_text(s.chunks, "chunk") << " of at most " << o.chunk << "\n";
+  }
   return 0;
 }
 
@@ -73,6 +83,8 @@ Runner add_db_command(CLI::App& app) {
                 "Comma-separated extra columns: intensity, classification, gps_time, rgb or a "
                 "scalar field name");
   c->add_flag("-q,--quiet", o->quiet, "no progress on stderr");
+  c->add_flag("--json", o->json,
+              "Print the summary on stdout as JSON (points, chunks, chunk_size) instead of a line of text");
   return [o, table] {
     require_single_process("rayscan db import");
     // A SQLite import writes the tables points and chunks: a --table there would have no effect.

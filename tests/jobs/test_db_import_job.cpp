@@ -8,12 +8,16 @@
 
 #include "jobs_test_util.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <filesystem>
 #include <string>
 #include <vector>
 
 using namespace rayscan;
 using rayscan::test::data_file;
+using rayscan::test::quoted;
+using rayscan::test::run_command;
 using rayscan::test::fields_of_option_error;
 using rayscan::test::temp_dir;
 namespace fs = std::filesystem;
@@ -99,4 +103,35 @@ TEST(DbImportJob, BadOptionsNameTheirFields) {
   o.chunk_size = 0;
   EXPECT_EQ(fields_of_option_error([&] { jobs::run_db_import(o); }), std::vector<std::string>{"chunk_size"});
   EXPECT_FALSE(fs::exists(out));
+}
+
+// `rayscan db import` reports what it wrote on stdout, as `index` and `translate` do: one line of
+// text, or with --json one JSON object; -q silences only the progress on stderr. Oracle: the
+// tables' own counts read back through sqlite3 (1065 points in chunks of 100: 11 chunks).
+TEST(DbImportCli, SummaryOnStdoutIsALineOfTextOrJson) {
+  const std::string las = quoted(data_file("las/point-color.las"));
+  const fs::path out = temp_dir() / "summary.sqlite";
+  const std::string cmd = quoted(RAYSCAN_BIN) + " db import " + las + " -o " + quoted(out) + " --chunk 100 -q";
+  auto r = run_command(cmd, false);
+  ASSERT_EQ(r.code, 0) << r.out;
+  long long points = 0, chunks = 0;
+  {
+    const Db db(out);
+    points = db.integer("SELECT count(*) FROM points");
+    chunks = db.integer("SELECT count(*) FROM chunks");
+  }
+  EXPECT_EQ(points, 1065);
+  EXPECT_EQ(chunks, 11);
+  EXPECT_EQ(r.out, out.string() + ": " + std::to_string(points) + " points in " + std::to_string(chunks) +
+                       " chunks of at most 100\n");
+  // -q: nothing on stderr (in a subshell, so that run_command's own redirection of standard error
+  // applies outside it: stdout discarded, stderr captured).
+  const auto quiet = run_command("( " + cmd + " 2>&1 >/dev/null )", false);
+  EXPECT_EQ(quiet.code, 0);
+  EXPECT_EQ(quiet.out, "");
+
+  r = run_command(cmd + " --json", false);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j, (nlohmann::json{{"points", points}, {"chunks", chunks}, {"chunk_size", 100}})) << r.out;
 }
