@@ -9,6 +9,7 @@
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/octree/normals.hpp"
 #include "rayscan/octree/point_query.hpp"
+#include "rayscan/octree/position_view.hpp"
 
 #include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
@@ -349,6 +350,18 @@ UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const 
   return {axis, buf, facing};
 }
 
+namespace {
+
+/// Whether `points` holds at least 2 distinct positions; stops at the first that differs from the
+/// first point, so a scan answers at once.
+bool has_distinct(const PositionView& points) {
+  for (std::size_t i = 1; i < points.size(); ++i)
+    if (points[i] != points[0]) return true;
+  return false;
+}
+
+}  // namespace
+
 CloudSummary summarize_cloud(std::span<const Vec3> positions, bool has_rgb, bool georeferenced,
                              const std::optional<Vec3>& sensor) {
   if (positions.empty()) throw std::invalid_argument("the point cloud has no points");
@@ -357,6 +370,8 @@ CloudSummary summarize_cloud(std::span<const Vec3> positions, bool has_rgb, bool
   s.has_rgb = has_rgb;
   s.sample = order_free_sample(positions);
   s.up = estimate_up_axis(s.sample, georeferenced, sensor);
+  s.points = positions.size();
+  s.distinct = has_distinct(positions);
   return s;
 }
 
@@ -374,6 +389,8 @@ std::optional<CloudSummary> summary_in_place(const std::filesystem::path& path) 
     s.has_rgb = !m.rgb().empty();
     s.sample = order_free_sample(m.positions());
     s.up = estimate_up_axis(s.sample, !m.crs_wkt().empty(), std::nullopt);
+    s.points = m.positions().size();
+    s.distinct = has_distinct(m.positions());
     return s;
   }
   return std::nullopt;
@@ -417,6 +434,19 @@ json quick_look_json(const std::string& cloud, const CloudSummary& summary) {
             {"up", {up.x, up.y, up.z}}};
   if (!cloud.empty()) j["cloud"] = cloud;
   return j;
+}
+
+/// Refuses a quick look of the points `summary` describes (of the cloud `name`) when they have
+/// fewer than 2 distinct positions: its surfels, or its spheres' "auto" radius, are sized from
+/// their spacing. One line naming the cloud, rather than the generated scene's keys, which the
+/// user never wrote.
+void require_quick_look_points(const CloudSummary& summary, const std::string& name) {
+  if (summary.distinct) return;
+  throw std::invalid_argument(name + ": a quick look needs at least 2 distinct points, to size them from their spacing; " +
+                              (summary.points == 1 ? std::string("the cloud has 1 point")
+                                                   : "the cloud's " + std::to_string(summary.points) +
+                                                         " points all lie at one position") +
+                              " (a scene file with a numeric \"radius\" renders it)");
 }
 
 /// The common part of the resolve_* calls: scene JSON `j` parsed as if read from `as_file`
@@ -472,7 +502,9 @@ ResolvedScene resolve_scene(const std::filesystem::path& input, const SceneOverr
     j = io::parse_json_file(input);
     if (!j.is_object()) io::json_fail(input.string(), "", "expected a JSON object (a scene)");
   } else {
-    j = quick_look_json(base.lexically_normal().string(), summary_of(base));
+    const CloudSummary& s = summary_of(base);
+    require_quick_look_points(s, input.string());
+    j = quick_look_json(base.lexically_normal().string(), s);
   }
   const fs::path as_file = is_scene ? base : base.parent_path() / (base.filename().string() + ".scene.json");
   ResolvedScene res = resolve_json(std::move(j), as_file,
@@ -499,6 +531,7 @@ ResolvedScene resolve_scene_text(const std::string& text, const std::string& nam
 }
 
 ResolvedScene resolve_quick_look(const CloudSummary& summary, const SceneOverrides& ov) {
+  require_quick_look_points(summary, "(memory)");
   ResolvedScene res =
       resolve_json(quick_look_json("", summary), std::filesystem::path(),
                    {.camera_required = false, .cloud_required = false, .name = "(quick look)"}, ov,

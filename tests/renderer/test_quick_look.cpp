@@ -551,3 +551,43 @@ TEST(QuickLook, FlatCloudIsSeenFromAboveAndTheElevationColoursAreLogged) {
   }
   fs::remove_all(d);
 }
+
+// A quick look sizes its surfels (or its spheres' "auto" radius) from the spacing of the points,
+// so a cloud with fewer than 2 distinct points has none: one line naming the cloud as given and
+// what is needed (exit 2, no image), not the generated scene's keys, whichever the primitive, and
+// for --print-scene too (its scene could not render). A scene file that gives a radius renders
+// the same one-point cloud, and one left at "auto" keeps its key's error. Oracles: the LAS file's
+// own header (1 point), two coincident points written here.
+TEST(QuickLook, TooFewDistinctPointsIsOneLineNamingTheCloud) {
+  const fs::path d = quick_look_temp_dir();
+  const std::string bin = RAYSCAN_BIN;
+  const fs::path one = fs::path(RAYSCAN_TEST_DATA) / "las" / "1.0_0.las", png = d / "few.png";
+  ASSERT_EQ(io::read_point_cloud(one).size(), 1u);
+  const auto expect_refused = [&](const std::string& args, const std::string& line) {
+    const auto r = rayscan::test::run_command(bin + " render -q " + args + " --out " + png.string());
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
+    EXPECT_EQ(r.out, "rayscan render: " + line + "\n") << args;
+    EXPECT_FALSE(fs::exists(png)) << args;
+  };
+  const std::string needs = ": a quick look needs at least 2 distinct points, to size them from their spacing; ";
+  const std::string remedy = " (a scene file with a numeric \"radius\" renders it)";
+  for (const char* flags : {"", " --primitive sphere", " --primitive surfel", " --print-scene"})
+    expect_refused(one.string() + flags, one.string() + needs + "the cloud has 1 point" + remedy);
+  std::ofstream(d / "same.xyz") << "1 2 3\n1 2 3\n";
+  expect_refused((d / "same.xyz").string(),
+                 (d / "same.xyz").string() + needs + "the cloud's 2 points all lie at one position" + remedy);
+
+  // A scene file: its radius decides; "auto" is its own key's error.
+  std::ofstream(d / "one.json") << R"({"cloud": ")" << one.string()
+                                << R"(", "radius": 1.0, "spp": 1, "material": {"color": "elevation"}})";
+  const auto ok = rayscan::test::run_command(bin + " render -q " + (d / "one.json").string() + " --width 30 --out " +
+                                             png.string());
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  EXPECT_TRUE(fs::exists(png));
+  fs::remove(png);
+  std::ofstream(d / "auto.json") << R"({"cloud": ")" << one.string()
+                                 << R"(", "radius": "auto", "material": {"color": "elevation"}})";
+  expect_refused((d / "auto.json").string(),
+                 (d / "auto.json").string() + ": /radius: \"auto\" needs at least two distinct points; give a number");
+  fs::remove_all(d);
+}

@@ -86,12 +86,16 @@ UpAxis estimate_up_axis(std::span<const Vec3> sample, bool georeferenced, const 
 
 /// What resolve_scene needs of a point cloud file: its exact bounds (world units), whether it
 /// stores colours (the quick look's material), a sample of its points and its up axis (the
-/// overview camera's framing and orientation).
+/// overview camera's framing and orientation), and whether a quick look can size its points.
 struct CloudSummary {
   AABB bounds;
   bool has_rgb = false;
   std::vector<Vec3> sample;  ///< at most kOverviewSample points, chosen by their coordinates alone
   UpAxis up;
+  std::uint64_t points = 0;  ///< the number of points
+  /// At least 2 of the points lie at distinct positions: a quick look sizes its surfels (or its
+  /// spheres' "auto" radius) from their spacing, which fewer have none of.
+  bool distinct = false;
 };
 
 /// The summary of a cloud's points (any order, the same summary for every order):
@@ -143,7 +147,8 @@ struct ResolvedScene {
 /// input, or the scene's "cloud"; summary_in_place for an index file, else from its
 /// points, which the caller may keep for the render) and is called only when needed (a cloud
 /// input or a missing camera). Throws SceneError (bad scene file), OptionError (bad override),
-/// and what `cloud` throws (io errors).
+/// std::invalid_argument "<input>: a quick look needs at least 2 distinct points ..." for a cloud
+/// input without them (CloudSummary::distinct), and what `cloud` throws (io errors).
 /// With `cloud_given` the caller supplies the points (RenderJobOptions::cloud, or Scene::cloud set
 /// afterwards): a scene file without "cloud" is valid, and `cloud` is asked for the summary with
 /// the scene's "cloud" (empty when it has none) and should summarise the supplied points.
@@ -162,7 +167,9 @@ ResolvedScene resolve_scene_text(const std::string& json, const std::string& nam
 
 /// The quick look of points in memory (no file): the scene resolve_scene makes of a point cloud
 /// file, without "cloud" (render it with RenderJobOptions::cloud), its overview camera framing
-/// `summary` (summarize_cloud of those points). Throws OptionError (bad override).
+/// `summary` (summarize_cloud of those points). Throws OptionError (bad override), and
+/// std::invalid_argument "(memory): a quick look needs at least 2 distinct points ..." for points
+/// without them (CloudSummary::distinct).
 ResolvedScene resolve_quick_look(const CloudSummary& summary, const SceneOverrides& overrides);
 
 }  // namespace rayscan::jobs
