@@ -163,17 +163,22 @@ namespace {
 /// What result_field_info and result_field_unit say of one field.
 struct ResultField {
   io::ExtraBytesInfo info;
-  const char* unit;
+  const char* unit;  ///< nullptr for a length, whose unit is the cloud's (length_unit)
 };
+
+/// The Extra Bytes descriptor's description field holds 32 bytes (LAS 1.4 R15 table 24); a longer
+/// text would be cut by the writer.
+constexpr std::size_t kDescriptionBytes = 32;
 
 /// The one table of the analyses' result fields. Descriptions fit the Extra Bytes descriptor's 32
 /// bytes and end with the unit where there is one; units are ASCII for every reader, written as
-/// the GeoTIFF bands write theirs ("1" for a ratio or a flag; "" for a length, which is in the
-/// cloud's own units).
-std::optional<ResultField> result_field(const std::string& name) {
+/// the GeoTIFF bands write theirs ("1" for a ratio or a flag). A length's description is its
+/// meaning alone here, short enough for ", " and the unit of most CRSs ("US survey foot" too),
+/// which result_field adds.
+std::optional<ResultField> table_field(const std::string& name) {
   static const std::map<std::string, ResultField, std::less<>> kFields = {
       {"visible_count", {{"observers that see the point", {}}, "observers"}},
-      {"visible_distance", {{"distance to nearest observer", -1.0}, ""}},
+      {"visible_distance", {{"observer dist.", -1.0}, nullptr}},
       {"sky_view", {{"sky view factor, 0-1", {}}, "1"}},
       {"camera_hits", {{"camera pixels seeing the point", {}}, "pixels"}},
       {"in_shadow", {{"1 shadow (or night), 0 sun", {}}, "1"}},
@@ -195,22 +200,50 @@ std::optional<ResultField> result_field(const std::string& name) {
   return std::nullopt;
 }
 
+/// The unit of a length in a cloud of CRS `crs_wkt`: the CRS's linear unit as the GeoTIFF maps
+/// name it (geotiff_band_unit: "metre", "foot", "US survey foot"), "world units" without one.
+std::string length_unit(const std::string& crs_wkt) {
+  analysis::GeoTiffOptions length;
+  length.crs_wkt = crs_wkt;
+  length.unit_is_crs_length = true;
+  const std::string unit = analysis::geotiff_band_unit(length);
+  return unit.empty() ? "world units" : unit;
+}
+
+/// The field `name` of a cloud of CRS `crs_wkt`, a length's unit and description completed.
+std::optional<ResultField> result_field(const std::string& name, const std::string& crs_wkt, std::string& unit) {
+  std::optional<ResultField> f = table_field(name);
+  if (!f) return std::nullopt;
+  if (f->unit != nullptr) {
+    unit = f->unit;
+    return f;
+  }
+  unit = length_unit(crs_wkt);
+  // A unit name too long for the descriptor (a rare CRS's, "British foot (Sears 1922)") is named
+  // where there is room: the CRS, and the unit of --json and the GeoTIFF band.
+  const std::string described = f->info.description + ", " + unit;
+  f->info.description = described.size() <= kDescriptionBytes ? described : f->info.description + ", CRS linear unit";
+  return f;
+}
+
 }  // namespace
 
-std::optional<io::ExtraBytesInfo> result_field_info(const std::string& name) {
-  if (auto f = result_field(name)) return std::move(f->info);
+std::optional<io::ExtraBytesInfo> result_field_info(const std::string& name, const std::string& crs_wkt) {
+  std::string unit;
+  if (auto f = result_field(name, crs_wkt, unit)) return std::move(f->info);
   return std::nullopt;
 }
 
-std::optional<std::string> result_field_unit(const std::string& name) {
-  if (const auto f = result_field(name)) return std::string(f->unit);
+std::optional<std::string> result_field_unit(const std::string& name, const std::string& crs_wkt) {
+  std::string unit;
+  if (result_field(name, crs_wkt, unit)) return unit;
   return std::nullopt;
 }
 
 void write_result_cloud(const std::filesystem::path& path, const PointCloud& cloud, const io::FileInfo& info) {
   io::LasWriteOptions las = io::las_grid_of(info);
   for (const ScalarField& f : cloud.scalars)
-    if (auto d = result_field_info(f.name)) las.extra_bytes[f.name] = std::move(*d);
+    if (auto d = result_field_info(f.name, cloud.crs_wkt)) las.extra_bytes[f.name] = std::move(*d);
   io::write_point_cloud(path, cloud, las);
 }
 

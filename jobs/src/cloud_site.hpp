@@ -88,14 +88,18 @@ void check_raster_options(const std::filesystem::path& raster, std::optional<dou
 void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values);
 
 /// The meaning, unit and no-data value of a per-point result field of the point analyses
-/// (visibility, solar), as their LAS outputs describe it in the Extra Bytes VLR and their PLY and
-/// PCD outputs in header comments; none for another name (a field of the source cloud).
-std::optional<io::ExtraBytesInfo> result_field_info(const std::string& name);
+/// (visibility, solar) in a cloud of CRS `crs_wkt` (WKT, "" for none), as their LAS outputs
+/// describe it in the Extra Bytes VLR (at most 32 bytes, LAS 1.4 R15 table 24) and their PLY and
+/// PCD outputs in header comments: "global irradiation, kWh/m2", "observer dist., foot"; none for
+/// another name (a field of the source cloud).
+std::optional<io::ExtraBytesInfo> result_field_info(const std::string& name, const std::string& crs_wkt);
 
-/// The unit alone of a result field, from the table of result_field_info: "kWh/m2", "W/m2", "h",
-/// "observers", "pixels", "1" for a ratio or a flag, "" for a length (the cloud's own units);
-/// none for another name. For reports (`solar --json`).
-std::optional<std::string> result_field_unit(const std::string& name);
+/// The unit alone of a result field in a cloud of CRS `crs_wkt`, the one its description ends
+/// with: "kWh/m2", "W/m2", "h", "observers", "pixels", "1" for a ratio or a flag, and for a length
+/// the CRS's linear unit ("metre", "foot", "US survey foot", as analysis::geotiff_band_unit names
+/// it) or "world units" without a CRS; none for another name. For reports (`--json`) and the
+/// GeoTIFF maps' band units.
+std::optional<std::string> result_field_unit(const std::string& name, const std::string& crs_wkt);
 
 /// Writes `cloud` to `path` (format by extension); a LAS/LAZ output keeps the integer grid
 /// (scale and offset), GPS time type and project GUID of a LAS/LAZ/COPC source described by

@@ -694,7 +694,7 @@ struct SolarRun {
   Raster write_map(const std::filesystem::path& path, std::filesystem::path preview, std::span<const double> values,
                    const std::string& title, const std::string& field, bool shadow, std::optional<double> hi,
                    std::optional<double> at) {
-    const std::optional<std::string> unit = detail::result_field_unit(field);
+    const std::optional<std::string> unit = detail::result_field_unit(field, cloud.crs_wkt);
     if (!unit) throw std::logic_error("solar: the map of '" + field + "' has no result field unit");
     const std::string& units = *unit;
     Raster map = rasterize(cloud.positions, values, map_grid(), CellReduce::top, title);
@@ -891,8 +891,9 @@ std::string solar_report_json(const SolarJobResult& r) {
     }
     j["fields"][f.name] = {{"mean", sum / double(f.values.size())}, {"min", lo}, {"max", hi}};
     // The unit and meaning the output file's LAS descriptor or PLY/PCD comment gives the field.
-    if (const auto unit = detail::result_field_unit(f.name)) j["fields"][f.name]["unit"] = *unit;
-    if (const auto d = detail::result_field_info(f.name)) j["fields"][f.name]["description"] = d->description;
+    if (const auto unit = detail::result_field_unit(f.name, r.cloud.crs_wkt)) j["fields"][f.name]["unit"] = *unit;
+    if (const auto d = detail::result_field_info(f.name, r.cloud.crs_wkt))
+      j["fields"][f.name]["description"] = d->description;
   }
   nlohmann::json written = nlohmann::json::array();
   for (const auto& f : r.written) written.push_back(f.string());

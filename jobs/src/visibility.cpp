@@ -464,9 +464,10 @@ std::string visibility_report_json(const VisibilityJobResult& r) {
   // none), as solar --json lists its own.
   report["fields"] = nlohmann::json::object();
   for (const ScalarField& f : r.cloud.scalars)
-    if (const auto d = detail::result_field_info(f.name)) {
+    if (const auto d = detail::result_field_info(f.name, r.cloud.crs_wkt)) {
       nlohmann::json& field = report["fields"][f.name];
-      field = {{"unit", detail::result_field_unit(f.name).value_or("")}, {"description", d->description}};
+      field = {{"unit", detail::result_field_unit(f.name, r.cloud.crs_wkt).value_or("")},
+               {"description", d->description}};
       if (d->no_data) field["no_data"] = *d->no_data;
     }
   nlohmann::json written = nlohmann::json::array();

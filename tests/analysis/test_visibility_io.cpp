@@ -76,6 +76,31 @@ class RemoveTmp : public ::testing::Environment {
 };
 [[maybe_unused]] ::testing::Environment* const remove_tmp = ::testing::AddGlobalTestEnvironment(new RemoveTmp);
 
+/// The Extra Bytes descriptors (LAS 1.4 R15 table 24, 192 bytes each) of the LAS file `las`, by
+/// field name, read from the file's own bytes: its header's VLR offset and count, then each
+/// LASF_Spec record 4.
+std::map<std::string, std::string> extra_bytes_descriptors(const fs::path& las) {
+  std::ifstream fin(las, std::ios::binary);
+  const std::string b((std::istreambuf_iterator<char>(fin)), std::istreambuf_iterator<char>());
+  const auto u32 = [&](std::size_t at) { std::uint32_t v; std::memcpy(&v, b.data() + at, 4); return v; };
+  const auto u16 = [&](std::size_t at) { std::uint16_t v; std::memcpy(&v, b.data() + at, 2); return v; };
+  std::map<std::string, std::string> desc;  // field name -> its 192-byte descriptor
+  std::size_t pos = u16(94);
+  for (std::uint32_t i = 0, n = u32(100); i < n; ++i) {
+    const std::uint16_t len = u16(pos + 20);
+    if (b.compare(pos + 2, 10, std::string("LASF_Spec\0", 10)) == 0 && u16(pos + 18) == 4)
+      for (std::size_t k = 0; k + 192 <= len; k += 192) {
+        const std::string d = b.substr(pos + 54 + k, 192);
+        desc[std::string(d.c_str() + 4, strnlen(d.c_str() + 4, 32))] = d;
+      }
+    pos += 54 + len;
+  }
+  return desc;
+}
+
+/// The description of an Extra Bytes descriptor: bytes 160-191, NUL-padded (all 32 may be text).
+std::string descriptor_description(const std::string& d) { return std::string(d.c_str() + 160, strnlen(d.c_str() + 160, 32)); }
+
 bool has_temp_files(const fs::path& dir) {
   for (const auto& e : fs::directory_iterator(dir))
     if (e.path().filename().string().find(".tmp.") != std::string::npos) return true;
@@ -488,21 +513,7 @@ TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
 
   // The LAS file describes its result fields (LAS 1.4 R15 table 24, from the file's own bytes):
   // visible_distance declares -1, the value of the points no observer sees, as its no-data value.
-  std::ifstream fin(las, std::ios::binary);
-  const std::string b((std::istreambuf_iterator<char>(fin)), std::istreambuf_iterator<char>());
-  const auto u32 = [&](std::size_t at) { std::uint32_t v; std::memcpy(&v, b.data() + at, 4); return v; };
-  const auto u16 = [&](std::size_t at) { std::uint16_t v; std::memcpy(&v, b.data() + at, 2); return v; };
-  std::map<std::string, std::string> desc;  // field name -> its 192-byte descriptor
-  std::size_t pos = u16(94);
-  for (std::uint32_t i = 0, n = u32(100); i < n; ++i) {
-    const std::uint16_t len = u16(pos + 20);
-    if (b.compare(pos + 2, 10, std::string("LASF_Spec\0", 10)) == 0 && u16(pos + 18) == 4)
-      for (std::size_t k = 0; k + 192 <= len; k += 192) {
-        const std::string d = b.substr(pos + 54 + k, 192);
-        desc[std::string(d.c_str() + 4, strnlen(d.c_str() + 4, 32))] = d;
-      }
-    pos += 54 + len;
-  }
+  std::map<std::string, std::string> desc = extra_bytes_descriptors(las);
   ASSERT_TRUE(desc.count("visible_distance") && desc.count("visible_count") && desc.count("sky_view"));
   const std::string& vd = desc["visible_distance"];
   EXPECT_EQ(vd[3] & 1, 1) << "no_data bit";
@@ -514,9 +525,10 @@ TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
       EXPECT_EQ(res.nearest[i], nd) << "point " << i;
     }
   }
-  EXPECT_EQ(std::string(vd.c_str() + 160), "distance to nearest observer");
+  // The scene has no CRS: its lengths are in world units.
+  EXPECT_EQ(descriptor_description(vd), "observer dist., world units");
   EXPECT_EQ(desc["visible_count"][3] & 1, 0) << "every count is a value";
-  EXPECT_EQ(std::string(desc["sky_view"].c_str() + 160), "sky view factor, 0-1");
+  EXPECT_EQ(descriptor_description(desc["sky_view"]), "sky view factor, 0-1");
 }
 
 // `--json` lists the result fields the output carries, each with the unit, the description and
@@ -567,7 +579,7 @@ TEST_F(VisibilityCli, JsonListsTheResultFieldsTheOutputFileDescribes) {
   }
   EXPECT_FALSE(j["fields"].contains("reflectance"));
   EXPECT_EQ(j["fields"]["visible_count"]["unit"], "observers");
-  EXPECT_EQ(j["fields"]["visible_distance"]["unit"], "");  // a length, in the cloud's units
+  EXPECT_EQ(j["fields"]["visible_distance"]["unit"], "world units");  // a length in a cloud without a CRS
   EXPECT_EQ(j["fields"]["sky_view"]["unit"], "1");
 }
 
@@ -679,6 +691,43 @@ TEST_F(VisibilityCli, RasterViewshedReportsTheDsmAndViewshedProgress) {
                               tif.string() + " --cell 0.5 --no-preview");
   ASSERT_EQ(q.code, 0) << q.out;
   EXPECT_EQ(q.out.find("progress:"), std::string::npos) << q.out;
+}
+
+// visible_distance's description names its unit, the CRS's linear unit: autzen's CRS is in
+// international feet ("foot", as GDAL names the unit of its WKT: the oracle), within the
+// descriptor's 32 bytes; --json gives the same unit and description, and the PLY the same comment.
+TEST(VisibilityCliData, DistanceDescriptionNamesTheCrsUnit) {
+  const fs::path las = tmpdir() / "autzen_vd.las", ply = tmpdir() / "autzen_vd.ply";
+  const std::string cloud = std::string(RAYSCAN_TEST_DATA) + "/las/autzen_trim.las";
+  std::string unit;
+  {
+    OGRSpatialReference srs;
+    ASSERT_EQ(srs.importFromWkt(io::read_point_cloud(cloud).crs_wkt.c_str()), OGRERR_NONE);
+    const char* name = nullptr;
+    srs.GetLinearUnits(&name);
+    ASSERT_NE(name, nullptr);
+    unit = name;
+  }
+  EXPECT_EQ(unit, "foot");
+  const std::string common = std::string(RAYSCAN_BIN) + " visibility -q " + cloud +
+                             " --observer 636226.5,849106.5 --height 6 --distance --json -o ";
+  RunResult r = rayscan::test::run_command(common + las.string(), false);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  const std::map<std::string, std::string> desc = extra_bytes_descriptors(las);
+  ASSERT_TRUE(desc.count("visible_distance"));
+  const std::string described = descriptor_description(desc.at("visible_distance"));
+  EXPECT_EQ(described, "observer dist., " + unit);
+  EXPECT_LE(described.size(), 32u);
+  EXPECT_EQ(j["fields"]["visible_distance"]["unit"], unit);
+  EXPECT_EQ(j["fields"]["visible_distance"]["description"], described);
+  r = rayscan::test::run_command(common + ply.string(), false);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream f(ply, std::ios::binary);
+  bool found = false;
+  for (std::string line; std::getline(f, line) && line != "end_header";)
+    found = found || line == "comment field scalar_visible_distance: " + described + "; no data -1";
+  EXPECT_TRUE(found);
 }
 
 // A distance map names its unit where the GeoTIFF does: autzen's CRS is in international feet, and
