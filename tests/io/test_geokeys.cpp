@@ -14,6 +14,7 @@
 #include <ogr_spatialref.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -194,6 +195,71 @@ TEST(GeoKeys, UserDefinedLinearUnitTakesItsSizeFromProjLinearUnitSizeGeoKey) {
   EXPECT_EQ(bare.info.epsg, 26995);
   ASSERT_EQ(bare.info.notes.size(), 1u);
   EXPECT_NE(bare.info.notes[0].find("ProjLinearUnitSizeGeoKey"), std::string::npos) << bare.info.notes[0];
+}
+
+/// A LAS 1.2 file (PDRF 0, one point at the origin; ASPRS LAS 1.4 R15 table 3 offsets) whose
+/// VLRs are the GeoKeyDirectoryTag `dir` ("LASF_Projection" 34735) and, when given, the
+/// GeoDoubleParamsTag `doubles` (34736), section 2.5.2.
+std::vector<std::uint8_t> las_with_geokeys(const std::vector<std::uint16_t>& dir, const std::vector<double>& doubles) {
+  std::vector<std::vector<std::uint8_t>> vlrs = {bytes_of(dir)};
+  if (!doubles.empty()) vlrs.push_back(bytes_of(doubles));
+  std::vector<std::uint8_t> b(227, 0);
+  std::memcpy(&b[0], "LASF", 4);
+  b[24] = 1, b[25] = 2;
+  store_at<std::uint16_t>(b, 94, 227);                                    // header size
+  store_at<std::uint32_t>(b, 100, static_cast<std::uint32_t>(vlrs.size()));  // number of VLRs
+  b[104] = 0;                                                             // PDRF 0
+  store_at<std::uint16_t>(b, 105, 20);                                    // record length
+  store_at<std::uint32_t>(b, 107, 1);                                     // legacy point count
+  store_at<std::uint32_t>(b, 111, 1);                                     // one first return
+  for (int k = 0; k < 3; ++k) store_at<double>(b, 131 + 8 * k, 0.01);    // scale; offset and bounds 0
+  const std::uint16_t ids[2] = {34735, 34736};
+  for (std::size_t v = 0; v < vlrs.size(); ++v) {
+    const std::size_t at = b.size();
+    b.resize(at + 54, 0);
+    std::memcpy(&b[at + 2], "LASF_Projection", 15);
+    store_at<std::uint16_t>(b, at + 18, ids[v]);
+    store_at<std::uint16_t>(b, at + 20, static_cast<std::uint16_t>(vlrs[v].size()));
+    b.insert(b.end(), vlrs[v].begin(), vlrs[v].end());
+  }
+  store_at<std::uint32_t>(b, 96, static_cast<std::uint32_t>(b.size()));  // offset to point data
+  b.resize(b.size() + 20, 0);                                             // the point (0, 0, 0)
+  b[b.size() - 20 + 14] = 0x09;                                           // return 1 of 1
+  return b;
+}
+
+// The LAS reader hands the GeoDoubleParamsTag VLR to the GeoKeys: ProjLinearUnitsGeoKey 32767 with
+// ProjLinearUnitSizeGeoKey 0.5 (its first double) reads as a unit of 0.5 m, as GDAL reads a GeoTIFF
+// holding the same keys and doubles; without that VLR the CRS keeps its metre, with a note.
+TEST(GeoKeys, LasReaderTakesTheUnitSizeFromItsGeoDoubleParamsVlr) {
+  const std::vector<Key> keys = {{1024, 0, 1, 1}, {3072, 0, 1, 26995}, {3076, 0, 1, 32767}, {3077, 34736, 1, 0}};
+  const fs::path tif = temp_dir() / "las_half_metre.tif";
+  write_geotiff(tif, directory(keys), {0.5});
+  const OGRSpatialReference gdal = gdal_crs(tif, false);
+  ASSERT_EQ(linear_unit(gdal).second, 0.5) << "GDAL did not read the user-defined unit";
+
+  io::FileInfo info;
+  const PointCloud pc = io::read_point_cloud(las_with_geokeys(directory(keys), {0.5}), io::Format::las,
+                                             "half_metre.las", {}, &info);
+  ASSERT_EQ(pc.size(), 1u);
+  EXPECT_EQ(info.crs_source, "GeoKeys");
+  OGRSpatialReference srs;
+  ASSERT_EQ(srs.importFromWkt(pc.crs_wkt.c_str()), OGRERR_NONE) << pc.crs_wkt;
+  EXPECT_TRUE(srs.IsSame(&gdal)) << pc.crs_wkt;
+  EXPECT_EQ(linear_unit(srs), linear_unit(gdal));
+  EXPECT_NEAR(srs.GetProjParm(SRS_PP_FALSE_EASTING), gdal.GetProjParm(SRS_PP_FALSE_EASTING), 1e-6);
+  EXPECT_EQ(info.epsg, 0);
+
+  io::FileInfo bare_info;
+  const PointCloud bare = io::read_point_cloud(las_with_geokeys(directory(keys), {}), io::Format::las,
+                                               "no_doubles.las", {}, &bare_info);
+  OGRSpatialReference bare_srs;
+  ASSERT_EQ(bare_srs.importFromWkt(bare.crs_wkt.c_str()), OGRERR_NONE) << bare.crs_wkt;
+  EXPECT_EQ(linear_unit(bare_srs).second, 1.0) << bare.crs_wkt;
+  EXPECT_EQ(bare_info.epsg, 26995);
+  EXPECT_TRUE(std::any_of(bare_info.notes.begin(), bare_info.notes.end(),
+                          [](const std::string& n) { return n.find("ProjLinearUnitSizeGeoKey") != std::string::npos; }))
+      << testing::PrintToString(bare_info.notes);
 }
 
 TEST(GeoKeys, GeogAngularUnitReplacesTheDegreeAsGdalReadsIt) {

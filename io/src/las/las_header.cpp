@@ -25,6 +25,7 @@ void note_vlr(LasHeader& h, const VlrInfo& v) {
   if (v.user_id == "copc" && v.record_id == 1000 && v.extended) h.copc_hierarchy = f;
   if (v.user_id == "LASF_Projection" && v.record_id == 2112) h.wkt = f;
   if (v.user_id == "LASF_Projection" && v.record_id == 34735) h.geokeys = f;
+  if (v.user_id == "LASF_Projection" && v.record_id == 34736) h.geodoubles = f;
   if (v.user_id == "LASF_Spec" && v.record_id == 4) {
     h.extra_bytes = f;
     h.extra_bytes_all.push_back(f);

@@ -51,6 +51,7 @@ struct LasHeader {
   Found copc_hierarchy;  ///< "copc" 1000 (COPC 1.0 hierarchy EVLR)
   Found wkt;             ///< "LASF_Projection" 2112 (OGC WKT, section 2.5.1)
   Found geokeys;         ///< "LASF_Projection" 34735 (GeoKeyDirectoryTag, section 2.5.2)
+  Found geodoubles;      ///< "LASF_Projection" 34736 (GeoDoubleParamsTag: the double-valued GeoKeys)
   Found extra_bytes;     ///< "LASF_Spec" 4 (Extra Bytes descriptors, section 2.5.6), the last one
   /// Every Extra Bytes VLR/EVLR in file order (a file may split its descriptors over several).
   std::vector<Found> extra_bytes_all;

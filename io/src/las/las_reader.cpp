@@ -1,7 +1,7 @@
 // ASPRS LAS reader: LAS Specification 1.4 R15 (2019), which also defines versions 1.0-1.3.
 // Header: section 2.4 (table 3, fields added in 1.3/1.4 noted); VLRs: 2.5; EVLRs: 2.7;
 // point data record formats 0-10: 2.6 (tables 7-17); Extra Bytes VLR: 2.5.6 (table 24);
-// CRS: 2.5.1 (OGC WKT VLR 2112) and 2.5.2 (GeoKeyDirectoryTag 34735).
+// CRS: 2.5.1 (OGC WKT VLR 2112) and 2.5.2 (GeoKeyDirectoryTag 34735, GeoDoubleParamsTag 34736).
 #include "las/las_header.hpp"
 #include "readers.hpp"
 #include "rayscan/octree/position_view.hpp"
@@ -548,7 +548,9 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
     }
   }
   if (h.geokeys.present) {
-    std::string wkt = crs_from_geokeys(d + h.geokeys.at, h.geokeys.len, info);
+    // The GeoDoubleParamsTag holds the keys of type double (ProjLinearUnitSizeGeoKey).
+    const GeoDoubles doubles = h.geodoubles.present ? GeoDoubles{d + h.geodoubles.at, h.geodoubles.len} : GeoDoubles{};
+    std::string wkt = crs_from_geokeys(d + h.geokeys.at, h.geokeys.len, info, doubles);
     if (pc.crs_wkt.empty() && (!wkt.empty() || info.epsg != 0)) {
       pc.crs_wkt = wkt;
       info.crs_source = "GeoKeys";
