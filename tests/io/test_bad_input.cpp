@@ -255,6 +255,46 @@ TEST(BadInput, PcdTextAndF64CoordinatesBeyondTheBoundAreRefused) {
   EXPECT_EQ(ok.positions[0], Vec3(1e9, 0, -1e9));
 }
 
+// PLY vertices hold the same bound: a finite coordinate beyond +-1e9 is refused naming the vertex
+// (0-based), the axis and the value, at its line (ascii) or its first byte (binary, little- and
+// big-endian); exactly 1e9 reads. Oracle: the values written here, and the byte of vertex i = end
+// of header + i x 12 (three floats), or + i x 24 (three doubles).
+TEST(BadInput, PlyCoordinatesBeyondTheBoundAreRefused) {
+  const std::string tail = " (expected within +-1e+09, the coordinate bound in world units)";
+  const std::string head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty double x\nproperty double y\n"
+                           "property double z\nend_header\n";
+  const std::string inside = head + "1e9 -1e9 0\n0 0 1000000000\n";
+  const PointCloud pc = io::read_point_cloud(std::vector<std::uint8_t>(inside.begin(), inside.end()), io::Format::ply,
+                                             "bad");
+  ASSERT_EQ(pc.positions.size(), 2u);
+  EXPECT_EQ(pc.positions[0], Vec3(1e9, -1e9, 0));
+  EXPECT_EQ(pc.positions[1], Vec3(0, 0, 1e9));
+  // line 9 is the second vertex.
+  EXPECT_EQ(error_of(head + "1 2 3\n0 0 -1000000000.5\n", io::Format::ply),
+            "bad: line 9: point 1: Z coordinate is -1000000000.5" + tail);
+
+  // binary_little_endian floats: vertex 2's Y is 2e9 (a float holds it exactly).
+  std::string le = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                   "property float z\nend_header\n";
+  const std::size_t le_body = le.size();
+  const float v[9] = {1, 2, 3, 4, 5, 6, 7, 2e9f, 9};
+  le.append(reinterpret_cast<const char*>(v), sizeof v);
+  EXPECT_EQ(error_of(le, io::Format::ply),
+            "bad: byte " + std::to_string(le_body + 2 * 12) + ": point 2: Y coordinate is 2e+09" + tail);
+
+  // binary_big_endian doubles: vertex 1's X is -3e9, stored most significant byte first.
+  std::string be = "ply\nformat binary_big_endian 1.0\nelement vertex 2\nproperty double x\nproperty double y\n"
+                   "property double z\nend_header\n";
+  const std::size_t be_body = be.size();
+  for (const double d : {0.0, 0.0, 0.0, -3e9, 0.0, 0.0}) {
+    std::uint64_t bits = 0;
+    std::memcpy(&bits, &d, 8);
+    for (int k = 7; k >= 0; --k) be += static_cast<char>((bits >> (8 * k)) & 0xFF);
+  }
+  EXPECT_EQ(error_of(be, io::Format::ply),
+            "bad: byte " + std::to_string(be_body + 24) + ": point 1: X coordinate is -3e+09" + tail);
+}
+
 TEST(BadInput, DuplicateColumnsAndProperties) {
   // Found by fuzz_text (tests/fuzz/regressions/text/): "i" and "intensity" both filled intensity.
   expect_one_line(error_of(std::string("x,y,z,i,intensity\n1,2,3,4,5\n"), io::Format::text),

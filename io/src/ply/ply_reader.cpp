@@ -3,6 +3,8 @@
 // list), end_header; formats ascii 1.0, binary_little_endian 1.0, binary_big_endian 1.0; scalar
 // types char uchar short ushort int uint float double and their sized aliases int8 .. float64.
 // The "vertex" element becomes the points; every other element (faces, edges, ...) is skipped.
+// A vertex with a non-finite x, y or z is refused, and so is a finite one beyond +-kMaxCoordinate,
+// as the LAS reader refuses it.
 // read_ply's steps make their checks in a fixed order (the header, then the body in file order),
 // which decides the error a file with several defects reports.
 #include "readers.hpp"
@@ -381,8 +383,9 @@ struct PlyBody {
       }
   }
 
-  /// Appends the vertex in `vals`. Throws FormatError at `where` (a line when is_line, else a
-  /// byte offset) when x, y or z is not finite.
+  /// Appends the vertex in `vals`. Throws FormatError at `where` (a line when is_line, else the
+  /// vertex's first byte) when x, y or z is not finite, or is finite but beyond +-kMaxCoordinate
+  /// (beyond_coordinate_bound's "point N: ...", N the vertex's index), as the LAS reader refuses it.
   void emit(std::uint64_t where, bool is_line) {
     double x = 0, y = 0, z = 0, n3[3] = {0, 0, 0}, c3[3] = {0, 0, 0};
     const std::size_t np = vals.size();
@@ -405,9 +408,11 @@ struct PlyBody {
         case Role::skip: break;
       }
     }
-    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) {
-      const std::string what = "vertex " + std::to_string(vertex_index) +
-                               " has a non-finite coordinate (expected finite x, y, z)";
+    if (!within_coordinate_bound(x, y, z)) {  // one compare per axis; NaN and infinities too
+      const std::string what = !std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)
+                                   ? "vertex " + std::to_string(vertex_index) +
+                                         " has a non-finite coordinate (expected finite x, y, z)"
+                                   : beyond_coordinate_bound(vertex_index, x, y, z);
       if (is_line) fail_line(in.name, where, what);
       fail_at(in.name, where, what);
     }
