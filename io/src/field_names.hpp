@@ -1,8 +1,7 @@
 // Internal: what the point writers (LAS, PLY, PCD, text) share: the check of the cloud before
 // anything is written, the names they give its fields and the comments that describe them, the
-// 8-bit colour rule; and the names the
-// PLY, PCD and text readers give dedicated fields (the LAS fields' other spellings are public:
-// rayscan/io/field_names.hpp).
+// 8-bit colour rule; and which scalar names the PCD and text writers must rename (the rules
+// themselves are public, rayscan/io/field_names.hpp, which the Python bindings share).
 #pragma once
 
 #include "bytes.hpp"
@@ -69,17 +68,15 @@ inline std::string field_comment(const std::string& written_name, const ExtraByt
 /// 16-bit colour to 8 bit (the nearest of v / 257), as the 8-bit formats store it.
 inline unsigned char colour_to_8bit(unsigned v) { return static_cast<unsigned char>((v + 128u) / 257u); }
 
-/// The PointCloud field that a PLY, PCD or text field called `name` is read into when its values
-/// fit it (promote_scalars, point_reader.cpp): "intensity", "classification" or "gps_time" (also
-/// spelt "gpstime"), matched ignoring ASCII case; nullptr for any other name.
-inline const char* dedicated_field_name(std::string_view name) {
-  std::string n(name);
-  for (char& c : n)
-    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
-  if (n == "intensity") return "intensity";
-  if (n == "classification") return "classification";
-  if (n == "gps_time" || n == "gpstime") return "gps_time";
-  return nullptr;
+/// The names the readers take for a dedicated field (rayscan/io/field_names.hpp), also for code
+/// of this namespace that names them detail::.
+using io::dedicated_field_name;
+
+/// True when a scalar that the `format` writer stores under `name` would not read back as that
+/// scalar (scalar_read_back_as): the PCD and text writers give it a suffix (unique_field_name).
+template <Format format>
+bool scalar_name_reserved(std::string_view name) {
+  return scalar_read_back_as(format, name) != nullptr;
 }
 
 }  // namespace rayscan::io::detail

@@ -421,38 +421,38 @@ CloudArg cloud_arg(py::handle v, const char* name, bool allow_path) {
 
 namespace {
 
-/// True when `path` names a PLY, PCD or text output, whose reader takes a field spelt like a
-/// dedicated attribute or a LAS field for that field (docs/formats.md "Dedicated fields from
-/// named values"); LAS keeps every extra-bytes name as it is.
-bool output_renames_fields(const std::string& path) {
+/// The format of a PLY, PCD or text output, whose reader takes a field spelt like another
+/// attribute or a LAS field for that (docs/formats.md "Dedicated fields from named values");
+/// nullopt for LAS, which keeps every extra-bytes name as it is, and for a bad extension (the
+/// writer names it).
+std::optional<io::Format> renaming_format(const std::string& path) {
   try {
     const io::Format f = io::format_from_extension(path);
-    return f == io::Format::ply || f == io::Format::pcd || f == io::Format::text;
+    if (f == io::Format::ply || f == io::Format::pcd || f == io::Format::text) return f;
   } catch (const std::exception&) {
-    return false;  // the writer names the bad extension
   }
+  return std::nullopt;
 }
 
-/// Refuses a field of rayscan.write that `path`'s reader would give back under another name:
-/// another spelling of intensity, classification or GPS time (any case, "gpstime"), which the
-/// reader moves into that attribute, or of a LAS field (PDAL's "ReturnNumber"), which it renames
-/// (io::las_standard_scalar_name). Raises ValueError "write: field 'gpstime' would read back from
-/// out.ply as the gps_time attribute; ...".
-void check_name_reads_back(const std::string& name, const std::string& path) {
-  std::string key = name;
-  for (char& ch : key)
-    if (ch >= 'A' && ch <= 'Z') ch = static_cast<char>(ch - 'A' + 'a');
-  const char* attribute = key == "intensity"                       ? "intensity"
-                          : key == "classification"                ? "classification"
-                          : key == "gps_time" || key == "gpstime" ? "gps_time"
-                                                                   : nullptr;
-  if (attribute != nullptr)
+/// Refuses a field of rayscan.write that `path`'s reader (of `format`) would give back under
+/// another name, by the rules the readers and writers share (rayscan/io/field_names.hpp): another
+/// spelling of intensity, classification or GPS time (any case, "gpstime"), which the reader
+/// moves into that attribute; a LAS field's (PDAL's "ReturnNumber"), which it renames
+/// (io::las_standard_scalar_name); and for PCD and text a position, normal or colour name ("nx",
+/// "red"), which their readers take for that attribute (io::scalar_read_back_as; their writers
+/// would add a suffix). Raises ValueError "write: field 'gpstime' would read back from out.ply
+/// as the gps_time attribute; ...".
+void check_name_reads_back(const std::string& name, const std::string& path, io::Format format) {
+  if (const char* attribute = io::dedicated_field_name(name))
     throw py::value_error("write: field '" + name + "' would read back from " + path + " as the " + attribute +
                           " attribute; give it as PointCloud(..., " + attribute + "=...) or use another name");
   const char* las = io::las_standard_scalar_name(name);
   if (las != nullptr && name != las)
     throw py::value_error("write: field '" + name + "' would read back from " + path + " as '" + las +
                           "' (the LAS field's name); write it as " + las + "=...");
+  if (const char* other = io::scalar_read_back_as(format, name))
+    throw py::value_error("write: field '" + name + "' would read back from " + path + " as " + other +
+                          "; use another name, or write PLY or LAS, which keep it");
 }
 
 /// rayscan.write. The writer takes one PointCloud, which owns its arrays, so `fields` cannot be
@@ -464,11 +464,11 @@ void write(py::handle path, py::handle cloud, const py::dict& fields) {
   const std::string file = path_arg(path, "path");
   CloudArg c = cloud_arg(cloud, "cloud", /*allow_path=*/false);
   std::vector<ScalarField> extra;
-  const bool renaming_reader = output_renames_fields(file);
+  const std::optional<io::Format> renaming = renaming_format(file);
   for (auto [k, v] : fields) {
     const std::string name = py::str(k).cast<std::string>();
     check_scalar_name(name, "write");
-    if (renaming_reader) check_name_reads_back(name, file);
+    if (renaming) check_name_reads_back(name, file, *renaming);
     extra.push_back({name, values_as<double>(column(v, name, c.points->size(), 0, "biuf", "real numbers"))});
   }
   const io::LasWriteOptions las = c.info ? io::las_grid_of(*c.info) : io::LasWriteOptions{};

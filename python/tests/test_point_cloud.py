@@ -130,6 +130,60 @@ def test_write_refuses_a_name_that_reads_back_as_another_field(tmp_path, name, b
     np.testing.assert_array_equal(rayscan.read(las).scalars[name], np.arange(3.0))
 
 
+@pytest.mark.parametrize("name, becomes, exts", [
+    ("nx", "as the normals", ["pcd", "xyz", "csv"]), ("normal_x", "as the normals", ["pcd"]),
+    ("red", "as the colour", ["pcd", "xyz", "csv"]), ("B", "as the colour", ["pcd", "csv"]),
+    ("X", "as the positions", ["pcd", "csv"]), ("i", "as the intensity attribute", ["xyz"]),
+])
+def test_write_refuses_for_pcd_and_text_a_name_their_readers_take_for_an_attribute(tmp_path, name, becomes, exts):
+    values = np.array([0.25, -0.5, 7.0])
+    for ext in exts:
+        out = tmp_path / f"c.{ext}"
+        with pytest.raises(ValueError, match=f"^write: field '{name}' would read back from .*c.{ext} {becomes}; "
+                                             "use another name, or write PLY or LAS, which keep it$"):
+            rayscan.write(out, np.zeros((3, 3)), **{name: values})
+        assert not out.exists()
+    # PLY keeps the name (its writer's scalar_ prefix).
+    ply = tmp_path / "c.ply"
+    rayscan.write(ply, np.zeros((3, 3)), **{name: values})
+    back = rayscan.read(ply)
+    np.testing.assert_array_equal(back.scalars[name], values)
+    assert back.normals is None and back.rgb is None and back.intensity is None
+
+
+def pcd_fields(path):
+    """The FIELDS names and the DATA binary records (every field F 8 here) of a PCD file, from its bytes."""
+    b = path.read_bytes()
+    end = b.index(b"DATA binary\n") + len(b"DATA binary\n")
+    header = b[:end].decode().splitlines()
+    names = next(line.split()[1:] for line in header if line.startswith("FIELDS"))
+    assert next(line.split()[1:] for line in header if line.startswith("SIZE")) == ["8"] * len(names)
+    return names, np.frombuffer(b, dtype=[(n, "<f8") for n in names], offset=end)
+
+
+def test_a_cloud_scalar_named_like_an_attribute_reads_back_from_pcd_and_text_under_a_suffix(tmp_path):
+    # A cloud's own scalar (from PointCloud(scalars=) or a LAS extra-bytes field) is written, with a
+    # suffix where the reader would take its name for an attribute: never read back as normals.
+    xyz = np.array([[0.1, 2.0, 3.0], [4.0, 5.3, 6.0]])
+    scalars = {"nx": np.array([0.5, -0.5]), "red": np.array([200.0, 3.0]), "score": np.array([1.5, 2.5])}
+    pc = rayscan.PointCloud(xyz, scalars=scalars)
+    pcd = tmp_path / "s.pcd"
+    rayscan.write(pcd, pc)
+    names, body = pcd_fields(pcd)
+    assert names == ["x", "y", "z", "nx_1", "red_1", "score"]
+    csv = tmp_path / "s.csv"
+    rayscan.write(csv, pc)
+    assert csv.read_text().splitlines()[0] == "x,y,z,nx_1,red_1,score"
+    for out in (pcd, csv):
+        back = rayscan.read(out)
+        assert back.normals is None and back.rgb is None, out
+        assert list(back.scalars) == ["nx_1", "red_1", "score"], out
+        for name, written in zip(["nx", "red", "score"], ["nx_1", "red_1", "score"]):
+            np.testing.assert_array_equal(back.scalars[written], scalars[name])
+            if out is pcd:
+                np.testing.assert_array_equal(body[written], scalars[name])
+
+
 def test_crs_given_as_epsg_is_stored_as_wkt(cli, tmp_path):
     osr = pytest.importorskip("osgeo.osr")
     pc = rayscan.PointCloud(np.array([[1e6, 5e5, 100.0], [1e6 + 10, 5e5 + 10, 110.0]]), crs="EPSG:2992")

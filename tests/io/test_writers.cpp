@@ -285,6 +285,65 @@ TEST(Writers, TextScalarsNamedLikeTheReadersColumnsReadBackUnderASuffix) {
   fs::remove(out);
 }
 
+// PCD as text does: a scalar whose name the PCD reader takes for a position, normal or colour
+// ("nx", "normal_y", "red", "B", "rgb", "x"), for PCL's padding ("_") or for a dedicated field
+// ("intensity") is written under a suffix, so the file reads back with no scalar turned into
+// normals, colour or intensity; text gives nx, ny, nz (which it would read as normals) a suffix
+// too. Oracle: the file's own bytes (PCD's FIELDS line and its binary records of doubles; the text
+// header and rows) and the values put into the cloud.
+TEST(Writers, PcdAndTextScalarsNamedLikeAnAttributeReadBackUnderASuffix) {
+  PointCloud src;
+  src.positions = {Vec3(0.1, 2, 3), Vec3(4, 5.3, 6)};  // not floats: PCD writes them as F 8
+  src.scalars = {{"nx", {0.5, -0.5}}, {"ny", {1, 2}},    {"nz", {3, 4}},     {"normal_y", {0.25, 7}},
+                 {"red", {200, 3}},   {"B", {9, 10}},    {"rgb", {1e6, 2}},  {"x", {11, 12}},
+                 {"_", {13, 14}},     {"intensity", {15, 16}}, {"other", {17, 18}}};
+  const std::vector<std::string> pcd_names = {"nx_1",    "ny_1", "nz_1", "normal_y_1", "red_1", "B_1",
+                                              "rgb_1",   "x_1",  "__1",  "intensity_1", "other"};
+  const std::vector<std::string> text_names = {"nx_1", "ny_1", "nz_1", "normal_y", "red_1", "B_1",
+                                               "rgb",  "x_1",  "_",    "intensity_1", "other"};
+  auto check_back = [&](const fs::path& p, const std::vector<std::string>& names) {
+    const PointCloud back = io::read_point_cloud(p);
+    EXPECT_EQ(back.positions, src.positions) << p;
+    EXPECT_TRUE(back.normals.empty()) << p;
+    EXPECT_TRUE(back.rgb.empty()) << p;
+    EXPECT_TRUE(back.intensity.empty()) << p;
+    ASSERT_EQ(back.scalars.size(), src.scalars.size()) << p;
+    for (std::size_t k = 0; k < src.scalars.size(); ++k) {
+      EXPECT_EQ(back.scalars[k].name, names[k]) << p;
+      EXPECT_EQ(back.scalars[k].values, src.scalars[k].values) << p << " " << names[k];
+    }
+  };
+
+  const fs::path pcd = temp_dir() / "reserved_names.pcd";
+  io::write_point_cloud(pcd, src);
+  const std::vector<std::uint8_t> bytes = slurp(pcd);
+  const std::string text(bytes.begin(), bytes.end());
+  std::string fields = "FIELDS x y z";
+  for (const std::string& n : pcd_names) fields += " " + n;
+  EXPECT_NE(text.find("\n" + fields + "\n"), std::string::npos) << text.substr(0, 300);
+  const std::size_t body = text.find("DATA binary\n") + 12;
+  const std::size_t record = 8 * (3 + src.scalars.size());
+  ASSERT_EQ(bytes.size(), body + 2 * record);
+  for (std::size_t i = 0; i < 2; ++i)
+    for (std::size_t k = 0; k < src.scalars.size(); ++k)
+      EXPECT_EQ(load_at<double>(bytes, body + i * record + 8 * (3 + k)), src.scalars[k].values[i]) << pcd_names[k];
+  check_back(pcd, pcd_names);
+  fs::remove(pcd);
+
+  // Text keeps "normal_y", "rgb" and "_", which are no text column names.
+  for (const char* ext : {".csv", ".xyz"}) {
+    const fs::path out = temp_dir() / (std::string("reserved_names") + ext);
+    io::write_point_cloud(out, src);
+    const std::vector<std::uint8_t> t = slurp(out);
+    const std::string sep = std::string(ext) == ".csv" ? "," : " ";
+    std::string header = "x" + sep + "y" + sep + "z";
+    for (const std::string& n : text_names) header += sep + n;
+    EXPECT_EQ(std::string(t.begin(), t.end()).substr(0, header.size() + 1), header + "\n");
+    check_back(out, text_names);
+    fs::remove(out);
+  }
+}
+
 /// The colour fields of every record, as stored (ASPRS LAS 1.4 R15 section 2.6: red, green, blue
 /// at byte 20 of PDRF 2, 28 of PDRF 3 and 5, 30 of PDRF 7, 8 and 10).
 std::vector<std::uint16_t> stored_rgb(const io::LasRecords& r) {

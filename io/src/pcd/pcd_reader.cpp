@@ -12,6 +12,8 @@
 // which decides the error a file with several defects reports.
 #include "readers.hpp"
 
+#include "rayscan/io/field_names.hpp"
+
 extern "C" {
 #include <lzf.h>
 }
@@ -258,7 +260,9 @@ struct PcdRoles {
   std::vector<std::pair<std::size_t, std::uint64_t>> scalar_src;  ///< (field, element) of each scalar
 };
 
-/// Roles by field name (case-insensitive; "_" is PCL's padding). Fields with COUNT > 1 are not
+/// Roles by field name (pcd_named_field, rayscan/io/field_names.hpp, which the PCD writer and
+/// rayscan.write share to keep a scalar from reading back as one of these; case-insensitive; "_"
+/// is PCL's padding; packed colour needs SIZE 4 and COUNT 1). Fields with COUNT > 1 are not
 /// coordinates, normals or colours; scalars of COUNT > 3 (descriptors) are skipped with a note;
 /// without opt.scalars only intensity, classification and GPS time are kept. Throws FormatError
 /// when x, y or z is missing.
@@ -271,17 +275,23 @@ PcdRoles assign_roles(const std::string& nm, const PcdHeader& h, const ReadOptio
   for (std::size_t k = 0; k < nf; ++k) {
     const std::string n = lower(fields[k].name);
     PcdRole r = PcdRole::scalar;
-    if (n == "_") r = PcdRole::skip;
-    else if (n == "x") r = PcdRole::x;
-    else if (n == "y") r = PcdRole::y;
-    else if (n == "z") r = PcdRole::z;
-    else if (n == "normal_x" || n == "nx") r = PcdRole::nx;
-    else if (n == "normal_y" || n == "ny") r = PcdRole::ny;
-    else if (n == "normal_z" || n == "nz") r = PcdRole::nz;
-    else if ((n == "rgb" || n == "rgba") && fields[k].size == 4 && fields[k].count == 1) r = PcdRole::packed;
-    else if (n == "red" || n == "r") r = PcdRole::r;
-    else if (n == "green" || n == "g") r = PcdRole::g;
-    else if (n == "blue" || n == "b") r = PcdRole::b;
+    switch (pcd_named_field(n)) {
+      case NamedField::padding: r = PcdRole::skip; break;
+      case NamedField::x: r = PcdRole::x; break;
+      case NamedField::y: r = PcdRole::y; break;
+      case NamedField::z: r = PcdRole::z; break;
+      case NamedField::nx: r = PcdRole::nx; break;
+      case NamedField::ny: r = PcdRole::ny; break;
+      case NamedField::nz: r = PcdRole::nz; break;
+      case NamedField::packed_rgb:
+        if (fields[k].size == 4 && fields[k].count == 1) r = PcdRole::packed;
+        break;
+      case NamedField::red: r = PcdRole::r; break;
+      case NamedField::green: r = PcdRole::g; break;
+      case NamedField::blue: r = PcdRole::b; break;
+      case NamedField::intensity:  // not a PCD name: promote_scalars fills intensity
+      case NamedField::scalar: break;
+    }
     if ((r >= PcdRole::x && r <= PcdRole::z) || (r >= PcdRole::r && r <= PcdRole::b) || (r >= PcdRole::nx && r <= PcdRole::nz))
       if (fields[k].count != 1) r = PcdRole::scalar;
     if (r == PcdRole::x) have |= 1;

@@ -1,6 +1,9 @@
 // PCD v0.7 writer (Point Cloud Library, "The PCD (Point Cloud Data) file format",
 // pointclouds.org/documentation/tutorials/pcd_file_format.html): an unorganised cloud (HEIGHT 1),
 // DATA binary (the array-of-structs layout: one record of every field per point, little-endian).
+// A scalar whose name the reader would take for another field (scalar_read_back_as: "nx",
+// "red", "intensity") is written with a suffix, "nx_1", so that the file reads back with no
+// scalar turned into another attribute.
 #include "rayscan/io/point_io.hpp"
 
 #include "atomic_writer.hpp"
@@ -53,7 +56,7 @@ void write_pcd(const std::filesystem::path& path, const PointCloud& cloud,
   // Open3D's header parsers skip any line whose first word starts with '#').
   std::string comments;
   for (const ScalarField& s : cloud.scalars) {
-    f.push_back({detail::unique_field_name("", s.name, used), 8, 'F'});
+    f.push_back({detail::unique_field_name("", s.name, used, detail::scalar_name_reserved<Format::pcd>), 8, 'F'});
     if (const auto it = descriptions.find(s.name); it != descriptions.end())
       if (const std::string c = detail::field_comment(f.back().name, it->second); !c.empty())
         comments += "# ", comments += c, comments += '\n';

@@ -1,18 +1,19 @@
 // XYZ/CSV/TXT/PTS reader (no formal specification; the common ASCII column layout that
 // CloudCompare, PDAL's text reader and LAStools' txt2las read): one point per line, values
 // separated by whitespace, commas or semicolons; '#' starts a comment line; an optional first line
-// naming the columns (text_column: x, y, z, r/red, g/green, b/blue, i/intensity in any order,
-// case-insensitive; other names become scalars). Without a header the columns are x y z, then
-// scalars col4, col5, ... A .pts file (Leica Cyclone's layout, as PDAL's readers.pts reads it) may
-// start each scan with a line holding its point count; its rows are then x y z, x y z intensity or
-// x y z intensity r g b, the intensity in -2048..2047 stored + 2048 as PDAL does.
+// naming the columns (text_named_field, rayscan/io/field_names.hpp: x, y, z, r/red, g/green,
+// b/blue, i/intensity, nx/ny/nz in any order, case-insensitive; other names become scalars).
+// Without a header the columns are x y z, then scalars col4, col5, ... A .pts file (Leica
+// Cyclone's layout, as PDAL's readers.pts reads it) may start each scan with a line holding its
+// point count; its rows are then x y z, x y z intensity or x y z intensity r g b, the intensity in
+// -2048..2047 stored + 2048 as PDAL does.
 // Every value is parsed as double (a float32 cannot hold UTM northings to the centimetre). A
 // non-finite x, y or z is refused, and so is a finite one beyond +-kMaxCoordinate, as the LAS
 // reader refuses it ("line L: point N: ...", N counting the rows read).
 #include "readers.hpp"
-#include "text_columns.hpp"
 
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/io/field_names.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -34,19 +35,23 @@ bool parse_double(std::string_view s, double& v) {
 
 enum class Col { skip, x, y, z, r, g, b, intensity, nx, ny, nz, scalar };
 
-Col col_of(TextColumn c) {
-  switch (c) {
-    case TextColumn::x: return Col::x;
-    case TextColumn::y: return Col::y;
-    case TextColumn::z: return Col::z;
-    case TextColumn::r: return Col::r;
-    case TextColumn::g: return Col::g;
-    case TextColumn::b: return Col::b;
-    case TextColumn::intensity: return Col::intensity;
-    case TextColumn::nx: return Col::nx;
-    case TextColumn::ny: return Col::ny;
-    case TextColumn::nz: return Col::nz;
-    case TextColumn::scalar: break;
+/// The column a header name names (text_named_field, which the text writer and rayscan.write
+/// share to keep a scalar from reading back as one of these).
+Col col_of(std::string_view name) {
+  switch (text_named_field(name)) {
+    case NamedField::x: return Col::x;
+    case NamedField::y: return Col::y;
+    case NamedField::z: return Col::z;
+    case NamedField::red: return Col::r;
+    case NamedField::green: return Col::g;
+    case NamedField::blue: return Col::b;
+    case NamedField::intensity: return Col::intensity;
+    case NamedField::nx: return Col::nx;
+    case NamedField::ny: return Col::ny;
+    case NamedField::nz: return Col::nz;
+    case NamedField::scalar:
+    case NamedField::packed_rgb:
+    case NamedField::padding: break;  // not text names
   }
   return Col::scalar;
 }
@@ -84,13 +89,13 @@ PointCloud read_text(const Input& in, const ReadOptions& opt, FileInfo& info) {
     // of them are scalars like any other column.
     int nbits = 0;
     for (const std::string& n : names) {
-      const TextColumn t = text_column(n);
-      nbits |= t == TextColumn::nx ? 1 : t == TextColumn::ny ? 2 : t == TextColumn::nz ? 4 : 0;
+      const Col t = col_of(n);
+      nbits |= t == Col::nx ? 1 : t == Col::ny ? 2 : t == Col::nz ? 4 : 0;
     }
     has_normals = nbits == 7;
     int have = 0;
     for (std::size_t i = 0; i < names.size(); ++i) {
-      Col c = col_of(text_column(names[i]));
+      Col c = col_of(names[i]);
       if (!has_normals && (c == Col::nx || c == Col::ny || c == Col::nz)) c = Col::scalar;
       have |= c == Col::x ? 1 : c == Col::y ? 2 : c == Col::z ? 4 : 0;
       if (c != Col::scalar)

@@ -8,8 +8,9 @@
 // (std::to_chars), so a round trip keeps it bit for bit. Colour is written as the source held it:
 // 16-bit values, or the 8-bit values of a source whose colour the reader scaled by 257
 // (PointCloud::rgb_from_8bit_las, as write_las does), which the text reader scales by 257 again.
-// A scalar whose name the reader would take for another field (text_name_reserved: an extra-bytes
-// field "Intensity" beside the intensity column) is written with a suffix, "Intensity_1".
+// A scalar whose name the reader would take for another field (scalar_read_back_as: an extra-bytes
+// field "Intensity" beside the intensity column, a scalar "nx") is written with a suffix,
+// "Intensity_1", "nx_1", so that the file reads back with no scalar turned into another attribute.
 #include "rayscan/io/point_io.hpp"
 
 #include "rayscan/base/file_names.hpp"
@@ -19,7 +20,6 @@
 #include "atomic_writer.hpp"
 #include "field_names.hpp"
 #include "las/las_grid.hpp"
-#include "text_columns.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -63,7 +63,7 @@ void write_text(const std::filesystem::path& path, const PointCloud& cloud, cons
   if (!cloud.classification.empty()) col("classification");
   if (!cloud.gps_time.empty()) col("gps_time");
   for (const ScalarField& s : cloud.scalars)
-    h += sep, h += detail::unique_field_name("", s.name, used, detail::text_name_reserved);
+    h += sep, h += detail::unique_field_name("", s.name, used, detail::scalar_name_reserved<Format::text>);
   h += '\n';
 
   detail::AtomicWriter w(path);
