@@ -7,6 +7,7 @@
 #include "rayscan/sql/import.hpp"
 
 #include "rayscan/base/option_error.hpp"
+#include "rayscan/io/crs.hpp"
 
 #include "rayscan/sql/site_stream.hpp"
 
@@ -15,42 +16,81 @@
 #include <charconv>
 #include <cstdio>
 #include <cstring>
+#include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace rayscan::sql {
 
 namespace {
 
+/// libpq's text as one line: PQerrorMessage ends in a newline and continues a message on lines
+/// indented with a tab (a connection failure's "Is the server running ...?"); the lines are
+/// joined with "; ".
+std::string one_line(const std::string& text) {
+  std::string out, line;
+  auto flush = [&] {
+    const auto b = line.find_first_not_of(" \t\r"), e = line.find_last_not_of(" \t\r");
+    if (b != std::string::npos) out += (out.empty() ? "" : "; ") + line.substr(b, e - b + 1);
+    line.clear();
+  };
+  for (char ch : text) {
+    if (ch == '\n') flush();
+    else line += ch == '\t' ? ' ' : ch;
+  }
+  flush();
+  return out;
+}
+
+/// A PGresult freed with its owner.
+using Result = std::unique_ptr<PGresult, decltype(&PQclear)>;
+
 struct Conn {
   PGconn* c = nullptr;
   ~Conn() { PQfinish(c); }
-  [[noreturn]] void fail(const std::string& what) const {
-    std::string m = c ? PQerrorMessage(c) : "out of memory";
-    while (!m.empty() && (m.back() == '\n' || m.back() == ' ')) m.pop_back();
-    for (char& ch : m)
-      if (ch == '\n') ch = ' ';
-    throw std::runtime_error("postgres: " + what + ": " + m);
+  /// Throws std::runtime_error "postgres: <what>: <message>": the server's primary message of `r`
+  /// (PG_DIAG_MESSAGE_PRIMARY: one line, without its detail, hint or the statement), else the
+  /// connection's last message as one line.
+  [[noreturn]] void fail(const std::string& what, const PGresult* r = nullptr) const {
+    const char* primary = r ? PQresultErrorField(r, PG_DIAG_MESSAGE_PRIMARY) : nullptr;
+    const std::string m = primary ? primary : c ? PQerrorMessage(c) : "out of memory";
+    throw std::runtime_error("postgres: " + what + ": " + one_line(m));
   }
-  void exec(const std::string& sql) {
-    PGresult* r = PQexec(c, sql.c_str());
-    const auto st = PQresultStatus(r);
-    PQclear(r);
-    if (st != PGRES_COMMAND_OK && st != PGRES_TUPLES_OK) fail(sql.substr(0, 60));
+  /// Runs `sql` with text parameters (nullptr: NULL) and returns its result; throws (fail(what))
+  /// unless it returned rows or completed.
+  Result run(const std::string& sql, const std::vector<const char*>& params, const std::string& what) {
+    Result r(PQexecParams(c, sql.c_str(), static_cast<int>(params.size()), nullptr, params.data(), nullptr,
+                          nullptr, 0),
+             &PQclear);
+    const auto st = PQresultStatus(r.get());
+    if (st != PGRES_COMMAND_OK && st != PGRES_TUPLES_OK) fail(what, r.get());
+    return r;
   }
-  void copy_in(const std::string& sql) {
-    PGresult* r = PQexec(c, sql.c_str());
-    const auto st = PQresultStatus(r);
-    PQclear(r);
-    if (st != PGRES_COPY_IN) fail(sql);
+  /// The one value of a one-row query, std::nullopt for none or NULL.
+  std::optional<std::string> value(const std::string& sql, const std::vector<const char*>& params,
+                                   const std::string& what) {
+    const Result r = run(sql, params, what);
+    if (PQntuples(r.get()) < 1 || PQgetisnull(r.get(), 0, 0)) return std::nullopt;
+    return std::string(PQgetvalue(r.get(), 0, 0));
+  }
+  /// Runs `sql` (one or more statements, no parameters); throws (fail(what)) on an error.
+  void exec(const std::string& sql, const std::string& what) {
+    const Result r(PQexec(c, sql.c_str()), &PQclear);
+    const auto st = PQresultStatus(r.get());
+    if (st != PGRES_COMMAND_OK && st != PGRES_TUPLES_OK) fail(what, r.get());
+  }
+  void copy_in(const std::string& sql, const std::string& what) {
+    const Result r(PQexec(c, sql.c_str()), &PQclear);
+    if (PQresultStatus(r.get()) != PGRES_COPY_IN) fail(what, r.get());
   }
   /// Ends a COPY FROM STDIN and checks the server's results; throws (fail(what)) on an error.
-  void copy_end(const char* what) {
+  void copy_end(const std::string& what) {
     if (PQputCopyEnd(c, nullptr) != 1) fail(what);
-    for (PGresult* r; (r = PQgetResult(c));) {
-      const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
-      PQclear(r);
-      if (!ok) fail(what);
+    for (PGresult* p; (p = PQgetResult(c));) {
+      const Result r(p, &PQclear);
+      if (PQresultStatus(p) != PGRES_COMMAND_OK) fail(what, p);
     }
   }
 };
@@ -82,19 +122,18 @@ void append_hex(std::string& s, T v) {
   }
 }
 
-// Rows of the sources table (`sources`: schema-qualified and quoted): each input file's path and
-// point count.
-void insert_sources(Conn& db, const std::string& sources_table, const std::vector<SourceRow>& sources) {
-  for (std::size_t i = 0; i < sources.size(); ++i) {
-    const std::string& p = sources[i].path;
-    const std::string n = std::to_string(i), cnt = std::to_string(sources[i].points);
-    const char* vals[3] = {n.c_str(), p.c_str(), cnt.c_str()};
-    PGresult* r = PQexecParams(db.c, ("INSERT INTO " + sources_table + " VALUES($1,$2,$3)").c_str(), 3,
-                               nullptr, vals, nullptr, nullptr, 0);
-    const bool ok = PQresultStatus(r) == PGRES_COMMAND_OK;
-    PQclear(r);
-    if (!ok) db.fail("insert source");
+/// The EPSG code of the sources' horizontal CRS (io::epsg_codes_from_wkt, as `rayscan info`
+/// identifies it), the srid of a pgpointcloud schema; 0 (pgpointcloud's "unknown") when no source
+/// has a CRS, one has none GDAL identifies, or two disagree.
+int sources_srid(const std::vector<SourceRow>& sources) {
+  int srid = -1;
+  for (const SourceRow& s : sources) {
+    if (s.crs_wkt.empty()) continue;
+    const int code = io::epsg_codes_from_wkt(s.crs_wkt).horizontal;
+    if (srid >= 0 && code != srid) return 0;
+    srid = code;
   }
+  return srid > 0 ? srid : 0;
 }
 
 /// One import into PostgreSQL: the site's chunks (open_site) streamed through COPY, all inside one
@@ -102,68 +141,149 @@ void insert_sources(Conn& db, const std::string& sources_table, const std::vecto
 /// on the first failing statement; the transaction then never commits.
 struct PgImport {
   const std::string& table;             ///< the table's name as given (checked: lower case)
+  bool pcpatch;                         ///< ImportOptions::pcpatch
   std::string schema;                   ///< current_schema() of the connection, where it is created
-  SiteStream& site;
-  const std::vector<ColumnInfo>& cols;  ///< the extra columns (attributes)
+  std::string rayscan_schema;           ///< the schema of rs_box and the functions (ensure_extension)
+  std::string pointcloud_schema;        ///< pgpointcloud's (--pcpatch; register_pcpatch_schema)
+  SiteStream* site = nullptr;           ///< set by attach()
+  const std::vector<ColumnInfo>* cols = nullptr;  ///< the extra columns (attributes)
   ChunkRows c;                          ///< the current chunk (vectors reused)
   ImportSummary sum;
   Conn db;
-  InsertProgress progress;              ///< the "insert" phase of ImportOptions::progress
+  const ImportOptions& options;
+  std::optional<ImportProgress> progress;  ///< the import's own phases of ImportOptions::progress
 
-  PgImport(const std::string& t, SiteStream& s, const ImportOptions& o)
-      : table(t), site(s), cols(s.columns()), progress(o, total_points(s)) {}
+  PgImport(const std::string& t, const ImportOptions& o) : table(t), pcpatch(o.pcpatch), options(o) {}
 
   /// The table `<table><suffix>` schema-qualified and quoted: what every statement names, so that
   /// no schema earlier in the search path (pg_catalog: `--table pg_class`) can capture it.
   [[nodiscard]] std::string name(const char* suffix = "") const {
     return quote_ident(schema) + "." + quote_ident(table + suffix);
   }
+  /// `<table><suffix>` as the messages show it: schema.name, unquoted.
+  [[nodiscard]] std::string shown(const std::string& relation) const { return schema + "." + relation; }
   /// An index `<table><suffix>`, quoted (an index is created in its table's schema).
   [[nodiscard]] std::string index(const char* suffix) const { return quote_ident(table + suffix); }
+  /// rs_box qualified with the schema that holds it (the search path need not include it).
+  [[nodiscard]] std::string box_type() const { return quote_ident(rayscan_schema) + ".rs_box"; }
 
-  /// Connects with `conninfo` (libpq connection string), lowers the client's message level and
-  /// opens the transaction: all or nothing, a failure (or the server going away) leaves no half
-  /// table.
-  void connect_and_begin(const std::string& conninfo) {
-    db.c = PQconnectdb(conninfo.c_str());
-    if (PQstatus(db.c) != CONNECTION_OK) db.fail("cannot connect");
-    db.exec("SET client_min_messages = warning");
-    db.exec("BEGIN");
-    PGresult* r = PQexec(db.c, "SELECT current_schema()");
-    const bool ok = PQresultStatus(r) == PGRES_TUPLES_OK && PQntuples(r) == 1;
-    const bool none = ok && PQgetisnull(r, 0, 0);
-    if (ok && !none) schema = PQgetvalue(r, 0, 0);
-    PQclear(r);
-    if (!ok) db.fail("current_schema()");
-    if (none)
-      throw std::runtime_error("postgres: no schema to create table '" + table +
-                               "' in: no schema of the search_path exists (SHOW search_path)");
+  /// The relations the import creates: tables and the indexes it names (the primary keys'
+  /// indexes PostgreSQL names itself, avoiding taken names).
+  [[nodiscard]] std::vector<std::string> relations() const {
+    if (pcpatch) return {table, table + "_sources", table + "_box"};
+    return {table, table + "_chunks", table + "_sources", table + "_chunk_idx", table + "_chunks_box"};
   }
 
-  /// The functions come from `CREATE EXTENSION rayscan` (an installed build), or were loaded from a
-  /// build tree with rayscan_build_tree.sql (docs/sql.md); creates the extension only when the
-  /// rs_box type is absent.
-  void ensure_extension() {
-    PGresult* r = PQexec(db.c, "SELECT to_regtype('rs_box') IS NOT NULL");
-    const bool ok = PQresultStatus(r) == PGRES_TUPLES_OK && PQntuples(r) == 1;
-    const bool present = ok && std::string(PQgetvalue(r, 0, 0)) == "t";
-    PQclear(r);
-    if (!ok) db.fail("to_regtype");
-    if (!present) db.exec("CREATE EXTENSION IF NOT EXISTS rayscan");
+  /// Throws std::runtime_error "postgres: table <schema>.<name> exists: choose another --table or
+  /// drop it" (index, view, ... for another kind of relation).
+  [[noreturn]] void exists(const std::string& relation, char relkind) const {
+    const char* kind = relkind == 'r' || relkind == 'p' ? "table"
+                       : relkind == 'i' || relkind == 'I' ? "index"
+                       : relkind == 'v' || relkind == 'm' ? "view"
+                       : relkind == 'S' ? "sequence" : "relation";
+    throw std::runtime_error("postgres: " + std::string(kind) + " " + shown(relation) +
+                             " exists: choose another --table or drop it");
+  }
+
+  /// Connects with `conninfo` (libpq connection string), lowers the client's message level, finds
+  /// the schema to create the tables in and checks that none of the import's relations exists
+  /// there yet: before the sort, so that a wrong server or a taken name fails at once.
+  void connect(const std::string& conninfo) {
+    db.c = PQconnectdb(conninfo.c_str());
+    if (PQstatus(db.c) != CONNECTION_OK) db.fail("cannot connect");
+    db.exec("SET client_min_messages = warning", "set client_min_messages");
+    const std::optional<std::string> s = db.value("SELECT current_schema()", {}, "current_schema()");
+    if (!s)
+      throw std::runtime_error("postgres: no schema to create table '" + table +
+                               "' in: no schema of the search_path exists (SHOW search_path)");
+    schema = *s;
+    std::string names = "{";
+    for (const std::string& r : relations()) names += (names.size() > 1 ? "," : "") + r;  // checked identifiers
+    names += "}";
+    const Result r = db.run("SELECT c.relname, c.relkind FROM pg_class c JOIN pg_namespace n ON n.oid = c.relnamespace "
+                            "WHERE n.nspname = $1 AND c.relname = ANY ($2::text[]) "
+                            "ORDER BY array_position($2::text[], c.relname::text) LIMIT 1",
+                            {schema.c_str(), names.c_str()}, "look up the tables");
+    if (PQntuples(r.get()) > 0) exists(PQgetvalue(r.get(), 0, 0), PQgetvalue(r.get(), 0, 1)[0]);
+  }
+
+  /// The site to import, once sorted; starts the "insert" phase.
+  void attach(SiteStream& s) {
+    site = &s;
+    cols = &s.columns();
+    progress.emplace(options, total_points(s));
+  }
+
+  /// Runs `sql`, a CREATE of `relation`: a relation of that name made since connect() checked
+  /// (42P07 duplicate_table) is reported as exists() reports it.
+  void create(const std::string& sql, const std::string& relation) {
+    const Result r(PQexec(db.c, sql.c_str()), &PQclear);
+    if (PQresultStatus(r.get()) == PGRES_COMMAND_OK) return;
+    const char* state = PQresultErrorField(r.get(), PG_DIAG_SQLSTATE);
+    if (state && std::string(state) == "42P07") exists(relation, 'r');
+    db.fail("create " + shown(relation), r.get());
+  }
+
+  /// The schema of extension `name` (pg_extension.extnamespace), std::nullopt when the database
+  /// does not have it.
+  std::optional<std::string> extension_schema(const char* name) {
+    return db.value("SELECT n.nspname FROM pg_extension e JOIN pg_namespace n ON n.oid = e.extnamespace "
+                    "WHERE e.extname = $1", {name}, std::string("look up extension ") + name);
+  }
+
+  /// Where CREATE EXTENSION puts an extension the database lacks: public, the schema of a
+  /// database's shared objects (PostGIS's and pgpointcloud's usual place) rather than the
+  /// tables' schema, which a search_path such as `survey` would make the data's; the tables'
+  /// schema when the database has no public.
+  std::string extension_home() {
+    return db.value("SELECT to_regnamespace('public') IS NOT NULL", {}, "look up schema public") == "t" ? "public"
+                                                                                                        : schema;
+  }
+
+  /// Opens the transaction (all or nothing: a failure, or the server going away, leaves no half
+  /// table) and finds rs_box and the functions: the rayscan extension's schema (CREATE EXTENSION
+  /// rayscan, an installed build), else the schema of an rs_box loaded from a build tree with
+  /// rayscan_build_tree.sql (docs/sql.md; the one the search path sees first, else public, else
+  /// the first by name); without either, creates the extension in extension_home(). Every type
+  /// the import's statements name is qualified with that schema, so they work whatever the
+  /// connection's search_path.
+  void begin() {
+    db.exec("BEGIN", "begin");
+    if (std::optional<std::string> s = extension_schema("rayscan")) {
+      rayscan_schema = *s;
+      return;
+    }
+    if (std::optional<std::string> s =
+            db.value("SELECT n.nspname FROM pg_type t JOIN pg_namespace n ON n.oid = t.typnamespace "
+                     "WHERE t.typname = 'rs_box' ORDER BY pg_type_is_visible(t.oid) DESC, n.nspname <> 'public', "
+                     "n.nspname LIMIT 1", {}, "look up type rs_box")) {
+      rayscan_schema = *s;
+      return;
+    }
+    rayscan_schema = extension_home();
+    db.exec("CREATE EXTENSION rayscan SCHEMA " + quote_ident(rayscan_schema),
+            "create extension rayscan in schema " + rayscan_schema);
   }
 
   /// Registers a pgpointcloud schema (pointcloud_formats row) under a new pcid and returns the
   /// pcid: double X/Y/Z (scale 1: the reader's exact doubles), the point's index and source, then
-  /// the attributes (int64 or double); no compression. Throws std::runtime_error when all 65535
-  /// pcids are in use.
+  /// the attributes (int64 or double); no compression; srid the sources' EPSG code
+  /// (sources_srid), which PDAL's readers.pgpointcloud reads as the cloud's CRS. Creates the
+  /// extension pointcloud in extension_home() when the database lacks it. Throws
+  /// std::runtime_error when all 65535 pcids are in use.
   int register_pcpatch_schema() {
-    db.exec("CREATE EXTENSION IF NOT EXISTS pointcloud");
-    db.exec("LOCK TABLE pointcloud_formats IN SHARE ROW EXCLUSIVE MODE");  // a unique new pcid
-    PGresult* r = PQexec(db.c, "SELECT coalesce(max(pcid), 0) + 1 FROM pointcloud_formats");
-    const bool ok = PQresultStatus(r) == PGRES_TUPLES_OK && PQntuples(r) == 1;
-    const int pcid = ok ? std::atoi(PQgetvalue(r, 0, 0)) : 0;
-    PQclear(r);
-    if (!ok) db.fail("pointcloud_formats");
+    if (std::optional<std::string> s = extension_schema("pointcloud")) {
+      pointcloud_schema = *s;
+    } else {
+      pointcloud_schema = extension_home();
+      db.exec("CREATE EXTENSION pointcloud SCHEMA " + quote_ident(pointcloud_schema),
+              "create extension pointcloud in schema " + pointcloud_schema);
+    }
+    const std::string formats = quote_ident(pointcloud_schema) + ".pointcloud_formats";
+    db.exec("LOCK TABLE " + formats + " IN SHARE ROW EXCLUSIVE MODE", "lock pointcloud_formats");  // a unique new pcid
+    const std::optional<std::string> next =
+        db.value("SELECT coalesce(max(pcid), 0) + 1 FROM " + formats, {}, "read pointcloud_formats");
+    const int pcid = next ? std::atoi(next->c_str()) : 0;
     if (pcid >= 65536) throw std::runtime_error("postgres: pointcloud_formats is full (pcid 65535 in use)");
     struct Dim {
       std::string name, type;
@@ -171,7 +291,7 @@ struct PgImport {
     };
     std::vector<Dim> dims = {{"X", "double", 8}, {"Y", "double", 8}, {"Z", "double", 8},
                              {"PointIndex", "uint64_t", 8}, {"Source", "uint32_t", 4}};
-    for (const auto& col : cols) dims.push_back({col.name, col.integer ? "int64_t" : "double", 8});
+    for (const auto& col : *cols) dims.push_back({col.name, col.integer ? "int64_t" : "double", 8});
     std::string xml = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<pc:PointCloudSchema "
                       "xmlns:pc=\"http://pointcloud.org/schemas/PC/1.1\" "
                       "xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\">";
@@ -180,25 +300,38 @@ struct PgImport {
              std::to_string(dims[i].size) + "</pc:size><pc:name>" + dims[i].name +
              "</pc:name><pc:interpretation>" + dims[i].type + "</pc:interpretation><pc:scale>1</pc:scale></pc:dimension>";
     xml += "<pc:metadata><Metadata name=\"compression\">none</Metadata></pc:metadata></pc:PointCloudSchema>";
-    const std::string id = std::to_string(pcid);
-    const char* vals[2] = {id.c_str(), xml.c_str()};
-    r = PQexecParams(db.c, "INSERT INTO pointcloud_formats (pcid, srid, schema) VALUES ($1, 0, $2)", 2, nullptr, vals,
-                     nullptr, nullptr, 0);
-    const bool ins = PQresultStatus(r) == PGRES_COMMAND_OK;
-    PQclear(r);
-    if (!ins) db.fail("insert pointcloud_formats schema");
+    const std::string id = std::to_string(pcid), srid = std::to_string(sources_srid(site->sources()));
+    db.run("INSERT INTO " + formats + " (pcid, srid, schema) VALUES ($1, $2, $3)", {id.c_str(), srid.c_str(), xml.c_str()},
+           "insert the pointcloud_formats schema");
     return pcid;
+  }
+
+  /// <table>_sources: each input file's path, point count and CRS (WKT, NULL when unknown), as
+  /// SQLite's sources table.
+  void create_sources() {
+    create("CREATE TABLE " + name("_sources") + " (source int PRIMARY KEY, path text NOT NULL, "
+           "point_count bigint NOT NULL, crs_wkt text)", table + "_sources");
+  }
+  void insert_sources() {
+    const std::vector<SourceRow>& sources = site->sources();
+    for (std::size_t i = 0; i < sources.size(); ++i) {
+      const std::string n = std::to_string(i), cnt = std::to_string(sources[i].points);
+      const std::string& wkt = sources[i].crs_wkt;
+      db.run("INSERT INTO " + name("_sources") + " VALUES ($1, $2, $3, $4)",
+             {n.c_str(), sources[i].path.c_str(), cnt.c_str(), wkt.empty() ? nullptr : wkt.c_str()},
+             "insert into " + shown(table + "_sources"));
+    }
   }
 
   /// COPY of one row per chunk into <table>: chunk id, the patch as hex WKB, the box. Patch WKB:
   /// byte order 1 (NDR), uint32 pcid, uint32 compression 0 (none), uint32 npoints, then the
   /// points in schema order (pgpointcloud README, "Binary Formats"). Sent in ~1 MiB pieces.
   void copy_patches(int pcid) {
-    db.copy_in("COPY " + name() + " FROM STDIN");
+    const std::string what = "copy into " + shown(table);
+    db.copy_in("COPY " + name() + " FROM STDIN", what);
     std::string buf;
-    while (site.next(c)) {
+    while (site->next(c)) {
       const std::size_t count = c.size();
-      progress.add(count);
       buf += std::to_string(c.chunk) + '\t';
       buf += "01";
       append_hex(buf, static_cast<std::uint32_t>(pcid));
@@ -212,9 +345,9 @@ struct PgImport {
         append_hex(buf, p.z);
         append_hex(buf, static_cast<std::uint64_t>(ref.index));
         append_hex(buf, static_cast<std::uint32_t>(ref.source));
-        for (std::size_t a = 0; a < cols.size(); ++a) {
+        for (std::size_t a = 0; a < cols->size(); ++a) {
           const double v = c.values[a * count + r];
-          if (cols[a].integer) append_hex(buf, static_cast<std::int64_t>(v));
+          if ((*cols)[a].integer) append_hex(buf, static_cast<std::int64_t>(v));
           else append_hex(buf, v);
         }
       }
@@ -227,13 +360,11 @@ struct PgImport {
       buf += ")\n";
       sum.points += count;
       ++sum.chunks;
-      if (buf.size() >= (1u << 20)) {
-        if (PQputCopyData(db.c, buf.data(), static_cast<int>(buf.size())) != 1) db.fail("COPY patches");
-        buf.clear();
-      }
+      flush(buf, false, what);
+      progress->insert(count);
     }
-    if (!buf.empty() && PQputCopyData(db.c, buf.data(), static_cast<int>(buf.size())) != 1) db.fail("COPY patches");
-    db.copy_end("COPY patches");
+    flush(buf, true, what);
+    db.copy_end(what);
   }
 
   /// --pcpatch: one uncompressed pgpointcloud patch per chunk in <table> (chunk, pa, box) with a
@@ -241,32 +372,34 @@ struct PgImport {
   void import_pcpatch() {
     const int pcid = register_pcpatch_schema();
     const std::string id = std::to_string(pcid);
-    db.exec("CREATE TABLE " + name() + " (chunk int PRIMARY KEY, pa pcpatch(" + id + ") NOT NULL, box rs_box NOT NULL)");
-    db.exec("CREATE TABLE " + name("_sources") + " (source int PRIMARY KEY, path text NOT NULL, point_count bigint NOT NULL)");
+    create("CREATE TABLE " + name() + " (chunk int PRIMARY KEY, pa " + quote_ident(pointcloud_schema) + ".pcpatch(" +
+           id + ") NOT NULL, box " + box_type() + " NOT NULL)", table);
+    create_sources();
     copy_patches(pcid);
-    insert_sources(db, name("_sources"), site.sources());
-    db.exec("CREATE INDEX " + index("_box") + " ON " + name() + " USING gist (box)");
-    db.exec("COMMIT");
-    db.exec("ANALYZE " + name());
+    insert_sources();
+    progress->index();
+    create("CREATE INDEX " + index("_box") + " ON " + name() + " USING gist (box)", table + "_box");
+    db.exec("COMMIT", "commit");
+    db.exec("ANALYZE " + name(), "analyze " + shown(table));
   }
 
   /// The plain-rows tables (docs/sql.md): <table> (point_index, source, chunk, x, y, z,
   /// <attributes>), <table>_chunks (chunk, box, first_row, count), <table>_sources.
   void create_point_tables() {
-    std::string create = "CREATE TABLE " + name() +
-                         " (point_index bigint NOT NULL, source int NOT NULL, chunk int NOT NULL, "
-                         "x float8 NOT NULL, y float8 NOT NULL, z float8 NOT NULL";
-    for (const auto& col : cols) create += ", " + quote_ident(folded_sql_name(col.name)) + (col.integer ? " bigint" : " float8");
-    db.exec(create + ")");
-    db.exec("CREATE TABLE " + name("_chunks") + " (chunk int PRIMARY KEY, box rs_box NOT NULL, "
-            "first_row bigint NOT NULL, count int NOT NULL)");
-    db.exec("CREATE TABLE " + name("_sources") + " (source int PRIMARY KEY, path text NOT NULL, "
-            "point_count bigint NOT NULL)");
+    std::string create_points = "CREATE TABLE " + name() +
+                                " (point_index bigint NOT NULL, source int NOT NULL, chunk int NOT NULL, "
+                                "x float8 NOT NULL, y float8 NOT NULL, z float8 NOT NULL";
+    for (const auto& col : *cols)
+      create_points += ", " + quote_ident(folded_sql_name(col.name)) + (col.integer ? " bigint" : " float8");
+    create(create_points + ")", table);
+    create("CREATE TABLE " + name("_chunks") + " (chunk int PRIMARY KEY, box " + box_type() + " NOT NULL, "
+           "first_row bigint NOT NULL, count int NOT NULL)", table + "_chunks");
+    create_sources();
   }
 
   /// Sends `buf` as COPY data when it holds 1 MiB or more, or always with `force`; throws
   /// (fail(what)) when libpq refuses it.
-  void flush(std::string& buf, bool force, const char* what) {
+  void flush(std::string& buf, bool force, const std::string& what) {
     if (buf.size() < (1u << 20) && !force) return;
     if (PQputCopyData(db.c, buf.data(), static_cast<int>(buf.size())) != 1) db.fail(what);
     buf.clear();
@@ -276,12 +409,12 @@ struct PgImport {
   /// Returns the <table>_chunks rows, one short line per chunk, kept for copy_chunks(): one COPY
   /// at a time on a connection.
   std::string copy_points() {
-    db.copy_in("COPY " + name() + " FROM STDIN");
+    const std::string what = "copy into " + shown(table);
+    db.copy_in("COPY " + name() + " FROM STDIN", what);
     std::string buf;
     std::string chunk_rows;
-    while (site.next(c)) {
+    while (site->next(c)) {
       const std::size_t count = c.size();
-      progress.add(count);
       const std::string ci = std::to_string(c.chunk);
       for (std::size_t r = 0; r < count; ++r) {
         const PointRef ref = c.refs[r];
@@ -291,14 +424,14 @@ struct PgImport {
           buf += '\t';
           append_double(buf, v);
         }
-        for (std::size_t a = 0; a < cols.size(); ++a) {
+        for (std::size_t a = 0; a < cols->size(); ++a) {
           buf += '\t';
           const double v = c.values[a * count + r];
-          if (cols[a].integer) buf += std::to_string(static_cast<long long>(v));
+          if ((*cols)[a].integer) buf += std::to_string(static_cast<long long>(v));
           else append_double(buf, v);
         }
         buf += '\n';
-        flush(buf, false, "COPY points");
+        flush(buf, false, what);
       }
       // Chunk boxes in double: exact, no outward rounding needed.
       chunk_rows += ci + "\t(";
@@ -310,35 +443,40 @@ struct PgImport {
       chunk_rows += ")\t" + std::to_string(c.first_row) + '\t' + std::to_string(count) + '\n';
       sum.points += count;
       ++sum.chunks;
+      progress->insert(count);
     }
-    flush(buf, true, "COPY points");
-    db.copy_end("COPY points");
+    flush(buf, true, what);
+    db.copy_end(what);
     return chunk_rows;
   }
 
   /// COPY of the chunk rows copy_points() collected into <table>_chunks.
   void copy_chunks(std::string rows) {
-    db.copy_in("COPY " + name("_chunks") + " FROM STDIN");
-    flush(rows, true, "COPY points");  // a refused send reports "COPY points", as in copy_points()
-    db.copy_end("COPY chunks");
+    const std::string what = "copy into " + shown(table + "_chunks");
+    db.copy_in("COPY " + name("_chunks") + " FROM STDIN", what);
+    flush(rows, true, what);
+    db.copy_end(what);
   }
 
   /// <table>_sources, the chunk index of <table> and the GiST index of the chunk boxes, the
   /// planner's n_distinct of chunk; commits and analyzes.
   void finish_indexes() {
-    insert_sources(db, name("_sources"), site.sources());
-    db.exec("CREATE INDEX " + index("_chunk_idx") + " ON " + name() + " (chunk)");
+    insert_sources();
+    progress->index();
+    create("CREATE INDEX " + index("_chunk_idx") + " ON " + name() + " (chunk)", table + "_chunk_idx");
     // The number of distinct chunks is known exactly: tell the planner (ANALYZE's sample estimates it
     // from 30,000 rows, ~4x too few chunks at 2e8 points; the join's row estimate then crossed the
     // JIT and parallel-plan thresholds and a pruned query scanned every chunk; bench/README.md).
     if (sum.points > 0) {
       char nd[40];
       std::snprintf(nd, sizeof nd, "%.17g", -static_cast<double>(sum.chunks) / static_cast<double>(sum.points));
-      db.exec("ALTER TABLE " + name() + " ALTER COLUMN chunk SET (n_distinct = " + nd + ")");
+      db.exec("ALTER TABLE " + name() + " ALTER COLUMN chunk SET (n_distinct = " + nd + ")",
+              "set n_distinct of " + shown(table) + ".chunk");
     }
-    db.exec("CREATE INDEX " + index("_chunks_box") + " ON " + name("_chunks") + " USING gist (box)");
-    db.exec("COMMIT");
-    db.exec("ANALYZE " + name() + "; ANALYZE " + name("_chunks"));
+    create("CREATE INDEX " + index("_chunks_box") + " ON " + name("_chunks") + " USING gist (box)",
+           table + "_chunks_box");
+    db.exec("COMMIT", "commit");
+    db.exec("ANALYZE " + name() + "; ANALYZE " + name("_chunks"), "analyze " + shown(table));
   }
 };
 
@@ -353,17 +491,19 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
     throw OptionError({option("table"), " '" + table + "': expected a lower-case SQL identifier [a-z_][a-z0-9_]* (max 50)"});
   if (const std::string why = reserved_sql_name(table, false); !why.empty())
     throw OptionError({option("table"), " '" + table + "': " + why + "; expected another name"});
+  PgImport im(table, options);
+  im.connect(conninfo);
   const std::unique_ptr<SiteStream> site = open_site(paths, options);
-  PgImport im(table, *site, options);
-  im.connect_and_begin(conninfo);
-  im.ensure_extension();
+  im.attach(*site);
+  im.begin();
   if (options.pcpatch) {
     im.import_pcpatch();
-    return im.sum;
+  } else {
+    im.create_point_tables();
+    im.copy_chunks(im.copy_points());
+    im.finish_indexes();
   }
-  im.create_point_tables();
-  im.copy_chunks(im.copy_points());
-  im.finish_indexes();
+  im.progress->done();
   return im.sum;
 }
 

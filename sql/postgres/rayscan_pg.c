@@ -27,8 +27,10 @@
 #include "utils/lsyscache.h"
 #include "utils/syscache.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "rayscan/sql/functions.h"
 
@@ -103,12 +105,37 @@ Datum rs_dist_plane_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, "dist_plane
 
 /* ---- rs_box and rs_ray types ------------------------------------------------------------- */
 
-/* Parses "(v1,...,vn)" into n doubles (rs_parse_tuple); raises a one-line error naming the type. */
-static void parse_tuple(const char* s, double* v, int n, const char* type) {
+/* Parses "(v1,...,vn)" into n doubles (rs_parse_tuple); raises a one-line error naming the type.
+ * A number beyond float8's range is refused as float8's own input refuses it (float8in_internal:
+ * strtod's ERANGE with an infinite or zero result, SQLSTATE 22003), naming the value (names[i]):
+ * strtod alone would turn 1e400 into an infinity the type then calls infinite, and 1e-400 into 0.
+ * Subnormal results are kept, as float8 keeps them. */
+static void parse_tuple(const char* s, double* v, int n, const char* type, const char* const* names) {
   char err[RS_ERRBUF];
+  const char* p;
+  int i;
   if (rs_parse_tuple(s, v, n, type, err))
     ereport(ERROR, (errcode(ERRCODE_INVALID_TEXT_REPRESENTATION), errmsg("%s", err)));
+  /* rs_parse_tuple accepted the shape: "(", then n numbers separated by "," and ended by ")",
+   * with spaces around them. */
+  p = strchr(s, '(') + 1;
+  for (i = 0; i < n; ++i) {
+    char* end;
+    double x;
+    while (*p == ' ') ++p;
+    errno = 0;
+    x = strtod(p, &end);
+    if (errno == ERANGE && (x == 0.0 || isinf(x)))
+      ereport(ERROR, (errcode(ERRCODE_NUMERIC_VALUE_OUT_OF_RANGE),
+                      errmsg("%s: %s \"%.*s\" is out of range for type double precision", type, names[i],
+                             (int)Min(end - p, 64), p)));
+    p = strchr(end, i + 1 < n ? ',' : ')') + 1;
+  }
 }
+
+static const char* const kBoxNames[6] = {"xmin", "ymin", "zmin", "xmax", "ymax", "zmax"};
+static const char* const kRayNames[9] = {"ox", "oy", "oz", "dx", "dy", "dz", "r", "t_min", "t_max"};
+static const char* const kPlaneNames[6] = {"px", "py", "pz", "nx", "ny", "nz"};
 
 static char* format_tuple(const double* v, int n) {
   StringInfoData s;
@@ -128,16 +155,18 @@ static char* format_tuple(const double* v, int n) {
 /* Every coordinate finite (a chunk box or a point; an infinite one would pass here and fail in
  * every later predicate), min <= max on every axis. */
 static void check_box(const RsBox* b, bool point) {
-  static const char* names[2][6] = {{"xmin", "ymin", "zmin", "xmax", "ymax", "zmax"},
-                                    {"x", "y", "z", "x", "y", "z"}};
+  static const char* point_names[6] = {"x", "y", "z", "x", "y", "z"};
   int i;
   for (i = 0; i < 6; ++i)
     if (!isfinite(b->v[i]))
       ereport(ERROR, (errcode(ERRCODE_INVALID_PARAMETER_VALUE),
-                      errmsg("rs_box: %s is %s; expected a finite number", names[point][i],
+                      errmsg("rs_box: %s is %s; expected a finite number", point ? point_names[i] : kBoxNames[i],
                              isnan(b->v[i]) ? "NaN" : "infinite")));
+  /* The axis named as the bounds functions name it (dist_ray_min: "box xmin > xmax"). */
   for (i = 0; i < 3; ++i)
-    if (b->v[i] > b->v[i + 3]) raise("rs_box: min > max on an axis; expected (xmin,ymin,zmin,xmax,ymax,zmax)");
+    if (b->v[i] > b->v[i + 3])
+      ereport(ERROR, (errcode(ERRCODE_INVALID_PARAMETER_VALUE),
+                      errmsg("rs_box: %s > %s; expected min <= max on every axis", kBoxNames[i], kBoxNames[i + 3])));
 }
 
 /* `fn` is what the user called: ray_within(...), or the type's text input ('(...)'::rs_ray). */
@@ -150,7 +179,7 @@ static void check_ray(const RsRay* q, const char* fn) {
 PG_FUNCTION_INFO_V1(rs_box_in);
 Datum rs_box_in(PG_FUNCTION_ARGS) {
   RsBox* b = palloc(sizeof(RsBox));
-  parse_tuple(PG_GETARG_CSTRING(0), b->v, 6, "rs_box");
+  parse_tuple(PG_GETARG_CSTRING(0), b->v, 6, "rs_box", kBoxNames);
   check_box(b, false);
   PG_RETURN_POINTER(b);
 }
@@ -232,7 +261,7 @@ PG_FUNCTION_INFO_V1(rs_ray_in);
 Datum rs_ray_in(PG_FUNCTION_ARGS) {
   RsRay* q = palloc(sizeof(RsRay));
   double v[9];
-  parse_tuple(PG_GETARG_CSTRING(0), v, 9, "rs_ray");
+  parse_tuple(PG_GETARG_CSTRING(0), v, 9, "rs_ray", kRayNames);
   memcpy(q, v, sizeof v);
   check_ray(q, "rs_ray");
   PG_RETURN_POINTER(q);
@@ -283,7 +312,7 @@ PG_FUNCTION_INFO_V1(rs_plane_in);
 Datum rs_plane_in(PG_FUNCTION_ARGS) {
   RsPlane* h = palloc(sizeof(RsPlane));
   double v[6];
-  parse_tuple(PG_GETARG_CSTRING(0), v, 6, "rs_plane");
+  parse_tuple(PG_GETARG_CSTRING(0), v, 6, "rs_plane", kPlaneNames);
   memcpy(h, v, sizeof v);
   check_plane(h, "rs_plane");
   PG_RETURN_POINTER(h);
@@ -469,6 +498,18 @@ Datum rs_gist_same(PG_FUNCTION_ARGS) {
 
 /* ---- ray_dwithin and its planner support function ---------------------------------------- */
 
+/* ray_dwithin's checks of its ray a = (ox,oy,oz, dx,dy,dz) and radius r, by its argument names
+ * (ox, ..., dz): rs_eval would number the arguments by its own layout, not ray_dwithin's. Shared
+ * with ray_dwithin_ray, the index condition's ray, so that a bad argument fails with the same
+ * message whether the plan evaluates ray_dwithin or its index condition first. */
+static void check_dwithin_ray(const double a[6], double r) {
+  char err[RS_ERRBUF];
+  const char* e;
+  if (isnan(r) || r < 0) raise("ray_dwithin: radius r is negative or NaN; expected a number >= 0");
+  e = rs_check_ray("ray_dwithin", a, a + 3, r, -get_float8_infinity(), get_float8_infinity(), err);
+  if (e) raise(e);
+}
+
 /* ray_dwithin(b, ox,oy,oz, dx,dy,dz, r): may a point of box b lie within distance r of the ray
  * line? For a point box (rs_box(x,y,z)) this is exactly dist_ray(o, d, p) <= r (the core's value);
  * for a larger box it is dist_ray_min(o, d, b) <= r (paper section 4.2, bounds evaluation). The
@@ -481,13 +522,10 @@ Datum rs_ray_dwithin(PG_FUNCTION_ARGS) {
   const char* e;
   int i;
   const double r = PG_GETARG_FLOAT8(7);
-  if (isnan(r) || r < 0) raise("ray_dwithin: radius r is negative or NaN; expected a number >= 0");
   for (i = 0; i < 6; ++i) a[i] = PG_GETARG_FLOAT8(i + 1);
-  /* The ray checked here, by name (ox, ..., dz): rs_eval would number the arguments by its own
-   * layout, not ray_dwithin's. The box is valid wherever it was made (check_box). What is left
-   * to fail below is the overflow of the result, reported as ray_dwithin's too. */
-  e = rs_check_ray("ray_dwithin", a, a + 3, r, -get_float8_infinity(), get_float8_infinity(), err);
-  if (e) raise(e);
+  /* The box is valid wherever it was made (check_box). What is left to fail below is the
+   * overflow of the result, reported as ray_dwithin's too. */
+  check_dwithin_ray(a, r);
   if (b->v[0] == b->v[3] && b->v[1] == b->v[4] && b->v[2] == b->v[5]) {
     for (i = 0; i < 3; ++i) a[6 + i] = b->v[i];
     e = rs_eval("ray_dwithin", RS_DIST_RAY, a, &v, err);
@@ -500,11 +538,32 @@ Datum rs_ray_dwithin(PG_FUNCTION_ARGS) {
   PG_RETURN_BOOL(lo <= r);
 }
 
+/* ray_dwithin_ray(ox,oy,oz, dx,dy,dz, r): the ray of the index condition b && ray_dwithin_ray(...)
+ * that the support function below derives from ray_dwithin(b, ...): ray_within(o, d, r) with
+ * ray_dwithin's checks and messages (check_dwithin_ray). STRICT in SQL, as ray_dwithin is: a NULL
+ * argument gives a NULL ray, which no index entry matches, as ray_dwithin gives NULL (no row),
+ * where ray_within would take a NULL r as no bound. */
+PG_FUNCTION_INFO_V1(rs_ray_dwithin_ray);
+Datum rs_ray_dwithin_ray(PG_FUNCTION_ARGS) {
+  RsRay* q = palloc(sizeof(RsRay));
+  double a[6];
+  int i;
+  for (i = 0; i < 6; ++i) a[i] = PG_GETARG_FLOAT8(i);
+  check_dwithin_ray(a, PG_GETARG_FLOAT8(6));
+  memcpy(q->o, a, sizeof q->o);
+  memcpy(q->d, a + 3, sizeof q->d);
+  q->r = PG_GETARG_FLOAT8(6);
+  q->t_min = -get_float8_infinity();
+  q->t_max = get_float8_infinity();
+  PG_RETURN_POINTER(q);
+}
+
 /* Planner support for ray_dwithin (PostgreSQL 15 src/include/nodes/supportnodes.h,
  * SupportRequestIndexCondition; the pattern of PostGIS's postgis_index_supportfn): when the
  * first argument is the key of a GiST index in the rs_box_ops family, derive the lossy index
- * condition  b && ray_within(ox,oy,oz, dx,dy,dz, r)  (consistent = the bounds evaluation); the
- * executor rechecks ray_dwithin itself. SupportRequestSelectivity: the selectivity of && (areasel).
+ * condition  b && ray_dwithin_ray(ox,oy,oz, dx,dy,dz, r)  (consistent = the bounds evaluation);
+ * the executor rechecks ray_dwithin itself. A database whose extension predates ray_dwithin_ray
+ * (0.3 and older, served by this module) gets  b && ray_within(...)  as before. SupportRequestSelectivity: the selectivity of && (areasel).
  * NOTE: a bare `dist_ray(...) <= r` cannot be given an index condition by any support function:
  * PostgreSQL consults support functions only for a boolean function or operator whose direct
  * argument is the index key (indxpath.c, match_funcclause_to_indexcol / match_opclause_to_indexcol),
@@ -536,7 +595,9 @@ Datum rs_ray_dwithin_support(PG_FUNCTION_ARGS) {
     op = get_opfamily_member(req->opfamily, box_type, ray_type, RS_STRATEGY_ADMITS);
     if (!OidIsValid(op)) PG_RETURN_POINTER(NULL); /* not an rs_box_ops index */
     for (i = 0; i < 7; ++i) argtypes[i] = FLOAT8OID;
-    ray_fn = LookupFuncName(list_make2(makeString(nspname), makeString("ray_within")), 7, argtypes, true);
+    ray_fn = LookupFuncName(list_make2(makeString(nspname), makeString("ray_dwithin_ray")), 7, argtypes, true);
+    if (!OidIsValid(ray_fn))
+      ray_fn = LookupFuncName(list_make2(makeString(nspname), makeString("ray_within")), 7, argtypes, true);
     if (!OidIsValid(ray_fn)) PG_RETURN_POINTER(NULL);
     ray_args = list_copy_tail(call->args, 1);
     /* The ray must be known before the scan: no column of the indexed table, nothing volatile. */

@@ -46,6 +46,7 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
   AtomicFile file(out);
   std::filesystem::remove(file.temp());
   ImportSummary sum;
+  ImportProgress progress(opt, total_points(*site));
   {
     Db db;
     db.name = out.string();
@@ -114,10 +115,8 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
     if (sqlite3_prepare_v2(db.db, "INSERT INTO chunks VALUES(?,?,?,?,?,?,?,?,?)", -1, &rt.s, nullptr))
       db.fail("prepare");
     ChunkRows c;
-    InsertProgress progress(opt, total_points(*site));
     while (site->next(c)) {
       const std::size_t count = c.size();
-      progress.add(count);
       const auto ci = static_cast<sqlite3_int64>(c.chunk);
       packed.resize(count * sizeof(PackedPoint));
       for (std::size_t r = 0; r < count; ++r) {
@@ -159,11 +158,14 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
       sqlite3_reset(blob.s);
       sum.points += count;
       ++sum.chunks;
+      progress.insert(count);
     }
+    progress.index();
     db.exec("CREATE INDEX points_source_index ON points(source, point_index)");
     db.exec("COMMIT");
   }
   file.commit();
+  progress.done();
   return sum;
 }
 

@@ -56,7 +56,8 @@ if(NOT ONLY_CORE)
   string(REGEX REPLACE "^/usr/" "" pg_lib ${pg_lib})
   string(REGEX REPLACE "^/usr/" "" pg_share ${pg_share})
   foreach(f ${pg_lib}/rayscan.so ${pg_share}/extension/rayscan.control ${pg_share}/extension/rayscan--0.1.sql
-            ${pg_share}/extension/rayscan--0.1--0.2.sql ${pg_share}/extension/rayscan--0.2--0.3.sql)
+            ${pg_share}/extension/rayscan--0.1--0.2.sql ${pg_share}/extension/rayscan--0.2--0.3.sql
+            ${pg_share}/extension/rayscan--0.3--0.4.sql)
     if(NOT EXISTS ${prefix}/${f})
       message(FATAL_ERROR "install lacks the PostgreSQL extension file ${prefix}/${f}")
     endif()

@@ -67,6 +67,17 @@ struct Pg {
     PQclear(r);
     return m;
   }
+  /// The SQLSTATE of the error of `sql` ("" when it succeeds).
+  std::string sqlstate_of(const std::string& sql) {
+    PGresult* r = PQexec(c, sql.c_str());
+    std::string m;
+    if (PQresultStatus(r) == PGRES_FATAL_ERROR) {
+      const char* p = PQresultErrorField(r, PG_DIAG_SQLSTATE);
+      m = p ? p : "?";
+    }
+    PQclear(r);
+    return m;
+  }
 };
 
 std::string num(double v) {
@@ -255,7 +266,7 @@ TEST_F(Postgres, IndexOrderedKnnEqualsBruteForce) {
 
 // No hand-written bounds clause: ray_dwithin(rs_box(x,y,z), o, d, r) on the points table alone.
 // Its planner support function (SupportRequestIndexCondition) derives the GiST condition
-// rs_box(x,y,z) && ray_within(o, d, r) on the points' rs_box_ops index (bounds evaluation on every
+// rs_box(x,y,z) && ray_dwithin_ray(o, d, r) on the points' rs_box_ops index (bounds evaluation on every
 // GiST page box); the plan must show that Index Cond, and the rows equal the brute force. The same
 // function on the chunk table prunes chunks exactly as dist_ray_min <= r.
 TEST_F(Postgres, RayDwithinSupportFunctionUsesTheGistIndex) {
@@ -270,7 +281,7 @@ TEST_F(Postgres, RayDwithinSupportFunctionUsesTheGistIndex) {
     std::string plan;
     for (const auto& row : pg.rows("EXPLAIN " + sql)) plan += row[0] + "\n";
     EXPECT_NE(plan.find("autzen_pt"), std::string::npos) << plan;
-    EXPECT_NE(plan.find("ray_within("), std::string::npos) << plan;  // the derived Index Cond
+    EXPECT_NE(plan.find("ray_dwithin_ray("), std::string::npos) << plan;  // the derived Index Cond
     std::set<std::size_t> got, want;
     for (const auto& row : pg.rows(sql)) got.insert(std::stoull(row[0]));
     for (std::size_t i = 0; i < cloud_->size(); ++i)
@@ -561,25 +572,6 @@ TEST_F(Postgres, ImportOfAnIndexFileEqualsImportOfTheCloud) {
           "autzen_small_sources");
 }
 
-TEST_F(Postgres, FailedImportLeavesNoHalfTable) {
-  Pg pg;
-  pg.rows("DROP TABLE IF EXISTS half, half_chunks, half_sources");
-  // A table that collides with the import's last CREATE: the import fails after writing the
-  // points and chunks, and the transaction must take them back.
-  pg.rows("CREATE TABLE half_sources (x int)");
-  const int rc = run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() + "' --postgres '" +
-                     conninfo() + "' --table half 2>/dev/null >/dev/null");
-  EXPECT_EQ(rc, 2);
-  EXPECT_EQ(pg.rows("SELECT count(*) FROM pg_class WHERE relname IN ('half', 'half_chunks')")[0][0], "0");
-  pg.rows("DROP TABLE half_sources");
-  // A server that is not there: one-line error, exit 2.
-  EXPECT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() +
-                "' --postgres 'host=/nonexistent port=5432' --table x 2>/dev/null"), 2);
-  EXPECT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() + "' --postgres '" +
-                conninfo() + "' --table 'Bad-Name' 2>/dev/null"), 2);
-}
-
-
 /// Runs `cmd` with its stderr in a file; returns the exit code and the stderr text.
 std::pair<int, std::string> run_capture(const std::string& cmd) {
   const fs::path err = fs::temp_directory_path() / ("rayscan-pgtest-" + std::to_string(::getpid()) + ".err");
@@ -588,6 +580,139 @@ std::pair<int, std::string> run_capture(const std::string& cmd) {
   std::string text((std::istreambuf_iterator<char>(f)), {});
   fs::remove(err);
   return {rc, text};
+}
+
+// A failure inside the transaction (here the last CREATE INDEX, which an event trigger refuses
+// after the points and chunks are written) takes everything back: no half table. Its message is
+// one line: what failed and PostgreSQL's primary message, not its detail or the statement.
+TEST_F(Postgres, FailedImportLeavesNoHalfTable) {
+  Pg pg;
+  pg.rows("DROP TABLE IF EXISTS half, half_chunks, half_sources");
+  pg.rows("CREATE OR REPLACE FUNCTION rs_test_refuse() RETURNS event_trigger LANGUAGE plpgsql AS $$ BEGIN "
+          "IF EXISTS (SELECT FROM pg_event_trigger_ddl_commands() WHERE object_identity = 'public.half_chunks_box') THEN "
+          "RAISE EXCEPTION 'refused by the test' USING DETAIL = 'a second line'; END IF; END $$");
+  pg.rows("CREATE EVENT TRIGGER rs_test_refuse ON ddl_command_end WHEN TAG IN ('CREATE INDEX') "
+          "EXECUTE FUNCTION rs_test_refuse()");
+  const auto [rc, err] = run_capture(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() +
+                                     "' --postgres '" + conninfo() + "' --table half -q");
+  pg.rows("DROP EVENT TRIGGER rs_test_refuse; DROP FUNCTION rs_test_refuse()");
+  EXPECT_EQ(rc, 2);
+  EXPECT_EQ(err, "rayscan db: postgres: create public.half_chunks_box: refused by the test\n");
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM pg_class WHERE relname IN ('half', 'half_chunks', 'half_sources')")[0][0], "0");
+  EXPECT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + scan_path("autzen").string() + "' --postgres '" +
+                conninfo() + "' --table 'Bad-Name' 2>/dev/null"), 2);
+}
+
+// An import whose table (or one of its companions, or an index name it uses) exists is refused
+// before the points are read (no progress line), with one line naming it and what to do; a server
+// that is not there gives libpq's message on one line (its hint joined, no tab).
+TEST_F(Postgres, ImportErrorsAreOneLineNamingTheTableAndWhatToDo) {
+  Pg pg;
+  const std::string bin = RAYSCAN_BIN, cloud = scan_path("autzen").string();
+  pg.rows("DROP TABLE IF EXISTS taken, taken2, taken2_sources, taken3, taken3_chunk_idx");
+  pg.rows("CREATE TABLE taken (x int); CREATE TABLE taken2_sources (x int); CREATE TABLE taken3_chunk_idx (x int)");
+  for (const char* t : {"taken", "taken2", "taken3"}) {
+    const auto [rc, err] = run_capture(bin + " db import '" + cloud + "' --postgres '" + conninfo() + "' --table " + t);
+    EXPECT_EQ(rc, 2) << t;
+    const std::string rel = std::string(t) + (t == std::string("taken2") ? "_sources" : t == std::string("taken3") ? "_chunk_idx" : "");
+    EXPECT_EQ(err, "rayscan db: postgres: table public." + rel + " exists: choose another --table or drop it\n");
+  }
+  EXPECT_EQ(pg.rows("SELECT count(*) FROM pg_class WHERE relname LIKE 'taken%'")[0][0], "3");
+  pg.rows("DROP TABLE taken, taken2_sources, taken3_chunk_idx");
+  const auto [rc, err] = run_capture(bin + " db import '" + cloud + "' --postgres 'host=/nonexistent port=5432' --table x");
+  EXPECT_EQ(rc, 2);
+  EXPECT_EQ(err.rfind("rayscan db: postgres: cannot connect: ", 0), 0u) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_EQ(err.back(), '\n');
+  EXPECT_EQ(err.find('\t'), std::string::npos) << err;
+  EXPECT_NE(err.find("/nonexistent"), std::string::npos) << err;
+}
+
+// Each engine keeps the CRS of the sources as `rayscan info --json` reports it (the oracle): the
+// WKT in <table>_sources.crs_wkt (NULL without one), and with --pcpatch the EPSG code as the
+// pgpointcloud schema's srid (0 when none is identified), which PDAL's readers.pgpointcloud reads.
+// Files: a WKT VLR without an EPSG code (autzen), one with EPSG:2154 (append-bug), GeoKeys of a
+// compound CRS (Haystack_Rock: 3645 + vertical 5703), none (simple). The progress of a PostgreSQL
+// import ends as SQLite's: insert, index, done, each of every point.
+TEST_F(Postgres, ImportStoresTheCrsAsRayscanInfoReportsIt) {
+  Pg pg;
+  const bool pc = pg.rows("SELECT count(*) FROM pg_available_extensions WHERE name = 'pointcloud'")[0][0] != "0";
+  std::set<int> codes;
+  for (const char* name : {"las/autzen_trim.las", "las/append-bug.las", "las/Haystack_Rock.las", "las/simple.las"}) {
+    const fs::path cloud = fs::path(RAYSCAN_TEST_DATA) / name;
+    const InfoCrs want = info_crs(cloud);
+    codes.insert(want.epsg);
+    pg.rows("DROP TABLE IF EXISTS crs, crs_chunks, crs_sources, crs_pc, crs_pc_sources");
+    const auto [rc, err] = run_capture(std::string(RAYSCAN_BIN) + " db import '" + cloud.string() + "' --postgres '" +
+                                       conninfo() + "' --table crs");
+    ASSERT_EQ(rc, 0) << err;
+    expect_import_phases(err, std::stoull(pg.rows("SELECT count(*) FROM crs")[0][0]), true);
+    const auto wkt = pg.rows("SELECT coalesce(crs_wkt, 'NULL') FROM crs_sources");
+    ASSERT_EQ(wkt.size(), 1u);
+    EXPECT_EQ(wkt[0][0], want.wkt.empty() ? "NULL" : want.wkt) << name;
+    if (!pc) continue;
+    ASSERT_EQ(run(std::string(RAYSCAN_BIN) + " db import '" + cloud.string() + "' --postgres '" + conninfo() +
+                  "' --table crs_pc --pcpatch -q > /dev/null"), 0) << name;
+    const auto srid = pg.rows("SELECT f.srid, coalesce(s.crs_wkt, 'NULL') FROM pointcloud_formats f, crs_pc_sources s "
+                              "WHERE f.pcid = (SELECT DISTINCT PC_PCId(pa) FROM crs_pc)");
+    ASSERT_EQ(srid.size(), 1u) << name;
+    EXPECT_EQ(srid[0][0], std::to_string(want.epsg)) << name;
+    EXPECT_EQ(srid[0][1], want.wkt.empty() ? "NULL" : want.wkt) << name;
+  }
+  EXPECT_EQ(codes, (std::set<int>{0, 2154, 3645}));  // the files cover a code, a compound CRS and none
+  pg.rows("DROP TABLE IF EXISTS crs, crs_chunks, crs_sources, crs_pc, crs_pc_sources");
+}
+
+// A search_path without the extension's schema (options=-csearch_path=survey): the import finds
+// rs_box where the extension is (pg_extension.extnamespace), or where a build tree's script put it,
+// and names it schema-qualified, so the tables land in survey and the functions stay where they
+// are. In a database without the extension, CREATE EXTENSION puts it in public, not in the data
+// schema. Databases from template0 (no build-tree functions); the server's own postgres database
+// has the build tree's functions in public and must get no extension.
+TEST_F(Postgres, ImportFindsTheExtensionWhateverTheSearchPath) {
+  Pg admin;
+  const std::string cloud = scan_path("autzen").string(), n = std::to_string(cloud_->size());
+  const bool pc = admin.rows("SELECT count(*) FROM pg_available_extensions WHERE name = 'pointcloud'")[0][0] != "0";
+  const std::string rs_box_schemas = "SELECT string_agg(typnamespace::regnamespace::text, ',') FROM pg_type WHERE typname = 'rs_box'";
+  for (const bool installed : {true, false}) {
+    const std::string dbname = installed ? "rayscan_path_installed" : "rayscan_path_absent";
+    admin.rows("DROP DATABASE IF EXISTS " + dbname + " WITH (FORCE)");
+    admin.rows("CREATE DATABASE " + dbname + " TEMPLATE template0");
+    {
+      Pg db(dbname);
+      db.rows("CREATE SCHEMA survey");
+      if (installed) db.rows("CREATE EXTENSION rayscan");
+      const auto [rc, err] = run_capture(std::string(RAYSCAN_BIN) + " db import '" + cloud + "' --postgres '" +
+                                         conninfo(dbname) + " options=-csearch_path=survey' --table scan -q");
+      ASSERT_EQ(rc, 0) << dbname << ": " << err;
+      EXPECT_EQ(db.rows("SELECT count(*) FROM survey.scan")[0][0], n) << dbname;
+      EXPECT_EQ(db.rows("SELECT extnamespace::regnamespace::text FROM pg_extension WHERE extname = 'rayscan'"),
+                (std::vector<std::vector<std::string>>{{"public"}})) << dbname;
+      EXPECT_EQ(db.rows(rs_box_schemas)[0][0], "public") << dbname;
+      EXPECT_EQ(db.rows("SELECT atttypid::regtype::text FROM pg_attribute WHERE attrelid = 'survey.scan_chunks'::regclass "
+                        "AND attname = 'box'")[0][0], "rs_box") << dbname;
+      // The functions through a search path that holds both.
+      db.rows("SET search_path = survey, public");
+      EXPECT_EQ(db.rows("SELECT sum(count) FROM scan_chunks WHERE ray_dwithin(box, 636500, 849200, 600, 0, 0, -1, 1e6)")[0][0], n);
+      if (pc) {
+        const auto [rc2, err2] = run_capture(std::string(RAYSCAN_BIN) + " db import '" + cloud + "' --postgres '" +
+                                             conninfo(dbname) + " options=-csearch_path=survey' --table scan_pc --pcpatch -q");
+        ASSERT_EQ(rc2, 0) << dbname << ": " << err2;
+        EXPECT_EQ(db.rows("SELECT extnamespace::regnamespace::text FROM pg_extension WHERE extname = 'pointcloud'")[0][0], "public");
+        EXPECT_EQ(db.rows("SELECT sum(PC_NumPoints(pa)) FROM survey.scan_pc")[0][0], n);
+      }
+    }
+    admin.rows("DROP DATABASE " + dbname + " WITH (FORCE)");
+  }
+  // The build tree's functions in public (pg_server.sh), no extension: found there, none created.
+  admin.rows("DROP SCHEMA IF EXISTS survey CASCADE; CREATE SCHEMA survey");
+  const auto [rc, err] = run_capture(std::string(RAYSCAN_BIN) + " db import '" + cloud + "' --postgres '" + conninfo() +
+                                     " options=-csearch_path=survey' --table scan -q");
+  ASSERT_EQ(rc, 0) << err;
+  EXPECT_EQ(admin.rows("SELECT count(*) FROM survey.scan")[0][0], n);
+  EXPECT_EQ(admin.rows("SELECT count(*) FROM pg_extension WHERE extname = 'rayscan'")[0][0], "0");
+  EXPECT_EQ(admin.rows(rs_box_schemas)[0][0], "public");
+  admin.rows("DROP SCHEMA survey CASCADE");
 }
 
 // `--table pg_class`: an unqualified COPY pg_class would reach the catalog (pg_catalog comes
@@ -708,6 +833,68 @@ TEST_F(Postgres, ErrorsNameTheFunctionTheUserCalled) {
             "rs_plane: a coordinate is NaN or infinite; expected finite numbers");
   EXPECT_EQ(pg.error_of("SELECT plane_below(0,0,'NaN', 0,0,1)"),
             "plane_below: a coordinate is NaN or infinite; expected finite numbers");
+}
+
+// With the documented GiST index the plan evaluates the index condition (ray_dwithin_ray) before
+// ray_dwithin itself; a bad argument fails with ray_dwithin's own message either way: an index
+// or bitmap scan, a sequential scan (enable_indexscan, enable_bitmapscan off), and a generic plan
+// whose ray is a parameter. A NULL radius gives no row in every plan, as ray_dwithin gives NULL.
+TEST_F(Postgres, RayDwithinErrorsAreRayDwithinsWhateverThePlan) {
+  Pg pg;
+  pg.rows("CREATE INDEX IF NOT EXISTS autzen_pt ON autzen USING gist (rs_box(x, y, z))");
+  pg.rows("ANALYZE autzen");
+  const std::string q = "SELECT count(*) FROM autzen WHERE ray_dwithin(rs_box(x, y, z), ";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"636500,849200,600, 0,0,0, 2)", "ray_dwithin: direction (dx,dy,dz) is zero; expected a non-zero vector"},
+      {"636500,849200,600, 0,0,-1, -2)", "ray_dwithin: radius r is negative or NaN; expected a number >= 0"},
+      {"636500,849200,600, 0,0,-1, 'NaN')", "ray_dwithin: radius r is negative or NaN; expected a number >= 0"},
+      {"636500,'NaN',600, 0,0,-1, 2)", "ray_dwithin: oy is NaN; expected a finite number"},
+      {"636500,849200,600, 0,0,'Infinity', 2)", "ray_dwithin: dz is infinite; expected a finite number"},
+  };
+  for (const bool index : {true, false}) {
+    pg.rows(index ? "RESET enable_indexscan; RESET enable_bitmapscan" : "SET enable_indexscan = off; SET enable_bitmapscan = off");
+    std::string plan;
+    for (const auto& row : pg.rows("EXPLAIN " + q + "636500,849200,600, 0,0,-1, 2)")) plan += row[0] + "\n";
+    EXPECT_EQ(plan.find("ray_dwithin_ray(") != std::string::npos, index) << plan;
+    EXPECT_EQ(plan.find("Seq Scan") != std::string::npos, !index) << plan;
+    for (const auto& [args, message] : cases) EXPECT_EQ(pg.error_of(q + args), message) << args << (index ? " (index)" : "");
+    EXPECT_EQ(pg.rows(q + "636500,849200,600, 0,0,-1, NULL)")[0][0], "0");
+    // A generic plan: the index condition's ray is computed at run time.
+    pg.rows("SET plan_cache_mode = force_generic_plan");
+    pg.rows("PREPARE dw(float8, float8) AS " + q + "636500,849200,600, 0,0,$1, $2)");
+    EXPECT_EQ(pg.error_of("EXECUTE dw(0, 2)"), cases[0].second);
+    EXPECT_EQ(pg.error_of("EXECUTE dw(-1, -2)"), cases[1].second);
+    EXPECT_EQ(pg.rows("EXECUTE dw(-1, NULL)")[0][0], "0");
+    EXPECT_EQ(pg.rows("EXECUTE dw(-1, 2)")[0][0], pg.rows(q + "636500,849200,600, 0,0,-1, 2)")[0][0]);
+    pg.rows("DEALLOCATE dw; RESET plan_cache_mode");
+  }
+  pg.rows("RESET enable_indexscan; RESET enable_bitmapscan");
+}
+
+// The text input and the constructor of rs_box name the axis whose min exceeds its max, as the
+// bounds functions do; a number beyond float8's range is refused as float8 refuses it (the
+// oracle: the server's own float8 input, SQLSTATE 22003), where strtod made 1e-400 a zero and
+// 1e400 an "infinite" coordinate; a subnormal number is kept, as float8 keeps it.
+TEST_F(Postgres, BoxInputNamesTheAxisAndRefusesOutOfRangeAsFloat8) {
+  Pg pg;
+  EXPECT_EQ(pg.error_of("SELECT '(5,2,3,4,5,6)'::rs_box"), "rs_box: xmin > xmax; expected min <= max on every axis");
+  EXPECT_EQ(pg.error_of("SELECT rs_box(0,0,0,1,-1,1)"), "rs_box: ymin > ymax; expected min <= max on every axis");
+  EXPECT_EQ(pg.error_of("SELECT '(0,0,2,1,1,1)'::rs_box"), "rs_box: zmin > zmax; expected min <= max on every axis");
+  for (const char* v : {"1e-400", "1e400", "-1e400"}) {
+    const std::string oracle = pg.sqlstate_of(std::string("SELECT '") + v + "'::float8");
+    EXPECT_EQ(oracle, "22003") << v;
+    EXPECT_EQ(pg.sqlstate_of(std::string("SELECT '(1,2,3,") + v + ",5,6)'::rs_box"), oracle) << v;
+    EXPECT_EQ(pg.error_of(std::string("SELECT '(1,2,3,") + v + ",5,6)'::rs_box"),
+              std::string("rs_box: xmax \"") + v + "\" is out of range for type double precision");
+  }
+  EXPECT_EQ(pg.error_of("SELECT '( 1e-400 ,2,3,4,5,6)'::rs_box"),
+            "rs_box: xmin \"1e-400\" is out of range for type double precision");
+  EXPECT_EQ(pg.sqlstate_of("SELECT '(0,0,0,1,0,0,1e400,0,1)'::rs_ray"), "22003");
+  EXPECT_EQ(pg.error_of("SELECT '(0,0,0,1,0,0,1e400,0,1)'::rs_ray"), "rs_ray: r \"1e400\" is out of range for type double precision");
+  EXPECT_EQ(pg.error_of("SELECT '(0,0,0,0,0,1e-999)'::rs_plane"), "rs_plane: nz \"1e-999\" is out of range for type double precision");
+  EXPECT_EQ(pg.rows("SELECT '(1e-310,2,3,4,5,6)'::rs_box::text, '(' || '1e-310'::float8 || ',2,3,4,5,6)'")[0][0],
+            pg.rows("SELECT '(' || '1e-310'::float8 || ',2,3,4,5,6)'")[0][0]);
+  EXPECT_EQ(pg.rows("SELECT '(0,0,0,1,0,0,Infinity,-inf,inf)'::rs_ray::text")[0][0], "(0,0,0,1,0,0,Infinity,-Infinity,Infinity)");
 }
 
 // rs_box has = with a default B-tree and hash operator class: DISTINCT, GROUP BY, count(DISTINCT),
@@ -849,7 +1036,7 @@ TEST_F(Postgres, BoxBinaryCopyRoundTripsAndRefusesCorruptValues) {
   EXPECT_EQ(copy_in_binary(pg, "boxes_bin2", binary_copy_of_boxes({{0, 0, 0, 1, kInf, 1}})),
             "rs_box: ymax is infinite; expected a finite number");
   EXPECT_EQ(copy_in_binary(pg, "boxes_bin2", binary_copy_of_boxes({{0, 0, 2, 1, 1, 1}})),
-            "rs_box: min > max on an axis; expected (xmin,ymin,zmin,xmax,ymax,zmax)");
+            "rs_box: zmin > zmax; expected min <= max on every axis");
   EXPECT_EQ(copy_in_binary(pg, "boxes_bin2", binary_copy_of_boxes({{0, 0, 0, 1, 1, 1}}, 40)),
             "invalid binary value for type rs_box: 40 bytes; expected 48 (six float8 in network byte order)");
   EXPECT_EQ(pg.rows("SELECT count(*) FROM boxes_bin2")[0][0], "0");

@@ -664,6 +664,42 @@ std::string slurp(const fs::path& p) {
   return std::string(std::istreambuf_iterator<char>(f), {});
 }
 
+
+// The sources table keeps each file's CRS as WKT, as `rayscan info --json` reports it (the
+// oracle): a WKT VLR (autzen, append-bug), GeoKeys of a compound CRS (Haystack_Rock) and no CRS
+// (simple.las: NULL).
+TEST(SqliteImportCli, SourcesKeepTheCrsAsRayscanInfoReportsIt) {
+  const std::string bin = RAYSCAN_BIN;
+  int with_crs = 0;
+  for (const char* name : {"las/autzen_trim.las", "las/append-bug.las", "las/Haystack_Rock.las", "las/simple.las"}) {
+    const fs::path cloud = fs::path(RAYSCAN_TEST_DATA) / name, out = tmpdir() / "crs.sqlite";
+    const InfoCrs want = info_crs(cloud);
+    with_crs += !want.wkt.empty();
+    ASSERT_EQ(run(bin + " db import '" + cloud.string() + "' -o " + out.string() + " -q > /dev/null"), 0) << name;
+    Db db(out, false);
+    Stmt st(db.db, "SELECT crs_wkt FROM sources");
+    ASSERT_TRUE(st.step()) << name;
+    const auto* text = reinterpret_cast<const char*>(sqlite3_column_text(st.s, 0));
+    if (want.wkt.empty()) EXPECT_EQ(sqlite3_column_type(st.s, 0), SQLITE_NULL) << name;
+    else EXPECT_EQ(std::string(text ? text : ""), want.wkt) << name;
+  }
+  EXPECT_EQ(with_crs, 3);
+}
+
+// The progress on stderr (a log, not a terminal): the temporary index's phases, then insert, index
+// and done, each of the file's points (the reader's count, the oracle), done last; no phase in
+// another unit (the index's "spacing": 1 of 1). An index file's import has only the last three.
+TEST(SqliteImportCli, ProgressPhasesCountPointsAndEndWithDone) {
+  const std::string bin = RAYSCAN_BIN, cloud = scan_path("autzen").string();
+  const fs::path out = tmpdir() / "progress.sqlite", err = tmpdir() / "progress.err", rsi = tmpdir() / "progress.rsi";
+  const std::uint64_t n = io::read_point_cloud(cloud, io::ReadOptions{.scalars = false}).size();
+  ASSERT_EQ(run(bin + " db import '" + cloud + "' -o " + out.string() + " > /dev/null 2> " + err.string()), 0);
+  expect_import_phases(slurp(err), n, true);
+  ASSERT_EQ(run(bin + " index '" + cloud + "' -o " + rsi.string() + " --attributes id -q > /dev/null"), 0);
+  ASSERT_EQ(run(bin + " db import " + rsi.string() + " -o " + out.string() + " > /dev/null 2> " + err.string()), 0);
+  expect_import_phases(slurp(err), n, false);
+}
+
 // A direction whose squared length leaves the normal doubles (0,0,1e-320: |d|^2 underflows to 0;
 // 1e300: it overflows) cannot be normalised, and every answer from it would be wrong (ray_query:
 // far points first, dist_ray NULL, dist_plane inf). Every function refuses it through the core's rule with a one-line message; a direction

@@ -30,7 +30,7 @@ struct DbImportJobOptions {
   std::vector<std::string> attributes;
   bool pcpatch = false;  ///< PostgreSQL only: one pgpointcloud patch per chunk instead of rows
   /// Called with (phase, points done, points in total): the temporary index's phases, then
-  /// "insert" (sql::ImportOptions::progress). May be empty.
+  /// "insert", "index" and "done", the last report (sql::ImportOptions::progress). May be empty.
   std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)> progress;
   /// Memory budget of the external Morton sort, a byte size as parse_byte_size reads it ("4G",
   /// "512M"); empty = that of the index job (4G).

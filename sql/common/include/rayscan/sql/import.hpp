@@ -30,25 +30,39 @@ struct ImportOptions {
   /// Folder of the temporary index file and its sort runs. Empty: SQLite uses the output file's
   /// folder, PostgreSQL the system's temporary folder.
   std::filesystem::path temp_dir;
-  /// Called with (phase, points done, points in total) as the import goes: the temporary index's
-  /// phases (io::IndexBuildOptions::progress: scan, read, sort, ...), then "insert" every 2^21
-  /// points and at the end. May be empty.
+  /// Called with (phase, points done, points in total) as the import goes, in this order: the
+  /// temporary index's phases (io::IndexBuildOptions::progress: scan, read, sort, write or merge,
+  /// nodes; not its "spacing", a sample count the import does not use, nor its "done"), then the
+  /// import's own (ImportProgress): "insert", "index" and "done", the last report of the import.
+  /// May be empty.
   io::IndexProgress progress;
 };
 
-/// Reports the "insert" phase of an import through ImportOptions::progress: add(n) after each
-/// chunk of n rows; calls progress when the count crosses a multiple of 2^21 points or reaches
-/// the total.
-class InsertProgress {
+/// Reports the import's own phases through ImportOptions::progress, each in points of the site:
+/// "insert" from construction on (0 of total; then after each chunk, whenever the count crosses a
+/// multiple of 2^21 points or reaches the total: insert(n)), "index" (index(): the indexes over
+/// the inserted points, reported at its start) and "done" (done(): everything committed; the
+/// total). A phase starts at its first report, so each gets its own time.
+class ImportProgress {
  public:
-  InsertProgress(const ImportOptions& o, std::uint64_t total) : progress_(o.progress), total_(total) {}
-  void add(std::uint64_t n) {
+  ImportProgress(const ImportOptions& o, std::uint64_t total) : progress_(o.progress), total_(total) {
+    report("insert", 0);
+  }
+  /// n more rows inserted.
+  void insert(std::uint64_t n) {
     const std::uint64_t before = done_;
     done_ += n;
-    if (progress_ && (before >> 21 != done_ >> 21 || done_ == total_)) progress_("insert", done_, total_);
+    if (before >> 21 != done_ >> 21 || done_ == total_) report("insert", done_);
   }
+  /// The inserts are over; the indexes are being built.
+  void index() { report("index", 0); }
+  /// The import is complete.
+  void done() { report("done", total_); }
 
  private:
+  void report(const char* phase, std::uint64_t n) const {
+    if (progress_) progress_(phase, n, total_);
+  }
   const io::IndexProgress& progress_;
   std::uint64_t total_, done_ = 0;
 };
@@ -119,20 +133,27 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& clouds,
                             const std::filesystem::path& out, const ImportOptions& options);
 
 /// Imports `clouds` into PostgreSQL (libpq CONNINFO) as plain rows in one transaction:
-///   <table>(point_index bigint, source int, chunk int, x, y, z float8, <attributes>) and
+///   <table>(point_index bigint, source int, chunk int, x, y, z float8, <attributes>),
 ///   <table>_chunks(chunk int primary key, box rs_box, first_row bigint, count int) with a GiST
-///   index on box (extension rayscan). A failure rolls the transaction back: no half table.
+///   index on box (extension rayscan) and <table>_sources(source, path, point_count, crs_wkt: the
+///   CRS as WKT, NULL when unknown). A failure rolls the transaction back: no half table.
 /// With options.pcpatch: pgpointcloud instead of rows (extension `pointcloud`): a new schema in
 ///   pointcloud_formats (dimensions X, Y, Z double, PointIndex uint64_t, Source uint32_t, then the
-///   attributes as double / int64_t; scale 1, uncompressed) and
-///   <table>(chunk int primary key, pa pcpatch(pcid), box rs_box) with a GiST index on box: one
-///   patch per chunk, written as uncompressed patch WKB (pgpointcloud README, "Binary Formats").
+///   attributes as double / int64_t; scale 1, uncompressed; srid the sources' EPSG code, 0 when
+///   none is identified) and <table>(chunk int primary key, pa pcpatch(pcid), box rs_box) with a
+///   GiST index on box: one patch per chunk, written as uncompressed patch WKB (pgpointcloud
+///   README, "Binary Formats"), and <table>_sources.
 /// Every table lives in the connection's current_schema() (the first existing schema of its
 /// search_path) and every statement names it schema-qualified and quoted, so `--table pg_class`
-/// writes <schema>.pg_class and never the catalog's. `table` must be a lower-case identifier of at
-/// most 50 characters that reserved_sql_name accepts (OptionError "table" otherwise, before
-/// anything is read); attribute columns are the folded (lower-case) names.
-/// Throws as import_sqlite; std::runtime_error ("postgres: <message>") for server errors.
+/// writes <schema>.pg_class and never the catalog's; the extensions' types and tables are named
+/// with the extensions' own schemas (pg_extension), and an extension the database lacks is
+/// created in public (docs/sql.md). `table` must be a lower-case identifier of at most 50
+/// characters that reserved_sql_name accepts (OptionError "table" otherwise, before anything is
+/// read); attribute columns are the folded (lower-case) names.
+/// Throws as import_sqlite; std::runtime_error for server errors, one line: "postgres: table
+/// <schema>.<table> exists: choose another --table or drop it" (checked before the clouds are
+/// read), "postgres: cannot connect: <libpq's message>", "postgres: <what failed>: <the server's
+/// primary message>".
 ImportSummary import_postgres(const std::vector<std::filesystem::path>& clouds,
                               const std::string& conninfo, const std::string& table,
                               const ImportOptions& options);
