@@ -12,7 +12,11 @@ instants mapped over the workers of a Dask cluster (local processes or a distrib
 Every task opens the point file by its path (rayscan.open: an .rsi index file is memory-mapped,
 a COPC file read in place), so nothing is pickled but the path, the options and the query arrays
 of the task; the file must be readable under the same path on every worker (a shared or local
-file system). Each worker process opens a file once and keeps the Site for its later tasks.
+file system). Each worker process opens a file once and keeps the Site for its later tasks
+while the file stays the same: a task that finds another file under the path (another device,
+inode, size or modification time, as after `rayscan index -o` over it or a copy onto it) opens
+it anew. A file rewritten in place while a task reads it is not safe, as for one process: write
+a new file and rename it over the old one (as `rayscan index` and `translate` do).
 The C++ calls release the GIL, so a worker with several threads runs several chunks at once.
 `threads` is the number of TBB threads of each task (default 1: Dask's workers are the
 parallelism; 0 = all cores of the worker's machine).
@@ -32,8 +36,10 @@ except ImportError as e:  # rayscan itself never needs Dask; this module does
         "rayscan.dask needs Dask: install the Debian packages python3-dask and python3-distributed "
         "(apt-get install python3-dask python3-distributed) or `pip install dask distributed`") from e
 
-import inspect
+import contextlib
+import operator
 import os
+import re
 import threading
 
 import numpy as np
@@ -44,8 +50,20 @@ from ._results import RayQueryResult
 
 __all__ = ["ray_query", "first_hits", "visibility", "solar"]
 
-# rayscan.solar's own default, so that the lazy result names the fields the call will return.
-_SOLAR_SKY_RAYS = inspect.signature(rayscan.solar).parameters["sky_rays"].default
+
+def _integer(value, name, expected, least):
+    """`value` as an int by the rule of the module's other calls (python/src/arrays.cpp): any
+    integer (int, NumPy integers: operator.index) but a bool, else TypeError naming `name`;
+    ValueError below `least`."""
+    try:
+        if isinstance(value, (bool, np.bool_)):
+            raise TypeError
+        i = operator.index(value)
+    except TypeError:
+        raise TypeError(f"{name} must be {expected}, got {type(value).__name__}") from None
+    if i < least:
+        raise ValueError(f"{name} must be {expected}, got {i!r}")
+    return i
 
 
 # ---- worker side: one Site per file and process ------------------------------------------------
@@ -54,24 +72,57 @@ _sites = {}
 _sites_lock = threading.Lock()
 
 
-def _site(path):
-    """The Site of `path` in this process, opened on first use. A COPC Site trims its node cache
-    after each query, which must not overlap another query on the same Site: its queries take
-    a lock (an .rsi or in-memory Site answers concurrent queries from several threads)."""
+def _site(path, cache):
+    """The Site of `path` in this process, opened on first use and again whenever the file
+    under the path is another one: a Site maps or reads the file it opened, so one kept after
+    `rayscan index -o` replaced the file (a new inode) would answer from the old points, and one
+    kept after a copy onto the file (same inode, another size) would read past its end. The file
+    is told by (device, inode, size, modification time in ns), taken before opening, so that a
+    change between the two reopens once more rather than keeping the new points under the old
+    key. A COPC Site trims its node cache after each query, which must not overlap another query
+    on the same Site: its queries take a lock (an .rsi or in-memory Site answers concurrent
+    queries from several threads). Raises what rayscan.open raises (OSError for a missing file)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        rayscan.open(path, cache)  # the reader's own message for a missing or unreadable file
+        raise
+    version = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
     with _sites_lock:
-        entry = _sites.get(path)
-        if entry is None:
-            site = rayscan.open(path)
-            entry = _sites[path] = (site, threading.Lock() if site.storage == "copc" else None)
-    return entry
+        entry = _sites.get((path, cache))
+        if entry is None or entry[0] != version:
+            site = rayscan.open(path, cache)
+            lock = threading.Lock() if site.storage == "copc" else None
+            entry = _sites[(path, cache)] = (version, site, lock)
+    return entry[1], entry[2]
 
 
-def _ray_block(path, origins, directions, kw):
-    """One chunk of rays on a worker: the CSR arrays of Site.ray_query (dict of NumPy arrays)."""
-    site, lock = _site(path)
-    if lock is None:
-        return site._ray_query(origins, directions, **kw)
-    with lock:
+# A task's rows are numbered within its chunk in the messages of the calls it makes: the
+# bindings start a message about one row with "ray i: " (Site.ray_query) or "observers[i]: "
+# (rayscan.visibility). The number there, and only there, is read back.
+_RAY_ROW = re.compile(r"(ray )(\d+)(: )")
+_OBSERVER_ROW = re.compile(r"(observers\[)(\d+)(\]: )")
+
+
+@contextlib.contextmanager
+def _rows_from(first, pattern):
+    """Re-raise a ValueError that names a row of the task's chunk as the caller's row, `first`
+    plus it, the number the single-process call gives (docs/python.md: rows from 0)."""
+    try:
+        yield
+    except ValueError as e:
+        message = e.args[0] if len(e.args) == 1 and isinstance(e.args[0], str) else ""
+        m = pattern.match(message)
+        if m:
+            e.args = (f"{m[1]}{first + int(m[2])}{m[3]}{message[m.end():]}",)
+        raise
+
+
+def _ray_block(path, cache, origins, directions, kw, first):
+    """One chunk of rays on a worker, its first ray the caller's row `first`: the CSR arrays of
+    Site.ray_query (dict of NumPy arrays)."""
+    site, lock = _site(path, cache)
+    with _rows_from(first, _RAY_ROW), (lock or contextlib.nullcontext()):
         return site._ray_query(origins, directions, **kw)
 
 
@@ -93,13 +144,13 @@ def _k_past_points(k, n, path):
                       f"per ray, those past {n} always empty; give k <= {n}, or compute=True for the CSR result")
 
 
-def _ray_dense_block(path, origins, directions, kw, m, k):
+def _ray_dense_block(path, cache, origins, directions, kw, first, m, k):
     # Before the (m, k) arrays: a k past the point count would only size empty columns (k=10**9
     # asks for gigabytes per chunk).
-    site, _ = _site(path)
+    site, _ = _site(path, cache)
     if k > 1 and k > len(site):  # (k=1 is one column, (m,), also over an empty cloud)
         raise _k_past_points(k, len(site), path)
-    return _dense(_ray_block(path, origins, directions, kw), m, k)
+    return _dense(_ray_block(path, cache, origins, directions, kw, first), m, k)
 
 
 def _merge_csr(parts):
@@ -121,9 +172,17 @@ def _path(path):
 
 
 def _row_blocks(origins, directions, chunks):
-    """The ray chunks as (delayed origins, delayed directions, rows) triples. A 2-D argument
-    (M, 3) is split into row chunks (its own Dask chunks, those of the other argument, else
-    `chunks` rows); a (3,) argument is one row shared by every chunk."""
+    """The ray chunks as (delayed origins, delayed directions, first row, rows) tuples. A 2-D
+    argument (M, 3) is split into row chunks (its own Dask chunks, those of the other argument,
+    else `chunks` rows); a (3,) argument is one row shared by every chunk."""
+    blocks, first = [], 0
+    for o, d, rows in _row_chunks(origins, directions, chunks):
+        blocks.append((o, d, first, rows))
+        first += rows
+    return blocks
+
+
+def _row_chunks(origins, directions, chunks):
     def as_rows(a):
         if isinstance(a, da.Array):
             return a
@@ -155,14 +214,16 @@ def _row_blocks(origins, directions, chunks):
 
 
 def ray_query(path, origins, directions, k=1, radius=_INF, t_min=-_INF, t_max=_INF, order="ray",
-              any_hit=False, threads=1, chunks=100_000, compute=False):
+              any_hit=False, threads=1, allow_all=False, cache="2G", chunks=100_000, compute=False):
     """Site.ray_query of the file at `path` (an .rsi index, a COPC file, or any point file, which
     each worker then reads and indexes in memory) over chunks of rays, one task per chunk.
 
     origins, directions: (M, 3) Dask arrays (their row chunks are the tasks; the other argument
-    follows them) or NumPy arrays (split into `chunks` rows), or one (3,) row for all rays.
-    k, radius, t_min, t_max, order, any_hit: as Site.ray_query (world units; t along the unit
-    direction). threads: TBB threads per task (0 = all cores).
+    follows them) or NumPy arrays (split into `chunks` rows, an integer >= 1), or one (3,) row
+    for all rays. k, radius, t_min, t_max, order, any_hit, allow_all: as Site.ray_query (world
+    units; t along the unit direction); k defaults to 1, the lazy result's columns. cache: as
+    rayscan.open (a COPC file's decoded nodes per worker). threads: TBB threads per task (0 =
+    all cores).
 
     Returns, with compute=False, a dict of Dask arrays chunked like the rays: "indices" int64
     (original point index, -1 = no hit), "t" and "distance" float64 (NaN = no hit), of shape (M,)
@@ -171,46 +232,51 @@ def ray_query(path, origins, directions, k=1, radius=_INF, t_min=-_INF, t_max=_I
     .rsi or COPC file, else when the chunks are computed).
     Compute them in one call (dask.compute(out["indices"], out["t"])) so that each chunk is
     queried once. With compute=True: the RayQueryResult (CSR) of the single-process call,
-    bit for bit. Raises ValueError as Site.ray_query does (on the workers for the rays' values).
+    bit for bit. Raises ValueError and TypeError as Site.ray_query does (on the workers for the
+    rays' values, naming the caller's row: "ray 1234: ..." from 0 over all chunks); TypeError for
+    a k or chunks that is not an integer (a bool, 3.0), ValueError below 1.
     """
     if k is None and not compute:
         raise ValueError("ray_query: k=None (every hit of each ray) needs compute=True; "
                          "the lazy result holds k hits per ray")
+    chunks = _integer(chunks, "chunks", "an integer >= 1 (rays per task)", 1)
+    if not compute:
+        k = _integer(k, "k", "an integer >= 1 (columns of the lazy result; k=None needs compute=True)", 1)
     path = _path(path)
     kw = dict(k=k, radius=radius, t_min=t_min, t_max=t_max, order=order, any_hit=any_hit,
-              allow_all=False, threads=threads)
+              allow_all=allow_all, threads=threads)
     blocks = _row_blocks(origins, directions, chunks)
     if compute:
-        parts = dask.compute(*[dask.delayed(_ray_block)(path, o, d, kw) for o, d, _ in blocks])
+        parts = dask.compute(*[dask.delayed(_ray_block)(path, cache, o, d, kw, first)
+                               for o, d, first, _ in blocks])
         return _merge_csr(parts)
-    if not isinstance(k, int) or k < 1:
-        raise ValueError(f"ray_query: k must be an integer >= 1, got {k!r}")
-    n = _point_count(path)  # NaN (not known without reading the file): checked by each task
+    n = _point_count(path, cache)  # NaN (not known without reading the file): checked by each task
     if k > 1 and k > n:
         raise _k_past_points(k, n, path)
     out = {"indices": [], "t": [], "distance": []}
-    for o, d, m in blocks:
-        res = dask.delayed(_ray_dense_block)(path, o, d, kw, m, k)
+    for o, d, first, m in blocks:
+        res = dask.delayed(_ray_dense_block)(path, cache, o, d, kw, first, m, k)
         shape = (m,) if k == 1 else (m, k)
         for name, dtype in (("indices", np.int64), ("t", np.float64), ("distance", np.float64)):
             out[name].append(da.from_delayed(res[name], shape, dtype=dtype))
     return {name: da.concatenate(parts) for name, parts in out.items()}
 
 
-def first_hits(path, origins, directions, radius, t_min=0.0, t_max=_INF, threads=1,
+def first_hits(path, origins, directions, radius, t_min=0.0, t_max=_INF, threads=1, cache="2G",
                chunks=100_000, compute=False):
     """The first surface each ray hits: ray_query(k=1, order="sphere_hit") with spheres of
     `radius` (world units) around the points, from t_min (0: in front of the origin) to t_max.
     Returns "indices" (-1 = miss) and "t" (depth along the unit direction, NaN = miss) as Dask
     arrays of shape (M,) (or, with compute=True, the RayQueryResult). See ray_query."""
     return ray_query(path, origins, directions, k=1, radius=radius, t_min=t_min, t_max=t_max,
-                     order="sphere_hit", threads=threads, chunks=chunks, compute=compute)
+                     order="sphere_hit", threads=threads, cache=cache, chunks=chunks, compute=compute)
 
 
 # ---- visibility: observers split over tasks ----------------------------------------------------
 
-def _visibility_block(path, observers, kw):
-    r = rayscan.visibility(path, observers, **kw)
+def _visibility_block(path, observers, kw, first=0):
+    with _rows_from(first, _OBSERVER_ROW):
+        r = rayscan.visibility(path, observers, **kw)
     return {name: r[name] for name in ("visible_count", "visible_distance", "sky_view", "per_observer",
                                        "observers", "radius", "tolerance", "target_height") if name in r}
 
@@ -230,7 +296,7 @@ def _merge_visibility(a, b):
 
 def visibility(path, observers, chunks=8, radius=None, height=None, max_distance=None,
                tolerance=None, target_height=None, sky_rays=0, distance=False, threads=1,
-               compute=False):
+               cache="2G", ground_radius=None, compute=False):
     """rayscan.visibility of the cloud at `path` for many observers, `chunks` observers per task.
 
     The observers are split, not the points: every observer's line of sight needs the whole
@@ -240,15 +306,20 @@ def visibility(path, observers, chunks=8, radius=None, height=None, max_distance
     file and resolves the same automatic radius; pass `radius` to skip that estimate per task.
 
     observers: (K, 3) eye positions or (K, 2) positions placed `height` above the ground (world
-    units), a NumPy or Dask array; observer files are not split (read them first). sky_rays > 0
-    adds "sky_view", computed once in its own task. Other options as rayscan.visibility.
+    units), a NumPy or Dask array; observer files are not split (read them first). chunks: an
+    integer >= 1. sky_rays > 0 adds "sky_view", computed once in its own task. Other options
+    (ground_radius, cache, ...) as rayscan.visibility; camera= is not taken (its pixels do not
+    depend on the observers, so there is nothing to split: call rayscan.visibility(path,
+    camera=...)).
 
     Returns a dict: "visible_count" (N,) float64 (observers that see each point), with
     distance=True "visible_distance" (N,) float64 (nearest seeing observer, -1 = unseen),
     "sky_view" (N,) when asked, "per_observer" (K,) uint64, "observers" (K, 3) float64 placed
     eyes; Dask arrays (N is known for an .rsi or COPC file, else NaN until computed) or, with
     compute=True, NumPy arrays plus "radius", "tolerance", "target_height", equal to
-    rayscan.visibility(path, observers, ...) bit for bit.
+    rayscan.visibility(path, observers, ...) bit for bit. Raises as rayscan.visibility does,
+    naming an observer by the caller's row ("observers[13]: ..." from 0 over all chunks), when
+    the tasks run; TypeError for a chunks that is not an integer, ValueError below 1.
     """
     if isinstance(observers, (str, os.PathLike)):
         raise TypeError("observers: an (K, 3) or (K, 2) array (an observer file is not split "
@@ -256,12 +327,12 @@ def visibility(path, observers, chunks=8, radius=None, height=None, max_distance
     obs = observers.compute() if isinstance(observers, da.Array) else np.asarray(observers, dtype=np.float64)
     if obs.ndim != 2 or obs.shape[1] not in (2, 3) or len(obs) == 0:
         raise ValueError(f"observers: expected a non-empty (K, 3) or (K, 2) array, got shape {obs.shape}")
-    if not isinstance(chunks, int) or chunks < 1:
-        raise ValueError(f"chunks: expected an integer >= 1 (observers per task), got {chunks!r}")
+    chunks = _integer(chunks, "chunks", "an integer >= 1 (observers per task)", 1)
     path = _path(path)
     kw = dict(radius=radius, height=height, max_distance=max_distance, tolerance=tolerance,
-              target_height=target_height, distance=distance, threads=threads)
-    parts = [dask.delayed(_visibility_block)(path, obs[i:i + chunks], kw)
+              target_height=target_height, distance=distance, threads=threads, cache=cache,
+              ground_radius=ground_radius)
+    parts = [dask.delayed(_visibility_block)(path, obs[i:i + chunks], kw, i)
              for i in range(0, len(obs), chunks)]
     while len(parts) > 1:  # a tree of pairwise merges: each holds two (N,) arrays at a time
         parts = [dask.delayed(_merge_visibility)(parts[i], parts[i + 1]) if i + 1 < len(parts) else parts[i]
@@ -269,14 +340,14 @@ def visibility(path, observers, chunks=8, radius=None, height=None, max_distance
     merged = parts[0]
     sky = None
     if sky_rays:
-        sky_kw = dict(radius=radius, max_distance=max_distance, sky_rays=sky_rays, threads=threads)
+        sky_kw = dict(radius=radius, max_distance=max_distance, sky_rays=sky_rays, threads=threads, cache=cache)
         sky = dask.delayed(_visibility_block)(path, None, sky_kw)
     if compute:
         merged, sky = dask.compute(merged, sky)
         if sky is not None:
             merged["sky_view"] = sky["sky_view"]
         return merged
-    n = _point_count(path)
+    n = _point_count(path, cache)
     out = {"visible_count": da.from_delayed(merged["visible_count"], (n,), dtype=np.float64)}
     if distance:
         out["visible_distance"] = da.from_delayed(merged["visible_distance"], (n,), dtype=np.float64)
@@ -287,12 +358,12 @@ def visibility(path, observers, chunks=8, radius=None, height=None, max_distance
     return out
 
 
-def _point_count(path):
+def _point_count(path, cache):
     """N of an .rsi or COPC file from its header (mapped, cheap); NaN (unknown) for other files,
     which rayscan.open would read whole."""
     lower = path.lower()
     if lower.endswith(".rsi") or lower.endswith(".copc.laz"):
-        return len(rayscan.open(path))
+        return len(rayscan.open(path, cache))
     return np.nan
 
 
@@ -308,31 +379,74 @@ def _solar_block(path, when, kw):
     return rayscan.solar(path, start=when[0], end=when[1], **kw)
 
 
-def solar(path, at=None, periods=None, threads=1, compute=False, **options):
+def _instants(at):
+    """`at` as a list of ISO 8601 texts: one text is one instant, as rayscan.solar's `at`."""
+    if isinstance(at, str):
+        return [at]
+    if isinstance(at, bytes) or not hasattr(at, "__iter__"):
+        raise TypeError("at must be ISO 8601 text or a list of it (a datetime's isoformat()), "
+                        f"got {type(at).__name__}")
+    whens = list(at)
+    for i, w in enumerate(whens):
+        if not isinstance(w, str):
+            raise TypeError(f"at[{i}] must be ISO 8601 text (a datetime's isoformat()), got {type(w).__name__}")
+    return whens
+
+
+def _periods(periods):
+    """`periods` as a list of (start, end) texts: one pair of texts is one period, as
+    rayscan.solar's start and end."""
+    def pair(p):
+        return isinstance(p, (tuple, list)) and len(p) == 2 and all(isinstance(t, str) for t in p)
+
+    if pair(periods):
+        return [tuple(periods)]
+    expected = "a (start, end) pair of ISO 8601 texts"
+    if isinstance(periods, (str, bytes)) or not hasattr(periods, "__iter__"):
+        raise TypeError(f"periods must be {expected} or a list of them, got {type(periods).__name__}")
+    whens = list(periods)
+    for i, p in enumerate(whens):
+        if not pair(p):
+            raise TypeError(f"periods[{i}] must be {expected}, got {type(p).__name__}"
+                            + (f" of length {len(p)}" if isinstance(p, (tuple, list)) else ""))
+    return [tuple(p) for p in whens]
+
+
+def solar(path, at=None, periods=None, step="1h", latitude=None, longitude=None, linke=3.0,
+          albedo=0.2, weather=None, sector=1.0, sky_rays=64, primitive="sphere", radius=None,
+          threads=1, cache="2G", compute=False):
     """rayscan.solar of the cloud at `path` for T instants or T periods, one task each.
 
-    at: a list of T instants (ISO 8601 text, as rayscan.solar's `at`); or periods: a list of T
-    (start, end) pairs (as rayscan.solar's start/end, e.g. one per month). options: the other
-    keywords of rayscan.solar (step, latitude, longitude, linke, albedo, weather, sector,
-    sky_rays, primitive, radius); give latitude/longitude when the cloud has no CRS.
+    at: a list of T instants (ISO 8601 text, as rayscan.solar's `at`; one text is one instant,
+    T = 1); or periods: a list of T (start, end) pairs (as rayscan.solar's start and end, e.g.
+    one per month; one pair of texts is one period, T = 1). step, latitude, longitude, linke,
+    albedo, weather, sector, sky_rays, primitive, radius, cache: as rayscan.solar, with its
+    defaults; give latitude/longitude when the cloud has no CRS. threads: TBB threads per task
+    (0 = all cores).
 
     Returns a dict of (T, N) float64 arrays, row i for at[i] / periods[i]: for instants
     "in_shadow" (1/0), "irradiance_global", "irradiance_beam", "irradiance_diffuse" (W/m²) and
     (T,) "sun_azimuth", "sun_elevation" (degrees); for periods "solar_global", "solar_beam",
-    "solar_diffuse", "solar_reflected" (kWh/m²), "sun_hours" (h), "sky_view". Dask arrays chunked
-    one row per task, or NumPy with compute=True; row i equals rayscan.solar(path, at=at[i], ...)
-    bit for bit.
+    "solar_diffuse", "solar_reflected" (kWh/m²), "sun_hours" (h), "sky_view" (with sky_rays > 0).
+    Dask arrays chunked one row per task, or NumPy with compute=True; row i equals
+    rayscan.solar(path, at=at[i], ...) bit for bit. Raises ValueError without exactly one of at
+    and periods or with an empty list, TypeError for an instant that is not text (a datetime:
+    pass its isoformat(), as rayscan.solar) or a period that is not a pair of texts; the tasks
+    raise as rayscan.solar does for the options.
     """
     if (at is None) == (periods is None):
         raise ValueError("solar: give either at= (a list of instants) or periods= (a list of (start, end))")
-    whens = [str(w) for w in at] if at is not None else [(str(s), str(e)) for s, e in periods]
+    whens = _instants(at) if at is not None else _periods(periods)
     if not whens:
         raise ValueError("solar: no instant or period given")
+    options = dict(step=step, latitude=latitude, longitude=longitude, linke=linke, albedo=albedo,
+                   weather=weather, sector=sector, sky_rays=sky_rays, primitive=primitive,
+                   radius=radius, cache=cache)
     path = _path(path)
     kw = dict(options, threads=threads)
     tasks = [dask.delayed(_solar_block)(path, w, kw) for w in whens]
     fields = _SOLAR_INSTANT if at is not None else _SOLAR_PERIOD
-    if at is None and options.get("sky_rays", _SOLAR_SKY_RAYS) == 0:
+    if at is None and sky_rays == 0:
         fields = fields[:-1]  # no sky view without sky rays
     if compute:
         res = dask.compute(*tasks)
@@ -341,7 +455,7 @@ def solar(path, at=None, periods=None, threads=1, compute=False, **options):
             out["sun_azimuth"] = np.array([r["sun_azimuth"] for r in res])
             out["sun_elevation"] = np.array([r["sun_elevation"] for r in res])
         return out
-    n = _point_count(path)
+    n = _point_count(path, cache)
     out = {f: da.stack([da.from_delayed(t[f], (n,), dtype=np.float64) for t in tasks]) for f in fields}
     if at is not None:
         for f in ("sun_azimuth", "sun_elevation"):

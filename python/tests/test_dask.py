@@ -2,6 +2,8 @@
 ray queries and first hits over Dask arrays of rays, visibility counts for observers split over
 tasks, solar instants. Skipped without Dask (Debian: python3-dask, python3-distributed)."""
 
+import os
+import shutil
 import subprocess
 
 import numpy as np
@@ -154,3 +156,214 @@ def test_lazy_k_above_the_point_count_is_refused(client, tmp_path, cli):
     for path in (rsi, ply):
         idx, = dask.compute(rd.ray_query(path, o, d, k=3, radius=0.5)["indices"])
         assert idx.tolist() == [[0, 1, 2]]
+
+
+def _rays_down(las, m=2000, seed=0):
+    """m vertical rays from 100 units above the cloud at `las` onto random points of its extent."""
+    lo, hi = rayscan.read(las).bounds
+    target = lo + np.random.default_rng(seed).random((m, 3)) * (hi - lo)
+    origins = target.copy()
+    origins[:, 2] = hi[2] + 100.0
+    return origins, target - origins
+
+
+def test_site_reopened_when_the_file_changes(client, tmp_path, cli, data_dir, site_file):
+    """A worker keeps the Site of a path only while the file under it is the same one: after
+    `rayscan index -o` over it and after a copy onto it, the answers are the new file's, as a
+    fresh single-process Site gives them, from the same worker processes (a Site kept over a
+    file copied onto it would read past its end and kill the worker)."""
+    clouds = {"hay": str(data_dir / "las" / "Haystack_Rock.las"), "quarter": str(site_file).replace(".rsi", ".las")}
+    path = tmp_path / "swap.rsi"
+
+    def index(name, out=path):
+        subprocess.run([cli, "index", "-q", "--attributes", "id", "-o", str(out), clouds[name]], check=True)
+
+    def same_as_one_process(name):
+        o, d = _rays_down(clouds[name])
+        hits = rd.first_hits(path, o, d, radius=2.0, chunks=250)["indices"].compute()
+        one = rayscan.open(path).ray_query(o, d, k=1, radius=2.0, t_min=0.0, order="sphere_hit").first("indices")
+        assert (one >= 0).sum() > 100  # not two empty answers
+        assert np.array_equal(hits, one), name
+
+    pids = client.run(os.getpid)
+    index("hay")
+    same_as_one_process("hay")
+    kept = client.run(lambda: [p for p, _ in __import__("rayscan.dask").dask._sites])
+    assert all(str(path) in paths for paths in kept.values())  # both workers hold its Site
+    index("quarter")  # another file under the path
+    same_as_one_process("quarter")
+    index("hay", tmp_path / "hay.rsi")
+    inode = os.stat(path).st_ino
+    shutil.copyfile(tmp_path / "hay.rsi", path)  # the same file rewritten
+    assert os.stat(path).st_ino == inode
+    same_as_one_process("hay")
+    assert client.run(os.getpid) == pids  # no worker died and was replaced
+
+
+def _message(call):
+    with pytest.raises(Exception) as e:
+        call()
+    return type(e.value), str(e.value)
+
+
+def test_errors_name_the_callers_row(client, site_file, rays):
+    """A bad ray or observer is named by its row in the caller's array, from 0 over all chunks,
+    in the words of the single-process call (the oracle): ray 1234 of chunks of 500 rays is not
+    'ray 234', observer 5 of chunks of 4 is not 'observers[1]'."""
+    o, d = rays
+    d = d.copy()
+    d[1234] = 0.0
+    one = _message(lambda: rayscan.open(site_file).ray_query(o, d, k=1, radius=2.0))
+    assert one[0] is ValueError and one[1].startswith("ray 1234: ")
+    assert _message(lambda: rd.ray_query(site_file, o, d, k=1, radius=2.0, chunks=500)["indices"].compute()) == one
+    assert _message(lambda: rd.ray_query(site_file, o, d, k=None, radius=2.0, chunks=500, compute=True)) == one
+    o = o.copy()
+    o[4321, 0] = np.inf  # a ray of the last Dask chunk of directions, NumPy origins following it
+    one = _message(lambda: rayscan.open(site_file).ray_query(o, d[0], k=1, radius=2.0))
+    assert one[1].startswith("ray 4321: ")
+    assert _message(lambda: rd.first_hits(site_file, da.from_array(o, chunks=(1000, 3)), d[0],
+                                          radius=2.0)["indices"].compute())[1] == \
+        _message(lambda: rayscan.open(site_file).ray_query(o, d[0], k=1, radius=2.0, t_min=0.0,
+                                                           order="sphere_hit"))[1]
+
+    xyz = rayscan.read(str(site_file).replace(".rsi", ".las")).xyz
+    xy = xyz[np.random.default_rng(3).choice(len(xyz), 6, replace=False), :2]
+    for bad in ([0.0, 0.0], [np.nan, 1.0]):  # no ground under the eye; not a number
+        obs = xy.copy()
+        obs[5] = bad
+        one = _message(lambda: rayscan.visibility(site_file, obs, height=6.0, max_distance=50.0))
+        assert one[0] is ValueError and one[1].startswith("observers[5]: ")
+        assert _message(lambda: rd.visibility(site_file, obs, chunks=4, height=6.0, max_distance=50.0,
+                                              compute=True)) == one
+
+
+# Keywords of the single-process calls that the Dask calls do not take, and why (docs/python.md,
+# "What is not there").
+_NOT_TAKEN = {
+    "ray_query": {},
+    "first_hits": {"k": "1", "order": "'sphere_hit'", "any_hit": "any hit is not the first",
+                   "allow_all": "k=1 bounds every ray"},
+    "visibility": {"cloud": "path, the file each worker opens", "camera": "one camera's pixels do not depend "
+                   "on the observers: nothing to split; rayscan.visibility(path, camera=...)"},
+    "solar": {"cloud": "path, the file each worker opens", "start": "periods=[(start, end), ...]",
+              "end": "periods=[(start, end), ...]"},
+}
+# Keywords taken with another default, and why.
+_OWN_DEFAULT = {
+    "ray_query": {"k": "1: the lazy result's columns", "threads": "1: the workers are the parallelism"},
+    "first_hits": {"radius": "required: the spheres hit", "t_min": "0: in front of the origin", "threads": "1"},
+    "visibility": {"observers": "required: what the tasks split", "threads": "1"},
+    "solar": {"threads": "1"},
+}
+
+
+@pytest.mark.parametrize("name", sorted(_NOT_TAKEN))
+def test_keywords_as_the_single_process_call(name):
+    """Every keyword of the single-process call (Site.ray_query and rayscan.open's cache for the
+    ray queries) is a keyword of the Dask call with the same default, or listed above."""
+    import inspect
+    single = {}
+    if name in ("ray_query", "first_hits"):
+        single.update(inspect.signature(rayscan.Site.ray_query).parameters)
+        single.update(inspect.signature(rayscan.open).parameters)
+        del single["self"], single["path"]
+    else:
+        single.update(inspect.signature(getattr(rayscan, name)).parameters)
+    ours = inspect.signature(getattr(rd, name)).parameters
+    for kw, p in single.items():
+        if kw in _NOT_TAKEN[name]:
+            assert kw not in ours, kw
+        else:
+            assert kw in ours, f"rayscan.dask.{name} lacks {kw}"
+            if kw not in _OWN_DEFAULT[name]:
+                assert ours[kw].default == p.default, kw
+            else:
+                assert ours[kw].default != p.default, kw
+
+
+def test_keywords_reach_the_tasks(client, site_file, tmp_path):
+    """allow_all, ground_radius and cache do in the tasks what they do in the single-process call."""
+    ply = tmp_path / "three.ply"
+    rayscan.write(ply, np.array([[0.0, 0, 0], [0, 0, 1], [0, 0, 2]]))
+    o, d = np.array([[0.0, 0, -1], [5.0, 0, -1]]), np.array([0.0, 0, 1])
+    one = rayscan.open(ply).ray_query(o, d, allow_all=True)
+    every = rd.ray_query(ply, o, d, k=None, allow_all=True, chunks=1, compute=True)
+    assert every.counts.tolist() == [3, 3] and np.array_equal(every.indices, one.indices)
+    assert _message(lambda: rd.ray_query(ply, o, d, k=None, chunks=1, compute=True)) == \
+        _message(lambda: rayscan.open(ply).ray_query(o, d))
+
+    xyz = rayscan.read(str(site_file).replace(".rsi", ".las")).xyz
+    xy = xyz[np.random.default_rng(3).choice(len(xyz), 4, replace=False), :2]
+    opts = dict(height=6.0, max_distance=50.0)
+    near = rayscan.visibility(site_file, xy, **opts)["observers"]
+    wide = rayscan.visibility(site_file, xy, ground_radius=60.0, **opts)
+    assert not np.array_equal(wide["observers"], near)  # a lower ground further out
+    ours = rd.visibility(site_file, xy, chunks=2, ground_radius=60.0, compute=True, **opts)
+    assert np.array_equal(ours["observers"], wide["observers"])
+    assert np.array_equal(ours["visible_count"], wide["visible_count"])
+
+    bad_cache = _message(lambda: rayscan.open(site_file, cache="lots"))
+    assert bad_cache[0] is ValueError and "cache" in bad_cache[1]
+    assert _message(lambda: rd.ray_query(site_file, o, d, cache="lots")) == bad_cache
+    assert _message(lambda: rd.visibility(site_file, xy, chunks=2, cache="lots", compute=True, **opts)) == \
+        _message(lambda: rayscan.visibility(site_file, xy, cache="lots", **opts))
+
+
+def test_solar_one_instant_or_one_period(client, site_file):
+    """One text for `at` is one instant and one (start, end) pair one period, T = 1, as
+    rayscan.solar takes them; what rayscan.solar refuses (a datetime) is refused at the call."""
+    import datetime
+    opts = dict(latitude=44.05, longitude=-123.07, sky_rays=16)
+    at = "2024-06-21T18:00"
+    out = rd.solar(site_file, at=at, compute=True, **opts)
+    one = rayscan.solar(site_file, at=at, **opts)
+    assert out["in_shadow"].shape == (1, 27500) and out["sun_elevation"].tolist() == [one["sun_elevation"]]
+    assert np.array_equal(out["irradiance_global"][0], one["irradiance_global"])
+    start, end = "2024-06-21T17:00", "2024-06-21T19:00"
+    out = rd.solar(site_file, periods=(start, end), compute=True, **opts)
+    one = rayscan.solar(site_file, start=start, end=end, **opts)
+    assert out["sun_hours"].shape == (1, 27500) and one["sun_hours"].max() > 0
+    assert np.array_equal(out["solar_global"][0], one["solar_global"])
+    assert np.array_equal(out["sun_hours"][0], one["sun_hours"])
+
+    when = datetime.datetime(2024, 6, 21, 18)
+    with pytest.raises(TypeError, match="isoformat"):
+        rayscan.solar(site_file, at=when, **opts)
+    for bad, named in (({"at": when}, "at must"), ({"at": [at, when]}, r"at\[1\] must"),
+                       ({"periods": [(start, end), (start,)]}, r"periods\[1\] must .* of length 1"),
+                       ({"periods": [start, end, end]}, r"periods\[0\] must .* got str"),
+                       ({"periods": 2024}, "periods must")):
+        with pytest.raises(TypeError, match=named):
+            rd.solar(site_file, **bad)
+
+
+@pytest.mark.parametrize("value", [3, np.int64(3), np.uint8(3), True, 3.0, np.float64(3.0), "3"],
+                         ids=lambda v: f"{type(v).__name__}({v!r})")
+def test_integer_arguments_as_the_rest_of_the_api(site_file, value):
+    """k and chunks take what Site.ray_query's k takes (any integer, a NumPy one too) and refuse
+    what it refuses (a bool, a float, a str) with TypeError; below 1 is a ValueError."""
+    o, d = np.zeros((7, 3)), np.array([0.0, 0, 1])
+    try:
+        rayscan.open(site_file).ray_query(o, d, k=value, radius=1.0)
+        refused = None
+    except TypeError:
+        refused = TypeError
+    if refused:
+        with pytest.raises(TypeError, match="k must be an integer >= 1"):
+            rd.ray_query(site_file, o, d, k=value, radius=1.0)
+        with pytest.raises(TypeError, match=r"chunks must be an integer >= 1 \(rays per task\)"):
+            rd.ray_query(site_file, o, d, radius=1.0, chunks=value)
+        with pytest.raises(TypeError, match=r"chunks must be an integer >= 1 \(observers per task\)"):
+            rd.visibility(site_file, o, chunks=value)
+    else:
+        assert rd.ray_query(site_file, o, d, k=value, radius=1.0)["indices"].shape == (7, 3)
+        assert rd.ray_query(site_file, o, d, radius=1.0, chunks=value)["indices"].chunks == ((3, 3, 1),)
+        graph = dict(rd.visibility(site_file, o, chunks=value)["per_observer"].__dask_graph__())
+        assert sum(str(key).startswith("_visibility_block") for key in graph) == 3  # observers 3 + 3 + 1
+    for name, call in (("k", lambda v: rd.ray_query(site_file, o, d, k=v)),
+                       ("chunks", lambda v: rd.ray_query(site_file, o, d, chunks=v)),
+                       ("chunks", lambda v: rd.visibility(site_file, o, chunks=v))):
+        with pytest.raises(ValueError, match=rf"{name} must be an integer >= 1 .*got 0"):
+            call(np.int64(0))
+    with pytest.raises(TypeError, match="got bool_"):  # NumPy deprecates a bool as an index
+        rd.ray_query(site_file, o, d, k=np.True_)
