@@ -7,6 +7,7 @@
 #include "processes.hpp"
 
 #include "rayscan/base/interrupt.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/progress.hpp"
 #include "rayscan/jobs/index.hpp"
 #include "rayscan/octree/any_index.hpp"
@@ -140,9 +141,9 @@ Runner add_index_command(CLI::App& app) {
     const io::IndexBuildStats& st = r.stats;
     if (!o->quiet)
       for (const std::string& n : st.notes) std::cerr << "note: " << n << "\n";
-    std::printf("%s: %llu points, %llu nodes, depth %u, %llu sort runs, %s, positions %s; %.2f bytes/point; %.2f s (%.2f M points/s)\n",
+    std::printf("%s: %llu points, %llu nodes, depth %u, %s, %s, positions %s; %.2f bytes/point; %.2f s (%.2f M points/s)\n",
                 o->output.c_str(), static_cast<unsigned long long>(st.points),
-                static_cast<unsigned long long>(st.nodes), st.depth, static_cast<unsigned long long>(st.runs),
+                static_cast<unsigned long long>(st.nodes), st.depth, count_text(st.runs, "sort run").c_str(),
                 st.attributes.bits ? st.attributes.to_string().c_str() : "positions only", to_string(st.positions),
                 st.points ? static_cast<double>(st.file_bytes) / static_cast<double>(st.points) : 0.0, s,
                 s > 0 ? static_cast<double>(st.points) / s / 1e6 : 0.0);

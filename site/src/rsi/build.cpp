@@ -480,7 +480,9 @@ void IndexBuild::finish() {
   // The auto radius (median nearest-neighbour spacing) over the finished tree, by the renderer's
   // own function, so that opening never runs kNN for it; then the final header.
   if (total >= 2) {
-    if (opt.progress) opt.progress("spacing", 0, 1);
+    // The phase counts the points sampled for the spacing, as every other phase counts points.
+    const std::uint64_t samples = std::min<std::uint64_t>(total, kSpacingSamples);
+    if (opt.progress) opt.progress("spacing", 0, samples);
     IndexOpenOptions oo;
     oo.verify = IndexOpenOptions::Verify::metadata_only;
     oo.check_sources = false;
@@ -491,7 +493,8 @@ void IndexBuild::finish() {
     // each page fault maps up to 64 KiB around it, so scattered reads would otherwise keep
     // gigabytes of the file resident.
     h.spacing = median_nn_spacing_by_id(
-        m, 20000, [&](std::size_t) { m.release_pages(); }, 256, [&] { m.release_pages(); });
+        m, samples, [&](std::size_t) { m.release_pages(); }, 256, [&] { m.release_pages(); });
+    if (opt.progress) opt.progress("spacing", samples, samples);
     const std::vector<std::uint8_t> hb = encode_header(h);
     fd->pwrite_all(hb.data(), hb.size(), 0);
   }
