@@ -6,6 +6,7 @@
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/camera/camera_file.hpp"
 #include "rayscan/base/json_object.hpp"
+#include "rayscan/base/option_error.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -13,6 +14,7 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <string_view>
 
 namespace rayscan::render {
 
@@ -56,6 +58,38 @@ void parse_surfel(Obj& parent, Scene& s) {
   o.finish();
 }
 
+/// The scene key of an index option (IndexOption's field, as OptionError names it).
+std::string index_option_key(std::string_view field) { return field == "insertion" ? "build" : std::string(field); }
+
+/// Refuses an octree key the layout does not use (capacity or max_depth with "fixed", depth with
+/// "adaptive" or "layered") by the rule `rayscan query`, `rayscan index` and Python apply
+/// (check_applicable), as a JsonFileError at the key: "FILE: /index/capacity: applies to "layout":
+/// "adaptive" and "layered" only (got "layout": "fixed")". The kd-tree and brute force do not read
+/// the octree's keys, so finish() refuses those as unknown.
+void check_octree_keys(const Obj& o, const std::string& type) {
+  GivenIndexOptions given;
+  given.capacity = o.present("capacity");
+  given.max_depth = o.present("max_depth");
+  given.depth = o.present("depth");
+  given.insertion = o.present("build");
+  IndexChoiceWords words;
+  words.option = "\"layout\": ";
+  words.layouts = true;
+  words.quote = "\"";
+  try {
+    check_applicable(type, given, words);
+  } catch (const OptionError& e) {
+    std::string key;
+    std::string what = e.spelled([&](std::string_view field) {
+      if (key.empty()) key = index_option_key(field);
+      return std::string();
+    });
+    // The pointer names the key, so the message starts after the option's (empty) name.
+    what.erase(0, what.find_first_not_of(' '));
+    fail(o.file(), o.ptr(key), what);
+  }
+}
+
 IndexOptions parse_index(Obj& parent, const std::string& key, NodeDistance& nd) {
   IndexOptions opt;
   opt.type = "octree-adaptive";
@@ -66,6 +100,7 @@ IndexOptions parse_index(Obj& parent, const std::string& key, NodeDistance& nd) 
   const std::string type = o.string("type", "octree", {"octree", "kdtree", "brute"});
   if (type == "octree") {
     opt.type = "octree-" + o.string("layout", "adaptive", {"adaptive", "layered", "fixed"});
+    check_octree_keys(o, opt.type);
     opt.depth = static_cast<unsigned>(o.integer("depth", 6, 0, 21));
     opt.max_depth = static_cast<unsigned>(o.integer("max_depth", 21, 1, 21));
     opt.insertion = o.string("build", "bulk", {"bulk", "insertion"}) == "insertion";

@@ -91,16 +91,17 @@ ojson index_json(const Scene& s) {
   const IndexOptions& x = s.index;
   ojson j;
   j["node_distance"] = s.node_distance == NodeDistance::exact ? "exact" : "eq3";
+  // Only the options the index uses: the parser refuses the others (check_applicable).
   if (x.type.rfind("octree-", 0) == 0) {
     j["type"] = "octree";
     j["layout"] = x.type.substr(7);
-    j["depth"] = x.depth;
-    j["max_depth"] = x.max_depth;
-    j["build"] = x.insertion ? "insertion" : "bulk";
   } else {
     j["type"] = x.type;
   }
-  if (x.type != "brute") j["capacity"] = index_capacity(x);
+  if (index_option_applies(x.type, IndexOption::depth)) j["depth"] = x.depth;
+  if (index_option_applies(x.type, IndexOption::max_depth)) j["max_depth"] = x.max_depth;
+  if (index_option_applies(x.type, IndexOption::insertion)) j["build"] = x.insertion ? "insertion" : "bulk";
+  if (index_option_applies(x.type, IndexOption::capacity)) j["capacity"] = index_capacity(x);
   return j;
 }
 

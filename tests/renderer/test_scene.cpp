@@ -1,6 +1,7 @@
 // Scene and camera files: a valid file parses to the documented values; every malformed field is
 // reported with the file and its JSON pointer.
 #include "../common/temp_dir.hpp"
+#include "render_test_data.hpp"
 #include "rayscan/render/scene.hpp"
 
 #include "rayscan/jobs/render.hpp"
@@ -9,6 +10,9 @@
 
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -131,6 +135,68 @@ TEST(Scene, CombinationsWithoutMeaningNameTheirPointer) {
   EXPECT_EQ(error_of(cs), cs.string() + ": /hit: \"closest_point\" applies to primitive \"sphere\" only; primitive is \"surfel\" (discs are hit exactly)");
   EXPECT_EQ(load_scene(write("ss.json", std::string(R"({"cloud": "x.xyz", "hit": "sphere", "primitive": "surfel", )") + kCam + "}")).primitive,
             Primitive::surfel);
+}
+
+// An index key the octree's layout does not use is refused at its pointer, by the rule rayscan
+// query, rayscan index and Python apply (check_applicable), instead of being read and ignored. A
+// scene giving only the keys its layout uses still renders, and its image is the one another
+// layout gives: the ray queries are exact, so the tree must not show. Oracle: that render, and the
+// scene the parser reads back from Scene::to_json.
+TEST(Scene, IndexKeysTheLayoutDoesNotUseAreRefused) {
+  const std::string cloud = R"({"cloud": ")" + std::string(RAYSCAN_RENDER_TEST_DATA) + R"(/autzen_subset.xyz", )";
+  auto index_scene = [&](const std::string& name, const std::string& index) {
+    return write(name, cloud + R"("index": )" + index + ", " + kCam + "}");
+  };
+  const fs::path fc = index_scene("fc.json", R"({"type": "octree", "layout": "fixed", "capacity": 8})");
+  EXPECT_EQ(error_of(fc), fc.string() + R"(: /index/capacity: applies to "layout": "adaptive" and "layered" only (got "layout": "fixed"))");
+  const fs::path fm = index_scene("fm.json", R"({"type": "octree", "layout": "fixed", "depth": 3, "max_depth": 9})");
+  EXPECT_EQ(error_of(fm), fm.string() + R"(: /index/max_depth: applies to "layout": "adaptive" and "layered" only (got "layout": "fixed"))");
+  const fs::path ld = index_scene("ld.json", R"({"type": "octree", "layout": "layered", "depth": 3})");
+  EXPECT_EQ(error_of(ld), ld.string() + R"(: /index/depth: applies to "layout": "fixed" only (got "layout": "layered"))");
+  const fs::path ad = index_scene("ad.json", R"({"depth": 3})");  // the default layout
+  EXPECT_EQ(error_of(ad), ad.string() + R"(: /index/depth: applies to "layout": "fixed" only (got "layout": "adaptive"))");
+  // The kd-tree and brute force read no octree key: each is unknown there, as before.
+  const fs::path kd = index_scene("kd.json", R"({"type": "kdtree", "depth": 3})");
+  EXPECT_NE(error_of(kd).find(kd.string() + ": /index/depth: unknown key"), std::string::npos) << error_of(kd);
+  const fs::path bc = index_scene("bc.json", R"({"type": "brute", "capacity": 8})");
+  EXPECT_NE(error_of(bc).find(bc.string() + ": /index/capacity: unknown key"), std::string::npos) << error_of(bc);
+
+  const Scene fixed = load_scene(index_scene("fixed.json", R"({"type": "octree", "layout": "fixed", "depth": 3, "build": "insertion"})"));
+  EXPECT_EQ(fixed.index.type, "octree-fixed");
+  EXPECT_EQ(fixed.index.depth, 3u);
+  EXPECT_TRUE(fixed.index.insertion);
+  const Scene adaptive = load_scene(index_scene("adaptive.json", R"({"type": "octree", "capacity": 8, "max_depth": 9})"));
+  // The written scene gives only the keys its layout uses, so it reads back.
+  for (const Scene* s : {&fixed, &adaptive}) {
+    const nlohmann::json w = nlohmann::json::parse(s->to_json());
+    const Scene back = load_scene(write("back.json", w.dump()));
+    EXPECT_EQ(back.index.type, s->index.type);
+    EXPECT_EQ(back.index.depth, s->index.depth);
+    EXPECT_EQ(back.index.max_depth, s->index.max_depth);
+    EXPECT_EQ(back.index.insertion, s->index.insertion);
+    EXPECT_EQ(index_capacity(back.index), index_capacity(s->index));
+  }
+  EXPECT_FALSE(nlohmann::json::parse(fixed.to_json()).at("index").contains("capacity"));
+  EXPECT_FALSE(nlohmann::json::parse(adaptive.to_json()).at("index").contains("depth"));
+
+  jobs::RenderJobResult r[2];
+  for (int k = 0; k < 2; ++k) {
+    jobs::RenderJobOptions o;
+    o.scene = k == 0 ? fixed : adaptive;
+    o.scene.camera = rayscan::render::test::subset_scene(40, 30).camera;  // kCam does not see the cloud
+    o.scene.material.mode = ColorMode::elevation;  // the subset has no colours
+    o.scene.spp = 2;
+    o.scene.output.aovs = {Aov::index};
+    o.write = false;
+    o.control.threads = 2;
+    r[k] = jobs::run_render(o);
+  }
+  ASSERT_EQ(r[0].image.beauty.size(), r[1].image.beauty.size());
+  EXPECT_EQ(std::memcmp(r[0].image.beauty.data(), r[1].image.beauty.data(), r[0].image.beauty.size() * sizeof(Color)), 0);
+  EXPECT_EQ(r[0].image.index, r[1].image.index);
+  std::size_t hit = 0;
+  for (auto id : r[0].image.index) hit += id != kNoPoint;
+  EXPECT_GT(hit, r[0].image.index.size() / 4);  // the comparison is not vacuous
 }
 
 // A key given twice in one object is refused, in every JSON input, with the pointer of the key
