@@ -368,9 +368,15 @@ std::string compare_report_json(const CompareJobResult& res) {
   for (const ChannelStats& c : m.per_channel)
     pc.push_back({{"name", c.name}, {"mae", json_number(c.mae)}, {"rmse", json_number(c.rmse)}, {"max_error", json_number(c.max_error)}});
   out["per_channel"] = pc;
+  // null where the level has no pixel test, as the text report says "off": a count over a
+  // threshold nothing judges would read as a cause of the verdict.
+  const auto over = [](const Limits& l, double threshold, std::size_t pixels, double percent) {
+    if (!l.pixel_test) return nlohmann::ordered_json(nullptr);
+    return nlohmann::ordered_json{{"threshold", threshold}, {"pixels", pixels}, {"percent", percent}};
+  };
   out["over_threshold"] = {
-      {"fail", {{"threshold", m.fail_threshold}, {"pixels", m.over_fail}, {"percent", m.percent_over_fail()}}},
-      {"warn", {{"threshold", m.warn_threshold}, {"pixels", m.over_warn}, {"percent", m.percent_over_warn()}}}};
+      {"fail", over(res.fail_limits, m.fail_threshold, m.over_fail, m.percent_over_fail())},
+      {"warn", over(res.warn_limits, m.warn_threshold, m.over_warn, m.percent_over_warn())}};
   out["flip"] = {{"mean", json_number(m.flip)}, {"signal", m.flip_signal},
                  {"pixels_per_degree", res.flip_ppd > 0 ? json_number(res.flip_ppd) : nlohmann::ordered_json(nullptr)},
                  {"map", res.flip_map.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(res.flip_map)}};

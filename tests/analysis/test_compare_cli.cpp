@@ -133,7 +133,11 @@ TEST_F(CompareCli, ExitCodesFollowThresholds) {
   EXPECT_NE(w.out.find("WARNING"), std::string::npos) << w.out;
   const nlohmann::json j = compare_json(pa, pb, "--fail 0.2");
   EXPECT_NEAR(j["psnr_db"].get<double>(), psnr, 1e-9);
-  EXPECT_EQ(j["over_threshold"]["warn"]["pixels"].get<int>(), 40);
+  EXPECT_EQ(j["over_threshold"]["fail"]["pixels"].get<int>(), 0);
+  EXPECT_TRUE(j["over_threshold"]["warn"].is_null()) << j.dump();  // fail criteria alone: the warn level is off
+  const nlohmann::json jw = compare_json(pa, pb, "--fail 0.2 --warn 0.1");
+  EXPECT_EQ(jw["over_threshold"]["warn"]["pixels"].get<int>(), 40);
+  EXPECT_EQ(jw["over_threshold"]["warn"]["threshold"].get<double>(), 0.1);
   EXPECT_EQ(j["max_error"]["channel"], "R");
   EXPECT_EQ(j["max_error"]["y"].get<int>(), 10);
   // Errors: exit 2 with a one-line message naming the file.

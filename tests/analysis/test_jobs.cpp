@@ -11,6 +11,7 @@
 #include "small_copc.hpp"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -119,6 +120,10 @@ TEST(CompareJob, ReportCountsPixelsOnlyOverThresholdsInEffect) {
   EXPECT_TRUE(has(t, kWarnOff)) << t;
   EXPECT_FALSE(has(t, "(warn threshold)")) << t;
   EXPECT_TRUE(t.ends_with("\nPASS\n")) << t;
+  // The JSON report says the same: a count where the level has a pixel test, null where it is off.
+  nlohmann::json j = nlohmann::json::parse(compare_report_json(r))["over_threshold"];
+  EXPECT_EQ(j["fail"], (nlohmann::json{{"threshold", 0.1}, {"pixels", 1}, {"percent", 0.390625}})) << j.dump();
+  EXPECT_TRUE(j["warn"].is_null()) << j.dump();
 
   // A warn threshold given: its count is reported, and it decides the verdict.
   o.warn.threshold = 0.1;
@@ -128,21 +133,31 @@ TEST(CompareJob, ReportCountsPixelsOnlyOverThresholdsInEffect) {
   EXPECT_TRUE(has(t, kFailOver)) << t;
   EXPECT_TRUE(has(t, kWarnOver)) << t;
   EXPECT_TRUE(t.ends_with("\nWARNING\n")) << t;
+  j = nlohmann::json::parse(compare_report_json(r))["over_threshold"];
+  EXPECT_EQ(j["warn"], (nlohmann::json{{"threshold", 0.1}, {"pixels", 1}, {"percent", 0.390625}})) << j.dump();
 
   // An SSIM limit alone: neither level has a pixel test.
   o.fail = {};
   o.warn = {};
   o.fail.min_ssim = -1.0;
-  t = compare_report_text(run_compare(o));
+  r = run_compare(o);
+  t = compare_report_text(r);
   EXPECT_TRUE(has(t, kFailOff)) << t;
   EXPECT_TRUE(has(t, kWarnOff)) << t;
+  j = nlohmann::json::parse(compare_report_json(r))["over_threshold"];
+  EXPECT_TRUE(j["fail"].is_null()) << j.dump();
+  EXPECT_TRUE(j["warn"].is_null()) << j.dump();
 
   // No criterion: idiff's defaults, both levels counting over 1e-6.
   o.fail = {};
-  t = compare_report_text(run_compare(o));
+  r = run_compare(o);
+  t = compare_report_text(r);
   EXPECT_TRUE(has(t, "  1 pixel (0.390625%) over 1e-06 (fail threshold)\n")) << t;
   EXPECT_TRUE(has(t, "  1 pixel (0.390625%) over 1e-06 (warn threshold)\n")) << t;
   EXPECT_TRUE(t.ends_with("\nFAILURE\n")) << t;
+  j = nlohmann::json::parse(compare_report_json(r))["over_threshold"];
+  EXPECT_EQ(j["fail"]["pixels"], 1) << j.dump();
+  EXPECT_EQ(j["warn"]["pixels"], 1) << j.dump();
 }
 
 TEST(VisibilityJob, InMemoryCloudEqualsTheLowerLevelCalls) {

@@ -94,7 +94,9 @@ struct CompareJobResult {
 /// image; one line), std::runtime_error "<file>: <reason>" for unreadable or unwritable files.
 CompareJobResult run_compare(const CompareJobOptions& options);
 
-/// The JSON report printed by `rayscan compare --json` (2-space indent).
+/// The JSON report printed by `rayscan compare --json` (2-space indent). `over_threshold.fail` and
+/// `.warn` are {threshold, pixels, percent} where that level has a pixel test, null where it has
+/// none (the text report's "off").
 std::string compare_report_json(const CompareJobResult& result);
 
 /// The idiff-style text report printed by `rayscan compare`, ending in PASS, WARNING or FAILURE.
