@@ -6,10 +6,13 @@ the plugin enabled in a throwaway profile; `qgis_process list` shows the five ra
 `qgis_process run rayscan:viewshed` writes the same GeoTIFF as `rayscan visibility` (cell for cell,
 also with observers in EPSG:4326 that the plugin reprojects, and without a CRS, with a warning);
 ortho_dsm, solar and point_visibility outputs (its point vector layer too) open with the cloud's
-CRS, quick_look's image opens, ortho_dsm's COLOUR reaches the orthophoto; PRIMITIVE, ortho_dsm's
-COLOUR and solar's VALUE offer the CLI's own values (its --help),
-and rayscan's refusals reach the user naming the parameters, not the CLI's options. Exit 77
-(skipped) when qgis_process is not installed.
+CRS, the vector layer's CRS is the viewshed GeoTIFF's as QGIS reads them, quick_look's image opens,
+ortho_dsm's COLOUR reaches the orthophoto; PRIMITIVE, ortho_dsm's COLOUR and solar's VALUE offer
+the CLI's own values (its --help), and rayscan's refusals and the plugin's own (an observer QGIS
+cannot reproject, a missing HEIGHT_FIELD, an observer outside the cloud, a period without START and
+END) reach the user in one line naming the parameters and features, not the CLI's options or the
+temporary CSV; a cancel while POINTS_LAYER is written leaves no file there. Exit 77 (skipped) when
+qgis_process is not installed.
 
 Usage: test_qgis_plugin.py RAYSCAN PLUGIN_DIR PLUGIN_ZIP CLOUD WORK_DIR
 PLUGIN_DIR holds the build's copy rayscan_processing/ (the in-process checks import it); qgis_process
@@ -255,6 +258,41 @@ def desktop_checks(plugin_dir, cloud, work, rayscan):
     return app
 
 
+def cancel_copy_check(plugin_dir, cloud, observers, work):
+    """A cancel while point_visibility copies the points into POINTS_LAYER leaves no file at that
+    path (no GeoPackage without its table, no -journal), as rayscan leaves no partial output; the
+    cloud rayscan completed before stays. Run in this process (processing.run), canceling as the
+    plugin announces the copy, so no timing is involved."""
+    import processing
+    import rayscan_processing
+    from qgis.core import QgsProcessingException, QgsProcessingFeedback
+
+    class CancelOnCopy(QgsProcessingFeedback):
+        """Cancels when the copy into the vector layer begins."""
+
+        def pushInfo(self, text):  # noqa: N802 (QGIS's name)
+            if text.startswith("Writing "):
+                self.cancel()
+            super().pushInfo(text)
+
+    plugin = rayscan_processing.classFactory(None)
+    plugin.initProcessing()
+    folder = os.path.join(work, "cancel_copy")
+    os.makedirs(folder)
+    try:
+        processing.run("rayscan:point_visibility", {
+            "INPUT": cloud, "OBSERVERS": observers, "HEIGHT": HEIGHT, "OUTPUT": os.path.join(folder, "pv.las"),
+            "POINTS_LAYER": os.path.join(folder, "pv.gpkg")}, feedback=CancelOnCopy())
+        error = None
+    except QgsProcessingException as e:
+        error = str(e)
+    finally:
+        plugin.unload()
+    left = sorted(os.listdir(folder))
+    check(error is not None and "Canceled while writing" in error and left == ["pv.las"],
+          "point_visibility canceled while writing POINTS_LAYER: {!r}; the folder holds {}".format(error, left))
+
+
 def read_raster(path):
     """(array, geotransform, srs, nodata) of a single-band raster, or None when GDAL cannot open it."""
     from osgeo import gdal, osr
@@ -338,29 +376,36 @@ def main():
     subprocess.check_call(["ogr2ogr", "-f", "GPKG", gpkg, csv_path, "-oo", "X_POSSIBLE_NAMES=x",
                            "-oo", "Y_POSSIBLE_NAMES=y", "-a_srs", wkt_path, "-nln", "observer"])
 
-    cli_tif = os.path.join(work, "cli_viewshed.tif")
-    subprocess.check_call([rayscan, "visibility", cloud, "--observer", "{},{}".format(*OBSERVER),
-                           "--height", str(HEIGHT), "--raster", cli_tif, "--cell", str(CELL), "-q"])
-    cli = read_raster(cli_tif)
+    def cli_viewshed(name, x, y):
+        """The CLI's viewshed from the observer at (x, y) (as given: repr round-trips a double), HEIGHT above ground."""
+        path = os.path.join(work, name)
+        subprocess.check_call([rayscan, "visibility", cloud, "--observer", "{!r},{!r}".format(x, y),
+                               "--height", str(HEIGHT), "--raster", path, "--cell", str(CELL), "-q"])
+        return path, read_raster(path)
 
-    def same_viewshed(observers, extra, what, expect=()):
-        """Run rayscan:viewshed; check its GeoTIFF against the CLI's, and its output for each text of ``expect``."""
+    cli_tif, cli = cli_viewshed("cli_viewshed.tif", *OBSERVER)
+
+    def same_viewshed(observers, extra, what, expect=(), reference=(cli_tif, cli)):
+        """Run rayscan:viewshed; check its GeoTIFF against the CLI's (``reference``: its path and
+        read_raster), and its output for each text of ``expect``; return the plugin's GeoTIFF."""
+        ref_tif, ref = reference
         out_tif = os.path.join(work, "qgis_viewshed_{}.tif".format(len(os.listdir(work))))
         code, out = qp("run", "rayscan:viewshed", "--", "INPUT=" + cloud, "OBSERVERS=" + observers,
                      "CELL={}".format(CELL), "OUTPUT=" + out_tif, *extra)
         got = read_raster(out_tif) if code == 0 else None
         import numpy
-        equal = (got is not None and got[0].shape == cli[0].shape and numpy.array_equal(got[0], cli[0])
-                 and got[1] == cli[1] and got[3] == cli[3] and got[2].IsSame(cli[2]))
+        equal = (got is not None and got[0].shape == ref[0].shape and numpy.array_equal(got[0], ref[0])
+                 and got[1] == ref[1] and got[3] == ref[3] and got[2].IsSame(ref[2]))
         detail = ""
-        if got is not None and got[0].shape == cli[0].shape:
-            detail = "{} of {} cells differ".format(int((got[0] != cli[0]).sum()), cli[0].size)
+        if got is not None and got[0].shape == ref[0].shape:
+            detail = "{} of {} cells differ".format(int((got[0] != ref[0]).sum()), ref[0].size)
         check(equal and all(w in out for w in expect), "{}: same GeoTIFF as rayscan visibility, cell for cell ({}x{} cells, {}; {} visible, {} NoData; "
-              "files byte-identical: {})".format(what, cli[0].shape[1], cli[0].shape[0], detail or "unreadable",
-                                                int((cli[0] == 1).sum()), int((cli[0] == cli[3]).sum()),
-                                                got is not None and open(out_tif, "rb").read() == open(cli_tif, "rb").read()))
+              "files byte-identical: {})".format(what, ref[0].shape[1], ref[0].shape[0], detail or "unreadable",
+                                                int((ref[0] == 1).sum()), int((ref[0] == ref[3]).sum()),
+                                                got is not None and open(out_tif, "rb").read() == open(ref_tif, "rb").read()))
+        return out_tif
 
-    same_viewshed(gpkg, ["HEIGHT={}".format(HEIGHT)], "viewshed, observer in the cloud's CRS")
+    plugin_tif = same_viewshed(gpkg, ["HEIGHT={}".format(HEIGHT)], "viewshed, observer in the cloud's CRS")
 
     # The same eye as an absolute Z (the CLI's resolved eye: ground 427.85 ft + 6 ft).
     csv_z, gpkg_z = os.path.join(work, "observer_z.csv"), os.path.join(work, "observer_z.gpkg")
@@ -371,19 +416,27 @@ def main():
                            "-nln", "observer"])
     same_viewshed(gpkg_z, ["USE_Z=true"], "viewshed, observer's Z as the absolute eye")
 
-    # The same observer in EPSG:4326 (GeoJSON), placed with QGIS's own transform so that the
-    # plugin's reprojection back lands on the same coordinates; its height from a field.
+    # The same observer in EPSG:4326 (GeoJSON), its height from a field. The plugin reprojects it
+    # to the CRS QGIS reads from rayscan's GeoTIFFs, so the eye lands where QGIS draws it over the
+    # viewshed; the round trip through degrees moves it by nanometres, which can flip a cell, so
+    # the reference is the CLI at the coordinates that QGIS's transform gives back.
     from qgis.core import (QgsCoordinateReferenceSystem, QgsCoordinateTransform,
-                           QgsCoordinateTransformContext, QgsPointXY)
-    to_wgs84 = QgsCoordinateTransform(QgsCoordinateReferenceSystem.fromWkt(info["crs"]["wkt2"]),
-                                      QgsCoordinateReferenceSystem("EPSG:4326"), QgsCoordinateTransformContext())
-    lonlat = to_wgs84.transform(QgsPointXY(*OBSERVER))
+                           QgsCoordinateTransformContext, QgsPointXY, QgsRasterLayer, QgsVectorLayer)
+    raster_crs = QgsRasterLayer(cli_tif, "cli", "gdal").crs()
+    wgs84 = QgsCoordinateReferenceSystem("EPSG:4326")
+    lonlat = QgsCoordinateTransform(raster_crs, wgs84, QgsCoordinateTransformContext()).transform(QgsPointXY(*OBSERVER))
     geojson = os.path.join(work, "observer_wgs84.geojson")
     with open(geojson, "w") as f:
         json.dump({"type": "FeatureCollection", "features": [{
             "type": "Feature", "properties": {"eye": HEIGHT},
             "geometry": {"type": "Point", "coordinates": [lonlat.x(), lonlat.y()]}}]}, f)
-    same_viewshed(geojson, ["HEIGHT=1", "HEIGHT_FIELD=eye"], "viewshed, observer in EPSG:4326 reprojected, height from a field")
+    back = QgsCoordinateTransform(wgs84, raster_crs, QgsCoordinateTransformContext()).transform(lonlat)
+    same_viewshed(geojson, ["HEIGHT=1", "HEIGHT_FIELD=eye"],
+                  "viewshed, observer in EPSG:4326 reprojected to ({!r}, {!r}), height from a field".format(
+                      back.x(), back.y()),
+                  expect=("Observers reprojected from EPSG:4326 - WGS 84 to the cloud's CRS "
+                          + raster_crs.userFriendlyIdentifier(),),
+                  reference=cli_viewshed("cli_viewshed_wgs84.tif", back.x(), back.y()))
 
     # The observer in the cloud's coordinates in a shapefile without a .prj: no CRS. It is taken
     # to be in the cloud's CRS, as QGIS's own algorithms take an unknown CRS, and the log says so.
@@ -465,6 +518,75 @@ def main():
           "point_visibility: the point vector layer has every point, the cloud's CRS and the LAS's "
           "visible_count ({} points seen)".format(seen))
     layer = ds = None
+
+    # Every layer of a run in one CRS, the one QGIS reads from rayscan's GeoTIFFs: the point layer
+    # and the viewshed are equal CRS objects and a point goes to Web Mercator alike from both.
+    vector_crs = QgsVectorLayer(pv_layer, "pv", "ogr").crs()
+    viewshed_crs = QgsRasterLayer(plugin_tif, "viewshed", "gdal").crs()
+    mercator = QgsCoordinateReferenceSystem("EPSG:3857")
+    to_mercator = [QgsCoordinateTransform(c, mercator, QgsCoordinateTransformContext()).transform(QgsPointXY(*OBSERVER))
+                   for c in (vector_crs, viewshed_crs)]
+    check(vector_crs.isValid() and vector_crs == viewshed_crs == raster_crs
+          and (to_mercator[0].x(), to_mercator[0].y()) == (to_mercator[1].x(), to_mercator[1].y()),
+          "point_visibility's vector layer ({}) and viewshed's GeoTIFF ({}) have one CRS; the observer in "
+          "EPSG:3857 from each: {}".format(vector_crs.userFriendlyIdentifier(), viewshed_crs.userFriendlyIdentifier(),
+                                           [(p.x(), p.y()) for p in to_mercator]))
+
+    def refused(alg, params, what, has, lacks=()):
+        """Run rayscan:ALG; check it fails with one error line holding each text of ``has`` and none of
+        ``lacks``, and no Python traceback; return its output."""
+        code, out = qp("run", "rayscan:" + alg, "--", "INPUT=" + cloud, *params)
+        errors = [line for line in out.splitlines() if line.startswith("ERROR:")]
+        check(code != 0 and len(errors) == 1 and all(t in errors[0] for t in has)
+              and not any(t in errors[0] for t in lacks) and "Traceback" not in out,
+              "{}: refused in one line naming {}: {}".format(what, has, errors))
+        return out
+
+    # The autzen observer's feet labelled EPSG:4326: QGIS cannot take it to the cloud's CRS.
+    csv_4326, gpkg_4326 = os.path.join(work, "observer_4326.csv"), os.path.join(work, "observer_4326.gpkg")
+    with open(csv_4326, "w") as f:
+        f.write("x,y\n{},{}\n".format(*OBSERVER))
+    subprocess.check_call(["ogr2ogr", "-f", "GPKG", gpkg_4326, csv_4326, "-oo", "X_POSSIBLE_NAMES=x",
+                           "-oo", "Y_POSSIBLE_NAMES=y", "-a_srs", "EPSG:4326", "-nln", "observer_4326"])
+    for alg, output in (("viewshed", "bad.tif"), ("point_visibility", "bad.las")):
+        refused(alg, ["OBSERVERS=" + gpkg_4326, "OUTPUT=" + os.path.join(work, output)],
+                alg + ", an observer QGIS cannot reproject",
+                ["Observers (points) [OBSERVERS] 'observer_4326', feature 1: ({!r}, {!r})".format(*OBSERVER),
+                 "EPSG:4326 - WGS 84", raster_crs.userFriendlyIdentifier()])
+
+    refused("viewshed", ["OBSERVERS=" + gpkg, "HEIGHT_FIELD=nosuch", "OUTPUT=" + os.path.join(work, "bad.tif")],
+            "viewshed, a HEIGHT_FIELD the layer lacks",
+            ["[HEIGHT_FIELD] 'nosuch' is not a field of Observers (points) [OBSERVERS] 'observer'; its numeric "
+             "fields: fid, x, y"])
+
+    # An observer beyond the cloud's west edge: rayscan's message names the feature, not the line of
+    # the plugin's temporary CSV, and the parameter that widens the ground search. Features 1 and 2
+    # are deleted, so the far one (feature 4) is the CSV's line 3, named '4'.
+    csv_far, gpkg_far = os.path.join(work, "observer_far.csv"), os.path.join(work, "observer_far.gpkg")
+    west = info["bounds"]["min"][0] - 100.0
+    with open(csv_far, "w") as f:
+        f.write("x,y\n{0},{1}\n{0},{1}\n{0},{1}\n{2},{1}\n".format(OBSERVER[0], OBSERVER[1], west))
+    subprocess.check_call(["ogr2ogr", "-f", "GPKG", gpkg_far, csv_far, "-oo", "X_POSSIBLE_NAMES=x",
+                           "-oo", "Y_POSSIBLE_NAMES=y", "-a_srs", wkt_path, "-nln", "observer_far"])
+    subprocess.check_call(["ogrinfo", "-q", gpkg_far, "-sql", "DELETE FROM observer_far WHERE fid < 3"])
+    far_tif = os.path.join(work, "far.tif")
+    refused("viewshed", ["OBSERVERS=" + gpkg_far, "HEIGHT={}".format(HEIGHT), "CELL={}".format(CELL),
+                         "OUTPUT=" + far_tif],
+            "viewshed, an observer outside the cloud",
+            ["rayscan visibility: Observers (points) [OBSERVERS] 'observer_far', feature 4: no point within the "
+             "ground radius", "raise Local ground search radius (cloud units; empty = 5 x the point radius) "
+             "[GROUND_RADIUS]"], lacks=["observers.csv", "line ", "--ground-radius"])
+    code, out = qp("run", "rayscan:viewshed", "--", "INPUT=" + cloud, "OBSERVERS=" + gpkg_far,
+                   "HEIGHT={}".format(HEIGHT), "CELL={}".format(CELL), "GROUND_RADIUS=200", "OUTPUT=" + far_tif)
+    check(code == 0 and "--ground-radius 200.0" in out and read_raster(far_tif) is not None,
+          "viewshed, GROUND_RADIUS=200 reaches rayscan as --ground-radius and places the far observer")
+
+    refused("solar", ["CELL={}".format(CELL), "OUTPUT=" + os.path.join(work, "bad.tif")],
+            "solar, a period without START and END",
+            ["Mode [MODE] 'period (irradiation, kWh/m²)' needs Period start (ISO 8601, e.g. 2026-06-01) [START] "
+             "and Period end (ISO 8601, e.g. 2026-06-30) [END]; START and END are empty"])
+
+    cancel_copy_check(plugin_dir, cloud, gpkg, work)
 
     print("{} failure(s)".format(len(failures)))
     for f in failures:

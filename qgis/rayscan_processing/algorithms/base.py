@@ -99,14 +99,24 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
         """``[flag, value]``: the option that parameter ``name`` sets, with ``value``."""
         return [self.flag(name), value]
 
+    def label(self, name):
+        """Parameter ``name`` as the user sees it in messages: "Description [NAME]"."""
+        return "{} [{}]".format(self.parameterDefinition(name).description(), name)
+
     def option_labels(self):
-        """Each spelling of each option in FLAGS -> its parameter as the user sees it, "Description [NAME]"."""
+        """Each spelling of each option in FLAGS -> its parameter as the user sees it (label())."""
         labels = {}
         for name, spellings in self.FLAGS.items():
-            label = "{} [{}]".format(self.parameterDefinition(name).description(), name)
             for spelling in spellings.split(","):
-                labels[spelling] = label
+                labels[spelling] = self.label(name)
         return labels
+
+    def given_number(self, parameters, name, context):
+        """Optional number parameter ``name``: its value, or None when left empty (the CLI's default)."""
+        given = parameters.get(name)
+        if given is None or str(given) in ("", "NULL"):
+            return None
+        return self.parameterAsDouble(parameters, name, context)
 
     def cloud(self, parameters, context):
         """The point cloud path of INPUT, checked to exist."""
@@ -115,14 +125,15 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
             raise QgsProcessingException(self.tr("Point cloud file not found: {}").format(path))
         return path
 
-    def run_cli(self, args, feedback):
+    def run_cli(self, args, feedback, rewrite=None):
         """Run ``rayscan ARGS`` with the feedback's progress and cancellation; return stdout.
 
         A refusal (QgsProcessingException) names the algorithm's parameters where rayscan names
-        the options of FLAGS. (Not named ``run``: that is QgsProcessingAlgorithm.run, which
-        processing.run and the batch dialog call.)
+        the options of FLAGS, after ``rewrite`` (see runner.run_rayscan) has put the files the
+        plugin wrote for rayscan in the user's terms. (Not named ``run``: that is
+        QgsProcessingAlgorithm.run, which processing.run and the batch dialog call.)
         """
-        return runner.run_rayscan(args, feedback, labels=self.option_labels())
+        return runner.run_rayscan(args, feedback, labels=self.option_labels(), rewrite=rewrite)
 
     @staticmethod
     def check_extension(path, extensions, what):
@@ -183,14 +194,45 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
                 raise QgsProcessingException(self.invalidSinkError(parameters, sink_name))
             feedback.pushInfo(self.tr("Writing {} points to the vector layer").format(total))
             feature = QgsFeature(fields)
-            for i, row in enumerate(rows):
-                if i % 10000 == 0:
-                    if feedback.isCanceled():
-                        # A canceled run is an error, so Processing neither reports success nor
-                        # loads the part written so far.
-                        raise QgsProcessingException(self.tr("Canceled while writing {}").format(sink_name))
-                    feedback.setProgress(100.0 * i / total)
-                feature.setGeometry(QgsGeometry(QgsPoint(float(row[0]), float(row[1]), float(row[2]))))
-                feature.setAttributes([float(v) for v in row[3:]])
-                sink.addFeature(feature, QgsFeatureSink.FastInsert)
+            try:
+                for i, row in enumerate(rows):
+                    if i % 10000 == 0:
+                        if feedback.isCanceled():
+                            # A canceled run is an error, so Processing neither reports success nor
+                            # loads the part written so far.
+                            raise QgsProcessingException(self.tr("Canceled while writing {}").format(sink_name))
+                        feedback.setProgress(100.0 * i / total)
+                    feature.setGeometry(QgsGeometry(QgsPoint(float(row[0]), float(row[1]), float(row[2]))))
+                    feature.setAttributes([float(v) for v in row[3:]])
+                    sink.addFeature(feature, QgsFeatureSink.FastInsert)
+            except BaseException:
+                sink = None  # the last reference: the writer closes the file, which can then go
+                remove_partial_file(dest_id, feedback)
+                raise
         return dest_id
+
+
+def remove_partial_file(dest_id, feedback):
+    """Delete the vector file a sink was writing when its run stopped (cancel or error), so that no
+    half-written layer (a GeoPackage without its table and with its -journal) is left at the
+    user's path, as rayscan leaves no partial output file.
+
+    Only a destination that is a file of its own: a memory layer or a layer inside a database
+    ("|layername=") is left to Processing. GDAL's driver deletes the dataset with its sidecar
+    files (a shapefile's .dbf, .shx, .prj).
+    """
+    if not dest_id or "|" in dest_id or not os.path.isfile(dest_id):
+        return
+    try:
+        from osgeo import gdal
+        driver = gdal.IdentifyDriverEx(dest_id, gdal.OF_VECTOR)
+        if driver is not None:
+            driver.Delete(dest_id)
+    except (ImportError, RuntimeError):  # RuntimeError: GDAL's failure where gdal.UseExceptions() is on
+        pass
+    for path in (dest_id, dest_id + "-journal", dest_id + "-wal", dest_id + "-shm"):
+        if os.path.exists(path):
+            try:
+                os.remove(path)
+            except OSError as e:
+                feedback.pushWarning("Cannot remove the partial file {}: {}".format(path, e))

@@ -2,11 +2,13 @@
 
 import csv
 import math
+import re
 
-from qgis.core import (QgsCoordinateTransform, QgsFeatureRequest, QgsPointXY, QgsProcessing,
+from qgis.core import (QgsCoordinateTransform, QgsCsException, QgsFeatureRequest, QgsPointXY, QgsProcessing,
                        QgsProcessingException, QgsProcessingParameterBoolean,
-                       QgsProcessingParameterFeatureSource, QgsProcessingParameterField,
-                       QgsProcessingParameterNumber, QgsProcessingUtils, QgsWkbTypes)
+                       QgsProcessingParameterDefinition, QgsProcessingParameterFeatureSource,
+                       QgsProcessingParameterField, QgsProcessingParameterNumber, QgsProcessingUtils,
+                       QgsWkbTypes)
 
 from .. import runner
 
@@ -14,6 +16,9 @@ OBSERVERS = "OBSERVERS"
 HEIGHT = "HEIGHT"
 HEIGHT_FIELD = "HEIGHT_FIELD"
 USE_Z = "USE_Z"
+GROUND_RADIUS = "GROUND_RADIUS"
+#: The rayscan options the observer parameters set, for the algorithms' FLAGS.
+FLAGS = {OBSERVERS: "--observers", GROUND_RADIUS: "--ground-radius"}
 
 
 def add_observer_parameters(alg):
@@ -30,6 +35,45 @@ def add_observer_parameters(alg):
         USE_Z, alg.tr("The observers' Z is the absolute eye elevation, in the cloud's vertical units "
                       "(the heights are then unused)"),
         defaultValue=False))
+    # Empty leaves rayscan's own default (5 x the point radius, the ground right under the eye
+    # first with surfels), which a plugin default could only copy, not follow.
+    ground = QgsProcessingParameterNumber(
+        GROUND_RADIUS, alg.tr("Local ground search radius (cloud units; empty = 5 x the point radius)"),
+        QgsProcessingParameterNumber.Double, None, True, 1e-9)
+    ground.setFlags(ground.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+    alg.addParameter(ground)
+
+
+def observer_args(alg, parameters, context, observers):
+    """The observer options of the command line: ``--observers`` with the CSV of ``observers`` (an
+    ObserverFile) and ``--ground-radius`` when GROUND_RADIUS is given."""
+    args = alg.option(OBSERVERS, observers.path)
+    ground = alg.given_number(parameters, GROUND_RADIUS, context)
+    if ground is not None:
+        args += alg.option(GROUND_RADIUS, ground)
+    return args
+
+
+class ObserverFile:
+    """The observers as written for rayscan (write_observers): the CSV's ``path``, ``crs`` (the CRS
+    of the run's layers, runner.cloud_crs) and, to put rayscan's messages in the layer's terms,
+    the feature and part each CSV line came from."""
+
+    def __init__(self, path, crs, where, lines):
+        """``where``: the layer as messages name it; ``lines``: CSV line number -> (feature id, part)."""
+        self.path, self.crs, self.where, self.lines = path, crs, where, lines
+
+    def user_terms(self, line):
+        """Line ``line`` of rayscan's with "CSV: line N: observer 'NAME'" written as the layer and
+        feature of that line ("Observers (points) [OBSERVERS] 'far', feature 3"), and any other
+        mention of the CSV as the layer: the CSV is a temporary file the user never sees."""
+        def feature(m):
+            fid, part = self.lines.get(int(m.group(1)), (None, 0))
+            if fid is None:
+                return m.group(0)
+            return "{}, feature {}{}".format(self.where, fid, ", point {}".format(part + 1) if part else "")
+        line = re.sub(re.escape(self.path) + r": line (\d+): observer '[^']*'", feature, line)
+        return line.replace(self.path, self.where)
 
 
 def _same_place(transform, extent):
@@ -49,25 +93,44 @@ def _same_place(transform, extent):
     return True
 
 
+def _transform_error(where, fid, point, source, target):
+    """The error for feature ``fid`` of the observer layer whose ``point`` QGIS cannot take from CRS
+    ``source`` to ``target``: most often a layer whose CRS is not the one its coordinates are in."""
+    return QgsProcessingException(
+        "{}, feature {}: ({}, {}) cannot be transformed from {} to the cloud's CRS {}; are the layer's "
+        "coordinates in its CRS?".format(where, fid, repr(point.x()), repr(point.y()),
+                                         source.userFriendlyIdentifier(), target.userFriendlyIdentifier()))
+
+
 def write_observers(alg, parameters, context, feedback, cloud):
-    """Write the observers to a temporary CSV in the CRS of the point cloud file `cloud`; return
-    (path, the cloud's CRS).
+    """Write the observers to a temporary CSV in the CRS of the point cloud file `cloud`; return an
+    ObserverFile.
 
     The layer is reprojected to the cloud's CRS when both are known and differ, as rayscan reads
-    observer coordinates in the cloud's own coordinates; a layer without a CRS is taken to be in
-    the cloud's, with a warning naming the layer. Raises QgsProcessingException for a
-    missing layer, a layer without Z when USE_Z is set, or a layer without points.
+    observer coordinates in the cloud's own coordinates: to the CRS QGIS reads from rayscan's
+    rasters (runner.cloud_crs), so the observers sit on the run's outputs in any project CRS. A
+    layer whose coordinates are the cloud's own (its WKT, or the rasters' CRS) is not transformed.
+    A layer without a CRS is taken to be in the cloud's, with a warning naming the layer. Raises
+    QgsProcessingException for a missing layer, a HEIGHT_FIELD the layer lacks, a layer without Z
+    when USE_Z is set, a point QGIS cannot transform (naming the feature and both CRSs), or a
+    layer without points.
     """
     source = alg.parameterAsSource(parameters, OBSERVERS, context)
     if source is None:
         raise QgsProcessingException(alg.invalidSourceError(parameters, OBSERVERS))
+    where = "{} '{}'".format(alg.label(OBSERVERS), source.sourceName())
     height = alg.parameterAsDouble(parameters, HEIGHT, context)
     field = alg.parameterAsString(parameters, HEIGHT_FIELD, context)
     use_z = alg.parameterAsBool(parameters, USE_Z, context)
+    if field and source.fields().lookupField(field) < 0:
+        numeric = [f.name() for f in source.fields() if f.isNumeric()]
+        raise QgsProcessingException(alg.tr("{} '{}' is not a field of {}; {}").format(
+            alg.label(HEIGHT_FIELD), field, where,
+            "its numeric fields: " + ", ".join(numeric) if numeric else "it has no numeric field"))
     if use_z and not QgsWkbTypes.hasZ(source.wkbType()):
         raise QgsProcessingException(alg.tr("The observer layer has no Z values"))
 
-    target = runner.cloud_crs(cloud, feedback)
+    own, target = runner.cloud_crs(cloud, feedback)
     transform = None
     if target.isValid() and not source.sourceCrs().isValid():
         # As QGIS's own algorithms do (an unknown CRS matches any, a transform from it does
@@ -76,14 +139,16 @@ def write_observers(alg, parameters, context, feedback, cloud):
                                     "cloud's CRS {}").format(source.sourceName(), target.userFriendlyIdentifier()))
     elif target.isValid() and source.sourceCrs() != target:
         transform = QgsCoordinateTransform(source.sourceCrs(), target, context.transformContext())
-        if _same_place(transform, source.sourceExtent()):
+        extent = source.sourceExtent()
+        if (_same_place(QgsCoordinateTransform(source.sourceCrs(), own, context.transformContext()), extent)
+                or _same_place(transform, extent)):
             transform = None
         else:
             feedback.pushInfo(alg.tr("Observers reprojected from {} to the cloud's CRS {}").format(
                 source.sourceCrs().userFriendlyIdentifier(), target.userFriendlyIdentifier()))
 
     path = QgsProcessingUtils.generateTempFilename("observers.csv")
-    count = 0
+    lines = {}
     with open(path, "w", newline="", encoding="utf-8") as f:
         out = csv.writer(f)
         # rayscan takes either an absolute eye (z) or a height above the local ground, never both.
@@ -96,7 +161,11 @@ def write_observers(alg, parameters, context, feedback, cloud):
                 feedback.pushWarning(alg.tr("Observer {} has no geometry: skipped").format(feature.id()))
                 continue
             if transform is not None:
-                geometry.transform(transform)
+                try:
+                    geometry.transform(transform)
+                except QgsCsException:
+                    raise _transform_error(where, feature.id(), feature.geometry().vertexAt(0),
+                                           source.sourceCrs(), target) from None
             h = height
             if field:
                 value = feature[field]
@@ -111,12 +180,15 @@ def write_observers(alg, parameters, context, feedback, cloud):
                             "cloud units)").format(field, feature.id(), value))
             for part, vertex in enumerate(geometry.vertices()):
                 if not (math.isfinite(vertex.x()) and math.isfinite(vertex.y())):
+                    if transform is not None:  # PROJ's HUGE_VAL for a point outside its domain
+                        raise _transform_error(where, feature.id(), feature.geometry().vertexAt(part),
+                                               source.sourceCrs(), target)
                     continue
                 name = str(feature.id()) if part == 0 else "{}.{}".format(feature.id(), part)
                 row = [repr(vertex.x()), repr(vertex.y()), repr(vertex.z() if use_z else h), name]
                 out.writerow(row)
-                count += 1
-    if count == 0:
+                lines[len(lines) + 2] = (feature.id(), part)  # line 1 is the header
+    if not lines:
         raise QgsProcessingException(alg.tr("The observer layer has no points"))
-    feedback.pushInfo(alg.tr("{} observers").format(count))
-    return path, target
+    feedback.pushInfo(alg.tr("{} observers").format(len(lines)))
+    return ObserverFile(path, target, where, lines)

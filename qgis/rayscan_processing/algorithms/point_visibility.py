@@ -22,7 +22,7 @@ class PointVisibility(RayscanAlgorithm):
             "(fine for thousands to a few million points).")
     OUTPUT = "OUTPUT"
     POINTS_LAYER = "POINTS_LAYER"
-    FLAGS = {observers.OBSERVERS: "--observers", "OUTPUT": "-o,--out", "PRIMITIVE": "--primitive",
+    FLAGS = {**observers.FLAGS, "OUTPUT": "-o,--out", "PRIMITIVE": "--primitive",
              "DISTANCE": "--distance", "MAX_DISTANCE": "--max-distance"}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS's name)
@@ -48,18 +48,21 @@ class PointVisibility(RayscanAlgorithm):
         cloud = self.cloud(parameters, context)
         out = self.parameterAsFileOutput(parameters, self.OUTPUT, context)
         self.check_extension(out, (".las", ".laz", ".ply", ".pcd", ".csv", ".xyz"), "The output cloud")
-        csv_path, crs = observers.write_observers(self, parameters, context, feedback, cloud)
-        args = (["visibility", cloud] + self.option(observers.OBSERVERS, csv_path) + self.option("OUTPUT", out)
+        observer_file = observers.write_observers(self, parameters, context, feedback, cloud)
+        args = (["visibility", cloud] + observers.observer_args(self, parameters, context, observer_file)
+                + self.option("OUTPUT", out)
                 + self.option("PRIMITIVE", PRIMITIVES[self.parameterAsEnum(parameters, "PRIMITIVE", context)]))
         if self.parameterAsBool(parameters, "DISTANCE", context):
             args.append(self.flag("DISTANCE"))
         max_distance = self.parameterAsDouble(parameters, "MAX_DISTANCE", context)
         if max_distance > 0:
             args += self.option("MAX_DISTANCE", max_distance)
-        self.run_cli(args, feedback)
+        self.run_cli(args, feedback, rewrite=observer_file.user_terms)
         results = {self.OUTPUT: out}
         self.load_cloud_on_completion(out, self.tr("Per-point visibility"), self.OUTPUT, context, feedback)
         if parameters.get(self.POINTS_LAYER) is not None:
-            results[self.POINTS_LAYER] = self.cloud_to_sink(out, parameters, self.POINTS_LAYER, crs,
+            # The observers' CRS (the one QGIS reads from rayscan's rasters), so the layer lies
+            # exactly on a viewshed of the same cloud in any project CRS.
+            results[self.POINTS_LAYER] = self.cloud_to_sink(out, parameters, self.POINTS_LAYER, observer_file.crs,
                                                             context, feedback)
         return results

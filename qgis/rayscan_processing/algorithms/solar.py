@@ -82,22 +82,26 @@ class Solar(RayscanAlgorithm):
         if self.parameterAsEnum(parameters, "MODE", context) == 0:
             start = self.parameterAsString(parameters, "START", context).strip()
             end = self.parameterAsString(parameters, "END", context).strip()
-            if not start or not end:
-                raise QgsProcessingException(self.tr("A period needs a start and an end"))
+            missing = [name for name, value in (("START", start), ("END", end)) if not value]
+            if missing:
+                raise QgsProcessingException(self.tr("{} '{}' needs {} and {}; {} empty").format(
+                    self.label("MODE"), _MODES[0], self.label("START"), self.label("END"),
+                    " and ".join(missing) + (" are" if len(missing) > 1 else " is")))
             args += (self.option("START", start) + self.option("END", end)
                      + self.option("STEP", self.parameterAsString(parameters, "STEP", context).strip() or "1h"))
         else:
             at = self.parameterAsString(parameters, "AT", context).strip()
             if not at:
-                raise QgsProcessingException(self.tr("An instant needs a time (AT)"))
+                raise QgsProcessingException(self.tr("{} '{}' needs {}; AT is empty").format(
+                    self.label("MODE"), _MODES[1], self.label("AT")))
             args += self.option("AT", at)
         value = self.parameterAsEnum(parameters, "VALUE", context)
         if value > 0:
             args += self.option("VALUE", _VALUES[value - 1])
         for name in ("LATITUDE", "LONGITUDE"):
-            given = parameters.get(name)
-            if given is not None and str(given) not in ("", "NULL"):
-                args += self.option(name, self.parameterAsDouble(parameters, name, context))
+            given = self.given_number(parameters, name, context)
+            if given is not None:
+                args += self.option(name, given)
         points = self.parameterAsFileOutput(parameters, self.POINTS, context)
         if points:
             args += self.option("POINTS", points)

@@ -25,7 +25,7 @@ class Viewshed(RayscanAlgorithm):
             "cloud's CRS; heights and cell size are in the cloud's units (autzen: international feet). "
             "The raster carries the cloud's CRS.")
     OUTPUT = "OUTPUT"
-    FLAGS = {observers.OBSERVERS: "--observers", "OUTPUT": "--raster", "CELL": "--cell", "VALUE": "--raster-value",
+    FLAGS = {**observers.FLAGS, "OUTPUT": "--raster", "CELL": "--cell", "VALUE": "--raster-value",
              "MAX_DISTANCE": "--max-distance"}
 
     def initAlgorithm(self, config=None):  # noqa: N802 (QGIS's name)
@@ -47,12 +47,13 @@ class Viewshed(RayscanAlgorithm):
         cloud = self.cloud(parameters, context)
         out = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
         self.check_extension(out, (".tif", ".tiff"), "The viewshed")
-        csv_path, _ = observers.write_observers(self, parameters, context, feedback, cloud)
-        args = (["visibility", cloud] + self.option(observers.OBSERVERS, csv_path) + self.option("OUTPUT", out)
+        observer_file = observers.write_observers(self, parameters, context, feedback, cloud)
+        args = (["visibility", cloud] + observers.observer_args(self, parameters, context, observer_file)
+                + self.option("OUTPUT", out)
                 + ["--no-preview"] + self.option("CELL", self.parameterAsDouble(parameters, "CELL", context))
                 + self.option("VALUE", _VALUES[self.parameterAsEnum(parameters, "VALUE", context)]))
         max_distance = self.parameterAsDouble(parameters, "MAX_DISTANCE", context)
         if max_distance > 0:
             args += self.option("MAX_DISTANCE", max_distance)
-        self.run_cli(args, feedback)
+        self.run_cli(args, feedback, rewrite=observer_file.user_terms)
         return {self.OUTPUT: out}
