@@ -4,12 +4,19 @@
 #include "rayscan/image/color_ramp.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/analysis/geotiff.hpp"
+#include "rayscan/base/threads.hpp"
+#include "rayscan/octree/ray_query.hpp"
+#include "site_dispatch.hpp"
 
 #include <cpl_error.h>
 #include <cpl_string.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
+#include <atomic>
 #include <cctype>
 #include <cmath>
 #include <mutex>
@@ -49,11 +56,57 @@ OrthoMap ortho_map(const AABB& bounds, double res) {
   if (g.cols > 65536 || g.rows > 65536)
     throw std::invalid_argument("ortho map: " + std::to_string(g.cols) + " x " + std::to_string(g.rows) +
                                 " pixels; at most 65536 per side (use a larger resolution)");
-  const double z_top = bounds.hi.z + 0.01 * bounds.max_extent() + res;
+  const double margin = 0.01 * bounds.max_extent() + res;
+  const double z_top = bounds.hi.z + margin;
   const Vec3 o00(g.x0 + 0.5 * g.cell, g.y_top - 0.5 * g.cell, z_top);
   return {g, Camera::orthographic_grid(o00, Vec3(g.cell, 0, 0), Vec3(0, -g.cell, 0), Vec3(0, 0, -1),
                                                g.cols, g.rows),
-          z_top};
+          z_top, bounds.lo.z - margin};
+}
+
+DsmBounding bound_dsm(const Site& site, const OrthoMap& map, double reach, Raster& dsm, unsigned threads) {
+  const GridSpec& g = map.grid;
+  if (dsm.values.size() != std::size_t(g.cols) * g.rows || dsm.grid.cols != g.cols || dsm.grid.rows != g.rows)
+    throw std::invalid_argument("dsm: raster size differs from the grid");
+  if (!(reach > 0.0) || !std::isfinite(reach))
+    throw std::invalid_argument("dsm: the reach of the points must be a finite number > 0");
+  RayQuery q;
+  q.k = 1;
+  q.radius = reach;
+  q.order = RayOrder::time;  // along a vertical ray: the highest (down) or the lowest (up) point within reach
+  q.validate();
+  std::atomic<std::size_t> lowered{0}, raised{0};
+  detail::over_site<int>(site, [&](const auto& index) {
+    tbb::task_arena arena(static_cast<int>(resolve_threads(threads)));
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<std::uint32_t>(0, g.rows), [&](const auto& rows) {
+        [[maybe_unused]] const auto scope = detail::chunk_scope(index);  // positions()[slot] valid within it
+        std::size_t down = 0, up = 0;
+        for (std::uint32_t row = rows.begin(); row != rows.end(); ++row)
+          for (std::uint32_t col = 0; col < g.cols; ++col) {
+            float& z = dsm.values[std::size_t(row) * g.cols + col];
+            if (std::isnan(z)) continue;
+            // The cell centre where the map's camera places its ray (ortho_map).
+            const double x = g.x0 + 0.5 * g.cell + col * g.cell, y = g.y_top - 0.5 * g.cell - row * g.cell;
+            const auto hi = ray_first_hit(index, Ray(Vec3(x, y, map.z_top), Vec3(0.0, 0.0, -1.0)), q);
+            const auto lo = ray_first_hit(index, Ray(Vec3(x, y, map.z_bottom), Vec3(0.0, 0.0, 1.0)), q);
+            if (!hi || !lo) continue;  // (a surface was hit, so its point lies within reach)
+            const float z_max = float(index.positions()[hi->slot].z), z_min = float(index.positions()[lo->slot].z);
+            if (z > z_max) {
+              z = z_max;
+              ++down;
+            } else if (z < z_min) {
+              z = z_min;
+              ++up;
+            }
+          }
+        lowered += down;
+        raised += up;
+      });
+    });
+    return 0;
+  });
+  return {lowered.load(), raised.load()};
 }
 
 Raster dsm_from_depth(const OrthoMap& map, std::span<const float> depth) {
@@ -131,7 +184,7 @@ std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, OrthoCol
                                                    std::span<const float> depth, double exposure,
                                                    const std::string& crs_wkt,
                                                    const std::filesystem::path& image,
-                                                   const std::filesystem::path& dsm,
+                                                   const std::filesystem::path& dsm, const Raster& elevation,
                                                    const std::vector<std::pair<std::string, std::string>>& metadata) {
   std::vector<std::filesystem::path> written;
   const std::vector<std::pair<std::string, std::string>> items = gdal_metadata_items(metadata);
@@ -145,7 +198,9 @@ std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, OrthoCol
     go.crs_wkt = crs_wkt;
     go.metadata = items;
     go.unit_is_crs_length = true;  // elevations, in the cloud's units
-    write_geotiff(dsm, dsm_from_depth(map, depth), go);
+    if (elevation.values.size() != depth.size())
+      throw std::invalid_argument(dsm.string() + ": DSM size differs from the grid");
+    write_geotiff(dsm, elevation, go);
     written.push_back(dsm);
   }
   return written;

@@ -454,6 +454,8 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   std::snprintf(buf, sizeof buf, "first tile traced %.2f s after the start (%.2f s to set up, %.2f s of tracing)",
                 r.first_tile_seconds, prepared, r.stats.first_tile_seconds);
   ctl.info(buf);
+  if (o.after_trace && is_root(ctl))  // the points' reach: no farther from its point is a sphere or disc hit
+    o.after_trace(*P->site, scene.primitive == Primitive::surfel ? P->surfels.max_radius : r.radius.radius, r.image);
   // A camera from camera_for_cloud (a map's grid) is not the scene's camera file's.
   r.metadata = render_metadata(o, scene, r, &*scene.camera,
                                o.camera_for_cloud ? std::filesystem::path() : scene.camera_file);
@@ -522,20 +524,35 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
                      (albedo ? " (mean of " + std::to_string(albedo_samples) + " rays per cell)" : std::string()));
     return r.map->camera;
   };
+  // The DSM: the first surface down the cell-centre ray, within the heights of the points that can
+  // reach the cell. A disc tilted at a roof or tree edge rises above its point by up to its radius
+  // (a sphere's cap by its radius), which the viewshed and the solar maps would take for a wall
+  // or a crown above any scanned point.
+  job.after_trace = [&](const Site& site, double reach, const Framebuffer& image) {
+    const auto t0 = std::chrono::steady_clock::now();
+    r.dsm = analysis::dsm_from_depth(*r.map, image.depth);
+    r.dsm_reach = reach;
+    r.dsm_bounding = analysis::bound_dsm(site, *r.map, reach, r.dsm, job.control.threads);
+    char buf[256];
+    std::snprintf(buf, sizeof buf,
+                  "dsm: %zu cells lowered to the highest and %zu raised to the lowest point within %.6g of the "
+                  "cell centre (%.2f s)",
+                  r.dsm_bounding.lowered, r.dsm_bounding.raised, reach, seconds_since(t0));
+    job.control.info(buf);
+  };
   r.render = run_render(job);
   job.control.check_cancel();  // set after the last tile: the map is not written either
   if (!is_root(job.control)) return r;  // only the root's image is complete
   if (albedo)  // the map's samples per cell are the albedo's, not the unused beauty's
     for (auto& [key, value] : r.render.metadata)
       if (key == "rayscan:spp") value = std::to_string(albedo_samples);
-  r.dsm = analysis::dsm_from_depth(*r.map, r.render.image.depth);
   if (o.render.write)  // the files copy the cloud's CRS: `rayscan info`'s doubts about it too
     for (const std::string& w : crs_warnings(r.render.crs_wkt, cloud_bounds))
       job.control.info("warning: " + w + (o.dsm.empty() ? "; the GeoTIFF carries" : "; the GeoTIFFs carry") +
                        " it as it is");
   if (o.render.write)
     r.render.written = analysis::write_ortho_map(*r.map, o.ortho_colour, r.colour(), r.render.image.depth,
-                                                 job.scene.output.exposure, r.render.crs_wkt, image, o.dsm,
+                                                 job.scene.output.exposure, r.render.crs_wkt, image, o.dsm, r.dsm,
                                                  r.render.metadata);
   return r;
 }

@@ -11,6 +11,7 @@
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cmath>
@@ -351,9 +352,11 @@ TEST(RenderJob, ACancelledJobThrowsAndWritesNothing) {
 // GDAL, lie on the footprint worked out by hand from grid_over's snapping rule (x0 = floor(x_min /
 // c) c, y_top = (floor(y_max / c) + 1) c, one cell per started multiple of c) for a plane z = 5
 // over x in [0.3, 19.8], y in [-3.7, 6.05] at c = 0.75: 27 x 14 cells from (0, 6.75). The DSM file
-// holds the result's elevations (NoData where the ray missed), which are the plane's height (up to
-// one sphere radius above it) inside the cloud, and the orthophoto's alpha is 255 exactly where
-// the DSM has a surface. A non-GeoTIFF name is refused naming the fields, before any work.
+// holds the result's elevations (NoData where the ray missed), which are the plane's height
+// exactly inside the cloud (the spheres' caps reach up to one radius above it, but no cell rises
+// above the points within a radius of its centre, all at z = 5), and the orthophoto's alpha is
+// 255 exactly where the DSM has a surface. A non-GeoTIFF name is refused naming the fields,
+// before any work.
 TEST(RenderJob, OrthoMapJobWritesGeoTiffsOnTheCloudsFootprint) {
   const fs::path dir = fs::temp_directory_path() / ("rayscan_render_ortho_job_" + std::to_string(::getpid()));
   fs::remove_all(dir);
@@ -413,11 +416,16 @@ TEST(RenderJob, OrthoMapJobWritesGeoTiffsOnTheCloudsFootprint) {
       const double x = 0.375 + 0.75 * col, y = 6.375 - 0.75 * row;  // the cell's centre
       if (x > 0.5 && x < 19.6 && y > -3.5 && y < 5.85) {
         ++inside;
-        EXPECT_GE(v, 5.0 - 1e-4);
-        EXPECT_LE(v, 5.0 + r.render.radius.radius + 1e-4);
+        EXPECT_EQ(v, 5.0f);
       }
     }
   EXPECT_EQ(inside, std::size_t(25 * 13));  // columns 1..25, rows 1..13
+  EXPECT_EQ(r.dsm_reach, r.render.radius.radius);
+  // Every cell's ray passes between the points (0.075 off a point column and row), so each hit a
+  // cap above z = 5 and was lowered.
+  EXPECT_EQ(r.dsm_bounding.lowered, std::size_t(std::count_if(r.dsm.values.begin(), r.dsm.values.end(),
+                                                               [](float v) { return !std::isnan(v); })));
+  EXPECT_EQ(r.dsm_bounding.raised, 0u);
 
   OrthoMapJobOptions png = o;
   png.render.scene.output.image = dir / "o.png";
@@ -426,6 +434,91 @@ TEST(RenderJob, OrthoMapJobWritesGeoTiffsOnTheCloudsFootprint) {
             "ortho_map: out '" + (dir / "o.png").string() + "': expected a file name ending in .tif or .tiff (GeoTIFF)");
   EXPECT_FALSE(fs::exists(dir / "o.png") || fs::exists(dir / "d2.tif"));
   fs::remove_all(dir);
+}
+
+// A tilted disc above a level one: two points at z = 0, A = (0.5, 0.5) with its normal tilted 30
+// degrees from vertical towards -x, B = (2.5, 0.5) level, discs of radius 0.6 x 2 = 1.2 (k_radius
+// 1). Mapped at c = 1 (3 x 1 cells from x = 0; rays from z_top = 1.02), the ray through cell 1's
+// centre (1.5, 0.5) meets A's plane 1 from A at z = tan 30 = 0.577 (in-plane distance 1 / cos 30
+// = 1.155 < 1.2: a hit) before B's level disc at z = 0, as the render through the map's camera
+// shows: above both points. The DSM holds 0 there, the highest point within the reach 1.2 of that
+// centre (A and B, 1 away), and 0 over A and B.
+TEST(RenderJob, OrthoMapDsmStaysWithinThePointsUnderATiltedDisc) {
+  PointCloud pc;
+  pc.positions = {Vec3(0.5, 0.5, 0.0), Vec3(2.5, 0.5, 0.0)};
+  pc.normals = {glm::vec3(-0.5f, 0.0f, float(std::sqrt(3.0) / 2.0)), glm::vec3(0.0f, 0.0f, 1.0f)};
+  OrthoMapJobOptions o;
+  o.render.scene.material.mode = ColorMode::elevation;
+  o.render.scene.primitive = Primitive::surfel;
+  o.render.scene.surfel.k_radius = 1;
+  o.render.scene.spp = 1;
+  o.render.cloud = &pc;
+  o.render.write = false;
+  o.render.control.threads = 1;
+  o.ortho_map = 1.0;
+  const OrthoMapJobResult r = run_ortho_map(o);
+  ASSERT_TRUE(r.map);
+  ASSERT_EQ(r.map->grid.cols, 3u);
+  ASSERT_EQ(r.map->grid.rows, 1u);
+  EXPECT_NEAR(r.dsm_reach, 1.2, 1e-6);  // (radii are floats)
+
+  // The unbounded surface: the same scene rendered through the map's camera.
+  RenderJobOptions raw = o.render;
+  raw.scene.camera = r.map->camera;
+  raw.scene.up = Vec3(0.0, 0.0, 1.0);
+  raw.scene.output.aovs = {Aov::depth};
+  const analysis::Raster surface = analysis::dsm_from_depth(*r.map, run_render(raw).image.depth);
+  EXPECT_NEAR(surface.values[1], 1.0 / std::sqrt(3.0), 1e-4);  // tan 30 degrees
+
+  ASSERT_EQ(r.dsm.values.size(), 3u);
+  EXPECT_EQ(r.dsm.values, (std::vector<float>{0.0f, 0.0f, 0.0f}));
+  EXPECT_GE(r.dsm_bounding.lowered, 1u);
+}
+
+// The DSM of a real scan (tests/data/las/autzen_trim.las, 110,000 points of roofs, trees and
+// ground, surfels as a quick look has them, 3 ft cells) against a brute-force oracle over its
+// points: every cell with a surface lies between the lowest and the highest point within the
+// reach (the largest disc radius) of its centre, and so within the cloud's z range; cells there
+// were lowered (the steep discs of roof and tree edges) and raised.
+TEST(RenderJob, OrthoMapDsmOfAutzenIsBoundedByItsPoints) {
+  const PointCloud pc = io::read_point_cloud(fs::path(RAYSCAN_TEST_DATA) / "las" / "autzen_trim.las", {});
+  OrthoMapJobOptions o;
+  o.render.scene.primitive = Primitive::surfel;
+  o.render.scene.spp = 1;
+  o.render.cloud = &pc;
+  o.render.write = false;
+  o.render.control.threads = 2;
+  o.ortho_map = 3.0;
+  const OrthoMapJobResult r = run_ortho_map(o);
+  ASSERT_TRUE(r.map);
+  const analysis::GridSpec& g = r.map->grid;
+  const double reach = r.dsm_reach;
+  ASSERT_GT(reach, 1.0);
+  // The points by x, so that each cell tests only those within reach of its centre in x.
+  std::vector<Vec3> by_x(pc.positions.begin(), pc.positions.end());
+  std::sort(by_x.begin(), by_x.end(), [](const Vec3& a, const Vec3& b) { return a.x < b.x; });
+  const double z_lo = std::min_element(by_x.begin(), by_x.end(), [](auto& a, auto& b) { return a.z < b.z; })->z;
+  const double z_hi = std::max_element(by_x.begin(), by_x.end(), [](auto& a, auto& b) { return a.z < b.z; })->z;
+  std::size_t cells = 0, bad = 0;
+  for (std::uint32_t row = 0; row < g.rows; ++row)
+    for (std::uint32_t col = 0; col < g.cols; ++col) {
+      const float v = r.dsm.values[std::size_t(row) * g.cols + col];
+      if (std::isnan(v)) continue;
+      ++cells;
+      const double x = g.x0 + (col + 0.5) * g.cell, y = g.y_top - (row + 0.5) * g.cell;
+      double lo = kInf, hi = -kInf;
+      auto it = std::lower_bound(by_x.begin(), by_x.end(), x - reach - 1e-6,
+                                 [](const Vec3& p, double v) { return p.x < v; });
+      for (; it != by_x.end() && it->x <= x + reach + 1e-6; ++it)
+        if (std::hypot(it->x - x, it->y - y) <= reach * (1 + 1e-9)) lo = std::min(lo, it->z), hi = std::max(hi, it->z);
+      const bool ok = v <= float(hi) && v >= float(lo) && v <= float(z_hi) && v >= float(z_lo);
+      if (!ok && ++bad <= 5)
+        ADD_FAILURE() << "cell " << col << ", " << row << ": " << v << " outside [" << lo << ", " << hi << "]";
+    }
+  EXPECT_EQ(bad, 0u);
+  EXPECT_GT(cells, 50000u);
+  EXPECT_GT(r.dsm_bounding.lowered, 100u);
+  EXPECT_GT(r.dsm_bounding.raised, 100u);
 }
 
 // An orthophoto cell's colour is the mean over the cell, not the colour under its centre. A flat

@@ -6,6 +6,7 @@
 
 #include "rayscan/analysis/raster.hpp"
 #include "rayscan/camera/camera.hpp"
+#include "rayscan/site/site.hpp"
 
 #include <glm/vec3.hpp>
 
@@ -24,10 +25,12 @@ struct OrthoMap {
   GridSpec grid;         ///< north-up cells (grid_over(bounds, res))
   Camera camera;         ///< orthographic, pointing to -z: a pixel per cell (its spp samples jittered within the cell)
   double z_top = 0.0;    ///< height of the ray origins (above the cloud), world units
+  double z_bottom = 0.0; ///< a height below the cloud (as far below as z_top is above), world units
 };
 
 /// The map of `bounds`' XY extent at `res` world units per pixel: pixel (col, row) shoots a ray
-/// down (-z) through the centre of cell (col, row) from 1% of the extent above bounds.hi.z.
+/// down (-z) through the centre of cell (col, row) from 1% of the extent above bounds.hi.z
+/// (z_bottom: as far below bounds.lo.z).
 /// Throws std::invalid_argument as grid_over() (bad res, empty box, too many cells) or for a grid
 /// wider or taller than 65536 pixels.
 OrthoMap ortho_map(const AABB& bounds, double res);
@@ -57,6 +60,25 @@ std::optional<OrthoColour> parse_ortho_colour(std::string_view name);
 /// Throws std::invalid_argument when its size differs from the grid.
 Raster dsm_from_depth(const OrthoMap& map, std::span<const float> depth);
 
+/// Cells bound_dsm changed.
+struct DsmBounding {
+  std::size_t lowered = 0;  ///< cells above the highest point within reach, set to its height
+  std::size_t raised = 0;   ///< cells below the lowest point within reach, set to its height
+};
+
+/// Bounds the surface a render through map.camera found (`dsm`: dsm_from_depth of its depth AOV,
+/// changed in place) by the heights of the points that can reach each cell: the primitives
+/// (spheres, or discs at any tilt) interpolate between the points, but a steep disc or a sphere's
+/// cap also reaches above and below them. Cell (col, row)'s elevation is clamped into
+/// [float(z_min), float(z_max)], the lowest and highest point of `site` within `reach` (world
+/// units: the sphere radius, or the largest disc radius; no farther from its point is a
+/// primitive hit) of the vertical line through the cell centre: PDAL's writers.gdal min and max
+/// with radius = reach over the same points. Two ray queries per cell (order time, k = 1: the
+/// first point down from z_top, the first up from z_bottom, within `reach` of the line); NaN cells
+/// stay NaN. `threads` as JobControl::threads (0 = all cores). Throws std::invalid_argument when
+/// the raster's size differs from the grid or `reach` is not finite and > 0.
+DsmBounding bound_dsm(const Site& site, const OrthoMap& map, double reach, Raster& dsm, unsigned threads);
+
 /// Writes the orthophoto `colour` (linear RGB per cell: the albedo AOV or the beauty image) as a
 /// 4-band Byte GeoTIFF: RGB (sRGB-encoded after 2^exposure, photometric RGB; an 8-bit sRGB colour
 /// converted to linear by the renderer comes back as itself) plus an alpha band (TIFF
@@ -74,17 +96,17 @@ void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
 /// The outputs of `rayscan render --ortho-map RES --out ortho.tif [--dsm dsm.tif]` from a render
 /// through map.camera: the orthophoto of `colour` (write_ortho_geotiff, alpha from `depth`, with
 /// the item RAYSCAN_ORTHO_COLOUR = to_string(kind)) at `image` and, when `dsm` is not empty, the
-/// DSM (dsm_from_depth, Float32 GeoTIFF) at `dsm`, both with the CRS `crs_wkt` and the render's
-/// image `metadata` as GDAL items ("rayscan:spp" -> "RAYSCAN_SPP"). `depth` is the depth AOV
+/// DSM `elevation` (dsm_from_depth, bound_dsm; Float32 GeoTIFF) at `dsm`, both with the CRS
+/// `crs_wkt` and the render's image `metadata` as GDAL items ("rayscan:spp" -> "RAYSCAN_SPP"). `depth` is the depth AOV
 /// (required); `exposure` applies to the shaded colour only (an albedo is written as it is).
-/// Returns the files written, orthophoto first. Throws as write_ortho_geotiff, dsm_from_depth and
-/// write_geotiff.
+/// Returns the files written, orthophoto first. Throws as write_ortho_geotiff and write_geotiff,
+/// std::invalid_argument when `elevation` differs in size from `depth`.
 std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, OrthoColour kind,
                                                    std::span<const glm::vec3> colour,
                                                    std::span<const float> depth, double exposure,
                                                    const std::string& crs_wkt,
                                                    const std::filesystem::path& image,
-                                                   const std::filesystem::path& dsm,
+                                                   const std::filesystem::path& dsm, const Raster& elevation,
                                                    const std::vector<std::pair<std::string, std::string>>& metadata);
 
 /// Whether `path` names a GeoTIFF by its extension (.tif, .tiff, any case), as --ortho-map needs.

@@ -6,6 +6,7 @@
 
 #include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/site/copc.hpp"
+#include "rayscan/site/site.hpp"
 #include "rayscan/base/job.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/octree/point_cloud.hpp"
@@ -54,6 +55,12 @@ struct RenderJobOptions {
   /// Rays per pixel of the albedo AOV (render::RenderSettings::albedo_samples: 1 = the ray through
   /// the pixel centre, n > 1 = the mean over n stratified rays); run_ortho_map sets it.
   std::uint32_t albedo_samples = 1;
+  /// When set, called once the image is traced, before it is written (on the root only of a
+  /// distributed render), with the site it was traced over, the reach of the points' primitives
+  /// (world units: the sphere radius, or for surfels the largest disc radius; no farther from its
+  /// point is a primitive hit) and the traced image: run_ortho_map makes its DSM there, bounded
+  /// by the points (analysis::bound_dsm). Exceptions it throws propagate.
+  std::function<void(const Site& site, double reach, const Framebuffer& image)> after_trace;
 };
 
 /// Output of run_render().
@@ -131,8 +138,13 @@ struct OrthoMapJobResult {
   /// The grid over the cloud's exact bounds and its camera: set whenever run_ortho_map returns
   /// (optional only because a Camera has no empty state).
   std::optional<analysis::OrthoMap> map;
-  analysis::Raster dsm;        ///< elevation per cell (analysis::dsm_from_depth; NaN = no surface);
-                               ///< empty on the non-root processes of a distributed render
+  analysis::Raster dsm;        ///< elevation per cell (analysis::dsm_from_depth; NaN = no surface)
+                               ///< within the heights of the points in reach of the cell centre
+                               ///< (analysis::bound_dsm); empty on the non-root processes
+                               ///< of a distributed render
+  double dsm_reach = 0.0;      ///< the reach bound_dsm used, world units (the sphere radius
+                               ///< or the largest disc radius); 0 on the non-root processes
+  analysis::DsmBounding dsm_bounding;  ///< the cells bound_dsm lowered and raised
   analysis::OrthoColour ortho_colour = analysis::OrthoColour::albedo;  ///< options.ortho_colour
 
   /// The orthophoto's colour per cell, linear RGB, row-major from the north-west cell: the albedo
@@ -149,7 +161,9 @@ struct OrthoMapJobResult {
 /// analysis::ortho_map(bounds, ortho_map) over the cloud's exact bounds (logged as "ortho map: C x
 /// R cells, top-down, colour albedo") and the scene's up set to +z, the axis that camera looks
 /// down (the sky gradient and the elevation ramp along it, whatever up the scene or a quick look
-/// of a cloud without a CRS gives), the DSM from the depth AOV, the colour from the albedo AOV
+/// of a cloud without a CRS gives), the DSM from the depth AOV of the cell-centre ray bounded by
+/// the heights of the points within reach of the cell centre (analysis::bound_dsm, logged
+/// as "dsm: N cells lowered ..."), the colour from the albedo AOV
 /// or the beauty (ortho_colour) and, when render.write, the files (analysis::write_ortho_map: the
 /// RGBA orthophoto at scene.output.image, the Float32 DSM at `dsm` when set, both with the cloud's
 /// CRS and the render's metadata), written on the root only; crs_warnings about that CRS are
