@@ -2,6 +2,7 @@
 #include "rayscan/sql/import.hpp"
 
 #include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/sql/site_stream.hpp"
 
 #include <sqlite3.h>
@@ -20,11 +21,20 @@ struct Db {
   sqlite3* db = nullptr;
   std::string name;
   ~Db() { sqlite3_close(db); }
+  /// Throws std::runtime_error "<file>: sqlite: <what>: <sqlite3_errmsg>", one line: `what` names
+  /// the step ("create table points", "insert into chunks"), never the SQL text, as the
+  /// PostgreSQL import names its steps.
   [[noreturn]] void fail(const std::string& what) const {
-    throw std::runtime_error(name + ": sqlite: " + what + ": " + (db ? sqlite3_errmsg(db) : "out of memory"));
+    throw std::runtime_error(one_line(name) + ": sqlite: " + what + ": " +
+                             one_line(db ? sqlite3_errmsg(db) : "out of memory"));
   }
-  void exec(const std::string& sql) {
-    if (sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr) != SQLITE_OK) fail(sql.substr(0, 40));
+  /// Runs `sql` (one or more statements); throws (fail(what)) on an error.
+  void exec(const std::string& sql, const std::string& what) {
+    if (sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr) != SQLITE_OK) fail(what);
+  }
+  /// Prepares `sql` into `s`; throws (fail("prepare " + what)) on an error.
+  void prepare(const std::string& sql, sqlite3_stmt** s, const std::string& what) {
+    if (sqlite3_prepare_v2(db, sql.c_str(), -1, s, nullptr) != SQLITE_OK) fail("prepare " + what);
   }
 };
 
@@ -53,17 +63,19 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
     // One thread uses the connection: no per-call mutex (7% of an import's time in a profile).
     if (sqlite3_open_v2(file.temp().c_str(), &db.db,
                         SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX, nullptr) != SQLITE_OK)
-      db.fail("cannot create");
+      db.fail("create the database");
     // The temporary file is renamed into place only when complete: no journal needed. The page
     // cache (also the in-memory budget of CREATE INDEX's external sorter) gets a quarter of the
     // memory budget, at most 1 GiB, instead of SQLite's default 2 MB.
     const std::uint64_t cache_kib = std::min<std::uint64_t>(opt.memory_bytes / 4, std::uint64_t{1} << 30) >> 10;
     db.exec("PRAGMA journal_mode=OFF; PRAGMA synchronous=OFF; PRAGMA page_size=8192; PRAGMA cache_size=-" +
-            std::to_string(cache_kib) + ";");
-    db.exec("BEGIN");
-    db.exec("CREATE TABLE rayscan_meta(key TEXT PRIMARY KEY, value TEXT) WITHOUT ROWID");
+                std::to_string(cache_kib) + ";",
+            "set journal, page size and cache");
+    db.exec("BEGIN", "begin");
+    db.exec("CREATE TABLE rayscan_meta(key TEXT PRIMARY KEY, value TEXT) WITHOUT ROWID", "create table rayscan_meta");
     db.exec("CREATE TABLE sources(source INTEGER PRIMARY KEY, path TEXT NOT NULL, "
-            "point_count INTEGER NOT NULL, crs_wkt TEXT)");
+            "point_count INTEGER NOT NULL, crs_wkt TEXT)",
+            "create table sources");
     std::string create = "CREATE TABLE points(point_index INTEGER NOT NULL, source INTEGER NOT NULL, "
                          "chunk INTEGER NOT NULL, x REAL NOT NULL, y REAL NOT NULL, z REAL NOT NULL";
     std::string insert = "INSERT INTO points(rowid, point_index, source, chunk, x, y, z";
@@ -73,21 +85,22 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
       insert += ", \"" + c.name + "\"";
       values += ",?";
     }
-    db.exec(create + ")");
+    db.exec(create + ")", "create table points");
     // R*Tree of chunk bounds (https://sqlite.org/rtree.html, section 3.1: auxiliary columns).
     db.exec("CREATE VIRTUAL TABLE chunks USING rtree(id, min_x, max_x, min_y, max_y, min_z, max_z, "
-            "+first_row INTEGER, +count INTEGER)");
+            "+first_row INTEGER, +count INTEGER)",
+            "create table chunks");
     // Each chunk's points once more as one packed BLOB (a "patch", as pgpointcloud's pcpatch):
     // ray_query reads a chunk with one b-tree lookup and evaluates it in a tight loop instead of
     // paying SQLite's per-row cost (bench/README.md, "SQL ray queries": the profile).
-    db.exec("CREATE TABLE chunk_points(id INTEGER PRIMARY KEY, data BLOB NOT NULL)");
+    db.exec("CREATE TABLE chunk_points(id INTEGER PRIMARY KEY, data BLOB NOT NULL)", "create table chunk_points");
     {
       Stmt m;
-      if (sqlite3_prepare_v2(db.db, "INSERT INTO rayscan_meta VALUES(?,?)", -1, &m.s, nullptr)) db.fail("prepare");
+      db.prepare("INSERT INTO rayscan_meta VALUES(?,?)", &m.s, "insert into rayscan_meta");
       auto meta = [&](const char* k, const std::string& v) {
         sqlite3_bind_text(m.s, 1, k, -1, SQLITE_STATIC);
         sqlite3_bind_text(m.s, 2, v.c_str(), -1, SQLITE_TRANSIENT);
-        if (sqlite3_step(m.s) != SQLITE_DONE) db.fail("insert meta");
+        if (sqlite3_step(m.s) != SQLITE_DONE) db.fail("insert into rayscan_meta");
         sqlite3_reset(m.s);
       };
       meta("format", "rayscan-sqlite 1");
@@ -95,7 +108,7 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
       meta("order", "morton");
       meta("chunk_points", kChunkPointsLayout);
       Stmt s;
-      if (sqlite3_prepare_v2(db.db, "INSERT INTO sources VALUES(?,?,?,?)", -1, &s.s, nullptr)) db.fail("prepare");
+      db.prepare("INSERT INTO sources VALUES(?,?,?,?)", &s.s, "insert into sources");
       const auto& sources = site->sources();
       for (std::size_t i = 0; i < sources.size(); ++i) {
         sqlite3_bind_int64(s.s, 1, static_cast<sqlite3_int64>(i));
@@ -103,17 +116,15 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
         sqlite3_bind_int64(s.s, 3, static_cast<sqlite3_int64>(sources[i].points));
         if (sources[i].crs_wkt.empty()) sqlite3_bind_null(s.s, 4);
         else sqlite3_bind_text(s.s, 4, sources[i].crs_wkt.c_str(), -1, SQLITE_TRANSIENT);
-        if (sqlite3_step(s.s) != SQLITE_DONE) db.fail("insert source");
+        if (sqlite3_step(s.s) != SQLITE_DONE) db.fail("insert into sources");
         sqlite3_reset(s.s);
       }
     }
     Stmt ins, rt, blob;
-    if (sqlite3_prepare_v2(db.db, "INSERT INTO chunk_points VALUES(?,?)", -1, &blob.s, nullptr)) db.fail("prepare");
+    db.prepare("INSERT INTO chunk_points VALUES(?,?)", &blob.s, "insert into chunk_points");
     std::vector<unsigned char> packed;
-    if (sqlite3_prepare_v2(db.db, (insert + ") " + values + ")").c_str(), -1, &ins.s, nullptr))
-      db.fail("prepare");
-    if (sqlite3_prepare_v2(db.db, "INSERT INTO chunks VALUES(?,?,?,?,?,?,?,?,?)", -1, &rt.s, nullptr))
-      db.fail("prepare");
+    db.prepare(insert + ") " + values + ")", &ins.s, "insert into points");
+    db.prepare("INSERT INTO chunks VALUES(?,?,?,?,?,?,?,?,?)", &rt.s, "insert into chunks");
     ChunkRows c;
     while (site->next(c)) {
       const std::size_t count = c.size();
@@ -136,7 +147,7 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
           if (cols[a].integer) sqlite3_bind_int64(ins.s, int(8 + a), static_cast<sqlite3_int64>(v));
           else sqlite3_bind_double(ins.s, int(8 + a), v);
         }
-        if (sqlite3_step(ins.s) != SQLITE_DONE) db.fail("insert point");
+        if (sqlite3_step(ins.s) != SQLITE_DONE) db.fail("insert into points");
         sqlite3_reset(ins.s);
       }
       // SQLite's R*Tree stores float32 and rounds lower bounds down and upper bounds up
@@ -150,19 +161,19 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
       sqlite3_bind_double(rt.s, 7, c.box.hi.z);
       sqlite3_bind_int64(rt.s, 8, static_cast<sqlite3_int64>(c.first_row + 1));
       sqlite3_bind_int64(rt.s, 9, static_cast<sqlite3_int64>(count));
-      if (sqlite3_step(rt.s) != SQLITE_DONE) db.fail("insert chunk");
+      if (sqlite3_step(rt.s) != SQLITE_DONE) db.fail("insert into chunks");
       sqlite3_reset(rt.s);
       sqlite3_bind_int64(blob.s, 1, ci);
       sqlite3_bind_blob64(blob.s, 2, packed.data(), packed.size(), SQLITE_STATIC);
-      if (sqlite3_step(blob.s) != SQLITE_DONE) db.fail("insert chunk points");
+      if (sqlite3_step(blob.s) != SQLITE_DONE) db.fail("insert into chunk_points");
       sqlite3_reset(blob.s);
       sum.points += count;
       ++sum.chunks;
       progress.insert(count);
     }
     progress.index();
-    db.exec("CREATE INDEX points_source_index ON points(source, point_index)");
-    db.exec("COMMIT");
+    db.exec("CREATE INDEX points_source_index ON points(source, point_index)", "create index points_source_index");
+    db.exec("COMMIT", "commit");
   }
   file.commit();
   progress.done();

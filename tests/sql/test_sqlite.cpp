@@ -828,5 +828,30 @@ TEST(SqliteImportCli, AttributeNamedLikeAReservedColumnIsRefused) {
   EXPECT_NE(error_of(db.db, "SELECT row_value FROM plain"), "");  // (the oracle can say no)
 }
 
+
+// A database error is one line naming the import's step and SQLite's own message, never the SQL
+// text: the output file may grow to no more than 200 blocks (ulimit -f, SIGXFSZ ignored so that
+// the write fails with EFBIG instead of killing the process), so writing the database fails. The
+// oracle of the message's end is SQLite's text of the codes a failed write gives (sqlite3_errstr);
+// the index file is imported as it is (no sort, whose runs the limit would stop first).
+TEST(SqliteImportCli, DatabaseErrorsNameTheStepNotTheSql) {
+  const std::string bin = RAYSCAN_BIN;
+  const fs::path dir = tmpdir() / "full", rsi = dir / "a.rsi", out = dir / "full.sqlite";
+  fs::create_directories(dir);
+  ASSERT_EQ(run(bin + " index " + scan_path("autzen").string() + " -o " + rsi.string() + " --attributes id -q > /dev/null"), 0);
+  const auto r = rayscan::test::run_command("ulimit -f 200 && trap '' XFSZ && " + bin + " db import " + rsi.string() +
+                                            " -o " + out.string() + " -q");
+  EXPECT_EQ(r.code, 2) << r.out;
+  const std::regex line("rayscan db: " + out.string() +
+                        ": sqlite: (insert into (points|chunks|chunk_points)|create index points_source_index|commit): (.*)\n");
+  std::smatch m;
+  ASSERT_TRUE(std::regex_match(r.out, m, line)) << r.out;
+  EXPECT_TRUE(m[3] == sqlite3_errstr(SQLITE_IOERR) || m[3] == sqlite3_errstr(SQLITE_FULL)) << r.out;
+  for (const char* keyword : {"INSERT", "CREATE", "COMMIT", "VALUES", "PRAGMA"})
+    EXPECT_EQ(r.out.find(keyword), std::string::npos) << r.out;
+  // Nothing is left but the index file: no database, no temporary file.
+  for (const auto& e : fs::directory_iterator(dir)) EXPECT_EQ(e.path(), rsi);
+}
+
 }  // namespace
 }  // namespace rayscan::sqltest
