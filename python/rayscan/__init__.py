@@ -96,7 +96,9 @@ def write(path, cloud, **fields):
     point_source_id, ...) go to the standard LAS fields. LAS and PLY read every field back under
     its own name; for PLY, PCD and text a name their readers take for a dedicated field (Intensity,
     gpstime: another spelling of an attribute; ReturnNumber: PDAL's name of return_number) raises
-    ValueError.
+    ValueError, and so does, for PCD and text, a name their readers take for a position, normal,
+    colour or padding (PCD: x, nx, normal_y, red, B, _; text: x, nx, NormalY, red, B, i), which
+    PLY and LAS keep.
 
     LAS coordinates are scaled integers: a cloud read from LAS/LAZ (or a subset of one) keeps the
     file's scale and offset (bit-exact round trip); otherwise each axis gets the coarsest of 1,
