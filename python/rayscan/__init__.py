@@ -406,8 +406,9 @@ def compare(reference, image, channels=(), mask=False, alpha=False, resize=False
     (H, W) / (H, W, C) array (channels Y / R,G,B / R,G,B,A; values as given, e.g. linear floats).
 
     Returns a dict of metrics: "mae", "rmse", "psnr" (dB, as idiff), "max_error", "max_pixel"
-    (x, y, c), "ssim", "flip" (mean LDR-FLIP; NaN unless R,G,B or Y), "percent_over_fail",
-    "pixels_compared", "per_channel" {name: {...}},
+    (x, y, c), "ssim", "flip" (mean LDR-FLIP; NaN unless R,G,B or Y), "percent_over_fail" and
+    "percent_over_warn" with their "fail_threshold" and "warn_threshold" (None for a level
+    without a pixel test, as the CLI's "off"), "pixels_compared", "per_channel" {name: {...}},
     "verdict" ("pass", "warn", "fail") and "reasons".
     Raises ValueError for an array of another shape or a bad option, TypeError for a `reference`
     or `image` that is neither a file name nor an array (None), OSError for an image file that

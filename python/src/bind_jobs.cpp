@@ -455,10 +455,15 @@ py::dict compare(const py::object& a, const py::object& b, py::handle channels,
   d["ssim"] = m.ssim;
   d["ssim_signal"] = m.ssim_signal;
   d["flip"] = m.flip;  // mean LDR-FLIP (analysis/flip.hpp), NaN when not computed
-  d["fail_threshold"] = m.fail_threshold;
-  d["percent_over_fail"] = m.percent_over_fail();
-  d["warn_threshold"] = m.warn_threshold;
-  d["percent_over_warn"] = m.percent_over_warn();
+  // None where the level has no pixel test (CompareJobResult's limits), as the CLI's text says
+  // "off" and its JSON null: a count over a threshold nothing judges would read as a finding.
+  const auto level = [&d](const analysis::Limits& l, const char* threshold_key, double threshold,
+                          const char* percent_key, double percent) {
+    d[threshold_key] = l.pixel_test ? py::object(py::float_(threshold)) : py::object(py::none());
+    d[percent_key] = l.pixel_test ? py::object(py::float_(percent)) : py::object(py::none());
+  };
+  level(r.fail_limits, "fail_threshold", m.fail_threshold, "percent_over_fail", m.percent_over_fail());
+  level(r.warn_limits, "warn_threshold", m.warn_threshold, "percent_over_warn", m.percent_over_warn());
   d["nonfinite_mismatches"] = m.nonfinite_mismatches;
   py::dict per;
   for (const analysis::ChannelStats& c : m.per_channel) {

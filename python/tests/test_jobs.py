@@ -68,6 +68,20 @@ def test_compare_metrics_equal_numpy():
         rayscan.compare(ref, ref[:20])  # size mismatch
 
 
+def test_compare_levels_without_a_pixel_test_report_none():
+    """A level with no pixel test has no count over a threshold (None, as the CLI's "off" and
+    --json null); one with a test counts the samples over it: 1 of 64 pixels off by 0.5."""
+    ref = np.zeros((8, 8, 3))
+    img = ref.copy()
+    img[0, 0, 0] = 0.5
+    m = rayscan.compare(ref, img, fail=0.2)
+    assert m["fail_threshold"] == 0.2 and m["percent_over_fail"] == pytest.approx(100 / 64)
+    assert m["warn_threshold"] is None and m["percent_over_warn"] is None
+    m = rayscan.compare(ref, img, fail=0.6, warn=0.1)
+    assert m["percent_over_fail"] == 0 and m["percent_over_warn"] == pytest.approx(100 / 64)
+    assert m["verdict"] == "warn"
+
+
 def test_visibility_behind_a_wall():
     """A flat ground grid (spacing 0.5) and a 6 m wall at x = 10; an eye at (2, 10, 1.7): ground
     beyond the wall is hidden, ground in front of it is seen."""
