@@ -5,19 +5,24 @@
 // stay inside rayscan_io; the core library never sees them.
 #include "readers.hpp"
 
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/io/crs.hpp"
 
 #include <gdal/cpl_conv.h>
 #include <gdal/cpl_error.h>
+#include <gdal/ogr_spatialref.h>
 #include <gdal/ogr_srs_api.h>
 #include <proj.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <stdexcept>
+#include <string_view>
 
 namespace rayscan::io::detail {
 
@@ -54,13 +59,21 @@ std::string to_wkt(OGRSpatialReferenceH h) {
   return wkt;
 }
 
-/// WKT of `user_input` (OSRSetFromUserInput); with `wkt2_fallback`, WKT2_2019 where WKT1 cannot
-/// express the CRS. "" when GDAL cannot read it.
-std::string wkt_for(const std::string& user_input, bool wkt2_fallback = false) {
+/// The CRS `user_input` names, read by SetFromUserInput with GDAL's
+/// SET_FROM_USER_INPUT_LIMITATIONS: EPSG and other authority codes, WKT, PROJJSON and PROJ strings,
+/// never a file name or URL, which GDAL would otherwise open (a text from a user or a file must not
+/// make the library read a local file or connect anywhere). Null when GDAL cannot read it.
+Srs srs_from_user_input(const std::string& user_input) {
   quiet_gdal();
   Srs srs(OSRNewSpatialReference(nullptr));
-  auto* h = static_cast<OGRSpatialReferenceH>(srs.get());
-  if (OSRSetFromUserInput(h, user_input.c_str()) != OGRERR_NONE) return "";
+  if (OGRSpatialReference::FromHandle(static_cast<OGRSpatialReferenceH>(srs.get()))
+          ->SetFromUserInput(user_input.c_str(), OGRSpatialReference::SET_FROM_USER_INPUT_LIMITATIONS) != OGRERR_NONE)
+    return nullptr;
+  return srs;
+}
+
+/// WKT1 of `h`; with `wkt2_fallback`, WKT2_2019 where WKT1 cannot express the CRS.
+std::string export_wkt(OGRSpatialReferenceH h, bool wkt2_fallback) {
   std::string wkt = to_wkt(h);
   if (wkt.empty() && wkt2_fallback) {
     char* out = nullptr;
@@ -71,14 +84,58 @@ std::string wkt_for(const std::string& user_input, bool wkt2_fallback = false) {
   return wkt;
 }
 
+/// WKT1 of `user_input` (srs_from_user_input). "" when GDAL cannot read it.
+std::string wkt_for(const std::string& user_input) {
+  const Srs srs = srs_from_user_input(user_input);
+  return srs ? to_wkt(static_cast<OGRSpatialReferenceH>(srs.get())) : std::string();
+}
+
 /// The CRS of an EPSG code, or null when the PROJ database does not know it.
-Srs srs_for_epsg(int code) {
-  quiet_gdal();
-  Srs srs(OSRNewSpatialReference(nullptr));
-  const std::string text = "EPSG:" + std::to_string(code);
-  if (OSRSetFromUserInput(static_cast<OGRSpatialReferenceH>(srs.get()), text.c_str()) != OGRERR_NONE)
-    return nullptr;
-  return srs;
+Srs srs_for_epsg(int code) { return srs_from_user_input("EPSG:" + std::to_string(code)); }
+
+/// The first unit of `h` whose size is no positive finite number, in words ("linear unit 'foot'
+/// of size 0"); "" when all are. GDAL reads UNIT["foot",0] without complaint, and every length or
+/// angle in that CRS would then be 0 or infinite.
+std::string bad_unit(OGRSpatialReferenceH h) {
+  auto check = [](const char* kind, const char* name, double size) -> std::string {
+    if (std::isfinite(size) && size > 0.0) return "";
+    return std::string(kind) + " unit '" + (name != nullptr ? name : "unnamed") + "' of size " + shortest_text(size);
+  };
+  std::string bad;
+  char* name = nullptr;
+  if (OSRIsProjected(h) || OSRIsLocal(h) || OSRIsGeocentric(h)) {
+    const double size = OSRGetLinearUnits(h, &name);
+    bad = check("linear", name, size);
+  }
+  if (bad.empty() && (OSRIsGeographic(h) || OSRIsProjected(h))) {
+    const double size = OSRGetAngularUnits(h, &name);
+    bad = check("angular", name, size);
+  }
+  if (bad.empty() && OSRIsVertical(h)) {
+    const char* vname = nullptr;
+    const double size = OSRGetTargetLinearUnits(h, "VERT_CS", const_cast<char**>(&vname));
+    bad = check("vertical", vname, size);
+  }
+  return bad;
+}
+
+/// The length of the WKT at the start of `text`: up to and with the bracket that closes its first
+/// one ('[' or '(' and their closing ones, which WKT1 and WKT2 both allow; brackets in "quoted
+/// text", where "" stands for a quote, do not count). npos when none closes it.
+std::size_t wkt_length(std::string_view text) {
+  int depth = 0;
+  bool quoted = false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '"') {
+      quoted = !quoted;  // "" inside quotes: out and in again
+    } else if (!quoted && (c == '[' || c == '(')) {
+      ++depth;
+    } else if (!quoted && (c == ']' || c == ')') && depth > 0 && --depth == 0) {
+      return i + 1;
+    }
+  }
+  return std::string_view::npos;
 }
 
 /// A unit of measure: its name and size in the SI unit of its kind (metres, radians).
@@ -103,6 +160,26 @@ std::optional<Unit> epsg_unit(int code) {
     unit = Unit{name, to_si, kind};
   proj_context_destroy(ctx);
   return unit;
+}
+
+/// The sizes a linear unit may have, in metres: a micrometre to a thousand kilometres. Every EPSG
+/// length unit lies within (the millimetre, 0.001 m, to the nautical mile, 1852 m; the US survey
+/// foot is 0.3048006 m); a size beyond is a corrupt double, not a unit: 1e-305 m turns the false
+/// easting into infinity (a WKT GDAL cannot read back), 1e300 m puts every coordinate beyond the
+/// Earth. PROJ's database also files rates (millimetres per year, 3.2e-11 m/s) as lengths; these
+/// fall outside too.
+constexpr double kMinLinearUnit = 1e-6, kMaxLinearUnit = 1e6;
+
+/// Whether `size` (metres) is within kMinLinearUnit .. kMaxLinearUnit; false for NaN.
+bool plausible_linear_unit(double size) { return size >= kMinLinearUnit && size <= kMaxLinearUnit; }
+
+/// Whether GDAL reads `wkt` back (OSRImportFromWkt): what a writer may store as the CRS.
+bool wkt_readable(const std::string& wkt) {
+  quiet_gdal();
+  Srs srs(OSRNewSpatialReference(nullptr));
+  std::string copy = wkt;  // ImportFromWkt: never a file name or URL
+  char* p = copy.data();
+  return OSRImportFromWkt(static_cast<OGRSpatialReferenceH>(srs.get()), &p) == OGRERR_NONE;
 }
 
 /// Whether two unit sizes are the same unit: equal but for the rounding of a WKT's 15 digits.
@@ -153,14 +230,15 @@ bool apply_linear_unit(OGRSpatialReferenceH h, const GeoKeys& keys, const GeoDou
   std::optional<Unit> unit;
   if (code == kUserDefined) {
     const std::optional<double> size = keys.real(kProjLinearUnitSize, doubles);
-    if (size && std::isfinite(*size) && *size > 0.0)
+    if (size && plausible_linear_unit(*size))
       unit = Unit{"unknown", *size, "linear"};  // GDAL's name for a unit known by its size alone
     else
-      info.notes.push_back("GeoKeys: ProjLinearUnitsGeoKey is user-defined (32767) without a positive "
-                           "ProjLinearUnitSizeGeoKey: the unit of " + crs + " kept");
+      info.notes.push_back("GeoKeys: ProjLinearUnitsGeoKey is user-defined (32767) without a "
+                           "ProjLinearUnitSizeGeoKey of 1e-06 to 1e+06 m" +
+                           (size ? " (" + shortest_text(*size) + ")" : std::string()) + ": the unit of " + crs + " kept");
   } else {
     unit = epsg_unit(code);
-    if (!unit || unit->kind != "linear") {
+    if (!unit || unit->kind != "linear" || !plausible_linear_unit(unit->to_si)) {
       info.notes.push_back("GeoKeys: ProjLinearUnitsGeoKey " + std::to_string(code) +
                            " is not an EPSG linear unit: the unit of " + crs + " kept");
       unit.reset();
@@ -171,6 +249,15 @@ bool apply_linear_unit(OGRSpatialReferenceH h, const GeoKeys& keys, const GeoDou
   const double old_size = OSRGetLinearUnits(h, &old_name);
   const std::string old = old_name != nullptr ? old_name : "unit";
   if (same_size(old_size, unit->to_si)) return false;
+  // The parameters converted must stay numbers GDAL writes and reads back (a false easting of
+  // 1e308 m in a unit of 1e-6 m would not): tried on a copy first.
+  const Srs trial(OSRClone(h));
+  OSRSetLinearUnitsAndUpdateParameters(static_cast<OGRSpatialReferenceH>(trial.get()), unit->name.c_str(), unit->to_si);
+  if (!wkt_readable(to_wkt(static_cast<OGRSpatialReferenceH>(trial.get())))) {
+    info.notes.push_back("GeoKeys: " + crs + " in " + unit->name + " (ProjLinearUnitsGeoKey) has parameters that "
+                         "are no finite numbers: the unit of " + crs + " kept");
+    return false;
+  }
   OSRSetLinearUnitsAndUpdateParameters(h, unit->name.c_str(), unit->to_si);
   if (code != kUserDefined) OSRSetAuthority(h, "PROJCS|UNIT", "EPSG", code);
   info.notes.push_back("GeoKeys: " + crs + " in " + unit->name + " (ProjLinearUnitsGeoKey), not its " + old +
@@ -202,6 +289,41 @@ bool apply_angular_unit(OGRSpatialReferenceH h, const GeoKeys& keys, int epsg, F
   return true;
 }
 
+/// The kinds of CRS the GeoKeys name by EPSG code.
+enum class CrsKind { projected, geographic, vertical };
+
+/// The EPSG CRS `code` of GeoKey `key` (ProjectedCSTypeGeoKey, GeographicTypeGeoKey,
+/// VerticalCSTypeGeoKey), which must be a CRS of `kind`: each key names one part of the CRS (GeoTIFF
+/// 1.1, OGC 19-008r4, names them ProjectedCRSGeoKey, GeodeticCRSGeoKey and VerticalGeoKey), so a
+/// compound CRS is none of them. Null, with a note that the key
+/// is ignored, when the PROJ database does not know the code or it names another kind of CRS
+/// (VerticalCSTypeGeoKey 4326, ProjectedCSTypeGeoKey 5703): the CRS is then read without that part.
+Srs crs_of_kind(int code, CrsKind kind, const char* key, FileInfo& info) {
+  const std::string what = std::string("GeoKeys: ") + key + " " + std::to_string(code);
+  Srs srs = srs_for_epsg(code);
+  if (!srs) {
+    info.notes.push_back(what + " is unknown to the PROJ database: ignored");
+    return nullptr;
+  }
+  auto* h = static_cast<OGRSpatialReferenceH>(srs.get());
+  const bool compound = OSRIsCompound(h) != 0;
+  const bool right = !compound && (kind == CrsKind::projected    ? OSRIsProjected(h) != 0
+                                   : kind == CrsKind::geographic ? OSRIsGeographic(h) != 0
+                                                                 : OSRIsVertical(h) != 0);
+  if (right) return srs;
+  const char* name = OSRGetName(h);
+  const char* is = compound                ? "a compound CRS"
+                   : OSRIsProjected(h)     ? "a projected CRS"
+                   : OSRIsGeographic(h)    ? "a geographic CRS"
+                   : OSRIsVertical(h)      ? "a vertical CRS"
+                   : OSRIsGeocentric(h)    ? "a geocentric CRS"
+                                           : "no CRS of these kinds";
+  const char* expected = kind == CrsKind::projected ? "projected" : kind == CrsKind::geographic ? "geographic" : "vertical";
+  info.notes.push_back(what + " (" + (name != nullptr ? name : "unnamed") + ") is " + is + ", not a " + expected +
+                       " one: ignored");
+  return nullptr;
+}
+
 /// A vertical CRS named `name` on datum `datum` whose heights are in `unit` (EPSG `code`).
 Srs make_vertical(const char* name, const char* datum, const Unit& unit, int code) {
   Srs vert(OSRNewSpatialReference(nullptr));
@@ -221,11 +343,11 @@ Srs make_vertical(const char* name, const char* datum, const Unit& unit, int cod
 /// 32767 is not read. `custom`: set when the result is not the EPSG CRS.
 Srs vertical_crs(const GeoKeys& keys, FileInfo& info, bool& custom) {
   Srs vert;
-  if (info.vertical_epsg != 0 && !(vert = srs_for_epsg(info.vertical_epsg))) return nullptr;
+  if (info.vertical_epsg != 0) vert = srs_for_epsg(info.vertical_epsg);
   const int code = keys.code(kVerticalUnits);
   if (code == 0) return vert;
   const std::optional<Unit> unit = code == kUserDefined ? std::nullopt : epsg_unit(code);
-  if (!unit || unit->kind != "linear") {
+  if (!unit || unit->kind != "linear" || !plausible_linear_unit(unit->to_si)) {
     info.notes.push_back("GeoKeys: VerticalUnitsGeoKey " + std::to_string(code) +
                          " is not an EPSG linear unit: ignored");
     return vert;
@@ -250,9 +372,8 @@ Srs vertical_crs(const GeoKeys& keys, FileInfo& info, bool& custom) {
   return make_vertical(name != nullptr ? name : "unknown", datum != nullptr ? datum : "unknown", *unit, code);
 }
 
-}  // namespace
-
-std::string crs_from_geokeys(const std::uint8_t* data, std::uint64_t len, FileInfo& info, GeoDoubles doubles) {
+/// crs_from_geokeys before its last check.
+std::string geokeys_wkt(const std::uint8_t* data, std::uint64_t len, FileInfo& info, GeoDoubles doubles) {
   // GeoKeyDirectoryTag: header {KeyDirectoryVersion, KeyRevision, MinorRevision, NumberOfKeys}
   // then NumberOfKeys entries {KeyID, TIFFTagLocation, Count, Value_Offset}, all uint16.
   if (len < 8) {
@@ -273,21 +394,24 @@ std::string crs_from_geokeys(const std::uint8_t* data, std::uint64_t len, FileIn
   }
   const int projected = keys.code(kProjectedCSType), geographic = keys.code(kGeographicType),
             vertical = keys.code(kVerticalCSType);
-  const int horizontal = (projected != 0 && projected != kUserDefined)
-                             ? projected
-                             : (geographic != 0 && geographic != kUserDefined ? geographic : 0);
-  if (horizontal == 0) {
+  // ProjectedCSTypeGeoKey first, else GeographicTypeGeoKey; a code that names no CRS of its key's
+  // kind is ignored (crs_of_kind), as if the key were absent.
+  int horizontal = 0;
+  Srs horiz;
+  if (projected != 0 && projected != kUserDefined &&
+      (horiz = crs_of_kind(projected, CrsKind::projected, "ProjectedCSTypeGeoKey", info)))
+    horizontal = projected;
+  if (!horiz && geographic != 0 && geographic != kUserDefined &&
+      (horiz = crs_of_kind(geographic, CrsKind::geographic, "GeographicTypeGeoKey", info)))
+    horizontal = geographic;
+  if (!horiz) {
     if (projected == kUserDefined || geographic == kUserDefined)
       info.notes.push_back("GeoKeys describe a user-defined CRS (code 32767): no EPSG code");
     return "";
   }
   info.epsg = horizontal;
-  if (vertical != 0 && vertical != kUserDefined) info.vertical_epsg = vertical;
-  const Srs horiz = srs_for_epsg(horizontal);
-  if (!horiz) {
-    info.notes.push_back("EPSG:" + std::to_string(horizontal) + " unknown to the PROJ database: no WKT");
-    return "";
-  }
+  if (vertical != 0 && vertical != kUserDefined && crs_of_kind(vertical, CrsKind::vertical, "VerticalCSTypeGeoKey", info))
+    info.vertical_epsg = vertical;
   auto* h = static_cast<OGRSpatialReferenceH>(horiz.get());
   bool custom = false;
   if (OSRIsProjected(h)) {
@@ -317,6 +441,20 @@ std::string crs_from_geokeys(const std::uint8_t* data, std::uint64_t len, FileIn
   return to_wkt(c);
 }
 
+}  // namespace
+
+std::string crs_from_geokeys(const std::uint8_t* data, std::uint64_t len, FileInfo& info, GeoDoubles doubles) {
+  std::string wkt = geokeys_wkt(data, len, info, doubles);
+  // The writers store this WKT: it must be one GDAL reads back (the unit checks above keep the
+  // parameters finite; this holds whatever combination of keys a file has).
+  if (!wkt.empty() && !wkt_readable(wkt)) {
+    info.notes.push_back("GeoKeys: the CRS they describe is not one GDAL can write and read back: no CRS");
+    info.epsg = info.vertical_epsg = 0;
+    wkt.clear();
+  }
+  return wkt;
+}
+
 int epsg_from_wkt(const std::string& wkt) {
   quiet_gdal();
   Srs srs(OSRNewSpatialReference(nullptr));
@@ -344,15 +482,46 @@ int epsg_from_wkt(const std::string& wkt) {
 namespace rayscan::io {
 
 std::string crs_wkt_from_user_input(const std::string& user_input) {
+  // A control character has no place in any of the forms taken, and GDAL stops at a NUL, so that
+  // what follows it would be stored unread (into a PLY header line, a LAS VLR).
+  for (std::size_t i = 0; i < user_input.size(); ++i) {
+    const auto c = static_cast<unsigned char>(user_input[i]);
+    if ((c < 0x20 && c != '\t' && c != '\n' && c != '\r') || c == 0x7F) {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "0x%02X", c);
+      throw std::invalid_argument("control character " + std::string(hex) + " at character " + std::to_string(i) +
+                                  " (expected a CRS as text)");
+    }
+  }
   // WKT that GDAL reads is kept as given: the source's own text (an ESRI-flavoured WKT1, a WKT2
-  // with details WKT1 lacks) is what the writers store and `rayscan info` shows.
+  // with details WKT1 lacks) is what the writers store and `rayscan info` shows. GDAL reads the
+  // WKT and ignores any text after it, which must then be none.
   detail::quiet_gdal();
   detail::Srs srs(OSRNewSpatialReference(nullptr));
+  auto* h = static_cast<OGRSpatialReferenceH>(srs.get());
   std::string copy = user_input;  // ImportFromWkt: never a file name or URL
   char* p = copy.data();
-  if (OSRImportFromWkt(static_cast<OGRSpatialReferenceH>(srs.get()), &p) == OGRERR_NONE) return user_input;
-  return detail::wkt_for(user_input, /*wkt2_fallback=*/true);
+  std::string wkt;
+  if (OSRImportFromWkt(h, &p) == OGRERR_NONE) {
+    const std::size_t end = detail::wkt_length(user_input);
+    if (end == std::string::npos) throw std::invalid_argument("the WKT's first bracket is never closed");
+    if (const std::size_t after = user_input.find_first_not_of(" \t\n\r", end); after != std::string::npos)
+      throw std::invalid_argument("text after the WKT's closing bracket (character " + std::to_string(end - 1) +
+                                  "): '" + user_input.substr(after, 20) + (user_input.size() - after > 20 ? "...'" : "'") +
+                                  "; expected nothing after it");
+    wkt = user_input;
+  } else {
+    srs = detail::srs_from_user_input(user_input);
+    if (!srs) return "";
+    h = static_cast<OGRSpatialReferenceH>(srs.get());
+    wkt = detail::export_wkt(h, /*wkt2_fallback=*/true);
+  }
+  if (const std::string bad = detail::bad_unit(h); !bad.empty())
+    throw std::invalid_argument("the CRS has a " + bad + " (expected a positive size)");
+  return wkt;
 }
+
+bool crs_wkt_readable(const std::string& wkt) { return detail::wkt_readable(wkt); }
 
 EpsgCodes epsg_codes_from_wkt(const std::string& wkt) {
   EpsgCodes codes;

@@ -6,6 +6,7 @@
 
 #include "bytes.hpp"
 #include "rayscan/base/number_text.hpp"
+#include "rayscan/io/crs.hpp"
 #include "rayscan/io/field_names.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/octree/point_cloud.hpp"
@@ -18,10 +19,11 @@
 
 namespace rayscan::io::detail {
 
-/// cloud.validate(), its message prefixed with the output `path` ("<path>: <what is wrong>"), and
-/// every position within +-kMaxCoordinate: a file is written only if the readers will read it
-/// back ("<path>: point N: X coordinate is V (expected within +-1e+09, ...)", the readers' text).
-/// Throws std::invalid_argument before anything is written.
+/// cloud.validate(), its message prefixed with the output `path` ("<path>: <what is wrong>"),
+/// every position within +-kMaxCoordinate and a CRS that GDAL reads (crs_wkt_readable): a file is
+/// written only if the readers will read it back ("<path>: point N: X coordinate is V (expected
+/// within +-1e+09, ...)", the readers' text), and its CRS with GDAL, PDAL or QGIS. Throws
+/// std::invalid_argument before anything is written.
 inline void validate_for_writing(const std::filesystem::path& path, const PointCloud& cloud) {
   try {
     cloud.validate();
@@ -32,6 +34,11 @@ inline void validate_for_writing(const std::filesystem::path& path, const PointC
     const Vec3& p = cloud.positions[i];
     if (!within_coordinate_bound(p.x, p.y, p.z))
       throw std::invalid_argument(path.string() + ": " + beyond_coordinate_bound(i, p.x, p.y, p.z));
+  }
+  if (!cloud.crs_wkt.empty() && !crs_wkt_readable(cloud.crs_wkt)) {
+    const std::string shown = cloud.crs_wkt.substr(0, 40) + (cloud.crs_wkt.size() > 40 ? "..." : "");
+    throw std::invalid_argument(path.string() + ": the CRS is WKT that GDAL cannot read ('" + one_line(shown) +
+                                "'); expected a CRS GDAL reads, or none");
   }
 }
 

@@ -228,13 +228,20 @@ PyCloud from_arrays(py::handle xyz, py::handle rgb, py::handle intensity, py::ha
     }
   }
   if (!crs.is_none()) {
-    const std::string expected = "a CRS as GDAL reads it (\"EPSG:2992\", WKT, PROJJSON, a PROJ string) or None";
+    const std::string expected =
+        "a CRS as GDAL reads it (\"EPSG:2992\", WKT, PROJJSON, a PROJ string; not a file name or URL) or None";
     if (!py::isinstance<py::str>(crs)) throw py::type_error("crs must be " + expected + ", got " + type_name(crs));
     const std::string text = crs.cast<std::string>();
+    std::string refused;  // io's reason to refuse text GDAL reads
     {
       py::gil_scoped_release nogil;  // the PROJ database lookup
-      pc.crs_wkt = io::crs_wkt_from_user_input(text);
+      try {
+        pc.crs_wkt = io::crs_wkt_from_user_input(text);
+      } catch (const std::invalid_argument& e) {
+        refused = e.what();
+      }
     }
+    if (!refused.empty()) throw py::value_error("crs: " + refused);
     if (pc.crs_wkt.empty()) {
       const std::string shown = text.size() > 60 ? text.substr(0, 60) + "..." : text;
       throw py::value_error("crs: GDAL cannot read " + py::repr(py::str(shown)).cast<std::string>() +

@@ -5,6 +5,7 @@ NumPy's own indexing, the PLY file's own header and bytes, GDAL's osr and `raysc
 import errno
 import json
 import pathlib
+import re
 import subprocess
 
 import numpy as np
@@ -182,6 +183,76 @@ def test_a_cloud_scalar_named_like_an_attribute_reads_back_from_pcd_and_text_und
             np.testing.assert_array_equal(back.scalars[written], scalars[name])
             if out is pcd:
                 np.testing.assert_array_equal(body[written], scalars[name])
+
+
+def test_a_cloud_scalar_named_like_a_dedicated_field_reads_back_from_ply_under_a_suffix(tmp_path, cli):
+    # PLY as PCD and text: the reader strips "scalar_" and takes gpstime, GPSTime, Intensity for
+    # that attribute, so the writer gives the cloud's own scalar a suffix; rayscan translate writes
+    # the same names. Oracle: the file's own header and records (ply_body).
+    xyz = np.array([[0.1, 2.0, 3.0], [4.0, 5.3, 6.0]])
+    scalars = {"gpstime": np.array([5.5, 6.0]), "GPSTime": np.array([7.0, 8.0]),
+               "Intensity": np.array([3.0, 4.0]), "score": np.array([1.5, 2.5])}
+    out = tmp_path / "s.ply"
+    rayscan.write(out, rayscan.PointCloud(xyz, scalars=scalars))
+    props, body = ply_body(out)
+    written = ["scalar_gpstime_1", "scalar_GPSTime_1", "scalar_Intensity_1", "scalar_score"]
+    assert [p for p, _ in props] == ["x", "y", "z"] + written
+    back = rayscan.read(out)
+    assert back.gps_time is None and back.intensity is None
+    assert list(back.scalars) == [w[len("scalar_"):] for w in written]
+    for name, w in zip(scalars, written):
+        np.testing.assert_array_equal(body[w], scalars[name], err_msg=w)
+        np.testing.assert_array_equal(back.scalars[w[len("scalar_"):]], scalars[name], err_msg=w)
+    # rayscan translate of the same cloud from LAS, whose extra bytes keep these names, writes the same.
+    las = tmp_path / "s.las"
+    rayscan.write(las, rayscan.PointCloud(xyz, scalars=scalars))
+    assert set(scalars) <= set(rayscan.read(las).scalars)
+    copy = tmp_path / "t.ply"
+    subprocess.run([cli, "translate", "-q", str(las), str(copy)], check=True, capture_output=True)
+    props, body = ply_body(copy)
+    names = [p for p, _ in props]
+    assert set(written) <= set(names) and not {"scalar_gpstime", "scalar_GPSTime", "scalar_Intensity"} & set(names)
+    for name, w in zip(scalars, written):
+        np.testing.assert_array_equal(body[w], scalars[name], err_msg=w)
+
+
+def test_crs_never_opens_a_file_or_url(tmp_path):
+    osr = pytest.importorskip("osgeo.osr")
+    wgs84 = osr.SpatialReference()
+    wgs84.ImportFromEPSG(4326)
+    prj = tmp_path / "secret.prj"
+    prj.write_text(wgs84.ExportToWkt())
+    # GDAL's unrestricted reading takes the file's contents: the case is real.
+    assert osr.SpatialReference().SetFromUserInput(str(prj)) == 0
+    for text in (str(prj), "http://127.0.0.1:9/x.prj"):
+        with pytest.raises(ValueError, match="^crs: GDAL cannot read .* as a CRS; expected .*not a file name or URL"):
+            rayscan.PointCloud(np.zeros((1, 3)), crs=text)
+
+
+def test_crs_refuses_text_after_the_wkt_control_characters_and_a_zero_unit(tmp_path):
+    osr = pytest.importorskip("osgeo.osr")
+    srs = osr.SpatialReference()
+    srs.ImportFromEPSG(2992)
+    wkt = srs.ExportToWkt()
+    # GDAL reads each of these, ignoring what follows the WKT: the cases are real (GDAL's C API
+    # stops at a NUL, which osr's Python binding does not pass).
+    for text in (wkt + " GARBAGE", wkt.replace('UNIT["foot",0.3048', 'UNIT["foot",0')):
+        assert osr.SpatialReference().ImportFromWkt(text) == 0
+    with pytest.raises(ValueError, match=f"^crs: control character 0x00 at character {len(wkt)} "):
+        rayscan.PointCloud(np.zeros((1, 3)), crs=wkt + "\0\nend_header\nGARBAGE")
+    with pytest.raises(ValueError, match=re.escape(f"crs: text after the WKT's closing bracket (character "
+                                                   f"{len(wkt) - 1}): 'GARBAGE'; expected nothing after it")):
+        rayscan.PointCloud(np.zeros((1, 3)), crs=wkt + " GARBAGE")
+    assert wkt.count('UNIT["foot",0.3048,') == 1
+    with pytest.raises(ValueError, match="^crs: the CRS has a linear unit 'foot' of size 0 "):
+        rayscan.PointCloud(np.zeros((1, 3)), crs=wkt.replace('UNIT["foot",0.3048', 'UNIT["foot",0'))
+    # Whitespace after the WKT is no text: kept as given, and the PLY header holds the WKT alone.
+    pc = rayscan.PointCloud(np.zeros((2, 3)), crs=wkt + "\n  ")
+    assert pc.crs == wkt + "\n  "
+    out = tmp_path / "c.ply"
+    rayscan.write(out, pc)
+    header = out.read_bytes().split(b"end_header\n")[0].decode().splitlines()
+    assert [line for line in header if line.startswith("comment crs ")] == ["comment crs " + wkt + "   "]
 
 
 def test_crs_given_as_epsg_is_stored_as_wkt(cli, tmp_path):

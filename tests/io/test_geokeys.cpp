@@ -1,5 +1,6 @@
 // The unit GeoKeys of a LAS file's GeoKeyDirectoryTag (io/src/crs.cpp): ProjLinearUnitsGeoKey,
-// ProjLinearUnitSizeGeoKey, GeogAngularUnitsGeoKey and VerticalUnitsGeoKey. Oracle: GDAL itself,
+// ProjLinearUnitSizeGeoKey, GeogAngularUnitsGeoKey and VerticalUnitsGeoKey; and the CRS codes of
+// ProjectedCSTypeGeoKey and VerticalCSTypeGeoKey, which must name a CRS of their kind. Oracle: GDAL itself,
 // reading a 1 x 1 GeoTIFF whose GeoKeyDirectoryTag and GeoDoubleParamsTag hold the very bytes given
 // to the LAS reader's crs_from_geokeys; and PROJ's database for the one case where rayscan reads
 // the keys as GDAL 3.6 does not (a vertical unit beside an EPSG vertical CRS).
@@ -17,6 +18,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <fstream>
+#include <limits>
 #include <memory>
 #include <string>
 #include <utility>
@@ -307,6 +310,146 @@ TEST(GeoKeys, UnitCodesThatAreNoLinearUnitKeepTheCrsUnitWithANote) {
               std::string::npos)
         << r.info.notes[0];
   }
+}
+
+// ProjLinearUnitSizeGeoKey outside 1e-6 .. 1e6 m is no unit but a corrupt double: 1e-305 m would
+// turn the false easting into infinity (WKT that GDAL cannot read back), 1e300 m put the points
+// beyond the Earth. The CRS keeps its metre with the note a zero or NaN size gets; its WKT is then
+// EPSG:26995's own (the oracle). Sizes at the range's ends are read as GDAL reads them.
+TEST(GeoKeys, UserDefinedLinearUnitSizeOutsideTheRangeKeepsTheCrsUnit) {
+  const std::vector<Key> keys = {{1024, 0, 1, 1}, {3072, 0, 1, 26995}, {3076, 0, 1, 32767}, {3077, 34736, 1, 0}};
+  OGRSpatialReference epsg;
+  ASSERT_EQ(epsg.importFromEPSG(26995), OGRERR_NONE);
+  for (const double size : {5e-324, 1e-305, 1e-300, 1e-9, 9.99e-7, 1.001e6, 1e9, 1e300, 0.0, -1.0,
+                            std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    const Ours r = ours(directory(keys), {size});
+    OGRSpatialReference back;
+    ASSERT_EQ(back.importFromWkt(r.wkt.c_str()), OGRERR_NONE) << size << ": " << r.wkt;
+    EXPECT_TRUE(r.srs.IsSame(&epsg)) << size << ": " << r.wkt;
+    EXPECT_EQ(linear_unit(r.srs), (std::pair<std::string, double>{"metre", 1.0})) << size;
+    EXPECT_EQ(r.info.epsg, 26995) << size;
+    ASSERT_EQ(r.info.notes.size(), 1u) << size;
+    EXPECT_NE(r.info.notes[0].find("without a ProjLinearUnitSizeGeoKey of 1e-06 to 1e+06 m"), std::string::npos)
+        << r.info.notes[0];
+    EXPECT_NE(r.info.notes[0].find("the unit of EPSG:26995 kept"), std::string::npos) << r.info.notes[0];
+  }
+  for (const double size : {1e-6, 1e6}) {
+    const auto [gdal, r] = both("size_" + std::to_string(size), keys, {size});
+    EXPECT_EQ(linear_unit(r.srs).second, size) << r.wkt;
+    EXPECT_TRUE(r.srs.IsSame(&gdal)) << r.wkt;
+    EXPECT_NEAR(r.srs.GetProjParm(SRS_PP_FALSE_EASTING), gdal.GetProjParm(SRS_PP_FALSE_EASTING),
+                1e-9 * std::abs(gdal.GetProjParm(SRS_PP_FALSE_EASTING)));
+    EXPECT_EQ(r.info.epsg, 0);
+  }
+}
+
+/// `b` written to `name` in the test's folder.
+fs::path write_file(const std::string& name, const std::vector<std::uint8_t>& b) {
+  const fs::path p = temp_dir() / name;
+  std::ofstream(p, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  return p;
+}
+
+/// `rayscan info --json` of `p`, parsed.
+nlohmann::json info_json(const fs::path& p) {
+  const CommandResult info = run_command(std::string(RAYSCAN_EXE) + " info --json " + quoted(p), false);
+  EXPECT_EQ(info.code, 0) << info.out;
+  return nlohmann::json::parse(info.out);
+}
+
+// The LAS file of a 1e-305 m unit through the CLI: info reports EPSG:26995 in metres with the
+// note, and translate writes a COPC file whose WKT GDAL reads as EPSG:26995.
+TEST(GeoKeys, TranslateOfATinyUnitWritesWktGdalReads) {
+  const std::vector<Key> keys = {{1024, 0, 1, 1}, {3072, 0, 1, 26995}, {3076, 0, 1, 32767}, {3077, 34736, 1, 0}};
+  const fs::path las = write_file("tiny_unit.las", las_with_geokeys(directory(keys), {1e-305}));
+  const nlohmann::json j = info_json(las);
+  EXPECT_EQ(j["crs"]["epsg"], 26995) << j["crs"].dump();
+  EXPECT_EQ(j["crs"]["horizontal_unit"], "metre") << j["crs"].dump();
+  const fs::path copc = temp_dir() / "tiny_unit.copc.laz";
+  const CommandResult t = run_command(std::string(RAYSCAN_EXE) + " translate -q " + quoted(las) + " " + quoted(copc));
+  ASSERT_EQ(t.code, 0) << t.out;
+  const nlohmann::json c = info_json(copc);
+  OGRSpatialReference written, epsg;
+  ASSERT_EQ(written.importFromWkt(c["crs"]["wkt"].get<std::string>().c_str()), OGRERR_NONE) << c["crs"].dump();
+  ASSERT_EQ(epsg.importFromEPSG(26995), OGRERR_NONE);
+  EXPECT_TRUE(written.IsSame(&epsg)) << c["crs"]["wkt"];
+}
+
+// A VerticalCSTypeGeoKey that names no vertical CRS (1: no CRS at all; 4326: a geographic one) is
+// ignored with a note: the CRS is the projected one alone, as GDAL reads the same keys (with
+// GTIFF_REPORT_COMPD_CS=YES, under which it reads a valid vertical code).
+TEST(GeoKeys, VerticalCodeOfNoVerticalCrsIsIgnoredAsGdalIgnoresIt) {
+  for (const std::uint16_t code : {1, 4326, 26995}) {
+    const auto [gdal, r] = both("vert_" + std::to_string(code), {{1024, 0, 1, 1}, {3072, 0, 1, 26995}, {4096, 0, 1, code}});
+    ASSERT_FALSE(r.wkt.empty()) << code;
+    EXPECT_FALSE(gdal.IsCompound()) << code;
+    EXPECT_FALSE(r.srs.IsCompound()) << code << ": " << r.wkt;
+    EXPECT_TRUE(r.srs.IsSame(&gdal)) << code << ": " << r.wkt;
+    EXPECT_EQ(r.info.epsg, 26995);
+    EXPECT_EQ(r.info.vertical_epsg, 0) << code;
+    ASSERT_EQ(r.info.notes.size(), 1u) << code;
+    EXPECT_EQ(r.info.notes[0].rfind("GeoKeys: VerticalCSTypeGeoKey " + std::to_string(code) + " ", 0), 0u)
+        << r.info.notes[0];
+    EXPECT_NE(r.info.notes[0].find(code == 1 ? "is unknown to the PROJ database: ignored" : "not a vertical one: ignored"),
+              std::string::npos)
+        << r.info.notes[0];
+  }
+}
+
+// A ProjectedCSTypeGeoKey that names no projected CRS (5703, NAVD88 height: vertical, as PROJ's
+// database has it; 65000: unknown) is ignored with a note: the CRS is GeographicTypeGeoKey's when
+// there is one (EPSG:4269), else there is none and no EPSG code.
+TEST(GeoKeys, ProjectedCodeOfNoProjectedCrsIsIgnored) {
+  OGRSpatialReference navd88, nad83;
+  ASSERT_EQ(navd88.importFromEPSG(5703), OGRERR_NONE);
+  ASSERT_TRUE(navd88.IsVertical() && !navd88.IsProjected());
+  ASSERT_EQ(nad83.importFromEPSG(4269), OGRERR_NONE);
+  for (const std::uint16_t code : {5703, 65000}) {
+    const Ours alone = ours(directory({{1024, 0, 1, 1}, {3072, 0, 1, code}}), {});
+    EXPECT_EQ(alone.wkt, "") << code;
+    EXPECT_EQ(alone.info.epsg, 0) << code;
+    ASSERT_EQ(alone.info.notes.size(), 1u) << code;
+    EXPECT_EQ(alone.info.notes[0].rfind("GeoKeys: ProjectedCSTypeGeoKey " + std::to_string(code) + " ", 0), 0u)
+        << alone.info.notes[0];
+    const Ours geog = ours(directory({{1024, 0, 1, 1}, {2048, 0, 1, 4269}, {3072, 0, 1, code}}), {});
+    EXPECT_TRUE(geog.srs.IsSame(&nad83)) << geog.wkt;
+    EXPECT_EQ(geog.info.epsg, 4269);
+  }
+}
+
+// The same keys through the CLI: the text report, the JSON and the WKT translate writes all give
+// the CRS without the ignored part ('NAD83 / Mississippi West (EPSG:26995)', no vertical_epsg,
+// no VERT_CS), where they gave 'EPSG:26995 + EPSG:4326 vertical'; with ProjectedCSTypeGeoKey 5703,
+// no CRS at all.
+TEST(GeoKeys, IgnoredCodesAreLeftOutOfTheReportsAndTheWrittenWkt) {
+  const fs::path las = write_file(
+      "vert_geog.las", las_with_geokeys(directory({{1024, 0, 1, 1}, {3072, 0, 1, 26995}, {4096, 0, 1, 4326}}), {}));
+  const CommandResult text = run_command(std::string(RAYSCAN_EXE) + " info " + quoted(las), false);
+  ASSERT_EQ(text.code, 0) << text.out;
+  EXPECT_NE(text.out.find("CRS:               NAD83 / Mississippi West (EPSG:26995) from GeoKeys\n"), std::string::npos)
+      << text.out;
+  EXPECT_NE(text.out.find("VerticalCSTypeGeoKey 4326 (WGS 84) is a geographic CRS, not a vertical one: ignored"),
+            std::string::npos)
+      << text.out;
+  const nlohmann::json j = info_json(las);
+  EXPECT_EQ(j["crs"]["epsg"], 26995);
+  EXPECT_FALSE(j["crs"].contains("vertical_epsg")) << j["crs"].dump();
+  const fs::path copc = temp_dir() / "vert_geog.copc.laz";
+  const CommandResult t = run_command(std::string(RAYSCAN_EXE) + " translate -q " + quoted(las) + " " + quoted(copc));
+  ASSERT_EQ(t.code, 0) << t.out;
+  OGRSpatialReference written, epsg;
+  ASSERT_EQ(written.importFromWkt(info_json(copc)["crs"]["wkt"].get<std::string>().c_str()), OGRERR_NONE);
+  ASSERT_EQ(epsg.importFromEPSG(26995), OGRERR_NONE);
+  EXPECT_FALSE(written.IsCompound());
+  EXPECT_TRUE(written.IsSame(&epsg));
+
+  const fs::path vert = write_file("proj_vert.las", las_with_geokeys(directory({{1024, 0, 1, 1}, {3072, 0, 1, 5703}}), {}));
+  const CommandResult none = run_command(std::string(RAYSCAN_EXE) + " info " + quoted(vert), false);
+  ASSERT_EQ(none.code, 0) << none.out;
+  EXPECT_NE(none.out.find("CRS:               none\n"), std::string::npos) << none.out;
+  EXPECT_NE(none.out.find("ProjectedCSTypeGeoKey 5703 (NAVD88 height) is a vertical CRS, not a projected one: ignored"),
+            std::string::npos)
+      << none.out;
 }
 
 /// The GeoKeyDirectoryTag, GeoDoubleParamsTag and GeoAsciiParamsTag VLR payloads of a LAS file

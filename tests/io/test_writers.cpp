@@ -4,6 +4,10 @@
 
 #include "rayscan/io/las_records.hpp"
 
+#include <cpl_conv.h>
+#include <cpl_error.h>
+#include <ogr_spatialref.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -616,6 +620,92 @@ TEST(Writers, NothingBeyondTheCoordinateBoundIsWritten) {
   const PointCloud back = io::read_point_cloud(las);
   ASSERT_EQ(back.size(), 2u);
   EXPECT_EQ(back.positions[0].x, -999999994.0);  // -999999000 + round(-997 / 7) x 7
+}
+
+// PLY as PCD and text: the reader strips a property's "scalar_" prefix and then takes another
+// spelling of intensity, classification or GPS time for that field, so a cloud's own scalar so
+// named ("gpstime", "GPSTime", "Intensity" beside the cloud's intensity, "classification") is
+// written under a suffix and reads back as a scalar; names PLY keeps ("nx", "red") stay as they
+// are. Oracle: the file's own header lines and records of doubles, and the values put in.
+TEST(Writers, PlyScalarsNamedLikeADedicatedFieldReadBackUnderASuffix) {
+  PointCloud src;
+  src.positions = {Vec3(0.5, 2, 3), Vec3(4, 5, 6)};
+  src.intensity = {10, 20};
+  src.scalars = {{"gpstime", {5.5, 6}}, {"GPSTime", {7, 8}},  {"Intensity", {3, 4}},
+                 {"classification", {1, 2}}, {"nx", {0.25, -1}}, {"red", {200, 3}}};
+  const std::vector<std::string> written = {"scalar_gpstime_1", "scalar_GPSTime_1", "scalar_Intensity_1",
+                                            "scalar_classification_1", "scalar_nx", "scalar_red"};
+  const fs::path out = temp_dir() / "reserved_names.ply";
+  io::write_point_cloud(out, src);
+  const std::vector<std::uint8_t> bytes = slurp(out);
+  const std::string text(bytes.begin(), bytes.end());
+  const std::size_t end = text.find("end_header\n");
+  ASSERT_NE(end, std::string::npos);
+  std::string props = "property float scalar_intensity\n";
+  for (const std::string& n : written) props += "property double " + n + "\n";
+  EXPECT_NE(text.find(props + "end_header\n"), std::string::npos) << text.substr(0, end);
+  const std::size_t body = end + 11, record = 24 + 4 + 8 * src.scalars.size();
+  ASSERT_EQ(bytes.size(), body + 2 * record);
+  for (std::size_t i = 0; i < 2; ++i)
+    for (std::size_t k = 0; k < src.scalars.size(); ++k)
+      EXPECT_EQ(load_at<double>(bytes, body + i * record + 28 + 8 * k), src.scalars[k].values[i]) << written[k];
+
+  const PointCloud back = io::read_point_cloud(out);
+  EXPECT_EQ(back.positions, src.positions);
+  EXPECT_EQ(back.intensity, src.intensity);
+  EXPECT_TRUE(back.gps_time.empty());
+  EXPECT_TRUE(back.classification.empty());
+  EXPECT_TRUE(back.normals.empty());
+  EXPECT_TRUE(back.rgb.empty());
+  ASSERT_EQ(back.scalars.size(), src.scalars.size());
+  for (std::size_t k = 0; k < src.scalars.size(); ++k) {
+    EXPECT_EQ(back.scalars[k].name, written[k].substr(7));
+    EXPECT_EQ(back.scalars[k].values, src.scalars[k].values) << written[k];
+  }
+  fs::remove(out);
+}
+
+// A CRS is stored only as WKT that GDAL reads: a cloud whose WKT GDAL cannot read (one with an
+// infinite false easting, as a unit of 1e-305 m made it) is refused by every writer that stores a
+// CRS, with one line, before any file exists; GDAL's own reading of the text is the oracle.
+TEST(Writers, ACrsGdalCannotReadIsNotWritten) {
+  const std::string bad =
+      "PROJCS[\"x\",GEOGCS[\"WGS 84\",DATUM[\"WGS_1984\",SPHEROID[\"WGS 84\",6378137,298.257223563]],"
+      "PRIMEM[\"Greenwich\",0],UNIT[\"degree\",0.0174532925199433]],PROJECTION[\"Transverse_Mercator\"],"
+      "PARAMETER[\"false_easting\",Inf],UNIT[\"unknown\",1E-305]]";
+  {
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    OGRSpatialReference gdal;
+    const OGRErr err = gdal.importFromWkt(bad.c_str());
+    CPLPopErrorHandler();
+    ASSERT_NE(err, OGRERR_NONE) << "GDAL reads the WKT: no case to test";
+  }
+  PointCloud pc;
+  pc.positions = {Vec3(0, 0, 0), Vec3(1, 1, 1)};
+  pc.crs_wkt = bad;
+  for (const char* name : {"bad_crs.las", "bad_crs.laz", "bad_crs.ply"}) {
+    const fs::path out = temp_dir() / name;
+    fs::remove(out);
+    try {
+      io::write_point_cloud(out, pc);
+      ADD_FAILURE() << name << " written";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()), out.string() + ": the CRS is WKT that GDAL cannot read ('" + bad.substr(0, 40) +
+                                           "...'); expected a CRS GDAL reads, or none");
+    }
+    EXPECT_FALSE(fs::exists(out)) << name;
+  }
+  // The same cloud with WKT GDAL reads is written and read back with it.
+  OGRSpatialReference utm;
+  ASSERT_EQ(utm.importFromEPSG(32610), OGRERR_NONE);
+  char* wkt = nullptr;
+  ASSERT_EQ(utm.exportToWkt(&wkt), OGRERR_NONE);
+  pc.crs_wkt = wkt;
+  CPLFree(wkt);
+  const fs::path ply = temp_dir() / "good_crs.ply";
+  io::write_point_cloud(ply, pc);
+  EXPECT_EQ(io::read_point_cloud(ply).crs_wkt, pc.crs_wkt);
+  fs::remove(ply);
 }
 
 // The Extra Bytes VLR's record length is 16 bit (LAS 1.4 R15 section 2.5.6): 341 descriptors of

@@ -12,6 +12,7 @@
 #include <map>
 #include <set>
 #include <string>
+#include <string_view>
 
 namespace rayscan::io {
 
@@ -20,6 +21,21 @@ namespace {
 /// only under this prefix (and shows them without it); Open3D takes any name.
 std::string property_name(const std::string& name, std::set<std::string>& used) {
   return detail::unique_field_name("scalar_", name, used);
+}
+
+/// True when the reader would not give the property `written` (prefixed "scalar_") back as the
+/// scalar of its name: the reader strips the prefix, then takes another spelling of a dedicated
+/// field for it (scalar_read_back_as: "scalar_gpstime" reads as the gps_time attribute).
+bool reserved_property(std::string_view written) {
+  if (written.rfind("scalar_", 0) == 0) written.remove_prefix(7);
+  return detail::scalar_name_reserved<Format::ply>(written);
+}
+
+/// The property of the cloud's own scalar `name`: property_name, with a suffix where the reader
+/// would take it for a dedicated field (scalar_gpstime_1, as the PCD and text writers write
+/// gpstime_1), so that it reads back as a scalar.
+std::string scalar_property_name(const std::string& name, std::set<std::string>& used) {
+  return detail::unique_field_name("scalar_", name, used, reserved_property);
 }
 }  // namespace
 
@@ -45,7 +61,7 @@ void write_ply(const std::filesystem::path& path, const PointCloud& cloud,
   if (!cloud.classification.empty()) props += "property uchar " + property_name("classification", used) + "\n";
   if (!cloud.gps_time.empty()) props += "property double " + property_name("gps_time", used) + "\n";
   for (const ScalarField& f : cloud.scalars) {
-    const std::string name = property_name(f.name, used);
+    const std::string name = scalar_property_name(f.name, used);
     props += "property double " + name + "\n";
     // A comment, not a property: PLY has no field for a unit, and readers skip comments.
     if (const auto it = descriptions.find(f.name); it != descriptions.end())

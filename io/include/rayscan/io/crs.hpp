@@ -1,5 +1,6 @@
 // EPSG codes of a CRS given as WKT: what `rayscan info` reports beside the CRS's name for any
-// file whose CRS is text (a LAS WKT VLR, a PLY comment, an index file's crs section).
+// file whose CRS is text (a LAS WKT VLR, a PLY comment, an index file's crs section); a CRS from
+// the user's text; whether the writers may store a WKT.
 #pragma once
 
 #include <string>
@@ -18,10 +19,18 @@ struct EpsgCodes {
 /// from the vertical part's EPSG authority. {0, 0} for text GDAL cannot read; never throws.
 [[nodiscard]] EpsgCodes epsg_codes_from_wkt(const std::string& wkt);
 
-/// The CRS that `user_input` names, as WKT: WKT that GDAL reads is returned as given; any other
-/// form GDAL's OSRSetFromUserInput takes ("EPSG:2992", PROJJSON, a PROJ string) as WKT1, or WKT2
-/// where WKT1 cannot express it. What the writers store and the LAS reader identifies by EPSG
-/// code. "" for text GDAL cannot read; never throws.
+/// The CRS that `user_input` names, as WKT: WKT that GDAL reads is returned as given; an EPSG (or
+/// other authority) code ("EPSG:2992"), PROJJSON or a PROJ string as WKT1, or WKT2 where WKT1
+/// cannot express it. GDAL reads it with SET_FROM_USER_INPUT_LIMITATIONS: a file name or URL is
+/// never opened. What the writers store and the LAS reader identifies by EPSG code. "" for text
+/// GDAL cannot read. Throws std::invalid_argument, its message the reason without the argument's
+/// name ("text after the WKT's closing bracket (character 689): 'GARBAGE'; expected nothing after it"), for a control
+/// character (NUL included) anywhere, text after a WKT's closing bracket, and a CRS with a unit
+/// whose size is not positive.
 [[nodiscard]] std::string crs_wkt_from_user_input(const std::string& user_input);
+
+/// Whether GDAL reads `wkt` as a CRS (OSRImportFromWkt, never as a file name or URL): the check
+/// the writers make before they store a CRS. Never throws.
+[[nodiscard]] bool crs_wkt_readable(const std::string& wkt);
 
 }  // namespace rayscan::io
