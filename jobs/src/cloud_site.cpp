@@ -1,9 +1,11 @@
 #include "cloud_site.hpp"
 
 #include "rayscan/analysis/geotiff.hpp"
+#include "rayscan/analysis/site_location.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/io/point_reader.hpp"
 #include "rayscan/site/copc.hpp"
 #include "rayscan/site/index_file.hpp"
 
@@ -119,6 +121,29 @@ SurfelAttributes estimate_analysis_surfels(const CloudSite& cs, const SurfelOpti
                 seconds_since(t0));
   ctl.info(buf);
   return surfels;
+}
+
+std::optional<std::string> header_crs(const std::filesystem::path& file) {
+  if (io::is_index_file(file)) {
+    io::IndexOpenOptions oo;
+    oo.verify = io::IndexOpenOptions::Verify::metadata_only;  // the nodes are checked when the site opens
+    return io::MappedIndex::open(file, oo).crs_wkt();
+  }
+  if (io::format_from_extension(file) != io::Format::las) return std::nullopt;
+  io::ReadOptions ro;
+  ro.stored_colour = true;  // no pass over the colours at open
+  return io::open_point_reader(file, io::AttributeSet::none(), ro)->crs_wkt();
+}
+
+void refuse_unprojected_crs(const std::string& crs_wkt, const std::string& need) {
+  // Degrees are no frame for a length or a direction wherever the site is, so the remedy is a
+  // projected CRS: the cloud reprojected, or, where the coordinates are projected already and the
+  // file names the wrong CRS, the right one written in its place.
+  if (analysis::is_unprojected_crs(crs_wkt))
+    throw OptionError({"the cloud's CRS is geographic or geocentric: " + need +
+                       " need a projected CRS (x east, y north, z up); reproject the cloud (e.g. pdal translate "
+                       "with filters.reprojection), or, if its coordinates are projected and only the CRS is "
+                       "wrong, assign the right one (e.g. pdal translate with --writers.las.a_srs)"});
 }
 
 void check_output_folder(const char* field, const std::filesystem::path& path) {

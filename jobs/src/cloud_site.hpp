@@ -74,6 +74,19 @@ void copc_cache_stats(const CloudSite& cs, const JobControl& ctl, std::uint64_t&
 /// OptionError naming `primitive` when the estimate fails.
 SurfelAttributes estimate_analysis_surfels(const CloudSite& cs, const SurfelOptions& options, const JobControl& ctl);
 
+/// The CRS a cloud file names, from its header alone, before any point is read: an index file's
+/// checked metadata, or the header a LAS/LAZ/COPC reader parses at open (as `rayscan info` does).
+/// nullopt for the other formats, whose readers decode the whole file at open (io::PointReader):
+/// their CRS comes with their points. Throws io::FormatError / io::IndexError for a bad header.
+std::optional<std::string> header_crs(const std::filesystem::path& file);
+
+/// Throws OptionError (one line, exit 2) when `crs_wkt` is geographic or geocentric
+/// (analysis::is_unprojected_crs): x and y in degrees, or from the Earth's centre, are no frame
+/// for `need` (what the job measures, plural: "sun directions"), which takes x east, y north and
+/// z up in one linear unit. The text names the remedies: reprojecting the cloud, or assigning the
+/// right CRS where only the file's CRS is wrong. Nothing for any other CRS, or none ("").
+void refuse_unprojected_crs(const std::string& crs_wkt, const std::string& need);
+
 /// Throws OptionError naming `field` when `path` is a folder or its folder does not exist: outputs
 /// are written to a temporary sibling and renamed, so a missing folder would fail only at the end
 /// of a long run. An empty path is not an output.

@@ -15,8 +15,6 @@
 #include "rayscan/base/input_file.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/image/image_file.hpp"
-#include "rayscan/io/point_reader.hpp"
-#include "rayscan/site/index_file.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -104,22 +102,6 @@ void check_utc_offset(const std::optional<double>& hours) {
   if (!(std::abs(*hours) <= 18.0) || std::abs(minutes - std::round(minutes)) > 1e-9)
     throw OptionError({option("utc_offset"), ": expected hours east of UTC in -18..18, in whole minutes (e.g. -7, "
                                              "5.5, 5.75)"});
-}
-
-/// The CRS a cloud file names, from its header alone, before any point is read: an index file's
-/// checked metadata, or the header a LAS/LAZ/COPC reader parses at open (as `rayscan info` does).
-/// nullopt for the other formats, whose readers decode the whole file at open (io::PointReader):
-/// their CRS comes with their points. Throws io::FormatError / io::IndexError for a bad header.
-std::optional<std::string> header_crs(const std::filesystem::path& file) {
-  if (io::is_index_file(file)) {
-    io::IndexOpenOptions oo;
-    oo.verify = io::IndexOpenOptions::Verify::metadata_only;  // the nodes are checked when the site opens
-    return io::MappedIndex::open(file, oo).crs_wkt();
-  }
-  if (io::format_from_extension(file) != io::Format::las) return std::nullopt;
-  io::ReadOptions ro;
-  ro.stored_colour = true;  // no pass over the colours at open
-  return io::open_point_reader(file, io::AttributeSet::none(), ro)->crs_wkt();
 }
 
 /// "30min", "1h", "2 h", "1d" -> seconds; `name`: the option it came from, for the error.
@@ -371,14 +353,15 @@ struct SolarRun {
 
   /// Refuses a CRS that cannot place the site or give sun directions a frame (check_site_crs). With
   /// --latitude/--longitude only a geographic or geocentric one is refused (degrees are no frame
-  /// for a direction wherever the site is); any other then turns compass azimuths into the grid
-  /// where PROJ can, and keeps grid north where it cannot (a local frame).
+  /// for a direction wherever the site is: refuse_unprojected_crs, as visibility refuses it); any
+  /// other then turns compass azimuths into the grid where PROJ can, and keeps grid north where it
+  /// cannot (a local frame).
   void check_crs(const std::string& wkt) const {
-    if (o.latitude && !is_unprojected_crs(wkt)) return;
+    detail::refuse_unprojected_crs(wkt, "sun directions");
+    if (o.latitude) return;
     try {
       check_site_crs(wkt);
     } catch (const std::invalid_argument& e) {
-      if (is_unprojected_crs(wkt)) throw OptionError({e.what()});
       throw OptionError({e.what(), " (", option("latitude"), ", ", option("longitude"), ")"});
     }
   }
@@ -388,7 +371,7 @@ struct SolarRun {
   /// points is checked in open_site(), before its normals.
   void check_header_crs() const {
     if (o.cloud) check_crs(o.cloud->crs_wkt);
-    else if (const std::optional<std::string> wkt = header_crs(o.cloud_file)) check_crs(*wkt);
+    else if (const std::optional<std::string> wkt = detail::header_crs(o.cloud_file)) check_crs(*wkt);
   }
 
   void open_site() {

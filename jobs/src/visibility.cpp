@@ -114,6 +114,33 @@ struct VisibilityRun {
       throw OptionError({option("raster_value"), " camera needs ", option("camera_file")});
   }
 
+  /// What in this run needs the cloud in a projected CRS, "" for nothing. The line of sight
+  /// (observers, and the raster viewshed over them) adds an eye height to z and measures a ground
+  /// radius, tolerances and ranges across x, y and z at once, so degrees in x, y against metres in
+  /// z give neither a length nor an angle. The sky view's rays are unit-free directions, but only
+  /// in a frame of one unit: with x, y in degrees a metre across measures about 1e-5, so every
+  /// horizon would read near vertical (and its lift and range are lengths). The camera's marks
+  /// stay allowed: they are the first hits of the image `rayscan render` makes with the same
+  /// camera in any frame, and a map of them in degrees is a legitimate GIS raster, as the render's
+  /// --ortho-map is.
+  std::string needs_projected_crs() const {
+    if (have_observers) return "line-of-sight heights and distances";
+    if (o.sky_rays > 0) return "sky view directions";
+    return {};
+  }
+
+  /// Refuses a geographic or geocentric CRS (refuse_unprojected_crs, as `rayscan solar` does)
+  /// when needs_projected_crs() names a need: the cloud's in memory, or the file's from its header
+  /// before the points are read and indexed (header_crs). A format whose CRS comes only with its
+  /// points is checked in open_site().
+  void check_header_crs() const {
+    const std::string need = needs_projected_crs();
+    if (need.empty()) return;
+    if (o.cloud) detail::refuse_unprojected_crs(o.cloud->crs_wkt, need);
+    else if (const std::optional<std::string> wkt = detail::header_crs(o.cloud_file))
+      detail::refuse_unprojected_crs(*wkt, need);
+  }
+
   /// The observers (file, then command line) with the default angle limits; the camera.
   void gather_observers() {
     r.raster_value = value;
@@ -143,6 +170,8 @@ struct VisibilityRun {
   void open_site() {
     detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.index, o.radius, o.radius_factor, ctl,
                             {o.copc_in_place, o.cache_bytes});
+    if (const std::string need = needs_projected_crs(); !need.empty())
+      detail::refuse_unprojected_crs(cloud.crs_wkt, need);
     r.info = cs.info;
     r.source = cs.source;
     r.radius = cs.radius;
@@ -401,6 +430,7 @@ struct VisibilityRun {
 VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   VisibilityRun run(o);
   run.check_options();
+  run.check_header_crs();
   run.gather_observers();
   run.open_site();
   // Between the stages too: the surfels' estimate (open_site) has no check of its own.

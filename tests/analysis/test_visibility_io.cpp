@@ -32,6 +32,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <tuple>
 #include <vector>
 #include <sys/wait.h>
 
@@ -758,8 +759,9 @@ TEST(VisibilityCliData, DistanceMapNamesTheCrsUnitInItsLegend) {
 }
 
 // A CRS that cannot describe the coordinates (geographic WGS 84 over coordinates in the millions)
-// is copied into the GeoTIFFs of `visibility --raster` and `render --ortho-map` with the warning
-// `rayscan info` gives for the file, word for word (the oracle: info's own "warning:" line).
+// is copied into the GeoTIFFs of `visibility --raster` (camera marks: a line of sight refuses a
+// geographic CRS) and `render --ortho-map` with the warning `rayscan info` gives for the file, word
+// for word (the oracle: info's own "warning:" line).
 TEST_F(VisibilityCli, ImplausibleCrsIsWarnedAsInfoWarnsIt) {
   PointCloud c = io::read_point_cloud(scene());
   for (Vec3& p : c.positions) p += Vec3(515000.0, 4918000.0, 0.0);
@@ -778,8 +780,10 @@ TEST_F(VisibilityCli, ImplausibleCrsIsWarnedAsInfoWarnsIt) {
   const std::size_t text = info.out.find_first_not_of(' ', w + 8);
   const std::string warning = info.out.substr(text, info.out.find('\n', text) - text);
   EXPECT_NE(warning.find("the CRS is geographic"), std::string::npos) << warning;
-  const RunResult vis = run_cmd(bin() + " visibility " + ply.string() + " --observer 515000,4918000,1.7 --raster " +
-                                (tmpdir() / "wgs84_vis.tif").string() + " --cell 1 --no-preview");
+  const fs::path cam = write_text("cam_wgs84.json", R"({"width": 32, "height": 24, "position": [514991, 4918000, 4],
+    "look_at": [515005, 4918000, 1], "up": [0, 0, 1], "vfov_deg": 50})");
+  const RunResult vis = run_cmd(bin() + " visibility " + ply.string() + " --from-camera " + cam.string() +
+                                " --raster " + (tmpdir() / "wgs84_vis.tif").string() + " --cell 1 --no-preview");
   ASSERT_EQ(vis.code, 0) << vis.out;
   EXPECT_NE(vis.out.find("rayscan visibility: warning: " + warning + "; the GeoTIFF carries it as it is\n"),
             std::string::npos) << vis.out;
@@ -789,10 +793,129 @@ TEST_F(VisibilityCli, ImplausibleCrsIsWarnedAsInfoWarnsIt) {
   EXPECT_NE(ortho.out.find("rayscan render: warning: " + warning + "; the GeoTIFF carries it as it is\n"),
             std::string::npos) << ortho.out;
   // Without a GeoTIFF nothing copies the CRS: no warning.
-  const RunResult las = run_cmd(bin() + " visibility " + ply.string() + " --observer 515000,4918000,1.7 -o " +
+  const RunResult las = run_cmd(bin() + " visibility " + ply.string() + " --from-camera " + cam.string() + " -o " +
                                 (tmpdir() / "wgs84_vis.las").string());
   ASSERT_EQ(las.code, 0) << las.out;
   EXPECT_EQ(las.out.find("warning:"), std::string::npos) << las.out;
+}
+
+// A line of sight and a sky view need x east, y north and z up in one unit: on a cloud whose CRS
+// is geographic (EPSG:4326: x, y in degrees, z in metres) `rayscan visibility` refuses them in one
+// line, from the LAS header before any point is read (its x scale is made 1e308 after writing, so
+// reading a point would fail: `rayscan info` is the oracle for that), with `rayscan solar`'s
+// wording on the same file but for what it needs; from a PLY, whose CRS comes with its points,
+// after reading them. The same points in UTM zone 10N (EPSG:32610, transformed by GDAL/PROJ) run,
+// and their viewshed carries that CRS as gdalinfo's library reads it back. Camera marks, the
+// render's first hits, run on the geographic cloud too.
+TEST_F(VisibilityCli, AGeographicCrsIsRefusedForLinesOfSightAndSkyView) {
+  PointCloud utm = io::read_point_cloud(scene());
+  for (Vec3& p : utm.positions) p += Vec3(494500.0, 4877500.0, 120.0);
+  OGRSpatialReference utm_srs, wgs84;
+  ASSERT_EQ(utm_srs.importFromEPSG(32610), OGRERR_NONE);
+  ASSERT_EQ(wgs84.importFromEPSG(4326), OGRERR_NONE);
+  utm_srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
+  wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);  // x = longitude, y = latitude
+  const auto wkt_of = [](const OGRSpatialReference& srs) {
+    char* w = nullptr;
+    srs.exportToWkt(&w);
+    const std::string text = w;
+    CPLFree(w);
+    return text;
+  };
+  utm.crs_wkt = wkt_of(utm_srs);
+  PointCloud geo = utm;
+  geo.crs_wkt = wkt_of(wgs84);
+  {
+    std::unique_ptr<OGRCoordinateTransformation> to_geo(OGRCreateCoordinateTransformation(&utm_srs, &wgs84));
+    ASSERT_TRUE(to_geo);
+    for (Vec3& p : geo.positions) {
+      double x = p.x, y = p.y;
+      ASSERT_TRUE(to_geo->Transform(1, &x, &y));
+      p.x = x;
+      p.y = y;
+    }
+  }
+  ASSERT_NEAR(geo.positions[0].x, -123.07, 0.01);
+  ASSERT_NEAR(geo.positions[0].y, 44.05, 0.01);
+  const fs::path geo_las = tmpdir() / "geographic.las", poisoned = tmpdir() / "geographic_poisoned.las",
+                 geo_ply = tmpdir() / "geographic.ply", utm_las = tmpdir() / "utm.las";
+  io::LasWriteOptions degrees;  // 1e-7 degrees is about a centimetre; the default would be coarser
+  degrees.scale = Vec3(1e-7, 1e-7, 0.001);
+  io::write_point_cloud(geo_las, geo, degrees);
+  io::write_point_cloud(poisoned, geo, degrees);
+  io::write_ply(geo_ply, geo);
+  io::write_point_cloud(utm_las, utm);
+  {
+    std::fstream f(poisoned, std::ios::in | std::ios::out | std::ios::binary);
+    const double scale = 1e308;
+    f.seekp(131);  // the header's x scale factor (LAS 1.2-1.4), little-endian float64
+    f.write(reinterpret_cast<const char*>(&scale), sizeof scale);
+  }
+  const RunResult info = run_cmd(bin() + " info " + poisoned.string());
+  ASSERT_EQ(info.code, 2) << info.out;
+  ASSERT_NE(info.out.find("the coordinate bound"), std::string::npos) << info.out;
+
+  const fs::path out = tmpdir() / "geographic_out.las", tif = tmpdir() / "geographic_vs.tif";
+  const std::string eye = " --observer " + std::to_string(geo.positions[0].x) + "," +
+                          std::to_string(geo.positions[0].y) + " --height 1.7";
+  const std::string refusal = "the cloud's CRS is geographic or geocentric: ";
+  const std::string lines = "line-of-sight heights and distances", sky = "sky view directions";
+  // {arguments, what is named as needing a projected CRS, whether the header tells the CRS}
+  const std::tuple<std::string, std::string, bool> refused[] = {
+      {poisoned.string() + eye + " --raster " + tif.string() + " --cell 1", lines, true},
+      {poisoned.string() + eye + " -o " + out.string(), lines, true},
+      {poisoned.string() + eye + " --sky-view 8 -o " + out.string(), lines, true},
+      {poisoned.string() + " --sky-view 8 -o " + out.string(), sky, true},
+      {geo_ply.string() + eye + " -o " + out.string(), lines, false},
+      {geo_ply.string() + " --sky-view 8 --raster " + tif.string() + " --cell 1", sky, false}};
+  // The wording is solar's, need for need: its refusal of the same file with "sun directions".
+  const RunResult solar = run_cmd(bin() + " solar " + poisoned.string() + " --at 2026-06-21T12:00Z -o " + out.string());
+  ASSERT_EQ(solar.code, 2) << solar.out;
+  const std::string solar_prefix = "rayscan solar: " + refusal + "sun directions";
+  ASSERT_EQ(solar.out.rfind(solar_prefix, 0), 0u) << solar.out;
+  const std::string remedy = solar.out.substr(solar_prefix.size());
+  EXPECT_NE(remedy.find(" need a projected CRS (x east, y north, z up); reproject the cloud"), std::string::npos)
+      << remedy;
+  for (const auto& [args, need, from_header] : refused) {
+    const RunResult r = run_cmd(bin() + " visibility " + args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
+    const std::string line = "rayscan visibility: " + refusal + need + remedy;
+    // From the header the refusal is all there is; from a PLY it follows the read's log lines.
+    if (from_header) EXPECT_EQ(r.out, line) << args;
+    else EXPECT_TRUE(r.out.size() > line.size() && r.out.ends_with("\n" + line)) << args << "\n" << r.out;
+    EXPECT_FALSE(fs::exists(out)) << args;
+    EXPECT_FALSE(fs::exists(tif)) << args;
+  }
+
+  // The same points in UTM: the viewshed runs and carries EPSG:32610.
+  const RunResult u = run_cmd(bin() + " visibility " + utm_las.string() + " --observer 494500,4877500 --height 1.7 " +
+                              "--sky-view 8 --raster " + tif.string() + " --cell 1 --no-preview -o " + out.string());
+  ASSERT_EQ(u.code, 0) << u.out;
+  EXPECT_EQ(u.out.find("CRS is geographic"), std::string::npos) << u.out;
+  GDALAllRegister();
+  {
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(tif.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+    ASSERT_TRUE(ds);
+    const OGRSpatialReference* srs = ds->GetSpatialRef();
+    ASSERT_TRUE(srs);
+    ASSERT_NE(srs->GetAuthorityCode(nullptr), nullptr);
+    EXPECT_STREQ(srs->GetAuthorityCode(nullptr), "32610");
+  }
+  ASSERT_TRUE(io::read_point_cloud(out).scalar("sky_view"));
+
+  // Camera marks on the geographic cloud: the first hits of the render's image, allowed as it is.
+  fs::remove(out);
+  const fs::path cam = write_text("cam_geographic.json", R"({"width": 32, "height": 24, "position": [)" +
+                                                              std::to_string(geo.positions[0].x) + ", " +
+                                                              std::to_string(geo.positions[0].y) +
+                                                              R"(, 130], "look_at": [)" +
+                                                              std::to_string(geo.positions[300].x) + ", " +
+                                                              std::to_string(geo.positions[300].y) +
+                                                              R"(, 120], "up": [0, 0, 1], "vfov_deg": 50})");
+  const RunResult c = run_cmd(bin() + " visibility -q " + geo_las.string() + " --from-camera " + cam.string() + " -o " +
+                              out.string());
+  ASSERT_EQ(c.code, 0) << c.out;
+  ASSERT_TRUE(io::read_point_cloud(out).scalar("camera_hits"));
 }
 
 // A camera whose marks cannot be allocated (4 bytes a pixel: 16 GiB for 65536 x 65536) is refused
