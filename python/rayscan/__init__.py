@@ -104,7 +104,9 @@ def write(path, cloud, **fields):
     file's scale and offset (bit-exact round trip); otherwise each axis gets the coarsest of 1,
     0.1, 0.01, 0.001 that stores every coordinate exactly, else 0.001, coarsened to 0.01, 0.1,
     ... while the axis spans more than 2e9 steps (32-bit integers): an axis spanning more than
-    2,000,000 units is stored at 0.01 or coarser, not to the nearest 0.001. Written to a temporary
+    2,000,000 units is stored at 0.01 or coarser, not to the nearest 0.001. In a geographic CRS
+    longitude and latitude are degrees: the same down to 1e-7 degrees (about 1 cm), not 0.001
+    (about 100 m); the height keeps 0.001. Written to a temporary
     file renamed into place, with the GIL released; with `fields`, a PointCloud's arrays are
     copied once (the file gets them, `cloud` keeps its own), also without the GIL. Raises ValueError for an unsupported extension, a field of the
     wrong shape or named like a PointCloud attribute, TypeError for another `cloud`, OSError

@@ -708,6 +708,63 @@ TEST(Writers, ACrsGdalCannotReadIsNotWritten) {
   fs::remove(ply);
 }
 
+// The WKT of an EPSG CRS as GDAL writes it.
+std::string epsg_wkt(int code) {
+  OGRSpatialReference srs;
+  EXPECT_EQ(srs.importFromEPSG(code), OGRERR_NONE) << code;
+  char* wkt = nullptr;
+  EXPECT_EQ(srs.exportToWkt(&wkt), OGRERR_NONE) << code;
+  std::string out = wkt != nullptr ? wkt : "";
+  CPLFree(wkt);
+  return out;
+}
+
+// The default LAS scale is in the CRS's units: a geographic cloud's longitude and latitude are
+// degrees, where 0.001 (a metre rule) is about 100 m and merges points 2e-7 degrees (2 cm)
+// apart; they are written at 1e-7 degrees and the height, metres, at 0.001. The same numbers in a
+// projected CRS (metres) keep 0.001 on every axis. Oracles: the input doubles and the header's
+// own scale bytes (LAS 1.4 R15 table 3, offset 131).
+TEST(Writers, LasDefaultScaleOfAGeographicCloudIsATenMillionthOfADegree) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> jitter(0.0, 0.4e-7), height(0.0, 30.0);
+  PointCloud pc;
+  for (int i = 0; i < 1000; ++i)  // 2e-7 degrees apart on a line, each off its step by < 0.4e-7
+    pc.positions.emplace_back(-122.41 + 2e-7 * i + jitter(rng), 37.77 + 2e-7 * i + jitter(rng), height(rng));
+  auto header_scale = [](const fs::path& f) {
+    const std::vector<std::uint8_t> b = slurp(f);
+    return Vec3(load_at<double>(b, 131), load_at<double>(b, 139), load_at<double>(b, 147));
+  };
+  const fs::path out = temp_dir() / "geographic.las";
+  pc.crs_wkt = epsg_wkt(4326);
+  io::write_las(out, pc);
+  EXPECT_EQ(header_scale(out), Vec3(1e-7, 1e-7, 0.001));
+  const PointCloud back = io::read_point_cloud(out);
+  ASSERT_EQ(back.size(), pc.size());
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    for (int k = 0; k < 2; ++k)  // half a step, and the rounding of the reader's X * scale + offset
+      ASSERT_LE(std::abs(back.positions[i][k] - pc.positions[i][k]), 0.5e-7 + 1e-12) << i << " " << k;
+    ASSERT_LE(std::abs(back.positions[i][2] - pc.positions[i][2]), 0.0005 + 1e-12) << i;
+    if (i > 0) {
+      ASSERT_NE(back.positions[i].x, back.positions[i - 1].x) << i;  // still distinct points
+    }
+  }
+  // A geographic cloud from LAS on a coarser grid of degrees (1e-6, through PLY or PCD) keeps it.
+  PointCloud grid = pc;
+  for (Vec3& p : grid.positions)
+    for (int k = 0; k < 2; ++k) p[k] = std::round(p[k] / 1e-6) * 1e-6;  // the reader's X * scale (offset 0)
+  io::write_las(out, grid);
+  EXPECT_EQ(header_scale(out), Vec3(1e-6, 1e-6, 0.001));
+  const PointCloud grid_back = io::read_point_cloud(out);
+  ASSERT_EQ(grid_back.size(), grid.size());
+  for (std::size_t i = 0; i < grid.size(); ++i)
+    for (int k = 0; k < 2; ++k) ASSERT_EQ(grid_back.positions[i][k], grid.positions[i][k]) << i << " " << k;
+  // The same numbers as metres of UTM zone 10N: a millimetre grid.
+  pc.crs_wkt = epsg_wkt(32610);
+  io::write_las(out, pc);
+  EXPECT_EQ(header_scale(out), Vec3(0.001));
+  fs::remove(out);
+}
+
 // The Extra Bytes VLR's record length is 16 bit (LAS 1.4 R15 section 2.5.6): 341 descriptors of
 // 192 bytes fit, 342 do not; the writer says so before writing anything.
 TEST(Writers, LasRefusesMoreExtraFieldsThanTheExtraBytesVlrHolds) {

@@ -15,12 +15,16 @@
 #include "rayscan/base/version.hpp"
 #include "rayscan/io/translate.hpp"
 
+#include <gdal/cpl_error.h>
+#include <gdal/ogr_srs_api.h>
+
 #include <algorithm>
 #include <array>
 #include <optional>
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 namespace rayscan::io {
 
@@ -80,6 +84,48 @@ std::vector<std::string> unique_extra_names(const std::vector<std::string>& name
     }
   }
   return out;
+}
+
+/// 10^e as the double nearest the decimal (1e-7, not 1e-8 x 10): the scales the writer picks.
+double decimal_step(int e) {
+  double p = 1.0;
+  for (int i = 0; i < std::abs(e); ++i) p *= 10.0;  // exact up to 1e22
+  return e < 0 ? 1.0 / p : p;
+}
+
+/// The size in degrees of the angular unit of `wkt`'s latitude and longitude when the CRS is
+/// geographic (of a compound CRS: its horizontal part), e.g. 1 for degrees, 57.3 for radians;
+/// nullopt for no CRS and for a projected, geocentric or local one, whose x and y are lengths.
+/// Never throws (the writer has checked that GDAL reads the WKT: validate_for_writing).
+std::optional<double> geographic_unit_degrees(const std::string& wkt) {
+  if (wkt.empty()) return std::nullopt;
+  OGRSpatialReferenceH h = OSRNewSpatialReference(nullptr);
+  if (h == nullptr) return std::nullopt;
+  std::string copy = wkt;
+  char* p = copy.data();
+  CPLPushErrorHandler(CPLQuietErrorHandler);
+  std::optional<double> degrees;
+  // ImportFromWkt, never SetFromUserInput: the text is the cloud's and must not be taken as a
+  // file name or URL.
+  if (OSRImportFromWkt(h, &p) == OGRERR_NONE && OSRIsGeographic(h)) {
+    const double radians = OSRGetAngularUnits(h, nullptr);
+    if (std::isfinite(radians) && radians > 0.0) degrees = radians * 180.0 / std::numbers::pi;
+  }
+  CPLPopErrorHandler();
+  OSRDestroySpatialReference(h);
+  return degrees;
+}
+
+/// The exponent e of the finest default scale 10^e of LAS axis k (0 X, 1 Y, 2 Z) for a cloud
+/// whose CRS's angular unit is `unit_degrees` when geographic (geographic_unit_degrees): -3 (a millimetre in metres, a thousandth of any other length unit); for the latitude
+/// and longitude of a geographic CRS, the largest power of ten of its angular unit within 1e-7
+/// degrees (about 1 cm on the ground; what LAStools and PDAL users write lat/lon LAS with): -7 in
+/// degrees, -9 in radians, since a thousandth of a degree is about 100 m and would merge points.
+int finest_scale_exponent(int k, const std::optional<double>& unit_degrees) {
+  if (k == 2 || !unit_degrees) return -3;  // a geographic CRS's height is a length
+  // + 1e-9: a degree that comes back from GDAL's radians a last place above 1 still gives -7.
+  // Clamped: a unit GDAL reads may be as small or large as a double allows.
+  return static_cast<int>(std::clamp(std::floor(std::log10(1e-7 / *unit_degrees) + 1e-9), -20.0, 20.0));
 }
 
 template <class T>
@@ -200,28 +246,41 @@ struct LasRecordWriter {
   }
 
   /// Scale and offset per axis (header section 2.4). An invalid option scale is chosen: the
-  /// coarsest decimal grid (1, 0.1, 0.01 or 0.001 units) on which every coordinate of the axis
-  /// reads back bit for bit (X * scale + offset == v, the reader's arithmetic) with the option
-  /// offset, or without one offset 0 or the default below: a cloud that came from LAS on such a
-  /// grid (through PLY or PCD) is written back exactly. Failing that, the coarsest on which every
-  /// coordinate lies to within the rounding of decimal text (detail::OnGrid::decimal): a cloud
-  /// that came from LAS through text, which prints the grid's decimals (write_text), gets its
-  /// integers back. Otherwise 0.001 (mm), multiplied by 10 until the bounds fit 32-bit integers
-  /// (2e9 units); without an option offset, the box's low corner rounded down to 1000 scale units.
+  /// coarsest decimal grid (1, 0.1, ... down to the finest default: 0.001 units, or for the
+  /// latitude and longitude of a geographic CRS 1e-7 degrees; finest_scale_exponent) on which
+  /// every coordinate of the axis reads back bit for bit (X * scale + offset == v, the reader's
+  /// arithmetic) with the option offset, or without one offset 0 or the default below: a cloud
+  /// that came from LAS on such a grid (through PLY or PCD) is written back exactly. Failing that,
+  /// the coarsest on which every coordinate lies to within the rounding of decimal text
+  /// (detail::OnGrid::decimal): a cloud that came from LAS through text, which prints the grid's
+  /// decimals (write_text), gets its integers back. Otherwise the finest default, coarsened tenfold
+  /// until the bounds fit 32-bit integers (2e9 units); without an option offset, the box's low
+  /// corner rounded down to 1000 scale units.
   void choose_scale_offset() {
     const AABB box = cloud.bounds();
     scale = options.scale;
     offset = options.offset;
+    const std::optional<double> unit_degrees = geographic_unit_degrees(wkt);
     bool auto_scale[3];
+    int finest[3];  // exponent of each axis' finest default scale
     for (int k = 0; k < 3; ++k) {
       auto_scale[k] = !(scale[k] > 0.0) || !std::isfinite(scale[k]);
-      if (auto_scale[k]) scale[k] = 0.001;
+      finest[k] = finest_scale_exponent(k, unit_degrees);
+      if (auto_scale[k]) scale[k] = decimal_step(finest[k]);
     }
     // Rounded towards zero instead where rounding down would leave the coordinate bound (a low
     // corner near -1e9 on a scale such as 7), which the readers hold a LAS offset to.
+    // A unit below 1 that is 1 / n (n whole: 1e-4 degrees at 1e-7) divides by n, so that the
+    // offset is the double nearest its decimal (-122.4567, not -122.45679999999999, which would
+    // cost a text copy of the file 17 decimals).
     auto default_offset = [&](int k, double s) {
       const double unit = 1000.0 * s;
       if (box.empty()) return 0.0;
+      const double n = std::round(1.0 / unit);
+      if (unit < 1.0 && std::abs(n * unit - 1.0) < 1e-12) {
+        const double down = std::floor(box.lo[k] * n) / n;
+        return std::abs(down) <= kMaxCoordinate ? down : std::trunc(box.lo[k] * n) / n;
+      }
       const double down = std::floor(box.lo[k] / unit) * unit;
       return std::abs(down) <= kMaxCoordinate ? down : std::trunc(box.lo[k] / unit) * unit;
     };
@@ -248,18 +307,18 @@ struct LasRecordWriter {
       // Exact first on every grid, so that a cloud with an exact grid keeps its bits even where a
       // coarser grid would match to the last place.
       for (const detail::OnGrid how : {detail::OnGrid::exact, detail::OnGrid::decimal}) {
-        for (const double s : {1.0, 0.1, 0.01, 0.001})
-          if (const std::optional<double> off = grid_offset(k, s, how)) {
-            scale[k] = s, offset[k] = *off, auto_scale[k] = false;
+        for (int e = std::max(0, finest[k]); e >= finest[k]; --e)
+          if (const std::optional<double> off = grid_offset(k, decimal_step(e), how)) {
+            scale[k] = decimal_step(e), offset[k] = *off, auto_scale[k] = false;
             break;
           }
         if (!auto_scale[k]) break;
       }
     }
     for (int k = 0; k < 3; ++k)
-      while (auto_scale[k] && !box.empty() &&
-             std::max(std::abs(box.hi[k] - offset[k]), std::abs(box.lo[k] - offset[k])) / scale[k] > 2.0e9)
-        scale[k] *= 10.0;
+      for (int e = finest[k]; auto_scale[k] && !box.empty() &&
+                              std::max(std::abs(box.hi[k] - offset[k]), std::abs(box.lo[k] - offset[k])) / scale[k] > 2.0e9;)
+        scale[k] = decimal_step(++e);
     // The readers refuse a header offset beyond the bound (parse_las_header): not written.
     for (int k = 0; k < 3; ++k)
       if (!(std::abs(offset[k]) <= kMaxCoordinate))

@@ -87,7 +87,9 @@ struct LasWriteOptions {
   /// is written back exactly), failing that the coarsest on which every coordinate lies to within
   /// the rounding of decimal text (a cloud that came from LAS through write_text's decimals gets
   /// its integers back), else 0.001 (millimetre in metre units), coarsened by powers of ten until
-  /// the cloud's extent fits 32-bit integers.
+  /// the cloud's extent fits 32-bit integers. For the longitude and latitude of a geographic CRS
+  /// (PointCloud::crs_wkt; degrees) the same down to 1e-7 degrees (about 1 cm), not 0.001 (about
+  /// 100 m); in another angular unit the power of ten within 1e-7 degrees (radians: 1e-9).
   Vec3 scale{0.0};
   /// LAS offsets; used only when `has_offset`, otherwise the bounding box minimum rounded down
   /// to a whole multiple of 1000 * scale (towards zero where that would leave kMaxCoordinate).
