@@ -32,14 +32,7 @@ void check_site_crs(const std::string& crs_wkt) {
   CPLErrorReset();
   if (src.importFromWkt(crs_wkt.c_str()) != OGRERR_NONE)
     throw std::invalid_argument("the cloud's CRS: GDAL cannot parse its WKT (" + gdal_error() + ")");
-  // Degrees are no frame for a direction whatever latitude and longitude are given, so the remedy
-  // is a projected CRS: the cloud reprojected, or, where the coordinates are projected already and
-  // the file names the wrong CRS, the right one written in its place.
-  if (is_unprojected_crs(crs_wkt))
-    throw std::invalid_argument("the cloud's CRS is geographic or geocentric: sun directions need a projected CRS "
-                                "(x east, y north, z up); reproject the cloud (e.g. pdal translate with "
-                                "filters.reprojection), or, if its coordinates are projected and only the CRS "
-                                "is wrong, assign the right one (e.g. pdal translate with --writers.las.a_srs)");
+  refuse_unprojected_crs(crs_wkt, "sun directions");
   // A local (engineering) frame may well be x east, y north, but has no place on the Earth.
   if (!src.IsProjected())
     throw std::invalid_argument("the cloud's CRS is not projected: no place on the Earth to find the sun from; "
@@ -74,6 +67,18 @@ SiteLocation locate_site(const std::string& crs_wkt, const Vec3& point) {
   if (src.IsCompound()) vertical = src.GetTargetLinearUnits("VERT_CS");
   loc.elevation_m = point.z * (vertical > 0.0 ? vertical : 1.0);
   return loc;
+}
+
+void refuse_unprojected_crs(const std::string& crs_wkt, const std::string& need) {
+  // Degrees are no frame for a length or a direction wherever the site is, so the remedy is a
+  // projected CRS: the cloud reprojected, or, where the coordinates are projected already and the
+  // file names the wrong CRS, the right one written in its place.
+  if (is_unprojected_crs(crs_wkt))
+    throw std::invalid_argument("the cloud's CRS is geographic or geocentric: " + need +
+                                " need a projected CRS (x east, y north, z up); reproject the cloud (e.g. pdal "
+                                "translate with filters.reprojection), or, if its coordinates are projected and "
+                                "only the CRS is wrong, assign the right one (e.g. pdal translate with "
+                                "--writers.las.a_srs)");
 }
 
 bool is_unprojected_crs(const std::string& crs_wkt) {

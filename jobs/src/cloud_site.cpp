@@ -136,14 +136,11 @@ std::optional<std::string> header_crs(const std::filesystem::path& file) {
 }
 
 void refuse_unprojected_crs(const std::string& crs_wkt, const std::string& need) {
-  // Degrees are no frame for a length or a direction wherever the site is, so the remedy is a
-  // projected CRS: the cloud reprojected, or, where the coordinates are projected already and the
-  // file names the wrong CRS, the right one written in its place.
-  if (analysis::is_unprojected_crs(crs_wkt))
-    throw OptionError({"the cloud's CRS is geographic or geocentric: " + need +
-                       " need a projected CRS (x east, y north, z up); reproject the cloud (e.g. pdal translate "
-                       "with filters.reprojection), or, if its coordinates are projected and only the CRS is "
-                       "wrong, assign the right one (e.g. pdal translate with --writers.las.a_srs)"});
+  try {
+    analysis::refuse_unprojected_crs(crs_wkt, need);
+  } catch (const std::invalid_argument& e) {  // the analysis library's wording, as an option error
+    throw OptionError({e.what()});
+  }
 }
 
 void check_output_folder(const char* field, const std::filesystem::path& path) {

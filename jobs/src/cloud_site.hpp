@@ -80,11 +80,10 @@ SurfelAttributes estimate_analysis_surfels(const CloudSite& cs, const SurfelOpti
 /// their CRS comes with their points. Throws io::FormatError / io::IndexError for a bad header.
 std::optional<std::string> header_crs(const std::filesystem::path& file);
 
-/// Throws OptionError (one line, exit 2) when `crs_wkt` is geographic or geocentric
-/// (analysis::is_unprojected_crs): x and y in degrees, or from the Earth's centre, are no frame
-/// for `need` (what the job measures, plural: "sun directions"), which takes x east, y north and
-/// z up in one linear unit. The text names the remedies: reprojecting the cloud, or assigning the
-/// right CRS where only the file's CRS is wrong. Nothing for any other CRS, or none ("").
+/// Throws OptionError (one line, exit 2) with analysis::refuse_unprojected_crs's text when
+/// `crs_wkt` is geographic or geocentric: x and y in degrees, or from the Earth's centre, are no
+/// frame for `need` (what the job measures, plural: "sun directions"). Nothing for any other CRS,
+/// or none ("").
 void refuse_unprojected_crs(const std::string& crs_wkt, const std::string& need);
 
 /// Throws OptionError naming `field` when `path` is a folder or its folder does not exist: outputs

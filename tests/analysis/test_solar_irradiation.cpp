@@ -26,6 +26,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <sys/stat.h>
 #include <optional>
@@ -707,6 +708,35 @@ TEST(SiteLocation, GeographicAndGeocentricAreRefusedByOneRule) {
   }
   cloud.crs_wkt = local;
   EXPECT_NO_THROW(jobs::run_solar(o));
+}
+
+// The refusal of an unprojected CRS has one wording, with what is measured in it: check_site_crs
+// gives it for sun directions, the jobs (solar, visibility) for theirs. Oracle: the text itself.
+TEST(SiteLocation, UnprojectedCrsRefusalNamesWhatNeedsAProjectedCrs) {
+  OGRSpatialReference srs;
+  ASSERT_EQ(srs.importFromEPSG(4326), OGRERR_NONE);
+  char* text = nullptr;
+  ASSERT_EQ(srs.exportToWkt(&text), OGRERR_NONE);
+  const std::string geographic = text;
+  CPLFree(text);
+  const auto why = [](const std::function<void()>& f) {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(why([&] { refuse_unprojected_crs(geographic, "line-of-sight heights and distances"); }),
+            "the cloud's CRS is geographic or geocentric: line-of-sight heights and distances need a projected CRS "
+            "(x east, y north, z up); reproject the cloud (e.g. pdal translate with filters.reprojection), or, if "
+            "its coordinates are projected and only the CRS is wrong, assign the right one (e.g. pdal translate "
+            "with --writers.las.a_srs)");
+  EXPECT_EQ(why([&] { check_site_crs(geographic); }),
+            why([&] { refuse_unprojected_crs(geographic, "sun directions"); }));
+  const std::string local = R"(LOCAL_CS["site",LOCAL_DATUM["site",0],UNIT["metre",1],AXIS["X",EAST],AXIS["Y",NORTH]])";
+  for (const std::string& wkt : {std::string(), local})
+    EXPECT_EQ(why([&] { refuse_unprojected_crs(wkt, "sun directions"); }), "") << wkt;
 }
 
 namespace solar_time_test {

@@ -25,10 +25,18 @@ struct SiteLocation {
 /// Checks that `crs_wkt` (OGC WKT 1 or 2) can place a site, from the WKT alone: no point is needed,
 /// so a job can check a cloud's CRS from its file's header before reading its points. Throws
 /// std::invalid_argument (one line) when the WKT is empty or unparseable, when the CRS is
-/// geographic or geocentric (is_unprojected_crs: a sun direction needs a projected x east, y north,
-/// z up frame; the text names the remedies, reprojecting the cloud or assigning the right CRS), or
-/// when it is otherwise not projected (a local frame: no place on the Earth).
+/// geographic or geocentric (refuse_unprojected_crs with "sun directions"), or when it is
+/// otherwise not projected (a local frame: no place on the Earth).
 void check_site_crs(const std::string& crs_wkt);
+
+/// Throws std::invalid_argument (one line) when `crs_wkt` is geographic or geocentric
+/// (is_unprojected_crs): x and y in degrees, or from the Earth's centre, are no frame for `need`
+/// (what is measured, plural: "sun directions", "line-of-sight heights and distances"), which
+/// takes x east, y north and z up in one linear unit. The text names the remedies: reprojecting
+/// the cloud, or assigning the right CRS where only the file's CRS is wrong. Nothing for any other
+/// CRS, or none (""). The one wording of that refusal (check_site_crs's, and the jobs' through
+/// their option errors).
+void refuse_unprojected_crs(const std::string& crs_wkt, const std::string& need);
 
 /// The location of the point (x, y, z), given in the projected CRS `crs_wkt` (OGC WKT 1 or 2 as
 /// the cloud's file carries it), transformed to WGS 84 (EPSG:4326) with GDAL/PROJ. The convergence
