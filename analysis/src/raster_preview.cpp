@@ -1,5 +1,6 @@
 #include "rayscan/analysis/raster_preview.hpp"
 
+#include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/image/color_ramp.hpp"
 #include "rayscan/image/image_file.hpp"
 
@@ -142,7 +143,11 @@ std::string write_raster_preview(const std::filesystem::path& path, const Raster
     render_text(img, x + 2 * mr + 4, bar_y + bar_h - 2, style.marker_label, 12, black);  // false: no font
     legend += "; " + style.marker_label + ": white disc";
   }
-  legend += "; " + std::to_string(s) + " px per cell of " + fmt(g.cell) + " world units";
+  GeoTiffOptions crs;
+  crs.crs_wkt = style.crs_wkt;
+  crs.unit_is_crs_length = true;
+  const std::string unit = geotiff_band_unit(crs);
+  legend += "; " + std::to_string(s) + " px per cell of " + fmt(g.cell) + " " + (unit.empty() ? "world units" : unit);
   write_image(img, path.string(), PixelFormat::uint8, legend);
   return legend;
 }

@@ -691,6 +691,7 @@ struct SolarRun {
     if (o.write_preview) {
       if (preview.empty()) preview = std::filesystem::path(path).replace_extension(".png");
       PreviewStyle style;
+      style.crs_wkt = go.crs_wkt;
       double top = 0.0;
       for (float v : map.values)
         if (std::isfinite(v)) top = std::max(top, double(v));

@@ -400,6 +400,7 @@ struct VisibilityRun {
       std::filesystem::path pv = o.preview;
       if (pv.empty()) pv = std::filesystem::path(o.raster).replace_extension(".png");
       PreviewStyle style;
+      style.crs_wkt = cloud.crs_wkt;
       if (value == "viewshed" || value == "viewshed-points")  // binary: a categorical legend, not a ramp
         style.categories = {{1.0f, "visible", {1.0f, 0.8f, 0.1f}}, {0.0f, "not visible", {0.3f, 0.3f, 0.3f}}};
       if (have_observers && value != "sky" && value != "camera")

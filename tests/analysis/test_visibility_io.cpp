@@ -431,6 +431,30 @@ TEST(RasterPreview, ColoursFollowTheRampAndNoData) {
   EXPECT_THROW(write_raster_preview(out, r, 1.0, 0.0, "t"), std::invalid_argument);
 }
 
+// The legend names the cell size in the unit the GeoTIFF's band would (GDAL's name of the CRS's
+// linear unit): US survey feet for EPSG:2255, "world units" without a CRS.
+TEST(RasterPreview, CellSizeIsInTheCrsLinearUnit) {
+  GridSpec g;
+  g.cols = 2;
+  g.rows = 1;
+  g.cell = 3;
+  const Raster r{g, {0.0f, 1.0f}, "t"};
+  OGRSpatialReference srs;
+  ASSERT_EQ(srs.importFromEPSG(2255), OGRERR_NONE);
+  char* w = nullptr;
+  ASSERT_EQ(srs.exportToWkt(&w), OGRERR_NONE);
+  PreviewStyle style;
+  style.crs_wkt = w;
+  CPLFree(w);
+  const char* unit = nullptr;
+  srs.GetLinearUnits(&unit);
+  const std::string feet = write_raster_preview(tmpdir() / "u.png", r, 0.0, 1.0, "t", style);
+  EXPECT_NE(feet.find(" px per cell of 3 " + std::string(unit)), std::string::npos) << feet;
+  EXPECT_EQ(std::string(unit), "US survey foot");
+  const std::string none = write_raster_preview(tmpdir() / "n.png", r, 0.0, 1.0, "t");
+  EXPECT_NE(none.find(" px per cell of 3 world units"), std::string::npos) << none;
+}
+
 // ---- `rayscan visibility` end to end.
 
 class VisibilityCli : public ::testing::Test {

@@ -66,6 +66,10 @@ struct PreviewStyle {
   /// over the cell, and "observer" in the legend.
   std::vector<Vec3> markers;
   std::string marker_label = "observer";
+  /// The raster's CRS (WKT, as its GeoTIFF carries it): the legend gives the cell size in the
+  /// CRS's linear unit as the GeoTIFF's band unit names it (geotiff_band_unit), "world units"
+  /// without a CRS.
+  std::string crs_wkt;
 };
 
 /// Writes an 8-bit RGB image (format by extension, normally .png) of `raster`: each cell becomes an
