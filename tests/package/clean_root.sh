@@ -165,7 +165,7 @@ grep -v '^[0-9,]*$' out/pg.txt
 rows=$(grep -E '^[0-9,]+$' out/pg.txt)
 [ "$(echo "$rows" | wc -l)" = 2 ] && [ "$(echo "$rows" | sed -n 1p)" = "$(echo "$rows" | sed -n 2p)" ] ||
   { echo "postgresql: the index-pruned rows differ from the sequential scan"; exit 1; }
-grep -q 'Index Cond: (rs_box(x, y, z) && ray_within' out/pg.txt || { echo "postgresql: no Index Cond"; exit 1; }
+grep -q 'Index Cond: (rs_box(x, y, z) && ray_dwithin_ray' out/pg.txt || { echo "postgresql: no Index Cond"; exit 1; }
 n=$(echo "$rows" | sed -n 1p | tr ',' '\n' | wc -l)
 echo "index-pruned: $n points, equal to the sequential scan; sqlite found ${s[0]}"
 [ "$n" = "${s[0]}" ] || { echo "postgresql and sqlite differ"; exit 1; }
