@@ -20,14 +20,14 @@
 // slope (Horn, 3 x 3 valid cells) is below kMaxSlopeDeg and whose DSM horizon (32 azimuths out to
 // kHorizonReach) is below kMaxHorizonDeg in every direction. The other cells are reported by kind.
 //
-// Measured (this code, GRASS 8.2.1): open terrain 7,811 cells, 99.6 % within 5 %, median -0.32 %
-// (5-95 %: -2.0 .. +1.3 %); those ground by class 2 alone 3,784 cells, 99.2 %. rayscan's diffuse
+// Measured (this code, GRASS 8.2.1): open terrain 7,908 cells, 99.6 % within 5 %, median -0.04 %
+// (5-95 %: -1.6 .. +1.5 %); those ground by class 2 alone 3,829 cells, 99.3 %. rayscan's diffuse
 // is 1.3 % lower there (its sky view, 0.988 median, scales it; r.sun's diffuse has no sky view),
 // the beam agrees to 0.1 %; the 0.4 % of misses lie near the DSM's holes (the river), where
 // rayscan's points shade what r.sun sees as open. Ground next to trees (horizon >= 20 degrees):
-// 77.5 % within 5 %, median -1.4 %: lower where the crowns also hide sky (diffuse -12 %), higher
+// 78.9 % within 5 %, median -0.1 %: lower where the crowns also hide sky (diffuse -12 %), higher
 // where sun passes through gaps in the crowns (spheres; the DSM's crowns are solid). Crowns, the
-// bank and the footbridge (raised > 10 ft): 19 % within 5 %: r.sun tilts each cell by the DSM's
+// bank and the footbridge (raised > 10 ft): 20 % within 5 %: r.sun tilts each cell by the DSM's
 // 3 x 3 slope (a crown's or the bridge's edge is a steep wall facing out), rayscan by the top
 // point's own normal. Time per day, one thread, 2 shared cores: r.sun ~0.7-1.0 s for 46,215
 // cells, rayscan ~3.1-3.4 s for 110,000 points (with 64 sky-view rays per point); about 70 s in all.
