@@ -68,6 +68,7 @@ int run_solar(SolarCli& o) {
   job.preview = o.preview;
   job.weather = o.weather;
   job.write_preview = !o.no_preview;
+  job.all_fields = false;  // only the outputs' fields: a shadow map traces no sky rays
   try {
     job.cache_bytes = static_cast<std::size_t>(rayscan::parse_byte_size(o.cache));
   } catch (const std::invalid_argument& e) {

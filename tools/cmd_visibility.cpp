@@ -51,6 +51,7 @@ int run_visibility(VisibilityCli& o) {
   job.raster = o.raster;
   job.preview = o.preview;
   job.write_preview = !o.no_preview;
+  job.all_fields = o.json;  // the report states each observer's points; else only the outputs' fields
   try {
     job.cache_bytes = static_cast<std::size_t>(rayscan::parse_byte_size(o.cache));
   } catch (const std::invalid_argument& e) {
@@ -72,12 +73,18 @@ int run_visibility(VisibilityCli& o) {
   char buf[512];
   for (std::size_t k = 0; k < r.observers.size(); ++k) {
     const an::Observer& ob = r.observers[k];
-    const std::uint64_t seen = r.line_of_sight.per_observer[k];
-    std::snprintf(buf, sizeof buf, "%-24s eye (%.3f, %.3f, %.3f)%s sees %llu points (%.1f %%)",
-                  an::observer_label(ob, k + 1).c_str(), ob.position.x, ob.position.y, ob.position.z,
-                  std::isnan(ob.ground_z) ? "" : (" ground " + std::to_string(ob.ground_z)).c_str(),
-                  static_cast<unsigned long long>(seen), 100.0 * double(seen) / double(r.cloud.size()));
-    std::cout << buf << "\n";
+    std::snprintf(buf, sizeof buf, "%-24s eye (%.3f, %.3f, %.3f)%s", an::observer_label(ob, k + 1).c_str(),
+                  ob.position.x, ob.position.y, ob.position.z,
+                  std::isnan(ob.ground_z) ? "" : (" ground " + std::to_string(ob.ground_z)).c_str());
+    std::cout << buf;
+    // No line of sight over the points when no output needed it (the DSM viewshed alone).
+    if (k < r.line_of_sight.per_observer.size()) {
+      const std::uint64_t seen = r.line_of_sight.per_observer[k];
+      std::snprintf(buf, sizeof buf, " sees %llu points (%.1f %%)", static_cast<unsigned long long>(seen),
+                    100.0 * double(seen) / double(r.cloud.size()));
+      std::cout << buf;
+    }
+    std::cout << "\n";
   }
   for (const auto& f : r.written) std::cout << "wrote " << f.string() << "\n";
   return 0;

@@ -13,6 +13,7 @@
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/input_file.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/image/image_file.hpp"
 
@@ -26,6 +27,7 @@
 #include <cstring>
 #include <numbers>
 #include <stdexcept>
+#include <string_view>
 
 namespace rayscan::jobs {
 
@@ -245,6 +247,9 @@ std::string sun_position_report_json(const SunPositionJobResult& r) {
 
 namespace {
 
+/// The result fields solar_report_json states.
+constexpr std::string_view kReportFields[] = {"solar_global", "in_shadow", "sun_hours"};
+
 /// One run_solar call: the steps in order, sharing the options, the result and the site.
 struct SolarRun {
   const SolarJobOptions& o;
@@ -260,6 +265,7 @@ struct SolarRun {
   VisibilityOptions vo;
   SunMap map;
   std::vector<Vec3> sky;
+  bool sky_traced = true;  // sky_needed(): false leaves the fields that need the sky out of the cloud
   std::optional<EpwFile> weather;
   bool frames_mode = false;  // --day: shadows through a day
   struct Frame {
@@ -482,9 +488,52 @@ struct SolarRun {
     return s;
   }
 
+  /// The result field `--raster-value` maps.
+  std::string raster_field() const {
+    static const std::pair<const char*, const char*> fields[] = {
+        {"global", "solar_global"}, {"beam", "solar_beam"}, {"diffuse", "solar_diffuse"},
+        {"reflected", "solar_reflected"}, {"sun_hours", "sun_hours"}, {"sky_view", "sky_view"}};
+    if (instant) return value == "in_shadow" ? "in_shadow" : "irradiance_" + value;
+    for (const auto& [v, f] : fields)
+      if (value == v) return f;
+    return value;
+  }
+
+  /// True when an output uses result field `name` (SolarJobOptions::all_fields): the cloud
+  /// output writes every field, the raster its own, the report kReportFields.
+  bool field_used(const std::string& name) const {
+    if (o.all_fields || !o.out.empty()) return true;
+    if (!o.raster.empty() && raster_field() == name) return true;
+    return std::find(std::begin(kReportFields), std::end(kReportFields), name) != std::end(kReportFields);
+  }
+
+  /// True for a result field whose value does not depend on the sky-map rays: the shadow, the
+  /// beam and the hours of sun come from the sun-map rays alone; the diffuse is weighed by the
+  /// sky view, the reflected by its complement, and the global adds both.
+  static bool sky_free(const std::string& name) {
+    return name == "in_shadow" || name == "irradiance_beam" || name == "solar_beam" || name == "sun_hours";
+  }
+
+  /// The result fields of the run (the monthly ones are all sky-dependent, as solar_global).
+  std::vector<std::string> result_fields() const {
+    if (instant) return {"in_shadow", "irradiance_global", "irradiance_beam", "irradiance_diffuse"};
+    return {"solar_global", "solar_beam", "solar_diffuse", "solar_reflected", "sun_hours", "sky_view"};
+  }
+
+  /// True when some output uses a field that needs the sky-map rays.
+  bool sky_needed() const {
+    for (const std::string& f : result_fields())
+      if (!sky_free(f) && field_used(f)) return true;
+    return false;
+  }
+
   void sun_and_sky() {
     std::vector<SolarStep> steps;
-    r.sky_rays = o.sky_rays;
+    sky_traced = sky_needed();
+    r.sky_rays = sky_traced ? o.sky_rays : 0;
+    if (!sky_traced && o.sky_rays > 0)
+      ctl.info("sky-map rays not traced: no output uses the diffuse, reflected, global or sky view (" +
+               raster_field() + " map)");
     if (instant) {
       const OptionTime at = option_time("at", o.at, zone(), false);
       r.start_unix = r.end_unix = at.unix_seconds;
@@ -615,14 +664,18 @@ struct SolarRun {
     r.trace_seconds = seconds_since(t0);
     if (!root()) return;
     r.rays = std::uint64_t(n) * dirs.size();
+    // Without the sky-map rays a field that needs them would hold the open sky's value: left out.
+    auto set_field = [&](const std::string& name, std::vector<double> v) {
+      if (sky_traced || sky_free(name)) detail::set_scalar(cloud, name, std::move(v));
+    };
     if (instant) {
       if (!sun_up) ctl.info("the sun is below the horizon: every point is in shadow");
       std::vector<double> global(n);
       for (std::size_t i = 0; i < n; ++i) global[i] = beam[i] + diffuse[i] + reflected[i];
-      detail::set_scalar(cloud, "in_shadow", std::move(shadow));
-      detail::set_scalar(cloud, "irradiance_global", std::move(global));
-      detail::set_scalar(cloud, "irradiance_beam", std::move(beam));
-      detail::set_scalar(cloud, "irradiance_diffuse", std::move(diffuse));
+      set_field("in_shadow", std::move(shadow));
+      set_field("irradiance_global", std::move(global));
+      set_field("irradiance_beam", std::move(beam));
+      set_field("irradiance_diffuse", std::move(diffuse));
     } else {
       double total = 0.0;
       std::vector<double> global(n);
@@ -635,12 +688,12 @@ struct SolarRun {
       }
       std::snprintf(buf, sizeof buf, "mean global irradiation %.4g kWh/m² over the period", total / double(n));
       ctl.info(buf);
-      detail::set_scalar(cloud, "solar_global", std::move(global));
-      detail::set_scalar(cloud, "solar_beam", std::move(beam));
-      detail::set_scalar(cloud, "solar_diffuse", std::move(diffuse));
-      detail::set_scalar(cloud, "solar_reflected", std::move(reflected));
-      detail::set_scalar(cloud, "sun_hours", std::move(hours));
-      detail::set_scalar(cloud, "sky_view", std::move(view));
+      set_field("solar_global", std::move(global));
+      set_field("solar_beam", std::move(beam));
+      set_field("solar_diffuse", std::move(diffuse));
+      set_field("solar_reflected", std::move(reflected));
+      set_field("sun_hours", std::move(hours));
+      set_field("sky_view", std::move(view));
       std::vector<bool> touched(groups, false);
       if (groups > 0)
         for (const SolarStep& s : map.steps) touched[s.group] = true;
@@ -650,12 +703,12 @@ struct SolarRun {
         for (double& x : v) x /= 1000.0;
         char name[48];
         std::snprintf(name, sizeof name, "solar_global_%02zu", g + 1);
-        detail::set_scalar(cloud, name, std::move(v));
+        set_field(name, std::move(v));
       }
     }
-    std::snprintf(buf, sizeof buf, "traced %zu points x %zu directions (%zu sun, %zu sky) in %.2f s", n, dirs.size(),
-                  nsec, sky.size(), r.trace_seconds);
-    ctl.info(buf);
+    std::snprintf(buf, sizeof buf, " in %.2f s", r.trace_seconds);
+    ctl.info("traced " + count_text(n, "point") + " x " + count_text(dirs.size(), "direction") + " (" +
+             std::to_string(nsec) + " sun, " + std::to_string(sky.size()) + " sky)" + buf);
   }
 
   /// The grid of the maps (--cell over the cloud's extent).
@@ -705,14 +758,7 @@ struct SolarRun {
 
   /// The raster of --raster-value.
   void write_raster() {
-    static const std::pair<const char*, const char*> fields[] = {
-        {"global", "solar_global"}, {"beam", "solar_beam"}, {"diffuse", "solar_diffuse"},
-        {"reflected", "solar_reflected"}, {"sun_hours", "sun_hours"}, {"sky_view", "sky_view"}};
-    std::string field = value;
-    if (instant) field = value == "in_shadow" ? "in_shadow" : "irradiance_" + value;
-    else
-      for (const auto& [v, f] : fields)
-        if (value == v) field = f;
+    const std::string field = raster_field();
     const ScalarField* sf = nullptr;
     for (const ScalarField& f : cloud.scalars)
       if (f.name == field) sf = &f;
@@ -866,7 +912,7 @@ std::string solar_report_json(const SolarJobResult& r) {
   j["rays"] = r.rays;
   j["seconds"] = {{"trace", r.trace_seconds}};
   for (const ScalarField& f : r.cloud.scalars) {
-    if (f.name != "solar_global" && f.name != "in_shadow" && f.name != "sun_hours") continue;
+    if (std::find(std::begin(kReportFields), std::end(kReportFields), f.name) == std::end(kReportFields)) continue;
     double sum = 0.0, lo = kInf, hi = -kInf;
     for (double v : f.values) {
       sum += v;

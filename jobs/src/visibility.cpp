@@ -4,6 +4,7 @@
 
 #include "cloud_site.hpp"
 
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/analysis/dsm_viewshed.hpp"
@@ -188,7 +189,25 @@ struct VisibilityRun {
     r.max_distance = o.max_distance.value_or(kInf);
   }
 
-  /// Line of sight from every observer.
+  /// The result field the raster maps ("" for the viewshed: the DSM's, no field).
+  std::string raster_field() const {
+    if (value == "viewshed-points" || value == "fraction" || value == "count") return "visible_count";
+    if (value == "distance") return "visible_distance";
+    if (value == "sky") return "sky_view";
+    if (value == "camera") return "camera_hits";
+    return {};
+  }
+
+  /// True when an output uses result field `name` (VisibilityJobOptions::all_fields): the cloud
+  /// output writes every field, the raster its own.
+  bool field_used(const std::string& name) const {
+    return o.all_fields || !o.out.empty() || (!o.raster.empty() && raster_field() == name);
+  }
+
+  /// The per-point line of sight feeds visible_count and visible_distance alone.
+  bool line_of_sight_needed() const { return field_used("visible_count") || field_used("visible_distance"); }
+
+  /// Line of sight from every observer (placed on the ground either way).
   void line_of_sight() {
     if (have_observers) {
       GroundOptions g;
@@ -197,7 +216,12 @@ struct VisibilityRun {
       // it is sampled there, as a DSM's cell under the observer is.
       if (surfel && !o.ground_radius) g.inner_radius = surfels.median_radius;
       g.default_height = o.height;
-      place_observers(observers, *site, cloud, g);
+      place_observers(observers, *site, cloud, g);  // the DSM viewshed's eyes too
+      if (!line_of_sight_needed()) {
+        ctl.info("line of sight over the points not run: no output uses visible_count or visible_distance (" +
+                 value + " map)");
+        return;
+      }
       VisibilityOptions vo;
       vo.radius = radius;
       vo.tolerance = r.tolerance;
@@ -212,9 +236,9 @@ struct VisibilityRun {
       std::uint64_t seen = 0;
       for (std::uint32_t c : vis.count) seen += c > 0;
       std::snprintf(buf, sizeof buf,
-                    "line of sight: %zu points x %zu observers in %.2f s (%u threads): %.4g points/s, "
+                    "line of sight: %zu points x %s in %.2f s (%u threads): %.4g points/s, "
                     "%.4g observer-point pairs/s; %llu points (%.1f %%) seen by at least one observer",
-                    cloud.size(), observers.size(), vis.seconds, vis.threads, double(cloud.size()) / vis.seconds,
+                    cloud.size(), count_text(observers.size(), "observer").c_str(), vis.seconds, vis.threads, double(cloud.size()) / vis.seconds,
                     double(vis.pairs) / vis.seconds, static_cast<unsigned long long>(seen),
                     100.0 * double(seen) / double(cloud.size()));
       ctl.info(buf);

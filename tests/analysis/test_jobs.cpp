@@ -1,7 +1,8 @@
-// The compare and visibility jobs as library calls (compare_job.hpp, visibility_job.hpp).
+// The compare, visibility and solar jobs as library calls (compare.hpp, visibility.hpp, solar.hpp).
 // Oracles: hand-computed errors of constructed images, the lower-level compute_visibility and
-// compute_sky_view calls, and the geometry of an open plane.
+// compute_sky_view calls, the geometry of an open plane, and a map's bytes from a fuller run.
 #include "rayscan/jobs/compare.hpp"
+#include "rayscan/jobs/solar.hpp"
 #include "rayscan/jobs/visibility.hpp"
 #include "rayscan/site/copc.hpp"
 #include "rayscan/site/index_file.hpp"
@@ -437,4 +438,102 @@ TEST(VisibilityJob, CopcInPlaceCameraDecodesOnlyTheNodesItSees) {
   const VisibilityJobResult whole = run_visibility(o);
   expect_same_visibility(in_place, whole);
   EXPECT_GT(std::count_if(whole.camera_hits.begin(), whole.camera_hits.end(), [](auto v) { return v > 0; }), 50);
+}
+
+namespace {
+
+std::string file_bytes(const std::filesystem::path& p) {
+  std::FILE* f = std::fopen(p.string().c_str(), "rb");
+  if (!f) return {};
+  std::string s;
+  char buf[4096];
+  for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, f)) > 0;) s.append(buf, n);
+  std::fclose(f);
+  return s;
+}
+
+}  // namespace
+
+// A viewshed map alone (all_fields false, as the CLI without -o or --json) places the observers
+// but skips the per-point line of sight, which only visible_count and visible_distance use.
+// Oracles: the GeoTIFF's own bytes from the run that traces it, and the result's counters.
+TEST(VisibilityJob, ViewshedMapAloneSkipsThePerPointLineOfSight) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("rayscan_vis_skip_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const PointCloud pc = plane_with_wall();
+  VisibilityJobOptions o;
+  o.cloud = &pc;
+  o.radius = 0.08;
+  Observer eye;
+  eye.position = Vec3(0.5, 2.0, 1.7);
+  eye.has_z = true;
+  o.observers = {eye};
+  o.cell = 0.2;
+  o.write_preview = false;
+  o.control.threads = 2;
+  o.raster = dir / "all.tif";
+  const VisibilityJobResult all = run_visibility(o);
+  EXPECT_EQ(all.line_of_sight.count.size(), pc.size());
+  EXPECT_GT(all.line_of_sight.pairs, 0u);
+  o.all_fields = false;
+  o.raster = dir / "map.tif";
+  const VisibilityJobResult map = run_visibility(o);
+  EXPECT_TRUE(map.line_of_sight.count.empty());
+  EXPECT_EQ(map.line_of_sight.pairs, 0u);
+  EXPECT_EQ(map.cloud.scalar("visible_count"), nullptr);
+  EXPECT_EQ(map.observers[0].position, all.observers[0].position);
+  const std::string want = file_bytes(dir / "all.tif");
+  ASSERT_GT(want.size(), 100u);
+  EXPECT_EQ(file_bytes(dir / "map.tif"), want);
+  // A map of the points' line of sight still runs it.
+  o.raster_value = "viewshed-points";
+  o.raster = dir / "points.tif";
+  EXPECT_EQ(run_visibility(o).line_of_sight.count, all.line_of_sight.count);
+  fs::remove_all(dir);
+}
+
+// An instant's shadow map alone (all_fields false, as the CLI without -o) traces only the sun ray:
+// the sky-map rays feed the diffuse, reflected and global alone. Oracles: the GeoTIFF's own bytes
+// from the run that traces the sky, and the result's counters (rays = points x directions).
+TEST(SolarJob, ShadowMapAloneTracesNoSkyRays) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("rayscan_solar_skip_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const PointCloud pc = plane_with_wall();
+  SolarJobOptions o;
+  o.cloud = &pc;
+  o.radius = 0.08;
+  o.latitude = 48.0;
+  o.longitude = 11.0;
+  o.at = "2026-03-20T16:00:00+01:00";  // a low western sun: the wall casts a shadow
+  o.cell = 0.2;
+  o.write_preview = false;
+  o.control.threads = 2;
+  o.raster = dir / "all.tif";
+  const SolarJobResult all = run_solar(o);
+  EXPECT_EQ(all.sky_rays, 64u);
+  EXPECT_EQ(all.rays, pc.size() * 65);
+  EXPECT_NE(all.cloud.scalar("irradiance_diffuse"), nullptr);
+  o.all_fields = false;
+  o.raster = dir / "shadow.tif";
+  const SolarJobResult shadow = run_solar(o);
+  EXPECT_EQ(shadow.sky_rays, 0u);
+  EXPECT_EQ(shadow.rays, pc.size());
+  // The fields the sky would have given are left out, not filled with the open sky's values.
+  EXPECT_EQ(shadow.cloud.scalar("irradiance_diffuse"), nullptr);
+  EXPECT_EQ(shadow.cloud.scalar("irradiance_global"), nullptr);
+  ASSERT_NE(shadow.cloud.scalar("in_shadow"), nullptr);
+  const std::vector<double>& lit = shadow.cloud.scalar("in_shadow")->values;
+  EXPECT_GT(std::count(lit.begin(), lit.end(), 1.0), 10);  // not vacuous: some shade, some sun
+  EXPECT_GT(std::count(lit.begin(), lit.end(), 0.0), 10);
+  EXPECT_EQ(lit, all.cloud.scalar("in_shadow")->values);
+  const std::string want = file_bytes(dir / "all.tif");
+  ASSERT_GT(want.size(), 100u);
+  EXPECT_EQ(file_bytes(dir / "shadow.tif"), want);
+  // A map of the global irradiance needs the sky.
+  o.raster_value = "global";
+  o.raster = dir / "global.tif";
+  EXPECT_EQ(run_solar(o).sky_rays, 64u);
+  fs::remove_all(dir);
 }

@@ -157,6 +157,12 @@ struct SolarJobOptions {
   std::string raster_value;
   std::filesystem::path preview;        ///< PNG preview ("" = the raster's name with .png)
   bool write_preview = true;
+  /// The result's cloud is used as it is (the Python module returns its fields): every result
+  /// field is computed. false (the CLI): only the fields an output uses are -- every one with
+  /// `out`, else the raster's and those solar_report_json states -- and the sky-map rays, which
+  /// only the diffuse, reflected, global and sky view need, are not traced when none of those is
+  /// used (an instant's shadow map); the fields that need them are then left out of the result.
+  bool all_fields = true;
 
   JobControl control;
 };
@@ -185,7 +191,7 @@ struct SolarJobResult {
   std::size_t steps = 0;                ///< time steps in the period (1 for an instant)
   std::size_t sun_steps = 0;            ///< steps with the sun above the horizon
   std::size_t sectors = 0;              ///< shadow directions per point (sun-map sectors)
-  std::uint32_t sky_rays = 0;
+  std::uint32_t sky_rays = 0;           ///< sky-map directions traced per point (0 when no output needs them)
   std::optional<analysis::SolarPosition> sun;  ///< the sun at `at` (an instant)
   std::uint64_t rays = 0;               ///< directions traced (points x directions, before culling)
   double trace_seconds = 0.0;

@@ -87,6 +87,12 @@ struct VisibilityJobOptions {
                                         ///< with observers, else sky, else camera
   std::filesystem::path preview;        ///< PNG preview ("" = the raster's name with .png)
   bool write_preview = true;            ///< write the preview next to the raster
+  /// The result's cloud and per-observer counts are used as they are (the Python module returns
+  /// them; the CLI's --json states them): the line of sight over the points always runs with
+  /// observers. false (the CLI otherwise): it runs only when an output uses its fields -- `out`,
+  /// or a raster of viewshed-points, fraction, count or distance; the DSM viewshed needs only the
+  /// observers' places, and `line_of_sight` is then left empty.
+  bool all_fields = true;
 
   JobControl control;                   ///< threads, progress bar, log lines
 };
@@ -103,7 +109,8 @@ struct VisibilityJobResult {
   double surfel_max_radius = 0.0;       ///< largest disc radius (surfels)
   double tolerance = 0.0, target_height = 0.0, max_distance = kInf;  ///< line-of-sight values used
   std::vector<Observer> observers;      ///< placed on the ground (z resolved)
-  VisibilityResult line_of_sight;       ///< per point / per observer counts (empty without observers)
+  VisibilityResult line_of_sight;       ///< per point / per observer counts (empty without observers,
+                                        ///< or when no output uses them: all_fields)
   std::vector<double> sky_view;         ///< per point (empty unless sky_rays > 0)
   double sky_seconds = 0.0;             ///< wall time of the sky view
   std::uint64_t sky_queries = 0;        ///< ray queries of the sky view
