@@ -6,6 +6,7 @@
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/json_object.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/camera/camera_file.hpp"
@@ -422,13 +423,22 @@ ImageMetadata render_metadata(const RenderJobOptions& o, const Scene& scene, con
   return m;
 }
 
-void log_stats(const JobControl& ctl, const RenderStats& st, const Camera& cam, std::uint32_t spp, const char* what) {
+// The stats line of a render. `albedo_rays` (0 = not a map of albedo) are an ortho map's rays per
+// cell for its colour (RenderSettings::albedo_samples), the map's own count, stated first; the
+// beauty's spp and the AOV ray follow, so that the primary rays add up: spp + 1 AOV ray, + the
+// albedo rays when above 1 (one albedo ray is the AOV ray).
+void log_stats(const JobControl& ctl, const RenderStats& st, const Camera& cam, std::uint32_t spp,
+               std::uint32_t albedo_rays, const char* what) {
+  std::string per_pixel = std::to_string(spp) + " spp";
+  if (albedo_rays > 1) per_pixel = count_text(albedo_rays, "albedo ray") + " per px (and " + per_pixel + ", 1 AOV ray)";
+  else if (albedo_rays == 1) per_pixel = "1 albedo ray per px (the AOV ray; and " + per_pixel + ")";
   char buf[512];
   std::snprintf(buf, sizeof buf,
-                "%s%.2f s, %u threads, %llux%llu px, %u spp, %llu primary rays, %llu ray queries, "
+                "%s%.2f s, %u threads, %llux%llu px, %s, %llu primary rays, %llu ray queries, "
                 "%.3g queries/s (%.3g per thread), %.3g nodes and %.3g points visited per query",
-                what, st.seconds, st.threads, (unsigned long long)cam.width(), (unsigned long long)cam.height(), spp,
-                (unsigned long long)st.primary_rays, (unsigned long long)st.queries, double(st.queries) / st.seconds,
+                what, st.seconds, st.threads, (unsigned long long)cam.width(), (unsigned long long)cam.height(),
+                per_pixel.c_str(), (unsigned long long)st.primary_rays, (unsigned long long)st.queries,
+                double(st.queries) / st.seconds,
                 double(st.queries) / st.seconds / st.threads,
                 st.queries ? double(st.nodes_visited) / double(st.queries) : 0.0,
                 st.queries ? double(st.points_tested) / double(st.queries) : 0.0);
@@ -461,7 +471,10 @@ RenderJobResult run_render(const RenderJobOptions& o) {
                                o.camera_for_cloud ? std::filesystem::path() : scene.camera_file);
   if (o.write && !scene.output.image.empty() && is_root(ctl))
     r.written = write_image(r.image, scene.output, r.metadata);
-  log_stats(ctl, r.stats, *scene.camera, scene.spp, "");
+  const std::vector<Aov>& aovs = scene.output.aovs;
+  const bool albedo_aov = std::find(aovs.begin(), aovs.end(), Aov::albedo) != aovs.end();
+  // A map of albedo (run_ortho_map) is the one render that sets camera_for_cloud and the albedo AOV.
+  log_stats(ctl, r.stats, *scene.camera, scene.spp, albedo_aov && o.camera_for_cloud ? P->albedo_samples : 0, "");
   return r;
 }
 
@@ -521,7 +534,7 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
     check_render_memory(r.map->camera, job.scene.output.aovs, false, {}, {"map (a larger ", option("ortho_map"), " cell)"});
     job.control.info("ortho map: " + std::to_string(r.map->grid.cols) + " x " + std::to_string(r.map->grid.rows) +
                      " cells, top-down, colour " + analysis::to_string(o.ortho_colour) +
-                     (albedo ? " (mean of " + std::to_string(albedo_samples) + " rays per cell)" : std::string()));
+                     (albedo ? " (mean of " + count_text(albedo_samples, "ray") + " per cell)" : std::string()));
     return r.map->camera;
   };
   // The DSM: the first surface down the cell-centre ray, within the heights of the points that can
