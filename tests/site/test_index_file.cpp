@@ -522,6 +522,36 @@ TEST(IndexFileBuild, RunsOfOneRepeatedPointMergeInIdOrder) {
   fs::remove_all(dir);
 }
 
+// The one-run build reports its "write" phase every 2^22 points and at its end: 300,000 points
+// (past the first gather block of 2^18, short of 2^22) end with a report of (300000, 300000), as
+// the several-run build's "merge" does. Oracle: the number of points written to the file.
+TEST(IndexFileBuild, WriteAndMergePhasesEndWithTheirTotal) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 100.0);
+  std::vector<Vec3> pts(300000);
+  for (Vec3& p : pts) p = Vec3(u(rng), u(rng), u(rng));
+  const fs::path dir = temp_dir() / "write_progress";
+  fs::create_directories(dir);
+  write_f64(dir / "w.f64", pts);
+  for (const auto& [memory, phase] : {std::pair<std::uint64_t, std::string>{std::uint64_t{256} << 20, "write"},
+                                      std::pair<std::uint64_t, std::string>{std::uint64_t{4} << 20, "merge"}}) {
+    SCOPED_TRACE(phase);
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> reports;
+    io::IndexBuildOptions o;
+    o.memory_bytes = memory;
+    o.progress = [&](const char* ph, std::uint64_t done, std::uint64_t total) {
+      if (ph == phase) reports.emplace_back(done, total);
+    };
+    const auto st = io::build_index_file({dir / "w.f64"}, dir / "w.rsi", o);
+    EXPECT_EQ(st.runs > 1, phase == "merge");
+    const std::uint64_t n = io::MappedIndex::open(dir / "w.rsi").positions().size();
+    ASSERT_EQ(n, pts.size());
+    ASSERT_FALSE(reports.empty());
+    EXPECT_EQ(reports.back(), std::make_pair(n, n));
+  }
+  fs::remove_all(dir);
+}
+
 // The node records are written in place into a shared map of the output's nodes section that is
 // extended (posix_fallocate + mremap) while the tree grows and released behind the depth-first
 // pass, and the codes and positions maps are released behind it too: with capacity 1 the tree has

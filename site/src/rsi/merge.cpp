@@ -75,7 +75,10 @@ void IndexBuild::write_from_memory() {
     if (L.intensity) gather_write(buf.intensity, keys, b, e, g_int, *w_int);
     if (L.cls) gather_write(buf.cls, keys, b, e, g_cls, *w_cls);
     if (L.gps) gather_write(buf.gps, keys, b, e, g_gps, *w_gps);
-    if (opt.progress && (e & ((std::size_t{1} << 22) - 1)) < kGatherBlock) opt.progress("write", e, total);
+    // Every 2^22 points (the first block past each multiple) and at the end, so the phase's last
+    // report is its total.
+    if (opt.progress && (e == keys.size() || (e & ((std::size_t{1} << 22) - 1)) < kGatherBlock))
+      opt.progress("write", e, total);
   });
   finish_points();
   buf = PointBuffer{};  // release before the node build
