@@ -2,6 +2,7 @@
 
 #include "rayscan/base/progress.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace rayscan::cli {
@@ -17,17 +18,19 @@ double PhaseProgress::seconds() const {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - s_->start).count();
 }
 
-void PhaseProgress::print(const char* start, const char* phase, std::uint64_t done, std::uint64_t total, double rate,
-                          const char* end) const {
+int PhaseProgress::print(const char* start, const char* phase, std::uint64_t done, std::uint64_t total, double rate,
+                         const char* end) const {
   const State& s = *s_;
+  int n = 0;
   if (total > 0)
-    std::fprintf(stderr, "%s%s: %-6s %6.1f%%  %llu / %llu points  %.1f M points/s%s", start, s.command.c_str(), phase,
-                 100.0 * static_cast<double>(done) / static_cast<double>(total), static_cast<unsigned long long>(done),
-                 static_cast<unsigned long long>(total), rate / 1e6, end);
+    n = std::fprintf(stderr, "%s%s: %-6s %6.1f%%  %llu / %llu points  %.1f M points/s%s", start, s.command.c_str(),
+                     phase, 100.0 * static_cast<double>(done) / static_cast<double>(total),
+                     static_cast<unsigned long long>(done), static_cast<unsigned long long>(total), rate / 1e6, end);
   else
-    std::fprintf(stderr, "%s%s: %-6s %llu points%s", start, s.command.c_str(), phase,
-                 static_cast<unsigned long long>(done), end);
+    n = std::fprintf(stderr, "%s%s: %-6s %llu points%s", start, s.command.c_str(), phase,
+                     static_cast<unsigned long long>(done), end);
   std::fflush(stderr);
+  return n;
 }
 
 void PhaseProgress::end_phase(double t) const {
@@ -47,27 +50,44 @@ void PhaseProgress::operator()(const char* phase, std::uint64_t done, std::uint6
   if (s.quiet) return;
   std::lock_guard lock(s.mutex);
   const double t = seconds();
-  if (s.tty) {
-    print("\r", phase, done, total, t > 0 ? static_cast<double>(done) / t : 0.0, "   ");
-    s.drawn = true;
-    return;
-  }
+  const double previous = s.last_report;
   if (s.phase != phase) {  // a new phase: the previous one has ended
     // The phases split the run at their first reports (the first phase starts with the command).
+    // A first report that already counts work done (a phase that reports at its end, or every
+    // 2^22 points) comes after that work: the phase began at the previous report. A phase that
+    // reported only its start ("sort") then ends at this report: nothing tells where the two
+    // split, and both lines count the time between.
     const bool first = !s.started;
-    end_phase(t);
+    const double begin = first ? 0.0 : done > 0 ? previous : t;
+    if (!s.tty) end_phase(s.done > 0 ? begin : t);
     s.phase = phase;
-    s.phase_start = first ? 0.0 : t;
+    s.phase_start = begin;
     s.started = true;
     s.last_line = t;
   }
   s.done = done;
   s.total = total;
+  s.last_report = t;
+  const double dt = s.phase == "done" ? t : t - s.phase_start;
+  const double rate = dt > 0 ? static_cast<double>(done) / dt : 0.0;
+  if (s.tty) {
+    // A phase's report at its start (none of its total done) says the phase runs rather than
+    // "0.0%", which a phase that reports nothing more until it ends (sort, the SQL indexes) would
+    // show for all its time. Spaces cover the rest of a longer line drawn before.
+    const int n = done == 0 && total > 0
+                      ? std::fprintf(stderr, "\r%s: %-6s running, %llu points", s.command.c_str(), phase,
+                                     static_cast<unsigned long long>(total))
+                      : print("\r", phase, done, total, rate, "");
+    std::fprintf(stderr, "%*s", std::max(3, s.drawn_chars - n + 3), "");
+    std::fflush(stderr);
+    s.drawn_chars = n;
+    s.drawn = true;
+    return;
+  }
   // A long phase also reports while it runs, every kLogLineSeconds.
   if (t - s.last_line >= kLogLineSeconds) {
     s.last_line = t;
-    const double dt = t - s.phase_start;
-    print("", phase, done, total, dt > 0 ? static_cast<double>(done) / dt : 0.0, "\n");
+    print("", phase, done, total, rate, "\n");
   }
 }
 
@@ -77,6 +97,8 @@ void PhaseProgress::finish(bool completed) const {
   if (s_->tty) {
     if (s_->drawn) std::fprintf(stderr, "\n");
     s_->drawn = false;
+    s_->drawn_chars = 0;
+    s_->phase.clear();
     return;
   }
   if (completed) end_phase(seconds());

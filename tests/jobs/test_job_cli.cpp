@@ -270,6 +270,62 @@ TEST(JobCli, TranslateDbImportRenderAndVisibilityProgressIntoALogFileIsPlainLine
 
 // `query --out` writes CSV, so a name promising another format is refused before the queries
 // (it received CSV text); a .csv name and standard output work. Oracle: the file's bytes.
+// On a terminal (a pseudo-terminal from Python's pty module) the phases' status line is redrawn
+// with \r; a phase's report at its start says it runs instead of "0.0%": db import's "index" (the
+// SQL indexes and the commit, which report nothing until they end) reads "index  running, 110000
+// points" (the points of the file), and no report shows 0.0%. The last report is "done" at 100%.
+TEST(JobCli, DbImportOnATerminalSaysAPhaseRunsInsteadOfZeroPercent) {
+  const std::filesystem::path dir = temp_dir() / "db_import_tty";
+  std::filesystem::create_directories(dir);
+  {
+    // Runs argv[1:] on a pseudo-terminal and prints what it wrote; exit 77 without a pty.
+    std::ofstream py(dir / "on_pty.py");
+    py << "import os, pty, sys\n"
+          "try:\n    pid, fd = pty.fork()\nexcept OSError:\n    sys.exit(77)\n"
+          "if pid == 0:\n    os.execv(sys.argv[1], sys.argv[1:])\n"
+          "out = b''\nwhile True:\n    try:\n        d = os.read(fd, 65536)\n    except OSError:\n        break\n"
+          "    if not d:\n        break\n    out += d\n"
+          "_, st = os.waitpid(pid, 0)\nsys.stdout.buffer.write(out)\nsys.exit(os.waitstatus_to_exitcode(st))\n";
+  }
+  const auto r = run_command("python3 " + quoted(dir / "on_pty.py") + " " + quoted(RAYSCAN_BIN) + " db import " +
+                             quoted(data_file("las/autzen_trim.las")) + " -o " + quoted(dir / "a.sqlite"));
+  if (r.code == 77) GTEST_SKIP() << "no pseudo-terminal";
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::vector<std::string> draws;  // the status line's drawings (a terminal turns \n into \r\n)
+  std::istringstream parts(r.out);
+  for (std::string part; std::getline(parts, part, '\r');)
+    if (part.rfind("db import: ", 0) == 0) draws.push_back(part);
+  ASSERT_FALSE(draws.empty()) << r.out;
+  EXPECT_NE(std::find_if(draws.begin(), draws.end(),
+                         [](const std::string& d) { return d.rfind("db import: index  running, 110000 points", 0) == 0; }),
+            draws.end())
+      << r.out;
+  for (const std::string& d : draws) EXPECT_EQ(d.find(" 0.0%"), std::string::npos) << d;
+  EXPECT_EQ(draws.back().rfind("db import: done    100.0%  110000 / 110000 points  ", 0), 0u) << draws.back();
+  std::filesystem::remove_all(dir);
+}
+
+// A quick look of a LAS file: `render` reads the points once, for the automatic camera and the
+// render; the read is logged ("read 110000 points from <file> in T s", the file's point count)
+// and counted in the time to the first traced tile: its set-up time is at least T.
+TEST(JobCli, QuickLookLogsItsReadAndCountsItInTheTimeToTheFirstTile) {
+  const std::filesystem::path dir = temp_dir() / "quick_look_read";
+  std::filesystem::create_directories(dir);
+  const std::string las = data_file("las/autzen_trim.las").string();
+  const auto r = rayscan_cli("render " + quoted(std::filesystem::path(las)) + " --spp 1 --width 60 -o " + quoted(dir / "q.png"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::string read = "rayscan render: read 110000 points from " + las + " in ";
+  const std::size_t at = r.out.find(read);
+  ASSERT_NE(at, std::string::npos) << r.out;
+  const double read_s = std::stod(r.out.substr(at + read.size()));
+  const std::string first = " s after the start (";
+  const std::size_t f = r.out.find(first);
+  ASSERT_NE(f, std::string::npos) << r.out;
+  const double setup_s = std::stod(r.out.substr(f + first.size()));
+  EXPECT_GE(setup_s, read_s) << r.out;
+  std::filesystem::remove_all(dir);
+}
+
 TEST(JobCli, QueryOutputMustBeCsv) {
   const std::filesystem::path dir = temp_dir() / "query_out";
   std::filesystem::create_directories(dir);
