@@ -51,8 +51,12 @@ int run_render(const RenderCliOptions& o) {
   // A cloud instead of a scene, or a scene without a camera: an index file is summarised from its
   // header (the render maps it); other points are read once, here, for the render too.
   std::optional<PointCloud> points;
-  const ResolvedScene rs = resolve_scene(
-      o.scene, ov, [&](const std::filesystem::path& f) { return summarize_cloud_file(f, points); });
+  double read_seconds = 0.0;
+  const ResolvedScene rs = resolve_scene(o.scene, ov, [&](const std::filesystem::path& f) {
+    const CloudSummary s = summarize_cloud_file(f, points);
+    read_seconds = s.read_seconds;
+    return s;
+  });
   if (o.print_scene) {
     if (o.ortho_res) throw UsageError("--print-scene: not with --ortho-map (the map camera is not a scene camera)");
     std::cout << rs.json << "\n";
@@ -62,6 +66,7 @@ int run_render(const RenderCliOptions& o) {
   if (points) {
     job.cloud = &*points;  // read from rs.scene.cloud by summarize_cloud_file
     job.cloud_read_from_scene = true;
+    job.cloud_read_seconds = read_seconds;
   }
   job.control.threads = o.threads;
   try {

@@ -2,6 +2,7 @@
 #include "rayscan/jobs/quick_look.hpp"
 
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/job.hpp"
 #include "rayscan/base/json_object.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/scene_json.hpp"
@@ -19,6 +20,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -415,11 +417,18 @@ std::filesystem::path quick_look_image_name(const std::filesystem::path& cloud) 
 CloudSummary summarize_cloud_file(const std::filesystem::path& file, std::optional<PointCloud>& points) {
   if (std::optional<CloudSummary> s = summary_in_place(file)) return *s;
   io::FileInfo info;
-  if (!points) points = io::read_point_cloud(file, io::ReadOptions{.scalars = false}, &info);
+  double read_seconds = 0.0;
+  if (!points) {
+    const auto t0 = std::chrono::steady_clock::now();
+    points = io::read_point_cloud(file, io::ReadOptions{.scalars = false}, &info);
+    read_seconds = seconds_since(t0);
+  }
   if (points->empty()) throw std::invalid_argument(file.string() + ": the point cloud has no points");
   std::optional<Vec3> sensor;  // a PCD VIEWPOINT's translation: where the scanner stood
   if (info.viewpoint) sensor = Vec3((*info.viewpoint)[0], (*info.viewpoint)[1], (*info.viewpoint)[2]);
-  return summarize_cloud(points->positions, !points->rgb.empty(), !points->crs_wkt.empty(), sensor);
+  CloudSummary s = summarize_cloud(points->positions, !points->rgb.empty(), !points->crs_wkt.empty(), sensor);
+  s.read_seconds = read_seconds;
+  return s;
 }
 
 namespace {

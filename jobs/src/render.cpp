@@ -237,7 +237,9 @@ void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
 // copies the points to original order (MappedIndex::to_point_cloud) for the disc estimate.
 std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r) {
   auto P = std::make_unique<Prepared>();
-  P->started = std::chrono::steady_clock::now();
+  const double read_before = o.cloud && o.cloud_read_from_scene ? std::max(0.0, o.cloud_read_seconds) : 0.0;
+  P->started = std::chrono::steady_clock::now() -
+               std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(read_before));
   P->scene = o.scene;  // small: the camera may be replaced by camera_for_cloud
   P->albedo_samples = o.albedo_samples;
   Scene& scene = P->scene;
@@ -292,7 +294,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   else if (!mapped || surfel) P->cloud = &owned;
   const PointCloud* cloud = P->cloud;
   r.points = mapped ? mapped->positions().size() : cloud->size();
-  if (!in_place) r.read_seconds = o.cloud ? 0.0 : seconds_since(t0);
+  if (!in_place) r.read_seconds = o.cloud ? read_before : seconds_since(t0);
   if (mapped)
     std::snprintf(buf, sizeof buf, "mapped index file %s: %zu points, %zu nodes, in %.2f s%s", scene.cloud.string().c_str(),
                   r.points, static_cast<std::size_t>(mapped->node_count()), r.read_seconds,
@@ -300,7 +302,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   else
     std::snprintf(buf, sizeof buf, "read %zu points from %s in %.2f s", r.points, scene.cloud.string().c_str(),
                   r.read_seconds);
-  if (!o.cloud) ctl.info(buf);
+  if (!o.cloud || o.cloud_read_from_scene) ctl.info(buf);
   r.crs_wkt = mapped ? mapped->crs_wkt() : cloud->crs_wkt;
   if (o.camera_for_cloud) {
     scene.camera = o.camera_for_cloud(cloud ? bounds_of(cloud->positions) : mapped->bounds());  // stored: no pass

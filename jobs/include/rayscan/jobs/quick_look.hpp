@@ -96,6 +96,9 @@ struct CloudSummary {
   /// At least 2 of the points lie at distinct positions: a quick look sizes its surfels (or its
   /// spheres' "auto" radius) from their spacing, which fewer have none of.
   bool distinct = false;
+  /// summarize_cloud_file: seconds spent reading the file's points (0 when none were read: an
+  /// index file, or points the caller had already read).
+  double read_seconds = 0.0;
 };
 
 /// The summary of a cloud's points (any order, the same summary for every order):
@@ -114,7 +117,7 @@ std::optional<CloudSummary> summary_in_place(const std::filesystem::path& path);
 /// summary_in_place for an index file; else the points are read (no scalar fields) into `points`,
 /// which the caller may keep for the render (RenderJobOptions::cloud), and summarised
 /// (summarize_cloud: georeferenced when the file has a CRS, a PCD VIEWPOINT's translation as the
-/// scanner position). Throws the reader's errors and std::invalid_argument "<file>: the point
+/// scanner position), with the read's time in read_seconds. Throws the reader's errors and std::invalid_argument "<file>: the point
 /// cloud has no points".
 CloudSummary summarize_cloud_file(const std::filesystem::path& file, std::optional<PointCloud>& points);
 

@@ -42,6 +42,10 @@ struct RenderJobOptions {
   /// reads a quick look's cloud once for its summary and the render): the image metadata then
   /// names that file instead of "(memory)".
   bool cloud_read_from_scene = false;
+  /// With cloud_read_from_scene: the seconds the caller took to read `cloud` (CloudSummary::
+  /// read_seconds). The job logs them as its read ("read N points from <file> in T s") and counts
+  /// them in its time to the first traced tile, as when it reads the file itself.
+  double cloud_read_seconds = 0.0;
   bool write = true;                   ///< write scene.output.image (+ AOVs) when it is set
   /// When set, called once the cloud is read with its exact bounds (the AABB of its points); the
   /// camera it returns replaces scene.camera (the scene then needs no camera). E.g. a top-down map
@@ -71,8 +75,8 @@ struct RenderJobResult {
                                        ///< the median disc radius, automatic = false)
   std::string crs_wkt;                 ///< the cloud's CRS (PointCloud::crs_wkt), "" if unknown
   std::size_t points = 0;              ///< points in the cloud
-  double read_seconds = 0.0;           ///< reading the cloud or opening the index file (0 for an
-                                       ///< in-memory cloud)
+  double read_seconds = 0.0;           ///< reading the cloud or opening the index file (for an
+                                       ///< in-memory cloud its cloud_read_seconds)
   double index_seconds = 0.0;          ///< building the index (0 for an index file)
   double first_tile_seconds = 0.0;     ///< from the call to the first traced tile (run_render)
   std::uint64_t copc_decodes = 0;      ///< COPC input traced in place: node decodes (re-decodes after
