@@ -297,8 +297,9 @@ struct SolarRun {
       throw OptionError({option("at"), " is one instant: give it, or a period (", option("start"), " and ",
                          option("end"), "), not both"});
     else if (!instant && (o.start.empty() || o.end.empty()))
-      throw OptionError({"give a period (", option("start"), " and ", option("end"), "), an instant (",
-                         option("at"), ") or a day of shadows (", option("day"), ")"});
+      // The day's clause is its own three parts: a front end without `day` leaves them out.
+      throw OptionError({"give a period (", option("start"), " and ", option("end"), ") or an instant (",
+                         option("at"), ")", ", or a day of shadows (", option("day"), ")"});
     if (o.latitude.has_value() != o.longitude.has_value())
       throw OptionError({option("latitude"), " and ", option("longitude"), " go together"});
     if (o.latitude && !(std::abs(*o.latitude) <= 90.0))

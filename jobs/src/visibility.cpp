@@ -92,10 +92,15 @@ struct VisibilityRun {
     have_observers = !o.observers_file.empty() || !o.observers.empty();
     have_camera = o.camera || !o.camera_file.empty();
     if (!have_observers && o.sky_rays == 0 && !have_camera)
-      throw OptionError({"nothing to compute: give observers (", option("observers_file"), " FILE or ",
-                         option("observers"), " X,Y[,Z]), ", option("sky_rays"), " N or ", option("camera_file"),
-                         " CAMERA.json"});
+      throw OptionError({"nothing to compute: give observers (", option("observers_file"), " or ",
+                         option("observers"), "), a sky view (", option("sky_rays"), " > 0) or a camera (",
+                         option("camera_file"), ")"});
     if (o.distance && !have_observers) throw OptionError({option("distance"), " needs observers"});
+    // Checked here, not only where an eye is placed, so that every front end refuses it up front
+    // and whether or not an observer needs the ground.
+    if (o.ground_radius && !(*o.ground_radius > 0.0 && std::isfinite(*o.ground_radius)))
+      throw OptionError({option("ground_radius"), ": expected a finite number > 0 (world units), got " +
+                                                      shortest_text(*o.ground_radius)});
     if (o.primitive != "sphere" && o.primitive != "surfel")
       throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
     value = o.raster_value;

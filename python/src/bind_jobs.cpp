@@ -11,7 +11,6 @@
 #include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/job.hpp"
-#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/jobs/compare.hpp"
 #include "rayscan/jobs/quick_look.hpp"
@@ -189,16 +188,51 @@ std::string keyword_for(std::string_view job, std::string_view field) {
   return std::string(field);
 }
 
+/// Whether rayscan.<job> lacks the job option `field`, which only the command line gives:
+/// solar's day of shadows, whose frames are files.
+bool call_lacks(std::string_view job, std::string_view field) {
+  return job == "solar" && (field == "day" || field == "every");
+}
+
+/// The message of OptionError `e` of rayscan.<job>, each option written as its keyword
+/// (keyword_for). An option the call lacks (call_lacks) is left out with the text part on each side
+/// of it, which the job writes as that option's own clause (", or a day of shadows (", day, ")").
+/// Of two options that the call takes as one keyword, joined by " or " alone (observers_file or
+/// observers), the keyword is named once.
+std::string keyword_message(std::string_view job, const OptionError& e) {
+  const std::vector<OptionError::Part>& parts = e.parts();
+  std::vector<OptionError::Part> kept;
+  for (std::size_t i = 0; i < parts.size(); ++i) {
+    const auto* name = std::get_if<OptionName>(&parts[i]);
+    if (name && call_lacks(job, name->field)) {
+      if (!kept.empty() && std::holds_alternative<std::string>(kept.back())) kept.pop_back();
+      if (i + 1 < parts.size() && std::holds_alternative<std::string>(parts[i + 1])) ++i;
+      continue;
+    }
+    if (name && kept.size() >= 2) {
+      const auto* between = std::get_if<std::string>(&kept.back());
+      const auto* before = std::get_if<OptionName>(&kept[kept.size() - 2]);
+      if (between && *between == " or " && before &&
+          keyword_for(job, before->field) == keyword_for(job, name->field)) {
+        kept.pop_back();
+        continue;
+      }
+    }
+    kept.push_back(parts[i]);
+  }
+  return OptionError(std::move(kept)).spelled([&](std::string_view field) { return keyword_for(job, field); });
+}
+
 /// Runs the job `f` (GIL released or not, as the caller holds it) and rethrows an OptionError it
 /// throws (a bad option or combination, an observer error) as std::invalid_argument, i.e.
-/// ValueError, with each option written as the keyword of rayscan.<job> (keyword_for); `edit`
-/// may then rewrite that message. Other exceptions pass unchanged.
+/// ValueError, with the message in rayscan.<job>'s terms (keyword_message); `edit` may then
+/// rewrite that message. Other exceptions pass unchanged.
 template <class F, class Edit = std::string (*)(std::string)>
 void run_naming_keywords(std::string_view job, F&& f, Edit edit = [](std::string m) { return m; }) {
   try {
     f();
   } catch (const OptionError& e) {
-    throw std::invalid_argument(edit(e.spelled([&](std::string_view field) { return keyword_for(job, field); })));
+    throw std::invalid_argument(edit(keyword_message(job, e)));
   }
 }
 
@@ -516,20 +550,11 @@ py::dict visibility(const py::object& cloud, const py::object& observers, py::ha
   o.max_distance = opt_float_arg(max_distance, "max_distance", "None or a number >= 0 (world units)");
   o.tolerance = opt_float_arg(tolerance, "tolerance", "None or a number >= 0 (world units)");
   o.target_height = opt_float_arg(target_height, "target_height", "None or a number >= 0 (world units)");
-  // The job takes any ground radius and refuses a bad one only when an eye is placed, in the
-  // ground search's words; `--ground-radius` is checked as it is parsed, and so is this.
   o.ground_radius = opt_float_arg(ground_radius, "ground_radius", "None (5 x radius) or a number > 0 (world units)");
-  if (o.ground_radius && !(*o.ground_radius > 0.0 && std::isfinite(*o.ground_radius)))
-    throw py::value_error("ground_radius: expected a finite number > 0 (world units), got " +
-                          shortest_text(*o.ground_radius));
   o.sky_rays = static_cast<std::uint32_t>(int_arg(sky_rays, "sky_rays", 0, 0xFFFFFFFFll, "an integer in [0, 2^32 - 1]"));
   if (!camera.is_none()) o.camera_file = input_path_arg(camera, "camera");
   o.distance = bool_arg(distance, "distance");
   o.control.threads = parse_threads(threads);
-  // The job's own message names the command line's forms (a file or X,Y[,Z] text).
-  if (o.observers.empty() && o.observers_file.empty() && o.sky_rays == 0 && o.camera_file.empty())
-    throw py::value_error("nothing to compute: give observers (an observer file, or (K, 3) or (K, 2) positions), "
-                          "sky_rays > 0 or camera (a camera file)");
   // "observers[i]: observer i+1: ..." (the row, then the job's label of the observer) becomes
   // "observers[i]: ...": one number, the caller's.
   const auto one_row_number = [&](std::string m) {
@@ -594,10 +619,6 @@ py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::ha
   o.primitive = str_arg(primitive, "primitive", "\"sphere\" or \"surfel\"");
   o.radius = opt_float_arg(radius, "radius", kRadiusExpected);
   o.control.threads = parse_threads(threads);
-  // The job also offers a day of shadows (`rayscan solar --day`), frames written as files, which
-  // this call does not write; its message would name that option.
-  if (o.at.empty() && (o.start.empty() || o.end.empty()))
-    throw py::value_error("give a period (start and end) or an instant (at)");
   jobs::SolarJobResult r;
   run_naming_keywords("solar", [&] {
     run_reading_files(

@@ -52,9 +52,11 @@ def test_ground_radius_is_a_keyword_and_bounds_the_ground_search():
     # Without it, the default is 5 x radius: 1.5 here.
     text = message(lambda: rayscan.visibility(xyz, observers=eyes, height=2.0, radius=0.3))
     assert text.startswith("observers[1]: no point within the ground radius 1.5 of (25.000000, 5.000000)"), text
+    # Refused as an option, also where no eye is placed on the ground (the sky view alone).
     for bad, shown in ((0.0, "0"), (-1.0, "-1"), (float("nan"), "nan"), (float("inf"), "inf")):
-        assert message(lambda: rayscan.visibility(xyz, observers=eyes, height=2.0, ground_radius=bad)) == (
-            f"ground_radius: expected a finite number > 0 (world units), got {shown}")
+        for run in ({"observers": eyes, "height": 2.0}, {"sky_rays": 4}):
+            assert message(lambda: rayscan.visibility(xyz, ground_radius=bad, **run)) == (
+                f"ground_radius: expected a finite number > 0 (world units), got {shown}")
     assert message(lambda: rayscan.visibility(xyz, observers=eyes, height=2.0, ground_radius="5"), TypeError) == (
         "ground_radius must be None (5 x radius) or a number > 0 (world units), got str")
 
@@ -73,14 +75,15 @@ def test_observer_rows_are_numbered_once_from_zero():
 
 def test_nothing_to_compute_names_the_keywords():
     xyz = flat_ground()
+    # The job names a file and positions as two options; the call takes both as observers=.
     for observers in (None, np.zeros((0, 2))):
         assert message(lambda: rayscan.visibility(xyz, observers=observers)) == (
-            "nothing to compute: give observers (an observer file, or (K, 3) or (K, 2) positions), sky_rays > 0 "
-            "or camera (a camera file)")
+            "nothing to compute: give observers (observers), a sky view (sky_rays > 0) or a camera (camera)")
     assert {"observers", "sky_rays", "camera"} <= keywords(rayscan.visibility)
 
 
 def test_solar_without_a_time_names_its_keywords():
+    # The command line's day of shadows (--day) is no keyword of this call: left out.
     xyz = flat_ground()
     expected = "give a period (start and end) or an instant (at)"
     for kw in ({}, {"start": "2024-06-21"}, {"end": "2024-06-21"}):

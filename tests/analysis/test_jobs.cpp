@@ -1,6 +1,7 @@
 // The compare, visibility and solar jobs as library calls (compare.hpp, visibility.hpp, solar.hpp).
 // Oracles: hand-computed errors of constructed images, the lower-level compute_visibility and
 // compute_sky_view calls, the geometry of an open plane, and a map's bytes from a fuller run.
+#include "rayscan/base/option_error.hpp"
 #include "rayscan/jobs/compare.hpp"
 #include "rayscan/jobs/solar.hpp"
 #include "rayscan/jobs/visibility.hpp"
@@ -21,6 +22,8 @@
 #include <filesystem>
 #include <functional>
 #include <unistd.h>
+#include <utility>
+#include <variant>
 
 using namespace rayscan;
 using namespace rayscan::analysis;
@@ -204,8 +207,18 @@ TEST(VisibilityJob, OptionErrorsComeBeforeAnyWork) {
   const PointCloud pc = plane_with_wall();
   VisibilityJobOptions o;
   o.cloud = &pc;
-  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }).rfind("nothing to compute", 0), 0u);
+  // The message names each option by its field alone, for each front end to spell.
+  EXPECT_EQ(what_of([&] { (void)run_visibility(o); }),
+            "nothing to compute: give observers (observers_file or observers), a sky view (sky_rays > 0) or a "
+            "camera (camera_file)");
   o.sky_rays = 4;
+  // A ground radius is refused as an option even when no eye is placed on the ground.
+  for (const auto& [bad, shown] : {std::pair{0.0, "0"}, {-1.0, "-1"}, {std::nan(""), "nan"}, {HUGE_VAL, "inf"}}) {
+    o.ground_radius = bad;
+    EXPECT_EQ(what_of([&] { (void)run_visibility(o); }),
+              std::string("ground_radius: expected a finite number > 0 (world units), got ") + shown);
+  }
+  o.ground_radius.reset();
   o.raster = "map.png";
   o.cell = 1.0;
   EXPECT_EQ(what_of([&] { (void)run_visibility(o); }),
@@ -491,6 +504,30 @@ TEST(VisibilityJob, ViewshedMapAloneSkipsThePerPointLineOfSight) {
   o.raster = dir / "points.tif";
   EXPECT_EQ(run_visibility(o).line_of_sight.count, all.line_of_sight.count);
   fs::remove_all(dir);
+}
+
+// Without a time the job names its three modes by their fields; the day's clause is its own parts
+// (from "," to ")"), which a front end without that option leaves out.
+TEST(SolarJob, NoTimeNamesPeriodInstantAndDay) {
+  const PointCloud pc = plane_with_wall();
+  SolarJobOptions o;
+  o.cloud = &pc;
+  o.latitude = 48.0;
+  o.longitude = 11.0;
+  for (const char* start : {"", "2026-06-21"}) {
+    o.start = start;
+    try {
+      (void)run_solar(o);
+      ADD_FAILURE() << "no OptionError";
+    } catch (const OptionError& e) {
+      EXPECT_STREQ(e.what(), "give a period (start and end) or an instant (at), or a day of shadows (day)");
+      const std::vector<OptionError::Part>& p = e.parts();
+      ASSERT_GE(p.size(), 3u);
+      EXPECT_EQ(std::get<std::string>(p[p.size() - 3]), ", or a day of shadows (");
+      EXPECT_EQ(std::get<OptionName>(p[p.size() - 2]).field, "day");
+      EXPECT_EQ(std::get<std::string>(p.back()), ")");
+    }
+  }
 }
 
 // An instant's shadow map alone (all_fields false, as the CLI without -o) traces only the sun ray:

@@ -527,6 +527,23 @@ TEST(JobCli, OptionLimitsAreCheckedWhereTheyAreParsed) {
   EXPECT_TRUE(std::filesystem::is_empty(out));
 }
 
+TEST(JobCli, JobMessagesSpellTheFlags) {
+  // The jobs name their options by field (test_jobs.cpp); the command line writes each as its flag,
+  // --day included.
+  const std::string las = quoted(data_file("las/autzen_trim.las"));
+  const auto out = temp_dir() / "job_messages";
+  std::filesystem::create_directories(out);
+  auto r = rayscan_cli("visibility " + las + " -o " + quoted(out / "v.las"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan visibility: nothing to compute: give observers (--observers or --observer), a sky "
+                   "view (--sky-view > 0) or a camera (--from-camera)\n");
+  r = rayscan_cli("solar " + las + " --start 2026-06-21 -o " + quoted(out / "s.las"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan solar: give a period (--start and --end) or an instant (--at), or a day of shadows "
+                   "(--day)\n");
+  EXPECT_TRUE(std::filesystem::is_empty(out));
+}
+
 TEST(JobCli, OutputNamesSayTheirFormat) {
   // A SQLite database named .las, a LAS file named .laz, and a --table that a SQLite import would
   // drop: refused before any work, nothing written.
