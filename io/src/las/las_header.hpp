@@ -5,6 +5,7 @@
 
 #include "readers.hpp"
 #include "rayscan/io/file_info.hpp"
+#include "rayscan/octree/position_view.hpp"
 
 #include <array>
 #include <cstdint>
@@ -76,5 +77,19 @@ LasHeader parse_las_header(const Input& in);
 /// beyond the bound ("overflows to infinity" for V).
 [[noreturn]] void refuse_las_coordinate(const std::string& name, std::uint64_t byte, std::uint64_t index,
                                         const std::uint8_t* r, const Vec3& scale, const Vec3& offset);
+
+/// X, Y, Z of the point record `r` (int32 at bytes 0, 4, 8, as in every PDRF) in world units:
+/// las_coordinate with `scale` and `offset`, the LAS reader's own expression. A point beyond
+/// +-kMaxCoordinate is refused by refuse_las_coordinate(name, byte, index, r, scale, offset)
+/// (FormatError). Inline and allocation-free: COPC's node decode and translate call it for every
+/// record; `name` is only read on the refusal.
+[[nodiscard]] inline Vec3 checked_las_position(const std::string& name, std::uint64_t byte, std::uint64_t index,
+                                               const std::uint8_t* r, const Vec3& scale, const Vec3& offset) {
+  const double x = las_coordinate(load_le<std::int32_t>(r), scale.x, offset.x);
+  const double y = las_coordinate(load_le<std::int32_t>(r + 4), scale.y, offset.y);
+  const double z = las_coordinate(load_le<std::int32_t>(r + 8), scale.z, offset.z);
+  if (!within_coordinate_bound(x, y, z)) refuse_las_coordinate(name, byte, index, r, scale, offset);
+  return Vec3(x, y, z);
+}
 
 }  // namespace rayscan::io::detail

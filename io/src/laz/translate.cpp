@@ -7,6 +7,7 @@
 #include "laz/laz.hpp"
 #include "las/las_header.hpp"
 #include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/file_names.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/octree/position_view.hpp"
 
@@ -74,17 +75,13 @@ class RecordSource {
 
  private:
   /// The `n` records at `p` (points done_ onwards), one compare per axis; the first beyond the
-  /// bound is refused with the reader's line (detail::refuse_las_coordinate), at the byte the
+  /// bound is refused with the reader's line (detail::checked_las_position), at the byte the
   /// reader names.
   void check_coordinates(const std::uint8_t* p, std::size_t n) const {
     const std::size_t rec = h_.record_length;
-    for (std::size_t i = 0; i < n; ++i) {
-      const std::uint8_t* r = p + i * rec;
-      if (!detail::within_coordinate_bound(las_coordinate(load_le<std::int32_t>(r), h_.scale.x, h_.offset.x),
-                                           las_coordinate(load_le<std::int32_t>(r + 4), h_.scale.y, h_.offset.y),
-                                           las_coordinate(load_le<std::int32_t>(r + 8), h_.scale.z, h_.offset.z)))
-        detail::refuse_las_coordinate(in_.name, h_.point_offset + (done_ + i) * rec, done_ + i, r, h_.scale, h_.offset);
-    }
+    for (std::size_t i = 0; i < n; ++i)
+      (void)detail::checked_las_position(in_.name, h_.point_offset + (done_ + i) * rec, done_ + i, p + i * rec, h_.scale,
+                                         h_.offset);
   }
 
   const detail::Input& in_;
@@ -198,7 +195,7 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
   const std::uint8_t* d = map.bytes().data();
   bool to_laz = false;
   if (opt.compression == LasCompression::laz) to_laz = true;
-  else if (opt.compression == LasCompression::by_extension) to_laz = detail::lower(out_path.extension().string()) == ".laz";
+  else if (opt.compression == LasCompression::by_extension) to_laz = lower_extension(out_path) == ".laz";
   const std::size_t rec = h.record_length;
   static constexpr int kLen[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
   if (rec < static_cast<std::size_t>(kLen[h.pdrf]))

@@ -323,16 +323,11 @@ constexpr std::size_t kIntensityAt = 12, kClassAt = 16, kRgbAt = 30;
 
 // X/Y/Z of point `index` (file order), record `r` (int32 at bytes 0, 4, 8 of every PDRF), scaled
 // and offset: world units. A coordinate beyond the bound is refused as the LAS reader refuses it
-// (detail::refuse_las_coordinate), naming `chunk`, the byte where the node's compressed chunk
+// (detail::checked_las_position), naming `chunk`, the byte where the node's compressed chunk
 // starts: a query of the file in place meets the point the reader would refuse.
 Vec3 record_position(const CopcInfo& info, const std::uint8_t* r, const std::string& name, std::uint64_t chunk,
                      std::uint64_t index) {
-  const double x = las_coordinate(detail::load_le<std::int32_t>(r), info.scale.x, info.offset.x);
-  const double y = las_coordinate(detail::load_le<std::int32_t>(r + 4), info.scale.y, info.offset.y);
-  const double z = las_coordinate(detail::load_le<std::int32_t>(r + 8), info.scale.z, info.offset.z);
-  if (!detail::within_coordinate_bound(x, y, z))
-    detail::refuse_las_coordinate(name, chunk, index, r, info.scale, info.offset);
-  return Vec3(x, y, z);
+  return detail::checked_las_position(name, chunk, index, r, info.scale, info.offset);
 }
 
 // The record's colour times `mul` (257 for 8-bit colour stored in the 16-bit fields, else 1).

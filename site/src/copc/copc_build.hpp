@@ -49,6 +49,10 @@ struct Records {
   int pdrf = 6;                     ///< 6, 7 or 8
   std::uint16_t record_length = 0;  ///< PDRF length + extra bytes
   std::uint64_t count = 0;
+  /// Point data offset and record length of the LAS/LAZ file the records were read from (for
+  /// another format, of the LAS it was converted to): the byte the LAS reader names for a record.
+  std::uint64_t in_point_offset = 0;
+  std::uint16_t in_record_length = 0;
   const std::uint8_t* bytes = nullptr;  ///< count * record_length, inside `file`'s mapping
   std::shared_ptr<RecordFile> file;
   Vec3 scale{0.01}, offset{0.0};

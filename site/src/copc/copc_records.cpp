@@ -124,6 +124,8 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
   if (out_len > 0xFFFF) throw std::invalid_argument(name + ": record length over 65535 bytes after conversion");
   r.record_length = static_cast<std::uint16_t>(out_len);
   r.count = h.count;
+  r.in_point_offset = h.point_offset;
+  r.in_record_length = h.record_length;
   // Memory: the build's 12 bytes per point and the batches; the records stay on disk.
   const std::uint64_t need = h.count * kBytesPerPoint + kBatchBytes;
   if (h.count >= (std::uint64_t{1} << 32))

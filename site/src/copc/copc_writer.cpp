@@ -111,25 +111,20 @@ std::vector<Page> make_pages(const std::vector<copc::Node>& nodes, unsigned leve
 
 /// The records' extremes (`st`, integers) decode within +-kMaxCoordinate, or nothing is written:
 /// a LAS/LAZ input whose scale takes a point beyond the bound is refused with the LAS reader's
-/// own line for its first such point (detail::refuse_las_coordinate at the byte the reader names,
-/// from the input's header), which a copy of the records would otherwise carry into a file every
-/// reader refuses. Other inputs reach here through their readers, which refuse such points first.
+/// own line for its first such point (detail::checked_las_position at the byte the reader names,
+/// from the input's point offset and record length), which a copy of the records would otherwise
+/// carry into a file every reader refuses. Other inputs reach here through their readers, which
+/// refuse such points first.
 void refuse_beyond_bound(const std::filesystem::path& in, const copc::Records& r, const copc::RecordStats& st) {
   bool within = true;
   for (int k = 0; k < 3; ++k)
     within = within && std::abs(las_coordinate(st.lo[k], r.scale[k], r.offset[k])) <= kMaxCoordinate &&
              std::abs(las_coordinate(st.hi[k], r.scale[k], r.offset[k])) <= kMaxCoordinate;
   if (within) return;
-  const laz::FileMap m(in);
-  const detail::Input input{m.bytes(), in.string(), {}};
-  const detail::LasHeader h = detail::parse_las_header(input);
-  for (std::uint64_t i = 0; i < r.count; ++i) {
-    const std::uint8_t* p = r.bytes + i * r.record_length;
-    if (!detail::within_coordinate_bound(las_coordinate(detail::load_le<std::int32_t>(p), r.scale.x, r.offset.x),
-                                         las_coordinate(detail::load_le<std::int32_t>(p + 4), r.scale.y, r.offset.y),
-                                         las_coordinate(detail::load_le<std::int32_t>(p + 8), r.scale.z, r.offset.z)))
-      detail::refuse_las_coordinate(in.string(), h.point_offset + i * h.record_length, i, p, r.scale, r.offset);
-  }
+  const std::string name = in.string();
+  for (std::uint64_t i = 0; i < r.count; ++i)
+    (void)detail::checked_las_position(name, r.in_point_offset + i * r.in_record_length, i,
+                                       r.bytes + i * r.record_length, r.scale, r.offset);
 }
 
 }  // namespace
