@@ -158,13 +158,6 @@ inline std::string fixed_string(const std::uint8_t* p, std::size_t n) {
   return s;
 }
 
-/// Lower-case copy of an ASCII string.
-inline std::string lower(std::string s) {
-  for (char& c : s)
-    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
-  return s;
-}
-
 /// Normalise raw colour channel values to 16 bit (0..65535), the rule of docs/formats.md:
 /// `max_value` is the largest value the file holds over all three channels and `is_float`
 /// whether the source type is floating point. Returns the multiplier to apply and describes the

@@ -273,7 +273,7 @@ AttributeSet AttributeSet::parse(const std::string& list) {
   while (p <= list.size()) {
     std::size_t q = list.find(',', p);
     if (q == std::string::npos) q = list.size();
-    std::string w = detail::lower(list.substr(p, q - p));
+    std::string w = ascii_lower(list.substr(p, q - p));
     p = q + 1;
     if (w.empty() || w == "none") continue;  // NOLINT
     if (w == "all") {

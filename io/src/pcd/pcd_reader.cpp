@@ -273,9 +273,8 @@ PcdRoles assign_roles(const std::string& nm, const PcdHeader& h, const ReadOptio
   out.of.assign(nf, PcdRole::skip);
   int have = 0;
   for (std::size_t k = 0; k < nf; ++k) {
-    const std::string n = lower(fields[k].name);
     PcdRole r = PcdRole::scalar;
-    switch (pcd_named_field(n)) {
+    switch (pcd_named_field(fields[k].name)) {
       case NamedField::padding: r = PcdRole::skip; break;
       case NamedField::x: r = PcdRole::x; break;
       case NamedField::y: r = PcdRole::y; break;
@@ -301,7 +300,7 @@ PcdRoles assign_roles(const std::string& nm, const PcdHeader& h, const ReadOptio
     out.has_packed |= r == PcdRole::packed;
     out.has_ch |= r == PcdRole::r;
     if (r == PcdRole::scalar) {
-      const bool core = n == "intensity" || n == "classification" || n == "gpstime" || n == "gps_time";
+      const bool core = dedicated_field_name(fields[k].name) != nullptr;
       if (!opt.scalars && !core) r = PcdRole::skip;
       else if (fields[k].count > 3) {
         info.notes.push_back("field '" + fields[k].name + "' has COUNT " + std::to_string(fields[k].count) +

@@ -8,6 +8,7 @@
 // read_ply's steps make their checks in a fixed order (the header, then the body in file order),
 // which decides the error a file with several defects reports.
 #include "readers.hpp"
+#include "rayscan/io/field_names.hpp"
 
 #include <algorithm>
 #include <charconv>
@@ -97,7 +98,7 @@ enum class Role { skip, x, y, z, nx, ny, nz, r, g, b, intensity, classification,
 
 Role role_of(const Property& p) {
   if (p.is_list) return Role::skip;
-  std::string n = lower(p.name);
+  std::string n = ascii_lower(p.name);
   // CloudCompare (and rayscan's writer) give scalar fields the prefix "scalar_": such a property
   // may still be the intensity, classification or GPS time both write under it, but never a
   // position, normal or colour channel (written unprefixed), nor the alpha that is dropped, so a
@@ -376,7 +377,7 @@ struct PlyBody {
         // unless the property is a second one for a dedicated field ("scalar_intensity" beside
         // "intensity"), which keeps its full name.
         std::string name = vertex.props[k].name;
-        if (name.size() > 7 && lower(name.substr(0, 7)) == "scalar_" && role_of(vertex.props[k]) == Role::scalar)
+        if (name.size() > 7 && ascii_lower(name.substr(0, 7)) == "scalar_" && role_of(vertex.props[k]) == Role::scalar)
           name = name.substr(7);
         pc.scalars.push_back({name, {}});
         pc.scalars.back().values.reserve(static_cast<std::size_t>(cap));

@@ -3,6 +3,7 @@
 #include "format.hpp"
 
 #include "bytes.hpp"
+#include "rayscan/base/file_names.hpp"
 
 #include <sys/stat.h>
 
@@ -10,7 +11,7 @@
 
 namespace rayscan::io {
 
-bool is_index_file(const std::filesystem::path& path) { return detail::lower(path.extension().string()) == ".rsi"; }
+bool is_index_file(const std::filesystem::path& path) { return lower_extension(path) == ".rsi"; }
 
 namespace rsi {
 

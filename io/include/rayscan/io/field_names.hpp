@@ -12,6 +12,15 @@
 
 namespace rayscan::io {
 
+/// `s` with ASCII A-Z lowered and every other byte kept: the case folding of field names, format
+/// keywords and file extensions, which are ASCII; locale-independent, unlike std::tolower.
+[[nodiscard]] inline std::string ascii_lower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out)
+    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  return out;
+}
+
 /// The scalar name that rayscan's LAS reader gives a standard LAS point field, and write_las stores
 /// in that field, for a field called `name` in a PLY, PCD or text file or a NumPy structured array;
 /// nullptr for any other name. Matched ignoring ASCII case and '_', so that PDAL's dimension names
@@ -21,9 +30,8 @@ namespace rayscan::io {
 /// scan_angle_rank) and rayscan's own names all match. PDAL's ScanAngleRank is in degrees, as
 /// rayscan's scan_angle is.
 [[nodiscard]] inline const char* las_standard_scalar_name(std::string_view name) {
-  std::string key;
-  for (char c : name)
-    if (c != '_') key += (c >= 'A' && c <= 'Z') ? static_cast<char>(c - 'A' + 'a') : c;
+  std::string key = ascii_lower(name);
+  std::erase(key, '_');
   static constexpr std::pair<std::string_view, const char*> kNames[] = {
       {"returnnumber", "return_number"},
       {"numberofreturns", "number_of_returns"},
@@ -48,9 +56,7 @@ namespace rayscan::io {
 /// fit it (promote_scalars, point_reader.cpp): "intensity", "classification" or "gps_time" (also
 /// spelt "gpstime"), matched ignoring ASCII case; nullptr for any other name.
 [[nodiscard]] inline const char* dedicated_field_name(std::string_view name) {
-  std::string n(name);
-  for (char& c : n)
-    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  const std::string n = ascii_lower(name);
   if (n == "intensity") return "intensity";
   if (n == "classification") return "classification";
   if (n == "gps_time" || n == "gpstime") return "gps_time";
@@ -66,9 +72,7 @@ enum class NamedField { scalar, x, y, z, nx, ny, nz, red, green, blue, packed_rg
 /// normal_z/nz; rgb and rgba (packed colour, when SIZE 4 and COUNT 1); red/r, green/g, blue/b; "_"
 /// is PCL's padding. A coordinate, normal or colour field of COUNT > 1 is a scalar all the same.
 [[nodiscard]] inline NamedField pcd_named_field(std::string_view name) {
-  std::string n(name);
-  for (char& c : n)
-    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  const std::string n = ascii_lower(name);
   if (n == "_") return NamedField::padding;
   if (n == "x") return NamedField::x;
   if (n == "y") return NamedField::y;
@@ -87,9 +91,7 @@ enum class NamedField { scalar, x, y, z, nx, ny, nz, red, green, blue, packed_rg
 /// CloudCompare's "//x"), y, z, r/red, g/green, b/blue, i/intensity, nx/ny/nz (also PDAL's
 /// NormalX/NormalY/NormalZ: normals when all three are there, else scalars).
 [[nodiscard]] inline NamedField text_named_field(std::string_view name) {
-  std::string n(name);
-  for (char& c : n)
-    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  const std::string n = ascii_lower(name);
   if (n == "x" || n == "//x") return NamedField::x;
   if (n == "y") return NamedField::y;
   if (n == "z") return NamedField::z;
