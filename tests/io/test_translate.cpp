@@ -3,6 +3,7 @@
 // LAZ -> LAS gives the original back byte for byte; our LAZ decodes to the same records with an
 // independent decoder (npm laz-perf under Node), and is within 5% of LASzip's size.
 #include "io_test_util.hpp"
+#include "../common/las_patch.hpp"
 #include "../common/npm_tools.hpp"
 
 #include "rayscan/io/las_records.hpp"
@@ -32,22 +33,10 @@ void expect_same_file(const fs::path& a, const fs::path& b) {
 TEST(Translate, ARecordBeyondTheCoordinateBoundIsRefusedAsTheReaderRefusesIt) {
   PointCloud pc;
   pc.positions = {Vec3(0, 0, 0), Vec3(0, 0, 0), Vec3(3, 0, 0)};
-  io::LasWriteOptions grid;
-  grid.scale = Vec3(1.0);
-  grid.has_offset = true;
   const fs::path las = temp_dir() / "beyond_bound_in.las";
-  io::write_las(las, pc, grid);
-  auto b = slurp(las);
-  const double scale = 5e8;  // point 2: 3 x 5e8 = 1.5e9; points 0 and 1 stay 0
-  std::memcpy(&b[131], &scale, sizeof scale);
-  std::ofstream(las, std::ios::binary | std::ios::trunc)
-      .write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
-  std::string reader;
-  try {
-    (void)io::read_point_cloud(las);
-  } catch (const io::FormatError& e) {
-    reader = e.what();
-  }
+  write_unit_grid_las(las, pc);
+  patch_las_x_scale(las, 5e8);  // point 2: 3 x 5e8 = 1.5e9; points 0 and 1 stay 0
+  const std::string reader = reader_error(las);
   ASSERT_NE(reader.find(": point 2: X coordinate is 1.5e+09 (stored integer 3 x scale 5e+08"), std::string::npos)
       << reader;
   for (const char* name : {"beyond_bound.laz", "beyond_bound.las"}) {

@@ -4,6 +4,7 @@
 // nodes' records equals the input's records as a multiset; every node's points lie in its cube;
 // rayscan's COPC reader and a query on the output agree with a brute force over the input.
 #include "../io/io_test_util.hpp"
+#include "../common/las_patch.hpp"
 #include "../common/npm_tools.hpp"
 
 #include "rayscan/io/las_records.hpp"
@@ -133,22 +134,10 @@ constexpr Case kCases[] = {{"las/autzen_trim_7.las", 7}, {"las/test1_4.las", 6},
 TEST(CopcWriter, AnInputPointBeyondTheCoordinateBoundIsRefusedAsTheReaderRefusesIt) {
   PointCloud pc;
   pc.positions = {Vec3(0, 0, 0), Vec3(2, 0, 0), Vec3(0, 0, 0)};
-  io::LasWriteOptions grid;
-  grid.scale = Vec3(1.0);
-  grid.has_offset = true;
   const fs::path las = temp_dir() / "copc_beyond_in.las", out = temp_dir() / "copc_beyond.copc.laz";
-  io::write_las(las, pc, grid);
-  auto b = slurp(las);
-  const double scale = -6e8;  // point 1: 2 x -6e8 = -1.2e9
-  std::memcpy(&b[131], &scale, sizeof scale);
-  std::ofstream(las, std::ios::binary | std::ios::trunc)
-      .write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
-  std::string reader;
-  try {
-    (void)io::read_point_cloud(las);
-  } catch (const io::FormatError& e) {
-    reader = e.what();
-  }
+  write_unit_grid_las(las, pc);
+  patch_las_x_scale(las, -6e8);  // point 1: 2 x -6e8 = -1.2e9
+  const std::string reader = reader_error(las);
   ASSERT_NE(reader.find(": point 1: X coordinate is -1.2e+09"), std::string::npos) << reader;
   fs::remove(out);
   try {
