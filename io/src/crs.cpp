@@ -20,6 +20,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <numbers>
 #include <optional>
 #include <stdexcept>
 #include <string_view>
@@ -69,6 +70,18 @@ Srs srs_from_user_input(const std::string& user_input) {
   if (OGRSpatialReference::FromHandle(static_cast<OGRSpatialReferenceH>(srs.get()))
           ->SetFromUserInput(user_input.c_str(), OGRSpatialReference::SET_FROM_USER_INPUT_LIMITATIONS) != OGRERR_NONE)
     return nullptr;
+  return srs;
+}
+
+/// The CRS of `wkt` as GDAL reads it (OSRImportFromWkt, which reads WKT1 and WKT2 and never takes
+/// the text as a file name or URL, as SetFromUserInput would: the text comes from a file or a
+/// user). Null when GDAL cannot read it.
+Srs srs_from_wkt(const std::string& wkt) {
+  quiet_gdal();
+  Srs srs(OSRNewSpatialReference(nullptr));
+  std::string copy = wkt;  // OSRImportFromWkt takes a char** and moves it past what it read
+  char* p = copy.data();
+  if (OSRImportFromWkt(static_cast<OGRSpatialReferenceH>(srs.get()), &p) != OGRERR_NONE) return nullptr;
   return srs;
 }
 
@@ -174,16 +187,24 @@ constexpr double kMinLinearUnit = 1e-6, kMaxLinearUnit = 1e6;
 bool plausible_linear_unit(double size) { return size >= kMinLinearUnit && size <= kMaxLinearUnit; }
 
 /// Whether GDAL reads `wkt` back (OSRImportFromWkt): what a writer may store as the CRS.
-bool wkt_readable(const std::string& wkt) {
-  quiet_gdal();
-  Srs srs(OSRNewSpatialReference(nullptr));
-  std::string copy = wkt;  // ImportFromWkt: never a file name or URL
-  char* p = copy.data();
-  return OSRImportFromWkt(static_cast<OGRSpatialReferenceH>(srs.get()), &p) == OGRERR_NONE;
-}
+bool wkt_readable(const std::string& wkt) { return srs_from_wkt(wkt) != nullptr; }
 
 /// Whether two unit sizes are the same unit: equal but for the rounding of a WKT's 15 digits.
 bool same_size(double a, double b) { return std::abs(a - b) <= 1e-12 * std::max(a, b); }
+
+/// The start of the note that GeoKey `key` replaces the unit of `h` with `unit`: "GeoKeys: <crs>
+/// in <unit> (<key>), not its <h's unit>", to which the caller adds the consequence; nullopt where
+/// `h` has that unit already (same_size). An angular `unit` is compared with h's angular unit
+/// (OSRGetAngularUnits), any other with its linear one (OSRGetLinearUnits: a projected or vertical
+/// CRS).
+std::optional<std::string> unit_change(OGRSpatialReferenceH h, const Unit& unit, const std::string& crs,
+                                       const char* key) {
+  char* old_name = nullptr;
+  const double old_size = unit.kind == "angular" ? OSRGetAngularUnits(h, &old_name) : OSRGetLinearUnits(h, &old_name);
+  if (same_size(old_size, unit.to_si)) return std::nullopt;
+  return "GeoKeys: " + crs + " in " + unit.name + " (" + key + "), not its " +
+         (old_name != nullptr ? old_name : "unit");
+}
 
 /// The GeoKeys of a GeoKeyDirectoryTag: each key's {TIFFTagLocation, Count, Value_Offset}.
 class GeoKeys {
@@ -245,10 +266,8 @@ bool apply_linear_unit(OGRSpatialReferenceH h, const GeoKeys& keys, const GeoDou
     }
   }
   if (!unit) return false;
-  char* old_name = nullptr;
-  const double old_size = OSRGetLinearUnits(h, &old_name);
-  const std::string old = old_name != nullptr ? old_name : "unit";
-  if (same_size(old_size, unit->to_si)) return false;
+  const std::optional<std::string> change = unit_change(h, *unit, crs, "ProjLinearUnitsGeoKey");
+  if (!change) return false;
   // The parameters converted must stay numbers GDAL writes and reads back (a false easting of
   // 1e308 m in a unit of 1e-6 m would not): tried on a copy first.
   const Srs trial(OSRClone(h));
@@ -260,8 +279,7 @@ bool apply_linear_unit(OGRSpatialReferenceH h, const GeoKeys& keys, const GeoDou
   }
   OSRSetLinearUnitsAndUpdateParameters(h, unit->name.c_str(), unit->to_si);
   if (code != kUserDefined) OSRSetAuthority(h, "PROJCS|UNIT", "EPSG", code);
-  info.notes.push_back("GeoKeys: " + crs + " in " + unit->name + " (ProjLinearUnitsGeoKey), not its " + old +
-                       ", as GDAL reads them: a CRS without an EPSG code");
+  info.notes.push_back(*change + ", as GDAL reads them: a CRS without an EPSG code");
   return true;
 }
 
@@ -279,13 +297,10 @@ bool apply_angular_unit(OGRSpatialReferenceH h, const GeoKeys& keys, int epsg, F
                          " is not an EPSG angular unit: the unit of " + crs + " kept");
     return false;
   }
-  char* old_name = nullptr;
-  const double old_size = OSRGetAngularUnits(h, &old_name);
-  const std::string old = old_name != nullptr ? old_name : "unit";
-  if (same_size(old_size, unit->to_si)) return false;
+  const std::optional<std::string> change = unit_change(h, *unit, crs, "GeogAngularUnitsGeoKey");
+  if (!change) return false;
   OSRSetAngularUnits(h, unit->name.c_str(), unit->to_si);
-  info.notes.push_back("GeoKeys: " + crs + " in " + unit->name + " (GeogAngularUnitsGeoKey), not its " + old +
-                       ", as GDAL reads them");
+  info.notes.push_back(*change + ", as GDAL reads them");
   return true;
 }
 
@@ -355,10 +370,9 @@ Srs vertical_crs(const GeoKeys& keys, FileInfo& info, bool& custom) {
   custom = true;
   if (!vert) return make_vertical("unknown", "unknown", *unit, code);
   auto* v = static_cast<OGRSpatialReferenceH>(vert.get());
-  char* old_name = nullptr;
-  const double old_size = OSRGetLinearUnits(v, &old_name);
-  const std::string old = old_name != nullptr ? old_name : "unit";
-  if (same_size(old_size, unit->to_si)) {
+  const std::optional<std::string> change =
+      unit_change(v, *unit, "vertical EPSG:" + std::to_string(info.vertical_epsg), "VerticalUnitsGeoKey");
+  if (!change) {
     custom = false;
     return vert;
   }
@@ -366,8 +380,7 @@ Srs vertical_crs(const GeoKeys& keys, FileInfo& info, bool& custom) {
   // writer means by US survey feet beside NAVD88 (EPSG:5703, metres).
   const char* name = OSRGetAttrValue(v, "VERT_CS", 0);
   const char* datum = OSRGetAttrValue(v, "VERT_DATUM", 0);
-  info.notes.push_back("GeoKeys: vertical EPSG:" + std::to_string(info.vertical_epsg) + " in " + unit->name +
-                       " (VerticalUnitsGeoKey), not its " + old + ": a vertical CRS without an EPSG code");
+  info.notes.push_back(*change + ": a vertical CRS without an EPSG code");
   info.vertical_epsg = 0;
   return make_vertical(name != nullptr ? name : "unknown", datum != nullptr ? datum : "unknown", *unit, code);
 }
@@ -456,14 +469,9 @@ std::string crs_from_geokeys(const std::uint8_t* data, std::uint64_t len, FileIn
 }
 
 int epsg_from_wkt(const std::string& wkt) {
-  quiet_gdal();
-  Srs srs(OSRNewSpatialReference(nullptr));
+  const Srs srs = srs_from_wkt(wkt);
+  if (!srs) return 0;
   auto* h = static_cast<OGRSpatialReferenceH>(srs.get());
-  // ImportFromWkt, never SetFromUserInput: the text comes from the file and must not be taken
-  // as a file name or URL.
-  std::string copy = wkt;
-  char* p = copy.data();
-  if (OSRImportFromWkt(h, &p) != OGRERR_NONE) return 0;
   const char* key = OSRIsProjected(h) ? "PROJCS" : (OSRIsGeographic(h) ? "GEOGCS" : nullptr);
   if (key == nullptr) return 0;
   const char* auth = OSRGetAuthorityName(h, key);
@@ -475,6 +483,17 @@ int epsg_from_wkt(const std::string& wkt) {
   }
   if (auth == nullptr || code == nullptr || std::string(auth) != "EPSG") return 0;
   return std::atoi(code);
+}
+
+std::optional<double> geographic_unit_degrees(const std::string& wkt) {
+  if (wkt.empty()) return std::nullopt;
+  const Srs srs = srs_from_wkt(wkt);
+  if (!srs) return std::nullopt;
+  auto* h = static_cast<OGRSpatialReferenceH>(srs.get());
+  if (!OSRIsGeographic(h)) return std::nullopt;
+  const double radians = OSRGetAngularUnits(h, nullptr);
+  if (!(std::isfinite(radians) && radians > 0.0)) return std::nullopt;
+  return radians * 180.0 / std::numbers::pi;
 }
 
 }  // namespace rayscan::io::detail
@@ -496,13 +515,9 @@ std::string crs_wkt_from_user_input(const std::string& user_input) {
   // WKT that GDAL reads is kept as given: the source's own text (an ESRI-flavoured WKT1, a WKT2
   // with details WKT1 lacks) is what the writers store and `rayscan info` shows. GDAL reads the
   // WKT and ignores any text after it, which must then be none.
-  detail::quiet_gdal();
-  detail::Srs srs(OSRNewSpatialReference(nullptr));
-  auto* h = static_cast<OGRSpatialReferenceH>(srs.get());
-  std::string copy = user_input;  // ImportFromWkt: never a file name or URL
-  char* p = copy.data();
+  detail::Srs srs = detail::srs_from_wkt(user_input);
   std::string wkt;
-  if (OSRImportFromWkt(h, &p) == OGRERR_NONE) {
+  if (srs) {
     const std::size_t end = detail::wkt_length(user_input);
     if (end == std::string::npos) throw std::invalid_argument("the WKT's first bracket is never closed");
     if (const std::size_t after = user_input.find_first_not_of(" \t\n\r", end); after != std::string::npos)
@@ -513,10 +528,9 @@ std::string crs_wkt_from_user_input(const std::string& user_input) {
   } else {
     srs = detail::srs_from_user_input(user_input);
     if (!srs) return "";
-    h = static_cast<OGRSpatialReferenceH>(srs.get());
-    wkt = detail::export_wkt(h, /*wkt2_fallback=*/true);
+    wkt = detail::export_wkt(static_cast<OGRSpatialReferenceH>(srs.get()), /*wkt2_fallback=*/true);
   }
-  if (const std::string bad = detail::bad_unit(h); !bad.empty())
+  if (const std::string bad = detail::bad_unit(static_cast<OGRSpatialReferenceH>(srs.get())); !bad.empty())
     throw std::invalid_argument("the CRS has a " + bad + " (expected a positive size)");
   return wkt;
 }
@@ -526,11 +540,9 @@ bool crs_wkt_readable(const std::string& wkt) { return detail::wkt_readable(wkt)
 EpsgCodes epsg_codes_from_wkt(const std::string& wkt) {
   EpsgCodes codes;
   codes.horizontal = detail::epsg_from_wkt(wkt);
-  detail::Srs srs(OSRNewSpatialReference(nullptr));
+  const detail::Srs srs = detail::srs_from_wkt(wkt);
+  if (!srs) return codes;
   auto* h = static_cast<OGRSpatialReferenceH>(srs.get());
-  std::string copy = wkt;  // ImportFromWkt, as epsg_from_wkt: never a file name or URL
-  char* p = copy.data();
-  if (OSRImportFromWkt(h, &p) != OGRERR_NONE) return codes;
   const char* auth = OSRGetAuthorityName(h, "VERT_CS");
   const char* code = OSRGetAuthorityCode(h, "VERT_CS");
   if (auth != nullptr && code != nullptr && std::string(auth) == "EPSG") codes.vertical = std::atoi(code);

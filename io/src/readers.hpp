@@ -6,6 +6,8 @@
 #include "rayscan/io/point_reader.hpp"
 
 #include <memory>
+#include <optional>
+#include <string>
 
 namespace rayscan::io::detail {
 
@@ -72,5 +74,11 @@ std::string crs_from_geokeys(const std::uint8_t* data, std::uint64_t len, FileIn
                              GeoDoubles doubles = {});
 /// EPSG code identified from a WKT string (0 when OSR cannot identify it).
 int epsg_from_wkt(const std::string& wkt);
+/// The size in degrees of the angular unit of the latitude and longitude of `wkt` (read as
+/// OSRImportFromWkt reads it, never as a file name or URL) when the CRS is geographic (of a
+/// compound CRS: its horizontal part), e.g. 1 for degrees, 57.3 for radians; nullopt for no CRS,
+/// text GDAL cannot read, a unit of no positive finite size, and a projected, geocentric or local
+/// CRS, whose x and y are lengths. Never throws. See crs.cpp.
+std::optional<double> geographic_unit_degrees(const std::string& wkt);
 
 }  // namespace rayscan::io::detail

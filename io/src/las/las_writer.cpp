@@ -9,14 +9,12 @@
 #include "bytes.hpp"
 #include "las/las_grid.hpp"
 #include "las/las_header.hpp"
+#include "readers.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/base/interrupt.hpp"
 #include "rayscan/base/version.hpp"
 #include "rayscan/io/translate.hpp"
-
-#include <gdal/cpl_error.h>
-#include <gdal/ogr_srs_api.h>
 
 #include <algorithm>
 #include <array>
@@ -24,7 +22,6 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <numbers>
 
 namespace rayscan::io {
 
@@ -91,29 +88,6 @@ double decimal_step(int e) {
   double p = 1.0;
   for (int i = 0; i < std::abs(e); ++i) p *= 10.0;  // exact up to 1e22
   return e < 0 ? 1.0 / p : p;
-}
-
-/// The size in degrees of the angular unit of `wkt`'s latitude and longitude when the CRS is
-/// geographic (of a compound CRS: its horizontal part), e.g. 1 for degrees, 57.3 for radians;
-/// nullopt for no CRS and for a projected, geocentric or local one, whose x and y are lengths.
-/// Never throws (the writer has checked that GDAL reads the WKT: validate_for_writing).
-std::optional<double> geographic_unit_degrees(const std::string& wkt) {
-  if (wkt.empty()) return std::nullopt;
-  OGRSpatialReferenceH h = OSRNewSpatialReference(nullptr);
-  if (h == nullptr) return std::nullopt;
-  std::string copy = wkt;
-  char* p = copy.data();
-  CPLPushErrorHandler(CPLQuietErrorHandler);
-  std::optional<double> degrees;
-  // ImportFromWkt, never SetFromUserInput: the text is the cloud's and must not be taken as a
-  // file name or URL.
-  if (OSRImportFromWkt(h, &p) == OGRERR_NONE && OSRIsGeographic(h)) {
-    const double radians = OSRGetAngularUnits(h, nullptr);
-    if (std::isfinite(radians) && radians > 0.0) degrees = radians * 180.0 / std::numbers::pi;
-  }
-  CPLPopErrorHandler();
-  OSRDestroySpatialReference(h);
-  return degrees;
 }
 
 /// The exponent e of the finest default scale 10^e of LAS axis k (0 X, 1 Y, 2 Z) for a cloud
@@ -260,7 +234,7 @@ struct LasRecordWriter {
     const AABB box = cloud.bounds();
     scale = options.scale;
     offset = options.offset;
-    const std::optional<double> unit_degrees = geographic_unit_degrees(wkt);
+    const std::optional<double> unit_degrees = detail::geographic_unit_degrees(wkt);
     bool auto_scale[3];
     int finest[3];  // exponent of each axis' finest default scale
     for (int k = 0; k < 3; ++k) {
@@ -274,15 +248,14 @@ struct LasRecordWriter {
     // offset is the double nearest its decimal (-122.4567, not -122.45679999999999, which would
     // cost a text copy of the file 17 decimals).
     auto default_offset = [&](int k, double s) {
-      const double unit = 1000.0 * s;
       if (box.empty()) return 0.0;
+      const double unit = 1000.0 * s;
       const double n = std::round(1.0 / unit);
-      if (unit < 1.0 && std::abs(n * unit - 1.0) < 1e-12) {
-        const double down = std::floor(box.lo[k] * n) / n;
-        return std::abs(down) <= kMaxCoordinate ? down : std::trunc(box.lo[k] * n) / n;
-      }
-      const double down = std::floor(box.lo[k] / unit) * unit;
-      return std::abs(down) <= kMaxCoordinate ? down : std::trunc(box.lo[k] / unit) * unit;
+      const bool reciprocal = unit < 1.0 && std::abs(n * unit - 1.0) < 1e-12;
+      const double units = reciprocal ? box.lo[k] * n : box.lo[k] / unit;  // the low corner in units
+      const auto offset_of = [&](double whole_units) { return reciprocal ? whole_units / n : whole_units * unit; };
+      const double down = offset_of(std::floor(units));
+      return std::abs(down) <= kMaxCoordinate ? down : offset_of(std::trunc(units));
     };
     if (!options.has_offset)
       for (int k = 0; k < 3; ++k) offset[k] = default_offset(k, scale[k]);
