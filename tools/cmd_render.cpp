@@ -137,7 +137,7 @@ Runner add_render_command(CLI::App& app) {
   c->add_option("--camera", o->camera, "Camera file (JSON), replaces the scene's camera");
   c->add_option("-o,--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image; a quick look of a "
                 "cloud without it writes <stem>.png in the working directory");
-  c->add_option("--spp", o->spp, "Samples per pixel, integer in [1, 1048576] (default: the scene's value, 16 if unset)")->check(CLI::Range(1u, 1u << 20));
+  c->add_option("--spp", o->spp, "Samples per pixel, integer in [1, 1048576] (default: the scene's value, 16 if unset)")->check(CLI::Range(1u, render::kMaxSpp));
   c->add_option("--seed", o->seed, "Random seed, unsigned 64-bit integer; the image is a pure function of it "
                 "(default: the scene's value, 0 if unset)")
       ->check([](const std::string& v) {  // CLI11 would wrap "-1" to 2^64-1
@@ -150,10 +150,10 @@ Runner add_render_command(CLI::App& app) {
       ->check(CLI::Range(0u, 1024u));
   c->add_option("--width", o->width, "Image width in pixels, in [1, 65536]; keeps the field of view, and the height "
                 "follows the aspect ratio unless given (default: the camera's size)")
-      ->check(CLI::Range(1u, 65536u));
+      ->check(CLI::Range(1u, kMaxImageSide));
   c->add_option("--height", o->height, "Image height in pixels, in [1, 65536]; keeps the field of view, and the width "
                 "follows the aspect ratio unless given (default: the camera's size)")
-      ->check(CLI::Range(1u, 65536u));
+      ->check(CLI::Range(1u, kMaxImageSide));
   c->add_option("--cache", o->cache,
                 "COPC input (sphere mode): bound on decoded node data (LRU, trimmed as each 4x4 pixel block ends; "
                 "plus the nodes of the blocks in flight; e.g. 2G, 512M). A COPC file is traced in place, decoding only the "

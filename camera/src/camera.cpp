@@ -16,7 +16,7 @@ namespace rayscan {
 namespace {
 void check_size(std::uint32_t w, std::uint32_t h) {
   if (w == 0 || h == 0) throw std::invalid_argument("camera: width and height must be > 0");
-  if (w > 65536 || h > 65536) throw std::invalid_argument("camera: width and height must be <= 65536");
+  if (w > kMaxImageSide || h > kMaxImageSide) throw std::invalid_argument("camera: width and height must be <= 65536");
 }
 }  // namespace
 
@@ -148,7 +148,7 @@ ImageSize fit_image_size(ImageSize current, std::optional<std::uint32_t> width, 
   const double w = width ? double(*width) : std::round(double(current.width) * *height / current.height);
   const double h = height ? double(*height) : std::round(double(current.height) * *width / current.width);
   for (const auto& [v, name] : {std::pair{w, "width"}, std::pair{h, "height"}})
-    if (!(v >= 1.0 && v <= 65536.0))
+    if (!(v >= 1.0 && v <= double(kMaxImageSide)))
       throw OptionError({"the camera's aspect ratio " + std::to_string(current.width) + ":" +
                              std::to_string(current.height) + " gives an image " + name + " of " +
                              std::to_string(static_cast<long long>(std::min(v, 1e18))) +

@@ -8,7 +8,7 @@
 namespace rayscan {
 
 Camera Camera::equirectangular(const EquirectangularParams& p, std::uint32_t width, std::uint32_t height) {
-  if (width == 0 || height == 0 || width > 65536 || height > 65536)
+  if (width == 0 || height == 0 || width > kMaxImageSide || height > kMaxImageSide)
     throw std::invalid_argument("camera: width and height must be in [1, 65536]");
   if (!is_finite(p.position) || !is_finite(p.look_at) || !is_finite(p.up) || glm::length(p.up) == 0.0)
     throw std::invalid_argument("camera: position, look_at and up must be finite, up non-zero");

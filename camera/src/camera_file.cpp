@@ -26,8 +26,8 @@ std::array<std::array<double, 3>, 3> mat3_at(const JsonObject& o, const json& v,
 
 Camera parse_camera(const json& j, const std::string& file, const std::string& ptr) {
   JsonObject o(j, file, ptr);
-  const auto width = static_cast<std::uint32_t>(o.integer("width", 0, 1, 65536));
-  const auto height = static_cast<std::uint32_t>(o.integer("height", 0, 1, 65536));
+  const auto width = static_cast<std::uint32_t>(o.integer("width", 0, 1, kMaxImageSide));
+  const auto height = static_cast<std::uint32_t>(o.integer("height", 0, 1, kMaxImageSide));
   if (!o.has("width")) json_fail(file, o.ptr("width"), "required: image width in pixels (integer in [1, 65536])");
   if (!o.has("height")) json_fail(file, o.ptr("height"), "required: image height in pixels (integer in [1, 65536])");
   // `K` only selects the default model; it is an allowed key only when the model is pinhole, so

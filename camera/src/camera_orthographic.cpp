@@ -10,7 +10,7 @@ namespace rayscan {
 
 Camera Camera::orthographic_grid(const Vec3& origin00, const Vec3& step_u, const Vec3& step_v,
                                  const Vec3& direction, std::uint32_t width, std::uint32_t height) {
-  if (width == 0 || height == 0 || width > 65536 || height > 65536)
+  if (width == 0 || height == 0 || width > kMaxImageSide || height > kMaxImageSide)
     throw std::invalid_argument("camera: width and height must be in [1, 65536]");
   if (!is_finite(origin00) || !is_finite(step_u) || !is_finite(step_v) || !is_finite(direction) ||
       glm::length(step_u) == 0.0 || glm::length(step_v) == 0.0 || glm::length(direction) == 0.0)

@@ -97,7 +97,7 @@ Camera load_colmap_camera(const std::filesystem::path& dir, const std::string& i
     // "nan", leaving the parameters after it uncounted.
     const auto size = [&](const std::string& t, const char* name) {
       std::uint32_t v = 0;
-      if (!parse_token(t, v) || v < 1 || v > 65536)
+      if (!parse_token(t, v) || v < 1 || v > kMaxImageSide)
         fail(cameras, cno, std::string(name) + " '" + one_line(t) + "': expected an integer in [1, 65536] (pixels)");
       return v;
     };

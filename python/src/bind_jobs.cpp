@@ -158,10 +158,9 @@ void run_interruptible(JobControl& ctl, const char* job, F&& f) {
   if (error) std::rethrow_exception(error);
 }
 
-/// The largest image side a camera takes (fit_image_size; `rayscan render --width`), pixels.
-constexpr long long kMaxImageSide = 65536;
-/// The most samples per pixel a scene takes (Scene::apply; `rayscan render --spp`).
-constexpr long long kMaxSpp = 1 << 20;
+// The command line's bounds, defined once: rayscan::kMaxImageSide (camera.hpp), render::kMaxSpp
+// (scene.hpp).
+using render::kMaxSpp;
 
 /// An image side (width, height) in pixels: None or an integer in [1, 65536], the command
 /// line's range, checked here so that a side out of it is named as given rather than by the

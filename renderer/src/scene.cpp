@@ -302,7 +302,7 @@ Scene parse_scene_json(const nlohmann::json& j, const std::filesystem::path& fil
   } else {
     fail(f, "/camera", "expected a camera file name or a camera object");
   }
-  s.spp = static_cast<std::uint32_t>(o.integer("spp", 16, 1, 1u << 20));
+  s.spp = static_cast<std::uint32_t>(o.integer("spp", 16, 1, kMaxSpp));
   s.max_depth = static_cast<std::uint32_t>(o.integer("max_depth", 4, 1, 1000));
   s.russian_roulette_depth = static_cast<std::uint32_t>(o.integer("russian_roulette_depth", 0, 0, 1000));
   s.seed = o.integer("seed", 0, 0, std::numeric_limits<std::uint64_t>::max());

@@ -80,6 +80,11 @@ struct CameraDescription {
   EquirectangularParams equirectangular;  ///< CameraModel::equirectangular
 };
 
+/// The largest image side (width or height) of any camera, pixels: the bound that the camera
+/// constructors, camera files, COLMAP models, fit_image_size and the command line's --width /
+/// --height all check (at most 65536 x 65536 = 2^32 pixels per image).
+inline constexpr std::uint32_t kMaxImageSide = 65536;
+
 /// An image size in pixels.
 struct ImageSize {
   std::uint32_t width = 0, height = 0;

@@ -84,6 +84,10 @@ struct OutputDesc {
   double exposure = 0.0;              ///< stops: pixel values are multiplied by 2^exposure
 };
 
+/// The most samples per pixel a render takes: the bound that a scene file's /spp,
+/// SceneOverrides::spp (`rayscan render --spp`, the Python module's render(spp=)) all check.
+inline constexpr std::uint32_t kMaxSpp = 1u << 20;
+
 /// The usual command-line changes to a loaded scene (`rayscan render` flags, the Python module's
 /// render() arguments), applied by Scene::apply. Unset members change nothing.
 struct SceneOverrides {
@@ -91,7 +95,7 @@ struct SceneOverrides {
   std::filesystem::path colmap_dir;   ///< COLMAP text model folder (cameras.txt, images.txt)
   std::string colmap_image;           ///< NAME of the photo in images.txt (required with colmap_dir)
   std::string primitive;              ///< "sphere" | "surfel"; "" keeps the scene's
-  std::optional<std::uint32_t> spp;   ///< samples per pixel, [1, 2^20]
+  std::optional<std::uint32_t> spp;   ///< samples per pixel, [1, kMaxSpp]
   std::optional<std::uint32_t> width, height;  ///< image size, pixels (fit_image_size)
   std::optional<std::uint64_t> seed;  ///< sampler seed
   std::filesystem::path out;          ///< output image (is_image_file_name)
