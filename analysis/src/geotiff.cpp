@@ -46,6 +46,14 @@ std::string geotiff_band_unit(const GeoTiffOptions& options) {
   return name ? name : "";
 }
 
+std::string crs_length_unit(const std::string& crs_wkt) {
+  GeoTiffOptions length;
+  length.crs_wkt = crs_wkt;
+  length.unit_is_crs_length = true;
+  const std::string unit = geotiff_band_unit(length);
+  return unit.empty() ? "world units" : unit;
+}
+
 void write_geotiff(const std::filesystem::path& path, const Raster& raster, const GeoTiffOptions& options) {
   static std::once_flag registered;
   std::call_once(registered, [] { GDALAllRegister(); });

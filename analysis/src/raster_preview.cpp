@@ -143,11 +143,7 @@ std::string write_raster_preview(const std::filesystem::path& path, const Raster
     render_text(img, x + 2 * mr + 4, bar_y + bar_h - 2, style.marker_label, 12, black);  // false: no font
     legend += "; " + style.marker_label + ": white disc";
   }
-  GeoTiffOptions crs;
-  crs.crs_wkt = style.crs_wkt;
-  crs.unit_is_crs_length = true;
-  const std::string unit = geotiff_band_unit(crs);
-  legend += "; " + std::to_string(s) + " px per cell of " + fmt(g.cell) + " " + (unit.empty() ? "world units" : unit);
+  legend += "; " + std::to_string(s) + " px per cell of " + fmt(g.cell) + " " + crs_length_unit(style.crs_wkt);
   write_image(img, path.string(), PixelFormat::uint8, legend);
   return legend;
 }

@@ -9,6 +9,7 @@
 #include "rayscan/site/copc.hpp"
 #include "rayscan/site/index_file.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <chrono>
 #include <cmath>
@@ -185,7 +186,7 @@ namespace {
 /// What result_field_info and result_field_unit say of one field.
 struct ResultField {
   io::ExtraBytesInfo info;
-  const char* unit;  ///< nullptr for a length, whose unit is the cloud's (length_unit)
+  const char* unit;  ///< nullptr for a length, whose unit is the cloud's (analysis::crs_length_unit)
 };
 
 /// The Extra Bytes descriptor's description field holds 32 bytes (LAS 1.4 R15 table 24); a longer
@@ -222,16 +223,6 @@ std::optional<ResultField> table_field(const std::string& name) {
   return std::nullopt;
 }
 
-/// The unit of a length in a cloud of CRS `crs_wkt`: the CRS's linear unit as the GeoTIFF maps
-/// name it (geotiff_band_unit: "metre", "foot", "US survey foot"), "world units" without one.
-std::string length_unit(const std::string& crs_wkt) {
-  analysis::GeoTiffOptions length;
-  length.crs_wkt = crs_wkt;
-  length.unit_is_crs_length = true;
-  const std::string unit = analysis::geotiff_band_unit(length);
-  return unit.empty() ? "world units" : unit;
-}
-
 /// The field `name` of a cloud of CRS `crs_wkt`, a length's unit and description completed.
 std::optional<ResultField> result_field(const std::string& name, const std::string& crs_wkt, std::string& unit) {
   std::optional<ResultField> f = table_field(name);
@@ -240,7 +231,7 @@ std::optional<ResultField> result_field(const std::string& name, const std::stri
     unit = f->unit;
     return f;
   }
-  unit = length_unit(crs_wkt);
+  unit = analysis::crs_length_unit(crs_wkt);
   // A unit name too long for the descriptor (a rare CRS's, "British foot (Sears 1922)") is named
   // where there is room: the CRS, and the unit of --json and the GeoTIFF band.
   const std::string described = f->info.description + ", " + unit;
@@ -260,6 +251,12 @@ std::optional<std::string> result_field_unit(const std::string& name, const std:
   std::string unit;
   if (result_field(name, crs_wkt, unit)) return unit;
   return std::nullopt;
+}
+
+bool result_field_used(std::string_view name, bool all_fields, bool cloud_out, std::string_view raster_field,
+                       std::span<const std::string_view> report_fields) {
+  if (all_fields || cloud_out || (!raster_field.empty() && raster_field == name)) return true;
+  return std::find(report_fields.begin(), report_fields.end(), name) != report_fields.end();
 }
 
 void write_result_cloud(const std::filesystem::path& path, const PointCloud& cloud, const io::FileInfo& info) {

@@ -17,7 +17,9 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace rayscan::jobs::detail {
@@ -108,10 +110,17 @@ std::optional<io::ExtraBytesInfo> result_field_info(const std::string& name, con
 
 /// The unit alone of a result field in a cloud of CRS `crs_wkt`, the one its description ends
 /// with: "kWh/m2", "W/m2", "h", "observers", "pixels", "1" for a ratio or a flag, and for a length
-/// the CRS's linear unit ("metre", "foot", "US survey foot", as analysis::geotiff_band_unit names
-/// it) or "world units" without a CRS; none for another name. For reports (`--json`) and the
+/// the CRS's linear unit ("metre", "foot", "US survey foot") or "world units" without a CRS
+/// (analysis::crs_length_unit); none for another name. For reports (`--json`) and the
 /// GeoTIFF maps' band units.
 std::optional<std::string> result_field_unit(const std::string& name, const std::string& crs_wkt);
+
+/// True when an output of a point analysis uses its result field `name`, so that the job computes
+/// it: every field with `all_fields` (the caller returns them all, as Python does) or `cloud_out`
+/// (a cloud output writes them all); otherwise `raster_field`, the field the raster maps ("" for
+/// no raster or none), and the fields a report prints, `report_fields`.
+bool result_field_used(std::string_view name, bool all_fields, bool cloud_out, std::string_view raster_field,
+                       std::span<const std::string_view> report_fields = {});
 
 /// Writes `cloud` to `path` (format by extension); a LAS/LAZ output keeps the integer grid
 /// (scale and offset), GPS time type and project GUID of a LAS/LAZ/COPC source described by

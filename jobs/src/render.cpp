@@ -126,16 +126,12 @@ namespace {
 
 // What the elevation colours mean, logged when the material colours by elevation (a quick look of
 // a cloud without colours): the axis, the ramp and the heights at its ends (AlbedoRule::range),
-// in the CRS's linear unit as the DSM's band names it (geotiff_band_unit), "coordinate units"
+// in the CRS's linear unit as the DSM's band names it (analysis::crs_length_unit), "world units"
 // without a CRS, e.g. "colour: elevation along up (0, 0, 1), viridis, 408.73 (dark) .. 485.04
 // (bright) foot, the 2nd and 98th percentiles of the points' heights".
 void log_elevation_ramp(const JobControl& ctl, const Scene& scene, const AlbedoRule& rule, const std::string& crs_wkt) {
   if (scene.material.mode != ColorMode::elevation) return;
-  analysis::GeoTiffOptions g;
-  g.crs_wkt = crs_wkt;
-  g.unit_is_crs_length = true;
-  std::string unit = analysis::geotiff_band_unit(g);
-  if (unit.empty()) unit = "coordinate units";
+  const std::string unit = analysis::crs_length_unit(crs_wkt);
   const Vec3 up = glm::normalize(scene.up) + Vec3(0.0);  // -0.0 printed as 0
   char buf[512];
   std::snprintf(buf, sizeof buf, "colour: elevation along up (%.3g, %.3g, %.3g), %s, %.7g (dark) .. %.7g (bright) %s, %s",

@@ -362,13 +362,17 @@ struct SolarRun {
   /// --latitude/--longitude only a geographic or geocentric one is refused (degrees are no frame
   /// for a direction wherever the site is: refuse_unprojected_crs, as visibility refuses it); any
   /// other then turns compass azimuths into the grid where PROJ can, and keeps grid north where it
-  /// cannot (a local frame).
+  /// cannot (a local frame). The refusal of such a CRS names no location options, which cannot
+  /// help it.
   void check_crs(const std::string& wkt) const {
-    detail::refuse_unprojected_crs(wkt, "sun directions");
-    if (o.latitude) return;
+    if (o.latitude) {
+      detail::refuse_unprojected_crs(wkt, "sun directions");
+      return;
+    }
     try {
       check_site_crs(wkt);
     } catch (const std::invalid_argument& e) {
+      if (is_unprojected_crs(wkt)) throw OptionError({e.what()});
       throw OptionError({e.what(), " (", option("latitude"), ", ", option("longitude"), ")"});
     }
   }
@@ -503,9 +507,8 @@ struct SolarRun {
   /// True when an output uses result field `name` (SolarJobOptions::all_fields): the cloud
   /// output writes every field, the raster its own, the report kReportFields.
   bool field_used(const std::string& name) const {
-    if (o.all_fields || !o.out.empty()) return true;
-    if (!o.raster.empty() && raster_field() == name) return true;
-    return std::find(std::begin(kReportFields), std::end(kReportFields), name) != std::end(kReportFields);
+    return detail::result_field_used(name, o.all_fields, !o.out.empty(), o.raster.empty() ? std::string() : raster_field(),
+                                     kReportFields);
   }
 
   /// True for a result field whose value does not depend on the sky-map rays: the shadow, the

@@ -206,7 +206,7 @@ struct VisibilityRun {
   /// True when an output uses result field `name` (VisibilityJobOptions::all_fields): the cloud
   /// output writes every field, the raster its own.
   bool field_used(const std::string& name) const {
-    return o.all_fields || !o.out.empty() || (!o.raster.empty() && raster_field() == name);
+    return detail::result_field_used(name, o.all_fields, !o.out.empty(), o.raster.empty() ? std::string() : raster_field());
   }
 
   /// The per-point line of sight feeds visible_count and visible_distance alone.
@@ -402,11 +402,11 @@ struct VisibilityRun {
       rv.name = r.raster->name;
     } else {
       rv = raster_values();
-      // A length names its unit in the band description, the preview's legend and the log, the
-      // band's own unit (the CRS's linear unit) where the CRS gives one.
+      // A length names its unit in the band description, the preview's legend and the log: the
+      // band's own unit (the CRS's linear unit), and without a CRS why the band has none.
       if (go.unit_is_crs_length) {
-        const std::string unit = geotiff_band_unit(go);
-        rv.name += " (" + (unit.empty() ? std::string("the cloud's units; it has no CRS") : unit) + ")";
+        const std::string unit = crs_length_unit(go.crs_wkt);
+        rv.name += " (" + (go.crs_wkt.empty() ? unit + "; the cloud has no CRS" : unit) + ")";
       }
       r.raster = rasterize(cloud.positions, rv.values, grid, rv.reduce, rv.name);
     }

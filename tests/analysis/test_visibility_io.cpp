@@ -453,6 +453,10 @@ TEST(RasterPreview, CellSizeIsInTheCrsLinearUnit) {
   EXPECT_EQ(std::string(unit), "US survey foot");
   const std::string none = write_raster_preview(tmpdir() / "n.png", r, 0.0, 1.0, "t");
   EXPECT_NE(none.find(" px per cell of 3 world units"), std::string::npos) << none;
+  // The one statement of a length's unit name: GDAL's, or "world units" where it has none.
+  EXPECT_EQ(crs_length_unit(style.crs_wkt), unit);
+  EXPECT_EQ(crs_length_unit(""), "world units");
+  EXPECT_EQ(crs_length_unit("not a WKT"), "world units");
 }
 
 // ---- `rayscan visibility` end to end.
@@ -475,6 +479,21 @@ class VisibilityCli : public ::testing::Test {
     return p;
   }
 };
+
+// A distance map of a cloud without a CRS: the band has no unit (GDAL reads back none), and its
+// description says in what the distances are and why.
+TEST_F(VisibilityCli, DistanceMapWithoutCrsNamesWorldUnits) {
+  const fs::path tif = tmpdir() / "no_crs_distance.tif";
+  const RunResult r = run_cmd(bin() + " visibility " + scene().string() +
+                              " --observer 0,0,2 --raster-value distance --cell 2 -q --raster " + tif.string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  GDALAllRegister();
+  std::unique_ptr<GDALDataset> ds(GDALDataset::Open(tif.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+  ASSERT_TRUE(ds);
+  EXPECT_STREQ(ds->GetRasterBand(1)->GetUnitType(), "");
+  EXPECT_STREQ(ds->GetRasterBand(1)->GetDescription(),
+               "distance to the nearest observer that sees the cell (world units; the cloud has no CRS)");
+}
 
 TEST_F(VisibilityCli, FieldsInLasAndPlyMatchTheLibrary) {
   const fs::path csv = write_text("cli_obs.csv", "x,y,height\n0,0,1.7\n-8,8,1.7\n");

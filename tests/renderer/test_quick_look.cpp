@@ -450,7 +450,7 @@ TEST(UpAxis, AFlatCloudTakesTheSignOfItsNormalsLargestComponent) {
 // The CLI's quick look of a flat cloud without a CRS (80 x 40 points on z = 3) prints and uses up
 // +z with the camera above the plane looking down; the log says what the elevation colours mean.
 // Oracle: the points' known heights: the ramp's ends are their 2nd and 98th percentile (ranks
-// n * 2 / 100 and n * 98 / 100 of the sorted heights), in "coordinate units" without a CRS and in
+// n * 2 / 100 and n * 98 / 100 of the sorted heights), in "world units" without a CRS and in
 // the CRS's unit for autzen (international foot, EPSG:2992) through an index file without colours.
 TEST(QuickLook, FlatCloudIsSeenFromAboveAndTheElevationColoursAreLogged) {
   const fs::path d = quick_look_temp_dir() / "flat";
@@ -503,7 +503,7 @@ TEST(QuickLook, FlatCloudIsSeenFromAboveAndTheElevationColoursAreLogged) {
     const LoggedRamp g = logged((d / "sq.xyz").string());
     EXPECT_EQ(g.up, Vec3(0, 0, 1));
     EXPECT_EQ(g.ramp, "viridis");
-    EXPECT_EQ(g.unit, "coordinate units");
+    EXPECT_EQ(g.unit, "world units");
     EXPECT_EQ(g.lo, 3.0);
     EXPECT_EQ(g.hi, 4.0);
   }
@@ -534,7 +534,7 @@ TEST(QuickLook, FlatCloudIsSeenFromAboveAndTheElevationColoursAreLogged) {
     EXPECT_NEAR(g.hi, want[1], 1e-6);
     EXPECT_LT(want[0], 0.0);   // from the floor's roughness
     EXPECT_GT(want[1], 1.65);  // from the second box's top
-    EXPECT_EQ(g.unit, "coordinate units");
+    EXPECT_EQ(g.unit, "world units");
   }
   {
     const fs::path las = fs::path(RAYSCAN_TEST_DATA) / "las" / "autzen_trim.las";

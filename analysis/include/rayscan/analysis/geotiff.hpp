@@ -29,6 +29,12 @@ struct GeoTiffOptions {
 /// that must name the same unit as the file.
 std::string geotiff_band_unit(const GeoTiffOptions& options);
 
+/// The name of a length in a cloud of CRS `crs_wkt` (WKT1 or WKT2): the CRS's linear unit as
+/// GDAL names it, as a GeoTIFF band of lengths carries it (geotiff_band_unit: "metre", "foot",
+/// "US survey foot"), or "world units" without a CRS or for a WKT GDAL cannot read. For logs,
+/// legends and field descriptions that must name the unit where the file may have none.
+std::string crs_length_unit(const std::string& crs_wkt);
+
 /// Writes `raster` as a single-band Float32 GeoTIFF: geotransform from raster.grid (north-up,
 /// pixel-is-area), the CRS from options.crs_wkt (GDALDataset::SetSpatialRef after
 /// OGRSpatialReference::importFromWkt, traditional GIS axis order), NaN cells as options.nodata

@@ -67,8 +67,8 @@ struct PreviewStyle {
   std::vector<Vec3> markers;
   std::string marker_label = "observer";
   /// The raster's CRS (WKT, as its GeoTIFF carries it): the legend gives the cell size in the
-  /// CRS's linear unit as the GeoTIFF's band unit names it (geotiff_band_unit), "world units"
-  /// without a CRS.
+  /// CRS's linear unit as the GeoTIFF's band unit names it, "world units" without a CRS
+  /// (crs_length_unit).
   std::string crs_wkt;
 };
 
