@@ -397,7 +397,8 @@ RenderStats render_camera(const Prepared& P, const Camera& camera, const JobCont
 
 // The image header's record of a render (scenes/README.md, "Image metadata"): the scene file
 // (none for a quick look), the cloud file as an absolute path ("(memory)" for points given in
-// memory that are not scene.cloud's, RenderJobOptions::cloud_read_from_scene), the camera the
+// memory that are not scene.cloud's, RenderJobOptions::cloud_read_from_scene), the samples per
+// pixel of the image's product (a map of albedo's: RenderJobOptions::albedo_map), the camera the
 // image was traced through as camera-file JSON (none for a top-down map's grid, which the
 // GeoTIFF's georeferencing describes) and the file it came from, if any.
 ImageMetadata render_metadata(const RenderJobOptions& o, const Scene& scene, const RenderJobResult& r,
@@ -409,7 +410,7 @@ ImageMetadata render_metadata(const RenderJobOptions& o, const Scene& scene, con
   if (!scene.file.empty()) m.emplace_back("rayscan:scene", scene.file.string());
   const bool file = !scene.cloud.empty() && (!o.cloud || o.cloud_read_from_scene);
   m.emplace_back("rayscan:cloud", file ? absolute(scene.cloud) : std::string("(memory)"));
-  m.emplace_back("rayscan:spp", std::to_string(scene.spp));
+  m.emplace_back("rayscan:spp", std::to_string(o.albedo_map ? o.albedo_samples : scene.spp));
   m.emplace_back("rayscan:seed", std::to_string(scene.seed));
   m.emplace_back("rayscan:radius", num17(r.radius.radius));
   m.emplace_back("rayscan:primitive", scene.primitive == Primitive::surfel ? "surfel" : "sphere");
@@ -469,10 +470,7 @@ RenderJobResult run_render(const RenderJobOptions& o) {
                                o.camera_for_cloud ? std::filesystem::path() : scene.camera_file);
   if (o.write && !scene.output.image.empty() && is_root(ctl))
     r.written = write_image(r.image, scene.output, r.metadata);
-  const std::vector<Aov>& aovs = scene.output.aovs;
-  const bool albedo_aov = std::find(aovs.begin(), aovs.end(), Aov::albedo) != aovs.end();
-  // A map of albedo (run_ortho_map) is the one render that sets camera_for_cloud and the albedo AOV.
-  log_stats(ctl, r.stats, *scene.camera, scene.spp, albedo_aov && o.camera_for_cloud ? P->albedo_samples : 0, "");
+  log_stats(ctl, r.stats, *scene.camera, scene.spp, o.albedo_map ? o.albedo_samples : 0, "");
   return r;
 }
 
@@ -508,6 +506,7 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   for (const Aov a : {Aov::depth, Aov::albedo})
     if ((a == Aov::depth || albedo) && std::find(aovs.begin(), aovs.end(), a) == aovs.end()) aovs.push_back(a);
   const std::uint32_t albedo_samples = job.scene.spp;
+  job.albedo_map = albedo;
   if (albedo) {
     // The depth AOV is traced by its own ray through each cell centre (the DSM's elevation and
     // the alpha band), the albedo by the scene's spp stratified rays per cell, averaged over
@@ -554,9 +553,6 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   r.render = run_render(job);
   job.control.check_cancel();  // set after the last tile: the map is not written either
   if (!is_root(job.control)) return r;  // only the root's image is complete
-  if (albedo)  // the map's samples per cell are the albedo's, not the unused beauty's
-    for (auto& [key, value] : r.render.metadata)
-      if (key == "rayscan:spp") value = std::to_string(albedo_samples);
   if (o.render.write)  // the files copy the cloud's CRS: `rayscan info`'s doubts about it too
     for (const std::string& w : crs_warnings(r.render.crs_wkt, cloud_bounds))
       job.control.info("warning: " + w + (o.dsm.empty() ? "; the GeoTIFF carries" : "; the GeoTIFFs carry") +

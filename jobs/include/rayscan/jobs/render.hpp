@@ -59,6 +59,11 @@ struct RenderJobOptions {
   /// Rays per pixel of the albedo AOV (render::RenderSettings::albedo_samples: 1 = the ray through
   /// the pixel centre, n > 1 = the mean over n stratified rays); run_ortho_map sets it.
   std::uint32_t albedo_samples = 1;
+  /// The image's product is the albedo AOV, the beauty traced only because the renderer traces it
+  /// (run_ortho_map sets it for its albedo colour): the product's rays per pixel are
+  /// albedo_samples, which the image metadata records as rayscan:spp and the stats line states
+  /// before the beauty's spp.
+  bool albedo_map = false;
   /// When set, called once the image is traced, before it is written (on the root only of a
   /// distributed render), with the site it was traced over, the reach of the points' primitives
   /// (world units: the sphere radius, or for surfels the largest disc radius; no farther from its
