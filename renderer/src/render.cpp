@@ -40,21 +40,43 @@ RenderSettings make_settings(const Scene& scene, std::span<const Vec3> centers,
   return s;
 }
 
+namespace {
+
+// The strata of n points of a pixel (stratified_pixel_point's rows and columns), laid out once for
+// a render's RenderSettings::albedo_samples rather than for every ray; point() gives the same
+// points, bit for bit. n >= 1, and point's j < n, are the caller's to check.
+class PixelStrata {
+ public:
+  explicit PixelStrata(std::uint32_t n) : n_(n) {
+    rows_ = std::uint32_t(std::sqrt(double(n)));
+    while (std::uint64_t(rows_) * rows_ > n) --rows_;
+    while (std::uint64_t(rows_ + 1) * (rows_ + 1) <= n) ++rows_;
+    q_ = n / rows_;
+    narrow_ = rows_ - n % rows_;
+  }
+  [[nodiscard]] std::uint32_t size() const { return n_; }
+  // Point j at the jitter (ju, jv) within its stratum.
+  [[nodiscard]] PixelSample point(std::uint32_t j, double ju, double jv) const {
+    std::uint32_t row, col, cols;
+    if (j < narrow_ * q_) {
+      row = j / q_, col = j % q_, cols = q_;
+    } else {
+      const std::uint32_t k = j - narrow_ * q_;
+      row = narrow_ + k / (q_ + 1), col = k % (q_ + 1), cols = q_ + 1;
+    }
+    return {(col + ju) / cols - 0.5, (row + jv) / rows_ - 0.5, 1.0 / (double(rows_) * cols)};
+  }
+
+ private:
+  std::uint32_t n_, rows_, q_, narrow_;  // rows_ rows: the first narrow_ of q_ strata, then of q_ + 1
+};
+
+}  // namespace
+
 PixelSample stratified_pixel_point(std::uint32_t j, std::uint32_t n, double ju, double jv) {
   if (n == 0 || j >= n)
     throw std::invalid_argument("stratified_pixel_point: point " + std::to_string(j) + " of " + std::to_string(n));
-  std::uint32_t rows = std::uint32_t(std::sqrt(double(n)));
-  while (std::uint64_t(rows) * rows > n) --rows;
-  while (std::uint64_t(rows + 1) * (rows + 1) <= n) ++rows;
-  const std::uint32_t q = n / rows, narrow = rows - n % rows;  // rows of q strata, then of q + 1
-  std::uint32_t row, col, cols;
-  if (j < narrow * q) {
-    row = j / q, col = j % q, cols = q;
-  } else {
-    const std::uint32_t k = j - narrow * q;
-    row = narrow + k / (q + 1), col = k % (q + 1), cols = q + 1;
-  }
-  return {(col + ju) / cols - 0.5, (row + jv) / rows - 0.5, 1.0 / (double(rows) * cols)};
+  return PixelStrata(n).point(j, ju, jv);
 }
 
 namespace {
@@ -102,15 +124,16 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
   // The albedo AOV of pixel (x, y) over s.albedo_samples stratified rays: the stratum-area-weighted
   // mean of the hits' albedos, averaged sRGB-encoded (RenderSettings::albedo_samples says why).
   // Hits of one colour give it back as it is, not through the round trip to sRGB and back.
+  // The strata are laid out once here (render_image_impl checked albedo_samples >= 1).
+  const PixelStrata strata(s.albedo_samples);
   auto mean_albedo = [&](std::uint32_t x, std::uint32_t y, std::vector<RayHit>& hits, TraceCounters& c) {
-    const std::uint32_t n = s.albedo_samples;
     double sum[3] = {0.0, 0.0, 0.0}, area = 0.0;
     Color first(0.0f);
     bool one_colour = true;
-    for (std::uint32_t j = 0; j < n; ++j) {
+    for (std::uint32_t j = 0; j < strata.size(); ++j) {
       Sampler smp(s.seed, x, y, kAlbedoStream + j);
       const double ju = smp.uniform(), jv = smp.uniform();
-      const PixelSample ps = stratified_pixel_point(j, n, ju, jv);
+      const PixelSample ps = strata.point(j, ju, jv);
       SurfaceHit h;
       if (!tracer.intersect(cam.generate_ray(x + ps.dx, y + ps.dy), h, hits, c)) continue;
       const Color a = s.integrator.albedo.at(h.index, h.slot);
