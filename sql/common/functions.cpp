@@ -7,7 +7,10 @@
 #include "rayscan/octree/ray_query.hpp"
 
 #include <algorithm>
+#include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstddef>
 #include <cstdio>
 #include <cstdlib>
 
@@ -103,21 +106,38 @@ extern "C" const char* rs_eval_bounds(const char* fn, rs_function f, const doubl
 }
 
 extern "C" const char* rs_parse_tuple(const char* s, double* v, int n, const char* type,
-                                      char err[RS_ERRBUF]) {
+                                      const char* const* names, int* out_of_range, char err[RS_ERRBUF]) {
   const char* p = s;
   char* end = nullptr;
   bool ok = true;
+  // The first number beyond double's range, [range_at, range_end) of s: reported only once the
+  // whole text has parsed, so that bad syntax anywhere is reported as such.
+  int range_i = -1;
+  const char *range_at = nullptr, *range_end = nullptr;
+  if (out_of_range) *out_of_range = 0;
   while (*p == ' ') ++p;
   ok = *p++ == '(';
   for (int i = 0; ok && i < n; ++i) {
+    errno = 0;
     v[i] = std::strtod(p, &end);
     ok = end != p;
+    // float8in's rule: strtod's ERANGE with an infinite or zero result; a subnormal one is kept.
+    if (ok && errno == ERANGE && (v[i] == 0.0 || std::isinf(v[i])) && range_i < 0) {
+      range_i = i, range_at = p, range_end = end;
+      while (range_at < range_end && std::isspace(static_cast<unsigned char>(*range_at))) ++range_at;
+    }
     p = end;
     while (ok && *p == ' ') ++p;
     ok = ok && *p++ == (i + 1 < n ? ',' : ')');
   }
   while (ok && *p == ' ') ++p;
-  if (ok && *p == 0) return nullptr;
+  if (ok && *p == 0) {
+    if (range_i < 0) return nullptr;
+    if (out_of_range) *out_of_range = 1;
+    std::snprintf(err, RS_ERRBUF, "%s: %s \"%.*s\" is out of range for type double precision", type,
+                  names[range_i], static_cast<int>(std::min<std::ptrdiff_t>(range_end - range_at, 64)), range_at);
+    return err;
+  }
   // The input itself is not repeated: it may be long or hold control characters.
   std::snprintf(err, RS_ERRBUF, "invalid input syntax for type %s: expected %d comma-separated numbers "
                 "in parentheses", type, n);

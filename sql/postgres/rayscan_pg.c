@@ -27,7 +27,6 @@
 #include "utils/lsyscache.h"
 #include "utils/syscache.h"
 
-#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -105,32 +104,16 @@ Datum rs_dist_plane_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, "dist_plane
 
 /* ---- rs_box and rs_ray types ------------------------------------------------------------- */
 
-/* Parses "(v1,...,vn)" into n doubles (rs_parse_tuple); raises a one-line error naming the type.
+/* Parses "(v1,...,vn)" into n doubles (rs_parse_tuple); raises its one-line error naming the type.
  * A number beyond float8's range is refused as float8's own input refuses it (float8in_internal:
- * strtod's ERANGE with an infinite or zero result, SQLSTATE 22003), naming the value (names[i]):
- * strtod alone would turn 1e400 into an infinity the type then calls infinite, and 1e-400 into 0.
- * Subnormal results are kept, as float8 keeps them. */
+ * SQLSTATE 22003), naming the value (names[i]): strtod alone would turn 1e400 into an infinity the
+ * type then calls infinite, and 1e-400 into 0. Subnormal results are kept, as float8 keeps them. */
 static void parse_tuple(const char* s, double* v, int n, const char* type, const char* const* names) {
   char err[RS_ERRBUF];
-  const char* p;
-  int i;
-  if (rs_parse_tuple(s, v, n, type, err))
-    ereport(ERROR, (errcode(ERRCODE_INVALID_TEXT_REPRESENTATION), errmsg("%s", err)));
-  /* rs_parse_tuple accepted the shape: "(", then n numbers separated by "," and ended by ")",
-   * with spaces around them. */
-  p = strchr(s, '(') + 1;
-  for (i = 0; i < n; ++i) {
-    char* end;
-    double x;
-    while (*p == ' ') ++p;
-    errno = 0;
-    x = strtod(p, &end);
-    if (errno == ERANGE && (x == 0.0 || isinf(x)))
-      ereport(ERROR, (errcode(ERRCODE_NUMERIC_VALUE_OUT_OF_RANGE),
-                      errmsg("%s: %s \"%.*s\" is out of range for type double precision", type, names[i],
-                             (int)Min(end - p, 64), p)));
-    p = strchr(end, i + 1 < n ? ',' : ')') + 1;
-  }
+  int out_of_range;
+  if (rs_parse_tuple(s, v, n, type, names, &out_of_range, err))
+    ereport(ERROR, (errcode(out_of_range ? ERRCODE_NUMERIC_VALUE_OUT_OF_RANGE : ERRCODE_INVALID_TEXT_REPRESENTATION),
+                    errmsg("%s", err)));
 }
 
 static const char* const kBoxNames[6] = {"xmin", "ymin", "zmin", "xmax", "ymax", "zmax"};

@@ -189,7 +189,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     double v[9];
     char err[RS_ERRBUF];
     const std::string text = rest.substr(0, rest.find('\0'));  // a cstring, as PostgreSQL passes it
-    if (const char* e = rs_parse_tuple(text.c_str(), v, n, fn.c_str(), err)) check_message(fn, e);
+    static const char* const names[9] = {"v1", "v2", "v3", "v4", "v5", "v6", "v7", "v8", "v9"};
+    if (const char* e = rs_parse_tuple(text.c_str(), v, n, fn.c_str(), names, nullptr, err)) check_message(fn, e);
     return 0;
   }
   std::vector<Arg> args;

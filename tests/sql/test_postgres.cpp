@@ -892,6 +892,11 @@ TEST_F(Postgres, BoxInputNamesTheAxisAndRefusesOutOfRangeAsFloat8) {
   EXPECT_EQ(pg.sqlstate_of("SELECT '(0,0,0,1,0,0,1e400,0,1)'::rs_ray"), "22003");
   EXPECT_EQ(pg.error_of("SELECT '(0,0,0,1,0,0,1e400,0,1)'::rs_ray"), "rs_ray: r \"1e400\" is out of range for type double precision");
   EXPECT_EQ(pg.error_of("SELECT '(0,0,0,0,0,1e-999)'::rs_plane"), "rs_plane: nz \"1e-999\" is out of range for type double precision");
+  // Bad syntax is reported as such (invalid_text_representation) even where an earlier number is
+  // out of range; a number after a tab is quoted from its first character, on one line.
+  EXPECT_EQ(pg.sqlstate_of("SELECT '(1e400,2,3)'::rs_box"), "22P02");
+  EXPECT_EQ(pg.error_of("SELECT E'(1,2,3,\\t1e400,5,6)'::rs_box"),
+            "rs_box: xmax \"1e400\" is out of range for type double precision");
   EXPECT_EQ(pg.rows("SELECT '(1e-310,2,3,4,5,6)'::rs_box::text, '(' || '1e-310'::float8 || ',2,3,4,5,6)'")[0][0],
             pg.rows("SELECT '(' || '1e-310'::float8 || ',2,3,4,5,6)'")[0][0]);
   EXPECT_EQ(pg.rows("SELECT '(0,0,0,1,0,0,Infinity,-inf,inf)'::rs_ray::text")[0][0], "(0,0,0,1,0,0,Infinity,-Infinity,Infinity)");

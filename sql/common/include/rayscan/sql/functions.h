@@ -69,8 +69,14 @@ rs_within rs_plane_box_test(const double p0[3], const double n[3], const double 
 /** Parses the text form of the PostgreSQL types rs_box, rs_ray, rs_plane: "(v1,...,vn)" with spaces
  * allowed around the numbers, each number as strtod reads it (so "inf" and "nan" parse: the types'
  * own checks refuse them where they are not allowed). Writes n doubles to v. Returns NULL, or
- * "invalid input syntax for type <type>: expected <n> comma-separated numbers in parentheses". */
-const char* rs_parse_tuple(const char* s, double* v, int n, const char* type, char err[RS_ERRBUF]);
+ * "invalid input syntax for type <type>: expected <n> comma-separated numbers in parentheses", or,
+ * when the syntax holds, for the first number beyond double's range as PostgreSQL's float8 input
+ * refuses it (strtod's ERANGE with an infinite or zero result: 1e400, 1e-400; a subnormal one such
+ * as 1e-310 is kept) "<type>: <names[i]> \"<number>\" is out of range for type double precision"
+ * (the number's text up to 64 characters). names: the n values' names. *out_of_range (when not
+ * NULL) is set to 1 for that last error (float8's SQLSTATE 22003), else 0. */
+const char* rs_parse_tuple(const char* s, double* v, int n, const char* type, const char* const* names,
+                           int* out_of_range, char err[RS_ERRBUF]);
 
 /** Checks a ray direction (normal = 0, named "direction (dx,dy,dz)") or a plane normal (normal = 1,
  * "normal (nx,ny,nz)") against the core's rule (rayscan::is_valid_direction in
