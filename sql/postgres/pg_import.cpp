@@ -28,8 +28,8 @@ namespace {
 
 /// libpq's text as one line: PQerrorMessage ends in a newline and continues a message on lines
 /// indented with a tab (a connection failure's "Is the server running ...?"); the lines are
-/// joined with "; ".
-std::string one_line(const std::string& text) {
+/// joined with "; " (rayscan::one_line would keep every line, escaping the newlines).
+std::string join_message_lines(const std::string& text) {
   std::string out, line;
   auto flush = [&] {
     const auto b = line.find_first_not_of(" \t\r"), e = line.find_last_not_of(" \t\r");
@@ -56,7 +56,7 @@ struct Conn {
   [[noreturn]] void fail(const std::string& what, const PGresult* r = nullptr) const {
     const char* primary = r ? PQresultErrorField(r, PG_DIAG_MESSAGE_PRIMARY) : nullptr;
     const std::string m = primary ? primary : c ? PQerrorMessage(c) : "out of memory";
-    throw std::runtime_error("postgres: " + what + ": " + one_line(m));
+    throw std::runtime_error("postgres: " + what + ": " + join_message_lines(m));
   }
   /// Runs `sql` with text parameters (nullptr: NULL) and returns its result; throws (fail(what))
   /// unless it returned rows or completed.
@@ -141,19 +141,17 @@ int sources_srid(const std::vector<SourceRow>& sources) {
 /// on the first failing statement; the transaction then never commits.
 struct PgImport {
   const std::string& table;             ///< the table's name as given (checked: lower case)
-  bool pcpatch;                         ///< ImportOptions::pcpatch
   std::string schema;                   ///< current_schema() of the connection, where it is created
   std::string rayscan_schema;           ///< the schema of rs_box and the functions (ensure_extension)
   std::string pointcloud_schema;        ///< pgpointcloud's (--pcpatch; register_pcpatch_schema)
   SiteStream* site = nullptr;           ///< set by attach()
-  const std::vector<ColumnInfo>* cols = nullptr;  ///< the extra columns (attributes)
   ChunkRows c;                          ///< the current chunk (vectors reused)
   ImportSummary sum;
   Conn db;
   const ImportOptions& options;
   std::optional<ImportProgress> progress;  ///< the import's own phases of ImportOptions::progress
 
-  PgImport(const std::string& t, const ImportOptions& o) : table(t), pcpatch(o.pcpatch), options(o) {}
+  PgImport(const std::string& t, const ImportOptions& o) : table(t), options(o) {}
 
   /// The table `<table><suffix>` schema-qualified and quoted: what every statement names, so that
   /// no schema earlier in the search path (pg_catalog: `--table pg_class`) can capture it.
@@ -170,7 +168,7 @@ struct PgImport {
   /// The relations the import creates: tables and the indexes it names (the primary keys'
   /// indexes PostgreSQL names itself, avoiding taken names).
   [[nodiscard]] std::vector<std::string> relations() const {
-    if (pcpatch) return {table, table + "_sources", table + "_box"};
+    if (options.pcpatch) return {table, table + "_sources", table + "_box"};
     return {table, table + "_chunks", table + "_sources", table + "_chunk_idx", table + "_chunks_box"};
   }
 
@@ -210,7 +208,6 @@ struct PgImport {
   /// The site to import, once sorted; starts the "insert" phase.
   void attach(SiteStream& s) {
     site = &s;
-    cols = &s.columns();
     progress.emplace(options, total_points(s));
   }
 
@@ -291,7 +288,7 @@ struct PgImport {
     };
     std::vector<Dim> dims = {{"X", "double", 8}, {"Y", "double", 8}, {"Z", "double", 8},
                              {"PointIndex", "uint64_t", 8}, {"Source", "uint32_t", 4}};
-    for (const auto& col : *cols) dims.push_back({col.name, col.integer ? "int64_t" : "double", 8});
+    for (const auto& col : site->columns()) dims.push_back({col.name, col.integer ? "int64_t" : "double", 8});
     std::string xml = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<pc:PointCloudSchema "
                       "xmlns:pc=\"http://pointcloud.org/schemas/PC/1.1\" "
                       "xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\">";
@@ -327,6 +324,7 @@ struct PgImport {
   /// byte order 1 (NDR), uint32 pcid, uint32 compression 0 (none), uint32 npoints, then the
   /// points in schema order (pgpointcloud README, "Binary Formats"). Sent in ~1 MiB pieces.
   void copy_patches(int pcid) {
+    const std::vector<ColumnInfo>& cols = site->columns();
     const std::string what = "copy into " + shown(table);
     db.copy_in("COPY " + name() + " FROM STDIN", what);
     std::string buf;
@@ -345,9 +343,9 @@ struct PgImport {
         append_hex(buf, p.z);
         append_hex(buf, static_cast<std::uint64_t>(ref.index));
         append_hex(buf, static_cast<std::uint32_t>(ref.source));
-        for (std::size_t a = 0; a < cols->size(); ++a) {
+        for (std::size_t a = 0; a < cols.size(); ++a) {
           const double v = c.values[a * count + r];
-          if ((*cols)[a].integer) append_hex(buf, static_cast<std::int64_t>(v));
+          if (cols[a].integer) append_hex(buf, static_cast<std::int64_t>(v));
           else append_hex(buf, v);
         }
       }
@@ -389,7 +387,7 @@ struct PgImport {
     std::string create_points = "CREATE TABLE " + name() +
                                 " (point_index bigint NOT NULL, source int NOT NULL, chunk int NOT NULL, "
                                 "x float8 NOT NULL, y float8 NOT NULL, z float8 NOT NULL";
-    for (const auto& col : *cols)
+    for (const auto& col : site->columns())
       create_points += ", " + quote_ident(folded_sql_name(col.name)) + (col.integer ? " bigint" : " float8");
     create(create_points + ")", table);
     create("CREATE TABLE " + name("_chunks") + " (chunk int PRIMARY KEY, box " + box_type() + " NOT NULL, "
@@ -409,6 +407,7 @@ struct PgImport {
   /// Returns the <table>_chunks rows, one short line per chunk, kept for copy_chunks(): one COPY
   /// at a time on a connection.
   std::string copy_points() {
+    const std::vector<ColumnInfo>& cols = site->columns();
     const std::string what = "copy into " + shown(table);
     db.copy_in("COPY " + name() + " FROM STDIN", what);
     std::string buf;
@@ -424,10 +423,10 @@ struct PgImport {
           buf += '\t';
           append_double(buf, v);
         }
-        for (std::size_t a = 0; a < cols->size(); ++a) {
+        for (std::size_t a = 0; a < cols.size(); ++a) {
           buf += '\t';
           const double v = c.values[a * count + r];
-          if ((*cols)[a].integer) buf += std::to_string(static_cast<long long>(v));
+          if (cols[a].integer) buf += std::to_string(static_cast<long long>(v));
           else append_double(buf, v);
         }
         buf += '\n';
