@@ -4,6 +4,8 @@ python/CMakeLists.txt) with fallbacks for a manual `PYTHONPATH=build/python pyth
 import os
 import pathlib
 import shutil
+import signal
+import threading
 
 import numpy as np
 import pytest
@@ -74,3 +76,35 @@ def random_rays():
     o = 0.5 + 2.0 * v / np.linalg.norm(v, axis=1, keepdims=True)
     target = rng.random((64, 3))
     return o, target - o
+
+
+def sigint_once_entered(monkeypatch, owner, name, call):
+    """The KeyboardInterrupt of call(), with a real SIGINT sent as Ctrl-C would once the call has
+    begun: owner.<name> (the binding call() goes through) is wrapped to signal its entry, and a
+    helper thread then sends SIGINT (it gets the GIL when the binding releases it). No time is
+    measured. Fails the test if call() does not raise KeyboardInterrupt."""
+    entered, never_entered = threading.Event(), []
+    run = getattr(owner, name)
+
+    def entering(*args):
+        entered.set()
+        return run(*args)
+
+    def send():
+        entered.wait()
+        if not never_entered:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(owner, name, entering)
+    sender = threading.Thread(target=send)
+    sender.start()
+    try:
+        with pytest.raises(KeyboardInterrupt) as e:
+            call()
+    finally:
+        if not entered.is_set():  # the call failed before the binding: release the sender unused
+            never_entered.append(True)
+            entered.set()
+        sender.join()
+        monkeypatch.undo()
+    return e.value

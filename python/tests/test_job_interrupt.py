@@ -7,15 +7,11 @@ its end; the exception's note, which only a job that stopped at its check gets, 
 not run to it (no time is measured). The module then answers the next call as before the
 interruption."""
 
-import os
-import signal
-import threading
-
 import numpy as np
 import pytest
 
 import rayscan
-from conftest import SOURCE
+from conftest import SOURCE, sigint_once_entered
 
 pytestmark = pytest.mark.skipif(not hasattr(rayscan, "render"),
                                 reason="module built without the library's job API")
@@ -24,35 +20,6 @@ pytestmark = pytest.mark.skipif(not hasattr(rayscan, "render"),
 @pytest.fixture(scope="module")
 def autzen():
     return rayscan.read(SOURCE / "scenes" / "data" / "autzen_trim.las")
-
-
-def interrupt(monkeypatch, name, call):
-    """The KeyboardInterrupt of call(), SIGINT sent once rayscan._rayscan._<name> is entered."""
-    entered, never_entered = threading.Event(), []
-    run = getattr(rayscan._rayscan, "_" + name)
-
-    def entering(*args):
-        entered.set()
-        return run(*args)
-
-    def send():
-        entered.wait()
-        if not never_entered:
-            os.kill(os.getpid(), signal.SIGINT)
-
-    monkeypatch.setattr(rayscan._rayscan, "_" + name, entering)
-    sender = threading.Thread(target=send)
-    sender.start()
-    try:
-        with pytest.raises(KeyboardInterrupt) as e:
-            call()
-    finally:
-        if not entered.is_set():  # the call failed before the job: release the sender unused
-            never_entered.append(True)
-            entered.set()
-        sender.join()
-        monkeypatch.undo()
-    return e.value
 
 
 # (job, the long call, a short call whose result is compared before and after the interruption)
@@ -76,7 +43,7 @@ JOBS = [
 @pytest.mark.parametrize("name,long_call,short_call", JOBS, ids=[j[0] for j in JOBS])
 def test_ctrl_c_stops_a_job_before_its_end(monkeypatch, autzen, name, long_call, short_call):
     before = short_call(autzen)
-    e = interrupt(monkeypatch, name, lambda: long_call(autzen))
+    e = sigint_once_entered(monkeypatch, rayscan._rayscan, "_" + name, lambda: long_call(autzen))
     assert getattr(e, "__notes__", []) == [f"{name} interrupted before its end"], \
         "KeyboardInterrupt without the job's note: raised outside the job, or after its end"
     np.testing.assert_array_equal(short_call(autzen), before)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import rayscan
-from conftest import brute_ray_query
+from conftest import brute_ray_query, sigint_once_entered
 
 INDEXES = [
     lambda x: rayscan.Octree(x),
@@ -340,45 +340,20 @@ def test_empty_batch_broadcasts_against_one_row(uniform_cloud):
         tree.box(np.zeros((2, 3)), none)
 
 
-def test_ctrl_c_stops_a_long_batch():
+def test_ctrl_c_stops_a_long_batch(monkeypatch):
     # A batch of 2^19 rays against 20,000 points by brute force (16 chunks of 32,768 with a check
-    # for a signal between them), interrupted as Ctrl-C would once the call has begun: a helper
-    # thread sends SIGINT when the call is entered (it gets the GIL when the batch releases it).
-    # KeyboardInterrupt comes after the running chunk, not at the end of the batch: its note says
-    # how many queries ran, a whole number of chunks short of the batch. The index then answers the
-    # next call.
-    import os
+    # for a signal between them), interrupted as Ctrl-C would once the call has begun
+    # (sigint_once_entered). KeyboardInterrupt comes after the running chunk, not at the end of the
+    # batch: its note says how many queries ran, a whole number of chunks short of the batch. The
+    # index then answers the next call.
     import re
-    import signal
-    import threading
     rng = np.random.default_rng(3)
     b = rayscan.BruteForce(rng.random((20000, 3)))
     n, chunk = 1 << 19, 1 << 15
     o, d = rng.random((n, 3)), rng.normal(size=(n, 3))
-    entered, run, never_entered = threading.Event(), b._ray_query, []
-
-    def entering(*args):
-        entered.set()
-        return run(*args)
-
-    def send():
-        entered.wait()
-        if not never_entered:
-            os.kill(os.getpid(), signal.SIGINT)
-
-    b._ray_query = entering
-    sender = threading.Thread(target=send)
-    sender.start()
-    try:
-        with pytest.raises(KeyboardInterrupt) as interrupted:
-            b.ray_query(o, d, k=1, radius=0.01, threads=1)
-    finally:
-        if not entered.is_set():  # the call failed before the batch: release the sender unused
-            never_entered.append(True)
-            entered.set()
-        sender.join()
-        del b._ray_query
-    notes = getattr(interrupted.value, "__notes__", [])
+    interrupted = sigint_once_entered(monkeypatch, b, "_ray_query",
+                                      lambda: b.ray_query(o, d, k=1, radius=0.01, threads=1))
+    notes = getattr(interrupted, "__notes__", [])
     m = re.fullmatch(r"interrupted after (\d+) of (\d+) queries", notes[0] if notes else "")
     assert m, "KeyboardInterrupt without the batch's note (raised outside the batch?): {}".format(notes)
     done, total = int(m[1]), int(m[2])
