@@ -665,6 +665,17 @@ TEST(Writers, PlyScalarsNamedLikeADedicatedFieldReadBackUnderASuffix) {
   fs::remove(out);
 }
 
+// The WKT of an EPSG CRS as GDAL writes it.
+std::string epsg_wkt(int code) {
+  OGRSpatialReference srs;
+  EXPECT_EQ(srs.importFromEPSG(code), OGRERR_NONE) << code;
+  char* wkt = nullptr;
+  EXPECT_EQ(srs.exportToWkt(&wkt), OGRERR_NONE) << code;
+  std::string out = wkt != nullptr ? wkt : "";
+  CPLFree(wkt);
+  return out;
+}
+
 // A CRS is stored only as WKT that GDAL reads: a cloud whose WKT GDAL cannot read (one with an
 // infinite false easting, as a unit of 1e-305 m made it) is refused by every writer that stores a
 // CRS, with one line, before any file exists; GDAL's own reading of the text is the oracle.
@@ -696,27 +707,12 @@ TEST(Writers, ACrsGdalCannotReadIsNotWritten) {
     EXPECT_FALSE(fs::exists(out)) << name;
   }
   // The same cloud with WKT GDAL reads is written and read back with it.
-  OGRSpatialReference utm;
-  ASSERT_EQ(utm.importFromEPSG(32610), OGRERR_NONE);
-  char* wkt = nullptr;
-  ASSERT_EQ(utm.exportToWkt(&wkt), OGRERR_NONE);
-  pc.crs_wkt = wkt;
-  CPLFree(wkt);
+  pc.crs_wkt = epsg_wkt(32610);
+  ASSERT_FALSE(pc.crs_wkt.empty());
   const fs::path ply = temp_dir() / "good_crs.ply";
   io::write_point_cloud(ply, pc);
   EXPECT_EQ(io::read_point_cloud(ply).crs_wkt, pc.crs_wkt);
   fs::remove(ply);
-}
-
-// The WKT of an EPSG CRS as GDAL writes it.
-std::string epsg_wkt(int code) {
-  OGRSpatialReference srs;
-  EXPECT_EQ(srs.importFromEPSG(code), OGRERR_NONE) << code;
-  char* wkt = nullptr;
-  EXPECT_EQ(srs.exportToWkt(&wkt), OGRERR_NONE) << code;
-  std::string out = wkt != nullptr ? wkt : "";
-  CPLFree(wkt);
-  return out;
 }
 
 // The default LAS scale is in the CRS's units: a geographic cloud's longitude and latitude are
