@@ -533,8 +533,10 @@ TEST(IndexFileBuild, WriteAndMergePhasesEndWithTheirTotal) {
   const fs::path dir = temp_dir() / "write_progress";
   fs::create_directories(dir);
   write_f64(dir / "w.f64", pts);
-  for (const auto& [memory, phase] : {std::pair<std::uint64_t, std::string>{std::uint64_t{256} << 20, "write"},
-                                      std::pair<std::uint64_t, std::string>{std::uint64_t{4} << 20, "merge"}}) {
+  for (const auto& [memory, phase_name] : {std::pair<std::uint64_t, std::string>{std::uint64_t{256} << 20, "write"},
+                                           std::pair<std::uint64_t, std::string>{std::uint64_t{4} << 20, "merge"}}) {
+    // A plain copy: C++20 lambdas may not capture a structured binding under Clang 14.
+    const std::string phase = phase_name;
     SCOPED_TRACE(phase);
     std::vector<std::pair<std::uint64_t, std::uint64_t>> reports;
     io::IndexBuildOptions o;
