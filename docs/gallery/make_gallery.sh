@@ -57,5 +57,10 @@ prints the scene it used):
 | command | image |
 |---|---|
 $quick
+
+\`solar_vs_rsun.png\` (in [docs/solar.md](../solar.md)) is not made by \`make_gallery.sh\` but by
+\`docs/gallery/make_solar_vs_rsun.py [BUILD_DIR]\`: the rasters of the test
+\`SolarDsmRsun.YearlyGlobalOfOpenTerrainCellsMatchesGrassRsunOnRayscansOwnDsm\`
+(tests/analysis/test_solar_dsm.cpp, rsun_dsm.sh), computed again and drawn with matplotlib.
 MD
 echo "gallery: wrote $OUT/README.md"
