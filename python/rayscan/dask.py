@@ -66,6 +66,26 @@ def _integer(value, name, expected, least):
     return i
 
 
+def _boolean(value, name):
+    """`value` as a bool by the rule of the module's other calls (python/src/arrays.cpp): True or
+    False, a NumPy bool too, else TypeError naming `name` (a text "no" would be true)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False, got {type(value).__name__}")
+    return bool(value)
+
+
+_NO_ROWS = np.empty((0, 3))
+
+
+def _check_ray_query(kw):
+    """Raises at the call what Site.ray_query raises in a task for the options `kw` (every argument
+    but the rays, which Dask holds until the chunks run, and the file): a bad order, a radius,
+    t_min or t_max of the wrong type or range, t_min > t_max, 'sphere_hit' without a finite
+    radius, neither k nor a finite radius without allow_all, a bad threads or k. The same binding
+    asked the same query for no rays over no points makes these checks, in its own words."""
+    rayscan.BruteForce(_NO_ROWS)._ray_query(_NO_ROWS, _NO_ROWS, **kw)
+
+
 # ---- worker side: one Site per file and process ------------------------------------------------
 
 _sites = {}
@@ -232,19 +252,25 @@ def ray_query(path, origins, directions, k=1, radius=_INF, t_min=-_INF, t_max=_I
     .rsi or COPC file, else when the chunks are computed).
     Compute them in one call (dask.compute(out["indices"], out["t"])) so that each chunk is
     queried once. With compute=True: the RayQueryResult (CSR) of the single-process call,
-    bit for bit. Raises ValueError and TypeError as Site.ray_query does (on the workers for the
-    rays' values, naming the caller's row: "ray 1234: ..." from 0 over all chunks); TypeError for
-    a k or chunks that is not an integer (a bool, 3.0), ValueError below 1.
+    bit for bit. Raises ValueError and TypeError as Site.ray_query does, naming the argument: at
+    the call for every argument but the rays' values and the file (order, radius, t_min, t_max,
+    k, threads, any_hit, allow_all, and the shapes of origins and directions); on the workers for
+    the rays' values, naming the caller's row ("ray 1234: ..." from 0 over all chunks), and for
+    the file and cache (at the call for the lazy result of an .rsi or COPC file, whose point count
+    is read there). TypeError for a k or chunks that is not an integer (a bool, 3.0), ValueError
+    below 1; TypeError for a compute that is not True or False.
     """
+    compute = _boolean(compute, "compute")
     if k is None and not compute:
         raise ValueError("ray_query: k=None (every hit of each ray) needs compute=True; "
                          "the lazy result holds k hits per ray")
     chunks = _integer(chunks, "chunks", "an integer >= 1 (rays per task)", 1)
     if not compute:
         k = _integer(k, "k", "an integer >= 1 (columns of the lazy result; k=None needs compute=True)", 1)
-    path = _path(path)
     kw = dict(k=k, radius=radius, t_min=t_min, t_max=t_max, order=order, any_hit=any_hit,
               allow_all=allow_all, threads=threads)
+    _check_ray_query(kw)
+    path = _path(path)
     blocks = _row_blocks(origins, directions, chunks)
     if compute:
         parts = dask.compute(*[dask.delayed(_ray_block)(path, cache, o, d, kw, first)
@@ -319,8 +345,11 @@ def visibility(path, observers, chunks=8, radius=None, height=None, max_distance
     compute=True, NumPy arrays plus "radius", "tolerance", "target_height", equal to
     rayscan.visibility(path, observers, ...) bit for bit. Raises as rayscan.visibility does,
     naming an observer by the caller's row ("observers[13]: ..." from 0 over all chunks), when
-    the tasks run; TypeError for a chunks that is not an integer, ValueError below 1.
+    the tasks run; TypeError for a chunks that is not an integer, ValueError below 1, and for a
+    compute or distance that is not True or False.
     """
+    compute = _boolean(compute, "compute")
+    distance = _boolean(distance, "distance")
     if isinstance(observers, (str, os.PathLike)):
         raise TypeError("observers: an (K, 3) or (K, 2) array (an observer file is not split "
                         "over tasks; pass rayscan.visibility the file instead)")
@@ -432,8 +461,9 @@ def solar(path, at=None, periods=None, step="1h", latitude=None, longitude=None,
     rayscan.solar(path, at=at[i], ...) bit for bit. Raises ValueError without exactly one of at
     and periods or with an empty list, TypeError for an instant that is not text (a datetime:
     pass its isoformat(), as rayscan.solar) or a period that is not a pair of texts; the tasks
-    raise as rayscan.solar does for the options.
+    raise as rayscan.solar does for the options. TypeError for a compute that is not True or False.
     """
+    compute = _boolean(compute, "compute")
     if (at is None) == (periods is None):
         raise ValueError("solar: give either at= (a list of instants) or periods= (a list of (start, end))")
     whens = _instants(at) if at is not None else _periods(periods)

@@ -367,3 +367,66 @@ def test_integer_arguments_as_the_rest_of_the_api(site_file, value):
             call(np.int64(0))
     with pytest.raises(TypeError, match="got bool_"):  # NumPy deprecates a bool as an index
         rd.ray_query(site_file, o, d, k=np.True_)
+
+
+# Arguments Site.ray_query refuses whatever the rays (the oracle: its own exception, type and words).
+_BAD_RAY_OPTIONS = [dict(order="first"), dict(order=None), dict(radius="2"), dict(radius=-1.0),
+                    dict(t_min=2.0, t_max=1.0), dict(order="sphere_hit", radius=np.inf), dict(threads=-1),
+                    dict(threads=1.5), dict(any_hit="no"), dict(allow_all="yes"), dict(k=-1),
+                    dict(k=None, radius=np.inf)]
+
+
+@pytest.mark.parametrize("bad", _BAD_RAY_OPTIONS, ids=lambda b: ",".join(f"{k}={v!r}" for k, v in b.items()))
+def test_ray_options_are_checked_at_the_call(client, site_file, rays, tmp_path, bad):
+    """An option Site.ray_query refuses raises its exception, in its words, at the rayscan.dask
+    call, lazy or compute=True, before any task runs: the path names no file, so a task that ran
+    would raise the file's OSError instead."""
+    o, d = rays
+    opts = dict(dict(k=1, radius=2.0, threads=1), **bad)
+    one = _message(lambda: rayscan.open(site_file).ray_query(o, d, **opts))
+    assert one[0] in (ValueError, TypeError) and one[1]
+    missing = tmp_path / "missing.ply"
+    for compute in (False, True):
+        if opts["k"] is None and not compute:
+            continue  # the lazy result needs a k (its own message, test_missing_arguments_raise)
+        if opts["k"] == -1 and not compute:
+            assert _message(lambda: rd.ray_query(missing, o, d, compute=compute, **opts)) == \
+                (ValueError, "k must be an integer >= 1 (columns of the lazy result; k=None needs compute=True), got -1")
+            continue
+        assert _message(lambda: rd.ray_query(missing, o, d, compute=compute, **opts)) == one, compute
+
+
+def test_first_hits_options_are_checked_at_the_call(client, site_file, rays, tmp_path):
+    o, d = rays
+    missing = tmp_path / "missing.ply"
+    lazy = rd.first_hits(missing, o, d, radius=2.0)  # good options: nothing raised until the tasks run
+    with pytest.raises(OSError, match="missing.ply"):
+        lazy["indices"].compute()
+    for radius in (-1.0, "2", np.inf):
+        one = _message(lambda: rayscan.open(site_file).ray_query(o, d, k=1, radius=radius, t_min=0.0,
+                                                                 order="sphere_hit"))
+        assert one[0] in (ValueError, TypeError)
+        assert _message(lambda: rd.first_hits(missing, o, d, radius=radius)) == one
+    assert _message(lambda: rd.first_hits(missing, o, d, radius=2.0, t_min=3.0, t_max=1.0)) == \
+        _message(lambda: rayscan.open(site_file).ray_query(o, d, k=1, radius=2.0, t_min=3.0, t_max=1.0,
+                                                           order="sphere_hit"))
+
+
+@pytest.mark.parametrize("value", ["yes", 1, None])
+def test_flags_are_true_or_false(site_file, value):
+    """compute (and visibility's distance) take what the module's other flags take (any_hit:
+    True or False, a NumPy bool too) and refuse the rest with TypeError naming them: a text "no"
+    would otherwise be true."""
+    o, d = np.zeros((2, 3)), np.array([0.0, 0, 1])
+    expected = f"got {type(value).__name__}"
+    assert _message(lambda: rayscan.open(site_file).ray_query(o, d, k=1, radius=1.0, any_hit=value)) == \
+        (TypeError, f"any_hit must be True or False, {expected}")
+    for call in (lambda: rd.ray_query(site_file, o, d, radius=1.0, compute=value),
+                 lambda: rd.first_hits(site_file, o, d, radius=1.0, compute=value),
+                 lambda: rd.visibility(site_file, o, compute=value),
+                 lambda: rd.solar(site_file, at="2024-06-21T18:00", compute=value)):
+        assert _message(call) == (TypeError, f"compute must be True or False, {expected}")
+    assert _message(lambda: rd.visibility(site_file, o, distance=value)) == \
+        (TypeError, f"distance must be True or False, {expected}")
+    lazy = rd.ray_query(site_file, o, d, radius=1.0, compute=np.False_)
+    assert lazy["indices"].shape == (2,)
