@@ -19,8 +19,20 @@
 
 namespace rayscan::io::detail {
 
+/// Throws std::invalid_argument "<name>: the CRS is WKT that GDAL cannot read ('<its first 40
+/// characters>...'); expected a CRS GDAL reads, or none" unless `wkt` is empty or GDAL reads it
+/// (crs_wkt_readable): the one rule of every writer that stores a CRS (LAS, LAZ, PLY, COPC), since
+/// GDAL, PDAL and QGIS reject a file whose WKT they cannot parse. `name` is the file to blame: the
+/// output a writer was given, or the input whose CRS the COPC writer would copy.
+inline void require_readable_crs(const std::string& name, const std::string& wkt) {
+  if (wkt.empty() || crs_wkt_readable(wkt)) return;
+  const std::string shown = wkt.substr(0, 40) + (wkt.size() > 40 ? "..." : "");
+  throw std::invalid_argument(name + ": the CRS is WKT that GDAL cannot read ('" + one_line(shown) +
+                              "'); expected a CRS GDAL reads, or none");
+}
+
 /// cloud.validate(), its message prefixed with the output `path` ("<path>: <what is wrong>"),
-/// every position within +-kMaxCoordinate and a CRS that GDAL reads (crs_wkt_readable): a file is
+/// every position within +-kMaxCoordinate and a CRS that GDAL reads (require_readable_crs): a file is
 /// written only if the readers will read it back ("<path>: point N: X coordinate is V (expected
 /// within +-1e+09, ...)", the readers' text), and its CRS with GDAL, PDAL or QGIS. Throws
 /// std::invalid_argument before anything is written.
@@ -35,11 +47,7 @@ inline void validate_for_writing(const std::filesystem::path& path, const PointC
     if (!within_coordinate_bound(p.x, p.y, p.z))
       throw std::invalid_argument(path.string() + ": " + beyond_coordinate_bound(i, p.x, p.y, p.z));
   }
-  if (!cloud.crs_wkt.empty() && !crs_wkt_readable(cloud.crs_wkt)) {
-    const std::string shown = cloud.crs_wkt.substr(0, 40) + (cloud.crs_wkt.size() > 40 ? "..." : "");
-    throw std::invalid_argument(path.string() + ": the CRS is WKT that GDAL cannot read ('" + one_line(shown) +
-                                "'); expected a CRS GDAL reads, or none");
-  }
+  require_readable_crs(path.string(), cloud.crs_wkt);
 }
 
 /// `prefix` + `name` with every character other than [A-Za-z0-9_] replaced by '_' ("field" for an

@@ -7,6 +7,7 @@
 #include "../common/las_patch.hpp"
 #include "../common/npm_tools.hpp"
 
+#include "rayscan/io/crs.hpp"
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/index.hpp"
@@ -25,6 +26,7 @@
 #include <cstring>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <random>
 #include <set>
 #include <sstream>
@@ -435,6 +437,88 @@ int run_cli(const std::string& args, std::string& out, std::string& err) {
   out = text_of(o);
   err = text_of(e);
   return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+/// The payload of the OGC WKT VLR (user "LASF_Projection", record 2112: LAS 1.4 R15 section
+/// 2.5.1) in the LAS-family file bytes `f`, found by walking the 54-byte VLR headers from the
+/// header size (byte 94) over the VLR count (byte 100); its byte offset in `at`. nullopt when the
+/// file has none.
+std::optional<std::string> wkt_vlr_payload(const std::vector<std::uint8_t>& f, std::size_t* at = nullptr) {
+  std::size_t v = load_at<std::uint16_t>(f, 94);
+  for (std::uint32_t k = load_at<std::uint32_t>(f, 100); k > 0 && v + 54 <= f.size(); --k) {
+    const std::size_t len = load_at<std::uint16_t>(f, v + 20);
+    const char* user = reinterpret_cast<const char*>(f.data() + v + 2);  // 16 bytes, NUL-padded
+    if (std::string(user, strnlen(user, 16)) == "LASF_Projection" &&
+        load_at<std::uint16_t>(f, v + 18) == 2112 && v + 54 + len <= f.size()) {
+      if (at != nullptr) *at = v + 54;
+      return std::string(reinterpret_cast<const char*>(f.data() + v + 54), len);
+    }
+    v += 54 + len;
+  }
+  return std::nullopt;
+}
+
+/// Whether GDAL's own gdalsrsinfo (not rayscan's CRS code) reads `wkt` (trailing NULs dropped)
+/// as a CRS.
+bool gdalsrsinfo_reads(std::string wkt) {
+  while (!wkt.empty() && wkt.back() == '\0') wkt.pop_back();
+  const fs::path p = temp_dir() / "srs.wkt";
+  std::ofstream(p, std::ios::binary) << wkt;
+  return std::system(("gdalsrsinfo -o wkt1 '" + p.string() + "' >/dev/null 2>&1").c_str()) == 0;
+}
+
+// The COPC writer stores a CRS only as WKT that GDAL reads, as write_las does: an input whose
+// OGC WKT VLR GDAL cannot read (one with an infinite false easting) is refused with the LAS
+// writer's line, naming the input, exit 2, before any file exists; a PLY whose "comment crs" GDAL
+// cannot read likewise (named as the PLY, not as the intermediate LAS). Oracles: gdalsrsinfo on
+// the VLR's own bytes, and the WKT VLR bytes of the input and of the output it was copied to.
+TEST(CopcWriter, AnInputCrsGdalCannotReadIsRefusedAsWriteLasRefusesIt) {
+  PointCloud pc;
+  pc.positions = {Vec3(500000, 4100000, 10), Vec3(500001, 4100002, 11), Vec3(500003, 4100001, 12)};
+  pc.crs_wkt = io::crs_wkt_from_user_input("EPSG:32610");
+  const fs::path in = temp_dir() / "copc_crs_in.las", good = temp_dir() / "copc_crs_good.copc.laz";
+  io::write_las(in, pc);
+  // The readable WKT is copied: the output's WKT VLR holds the input's bytes, which GDAL reads.
+  std::vector<std::uint8_t> b = slurp(in);
+  std::size_t at = 0;
+  const std::optional<std::string> wkt = wkt_vlr_payload(b, &at);
+  ASSERT_TRUE(wkt.has_value()) << "write_las wrote no WKT VLR";
+  ASSERT_TRUE(gdalsrsinfo_reads(*wkt));
+  io::write_copc(in, good);
+  EXPECT_EQ(wkt_vlr_payload(slurp(good)), wkt);
+  // The same VLR overwritten in place by WKT that GDAL cannot read, NUL-padded to its length.
+  const std::string bad =
+      "PROJCS[\"x\",GEOGCS[\"WGS 84\",DATUM[\"WGS_1984\",SPHEROID[\"WGS 84\",6378137,298.257223563]],"
+      "PRIMEM[\"Greenwich\",0],UNIT[\"degree\",0.0174532925199433]],PROJECTION[\"Transverse_Mercator\"],"
+      "PARAMETER[\"false_easting\",Inf],UNIT[\"unknown\",1E-305]]";
+  ASSERT_LT(bad.size(), wkt->size());
+  std::fill(b.begin() + static_cast<std::ptrdiff_t>(at), b.begin() + static_cast<std::ptrdiff_t>(at + wkt->size()), 0);
+  std::copy(bad.begin(), bad.end(), b.begin() + static_cast<std::ptrdiff_t>(at));
+  std::ofstream(in, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+  ASSERT_FALSE(gdalsrsinfo_reads(*wkt_vlr_payload(slurp(in)))) << "GDAL reads the WKT: no case to test";
+  const fs::path ply = temp_dir() / "copc_crs_in.ply";
+  std::ofstream(ply) << "ply\nformat ascii 1.0\ncomment crs " << bad
+                     << "\nelement vertex 2\nproperty double x\nproperty double y\nproperty double z\nend_header\n"
+                        "0 0 0\n1 2 3\n";
+  const std::string why = ": the CRS is WKT that GDAL cannot read ('" + bad.substr(0, 40) + "...'); expected a CRS GDAL reads, or none";
+  const fs::path dir = temp_dir() / "copc_crs_out", out = dir / "x.copc.laz";
+  fs::create_directories(dir);
+  for (const fs::path& src : {in, ply}) {
+    try {
+      io::write_copc(src, out);
+      ADD_FAILURE() << src << ": written";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()), src.string() + why);
+    }
+    std::string o, err;
+    for (const std::string& cmd : {"translate -q '" + src.string() + "' '" + out.string() + "'",
+                                   "index -q '" + src.string() + "' -o '" + out.string() + "'"}) {
+      EXPECT_EQ(run_cli(cmd, o, err), 2) << cmd;
+      EXPECT_NE(err.find(src.string() + why), std::string::npos) << err;
+      EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+    }
+    EXPECT_TRUE(fs::is_empty(dir)) << src << ": a refused COPC write left files behind";
+  }
 }
 
 TEST(CopcWriter, CliTranslateAndIndexWriteCopcAndFailCleanly) {

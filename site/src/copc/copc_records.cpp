@@ -5,6 +5,7 @@
 
 #include "las/las_header.hpp"
 #include "atomic_writer.hpp"
+#include "field_names.hpp"
 #include "laz/laz.hpp"
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -143,6 +144,14 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
     detail::fail_at(name, h.version_minor >= 4 ? 247 : 107,
                     "header announces " + std::to_string(h.count) + " records but only " +
                         std::to_string(h.data_end - h.point_offset) + " bytes of point data follow");
+  // The CRS as the readers see it (a WKT VLR, or GeoKeys turned into WKT), stored as WKT: LAS
+  // 1.4 point formats 6-10 require WKT (section 2.5.1). Checked before the records are decoded:
+  // a WKT VLR that GDAL cannot read is refused as write_las refuses it, naming the input.
+  ReadOptions ro;
+  ro.scalars = false;
+  ro.stored_colour = true;
+  r.crs_wkt = open_point_reader(path, AttributeSet::none(), ro)->crs_wkt();
+  detail::require_readable_crs(name, r.crs_wkt);
   if (!h.laszip.present && !convert) {
     r.bytes = d + h.point_offset;  // the input's own records, mapped
   } else {
@@ -234,12 +243,6 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
     }
     (v.extended || c.payload.size() > 0xFFFF ? r.evlrs : r.vlrs).push_back(std::move(c));
   }
-  // The CRS as the readers see it (a WKT VLR, or GeoKeys turned into WKT), stored as WKT: LAS
-  // 1.4 point formats 6-10 require WKT (section 2.5.1).
-  ReadOptions ro;
-  ro.scalars = false;
-  ro.stored_colour = true;
-  r.crs_wkt = open_point_reader(path, AttributeSet::none(), ro)->crs_wkt();
   return r;
 }
 
@@ -259,6 +262,7 @@ Records read_records(const std::filesystem::path& in, const CopcWriteOptions& op
   // readers have no bounded-memory path to COPC.
   const PointCloud cloud = read_point_cloud(in);
   if (cloud.size() == 0) throw std::invalid_argument(in.string() + ": no points to write as COPC");
+  detail::require_readable_crs(in.string(), cloud.crs_wkt);  // named as the input, not the intermediate
   file->temp = temp_path(opt, in.string(), "input.las");
   file->mark = RemoveOnInterrupt(file->temp);
   write_las(file->temp, cloud);

@@ -97,8 +97,9 @@ struct CopcWriteResult {
 ///
 /// Throws FormatError for an unreadable input or one whose points decode beyond +-kMaxCoordinate
 /// (the LAS reader's line for the first, before the output is created), std::invalid_argument for a waveform PDRF
-/// (4, 5, 9, 10), an empty input, a record over 65535 bytes after conversion or VLRs too large
-/// for a LAS header, CopcMemoryError (above; also for 2^32 points or more, which the 32-bit
+/// (4, 5, 9, 10), an empty input, a record over 65535 bytes after conversion, VLRs too large
+/// for a LAS header or a CRS whose WKT GDAL cannot read (write_las's line, naming `in`),
+/// CopcMemoryError (above; also for 2^32 points or more, which the 32-bit
 /// record indices of the build cannot address), std::runtime_error for I/O failures. Sources: COPC 1.0 specification (copc.io, sections "Info VLR", "Hierarchy",
 /// "LAZ chunks"), ASPRS LAS 1.4 R15 sections 2.4-2.7, LASzip (docs/formats.md "LAZ").
 CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesystem::path& out,
