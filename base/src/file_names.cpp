@@ -1,14 +1,13 @@
 #include "rayscan/base/file_names.hpp"
 
+#include "rayscan/base/ascii_case.hpp"
+
 #include <algorithm>
 
 namespace rayscan {
 
 std::string lower_extension(const std::filesystem::path& path) {
-  std::string e = path.extension().string();
-  for (char& c : e)
-    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
-  return e;
+  return ascii_lower(path.extension().string());
 }
 
 bool has_extension(const std::filesystem::path& path, const std::vector<std::string>& extensions) {

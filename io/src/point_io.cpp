@@ -1,13 +1,13 @@
 // read_point_cloud(): a loop over the chunked reader of the file's format (point_reader.hpp).
 #include "rayscan/io/point_io.hpp"
 
+#include "rayscan/base/ascii_case.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/io/point_extensions.hpp"
 #include "rayscan/io/point_reader.hpp"
 #include "readers.hpp"
 
 #include <algorithm>
-#include <cctype>
 #include <stdexcept>
 
 namespace rayscan::io {
@@ -90,8 +90,7 @@ const std::vector<std::string>& point_cloud_output_extensions() {
 }
 
 bool is_copc_output(const std::filesystem::path& path) {
-  std::string name = path.filename().string();
-  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const std::string name = ascii_lower(path.filename().string());
   return name.size() > 9 && name.ends_with(".copc.laz");
 }
 

@@ -1,5 +1,7 @@
 #include "rayscan/sql/import.hpp"
 
+#include "rayscan/base/ascii_case.hpp"
+
 #include <stdexcept>
 #include <vector>
 
@@ -15,11 +17,7 @@ bool is_sql_identifier(const std::string& s, std::size_t max_len, bool allow_upp
   return true;
 }
 
-std::string folded_sql_name(std::string s) {
-  for (char& c : s)
-    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
-  return s;
-}
+std::string folded_sql_name(std::string s) { return ascii_lower(s); }
 
 namespace {
 

@@ -4,6 +4,7 @@
 // format gives back under another name.
 #pragma once
 
+#include "rayscan/base/ascii_case.hpp"
 #include "rayscan/io/point_io.hpp"
 
 #include <string>
@@ -11,15 +12,6 @@
 #include <utility>
 
 namespace rayscan::io {
-
-/// `s` with ASCII A-Z lowered and every other byte kept: the case folding of field names, format
-/// keywords and file extensions, which are ASCII; locale-independent, unlike std::tolower.
-[[nodiscard]] inline std::string ascii_lower(std::string_view s) {
-  std::string out(s);
-  for (char& c : out)
-    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
-  return out;
-}
 
 /// The scalar name that rayscan's LAS reader gives a standard LAS point field, and write_las stores
 /// in that field, for a field called `name` in a PLY, PCD or text file or a NumPy structured array;
