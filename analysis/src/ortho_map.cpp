@@ -16,6 +16,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cctype>
 #include <cmath>
@@ -51,12 +52,17 @@ std::optional<OrthoColour> parse_ortho_colour(std::string_view name) {
   return std::nullopt;
 }
 
-OrthoMap ortho_map(const AABB& bounds, double res) {
+OrthoMap ortho_map(const AABB& bounds, double res, double reach) {
   const GridSpec g = grid_over(bounds, res);
   if (g.cols > 65536 || g.rows > 65536)
     throw std::invalid_argument("ortho map: " + std::to_string(g.cols) + " x " + std::to_string(g.rows) +
                                 " pixels; at most 65536 per side (use a larger resolution)");
-  const double margin = 0.01 * bounds.max_extent() + res;
+  if (!(reach >= 0.0) || !std::isfinite(reach))
+    throw std::invalid_argument("ortho map: the reach of the points must be a finite number >= 0, got " +
+                                std::to_string(reach));
+  // No primitive reaches farther than `reach` from its point, so nothing can be hit above
+  // bounds.hi.z + reach; the extra cell keeps the origins clear of a surface at that height.
+  const double margin = reach + g.cell;
   const double z_top = bounds.hi.z + margin;
   const Vec3 o00(g.x0 + 0.5 * g.cell, g.y_top - 0.5 * g.cell, z_top);
   return {g, Camera::orthographic_grid(o00, Vec3(g.cell, 0, 0), Vec3(0, -g.cell, 0), Vec3(0, 0, -1),
@@ -119,7 +125,7 @@ Raster dsm_from_depth(const OrthoMap& map, std::span<const float> depth) {
 }
 
 void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
-                         std::span<const glm::vec3> colour, std::span<const float> depth, double exposure,
+                         std::span<const glm::vec3> colour, std::span<const float> coverage, double exposure,
                          const std::string& crs_wkt,
                          const std::vector<std::pair<std::string, std::string>>& metadata) {
   static std::once_flag registered;
@@ -127,7 +133,7 @@ void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
   const GridSpec& g = map.grid;
   const std::size_t n = std::size_t(g.cols) * g.rows;
   if (colour.size() != n) throw std::invalid_argument(path.string() + ": image size differs from the grid");
-  if (depth.size() != n) throw std::invalid_argument(path.string() + ": depth AOV size differs from the grid");
+  if (coverage.size() != n) throw std::invalid_argument(path.string() + ": coverage size differs from the grid");
   CPLPushErrorHandler(CPLQuietErrorHandler);
   struct Pop { ~Pop() { CPLPopErrorHandler(); } } pop;
   auto fail = [&](const std::string& what) {
@@ -163,9 +169,11 @@ void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
     ok = ds->GetRasterBand(b + 1)->RasterIO(GF_Write, 0, 0, int(g.cols), int(g.rows), band.data(), int(g.cols),
                                             int(g.rows), GDT_Byte, 0, 0) == CE_None;
   }
-  // Alpha: opaque where the cell's ray hit a point (finite depth), transparent where it missed, so
-  // GIS tools show holes as holes instead of the sky colour.
-  for (std::size_t i = 0; i < n; ++i) band[i] = std::isfinite(depth[i]) ? 255 : 0;
+  // Alpha: the share of the cell its colour's rays found covered, so GIS tools show holes as holes
+  // instead of the sky colour and a cell on the cloud's edge as partly transparent. The colour is
+  // the mean over the rays that hit (unassociated alpha: not scaled by the coverage).
+  for (std::size_t i = 0; i < n; ++i)
+    band[i] = coverage[i] > 0.0f ? std::uint8_t(std::lround(255.0f * std::min(coverage[i], 1.0f))) : 0;
   ok = ok && ds->GetRasterBand(4)->SetColorInterpretation(GCI_AlphaBand) == CE_None;
   ok = ok && ds->GetRasterBand(4)->RasterIO(GF_Write, 0, 0, int(g.cols), int(g.rows), band.data(), int(g.cols),
                                             int(g.rows), GDT_Byte, 0, 0) == CE_None;
@@ -181,7 +189,7 @@ void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
 
 std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, OrthoColour kind,
                                                    std::span<const glm::vec3> colour,
-                                                   std::span<const float> depth, double exposure,
+                                                   std::span<const float> coverage, double exposure,
                                                    const std::string& crs_wkt,
                                                    const std::filesystem::path& image,
                                                    const std::filesystem::path& dsm, const Raster& elevation,
@@ -191,14 +199,14 @@ std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, OrthoCol
   std::vector<std::pair<std::string, std::string>> ortho_items = items;
   ortho_items.emplace_back("RAYSCAN_ORTHO_COLOUR", to_string(kind));
   // Exposure is a scale of light; an albedo is a reflectance and is written as it is.
-  write_ortho_geotiff(image, map, colour, depth, kind == OrthoColour::shaded ? exposure : 0.0, crs_wkt, ortho_items);
+  write_ortho_geotiff(image, map, colour, coverage, kind == OrthoColour::shaded ? exposure : 0.0, crs_wkt, ortho_items);
   written.push_back(image);
   if (!dsm.empty()) {
     GeoTiffOptions go;
     go.crs_wkt = crs_wkt;
     go.metadata = items;
     go.unit_is_crs_length = true;  // elevations, in the cloud's units
-    if (elevation.values.size() != depth.size())
+    if (elevation.values.size() != coverage.size())
       throw std::invalid_argument(dsm.string() + ": DSM size differs from the grid");
     write_geotiff(dsm, elevation, go);
     written.push_back(dsm);

@@ -70,7 +70,7 @@ MemoryLimit memory_limit() {
 }
 
 // Bytes per pixel that a render of `aovs` holds at its peak: the framebuffer (beauty 12, depth 4,
-// normal 12, position 12, index 4, albedo 12, cost 4; render::Framebuffer) and, when the image is
+// normal 12, position 12, index 4, albedo 12 + coverage 4, cost 4; render::Framebuffer) and, when the image is
 // written to `image`, render::write_image's copies beside it: the exposure-scaled beauty (12) and
 // the float image of the larger file it interleaves (4 per channel, the index as 4-byte ids; an
 // .exr holds beauty and AOVs in one file, other formats beauty, then the AOVs apart). The points,
@@ -83,7 +83,7 @@ std::uint64_t render_bytes_per_pixel(std::span<const Aov> aovs, bool write, cons
       case Aov::normal: fb += 12, aov_channels += 3; break;
       case Aov::position: fb += 12, aov_channels += 3; break;
       case Aov::index: fb += 4, index = true; break;
-      case Aov::albedo: fb += 12, aov_channels += 3; break;
+      case Aov::albedo: fb += 16, aov_channels += 3; break;
       case Aov::cost: fb += 4, aov_channels += 1; break;
     }
   if (!write) return fb;
@@ -157,6 +157,12 @@ struct Prepared {
   std::chrono::steady_clock::time_point started;  // job start (time to the first traced tile)
 };
 
+// The points' reach (RenderJobOptions::after_trace): no farther from its point is a primitive hit,
+// the sphere radius or, for surfels, the largest disc radius. Set once prepare() chose the radius.
+double primitive_reach(const Prepared& P, const RenderJobResult& r) {
+  return P.scene.primitive == Primitive::surfel ? P.surfels.max_radius : r.radius.radius;
+}
+
 // The COPC half of prepare(): albedo rule from one streamed pass of the statistics it needs (none
 // for constant/classification/ranged modes; rgb stops at the first non-zero colour), the auto
 // radius from a few nodes' samples (median_nn_spacing of the site), the exact bounds for camera_for_cloud by
@@ -169,15 +175,6 @@ void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
   io::CopcIndex& copc = *P.site->copc();
   char buf[512];
   r.crs_wkt = io::open_point_reader(scene.cloud, io::AttributeSet::none())->crs_wkt();
-  if (o.camera_for_cloud) {
-    AABB b;
-    copc.scan(0, [&](const io::CopcIndex::NodeBlock& k) {
-      b.expand(bounds_of(k.positions));
-      return true;
-    });
-    scene.camera = o.camera_for_cloud(b);
-    check_render_memory(*scene.camera, scene.output.aovs, o.write && is_root(o.control), scene.output.image);
-  }
   auto t0 = std::chrono::steady_clock::now();
   const ColorMode mode = scene.material.mode;
   const unsigned attrs = mode == ColorMode::rgb              ? io::CopcIndex::kRgb
@@ -218,6 +215,15 @@ void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
                   "%.6g (%.2f s)",
                   r.radius.spacing, kCopcSpacingSamples, r.radius.factor, r.radius.radius, seconds_since(t0));
     ctl.info(buf);
+  }
+  if (o.camera_for_cloud) {
+    AABB b;
+    copc.scan(0, [&](const io::CopcIndex::NodeBlock& k) {
+      b.expand(bounds_of(k.positions));
+      return true;
+    });
+    scene.camera = o.camera_for_cloud(b, primitive_reach(P, r));
+    check_render_memory(*scene.camera, scene.output.aovs, o.write && is_root(o.control), scene.output.image);
   }
   copc.trim_cache();
 }
@@ -300,10 +306,6 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
                   r.read_seconds);
   if (!o.cloud || o.cloud_read_from_scene) ctl.info(buf);
   r.crs_wkt = mapped ? mapped->crs_wkt() : cloud->crs_wkt;
-  if (o.camera_for_cloud) {
-    scene.camera = o.camera_for_cloud(cloud ? bounds_of(cloud->positions) : mapped->bounds());  // stored: no pass
-    check_render_memory(*scene.camera, scene.output.aovs, o.write && is_root(ctl), scene.output.image);
-  }
   t0 = std::chrono::steady_clock::now();
   try {
     if (cloud) {
@@ -369,6 +371,11 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
                     r.radius.spacing, r.radius.factor, r.radius.radius, seconds_since(t0));
       ctl.info(buf);
     }
+  }
+  if (o.camera_for_cloud) {  // once the reach is known: a map's rays start above it
+    scene.camera = o.camera_for_cloud(cloud ? bounds_of(cloud->positions) : mapped->bounds(),  // stored: no pass
+                                      primitive_reach(*P, r));
+    check_render_memory(*scene.camera, scene.output.aovs, o.write && is_root(ctl), scene.output.image);
   }
 
   return P;
@@ -463,8 +470,7 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   std::snprintf(buf, sizeof buf, "first tile traced %.2f s after the start (%.2f s to set up, %.2f s of tracing)",
                 r.first_tile_seconds, prepared, r.stats.first_tile_seconds);
   ctl.info(buf);
-  if (o.after_trace && is_root(ctl))  // the points' reach: no farther from its point is a sphere or disc hit
-    o.after_trace(*P->site, scene.primitive == Primitive::surfel ? P->surfels.max_radius : r.radius.radius, r.image);
+  if (o.after_trace && is_root(ctl)) o.after_trace(*P->site, primitive_reach(*P, r), r.image);
   // A camera from camera_for_cloud (a map's grid) is not the scene's camera file's.
   r.metadata = render_metadata(o, scene, r, &*scene.camera,
                                o.camera_for_cloud ? std::filesystem::path() : scene.camera_file);
@@ -472,6 +478,14 @@ RenderJobResult run_render(const RenderJobOptions& o) {
     r.written = write_image(r.image, scene.output, r.metadata);
   log_stats(ctl, r.stats, *scene.camera, scene.spp, o.albedo_map ? o.albedo_samples : 0, "");
   return r;
+}
+
+std::vector<float> OrthoMapJobResult::coverage() const {
+  if (ortho_colour == analysis::OrthoColour::albedo) return render.image.coverage;
+  std::vector<float> c(render.image.depth.size());
+  std::transform(render.image.depth.begin(), render.image.depth.end(), c.begin(),
+                 [](float d) { return std::isfinite(d) ? 1.0f : 0.0f; });
+  return c;
 }
 
 OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
@@ -486,6 +500,9 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   // up axis, estimated for a cloud without a CRS, may point elsewhere, and its sky would then
   // light the map from below. (A sun keeps the direction the scene gave it.)
   job.scene.up = Vec3(0.0, 0.0, 1.0);
+  // Surfels oriented towards "the camera" face +z, the side the map's parallel rays come from (its
+  // camera is built once the discs' reach is known, after their estimate).
+  job.scene.surfel_orient_camera = false;
   const std::filesystem::path image = job.scene.output.image;
   if (job.write) {
     if (!analysis::is_geotiff_name(image))
@@ -508,11 +525,11 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   const std::uint32_t albedo_samples = job.scene.spp;
   job.albedo_map = albedo;
   if (albedo) {
-    // The depth AOV is traced by its own ray through each cell centre (the DSM's elevation and
-    // the alpha band), the albedo by the scene's spp stratified rays per cell, averaged over
-    // those that hit: the cell's mean colour, like a GIS rasterizer's mean of the cell's points,
-    // where one ray would show whichever colour lies under the centre. The beauty is not used, so
-    // it gets the least light transport the renderer allows.
+    // The depth AOV is traced by its own ray through each cell centre (the DSM's elevation), the
+    // albedo by the scene's spp stratified rays per cell, averaged over those that hit: the
+    // cell's mean colour, like a GIS rasterizer's mean of the cell's points, where one ray would
+    // show whichever colour lies under the centre; the share that hit is the alpha band. The
+    // beauty is not used, so it gets the least light transport the renderer allows.
     job.albedo_samples = albedo_samples;
     job.scene.spp = 1;
     job.scene.max_depth = 1;
@@ -520,10 +537,10 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   OrthoMapJobResult r;
   r.ortho_colour = o.ortho_colour;
   AABB cloud_bounds;  // for the CRS's plausibility (crs_warnings)
-  job.camera_for_cloud = [&](const AABB& bounds) {
+  job.camera_for_cloud = [&](const AABB& bounds, double reach) {
     cloud_bounds = bounds;
     try {
-      r.map = analysis::ortho_map(bounds, res);
+      r.map = analysis::ortho_map(bounds, res, reach);
     } catch (const std::invalid_argument& e) {
       throw OptionError({option("ortho_map"), std::string(": ") + e.what()});
     }
@@ -558,7 +575,7 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
       job.control.info("warning: " + w + (o.dsm.empty() ? "; the GeoTIFF carries" : "; the GeoTIFFs carry") +
                        " it as it is");
   if (o.render.write)
-    r.render.written = analysis::write_ortho_map(*r.map, o.ortho_colour, r.colour(), r.render.image.depth,
+    r.render.written = analysis::write_ortho_map(*r.map, o.ortho_colour, r.colour(), r.coverage(),
                                                  job.scene.output.exposure, r.render.crs_wkt, image, o.dsm, r.dsm,
                                                  r.render.metadata);
   return r;

@@ -122,11 +122,13 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
   };
   static_assert(kBlock * kBlock == kMaxRayPacket);
   // The albedo AOV of pixel (x, y) over s.albedo_samples stratified rays: the stratum-area-weighted
-  // mean of the hits' albedos, averaged sRGB-encoded (RenderSettings::albedo_samples says why).
+  // mean of the hits' albedos, averaged sRGB-encoded (RenderSettings::albedo_samples says why),
+  // and in `coverage` the summed area of the strata whose ray hit (Framebuffer::coverage).
   // Hits of one colour give it back as it is, not through the round trip to sRGB and back.
   // The strata are laid out once here (render_image_impl checked albedo_samples >= 1).
   const PixelStrata strata(s.albedo_samples);
-  auto mean_albedo = [&](std::uint32_t x, std::uint32_t y, std::vector<RayHit>& hits, TraceCounters& c) {
+  auto mean_albedo = [&](std::uint32_t x, std::uint32_t y, std::vector<RayHit>& hits, TraceCounters& c,
+                         float& coverage) {
     double sum[3] = {0.0, 0.0, 0.0}, area = 0.0;
     Color first(0.0f);
     bool one_colour = true;
@@ -142,6 +144,7 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
       for (int k = 0; k < 3; ++k) sum[k] += ps.area * double(linear_to_srgb(a[k]));
       area += ps.area;
     }
+    coverage = float(std::min(area, 1.0));
     if (area == 0.0 || one_colour) return first;
     Color m;
     for (int k = 0; k < 3; ++k) m[k] = srgb_to_linear(float(sum[k] / area));
@@ -210,10 +213,14 @@ void render_tiles(const I& idx, const RenderSettings& s, Framebuffer& fb, const 
               if (!fb.position.empty())
                 fb.position[p] = hit ? glm::vec3(h.position - fb.position_origin) : glm::vec3(0.0f);
               if (!fb.index.empty()) fb.index[p] = hit ? h.index : kNoPoint;
-              if (!fb.albedo.empty())
-                fb.albedo[p] = s.albedo_samples > 1 ? mean_albedo(x, y, hits, c)
-                               : hit                ? s.integrator.albedo.at(h.index, h.slot)
-                                                    : Color(0.0f);
+              if (!fb.albedo.empty()) {
+                if (s.albedo_samples > 1) {
+                  fb.albedo[p] = mean_albedo(x, y, hits, c, fb.coverage[p]);
+                } else {
+                  fb.albedo[p] = hit ? s.integrator.albedo.at(h.index, h.slot) : Color(0.0f);
+                  fb.coverage[p] = hit ? 1.0f : 0.0f;
+                }
+              }
             }
         }
       if (opt.progress) opt.progress->tile_done(c.queries - q_before);
@@ -238,6 +245,7 @@ void for_each_channel(Framebuffer& fb, F&& f) {
   f(std::as_writable_bytes(std::span(fb.index)), sizeof(std::uint32_t));
   f(std::as_writable_bytes(std::span(fb.albedo)), sizeof(Color));
   f(std::as_writable_bytes(std::span(fb.cost)), sizeof(float));
+  f(std::as_writable_bytes(std::span(fb.coverage)), sizeof(float));
 }
 
 // The pixel rectangle of tile t (row-major tiles of T x T pixels, cut at the image edge).
@@ -301,7 +309,10 @@ Framebuffer empty_framebuffer(const Camera& camera, std::span<const Aov> aovs) {
       case Aov::normal: fb.normal.assign(n, glm::vec3(0.0f)); break;
       case Aov::position: fb.position.assign(n, glm::vec3(0.0f)); break;
       case Aov::index: fb.index.assign(n, kNoPoint); break;
-      case Aov::albedo: fb.albedo.assign(n, Color(0.0f)); break;
+      case Aov::albedo:
+        fb.albedo.assign(n, Color(0.0f));
+        fb.coverage.assign(n, 0.0f);
+        break;
       case Aov::cost: fb.cost.assign(n, 0.0f); break;
     }
   return fb;

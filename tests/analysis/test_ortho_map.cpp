@@ -5,6 +5,7 @@
 #include "rayscan/render/render.hpp"
 #include "rayscan/render/surfel_setup.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/jobs/render.hpp"
 
 #include "../common/run_command.hpp"
 
@@ -13,6 +14,7 @@
 #include <gdal_priv.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -28,20 +30,20 @@ TEST(OrthoMap, DsmOfATiltedPlaneIsItsAnalyticElevation) {
     for (int i = 0; i <= 60; ++i) pts.push_back(Vec3(100.0 + 0.25 * i, 200.0 + 0.25 * j, 5.0 + 0.1 * 0.25 * i));
   AABB b;
   for (const Vec3& p : pts) b.expand(p);
-  const analysis::OrthoMap map = analysis::ortho_map(b, 1.0);
-  ASSERT_EQ(map.grid.x0, 100.0);
   Scene s;
-  s.camera = map.camera;
   s.spp = 1;
   s.max_depth = 1;
   s.output.aovs = {Aov::depth};
   const std::vector<Color> albedo(pts.size(), Color(0.5f));
   const AnyIndex index = make_index(pts, IndexOptions{});
-  RenderSettings rs = make_settings(s, pts, albedo, 0.25);
   PointCloud pc;
   pc.positions = pts;
   s.surfel_orient_camera = false;
   const SurfelAttributes sa = scene_surfels(s, index, pc);
+  const analysis::OrthoMap map = analysis::ortho_map(b, 1.0, sa.max_radius);
+  ASSERT_EQ(map.grid.x0, 100.0);
+  s.camera = map.camera;
+  RenderSettings rs = make_settings(s, pts, albedo, 0.25);
   use_surfels(rs, sa);
   Framebuffer fb;
   render_image(index, rs, fb);
@@ -63,7 +65,9 @@ TEST(OrthoMap, DsmOfATiltedPlaneIsItsAnalyticElevation) {
   EXPECT_GT(checked, 150);
   const auto dir = std::filesystem::temp_directory_path() / ("rayscan_ortho_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
-  analysis::write_ortho_geotiff(dir / "o.tif", map, fb.beauty, fb.depth, 0.0, "");
+  std::vector<float> hit(fb.depth.size());  // one ray per cell: covered where it hit
+  for (std::size_t i = 0; i < hit.size(); ++i) hit[i] = std::isfinite(fb.depth[i]) ? 1.0f : 0.0f;
+  analysis::write_ortho_geotiff(dir / "o.tif", map, fb.beauty, hit, 0.0, "");
   analysis::write_geotiff(dir / "d.tif", dsm, {});
   GDALAllRegister();
   GDALDataset* ds = static_cast<GDALDataset*>(GDALOpen((dir / "o.tif").c_str(), GA_ReadOnly));
@@ -282,5 +286,132 @@ TEST(OrthoMap, ElevationColoursRunAlongZWhateverTheQuickLookUpAxis) {
     previous_green = green;
   }
   EXPECT_GT(previous_green - first_green, 150);
+  std::filesystem::remove_all(dir);
+}
+
+// The map's rays start above everything the primitives can show: z_top = the cloud's top + the
+// reach + a cell (and z_bottom as far below its bottom), whatever the extent; a reach that is not
+// a finite number >= 0 is refused.
+TEST(OrthoMap, RaysStartAReachAndACellAboveTheCloud) {
+  AABB b;
+  b.expand(Vec3(0.0, 0.0, -1.0));
+  b.expand(Vec3(200.0, 100.0, 3.0));
+  const analysis::OrthoMap map = analysis::ortho_map(b, 2.0, 7.5);
+  EXPECT_EQ(map.z_top, 3.0 + 7.5 + 2.0);
+  EXPECT_EQ(map.z_bottom, -1.0 - 7.5 - 2.0);
+  EXPECT_EQ(analysis::ortho_map(b, 2.0, 0.0).z_top, 5.0);
+  for (const double bad : {-0.5, std::nan(""), HUGE_VAL})
+    EXPECT_THROW((void)analysis::ortho_map(b, 2.0, bad), std::invalid_argument) << bad;
+}
+
+namespace {
+
+// The one-row map of `cloud` at 1 world unit per cell (spp 1: the cell-centre ray's colour),
+// written to `tif`; the GeoTIFF's RGBA bytes of cell `col` as GDAL reads them back.
+std::array<int, 4> ortho_cell(const jobs::OrthoMapJobResult& r, const std::filesystem::path& tif, int col) {
+  std::array<int, 4> rgba{-1, -1, -1, -1};
+  EXPECT_EQ(r.render.written.front(), tif);
+  GDALAllRegister();
+  const std::unique_ptr<GDALDataset, void (*)(GDALDataset*)> ds(
+      static_cast<GDALDataset*>(GDALOpen(tif.c_str(), GA_ReadOnly)), [](GDALDataset* d) { GDALClose(d); });
+  if (!ds || ds->GetRasterCount() != 4 || col >= ds->GetRasterXSize()) {
+    ADD_FAILURE() << tif << ": not a 4-band GeoTIFF with a column " << col;
+    return rgba;
+  }
+  for (int b = 0; b < 4; ++b) {
+    std::uint8_t v = 0;
+    EXPECT_EQ(ds->GetRasterBand(b + 1)->RasterIO(GF_Read, col, 0, 1, 1, &v, 1, 1, GDT_Byte, 0, 0), CE_None);
+    rgba[b] = v;
+  }
+  return rgba;
+}
+
+}  // namespace
+
+// A disc standing steeper than the map's old clearance: point A = (0.5, 0.5, 0), red, its normal
+// tilted 60 degrees from vertical towards -x, and B = (2.5, 0.5, 0), blue, level; discs of radius
+// 1.2 x 2 = 2.4 (k_radius 1), mapped at 1 (3 x 1 cells). The ray through cell 1's centre (1.5, 0.5)
+// meets A's plane z = tan 60 (x - 0.5) at z = sqrt 3 = 1.732, 2 from A in the plane (< 2.4: a
+// hit), above B's level disc at z = 0: the map shows A there, red, at that height (the depth AOV's
+// surface; the DSM itself is held within the points' heights). Rays from the cloud's top + 1% of
+// its extent + a cell (1.02) would start below A's disc and show B. Likewise a sphere of radius
+// 1.5 over a point, its top 1.5 above the cloud: the ray through the point meets the top.
+TEST(OrthoMap, ASteepDiscAboveTheCloudIsSeenFromAbove) {
+  const auto dir = std::filesystem::temp_directory_path() / ("rayscan_ortho_steep_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::uint16_t red[3] = {200 * 257, 60 * 257, 30 * 257}, blue[3] = {40 * 257, 120 * 257, 230 * 257};
+  PointCloud pc;
+  pc.positions = {Vec3(0.5, 0.5, 0.0), Vec3(2.5, 0.5, 0.0)};
+  pc.normals = {glm::vec3(-float(std::sqrt(3.0) / 2.0), 0.0f, 0.5f), glm::vec3(0.0f, 0.0f, 1.0f)};
+  pc.rgb = {{red[0], red[1], red[2]}, {blue[0], blue[1], blue[2]}};
+  jobs::OrthoMapJobOptions o;
+  o.render.scene.material.mode = ColorMode::rgb;
+  o.render.scene.primitive = Primitive::surfel;
+  o.render.scene.surfel.k_radius = 1;
+  o.render.scene.surfel.radius_factor = 1.2;
+  o.render.scene.spp = 1;
+  o.render.scene.output.image = dir / "disc.tif";
+  o.render.cloud = &pc;
+  o.render.control.threads = 1;
+  o.ortho_map = 1.0;
+  const jobs::OrthoMapJobResult r = jobs::run_ortho_map(o);
+  ASSERT_TRUE(r.map);
+  ASSERT_EQ(r.map->grid.cols, 3u);
+  ASSERT_EQ(r.map->grid.rows, 1u);
+  EXPECT_NEAR(r.dsm_reach, 2.4, 1e-6);  // (radii are floats)
+  EXPECT_NEAR(r.map->z_top, 2.4 + 1.0, 1e-6);
+  const analysis::Raster surface = analysis::dsm_from_depth(*r.map, r.render.image.depth);
+  EXPECT_NEAR(surface.values[1], std::sqrt(3.0), 1e-4);
+  EXPECT_EQ(ortho_cell(r, dir / "disc.tif", 1), (std::array<int, 4>{200, 60, 30, 255}));
+  EXPECT_EQ(ortho_cell(r, dir / "disc.tif", 2), (std::array<int, 4>{40, 120, 230, 255}));  // B alone
+
+  jobs::OrthoMapJobOptions sphere = o;
+  sphere.render.scene.primitive = Primitive::sphere;
+  sphere.render.scene.radius = 1.5;
+  sphere.render.scene.output.image = dir / "sphere.tif";
+  const jobs::OrthoMapJobResult q = jobs::run_ortho_map(sphere);
+  ASSERT_TRUE(q.map);
+  EXPECT_EQ(q.dsm_reach, 1.5);
+  EXPECT_NEAR(analysis::dsm_from_depth(*q.map, q.render.image.depth).values[0], 1.5, 1e-4);
+  EXPECT_EQ(ortho_cell(q, dir / "sphere.tif", 0), (std::array<int, 4>{200, 60, 30, 255}));
+  std::filesystem::remove_all(dir);
+}
+
+// The alpha band is the share of the cell the colour's rays found covered. One 1 x 1 cell whose
+// left half holds points (spacing s = 1/32 from s/2, x < 1/2; spheres of radius s, which cover
+// the half-plane and reach past x = 1/2 by 0.37 s to 0.5 s): the covered fraction f of the cell
+// lies in [1/2 + 0.366 s, 1/2 + s/2]. Its 64 rays (8 x 8 strata) find it to within one column of
+// strata (an edge across the cell straddles one column), so alpha / 255 is within 1/8 of f
+// (+ the 8-bit rounding); one ray through the centre (the old rule) would make it 255. The colour
+// is the points' own, not darkened by the misses: unassociated alpha, as the writer marks it.
+TEST(OrthoMap, AlphaIsTheShareOfTheCellsRaysThatHit) {
+  const auto dir = std::filesystem::temp_directory_path() / ("rayscan_ortho_alpha_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const double s = 1.0 / 32;
+  PointCloud pc;
+  for (int j = 0; j < 32; ++j)
+    for (int i = 0; i < 16; ++i) {
+      pc.positions.emplace_back((i + 0.5) * s, (j + 0.5) * s, 2.0);
+      pc.rgb.push_back({200 * 257, 60 * 257, 30 * 257});
+    }
+  jobs::OrthoMapJobOptions o;
+  o.render.scene.material.mode = ColorMode::rgb;
+  o.render.scene.radius = s;
+  o.render.scene.spp = 64;
+  o.render.scene.output.image = dir / "half.tif";
+  o.render.cloud = &pc;
+  o.render.control.threads = 1;
+  o.ortho_map = 1.0;
+  const jobs::OrthoMapJobResult r = jobs::run_ortho_map(o);
+  ASSERT_TRUE(r.map);
+  ASSERT_EQ(r.map->grid.cols, 1u);
+  ASSERT_EQ(r.map->grid.rows, 1u);
+  const std::array<int, 4> got = ortho_cell(r, dir / "half.tif", 0);
+  EXPECT_EQ((std::array<int, 3>{got[0], got[1], got[2]}), (std::array<int, 3>{200, 60, 30}));
+  const double f_lo = 0.5 + 0.366 * s, f_hi = 0.5 + 0.5 * s, strata = 1.0 / 8, byte = 0.5 / 255;
+  EXPECT_GE(got[3] / 255.0, f_lo - strata - byte);
+  EXPECT_LE(got[3] / 255.0, f_hi + strata + byte);
   std::filesystem::remove_all(dir);
 }

@@ -59,14 +59,17 @@ TEST(RenderCopc, InPlaceRenderEqualsTheWholeFileRender) {
     copc.control.threads = 2;
     copc.cache_bytes = std::size_t{1} << 20;  // 1 MB, under one node: tiles' ends evict while others trace
     AABB seen;
+    double seen_reach = -1.0;
     const Camera cam = *copc.scene.camera;
-    copc.camera_for_cloud = [&seen, cam](const AABB& box) {
+    copc.camera_for_cloud = [&seen, &seen_reach, cam](const AABB& box, double reach) {
       seen = box;
+      seen_reach = reach;
       return cam;
     };
     const RenderJobResult a = run_render(copc);
     EXPECT_EQ(seen.lo, b.lo);  // the exact bounds, from one streamed pass
     EXPECT_EQ(seen.hi, b.hi);
+    EXPECT_EQ(seen_reach, a.radius.radius);  // the sphere radius: no farther is a sphere hit
     EXPECT_GT(a.copc_decodes, 0u);
     EXPECT_GT(a.copc_peak_cache_bytes, 0u);
     // The oracle: the same points read whole, the radius the in-place render chose.

@@ -14,7 +14,7 @@ class OrthoDsm(RayscanAlgorithm):
     NAME = "ortho_dsm"
     DISPLAY = "Ortho + DSM"
     HELP = ("Renders the cloud straight down over its XY extent (rayscan render --ortho-map CELL --dsm): "
-            "an RGBA orthophoto (alpha 0 where the ray through the cell centre hits no point) and the digital "
+            "an RGBA orthophoto (alpha the share of the cell's rays that hit a point) and the digital "
             "surface model, the elevation of the first surface each cell's vertical ray meets (NoData where it "
             "misses). Colour 'albedo' (the default) gives each cell the unshaded colour of the points seen from "
             "above, the mean over Samples per pixel stratified rays through the cell (of those that hit; 1 = the "

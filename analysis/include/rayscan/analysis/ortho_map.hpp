@@ -24,16 +24,19 @@ namespace rayscan::analysis {
 struct OrthoMap {
   GridSpec grid;         ///< north-up cells (grid_over(bounds, res))
   Camera camera;         ///< orthographic, pointing to -z: a pixel per cell (its spp samples jittered within the cell)
-  double z_top = 0.0;    ///< height of the ray origins (above the cloud), world units
-  double z_bottom = 0.0; ///< a height below the cloud (as far below as z_top is above), world units
+  double z_top = 0.0;    ///< height of the ray origins, above all the primitives reach, world units
+  double z_bottom = 0.0; ///< as far below the cloud's bottom as z_top is above its top, world units
 };
 
 /// The map of `bounds`' XY extent at `res` world units per pixel: pixel (col, row) shoots a ray
-/// down (-z) through the centre of cell (col, row) from 1% of the extent above bounds.hi.z
-/// (z_bottom: as far below bounds.lo.z).
-/// Throws std::invalid_argument as grid_over() (bad res, empty box, too many cells) or for a grid
-/// wider or taller than 65536 pixels.
-OrthoMap ortho_map(const AABB& bounds, double res);
+/// down (-z) through the centre of cell (col, row) from z_top = bounds.hi.z + reach + res, a cell
+/// above the highest surface the points' primitives can show (z_bottom: as far below bounds.lo.z).
+/// `reach`: how far from its point a primitive can be hit, world units (the sphere radius, or the
+/// largest disc radius: a disc standing on its edge rises that far above its point); a ray from
+/// lower down would start inside a tall disc or sphere and miss its top. Throws
+/// std::invalid_argument as grid_over() (bad res, empty box, too many cells), for a grid wider or
+/// taller than 65536 pixels, or for a `reach` that is not finite and >= 0.
+OrthoMap ortho_map(const AABB& bounds, double res, double reach);
 
 /// What an orthophoto's cells show.
 enum class OrthoColour {
@@ -82,28 +85,31 @@ DsmBounding bound_dsm(const Site& site, const OrthoMap& map, double reach, Raste
 /// Writes the orthophoto `colour` (linear RGB per cell: the albedo AOV or the beauty image) as a
 /// 4-band Byte GeoTIFF: RGB (sRGB-encoded after 2^exposure, photometric RGB; an 8-bit sRGB colour
 /// converted to linear by the renderer comes back as itself) plus an alpha band (TIFF
-/// ExtraSamples unassociated alpha, GDAL's GCI_AlphaBand): 255 where the cell's ray hit the cloud
-/// (finite `depth`, the depth AOV), 0 where it missed; DEFLATE, on map.grid with the CRS
+/// ExtraSamples unassociated alpha, GDAL's GCI_AlphaBand): round(255 x `coverage`), the fraction
+/// of the cell that the rays behind its colour found covered (render::Framebuffer::coverage; 1 or
+/// 0 for one ray), clamped to [0, 1] (NaN: 0). Unassociated: the colour is the mean over the rays
+/// that hit, not scaled by the coverage. DEFLATE, on map.grid with the CRS
 /// `crs_wkt` ("" = none) and the dataset metadata items `metadata` (keys without ':', which GDAL
 /// reads as the end of a key); atomically (temporary file, then rename). Throws
 /// std::runtime_error "<path>: <GDAL's message>", std::invalid_argument for a size mismatch or an
 /// unparsable CRS.
 void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
-                         std::span<const glm::vec3> colour, std::span<const float> depth, double exposure,
+                         std::span<const glm::vec3> colour, std::span<const float> coverage, double exposure,
                          const std::string& crs_wkt,
                          const std::vector<std::pair<std::string, std::string>>& metadata = {});
 
 /// The outputs of `rayscan render --ortho-map RES --out ortho.tif [--dsm dsm.tif]` from a render
-/// through map.camera: the orthophoto of `colour` (write_ortho_geotiff, alpha from `depth`, with
+/// through map.camera: the orthophoto of `colour` (write_ortho_geotiff, alpha from `coverage`, with
 /// the item RAYSCAN_ORTHO_COLOUR = to_string(kind)) at `image` and, when `dsm` is not empty, the
 /// DSM `elevation` (dsm_from_depth, bound_dsm; Float32 GeoTIFF) at `dsm`, both with the CRS
-/// `crs_wkt` and the render's image `metadata` as GDAL items ("rayscan:spp" -> "RAYSCAN_SPP"). `depth` is the depth AOV
-/// (required); `exposure` applies to the shaded colour only (an albedo is written as it is).
+/// `crs_wkt` and the render's image `metadata` as GDAL items ("rayscan:spp" -> "RAYSCAN_SPP").
+/// `coverage`: per cell in [0, 1], the share of the colour's rays that hit; `exposure` applies
+/// to the shaded colour only (an albedo is written as it is).
 /// Returns the files written, orthophoto first. Throws as write_ortho_geotiff and write_geotiff,
-/// std::invalid_argument when `elevation` differs in size from `depth`.
+/// std::invalid_argument when `elevation` differs in size from `coverage`.
 std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, OrthoColour kind,
                                                    std::span<const glm::vec3> colour,
-                                                   std::span<const float> depth, double exposure,
+                                                   std::span<const float> coverage, double exposure,
                                                    const std::string& crs_wkt,
                                                    const std::filesystem::path& image,
                                                    const std::filesystem::path& dsm, const Raster& elevation,

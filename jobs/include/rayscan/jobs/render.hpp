@@ -47,11 +47,13 @@ struct RenderJobOptions {
   /// them in its time to the first traced tile, as when it reads the file itself.
   double cloud_read_seconds = 0.0;
   bool write = true;                   ///< write scene.output.image (+ AOVs) when it is set
-  /// When set, called once the cloud is read with its exact bounds (the AABB of its points); the
-  /// camera it returns replaces scene.camera (the scene then needs no camera). E.g. a top-down map
-  /// over the cloud's extent (analysis::ortho_map, as run_ortho_map sets it). Exceptions it
-  /// throws propagate unchanged.
-  std::function<Camera(const AABB&)> camera_for_cloud;
+  /// When set, called once the cloud is read and the points' primitives are set up, with its exact
+  /// bounds (the AABB of its points) and the reach of the primitives (as after_trace has it); the
+  /// camera it returns replaces scene.camera (the scene then needs no camera; surfels oriented
+  /// towards "the camera" face the scene's camera, if any, as they are estimated before this
+  /// call). E.g. a top-down map over the cloud's extent whose rays start above all that can be
+  /// hit (analysis::ortho_map, as run_ortho_map sets it). Exceptions it throws propagate unchanged.
+  std::function<Camera(const AABB& bounds, double reach)> camera_for_cloud;
   JobControl control;                  ///< threads, progress bar, log lines
   /// COPC input (sphere mode): bytes of decoded nodes kept resident (`--cache`; trimmed as each
   /// 4x4 pixel block ends, plus the nodes of the blocks in flight).
@@ -163,17 +165,25 @@ struct OrthoMapJobResult {
     return ortho_colour == analysis::OrthoColour::albedo ? std::span<const render::Color>(render.image.albedo)
                                                          : std::span<const render::Color>(render.image.beauty);
   }
+  /// The orthophoto's alpha per cell in [0, 1], row-major as colour(): for albedo the share of
+  /// the cell its rays found covered (render::Framebuffer::coverage, the rays the colour is the
+  /// mean of), for shaded 1 where the cell-centre ray hit (finite depth) and 0 elsewhere, since
+  /// the beauty's missed samples hold the sky, not a share of the cell. Complete on the root only
+  /// of a distributed render.
+  [[nodiscard]] std::vector<float> coverage() const;
 };
 
 /// Renders a true orthophoto and digital surface model (`rayscan render --ortho-map RES [--dsm F]
 /// [--ortho-colour albedo|shaded]`, rayscan.ortho_map()): run_render() with the camera
-/// analysis::ortho_map(bounds, ortho_map) over the cloud's exact bounds (logged as "ortho map: C x
-/// R cells, top-down, colour albedo") and the scene's up set to +z, the axis that camera looks
-/// down (the sky gradient and the elevation ramp along it, whatever up the scene or a quick look
-/// of a cloud without a CRS gives), the DSM from the depth AOV of the cell-centre ray bounded by
-/// the heights of the points within reach of the cell centre (analysis::bound_dsm, logged
-/// as "dsm: N cells lowered ..."), the colour from the albedo AOV
-/// or the beauty (ortho_colour) and, when render.write, the files (analysis::write_ortho_map: the
+/// analysis::ortho_map(bounds, ortho_map, reach) over the cloud's exact bounds (logged as "ortho
+/// map: C x R cells, top-down, colour albedo"; its rays start a cell above the primitives' reach
+/// over the cloud's top) and the scene's up set to +z, the axis that camera looks down (the sky
+/// gradient and the elevation ramp along it, whatever up the scene or a quick look of a cloud
+/// without a CRS gives; surfels oriented towards "the camera" face +z), the DSM from the depth
+/// AOV of the cell-centre ray bounded by the heights of the points within reach of the cell
+/// centre (analysis::bound_dsm, logged as "dsm: N cells lowered ..."), the colour from the albedo
+/// AOV or the beauty (ortho_colour), the alpha from the share of the colour's rays that hit
+/// (OrthoMapJobResult::coverage) and, when render.write, the files (analysis::write_ortho_map: the
 /// RGBA orthophoto at scene.output.image, the Float32 DSM at `dsm` when set, both with the cloud's
 /// CRS and the render's metadata), written on the root only; crs_warnings about that CRS are
 /// logged ("warning: ..."), as the files copy it unchanged. This is the one definition of a

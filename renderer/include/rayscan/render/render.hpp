@@ -51,6 +51,10 @@ struct Framebuffer {
   std::vector<std::uint32_t> index;     ///< original point index hit, kNoPoint (0xFFFFFFFF, = -1) for a miss
   std::vector<Color> albedo;            ///< albedo at the first hit, 0 for a miss (linear; the mean
                                         ///< over the pixel's hits: RenderSettings::albedo_samples)
+  /// With `albedo`: the fraction of the pixel its rays found covered, the stratum-area-weighted
+  /// share of the RenderSettings::albedo_samples rays that hit (1 or 0 for the one AOV ray): the
+  /// alpha of a map whose colour is that mean over the hits (analysis::write_ortho_geotiff).
+  std::vector<float> coverage;
   std::vector<float> cost;              ///< index nodes visited per sample (all rays of the path)
 };
 
@@ -152,12 +156,12 @@ RenderStats render_image(const Site& site, const RenderSettings& settings, Frame
                          const RenderOptions& options = {});
 
 /// A framebuffer of the camera's size with beauty and the channels of `aovs` allocated and
-/// cleared (misses: kNoPoint in `index`), position_origin = the camera centre.
+/// cleared (misses: kNoPoint in `index`; `coverage` with `albedo`), position_origin = the camera centre.
 Framebuffer empty_framebuffer(const Camera& camera, std::span<const Aov> aovs);
 
 /// The pixels of tiles [first, first + count) of `fb` (tile grid of edge `tile_size`, row-major
 /// tile order, as render_image traces them): for each tile, each channel in use (beauty, depth,
-/// normal, position, index, albedo, cost) row by row, native byte order. The tile message of the
+/// normal, position, index, albedo, cost, coverage) row by row, native byte order. The tile message of the
 /// MPI work queue (docs/mpi.md: 12 bytes per pixel for beauty alone).
 std::vector<std::byte> pack_tiles(Framebuffer& fb, unsigned tile_size, std::uint64_t first, std::uint64_t count);
 
