@@ -255,6 +255,7 @@ void require_finite_points(const CloudArg& a, const std::string& name) {
 struct RenderPoints {
   std::optional<CloudArg> arg;     // the points given (as `scene` or cloud=); none: the scene's
   std::optional<PointCloud> read;  // a cloud file read for the overview camera
+  double read_seconds = 0.0;       // the seconds that read took (CloudSummary::read_seconds)
 
   /// The summary resolve_scene asks for (called without the GIL): of the points in memory (with
   /// a CRS georeferenced, a PCD VIEWPOINT as the scanner position), else of the file.
@@ -266,12 +267,20 @@ struct RenderPoints {
       const PointCloud& c = *arg->points;
       return jobs::summarize_cloud(c.positions, !c.rgb.empty(), !c.crs_wkt.empty(), sensor);
     }
-    return jobs::summarize_cloud_file(arg ? std::filesystem::path(arg->path) : scene_cloud, read);
+    jobs::CloudSummary s = jobs::summarize_cloud_file(arg ? std::filesystem::path(arg->path) : scene_cloud, read);
+    read_seconds = s.read_seconds;
+    return s;
   }
   /// Gives the job the points: in memory, or the file given as cloud= in place of the scene's.
+  /// A file read here is the scene's cloud read by the caller, as `rayscan render` hands it on:
+  /// the job then counts the read's seconds as its own (read_seconds, first_tile_seconds).
   void attach(jobs::RenderJobOptions& o) const {
     if (arg && !arg->points) o.scene.cloud = std::filesystem::absolute(arg->path);
     o.cloud = arg && arg->points ? arg->points : read ? &*read : nullptr;
+    if (read && o.cloud == &*read) {
+      o.cloud_read_from_scene = true;
+      o.cloud_read_seconds = read_seconds;
+    }
   }
 };
 
@@ -352,6 +361,7 @@ py::dict render(py::handle scene, const std::string& scene_json, py::handle clou
   stats["threads"] = r.stats.threads;
   stats["index_seconds"] = r.index_seconds;
   stats["read_seconds"] = r.read_seconds;
+  stats["first_tile_seconds"] = r.first_tile_seconds;
   out["stats"] = stats;
   return out;
 }

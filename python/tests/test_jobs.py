@@ -49,6 +49,19 @@ def test_render_from_dict_and_memory_cloud(tmp_path, monkeypatch):
         rayscan.render(scene, width=48, spp=1, aovs=["nope"])
 
 
+def test_render_quick_look_of_a_file_counts_its_read():
+    # A cloud file's quick look reads the file once, for the overview camera and the render, as
+    # `rayscan render CLOUD` does; the render reports that read as its own and counts it in its
+    # time to the first traced tile. The same points given in memory read nothing.
+    las = SOURCE / "scenes" / "data" / "autzen_trim.las"
+    st = rayscan.render(las, width=24, spp=1)["stats"]
+    assert st["read_seconds"] > 0.0
+    assert st["first_tile_seconds"] >= st["read_seconds"]
+    mem = rayscan.render(rayscan.read(las), width=24, spp=1)["stats"]
+    assert mem["read_seconds"] == 0.0
+    assert mem["first_tile_seconds"] > 0.0
+
+
 def test_compare_metrics_equal_numpy():
     rng = np.random.default_rng(5)
     ref = rng.random((40, 50, 3)).astype(np.float32)
