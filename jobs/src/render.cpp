@@ -128,16 +128,27 @@ namespace {
 // a cloud without colours): the axis, the ramp and the heights at its ends (AlbedoRule::range),
 // in the CRS's linear unit as the DSM's band names it (analysis::crs_length_unit), "world units"
 // without a CRS, e.g. "colour: elevation along up (0, 0, 1), viridis, 408.73 (dark) .. 485.04
-// (bright) foot, the 2nd and 98th percentiles of the points' heights".
+// (bright) foot, the 2nd and 98th percentiles of the points' heights". Along +z the heights are
+// the points' z. Along any other axis (a quick look's estimated up without a CRS) p . up is no
+// height to read against the points: for a cloud far from the origin a tilt of a fraction of a
+// degree shifts it by thousands of units. The ends are then given as heights above the lowest
+// point along that axis; a material's own range is given as written.
 void log_elevation_ramp(const JobControl& ctl, const Scene& scene, const AlbedoRule& rule, const std::string& crs_wkt) {
   if (scene.material.mode != ColorMode::elevation) return;
   const std::string unit = analysis::crs_length_unit(crs_wkt);
   const Vec3 up = glm::normalize(scene.up) + Vec3(0.0);  // -0.0 printed as 0
+  const char* ramp = ramp_names()[std::size_t(scene.material.ramp)].c_str();
+  const std::array<double, 2> ends = rule.range();
   char buf[512];
-  std::snprintf(buf, sizeof buf, "colour: elevation along up (%.3g, %.3g, %.3g), %s, %.7g (dark) .. %.7g (bright) %s, %s",
-                up.x, up.y, up.z, ramp_names()[std::size_t(scene.material.ramp)].c_str(), rule.range()[0],
-                rule.range()[1], unit.c_str(),
-                scene.material.range ? "the material's range" : "the 2nd and 98th percentiles of the points' heights");
+  if (up == Vec3(0.0, 0.0, 1.0) || scene.material.range || !std::isfinite(rule.lowest()))
+    std::snprintf(buf, sizeof buf, "colour: elevation along up (%.3g, %.3g, %.3g), %s, %.7g (dark) .. %.7g (bright) %s, %s",
+                  up.x, up.y, up.z, ramp, ends[0], ends[1], unit.c_str(),
+                  scene.material.range ? "the material's range" : "the 2nd and 98th percentiles of the points' heights");
+  else
+    std::snprintf(buf, sizeof buf,
+                  "colour: height above the lowest point along up (%.3g, %.3g, %.3g), %s, %.7g (dark) .. %.7g (bright) %s, "
+                  "the 2nd and 98th percentiles of the points' heights along that axis",
+                  up.x, up.y, up.z, ramp, ends[0] - rule.lowest(), ends[1] - rule.lowest(), unit.c_str());
   ctl.info(buf);
 }
 

@@ -113,6 +113,7 @@ AlbedoRule::AlbedoRule(const AlbedoStream& s, const MaterialDesc& m, const Vec3&
           for (const Vec3& p : a.positions) v.push_back(glm::dot(p, up_));
           return true;
         });
+        if (!v.empty()) lowest_ = *std::min_element(v.begin(), v.end());
         range_ = percentile_range(std::move(v));
       }
       break;

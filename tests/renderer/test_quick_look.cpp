@@ -359,20 +359,24 @@ TEST(QuickLook, SummaryDoesNotDependOnThePointsOrder) {
   EXPECT_EQ(summarize_cloud(few, false, false, std::nullopt).sample.size(), 1000u);
 }
 
-// An index file with the source's ids and colours renders the same quick look as its source, bit
-// for bit (autzen, 110,000 points: more than kOverviewSample, so a sample
-// taken in storage order would differ), for a georeferenced LAS file (up +z) and for the same
-// points as a text file without a CRS (up estimated). Oracle: `rayscan compare` of the two PNGs
-// (exit 0: no pixel differs) and the two printed scenes' cameras.
+// An index file with the source's colours renders the same quick look as its source, bit for bit
+// (autzen, 110,000 points: more than kOverviewSample, so a sample taken in storage order would
+// differ), for a georeferenced LAS file (up +z) and for the same points as a text file without a
+// CRS (up estimated), with the source's ids and without them (points in index order: the camera,
+// up axis and sample do not depend on the order; autzen has no two discs a ray meets at the same
+// distance, whose tie the point index breaks). Oracle: `rayscan compare` of the PNGs (exit 0: no
+// pixel differs) and the printed scenes' cameras.
 TEST(QuickLook, IndexFileRendersTheSameQuickLookAsItsSource) {
   const fs::path d = quick_look_temp_dir();
   const std::string bin = RAYSCAN_BIN;
   const fs::path las = fs::path(RAYSCAN_TEST_DATA) / "las" / "autzen_trim.las";
   const auto tr = rayscan::test::run_command(bin + " translate " + las.string() + " " + (d / "autzen.xyz").string());
   ASSERT_EQ(tr.code, 0) << tr.out;
-  for (const fs::path& src : {las, d / "autzen.xyz"}) {
+  for (const auto& [src, attributes] : {std::pair{las, "id,rgb"}, std::pair{las, "rgb"},
+                                         std::pair{d / "autzen.xyz", "id,rgb"}, std::pair{d / "autzen.xyz", "rgb"}}) {
     const std::string rsi = (d / (src.filename().string() + ".rsi")).string();
-    const auto ix = rayscan::test::run_command(bin + " index " + src.string() + " -o " + rsi + " --attributes id,rgb -q");
+    const auto ix =
+        rayscan::test::run_command(bin + " index " + src.string() + " -o " + rsi + " --attributes " + attributes + " -q");
     ASSERT_EQ(ix.code, 0) << ix.out;
     nlohmann::json cams[2];
     int k = 0;
@@ -388,9 +392,9 @@ TEST(QuickLook, IndexFileRendersTheSameQuickLookAsItsSource) {
       else EXPECT_NE(j.at("up"), nlohmann::json::parse("[0.0, 0.0, 1.0]"));  // estimated
       cams[k++] = j.at("camera");
     }
-    EXPECT_EQ(cams[0], cams[1]) << src;
+    EXPECT_EQ(cams[0], cams[1]) << src << " " << attributes;
     const auto cmp = rayscan::test::run_command(bin + " compare " + (d / "q0.png").string() + " " + (d / "q1.png").string());
-    EXPECT_EQ(cmp.code, 0) << src << "\n" << cmp.out;
+    EXPECT_EQ(cmp.code, 0) << src << " " << attributes << "\n" << cmp.out;
   }
   fs::remove_all(d);
 }
@@ -450,8 +454,9 @@ TEST(UpAxis, AFlatCloudTakesTheSignOfItsNormalsLargestComponent) {
 // The CLI's quick look of a flat cloud without a CRS (80 x 40 points on z = 3) prints and uses up
 // +z with the camera above the plane looking down; the log says what the elevation colours mean.
 // Oracle: the points' known heights: the ramp's ends are their 2nd and 98th percentile (ranks
-// n * 2 / 100 and n * 98 / 100 of the sorted heights), in "world units" without a CRS and in
-// the CRS's unit for autzen (international foot, EPSG:2992) through an index file without colours.
+// n * 2 / 100 and n * 98 / 100 of the sorted heights; along an estimated axis other than +z,
+// heights above the lowest point along it), in "world units" without a CRS and in the CRS's unit
+// for autzen (international foot, EPSG:2992) through an index file without colours.
 TEST(QuickLook, FlatCloudIsSeenFromAboveAndTheElevationColoursAreLogged) {
   const fs::path d = quick_look_temp_dir() / "flat";
   fs::create_directories(d);
@@ -473,10 +478,13 @@ TEST(QuickLook, FlatCloudIsSeenFromAboveAndTheElevationColoursAreLogged) {
     std::string ramp, unit;
     double lo = 0.0, hi = 0.0;
   };
-  const auto logged = [&](const std::string& cloud) {
+  // The line along +z gives the points' heights; along another axis, heights above the lowest
+  // point along it (`above_lowest`).
+  const auto logged = [&](const std::string& cloud, bool above_lowest = false) {
     const auto r = rayscan::test::run_command(bin + " render " + cloud + " --width 30 --spp 1 --out " + (d / "x.png").string());
     EXPECT_EQ(r.code, 0) << r.out;
-    const std::string key = "colour: elevation along up (";
+    const std::string key =
+        above_lowest ? "colour: height above the lowest point along up (" : "colour: elevation along up (";
     const std::size_t at = r.out.find(key);
     LoggedRamp g;
     if (at == std::string::npos) {
@@ -491,7 +499,10 @@ TEST(QuickLook, FlatCloudIsSeenFromAboveAndTheElevationColoursAreLogged) {
         << line;
     g.ramp = ramp;
     g.unit = unit;
-    EXPECT_NE(line.find("the 2nd and 98th percentiles of the points' heights"), std::string::npos) << line;
+    EXPECT_NE(line.find(above_lowest ? "the 2nd and 98th percentiles of the points' heights along that axis"
+                                     : "the 2nd and 98th percentiles of the points' heights"),
+              std::string::npos)
+        << line;
     return g;
   };
   const auto percentiles = [](std::vector<double> h) {
@@ -509,7 +520,8 @@ TEST(QuickLook, FlatCloudIsSeenFromAboveAndTheElevationColoursAreLogged) {
   }
   {
     // A rough floor (+-0.002) with three boxes' tops at 1, 1.7 and 2.4: the ends are the 2nd and
-    // 98th percentile of the heights along the printed up axis.
+    // 98th percentile of the heights along the printed up axis, estimated from the rough floor
+    // (not exactly +z), so above the lowest point along it.
     std::vector<Vec3> pts = grid_plane(Vec3(0.0), Vec3(1, 0, 0), Vec3(0, 1, 0),
                                        [](int i, int j) { return 0.002 * std::sin(12.9898 * i + 78.233 * j); });
     for (int k = 0; k < 3; ++k)
@@ -525,15 +537,18 @@ TEST(QuickLook, FlatCloudIsSeenFromAboveAndTheElevationColoursAreLogged) {
     const nlohmann::json u = nlohmann::json::parse(ps.out).at("up");
     const Vec3 up(u[0].get<double>(), u[1].get<double>(), u[2].get<double>());
     ASSERT_GE(up.z, 0.999) << ps.out;  // the floor's normal, towards the boxes
+    ASSERT_NE(up, Vec3(0, 0, 1)) << ps.out;
     std::vector<double> h;
     for (const Vec3& q : pts) h.push_back(glm::dot(q, up));
-    const LoggedRamp g = logged((d / "boxes.xyz").string());
+    const double lowest = *std::min_element(h.begin(), h.end());
+    for (double& x : h) x -= lowest;
+    const LoggedRamp g = logged((d / "boxes.xyz").string(), true);
     const auto want = percentiles(h);
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(g.up[c], up[c], 5e-3) << c;  // printed to 3 digits
     EXPECT_NEAR(g.lo, want[0], 1e-6);
     EXPECT_NEAR(g.hi, want[1], 1e-6);
-    EXPECT_LT(want[0], 0.0);   // from the floor's roughness
-    EXPECT_GT(want[1], 1.65);  // from the second box's top
+    EXPECT_LT(want[0], 0.004);  // within the floor's roughness of its lowest point
+    EXPECT_GT(want[1], 1.65);   // from the second box's top
     EXPECT_EQ(g.unit, "world units");
   }
   {
@@ -548,6 +563,41 @@ TEST(QuickLook, FlatCloudIsSeenFromAboveAndTheElevationColoursAreLogged) {
     EXPECT_NEAR(g.lo, want[0], 1e-6 * std::abs(want[0]));
     EXPECT_NEAR(g.hi, want[1], 1e-6 * std::abs(want[1]));
     EXPECT_EQ(g.unit, "foot");
+  }
+  {
+    // The same points without a CRS (positions only, in an index file): the up axis is estimated,
+    // a fraction of a degree off +z, and p . up far from the origin is no height at all (about
+    // -1250 for z 406..521). The line gives the ends as heights above the lowest point along the
+    // printed axis: oracle, those heights of the file's points, and within the z range's span.
+    const PointCloud pc = io::read_point_cloud(fs::path(RAYSCAN_TEST_DATA) / "las" / "autzen_trim.las");
+    {
+      std::ofstream xyz(d / "nocrs.xyz");
+      xyz.precision(17);
+      for (const Vec3& q : pc.positions) xyz << q.x << " " << q.y << " " << q.z << "\n";
+    }
+    const auto idx = rayscan::test::run_command(bin + " index -q " + (d / "nocrs.xyz").string() + " -o " +
+                                                (d / "nocrs.rsi").string());
+    ASSERT_EQ(idx.code, 0) << idx.out;
+    const auto ps = rayscan::test::run_command(bin + " render " + (d / "nocrs.rsi").string() + " --print-scene", false);
+    ASSERT_EQ(ps.code, 0) << ps.out;
+    const nlohmann::json u = nlohmann::json::parse(ps.out).at("up");
+    const Vec3 up(u[0].get<double>(), u[1].get<double>(), u[2].get<double>());
+    ASSERT_NE(up, Vec3(0, 0, 1)) << ps.out;  // estimated: not exactly +z
+    ASSERT_GE(up.z, 0.999) << ps.out;
+    std::vector<double> h;
+    for (const Vec3& q : pc.positions) h.push_back(glm::dot(q, up));
+    const double lowest = *std::min_element(h.begin(), h.end());
+    for (double& x : h) x -= lowest;
+    const auto want = percentiles(h);
+    const LoggedRamp g = logged((d / "nocrs.rsi").string(), true);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(g.up[c], up[c], 5e-3) << c;
+    EXPECT_NEAR(g.lo, want[0], 1e-4);  // printed to 7 digits
+    EXPECT_NEAR(g.hi, want[1], 1e-4);
+    const auto [zlo, zhi] = std::minmax_element(pc.positions.begin(), pc.positions.end(),
+                                                [](const Vec3& a, const Vec3& b) { return a.z < b.z; });
+    EXPECT_GT(g.lo, 0.0);
+    EXPECT_LT(g.hi, zhi->z - zlo->z);
+    EXPECT_EQ(g.unit, "world units");
   }
   fs::remove_all(d);
 }

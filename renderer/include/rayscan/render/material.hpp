@@ -12,6 +12,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -78,6 +79,10 @@ class AlbedoRule {
   /// when those are equal). A value at or below [0] gets the ramp's first colour, at or above [1]
   /// its last. {0, 1} for the other modes, which use no range.
   [[nodiscard]] const std::array<double, 2>& range() const { return range_; }
+  /// Elevation without material.range: the lowest of the cloud's heights along `up` (the values
+  /// range() takes its percentiles of), so that a log can give the ends as heights above the
+  /// lowest point, which do not depend on where the coordinates' origin lies. NaN otherwise.
+  [[nodiscard]] double lowest() const { return lowest_; }
 
  private:
   void set_rgb_scale(bool wide);
@@ -88,6 +93,7 @@ class AlbedoRule {
   Vec3 up_{0.0, 0.0, 1.0};
   std::vector<float> lut_;  ///< rgb: 16-bit channel value -> linear
   std::array<double, 2> range_{0.0, 1.0};
+  double lowest_ = std::numeric_limits<double>::quiet_NaN();
   double inv_ = 1.0;
 };
 
