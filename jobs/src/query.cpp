@@ -23,6 +23,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <type_traits>
 
@@ -125,12 +126,13 @@ std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQ
     return rows;
   }
   // Several processes. Root: blocks answered (here or elsewhere) wait in `ahead` until the
-  // blocks before them are written. Others: the hits of the batch being answered, until packed.
+  // blocks before them are written. Others: the hits of the one batch being answered (its rays
+  // from batch_first), until packed, so that a rank holds a batch, not a slot for every ray.
   std::mutex write_mutex;
   std::map<std::uint64_t, std::string> ahead;
   std::uint64_t next_block = 0;
-  std::vector<std::vector<RayHit>> hits;
-  if (!dist->is_root()) hits.resize(n);
+  std::vector<std::vector<RayHit>> batch;
+  std::uint64_t batch_first = 0;
   const auto done = [&](std::uint64_t b, std::span<std::vector<RayHit>> block_hits) {  // root
     const std::uint64_t k = count_rows(block_hits);
     std::string text = sink.render(b * kRaysPerItem, block_hits);
@@ -148,6 +150,11 @@ std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQ
   stage.items = blocks;
   stage.batch = threads;
   stage.compute = [&](std::uint64_t first, std::uint64_t count) {
+    if (!dist->is_root()) {
+      const auto [a, b] = range(first, count);
+      batch_first = a;
+      batch.assign(b - a, {});
+    }
     arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<std::uint64_t>(first, first + count, 1),
                         [&](const tbb::blocked_range<std::uint64_t>& r) {
@@ -156,21 +163,25 @@ std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQ
                             if (dist->is_root()) {
                               done(b, std::span<std::vector<RayHit>>(h));
                             } else {
-                              std::move(h.begin(), h.end(), hits.begin() + static_cast<std::ptrdiff_t>(b * kRaysPerItem));
+                              std::move(h.begin(), h.end(),
+                                        batch.begin() + static_cast<std::ptrdiff_t>(b * kRaysPerItem - batch_first));
                               progress.tile_done(block_rays(b, n));
                             }
                           }
                         });
     });
   };
-  stage.pack = [&](std::uint64_t first, std::uint64_t count) {
+  stage.pack = [&](std::uint64_t first, std::uint64_t count) {  // the batch just computed (WorkStage)
     const auto [a, b] = range(first, count);
+    if (a != batch_first || b - a != batch.size())
+      throw std::logic_error("query: packing rays [" + std::to_string(a) + ", " + std::to_string(b) +
+                             ") that are not the batch computed");
     std::vector<std::byte> out;
-    for (std::uint64_t i = a; i < b; ++i) {
-      const std::uint64_t k = hits[i].size();
+    for (std::vector<RayHit>& h : batch) {
+      const std::uint64_t k = h.size();
       append_bytes(out, std::span<const std::uint64_t>(&k, 1));
-      append_bytes(out, std::span<const RayHit>(hits[i]));
-      std::vector<RayHit>().swap(hits[i]);  // sent: freed
+      append_bytes(out, std::span<const RayHit>(h));
+      std::vector<RayHit>().swap(h);  // sent: freed
     }
     return out;
   };
@@ -257,9 +268,12 @@ QueryJobResult run_query(const QueryJobOptions& o) {
   r.threads = resolve_threads(o.control.threads);
   WorkDistributor* const dist = o.control.distributor;
   const bool root = !dist || dist->is_root();
+  // A rank other than the root of several keeps no hits: it sends each batch of blocks to the
+  // root once answered, and leaves a COPC file (not shared out over the ranks) to the root alone.
+  const bool other_rank = dist && dist->size() > 1 && !root;
   // Streamed: only the runs of rays in flight are held (a query may return more than memory).
   const bool stream = o.csv && root;
-  if (!stream) r.hits.assign(r.rays.size(), {});
+  if (!stream && !other_rank) r.hits.assign(r.rays.size(), {});
   const PointCloud* const cloud = o.cloud ? o.cloud : &r.cloud;
   const auto t_query = std::chrono::steady_clock::now();
   site->visit([&](auto& idx) {
@@ -299,7 +313,10 @@ QueryJobResult run_query(const QueryJobOptions& o) {
       sink.write = [](const std::string&) {};
     }
     const std::uint64_t max_hits = o.query.any_hit ? 1 : std::min<std::uint64_t>(o.query.k, pos.size());
-    // A COPC file's batch runs here (no distributed work queue for COPC files).
+    // A COPC file's batch runs here, on the root only (no distributed work queue for COPC files:
+    // another rank would answer every ray again, and hold their hits, for nothing).
+    if constexpr (copc)
+      if (other_rank) return;
     r.rows = answer_rays(idx, r.rays, o.query, r.threads, o.control.progress, copc ? nullptr : dist, max_hits, sink);
     if (!stream && (copc || (mapped && root)))
       for (const auto& h : r.hits)

@@ -196,6 +196,30 @@ TEST_F(Mpi, QueryHitsAreTheSameBytes) {
   ASSERT_EQ(r.code, 0) << r.out;
   expect_same_file(dir_ / "one.csv", dir_ / "three.csv");
   EXPECT_GT(bytes(dir_ / "one.csv").size(), 20000u);  // hits were found (not just a header)
+  // Batches of 2 blocks (--threads 2): a worker's batch of blocks 2.. (rays 512..699, the last
+  // block short) is held from its own first ray, not from ray 0.
+  std::string batches = args;
+  batches.replace(batches.find("--threads 1"), 11, "--threads 2");
+  const CommandResult two = run(mpirun(3, false) + kBin + batches + " --out batches.csv");
+  ASSERT_EQ(two.code, 0) << two.out;
+  expect_same_file(dir_ / "one.csv", dir_ / "batches.csv");
+}
+
+TEST_F(Mpi, QueryOfACopcFileIsTheSameBytes) {
+  // A COPC file is not shared out over the ranks: rank 0 answers every ray, the others nothing.
+  ASSERT_EQ(run(kBin + " translate -q autzen.las site.copc.laz").code, 0);
+  {
+    std::ofstream rays(dir_ / "rays.csv");
+    rays << "ox,oy,oz,dx,dy,dz\n";
+    for (int i = 0; i < 300; ++i)
+      rays << 636010 + (i % 20) * 50 << ',' << 848940 + (i / 20) * 40 << ",600,0.05,-0.05,-1\n";
+  }
+  const std::string args = " query --cloud site.copc.laz --rays rays.csv --k 2 --radius 1.5 --order sphere_hit --threads 1";
+  ASSERT_EQ(run(kBin + args + " --out one.csv").code, 0);
+  const CommandResult r = run(mpirun(2) + kBin + args + " --out two.csv");
+  ASSERT_EQ(r.code, 0) << r.out;
+  expect_same_file(dir_ / "one.csv", dir_ / "two.csv");
+  EXPECT_GT(bytes(dir_ / "one.csv").size(), 5000u);  // hits were found (not just a header)
 }
 
 TEST_F(Mpi, ARankThatCannotOpenTheIndexEndsTheJobWithOneLineAndNoOutput) {
