@@ -15,8 +15,10 @@ Progress::Progress(std::uint64_t total_items, bool enabled, ProgressUnits units)
 
 bool Progress::stderr_is_terminal() { return ::isatty(2) == 1; }
 
-void Progress::tile_done(std::uint64_t queries) {
-  const std::uint64_t done = done_.fetch_add(1) + 1;
+void Progress::tile_done(std::uint64_t queries) { add(1, queries); }
+
+void Progress::add(std::uint64_t items, std::uint64_t queries) {
+  const std::uint64_t done = done_.fetch_add(items) + items;
   const std::uint64_t q = queries_.fetch_add(queries) + queries;
   if (!enabled_) return;
   const std::int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(

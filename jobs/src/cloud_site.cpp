@@ -106,12 +106,28 @@ void copc_cache_stats(const CloudSite& cs, const JobControl& ctl, std::uint64_t&
   ctl.info(copc_cache_report(*c));
 }
 
+SurfelBar::SurfelBar(std::size_t points, const JobControl& ctl)
+    : enabled_(ctl.progress),
+      bar_(points, ctl.progress, ProgressUnits{std::string("points (") + kSurfelPhase + ")", "points/s", 1.0, 0}) {}
+
+decltype(SurfelOptions::progress) SurfelBar::callback() {
+  if (!enabled_) return {};
+  return [this](const char*, std::uint64_t done, std::uint64_t) {
+    std::uint64_t shown = shown_.load();
+    while (done > shown && !shown_.compare_exchange_weak(shown, done)) {
+    }
+    if (done > shown) bar_.add(done - shown, done - shown);
+  };
+}
+
 SurfelAttributes estimate_analysis_surfels(const CloudSite& cs, const SurfelOptions& options, const JobControl& ctl) {
   const auto t0 = std::chrono::steady_clock::now();
   SurfelOptions so = options;
   so.measure_thickness = false;  // no shadow or bounce rays leave a surfel here (same_surface with 0)
   SurfelAttributes surfels;
   try {
+    SurfelBar bar(cs.cloud.size(), ctl);
+    so.progress = bar.callback();
     surfels = estimate_surfels(*cs.site, cs.cloud.positions, so, cs.cloud.normals);
   } catch (const std::invalid_argument& e) {
     throw OptionError({option("primitive"), std::string(" surfel: ") + e.what()});

@@ -5,6 +5,7 @@
 #pragma once
 
 #include "rayscan/base/job.hpp"
+#include "rayscan/base/progress.hpp"
 #include "rayscan/io/file_info.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/octree/any_index.hpp"
@@ -13,6 +14,7 @@
 #include "rayscan/octree/spacing.hpp"
 #include "rayscan/site/site.hpp"
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -71,8 +73,28 @@ std::string copc_cache_report(const io::CopcIndex& c);
 /// for any other storage.
 void copc_cache_stats(const CloudSite& cs, const JobControl& ctl, std::uint64_t& decodes, std::size_t& peak);
 
+/// A job's progress bar of a surfel estimate over `points` points (Progress on stderr when
+/// ctl.progress: "points (surfels)", points/s): callback() is the SurfelOptions::progress that
+/// advances it to the most points the estimate has reported done (reports come from worker
+/// threads, not in order), empty without ctl.progress. The bar is cleared when this ends. Not
+/// movable (the callback refers to it).
+class SurfelBar {
+ public:
+  SurfelBar(std::size_t points, const JobControl& ctl);
+  SurfelBar(const SurfelBar&) = delete;
+  SurfelBar& operator=(const SurfelBar&) = delete;
+  ~SurfelBar() { bar_.finish(); }
+  [[nodiscard]] decltype(SurfelOptions::progress) callback();
+
+ private:
+  bool enabled_;
+  Progress bar_;
+  std::atomic<std::uint64_t> shown_{0};
+};
+
 /// The surfels (normals and disc radii) of every point of `cs`, file normals when the cloud has
-/// them; no thickness measure (the analyses trace no bounce rays). Logs one line. Throws
+/// them; no thickness measure (the analyses trace no bounce rays). Shows its progress (SurfelBar)
+/// and logs one line. Throws
 /// OptionError naming `primitive` when the estimate fails.
 SurfelAttributes estimate_analysis_surfels(const CloudSite& cs, const SurfelOptions& options, const JobControl& ctl);
 

@@ -164,7 +164,8 @@ struct Prepared {
   AlbedoRule rule;                    // the material's statistics; applied at shading time to a file traced in place
   AlbedoSource albedo_source;
   std::uint32_t albedo_samples = 1;   // RenderJobOptions::albedo_samples
-  SurfelAttributes surfels;
+  SurfelAttributes surfels;           // estimated here; with RenderJobOptions::surfels only their radii
+  const SurfelAttributes* discs = &surfels;  // the discs traced: `surfels` or RenderJobOptions::surfels
   std::chrono::steady_clock::time_point started;  // job start (time to the first traced tile)
 };
 
@@ -258,6 +259,8 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   Scene& scene = P->scene;
   const std::string f = scene.file.empty() ? std::string("(scene)") : scene.file.string();
   if (!scene.camera && !o.camera_for_cloud) throw SceneError(f + ": /camera: not set; give a camera in the scene or a camera file");
+  if (o.site && (!o.cloud || o.site->size() != o.cloud->size()))
+    throw std::invalid_argument("render: options.site needs options.cloud, the points it indexes");
   if (o.write && scene.output.image.empty())
     throw OptionError({f + ": /output/image: not set; give it in the scene or set the ", option("out"), " option"});
   if (o.write) {
@@ -338,7 +341,9 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
     ctl.info(buf);
   }
   t0 = std::chrono::steady_clock::now();
-  if (!mapped) {
+  if (o.site) {
+    P->site.emplace(*o.site);  // the caller's index over `cloud`: none built
+  } else if (!mapped) {
     try {
       P->site.emplace(Site::over(*cloud, scene.index));
     } catch (const std::invalid_argument& e) {
@@ -350,11 +355,23 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
   }
   const Site& site = *P->site;
   SurfelAttributes& surfels = P->surfels;
-  if (surfel) {
-    // Surfel normals and radii: kNN over the mapped or the built in-memory index (scene_surfels).
+  if (surfel && o.surfels) {
+    if (o.surfels->normals.size() != cloud->size() || o.surfels->radii.size() != cloud->size())
+      throw std::invalid_argument("render: options.surfels has not one normal and radius a point of options.cloud");
+    P->discs = o.surfels;
+    surfels.median_radius = o.surfels->median_radius;
+    surfels.max_radius = o.surfels->max_radius;
+    r.radius.radius = surfels.median_radius;
+    std::snprintf(buf, sizeof buf, "surfels: the caller's, median radius %.6g, max %.6g (none estimated)",
+                  surfels.median_radius, surfels.max_radius);
+    ctl.info(buf);
+  } else if (surfel) {
+    // Surfel normals and radii: kNN over the mapped or the built in-memory index (scene_surfels),
+    // with the estimate's progress on stderr.
     t0 = std::chrono::steady_clock::now();
     try {
-      surfels = scene_surfels(scene, site, *cloud);
+      detail::SurfelBar bar(cloud->size(), ctl);
+      surfels = scene_surfels(scene, site, *cloud, bar.callback());
     } catch (const std::invalid_argument& e) {
       throw SceneError(f + ": /surfel: " + e.what());
     }
@@ -401,7 +418,7 @@ RenderStats render_camera(const Prepared& P, const Camera& camera, const JobCont
       make_settings(scene, P.cloud ? std::span<const Vec3>(P.cloud->positions) : std::span<const Vec3>{}, {}, radius);
   settings.integrator.albedo = P.albedo_source;
   settings.albedo_samples = P.albedo_samples;
-  if (scene.primitive == Primitive::surfel) use_surfels(settings, P.surfels);
+  if (scene.primitive == Primitive::surfel) use_surfels(settings, *P.discs);
   const Camera& cam = settings.camera;
   const std::uint64_t tiles = std::uint64_t((cam.width() + 15) / 16) * ((cam.height() + 15) / 16);
   Progress progress(tiles, ctl.progress);

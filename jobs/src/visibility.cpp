@@ -356,7 +356,17 @@ struct VisibilityRun {
     po.name = (o.cloud_file.empty() ? std::string("points in memory") : o.cloud_file.string()) + " (DSM)";
     ro.scene = render::parse_scene_json(quick_look, o.cloud_file, po);
     ro.cloud = &cloud;
+    // One index and one surfel estimate a job: the DSM is traced over the job's site (a COPC file
+    // in place excepted: the render traces surfels only over points in memory or an index file)
+    // with the job's surfels when they are the discs the DSM's scene would estimate (the same
+    // neighbours and factors; their orientation and thickness change no first hit nor reach).
+    if (site->storage() != SiteStorage::copc) ro.site = &*site;
+    const SurfelOptions& dsm_discs = ro.scene.surfel;
+    if (surfel && o.surfel.k_normal == dsm_discs.k_normal && o.surfel.k_radius == dsm_discs.k_radius &&
+        o.surfel.radius_factor == dsm_discs.radius_factor && o.surfel.max_radius_factor == dsm_discs.max_radius_factor)
+      ro.surfels = &surfels;
     ro.write = false;
+    ro.control.log = [this](const std::string& line) { ctl.info("DSM: " + line); };
     ro.control.threads = ctl.threads;
     ro.control.progress = ctl.progress;  // the DSM's render takes seconds to minutes on a large grid
     ro.control.cancel = ctl.cancel;

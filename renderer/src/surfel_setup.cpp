@@ -1,5 +1,6 @@
 #include "rayscan/render/surfel_setup.hpp"
 
+#include <utility>
 
 namespace rayscan::render {
 
@@ -13,8 +14,11 @@ SurfelOptions surfel_options(const Scene& scene) {
 }
 }  // namespace
 
-SurfelAttributes scene_surfels(const Scene& scene, const Site& site, const PointCloud& cloud) {
-  return estimate_surfels(site, cloud.positions, surfel_options(scene), cloud.normals);
+SurfelAttributes scene_surfels(const Scene& scene, const Site& site, const PointCloud& cloud,
+                               decltype(SurfelOptions::progress) progress) {
+  SurfelOptions o = surfel_options(scene);
+  o.progress = std::move(progress);
+  return estimate_surfels(site, cloud.positions, o, cloud.normals);
 }
 
 void use_surfels(RenderSettings& s, const SurfelAttributes& a) {

@@ -121,12 +121,15 @@ SurfelAttributes copc_surfels(const io::CopcIndex& copc, std::span<const Vec3> p
         "surfels: the thickness measure needs the points in storage order; read the COPC file into memory");
   detail::SurfelEstimator est(n, positions, o, file_normals);
   const std::vector<PointIndex> order = copc_point_order(positions);
+  detail::SurfelProgressCount progress(o, n);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
     const io::CopcIndex::QueryScope scope(copc);
     std::vector<Neighbor> nb;
     for (std::size_t s = range.begin(); s != range.end(); ++s) est.estimate(copc, positions[order[s]], order[s], nb);
+    progress.add(range.size());
   });
   detail::finish_surfel_radii(est.out, o);
+  progress.finish();
   return std::move(est.out);
 }
 

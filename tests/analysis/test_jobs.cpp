@@ -2,12 +2,15 @@
 // Oracles: hand-computed errors of constructed images, the lower-level compute_visibility and
 // compute_sky_view calls, the geometry of an open plane, and a map's bytes from a fuller run.
 #include "rayscan/base/option_error.hpp"
+#include "rayscan/analysis/dsm_viewshed.hpp"
 #include "rayscan/jobs/compare.hpp"
+#include "rayscan/jobs/render.hpp"
 #include "rayscan/jobs/solar.hpp"
 #include "rayscan/jobs/visibility.hpp"
 #include "rayscan/site/copc.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
+#include "rayscan/render/scene_json.hpp"
 
 #include "image_test_util.hpp"
 #include "small_copc.hpp"

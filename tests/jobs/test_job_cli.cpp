@@ -236,7 +236,7 @@ TEST(JobCli, IndexProgressIntoALogFileIsPlainLines) {
 // The other long jobs report the same way into a log file: `translate` LAS -> LAZ ("translate:
 // encode ... 100.0%"), `db import` (the temporary index's phases, then "insert"), `render` and
 // `visibility` (Progress: "progress: N/N ... done in"): plain lines, never a carriage return, the
-// last one at 100%.
+// last one at 100%; the surfel estimate of both counts the cloud's 110000 points ("surfels").
 TEST(JobCli, TranslateDbImportRenderAndVisibilityProgressIntoALogFileIsPlainLines) {
   const std::filesystem::path dir = temp_dir() / "jobs_log";
   std::filesystem::create_directories(dir);
@@ -260,9 +260,12 @@ TEST(JobCli, TranslateDbImportRenderAndVisibilityProgressIntoALogFileIsPlainLine
   EXPECT_NE(render.find("progress: "), std::string::npos) << render;
   EXPECT_NE(render.find(" 100.0%"), std::string::npos) << render;
   EXPECT_NE(render.find("done in"), std::string::npos) << render;
+  const std::string surfels = "progress: 110000/110000 points (surfels) 100.0%";
+  EXPECT_NE(render.find(surfels), std::string::npos) << render;
   const std::string vis = logged("visibility " + las + " --observer 636226.5,849106.5 --height 6 -o " + quoted(dir / "v.las"));
   EXPECT_NE(vis.find("progress: "), std::string::npos) << vis;
   EXPECT_NE(vis.find("done in"), std::string::npos) << vis;
+  EXPECT_NE(vis.find(surfels), std::string::npos) << vis;
   // -q: nothing on standard error.
   EXPECT_EQ(logged("translate -q " + las + " " + quoted(dir / "b.laz")), "");
   std::filesystem::remove_all(dir);

@@ -6,8 +6,12 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include <cmath>
+#include <cstdint>
+#include <mutex>
 #include <numbers>
 #include <random>
+#include <string>
+#include <vector>
 
 using namespace rayscan;
 
@@ -143,4 +147,43 @@ TEST(EstimateSurfels, ThicknessIsTheStepOfADepthQuantisedTerrace) {
   o.measure_thickness = false;
   const SurfelAttributes b = estimate_surfels(idx, pts, o);
   for (const float t : b.thickness) ASSERT_EQ(t, 0.0f);
+}
+
+// The estimate's progress (SurfelOptions::progress): every report is the phase "surfels" with the
+// total = the point count, none counts more than that, the last (from the calling thread, after
+// the work) is done == total, with and without the thickness pass; the attributes do not change.
+// Oracle: the cloud's point count (5000 points, several blocks of 1024 and of thickness patches).
+TEST(EstimateSurfels, ProgressEndsWithEveryPointDone) {
+  const auto pts = tilted_plane(Vec3(10.0, 20.0, 3.0), glm::normalize(Vec3(0.1, 0.2, 1.0)), 0.1, 100, 50, 0.001, 5);
+  ASSERT_EQ(pts.size(), 5000u);
+  const AnyIndex idx = make_index(pts, IndexOptions{});
+  for (const bool thickness : {true, false}) {
+    struct Report {
+      std::string phase;
+      std::uint64_t done, total;
+    };
+    std::mutex m;
+    std::vector<Report> reports;
+    SurfelOptions o;
+    o.measure_thickness = thickness;
+    o.progress = [&](const char* phase, std::uint64_t done, std::uint64_t total) {
+      const std::lock_guard lock(m);
+      reports.push_back({phase, done, total});
+    };
+    const SurfelAttributes a = estimate_surfels(idx, pts, o);
+    ASSERT_GE(reports.size(), 3u) << "a start, the blocks and the end";
+    for (const Report& r : reports) {
+      EXPECT_EQ(r.phase, "surfels");
+      EXPECT_EQ(r.total, pts.size());
+      EXPECT_LE(r.done, pts.size());
+    }
+    EXPECT_EQ(reports.front().done, 0u);
+    EXPECT_EQ(reports.back().done, pts.size()) << "thickness " << thickness;
+    SurfelOptions quiet = o;
+    quiet.progress = nullptr;
+    const SurfelAttributes b = estimate_surfels(idx, pts, quiet);
+    EXPECT_EQ(a.normals, b.normals);
+    EXPECT_EQ(a.radii, b.radii);
+    EXPECT_EQ(a.thickness, b.thickness);
+  }
 }

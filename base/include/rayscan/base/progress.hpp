@@ -33,6 +33,9 @@ class Progress {
   /// Record one finished item and `amount` units of work for the rate (a render: ray queries);
   /// redraws when due.
   void tile_done(std::uint64_t amount);
+  /// Record `items` finished items at once and `amount` units of work for the rate (a phase that
+  /// reports a running count of points, e.g. SurfelOptions::progress); redraws when due.
+  void add(std::uint64_t items, std::uint64_t amount);
   /// Clear the bar line (if drawn).
   void finish();
   /// True when file descriptor 2 is a terminal.

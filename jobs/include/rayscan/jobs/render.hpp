@@ -72,6 +72,15 @@ struct RenderJobOptions {
   /// point is a primitive hit) and the traced image: run_ortho_map makes its DSM there, bounded
   /// by the points (analysis::bound_dsm). Exceptions it throws propagate.
   std::function<void(const Site& site, double reach, const Framebuffer& image)> after_trace;
+  /// An index over `cloud` that the caller already holds (Site::over of `cloud`, or the index file
+  /// whose MappedIndex::to_point_cloud() `cloud` is): traced over instead of building
+  /// scene.index, which is then not used. Needs `cloud`, of the site's point count. Not owned
+  /// (a copy shares its storage).
+  const Site* site = nullptr;
+  /// With scene.primitive surfel: the discs of `cloud` (by original index) that the caller already
+  /// estimated, used as they are instead of scene_surfels' estimate; they must have one normal and
+  /// radius a point. Not owned; must outlive the call.
+  const SurfelAttributes* surfels = nullptr;
 };
 
 /// Output of run_render().

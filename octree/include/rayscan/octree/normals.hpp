@@ -14,7 +14,10 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstdint>
+#include <functional>
 #include <optional>
 #include <span>
 #include <utility>
@@ -52,7 +55,16 @@ struct SurfelOptions {
   NormalOrientation orientation;  ///< sign of the normals
   bool measure_thickness = true;  ///< false: leave SurfelAttributes::thickness zero (callers that
                                   ///< do not trace shadow or bounce rays, e.g. visibility)
+  /// Progress of the estimate, the phase callback of the index build and translate: phase
+  /// kSurfelPhase, `done` of `total` = the points (with measure_thickness each of the two passes
+  /// counts half of every point). Called from worker threads, possibly at once (the callee
+  /// synchronises) and not in order of `done`; the last call, from the calling thread once the
+  /// estimate is complete, has done == total. Empty = no reports. Never changes the result.
+  std::function<void(const char* phase, std::uint64_t done, std::uint64_t total)> progress;
 };
+
+/// The phase name of estimate_surfels' progress (SurfelOptions::progress).
+inline constexpr const char* kSurfelPhase = "surfels";
 
 /// Per-point surfel attributes, indexed by original point index.
 struct SurfelAttributes {
@@ -172,6 +184,26 @@ void measure_thickness(const I& index, std::span<const Vec3> positions, SurfelAt
   }
 }
 
+/// SurfelOptions::progress over the passes of an estimate of `points` points: add() counts the
+/// points a block finished (thread-safe), finish() reports done == total from the calling thread.
+struct SurfelProgressCount {
+  const SurfelOptions& o;
+  std::uint64_t points;
+  std::uint64_t passes;             ///< 2 with the thickness pass, else 1
+  std::atomic<std::uint64_t> units{0};  ///< points x passes done
+
+  SurfelProgressCount(const SurfelOptions& opt, std::uint64_t n)
+      : o(opt), points(n), passes(opt.measure_thickness ? 2 : 1) {
+    if (o.progress) o.progress(kSurfelPhase, 0, points);
+  }
+  void add(std::uint64_t finished) {
+    if (o.progress) o.progress(kSurfelPhase, (units.fetch_add(finished) + finished) / passes, points);
+  }
+  void finish() const {
+    if (o.progress) o.progress(kSurfelPhase, points, points);
+  }
+};
+
 /// The per-point step of estimate_surfels_over, whatever order the points are visited in: the
 /// attribute arrays (n points, by original id, initialised to +z normals and zero radii), the
 /// neighbour count k and the up axis, and estimate(), which fills point `id` at position `p`
@@ -218,9 +250,11 @@ SurfelAttributes estimate_surfels_over(const I& index, std::span<const Vec3> pos
   SurfelAttributes& out = est.out;
   const auto pos = index.positions();
   const IdView ids = index.ids();
+  detail::SurfelProgressCount progress(o, n);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const auto& range) {
     std::vector<Neighbor> nb;
     for (std::size_t s = range.begin(); s != range.end(); ++s) est.estimate(index, pos[s], ids[s], nb);
+    progress.add(range.size());
   });
   detail::finish_surfel_radii(out, o);
   // Thickness with the final radii (a second pass: the clamp needs every radius).
@@ -231,8 +265,10 @@ SurfelAttributes estimate_surfels_over(const I& index, std::span<const Vec3> pos
       for (std::size_t k = range.begin(); k != range.end(); ++k)
         detail::measure_thickness(index, positions, out, k * detail::kThicknessBlock,
                                   std::min(n, (k + 1) * detail::kThicknessBlock), gathered);
+      progress.add(std::min(n, range.end() * detail::kThicknessBlock) - range.begin() * detail::kThicknessBlock);
     });
   }
+  progress.finish();
   return std::move(out);
 }
 

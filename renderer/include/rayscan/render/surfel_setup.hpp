@@ -14,7 +14,9 @@ namespace rayscan::render {
 /// the camera centre; "up": along the scene's up). The same attributes for any storage of the same
 /// points (estimate_surfels_over). Throws std::invalid_argument (from estimate_surfels) for a cloud
 /// of fewer than 2 points, and for a COPC site in place (surfels read the file into memory).
-SurfelAttributes scene_surfels(const Scene& scene, const Site& site, const PointCloud& cloud);
+/// `progress`: the estimate's progress reports (SurfelOptions::progress), none when empty.
+SurfelAttributes scene_surfels(const Scene& scene, const Site& site, const PointCloud& cloud,
+                               decltype(SurfelOptions::progress) progress = {});
 
 /// Switch `settings` to Primitive::surfel over `attrs` (which must outlive the render). The
 /// integrator's sphere radius becomes the median disc radius (it only scales the ray offset).
