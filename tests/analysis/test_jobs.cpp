@@ -509,6 +509,63 @@ TEST(VisibilityJob, ViewshedMapAloneSkipsThePerPointLineOfSight) {
   fs::remove_all(dir);
 }
 
+// The viewshed map's DSM is traced over the job's own index and surfels: the job's log has one
+// index build and one surfel estimate (the DSM's render logs the surfels as the caller's), and the
+// map equals dsm_viewshed over the DSM that run_ortho_map renders on its own, building its index
+// and estimating its discs (what `render --ortho-map C --dsm` writes), bit for bit. Oracle: that
+// separate render; the log counts.
+TEST(VisibilityJob, ViewshedDsmReusesTheJobsIndexAndSurfels) {
+  PointCloud pc = plane_with_wall();
+  // A 1 m high block top from x = 1.6 to 2.4 (the wall's discs are edge-on to a top-down map).
+  for (int i = 16; i <= 24; ++i)
+    for (int j = 10; j <= 30; ++j) pc.positions.emplace_back(0.1 * i, 0.1 * j, 1.0);
+  VisibilityJobOptions o;
+  o.cloud = &pc;
+  Observer eye;
+  eye.position = Vec3(0.5, 2.0, 0.5);
+  eye.has_z = true;
+  o.observers = {eye};
+  o.cell = 0.2;
+  o.raster = std::filesystem::temp_directory_path() / ("rayscan_vis_dsm_" + std::to_string(::getpid()) + ".tif");
+  o.write_preview = false;
+  o.all_fields = false;
+  o.control.threads = 2;
+  std::vector<std::string> log;
+  o.control.log = [&](const std::string& line) { log.push_back(line); };
+  const VisibilityJobResult r = run_visibility(o);
+  std::filesystem::remove(o.raster);
+  ASSERT_TRUE(r.raster);
+  const auto lines = [&](const std::string& part) {
+    return std::count_if(log.begin(), log.end(), [&](const std::string& l) { return l.find(part) != std::string::npos; });
+  };
+  EXPECT_EQ(lines("built octree-adaptive index"), 1);
+  EXPECT_EQ(lines("PCA"), 1) << "one surfel estimate";
+  EXPECT_EQ(lines("DSM: surfels: the caller's"), 1);
+
+  OrthoMapJobOptions mo;
+  render::SceneParseOptions po;
+  po.camera_required = false;
+  po.cloud_required = false;
+  mo.render.scene =
+      render::parse_scene_json({{"primitive", "surfel"}, {"spp", 1}, {"material", {{"color", "elevation"}}}}, {}, po);
+  mo.render.cloud = &pc;
+  mo.render.write = false;
+  mo.render.control.threads = 2;
+  mo.ortho_map = 0.2;
+  const OrthoMapJobResult dsm = run_ortho_map(mo);
+  const Raster want = dsm_viewshed(dsm.dsm, r.observers, r.max_distance, 0.0, 1);
+  ASSERT_EQ(r.raster->values.size(), want.values.size());
+  std::size_t seen = 0, hidden = 0;
+  for (std::size_t i = 0; i < want.values.size(); ++i) {
+    const float a = r.raster->values[i], b = want.values[i];
+    EXPECT_TRUE(a == b || (std::isnan(a) && std::isnan(b))) << "cell " << i << ": " << a << " vs " << b;
+    seen += b == 1.0f;
+    hidden += b == 0.0f;
+  }
+  EXPECT_GT(seen, 0u);
+  EXPECT_GT(hidden, 0u) << "the wall hides some ground";
+}
+
 // Without a time the job names its three modes by their fields; the day's clause is its own parts
 // (from "," to ")"), which a front end without that option leaves out.
 TEST(SolarJob, NoTimeNamesPeriodInstantAndDay) {
