@@ -188,6 +188,12 @@ void check_raster_options(const std::filesystem::path& raster, std::optional<dou
   }
 }
 
+std::filesystem::path preview_path(const std::filesystem::path& raster, const std::filesystem::path& preview) {
+  if (raster.empty()) return {};
+  if (!preview.empty()) return preview;
+  return std::filesystem::path(raster).replace_extension(".png");
+}
+
 void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values) {
   for (ScalarField& f : cloud.scalars)
     if (f.name == name) {

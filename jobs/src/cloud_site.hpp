@@ -120,6 +120,11 @@ void check_output_folder(const char* field, const std::filesystem::path& path);
 void check_raster_options(const std::filesystem::path& raster, std::optional<double> cell,
                           const std::string& raster_value, const std::filesystem::path& preview);
 
+/// The PNG preview of the map `raster`: `preview` when given, else the raster's name with .png
+/// beside it (`maps/site.tif` -> `maps/site.png`); "" without a raster. The one rule for the
+/// checks before a job's work and the write after it, so that both name the same file.
+std::filesystem::path preview_path(const std::filesystem::path& raster, const std::filesystem::path& preview);
+
 /// Sets (or adds) the scalar field `name` of `cloud`.
 void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values);
 

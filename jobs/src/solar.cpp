@@ -274,6 +274,7 @@ struct SolarRun {
     std::vector<double> shadow;
   };
   std::vector<Frame> frames;
+  std::filesystem::path preview;  // the raster's PNG preview to write (detail::preview_path), "" for none
 
   explicit SolarRun(const SolarJobOptions& options) : o(options), ctl(options.control) {}
   SolarRun(const SolarRun&) = delete;
@@ -330,6 +331,9 @@ struct SolarRun {
     detail::check_raster_options(o.raster, o.cell, o.raster_value, o.preview);
     if (frames_mode && !o.raster_value.empty())
       throw OptionError({option("raster_value"), " does not apply to ", option("day"), " (its frames are shadows)"});
+    if (frames_mode && !o.preview.empty())
+      throw OptionError({option("preview"), " does not apply to ", option("day"),
+                         " (each frame's preview is the frame's name with .png)"});
     if (!frames_mode) value = o.raster_value.empty() ? (instant ? "in_shadow" : "global") : o.raster_value;
     static const char* period_values[] = {"global", "beam", "diffuse", "reflected", "sun_hours", "sky_view"};
     static const char* instant_values[] = {"in_shadow", "global", "beam", "diffuse"};
@@ -346,10 +350,13 @@ struct SolarRun {
     detail::check_output_folder("out", o.out);
     detail::check_output_folder("raster", o.raster);
     if (o.write_preview && !o.raster.empty()) {
-      detail::check_output_folder("preview", o.preview);
+      // Resolved here, the default beside the raster too, so that the path the write uses is
+      // the one checked before the trace.
+      if (!frames_mode) preview = detail::preview_path(o.raster, o.preview);
+      detail::check_output_folder("preview", preview);
       load_image_io();
     }
-    const std::filesystem::path outs[] = {o.out, o.raster, o.preview};
+    const std::filesystem::path outs[] = {o.out, o.raster, preview};
     const std::filesystem::path ins[] = {o.cloud_file, o.weather};
     require_outputs(outs, ins);
     // The weather file is read once the site is known (weather_steps), after the points: its
@@ -724,16 +731,16 @@ struct SolarRun {
     }
   }
 
-  /// A top-surface map of per-point `values` as a GeoTIFF at `path` and its PNG preview (beside
-  /// it, or `preview`): a shadow map (`shadow`) with a categorical legend, else the heat ramp
-  /// from 0 to the largest value (`hi` when given). The title is the band's description; the
-  /// band's unit is the one the point outputs give the result field `field` (result_field_unit),
-  /// so the map and the cloud cannot disagree. A map of an instant (`at`, UTC unix seconds) also
-  /// carries it as RAYSCAN_TIME, ISO 8601 with an offset. Throws std::logic_error for a `field`
-  /// that is no result field.
-  Raster write_map(const std::filesystem::path& path, std::filesystem::path preview, std::span<const double> values,
-                   const std::string& title, const std::string& field, bool shadow, std::optional<double> hi,
-                   std::optional<double> at) {
+  /// A top-surface map of per-point `values` as a GeoTIFF at `path` and its PNG preview at
+  /// `preview` (detail::preview_path; "" for none): a shadow map (`shadow`) with a categorical
+  /// legend, else the heat ramp from 0 to the largest value (`hi` when given). The title is the
+  /// band's description; the band's unit is the one the point outputs give the result field
+  /// `field` (result_field_unit), so the map and the cloud cannot disagree. A map of an instant
+  /// (`at`, UTC unix seconds) also carries it as RAYSCAN_TIME, ISO 8601 with an offset. Throws
+  /// std::logic_error for a `field` that is no result field.
+  Raster write_map(const std::filesystem::path& path, const std::filesystem::path& preview,
+                   std::span<const double> values, const std::string& title, const std::string& field, bool shadow,
+                   std::optional<double> hi, std::optional<double> at) {
     const std::optional<std::string> unit = detail::result_field_unit(field, cloud.crs_wkt);
     if (!unit) throw std::logic_error("solar: the map of '" + field + "' has no result field unit");
     const std::string& units = *unit;
@@ -745,8 +752,7 @@ struct SolarRun {
     go.unit = units;
     write_geotiff(path, map, go);
     r.written.push_back(path);
-    if (o.write_preview) {
-      if (preview.empty()) preview = std::filesystem::path(path).replace_extension(".png");
+    if (!preview.empty()) {
       PreviewStyle style;
       style.crs_wkt = go.crs_wkt;
       double top = 0.0;
@@ -783,7 +789,7 @@ struct SolarRun {
       title = value + " irradiation " + format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
               format_iso8601(r.end_unix - 1.0, offset).substr(0, 10) + " (kWh/m²)";
     }
-    r.raster = write_map(o.raster, o.preview, sf->values, title, field, instant && value == "in_shadow", hi,
+    r.raster = write_map(o.raster, preview, sf->values, title, field, instant && value == "in_shadow", hi,
                          instant ? std::optional<double>(r.start_unix) : std::nullopt);
   }
 
@@ -851,9 +857,11 @@ struct SolarRun {
       r.written.push_back(o.out);
     }
     if (frames_mode) {
-      for (const Frame& f : frames)
-        write_map(f.path, {}, f.shadow, "shadow at " + format_time_label(f.unix_seconds, r.utc_offset), "in_shadow",
+      for (const Frame& f : frames) {
+        const std::filesystem::path png = o.write_preview ? detail::preview_path(f.path, {}) : std::filesystem::path();
+        write_map(f.path, png, f.shadow, "shadow at " + format_time_label(f.unix_seconds, r.utc_offset), "in_shadow",
                   true, std::nullopt, f.unix_seconds);
+      }
       if (!frames.empty()) {
         std::snprintf(buf, sizeof buf, "%zu shadow frames %s ... %s (and .png)", frames.size(),
                       frames.front().path.string().c_str(), frames.back().path.filename().string().c_str());

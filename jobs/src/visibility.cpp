@@ -68,6 +68,7 @@ struct VisibilityRun {
   bool surfel = false;
   SurfelAttributes surfels;
   VisibilityResult& vis = r.line_of_sight;
+  std::filesystem::path preview;  // the PNG preview to write (detail::preview_path), "" for none
   std::chrono::steady_clock::time_point t0;
 
   explicit VisibilityRun(const VisibilityJobOptions& options) : o(options), ctl(options.control) {}
@@ -82,11 +83,14 @@ struct VisibilityRun {
     check_output_folder("out", o.out);
     check_output_folder("raster", o.raster);
     if (o.write_preview) {
-      check_output_folder("preview", o.preview);  // default: next to the raster
-      load_image_io();                            // the preview's writer, before the computation rather than after it
+      // Resolved here, the default beside the raster too, so that the path the write uses is
+      // the one checked before the computation.
+      preview = detail::preview_path(o.raster, o.preview);
+      check_output_folder("preview", preview);
+      load_image_io();  // the preview's writer, before the computation rather than after it
     }
     // The output policy up front: every output path must be absent or a regular file.
-    const std::filesystem::path outs[] = {o.out, o.raster, o.preview};
+    const std::filesystem::path outs[] = {o.out, o.raster, preview};
     const std::filesystem::path ins[] = {o.cloud_file, o.observers_file, o.camera_file};
     require_outputs(outs, ins);
     have_observers = !o.observers_file.empty() || !o.observers.empty();
@@ -435,18 +439,16 @@ struct VisibilityRun {
     std::snprintf(buf, sizeof buf, "raster %ux%u cells of %.6g, origin (%.6f, %.6f)", grid.cols, grid.rows, grid.cell,
                   grid.x0, grid.y_top);
     ctl.info(buf);
-    if (o.write_preview) {
-      std::filesystem::path pv = o.preview;
-      if (pv.empty()) pv = std::filesystem::path(o.raster).replace_extension(".png");
+    if (!preview.empty()) {
       PreviewStyle style;
       style.crs_wkt = cloud.crs_wkt;
       if (value == "viewshed" || value == "viewshed-points")  // binary: a categorical legend, not a ramp
         style.categories = {{1.0f, "visible", {1.0f, 0.8f, 0.1f}}, {0.0f, "not visible", {0.3f, 0.3f, 0.3f}}};
       if (have_observers && value != "sky" && value != "camera")
         for (const Observer& ob : observers) style.markers.push_back(ob.position);
-      const std::string legend = write_raster_preview(pv, *r.raster, rv.lo, rv.hi, rv.name, style);
+      const std::string legend = write_raster_preview(preview, *r.raster, rv.lo, rv.hi, rv.name, style);
       ctl.info("preview legend: " + legend);
-      r.written.push_back(pv);
+      r.written.push_back(preview);
     }
   }
 

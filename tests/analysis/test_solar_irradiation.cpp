@@ -383,6 +383,8 @@ TEST(SolarCli, BadInputIsOneLineAndExitCodeTwo) {
       {"--start 2026-01-01 --end 2026-01-31 --weather " + bad_epw, "bad.epw: line 1"},
       {"--start 2026-01-01 --end 2026-01-31 --linke 1,2,3", "--linke"},
       {"--at 2026-06-21T12:00Z --raster " + dir + "/x.png --cell 3", "--raster"},
+      {"--day 2026-06-21 --raster " + dir + "/f.tif --cell 3 --preview " + dir + "/f.png",
+       "--preview does not apply to --day"},
       {"--at 2026-06-21T12:00Z --cache 12Q", "--cache: "},
   };
   for (const Case& c : cases) {
@@ -400,6 +402,37 @@ TEST(SolarCli, BadInputIsOneLineAndExitCodeTwo) {
     EXPECT_NE(text.find(c.expect), std::string::npos) << c.args << ": " << text;
     EXPECT_FALSE(std::filesystem::exists(out)) << c.args;
   }
+}
+
+// The preview's default path (the raster's name with .png) is checked with the other outputs
+// before any work: a folder there is refused before the points are traced, so the run logs one
+// line, the error, and writes no GeoTIFF. --no-preview, which writes no preview and so does not
+// refuse the folder, traces and writes the map.
+TEST(SolarCli, DefaultPreviewPathIsCheckedBeforeTheTrace) {
+  const std::filesystem::path dir = std::filesystem::path(testing::TempDir()) / "solar_default_preview";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "shadow.png");  // a folder where the default preview goes
+  const std::filesystem::path cloud = dir / "ground.ply", tif = dir / "shadow.tif", png = dir / "shadow.png";
+  PointCloud ground;
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) ground.positions.emplace_back(i, j, 0.0);
+  io::write_point_cloud(cloud, ground);
+  const std::string base = std::string(RAYSCAN_BIN) + " solar '" + cloud.string() +
+                           "' --lat 44 --lon -123 --at 2026-06-21T13:00-07:00 --cell 3 --raster '" + tif.string() +
+                           "'";
+  const auto r = rayscan::test::run_command(base);
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--preview '" + png.string() + "': is a folder, expected a file name"), std::string::npos)
+      << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_EQ(r.out.find("traced"), std::string::npos) << r.out;
+  EXPECT_FALSE(std::filesystem::exists(tif));
+  const auto ok = rayscan::test::run_command(base + " --no-preview");
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  EXPECT_NE(ok.out.find("traced 400 points"), std::string::npos) << ok.out;
+  EXPECT_TRUE(std::filesystem::is_regular_file(tif));
+  EXPECT_TRUE(std::filesystem::is_directory(png));
+  std::filesystem::remove_all(dir);
 }
 
 // A day of shadows: a frame for every instant with the sun up (numbered by the clock), and per

@@ -23,6 +23,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -684,6 +685,34 @@ TEST_F(VisibilityCli, OutputFoldersAreCheckedBeforeComputing) {
                "--preview '" + (missing / "p.png").string() + "': folder");
   EXPECT_FALSE(fs::exists(missing));
   EXPECT_FALSE(fs::exists(tmpdir() / "m2.tif"));
+}
+
+// The preview's default path (the raster's name with .png) is checked with the other outputs
+// before any work: a folder there is refused before the DSM and the viewshed are computed, so the
+// run logs none of their phases and writes no GeoTIFF. The same path given as --preview, and
+// --no-preview, which writes no preview and so does not refuse the folder, frame it.
+TEST_F(VisibilityCli, DefaultPreviewPathIsCheckedBeforeComputing) {
+  const fs::path dir = tmpdir() / "default_preview";
+  fs::remove_all(dir);
+  fs::create_directories(dir / "viewshed.png");  // a folder where the default preview goes
+  const fs::path tif = dir / "viewshed.tif", png = dir / "viewshed.png";
+  const std::string base =
+      bin() + " visibility " + scene().string() + " --observer 0,0,1.7 --cell 0.5 --raster " + tif.string();
+  for (const std::string& extra : {std::string(), " --preview " + png.string()}) {
+    const RunResult r = run_cmd(base + extra);
+    EXPECT_EQ(r.code, 2) << extra << "\n" << r.out;
+    EXPECT_NE(r.out.find("--preview '" + png.string() + "': is a folder, expected a file name"), std::string::npos)
+        << extra << "\n" << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << extra << "\n" << r.out;
+    EXPECT_EQ(r.out.find("DSM"), std::string::npos) << extra << "\n" << r.out;
+    EXPECT_EQ(r.out.find("progress:"), std::string::npos) << extra << "\n" << r.out;
+    EXPECT_FALSE(fs::exists(tif)) << extra;
+  }
+  const RunResult ok = run_cmd(base + " --no-preview -q");
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  EXPECT_TRUE(fs::is_regular_file(tif));
+  EXPECT_TRUE(fs::is_directory(png));
+  fs::remove_all(dir);
 }
 
 TEST_F(VisibilityCli, FromCameraMarksThePointsItSees) {
