@@ -12,7 +12,9 @@
 
 #include <cerrno>
 #include <cstring>
+#include <mutex>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace rayscan {
@@ -33,7 +35,102 @@ void keep_mode(const std::filesystem::path& tmp, const std::filesystem::path& pa
     refuse_output(path, std::string("cannot give the new file the old one's mode: ") + std::strerror(errno));
 }
 
+/// The registered temporaries (TemporaryOf): few at a time (a command's outputs and their
+/// intermediate files), so a vector searched under a mutex; writer threads may look up at once.
+struct Registered {
+  std::uint64_t id;
+  std::filesystem::path temp, output;
+};
+struct Registry {
+  std::mutex m;
+  std::vector<Registered> entries;
+  std::uint64_t next_id = 1;
+};
+Registry& registry() {
+  static Registry* r = new Registry;  // never destroyed: registrations may outlive static destructors
+  return *r;
+}
+
+/// The entry whose temporary is `file` or the folder `file` lies in, or nullptr (registry locked).
+const Registered* registered(const Registry& r, const std::filesystem::path& file) {
+  for (const Registered& e : r.entries)
+    if (e.temp == file) return &e;
+  const std::filesystem::path folder = file.parent_path();
+  if (folder.empty() || folder == file) return nullptr;
+  for (const Registered& e : r.entries)
+    if (e.temp == folder) return &e;
+  return nullptr;
+}
+
+/// `p`'s folder, absolute and normalised, for comparing where two files lie.
+std::filesystem::path folder_of(const std::filesystem::path& p) {
+  std::error_code ec;
+  const std::filesystem::path a = std::filesystem::absolute(p, ec);
+  return (ec ? p : a).lexically_normal().parent_path();
+}
+
 }  // namespace
+
+TemporaryOf::TemporaryOf(const std::filesystem::path& temp, const std::filesystem::path& output) {
+  if (temp.empty() || output.empty()) return;
+  Registry& r = registry();
+  const std::lock_guard<std::mutex> lock(r.m);
+  id_ = r.next_id++;
+  r.entries.push_back({id_, temp, output});
+}
+
+TemporaryOf::TemporaryOf(TemporaryOf&& other) noexcept : id_(std::exchange(other.id_, 0)) {}
+
+TemporaryOf& TemporaryOf::operator=(TemporaryOf&& other) noexcept {
+  if (this != &other) {
+    release();
+    id_ = std::exchange(other.id_, 0);
+  }
+  return *this;
+}
+
+TemporaryOf::~TemporaryOf() { release(); }
+
+void TemporaryOf::release() noexcept {
+  if (id_ == 0) return;
+  Registry& r = registry();
+  const std::lock_guard<std::mutex> lock(r.m);
+  std::erase_if(r.entries, [&](const Registered& e) { return e.id == id_; });
+  id_ = 0;
+}
+
+std::filesystem::path output_of(const std::filesystem::path& file) {
+  Registry& r = registry();
+  const std::lock_guard<std::mutex> lock(r.m);
+  std::filesystem::path p = file;
+  // Bounded: a chain is two or three links long; a cycle (never registered) cannot hang.
+  for (std::size_t hop = 0; hop <= r.entries.size(); ++hop) {
+    const Registered* e = registered(r, p);
+    if (e == nullptr) break;
+    p = e->output;
+  }
+  return p;
+}
+
+OutputFileError output_error(const std::filesystem::path& file, const std::string& what, int err) {
+  const std::filesystem::path out = output_of(file);
+  std::string message = one_line(out.string()) + ": " + what;
+  if (out != file) {
+    // Where the bytes went: the file's folder, or for a file in a registered temporary folder
+    // (sort runs) the folder that one lies in.
+    std::filesystem::path written = file;
+    {
+      Registry& r = registry();
+      const std::lock_guard<std::mutex> lock(r.m);
+      const Registered* e = registered(r, file);
+      if (e != nullptr && e->temp != file) written = e->temp;
+    }
+    const std::filesystem::path where = folder_of(written);
+    if (where != folder_of(out)) message += " (temporary file in '" + one_line(where.string()) + "')";
+  }
+  if (err != 0) message += std::string(": ") + std::strerror(err);
+  return OutputFileError(message);
+}
 
 void require_replaceable_output(const std::filesystem::path& path) {
   struct stat st {};
@@ -130,6 +227,7 @@ AtomicFile::AtomicFile(std::filesystem::path path) : path_(std::move(path)) {
   std::string name = ".";  // built by append: GCC 12 warns falsely (-Wrestrict) on operator+
   name.append(path_.filename().string()).append(".tmp.").append(std::to_string(::getpid()));
   tmp_ = path_.parent_path() / name;
+  name_ = TemporaryOf(tmp_, path_);
   mark_ = RemoveOnInterrupt(tmp_);  // before the file exists: no moment uncovered
   ::unlink(tmp_.c_str());  // a stale temporary of this pid (or a planted link): removed, not followed
   const int fd = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);

@@ -119,6 +119,7 @@ TranslateJobResult write_through_las(const TranslateJobOptions& options, const P
       std::filesystem::remove(p, ec);
     }
   } guard{temp};
+  const TemporaryOf named(temp, options.out);  // its write errors name the output
   try {
     io::write_las(temp, cloud, grid);
   } catch (const std::invalid_argument& e) {

@@ -2,6 +2,7 @@
 // from an index file (built on the fly from the clouds when none is given) or, for scalar fields
 // the index does not store, from the clouds read whole.
 #include "rayscan/sql/site_stream.hpp"
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/site/index_file.hpp"
@@ -176,7 +177,8 @@ class MemorySite final : public SiteStream {
 
 }  // namespace
 
-std::unique_ptr<SiteStream> open_site(const std::vector<fs::path>& paths, const ImportOptions& options) {
+std::unique_ptr<SiteStream> open_site(const std::vector<fs::path>& paths, const ImportOptions& options,
+                                      const fs::path& output) {
   if (paths.empty()) throw std::invalid_argument("no input cloud given");
   if (options.chunk_size == 0) throw OptionError({option("chunk_size"), " must be at least 1 point"});
   check_attribute_names(options.attributes, options.pcpatch);  // (both paths below: no column twice)
@@ -226,6 +228,7 @@ std::unique_ptr<SiteStream> open_site(const std::vector<fs::path>& paths, const 
       if (std::strcmp(phase, "spacing") != 0 && std::strcmp(phase, "done") != 0) progress(phase, done, total);
     };
   std::optional<io::MappedIndex> index;
+  const TemporaryOf named(temp, output);  // a full disk names the import's output
   try {
     (void)io::build_index_file(paths, temp, build);
     io::IndexOpenOptions open;

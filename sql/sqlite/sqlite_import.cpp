@@ -50,7 +50,7 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
   require_replaceable_output(out);  // before the (long) sort: a bad output path fails first
   ImportOptions opt = options;
   if (opt.temp_dir.empty()) opt.temp_dir = out.has_parent_path() ? out.parent_path() : std::filesystem::path(".");
-  const std::unique_ptr<SiteStream> site = open_site(paths, opt);
+  const std::unique_ptr<SiteStream> site = open_site(paths, opt, out);
   const std::vector<ColumnInfo>& cols = site->columns();
 
   AtomicFile file(out);

@@ -1,9 +1,12 @@
 // require_outputs (atomic_file.hpp): the checks every job runs on its outputs before its work, here
-// the one between outputs: two outputs of one command at one path, however spelled, are refused.
+// the one between outputs: two outputs of one command at one path, however spelled, are refused;
+// and the errors about temporaries, which name the output they are written for.
 #include "rayscan/base/atomic_file.hpp"
 
 #include <gtest/gtest.h>
 
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <unistd.h>
@@ -29,5 +32,51 @@ TEST(RequireOutputs, TwoOutputsAtOnePathAreRefusedHoweverSpelled) {
   fs::create_symlink(a, dir / "link.tif");
   EXPECT_NE(refused({a, dir / "link.tif"}), "");               // a link to it
   EXPECT_EQ(refused({a, dir / "b.tif", fs::path()}), "");      // distinct outputs; empty ones skipped
+  fs::remove_all(dir);
+}
+
+// Errors about a temporary name the output the user asked for (output_of, output_error): an
+// AtomicFile's temporary, an intermediate file registered for it, a file in a registered folder,
+// and a chain (an import's temporary index, whose own AtomicFile writes a temporary of it).
+TEST(OutputError, TemporariesAreNamedByTheirOutput) {
+  const fs::path dir = fs::temp_directory_path() / ("rayscan_output_error_" + std::to_string(::getpid()));
+  fs::create_directories(dir / "elsewhere");
+  const fs::path out = dir / "x.laz";
+  const std::string enospc = std::strerror(ENOSPC);
+  {
+    const rayscan::AtomicFile file(out);
+    EXPECT_NE(file.temp(), out);
+    EXPECT_EQ(rayscan::output_of(file.temp()), out);
+    EXPECT_EQ(rayscan::output_error(file.temp(), "write failed at byte 4096", ENOSPC).what(),
+              out.string() + ": write failed at byte 4096: " + enospc);
+  }
+  const fs::path plain = dir / ".x.laz.las.tmp.1";
+  EXPECT_EQ(rayscan::output_of(plain), plain);  // not registered: named as it is
+  EXPECT_EQ(rayscan::output_error(plain, "write failed", 0).what(), plain.string() + ": write failed");
+  rayscan::TemporaryOf kept;
+  {
+    rayscan::TemporaryOf named(plain, out);
+    EXPECT_EQ(rayscan::output_of(plain), out);
+    const rayscan::AtomicFile inner(plain);  // (write_las's own temporary of the intermediate file)
+    EXPECT_EQ(rayscan::output_of(inner.temp()), out);
+    EXPECT_EQ(rayscan::output_error(inner.temp(), "write failed", EFBIG).what(),
+              out.string() + ": write failed: " + std::strerror(EFBIG));
+    kept = std::move(named);
+  }  // `named`, moved from, is gone: the registration went with the move
+  EXPECT_EQ(rayscan::output_of(plain), out);
+  kept = rayscan::TemporaryOf();
+  EXPECT_EQ(rayscan::output_of(plain), plain);  // released with its owner
+  {
+    const fs::path runs = dir / ".x.rsi.runs.1";
+    const rayscan::TemporaryOf named(runs, dir / "x.rsi");
+    EXPECT_EQ(rayscan::output_error(runs / "run3", "write failed at byte 0", ENOSPC).what(),
+              (dir / "x.rsi").string() + ": write failed at byte 0: " + enospc);
+    // A temporary in another folder than its output: that folder is the full one, and said so.
+    const fs::path far = dir / "elsewhere" / ".x.rsi.runs.1";
+    const rayscan::TemporaryOf far_named(far, dir / "x.rsi");
+    EXPECT_EQ(rayscan::output_error(far / "run0", "write failed", ENOSPC).what(),
+              (dir / "x.rsi").string() + ": write failed (temporary file in '" + (dir / "elsewhere").string() +
+                  "'): " + enospc);
+  }
   fs::remove_all(dir);
 }

@@ -16,9 +16,11 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace rayscan::test {
@@ -98,7 +100,7 @@ TEST(OutputsCli, FullFileSystemFailsCleanlyAndKeepsTheOldOutput) {
   }
   {
     const CommandResult r = run_command(kBin + " visibility " + quoted(cloud()) +
-                                        " -q --observers 636500,849200 --cell 5 --raster " + quoted(full.dir / "v.tif"));
+                                        " -q --observer 636500,849200,500 --cell 5 --raster " + quoted(full.dir / "v.tif"));
     EXPECT_EQ(r.code, 2) << r.out;
     EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
     EXPECT_EQ(file_bytes(full.dir / "v.tif"), "OLD v.tif");
@@ -108,6 +110,35 @@ TEST(OutputsCli, FullFileSystemFailsCleanlyAndKeepsTheOldOutput) {
                         "write");
   EXPECT_EQ(file_bytes(full.dir / "t.laz"), "OLD t.laz");
   EXPECT_EQ(temporaries(full.dir), std::vector<std::string>{});
+}
+
+// Every writer of point outputs on a full file system names the output given and the cause, never
+// the hidden file it was writing when the disk filled (an output's temporary, the uncompressed LAS
+// of a LAZ output, COPC records, an import's temporary index): one line, exit 2, old output kept.
+TEST(OutputsCli, FullFileSystemErrorsNameTheOutputNotATemporary) {
+  const Tmpfs full(temp_dir() / "full_names", "size=100k");
+  if (!full.mounted) GTEST_SKIP() << "needs root to mount a tmpfs (full file system); skipped";
+  const std::string in = quoted(cloud());
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"x.rsi", kBin + " index -q " + in + " -o "},
+      {"x.las", kBin + " translate -q " + in + " "},
+      {"x.laz", kBin + " translate -q " + in + " "},
+      {"x.copc.laz", kBin + " translate -q " + in + " "},
+      {"v.laz", kBin + " visibility -q " + in + " --observer 636500,849200,500 --out "},
+      {"x.sqlite", kBin + " db import -q " + in + " -o "},
+  };
+  for (const auto& [name, command] : cases) {
+    SCOPED_TRACE(name);
+    const fs::path out = full.dir / name;
+    std::ofstream(out) << "OLD";
+    const CommandResult r = run_command(command + quoted(out));
+    expect_one_line_error(r, ": " + out.string() + ": ", std::strerror(ENOSPC));
+    EXPECT_EQ(r.out.find(".tmp."), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("/."), std::string::npos) << r.out;  // no hidden file named
+    EXPECT_EQ(file_bytes(out), "OLD");
+    fs::remove(out);
+    EXPECT_TRUE(fs::is_empty(full.dir));
+  }
 }
 
 // Standard output on a device that refuses every write (/dev/full: ENOSPC, as a full disk under

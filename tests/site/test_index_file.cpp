@@ -1709,7 +1709,10 @@ void expect_clean_disk_full_failure(const fs::path& dir, const fs::path& las, co
   EXPECT_EQ(WEXITSTATUS(rc), 2) << text(log);
   const std::string e = text(log);
   EXPECT_EQ(std::count(e.begin(), e.end(), '\n'), 1) << e;
-  EXPECT_NE(e.find("site.rsi"), std::string::npos) << e;
+  // Named as the output given, never as the hidden temporary output or sort run written.
+  EXPECT_EQ(e.rfind("rayscan index: " + (dir / "site.rsi").string() + ": ", 0), 0u) << e;
+  EXPECT_EQ(e.find(".tmp."), std::string::npos) << e;
+  EXPECT_EQ(e.find(".runs."), std::string::npos) << e;
   EXPECT_NE(e.find(errno_text), std::string::npos) << e;
   EXPECT_EQ(text(dir / "site.rsi"), "old");
   std::vector<std::string> left;
@@ -1751,7 +1754,9 @@ TEST(IndexFileCli, FullDiskInEveryStageLeavesNoPartialOutput) {
       std::printf("note: tmpfs mount not permitted here; the file-size-limit cases above stand\n");
     } else {
       EXPECT_EQ(WEXITSTATUS(rc), 2) << text(log);
+      EXPECT_NE(text(log).find("rayscan index: site.rsi: "), std::string::npos) << text(log);
       EXPECT_NE(text(log).find(std::strerror(ENOSPC)), std::string::npos) << text(log);
+      EXPECT_EQ(text(log).find(".tmp."), std::string::npos) << text(log);
       EXPECT_NE(text(log).find("entries=1 content=old"), std::string::npos) << "leftovers or a changed output: " << text(log);
     }
     fs::remove_all(mnt);

@@ -138,6 +138,7 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
       std::filesystem::remove(p, ec);
     }
   } guard{plain};
+  const TemporaryOf named(plain, path);  // its write errors name `path`
   try {
     write_las_records(plain, cloud, options, true);
   } catch (const std::invalid_argument& e) {  // name the file the caller asked for

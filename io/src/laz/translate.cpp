@@ -261,11 +261,25 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
   store_le<std::uint32_t>(head, 96, static_cast<std::uint32_t>(head.size()));
   store_le<std::uint32_t>(head, 100, n_vlr);
   head[104] = static_cast<std::uint8_t>(to_laz ? (h.pdrf | 0x80) : h.pdrf);
+  // Without bit 1 no waveform record is copied (the bytes after the point records are dropped),
+  // so a start the input holds would address nothing, or bytes past the output's end: 0, as LAS
+  // 1.3 R11 (public header block) asks of a file that contains no waveform records.
+  if (h.version_minor >= 3 && !waveform_internal) store_le<std::uint64_t>(head, 227, 0);
 
   AtomicFile atomic(out_path);
   std::ofstream f(atomic.temp(), std::ios::binary | std::ios::trunc);
-  if (!f) throw std::runtime_error(out_path.string() + ": cannot create " + atomic.temp().string());
-  f.write(reinterpret_cast<const char*>(head.data()), static_cast<std::streamsize>(head.size()));
+  if (!f) throw output_error(atomic.temp(), "cannot create output file", errno);
+  // Every write and seek checked where it happens, so that the error's cause is that call's errno
+  // (a full disk) rather than whatever errno holds by the close.
+  const auto put = [&](const void* p, std::uint64_t n) {
+    f.write(static_cast<const char*>(p), static_cast<std::streamsize>(n));
+    if (!f) throw output_error(atomic.temp(), "write failed", errno);
+  };
+  const auto seek = [&](std::uint64_t at) {
+    f.seekp(static_cast<std::streamoff>(at));
+    if (!f) throw output_error(atomic.temp(), "write failed", errno);
+  };
+  put(head.data(), head.size());
   TranslateResult res;
   res.points = h.count;
   res.compressed = to_laz;
@@ -279,18 +293,18 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
     const std::size_t batch = std::max<std::size_t>(1, (8u << 20) / rec);
     for (std::uint64_t i = 0; i < h.count; i += batch) {
       const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(batch, h.count - i));
-      f.write(reinterpret_cast<const char*>(src.next(n)), static_cast<std::streamsize>(n * rec));
+      put(src.next(n), n * rec);
       report(i, i + n);
     }
     written += h.count * rec;
     if (waveform_after_points) {  // the bytes from the end of the records to the EVLRs or the end
       waveform_out = written + (h.waveform_start - points_end);
-      f.write(reinterpret_cast<const char*>(d + points_end), static_cast<std::streamsize>(h.data_end - points_end));
+      put(d + points_end, h.data_end - points_end);
       written += h.data_end - points_end;
     }
   } else {
     std::vector<std::uint8_t> table_ptr(8, 0);
-    f.write(reinterpret_cast<const char*>(table_ptr.data()), 8);
+    put(table_ptr.data(), 8);
     written += 8;
     std::vector<std::uint32_t> sizes;
     std::vector<std::uint8_t> chunk;
@@ -301,20 +315,20 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
       chunk.clear();
       if (layered) layered->encode(src.next(n), n, rec, chunk);
       else encode_chunk_v2(src.next(n), n, rec, h.pdrf, extra, chunk);
-      f.write(reinterpret_cast<const char*>(chunk.data()), static_cast<std::streamsize>(chunk.size()));
+      put(chunk.data(), chunk.size());
       sizes.push_back(static_cast<std::uint32_t>(chunk.size()));
       written += chunk.size();
       report(i, i + n);
     }
     const std::uint64_t table_at = written;
     const std::vector<std::uint8_t> table = laz::chunk_table_bytes({}, sizes);
-    f.write(reinterpret_cast<const char*>(table.data()), static_cast<std::streamsize>(table.size()));
+    put(table.data(), table.size());
     written += table.size();
     res.chunks = sizes.size();
-    f.seekp(static_cast<std::streamoff>(head.size()));
+    seek(head.size());
     const auto t = static_cast<std::int64_t>(table_at);
-    f.write(reinterpret_cast<const char*>(&t), 8);
-    f.seekp(static_cast<std::streamoff>(written));
+    put(&t, 8);
+    seek(written);
   }
   // EVLRs (LAS 1.4): copied after the point data, COPC ones dropped; the header start updated.
   if (h.version_minor >= 4) {
@@ -327,23 +341,23 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
       const std::uint64_t len = load_le<std::uint64_t>(d + ep + 20);
       if (user != "copc") {
         if (waveform_internal && ep == h.waveform_start) waveform_out = written;
-        f.write(reinterpret_cast<const char*>(d + ep), static_cast<std::streamsize>(60 + len));
+        put(d + ep, 60 + len);
         written += 60 + len;
         ++n_evlr;
       }
       ep += 60 + len;
     }
-    f.seekp(235);
+    seek(235);
     const std::uint64_t start = n_evlr > 0 ? evlr_start : 0;
-    f.write(reinterpret_cast<const char*>(&start), 8);
-    f.write(reinterpret_cast<const char*>(&n_evlr), 4);
+    put(&start, 8);
+    put(&n_evlr, 4);
   }
   if (waveform_internal) {
-    f.seekp(227);
-    f.write(reinterpret_cast<const char*>(&waveform_out), 8);
+    seek(227);
+    put(&waveform_out, 8);
   }
   f.close();
-  if (!f) throw std::runtime_error(out_path.string() + ": write failed");
+  if (!f) throw output_error(atomic.temp(), "write failed", errno);
   atomic.commit();
   res.in_bytes = map.bytes().size();
   res.out_bytes = written;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "readers.hpp"
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/interrupt.hpp"
 #include "rayscan/octree/geometry.hpp"
 #include "rayscan/site/copc_writer.hpp"
@@ -27,10 +28,11 @@ struct CarriedVlr {
 /// The mapped file the records are read from: the input itself (an uncompressed LAS of PDRF
 /// 6-8), or a temporary file of converted records, removed when this is destroyed (and by the
 /// interrupt handler should a signal end the program: `mark`, set with `temp`, before the file
-/// is created).
+/// is created); its errors name the COPC output (`named`).
 struct RecordFile {
   std::unique_ptr<detail::MappedFile> map;
   std::filesystem::path temp;  ///< removed on destruction when not empty
+  TemporaryOf named;           ///< temp registered as the output's
   RemoveOnInterrupt mark;      ///< temp's mark
   RecordFile() = default;
   RecordFile(const RecordFile&) = delete;
@@ -72,8 +74,9 @@ struct Records {
 /// other formats (through write_las) are written to a temporary uncompressed file in
 /// `options.temp_dir` first. Throws CopcMemoryError when the build's 12 bytes per point exceed
 /// `memory_bytes` (checked from the header before the points are read), FormatError,
-/// std::invalid_argument as write_copc().
-Records read_records(const std::filesystem::path& in, const CopcWriteOptions& options);
+/// std::invalid_argument as write_copc(); a failed write of the temporary file is an
+/// OutputFileError naming `out`, the COPC output it is written for.
+Records read_records(const std::filesystem::path& in, const std::filesystem::path& out, const CopcWriteOptions& options);
 
 /// The COPC root cube (COPC 1.0 "Info VLR": center and halfsize) in file units.
 struct Cube {

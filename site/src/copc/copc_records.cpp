@@ -106,9 +106,10 @@ std::filesystem::path temp_path(const CopcWriteOptions& opt, const std::string& 
 }
 
 /// The records of the LAS/LAZ file `path`; `name` is the input as the user named it; `file`
-/// holds `path`'s mapping (and, for a converted input, `path` as a temporary to remove).
+/// holds `path`'s mapping (and, for a converted input, `path` as a temporary to remove);
+/// `output` is the COPC output, which the errors of a temporary records file name.
 Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::filesystem::path& path,
-                        const std::string& name, const CopcWriteOptions& opt) {
+                        const std::string& name, const CopcWriteOptions& opt, const std::filesystem::path& output) {
   const detail::MappedFile& map = *file->map;
   const detail::Input in{map.bytes(), name, {}};
   const detail::LasHeader h = detail::parse_las_header(in);
@@ -159,6 +160,7 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
     // a temporary file of output records, then mapped.
     auto out = std::make_shared<RecordFile>();
     out->temp = temp_path(opt, name, "records");
+    out->named = TemporaryOf(out->temp, output);
     out->mark = RemoveOnInterrupt(out->temp);
     {
       detail::AtomicWriter w(out->temp, true);
@@ -248,12 +250,12 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
 
 }  // namespace
 
-Records read_records(const std::filesystem::path& in, const CopcWriteOptions& opt) {
+Records read_records(const std::filesystem::path& in, const std::filesystem::path& out, const CopcWriteOptions& opt) {
   const std::uint64_t in_bytes = std::filesystem::file_size(in);
   auto file = std::make_shared<RecordFile>();
   if (format_from_extension(in) == Format::las) {
     file->map = std::make_unique<detail::MappedFile>(in);
-    Records r = read_las_family(file, in, in.string(), opt);
+    Records r = read_las_family(file, in, in.string(), opt, out);
     r.in_bytes = in_bytes;
     return r;
   }
@@ -264,10 +266,11 @@ Records read_records(const std::filesystem::path& in, const CopcWriteOptions& op
   if (cloud.size() == 0) throw std::invalid_argument(in.string() + ": no points to write as COPC");
   detail::require_readable_crs(in.string(), cloud.crs_wkt);  // named as the input, not the intermediate
   file->temp = temp_path(opt, in.string(), "input.las");
+  file->named = TemporaryOf(file->temp, out);
   file->mark = RemoveOnInterrupt(file->temp);
   write_las(file->temp, cloud);
   file->map = std::make_unique<detail::MappedFile>(file->temp);
-  Records r = read_las_family(file, file->temp, in.string(), opt);
+  Records r = read_las_family(file, file->temp, in.string(), opt, out);
   r.in_bytes = in_bytes;
   r.creation_day = r.creation_year = 0;  // write_las's date is today's: not a property of the input
   r.notes.push_back("converted from " + in.extension().string() + " through LAS point data record format " +

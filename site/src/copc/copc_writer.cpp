@@ -133,7 +133,7 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
                            const CopcWriteOptions& options) {
   CopcWriteOptions opt = options;
   if (opt.temp_dir.empty()) opt.temp_dir = out.has_parent_path() ? out.parent_path() : std::filesystem::path(".");
-  const copc::Records r = copc::read_records(in, opt);
+  const copc::Records r = copc::read_records(in, out, opt);
   const copc::Tree t = copc::build_tree(r, opt);
   const copc::RecordStats& st = t.stats;
   const std::size_t rec = r.record_length;
@@ -160,9 +160,12 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
 
   AtomicFile atomic(out);
   std::ofstream f(atomic.temp(), std::ios::binary | std::ios::trunc);
-  if (!f) throw std::runtime_error(out.string() + ": cannot create " + atomic.temp().string());
-  const auto write = [&f](const void* p, std::size_t n) {
+  if (!f) throw output_error(atomic.temp(), "cannot create output file", errno);
+  // Every write checked where it happens, so that the error's cause is that write's errno (a full
+  // disk) rather than whatever errno holds by the close.
+  const auto write = [&](const void* p, std::size_t n) {
     f.write(static_cast<const char*>(p), static_cast<std::streamsize>(n));
+    if (!f) throw output_error(atomic.temp(), "write failed", errno);
   };
   {
     const std::vector<std::uint8_t> zeros(point_offset + 8, 0);  // header, VLRs, chunk table offset
@@ -317,7 +320,7 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
   const auto table_ptr = static_cast<std::int64_t>(table_at);
   write(&table_ptr, 8);
   f.close();
-  if (!f) throw std::runtime_error(out.string() + ": write failed");
+  if (!f) throw output_error(atomic.temp(), "write failed", errno);
   atomic.commit();
 
   CopcWriteResult res;

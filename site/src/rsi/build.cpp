@@ -179,7 +179,7 @@ void IndexBuild::plan_runs() {
 
 void IndexBuild::create_output() {
   out.emplace(output);
-  runs_dir.emplace(runs_folder(output, opt));
+  runs_dir.emplace(runs_folder(output, opt), output);
 }
 
 void IndexBuild::read_pass() {

@@ -6,6 +6,7 @@
 
 #include "bytes.hpp"
 #include "format.hpp"
+#include "rayscan/base/atomic_file.hpp"
 
 #include <fcntl.h>
 #include <sys/mman.h>
@@ -31,10 +32,10 @@ using detail::HugeArray;
 using detail::kDirectAlign;
 using detail::round_up_direct;
 
-/// Throws std::runtime_error "<p>: <what>: <errno text>".
-[[noreturn]] inline void io_fail(const fs::path& p, const std::string& what) {
-  throw std::runtime_error(p.string() + ": " + what + ": " + std::strerror(errno));
-}
+/// Throws OutputFileError "<output>: <what>: <errno text>", the output being the file the user
+/// asked for that `p` is written for (output_of: the build's temporary output and sort runs are
+/// hidden files that mean nothing to the user), else `p` itself.
+[[noreturn]] inline void io_fail(const fs::path& p, const std::string& what) { throw output_error(p, what, errno); }
 
 /// An owned file descriptor with full-length pwrite/pread that throw on failure (ENOSPC etc.).
 class Fd {
@@ -55,7 +56,7 @@ class Fd {
       if (w < 0 && errno == EINTR) continue;
       if (w <= 0) {
         if (w == 0) errno = ENOSPC;
-        io_fail(path_, "write of " + std::to_string(n) + " bytes at byte " + std::to_string(off) + " failed");
+        io_fail(path_, "write failed at byte " + std::to_string(off));
       }
       p += w;
       n -= static_cast<std::size_t>(w);

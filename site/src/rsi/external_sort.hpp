@@ -61,13 +61,16 @@ struct RunLayout {
 
 /// A folder of temporary files removed (with its contents) on destruction, and by the interrupt
 /// handler should a signal end the program. Its parent must exist: only the folder is created.
+/// Errors about its files name `output`, the file it is written for (TemporaryOf).
 struct TempDir {
   fs::path path;
+  TemporaryOf named;
   RemoveOnInterrupt mark;  // marked before the folder exists
-  explicit TempDir(fs::path p) : path(std::move(p)), mark(path, RemoveOnInterrupt::Kind::folder) {
+  TempDir(fs::path p, const fs::path& output)
+      : path(std::move(p)), named(path, output), mark(path, RemoveOnInterrupt::Kind::folder) {
     std::error_code ec;
     fs::create_directory(path, ec);
-    if (ec) throw std::runtime_error(path.string() + ": cannot create the temporary folder: " + ec.message());
+    if (ec) throw output_error(path, "cannot create the temporary folder", ec.value());
   }
   TempDir(const TempDir&) = delete;
   TempDir& operator=(const TempDir&) = delete;

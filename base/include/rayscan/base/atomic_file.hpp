@@ -10,6 +10,7 @@
 
 #include "rayscan/base/interrupt.hpp"
 
+#include <cstdint>
 #include <filesystem>
 #include <span>
 #include <stdexcept>
@@ -25,6 +26,41 @@ namespace rayscan {
 struct OutputFileError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
+
+/// Registers `temp`, a temporary file or folder written for the output `output`, while this object
+/// lives, so that errors about it name the file the user asked for (output_of, output_error): a
+/// hidden name such as ".x.laz.las.tmp.512" means nothing to the user. A file inside a registered
+/// folder belongs to that folder's output, and `output` may itself be registered (an import's
+/// temporary index, whose AtomicFile has a temporary of its own): output_of follows the chain.
+/// AtomicFile registers its temporary itself; this is for the intermediate files that are not an
+/// AtomicFile's (an uncompressed LAS before compression, COPC records, sort runs). Empty paths
+/// register nothing. Never throws but std::bad_alloc. Movable, not copyable.
+class TemporaryOf {
+ public:
+  /// Registers nothing.
+  TemporaryOf() = default;
+  TemporaryOf(const std::filesystem::path& temp, const std::filesystem::path& output);
+  TemporaryOf(TemporaryOf&& other) noexcept;
+  TemporaryOf& operator=(TemporaryOf&& other) noexcept;
+  TemporaryOf(const TemporaryOf&) = delete;
+  TemporaryOf& operator=(const TemporaryOf&) = delete;
+  ~TemporaryOf();
+
+ private:
+  void release() noexcept;
+  std::uint64_t id_ = 0;  // 0: nothing registered
+};
+
+/// The output `file` is written for: the output of the registered temporary `file` (or of the
+/// registered folder `file` lies in), followed through the chain; `file` itself when it is no
+/// registered temporary. Paths are compared as spelled (the writers use the registered path).
+[[nodiscard]] std::filesystem::path output_of(const std::filesystem::path& file);
+
+/// The error of an operation on `file` (a write, fsync, truncate): OutputFileError
+/// "<output_of(file)>: <what>: <strerror(err)>" (no cause when `err` is 0). When `file` is written
+/// in another folder than its output (a temporary folder given by the user), the message says so:
+/// "<output>: <what> (temporary file in '<folder>'): <cause>", as that folder is the one that is full.
+[[nodiscard]] OutputFileError output_error(const std::filesystem::path& file, const std::string& what, int err);
 
 /// Throws OutputFileError unless `path` is absent or a regular file (checked with lstat(2), so a
 /// symbolic link is refused rather than followed or replaced), or when its directory does not
@@ -106,6 +142,7 @@ class AtomicFile {
  private:
   std::filesystem::path path_;
   std::filesystem::path tmp_;
+  TemporaryOf name_;        // errors about tmp_ name path_
   RemoveOnInterrupt mark_;  // destroyed after the destructor removed the temporary
   bool committed_ = false;
 };

@@ -73,8 +73,11 @@ class SiteStream {
 ///    whole and ordered by make_chunk_layout (memory grows with the site).
 /// Throws io::FormatError (unreadable input), io::IndexError (inputs disagree on CRS, corrupted
 /// index), std::invalid_argument (bad option; "<file>: attribute 'gps_time' requested but the file
-/// has none"), std::runtime_error (I/O, e.g. disk full while writing the temporary index).
+/// has none"), std::runtime_error (I/O, e.g. disk full while writing the temporary index: an
+/// OutputFileError naming `output`, the file the import writes, or the temporary index itself
+/// when `output` is empty, as for PostgreSQL).
 [[nodiscard]] std::unique_ptr<SiteStream> open_site(const std::vector<std::filesystem::path>& paths,
-                                                    const ImportOptions& options);
+                                                    const ImportOptions& options,
+                                                    const std::filesystem::path& output = {});
 
 }  // namespace rayscan::sql
