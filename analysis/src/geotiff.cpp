@@ -1,6 +1,7 @@
 #include "rayscan/analysis/geotiff.hpp"
 
 #include "rayscan/base/atomic_file.hpp"
+#include "rayscan/io/crs.hpp"
 
 #include <cpl_conv.h>
 #include <cpl_error.h>
@@ -10,6 +11,7 @@
 
 #include <cmath>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <system_error>
 
@@ -36,22 +38,24 @@ class QuietGdal {
 }  // namespace
 
 std::string geotiff_band_unit(const GeoTiffOptions& options) {
-  if (!options.unit_is_crs_length) return options.unit;
-  if (options.crs_wkt.empty()) return "";
-  QuietGdal quiet;
-  OGRSpatialReference srs;
-  if (srs.importFromWkt(options.crs_wkt.c_str()) != OGRERR_NONE) return "";
-  const char* name = nullptr;
-  srs.GetLinearUnits(&name);
-  return name ? name : "";
+  std::optional<io::LengthUnit> unit;
+  if (options.unit_is_crs_height)
+    unit = io::crs_vertical_unit(options.crs_wkt);
+  else if (options.unit_is_crs_length)
+    unit = io::crs_horizontal_unit(options.crs_wkt);
+  else
+    return options.unit;
+  return unit ? unit->name : "";
 }
 
 std::string crs_length_unit(const std::string& crs_wkt) {
-  GeoTiffOptions length;
-  length.crs_wkt = crs_wkt;
-  length.unit_is_crs_length = true;
-  const std::string unit = geotiff_band_unit(length);
-  return unit.empty() ? "world units" : unit;
+  const std::optional<io::LengthUnit> unit = io::crs_horizontal_unit(crs_wkt);
+  return unit ? unit->name : "world units";
+}
+
+std::string crs_height_unit(const std::string& crs_wkt) {
+  const std::optional<io::LengthUnit> unit = io::crs_vertical_unit(crs_wkt);
+  return unit ? unit->name : "world units";
 }
 
 void write_geotiff(const std::filesystem::path& path, const Raster& raster, const GeoTiffOptions& options) {

@@ -205,7 +205,7 @@ std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, OrthoCol
     GeoTiffOptions go;
     go.crs_wkt = crs_wkt;
     go.metadata = items;
-    go.unit_is_crs_length = true;  // elevations, in the cloud's units
+    go.unit_is_crs_height = true;  // elevations, in the CRS's vertical unit
     if (elevation.values.size() != coverage.size())
       throw std::invalid_argument(dsm.string() + ": DSM size differs from the grid");
     write_geotiff(dsm, elevation, go);

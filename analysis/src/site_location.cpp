@@ -1,11 +1,14 @@
 #include "rayscan/analysis/site_location.hpp"
 
+#include "rayscan/io/crs.hpp"
+
 #include <cpl_error.h>
 #include <ogr_spatialref.h>
 
 #include <cmath>
 #include <memory>
 #include <numbers>
+#include <optional>
 #include <stdexcept>
 
 namespace rayscan::analysis {
@@ -62,10 +65,10 @@ SiteLocation locate_site(const std::string& crs_wkt, const Vec3& point) {
   if (!to_grid->Transform(1, &nx, &ny))
     throw std::invalid_argument("the cloud's CRS: PROJ cannot transform a point near the site back to the grid");
   loc.convergence_deg = std::atan2(nx - point.x, ny - point.y) / kDegree;
-  loc.metres_per_unit = src.GetLinearUnits();
-  double vertical = loc.metres_per_unit;
-  if (src.IsCompound()) vertical = src.GetTargetLinearUnits("VERT_CS");
-  loc.elevation_m = point.z * (vertical > 0.0 ? vertical : 1.0);
+  const std::optional<io::LengthUnit> horizontal = io::crs_horizontal_unit(crs_wkt);
+  const std::optional<io::LengthUnit> vertical = io::crs_vertical_unit(crs_wkt);
+  loc.metres_per_unit = horizontal ? horizontal->metres : 1.0;
+  loc.elevation_m = point.z * (vertical ? vertical->metres : 1.0);
   return loc;
 }
 

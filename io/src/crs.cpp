@@ -106,29 +106,64 @@ std::string wkt_for(const std::string& user_input) {
 /// The CRS of an EPSG code, or null when the PROJ database does not know it.
 Srs srs_for_epsg(int code) { return srs_from_user_input("EPSG:" + std::to_string(code)); }
 
+/// A unit as GDAL reports it: its name (null when GDAL gives none) and its size, unchecked.
+struct ReportedUnit {
+  const char* name = nullptr;
+  double size = 0.0;
+};
+
+/// The unit of x and y of `h` (crs_horizontal_unit's rule), or nullopt where they are no lengths.
+/// OSRGetLinearUnits gives a compound CRS's horizontal part's unit, but is asked only where x and y
+/// are lengths: of a geographic CRS it gives "unknown", of a geographic compound one the vertical
+/// unit.
+std::optional<ReportedUnit> horizontal_unit(OGRSpatialReferenceH h) {
+  if (!OSRIsProjected(h) && !OSRIsLocal(h) && !OSRIsGeocentric(h)) return std::nullopt;
+  char* name = nullptr;
+  const double size = OSRGetLinearUnits(h, &name);
+  return ReportedUnit{name, size};
+}
+
+/// The unit of z of `h` (crs_vertical_unit's rule), or nullopt where there is none.
+/// OSRGetLinearUnits gives a compound CRS's horizontal unit, never its vertical one.
+std::optional<ReportedUnit> vertical_unit(OGRSpatialReferenceH h) {
+  char* name = nullptr;
+  // GDAL finds a compound CRS's vertical part in its WKT1 form; where it cannot write that (a part
+  // WKT1 cannot express, a unit of size 0) it reports "unknown" of size 1, which is no unit read.
+  if (OSRIsCompound(h) && OSRGetAttrValue(h, "VERT_CS", 0) == nullptr) return std::nullopt;
+  if (OSRIsVertical(h)) {  // a vertical CRS, or a compound one with a vertical part
+    const double size = OSRGetTargetLinearUnits(h, "VERT_CS", &name);
+    return ReportedUnit{name, size};
+  }
+  if (OSRIsGeographic(h)) {
+    if (OSRGetAxesCount(h) != 3) return std::nullopt;
+    const double size = OSRGetLinearUnits(h, &name);  // of a 3D geographic CRS: the ellipsoidal height's
+    return ReportedUnit{name, size};
+  }
+  return horizontal_unit(h);
+}
+
+/// `unit` as a LengthUnit, or nullopt when its size is no positive finite number.
+std::optional<LengthUnit> length_unit(const std::optional<ReportedUnit>& unit) {
+  if (!unit || !(std::isfinite(unit->size) && unit->size > 0.0)) return std::nullopt;
+  return LengthUnit{unit->name != nullptr ? unit->name : "unknown", unit->size};
+}
+
 /// The first unit of `h` whose size is no positive finite number, in words ("linear unit 'foot'
 /// of size 0"); "" when all are. GDAL reads UNIT["foot",0] without complaint, and every length or
 /// angle in that CRS would then be 0 or infinite.
 std::string bad_unit(OGRSpatialReferenceH h) {
-  auto check = [](const char* kind, const char* name, double size) -> std::string {
-    if (std::isfinite(size) && size > 0.0) return "";
-    return std::string(kind) + " unit '" + (name != nullptr ? name : "unnamed") + "' of size " + shortest_text(size);
+  auto check = [](const char* kind, const std::optional<ReportedUnit>& unit) -> std::string {
+    if (!unit || (std::isfinite(unit->size) && unit->size > 0.0)) return "";
+    return std::string(kind) + " unit '" + (unit->name != nullptr ? unit->name : "unnamed") + "' of size " +
+           shortest_text(unit->size);
   };
-  std::string bad;
-  char* name = nullptr;
-  if (OSRIsProjected(h) || OSRIsLocal(h) || OSRIsGeocentric(h)) {
-    const double size = OSRGetLinearUnits(h, &name);
-    bad = check("linear", name, size);
-  }
+  std::string bad = check("linear", horizontal_unit(h));
   if (bad.empty() && (OSRIsGeographic(h) || OSRIsProjected(h))) {
+    char* name = nullptr;
     const double size = OSRGetAngularUnits(h, &name);
-    bad = check("angular", name, size);
+    bad = check("angular", ReportedUnit{name, size});
   }
-  if (bad.empty() && OSRIsVertical(h)) {
-    const char* vname = nullptr;
-    const double size = OSRGetTargetLinearUnits(h, "VERT_CS", const_cast<char**>(&vname));
-    bad = check("vertical", vname, size);
-  }
+  if (bad.empty()) bad = check("vertical", vertical_unit(h));
   return bad;
 }
 
@@ -536,6 +571,20 @@ std::string crs_wkt_from_user_input(const std::string& user_input) {
 }
 
 bool crs_wkt_readable(const std::string& wkt) { return detail::wkt_readable(wkt); }
+
+std::optional<LengthUnit> crs_horizontal_unit(const std::string& wkt) {
+  if (wkt.empty()) return std::nullopt;
+  const detail::Srs srs = detail::srs_from_wkt(wkt);
+  if (!srs) return std::nullopt;
+  return detail::length_unit(detail::horizontal_unit(static_cast<OGRSpatialReferenceH>(srs.get())));
+}
+
+std::optional<LengthUnit> crs_vertical_unit(const std::string& wkt) {
+  if (wkt.empty()) return std::nullopt;
+  const detail::Srs srs = detail::srs_from_wkt(wkt);
+  if (!srs) return std::nullopt;
+  return detail::length_unit(detail::vertical_unit(static_cast<OGRSpatialReferenceH>(srs.get())));
+}
 
 EpsgCodes epsg_codes_from_wkt(const std::string& wkt) {
   EpsgCodes codes;

@@ -318,6 +318,49 @@ TEST(GeoTiff, BandUnitIsTheGivenOneOrTheCrsLengthUnit) {
   EXPECT_EQ(unit_of(go), "");
 }
 
+TEST(GeoTiff, BandOfHeightsCarriesTheCrsVerticalUnit) {
+  // EPSG:2992+5703 (EPSG registry): x and y in international feet, NAVD88 heights in metres. A
+  // band of heights (a DSM) is in metres, one of lengths (a distance) in feet; without a vertical
+  // part the heights are in the one unit the CRS names. GDAL reads the unit back from the file.
+  GridSpec g;
+  g.cols = 2;
+  g.rows = 1;
+  g.cell = 3;
+  const Raster r{g, {1.0f, 2.0f}, "z"};
+  GDALAllRegister();
+  const auto unit_of = [&](const GeoTiffOptions& go) {
+    const fs::path out = tmpdir() / "height_unit.tif";
+    write_geotiff(out, r, go);
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(out.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+    return ds ? std::string(ds->GetRasterBand(1)->GetUnitType()) : std::string("(not opened)");
+  };
+  const auto wkt_of = [](const char* crs) {
+    OGRSpatialReference srs;
+    EXPECT_EQ(srs.SetFromUserInput(crs), OGRERR_NONE) << crs;
+    char* w = nullptr;
+    EXPECT_EQ(srs.exportToWkt(&w), OGRERR_NONE) << crs;
+    const std::string text = w != nullptr ? w : "";
+    CPLFree(w);
+    return text;
+  };
+  GeoTiffOptions go;
+  go.crs_wkt = wkt_of("EPSG:2992+5703");
+  go.unit_is_crs_height = true;
+  EXPECT_EQ(unit_of(go), "metre");
+  EXPECT_EQ(crs_height_unit(go.crs_wkt), "metre");
+  go.unit_is_crs_height = false;
+  go.unit_is_crs_length = true;
+  EXPECT_EQ(unit_of(go), "foot");
+  EXPECT_EQ(crs_length_unit(go.crs_wkt), "foot");
+  go.crs_wkt = wkt_of("EPSG:2992");
+  go.unit_is_crs_height = true;  // before unit_is_crs_length
+  EXPECT_EQ(unit_of(go), "foot");
+  EXPECT_EQ(crs_height_unit(go.crs_wkt), "foot");
+  go.crs_wkt.clear();
+  EXPECT_EQ(unit_of(go), "");
+  EXPECT_EQ(crs_height_unit(""), "world units");
+}
+
 TEST(GeoTiff, ReopensWithGeotransformCrsNoDataAndValues) {
   const PointCloud cloud = io::read_point_cloud(std::string(RAYSCAN_TEST_DATA) + "/las/autzen_trim.las");
   ASSERT_FALSE(cloud.crs_wkt.empty());

@@ -1,10 +1,14 @@
 // `rayscan render` end to end for its argument checks: user errors exit with code 2, print one
-// line naming the option or file, and write no output file.
+// line naming the option or file, and write no output file; and the DSM's band unit as GDAL reads
+// it back.
 #include "../common/temp_dir.hpp"
+#include "rayscan/io/crs.hpp"
+#include "rayscan/io/point_io.hpp"
 #include "rayscan/render/scene.hpp"
 
 #include "../common/run_command.hpp"
 
+#include <gdal_priv.h>
 #include <gtest/gtest.h>
 
 #include <sched.h>
@@ -13,6 +17,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
+#include <utility>
 
 namespace fs = std::filesystem;
 
@@ -95,6 +101,30 @@ TEST(RenderCli, OrthoMapOutputsAreCheckedBeforeTheRender) {
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_EQ(r.out, "rayscan render: /nonexistent-dir/d.tif: output directory '/nonexistent-dir' does not exist\n");
   EXPECT_FALSE(fs::exists(ortho));
+}
+
+TEST(RenderCli, TheDsmBandIsInTheCrsHeightUnit) {
+  // EPSG:2992+5703 (EPSG registry): x and y in international feet, NAVD88 heights in metres; the
+  // DSM holds heights, so its band is in metres, what `rayscan info` calls the vertical unit.
+  // EPSG:2992 alone names one unit, the foot, for heights too. GDAL reads the unit back.
+  rayscan::PointCloud cloud;
+  for (int x = 0; x <= 20; ++x)
+    for (int y = 0; y <= 20; ++y) cloud.positions.push_back(rayscan::Vec3(637000.0 + x, 849000.0 + y, 120.0));
+  for (const auto& [crs, unit] : {std::pair{"EPSG:2992+5703", "metre"}, std::pair{"EPSG:2992", "foot"}}) {
+    SCOPED_TRACE(crs);
+    cloud.crs_wkt = rayscan::io::crs_wkt_from_user_input(crs);
+    ASSERT_FALSE(cloud.crs_wkt.empty());
+    const fs::path ply = cli_temp_dir() / "crs.ply", ortho = cli_temp_dir() / "crs_ortho.tif",
+                   dsm = cli_temp_dir() / "crs_dsm.tif";
+    rayscan::io::write_ply(ply, cloud);
+    const RunResult r = run("render -q " + ply.string() + " --ortho-map 4 --spp 1 --out " + ortho.string() +
+                            " --dsm " + dsm.string());
+    ASSERT_EQ(r.code, 0) << r.out;
+    GDALAllRegister();
+    std::unique_ptr<GDALDataset> ds(GDALDataset::Open(dsm.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
+    ASSERT_TRUE(ds);
+    EXPECT_STREQ(ds->GetRasterBand(1)->GetUnitType(), unit);
+  }
 }
 
 TEST(RenderCli, ThreadsAboveTheCoresRunOnTheCoresWithoutTbbsWarning) {

@@ -15,11 +15,12 @@ namespace rayscan::analysis {
 struct SiteLocation {
   double latitude_deg = 0.0;    ///< WGS 84 latitude, degrees north
   double longitude_deg = 0.0;   ///< WGS 84 longitude, degrees east
-  double elevation_m = 0.0;     ///< the given z in metres (the CRS's vertical unit, else its linear unit)
+  double elevation_m = 0.0;     ///< the given z in metres, from the CRS's vertical unit (io::crs_vertical_unit)
   /// Meridian convergence: the clockwise angle, degrees, from grid north (+y) to true north at the
   /// site. A compass azimuth A is the grid bearing A + convergence_deg.
   double convergence_deg = 0.0;
-  double metres_per_unit = 1.0; ///< the CRS's horizontal linear unit in metres (US survey foot: 0.3048006)
+  /// The CRS's horizontal linear unit in metres (io::crs_horizontal_unit; US survey foot: 0.3048006).
+  double metres_per_unit = 1.0;
 };
 
 /// Checks that `crs_wkt` (OGC WKT 1 or 2) can place a site, from the WKT alone: no point is needed,

@@ -1,8 +1,9 @@
 // EPSG codes of a CRS given as WKT: what `rayscan info` reports beside the CRS's name for any
 // file whose CRS is text (a LAS WKT VLR, a PLY comment, an index file's crs section); a CRS from
-// the user's text; whether the writers may store a WKT.
+// the user's text; whether the writers may store a WKT; the units of its lengths and heights.
 #pragma once
 
+#include <optional>
 #include <string>
 
 namespace rayscan::io {
@@ -28,6 +29,29 @@ struct EpsgCodes {
 /// character (NUL included) anywhere, text after a WKT's closing bracket, and a CRS with a unit
 /// whose size is not positive.
 [[nodiscard]] std::string crs_wkt_from_user_input(const std::string& user_input);
+
+/// A unit of length of a CRS, as GDAL reads it from the CRS's WKT.
+struct LengthUnit {
+  std::string name;     ///< GDAL's name: "metre", "foot", "US survey foot"; "unknown" for one known by its size alone
+  double metres = 0.0;  ///< the unit's size in metres: positive and finite
+};
+
+/// The unit of x and y in the CRS of `wkt` (WKT1 or WKT2, read as epsg_codes_from_wkt reads it):
+/// the linear unit of a projected CRS (of a compound CRS: its projected part's), of a local
+/// (engineering) or of a geocentric one. nullopt where x and y are no lengths (a geographic CRS:
+/// degrees) or the CRS has none (a vertical CRS alone), for "" or text GDAL cannot read, and for a
+/// unit whose size is no positive finite number. The one rule for the unit of a distance or a cell
+/// size; never throws.
+[[nodiscard]] std::optional<LengthUnit> crs_horizontal_unit(const std::string& wkt);
+
+/// The unit of z, the heights, in the CRS of `wkt`: the vertical CRS's unit where there is one (a
+/// compound CRS such as EPSG:2992+5703, x and y in feet and heights in metres, or a vertical CRS
+/// alone), else the ellipsoidal height's of a 3D geographic CRS, else crs_horizontal_unit (a
+/// projected CRS without a vertical part: z is taken in the one unit the CRS names).
+/// nullopt for a 2D geographic CRS, "" or text GDAL cannot read, and a unit whose size is no
+/// positive finite number. The one rule for the unit of an elevation (a DSM's band, a site's
+/// height above the datum); never throws.
+[[nodiscard]] std::optional<LengthUnit> crs_vertical_unit(const std::string& wkt);
 
 /// Whether GDAL reads `wkt` as a CRS (OSRImportFromWkt, never as a file name or URL): the check
 /// the writers make before they store a CRS. Never throws.
