@@ -2,6 +2,7 @@
 // offset or line, never crashes and never allocates from an unchecked count.
 #include "io_test_util.hpp"
 #include "../common/index_crcs.hpp"
+#include "../common/run_command.hpp"
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/octree/batch.hpp"
 #include "rayscan/octree/normals.hpp"
@@ -10,6 +11,7 @@
 #include "rayscan/site/copc.hpp"
 #include "rayscan/site/index_file.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -353,6 +355,55 @@ TEST(BadInput, LasEvlrStartBeforeThePointDataIsRefused) {
   poke<std::uint64_t>(b, 235, 400);
   expect_one_line(error_of(b, io::Format::las),
                   "byte 235: EVLR start 400 lies before the point data at byte " + std::to_string(offset));
+}
+
+TEST(BadInput, LasWaveformRecordCutShortIsRefusedWithItsOffsetAndLength) {
+  // simple1_3.las: LAS 1.3, global encoding bit 1 (waveform packets in the file), its waveform
+  // data packet record after the points. Oracle: the file's own header bytes (byte 227: the
+  // record's start; the record's 60-byte header: user id at +2, length after header at +20).
+  RAYSCAN_REQUIRE_FILE(p, "las/simple1_3.las");
+  const auto b = slurp(p);
+  ASSERT_EQ(load_at<std::uint16_t>(b, 6) & 2u, 2u);
+  const auto start = load_at<std::uint64_t>(b, 227);
+  ASSERT_LE(start + 60, b.size());
+  const auto declared = load_at<std::uint64_t>(b, start + 20);
+  ASSERT_GT(declared, 0u);
+  ASSERT_EQ(start + 60 + declared, b.size());  // the intact file ends with the record
+  const std::string user = io::detail::fixed_string(b.data() + start + 2, 16);
+  // Intact, it reads: every point the header announces.
+  EXPECT_EQ(io::read_point_cloud(b, io::Format::las, "bad").size(), load_at<std::uint32_t>(b, 107));
+
+  // Cut after the record's header: its declared payload runs past the end, named where the
+  // length is stored, with the record's start and length (the EVLRs' check and words).
+  const std::vector<std::uint8_t> cut(b.begin(), b.begin() + static_cast<std::ptrdiff_t>(start + 60));
+  const std::string want = "byte " + std::to_string(start + 20) + ": waveform data packet record at byte " +
+                           std::to_string(start) + " (" + user + ") of " + std::to_string(declared) +
+                           " bytes runs past end of file (size " + std::to_string(cut.size()) + ")";
+  EXPECT_EQ(error_of(cut, io::Format::las), "bad: " + want);
+  // Cut inside the record's header.
+  const std::vector<std::uint8_t> cut_head(b.begin(), b.begin() + static_cast<std::ptrdiff_t>(start + 30));
+  expect_one_line(error_of(cut_head, io::Format::las),
+                  "byte " + std::to_string(start) + ": file ends (size " + std::to_string(start + 30) + ")");
+  // A start inside the header or VLRs would read their bytes as the record: refused at byte 227.
+  auto early = b;
+  store_at<std::uint64_t>(early, 227, 300);
+  expect_one_line(error_of(early, io::Format::las),
+                  "byte 227: start of waveform data packet record 300 lies before the point data at byte " +
+                      std::to_string(load_at<std::uint32_t>(b, 96)));
+
+  // Through the CLI: info and translate exit 2 with that one line; translate writes nothing.
+  const fs::path in = temp_dir() / "wave_cut.las", out = temp_dir() / "wave_cut_out.las";
+  {
+    std::ofstream f(in, std::ios::binary | std::ios::trunc);
+    f.write(reinterpret_cast<const char*>(cut.data()), static_cast<std::streamsize>(cut.size()));
+  }
+  for (const std::string& cmd : {" info " + quoted(in), " translate -q " + quoted(in) + " " + quoted(out)}) {
+    const CommandResult r = run_command(std::string("'") + RAYSCAN_EXE + "'" + cmd);
+    EXPECT_EQ(r.code, 2) << cmd << ": " << r.out;
+    EXPECT_NE(r.out.find(in.string() + ": " + want), std::string::npos) << r.out;
+    EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  }
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST(BadInput, ControlBytesInAQuotedTokenAreEscapedNotTheEndOfTheMessage) {

@@ -128,6 +128,32 @@ TEST(Translate, InternalWaveformRecordIsCopiedAndAddressed) {
   EXPECT_FALSE(fs::exists(bad_out));
 }
 
+TEST(Translate, WaveformStartIsClearedWhenNoWaveformRecordIsCopied) {
+  // simple1_3.las with global encoding bit 1 cleared (bit 2, packets in a .wdp file, and no bit):
+  // the bytes after the point records are not a waveform record then and are not copied, so the
+  // output's start of waveform data packet record (byte 227) is 0 (LAS 1.3 R11: 0 when the file
+  // holds no waveform records), never the input's start at or past the output's end. Oracle: the
+  // input's own header (offset to point data, count, record length) and bytes.
+  RAYSCAN_REQUIRE_FILE(in, "las/simple1_3.las");
+  const auto a = slurp(in);
+  ASSERT_NE(load_at<std::uint64_t>(a, 227), 0u);
+  const std::uint64_t points_end =
+      load_at<std::uint32_t>(a, 96) + std::uint64_t(load_at<std::uint32_t>(a, 107)) * load_at<std::uint16_t>(a, 105);
+  ASSERT_LT(points_end, a.size());  // the waveform record follows the points
+  for (const std::uint16_t encoding : {std::uint16_t(0), std::uint16_t(4)}) {
+    auto b = a;
+    store_at<std::uint16_t>(b, 6, encoding);
+    const fs::path src = temp_dir() / "wave_bit_clear.las", out = temp_dir() / "wave_bit_clear_out.las";
+    { std::ofstream(src, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size())); }
+    io::translate_las(src, out);
+    const auto c = slurp(out);
+    ASSERT_EQ(c.size(), points_end) << encoding;
+    EXPECT_EQ(load_at<std::uint64_t>(c, 227), 0u) << encoding;
+    EXPECT_TRUE(std::equal(c.begin() + 235, c.end(), b.begin() + 235)) << encoding;  // VLRs and records as they were
+    EXPECT_TRUE(std::equal(c.begin(), c.begin() + 227, b.begin())) << encoding;
+  }
+}
+
 TEST(Translate, Las14FormatsRoundTripThroughTheLayeredEncoder) {
   // PDRF 6 (three files), 7 (autzen in LAS 1.4) and 8 + 3 extra bytes (append-bug, via its LAZ)
   for (const char* rel : {"las/test1_4.las", "las/1_4_w_evlr.las", "las/file_with_both_wkt_and_geotiff_vlrs.las",

@@ -32,6 +32,29 @@ void note_vlr(LasHeader& h, const VlrInfo& v) {
   }
 }
 
+/// The 60-byte header of the extended record at byte `at` (LAS 1.4 R15 section 2.7, table 23; the
+/// LAS 1.3 R11 waveform data packet record has the same header, section "Extended Variable
+/// Length Records"): reserved, user id (16 bytes), record id, record length after header
+/// (uint64), description (32 bytes). The one check of every such record: its header and its
+/// declared payload lie inside the file. `what` names the record in the error ("EVLR 2").
+/// Throws FormatError "file: byte AT: file ends ... inside <what> header" or "file: byte AT+20:
+/// <what> (<user id>) of N bytes runs past end of file (size S)".
+VlrInfo read_extended_record(const Input& in, std::uint64_t at, const std::string& what) {
+  in.need(at, 60, what + " header");
+  const std::uint8_t* d = in.bytes.data();
+  VlrInfo v;
+  v.offset = at;
+  v.extended = true;
+  v.user_id = fixed_string(d + at + 2, 16);
+  v.record_id = load_le<std::uint16_t>(d + at + 18);
+  v.length = load_le<std::uint64_t>(d + at + 20);
+  v.description = fixed_string(d + at + 28, 32);
+  if (v.length > in.size() - at - 60)
+    fail_at(in.name, at + 20, what + " (" + v.user_id + ") of " + std::to_string(v.length) +
+                                  " bytes runs past end of file (size " + std::to_string(in.size()) + ")");
+  return v;
+}
+
 }  // namespace
 
 LasHeader parse_las_header(const Input& in) {
@@ -127,20 +150,28 @@ LasHeader parse_las_header(const Input& in) {
     h.data_end = evlr_start;
     std::uint64_t ep = evlr_start;
     for (std::uint32_t i = 0; i < n_evlr; ++i) {
-      in.need(ep, 60, "EVLR " + std::to_string(i) + " header");
-      VlrInfo v;
-      v.offset = ep;
-      v.extended = true;
-      v.user_id = fixed_string(d + ep + 2, 16);
-      v.record_id = load_le<std::uint16_t>(d + ep + 18);
-      v.length = load_le<std::uint64_t>(d + ep + 20);
-      v.description = fixed_string(d + ep + 28, 32);
-      if (v.length > in.size() - ep - 60)
-        fail_at(nm, ep + 20, "EVLR " + std::to_string(i) + " (" + v.user_id + ") of " + std::to_string(v.length) +
-                                 " bytes runs past end of file (size " + std::to_string(in.size()) + ")");
+      VlrInfo v = read_extended_record(in, ep, "EVLR " + std::to_string(i));
       note_vlr(h, v);
       h.vlrs.push_back(std::move(v));
       ep += 60 + h.vlrs.back().length;
+    }
+  }
+  // Waveform data packets stored in the file (global encoding bit 1, LAS 1.3+): the waveform data
+  // packet record at "start of waveform data packet record" (byte 227) is an extended record
+  // after the point data (LAS 1.3 R11 section "Extended Variable Length Records"; in LAS 1.4 one
+  // of the EVLRs, walked above). One that is not an EVLR gets the EVLRs' checks: a start after
+  // the header and VLRs, and a header and payload inside the file, so that a file cut inside its
+  // waveforms is refused here and not copied by translate as if whole.
+  if (vmin >= 3 && (h.global_encoding & 2u) != 0 && h.waveform_start != 0) {
+    bool walked = false;
+    for (const VlrInfo& v : h.vlrs) walked = walked || (v.extended && v.offset == h.waveform_start);
+    if (!walked) {
+      if (h.waveform_start < h.point_offset)
+        fail_at(nm, 227, "start of waveform data packet record " + std::to_string(h.waveform_start) +
+                             " lies before the point data at byte " + std::to_string(h.point_offset) +
+                             " (the record follows the point records)");
+      read_extended_record(in, h.waveform_start,
+                           "waveform data packet record at byte " + std::to_string(h.waveform_start));
     }
   }
   // LAZ: the LASzip VLR decides (LASzip also sets bit 7, historically bit 6, of the PDRF byte).

@@ -62,7 +62,9 @@ struct LasHeader {
 /// Parses the public header and walks the VLR and EVLR headers of `in` without reading past it.
 /// Throws FormatError "file: byte N: what was expected" on a bad signature or version, a header
 /// smaller than its version requires, a point offset outside [header size, file size], an (E)VLR
-/// running past its region, the compression bits set without a LASzip VLR, a PDRF outside 0..10,
+/// running past its region, a waveform data packet record stored in the file (LAS 1.3+, global
+/// encoding bit 1; not one of the EVLRs) starting before the point data or running past the end
+/// of the file, the compression bits set without a LASzip VLR, a PDRF outside 0..10,
 /// a record length shorter than the PDRF's fields, a non-finite/zero scale, or an offset that is
 /// not finite or beyond +-kMaxCoordinate (rayscan/base/coordinate_bound.hpp). The point count is
 /// not checked against the file size here (LAZ bounds it by its chunk table).
