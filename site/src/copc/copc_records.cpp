@@ -136,7 +136,7 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
   if (need > opt.memory_bytes)
     throw CopcMemoryError(name + ": " + std::to_string(h.count) + " points need about " + gib(need) +
                           " for the COPC build (12 bytes per point and 256 MiB of batches), over the memory budget of " +
-                          gib(opt.memory_bytes) + " (raise --memory)");
+                          gib(opt.memory_bytes) + " (raise the budget)");
   const bool convert = h.pdrf < 6;
   if (convert)
     r.notes.push_back("point data record format " + std::to_string(h.pdrf) + " written as " + std::to_string(r.pdrf) +
