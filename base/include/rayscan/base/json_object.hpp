@@ -37,7 +37,8 @@ using nlohmann::json;
   throw JsonFileError(file + ": " + (ptr.empty() ? "/" : ptr) + ": " + what);
 }
 
-inline std::string escape_key(const std::string& k) {  // RFC 6901 escaping
+/// `k` as one reference token of a JSON pointer (RFC 6901: "~" as "~0", "/" as "~1").
+inline std::string escape_key(const std::string& k) {
   std::string s;
   for (char c : k) {
     if (c == '~') s += "~0";
@@ -139,11 +140,20 @@ inline json parse_json_file(const std::filesystem::path& file) {
 }
 
 /// A JSON object being read: typed getters with range checks, and finish() to reject unknown keys.
+/// Every key a getter (or has(), at()) is asked about becomes an allowed key of the object, present
+/// or not; finish() rejects the others. A getter returns its default `def` when the key is absent
+/// (the default itself is not checked) and otherwise throws JsonFileError "<file>: <pointer>:
+/// expected ..." when the value has the wrong type or lies outside its range.
 class JsonObject {
  public:
+  /// Reads the value `j` (not copied: it must outlive this reader) found at JSON pointer `ptr` ("" for
+  /// the document's root) of the file `file`, which errors name. Throws JsonFileError "expected an
+  /// object" when `j` is not an object.
   JsonObject(const json& j, std::string file, std::string ptr) : j_(j), file_(std::move(file)), ptr_(std::move(ptr)) {
     if (!j_.is_object()) json_fail(file_, ptr_, "expected an object");
   }
+  /// Whether key `k` is present; marks `k` as an allowed key (finish() accepts it), for values
+  /// that the caller reads itself.
   bool has(const std::string& k) {
     seen_.insert(k);
     return j_.contains(k);
@@ -151,14 +161,25 @@ class JsonObject {
   /// Whether `k` is present, without making it an allowed key (finish() still rejects it unless
   /// a getter asks for it).
   bool present(const std::string& k) const { return j_.contains(k); }
+  /// The raw value of key `k`, marked as allowed (as has()). `k` must be present: a missing key
+  /// throws nlohmann's json::out_of_range, not JsonFileError, so ask has() first.
   const json& at(const std::string& k) { seen_.insert(k); return j_.at(k); }
+  /// The JSON pointer of key `k` in this object (the object's pointer + "/" + the escaped key), the
+  /// place an error about its value names.
   std::string ptr(const std::string& k) const { return ptr_ + "/" + escape_key(k); }
+  /// The file name the errors carry.
   const std::string& file() const { return file_; }
 
+  /// The number at key `k`, or `def` when absent: a finite JSON number within lo..hi, where
+  /// `lo_open` / `hi_open` exclude that bound (true: value > lo, resp. < hi; false: >= lo,
+  /// <= hi). A bound may be infinite. Throws JsonFileError "expected a number in (0, 180]" (the
+  /// interval as the flags make it).
   double number(const std::string& k, double def, double lo, double hi, bool lo_open, bool hi_open) {
     if (!has(k)) return def;
     return number_at(j_.at(k), ptr(k), lo, hi, lo_open, hi_open);
   }
+  /// As number(), for a value `v` already taken from the document (an array's element), named
+  /// `p` in errors.
   double number_at(const json& v, const std::string& p, double lo, double hi, bool lo_open,
                    bool hi_open) const {
     const bool ok = v.is_number() && std::isfinite(v.get<double>()) &&
@@ -167,6 +188,8 @@ class JsonObject {
     if (!ok) json_fail(file_, p, "expected a number in " + range_text(lo, hi, lo_open, hi_open));
     return v.get<double>();
   }
+  /// The integer at key `k`, or `def` when absent: a JSON integer (not 2.0, not negative) in
+  /// [lo, hi]. Throws JsonFileError "expected an integer in [lo, hi]".
   std::uint64_t integer(const std::string& k, std::uint64_t def, std::uint64_t lo, std::uint64_t hi) {
     if (!has(k)) return def;
     const json& v = j_.at(k);
@@ -175,15 +198,20 @@ class JsonObject {
       json_fail(file_, ptr(k), "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
     return v.get<std::uint64_t>();
   }
+  /// The boolean at key `k`, or `def` when absent. Throws JsonFileError "expected true or false".
   bool boolean(const std::string& k, bool def) {
     if (!has(k)) return def;
     if (!j_.at(k).is_boolean()) json_fail(file_, ptr(k), "expected true or false");
     return j_.at(k).get<bool>();
   }
+  /// The string at key `k`, or `def` when absent; with `allowed` non-empty it must be one of them
+  /// (exact, case-sensitive). Throws JsonFileError "expected a string", or "expected one of "a",
+  /// "b"" (with ", got "x"" for a string not in the list).
   std::string string(const std::string& k, const std::string& def, const std::vector<std::string>& allowed = {}) {
     if (!has(k)) return def;
     return string_at(j_.at(k), ptr(k), allowed);
   }
+  /// As string(), for a value `v` already taken from the document, named `p` in errors.
   std::string string_at(const json& v, const std::string& p, const std::vector<std::string>& allowed) const {
     std::string list;
     for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + ("\"" + a + "\"");
@@ -193,10 +221,15 @@ class JsonObject {
       json_fail(file_, p, "expected one of " + list + ", got \"" + s + "\"");
     return s;
   }
+  /// The vector at key `k`, or `def` when absent: an array of exactly 3 finite numbers; with
+  /// `nonzero` (a direction, an up vector) not all three zero. Throws JsonFileError "expected an
+  /// array of 3 finite numbers[, not all zero]", naming the element (".../k/1") when one element is
+  /// bad.
   glm::dvec3 vec3(const std::string& k, const glm::dvec3& def, bool nonzero = false) {
     if (!has(k)) return def;
     return vec3_at(j_.at(k), ptr(k), nonzero);
   }
+  /// As vec3(), for a value `v` already taken from the document, named `p` in errors.
   glm::dvec3 vec3_at(const json& v, const std::string& p, bool nonzero) const {
     const char* what = nonzero ? "expected an array of 3 finite numbers, not all zero"
                                : "expected an array of 3 finite numbers";
@@ -209,10 +242,15 @@ class JsonObject {
     if (nonzero && r == glm::dvec3(0.0)) json_fail(file_, p, what);
     return r;
   }
+  /// The colour at key `k`, or `def` when absent: an array of 3 linear RGB numbers, each in
+  /// [0, hi]; `hi` is the largest a channel may be (1 for a material's reflectance, 1e6 for the
+  /// background's and the sun's colour). Read as float. Throws JsonFileError "expected an array of
+  /// 3 numbers (linear RGB) in [0, hi]", naming the element when one element is bad.
   glm::vec3 color(const std::string& k, const glm::vec3& def, float hi) {
     if (!has(k)) return def;
     return color_at(j_.at(k), ptr(k), hi);
   }
+  /// As color(), for a value `v` already taken from the document, named `p` in errors.
   glm::vec3 color_at(const json& v, const std::string& p, float hi) const {
     const std::string what = "expected an array of 3 numbers (linear RGB) in [0, " + num(hi) + "]";
     if (!v.is_array() || v.size() != 3) json_fail(file_, p, what);
@@ -224,7 +262,8 @@ class JsonObject {
     }
     return c;
   }
-  /// Rejects keys that no getter asked about.
+  /// Rejects keys that no getter asked about: throws JsonFileError "<file>: <pointer of the key>:
+  /// unknown key (allowed here: a, b, ...)" for the first such key.
   void finish() const {
     for (auto it = j_.begin(); it != j_.end(); ++it) {
       if (seen_.count(it.key())) continue;
@@ -234,11 +273,14 @@ class JsonObject {
     }
   }
 
+  /// `v` as the errors print it (ostream's default: 6 significant digits, "1e+06").
   static std::string num(double v) {
     std::ostringstream os;
     os << v;
     return os.str();
   }
+  /// The interval lo..hi as the errors print it: "(" or "[" by `lo_open`, ")" or "]" by `hi_open`,
+  /// an infinite bound as "inf" / "-inf", e.g. "(0, 180]".
   static std::string range_text(double lo, double hi, bool lo_open, bool hi_open) {
     auto s = [](double v) { return std::isinf(v) ? (v > 0 ? std::string("inf") : std::string("-inf")) : num(v); };
     return std::string(lo_open ? "(" : "[") + s(lo) + ", " + s(hi) + (hi_open ? ")" : "]");

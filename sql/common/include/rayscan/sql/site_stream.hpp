@@ -46,7 +46,17 @@ struct ChunkRows {
 class SiteStream {
  public:
   virtual ~SiteStream() = default;
+  /// The site's input files, the rows of the `sources` table: element i is the source that
+  /// PointRef::source == i names. Point cloud inputs come in the order given and are named as
+  /// given; one `.rsi` input gives the sources its build recorded (paths as stored in the file).
+  /// `points` is what each contributed (they sum to total_points()); `crs_wkt` is the index's CRS,
+  /// which every input shares, except for clouds read whole, where it is each file's own ("" when
+  /// unknown). Fixed at open, valid as long as the stream.
   [[nodiscard]] virtual const std::vector<SourceRow>& sources() const = 0;
+  /// The extra columns of the points table, in the order of ImportOptions::attributes, which is
+  /// also the order of ChunkRows::values: "rgb" gives three integer columns "red", "green",
+  /// "blue"; intensity and classification are integer columns; gps_time and a cloud's scalar
+  /// field are REAL / float8. Empty when no attribute was asked for. Fixed at open.
   [[nodiscard]] virtual const std::vector<ColumnInfo>& columns() const = 0;
   /// Fills `out` with the next chunk (vectors reused); false after the last one. Throws
   /// io::IndexError for an id outside the index's sources (a corrupted, unverified file).
