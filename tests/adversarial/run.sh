@@ -136,7 +136,7 @@ expect_error visibility-raster-in-proc "x.tif" -- visibility -q "$W/c.xyz" --obs
 # ---- Corrupted index files, a LAZ count above its chunks, an output that is an input.
 # Crafted here from the bundled autzen_trim.las (a 300 MiB reproducer is a sparse tail, not a file
 # in the repository). The root node record's packed field (nodes section + 28) := 0x80000000, an
-# internal node of 0 children: surfel set-up once read past an empty kNN result (SIGSEGV).
+# internal node of 0 children: surfel set-up must refuse it, not read past the empty kNN result.
 if "$RAYSCAN" index -q "$DATA/las/autzen_trim.las" -o "$W/x.rsi" >/dev/null 2>&1; then
   python3 - "$W/x.rsi" <<'PY'
 import struct, sys

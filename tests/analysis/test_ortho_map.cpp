@@ -383,7 +383,7 @@ TEST(OrthoMap, ASteepDiscAboveTheCloudIsSeenFromAbove) {
 // the half-plane and reach past x = 1/2 by 0.37 s to 0.5 s): the covered fraction f of the cell
 // lies in [1/2 + 0.366 s, 1/2 + s/2]. Its 64 rays (8 x 8 strata) find it to within one column of
 // strata (an edge across the cell straddles one column), so alpha / 255 is within 1/8 of f
-// (+ the 8-bit rounding); one ray through the centre (the old rule) would make it 255. The colour
+// (+ the 8-bit rounding); one ray through the centre alone would make it 255. The colour
 // is the points' own, not darkened by the misses: unassociated alpha, as the writer marks it.
 TEST(OrthoMap, AlphaIsTheShareOfTheCellsRaysThatHit) {
   const auto dir = std::filesystem::temp_directory_path() / ("rayscan_ortho_alpha_" + std::to_string(::getpid()));

@@ -298,7 +298,8 @@ TEST(BadInput, PlyCoordinatesBeyondTheBoundAreRefused) {
 }
 
 TEST(BadInput, DuplicateColumnsAndProperties) {
-  // Found by fuzz_text (tests/fuzz/regressions/text/): "i" and "intensity" both filled intensity.
+  // Two columns with the same role ("i" and "intensity") are refused, not both read into intensity
+  // (tests/fuzz/regressions/text/duplicate-intensity-column.csv is a fuzz_text input of it).
   expect_one_line(error_of(std::string("x,y,z,i,intensity\n1,2,3,4,5\n"), io::Format::text),
                   "line 1: columns 4 and 5 ('i', 'intensity') name the same attribute");
   // PLY: the second property with the same role stays a named scalar.
@@ -313,10 +314,10 @@ TEST(BadInput, DuplicateColumnsAndProperties) {
 }
 
 TEST(BadInput, AsciiIntegersOutsideTheirTypeAreRefusedFloatsPastTheirFieldClamped) {
-  // Found by fuzz_ply (tests/fuzz/regressions/ply/): "nan" in an ascii uchar intensity was cast
-  // to an integer; huge doubles were cast to float (both undefined behaviour). A value its
-  // declared integer type cannot hold is an error naming the line and property; values of a
-  // float type that do not fit their destination are clamped.
+  // Casting "nan" to an ascii uchar intensity's integer or a huge double to float is undefined
+  // behaviour (tests/fuzz/regressions/ply/nan-integer-intensity.ply is a fuzz_ply input of the
+  // first). A value its declared integer type cannot hold is an error naming the line and
+  // property; values of a float type that do not fit their destination are clamped.
   const std::string head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
                            "property float z\nproperty uchar intensity\nproperty double nx\nproperty double ny\n"
                            "property double nz\nproperty double red\nproperty double green\nproperty double blue\n"
@@ -407,7 +408,7 @@ TEST(BadInput, LasWaveformRecordCutShortIsRefusedWithItsOffsetAndLength) {
 }
 
 TEST(BadInput, ControlBytesInAQuotedTokenAreEscapedNotTheEndOfTheMessage) {
-  // A NUL in the quoted token ended what() there ("... got '"), cutting the message.
+  // A NUL in the quoted token is escaped: unescaped, it would end what() there ("... got '").
   std::string t = "x y z\n1 2 3\n4 5 ";
   t += std::string("6\0\x01z", 4);
   t += "\n";
@@ -421,8 +422,8 @@ TEST(BadInput, FileThatDoesNotExistOrHasAnUnknownExtension) {
 }
 
 TEST(BadInput, ExtraBytesDescriptorWithReservedTypeIsSkippedWithANote) {
-  // Found by fuzz_las (tests/fuzz/regressions/las/extra-bytes-reserved-type.las): data type 50
-  // indexed past the type-size table.
+  // A reserved data type (50) must not index past the type-size table
+  // (tests/fuzz/regressions/las/extra-bytes-reserved-type.las is a fuzz_las input of it).
   auto b = slurp(data_file("las/conformance/extrabytes.las"));
   const std::string s(b.begin(), b.end());
   const std::size_t vlr = s.find("LASF_Spec");

@@ -530,7 +530,7 @@ TEST(RenderJob, OrthoMapDsmOfAutzenIsBoundedByItsPoints) {
 // as uncertain as the strata of the cell's rays leave it (render::stratified_pixel_point):
 //  - 16 rays, a 4 x 4 grid of strata whose column boundary is the edge: f = 1/2 exactly;
 //  - 9 rays, 3 x 3: the middle column straddles the edge and each of its 3 rays falls either
-//    side, so f is in [1/3, 2/3] (one ray, the old rule, gives f = 0 or 1);
+//    side, so f is in [1/3, 2/3] (a single centre ray would give f = 0 or 1);
 //  - 1 ray, through the centre: one point's colour as stored, A or B exactly.
 // A half-empty cell (points only over x < 1/2: A, then B from x = 1/4) averages over the hits,
 // not over the rays: 16 rays, the first column A, the second B, and the third column's 4 rays hit

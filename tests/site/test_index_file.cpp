@@ -1330,7 +1330,8 @@ TEST(IndexFileBadInput, CorruptRecordsAreRefusedAtOpenAtAnySize) {
   EXPECT_NE(error_of(large).find("bad.rsi: byte " + std::to_string(node_off + 24) + ": node 0: children ["),
             std::string::npos) << error_of(large);
   {
-    // Opened without the node checks, the surfel set-up reports the inconsistency (was SIGSEGV).
+    // Opened without the node checks, the surfel set-up reports the inconsistency as an error
+    // instead of reading past the empty kNN result.
     io::IndexOpenOptions quick;
     quick.verify = io::IndexOpenOptions::Verify::metadata_only;
     const io::MappedIndex m = io::MappedIndex::open(bad, quick);

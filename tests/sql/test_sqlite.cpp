@@ -580,7 +580,7 @@ TEST(SqliteImportCli, BadInputExitsTwoWithOneLineAndLeavesNoFile) {
   EXPECT_EQ(run(bin + " db import " + scan_path("autzen").string() + " -o " + out.string() +
                 " --attributes nir 2>/dev/null"), 2);
   EXPECT_EQ(run(bin + " db import " + scan_path("autzen").string() + " -o " + out.string() +
-                " --attributes intensity,intensity 2>/dev/null"), 2);  // one column twice (was the database's error)
+                " --attributes intensity,intensity 2>/dev/null"), 2);  // one column twice: refused by the import, before the database sees it
   EXPECT_EQ(run(bin + " db import " + scan_path("autzen").string() + " 2>/dev/null"), 2);
   EXPECT_FALSE(fs::exists(out));
   for (const auto& e : fs::directory_iterator(tmpdir()))
