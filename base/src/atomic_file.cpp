@@ -23,8 +23,15 @@ namespace {
 
 thread_local OutputTransaction* g_current = nullptr;
 
-[[noreturn]] void refuse_output(const std::filesystem::path& path, const std::string& why) {
-  throw OutputFileError(one_line(path.string()) + ": " + why);
+/// Throws OutputFileError "<path>: <why>" with the errno `err` of the failed call (0: a rule's).
+[[noreturn]] void refuse_output(const std::filesystem::path& path, const std::string& why, int err = 0) {
+  throw OutputFileError(one_line(path.string()) + ": " + why, err);
+}
+
+/// refuse_output for the call that just failed: "<path>: <what>: <strerror(errno)>", code errno.
+[[noreturn]] void refuse_failed(const std::filesystem::path& path, const char* what) {
+  const int err = errno;
+  refuse_output(path, std::string(what) + ": " + std::strerror(err), err);
 }
 
 /// Gives `tmp` the permission bits of the regular file at `path`, if there is one, so that
@@ -32,7 +39,7 @@ thread_local OutputTransaction* g_current = nullptr;
 void keep_mode(const std::filesystem::path& tmp, const std::filesystem::path& path) {
   struct stat st {};
   if (::lstat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::chmod(tmp.c_str(), st.st_mode & 07777) != 0)
-    refuse_output(path, std::string("cannot give the new file the old one's mode: ") + std::strerror(errno));
+    refuse_failed(path, "cannot give the new file the old one's mode");
 }
 
 /// The registered temporaries (TemporaryOf): few at a time (a command's outputs and their
@@ -129,22 +136,24 @@ OutputFileError output_error(const std::filesystem::path& file, const std::strin
     if (where != folder_of(out)) message += " (temporary file in '" + one_line(where.string()) + "')";
   }
   if (err != 0) message += std::string(": ") + std::strerror(err);
-  return OutputFileError(message);
+  return OutputFileError(message, err);
 }
 
 void require_replaceable_output(const std::filesystem::path& path) {
   struct stat st {};
   if (::lstat(path.c_str(), &st) == 0) {
     if (!S_ISREG(st.st_mode))
-      refuse_output(path, "is " + detail::file_kind_name(st.st_mode) +
-                       "; refusing to replace it (outputs go to a new path or over a regular file)");
+      refuse_output(path,
+                    "is " + detail::file_kind_name(st.st_mode) +
+                        "; refusing to replace it (outputs go to a new path or over a regular file)",
+                    S_ISDIR(st.st_mode) ? EISDIR : 0);
     return;
   }
-  if (errno != ENOENT) refuse_output(path, std::string("cannot stat output path: ") + std::strerror(errno));
+  if (errno != ENOENT) refuse_failed(path, "cannot stat output path");
   const std::filesystem::path dir = path.parent_path().empty() ? "." : path.parent_path();
   struct stat ds {};
-  if (::stat(dir.c_str(), &ds) != 0 || !S_ISDIR(ds.st_mode))
-    refuse_output(path, "output directory '" + one_line(dir.string()) + "' does not exist");
+  const int dir_err = ::stat(dir.c_str(), &ds) != 0 ? errno : S_ISDIR(ds.st_mode) ? 0 : ENOTDIR;
+  if (dir_err != 0) refuse_output(path, "output directory '" + one_line(dir.string()) + "' does not exist", dir_err);
 }
 
 void require_outputs(std::span<const std::filesystem::path> outputs, std::span<const std::filesystem::path> inputs) {
@@ -174,8 +183,10 @@ void require_outputs(std::span<const std::filesystem::path> outputs, std::span<c
       const RemoveOnInterrupt on_signal(probe);  // a signal between open and unlink removes it too
       ::unlink(probe.c_str());  // a stale probe of this pid (or a planted link): removed, not followed
       const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
-      if (fd < 0)
-        refuse_output(out, "cannot write in directory '" + one_line(dir.string()) + "': " + std::strerror(errno));
+      if (fd < 0) {
+        const int err = errno;
+        refuse_output(out, "cannot write in directory '" + one_line(dir.string()) + "': " + std::strerror(err), err);
+      }
       ::close(fd);
       ::unlink(probe.c_str());
     }
@@ -217,7 +228,7 @@ void OutputTransaction::commit() {
     keep_mode(p.temp, p.path);
     std::error_code ec;
     std::filesystem::rename(p.temp, p.path, ec);
-    if (ec) refuse_output(p.path, "cannot move the finished file into place: " + ec.message());
+    if (ec) refuse_output(p.path, "cannot move the finished file into place: " + ec.message(), ec.value());
     pending_.erase(pending_.begin());  // (its mark with it: the temporary is gone)
   }
 }
@@ -231,7 +242,7 @@ AtomicFile::AtomicFile(std::filesystem::path path) : path_(std::move(path)) {
   mark_ = RemoveOnInterrupt(tmp_);  // before the file exists: no moment uncovered
   ::unlink(tmp_.c_str());  // a stale temporary of this pid (or a planted link): removed, not followed
   const int fd = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
-  if (fd < 0) refuse_output(path_, std::string("cannot create output file: ") + std::strerror(errno));
+  if (fd < 0) refuse_failed(path_, "cannot create output file");
   ::close(fd);
 }
 
@@ -244,7 +255,7 @@ AtomicFile::~AtomicFile() {
 
 void AtomicFile::write_all(std::span<const unsigned char> bytes) {
   const int fd = ::open(tmp_.c_str(), O_WRONLY | O_TRUNC | O_NOFOLLOW | O_CLOEXEC);
-  if (fd < 0) refuse_output(path_, std::string("cannot open the temporary file: ") + std::strerror(errno));
+  if (fd < 0) refuse_failed(path_, "cannot open the temporary file");
   std::size_t done = 0;
   while (done < bytes.size()) {
     const ssize_t w = ::write(fd, bytes.data() + done, bytes.size() - done);
@@ -252,22 +263,24 @@ void AtomicFile::write_all(std::span<const unsigned char> bytes) {
     if (w <= 0) {
       const int e = w < 0 ? errno : ENOSPC;  // a zero-byte write makes no progress: treat as full
       ::close(fd);
-      refuse_output(path_, "cannot write " + std::to_string(bytes.size()) + " bytes (wrote " + std::to_string(done) +
-                               "): " + std::strerror(e));
+      refuse_output(path_,
+                    "cannot write " + std::to_string(bytes.size()) + " bytes (wrote " + std::to_string(done) +
+                        "): " + std::strerror(e),
+                    e);
     }
     done += static_cast<std::size_t>(w);
   }
-  if (::close(fd) != 0) refuse_output(path_, std::string("cannot write: ") + std::strerror(errno));
+  if (::close(fd) != 0) refuse_failed(path_, "cannot write");
 }
 
 void AtomicFile::commit() {
   // fsync reports the delayed write errors (ENOSPC, EIO) of file systems that allocate late.
   const int fd = ::open(tmp_.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) refuse_output(path_, std::string("cannot reopen the temporary file: ") + std::strerror(errno));
+  if (fd < 0) refuse_failed(path_, "cannot reopen the temporary file");
   const bool synced = ::fsync(fd) == 0 || errno == EINVAL || errno == EROFS;  // EINVAL: no sync support
   const int sync_errno = errno;
   ::close(fd);
-  if (!synced) refuse_output(path_, std::string("cannot write: ") + std::strerror(sync_errno));
+  if (!synced) refuse_output(path_, std::string("cannot write: ") + std::strerror(sync_errno), sync_errno);
   if (OutputTransaction* tx = OutputTransaction::current()) {
     tx->adopt(tmp_, path_, std::move(mark_));
     committed_ = true;  // the transaction owns the temporary now
@@ -277,7 +290,7 @@ void AtomicFile::commit() {
   keep_mode(tmp_, path_);
   std::error_code ec;
   std::filesystem::rename(tmp_, path_, ec);
-  if (ec) refuse_output(path_, "cannot move the finished file into place: " + ec.message());
+  if (ec) refuse_output(path_, "cannot move the finished file into place: " + ec.message(), ec.value());
   committed_ = true;
 }
 

@@ -11,6 +11,7 @@
 #include <atomic>
 #include <cerrno>
 #include <cstring>
+#include <iterator>
 #include <string>
 
 namespace rayscan {
@@ -34,7 +35,7 @@ static_assert(std::atomic<int>::is_always_lock_free && std::atomic<bool>::is_alw
 
 // Zero-initialised storage: the pages of unused slots are never touched.
 Slot g_slots[kSlots];
-std::atomic<bool> g_installed{false};
+std::atomic<bool> g_marking{false};  // marks are recorded (a handler is or may be installed)
 std::atomic<bool> g_deferred{false};
 std::atomic<int> g_pending{0};
 std::atomic<bool> g_cleaning{false};
@@ -102,10 +103,63 @@ extern "C" void on_interrupt(int sig) {
   ::_exit(128 + sig);  // not reached: the default action of the three signals ends the process
 }
 
+/// The action that runs on_interrupt.
+struct sigaction handler_action() {
+  struct sigaction sa {};
+  sa.sa_handler = on_interrupt;
+  sigemptyset(&sa.sa_mask);
+  for (const int s : kSignals) sigaddset(&sa.sa_mask, s);  // one handler at a time per thread
+  sa.sa_flags = SA_RESTART;  // a deferred signal does not cut reads and writes short
+  return sa;
+}
+
+// The InterruptCleanup objects alive and the signals they took (those at SIG_DFL when the first
+// was made), under a pthread mutex that fork() holds (pthread_atfork), so a child finds it free.
+pthread_mutex_t g_cleanup_mutex = PTHREAD_MUTEX_INITIALIZER;
+int g_cleanups = 0;
+bool g_taken[std::size(kSignals)] = {};
+pthread_once_t g_atfork_once = PTHREAD_ONCE_INIT;
+
+/// Gives each signal taken its default action back, unless the host set another one meanwhile.
+/// Under g_cleanup_mutex.
+void give_back_signals() {
+  for (std::size_t i = 0; i < std::size(kSignals); ++i) {
+    if (!g_taken[i]) continue;
+    g_taken[i] = false;
+    struct sigaction now {};
+    if (::sigaction(kSignals[i], nullptr, &now) != 0 || (now.sa_flags & SA_SIGINFO) != 0 ||
+        now.sa_handler != on_interrupt)
+      continue;
+    struct sigaction dfl {};
+    dfl.sa_handler = SIG_DFL;
+    sigemptyset(&dfl.sa_mask);
+    ::sigaction(kSignals[i], &dfl, nullptr);
+  }
+}
+
+void lock_for_fork() { ::pthread_mutex_lock(&g_cleanup_mutex); }
+void unlock_after_fork() { ::pthread_mutex_unlock(&g_cleanup_mutex); }
+
+/// In a child forked while the parent's threads write (os.fork, multiprocessing): the writes and
+/// their InterruptCleanup objects stay in the parent, so the child gets the default actions back
+/// and forgets the marks, which name the parent's temporaries. (Registered only by processes that
+/// make an InterruptCleanup, never by the `rayscan` program, whose forking thread holds no mark.)
+void reset_in_child() {
+  if (g_cleanups > 0) give_back_signals();
+  g_cleanups = 0;
+  for (Slot& s : g_slots) {
+    const int state = s.state.load();
+    if (state == kFile || state == kFolder) s.state.store(kFree);
+  }
+  ::pthread_mutex_unlock(&g_cleanup_mutex);
+}
+
+void register_fork_handlers() { ::pthread_atfork(lock_for_fork, unlock_after_fork, reset_in_child); }
+
 }  // namespace
 
 RemoveOnInterrupt::RemoveOnInterrupt(const std::filesystem::path& path, Kind kind) noexcept {
-  if (!g_installed.load()) return;
+  if (!g_marking.load()) return;
   const std::string& p = path.native();
   if (p.empty() || p.size() >= PATH_MAX) return;
   for (int i = 0; i < kSlots; ++i) {
@@ -143,17 +197,38 @@ void RemoveOnInterrupt::release() noexcept {
 }
 
 void install_interrupt_handler() {
-  g_installed.store(true);
-  struct sigaction sa {};
-  sa.sa_handler = on_interrupt;
-  sigemptyset(&sa.sa_mask);
-  for (const int s : kSignals) sigaddset(&sa.sa_mask, s);  // one handler at a time per thread
-  sa.sa_flags = SA_RESTART;  // a deferred signal does not cut reads and writes short
+  g_marking.store(true);
+  const struct sigaction sa = handler_action();
   for (const int s : kSignals) {
     struct sigaction old {};
     if (::sigaction(s, nullptr, &old) == 0 && old.sa_handler == SIG_IGN) continue;
     ::sigaction(s, &sa, nullptr);
   }
+}
+
+InterruptCleanup::InterruptCleanup() noexcept {
+  ::pthread_once(&g_atfork_once, register_fork_handlers);
+  ::pthread_mutex_lock(&g_cleanup_mutex);
+  if (g_cleanups++ == 0) {
+    g_marking.store(true);
+    const struct sigaction sa = handler_action();
+    for (std::size_t i = 0; i < std::size(kSignals); ++i) {
+      struct sigaction old {};
+      // Only the default action, which would end the process anyway: the host's handler (a
+      // Python-level one included) or an ignored signal stays as it is.
+      if (::sigaction(kSignals[i], nullptr, &old) != 0 || (old.sa_flags & SA_SIGINFO) != 0 ||
+          old.sa_handler != SIG_DFL)
+        continue;
+      g_taken[i] = ::sigaction(kSignals[i], &sa, nullptr) == 0;
+    }
+  }
+  ::pthread_mutex_unlock(&g_cleanup_mutex);
+}
+
+InterruptCleanup::~InterruptCleanup() {
+  ::pthread_mutex_lock(&g_cleanup_mutex);
+  if (--g_cleanups == 0) give_back_signals();
+  ::pthread_mutex_unlock(&g_cleanup_mutex);
 }
 
 void defer_interrupts() noexcept { g_deferred.store(true); }

@@ -6,6 +6,8 @@
 #include "bindings.hpp"
 #include "cloud.hpp"
 
+#include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/interrupt.hpp"
 #include "rayscan/io/crs.hpp"
 #include "rayscan/io/field_names.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -22,6 +24,7 @@
 #include <cstring>
 #include <memory>
 #include <optional>
+#include <system_error>
 #include <utility>
 
 namespace rayscan::python {
@@ -71,20 +74,28 @@ bool named_core_fields(const std::string& path) {
   }
 }
 
+/// Raises the OSError subclass Python's open() raises for `err` (FileNotFoundError for ENOENT,
+/// PermissionError, NotADirectoryError, OSError with errno ENOSPC for a full disk, ...) with errno,
+/// strerror and filename `path` set, as open() does; `detail`, the library's one-line message,
+/// when not empty, is added as a note (PEP 678, Python 3.11+), which a traceback prints.
+[[noreturn]] void raise_os_error(int err, const std::string& path, const std::string& detail = {}) {
+  // OSError(errno, strerror, filename) constructs the subclass for errno.
+  const py::object e = py::reinterpret_borrow<py::object>(PyExc_OSError)(err, std::strerror(err), path);
+  if (!detail.empty() && py::hasattr(e, "add_note")) e.attr("add_note")(detail);
+  PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(e.ptr())), e.ptr());
+  throw py::error_already_set();
+}
+
 /// When `path` is missing or unreadable, raises the OSError subclass Python's open() raises for it
-/// (FileNotFoundError, PermissionError, NotADirectoryError) with errno and filename set; returns
-/// otherwise. The reader reports a file it cannot open as a message only (OSError without errno),
-/// so the reason is asked again: stat(2) for the path, access(2) for read permission.
+/// (raise_os_error); returns otherwise. The reader reports a file it cannot open as a message only
+/// (OSError without errno), so the reason is asked again: stat(2) for the path, access(2) for
+/// read permission.
 void raise_os_error_of(const std::string& path) {
   struct stat st {};
   int err = 0;
   if (::stat(path.c_str(), &st) != 0) err = errno;
   else if (S_ISREG(st.st_mode) && ::access(path.c_str(), R_OK) != 0) err = errno;
-  if (err == 0) return;
-  // OSError(errno, strerror, filename) constructs the subclass for errno, as open() does.
-  const py::object e = py::reinterpret_borrow<py::object>(PyExc_OSError)(err, std::strerror(err), path);
-  PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(e.ptr())), e.ptr());
-  throw py::error_already_set();
+  if (err != 0) raise_os_error(err, path);
 }
 
 PyCloud read(const std::string& path, const py::object& attributes) {
@@ -467,6 +478,10 @@ void check_name_reads_back(const std::string& name, const std::string& path, io:
 /// read it meanwhile, so it is not borrowed and given back), with the GIL released, as the write
 /// itself; `c.keep` holds the object for both. An array's cloud is already the call's own copy and
 /// takes the fields in place. The fields are converted to float64 first, with the GIL (NumPy).
+/// A failed system call (a missing folder, a full disk) raises raise_os_error's OSError subclass
+/// for its errno, named by `path`, the library's message as its note; a refusal by rule (a FIFO
+/// at the path) a plain OSError with the message. While it writes, a SIGTERM, SIGINT or SIGHUP
+/// that would end the process anyway removes the temporary file first (InterruptCleanup).
 void write(py::handle path, py::handle cloud, const py::dict& fields) {
   const std::string file = path_arg(path, "path");
   CloudArg c = cloud_arg(cloud, "cloud", /*allow_path=*/false);
@@ -480,8 +495,10 @@ void write(py::handle path, py::handle cloud, const py::dict& fields) {
   }
   const io::LasWriteOptions las = c.info ? io::las_grid_of(*c.info) : io::LasWriteOptions{};
   std::string io_error;  // an I/O failure is an OSError, like an unreadable file
+  int io_errno = 0;      // the errno of the failed call, 0 for a refusal by rule
   {
     py::gil_scoped_release nogil;
+    const InterruptCleanup on_signal;
     const PointCloud* pc = c.points;
     PointCloud copy;  // a PointCloud object's cloud plus `fields`
     if (!extra.empty()) {
@@ -497,10 +514,18 @@ void write(py::handle path, py::handle cloud, const py::dict& fields) {
       io::write_point_cloud(file, *pc, las);
     } catch (const std::invalid_argument&) {
       throw;  // a bad name or cloud: ValueError
+    } catch (const OutputFileError& e) {
+      io_error = e.what();
+      io_errno = e.code().value();
+    } catch (const std::system_error& e) {  // std::filesystem's
+      io_error = e.what();
+      if (e.code().category() == std::generic_category() || e.code().category() == std::system_category())
+        io_errno = e.code().value();
     } catch (const std::runtime_error& e) {
       io_error = e.what();
     }
   }
+  if (io_errno != 0) raise_os_error(io_errno, file, io_error);
   if (!io_error.empty()) {
     PyErr_SetString(PyExc_OSError, io_error.c_str());
     throw py::error_already_set();

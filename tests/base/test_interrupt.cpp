@@ -113,3 +113,52 @@ TEST(Interrupt, SignalIgnoredAtInstallStaysIgnored) {
   EXPECT_EQ(rayscan::test::entry_names(dir), std::set<std::string>{"file"});
   fs::remove_all(dir);
 }
+
+namespace {
+
+/// The handler function of `sig` now (SIG_DFL, SIG_IGN or a function).
+void (*action_of(int sig))(int) {
+  struct sigaction now {};
+  ::sigaction(sig, nullptr, &now);
+  return now.sa_handler;
+}
+
+extern "C" void host_handler(int) {}
+
+}  // namespace
+
+TEST(Interrupt, CleanupTakesOnlyDefaultSignalsWhileItLivesAndGivesThemBack) {
+  // A library in a host program: SIGINT is the host's, SIGHUP ignored, SIGTERM left at its default.
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_interrupt_cleanup");
+  const int status = in_child([&] {
+    ::signal(SIGINT, host_handler);
+    ::signal(SIGHUP, SIG_IGN);
+    {
+      const rayscan::InterruptCleanup outer;
+      const rayscan::InterruptCleanup inner;  // (another writer at the same time)
+      if (action_of(SIGTERM) == SIG_DFL || action_of(SIGINT) != host_handler || action_of(SIGHUP) != SIG_IGN)
+        ::_exit(3);
+    }
+    if (action_of(SIGTERM) != SIG_DFL || action_of(SIGINT) != host_handler || action_of(SIGHUP) != SIG_IGN)
+      ::_exit(4);
+    const rayscan::InterruptCleanup cleanup;
+    RemoveOnInterrupt file(dir / "file");
+    touch(dir / "file");
+    // A child forked meanwhile has the default action back and does not remove its parent's file.
+    const pid_t child = ::fork();
+    if (child == 0) {
+      if (action_of(SIGTERM) != SIG_DFL) ::_exit(5);
+      ::raise(SIGTERM);
+      ::_exit(6);  // not reached
+    }
+    int child_status = 0;
+    ::waitpid(child, &child_status, 0);
+    if (!WIFSIGNALED(child_status) || WTERMSIG(child_status) != SIGTERM || !fs::exists(dir / "file")) ::_exit(7);
+    ::raise(SIGTERM);
+    ::_exit(8);  // not reached
+  });
+  ASSERT_TRUE(WIFSIGNALED(status)) << "status " << (WIFEXITED(status) ? WEXITSTATUS(status) : status);
+  EXPECT_EQ(WTERMSIG(status), SIGTERM);
+  EXPECT_TRUE(rayscan::test::entry_names(dir).empty());
+  fs::remove_all(dir);
+}

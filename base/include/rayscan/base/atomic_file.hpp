@@ -21,10 +21,20 @@
 
 namespace rayscan {
 
-/// An output path the output policy refuses, or a failed commit. what() is one line
-/// "<path>: <reason>".
+/// An output path the output policy refuses, or a failed write or commit. what() is one line
+/// "<path>: <reason>". code() is the errno of the system call that failed (ENOENT for a missing
+/// output folder, EACCES, ENOSPC for a full disk), so that a binding can raise its own error for
+/// it (the Python module's FileNotFoundError); an empty code for a refusal by rule (a FIFO at the
+/// path, an output that is also an input).
 struct OutputFileError : std::runtime_error {
-  using std::runtime_error::runtime_error;
+  /// `what`: the message; `err`: the errno, 0 for none.
+  explicit OutputFileError(const std::string& what, int err = 0)
+      : std::runtime_error(what), code_(err == 0 ? std::error_code() : std::error_code(err, std::generic_category())) {}
+  /// The failed call's errno in the generic category; false when the refusal is a rule's.
+  [[nodiscard]] std::error_code code() const noexcept { return code_; }
+
+ private:
+  std::error_code code_;
 };
 
 /// Registers `temp`, a temporary file or folder written for the output `output`, while this object
@@ -60,6 +70,7 @@ class TemporaryOf {
 /// "<output_of(file)>: <what>: <strerror(err)>" (no cause when `err` is 0). When `file` is written
 /// in another folder than its output (a temporary folder given by the user), the message says so:
 /// "<output>: <what> (temporary file in '<folder>'): <cause>", as that folder is the one that is full.
+/// Its code() is `err`.
 [[nodiscard]] OutputFileError output_error(const std::filesystem::path& file, const std::string& what, int err);
 
 /// Throws OutputFileError unless `path` is absent or a regular file (checked with lstat(2), so a

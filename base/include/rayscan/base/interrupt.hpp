@@ -4,8 +4,10 @@
 // COPC output) is marked while it exists (RemoveOnInterrupt), and the handler removes the marked
 // paths and ends the process by the same signal. The marks live in a fixed table of paths and the
 // handler only reads atomics and calls unlink(2), rmdir(2) and their kin, which are
-// async-signal-safe, so the handler may run on any thread at any moment. Without the handler (the
-// Python module, the library's users) nothing is marked and signals keep their own disposition.
+// async-signal-safe, so the handler may run on any thread at any moment. A library loaded into
+// another program (the Python module) installs no handler of its own for good: around a write it
+// holds an InterruptCleanup, which takes only the signals whose action is still the default one.
+// Without either, nothing is marked and signals keep their own disposition.
 #pragma once
 
 #include <filesystem>
@@ -17,7 +19,8 @@ namespace rayscan {
 /// creating it, and destroy the mark only after removing or renaming the path, so that no moment
 /// is uncovered. The destructor removes nothing: the owner removes its temporaries on every
 /// ordinary path. A folder is emptied (its entries, not recursively) and removed. Does nothing
-/// when install_interrupt_handler() has not run, for an empty path or one of PATH_MAX bytes or
+/// when neither install_interrupt_handler() has run nor an InterruptCleanup been made (marks are
+/// recorded from the first one on), for an empty path or one of PATH_MAX bytes or
 /// more, and when all 128 slots of the table are taken (the path then survives a signal, as it did
 /// without a handler). Never throws. Movable, not copyable.
 class RemoveOnInterrupt {
@@ -43,6 +46,24 @@ class RemoveOnInterrupt {
 /// program's main() only, before it starts threads; never for a library loaded into another
 /// program (the Python module), whose signals are its host's.
 void install_interrupt_handler();
+
+/// For a library loaded into another program (the Python module), around a call that writes
+/// temporary files: while at least one InterruptCleanup lives, each of SIGINT, SIGTERM and SIGHUP
+/// whose action was the default one (SIG_DFL, which ends the process) when the first of them was
+/// made gets install_interrupt_handler's handler, so that the signal removes the marked paths and
+/// then ends the process by its default action, as it would have ended anyway. A signal the host
+/// handles or ignores (Python's own SIGINT handler, a Dask worker's SIGTERM) stays the host's.
+/// When the last one is destroyed each signal taken gets SIG_DFL back, unless the host has set
+/// another action meanwhile. A child forked meanwhile gets the default actions back and none of
+/// the marks (its parent's temporaries are not its own). Thread-safe: objects on several threads
+/// share one handler. Never throws. Not copyable.
+class InterruptCleanup {
+ public:
+  InterruptCleanup() noexcept;
+  InterruptCleanup(const InterruptCleanup&) = delete;
+  InterruptCleanup& operator=(const InterruptCleanup&) = delete;
+  ~InterruptCleanup();
+};
 
 /// For a job that stops itself and unwinds (`rayscan index`, whose progress callback checks
 /// pending_interrupt()): from now on the first of the three signals is only recorded; a second
