@@ -9,10 +9,10 @@
 #include "rayscan/jobs/solar.hpp"
 #include "rayscan/site/copc.hpp"
 
+#include "../common/crs_wkt.hpp"
 #include "../common/run_command.hpp"
 #include "small_copc.hpp"
 
-#include <cpl_conv.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
@@ -306,12 +306,8 @@ TEST(SiteLocation, AutzenMatchesGdaltransformAndTheLambertConvergence) {
   EXPECT_NEAR(loc.convergence_deg, -gamma, 0.005);  // ours: grid -> true north, clockwise
   EXPECT_GT(loc.convergence_deg, 1.0);  // west of the central meridian: grid north points west of true north
   EXPECT_THROW(locate_site("", p), std::invalid_argument);
-  OGRSpatialReference geo;
-  geo.importFromEPSG(4326);
-  char* geo_wkt = nullptr;
-  geo.exportToWkt(&geo_wkt);
-  EXPECT_THROW(locate_site(geo_wkt, p), std::invalid_argument);  // degrees: no sun directions
-  CPLFree(geo_wkt);
+  // degrees: no sun directions
+  EXPECT_THROW(locate_site(rayscan::test::crs_wkt("EPSG:4326"), p), std::invalid_argument);
 }
 
 // A weather file drives the sky: an overcast day (GHI = DHI = 100 W/m², no direct sun) on an open
@@ -696,16 +692,9 @@ TEST(SolarJob, ADateAlonePeriodIsLocalMidnightToMidnight) {
 // geocentric are not, with or without --lat/--lon; a local (engineering) frame is one, but has no
 // place on the Earth for locate_site.
 TEST(SiteLocation, GeographicAndGeocentricAreRefusedByOneRule) {
-  const auto wkt_of = [](int epsg) {
-    OGRSpatialReference srs;
-    srs.importFromEPSG(epsg);
-    char* text = nullptr;
-    srs.exportToWkt(&text);
-    const std::string wkt = text;
-    CPLFree(text);
-    return wkt;
-  };
-  const std::string geographic = wkt_of(4326), geocentric = wkt_of(4978), projected = wkt_of(32632);
+  using rayscan::test::crs_wkt;
+  const std::string geographic = crs_wkt("EPSG:4326"), geocentric = crs_wkt("EPSG:4978"),
+                    projected = crs_wkt("EPSG:32632");
   const std::string local = R"(LOCAL_CS["site",LOCAL_DATUM["site",0],UNIT["metre",1],AXIS["X",EAST],AXIS["Y",NORTH]])";
   EXPECT_TRUE(is_unprojected_crs(geographic));
   EXPECT_TRUE(is_unprojected_crs(geocentric));
@@ -746,12 +735,8 @@ TEST(SiteLocation, GeographicAndGeocentricAreRefusedByOneRule) {
 // The refusal of an unprojected CRS has one wording, with what is measured in it: check_site_crs
 // gives it for sun directions, the jobs (solar, visibility) for theirs. Oracle: the text itself.
 TEST(SiteLocation, UnprojectedCrsRefusalNamesWhatNeedsAProjectedCrs) {
-  OGRSpatialReference srs;
-  ASSERT_EQ(srs.importFromEPSG(4326), OGRERR_NONE);
-  char* text = nullptr;
-  ASSERT_EQ(srs.exportToWkt(&text), OGRERR_NONE);
-  const std::string geographic = text;
-  CPLFree(text);
+  const std::string geographic = rayscan::test::crs_wkt("EPSG:4326");
+  ASSERT_FALSE(geographic.empty());
   const auto why = [](const std::function<void()>& f) {
     try {
       f();
@@ -942,12 +927,7 @@ TEST(SolarCli, AGeographicCrsIsRefusedFromTheHeaderBeforeThePointsAreRead) {
   PointCloud cloud;
   for (int i = 0; i < 20; ++i)
     for (int j = 0; j < 20; ++j) cloud.positions.emplace_back(515000.0 + i, 4918000.0 + j, 2300.0);
-  OGRSpatialReference wgs84;
-  wgs84.importFromEPSG(4326);
-  char* wkt = nullptr;
-  wgs84.exportToWkt(&wkt);
-  cloud.crs_wkt = wkt;
-  CPLFree(wkt);
+  cloud.crs_wkt = rayscan::test::crs_wkt("EPSG:4326");
   io::write_point_cloud(las, cloud);
   {
     std::fstream f(las, std::ios::in | std::ios::out | std::ios::binary);

@@ -1,6 +1,7 @@
 // Visibility inputs and outputs: observer files, local ground, raster grid and reductions, the
 // GeoTIFF read back through GDAL (geotransform, CRS, NoData, values), the PNG preview, and
 // `rayscan visibility` end to end (fields in LAS/PLY, exit codes, no partial files).
+#include "../common/crs_wkt.hpp"
 #include "../common/sanitizers.hpp"
 #include "../common/temp_dir.hpp"
 #include "rayscan/analysis/geotiff.hpp"
@@ -13,7 +14,6 @@
 #include "rayscan/camera/camera_file.hpp"
 #include "rayscan/io/las_records.hpp"
 
-#include <cpl_conv.h>
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
@@ -334,17 +334,8 @@ TEST(GeoTiff, BandOfHeightsCarriesTheCrsVerticalUnit) {
     std::unique_ptr<GDALDataset> ds(GDALDataset::Open(out.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
     return ds ? std::string(ds->GetRasterBand(1)->GetUnitType()) : std::string("(not opened)");
   };
-  const auto wkt_of = [](const char* crs) {
-    OGRSpatialReference srs;
-    EXPECT_EQ(srs.SetFromUserInput(crs), OGRERR_NONE) << crs;
-    char* w = nullptr;
-    EXPECT_EQ(srs.exportToWkt(&w), OGRERR_NONE) << crs;
-    const std::string text = w != nullptr ? w : "";
-    CPLFree(w);
-    return text;
-  };
   GeoTiffOptions go;
-  go.crs_wkt = wkt_of("EPSG:2992+5703");
+  go.crs_wkt = rayscan::test::crs_wkt("EPSG:2992+5703");
   go.unit_is_crs_height = true;
   EXPECT_EQ(unit_of(go), "metre");
   EXPECT_EQ(crs_height_unit(go.crs_wkt), "metre");
@@ -352,7 +343,7 @@ TEST(GeoTiff, BandOfHeightsCarriesTheCrsVerticalUnit) {
   go.unit_is_crs_length = true;
   EXPECT_EQ(unit_of(go), "foot");
   EXPECT_EQ(crs_length_unit(go.crs_wkt), "foot");
-  go.crs_wkt = wkt_of("EPSG:2992");
+  go.crs_wkt = rayscan::test::crs_wkt("EPSG:2992");
   go.unit_is_crs_height = true;  // before unit_is_crs_length
   EXPECT_EQ(unit_of(go), "foot");
   EXPECT_EQ(crs_height_unit(go.crs_wkt), "foot");
@@ -485,11 +476,9 @@ TEST(RasterPreview, CellSizeIsInTheCrsLinearUnit) {
   const Raster r{g, {0.0f, 1.0f}, "t"};
   OGRSpatialReference srs;
   ASSERT_EQ(srs.importFromEPSG(2255), OGRERR_NONE);
-  char* w = nullptr;
-  ASSERT_EQ(srs.exportToWkt(&w), OGRERR_NONE);
   PreviewStyle style;
-  style.crs_wkt = w;
-  CPLFree(w);
+  style.crs_wkt = rayscan::test::srs_wkt(srs);
+  ASSERT_FALSE(style.crs_wkt.empty());
   const char* unit = nullptr;
   srs.GetLinearUnits(&unit);
   const std::string feet = write_raster_preview(tmpdir() / "u.png", r, 0.0, 1.0, "t", style);
@@ -880,12 +869,8 @@ TEST(VisibilityCliData, DistanceMapNamesTheCrsUnitInItsLegend) {
 TEST_F(VisibilityCli, ImplausibleCrsIsWarnedAsInfoWarnsIt) {
   PointCloud c = io::read_point_cloud(scene());
   for (Vec3& p : c.positions) p += Vec3(515000.0, 4918000.0, 0.0);
-  OGRSpatialReference wgs84;
-  ASSERT_EQ(wgs84.importFromEPSG(4326), OGRERR_NONE);
-  char* wkt = nullptr;
-  ASSERT_EQ(wgs84.exportToWkt(&wkt), OGRERR_NONE);
-  c.crs_wkt = wkt;
-  CPLFree(wkt);
+  c.crs_wkt = rayscan::test::crs_wkt("EPSG:4326");
+  ASSERT_FALSE(c.crs_wkt.empty());
   const fs::path ply = tmpdir() / "wgs84_projected.ply";
   io::write_ply(ply, c);
   const RunResult info = run_cmd(bin() + " info " + ply.string());
@@ -930,16 +915,9 @@ TEST_F(VisibilityCli, AGeographicCrsIsRefusedForLinesOfSightAndSkyView) {
   ASSERT_EQ(wgs84.importFromEPSG(4326), OGRERR_NONE);
   utm_srs.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);
   wgs84.SetAxisMappingStrategy(OAMS_TRADITIONAL_GIS_ORDER);  // x = longitude, y = latitude
-  const auto wkt_of = [](const OGRSpatialReference& srs) {
-    char* w = nullptr;
-    srs.exportToWkt(&w);
-    const std::string text = w;
-    CPLFree(w);
-    return text;
-  };
-  utm.crs_wkt = wkt_of(utm_srs);
+  utm.crs_wkt = rayscan::test::srs_wkt(utm_srs);
   PointCloud geo = utm;
-  geo.crs_wkt = wkt_of(wgs84);
+  geo.crs_wkt = rayscan::test::srs_wkt(wgs84);
   {
     std::unique_ptr<OGRCoordinateTransformation> to_geo(OGRCreateCoordinateTransformation(&utm_srs, &wgs84));
     ASSERT_TRUE(to_geo);

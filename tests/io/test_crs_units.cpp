@@ -7,8 +7,7 @@
 #include "rayscan/analysis/site_location.hpp"
 #include "rayscan/io/crs.hpp"
 
-#include <cpl_conv.h>
-#include <ogr_spatialref.h>
+#include "../common/crs_wkt.hpp"
 
 #include <gtest/gtest.h>
 
@@ -19,19 +18,6 @@ namespace rayscan::test {
 namespace crs_units_test {
 
 constexpr double kFoot = 0.3048, kUsFoot = 1200.0 / 3937.0;
-
-/// The WKT GDAL writes for `user_input` ("EPSG:2992+5703"), WKT1 or, with `format`, another.
-std::string wkt_of(const std::string& user_input, const char* format = "WKT1") {
-  OGRSpatialReference srs;
-  EXPECT_EQ(srs.SetFromUserInput(user_input.c_str()), OGRERR_NONE) << user_input;
-  char* text = nullptr;
-  const std::string option = std::string("FORMAT=") + format;
-  const char* options[] = {option.c_str(), nullptr};
-  EXPECT_EQ(srs.exportToWkt(&text, options), OGRERR_NONE) << user_input;
-  std::string wkt = text != nullptr ? text : "";
-  CPLFree(text);
-  return wkt;
-}
 
 /// "name size" of a unit, "none" without one: one string for EXPECT_EQ's message.
 std::string text(const std::optional<io::LengthUnit>& unit) {
@@ -55,34 +41,34 @@ const io::LengthUnit kMetreUnit{"metre", 1.0}, kFootUnit{"foot", kFoot}, kUsFoot
 
 TEST(CrsUnits, ACompoundCrsHasTheHeightsInItsVerticalPartsUnit) {
   // x and y in feet, heights in metres; and the other way round, in US survey feet.
-  expect_units(wkt_of("EPSG:2992+5703"), kFootUnit, kMetreUnit);
-  expect_units(wkt_of("EPSG:32610+6360"), kMetreUnit, kUsFootUnit);
+  expect_units(crs_wkt("EPSG:2992+5703"), kFootUnit, kMetreUnit);
+  expect_units(crs_wkt("EPSG:32610+6360"), kMetreUnit, kUsFootUnit);
   // WKT2, which the writers keep as given: the same units.
-  expect_units(wkt_of("EPSG:2992+5703", "WKT2_2019"), kFootUnit, kMetreUnit);
+  expect_units(crs_wkt("EPSG:2992+5703", "WKT2_2019"), kFootUnit, kMetreUnit);
 }
 
 TEST(CrsUnits, AProjectedCrsAloneHasTheHeightsInItsLinearUnit) {
-  expect_units(wkt_of("EPSG:2992"), kFootUnit, kFootUnit);
-  expect_units(wkt_of("EPSG:2255"), kUsFootUnit, kUsFootUnit);
-  expect_units(wkt_of("EPSG:32610"), kMetreUnit, kMetreUnit);
+  expect_units(crs_wkt("EPSG:2992"), kFootUnit, kFootUnit);
+  expect_units(crs_wkt("EPSG:2255"), kUsFootUnit, kUsFootUnit);
+  expect_units(crs_wkt("EPSG:32610"), kMetreUnit, kMetreUnit);
   expect_units(R"(LOCAL_CS["site",LOCAL_DATUM["site",0],UNIT["foot",0.3048],AXIS["E",EAST],AXIS["N",NORTH]])",
                kFootUnit, kFootUnit);
-  expect_units(wkt_of("EPSG:4978"), kMetreUnit, kMetreUnit);  // geocentric: x, y and z in metres
+  expect_units(crs_wkt("EPSG:4978"), kMetreUnit, kMetreUnit);  // geocentric: x, y and z in metres
 }
 
 TEST(CrsUnits, DegreesAreNoLengthAndAVerticalCrsAloneHasNoHorizontalUnit) {
-  expect_units(wkt_of("EPSG:4326"), std::nullopt, std::nullopt);
+  expect_units(crs_wkt("EPSG:4326"), std::nullopt, std::nullopt);
   // 3D, ellipsoidal heights in metres (WKT2: GDAL writes no WKT1 of a 3D geographic CRS).
-  expect_units(wkt_of("EPSG:4979", "WKT2_2019"), std::nullopt, kMetreUnit);
-  expect_units(wkt_of("EPSG:4326+5773"), std::nullopt, kMetreUnit);
-  expect_units(wkt_of("EPSG:6360"), std::nullopt, kUsFootUnit);
+  expect_units(crs_wkt("EPSG:4979", "WKT2_2019"), std::nullopt, kMetreUnit);
+  expect_units(crs_wkt("EPSG:4326+5773"), std::nullopt, kMetreUnit);
+  expect_units(crs_wkt("EPSG:6360"), std::nullopt, kUsFootUnit);
 }
 
 TEST(CrsUnits, NoCrsTextGdalCannotReadAndAUnitOfNoSizeHaveNoUnit) {
   expect_units("", std::nullopt, std::nullopt);
   expect_units("not a WKT", std::nullopt, std::nullopt);
   // GDAL reads UNIT["foot",0] without complaint; a size of 0 is no unit to measure in.
-  std::string zero = wkt_of("EPSG:2992+5703");
+  std::string zero = crs_wkt("EPSG:2992+5703");
   const std::string foot = R"(UNIT["foot",0.3048,)", metre = R"(UNIT["metre",1,)";
   ASSERT_NE(zero.find(foot), std::string::npos) << zero;
   ASSERT_NE(zero.rfind(metre), std::string::npos) << zero;
@@ -92,7 +78,7 @@ TEST(CrsUnits, NoCrsTextGdalCannotReadAndAUnitOfNoSizeHaveNoUnit) {
   zero.replace(zero.find(foot), foot.size(), R"(UNIT["foot",0,)");
   expect_units(zero, std::nullopt, std::nullopt);
   // The writers refuse to store such a CRS, naming the unit.
-  std::string vertical_zero = wkt_of("EPSG:2992+5703");
+  std::string vertical_zero = crs_wkt("EPSG:2992+5703");
   vertical_zero.replace(vertical_zero.rfind(metre), metre.size(), R"(UNIT["metre",0,)");
   try {
     (void)io::crs_wkt_from_user_input(vertical_zero);
@@ -105,10 +91,10 @@ TEST(CrsUnits, NoCrsTextGdalCannotReadAndAUnitOfNoSizeHaveNoUnit) {
 TEST(CrsUnits, ASiteElevationIsTheHeightInTheVerticalUnit) {
   // z = 120 of a point of Oregon (EPSG:2992's area): 120 m under NAVD88 height, 120 ft without it.
   const Vec3 p(637000.0, 849000.0, 120.0);
-  const analysis::SiteLocation compound = analysis::locate_site(wkt_of("EPSG:2992+5703"), p);
+  const analysis::SiteLocation compound = analysis::locate_site(crs_wkt("EPSG:2992+5703"), p);
   EXPECT_NEAR(compound.metres_per_unit, kFoot, 1e-15);
   EXPECT_NEAR(compound.elevation_m, 120.0, 1e-12);
-  const analysis::SiteLocation projected = analysis::locate_site(wkt_of("EPSG:2992"), p);
+  const analysis::SiteLocation projected = analysis::locate_site(crs_wkt("EPSG:2992"), p);
   EXPECT_NEAR(projected.metres_per_unit, kFoot, 1e-15);
   EXPECT_NEAR(projected.elevation_m, 120.0 * kFoot, 1e-12);
 }

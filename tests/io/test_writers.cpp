@@ -1,10 +1,10 @@
 // write_las / write_ply round trips: what is written reads back equal (LAS coordinates bit-exact
 // when written with the source's scale and offset, otherwise within half a scale unit).
+#include "../common/crs_wkt.hpp"
 #include "io_test_util.hpp"
 
 #include "rayscan/io/las_records.hpp"
 
-#include <cpl_conv.h>
 #include <cpl_error.h>
 #include <ogr_spatialref.h>
 
@@ -665,17 +665,6 @@ TEST(Writers, PlyScalarsNamedLikeADedicatedFieldReadBackUnderASuffix) {
   fs::remove(out);
 }
 
-// The WKT of an EPSG CRS as GDAL writes it.
-std::string epsg_wkt(int code) {
-  OGRSpatialReference srs;
-  EXPECT_EQ(srs.importFromEPSG(code), OGRERR_NONE) << code;
-  char* wkt = nullptr;
-  EXPECT_EQ(srs.exportToWkt(&wkt), OGRERR_NONE) << code;
-  std::string out = wkt != nullptr ? wkt : "";
-  CPLFree(wkt);
-  return out;
-}
-
 // A CRS is stored only as WKT that GDAL reads: a cloud whose WKT GDAL cannot read (one with an
 // infinite false easting, as a unit of 1e-305 m made it) is refused by every writer that stores a
 // CRS, with one line, before any file exists; GDAL's own reading of the text is the oracle.
@@ -707,7 +696,7 @@ TEST(Writers, ACrsGdalCannotReadIsNotWritten) {
     EXPECT_FALSE(fs::exists(out)) << name;
   }
   // The same cloud with WKT GDAL reads is written and read back with it.
-  pc.crs_wkt = epsg_wkt(32610);
+  pc.crs_wkt = crs_wkt("EPSG:32610");
   ASSERT_FALSE(pc.crs_wkt.empty());
   const fs::path ply = temp_dir() / "good_crs.ply";
   io::write_point_cloud(ply, pc);
@@ -731,7 +720,7 @@ TEST(Writers, LasDefaultScaleOfAGeographicCloudIsATenMillionthOfADegree) {
     return Vec3(load_at<double>(b, 131), load_at<double>(b, 139), load_at<double>(b, 147));
   };
   const fs::path out = temp_dir() / "geographic.las";
-  pc.crs_wkt = epsg_wkt(4326);
+  pc.crs_wkt = crs_wkt("EPSG:4326");
   io::write_las(out, pc);
   EXPECT_EQ(header_scale(out), Vec3(1e-7, 1e-7, 0.001));
   const PointCloud back = io::read_point_cloud(out);
@@ -755,7 +744,7 @@ TEST(Writers, LasDefaultScaleOfAGeographicCloudIsATenMillionthOfADegree) {
   for (std::size_t i = 0; i < grid.size(); ++i)
     for (int k = 0; k < 2; ++k) ASSERT_EQ(grid_back.positions[i][k], grid.positions[i][k]) << i << " " << k;
   // The same numbers as metres of UTM zone 10N: a millimetre grid.
-  pc.crs_wkt = epsg_wkt(32610);
+  pc.crs_wkt = crs_wkt("EPSG:32610");
   io::write_las(out, pc);
   EXPECT_EQ(header_scale(out), Vec3(0.001));
   fs::remove(out);
