@@ -5,6 +5,7 @@
 // process into a temporary folder (removed at exit).
 #pragma once
 
+#include "../common/temp_dir.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/site/copc_writer.hpp"
 
@@ -18,8 +19,7 @@ namespace rayscan::analysis::test {
 inline const std::filesystem::path& small_copc() {
   namespace fs = std::filesystem;
   static const fs::path path = [] {
-    const fs::path dir = fs::temp_directory_path() / ("rayscan_small_copc_" + std::to_string(::getpid()));
-    fs::create_directories(dir);
+    const fs::path dir = ::rayscan::test::process_temp_dir("rayscan_small_copc");
     static const std::string keep = dir.string();
     std::atexit([] { std::filesystem::remove_all(keep); });
     io::FileInfo info;

@@ -17,6 +17,8 @@
 
 #include "rayscan/analysis/epw.hpp"
 
+#include "../common/temp_dir.hpp"
+
 namespace rayscan::analysis::epw_test {
 namespace {
 
@@ -358,8 +360,7 @@ TEST(Epw, MissingFileIsOneLine) {
 TEST(Epw, AFifoOrADirectoryIsRefusedWithoutReading) {
   // A FIFO without a writer: a plain open would wait for one forever; the input policy refuses
   // it at once, naming the file (the ctest timeout catches a hang).
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                                    ("rayscan_test_epw_kinds_" + std::to_string(getpid()));
+  const std::filesystem::path dir = rayscan::test::process_temp_dir("rayscan_test_epw_kinds");
   std::filesystem::create_directories(dir / "d.epw");
   ASSERT_EQ(::mkfifo((dir / "f.epw").c_str(), 0600), 0);
   EXPECT_EQ(read_error(dir / "f.epw"),

@@ -12,6 +12,7 @@
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/render/scene_json.hpp"
 
+#include "../common/temp_dir.hpp"
 #include "image_test_util.hpp"
 #include "small_copc.hpp"
 
@@ -244,8 +245,7 @@ TEST(VisibilityJob, OptionErrorsComeBeforeAnyWork) {
 // job on the source file (in-memory index); every field must be equal point for point.
 TEST(VisibilityJob, IndexFileEqualsTheSourceCloudInOriginalOrder) {
   namespace fs = std::filesystem;
-  const fs::path dir = fs::temp_directory_path() / ("rayscan_vis_rsi_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  const fs::path dir = rayscan::test::process_temp_dir("rayscan_vis_rsi");
   PointCloud pc = plane_with_wall();
   std::reverse(pc.positions.begin(), pc.positions.end());  // original order != Morton order
   const fs::path src = dir / "site.ply", rsi = dir / "site.rsi";
@@ -475,8 +475,7 @@ std::string file_bytes(const std::filesystem::path& p) {
 // Oracles: the GeoTIFF's own bytes from the run that traces it, and the result's counters.
 TEST(VisibilityJob, ViewshedMapAloneSkipsThePerPointLineOfSight) {
   namespace fs = std::filesystem;
-  const fs::path dir = fs::temp_directory_path() / ("rayscan_vis_skip_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  const fs::path dir = rayscan::test::process_temp_dir("rayscan_vis_skip");
   const PointCloud pc = plane_with_wall();
   VisibilityJobOptions o;
   o.cloud = &pc;
@@ -595,8 +594,7 @@ TEST(SolarJob, NoTimeNamesPeriodInstantAndDay) {
 // from the run that traces the sky, and the result's counters (rays = points x directions).
 TEST(SolarJob, ShadowMapAloneTracesNoSkyRays) {
   namespace fs = std::filesystem;
-  const fs::path dir = fs::temp_directory_path() / ("rayscan_solar_skip_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  const fs::path dir = rayscan::test::process_temp_dir("rayscan_solar_skip");
   const PointCloud pc = plane_with_wall();
   SolarJobOptions o;
   o.cloud = &pc;

@@ -12,6 +12,7 @@
 #include "rayscan/io/point_io.hpp"
 
 #include "../common/run_command.hpp"
+#include "../common/temp_dir.hpp"
 
 #include <gdal_priv.h>
 #include <gtest/gtest.h>
@@ -257,9 +258,7 @@ TEST(ViewshedVsGdal, SurfelAgreesWithGdalViewshedOnTheRealAutzenScan) {
 TEST(ViewshedVsGdal, DefaultsAgreeWithGdalViewshedOnRayscansOwnDsm) {
   if (rayscan::test::run_command("command -v gdal_viewshed").code != 0)
     GTEST_SKIP() << "gdal_viewshed not installed (Debian gdal-bin); skipping the comparison";
-  const fs::path dir = fs::temp_directory_path() / ("rayscan_viewshed_defaults_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_viewshed_defaults");
   const std::string bin = RAYSCAN_BIN, cloud = std::string(RAYSCAN_TEST_DATA) + "/las/autzen_trim.las";
   const auto dsm_run = rayscan::test::run_command(bin + " render -q " + cloud + " --ortho-map 3 --dsm " +
                                                   (dir / "dsm.tif").string() + " --out " + (dir / "ortho.tif").string());

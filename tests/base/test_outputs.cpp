@@ -3,6 +3,8 @@
 // and the errors about temporaries, which name the output they are written for.
 #include "rayscan/base/atomic_file.hpp"
 
+#include "../common/temp_dir.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cerrno>
@@ -14,7 +16,7 @@
 namespace fs = std::filesystem;
 
 TEST(RequireOutputs, TwoOutputsAtOnePathAreRefusedHoweverSpelled) {
-  const fs::path dir = fs::temp_directory_path() / ("rayscan_outputs_" + std::to_string(::getpid()));
+  const fs::path dir = rayscan::test::process_temp_dir("rayscan_outputs");
   fs::create_directories(dir / "sub");
   const fs::path a = dir / "a.tif";
   const auto refused = [](std::initializer_list<fs::path> outs) {
@@ -39,7 +41,7 @@ TEST(RequireOutputs, TwoOutputsAtOnePathAreRefusedHoweverSpelled) {
 // AtomicFile's temporary, an intermediate file registered for it, a file in a registered folder,
 // and a chain (an import's temporary index, whose own AtomicFile writes a temporary of it).
 TEST(OutputError, TemporariesAreNamedByTheirOutput) {
-  const fs::path dir = fs::temp_directory_path() / ("rayscan_output_error_" + std::to_string(::getpid()));
+  const fs::path dir = rayscan::test::process_temp_dir("rayscan_output_error");
   fs::create_directories(dir / "elsewhere");
   const fs::path out = dir / "x.laz";
   const std::string enospc = std::strerror(ENOSPC);

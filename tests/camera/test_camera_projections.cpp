@@ -1,5 +1,6 @@
 // Orthographic, equirectangular and distorted pinhole cameras, and COLMAP import, against
 // formulas written here from their documentation.
+#include "../common/temp_dir.hpp"
 #include "rayscan/camera/camera.hpp"
 #include "rayscan/camera/colmap.hpp"
 #include "rayscan/render/scene.hpp"
@@ -94,8 +95,7 @@ TEST(LensDistortion, KnownPointsProjectToOpenCvPixels) {
 }
 
 TEST(Colmap, OpencvModelViewOfAPhotoMatchesItsProjection) {
-  const auto dir = std::filesystem::temp_directory_path() / ("rayscan_colmap_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
+  const auto dir = rayscan::test::process_temp_dir("rayscan_colmap");
   {
     std::ofstream c(dir / "cameras.txt");
     c << "# Camera list with one line of data per camera:\n#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
@@ -126,8 +126,7 @@ TEST(Colmap, OpencvModelViewOfAPhotoMatchesItsProjection) {
 }
 
 TEST(Colmap, EachBadFieldOfACameraLineIsNamed) {
-  const auto dir = std::filesystem::temp_directory_path() / ("rayscan_colmap_fields_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
+  const auto dir = rayscan::test::process_temp_dir("rayscan_colmap_fields");
   std::ofstream(dir / "images.txt") << "1 1 0 0 0 0 0 5 1 a.png\n\n";
   const auto error_for = [&](const std::string& camera_line) {
     std::ofstream(dir / "cameras.txt") << camera_line << "\n";
@@ -153,8 +152,7 @@ TEST(Colmap, EachBadFieldOfACameraLineIsNamed) {
 
 TEST(Colmap, AFifoOrADirectoryAsAModelFileIsRefusedWithoutReading) {
   // FIFOs without a writer: a plain open would wait forever (the ctest timeout catches a hang).
-  const auto dir = std::filesystem::temp_directory_path() / ("rayscan_colmap_kinds_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
+  const auto dir = rayscan::test::process_temp_dir("rayscan_colmap_kinds");
   ASSERT_EQ(::mkfifo((dir / "images.txt").c_str(), 0600), 0);
   std::filesystem::create_directories(dir / "cameras.txt");
   const auto error = [&] {

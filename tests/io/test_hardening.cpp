@@ -17,11 +17,7 @@
 namespace rayscan::test {
 namespace {
 
-fs::path scratch() {
-  const fs::path d = fs::temp_directory_path() / ("rayscan_hardening_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+fs::path scratch() { return process_temp_dir("rayscan_hardening"); }
 
 void write_text(const fs::path& p, const std::string& s) { std::ofstream(p, std::ios::binary) << s; }
 std::string read_text(const fs::path& p) {

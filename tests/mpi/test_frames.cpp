@@ -1,5 +1,6 @@
 // The frames job (rayscan render --frames) in one process. Oracle: run_render
 // of each camera alone; the camera list reader against hand-written files.
+#include "../common/temp_dir.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/render.hpp"
 #include "rayscan/base/work_distributor.hpp"
@@ -87,8 +88,7 @@ TEST(Frames, TilesPackAndUnpackToTheSameFramebuffer) {
 }
 
 TEST(Frames, CameraListReaderAndFrameNames) {
-  const fs::path d = fs::temp_directory_path() / ("rayscan_frames_" + std::to_string(::getpid()));
-  fs::create_directories(d);
+  const fs::path d = rayscan::test::process_temp_dir("rayscan_frames");
   std::ofstream(d / "c1.json") << R"({"width": 8, "height": 6, "position": [0, -10, 2], "look_at": [0, 0, 0]})";
   std::ofstream(d / "list.json") << R"({"cameras": ["c1.json", {"width": 4, "height": 2, "position": [1, -10, 2], "look_at": [0, 0, 0]}]})";
   const std::vector<Camera> cams = load_camera_list(d / "list.json");

@@ -3,6 +3,7 @@
 // and 3 ranks and 1 or 2 threads; a rank that cannot open the index or dies ends the job with an
 // error and no output. Loopback only: the shared-memory transport (btl self,vader), no network.
 #include "../common/run_command.hpp"
+#include "../common/temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -67,11 +68,8 @@ void expect_same_file(const fs::path& a, const fs::path& b) {
 class Mpi : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("rayscan_mpi_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_ = rayscan::test::fresh_temp_dir("rayscan_mpi_" +
+                                         std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     fs::copy_file(fs::path(RAYSCAN_TEST_DATA) / "las" / "autzen_trim.las", dir_ / "autzen.las");
     // A 64 x 40 view of the autzen scene's overview camera, 2 spp (tiles of 16: 12 tiles).
     std::ofstream(dir_ / "scene.json") << R"({"cloud": "autzen.las", "radius": "auto", "material": {"color": "rgb"},

@@ -7,6 +7,7 @@
 
 #include "../common/run_command.hpp"
 #include "../common/sanitizers.hpp"
+#include "../common/temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -37,8 +38,7 @@ RunResult run(const std::string& args) {
 class QueryCli : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("rayscan_query_cli_" + std::to_string(::getpid()));
-    fs::create_directories(dir_);
+    dir_ = rayscan::test::process_temp_dir("rayscan_query_cli");
     std::mt19937_64 rng(99);
     std::uniform_real_distribution<double> u(0, 1);
     std::ofstream c(dir_ / "cloud.csv");

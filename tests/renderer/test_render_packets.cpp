@@ -7,6 +7,7 @@
 // packet), for both hit modes, Russian roulette, partial blocks at tile and image edges, AOVs,
 // and surfel mode (first_surfel_hit_packet for the camera rays and, each leaving its own
 // surface, their shadow rays).
+#include "../common/temp_dir.hpp"
 #include "render_test_data.hpp"
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -89,8 +90,7 @@ TEST(RenderPackets, ImageIdenticalWithAndWithoutPackets) {
   expect_packets_identical(kdtree, make_settings(s, pc.positions, albedo, 0.8), 16, "kdtree");
 
   // The index file (io::MappedIndex), traced in place.
-  const fs::path dir = fs::temp_directory_path() / ("rayscan_render_packets_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+  const fs::path dir = rayscan::test::process_temp_dir("rayscan_render_packets");
   const fs::path rsi = dir / "subset.rsi";
   io::IndexBuildOptions bo;
   bo.attributes = io::AttributeSet::parse("id");  // the settings' per-point arrays are in the source's order
