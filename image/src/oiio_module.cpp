@@ -192,6 +192,7 @@ bool encode(const Image& img, const std::string& name, const std::string& file, 
   if (mixed) spec.channelformats = types;
   spec.alpha_channel = img.alpha_channel;
   for (const auto& [k, v] : o.metadata) spec.attribute(k, v);
+  for (const MatrixAttribute& a : o.matrices) spec.attribute(a.name, OIIO::TypeMatrix44, a.m.data());
   // No wall-clock time in the file: OpenImageIO stamps "DateTime" with
   // the current time unless it is set, so it is set to a fixed value; `cmp` then confirms that
   // two renders of one scene and seed are identical.

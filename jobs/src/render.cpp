@@ -503,7 +503,7 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   r.metadata = render_metadata(o, scene, r, &*scene.camera,
                                o.camera_for_cloud ? std::filesystem::path() : scene.camera_file);
   if (o.write && !scene.output.image.empty() && is_root(ctl))
-    r.written = write_image(r.image, scene.output, r.metadata);
+    r.written = write_image(r.image, scene.output, r.metadata, &*scene.camera);
   log_stats(ctl, r.stats, *scene.camera, scene.spp, o.albedo_map ? o.albedo_samples : 0, "");
   return r;
 }
@@ -697,7 +697,7 @@ RenderFramesResult run_render_frames(const RenderJobOptions& o, std::span<const 
     out.image = frame_file_name(scene.output.image, f);
     ImageMetadata m = render_metadata(o, scene, r, &cameras[f], {});
     m.emplace_back("rayscan:frame", std::to_string(f));
-    const auto w = write_image(fb, out, m);
+    const auto w = write_image(fb, out, m, &cameras[f]);
     fr.job.written.insert(fr.job.written.end(), w.begin(), w.end());
   };
   if (cameras.size() > std::size_t(ranks) && ranks > 1) {

@@ -3,7 +3,11 @@
 #include "rayscan/image/aov.hpp"
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/version.hpp"
+
+#include <glm/mat4x4.hpp>
+#include <glm/matrix.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -64,13 +68,96 @@ void add_aov_channels(const Framebuffer& fb, PixelFormat color_format, std::vect
   if (!fb.cost.empty()) ch.push_back({aov_channels(Aov::cost)[0], f32, fb.cost.data(), 1});
 }
 
+/// Sets row `r` of the column-vector matrix `a` (acting on (x, y, z, 1)) to (v, t).
+void set_row(glm::dmat4& a, int r, const Vec3& v, double t) {
+  a[0][r] = v.x;
+  a[1][r] = v.y;
+  a[2][r] = v.z;
+  a[3][r] = t;
+}
+
+/// The column-vector matrix `a` as an m44f attribute: Imath's row-vector matrix is a's transpose,
+/// whose row-major layout is glm's column-major storage, a[column][row].
+MatrixAttribute to_attribute(const char* name, const glm::dmat4& a) {
+  MatrixAttribute m{name, {}};
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) m.m[std::size_t(4 * c + r)] = static_cast<float>(a[c][r]);
+  return m;
+}
+
 }  // namespace
 
+std::vector<MatrixAttribute> exr_camera_matrices(const Camera& camera) {
+  if (camera.projection() == Projection::equirectangular ||
+      camera.description().model == CameraModel::orthographic_grid)
+    return {};
+  const bool ortho = camera.projection() == Projection::orthographic;
+  const bool distorted = camera.distortion().any();
+  // A distorted camera's pose is its undistorted twin's (the same K, R, t): the lens bends the
+  // rays, not the frame.
+  const Camera pin = distorted ? Camera::pinhole(camera.description().pinhole, camera.width(), camera.height())
+                               : camera;
+  const Vec3 fwd = pin.forward();
+  // Every point is X = base + B (a, b, s) for the pixel (u, v): perspective, base = the centre,
+  // B = [m(1,0) - m(0,0), m(0,1) - m(0,0), m(0,0)] with m(u, v) the ray through the lens centre
+  // (lens sample (0, 0)) scaled to unit depth along fwd, and (a, b, s) = s (u, v, 1), s the depth;
+  // orthographic, base = the origin of pixel (0, 0)'s ray, B = [its steps, fwd], (a, b, s) =
+  // (u, v, s). So B^-1 (X - base) is the homogeneous pixel.
+  Vec3 base, col[3];
+  if (ortho) {
+    base = pin.generate_ray(0, 0).origin();
+    col[0] = pin.generate_ray(1, 0).origin() - base;
+    col[1] = pin.generate_ray(0, 1).origin() - base;
+    col[2] = fwd;
+  } else {
+    const auto m = [&](double u, double v) {
+      const Vec3 d = pin.generate_ray(u, v, 0.0, 0.0).direction();
+      return d / glm::dot(d, fwd);
+    };
+    base = pin.center();
+    col[2] = m(0, 0);
+    col[0] = m(1, 0) - col[2];
+    col[1] = m(0, 1) - col[2];
+  }
+  // OpenEXR's camera space: x right, y up (the pixel rows run down), z forward; right is the
+  // direction of the pixel columns, which is perpendicular to fwd (K's last row is (0, 0, 1)).
+  const Vec3 right = glm::normalize(col[0]);
+  const Vec3 up = -glm::cross(fwd, right);
+  const Vec3 c = pin.center();
+  glm::dmat4 to_camera(1.0);
+  set_row(to_camera, 0, right, -glm::dot(right, c));
+  set_row(to_camera, 1, up, -glm::dot(up, c));
+  set_row(to_camera, 2, fwd, -glm::dot(fwd, c));
+  std::vector<MatrixAttribute> out{to_attribute("worldtocamera", to_camera)};
+  if (distorted) return out;
+  const glm::dmat3 to_pixel = glm::inverse(glm::dmat3(col[0], col[1], col[2]));
+  Vec3 p[3];  // rows of to_pixel: (a, b, s) = (p0, p1, p2) . (X - base)
+  for (int r = 0; r < 3; ++r) p[r] = Vec3(to_pixel[0][r], to_pixel[1][r], to_pixel[2][r]);
+  const double w = camera.width(), h = camera.height();
+  glm::dmat4 to_ndc(0.0);
+  if (ortho) {  // x = (u + 0.5) / w, y = (v + 0.5) / h, z = s (camera z: base lies on the image plane)
+    set_row(to_ndc, 0, p[0] / w, (0.5 - glm::dot(p[0], base)) / w);
+    set_row(to_ndc, 1, p[1] / h, (0.5 - glm::dot(p[1], base)) / h);
+    set_row(to_ndc, 2, p[2], -glm::dot(p[2], base));
+    set_row(to_ndc, 3, Vec3(0.0), 1.0);
+  } else {  // homogeneous: (s (u + 0.5) / w, s (v + 0.5) / h, 1, s)
+    const Vec3 x = (p[0] + 0.5 * p[2]) / w, y = (p[1] + 0.5 * p[2]) / h;
+    set_row(to_ndc, 0, x, -glm::dot(x, base));
+    set_row(to_ndc, 1, y, -glm::dot(y, base));
+    set_row(to_ndc, 2, Vec3(0.0), 1.0);
+    set_row(to_ndc, 3, p[2], -glm::dot(p[2], base));
+  }
+  out.push_back(to_attribute("worldtoNDC", to_ndc));
+  return out;
+}
+
 std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const OutputDesc& out,
-                                               const ImageMetadata& metadata) {
+                                               const ImageMetadata& metadata, const Camera* camera) {
   if (out.image.empty()) throw std::runtime_error("no output image file given");
   if (fb.width == 0 || fb.height == 0 || fb.beauty.size() != std::size_t(fb.width) * fb.height)
     throw std::invalid_argument("write_image: empty or inconsistent framebuffer");
+  if (camera && (camera->width() != fb.width || camera->height() != fb.height))
+    throw std::invalid_argument("write_image: the camera's size differs from the framebuffer's");
   const std::filesystem::path dir = out.image.parent_path();
   if (!dir.empty()) {
     std::error_code ec;
@@ -86,11 +173,15 @@ std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const Outp
                   fb.position_origin.z);
     opt.metadata.emplace_back("rayscan:position_origin", buf);
   }
+  if (camera) opt.matrices = exr_camera_matrices(*camera);
+  ImageWriteOptions aov_opt = opt;  // the AOV file carries the same record, not the beauty's encoding
+  const std::string ext = lower_extension(out.image);
+  opt.metadata.emplace_back("rayscan:exposure", shortest_text(out.exposure));
+  opt.metadata.emplace_back("rayscan:transfer", ext == ".exr" ? "linear" : "sRGB");
   const float scale = static_cast<float>(std::exp2(out.exposure));
   const std::size_t n = fb.beauty.size();
   std::vector<Color> px(n);
   for (std::size_t i = 0; i < n; ++i) px[i] = fb.beauty[i] * scale;
-  const std::string ext = lower_extension(out.image);
   const bool has_aovs = !fb.depth.empty() || !fb.normal.empty() || !fb.position.empty() ||
                         !fb.albedo.empty() || !fb.cost.empty() || !fb.index.empty();
   std::vector<std::filesystem::path> written;
@@ -108,8 +199,7 @@ std::vector<std::filesystem::path> write_image(const Framebuffer& fb, const Outp
   const PixelFormat f = (out.bit_depth == 16 && !jpeg) ? PixelFormat::uint16 : PixelFormat::uint8;
   for (Color& c : px) c = {linear_to_srgb(c.r), linear_to_srgb(c.g), linear_to_srgb(c.b)};
   opt.metadata.emplace_back("oiio:ColorSpace", "sRGB");
-  ImageWriteOptions aov_opt;  // the AOV file carries the same metadata
-  aov_opt.metadata = opt.metadata;
+  opt.matrices.clear();  // no standard place in PNG, TIFF or JPEG; rayscan:camera describes the view
   if (jpeg) opt.jpeg_quality = 95;
   if (jpeg || ext == ".tif" || ext == ".tiff") {
     // TIFF and JPEG headers keep no free-form keys (OpenImageIO drops "rayscan:*"): the rayscan

@@ -157,9 +157,243 @@ TEST(ImageOutput, TiffAndJpegCarryTheRayscanKeysAsTheirDescription) {
       EXPECT_EQ(spec.get_string_attribute("ImageDescription"), "");
     } else {
       EXPECT_EQ(spec.get_string_attribute("ImageDescription"),
-                "rayscan:spp: 4\nrayscan:camera: {\"width\":2,\"height\":2}");
+                "rayscan:spp: 4\nrayscan:camera: {\"width\":2,\"height\":2}\nrayscan:exposure: 0\nrayscan:transfer: sRGB");
     }
   }
+}
+
+TEST(ImageOutput, ImagesRecordTheExposureAndTransferTheirPixelsWentThrough) {
+  // The beauty 0.5 at -1 EV is 0.25 in the file: the header says so (rayscan:exposure) and how the
+  // values were encoded (rayscan:transfer), in every format; TIFF and JPEG as description lines.
+  Framebuffer fb;
+  fb.width = 2;
+  fb.height = 2;
+  fb.beauty.assign(4, Color(0.5f));
+  for (const double ev : {0.0, -1.0, 0.25}) {
+    const std::string evs = ev == 0.0 ? "0" : ev == -1.0 ? "-1" : "0.25";
+    for (const char* name : {"x.png", "x.exr", "x.tif", "x.jpg"}) {
+      SCOPED_TRACE(std::string(name) + " at " + evs + " EV");
+      OutputDesc out;
+      out.image = files_temp_dir() / name;
+      out.exposure = ev;
+      out.exr_half = false;
+      write_image(fb, out, {{"rayscan:spp", "1"}});
+      auto in = OIIO::ImageInput::open(out.image.string());
+      ASSERT_TRUE(in);
+      const OIIO::ImageSpec& spec = in->spec();
+      const std::string ext = out.image.extension().string();
+      const std::string transfer = ext == ".exr" ? "linear" : "sRGB";
+      if (ext == ".png" || ext == ".exr") {
+        EXPECT_EQ(spec.get_string_attribute("rayscan:exposure"), evs);
+        EXPECT_EQ(spec.get_string_attribute("rayscan:transfer"), transfer);
+      } else {
+        EXPECT_EQ(spec.get_string_attribute("ImageDescription"),
+                  "rayscan:spp: 1\nrayscan:exposure: " + evs + "\nrayscan:transfer: " + transfer);
+      }
+      if (ext == ".exr") {  // the linear value the header describes: 0.5 x 2^ev
+        float px[3];
+        ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::FLOAT, px));
+        EXPECT_EQ(px[0], 0.5f * std::exp2(float(ev)));
+      }
+    }
+  }
+  // The AOV file beside an 8-bit image holds unscaled linear channels: it carries the render's
+  // record, not the beauty's exposure, transfer or sRGB colour space.
+  fb.depth.assign(4, 2.0f);
+  OutputDesc out;
+  out.image = files_temp_dir() / "withaov.png";
+  out.exposure = -1.0;
+  const auto files = write_image(fb, out, {{"rayscan:spp", "1"}});
+  ASSERT_EQ(files.size(), 2u);
+  auto in = OIIO::ImageInput::open(files[1].string());
+  ASSERT_TRUE(in);
+  EXPECT_EQ(in->spec().get_string_attribute("rayscan:spp"), "1");
+  EXPECT_EQ(in->spec().get_string_attribute("rayscan:exposure", "(none)"), "(none)");
+  EXPECT_EQ(in->spec().get_string_attribute("rayscan:transfer", "(none)"), "(none)");
+  EXPECT_NE(in->spec().get_string_attribute("oiio:ColorSpace"), "sRGB");
+}
+
+namespace {
+
+/// The 4 x 4 float matrix attribute `name` of `spec` (case-insensitive, as OpenImageIO looks
+/// names up), in the file's layout; empty when absent or not of type matrix44 (OpenEXR m44f).
+std::vector<double> matrix_attribute(const OIIO::ImageSpec& spec, const char* name) {
+  const OIIO::ParamValue* p = spec.find_attribute(name);
+  if (!p || p->type() != OIIO::TypeMatrix44) return {};
+  const float* f = static_cast<const float*>(p->data());
+  return std::vector<double>(f, f + 16);
+}
+
+/// p * M with Imath's row-vector convention (OpenEXR's m44f), then the homogeneous divide.
+Vec3 transform(const std::vector<double>& m, const Vec3& p) {
+  double r[4];
+  for (int c = 0; c < 4; ++c) r[c] = p.x * m[c] + p.y * m[4 + c] + p.z * m[8 + c] + m[12 + c];
+  return Vec3(r[0], r[1], r[2]) / r[3];
+}
+
+/// The header of the EXR that write_image writes for a render through `cam`, and its bytes.
+OIIO::ImageSpec exr_header(const Camera& cam, const std::string& name, std::string* bytes = nullptr) {
+  Framebuffer fb;
+  fb.width = cam.width();
+  fb.height = cam.height();
+  fb.beauty.assign(std::size_t(fb.width) * fb.height, Color(0.25f));
+  OutputDesc out;
+  out.image = files_temp_dir() / name;
+  write_image(fb, out, {}, &cam);
+  if (bytes) {
+    std::ifstream f(out.image, std::ios::binary);
+    *bytes = std::string(std::istreambuf_iterator<char>(f), {});
+  }
+  auto in = OIIO::ImageInput::open(out.image.string());
+  return in ? in->spec() : OIIO::ImageSpec();
+}
+
+void expect_near(const Vec3& got, const Vec3& want, double tol, const std::string& what) {
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(got[k], want[k], tol) << what << " component " << k;
+}
+
+}  // namespace
+
+// OpenEXR's worldToCamera (x right, y up, z forward, left-handed) and worldToNDC ((0, 0) and
+// (1, 1) the image's upper-left and lower-right corners; ImfStandardAttributes.h), read back by
+// OpenImageIO, place world points where the camera itself does: the analytic projection of a
+// look-at, K/[R|t] and orthographic camera, and the rays of a thin lens. Float matrices of
+// coordinates below 20: agreement to a few float ulps.
+TEST(ImageOutput, ExrCarriesTheStandardCameraMatricesOfTheCamera) {
+  {
+    // Looking along +y from (1, 2, 3), z up, vfov 90 degrees, 40 x 20: f = 10 px, principal point
+    // (19.5, 9.5). The point (3, 7, 4) is 2 right, 1 up and 5 ahead: pixel (19.5 + 10 * 2 / 5,
+    // 9.5 - 10 * 1 / 5) = (23.5, 7.5), NDC ((23.5 + 0.5) / 40, (7.5 + 0.5) / 20) = (0.6, 0.4).
+    LookAtParams p;
+    p.position = Vec3(1, 2, 3);
+    p.look_at = Vec3(1, 12, 3);
+    p.vfov_deg = 90.0;
+    std::string bytes;
+    const OIIO::ImageSpec spec = exr_header(Camera::look_at(p, 40, 20), "lookat.exr", &bytes);
+    const std::vector<double> cam = matrix_attribute(spec, "worldtocamera"), ndc = matrix_attribute(spec, "worldtoNDC");
+    ASSERT_EQ(cam.size(), 16u);
+    ASSERT_EQ(ndc.size(), 16u);
+    expect_near(transform(cam, Vec3(3, 7, 4)), Vec3(2, 1, 5), 1e-5, "camera");
+    expect_near(transform(cam, p.position), Vec3(0.0), 1e-5, "centre");
+    expect_near(transform(ndc, Vec3(3, 7, 4)), Vec3(0.6, 0.4, 1.0 / 5.0), 1e-6, "NDC");
+    // The file's own bytes: OpenEXR attributes named as the standard ones, of type m44f.
+    EXPECT_NE(bytes.find(std::string("worldToCamera\0m44f\0", 19)), std::string::npos);
+    EXPECT_NE(bytes.find(std::string("worldToNDC\0m44f\0", 16)), std::string::npos);
+  }
+  {
+    // A tilted thin lens: the point at any depth along the ray through the lens centre of pixel
+    // (u, v) projects to (u, v), and so does the in-focus point of a ray through another part of
+    // the lens; camera z is the depth along the view, camera x and y the offsets right and up.
+    LookAtParams p;
+    p.position = Vec3(-2, 1, 4);
+    p.look_at = Vec3(3, 6, -1);
+    p.up = Vec3(0.1, 0, 1);
+    p.vfov_deg = 35.0;
+    p.aperture = 0.4;
+    p.focus_distance = 6.0;
+    const Camera c = Camera::look_at(p, 33, 21);
+    const OIIO::ImageSpec spec = exr_header(c, "lens.exr");
+    const std::vector<double> cam = matrix_attribute(spec, "worldtocamera"), ndc = matrix_attribute(spec, "worldtoNDC");
+    ASSERT_EQ(cam.size(), 16u);
+    ASSERT_EQ(ndc.size(), 16u);
+    const Vec3 w = glm::normalize(p.look_at - p.position), right = glm::normalize(glm::cross(w, p.up));
+    const Vec3 up = glm::cross(right, w);
+    for (const auto& [u, v] : {std::pair{0.0, 0.0}, {32.0, 20.0}, {7.25, 13.5}, {-0.5, 20.5}})
+      for (const double t : {0.5, 3.0, 11.0}) {
+        const std::string at = "pixel (" + std::to_string(u) + ", " + std::to_string(v) + ") at " + std::to_string(t);
+        const Ray r = c.generate_ray(u, v, 0.0, 0.0);
+        const Vec3 x = r.at(t), d = x - p.position;
+        expect_near(transform(ndc, x), Vec3((u + 0.5) / 33.0, (v + 0.5) / 21.0, 1.0 / glm::dot(d, w)), 2e-6, at);
+        expect_near(transform(cam, x), Vec3(glm::dot(d, right), glm::dot(d, up), glm::dot(d, w)), 2e-5, at);
+      }
+    const Ray r = c.generate_ray(7.25, 13.5, 0.8, 0.3);
+    const Vec3 focus = r.at((p.focus_distance - glm::dot(r.origin() - p.position, w)) / glm::dot(r.direction(), w));
+    const Vec3 n = transform(ndc, focus);
+    EXPECT_NEAR(n.x, 7.75 / 33.0, 2e-6);
+    EXPECT_NEAR(n.y, 14.0 / 21.0, 2e-6);
+  }
+  {
+    // K/[R|t] with skew and an off-centre principal point: pixel ~ K (R X + t) (OpenCV's y down),
+    // OpenEXR's camera point (x, -y, z) of x = R X + t. With lens distortion no matrix projects:
+    // the pose is written, worldToNDC is not.
+    PinholeParams p;
+    p.K = {{{50.0, 2.0, 20.3}, {0.0, 45.0, 11.1}, {0.0, 0.0, 1.0}}};
+    const double a = 0.4, b = 1.9;  // R = Rz(a) Rx(b)
+    const glm::dmat3 rz(std::cos(a), std::sin(a), 0, -std::sin(a), std::cos(a), 0, 0, 0, 1);
+    const glm::dmat3 rx(1, 0, 0, 0, std::cos(b), std::sin(b), 0, -std::sin(b), std::cos(b));
+    const glm::dmat3 R = rz * rx;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) p.R[i][j] = R[j][i];
+    p.t = Vec3(0.3, -1.0, 2.0);
+    LensDistortion k;
+    k.k1 = -0.1;
+    for (const bool distorted : {false, true}) {
+      const Camera c = distorted ? Camera::pinhole_distorted(p, k, 41, 23) : Camera::pinhole(p, 41, 23);
+      const OIIO::ImageSpec spec = exr_header(c, distorted ? "distorted.exr" : "pinhole.exr");
+      const std::vector<double> cam = matrix_attribute(spec, "worldtocamera"), ndc = matrix_attribute(spec, "worldtoNDC");
+      ASSERT_EQ(cam.size(), 16u);
+      EXPECT_EQ(ndc.size(), distorted ? 0u : 16u);
+      // World points of given OpenCV camera coordinates x: X = R^T (x - t).
+      for (const Vec3& x : {Vec3(0.2, -0.1, 3.0), Vec3(-1.0, 0.5, 4.0), Vec3(0.3, 0.3, 1.5)}) {
+        const Vec3 X = glm::transpose(R) * (x - p.t);
+        expect_near(transform(cam, X), Vec3(x.x, -x.y, x.z), 1e-5, "camera");
+        if (distorted) continue;
+        const double u = (50.0 * x.x + 2.0 * x.y) / x.z + 20.3, v = 45.0 * x.y / x.z + 11.1;
+        expect_near(transform(ndc, X), Vec3((u + 0.5) / 41.0, (v + 0.5) / 23.0, 1.0 / x.z), 2e-6, "NDC");
+      }
+    }
+  }
+  {
+    // Orthographic, looking down -z from (0, 0, 10), y up in the image, 4 units tall at 8 x 4 px
+    // (1 unit per pixel): (1.5, -0.5, 2) is 1.5 right, 0.5 down, 8 ahead: pixel (3.5 + 1.5,
+    // 1.5 + 0.5) = (5, 2), NDC (5.5 / 8, 2.5 / 4); z is the depth.
+    OrthographicParams p;
+    p.position = Vec3(0, 0, 10);
+    p.look_at = Vec3(0, 0, 0);
+    p.up = Vec3(0, 1, 0);
+    p.view_height = 4.0;
+    const OIIO::ImageSpec spec = exr_header(Camera::orthographic(p, 8, 4), "ortho.exr");
+    const std::vector<double> cam = matrix_attribute(spec, "worldtocamera"), ndc = matrix_attribute(spec, "worldtoNDC");
+    ASSERT_EQ(cam.size(), 16u);
+    ASSERT_EQ(ndc.size(), 16u);
+    expect_near(transform(cam, Vec3(1.5, -0.5, 2)), Vec3(1.5, -0.5, 8), 1e-5, "camera");
+    expect_near(transform(ndc, Vec3(1.5, -0.5, 2)), Vec3(5.5 / 8.0, 2.5 / 4.0, 8.0), 1e-6, "NDC");
+  }
+  {
+    // A panorama has no projective matrix and no single view direction: neither attribute.
+    EquirectangularParams p;
+    const OIIO::ImageSpec spec = exr_header(Camera::equirectangular(p, 16, 8), "pano.exr");
+    EXPECT_TRUE(matrix_attribute(spec, "worldtocamera").empty());
+    EXPECT_EQ(spec.find_attribute("worldtoNDC"), nullptr);
+  }
+}
+
+TEST(ImageOutput, AovFileCarriesTheCameraMatricesAndEightBitImagesDoNot) {
+  LookAtParams p;
+  p.position = Vec3(1, 2, 3);
+  p.look_at = Vec3(1, 12, 3);
+  const Camera c = Camera::look_at(p, 6, 4);
+  Framebuffer fb;
+  fb.width = 6;
+  fb.height = 4;
+  fb.beauty.assign(24, Color(0.5f));
+  fb.depth.assign(24, 1.0f);
+  OutputDesc out;
+  out.image = files_temp_dir() / "cam.png";
+  const auto files = write_image(fb, out, {}, &c);
+  ASSERT_EQ(files.size(), 2u);
+  const std::vector<MatrixAttribute> want = exr_camera_matrices(c);
+  ASSERT_EQ(want.size(), 2u);
+  auto aov = OIIO::ImageInput::open(files[1].string());
+  ASSERT_TRUE(aov);
+  for (const MatrixAttribute& m : want)
+    EXPECT_EQ(matrix_attribute(aov->spec(), m.name.c_str()), std::vector<double>(m.m.begin(), m.m.end())) << m.name;
+  auto png = OIIO::ImageInput::open(files[0].string());
+  ASSERT_TRUE(png);
+  EXPECT_EQ(png->spec().find_attribute("worldtocamera"), nullptr);
+  // A camera of another size than the framebuffer is not the one it was traced through.
+  const Camera larger = c.resized(std::uint32_t(12), std::uint32_t(8));
+  EXPECT_THROW(write_image(fb, out, {}, &larger), std::invalid_argument);
 }
 
 // Every image format the writer offers decodes with OpenImageIO to the written pixels: the 8-bit
@@ -284,6 +518,29 @@ TEST(RenderCli, OutputsRecordTheCloudFileAndTheCameraUsed) {
               f == 0 ? printed["camera"] : second);
     in->close();
   }
+  fs::remove_all(dir);
+}
+
+TEST(RenderCli, ExposureAndCameraMatricesReachTheFile) {
+  // `--exposure -1` is recorded in the image, and the EXR's worldToCamera / worldToNDC are those
+  // of the camera the image records (rayscan:camera).
+  const fs::path dir = rayscan::test::process_temp_dir("rayscan_render_exposure_cli");
+  const fs::path cloud = fs::path(RAYSCAN_TEST_DATA) / "las" / "simple.las";
+  const rayscan::test::CommandResult r = rayscan::test::run_command(
+      std::string(RAYSCAN_BIN) + " render " + cloud.string() + " --width 30 --spp 1 -q --exposure -1 --out " +
+      (dir / "e.exr").string());
+  ASSERT_EQ(r.code, 0) << r.out;
+  auto in = OIIO::ImageInput::open((dir / "e.exr").string());
+  ASSERT_TRUE(in);
+  const OIIO::ImageSpec& spec = in->spec();
+  EXPECT_EQ(spec.get_string_attribute("rayscan:exposure"), "-1");
+  EXPECT_EQ(spec.get_string_attribute("rayscan:transfer"), "linear");
+  const Camera cam = io::parse_camera(nlohmann::json::parse(spec.get_string_attribute("rayscan:camera", "null")),
+                                      "rayscan:camera", "");
+  const std::vector<MatrixAttribute> want = exr_camera_matrices(cam);
+  ASSERT_EQ(want.size(), 2u);
+  for (const MatrixAttribute& m : want)
+    EXPECT_EQ(matrix_attribute(spec, m.name.c_str()), std::vector<double>(m.m.begin(), m.m.end())) << m.name;
   fs::remove_all(dir);
 }
 

@@ -9,6 +9,7 @@
 
 #include "rayscan/image/image.hpp"
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <span>
@@ -30,6 +31,14 @@ enum class PixelFormat { uint8, uint16, half, float32 };
 /// {"rayscan:scene", "scenes/x.json"}, {"ImageDescription", "..."}, {"oiio:ColorSpace", "sRGB"}.
 using ImageMetadata = std::vector<std::pair<std::string, std::string>>;
 
+/// A 4 x 4 float matrix header attribute (OpenImageIO type "matrix", TypeMatrix44), stored as
+/// OpenEXR's m44f: `m` row-major, m[4 * row + col], in Imath's row-vector convention (a point p
+/// maps to p * M, the translation in the last row). OpenImageIO's EXR writer names "worldtocamera"
+/// and "worldtoNDC" as the standard attributes worldToCamera and worldToNDC (ImfStandardAttributes.h).
+struct MatrixAttribute {
+  std::string name;
+  std::array<float, 16> m{};
+
 /// How write_image stores an Image.
 struct ImageWriteOptions {
   /// File sample type of each float channel (one entry per channel), or one entry for all of
@@ -37,6 +46,7 @@ struct ImageWriteOptions {
   /// (NaN -> 0), half is IEEE 754 binary16 (round to nearest). Id channels are always uint32.
   std::vector<PixelFormat> formats;
   ImageMetadata metadata;       ///< header attributes, in this order
+  std::vector<MatrixAttribute> matrices;  ///< matrix header attributes, after `metadata`
   int jpeg_quality = 0;         ///< JPEG quality 1..100; 0 = OpenImageIO's default
   int png_compression = -1;     ///< PNG zlib level 0..9; -1 = OpenImageIO's default
 };
