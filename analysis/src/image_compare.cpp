@@ -140,9 +140,14 @@ CompareMetrics compare_images(const Image& ref, const Image& test,
     const std::vector<float> sx = ssim_signal(ref, name);
     const std::vector<float> sy = ssim_signal(test, name);
     m.ssim_signal = name;
-    m.ssim = ssim(sx, sy, ref.width, ref.height, ignore, opts.ssim).mssim;
+    const SsimResult s = ssim(sx, sy, ref.width, ref.height, ignore, opts.ssim);
+    m.ssim = s.mssim;
+    m.ssim_undefined = s.undefined;
+    m.ssim_windows = s.windows;
+    m.ssim_positions = s.positions;
   } else {
     m.ssim = std::numeric_limits<double>::quiet_NaN();
+    m.ssim_undefined = "not computed";
   }
   return m;
 }
@@ -230,9 +235,9 @@ bool triggered(const CompareMetrics& m, const Limits& l, double over_percent,
   if (m.psnr < l.min_psnr) reasons.push_back(fmt("PSNR %.6g dB < %.6g dB", m.psnr, l.min_psnr));
   if (l.min_ssim > -std::numeric_limits<double>::infinity()) {
     if (std::isnan(m.ssim))
-      throw std::invalid_argument(
-          "SSIM criterion given but SSIM is undefined (image smaller than the SSIM window, or "
-          "every window centre masked)");
+      throw std::invalid_argument("SSIM criterion given but SSIM is undefined (" +
+                                  (m.ssim_undefined.empty() ? std::string("not computed") : m.ssim_undefined) +
+                                  ")");
     if (m.ssim < l.min_ssim) reasons.push_back(fmt("SSIM %.6g < %.6g", m.ssim, l.min_ssim));
   }
   if (l.max_flip < std::numeric_limits<double>::infinity()) {

@@ -363,7 +363,10 @@ std::string compare_report_json(const CompareJobResult& res) {
   out["ssim"] = {{"value", json_number(m.ssim)}, {"signal", m.ssim_signal},
                  {"luma_weights", {kLumaR, kLumaG, kLumaB}}, {"window", copt.ssim.window},
                  {"sigma", copt.ssim.sigma}, {"k1", copt.ssim.k1}, {"k2", copt.ssim.k2},
-                 {"dynamic_range", copt.ssim.dynamic_range}};
+                 {"dynamic_range", copt.ssim.dynamic_range}, {"windows", m.ssim_windows},
+                 {"window_positions", m.ssim_positions},
+                 {"undefined", m.ssim_undefined.empty() ? nlohmann::ordered_json(nullptr)
+                                                        : nlohmann::ordered_json(m.ssim_undefined)}};
   nlohmann::ordered_json pc = nlohmann::ordered_json::array();
   for (const ChannelStats& c : m.per_channel)
     pc.push_back({{"name", c.name}, {"mae", json_number(c.mae)}, {"rmse", json_number(c.rmse)}, {"max_error", json_number(c.max_error)}});
@@ -407,9 +410,14 @@ std::string compare_report_text(const CompareJobResult& res) {
     << ")\n";
   s << "  max error       " << g(m.max_error) << " @ (" << m.max_x << ", " << m.max_y << ", " << cname
     << ")  reference " << g(m.max_ref) << ", image " << g(m.max_test) << "\n";
-  s << "  SSIM            " << (std::isnan(m.ssim) ? std::string("n/a (image smaller than 11x11)") : g(m.ssim)) << " ("
+  s << "  SSIM            " << (std::isnan(m.ssim) ? "n/a (" + m.ssim_undefined + ")" : g(m.ssim)) << " ("
     << m.ssim_signal << (m.ssim_signal == "luminance" ? " 0.2126 R + 0.7152 G + 0.0722 B" : "")
-    << "; 11x11 Gaussian sigma 1.5, K1 0.01, K2 0.03, L " << g(res.used.ssim.dynamic_range) << ")\n";
+    << "; 11x11 Gaussian sigma 1.5, K1 0.01, K2 0.03, L " << g(res.used.ssim.dynamic_range);
+  // A mean over part of the image says so: the left-out windows are not in the value.
+  if (m.ssim_windows > 0 && m.ssim_windows < m.ssim_positions)
+    s << "; mean of " << m.ssim_windows << " of " << m.ssim_positions
+      << " windows, the others hold a masked pixel or a NaN/Inf sample";
+  s << ")\n";
   s << "  FLIP            " << (std::isnan(m.flip) ? std::string("n/a") : g(m.flip, 6)) << " (mean LDR-FLIP; "
     << m.flip_signal;
   if (res.flip_ppd > 0) s << "; " << g(res.flip_ppd, 6) << " pixels per degree";

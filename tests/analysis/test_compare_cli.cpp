@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <random>
 #include <regex>
 #include <string>
@@ -404,6 +405,69 @@ TEST_F(CompareCli, ChannelByName) {
   EXPECT_EQ(compare_json(pa, pb)["rmse"].get<double>(), 0.0);  // colour channels untouched
 }
 
+TEST_F(CompareCli, SsimLeavesOutMaskedAndNonFiniteWindows) {
+  // Windows (11x11) holding a masked pixel or a NaN/Inf sample are left out of the mean; the
+  // expected counts are the window positions that do not cover the pixels concerned.
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  {  // A float TIFF pair, equal, with a NaN at the same interior pixel (25, 20) of both.
+    Image a = noise_image(50, 40, {"Y"}, 61, 0, 1);
+    px(a, 25, 20, 0) = nan;
+    const fs::path pa = write("nan_a.tif", a), pb = write("nan_b.tif", a);
+    const nlohmann::json j = compare_json(pa, pb);
+    EXPECT_EQ(j["ssim"]["value"].get<double>(), 1.0) << j.dump();
+    EXPECT_EQ(j["ssim"]["windows"].get<int>(), 40 * 30 - 11 * 11);
+    EXPECT_EQ(j["ssim"]["window_positions"].get<int>(), 40 * 30);
+    EXPECT_TRUE(j["ssim"]["undefined"].is_null()) << j.dump();
+    const RunResult r = compare(pa, pb, "--fail-ssim 0.5");
+    EXPECT_EQ(r.code, 0) << r.out;
+    EXPECT_NE(r.out.find("; mean of 1079 of 1200 windows, the others hold a masked pixel or a NaN/Inf sample)"),
+              std::string::npos) << r.out;
+  }
+  {  // An RGB pair differing only in the left half, which the index AOV masks: SSIM 1, as MAE 0.
+    Image ref = noise_image(40, 30, {"R", "G", "B"}, 62, 0, 1);
+    Image img = ref;
+    Image idx = make_image(40, 30, {"id"});
+    for (int y = 0; y < 30; ++y)
+      for (int x = 0; x < 40; ++x) {
+        px(idx, x, y, 0) = x < 20 ? -1.0f : float(y * 40 + x);
+        if (x < 20)
+          for (int c = 0; c < 3; ++c) px(img, x, y, c) = 1.0f - px(ref, x, y, c);
+      }
+    const fs::path pr = write("m_ref.png", ref, PixelFormat::uint8), pi = write("m_img.png", img, PixelFormat::uint8);
+    const fs::path pidx = write("m_idx.exr", idx);
+    const nlohmann::json j = compare_json(pr, pi, "--mask-index " + q(pidx));
+    EXPECT_EQ(j["mae"].get<double>(), 0.0);
+    EXPECT_EQ(j["ssim"]["value"].get<double>(), 1.0) << j.dump();
+    EXPECT_EQ(j["ssim"]["windows"].get<int>(), 10 * 20);  // windows whose left column is x >= 20
+  }
+  {  // Too small: the reason says so, in the report, the JSON and the --fail-ssim error.
+    const Image a = noise_image(8, 8, {"R", "G", "B"}, 63, 0, 1);
+    const fs::path pa = write("small.exr", a);
+    const RunResult r = compare(pa, pa);
+    EXPECT_NE(r.out.find("SSIM            n/a (image 8x8 is smaller than the 11x11 SSIM window) ("), std::string::npos)
+        << r.out;
+    const nlohmann::json j = compare_json(pa, pa);
+    EXPECT_TRUE(j["ssim"]["value"].is_null()) << j.dump();
+    EXPECT_EQ(j["ssim"]["undefined"], "image 8x8 is smaller than the 11x11 SSIM window");
+    const RunResult f = compare(pa, pa, "--fail-ssim 0.5", true);
+    EXPECT_EQ(f.code, 2) << f.out;
+    EXPECT_EQ(f.out, "rayscan compare: SSIM criterion given but SSIM is undefined (image 8x8 is smaller than "
+                     "the 11x11 SSIM window)\n");
+  }
+  {  // Every window holds the +Inf depth of a miss at the centre of a 15x15 pair.
+    Image a = noise_image(15, 15, {"depth"}, 64, 1, 10);
+    px(a, 7, 7, 0) = inf;
+    const fs::path pa = write("inf_a.exr", a), pb = write("inf_b.exr", a);
+    const std::string why = "every 11x11 SSIM window holds a non-finite (NaN or Inf) sample";
+    const RunResult r = compare(pa, pb, "--channel depth");
+    EXPECT_EQ(r.code, 0) << r.out;  // Inf matches the same Inf
+    EXPECT_NE(r.out.find("SSIM            n/a (" + why + ") ("), std::string::npos) << r.out;
+    const RunResult f = compare(pa, pb, "--channel depth --fail-ssim 0.99", true);
+    EXPECT_EQ(f.code, 2) << f.out;
+    EXPECT_EQ(f.out, "rayscan compare: SSIM criterion given but SSIM is undefined (" + why + ")\n");
+  }
+}
+
 TEST_F(CompareCli, UnsignedIndexAovMissIsAllOnes) {
   // A uint32 index channel stores a miss as 0xFFFFFFFF (the bits of int32 -1). oiiotool writes a
   // checker of 0 and 1.0, which OpenImageIO converts to 0 and 0xFFFFFFFF.
@@ -472,6 +536,20 @@ TEST_F(CompareCli, RealRenderDepthAndIndexAovs) {
   EXPECT_EQ(jd["rmse"].get<double>(), 0.0);
   EXPECT_EQ(jd["pixels_compared"].get<int>(), 48 * 32);
   EXPECT_EQ(jd["nonfinite_mismatches"].get<int>(), 0);
+  // SSIM of the depth: the windows free of a miss's +inf, counted here from the file's own samples;
+  // the depth is identical, so their mean is exactly 1.
+  int clear_windows = 0;
+  for (int oy = 0; oy + 11 <= ia.height; ++oy)
+    for (int ox = 0; ox + 11 <= ia.width; ++ox) {
+      bool clear = true;
+      for (int y = oy; y < oy + 11; ++y)
+        for (int x = ox; x < ox + 11; ++x) clear = clear && std::isfinite(ia.at(x, y, z));
+      clear_windows += clear;
+    }
+  ASSERT_GT(clear_windows, 0);
+  EXPECT_EQ(jd["ssim"]["windows"].get<int>(), clear_windows) << jd.dump();
+  EXPECT_EQ(jd["ssim"]["value"].get<double>(), 1.0) << jd.dump();
+  EXPECT_EQ(compare(a, b, "--channel depth --mask --fail-ssim 0.99").code, 0);
   // --channel index resolves to id.
   EXPECT_EQ(compare_json(a, b, "--channel index")["channels"], nlohmann::json::array({"id"}));
 

@@ -12,7 +12,8 @@
 //   differs by more than T; so do we).
 //   SSIM: ssim.hpp on one signal: Rec. ITU-R BT.709 luminance Y = 0.2126 R + 0.7152 G + 0.0722 B
 //   of the stored (not linearised) values when R, G, B are compared, otherwise the mean of the
-//   compared channels (the channel itself for one channel, e.g. --channel depth).
+//   compared channels (the channel itself for one channel, e.g. --channel depth); windows holding
+//   an ignored pixel or a NaN/Inf sample are left out of the mean.
 #pragma once
 
 #include "rayscan/image/image_file.hpp"
@@ -49,7 +50,10 @@ struct CompareMetrics {
   float max_ref = 0, max_test = 0;     ///< the two samples there
   std::size_t nonfinite_mismatches = 0;  ///< samples where exactly one side is NaN/Inf or they differ in kind
   std::vector<ChannelStats> per_channel;
-  double ssim = 0;                     ///< NaN when the image is smaller than the SSIM window
+  double ssim = 0;                     ///< mean over the usable windows (ssim.hpp); NaN when none
+  std::string ssim_undefined;          ///< why ssim is NaN (SsimResult::undefined, or "not computed")
+  std::size_t ssim_windows = 0;        ///< SSIM windows averaged
+  std::size_t ssim_positions = 0;      ///< SSIM window positions inside the image
   std::string ssim_signal;             ///< "luminance", or the channel(s) averaged
   double flip = std::numeric_limits<double>::quiet_NaN();  ///< mean LDR-FLIP (flip.hpp); NaN when not computed
   std::string flip_signal;             ///< why/how FLIP was computed ("RGB, sRGB-encoded", "Y as grey", or why not)
@@ -119,7 +123,8 @@ struct Judgement {
 
 /// Apply fail then warn limits to `m` (whose fail/warn thresholds must be those of the limits'
 /// pixel tests). Throws std::invalid_argument when a min_ssim is set but SSIM is undefined
-/// (image smaller than the window) or was not computed, or a max_flip is set but FLIP was not
+/// (the message gives CompareMetrics::ssim_undefined: image smaller than the window, every window
+/// holding a masked or non-finite sample, or not computed), or a max_flip is set but FLIP was not
 /// computed (channels other than RGB or Y).
 Judgement judge(const CompareMetrics& m, const Limits& fail, const Limits& warn);
 

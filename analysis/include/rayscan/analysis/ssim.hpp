@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace rayscan::analysis {
@@ -24,8 +25,12 @@ struct SsimOptions {
 
 /// Result of ssim(): the mean SSIM (MSSIM, paper eq. (17)) over the windows used.
 struct SsimResult {
-  double mssim = 0.0;       ///< NaN when no window was used (image smaller than the window)
-  std::size_t windows = 0;  ///< number of window positions averaged
+  double mssim = 0.0;         ///< NaN when no window was used (see `undefined`)
+  std::size_t windows = 0;    ///< number of windows averaged
+  std::size_t positions = 0;  ///< window positions inside the image ((W - 10) x (H - 10) for 11x11)
+  /// Why mssim is NaN, one line: the image is smaller than the window, or every window holds a
+  /// masked pixel or a non-finite sample. Empty when mssim is defined.
+  std::string undefined;
 };
 
 /// The normalised 1-D Gaussian weights of length opts.window (the 2-D window is their outer
@@ -35,8 +40,12 @@ std::vector<double> ssim_gaussian_weights(const SsimOptions& opts);
 /// Mean SSIM of two single-channel images x and y of width * height samples (row major).
 /// As in the authors' reference implementation, only windows lying entirely inside the image are
 /// used ("valid" filtering, (width - 10) x (height - 10) positions for the default window).
-/// `ignore` (empty, or width * height flags) drops the window centred on a flagged pixel from the
-/// mean. Parallel over rows (TBB); the result does not depend on the thread count.
+/// A window is left out of the mean when any of its samples is flagged in `ignore` (empty, or
+/// width * height flags) or is NaN or infinite in x or y: the paper's local statistics are
+/// defined only over finite samples, and a masked pixel must not change the SSIM of its unmasked
+/// neighbours. The result is the mean over the remaining windows (MSSIM over the valid windows),
+/// NaN with the reason in `undefined` when none remains. Parallel over rows (TBB); the result
+/// does not depend on the thread count.
 /// Throws std::invalid_argument when the sizes do not match.
 SsimResult ssim(std::span<const float> x, std::span<const float> y, int width, int height,
                 std::span<const std::uint8_t> ignore = {}, const SsimOptions& opts = {});
