@@ -126,16 +126,17 @@ namespace {
 
 // What the elevation colours mean, logged when the material colours by elevation (a quick look of
 // a cloud without colours): the axis, the ramp and the heights at its ends (AlbedoRule::range),
-// in the CRS's linear unit as the DSM's band names it (analysis::crs_length_unit), "world units"
+// in the CRS's height unit as the DSM's band names it (analysis::crs_height_unit: a compound
+// CRS's vertical unit, metre for EPSG:2992+5703 whose horizontal unit is foot), "world units"
 // without a CRS, e.g. "colour: elevation along up (0, 0, 1), viridis, 408.73 (dark) .. 485.04
-// (bright) foot, the 2nd and 98th percentiles of the points' heights". Along +z the heights are
+// (bright) metre, the 2nd and 98th percentiles of the points' heights". Along +z the heights are
 // the points' z. Along any other axis (a quick look's estimated up without a CRS) p . up is no
 // height to read against the points: for a cloud far from the origin a tilt of a fraction of a
 // degree shifts it by thousands of units. The ends are then given as heights above the lowest
 // point along that axis; a material's own range is given as written.
 void log_elevation_ramp(const JobControl& ctl, const Scene& scene, const AlbedoRule& rule, const std::string& crs_wkt) {
   if (scene.material.mode != ColorMode::elevation) return;
-  const std::string unit = analysis::crs_length_unit(crs_wkt);
+  const std::string unit = analysis::crs_height_unit(crs_wkt);
   const Vec3 up = glm::normalize(scene.up) + Vec3(0.0);  // -0.0 printed as 0
   const char* ramp = ramp_names()[std::size_t(scene.material.ramp)].c_str();
   const std::array<double, 2> ends = rule.range();

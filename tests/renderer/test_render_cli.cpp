@@ -106,7 +106,8 @@ TEST(RenderCli, OrthoMapOutputsAreCheckedBeforeTheRender) {
 TEST(RenderCli, TheDsmBandIsInTheCrsHeightUnit) {
   // EPSG:2992+5703 (EPSG registry): x and y in international feet, NAVD88 heights in metres; the
   // DSM holds heights, so its band is in metres, what `rayscan info` calls the vertical unit.
-  // EPSG:2992 alone names one unit, the foot, for heights too. GDAL reads the unit back.
+  // EPSG:2992 alone names one unit, the foot, for heights too. GDAL reads the unit back. The log's
+  // elevation ramp (the cloud has no colours) gives its heights in the same unit as the band.
   rayscan::PointCloud cloud;
   for (int x = 0; x <= 20; ++x)
     for (int y = 0; y <= 20; ++y) cloud.positions.push_back(rayscan::Vec3(637000.0 + x, 849000.0 + y, 120.0));
@@ -117,9 +118,13 @@ TEST(RenderCli, TheDsmBandIsInTheCrsHeightUnit) {
     const fs::path ply = cli_temp_dir() / "crs.ply", ortho = cli_temp_dir() / "crs_ortho.tif",
                    dsm = cli_temp_dir() / "crs_dsm.tif";
     rayscan::io::write_ply(ply, cloud);
-    const RunResult r = run("render -q " + ply.string() + " --ortho-map 4 --spp 1 --out " + ortho.string() +
+    const RunResult r = run("render " + ply.string() + " --ortho-map 4 --spp 1 --out " + ortho.string() +
                             " --dsm " + dsm.string());
     ASSERT_EQ(r.code, 0) << r.out;
+    const std::size_t ramp = r.out.find("rayscan render: colour: elevation along up (0, 0, 1), viridis, ");
+    ASSERT_NE(ramp, std::string::npos) << r.out;
+    const std::string line = r.out.substr(ramp, r.out.find('\n', ramp) - ramp);
+    EXPECT_NE(line.find(" (bright) " + std::string(unit) + ", the 2nd and 98th percentiles"), std::string::npos) << line;
     GDALAllRegister();
     std::unique_ptr<GDALDataset> ds(GDALDataset::Open(dsm.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY));
     ASSERT_TRUE(ds);
