@@ -15,6 +15,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <sstream>
 #include <string_view>
 
@@ -65,8 +66,9 @@ nlohmann::ordered_json bounds_json(const AABB& b, std::uint64_t count) {
 /// (r.info.epsg, r.info.vertical_epsg: the GeoKeys' for a CRS from GeoKeys, else those
 /// io::epsg_codes_from_wkt identifies in the WKT, as the LAS reader does a WKT VLR's), and
 /// r.crs_name, r.crs_wkt2, r.crs_projjson, r.horizontal_unit, r.vertical_unit and r.warnings from
-/// r.crs_wkt and r.bounds through GDAL's OGRSpatialReference (PROJ's unit names). A WKT GDAL cannot
-/// parse leaves these empty and has no codes of its own.
+/// r.crs_wkt and r.bounds through GDAL's OGRSpatialReference (PROJ's unit names; the linear units
+/// by io::crs_horizontal_unit and io::crs_vertical_unit). A WKT GDAL cannot parse leaves these
+/// empty and has no codes of its own.
 void describe_crs(InfoJobResult& r) {
   if (r.crs_wkt.empty()) return;
   // The codes of the CRS described. A CRS from GeoKeys keeps their codes; its WKT, made from them,
@@ -94,19 +96,19 @@ void describe_crs(InfoJobResult& r) {
     if (srs.exportToPROJJSON(&text, nullptr) == OGRERR_NONE && text) r.crs_projjson = text;
     CPLFree(text);
   }
-  const char* name = nullptr;
+  // The units the other commands use (io's rules), but for a geographic CRS the angle of x and y,
+  // which io has no length for, and a vertical unit only where the CRS has a vertical part (a
+  // vertical CRS, or a compound one with one): without one io takes z in the horizontal unit,
+  // which the file does not state.
   if (srs.IsGeographic()) {
+    const char* name = nullptr;
     srs.GetAngularUnits(&name);
     if (name) r.horizontal_unit = name;
-  } else if (srs.IsProjected() || srs.IsGeocentric()) {
-    srs.GetLinearUnits(&name);
-    if (name) r.horizontal_unit = name;
+  } else if (const std::optional<io::LengthUnit> unit = io::crs_horizontal_unit(r.crs_wkt)) {
+    r.horizontal_unit = unit->name;
   }
-  if (srs.IsCompound() || srs.IsVertical()) {
-    name = nullptr;
-    srs.GetTargetLinearUnits("VERT_CS", &name);
-    if (name) r.vertical_unit = name;
-  }
+  if (srs.IsVertical())
+    if (const std::optional<io::LengthUnit> unit = io::crs_vertical_unit(r.crs_wkt)) r.vertical_unit = unit->name;
   if (r.count == 0) return;
   const std::vector<std::string> w = crs_warnings(r.crs_wkt, r.bounds);
   r.warnings.insert(r.warnings.end(), w.begin(), w.end());

@@ -15,6 +15,7 @@
 #include <cstring>
 #include <map>
 #include <sstream>
+#include <utility>
 #include <sys/wait.h>
 
 namespace rayscan::test {
@@ -573,6 +574,41 @@ TEST(InfoCli, IndexFileDescribesItsCrsAsItsSourceDoes) {
     for (const char* key : {"name", "epsg", "vertical_epsg", "horizontal_unit", "vertical_unit", "wkt"})
       EXPECT_EQ(ij["crs"].value(key, nlohmann::json()), sj["crs"].value(key, nlohmann::json())) << key;
     EXPECT_EQ(ij.value("warnings", nlohmann::json()), sj.value("warnings", nlohmann::json()));
+  }
+}
+
+// The "units:" line of a CRS given as WKT (oracle: the UNIT nodes written here, and the EPSG
+// registry's units). A local (engineering) CRS's x and y are in its linear unit; a vertical unit
+// is named only where the CRS has a vertical part: a projected CRS alone states none, a compound
+// one states its vertical part's, whatever the horizontal unit.
+TEST(InfoCli, UnitsOfLocalProjectedAndCompoundCrss) {
+  const std::string geogcs = "GEOGCS[\"NAD83\",DATUM[\"North_American_Datum_1983\",SPHEROID[\"GRS 1980\",6378137,"
+                             "298.257222101]],PRIMEM[\"Greenwich\",0],UNIT[\"degree\",0.0174532925199433]]";
+  const std::string projcs = "PROJCS[\"NAD83(HARN) / Oregon GIC Lambert (ft)\"," + geogcs +
+                             ",PROJECTION[\"Lambert_Conformal_Conic_2SP\"],PARAMETER[\"latitude_of_origin\",41.75],"
+                             "PARAMETER[\"central_meridian\",-120.5],PARAMETER[\"standard_parallel_1\",43],"
+                             "PARAMETER[\"standard_parallel_2\",45.5],PARAMETER[\"false_easting\",1312335.958],"
+                             "PARAMETER[\"false_northing\",0],UNIT[\"foot\",0.3048]]";
+  const std::string vert_cs = "VERT_CS[\"NAVD88 height\",VERT_DATUM[\"North American Vertical Datum 1988\",2005],"
+                              "UNIT[\"metre\",1],AXIS[\"Gravity-related height\",UP]]";
+  const std::pair<std::string, std::string> cases[] = {
+      {"LOCAL_CS[\"site grid\",LOCAL_DATUM[\"arbitrary\",32767],UNIT[\"foot\",0.3048],AXIS[\"Easting\",EAST],"
+       "AXIS[\"Northing\",NORTH]]",
+       "units:             foot (horizontal)"},
+      {projcs, "units:             foot (horizontal)"},
+      {"COMPD_CS[\"Oregon ft + NAVD88 height\"," + projcs + "," + vert_cs + "]",
+       "units:             foot (horizontal), metre (vertical)"},
+  };
+  const fs::path ply = temp_dir() / "units.ply", out = temp_dir() / "units.out", err = temp_dir() / "units.err";
+  for (const auto& [wkt, units] : cases) {
+    SCOPED_TRACE(wkt);
+    std::ofstream(ply) << "ply\nformat ascii 1.0\ncomment crs " << wkt
+                       << "\nelement vertex 1\nproperty double x\nproperty double y\nproperty double z\nend_header\n"
+                          "1312000 400000 100\n";
+    ASSERT_EQ(run("info '" + ply.string() + "'", out, err), 0) << text_of(err);
+    const std::vector<std::string> lines = crs_lines(text_of(out));
+    ASSERT_GE(lines.size(), 2u) << text_of(out);
+    EXPECT_EQ(lines[1], units);
   }
 }
 

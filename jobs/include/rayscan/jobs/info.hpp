@@ -78,8 +78,10 @@ struct InfoJobResult {
   std::string crs_wkt2;                      ///< the same CRS as WKT2 (ISO 19162:2019, GDAL/PROJ)
   std::string crs_projjson;                  ///< the same CRS as PROJJSON (PROJ's JSON schema)
   /// Units of the CRS as GDAL/PROJ name them ("metre", "US survey foot", "foot", "degree"):
-  /// horizontal (linear for a projected CRS, angular for a geographic one) and vertical (of a
-  /// compound CRS's vertical part); "" when there is no CRS or no such part.
+  /// horizontal (angular for a geographic CRS, else io::crs_horizontal_unit: the linear unit of a
+  /// projected, local or geocentric one) and vertical (io::crs_vertical_unit of a vertical CRS or
+  /// a compound one's vertical part); "" when there is no CRS, no such part, or a unit whose size
+  /// is no positive number.
   std::string horizontal_unit, vertical_unit;
   /// What a careful reader should know (a geographic CRS over coordinates that are not degrees,
   /// or a projected one over coordinates that look like degrees), one sentence each.
