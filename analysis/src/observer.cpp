@@ -1,6 +1,7 @@
 #include "rayscan/analysis/observer.hpp"
 #include "site_dispatch.hpp"
 
+#include "rayscan/base/ascii_case.hpp"
 #include "rayscan/base/file_names.hpp"
 
 #include "rayscan/base/input_file.hpp"
@@ -158,7 +159,7 @@ std::vector<Observer> read_csv(const std::filesystem::path& path, const std::str
     std::vector<std::string> cells = split(t, ',');
     if (header.empty()) {
       for (std::string& c : cells) {
-        std::transform(c.begin(), c.end(), c.begin(), [](unsigned char ch) { return std::tolower(ch); });
+        c = ascii_lower(c);
         if (std::find(std::begin(known), std::end(known), c) == std::end(known))
           throw ObserverError(where + ": unknown column '" + c +
                               "' (expected x, y, z, height, name, azimuth_from, azimuth_to, "

@@ -1,8 +1,10 @@
 #include "rayscan/base/byte_size.hpp"
 
-#include <cctype>
+#include "rayscan/base/ascii_case.hpp"
+
 #include <cmath>
 #include <stdexcept>
+#include <string_view>
 
 namespace rayscan {
 
@@ -14,8 +16,7 @@ std::uint64_t parse_byte_size(const std::string& text) {
   } catch (const std::exception&) {
     used = 0;
   }
-  std::string unit = text.substr(used);
-  for (char& c : unit) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  std::string unit = ascii_lower(std::string_view(text).substr(used));
   if (unit.size() >= 2 && unit.substr(unit.size() - 2) == "ib") unit.resize(unit.size() - 2);
   else if (!unit.empty() && unit.back() == 'b') unit.pop_back();
   double mul = 0;

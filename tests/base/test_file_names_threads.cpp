@@ -1,5 +1,6 @@
 // The shared rules of rayscan_base every job calls instead of its own: extension tests and
-// messages (file_names.hpp), thread counts (threads.hpp).
+// messages (file_names.hpp), thread counts (threads.hpp), byte sizes (byte_size.hpp).
+#include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/threads.hpp"
 
@@ -8,6 +9,8 @@
 #include <gtest/gtest.h>
 
 #include <sched.h>
+
+#include <stdexcept>
 
 using namespace rayscan;
 
@@ -22,6 +25,28 @@ TEST(FileNames, LowerExtensionFoldsAsciiCaseOnly) {
   EXPECT_EQ(extensions_expected({".las"}), "expected a file name ending in .las");
   EXPECT_EQ(extensions_expected({".las", ".ply"}), "expected a file name ending in .las or .ply");
   EXPECT_EQ(extensions_expected({".a", ".b", ".c"}), "expected a file name ending in .a, .b or .c");
+}
+
+TEST(ByteSize, BinaryMultiplesWithTheUnitInEitherAsciiCase) {
+  // K, M, G, T are 2^10, 2^20, 2^30, 2^40 bytes, with an optional B or iB, in any ASCII case.
+  EXPECT_EQ(parse_byte_size("65536"), 65536u);
+  EXPECT_EQ(parse_byte_size("4G"), 4ull << 30);
+  EXPECT_EQ(parse_byte_size("4g"), 4ull << 30);
+  EXPECT_EQ(parse_byte_size("512mib"), 512ull << 20);
+  EXPECT_EQ(parse_byte_size("2KiB"), 2048u);
+  EXPECT_EQ(parse_byte_size("2kB"), 2048u);
+  EXPECT_EQ(parse_byte_size("1.5G"), 3ull << 29);
+  EXPECT_EQ(parse_byte_size("3tB"), 3ull << 40);
+  for (const char* bad : {"10Q", "0", "-1K", "K", "4GX", "4 G", "2e18", "4\xC4\xB0"}) {  // the last: 4 and U+0130
+    SCOPED_TRACE(bad);
+    try {
+      (void)parse_byte_size(bad);
+      ADD_FAILURE() << "accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()),
+                "size '" + std::string(bad) + "': expected a positive number with an optional K, M, G or T suffix");
+    }
+  }
 }
 
 TEST(Threads, ZeroMeansTheArenaLimitAndLargerRequestsAreCappedAtIt) {
