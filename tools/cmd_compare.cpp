@@ -7,6 +7,7 @@
 #include "processes.hpp"
 
 #include "rayscan/jobs/compare.hpp"
+#include "rayscan/render/scene.hpp"
 
 #include <iostream>
 #include <memory>
@@ -64,6 +65,9 @@ int run_compare(const CompareCli& o) {
 
 Runner add_compare_command(CLI::App& app) {
   auto o = std::make_shared<CompareCli>();
+  // The heat maps' accepted extensions, from the list the job checks them against.
+  std::string map_exts;
+  for (const std::string& e : render::image_extensions()) map_exts += (map_exts.empty() ? "" : " ") + e;
   CLI::App* sub = app.add_subcommand(
       "compare",
       "Compare an image against a reference: MAE, RMSE, PSNR, max error, SSIM, mean LDR-FLIP, "
@@ -111,7 +115,7 @@ Runner add_compare_command(CLI::App& app) {
                   "Dynamic range L of the SSIM signal (C1 = (0.01 L)^2, C2 = (0.03 L)^2)")
       ->capture_default_str()
       ->check(positive());
-  sub->add_option("--diff", o->diff, "Write a heat map of the per-pixel error here (PNG, TIFF, EXR, ...)");
+  sub->add_option("--diff", o->diff, "Write a heat map of the per-pixel error here (" + map_exts + ")");
   sub->add_option("--diff-max", o->diff_max, "Error mapped to white in --diff (default: the max error)")
       ->check(positive());
   sub->add_option("--fail-flip", o->fail_flip, "Fail if the mean LDR-FLIP exceeds this (default: off)")
@@ -120,7 +124,7 @@ Runner add_compare_command(CLI::App& app) {
       ->check(finite_number(0.0, 1.0));
   sub->add_option("--flip-map", o->flip_map,
                   "Write the per-pixel LDR-FLIP error map (NVIDIA FLIP, Andersson et al. 2020) here as a heat "
-                  "map over [0, 1] (PNG, TIFF, EXR, ...)");
+                  "map over [0, 1] (" + map_exts + ")");
   sub->add_option("--flip-ppd", o->flip_ppd,
                   "FLIP observer's pixels per degree (default 67.02: 0.7 m from a 0.7 m wide 3840-pixel monitor)")
       ->check(positive());

@@ -15,6 +15,8 @@
 #include <filesystem>
 #include <mutex>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 namespace rayscan {
 
@@ -80,6 +82,41 @@ constexpr double kMaxImageSamples = double(1u << 28);
 /// constant for headers. A header claiming more than this is lying about its size.
 constexpr double kMaxExpansion = 1100.0;
 
+/// OpenImageIO's reason for a failure as one line: its lines (libpng and the plugins give
+/// several) trimmed and joined with "; ", leaving out empty lines and a line that another one
+/// already contains ("Read error: hit end of file" beside "PNG read error: IDAT: Read error: hit
+/// end of file"), and without the path the JPEG and EXR readers quote (" (\"<path>\")",
+/// " \"<path>\""): the caller's message starts with it.
+std::string one_line(const std::string& path, const std::string& text) {
+  std::vector<std::string> lines;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    std::size_t end = text.find_first_of("\r\n", start);
+    if (end == std::string::npos) end = text.size();
+    std::string line = text.substr(start, end - start);
+    for (const std::string& quoted : {" (\"" + path + "\")", " (" + path + ")", " \"" + path + "\""})
+      if (const std::size_t at = line.find(quoted); at != std::string::npos) line.erase(at, quoted.size());
+    const std::size_t b = line.find_first_not_of(" \t"), e = line.find_last_not_of(" \t");
+    if (b != std::string::npos) lines.push_back(line.substr(b, e - b + 1));
+    start = end + 1;
+  }
+  std::string out;
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    bool contained = false;
+    for (std::size_t j = 0; j < lines.size() && !contained; ++j)
+      contained = j != i && lines[j].find(lines[i]) != std::string::npos && (lines[j] != lines[i] || j < i);
+    if (!contained) out += (out.empty() ? "" : "; ") + lines[i];
+  }
+  return out.empty() ? std::string("no reason given by OpenImageIO") : out;
+}
+
+/// The error of pixels that cannot be decoded, one line: "<path>[ context]: cannot decode the
+/// pixels (<reason>): the file is truncated or corrupt".
+std::runtime_error decode_error(const std::string& path, const std::string& context, const std::string& why) {
+  return std::runtime_error(path + context + ": cannot decode the pixels (" + one_line(path, why) +
+                            "): the file is truncated or corrupt");
+}
+
 /// Opens `path` through the input policy and the module, and checks its header against the caps.
 std::unique_ptr<oiio_module::ImageReader> open_input(const std::string& path) {
   std::uint64_t file_size = 0;
@@ -89,9 +126,15 @@ std::unique_ptr<oiio_module::ImageReader> open_input(const std::string& path) {
   } catch (const InputFileError& e) {
     throw std::runtime_error(e.what());
   }
+  // Said here because OpenImageIO's plugins word it as a wrong format ("Not a PNG file").
+  if (file_size == 0) {
+    const std::string ext = lower_extension(path);
+    throw std::runtime_error(path + ": file is empty (0 bytes), expected " +
+                             (ext.empty() ? std::string("an image") : "a " + ext + " image"));
+  }
   std::string why;
   auto in = oiio_module::api().open(path, why);
-  if (!in) throw std::runtime_error(path + ": " + why);
+  if (!in) throw std::runtime_error(path + ": " + one_line(path, why));
   const oiio_module::ImageHeader& s = in->header();
   const int nchannels = static_cast<int>(s.channel_names.size());
   if (s.depth > 1) throw std::runtime_error(path + ": volumetric images (depth > 1) are not supported");
@@ -131,7 +174,7 @@ Image read_image(const std::string& path) {
   img.source = path;
   img.pixels.resize(img.npixels() * img.channels.size());
   const std::string why = in->read(0, img.nchannels(), oiio_module::SampleType::float32, img.pixels.data());
-  if (!why.empty()) throw std::runtime_error(path + ": " + why);
+  if (!why.empty()) throw decode_error(path, "", why);
   return img;
 }
 
@@ -205,7 +248,7 @@ std::vector<std::uint8_t> read_index_misses(const std::string& path, const std::
   std::vector<std::uint8_t> miss(n, 0);
   auto read_as = [&](SampleType type, auto* buf) {
     const std::string why = in->read(c, c + 1, type, buf);
-    if (!why.empty()) throw std::runtime_error(path + ": channel '" + s.channel_names[std::size_t(c)] + "': " + why);
+    if (!why.empty()) throw decode_error(path, ": channel '" + s.channel_names[std::size_t(c)] + "'", why);
   };
   if (t == SampleType::uint32 || t == SampleType::uint16 || t == SampleType::uint8) {
     std::vector<std::uint32_t> v(n);

@@ -64,7 +64,8 @@ SampleType from_oiio(OIIO::TypeDesc t) {
 
 /// Redirects file descriptor 2 to a temporary file while alive (libpng, called inside
 /// OpenImageIO, prints its warnings and errors straight to stderr); text() returns what was
-/// printed, so that it becomes part of rayscan's one-line error instead of extra lines.
+/// printed, so that it becomes part of rayscan's error (made one line by rayscan_image) instead
+/// of extra lines.
 class StderrCapture {
  public:
   StderrCapture() {
@@ -79,7 +80,8 @@ class StderrCapture {
     restore();
     if (tmp_ != nullptr) std::fclose(tmp_);
   }
-  /// Restores stderr and returns the captured text as one line ("" when nothing was printed).
+  /// Restores stderr and returns the captured text, at most about 4 KiB ("" when nothing was
+  /// printed).
   std::string text() {
     restore();
     std::string out;
@@ -88,9 +90,6 @@ class StderrCapture {
     char buf[512];
     std::size_t n;
     while ((n = std::fread(buf, 1, sizeof buf, tmp_)) > 0 && out.size() < 4096) out.append(buf, n);
-    while (!out.empty() && (out.back() == '\n' || out.back() == ' ')) out.pop_back();
-    for (char& c : out)
-      if (c == '\n') c = ';';
     return out;
   }
 
@@ -129,7 +128,10 @@ class OiioReader final : public ImageReader {
     StderrCapture capture;
     const bool ok = in_->read_image(0, 0, c0, c1, to_oiio(type), out);
     const std::string printed = capture.text();
-    if (ok) return {};
+    // A successful read can still carry the decoder's error: libjpeg takes data that ends
+    // before the end-of-image marker as a warning ("Premature end of JPEG file") and makes up
+    // the missing blocks, which OpenImageIO's JPEG reader records as an error without failing.
+    if (ok && !in_->has_error()) return {};
     std::string why = in_->geterror();
     if (why.empty()) why = printed.empty() ? "cannot decode the pixels" : printed;
     return why;
@@ -141,8 +143,14 @@ class OiioReader final : public ImageReader {
 };
 
 std::unique_ptr<ImageReader> open(const std::string& path, std::string& why) {
+  // The samples as stored: without this hint OpenImageIO multiplies the colour of a PNG or of a
+  // TIFF marked unassociated (ExtraSamples = 2) by its alpha ("oiio:UnassociatedAlpha",
+  // OpenImageIO's PNG and TIFF readers). Files stored associated (EXR, TIFF ExtraSamples = 1)
+  // are read as stored either way.
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
   StderrCapture capture;
-  auto in = OIIO::ImageInput::open(path);
+  auto in = OIIO::ImageInput::open(path, &config);
   const std::string printed = capture.text();
   if (!in) {
     why = OIIO::geterror();

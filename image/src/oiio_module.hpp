@@ -41,14 +41,17 @@ class ImageReader {
   virtual ~ImageReader() = default;
   [[nodiscard]] virtual const ImageHeader& header() const = 0;
   /// Reads channels [c0, c1) of every pixel, converted to `type` (OpenImageIO's conversion),
-  /// into `out` (width * height * (c1 - c0) samples). Returns "" on success, else the reason
-  /// (OpenImageIO's error, or what libpng printed on stderr).
+  /// into `out` (width * height * (c1 - c0) samples), the samples as stored (unassociated alpha
+  /// is not multiplied in). Returns "" on success, else the reason: OpenImageIO's error, also
+  /// one recorded by a read that did not fail (a truncated JPEG), or what libpng printed on
+  /// stderr; possibly several lines.
   virtual std::string read(int c0, int c1, SampleType type, void* out) = 0;
 };
 
 /// The module's functions (one table, fetched once with dlsym).
 struct Api {
-  /// Opens `path` (already checked by the input policy). Null with `why` set when OpenImageIO
+  /// Opens `path` (already checked by the input policy) with OpenImageIO's hint to keep
+  /// unassociated alpha as stored. Null with `why` set (possibly several lines) when OpenImageIO
   /// cannot open it.
   std::unique_ptr<ImageReader> (*open)(const std::string& path, std::string& why);
   /// Encodes `img` (already checked: buffers match its size; `formats` has one entry per float

@@ -68,10 +68,15 @@ void write_image(const Image& img, const std::string& path, PixelFormat format,
                  const std::string& description = {});
 
 /// Read the first subimage of any file OpenImageIO reads (PNG, JPEG, TIFF, OpenEXR, ...), all
-/// channels converted to float (id_channels stays empty). The path must be a regular file
-/// (rayscan::InputFile). Throws std::runtime_error "<path>: <reason>" when the file cannot be
-/// opened or decoded, is volumetric (depth > 1), would exceed 2^28 samples, or its header claims
-/// more samples than its size allows under any compression.
+/// channels converted to float (id_channels stays empty; integer samples scaled to [0, 1]). The
+/// samples are the stored ones: colour with unassociated alpha (PNG, TIFF ExtraSamples = 2) is
+/// not multiplied by the alpha, and associated files (EXR) keep their premultiplied colour;
+/// alpha_channel says which channel is alpha. The path must be a regular file
+/// (rayscan::InputFile). Throws std::runtime_error "<path>: <reason>", one line, when the file is
+/// empty, cannot be opened or decoded (also when the decoder reports an error on a read it
+/// completed, e.g. JPEG data that ends before its end-of-image marker), is volumetric
+/// (depth > 1), would exceed 2^28 samples, or its header claims more samples than its size
+/// allows under any compression.
 Image read_image(const std::string& path);
 
 /// Resample `img` (float channels) to width x height with OpenImageIO's ImageBufAlgo::resize
