@@ -38,6 +38,7 @@ using ImageMetadata = std::vector<std::pair<std::string, std::string>>;
 struct MatrixAttribute {
   std::string name;
   std::array<float, 16> m{};
+};
 
 /// How write_image stores an Image.
 struct ImageWriteOptions {
