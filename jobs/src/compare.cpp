@@ -280,6 +280,9 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
   res.used.ssim.dynamic_range = o.ssim_range;
   res.metrics = compare_images(r, t, ignore, res.used);
 
+  // The heat maps are one output: both written to temporaries, renamed together at the end, so
+  // a failure at the second (or a refusal between them) leaves both old files as they were.
+  OutputTransaction tx;
   // FLIP on R,G,B (or Y as grey) of the selected channels.
   if (o.flip) {
     const auto& ch = r.channels;
@@ -334,6 +337,7 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
     res.diff = o.diff;
     res.diff_max = vmax;
   }
+  tx.commit();
   return res;
 }
 

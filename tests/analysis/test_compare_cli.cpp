@@ -4,6 +4,7 @@
 #include "image_test_util.hpp"
 
 #include "../common/run_command.hpp"
+#include "../common/temp_dir.hpp"
 
 #include "rayscan/analysis/raster_preview.hpp"
 
@@ -22,6 +23,7 @@
 #include <limits>
 #include <random>
 #include <regex>
+#include <set>
 #include <string>
 #include <sys/wait.h>
 
@@ -598,4 +600,52 @@ TEST_F(CompareCli, HeatMapsNeverReplaceAnInputNorEachOther) {
   r = compare(pa, pb, "--fail-psnr nan", true);
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_EQ(r.out, "rayscan compare: --fail-psnr: expected a finite number, got 'nan' (see --help)\n");
+}
+
+// The two maps are one output: written to temporaries and renamed together, so a failure after
+// the FLIP map (written first) leaves both old files and no temporary. A file-size limit
+// (RLIMIT_FSIZE, SIGXFSZ ignored, so the write fails with EFBIG) between the two files' sizes
+// fails the heat map's write; an SSIM limit on images too small for SSIM fails the verdict, which
+// comes between the maps. Oracle: the sizes of the same comparison without a limit (the FLIP map
+// of a faint noise is a nearly black PNG; the heat map spreads it over the whole ramp in half
+// floats), the old files' own bytes and the folder's listing.
+TEST_F(CompareCli, HeatMapsAreWrittenAllOrNothing) {
+  const fs::path pa = write("a.exr", make_image(128, 128, {"R", "G", "B"}, 0.5f));
+  const fs::path pb = write("b.exr", noise_image(128, 128, {"R", "G", "B"}, 3, 0.49f, 0.51f));
+  const auto maps = [&](const std::string& limit, const fs::path& folder) {
+    return run("(trap '' XFSZ; " + limit + q(RAYSCAN_BIN) + " compare " + q(pa) + " " + q(pb) + " --flip-map " +
+                   q(folder / "f.png") + " --diff " + q(folder / "d.exr") + " 2>&1 >/dev/null)");
+  };
+  const fs::path free = dir_ / "free", capped = dir_ / "capped";
+  fs::create_directories(free);
+  ASSERT_EQ(maps("", free).code, 1);  // the images differ: FAILURE (the report goes to /dev/null)
+  const std::uintmax_t flip_size = fs::file_size(free / "f.png"), diff_size = fs::file_size(free / "d.exr");
+  ASSERT_LT(2 * flip_size, diff_size);
+  fs::create_directories(capped);
+  const auto bytes = [](const fs::path& p) {
+    std::ifstream f(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(f), {});
+  };
+  std::ofstream(capped / "f.png") << "old flip map";
+  std::ofstream(capped / "d.exr") << "old heat map";
+  const RunResult r = maps("prlimit --fsize=" + std::to_string((flip_size + diff_size) / 2) + " ", capped);
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out.rfind("rayscan compare: " + (capped / "d.exr").string() + ": ", 0), 0u) << r.out;
+  EXPECT_NE(r.out.find("File too large"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  const std::set<std::string> old_files{"d.exr", "f.png"};
+  EXPECT_EQ(rayscan::test::entry_names(capped), old_files);
+  EXPECT_TRUE(bytes(capped / "f.png") == "old flip map") << fs::file_size(capped / "f.png") << " bytes";
+  EXPECT_TRUE(bytes(capped / "d.exr") == "old heat map") << fs::file_size(capped / "d.exr") << " bytes";
+
+  // 8 x 8 pixels: no 11 x 11 SSIM window fits, so an SSIM limit cannot be judged.
+  const fs::path sa = write("sa.exr", make_image(8, 8, {"R", "G", "B"}, 0.5f));
+  const fs::path sb = write("sb.exr", noise_image(8, 8, {"R", "G", "B"}, 3, 0.4f, 0.6f));
+  const RunResult s = compare(sa, sb, "--fail-ssim 0.9 --flip-map " + q(capped / "f.png") + " --diff " +
+                                          q(capped / "d.exr"), true);
+  EXPECT_EQ(s.code, 2) << s.out;
+  EXPECT_NE(s.out.find("SSIM"), std::string::npos) << s.out;
+  EXPECT_EQ(rayscan::test::entry_names(capped), old_files);
+  EXPECT_TRUE(bytes(capped / "f.png") == "old flip map") << fs::file_size(capped / "f.png") << " bytes";
+  EXPECT_TRUE(bytes(capped / "d.exr") == "old heat map") << fs::file_size(capped / "d.exr") << " bytes";
 }

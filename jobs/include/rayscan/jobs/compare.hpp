@@ -89,7 +89,9 @@ struct CompareJobResult {
 /// (compare_images) and mean FLIP (flip(); R,G,B or Y channels only: PNG/JPEG/TIFF samples are
 /// taken as sRGB-encoded, EXR/HDR ones as linear and encoded first), judges them (judge) and
 /// writes the heat map and the FLIP map (PNG, JPEG, TIFF: the map with a legend strip below it,
-/// raster_preview.hpp's draw_legend; EXR: the bare map at the images' size). Throws std::invalid_argument
+/// raster_preview.hpp's draw_legend; EXR: the bare map at the images' size), both maps as one
+/// OutputTransaction: renamed into place together once both are written, so when either fails
+/// neither old file is replaced and no temporary is left. Throws std::invalid_argument
 /// for a user error (missing channel, size mismatch without resize, bad mask, SSIM limit on a tiny
 /// image; one line), std::runtime_error "<file>: <reason>" for unreadable or unwritable files.
 CompareJobResult run_compare(const CompareJobOptions& options);
