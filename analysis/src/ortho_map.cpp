@@ -52,11 +52,17 @@ std::optional<OrthoColour> parse_ortho_colour(std::string_view name) {
   return std::nullopt;
 }
 
-OrthoMap ortho_map(const AABB& bounds, double res, double reach) {
+GridSpec ortho_grid(const AABB& bounds, double res) {
   const GridSpec g = grid_over(bounds, res);
-  if (g.cols > 65536 || g.rows > 65536)
+  if (g.cols > kMaxImageSide || g.rows > kMaxImageSide)
     throw std::invalid_argument("ortho map: " + std::to_string(g.cols) + " x " + std::to_string(g.rows) +
-                                " pixels; at most 65536 per side (use a larger resolution)");
+                                " pixels; at most " + std::to_string(kMaxImageSide) +
+                                " per side (use a larger resolution)");
+  return g;
+}
+
+OrthoMap ortho_map(const AABB& bounds, double res, double reach) {
+  const GridSpec g = ortho_grid(bounds, res);
   if (!(reach >= 0.0) || !std::isfinite(reach))
     throw std::invalid_argument("ortho map: the reach of the points must be a finite number >= 0, got " +
                                 std::to_string(reach));
@@ -194,10 +200,15 @@ std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, OrthoCol
                                                    const std::filesystem::path& image,
                                                    const std::filesystem::path& dsm, const Raster& elevation,
                                                    const std::vector<std::pair<std::string, std::string>>& metadata) {
+  if (!dsm.empty() && elevation.values.size() != coverage.size())
+    throw std::invalid_argument(dsm.string() + ": DSM size differs from the grid");
   std::vector<std::filesystem::path> written;
   const std::vector<std::pair<std::string, std::string>> items = gdal_metadata_items(metadata);
   std::vector<std::pair<std::string, std::string>> ortho_items = items;
   ortho_items.emplace_back("RAYSCAN_ORTHO_COLOUR", to_string(kind));
+  // The orthophoto and the DSM describe one render: renamed together once both are written, so a
+  // failed DSM never leaves a new orthophoto beside the old DSM.
+  OutputTransaction tx;
   // Exposure is a scale of light; an albedo is a reflectance and is written as it is.
   write_ortho_geotiff(image, map, colour, coverage, kind == OrthoColour::shaded ? exposure : 0.0, crs_wkt, ortho_items);
   written.push_back(image);
@@ -206,11 +217,10 @@ std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, OrthoCol
     go.crs_wkt = crs_wkt;
     go.metadata = items;
     go.unit_is_crs_height = true;  // elevations, in the CRS's vertical unit
-    if (elevation.values.size() != coverage.size())
-      throw std::invalid_argument(dsm.string() + ": DSM size differs from the grid");
     write_geotiff(dsm, elevation, go);
     written.push_back(dsm);
   }
+  tx.commit();
   return written;
 }
 

@@ -96,10 +96,17 @@ std::uint64_t render_bytes_per_pixel(std::span<const Aov> aovs, bool write, cons
 // the memory this process can allocate (check_image_memory). Throws OptionError "...; give a
 // smaller " + `remedy`: by default the width or height; a job whose image size follows from
 // another option (the ortho map's cell) names that one.
+void check_render_memory(std::uint32_t width, std::uint32_t height, std::span<const Aov> aovs, bool write,
+                         const std::filesystem::path& image,
+                         std::vector<OptionError::Part> remedy = {option("width"), " or ", option("height")}) {
+  check_image_memory(width, height, render_bytes_per_pixel(aovs, write, image), std::move(remedy), "",
+                     aovs.empty() ? "" : " with AOVs");
+}
+
+// As above for `camera`'s image.
 void check_render_memory(const Camera& camera, std::span<const Aov> aovs, bool write, const std::filesystem::path& image,
                          std::vector<OptionError::Part> remedy = {option("width"), " or ", option("height")}) {
-  check_image_memory(camera.width(), camera.height(), render_bytes_per_pixel(aovs, write, image), std::move(remedy),
-                     "", aovs.empty() ? "" : " with AOVs");
+  check_render_memory(camera.width(), camera.height(), aovs, write, image, std::move(remedy));
 }
 
 }  // namespace
@@ -188,6 +195,14 @@ void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
   io::CopcIndex& copc = *P.site->copc();
   char buf[512];
   r.crs_wkt = io::open_point_reader(scene.cloud, io::AttributeSet::none())->crs_wkt();
+  AABB bounds;  // first: bounds_read's checks come before the statistics and the radius
+  if (o.bounds_read || o.camera_for_cloud) {
+    copc.scan(0, [&](const io::CopcIndex::NodeBlock& k) {
+      bounds.expand(bounds_of(k.positions));
+      return true;
+    });
+    if (o.bounds_read) o.bounds_read(bounds);
+  }
   auto t0 = std::chrono::steady_clock::now();
   const ColorMode mode = scene.material.mode;
   const unsigned attrs = mode == ColorMode::rgb              ? io::CopcIndex::kRgb
@@ -230,12 +245,7 @@ void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
     ctl.info(buf);
   }
   if (o.camera_for_cloud) {
-    AABB b;
-    copc.scan(0, [&](const io::CopcIndex::NodeBlock& k) {
-      b.expand(bounds_of(k.positions));
-      return true;
-    });
-    scene.camera = o.camera_for_cloud(b, primitive_reach(P, r));
+    scene.camera = o.camera_for_cloud(bounds, primitive_reach(P, r));
     check_render_memory(*scene.camera, scene.output.aovs, o.write && is_root(o.control), scene.output.image);
   }
   copc.trim_cache();
@@ -321,6 +331,11 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
                   r.read_seconds);
   if (!o.cloud || o.cloud_read_from_scene) ctl.info(buf);
   r.crs_wkt = mapped ? mapped->crs_wkt() : cloud->crs_wkt;
+  AABB bounds;  // once, for both hooks
+  if (o.bounds_read || o.camera_for_cloud) {
+    bounds = cloud ? bounds_of(cloud->positions) : mapped->bounds();  // an index file stores them: no pass
+    if (o.bounds_read) o.bounds_read(bounds);
+  }
   t0 = std::chrono::steady_clock::now();
   try {
     if (cloud) {
@@ -402,8 +417,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
     }
   }
   if (o.camera_for_cloud) {  // once the reach is known: a map's rays start above it
-    scene.camera = o.camera_for_cloud(cloud ? bounds_of(cloud->positions) : mapped->bounds(),  // stored: no pass
-                                      primitive_reach(*P, r));
+    scene.camera = o.camera_for_cloud(bounds, primitive_reach(*P, r));
     check_render_memory(*scene.camera, scene.output.aovs, o.write && is_root(ctl), scene.output.image);
   }
 
@@ -523,6 +537,8 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
     throw OptionError({option("ortho_map"), ": expected a finite number > 0 (world units per pixel), got " + num17(res)});
   if (o.render.camera_for_cloud)
     throw std::invalid_argument("ortho map: render.camera_for_cloud is set; the job sets it to the map's camera");
+  if (o.render.bounds_read)
+    throw std::invalid_argument("ortho map: render.bounds_read is set; the job sets it to check the map's grid");
   RenderJobOptions job = o.render;
   // The map's camera looks straight down -z in the cloud's frame, so the sky gradient, the
   // elevation ramp and surfels oriented "up" run along +z whatever the scene's up: a quick look's
@@ -566,15 +582,28 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   OrthoMapJobResult r;
   r.ortho_colour = o.ortho_colour;
   AABB cloud_bounds;  // for the CRS's plausibility (crs_warnings)
+  // The map's grid, its side limit and its memory follow from the bounds and the cell alone (not
+  // from the reach): checked as soon as the cloud is read, before the index and the primitives,
+  // and by the camera below with the same function, so the two cannot disagree.
+  const auto check_grid = [&](const AABB& bounds) {
+    analysis::GridSpec g;
+    try {
+      g = analysis::ortho_grid(bounds, res);
+    } catch (const std::invalid_argument& e) {
+      throw OptionError({option("ortho_map"), std::string(": ") + e.what()});
+    }
+    // The map's size follows from its cell: the width and height options do not apply to it.
+    check_render_memory(g.cols, g.rows, job.scene.output.aovs, false, {}, {"map (a larger ", option("ortho_map"), " cell)"});
+  };
+  job.bounds_read = check_grid;
   job.camera_for_cloud = [&](const AABB& bounds, double reach) {
     cloud_bounds = bounds;
+    check_grid(bounds);
     try {
       r.map = analysis::ortho_map(bounds, res, reach);
     } catch (const std::invalid_argument& e) {
       throw OptionError({option("ortho_map"), std::string(": ") + e.what()});
     }
-    // The map's size follows from its cell: the width and height options do not apply to it.
-    check_render_memory(r.map->camera, job.scene.output.aovs, false, {}, {"map (a larger ", option("ortho_map"), " cell)"});
     job.control.info("ortho map: " + std::to_string(r.map->grid.cols) + " x " + std::to_string(r.map->grid.rows) +
                      " cells, top-down, colour " + analysis::to_string(o.ortho_colour) +
                      (albedo ? " (mean of " + count_text(albedo_samples, "ray") + " per cell)" : std::string()));

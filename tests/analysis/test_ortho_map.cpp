@@ -8,6 +8,8 @@
 #include "rayscan/jobs/render.hpp"
 
 #include "../common/run_command.hpp"
+#include "../common/sanitizers.hpp"
+#include "../common/temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -18,7 +20,14 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
+#include <iterator>
 #include <memory>
+#include <random>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
 #include <unistd.h>
 
 using namespace rayscan;
@@ -414,4 +423,141 @@ TEST(OrthoMap, AlphaIsTheShareOfTheCellsRaysThatHit) {
   EXPECT_GE(got[3] / 255.0, f_lo - strata - byte);
   EXPECT_LE(got[3] / 255.0, f_hi + strata + byte);
   std::filesystem::remove_all(dir);
+}
+
+namespace {
+
+// The lines of `text` that are log lines ("rayscan render: ..."), not progress bars.
+std::vector<std::string> log_lines(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("progress:", 0) != 0) out.push_back(line);
+  return out;
+}
+
+std::string file_text(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+}  // namespace
+
+// The map's grid depends only on the cloud's bounds and the cell (analysis::ortho_grid), not on
+// the points' reach, so a cell too fine for it is refused right after the cloud is read, before
+// the albedo statistics, the index, the radius and the surfel estimate. Oracle: the log of a
+// fitting cell reports those phases; a refused run's log is the read line and the error line
+// only. The cloud read as LAS (surfels), mapped as an index file, and traced in place as COPC
+// (spheres); too many cells (grid_over's limit), a side over 65536 cells (a long thin cloud), and
+// buffers over a 2 GB address-space limit (ulimit -v, the memory check's own limit).
+TEST(OrthoMap, ATooFineCellIsRefusedRightAfterTheRead) {
+  namespace fs = std::filesystem;
+  using rayscan::test::quoted;
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_ortho_early");
+  const std::string bin = quoted(RAYSCAN_BIN);
+  const fs::path las = fs::path(RAYSCAN_TEST_DATA) / "las" / "autzen_trim.las";
+  const auto refused_after = [&](const std::string& command, const std::string& read_line,
+                                 const std::string& error) {
+    SCOPED_TRACE(command);
+    const auto r = rayscan::test::run_command(command);
+    EXPECT_EQ(r.code, 2) << r.out;
+    const std::vector<std::string> lines = log_lines(r.out);
+    ASSERT_EQ(lines.size(), 2u) << r.out;
+    EXPECT_EQ(lines[0].rfind("rayscan render: " + read_line, 0), 0u) << r.out;
+    EXPECT_EQ(lines[1].rfind("rayscan render: " + error, 0), 0u) << r.out;
+  };
+
+  // LAS, surfels (the quick look's primitive).
+  const auto fits = rayscan::test::run_command(bin + " render " + quoted(las) + " --ortho-map 5 -o " +
+                                               quoted(dir / "fits.tif"));
+  ASSERT_EQ(fits.code, 0) << fits.out;
+  EXPECT_NE(fits.out.find("rayscan render: built "), std::string::npos) << fits.out;
+  EXPECT_NE(fits.out.find("rayscan render: surfels: "), std::string::npos) << fits.out;
+  fs::remove(dir / "fits.tif");
+  refused_after(bin + " render " + quoted(las) + " --ortho-map 0.01 -o " + quoted(dir / "x.tif"),
+                "read 110000 points from ", "--ortho-map: raster: cell size 0.01 gives ");
+  if (rayscan::test::kSanitized) {
+    std::cout << "the address-space case is skipped: a sanitizer reserves its shadow memory beyond any ulimit -v\n";
+  } else {
+    // 11776 x 5628 cells of beauty 12, depth 4, albedo 12 and coverage 4 bytes: 2.0 GiB.
+    refused_after("ulimit -v 2000000 && " + bin + " render " + quoted(las) + " --ortho-map 0.1 -o " +
+                      quoted(dir / "x.tif"),
+                  "read 110000 points from ", "an image of 11776 x 5628 pixels with AOVs needs about 2.0 GiB");
+  }
+
+  // An index file: its stored bounds, before the surfels' copy of the points is estimated.
+  ASSERT_EQ(rayscan::test::run_command(bin + " index -q " + quoted(las) + " -o " + quoted(dir / "a.rsi")).code, 0);
+  refused_after(bin + " render " + quoted(dir / "a.rsi") + " --ortho-map 0.01 -o " + quoted(dir / "x.tif"),
+                "mapped index file ", "--ortho-map: raster: cell size 0.01 gives ");
+
+  // COPC traced in place (spheres, a scene with a camera: not read whole for a quick look): the
+  // bounds' pass comes before the albedo statistics and the radius estimate.
+  const fs::path copc = fs::path(RAYSCAN_TEST_DATA) / "laz" / "lone-star.copc.laz";
+  std::ofstream(dir / "copc.json") << R"({"cloud": ")" << copc.string()
+                                   << R"(", "primitive": "sphere", "spp": 1, "material": {"color": "elevation"},
+    "camera": {"width": 8, "height": 8, "position": [515380, 4918300, 2400], "look_at": [515380, 4918360, 2330]}})";
+  const std::string scene = bin + " render " + quoted(dir / "copc.json");
+  const auto copc_fits = rayscan::test::run_command(scene + " --ortho-map 1 -o " + quoted(dir / "fits.tif"));
+  ASSERT_EQ(copc_fits.code, 0) << copc_fits.out;
+  EXPECT_NE(copc_fits.out.find("rayscan render: albedo at shading time"), std::string::npos) << copc_fits.out;
+  EXPECT_NE(copc_fits.out.find("rayscan render: radius auto: "), std::string::npos) << copc_fits.out;
+  fs::remove(dir / "fits.tif");
+  refused_after(scene + " --ortho-map 0.001 -o " + quoted(dir / "x.tif"), "COPC file ",
+                "--ortho-map: raster: cell size 0.001 gives ");
+
+  // A long thin cloud: few cells, but 70001 in a row, over the side limit.
+  std::ofstream(dir / "thin.xyz") << "0 0 0\n70000 1 1\n35000 0.5 0.5\n";
+  refused_after(bin + " render " + quoted(dir / "thin.xyz") + " --ortho-map 1 -o " + quoted(dir / "x.tif"),
+                "read 3 points from ", "--ortho-map: ortho map: 70001 x 2 pixels; at most 65536 per side");
+
+  EXPECT_EQ(rayscan::test::entry_names(dir), (std::set<std::string>{"a.rsi", "copc.json", "thin.xyz"}));
+  fs::remove_all(dir);
+}
+
+// The orthophoto and the DSM are one output: a file-size limit (RLIMIT_FSIZE, SIGXFSZ ignored,
+// so the write fails with EFBIG) between the two files' sizes makes the DSM's write fail after
+// the orthophoto's temporary was written; neither old file is replaced and no temporary is left.
+// Oracle: the sizes of the same render without a limit (the Float32 DSM of a rough surface is
+// larger than the orthophoto of one constant colour, which is written first), the old files' own
+// bytes and the folder's listing.
+TEST(OrthoMap, OrthophotoAndDsmAreWrittenAllOrNothing) {
+  namespace fs = std::filesystem;
+  using rayscan::test::quoted;
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_ortho_all_or_nothing");
+  PointCloud pc;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> rough(0.0, 1.0);
+  for (int j = 0; j < 64; ++j)
+    for (int i = 0; i < 64; ++i) pc.positions.push_back(Vec3(0.125 + 0.25 * i, 0.125 + 0.25 * j, 5.0 + rough(rng)));
+  io::write_ply(dir / "rough.ply", pc);
+  std::ofstream(dir / "scene.json") << R"({"cloud": "rough.ply", "spp": 1, "max_depth": 1, "radius": 0.25,
+    "material": {"color": [0.5, 0.5, 0.5]},
+    "camera": {"width": 8, "height": 8, "position": [8, -10, 20], "look_at": [8, 8, 5]}})";
+  const auto render = [&](const std::string& limit, const fs::path& folder) {
+    // standard error only: the written files' names go to standard output
+    return rayscan::test::run_command("(trap '' XFSZ; " + limit + quoted(RAYSCAN_BIN) + " render -q " +
+                                          quoted(dir / "scene.json") + " --ortho-map 0.25 -o " +
+                                          quoted(folder / "o.tif") + " --dsm " + quoted(folder / "d.tif") +
+                                          " 2>&1 >/dev/null)",
+                                      false);
+  };
+  fs::create_directories(dir / "free");
+  ASSERT_EQ(render("", dir / "free").code, 0);
+  const std::uintmax_t ortho = fs::file_size(dir / "free" / "o.tif"), dsm = fs::file_size(dir / "free" / "d.tif");
+  ASSERT_LT(2 * ortho, dsm);
+  const std::uintmax_t limit = (ortho + dsm) / 2;
+
+  const fs::path out = dir / "capped";
+  fs::create_directories(out);
+  std::ofstream(out / "o.tif") << "old orthophoto";
+  std::ofstream(out / "d.tif") << "old dsm";
+  const auto r = render("prlimit --fsize=" + std::to_string(limit) + " ", out);
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(r.out.rfind("rayscan render: " + (out / "d.tif").string() + ": ", 0), 0u) << r.out;
+  EXPECT_NE(r.out.find("File too large"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 1) << r.out;
+  EXPECT_EQ(rayscan::test::entry_names(out), (std::set<std::string>{"d.tif", "o.tif"}));
+  EXPECT_TRUE(file_text(out / "o.tif") == "old orthophoto") << fs::file_size(out / "o.tif") << " bytes";
+  EXPECT_TRUE(file_text(out / "d.tif") == "old dsm") << fs::file_size(out / "d.tif") << " bytes";
+  fs::remove_all(dir);
 }

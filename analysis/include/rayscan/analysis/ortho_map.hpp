@@ -28,7 +28,15 @@ struct OrthoMap {
   double z_bottom = 0.0; ///< as far below the cloud's bottom as z_top is above its top, world units
 };
 
-/// The map of `bounds`' XY extent at `res` world units per pixel: pixel (col, row) shoots a ray
+/// The north-up grid of the map of `bounds`' XY extent at `res` world units per pixel
+/// (grid_over(bounds, res)), a pixel per cell. Only the XY extent and the cell decide it, not the
+/// points' reach, so a job can check the map's size and memory as soon as the bounds are read,
+/// before the index and the primitives (ortho_map builds its camera on this same grid). Throws
+/// std::invalid_argument as grid_over() (bad res, empty box, too many cells) and for a grid wider
+/// or taller than 65536 pixels (rayscan::kMaxImageSide).
+GridSpec ortho_grid(const AABB& bounds, double res);
+
+/// The map of `bounds`' XY extent at `res` world units per pixel (ortho_grid): pixel (col, row) shoots a ray
 /// down (-z) through the centre of cell (col, row) from z_top = bounds.hi.z + reach + res, a cell
 /// above the highest surface the points' primitives can show (z_bottom: as far below bounds.lo.z).
 /// `reach`: how far from its point a primitive can be hit, world units (the sphere radius, or the
@@ -105,8 +113,11 @@ void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
 /// `crs_wkt` and the render's image `metadata` as GDAL items ("rayscan:spp" -> "RAYSCAN_SPP").
 /// `coverage`: per cell in [0, 1], the share of the colour's rays that hit; `exposure` applies
 /// to the shaded colour only (an albedo is written as it is).
+/// The files are one output (an OutputTransaction, joining the caller's if one is open): both are
+/// written to temporaries first and renamed into place only when both are complete, so a failure
+/// of either (a full disk at the DSM) leaves both old files as they were and no temporary.
 /// Returns the files written, orthophoto first. Throws as write_ortho_geotiff and write_geotiff,
-/// std::invalid_argument when `elevation` differs in size from `coverage`.
+/// std::invalid_argument when `elevation` differs in size from `coverage` (before writing).
 std::vector<std::filesystem::path> write_ortho_map(const OrthoMap& map, OrthoColour kind,
                                                    std::span<const glm::vec3> colour,
                                                    std::span<const float> coverage, double exposure,

@@ -47,6 +47,14 @@ struct RenderJobOptions {
   /// them in its time to the first traced tile, as when it reads the file itself.
   double cloud_read_seconds = 0.0;
   bool write = true;                   ///< write scene.output.image (+ AOVs) when it is set
+  /// When set, called once with the cloud's exact bounds (the AABB of its points) as soon as they
+  /// are known: right after the read (or the index file's mapping, or for a COPC file one streamed
+  /// pass over its positions), before the albedo statistics, the index, the radius and the surfel
+  /// estimate. A job whose camera follows from the bounds (camera_for_cloud, later given the same
+  /// bounds) refuses there what needs no reach, such as a map too large for its side limit or
+  /// memory, so that the error comes in seconds rather than after that work. Exceptions it throws
+  /// propagate unchanged.
+  std::function<void(const AABB& bounds)> bounds_read;
   /// When set, called once the cloud is read and the points' primitives are set up, with its exact
   /// bounds (the AABB of its points) and the reach of the primitives (as after_trace has it); the
   /// camera it returns replaces scene.camera (the scene then needs no camera; surfels oriented
@@ -134,8 +142,8 @@ void check_image_memory(std::uint32_t width, std::uint32_t height, std::uint64_t
 /// Inputs of run_ortho_map(): a render through a top-down camera over the cloud's exact XY extent.
 struct OrthoMapJobOptions {
   /// The scene, its cloud (file or `cloud` in memory), control and cache as for run_render(). The
-  /// scene's camera is not used (the map's replaces it); camera_for_cloud must be unset (the job
-  /// sets it). With `write`, scene.output.image is the orthophoto (.tif or .tiff); the depth AOV
+  /// scene's camera is not used (the map's replaces it); camera_for_cloud and bounds_read must be
+  /// unset (the job sets them). With `write`, scene.output.image is the orthophoto (.tif or .tiff); the depth AOV
   /// is added to scene.output.aovs when missing (the DSM and the alpha band come from it), and
   /// for the albedo colour the albedo AOV.
   RenderJobOptions render;
@@ -194,14 +202,17 @@ struct OrthoMapJobResult {
 /// AOV or the beauty (ortho_colour), the alpha from the share of the colour's rays that hit
 /// (OrthoMapJobResult::coverage) and, when render.write, the files (analysis::write_ortho_map: the
 /// RGBA orthophoto at scene.output.image, the Float32 DSM at `dsm` when set, both with the cloud's
-/// CRS and the render's metadata), written on the root only; crs_warnings about that CRS are
+/// CRS and the render's metadata), written on the root only and all or nothing (one
+/// OutputTransaction: a failure of either leaves both old files); crs_warnings about that CRS are
 /// logged ("warning: ..."), as the files copy it unchanged. This is the one definition of a
 /// cloud's DSM on a grid (the visibility job's DSM viewshed calls it too). The outputs' names and
 /// folders are checked before the render. Throws OptionError naming `ortho_map` for a cell size
-/// that is not finite and > 0 or that gives too large a grid (analysis::ortho_map's message),
-/// naming `ortho_map` and `out` for an orthophoto name that is not a GeoTIFF, `dsm` for such a DSM
-/// name; OutputFileError (require_outputs) for an output that cannot be written, is an input or is
-/// the other output; std::invalid_argument when render.camera_for_cloud is set; otherwise as
+/// that is not finite and > 0 or that gives too large a grid (analysis::ortho_grid's message) or a
+/// grid whose buffers exceed memory, both checked as soon as the cloud's bounds are read (before
+/// the index and the primitives: RenderJobOptions::bounds_read), naming `ortho_map` and `out` for
+/// an orthophoto name that is not a GeoTIFF, `dsm` for such a DSM name; OutputFileError
+/// (require_outputs) for an output that cannot be written, is an input or is the other output;
+/// std::invalid_argument when render.camera_for_cloud or render.bounds_read is set; otherwise as
 /// run_render() and analysis::write_ortho_map.
 OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& options);
 
