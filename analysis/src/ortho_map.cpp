@@ -158,7 +158,7 @@ void write_ortho_geotiff(const std::filesystem::path& path, const OrthoMap& map,
   CPLStringList co;
   co.SetNameValue("COMPRESS", "DEFLATE");
   co.SetNameValue("PHOTOMETRIC", "RGB");
-  co.SetNameValue("ALPHA", "UNASSOCIATED");  // band 4: the TIFF ExtraSamples tag marks it as alpha
+  co.SetNameValue("ALPHA", "NON-PREMULTIPLIED");  // band 4: the TIFF ExtraSamples tag marks it as alpha
   co.SetNameValue("TILED", "YES");
   GDALDataset* ds = drv->Create(file.temp().string().c_str(), int(g.cols), int(g.rows), 4, GDT_Byte, co.List());
   if (!ds) fail("cannot create GeoTIFF");

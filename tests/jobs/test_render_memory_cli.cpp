@@ -31,11 +31,12 @@ double physical_memory_gib() {
 
 TEST(RenderMemoryCli, RefusesAnImageWhoseBuffersExceedTheMachinesMemory) {
   // 65536 x 65536 pixels, every AOV, one .exr: the framebuffer holds 12 (beauty) + 4 + 12 + 12 + 4
-  // + 12 + 4 bytes a pixel, the writer an exposure-scaled beauty (12) and the interleaved float
-  // image of beauty, the 14 float AOV channels and the 4-byte ids (12 + 56 + 4): 132 bytes, 528 GiB.
-  const double need_gib = 65536.0 * 65536.0 * 132.0 / double(std::uint64_t{1} << 30);
-  ASSERT_DOUBLE_EQ(need_gib, 528.0);
-  if (physical_memory_gib() >= need_gib) GTEST_SKIP() << "this machine holds 528 GiB";
+  // + 12 (albedo) + 4 (its coverage) + 4 bytes a pixel, the writer an exposure-scaled beauty (12)
+  // and the interleaved float image of beauty, the 14 float AOV channels and the 4-byte ids
+  // (12 + 56 + 4): 136 bytes, 544 GiB.
+  const double need_gib = 65536.0 * 65536.0 * 136.0 / double(std::uint64_t{1} << 30);
+  ASSERT_DOUBLE_EQ(need_gib, 544.0);
+  if (physical_memory_gib() >= need_gib) GTEST_SKIP() << "this machine holds 544 GiB";
   const auto dir = temp_dir() / "render_memory";
   std::filesystem::create_directories(dir);
   char have[32];
@@ -44,7 +45,7 @@ TEST(RenderMemoryCli, RefusesAnImageWhoseBuffersExceedTheMachinesMemory) {
   auto r = rayscan_cli("render -q " + ply + " --width 65536 --height 65536 -o " + quoted(dir / "big.exr") +
                        " --aov depth --aov normal --aov position --aov index --aov albedo --aov cost");
   EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.out, "rayscan render: an image of 65536 x 65536 pixels with AOVs needs about 528.0 GiB of buffers, more "
+  EXPECT_EQ(r.out, "rayscan render: an image of 65536 x 65536 pixels with AOVs needs about 544.0 GiB of buffers, more "
                    "than this machine's " + std::string(have) + " GiB of memory; give a smaller --width or --height\n");
   // A PNG without AOVs: beauty (12), its scaled copy (12) and the float RGB image (12), 144 GiB.
   if (physical_memory_gib() < 144.0) {
@@ -82,14 +83,14 @@ TEST(RenderMemoryCli, AnOrthoMapBeyondTheLimitNamesItsCell) {
   // simple.las spans x 635619.85 .. 638982.55, y 848899.70 .. 853535.43 (`rayscan info`); cells of
   // 0.4 on the grid of its multiples: floor(hi / 0.4) - floor(lo / 0.4) + 1 = 1597456 - 1589049 + 1
   // = 8408 columns and 2133838 - 2122249 + 1 = 11590 rows. The map's buffers (beauty 12, depth 4,
-  // albedo 12 bytes a pixel) are 2.5 GiB, over a 2 GB address-space limit. The map's size follows
+  // albedo 12 and its coverage 4 bytes a pixel) are 2.9 GiB, over a 2 GB address-space limit. The map's size follows
   // from --ortho-map, which the message names (the map takes no --width or --height).
   const auto dir = temp_dir() / "render_memory_ortho";
   std::filesystem::create_directories(dir);
   const auto r = run_command("ulimit -v 2000000 && " + quoted(RAYSCAN_BIN) + " render -q " +
                              quoted(data_file("las/simple.las")) + " --ortho-map 0.4 -o " + quoted(dir / "o.tif"));
   EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.out, "rayscan render: an image of 8408 x 11590 pixels with AOVs needs about 2.5 GiB of buffers, more than "
+  EXPECT_EQ(r.out, "rayscan render: an image of 8408 x 11590 pixels with AOVs needs about 2.9 GiB of buffers, more than "
                    "the 1.9 GiB of address space this process may use (ulimit -v); give a smaller map (a larger "
                    "--ortho-map cell)\n");
   EXPECT_TRUE(std::filesystem::is_empty(dir));
