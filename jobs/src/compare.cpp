@@ -132,6 +132,13 @@ std::string g(double v, int prec = 9) {
   return buf;
 }
 
+/// What both reports say of FLIP's signal: run_compare's words (the channels FLIP ran on, or why
+/// it could not run), or, where it was not asked for (run_compare leaves the signal empty only
+/// then), the flag that turned it off, so that neither report shows an empty reason.
+std::string flip_signal_text(const CompareMetrics& m) {
+  return m.flip_signal.empty() ? "not computed (--no-flip)" : m.flip_signal;
+}
+
 /// Writes a heat map (error_heatmap's colours over [0, vmax]; masked pixels blue). An EXR holds
 /// the bare map at the images' size in half floats, so that it overlays them pixel for pixel in
 /// a compositor or a script; an 8-bit picture (PNG, JPEG, TIFF) is for viewing: the map at its top
@@ -384,7 +391,7 @@ std::string compare_report_json(const CompareJobResult& res) {
   out["over_threshold"] = {
       {"fail", over(res.fail_limits, m.fail_threshold, m.over_fail, m.percent_over_fail())},
       {"warn", over(res.warn_limits, m.warn_threshold, m.over_warn, m.percent_over_warn())}};
-  out["flip"] = {{"mean", json_number(m.flip)}, {"signal", m.flip_signal},
+  out["flip"] = {{"mean", json_number(m.flip)}, {"signal", flip_signal_text(m)},
                  {"pixels_per_degree", res.flip_ppd > 0 ? json_number(res.flip_ppd) : nlohmann::ordered_json(nullptr)},
                  {"map", res.flip_map.empty() ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(res.flip_map)}};
   out["nonfinite_mismatches"] = m.nonfinite_mismatches;
@@ -422,10 +429,13 @@ std::string compare_report_text(const CompareJobResult& res) {
     s << "; mean of " << m.ssim_windows << " of " << m.ssim_positions
       << " windows, the others hold a masked pixel or a NaN/Inf sample";
   s << ")\n";
-  s << "  FLIP            " << (std::isnan(m.flip) ? std::string("n/a") : g(m.flip, 6)) << " (mean LDR-FLIP; "
-    << m.flip_signal;
-  if (res.flip_ppd > 0) s << "; " << g(res.flip_ppd, 6) << " pixels per degree";
-  s << ")\n";
+  // FLIP ran exactly when run_compare records its pixels per degree; otherwise the line is the
+  // reason alone, the JSON's flip.signal.
+  if (res.flip_ppd > 0)
+    s << "  FLIP            " << (std::isnan(m.flip) ? std::string("n/a") : g(m.flip, 6)) << " (mean LDR-FLIP; "
+      << m.flip_signal << "; " << g(res.flip_ppd, 6) << " pixels per degree)\n";
+  else
+    s << "  FLIP            " << flip_signal_text(m) << "\n";
   if (!res.flip_map.empty())
     s << "  FLIP map        " << res.flip_map << ": " << heat_ramp_legend(0.0, 1.0) << "; masked pixels blue\n";
   if (m.per_channel.size() > 1)

@@ -497,6 +497,12 @@ py::dict compare(const py::object& a, const py::object& b, py::handle channels,
   d["max_pixel"] = py::make_tuple(m.max_x, m.max_y, m.max_c);
   d["ssim"] = m.ssim;
   d["ssim_signal"] = m.ssim_signal;
+  // As the CLI's --json ssim.undefined, ssim.windows and ssim.window_positions (the "ssim_" prefix
+  // as ssim_signal's): why SSIM is NaN (None when it is defined), and the windows averaged of the
+  // positions inside the image, the others holding a masked pixel or a NaN/Inf sample.
+  d["ssim_undefined"] = m.ssim_undefined.empty() ? py::object(py::none()) : py::object(py::str(m.ssim_undefined));
+  d["ssim_windows"] = m.ssim_windows;
+  d["ssim_window_positions"] = m.ssim_positions;
   d["flip"] = m.flip;  // mean LDR-FLIP (analysis/flip.hpp), NaN when not computed
   // None where the level has no pixel test (CompareJobResult's limits), as the CLI's text says
   // "off" and its JSON null: a count over a threshold nothing judges would read as a finding.

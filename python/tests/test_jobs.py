@@ -2,6 +2,11 @@
 the ray query (render's index/depth AOVs), NumPy (compare's metrics) and analytic geometry
 (visibility behind a wall)."""
 
+import json
+import struct
+import subprocess
+import zlib
+
 import numpy as np
 import pytest
 
@@ -93,6 +98,62 @@ def test_compare_levels_without_a_pixel_test_report_none():
     m = rayscan.compare(ref, img, fail=0.6, warn=0.1)
     assert m["percent_over_fail"] == 0 and m["percent_over_warn"] == pytest.approx(100 / 64)
     assert m["verdict"] == "warn"
+
+
+def write_pfm(path, img):
+    """An (H, W, 3) float image as a little-endian PFM (rows stored bottom to top): NaN kept."""
+    h, w = img.shape[:2]
+    path.write_bytes(b"PF\n%d %d\n-1.0\n" % (w, h) + np.ascontiguousarray(img[::-1], dtype="<f4").tobytes())
+
+
+def write_rgba_png(path, img):
+    """An (H, W, 4) uint8 image as an 8-bit RGBA PNG (no filtering)."""
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    h, w = img.shape[:2]
+    rows = b"".join(b"\0" + img[y].tobytes() for y in range(h))
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 6, 0, 0, 0)) +
+                     chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+
+
+def test_compare_ssim_windows_and_reason_equal_the_cli_json(tmp_path, cli):
+    """ssim, ssim_undefined, ssim_windows and ssim_window_positions are the CLI's --json ssim.value,
+    .undefined, .windows and .window_positions on the same files (the oracle), and the counts are
+    the 11x11 window positions that do not cover the left-out pixels."""
+    rng = np.random.default_rng(11)
+    a = rng.random((40, 50, 3)).astype(np.float32)
+    b = np.clip(a + rng.normal(0, 0.05, a.shape), 0, 1).astype(np.float32)
+    a[20, 25, 1] = b[20, 25, 1] = np.nan  # NaN matching NaN: its 121 windows are left out
+    write_pfm(tmp_path / "nan_a.pfm", a)
+    write_pfm(tmp_path / "nan_b.pfm", b)
+    tiny = rng.random((15, 15, 3)).astype(np.float32)
+    tiny[7, 7, 0] = np.nan  # in every window of a 15x15 image: SSIM undefined
+    write_pfm(tmp_path / "tiny.pfm", tiny)
+    ref = rng.integers(0, 256, (30, 40, 4), dtype=np.uint8)
+    ref[..., 3] = 255
+    ref[:, :20, 3] = 0  # transparent left half: masked with mask=True / --mask
+    img = ref.copy()
+    img[:, :20, :3] = 255 - img[:, :20, :3]
+    write_rgba_png(tmp_path / "m_ref.png", ref)
+    write_rgba_png(tmp_path / "m_img.png", img)
+    cases = [("nan_a.pfm", "nan_b.pfm", False, 40 * 30 - 11 * 11, 40 * 30),
+             ("tiny.pfm", "tiny.pfm", False, 0, 5 * 5),
+             ("m_ref.png", "m_img.png", True, 10 * 20, 20 * 30)]
+    for ref_name, img_name, mask, windows, positions in cases:
+        files = [str(tmp_path / ref_name), str(tmp_path / img_name)]
+        run = subprocess.run([cli, "compare", *files, "--json", *(["--mask"] if mask else [])],
+                             capture_output=True, text=True)
+        assert run.returncode in (0, 1), run.stderr
+        want = json.loads(run.stdout)["ssim"]
+        got = rayscan.compare(*files, mask=mask)
+        assert (got["ssim_windows"], got["ssim_window_positions"]) == (windows, positions), ref_name
+        assert got["ssim_windows"] == want["windows"] and got["ssim_window_positions"] == want["window_positions"]
+        assert got["ssim_undefined"] == want["undefined"], ref_name
+        if want["value"] is None:
+            assert np.isnan(got["ssim"]) and got["ssim_undefined"], ref_name
+        else:
+            assert got["ssim"] == want["value"] and got["ssim_undefined"] is None, ref_name
+    assert want["value"] == 1.0  # the masked pair differs only where it is masked
 
 
 def test_visibility_behind_a_wall():

@@ -470,6 +470,29 @@ TEST_F(CompareCli, SsimLeavesOutMaskedAndNonFiniteWindows) {
   }
 }
 
+// FLIP not computed: the report's line gives the reason, the same words as --json's flip.signal,
+// with no mean (null) and no pixels per degree, whether FLIP was turned off or cannot run.
+TEST_F(CompareCli, FlipNotComputedGivesItsReasonInReportAndJson) {
+  const Image a = noise_image(24, 16, {"R", "G", "B"}, 71, 0, 1), b = noise_image(24, 16, {"R", "G", "B"}, 72, 0, 1);
+  const fs::path pa = write("a.png", a, PixelFormat::uint8), pb = write("b.png", b, PixelFormat::uint8);
+  const Image d = noise_image(24, 16, {"depth"}, 73, 1, 10);
+  const fs::path pd = write("d.exr", d);
+  const std::pair<std::string, std::string> cases[] = {
+      {q(pa) + " " + q(pb) + " --no-flip", "not computed (--no-flip)"},
+      {q(pd) + " " + q(pd), "not computed: FLIP needs R,G,B or Y channels"}};
+  for (const auto& [args, reason] : cases) {
+    const RunResult r = run(std::string(RAYSCAN_BIN) + " compare " + args);
+    EXPECT_TRUE(r.code == 0 || r.code == 1) << r.out;
+    EXPECT_NE(r.out.find("\n  FLIP            " + reason + "\n"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("LDR-FLIP"), std::string::npos) << r.out;
+    const RunResult rj = run(std::string(RAYSCAN_BIN) + " compare --json " + args);
+    const nlohmann::json j = nlohmann::json::parse(rj.out)["flip"];
+    EXPECT_TRUE(j["mean"].is_null()) << j.dump();
+    EXPECT_EQ(j["signal"], reason);
+    EXPECT_TRUE(j["pixels_per_degree"].is_null()) << j.dump();
+  }
+}
+
 TEST_F(CompareCli, UnsignedIndexAovMissIsAllOnes) {
   // A uint32 index channel stores a miss as 0xFFFFFFFF (the bits of int32 -1). oiiotool writes a
   // checker of 0 and 1.0, which OpenImageIO converts to 0 and 0xFFFFFFFF.
