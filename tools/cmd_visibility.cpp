@@ -116,9 +116,9 @@ Runner add_visibility_command(CLI::App& app) {
                 "(default 5 x radius)")
       ->check(positive());
   c->add_option("--radius", o->radius, "Sphere radius of each point (world units) or auto")->capture_default_str();
+  // Range checked by the job (auto_radius_factor_problem), in the words of a scene's auto_radius_factor.
   c->add_option("--radius-factor", o->job.radius_factor, "auto radius = factor x median nearest-neighbour spacing")
-      ->capture_default_str()
-      ->check(positive());
+      ->capture_default_str();
   c->add_option("--primitive", o->job.primitive,
                 "Geometry of each point for line of sight: surfel (oriented disc, PCA normal, radius from "
                 "the local spacing; with target height 0 the GIS viewshed of the sampled surface, as "

@@ -22,6 +22,10 @@ namespace rayscan::jobs::detail {
 void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const PointCloud* memory,
                      const IndexOptions& index, std::optional<double> radius, double radius_factor,
                      const JobControl& ctl, const CopcOpen& copc) {
+  // Refused before the file is read, and also with a given radius (which it does not affect), as
+  // a scene's auto_radius_factor is: one range wherever a factor is given.
+  if (const std::string why = auto_radius_factor_problem(radius_factor); !why.empty())
+    throw OptionError({option("radius_factor"), ": " + why});
   char buf[512];
   auto t0 = std::chrono::steady_clock::now();
   cs.source = memory ? std::string("(memory)") : file.string();
@@ -77,7 +81,6 @@ void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const Poi
     cs.radius = choose_radius(radius, radius_factor, [&] { return median_nn_spacing(*cs.site, cs.cloud.positions); });
   } catch (const std::invalid_argument&) {
     if (radius) throw OptionError({option("radius"), " " + std::to_string(*radius) + ": expected a number > 0 or auto"});
-    if (!(radius_factor > 0.0)) throw OptionError({option("radius_factor"), ": expected a number > 0"});
     throw OptionError({option("radius"), " auto needs at least two distinct points; give a number"});
   }
   if (cs.radius.automatic) {

@@ -277,7 +277,13 @@ Scene parse_scene_json(const nlohmann::json& j, const std::filesystem::path& fil
     else if (r.is_number() && std::isfinite(r.get<double>()) && r.get<double>() > 0.0) s.radius = r.get<double>();
     else fail(f, "/radius", "expected \"auto\" or a number in (0, inf) (world units)");
   }
-  s.auto_radius_factor = o.number("auto_radius_factor", 1.0, 0.0, 100.0, true, false);
+  if (o.has("auto_radius_factor")) {
+    const json& v = o.at("auto_radius_factor");
+    // A non-number is refused with the range's own wording (nan is out of every range).
+    const std::string why = auto_radius_factor_problem(v.is_number() ? v.get<double>() : std::nan(""));
+    if (!why.empty()) fail(f, "/auto_radius_factor", why);
+    s.auto_radius_factor = v.get<double>();
+  }
   s.hit = o.string("hit", "sphere", {"sphere", "closest_point"}) == "sphere" ? HitMode::sphere
                                                                              : HitMode::closest_point;
   s.primitive = o.string("primitive", "sphere", {"sphere", "surfel"}) == "surfel" ? Primitive::surfel

@@ -7,7 +7,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace rayscan {
@@ -15,6 +17,13 @@ namespace rayscan {
 double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions,
                          std::size_t max_samples) {
   return std::visit([&](const auto& idx) { return median_nn_spacing_of(idx, positions, max_samples); }, index);
+}
+
+std::string auto_radius_factor_problem(double factor) {
+  if (std::isfinite(factor) && factor > 0.0 && factor <= kMaxAutoRadiusFactor) return "";
+  std::ostringstream range;
+  range << "expected a number in (0, " << kMaxAutoRadiusFactor << "]";
+  return range.str();
 }
 
 RadiusChoice choose_radius(const AnyIndex& index, std::span<const Vec3> positions,
@@ -30,8 +39,8 @@ RadiusChoice choose_radius(std::optional<double> radius, double factor, const st
     c.radius = *radius;
     return c;
   }
-  if (!(factor > 0.0) || !std::isfinite(factor))
-    throw std::invalid_argument("radius factor: expected a finite number > 0");
+  if (const std::string why = auto_radius_factor_problem(factor); !why.empty())
+    throw std::invalid_argument("radius factor: " + why);
   c.automatic = true;
   c.factor = factor;
   c.spacing = spacing();

@@ -92,7 +92,8 @@ struct SolarJobOptions {
   /// of points or image row ends, plus the nodes of the chunks in flight).
   std::size_t cache_bytes = io::kCopcDefaultCacheBytes;
   std::optional<double> radius;         ///< sphere radius (primitive sphere), world units; nullopt = auto
-  double radius_factor = 1.0;           ///< auto radius = factor x median NN spacing (choose_radius)
+  double radius_factor = kDefaultAutoRadiusFactor;  ///< auto radius = factor x median NN spacing
+                                                    ///< (choose_radius; range: auto_radius_factor_problem)
   /// Geometry of each point for shadows: "sphere" (the paper's model, one radius: light passes
   /// through gaps in crowns, and a crown's top is in the sun) or "surfel" (oriented discs read as
   /// the height field a DSM samples: solid below, so steep leaf discs shade their neighbours and

@@ -48,7 +48,8 @@ struct VisibilityJobOptions {
   /// of points or image row ends, plus the nodes of the chunks in flight).
   std::size_t cache_bytes = io::kCopcDefaultCacheBytes;
   std::optional<double> radius;         ///< sphere radius, world units; nullopt = auto
-  double radius_factor = 1.0;           ///< auto radius = factor x median NN spacing (choose_radius)
+  double radius_factor = kDefaultAutoRadiusFactor;  ///< auto radius = factor x median NN spacing
+                                                    ///< (choose_radius; range: auto_radius_factor_problem)
   std::string primitive = "surfel";     ///< "surfel" (oriented discs: PCA normals, per-point radii,
                                         ///< estimate_surfels with `surfel`; with the surfel defaults of
                                         ///< tolerance and target height 0 the GIS viewshed protocol, so

@@ -15,6 +15,7 @@
 #include <functional>
 #include <optional>
 #include <span>
+#include <string>
 
 namespace rayscan {
 
@@ -111,20 +112,35 @@ template <class I>
   return median_nn_spacing_of(index, std::span<const Vec3>(samples), n, batch, after_batch);
 }
 
+/// The auto radius factor when none is given (scene "auto_radius_factor", the jobs'
+/// radius_factor): radius = the median spacing, so a sphere reaches its nearest neighbour and the
+/// sampled surface has no gaps.
+inline constexpr double kDefaultAutoRadiusFactor = 1.0;
+
+/// The largest auto radius factor accepted: at 100 x the spacing a sphere already covers some
+/// 30,000 neighbours of a surface sample, so a larger factor is a mistake, not a model.
+inline constexpr double kMaxAutoRadiusFactor = 100.0;
+
+/// The one check of an auto radius factor (scene "auto_radius_factor", `--radius-factor`, the
+/// jobs' radius_factor, choose_radius): "" for a finite number in (0, kMaxAutoRadiusFactor],
+/// otherwise what was expected, "expected a number in (0, 100]", for the caller to put after the
+/// field's or option's name.
+[[nodiscard]] std::string auto_radius_factor_problem(double factor);
+
 /// The sphere radius a job used and how it was chosen.
 struct RadiusChoice {
   double radius = 0.0;     ///< world units, > 0
   bool automatic = false;  ///< true: radius = factor x spacing
   double spacing = 0.0;    ///< median_nn_spacing (only when automatic)
-  double factor = 1.0;     ///< the auto factor (only when automatic)
+  double factor = kDefaultAutoRadiusFactor;  ///< the auto factor (only when automatic)
 };
 
 /// The radius of every point sphere (paper section 5.3): `radius` when given (must be finite and
 /// > 0), otherwise ("auto") factor x median_nn_spacing(index, positions). Throws
-/// std::invalid_argument "needs at least two distinct points" when auto finds no spacing, or for
-/// a non-positive radius or factor.
+/// std::invalid_argument "needs at least two distinct points" when auto finds no spacing, for a
+/// non-positive radius, or (auto) for a factor auto_radius_factor_problem refuses.
 [[nodiscard]] RadiusChoice choose_radius(const AnyIndex& index, std::span<const Vec3> positions,
-                                         std::optional<double> radius, double factor = 1.0);
+                                         std::optional<double> radius, double factor = kDefaultAutoRadiusFactor);
 
 /// The same rule with the spacing supplied by the caller (called only when `radius` is unset),
 /// e.g. median_nn_spacing_of over an index file. Same errors.

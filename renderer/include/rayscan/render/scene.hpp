@@ -9,6 +9,7 @@
 #include "rayscan/camera/camera_file.hpp"
 #include "rayscan/base/json_object.hpp"
 #include "rayscan/octree/normals.hpp"
+#include "rayscan/octree/spacing.hpp"
 #include "rayscan/octree/surfel.hpp"
 #include "rayscan/io/point_io.hpp"
 
@@ -110,7 +111,7 @@ struct Scene {
   std::filesystem::path file;                 ///< the scene file ("" when built in code)
   std::filesystem::path cloud;                ///< point cloud file
   std::optional<double> radius;               ///< sphere radius (world units); nullopt = "auto"
-  double auto_radius_factor = 1.0;            ///< "auto": radius = factor x median NN spacing
+  double auto_radius_factor = kDefaultAutoRadiusFactor;  ///< "auto": radius = factor x median NN spacing
   HitMode hit = HitMode::sphere;
   Primitive primitive = Primitive::sphere;    ///< "primitive": "sphere" (the paper's) or "surfel"
   SurfelOptions surfel;                       ///< "surfel": {k_normal, k_radius, radius_factor, ...}
