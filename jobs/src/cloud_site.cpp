@@ -6,6 +6,7 @@
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/io/point_reader.hpp"
+#include "rayscan/jobs/solar.hpp"
 #include "rayscan/site/copc.hpp"
 #include "rayscan/site/index_file.hpp"
 
@@ -242,9 +243,10 @@ std::optional<ResultField> table_field(const std::string& name) {
   };
   if (const auto it = kFields.find(name); it != kFields.end()) return it->second;
   // solar_global_01 .. solar_global_12: the months of the period.
-  if (name.size() == 15 && name.rfind("solar_global_", 0) == 0 && std::isdigit(static_cast<unsigned char>(name[13])) &&
-      std::isdigit(static_cast<unsigned char>(name[14])))
-    return ResultField{{"global irrad. month " + name.substr(13) + ", kWh/m2", {}}, "kWh/m2"};
+  const std::size_t month = kSolarMonthlyPrefix.size();
+  if (name.size() == month + 2 && name.starts_with(kSolarMonthlyPrefix) &&
+      std::isdigit(static_cast<unsigned char>(name[month])) && std::isdigit(static_cast<unsigned char>(name[month + 1])))
+    return ResultField{{"global irrad. month " + name.substr(month) + ", kWh/m2", {}}, "kWh/m2"};
   return std::nullopt;
 }
 

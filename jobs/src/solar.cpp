@@ -527,8 +527,8 @@ struct SolarRun {
 
   /// The result fields of the run (the monthly ones are all sky-dependent, as solar_global).
   std::vector<std::string> result_fields() const {
-    if (instant) return {"in_shadow", "irradiance_global", "irradiance_beam", "irradiance_diffuse"};
-    return {"solar_global", "solar_beam", "solar_diffuse", "solar_reflected", "sun_hours", "sky_view"};
+    if (instant) return {kSolarInstantFields.begin(), kSolarInstantFields.end()};
+    return {kSolarPeriodFields.begin(), kSolarPeriodFields.end()};
   }
 
   /// True when some output uses a field that needs the sky-map rays.
@@ -713,7 +713,7 @@ struct SolarRun {
         std::vector<double> v(by_month.begin() + std::ptrdiff_t(g * n), by_month.begin() + std::ptrdiff_t((g + 1) * n));
         for (double& x : v) x /= 1000.0;
         char name[48];
-        std::snprintf(name, sizeof name, "solar_global_%02zu", g + 1);
+        std::snprintf(name, sizeof name, "%.*s%02zu", int(kSolarMonthlyPrefix.size()), kSolarMonthlyPrefix.data(), g + 1);
         set_field(name, std::move(v));
       }
     }

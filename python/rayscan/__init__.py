@@ -388,11 +388,12 @@ def solar(cloud, start=None, end=None, step="1h", at=None, latitude=None, longit
     shadow ray per step); sky_rays: sky-map directions; primitive: "sphere" or "surfel". A COPC
     file is queried in place as by visibility(), within `cache`.
 
-    Returns a dict of (N,) float64 arrays: for a period "solar_global", "solar_beam",
-    "solar_diffuse", "solar_reflected" (kWh/m²), "sun_hours" (h), "sky_view"; for an instant
-    "in_shadow" (1/0), "irradiance_global", "irradiance_beam", "irradiance_diffuse" (W/m²), with
-    "sun_azimuth" and "sun_elevation" (degrees); and "latitude", "longitude", "steps", "sectors",
-    "radius". radius: sphere radius (world units; None = auto from the point spacing). threads:
+    Returns a dict of (N,) float64 arrays: for a period SOLAR_PERIOD_FIELDS, "solar_global",
+    "solar_beam", "solar_diffuse", "solar_reflected" (kWh/m²), "sun_hours" (h), "sky_view"; for an
+    instant SOLAR_INSTANT_FIELDS, "in_shadow" (1/0), "irradiance_global", "irradiance_beam",
+    "irradiance_diffuse" (W/m²), with "sun_azimuth" and "sun_elevation" (degrees); and
+    "latitude", "longitude", "steps", "sectors", "radius". radius: sphere radius (world units;
+    None = auto from the point spacing). threads:
     worker threads (0 = all cores). Raises ValueError for a bad option (named as the keyword),
     TypeError for an argument of the wrong type (at=datetime: pass at.isoformat()), OSError for
     a cloud or weather file that cannot be opened or is malformed.
@@ -424,3 +425,7 @@ if not hasattr(_rayscan, "_render"):  # built without the library's job API
     del render, ortho_map, visibility, solar, compare
 else:
     __all__ += ["render", "ortho_map", "visibility", "solar", "compare"]
+    #: The names of solar()'s arrays for a period and for an instant, in the library's order (the
+    #: library's own lists, jobs::kSolarPeriodFields and kSolarInstantFields).
+    SOLAR_PERIOD_FIELDS = _rayscan.SOLAR_PERIOD_FIELDS
+    SOLAR_INSTANT_FIELDS = _rayscan.SOLAR_INSTANT_FIELDS

@@ -101,6 +101,8 @@ def visibility(cloud: _Cloud, observers: _Path | npt.ArrayLike | None = None, ra
                target_height: float | None = None, sky_rays: int = 0, camera: _Path | None = None,
                distance: bool = False, threads: int = 0, cache: str = "2G",
                ground_radius: float | None = None) -> dict[str, Any]: ...
+SOLAR_PERIOD_FIELDS: tuple[str, ...]
+SOLAR_INSTANT_FIELDS: tuple[str, ...]
 def solar(cloud: _Cloud, start: str | None = None, end: str | None = None, step: str = "1h",
           at: str | None = None, latitude: float | None = None, longitude: float | None = None,
           linke: float | Sequence[float] = 3.0, albedo: float = 0.2, weather: _Path | None = None,

@@ -388,19 +388,15 @@ def visibility(path, observers, chunks=8, radius=None, height=None, max_distance
 
 
 def _point_count(path, cache):
-    """N of an .rsi or COPC file from its header (mapped, cheap); NaN (unknown) for other files,
-    which rayscan.open would read whole."""
-    lower = path.lower()
-    if lower.endswith(".rsi") or lower.endswith(".copc.laz"):
+    """N of a file that rayscan.open queries in place (an index file or a COPC file, told apart
+    as rayscan.open does, by the COPC header's bytes whatever the name): from its header, mapped,
+    cheap. NaN (unknown) for other files, which rayscan.open would read whole."""
+    if rayscan._rayscan._opens_in_place(path):
         return len(rayscan.open(path, cache))
     return np.nan
 
 
 # ---- solar: instants (or periods) split over tasks ---------------------------------------------
-
-_SOLAR_INSTANT = ("in_shadow", "irradiance_global", "irradiance_beam", "irradiance_diffuse")
-_SOLAR_PERIOD = ("solar_global", "solar_beam", "solar_diffuse", "solar_reflected", "sun_hours", "sky_view")
-
 
 def _solar_block(path, when, kw):
     if isinstance(when, str):
@@ -475,9 +471,9 @@ def solar(path, at=None, periods=None, step="1h", latitude=None, longitude=None,
     path = _path(path)
     kw = dict(options, threads=threads)
     tasks = [dask.delayed(_solar_block)(path, w, kw) for w in whens]
-    fields = _SOLAR_INSTANT if at is not None else _SOLAR_PERIOD
+    fields = rayscan.SOLAR_INSTANT_FIELDS if at is not None else rayscan.SOLAR_PERIOD_FIELDS
     if at is None and sky_rays == 0:
-        fields = fields[:-1]  # no sky view without sky rays
+        fields = tuple(f for f in fields if f != "sky_view")  # no sky view without sky rays
     if compute:
         res = dask.compute(*tasks)
         out = {f: np.stack([r[f] for r in res]) for f in fields if f in res[0]}

@@ -17,6 +17,8 @@
 #include "rayscan/jobs/solar.hpp"
 #include "rayscan/jobs/visibility.hpp"
 #include "rayscan/jobs/render.hpp"
+#include "rayscan/site/index_file.hpp"
+#include "rayscan/site/site.hpp"
 
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
@@ -646,11 +648,13 @@ py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::ha
         {o.weather.string()});
   });
   py::dict d;
-  static const char* fields[] = {"solar_global", "solar_beam", "solar_diffuse", "solar_reflected", "sun_hours",
-                                 "sky_view", "in_shadow", "irradiance_global", "irradiance_beam", "irradiance_diffuse"};
+  // The result fields only: a cloud file's own scalar fields are in r.cloud too.
+  const auto listed = [](const auto& names, const std::string& name) {
+    return std::find(names.begin(), names.end(), name) != names.end();
+  };
   for (ScalarField& f : r.cloud.scalars)
-    if (f.name.rfind("solar_global_", 0) == 0 ||  // --monthly
-        std::find(std::begin(fields), std::end(fields), f.name) != std::end(fields))
+    if (f.name.starts_with(jobs::kSolarMonthlyPrefix) || listed(jobs::kSolarPeriodFields, f.name) ||
+        listed(jobs::kSolarInstantFields, f.name))
       d[py::str(f.name)] = to_numpy(std::move(f.values));
   d["latitude"] = r.location.latitude_deg;
   d["longitude"] = r.location.longitude_deg;
@@ -662,6 +666,24 @@ py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::ha
     d["sun_elevation"] = r.sun->elevation_deg;
   }
   return d;
+}
+
+/// The names of `names` as a Python tuple of str.
+template <std::size_t N>
+py::tuple name_tuple(const std::array<std::string_view, N>& names) {
+  py::tuple t(N);
+  for (std::size_t i = 0; i < N; ++i) t[i] = py::str(names[i].data(), names[i].size());
+  return t;
+}
+
+/// True when rayscan.open(path) would query the file in place without reading it whole: an index
+/// file or a COPC file, told apart by Site::open's own tests (io::is_index_file, io::is_copc_file
+/// on the header's bytes, whatever the name), with rayscan.open's options. False for a file that
+/// cannot be read (rayscan.open raises for it).
+bool opens_in_place(py::handle path) {
+  const std::filesystem::path p = path_arg(path, "path");
+  py::gil_scoped_release nogil;
+  return io::is_index_file(p) || (SiteOptions{}.copc_in_place && io::is_copc_file(p));
 }
 
 }  // namespace
@@ -696,6 +718,10 @@ void bind_jobs(py::module_& m) {
         py::arg("longitude") = py::none(), py::arg("linke") = 3.0, py::arg("albedo") = 0.2, py::arg("weather") = py::none(),
         py::arg("sector") = 1.0, py::arg("sky_rays") = 64, py::arg("primitive") = "sphere",
         py::arg("radius") = py::none(), py::arg("threads") = 0, py::arg("cache") = "2G");
+  // solar()'s result fields, defined once in the library (rayscan.SOLAR_PERIOD_FIELDS, ...).
+  m.attr("SOLAR_PERIOD_FIELDS") = name_tuple(jobs::kSolarPeriodFields);
+  m.attr("SOLAR_INSTANT_FIELDS") = name_tuple(jobs::kSolarInstantFields);
+  m.def("_opens_in_place", &opens_in_place, py::arg("path"));
 }
 
 }  // namespace rayscan::python

@@ -15,10 +15,12 @@
 #include "rayscan/octree/point_cloud.hpp"
 #include "rayscan/octree/spacing.hpp"
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace rayscan::jobs {
@@ -168,15 +170,28 @@ struct SolarJobOptions {
   JobControl control;
 };
 
+/// The result fields of a period, in the order run_solar adds them (SolarJobResult::cloud): the
+/// names the outputs, the Python module (rayscan.SOLAR_PERIOD_FIELDS) and rayscan.dask use.
+inline constexpr std::array<std::string_view, 6> kSolarPeriodFields = {
+    "solar_global", "solar_beam", "solar_diffuse", "solar_reflected", "sun_hours", "sky_view"};
+/// The result fields of an instant, in the order run_solar adds them (rayscan.SOLAR_INSTANT_FIELDS).
+inline constexpr std::array<std::string_view, 4> kSolarInstantFields = {"in_shadow", "irradiance_global",
+                                                                        "irradiance_beam", "irradiance_diffuse"};
+/// The result fields of a day of shadows.
+inline constexpr std::array<std::string_view, 2> kSolarDayFields = {"sun_hours", "shadow_hours"};
+/// A period's monthly fields (SolarJobOptions::monthly): this prefix and the month, 01 .. 12.
+inline constexpr std::string_view kSolarMonthlyPrefix = "solar_global_";
+
 /// Output of run_solar().
 struct SolarJobResult {
-  /// The input with the result fields. A period: solar_global, solar_beam, solar_diffuse,
-  /// solar_reflected (kWh/m² over the period, on each point's own surface), sun_hours (h) and
-  /// sky_view (fraction of the sky seen, weighted by the surface's cosine). An instant:
-  /// in_shadow (1: the sun is down or the point's ray to the sun is blocked -- a cast shadow,
-  /// whichever way its surface faces), irradiance_global, irradiance_beam, irradiance_diffuse
-  /// (W/m²; a surface facing away from the sun gets no beam). A day of shadows: sun_hours and
-  /// shadow_hours (h with the sun up and the point's ray to it blocked).
+  /// The input with the result fields (kSolarPeriodFields, kSolarInstantFields, kSolarDayFields).
+  /// A period: solar_global, solar_beam, solar_diffuse, solar_reflected (kWh/m² over the period,
+  /// on each point's own surface), sun_hours (h) and sky_view (fraction of the sky seen, weighted
+  /// by the surface's cosine). An instant: in_shadow (1: the sun is down or the point's ray to the
+  /// sun is blocked -- a cast shadow, whichever way its surface faces), irradiance_global,
+  /// irradiance_beam, irradiance_diffuse (W/m²; a surface facing away from the sun gets no beam).
+  /// A day of shadows: sun_hours and shadow_hours (h with the sun up and the point's ray to it
+  /// blocked).
   PointCloud cloud;
   io::FileInfo info;
   std::string source;
