@@ -8,9 +8,10 @@ also with observers in EPSG:4326 that the plugin reprojects, and without a CRS, 
 ortho_dsm, solar and point_visibility outputs (its point vector layer too) open with the cloud's
 CRS, the vector layer's CRS is the viewshed GeoTIFF's as QGIS reads them, quick_look's image opens,
 ortho_dsm's COLOUR reaches the orthophoto; PRIMITIVE, ortho_dsm's COLOUR and solar's VALUE offer
-the CLI's own values (its --help), and rayscan's refusals and the plugin's own (an observer QGIS
-cannot reproject, a missing HEIGHT_FIELD, an observer outside the cloud, a period without START and
-END) reach the user in one line naming the parameters and features, not the CLI's options or the
+the CLI's own values (its --help); the plugin's file extensions and filters are the ones rayscan's
+refusals list (input clouds, per-point outputs, images, GeoTIFF maps); rayscan's refusals and the
+plugin's own (an observer QGIS cannot reproject, a missing HEIGHT_FIELD, an observer outside the
+cloud, a period without START and END) reach the user in one line naming the parameters and features, not the CLI's options or the
 temporary CSV; a cancel while POINTS_LAYER is written leaves no file there. Exit 77 (skipped) when
 qgis_process is not installed.
 
@@ -185,6 +186,52 @@ def cli_choices(rayscan, command, option):
     return words, None
 
 
+def cli_extensions(rayscan, args):
+    """The extensions rayscan lists when it refuses a file name: ``rayscan ARGS`` (which end in a
+    name it refuses) exits with status 2 and its last line says "... ending in .a, .b or .c".
+    """
+    import re
+    r = subprocess.run([rayscan] + args, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                       stderr=subprocess.PIPE, universal_newlines=True)
+    line = r.stderr.strip().splitlines()[-1] if r.stderr.strip() else ""
+    tail = line.split("ending in ", 1)[1] if r.returncode == 2 and "ending in " in line else ""
+    return tuple(re.findall(r"\.[\w.]*\w", re.split(r"\)| \(", tail)[0]))
+
+
+def extension_checks(rayscan, cloud, work):
+    """The plugin's lists of file extensions (algorithms/base.py, copies: the parameters are declared
+    before rayscan may be run) are the ones rayscan's own refusals list, and the plugin accepts
+    each: input clouds (`rayscan info`, and the index file its --help names), per-point outputs
+    (`rayscan visibility -o`), images (`rayscan render --out`) and GeoTIFF maps (`render --dsm`)."""
+    from qgis.core import QgsProcessingException
+    from rayscan_processing.algorithms import base
+    wrong = os.path.join(work, "points.unknown")
+    cli = {
+        "CLOUD_EXTENSIONS": cli_extensions(rayscan, ["info", wrong]) + (".rsi",),
+        "POINTS_EXTENSIONS": cli_extensions(rayscan, ["visibility", cloud, "--observer", "0,0,0", "-o", wrong]),
+        "IMAGE_EXTENSIONS": cli_extensions(rayscan, ["render", cloud, "--out", wrong]),
+        "GEOTIFF_EXTENSIONS": cli_extensions(rayscan, ["render", cloud, "--ortho-map", "1", "--dsm", wrong,
+                                                       "--out", os.path.join(work, "o.tif")]),
+    }
+    info_help = subprocess.check_output([rayscan, "info", "--help"], universal_newlines=True)
+    check("index file (.rsi)" in info_help, "rayscan info --help names the index file (.rsi)")
+    for name, theirs in cli.items():
+        ours = getattr(base, name)
+        check(len(theirs) > 1 and ours == theirs, "plugin {} {} are rayscan's {}".format(name, ours, theirs))
+        refused = []
+        for e in ours:
+            try:
+                base.RayscanAlgorithm.check_extension("/data/a" + e.upper(), ours, name)
+            except QgsProcessingException:
+                refused.append(e)
+        check(not refused, "plugin check_extension accepts each of {} (refused: {})".format(name, refused))
+    filters = {"CLOUD_FILTER": base.CLOUD_EXTENSIONS, "POINTS_FILTER": base.POINTS_EXTENSIONS,
+               "IMAGE_FILTER": base.IMAGE_EXTENSIONS}
+    for name, exts in filters.items():
+        missing = [e for e in exts if "*" + e not in getattr(base, name)]
+        check(not missing, "plugin {} offers each extension (missing: {})".format(name, missing))
+
+
 def desktop_checks(plugin_dir, cloud, work, rayscan):
     """The desktop's way in (classFactory, initGui, unload) with the Processing plugin: the provider,
     its executable option in Processing's settings, the parameters that mirror CLI options (each
@@ -353,6 +400,7 @@ def main():
         return r.returncode, r.stdout
 
     unit_tests(plugin_dir, work)
+    extension_checks(rayscan, cloud, work)
     keep_alive.append(desktop_checks(plugin_dir, cloud, work, rayscan))  # the QgsApplication, for the transforms below
 
     code, _ = qp("plugins", "enable", "rayscan_processing")

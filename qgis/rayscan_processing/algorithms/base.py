@@ -13,11 +13,26 @@ from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
 from .. import runner
 
-#: The point cloud files rayscan reads (`rayscan info --help`).
-CLOUD_FILTER = ("Point clouds (*.las *.LAS *.laz *.LAZ *.copc.laz *.ply *.pcd *.xyz *.csv *.txt *.rsi);;"
-                "All files (*.*)")
-#: The per-point outputs rayscan writes, by extension.
-POINTS_FILTER = "LAS (*.las);;LAZ (*.laz);;PLY (*.ply);;PCD (*.pcd);;CSV (*.csv);;XYZ (*.xyz)"
+# The file names rayscan takes, by extension. The plugin declares its parameters before it may run
+# rayscan (the executable is found only when an algorithm runs), so these are copies of the
+# library's lists, which tests/qgis compares with the ones rayscan's own refusals print.
+#: The point cloud files rayscan reads (io::point_cloud_input_extensions) and its index files.
+CLOUD_EXTENSIONS = (".las", ".laz", ".copc.laz", ".copc", ".ply", ".pcd", ".xyz", ".csv", ".txt", ".pts",
+                    ".f64", ".rsi")
+#: The per-point outputs rayscan writes (io::point_cloud_output_extensions).
+POINTS_EXTENSIONS = (".las", ".laz", ".ply", ".pcd", ".xyz", ".csv", ".txt")
+#: The images `rayscan render --out` writes (render::image_extensions).
+IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr")
+#: The GeoTIFF maps rayscan writes (analysis::geotiff_extensions).
+GEOTIFF_EXTENSIONS = (".tif", ".tiff")
+
+#: The file dialog's filter of CLOUD_EXTENSIONS, each in lower and upper case (rayscan takes either).
+CLOUD_FILTER = "Point clouds ({});;All files (*.*)".format(
+    " ".join("*{} *{}".format(e, e.upper()) for e in CLOUD_EXTENSIONS))
+#: The file dialog's filter of POINTS_EXTENSIONS, one format each.
+POINTS_FILTER = ";;".join("{} (*{})".format(e[1:].upper(), e) for e in POINTS_EXTENSIONS)
+#: The file dialog's filter of IMAGE_EXTENSIONS (the first, PNG, is the default).
+IMAGE_FILTER = "Images ({})".format(" ".join("*" + e for e in IMAGE_EXTENSIONS))
 #: The values of `--primitive` (render, visibility, solar), numbered alike in every algorithm's
 #: PRIMITIVE so that one index means one geometry in models and scripts.
 PRIMITIVES = ["surfel", "sphere"]

@@ -2,7 +2,7 @@
 
 from qgis.core import QgsProcessingParameterEnum, QgsProcessingParameterRasterDestination
 
-from .base import RayscanAlgorithm
+from .base import GEOTIFF_EXTENSIONS, RayscanAlgorithm
 
 #: The values of `rayscan render --ortho-colour`, in the CLI's order; the first is its default.
 COLOURS = ["albedo", "shaded"]
@@ -41,8 +41,8 @@ class OrthoDsm(RayscanAlgorithm):
         cloud = self.cloud(parameters, context)
         ortho = self.parameterAsOutputLayer(parameters, self.ORTHO, context)
         dsm = self.parameterAsOutputLayer(parameters, self.DSM, context)
-        self.check_extension(ortho, (".tif", ".tiff"), "The orthophoto")
-        self.check_extension(dsm, (".tif", ".tiff"), "The DSM")
+        self.check_extension(ortho, GEOTIFF_EXTENSIONS, "The orthophoto")
+        self.check_extension(dsm, GEOTIFF_EXTENSIONS, "The DSM")
         self.run_cli(["render", cloud] + self.option("CELL", self.parameterAsDouble(parameters, "CELL", context))
                      + self.option("COLOUR", COLOURS[self.parameterAsEnum(parameters, "COLOUR", context)])
                      + self.option("SPP", self.parameterAsInt(parameters, "SPP", context))

@@ -5,7 +5,7 @@ from qgis.core import (QgsProcessing, QgsProcessingParameterBoolean, QgsProcessi
                        QgsProcessingParameterNumber)
 
 from . import observers
-from .base import POINTS_FILTER, PRIMITIVES, RayscanAlgorithm
+from .base import POINTS_EXTENSIONS, POINTS_FILTER, PRIMITIVES, RayscanAlgorithm
 
 
 class PointVisibility(RayscanAlgorithm):
@@ -47,7 +47,7 @@ class PointVisibility(RayscanAlgorithm):
         """Write the observers, run rayscan visibility -o and return the cloud."""
         cloud = self.cloud(parameters, context)
         out = self.parameterAsFileOutput(parameters, self.OUTPUT, context)
-        self.check_extension(out, (".las", ".laz", ".ply", ".pcd", ".csv", ".xyz"), "The output cloud")
+        self.check_extension(out, POINTS_EXTENSIONS, "The output cloud")
         observer_file = observers.write_observers(self, parameters, context, feedback, cloud)
         args = (["visibility", cloud] + observers.observer_args(self, parameters, context, observer_file)
                 + self.option("OUTPUT", out)

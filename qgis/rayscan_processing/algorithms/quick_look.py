@@ -2,7 +2,7 @@
 
 from qgis.core import QgsProcessingParameterFileDestination, QgsProcessingParameterNumber, QgsProcessingUtils
 
-from .base import PRIMITIVES, RayscanAlgorithm
+from .base import IMAGE_EXTENSIONS, IMAGE_FILTER, PRIMITIVES, RayscanAlgorithm
 
 
 class QuickLook(RayscanAlgorithm):
@@ -26,14 +26,13 @@ class QuickLook(RayscanAlgorithm):
         self.add_spp_parameter()
         self.add_primitive_parameter("Geometry of each point", "surfel")
         self.addParameter(QgsProcessingParameterFileDestination(
-            self.OUTPUT, self.tr("Quick look image"),
-            "PNG (*.png);;JPEG (*.jpg *.jpeg);;TIFF (*.tif *.tiff);;OpenEXR (*.exr)"))
+            self.OUTPUT, self.tr("Quick look image"), IMAGE_FILTER))
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802 (QGIS's name)
         """Run rayscan render and return the image's path."""
         cloud = self.cloud(parameters, context)
         out = self.parameterAsFileOutput(parameters, self.OUTPUT, context)
-        self.check_extension(out, (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr"), "The quick look")
+        self.check_extension(out, IMAGE_EXTENSIONS, "The quick look")
         self.run_cli(["render", cloud] + self.option("OUTPUT", out)
                      + self.option("WIDTH", self.parameterAsInt(parameters, "WIDTH", context))
                      + self.option("SPP", self.parameterAsInt(parameters, "SPP", context))

@@ -5,7 +5,7 @@ from qgis.core import (QgsProcessingException, QgsProcessingParameterDefinition,
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
                        QgsProcessingParameterString)
 
-from .base import POINTS_FILTER, PRIMITIVES, RayscanAlgorithm
+from .base import GEOTIFF_EXTENSIONS, POINTS_FILTER, PRIMITIVES, RayscanAlgorithm
 
 _MODES = ["period (irradiation, kWh/m²)", "instant (shadows)"]
 # `rayscan solar --raster-value` (its help): a period's values, then the one only an instant has
@@ -73,7 +73,7 @@ class Solar(RayscanAlgorithm):
         """Run rayscan solar and return the raster (and the cloud when asked)."""
         cloud = self.cloud(parameters, context)
         out = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
-        self.check_extension(out, (".tif", ".tiff"), "The solar map")
+        self.check_extension(out, GEOTIFF_EXTENSIONS, "The solar map")
         args = (["solar", cloud] + self.option("OUTPUT", out) + ["--no-preview"]
                 + self.option("CELL", self.parameterAsDouble(parameters, "CELL", context))
                 + self.option("LINKE", self.parameterAsDouble(parameters, "LINKE", context))

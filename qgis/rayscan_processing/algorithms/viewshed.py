@@ -4,7 +4,7 @@ from qgis.core import (QgsProcessingParameterDefinition, QgsProcessingParameterE
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination)
 
 from . import observers
-from .base import RayscanAlgorithm
+from .base import GEOTIFF_EXTENSIONS, RayscanAlgorithm
 
 # `rayscan visibility --raster-value`, in the order the dialog lists them.
 _VALUES = ["viewshed", "count", "viewshed-points", "fraction", "distance"]
@@ -46,7 +46,7 @@ class Viewshed(RayscanAlgorithm):
         """Write the observers, run rayscan visibility and return the raster."""
         cloud = self.cloud(parameters, context)
         out = self.parameterAsOutputLayer(parameters, self.OUTPUT, context)
-        self.check_extension(out, (".tif", ".tiff"), "The viewshed")
+        self.check_extension(out, GEOTIFF_EXTENSIONS, "The viewshed")
         observer_file = observers.write_observers(self, parameters, context, feedback, cloud)
         args = (["visibility", cloud] + observers.observer_args(self, parameters, context, observer_file)
                 + self.option("OUTPUT", out)
