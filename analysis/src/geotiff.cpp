@@ -116,6 +116,18 @@ void write_geotiff(const std::filesystem::path& path, const Raster& raster, cons
   CPLErrorReset();
   GDALClose(ds);  // flushes and writes the directory
   if (CPLGetLastErrorType() >= CE_Failure) fail("closing GeoTIFF failed");
+  // GDAL keeps statistics (gdalinfo -stats, QGIS) in path.aux.xml and external overviews
+  // (gdaladdo -ro) in path.ovr; describing the old raster, they would be shown for the new one, so
+  // they go as GDAL's Create removes them. Before the rename: a failure or a crash in between
+  // leaves the old raster without them, which GDAL recomputes, never the new one with them.
+  for (const char* sidecar : {".aux.xml", ".ovr"}) {
+    const std::filesystem::path stale = path.string() + sidecar;
+    std::error_code ec;
+    if (!std::filesystem::remove(stale, ec) && ec && ec != std::errc::no_such_file_or_directory)
+      throw OutputFileError(path.string() + ": cannot remove the old raster's " + stale.filename().string() +
+                                ": " + ec.message(),
+                            ec.value());
+  }
   file.commit();
 }
 

@@ -103,7 +103,9 @@ std::string write_raster_preview(const std::filesystem::path& path, const Raster
         for (const PreviewCategory& k : style.categories)
           if (v == k.value) col = k.rgb;
       } else if (!std::isnan(v)) {
-        col = ramp(span > 0 ? (double(v) - lo) / span : 0.5);
+        // With lo == hi (a constant map: all zero in a polar night) the bar's labels all read lo,
+        // whose colour is the bar's first: a value at lo is drawn in it, one above in the last.
+        col = ramp(span > 0 ? (double(v) - lo) / span : double(v) > lo ? 1.0 : 0.0);
       }
       for (int dy = 0; dy < s; ++dy)
         for (int dx = 0; dx < s; ++dx) put(int(c) * s + dx, int(r) * s + dy, col.data());

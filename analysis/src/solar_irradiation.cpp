@@ -69,6 +69,7 @@ SunMap build_sun_map(std::vector<SolarStep> steps, double sector_deg) {
     const double h = s.hours, dh = s.diffuse_horizontal * h;
     g.steps.push_back(t);
     g.hours += h;
+    if (s.beam_normal >= kSunshineThreshold) g.sunshine_hours += h;
     g.diffuse += dh;
     g.reflect_lit += s.global_horizontal * h;
     g.reflect_shadow += (s.reflected_from_global ? s.global_horizontal : s.diffuse_horizontal) * h;
@@ -141,7 +142,7 @@ PointIrradiation accumulate_irradiation(const SunMap& map, std::span<const Vec3>
     const bool lit = open && s.beam_normal > 0.0 && s.ray_direction.z > 0.0 && c > 0.0;
     if (lit) {
       out.beam += s.beam_normal * c * s.hours;
-      out.sun_hours += s.hours;
+      if (s.beam_normal >= kSunshineThreshold) out.sun_hours += s.hours;
     }
     if (s.diffuse_horizontal > 0.0) {
       const double ratio = lit ? muneer_diffuse_ratio(s.sun, surface, c, false, s.kb) : shadow_ratio;
@@ -155,7 +156,7 @@ PointIrradiation accumulate_irradiation(const SunMap& map, std::span<const Vec3>
     const double facing = glm::dot(normal, g.axis);
     if (facing > g.sin_spread && open_k) {  // every step in front of the surface, and lit
       out.beam += glm::dot(normal, g.beam);
-      out.sun_hours += g.hours;
+      out.sun_hours += g.sunshine_hours;
       diffuse += m.flat ? g.diffuse
                         : m.r_sky * g.sunlit_a + m.fg * g.sunlit_b + glm::dot(normal, g.sunlit_c) +
                               m.sin_slope * (m.cos_aspect * g.low_cos + m.sin_aspect * g.low_sin);

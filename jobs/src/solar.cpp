@@ -736,7 +736,8 @@ struct SolarRun {
   /// legend, else the heat ramp from 0 to the largest value (`hi` when given). The title is the
   /// band's description; the band's unit is the one the point outputs give the result field
   /// `field` (result_field_unit), so the map and the cloud cannot disagree. A map of an instant
-  /// (`at`, UTC unix seconds) also carries it as RAYSCAN_TIME, ISO 8601 with an offset. Throws
+  /// (`at`, UTC unix seconds) also carries it as RAYSCAN_TIME, one of a period its start and its
+  /// (exclusive) end as RAYSCAN_START and RAYSCAN_END, ISO 8601 with the offset r.utc_offset. Throws
   /// std::logic_error for a `field` that is no result field.
   Raster write_map(const std::filesystem::path& path, const std::filesystem::path& preview,
                    std::span<const double> values, const std::string& title, const std::string& field, bool shadow,
@@ -748,7 +749,12 @@ struct SolarRun {
     GeoTiffOptions go;
     go.crs_wkt = cloud.crs_wkt;
     go.metadata = {{"RAYSCAN_VALUE", value}, {"RAYSCAN_SOURCE", r.source}, {"RAYSCAN_UNITS", units}};
-    if (at) go.metadata.push_back({"RAYSCAN_TIME", format_iso8601(*at, r.utc_offset)});
+    if (at) {
+      go.metadata.push_back({"RAYSCAN_TIME", format_iso8601(*at, r.utc_offset)});
+    } else {
+      go.metadata.push_back({"RAYSCAN_START", format_iso8601(r.start_unix, r.utc_offset)});
+      go.metadata.push_back({"RAYSCAN_END", format_iso8601(r.end_unix, r.utc_offset)});
+    }
     go.unit = units;
     write_geotiff(path, map, go);
     r.written.push_back(path);
@@ -778,16 +784,20 @@ struct SolarRun {
     if (instant) {
       const std::string when = format_time_label(r.start_unix, r.utc_offset);
       title = value == "in_shadow" ? "shadow at " + when : value + " irradiance at " + when + " (W/m²)";
-    } else if (value == "sun_hours") {
-      title = "hours of direct sun " + format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
-              format_iso8601(r.end_unix - 1.0, offset).substr(0, 10) + " (h)";
     } else if (value == "sky_view") {
       title = "sky view factor";
       hi = 1.0;
     } else {
-      // The period's days in the day's time zone, the end day inclusive.
-      title = value + " irradiation " + format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
-              format_iso8601(r.end_unix - 1.0, offset).substr(0, 10) + " (kWh/m²)";
+      // A period of whole days in the days' time zone is named by its days, the end day inclusive;
+      // any other by its start and end times, so that an afternoon and its whole day differ.
+      const auto midnight = [&](double t) { return std::llround(t + offset * 3600.0) % 86400 == 0; };
+      const std::string period =
+          midnight(r.start_unix) && midnight(r.end_unix)
+              ? format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
+                    format_iso8601(r.end_unix - 1.0, offset).substr(0, 10)
+              : format_time_label(r.start_unix, r.utc_offset) + " to " + format_time_label(r.end_unix, r.utc_offset);
+      title = value == "sun_hours" ? "hours of direct sun " + period + " (h)"
+                                   : value + " irradiation " + period + " (kWh/m²)";
     }
     r.raster = write_map(o.raster, preview, sf->values, title, field, instant && value == "in_shadow", hi,
                          instant ? std::optional<double>(r.start_unix) : std::nullopt);

@@ -27,6 +27,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <memory>
 #include <sys/stat.h>
 #include <optional>
@@ -130,7 +131,7 @@ TEST(PointIrradiation, EqualsTheSumOfThePerInstantClearSkyModel) {
       beam += e.beam * s.hours;
       diffuse += e.diffuse * s.hours;
       reflected += e.reflected * s.hours;
-      hours += e.beam > 0 ? s.hours : 0.0;
+      hours += e.beam > 0 && s.beam_normal >= kSunshineThreshold ? s.hours : 0.0;  // WMO's sunshine
     }
     EXPECT_NEAR(got.beam, beam, 1e-9 * (1 + beam)) << sector << " " << trial;
     EXPECT_NEAR(got.diffuse, diffuse, 1e-9 * (1 + diffuse)) << sector << " " << trial;
@@ -686,6 +687,106 @@ TEST(SolarJob, ADateAlonePeriodIsLocalMidnightToMidnight) {
   const nlohmann::json j = nlohmann::json::parse(jobs::solar_report_json(dates));
   EXPECT_EQ(j["start"], "2026-06-21T00:00:00+02:00");
   EXPECT_EQ(j["end"], "2026-06-22T00:00:00+02:00");
+}
+
+// sun_hours is WMO's sunshine duration (WMO-No. 8: DNI >= 120 W/m²): a weather day whose
+// records have a faint beam (DNI 12, 60, 119 W/m², an overcast sky) and a bright one (120, 300,
+// 650 W/m²) around noon, on an open level plane. Oracle: the records with DNI >= 120 counted from
+// the file as written (each record one hour, the sun high at all six).
+TEST(SolarJob, SunHoursCountOnlyTheWeatherHoursAtWmosSunshineThreshold) {
+  const std::string epw = testing::TempDir() + "/sunshine.epw";
+  const std::map<int, double> dni = {{10, 12.0}, {11, 60.0}, {12, 119.0}, {13, 120.0}, {14, 300.0}, {15, 650.0}};
+  {
+    std::FILE* f = std::fopen(epw.c_str(), "w");
+    ASSERT_TRUE(f);
+    std::fputs("LOCATION,Test,CA,USA,TMY3,724940,37.62,-122.40,-8.0,2.0\n"
+               "DESIGN CONDITIONS,0\nTYPICAL/EXTREME PERIODS,0\nGROUND TEMPERATURES,0\n"
+               "HOLIDAYS/DAYLIGHT SAVINGS,No,0,0,0\nCOMMENTS 1,sunshine test year\nCOMMENTS 2,\n"
+               "DATA PERIODS,1,1,Data,Sunday, 1/ 1,12/31\n",
+               f);
+    constexpr int kDays[] = {31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31};
+    for (int m = 1; m <= 12; ++m)
+      for (int d = 1; d <= kDays[m - 1]; ++d)
+        for (int h = 1; h <= 24; ++h) {
+          const auto it = dni.find(h);
+          const double b = it == dni.end() ? 0.0 : it->second;
+          std::fprintf(f,
+                       "1999,%d,%d,%d,60,?9?9?9?9,10.0,5.0,70,101325,0,0,300,%g,%g,100,0,0,0,0,180,2.0,10,10,"
+                       "10.0,1000,9,999999999,0,0.1,0,0,999,0.0,0.0\n",
+                       m, d, h, 100.0 + b, b);
+        }
+    std::fclose(f);
+  }
+  double want = 0.0;
+  for (const auto& [hour, b] : dni) want += b >= 120.0 ? 1.0 : 0.0;
+  ASSERT_EQ(want, 3.0);
+  PointCloud cloud;
+  for (double x = -10; x <= 10; x += 0.5)
+    for (double y = -10; y <= 10; y += 0.5) cloud.positions.emplace_back(x, y, 0.0);
+  jobs::SolarJobOptions o;
+  o.cloud = &cloud;
+  o.latitude = 37.62;
+  o.longitude = -122.40;
+  o.utc_offset = -8.0;
+  o.start = "2026-06-21";
+  o.end = "2026-06-21";
+  o.weather = epw;
+  o.sky_rays = 0;
+  o.control.threads = 2;
+  for (const double sector : {0.0, 1.0}) {  // per step and through the sectors' sums
+    o.sector = sector;
+    const jobs::SolarJobResult r = jobs::run_solar(o);
+    EXPECT_EQ(r.steps, 24u);
+    const std::vector<double>& hours = solar_time_test::field_of(r, "sun_hours");
+    ASSERT_EQ(hours.size(), cloud.size());
+    for (std::size_t i = 0; i < hours.size(); i += 97) EXPECT_DOUBLE_EQ(hours[i], want) << sector << " " << i;
+  }
+}
+
+// A period map states its period: RAYSCAN_START and RAYSCAN_END (ISO 8601 with the offset of
+// --utc-offset), and a title that names the days of whole days, else the times, so that an
+// afternoon and its day differ. Oracle: gdalinfo's JSON report of the file.
+TEST(SolarJob, APeriodMapStatesItsStartAndEnd) {
+  const PointCloud cloud = solar_time_test::ground_and_wall();
+  const std::filesystem::path dir = std::filesystem::path(testing::TempDir()) / "solar_period_map";
+  std::filesystem::create_directories(dir);
+  struct Case {
+    std::string start, end, value, title, meta_start, meta_end;
+  };
+  const Case cases[] = {
+      {"2026-06-21T13:00", "2026-06-21T16:00", "global",
+       "global irradiation 2026-06-21 13:00 UTC+02:00 to 2026-06-21 16:00 UTC+02:00 (kWh/m²)",
+       "2026-06-21T13:00:00+02:00", "2026-06-21T16:00:00+02:00"},
+      {"2026-06-21", "2026-06-21", "global", "global irradiation 2026-06-21 to 2026-06-21 (kWh/m²)",
+       "2026-06-21T00:00:00+02:00", "2026-06-22T00:00:00+02:00"},
+      {"2026-06-20T22:00Z", "2026-06-22T22:00Z", "sun_hours", "hours of direct sun 2026-06-21 to 2026-06-22 (h)",
+       "2026-06-21T00:00:00+02:00", "2026-06-23T00:00:00+02:00"},
+  };
+  for (const Case& c : cases) {
+    const std::filesystem::path tif = dir / "p.tif";
+    jobs::SolarJobOptions o;
+    o.cloud = &cloud;
+    o.latitude = 48.0;
+    o.longitude = 11.0;
+    o.utc_offset = 2.0;
+    o.start = c.start;
+    o.end = c.end;
+    o.sky_rays = 0;
+    o.raster = tif;
+    o.raster_value = c.value;
+    o.write_preview = false;
+    o.cell = 1.0;
+    o.control.threads = 2;
+    jobs::run_solar(o);
+    const auto r = rayscan::test::run_command("gdalinfo -json '" + tif.string() + "'", false);
+    ASSERT_EQ(r.code, 0) << r.out;
+    const nlohmann::json j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["bands"][0]["description"], c.title) << c.start;
+    EXPECT_EQ(j["metadata"][""]["RAYSCAN_START"], c.meta_start) << c.start;
+    EXPECT_EQ(j["metadata"][""]["RAYSCAN_END"], c.meta_end) << c.start;
+    EXPECT_FALSE(j["metadata"][""].contains("RAYSCAN_TIME")) << c.start;
+  }
+  std::filesystem::remove_all(dir);
 }
 
 // One rule says whether a CRS is a frame for sun directions (is_unprojected_crs): geographic and

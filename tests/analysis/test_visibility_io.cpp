@@ -5,6 +5,7 @@
 #include "../common/sanitizers.hpp"
 #include "../common/temp_dir.hpp"
 #include "rayscan/analysis/geotiff.hpp"
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/image/image_file.hpp"
 #include "rayscan/analysis/observer.hpp"
 #include "rayscan/analysis/raster.hpp"
@@ -464,6 +465,67 @@ TEST(RasterPreview, ColoursFollowTheRampAndNoData) {
   EXPECT_EQ(px(1, 1, 2), 1.0f);                                  // above the range clamps to white
   EXPECT_EQ(px(2, 1, 0), 0.0f);                                  // below clamps to black
   EXPECT_THROW(write_raster_preview(out, r, 1.0, 0.0, "t"), std::invalid_argument);
+}
+
+// Rewriting a GeoTIFF drops GDAL's sidecars of the old raster, as GDAL's Create does: the
+// statistics gdalinfo -stats stored in path.aux.xml and the overviews gdaladdo -ro stored in
+// path.ovr would otherwise be shown for the new values. Oracle: gdalinfo's own statistics.
+TEST(GeoTiff, RewritingDropsTheOldRastersStatisticsAndOverviews) {
+  GridSpec g;
+  g.cols = 4;
+  g.rows = 3;
+  g.cell = 1;
+  const fs::path tif = tmpdir() / "sidecar.tif";
+  const fs::path aux = tif.string() + ".aux.xml", ovr = tif.string() + ".ovr";
+  fs::remove(aux);
+  fs::remove(ovr);
+  const auto stats_mean = [&] {
+    const RunResult r = rayscan::test::run_command("gdalinfo -json -stats '" + tif.string() + "'", false);
+    EXPECT_EQ(r.code, 0) << r.out;
+    return nlohmann::json::parse(r.out)["bands"][0]["mean"].get<double>();
+  };
+  write_geotiff(tif, Raster{g, std::vector<float>(12, 2.5f), "old"}, GeoTiffOptions{});
+  EXPECT_DOUBLE_EQ(stats_mean(), 2.5);
+  ASSERT_TRUE(fs::exists(aux));  // gdalinfo -stats stored them
+  ASSERT_EQ(rayscan::test::run_command("gdaladdo -q -ro '" + tif.string() + "' 2", false).code, 0);
+  ASSERT_TRUE(fs::exists(ovr));
+  write_geotiff(tif, Raster{g, std::vector<float>(12, 7.0f), "new"}, GeoTiffOptions{});
+  EXPECT_FALSE(fs::exists(aux));
+  EXPECT_FALSE(fs::exists(ovr));
+  EXPECT_DOUBLE_EQ(stats_mean(), 7.0);
+  // A sidecar that cannot be removed (a folder of that name) fails the write and keeps the old file.
+  fs::remove(aux);
+  fs::create_directories(aux / "x");
+  EXPECT_THROW(write_geotiff(tif, Raster{g, std::vector<float>(12, 9.0f), "new"}, GeoTiffOptions{}), OutputFileError);
+  fs::remove_all(aux);
+  EXPECT_DOUBLE_EQ(stats_mean(), 7.0);
+  EXPECT_FALSE(has_temp_files(tmpdir()));
+  fs::remove(aux);
+}
+
+// A constant map (lo == hi: an all-zero map of a polar night) is drawn in the colour its legend
+// gives that value: the legend text's "black <lo>", the colour bar's first pixel (read from the
+// same image; its pixels sample the ramp at their middles, hence 1/255); a value above it clamps
+// to the bar's last.
+TEST(RasterPreview, AConstantMapHasTheLegendsColourOfItsValue) {
+  GridSpec g;
+  g.cols = 2;
+  g.rows = 1;
+  g.cell = 1;
+  for (const double lo : {0.0, 3.0}) {
+    const Raster r{g, {float(lo), float(lo) + 1.0f}, "t"};
+    const fs::path out = tmpdir() / "constant.png";
+    const std::string legend = write_raster_preview(out, r, lo, lo, "constant");
+    EXPECT_NE(legend.find(lo == 0.0 ? "black 0 " : "black 3 "), std::string::npos) << legend;
+    const Image img = read_image(out.string());
+    const int s = 1024 / 2, bar_y = int(g.rows) * s + kLegendBarTop + kLegendBarHeight / 2;
+    const int bar_last = kLegendBarX + legend_bar_width(img.width) - 1;
+    for (int ch = 0; ch < 3; ++ch) {
+      EXPECT_EQ(img.at(s / 2, s / 2, ch), 0.0f) << lo << " " << ch;  // black
+      EXPECT_NEAR(img.at(s / 2, s / 2, ch), img.at(kLegendBarX, bar_y, ch), 1.01 / 255) << lo << " " << ch;
+      EXPECT_NEAR(img.at(s + s / 2, s / 2, ch), img.at(bar_last, bar_y, ch), 1.01 / 255) << lo << " " << ch;
+    }
+  }
 }
 
 // The legend names the cell size in the unit the GeoTIFF's band would (GDAL's name of the CRS's

@@ -54,7 +54,9 @@ std::string crs_height_unit(const std::string& crs_wkt);
 /// (declared with GDALRasterBand::SetNoDataValue), raster.name as the band description, the unit
 /// (geotiff_band_unit) as the band's unit type, DEFLATE
 /// compression with floating-point predictor (3) and 256 x 256 tiles. Written to a temporary
-/// sibling "<path>.tmp.<pid>" and renamed into place, so a failure never leaves a partial file.
+/// sibling "<path>.tmp.<pid>" and renamed into place, so a failure never leaves a partial file;
+/// an old raster's GDAL sidecars "<path>.aux.xml" (statistics) and "<path>.ovr" (overviews) are
+/// removed first, as GDAL's Create does (an OutputFileError when that fails).
 /// Throws std::runtime_error "<path>: <GDAL's message>" on failure, std::invalid_argument
 /// "crs: ..." when the WKT cannot be parsed.
 void write_geotiff(const std::filesystem::path& path, const Raster& raster, const GeoTiffOptions& options);

@@ -74,8 +74,8 @@ struct PreviewStyle {
 
 /// Writes an 8-bit RGB image (format by extension, normally .png) of `raster`: each cell becomes an
 /// s x s block (s = the largest integer with max(cols, rows) s <= 1024, at least 1), north up,
-/// coloured by heat_ramp((v - lo) / (hi - lo)) (values outside [lo, hi] clamp; lo == hi maps to
-/// the ramp's middle), or by `style.categories` when given; no-data cells kNoDataRgb;
+/// coloured by heat_ramp((v - lo) / (hi - lo)) (values outside [lo, hi] clamp; with lo == hi, v
+/// <= lo takes the ramp's first colour, as the bar labels that end lo, and v > lo its last), or by `style.categories` when given; no-data cells kNoDataRgb;
 /// `style.markers` drawn over the map. Below the map a legend (draw_legend): the title (once), a
 /// colour bar with the values at its ends and middle (or one swatch per category), a no-data
 /// swatch and the marker's symbol. The legend text is also stored as the file's ImageDescription

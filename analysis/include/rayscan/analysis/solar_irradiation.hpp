@@ -17,6 +17,13 @@
 
 namespace rayscan::analysis {
 
+/// The direct normal irradiance from which an hour counts as sunshine, W/m²: the WMO's threshold
+/// for sunshine duration (WMO-No. 8, Guide to Instruments and Methods of Observation, Part I,
+/// chapter 8), which sunshine recorders and the climate normals' sunshine hours follow. Below it
+/// (an overcast sky's faint beam, the clear sky's first minutes after sunrise) the sun casts no
+/// distinct shadow.
+inline constexpr double kSunshineThreshold = 120.0;
+
 /// The sky at one time step, the same for every point of the site.
 struct SolarStep {
   double hours = 1.0;        ///< length of the step, hours (its irradiance x hours = Wh/m²)
@@ -47,6 +54,7 @@ struct SolarStep {
 struct SectorSums {
   Vec3 beam{0.0};             ///< sum of B_0 s (s: the step's true direction), Wh/m²
   double hours = 0.0;         ///< sum of the steps' hours
+  double sunshine_hours = 0.0;  ///< sum of the hours of the steps with B_0 >= kSunshineThreshold
   double diffuse = 0.0;       ///< sum of D_h, Wh/m²
   double sunlit_a = 0.0;      ///< sum of D_h (1 - Kb)
   double sunlit_b = 0.0;      ///< sum of D_h N(Kb) (1 - Kb)
@@ -84,7 +92,9 @@ SunMap build_sun_map(std::vector<SolarStep> steps, double sector_deg);
 /// A point's irradiation over the steps (Wh/m², on its own surface) and its hours of sun.
 struct PointIrradiation {
   double beam = 0.0, diffuse = 0.0, reflected = 0.0;
-  double sun_hours = 0.0;  ///< hours with beam on the surface (sun up, in front of it, not blocked)
+  /// Hours of sunshine on the surface: steps with the beam B_0 >= kSunshineThreshold (WMO's
+  /// sunshine duration), the sun up, in front of the surface and not blocked.
+  double sun_hours = 0.0;
   double sky_view = 0.0;   ///< the cosine-weighted fraction of the sky-map directions seen, 0..1
   [[nodiscard]] double global() const { return beam + diffuse + reflected; }
 };
