@@ -172,7 +172,7 @@ struct Prepared {
   AlbedoRule rule;                    // the material's statistics; applied at shading time to a file traced in place
   AlbedoSource albedo_source;
   std::uint32_t albedo_samples = 1;   // RenderJobOptions::albedo_samples
-  SurfelAttributes surfels;           // estimated here; with RenderJobOptions::surfels only their radii
+  SurfelAttributes surfels;           // estimated here; left empty when RenderJobOptions::surfels are traced
   const SurfelAttributes* discs = &surfels;  // the discs traced: `surfels` or RenderJobOptions::surfels
   std::chrono::steady_clock::time_point started;  // job start (time to the first traced tile)
 };
@@ -180,7 +180,7 @@ struct Prepared {
 // The points' reach (RenderJobOptions::after_trace): no farther from its point is a primitive hit,
 // the sphere radius or, for surfels, the largest disc radius. Set once prepare() chose the radius.
 double primitive_reach(const Prepared& P, const RenderJobResult& r) {
-  return P.scene.primitive == Primitive::surfel ? P.surfels.max_radius : r.radius.radius;
+  return P.scene.primitive == Primitive::surfel ? P.discs->max_radius : r.radius.radius;
 }
 
 // The COPC half of prepare(): albedo rule from one streamed pass of the statistics it needs (none
@@ -375,11 +375,9 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
     if (o.surfels->normals.size() != cloud->size() || o.surfels->radii.size() != cloud->size())
       throw std::invalid_argument("render: options.surfels has not one normal and radius a point of options.cloud");
     P->discs = o.surfels;
-    surfels.median_radius = o.surfels->median_radius;
-    surfels.max_radius = o.surfels->max_radius;
-    r.radius.radius = surfels.median_radius;
+    r.radius.radius = o.surfels->median_radius;
     std::snprintf(buf, sizeof buf, "surfels: the caller's, median radius %.6g, max %.6g (none estimated)",
-                  surfels.median_radius, surfels.max_radius);
+                  o.surfels->median_radius, o.surfels->max_radius);
     ctl.info(buf);
   } else if (surfel) {
     // Surfel normals and radii: kNN over the mapped or the built in-memory index (scene_surfels),
