@@ -581,9 +581,10 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   r.ortho_colour = o.ortho_colour;
   AABB cloud_bounds;  // for the CRS's plausibility (crs_warnings)
   // The map's grid, its side limit and its memory follow from the bounds and the cell alone (not
-  // from the reach): checked as soon as the cloud is read, before the index and the primitives,
-  // and by the camera below with the same function, so the two cannot disagree.
-  const auto check_grid = [&](const AABB& bounds) {
+  // from the reach): checked once, as soon as the cloud is read, before the index and the
+  // primitives. run_render passes camera_for_cloud the same bounds it gave bounds_read, so the
+  // camera below needs no second check.
+  job.bounds_read = [&](const AABB& bounds) {
     analysis::GridSpec g;
     try {
       g = analysis::ortho_grid(bounds, res);
@@ -593,10 +594,8 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
     // The map's size follows from its cell: the width and height options do not apply to it.
     check_render_memory(g.cols, g.rows, job.scene.output.aovs, false, {}, {"map (a larger ", option("ortho_map"), " cell)"});
   };
-  job.bounds_read = check_grid;
   job.camera_for_cloud = [&](const AABB& bounds, double reach) {
     cloud_bounds = bounds;
-    check_grid(bounds);
     try {
       r.map = analysis::ortho_map(bounds, res, reach);
     } catch (const std::invalid_argument& e) {
