@@ -521,14 +521,6 @@ RenderJobResult run_render(const RenderJobOptions& o) {
   return r;
 }
 
-std::vector<float> OrthoMapJobResult::coverage() const {
-  if (ortho_colour == analysis::OrthoColour::albedo) return render.image.coverage;
-  std::vector<float> c(render.image.depth.size());
-  std::transform(render.image.depth.begin(), render.image.depth.end(), c.begin(),
-                 [](float d) { return std::isfinite(d) ? 1.0f : 0.0f; });
-  return c;
-}
-
 OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   const double res = o.ortho_map;
   if (!(res > 0.0) || !std::isfinite(res))
@@ -624,6 +616,12 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
   };
   r.render = run_render(job);
   job.control.check_cancel();  // set after the last tile: the map is not written either
+  if (!albedo) {  // OrthoMapJobResult::coverage's shaded alpha
+    const std::vector<float>& depth = r.render.image.depth;
+    r.shaded_coverage.resize(depth.size());
+    std::transform(depth.begin(), depth.end(), r.shaded_coverage.begin(),
+                   [](float d) { return std::isfinite(d) ? 1.0f : 0.0f; });
+  }
   if (!is_root(job.control)) return r;  // only the root's image is complete
   if (o.render.write)  // the files copy the cloud's CRS: `rayscan info`'s doubts about it too
     for (const std::string& w : crs_warnings(r.render.crs_wkt, cloud_bounds))

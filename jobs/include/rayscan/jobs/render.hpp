@@ -182,12 +182,20 @@ struct OrthoMapJobResult {
     return ortho_colour == analysis::OrthoColour::albedo ? std::span<const render::Color>(render.image.albedo)
                                                          : std::span<const render::Color>(render.image.beauty);
   }
+  /// For the shaded colour: 1 per cell where the cell-centre ray hit (finite render.image.depth)
+  /// and 0 elsewhere, row-major as colour(), set by run_ortho_map; empty for albedo.
+  std::vector<float> shaded_coverage;
+
   /// The orthophoto's alpha per cell in [0, 1], row-major as colour(): for albedo the share of
   /// the cell its rays found covered (render::Framebuffer::coverage, the rays the colour is the
-  /// mean of), for shaded 1 where the cell-centre ray hit (finite depth) and 0 elsewhere, since
-  /// the beauty's missed samples hold the sky, not a share of the cell. Complete on the root only
-  /// of a distributed render.
-  [[nodiscard]] std::vector<float> coverage() const;
+  /// mean of), for shaded 1 where the cell-centre ray hit (finite depth) and 0 elsewhere
+  /// (shaded_coverage), since the beauty's missed samples hold the sky, not a share of the cell
+  /// (a view of render.image or shaded_coverage). Complete on the root only of a distributed
+  /// render.
+  [[nodiscard]] std::span<const float> coverage() const {
+    return ortho_colour == analysis::OrthoColour::albedo ? std::span<const float>(render.image.coverage)
+                                                         : std::span<const float>(shaded_coverage);
+  }
 };
 
 /// Renders a true orthophoto and digital surface model (`rayscan render --ortho-map RES [--dsm F]
