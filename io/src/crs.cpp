@@ -572,19 +572,23 @@ std::string crs_wkt_from_user_input(const std::string& user_input) {
 
 bool crs_wkt_readable(const std::string& wkt) { return detail::wkt_readable(wkt); }
 
-std::optional<LengthUnit> crs_horizontal_unit(const std::string& wkt) {
+namespace {
+
+// The length unit `axis` (detail::horizontal_unit or detail::vertical_unit) finds in `wkt`, or
+// nullopt for an empty or unreadable WKT or no such unit.
+std::optional<LengthUnit> unit_of(const std::string& wkt,
+                                  std::optional<detail::ReportedUnit> (*axis)(OGRSpatialReferenceH)) {
   if (wkt.empty()) return std::nullopt;
   const detail::Srs srs = detail::srs_from_wkt(wkt);
   if (!srs) return std::nullopt;
-  return detail::length_unit(detail::horizontal_unit(static_cast<OGRSpatialReferenceH>(srs.get())));
+  return detail::length_unit(axis(static_cast<OGRSpatialReferenceH>(srs.get())));
 }
 
-std::optional<LengthUnit> crs_vertical_unit(const std::string& wkt) {
-  if (wkt.empty()) return std::nullopt;
-  const detail::Srs srs = detail::srs_from_wkt(wkt);
-  if (!srs) return std::nullopt;
-  return detail::length_unit(detail::vertical_unit(static_cast<OGRSpatialReferenceH>(srs.get())));
-}
+}  // namespace
+
+std::optional<LengthUnit> crs_horizontal_unit(const std::string& wkt) { return unit_of(wkt, detail::horizontal_unit); }
+
+std::optional<LengthUnit> crs_vertical_unit(const std::string& wkt) { return unit_of(wkt, detail::vertical_unit); }
 
 EpsgCodes epsg_codes_from_wkt(const std::string& wkt) {
   EpsgCodes codes;
