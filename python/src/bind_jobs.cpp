@@ -17,7 +17,6 @@
 #include "rayscan/jobs/solar.hpp"
 #include "rayscan/jobs/visibility.hpp"
 #include "rayscan/jobs/render.hpp"
-#include "rayscan/site/index_file.hpp"
 #include "rayscan/site/site.hpp"
 
 #include <pybind11/stl.h>
@@ -677,13 +676,13 @@ py::tuple name_tuple(const std::array<std::string_view, N>& names) {
 }
 
 /// True when rayscan.open(path) would query the file in place without reading it whole: an index
-/// file or a COPC file, told apart by Site::open's own tests (io::is_index_file, io::is_copc_file
-/// on the header's bytes, whatever the name), with rayscan.open's options. False for a file that
+/// file or a COPC file, as Site::opens_in_place decides for Site::open (the COPC test reads the
+/// header's bytes, whatever the name), with rayscan.open's options. False for a file that
 /// cannot be read (rayscan.open raises for it).
 bool opens_in_place(py::handle path) {
   const std::filesystem::path p = path_arg(path, "path");
   py::gil_scoped_release nogil;
-  return io::is_index_file(p) || (SiteOptions{}.copc_in_place && io::is_copc_file(p));
+  return Site::opens_in_place(p, SiteOptions{});
 }
 
 }  // namespace

@@ -58,6 +58,10 @@ Site Site::over(const PointCloud& cloud, const IndexOptions& index) {
   return in_memory_over(std::make_shared<Store>(), cloud, index);
 }
 
+bool Site::opens_in_place(const std::filesystem::path& path, const SiteOptions& options) {
+  return io::is_index_file(path) || (options.copc_in_place && io::is_copc_file(path));
+}
+
 Site Site::open(const std::filesystem::path& path, const SiteOptions& options, SiteOpenTimes* times) {
   SiteOpenTimes t;
   auto t0 = std::chrono::steady_clock::now();
@@ -69,7 +73,7 @@ Site Site::open(const std::filesystem::path& path, const SiteOptions& options, S
     s.mapped_ = &*store->mapped;
     s.owned_ = std::move(store);
     t.read_seconds = seconds_since(t0);
-  } else if (options.copc_in_place && io::is_copc_file(path)) {
+  } else if (opens_in_place(path, options)) {  // in place and no index file: a COPC file
     auto store = std::make_shared<Store>();
     store->copc = std::make_unique<io::CopcIndex>(path, options.copc_cache_bytes);
     s.storage_ = SiteStorage::copc;

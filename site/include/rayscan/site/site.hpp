@@ -78,6 +78,12 @@ class Site {
   static Site open(const std::filesystem::path& path, const SiteOptions& options = {},
                    SiteOpenTimes* times = nullptr);
 
+  /// True when open(path, options) would query the file in place without reading its points: an
+  /// index file (io::is_index_file, by its name) or, with options.copc_in_place, a COPC file
+  /// (io::is_copc_file, by its header). Reads only the header; false for any other or unreadable
+  /// file (open then reads it, or throws for it).
+  static bool opens_in_place(const std::filesystem::path& path, const SiteOptions& options = {});
+
   /// A site over `cloud` (moved in, owned) with the index `index` built over its positions.
   /// Throws std::invalid_argument for bad index options.
   static Site in_memory(PointCloud cloud, const IndexOptions& index = {});
