@@ -238,8 +238,7 @@ AtomicFile::AtomicFile(std::filesystem::path path) : path_(std::move(path)) {
   std::string name = ".";  // built by append: GCC 12 warns falsely (-Wrestrict) on operator+
   name.append(path_.filename().string()).append(".tmp.").append(std::to_string(::getpid()));
   tmp_ = path_.parent_path() / name;
-  name_ = TemporaryOf(tmp_, path_);
-  mark_ = RemoveOnInterrupt(tmp_);  // before the file exists: no moment uncovered
+  temp_for_ = TemporaryFor(tmp_, path_);  // before the file exists: no moment uncovered
   ::unlink(tmp_.c_str());  // a stale temporary of this pid (or a planted link): removed, not followed
   const int fd = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
   if (fd < 0) refuse_failed(path_, "cannot create output file");
@@ -282,7 +281,7 @@ void AtomicFile::commit() {
   ::close(fd);
   if (!synced) refuse_output(path_, std::string("cannot write: ") + std::strerror(sync_errno), sync_errno);
   if (OutputTransaction* tx = OutputTransaction::current()) {
-    tx->adopt(tmp_, path_, std::move(mark_));
+    tx->adopt(tmp_, path_, temp_for_.take_mark());
     committed_ = true;  // the transaction owns the temporary now
     return;
   }

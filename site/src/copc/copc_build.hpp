@@ -5,7 +5,6 @@
 
 #include "readers.hpp"
 #include "rayscan/base/atomic_file.hpp"
-#include "rayscan/base/interrupt.hpp"
 #include "rayscan/octree/geometry.hpp"
 #include "rayscan/site/copc_writer.hpp"
 
@@ -27,13 +26,12 @@ struct CarriedVlr {
 
 /// The mapped file the records are read from: the input itself (an uncompressed LAS of PDRF
 /// 6-8), or a temporary file of converted records, removed when this is destroyed (and by the
-/// interrupt handler should a signal end the program: `mark`, set with `temp`, before the file
-/// is created); its errors name the COPC output (`named`).
+/// interrupt handler should a signal end the program: `temp_for`, set with `temp`, before the
+/// file is created); its errors name the COPC output.
 struct RecordFile {
   std::unique_ptr<detail::MappedFile> map;
   std::filesystem::path temp;  ///< removed on destruction when not empty
-  TemporaryOf named;           ///< temp registered as the output's
-  RemoveOnInterrupt mark;      ///< temp's mark
+  TemporaryFor temp_for;       ///< temp registered as the output's and marked
   RecordFile() = default;
   RecordFile(const RecordFile&) = delete;
   RecordFile& operator=(const RecordFile&) = delete;

@@ -160,8 +160,7 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
     // a temporary file of output records, then mapped.
     auto out = std::make_shared<RecordFile>();
     out->temp = temp_path(opt, name, "records");
-    out->named = TemporaryOf(out->temp, output);
-    out->mark = RemoveOnInterrupt(out->temp);
+    out->temp_for = TemporaryFor(out->temp, output);
     {
       detail::AtomicWriter w(out->temp, true);
       std::vector<std::uint8_t> raw, conv;
@@ -266,8 +265,7 @@ Records read_records(const std::filesystem::path& in, const std::filesystem::pat
   if (cloud.size() == 0) throw std::invalid_argument(in.string() + ": no points to write as COPC");
   detail::require_readable_crs(in.string(), cloud.crs_wkt);  // named as the input, not the intermediate
   file->temp = temp_path(opt, in.string(), "input.las");
-  file->named = TemporaryOf(file->temp, out);
-  file->mark = RemoveOnInterrupt(file->temp);
+  file->temp_for = TemporaryFor(file->temp, out);
   write_las(file->temp, cloud);
   file->map = std::make_unique<detail::MappedFile>(file->temp);
   Records r = read_las_family(file, file->temp, in.string(), opt, out);

@@ -5,6 +5,7 @@
 
 #include "codecs.hpp"
 #include "direct_io.hpp"
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/interrupt.hpp"
 #include "rayscan/octree/morton_sort.hpp"
 
@@ -61,13 +62,12 @@ struct RunLayout {
 
 /// A folder of temporary files removed (with its contents) on destruction, and by the interrupt
 /// handler should a signal end the program. Its parent must exist: only the folder is created.
-/// Errors about its files name `output`, the file it is written for (TemporaryOf).
+/// Errors about its files name `output`, the file it is written for (TemporaryFor).
 struct TempDir {
   fs::path path;
-  TemporaryOf named;
-  RemoveOnInterrupt mark;  // marked before the folder exists
+  TemporaryFor temp_for;  // registered and marked before the folder exists
   TempDir(fs::path p, const fs::path& output)
-      : path(std::move(p)), named(path, output), mark(path, RemoveOnInterrupt::Kind::folder) {
+      : path(std::move(p)), temp_for(path, output, RemoveOnInterrupt::Kind::folder) {
     std::error_code ec;
     fs::create_directory(path, ec);
     if (ec) throw output_error(path, "cannot create the temporary folder", ec.value());

@@ -43,8 +43,9 @@ struct OutputFileError : std::runtime_error {
 /// folder belongs to that folder's output, and `output` may itself be registered (an import's
 /// temporary index, whose AtomicFile has a temporary of its own): output_of follows the chain.
 /// AtomicFile registers its temporary itself; this is for the intermediate files that are not an
-/// AtomicFile's (an uncompressed LAS before compression, COPC records, sort runs). Empty paths
-/// register nothing. Never throws but std::bad_alloc. Movable, not copyable.
+/// AtomicFile's (an uncompressed LAS before compression, COPC records, sort runs; TemporaryFor
+/// also marks them for removal on a signal). Empty paths register nothing. Never throws but
+/// std::bad_alloc. Movable, not copyable.
 class TemporaryOf {
  public:
   /// Registers nothing.
@@ -59,6 +60,28 @@ class TemporaryOf {
  private:
   void release() noexcept;
   std::uint64_t id_ = 0;  // 0: nothing registered
+};
+
+/// A temporary file or folder `temp` written for the output `output`, while this object lives both
+/// registered (TemporaryOf: errors about it name `output`) and marked for removal should a signal
+/// end the program (RemoveOnInterrupt, of `kind`). Make it before creating `temp` and destroy it
+/// only after removing or renaming `temp`, so that no moment is uncovered; it removes nothing
+/// itself. An empty `temp` registers and marks nothing. Never throws but std::bad_alloc. Movable,
+/// not copyable.
+class TemporaryFor {
+ public:
+  /// Registers and marks nothing.
+  TemporaryFor() = default;
+  TemporaryFor(const std::filesystem::path& temp, const std::filesystem::path& output,
+               RemoveOnInterrupt::Kind kind = RemoveOnInterrupt::Kind::file)
+      : name_(temp, output), mark_(temp, kind) {}
+  /// Hands over the mark (to an OutputTransaction, which removes the temporary later); the
+  /// registration stays with this object.
+  [[nodiscard]] RemoveOnInterrupt take_mark() noexcept { return std::move(mark_); }
+
+ private:
+  TemporaryOf name_;
+  RemoveOnInterrupt mark_;  // declared last: released before the registration
 };
 
 /// The output `file` is written for: the output of the registered temporary `file` (or of the
@@ -153,8 +176,7 @@ class AtomicFile {
  private:
   std::filesystem::path path_;
   std::filesystem::path tmp_;
-  TemporaryOf name_;        // errors about tmp_ name path_
-  RemoveOnInterrupt mark_;  // destroyed after the destructor removed the temporary
+  TemporaryFor temp_for_;  // errors about tmp_ name path_; destroyed after the destructor removed tmp_
   bool committed_ = false;
 };
 
