@@ -1,5 +1,6 @@
-// Internal: a binary output file written through a large buffer to rayscan::AtomicFile's temporary
-// and renamed into place by commit(); a failed write never leaves a partial file at `path`.
+// Internal: binary output files written to rayscan::AtomicFile's temporary and renamed into place
+// by commit(); a failed write never leaves a partial file at `path`. AtomicWriter writes forward
+// through a large buffer; AtomicStream also seeks (a header filled in after the data).
 #pragma once
 
 #include "rayscan/base/atomic_file.hpp"
@@ -10,6 +11,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -93,6 +95,42 @@ class AtomicWriter {
   RemoveOnInterrupt mark_;  // a direct file's
   std::FILE* f_ = nullptr;
   std::vector<std::uint8_t> buf_;
+};
+
+/// An output written through a std::ofstream to AtomicFile's temporary, for writers that seek back
+/// to fill in a header. Every write and seek is checked where it happens, so that the error's
+/// cause is that call's errno (a full disk) rather than whatever errno holds by the close: an
+/// OutputFileError "<path>: write failed: <cause>" (output_error names the output, not the
+/// temporary). Not copyable.
+class AtomicStream {
+ public:
+  /// Throws OutputFileError as AtomicFile does, or "<path>: cannot create output file: <cause>".
+  explicit AtomicStream(const std::filesystem::path& path)
+      : file_(path), f_(file_.temp(), std::ios::binary | std::ios::trunc) {
+    if (!f_) throw output_error(file_.temp(), "cannot create output file", errno);
+  }
+  AtomicStream(const AtomicStream&) = delete;
+  AtomicStream& operator=(const AtomicStream&) = delete;
+  /// Writes `n` bytes from `p` at the current position.
+  void write(const void* p, std::uint64_t n) {
+    f_.write(static_cast<const char*>(p), static_cast<std::streamsize>(n));
+    if (!f_) throw output_error(file_.temp(), "write failed", errno);
+  }
+  /// Moves the write position to byte `at` of the file.
+  void seek(std::uint64_t at) {
+    f_.seekp(static_cast<std::streamoff>(at));
+    if (!f_) throw output_error(file_.temp(), "write failed", errno);
+  }
+  /// Closes the file (checked, as a write) and renames it into place (AtomicFile::commit()).
+  void commit() {
+    f_.close();
+    if (!f_) throw output_error(file_.temp(), "write failed", errno);
+    file_.commit();
+  }
+
+ private:
+  AtomicFile file_;
+  std::ofstream f_;  // declared last: closed before file_ removes an uncommitted temporary
 };
 
 }  // namespace rayscan::io::detail

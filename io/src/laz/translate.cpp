@@ -1,17 +1,16 @@
 // translate_las(): see rayscan/io/translate.hpp.
 #include "rayscan/io/translate.hpp"
 
+#include "atomic_writer.hpp"
 #include "bytes.hpp"
 #include "laz/encoder_v2.hpp"
 #include "laz/encoder_v3.hpp"
 #include "laz/laz.hpp"
 #include "las/las_header.hpp"
-#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/octree/position_view.hpp"
 
-#include <fstream>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -266,20 +265,8 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
   // 1.3 R11 (public header block) asks of a file that contains no waveform records.
   if (h.version_minor >= 3 && !waveform_internal) store_le<std::uint64_t>(head, 227, 0);
 
-  AtomicFile atomic(out_path);
-  std::ofstream f(atomic.temp(), std::ios::binary | std::ios::trunc);
-  if (!f) throw output_error(atomic.temp(), "cannot create output file", errno);
-  // Every write and seek checked where it happens, so that the error's cause is that call's errno
-  // (a full disk) rather than whatever errno holds by the close.
-  const auto put = [&](const void* p, std::uint64_t n) {
-    f.write(static_cast<const char*>(p), static_cast<std::streamsize>(n));
-    if (!f) throw output_error(atomic.temp(), "write failed", errno);
-  };
-  const auto seek = [&](std::uint64_t at) {
-    f.seekp(static_cast<std::streamoff>(at));
-    if (!f) throw output_error(atomic.temp(), "write failed", errno);
-  };
-  put(head.data(), head.size());
+  detail::AtomicStream f(out_path);
+  f.write(head.data(), head.size());
   TranslateResult res;
   res.points = h.count;
   res.compressed = to_laz;
@@ -293,18 +280,18 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
     const std::size_t batch = std::max<std::size_t>(1, (8u << 20) / rec);
     for (std::uint64_t i = 0; i < h.count; i += batch) {
       const std::size_t n = static_cast<std::size_t>(std::min<std::uint64_t>(batch, h.count - i));
-      put(src.next(n), n * rec);
+      f.write(src.next(n), n * rec);
       report(i, i + n);
     }
     written += h.count * rec;
     if (waveform_after_points) {  // the bytes from the end of the records to the EVLRs or the end
       waveform_out = written + (h.waveform_start - points_end);
-      put(d + points_end, h.data_end - points_end);
+      f.write(d + points_end, h.data_end - points_end);
       written += h.data_end - points_end;
     }
   } else {
     std::vector<std::uint8_t> table_ptr(8, 0);
-    put(table_ptr.data(), 8);
+    f.write(table_ptr.data(), 8);
     written += 8;
     std::vector<std::uint32_t> sizes;
     std::vector<std::uint8_t> chunk;
@@ -315,20 +302,20 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
       chunk.clear();
       if (layered) layered->encode(src.next(n), n, rec, chunk);
       else encode_chunk_v2(src.next(n), n, rec, h.pdrf, extra, chunk);
-      put(chunk.data(), chunk.size());
+      f.write(chunk.data(), chunk.size());
       sizes.push_back(static_cast<std::uint32_t>(chunk.size()));
       written += chunk.size();
       report(i, i + n);
     }
     const std::uint64_t table_at = written;
     const std::vector<std::uint8_t> table = laz::chunk_table_bytes({}, sizes);
-    put(table.data(), table.size());
+    f.write(table.data(), table.size());
     written += table.size();
     res.chunks = sizes.size();
-    seek(head.size());
+    f.seek(head.size());
     const auto t = static_cast<std::int64_t>(table_at);
-    put(&t, 8);
-    seek(written);
+    f.write(&t, 8);
+    f.seek(written);
   }
   // EVLRs (LAS 1.4): copied after the point data, COPC ones dropped; the header start updated.
   if (h.version_minor >= 4) {
@@ -341,24 +328,22 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
       const std::uint64_t len = load_le<std::uint64_t>(d + ep + 20);
       if (user != "copc") {
         if (waveform_internal && ep == h.waveform_start) waveform_out = written;
-        put(d + ep, 60 + len);
+        f.write(d + ep, 60 + len);
         written += 60 + len;
         ++n_evlr;
       }
       ep += 60 + len;
     }
-    seek(235);
+    f.seek(235);
     const std::uint64_t start = n_evlr > 0 ? evlr_start : 0;
-    put(&start, 8);
-    put(&n_evlr, 4);
+    f.write(&start, 8);
+    f.write(&n_evlr, 4);
   }
   if (waveform_internal) {
-    seek(227);
-    put(&waveform_out, 8);
+    f.seek(227);
+    f.write(&waveform_out, 8);
   }
-  f.close();
-  if (!f) throw output_error(atomic.temp(), "write failed", errno);
-  atomic.commit();
+  f.commit();
   res.in_bytes = map.bytes().size();
   res.out_bytes = written;
   return res;

@@ -8,12 +8,12 @@
 // CopcNode (rayscan/site/copc.hpp) read.
 #include "rayscan/site/copc_writer.hpp"
 
+#include "atomic_writer.hpp"
 #include "bytes.hpp"
 #include "copc_build.hpp"
 #include "las/las_header.hpp"
 #include "laz/encoder_v3.hpp"
 #include "laz/laz.hpp"
-#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/version.hpp"
 #include "rayscan/octree/position_view.hpp"
 #include "rayscan/site/copc.hpp"
@@ -25,7 +25,6 @@
 #include <cmath>
 #include <utility>
 #include <cstring>
-#include <fstream>
 #include <limits>
 #include <optional>
 
@@ -158,18 +157,10 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
   const std::uint64_t point_offset = 375 + vb.b.size();
   if (point_offset > 0xFFFFFFFFu) throw std::invalid_argument(in.string() + ": VLRs too large for a LAS header");
 
-  AtomicFile atomic(out);
-  std::ofstream f(atomic.temp(), std::ios::binary | std::ios::trunc);
-  if (!f) throw output_error(atomic.temp(), "cannot create output file", errno);
-  // Every write checked where it happens, so that the error's cause is that write's errno (a full
-  // disk) rather than whatever errno holds by the close.
-  const auto write = [&](const void* p, std::size_t n) {
-    f.write(static_cast<const char*>(p), static_cast<std::streamsize>(n));
-    if (!f) throw output_error(atomic.temp(), "write failed", errno);
-  };
+  detail::AtomicStream f(out);
   {
     const std::vector<std::uint8_t> zeros(point_offset + 8, 0);  // header, VLRs, chunk table offset
-    write(zeros.data(), zeros.size());
+    f.write(zeros.data(), zeros.size());
   }
 
   // Chunks: nodes in pre-order, compressed in parallel by batches and written in order, so the
@@ -215,7 +206,7 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
       sizes[i] = static_cast<std::uint32_t>(c.size());
       counts[i] = t.nodes[i].count;
       encoded += counts[i];
-      write(c.data(), c.size());
+      f.write(c.data(), c.size());
       pos += c.size();
     }
     if (opt.progress) opt.progress("encode", encoded, r.count);
@@ -225,7 +216,7 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
   const std::uint64_t table_at = pos;
   {
     const std::vector<std::uint8_t> table = laz::chunk_table_bytes(counts, sizes);
-    write(table.data(), table.size());
+    f.write(table.data(), table.size());
     pos += table.size();
   }
 
@@ -265,7 +256,7 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
       ev.put(c.point_count);
     }
   for (const copc::CarriedVlr& v : evlrs_after) put_vlr(ev, v, true);
-  write(ev.b.data(), ev.b.size());
+  f.write(ev.b.data(), ev.b.size());
   pos += ev.b.size();
 
   // Info VLR payload (COPC 1.0 "Info VLR"): center x/y/z, halfsize, spacing, root hierarchy page
@@ -314,14 +305,12 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
   h.put<std::uint32_t>(static_cast<std::uint32_t>(1 + evlrs_after.size()));
   h.put<std::uint64_t>(r.count);
   for (std::uint64_t c : st.by_return) h.put<std::uint64_t>(c);
-  f.seekp(0);
-  write(h.b.data(), h.b.size());
-  write(vb.b.data(), vb.b.size());
+  f.seek(0);
+  f.write(h.b.data(), h.b.size());
+  f.write(vb.b.data(), vb.b.size());
   const auto table_ptr = static_cast<std::int64_t>(table_at);
-  write(&table_ptr, 8);
-  f.close();
-  if (!f) throw output_error(atomic.temp(), "write failed", errno);
-  atomic.commit();
+  f.write(&table_ptr, 8);
+  f.commit();
 
   CopcWriteResult res;
   res.points = r.count;
