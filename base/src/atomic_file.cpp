@@ -28,18 +28,12 @@ thread_local OutputTransaction* g_current = nullptr;
   throw OutputFileError(one_line(path.string()) + ": " + why, err);
 }
 
-/// refuse_output for the call that just failed: "<path>: <what>: <strerror(errno)>", code errno.
-[[noreturn]] void refuse_failed(const std::filesystem::path& path, const char* what) {
-  const int err = errno;
-  refuse_output(path, std::string(what) + ": " + std::strerror(err), err);
-}
-
 /// Gives `tmp` the permission bits of the regular file at `path`, if there is one, so that
 /// replacing an output keeps its mode.
 void keep_mode(const std::filesystem::path& tmp, const std::filesystem::path& path) {
   struct stat st {};
   if (::lstat(path.c_str(), &st) == 0 && S_ISREG(st.st_mode) && ::chmod(tmp.c_str(), st.st_mode & 07777) != 0)
-    refuse_failed(path, "cannot give the new file the old one's mode");
+    throw output_error(path, "cannot give the new file the old one's mode", errno);
 }
 
 /// The registered temporaries (TemporaryOf): few at a time (a command's outputs and their
@@ -149,7 +143,7 @@ void require_replaceable_output(const std::filesystem::path& path) {
                     S_ISDIR(st.st_mode) ? EISDIR : 0);
     return;
   }
-  if (errno != ENOENT) refuse_failed(path, "cannot stat output path");
+  if (errno != ENOENT) throw output_error(path, "cannot stat output path", errno);
   const std::filesystem::path dir = path.parent_path().empty() ? "." : path.parent_path();
   struct stat ds {};
   const int dir_err = ::stat(dir.c_str(), &ds) != 0 ? errno : S_ISDIR(ds.st_mode) ? 0 : ENOTDIR;
@@ -184,8 +178,8 @@ void require_outputs(std::span<const std::filesystem::path> outputs, std::span<c
       ::unlink(probe.c_str());  // a stale probe of this pid (or a planted link): removed, not followed
       const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
       if (fd < 0) {
-        const int err = errno;
-        refuse_output(out, "cannot write in directory '" + one_line(dir.string()) + "': " + std::strerror(err), err);
+        const int err = errno;  // read before the message is built
+        throw output_error(out, "cannot write in directory '" + one_line(dir.string()) + "'", err);
       }
       ::close(fd);
       ::unlink(probe.c_str());
@@ -241,7 +235,7 @@ AtomicFile::AtomicFile(std::filesystem::path path) : path_(std::move(path)) {
   temp_for_ = TemporaryFor(tmp_, path_);  // before the file exists: no moment uncovered
   ::unlink(tmp_.c_str());  // a stale temporary of this pid (or a planted link): removed, not followed
   const int fd = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
-  if (fd < 0) refuse_failed(path_, "cannot create output file");
+  if (fd < 0) throw output_error(path_, "cannot create output file", errno);
   ::close(fd);
 }
 
@@ -254,7 +248,7 @@ AtomicFile::~AtomicFile() {
 
 void AtomicFile::write_all(std::span<const unsigned char> bytes) {
   const int fd = ::open(tmp_.c_str(), O_WRONLY | O_TRUNC | O_NOFOLLOW | O_CLOEXEC);
-  if (fd < 0) refuse_failed(path_, "cannot open the temporary file");
+  if (fd < 0) throw output_error(path_, "cannot open the temporary file", errno);
   std::size_t done = 0;
   while (done < bytes.size()) {
     const ssize_t w = ::write(fd, bytes.data() + done, bytes.size() - done);
@@ -262,24 +256,22 @@ void AtomicFile::write_all(std::span<const unsigned char> bytes) {
     if (w <= 0) {
       const int e = w < 0 ? errno : ENOSPC;  // a zero-byte write makes no progress: treat as full
       ::close(fd);
-      refuse_output(path_,
-                    "cannot write " + std::to_string(bytes.size()) + " bytes (wrote " + std::to_string(done) +
-                        "): " + std::strerror(e),
-                    e);
+      throw output_error(path_,
+                         "cannot write " + std::to_string(bytes.size()) + " bytes (wrote " + std::to_string(done) + ")", e);
     }
     done += static_cast<std::size_t>(w);
   }
-  if (::close(fd) != 0) refuse_failed(path_, "cannot write");
+  if (::close(fd) != 0) throw output_error(path_, "cannot write", errno);
 }
 
 void AtomicFile::commit() {
   // fsync reports the delayed write errors (ENOSPC, EIO) of file systems that allocate late.
   const int fd = ::open(tmp_.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) refuse_failed(path_, "cannot reopen the temporary file");
+  if (fd < 0) throw output_error(path_, "cannot reopen the temporary file", errno);
   const bool synced = ::fsync(fd) == 0 || errno == EINVAL || errno == EROFS;  // EINVAL: no sync support
   const int sync_errno = errno;
   ::close(fd);
-  if (!synced) refuse_output(path_, std::string("cannot write: ") + std::strerror(sync_errno), sync_errno);
+  if (!synced) throw output_error(path_, "cannot write", sync_errno);
   if (OutputTransaction* tx = OutputTransaction::current()) {
     tx->adopt(tmp_, path_, temp_for_.take_mark());
     committed_ = true;  // the transaction owns the temporary now
