@@ -314,8 +314,6 @@ void parse_header(Reader& r, std::string& line, std::vector<std::string_view>& f
   }
 }
 
-bool is_leap(int y) { return (y % 4 == 0 && y % 100 != 0) || y % 400 == 0; }
-
 int day_of_year(int month, int day) {
   int doy = day;
   for (int m = 1; m < month; ++m) doy += kDaysInMonth[static_cast<std::size_t>(m - 1)];
@@ -419,8 +417,9 @@ EpwRecord parse_record(const Reader& r, const std::vector<std::string_view>& f,
   rec.hour = int_in(r, f, 4, kFieldNames[3], 1, 24);
   rec.minute = int_in(r, f, 5, kFieldNames[4], 0, 60);
   const int year = options.year.value_or(rec.year);
-  const int max_day =
-      rec.month == 2 && is_leap(year) ? 29 : kDaysInMonth[static_cast<std::size_t>(rec.month - 1)];
+  // 29 February whatever the year field: a typical year's February comes from some year, and a
+  // file built for leap years keeps it (Sequence checks it follows 28 February).
+  const int max_day = rec.month == 2 ? 29 : kDaysInMonth[static_cast<std::size_t>(rec.month - 1)];
   rec.day = int_in(r, f, 3, kFieldNames[2], 1, max_day);
 
   rec.dry_bulb_c = measured(r, f, 7, -70.0, 70.0, 99.9, "99.9");
@@ -439,10 +438,12 @@ EpwRecord parse_record(const Reader& r, const std::vector<std::string_view>& f,
   // The interval ends at (hour - 1) h + sub_interval * (60 / per_hour) min, local standard time.
   using namespace std::chrono;
   const seconds interval{3600 / per_hour};
+  // A date that does not exist (29 February of a non-leap year) is counted on by sys_days: 1 March.
   const sys_days date{std::chrono::year{year} / rec.month / rec.day};
   const seconds end = hours{rec.hour - 1} + interval * sub_interval;
   const seconds zone{static_cast<long long>(std::llround(time_zone_hours * 3600.0))};
-  rec.utc_mid = sys_seconds{date} + end - interval / 2 - zone;
+  rec.mid_of_day = end - interval / 2 - zone;
+  rec.utc_mid = sys_seconds{date} + rec.mid_of_day;
   return rec;
 }
 
@@ -488,6 +489,13 @@ EpwFile parse_epw(std::istream& in, std::string_view name, const EpwReadOptions&
                 " data records (as DATA PERIODS declares), the file ends after " +
                 std::to_string(file.records.size()));
   return file;
+}
+
+std::optional<std::chrono::sys_seconds> epw_utc_mid(const EpwRecord& record, int year) {
+  using namespace std::chrono;
+  const year_month_day date{std::chrono::year{year} / record.month / record.day};
+  if (!date.ok()) return std::nullopt;
+  return sys_seconds{sys_days{date}} + record.mid_of_day;
 }
 
 EpwFile read_epw(const std::filesystem::path& path, const EpwReadOptions& options) {

@@ -95,7 +95,7 @@ void validate(const SpaInput& in) {
                                  ? "year " + std::to_string(civil_year(day))
                                  : "unix time " + std::to_string(s) + " s";
     throw std::invalid_argument("SpaInput.time: " + when +
-                                " is not in -2000..6000 (the validity of SPA)");
+                                " is not in -2000..6000, the years SPA is valid for");
   }
   require_range("SpaInput.delta_t", in.delta_t, -8000.0, 8000.0);
   require_range("SpaInput.delta_ut1", in.delta_ut1, -1.0, 1.0, true, true);

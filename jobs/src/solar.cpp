@@ -83,8 +83,9 @@ OptionTime option_time(const char* field, const std::string& text, const LocalZo
   return out;
 }
 
-/// SPA's input errors ("SpaInput.pressure_mbar: ...") with the job's field names.
-OptionError spa_error(const std::invalid_argument& e) {
+/// SPA's input errors ("SpaInput.pressure_mbar: ...") with the job's field names; SpaInput.time
+/// becomes `time_field`, the time option the instant came from.
+OptionError spa_error(const std::invalid_argument& e, const char* time_field) {
   static const std::pair<const char*, const char*> names[] = {
       {"SpaInput.latitude_deg", "latitude"},   {"SpaInput.longitude_deg", "longitude"},
       {"SpaInput.elevation_m", "elevation"},   {"SpaInput.pressure_mbar", "pressure"},
@@ -93,6 +94,8 @@ OptionError spa_error(const std::invalid_argument& e) {
   const std::string what = e.what();
   for (const auto& [spa, field] : names)
     if (what.rfind(spa, 0) == 0) return OptionError({option(field), what.substr(std::strlen(spa))});
+  constexpr std::string_view kTime = "SpaInput.time:";
+  if (what.rfind(kTime, 0) == 0) return OptionError({option(time_field), what.substr(kTime.size() - 1)});
   return OptionError({what});
 }
 
@@ -170,12 +173,15 @@ std::string format_iso8601(double unix_seconds, double utc_offset_hours) {
   const std::chrono::year_month_day ymd(day);
   const std::chrono::hh_mm_ss hms(tp - day);
   char buf[64];
+  // ISO 8601 writes a year before 1 AD as a sign and four digits (-0001); %04d would give -001.
+  const int year = int(ymd.year());
+  const char* sign = year < 0 ? "-" : "";
   if (off_min == 0)
-    std::snprintf(buf, sizeof buf, "%04d-%02u-%02uT%02d:%02d:%02dZ", int(ymd.year()), unsigned(ymd.month()),
+    std::snprintf(buf, sizeof buf, "%s%04d-%02u-%02uT%02d:%02d:%02dZ", sign, std::abs(year), unsigned(ymd.month()),
                   unsigned(ymd.day()), int(hms.hours().count()), int(hms.minutes().count()),
                   int(hms.seconds().count()));
   else
-    std::snprintf(buf, sizeof buf, "%04d-%02u-%02uT%02d:%02d:%02d%c%02ld:%02ld", int(ymd.year()),
+    std::snprintf(buf, sizeof buf, "%s%04d-%02u-%02uT%02d:%02d:%02d%c%02ld:%02ld", sign, std::abs(year),
                   unsigned(ymd.month()), unsigned(ymd.day()), int(hms.hours().count()), int(hms.minutes().count()),
                   int(hms.seconds().count()), off_min < 0 ? '-' : '+', std::labs(off_min) / 60,
                   std::labs(off_min) % 60);
@@ -215,7 +221,7 @@ SunPositionJobResult run_sun_position(const SunPositionJobOptions& o) {
     r.position = solar_position(in);
     r.day = sun_rise_transit_set(in, offset);
   } catch (const std::invalid_argument& e) {
-    throw spa_error(e);
+    throw spa_error(e, "time");
   }
   r.day_utc_offset = offset.value_or(local_mean_time_offset(o.longitude));
   return r;
@@ -475,7 +481,7 @@ struct SolarRun {
     try {
       p = solar_position(spa_at(t));
     } catch (const std::invalid_argument& e) {
-      throw spa_error(e);
+      throw spa_error(e, instant ? "at" : "start");
     }
     s.direction = direction_from_azimuth(p.azimuth_deg, p.geometric_elevation_deg, r.location.convergence_deg);
     s.ray_direction = direction_from_azimuth(p.azimuth_deg, p.elevation_deg, r.location.convergence_deg);
@@ -554,13 +560,21 @@ struct SolarRun {
       try {
         r.sun = solar_position(spa_at(r.start_unix));
       } catch (const std::invalid_argument& e) {
-        throw spa_error(e);
+        throw spa_error(e, "at");
       }
     } else {
       r.start_unix = option_time("start", o.start, zone(), false).unix_seconds;
       r.end_unix = option_time("end", o.end, zone(), true).unix_seconds;
       r.utc_offset = o.utc_offset.value_or(0.0);
       if (!(r.end_unix > r.start_unix)) throw OptionError({option("end"), " must be after ", option("start")});
+      // SPA's years checked at both ends (the steps lie between), so that the error names the one out.
+      for (const auto& [field, t] : {std::pair{"start", r.start_unix}, std::pair{"end", r.end_unix - 1.0}}) {
+        try {
+          solar_position(spa_at(t));
+        } catch (const std::invalid_argument& e) {
+          throw spa_error(e, field);
+        }
+      }
       if (!o.weather.empty())
         weather_steps(steps);
       else
@@ -592,7 +606,13 @@ struct SolarRun {
       throw OptionError({"the period is not a whole number of ", option("step"), "s (", std::to_string(span / step),
                          ")"});
     if (n < 1.0) throw OptionError({"the period is shorter than one ", option("step")});
-    if (n > 1e6) throw OptionError({"the period has more than 1,000,000 time steps; use a longer ", option("step")});
+    if (n > 1e6) {
+      // Whether a longer step is still allowed decides the advice.
+      if (step < kMaxIntegrationStep)
+        throw OptionError({"the period has more than 1,000,000 time steps; use a shorter period or a longer ",
+                           option("step"), " (at most 1h)"});
+      throw OptionError({"the period has more than 1,000,000 time steps of 1h (114 years); use a shorter period"});
+    }
     r.step_hours = step / 3600.0;
     steps.reserve(std::size_t(n));
     for (std::size_t k = 0; k < std::size_t(n); ++k) {
@@ -602,26 +622,54 @@ struct SolarRun {
     }
   }
 
-  /// The weather file's records whose interval's middle falls in the period, read as the
-  /// period's year (a typical-year file mixes years).
+  /// The weather file's records whose interval's middle falls in the period. The file is a
+  /// typical year (its months from different years), so each calendar year of the period takes
+  /// the file's month/day/hour day for day (epw_utc_mid). A leap year without 29 February in the
+  /// file repeats 28 February's records for it (a neighbour's weather rather than a day without
+  /// sun); a file's 29 February is left out of a year that has none. Both are logged.
   void weather_steps(std::vector<SolarStep>& steps) {
     if (r.end_unix - r.start_unix > 366.0 * 86400.0)
       throw OptionError({"a period with ", option("weather"), " is at most one year (the file's)"});
-    EpwReadOptions ro;
-    ro.year = int(std::chrono::year_month_day(day_of(r.start_unix)).year());
-    weather = read_epw(o.weather, ro);
+    weather = read_epw(o.weather);
     const EpwLocation& at = weather->location;
     r.weather = at.city + ", " + at.country;
     r.step_hours = 1.0 / weather->records_per_hour;
-    std::size_t missing = 0;
-    for (int pass = 0; pass < 2; ++pass) {  // a period that runs into the next year takes the file again
+    const auto leap_day = [](const EpwRecord& rec) { return rec.month == 2 && rec.day == 29; };
+    const bool file_leap_day = std::any_of(weather->records.begin(), weather->records.end(), leap_day);
+    auto in_period = [&](std::chrono::sys_seconds mid) {
+      const double t = double(mid.time_since_epoch().count());
+      return t >= r.start_unix && t < r.end_unix;
+    };
+    std::vector<std::pair<std::chrono::sys_seconds, const EpwRecord*>> taken;
+    std::size_t missing = 0, repeated = 0, left_out = 0;
+    // The file's local standard dates lie within a day of the UTC ones: one year either side of
+    // the period's UTC years covers every record that can fall in it.
+    const int first = int(std::chrono::year_month_day(day_of(r.start_unix)).year()) - 1;
+    const int last = int(std::chrono::year_month_day(day_of(r.end_unix)).year()) + 1;
+    for (int y = first; y <= last; ++y) {
+      const bool leap_year = std::chrono::year{y}.is_leap();
       for (const EpwRecord& rec : weather->records) {
-        const double t = double(rec.utc_mid.time_since_epoch().count()) + (pass ? 365.0 * 86400.0 : 0.0);
-        if (t < r.start_unix || t >= r.end_unix) continue;
-        missing += !(std::isfinite(rec.ghi) && std::isfinite(rec.dni) && std::isfinite(rec.dhi));
-        steps.push_back(make_step(t, r.step_hours, &rec));
-        steps.back().group = month_group(t);
+        if (leap_day(rec) && !leap_year) {
+          EpwRecord day_before = rec;  // where the day would be: 24 h after 28 February
+          day_before.day = 28;
+          left_out += in_period(*epw_utc_mid(day_before, y) + std::chrono::days{1});
+          continue;
+        }
+        const std::chrono::sys_seconds mid = *epw_utc_mid(rec, y);
+        if (in_period(mid)) taken.emplace_back(mid, &rec);
+        if (leap_year && !file_leap_day && rec.month == 2 && rec.day == 28 && in_period(mid + std::chrono::days{1})) {
+          taken.emplace_back(mid + std::chrono::days{1}, &rec);
+          ++repeated;
+        }
       }
+    }
+    std::sort(taken.begin(), taken.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    steps.reserve(taken.size());
+    for (const auto& [mid, rec] : taken) {
+      const double t = double(mid.time_since_epoch().count());
+      missing += !(std::isfinite(rec->ghi) && std::isfinite(rec->dni) && std::isfinite(rec->dhi));
+      steps.push_back(make_step(t, r.step_hours, rec));
+      steps.back().group = month_group(t);
     }
     if (steps.empty()) throw OptionError({option("weather"), " '" + o.weather.string() + "': no record in the period"});
     // Great-circle distance between the file's station and the site (haversine).
@@ -635,6 +683,16 @@ struct SolarRun {
     ctl.info(buf);
     if (missing) {
       std::snprintf(buf, sizeof buf, "weather: %zu records with missing radiation count as 0", missing);
+      ctl.info(buf);
+    }
+    if (repeated) {
+      std::snprintf(buf, sizeof buf, "weather: the file has no 29 February: %zu records of 28 February repeated for it",
+                    repeated);
+      ctl.info(buf);
+    }
+    if (left_out) {
+      std::snprintf(buf, sizeof buf, "weather: %zu records of the file's 29 February left out (not a leap year)",
+                    left_out);
       ctl.info(buf);
     }
   }

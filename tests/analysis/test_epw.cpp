@@ -194,10 +194,25 @@ TEST(Epw, VariantsSeenInRealFiles) {
 
 TEST(Epw, LeapDayAndYearOption) {
   EXPECT_EQ(parse(join(epw_lines(2004, true))).records.size(), 8784u);
-  // 29 February in a non-leap year.
-  EXPECT_EQ(error_of(join(epw_lines(2001, true))),
-            "weather.epw: line 1425: field 3 'Day': expected an integer in 1..28, got '29'");
-  // A typical year taken as 2004: the leap day is fine, utc_mid uses 2004.
+  // 29 February whatever the year field says (a typical year's February from a non-leap year):
+  // read, its utc_mid on 1 March as std::chrono counts the date; epw_utc_mid lays it on leap
+  // years only.
+  const EpwFile own = parse(join(epw_lines(2001, true)));
+  ASSERT_EQ(own.records.size(), 8784u);
+  const EpwRecord& leap_day = own.records[59 * 24];  // 29 February, hour 1 (00:00-01:00, UTC-8)
+  EXPECT_EQ(leap_day.month, 2);
+  EXPECT_EQ(leap_day.day, 29);
+  EXPECT_EQ(leap_day.mid_of_day, 8h + 30min);
+  EXPECT_EQ(leap_day.utc_mid, sys_days{2001y / 3 / 1} + 8h + 30min);
+  EXPECT_EQ(epw_utc_mid(leap_day, 2001), std::nullopt);
+  EXPECT_EQ(epw_utc_mid(leap_day, 2100), std::nullopt);  // a century, not a leap year
+  EXPECT_EQ(epw_utc_mid(leap_day, 2000), sys_days{2000y / 2 / 29} + 8h + 30min);
+  EXPECT_EQ(epw_utc_mid(own.records[0], 2030), sys_days{2030y / 1 / 1} + 8h + 30min);
+  EXPECT_EQ(epw_utc_mid(own.records.back(), 2030), sys_days{2030y / 12 / 31} + 23h + 8h + 30min);
+  // Still a day of February past 29.
+  EXPECT_EQ(error_of(join(with_field(epw_lines(2004, true), 9 + 59 * 24, 3, "30"))),
+            "weather.epw: line 1425: field 3 'Day': expected an integer in 1..29, got '30'");
+  // A typical year taken as 2004: utc_mid uses 2004.
   EpwReadOptions as2004;
   as2004.year = 2004;
   const EpwFile f = parse(join(epw_lines(2001, true)), as2004);

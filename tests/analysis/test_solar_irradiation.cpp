@@ -5,6 +5,7 @@
 // job states (read back as instants) and its refusal of a CRS from the file's header.
 #include "rayscan/analysis/solar_irradiation.hpp"
 #include "rayscan/analysis/site_location.hpp"
+#include "rayscan/analysis/solar_position.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/solar.hpp"
 #include "rayscan/site/copc.hpp"
@@ -357,6 +358,159 @@ TEST(SolarJob, AnOvercastWeatherDayOnOpenGroundIsTheSumOfItsDiffuse) {
   EXPECT_THROW(jobs::run_solar(o), std::invalid_argument);  // a weather file needs a period
 }
 
+// A typical-year weather file laid on calendar years day for day. Each record is an overcast hour
+// (no direct sun) whose diffuse encodes its month, day and hour, so on open level ground the
+// period's diffuse is exactly the sum of the mapped records' DHI (the overcast test above): a day
+// counted twice, shifted or dropped changes the sum. The oracle is that sum, computed here from
+// the dates the period covers.
+namespace solar_epw_years {
+
+double dhi_of(int month, int day, int hour) { return month * 100 + day * 3 + hour; }
+
+// A year of hourly records at UTC-8, with 29 February when `leap_day` (the year field 1999, as a
+// typical year's February may carry).
+std::string write_epw(const std::string& name, bool leap_day) {
+  const std::string path = testing::TempDir() + "/" + name;
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  EXPECT_TRUE(f);
+  std::fputs("LOCATION,Test,CA,USA,TMY3,724940,37.62,-122.40,-8.0,2.0\n"
+             "DESIGN CONDITIONS,0\nTYPICAL/EXTREME PERIODS,0\nGROUND TEMPERATURES,0\n"
+             "HOLIDAYS/DAYLIGHT SAVINGS,No,0,0,0\nCOMMENTS 1,day-coded test year\nCOMMENTS 2,\n"
+             "DATA PERIODS,1,1,Data,Sunday, 1/ 1,12/31\n",
+             f);
+  constexpr int kDays[] = {31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31};
+  for (int m = 1; m <= 12; ++m)
+    for (int d = 1; d <= kDays[m - 1] + (m == 2 && leap_day); ++d)
+      for (int h = 1; h <= 24; ++h) {
+        const double dhi = dhi_of(m, d, h);
+        std::fprintf(f,
+                     "1999,%d,%d,%d,60,?9?9?9?9,10.0,5.0,70,101325,0,0,300,%.0f,0,%.0f,0,0,0,0,180,2.0,10,10,"
+                     "10.0,1000,9,999999999,0,0.1,0,0,999,0.0,0.0\n",
+                     m, d, h, dhi, dhi);
+      }
+  std::fclose(f);
+  return path;
+}
+
+// The diffuse (kWh/m²) of the days from..to (inclusive) as the file gives them, `feb29` standing
+// for 29 February's month/day in the file (28 when the file has none).
+double expected_kwh(std::chrono::sys_days from, std::chrono::sys_days to, int feb29) {
+  double wh = 0.0;
+  for (std::chrono::sys_days d = from; d <= to; d += std::chrono::days{1}) {
+    const std::chrono::year_month_day ymd(d);
+    int month = int(unsigned(ymd.month())), day = int(unsigned(ymd.day()));
+    if (month == 2 && day == 29) day = feb29;
+    for (int h = 1; h <= 24; ++h) wh += dhi_of(month, day, h);
+  }
+  return wh / 1000.0;
+}
+
+struct WeatherRun {
+  jobs::SolarJobResult result;
+  std::vector<std::string> log;
+  double diffuse = 0.0;  // the first point's, kWh/m²
+};
+
+WeatherRun run_weather(const std::string& epw, const std::string& start, const std::string& end) {
+  static PointCloud cloud;
+  if (cloud.positions.empty())
+    for (double x = -2; x <= 2; x += 1)
+      for (double y = -2; y <= 2; y += 1) cloud.positions.emplace_back(x, y, 0.0);
+  jobs::SolarJobOptions o;
+  o.cloud = &cloud;
+  o.latitude = 37.62;
+  o.longitude = -122.40;
+  o.utc_offset = -8.0;  // the file's zone: the period's days are the file's days
+  o.start = start;
+  o.end = end;
+  o.weather = epw;
+  o.control.threads = 2;
+  WeatherRun out;
+  o.control.log = [&out](const std::string& line) { out.log.push_back(line); };
+  out.result = jobs::run_solar(o);
+  for (const ScalarField& f : out.result.cloud.scalars)
+    if (f.name == "solar_diffuse") out.diffuse = f.values.at(0);
+  return out;
+}
+
+bool logged(const WeatherRun& r, const std::string& text) {
+  return std::any_of(r.log.begin(), r.log.end(), [&](const std::string& l) { return l.find(text) != l.npos; });
+}
+
+}  // namespace solar_epw_years
+
+TEST(SolarJob, AWeatherPeriodIntoTheNextYearTakesEachDayOnce) {
+  using namespace solar_epw_years;
+  using namespace std::chrono;
+  const std::string epw = write_epw("year_coded.epw", false);
+  // From a leap year into the next, and the same dates a year later: 12 days, 288 hours each.
+  const WeatherRun leap = run_weather(epw, "2024-12-25", "2025-01-05");
+  const WeatherRun plain = run_weather(epw, "2025-12-25", "2026-01-05");
+  EXPECT_EQ(leap.result.steps, 288u);
+  EXPECT_EQ(plain.result.steps, 288u);
+  const double want = expected_kwh(sys_days{2024y / 12 / 25}, sys_days{2025y / 1 / 5}, 28);
+  EXPECT_NEAR(leap.diffuse, want, 1e-9);
+  EXPECT_NEAR(plain.diffuse, want, 1e-9);
+  EXPECT_FALSE(logged(leap, "29 February"));
+}
+
+TEST(SolarJob, ALeapYearWithoutTheFilesLeapDayRepeats28February) {
+  using namespace solar_epw_years;
+  using namespace std::chrono;
+  const std::string epw = write_epw("no_leap_day.epw", false);
+  const WeatherRun r = run_weather(epw, "2024-02-28", "2024-03-01");
+  EXPECT_EQ(r.result.steps, 72u);
+  EXPECT_NEAR(r.diffuse, expected_kwh(sys_days{2024y / 2 / 28}, sys_days{2024y / 3 / 1}, 28), 1e-9);
+  EXPECT_TRUE(logged(r, "the file has no 29 February: 24 records of 28 February repeated for it"));
+  // A whole leap year: every hour of it.
+  EXPECT_EQ(run_weather(epw, "2024-01-01", "2024-12-31").result.steps, 8784u);
+}
+
+TEST(SolarJob, AWeatherFileWithALeapDayServesEveryYear) {
+  using namespace solar_epw_years;
+  using namespace std::chrono;
+  const std::string epw = write_epw("leap_day.epw", true);
+  // A leap year takes the file's own 29 February.
+  const WeatherRun leap = run_weather(epw, "2024-02-28", "2024-03-01");
+  EXPECT_EQ(leap.result.steps, 72u);
+  EXPECT_NEAR(leap.diffuse, expected_kwh(sys_days{2024y / 2 / 28}, sys_days{2024y / 3 / 1}, 29), 1e-9);
+  EXPECT_FALSE(logged(leap, "29 February"));
+  // A year without one leaves it out: 28 February is followed by 1 March.
+  const WeatherRun plain = run_weather(epw, "2026-02-27", "2026-03-02");
+  EXPECT_EQ(plain.result.steps, 96u);
+  EXPECT_NEAR(plain.diffuse, expected_kwh(sys_days{2026y / 2 / 27}, sys_days{2026y / 3 / 2}, 29), 1e-9);
+  EXPECT_TRUE(logged(plain, "24 records of the file's 29 February left out (not a leap year)"));
+  // A period away from February is not concerned.
+  const WeatherRun june = run_weather(epw, "2026-06-01", "2026-06-07");
+  EXPECT_EQ(june.result.steps, 168u);
+  EXPECT_NEAR(june.diffuse, expected_kwh(sys_days{2026y / 6 / 1}, sys_days{2026y / 6 / 7}, 29), 1e-9);
+  EXPECT_FALSE(logged(june, "29 February"));
+}
+
+// Times before 1 AD are written as ISO 8601 writes them (a sign and four digits) and read back
+// to the same instant.
+TEST(SolarTime, NegativeYearsAreWrittenAsIso8601AndReadBack) {
+  for (const char* text : {"-0001-03-01T12:00:00Z", "-2000-01-01T00:00:00Z", "0005-07-04T01:02:03Z"}) {
+    const UtcInstant t = parse_iso8601_utc(text);
+    const std::string written = jobs::format_iso8601(double(t.unix_seconds), 0.0);
+    EXPECT_EQ(written, text);
+    EXPECT_EQ(parse_iso8601_utc(written).unix_seconds, t.unix_seconds);
+    const std::string east = jobs::format_iso8601(double(t.unix_seconds), 5.5);
+    EXPECT_EQ(parse_iso8601_utc(east).unix_seconds, t.unix_seconds) << east;
+  }
+  EXPECT_EQ(jobs::format_iso8601(double(parse_iso8601_utc("-0001-03-01T12:00Z").unix_seconds), -1.0),
+            "-0001-03-01T11:00:00-01:00");
+  // Through the command: the printed time is the given one and is accepted as input.
+  const std::string cmd = std::string(RAYSCAN_BIN) + " solar position --lat 0 --lon 0 --json --time ";
+  const auto first = rayscan::test::run_command(cmd + "-0001-03-01T12:00Z", false);
+  ASSERT_EQ(first.code, 0) << first.out;
+  const std::string printed = nlohmann::json::parse(first.out)["time"];
+  EXPECT_EQ(printed, "-0001-03-01T12:00:00Z");
+  const auto again = rayscan::test::run_command(cmd + printed, false);
+  ASSERT_EQ(again.code, 0) << again.out;
+  EXPECT_EQ(again.out, first.out);
+}
+
 // Bad input on the command line: one line on stderr naming the flag or the file, exit code 2, no
 // output written.
 TEST(SolarCli, BadInputIsOneLineAndExitCodeTwo) {
@@ -383,6 +537,10 @@ TEST(SolarCli, BadInputIsOneLineAndExitCodeTwo) {
       {"--day 2026-06-21 --raster " + dir + "/f.tif --cell 3 --preview " + dir + "/f.png",
        "--preview does not apply to --day"},
       {"--at 2026-06-21T12:00Z --cache 12Q", "--cache: "},
+      {"--at 9999-01-01T00:00Z", "--at: year 9999 is not in -2000..6000, the years SPA is valid for"},
+      {"--start 5990-01-01 --end 6010-01-01", "--end: year 6010 is not in -2000..6000"},
+      {"--start 2026-06-21 --end 2226-06-21", "time steps of 1h (114 years); use a shorter period"},
+      {"--start 2026-06-21 --end 2226-06-21 --step 30min", "use a shorter period or a longer --step (at most 1h)"},
   };
   for (const Case& c : cases) {
     const std::string out = dir + "/solar_cli_out.las";

@@ -488,12 +488,12 @@ TEST(SolarPositionInput, Validation) {
   EXPECT_EQ(msg([](SpaInput& in) { in.time.fraction = 1.0; }),
             "SpaInput.time.fraction: 1 is not in 0..1 (1 excluded)");
   EXPECT_EQ(msg([](SpaInput& in) { in.time = parse_iso8601_utc("6001-01-01"); }),
-            "SpaInput.time: year 6001 is not in -2000..6000 (the validity of SPA)");
+            "SpaInput.time: year 6001 is not in -2000..6000, the years SPA is valid for");
   EXPECT_EQ(msg([](SpaInput& in) { in.time = parse_iso8601_utc("-2001-12-31T23:59:59Z"); }),
-            "SpaInput.time: year -2001 is not in -2000..6000 (the validity of SPA)");
+            "SpaInput.time: year -2001 is not in -2000..6000, the years SPA is valid for");
   EXPECT_EQ(msg([](SpaInput& in) { in.time.unix_seconds = INT64_MIN; }),
-            "SpaInput.time: unix time -9223372036854775808 s is not in -2000..6000 (the validity "
-            "of SPA)");
+            "SpaInput.time: unix time -9223372036854775808 s is not in -2000..6000, the years SPA "
+            "is valid for");
   EXPECT_EQ(msg([](SpaInput& in) { in.time = parse_iso8601_utc("-2000-01-01"); }), "");
   EXPECT_EQ(msg([](SpaInput& in) { in.time = parse_iso8601_utc("6000-12-31T23:59:59Z"); }), "");
   const SpaInput in = paper_example();

@@ -9,6 +9,11 @@
 // indicated": hour 1 is 00:00-01:00. A record is therefore an integral over an interval, and the
 // instant that represents it best (for the sun position to pair with it) is the middle of that
 // interval: EpwRecord::utc_mid = local standard end time - interval / 2 - time zone.
+//
+// Years. A typical-year file takes each month from another year, so its records are read by
+// month/day/hour and laid onto the calendar year wanted (epw_utc_mid), day for day. 29 February
+// may be present or not whatever the year field says (EnergyPlus reads both): a caller decides
+// what a leap day missing from the file, or a file's leap day in a non-leap year, becomes.
 #pragma once
 
 #include <chrono>
@@ -45,12 +50,17 @@ struct EpwDataPeriod {
 struct EpwRecord {
   int year = 0;    ///< field 1, as in the file (typical-year files mix years)
   int month = 0;   ///< field 2, 1..12
-  int day = 0;     ///< field 3, 1..days in month (29 February only in a leap year)
+  int day = 0;     ///< field 3, 1..days in month (29 February in any year, after 28 February)
   int hour = 0;    ///< field 4, 1..24: the interval ends at hour:00 (hourly files)
   int minute = 0;  ///< field 5, 0..60; used only with several records per hour
   /// UTC instant in the middle of the record's interval (see the file comment); computed with
-  /// `year`, or EpwReadOptions::year when given.
+  /// `year`, or EpwReadOptions::year when given. For 29 February in a year without one it is
+  /// 1 March's instant (std::chrono's reading of that date): use epw_utc_mid to lay a file on a
+  /// calendar year.
   std::chrono::sys_seconds utc_mid{};
+  /// utc_mid minus 00:00 of the record's month/day (as a UTC date): the local standard end time
+  /// - interval / 2 - time zone, the same in every year; may be negative (east of UTC).
+  std::chrono::seconds mid_of_day{};
   double dry_bulb_c = 0.0;   ///< field 7, degrees C (missing 99.9 -> NaN)
   double pressure_pa = 0.0;  ///< field 10, station pressure, Pa (missing 999999 -> NaN)
   double ghi = 0.0;          ///< field 14, Global Horizontal Radiation (missing 9999 -> NaN)
@@ -65,8 +75,7 @@ struct EpwReadOptions {
   /// skips or fills that interval; EpwFile::missing_radiation counts them); true makes it an
   /// error naming the line and field.
   bool missing_radiation_is_error = false;
-  /// Year used for utc_mid instead of each record's own (typical-year files mix years). A file
-  /// with 29 February and a non-leap `year` is then an error.
+  /// Year used for utc_mid instead of each record's own (typical-year files mix years), 0..9999.
   std::optional<int> year;
 };
 
@@ -102,5 +111,10 @@ EpwFile read_epw(const std::filesystem::path& path, const EpwReadOptions& option
 
 /// As read_epw, from a stream; `name` stands for the path in messages.
 EpwFile parse_epw(std::istream& in, std::string_view name, const EpwReadOptions& options = {});
+
+/// `record`'s utc_mid had its month/day been in calendar year `year` (the record's own year
+/// ignored): 00:00 of year/month/day + mid_of_day. nullopt for 29 February when `year` is not a
+/// leap year: that day does not exist there.
+std::optional<std::chrono::sys_seconds> epw_utc_mid(const EpwRecord& record, int year);
 
 }  // namespace rayscan::analysis

@@ -137,7 +137,9 @@ struct SolarJobOptions {
   std::vector<double> linke{3.0};
   double albedo = 0.2;                  ///< ground albedo (r.sun's default)
   /// EnergyPlus EPW: the measured GHI/DNI/DHI of the file's records whose interval's middle lies
-  /// in the period (the file read as the period's year) replace the clear sky; at most a year.
+  /// in the period replace the clear sky; at most a year. Each calendar year of the period takes
+  /// the file's month/day/hour day for day; a leap year without the file's 29 February repeats
+  /// 28 February, a non-leap year leaves a file's 29 February out (docs/solar.md).
   std::filesystem::path weather;
   /// Sun-map sector edge, degrees: the time steps whose sun directions share an azimuth x
   /// elevation cell share one shadow ray per point (its mean direction). 0 = one ray per step.
