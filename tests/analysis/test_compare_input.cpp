@@ -141,7 +141,9 @@ TEST_F(CompareInput, UnassociatedAlphaColourIsComparedAsStored) {
     write_rgba_gdal(a, W, H, rgb, opaque);
     write_rgba_gdal(b, W, H, rgb, half);
     write_rgba_gdal(c, W, H, rgb, ramp);
-    if (std::string(ext) == ".tif") EXPECT_EQ(tiff_extra_samples(b), 2);  // unassociated alpha
+    if (std::string(ext) == ".tif") {
+      EXPECT_EQ(tiff_extra_samples(b), 2);  // unassociated alpha
+    }
     for (const auto& [path, alpha] : {std::pair{b, 128}, std::pair{c, -1}}) {
       const Image img = read_image(path.string());
       ASSERT_EQ(img.nchannels(), 4);
