@@ -137,7 +137,8 @@ Runner add_render_command(CLI::App& app) {
   c->add_option("--camera", o->camera, "Camera file (JSON), replaces the scene's camera");
   c->add_option("-o,--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image; a quick look of a "
                 "cloud without it writes <stem>.png in the working directory");
-  c->add_option("--spp", o->spp, "Samples per pixel, integer in [1, 1048576] (default: the scene's value, 16 if unset)")->check(CLI::Range(1u, render::kMaxSpp));
+  c->add_option("--spp", o->spp, "Samples per pixel, integer in [1, " + std::to_string(render::kMaxSpp) +
+                "] (default: the scene's value, 16 if unset)")->check(CLI::Range(1u, render::kMaxSpp));
   c->add_option("--seed", o->seed, "Random seed, unsigned 64-bit integer; the image is a pure function of it "
                 "(default: the scene's value, 0 if unset)")
       ->check([](const std::string& v) {  // CLI11 would wrap "-1" to 2^64-1

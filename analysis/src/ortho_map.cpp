@@ -61,6 +61,14 @@ GridSpec ortho_grid(const AABB& bounds, double res) {
   return g;
 }
 
+namespace {
+/// The XY centre of cell (col, row) of `g`, where the map's camera places that cell's ray: one
+/// formula for the camera's first origin and for bound_dsm's rays, so the two cannot drift apart.
+Vec3 cell_centre(const GridSpec& g, std::uint32_t col, std::uint32_t row, double z) {
+  return Vec3(g.x0 + 0.5 * g.cell + col * g.cell, g.y_top - 0.5 * g.cell - row * g.cell, z);
+}
+}  // namespace
+
 OrthoMap ortho_map(const AABB& bounds, double res, double reach) {
   const GridSpec g = ortho_grid(bounds, res);
   if (!(reach >= 0.0) || !std::isfinite(reach))
@@ -70,7 +78,7 @@ OrthoMap ortho_map(const AABB& bounds, double res, double reach) {
   // bounds.hi.z + reach; the extra cell keeps the origins clear of a surface at that height.
   const double margin = reach + g.cell;
   const double z_top = bounds.hi.z + margin;
-  const Vec3 o00(g.x0 + 0.5 * g.cell, g.y_top - 0.5 * g.cell, z_top);
+  const Vec3 o00 = cell_centre(g, 0, 0, z_top);
   return {g, Camera::orthographic_grid(o00, Vec3(g.cell, 0, 0), Vec3(0, -g.cell, 0), Vec3(0, 0, -1),
                                                g.cols, g.rows),
           z_top, bounds.lo.z - margin};
@@ -98,10 +106,8 @@ DsmBounding bound_dsm(const Site& site, const OrthoMap& map, double reach, Raste
           for (std::uint32_t col = 0; col < g.cols; ++col) {
             float& z = dsm.values[std::size_t(row) * g.cols + col];
             if (std::isnan(z)) continue;
-            // The cell centre where the map's camera places its ray (ortho_map).
-            const double x = g.x0 + 0.5 * g.cell + col * g.cell, y = g.y_top - 0.5 * g.cell - row * g.cell;
-            const auto hi = ray_first_hit(index, Ray(Vec3(x, y, map.z_top), Vec3(0.0, 0.0, -1.0)), q);
-            const auto lo = ray_first_hit(index, Ray(Vec3(x, y, map.z_bottom), Vec3(0.0, 0.0, 1.0)), q);
+            const auto hi = ray_first_hit(index, Ray(cell_centre(g, col, row, map.z_top), Vec3(0.0, 0.0, -1.0)), q);
+            const auto lo = ray_first_hit(index, Ray(cell_centre(g, col, row, map.z_bottom), Vec3(0.0, 0.0, 1.0)), q);
             if (!hi || !lo) continue;  // (a surface was hit, so its point lies within reach)
             const float z_max = float(index.positions()[hi->slot].z), z_min = float(index.positions()[lo->slot].z);
             if (z > z_max) {

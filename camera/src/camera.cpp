@@ -16,7 +16,7 @@ namespace rayscan {
 namespace {
 void check_size(std::uint32_t w, std::uint32_t h) {
   if (w == 0 || h == 0) throw std::invalid_argument("camera: width and height must be > 0");
-  if (w > kMaxImageSide || h > kMaxImageSide) throw std::invalid_argument("camera: width and height must be <= 65536");
+  if (w > kMaxImageSide || h > kMaxImageSide) throw std::invalid_argument("camera: width and height must be <= " + std::to_string(kMaxImageSide));
 }
 }  // namespace
 

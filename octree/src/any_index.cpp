@@ -77,8 +77,8 @@ std::uint32_t index_capacity(const IndexOptions& opts) {
 
 AnyIndex make_index(std::span<const Vec3> positions, const IndexOptions& opts) {
   const std::string& t = opts.type;
-  if (t.rfind("octree-", 0) == 0) {
-    OctreeConfig c = OctreeConfig::for_layout(parse_octree_layout(t.substr(7)));
+  if (t.starts_with(kOctreePrefix)) {
+    OctreeConfig c = OctreeConfig::for_layout(parse_octree_layout(t.substr(kOctreePrefix.size())));
     c.capacity = opts.capacity.value_or(c.capacity);  // (index_capacity, without parsing the layout again)
     c.depth = opts.depth;
     c.max_depth = opts.max_depth;
@@ -87,9 +87,10 @@ AnyIndex make_index(std::span<const Vec3> positions, const IndexOptions& opts) {
   }
   if (t == "kdtree") return KdTree(positions, index_capacity(opts));
   if (t == "brute") return BruteForceIndex(positions);
-  throw std::invalid_argument("index type '" + t +
-                              "': expected octree-adaptive, octree-layered, octree-fixed, kdtree or "
-                              "brute");
+  std::string expected;  // "a, b, c or d", from the one list of index types
+  for (std::size_t i = 0; i < kIndexTypes.size(); ++i)
+    expected += (i == 0 ? "" : i + 1 == kIndexTypes.size() ? " or " : ", ") + std::string(kIndexTypes[i]);
+  throw std::invalid_argument("index type '" + t + "': expected " + expected);
 }
 
 std::size_t index_memory_bytes(const AnyIndex& index) {

@@ -33,7 +33,7 @@ void Scene::apply(const SceneOverrides& o) {
       throw OptionError({option("primitive"), " 'surfel': the scene's /hit \"closest_point\" applies to spheres only"});
   }
   if (o.spp) {
-    if (*o.spp < 1 || *o.spp > kMaxSpp) throw OptionError({option("spp"), ": expected an integer in [1, 1048576]"});
+    if (*o.spp < 1 || *o.spp > kMaxSpp) throw OptionError({option("spp"), ": expected an integer in [1, " + std::to_string(kMaxSpp) + "]"});
     spp = *o.spp;
   }
   if (o.seed) seed = *o.seed;

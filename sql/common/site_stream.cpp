@@ -220,9 +220,9 @@ std::unique_ptr<SiteStream> open_site(const std::vector<fs::path>& paths, const 
   build.attributes.add(io::Attribute::id);  // the rows name each point's source and number in it
   build.memory_bytes = options.memory_bytes;
   build.temp_dir = dir;
-  // The build's own bookkeeping is not the import's: its "spacing" counts one sampled estimate
-  // (reported as 0 of 1), and its "done" would end the report before the rows are inserted
-  // (ImportOptions::progress).
+  // The build's own bookkeeping is not the import's: its "spacing" phase (the sampled spacing
+  // estimate, counted in samples) is not a phase of the import, and its "done" would end the
+  // report before the rows are inserted (ImportOptions::progress).
   if (options.progress)
     build.progress = [progress = options.progress](const char* phase, std::uint64_t done, std::uint64_t total) {
       if (std::strcmp(phase, "spacing") != 0 && std::strcmp(phase, "done") != 0) progress(phase, done, total);

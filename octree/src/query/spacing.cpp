@@ -7,7 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
+#include "rayscan/base/number_text.hpp"
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -21,9 +21,7 @@ double median_nn_spacing(const AnyIndex& index, std::span<const Vec3> positions,
 
 std::string auto_radius_factor_problem(double factor) {
   if (std::isfinite(factor) && factor > 0.0 && factor <= kMaxAutoRadiusFactor) return "";
-  std::ostringstream range;
-  range << "expected a number in (0, " << kMaxAutoRadiusFactor << "]";
-  return range.str();
+  return "expected a number in (0, " + shortest_text(kMaxAutoRadiusFactor) + "]";
 }
 
 RadiusChoice choose_radius(const AnyIndex& index, std::span<const Vec3> positions,
