@@ -1,6 +1,6 @@
-// Fidelity of `rayscan solar` against GRASS GIS r.sun on a real scan (issue requirement: "on
-// autzen_trim: per-cell yearly global irradiation of open terrain cells within 5 % of r.sun's on
-// rayscan's own DSM for >= 95 % of them").
+// Fidelity of `rayscan solar` against GRASS GIS r.sun on a real scan: on autzen_trim, the per-cell
+// yearly global irradiation of open terrain cells is within 5 % of r.sun's on rayscan's own DSM
+// for >= 95 % of them.
 //
 // The DSM is rayscan's own (`render CLOUD --ortho-map 3 --dsm`, 3 ft cells, NoData where no
 // surface was hit). r.sun runs on it with its own terrain shadowing (tests/analysis/rsun_dsm.sh:

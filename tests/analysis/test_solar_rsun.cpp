@@ -1,7 +1,6 @@
-// Fidelity of `rayscan solar` against GRASS GIS r.sun (issue requirement: "an open horizontal
-// plane and a 30 degree south-facing plane of synthetic points: daily and yearly global
-// irradiation equal r.sun's on the equivalent flat/tilted DEM (same day, Linke, albedo, location)
-// within 2 %"). The test writes the two planes as .xyz clouds, runs the real `rayscan solar` on
+// Fidelity of `rayscan solar` against GRASS GIS r.sun: on an open horizontal plane and a 30 degree
+// south-facing plane of synthetic points, daily and yearly global irradiation equal r.sun's on the
+// equivalent flat/tilted DEM (same day, Linke, albedo, location) within 2 %. The test writes the two planes as .xyz clouds, runs the real `rayscan solar` on
 // them (clear sky, exact per-step shadow rays) and reads the per-point fields back from its CSV
 // output; r.sun runs in its daily mode on one-row flat/tilted rasters through
 // tests/analysis/rsun_daily.sh (skipped when `grass` is not installed).
