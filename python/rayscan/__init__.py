@@ -320,13 +320,16 @@ def ortho_map(cloud, res, spp=None, seed=None, threads=0, colour="albedo"):
     random seed (as in render).
 
     Returns a dict: "image" (rows, cols, 3) float32 linear RGB, row 0 the north edge (albedo: the
-    cell's mean colour converted from sRGB, 0 where no ray hit; shaded: radiance); "dsm" (rows,
+    cell's mean colour converted from sRGB, 0 where no ray hit; shaded: radiance); "coverage"
+    (rows, cols) float32 in [0, 1], the orthophoto GeoTIFF's alpha band (255 x coverage, rounded,
+    in the file): the share of the cell's rays that hit (shaded: 1 where the cell-centre ray hit,
+    else 0); "dsm" (rows,
     cols) float32 elevation of the first surface per cell (world units, NaN where the ray
     missed); "geotransform" (x0, res, 0, y_top, 0, -res) as GDAL's (x0, y_top: the grid's west
     and north edges, snapped to multiples of res); "crs" (WKT or None); "radius".
-    Raises ValueError for a res that is not > 0 or gives more than 65536 cells per side, a
-    colour other than "albedo" or "shaded", or a PointCloud with a non-finite coordinate (naming
-    its row).
+    Raises ValueError for a res that is not > 0 or gives more than 65536 cells per side (or more
+    cells in all than the raster limit the message names), a colour other than "albedo" or
+    "shaded", or a PointCloud with a non-finite coordinate (naming its row).
     """
     return _rayscan._ortho_map(cloud, res, spp, seed, threads, colour)
 

@@ -3,7 +3,7 @@
 # float64 C-contiguous arrays are used without a copy. Coordinates and distances are in the
 # cloud's world units (its CRS's).
 import os
-from typing import Any, Literal, Mapping, Sequence, Union
+from typing import Any, Literal, Mapping, Sequence, TypedDict, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -94,8 +94,15 @@ def render(scene: _Path | dict[str, Any] | PointCloud | npt.ArrayLike, cloud: _C
            width: int | None = None, height: int | None = None, spp: int | None = None,
            seed: int | None = None, aovs: Sequence[str] = (), camera: _Path | None = None,
            threads: int = 0) -> dict[str, Any]: ...
+class _OrthoMap(TypedDict):
+    image: np.ndarray        # (rows, cols, 3) float32 linear RGB, row 0 the north edge
+    coverage: np.ndarray     # (rows, cols) float32 in [0, 1]: the orthophoto GeoTIFF's alpha
+    dsm: np.ndarray          # (rows, cols) float32 elevation, NaN = no surface
+    geotransform: tuple[float, float, float, float, float, float]  # GDAL's, north-up
+    crs: str | None          # WKT
+    radius: float
 def ortho_map(cloud: _Cloud, res: float, spp: int | None = None, seed: int | None = None,
-              threads: int = 0, colour: Literal["albedo", "shaded"] = "albedo") -> dict[str, Any]: ...
+              threads: int = 0, colour: Literal["albedo", "shaded"] = "albedo") -> _OrthoMap: ...
 def visibility(cloud: _Cloud, observers: _Path | npt.ArrayLike | None = None, radius: float | None = None,
                height: float | None = None, max_distance: float | None = None, tolerance: float | None = None,
                target_height: float | None = None, sky_rays: int = 0, camera: _Path | None = None,

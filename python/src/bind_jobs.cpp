@@ -32,6 +32,7 @@
 #include <initializer_list>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <stdexcept>
 #include <string_view>
 #include <thread>
@@ -369,7 +370,8 @@ py::dict render(py::handle scene, const std::string& scene_json, py::handle clou
 
 /// rayscan.ortho_map: `rayscan render CLOUD --ortho-map RES --ortho-colour COLOUR` without files
 /// (jobs::run_ortho_map, write off): the quick look's scene (material, surfels) seen by the map's
-/// top-down camera over the cloud's exact bounds. `colour` is "albedo" or "shaded"
+/// top-down camera over the cloud's exact bounds, with the files' bands as arrays (the coverage
+/// is the orthophoto's alpha, OrthoMapJobResult::coverage). `colour` is "albedo" or "shaded"
 /// (analysis::OrthoColour); anything else raises ValueError (TypeError for a non-string).
 py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::handle seed, py::handle threads,
                    py::handle colour) {
@@ -409,6 +411,8 @@ py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::han
   std::vector<render::Color>& colour_of =
       *kind == analysis::OrthoColour::albedo ? r.render.image.albedo : r.render.image.beauty;
   out["image"] = own_as<float>(std::move(colour_of), {h, w, 3});
+  const std::span<const float> coverage = r.coverage();  // the orthophoto GeoTIFF's alpha band
+  out["coverage"] = to_numpy(std::vector<float>(coverage.begin(), coverage.end()), {h, w});
   out["dsm"] = to_numpy(std::move(r.dsm.values), {h, w});
   const std::array<double, 6> gt = g.geotransform();
   out["geotransform"] = py::make_tuple(gt[0], gt[1], gt[2], gt[3], gt[4], gt[5]);

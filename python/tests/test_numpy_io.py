@@ -449,6 +449,38 @@ def test_ortho_map_image_is_the_points_own_colour():
         rayscan.ortho_map(cloud, 1.0, colour="flat")
 
 
+@pytestmark_jobs
+def test_ortho_map_coverage_is_the_geotiffs_alpha_band(tmp_path, cli):
+    """coverage is the alpha band `rayscan render CLOUD --ortho-map RES --out x.tif` writes, read
+    back by GDAL (stored as round(255 x coverage)): with colour="albedo" the share of the cell's
+    rays that hit, fractional on the rim of a round hole in a sloped plane; with "shaded" 1 where
+    the cell-centre ray hit, else 0."""
+    gdal = pytest.importorskip("osgeo.gdal")
+    g = np.arange(0, 20, 0.25)
+    gx, gy = np.meshgrid(g, g)
+    keep = ((gx - 10) ** 2 + (gy - 10) ** 2 >= 16).ravel()
+    xyz = np.column_stack([gx.ravel(), gy.ravel(), 5.0 + 0.1 * gx.ravel()])[keep]
+    las = tmp_path / "holed.las"
+    rayscan.write(las, xyz)
+    for colour, spp in (("albedo", 16), ("shaded", 2)):
+        out = rayscan.ortho_map(las, 0.5, spp=spp, colour=colour)
+        tif = tmp_path / f"{colour}.tif"
+        subprocess.run([cli, "render", str(las), "--ortho-map", "0.5", "--ortho-colour", colour,
+                        "--spp", str(spp), "--out", str(tif)], check=True, capture_output=True)
+        ds = gdal.Open(str(tif))
+        assert ds.RasterCount == 4 and ds.GetRasterBand(4).GetColorInterpretation() == gdal.GCI_AlphaBand
+        assert ds.GetGeoTransform() == pytest.approx(out["geotransform"], abs=0)
+        alpha = ds.GetRasterBand(4).ReadAsArray()
+        coverage = out["coverage"]
+        assert coverage.dtype == np.float32 and coverage.shape == alpha.shape == out["dsm"].shape
+        assert ((coverage >= 0) & (coverage <= 1)).all()
+        # The writer's rounding: lround(255.0f * coverage), half away from zero.
+        np.testing.assert_array_equal(alpha, np.floor((np.float32(255) * coverage).astype(np.float64) + 0.5))
+        partial = (coverage > 0) & (coverage < 1)
+        assert (coverage == 0).any() and (coverage == 1).any()
+        assert partial.any() if colour == "albedo" else not partial.any()
+
+
 # ---- Names: first("index"), ray_query's bound --------------------------------------------------
 
 def test_ray_query_without_a_bound_raises_unless_allow_all(uniform_cloud, random_rays):
