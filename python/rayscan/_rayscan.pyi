@@ -136,6 +136,17 @@ def _visibility(cloud: Any, observers: Any = None, radius: float | None = None, 
 SOLAR_PERIOD_FIELDS: tuple[str, ...]
 SOLAR_INSTANT_FIELDS: tuple[str, ...]
 def _opens_in_place(path: _Path) -> bool: ...
+def _check_cache(cache: str) -> None: ...
+def _check_visibility(observers: Any = None, radius: float | None = None, height: float | None = None,
+                      max_distance: float | None = None, tolerance: float | None = None,
+                      target_height: float | None = None, sky_rays: int = 0, camera: _Path | None = None,
+                      distance: bool = False, threads: int = 0, cache: str = "2G",
+                      ground_radius: float | None = None) -> None: ...
+def _check_solar(start: str | None = None, end: str | None = None, step: str = "1h", at: str | None = None,
+                 latitude: float | None = None, longitude: float | None = None,
+                 linke: float | Sequence[float] = 3.0, albedo: float = 0.2, weather: _Path | None = None,
+                 sector: float = 1.0, sky_rays: int = 64, primitive: str = "sphere", radius: float | None = None,
+                 threads: int = 0, cache: str = "2G") -> None: ...
 def _solar(cloud: Any, start: str | None = None, end: str | None = None, step: str = "1h", at: str | None = None,
            latitude: float | None = None, longitude: float | None = None, linke: float | Sequence[float] = 3.0,
            albedo: float = 0.2, weather: _Path | None = None, sector: float = 1.0, sky_rays: int = 64,

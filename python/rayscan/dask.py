@@ -256,9 +256,9 @@ def ray_query(path, origins, directions, k=1, radius=_INF, t_min=-_INF, t_max=_I
     the call for every argument but the rays' values and the file (order, radius, t_min, t_max,
     k, threads, any_hit, allow_all, and the shapes of origins and directions); on the workers for
     the rays' values, naming the caller's row ("ray 1234: ..." from 0 over all chunks), and for
-    the file and cache (at the call for the lazy result of an .rsi or COPC file, whose point count
-    is read there). TypeError for a k or chunks that is not an integer (a bool, 3.0), ValueError
-    below 1; TypeError for a compute that is not True or False.
+    the file (at the call for the lazy result of an .rsi or COPC file, whose point count is read
+    there); cache at the call, as rayscan.open. TypeError for a k or chunks that is not an integer
+    (a bool, 3.0), ValueError below 1; TypeError for a compute that is not True or False.
     """
     compute = _boolean(compute, "compute")
     if k is None and not compute:
@@ -270,6 +270,7 @@ def ray_query(path, origins, directions, k=1, radius=_INF, t_min=-_INF, t_max=_I
     kw = dict(k=k, radius=radius, t_min=t_min, t_max=t_max, order=order, any_hit=any_hit,
               allow_all=allow_all, threads=threads)
     _check_ray_query(kw)
+    rayscan._rayscan._check_cache(cache)
     path = _path(path)
     blocks = _row_blocks(origins, directions, chunks)
     if compute:
@@ -344,9 +345,11 @@ def visibility(path, observers, chunks=8, radius=None, height=None, max_distance
     eyes; Dask arrays (N is known for an .rsi or COPC file, else NaN until computed) or, with
     compute=True, NumPy arrays plus "radius", "tolerance", "target_height", equal to
     rayscan.visibility(path, observers, ...) bit for bit. Raises as rayscan.visibility does,
-    naming an observer by the caller's row ("observers[13]: ..." from 0 over all chunks), when
-    the tasks run; TypeError for a chunks that is not an integer, ValueError below 1, and for a
-    compute or distance that is not True or False.
+    naming an observer by the caller's row ("observers[13]: ..." from 0 over all chunks): at the
+    call for the options and the observers' values (what rayscan.visibility checks before it
+    reads the points), when the tasks run for the file and what needs the points (an eye's
+    ground and height, the radius, tolerance and max_distance); TypeError for a chunks that is
+    not an integer, ValueError below 1, and for a compute or distance that is not True or False.
     """
     compute = _boolean(compute, "compute")
     distance = _boolean(distance, "distance")
@@ -361,6 +364,9 @@ def visibility(path, observers, chunks=8, radius=None, height=None, max_distance
     kw = dict(radius=radius, height=height, max_distance=max_distance, tolerance=tolerance,
               target_height=target_height, distance=distance, threads=threads, cache=cache,
               ground_radius=ground_radius)
+    # What rayscan.visibility refuses before it reads the points, refused here in its words: the
+    # job checks the options over no points (python/src/bind_jobs.cpp, check_job_options).
+    rayscan._rayscan._check_visibility(obs, sky_rays=sky_rays, **kw)
     parts = [dask.delayed(_visibility_block)(path, obs[i:i + chunks], kw, i)
              for i in range(0, len(obs), chunks)]
     while len(parts) > 1:  # a tree of pairwise merges: each holds two (N,) arrays at a time
@@ -456,8 +462,11 @@ def solar(path, at=None, periods=None, step="1h", latitude=None, longitude=None,
     Dask arrays chunked one row per task, or NumPy with compute=True; row i equals
     rayscan.solar(path, at=at[i], ...) bit for bit. Raises ValueError without exactly one of at
     and periods or with an empty list, TypeError for an instant that is not text (a datetime:
-    pass its isoformat(), as rayscan.solar) or a period that is not a pair of texts; the tasks
-    raise as rayscan.solar does for the options. TypeError for a compute that is not True or False.
+    pass its isoformat(), as rayscan.solar) or a period that is not a pair of texts; as
+    rayscan.solar does for the options and each instant or period at the call (what
+    rayscan.solar checks before it reads the points), and when the tasks run for the files (the
+    cloud, the weather file) and what needs the points (the CRS, the radius). TypeError for a
+    compute that is not True or False.
     """
     compute = _boolean(compute, "compute")
     if (at is None) == (periods is None):
@@ -468,6 +477,9 @@ def solar(path, at=None, periods=None, step="1h", latitude=None, longitude=None,
     options = dict(step=step, latitude=latitude, longitude=longitude, linke=linke, albedo=albedo,
                    weather=weather, sector=sector, sky_rays=sky_rays, primitive=primitive,
                    radius=radius, cache=cache)
+    for w in whens:  # as for visibility: what rayscan.solar refuses before it reads the points
+        when = dict(at=w) if isinstance(w, str) else dict(start=w[0], end=w[1])
+        rayscan._rayscan._check_solar(**when, **options, threads=threads)
     path = _path(path)
     kw = dict(options, threads=threads)
     tasks = [dask.delayed(_solar_block)(path, w, kw) for w in whens]
@@ -482,7 +494,9 @@ def solar(path, at=None, periods=None, step="1h", latitude=None, longitude=None,
             out["sun_elevation"] = np.array([r["sun_elevation"] for r in res])
         return out
     n = _point_count(path, cache)
-    out = {f: da.stack([da.from_delayed(t[f], (n,), dtype=np.float64) for t in tasks]) for f in fields}
+    # One (1, N) row per task, concatenated: da.stack refuses rows of unknown N (NaN != NaN).
+    out = {f: da.concatenate([da.from_delayed(dask.delayed(np.atleast_2d)(t[f]), (1, n), dtype=np.float64)
+                              for t in tasks], allow_unknown_chunksizes=True) for f in fields}
     if at is not None:
         for f in ("sun_azimuth", "sun_elevation"):
             out[f] = da.concatenate([da.from_delayed(dask.delayed(np.atleast_1d)(t[f]), (1,), dtype=np.float64)

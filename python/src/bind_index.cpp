@@ -479,6 +479,9 @@ index` without `--attributes id`), whose results are index slots: has_ids says w
                              "another point file, and for an index file built with `rayscan index --attributes id`. "
                              "False for an index file without the ids section: results are index slots (depth-first "
                              "node order), as `rayscan info` says \"ids: not stored (points in index order)\".");
+  // rayscan.open's check of its cache argument alone, for rayscan.dask's checks at the call (its
+  // tasks open the file).
+  m.def("_check_cache", [](py::handle cache) { cache_arg(cache); }, py::arg("cache"));
 }
 
 }  // namespace rayscan::python

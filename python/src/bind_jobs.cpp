@@ -3,7 +3,9 @@
 // with NumPy arrays out. A cloud is a file name, a rayscan.PointCloud (passed to the job in
 // memory, not copied) or an (N, 3) array (cloud_arg). Each call converts its arguments with the
 // GIL held, then runs the job without it: compare on the calling thread, the others on a worker
-// thread while the calling thread watches for Ctrl-C (run_interruptible).
+// thread while the calling thread watches for Ctrl-C (run_interruptible). rayscan.dask checks the
+// options of visibility and solar at its call through the same conversions and jobs
+// (check_job_options).
 #include "arrays.hpp"
 #include "bindings.hpp"
 #include "cloud.hpp"
@@ -12,6 +14,7 @@
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/job.hpp"
 #include "rayscan/base/option_error.hpp"
+#include "rayscan/io/crs.hpp"
 #include "rayscan/jobs/compare.hpp"
 #include "rayscan/jobs/quick_look.hpp"
 #include "rayscan/jobs/solar.hpp"
@@ -536,17 +539,15 @@ py::dict compare(const py::object& a, const py::object& b, py::handle channels,
 /// What a sphere radius argument is, for its TypeError.
 constexpr const char* kRadiusExpected = "None (auto) or a number > 0 (world units)";
 
-/// rayscan.visibility. Observer rows are named "observers[i]" in messages (0-based, as the caller
-/// indexes them), without the job's own 1-based "observer i+1".
-py::dict visibility(const py::object& cloud, const py::object& observers, py::handle radius,
-                    py::handle height, py::handle max_distance, py::handle tolerance, py::handle target_height,
-                    py::handle sky_rays, py::handle camera, py::handle distance, py::handle threads,
-                    py::handle cache, py::handle ground_radius) {
+/// rayscan.visibility's options from its arguments but the cloud, each converted and refused
+/// (TypeError, ValueError naming its keyword) as the call does. Observer rows are named
+/// "observers[i]" (0-based, as the caller indexes them).
+jobs::VisibilityJobOptions visibility_options(const py::object& observers, py::handle radius, py::handle height,
+                                              py::handle max_distance, py::handle tolerance, py::handle target_height,
+                                              py::handle sky_rays, py::handle camera, py::handle distance,
+                                              py::handle threads, py::handle cache, py::handle ground_radius) {
   jobs::VisibilityJobOptions o;
   o.cache_bytes = cache_arg(cache);
-  const CloudArg c = cloud_arg(cloud, "cloud");
-  o.cloud = c.points;
-  o.cloud_file = c.path;
   if (!observers.is_none()) {
     if (is_path_like(observers)) {
       o.observers_file = input_path_arg(observers, "observers");
@@ -575,19 +576,35 @@ py::dict visibility(const py::object& cloud, const py::object& observers, py::ha
   if (!camera.is_none()) o.camera_file = input_path_arg(camera, "camera");
   o.distance = bool_arg(distance, "distance");
   o.control.threads = parse_threads(threads);
-  // "observers[i]: observer i+1: ..." (the row, then the job's label of the observer) becomes
-  // "observers[i]: ...": one number, the caller's.
-  const auto one_row_number = [&](std::string m) {
-    for (std::size_t k = 0; k < o.observers.size(); ++k) {
-      const std::string where = analysis::observer_where(o.observers[k], k + 1);
-      if (m.compare(0, where.size(), where) == 0) return o.observers[k].source + m.substr(where.size());
-    }
-    return m;
-  };
+  return o;
+}
+
+/// The message `m` of a visibility job over `observers`, its "observers[i]: observer i+1: ..."
+/// (the row, then the job's label of the observer) written "observers[i]: ...": one number, the
+/// caller's.
+std::string one_row_number(const std::vector<analysis::Observer>& observers, std::string m) {
+  for (std::size_t k = 0; k < observers.size(); ++k) {
+    const std::string where = analysis::observer_where(observers[k], k + 1);
+    if (m.compare(0, where.size(), where) == 0) return observers[k].source + m.substr(where.size());
+  }
+  return m;
+}
+
+/// rayscan.visibility: visibility_options over the cloud given.
+py::dict visibility(const py::object& cloud, const py::object& observers, py::handle radius,
+                    py::handle height, py::handle max_distance, py::handle tolerance, py::handle target_height,
+                    py::handle sky_rays, py::handle camera, py::handle distance, py::handle threads,
+                    py::handle cache, py::handle ground_radius) {
+  const CloudArg c = cloud_arg(cloud, "cloud");
+  jobs::VisibilityJobOptions o = visibility_options(observers, radius, height, max_distance, tolerance, target_height,
+                                                    sky_rays, camera, distance, threads, cache, ground_radius);
+  o.cloud = c.points;
+  o.cloud_file = c.path;
   jobs::VisibilityJobResult r;
   run_interruptible(o.control, "visibility", [&] {
     require_finite_points(c, "cloud");
-    run_naming_keywords("visibility", [&] { r = jobs::run_visibility(o); }, one_row_number);
+    run_naming_keywords("visibility", [&] { r = jobs::run_visibility(o); },
+                        [&](std::string m) { return one_row_number(o.observers, std::move(m)); });
   });
   py::dict d;
   for (ScalarField& f : r.cloud.scalars)
@@ -610,15 +627,15 @@ std::string time_arg(py::handle v, const char* name) {
   return str_arg(v, name, "None or ISO 8601 text (\"2024-06-21T12:00\"; a datetime's isoformat())");
 }
 
-py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::handle step, py::handle at,
-               py::handle latitude, py::handle longitude, py::handle linke, py::handle albedo,
-               const py::object& weather, py::handle sector, py::handle sky_rays, py::handle primitive,
-               py::handle radius, py::handle threads, py::handle cache) {
+/// rayscan.solar's options from its arguments but the cloud, each converted and refused as the
+/// call does; the weather file is opened (OSError when it cannot be) only with `open_weather`.
+jobs::SolarJobOptions solar_options(py::handle start, py::handle end, py::handle step, py::handle at,
+                                    py::handle latitude, py::handle longitude, py::handle linke, py::handle albedo,
+                                    const py::object& weather, py::handle sector, py::handle sky_rays,
+                                    py::handle primitive, py::handle radius, py::handle threads, py::handle cache,
+                                    bool open_weather) {
   jobs::SolarJobOptions o;
   o.cache_bytes = cache_arg(cache);
-  const CloudArg c = cloud_arg(cloud, "cloud");
-  o.cloud = c.points;
-  o.cloud_file = c.path;
   o.start = time_arg(start, "start");
   o.end = time_arg(end, "end");
   o.step = str_arg(step, "step", "a duration as text (\"15min\", \"1h\")");
@@ -633,12 +650,25 @@ py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::ha
     for (py::handle v : linke) o.linke.push_back(float_arg(v, "linke", linke_expected));
   }
   o.albedo = float_arg(albedo, "albedo", "a number in [0, 1]");
-  if (!weather.is_none()) o.weather = input_path_arg(weather, "weather");
+  if (!weather.is_none()) o.weather = open_weather ? input_path_arg(weather, "weather") : path_arg(weather, "weather");
   o.sector = float_arg(sector, "sector", "a number of degrees (0 = one shadow ray per step)");
   o.sky_rays = static_cast<std::uint32_t>(int_arg(sky_rays, "sky_rays", 0, 4096, "an integer in [0, 4096]"));
   o.primitive = str_arg(primitive, "primitive", "\"sphere\" or \"surfel\"");
   o.radius = opt_float_arg(radius, "radius", kRadiusExpected);
   o.control.threads = parse_threads(threads);
+  return o;
+}
+
+/// rayscan.solar: solar_options over the cloud given.
+py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::handle step, py::handle at,
+               py::handle latitude, py::handle longitude, py::handle linke, py::handle albedo,
+               const py::object& weather, py::handle sector, py::handle sky_rays, py::handle primitive,
+               py::handle radius, py::handle threads, py::handle cache) {
+  const CloudArg c = cloud_arg(cloud, "cloud");
+  jobs::SolarJobOptions o = solar_options(start, end, step, at, latitude, longitude, linke, albedo, weather, sector,
+                                          sky_rays, primitive, radius, threads, cache, true);
+  o.cloud = c.points;
+  o.cloud_file = c.path;
   jobs::SolarJobResult r;
   run_naming_keywords("solar", [&] {
     run_reading_files(
@@ -669,6 +699,60 @@ py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::ha
     d["sun_elevation"] = r.sun->elevation_deg;
   }
   return d;
+}
+
+/// What rayscan.dask checks at the call, before any task runs: the options `o` of rayscan.<job>
+/// (`job`: "visibility", "solar"), by the job itself (`run`: run_visibility, run_solar) over a
+/// cloud of no points in a projected CRS (so that neither a line of sight nor the sun's place is
+/// refused for the want of one). The job checks every option it can before it reads the points
+/// (the observers' rows too) and then stops at them, the cloud being empty: the OptionError it
+/// throws first raises rayscan.<job>'s ValueError, in its words (run_naming_keywords, `edit`),
+/// and whatever it throws from the points on is the data's, which only the tasks can tell, and
+/// is dropped.
+template <class Options, class Run, class Edit = std::string (*)(std::string)>
+void check_job_options(std::string_view job, Options& o, Run run, Edit edit = [](std::string m) { return m; }) {
+  static const PointCloud no_points = [] {
+    PointCloud c;
+    c.crs_wkt = io::crs_wkt_from_user_input("EPSG:3857");
+    return c;
+  }();
+  o.cloud = &no_points;
+  o.cloud_file.clear();
+  run_naming_keywords(
+      job,
+      [&] {
+        try {
+          run(o);
+        } catch (const OptionError&) {
+          throw;
+        } catch (const std::exception&) {  // about the points: the tasks' to tell
+        }
+      },
+      edit);
+}
+
+/// rayscan.dask.visibility's check at the call (check_job_options): rayscan.visibility's
+/// arguments but the cloud, refused as rayscan.visibility refuses them.
+void check_visibility(const py::object& observers, py::handle radius, py::handle height, py::handle max_distance,
+                      py::handle tolerance, py::handle target_height, py::handle sky_rays, py::handle camera,
+                      py::handle distance, py::handle threads, py::handle cache, py::handle ground_radius) {
+  jobs::VisibilityJobOptions o = visibility_options(observers, radius, height, max_distance, tolerance, target_height,
+                                                    sky_rays, camera, distance, threads, cache, ground_radius);
+  check_job_options(
+      "visibility", o, [](const jobs::VisibilityJobOptions& v) { jobs::run_visibility(v); },
+      [&](std::string m) { return one_row_number(o.observers, std::move(m)); });
+}
+
+/// rayscan.dask.solar's check at the call (check_job_options): rayscan.solar's arguments but the
+/// cloud, refused as rayscan.solar refuses them; the weather file is the tasks' to open, as the
+/// cloud is (a client need not see the workers' files).
+void check_solar(py::handle start, py::handle end, py::handle step, py::handle at, py::handle latitude,
+                 py::handle longitude, py::handle linke, py::handle albedo, const py::object& weather,
+                 py::handle sector, py::handle sky_rays, py::handle primitive, py::handle radius, py::handle threads,
+                 py::handle cache) {
+  jobs::SolarJobOptions o = solar_options(start, end, step, at, latitude, longitude, linke, albedo, weather, sector,
+                                          sky_rays, primitive, radius, threads, cache, false);
+  check_job_options("solar", o, [](const jobs::SolarJobOptions& s) { jobs::run_solar(s); });
 }
 
 /// The names of `names` as a Python tuple of str.
@@ -725,6 +809,18 @@ void bind_jobs(py::module_& m) {
   m.attr("SOLAR_PERIOD_FIELDS") = name_tuple(jobs::kSolarPeriodFields);
   m.attr("SOLAR_INSTANT_FIELDS") = name_tuple(jobs::kSolarInstantFields);
   m.def("_opens_in_place", &opens_in_place, py::arg("path"));
+  // rayscan.dask's checks at the call of the options of visibility and solar.
+  m.def("_check_visibility", &check_visibility, py::arg("observers") = py::none(), py::arg("radius") = py::none(),
+        py::arg("height") = py::none(), py::arg("max_distance") = py::none(), py::arg("tolerance") = py::none(),
+        py::arg("target_height") = py::none(), py::arg("sky_rays") = 0, py::arg("camera") = py::none(),
+        py::arg("distance") = false, py::arg("threads") = 0, py::arg("cache") = "2G",
+        py::arg("ground_radius") = py::none());
+  m.def("_check_solar", &check_solar, py::arg("start") = py::none(), py::arg("end") = py::none(),
+        py::arg("step") = "1h", py::arg("at") = py::none(), py::arg("latitude") = py::none(),
+        py::arg("longitude") = py::none(), py::arg("linke") = 3.0, py::arg("albedo") = 0.2,
+        py::arg("weather") = py::none(), py::arg("sector") = 1.0, py::arg("sky_rays") = 64,
+        py::arg("primitive") = "sphere", py::arg("radius") = py::none(), py::arg("threads") = 0,
+        py::arg("cache") = "2G");
 }
 
 }  // namespace rayscan::python

@@ -126,6 +126,21 @@ def test_solar_instants(client, site_file):
         assert np.array_equal(shadow[i], one["in_shadow"]) and elev[i] == one["sun_elevation"]
 
 
+def test_solar_instants_of_a_file_read_whole(client, site_file, tmp_path):
+    """The lazy (T, N) arrays of a file that is read whole, whose N is unknown until the tasks
+    run (NaN), row i equal to rayscan.solar at instant i."""
+    las = tmp_path / "tenth.las"
+    rayscan.write(las, rayscan.read(str(site_file).replace(".rsi", ".las"))[::10])
+    at = ["2024-06-21T18:00", "2024-12-21T20:00"]
+    opts = dict(latitude=44.05, longitude=-123.07, sky_rays=4)
+    out = rd.solar(las, at=at, **opts)
+    assert np.isnan(out["in_shadow"].shape[1]) and out["in_shadow"].chunks[0] == (1, 1)
+    shadow, = dask.compute(out["in_shadow"])
+    assert shadow.shape == (2, 2750)
+    for i, when in enumerate(at):
+        assert np.array_equal(shadow[i], rayscan.solar(las, at=when, **opts)["in_shadow"])
+
+
 def test_missing_arguments_raise(site_file):
     with pytest.raises(ValueError, match="compute=True"):
         rd.ray_query(site_file, np.zeros((2, 3)), np.ones((2, 3)), k=None, radius=1.0)
@@ -410,6 +425,73 @@ def test_first_hits_options_are_checked_at_the_call(client, site_file, rays, tmp
     assert _message(lambda: rd.first_hits(missing, o, d, radius=2.0, t_min=3.0, t_max=1.0)) == \
         _message(lambda: rayscan.open(site_file).ray_query(o, d, k=1, radius=2.0, t_min=3.0, t_max=1.0,
                                                            order="sphere_hit"))
+
+
+# Options rayscan.visibility and rayscan.solar refuse whatever the points (the oracle: their own
+# exception, type and words), each with the good options of the test below.
+_BAD_VISIBILITY_OPTIONS = [dict(cache="lots"), dict(cache=2), dict(ground_radius=-1.0), dict(ground_radius=np.nan),
+                           dict(ground_radius="5"), dict(radius="auto"), dict(height=[6.0]), dict(sky_rays=-1),
+                           dict(sky_rays=1.5), dict(threads=-1), dict(tolerance="0")]
+_BAD_SOLAR_OPTIONS = [dict(cache="lots"), dict(cache=None), dict(albedo=2.0), dict(albedo="0.2"), dict(linke=0.5),
+                      dict(linke=[3.0] * 5), dict(sector=45.0), dict(latitude=100.0, longitude=0.0),
+                      dict(latitude=44.05, longitude=None), dict(primitive="cube"), dict(sky_rays=5000),
+                      dict(weather="weather.epw"), dict(at=["2024-06-21T18:00", "2024-13-45T00:00"]),
+                      dict(at=None, periods=[("2024-06-21T17:00", "June")]),
+                      dict(at=None, periods=[("2024-06-21T17:00", "2024-06-21T19:00")], step="2h")]
+
+
+def _ids(options):
+    return ",".join(f"{k}={v!r}" for k, v in options.items())
+
+
+@pytest.mark.parametrize("bad", _BAD_VISIBILITY_OPTIONS, ids=_ids)
+def test_visibility_options_are_checked_at_the_call(client, site_file, tmp_path, bad):
+    """An option rayscan.visibility refuses raises its exception, in its words, at the
+    rayscan.dask call, lazy or compute=True, before any task runs: the path names no file, so a
+    task that ran would raise the file's OSError instead (and the lazy call none at all)."""
+    xy = rayscan.read(str(site_file).replace(".rsi", ".las")).xyz[:5, :2]
+    opts = dict(dict(height=6.0, sky_rays=4), **bad)
+    one = _message(lambda: rayscan.visibility(site_file, xy, **opts))
+    assert one[0] in (ValueError, TypeError) and one[1]
+    missing = tmp_path / "missing.ply"
+    for compute in (False, True):
+        assert _message(lambda: rd.visibility(missing, xy, chunks=2, compute=compute, **opts)) == one, compute
+    if "cache" in bad:  # the ray queries take rayscan.open's cache, refused at the call too
+        o, d = np.zeros((3, 3)), np.array([0.0, 0, 1])
+        one = _message(lambda: rayscan.open(site_file, cache=bad["cache"]))
+        for compute in (False, True):
+            assert _message(lambda: rd.ray_query(missing, o, d, radius=1.0, compute=compute, **bad)) == one
+    # Good options build the graph: what needs the points (the eyes' ground) is the tasks'.
+    rd.visibility(missing, xy, chunks=2, height=6.0, sky_rays=4)
+    rd.visibility(missing, xy, chunks=2)  # no height for (K, 2) eyes: found against the points
+
+
+@pytest.mark.parametrize("bad", _BAD_SOLAR_OPTIONS, ids=_ids)
+def test_solar_options_are_checked_at_the_call(client, site_file, tmp_path, bad):
+    """As for visibility: what rayscan.solar refuses for the options of one of the instants or
+    periods raises its exception, in its words, at the rayscan.dask call, lazy or compute=True."""
+    opts = dict(dict(at=["2024-06-21T18:00", "2024-12-21T20:00"], latitude=44.05, longitude=-123.07, sky_rays=4),
+                **bad)
+    if "weather" in bad:  # a file that opens (rayscan.solar refuses a missing one first)
+        opts["weather"] = tmp_path / bad["weather"]
+        opts["weather"].write_text("")
+    whens = [dict(at=w) for w in opts["at"]] if opts["at"] else [dict(start=s, end=e) for s, e in opts["periods"]]
+    single = {k: v for k, v in opts.items() if k not in ("at", "periods")}
+    one = None
+    for when in whens:  # the first instant or period refused
+        try:
+            rayscan.solar(site_file, **when, **single)
+        except Exception as e:
+            one = type(e), str(e)
+            break
+    assert one is not None and one[0] in (ValueError, TypeError) and one[1]
+    missing = tmp_path / "missing.ply"
+    for compute in (False, True):
+        assert _message(lambda: rd.solar(missing, compute=compute, **opts)) == one, compute
+    # Good options build the graph, also without latitude and longitude: a file's CRS is the tasks'.
+    rd.solar(missing, at=["2024-06-21T18:00", "2024-12-21T20:00"])
+    rd.solar(missing, periods=("2024-06-21T17:00", "2024-06-21T19:00"), step="15min")
+    rd.solar(missing, periods=("2024-06-21", "2024-06-30"), weather=tmp_path / "missing.epw")  # a file: the tasks'
 
 
 @pytest.mark.parametrize("value", ["yes", 1, None])
