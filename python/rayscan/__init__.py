@@ -366,11 +366,12 @@ def visibility(cloud, observers=None, radius=None, height=None, max_distance=Non
     unlimited). tolerance: a point counts as seen when the first surface the ray meets lies at
     most this far before it (None = 0). target_height: rays aim this far above each point (None
     = 0: at the point, as GIS viewsheds). threads: worker threads (0 = all cores).
-    Raises ValueError for a bad option (named as the keyword: "height: expected a finite number
-    ...", "observers[2]: no point within the ground radius ...; move it or raise ground_radius",
-    rows numbered from 0), a malformed observer file or a PointCloud with a non-finite coordinate,
-    TypeError for an argument of the wrong type, OSError for a cloud, observer or camera file that
-    cannot be opened and for a malformed cloud file.
+    Raises ValueError for a bad option (named as the keyword: "height: expected an eye height
+    above the local ground, a finite number ...", "observers[2]: no point within the ground
+    radius ...; move it or raise ground_radius", rows numbered from 0), a malformed observer
+    file or a PointCloud with a non-finite coordinate, TypeError for an argument of the wrong
+    type, OSError for a cloud, observer or camera file that cannot be opened and for a malformed
+    cloud file.
     """
     return _rayscan._visibility(cloud, observers, radius, height, max_distance, tolerance,
                                 target_height, sky_rays, camera, distance, threads, cache,
@@ -385,11 +386,12 @@ def solar(cloud, start=None, end=None, step="1h", at=None, latitude=None, longit
 
     cloud: a file path, a PointCloud or an (N, 3) array of positions (metres). A period (start,
     end: ISO 8601 text, no offset = UTC, a date alone = local mean solar midnight, end
-    inclusive; step "15min", "30min" or "1h", at most "1h") or one instant (at). latitude/longitude: degrees
-    (default: from the cloud's CRS). linke: one Linke turbidity or 12 monthly values; albedo;
-    weather: an EPW file instead of the clear sky; sector: sun-map sector in degrees (0 = one
-    shadow ray per step); sky_rays: sky-map directions; primitive: "sphere" or "surfel". A COPC
-    file is queried in place as by visibility(), within `cache`.
+    inclusive; step: a duration such as "15min", "30min" or "1h", at most "1h", that divides the
+    period) or one instant (at). latitude/longitude: degrees (default: from the cloud's CRS).
+    linke: one Linke turbidity or 12 monthly values; albedo; weather: an EPW file instead of the
+    clear sky; sector: sun-map sector in degrees (0 = one shadow ray per step); sky_rays: sky-map
+    directions; primitive: "sphere" or "surfel". A COPC file is queried in place as by
+    visibility(), within `cache`.
 
     Returns a dict of (N,) float64 arrays: for a period SOLAR_PERIOD_FIELDS, "solar_global",
     "solar_beam", "solar_diffuse", "solar_reflected" (kWh/m²), "sun_hours" (h), "sky_view"; for an
