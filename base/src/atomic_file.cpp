@@ -100,6 +100,14 @@ void TemporaryOf::release() noexcept {
   id_ = 0;
 }
 
+IntermediateFile::IntermediateFile(std::filesystem::path temp, const std::filesystem::path& output)
+    : temp_(std::move(temp)), temp_for_(temp_, output) {}
+
+IntermediateFile::~IntermediateFile() {
+  std::error_code ec;
+  std::filesystem::remove(temp_, ec);
+}
+
 std::filesystem::path output_of(const std::filesystem::path& file) {
   Registry& r = registry();
   const std::lock_guard<std::mutex> lock(r.m);

@@ -8,7 +8,6 @@
 #include "rayscan/base/coordinate_bound.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/base/file_names.hpp"
-#include "rayscan/base/interrupt.hpp"
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -110,16 +109,9 @@ TranslateJobResult write_through_las(const TranslateJobOptions& options, const P
   name += '.';
   name += std::to_string(::getpid());
   name += ".grid.las";  // last: the extension the LAS writer and write_copc go by
-  const std::filesystem::path temp = options.out.parent_path() / name;
-  struct Remove {
-    std::filesystem::path p;
-    RemoveOnInterrupt on_signal{p};  // (removed by a signal too, while it is compressed)
-    ~Remove() {
-      std::error_code ec;
-      std::filesystem::remove(p, ec);
-    }
-  } guard{temp};
-  const TemporaryOf named(temp, options.out);  // its write errors name the output
+  // Removed on the way out and by a signal, its write errors naming the output.
+  const IntermediateFile intermediate(options.out.parent_path() / name, options.out);
+  const std::filesystem::path& temp = intermediate.path();
   try {
     io::write_las(temp, cloud, grid);
   } catch (const std::invalid_argument& e) {

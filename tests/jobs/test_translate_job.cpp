@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "jobs_test_util.hpp"
+#include "../common/file_size_limit.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -17,6 +18,8 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <set>
+#include <stdexcept>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -407,6 +410,42 @@ TEST(TranslateJob, ScaleAndOffsetAreTheHeadersAndPointsReadBackWithinHalfAStep) 
     EXPECT_LE(offset[k], box.lo[k]) << k;
     EXPECT_GT(offset[k] + 1000 * scale[k], box.lo[k]) << k;
     EXPECT_LE(e[k], 0.5 * scale[k] * (1 + 1e-6)) << k;
+  }
+}
+
+// A new grid for a LAZ or COPC output goes through an intermediate LAS beside the output: however
+// the write ends, while that LAS is written (a file-size limit: EFBIG, as a full disk gives
+// ENOSPC) or after, while it is compressed (a progress callback that throws), the error is the
+// output's, the old output is kept and neither the intermediate nor a temporary is left.
+// Oracle: the folder's own listing and the old file's bytes.
+TEST(TranslateJob, AFailedWriteThroughAnIntermediateLasLeavesOnlyTheOldOutput) {
+  jobs::TranslateJobOptions o;
+  o.in = data_file("las/autzen_trim.las");  // 110,000 points: 3 MB of LAS
+  o.scale = {0.001};
+  for (const char* name : {"x.laz", "x.copc.laz"}) {
+    SCOPED_TRACE(name);
+    const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_translate_failure");
+    o.out = dir / name;
+    std::ofstream(o.out) << "OLD";
+    o.progress = nullptr;
+    const std::string error = rayscan::test::error_within_file_size(64 << 10, [&] { (void)jobs::run_translate(o); });
+    EXPECT_EQ(error.rfind(o.out.string() + ": write failed", 0), 0u) << error;
+    EXPECT_EQ(file_bytes(o.out), "OLD");
+    EXPECT_EQ(rayscan::test::entry_names(dir), std::set<std::string>{name});
+
+    std::set<std::string> seen;  // the folder when the first progress report came
+    o.progress = [&](const char*, std::uint64_t, std::uint64_t) {
+      if (!seen.empty()) return;
+      seen = rayscan::test::entry_names(dir);
+      throw std::runtime_error("stopped");
+    };
+    EXPECT_THROW((void)jobs::run_translate(o), std::runtime_error);
+    EXPECT_TRUE(std::any_of(seen.begin(), seen.end(),
+                            [](const std::string& n) { return n.find(".grid.las") != std::string::npos; }))
+        << "the intermediate LAS was not there yet";
+    EXPECT_EQ(file_bytes(o.out), "OLD");
+    EXPECT_EQ(rayscan::test::entry_names(dir), std::set<std::string>{name});
+    fs::remove_all(dir);
   }
 }
 

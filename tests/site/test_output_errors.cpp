@@ -4,6 +4,7 @@
 // and no temporary behind: the LAS and LAZ writers, translate_las, the COPC writer and the index
 // build. The failure is made deterministic with a file-size limit (RLIMIT_FSIZE with SIGXFSZ
 // ignored: a write past it fails with EFBIG where a full disk fails with ENOSPC).
+#include "../common/file_size_limit.hpp"
 #include "../io/io_test_util.hpp"
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -24,29 +25,6 @@
 
 namespace rayscan::test {
 namespace {
-
-/// What `write` throws while a file may grow to at most `bytes`, or "" when it throws nothing.
-std::string error_within_file_size(rlim_t bytes, const std::function<void()>& write) {
-  struct rlimit before {};
-  if (::getrlimit(RLIMIT_FSIZE, &before) != 0) return "getrlimit failed";
-  if (before.rlim_max != RLIM_INFINITY && before.rlim_max < bytes) return "hard file size limit too low";
-  struct rlimit r = before;
-  r.rlim_cur = bytes;
-  void (*old_handler)(int) = std::signal(SIGXFSZ, SIG_IGN);
-  if (::setrlimit(RLIMIT_FSIZE, &r) != 0) {
-    std::signal(SIGXFSZ, old_handler);
-    return "setrlimit failed";
-  }
-  std::string error;
-  try {
-    write();
-  } catch (const std::exception& e) {
-    error = e.what();
-  }
-  ::setrlimit(RLIMIT_FSIZE, &before);
-  std::signal(SIGXFSZ, old_handler);
-  return error;
-}
 
 /// A folder holding only `name`, with the content "OLD".
 fs::path folder_with_old(const std::string& folder, const std::string& name) {

@@ -10,9 +10,9 @@
 #include "las/las_grid.hpp"
 #include "las/las_header.hpp"
 #include "readers.hpp"
+#include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/number_text.hpp"
-#include "rayscan/base/interrupt.hpp"
 #include "rayscan/base/version.hpp"
 #include "rayscan/io/translate.hpp"
 
@@ -124,21 +124,14 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
   }
   // LAZ: the LAS bytes go to a hidden sibling file (written directly: inside an OutputTransaction
   // an AtomicFile's rename would be deferred), then translate_las compresses them (layered
-  // encoder for PDRF 6-8) into `path` through its own AtomicFile; the sibling is always removed.
+  // encoder for PDRF 6-8) into `path` through its own AtomicFile; the sibling is always removed,
+  // by a signal too, and its write errors name `path` (IntermediateFile).
   std::string plain_name = ".";  // built by appending (GCC 12 -Wrestrict false positive on "." + s)
   plain_name += path.filename().string();
   plain_name += ".las.tmp.";
   plain_name += std::to_string(::getpid());
-  const std::filesystem::path plain = path.parent_path() / plain_name;
-  struct Remove {
-    std::filesystem::path p;
-    RemoveOnInterrupt on_signal{p};  // (removed by a signal too, while it is compressed)
-    ~Remove() {
-      std::error_code ec;
-      std::filesystem::remove(p, ec);
-    }
-  } guard{plain};
-  const TemporaryOf named(plain, path);  // its write errors name `path`
+  const IntermediateFile intermediate(path.parent_path() / plain_name, path);
+  const std::filesystem::path& plain = intermediate.path();
   try {
     write_las_records(plain, cloud, options, true);
   } catch (const std::invalid_argument& e) {  // name the file the caller asked for

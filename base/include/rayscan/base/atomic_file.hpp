@@ -44,8 +44,8 @@ struct OutputFileError : std::runtime_error {
 /// temporary index, whose AtomicFile has a temporary of its own): output_of follows the chain.
 /// AtomicFile registers its temporary itself; this is for the intermediate files that are not an
 /// AtomicFile's (an uncompressed LAS before compression, COPC records, sort runs; TemporaryFor
-/// also marks them for removal on a signal). Empty paths register nothing. Never throws but
-/// std::bad_alloc. Movable, not copyable.
+/// also marks them for removal on a signal, IntermediateFile also removes them on the way out).
+/// Empty paths register nothing. Never throws but std::bad_alloc. Movable, not copyable.
 class TemporaryOf {
  public:
   /// Registers nothing.
@@ -82,6 +82,25 @@ class TemporaryFor {
  private:
   TemporaryOf name_;
   RemoveOnInterrupt mark_;  // declared last: released before the registration
+};
+
+/// An intermediate file `temp` written for the output `output` and never renamed into place (the
+/// uncompressed LAS that a LAZ or COPC output is made from): registered and marked while this
+/// object lives (TemporaryFor: errors about it name `output`, a signal removes it), and removed
+/// when it is destroyed, however the scope is left (an exception, a return). Make it before
+/// creating `temp`. Never throws but std::bad_alloc. Not copyable.
+class IntermediateFile {
+ public:
+  IntermediateFile(std::filesystem::path temp, const std::filesystem::path& output);
+  IntermediateFile(const IntermediateFile&) = delete;
+  IntermediateFile& operator=(const IntermediateFile&) = delete;
+  ~IntermediateFile();
+  /// The intermediate file's path.
+  [[nodiscard]] const std::filesystem::path& path() const { return temp_; }
+
+ private:
+  std::filesystem::path temp_;
+  TemporaryFor temp_for_;  // released after the destructor removed temp_
 };
 
 /// The output `file` is written for: the output of the registered temporary `file` (or of the
