@@ -9,7 +9,9 @@
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <mutex>
 #include <optional>
 #include <stdexcept>
@@ -19,11 +21,15 @@ namespace rayscan::analysis {
 
 namespace {
 
-// Collects GDAL's error messages instead of letting it print them, for the duration of a scope.
+// Collects GDAL's error messages instead of letting it print them, for the duration of a scope,
+// and keeps the first failure with the errno of the moment GDAL reported it: GDAL's file layer
+// reports a failed system call at once ("_tiffWriteProc:No space left on device", from
+// VSIStrerror(errno)), while the messages that follow from it ("TIFFRewriteDirectory:Error
+// fetching directory count", the last one) no longer carry the cause and may name the file.
 class QuietGdal {
  public:
   QuietGdal() {
-    CPLPushErrorHandler(CPLQuietErrorHandler);
+    CPLPushErrorHandlerEx(&QuietGdal::handle, this);
     CPLErrorReset();
   }
   ~QuietGdal() { CPLPopErrorHandler(); }
@@ -33,6 +39,42 @@ class QuietGdal {
     const char* m = CPLGetLastErrorMsg();
     return m && *m ? m : "GDAL reported a failure without a message";
   }
+  /// Forgets the failures so far, before a step whose own failures are checked (the close).
+  void reset() {
+    first_.reset();
+    CPLErrorReset();
+  }
+  /// Whether GDAL reported a failure since construction or reset().
+  [[nodiscard]] bool failed() const { return first_ || CPLGetLastErrorType() >= CE_Failure; }
+  /// The error of the step `what` of writing `temp` (an AtomicFile's temporary: output_error names
+  /// its output), "<output>: <what>: <cause>": the cause is the system's (strerror, the errno as
+  /// code) when GDAL's first failure reported one, as a full disk's; else GDAL's message, with
+  /// `temp` in it named as the output.
+  [[nodiscard]] OutputFileError error(const std::filesystem::path& temp, const std::string& what) const {
+    if (first_ && first_->err != 0 && first_->message.find(std::strerror(first_->err)) != std::string::npos)
+      return output_error(temp, what, first_->err);
+    std::string cause = first_ ? first_->message : last();
+    const std::string t = temp.string(), out = output_of(temp).string();
+    for (std::size_t at = cause.find(t); !t.empty() && at != std::string::npos; at = cause.find(t, at + out.size()))
+      cause.replace(at, t.size(), out);
+    return output_error(temp, what + ": " + cause, 0);
+  }
+
+ private:
+  struct Failure {
+    std::string message;
+    int err;  // errno when GDAL reported it
+  };
+  static void CPL_STDCALL handle(CPLErr type, CPLErrorNum, const char* message) {
+    const int err = errno;  // first: the failed call's, before anything here changes it
+    auto* self = static_cast<QuietGdal*>(CPLGetErrorHandlerUserData());
+    if (type < CE_Failure || self == nullptr || self->first_) return;
+    try {
+      self->first_ = Failure{message != nullptr ? message : "", err};
+    } catch (...) {  // called from C: nothing may escape (the failure still counts, by GDAL's last error)
+    }
+  }
+  std::optional<Failure> first_;
 };
 
 }  // namespace
@@ -87,9 +129,7 @@ void write_geotiff(const std::filesystem::path& path, const Raster& raster, cons
   co.SetNameValue("BLOCKXSIZE", "256");
   co.SetNameValue("BLOCKYSIZE", "256");
   co.SetNameValue("BIGTIFF", "IF_SAFER");
-  auto fail = [&](const std::string& what) {
-    throw std::runtime_error(path.string() + ": " + what + ": " + QuietGdal::last());
-  };
+  auto fail = [&](const std::string& what) { throw quiet.error(file.temp(), what); };
   GDALDataset* ds = drv->Create(tmp.c_str(), int(g.cols), int(g.rows), 1, GDT_Float32, co.List());
   if (!ds) fail("cannot create GeoTIFF");
   bool ok = true;
@@ -113,9 +153,9 @@ void write_geotiff(const std::filesystem::path& path, const Raster& raster, cons
     GDALClose(ds);
     fail("writing GeoTIFF failed");
   }
-  CPLErrorReset();
+  quiet.reset();
   GDALClose(ds);  // flushes and writes the directory
-  if (CPLGetLastErrorType() >= CE_Failure) fail("closing GeoTIFF failed");
+  if (quiet.failed()) fail("closing GeoTIFF failed");
   // GDAL keeps statistics (gdalinfo -stats, QGIS) in path.aux.xml and external overviews
   // (gdaladdo -ro) in path.ovr; describing the old raster, they would be shown for the new one, so
   // they go as GDAL's Create removes them. Before the rename: a failure or a crash in between
@@ -124,9 +164,7 @@ void write_geotiff(const std::filesystem::path& path, const Raster& raster, cons
     const std::filesystem::path stale = path.string() + sidecar;
     std::error_code ec;
     if (!std::filesystem::remove(stale, ec) && ec && ec != std::errc::no_such_file_or_directory)
-      throw OutputFileError(path.string() + ": cannot remove the old raster's " + stale.filename().string() +
-                                ": " + ec.message(),
-                            ec.value());
+      throw output_error(path, "cannot remove the old raster's " + stale.filename().string(), ec.value());
   }
   file.commit();
 }

@@ -2,6 +2,7 @@
 // GeoTIFF read back through GDAL (geotransform, CRS, NoData, values), the PNG preview, and
 // `rayscan visibility` end to end (fields in LAS/PLY, exit codes, no partial files).
 #include "../common/crs_wkt.hpp"
+#include "../common/file_size_limit.hpp"
 #include "../common/sanitizers.hpp"
 #include "../common/temp_dir.hpp"
 #include "rayscan/analysis/geotiff.hpp"
@@ -25,6 +26,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -33,6 +35,7 @@
 #include <iterator>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -501,6 +504,46 @@ TEST(GeoTiff, RewritingDropsTheOldRastersStatisticsAndOverviews) {
   EXPECT_DOUBLE_EQ(stats_mean(), 7.0);
   EXPECT_FALSE(has_temp_files(tmpdir()));
   fs::remove(aux);
+}
+
+// A GeoTIFF that cannot be written (a file-size limit: EFBIG, as a full disk gives ENOSPC) fails
+// with one OutputFileError "<output>: <what>: <the system's cause>" whose code() is the errno,
+// whatever GDAL said last (at 100 bytes "TIFFRewriteDirectory:Error fetching directory count",
+// which has no cause; at 64 KiB a tile's failed write). The old file is kept and no temporary
+// left. Oracle: strerror of the errno the limit gives.
+TEST(GeoTiff, AFailedWriteNamesTheOutputAndTheSystemsCause) {
+  GridSpec g;
+  g.cols = 512;
+  g.rows = 512;
+  g.cell = 1;
+  Raster r{g, std::vector<float>(std::size_t(g.cols) * g.rows), "noise"};
+  std::uint32_t seed = 1;
+  for (float& v : r.values) v = float((seed = seed * 1664525u + 1013904223u) >> 8);  // incompressible
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_geotiff_fail"), out = dir / "n.tif";
+  for (const rlim_t limit : {rlim_t{100}, rlim_t{4096}, rlim_t{64 << 10}}) {
+    SCOPED_TRACE(limit);
+    std::ofstream(out) << "OLD";
+    int code = 0;
+    const std::string error = rayscan::test::error_within_file_size(limit, [&] {
+      try {
+        write_geotiff(out, r, GeoTiffOptions{});
+      } catch (const OutputFileError& e) {
+        code = e.code().value();
+        throw;
+      }
+    });
+    EXPECT_EQ(code, EFBIG) << error;
+    EXPECT_EQ(error.rfind(out.string() + ": ", 0), 0u) << error;
+    const std::string cause = std::string(": ") + std::strerror(EFBIG);
+    EXPECT_TRUE(error.size() > cause.size() && error.compare(error.size() - cause.size(), cause.size(), cause) == 0)
+        << error;
+    EXPECT_EQ(error.find(".tmp."), std::string::npos) << error;
+    EXPECT_EQ(error.find('\n'), std::string::npos) << error;
+    std::ifstream f(out);
+    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(f), {}), "OLD");
+    EXPECT_EQ(rayscan::test::entry_names(dir), std::set<std::string>{"n.tif"});
+  }
+  fs::remove_all(dir);
 }
 
 // A constant map (lo == hi: an all-zero map of a polar night) is drawn in the colour its legend

@@ -57,8 +57,11 @@ std::string crs_height_unit(const std::string& crs_wkt);
 /// sibling "<path>.tmp.<pid>" and renamed into place, so a failure never leaves a partial file;
 /// an old raster's GDAL sidecars "<path>.aux.xml" (statistics) and "<path>.ovr" (overviews) are
 /// removed first, as GDAL's Create does (an OutputFileError when that fails).
-/// Throws std::runtime_error "<path>: <GDAL's message>" on failure, std::invalid_argument
-/// "crs: ..." when the WKT cannot be parsed.
+/// Throws OutputFileError "<path>: <what>: <cause>" (rayscan/base/atomic_file.hpp) when the file
+/// cannot be created, written or closed: the cause is the system's, with its errno as code()
+/// (ENOSPC for a full disk), where GDAL reported a failed system call, else GDAL's message;
+/// std::runtime_error when GDAL has no GTiff driver, std::invalid_argument "crs: ..." when the
+/// WKT cannot be parsed.
 void write_geotiff(const std::filesystem::path& path, const Raster& raster, const GeoTiffOptions& options);
 
 /// The file name extensions of a GeoTIFF output, lower case with the dot: {".tif", ".tiff"} (for
