@@ -202,16 +202,18 @@ LasHeader parse_las_header(const Input& in) {
   return h;
 }
 
+std::string las_coordinate_source(std::int32_t stored, double scale, double offset) {
+  return "stored integer " + std::to_string(stored) + " x scale " + shortest_text(scale) + " + offset " +
+         shortest_text(offset);
+}
+
 void refuse_las_coordinate(const std::string& name, std::uint64_t byte, std::uint64_t index, const std::uint8_t* r,
                            const Vec3& scale, const Vec3& offset) {
   for (int k = 0; k < 3; ++k) {
     const std::int32_t stored = load_le<std::int32_t>(r + 4 * k);
     const double v = las_coordinate(stored, scale[k], offset[k]);
     if (std::abs(v) <= kMaxCoordinate) continue;
-    fail_at(name, byte,
-            beyond_coordinate_bound(index, k, v,
-                                    "stored integer " + std::to_string(stored) + " x scale " + shortest_text(scale[k]) +
-                                        " + offset " + shortest_text(offset[k])));
+    fail_at(name, byte, beyond_coordinate_bound(index, k, v, las_coordinate_source(stored, scale[k], offset[k])));
   }
   // Not reached from a caller that decoded the record with las_coordinate (no FP contraction).
   fail_at(name, byte, "point " + std::to_string(index) + ": coordinate beyond +-" + shortest_text(kMaxCoordinate));

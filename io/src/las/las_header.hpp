@@ -70,6 +70,11 @@ struct LasHeader {
 /// not checked against the file size here (LAZ bounds it by its chunk table).
 LasHeader parse_las_header(const Input& in);
 
+/// How a LAS point record gives a coordinate, as the refusals of one beyond +-kMaxCoordinate name
+/// it (beyond_coordinate_bound's `source`; the reader's refuse_las_coordinate, the writer's own):
+/// "stored integer I x scale S + offset O".
+[[nodiscard]] std::string las_coordinate_source(std::int32_t stored, double scale, double offset);
+
 /// The refusal of a point record whose coordinates decode beyond +-kMaxCoordinate, shared by the
 /// LAS/LAZ reader and COPC queried in place so that both name a point alike. `r` is the record
 /// (X, Y, Z int32 at bytes 0, 4, 8, as in every PDRF), `index` the point's 0-based number in file

@@ -319,12 +319,11 @@ struct LasRecordWriter {
         const std::int32_t q = quantise(cloud.positions[i][k], k, i);
         const double v = las_coordinate(q, scale[k], offset[k]);  // the readers' expression
         if (!(std::abs(v) <= kMaxCoordinate))
-          throw std::invalid_argument(
-              path.string() + ": " +
-              detail::beyond_coordinate_bound(i, k, v,
-                                              "stored integer " + std::to_string(q) + " x scale " +
-                                                  shortest_text(scale[k]) + " + offset " + shortest_text(offset[k]) +
-                                                  ", from " + shortest_text(cloud.positions[i][k])));
+          throw std::invalid_argument(path.string() + ": " +
+                                      detail::beyond_coordinate_bound(
+                                          i, k, v,
+                                          detail::las_coordinate_source(q, scale[k], offset[k]) + ", from " +
+                                              shortest_text(cloud.positions[i][k])));
         qlo[k] = std::min(qlo[k], v);
         qhi[k] = std::max(qhi[k], v);
       }
