@@ -69,7 +69,6 @@ void check_attribute_names(const std::vector<std::string>& names, bool pcpatch) 
   // SQL names are case-insensitive: PostgreSQL folds an unquoted name to lower case and SQLite
   // compares names without case, so "GpsTime" and "gpstime", or "X" and the built-in x, would be
   // one column (the database's own error, or two attributes merged).
-  const auto folded = folded_sql_name;
   struct Taken {
     std::string folded, column, attribute;  // attribute empty: a built-in column
   };
@@ -84,7 +83,7 @@ void check_attribute_names(const std::vector<std::string>& names, bool pcpatch) 
     const std::vector<std::string> columns =
         n == "rgb" ? std::vector<std::string>{"red", "green", "blue"} : std::vector<std::string>{n};
     for (const std::string& col : columns) {
-      const std::string f = folded(col);
+      const std::string f = folded_sql_name(col);
       for (const Taken& t : taken) {
         if (t.folded != f) continue;
         if (t.attribute == n) throw std::invalid_argument("attribute '" + n + "' is asked twice");
