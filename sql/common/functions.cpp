@@ -157,6 +157,20 @@ extern "C" const char* rs_check_direction(const char* fn, int normal, const doub
   return err;
 }
 
+extern "C" const char* rs_check_plane(const char* fn, const double p[3], const double n[3],
+                                      char err[RS_ERRBUF]) {
+  static const char* names[6] = {"px", "py", "pz", "nx", "ny", "nz"};
+  for (int i = 0; i < 6; ++i) {
+    const double v = i < 3 ? p[i] : n[i - 3];
+    if (!std::isfinite(v)) {
+      std::snprintf(err, RS_ERRBUF, "%s: %s is %s; expected a finite number", fn, names[i],
+                    std::isnan(v) ? "NaN" : "infinite");
+      return err;
+    }
+  }
+  return rs_check_direction(fn, 1, n, err);
+}
+
 extern "C" const char* rs_check_ray(const char* fn, const double o[3], const double d[3], double r,
                                     double t_min, double t_max, char err[RS_ERRBUF]) {
   static const char* names[6] = {"ox", "oy", "oz", "dx", "dy", "dz"};

@@ -279,16 +279,11 @@ Datum rs_point_box(PG_FUNCTION_ARGS) {
   PG_RETURN_POINTER(b);
 }
 
-/* `fn` as check_ray's: plane_below(...) or the text input of rs_plane. */
+/* `fn` as check_ray's: plane_below(...) or the text input of rs_plane. The bad value is named
+ * (rs_check_plane), as SQLite's plane_prune names it. */
 static void check_plane(const RsPlane* h, const char* fn) {
   char err[RS_ERRBUF];
-  const char* e;
-  int i;
-  for (i = 0; i < 3; ++i)
-    if (!isfinite(h->p[i]) || !isfinite(h->n[i]))
-      ereport(ERROR, (errcode(ERRCODE_INVALID_PARAMETER_VALUE),
-                      errmsg("%s: a coordinate is NaN or infinite; expected finite numbers", fn)));
-  e = rs_check_direction(fn, 1, h->n, err);
+  const char* e = rs_check_plane(fn, h->p, h->n, err);
   if (e) raise(e);
 }
 PG_FUNCTION_INFO_V1(rs_plane_in);

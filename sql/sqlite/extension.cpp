@@ -9,10 +9,13 @@
 //     boxes (prune / fully inside / partly inside), rScore = the lower bound (nearest first);
 //   * the table-valued function ray_query(ox,oy,oz, dx,dy,dz, k, r, t_min, t_max, ord): kNN to
 //     (ord 'ray') or along (ord 'time') the ray over the chunks, nearest chunk first, with the
-//     paper's dynamic k filter (Algorithm 1, step 2); the same rows as `rayscan query`;
+//     paper's dynamic k filter (Algorithm 1, step 2); the same rows as `rayscan query`; a
+//     query's LIMIT (+ OFFSET) bounds the hits kept as k does when nothing can reorder or drop
+//     rows after it (vt_best_index);
 //   * rayscan_stats(): JSON counters of the connection's last ray_query;
-//   * rayscan_error(): the reason of the connection's last ray_prune / plane_prune failure (the
-//     R*Tree API lets a callback return only an error code: SQLite says "SQL logic error").
+//   * rayscan_error(): the reason of the connection's last ray_prune / plane_prune failure, NULL
+//     once a later MATCH's arguments pass (the R*Tree API lets a callback return only an error
+//     code: SQLite says "SQL logic error").
 // Values come from the core through rayscan/sql/functions.h, so they equal `rayscan query` and the
 // PostgreSQL extension to the last bit.
 #include <sqlite3ext.h>
@@ -109,9 +112,6 @@ double param(const sqlite3_rtree_query_info* p, int i, double dflt) {
   return p->aParam[i];
 }
 
-// State of one connection: the counters of its last ray_query (rayscan_stats()) and the reason
-// of its last R*Tree callback failure (rayscan_error()). Owned by the ray_query module (freed
-// when the connection closes).
 // Counters of the last ray_query on a connection (rayscan_stats()).
 struct Stats {
   long long chunks_total = 0;      // rows of `chunks`
@@ -120,9 +120,12 @@ struct Stats {
   long long points_tested = 0;
 };
 
+// State of one connection: the counters of its last ray_query (rayscan_stats()) and the reason
+// its last checked R*Tree callback failed (rayscan_error()). Owned by the ray_query module (freed
+// when the connection closes).
 struct Conn {
   Stats stats;              ///< ray_query's counters
-  std::string prune_error;  ///< one line; "" when no callback has failed
+  std::string prune_error;  ///< one line; "" when no callback has failed since the last that passed
 };
 
 // Fails an R*Tree query callback with `msg`. SQLite's R*Tree API carries only an error code out
@@ -156,9 +159,12 @@ const char* check_prune_params(const sqlite3_rtree_query_info* p, const char* fn
 
 // The arguments of a MATCH are the same on every R*Tree node of one query: a callback checks them
 // on its first call and then marks the query's pUser (per query, zeroed by SQLite; nothing to free).
+// Arguments that pass clear the connection's failure reason, so that rayscan_error() never
+// explains a later, unrelated error with an earlier MATCH's.
 bool checked(const sqlite3_rtree_query_info* p) { return p->pUser != nullptr; }
 void mark_checked(sqlite3_rtree_query_info* p) {
   static char mark;
+  static_cast<Conn*>(p->pContext)->prune_error.clear();
   p->pUser = &mark;
   p->xDelUser = nullptr;
 }
@@ -201,14 +207,7 @@ int plane_prune(sqlite3_rtree_query_info* p) {
       return prune_fail(p, "plane_prune: the R*Tree is not 3-dimensional; expected `rayscan db import`'s "
                            "chunks(id, min_x, max_x, ...)");
     if (const char* e = check_prune_params(p, "plane_prune", names, 6, 6, 6, err)) return prune_fail(p, e);
-    for (int i = 0; i < 6; ++i)
-      if (!std::isfinite(p->aParam[i])) {
-        std::snprintf(err, RS_ERRBUF, "plane_prune: %s is %s; expected a finite number", names[i],
-                      std::isnan(p->aParam[i]) ? "NaN" : "infinite");
-        return prune_fail(p, err);
-      }
-    const double n[3] = {p->aParam[3], p->aParam[4], p->aParam[5]};
-    if (const char* e = rs_check_direction("plane_prune", 1, n, err)) return prune_fail(p, e);
+    if (const char* e = rs_check_plane("plane_prune", p->aParam, p->aParam + 3, err)) return prune_fail(p, e);
     mark_checked(p);
   }
   rtree_box(p, box);
@@ -291,14 +290,75 @@ int vt_disconnect(sqlite3_vtab* v) {
   return SQLITE_OK;
 }
 
-// Every usable equality constraint on a hidden argument column becomes an xFilter argument; the
-// bitmask of present arguments is idxNum.
-int vt_best_index(sqlite3_vtab*, sqlite3_index_info* info) {
+// Sets the vtab's error message (SQLite reports it for the statement); returns SQLITE_ERROR.
+int vt_error(sqlite3_vtab* v, const std::string& msg) {
+  sqlite3_free(v->zErrMsg);
+  v->zErrMsg = sqlite3_mprintf("%s", msg.c_str());
+  return SQLITE_ERROR;
+}
+
+// idxNum: bit a (< kNumArgs) is set when argument a (kArgNames) is an xFilter argument; these two
+// when the query's LIMIT and OFFSET follow the arguments, in that order.
+constexpr int kArgMask = (1 << kNumArgs) - 1;
+constexpr int kLimitBit = 1 << kNumArgs;
+constexpr int kOffsetBit = 1 << (kNumArgs + 1);
+
+/// The key ray_query orders its rows by, as far as the plan can tell: the column of the ord
+/// argument's key (kDistance for 'ray', absent or NULL; kT for 'time'), or -1 when its value is
+/// not known before xFilter (a bound parameter, an expression) or is not one of those.
+int planned_key_column(sqlite3_index_info* info, int ord_constraint) {
+  if (ord_constraint < 0) return kDistance;
+  // sqlite3_vtab_rhs_value: SQLite 3.38 and later (older ones pass no LIMIT either).
+  sqlite3_value* v = nullptr;
+  if (sqlite3_libversion_number() < 3038000 || sqlite3_vtab_rhs_value(info, ord_constraint, &v) != SQLITE_OK || !v)
+    return -1;
+  if (sqlite3_value_type(v) == SQLITE_NULL) return kDistance;
+  const char* s = reinterpret_cast<const char*>(sqlite3_value_text(v));
+  if (sqlite3_value_type(v) != SQLITE_TEXT || !s) return -1;
+  return std::strcmp(s, "ray") == 0 ? kDistance : std::strcmp(s, "time") == 0 ? kT : -1;
+}
+
+/// Whether the rows already come out in the ORDER BY's order. They are sorted by (key, source,
+/// point_index) (hit_less), and rank counts them in that order, so an ascending ORDER BY rank, or
+/// one that starts as that sequence, is consumed; (source, point_index) and rank are unique, so
+/// terms after them change nothing. `key`: planned_key_column.
+bool order_by_consumed(const sqlite3_index_info* info, int key) {
+  const int sequence[3] = {key, kSource, kPointIndex};
+  for (int i = 0; i < info->nOrderBy; ++i) {
+    const auto& o = info->aOrderBy[i];
+    if (o.desc) return false;
+    if (i == 0 && o.iColumn == kRank) return true;
+    if (sequence[i] < 0 || o.iColumn != sequence[i]) return false;
+    if (i == 2) return true;
+  }
+  return true;
+}
+
+// Every usable equality constraint on a hidden argument column becomes an xFilter argument; any
+// other condition on one is an error (its column holds no value, so it would silently match no
+// row). The query's LIMIT (+ OFFSET) becomes one too when no row can be dropped or reordered after
+// ray_query returns it: no condition on a result column and no ORDER BY other than the rows' own
+// order (SQLite 3.40 offers LIMIT in both cases). It bounds the hits kept (a k), while SQLite
+// still applies it (omit 0). idxNum: the bits above.
+int vt_best_index(sqlite3_vtab* tab, sqlite3_index_info* info) {
   int slot[kNumArgs];
   std::fill(slot, slot + kNumArgs, -1);
+  int limit = -1, offset = -1;
+  bool row_condition = false;  // a condition SQLite checks on the rows ray_query returns
   for (int i = 0; i < info->nConstraint; ++i) {
     const auto& c = info->aConstraint[i];
-    if (c.iColumn < kFirstArg || c.op != SQLITE_INDEX_CONSTRAINT_EQ) continue;
+    if (c.op == SQLITE_INDEX_CONSTRAINT_LIMIT || c.op == SQLITE_INDEX_CONSTRAINT_OFFSET) {
+      if (c.usable) (c.op == SQLITE_INDEX_CONSTRAINT_LIMIT ? limit : offset) = i;
+      continue;
+    }
+    if (c.iColumn < kFirstArg) {
+      row_condition = true;
+      continue;
+    }
+    const char* name = kArgNames[c.iColumn - kFirstArg];
+    if (c.op != SQLITE_INDEX_CONSTRAINT_EQ)
+      return vt_error(tab, std::string("ray_query: ") + name + " must be given as an argument (or " + name +
+                               " = value); expected no other condition on it");
     if (!c.usable) return SQLITE_CONSTRAINT;  // arguments must be available: ask for another plan
     slot[c.iColumn - kFirstArg] = i;
   }
@@ -309,11 +369,18 @@ int vt_best_index(sqlite3_vtab*, sqlite3_index_info* info) {
       info->aConstraintUsage[slot[a]].argvIndex = ++argv;
       info->aConstraintUsage[slot[a]].omit = 1;
     }
+  const bool ordered = info->nOrderBy > 0 && order_by_consumed(info, planned_key_column(info, slot[kOrd - kFirstArg]));
+  if (ordered) info->orderByConsumed = 1;
+  if (limit >= 0 && !row_condition && (info->nOrderBy == 0 || ordered)) {
+    mask |= kLimitBit;
+    info->aConstraintUsage[limit].argvIndex = ++argv;
+    if (offset >= 0) {
+      mask |= kOffsetBit;
+      info->aConstraintUsage[offset].argvIndex = ++argv;
+    }
+  }
   info->idxNum = mask;
   info->estimatedCost = 1000;
-  // Rows come out ordered by (key, source, point_index) and rank; tell the planner for rank.
-  if (info->nOrderBy == 1 && info->aOrderBy[0].iColumn == kRank && !info->aOrderBy[0].desc)
-    info->orderByConsumed = 1;
   return SQLITE_OK;
 }
 
@@ -325,12 +392,6 @@ int vt_open(sqlite3_vtab*, sqlite3_vtab_cursor** out) {
 int vt_close(sqlite3_vtab_cursor* c) {
   delete reinterpret_cast<Cursor*>(c);
   return SQLITE_OK;
-}
-
-int vt_error(sqlite3_vtab* v, const std::string& msg) {
-  sqlite3_free(v->zErrMsg);
-  v->zErrMsg = sqlite3_mprintf("%s", msg.c_str());
-  return SQLITE_ERROR;
 }
 
 struct Stmt {
@@ -387,13 +448,14 @@ struct Args {
   double o3[3] = {}, d3[3] = {};  ///< ray origin and direction (world units; d not unit length)
   double r = kInf, t_min = -kInf, t_max = kInf;
   bool time_order = false;   ///< ord 'time': kNN along the ray (else kNN to the ray)
-  bool bounded = false;      ///< k given: keep the k best hits (else every hit)
+  bool bounded = false;      ///< k or a LIMIT given: keep the k best hits (else every hit)
   std::size_t k = std::size_t(-1);
   bool null_ray = false;     ///< a ray argument is NULL: no rows (NULL in, NULL out)
 };
 
 /// Reads xFilter's arguments (present ones flagged in `mask`, vt_best_index) into `out`, in
-/// argument order so that the first bad argument is the one reported. Returns SQLITE_OK, or
+/// argument order so that the first bad argument is the one reported; k becomes the smaller of k
+/// and the query's LIMIT + OFFSET when the plan passed them. Returns SQLITE_OK, or
 /// SQLITE_ERROR with the vtab's error message set: a missing ray argument, a non-number, k not an
 /// integer >= 0, ord not 'ray'/'time', or a ray rs_check_ray rejects.
 int parse_ray_query_args(VTab* vt, int mask, int argc, sqlite3_value** argv, Args& out) {
@@ -434,6 +496,22 @@ int parse_ray_query_args(VTab* vt, int mask, int argc, sqlite3_value** argv, Arg
       if (t != SQLITE_INTEGER || sqlite3_value_int64(v) < 0)
         return vt_error(&vt->base, "ray_query: k must be an integer >= 0 (NULL: all points)");
       kval = sqlite3_value_int64(v);
+    }
+  }
+  // The query's LIMIT and OFFSET (vt_best_index): SQLite returns no row past LIMIT + OFFSET, so
+  // only that many hits need be kept. As SQLite reads them: a negative LIMIT is none, a negative
+  // OFFSET is 0.
+  if (mask & kLimitBit) {
+    const int at = __builtin_popcount(static_cast<unsigned>(mask & kArgMask));
+    const auto count = [&](int i) -> long long {
+      const bool integer = i < argc && sqlite3_value_type(argv[i]) == SQLITE_INTEGER;
+      return integer ? sqlite3_value_int64(argv[i]) : -1;
+    };
+    const long long limit = count(at), skip = mask & kOffsetBit ? std::max(0LL, count(at + 1)) : 0;
+    if (limit >= 0) {
+      constexpr long long kMax = std::numeric_limits<long long>::max();
+      const long long rows = limit > kMax - skip ? kMax : limit + skip;
+      if (kval < 0 || rows < kval) kval = rows;
     }
   }
   for (int i = 0; i < 3; ++i) out.o3[i] = a[i], out.d3[i] = a[i + 3];
@@ -679,8 +757,8 @@ sqlite3_module make_module() {
 }
 const sqlite3_module kModule = make_module();
 
-// rayscan_error(): why the connection's most recent ray_prune / plane_prune call failed (SQLite
-// reports only "SQL logic error" for it), or NULL when none has.
+// rayscan_error(): why the connection's most recent ray_prune / plane_prune check failed (SQLite
+// reports only "SQL logic error" for it), or NULL when none has or a later one passed.
 void error_fn(sqlite3_context* ctx, int, sqlite3_value**) {
   const Conn* c = static_cast<const Conn*>(sqlite3_user_data(ctx));
   if (c->prune_error.empty()) return sqlite3_result_null(ctx);

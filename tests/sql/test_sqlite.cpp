@@ -325,6 +325,134 @@ TEST_P(SqliteScan, FrustumWithPlanePruningEqualsBruteForce) {
   EXPECT_FALSE(want.empty());
 }
 
+/// A double as SQL text that reads back as the same double.
+std::string sql_number(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.17g", v);
+  return b;
+}
+
+/// The first n values of v.
+std::vector<double> head_values(std::vector<double> v, std::size_t n) {
+  if (v.size() > n) v.resize(n);
+  return v;
+}
+
+/// The chunks the connection's last ray_query read (rayscan_stats()).
+long long chunks_visited(sqlite3* db) {
+  Stmt st(db, "SELECT json_extract(rayscan_stats(), '$.chunks_visited')");
+  EXPECT_TRUE(st.step());
+  return st.i64(0);
+}
+
+/// A row of ray_query as the LIMIT test reads it.
+struct LimitRow {
+  long long point_index;
+  double x, z, t, distance;
+  bool operator==(const LimitRow& o) const {
+    return point_index == o.point_index && x == o.x && z == o.z && t == o.t && distance == o.distance;
+  }
+};
+
+// A query's LIMIT (+ OFFSET) bounds the hits ray_query keeps, as its k does, where nothing can
+// drop or reorder rows after it: its rows are the first rows of the unlimited query and of the
+// brute-force oracle, and LIMIT 10 reads the chunks k = 10 reads (fewer than the unlimited query).
+// Where a condition or another order comes after it (WHERE on a column, ORDER BY another column,
+// DESC, an expression, an ord only known when the statement runs), SQLite's rows are still the
+// oracle's: the limit then must not cut the hits.
+TEST_P(SqliteScan, LimitBoundsTheHitsKeptAndKeepsTheUnlimitedQuerysFirstRows) {
+  Db db(s_->db);
+  const BruteForceIndex brute(s_->cloud);
+  const auto rows_of = [&](const std::string& sql, const char* ord_param = nullptr) {
+    Stmt st(db.db, "SELECT point_index, x, z, t, distance FROM " + sql);
+    if (ord_param) sqlite3_bind_text(st.s, 1, ord_param, -1, SQLITE_STATIC);
+    std::vector<LimitRow> out;
+    while (st.step()) out.push_back({st.i64(0), st.d(1), st.d(2), st.d(3), st.d(4)});
+    return out;
+  };
+  const auto column = [](const std::vector<LimitRow>& rows, double LimitRow::*c) {
+    std::vector<double> v;
+    for (const LimitRow& r : rows) v.push_back(r.*c);
+    return v;
+  };
+  const auto sorted = [](std::vector<double> v, bool descending = false) {
+    std::sort(v.begin(), v.end());
+    if (descending) std::reverse(v.begin(), v.end());
+    return v;
+  };
+  const auto head = [](std::vector<LimitRow> v, std::size_t skip, std::size_t n) {
+    v.erase(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(std::min(skip, v.size())));
+    if (v.size() > n) v.resize(n);
+    return v;
+  };
+  for (std::size_t ri = 0; ri < 3; ++ri) {
+    const Ray& ray = s_->rays[ri];
+    const Vec3 o = ray.origin(), d = ray.direction();
+    std::string ray_args;
+    for (int i = 0; i < 6; ++i) ray_args += (i ? "," : "") + sql_number(i < 3 ? o[i] : d[i - 3]);
+    const double r = 20 * s_->r;
+    for (const std::string ord : {"ray", "time"}) {
+      RayQuery q;
+      q.radius = r;
+      q.order = ord == "time" ? RayOrder::time : RayOrder::ray;
+      std::vector<LimitRow> want;
+      for (const RayHit& h : ray_query(brute, Ray(o, d), q)) {
+        const Vec3& p = s_->cloud.positions[h.index];
+        want.push_back({(long long)h.index, p.x, p.z, h.t, h.distance});
+      }
+      ASSERT_GT(want.size(), 20u) << ord;
+      const std::string call = "ray_query(" + ray_args + ", NULL, " + sql_number(r) + ", NULL, NULL, '" + ord + "')";
+      const std::string key = ord == "time" ? "t" : "distance";
+      const std::vector<LimitRow> all = rows_of(call);
+      const long long unlimited_chunks = chunks_visited(db.db);
+      ASSERT_EQ(all, want) << ord;
+      // Pushed: no order, the rows' own order (rank, or key, source, point_index), with OFFSET.
+      EXPECT_EQ(rows_of(call + " LIMIT 7"), head(want, 0, 7)) << ord;
+      if (ord == "ray") {
+        EXPECT_LT(chunks_visited(db.db), unlimited_chunks);  // nearest chunk first: it stops early
+      } else {
+        EXPECT_LE(chunks_visited(db.db), unlimited_chunks);
+      }
+      EXPECT_EQ(rows_of(call + " LIMIT 7 OFFSET 5"), head(want, 5, 7)) << ord;
+      EXPECT_EQ(rows_of(call + " ORDER BY rank LIMIT 7"), head(want, 0, 7)) << ord;
+      EXPECT_EQ(rows_of(call + " ORDER BY " + key + " LIMIT 7"), head(want, 0, 7)) << ord;
+      EXPECT_EQ(rows_of(call + " ORDER BY " + key + ", source, point_index LIMIT 7 OFFSET 3"), head(want, 3, 7)) << ord;
+      EXPECT_EQ(rows_of(call + " LIMIT -1"), want) << ord;
+      EXPECT_TRUE(rows_of(call + " LIMIT 0").empty()) << ord;
+      // Not pushed: the rows SQLite keeps are the oracle's.
+      const double z_mid = sorted(column(want, &LimitRow::z))[want.size() / 2];
+      std::vector<LimitRow> above;
+      for (const LimitRow& w : want)
+        if (w.z > z_mid) above.push_back(w);
+      EXPECT_EQ(rows_of(call + " WHERE z > " + sql_number(z_mid) + " LIMIT 7"), head(above, 0, 7)) << ord;
+      EXPECT_EQ(column(rows_of(call + " ORDER BY x LIMIT 7"), &LimitRow::x),
+                head_values(sorted(column(want, &LimitRow::x)), 7)) << ord;
+      EXPECT_EQ(column(rows_of(call + " ORDER BY x * 1 LIMIT 7"), &LimitRow::x),
+                head_values(sorted(column(want, &LimitRow::x)), 7)) << ord;
+      EXPECT_EQ(column(rows_of(call + " ORDER BY " + key + " DESC LIMIT 7"), key == "t" ? &LimitRow::t : &LimitRow::distance),
+                head_values(sorted(column(want, key == "t" ? &LimitRow::t : &LimitRow::distance), true), 7)) << ord;
+      const std::string other = ord == "time" ? "distance" : "t";
+      EXPECT_EQ(column(rows_of(call + " ORDER BY " + other + " LIMIT 7"), other == "t" ? &LimitRow::t : &LimitRow::distance),
+                head_values(sorted(column(want, other == "t" ? &LimitRow::t : &LimitRow::distance)), 7)) << ord;
+      // ord as a parameter: unknown when the plan is made, so ORDER BY distance is SQLite's sort.
+      const std::string param_call = "ray_query(" + ray_args + ", NULL, " + sql_number(r) + ", NULL, NULL, ?1)";
+      EXPECT_EQ(column(rows_of(param_call + " ORDER BY distance LIMIT 7", ord.c_str()), &LimitRow::distance),
+                head_values(sorted(column(want, &LimitRow::distance)), 7)) << ord;
+    }
+    // Unbounded radius: LIMIT 10 is k = 10, chunk for chunk.
+    const std::string knn = "ray_query(" + ray_args + ")";
+    const std::vector<LimitRow> limited = rows_of(knn + " LIMIT 10");
+    const long long limited_chunks = chunks_visited(db.db);
+    EXPECT_EQ(limited, rows_of("ray_query(" + ray_args + ", 10)"));
+    EXPECT_EQ(limited_chunks, chunks_visited(db.db));
+    Stmt total(db.db, "SELECT count(*) FROM chunks");
+    ASSERT_TRUE(total.step());
+    EXPECT_LT(limited_chunks, total.i64(0));
+    // With k, the smaller bound: LIMIT 3 of k = 10 is the first 3 of k = 10's rows.
+    EXPECT_EQ(rows_of("ray_query(" + ray_args + ", 10) LIMIT 3"), head(limited, 0, 3));
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Scans, SqliteScan, ::testing::ValuesIn(scan_names()),
                          [](const auto& i) { return i.param; });
 
@@ -781,6 +909,50 @@ TEST(SqliteFunctions, PruneCallbackErrorsKeepTheirReason) {
   EXPECT_EQ(reason(m + "plane_prune(0,0,0, 0,0,x'01')"), "plane_prune: argument nz is a blob; expected a number");
   // NULL r, t_min, t_max keep their defaults (unbounded), as documented.
   EXPECT_EQ(error_of(db.db, m + "ray_prune(636500,849000,600, 0,0,-1, NULL, NULL, NULL)"), "");
+}
+
+// rayscan_error() explains the last MATCH whose arguments were checked: a later MATCH (or a
+// ray_query, which runs one) that passes clears it, so an unrelated later error is not explained
+// by an old reason. The bad value of a plane is named, as PostgreSQL's plane_below names it.
+TEST(SqliteFunctions, PruneErrorIsClearedByALaterMatchThatPasses) {
+  Db db(site("autzen")->db);
+  const auto error = [&] {
+    Stmt st(db.db, "SELECT rayscan_error()");
+    EXPECT_TRUE(st.step());
+    const auto* t = sqlite3_column_text(st.s, 0);
+    return t ? std::string(reinterpret_cast<const char*>(t)) : std::string("(null)");
+  };
+  const std::string m = "SELECT id FROM chunks WHERE id MATCH ";
+  EXPECT_NE(error_of(db.db, m + "plane_prune(0,0,0, 1e999,0,1)"), "");
+  EXPECT_EQ(error(), "plane_prune: nx is infinite; expected a finite number");
+  EXPECT_EQ(error_of(db.db, m + "plane_prune(636300,849000,0, 1,0,0)"), "");
+  EXPECT_EQ(error(), "(null)");
+  EXPECT_NE(error_of(db.db, m + "ray_prune(0,0,0, 0,0,0, 1)"), "");
+  EXPECT_EQ(error(), "ray_prune: direction (dx,dy,dz) is zero; expected a non-zero vector");
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(636500,849200,600, 0,0,-1, 3)"), "");
+  EXPECT_EQ(error(), "(null)");
+}
+
+// ray_query's arguments are its hidden columns, which hold no value in its rows: a condition other
+// than = on one would be checked against NULL and silently match nothing, so it is an error naming
+// the argument. The same argument given with = is an argument like a positional one (the oracle:
+// the positional call's rows).
+TEST(SqliteFunctions, OtherConditionsOnRayQueryArgumentsAreErrors) {
+  Db db(site("autzen")->db);
+  const std::string ray = "ox = 636500 AND oy = 849200 AND oz = 600 AND dx = 0 AND dy = 0 AND dz = -1";
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query WHERE " + ray + " AND r < 2"),
+            "ray_query: r must be given as an argument (or r = value); expected no other condition on it");
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(636500,849200,600, 0,0,-1, 5) WHERE k > 3"),
+            "ray_query: k must be given as an argument (or k = value); expected no other condition on it");
+  EXPECT_EQ(error_of(db.db, "SELECT * FROM ray_query(636500,849200,600, 0,0,-1, 5) WHERE ord LIKE 'r%'"),
+            "ray_query: ord must be given as an argument (or ord = value); expected no other condition on it");
+  Stmt named(db.db, "SELECT count(*), sum(point_index) FROM ray_query WHERE " + ray + " AND r = 2");
+  Stmt positional(db.db, "SELECT count(*), sum(point_index) FROM ray_query(636500,849200,600, 0,0,-1, NULL, 2)");
+  ASSERT_TRUE(named.step());
+  ASSERT_TRUE(positional.step());
+  EXPECT_GT(positional.i64(0), 0);
+  EXPECT_EQ(named.i64(0), positional.i64(0));
+  EXPECT_EQ(named.i64(1), positional.i64(1));
 }
 
 // An attribute named like a column the engine reserves (a PLY property "rowid") would be SQLite's

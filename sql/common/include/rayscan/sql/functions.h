@@ -85,6 +85,12 @@ const char* rs_parse_tuple(const char* s, double* v, int n, const char* type, co
  * NULL when valid. */
 const char* rs_check_direction(const char* fn, int normal, const double v[3], char err[RS_ERRBUF]);
 
+/** Checks a plane's point p and normal n (dist_plane's first six arguments, the half-space of
+ * SQLite's plane_prune and PostgreSQL's plane_below / rs_plane): each value finite, named as the
+ * functions name them ("plane_below: pz is NaN; expected a finite number"), then the normal under
+ * rs_check_direction. `fn` names the SQL function or type in the message. NULL when valid. */
+const char* rs_check_plane(const char* fn, const double p[3], const double n[3], char err[RS_ERRBUF]);
+
 /** Checks query arguments: origin and direction finite, direction valid (rs_check_direction), r >= 0 and not NaN,
  * t_min <= t_max, neither NaN. `fn` names the SQL function in the message. NULL when valid. */
 const char* rs_check_ray(const char* fn, const double o[3], const double d[3], double r,
