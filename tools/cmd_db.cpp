@@ -42,6 +42,7 @@ int run_import(const DbImportOptions& o) {
   job.progress = progress;
   const jobs::DbImportJobResult s = jobs::run_db_import(job);
   progress.finish();
+  for (const std::string& w : s.warnings) std::cerr << "rayscan db: warning: " << w << "\n";
   // What was written, on stdout as `index` and `translate` report theirs; --json as the commands
   // with a report give it.
   if (o.json) {

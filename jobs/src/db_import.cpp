@@ -2,12 +2,17 @@
 // import into SQLite or PostgreSQL.
 #include "rayscan/jobs/db_import.hpp"
 
+#include "rayscan/analysis/site_location.hpp"
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/option_error.hpp"
+#include "rayscan/io/crs.hpp"
 #include "rayscan/sql/import.hpp"
 
+#include <ogr_spatialref.h>
+
+#include <algorithm>
 #include <stdexcept>
 
 namespace rayscan::jobs {
@@ -35,6 +40,31 @@ sql::ImportOptions import_options(const DbImportJobOptions& o) {
   return opt;
 }
 
+/// The SQL functions take x, y and z as lengths in one unit of a frame with z up (dist_ray, a
+/// radius, ray_time's t): in a geographic CRS x and y are degrees beside heights in metres, in a
+/// geocentric one z is not up, so the values mix units or axes. One warning per such CRS (the
+/// inputs of one index share theirs), naming its first source and the CRS (its name as GDAL reads
+/// it, and its EPSG code where io identifies one), with the wording of the analyses' refusal
+/// (analysis::refuse_unprojected_crs).
+std::vector<std::string> unprojected_crs_warnings(const std::vector<sql::SourceRow>& sources) {
+  std::vector<std::string> warnings, seen;
+  for (const sql::SourceRow& s : sources) {
+    if (std::find(seen.begin(), seen.end(), s.crs_wkt) != seen.end()) continue;
+    seen.push_back(s.crs_wkt);
+    try {
+      analysis::refuse_unprojected_crs(s.crs_wkt, "the SQL functions' distances, radii and times");
+    } catch (const std::invalid_argument& e) {
+      OGRSpatialReference srs;
+      srs.importFromWkt(s.crs_wkt.c_str());  // read already by refuse_unprojected_crs
+      std::string crs = srs.GetName() ? srs.GetName() : "";
+      if (const int epsg = io::epsg_codes_from_wkt(s.crs_wkt).horizontal)
+        crs += (crs.empty() ? "EPSG:" : ", EPSG:") + std::to_string(epsg);
+      warnings.push_back(s.path + (crs.empty() ? "" : " (" + crs + ")") + ": " + e.what());
+    }
+  }
+  return warnings;
+}
+
 }  // namespace
 
 DbImportJobResult run_db_import(const DbImportJobOptions& options) {
@@ -49,7 +79,7 @@ DbImportJobResult run_db_import(const DbImportJobOptions& options) {
   const sql::ImportSummary s = options.postgres.empty()
                                    ? sql::import_sqlite(options.clouds, options.out, opt)
                                    : sql::import_postgres(options.clouds, options.postgres, options.table, opt);
-  return {s.points, s.chunks};
+  return {s.points, s.chunks, unprojected_crs_warnings(s.sources)};
 }
 
 }  // namespace rayscan::jobs

@@ -494,6 +494,7 @@ ImportSummary import_postgres(const std::vector<std::filesystem::path>& paths,
   im.connect(conninfo);
   const std::unique_ptr<SiteStream> site = open_site(paths, options);
   im.attach(*site);
+  im.sum.sources = site->sources();
   im.begin();
   if (options.pcpatch) {
     im.import_pcpatch();

@@ -56,6 +56,7 @@ ImportSummary import_sqlite(const std::vector<std::filesystem::path>& paths,
   AtomicFile file(out);
   std::filesystem::remove(file.temp());
   ImportSummary sum;
+  sum.sources = site->sources();
   ImportProgress progress(opt, total_points(*site));
   {
     Db db;

@@ -2,6 +2,8 @@
 // real `rayscan db import`, checked against the core (bit for bit) and the brute-force oracle.
 #include "sql_test_util.hpp"
 
+#include "../common/crs_wkt.hpp"
+
 #include "rayscan/octree/distance.hpp"
 #include "rayscan/sql/functions.h"
 #include "rayscan/sql/import.hpp"
@@ -953,6 +955,48 @@ TEST(SqliteFunctions, OtherConditionsOnRayQueryArgumentsAreErrors) {
   EXPECT_GT(positional.i64(0), 0);
   EXPECT_EQ(named.i64(0), positional.i64(0));
   EXPECT_EQ(named.i64(1), positional.i64(1));
+}
+
+// A cloud in a geographic CRS (lon/lat degrees beside heights in metres) or a geocentric one (z
+// not up) imports, but the SQL functions' distances would mix units or axes: one warning line per
+// such CRS names the first file with it and the CRS (the oracle: the CRS the file was written
+// with, GDAL's name of it and its EPSG code where rayscan identifies one), on stderr even with -q.
+// A projected cloud gets none.
+TEST(SqliteImportCli, GeographicOrGeocentricCrsIsWarnedAbout) {
+  const std::string bin = RAYSCAN_BIN;
+  const auto cloud_in = [&](const std::string& name, const std::string& epsg, Vec3 origin, double step) {
+    PointCloud pc;
+    for (int i = 0; i < 400; ++i) pc.positions.push_back(origin + Vec3(step * (i % 20), step * (i / 20), 10.0 + i % 7));
+    pc.crs_wkt = rayscan::test::crs_wkt(epsg);
+    const fs::path p = tmpdir() / name;
+    io::write_point_cloud(p, pc);
+    return p;
+  };
+  const fs::path lonlat = cloud_in("lonlat.las", "EPSG:4326", Vec3(-123.07, 44.05, 0), 1e-5);
+  const fs::path lonlat2 = cloud_in("lonlat2.las", "EPSG:4326", Vec3(-123.06, 44.05, 0), 1e-5);
+  const fs::path ecef = cloud_in("ecef.las", "EPSG:4978", Vec3(-2.5e6, -3.8e6, 4.5e6), 0.5);
+  const fs::path utm = cloud_in("utm.las", "EPSG:32610", Vec3(500000, 4877000, 0), 0.5);
+  const fs::path out = tmpdir() / "crs-warning.sqlite", err = tmpdir() / "crs-warning.err";
+  const std::string tail = ": the cloud's CRS is geographic or geocentric: the SQL functions' distances, radii and "
+                           "times need a projected CRS (x east, y north, z up); reproject the cloud";
+  const auto warnings = [&](const std::string& inputs) {
+    EXPECT_EQ(run(bin + " db import " + inputs + " -o " + out.string() + " -q > /dev/null 2> " + err.string()), 0) << inputs;
+    std::vector<std::string> lines;
+    std::istringstream in(slurp(err));
+    for (std::string l; std::getline(in, l);) lines.push_back(l);
+    return lines;
+  };
+  std::vector<std::string> w = warnings(lonlat.string());
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(w[0].rfind("rayscan db: warning: " + lonlat.string() + " (WGS 84, EPSG:4326)" + tail, 0), 0u) << w[0];
+  // Two files in one CRS: one line, naming the first.
+  w = warnings(lonlat.string() + " " + lonlat2.string());
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(w[0].rfind("rayscan db: warning: " + lonlat.string() + " (WGS 84, EPSG:4326)" + tail, 0), 0u) << w[0];
+  w = warnings(ecef.string());
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(w[0].rfind("rayscan db: warning: " + ecef.string() + " (WGS 84)" + tail, 0), 0u) << w[0];
+  EXPECT_TRUE(warnings(utm.string()).empty());
 }
 
 // An attribute named like a column the engine reserves (a PLY property "rowid") would be SQLite's

@@ -45,6 +45,10 @@ struct DbImportJobOptions {
 struct DbImportJobResult {
   std::uint64_t points = 0;  ///< rows (points) written
   std::uint64_t chunks = 0;  ///< chunks written (R*Tree / chunk table rows)
+  /// One line per geographic or geocentric CRS of the inputs, naming the first file with it and
+  /// the CRS: the SQL functions' distances, radii and times would mix degrees with heights
+  /// or take an axis that is not up (the import writes the points all the same).
+  std::vector<std::string> warnings;
 };
 
 /// Checks the options and imports the clouds (sql::import_sqlite or sql::import_postgres: the

@@ -113,10 +113,18 @@ void check_attribute_names(const std::vector<std::string>& names, bool pcpatch =
     const std::vector<std::string>& names, const std::vector<std::filesystem::path>& paths,
     const std::vector<PointCloud>& clouds);
 
+/// One input file of the site: the `sources` table row.
+struct SourceRow {
+  std::string path;         ///< as given on the command line (or as stored in an index file)
+  std::uint64_t points = 0; ///< points read from it
+  std::string crs_wkt;      ///< "" when unknown
+};
+
 /// What an import wrote.
 struct ImportSummary {
   std::uint64_t points = 0;  ///< rows in the points table
   std::uint64_t chunks = 0;  ///< chunks (R*Tree / chunk table rows)
+  std::vector<SourceRow> sources;  ///< the `sources` table's rows, in source order
 };
 
 /// Imports `clouds` into a new SQLite file `out` (replaced atomically: a temporary file renamed

@@ -15,13 +15,6 @@
 
 namespace rayscan::sql {
 
-/// One input file of the site: the `sources` table row.
-struct SourceRow {
-  std::string path;         ///< as given on the command line (or as stored in an index file)
-  std::uint64_t points = 0; ///< points read from it
-  std::string crs_wkt;      ///< "" when unknown
-};
-
 /// One extra column of the points table: its SQL name and type.
 struct ColumnInfo {
   std::string name;  ///< an SQL identifier ("intensity", "red", ...)
