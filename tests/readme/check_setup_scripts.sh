@@ -35,6 +35,8 @@ for s in build.sh test.sh demo.sh package.sh sanitize.sh; do
 done
 check install-deps.sh 0 "Installs rayscan's build and test dependencies" --help
 check install-deps.sh 2 "install-deps.sh: takes no argument, got 'build' (see --help)" build
+check install-deps.sh 0 "Usage: tools/install-deps.sh [--build-only]" --help
+check install-deps.sh 2 "install-deps.sh: takes no argument, got 'build' (see --help)" --build-only build
 # Nothing was created where the refused arguments would have gone.
 for d in --bogus dir1 dir2; do
   if [ -e "$d" ] || [ -e "$root/$d" ]; then
