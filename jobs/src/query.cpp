@@ -20,6 +20,7 @@
 #include <chrono>
 #include <cstdio>
 #include <functional>
+#include <limits>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -33,11 +34,16 @@ using namespace rayscan::io;  // the io library's types, which this job speaks i
 
 namespace {
 
-constexpr std::uint64_t kRaysPerItem = 256;  // rays per block: the unit of the progress bar and of the MPI queue
+constexpr std::uint64_t kRaysPerBlock = 256;  // rays per block: the unit of the progress bar
 // The most results the rays answered together in one run may hold by their bound (--k, the
 // points): a run is a whole block when its rays return few results each, down to one ray when
 // each may return tens of thousands, so that the runs in flight, not the whole answer, are held.
+// The run is also the MPI queue's item, so one reply carries about this many results per run
+// (512 KiB of RayHits), whatever the cloud's size.
 constexpr std::uint64_t kHitsPerRun = std::uint64_t{1} << 14;
+// The most bytes of results one MPI message carries: MPI counts a message's bytes in an int, and
+// the work queue's head (docs/mpi.md) is to fit beside them.
+constexpr std::uint64_t kMaxMessageResultBytes = std::uint64_t(std::numeric_limits<int>::max()) - 4096;
 
 /// What becomes of the answers of a run of consecutive rays.
 struct RunSink {
@@ -49,32 +55,65 @@ struct RunSink {
   std::function<void(const std::string&)> write;
 };
 
-/// Rays in block b (the last block may be short).
-std::uint64_t block_rays(std::uint64_t b, std::uint64_t n) { return std::min(n, (b + 1) * kRaysPerItem) - b * kRaysPerItem; }
+/// The runs of `n` rays: each block of kRaysPerBlock rays is cut into runs of `rays` rays (a
+/// block when each ray returns few results, down to one ray: kHitsPerRun results by the bound
+/// `max_hits_per_ray`), the block's last run shorter. Run i is the (i % per_block)-th of block
+/// i / per_block, so consecutive runs are consecutive rays and no run straddles two blocks (the
+/// progress bar counts blocks). The pipeline's unit in one process and the queue's item in several.
+struct Runs {
+  std::uint64_t n, rays, per_block;
+  Runs(std::uint64_t n_rays, std::uint64_t max_hits_per_ray)
+      : n(n_rays),
+        rays(std::clamp<std::uint64_t>(kHitsPerRun / std::max<std::uint64_t>(max_hits_per_ray, 1), 1, kRaysPerBlock)),
+        per_block((kRaysPerBlock + rays - 1) / rays) {}
+  /// Blocks of kRaysPerBlock rays (the last may be short).
+  [[nodiscard]] std::uint64_t blocks() const { return (n + kRaysPerBlock - 1) / kRaysPerBlock; }
+  /// Rays in block b.
+  [[nodiscard]] std::uint64_t block_rays(std::uint64_t b) const {
+    return std::min(n, (b + 1) * kRaysPerBlock) - b * kRaysPerBlock;
+  }
+  /// Number of runs.
+  [[nodiscard]] std::uint64_t count() const {
+    return n == 0 ? 0 : (blocks() - 1) * per_block + (block_rays(blocks() - 1) + rays - 1) / rays;
+  }
+  /// The first ray of run i, and the ray after its last.
+  [[nodiscard]] std::uint64_t first(std::uint64_t i) const { return i / per_block * kRaysPerBlock + i % per_block * rays; }
+  [[nodiscard]] std::uint64_t end(std::uint64_t i) const {
+    return std::min({n, first(i) + rays, (i / per_block + 1) * kRaysPerBlock});
+  }
+};
 
 /// Answers every ray, over TBB on `threads` threads, handing each run of consecutive rays' hits to
 /// `sink` as soon as it and the runs before it are answered, so that only the runs in flight are
-/// held: a TBB pipeline of up to 2 x threads runs (each at most a block, kHitsPerRun results by
-/// `max_hits_per_ray`, at least one ray), answered by ray_query_each (bit for bit the single
-/// ray_query calls, so the hits do not depend on the split) and written in order. With a
-/// distributor of several processes, blocks of kRaysPerItem rays handed out by it and gathered to
-/// the root (hit lists serialised as count + RayHits), where each block is rendered and written
-/// once the blocks before it are (those ahead of it wait, as text). The progress bar
-/// (JobControl::progress) counts the blocks: on the root its own and those it unpacks. Returns
-/// the results counted (on the root: all of them).
+/// held: a TBB pipeline of up to 2 x threads runs (Runs: each at most a block, kHitsPerRun
+/// results by `max_hits_per_ray`, at least one ray), answered by ray_query_each (bit for bit the
+/// single ray_query calls, so the hits do not depend on the split) and written in order. With a
+/// distributor of several processes, the same runs are its items: handed out in batches of
+/// `threads` runs and gathered to the root (hit lists serialised as count + RayHits), where each
+/// run is rendered and written once the runs before it are (those ahead of it wait, as text).
+/// The progress bar (JobControl::progress) counts the blocks: a block is done when its last run
+/// is written (under MPI: on the root, its own and those it unpacks). Returns the results counted
+/// (on the root: all of them). Throws OptionError when a batch's results exceed what one MPI
+/// message carries (kMaxMessageResultBytes).
 template <class I>
 std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQuery& q, unsigned threads,
                           bool show_progress, WorkDistributor* dist, std::uint64_t max_hits_per_ray,
                           const RunSink& sink) {
   q.validate();
   const std::uint64_t n = rays.size();
-  const std::uint64_t blocks = (n + kRaysPerItem - 1) / kRaysPerItem;
+  const Runs runs(n, max_hits_per_ray);
   // "ray blocks", not "blocks of 256 rays": the bar must fit the 90 columns Progress::finish clears.
-  Progress progress(blocks, show_progress, ProgressUnits{"ray blocks", "rays/s", 1.0, 0});
+  Progress progress(runs.blocks(), show_progress, ProgressUnits{"ray blocks", "rays/s", 1.0, 0});
+  // After run i is written: the bar's block when the run was its last.
+  const auto written = [&](std::uint64_t i) {
+    const std::uint64_t end = runs.end(i);
+    if (end % kRaysPerBlock == 0 || end == n) progress.tile_done(runs.block_rays((end - 1) / kRaysPerBlock));
+  };
   tbb::task_arena arena(static_cast<int>(threads));
-  const auto answer = [&](std::uint64_t first, std::uint64_t count) {
-    std::vector<std::vector<RayHit>> hits(count);
-    ray_query_each(idx, std::span<const Ray>(rays).subspan(first, count), q, std::span<std::vector<RayHit>>(hits));
+  const auto answer = [&](std::uint64_t i) {
+    std::vector<std::vector<RayHit>> hits(runs.end(i) - runs.first(i));
+    ray_query_each(idx, std::span<const Ray>(rays).subspan(runs.first(i), hits.size()), q,
+                   std::span<std::vector<RayHit>>(hits));
     return hits;
   };
   const auto count_rows = [](std::span<const std::vector<RayHit>> hits) {
@@ -84,10 +123,8 @@ std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQ
   };
   std::uint64_t rows = 0;
   if (!dist || dist->size() <= 1) {
-    const std::uint64_t run_rays =
-        std::clamp<std::uint64_t>(kHitsPerRun / std::max<std::uint64_t>(max_hits_per_ray, 1), 1, kRaysPerItem);
     struct Run {
-      std::uint64_t first = 0, count = 0, rows = 0;
+      std::uint64_t index = 0, rows = 0;
       std::string text;
     };
     std::uint64_t next = 0;
@@ -97,57 +134,49 @@ std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQ
           tbb::make_filter<void, Run>(tbb::filter_mode::serial_in_order,
                                       [&](tbb::flow_control& fc) {
                                         Run run;
-                                        if (next == n) {
-                                          fc.stop();
-                                          return run;
-                                        }
-                                        // Within one block: the bar counts whole blocks.
-                                        const std::uint64_t block_end = std::min(n, (next / kRaysPerItem + 1) * kRaysPerItem);
-                                        run.first = next;
-                                        run.count = std::min(run_rays, block_end - next);
-                                        next += run.count;
+                                        if (next == runs.count()) fc.stop();
+                                        else run.index = next++;
                                         return run;
                                       }) &
               tbb::make_filter<Run, Run>(tbb::filter_mode::parallel,
                                          [&](Run run) {
-                                           std::vector<std::vector<RayHit>> hits = answer(run.first, run.count);
+                                           std::vector<std::vector<RayHit>> hits = answer(run.index);
                                            run.rows = count_rows(hits);
-                                           run.text = sink.render(run.first, std::span<std::vector<RayHit>>(hits));
+                                           run.text = sink.render(runs.first(run.index), std::span<std::vector<RayHit>>(hits));
                                            return run;
                                          }) &
               tbb::make_filter<Run, void>(tbb::filter_mode::serial_in_order, [&](Run run) {
                 sink.write(run.text);
                 rows += run.rows;
-                const std::uint64_t end = run.first + run.count;
-                if (end % kRaysPerItem == 0 || end == n) progress.tile_done(block_rays((end - 1) / kRaysPerItem, n));
+                written(run.index);
               }));
     });
     progress.finish();
     return rows;
   }
-  // Several processes. Root: blocks answered (here or elsewhere) wait in `ahead` until the
-  // blocks before them are written. Others: the hits of the one batch being answered (its rays
-  // from batch_first), until packed, so that a rank holds a batch, not a slot for every ray.
+  // Several processes. Root: runs answered (here or elsewhere) wait in `ahead` until the runs
+  // before them are written. Others: the hits of the one batch being answered (its rays from
+  // batch_first), until packed, so that a rank holds a batch, not a slot for every ray.
   std::mutex write_mutex;
   std::map<std::uint64_t, std::string> ahead;
-  std::uint64_t next_block = 0;
+  std::uint64_t next_run = 0;
   std::vector<std::vector<RayHit>> batch;
   std::uint64_t batch_first = 0;
-  const auto done = [&](std::uint64_t b, std::span<std::vector<RayHit>> block_hits) {  // root
-    const std::uint64_t k = count_rows(block_hits);
-    std::string text = sink.render(b * kRaysPerItem, block_hits);
+  const auto done = [&](std::uint64_t i, std::span<std::vector<RayHit>> run_hits) {  // root
+    const std::uint64_t k = count_rows(run_hits);
+    std::string text = sink.render(runs.first(i), run_hits);
     const std::lock_guard<std::mutex> lock(write_mutex);
     rows += k;
-    ahead.emplace(b, std::move(text));
-    for (auto it = ahead.begin(); it != ahead.end() && it->first == next_block; it = ahead.erase(it), ++next_block)
+    ahead.emplace(i, std::move(text));
+    for (auto it = ahead.begin(); it != ahead.end() && it->first == next_run; it = ahead.erase(it), ++next_run) {
       sink.write(it->second);
-    progress.tile_done(block_rays(b, n));
+      written(it->first);
+    }
   };
-  auto range = [&](std::uint64_t first, std::uint64_t count) {
-    return std::pair{first * kRaysPerItem, std::min(n, (first + count) * kRaysPerItem)};
-  };
+  // The rays of runs [first, first + count): consecutive.
+  auto range = [&](std::uint64_t first, std::uint64_t count) { return std::pair{runs.first(first), runs.end(first + count - 1)}; };
   WorkStage stage;
-  stage.items = blocks;
+  stage.items = runs.count();
   stage.batch = threads;
   stage.compute = [&](std::uint64_t first, std::uint64_t count) {
     if (!dist->is_root()) {
@@ -158,15 +187,13 @@ std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQ
     arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<std::uint64_t>(first, first + count, 1),
                         [&](const tbb::blocked_range<std::uint64_t>& r) {
-                          for (std::uint64_t b = r.begin(); b != r.end(); ++b) {
-                            std::vector<std::vector<RayHit>> h = answer(b * kRaysPerItem, block_rays(b, n));
-                            if (dist->is_root()) {
-                              done(b, std::span<std::vector<RayHit>>(h));
-                            } else {
+                          for (std::uint64_t i = r.begin(); i != r.end(); ++i) {
+                            std::vector<std::vector<RayHit>> h = answer(i);
+                            if (dist->is_root())
+                              done(i, std::span<std::vector<RayHit>>(h));
+                            else
                               std::move(h.begin(), h.end(),
-                                        batch.begin() + static_cast<std::ptrdiff_t>(b * kRaysPerItem - batch_first));
-                              progress.tile_done(block_rays(b, n));
-                            }
+                                        batch.begin() + static_cast<std::ptrdiff_t>(runs.first(i) - batch_first));
                           }
                         });
     });
@@ -176,7 +203,19 @@ std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQ
     if (a != batch_first || b - a != batch.size())
       throw std::logic_error("query: packing rays [" + std::to_string(a) + ", " + std::to_string(b) +
                              ") that are not the batch computed");
+    // Each run holds about kHitsPerRun results by the bound, but a ray may return more (one ray
+    // per run, the cloud's points): measured before a byte is copied.
+    std::uint64_t results = 0;
+    for (const std::vector<RayHit>& h : batch) results += h.size();
+    const std::uint64_t size = batch.size() * sizeof(std::uint64_t) + results * sizeof(RayHit);
+    if (size > kMaxMessageResultBytes)
+      throw OptionError({"rays [" + std::to_string(a) + ", " + std::to_string(b) + "), one rank's batch of ",
+                         option("threads"), " runs, return " + count_text(results, "result") + " (" +
+                             std::to_string(size) + " bytes; one MPI message carries at most " +
+                             std::to_string(kMaxMessageResultBytes) + "): lower ",
+                         option("threads"), ", ", option("k"), " or ", option("radius"), ", or run in one process"});
     std::vector<std::byte> out;
+    out.reserve(size);
     for (std::vector<RayHit>& h : batch) {
       const std::uint64_t k = h.size();
       append_bytes(out, std::span<const std::uint64_t>(&k, 1));
@@ -188,17 +227,17 @@ std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQ
   stage.unpack = [&](std::uint64_t first, std::uint64_t count, std::span<const std::byte> bytes) {
     std::size_t off = 0;
     for (std::uint64_t c = first; c < first + count; ++c) {
-      std::vector<std::vector<RayHit>> h(block_rays(c, n));
+      std::vector<std::vector<RayHit>> h(runs.end(c) - runs.first(c));
       for (std::vector<RayHit>& ray_hits : h) {
         std::uint64_t k = 0;
         read_values(bytes, off, std::span<std::uint64_t>(&k, 1));
-        if (k > (bytes.size() - off) / sizeof(RayHit)) throw std::runtime_error("query: ray block message is short");
+        if (k > (bytes.size() - off) / sizeof(RayHit)) throw std::runtime_error("query: ray run message is short");
         ray_hits.resize(k);
         read_values(bytes, off, std::span<RayHit>(ray_hits));
       }
       done(c, std::span<std::vector<RayHit>>(h));
     }
-    if (off != bytes.size()) throw std::runtime_error("query: ray block message has trailing bytes");
+    if (off != bytes.size()) throw std::runtime_error("query: ray run message has trailing bytes");
   };
   dist->run(stage);
   progress.finish();
@@ -268,7 +307,7 @@ QueryJobResult run_query(const QueryJobOptions& o) {
   r.threads = resolve_threads(o.control.threads);
   WorkDistributor* const dist = o.control.distributor;
   const bool root = !dist || dist->is_root();
-  // A rank other than the root of several keeps no hits: it sends each batch of blocks to the
+  // A rank other than the root of several keeps no hits: it sends each batch of runs to the
   // root once answered, and leaves a COPC file (not shared out over the ranks) to the root alone.
   const bool other_rank = dist && dist->size() > 1 && !root;
   // Streamed: only the runs of rays in flight are held (a query may return more than memory).

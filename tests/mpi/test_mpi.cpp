@@ -10,6 +10,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -218,6 +220,52 @@ TEST_F(Mpi, QueryOfACopcFileIsTheSameBytes) {
   ASSERT_EQ(r.code, 0) << r.out;
   expect_same_file(dir_ / "one.csv", dir_ / "two.csv");
   EXPECT_GT(bytes(dir_ / "one.csv").size(), 5000u);  // hits were found (not just a header)
+}
+
+TEST_F(Mpi, QueryAllSendsRunsOfAboutSixteenThousandResultsAndTheSameBytes) {
+  // --all on 1438 points: every ray returns every point. A reply per block of 256 rays would carry
+  // 256 x 1438 hits (11.8 MB; past ~262,000 points more than MPI's 2 GiB message); the queue's
+  // item is instead the run of about 16,384 results by the bound (docs/mpi.md): 11 rays of 1438.
+  fs::copy_file(fs::path(RAYSCAN_RENDER_TEST_DATA) / "autzen_subset.xyz", dir_ / "subset.xyz");
+  std::uint64_t points = 0;
+  {
+    std::ifstream in(dir_ / "subset.xyz");
+    for (std::string line; std::getline(in, line);) points += !line.empty();
+    --points;  // the header "x y z"
+  }
+  const std::uint64_t rays = 300;  // a block of 256 and a short one of 44
+  {
+    std::ofstream out(dir_ / "rays.csv");
+    out << "ox,oy,oz,dx,dy,dz\n";
+    for (std::uint64_t i = 0; i < rays; ++i) out << 636560 + i % 20 * 3 << ',' << 849200 + i / 20 * 3 << ",600,0,0,-1\n";
+  }
+  const std::string args = " query --cloud subset.xyz --rays rays.csv --all";
+  ASSERT_EQ(run(kBin + args + " -q --out one.csv").code, 0);
+  // Rank 0 computes nothing and rank 1 asks for one run at a time: every run is one reply.
+  const CommandResult two = run(mpirun(2, false) + kBin + args + " --threads 1 --out two.csv");
+  ASSERT_EQ(two.code, 0) << two.out;
+  expect_same_file(dir_ / "one.csv", dir_ / "two.csv");
+  // The oracle of the rows: every point on every ray, and the header.
+  const std::string csv = bytes(dir_ / "one.csv");
+  EXPECT_EQ(std::uint64_t(std::count(csv.begin(), csv.end(), '\n')), rays * points + 1);
+  // "mpi: 2 ranks, M messages, B bytes (R bytes of results), ...": a request and an assignment
+  // per run, and one more of each to start and end; R: per ray its count (8 B) and its hits (32 B).
+  const std::size_t at = two.out.find("mpi: 2 ranks, ");
+  ASSERT_NE(at, std::string::npos) << two.out;
+  unsigned long long messages = 0, total = 0, results = 0;
+  ASSERT_EQ(std::sscanf(two.out.c_str() + at, "mpi: 2 ranks, %llu messages, %llu bytes (%llu bytes", &messages, &total,
+                        &results),
+            3)
+      << two.out;
+  EXPECT_EQ(results, rays * 8 + rays * points * 32);
+  const unsigned long long runs = messages / 2 - 1;
+  const std::uint64_t rays_per_run = 16384 / points;  // 11
+  EXPECT_GE(runs, (rays + rays_per_run - 1) / rays_per_run) << two.out;  // not 2 blocks: at most 11 rays a reply
+  EXPECT_LE(results / runs, rays_per_run * (8 + points * 32)) << two.out;
+  // Batches of 2 runs over 3 ranks, one straddling the blocks (runs 23 and 24).
+  const CommandResult three = run(mpirun(3, false) + kBin + args + " -q --threads 2 --out three.csv");
+  ASSERT_EQ(three.code, 0) << three.out;
+  expect_same_file(dir_ / "one.csv", dir_ / "three.csv");
 }
 
 TEST_F(Mpi, ARankThatCannotOpenTheIndexEndsTheJobWithOneLineAndNoOutput) {

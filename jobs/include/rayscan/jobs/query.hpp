@@ -74,9 +74,11 @@ struct QueryJobResult {
 /// they are answered. Throws std::invalid_argument for an invalid query or index option (e.g.
 /// depth with another index than octree-fixed), io::FormatError for a malformed input file.
 /// With options.control.distributor over several processes (MPI, docs/mpi.md), every process
-/// calls it; blocks of 256 rays are handed out by the distributor and only the root keeps `hits`
-/// (and `hit_positions`; the other ranks' stay empty), or only the root writes the CSV (each block
-/// once the blocks before it are written); a COPC file is answered by the root alone.
+/// calls it; the same runs of rays are handed out by the distributor (one message per batch of
+/// runs; std::invalid_argument when a batch's hits exceed what one MPI message carries) and only
+/// the root keeps `hits` (and `hit_positions`; the other ranks' stay empty), or only the root
+/// writes the CSV (each run once the runs before it are written); a COPC file is answered by the
+/// root alone.
 QueryJobResult run_query(const QueryJobOptions& options);
 
 /// Writes the hits as CSV "ray,rank,index,x,y,z,t,distance" to `out`, every number the shortest
