@@ -416,7 +416,6 @@ EpwRecord parse_record(const Reader& r, const std::vector<std::string_view>& f,
   rec.month = int_in(r, f, 2, kFieldNames[1], 1, 12);
   rec.hour = int_in(r, f, 4, kFieldNames[3], 1, 24);
   rec.minute = int_in(r, f, 5, kFieldNames[4], 0, 60);
-  const int year = options.year.value_or(rec.year);
   // 29 February whatever the year field: a typical year's February comes from some year, and a
   // file built for leap years keeps it (Sequence checks it follows 28 February).
   const int max_day = rec.month == 2 ? 29 : kDaysInMonth[static_cast<std::size_t>(rec.month - 1)];
@@ -439,7 +438,7 @@ EpwRecord parse_record(const Reader& r, const std::vector<std::string_view>& f,
   using namespace std::chrono;
   const seconds interval{3600 / per_hour};
   // A date that does not exist (29 February of a non-leap year) is counted on by sys_days: 1 March.
-  const sys_days date{std::chrono::year{year} / rec.month / rec.day};
+  const sys_days date{std::chrono::year{rec.year} / rec.month / rec.day};
   const seconds end = hours{rec.hour - 1} + interval * sub_interval;
   const seconds zone{static_cast<long long>(std::llround(time_zone_hours * 3600.0))};
   rec.mid_of_day = end - interval / 2 - zone;
@@ -453,8 +452,6 @@ EpwRecord parse_record(const Reader& r, const std::vector<std::string_view>& f,
 EpwFile parse_epw(std::istream& in, std::string_view name, const EpwReadOptions& options) {
   using namespace epw_impl;
   Reader r(in, name);
-  if (options.year && (*options.year < 0 || *options.year > 9999))
-    r.fail_file("EpwReadOptions::year must be in 0..9999, got " + std::to_string(*options.year));
   EpwFile file;
   std::string line;
   std::vector<std::string_view> f;

@@ -53,10 +53,9 @@ struct EpwRecord {
   int day = 0;     ///< field 3, 1..days in month (29 February in any year, after 28 February)
   int hour = 0;    ///< field 4, 1..24: the interval ends at hour:00 (hourly files)
   int minute = 0;  ///< field 5, 0..60; used only with several records per hour
-  /// UTC instant in the middle of the record's interval (see the file comment); computed with
-  /// `year`, or EpwReadOptions::year when given. For 29 February in a year without one it is
-  /// 1 March's instant (std::chrono's reading of that date): use epw_utc_mid to lay a file on a
-  /// calendar year.
+  /// UTC instant in the middle of the record's interval (see the file comment), in the record's
+  /// own `year`. For 29 February in a year without one it is 1 March's instant (std::chrono's
+  /// reading of that date): use epw_utc_mid to lay a file on a calendar year.
   std::chrono::sys_seconds utc_mid{};
   /// utc_mid minus 00:00 of the record's month/day (as a UTC date): the local standard end time
   /// - interval / 2 - time zone, the same in every year; may be negative (east of UTC).
@@ -75,8 +74,6 @@ struct EpwReadOptions {
   /// skips or fills that interval; EpwFile::missing_radiation counts them); true makes it an
   /// error naming the line and field.
   bool missing_radiation_is_error = false;
-  /// Year used for utc_mid instead of each record's own (typical-year files mix years), 0..9999.
-  std::optional<int> year;
 };
 
 /// A read EPW file.
