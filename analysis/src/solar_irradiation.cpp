@@ -1,6 +1,7 @@
 #include "rayscan/analysis/solar_irradiation.hpp"
 
 #include "rayscan/analysis/site_location.hpp"
+#include "rayscan/base/number_text.hpp"
 
 #include <cmath>
 #include <map>
@@ -17,6 +18,8 @@ namespace {
 bool open_bit(std::span<const std::uint64_t> mask, std::size_t k) { return (mask[k / 64] >> (k % 64)) & 1u; }
 
 }  // namespace
+
+std::string sunshine_criterion() { return "DNI >= " + shortest_text(kSunshineThreshold) + " W/m2"; }
 
 SunMap build_sun_map(std::vector<SolarStep> steps, double sector_deg) {
   if (!(sector_deg >= 0.0) || !std::isfinite(sector_deg))

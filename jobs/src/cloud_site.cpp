@@ -2,6 +2,7 @@
 
 #include "rayscan/analysis/geotiff.hpp"
 #include "rayscan/analysis/site_location.hpp"
+#include "rayscan/analysis/solar_irradiation.hpp"
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/io/point_io.hpp"
@@ -209,7 +210,7 @@ void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> 
 
 namespace {
 
-/// What result_field_info and result_field_unit say of one field.
+/// What ResultFields says of one field.
 struct ResultField {
   io::ExtraBytesInfo info;
   const char* unit;  ///< nullptr for a length, whose unit is the cloud's (analysis::crs_length_unit)
@@ -223,7 +224,7 @@ constexpr std::size_t kDescriptionBytes = 32;
 /// bytes and end with the unit where there is one; units are ASCII for every reader, written as
 /// the GeoTIFF bands write theirs ("1" for a ratio or a flag). A length's description is its
 /// meaning alone here, short enough for ", " and the unit of most CRSs ("US survey foot" too),
-/// which result_field adds.
+/// which ResultFields::info adds.
 std::optional<ResultField> table_field(const std::string& name) {
   static const std::map<std::string, ResultField, std::less<>> kFields = {
       {"visible_count", {{"observers that see the point", {}}, "observers"}},
@@ -238,7 +239,7 @@ std::optional<ResultField> table_field(const std::string& name) {
       {"solar_beam", {{"beam irradiation, kWh/m2", {}}, "kWh/m2"}},
       {"solar_diffuse", {{"diffuse irradiation, kWh/m2", {}}, "kWh/m2"}},
       {"solar_reflected", {{"reflected irradiation, kWh/m2", {}}, "kWh/m2"}},
-      {"sun_hours", {{"hours of direct sun, h", {}}, "h"}},
+      {"sun_hours", {{"sun hours, " + analysis::sunshine_criterion() + ", h", {}}, "h"}},
       {"shadow_hours", {{"hours in shadow (sun up), h", {}}, "h"}},
   };
   if (const auto it = kFields.find(name); it != kFields.end()) return it->second;
@@ -250,34 +251,34 @@ std::optional<ResultField> table_field(const std::string& name) {
   return std::nullopt;
 }
 
-/// The field `name` of a cloud of CRS `crs_wkt`, a length's unit and description completed.
-std::optional<ResultField> result_field(const std::string& name, const std::string& crs_wkt, std::string& unit) {
-  std::optional<ResultField> f = table_field(name);
-  if (!f) return std::nullopt;
-  if (f->unit != nullptr) {
-    unit = f->unit;
-    return f;
-  }
-  unit = analysis::crs_length_unit(crs_wkt);
-  // A unit name too long for the descriptor (a rare CRS's, "British foot (Sears 1922)") is named
-  // where there is room: the CRS, and the unit of --json and the GeoTIFF band.
-  const std::string described = f->info.description + ", " + unit;
-  f->info.description = described.size() <= kDescriptionBytes ? described : f->info.description + ", CRS linear unit";
-  return f;
-}
-
 }  // namespace
 
-std::optional<io::ExtraBytesInfo> result_field_info(const std::string& name, const std::string& crs_wkt) {
-  std::string unit;
-  if (auto f = result_field(name, crs_wkt, unit)) return std::move(f->info);
-  return std::nullopt;
+ResultFields::ResultFields(std::string crs_wkt, std::span<const FieldDescription> own) : crs_wkt_(std::move(crs_wkt)) {
+  for (const FieldDescription& d : own) own_.emplace_back(d.name, d.description);
 }
 
-std::optional<std::string> result_field_unit(const std::string& name, const std::string& crs_wkt) {
-  std::string unit;
-  if (result_field(name, crs_wkt, unit)) return unit;
-  return std::nullopt;
+const std::string& ResultFields::length_unit() const {
+  if (!length_unit_) length_unit_ = analysis::crs_length_unit(crs_wkt_);
+  return *length_unit_;
+}
+
+std::optional<io::ExtraBytesInfo> ResultFields::info(const std::string& name) const {
+  std::optional<ResultField> f = table_field(name);
+  if (!f) return std::nullopt;
+  for (const auto& [field, description] : own_)
+    if (field == name) f->info.description = description;
+  if (f->unit != nullptr) return std::move(f->info);
+  // A unit name too long for the descriptor (a rare CRS's, "British foot (Sears 1922)") is named
+  // where there is room: the CRS, and the unit of --json and the GeoTIFF band.
+  const std::string described = f->info.description + ", " + length_unit();
+  f->info.description = described.size() <= kDescriptionBytes ? described : f->info.description + ", CRS linear unit";
+  return std::move(f->info);
+}
+
+std::optional<std::string> ResultFields::unit(const std::string& name) const {
+  const std::optional<ResultField> f = table_field(name);
+  if (!f) return std::nullopt;
+  return f->unit != nullptr ? std::string(f->unit) : length_unit();
 }
 
 bool result_field_used(std::string_view name, bool all_fields, bool cloud_out, std::string_view raster_field,
@@ -286,10 +287,12 @@ bool result_field_used(std::string_view name, bool all_fields, bool cloud_out, s
   return std::find(report_fields.begin(), report_fields.end(), name) != report_fields.end();
 }
 
-void write_result_cloud(const std::filesystem::path& path, const PointCloud& cloud, const io::FileInfo& info) {
+void write_result_cloud(const std::filesystem::path& path, const PointCloud& cloud, const io::FileInfo& info,
+                        std::span<const FieldDescription> own) {
   io::LasWriteOptions las = io::las_grid_of(info);
+  const ResultFields fields(cloud.crs_wkt, own);
   for (const ScalarField& f : cloud.scalars)
-    if (auto d = result_field_info(f.name, cloud.crs_wkt)) las.extra_bytes[f.name] = std::move(*d);
+    if (auto d = fields.info(f.name)) las.extra_bytes[f.name] = std::move(*d);
   io::write_point_cloud(path, cloud, las);
 }
 

@@ -22,6 +22,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace rayscan::jobs::detail {
@@ -128,19 +129,43 @@ std::filesystem::path preview_path(const std::filesystem::path& raster, const st
 /// Sets (or adds) the scalar field `name` of `cloud`.
 void set_scalar(PointCloud& cloud, const std::string& name, std::vector<double> values);
 
-/// The meaning, unit and no-data value of a per-point result field of the point analyses
-/// (visibility, solar) in a cloud of CRS `crs_wkt` (WKT, "" for none), as their LAS outputs
-/// describe it in the Extra Bytes VLR (at most 32 bytes, LAS 1.4 R15 table 24) and their PLY and
-/// PCD outputs in header comments: "global irradiation, kWh/m2", "observer dist., foot"; none for
-/// another name (a field of the source cloud).
-std::optional<io::ExtraBytesInfo> result_field_info(const std::string& name, const std::string& crs_wkt);
+/// A description an output gives a result field instead of ResultFields' own: for a field whose
+/// name one kind of run fills with another meaning (a day of shadows' sun_hours counts every
+/// instant with the sun up, a period's only the hours of sunshine). A length's unit is still added.
+struct FieldDescription {
+  std::string_view name;
+  std::string_view description;
+};
 
-/// The unit alone of a result field in a cloud of CRS `crs_wkt`, the one its description ends
-/// with: "kWh/m2", "W/m2", "h", "observers", "pixels", "1" for a ratio or a flag, and for a length
-/// the CRS's linear unit ("metre", "foot", "US survey foot") or "world units" without a CRS
-/// (analysis::crs_length_unit); none for another name. For reports (`--json`) and the
-/// GeoTIFF maps' band units.
-std::optional<std::string> result_field_unit(const std::string& name, const std::string& crs_wkt);
+/// The meaning, unit and no-data value of the per-point result fields of the point analyses
+/// (visibility, solar) in one output of a cloud of CRS `crs_wkt` (WKT, "" for none), as their LAS
+/// outputs describe them in the Extra Bytes VLR (at most 32 bytes, LAS 1.4 R15 table 24), their PLY
+/// and PCD outputs in header comments and their reports and maps by unit: "global irradiation,
+/// kWh/m2", "observer dist., foot". A length's unit is the CRS's, parsed once, at the first length
+/// field asked for, so that one object describes every field of an output with one parse. Not
+/// for concurrent use.
+class ResultFields {
+ public:
+  /// `own`: descriptions replacing the table's (FieldDescription), copied.
+  explicit ResultFields(std::string crs_wkt, std::span<const FieldDescription> own = {});
+
+  /// The descriptor of result field `name`; none for another name (a field of the source cloud).
+  [[nodiscard]] std::optional<io::ExtraBytesInfo> info(const std::string& name) const;
+
+  /// The unit alone of result field `name`, the one its description ends with: "kWh/m2", "W/m2",
+  /// "h", "observers", "pixels", "1" for a ratio or a flag, and for a length the CRS's linear unit
+  /// ("metre", "foot", "US survey foot") or "world units" without a CRS
+  /// (analysis::crs_length_unit); none for another name. For reports (`--json`) and the GeoTIFF
+  /// maps' band units.
+  [[nodiscard]] std::optional<std::string> unit(const std::string& name) const;
+
+ private:
+  const std::string& length_unit() const;
+
+  std::string crs_wkt_;
+  std::vector<std::pair<std::string, std::string>> own_;
+  mutable std::optional<std::string> length_unit_;
+};
 
 /// True when an output of a point analysis uses its result field `name`, so that the job computes
 /// it: every field with `all_fields` (the caller returns them all, as Python does) or `cloud_out`
@@ -152,7 +177,9 @@ bool result_field_used(std::string_view name, bool all_fields, bool cloud_out, s
 /// Writes `cloud` to `path` (format by extension); a LAS/LAZ output keeps the integer grid
 /// (scale and offset), GPS time type and project GUID of a LAS/LAZ/COPC source described by
 /// `info`, and LAS/LAZ, PLY and PCD outputs describe the analyses' result fields
-/// (result_field_info: meaning, unit, no-data value; text has no place for them).
-void write_result_cloud(const std::filesystem::path& path, const PointCloud& cloud, const io::FileInfo& info);
+/// (ResultFields, with the descriptions `own`: meaning, unit, no-data value; text has no place
+/// for them).
+void write_result_cloud(const std::filesystem::path& path, const PointCloud& cloud, const io::FileInfo& info,
+                        std::span<const FieldDescription> own = {});
 
 }  // namespace rayscan::jobs::detail

@@ -26,6 +26,7 @@
 #include <cstdio>
 #include <cstring>
 #include <numbers>
+#include <span>
 #include <stdexcept>
 #include <string_view>
 
@@ -127,6 +128,25 @@ double parse_step(const std::string& text, const char* name = "step") {
   if (used == 0 || scale == 0.0 || !(v > 0.0) || !std::isfinite(v) || v * scale < 60.0)
     throw OptionError({option(name), " '" + text + "': expected a duration of at least 1 min, e.g. 30min, 1h or 1d"});
   return v * scale;
+}
+
+/// The instants of a day of shadows (--day, --every `every` seconds), in seconds after the day's
+/// midnight: 0, every, 2 x every, ... before the next midnight. A day is a date alone (never with
+/// an offset), so it starts at midnight of its own clock: these are also the frames' clock times.
+std::vector<double> day_instants(double every) {
+  std::vector<double> out;
+  for (double k = 0.0; k * every < 86400.0 - 1e-6; k += 1.0) out.push_back(k * every);
+  return out;
+}
+
+/// The map of a day of shadows `since_midnight` seconds into the day (day_instants): the raster's
+/// name with the clock's hours and minutes, `maps/site.tif` -> `maps/site_0830.tif`. The one rule
+/// for the check before the work and the write after it.
+std::filesystem::path day_frame_path(const std::filesystem::path& raster, double since_midnight) {
+  const std::string clock = format_iso8601(since_midnight, 0.0);  // 1970-01-01Thh:mm:ssZ
+  const std::size_t t = clock.find('T') + 1;
+  return std::filesystem::path(raster).replace_extension().string() + "_" + clock.substr(t, 2) +
+         clock.substr(t + 3, 2) + ".tif";
 }
 
 /// The longest integration step: the sun is sampled once per step, at its middle, and the step's
@@ -256,6 +276,17 @@ namespace {
 /// The result fields solar_report_json states.
 constexpr std::string_view kReportFields[] = {"solar_global", "in_shadow", "sun_hours"};
 
+/// What the outputs of a day of shadows say of its sun_hours: every instant with the sun up and
+/// the point's ray to it open counts, however faint the beam (a period's counts only sunshine,
+/// kSunshineThreshold, as the table says).
+constexpr detail::FieldDescription kDayDescriptions[] = {{"sun_hours", "hours of direct sun, any DNI, h"}};
+
+/// The descriptions the outputs of a run give its fields instead of the table's (detail::ResultFields).
+std::span<const detail::FieldDescription> field_descriptions(bool day_of_shadows) {
+  if (day_of_shadows) return kDayDescriptions;
+  return {};
+}
+
 /// One run_solar call: the steps in order, sharing the options, the result and the site.
 struct SolarRun {
   const SolarJobOptions& o;
@@ -362,7 +393,20 @@ struct SolarRun {
       detail::check_output_folder("preview", preview);
       load_image_io();
     }
-    const std::filesystem::path outs[] = {o.out, o.raster, preview};
+    std::vector<std::filesystem::path> outs = {o.out, preview};
+    if (frames_mode && !o.raster.empty()) {
+      // A day writes its frames, not the raster's name: each frame and its preview is checked as
+      // the other outputs are. Which instants have the sun up is known only once the site is
+      // located, so every instant of the day's clock is.
+      for (const double since_midnight : day_instants(parse_step(o.every, "every"))) {
+        const std::filesystem::path frame = day_frame_path(o.raster, since_midnight);
+        outs.push_back(frame);
+        if (o.write_preview) outs.push_back(detail::preview_path(frame, {}));
+      }
+      for (std::size_t k = 2; k < outs.size(); ++k) detail::check_output_folder("raster", outs[k]);
+    } else {
+      outs.push_back(o.raster);
+    }
     const std::filesystem::path ins[] = {o.cloud_file, o.weather};
     require_outputs(outs, ins);
     // The weather file is read once the site is known (weather_steps), after the points: its
@@ -793,14 +837,14 @@ struct SolarRun {
   /// `preview` (detail::preview_path; "" for none): a shadow map (`shadow`) with a categorical
   /// legend, else the heat ramp from 0 to the largest value (`hi` when given). The title is the
   /// band's description; the band's unit is the one the point outputs give the result field
-  /// `field` (result_field_unit), so the map and the cloud cannot disagree. A map of an instant
+  /// `field` (detail::ResultFields), so the map and the cloud cannot disagree. A map of an instant
   /// (`at`, UTC unix seconds) also carries it as RAYSCAN_TIME, one of a period its start and its
   /// (exclusive) end as RAYSCAN_START and RAYSCAN_END, ISO 8601 with the offset r.utc_offset. Throws
   /// std::logic_error for a `field` that is no result field.
   Raster write_map(const std::filesystem::path& path, const std::filesystem::path& preview,
                    std::span<const double> values, const std::string& title, const std::string& field, bool shadow,
                    std::optional<double> hi, std::optional<double> at) {
-    const std::optional<std::string> unit = detail::result_field_unit(field, cloud.crs_wkt);
+    const std::optional<std::string> unit = detail::ResultFields(cloud.crs_wkt).unit(field);
     if (!unit) throw std::logic_error("solar: the map of '" + field + "' has no result field unit");
     const std::string& units = *unit;
     Raster map = rasterize(cloud.positions, values, map_grid(), CellReduce::top, title);
@@ -854,7 +898,7 @@ struct SolarRun {
               ? format_iso8601(r.start_unix, offset).substr(0, 10) + " to " +
                     format_iso8601(r.end_unix - 1.0, offset).substr(0, 10)
               : format_time_label(r.start_unix, r.utc_offset) + " to " + format_time_label(r.end_unix, r.utc_offset);
-      title = value == "sun_hours" ? "hours of direct sun " + period + " (h)"
+      title = value == "sun_hours" ? "hours of direct sun (" + sunshine_criterion() + ") " + period + " (h)"
                                    : value + " irradiation " + period + " (kWh/m²)";
     }
     r.raster = write_map(o.raster, preview, sf->values, title, field, instant && value == "in_shadow", hi,
@@ -879,11 +923,12 @@ struct SolarRun {
     r.start_unix = option_time("day", o.day, zone(), false).unix_seconds;
     r.utc_offset = day_offset();
     r.end_unix = r.start_unix + 86400.0;
+    r.day_of_shadows = true;
     r.step_hours = every / 3600.0;
     const std::size_t n = cloud.size();
     std::vector<double> sun(n, 0.0), shadow(n, 0.0), frame(n);
-    const std::filesystem::path stem = std::filesystem::path(o.raster).replace_extension();
-    for (double t = r.start_unix; t < r.end_unix - 1e-6; t += every) {
+    for (const double since_midnight : day_instants(every)) {
+      const double t = r.start_unix + since_midnight;
       const SolarStep step = make_step(t, r.step_hours, nullptr);
       if (!(step.ray_direction.z > 0.0)) continue;  // night: no frame
       ++r.steps;
@@ -898,12 +943,7 @@ struct SolarRun {
         sun[i] += lit ? r.step_hours : 0.0;
         shadow[i] += frame[i] * r.step_hours;
       }
-      if (!o.raster.empty()) {
-        const std::string when = format_iso8601(t, r.utc_offset);
-        const std::size_t clock = when.find('T') + 1;
-        const std::string hhmm = when.substr(clock, 2) + when.substr(clock + 3, 2);
-        frames.push_back({std::filesystem::path(stem.string() + "_" + hhmm + ".tif"), t, frame});
-      }
+      if (!o.raster.empty()) frames.push_back({day_frame_path(o.raster, since_midnight), t, frame});
     }
     r.rays = std::uint64_t(n) * r.steps;
     std::snprintf(buf, sizeof buf, "%zu instants with the sun up, every %.4g h on %s", r.steps, r.step_hours,
@@ -921,7 +961,7 @@ struct SolarRun {
     if (!root()) return;
     OutputTransaction tx;
     if (!o.out.empty()) {
-      detail::write_result_cloud(o.out, cloud, r.info);
+      detail::write_result_cloud(o.out, cloud, r.info, field_descriptions(frames_mode));
       r.written.push_back(o.out);
     }
     if (frames_mode) {
@@ -991,6 +1031,7 @@ std::string solar_report_json(const SolarJobResult& r) {
   if (!r.weather.empty()) j["weather"] = r.weather;
   j["rays"] = r.rays;
   j["seconds"] = {{"trace", r.trace_seconds}};
+  const detail::ResultFields described(r.cloud.crs_wkt, field_descriptions(r.day_of_shadows));
   for (const ScalarField& f : r.cloud.scalars) {
     if (std::find(std::begin(kReportFields), std::end(kReportFields), f.name) == std::end(kReportFields)) continue;
     double sum = 0.0, lo = kInf, hi = -kInf;
@@ -1001,9 +1042,8 @@ std::string solar_report_json(const SolarJobResult& r) {
     }
     j["fields"][f.name] = {{"mean", sum / double(f.values.size())}, {"min", lo}, {"max", hi}};
     // The unit and meaning the output file's LAS descriptor or PLY/PCD comment gives the field.
-    if (const auto unit = detail::result_field_unit(f.name, r.cloud.crs_wkt)) j["fields"][f.name]["unit"] = *unit;
-    if (const auto d = detail::result_field_info(f.name, r.cloud.crs_wkt))
-      j["fields"][f.name]["description"] = d->description;
+    if (const auto unit = described.unit(f.name)) j["fields"][f.name]["unit"] = *unit;
+    if (const auto d = described.info(f.name)) j["fields"][f.name]["description"] = d->description;
   }
   nlohmann::json written = nlohmann::json::array();
   for (const auto& f : r.written) written.push_back(f.string());

@@ -535,10 +535,11 @@ std::string visibility_report_json(const VisibilityJobResult& r) {
   // output file's LAS descriptor or PLY/PCD comment gives it (the fields of the source cloud have
   // none), as solar --json lists its own.
   report["fields"] = nlohmann::json::object();
+  const detail::ResultFields described(r.cloud.crs_wkt);
   for (const ScalarField& f : r.cloud.scalars)
-    if (const auto d = detail::result_field_info(f.name, r.cloud.crs_wkt)) {
+    if (const auto d = described.info(f.name)) {
       nlohmann::json& field = report["fields"][f.name];
-      field = {{"unit", detail::result_field_unit(f.name, r.cloud.crs_wkt).value_or("")},
+      field = {{"unit", described.unit(f.name).value_or("")},
                {"description", d->description}};
       if (d->no_data) field["no_data"] = *d->no_data;
     }

@@ -590,6 +590,61 @@ TEST(SolarCli, DefaultPreviewPathIsCheckedBeforeTheTrace) {
   std::filesystem::remove_all(dir);
 }
 
+// A day of shadows writes its frames (RASTER_HHMM.tif and .png), not the raster's name, and each
+// is checked with the other outputs before any work: a folder where the noon frame or its preview
+// goes is refused at once, naming --raster and that frame, before the cloud is opened (a missing
+// cloud goes unnamed) or anything is logged or written. Without previews the folder at the
+// preview's name is no output: the run writes the frames, noon's at the name the check refused.
+// The day's sun_hours count every sunny instant, whatever the beam, and say so (not WMO's
+// threshold of a period's). Oracle: the frames the run writes, listed in the folder, and the
+// JSON and the PLY header it writes.
+TEST(SolarCli, ADaysFramesAreCheckedBeforeAnyWork) {
+  const std::filesystem::path dir = std::filesystem::path(testing::TempDir()) / "solar_day_frames_checked";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir / "day_1200.tif");
+  const std::filesystem::path cloud = dir / "ground.ply", tif = dir / "day.tif", ply = dir / "day.ply";
+  PointCloud ground;
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) ground.positions.emplace_back(i, j, 0.0);
+  io::write_point_cloud(cloud, ground);
+  const std::string args = "' --lat 44 --lon -123 --utc-offset -7 --day 2026-06-21 --every 1h --cell 3 --raster '" +
+                           tif.string() + "'";
+  const std::string solar = std::string(RAYSCAN_BIN) + " solar '";
+  const auto frames_written = [&] {
+    std::vector<std::string> names;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+      if (e.is_regular_file() && e.path().filename().string().rfind("day_", 0) == 0)
+        names.push_back(e.path().filename().string());
+    return names;
+  };
+  const auto refused = [&](const std::string& cmd, const std::filesystem::path& frame) {
+    const auto r = rayscan::test::run_command(cmd);
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_EQ(r.out, "rayscan solar: --raster '" + frame.string() + "': is a folder, expected a file name\n");
+    EXPECT_TRUE(frames_written().empty());
+  };
+  refused(solar + (dir / "missing.las").string() + args, dir / "day_1200.tif");
+  refused(solar + cloud.string() + args, dir / "day_1200.tif");
+  std::filesystem::remove(dir / "day_1200.tif");
+  std::filesystem::create_directories(dir / "day_1200.png");
+  refused(solar + cloud.string() + args, dir / "day_1200.png");
+
+  const auto r = rayscan::test::run_command(solar + cloud.string() + args + " --no-preview -q --json -o '" +
+                                            ply.string() + "'", false);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_TRUE(std::filesystem::is_regular_file(dir / "day_1200.tif"));
+  EXPECT_TRUE(std::filesystem::is_directory(dir / "day_1200.png"));
+  EXPECT_GE(frames_written().size(), 10u);  // 05:00 .. 20:00 local time at 44 N in June
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["fields"]["sun_hours"]["description"], "hours of direct sun, any DNI, h") << r.out;
+  std::ifstream in(ply, std::ios::binary);
+  std::string line, comment;
+  while (std::getline(in, line) && line != "end_header")
+    if (line.rfind("comment field scalar_sun_hours: ", 0) == 0) comment = line;
+  EXPECT_EQ(comment, "comment field scalar_sun_hours: hours of direct sun, any DNI, h");
+  std::filesystem::remove_all(dir);
+}
+
 // A day of shadows: a frame for every instant with the sun up (numbered by the clock), and per
 // point the hours of sun and of shadow; open ground far from a wall has every sunny hour, the
 // ground at the wall's north foot has shadow all day at this latitude.
@@ -917,7 +972,8 @@ TEST(SolarJob, APeriodMapStatesItsStartAndEnd) {
        "2026-06-21T13:00:00+02:00", "2026-06-21T16:00:00+02:00"},
       {"2026-06-21", "2026-06-21", "global", "global irradiation 2026-06-21 to 2026-06-21 (kWh/m²)",
        "2026-06-21T00:00:00+02:00", "2026-06-22T00:00:00+02:00"},
-      {"2026-06-20T22:00Z", "2026-06-22T22:00Z", "sun_hours", "hours of direct sun 2026-06-21 to 2026-06-22 (h)",
+      {"2026-06-20T22:00Z", "2026-06-22T22:00Z", "sun_hours",
+       "hours of direct sun (DNI >= 120 W/m2) 2026-06-21 to 2026-06-22 (h)",
        "2026-06-21T00:00:00+02:00", "2026-06-23T00:00:00+02:00"},
   };
   for (const Case& c : cases) {

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -435,8 +436,9 @@ TEST(JobCli, SolarSiteHeightWithLatitudeAndLongitudeIsTheCentresZInMetres) {
 
 // Solar's result fields keep their units outside LAS: `--json` gives each reported field's unit
 // and description, and PLY and PCD outputs describe every result field in a header comment with
-// the description the LAS Extra Bytes descriptor holds. Oracle: the JSON parsed and the written
-// files' own header lines, the units as docs/solar.md tabulates them.
+// the description the LAS Extra Bytes descriptor holds. sun_hours states WMO's sunshine threshold
+// (docs/solar.md: a direct normal irradiance of at least 120 W/m²). Oracle: the JSON parsed and
+// the written files' own header lines and bytes, the units as docs/solar.md tabulates them.
 TEST(JobCli, SolarFieldsCarryTheirUnitsIntoJsonPlyAndPcd) {
   const std::string las = quoted(data_file("las/simple.las"));
   const std::string site = " --lat 44 --lon -123 --sky-rays 0 --json -o '";
@@ -447,7 +449,17 @@ TEST(JobCli, SolarFieldsCarryTheirUnitsIntoJsonPlyAndPcd) {
   EXPECT_EQ(j["fields"]["solar_global"]["unit"], "kWh/m2") << r.out;
   EXPECT_EQ(j["fields"]["solar_global"]["description"], "global irradiation, kWh/m2");
   EXPECT_EQ(j["fields"]["sun_hours"]["unit"], "h");
-  EXPECT_EQ(j["fields"]["sun_hours"]["description"], "hours of direct sun, h");
+  EXPECT_EQ(j["fields"]["sun_hours"]["description"], "sun hours, DNI >= 120 W/m2, h");
+  // The LAS Extra Bytes descriptor's 32-byte description, NUL-padded, in the file's own bytes.
+  const auto las_out = temp_dir() / "sun_units.las";
+  r = rayscan_cli("solar -q " + las + " --start 2026-06-21 --end 2026-06-21" + site + las_out.string() + "'");
+  ASSERT_EQ(r.code, 0) << r.out;
+  {
+    std::ifstream in(las_out, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_NE(bytes.find(std::string("sun hours, DNI >= 120 W/m2, h\0", 30)), std::string::npos);
+  }
+  std::filesystem::remove(las_out);
   r = rayscan_cli("solar -q " + las + " --at 2026-06-21T20:00Z" + site + pcd.string() + "'");
   ASSERT_EQ(r.code, 0) << r.out;
   j = nlohmann::json::parse(r.out.substr(r.out.find('{')));
@@ -465,7 +477,7 @@ TEST(JobCli, SolarFieldsCarryTheirUnitsIntoJsonPlyAndPcd) {
   const std::vector<std::string> ph = header(ply, "end_header");
   EXPECT_TRUE(has(ph, "comment field scalar_solar_global: global irradiation, kWh/m2"));
   EXPECT_TRUE(has(ph, "comment field scalar_solar_beam: beam irradiation, kWh/m2"));
-  EXPECT_TRUE(has(ph, "comment field scalar_sun_hours: hours of direct sun, h"));
+  EXPECT_TRUE(has(ph, "comment field scalar_sun_hours: sun hours, DNI >= 120 W/m2, h"));
   EXPECT_TRUE(has(ph, "property double scalar_solar_global"));
   const std::vector<std::string> dh = header(pcd, "DATA");
   EXPECT_TRUE(has(dh, "# field irradiance_global: global irradiance, W/m2"));

@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace rayscan::analysis {
@@ -23,6 +24,10 @@ namespace rayscan::analysis {
 /// (an overcast sky's faint beam, the clear sky's first minutes after sunrise) the sun casts no
 /// distinct shadow.
 inline constexpr double kSunshineThreshold = 120.0;
+
+/// kSunshineThreshold as the outputs state it, "DNI >= 120 W/m2" (ASCII, as the result fields'
+/// LAS descriptors and units write W/m2): the description of sun_hours and the title of its map.
+std::string sunshine_criterion();
 
 /// The sky at one time step, the same for every point of the site.
 struct SolarStep {

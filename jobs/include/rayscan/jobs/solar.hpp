@@ -202,6 +202,9 @@ struct SolarJobResult {
   analysis::SiteLocation location;      ///< where the sun was computed
   bool location_from_crs = false;
   double start_unix = 0.0, end_unix = 0.0, step_hours = 0.0;
+  /// A day of shadows (SolarJobOptions::day): its sun_hours count every instant with the sun up
+  /// and the ray open, without a period's sunshine threshold (analysis::kSunshineThreshold).
+  bool day_of_shadows = false;
   /// Hours east of UTC the times are stated in (maps' titles and RAYSCAN_TIME, the report's start
   /// and end): `utc_offset`; else, at an instant, the offset written in `at`, over a day of shadows
   /// local mean solar time (to the minute), else 0 (UTC). Always whole minutes.
