@@ -100,12 +100,26 @@ void TemporaryOf::release() noexcept {
   id_ = 0;
 }
 
-IntermediateFile::IntermediateFile(std::filesystem::path temp, const std::filesystem::path& output)
-    : temp_(std::move(temp)), temp_for_(temp_, output) {}
+IntermediateFile::IntermediateFile(std::filesystem::path temp, const std::filesystem::path& output,
+                                   RemoveOnInterrupt::Kind kind)
+    : temp_(std::move(temp)), kind_(kind), temp_for_(temp_, output, kind) {
+  if (kind_ != RemoveOnInterrupt::Kind::folder) return;
+  std::error_code ec;
+  std::filesystem::create_directory(temp_, ec);
+  if (ec) throw output_error(temp_, "cannot create the temporary folder", ec.value());
+}
 
 IntermediateFile::~IntermediateFile() {
   std::error_code ec;
-  std::filesystem::remove(temp_, ec);
+  if (kind_ == RemoveOnInterrupt::Kind::folder) std::filesystem::remove_all(temp_, ec);
+  else std::filesystem::remove(temp_, ec);
+}
+
+std::string temporary_named_as(std::string message, const std::filesystem::path& temp,
+                               const std::filesystem::path& named) {
+  const std::string t = temp.string();
+  if (!t.empty() && message.rfind(t, 0) == 0) message = named.string() + message.substr(t.size());
+  return message;
 }
 
 std::filesystem::path output_of(const std::filesystem::path& file) {

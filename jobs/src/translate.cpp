@@ -89,14 +89,6 @@ void apply_grid_options(const TranslateJobOptions& o, io::LasWriteOptions& grid)
   if (o.auto_offset) grid.has_offset = false;
 }
 
-/// `e`'s message with the path `from` at its start replaced by `to` (an error of a temporary file
-/// told of the file the user named).
-std::string renamed(const std::exception& e, const std::filesystem::path& from, const std::filesystem::path& to) {
-  std::string what = e.what();
-  if (what.rfind(from.string(), 0) == 0) what = to.string() + what.substr(from.string().size());
-  return what;
-}
-
 /// LAZ or COPC output (`copc`) of `cloud` on `grid`: written by io::write_las into a hidden LAS
 /// file beside the output, then that file compressed by io::translate_las (the job's chunk size
 /// and progress) or written as COPC (its records and grid copied as they are); the temporary is
@@ -115,7 +107,7 @@ TranslateJobResult write_through_las(const TranslateJobOptions& options, const P
   try {
     io::write_las(temp, cloud, grid);
   } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(renamed(e, temp, options.out));
+    throw std::invalid_argument(temporary_named_as(e.what(), temp, options.out));
   }
   TranslateJobResult r;
   try {
@@ -131,11 +123,11 @@ TranslateJobResult write_through_las(const TranslateJobOptions& options, const P
       r.in_bytes = std::filesystem::file_size(options.in);
     }
   } catch (const io::CopcMemoryError& e) {
-    throw io::CopcMemoryError(renamed(e, temp, options.in));
+    throw io::CopcMemoryError(temporary_named_as(e.what(), temp, options.in));
   } catch (const OptionError&) {
     throw;
   } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(renamed(e, temp, options.in));
+    throw std::invalid_argument(temporary_named_as(e.what(), temp, options.in));
   }
   return r;
 }

@@ -228,19 +228,15 @@ std::unique_ptr<SiteStream> open_site(const std::vector<fs::path>& paths, const 
       if (std::strcmp(phase, "spacing") != 0 && std::strcmp(phase, "done") != 0) progress(phase, done, total);
     };
   std::optional<io::MappedIndex> index;
-  const TemporaryOf named(temp, output);  // a full disk names the import's output
-  try {
+  {
+    // Removed once mapped, or when the build fails, or by a signal; a full disk names the
+    // import's output.
+    const IntermediateFile index_file(temp, output);
     (void)io::build_index_file(paths, temp, build);
     io::IndexOpenOptions open;
     open.verify = io::IndexOpenOptions::Verify::metadata_only;  // just written by us
     index.emplace(io::MappedIndex::open(temp, open));
-  } catch (...) {
-    std::error_code ec;
-    fs::remove(temp, ec);
-    throw;
   }
-  std::error_code ec;
-  fs::remove(temp, ec);
   std::vector<std::string> given;
   for (const auto& p : paths) given.push_back(p.string());
   return std::make_unique<IndexSite>(std::move(*index), std::move(given), options);

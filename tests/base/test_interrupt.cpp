@@ -98,6 +98,27 @@ TEST(Interrupt, DeferredFirstSignalIsOnlyRecordedTheSecondEndsTheProcess) {
   fs::remove_all(dir);
 }
 
+// IntermediateFile, a file or a folder of files (COPC records, an import's index, the sort runs):
+// a signal while it lives removes it, as the end of its scope would.
+TEST(Interrupt, SignalRemovesIntermediateFilesAndFolders) {
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_interrupt_intermediate");
+  const int status = in_child([&] {
+    rayscan::install_interrupt_handler();
+    touch(dir / "unmarked");
+    const rayscan::IntermediateFile file(dir / ".x.rsi.1.rsi", dir / "x.sqlite");
+    touch(file.path());
+    const rayscan::IntermediateFile runs(dir / ".x.rsi.runs.1", dir / "x.rsi", RemoveOnInterrupt::Kind::folder);
+    for (int i = 0; i < 3; ++i) touch(runs.path() / ("run" + std::to_string(i)));
+    if (rayscan::test::entry_names(dir).size() != 3) ::_exit(3);  // the files exist before the signal
+    ::raise(SIGTERM);
+    ::_exit(4);  // not reached
+  });
+  ASSERT_TRUE(WIFSIGNALED(status)) << "status " << (WIFEXITED(status) ? WEXITSTATUS(status) : status);
+  EXPECT_EQ(WTERMSIG(status), SIGTERM);
+  EXPECT_EQ(rayscan::test::entry_names(dir), std::set<std::string>{"unmarked"});
+  fs::remove_all(dir);
+}
+
 TEST(Interrupt, SignalIgnoredAtInstallStaysIgnored) {
   // `nohup rayscan ...` ignores SIGHUP: the handler must not take it over.
   const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_interrupt_ignored");

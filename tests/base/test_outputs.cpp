@@ -1,6 +1,6 @@
 // require_outputs (atomic_file.hpp): the checks every job runs on its outputs before its work, here
 // the one between outputs: two outputs of one command at one path, however spelled, are refused;
-// and the errors about temporaries, which name the output they are written for.
+// and the errors about temporaries, which name the output they are written for; IntermediateFile.
 #include "rayscan/base/atomic_file.hpp"
 
 #include "../common/temp_dir.hpp"
@@ -11,6 +11,10 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <set>
+#include <stdexcept>
+#include <string>
 #include <unistd.h>
 
 namespace fs = std::filesystem;
@@ -81,4 +85,52 @@ TEST(OutputError, TemporariesAreNamedByTheirOutput) {
                   "'): " + enospc);
   }
   fs::remove_all(dir);
+}
+
+// IntermediateFile, a file or (Kind::folder) a folder with its contents: registered for its output
+// while it lives (errors about it, or a file in the folder, name the output) and removed however
+// the scope is left; a folder it cannot create is an error naming the output, and what stands at
+// its path is left alone. The oracle is the file system and the messages' own wording.
+TEST(IntermediateFile, FileOrFolderIsRemovedHoweverTheScopeIsLeft) {
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_intermediate");
+  const fs::path out = dir / "x.rsi";
+  const std::string enospc = std::strerror(ENOSPC);
+  try {
+    const rayscan::IntermediateFile file(dir / ".x.rsi.las.1", out);
+    std::ofstream(file.path()) << "records";
+    EXPECT_EQ(rayscan::output_error(file.path(), "write failed", ENOSPC).what(), out.string() + ": write failed: " + enospc);
+    const rayscan::IntermediateFile runs(dir / ".x.rsi.runs.1", out, rayscan::RemoveOnInterrupt::Kind::folder);
+    ASSERT_TRUE(fs::is_directory(runs.path()));
+    fs::create_directory(runs.path() / "sub");
+    std::ofstream(runs.path() / "run0") << "run";
+    std::ofstream(runs.path() / "sub" / "run1") << "run";
+    EXPECT_EQ(rayscan::output_error(runs.path() / "run0", "write failed", ENOSPC).what(),
+              out.string() + ": write failed: " + enospc);
+    EXPECT_EQ(rayscan::test::entry_names(dir), (std::set<std::string>{".x.rsi.las.1", ".x.rsi.runs.1"}));
+    throw std::runtime_error("left by an exception");
+  } catch (const std::runtime_error&) {
+  }
+  EXPECT_TRUE(rayscan::test::entry_names(dir).empty());
+  EXPECT_EQ(rayscan::output_of(dir / ".x.rsi.runs.1" / "run0"), dir / ".x.rsi.runs.1" / "run0");  // released
+
+  std::ofstream(dir / "taken") << "not ours";
+  std::string error;
+  try {
+    const rayscan::IntermediateFile runs(dir / "taken", out, rayscan::RemoveOnInterrupt::Kind::folder);
+  } catch (const rayscan::OutputFileError& e) {
+    error = e.what();
+  }
+  EXPECT_EQ(error, out.string() + ": cannot create the temporary folder: " + std::strerror(EEXIST));
+  std::ifstream taken(dir / "taken");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(taken), {}), "not ours");
+  fs::remove_all(dir);
+}
+
+// A writer's message about an intermediate file told of the file the user gave: the path at the
+// start replaced, any other message kept as it is.
+TEST(IntermediateFile, MessagesNameTheFileTheUserGave) {
+  const fs::path temp = "/d/.x.laz.las.tmp.7", out = "/d/x.laz";
+  EXPECT_EQ(rayscan::temporary_named_as(temp.string() + ": no points", temp, out), "/d/x.laz: no points");
+  EXPECT_EQ(rayscan::temporary_named_as("in.las: no points in " + temp.string(), temp, out),
+            "in.las: no points in " + temp.string());
 }

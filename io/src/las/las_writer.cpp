@@ -135,9 +135,7 @@ void write_las(const std::filesystem::path& path, const PointCloud& cloud, const
   try {
     write_las_records(plain, cloud, options, true);
   } catch (const std::invalid_argument& e) {  // name the file the caller asked for
-    std::string what = e.what();
-    if (what.rfind(plain.string(), 0) == 0) what = path.string() + what.substr(plain.string().size());
-    throw std::invalid_argument(what);
+    throw std::invalid_argument(temporary_named_as(e.what(), plain, path));
   }
   TranslateOptions t;
   t.compression = LasCompression::laz;

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -25,21 +26,11 @@ struct CarriedVlr {
 };
 
 /// The mapped file the records are read from: the input itself (an uncompressed LAS of PDRF
-/// 6-8), or a temporary file of converted records, removed when this is destroyed (and by the
-/// interrupt handler should a signal end the program: `temp_for`, set with `temp`, before the
-/// file is created); its errors name the COPC output.
+/// 6-8), or a temporary file of converted records (IntermediateFile: its errors name the COPC
+/// output; removed when this is destroyed, after the mapping, and by a signal). Not copyable.
 struct RecordFile {
+  std::optional<IntermediateFile> temp;  ///< the converted records' file; declared first: removed last
   std::unique_ptr<detail::MappedFile> map;
-  std::filesystem::path temp;  ///< removed on destruction when not empty
-  TemporaryFor temp_for;       ///< temp registered as the output's and marked
-  RecordFile() = default;
-  RecordFile(const RecordFile&) = delete;
-  RecordFile& operator=(const RecordFile&) = delete;
-  ~RecordFile() {
-    map.reset();
-    std::error_code ec;
-    if (!temp.empty()) std::filesystem::remove(temp, ec);
-  }
 };
 
 /// The input as PDRF 6, 7 or 8 records (plus extra bytes) and the header fields a COPC file

@@ -159,10 +159,9 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
     // Decoded (LAZ, chunks in parallel by batches) and/or converted (PDRF 0-3) by batches into
     // a temporary file of output records, then mapped.
     auto out = std::make_shared<RecordFile>();
-    out->temp = temp_path(opt, name, "records");
-    out->temp_for = TemporaryFor(out->temp, output);
+    const std::filesystem::path& records = out->temp.emplace(temp_path(opt, name, "records"), output).path();
     {
-      detail::AtomicWriter w(out->temp, true);
+      detail::AtomicWriter w(records, true);
       std::vector<std::uint8_t> raw, conv;
       const std::size_t core = static_cast<std::size_t>(detail::pdrf_length(r.pdrf));
       std::uint64_t done = 0;
@@ -211,9 +210,9 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
       }
       w.commit();
     }
-    out->map = std::make_unique<detail::MappedFile>(out->temp);
+    out->map = std::make_unique<detail::MappedFile>(records);
     if (out->map->bytes().size() != h.count * out_len)
-      throw std::runtime_error(out->temp.string() + ": temporary records file has the wrong size");
+      throw std::runtime_error(records.string() + ": temporary records file has the wrong size");
     r.bytes = out->map->bytes().data();
     r.file = std::move(out);
   }
@@ -264,11 +263,10 @@ Records read_records(const std::filesystem::path& in, const std::filesystem::pat
   const PointCloud cloud = read_point_cloud(in);
   if (cloud.size() == 0) throw std::invalid_argument(in.string() + ": no points to write as COPC");
   detail::require_readable_crs(in.string(), cloud.crs_wkt);  // named as the input, not the intermediate
-  file->temp = temp_path(opt, in.string(), "input.las");
-  file->temp_for = TemporaryFor(file->temp, out);
-  write_las(file->temp, cloud);
-  file->map = std::make_unique<detail::MappedFile>(file->temp);
-  Records r = read_las_family(file, file->temp, in.string(), opt, out);
+  const std::filesystem::path& las = file->temp.emplace(temp_path(opt, in.string(), "input.las"), out).path();
+  write_las(las, cloud);
+  file->map = std::make_unique<detail::MappedFile>(las);
+  Records r = read_las_family(file, las, in.string(), opt, out);
   r.in_bytes = in_bytes;
   r.creation_day = r.creation_year = 0;  // write_las's date is today's: not a property of the input
   r.notes.push_back("converted from " + in.extension().string() + " through LAS point data record format " +

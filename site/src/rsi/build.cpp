@@ -179,7 +179,7 @@ void IndexBuild::plan_runs() {
 
 void IndexBuild::create_output() {
   out.emplace(output);
-  runs_dir.emplace(runs_folder(output, opt), output);
+  runs_dir.emplace(runs_folder(output, opt), output, RemoveOnInterrupt::Kind::folder);
 }
 
 void IndexBuild::read_pass() {
@@ -264,7 +264,7 @@ void IndexBuild::write_run() {
       }
     });
   }
-  const fs::path rp = runs_dir->path / ("run" + std::to_string(run_files.size()));
+  const fs::path rp = runs_dir->path() / ("run" + std::to_string(run_files.size()));
   // codec.grid_ok covers every point read so far, this run's included (append checked them).
   const RunLayout R(L, want_ids, codec.grid_ok && codec.grid_set);
   // O_DIRECT where possible: a run is written once and read once, so it bypasses the page

@@ -1,12 +1,10 @@
 // The external sort of the index build: the point buffer of one sort run and its key sort, the
-// layout of the run records on disk, the runs' folder and buffered reader, and the tree of losers
+// layout of the run records on disk, the runs' buffered reader, and the tree of losers
 // that merges them. docs/index-format.md, "Build (external memory)" 1 to 3.
 #pragma once
 
 #include "codecs.hpp"
 #include "direct_io.hpp"
-#include "rayscan/base/atomic_file.hpp"
-#include "rayscan/base/interrupt.hpp"
 #include "rayscan/octree/morton_sort.hpp"
 
 #include <tbb/parallel_for.h>
@@ -21,7 +19,6 @@
 #include <future>
 #include <stdexcept>
 #include <string>
-#include <system_error>
 #include <utility>
 #include <vector>
 
@@ -57,26 +54,6 @@ struct RunLayout {
     if (L.intensity) int_off = bytes, bytes += 2;
     if (L.cls) cls_off = bytes, bytes += 1;
     pos_off = bytes, bytes += grid ? 12 : 24;
-  }
-};
-
-/// A folder of temporary files removed (with its contents) on destruction, and by the interrupt
-/// handler should a signal end the program. Its parent must exist: only the folder is created.
-/// Errors about its files name `output`, the file it is written for (TemporaryFor).
-struct TempDir {
-  fs::path path;
-  TemporaryFor temp_for;  // registered and marked before the folder exists
-  TempDir(fs::path p, const fs::path& output)
-      : path(std::move(p)), temp_for(path, output, RemoveOnInterrupt::Kind::folder) {
-    std::error_code ec;
-    fs::create_directory(path, ec);
-    if (ec) throw output_error(path, "cannot create the temporary folder", ec.value());
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
   }
 };
 

@@ -122,7 +122,7 @@ class IndexBuild {
   bool grid_from_headers = false;  ///< grid_bounds is the union of the LAS headers' boxes
   OctreeRules::Quantizer grid_qz{Vec3(0.0), 1.0};  ///< the runs' Morton grid
   std::optional<AtomicFile> out;
-  std::optional<TempDir> runs_dir;
+  std::optional<IntermediateFile> runs_dir;  ///< the sort runs' folder (Kind::folder)
   AABB bounds;              ///< exact bounds of the points read
   std::uint64_t total = 0;  ///< points read
   PointBuffer buf;

@@ -85,23 +85,36 @@ class TemporaryFor {
 };
 
 /// An intermediate file `temp` written for the output `output` and never renamed into place (the
-/// uncompressed LAS that a LAZ or COPC output is made from): registered and marked while this
-/// object lives (TemporaryFor: errors about it name `output`, a signal removes it), and removed
-/// when it is destroyed, however the scope is left (an exception, a return). Make it before
-/// creating `temp`. Never throws but std::bad_alloc. Not copyable.
+/// uncompressed LAS that a LAZ or COPC output is made from, COPC records, an import's index), or
+/// with Kind::folder a folder of such files (the sort runs of an index build): registered and
+/// marked while this object lives (TemporaryFor: errors about it, or a file in the folder, name
+/// `output`; a signal removes it), and removed, a folder with its contents, when this object is
+/// destroyed, however the scope is left (an exception, a return). A file is created by its
+/// writer after this object; a folder is created by the constructor (its parent must exist; a
+/// folder already there is used), which throws OutputFileError naming `output` when it cannot
+/// and then removes nothing. Never throws otherwise but std::bad_alloc. Not copyable.
 class IntermediateFile {
  public:
-  IntermediateFile(std::filesystem::path temp, const std::filesystem::path& output);
+  IntermediateFile(std::filesystem::path temp, const std::filesystem::path& output,
+                   RemoveOnInterrupt::Kind kind = RemoveOnInterrupt::Kind::file);
   IntermediateFile(const IntermediateFile&) = delete;
   IntermediateFile& operator=(const IntermediateFile&) = delete;
   ~IntermediateFile();
-  /// The intermediate file's path.
+  /// The intermediate file's (or folder's) path.
   [[nodiscard]] const std::filesystem::path& path() const { return temp_; }
 
  private:
   std::filesystem::path temp_;
+  RemoveOnInterrupt::Kind kind_;
   TemporaryFor temp_for_;  // released after the destructor removed temp_
 };
+
+/// `message` (an error's what()) with the path `temp` at its start replaced by `named`: a writer's
+/// refusal of the data, raised about an intermediate file it was given, told of the file the user
+/// gave (the output, or the input the data came from). Returned as it is when it does not start
+/// with `temp`.
+[[nodiscard]] std::string temporary_named_as(std::string message, const std::filesystem::path& temp,
+                                             const std::filesystem::path& named);
 
 /// The output `file` is written for: the output of the registered temporary `file` (or of the
 /// registered folder `file` lies in), followed through the chain; `file` itself when it is no
