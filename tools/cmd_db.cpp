@@ -2,11 +2,13 @@
 // index of chunk bounds (paper section 4.2). Parsing and printing only; the job is
 // rayscan::jobs::run_db_import (rayscan/jobs/db_import.hpp).
 #include "commands.hpp"
+#include "option_names.hpp"
 #include "phase_progress.hpp"
 #include "processes.hpp"
 
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/jobs/db_import.hpp"
+#include "rayscan/jobs/index.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -20,7 +22,8 @@ namespace {
 
 struct DbImportOptions {
   std::vector<std::string> clouds;
-  std::string out, postgres, table = "points", attributes, memory, temp_dir;
+  std::string out, postgres, table = "points", attributes, temp_dir;
+  std::string memory = jobs::IndexJobOptions{}.memory;  // (the import sorts as `rayscan index` does)
   std::uint32_t chunk = jobs::DbImportJobOptions::kDefaultChunkSize;
   bool pcpatch = false, quiet = false, json = false;
 };
@@ -69,14 +72,17 @@ Runner add_db_command(CLI::App& app) {
   c->add_option("-o,--out", o->out, "Output SQLite file (replaced atomically)");
   c->add_option("--postgres", o->postgres, "libpq connection string (instead of -o)");
   CLI::Option* table = c->add_option("--table", o->table, "PostgreSQL table name (with --postgres)")->capture_default_str();
-  c->add_option("--chunk", o->chunk, "Points per chunk")->capture_default_str()->check(CLI::Range(1u, 1u << 24));
+  c->add_option(option_names("db", "chunk_size"), o->chunk, "Points per chunk")
+      ->capture_default_str()
+      ->transform(integer_in(1, 1 << 24));
   c->add_flag("--pcpatch", o->pcpatch,
               "PostgreSQL: one pgpointcloud patch (pcpatch, double X/Y/Z) per chunk in TABLE, with "
               "its box, instead of rows");
   c->add_option("--memory", o->memory,
                 "memory budget of the external Morton sort (e.g. 4G, 512M): the clouds are ordered "
                 "through a temporary index file, so memory stays bounded whatever their size; "
-                "default: that of rayscan index");
+                "default: that of rayscan index")
+      ->capture_default_str();
   c->add_option("--temp-dir", o->temp_dir,
                 "folder of the temporary index file and sort runs (default: the SQLite output's "
                 "folder, or the system temporary folder for --postgres)");

@@ -44,7 +44,8 @@ Runner add_index_command(CLI::App& app) {
                                           "out of core (external sort by Morton code), for mmap'd queries and renders");
   struct Opts {
     std::vector<std::string> inputs;
-    std::string output, attributes = "none", memory = "4G", layout = "adaptive", temp_dir, positions = "compact";
+    std::string output, attributes = "none", memory = jobs::IndexJobOptions{}.memory, temp_dir, positions = "compact";
+    std::string layout = to_string(OctreeLayout::adaptive);
     std::uint32_t capacity = default_capacity(OctreeLayout::adaptive);
     unsigned depth = 6, max_depth = 21;
     bool quiet = false;
@@ -59,16 +60,20 @@ Runner add_index_command(CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--memory", o->memory, "memory budget of the external sort (e.g. 4G, 512M); for .copc.laz of the "
                                          "build (12 bytes per point plus 256 MiB)")->capture_default_str();
-  CLI::Option* layout_opt = sub->add_option("--layout", o->layout, "octree layout: adaptive | fixed")->capture_default_str();
+  // The layouts of the external-memory build (not layered: check_applicable's words below).
+  CLI::Option* layout_opt =
+      sub->add_option("--layout", o->layout, "octree layout")
+          ->check(CLI::IsMember({std::string(to_string(OctreeLayout::adaptive)), std::string(to_string(OctreeLayout::fixed))}))
+          ->capture_default_str();
   CLI::Option* capacity = sub->add_option("--capacity", o->capacity, "adaptive: points per leaf before a split (fixed: an error)")
                               ->capture_default_str()
-                              ->check(integer_in(1, 0xFFFFFFFF));
+                              ->transform(integer_in(1, 0xFFFFFFFF));
   CLI::Option* depth = sub->add_option("--depth", o->depth, "fixed: leaf depth, 0..21 (adaptive: an error)")
                            ->capture_default_str()
-                           ->check(CLI::Range(0u, 21u));
+                           ->transform(integer_in(0, 21));
   CLI::Option* max_depth = sub->add_option("--max-depth", o->max_depth, "adaptive: deepest level, 1..21 (fixed: an error)")
                                ->capture_default_str()
-                               ->check(CLI::Range(1u, 21u));
+                               ->transform(integer_in(1, 21));
   CLI::Option* positions = sub->add_option("--positions", o->positions,
                   "compact: the LAS int32 grid (LAS/LAZ inputs on one scale/offset) or float32 when exact, "
                   "else float64 | float64: always 24 bytes per point (docs/index-format.md)")
@@ -79,11 +84,7 @@ Runner add_index_command(CLI::App& app) {
   return [o, attributes, layout_opt, capacity, depth, max_depth, positions]() -> int {
     require_single_process("rayscan index");
     jobs::IndexJobOptions job;
-    try {
-      job.config.layout = parse_octree_layout(o->layout);
-    } catch (const std::invalid_argument& e) {
-      throw UsageError(e.what());
-    }
+    job.config.layout = parse_octree_layout(o->layout);  // (one of the names --layout checked)
     // An option the chosen layout does not use is refused rather than ignored, by the library's
     // rule (check_applicable; its OptionError is printed with the flags' names; the job refuses
     // the layered layout, which the external-memory build lacks). A COPC output has its own octree.

@@ -128,12 +128,15 @@ Runner add_query_command(CLI::App& app) {
       "query", "Ray query (paper Algorithm 1): points near rays, ordered by distance to the ray, "
                "time along it, or first sphere hit. Writes CSV ray,rank,index,x,y,z,t,distance; t is "
                "the projection parameter (orders ray/time) or the sphere entry (sphere_hit).");
-  c->add_option("--cloud", o->cloud, "Point cloud file (any supported format) or index file (.rsi; --index options then come from the file)")->required();
+  // The cloud positionally, as every other command takes it; --cloud also names it.
+  c->add_option("cloud,--cloud", o->cloud,
+                "Point cloud file (any supported format) or index file (.rsi; --index options then come from the file)")
+      ->required();
   c->add_option("--rays", o->rays,
                 "Rays: CSV with header ox,oy,oz,dx,dy,dz, or .f64 (6 little-endian float64 per ray)")
       ->required();
   c->add_option("--k", o->k, "Keep the k best results per ray, an integer >= 1 (default: no limit; give --k or --radius, or --all)")
-      ->check(integer_in(1));
+      ->transform(integer_in(1));
   c->add_flag("--all", o->all, "Without --k or a finite --radius: return every point on every ray (otherwise refused)");
   c->add_option("--radius", o->radius,
                 "Max orthogonal distance to the ray line, world units (default: infinite)");
@@ -143,18 +146,16 @@ Runner add_query_command(CLI::App& app) {
                 "Ordering: ray (distance to line, eq. 1), time (t along the ray, eq. 2) or "
                 "sphere_hit (entry into the sphere of --radius)")
       ->capture_default_str();
-  c->add_option("--index", o->index.type,
-                "Index: octree-adaptive, octree-layered, octree-fixed, kdtree or brute")
-      ->capture_default_str();
+  add_index_option(*c, o->index.type);
   c->add_option("--capacity", o->capacity,
                 "Octree node capacity / kd-tree leaf size, points (default: the index's own, " +
                     std::to_string(default_capacity(OctreeLayout::adaptive)) + " for octree-adaptive, " +
                     std::to_string(default_capacity(OctreeLayout::layered)) + " for octree-layered, " +
                     std::to_string(kDefaultKdTreeLeaf) + " for kdtree; octree-fixed and brute: an error)")
-      ->check(integer_in(1, 0xFFFFFFFF));
+      ->transform(integer_in(1, 0xFFFFFFFF));
   CLI::Option* depth_opt = c->add_option("--depth", o->index.depth, "Leaf depth of octree-fixed (0..21; other indexes: an error)")
       ->capture_default_str()
-      ->check(CLI::Range(0, 21));
+      ->transform(integer_in(0, 21));
   c->add_flag("--insertion", o->index.insertion,
               "Build the octree by point insertion instead of Morton bulk loading (octrees only)");
   c->add_option("-o,--out", o->out, "Output CSV, a name ending in .csv (default: standard output)");
@@ -162,8 +163,7 @@ Runner add_query_command(CLI::App& app) {
                 "COPC input: bound on decoded node data kept in memory (LRU; e.g. 2G, 512M). A COPC file is "
                 "queried on its own hierarchy, decoding only the nodes the rays reach")
       ->capture_default_str();
-  c->add_option("--threads", o->threads, "Worker threads, 0 = all cores; the hits are identical for any count")
-      ->check(CLI::Range(0u, 1024u));
+  add_threads_option(*c, o->threads, "the hits are identical for any count");
   c->add_flag("--quiet,-q", o->quiet, "No log lines, progress bar or summary line on stderr");
   return [o, depth_opt] {
     o->depth_given = depth_opt->count() > 0;

@@ -138,23 +138,18 @@ Runner add_render_command(CLI::App& app) {
   c->add_option("-o,--out", o->out, "Output image (.png .jpg .jpeg .tif .tiff .exr), replaces /output/image; a quick look of a "
                 "cloud without it writes <stem>.png in the working directory");
   c->add_option("--spp", o->spp, "Samples per pixel, integer in [1, " + std::to_string(render::kMaxSpp) +
-                "] (default: the scene's value, 16 if unset)")->check(CLI::Range(1u, render::kMaxSpp));
+                "] (default: the scene's value, 16 if unset)")->transform(integer_in(1, render::kMaxSpp));
   c->add_option("--seed", o->seed, "Random seed, unsigned 64-bit integer; the image is a pure function of it "
                 "(default: the scene's value, 0 if unset)")
-      ->check([](const std::string& v) {  // CLI11 would wrap "-1" to 2^64-1
-        return v.find_first_not_of("0123456789") == std::string::npos && !v.empty()
-                   ? std::string()
-                   : "expected an unsigned 64-bit integer, got '" + v + "'";
-      });
-  c->add_option("--threads", o->threads, "Worker threads, 0 = all cores; a larger count runs on all cores (the log "
-                "says how many); the image is identical for any count (default: all cores)")
-      ->check(CLI::Range(0u, 1024u));
-  c->add_option("--width", o->width, "Image width in pixels, in [1, 65536]; keeps the field of view, and the height "
-                "follows the aspect ratio unless given (default: the camera's size)")
-      ->check(CLI::Range(1u, kMaxImageSide));
-  c->add_option("--height", o->height, "Image height in pixels, in [1, 65536]; keeps the field of view, and the width "
-                "follows the aspect ratio unless given (default: the camera's size)")
-      ->check(CLI::Range(1u, kMaxImageSide));
+      ->transform(random_seed());
+  add_threads_option(*c, o->threads, "the image is identical for any count");
+  const std::string side = "in pixels, in [1, " + std::to_string(kMaxImageSide) + "]; keeps the field of view, and the ";
+  c->add_option("--width", o->width, "Image width " + side + "height follows the aspect ratio unless given (default: "
+                "the camera's size)")
+      ->transform(integer_in(1, kMaxImageSide));
+  c->add_option("--height", o->height, "Image height " + side + "width follows the aspect ratio unless given (default: "
+                "the camera's size)")
+      ->transform(integer_in(1, kMaxImageSide));
   c->add_option("--cache", o->cache,
                 "COPC input (sphere mode): bound on decoded node data (LRU, trimmed as each 4x4 pixel block ends; "
                 "plus the nodes of the blocks in flight; e.g. 2G, 512M). A COPC file is traced in place, decoding only the "
@@ -165,7 +160,7 @@ Runner add_render_command(CLI::App& app) {
   c->add_option("--exposure", o->exposure, "Exposure in stops, in [-30, 30]: pixel values x 2^EV before PNG/JPEG/TIFF "
                 "clip them to [0, 1] (EXR keeps linear values); replaces /output/exposure (default: the scene's "
                 "value, 0 if unset)")
-      ->check(CLI::Range(-30.0, 30.0));
+      ->check(finite_number(-30, 30));
   c->add_option("--primitive", o->primitive, "Geometry of each point: sphere (the paper's model, one "
                 "radius) or surfel (oriented disc with a PCA normal and a radius from the local "
                 "spacing); replaces /primitive (default: the scene's value, sphere if unset; a cloud's quick look: surfel)")

@@ -3,6 +3,7 @@
 // the cloud, and a top-down GeoTIFF map with a PNG preview. The job is jobs::run_visibility
 // (rayscan/jobs/visibility.hpp); this file parses options and prints.
 #include "commands.hpp"
+#include "option_names.hpp"
 #include "processes.hpp"
 
 #include "rayscan/base/byte_size.hpp"
@@ -112,7 +113,7 @@ Runner add_visibility_command(CLI::App& app) {
                 "such observers need their own height)")
       ->check(finite_number(-an::kMaxObserverCoordinate, an::kMaxObserverCoordinate));
   c->add_option("--ground-radius", o->job.ground_radius,
-                "Local ground = lowest (class-2 if classified) point within this horizontal distance "
+                "Local ground = lowest (class-2 if classified) point within this horizontal distance, world units "
                 "(default 5 x radius)")
       ->check(positive());
   c->add_option("--radius", o->radius, "Sphere radius of each point (world units) or auto")->capture_default_str();
@@ -128,10 +129,10 @@ Runner add_visibility_command(CLI::App& app) {
       ->check(CLI::IsMember({"sphere", "surfel"}));
   c->add_option("--tolerance", o->job.tolerance,
                 "A point counts as seen when the first sphere the ray meets lies at most this far before "
-                "it along the ray (default 2 x radius; surfels: 0)")
+                "it along the ray, world units (default 2 x radius; surfels: 0)")
       ->check(non_negative());
   c->add_option("--target-height", o->job.target_height,
-                "Rays aim this far above each point (GIS target height; keeps grazing views of level "
+                "Rays aim this far above each point, world units (GIS target height; keeps grazing views of level "
                 "ground open; default 1 x radius, surfels 0; 0 = aim at the point)")
       ->check(non_negative());
   c->add_option("--max-distance", o->job.max_distance, "Maximum viewing distance (world units; default unlimited)")
@@ -147,13 +148,16 @@ Runner add_visibility_command(CLI::App& app) {
       ->delimiter(',')
       ->expected(2);
   c->add_flag("--distance", o->job.distance, "Add the field visible_distance (nearest observer that sees the point, -1 none)");
-  c->add_option("--sky-view", o->job.sky_rays, "Sky view factor with N rays per point (field sky_view; default: off)")
-      ->check(CLI::Range(1u, 1u << 20));
+  c->add_option(option_names("visibility", "sky_rays"), o->job.sky_rays,
+                "Sky view factor with N rays per point (field sky_view; default: off)")
+      ->transform(integer_in(1, 1 << 20));
   c->add_option("--sky-weighting", o->sky_weighting, "uniform (solid angle) or cosine (irradiance)")
       ->capture_default_str();
-  c->add_option("--sky-lift", o->job.sky_lift, "Sky rays start this far above the point (default 2 x radius)")
+  c->add_option("--sky-lift", o->job.sky_lift, "Sky rays start this far above the point, world units (default 2 x radius)")
       ->check(non_negative());
-  c->add_option("--seed", o->job.seed, "Seed of the per-point rotation of the sky directions")->capture_default_str();
+  c->add_option("--seed", o->job.seed, "Seed of the per-point rotation of the sky directions, unsigned 64-bit integer")
+      ->capture_default_str()
+      ->transform(random_seed());
   c->add_option("--from-camera", o->camera,
                 "Camera file (JSON, scenes/README.md): count the pixels whose centre ray first hits each "
                 "point (field camera_hits)");
@@ -172,10 +176,8 @@ Runner add_visibility_command(CLI::App& app) {
                 "ends; plus the nodes of the chunks in flight; e.g. 2G, 512M). A COPC file is queried on its own "
                 "octree, decoding only the nodes the rays reach (its points are still read, as the output cloud)")
       ->capture_default_str();
-  c->add_option("--index", o->job.index.type, "Index: octree-adaptive, octree-layered, octree-fixed, kdtree, brute")
-      ->capture_default_str();
-  c->add_option("--threads", o->job.control.threads, "Worker threads (default: all cores; results are identical)")
-      ->check(CLI::Range(0u, 1024u));
+  add_index_option(*c, o->job.index.type);
+  add_threads_option(*c, o->job.control.threads, "the results are identical for any count");
   c->add_flag("--json", o->json, "Print a JSON report on stdout");
   c->add_flag("--quiet,-q", o->quiet, "No log lines or progress bar on stderr");
   return [o] { return run_visibility(*o); };

@@ -2,17 +2,21 @@
 // lives in its own cmd_<name>.cpp and registers itself on the CLI11 app here.
 #pragma once
 
+#include "rayscan/octree/any_index.hpp"
+
 #include <CLI/CLI.hpp>
 
 #include <charconv>
-#include <cstdlib>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <functional>
 #include <limits>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace rayscan::cli {
 
@@ -49,24 +53,67 @@ inline CLI::Validator finite_number(double lo, double hi, bool lo_open = false) 
       },
       want, "FINITE");
 }
-/// A CLI11 validator for a whole number in [lo, hi], checked on the text before CLI11 converts it
-/// (whose own line for "1.5" is "Could not convert"): "expected an integer >= 1, got '1.5'" (the
-/// range in full when `hi` is below the largest long long).
-inline CLI::Validator integer_in(long long lo, long long hi = std::numeric_limits<long long>::max()) {
-  const std::string want = "an integer " + (hi == std::numeric_limits<long long>::max()
-                                                ? ">= " + std::to_string(lo)
-                                                : "in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+namespace detail {
+
+/// The validator of integer_in and random_seed: a whole number of type T in [lo, hi], written in
+/// decimal with an optional '+', rewritten as std::to_string of its value ("010" -> "10") so that
+/// CLI11, which converts with strtoull(..., 0), reads no octal or hexadecimal in it.
+template <class T>
+CLI::Validator decimal_integer(T lo, T hi, const std::string& want, const std::string& name) {
   return CLI::Validator(
-      [=](const std::string& s) {
-        long long v = 0;
+      [=](std::string& s) {
+        T v{};
         const char* b = s.data();
         const char* e = b + s.size();
         if (b < e && *b == '+') ++b;
         const auto [p, ec] = std::from_chars(b, e, v);
-        const bool ok = ec == std::errc() && p == e && v >= lo && v <= hi;
-        return ok ? std::string() : "expected " + want + ", got '" + s + "'";
+        if (ec != std::errc() || p != e || !(lo <= v && v <= hi)) return "expected " + want + ", got '" + s + "'";
+        s = std::to_string(v);
+        return std::string();
       },
-      want, "INT");
+      want, name);
+}
+
+}  // namespace detail
+
+/// A CLI11 validator for a whole number in [lo, hi], read in decimal: "expected an integer >= 1,
+/// got '1.5'" (the range in full when `hi` is below the largest long long), where CLI11's own line
+/// is "Could not convert". Give it with ->transform(), not ->check(): it rewrites the text in
+/// plain decimal before CLI11 converts it, which would read "010" as octal 8 and refuse "08".
+inline CLI::Validator integer_in(long long lo, long long hi = std::numeric_limits<long long>::max()) {
+  const std::string want = "an integer " + (hi == std::numeric_limits<long long>::max()
+                                                ? ">= " + std::to_string(lo)
+                                                : "in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  return detail::decimal_integer(lo, hi, want, "INT");
+}
+/// A CLI11 validator for a random seed (--seed): an unsigned 64-bit integer in decimal, where
+/// CLI11 alone would wrap "-1" to 2^64-1 and read "010" as octal. Give it with ->transform(), as
+/// integer_in.
+inline CLI::Validator random_seed() {
+  return detail::decimal_integer<std::uint64_t>(0, std::numeric_limits<std::uint64_t>::max(),
+                                                "an unsigned 64-bit integer", "UINT64");
+}
+/// The largest --threads N (a count above the cores runs on all of them).
+inline constexpr long long kMaxThreadsOption = 1024;
+/// Adds --threads N to `c` for `threads` (JobControl::threads): 0..kMaxThreadsOption, 0 (the
+/// default) = all cores. `identical` ends the help text: what is the same for any count ("the
+/// image is identical for any count").
+inline CLI::Option* add_threads_option(CLI::App& c, unsigned& threads, const std::string& identical) {
+  return c
+      .add_option("--threads", threads,
+                  "Worker threads, 0 = all cores (default 0); a count above the cores runs on all of them (the log "
+                  "says how many); " + identical)
+      ->transform(integer_in(0, kMaxThreadsOption));
+}
+/// Adds --index TYPE to `c` for `type` (IndexOptions::type, whose value is the default): one of
+/// kIndexTypes, refused when the options are parsed, before a cloud is read.
+inline CLI::Option* add_index_option(CLI::App& c, std::string& type) {
+  return c
+      .add_option("--index", type,
+                  "Index built over a cloud read into memory (ignored for an index file, .rsi, and a COPC file "
+                  "queried in place: their own octree)")
+      ->check(CLI::IsMember(std::vector<std::string>(kIndexTypes.begin(), kIndexTypes.end())))
+      ->capture_default_str();
 }
 /// finite_number(-max, max): any finite number.
 inline CLI::Validator any_finite() {

@@ -1,4 +1,5 @@
-// flag_for (option_names.hpp): the fields whose flag is not "--" + the field name.
+// flag_for and option_names (option_names.hpp): the fields whose flag is not "--" + the field name,
+// and the flags that have an alias.
 #include "option_names.hpp"
 
 #include <array>
@@ -9,6 +10,7 @@ namespace {
 
 struct Spelling {
   std::string_view command, field, flag;
+  std::string_view alias = {};  ///< another flag for the option: the one other commands give the concept
 };
 
 // The options structs: jobs::VisibilityJobOptions, jobs::SceneOverrides, jobs::CompareJobOptions,
@@ -17,7 +19,7 @@ struct Spelling {
 constexpr std::array kSpellings{
     Spelling{"visibility", "observers", "--observer"},
     Spelling{"visibility", "observers_file", "--observers"},
-    Spelling{"visibility", "sky_rays", "--sky-view"},
+    Spelling{"visibility", "sky_rays", "--sky-view", "--sky-rays"},  // (solar --sky-rays)
     Spelling{"visibility", "camera_file", "--from-camera"},
     Spelling{"render", "camera_file", "--camera"},
     Spelling{"render", "colmap_dir", "--colmap"},
@@ -26,7 +28,7 @@ constexpr std::array kSpellings{
     Spelling{"compare", "channels", "--channel"},
     Spelling{"index", "memory_bytes", "--memory"},
     Spelling{"db", "memory_bytes", "--memory"},
-    Spelling{"db", "chunk_size", "--chunk"},
+    Spelling{"db", "chunk_size", "--chunk", "--chunk-size"},  // (translate --chunk-size)
     Spelling{"db", "out", "-o"},
     Spelling{"translate", "compression", "--format"},
 };
@@ -39,6 +41,13 @@ std::string flag_for(std::string_view command, std::string_view field) {
   std::string flag = "--";
   for (char c : field) flag += c == '_' ? '-' : c;
   return flag;
+}
+
+std::string option_names(std::string_view command, std::string_view field) {
+  std::string names = flag_for(command, field);
+  for (const Spelling& s : kSpellings)
+    if (s.command == command && s.field == field && !s.alias.empty()) names += "," + std::string(s.alias);
+  return names;
 }
 
 }  // namespace rayscan::cli

@@ -12,4 +12,9 @@ namespace rayscan::cli {
 /// (`raster_value` -> `--raster-value`).
 std::string flag_for(std::string_view command, std::string_view field);
 
+/// The names CLI11 registers for that option: flag_for's flag, then the alias the table in
+/// option_names.cpp gives it, if any, so that one concept has one name across the commands
+/// (`visibility --sky-view` also takes `solar`'s `--sky-rays`): "--sky-view,--sky-rays".
+std::string option_names(std::string_view command, std::string_view field);
+
 }  // namespace rayscan::cli

@@ -55,6 +55,32 @@ int output_checked(int code) {
   return code;
 }
 
+// After a failed parse: when the command line stops at a command that needs a subcommand (the
+// program itself, `db`) and the next word is not an option, the one line naming that word and the
+// commands there are: "rayscan: unknown command 'visibilty' (expected render, visibility, ...)".
+// Else "" (CLI11's own message stands).
+std::string unknown_command(const CLI::App& app, int argc, char** argv) {
+  const CLI::App* at = &app;
+  std::string where = "rayscan";
+  int next = 1;  // the argument after the last command parsed
+  while (true) {
+    const CLI::App* parsed = nullptr;
+    for (const CLI::App* sub : at->get_subcommands({}))
+      if (sub->parsed()) parsed = sub;
+    if (!parsed) break;
+    while (next < argc && parsed->get_name() != argv[next]) ++next;
+    ++next;
+    where += " " + parsed->get_name();
+    at = parsed;
+  }
+  if (at->get_require_subcommand_min() == 0 || next >= argc || argv[next][0] == '-') return "";
+  const std::vector<const CLI::App*> subs = at->get_subcommands({});
+  std::string expected;
+  for (std::size_t i = 0; i < subs.size(); ++i)
+    expected += (i == 0 ? "" : i + 1 == subs.size() ? " or " : ", ") + subs[i]->get_name();
+  return where + ": unknown command '" + rayscan::one_line(argv[next]) + "' (expected " + expected + ")";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -83,15 +109,16 @@ int main(int argc, char** argv) {
     rayscan::cli::Runner run = add(app);
     commands.emplace_back(app.get_subcommands({})[before], std::move(run));
   };
-  reg(rayscan::cli::add_query_command);
+  // In the order of docs/cli.md's table: --help lists them so, and so does a mistyped command's line.
   reg(rayscan::cli::add_render_command);
-  reg(rayscan::cli::add_info_command);
-  reg(rayscan::cli::add_compare_command);
   reg(rayscan::cli::add_visibility_command);
   reg(rayscan::cli::add_solar_command);
-  reg(rayscan::cli::add_db_command);
+  reg(rayscan::cli::add_query_command);
   reg(rayscan::cli::add_index_command);
+  reg(rayscan::cli::add_info_command);
   reg(rayscan::cli::add_translate_command);
+  reg(rayscan::cli::add_compare_command);
+  reg(rayscan::cli::add_db_command);
   reg(rayscan::cli::add_version_command);
 
   // The outcome of parsing: go on, or end now (--help, --version: exit 0; a usage error: exit 2).
@@ -113,7 +140,8 @@ int main(int argc, char** argv) {
       for (auto& [sub, run] : commands)
         if (sub->parsed()) where += " " + sub->get_name();
       end_code = 2;
-      end_err = where + ": " + rayscan::one_line(e.what()) + " (see --help)";
+      const std::string unknown = unknown_command(app, argc, argv);
+      end_err = !unknown.empty() ? unknown : where + ": " + rayscan::one_line(e.what()) + " (see --help)";
     }
   }
 #ifdef RAYSCAN_HAVE_MPI

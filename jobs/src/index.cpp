@@ -2,6 +2,7 @@
 #include "rayscan/jobs/index.hpp"
 #include "copc_output.hpp"
 
+#include "rayscan/base/ascii_case.hpp"
 #include "rayscan/base/atomic_file.hpp"
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/input_file.hpp"
@@ -13,6 +14,7 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <map>
 #include <utility>
@@ -21,14 +23,59 @@ namespace rayscan::jobs {
 
 namespace {
 
+/// The memory budget of either output, parsed; an OptionError naming "memory" for a malformed one.
+std::uint64_t memory_bytes(const IndexJobOptions& o) {
+  try {
+    return parse_byte_size(o.memory);
+  } catch (const std::invalid_argument& e) {
+    throw OptionError({option("memory"), std::string(": ") + e.what()});
+  }
+}
+
+/// Throws OptionError naming "temp_dir" unless `dir` is empty or an existing folder: a COPC
+/// output's records file is created there, and a mistyped folder is refused before any work
+/// (and not created), named as the option rather than the hidden file it would have held (the
+/// index file's sort runs: io::build_index_file's own check).
+void require_temp_dir(const std::filesystem::path& dir) {
+  std::error_code ec;
+  if (!dir.empty() && !std::filesystem::is_directory(dir, ec))
+    throw OptionError({option("temp_dir"), " '" + one_line(dir.string()) + "': not an existing folder"});
+}
+
+/// The attribute list parsed. A name that is not one an index stores (io::kIndexAttributes), nor
+/// all or none, is an OptionError naming "attributes" that lists only those; "all" inside a list
+/// is AttributeSet::parse's (every attribute a reader knows), which the build refuses.
+io::AttributeSet index_attributes(const std::string& list) {
+  // "all" alone means every attribute an index stores.
+  if (list == "all") return io::kIndexAttributes;
+  std::string names;  // "id, rgb, ..." from the one set
+  const std::string stored = io::kIndexAttributes.to_string();
+  for (const char c : stored) names += c == ',' ? std::string(", ") : std::string(1, c);
+  std::size_t at = 0;
+  while (at <= list.size()) {
+    const std::size_t end = std::min(list.find(',', at), list.size());
+    const std::string word = list.substr(at, end - at);
+    at = end + 1;
+    bool ok = true;
+    try {
+      const io::AttributeSet one = io::AttributeSet::parse(word);
+      ok = ascii_lower(word) == "all" || (one & io::kIndexAttributes) == one;
+    } catch (const std::invalid_argument&) {
+      ok = false;
+    }
+    if (!ok)
+      throw OptionError({option("attributes"), " '" + one_line(word) + "': expected " + names + ", all or none"});
+  }
+  return io::AttributeSet::parse(list);
+}
+
 /// The build's options from the job's: the memory budget and attribute list parsed, the output
 /// name checked. Throws as run_index() for these options.
 io::IndexBuildOptions index_build_options(const IndexJobOptions& o) {
   io::IndexBuildOptions b;
   b.config = o.config;
-  b.memory_bytes = parse_byte_size(o.memory);
-  // "all" of AttributeSet::parse means every attribute a reader knows; an index stores fewer.
-  b.attributes = o.attributes == "all" ? io::kIndexAttributes : io::AttributeSet::parse(o.attributes);
+  b.memory_bytes = memory_bytes(o);
+  b.attributes = index_attributes(o.attributes);
   b.compact_positions = o.compact_positions;
   if (!io::is_index_file(o.output))
     throw OptionError({o.output.string() + ": the index file name must end in .rsi (or .copc.laz for a COPC file)"});
@@ -60,6 +107,8 @@ IndexJobResult run_index(const IndexJobOptions& options) {
     if (options.inputs.size() != 1)
       throw OptionError({options.output.string() + ": a COPC output is written from one input file (got " +
                          std::to_string(options.inputs.size()) + ")"});
+    memory_bytes(options);
+    require_temp_dir(options.temp_dir);
     const std::filesystem::path out[] = {options.output};
     require_outputs(out, options.inputs);
     IndexJobResult result;

@@ -11,9 +11,6 @@ namespace rayscan {
 
 namespace {
 
-// Every index type make_index builds, in the order messages list them.
-constexpr std::array<std::string_view, 5> kIndexTypes = {"octree-adaptive", "octree-layered", "octree-fixed",
-                                                         "kdtree", "brute"};
 constexpr std::string_view kOctreePrefix = "octree-";
 
 }  // namespace

@@ -18,6 +18,7 @@ using namespace rayscan;
 using rayscan::test::data_file;
 using rayscan::test::fields_of_option_error;
 using rayscan::test::file_bytes;
+using rayscan::test::option_fields;
 using rayscan::test::temp_dir;
 namespace fs = std::filesystem;
 
@@ -109,10 +110,11 @@ TEST(IndexJob, BadOptionsThrowAndWriteNothing) {
   EXPECT_TRUE(entries(dir).empty());
 }
 
-// A temporary folder that does not exist is refused as an output's missing folder is (the rule
-// db import's temporary index meets too), before anything is written, and it is not created: a
-// mistyped --temp-dir must not leave a chain of new folders behind. Both outputs: the sort runs
-// of an index file, the records file of a COPC output (PDRF 2 is converted into one).
+// A temporary folder that does not exist is refused (the rule db import's temporary index meets
+// too), before anything is written, and it is not created: a mistyped --temp-dir must not leave a
+// chain of new folders behind. The error names the option, not the hidden file it would have
+// held. Both outputs: the sort runs of an index file, the records file of a COPC output (PDRF 2
+// is converted into one).
 TEST(IndexJob, MissingTempDirIsRefusedAndNotCreated) {
   const fs::path dir = temp_dir() / "missing_temp_dir";
   fs::remove_all(dir);
@@ -125,12 +127,11 @@ TEST(IndexJob, MissingTempDirIsRefusedAndNotCreated) {
     std::string what;
     try {
       jobs::run_index(o);
-    } catch (const OutputFileError& e) {
+    } catch (const OptionError& e) {
+      EXPECT_EQ(option_fields(e), std::vector<std::string>{"temp_dir"});
       what = e.what();
     }
-    // "<temporary in that folder>: output directory '<folder>' does not exist"
-    EXPECT_EQ(what.rfind(missing.string() + "/.", 0), 0u) << what;
-    EXPECT_TRUE(what.ends_with(": output directory '" + missing.string() + "' does not exist")) << what;
+    EXPECT_EQ(what, "temp_dir '" + missing.string() + "': not an existing folder");
     EXPECT_TRUE(entries(dir).empty());
   }
   fs::remove_all(dir);

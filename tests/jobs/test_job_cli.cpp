@@ -31,15 +31,14 @@ TEST(JobCli, IndexErrorsAsBefore) {
   const std::string rsi = (temp_dir() / "x.rsi").string();
   r = rayscan_cli("index -q " + las + " -o '" + rsi + "' --memory 10Q");
   EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.out, "rayscan index: size '10Q': expected a positive number with an optional K, M, G or T suffix\n");
+  EXPECT_EQ(r.out, "rayscan index: --memory: size '10Q': expected a positive number with an optional K, M, G or T suffix\n");
   r = rayscan_cli("index -q " + las + " -o '" + rsi + "' --attributes colour");
   EXPECT_EQ(r.code, 2);
   EXPECT_EQ(r.out,
-            "rayscan index: attribute 'colour': expected rgb, intensity, classification, gps_time, normals, "
-            "scalars, id, all or none\n");
+            "rayscan index: --attributes 'colour': expected rgb, intensity, classification, gps_time, id, all or none\n");
   r = rayscan_cli("index -q " + las + " -o '" + rsi + "' --layout layered");
   EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.out, "rayscan index: --layout layered: not supported by the external-memory index build (use adaptive or fixed)\n");
+  EXPECT_EQ(r.out, "rayscan index: --layout: layered not in {adaptive,fixed} (see --help)\n");
 }
 
 // Options the chosen layout does not use are refused, not ignored (as query refuses --depth
@@ -531,7 +530,7 @@ TEST(JobCli, OptionLimitsAreCheckedWhereTheyAreParsed) {
       << r.out;
   r = rayscan_cli("index -q " + las + " -o " + quoted(out / "x.rsi") + " --max-depth 0");
   EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.out, "rayscan index: --max-depth: Value 0 not in range 1 to 21 (see --help)\n");
+  EXPECT_EQ(r.out, "rayscan index: --max-depth: expected an integer in [1, 21], got '0' (see --help)\n");
   r = rayscan_cli("solar position --lat 44 --lon -123 --time 2026-06-21 --utc-offset 99");
   EXPECT_EQ(r.code, 2);
   EXPECT_EQ(r.out, "rayscan solar: --utc-offset: expected a finite number in [-18, 18], got '99' (see --help)\n");

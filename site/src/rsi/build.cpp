@@ -3,6 +3,7 @@
 // themselves are merge.cpp's. docs/index-format.md, "Build (external memory)".
 #include "index_build.hpp"
 #include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/base/option_error.hpp"
 
 #include "rayscan/io/cloud_stats.hpp"
@@ -98,7 +99,11 @@ void IndexBuild::check_options() {
   }
   ropt = ReadOptions{.scalars = false, .stored_colour = raw_colour, .direct_records = input_bytes > opt.memory_bytes};
   // The runs folder is created in the temporary folder, never the folders above it: a missing
-  // (mistyped) temporary folder is refused before any long work, by the rule of every output.
+  // (mistyped) temporary folder is refused before any long work, by the rule of every output,
+  // named as the option (the hidden runs folder's name means nothing to the user).
+  std::error_code ec;
+  if (!opt.temp_dir.empty() && !fs::is_directory(opt.temp_dir, ec))
+    throw OptionError({option("temp_dir"), " '" + one_line(opt.temp_dir.string()) + "': not an existing folder"});
   require_replaceable_output(runs_folder(output, opt));
 }
 

@@ -55,8 +55,9 @@ struct IndexJobResult {
 
 /// Checks the options, then builds the index file (io::build_index_file: an external sort by Morton
 /// code within the memory budget, written to a temporary file renamed into place). Throws
-/// std::invalid_argument (parse_byte_size's or io::AttributeSet::parse's message) for a malformed
-/// memory or attribute list, OptionError for an input given twice (the same file, however spelled), for
+/// OptionError naming "memory" for a malformed memory budget, "attributes" for a name an index
+/// does not store (listing those it does), "temp_dir" for a temporary folder that does not exist,
+/// and OptionError for an input given twice (the same file, however spelled), for
 /// an output name without .rsi and for the build's own
 /// option checks (naming "layout", "memory_bytes" or "attributes"), io::FormatError for a
 /// malformed input, io::IndexError when the inputs disagree, std::runtime_error for I/O failures;

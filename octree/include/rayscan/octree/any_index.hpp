@@ -6,6 +6,7 @@
 #include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
+#include <array>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -28,6 +29,10 @@ template <class F, class I>
 decltype(auto) visit_index(F&& f, const I& index) {
   return std::forward<F>(f)(index);
 }
+
+/// Every index type make_index builds (IndexOptions::type), in the order messages list them.
+inline constexpr std::array<std::string_view, 5> kIndexTypes = {"octree-adaptive", "octree-layered", "octree-fixed",
+                                                                "kdtree", "brute"};
 
 /// Index build options shared by the CLI and scene files.
 struct IndexOptions {

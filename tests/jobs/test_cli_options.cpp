@@ -1,0 +1,222 @@
+// The command line as one tool: integers read in decimal, one seed rule, option values checked
+// when the options are parsed, every error naming its option, a mistyped command named, and one
+// name per concept (query's cloud positional, --sky-rays and --chunk-size as aliases). Each runs
+// the real program.
+#include <gtest/gtest.h>
+
+#include "../common/run_command.hpp"
+#include "jobs_test_util.hpp"
+#include "rayscan/camera/camera.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+using rayscan::test::data_file;
+using rayscan::test::file_bytes;
+using rayscan::test::quoted;
+using rayscan::test::rayscan_cli;
+using rayscan::test::temp_dir;
+
+namespace {
+
+/// A fresh folder of this test process's scratch folder.
+std::filesystem::path fresh(const std::string& name) {
+  const std::filesystem::path dir = temp_dir() / name;
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+/// Two vertical rays over autzen_trim.las's middle (each meets far more than 10 points).
+std::filesystem::path two_rays(const std::filesystem::path& dir) {
+  std::ofstream(dir / "rays.csv") << "ox,oy,oz,dx,dy,dz\n636500,849200,1000,0,0,-1\n636600,849300,1000,0,0,-1\n";
+  return dir / "rays.csv";
+}
+
+/// The lines of `text`.
+std::vector<std::string> lines_of(const std::string& text) {
+  std::vector<std::string> v;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) v.push_back(l);
+  return v;
+}
+
+}  // namespace
+
+// A leading zero is not octal: CLI11 converts integers with strtoull(s, .., 0), so `--k 010` kept
+// 8 rows per ray and `--k 08` failed. Oracles: the rows the query writes per ray, the effective
+// scene `render --print-scene` prints, the chunk size `db import --json` reports and the
+// chunks it made (ceil(1065 / 10)), the leaf depth `index` reports.
+TEST(CliOptions, IntegersAreDecimalWithALeadingZero) {
+  const auto dir = fresh("decimal");
+  const std::string las = quoted(data_file("las/autzen_trim.las"));
+  const std::string query = "query -q " + las + " --rays " + quoted(two_rays(dir)) + " --k ";
+  const std::pair<std::string, std::size_t> ks[] = {{"010", 10}, {"08", 8}, {"+012", 12}};
+  for (const auto& [k, rows] : ks) {
+    const auto r = rayscan_cli(query + k);
+    ASSERT_EQ(r.code, 0) << k << ": " << r.out;
+    EXPECT_EQ(lines_of(r.out).size(), 1 + 2 * rows) << k;  // the header, then k rows per ray
+  }
+  auto r = rayscan_cli("render " + las + " --print-scene --spp 010 --width 010 --seed 010");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const nlohmann::json scene = nlohmann::json::parse(r.out);
+  EXPECT_EQ(scene["spp"], 10);
+  EXPECT_EQ(scene["seed"], 10);
+  EXPECT_EQ(scene["camera"]["width"], 10);
+  const std::string small = quoted(data_file("las/point-color.las"));
+  r = rayscan_cli("db import -q " + small + " -o " + quoted(dir / "a.sqlite") + " --chunk 010 --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const nlohmann::json import = nlohmann::json::parse(r.out);
+  EXPECT_EQ(import["chunk_size"], 10);
+  EXPECT_EQ(import["chunks"], (import["points"].get<int>() + 9) / 10);
+  r = rayscan_cli("index -q " + small + " -o " + quoted(dir / "a.rsi") + " --layout fixed --depth 02");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find(", depth 2, "), std::string::npos) << r.out;
+  // Still whole numbers in range, in the integer_in words.
+  r = rayscan_cli(query + "0x10");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan query: --k: expected an integer >= 1, got '0x10' (see --help)\n");
+  std::filesystem::remove_all(dir);
+}
+
+// visibility --seed took -1 as 2^64-1; it now follows render's rule (one validator), as does a
+// seed past 2^64-1, and 010 is 10. Oracle: the refusals' lines, and the sky view of --seed 010
+// equal to that of --seed 10, byte for byte.
+TEST(CliOptions, SeedsAreUnsigned64BitDecimalsInEveryCommand) {
+  const auto dir = fresh("seed");
+  const std::string las = quoted(data_file("las/point-color.las"));
+  const std::pair<std::string, std::string> commands[] = {{"render", " --print-scene"}, {"visibility", " --sky-view 4"}};
+  for (const auto& [command, rest] : commands) {
+    for (const char* seed : {"-1", "18446744073709551616", "1.5"}) {
+      const auto r = rayscan_cli(command + " " + las + rest + " --seed " + seed);
+      EXPECT_EQ(r.code, 2) << command << " " << seed;
+      EXPECT_EQ(r.out, "rayscan " + command + ": --seed: expected an unsigned 64-bit integer, got '" +
+                           seed + "' (see --help)\n");
+    }
+  }
+  const std::string sky = "visibility -q " + las + " --sky-view 16 -o ";
+  ASSERT_EQ(rayscan_cli(sky + quoted(dir / "a.las") + " --seed 010").code, 0);
+  ASSERT_EQ(rayscan_cli(sky + quoted(dir / "b.las") + " --seed 10").code, 0);
+  ASSERT_EQ(rayscan_cli(sky + quoted(dir / "c.las") + " --seed 18446744073709551615").code, 0);
+  EXPECT_EQ(file_bytes(dir / "a.las"), file_bytes(dir / "b.las"));
+  std::filesystem::remove_all(dir);
+}
+
+// An unknown --index is refused when the options are parsed, before the cloud is read: the
+// output is the one line, with no "read N points" log line before it (which it had), and it names
+// the option and lists the index types.
+TEST(CliOptions, UnknownIndexIsRefusedBeforeTheCloudIsRead) {
+  const auto dir = fresh("index_type");
+  const std::string las = quoted(data_file("las/autzen_trim.las"));
+  const std::string list = " not in {octree-adaptive,octree-layered,octree-fixed,kdtree,brute} (see --help)\n";
+  auto r = rayscan_cli("query " + las + " --rays " + quoted(two_rays(dir)) + " --k 1 --index rtree");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan query: --index: rtree" + list);
+  r = rayscan_cli("visibility " + las + " --sky-view 4 -o " + quoted(dir / "v.las") + " --index foo");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan visibility: --index: foo" + list);
+  EXPECT_FALSE(std::filesystem::exists(dir / "v.las"));
+  std::filesystem::remove_all(dir);
+}
+
+// index's memory, layout, attribute and temporary-folder errors name their option and list only
+// what index accepts (the attribute list offered normals and scalars, the layouts layered, which
+// the build then refused; a missing --temp-dir was named by the hidden sort-run folder or COPC
+// records file inside it). db import's temporary folder alike. Nothing is written.
+TEST(CliOptions, IndexAndDbImportErrorsNameTheirOption) {
+  const auto dir = fresh("index_errors");
+  const std::string las = quoted(data_file("las/point-color.las"));
+  const std::string rsi = quoted(dir / "x.rsi"), copc = quoted(dir / "x.copc.laz");
+  const std::string memory = "--memory: size '1Q': expected a positive number with an optional K, M, G or T suffix";
+  const std::filesystem::path nx = dir / "nx";
+  const std::string missing = nx.string();
+  const std::pair<std::string, std::string> cases[] = {
+      {"-o " + rsi + " --memory 1Q", memory},
+      {"-o " + copc + " --memory 1Q", memory},
+      {"-o " + rsi + " --layout foo", "--layout: foo not in {adaptive,fixed} (see --help)"},
+      {"-o " + rsi + " --layout layered", "--layout: layered not in {adaptive,fixed} (see --help)"},
+      {"-o " + rsi + " --attributes id,colour",
+       "--attributes 'colour': expected rgb, intensity, classification, gps_time, id, all or none"},
+      {"-o " + rsi + " --attributes normals",
+       "--attributes 'normals': expected rgb, intensity, classification, gps_time, id, all or none"},
+      {"-o " + rsi + " --temp-dir " + quoted(nx), "--temp-dir '" + missing + "': not an existing folder"},
+      {"-o " + copc + " --temp-dir " + quoted(nx), "--temp-dir '" + missing + "': not an existing folder"},
+      {"-o " + rsi + " --max-depth 0", "--max-depth: expected an integer in [1, 21], got '0' (see --help)"},
+  };
+  for (const auto& [args, message] : cases) {
+    const auto r = rayscan_cli("index -q " + las + " " + args);
+    EXPECT_EQ(r.code, 2) << args;
+    EXPECT_EQ(r.out, "rayscan index: " + message + "\n") << args;
+  }
+  const auto r = rayscan_cli("db import -q " + las + " -o " + quoted(dir / "x.sqlite") + " --temp-dir " + quoted(nx));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan db: --temp-dir '" + missing + "': not an existing folder\n");
+  EXPECT_TRUE(std::filesystem::is_empty(dir));
+  EXPECT_FALSE(std::filesystem::exists(nx));
+  std::filesystem::remove_all(dir);
+}
+
+// A word where a command belongs that names none is named, with the commands there are, in one
+// line and exit code 2 (it was "A subcommand is required"); so for db's subcommand.
+TEST(CliOptions, MistypedCommandIsNamed) {
+  auto r = rayscan_cli("visibilty x.las --sky-view 4");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan: unknown command 'visibilty' (expected render, visibility, solar, query, index, info, "
+                   "translate, compare, db or version)\n");
+  r = rayscan_cli("db imprt x.las");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan db: unknown command 'imprt' (expected import)\n");
+  r = rayscan_cli("--bogus");  // an option: CLI11's own line
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out.find("unknown command"), std::string::npos) << r.out;
+}
+
+// One name per concept: query takes its cloud positionally as every other command does (and
+// still as --cloud); visibility takes solar's --sky-rays for --sky-view, db import translate's
+// --chunk-size for --chunk. Oracle: each spelling's output equal, byte for byte, to the other's.
+TEST(CliOptions, QueryCloudPositionalAndSharedNamesAsAliases) {
+  const auto dir = fresh("aliases");
+  const std::string las = quoted(data_file("las/autzen_trim.las"));
+  const std::string rays = " --rays " + quoted(two_rays(dir)) + " --k 5";
+  const auto by_flag = rayscan_cli("query -q --cloud " + las + rays);
+  const auto positional = rayscan_cli("query -q " + las + rays);
+  ASSERT_EQ(by_flag.code, 0) << by_flag.out;
+  ASSERT_EQ(positional.code, 0) << positional.out;
+  EXPECT_EQ(positional.out, by_flag.out);
+  EXPECT_EQ(lines_of(positional.out).size(), 11u);
+  const std::string small = quoted(data_file("las/point-color.las"));
+  const std::string vis = "visibility -q " + small + " -o ";
+  ASSERT_EQ(rayscan_cli(vis + quoted(dir / "view.las") + " --sky-view 8").code, 0);
+  ASSERT_EQ(rayscan_cli(vis + quoted(dir / "rays.las") + " --sky-rays 8").code, 0);
+  EXPECT_EQ(file_bytes(dir / "view.las"), file_bytes(dir / "rays.las"));
+  const auto chunk = rayscan_cli("db import -q " + small + " -o " + quoted(dir / "a.sqlite") + " --chunk 100 --json");
+  const auto chunk_size =
+      rayscan_cli("db import -q " + small + " -o " + quoted(dir / "b.sqlite") + " --chunk-size 100 --json");
+  ASSERT_EQ(chunk.code, 0) << chunk.out;
+  EXPECT_EQ(chunk_size.out, chunk.out);
+  std::filesystem::remove_all(dir);
+}
+
+// Help texts give units and defaults, and range errors read as the other number errors (CLI11's
+// Range printed "-30.000000"). The image size's limit comes from kMaxImageSide.
+TEST(CliOptions, HelpStatesDefaultsAndRangesReadably) {
+  for (const char* command : {"render", "visibility", "query"}) {
+    const auto help = rayscan_cli(std::string(command) + " --help");
+    EXPECT_NE(help.out.find("Worker threads, 0 = all cores (default 0)"), std::string::npos) << command;
+  }
+  const auto db = rayscan_cli("db import --help");
+  EXPECT_NE(db.out.find("--memory TEXT=4G"), std::string::npos) << db.out;
+  const auto render = rayscan_cli("render --help");
+  const std::string side = "in pixels, in [1, " + std::to_string(rayscan::kMaxImageSide) + "]";
+  EXPECT_NE(render.out.find("Image width " + side), std::string::npos) << render.out;
+  EXPECT_NE(render.out.find("Image height " + side), std::string::npos) << render.out;
+  const auto r = rayscan_cli("render " + quoted(data_file("las/point-color.las")) + " --exposure 31");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out, "rayscan render: --exposure: expected a finite number in [-30, 30], got '31' (see --help)\n");
+}
