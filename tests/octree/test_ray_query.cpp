@@ -588,13 +588,11 @@ TEST(RayQuery, PacketFirstHitEqualsSingleRayAndOracle) {
                std::invalid_argument);
 }
 
-TEST(RayQuery, InterleavedPairsDefaultIsOnForZen5Only) {
-  // The CPU-family default of ray_first_hit_each's pairs against the kernel's own decoding of
-  // CPUID (/proc/cpuinfo): pairs on AuthenticAMD family 26 (Zen 5) only.
+TEST(RayQuery, InterleavedPairsAreOffByDefaultOnEveryCpu) {
+  // ray_first_hit_each traces single rays unless a caller asks for the pairs: they measured slower
+  // than single rays on Zen 4, Zen 5 and the Xeons (ray_query.hpp). Whatever this CPU's family.
   const auto cpu = cpu_identity_from_proc();
-  if (!cpu) GTEST_SKIP() << "no x86 vendor_id / cpu family in /proc/cpuinfo";
-  EXPECT_EQ(interleaved_pairs_default(), cpu->vendor == "AuthenticAMD" && cpu->family == 26)
-      << cpu->vendor << " family " << cpu->family;
+  EXPECT_FALSE(interleaved_pairs_default()) << (cpu ? cpu->vendor + " family " + std::to_string(cpu->family) : "");
 }
 
 TEST(RayQuery, FirstHitEachInterleavedPairsEqualSingleRaysAndOracle) {

@@ -20,7 +20,7 @@ namespace {
 std::atomic<int> g_interleaved_pairs{-1};
 }  // namespace
 
-bool interleaved_pairs_default() { return simd::amd_cpu_family() == 0x1Au; }  // Zen 5
+bool interleaved_pairs_default() { return false; }
 
 bool interleaved_pairs() {
   int v = g_interleaved_pairs.load(std::memory_order_relaxed);

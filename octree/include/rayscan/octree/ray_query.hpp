@@ -79,27 +79,27 @@ void set_entry_point_search(EntryPointSearch mode);
 void set_entry_point_search(bool on);
 
 /// Whether ray_first_hit_each traces its rays two at a time with their traversals interleaved
-/// (true) or one by one (false). The default depends on the CPU family, as measured against
+/// (true) or one by one (false). Off by default (interleaved_pairs_default): measured against
 /// single rays in one process (`bench_rays`' `ray_first_hit_each` row, `bench_render --pairs
-/// both`): Zen 5 gained from the pairs (1.06-1.13x), Zen 4 loses (0.82-0.84x; the renderer 10-15%
-/// slower) and so do Intel Xeons (0.89-0.96x on a 16-core Sapphire-Rapids class Xeon at 1 to 16
-/// threads, 0.80-1.0x on a 2-core one): pairs on AMD family 1Ah (Zen 5) only, single rays on every
-/// other CPU (bench/notes/2026-11-28-pairs-by-cpu-family.md,
-/// bench/notes/2026-11-28-pairs-off-on-zen-4.md). Answers are the same either way.
+/// both`), the pairs lose on every CPU family tried with the entry-point search on: Zen 5 (the
+/// renderer 0.90x), Zen 4 (0.82-0.84x; the renderer 10-15% slower) and Intel Xeons (0.89-0.96x on a
+/// 16-core Sapphire-Rapids class Xeon at 1 to 16 threads, 0.80-1.0x on a 2-core one)
+/// (bench/notes/2026-11-28-pairs-by-cpu-family.md, bench/notes/2026-11-28-pairs-off-on-zen-4.md,
+/// bench/notes/2026-11-29-pairs-off-on-zen-5.md). Answers are the same either way.
 /// Thread-safe.
 [[nodiscard]] bool interleaved_pairs();
 /// Sets interleaved_pairs() for the whole process (benchmarks compare both in one process).
 /// Thread-safe.
 void set_interleaved_pairs(bool on);
-/// interleaved_pairs()'s default on this CPU: true on AMD family 1Ah (Zen 5; CPUID leaf 1).
+/// interleaved_pairs()'s default on this CPU: false on every CPU measured (above); a per-family
+/// choice (simd::amd_cpu_family) belongs here if a CPU is measured to gain from the pairs.
 [[nodiscard]] bool interleaved_pairs_default();
 
 /// First hits of a batch of rays: out[i] = ray_first_hit(index, rays[i], q, stats) for every i,
-/// bit for bit. Where interleaved_pairs() (the default on Zen 5) the rays are traced two at a
-/// time, their traversals interleaved node by node (detail::first_hit_pair: the single ray's loop
-/// is latency-bound, and two independent chains fill the core's idle slots; on Zen 5 the 1e6
-/// camera rays of bench_rays 1.06-1.09x the single calls), else one by one (on Intel Xeons and
-/// Zen 4 the pairs measured slower; bench/notes/). The batch form of ray_first_hit for callers with many rays
+/// bit for bit. Where interleaved_pairs() (set by a caller; off by default) the rays are traced two
+/// at a time, their traversals interleaved node by node (detail::first_hit_pair: two independent
+/// chains for the core's idle slots, which paid on Zen 5 before the entry-point search and no
+/// longer does on any CPU measured), else one by one. The batch form of ray_first_hit for callers with many rays
 /// (ray_query_each, the renderer's wavefronts, bench_rays). `stats` (optional) sums the work
 /// counters. As ray_first_hit, `q` must have been validated. Throws std::invalid_argument when
 /// out.size() != rays.size(). Thread-safe (per-thread scratch).
