@@ -4,6 +4,7 @@
 #include "rayscan/analysis/site_location.hpp"
 #include "rayscan/analysis/solar_irradiation.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/io/point_reader.hpp"
@@ -21,13 +22,29 @@
 
 namespace rayscan::jobs::detail {
 
+void check_sight_lengths(const SightLengths& s) {
+  const auto refuse = [](const char* field, double v, const char* expected) {
+    throw OptionError({option(field), std::string(": expected ") + expected + ", got " + shortest_text(v)});
+  };
+  if (s.radius && !(*s.radius > 0.0 && std::isfinite(*s.radius)))
+    refuse("radius", *s.radius, "a finite number > 0 (world units) or auto");
+  // Refused also with a given radius (which it does not affect), as a scene's auto_radius_factor
+  // is: one range wherever a factor is given.
+  if (const std::string why = auto_radius_factor_problem(s.radius_factor); !why.empty())
+    throw OptionError({option("radius_factor"), ": " + why});
+  if (s.tolerance && !(*s.tolerance >= 0.0 && std::isfinite(*s.tolerance)))
+    refuse("tolerance", *s.tolerance, "a finite number >= 0 (world units)");
+  if (s.target_height && !(*s.target_height >= 0.0 && std::isfinite(*s.target_height)))
+    refuse("target_height", *s.target_height, "a finite number >= 0 (world units)");
+  if (s.max_distance && !(*s.max_distance >= 0.0))
+    refuse("max_distance", *s.max_distance, "a number >= 0 (world units; infinity: unlimited)");
+}
+
 void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const PointCloud* memory,
                      const IndexOptions& index, std::optional<double> radius, double radius_factor,
                      const JobControl& ctl, const CopcOpen& copc) {
-  // Refused before the file is read, and also with a given radius (which it does not affect), as
-  // a scene's auto_radius_factor is: one range wherever a factor is given.
-  if (const std::string why = auto_radius_factor_problem(radius_factor); !why.empty())
-    throw OptionError({option("radius_factor"), ": " + why});
+  // The jobs check these first (check_options); again here, as this reads the file.
+  check_sight_lengths({radius, radius_factor, {}, {}, {}});
   char buf[512];
   auto t0 = std::chrono::steady_clock::now();
   cs.source = memory ? std::string("(memory)") : file.string();
@@ -82,7 +99,6 @@ void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const Poi
   try {
     cs.radius = choose_radius(radius, radius_factor, [&] { return median_nn_spacing(*cs.site, cs.cloud.positions); });
   } catch (const std::invalid_argument&) {
-    if (radius) throw OptionError({option("radius"), " " + std::to_string(*radius) + ": expected a number > 0 or auto"});
     throw OptionError({option("radius"), " auto needs at least two distinct points; give a number"});
   }
   if (cs.radius.automatic) {

@@ -51,6 +51,21 @@ struct CopcOpen {
   std::size_t cache_bytes = io::kCopcDefaultCacheBytes;  ///< decoded-node cache budget, bytes (in place)
 };
 
+/// The lengths of a point analysis's line of sight (VisibilityJobOptions, SolarJobOptions), each
+/// nullopt when not given.
+struct SightLengths {
+  std::optional<double> radius;         ///< sphere radius: finite, > 0 (nullopt = auto)
+  double radius_factor = kDefaultAutoRadiusFactor;  ///< auto_radius_factor_problem's range, given radius or not
+  std::optional<double> tolerance;      ///< finite, >= 0
+  std::optional<double> target_height;  ///< finite, >= 0
+  std::optional<double> max_distance;   ///< >= 0, infinity = unlimited
+};
+
+/// Refuses a length of `s` out of its range before any point is read (the values alone decide):
+/// OptionError naming the field with the value given, "tolerance: expected a finite number >= 0
+/// (world units), got -1"; radius's ends "or auto" (its value nullopt, the CLI's word).
+void check_sight_lengths(const SightLengths& s);
+
 /// Fills `cs`: reads `file` (or copies `memory` when non-null), or maps an index file in place
 /// (read ahead: every point will be queried), or opens a COPC file's hierarchy in place (`copc`)
 /// and reads its points whole as the output cloud; builds the index of type `index` (not for an

@@ -287,6 +287,100 @@ std::span<const detail::FieldDescription> field_descriptions(bool day_of_shadows
   return {};
 }
 
+/// check_options's checks of `o` (the values alone, jobs::check_options), in order; returns the
+/// raster value, resolved (the default for an instant or a period; in_shadow for a day's frames).
+std::string checked_raster_value(const SolarJobOptions& o) {
+  const bool instant = !o.at.empty();
+  const bool frames_mode = !o.day.empty();
+  std::string value;
+  if (frames_mode && (instant || !o.start.empty() || !o.end.empty()))
+    throw OptionError({option("day"), " is a day of shadows: give it alone, without ", option("at"), ", ",
+                       option("start"), " or ", option("end")});
+  if (frames_mode) {
+    if (!option_time("day", o.day, {}, false).date_only)
+      throw OptionError({option("day"), " '" + o.day + "': expected a date, YYYY-MM-DD"});
+    parse_step(o.every, "every");
+    if (!o.weather.empty()) throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
+  }
+  check_utc_offset(o.utc_offset);
+  if (frames_mode) {
+    value = "in_shadow";
+  } else if (instant && (!o.start.empty() || !o.end.empty()))
+    throw OptionError({option("at"), " is one instant: give it, or a period (", option("start"), " and ",
+                       option("end"), "), not both"});
+  else if (!instant && (o.start.empty() || o.end.empty()))
+    // The day's clause is its own three parts: a front end without `day` leaves them out.
+    throw OptionError({"give a period (", option("start"), " and ", option("end"), ") or an instant (",
+                       option("at"), ")", ", or a day of shadows (", option("day"), ")"});
+  // Options that only a period or only a day uses, refused where the run would ignore them (a
+  // value other than the default: a front end that cannot tell a default given from none).
+  const SolarJobOptions defaults;
+  if (instant || frames_mode) {
+    const OptionName when = option(instant ? "at" : "day");
+    if (o.monthly)
+      throw OptionError({option("monthly"), " needs a period (", option("start"), ", ", option("end"), "), not ", when});
+    if (o.step != defaults.step) {
+      if (instant)
+        throw OptionError({option("step"), " needs a period (", option("start"), ", ", option("end"), "), not ", when});
+      throw OptionError({option("step"), " needs a period (", option("start"), ", ", option("end"), "), not ", when,
+                         " (its instants: ", option("every"), ")"});
+    }
+  }
+  if (!frames_mode && o.every != defaults.every) {
+    if (instant) throw OptionError({option("every"), " needs a day of shadows (", option("day"), "), not ", option("at")});
+    throw OptionError({option("every"), " needs a day of shadows (", option("day"), "), not a period (", option("start"),
+                       ", ", option("end"), ")"});
+  }
+  if (o.latitude.has_value() != o.longitude.has_value())
+    throw OptionError({option("latitude"), " and ", option("longitude"), " go together"});
+  if (o.latitude && !(std::abs(*o.latitude) <= 90.0))
+    throw OptionError({option("latitude"), ": expected degrees in -90..90"});
+  if (o.longitude && !(std::abs(*o.longitude) <= 180.0))
+    throw OptionError({option("longitude"), ": expected degrees in -180..180"});
+  if (o.linke.size() != 1 && o.linke.size() != 12)
+    throw OptionError({option("linke"), ": expected one value or 12 monthly values"});
+  for (double v : o.linke)
+    if (!(v >= 1.0 && v <= 10.0)) throw OptionError({option("linke"), ": expected values in 1..10"});
+  if (!(o.albedo >= 0.0 && o.albedo <= 1.0)) throw OptionError({option("albedo"), ": expected a number in 0..1"});
+  if (o.sky_rays > 4096) throw OptionError({option("sky_rays"), ": expected 0..4096 directions"});
+  if (instant && !o.weather.empty())
+    throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
+  if (!instant && !frames_mode && o.weather.empty()) parse_integration_step(o.step);
+  if (!o.weather.empty() && o.step != defaults.step)
+    throw OptionError({option("step"), " is the weather file's interval with ", option("weather")});
+  // The times' syntax now; their meaning needs the site's longitude (a date alone).
+  for (const auto& [field, text] : {std::pair{"at", &o.at}, {"start", &o.start}, {"end", &o.end}})
+    if (!text->empty()) option_time(field, *text, {}, false);
+  if (!(o.sector >= 0.0 && o.sector <= 30.0))
+    throw OptionError({option("sector"), ": expected degrees in 0..30 (0 = one shadow ray per time step)"});
+  if (o.primitive != "sphere" && o.primitive != "surfel")
+    throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
+  detail::check_sight_lengths({o.radius, o.radius_factor, o.tolerance, o.target_height, {}});
+  if (!o.out.empty())
+    if (const std::string why = io::point_cloud_output_problem(o.out); !why.empty())
+      throw OptionError({option("out"), " '" + o.out.string() + "': " + why});
+  detail::check_raster_options(o.raster, o.cell, o.raster_value, o.preview);
+  if (frames_mode && !o.raster_value.empty())
+    throw OptionError({option("raster_value"), " does not apply to ", option("day"), " (its frames are shadows)"});
+  if (frames_mode && !o.preview.empty())
+    throw OptionError({option("preview"), " does not apply to ", option("day"),
+                       " (each frame's preview is the frame's name with .png)"});
+  if (!frames_mode) value = o.raster_value.empty() ? (instant ? "in_shadow" : "global") : o.raster_value;
+  static const char* period_values[] = {"global", "beam", "diffuse", "reflected", "sun_hours", "sky_view"};
+  static const char* instant_values[] = {"in_shadow", "global", "beam", "diffuse"};
+  const bool known = frames_mode ||
+                     instant ? std::find_if(std::begin(instant_values), std::end(instant_values),
+                                            [&](const char* v) { return value == v; }) != std::end(instant_values)
+                             : std::find_if(std::begin(period_values), std::end(period_values),
+                                            [&](const char* v) { return value == v; }) != std::end(period_values);
+  if (!known)
+    throw OptionError({option("raster_value"), " '" + value + "': expected " +
+                                                   (instant ? "in_shadow, global, beam or diffuse (an instant)"
+                                                            : "global, beam, diffuse, reflected, sun_hours or "
+                                                              "sky_view (a period)")});
+  return value;
+}
+
 /// One run_solar call: the steps in order, sharing the options, the result and the site.
 struct SolarRun {
   const SolarJobOptions& o;
@@ -316,74 +410,12 @@ struct SolarRun {
   explicit SolarRun(const SolarJobOptions& options) : o(options), ctl(options.control) {}
   SolarRun(const SolarRun&) = delete;
 
+  /// Every option checked before any work: the values (checked_raster_value, what
+  /// jobs::check_options checks), then the files; resolves `value` and `preview`.
   void check_options() {
     instant = !o.at.empty();
     frames_mode = !o.day.empty();
-    if (frames_mode && (instant || !o.start.empty() || !o.end.empty()))
-      throw OptionError({option("day"), " is a day of shadows: give it alone, without ", option("at"), ", ",
-                         option("start"), " or ", option("end")});
-    if (frames_mode) {
-      if (!option_time("day", o.day, {}, false).date_only)
-        throw OptionError({option("day"), " '" + o.day + "': expected a date, YYYY-MM-DD"});
-      parse_step(o.every, "every");
-      if (!o.weather.empty()) throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
-    }
-    check_utc_offset(o.utc_offset);
-    if (frames_mode) {
-      value = "in_shadow";
-    } else if (instant && (!o.start.empty() || !o.end.empty()))
-      throw OptionError({option("at"), " is one instant: give it, or a period (", option("start"), " and ",
-                         option("end"), "), not both"});
-    else if (!instant && (o.start.empty() || o.end.empty()))
-      // The day's clause is its own three parts: a front end without `day` leaves them out.
-      throw OptionError({"give a period (", option("start"), " and ", option("end"), ") or an instant (",
-                         option("at"), ")", ", or a day of shadows (", option("day"), ")"});
-    if (o.latitude.has_value() != o.longitude.has_value())
-      throw OptionError({option("latitude"), " and ", option("longitude"), " go together"});
-    if (o.latitude && !(std::abs(*o.latitude) <= 90.0))
-      throw OptionError({option("latitude"), ": expected degrees in -90..90"});
-    if (o.longitude && !(std::abs(*o.longitude) <= 180.0))
-      throw OptionError({option("longitude"), ": expected degrees in -180..180"});
-    if (o.linke.size() != 1 && o.linke.size() != 12)
-      throw OptionError({option("linke"), ": expected one value or 12 monthly values"});
-    for (double v : o.linke)
-      if (!(v >= 1.0 && v <= 10.0)) throw OptionError({option("linke"), ": expected values in 1..10"});
-    if (!(o.albedo >= 0.0 && o.albedo <= 1.0)) throw OptionError({option("albedo"), ": expected a number in 0..1"});
-    if (o.sky_rays > 4096) throw OptionError({option("sky_rays"), ": expected 0..4096 directions"});
-    if (instant && !o.weather.empty())
-      throw OptionError({option("weather"), " needs a period (", option("start"), ", ", option("end"), ")"});
-    if (!instant && !frames_mode && o.weather.empty()) parse_integration_step(o.step);
-    if (!o.weather.empty() && o.step != "1h")
-      throw OptionError({option("step"), " is the weather file's interval with ", option("weather")});
-    // The times' syntax now; their meaning needs the site's longitude (a date alone).
-    for (const auto& [field, text] : {std::pair{"at", &o.at}, {"start", &o.start}, {"end", &o.end}})
-      if (!text->empty()) option_time(field, *text, {}, false);
-    if (!(o.sector >= 0.0 && o.sector <= 30.0))
-      throw OptionError({option("sector"), ": expected degrees in 0..30 (0 = one shadow ray per time step)"});
-    if (o.primitive != "sphere" && o.primitive != "surfel")
-      throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
-    if (!o.out.empty())
-      if (const std::string why = io::point_cloud_output_problem(o.out); !why.empty())
-        throw OptionError({option("out"), " '" + o.out.string() + "': " + why});
-    detail::check_raster_options(o.raster, o.cell, o.raster_value, o.preview);
-    if (frames_mode && !o.raster_value.empty())
-      throw OptionError({option("raster_value"), " does not apply to ", option("day"), " (its frames are shadows)"});
-    if (frames_mode && !o.preview.empty())
-      throw OptionError({option("preview"), " does not apply to ", option("day"),
-                         " (each frame's preview is the frame's name with .png)"});
-    if (!frames_mode) value = o.raster_value.empty() ? (instant ? "in_shadow" : "global") : o.raster_value;
-    static const char* period_values[] = {"global", "beam", "diffuse", "reflected", "sun_hours", "sky_view"};
-    static const char* instant_values[] = {"in_shadow", "global", "beam", "diffuse"};
-    const bool known = frames_mode ||
-                       instant ? std::find_if(std::begin(instant_values), std::end(instant_values),
-                                              [&](const char* v) { return value == v; }) != std::end(instant_values)
-                               : std::find_if(std::begin(period_values), std::end(period_values),
-                                              [&](const char* v) { return value == v; }) != std::end(period_values);
-    if (!known)
-      throw OptionError({option("raster_value"), " '" + value + "': expected " +
-                                                     (instant ? "in_shadow, global, beam or diffuse (an instant)"
-                                                              : "global, beam, diffuse, reflected, sun_hours or "
-                                                                "sky_view (a period)")});
+    value = checked_raster_value(o);
     detail::check_output_folder("out", o.out);
     detail::check_output_folder("raster", o.raster);
     if (o.write_preview && !o.raster.empty()) {
@@ -983,6 +1015,8 @@ struct SolarRun {
 };
 
 }  // namespace
+
+void check_options(const SolarJobOptions& o) { checked_raster_value(o); }
 
 SolarJobResult run_solar(const SolarJobOptions& o) {
   SolarRun run(o);

@@ -50,6 +50,59 @@ struct RasterValues {
   double lo = 0.0, hi = 1.0;
 };
 
+/// Observer `ob`, number `number` (1-based) of the run, with `o`'s default angle limits where it
+/// has none, checked (validate_observer; throws ObserverError).
+Observer checked_observer(const VisibilityJobOptions& o, Observer ob, std::size_t number) {
+  if (!ob.azimuth && o.azimuth) ob.azimuth = o.azimuth;
+  if (!ob.elevation && o.elevation) ob.elevation = o.elevation;
+  validate_observer(ob, observer_where(ob, number));
+  return ob;
+}
+
+/// jobs::check_options's checks of `o`, in order; returns the raster value, resolved (the default
+/// from what is computed).
+std::string checked_raster_value(const VisibilityJobOptions& o) {
+  if (!o.out.empty())
+    if (const std::string why = io::point_cloud_output_problem(o.out); !why.empty())
+      throw OptionError({option("out"), " '" + o.out.string() + "': " + why});
+  detail::check_raster_options(o.raster, o.cell, o.raster_value, o.preview);
+  const bool have_observers = !o.observers_file.empty() || !o.observers.empty();
+  const bool have_camera = o.camera || !o.camera_file.empty();
+  if (!have_observers && o.sky_rays == 0 && !have_camera)
+    throw OptionError({"nothing to compute: give observers (", option("observers_file"), " or ",
+                       option("observers"), "), a sky view (", option("sky_rays"), " > 0) or a camera (",
+                       option("camera_file"), ")"});
+  if (o.distance && !have_observers) throw OptionError({option("distance"), " needs observers"});
+  // Checked here, not only where an eye is placed, so that every front end refuses it up front
+  // and whether or not an observer needs the ground.
+  if (o.ground_radius && !(*o.ground_radius > 0.0 && std::isfinite(*o.ground_radius)))
+    throw OptionError({option("ground_radius"), ": expected a finite number > 0 (world units), got " +
+                                                    shortest_text(*o.ground_radius)});
+  detail::check_sight_lengths({o.radius, o.radius_factor, o.tolerance, o.target_height, o.max_distance});
+  if (o.primitive != "sphere" && o.primitive != "surfel")
+    throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
+  std::string value = o.raster_value;
+  if (value.empty()) value = have_observers ? "viewshed" : o.sky_rays ? "sky" : "camera";
+  static const char* values[] = {"viewshed", "viewshed-points", "fraction", "count", "distance", "sky", "camera"};
+  if (std::find(std::begin(values), std::end(values), value) == std::end(values))
+    throw OptionError({option("raster_value"), " '" + value +
+                                                 "': expected viewshed, viewshed-points, fraction, count, distance, "
+                                                 "sky or camera"});
+  if ((value == "fraction" || value == "viewshed" || value == "viewshed-points" || value == "count" ||
+       value == "distance") &&
+      !have_observers)
+    throw OptionError({option("raster_value"), " " + value + " needs observers"});
+  if (value == "sky" && o.sky_rays == 0)
+    throw OptionError({option("raster_value"), " sky needs ", option("sky_rays"), " N"});
+  if (value == "camera" && !have_camera)
+    throw OptionError({option("raster_value"), " camera needs ", option("camera_file")});
+  // The observers given in code, numbered as the run numbers them when no file comes first (a
+  // file's are checked, with them, once it is read: gather_observers).
+  if (o.observers_file.empty())
+    for (std::size_t k = 0; k < o.observers.size(); ++k) checked_observer(o, o.observers[k], k + 1);
+  return value;
+}
+
 /// One run_visibility call: the steps in order, sharing the options, the result being filled and
 /// the site. Not movable (references into `r`).
 struct VisibilityRun {
@@ -74,12 +127,12 @@ struct VisibilityRun {
   explicit VisibilityRun(const VisibilityJobOptions& options) : o(options), ctl(options.control) {}
   VisibilityRun(const VisibilityRun&) = delete;
 
-  /// Every option checked before any work; resolves `value`.
+  /// Every option checked before any work: the values (checked_raster_value, what
+  /// jobs::check_options checks), then the output files; resolves `value` and `preview`.
   void check_options() {
-    if (!o.out.empty())
-      if (const std::string why = io::point_cloud_output_problem(o.out); !why.empty())
-        throw OptionError({option("out"), " '" + o.out.string() + "': " + why});
-    detail::check_raster_options(o.raster, o.cell, o.raster_value, o.preview);
+    value = checked_raster_value(o);
+    have_observers = !o.observers_file.empty() || !o.observers.empty();
+    have_camera = o.camera || !o.camera_file.empty();
     check_output_folder("out", o.out);
     check_output_folder("raster", o.raster);
     if (o.write_preview) {
@@ -93,35 +146,6 @@ struct VisibilityRun {
     const std::filesystem::path outs[] = {o.out, o.raster, preview};
     const std::filesystem::path ins[] = {o.cloud_file, o.observers_file, o.camera_file};
     require_outputs(outs, ins);
-    have_observers = !o.observers_file.empty() || !o.observers.empty();
-    have_camera = o.camera || !o.camera_file.empty();
-    if (!have_observers && o.sky_rays == 0 && !have_camera)
-      throw OptionError({"nothing to compute: give observers (", option("observers_file"), " or ",
-                         option("observers"), "), a sky view (", option("sky_rays"), " > 0) or a camera (",
-                         option("camera_file"), ")"});
-    if (o.distance && !have_observers) throw OptionError({option("distance"), " needs observers"});
-    // Checked here, not only where an eye is placed, so that every front end refuses it up front
-    // and whether or not an observer needs the ground.
-    if (o.ground_radius && !(*o.ground_radius > 0.0 && std::isfinite(*o.ground_radius)))
-      throw OptionError({option("ground_radius"), ": expected a finite number > 0 (world units), got " +
-                                                      shortest_text(*o.ground_radius)});
-    if (o.primitive != "sphere" && o.primitive != "surfel")
-      throw OptionError({option("primitive"), " '" + o.primitive + "': expected sphere or surfel"});
-    value = o.raster_value;
-    if (value.empty()) value = have_observers ? "viewshed" : o.sky_rays ? "sky" : "camera";
-    static const char* values[] = {"viewshed", "viewshed-points", "fraction", "count", "distance", "sky", "camera"};
-    if (std::find(std::begin(values), std::end(values), value) == std::end(values))
-      throw OptionError({option("raster_value"), " '" + value +
-                                                   "': expected viewshed, viewshed-points, fraction, count, distance, "
-                                                   "sky or camera"});
-    if ((value == "fraction" || value == "viewshed" || value == "viewshed-points" || value == "count" ||
-         value == "distance") &&
-        !have_observers)
-      throw OptionError({option("raster_value"), " " + value + " needs observers"});
-    if (value == "sky" && o.sky_rays == 0)
-      throw OptionError({option("raster_value"), " sky needs ", option("sky_rays"), " N"});
-    if (value == "camera" && !have_camera)
-      throw OptionError({option("raster_value"), " camera needs ", option("camera_file")});
   }
 
   /// What in this run needs the cloud in a projected CRS, "" for nothing. The line of sight
@@ -156,12 +180,7 @@ struct VisibilityRun {
     r.raster_value = value;
     if (!o.observers_file.empty()) observers = read_observers(o.observers_file);
     observers.insert(observers.end(), o.observers.begin(), o.observers.end());
-    for (std::size_t k = 0; k < observers.size(); ++k) {
-      Observer& ob = observers[k];
-      if (!ob.azimuth && o.azimuth) ob.azimuth = o.azimuth;
-      if (!ob.elevation && o.elevation) ob.elevation = o.elevation;
-      validate_observer(ob, observer_where(ob, k + 1));
-    }
+    for (std::size_t k = 0; k < observers.size(); ++k) observers[k] = checked_observer(o, observers[k], k + 1);
     camera = o.camera;
     if (!camera && !o.camera_file.empty()) camera = io::load_camera(o.camera_file);
     // The camera marks hold one 4-byte point index a pixel (camera_first_hits): refused up front
@@ -468,6 +487,8 @@ struct VisibilityRun {
 };
 
 }  // namespace
+
+void check_options(const VisibilityJobOptions& o) { checked_raster_value(o); }
 
 VisibilityJobResult run_visibility(const VisibilityJobOptions& o) {
   VisibilityRun run(o);

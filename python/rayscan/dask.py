@@ -346,9 +346,10 @@ def visibility(path, observers, chunks=8, radius=None, height=None, max_distance
     compute=True, NumPy arrays plus "radius", "tolerance", "target_height", equal to
     rayscan.visibility(path, observers, ...) bit for bit. Raises as rayscan.visibility does,
     naming an observer by the caller's row ("observers[13]: ..." from 0 over all chunks): at the
-    call for the options and the observers' values (what rayscan.visibility checks before it
-    reads the points), when the tasks run for the file and what needs the points (an eye's
-    ground and height, the radius, tolerance and max_distance); TypeError for a chunks that is
+    call for the options and the observers' values (radius, tolerance, target_height and
+    max_distance included: what rayscan.visibility checks before it reads the file), when the
+    tasks run for the file and what needs the points (an eye's ground and height, the automatic
+    radius); TypeError for a chunks that is
     not an integer, ValueError below 1, and for a compute or distance that is not True or False.
     """
     compute = _boolean(compute, "compute")
@@ -364,8 +365,8 @@ def visibility(path, observers, chunks=8, radius=None, height=None, max_distance
     kw = dict(radius=radius, height=height, max_distance=max_distance, tolerance=tolerance,
               target_height=target_height, distance=distance, threads=threads, cache=cache,
               ground_radius=ground_radius)
-    # What rayscan.visibility refuses before it reads the points, refused here in its words: the
-    # job checks the options over no points (python/src/bind_jobs.cpp, check_job_options).
+    # What rayscan.visibility refuses before it reads the file, refused here in its words: the
+    # job's own check of the options (jobs::check_options, python/src/bind_jobs.cpp).
     rayscan._rayscan._check_visibility(obs, sky_rays=sky_rays, **kw)
     parts = [dask.delayed(_visibility_block)(path, obs[i:i + chunks], kw, i)
              for i in range(0, len(obs), chunks)]
@@ -464,8 +465,9 @@ def solar(path, at=None, periods=None, step="1h", latitude=None, longitude=None,
     and periods or with an empty list, TypeError for an instant that is not text (a datetime:
     pass its isoformat(), as rayscan.solar) or a period that is not a pair of texts; as
     rayscan.solar does for the options and each instant or period at the call (what
-    rayscan.solar checks before it reads the points), and when the tasks run for the files (the
-    cloud, the weather file) and what needs the points (the CRS, the radius). TypeError for a
+    rayscan.solar checks before it reads a file: a step for instants too), and when the tasks
+    run for the files (the cloud, the weather file) and what needs the points (the CRS, the
+    automatic radius). TypeError for a
     compute that is not True or False.
     """
     compute = _boolean(compute, "compute")

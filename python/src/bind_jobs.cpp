@@ -4,8 +4,8 @@
 // memory, not copied) or an (N, 3) array (cloud_arg). Each call converts its arguments with the
 // GIL held, then runs the job without it: compare on the calling thread, the others on a worker
 // thread while the calling thread watches for Ctrl-C (run_interruptible). rayscan.dask checks the
-// options of visibility and solar at its call through the same conversions and jobs
-// (check_job_options).
+// options of visibility and solar at its call through the same conversions and the jobs' own
+// checks (jobs::check_options).
 #include "arrays.hpp"
 #include "bindings.hpp"
 #include "cloud.hpp"
@@ -14,7 +14,6 @@
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/job.hpp"
 #include "rayscan/base/option_error.hpp"
-#include "rayscan/io/crs.hpp"
 #include "rayscan/jobs/compare.hpp"
 #include "rayscan/jobs/quick_look.hpp"
 #include "rayscan/jobs/solar.hpp"
@@ -198,6 +197,16 @@ bool call_lacks(std::string_view job, std::string_view field) {
   return job == "solar" && (field == "day" || field == "every");
 }
 
+/// The text `text` that follows option `name` in a job's message with the library's word for the
+/// option's automatic value written as the call's: a radius given nullopt is "auto" on the
+/// command line and None here ("radius: expected a finite number > 0 (world units) or None").
+std::string call_words(const OptionName& name, std::string text) {
+  static constexpr std::string_view kAuto = " or auto", kNone = " or None";
+  if (name.field == "radius")
+    if (const std::size_t at = text.find(kAuto); at != std::string::npos) text.replace(at, kAuto.size(), kNone);
+  return text;
+}
+
 /// The message of OptionError `e` of rayscan.<job>, each option written as its keyword
 /// (keyword_for). An option the call lacks (call_lacks) is left out with the text part on each side
 /// of it, which the job writes as that option's own clause (", or a day of shadows (", day, ")").
@@ -207,6 +216,11 @@ std::string keyword_message(std::string_view job, const OptionError& e) {
   const std::vector<OptionError::Part>& parts = e.parts();
   std::vector<OptionError::Part> kept;
   for (std::size_t i = 0; i < parts.size(); ++i) {
+    if (const auto* text = std::get_if<std::string>(&parts[i]); text && i > 0)
+      if (const auto* before = std::get_if<OptionName>(&parts[i - 1])) {
+        kept.push_back(call_words(*before, *text));
+        continue;
+      }
     const auto* name = std::get_if<OptionName>(&parts[i]);
     if (name && call_lacks(job, name->field)) {
       if (!kept.empty() && std::holds_alternative<std::string>(kept.back())) kept.pop_back();
@@ -701,58 +715,28 @@ py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::ha
   return d;
 }
 
-/// What rayscan.dask checks at the call, before any task runs: the options `o` of rayscan.<job>
-/// (`job`: "visibility", "solar"), by the job itself (`run`: run_visibility, run_solar) over a
-/// cloud of no points in a projected CRS (so that neither a line of sight nor the sun's place is
-/// refused for the want of one). The job checks every option it can before it reads the points
-/// (the observers' rows too) and then stops at them, the cloud being empty: the OptionError it
-/// throws first raises rayscan.<job>'s ValueError, in its words (run_naming_keywords, `edit`),
-/// and whatever it throws from the points on is the data's, which only the tasks can tell, and
-/// is dropped.
-template <class Options, class Run, class Edit = std::string (*)(std::string)>
-void check_job_options(std::string_view job, Options& o, Run run, Edit edit = [](std::string m) { return m; }) {
-  static const PointCloud no_points = [] {
-    PointCloud c;
-    c.crs_wkt = io::crs_wkt_from_user_input("EPSG:3857");
-    return c;
-  }();
-  o.cloud = &no_points;
-  o.cloud_file.clear();
-  run_naming_keywords(
-      job,
-      [&] {
-        try {
-          run(o);
-        } catch (const OptionError&) {
-          throw;
-        } catch (const std::exception&) {  // about the points: the tasks' to tell
-        }
-      },
-      edit);
-}
-
-/// rayscan.dask.visibility's check at the call (check_job_options): rayscan.visibility's
-/// arguments but the cloud, refused as rayscan.visibility refuses them.
+/// rayscan.dask.visibility's check at the call, before any task runs: rayscan.visibility's
+/// arguments but the cloud, refused as rayscan.visibility refuses them before it reads a file
+/// (jobs::check_options, in rayscan.visibility's words); what needs the points is the tasks'.
 void check_visibility(const py::object& observers, py::handle radius, py::handle height, py::handle max_distance,
                       py::handle tolerance, py::handle target_height, py::handle sky_rays, py::handle camera,
                       py::handle distance, py::handle threads, py::handle cache, py::handle ground_radius) {
   jobs::VisibilityJobOptions o = visibility_options(observers, radius, height, max_distance, tolerance, target_height,
                                                     sky_rays, camera, distance, threads, cache, ground_radius);
-  check_job_options(
-      "visibility", o, [](const jobs::VisibilityJobOptions& v) { jobs::run_visibility(v); },
-      [&](std::string m) { return one_row_number(o.observers, std::move(m)); });
+  run_naming_keywords("visibility", [&] { jobs::check_options(o); },
+                      [&](std::string m) { return one_row_number(o.observers, std::move(m)); });
 }
 
-/// rayscan.dask.solar's check at the call (check_job_options): rayscan.solar's arguments but the
-/// cloud, refused as rayscan.solar refuses them; the weather file is the tasks' to open, as the
-/// cloud is (a client need not see the workers' files).
+/// rayscan.dask.solar's check at the call: rayscan.solar's arguments but the cloud, refused as
+/// rayscan.solar refuses them before it reads a file (jobs::check_options); the weather file is
+/// the tasks' to open, as the cloud is (a client need not see the workers' files).
 void check_solar(py::handle start, py::handle end, py::handle step, py::handle at, py::handle latitude,
                  py::handle longitude, py::handle linke, py::handle albedo, const py::object& weather,
                  py::handle sector, py::handle sky_rays, py::handle primitive, py::handle radius, py::handle threads,
                  py::handle cache) {
   jobs::SolarJobOptions o = solar_options(start, end, step, at, latitude, longitude, linke, albedo, weather, sector,
                                           sky_rays, primitive, radius, threads, cache, false);
-  check_job_options("solar", o, [](const jobs::SolarJobOptions& s) { jobs::run_solar(s); });
+  run_naming_keywords("solar", [&] { jobs::check_options(o); });
 }
 
 /// The names of `names` as a Python tuple of str.

@@ -431,13 +431,16 @@ def test_first_hits_options_are_checked_at_the_call(client, site_file, rays, tmp
 # exception, type and words), each with the good options of the test below.
 _BAD_VISIBILITY_OPTIONS = [dict(cache="lots"), dict(cache=2), dict(ground_radius=-1.0), dict(ground_radius=np.nan),
                            dict(ground_radius="5"), dict(radius="auto"), dict(height=[6.0]), dict(sky_rays=-1),
-                           dict(sky_rays=1.5), dict(threads=-1), dict(tolerance="0")]
+                           dict(sky_rays=1.5), dict(threads=-1), dict(tolerance="0"), dict(radius=-1.0),
+                           dict(radius=np.inf), dict(tolerance=-1.0), dict(target_height=np.nan),
+                           dict(max_distance=-1.0)]
 _BAD_SOLAR_OPTIONS = [dict(cache="lots"), dict(cache=None), dict(albedo=2.0), dict(albedo="0.2"), dict(linke=0.5),
                       dict(linke=[3.0] * 5), dict(sector=45.0), dict(latitude=100.0, longitude=0.0),
                       dict(latitude=44.05, longitude=None), dict(primitive="cube"), dict(sky_rays=5000),
                       dict(weather="weather.epw"), dict(at=["2024-06-21T18:00", "2024-13-45T00:00"]),
                       dict(at=None, periods=[("2024-06-21T17:00", "June")]),
-                      dict(at=None, periods=[("2024-06-21T17:00", "2024-06-21T19:00")], step="2h")]
+                      dict(at=None, periods=[("2024-06-21T17:00", "2024-06-21T19:00")], step="2h"),
+                      dict(step="15min"), dict(radius=0.0)]
 
 
 def _ids(options):

@@ -61,6 +61,35 @@ def test_ground_radius_is_a_keyword_and_bounds_the_ground_search():
         "ground_radius must be None (5 x radius) or a number > 0 (world units), got str")
 
 
+def test_line_of_sight_lengths_are_refused_by_their_keyword_before_the_file():
+    # The file does not exist: a call that read it would raise its OSError instead. None is the
+    # automatic radius, the word the message offers.
+    missing = "/nonexistent/cloud.las"
+    for kw, expected in (
+            (dict(radius=-1.0), "radius: expected a finite number > 0 (world units) or None, got -1"),
+            (dict(radius=float("inf")), "radius: expected a finite number > 0 (world units) or None, got inf"),
+            (dict(tolerance=-0.5), "tolerance: expected a finite number >= 0 (world units), got -0.5"),
+            (dict(target_height=float("nan")), "target_height: expected a finite number >= 0 (world units), got nan"),
+            (dict(max_distance=-2.0),
+             "max_distance: expected a number >= 0 (world units; infinity: unlimited), got -2")):
+        assert message(lambda: rayscan.visibility(missing, sky_rays=4, **kw)) == expected
+        assert set(kw) <= keywords(rayscan.visibility)
+    assert message(lambda: rayscan.solar(missing, at="2024-06-21T12:00", latitude=45.0, longitude=0.0,
+                                         radius=0.0)) == (
+        "radius: expected a finite number > 0 (world units) or None, got 0")
+
+
+def test_solar_step_is_refused_for_an_instant():
+    # An instant has no step: one other than the default is refused, naming both keywords, before
+    # the file (which does not exist) is read; the default is the call's own and passes to the file.
+    missing = "/nonexistent/cloud.las"
+    assert message(lambda: rayscan.solar(missing, at="2024-06-21T12:00", step="15min", latitude=45.0,
+                                         longitude=0.0)) == "step needs a period (start, end), not at"
+    assert {"step", "start", "end", "at"} <= keywords(rayscan.solar)
+    with pytest.raises(OSError):
+        rayscan.solar(missing, at="2024-06-21T12:00", latitude=45.0, longitude=0.0)
+
+
 def test_observer_rows_are_numbered_once_from_zero():
     xyz = flat_ground()
     # A coordinate out of range in the third row (the bound itself is test_jobs.py's).

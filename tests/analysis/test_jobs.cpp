@@ -240,6 +240,74 @@ TEST(VisibilityJob, OptionErrorsComeBeforeAnyWork) {
   EXPECT_EQ(what_of([&] { (void)run_visibility(o); }), "raster_value count needs observers");
 }
 
+// The lengths of the line of sight are refused by their field, with the value, by check_options
+// and by the run before the cloud file is opened (it does not exist here, so a run that read it
+// would name the file instead); the observers given in code are checked there too, numbered from
+// 1. What needs the file is the run's: check_options passes options whose cloud is missing.
+TEST(VisibilityJob, CheckOptionsRefusesValuesBeforeAnyFile) {
+  VisibilityJobOptions o;
+  o.cloud_file = "/nonexistent/cloud.las";
+  o.sky_rays = 4;
+  EXPECT_NO_THROW(check_options(o));
+  EXPECT_NE(what_of([&] { (void)run_visibility(o); }).find("/nonexistent/cloud.las"), std::string::npos);
+  const auto refused = [&](auto set, const std::string& expected) {
+    VisibilityJobOptions bad = o;
+    set(bad);
+    EXPECT_EQ(what_of([&] { check_options(bad); }), expected);
+    EXPECT_EQ(what_of([&] { (void)run_visibility(bad); }), expected);
+  };
+  refused([](VisibilityJobOptions& b) { b.radius = -1.0; },
+          "radius: expected a finite number > 0 (world units) or auto, got -1");
+  refused([](VisibilityJobOptions& b) { b.radius = HUGE_VAL; },
+          "radius: expected a finite number > 0 (world units) or auto, got inf");
+  refused([](VisibilityJobOptions& b) { b.tolerance = -0.5; },
+          "tolerance: expected a finite number >= 0 (world units), got -0.5");
+  refused([](VisibilityJobOptions& b) { b.target_height = std::nan(""); },
+          "target_height: expected a finite number >= 0 (world units), got nan");
+  refused([](VisibilityJobOptions& b) { b.max_distance = -2.0; },
+          "max_distance: expected a number >= 0 (world units; infinity: unlimited), got -2");
+  refused([](VisibilityJobOptions& b) { b.radius_factor = 0.0; },
+          "radius_factor: " + auto_radius_factor_problem(0.0));
+  Observer eye;
+  eye.position = Vec3(1.0, 2.0, std::nan(""));
+  refused([&](VisibilityJobOptions& b) { b.observers = {Observer{}, eye}; },
+          what_of([&] { validate_observer(eye, "observer 2"); }));
+  // Infinity is an unlimited range, as no max_distance is.
+  VisibilityJobOptions unlimited = o;
+  unlimited.max_distance = HUGE_VAL;
+  EXPECT_NO_THROW(check_options(unlimited));
+}
+
+// A period's options (monthly, a step other than the default) with an instant or a day, and a
+// day's `every` without one, are refused by check_options and the run before the cloud file is
+// opened, naming both options.
+TEST(SolarJob, CheckOptionsRefusesWhatTheRunWouldIgnore) {
+  SolarJobOptions o;
+  o.cloud_file = "/nonexistent/cloud.las";
+  o.latitude = 48.0;
+  o.longitude = 11.0;
+  o.at = "2026-06-21T12:00Z";
+  EXPECT_NO_THROW(check_options(o));
+  EXPECT_NE(what_of([&] { (void)run_solar(o); }).find("/nonexistent/cloud.las"), std::string::npos);
+  const auto refused = [&](auto set, const std::string& expected) {
+    SolarJobOptions bad = o;
+    set(bad);
+    EXPECT_EQ(what_of([&] { check_options(bad); }), expected);
+    EXPECT_EQ(what_of([&] { (void)run_solar(bad); }), expected);
+  };
+  refused([](SolarJobOptions& b) { b.monthly = true; }, "monthly needs a period (start, end), not at");
+  refused([](SolarJobOptions& b) { b.step = "15min"; }, "step needs a period (start, end), not at");
+  refused([](SolarJobOptions& b) { b.every = "1h"; }, "every needs a day of shadows (day), not at");
+  refused([](SolarJobOptions& b) { b.at.clear(), b.day = "2026-06-21", b.monthly = true; },
+          "monthly needs a period (start, end), not day");
+  refused([](SolarJobOptions& b) { b.at.clear(), b.start = "2026-06-21", b.end = "2026-06-22", b.every = "1h"; },
+          "every needs a day of shadows (day), not a period (start, end)");
+  refused([](SolarJobOptions& b) { b.tolerance = -1.0; },
+          "tolerance: expected a finite number >= 0 (world units), got -1");
+  refused([](SolarJobOptions& b) { b.radius = 0.0; },
+          "radius: expected a finite number > 0 (world units) or auto, got 0");
+}
+
 // `visibility SITE.rsi` queries the mapped index file in place (no tree is
 // built) and writes its per-point fields in the sources' original point order. Oracle: the same
 // job on the source file (in-memory index); every field must be equal point for point.

@@ -559,6 +559,37 @@ TEST(SolarCli, BadInputIsOneLineAndExitCodeTwo) {
   }
 }
 
+// Options that only a period uses (--monthly, --step) or only a day of shadows (--every) are
+// refused with the other kind of run, which would ignore them, in one line naming both options,
+// exit 2, before the cloud is read: the cloud named does not exist, and a combination that is
+// accepted fails on that file instead.
+TEST(SolarCli, PeriodAndDayOptionsAreRefusedWhereTheRunWouldIgnoreThem) {
+  const std::string missing = testing::TempDir() + "/no_such_cloud.las";
+  const auto run = [&](const std::string& args) {
+    return rayscan::test::run_command(std::string(RAYSCAN_BIN) + " solar '" + missing + "' " + args + " --json -q");
+  };
+  const std::pair<const char*, const char*> refused[] = {
+      {"--at 2026-06-21T12:00Z --monthly", "--monthly needs a period (--start, --end), not --at"},
+      {"--day 2026-06-21 --monthly", "--monthly needs a period (--start, --end), not --day"},
+      {"--at 2026-06-21T12:00Z --step 15min", "--step needs a period (--start, --end), not --at"},
+      {"--day 2026-06-21 --step 15min", "--step needs a period (--start, --end), not --day (its instants: --every)"},
+      {"--start 2026-06-21 --end 2026-06-22 --every 15min",
+       "--every needs a day of shadows (--day), not a period (--start, --end)"},
+      {"--at 2026-06-21T12:00Z --every 15min", "--every needs a day of shadows (--day), not --at"},
+  };
+  for (const auto& [args, line] : refused) {
+    const auto r = run(args);
+    EXPECT_EQ(r.code, 2) << args;
+    EXPECT_EQ(r.out, std::string("rayscan solar: ") + line + "\n") << args;
+  }
+  for (const char* args : {"--start 2026-06-21 --end 2026-06-22 --monthly --step 15min",
+                           "--day 2026-06-21 --every 15min", "--at 2026-06-21T12:00Z"}) {
+    const auto r = run(args);
+    EXPECT_EQ(r.code, 2) << args;
+    EXPECT_NE(r.out.find("no_such_cloud.las"), std::string::npos) << args << ": " << r.out;
+  }
+}
+
 // The preview's default path (the raster's name with .png) is checked with the other outputs
 // before any work: a folder there is refused before the points are traced, so the run logs one
 // line, the error, and writes no GeoTIFF. --no-preview, which writes no preview and so does not

@@ -226,6 +226,18 @@ struct SolarJobResult {
                                           ///< resident at once (CopcIndex::peak_resident_bytes)
 };
 
+/// Checks the options' values alone, as run_solar does first, before it touches a file: the
+/// time options and their combinations (one of a period, an instant or a day; monthly and a step
+/// other than the default only with a period, an `every` other than the default only with a day;
+/// the times' ISO 8601 syntax), utc_offset, latitude with longitude and their ranges, linke,
+/// albedo, sky_rays, sector, primitive, radius (given: finite, > 0), radius_factor, tolerance and
+/// target_height (finite, >= 0), the weather file's combinations (not its file), and the outputs'
+/// extensions and raster options. Left to the run: the files (output folders and replacement, the
+/// weather file, the cloud's CRS), what needs the site's place (a date's local midnight, the
+/// period against its steps, SPA's range of years) and what needs the points (the automatic
+/// radius). Throws OptionError naming the field.
+void check_options(const SolarJobOptions& options);
+
 /// Checks every option and the cloud's CRS (from the file's header for LAS, LAZ, COPC and index
 /// files, so that a CRS that cannot place the site is refused before any point is read; for other
 /// formats once read), reads the cloud, builds the index (none for an index file or a COPC file

@@ -126,6 +126,17 @@ struct VisibilityJobResult {
                                           ///< resident at once (CopcIndex::peak_resident_bytes)
 };
 
+/// Checks the options' values alone, as run_visibility does first, before it touches a file: the
+/// outputs' extensions and the raster's options, that something is computed and the combinations
+/// (raster_value against what is computed, distance without observers), ground_radius, radius
+/// (given: finite, > 0), radius_factor, tolerance and target_height (finite, >= 0), max_distance
+/// (>= 0), primitive, and the observers given in code (validate_observer with the default angle
+/// limits, numbered from 1) when no observers_file comes before them. Left to the run: the files
+/// (output folders and replacement, observers_file, camera_file, the cloud's CRS) and what needs
+/// the points (an eye's ground and height, the automatic radius). Throws OptionError naming the
+/// field (ObserverError for an observer).
+void check_options(const VisibilityJobOptions& options);
+
 /// Checks every option (before any work: extensions, output folders, value/input combinations),
 /// reads the cloud, builds the index (none for an index file or a COPC file queried in place:
 /// copc_in_place), chooses the radius, runs the requested analyses and writes
