@@ -112,14 +112,15 @@ Runner add_solar_command(CLI::App& app) {
                 "Start of the period (ISO 8601; without an offset: local time at --utc-offset, else UTC; a date "
                 "alone is midnight at --utc-offset, else local mean solar midnight)");
   c->add_option("--end", o->job.end, "End of the period (ISO 8601, as --start; a date alone includes that day)");
-  c->add_option("--step", o->job.step, "Time step of the integration, at most 1h (e.g. 15min, 30min, 1h)")->capture_default_str();
+  c->add_option("--step", o->job.step, "Time step of the integration, at most 1h (e.g. 15min, 30min, 1h); a period only")
+      ->capture_default_str();
   c->add_option("--at", o->job.at,
                 "One instant instead of a period: shadows (ISO 8601, e.g. 2026-06-21T12:00 with --utc-offset 2, or "
                 "2026-06-21T12:00+02:00; without an offset: local time at --utc-offset, else UTC)");
   c->add_option("--day", o->job.day,
                 "A day of shadows instead (YYYY-MM-DD): with --raster, a map every --every while the sun is up "
                 "(RASTER_HHMM.tif/.png, numbered frames); per point sun_hours and shadow_hours");
-  c->add_option("--every", o->job.every, "The instants of --day (e.g. 15min, 30min, 1h)")->capture_default_str();
+  c->add_option("--every", o->job.every, "The instants of --day (e.g. 15min, 30min, 1h); a day only")->capture_default_str();
   c->add_option("--utc-offset", o->job.utc_offset,
                 "Local standard time, hours east of UTC in whole minutes (e.g. 2, -7, 5.5): the zone of --start, "
                 "--end, --at and --day written without an offset, and of the times and dates the maps and logs "
@@ -144,10 +145,11 @@ Runner add_solar_command(CLI::App& app) {
       ->capture_default_str()
       ->check(finite_number(0, 30));
   c->add_flag("--monthly", o->job.monthly,
-              "Also each month's global irradiation: fields solar_global_01 .. solar_global_12 (kWh/m²)");
+              "Also each month's global irradiation: fields solar_global_01 .. solar_global_12 (kWh/m²); a "
+              "period only");
   c->add_option("--sky-rays", o->job.sky_rays, "Sky-map directions per point for the diffuse's sky view (0 = open sky)")
       ->capture_default_str()
-      ->check(CLI::Range(0u, 4096u));
+      ->transform(integer_in(0, 4096));
   c->add_option("--primitive", o->job.primitive,
                 "Geometry that casts shadows: sphere (the paper's model: light passes through gaps, crown "
                 "tops are lit) or surfel (the height field a DSM samples: solid below)")
@@ -155,12 +157,12 @@ Runner add_solar_command(CLI::App& app) {
       ->check(CLI::IsMember({"sphere", "surfel"}));
   c->add_option("--radius", o->radius, "Sphere radius (world units) or auto")->capture_default_str();
   c->add_option("--tolerance", o->job.tolerance,
-                "A blocker at most this far before the point along the sun ray is its own surface (default "
-                "2 x radius; surfels 0)")
+                "A blocker at most this far before the point along the sun ray is its own surface, world units "
+                "(default 2 x radius; surfels 0)")
       ->check(non_negative());
   c->add_option("--target-height", o->job.target_height,
-                "Shadow rays start this far from each point along its normal, straight up without normals "
-                "(default 1 x radius; surfels 0)")
+                "Shadow rays start this far from each point along its normal, straight up without normals, world "
+                "units (default 1 x radius; surfels 0)")
       ->check(non_negative());
   c->add_option("--pressure", o->job.pressure, "Annual mean pressure, mbar (refraction)")
       ->capture_default_str()
@@ -182,10 +184,8 @@ Runner add_solar_command(CLI::App& app) {
                 "ends; plus the nodes of the chunks in flight; e.g. 2G, 512M). A COPC file is queried on its own "
                 "octree, decoding only the nodes the rays reach (its points are still read, as the output cloud)")
       ->capture_default_str();
-  c->add_option("--index", o->job.index.type, "Index: octree-adaptive, octree-layered, octree-fixed, kdtree, brute")
-      ->capture_default_str();
-  c->add_option("--threads", o->job.control.threads, "Worker threads (default: all cores; results are identical)")
-      ->check(CLI::Range(0u, 1024u));
+  add_index_option(*c, o->job.index.type);
+  add_threads_option(*c, o->job.control.threads, "the results are identical for any count");
   c->add_flag("--json", o->json, "Print a JSON report on stdout");
   c->add_flag("--quiet,-q", o->quiet, "No log lines or progress bar on stderr");
 

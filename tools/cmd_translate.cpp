@@ -65,10 +65,16 @@ Runner add_translate_command(CLI::App& app) {
       ->check(CLI::IsMember({"auto", "las", "laz"}))
       ->capture_default_str();
   sub->add_option("--chunk-size", *chunk, "points per LAZ chunk (not COPC: one chunk per octree node)")
-      ->check(CLI::Range(1u, 0xFFFFFFFEu))
+      ->transform(integer_in(1, 0xFFFFFFFEll))
       ->capture_default_str();
-  sub->add_option("--memory", *memory, "COPC output: memory budget of the build: 12 bytes per point plus 256 MiB (e.g. 4G, 512M)")
+  sub->add_option("--memory", *memory,
+                  "COPC output: memory budget of the build, a byte size: 12 bytes per point plus 256 MiB (e.g. "
+                  "4G, 512M); checked for every output")
       ->capture_default_str();
+  auto temp_dir = std::make_shared<std::string>();
+  sub->add_option("--temp-dir", *temp_dir,
+                  "COPC output: existing folder of the build's temporary records file (default: OUT's folder); "
+                  "checked for every output");
   auto scale = std::make_shared<std::string>();
   auto offset = std::make_shared<std::string>();
   sub->add_option("--scale", *scale,
@@ -82,7 +88,7 @@ Runner add_translate_command(CLI::App& app) {
                   "(also when --scale is given)");
   auto quiet = std::make_shared<bool>(false);
   sub->add_flag("-q,--quiet", *quiet, "no progress or notes on stderr");
-  return [in, out, format, chunk, memory, scale, offset, quiet]() -> int {
+  return [in, out, format, chunk, memory, temp_dir, scale, offset, quiet]() -> int {
     require_single_process("rayscan translate");
     jobs::TranslateJobOptions job;
     job.in = *in;
@@ -99,6 +105,7 @@ Runner add_translate_command(CLI::App& app) {
                       : *format == "laz" ? jobs::LasCompression::laz : jobs::LasCompression::by_extension;
     job.chunk_size = *chunk;
     job.memory = *memory;
+    job.temp_dir = *temp_dir;
     if (!scale->empty()) job.scale = parse_numbers("--scale", *scale, "S or SX,SY,SZ (numbers > 0)");
     if (*offset == "auto") {
       job.auto_offset = true;

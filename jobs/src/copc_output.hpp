@@ -3,26 +3,51 @@
 #pragma once
 
 #include "rayscan/base/byte_size.hpp"
+#include "rayscan/base/input_file.hpp"
+#include "rayscan/base/option_error.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/site/copc_writer.hpp"
 
 #include <tbb/task_arena.h>
 
+#include <cstdint>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
+#include <system_error>
 
 namespace rayscan::jobs::detail {
+
+/// The memory budget `memory` of a build (byte-size text such as "4G", parse_byte_size), in
+/// bytes; an OptionError naming "memory" for a malformed one.
+inline std::uint64_t memory_budget(const std::string& memory) {
+  try {
+    return parse_byte_size(memory);
+  } catch (const std::invalid_argument& e) {
+    throw OptionError({option("memory"), std::string(": ") + e.what()});
+  }
+}
+
+/// Throws OptionError naming "temp_dir" unless `dir` is empty or an existing folder: a COPC
+/// output's records file is created there, and a mistyped folder is refused before any work
+/// (and not created), named as the option rather than the hidden file it would have held (the
+/// index file's sort runs: io::build_index_file's own check).
+inline void require_temp_dir(const std::filesystem::path& dir) {
+  std::error_code ec;
+  if (!dir.empty() && !std::filesystem::is_directory(dir, ec))
+    throw OptionError({option("temp_dir"), " '" + one_line(dir.string()) + "': not an existing folder"});
+}
 
 /// Writes the cloud file `in` as COPC 1.0 `out` (io::write_copc) within the memory budget
 /// `memory` (byte-size text such as "4G", parse_byte_size), temporary records in `temp_dir`
 /// (empty: the output's folder), reporting to `progress`, on `threads` threads (0 = all).
-/// Throws what parse_byte_size and io::write_copc throw.
+/// Throws OptionError naming "memory" (memory_budget) and what io::write_copc throws.
 inline io::CopcWriteResult write_copc_output(const std::filesystem::path& in, const std::filesystem::path& out,
                                              const std::string& memory, const std::filesystem::path& temp_dir,
                                              const decltype(io::CopcWriteOptions::progress)& progress,
                                              unsigned threads) {
   io::CopcWriteOptions c;
-  c.memory_bytes = parse_byte_size(memory);
+  c.memory_bytes = memory_budget(memory);
   c.temp_dir = temp_dir;
   c.progress = progress;
   io::CopcWriteResult r;

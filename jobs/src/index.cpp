@@ -23,24 +23,8 @@ namespace rayscan::jobs {
 
 namespace {
 
-/// The memory budget of either output, parsed; an OptionError naming "memory" for a malformed one.
-std::uint64_t memory_bytes(const IndexJobOptions& o) {
-  try {
-    return parse_byte_size(o.memory);
-  } catch (const std::invalid_argument& e) {
-    throw OptionError({option("memory"), std::string(": ") + e.what()});
-  }
-}
-
-/// Throws OptionError naming "temp_dir" unless `dir` is empty or an existing folder: a COPC
-/// output's records file is created there, and a mistyped folder is refused before any work
-/// (and not created), named as the option rather than the hidden file it would have held (the
-/// index file's sort runs: io::build_index_file's own check).
-void require_temp_dir(const std::filesystem::path& dir) {
-  std::error_code ec;
-  if (!dir.empty() && !std::filesystem::is_directory(dir, ec))
-    throw OptionError({option("temp_dir"), " '" + one_line(dir.string()) + "': not an existing folder"});
-}
+/// The memory budget of either output, parsed (detail::memory_budget).
+std::uint64_t memory_bytes(const IndexJobOptions& o) { return detail::memory_budget(o.memory); }
 
 /// The attribute list parsed. A name that is not one an index stores (io::kIndexAttributes), nor
 /// all or none, is an OptionError naming "attributes" that lists only those; "all" inside a list
@@ -108,7 +92,7 @@ IndexJobResult run_index(const IndexJobOptions& options) {
       throw OptionError({options.output.string() + ": a COPC output is written from one input file (got " +
                          std::to_string(options.inputs.size()) + ")"});
     memory_bytes(options);
-    require_temp_dir(options.temp_dir);
+    detail::require_temp_dir(options.temp_dir);
     const std::filesystem::path out[] = {options.output};
     require_outputs(out, options.inputs);
     IndexJobResult result;

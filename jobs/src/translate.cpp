@@ -112,7 +112,8 @@ TranslateJobResult write_through_las(const TranslateJobOptions& options, const P
   TranslateJobResult r;
   try {
     if (copc) {
-      r.copc = detail::write_copc_output(temp, options.out, options.memory, {}, options.progress, options.control.threads);
+      r.copc = detail::write_copc_output(temp, options.out, options.memory, options.temp_dir, options.progress,
+                                         options.control.threads);
       r.copc->in_bytes = std::filesystem::file_size(options.in);
     } else {
       io::TranslateOptions t;
@@ -151,6 +152,9 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
   const std::string ext = lower_extension(options.out);
   const bool las_out = options.compression != LasCompression::by_extension || ext == ".las" || ext == ".laz";
   check_grid_options(options, las_out || copc);
+  // The COPC build's options, checked whatever the output, so that a typo fails at once.
+  detail::memory_budget(options.memory);
+  detail::require_temp_dir(options.temp_dir);
   const std::filesystem::path out[] = {options.out}, in[] = {options.in};
   require_outputs(out, in);
   const bool index_in = io::is_index_file(options.in);
@@ -169,8 +173,8 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
     return r;
   };
   if (copc && !grid_requested(options))
-    return copc_result(detail::write_copc_output(options.in, options.out, options.memory, {}, options.progress,
-                                                 options.control.threads));
+    return copc_result(detail::write_copc_output(options.in, options.out, options.memory, options.temp_dir,
+                                                 options.progress, options.control.threads));
   const bool las_in = !index_in && io::format_from_extension(options.in) == io::Format::las;
   if (las_in && las_out && !grid_requested(options)) {
     io::TranslateOptions t;

@@ -590,6 +590,23 @@ TEST(SolarCli, PeriodAndDayOptionsAreRefusedWhereTheRunWouldIgnoreThem) {
   }
 }
 
+// Integer options are decimal ("08" is eight, which C's base-0 reading refuses as octal) and an
+// unknown --index is refused when the options are parsed: the cloud named does not exist, so an
+// option accepted leaves the error to that file, and one refused names itself instead.
+TEST(SolarCli, IntegersAreDecimalAndTheIndexIsCheckedWhenParsed) {
+  const std::string missing = testing::TempDir() + "/no_such_cloud.las";
+  const std::string base = std::string(RAYSCAN_BIN) + " solar '" + missing + "' --at 2026-06-21T12:00Z --json -q ";
+  auto r = rayscan::test::run_command(base + "--sky-rays 08 --threads 010");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("no_such_cloud.las"), std::string::npos) << r.out;
+  r = rayscan::test::run_command(base + "--sky-rays 0x10");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out.rfind("rayscan solar: --sky-rays: expected an integer in [0, 4096], got '0x10'", 0), 0u) << r.out;
+  r = rayscan::test::run_command(base + "--index octree-fast");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(r.out.rfind("rayscan solar: --index: octree-fast not in {", 0), 0u) << r.out;
+}
+
 // The preview's default path (the raster's name with .png) is checked with the other outputs
 // before any work: a folder there is refused before the points are traced, so the run logs one
 // line, the error, and writes no GeoTIFF. --no-preview, which writes no preview and so does not

@@ -567,6 +567,43 @@ TEST(TranslateJob, CliScaleAndOffset) {
   EXPECT_TRUE(fs::is_empty(dir));
 }
 
+// --memory and --temp-dir are the COPC build's, but a bad one is refused for every output (it was
+// ignored, exit 0, for any output but COPC), in one line naming the option, before anything is
+// written. A given --temp-dir leaves the COPC file's bytes as they are without it, and nothing
+// behind. --chunk-size is decimal: 010 is ten points a chunk of a LAS file compressed (the chunk
+// count the command reports against the point count read back), not octal 8.
+TEST(TranslateJob, CliMemoryAndTempDirAreCheckedForEveryOutput) {
+  const fs::path ply = small_float_scan(), dir = temp_dir() / "cli_memory";
+  fs::create_directories(dir);
+  const fs::path temp = dir / "records";
+  fs::create_directories(temp);
+  for (const char* name : {"a.ply", "a.las", "a.laz", "a.xyz", "a.copc.laz"}) {
+    const std::string base = "translate -q " + test::quoted(ply) + " " + test::quoted(dir / name);
+    auto r = test::rayscan_cli(base + " --memory 1Q");
+    EXPECT_EQ(r.code, 2) << name;
+    EXPECT_EQ(r.out, "rayscan translate: --memory: size '1Q': expected a positive number with an optional K, M, G "
+                     "or T suffix\n") << name;
+    r = test::rayscan_cli(base + " --temp-dir " + test::quoted(dir / "missing"));
+    EXPECT_EQ(r.code, 2) << name;
+    EXPECT_EQ(r.out, "rayscan translate: --temp-dir '" + (dir / "missing").string() + "': not an existing folder\n")
+        << name;
+    EXPECT_FALSE(fs::exists(dir / name)) << name;
+  }
+  auto r = test::rayscan_cli("translate -q " + test::quoted(ply) + " " + test::quoted(dir / "b.copc.laz"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  r = test::rayscan_cli("translate -q " + test::quoted(ply) + " " + test::quoted(dir / "c.copc.laz") + " --temp-dir " +
+                        test::quoted(temp));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(file_bytes(dir / "c.copc.laz"), file_bytes(dir / "b.copc.laz"));
+  EXPECT_TRUE(fs::is_empty(temp));
+  const fs::path las = data_file("las/point-color.las");  // LAS to LAZ: chunks of --chunk-size
+  r = test::rayscan_cli("translate -q " + test::quoted(las) + " " + test::quoted(dir / "d.laz") + " --chunk-size 010");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::size_t points = io::read_point_cloud(dir / "d.laz").size();
+  EXPECT_NE(r.out.find(" in " + std::to_string((points + 9) / 10) + " chunks"), std::string::npos)
+      << points << " points: " << r.out;
+}
+
 // LAS -> text prints each coordinate with the decimals of the file's scale (autzen_trim.las:
 // 0.01, 2 decimals), as las2txt does, not the reader's double (849393.9500000001): every X, Y, Z
 // is the record's integer x scale + offset when rounded to the scale, and no coordinate has more

@@ -34,8 +34,11 @@ struct TranslateJobOptions {
   /// variable-sized chunks in a LASzip VLR).
   std::uint32_t chunk_size = 50000;
   /// COPC output: the memory budget of the in-memory octree build, a byte size as
-  /// parse_byte_size reads it ("4G", "512M"); unused for other outputs.
+  /// parse_byte_size reads it ("4G", "512M"); unused for other outputs, but checked for every one.
   std::string memory = "4G";
+  /// COPC output: the existing folder of the build's temporary records file (empty: the output's
+  /// folder), as IndexJobOptions::temp_dir; unused for other outputs, but checked for every one.
+  std::filesystem::path temp_dir;
   JobControl control;  ///< COPC output: threads compressing nodes (0 = all cores); unused otherwise
   /// LAS, LAZ and COPC output: the scale factors, the size of one step of the records' X, Y, Z
   /// integers in file units (PDAL writers.las scale_x, scale_y, scale_z): one value for all three
@@ -77,7 +80,8 @@ struct TranslateJobResult : io::TranslateResult {
 /// (MappedIndex::to_point_cloud: positions, colour, intensity, classification, GPS time and CRS,
 /// the attributes an index stores; colour stored as byte x 257 is written back as 8-bit values).
 /// The output's format and path are checked before the input is read (translate_output_extensions,
-/// require_outputs). Throws OptionError naming "chunk_size" for a chunk size outside
+/// require_outputs), and so are `memory` and `temp_dir` whatever the output. Throws OptionError
+/// naming "memory" or "temp_dir" (not an existing folder), "chunk_size" for a chunk size outside
 /// [1, 4294967294], std::invalid_argument for an output extension with no writer ("<out>: expected
 /// a file name ending in .las, .laz, .copc.laz, ...") and for an unsupported conversion (LAZ or COPC
 /// output of the waveform point formats 4, 5, 9, 10; COPC output of an index file), io::IndexError
