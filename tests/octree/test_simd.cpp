@@ -1125,7 +1125,7 @@ TEST(Simd, BoxPointsKeepExactlyThePointsInTheBox) {
 // decoding of CPUID (/proc/cpuinfo); the AVX-512 path's table holds the AVX2 box kernel on Zen 4
 // (AuthenticAMD family 25 with AVX-512) and its own elsewhere, and its own ray and point kernels
 // everywhere.
-TEST(Simd, Avx512PathTakesTheAvx2BoxKernelOnZen4Only) {
+TEST(Simd, Avx512PathTakesTheAvx2BoxKernelOnZen4AndZen5Only) {
   const auto cpu = cpu_identity_from_proc();
   if (!cpu) GTEST_SKIP() << "no x86 vendor_id / cpu family in /proc/cpuinfo";
   const bool amd = cpu->vendor == "AuthenticAMD";
@@ -1135,8 +1135,8 @@ TEST(Simd, Avx512PathTakesTheAvx2BoxKernelOnZen4Only) {
   PathGuard guard;
   set_simd_path(SimdPath::avx512);
   const simd::Kernels& k = simd::active_kernels();
-  const bool zen4 = amd && cpu->family == 25;
-  EXPECT_EQ(k.box_points, zen4 ? simd::Avx2Kernels::box_points : simd::Avx512Kernels::box_points)
+  const bool zen4_or_5 = amd && (cpu->family == 25 || cpu->family == 26);
+  EXPECT_EQ(k.box_points, zen4_or_5 ? simd::Avx2Kernels::box_points : simd::Avx512Kernels::box_points)
       << cpu->vendor << " family " << cpu->family;
   EXPECT_EQ(k.point_filter, simd::Avx512Kernels::point_filter);
   EXPECT_EQ(k.child_slab_keys, simd::Avx512Kernels::child_slab_keys);

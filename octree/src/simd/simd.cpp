@@ -64,14 +64,18 @@ constexpr Kernels table_of() {
 }
 
 #if RAYSCAN_SIMD_X86
-// The AVX-512 table, with the AVX2 box kernel on Zen 4 (AMD family 19h; Zen 3, the same family,
-// has no AVX-512): Zen 4 runs each 512-bit operation as two 256-bit halves, and there the 8-wide
-// kernel's deinterleaving blends and rotations cost more than the 4-wide kernel's lane table (on
-// the Intel Xeon the AVX-512 kernel is the faster: bench/notes/2026-11-28-box-kernel-on-zen-4.md).
-// The ray and kNN kernels stay 8-wide there: the ray traversal's AVX-512 instance is the faster.
+// The AVX-512 table, with the AVX2 box kernel on AMD's AVX-512 CPUs, Zen 4 (family 19h; Zen 3, the
+// same family, has no AVX-512) and Zen 5 (1Ah): Zen 4 runs each 512-bit operation as two 256-bit
+// halves, and there the 8-wide kernel's deinterleaving blends and rotations cost more than the
+// 4-wide kernel's lane table; on Zen 5 the 4-wide kernel measured faster too (the three octrees'
+// box queries together 4-7% in three one-process runs). On the Intel Xeon the AVX-512 kernel is
+// the faster (bench/notes/2026-11-28-box-kernel-on-zen-4.md,
+// bench/notes/2026-11-29-box-kernel-on-zen-5.md). The ray and kNN kernels stay 8-wide there: the
+// ray traversal's AVX-512 instance is the faster.
 Kernels avx512_table() {
   Kernels k = table_of<Avx512Kernels>();
-  if (amd_cpu_family() == 0x19u) k.box_points = Avx2Kernels::box_points;
+  const unsigned family = amd_cpu_family();
+  if (family == 0x19u || family == 0x1Au) k.box_points = Avx2Kernels::box_points;
   return k;
 }
 #endif

@@ -258,7 +258,7 @@ struct Kernels {
 
 /// The kernels of the active path (simd_path()). Per CPU family (amd_cpu_family), a path's table
 /// may take one kernel from a narrower path where that was measured faster (the AVX-512 table's
-/// box_points on Zen 4: the AVX2 kernel); every kernel of a slot keeps the same answers.
+/// box_points on Zen 4 and Zen 5: the AVX2 kernel); every kernel of a slot keeps the same answers.
 const Kernels& active_kernels();
 
 /// The family of this CPU when its vendor is AMD, from CPUID leaf 1 (AMD64 Architecture
