@@ -533,15 +533,7 @@ TEST(GeoTiff, AFailedWriteNamesTheOutputAndTheSystemsCause) {
       }
     });
     EXPECT_EQ(code, EFBIG) << error;
-    EXPECT_EQ(error.rfind(out.string() + ": ", 0), 0u) << error;
-    const std::string cause = std::string(": ") + std::strerror(EFBIG);
-    EXPECT_TRUE(error.size() > cause.size() && error.compare(error.size() - cause.size(), cause.size(), cause) == 0)
-        << error;
-    EXPECT_EQ(error.find(".tmp."), std::string::npos) << error;
-    EXPECT_EQ(error.find('\n'), std::string::npos) << error;
-    std::ifstream f(out);
-    EXPECT_EQ(std::string(std::istreambuf_iterator<char>(f), {}), "OLD");
-    EXPECT_EQ(rayscan::test::entry_names(dir), std::set<std::string>{"n.tif"});
+    EXPECT_EQ(rayscan::test::failure_names_only_output(error, out, ""), "");
   }
   fs::remove_all(dir);
 }

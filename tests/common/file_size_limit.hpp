@@ -4,10 +4,18 @@
 
 #include <sys/resource.h>
 
+#include <cerrno>
 #include <csignal>
+#include <cstring>
 #include <exception>
+#include <filesystem>
+#include <fstream>
 #include <functional>
+#include <iterator>
+#include <set>
 #include <string>
+
+#include "temp_dir.hpp"
 
 namespace rayscan::test {
 
@@ -34,6 +42,25 @@ inline std::string error_within_file_size(rlim_t bytes, const std::function<void
   ::setrlimit(RLIMIT_FSIZE, &before);
   std::signal(SIGXFSZ, old_handler);
   return error;
+}
+
+/// What is wrong with a failed write's outcome, "" when nothing: `error` must be one line that
+/// starts with "<out>: <head>" and ends with ": <EFBIG's text>" (the limit's errno, the oracle),
+/// naming no temporary (".tmp."); `out` must still hold "OLD" and be the only entry of its folder.
+inline std::string failure_names_only_output(const std::string& error, const std::filesystem::path& out,
+                                             const std::string& head) {
+  const std::string start = out.string() + ": " + head;
+  if (error.rfind(start, 0) != 0) return "does not start with '" + start + "': " + error;
+  const std::string cause = std::string(": ") + std::strerror(EFBIG);
+  if (error.size() <= cause.size() || error.compare(error.size() - cause.size(), cause.size(), cause) != 0)
+    return "does not end with '" + cause + "': " + error;
+  if (error.find(".tmp.") != std::string::npos) return "names a temporary: " + error;
+  if (error.find('\n') != std::string::npos) return "is not one line: " + error;
+  std::ifstream f(out);
+  if (std::string(std::istreambuf_iterator<char>(f), {}) != "OLD") return out.string() + " lost its old content";
+  if (entry_names(out.parent_path()) != std::set<std::string>{out.filename().string()})
+    return out.parent_path().string() + " holds more than " + out.filename().string();
+  return "";
 }
 
 }  // namespace rayscan::test
