@@ -13,7 +13,11 @@ if [ "${1:-}" = --build-only ]; then
   only_build=1
   shift
 fi
-script_no_args "$@"
+if [ $# -gt 0 ]; then
+  case "$1" in -h | --help) script_options "$1" ;; esac
+  echo "install-deps.sh: expected no argument or --build-only, got '$1' (see --help)" >&2
+  exit 2
+fi
 # What configuring and building need (the suite is configured with the build: GoogleTest, zlib;
 # OpenImageIO's CMake package refuses to load without its programs, openimageio-tools), with
 # help2man for the man pages, DejaVu Sans for the text rayscan draws into images, NumPy for

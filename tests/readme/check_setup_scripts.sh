@@ -34,9 +34,12 @@ for s in build.sh test.sh demo.sh package.sh sanitize.sh; do
   check "$s" 2 "$s: one argument at most (the build folder), got 2 (see --help)" dir1 dir2
 done
 check install-deps.sh 0 "Installs rayscan's build and test dependencies" --help
-check install-deps.sh 2 "install-deps.sh: takes no argument, got 'build' (see --help)" build
+check install-deps.sh 2 "install-deps.sh: expected no argument or --build-only, got 'build' (see --help)" build
+check install-deps.sh 2 "install-deps.sh: expected no argument or --build-only, got '--bogus' (see --help)" --bogus
 check install-deps.sh 0 "Usage: tools/install-deps.sh [--build-only]" --help
-check install-deps.sh 2 "install-deps.sh: takes no argument, got 'build' (see --help)" --build-only build
+check install-deps.sh 2 "install-deps.sh: expected no argument or --build-only, got 'build' (see --help)" --build-only build
+check install-deps.sh 2 "install-deps.sh: expected no argument or --build-only, got '--build-only' (see --help)" --build-only --build-only
+check install-deps.sh 0 "Usage: tools/install-deps.sh [--build-only]" --build-only --help
 # Nothing was created where the refused arguments would have gone.
 for d in --bogus dir1 dir2; do
   if [ -e "$d" ] || [ -e "$root/$d" ]; then
