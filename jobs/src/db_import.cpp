@@ -13,7 +13,9 @@
 #include <ogr_spatialref.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <stdexcept>
+#include <string_view>
 
 namespace rayscan::jobs {
 
@@ -57,8 +59,13 @@ std::vector<std::string> unprojected_crs_warnings(const std::vector<sql::SourceR
       OGRSpatialReference srs;
       srs.importFromWkt(s.crs_wkt.c_str());  // read already by refuse_unprojected_crs
       std::string crs = srs.GetName() ? srs.GetName() : "";
-      if (const int epsg = io::epsg_codes_from_wkt(s.crs_wkt).horizontal)
-        crs += (crs.empty() ? "EPSG:" : ", EPSG:") + std::to_string(epsg);
+      // io's codes are those of a horizontal CRS; a geocentric one's is the WKT's own authority
+      // (EPSG:4978 and EPSG:4326 are both named "WGS 84").
+      int epsg = io::epsg_codes_from_wkt(s.crs_wkt).horizontal;
+      const char* authority = srs.GetAuthorityName(nullptr);
+      const char* code = srs.GetAuthorityCode(nullptr);
+      if (epsg == 0 && authority && code && std::string_view(authority) == "EPSG") epsg = std::atoi(code);
+      if (epsg > 0) crs += (crs.empty() ? "EPSG:" : ", EPSG:") + std::to_string(epsg);
       warnings.push_back(s.path + (crs.empty() ? "" : " (" + crs + ")") + ": " + e.what());
     }
   }

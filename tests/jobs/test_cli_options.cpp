@@ -49,8 +49,8 @@ std::vector<std::string> lines_of(const std::string& text) {
 
 }  // namespace
 
-// A leading zero is not octal: CLI11 converts integers with strtoull(s, .., 0), so `--k 010` kept
-// 8 rows per ray and `--k 08` failed. Oracles: the rows the query writes per ray, the effective
+// A leading zero is not octal (CLI11 alone converts integers with strtoull(s, .., 0), which reads
+// `--k 010` as 8 and refuses `--k 08`). Oracles: the rows the query writes per ray, the effective
 // scene `render --print-scene` prints, the chunk size `db import --json` reports and the
 // chunks it made (ceil(1065 / 10)), the leaf depth `index` reports.
 TEST(CliOptions, IntegersAreDecimalWithALeadingZero) {
@@ -75,9 +75,9 @@ TEST(CliOptions, IntegersAreDecimalWithALeadingZero) {
   const nlohmann::json import = nlohmann::json::parse(r.out);
   EXPECT_EQ(import["chunk_size"], 10);
   EXPECT_EQ(import["chunks"], (import["points"].get<int>() + 9) / 10);
-  r = rayscan_cli("index -q " + small + " -o " + quoted(dir / "a.rsi") + " --layout fixed --depth 02");
+  r = rayscan_cli("index -q " + small + " -o " + quoted(dir / "a.rsi") + " --layout fixed --depth 010");
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find(", depth 2, "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(", depth 10, "), std::string::npos) << r.out;
   // Still whole numbers in range, in the integer_in words.
   r = rayscan_cli(query + "0x10");
   EXPECT_EQ(r.code, 2);
@@ -85,8 +85,8 @@ TEST(CliOptions, IntegersAreDecimalWithALeadingZero) {
   std::filesystem::remove_all(dir);
 }
 
-// visibility --seed took -1 as 2^64-1; it now follows render's rule (one validator), as does a
-// seed past 2^64-1, and 010 is 10. Oracle: the refusals' lines, and the sky view of --seed 010
+// visibility --seed follows render's rule (one validator): -1 and a seed past 2^64-1 are refused
+// (not wrapped), and 010 is 10. Oracle: the refusals' lines, and the sky view of --seed 010
 // equal to that of --seed 10, byte for byte.
 TEST(CliOptions, SeedsAreUnsigned64BitDecimalsInEveryCommand) {
   const auto dir = fresh("seed");
@@ -109,8 +109,8 @@ TEST(CliOptions, SeedsAreUnsigned64BitDecimalsInEveryCommand) {
 }
 
 // An unknown --index is refused when the options are parsed, before the cloud is read: the
-// output is the one line, with no "read N points" log line before it (which it had), and it names
-// the option and lists the index types.
+// output is the one line, with no "read N points" log line before it, and it names the option and
+// lists the index types.
 TEST(CliOptions, UnknownIndexIsRefusedBeforeTheCloudIsRead) {
   const auto dir = fresh("index_type");
   const std::string las = quoted(data_file("las/autzen_trim.las"));
@@ -126,8 +126,8 @@ TEST(CliOptions, UnknownIndexIsRefusedBeforeTheCloudIsRead) {
 }
 
 // index's memory, layout, attribute and temporary-folder errors name their option and list only
-// what index accepts (the attribute list offered normals and scalars, the layouts layered, which
-// the build then refused; a missing --temp-dir was named by the hidden sort-run folder or COPC
+// what index accepts (no normals or scalars among the attributes, no layered layout, which the
+// build refuses; a missing --temp-dir named as given, not by the hidden sort-run folder or COPC
 // records file inside it). db import's temporary folder alike. Nothing is written.
 TEST(CliOptions, IndexAndDbImportErrorsNameTheirOption) {
   const auto dir = fresh("index_errors");
@@ -163,7 +163,7 @@ TEST(CliOptions, IndexAndDbImportErrorsNameTheirOption) {
 }
 
 // A word where a command belongs that names none is named, with the commands there are, in one
-// line and exit code 2 (it was "A subcommand is required"); so for db's subcommand.
+// line and exit code 2 (not CLI11's "A subcommand is required"); so for db's subcommand.
 TEST(CliOptions, MistypedCommandIsNamed) {
   auto r = rayscan_cli("visibilty x.las --sky-view 4");
   EXPECT_EQ(r.code, 2);
@@ -203,8 +203,8 @@ TEST(CliOptions, QueryCloudPositionalAndSharedNamesAsAliases) {
   std::filesystem::remove_all(dir);
 }
 
-// Help texts give units and defaults, and range errors read as the other number errors (CLI11's
-// Range printed "-30.000000"). The image size's limit comes from kMaxImageSide.
+// Help texts give units and defaults, and range errors read as the other number errors (not
+// CLI11's Range text, "-30.000000"). The image size's limit comes from kMaxImageSide.
 TEST(CliOptions, HelpStatesDefaultsAndRangesReadably) {
   for (const char* command : {"render", "visibility", "query"}) {
     const auto help = rayscan_cli(std::string(command) + " --help");

@@ -567,8 +567,8 @@ TEST(TranslateJob, CliScaleAndOffset) {
   EXPECT_TRUE(fs::is_empty(dir));
 }
 
-// --memory and --temp-dir are the COPC build's, but a bad one is refused for every output (it was
-// ignored, exit 0, for any output but COPC), in one line naming the option, before anything is
+// --memory and --temp-dir are the COPC build's, but a bad one is refused for every output, in one
+// line naming the option, before anything is
 // written. A given --temp-dir leaves the COPC file's bytes as they are without it, and nothing
 // behind. --chunk-size is decimal: 010 is ten points a chunk of a LAS file compressed (the chunk
 // count the command reports against the point count read back), not octal 8.

@@ -262,7 +262,7 @@ TEST_F(Mpi, QueryAllSendsRunsOfAboutSixteenThousandResultsAndTheSameBytes) {
   const std::uint64_t rays_per_run = 16384 / points;  // 11
   EXPECT_GE(runs, (rays + rays_per_run - 1) / rays_per_run) << two.out;  // not 2 blocks: at most 11 rays a reply
   EXPECT_LE(results / runs, rays_per_run * (8 + points * 32)) << two.out;
-  // Batches of 2 runs over 3 ranks, one straddling the blocks (runs 23 and 24).
+  // Batches of 2 runs over 3 ranks (the root computing none).
   const CommandResult three = run(mpirun(3, false) + kBin + args + " -q --threads 2 --out three.csv");
   ASSERT_EQ(three.code, 0) << three.out;
   expect_same_file(dir_ / "one.csv", dir_ / "three.csv");

@@ -588,13 +588,6 @@ TEST(RayQuery, PacketFirstHitEqualsSingleRayAndOracle) {
                std::invalid_argument);
 }
 
-TEST(RayQuery, InterleavedPairsAreOffByDefaultOnEveryCpu) {
-  // ray_first_hit_each traces single rays unless a caller asks for the pairs: they measured slower
-  // than single rays on Zen 4, Zen 5 and the Xeons (ray_query.hpp). Whatever this CPU's family.
-  const auto cpu = cpu_identity_from_proc();
-  EXPECT_FALSE(interleaved_pairs_default()) << (cpu ? cpu->vendor + " family " + std::to_string(cpu->family) : "");
-}
-
 TEST(RayQuery, FirstHitEachInterleavedPairsEqualSingleRaysAndOracle) {
   // ray_first_hit_each (two rays at a time, their traversals interleaved node by node) against
   // ray_first_hit on each ray (every field, bit for bit, and the same work counters: each ray

@@ -1123,8 +1123,8 @@ TEST(Simd, BoxPointsKeepExactlyThePointsInTheBox) {
 
 // The CPU family behind the per-family kernel choices (simd::amd_cpu_family) is the kernel's
 // decoding of CPUID (/proc/cpuinfo); the AVX-512 path's table holds the AVX2 box kernel on Zen 4
-// (AuthenticAMD family 25 with AVX-512) and its own elsewhere, and its own ray and point kernels
-// everywhere.
+// and Zen 5 (AuthenticAMD families 25 and 26 with AVX-512) and its own elsewhere, and its own ray
+// and point kernels everywhere.
 TEST(Simd, Avx512PathTakesTheAvx2BoxKernelOnZen4AndZen5Only) {
   const auto cpu = cpu_identity_from_proc();
   if (!cpu) GTEST_SKIP() << "no x86 vendor_id / cpu family in /proc/cpuinfo";

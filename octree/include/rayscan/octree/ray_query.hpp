@@ -98,8 +98,7 @@ void set_interleaved_pairs(bool on);
 /// First hits of a batch of rays: out[i] = ray_first_hit(index, rays[i], q, stats) for every i,
 /// bit for bit. Where interleaved_pairs() (set by a caller; off by default) the rays are traced two
 /// at a time, their traversals interleaved node by node (detail::first_hit_pair: two independent
-/// chains for the core's idle slots, which paid on Zen 5 before the entry-point search and no
-/// longer does on any CPU measured), else one by one. The batch form of ray_first_hit for callers with many rays
+/// chains for the core's idle slots), else one by one. The batch form of ray_first_hit for callers with many rays
 /// (ray_query_each, the renderer's wavefronts, bench_rays). `stats` (optional) sums the work
 /// counters. As ray_first_hit, `q` must have been validated. Throws std::invalid_argument when
 /// out.size() != rays.size(). Thread-safe (per-thread scratch).
