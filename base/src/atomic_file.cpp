@@ -3,6 +3,7 @@
 
 #include "rayscan/base/input_file.hpp"
 #include "rayscan/base/interrupt.hpp"
+#include "rayscan/base/option_error.hpp"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -153,6 +154,12 @@ OutputFileError output_error(const std::filesystem::path& file, const std::strin
   }
   if (err != 0) message += std::string(": ") + std::strerror(err);
   return OutputFileError(message, err);
+}
+
+void require_temp_dir(const std::filesystem::path& dir) {
+  std::error_code ec;
+  if (!dir.empty() && !std::filesystem::is_directory(dir, ec))
+    throw OptionError({option("temp_dir"), " '" + one_line(dir.string()) + "': not an existing folder"});
 }
 
 void require_replaceable_output(const std::filesystem::path& path) {

@@ -28,15 +28,6 @@ inline std::uint64_t memory_budget(const std::string& memory) {
   }
 }
 
-/// Throws OptionError naming "temp_dir" unless `dir` is empty or an existing folder: a COPC
-/// output's records file is created there, and a mistyped folder is refused before any work
-/// (and not created), named as the option rather than the hidden file it would have held (the
-/// index file's sort runs: io::build_index_file's own check).
-inline void require_temp_dir(const std::filesystem::path& dir) {
-  std::error_code ec;
-  if (!dir.empty() && !std::filesystem::is_directory(dir, ec))
-    throw OptionError({option("temp_dir"), " '" + one_line(dir.string()) + "': not an existing folder"});
-}
 
 /// Writes the cloud file `in` as COPC 1.0 `out` (io::write_copc) within the memory budget
 /// `memory` (byte-size text such as "4G", parse_byte_size), temporary records in `temp_dir`

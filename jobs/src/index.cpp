@@ -92,7 +92,7 @@ IndexJobResult run_index(const IndexJobOptions& options) {
       throw OptionError({options.output.string() + ": a COPC output is written from one input file (got " +
                          std::to_string(options.inputs.size()) + ")"});
     memory_bytes(options);
-    detail::require_temp_dir(options.temp_dir);
+    require_temp_dir(options.temp_dir);
     const std::filesystem::path out[] = {options.output};
     require_outputs(out, options.inputs);
     IndexJobResult result;

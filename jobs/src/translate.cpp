@@ -154,7 +154,7 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
   check_grid_options(options, las_out || copc);
   // The COPC build's options, checked whatever the output, so that a typo fails at once.
   detail::memory_budget(options.memory);
-  detail::require_temp_dir(options.temp_dir);
+  require_temp_dir(options.temp_dir);
   const std::filesystem::path out[] = {options.out}, in[] = {options.in};
   require_outputs(out, in);
   const bool index_in = io::is_index_file(options.in);

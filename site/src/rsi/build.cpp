@@ -101,9 +101,7 @@ void IndexBuild::check_options() {
   // The runs folder is created in the temporary folder, never the folders above it: a missing
   // (mistyped) temporary folder is refused before any long work, by the rule of every output,
   // named as the option (the hidden runs folder's name means nothing to the user).
-  std::error_code ec;
-  if (!opt.temp_dir.empty() && !fs::is_directory(opt.temp_dir, ec))
-    throw OptionError({option("temp_dir"), " '" + one_line(opt.temp_dir.string()) + "': not an existing folder"});
+  require_temp_dir(opt.temp_dir);
   require_replaceable_output(runs_folder(output, opt));
 }
 

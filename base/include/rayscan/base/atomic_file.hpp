@@ -134,6 +134,13 @@ class IntermediateFile {
 /// command before starting long work.
 void require_replaceable_output(const std::filesystem::path& path);
 
+/// Throws OptionError naming "temp_dir" ("temp_dir '<dir>': not an existing folder") unless `dir`
+/// is empty (beside the output) or an existing folder: a build's temporary files (an index
+/// file's sort runs, a COPC output's records file) go there, and a mistyped folder is refused
+/// before any long work, named as the option rather than by the hidden file it would have held.
+/// The folder is never created.
+void require_temp_dir(const std::filesystem::path& dir);
+
 /// The checks a job runs on its outputs before any long work, so that a bad output path fails
 /// in a second, not after the computation: each output replaceable (require_replaceable_output),
 /// its directory writable by this process (a probe file created with O_EXCL and removed: a
