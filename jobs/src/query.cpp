@@ -174,7 +174,9 @@ std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQ
     }
   };
   // The rays of runs [first, first + count): consecutive.
-  auto range = [&](std::uint64_t first, std::uint64_t count) { return std::pair{runs.first(first), runs.end(first + count - 1)}; };
+  auto range = [&](std::uint64_t first, std::uint64_t count) {
+    return std::pair{runs.first(first), count == 0 ? runs.first(first) : runs.end(first + count - 1)};
+  };
   WorkStage stage;
   stage.items = runs.count();
   stage.batch = threads;

@@ -67,7 +67,8 @@ void check_applicable(std::string_view type, const GivenIndexOptions& given, con
 
 std::uint32_t index_capacity(const IndexOptions& opts) {
   if (opts.capacity) return *opts.capacity;
-  if (opts.type.rfind("octree-", 0) == 0) return default_capacity(parse_octree_layout(opts.type.substr(7)));
+  if (std::string_view(opts.type).starts_with(kOctreePrefix))
+    return default_capacity(parse_octree_layout(opts.type.substr(kOctreePrefix.size())));
   if (opts.type == "kdtree") return kDefaultKdTreeLeaf;
   return 0;
 }
