@@ -100,8 +100,8 @@ Runner add_index_command(CLI::App& app) {
       IndexChoiceWords words;
       words.option = "--layout ";
       words.layouts = true;
-      words.types = {"octree-adaptive", "octree-fixed"};
-      check_applicable("octree-" + std::string(to_string(job.config.layout)), given, words);
+      words.types = {octree_index_type(OctreeLayout::adaptive), octree_index_type(OctreeLayout::fixed)};
+      check_applicable(octree_index_type(job.config.layout), given, words);
     }
     job.config.capacity = o->capacity;
     job.config.depth = o->depth;

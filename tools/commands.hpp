@@ -2,7 +2,10 @@
 // lives in its own cmd_<name>.cpp and registers itself on the CLI11 app here.
 #pragma once
 
+#include "rayscan/base/number_text.hpp"
+#include "rayscan/base/option_error.hpp"
 #include "rayscan/octree/any_index.hpp"
+#include "rayscan/octree/spacing.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -124,14 +127,17 @@ inline CLI::Validator non_negative() { return finite_number(0.0, std::numeric_li
 /// finite_number(0, max, open): a finite number > 0 (replaces CLI::PositiveNumber).
 inline CLI::Validator positive() { return finite_number(0.0, std::numeric_limits<double>::max(), true); }
 
-/// The value of --radius: a finite number > 0, or "auto" (nullopt: the job chooses the radius from
-/// the point spacing). Throws UsageError naming the flag.
+/// The value of --radius: "auto" (nullopt: the job chooses the radius from the point spacing) or a
+/// number sphere_radius_problem accepts. Otherwise throws the OptionError the job throws for that
+/// number ("radius: expected a finite number > 0 (world units) or auto, got -1", the field printed
+/// as the flag); text that is no number is shown quoted ("got 'abc'").
 inline std::optional<double> parse_radius(const std::string& text) {
   if (text == "auto") return std::nullopt;
   char* end = nullptr;
   const double r = std::strtod(text.c_str(), &end);
-  if (end == text.c_str() || *end || !(r > 0.0) || !std::isfinite(r))
-    throw UsageError("--radius '" + text + "': expected a number > 0 or auto");
+  const bool number = end != text.c_str() && *end == '\0';
+  if (const std::string why = sphere_radius_problem(number ? r : std::nan("")); !why.empty())
+    throw OptionError({option("radius"), ": " + why + ", got " + (number ? shortest_text(r) : "'" + text + "'")});
   return r;
 }
 

@@ -7,6 +7,7 @@
 
 #include "rayscan/base/input_file.hpp"
 #include "rayscan/base/interrupt.hpp"
+#include "rayscan/base/list_text.hpp"
 #include "rayscan/base/version.hpp"
 #include "rayscan/octree/simd.hpp"
 
@@ -74,11 +75,10 @@ std::string unknown_command(const CLI::App& app, int argc, char** argv) {
     at = parsed;
   }
   if (at->get_require_subcommand_min() == 0 || next >= argc || argv[next][0] == '-') return "";
-  const std::vector<const CLI::App*> subs = at->get_subcommands({});
-  std::string expected;
-  for (std::size_t i = 0; i < subs.size(); ++i)
-    expected += (i == 0 ? "" : i + 1 == subs.size() ? " or " : ", ") + subs[i]->get_name();
-  return where + ": unknown command '" + rayscan::one_line(argv[next]) + "' (expected " + expected + ")";
+  std::vector<std::string> names;
+  for (const CLI::App* sub : at->get_subcommands({})) names.push_back(sub->get_name());
+  return where + ": unknown command '" + rayscan::one_line(argv[next]) + "' (expected " +
+         rayscan::join_alternatives(names) + ")";
 }
 
 }  // namespace

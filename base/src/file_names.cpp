@@ -1,6 +1,7 @@
 #include "rayscan/base/file_names.hpp"
 
 #include "rayscan/base/ascii_case.hpp"
+#include "rayscan/base/list_text.hpp"
 
 #include <algorithm>
 
@@ -16,10 +17,7 @@ bool has_extension(const std::filesystem::path& path, const std::vector<std::str
 }
 
 std::string extensions_expected(const std::vector<std::string>& extensions) {
-  std::string s = "expected a file name ending in ";
-  for (std::size_t i = 0; i < extensions.size(); ++i)
-    s += (i == 0 ? "" : i + 1 == extensions.size() ? " or " : ", ") + extensions[i];
-  return s;
+  return "expected a file name ending in " + join_alternatives(extensions);
 }
 
 }  // namespace rayscan

@@ -1,5 +1,9 @@
 #include "rayscan/image/aov.hpp"
 
+#include "rayscan/base/list_text.hpp"
+
+#include <vector>
+
 namespace rayscan {
 
 const std::vector<Aov>& all_aovs() {
@@ -26,11 +30,9 @@ std::optional<Aov> parse_aov(std::string_view name) {
 }
 
 std::string aov_names_expected() {
-  std::string s = "expected ";
-  const auto& v = all_aovs();
-  for (std::size_t i = 0; i < v.size(); ++i)
-    s += std::string(i == 0 ? "" : i + 1 == v.size() ? " or " : ", ") + to_string(v[i]);
-  return s;
+  std::vector<const char*> names;
+  for (Aov a : all_aovs()) names.push_back(to_string(a));
+  return "expected " + join_alternatives(names);
 }
 
 const std::vector<std::string>& aov_channels(Aov aov) {

@@ -26,8 +26,9 @@ void check_sight_lengths(const SightLengths& s) {
   const auto refuse = [](const char* field, double v, const char* expected) {
     throw OptionError({option(field), std::string(": expected ") + expected + ", got " + shortest_text(v)});
   };
-  if (s.radius && !(*s.radius > 0.0 && std::isfinite(*s.radius)))
-    refuse("radius", *s.radius, "a finite number > 0 (world units) or auto");
+  if (s.radius)
+    if (const std::string why = sphere_radius_problem(*s.radius); !why.empty())
+      throw OptionError({option("radius"), ": " + why + ", got " + shortest_text(*s.radius)});
   // Refused also with a given radius (which it does not affect), as a scene's auto_radius_factor
   // is: one range wherever a factor is given.
   if (const std::string why = auto_radius_factor_problem(s.radius_factor); !why.empty())

@@ -1,5 +1,6 @@
 #include "rayscan/octree/any_index.hpp"
 
+#include "rayscan/base/list_text.hpp"
 #include "rayscan/base/option_error.hpp"
 
 #include <algorithm>
@@ -11,9 +12,18 @@ namespace rayscan {
 
 namespace {
 
+/// What an octree's index type puts before its layout's name (octree_index_type).
 constexpr std::string_view kOctreePrefix = "octree-";
 
 }  // namespace
+
+std::string octree_index_type(OctreeLayout layout) { return std::string(kOctreePrefix) + to_string(layout); }
+
+std::optional<OctreeLayout> octree_layout_of(std::string_view type) {
+  if (!type.starts_with(kOctreePrefix)) return std::nullopt;
+  type.remove_prefix(kOctreePrefix.size());
+  return parse_octree_layout(std::string(type));
+}
 
 const char* to_string(IndexOption o) {
   switch (o) {
@@ -40,11 +50,11 @@ void check_applicable(std::string_view type, const GivenIndexOptions& given, con
   std::vector<std::string_view> offered(words.types.begin(), words.types.end());
   if (offered.empty())
     for (std::string_view t : kIndexTypes)
-      if (!words.layouts || t.starts_with(kOctreePrefix)) offered.push_back(t);
+      if (!words.layouts || octree_layout_of(t)) offered.push_back(t);
   if (std::find(offered.begin(), offered.end(), type) == offered.end()) return;
   auto value = [&](std::string_view t) {
-    if (words.layouts && t.starts_with(kOctreePrefix)) t.remove_prefix(kOctreePrefix.size());
-    return words.quote + std::string(t) + words.quote;
+    const std::optional<OctreeLayout> layout = words.layouts ? octree_layout_of(t) : std::nullopt;
+    return words.quote + (layout ? std::string(to_string(*layout)) : std::string(t)) + words.quote;
   };
   const std::pair<bool, IndexOption> options[] = {{given.capacity, IndexOption::capacity},
                                                   {given.max_depth, IndexOption::max_depth},
@@ -52,31 +62,28 @@ void check_applicable(std::string_view type, const GivenIndexOptions& given, con
                                                   {given.insertion, IndexOption::insertion}};
   for (const auto& [is_given, o] : options) {
     if (!is_given || index_option_applies(type, o)) continue;
-    std::vector<std::string_view> users;
+    std::vector<std::string> users;  // as the front end writes them (value)
     for (std::string_view t : offered)
-      if (index_option_applies(t, o)) users.push_back(t);
+      if (index_option_applies(t, o)) users.push_back(value(t));
     const std::string got = words.option + value(type);
     // (No front end takes an option that none of its types uses; such a one is refused plainly.)
     if (users.empty()) throw OptionError({option(to_string(o)), " does not apply to " + got});
-    std::string list;
-    for (std::size_t i = 0; i < users.size(); ++i)
-      list += (i == 0 ? "" : i + 1 == users.size() ? " and " : ", ") + value(users[i]);
-    throw OptionError({option(to_string(o)), " applies to " + words.option + list + " only (got " + got + ")"});
+    throw OptionError({option(to_string(o)),
+                       " applies to " + words.option + join_words(users, "and") + " only (got " + got + ")"});
   }
 }
 
 std::uint32_t index_capacity(const IndexOptions& opts) {
   if (opts.capacity) return *opts.capacity;
-  if (std::string_view(opts.type).starts_with(kOctreePrefix))
-    return default_capacity(parse_octree_layout(opts.type.substr(kOctreePrefix.size())));
+  if (const std::optional<OctreeLayout> layout = octree_layout_of(opts.type)) return default_capacity(*layout);
   if (opts.type == "kdtree") return kDefaultKdTreeLeaf;
   return 0;
 }
 
 AnyIndex make_index(std::span<const Vec3> positions, const IndexOptions& opts) {
   const std::string& t = opts.type;
-  if (t.starts_with(kOctreePrefix)) {
-    OctreeConfig c = OctreeConfig::for_layout(parse_octree_layout(t.substr(kOctreePrefix.size())));
+  if (const std::optional<OctreeLayout> layout = octree_layout_of(t)) {
+    OctreeConfig c = OctreeConfig::for_layout(*layout);
     c.capacity = opts.capacity.value_or(c.capacity);  // (index_capacity, without parsing the layout again)
     c.depth = opts.depth;
     c.max_depth = opts.max_depth;
@@ -85,10 +92,7 @@ AnyIndex make_index(std::span<const Vec3> positions, const IndexOptions& opts) {
   }
   if (t == "kdtree") return KdTree(positions, index_capacity(opts));
   if (t == "brute") return BruteForceIndex(positions);
-  std::string expected;  // "a, b, c or d", from the one list of index types
-  for (std::size_t i = 0; i < kIndexTypes.size(); ++i)
-    expected += (i == 0 ? "" : i + 1 == kIndexTypes.size() ? " or " : ", ") + std::string(kIndexTypes[i]);
-  throw std::invalid_argument("index type '" + t + "': expected " + expected);
+  throw std::invalid_argument("index type '" + t + "': expected " + join_alternatives(kIndexTypes));
 }
 
 std::size_t index_memory_bytes(const AnyIndex& index) {

@@ -382,7 +382,7 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
              const OctreeLayout layout =
                  parse_octree_layout(str_arg(layout_arg, "layout", "'adaptive', 'layered' or 'fixed'"));
              IndexOptions o;
-             o.type = "octree-" + std::string(to_string(layout));
+             o.type = octree_index_type(layout);
              if (!capacity.is_none()) o.capacity = parse_count(capacity, "capacity");
              const std::optional<unsigned> depth = parse_depth(depth_arg, "depth", 0);
              const std::optional<unsigned> max_depth = parse_depth(max_depth_arg, "max_depth", 1);

@@ -99,7 +99,7 @@ IndexOptions parse_index(Obj& parent, const std::string& key, NodeDistance& nd) 
                                                                        : NodeDistance::eq3;
   const std::string type = o.string("type", "octree", {"octree", "kdtree", "brute"});
   if (type == "octree") {
-    opt.type = "octree-" + o.string("layout", "adaptive", {"adaptive", "layered", "fixed"});
+    opt.type = octree_index_type(parse_octree_layout(o.string("layout", "adaptive", {"adaptive", "layered", "fixed"})));
     check_octree_keys(o, opt.type);
     opt.depth = static_cast<unsigned>(o.integer("depth", 6, 0, 21));
     opt.max_depth = static_cast<unsigned>(o.integer("max_depth", 21, 1, 21));

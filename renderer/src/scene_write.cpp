@@ -92,9 +92,9 @@ ojson index_json(const Scene& s) {
   ojson j;
   j["node_distance"] = s.node_distance == NodeDistance::exact ? "exact" : "eq3";
   // Only the options the index uses: the parser refuses the others (check_applicable).
-  if (x.type.rfind("octree-", 0) == 0) {
+  if (const std::optional<OctreeLayout> layout = octree_layout_of(x.type)) {
     j["type"] = "octree";
-    j["layout"] = x.type.substr(7);
+    j["layout"] = to_string(*layout);
   } else {
     j["type"] = x.type;
   }

@@ -15,6 +15,9 @@
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/camera/camera_file.hpp"
 #include "rayscan/io/las_records.hpp"
+#include "rayscan/base/option_error.hpp"
+#include "rayscan/jobs/solar.hpp"
+#include "rayscan/jobs/visibility.hpp"
 
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
@@ -32,12 +35,15 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
 #include <map>
 #include <memory>
 #include <set>
 #include <string>
+#include <string_view>
 #include <tuple>
+#include <utility>
 #include <vector>
 #include <sys/wait.h>
 
@@ -784,11 +790,52 @@ TEST_F(VisibilityCli, UserErrorsExitTwoAndWriteNothing) {
   expect_error(s + " --observer 0,0,2 --raster-value sky --raster " + (tmpdir() / "m.tif").string() +
                    " --cell 1 -o " + out.string(),
                "needs --sky-view");
-  expect_error(s + " --observer 0,0,2 --radius -3 -o " + out.string(), "--radius '-3'");
+  expect_error(s + " --observer 0,0,2 --radius -3 -o " + out.string(), "--radius: expected a finite number > 0");
   expect_error(s + " --observer 0,0,2 --cache lots -o " + out.string(), "--cache: ");
   expect_error((tmpdir() / "missing.las").string() + " --observer 0,0,2 -o " + out.string(), "missing.las");
   expect_error(s + " --from-camera " + (tmpdir() / "nocam.json").string() + " -o " + out.string(), "nocam.json");
   EXPECT_FALSE(fs::exists(tmpdir() / "m.tif"));
+}
+
+// `rayscan visibility --radius` and `rayscan solar --radius` refuse a radius with the line the
+// jobs' own check gives for that value (check_options, the library call), its field written as the
+// flag: one rule and one message whichever path refuses it. Before the cloud is read (it does not
+// exist here). Text that is no number is named as given.
+TEST_F(VisibilityCli, RadiusIsRefusedInTheJobsWords) {
+  const std::string cloud = (tmpdir() / "radius_never_read.ply").string();
+  const std::string out = (tmpdir() / "radius_never.las").string();
+  const auto job_line = [](const std::string& command, const std::function<void()>& check) {
+    try {
+      check();
+    } catch (const OptionError& e) {
+      return "rayscan " + command + ": " + e.spelled([](std::string_view f) { return "--" + std::string(f); }) + "\n";
+    }
+    return std::string("(the job accepts it)");
+  };
+  const std::pair<const char*, double> values[] = {{"-3", -3.0}, {"0", 0.0}, {"-0.50", -0.5}, {"1e999", HUGE_VAL}};
+  for (const auto& v : values) {
+    jobs::VisibilityJobOptions vis;
+    vis.cloud_file = cloud;
+    vis.sky_rays = 4;
+    vis.radius = v.second;
+    const RunResult rv = run_cmd(bin() + " visibility " + cloud + " --sky-view 4 -o " + out + " --radius " + v.first);
+    EXPECT_EQ(rv.code, 2) << v.first;
+    EXPECT_EQ(rv.out, job_line("visibility", [&] { jobs::check_options(vis); })) << v.first;
+    jobs::SolarJobOptions sol;
+    sol.cloud_file = cloud;
+    sol.latitude = 48.0;
+    sol.longitude = 11.0;
+    sol.at = "2026-06-21T12:00Z";
+    sol.radius = v.second;
+    const RunResult rs = run_cmd(bin() + " solar " + cloud + " --latitude 48 --longitude 11 --at 2026-06-21T12:00Z -o " +
+                                 out + " --radius " + v.first);
+    EXPECT_EQ(rs.code, 2) << v.first;
+    EXPECT_EQ(rs.out, job_line("solar", [&] { jobs::check_options(sol); })) << v.first;
+  }
+  const RunResult text = run_cmd(bin() + " visibility " + cloud + " --sky-view 4 -o " + out + " --radius wide");
+  EXPECT_EQ(text.code, 2);
+  EXPECT_EQ(text.out, "rayscan visibility: --radius: expected a finite number > 0 (world units) or auto, got 'wide'\n");
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST_F(VisibilityCli, OutputFoldersAreCheckedBeforeComputing) {

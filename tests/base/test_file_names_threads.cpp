@@ -1,7 +1,9 @@
 // The shared rules of rayscan_base every job calls instead of its own: extension tests and
-// messages (file_names.hpp), thread counts (threads.hpp), byte sizes (byte_size.hpp).
+// messages (file_names.hpp), lists in messages (list_text.hpp), thread counts (threads.hpp), byte
+// sizes (byte_size.hpp).
 #include "rayscan/base/byte_size.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/list_text.hpp"
 #include "rayscan/base/threads.hpp"
 
 #include <tbb/global_control.h>
@@ -10,7 +12,11 @@
 
 #include <sched.h>
 
+#include <array>
 #include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
 
 using namespace rayscan;
 
@@ -25,6 +31,23 @@ TEST(FileNames, LowerExtensionFoldsAsciiCaseOnly) {
   EXPECT_EQ(extensions_expected({".las"}), "expected a file name ending in .las");
   EXPECT_EQ(extensions_expected({".las", ".ply"}), "expected a file name ending in .las or .ply");
   EXPECT_EQ(extensions_expected({".a", ".b", ".c"}), "expected a file name ending in .a, .b or .c");
+}
+
+// Expected: the lists as written by hand, for none, one, two and three words, from each kind of
+// container the callers hold.
+TEST(ListText, JoinsTheLastTwoByTheConjunctionAndTheRestByCommas) {
+  EXPECT_EQ(join_alternatives(std::vector<std::string>{}), "");
+  EXPECT_EQ(join_alternatives(std::vector<std::string>{"las"}), "las");
+  EXPECT_EQ(join_alternatives(std::vector<std::string>{"las", "ply"}), "las or ply");
+  EXPECT_EQ(join_alternatives(std::vector<std::string>{"las", "ply", "pcd"}), "las, ply or pcd");
+  EXPECT_EQ(join_words(std::array<std::string_view, 0>{}, "and"), "");
+  EXPECT_EQ(join_words(std::array<std::string_view, 1>{"a"}, "and"), "a");
+  EXPECT_EQ(join_words(std::array<std::string_view, 2>{"a", "b"}, "and"), "a and b");
+  EXPECT_EQ(join_words(std::array<std::string_view, 3>{"a", "b", "c"}, "and"), "a, b and c");
+  EXPECT_EQ(join_alternatives(std::vector<const char*>{"depth", "normal", "position", "id"}),
+            "depth, normal, position or id");
+  // Words are written as given: commas, spaces and quotes inside them are not escaped.
+  EXPECT_EQ(join_alternatives(std::vector<std::string>{"'a, b'", ""}), "'a, b' or ");
 }
 
 TEST(ByteSize, BinaryMultiplesWithTheUnitInEitherAsciiCase) {

@@ -8,8 +8,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
+#include <optional>
+#include <stdexcept>
 #include <string>
+#include <utility>
 #include <variant>
 
 using namespace rayscan;
@@ -193,4 +197,24 @@ TEST(IndexOptions, MessagesInEachFrontEndsWords) {
             "depth applies to layout='fixed' only (got layout='layered')");
   // The kd-tree and brute are no layouts: not offered, not checked.
   EXPECT_EQ(refusal("kdtree", given_only(IndexOption::depth), python), "");
+}
+
+// An octree's index type and its layout map to each other (octree_index_type, octree_layout_of),
+// against the list of index types written by hand here: each octree layout to its type and back,
+// the other types to none, and an unknown layout refused as parse_octree_layout refuses it.
+TEST(IndexOptions, OctreeTypesAndLayoutsMapToEachOther) {
+  const std::pair<OctreeLayout, const char*> octrees[] = {
+      {OctreeLayout::adaptive, "octree-adaptive"}, {OctreeLayout::layered, "octree-layered"}, {OctreeLayout::fixed, "octree-fixed"}};
+  for (const auto& o : octrees) {
+    EXPECT_EQ(octree_index_type(o.first), o.second);
+    EXPECT_EQ(octree_layout_of(o.second), std::optional<OctreeLayout>(o.first)) << o.second;
+    EXPECT_NE(std::find(kIndexTypes.begin(), kIndexTypes.end(), o.second), kIndexTypes.end()) << o.second;
+  }
+  for (const char* other : {"kdtree", "brute", "", "octree"}) EXPECT_EQ(octree_layout_of(other), std::nullopt) << other;
+  try {
+    (void)octree_layout_of("octree-grid");
+    ADD_FAILURE() << "octree-grid accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()), "octree layout 'grid': expected layered, fixed or adaptive");
+  }
 }

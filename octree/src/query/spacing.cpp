@@ -24,6 +24,11 @@ std::string auto_radius_factor_problem(double factor) {
   return "expected a number in (0, " + shortest_text(kMaxAutoRadiusFactor) + "]";
 }
 
+std::string sphere_radius_problem(double radius) {
+  if (std::isfinite(radius) && radius > 0.0) return "";
+  return "expected a finite number > 0 (world units) or auto";
+}
+
 RadiusChoice choose_radius(const AnyIndex& index, std::span<const Vec3> positions,
                            std::optional<double> radius, double factor) {
   return choose_radius(radius, factor, [&] { return median_nn_spacing(index, positions); });
@@ -32,8 +37,8 @@ RadiusChoice choose_radius(const AnyIndex& index, std::span<const Vec3> position
 RadiusChoice choose_radius(std::optional<double> radius, double factor, const std::function<double()>& spacing) {
   RadiusChoice c;
   if (radius) {
-    if (!(*radius > 0.0) || !std::isfinite(*radius))
-      throw std::invalid_argument("radius: expected a finite number > 0");
+    if (const std::string why = sphere_radius_problem(*radius); !why.empty())
+      throw std::invalid_argument("radius: " + why + ", got " + shortest_text(*radius));
     c.radius = *radius;
     return c;
   }

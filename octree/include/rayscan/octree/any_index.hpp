@@ -34,6 +34,15 @@ decltype(auto) visit_index(F&& f, const I& index) {
 inline constexpr std::array<std::string_view, 5> kIndexTypes = {"octree-adaptive", "octree-layered", "octree-fixed",
                                                                 "kdtree", "brute"};
 
+/// The index type (IndexOptions::type) of an octree of layout `layout`: "octree-" and the layout's
+/// name (to_string), e.g. "octree-fixed"; one of kIndexTypes.
+[[nodiscard]] std::string octree_index_type(OctreeLayout layout);
+
+/// The octree layout of index type `type` (OctreeLayout::fixed for "octree-fixed"), the inverse of
+/// octree_index_type; nullopt for a type that names no octree ("kdtree", "brute", ""). Throws
+/// std::invalid_argument (parse_octree_layout's message) for "octree-" and an unknown layout.
+[[nodiscard]] std::optional<OctreeLayout> octree_layout_of(std::string_view type);
+
 /// Index build options shared by the CLI and scene files.
 struct IndexOptions {
   std::string type = "octree-adaptive";  ///< octree-adaptive|octree-layered|octree-fixed|kdtree|brute
@@ -78,8 +87,8 @@ struct GivenIndexOptions {
 struct IndexChoiceWords {
   /// The option choosing the index, with what joins it to its value: "--index ", "layout=".
   std::string option = "index type ";
-  /// Values are octree layouts ("fixed"), the type less its "octree-" (`rayscan index --layout`,
-  /// the Python Octree), instead of the type itself ("octree-fixed").
+  /// Values are octree layouts ("fixed", octree_layout_of the type: `rayscan index --layout`, the
+  /// Python Octree) instead of the type itself ("octree-fixed").
   bool layouts = false;
   /// Written around each value ("'" for Python's layout='fixed').
   std::string quote;

@@ -127,6 +127,12 @@ inline constexpr double kMaxAutoRadiusFactor = 100.0;
 /// field's or option's name.
 [[nodiscard]] std::string auto_radius_factor_problem(double factor);
 
+/// The one check of a given sphere radius (`--radius`, the jobs' radius, choose_radius): "" for a
+/// finite number > 0, otherwise what was expected, "expected a finite number > 0 (world units) or
+/// auto" ("auto": the radius chosen from the spacing, a front end's word for nullopt), for the
+/// caller to put after the field's or option's name.
+[[nodiscard]] std::string sphere_radius_problem(double radius);
+
 /// The sphere radius a job used and how it was chosen.
 struct RadiusChoice {
   double radius = 0.0;     ///< world units, > 0
@@ -135,10 +141,11 @@ struct RadiusChoice {
   double factor = kDefaultAutoRadiusFactor;  ///< the auto factor (only when automatic)
 };
 
-/// The radius of every point sphere (paper section 5.3): `radius` when given (must be finite and
-/// > 0), otherwise ("auto") factor x median_nn_spacing(index, positions). Throws
-/// std::invalid_argument "needs at least two distinct points" when auto finds no spacing, for a
-/// non-positive radius, or (auto) for a factor auto_radius_factor_problem refuses.
+/// The radius of every point sphere (paper section 5.3): `radius` when given (one that
+/// sphere_radius_problem accepts), otherwise ("auto") factor x median_nn_spacing(index, positions).
+/// Throws std::invalid_argument "needs at least two distinct points" when auto finds no spacing,
+/// for a radius sphere_radius_problem refuses, or (auto) for a factor auto_radius_factor_problem
+/// refuses.
 [[nodiscard]] RadiusChoice choose_radius(const AnyIndex& index, std::span<const Vec3> positions,
                                          std::optional<double> radius, double factor = kDefaultAutoRadiusFactor);
 
