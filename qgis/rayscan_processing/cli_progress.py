@@ -4,10 +4,13 @@ import re
 
 # Into a pipe rayscan writes plain lines, never a carriage return (base/src/progress.cpp and
 # tools/phase_progress.hpp):
-#   "progress: 12/215 chunks   5.6%  341999 points/s  ETA 3 s"   (render, visibility, solar)
+#   "progress: 12/215 chunks   5.6%  341999 points/s  ETA 3 s"   (render, visibility, solar, query)
+#   "progress: 110000/110000 points (surfels) 100.0%  622378 points/s  done in 0 s"
 #   "index: sort  42.0%  4200000 / 10000000 points  3.1 M points/s"  (phased jobs)
-# The percentage is the number glued to "%"; log lines such as "(26.5 %)" put a space before it.
-_PROGRESS = re.compile(r"^progress: \d+/\d+ \S+\s+(\d+(?:\.\d+)?)%")
+# After "progress: DONE/TOTAL" comes the name of the items counted (ProgressUnits::item), which may
+# be several words ("points (surfels)", "ray blocks"); the percentage is the first number glued to
+# "%" after it. Log lines such as "(26.5 %)" put a space before the "%".
+_PROGRESS = re.compile(r"^progress: \d+/\d+ \S.*?\s(\d+(?:\.\d+)?)%(?:\s|$)")
 _PHASE = re.compile(r"^[a-z]+(?: [a-z]+)?: [a-z][\w -]*?\s+(\d+(?:\.\d+)?)%\s")
 
 

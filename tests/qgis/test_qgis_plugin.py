@@ -12,8 +12,11 @@ the CLI's own values (its --help); the plugin's file extensions and filters are 
 refusals list (input clouds, per-point outputs, images, GeoTIFF maps); rayscan's refusals and the
 plugin's own (an observer QGIS cannot reproject, a missing HEIGHT_FIELD, an observer outside the
 cloud, a period without START and END) reach the user in one line naming the parameters and features, not the CLI's options or the
-temporary CSV; a cancel while POINTS_LAYER is written leaves no file there. Exit 77 (skipped) when
-qgis_process is not installed.
+temporary CSV; a cancel while POINTS_LAYER is written leaves no file there; the progress parser
+reads the progress lines of the real rayscan; viewshed's PRIMITIVE reaches rayscan; the log names
+HEIGHT's unit; in this process, POINTS_LAYER "" makes no layer, the 0/1 maps loaded into a project
+get their two classes, and no observer CSV is left behind. Exit 77 (skipped) when qgis_process is
+not installed.
 
 Usage: test_qgis_plugin.py RAYSCAN PLUGIN_DIR PLUGIN_ZIP CLOUD WORK_DIR
 PLUGIN_DIR holds the build's copy rayscan_processing/ (the in-process checks import it); qgis_process
@@ -69,6 +72,8 @@ def unit_tests(plugin_dir, work):
     from rayscan_processing.cli_progress import parse_progress
     check(parse_progress("progress: 12/215 chunks   5.6%  341999 points/s  ETA 3 s") == 5.6, "progress line")
     check(parse_progress("progress: 215/215 chunks 100.0%  341999 points/s  done in 0 s") == 100.0, "last progress line")
+    check(parse_progress("progress: 3/8 ray blocks  37.5%  2048 rays/s  ETA 1 s") == 37.5,
+          "progress line whose items are two words")
     check(parse_progress("index: sort  42.0%  4200000 / 10000000 points  3.1 M points/s") == 42.0, "phase line")
     check(parse_progress("db import: insert  100.0%  110000 / 110000 points") == 100.0, "two-word command phase line")
     check(parse_progress("rayscan visibility: line of sight: 110000 points; 29116 points (26.5 %) seen") is None,
@@ -171,6 +176,46 @@ def unit_tests(plugin_dir, work):
             os.environ["RAYSCAN_EXECUTABLE"] = saved
 
 
+def progress_checks(rayscan, cloud, work):
+    """parse_progress on the lines the real rayscan writes into a pipe (render, visibility, solar,
+    index, translate): each progress line, told by its own counts (base/src/progress.cpp's
+    "progress: DONE/TOTAL ITEM", tools/phase_progress.cpp's "COMMAND: PHASE ... DONE / TOTAL
+    points"), parses to 100 x DONE / TOTAL as printed (to its one decimal); every other line to None."""
+    import re
+    from rayscan_processing.cli_progress import parse_progress
+    observer = ["--observer", "{},{}".format(*OBSERVER), "--height", str(HEIGHT)]
+    runs = [["render", cloud, "--out", "p.png", "--width", "32", "--spp", "1"],
+            ["visibility", cloud] + observer + ["-o", "p.las"],
+            ["visibility", cloud] + observer + ["--raster", "p.tif", "--cell", str(CELL), "--no-preview"],
+            ["solar", cloud, "--at", "2026-06-21T13:00-07:00", "--raster", "s.tif", "--cell", str(CELL),
+             "--no-preview"],
+            ["index", cloud, "--out", "p.rsi"], ["translate", cloud, "p.laz"]]
+    folder = os.path.join(work, "progress")
+    os.makedirs(folder)
+    lines = []
+    for args in runs:
+        r = subprocess.run([rayscan] + args, cwd=folder, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                           stderr=subprocess.PIPE, universal_newlines=True)
+        check(r.returncode == 0, "rayscan {} runs for its progress lines".format(args[0]))
+        lines += [(args[0], line) for line in r.stderr.splitlines()]
+    wrong, kinds, count = [], set(), 0
+    for command, line in lines:
+        counts = (re.match(r"progress: (\d+)/(\d+) ", line)
+                  or re.match(re.escape(command) + r": \S+ .* (\d+) / (\d+) points", line))
+        expected = round(100.0 * int(counts.group(1)) / int(counts.group(2)), 1) if counts else None
+        got = parse_progress(line)
+        if (got is None) != (expected is None) or (got is not None and abs(got - expected) > 0.051):
+            wrong.append((line, got))
+        if expected is not None:
+            count += 1
+            item = re.match(r"progress: \S+ (.*?) +[\d.]+%", line)
+            kinds.add(item.group(1) if item else command)
+    # The kinds this must cover: one-word and several-word items, and phase lines.
+    check(not wrong and {"chunks", "points (surfels)", "tiles", "index", "translate"} <= kinds,
+          "parse_progress reads each of rayscan's {} progress lines (items {}) and no other of its {} "
+          "lines: wrong {}".format(count, sorted(kinds), len(lines), wrong))
+
+
 def cli_choices(rayscan, command, option):
     """The values `rayscan COMMAND --help` gives for OPTION: CLI11's {a,b} set and its =default (or
     None); else the words of the description's "a | b | c" lists, in order, each once, and None."""
@@ -263,7 +308,8 @@ def desktop_checks(plugin_dir, cloud, work, rayscan):
         missing = [n for n in alg.FLAGS if alg.parameterDefinition(n) is None]
         check(alg.FLAGS and not missing, "desktop: {}'s option table names its parameters (missing: {})".format(a, missing))
     # PRIMITIVE: one numbering everywhere, the CLI's values, and each algorithm's default the CLI's.
-    for a, command in (("quick_look", "render"), ("point_visibility", "visibility"), ("solar", "solar")):
+    for a, command in (("quick_look", "render"), ("viewshed", "visibility"), ("point_visibility", "visibility"),
+                       ("solar", "solar")):
         d = algs[a].parameterDefinition("PRIMITIVE")
         values, default = cli_choices(rayscan, command, "--primitive")
         options = d.options() if d else []
@@ -340,6 +386,107 @@ def cancel_copy_check(plugin_dir, cloud, observers, work):
           "point_visibility canceled while writing POINTS_LAYER: {!r}; the folder holds {}".format(error, left))
 
 
+def in_process_checks(cloud, observers, far, unprojectable, work):
+    """What a run in QGIS itself gives beyond qgis_process's output, run in this process as the
+    dialog and the console run algorithms: POINTS_LAYER given as "" makes no vector layer and no
+    error; a 0/1 raster loaded into the project (viewshed's viewshed and viewshed-points, solar's
+    in_shadow) has two named classes once Processing's own loading step (handleAlgorithmResults)
+    has run, every cell of it in one, while other values keep QGIS's default style; the eye
+    height's note names the CRS's unit (GDAL's linear unit the oracle), warning where it is not
+    metres; and no observer CSV is left in Processing's temporary folder by any run of this
+    process, completed, refused by rayscan, refused by the plugin or canceled (cancel_copy_check)."""
+    import processing
+    import rayscan_processing
+    from osgeo import osr
+    from processing.gui.Postprocessing import handleAlgorithmResults
+    from qgis.core import (QgsApplication, QgsCoordinateReferenceSystem, QgsProcessingContext,
+                           QgsProcessingException, QgsProcessingFeedback, QgsProcessingOutputLayerDefinition,
+                           QgsProcessingUtils, QgsProject)
+    from rayscan_processing.algorithms import observers as observer_module
+
+    plugin = rayscan_processing.classFactory(None)
+    plugin.initProcessing()
+    registry = QgsApplication.processingRegistry()
+    folder = os.path.join(work, "in_process")
+    os.makedirs(folder)
+    try:
+        out = os.path.join(folder, "pv.las")
+        try:
+            results = processing.run("rayscan:point_visibility", {
+                "INPUT": cloud, "OBSERVERS": observers, "HEIGHT": HEIGHT, "OUTPUT": out, "POINTS_LAYER": ""})
+            ok, why = "POINTS_LAYER" not in results, "results {}".format(sorted(results))
+        except QgsProcessingException as e:
+            ok, why = False, str(e)
+        check(ok and sorted(os.listdir(folder)) == ["pv.las"],
+              "point_visibility with POINTS_LAYER '' runs without the vector layer ({}; the folder holds {})".format(
+                  why, sorted(os.listdir(folder))))
+
+        def loaded(alg_id, params, output):
+            """Run ``alg_id`` as the dialog does with "Open output file after running" (``output``
+            an output definition into the project, then Processing's loading step); return the
+            renderer of the layer it loaded (None when none) and the raster's values."""
+            project = QgsProject.instance()
+            context = QgsProcessingContext()
+            context.setProject(project)
+            feedback = QgsProcessingFeedback()
+            path = os.path.join(folder, params[output])
+            params = dict(params, **{output: QgsProcessingOutputLayerDefinition(path, project)})
+            alg = registry.createAlgorithmById(alg_id)
+            _, ok = alg.run(params, context, feedback)
+            if ok:
+                handleAlgorithmResults(alg, context, feedback, False, params)
+            layers = [layer for layer in project.mapLayers().values() if os.path.abspath(layer.source()) == path]
+            renderer = layers[0].renderer().clone() if layers else None
+            project.removeAllMapLayers()
+            r = read_raster(path) if ok else None
+            return renderer, sorted(set(r[0][r[0] != r[3]].tolist())) if r else None
+
+        viewshed = {"INPUT": cloud, "OBSERVERS": observers, "HEIGHT": HEIGHT, "CELL": CELL}
+        for alg_id, params, output, classes in [
+                ("rayscan:viewshed", dict(viewshed, OUTPUT="seen.tif"), "OUTPUT", [(0, "not seen"), (1, "seen")]),
+                ("rayscan:viewshed", dict(viewshed, VALUE=2, OUTPUT="seen_points.tif"), "OUTPUT",
+                 [(0, "not seen"), (1, "seen")]),
+                ("rayscan:viewshed", dict(viewshed, VALUE=1, OUTPUT="count.tif"), "OUTPUT", None),
+                ("rayscan:solar", {"INPUT": cloud, "MODE": 1, "AT": "2026-06-21T13:00-07:00", "CELL": CELL,
+                                   "OUTPUT": "shadow.tif"}, "OUTPUT", [(0, "sun"), (1, "shadow")])]:
+            renderer, values = loaded(alg_id, params, output)
+            got = ([(c.value, c.label) for c in renderer.classes()] if renderer is not None
+                   and renderer.type() == "paletted" else renderer.type() if renderer is not None else None)
+            if classes is None:
+                ok = renderer is not None and renderer.type() != "paletted"
+            else:
+                ok = got == classes and values is not None and set(values) <= {v for v, _ in classes}
+            check(ok, "{} {} loaded into the project: style {} (expected {}), values {}".format(
+                alg_id, params[output], got, classes or "QGIS's default", values))
+
+        alg = registry.createAlgorithmById("rayscan:viewshed")
+        for epsg, warn in (("EPSG:32610", False), ("EPSG:2994", True), ("EPSG:2264", True)):
+            srs = osr.SpatialReference()
+            srs.ImportFromEPSG(int(epsg.split(":")[1]))
+            metres = "= {:.3g} m".format(1.7 * srs.GetLinearUnits())
+            got = observer_module.eye_height_note(alg, QgsCoordinateReferenceSystem(epsg), 1.7, "")
+            check(got[0] == warn and (metres in got[1] if warn else "meters" in got[1]),
+                  "the eye height 1.7 in {} ({}, {} m): {} (warning: {})".format(
+                      epsg, srs.GetLinearUnitsName(), srs.GetLinearUnits(), got[1], got[0]))
+
+        for alg_id, params, what in [
+                ("rayscan:viewshed", dict(viewshed, OBSERVERS=far, OUTPUT=os.path.join(folder, "far.tif")),
+                 "refused by rayscan"),
+                ("rayscan:point_visibility", {"INPUT": cloud, "OBSERVERS": unprojectable,
+                                              "OUTPUT": os.path.join(folder, "bad.las")}, "refused by the plugin")]:
+            try:
+                processing.run(alg_id, params)
+                check(False, "{}: {}".format(alg_id, what))
+            except QgsProcessingException:
+                pass
+    finally:
+        plugin.unload()
+    left = [os.path.join(d, f) for d, _, fs in os.walk(QgsProcessingUtils.tempFolder()) for f in fs
+            if f == "observers.csv"]
+    check(not left, "no observer CSV left in Processing's temporary folder {}: {}".format(
+        QgsProcessingUtils.tempFolder(), left))
+
+
 def read_raster(path):
     """(array, geotransform, srs, nodata) of a single-band raster, or None when GDAL cannot open it."""
     from osgeo import gdal, osr
@@ -400,6 +547,7 @@ def main():
         return r.returncode, r.stdout
 
     unit_tests(plugin_dir, work)
+    progress_checks(rayscan, cloud, work)
     extension_checks(rayscan, cloud, work)
     keep_alive.append(desktop_checks(plugin_dir, cloud, work, rayscan))  # the QgsApplication, for the transforms below
 
@@ -424,11 +572,12 @@ def main():
     subprocess.check_call(["ogr2ogr", "-f", "GPKG", gpkg, csv_path, "-oo", "X_POSSIBLE_NAMES=x",
                            "-oo", "Y_POSSIBLE_NAMES=y", "-a_srs", wkt_path, "-nln", "observer"])
 
-    def cli_viewshed(name, x, y):
-        """The CLI's viewshed from the observer at (x, y) (as given: repr round-trips a double), HEIGHT above ground."""
+    def cli_viewshed(name, x, y, extra=()):
+        """The CLI's viewshed from the observer at (x, y) (as given: repr round-trips a double), HEIGHT
+        above ground, with the options ``extra``."""
         path = os.path.join(work, name)
         subprocess.check_call([rayscan, "visibility", cloud, "--observer", "{!r},{!r}".format(x, y),
-                               "--height", str(HEIGHT), "--raster", path, "--cell", str(CELL), "-q"])
+                               "--height", str(HEIGHT), "--raster", path, "--cell", str(CELL), "-q", *extra])
         return path, read_raster(path)
 
     cli_tif, cli = cli_viewshed("cli_viewshed.tif", *OBSERVER)
@@ -453,7 +602,24 @@ def main():
                                                 got is not None and open(out_tif, "rb").read() == open(ref_tif, "rb").read()))
         return out_tif
 
-    plugin_tif = same_viewshed(gpkg, ["HEIGHT={}".format(HEIGHT)], "viewshed, observer in the cloud's CRS")
+    # HEIGHT is in the cloud's unit, which the log names, with a warning where it is not metres
+    # (autzen: international feet, its WKT's linear unit as GDAL reads it).
+    feet = "{:g} feet = {:.3g} m".format(HEIGHT, HEIGHT * cloud_srs.GetLinearUnits())
+    plugin_tif = same_viewshed(gpkg, ["HEIGHT={}".format(HEIGHT)], "viewshed, observer in the cloud's CRS, "
+                               "warning that HEIGHT is {}".format(feet),
+                               expect=("WARNING:\tEye height above the local ground (cloud units) [HEIGHT] {:g} is "
+                                       "in feet".format(HEIGHT), feet))
+
+    # PRIMITIVE reaches rayscan: viewshed-points (VALUE 2) over spheres, which see under the crowns
+    # where surfels are solid, is the CLI's with --primitive sphere, not its default surfel map.
+    points_value = ["--raster-value", "viewshed-points"]
+    sphere = cli_viewshed("cli_points_sphere.tif", *OBSERVER, extra=points_value + ["--primitive", "sphere"])
+    surfel = cli_viewshed("cli_points_surfel.tif", *OBSERVER, extra=points_value)
+    differ = int((sphere[1][0] != surfel[1][0]).sum())
+    check(differ > 0, "viewshed-points: spheres and surfels differ in {} cells".format(differ))
+    same_viewshed(gpkg, ["HEIGHT={}".format(HEIGHT), "VALUE=2", "PRIMITIVE=1"],
+                  "viewshed, viewshed-points with PRIMITIVE=1 (sphere)", expect=("--primitive sphere",),
+                  reference=sphere)
 
     # The same eye as an absolute Z (the CLI's resolved eye: ground 427.85 ft + 6 ft).
     csv_z, gpkg_z = os.path.join(work, "observer_z.csv"), os.path.join(work, "observer_z.gpkg")
@@ -635,6 +801,7 @@ def main():
              "and Period end (ISO 8601, e.g. 2026-06-30) [END]; START and END are empty"])
 
     cancel_copy_check(plugin_dir, cloud, gpkg, work)
+    in_process_checks(cloud, gpkg, gpkg_far, gpkg_4326, work)
 
     print("{} failure(s)".format(len(failures)))
     for f in failures:

@@ -5,10 +5,10 @@ import os
 
 from qgis.core import (QgsFeature, QgsFeatureSink, QgsField, QgsFields, QgsGeometry, QgsPoint,
                        QgsProcessing, QgsProcessingAlgorithm, QgsProcessingContext,
-                       QgsProcessingException, QgsProcessingParameterDefinition,
-                       QgsProcessingParameterEnum, QgsProcessingParameterFile,
-                       QgsProcessingParameterNumber, QgsProcessingUtils,
-                       QgsProviderRegistry, QgsWkbTypes)
+                       QgsProcessingException, QgsProcessingOutputLayerDefinition,
+                       QgsProcessingParameterDefinition, QgsProcessingParameterEnum,
+                       QgsProcessingParameterFile, QgsProcessingParameterNumber, QgsProcessingUtils,
+                       QgsProperty, QgsProviderRegistry, QgsWkbTypes)
 from qgis.PyQt.QtCore import QCoreApplication, QVariant
 
 from .. import runner
@@ -132,6 +132,25 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
         if given is None or str(given) in ("", "NULL"):
             return None
         return self.parameterAsDouble(parameters, name, context)
+
+    def sink_requested(self, parameters, name, context):
+        """Whether optional feature sink ``name`` is asked for, known before rayscan runs: not when
+        its value is missing, None, NULL, "" or an output definition naming "" and the parameter has no
+        default, the values for which parameterAsSink makes no sink.
+
+        (parameterAsOutputLayer would tell the same, but also queues a layer to load into the
+        project when the output is to be opened.)
+        """
+        value = parameters.get(name)
+        if isinstance(value, QgsProcessingOutputLayerDefinition):
+            value = value.sink
+        if isinstance(value, QgsProperty):
+            value = value.valueAsString(context.expressionContext())[0]
+        if isinstance(value, QVariant):  # NULL
+            value = None if value.isNull() else value.value()
+        if value is None or str(value) == "":
+            value = self.parameterDefinition(name).defaultValue()
+        return value is not None and str(value) != ""
 
     def cloud(self, parameters, context):
         """The point cloud path of INPUT, checked to exist."""

@@ -2,13 +2,14 @@
 
 import csv
 import math
+import os
 import re
 
 from qgis.core import (QgsCoordinateTransform, QgsCsException, QgsFeatureRequest, QgsPointXY, QgsProcessing,
                        QgsProcessingException, QgsProcessingParameterBoolean,
                        QgsProcessingParameterDefinition, QgsProcessingParameterFeatureSource,
                        QgsProcessingParameterField, QgsProcessingParameterNumber, QgsProcessingUtils,
-                       QgsWkbTypes)
+                       QgsUnitTypes, QgsWkbTypes)
 
 from .. import runner
 
@@ -57,11 +58,17 @@ def observer_args(alg, parameters, context, observers):
 class ObserverFile:
     """The observers as written for rayscan (write_observers): the CSV's ``path``, ``crs`` (the CRS
     of the run's layers, runner.cloud_crs) and, to put rayscan's messages in the layer's terms,
-    the feature and part each CSV line came from."""
+    the feature and part each CSV line came from. The CSV is the caller's to remove (remove())
+    once rayscan has read it."""
 
     def __init__(self, path, crs, where, lines):
         """``where``: the layer as messages name it; ``lines``: CSV line number -> (feature id, part)."""
         self.path, self.crs, self.where, self.lines = path, crs, where, lines
+
+    def remove(self):
+        """Delete the CSV: it holds the observers' coordinates, and Processing's temporary folder
+        lives as long as the QGIS session."""
+        _remove(self.path)
 
     def user_terms(self, line):
         """Line ``line`` of rayscan's with "CSV: line N: observer 'NAME'" written as the layer and
@@ -74,6 +81,31 @@ class ObserverFile:
             return "{}, feature {}{}".format(self.where, fid, ", point {}".format(part + 1) if part else "")
         line = re.sub(re.escape(self.path) + r": line (\d+): observer '[^']*'", feature, line)
         return line.replace(self.path, self.where)
+
+
+def _remove(path):
+    """Delete file ``path`` when it exists."""
+    if os.path.exists(path):
+        os.remove(path)
+
+
+def eye_height_note(alg, crs, height, field):
+    """(warn, text): the eye height HEIGHT (``height``; and HEIGHT_FIELD ``field``'s values when
+    given) with the unit it is in, the map unit of the cloud's CRS ``crs`` (runner.cloud_crs).
+    ``warn`` when that unit is known and not metres: the default 1.7 reads as metres, yet it is
+    1.7 feet (0.52 m) for a cloud in feet. The value stays as the user gave it.
+    """
+    given = "{} {:g}".format(alg.label(HEIGHT), height)
+    also = " (and the values of {} '{}')".format(HEIGHT_FIELD, field) if field else ""
+    unit = crs.mapUnits() if crs.isValid() else QgsUnitTypes.DistanceUnknownUnit
+    if unit in (QgsUnitTypes.DistanceUnknownUnit, QgsUnitTypes.DistanceDegrees):
+        return False, alg.tr("{}{}: in the cloud's own units").format(given, also)
+    name = QgsUnitTypes.toString(unit)
+    if unit == QgsUnitTypes.DistanceMeters:
+        return False, alg.tr("{}{}: {}, the unit of the cloud's CRS").format(given, also, name)
+    metres = height * QgsUnitTypes.fromUnitToUnitFactor(unit, QgsUnitTypes.DistanceMeters)
+    return True, alg.tr("{}{} is in {}, the unit of the cloud's CRS {}: {:g} {} = {:.3g} m").format(
+        given, also, name, crs.userFriendlyIdentifier(), height, name, metres)
 
 
 def _same_place(transform, extent):
@@ -131,6 +163,9 @@ def write_observers(alg, parameters, context, feedback, cloud):
         raise QgsProcessingException(alg.tr("The observer layer has no Z values"))
 
     own, target = runner.cloud_crs(cloud, feedback)
+    if not use_z:
+        warn, note = eye_height_note(alg, target, height, field)
+        (feedback.pushWarning if warn else feedback.pushInfo)(note)
     transform = None
     if target.isValid() and not source.sourceCrs().isValid():
         # As QGIS's own algorithms do (an unknown CRS matches any, a transform from it does
@@ -148,6 +183,18 @@ def write_observers(alg, parameters, context, feedback, cloud):
                 source.sourceCrs().userFriendlyIdentifier(), target.userFriendlyIdentifier()))
 
     path = QgsProcessingUtils.generateTempFilename("observers.csv")
+    try:
+        lines = _write_csv(alg, path, source, feedback, transform, target, where, height, field, use_z)
+    except BaseException:
+        _remove(path)
+        raise
+    feedback.pushInfo(alg.tr("{} observers").format(len(lines)))
+    return ObserverFile(path, target, where, lines)
+
+
+def _write_csv(alg, path, source, feedback, transform, target, where, height, field, use_z):
+    """write_observers' CSV at ``path``; return its line number -> (feature id, part). Raises as
+    write_observers describes (the caller removes the file then)."""
     lines = {}
     with open(path, "w", newline="", encoding="utf-8") as f:
         out = csv.writer(f)
@@ -190,5 +237,4 @@ def write_observers(alg, parameters, context, feedback, cloud):
                 lines[len(lines) + 2] = (feature.id(), part)  # line 1 is the header
     if not lines:
         raise QgsProcessingException(alg.tr("The observer layer has no points"))
-    feedback.pushInfo(alg.tr("{} observers").format(len(lines)))
-    return ObserverFile(path, target, where, lines)
+    return lines

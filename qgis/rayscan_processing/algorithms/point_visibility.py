@@ -48,6 +48,8 @@ class PointVisibility(RayscanAlgorithm):
         cloud = self.cloud(parameters, context)
         out = self.parameterAsFileOutput(parameters, self.OUTPUT, context)
         self.check_extension(out, POINTS_EXTENSIONS, "The output cloud")
+        # Decided before rayscan runs: a layer left empty ("") is not asked for.
+        points_layer = self.sink_requested(parameters, self.POINTS_LAYER, context)
         observer_file = observers.write_observers(self, parameters, context, feedback, cloud)
         args = (["visibility", cloud] + observers.observer_args(self, parameters, context, observer_file)
                 + self.option("OUTPUT", out)
@@ -57,10 +59,13 @@ class PointVisibility(RayscanAlgorithm):
         max_distance = self.parameterAsDouble(parameters, "MAX_DISTANCE", context)
         if max_distance > 0:
             args += self.option("MAX_DISTANCE", max_distance)
-        self.run_cli(args, feedback, rewrite=observer_file.user_terms)
+        try:
+            self.run_cli(args, feedback, rewrite=observer_file.user_terms)
+        finally:
+            observer_file.remove()
         results = {self.OUTPUT: out}
         self.load_cloud_on_completion(out, self.tr("Per-point visibility"), self.OUTPUT, context, feedback)
-        if parameters.get(self.POINTS_LAYER) is not None:
+        if points_layer:
             # The observers' CRS (the one QGIS reads from rayscan's rasters), so the layer lies
             # exactly on a viewshed of the same cloud in any project CRS.
             results[self.POINTS_LAYER] = self.cloud_to_sink(out, parameters, self.POINTS_LAYER, observer_file.crs,

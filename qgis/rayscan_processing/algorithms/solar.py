@@ -5,6 +5,7 @@ from qgis.core import (QgsProcessingException, QgsProcessingParameterDefinition,
                        QgsProcessingParameterNumber, QgsProcessingParameterRasterDestination,
                        QgsProcessingParameterString)
 
+from . import styles
 from .base import GEOTIFF_EXTENSIONS, POINTS_FILTER, PRIMITIVES, RayscanAlgorithm
 
 _MODES = ["period (irradiation, kWh/m²)", "instant (shadows)"]
@@ -79,7 +80,8 @@ class Solar(RayscanAlgorithm):
                 + self.option("LINKE", self.parameterAsDouble(parameters, "LINKE", context))
                 + self.option("SECTOR", self.parameterAsDouble(parameters, "SECTOR", context))
                 + self.option("PRIMITIVE", PRIMITIVES[self.parameterAsEnum(parameters, "PRIMITIVE", context)]))
-        if self.parameterAsEnum(parameters, "MODE", context) == 0:
+        instant = self.parameterAsEnum(parameters, "MODE", context) == 1
+        if not instant:
             start = self.parameterAsString(parameters, "START", context).strip()
             end = self.parameterAsString(parameters, "END", context).strip()
             missing = [name for name, value in (("START", start), ("END", end)) if not value]
@@ -98,6 +100,8 @@ class Solar(RayscanAlgorithm):
         value = self.parameterAsEnum(parameters, "VALUE", context)
         if value > 0:
             args += self.option("VALUE", _VALUES[value - 1])
+        # An instant's default map value is in_shadow (see _VALUES).
+        in_shadow = instant and (value == 0 or _VALUES[value - 1] == "in_shadow")
         for name in ("LATITUDE", "LONGITUDE"):
             given = self.given_number(parameters, name, context)
             if given is not None:
@@ -106,6 +110,8 @@ class Solar(RayscanAlgorithm):
         if points:
             args += self.option("POINTS", points)
         self.run_cli(args, feedback)
+        if in_shadow:
+            styles.style_on_completion(out, styles.SHADOW, context)
         results = {self.OUTPUT: out}
         if points:
             results[self.POINTS] = points
