@@ -60,20 +60,10 @@ int output_checked(int code) {
 // program itself, `db`) and the next word is not an option, the one line naming that word and the
 // commands there are: "rayscan: unknown command 'visibilty' (expected render, visibility, ...)".
 // Else "" (CLI11's own message stands).
-std::string unknown_command(const CLI::App& app, int argc, char** argv) {
-  const CLI::App* at = &app;
-  std::string where = "rayscan";
-  int next = 1;  // the argument after the last command parsed
-  while (true) {
-    const CLI::App* parsed = nullptr;
-    for (const CLI::App* sub : at->get_subcommands({}))
-      if (sub->parsed()) parsed = sub;
-    if (!parsed) break;
-    while (next < argc && parsed->get_name() != argv[next]) ++next;
-    ++next;
-    where += " " + parsed->get_name();
-    at = parsed;
-  }
+std::string unknown_command(const rayscan::cli::TypedCommandLine& line, int argc, char** argv) {
+  const CLI::App* at = &line.command();
+  const std::string& where = line.path();
+  const int next = line.next();  // the argument after the last command parsed
   if (at->get_require_subcommand_min() == 0 || next >= argc || argv[next][0] == '-') return "";
   std::vector<std::string> names;
   for (const CLI::App* sub : at->get_subcommands({})) names.push_back(sub->get_name());
@@ -140,8 +130,10 @@ int main(int argc, char** argv) {
       for (auto& [sub, run] : commands)
         if (sub->parsed()) where += " " + sub->get_name();
       end_code = 2;
-      const std::string unknown = unknown_command(app, argc, argv);
-      end_err = !unknown.empty() ? unknown : where + ": " + rayscan::one_line(e.what()) + " (see --help)";
+      // An option is named as it was given (TypedCommandLine), not by CLI11's first name for it.
+      const rayscan::cli::TypedCommandLine line(app, argc, argv);
+      const std::string unknown = unknown_command(line, argc, argv);
+      end_err = !unknown.empty() ? unknown : where + ": " + rayscan::one_line(line.message(e.what())) + " (see --help)";
     }
   }
 #ifdef RAYSCAN_HAVE_MPI
@@ -154,6 +146,7 @@ int main(int argc, char** argv) {
     return output_checked(end_code);
   }
 #endif
+  const rayscan::cli::TypedCommandLine typed(app, argc, argv);
   for (auto& [sub, run] : commands) {
     if (!sub->parsed()) continue;
     try {
@@ -166,12 +159,12 @@ int main(int argc, char** argv) {
       return code;
     } catch (const std::exception& e) {
       // One line per error: control characters in paths or values are escaped. An option the
-      // library names by its field is printed as this command's flag.
+      // library names by its field is printed as this command's flag, spelled as it was given.
       const std::string name = sub->get_name();
       const auto* option_error = dynamic_cast<const rayscan::OptionError*>(&e);
       // An allocation that failed (std::bad_alloc from any step of the job) says so in words.
       const std::string message =
-          option_error ? option_error->spelled([&](std::string_view f) { return rayscan::cli::flag_for(name, f); })
+          option_error ? option_error->spelled([&](std::string_view f) { return typed.flag(f); })
           : dynamic_cast<const std::bad_alloc*>(&e) ? "out of memory (" + std::string(e.what()) + ")"
                                                   : std::string(e.what());
       return fail("rayscan " + name + ": " + rayscan::one_line(message));

@@ -851,8 +851,8 @@ TEST_F(VisibilityCli, OutputFoldersAreCheckedBeforeComputing) {
     EXPECT_NE(r.out.find(msg), std::string::npos) << args << "\n" << r.out;
     EXPECT_EQ(r.out.find("sky view"), std::string::npos) << args << "\n" << r.out;
   };
-  expect_error("-o " + (missing / "v.las").string(), "--out '" + (missing / "v.las").string() + "': folder '" +
-                                                          missing.string() + "' does not exist");
+  expect_error("-o " + (missing / "v.las").string(), "-o '" + (missing / "v.las").string() + "': folder '" +
+                                                          missing.string() + "' does not exist");  // (as given)
   expect_error("-o " + (file / "v.las").string(), "is not a folder");
   fs::create_directories(tmpdir() / "a_folder.las");
   expect_error("-o " + (tmpdir() / "a_folder.las").string(), "is a folder, expected a file name");

@@ -203,6 +203,47 @@ TEST(CliOptions, QueryCloudPositionalAndSharedNamesAsAliases) {
   std::filesystem::remove_all(dir);
 }
 
+// An option with several spellings is named in a refusal as it was given, not by CLI11's first
+// name for it (nor the job's): CLI11's own checks (a value out of range, an option given twice,
+// under each name), the job's (solar's latitude without a longitude) and the output name (-o,
+// grouped short options too). Oracle: the command line's own words. Nothing is written.
+TEST(CliOptions, AnOptionIsNamedAsItWasGiven) {
+  const auto dir = fresh("as_given");
+  const std::string las = quoted(data_file("las/point-color.las"));
+  const std::string vis = "visibility -q " + las + " -o " + quoted(dir / "v.las");
+  const std::string sky = ": expected an integer in [1, 1048576], got 'abc' (see --help)\n";
+  const std::string db = "db import -q " + las + " -o " + quoted(dir / "x.sqlite");
+  const std::string chunk = ": expected an integer in [1, 16777216], got '0' (see --help)\n";
+  const std::string solar = "solar -q " + las + " --json --at 2026-06-21T12:00";
+  const std::string x_las = quoted(dir / "x.las");
+  const std::string sqlite_name = " '" + (dir / "x.las").string() +
+                                  "': expected a file name ending in .sqlite, .sqlite3 or .db (a SQLite database)\n";
+  const std::pair<std::string, std::string> cases[] = {
+      {vis + " --sky-rays abc", "rayscan visibility: --sky-rays" + sky},
+      {vis + " --sky-rays=abc", "rayscan visibility: --sky-rays" + sky},
+      {vis + " --sky-view abc", "rayscan visibility: --sky-view" + sky},
+      {vis + " --sky-rays 4 --sky-view 4",
+       "rayscan visibility: --sky-view/--sky-rays: At Most 1 required but received 2 (see --help)\n"},
+      {db + " --chunk-size 0", "rayscan db: --chunk-size" + chunk},
+      {db + " --chunk 0", "rayscan db: --chunk" + chunk},
+      {"solar position --latitude 95 --lon 3 --time 2026-06-21",
+       "rayscan solar: --latitude: expected a finite number in [-90, 90], got '95' (see --help)\n"},
+      {solar + " --lat 45", "rayscan solar: --lat and --longitude go together\n"},
+      {solar + " --latitude 45", "rayscan solar: --latitude and --longitude go together\n"},
+      {solar + " --lon -123", "rayscan solar: --latitude and --lon go together\n"},
+      {"db import " + las + " --out " + x_las, "rayscan db: --out" + sqlite_name},
+      {"db import " + las + " -o " + x_las, "rayscan db: -o" + sqlite_name},
+      {"db import " + las + " -qo " + x_las, "rayscan db: -o" + sqlite_name},
+  };
+  for (const auto& [args, message] : cases) {
+    const auto r = rayscan_cli(args);
+    EXPECT_EQ(r.code, 2) << args;
+    EXPECT_EQ(r.out, message) << args;
+  }
+  EXPECT_TRUE(std::filesystem::is_empty(dir));
+  std::filesystem::remove_all(dir);
+}
+
 // Help texts give units and defaults, and range errors read as the other number errors (not
 // CLI11's Range text, "-30.000000"). The image size's limit comes from kMaxImageSide.
 TEST(CliOptions, HelpStatesDefaultsAndRangesReadably) {

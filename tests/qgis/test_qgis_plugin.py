@@ -125,7 +125,7 @@ def unit_tests(plugin_dir, work):
         except QgsProcessingException as e:
             check("status 3" in str(e) and "fake: broken" in str(e), "run_rayscan raises on a non-zero exit: " + str(e).splitlines()[0])
         # A refusal (exit 2) names the parameters that the labels give for the options' spellings:
-        # CLI11 names an option by its first spelling (--lat), the job's checks by its long one.
+        # rayscan names an option as it was given (--lat, -o), one not given by one of its spellings.
         labels = {"--lat": "Latitude [LATITUDE]", "--latitude": "Latitude [LATITUDE]", "-o": "Points [POINTS]",
                   "--out": "Points [POINTS]"}
         for line, expected in [
@@ -698,7 +698,7 @@ def main():
     check("in_shadow" in json.dumps(fields.get("attributes", fields)), "solar: the cloud has the field in_shadow")
 
     # rayscan's refusals name the parameters: the solar job refuses a latitude without a longitude
-    # (naming --latitude where the plugin passed --lat) and an instant's map value that only a
+    # (naming --lat as the plugin passed it, and --longitude) and an instant's map value that only a
     # period has. The command line in the log carries PRIMITIVE's value.
     refused = os.path.join(work, "refused.tif")
     raster_values, _ = cli_choices(rayscan, "solar", "--raster-value")

@@ -47,9 +47,9 @@ class RayscanAlgorithm(QgsProcessingAlgorithm):
     INPUT = "INPUT"
     #: The rayscan options the algorithm sets from its parameters, defined once: parameter name ->
     #: the option's spellings as the CLI declares them, comma-separated ("--lat,--latitude"). The
-    #: first spelling goes on the command line (option(), flag()); rayscan's refusals name either
-    #: (CLI11 the first it declares, the job's checks the long one), and run_cli replaces each by
-    #: the parameter (option_labels()).
+    #: first spelling goes on the command line (option(), flag()); rayscan's refusals name an option
+    #: as it was given (an option not given by one of its spellings), and run_cli replaces each
+    #: spelling by the parameter (option_labels()).
     FLAGS = {}
 
     def tr(self, text):
