@@ -27,8 +27,9 @@ namespace {
 std::uint64_t memory_bytes(const IndexJobOptions& o) { return detail::memory_budget(o.memory); }
 
 /// The attribute list parsed. A name that is not one an index stores (io::kIndexAttributes), nor
-/// all or none, is an OptionError naming "attributes" that lists only those; "all" inside a list
-/// is AttributeSet::parse's (every attribute a reader knows), which the build refuses.
+/// all or none, written as listed (lower case, as every name from a list of the command line), is
+/// an OptionError naming "attributes" that lists only those; "all" inside a list is
+/// AttributeSet::parse's (every attribute a reader knows), which the build refuses.
 io::AttributeSet index_attributes(const std::string& list) {
   // "all" alone means every attribute an index stores.
   if (list == "all") return io::kIndexAttributes;
@@ -43,7 +44,7 @@ io::AttributeSet index_attributes(const std::string& list) {
     bool ok = true;
     try {
       const io::AttributeSet one = io::AttributeSet::parse(word);
-      ok = ascii_lower(word) == "all" || (one & io::kIndexAttributes) == one;
+      ok = word == ascii_lower(word) && (word == "all" || (one & io::kIndexAttributes) == one);
     } catch (const std::invalid_argument&) {
       ok = false;
     }

@@ -244,6 +244,32 @@ TEST(CliOptions, AnOptionIsNamedAsItWasGiven) {
   std::filesystem::remove_all(dir);
 }
 
+// A name from a list is written as --help lists it, in lower case, for every option of index as
+// for --layout and --positions (CLI11's check): --attributes ALL is refused as ID is, not read as
+// every attribute a reader knows and then refused for normals and scalars the user never named.
+// Oracle: the lists `rayscan index --help` prints. Nothing is written.
+TEST(CliOptions, NamesFromAListAreWrittenInLowerCase) {
+  const auto dir = fresh("lower_case");
+  const std::string base = "index -q " + quoted(data_file("las/point-color.las")) + " -o " + quoted(dir / "x.rsi");
+  const auto help = rayscan_cli("index --help");
+  EXPECT_NE(help.out.find("id,rgb,intensity,classification,gps_time | all | none"), std::string::npos) << help.out;
+  const std::string attributes = "': expected rgb, intensity, classification, gps_time, id, all or none\n";
+  const std::pair<std::string, std::string> cases[] = {
+      {" --layout FIXED", "rayscan index: --layout: FIXED not in {adaptive,fixed} (see --help)\n"},
+      {" --positions Float64", "rayscan index: --positions: Float64 not in {compact,float64} (see --help)\n"},
+      {" --attributes ALL", "rayscan index: --attributes 'ALL" + attributes},
+      {" --attributes id,RGB", "rayscan index: --attributes 'RGB" + attributes},
+      {" --attributes NONE", "rayscan index: --attributes 'NONE" + attributes},
+  };
+  for (const auto& [args, message] : cases) {
+    const auto r = rayscan_cli(base + args);
+    EXPECT_EQ(r.code, 2) << args;
+    EXPECT_EQ(r.out, message) << args;
+  }
+  EXPECT_TRUE(std::filesystem::is_empty(dir));
+  std::filesystem::remove_all(dir);
+}
+
 // Help texts give units and defaults, and range errors read as the other number errors (not
 // CLI11's Range text, "-30.000000"). The image size's limit comes from kMaxImageSide.
 TEST(CliOptions, HelpStatesDefaultsAndRangesReadably) {

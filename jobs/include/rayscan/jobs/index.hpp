@@ -28,9 +28,10 @@ struct IndexJobOptions {
   /// (io::is_copc_output) for a COPC 1.0 file instead (one input; io::write_copc with `memory`,
   /// `temp_dir`, `progress` and `control`; the other options do not apply).
   std::filesystem::path output;
-  /// Attributes stored besides positions, as io::AttributeSet::parse reads them
-  /// ("id,rgb,intensity,classification,gps_time", "none"); exactly "all" means every attribute an
-  /// index stores (io::kIndexAttributes). `id` stores the original point ids (4 bytes per point).
+  /// Attributes stored besides positions, comma-separated names in lower case as
+  /// io::AttributeSet::parse lists them ("id,rgb,intensity,classification,gps_time", "none");
+  /// exactly "all" means every attribute an index stores (io::kIndexAttributes). `id` stores the
+  /// original point ids (4 bytes per point).
   std::string attributes = "none";
   /// Memory budget of the external sort, a byte size as parse_byte_size reads it ("4G", "512M",
   /// "65536"); at least 1M.
@@ -56,7 +57,7 @@ struct IndexJobResult {
 /// Checks the options, then builds the index file (io::build_index_file: an external sort by Morton
 /// code within the memory budget, written to a temporary file renamed into place). Throws
 /// OptionError naming "memory" for a malformed memory budget, "attributes" for a name an index
-/// does not store (listing those it does), "temp_dir" for a temporary folder that does not exist,
+/// does not store or one not in lower case (listing those it stores), "temp_dir" for a temporary folder that does not exist,
 /// and OptionError for an input given twice (the same file, however spelled), for
 /// an output name without .rsi and for the build's own
 /// option checks (naming "layout", "memory_bytes" or "attributes"), io::FormatError for a
