@@ -454,7 +454,7 @@ class Byte14V3Enc {
 class LayeredChunkEncoder {
  public:
   /// Encoder for point data record format `pdrf` (6, 7 or 8) with `extra` bytes per record.
-  LayeredChunkEncoder(int pdrf, std::size_t extra) : pdrf_(pdrf), extra_(extra) {
+  LayeredChunkEncoder(int pdrf, std::size_t extra) : pdrf_(pdrf) {
     std::size_t n = Point14V3Enc::kLayers;
     if (pdrf == 7) n += 1;
     if (pdrf == 8) n += 2;
@@ -501,7 +501,6 @@ class LayeredChunkEncoder {
     std::memcpy(out.data() + at, &v, 4);
   }
   int pdrf_;
-  std::size_t extra_;
   std::vector<LayerSink> sinks_;
   Point14V3Enc point_;
   std::optional<RgbNir14V3Enc> rgb_;
