@@ -211,8 +211,11 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
       w.commit();
     }
     out->map = std::make_unique<detail::MappedFile>(records);
-    if (out->map->bytes().size() != h.count * out_len)
-      throw std::runtime_error(records.string() + ": temporary records file has the wrong size");
+    // Named as the COPC output (output_error: the registered records file's output, and its folder
+    // when that is another), since the hidden records name means nothing to the user.
+    if (const std::uint64_t size = out->map->bytes().size(); size != h.count * out_len)
+      throw output_error(records, "the temporary records file read back " + std::to_string(size) +
+                                      " bytes, expected " + std::to_string(h.count * out_len), 0);
     r.bytes = out->map->bytes().data();
     r.file = std::move(out);
   }
