@@ -9,6 +9,7 @@
 #include "rayscan/analysis/flip.hpp"
 #include "rayscan/analysis/raster_preview.hpp"
 #include "rayscan/base/file_names.hpp"
+#include "rayscan/base/list_text.hpp"
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/render/scene.hpp"
 
@@ -220,13 +221,13 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
   // Mask: reference alpha == 0, or the render's point-index AOV says "miss".
   res.masked = o.mask || !o.mask_index.empty();
   std::vector<std::uint8_t> ignore;
-  std::string& mask_sources = res.mask_sources;
   if (res.masked) {
+    std::vector<std::string> mask_sources;
     ignore.assign(ref.npixels(), 0);
     if (const int a = alpha_index(ref); a >= 0) {
       for (std::size_t p = 0; p < ref.npixels(); ++p)
         if (ref.pixels[p * ref.channels.size() + static_cast<std::size_t>(a)] == 0.0f) ignore[p] = 1;
-      mask_sources = res.reference_name + ":" + ref.channels[static_cast<std::size_t>(a)] + " == 0";
+      mask_sources.push_back(res.reference_name + ":" + ref.channels[static_cast<std::size_t>(a)] + " == 0");
     }
     std::string index_file;
     if (!o.mask_index.empty()) index_file = o.mask_index;
@@ -251,11 +252,11 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
             ignore[static_cast<std::size_t>(y) * static_cast<std::size_t>(ref.width) + static_cast<std::size_t>(x)] = 1;
         }
       }
-      if (!mask_sources.empty()) mask_sources += " or ";
       const int mc = index_file == o.image_file ? find_channel(test.channels, o.mask_channel) : -1;
-      mask_sources += index_file + ":" + (mc >= 0 ? test.channels[static_cast<std::size_t>(mc)] : o.mask_channel) +
-                      " miss (-1)";
+      mask_sources.push_back(index_file + ":" +
+                             (mc >= 0 ? test.channels[static_cast<std::size_t>(mc)] : o.mask_channel) + " miss (-1)");
     }
+    res.mask_sources = join_alternatives(mask_sources);
     if (mask_sources.empty())
       throw OptionError({option("mask"), ": " + res.reference_name + " has no alpha channel and " + res.image_name +
                              " has no '" + o.mask_channel + "' channel (give the point-index AOV with ",

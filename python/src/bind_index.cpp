@@ -5,6 +5,7 @@
 #include "arrays.hpp"
 #include "bindings.hpp"
 
+#include "rayscan/base/list_text.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/octree/batch.hpp"
@@ -380,7 +381,7 @@ cores (TBB) with the GIL released; results use original point indices 0..N-1.)do
       .def(py::init([](py::handle xyz, py::handle layout_arg, py::handle capacity,
                        py::handle depth_arg, py::handle max_depth_arg, py::handle insertion) {
              const OctreeLayout layout =
-                 parse_octree_layout(str_arg(layout_arg, "layout", "'adaptive', 'layered' or 'fixed'"));
+                 parse_octree_layout(str_arg(layout_arg, "layout", join_alternatives(octree_layout_names("'"))));
              IndexOptions o;
              o.type = octree_index_type(layout);
              if (!capacity.is_none()) o.capacity = parse_count(capacity, "capacity");

@@ -243,11 +243,14 @@ def test_bad_values_of_the_right_type_stay_value_errors(indexes):
         (lambda: tree.knn(O, k=-1), "k must be None or an integer >= 0, got -1"),
         (lambda: tree.ray_query(O, D, k=-(2**70)), f"k must be None or an integer >= 0, got {-(2**70)}"),
         (lambda: tree.knn(np.zeros((2, 2)), k=1), "points: expected shape (N, 3) or (3,), got (2, 2)"),
-        (lambda: rayscan.Octree(XYZ, layout="sparse"), "octree layout 'sparse': expected layered, fixed or adaptive"),
+        (lambda: rayscan.Octree(XYZ, layout="sparse"), "octree layout 'sparse': expected adaptive, layered or fixed"),
     ]:
         with pytest.raises(ValueError) as e:
             call()
         assert type(e.value) is ValueError and str(e.value) == message, str(e.value)
+    # A layout of the wrong type: the same layouts, in the same order, as Python writes them.
+    assert str(pytest.raises(TypeError, rayscan.Octree, XYZ, layout=3).value) == \
+        "layout must be 'adaptive', 'layered' or 'fixed', got int"
 
 
 # ---- Octree arguments its layout does not use --------------------------------------------------

@@ -99,7 +99,8 @@ IndexOptions parse_index(Obj& parent, const std::string& key, NodeDistance& nd) 
                                                                        : NodeDistance::eq3;
   const std::string type = o.string("type", "octree", {"octree", "kdtree", "brute"});
   if (type == "octree") {
-    opt.type = octree_index_type(parse_octree_layout(o.string("layout", "adaptive", {"adaptive", "layered", "fixed"})));
+    opt.type = octree_index_type(
+        parse_octree_layout(o.string("layout", to_string(OctreeLayout::adaptive), octree_layout_names())));
     check_octree_keys(o, opt.type);
     opt.depth = static_cast<unsigned>(o.integer("depth", 6, 0, 21));
     opt.max_depth = static_cast<unsigned>(o.integer("max_depth", 21, 1, 21));
@@ -273,9 +274,14 @@ Scene parse_scene_json(const nlohmann::json& j, const std::filesystem::path& fil
   }
   if (o.has("radius")) {
     const json& r = o.at("radius");
-    if (r.is_string() && r.get<std::string>() == "auto") s.radius.reset();
-    else if (r.is_number() && std::isfinite(r.get<double>()) && r.get<double>() > 0.0) s.radius = r.get<double>();
-    else fail(f, "/radius", "expected \"auto\" or a number in (0, inf) (world units)");
+    if (r.is_string() && r.get<std::string>() == "auto") {
+      s.radius.reset();
+    } else {
+      // A non-number is refused with the range's own wording (nan is out of every range).
+      const std::string why = sphere_radius_problem(r.is_number() ? r.get<double>() : std::nan(""));
+      if (!why.empty()) fail(f, "/radius", why);
+      s.radius = r.get<double>();
+    }
   }
   if (o.has("auto_radius_factor")) {
     const json& v = o.at("auto_radius_factor");

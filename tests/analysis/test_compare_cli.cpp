@@ -393,6 +393,11 @@ TEST_F(CompareCli, MaskIgnoresMissesAndTransparentReference) {
   const nlohmann::json ja = compare_json(pa, prgb, "--mask");
   EXPECT_EQ(ja["verdict"], "pass");
   EXPECT_EQ(ja["pixels_ignored"].get<int>(), misses);
+  EXPECT_EQ(ja["mask"], pa.string() + ":A == 0");
+  // Both sources: a pixel either one marks is ignored, and the record names both.
+  const nlohmann::json jb = compare_json(pa, pi, "--mask");
+  EXPECT_EQ(jb["pixels_ignored"].get<int>(), misses);
+  EXPECT_EQ(jb["mask"], pa.string() + ":A == 0 or " + pi.string() + ":id miss (-1)");
 }
 
 TEST_F(CompareCli, ChannelByName) {

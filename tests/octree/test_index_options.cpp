@@ -10,11 +10,13 @@
 
 #include <algorithm>
 #include <array>
+#include <cstddef>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <variant>
+#include <vector>
 
 using namespace rayscan;
 using namespace rayscan::test;
@@ -201,7 +203,8 @@ TEST(IndexOptions, MessagesInEachFrontEndsWords) {
 
 // An octree's index type and its layout map to each other (octree_index_type, octree_layout_of),
 // against the list of index types written by hand here: each octree layout to its type and back,
-// the other types to none, and an unknown layout refused as parse_octree_layout refuses it.
+// the other types to none, and an unknown layout refused as parse_octree_layout refuses it, listing
+// the layouts in kOctreeLayouts' order, which is kIndexTypes' order of the octrees.
 TEST(IndexOptions, OctreeTypesAndLayoutsMapToEachOther) {
   const std::pair<OctreeLayout, const char*> octrees[] = {
       {OctreeLayout::adaptive, "octree-adaptive"}, {OctreeLayout::layered, "octree-layered"}, {OctreeLayout::fixed, "octree-fixed"}};
@@ -210,11 +213,18 @@ TEST(IndexOptions, OctreeTypesAndLayoutsMapToEachOther) {
     EXPECT_EQ(octree_layout_of(o.second), std::optional<OctreeLayout>(o.first)) << o.second;
     EXPECT_NE(std::find(kIndexTypes.begin(), kIndexTypes.end(), o.second), kIndexTypes.end()) << o.second;
   }
+  ASSERT_EQ(kOctreeLayouts.size(), std::size(octrees));
+  for (std::size_t i = 0; i < kOctreeLayouts.size(); ++i) {
+    EXPECT_EQ(kOctreeLayouts[i], octrees[i].first) << i;
+    EXPECT_EQ(kIndexTypes[i], octrees[i].second) << i;
+    EXPECT_EQ(parse_octree_layout(octree_layout_names()[i]), octrees[i].first) << i;
+  }
+  EXPECT_EQ(octree_layout_names("'"), (std::vector<std::string>{"'adaptive'", "'layered'", "'fixed'"}));
   for (const char* other : {"kdtree", "brute", "", "octree"}) EXPECT_EQ(octree_layout_of(other), std::nullopt) << other;
   try {
     (void)octree_layout_of("octree-grid");
     ADD_FAILURE() << "octree-grid accepted";
   } catch (const std::invalid_argument& e) {
-    EXPECT_EQ(std::string(e.what()), "octree layout 'grid': expected layered, fixed or adaptive");
+    EXPECT_EQ(std::string(e.what()), "octree layout 'grid': expected adaptive, layered or fixed");
   }
 }

@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <string>
 #include <utility>
 
 namespace fs = std::filesystem;
@@ -175,4 +176,33 @@ TEST(RenderCli, CombinationsWithoutMeaningAreRefusedNamingTheFlags) {
   r = run("render " + scene.string() + " --exposure 31 --out " + out.string());
   EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_NE(r.out.find("--exposure"), std::string::npos) << r.out;
+}
+
+// A scene file's "radius" is refused by the rule of `rayscan visibility --radius` and in its words
+// (the one check of a given sphere radius): after the scene's JSON pointer, the line the flag gives
+// after its name, less the value it names (", got -3"), for a negative, a zero and a non-number
+// radius. Exit code 2, no image.
+TEST(RenderCli, SceneRadiusIsRefusedInTheWordsOfTheRadiusFlag) {
+  const fs::path d = cli_temp_dir();
+  std::ofstream(d / "c.xyz") << "0 0 0\n1 0 0\n0 1 0\n";
+  const fs::path out = d / "radius.png";
+  const std::pair<std::string, std::string> values[] = {{"-3", "-3"}, {"0", "0"}, {"\"big\"", "big"}};
+  for (const auto& v : values) {
+    const RunResult flag =
+        run("visibility " + (d / "c.xyz").string() + " --sky-view 4 -o " + (d / "v.las").string() + " --radius " + v.second);
+    EXPECT_EQ(flag.code, 2) << flag.out;
+    const std::string head = "rayscan visibility: --radius: ";
+    const std::size_t got = flag.out.rfind(", got ");
+    ASSERT_EQ(flag.out.rfind(head, 0), 0u) << flag.out;
+    ASSERT_NE(got, std::string::npos) << flag.out;
+    const std::string rule = flag.out.substr(head.size(), got - head.size());
+
+    const fs::path scene = d / "radius.json";
+    std::ofstream(scene) << R"({"cloud": "c.xyz", "radius": )" << v.first
+                         << R"(, "camera": {"width": 8, "height": 6, "position": [0, -10, 2], "look_at": [0, 0, 0]}})";
+    const RunResult r = run("render -q " + scene.string() + " --out " + out.string());
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_EQ(r.out, "rayscan render: " + scene.string() + ": /radius: " + rule + "\n") << v.first;
+    EXPECT_FALSE(fs::exists(out));
+  }
 }

@@ -101,7 +101,7 @@ TEST(Scene, BadFieldsNameFileAndJsonPointer) {
             std::string::npos);
 
   const fs::path p5 = write("e5.json", std::string(R"({"cloud": "x.xyz", "radius": -1, )") + kCam + "}");
-  EXPECT_EQ(error_of(p5), p5.string() + ": /radius: expected \"auto\" or a number in (0, inf) (world units)");
+  EXPECT_EQ(error_of(p5), p5.string() + ": /radius: expected a finite number > 0 (world units) or auto");
 
   const fs::path p6 = write("e6.json", R"({"cloud": "x.xyz"})");
   EXPECT_NE(error_of(p6).find(": /camera: required"), std::string::npos);

@@ -1,5 +1,6 @@
 #include "rayscan/octree/octree.hpp"
 #include "rayscan/octree/morton_sort.hpp"
+#include "rayscan/base/list_text.hpp"
 #include "rayscan/base/option_error.hpp"
 
 #include <tbb/parallel_for.h>
@@ -14,14 +15,14 @@
 #include <limits>
 #include <memory>
 #include <stdexcept>
+#include <utility>
 
 namespace rayscan {
 
 OctreeLayout parse_octree_layout(const std::string& s) {
-  if (s == "layered") return OctreeLayout::layered;
-  if (s == "fixed") return OctreeLayout::fixed;
-  if (s == "adaptive") return OctreeLayout::adaptive;
-  throw std::invalid_argument("octree layout '" + s + "': expected layered, fixed or adaptive");
+  for (const OctreeLayout layout : kOctreeLayouts)
+    if (s == to_string(layout)) return layout;
+  throw std::invalid_argument("octree layout '" + s + "': expected " + join_alternatives(octree_layout_names()));
 }
 
 const char* to_string(OctreeLayout layout) {
@@ -31,6 +32,17 @@ const char* to_string(OctreeLayout layout) {
     case OctreeLayout::adaptive: return "adaptive";
   }
   return "?";
+}
+
+std::vector<std::string> octree_layout_names(std::string_view quote) {
+  std::vector<std::string> names;
+  for (const OctreeLayout layout : kOctreeLayouts) {
+    std::string name(quote);
+    name += to_string(layout);
+    name += quote;
+    names.push_back(std::move(name));
+  }
+  return names;
 }
 
 void OctreeConfig::validate() const {

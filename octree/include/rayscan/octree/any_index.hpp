@@ -30,7 +30,8 @@ decltype(auto) visit_index(F&& f, const I& index) {
   return std::forward<F>(f)(index);
 }
 
-/// Every index type make_index builds (IndexOptions::type), in the order messages list them.
+/// Every index type make_index builds (IndexOptions::type), in the order messages list them: the
+/// octrees first, octree_index_type of each of kOctreeLayouts in its order.
 inline constexpr std::array<std::string_view, 5> kIndexTypes = {"octree-adaptive", "octree-layered", "octree-fixed",
                                                                 "kdtree", "brute"};
 

@@ -5,9 +5,12 @@
 #include "rayscan/octree/geometry.hpp"
 #include "rayscan/octree/morton.hpp"
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
+#include <vector>
 
 namespace rayscan {
 
@@ -19,10 +22,20 @@ enum class OctreeLayout {
   adaptive   ///< a leaf splits when it holds more than `capacity` points, up to `max_depth`
 };
 
-/// Parses "layered" | "fixed" | "adaptive"; throws std::invalid_argument otherwise.
+/// Every octree layout, in the order lists and messages give them (the default first): the one
+/// list of layouts of parse_octree_layout, scene files and the Python Octree (kIndexTypes lists
+/// their index types in the same order).
+inline constexpr std::array<OctreeLayout, 3> kOctreeLayouts = {OctreeLayout::adaptive, OctreeLayout::layered,
+                                                               OctreeLayout::fixed};
+
+/// Parses a layout's name (to_string: "adaptive" | "layered" | "fixed"); throws
+/// std::invalid_argument "octree layout 'x': expected adaptive, layered or fixed" otherwise.
 OctreeLayout parse_octree_layout(const std::string& s);
 /// The name parse_octree_layout accepts.
 const char* to_string(OctreeLayout layout);
+/// The names of kOctreeLayouts in its order, each written between two `quote`s ("'adaptive'"
+/// for Python): the values a front end lists as accepted.
+[[nodiscard]] std::vector<std::string> octree_layout_names(std::string_view quote = "");
 
 /// The node capacity (points) of a layout when none is given: the one default of OctreeConfig,
 /// IndexOptions, scene files, `rayscan index` / `rayscan query` and the Python Octree.
