@@ -64,9 +64,11 @@ Runner add_translate_command(CLI::App& app) {
                   "the other format is refused")
       ->check(CLI::IsMember({"auto", "las", "laz"}))
       ->capture_default_str();
-  sub->add_option("--chunk-size", *chunk, "points per LAZ chunk (not COPC: one chunk per octree node)")
-      ->transform(integer_in(1, 0xFFFFFFFEll))
-      ->capture_default_str();
+  auto* chunk_option =
+      sub->add_option("--chunk-size", *chunk,
+                      "LAZ output: points per chunk (refused for other outputs, COPC too: one chunk per octree node)")
+          ->transform(integer_in(1, 0xFFFFFFFEll))
+          ->capture_default_str();
   sub->add_option("--memory", *memory,
                   "COPC output: memory budget of the build, a byte size: 12 bytes per point plus 256 MiB (e.g. "
                   "4G, 512M); checked for every output")
@@ -88,7 +90,7 @@ Runner add_translate_command(CLI::App& app) {
                   "(also when --scale is given)");
   auto quiet = std::make_shared<bool>(false);
   sub->add_flag("-q,--quiet", *quiet, "no progress or notes on stderr");
-  return [in, out, format, chunk, memory, temp_dir, scale, offset, quiet]() -> int {
+  return [in, out, format, chunk, chunk_option, memory, temp_dir, scale, offset, quiet]() -> int {
     require_single_process("rayscan translate");
     jobs::TranslateJobOptions job;
     job.in = *in;
@@ -103,7 +105,7 @@ Runner add_translate_command(CLI::App& app) {
     }
     job.compression = *format == "las" ? jobs::LasCompression::las
                       : *format == "laz" ? jobs::LasCompression::laz : jobs::LasCompression::by_extension;
-    job.chunk_size = *chunk;
+    if (chunk_option->count() > 0) job.chunk_size = *chunk;  // unset: the job's default, and no refusal
     job.memory = *memory;
     job.temp_dir = *temp_dir;
     if (!scale->empty()) job.scale = parse_numbers("--scale", *scale, "S or SX,SY,SZ (numbers > 0)");
@@ -118,6 +120,7 @@ Runner add_translate_command(CLI::App& app) {
     job.progress = progress;
     const jobs::TranslateJobResult r = jobs::run_translate(job);
     progress.finish();
+    for (const std::string& w : r.warnings) std::cerr << "rayscan translate: warning: " << w << "\n";  // also with -q
     const std::string ext = rayscan::lower_extension(*out);
     const char* written = job.compression != jobs::LasCompression::by_extension ? (r.compressed ? "LAZ" : "LAS")
                           : ext == ".ply"                                      ? "PLY"

@@ -19,6 +19,12 @@
 
 namespace rayscan::io::detail {
 
+/// The first 40 characters of the CRS text `wkt` ("..." after them when there are more), on one
+/// line: how a message quotes a CRS that GDAL cannot read.
+inline std::string crs_excerpt(const std::string& wkt) {
+  return one_line(wkt.substr(0, 40) + (wkt.size() > 40 ? "..." : ""));
+}
+
 /// Throws std::invalid_argument "<name>: the CRS is WKT that GDAL cannot read ('<its first 40
 /// characters>...'); expected a CRS GDAL reads, or none" unless `wkt` is empty or GDAL reads it
 /// (crs_wkt_readable): the one rule of every writer that stores a CRS (LAS, LAZ, PLY, COPC), since
@@ -26,8 +32,7 @@ namespace rayscan::io::detail {
 /// output a writer was given, or the input whose CRS the COPC writer would copy.
 inline void require_readable_crs(const std::string& name, const std::string& wkt) {
   if (wkt.empty() || crs_wkt_readable(wkt)) return;
-  const std::string shown = wkt.substr(0, 40) + (wkt.size() > 40 ? "..." : "");
-  throw std::invalid_argument(name + ": the CRS is WKT that GDAL cannot read ('" + one_line(shown) +
+  throw std::invalid_argument(name + ": the CRS is WKT that GDAL cannot read ('" + crs_excerpt(wkt) +
                               "'); expected a CRS GDAL reads, or none");
 }
 

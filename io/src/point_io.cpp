@@ -116,6 +116,7 @@ LasWriteOptions las_grid_of(const FileInfo& source) {
   }
   lo.adjusted_standard_gps_time = (source.global_encoding & 1u) != 0;
   lo.project_guid = source.project_guid;
+  lo.extra_bytes = source.extra_bytes;
   return lo;
 }
 

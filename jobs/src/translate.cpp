@@ -78,6 +78,14 @@ void check_grid_options(const TranslateJobOptions& o, bool grid_output) {
                                                                    : std::string("expected a finite number"))});
 }
 
+/// Refuses a chunk size given for an output that is not LAZ (`laz_out`), before anything is read:
+/// only LAZ has chunks the option sizes (COPC writes one per octree node). Throws OptionError.
+void check_chunk_size(const TranslateJobOptions& o, bool laz_out, bool copc) {
+  if (!o.chunk_size || laz_out) return;
+  throw OptionError({option("chunk_size"), " applies to LAZ output, not to " + o.out.string() +
+                                               (copc ? " (COPC writes one chunk per octree node)" : "")});
+}
+
 /// `grid` (the source's, or the defaults) with the scale and offsets the options ask for: a new
 /// scale gets automatic offsets unless they are given.
 void apply_grid_options(const TranslateJobOptions& o, io::LasWriteOptions& grid) {
@@ -118,7 +126,7 @@ TranslateJobResult write_through_las(const TranslateJobOptions& options, const P
     } else {
       io::TranslateOptions t;
       t.compression = LasCompression::laz;
-      t.chunk_size = options.chunk_size;
+      t.chunk_size = options.chunk_size.value_or(t.chunk_size);
       t.progress = options.progress;
       static_cast<io::TranslateResult&>(r) = io::translate_las(temp, options.out, t);
       r.in_bytes = std::filesystem::file_size(options.in);
@@ -151,7 +159,10 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
     throw std::invalid_argument(options.out.string() + ": " + extensions_expected(translate_output_extensions()));
   const std::string ext = lower_extension(options.out);
   const bool las_out = options.compression != LasCompression::by_extension || ext == ".las" || ext == ".laz";
+  const bool laz_out = options.compression == LasCompression::laz ||
+                       (options.compression == LasCompression::by_extension && ext == ".laz" && !copc);
   check_grid_options(options, las_out || copc);
+  check_chunk_size(options, laz_out, copc);
   // The COPC build's options, checked whatever the output, so that a typo fails at once.
   detail::memory_budget(options.memory);
   require_temp_dir(options.temp_dir);
@@ -179,7 +190,7 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
   if (las_in && las_out && !grid_requested(options)) {
     io::TranslateOptions t;
     t.compression = options.compression;
-    t.chunk_size = options.chunk_size;
+    t.chunk_size = options.chunk_size.value_or(t.chunk_size);
     t.progress = options.progress;
     TranslateJobResult r;
     static_cast<io::TranslateResult&>(r) = io::translate_las(options.in, options.out, t);  // checks chunk_size (OptionError)
@@ -199,9 +210,9 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
     grid = io::las_grid_of(info);
   }
   apply_grid_options(options, grid);
-  const bool laz_out = options.compression == LasCompression::laz ||
-                       (options.compression == LasCompression::by_extension && ext == ".laz");
-  if (grid_requested(options) && (copc || laz_out)) {
+  // LAZ output is compressed by the job itself, so that it takes the chunk size and reports
+  // progress; COPC output gets here only with a grid of its own (otherwise written above).
+  if (copc || laz_out) {
     TranslateJobResult r = write_through_las(options, cloud, grid, copc);
     return copc ? copc_result(*r.copc) : r;
   }

@@ -1,6 +1,7 @@
 // The translate job (rayscan/jobs/translate.hpp) on real files; oracle: the point records and
 // bytes of the input, read back by the io reader, and the output's header bytes.
 #include "rayscan/base/number_text.hpp"
+#include "rayscan/io/crs.hpp"
 #include "rayscan/io/las_records.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/index.hpp"
@@ -9,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "jobs_test_util.hpp"
+#include "../common/extra_bytes_descriptors.hpp"
 #include "../common/file_size_limit.hpp"
 
 #include <algorithm>
@@ -18,6 +20,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <set>
 #include <stdexcept>
 #include <sstream>
@@ -381,7 +384,8 @@ TEST(TranslateJob, ScaleAndOffsetAreTheHeadersAndPointsReadBackWithinHalfAStep) 
     o.out = temp_dir() / name;
     o.scale = {1e-6};
     o.offset = Vec3(12, -5, 0.5);
-    o.chunk_size = 1000;
+    if (std::string(name) == "small_1e-6.laz") o.chunk_size = 1000;  // (refused for the others)
+    else o.chunk_size.reset();
     const jobs::TranslateJobResult r = jobs::run_translate(o);
     EXPECT_EQ(r.points, src.size());
     const auto [scale, offset] = header_grid(o.out);
@@ -651,4 +655,210 @@ TEST(TranslateJob, TextOfLasHasTheDecimalsOfTheScale) {
   const fs::path ply = small_float_scan(), xyz = temp_dir() / "small_object.xyz";
   translate(ply, xyz);
   EXPECT_EQ(io::read_point_cloud(xyz).positions, io::read_point_cloud(ply).positions);
+}
+
+namespace {
+
+/// The header lines of the PLY or PCD file `path`, up to (without) the line starting with `last`
+/// ("end_header", "DATA").
+std::vector<std::string> header_lines(const fs::path& path, const std::string& last) {
+  std::istringstream in(file_bytes(path));
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line) && line.rfind(last, 0) != 0;) lines.push_back(line);
+  return lines;
+}
+
+/// The number of chunks that the chunk table of the LAZ file `path` lists, from its own bytes:
+/// the int64 at the point data offset (header byte 96) addresses the table, whose uint32 version
+/// is followed by the uint32 chunk count (LASzip lasreadpoint.cpp read_chunk_table).
+std::uint32_t laz_chunk_count(const fs::path& path) {
+  const std::string b = file_bytes(path);
+  std::uint32_t point_offset = 0, count = 0;
+  std::int64_t table = 0;
+  std::memcpy(&point_offset, b.data() + 96, 4);
+  std::memcpy(&table, b.data() + point_offset, 8);
+  std::memcpy(&count, b.data() + table + 4, 4);
+  return count;
+}
+
+}  // namespace
+
+// A LAS input's Extra Bytes descriptions travel with its fields: a PLY output describes each in a
+// header comment ("comment field <property>: <description>"), a PCD output in a '#' comment line
+// before VERSION ("# field <field>: <description>"; PCL and Open3D skip such lines), and a LAS
+// rewritten on a new grid keeps them in its descriptors. extrabytes.las: Colors and Flags are
+// deprecated arrays (types 23 and 12: three and two fields, each described as its array),
+// Intensity is described as "Brightness" and written as Intensity_1 beside the LAS intensity.
+// Oracle: the descriptors in the input's and the output's own bytes, and the written header.
+TEST(TranslateJob, ExtraBytesDescriptionsTravelToPlyPcdAndARewrittenLas) {
+  const fs::path las = data_file("las/extrabytes.las");
+  std::map<std::string, std::string> described;  // field as read -> description, from the input's bytes
+  for (const test::ExtraBytesDescriptor& d : test::extra_bytes_descriptors_of(las)) {
+    if (d.type == 0) continue;  // undocumented bytes: no field
+    const int n = d.type <= 10 ? 1 : d.type <= 20 ? 2 : 3;
+    for (int j = 0; j < n; ++j) described[n == 1 ? d.name : d.name + "[" + std::to_string(j) + "]"] = d.description;
+  }
+  ASSERT_EQ(described.size(), 7u);
+  ASSERT_EQ(described.at("Intensity"), "Brightness");
+  // Each field's name in the PLY and PCD headers (characters other than [A-Za-z0-9_] as '_', a
+  // suffix where the reader would take the name for another field).
+  const std::map<std::string, std::string> written = {
+      {"Colors[0]", "Colors_0_"}, {"Colors[1]", "Colors_1_"}, {"Colors[2]", "Colors_2_"}, {"Flags[0]", "Flags_0_"},
+      {"Flags[1]", "Flags_1_"},   {"Intensity", "Intensity_1"}, {"Time", "Time"}};
+  const auto count_prefixed = [](const std::vector<std::string>& lines, const std::string& prefix) {
+    return std::count_if(lines.begin(), lines.end(), [&](const std::string& l) { return l.rfind(prefix, 0) == 0; });
+  };
+  jobs::TranslateJobOptions o;
+  o.in = las;
+
+  o.out = temp_dir() / "described.ply";
+  jobs::run_translate(o);
+  const std::vector<std::string> ply = header_lines(o.out, "end_header");
+  const auto ply_at = [&](const std::string& l) { return std::find(ply.begin(), ply.end(), l) - ply.begin(); };
+  const std::ptrdiff_t element = ply_at("element vertex 1065");
+  ASSERT_LT(element, static_cast<std::ptrdiff_t>(ply.size()));
+  for (const auto& [field, description] : described) {
+    SCOPED_TRACE(field);
+    const std::string name = "scalar_" + written.at(field);
+    EXPECT_LT(ply_at("comment field " + name + ": " + description), element);
+    EXPECT_LT(ply_at("property double " + name), static_cast<std::ptrdiff_t>(ply.size()));
+  }
+  EXPECT_EQ(count_prefixed(ply, "comment field "), 7);
+
+  o.out = temp_dir() / "described.pcd";
+  jobs::run_translate(o);
+  const std::vector<std::string> pcd = header_lines(o.out, "DATA");
+  const auto pcd_at = [&](const std::string& l) { return std::find(pcd.begin(), pcd.end(), l) - pcd.begin(); };
+  const std::ptrdiff_t version = pcd_at("VERSION 0.7");
+  ASSERT_LT(version, static_cast<std::ptrdiff_t>(pcd.size()));
+  const auto fields =
+      std::find_if(pcd.begin(), pcd.end(), [](const std::string& l) { return l.rfind("FIELDS ", 0) == 0; });
+  ASSERT_NE(fields, pcd.end());
+  for (const auto& [field, description] : described) {
+    SCOPED_TRACE(field);
+    EXPECT_LT(pcd_at("# field " + written.at(field) + ": " + description), version);
+    EXPECT_NE((*fields + " ").find(" " + written.at(field) + " "), std::string::npos) << *fields;
+  }
+  EXPECT_EQ(count_prefixed(pcd, "# field "), 7);
+
+  o.out = temp_dir() / "described.las";
+  o.scale = {0.001};
+  jobs::run_translate(o);
+  std::map<std::string, std::string> kept;
+  for (const test::ExtraBytesDescriptor& d : test::extra_bytes_descriptors_of(o.out)) kept[d.name] = d.description;
+  EXPECT_EQ(kept, described);
+}
+
+// --chunk-size sizes the chunks of every LAZ output, from any input and on any grid (a PLY's
+// cloud too, which the LAS writer compressed in chunks of 50000 whatever was asked), and is
+// refused for every other output, before anything is read, in one line naming the option and the
+// output it does not apply to; without it every output is written. Oracle: the chunk table in
+// the written file's own bytes.
+TEST(TranslateJob, ChunkSizeSizesEveryLazOutputAndIsRefusedForOthers) {
+  const fs::path dir = temp_dir() / "chunk_size";
+  fs::create_directories(dir);
+  const fs::path ply = small_float_scan(), las = data_file("las/point-color.las");
+  for (const fs::path& in : {ply, las})
+    for (const bool new_grid : {false, true}) {
+      SCOPED_TRACE(in.string() + (new_grid ? " on a new grid" : ""));
+      jobs::TranslateJobOptions o;
+      o.in = in;
+      o.out = dir / "a.laz";
+      o.chunk_size = 7;
+      if (new_grid) o.scale = {0.001};
+      const jobs::TranslateJobResult r = jobs::run_translate(o);
+      const std::uint64_t want = (io::read_point_cloud(in).size() + 6) / 7;
+      EXPECT_EQ(laz_chunk_count(o.out), want);
+      EXPECT_EQ(r.chunks, want);
+      EXPECT_EQ(io::read_point_cloud(o.out).size(), io::read_point_cloud(in).size());
+    }
+  auto r =
+      test::rayscan_cli("translate -q " + test::quoted(ply) + " " + test::quoted(dir / "b.laz") + " --chunk-size 100");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(laz_chunk_count(dir / "b.laz"), 30u);  // 3000 points
+  for (const char* name : {"c.las", "c.ply", "c.pcd", "c.xyz", "c.csv", "c.copc.laz"}) {
+    SCOPED_TRACE(name);
+    const fs::path out = dir / name;
+    r = test::rayscan_cli("translate -q " + test::quoted(las) + " " + test::quoted(out) + " --chunk-size 10");
+    EXPECT_EQ(r.code, 2);
+    EXPECT_EQ(r.out, "rayscan translate: --chunk-size applies to LAZ output, not to " + out.string() +
+                         (std::string(name) == "c.copc.laz" ? " (COPC writes one chunk per octree node)" : "") + "\n");
+    EXPECT_FALSE(fs::exists(out));
+    r = test::rayscan_cli("translate -q " + test::quoted(las) + " " + test::quoted(out));
+    EXPECT_EQ(r.code, 0) << r.out;
+  }
+}
+
+// LAS <-> LAZ copies every VLR as it is, a WKT VLR that GDAL cannot read too (as PDAL and laszip
+// keep a file's records): the copy writes no CRS of its own, so the output holds the input's CRS
+// records and no other, and LAZ -> LAS gives the input back byte for byte. It warns once, naming
+// the input and quoting the text, also with -q; a readable WKT gets no warning. Crafted from
+// file_with_both_wkt_and_geotiff_vlrs.las (WKT and GeoKeys): its WKT made unreadable
+// ("XROJCS[...") or no WKT at all ("unknown"). Oracle: the files' own bytes (the CRS records
+// counted in the VLR headers), and GDAL's reading of each text.
+TEST(TranslateJob, AnUnreadableWktVlrIsCopiedAloneAndWarnedOnce) {
+  const fs::path src = data_file("las/file_with_both_wkt_and_geotiff_vlrs.las"), dir = temp_dir() / "bad_wkt";
+  fs::create_directories(dir);
+  const std::string good = file_bytes(src);
+  /// The payload offset and length of each VLR "LASF_Projection" record `id` of the LAS bytes `b`.
+  const auto crs_vlrs = [](const std::string& b, std::uint16_t id) {
+    std::vector<std::pair<std::size_t, std::size_t>> found;
+    std::uint16_t header = 0, len = 0, record = 0;
+    std::uint32_t n = 0;
+    std::memcpy(&header, b.data() + 94, 2);
+    std::memcpy(&n, b.data() + 100, 4);
+    for (std::size_t pos = header, i = 0; i < n; ++i, pos += 54 + len) {
+      std::memcpy(&record, b.data() + pos + 18, 2);
+      std::memcpy(&len, b.data() + pos + 20, 2);
+      if (std::string(b.c_str() + pos + 2) == "LASF_Projection" && record == id) found.emplace_back(pos + 54, len);
+    }
+    return found;
+  };
+  const auto wkt = crs_vlrs(good, 2112);
+  ASSERT_EQ(wkt.size(), 1u);
+  ASSERT_EQ(good.compare(wkt[0].first, 7, "PROJCS["), 0);
+  ASSERT_TRUE(io::crs_wkt_readable(good.substr(wkt[0].first, wkt[0].second).c_str()));
+
+  jobs::TranslateJobOptions o;
+  o.in = src;
+  o.out = dir / "good.laz";
+  EXPECT_TRUE(jobs::run_translate(o).warnings.empty());
+
+  for (const std::string& text : {std::string("X"), std::string("unknown")}) {
+    SCOPED_TRACE(text);
+    std::string bad = good;
+    if (text == "X") bad[wkt[0].first] = 'X';  // "XROJCS[...": WKT in form, not a CRS GDAL reads
+    else bad.replace(wkt[0].first, wkt[0].second, text + std::string(wkt[0].second - text.size(), '\0'));
+    const std::string payload = bad.substr(wkt[0].first, wkt[0].second);
+    const std::string shown = payload.c_str();  // the text without its NUL padding
+    ASSERT_FALSE(io::crs_wkt_readable(shown));
+    const fs::path in = dir / "bad.las", laz = dir / "bad.laz", back = dir / "bad_back.las";
+    std::ofstream(in, std::ios::binary) << bad;
+
+    o.in = in;
+    o.out = laz;
+    const jobs::TranslateJobResult r = jobs::run_translate(o);
+    const std::string warning = in.string() + ": the OGC WKT VLR holds no CRS that GDAL reads ('" +
+                                (shown.size() > 40 ? shown.substr(0, 40) + "..." : shown) +
+                                "'): copied unchanged with the other VLRs";
+    EXPECT_EQ(r.warnings, std::vector<std::string>{warning});
+    const std::string z = file_bytes(laz);
+    for (const std::uint16_t id : {2112, 34735, 34736, 34737}) {
+      SCOPED_TRACE(id);
+      const auto ours = crs_vlrs(z, id), theirs = crs_vlrs(bad, id);
+      ASSERT_EQ(ours.size(), theirs.size());
+      for (std::size_t k = 0; k < ours.size(); ++k)
+        EXPECT_EQ(z.substr(ours[k].first, ours[k].second), bad.substr(theirs[k].first, theirs[k].second));
+    }
+    o.in = laz;
+    o.out = back;
+    EXPECT_EQ(jobs::run_translate(o).warnings.size(), 1u);
+    EXPECT_EQ(file_bytes(back), bad);
+
+    const auto cli = test::rayscan_cli("translate -q " + test::quoted(in) + " " + test::quoted(dir / "cli.laz"));
+    EXPECT_EQ(cli.code, 0) << cli.out;
+    const std::string line = "rayscan translate: warning: " + warning + "\n";
+    EXPECT_NE(cli.out.find(line), std::string::npos) << cli.out;
+    EXPECT_EQ(cli.out.find("warning"), cli.out.rfind("warning")) << cli.out;  // once
+  }
 }

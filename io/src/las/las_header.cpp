@@ -4,6 +4,7 @@
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/octree/position_view.hpp"
 
+#include <cctype>
 #include <cmath>
 #include <cstring>
 
@@ -56,6 +57,14 @@ VlrInfo read_extended_record(const Input& in, std::uint64_t at, const std::strin
 }
 
 }  // namespace
+
+std::string wkt_vlr_text(const std::uint8_t* d, const LasHeader& h) {
+  if (!h.wkt.present) return {};
+  std::string wkt(reinterpret_cast<const char*>(d + h.wkt.at), h.wkt.len);
+  while (!wkt.empty() && (wkt.back() == '\0' || std::isspace(static_cast<unsigned char>(wkt.back()))))
+    wkt.pop_back();
+  return wkt;
+}
 
 LasHeader parse_las_header(const Input& in) {
   LasHeader h;

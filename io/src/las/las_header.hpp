@@ -70,6 +70,12 @@ struct LasHeader {
 /// not checked against the file size here (LAZ bounds it by its chunk table).
 LasHeader parse_las_header(const Input& in);
 
+/// The text of the OGC WKT (E)VLR `h.wkt` (section 2.5.1) of the file `d` points at, without the
+/// trailing NULs and white space writers pad it with; "" when there is none. The one reading of
+/// that record: the LAS reader takes it for the CRS when it holds WKT, translate_las warns when
+/// it copies one that GDAL cannot read.
+[[nodiscard]] std::string wkt_vlr_text(const std::uint8_t* d, const LasHeader& h);
+
 /// How a LAS point record gives a coordinate, as the refusals of one beyond +-kMaxCoordinate name
 /// it (beyond_coordinate_bound's `source`; the reader's refuse_las_coordinate, the writer's own):
 /// "stored integer I x scale S + offset O".

@@ -42,6 +42,7 @@ int pdrf_rgb_offset(int f) {
 /// One field of the Extra Bytes VLR (section 2.5.6, table 24) that rayscan exposes as a scalar.
 struct ExtraField {
   std::string name;
+  std::string description;  // the descriptor's (32 bytes at most), "" when it has none
   int type = 0;       // 1..10 (base type); 11..30 deprecated arrays use their base type
   int size = 0;       // bytes of one element
   int offset = 0;     // offset inside the record
@@ -494,6 +495,7 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
           for (int j = 0; j < n; ++j) {
             ExtraField f;
             f.name = n == 1 ? name : name + "[" + std::to_string(j) + "]";
+            f.description = fixed_string(e + 160, 32);
             f.type = base;
             f.size = base_size[base];
             f.offset = off + j * f.size;
@@ -527,6 +529,8 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
     }
   }
   if (!opt.scalars) extras.clear();
+  for (const ExtraField& f : extras)
+    if (!f.description.empty()) info.extra_bytes.emplace(f.name, ExtraBytesInfo{f.description, std::nullopt});
   if (info.extra_bytes_per_point > 0 && extras.empty() && !has_normals_)
     info.notes.push_back(std::to_string(info.extra_bytes_per_point) +
                          " extra bytes per record " +
@@ -536,9 +540,7 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
   // CRS: the OGC WKT VLR when it holds text, else the GeoKeys.
   struct { std::string crs_wkt; } pc;
   if (h.wkt.present) {
-    std::string wkt(reinterpret_cast<const char*>(d + h.wkt.at), h.wkt.len);
-    while (!wkt.empty() && (wkt.back() == '\0' || std::isspace(static_cast<unsigned char>(wkt.back()))))
-      wkt.pop_back();
+    const std::string wkt = wkt_vlr_text(d, h);
     // A WKT CRS is KEYWORD[...]; anything else (empty, "''") carries no CRS.
     if (wkt.find('[') != std::string::npos) {
       pc.crs_wkt = wkt;

@@ -3,6 +3,7 @@
 
 #include "atomic_writer.hpp"
 #include "bytes.hpp"
+#include "field_names.hpp"
 #include "laz/encoder_v2.hpp"
 #include "laz/encoder_v3.hpp"
 #include "laz/laz.hpp"
@@ -206,6 +207,13 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
                                 " (waveform packets) is not implemented (the writer covers PDRF 0-3 and 6-8 with extra bytes)");
   std::vector<std::string> notes;
   RecordSource src(in, h, notes);
+  TranslateResult res;
+  // A copy keeps every VLR (a user converting LAS <-> LAZ wants the file's own records, as PDAL
+  // and laszip keep them) and writes no CRS of its own, so an unreadable WKT VLR is neither
+  // replaced nor duplicated; but the output inherits it, which GDAL, PDAL and QGIS may refuse.
+  if (const std::string wkt = detail::wkt_vlr_text(d, h); !wkt.empty() && !crs_wkt_readable(wkt))
+    res.warnings.push_back(in.name + ": the OGC WKT VLR holds no CRS that GDAL reads ('" + detail::crs_excerpt(wkt) +
+                           "'): copied unchanged with the other VLRs");
   // Waveform data packets stored in the file (global encoding bit 1, LAS 1.3+; section 2.4 table
   // 4): the point records' wave packet descriptors address them by their offset from the start of
   // the waveform data packet record, so a LAS output copies that record byte for byte and points
@@ -267,7 +275,6 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
 
   detail::AtomicStream f(out_path);
   f.write(head.data(), head.size());
-  TranslateResult res;
   res.points = h.count;
   res.compressed = to_laz;
   std::uint64_t written = head.size();

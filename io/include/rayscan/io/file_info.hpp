@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <string>
 #include <utility>
@@ -21,6 +22,17 @@ struct VlrInfo {
   std::uint64_t length = 0;   ///< payload bytes after the VLR header
   std::uint64_t offset = 0;   ///< byte offset of the VLR header in the file
   bool extended = false;      ///< true for an EVLR (after the point records)
+};
+
+/// What an Extra Bytes descriptor (LAS 1.4 R15 section 2.5.6, table 24) says of one field besides
+/// its name and type, for readers such as PDAL, QGIS and CloudCompare to show.
+struct ExtraBytesInfo {
+  /// The descriptor's description: the field's meaning and unit, e.g. "global irradiation, kWh/m2";
+  /// at most 32 bytes are stored (a longer text is cut).
+  std::string description;
+  /// The value that means "no value" for this field (descriptor options bit 0 and its no_data
+  /// field), e.g. -1 for a distance to an observer that sees nothing; none when every value is one.
+  std::optional<double> no_data;
 };
 
 /// Metadata of a point cloud file, filled by read_point_cloud() when asked for. Fields that do not
@@ -45,6 +57,11 @@ struct FileInfo {
   std::uint16_t global_encoding = 0;                  ///< LAS global encoding bits
   std::array<std::uint8_t, 16> project_guid{};        ///< LAS Project ID (GUID), header bytes 8-23 as stored
   std::vector<VlrInfo> vlrs;                          ///< LAS VLRs then EVLRs in file order
+  /// LAS: the Extra Bytes descriptions of the scalars read (by PointCloud::ScalarField name: a
+  /// deprecated array's name[0], name[1], ... each its descriptor's), the descriptors whose
+  /// description is not empty; the no_data value is not read (docs/formats.md). las_grid_of
+  /// passes them on, so a derived LAS, PLY or PCD file describes those fields as the source did.
+  std::map<std::string, ExtraBytesInfo> extra_bytes;
   std::uint64_t width = 0, height = 0;  ///< PCD WIDTH/HEIGHT (organized when height > 1)
   /// PCD VIEWPOINT tx ty tz qw qx qy qz: the acquisition pose. Reported, not applied to positions.
   std::optional<std::array<double, 7>> viewpoint;

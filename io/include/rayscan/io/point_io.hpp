@@ -69,17 +69,6 @@ PointCloud read_point_cloud(std::span<const std::uint8_t> bytes, Format format,
                             const std::string& name, const ReadOptions& options = {},
                             FileInfo* info = nullptr);
 
-/// What an Extra Bytes descriptor (LAS 1.4 R15 section 2.5.6, table 24) says of one field besides
-/// its name and type, for readers such as PDAL, QGIS and CloudCompare to show.
-struct ExtraBytesInfo {
-  /// The descriptor's description: the field's meaning and unit, e.g. "global irradiation, kWh/m2";
-  /// at most 32 bytes are stored (a longer text is cut).
-  std::string description;
-  /// The value that means "no value" for this field (descriptor options bit 0 and its no_data
-  /// field), e.g. -1 for a distance to an observer that sees nothing; none when every value is one.
-  std::optional<double> no_data;
-};
-
 /// Options of write_las().
 struct LasWriteOptions {
   /// LAS scale factors (x, y, z); 0 = choose: the coarsest of 1, 0.1, 0.01, 0.001 on which every
@@ -196,8 +185,10 @@ void require_point_cloud_output(const std::filesystem::path& path);
 /// The LAS write options that keep the integer grid (scale and offset) of the LAS, LAZ or COPC
 /// source that `source` describes, so that its points written back as LAS/LAZ are bit-exact, and
 /// its header's GPS time type (global encoding bit 0) and project GUID, so that a derived file's
-/// GPS times keep their meaning; the defaults (scale chosen from the points, GPS week time, zero
-/// GUID) for any other source.
+/// GPS times keep their meaning, and its Extra Bytes descriptions (FileInfo::extra_bytes), so
+/// that a derived LAS, PLY or PCD file describes the source's fields as the source did; the
+/// defaults (scale chosen from the points, GPS week time, zero GUID, no descriptions) for any
+/// other source.
 [[nodiscard]] LasWriteOptions las_grid_of(const FileInfo& source);
 
 /// Writes `cloud` in the format its extension names (case-insensitive; the one writer choice of

@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <string>
+#include <vector>
 
 namespace rayscan::io {
 
@@ -32,6 +34,9 @@ struct TranslateResult {
   bool compressed = false;      ///< the output is LAZ
   std::uint64_t in_bytes = 0;   ///< size of the input file, bytes
   std::uint64_t out_bytes = 0;  ///< size of the output file, bytes
+  /// What the copy kept that a user should know, one line each naming the input: an OGC WKT VLR
+  /// whose text GDAL cannot read as a CRS, copied unchanged as every VLR is (as PDAL copies it).
+  std::vector<std::string> warnings;
 };
 
 /// Converts the LAS or LAZ file `in` (LAZ recognised by its LASzip VLR) to `out`, streaming one
@@ -39,7 +44,10 @@ struct TranslateResult {
 /// formats 0-3 (+ extra bytes), the pointwise-chunked compressor with LASzip item version 2
 /// (POINT10, GPSTIME11, RGB12, BYTE), and for formats 6-8 (+ extra bytes) the layered-chunked
 /// compressor with item version 3 (POINT14, RGB14, RGBNIR14, BYTE14; one arithmetic coder per
-/// layer). Writes through a temporary file renamed into place (AtomicFile). Throws FormatError
+/// layer). The VLRs are copied as they are, the CRS's too: an OGC WKT VLR that GDAL cannot read
+/// is kept (no CRS is written in its place, so none contradicts it) and named once in
+/// TranslateResult::warnings. Writes through a temporary file renamed into place (AtomicFile).
+/// Throws FormatError
 /// for malformed input (e.g. a waveform data packet record start, byte 227, neither after the
 /// point records nor at an EVLR; a point whose coordinates decode beyond +-kMaxCoordinate, named
 /// as the LAS reader names it, so no output the readers refuse is written), std::invalid_argument for an unsupported conversion (LAZ output

@@ -30,9 +30,10 @@ struct TranslateJobOptions {
   /// Output format: by the output's extension (.las, .laz, .ply, .pcd, .xyz, .csv, .txt: io::write_point_cloud), or las
   /// or laz whatever the name (a LAS/LAZ input is then converted losslessly).
   LasCompression compression = LasCompression::by_extension;
-  /// Points per LAZ chunk (LASzip's default 50000): 1 to 4294967294 (0xFFFFFFFF marks
-  /// variable-sized chunks in a LASzip VLR).
-  std::uint32_t chunk_size = 50000;
+  /// LAZ output: points per chunk, 1 to 4294967294 (0xFFFFFFFF marks variable-sized chunks in a
+  /// LASzip VLR); unset: LASzip's 50000 (io::TranslateOptions::chunk_size). Refused for any other
+  /// output (LAS, PLY, PCD, text, and COPC, which writes one chunk per octree node).
+  std::optional<std::uint32_t> chunk_size;
   /// COPC output: the memory budget of the in-memory octree build, a byte size as
   /// parse_byte_size reads it ("4G", "512M"); unused for other outputs, but checked for every one.
   std::string memory = "4G";
@@ -82,7 +83,8 @@ struct TranslateJobResult : io::TranslateResult {
 /// The output's format and path are checked before the input is read (translate_output_extensions,
 /// require_outputs), and so are `memory` and `temp_dir` whatever the output. Throws OptionError
 /// naming "memory" or "temp_dir" (not an existing folder), "chunk_size" for a chunk size outside
-/// [1, 4294967294], std::invalid_argument for an output extension with no writer ("<out>: expected
+/// [1, 4294967294] or given for an output that is not LAZ, std::invalid_argument for an output
+/// extension with no writer ("<out>: expected
 /// a file name ending in .las, .laz, .copc.laz, ...") and for an unsupported conversion (LAZ or COPC
 /// output of the waveform point formats 4, 5, 9, 10; COPC output of an index file), io::IndexError
 /// for a malformed index file, OptionError naming "scale" or "offset" for a scale that is not
