@@ -185,6 +185,37 @@ std::vector<Ray> rays_down_through(const PointCloud& cloud) {
 
 }  // namespace
 
+// A radius query without k: a ray's bound is every point, so the job cuts its runs by the most
+// results of a sample of the rays; rays 1 to 3 (outside the sample) run along a dense line and
+// return far more than that, so their run is longer. Every ray's answer is brute force's all the
+// same, kept or streamed.
+TEST(QueryJob, RadiusQueryWithoutKMatchesBruteForceWhateverItsRuns) {
+  PointCloud cloud;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-5.0, 5.0);
+  for (int i = 0; i < 4000; ++i) cloud.positions.emplace_back(u(rng), u(rng), u(rng));
+  for (int i = 0; i < 3000; ++i) cloud.positions.emplace_back(u(rng), 0.0, 0.0);  // the line
+  QueryJobOptions o;
+  o.cloud = &cloud;
+  for (int i = 0; i < 600; ++i)
+    o.rays.push_back(i >= 1 && i <= 3 ? Ray(Vec3(-10.0, 0.01 * i, 0.0), Vec3(1.0, 0.0, 0.0))
+                                      : Ray(Vec3(u(rng), u(rng), -10.0), Vec3(0.0, 0.0, 1.0)));
+  o.query.radius = 0.3;
+  o.control.threads = 2;
+  const QueryJobResult r = run_query(o);
+  ASSERT_EQ(r.hits.size(), o.rays.size());
+  const BruteForceIndex brute(cloud.positions);
+  for (std::size_t i = 0; i < o.rays.size(); ++i) {
+    const auto want = ray_query(brute, o.rays[i], o.query);
+    ASSERT_EQ(r.hits[i].size(), want.size()) << "ray " << i;
+    for (std::size_t k = 0; k < want.size(); ++k) EXPECT_EQ(r.hits[i][k].index, want[k].index) << "ray " << i;
+  }
+  EXPECT_GE(r.hits[2].size(), 3000u);
+  std::ostringstream kept;
+  write_hits_csv(kept, cloud.positions, r.hits);
+  EXPECT_EQ(streamed_csv(o), kept.str());
+}
+
 // The query CSV prints the coordinates of a LAS, COPC or index-file source on its LAS grid, with
 // the grid's decimals (autzen_trim.las: scale 0.01, 2 decimals: 636191.20, not the reader's double
 // 636191.2000000001; lone-star.copc.laz: scale 0.00025 and offset 515384.8225, 5), as the text

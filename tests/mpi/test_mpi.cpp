@@ -67,6 +67,25 @@ void expect_same_file(const fs::path& a, const fs::path& b) {
   EXPECT_TRUE(x == y) << a << " and " << b << " differ (" << x.size() << " vs " << y.size() << " bytes)";
 }
 
+// The traffic line of a run under 2 ranks, "mpi: 2 ranks, M messages, B bytes (R bytes of results),
+// ...": M and R (a worker's request and assignment per batch, and one more of each to start and end).
+struct Traffic {
+  unsigned long long messages = 0, result_bytes = 0;
+};
+Traffic traffic_of_two_ranks(const std::string& out) {
+  Traffic t;
+  unsigned long long total = 0;
+  const std::size_t at = out.find("mpi: 2 ranks, ");
+  EXPECT_NE(at, std::string::npos) << out;
+  if (at != std::string::npos) {
+    EXPECT_EQ(std::sscanf(out.c_str() + at, "mpi: 2 ranks, %llu messages, %llu bytes (%llu bytes", &t.messages, &total,
+                          &t.result_bytes),
+              3)
+        << out;
+  }
+  return t;
+}
+
 class Mpi : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -248,20 +267,65 @@ TEST_F(Mpi, QueryAllSendsRunsOfAboutSixteenThousandResultsAndTheSameBytes) {
   // The oracle of the rows: every point on every ray, and the header.
   const std::string csv = bytes(dir_ / "one.csv");
   EXPECT_EQ(std::uint64_t(std::count(csv.begin(), csv.end(), '\n')), rays * points + 1);
-  // "mpi: 2 ranks, M messages, B bytes (R bytes of results), ...": a request and an assignment
-  // per run, and one more of each to start and end; R: per ray its count (8 B) and its hits (32 B).
-  const std::size_t at = two.out.find("mpi: 2 ranks, ");
-  ASSERT_NE(at, std::string::npos) << two.out;
-  unsigned long long messages = 0, total = 0, results = 0;
-  ASSERT_EQ(std::sscanf(two.out.c_str() + at, "mpi: 2 ranks, %llu messages, %llu bytes (%llu bytes", &messages, &total,
-                        &results),
-            3)
-      << two.out;
+  // A request and an assignment per run; the results: per ray its count (8 B) and its hits (32 B).
+  const auto [messages, results] = traffic_of_two_ranks(two.out);
   EXPECT_EQ(results, rays * 8 + rays * points * 32);
   const unsigned long long runs = messages / 2 - 1;
   const std::uint64_t rays_per_run = 16384 / points;  // 11
   EXPECT_GE(runs, (rays + rays_per_run - 1) / rays_per_run) << two.out;  // not 2 blocks: at most 11 rays a reply
   EXPECT_LE(results / runs, rays_per_run * (8 + points * 32)) << two.out;
+  // Batches of 2 runs over 3 ranks (the root computing none).
+  const CommandResult three = run(mpirun(3, false) + kBin + args + " -q --threads 2 --out three.csv");
+  ASSERT_EQ(three.code, 0) << three.out;
+  expect_same_file(dir_ / "one.csv", dir_ / "three.csv");
+}
+
+TEST_F(Mpi, QueryByRadiusSendsWholeBlocksOfRaysAndTheSameBytes) {
+  // A 120 x 120 grid of points 1 apart on z = 0. Without --k a ray's bound is every point (14,400:
+  // runs of one ray); with --radius 2.5 a vertical ray returns the ~20 points of a disc, as the
+  // query's sample of rays shows, so a run is a whole block of 256 rays. Rays 1 to 3 (not among the
+  // 64 sampled, rays j x 700 / 64) lie in the plane and return 5 rows of points each: more than the
+  // sample's most, so their block's run is longer; its answers are the same.
+  {
+    std::ofstream out(dir_ / "grid.xyz");
+    out << "x y z\n";
+    for (int y = 0; y < 120; ++y)
+      for (int x = 0; x < 120; ++x) out << x << ' ' << y << " 0\n";
+  }
+  const std::uint64_t rays = 700;  // blocks of 256, 256 and 188
+  const double radius = 2.5;
+  std::uint64_t expected_rows = 0;  // the oracle: the grid points within the radius of each ray, by brute force
+  {
+    std::ofstream out(dir_ / "rays.csv");
+    out << "ox,oy,oz,dx,dy,dz\n";
+    for (std::uint64_t i = 0; i < rays; ++i) {
+      // Origins in sixteenths (exact in binary and in the CSV's 6 digits, so that the squared
+      // distances below are exact, as the query's are).
+      const bool flat = i >= 1 && i <= 3;
+      const double ox = flat ? -10.0 : 5.125 + double(i % 35) * 3.0625;
+      const double oy = flat ? 30.0 * double(i) + 0.25 : 5.375 + double(i / 35) * 5.25;
+      out << ox << ',' << oy << (flat ? ",0,1,0,0\n" : ",10,0,0,-1\n");
+      for (int y = 0; y < 120; ++y)
+        for (int x = 0; x < 120; ++x) {
+          // Distance to the ray's line: across it in the plane (flat: along x) or to the vertical
+          // through (ox, oy).
+          const double dx = flat ? 0.0 : x - ox, dy = y - oy;
+          expected_rows += dx * dx + dy * dy <= radius * radius;
+        }
+    }
+  }
+  const std::string args = " query --cloud grid.xyz --rays rays.csv --radius 2.5";
+  ASSERT_EQ(run(kBin + args + " -q --out one.csv").code, 0);
+  const std::string csv = bytes(dir_ / "one.csv");
+  EXPECT_EQ(std::uint64_t(std::count(csv.begin(), csv.end(), '\n')), expected_rows + 1);
+  EXPECT_GT(expected_rows, 3 * 5 * 120u);
+  // Rank 0 computes nothing and rank 1 asks for one run at a time: a reply per block, not per ray.
+  const CommandResult two = run(mpirun(2, false) + kBin + args + " --threads 1 --out two.csv");
+  ASSERT_EQ(two.code, 0) << two.out;
+  expect_same_file(dir_ / "one.csv", dir_ / "two.csv");
+  const auto [messages, results] = traffic_of_two_ranks(two.out);
+  EXPECT_EQ(messages / 2 - 1, (rays + 255) / 256) << two.out;
+  EXPECT_EQ(results, rays * 8 + expected_rows * 32) << two.out;
   // Batches of 2 runs over 3 ranks (the root computing none).
   const CommandResult three = run(mpirun(3, false) + kBin + args + " -q --threads 2 --out three.csv");
   ASSERT_EQ(three.code, 0) << three.out;

@@ -40,8 +40,9 @@ struct QueryJobOptions {
   /// header once the cloud and index are ready, then the rows of each run of rays once it and the
   /// runs before it are answered, one call at a time, in ray order. Only the runs in flight are
   /// held: at most 2 x threads runs, each up to 256 rays and about 16,384 results by the bound of
-  /// `query` (--k, the points), one ray at least. With a distributor, only the root writes. An
-  /// exception it throws (a failed write) ends the job.
+  /// `query` (--k, the points; with a finite radius or t interval the most results of a sample of
+  /// the rays), one ray at least. With a distributor, only the root writes. An exception it throws
+  /// (a failed write) ends the job.
   std::function<void(std::string_view)> csv;
   /// threads; progress: a bar over the blocks of 256 rays answered; log: the read and the index
   /// build (their sizes and seconds), COPC nodes decoded
