@@ -191,10 +191,9 @@ void QueueDistributor::run(const WorkStage& stage) {
       std::memcpy(head, buf.data(), sizeof head);
       if (head[0] != seq || head[1] > stage.items || head[2] > stage.items - head[1])
         throw std::runtime_error("MPI work queue: bad request from rank " + std::to_string(src));
-      if (head[2] > 0) {
-        traffic_.result_bytes += buf.size() - sizeof head;
-        stage.unpack(head[1], head[2], std::span<const std::byte>(buf).subspan(sizeof head));
-      }
+      // The next batch is assigned before the results are unpacked, so that the worker computes it
+      // while the root stores these (the query's unpack renders them as CSV text, which would
+      // otherwise hold the worker for as long).
       std::uint64_t a[3] = {seq, 0, 0};
       a[2] = take(std::max<std::uint64_t>(1, head[3]), a[1]);
       MPI_Send(a, int(sizeof a), MPI_BYTE, src, tassign, MPI_COMM_WORLD);
@@ -203,6 +202,10 @@ void QueueDistributor::run(const WorkStage& stage) {
       if (a[2] == 0) {
         finished[std::size_t(src)] = 1;
         --open;
+      }
+      if (head[2] > 0) {
+        traffic_.result_bytes += buf.size() - sizeof head;
+        stage.unpack(head[1], head[2], std::span<const std::byte>(buf).subspan(sizeof head));
       }
     }
   } catch (...) {
