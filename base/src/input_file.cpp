@@ -16,9 +16,15 @@ namespace rayscan {
 
 namespace {
 
-[[noreturn]] void refuse_input(const std::filesystem::path& path, const std::string& why) {
-  throw InputFileError(one_line(path.string()) + ": " + why);
+/// `error_number`: the errno of a failed open(2) or stat(2), EISDIR for a directory, else 0
+/// (InputFileError::error_number).
+[[noreturn]] void refuse_input(const std::filesystem::path& path, const std::string& why, int error_number = 0) {
+  throw InputFileError(one_line(path.string()) + ": " + why, path, error_number);
 }
+
+/// The errno a regular-file-only open gives mode `m`: EISDIR for a directory (what open(2) for
+/// writing and Python's open() say), else 0 (refused by rule).
+int not_regular_errno(mode_t m) { return S_ISDIR(m) ? EISDIR : 0; }
 
 std::string not_regular(mode_t m) {
   return "is " + detail::file_kind_name(m) + ", not a regular file (rayscan reads regular files only)";
@@ -49,19 +55,19 @@ InputFile::InputFile(const std::filesystem::path& path) : path_(path) {
   fd_ = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
   if (fd_ < 0) {
     const int e = errno;
-    refuse_input(path, std::string("cannot open file: ") + std::strerror(e));
+    refuse_input(path, std::string("cannot open file: ") + std::strerror(e), e);
   }
   struct stat st {};
   if (::fstat(fd_, &st) != 0) {
     const int e = errno;
     ::close(fd_);
     fd_ = -1;
-    refuse_input(path, std::string("cannot stat file: ") + std::strerror(e));
+    refuse_input(path, std::string("cannot stat file: ") + std::strerror(e), e);
   }
   if (!S_ISREG(st.st_mode)) {
     ::close(fd_);
     fd_ = -1;
-    refuse_input(path, not_regular(st.st_mode));
+    refuse_input(path, not_regular(st.st_mode), not_regular_errno(st.st_mode));
   }
   const int fl = ::fcntl(fd_, F_GETFL);
   if (fl >= 0) ::fcntl(fd_, F_SETFL, fl & ~O_NONBLOCK);
@@ -92,9 +98,10 @@ void require_regular_file(const std::filesystem::path& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) {
     const int e = errno;
-    refuse_input(path, e == ENOENT ? std::string("no such file") : std::string("cannot stat file: ") + std::strerror(e));
+    refuse_input(path, e == ENOENT ? std::string("no such file") : std::string("cannot stat file: ") + std::strerror(e),
+                 e);
   }
-  if (!S_ISREG(st.st_mode)) refuse_input(path, not_regular(st.st_mode));
+  if (!S_ISREG(st.st_mode)) refuse_input(path, not_regular(st.st_mode), not_regular_errno(st.st_mode));
 }
 
 std::string read_text_file(const std::filesystem::path& path, std::uint64_t cap) {

@@ -41,11 +41,12 @@ docs/python.md):
   * Bad arguments raise ValueError (a value out of range: capacity=2**70, seed=-1, height=nan, a
     file name with a NUL byte) or TypeError (a value of the wrong type: None, a float or str where
     an integer is expected, a str where a number is, a list of numbers for attribute names). A
-    file that cannot be opened (missing, unreadable, a directory) raises OSError, and so does a
-    malformed point cloud, index, image or weather file; a malformed scene, camera or observer
-    file (JSON or CSV content) raises ValueError, like a bad option. Each carries the C++
-    library's one-line message naming the argument (or file, byte offset, row, JSON pointer) and
-    what was expected.
+    file that cannot be opened (missing, unreadable, a directory) raises the OSError subclass
+    open() raises for its errno (FileNotFoundError, PermissionError, IsADirectoryError; errno
+    and filename set), a malformed point cloud, index, image or weather file OSError; a
+    malformed scene, camera or observer file (JSON or CSV content) raises ValueError, like a bad
+    option. Each carries the C++ library's one-line message naming the argument (or file, byte
+    offset, row, JSON pointer) and what was expected.
 """
 
 from . import _rayscan
@@ -77,8 +78,8 @@ def read(path, attributes=None):
     Returns a PointCloud whose arrays (.xyz (N, 3) float64, .rgb (N, 3) uint16, .intensity,
     .classification, .gps_time, .normals, .scalars, .crs) are views of the reader's memory.
     Raises FileNotFoundError for a missing file (errno ENOENT, filename set, as open() raises
-    it; PermissionError, NotADirectoryError likewise), OSError for a malformed file (the reader's
-    one-line message).
+    it; IsADirectoryError, PermissionError, NotADirectoryError likewise, the library's one-line
+    message as the note), OSError for a malformed file (the reader's one-line message).
     """
     return _rayscan._read(path, attributes)
 
@@ -123,9 +124,11 @@ def open(path, cache="2G"):  # noqa: A001 - rayscan.open, like gzip.open
     memory. Returns a Site with the index classes' queries (ray_query, knn, radius, box)
     answering with the points' original indices, except for an index file built without ids
     (`rayscan index` without `--attributes id`), which answers with index slots (depth-first node
-    order): Site.has_ids says which. Its queries may run from several threads.
-    Raises OSError for a missing or malformed file, ValueError for a bad cache size, TypeError
-    for a path or cache of another type.
+    order): Site.has_ids says which. Its queries may run from several threads. Like gzip.open's
+    file, the Site has close() and is a context manager (`with rayscan.open(path) as site:`).
+    Raises FileNotFoundError for a missing file (the OSError subclass open() raises for the
+    errno: IsADirectoryError, PermissionError, ...), OSError for a malformed file, ValueError for
+    a bad cache size, TypeError for a path or cache of another type.
     """
     return Site(path, cache)
 
@@ -241,12 +244,30 @@ class Site(_QueriesMixin, _rayscan._Site):
     indices are the points' original order (the sources' order), except on an index file built
     without ids (`rayscan index` without `--attributes id`): there they are index slots
     (depth-first node order). .has_ids is True when they are the original order. Queries may run
-    from several Python threads at once (each releases the GIL)."""
+    from several Python threads at once (each releases the GIL).
+
+    close() releases the file's mapping, a COPC file's decoded nodes or the points read (once the
+    queries running in other threads have ended); a query, len() or .storage after it raises
+    ValueError("I/O operation on closed site"), as a closed file does; .closed says which. A
+    Site is a context manager, closed on leaving the `with` block:
+
+        with rayscan.open("site.rsi") as site:
+            hits = site.ray_query(origins, directions, k=1, radius=0.5)
+    """
 
     def __init__(self, path, cache="2G"):
         super().__init__(path, cache)
 
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
+
     def __repr__(self):
+        if self.closed:
+            return f"<rayscan.Site {self.path}: closed>"
         return f"<rayscan.Site {self.path}: {len(self)} points, storage={self.storage}>"
 
 

@@ -4,6 +4,8 @@
 #include "rayscan/base/input_file.hpp"
 #include "rayscan/octree/ray_query.hpp"
 
+#include <cstring>
+
 namespace rayscan::python {
 
 Vec3Rows as_vec3_rows(py::handle obj, const std::string& name, bool allow_single) {
@@ -127,6 +129,18 @@ std::string input_path_arg(py::handle v, const char* name) {
   std::string path = path_arg(v, name);
   const InputFile probe(path);  // InputFileError (OSError, module.cpp) when it cannot be opened
   return path;
+}
+
+py::object os_error(int err, const std::string& path, const std::string& detail) {
+  // OSError(errno, strerror, filename) constructs the subclass for errno.
+  py::object e = py::reinterpret_borrow<py::object>(PyExc_OSError)(err, std::strerror(err), path);
+  if (!detail.empty() && py::hasattr(e, "add_note")) e.attr("add_note")(detail);
+  return e;
+}
+
+void set_os_error(int err, const std::string& path, const std::string& detail) {
+  const py::object e = os_error(err, path, detail);
+  PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(e.ptr())), e.ptr());
 }
 
 std::vector<std::string> names_arg(py::handle v, const char* name) {

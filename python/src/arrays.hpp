@@ -126,10 +126,22 @@ std::string path_arg(py::handle v, const char* name);
 
 /// An input file name argument: path_arg, then the file opened as the library's input policy
 /// opens it (rayscan/base/input_file.hpp: an existing, readable regular file) and closed again.
-/// A file that cannot be opened raises OSError "<path>: cannot open file: No such file or
-/// directory" here, where the job behind a scene, camera, observer, image or weather file would
-/// report it inside a content error (ValueError) or a RuntimeError.
+/// A file that cannot be opened raises, here, the OSError subclass of its errno (os_error:
+/// FileNotFoundError, IsADirectoryError, ...; a plain OSError for a refusal by rule, a FIFO),
+/// with the message "<path>: cannot open file: No such file or directory" (module.cpp), where the
+/// job behind a scene, camera, observer, image or weather file would report it inside a content
+/// error (ValueError) or a RuntimeError.
 std::string input_path_arg(py::handle v, const char* name);
+
+/// The OSError subclass Python's open() raises for `err` (FileNotFoundError for ENOENT,
+/// IsADirectoryError, PermissionError, OSError with errno ENOSPC for a full disk, ...) with errno,
+/// strerror and filename `path` set, as open() sets them; `detail`, the library's one-line
+/// message, when not empty, is added as a note (PEP 678, Python 3.11+), which a traceback prints.
+py::object os_error(int err, const std::string& path, const std::string& detail = {});
+
+/// Sets the exception os_error(err, path, detail) as the Python error (an exception translator's
+/// way to raise it).
+void set_os_error(int err, const std::string& path, const std::string& detail = {});
 
 /// A list of names: one str, or an iterable of str (list, tuple). Raises TypeError "<name> must be
 /// a str or a list of str, got a list holding int (item 0)".

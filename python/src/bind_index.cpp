@@ -5,6 +5,7 @@
 #include "arrays.hpp"
 #include "bindings.hpp"
 
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/base/list_text.hpp"
 #include "rayscan/base/threads.hpp"
 #include "rayscan/octree/any_index.hpp"
@@ -13,15 +14,18 @@
 
 #include <pybind11/stl.h>
 #include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <memory>
 #include <mutex>
-#include <shared_mutex>
-#include <atomic>
-#include <type_traits>
 #include <optional>
+#include <shared_mutex>
+#include <type_traits>
 
 namespace rayscan::python {
 
@@ -41,19 +45,28 @@ struct PyIndex {
   void after_query() const {}
 };
 
+/// The message of a closed Site's use, as a closed file's ("I/O operation on closed file").
+constexpr const char* kClosedSite = "I/O operation on closed site";
+
 /// The object behind rayscan.Site (rayscan.open): an index file mapped, a COPC file's hierarchy,
-/// or another point file read and indexed in memory (Site::open).
+/// or another point file read and indexed in memory (Site::open); empty once closed (close()
+/// releases the mapping, the decoded nodes or the points, and every later use raises ValueError).
 /// Queries from several Python threads may run at once (each releases the GIL): each holds
 /// `queries` shared while it runs, and the trim of a COPC file's node cache, which must not run
-/// during a query (CopcIndex::trim_cache), takes it exclusively. A trim that finds another
-/// thread's query running stays pending and is done by the next query part to end alone, so the
-/// cache returns to its budget as soon as the queries pause.
+/// during a query (CopcIndex::trim_cache), takes it exclusively, as close() does. A trim that
+/// finds another thread's query running stays pending and is done by the next query part to end
+/// alone, so the cache returns to its budget as soon as the queries pause.
 struct PySite {
-  Site site;
+  std::optional<Site> site;
   std::string path;
   std::unique_ptr<std::shared_mutex> queries = std::make_unique<std::shared_mutex>();
   std::unique_ptr<std::atomic<bool>> trim_pending = std::make_unique<std::atomic<bool>>(false);
 
+  /// The open site, for a use with the GIL held; ValueError kClosedSite once closed.
+  const Site& open_site() const {
+    if (!site) throw py::value_error(kClosedSite);
+    return *site;
+  }
   template <class F>
   decltype(auto) visit(F&& f) const {
     struct Done {
@@ -61,11 +74,12 @@ struct PySite {
       ~Done() { s.trim_if_pending(); }
     } done{*this};
     std::shared_lock running(*queries);
-    return site.visit(std::forward<F>(f));
+    if (!site) throw py::value_error(kClosedSite);  // closed by another thread since the call began
+    return site->visit(std::forward<F>(f));
   }
   /// A COPC file keeps the nodes its queries decoded: trimmed to the cache budget after each call.
   void after_query() const {
-    if (site.copc()) {
+    if (site && site->copc()) {
       trim_pending->store(true);
       trim_if_pending();
     }
@@ -77,10 +91,17 @@ struct PySite {
     std::unique_lock alone(*queries, std::try_to_lock);
     if (!alone || !trim_pending->exchange(false)) return;
     try {
-      if (io::CopcIndex* c = site.copc()) c->trim_cache();
+      if (io::CopcIndex* c = site ? site->copc() : nullptr) c->trim_cache();
     } catch (...) {
       trim_pending->store(true);
     }
+  }
+  /// Releases the site once the queries running in other threads have ended (waiting for them
+  /// without the GIL, which they take back between chunks). Closing twice is allowed, as for files.
+  void close() {
+    py::gil_scoped_release nogil;
+    std::unique_lock alone(*queries);
+    site.reset();
   }
 };
 
@@ -134,34 +155,55 @@ PyIndex build(py::handle xyz, const IndexOptions& opts) {
   return out;
 }
 
-/// Run f() on `threads` worker threads (0 = all cores) in its own TBB arena; the results do not
-/// depend on the thread count (each query is answered alone).
-template <class F>
-auto with_threads(unsigned threads, F&& f) {
-  if (threads == 0) return f();
-  tbb::task_arena arena(static_cast<int>(resolve_threads(threads)));  // (the jobs' rule: capped at the cores)
-  return arena.execute(std::forward<F>(f));
-}
+/// How long one chunk of a batch runs between two looks for Ctrl-C, in seconds: a batch answers
+/// an interruption within about this (or within its slowest query, when one query takes longer),
+/// and re-entering the interpreter and the chunk's last, unbalanced moment cost a few percent of it.
+constexpr double kChunkSeconds = 0.1;
 
-/// Queries per call of a batch between two checks for Ctrl-C (KeyboardInterrupt): a second or
-/// less of work on a large site, a negligible share of it spent re-entering the interpreter.
-constexpr std::size_t kInterruptChunk = std::size_t{1} << 15;
+/// Pieces per thread a chunk is cut into (work stealing balances them): the threads idle at a
+/// chunk's end for about one piece at most, 1/kPiecesPerThread of the chunk.
+constexpr std::size_t kPiecesPerThread = 8;
 
-/// A batch of n queries answered in chunks of kInterruptChunk, f(first, count) returning one
-/// vector of results per query of the chunk, on `threads` threads; between chunks the GIL is
-/// taken back briefly to look for a pending signal, so Ctrl-C in a notebook stops a long batch
-/// (raised as KeyboardInterrupt) instead of waiting for its end. The exception carries a note
-/// (PEP 678, Python 3.11+) "interrupted after D of N queries": how much of the batch ran, its
-/// answers dropped with the exception. Call with the GIL released.
+/// A batch of n queries, f(first, count) returning one vector of results per query of that range,
+/// answered on `threads` threads (0 = all cores; in its own TBB arena otherwise, the jobs' rule
+/// capping it at the cores) in chunks sized by time: the first holds one query per thread, each
+/// next one as many as the last one's pace fits in kChunkSeconds (at most twice the last; a query
+/// can cost microseconds or, returning thousands of points, milliseconds). A chunk is cut into
+/// pieces spread over the threads, so that a chunk of a few slow queries still runs on all of them
+/// (the batch API's own grain would run it on one). Between chunks the GIL is taken back briefly
+/// to look for a pending signal, so Ctrl-C in a notebook stops a long batch (raised as
+/// KeyboardInterrupt) instead of waiting for its end. The exception carries a note (PEP 678,
+/// Python 3.11+) "interrupted after D of N queries": how much of the batch ran, its answers
+/// dropped with the exception. The answers do not depend on the chunks or pieces (each query is
+/// answered alone). Call with the GIL released.
 template <class F>
 auto interruptible_batch(std::size_t n, unsigned threads, F&& f) {
-  decltype(f(std::size_t{0}, std::size_t{0})) all;
-  all.reserve(n);
-  std::size_t first = 0;
-  do {
-    const std::size_t count = std::min(kInterruptChunk, n - first);
-    auto part = with_threads(threads, [&] { return f(first, count); });
-    for (auto& r : part) all.push_back(std::move(r));
+  decltype(f(std::size_t{0}, std::size_t{0})) all(n);
+  if (n == 0) {
+    (void)f(0, 0);  // no query, but the batch API's checks of the options (a bad radius) still run
+    return all;
+  }
+  std::optional<tbb::task_arena> arena;
+  if (threads != 0) arena.emplace(static_cast<int>(resolve_threads(threads)));
+  const auto width = static_cast<std::size_t>(
+      std::max(1, arena ? arena->max_concurrency() : tbb::this_task_arena::max_concurrency()));
+  std::size_t first = 0, count = width;
+  while (first < n) {
+    count = std::min(count, n - first);
+    const std::size_t piece = std::max<std::size_t>(1, count / (width * kPiecesPerThread));
+    const auto chunk = [&] {
+      tbb::parallel_for(
+          tbb::blocked_range<std::size_t>(first, first + count, piece),
+          [&](const tbb::blocked_range<std::size_t>& r) {
+            auto part = f(r.begin(), r.size());
+            std::move(part.begin(), part.end(), all.begin() + static_cast<std::ptrdiff_t>(r.begin()));
+          },
+          tbb::simple_partitioner());
+    };
+    const auto t0 = std::chrono::steady_clock::now();
+    if (arena) arena->execute(chunk);
+    else chunk();
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     first += count;
     if (first < n) {
       py::gil_scoped_acquire gil;
@@ -173,7 +215,9 @@ auto interruptible_batch(std::size_t n, unsigned threads, F&& f) {
         throw e;
       }
     }
-  } while (first < n);
+    const double grow = seconds > 0.0 ? std::min(2.0, kChunkSeconds / seconds) : 2.0;
+    count = std::max(width, static_cast<std::size_t>(static_cast<double>(count) * grow));
+  }
   return all;
 }
 
@@ -284,6 +328,11 @@ py::dict knn(const Index& self, py::handle points, const py::object& k, py::hand
   std::vector<double> dist;
   {
     py::gil_scoped_release nogil;
+    // knn_query_batch's refusal in its words, numbering the caller's row: the batch runs in pieces,
+    // whose own numbering starts again at 0. After a bad radius, which the batch refuses first.
+    for (std::size_t i = 0; radius >= 0.0 && i < p.rows.size(); ++i)
+      if (!std::isfinite(p.rows[i].x) || !std::isfinite(p.rows[i].y) || !std::isfinite(p.rows[i].z))
+        throw std::invalid_argument("knn query: query point " + std::to_string(i) + " is not finite");
     const AfterQuery<std::remove_cvref_t<decltype(self)>> trim_after{self};
     const auto res = interruptible_batch(p.rows.size(), nthreads, [&](std::size_t first, std::size_t count) {
       const std::span<const Vec3> part(p.rows.data() + first, count);
@@ -457,22 +506,29 @@ index` without `--attributes id`), whose results are index slots: has_ids says w
              const std::string p = path_arg(path, "path");
              SiteOptions options;
              options.copc_cache_bytes = cache_arg(cache);
+             const InputFile probe(p);  // an OSError for its errno (module.cpp) when it cannot be opened
              std::optional<Site> s;
              {
                py::gil_scoped_release nogil;
                s.emplace(Site::open(p, options));
              }
-             return PySite{std::move(*s), p};
+             return PySite{std::move(s), p};
            }),
            py::arg("path"), py::arg("cache") = "2G");
   def_queries(site);
-  site.def("__len__", [](const PySite& s) { return s.site.size(); })
-      .def_property_readonly("storage", [](const PySite& s) { return storage_name(s.site.storage()); },
+  site.def("__len__", [](const PySite& s) { return s.open_site().size(); })
+      .def_property_readonly("storage", [](const PySite& s) { return storage_name(s.open_site().storage()); },
                              "\"index_file\" (.rsi, mapped), \"copc\" (in place) or \"memory\" (read and indexed).")
       .def_property_readonly("path", [](const PySite& s) { return s.path; }, "The file name given to rayscan.open.")
+      .def_property_readonly("closed", [](const PySite& s) { return !s.site.has_value(); },
+                             "True once close() has run.")
+      .def("close", &PySite::close,
+           "Release the file's mapping, a COPC file's decoded nodes or the points read, once the queries "
+           "running in other threads have ended; every later query or size raises ValueError. Closing a "
+           "closed site does nothing.")
       .def_property_readonly("has_ids",
                              [](const PySite& s) {
-                               const io::MappedIndex* m = s.site.index_file();
+                               const io::MappedIndex* m = s.open_site().index_file();
                                return m == nullptr || m->has_ids();
                              },
                              "True when query results name points by their original ids (their number in the "

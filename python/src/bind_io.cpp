@@ -7,6 +7,7 @@
 #include "cloud.hpp"
 
 #include "rayscan/base/atomic_file.hpp"
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/base/interrupt.hpp"
 #include "rayscan/io/crs.hpp"
 #include "rayscan/io/field_names.hpp"
@@ -15,13 +16,8 @@
 #include <pybind11/eval.h>
 #include <pybind11/stl.h>
 
-#include <sys/stat.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <array>
-#include <cerrno>
-#include <cstring>
 #include <memory>
 #include <optional>
 #include <system_error>
@@ -74,28 +70,10 @@ bool named_core_fields(const std::string& path) {
   }
 }
 
-/// Raises the OSError subclass Python's open() raises for `err` (FileNotFoundError for ENOENT,
-/// PermissionError, NotADirectoryError, OSError with errno ENOSPC for a full disk, ...) with errno,
-/// strerror and filename `path` set, as open() does; `detail`, the library's one-line message,
-/// when not empty, is added as a note (PEP 678, Python 3.11+), which a traceback prints.
+/// Raises os_error(err, path, detail).
 [[noreturn]] void raise_os_error(int err, const std::string& path, const std::string& detail = {}) {
-  // OSError(errno, strerror, filename) constructs the subclass for errno.
-  const py::object e = py::reinterpret_borrow<py::object>(PyExc_OSError)(err, std::strerror(err), path);
-  if (!detail.empty() && py::hasattr(e, "add_note")) e.attr("add_note")(detail);
-  PyErr_SetObject(reinterpret_cast<PyObject*>(Py_TYPE(e.ptr())), e.ptr());
+  set_os_error(err, path, detail);
   throw py::error_already_set();
-}
-
-/// When `path` is missing or unreadable, raises the OSError subclass Python's open() raises for it
-/// (raise_os_error); returns otherwise. The reader reports a file it cannot open as a message only
-/// (OSError without errno), so the reason is asked again: stat(2) for the path, access(2) for
-/// read permission.
-void raise_os_error_of(const std::string& path) {
-  struct stat st {};
-  int err = 0;
-  if (::stat(path.c_str(), &st) != 0) err = errno;
-  else if (S_ISREG(st.st_mode) && ::access(path.c_str(), R_OK) != 0) err = errno;
-  if (err != 0) raise_os_error(err, path);
 }
 
 PyCloud read(const std::string& path, const py::object& attributes) {
@@ -116,8 +94,12 @@ PyCloud read(const std::string& path, const py::object& attributes) {
     py::gil_scoped_release nogil;
     c.cloud = io::read_point_cloud(path, opts, &c.info);
   } catch (const std::exception&) {
-    raise_os_error_of(path);
-    throw;  // a file that opens (or a directory, a FIFO): the library's error and message
+    // The reader reports a file it cannot open by its message alone (its FormatError), and may
+    // refuse the name first (a directory's "unknown point cloud extension ''"): asked again
+    // through the input policy, a file that cannot be opened raises the OSError subclass of its
+    // errno (module.cpp: FileNotFoundError, IsADirectoryError, ...).
+    const InputFile probe(path);
+    throw;  // a file that opens (or a FIFO): the library's error and message
   }
   if (keep) {
     for (const std::string& n : *keep)

@@ -2,8 +2,8 @@
 // options struct in, one result out; jobs::run_render, run_visibility, run_solar, run_compare)
 // with NumPy arrays out. A cloud is a file name, a rayscan.PointCloud (passed to the job in
 // memory, not copied) or an (N, 3) array (cloud_arg). Each call converts its arguments with the
-// GIL held, then runs the job without it: compare on the calling thread, the others on a worker
-// thread while the calling thread watches for Ctrl-C (run_interruptible). rayscan.dask checks the
+// GIL held, then runs the job without it on a worker thread while the calling thread watches for
+// Ctrl-C (run_interruptible). rayscan.dask checks the
 // options of visibility and solar at its call through the same conversions and the jobs' own
 // checks (jobs::check_options).
 #include "arrays.hpp"
@@ -12,6 +12,7 @@
 
 #include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/base/byte_size.hpp"
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/base/job.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/jobs/compare.hpp"
@@ -62,19 +63,25 @@ py::array_t<std::int64_t> point_ids(const std::vector<std::uint32_t>& v, std::ve
   return to_numpy(std::move(out), std::move(shape));
 }
 
-/// Runs `f` (with the GIL held: `f` releases it for the job). The image and EPW readers report a
-/// file they cannot read or decode as a std::runtime_error "<file>: ..."; one naming a file of
-/// `files` ("" = none) raises OSError, as the point readers' errors do (module.cpp). Anything else
+/// Runs `f` (with the GIL held: `f` releases it for the job). The point, image and EPW readers
+/// report a file they cannot open, read or decode as a std::runtime_error "<file>: ..." (the point
+/// readers' FormatError included), by its message alone; one naming a file of `files` ("" = none)
+/// is asked again through the input policy, so that a file that cannot be opened raises the
+/// OSError subclass of its errno (FileNotFoundError, IsADirectoryError, ...; module.cpp), and
+/// raises OSError otherwise (a malformed file), as the point readers' errors do. Anything else
 /// passes unchanged.
 template <class F>
 void run_reading_files(F&& f, std::initializer_list<std::string> files) {
   try {
     f();
+  } catch (const InputFileError&) {
+    throw;  // module.cpp's translation
   } catch (const std::runtime_error& e) {
     const std::string_view what = e.what();
     for (const std::string& file : files)
       if (!file.empty() && what.size() > file.size() && what.substr(0, file.size()) == file &&
           what.substr(file.size(), 2) == ": ") {
+        const InputFile probe(file);  // InputFileError when it cannot be opened
         PyErr_SetString(PyExc_OSError, e.what());
         throw py::error_already_set();
       }
@@ -199,11 +206,15 @@ bool call_lacks(std::string_view job, std::string_view field) {
 
 /// The text `text` that follows option `name` in a job's message with the library's word for the
 /// option's automatic value written as the call's: a radius given nullopt is "auto" on the
-/// command line and None here ("radius: expected a finite number > 0 (world units) or None").
+/// command line and None here ("radius: expected a finite number > 0 (world units) or None",
+/// "radius None (auto) needs at least two distinct points; give a number").
 std::string call_words(const OptionName& name, std::string text) {
   static constexpr std::string_view kAuto = " or auto", kNone = " or None";
-  if (name.field == "radius")
+  static constexpr std::string_view kAutoFirst = " auto ", kNoneFirst = " None (auto) ";
+  if (name.field == "radius") {
     if (const std::size_t at = text.find(kAuto); at != std::string::npos) text.replace(at, kAuto.size(), kNone);
+    if (text.starts_with(kAutoFirst)) text.replace(0, kAutoFirst.size(), kNoneFirst);
+  }
   return text;
 }
 
@@ -251,6 +262,25 @@ void run_naming_keywords(std::string_view job, F&& f, Edit edit = [](std::string
     f();
   } catch (const OptionError& e) {
     throw std::invalid_argument(edit(keyword_message(job, e)));
+  }
+}
+
+/// The jobs' name of points handed to them in memory, as their messages begin ("(memory): the
+/// point cloud has no points": jobs/src/cloud_site.cpp, quick_look.cpp).
+constexpr std::string_view kMemoryLabel = "(memory): ";
+
+/// Runs `f` and rethrows a std::invalid_argument whose message names the points by the jobs' label
+/// for points in memory (kMemoryLabel) with the keyword `name` that gave them instead ("cloud: the
+/// point cloud has no points"), when `in_memory` (a PointCloud or an array was given). Other
+/// exceptions pass unchanged.
+template <class F>
+void run_naming_points(std::string_view name, bool in_memory, F&& f) {
+  try {
+    f();
+  } catch (const std::invalid_argument& e) {
+    const std::string_view m = e.what();
+    if (!in_memory || !m.starts_with(kMemoryLabel)) throw;
+    throw std::invalid_argument(std::string(name) + ": " + std::string(m.substr(kMemoryLabel.size())));
   }
 }
 
@@ -344,17 +374,26 @@ py::dict render(py::handle scene, const std::string& scene_json, py::handle clou
   const auto summary = [&](const std::filesystem::path& f) { return points.summary(f); };
   const bool given = points.arg.has_value();
   jobs::RenderJobResult r;
-  run_interruptible(o.control, "render", [&] {
-    if (points.arg) require_finite_points(*points.arg, quick_look_in_memory ? "scene" : "cloud");
-    run_naming_keywords("render", [&] {
-      const jobs::ResolvedScene rs = quick_look_in_memory ? jobs::resolve_quick_look(summary({}), ov)
-                                     : from_text ? jobs::resolve_scene_text(scene_json, "scene dict", ov, summary, given)
-                                                 : jobs::resolve_scene(scene_file, ov, summary, given);
-      o.scene = rs.scene;
-      points.attach(o);
-      r = jobs::run_render(o);
-    });
-  });
+  const char* points_name = quick_look_in_memory ? "scene" : "cloud";
+  const std::string cloud_file = given ? points.arg->path : std::string();
+  run_reading_files(
+      [&] {
+        run_interruptible(o.control, "render", [&] {
+          if (points.arg) require_finite_points(*points.arg, points_name);
+          run_naming_points(points_name, given && points.arg->points, [&] {
+            run_naming_keywords("render", [&] {
+              const jobs::ResolvedScene rs =
+                  quick_look_in_memory ? jobs::resolve_quick_look(summary({}), ov)
+                  : from_text          ? jobs::resolve_scene_text(scene_json, "scene dict", ov, summary, given)
+                                       : jobs::resolve_scene(scene_file, ov, summary, given);
+              o.scene = rs.scene;
+              points.attach(o);
+              r = jobs::run_render(o);
+            });
+          });
+        });
+      },
+      {cloud_file});
   render::Framebuffer& fb = r.image;
   const auto h = static_cast<py::ssize_t>(fb.height), w = static_cast<py::ssize_t>(fb.width);
   py::dict out;
@@ -413,15 +452,21 @@ py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::han
     throw py::value_error("cloud '" + path + "': expected a point cloud file (LAS, LAZ, COPC, PLY, PCD, text, .rsi)");
   const auto summary = [&](const std::filesystem::path& f) { return points.summary(f); };
   jobs::OrthoMapJobResult r;
-  run_interruptible(o.render.control, "ortho_map", [&] {
-    require_finite_points(*points.arg, "cloud");
-    run_naming_keywords("ortho_map", [&] {
-      o.render.scene = path.empty() ? jobs::resolve_quick_look(summary({}), ov).scene
-                                    : jobs::resolve_scene(path, ov, summary).scene;
-      points.attach(o.render);
-      r = jobs::run_ortho_map(o);
-    });
-  });
+  run_reading_files(
+      [&] {
+        run_interruptible(o.render.control, "ortho_map", [&] {
+          require_finite_points(*points.arg, "cloud");
+          run_naming_points("cloud", path.empty(), [&] {
+            run_naming_keywords("ortho_map", [&] {
+              o.render.scene = path.empty() ? jobs::resolve_quick_look(summary({}), ov).scene
+                                            : jobs::resolve_scene(path, ov, summary).scene;
+              points.attach(o.render);
+              r = jobs::run_ortho_map(o);
+            });
+          });
+        });
+      },
+      {path});
   const analysis::GridSpec& g = r.map->grid;
   const auto h = static_cast<py::ssize_t>(g.rows), w = static_cast<py::ssize_t>(g.cols);
   py::dict out;
@@ -498,12 +543,9 @@ py::dict compare(const py::object& a, const py::object& b, py::handle channels,
   o.fail.min_ssim = opt_float_arg(fail_ssim, "fail_ssim", "None or a number (SSIM, at most 1)");
   o.warn.threshold = opt_float_arg(warn, "warn", "None or a number (absolute error per sample)");
   jobs::CompareJobResult r;
-  run_reading_files(
-      [&] {
-        py::gil_scoped_release nogil;
-        r = jobs::run_compare(o);
-      },
-      {o.reference_file, o.image_file});
+  JobControl control;  // compare has no check of a cancel flag: Ctrl-C is raised once it ends
+  run_reading_files([&] { run_interruptible(control, "compare", [&] { r = jobs::run_compare(o); }); },
+                    {o.reference_file, o.image_file});
   const analysis::CompareMetrics& m = r.metrics;
   py::dict d;
   d["width"] = m.width;
@@ -615,11 +657,17 @@ py::dict visibility(const py::object& cloud, const py::object& observers, py::ha
   o.cloud = c.points;
   o.cloud_file = c.path;
   jobs::VisibilityJobResult r;
-  run_interruptible(o.control, "visibility", [&] {
-    require_finite_points(c, "cloud");
-    run_naming_keywords("visibility", [&] { r = jobs::run_visibility(o); },
-                        [&](std::string m) { return one_row_number(o.observers, std::move(m)); });
-  });
+  run_reading_files(
+      [&] {
+        run_interruptible(o.control, "visibility", [&] {
+          require_finite_points(c, "cloud");
+          run_naming_points("cloud", c.points != nullptr, [&] {
+            run_naming_keywords("visibility", [&] { r = jobs::run_visibility(o); },
+                                [&](std::string m) { return one_row_number(o.observers, std::move(m)); });
+          });
+        });
+      },
+      {c.path});
   py::dict d;
   for (ScalarField& f : r.cloud.scalars)
     if (f.name == "visible_count" || f.name == "visible_distance" || f.name == "sky_view" ||
@@ -689,10 +737,10 @@ py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::ha
         [&] {
           run_interruptible(o.control, "solar", [&] {
             require_finite_points(c, "cloud");
-            r = jobs::run_solar(o);
+            run_naming_points("cloud", c.points != nullptr, [&] { r = jobs::run_solar(o); });
           });
         },
-        {o.weather.string()});
+        {o.weather.string(), c.path});
   });
   py::dict d;
   // The result fields only: a cloud file's own scalar fields are in r.cloud too.

@@ -1,5 +1,6 @@
 // The `rayscan._rayscan` extension module: the C++ library on NumPy arrays. The public
 // Python API (docstrings, result classes) is the package python/rayscan/__init__.py.
+#include "arrays.hpp"
 #include "bindings.hpp"
 
 #include "rayscan/base/input_file.hpp"
@@ -17,12 +18,18 @@ PYBIND11_MODULE(_rayscan, m) {
   m.doc() = "rayscan C++ core (use the `rayscan` package)";
   m.attr("__version__") = rayscan::version();  // the project version of CMakeLists.txt
   // Library errors keep their one-line messages: bad arguments raise ValueError (pybind11 maps
-  // std::invalid_argument and std::length_error), unreadable or malformed files raise OSError.
+  // std::invalid_argument and std::length_error), unreadable or malformed files raise OSError. A
+  // file that cannot be opened raises the OSError subclass open() raises for its errno
+  // (FileNotFoundError, IsADirectoryError, PermissionError, ...) with errno and filename, the
+  // one-line message its note; one refused by rule (a FIFO, a size cap) a plain OSError.
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const rayscan::InputFileError& e) {  // missing, unreadable, not a regular file
-      PyErr_SetString(PyExc_OSError, e.what());
+      if (e.error_number() != 0)
+        rayscan::python::set_os_error(e.error_number(), e.path().string(), e.what());
+      else
+        PyErr_SetString(PyExc_OSError, e.what());
     } catch (const rayscan::io::FormatError& e) {
       PyErr_SetString(PyExc_OSError, e.what());
     } catch (const rayscan::io::IndexError& e) {

@@ -47,3 +47,41 @@ def test_ctrl_c_stops_a_job_before_its_end(monkeypatch, autzen, name, long_call,
     assert getattr(e, "__notes__", []) == [f"{name} interrupted before its end"], \
         "KeyboardInterrupt without the job's note: raised outside the job, or after its end"
     np.testing.assert_array_equal(short_call(autzen), before)
+
+
+def test_compare_answers_signals_while_it_runs(monkeypatch):
+    # compare runs on a worker thread while the calling thread looks for signals, as the other jobs
+    # do: a Python signal handler, for a signal sent once the call has begun, runs while the
+    # comparison still runs (well before its end), not once it has returned. compare has no check
+    # of a cancel flag of its own, so Ctrl-C's KeyboardInterrupt comes at its end, without a note.
+    import os
+    import signal
+    import threading
+    import time
+    rng = np.random.default_rng(2)
+    ref = rng.random((768, 768, 3), dtype=np.float32)
+    img = ref + np.float32(0.01)
+    handled, entered = [], threading.Event()
+    run = rayscan._rayscan._compare
+
+    def entering(*args):
+        entered.set()
+        return run(*args)
+
+    def send():
+        entered.wait()
+        os.kill(os.getpid(), signal.SIGUSR1)
+
+    previous = signal.signal(signal.SIGUSR1, lambda *_: handled.append(time.monotonic()))
+    monkeypatch.setattr(rayscan._rayscan, "_compare", entering)
+    sender = threading.Thread(target=send)
+    try:
+        sender.start()
+        start = time.monotonic()
+        result = rayscan.compare(ref, img)
+        end = time.monotonic()
+    finally:
+        sender.join()
+        signal.signal(signal.SIGUSR1, previous)
+    assert result["verdict"] == "fail" and len(handled) == 1
+    assert handled[0] - start < 0.5 * (end - start), (handled[0] - start, end - start)

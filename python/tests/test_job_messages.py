@@ -162,3 +162,27 @@ def test_a_non_finite_point_is_named_by_the_callers_row(georeferenced):
     assert message(lambda: rayscan.visibility(pc, sky_rays=4)) == f"cloud: {bad}"
     assert message(lambda: rayscan.solar(pc, at="2024-06-21T20:00", latitude=44.0, longitude=-123.0)) == (
         f"cloud: {bad}")
+
+
+@pytest.mark.parametrize("given", ["PointCloud", "array"])
+def test_points_in_memory_are_named_by_the_keyword_that_gave_them(given):
+    # The jobs name points handed over in memory "(memory)", a name the caller never wrote: a
+    # message about them names the keyword instead, as it names a bad point. And the automatic
+    # radius, which the call asks for with None, is "radius None (auto)".
+    def points(xyz):
+        xyz = np.asarray(xyz, dtype=float).reshape(-1, 3)
+        return rayscan.PointCloud(xyz) if given == "PointCloud" else xyz
+
+    none, one = points([]), points([[1.0, 2.0, 3.0]])
+    assert message(lambda: rayscan.visibility(none, sky_rays=4, radius=1.0)) == "cloud: the point cloud has no points"
+    assert message(lambda: rayscan.solar(none, at="2024-06-21T20:00", latitude=44.0, longitude=-123.0,
+                                         radius=1.0)) == "cloud: the point cloud has no points"
+    quick_look = ("a quick look needs at least 2 distinct points, to size them from their spacing; the cloud has "
+                  "1 point (a scene file with a numeric \"radius\" renders it)")
+    assert message(lambda: rayscan.render(one, width=8, height=8, spp=1)) == f"scene: {quick_look}"
+    assert message(lambda: rayscan.ortho_map(one, 5.0)) == f"cloud: {quick_look}"
+    auto = "radius None (auto) needs at least two distinct points; give a number"
+    assert message(lambda: rayscan.visibility(one, sky_rays=4)) == auto
+    assert message(lambda: rayscan.solar(one, at="2024-06-21T20:00", latitude=44.0, longitude=-123.0)) == auto
+    assert {"cloud", "radius"} <= keywords(rayscan.visibility) & keywords(rayscan.solar)
+    assert "scene" in keywords(rayscan.render) and "cloud" in keywords(rayscan.ortho_map)

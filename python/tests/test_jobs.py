@@ -239,33 +239,50 @@ def test_visibility_refuses_far_observer_coordinates():
                             "(world units), got 1e+160")
 
 
-def test_files_that_cannot_be_opened_raise_oserror(tmp_path):
-    """Whichever argument names it, a missing file or a directory is an OSError with the input
-    policy's message (rayscan/base/input_file.hpp), as for point clouds."""
+def test_files_that_cannot_be_opened_raise_the_oserror_of_their_errno(tmp_path):
+    """Whichever argument names it, a missing file is a FileNotFoundError and a directory an
+    IsADirectoryError, as Python's open() raises them (the errno of the failed open(2), errno.ENOENT
+    / errno.EISDIR, strerror and filename set: one `except FileNotFoundError` for every call), with
+    the input policy's message (rayscan/base/input_file.hpp) as the note, as for point clouds."""
+    import errno
+    import os
     xyz = flat_ground()
     img = np.zeros((4, 4, 3), dtype=np.float32)
     calls = {  # the file's extension, the call naming a file of that name
         "compare reference": (".png", lambda f: rayscan.compare(f, img)),
         "compare image": (".png", lambda f: rayscan.compare(img, f)),
         "render scene": (".json", lambda f: rayscan.render(f)),
+        "render quick look": (".las", lambda f: rayscan.render(f)),
+        "render cloud": (".las", lambda f: rayscan.render({"radius": 0.5}, cloud=f)),
         "render camera": (".json", lambda f: rayscan.render(xyz, camera=f)),
+        "ortho_map cloud": (".las", lambda f: rayscan.ortho_map(f, 1.0)),
         "visibility observers": (".csv", lambda f: rayscan.visibility(xyz, observers=f, radius=0.3)),
         "visibility camera": (".json", lambda f: rayscan.visibility(xyz, observers=[[1.0, 1.0, 2.0]], camera=f)),
         "solar weather": (".epw", lambda f: rayscan.solar(xyz, start="2026-06-21", end="2026-06-21", latitude=48.0,
                                                           longitude=11.0, weather=f, sky_rays=0)),
         "visibility cloud": (".las", lambda f: rayscan.visibility(f, observers=[[1.0, 1.0, 2.0]])),
+        "visibility index": (".rsi", lambda f: rayscan.visibility(f, observers=[[1.0, 1.0, 2.0]])),
+        "solar cloud": (".las", lambda f: rayscan.solar(f, at="2026-06-21T12:00Z", latitude=48.0, longitude=11.0,
+                                                        sky_rays=0)),
+        "open": (".rsi", lambda f: rayscan.open(f)),
+        "open point file": (".laz", lambda f: rayscan.open(f)),
+        "read": (".las", lambda f: rayscan.read(f)),
+        "read without extension": ("", lambda f: rayscan.read(f)),
     }
     for name, (ext, call) in calls.items():
         missing = str(tmp_path / ("missing" + ext))
-        with pytest.raises(OSError) as e:
+        with pytest.raises(FileNotFoundError) as e:
             call(missing)
-        assert str(e.value) == f"{missing}: cannot open file: No such file or directory", (name, str(e.value))
-        folder = tmp_path / ("folder" + ext)
-        folder.mkdir(exist_ok=True)
-        with pytest.raises(OSError) as e:
-            call(str(folder))
-        assert str(e.value) == (f"{folder}: is a directory, not a regular file (rayscan reads regular files "
-                                "only)"), (name, str(e.value))
+        assert (e.value.errno, e.value.strerror, e.value.filename) == (errno.ENOENT, os.strerror(errno.ENOENT),
+                                                                       missing), name
+        assert e.value.__notes__ == [f"{missing}: cannot open file: No such file or directory"], name
+        folder = str(tmp_path / ("folder" + ext))
+        os.makedirs(folder, exist_ok=True)
+        with pytest.raises(IsADirectoryError) as e:
+            call(folder)
+        assert (e.value.errno, e.value.filename) == (errno.EISDIR, folder), name
+        assert e.value.__notes__ == [f"{folder}: is a directory, not a regular file (rayscan reads regular files "
+                                     "only)"], name
 
 
 def test_malformed_files_raise_as_documented(tmp_path):

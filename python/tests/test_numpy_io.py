@@ -538,6 +538,56 @@ def test_open_copc_queries_in_place(data_dir):
     np.testing.assert_array_equal(ra.t, rb.t)
 
 
+def test_site_close_releases_the_file_as_a_closed_file_does(cli, tmp_path, data_dir):
+    # The kernel's list of this process's mappings (/proc/self/maps) holds the index file while
+    # the Site is open and not once it is closed; every later use raises ValueError as a closed
+    # file's does, and closing again does nothing. A Site is a context manager.
+    src = data_dir / "las" / "autzen_trim.las"
+    rsi = tmp_path / "close.rsi"
+    subprocess.run([cli, "index", "-q", "-o", str(rsi), str(src)], check=True)
+
+    def mapped():
+        return str(rsi) in pathlib.Path("/proc/self/maps").read_text()
+
+    q = rayscan.read(src).xyz[:10]
+    with rayscan.open(rsi) as site:
+        assert mapped() and not site.closed and len(site) == 110000
+        assert site.knn(q, k=1).counts.tolist() == [1] * 10
+    assert site.closed and not mapped()
+    for use in (lambda: site.knn(q, k=1), lambda: site.radius(q, 1.0), lambda: site.box(q[0], q[1]),
+                lambda: site.ray_query(q, [0, 0, -1], k=1, radius=1.0), lambda: len(site),
+                lambda: site.storage, lambda: site.has_ids):
+        with pytest.raises(ValueError) as e:
+            use()
+        assert str(e.value) == "I/O operation on closed site"
+    site.close()
+    assert site.path == str(rsi) and repr(site) == f"<rayscan.Site {rsi}: closed>"
+    # A COPC file and a point file read whole close alike.
+    for path in (data_dir / "laz" / "lone-star.copc.laz", src):
+        site = rayscan.open(path)
+        site.knn(q, k=1)
+        site.close()
+        with pytest.raises(ValueError, match="^I/O operation on closed site$"):
+            site.knn(q, k=1)
+
+
+def test_site_close_waits_for_the_queries_of_other_threads(data_dir):
+    # close() from another thread while a batch runs: the batch either ends whole (close waited
+    # for it) or raises the closed site's ValueError, never a crash or a partial answer.
+    from concurrent.futures import ThreadPoolExecutor
+    pc = rayscan.read(data_dir / "las" / "autzen_trim.las")
+    site = rayscan.open(data_dir / "las" / "autzen_trim.las")
+    want = rayscan.Octree(pc).knn(pc.xyz, k=4).indices
+    with ThreadPoolExecutor(1) as pool:
+        running = pool.submit(lambda: site.knn(pc.xyz, k=4, threads=1))
+        site.close()
+        try:
+            np.testing.assert_array_equal(running.result().indices, want)
+        except ValueError as e:
+            assert str(e) == "I/O operation on closed site"
+    assert site.closed
+
+
 def test_open_copc_from_threads_with_a_small_cache(data_dir):
     # Queries from four threads at once on a COPC site with a 1 MiB cache, which is trimmed
     # between the threads' calls (never during one): the answers equal one thread's on an

@@ -341,15 +341,14 @@ def test_empty_batch_broadcasts_against_one_row(uniform_cloud):
 
 
 def test_ctrl_c_stops_a_long_batch(monkeypatch):
-    # A batch of 2^19 rays against 20,000 points by brute force (16 chunks of 32,768 with a check
-    # for a signal between them), interrupted as Ctrl-C would once the call has begun
-    # (sigint_once_entered). KeyboardInterrupt comes after the running chunk, not at the end of the
-    # batch: its note says how many queries ran, a whole number of chunks short of the batch. The
+    # A batch of 2^19 rays against 20,000 points by brute force, interrupted as Ctrl-C would once
+    # the call has begun (sigint_once_entered). KeyboardInterrupt comes after the running chunk,
+    # not at the end of the batch: its note says how many queries ran, short of the batch. The
     # index then answers the next call.
     import re
     rng = np.random.default_rng(3)
     b = rayscan.BruteForce(rng.random((20000, 3)))
-    n, chunk = 1 << 19, 1 << 15
+    n = 1 << 19
     o, d = rng.random((n, 3)), rng.normal(size=(n, 3))
     interrupted = sigint_once_entered(monkeypatch, b, "_ray_query",
                                       lambda: b.ray_query(o, d, k=1, radius=0.01, threads=1))
@@ -357,6 +356,40 @@ def test_ctrl_c_stops_a_long_batch(monkeypatch):
     m = re.fullmatch(r"interrupted after (\d+) of (\d+) queries", notes[0] if notes else "")
     assert m, "KeyboardInterrupt without the batch's note (raised outside the batch?): {}".format(notes)
     done, total = int(m[1]), int(m[2])
-    assert total == n and 0 < done < n and done % chunk == 0, (done, total)
+    assert total == n and 0 < done < n, (done, total)
     r = b.ray_query(o[:3], d[:3], k=1, radius=0.01)
     assert len(r) == 3
+
+
+@pytest.mark.parametrize("threads", [0, 1])
+def test_ctrl_c_stops_slow_queries_after_a_few_of_them(monkeypatch, threads):
+    # 100,000 radius queries against 200,000 points by brute force: each scans every point (about
+    # 0.3 ms), half a minute of work or more on one thread, in a batch smaller than any fixed chunk
+    # that would make a check for a signal cheap for fast queries (kNN of k=1 take microseconds).
+    # Chunks sized by time answer Ctrl-C, sent once the call has begun, after a small share of the
+    # batch: the note counts the queries that ran (the test's measure, whatever the machine's
+    # speed or load), and the wait is far below the batch's time. The answers of the queries are
+    # those of a batch run whole.
+    import re
+    import time
+    rng = np.random.default_rng(11)
+    xyz = rng.random((200_000, 3))
+    b = rayscan.BruteForce(xyz)
+    q = rng.random((100_000, 3))
+    start = time.monotonic()
+    interrupted = sigint_once_entered(monkeypatch, b, "_knn", lambda: b.radius(q, 0.01, threads=threads))
+    waited = time.monotonic() - start
+    notes = getattr(interrupted, "__notes__", [])
+    m = re.fullmatch(r"interrupted after (\d+) of (\d+) queries", notes[0] if notes else "")
+    assert m, "KeyboardInterrupt without the batch's note (raised after the batch?): {}".format(notes)
+    done, total = int(m[1]), int(m[2])
+    assert total == len(q) and 0 < done <= total // 20, (done, total)
+    assert waited < 5.0, waited
+    # A batch of several chunks keeps each query's answer in its row: NumPy's, sorted by
+    # (distance, index).
+    part = b.radius(q[:300], 0.01, threads=threads)
+    for i in range(300):
+        dist = np.sqrt(((xyz - q[i]) ** 2).sum(axis=1))
+        idx = np.nonzero(dist <= 0.01)[0]
+        idx = idx[np.lexsort((idx, dist[idx]))]
+        np.testing.assert_array_equal(part[i], idx)

@@ -13,9 +13,23 @@
 namespace rayscan {
 
 /// A file that the input policy refuses (not a regular file, missing, unreadable, over the
-/// size cap). what() is one line: "<path>: <reason>".
-struct InputFileError : std::runtime_error {
+/// size cap). what() is one line: "<path>: <reason>"; path() is the file. Where the refusal is
+/// a failed open(2) or stat(2), or a directory, error_number() is the errno (EISDIR for a
+/// directory), so that a front end can raise its own error for it (Python's FileNotFoundError);
+/// 0 for a refusal by rule (a FIFO, a size over the cap) or a failed read.
+class InputFileError : public std::runtime_error {
+ public:
   using std::runtime_error::runtime_error;
+  InputFileError(const std::string& what, std::filesystem::path path, int error_number)
+      : std::runtime_error(what), path_(std::move(path)), error_number_(error_number) {}
+  /// The errno of the failed call (see above), 0 when none.
+  [[nodiscard]] int error_number() const noexcept { return error_number_; }
+  /// The file refused (empty for an error built from a message alone).
+  [[nodiscard]] const std::filesystem::path& path() const noexcept { return path_; }
+
+ private:
+  std::filesystem::path path_;
+  int error_number_ = 0;
 };
 
 /// Size cap of text inputs (JSON, CSV, observer and rays files): 256 MiB. A scene, camera or
