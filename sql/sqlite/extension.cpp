@@ -268,6 +268,16 @@ struct Cursor {
   sqlite3_vtab_cursor base{};
   std::vector<Hit> hits;
   std::size_t pos = 0;
+  /// The arguments of the current xFilter as given (by kArgNames; nullptr: not given), what every
+  /// row's hidden columns read, as SQLite's own table-valued functions (generate_series) return
+  /// theirs.
+  sqlite3_value* args[kNumArgs] = {};
+  void clear_args() {
+    for (sqlite3_value*& v : args) {
+      sqlite3_value_free(v);
+      v = nullptr;
+    }
+  }
 };
 
 int vt_connect(sqlite3* db, void* aux, int, const char* const*, sqlite3_vtab** out, char**) {
@@ -335,8 +345,8 @@ bool order_by_consumed(const sqlite3_index_info* info, int key) {
 }
 
 // Every usable equality constraint on a hidden argument column becomes an xFilter argument; any
-// other condition on one is an error (its column holds no value, so it would silently match no
-// row). The query's LIMIT (+ OFFSET) becomes one too when no row can be dropped or reordered after
+// other condition on one is an error (a range gives the argument no value to run with, and the
+// column of an argument not given reads NULL, which would silently match no row). The query's LIMIT (+ OFFSET) becomes one too when no row can be dropped or reordered after
 // ray_query returns it: no condition on a result column and no ORDER BY other than the rows' own
 // order (SQLite 3.40 offers LIMIT in both cases). It bounds the hits kept (a k), while SQLite
 // still applies it (omit 0). idxNum: the bits above.
@@ -390,6 +400,7 @@ int vt_open(sqlite3_vtab*, sqlite3_vtab_cursor** out) {
   return SQLITE_OK;
 }
 int vt_close(sqlite3_vtab_cursor* c) {
+  reinterpret_cast<Cursor*>(c)->clear_args();
   delete reinterpret_cast<Cursor*>(c);
   return SQLITE_OK;
 }
@@ -697,6 +708,11 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
   auto* vt = reinterpret_cast<VTab*>(cur->pVtab);
   c->hits.clear();
   c->pos = 0;
+  c->clear_args();
+  // xFilter's arguments come in argument order (vt_best_index), the LIMIT and OFFSET after them.
+  for (int i = 0, ai = 0; i < kNumArgs && ai < argc; ++i)
+    if (mask & (1 << i))
+      if (!(c->args[i] = sqlite3_value_dup(argv[ai++]))) return SQLITE_NOMEM;
   Args args;
   if (const int rc = parse_ray_query_args(vt, mask, argc, argv, args); rc != SQLITE_OK || args.null_ray) return rc;
   if (const int rc = prepare(vt); rc != SQLITE_OK) return rc;
@@ -729,7 +745,10 @@ int vt_column(sqlite3_vtab_cursor* cur, sqlite3_context* ctx, int col) {
     case kT: sqlite3_result_double(ctx, h.t); break;
     case kDistance: sqlite3_result_double(ctx, std::sqrt(h.d2)); break;
     case kRank: sqlite3_result_int64(ctx, static_cast<sqlite3_int64>(c->pos)); break;
-    default: sqlite3_result_null(ctx); break;  // hidden argument columns
+    default:  // hidden argument columns: the value given, NULL for one not given
+      if (col >= kFirstArg && c->args[col - kFirstArg]) sqlite3_result_value(ctx, c->args[col - kFirstArg]);
+      else sqlite3_result_null(ctx);
+      break;
   }
   return SQLITE_OK;
 }

@@ -937,10 +937,10 @@ TEST(SqliteFunctions, PruneErrorIsClearedByALaterMatchThatPasses) {
   EXPECT_EQ(error(), "(null)");
 }
 
-// ray_query's arguments are its hidden columns, which hold no value in its rows: a condition other
-// than = on one would be checked against NULL and silently match nothing, so it is an error naming
-// the argument. The same argument given with = is an argument like a positional one (the oracle:
-// the positional call's rows).
+// ray_query's arguments are its hidden columns, and a range is no value to run with (and on an
+// argument not given, whose column reads NULL, would silently match nothing), so a condition other
+// than = on one is an error naming the argument. The same argument given with = is an argument like
+// a positional one (the oracle: the positional call's rows).
 TEST(SqliteFunctions, OtherConditionsOnRayQueryArgumentsAreErrors) {
   Db db(site("autzen")->db);
   const std::string ray = "ox = 636500 AND oy = 849200 AND oz = 600 AND dx = 0 AND dy = 0 AND dz = -1";
@@ -957,6 +957,46 @@ TEST(SqliteFunctions, OtherConditionsOnRayQueryArgumentsAreErrors) {
   EXPECT_GT(positional.i64(0), 0);
   EXPECT_EQ(named.i64(0), positional.i64(0));
   EXPECT_EQ(named.i64(1), positional.i64(1));
+}
+
+// ray_query's hidden columns read, in every row, its arguments as given, value and type (the
+// oracle: the arguments written in the query), as SQLite's own table-valued functions
+// (generate_series) return theirs; one not given reads NULL, which ray_query takes as its default.
+// So whether given positionally or as `column = value`, and with a LIMIT that bounds the hits kept,
+// where k still reads as given.
+TEST(SqliteFunctions, RayQueryHiddenColumnsReadTheArgumentsGiven) {
+  Db db(site("autzen")->db);
+  const std::string cols = "ox, oy, oz, dx, dy, dz, k, r, t_min, t_max, ord";
+  // Each row's hidden columns as "type:value" (sqlite3_column_type, then the text SQLite gives it).
+  const auto hidden = [&](const std::string& sql) {
+    std::vector<std::string> rows;
+    Stmt st(db.db, sql);
+    int rc;
+    while ((rc = sqlite3_step(st.s)) == SQLITE_ROW) {
+      std::string row;
+      for (int i = 0; i < sqlite3_column_count(st.s); ++i) {
+        const int t = sqlite3_column_type(st.s, i);
+        const auto* v = sqlite3_column_text(st.s, i);
+        row += std::string(i ? " " : "") + (t == SQLITE_INTEGER ? "int:" : t == SQLITE_FLOAT ? "real:" : t == SQLITE_TEXT ? "text:" : "null:") +
+               (v ? reinterpret_cast<const char*>(v) : "");
+      }
+      rows.push_back(row);
+    }
+    EXPECT_EQ(rc, SQLITE_DONE) << sql << ": " << sqlite3_errmsg(db.db);
+    return rows;
+  };
+  const auto given = [](const std::string& row, std::size_t n) { return std::vector<std::string>(n, row); };
+  auto rows = hidden("SELECT " + cols + " FROM ray_query(636500, 849200.5, 600, 0, 0, -1, 5, 20.25, NULL, 1000, 'time')");
+  EXPECT_EQ(rows.size(), 5u);
+  EXPECT_EQ(rows, given("int:636500 real:849200.5 int:600 int:0 int:0 int:-1 int:5 real:20.25 null: int:1000 text:time", 5));
+  rows = hidden("SELECT " + cols + " FROM ray_query WHERE ox = 636500 AND oy = 849200 AND oz = 600.5 AND dx = 0 AND "
+                "dy = 0 AND dz = -1 AND r = 2");
+  EXPECT_GT(rows.size(), 0u);
+  EXPECT_EQ(rows, given("int:636500 int:849200 real:600.5 int:0 int:0 int:-1 null: int:2 null: null: null:", rows.size()));
+  rows = hidden("SELECT k, r FROM ray_query(636500, 849200, 600, 0, 0, -1, 10, NULL) LIMIT 3");
+  EXPECT_EQ(rows, given("int:10 null:", 3));
+  rows = hidden("SELECT k FROM ray_query(636500, 849200, 600, 0, 0, -1) LIMIT 2");
+  EXPECT_EQ(rows, given("null:", 2));
 }
 
 // A cloud in a geographic CRS (lon/lat degrees beside heights in metres) or a geocentric one (z
