@@ -62,12 +62,14 @@ double value(rs_function f, const double* a) {
 extern "C" const char* rs_function_name(rs_function f) { return kNames[f]; }
 
 extern "C" const char* rs_eval(const char* fn, rs_function f, const double a[9], double* out,
-                               char err[RS_ERRBUF]) {
+                               rs_error_kind* kind, char err[RS_ERRBUF]) {
+  if (kind) *kind = RS_ERROR_ARGUMENT;
   if (const char* e = check(fn, f, a, 9, false, err)) return e;
   *out = value(f, a);
   // Finite inputs near the double range can overflow the core's squares and products (from about
   // 1e150): an error rather than an infinite or NaN distance passed off as a value.
   if (!std::isfinite(*out)) {
+    if (kind) *kind = RS_ERROR_OUT_OF_RANGE;
     std::snprintf(err, RS_ERRBUF, "%s: the result overflows double precision; expected coordinates and "
                   "vector components of magnitude below about 1e150", fn);
     return err;
@@ -76,7 +78,8 @@ extern "C" const char* rs_eval(const char* fn, rs_function f, const double a[9],
 }
 
 extern "C" const char* rs_eval_bounds(const char* fn, rs_function f, const double a[12], double* lo,
-                                      double* hi, char err[RS_ERRBUF]) {
+                                      double* hi, rs_error_kind* kind, char err[RS_ERRBUF]) {
+  if (kind) *kind = RS_ERROR_ARGUMENT;
   if (const char* e = check(fn, f, a, 12, true, err)) return e;
   for (int i = 0; i < 3; ++i)
     if (a[6 + i] > a[9 + i]) {
@@ -98,6 +101,7 @@ extern "C" const char* rs_eval_bounds(const char* fn, rs_function f, const doubl
   *lo = f == RS_DIST_RAY ? std::max(0.0, iv.lo - tol) : iv.lo - tol;
   *hi = iv.hi + tol;
   if (!std::isfinite(*lo) || !std::isfinite(*hi)) {
+    if (kind) *kind = RS_ERROR_OUT_OF_RANGE;
     std::snprintf(err, RS_ERRBUF, "%s: the result overflows double precision; expected coordinates "
                   "and vector components of magnitude below about 1e150", fn);
     return err;
@@ -106,7 +110,7 @@ extern "C" const char* rs_eval_bounds(const char* fn, rs_function f, const doubl
 }
 
 extern "C" const char* rs_parse_tuple(const char* s, double* v, int n, const char* type,
-                                      const char* const* names, int* out_of_range, char err[RS_ERRBUF]) {
+                                      const char* const* names, rs_error_kind* kind, char err[RS_ERRBUF]) {
   const char* p = s;
   char* end = nullptr;
   bool ok = true;
@@ -114,7 +118,7 @@ extern "C" const char* rs_parse_tuple(const char* s, double* v, int n, const cha
   // whole text has parsed, so that bad syntax anywhere is reported as such.
   int range_i = -1;
   const char *range_at = nullptr, *range_end = nullptr;
-  if (out_of_range) *out_of_range = 0;
+  if (kind) *kind = RS_ERROR_SYNTAX;
   while (*p == ' ') ++p;
   ok = *p++ == '(';
   for (int i = 0; ok && i < n; ++i) {
@@ -133,7 +137,7 @@ extern "C" const char* rs_parse_tuple(const char* s, double* v, int n, const cha
   while (ok && *p == ' ') ++p;
   if (ok && *p == 0) {
     if (range_i < 0) return nullptr;
-    if (out_of_range) *out_of_range = 1;
+    if (kind) *kind = RS_ERROR_OUT_OF_RANGE;
     std::snprintf(err, RS_ERRBUF, "%s: %s \"%.*s\" is out of range for type double precision", type,
                   names[range_i], static_cast<int>(std::min<std::ptrdiff_t>(range_end - range_at, 64)), range_at);
     return err;

@@ -54,8 +54,27 @@ typedef struct RsPlane {
 #define RS_STRATEGY_PLANE 3    /* && (rs_box, rs_plane) */
 #define RS_STRATEGY_DISTANCE 15 /* <-> (RTKNNSearchStrategyNumber) */
 
-static void raise(const char* msg) {
-  ereport(ERROR, (errcode(ERRCODE_INVALID_PARAMETER_VALUE), errmsg("%s", msg)));
+/* The SQLSTATE of each kind of error (rs_error_kind), the one place that chooses them: class 22
+ * "data exception" of PostgreSQL 15's appendix A, as the server's own functions and types report
+ * the same faults: an argument outside the function's domain 22023 invalid_parameter_value (as
+ * generate_series' zero step), a number or result beyond float8's range 22003
+ * numeric_value_out_of_range (as float8's input and arithmetic), a malformed literal 22P02
+ * invalid_text_representation and a malformed binary value 22P03 invalid_binary_representation
+ * (as float8in and the receive functions). The module reads no file and allocates only through
+ * palloc, whose failure is PostgreSQL's own 53200; a GiST strategy it does not know is an
+ * internal error (elog: XX000). */
+static const int kSqlState[] = {
+    [RS_ERROR_ARGUMENT] = ERRCODE_INVALID_PARAMETER_VALUE,
+    [RS_ERROR_OUT_OF_RANGE] = ERRCODE_NUMERIC_VALUE_OUT_OF_RANGE,
+    [RS_ERROR_SYNTAX] = ERRCODE_INVALID_TEXT_REPRESENTATION,
+    [RS_ERROR_BINARY] = ERRCODE_INVALID_BINARY_REPRESENTATION,
+};
+
+/* Raises `msg` (one line) with the SQLSTATE of its kind. */
+static void raise_error(rs_error_kind kind, const char* msg) pg_attribute_noreturn();
+static void raise_error(rs_error_kind kind, const char* msg) {
+  ereport(ERROR, (errcode(kSqlState[kind]), errmsg("%s", msg)));
+  pg_unreachable();
 }
 
 /* ---- scalar functions -------------------------------------------------------------------- */
@@ -64,10 +83,11 @@ static Datum point_fn(FunctionCallInfo fcinfo, rs_function f) {
   double a[9], v;
   char err[RS_ERRBUF];
   const char* e;
+  rs_error_kind kind;
   int i;
   for (i = 0; i < 9; ++i) a[i] = PG_GETARG_FLOAT8(i);
-  e = rs_eval(rs_function_name(f), f, a, &v, err);
-  if (e) raise(e);
+  e = rs_eval(rs_function_name(f), f, a, &v, &kind, err);
+  if (e) raise_error(kind, e);
   PG_RETURN_FLOAT8(v);
 }
 
@@ -76,10 +96,11 @@ static Datum bounds_fn(FunctionCallInfo fcinfo, const char* fn, rs_function f, i
   double a[12], lo, hi;
   char err[RS_ERRBUF];
   const char* e;
+  rs_error_kind kind;
   int i;
   for (i = 0; i < 12; ++i) a[i] = PG_GETARG_FLOAT8(i);
-  e = rs_eval_bounds(fn, f, a, &lo, &hi, err);
-  if (e) raise(e);
+  e = rs_eval_bounds(fn, f, a, &lo, &hi, &kind, err);
+  if (e) raise_error(kind, e);
   PG_RETURN_FLOAT8(want_max ? hi : lo);
 }
 
@@ -110,10 +131,8 @@ Datum rs_dist_plane_max(PG_FUNCTION_ARGS) { return bounds_fn(fcinfo, "dist_plane
  * type then calls infinite, and 1e-400 into 0. Subnormal results are kept, as float8 keeps them. */
 static void parse_tuple(const char* s, double* v, int n, const char* type, const char* const* names) {
   char err[RS_ERRBUF];
-  int out_of_range;
-  if (rs_parse_tuple(s, v, n, type, names, &out_of_range, err))
-    ereport(ERROR, (errcode(out_of_range ? ERRCODE_NUMERIC_VALUE_OUT_OF_RANGE : ERRCODE_INVALID_TEXT_REPRESENTATION),
-                    errmsg("%s", err)));
+  rs_error_kind kind;
+  if (rs_parse_tuple(s, v, n, type, names, &kind, err)) raise_error(kind, err);
 }
 
 static const char* const kBoxNames[6] = {"xmin", "ymin", "zmin", "xmax", "ymax", "zmax"};
@@ -139,24 +158,27 @@ static char* format_tuple(const double* v, int n) {
  * every later predicate), min <= max on every axis. */
 static void check_box(const RsBox* b, bool point) {
   static const char* point_names[6] = {"x", "y", "z", "x", "y", "z"};
+  char err[RS_ERRBUF];
   int i;
   for (i = 0; i < 6; ++i)
-    if (!isfinite(b->v[i]))
-      ereport(ERROR, (errcode(ERRCODE_INVALID_PARAMETER_VALUE),
-                      errmsg("rs_box: %s is %s; expected a finite number", point ? point_names[i] : kBoxNames[i],
-                             isnan(b->v[i]) ? "NaN" : "infinite")));
+    if (!isfinite(b->v[i])) {
+      snprintf(err, sizeof err, "rs_box: %s is %s; expected a finite number", point ? point_names[i] : kBoxNames[i],
+               isnan(b->v[i]) ? "NaN" : "infinite");
+      raise_error(RS_ERROR_ARGUMENT, err);
+    }
   /* The axis named as the bounds functions name it (dist_ray_min: "box xmin > xmax"). */
   for (i = 0; i < 3; ++i)
-    if (b->v[i] > b->v[i + 3])
-      ereport(ERROR, (errcode(ERRCODE_INVALID_PARAMETER_VALUE),
-                      errmsg("rs_box: %s > %s; expected min <= max on every axis", kBoxNames[i], kBoxNames[i + 3])));
+    if (b->v[i] > b->v[i + 3]) {
+      snprintf(err, sizeof err, "rs_box: %s > %s; expected min <= max on every axis", kBoxNames[i], kBoxNames[i + 3]);
+      raise_error(RS_ERROR_ARGUMENT, err);
+    }
 }
 
 /* `fn` is what the user called: ray_within(...), or the type's text input ('(...)'::rs_ray). */
 static void check_ray(const RsRay* q, const char* fn) {
   char err[RS_ERRBUF];
   const char* e = rs_check_ray(fn, q->o, q->d, q->r, q->t_min, q->t_max, err);
-  if (e) raise(e);
+  if (e) raise_error(RS_ERROR_ARGUMENT, e);
 }
 
 PG_FUNCTION_INFO_V1(rs_box_in);
@@ -195,11 +217,13 @@ PG_FUNCTION_INFO_V1(rs_box_recv);
 Datum rs_box_recv(PG_FUNCTION_ARGS) {
   StringInfo buf = (StringInfo)PG_GETARG_POINTER(0);
   RsBox* b = palloc(sizeof(RsBox));
+  char err[RS_ERRBUF];
   int i;
-  if (buf->len - buf->cursor != (int)sizeof(RsBox))
-    ereport(ERROR, (errcode(ERRCODE_INVALID_BINARY_REPRESENTATION),
-                    errmsg("invalid binary value for type rs_box: %d bytes; expected 48 (six float8 in "
-                           "network byte order)", buf->len - buf->cursor)));
+  if (buf->len - buf->cursor != (int)sizeof(RsBox)) {
+    snprintf(err, sizeof err, "invalid binary value for type rs_box: %d bytes; expected 48 (six float8 in "
+             "network byte order)", buf->len - buf->cursor);
+    raise_error(RS_ERROR_BINARY, err);
+  }
   for (i = 0; i < 6; ++i) b->v[i] = pq_getmsgfloat8(buf);
   check_box(b, false);
   PG_RETURN_POINTER(b);
@@ -284,7 +308,7 @@ Datum rs_point_box(PG_FUNCTION_ARGS) {
 static void check_plane(const RsPlane* h, const char* fn) {
   char err[RS_ERRBUF];
   const char* e = rs_check_plane(fn, h->p, h->n, err);
-  if (e) raise(e);
+  if (e) raise_error(RS_ERROR_ARGUMENT, e);
 }
 PG_FUNCTION_INFO_V1(rs_plane_in);
 Datum rs_plane_in(PG_FUNCTION_ARGS) {
@@ -483,9 +507,9 @@ Datum rs_gist_same(PG_FUNCTION_ARGS) {
 static void check_dwithin_ray(const double a[6], double r) {
   char err[RS_ERRBUF];
   const char* e;
-  if (isnan(r) || r < 0) raise("ray_dwithin: radius r is negative or NaN; expected a number >= 0");
+  if (isnan(r) || r < 0) raise_error(RS_ERROR_ARGUMENT, "ray_dwithin: radius r is negative or NaN; expected a number >= 0");
   e = rs_check_ray("ray_dwithin", a, a + 3, r, -get_float8_infinity(), get_float8_infinity(), err);
-  if (e) raise(e);
+  if (e) raise_error(RS_ERROR_ARGUMENT, e);
 }
 
 /* ray_dwithin(b, ox,oy,oz, dx,dy,dz, r): may a point of box b lie within distance r of the ray
@@ -498,6 +522,7 @@ Datum rs_ray_dwithin(PG_FUNCTION_ARGS) {
   double a[12], v, lo, hi;
   char err[RS_ERRBUF];
   const char* e;
+  rs_error_kind kind;
   int i;
   const double r = PG_GETARG_FLOAT8(7);
   for (i = 0; i < 6; ++i) a[i] = PG_GETARG_FLOAT8(i + 1);
@@ -506,13 +531,13 @@ Datum rs_ray_dwithin(PG_FUNCTION_ARGS) {
   check_dwithin_ray(a, r);
   if (b->v[0] == b->v[3] && b->v[1] == b->v[4] && b->v[2] == b->v[5]) {
     for (i = 0; i < 3; ++i) a[6 + i] = b->v[i];
-    e = rs_eval("ray_dwithin", RS_DIST_RAY, a, &v, err);
-    if (e) raise(e);
+    e = rs_eval("ray_dwithin", RS_DIST_RAY, a, &v, &kind, err);
+    if (e) raise_error(kind, e);
     PG_RETURN_BOOL(v <= r);
   }
   for (i = 0; i < 6; ++i) a[6 + i] = b->v[i];
-  e = rs_eval_bounds("ray_dwithin", RS_DIST_RAY, a, &lo, &hi, err);
-  if (e) raise(e);
+  e = rs_eval_bounds("ray_dwithin", RS_DIST_RAY, a, &lo, &hi, &kind, err);
+  if (e) raise_error(kind, e);
   PG_RETURN_BOOL(lo <= r);
 }
 

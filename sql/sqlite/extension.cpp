@@ -76,7 +76,7 @@ void point_fn(sqlite3_context* ctx, int argc, sqlite3_value** argv) {
   if (argc != 9 || !numeric_args(ctx, rs_function_name(f), 9, argv, a)) return;
   double v;
   char err[RS_ERRBUF];
-  if (const char* e = rs_eval(rs_function_name(f), f, a, &v, err)) return sqlite3_result_error(ctx, e, -1);
+  if (const char* e = rs_eval(rs_function_name(f), f, a, &v, nullptr, err)) return sqlite3_result_error(ctx, e, -1);
   sqlite3_result_double(ctx, v);
 }
 
@@ -88,7 +88,7 @@ void bounds_fn(sqlite3_context* ctx, int argc, sqlite3_value** argv) {
   if (argc != 12 || !numeric_args(ctx, name.c_str(), 12, argv, a)) return;
   double lo, hi;
   char err[RS_ERRBUF];
-  if (const char* e = rs_eval_bounds(name.c_str(), f, a, &lo, &hi, err))
+  if (const char* e = rs_eval_bounds(name.c_str(), f, a, &lo, &hi, nullptr, err))
     return sqlite3_result_error(ctx, e, -1);
   sqlite3_result_double(ctx, kMax ? hi : lo);
 }

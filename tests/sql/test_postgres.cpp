@@ -967,8 +967,9 @@ std::string copy_out_binary(Pg& pg, const std::string& sql) {
   return out;
 }
 
-/// Sends `data` with `COPY table FROM STDIN (FORMAT binary)`; the primary error message, "" on success.
-std::string copy_in_binary(Pg& pg, const std::string& table, const std::string& data) {
+/// Sends `data` with `COPY table FROM STDIN (FORMAT binary)`; the primary error message, "" on
+/// success, and its SQLSTATE in *sqlstate when given.
+std::string copy_in_binary(Pg& pg, const std::string& table, const std::string& data, std::string* sqlstate = nullptr) {
   PGresult* r = PQexec(pg.c, ("COPY " + table + " FROM STDIN (FORMAT binary)").c_str());
   EXPECT_EQ(PQresultStatus(r), PGRES_COPY_IN) << PQerrorMessage(pg.c);
   PQclear(r);
@@ -979,6 +980,7 @@ std::string copy_in_binary(Pg& pg, const std::string& table, const std::string& 
     if (PQresultStatus(r) == PGRES_FATAL_ERROR) {
       const char* p = PQresultErrorField(r, PG_DIAG_MESSAGE_PRIMARY);
       m = p ? p : "?";
+      if (sqlstate) *sqlstate = PQresultErrorField(r, PG_DIAG_SQLSTATE) ? PQresultErrorField(r, PG_DIAG_SQLSTATE) : "?";
     }
     PQclear(r);
   }
@@ -1047,6 +1049,47 @@ TEST_F(Postgres, BoxBinaryCopyRoundTripsAndRefusesCorruptValues) {
             "invalid binary value for type rs_box: 40 bytes; expected 48 (six float8 in network byte order)");
   EXPECT_EQ(pg.rows("SELECT count(*) FROM boxes_bin2")[0][0], "0");
   pg.rows("DROP TABLE boxes_bin, boxes_bin2");
+}
+
+// Each kind of error has the SQLSTATE the server's own functions and types give the same fault (the
+// oracle: the server, on its built-ins): an argument outside the function's domain as
+// generate_series' zero step (22023), a result beyond float8 as float8 multiplication's overflow
+// (22003), a malformed literal as float8's input (22P02), a number beyond float8's range in a
+// literal as float8's input (22003), a binary value of the wrong size as float8's receive (22P03).
+TEST_F(Postgres, EachKindOfErrorHasTheServersSqlstate) {
+  Pg pg;
+  const std::string argument = pg.sqlstate_of("SELECT generate_series(1, 2, 0)");
+  const std::string overflow = pg.sqlstate_of("SELECT '1e200'::float8 * '1e200'::float8");
+  const std::string syntax = pg.sqlstate_of("SELECT 'x'::float8");
+  const std::string range = pg.sqlstate_of("SELECT '1e400'::float8");
+  EXPECT_EQ(argument, "22023");
+  EXPECT_EQ(overflow, "22003");
+  EXPECT_EQ(syntax, "22P02");
+  EXPECT_EQ(range, "22003");
+  for (const char* sql : {"SELECT dist_ray(0,0,0, 0,0,0, 1,2,3)", "SELECT dist_ray(0,0,0, 1,0,0, 'NaN',2,3)",
+                          "SELECT dist_ray(0,0,0, 0,0,'1e-320', 1,2,3)", "SELECT dist_ray_min(0,0,0, 1,0,0, 2,0,0, 1,1,1)",
+                          "SELECT ray_within(0,0,0, 1,0,0, -1)", "SELECT ray_within(0,0,0, 1,0,0, 1, 2, 1)",
+                          "SELECT plane_below(0,0,'NaN', 0,0,1)", "SELECT rs_box(1,2,'Infinity')",
+                          "SELECT rs_box(0,0,2, 1,1,1)", "SELECT '(0,0,0, 0,0,0, 1,0,1)'::rs_ray",
+                          "SELECT ray_dwithin(rs_box(1,2,3), 0,0,0, 1,0,0, -1)"})
+    EXPECT_EQ(pg.sqlstate_of(sql), argument) << sql;
+  for (const char* sql : {"SELECT dist_ray(0,0,0, 1,0,0, 0,1e155,0)", "SELECT dist_ray_min(0,0,0, 1,0,0, 0,0,0, 1e300,1,1)",
+                          "SELECT ray_dwithin(rs_box(0,1e155,0), 0,0,0, 1,0,0, 1)",
+                          "SELECT ray_dwithin(rs_box(0,0,0, 1e300,1,1), 0,0,0, 1,0,0, 1)"})
+    EXPECT_EQ(pg.sqlstate_of(sql), overflow) << sql;
+  for (const char* sql : {"SELECT '(1,2,3)'::rs_box", "SELECT 'x'::rs_ray", "SELECT '(1,2'::rs_plane"})
+    EXPECT_EQ(pg.sqlstate_of(sql), syntax) << sql;
+  for (const char* sql : {"SELECT '(1,2,3,1e400,5,6)'::rs_box", "SELECT '(0,0,0,1,0,0,1e400,0,1)'::rs_ray"})
+    EXPECT_EQ(pg.sqlstate_of(sql), range) << sql;
+  pg.rows("DROP TABLE IF EXISTS state_bin, state_f8");
+  pg.rows("CREATE TABLE state_bin (box rs_box)");
+  pg.rows("CREATE TABLE state_f8 (v float8)");
+  std::string binary, ours;
+  EXPECT_NE(copy_in_binary(pg, "state_f8", binary_copy_of_boxes({{1, 2, 0, 0, 0, 0}}, 16), &binary), "");
+  EXPECT_EQ(binary, "22P03");
+  EXPECT_NE(copy_in_binary(pg, "state_bin", binary_copy_of_boxes({{0, 0, 0, 1, 1, 1}}, 40), &ours), "");
+  EXPECT_EQ(ours, binary);
+  pg.rows("DROP TABLE state_bin, state_f8");
 }
 
 // Every object the extension creates has a description (COMMENT ON ...), which \dT+, \df+, \do+,

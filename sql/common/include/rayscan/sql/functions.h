@@ -21,15 +21,29 @@ typedef enum rs_function {
 /** Size of the message buffer the functions below write an error into. */
 #define RS_ERRBUF 192
 
+/** What kind of fault an error reports, for an engine that gives each kind its own code
+ * (PostgreSQL's SQLSTATE, chosen in one table in sql/postgres/rayscan_pg.c); SQLite has one. */
+typedef enum rs_error_kind {
+  RS_ERROR_ARGUMENT = 0,     /**< an argument outside the function's domain: NaN or infinite, a zero or
+                                  unnormalisable direction, min > max, r < 0, t_min > t_max */
+  RS_ERROR_OUT_OF_RANGE = 1, /**< a number beyond double's range: a result that overflows, a number
+                                  in a text form that float8 would refuse */
+  RS_ERROR_SYNTAX = 2,       /**< a text form that is not the type's syntax */
+  RS_ERROR_BINARY = 3        /**< a binary form of the wrong size (PostgreSQL's rs_box receive) */
+} rs_error_kind;
+
 /** SQL name of f ("dist_ray", "ray_time", "dist_plane"). */
 const char* rs_function_name(rs_function f);
 
 /** Evaluates f at a[0..8] into *out. Returns NULL on success, else a one-line message in err that
  * starts with `fn`, the SQL function the user called (the messages name the caller, not the shared
  * code: "dist_ray: argument 7 (x) is NaN; expected a finite number",
- * "ray_dwithin: the result overflows double precision; ..."). Argument numbers in the message are
- * positions in a[], so a caller whose own arguments are laid out differently checks them first. */
-const char* rs_eval(const char* fn, rs_function f, const double a[9], double* out, char err[RS_ERRBUF]);
+ * "ray_dwithin: the result overflows double precision; ..."), and its kind in *kind (when not
+ * NULL): RS_ERROR_OUT_OF_RANGE for the overflow, else RS_ERROR_ARGUMENT. Argument numbers in the
+ * message are positions in a[], so a caller whose own arguments are laid out differently checks
+ * them first. */
+const char* rs_eval(const char* fn, rs_function f, const double a[9], double* out, rs_error_kind* kind,
+                    char err[RS_ERRBUF]);
 
 /** Bounds evaluation (section 4.2) of f over the box a[6..11] = (xmin,ymin,zmin,xmax,ymax,zmax)
  * with a[0..5] as in rs_eval: [*lo, *hi] holds every value rs_eval returns for a point of the
@@ -37,9 +51,9 @@ const char* rs_eval(const char* fn, rs_function f, const double a[9], double* ou
  * about 1e-9 of the distance from o to the box plus its extent; dist_ray's lo is at least 0).
  * SQL names: <name>_min / <name>_max. Errors as rs_eval (starting with `fn`, e.g.
  * "dist_ray_min: box xmin > xmax; expected min <= max on every axis"), plus a box with min > max
- * on an axis. */
+ * on an axis (RS_ERROR_ARGUMENT). */
 const char* rs_eval_bounds(const char* fn, rs_function f, const double a[12], double* lo, double* hi,
-                           char err[RS_ERRBUF]);
+                           rs_error_kind* kind, char err[RS_ERRBUF]);
 
 /** Outcome of testing a chunk box against a ray predicate (SQLite's R*Tree eWithin values). */
 typedef enum rs_within { RS_NOT_WITHIN = 0, RS_PARTLY_WITHIN = 1, RS_FULLY_WITHIN = 2 } rs_within;
@@ -73,16 +87,17 @@ rs_within rs_plane_box_test(const double p0[3], const double n[3], const double 
  * when the syntax holds, for the first number beyond double's range as PostgreSQL's float8 input
  * refuses it (strtod's ERANGE with an infinite or zero result: 1e400, 1e-400; a subnormal one such
  * as 1e-310 is kept) "<type>: <names[i]> \"<number>\" is out of range for type double precision"
- * (the number's text up to 64 characters). names: the n values' names. *out_of_range (when not
- * NULL) is set to 1 for that last error (float8's SQLSTATE 22003), else 0. */
+ * (the number's text up to 64 characters). names: the n values' names. *kind (when not NULL)
+ * receives RS_ERROR_OUT_OF_RANGE for that last error (float8's SQLSTATE 22003), else
+ * RS_ERROR_SYNTAX. */
 const char* rs_parse_tuple(const char* s, double* v, int n, const char* type, const char* const* names,
-                           int* out_of_range, char err[RS_ERRBUF]);
+                           rs_error_kind* kind, char err[RS_ERRBUF]);
 
 /** Checks a ray direction (normal = 0, named "direction (dx,dy,dz)") or a plane normal (normal = 1,
  * "normal (nx,ny,nz)") against the core's rule (rayscan::is_valid_direction in
  * rayscan/octree/ray.hpp): non-zero, finite, and |v|^2 a normal double (about 1.5e-154 <= |v| <=
  * 1.3e154), so that v / |v| is finite and exact. `fn` names the SQL function in the message.
- * NULL when valid. */
+ * NULL when valid. This and the other rs_check_* report RS_ERROR_ARGUMENT faults only. */
 const char* rs_check_direction(const char* fn, int normal, const double v[3], char err[RS_ERRBUF]);
 
 /** Checks a plane's point p and normal n (dist_plane's first six arguments, the half-space of
