@@ -77,6 +77,14 @@ extern "C" const char* rs_eval(const char* fn, rs_function f, const double a[9],
   return nullptr;
 }
 
+extern "C" size_t rs_count_dist_ray_within(const double o_[3], const double d_[3], double r, const double* p,
+                                           size_t n) {
+  const Vec3 o(o_[0], o_[1], o_[2]), d(d_[0], d_[1], d_[2]);
+  size_t count = 0;
+  for (size_t i = 0; i < n; ++i) count += rayscan::dist_ray(o, d, Vec3(p[3 * i], p[3 * i + 1], p[3 * i + 2])) <= r;
+  return count;
+}
+
 extern "C" const char* rs_eval_bounds(const char* fn, rs_function f, const double a[12], double* lo,
                                       double* hi, rs_error_kind* kind, char err[RS_ERRBUF]) {
   if (kind) *kind = RS_ERROR_ARGUMENT;

@@ -142,14 +142,14 @@ runuser -u postgres -- "$pgbin/pg_ctl" -D /tmp/pg/data -o "-k /tmp/pg -c listen_
 export PGHOST=/tmp/pg PGUSER=postgres PGDATABASE=postgres
 psql -qAt -v ON_ERROR_STOP=1 -c "CREATE EXTENSION rayscan" -c "SELECT extname || ' ' || extversion FROM pg_extension WHERE extname = 'rayscan'"
 # A database made with the first released version updates in place (rayscan--0.1--0.2.sql, then
-# rayscan--0.2--0.3.sql and rayscan--0.3--0.4.sql): the update's box equality then serves DISTINCT,
+# rayscan--0.2--0.3.sql to rayscan--0.4--0.5.sql): the update's box equality then serves DISTINCT,
 # and every member of the extension has a description.
 psql -qAt -v ON_ERROR_STOP=1 -c "CREATE DATABASE updated"
 up=$(psql -d updated -qAt -v ON_ERROR_STOP=1 -c "CREATE EXTENSION rayscan VERSION '0.1'" -c "ALTER EXTENSION rayscan UPDATE" \
   -c "SELECT extversion FROM pg_extension WHERE extname = 'rayscan'" \
   -c "SELECT count(DISTINCT b) FROM (VALUES (rs_box(1, 2, 3)), (rs_box(1, 2, 3)), (rs_box(0, 0, 0))) v(b)" \
   -c "SELECT count(*) FROM pg_depend d WHERE d.deptype = 'e' AND d.refobjid = (SELECT oid FROM pg_extension WHERE extname = 'rayscan') AND NOT EXISTS (SELECT FROM pg_description c WHERE c.classoid = d.classid AND c.objoid = d.objid AND c.objsubid = 0 AND c.description <> '')" | tr '\n' ' ')
-[ "$up" = "0.4 2 0 " ] || { echo "postgresql: 0.1 -> 0.4 update gave '$up', expected version 0.4, 2 distinct boxes and 0 objects without a description"; exit 1; }
+[ "$up" = "0.5 2 0 " ] || { echo "postgresql: 0.1 -> 0.5 update gave '$up', expected version 0.5, 2 distinct boxes and 0 objects without a description"; exit 1; }
 echo "extension updated from 0.1: $up"
 rayscan db import data/autzen_trim.las --postgres "host=/tmp/pg user=postgres dbname=postgres" --table autzen >/dev/null
 psql -qAt -v ON_ERROR_STOP=1 >out/pg.txt <<SQL

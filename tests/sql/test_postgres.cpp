@@ -351,6 +351,51 @@ TEST_F(Postgres, RayDwithinSupportFunctionUsesTheGistIndex) {
             std::to_string(cloud_->size()));
 }
 
+// ray_dwithin's row estimate comes from the sample of boxes ANALYZE keeps (rs_box_analyze), not a
+// constant (0.005 of the rows, 550 points or 1 chunk of autzen for every ray): on the points'
+// rs_box(x, y, z) index, within a factor of 1.5 of the brute-force count for rays that keep about
+// 3% and 25% of the points; on the chunk boxes (every chunk sampled) and, with a statistics target
+// that samples every point, on the points, the count itself.
+TEST_F(Postgres, RayDwithinRowEstimateComesFromTheBoxSample) {
+  Pg pg;
+  pg.rows("CREATE INDEX IF NOT EXISTS autzen_pt ON autzen USING gist (rs_box(x, y, z))");
+  pg.rows("ANALYZE autzen");
+  pg.rows("ANALYZE autzen_chunks");
+  // The planner's rows of the plan's top node.
+  auto estimate = [&pg](const std::string& sql) {
+    const auto plan = pg.rows("EXPLAIN " + sql);
+    const auto at = plan.at(0).at(0).find(" rows=");
+    return at == std::string::npos ? -1.0 : std::stod(plan[0][0].substr(at + 6));
+  };
+  const Vec3 o(636500, 849200, 600), d(0, 0, -1);  // vertical, through the middle of autzen
+  const std::string od = vec(o) + "," + vec(d);
+  auto points_within = [&](double r) {
+    double n = 0;
+    for (const Vec3& p : cloud_->positions) n += dist_ray(o, d, p) <= r;
+    return n;
+  };
+  auto points_sql = [&](double r) { return "SELECT point_index FROM autzen WHERE ray_dwithin(rs_box(x, y, z), " + od + "," + num(r) + ")"; };
+  for (const double r : {60.0, 200.0}) {
+    const double want = points_within(r), got = estimate(points_sql(r));
+    EXPECT_GT(want, 0.02 * double(cloud_->size())) << r;
+    EXPECT_LT(std::max(got / want, want / got), 1.5) << "r " << r << ": estimated " << got << ", " << want << " points";
+    const std::string chunks = "SELECT chunk FROM autzen_chunks WHERE ray_dwithin(box, " + od + "," + num(r) + ")";
+    const double kept = double(pg.rows(chunks).size());
+    EXPECT_GT(kept, 10) << r;
+    EXPECT_EQ(estimate(chunks), kept) << chunks;
+  }
+  pg.rows("ALTER INDEX autzen_pt ALTER COLUMN 1 SET STATISTICS 10000");  // a sample of 3e6 rows: all
+  pg.rows("ANALYZE autzen");
+  const double want = points_within(5);
+  EXPECT_GT(want, 10);
+  EXPECT_EQ(estimate(points_sql(5)), want);
+  pg.rows("ALTER INDEX autzen_pt ALTER COLUMN 1 SET STATISTICS -1");
+  pg.rows("ANALYZE autzen");
+  // Nothing to estimate from (a ray known only when the query runs): the constant, as before.
+  EXPECT_EQ(estimate("SELECT point_index FROM autzen WHERE ray_dwithin(rs_box(x, y, z), " + od + ", random())"),
+            std::round(0.005 * double(cloud_->size())));
+}
+
 // A frustum (four half-spaces around a ray): box && plane_below(...) on the chunk GiST index plus
 // dist_plane <= 0 per point equals the brute-force set (as in SQLite).
 TEST_F(Postgres, FrustumWithPlanePruningEqualsBruteForce) {

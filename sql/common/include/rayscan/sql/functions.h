@@ -7,6 +7,8 @@
 #ifndef RAYSCAN_SQL_FUNCTIONS_H
 #define RAYSCAN_SQL_FUNCTIONS_H
 
+#include <stddef.h>
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -54,6 +56,11 @@ const char* rs_eval(const char* fn, rs_function f, const double a[9], double* ou
  * on an axis (RS_ERROR_ARGUMENT). */
 const char* rs_eval_bounds(const char* fn, rs_function f, const double a[12], double* lo, double* hi,
                            rs_error_kind* kind, char err[RS_ERRBUF]);
+
+/** The number of the n points p[3i..3i+2] with dist_ray(o, d, p) <= r, each by the core function
+ * rs_eval returns (an overflowing one is not counted), for a ray checked once (rs_check_ray)
+ * instead of at every point: a planner's estimate over a sample of points. */
+size_t rs_count_dist_ray_within(const double o[3], const double d[3], double r, const double* p, size_t n);
 
 /** Outcome of testing a chunk box against a ray predicate (SQLite's R*Tree eWithin values). */
 typedef enum rs_within { RS_NOT_WITHIN = 0, RS_PARTLY_WITHIN = 1, RS_FULLY_WITHIN = 2 } rs_within;
