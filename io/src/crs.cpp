@@ -5,6 +5,7 @@
 // stay inside rayscan_io; the core library never sees them.
 #include "readers.hpp"
 
+#include "rayscan/base/input_file.hpp"
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/io/crs.hpp"
 
@@ -571,6 +572,14 @@ std::string crs_wkt_from_user_input(const std::string& user_input) {
 }
 
 bool crs_wkt_readable(const std::string& wkt) { return detail::wkt_readable(wkt); }
+
+std::string crs_excerpt(const std::string& wkt) { return one_line(wkt.substr(0, 40) + (wkt.size() > 40 ? "..." : "")); }
+
+void require_readable_crs(const std::string& name, const std::string& wkt) {
+  if (wkt.empty() || crs_wkt_readable(wkt)) return;
+  throw std::invalid_argument(name + ": the CRS is WKT that GDAL cannot read ('" + crs_excerpt(wkt) +
+                              "'); expected a CRS GDAL reads, or none");
+}
 
 namespace {
 

@@ -19,23 +19,6 @@
 
 namespace rayscan::io::detail {
 
-/// The first 40 characters of the CRS text `wkt` ("..." after them when there are more), on one
-/// line: how a message quotes a CRS that GDAL cannot read.
-inline std::string crs_excerpt(const std::string& wkt) {
-  return one_line(wkt.substr(0, 40) + (wkt.size() > 40 ? "..." : ""));
-}
-
-/// Throws std::invalid_argument "<name>: the CRS is WKT that GDAL cannot read ('<its first 40
-/// characters>...'); expected a CRS GDAL reads, or none" unless `wkt` is empty or GDAL reads it
-/// (crs_wkt_readable): the one rule of every writer that stores a CRS (LAS, LAZ, PLY, COPC), since
-/// GDAL, PDAL and QGIS reject a file whose WKT they cannot parse. `name` is the file to blame: the
-/// output a writer was given, or the input whose CRS the COPC writer would copy.
-inline void require_readable_crs(const std::string& name, const std::string& wkt) {
-  if (wkt.empty() || crs_wkt_readable(wkt)) return;
-  throw std::invalid_argument(name + ": the CRS is WKT that GDAL cannot read ('" + crs_excerpt(wkt) +
-                              "'); expected a CRS GDAL reads, or none");
-}
-
 /// cloud.validate(), its message prefixed with the output `path` ("<path>: <what is wrong>"),
 /// every position within +-kMaxCoordinate and a CRS that GDAL reads (require_readable_crs): a file is
 /// written only if the readers will read it back ("<path>: point N: X coordinate is V (expected

@@ -10,6 +10,7 @@
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
+#include "rayscan/io/crs.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/site/index_file.hpp"
 
@@ -202,22 +203,36 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
   // to write_las's scale; text prints coordinates on the source's grid with its decimals).
   io::LasWriteOptions grid;
   PointCloud cloud;
+  std::vector<std::string> warnings;
   if (index_in) {
     cloud = read_index_points(options.in, grid);
   } else {
     io::FileInfo info;
     cloud = io::read_point_cloud(options.in, {}, &info);
     grid = io::las_grid_of(info);
+    if (!info.crs_warning.empty()) warnings.push_back(info.crs_warning);
   }
   apply_grid_options(options, grid);
+  // A CRS that GDAL cannot read (a LAS WKT record with no readable GeoKeys beside it): COPC, whose
+  // CRS is its WKT record, refuses it naming the input, as it does without a grid; the point
+  // formats need none and are written without it, with a warning, rather than refused.
+  if (copc) io::require_readable_crs(options.in.string(), cloud.crs_wkt);
+  if (!cloud.crs_wkt.empty() && !io::crs_wkt_readable(cloud.crs_wkt)) {
+    warnings.push_back(options.in.string() + ": the CRS is WKT that GDAL cannot read ('" + io::crs_excerpt(cloud.crs_wkt) +
+                       "'): " + options.out.string() + " is written without a CRS");
+    cloud.crs_wkt.clear();
+  }
   // LAZ output is compressed by the job itself, so that it takes the chunk size and reports
   // progress; COPC output gets here only with a grid of its own (otherwise written above).
   if (copc || laz_out) {
     TranslateJobResult r = write_through_las(options, cloud, grid, copc);
-    return copc ? copc_result(*r.copc) : r;
+    if (copc) r = copc_result(*r.copc);
+    r.warnings.insert(r.warnings.begin(), warnings.begin(), warnings.end());
+    return r;
   }
   io::write_point_cloud(options.out, cloud, grid);
   TranslateJobResult r;
+  r.warnings = std::move(warnings);
   r.points = cloud.size();
   r.compressed = ext == ".laz";
   r.in_bytes = std::filesystem::file_size(options.in);

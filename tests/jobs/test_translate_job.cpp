@@ -7,6 +7,8 @@
 #include "rayscan/jobs/index.hpp"
 #include "rayscan/jobs/translate.hpp"
 
+#include <gdal/cpl_conv.h>
+#include <gdal/ogr_spatialref.h>
 #include <gtest/gtest.h>
 
 #include "jobs_test_util.hpp"
@@ -860,5 +862,64 @@ TEST(TranslateJob, AnUnreadableWktVlrIsCopiedAloneAndWarnedOnce) {
     const std::string line = "rayscan translate: warning: " + warning + "\n";
     EXPECT_NE(cli.out.find(line), std::string::npos) << cli.out;
     EXPECT_EQ(cli.out.find("warning"), cli.out.rfind("warning")) << cli.out;  // once
+  }
+}
+
+// A WKT VLR that looks like WKT but GDAL cannot read ("XROJCS[...") gives way to the file's
+// GeoKeys when GDAL reads them: PLY and PCD are written, the PLY with the GeoKeys' CRS, and one
+// warning names the input; with no GeoKeys (their directory's record id changed) the points
+// are written without a CRS, with a warning, rather than refused naming the output. Oracle: OGR's
+// EPSG:32104 in US survey foot (the file's GeoKeys, its README), and each output's own bytes.
+TEST(TranslateJob, AnUnreadableWktVlrGivesWayToGeoKeysOrToNoCrs) {
+  const fs::path src = data_file("las/file_with_both_wkt_and_geotiff_vlrs.las"), dir = temp_dir() / "bad_wkt_crs";
+  fs::create_directories(dir);
+  std::string good = file_bytes(src), neither;
+  std::uint16_t header = 0, len = 0, record = 0;
+  std::uint32_t n = 0;
+  std::memcpy(&header, good.data() + 94, 2);
+  std::memcpy(&n, good.data() + 100, 4);
+  std::string bad = good;
+  neither = good;
+  for (std::size_t pos = header, i = 0; i < n; ++i, pos += 54 + len) {
+    std::memcpy(&record, good.data() + pos + 18, 2);
+    std::memcpy(&len, good.data() + pos + 20, 2);
+    if (std::string(good.c_str() + pos + 2) != "LASF_Projection") continue;
+    if (record == 2112) bad[pos + 54] = neither[pos + 54] = 'X';  // "XROJCS[...": not a CRS GDAL reads
+    if (record == 34735) neither[pos + 18] = 0;                     // no GeoKeyDirectory left
+  }
+  const fs::path with_keys = dir / "keys.las", without = dir / "none.las";
+  std::ofstream(with_keys, std::ios::binary) << bad;
+  std::ofstream(without, std::ios::binary) << neither;
+
+  OGRSpatialReference expect;
+  ASSERT_EQ(expect.SetFromUserInput("EPSG:32104"), OGRERR_NONE);
+  expect.SetLinearUnitsAndUpdateParameters(SRS_UL_US_FOOT, CPLAtof(SRS_UL_US_FOOT_CONV));
+  for (const char* ext : {".ply", ".pcd"}) {
+    SCOPED_TRACE(ext);
+    jobs::TranslateJobOptions o;
+    o.in = with_keys;
+    o.out = dir / (std::string("keys") + ext);
+    jobs::TranslateJobResult r = jobs::run_translate(o);
+    ASSERT_EQ(r.warnings.size(), 1u);
+    EXPECT_EQ(r.warnings[0].rfind(with_keys.string() + ": the OGC WKT VLR holds no CRS that GDAL reads ('XROJCS[", 0), 0u)
+        << r.warnings[0];
+    EXPECT_NE(r.warnings[0].find("the CRS is taken from its GeoKeys"), std::string::npos) << r.warnings[0];
+    if (std::string(ext) == ".ply") {
+      const PointCloud back = io::read_point_cloud(o.out);
+      OGRSpatialReference got;
+      ASSERT_EQ(got.importFromWkt(back.crs_wkt.c_str()), OGRERR_NONE) << back.crs_wkt;
+      const char* unit = nullptr;
+      EXPECT_DOUBLE_EQ(got.GetLinearUnits(&unit), expect.GetLinearUnits());
+      EXPECT_NEAR(got.GetProjParm(SRS_PP_FALSE_EASTING), expect.GetProjParm(SRS_PP_FALSE_EASTING), 1e-6);
+      EXPECT_NEAR(got.GetProjParm(SRS_PP_STANDARD_PARALLEL_1), expect.GetProjParm(SRS_PP_STANDARD_PARALLEL_1), 1e-9);
+    }
+    o.in = without;
+    o.out = dir / (std::string("none") + ext);
+    r = jobs::run_translate(o);
+    ASSERT_EQ(r.warnings.size(), 1u);
+    EXPECT_EQ(r.warnings[0], without.string() + ": the CRS is WKT that GDAL cannot read ('XROJCS[\"NAD83_2011_Nebraska_ft\",GEOGCS[\"...'): " +
+                                 o.out.string() + " is written without a CRS");
+    EXPECT_TRUE(io::read_point_cloud(o.out).crs_wkt.empty());
+    EXPECT_EQ(file_bytes(o.out).find("crs"), std::string::npos);
   }
 }

@@ -2,6 +2,7 @@
 #include "las/las_header.hpp"
 #include "rayscan/base/coordinate_bound.hpp"
 #include "rayscan/base/number_text.hpp"
+#include "rayscan/io/crs.hpp"
 #include "rayscan/octree/position_view.hpp"
 
 #include <cctype>
@@ -64,6 +65,10 @@ std::string wkt_vlr_text(const std::uint8_t* d, const LasHeader& h) {
   while (!wkt.empty() && (wkt.back() == '\0' || std::isspace(static_cast<unsigned char>(wkt.back()))))
     wkt.pop_back();
   return wkt;
+}
+
+std::string unreadable_wkt_vlr(const std::string& name, const std::string& wkt) {
+  return name + ": the OGC WKT VLR holds no CRS that GDAL reads ('" + crs_excerpt(wkt) + "')";
 }
 
 LasHeader parse_las_header(const Input& in) {

@@ -76,6 +76,11 @@ LasHeader parse_las_header(const Input& in);
 /// it copies one that GDAL cannot read.
 [[nodiscard]] std::string wkt_vlr_text(const std::uint8_t* d, const LasHeader& h);
 
+/// "<name>: the OGC WKT VLR holds no CRS that GDAL reads ('<crs_excerpt(wkt)>')": how a warning
+/// names the file `name` whose WKT record `wkt` (wkt_vlr_text) GDAL cannot read, followed by what
+/// was done about it (the LAS reader took the GeoKeys, translate_las copied it unchanged).
+[[nodiscard]] std::string unreadable_wkt_vlr(const std::string& name, const std::string& wkt);
+
 /// How a LAS point record gives a coordinate, as the refusals of one beyond +-kMaxCoordinate name
 /// it (beyond_coordinate_bound's `source`; the reader's refuse_las_coordinate, the writer's own):
 /// "stored integer I x scale S + offset O".

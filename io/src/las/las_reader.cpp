@@ -4,6 +4,7 @@
 // CRS: 2.5.1 (OGC WKT VLR 2112) and 2.5.2 (GeoKeyDirectoryTag 34735, GeoDoubleParamsTag 34736).
 #include "las/las_header.hpp"
 #include "readers.hpp"
+#include "rayscan/io/crs.hpp"
 #include "rayscan/octree/position_view.hpp"
 #include "laz/laz.hpp"
 
@@ -537,26 +538,39 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
                          (h.extra_bytes.present ? std::string("not kept") : "not described by an Extra Bytes VLR") +
                          ": skipped");
 
-  // CRS: the OGC WKT VLR when it holds text, else the GeoKeys.
+  // CRS: the OGC WKT VLR when it holds a CRS GDAL reads, else the GeoKeys. Where the global
+  // encoding's WKT bit is set (LAS 1.4 requires it for PDRF 6-10) the WKT is the CRS of record and
+  // GeoKeys beside it are a courtesy to older readers; without the bit the GeoKeys are, so a
+  // WKT record GDAL cannot read gives way to GeoKeys GDAL reads either way, with a warning naming
+  // this file. With none readable the WKT's text is kept: an output that needs a CRS (a GeoTIFF,
+  // COPC) refuses it naming the input (require_readable_crs), one that needs none drops it.
   struct { std::string crs_wkt; } pc;
+  std::string wkt_vlr;
   if (h.wkt.present) {
-    const std::string wkt = wkt_vlr_text(d, h);
+    std::string wkt = wkt_vlr_text(d, h);
     // A WKT CRS is KEYWORD[...]; anything else (empty, "''") carries no CRS.
-    if (wkt.find('[') != std::string::npos) {
-      pc.crs_wkt = wkt;
-      info.crs_source = "WKT VLR";
-    } else {
+    if (wkt.find('[') != std::string::npos)
+      wkt_vlr = std::move(wkt);
+    else
       info.notes.push_back("OGC WKT VLR holds no WKT ('" + wkt.substr(0, 40) + "'): ignored");
-    }
   }
+  std::string geokeys_wkt;
   if (h.geokeys.present) {
     // The GeoDoubleParamsTag holds the keys of type double (ProjLinearUnitSizeGeoKey).
     const GeoDoubles doubles = h.geodoubles.present ? GeoDoubles{d + h.geodoubles.at, h.geodoubles.len} : GeoDoubles{};
-    std::string wkt = crs_from_geokeys(d + h.geokeys.at, h.geokeys.len, info, doubles);
-    if (pc.crs_wkt.empty() && (!wkt.empty() || info.epsg != 0)) {
-      pc.crs_wkt = wkt;
-      info.crs_source = "GeoKeys";
+    geokeys_wkt = crs_from_geokeys(d + h.geokeys.at, h.geokeys.len, info, doubles);  // "" unless GDAL reads it
+  }
+  const bool wkt_readable = !wkt_vlr.empty() && crs_wkt_readable(wkt_vlr);
+  if (wkt_readable || (!wkt_vlr.empty() && geokeys_wkt.empty())) {
+    pc.crs_wkt = std::move(wkt_vlr);
+    info.crs_source = "WKT VLR";
+  } else if (!geokeys_wkt.empty() || info.epsg != 0) {
+    if (!wkt_vlr.empty()) {
+      info.crs_warning = unreadable_wkt_vlr(nm, wkt_vlr) + ": the CRS is taken from its GeoKeys";
+      info.notes.push_back(info.crs_warning);
     }
+    pc.crs_wkt = std::move(geokeys_wkt);
+    info.crs_source = "GeoKeys";
   }
   if (info.epsg == 0 && !pc.crs_wkt.empty()) info.epsg = epsg_from_wkt(pc.crs_wkt);
 

@@ -212,8 +212,7 @@ TranslateResult translate_las(const std::filesystem::path& in_path, const std::f
   // and laszip keep them) and writes no CRS of its own, so an unreadable WKT VLR is neither
   // replaced nor duplicated; but the output inherits it, which GDAL, PDAL and QGIS may refuse.
   if (const std::string wkt = detail::wkt_vlr_text(d, h); !wkt.empty() && !crs_wkt_readable(wkt))
-    res.warnings.push_back(in.name + ": the OGC WKT VLR holds no CRS that GDAL reads ('" + detail::crs_excerpt(wkt) +
-                           "'): copied unchanged with the other VLRs");
+    res.warnings.push_back(detail::unreadable_wkt_vlr(in.name, wkt) + ": copied unchanged with the other VLRs");
   // Waveform data packets stored in the file (global encoding bit 1, LAS 1.3+; section 2.4 table
   // 4): the point records' wave packet descriptors address them by their offset from the start of
   // the waveform data packet record, so a LAS output copies that record byte for byte and points

@@ -152,7 +152,7 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
   ro.scalars = false;
   ro.stored_colour = true;
   r.crs_wkt = open_point_reader(path, AttributeSet::none(), ro)->crs_wkt();
-  detail::require_readable_crs(name, r.crs_wkt);
+  require_readable_crs(name, r.crs_wkt);
   if (!h.laszip.present && !convert) {
     r.bytes = d + h.point_offset;  // the input's own records, mapped
   } else {
@@ -265,7 +265,7 @@ Records read_records(const std::filesystem::path& in, const std::filesystem::pat
   // readers have no bounded-memory path to COPC.
   const PointCloud cloud = read_point_cloud(in);
   if (cloud.size() == 0) throw std::invalid_argument(in.string() + ": no points to write as COPC");
-  detail::require_readable_crs(in.string(), cloud.crs_wkt);  // named as the input, not the intermediate
+  require_readable_crs(in.string(), cloud.crs_wkt);  // named as the input, not the intermediate
   const std::filesystem::path& las = file->temp.emplace(temp_path(opt, in.string(), "input.las"), out).path();
   write_las(las, cloud);
   file->map = std::make_unique<detail::MappedFile>(las);

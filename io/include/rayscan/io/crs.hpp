@@ -57,4 +57,15 @@ struct LengthUnit {
 /// the writers make before they store a CRS. Never throws.
 [[nodiscard]] bool crs_wkt_readable(const std::string& wkt);
 
+/// The first 40 characters of the CRS text `wkt` ("..." after them when there are more), on one
+/// line: how a message quotes a CRS that GDAL cannot read. Never throws but std::bad_alloc.
+[[nodiscard]] std::string crs_excerpt(const std::string& wkt);
+
+/// Throws std::invalid_argument "<name>: the CRS is WKT that GDAL cannot read ('<crs_excerpt>');
+/// expected a CRS GDAL reads, or none" unless `wkt` is empty or GDAL reads it (crs_wkt_readable):
+/// the one rule of every writer that stores a CRS (LAS, LAZ, PLY, COPC, GeoTIFF), since GDAL, PDAL
+/// and QGIS reject a file whose WKT they cannot parse. `name` is the file to blame: the output a
+/// point writer was given, or the input whose CRS an output that needs one would carry.
+void require_readable_crs(const std::string& name, const std::string& wkt);
+
 }  // namespace rayscan::io

@@ -52,6 +52,9 @@ struct FileInfo {
   int epsg = 0;           ///< horizontal (or compound) EPSG code from the GeoKeys, 0 when unknown
   int vertical_epsg = 0;  ///< vertical EPSG code from the GeoKeys, 0 when absent
   std::string crs_source;  ///< "WKT VLR", "GeoKeys", "" when the file has no usable CRS
+  /// LAS: the one warning about the file's CRS records, naming the file, also among the notes: its
+  /// OGC WKT VLR holds no CRS GDAL reads, so the CRS is taken from its GeoKeys; "" when none.
+  std::string crs_warning;
   std::string system_id, software;  ///< LAS system identifier and generating software
   std::uint16_t creation_year = 0, creation_day = 0;  ///< LAS file creation year / day of year
   std::uint16_t global_encoding = 0;                  ///< LAS global encoding bits
