@@ -3,6 +3,8 @@
 // D65 white, as tabulated by B. Lindbloom ("RGB/XYZ Matrices"); CIELAB: CIE 15:2004 section 8.2.1.
 #include "rayscan/analysis/flip.hpp"
 
+#include "rayscan/base/job.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -82,11 +84,14 @@ constexpr double kFeatureWidthDeg = 0.082;  // w in the paper's section 4.2
 /// A 1-D kernel of odd length 2 r + 1, centre at index r.
 using Kernel = std::vector<float>;
 
-/// Convolve each row of plane `src` (w x h) with `k`, clamping at the edges.
-void convolve_rows(const std::vector<float>& src, std::vector<float>& dst, int w, int h, const Kernel& k) {
+/// Convolve each row of plane `src` (w x h) with `k`, clamping at the edges. `cancel` (nullptr =
+/// never) is checked before each block of rows (FlipOptions::cancel).
+void convolve_rows(const std::vector<float>& src, std::vector<float>& dst, int w, int h, const Kernel& k,
+                   const std::atomic<bool>* cancel) {
   const int r = static_cast<int>(k.size() / 2);
   dst.resize(src.size());
   tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
+    throw_if_cancelled(cancel);  // out of the body: TBB skips the blocks not started
     for (int y = rows.begin(); y < rows.end(); ++y) {
       const float* s = src.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(w);
       float* o = dst.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(w);
@@ -99,12 +104,15 @@ void convolve_rows(const std::vector<float>& src, std::vector<float>& dst, int w
   });
 }
 
-/// Convolve each column of plane `src` (w x h) with `k`, clamping at the edges.
-void convolve_cols(const std::vector<float>& src, std::vector<float>& dst, int w, int h, const Kernel& k) {
+/// Convolve each column of plane `src` (w x h) with `k`, clamping at the edges; `cancel` as
+/// convolve_rows'.
+void convolve_cols(const std::vector<float>& src, std::vector<float>& dst, int w, int h, const Kernel& k,
+                   const std::atomic<bool>* cancel) {
   const int r = static_cast<int>(k.size() / 2);
   dst.resize(src.size());
   const auto W = static_cast<std::size_t>(w);
   tbb::parallel_for(tbb::blocked_range<int>(0, h), [&](const tbb::blocked_range<int>& rows) {
+    throw_if_cancelled(cancel);
     std::vector<double> acc(W);
     for (int y = rows.begin(); y < rows.end(); ++y) {
       std::fill(acc.begin(), acc.end(), 0.0);
@@ -119,11 +127,12 @@ void convolve_cols(const std::vector<float>& src, std::vector<float>& dst, int w
   });
 }
 
-/// Separable 2-D convolution: rows with kx, then columns with ky.
-std::vector<float> convolve(const std::vector<float>& src, int w, int h, const Kernel& kx, const Kernel& ky) {
+/// Separable 2-D convolution: rows with kx, then columns with ky; `cancel` as convolve_rows'.
+std::vector<float> convolve(const std::vector<float>& src, int w, int h, const Kernel& kx, const Kernel& ky,
+                            const std::atomic<bool>* cancel) {
   std::vector<float> tmp, out;
-  convolve_rows(src, tmp, w, h, kx);
-  convolve_cols(tmp, out, w, h, ky);
+  convolve_rows(src, tmp, w, h, kx, cancel);
+  convolve_cols(tmp, out, w, h, ky, cancel);
   return out;
 }
 
@@ -139,7 +148,8 @@ constexpr std::array<Csf, 3> kCsf = {{{1.0, 0.0047, 0.0, 1e-5},     // achromati
 /// Filter one YyCxCz plane with its CSF: the 2-D kernel sum_i a_i sqrt(pi/b_i) exp(-pi^2 (x^2 +
 /// y^2) / b_i) over offsets within `radius` pixels, normalised to unit sum. Each Gaussian term
 /// is separable; the terms are filtered apart and added with their share of the 2-D sum.
-std::vector<float> csf_filter(const std::vector<float>& plane, int w, int h, const Csf& c, double ppd, int radius) {
+std::vector<float> csf_filter(const std::vector<float>& plane, int w, int h, const Csf& c, double ppd, int radius,
+                              const std::atomic<bool>* cancel) {
   const std::array<std::array<double, 2>, 2> terms = {{{c.a1, c.b1}, {c.a2, c.b2}}};
   std::array<Kernel, 2> k;
   std::array<double, 2> weight{0.0, 0.0};
@@ -162,7 +172,7 @@ std::vector<float> csf_filter(const std::vector<float>& plane, int w, int h, con
   std::vector<float> out(plane.size(), 0.0f);
   for (std::size_t t = 0; t < 2; ++t) {
     if (weight[t] == 0.0) continue;
-    const std::vector<float> f = convolve(plane, w, h, k[t], k[t]);
+    const std::vector<float> f = convolve(plane, w, h, k[t], k[t], cancel);
     const auto share = static_cast<float>(weight[t] / total);
     for (std::size_t p = 0; p < out.size(); ++p) out[p] += share * f[p];
   }
@@ -208,9 +218,11 @@ FeatureKernels feature_kernels(double ppd) {
 
 /// Magnitudes of the edge and point responses (paper eq. 6-7) of the achromatic plane.
 void feature_magnitudes(const std::vector<float>& grey, int w, int h, const FeatureKernels& k,
-                        std::vector<float>& edge, std::vector<float>& point) {
-  const std::vector<float> ex = convolve(grey, w, h, k.edge, k.gauss), ey = convolve(grey, w, h, k.gauss, k.edge);
-  const std::vector<float> px = convolve(grey, w, h, k.point, k.gauss), py = convolve(grey, w, h, k.gauss, k.point);
+                        std::vector<float>& edge, std::vector<float>& point, const std::atomic<bool>* cancel) {
+  const std::vector<float> ex = convolve(grey, w, h, k.edge, k.gauss, cancel);
+  const std::vector<float> ey = convolve(grey, w, h, k.gauss, k.edge, cancel);
+  const std::vector<float> px = convolve(grey, w, h, k.point, k.gauss, cancel);
+  const std::vector<float> py = convolve(grey, w, h, k.gauss, k.point, cancel);
   edge.resize(grey.size());
   point.resize(grey.size());
   for (std::size_t i = 0; i < grey.size(); ++i) {
@@ -291,15 +303,15 @@ FlipResult flip(std::span<const float> reference, std::span<const float> test, i
   const int radius = static_cast<int>(std::ceil(3.0 * std::sqrt(bmax / (2.0 * std::numbers::pi * std::numbers::pi)) * ppd));
   std::array<std::vector<float>, 3> fr, ft;
   for (std::size_t c = 0; c < 3; ++c) {
-    fr[c] = csf_filter(pr.ycxcz[c], width, height, kCsf[c], ppd, radius);
-    ft[c] = csf_filter(pt.ycxcz[c], width, height, kCsf[c], ppd, radius);
+    fr[c] = csf_filter(pr.ycxcz[c], width, height, kCsf[c], ppd, radius, opts.cancel);
+    ft[c] = csf_filter(pt.ycxcz[c], width, height, kCsf[c], ppd, radius, opts.cancel);
   }
 
   // Feature pipeline on the unfiltered achromatic planes.
   const FeatureKernels fk = feature_kernels(ppd);
   std::vector<float> er, prr, et, ptt;
-  feature_magnitudes(pr.grey, width, height, fk, er, prr);
-  feature_magnitudes(pt.grey, width, height, fk, et, ptt);
+  feature_magnitudes(pr.grey, width, height, fk, er, prr, opts.cancel);
+  feature_magnitudes(pt.grey, width, height, fk, et, ptt, opts.cancel);
 
   FlipResult res;
   res.error.resize(n);
@@ -308,6 +320,7 @@ FlipResult flip(std::span<const float> reference, std::span<const float> test, i
   const double cmax = flip_max_colour_difference();
   const double knee = kPc * cmax;
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n), [&](const tbb::blocked_range<std::size_t>& r) {
+    throw_if_cancelled(opts.cancel);
     for (std::size_t i = r.begin(); i < r.end(); ++i) {
       const Colour3 a = filtered_to_hunt_lab({fr[0][i], fr[1][i], fr[2][i]});
       const Colour3 b = filtered_to_hunt_lab({ft[0][i], ft[1][i], ft[2][i]});

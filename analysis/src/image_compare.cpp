@@ -2,6 +2,7 @@
 // for MAE/RMSE/PSNR, Wang et al. 2004 for SSIM).
 #include "rayscan/analysis/image_compare.hpp"
 
+#include "rayscan/base/job.hpp"
 #include "rayscan/image/color_ramp.hpp"
 
 #include <tbb/blocked_range.h>
@@ -51,6 +52,7 @@ CompareMetrics compare_images(const Image& ref, const Image& test,
   const std::size_t C = static_cast<std::size_t>(ref.nchannels());
   std::vector<RowAcc> rows(H);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, H), [&](const auto& range) {
+    throw_if_cancelled(opts.cancel);  // out of the body: TBB skips the blocks not started
     for (std::size_t y = range.begin(); y < range.end(); ++y) {
       RowAcc& a = rows[y];
       a.abs.assign(C, 0.0);
@@ -140,7 +142,7 @@ CompareMetrics compare_images(const Image& ref, const Image& test,
     const std::vector<float> sx = ssim_signal(ref, name);
     const std::vector<float> sy = ssim_signal(test, name);
     m.ssim_signal = name;
-    const SsimResult s = ssim(sx, sy, ref.width, ref.height, ignore, opts.ssim);
+    const SsimResult s = ssim(sx, sy, ref.width, ref.height, ignore, opts.ssim, opts.cancel);
     m.ssim = s.mssim;
     m.ssim_undefined = s.undefined;
     m.ssim_windows = s.windows;
@@ -179,11 +181,13 @@ std::vector<float> ssim_signal(const Image& img, std::string& name) {
 }
 
 std::vector<float> pixel_errors(const Image& ref, const Image& test,
-                                std::span<const std::uint8_t> ignore) {
+                                std::span<const std::uint8_t> ignore, const std::atomic<bool>* cancel) {
   check_pair(ref, test, ignore);
   const std::size_t n = ref.npixels(), C = static_cast<std::size_t>(ref.nchannels());
+  const std::size_t block = 32 * static_cast<std::size_t>(ref.width);  // pixels between checks: 32 rows
   std::vector<float> err(n);
   for (std::size_t p = 0; p < n; ++p) {
+    if (p % block == 0) throw_if_cancelled(cancel);
     if (!ignore.empty() && ignore[p]) {
       err[p] = std::numeric_limits<float>::quiet_NaN();
       continue;

@@ -3,6 +3,8 @@
 // non-finite sample are found with running counts along the same two passes and left out.
 #include "rayscan/analysis/ssim.hpp"
 
+#include "rayscan/base/job.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -52,7 +54,7 @@ std::string no_window_reason(std::span<const float> x, std::span<const float> y,
 }  // namespace
 
 SsimResult ssim(std::span<const float> x, std::span<const float> y, int width, int height,
-                std::span<const std::uint8_t> ignore, const SsimOptions& opts) {
+                std::span<const std::uint8_t> ignore, const SsimOptions& opts, const std::atomic<bool>* cancel) {
   const std::vector<double> g = ssim_gaussian_weights(opts);
   if (width < 0 || height < 0) throw std::invalid_argument("ssim: negative image size");
   const std::size_t W = static_cast<std::size_t>(width), H = static_cast<std::size_t>(height);
@@ -81,6 +83,7 @@ SsimResult ssim(std::span<const float> x, std::span<const float> y, int width, i
   std::vector<std::size_t> row_count(OH, 0);
   constexpr std::size_t kBlock = 32;  // output rows per task
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, OH, kBlock), [&](const auto& range) {
+    throw_if_cancelled(cancel);  // out of the body: TBB skips the blocks not started
     const std::size_t oy0 = range.begin(), oy1 = range.end();
     const std::size_t rows = oy1 - oy0 + win - 1;  // input rows oy0 .. oy1 + win - 2
     // Horizontally filtered statistics of the input rows: mu_x, mu_y, E[x^2], E[y^2], E[xy], and

@@ -42,13 +42,14 @@ void check_sight_lengths(const SightLengths& s) {
 }
 
 void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const PointCloud* memory,
-                     const IndexOptions& index, std::optional<double> radius, double radius_factor,
+                     std::string_view memory_label, const IndexOptions& index, std::optional<double> radius,
+                     double radius_factor,
                      const JobControl& ctl, const CopcOpen& copc) {
   // The jobs check these first (check_options); again here, as this reads the file.
   check_sight_lengths({radius, radius_factor, {}, {}, {}});
   char buf[512];
   auto t0 = std::chrono::steady_clock::now();
-  cs.source = memory ? std::string("(memory)") : file.string();
+  cs.source = memory ? std::string(memory_label) : file.string();
   const char* how = "read";
   // An index file (.rsi) is queried in place (no tree is built); its points are copied to the
   // sources' original order (tiles concatenated in build order) as the output cloud, so the

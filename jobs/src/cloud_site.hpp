@@ -32,7 +32,7 @@ namespace rayscan::jobs::detail {
 struct CloudSite {
   PointCloud cloud;          ///< the points; for an index file, MappedIndex::to_point_cloud()
   io::FileInfo info;         ///< what the reader found (empty for memory and index files)
-  std::string source;        ///< the file name, or "(memory)"
+  std::string source;        ///< the file name, or the label of points in memory (open_cloud_site)
   std::optional<Site> site;  ///< the index over `cloud` (or the mapped index file, or the COPC
                              ///< file's own hierarchy: SiteStorage::copc)
   RadiusChoice radius;       ///< the sphere radius chosen
@@ -66,7 +66,8 @@ struct SightLengths {
 /// (world units), got -1"; radius's ends "or auto" (its value nullopt, the CLI's word).
 void check_sight_lengths(const SightLengths& s);
 
-/// Fills `cs`: reads `file` (or copies `memory` when non-null), or maps an index file in place
+/// Fills `cs`: reads `file` (or copies `memory` when non-null, named `memory_label` in messages
+/// and as `cs.source`: the options' source_label), or maps an index file in place
 /// (read ahead: every point will be queried), or opens a COPC file's hierarchy in place (`copc`)
 /// and reads its points whole as the output cloud; builds the index of type `index` (not for an
 /// index file or a COPC file in place); chooses the sphere radius (choose_radius; on a COPC file
@@ -75,7 +76,7 @@ void check_sight_lengths(const SightLengths& s);
 /// (a COPC file whose records disagree with its header's point count included),
 /// std::invalid_argument for a cloud without points.
 void open_cloud_site(CloudSite& cs, const std::filesystem::path& file, const PointCloud* memory,
-                     const IndexOptions& index, std::optional<double> radius, double radius_factor,
+                     std::string_view memory_label, const IndexOptions& index, std::optional<double> radius, double radius_factor,
                      const JobControl& ctl, const CopcOpen& copc = {});
 
 /// One log line on a COPC index after its queries: node decodes (re-decodes included) of the

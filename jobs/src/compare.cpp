@@ -205,9 +205,11 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
   }
   CompareJobResult res;
   Image ref = o.reference ? *o.reference : read_image(o.reference_file);
+  o.control.check_cancel();
   Image test = o.image ? *o.image : read_image(o.image_file);
-  if (ref.source.empty()) ref.source = "(memory)";  // names in messages for in-memory images
-  if (test.source.empty()) test.source = "(memory)";
+  o.control.check_cancel();
+  if (ref.source.empty()) ref.source = kMemorySource;  // names in messages for in-memory images
+  if (test.source.empty()) test.source = kMemorySource;
   res.reference_name = o.reference ? ref.source : o.reference_file;
   res.image_name = o.image ? test.source : o.image_file;
 
@@ -286,6 +288,8 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
   res.used.fail_threshold = fail.threshold;
   res.used.warn_threshold = warn.threshold;
   res.used.ssim.dynamic_range = o.ssim_range;
+  res.used.cancel = o.control.cancel;
+  o.control.check_cancel();
   res.metrics = compare_images(r, t, ignore, res.used);
 
   // The heat maps are one output: both written to temporaries, renamed together at the end, so
@@ -306,6 +310,7 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
         throw OptionError({option("flip_ppd"), ": expected a finite number > 0"});
       FlipOptions fo;
       fo.pixels_per_degree = o.flip_ppd;
+      fo.cancel = o.control.cancel;
       const FlipResult fr = flip(flip_input(r, colour, ref_linear), flip_input(t, colour, img_linear), r.width,
                                  r.height, fo, ignore);
       res.metrics.flip = fr.mean;
@@ -329,7 +334,7 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
 
   // Heat map of the per-pixel error.
   if (!o.diff.empty()) {
-    const std::vector<float> err = pixel_errors(r, t, ignore);
+    const std::vector<float> err = pixel_errors(r, t, ignore, o.control.cancel);
     double vmax = 0.0;
     if (o.diff_max) {
       vmax = *o.diff_max;
@@ -345,6 +350,7 @@ CompareJobResult run_compare(const CompareJobOptions& o) {
     res.diff = o.diff;
     res.diff_max = vmax;
   }
+  o.control.check_cancel();  // set after the last pass: the maps are not renamed into place either
   tx.commit();
   return res;
 }

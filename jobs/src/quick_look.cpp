@@ -539,8 +539,8 @@ ResolvedScene resolve_scene_text(const std::string& text, const std::string& nam
   return res;
 }
 
-ResolvedScene resolve_quick_look(const CloudSummary& summary, const SceneOverrides& ov) {
-  require_quick_look_points(summary, "(memory)");
+ResolvedScene resolve_quick_look(const CloudSummary& summary, const SceneOverrides& ov, std::string_view source_label) {
+  require_quick_look_points(summary, std::string(source_label));
   ResolvedScene res =
       resolve_json(quick_look_json("", summary), std::filesystem::path(),
                    {.camera_required = false, .cloud_required = false, .name = "(quick look)"}, ov,

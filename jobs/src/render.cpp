@@ -14,6 +14,7 @@
 #include "rayscan/site/index_file.hpp"
 #include "rayscan/image/image_file.hpp"
 #include "rayscan/jobs/info.hpp"
+#include "rayscan/jobs/memory_source.hpp"
 #include "rayscan/io/point_reader.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/surfel_setup.hpp"
@@ -444,7 +445,7 @@ RenderStats render_camera(const Prepared& P, const Camera& camera, const JobCont
 }
 
 // The image header's record of a render (scenes/README.md, "Image metadata"): the scene file
-// (none for a quick look), the cloud file as an absolute path ("(memory)" for points given in
+// (none for a quick look), the cloud file as an absolute path (kMemorySource for points given in
 // memory that are not scene.cloud's, RenderJobOptions::cloud_read_from_scene), the samples per
 // pixel of the image's product (a map of albedo's: RenderJobOptions::albedo_map), the camera the
 // image was traced through as camera-file JSON (none for a top-down map's grid, which the
@@ -457,7 +458,7 @@ ImageMetadata render_metadata(const RenderJobOptions& o, const Scene& scene, con
   ImageMetadata m;
   if (!scene.file.empty()) m.emplace_back("rayscan:scene", scene.file.string());
   const bool file = !scene.cloud.empty() && (!o.cloud || o.cloud_read_from_scene);
-  m.emplace_back("rayscan:cloud", file ? absolute(scene.cloud) : std::string("(memory)"));
+  m.emplace_back("rayscan:cloud", file ? absolute(scene.cloud) : std::string(kMemorySource));
   m.emplace_back("rayscan:spp", std::to_string(o.albedo_map ? o.albedo_samples : scene.spp));
   m.emplace_back("rayscan:seed", std::to_string(scene.seed));
   m.emplace_back("rayscan:radius", num17(r.radius.radius));

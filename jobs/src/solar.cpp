@@ -475,7 +475,7 @@ struct SolarRun {
   }
 
   void open_site() {
-    detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.index, o.radius, o.radius_factor, ctl,
+    detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.source_label, o.index, o.radius, o.radius_factor, ctl,
                             {o.copc_in_place, o.cache_bytes});
     check_crs(cloud.crs_wkt);
     r.info = cs.info;

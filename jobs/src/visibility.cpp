@@ -197,7 +197,7 @@ struct VisibilityRun {
 
   /// The cloud, its index (or the mapped index file), the radius and the surfels.
   void open_site() {
-    detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.index, o.radius, o.radius_factor, ctl,
+    detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.source_label, o.index, o.radius, o.radius_factor, ctl,
                             {o.copc_in_place, o.cache_bytes});
     if (const std::string need = needs_projected_crs(); !need.empty())
       detail::refuse_unprojected_crs(cloud.crs_wkt, need);

@@ -265,25 +265,6 @@ void run_naming_keywords(std::string_view job, F&& f, Edit edit = [](std::string
   }
 }
 
-/// The jobs' name of points handed to them in memory, as their messages begin ("(memory): the
-/// point cloud has no points": jobs/src/cloud_site.cpp, quick_look.cpp).
-constexpr std::string_view kMemoryLabel = "(memory): ";
-
-/// Runs `f` and rethrows a std::invalid_argument whose message names the points by the jobs' label
-/// for points in memory (kMemoryLabel) with the keyword `name` that gave them instead ("cloud: the
-/// point cloud has no points"), when `in_memory` (a PointCloud or an array was given). Other
-/// exceptions pass unchanged.
-template <class F>
-void run_naming_points(std::string_view name, bool in_memory, F&& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    const std::string_view m = e.what();
-    if (!in_memory || !m.starts_with(kMemoryLabel)) throw;
-    throw std::invalid_argument(std::string(name) + ": " + std::string(m.substr(kMemoryLabel.size())));
-  }
-}
-
 /// Refuses a PointCloud given to a job when a coordinate is not finite: ValueError "<name>:
 /// PointCloud: point I has a non-finite coordinate", I the caller's row, as for an array
 /// (cloud_arg). The jobs would refuse it later but name the point by its place in what they
@@ -380,16 +361,16 @@ py::dict render(py::handle scene, const std::string& scene_json, py::handle clou
       [&] {
         run_interruptible(o.control, "render", [&] {
           if (points.arg) require_finite_points(*points.arg, points_name);
-          run_naming_points(points_name, given && points.arg->points, [&] {
-            run_naming_keywords("render", [&] {
-              const jobs::ResolvedScene rs =
-                  quick_look_in_memory ? jobs::resolve_quick_look(summary({}), ov)
-                  : from_text          ? jobs::resolve_scene_text(scene_json, "scene dict", ov, summary, given)
-                                       : jobs::resolve_scene(scene_file, ov, summary, given);
-              o.scene = rs.scene;
-              points.attach(o);
-              r = jobs::run_render(o);
-            });
+          // Points in memory are named by the keyword that gave them ("scene: a quick look needs
+          // ..."), as by the jobs' source_label below.
+          run_naming_keywords("render", [&] {
+            const jobs::ResolvedScene rs =
+                quick_look_in_memory ? jobs::resolve_quick_look(summary({}), ov, points_name)
+                : from_text          ? jobs::resolve_scene_text(scene_json, "scene dict", ov, summary, given)
+                                     : jobs::resolve_scene(scene_file, ov, summary, given);
+            o.scene = rs.scene;
+            points.attach(o);
+            r = jobs::run_render(o);
           });
         });
       },
@@ -456,13 +437,11 @@ py::dict ortho_map(py::handle cloud, py::handle res_arg, py::handle spp, py::han
       [&] {
         run_interruptible(o.render.control, "ortho_map", [&] {
           require_finite_points(*points.arg, "cloud");
-          run_naming_points("cloud", path.empty(), [&] {
-            run_naming_keywords("ortho_map", [&] {
-              o.render.scene = path.empty() ? jobs::resolve_quick_look(summary({}), ov).scene
-                                            : jobs::resolve_scene(path, ov, summary).scene;
-              points.attach(o.render);
-              r = jobs::run_ortho_map(o);
-            });
+          run_naming_keywords("ortho_map", [&] {
+            o.render.scene = path.empty() ? jobs::resolve_quick_look(summary({}), ov, "cloud").scene
+                                          : jobs::resolve_scene(path, ov, summary).scene;
+            points.attach(o.render);
+            r = jobs::run_ortho_map(o);
           });
         });
       },
@@ -543,8 +522,7 @@ py::dict compare(const py::object& a, const py::object& b, py::handle channels,
   o.fail.min_ssim = opt_float_arg(fail_ssim, "fail_ssim", "None or a number (SSIM, at most 1)");
   o.warn.threshold = opt_float_arg(warn, "warn", "None or a number (absolute error per sample)");
   jobs::CompareJobResult r;
-  JobControl control;  // compare has no check of a cancel flag: Ctrl-C is raised once it ends
-  run_reading_files([&] { run_interruptible(control, "compare", [&] { r = jobs::run_compare(o); }); },
+  run_reading_files([&] { run_interruptible(o.control, "compare", [&] { r = jobs::run_compare(o); }); },
                     {o.reference_file, o.image_file});
   const analysis::CompareMetrics& m = r.metrics;
   py::dict d;
@@ -656,15 +634,14 @@ py::dict visibility(const py::object& cloud, const py::object& observers, py::ha
                                                     sky_rays, camera, distance, threads, cache, ground_radius);
   o.cloud = c.points;
   o.cloud_file = c.path;
+  o.source_label = "cloud";  // points in memory named by their keyword ("cloud: the point cloud has no points")
   jobs::VisibilityJobResult r;
   run_reading_files(
       [&] {
         run_interruptible(o.control, "visibility", [&] {
           require_finite_points(c, "cloud");
-          run_naming_points("cloud", c.points != nullptr, [&] {
-            run_naming_keywords("visibility", [&] { r = jobs::run_visibility(o); },
-                                [&](std::string m) { return one_row_number(o.observers, std::move(m)); });
-          });
+          run_naming_keywords("visibility", [&] { r = jobs::run_visibility(o); },
+                              [&](std::string m) { return one_row_number(o.observers, std::move(m)); });
         });
       },
       {c.path});
@@ -731,13 +708,14 @@ py::dict solar(const py::object& cloud, py::handle start, py::handle end, py::ha
                                           sky_rays, primitive, radius, threads, cache, true);
   o.cloud = c.points;
   o.cloud_file = c.path;
+  o.source_label = "cloud";  // as visibility's
   jobs::SolarJobResult r;
   run_naming_keywords("solar", [&] {
     run_reading_files(
         [&] {
           run_interruptible(o.control, "solar", [&] {
             require_finite_points(c, "cloud");
-            run_naming_points("cloud", c.points != nullptr, [&] { r = jobs::run_solar(o); });
+            r = jobs::run_solar(o);
           });
         },
         {o.weather.string(), c.path});

@@ -166,8 +166,8 @@ def test_a_non_finite_point_is_named_by_the_callers_row(georeferenced):
 
 @pytest.mark.parametrize("given", ["PointCloud", "array"])
 def test_points_in_memory_are_named_by_the_keyword_that_gave_them(given):
-    # The jobs name points handed over in memory "(memory)", a name the caller never wrote: a
-    # message about them names the keyword instead, as it names a bad point. And the automatic
+    # The jobs name points handed over in memory "(memory)" by default, a name the caller never
+    # wrote: the module has them name the keyword instead (source_label), as it names a bad point. And the automatic
     # radius, which the call asks for with None, is "radius None (auto)".
     def points(xyz):
         xyz = np.asarray(xyz, dtype=float).reshape(-1, 3)

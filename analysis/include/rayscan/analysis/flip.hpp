@@ -16,6 +16,7 @@
 // Borders: samples outside the image repeat the edge pixel (clamp to edge).
 #pragma once
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -34,6 +35,9 @@ double flip_pixels_per_degree(double distance_m = 0.7, double resolution_x = 384
 struct FlipOptions {
   double pixels_per_degree = 67.02064327658226;  ///< flip_pixels_per_degree() of the default viewer
   bool linear_input = false;  ///< inputs are linear RGB (e.g. EXR), not sRGB-encoded (PNG, JPEG)
+  /// Checked before each block of rows of every filter pass and of the final per-pixel pass: once
+  /// set, flip() throws rayscan::Cancelled (base/job.hpp); nullptr = never. Not owned.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 /// Per-pixel FLIP maps and their mean.
@@ -54,7 +58,7 @@ double flip_max_colour_difference();
 /// [0, 1] are clamped). `ignore` is empty or width * height flags (1 = leave out of the mean;
 /// those pixels still take part in the filters). Parallel over rows (TBB); the result does not
 /// depend on the thread count. Throws std::invalid_argument for a size mismatch, a non-positive
-/// size or pixels_per_degree <= 0.
+/// size or pixels_per_degree <= 0, rayscan::Cancelled once opts.cancel is set.
 FlipResult flip(std::span<const float> reference, std::span<const float> test, int width, int height,
                 const FlipOptions& opts = {}, std::span<const std::uint8_t> ignore = {});
 

@@ -19,6 +19,7 @@
 #include "rayscan/image/image_file.hpp"
 #include "rayscan/analysis/ssim.hpp"
 
+#include <atomic>
 #include <cstdint>
 #include <limits>
 #include <span>
@@ -72,6 +73,9 @@ struct CompareOptions {
   double warn_threshold = 1e-6;  ///< ... and this (idiff -warn default)
   bool compute_ssim = true;
   SsimOptions ssim;
+  /// Checked before each block of rows of the error pass and of SSIM (ssim()'s `cancel`): once
+  /// set, compare_images throws rayscan::Cancelled (base/job.hpp); nullptr = never. Not owned.
+  const std::atomic<bool>* cancel = nullptr;
 };
 
 /// Compare `test` against `reference`: both must have the same size and channel count (channels
@@ -79,7 +83,7 @@ struct CompareOptions {
 /// width * height flags, 1 = leave the pixel out of every metric. NaN matches NaN and +/-Inf
 /// matches the same infinity; any other non-finite sample counts as an infinite error (not summed
 /// into MAE/RMSE, counted in nonfinite_mismatches). Throws std::invalid_argument on a size or
-/// channel-count mismatch, naming both sizes.
+/// channel-count mismatch, naming both sizes, rayscan::Cancelled once opts.cancel is set.
 CompareMetrics compare_images(const Image& reference, const Image& test,
                               std::span<const std::uint8_t> ignore = {},
                               const CompareOptions& opts = {});
@@ -90,8 +94,11 @@ std::vector<float> ssim_signal(const Image& img, std::string& name);
 
 /// Per-pixel error max_c |test - reference| (width * height, row major); +inf where a
 /// non-finite mismatch occurs, NaN for ignored pixels. Same preconditions as compare_images().
+/// `cancel` is checked before each block of rows: once set, pixel_errors throws
+/// rayscan::Cancelled (base/job.hpp); nullptr = never. Not owned.
 std::vector<float> pixel_errors(const Image& reference, const Image& test,
-                                std::span<const std::uint8_t> ignore = {});
+                                std::span<const std::uint8_t> ignore = {},
+                                const std::atomic<bool>* cancel = nullptr);
 
 /// An RGB heat map of `errors` (from pixel_errors) through heat_ramp() over [0, vmax]; errors
 /// above vmax are white; ignored (NaN) pixels are blue (0, 0, 1), which the ramp never produces.

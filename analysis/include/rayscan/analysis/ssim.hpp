@@ -3,6 +3,7 @@
 // Processing 13(4), 2004 -- eq. (13) evaluated with the paper's section III-C settings.
 #pragma once
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -45,9 +46,11 @@ std::vector<double> ssim_gaussian_weights(const SsimOptions& opts);
 /// defined only over finite samples, and a masked pixel must not change the SSIM of its unmasked
 /// neighbours. The result is the mean over the remaining windows (MSSIM over the valid windows),
 /// NaN with the reason in `undefined` when none remains. Parallel over rows (TBB); the result
-/// does not depend on the thread count.
+/// does not depend on the thread count. `cancel` is checked before each block of 32 output rows:
+/// once set, ssim throws rayscan::Cancelled (base/job.hpp); nullptr = never. Not owned.
 /// Throws std::invalid_argument when the sizes do not match.
 SsimResult ssim(std::span<const float> x, std::span<const float> y, int width, int height,
-                std::span<const std::uint8_t> ignore = {}, const SsimOptions& opts = {});
+                std::span<const std::uint8_t> ignore = {}, const SsimOptions& opts = {},
+                const std::atomic<bool>* cancel = nullptr);
 
 }  // namespace rayscan::analysis

@@ -3,8 +3,10 @@
 // library call. `rayscan compare` and the Python module's rayscan.compare() wrap run_compare().
 #pragma once
 
-#include "rayscan/image/image_file.hpp"
 #include "rayscan/analysis/image_compare.hpp"
+#include "rayscan/base/job.hpp"
+#include "rayscan/image/image_file.hpp"
+#include "rayscan/jobs/memory_source.hpp"
 
 #include <optional>
 #include <string>
@@ -63,11 +65,16 @@ struct CompareJobOptions {
   bool flip = true;                            ///< compute mean LDR-FLIP (flip.hpp) for R,G,B or Y images
   double flip_ppd = 67.02064327658226;         ///< FLIP observer's pixels per degree (flip_pixels_per_degree())
   std::string flip_map;                        ///< write the FLIP error map here (heat ramp over [0, 1]; "" = no)
+  /// `cancel` only: checked between the stages and before each block of rows of the error, SSIM,
+  /// FLIP and heat-map passes (run_compare then throws Cancelled and writes no map); threads,
+  /// progress, log and distributor are unused (TBB's default arena).
+  JobControl control;
 };
 
 /// Output of run_compare().
 struct CompareJobResult {
-  std::string reference_name, image_name;      ///< file names or "(memory)"
+  /// File names, or the in-memory images' Image::source (kMemorySource when it is empty).
+  std::string reference_name, image_name;
   CompareMetrics metrics;                      ///< MAE, RMSE, PSNR, max error, SSIM, pixels over thresholds
   Judgement judgement;                         ///< verdict and reasons
   CompareOptions used;                         ///< thresholds and SSIM parameters used
@@ -93,7 +100,8 @@ struct CompareJobResult {
 /// OutputTransaction: renamed into place together once both are written, so when either fails
 /// neither old file is replaced and no temporary is left. Throws std::invalid_argument
 /// for a user error (missing channel, size mismatch without resize, bad mask, SSIM limit on a tiny
-/// image; one line), std::runtime_error "<file>: <reason>" for unreadable or unwritable files.
+/// image; one line), std::runtime_error "<file>: <reason>" for unreadable or unwritable files,
+/// rayscan::Cancelled once options.control.cancel is set.
 CompareJobResult run_compare(const CompareJobOptions& options);
 
 /// The JSON report printed by `rayscan compare --json` (2-space indent). `over_threshold.fail` and

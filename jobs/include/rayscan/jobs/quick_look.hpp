@@ -6,6 +6,7 @@
 #include "rayscan/camera/camera.hpp"
 #include "rayscan/octree/geometry.hpp"
 #include "rayscan/octree/point_cloud.hpp"
+#include "rayscan/jobs/memory_source.hpp"
 #include "rayscan/jobs/render.hpp"
 #include "rayscan/render/scene.hpp"
 
@@ -171,8 +172,10 @@ ResolvedScene resolve_scene_text(const std::string& json, const std::string& nam
 /// The quick look of points in memory (no file): the scene resolve_scene makes of a point cloud
 /// file, without "cloud" (render it with RenderJobOptions::cloud), its overview camera framing
 /// `summary` (summarize_cloud of those points). Throws OptionError (bad override), and
-/// std::invalid_argument "(memory): a quick look needs at least 2 distinct points ..." for points
-/// without them (CloudSummary::distinct).
-ResolvedScene resolve_quick_look(const CloudSummary& summary, const SceneOverrides& overrides);
+/// std::invalid_argument "<source_label>: a quick look needs at least 2 distinct points ..." for
+/// points without them (CloudSummary::distinct); `source_label` names the points (kMemorySource,
+/// or the Python keyword that gave them).
+ResolvedScene resolve_quick_look(const CloudSummary& summary, const SceneOverrides& overrides,
+                                 std::string_view source_label = kMemorySource);
 
 }  // namespace rayscan::jobs

@@ -9,6 +9,7 @@
 #include "rayscan/analysis/site_location.hpp"
 #include "rayscan/analysis/solar_position.hpp"
 #include "rayscan/base/job.hpp"
+#include "rayscan/jobs/memory_source.hpp"
 #include "rayscan/io/file_info.hpp"
 #include "rayscan/octree/any_index.hpp"
 #include "rayscan/octree/normals.hpp"
@@ -84,6 +85,9 @@ struct SolarJobOptions {
   // ---- Input cloud.
   std::filesystem::path cloud_file;     ///< point cloud (LAS, LAZ, COPC, PLY, PCD, text) or index file (.rsi)
   const PointCloud* cloud = nullptr;    ///< in-memory points instead of cloud_file (copied into the result)
+  /// The name of `cloud` where a file would be named: messages, log lines, the report's "cloud"
+  /// and the rasters' RAYSCAN_SOURCE (the Python module gives the keyword, "cloud").
+  std::string source_label{kMemorySource};
   IndexOptions index;                   ///< index type (default octree-adaptive)
   /// COPC input (a LAS/LAZ file with the COPC info VLR): query the file's own octree in place
   /// (io::CopcIndex: nodes decoded as the queries reach them, no tree built, `index` ignored) or,
@@ -196,7 +200,7 @@ struct SolarJobResult {
   /// blocked).
   PointCloud cloud;
   io::FileInfo info;
-  std::string source;
+  std::string source;  ///< cloud_file, or source_label for points in memory
   RadiusChoice radius;
   std::string primitive;
   analysis::SiteLocation location;      ///< where the sun was computed

@@ -13,6 +13,7 @@
 #include "rayscan/camera/camera.hpp"
 #include "rayscan/io/file_info.hpp"
 #include "rayscan/base/job.hpp"
+#include "rayscan/jobs/memory_source.hpp"
 #include "rayscan/octree/point_cloud.hpp"
 #include "rayscan/octree/spacing.hpp"
 
@@ -38,6 +39,9 @@ struct VisibilityJobOptions {
   // ---- Input cloud.
   std::filesystem::path cloud_file;     ///< point cloud to read (LAS, LAZ, COPC, PLY, PCD, text) or index file (.rsi)
   const PointCloud* cloud = nullptr;    ///< in-memory points instead of cloud_file (copied into the result)
+  /// The name of `cloud` where a file would be named: messages, log lines, the report's "cloud"
+  /// and the rasters' RAYSCAN_SOURCE (the Python module gives the keyword, "cloud").
+  std::string source_label{kMemorySource};
   IndexOptions index;                   ///< index type (default octree-adaptive)
   /// COPC input (a LAS/LAZ file with the COPC info VLR): query the file's own octree in place
   /// (io::CopcIndex: nodes decoded as the queries reach them, no tree built, `index` ignored) or,
@@ -103,7 +107,7 @@ struct VisibilityJobResult {
   PointCloud cloud;                     ///< the input with fields visible_count, visible_distance,
                                         ///< sky_view, camera_hits (those computed)
   io::FileInfo info;                    ///< what the reader found (format, scale, offset) for cloud_file
-  std::string source;                   ///< cloud_file, or "(memory)"
+  std::string source;                   ///< cloud_file, or source_label for points in memory
   RadiusChoice radius;                  ///< radius used (spheres; with surfels the ground search and sky lift scale)
   std::string primitive = "sphere";     ///< "sphere" or "surfel"
   double surfel_median_radius = 0.0;    ///< median disc radius (surfels)
