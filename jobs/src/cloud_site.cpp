@@ -6,6 +6,7 @@
 #include "rayscan/base/file_names.hpp"
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
+#include "rayscan/io/crs.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/io/point_reader.hpp"
 #include "rayscan/jobs/solar.hpp"
@@ -173,6 +174,12 @@ std::optional<std::string> header_crs(const std::filesystem::path& file) {
   io::ReadOptions ro;
   ro.stored_colour = true;  // no pass over the colours at open
   return io::open_point_reader(file, io::AttributeSet::none(), ro)->crs_wkt();
+}
+
+void require_readable_header_crs(const std::filesystem::path& file, const PointCloud* memory,
+                                 std::string_view memory_label) {
+  if (memory) io::require_readable_crs(std::string(memory_label), memory->crs_wkt);
+  else if (const std::optional<std::string> wkt = header_crs(file)) io::require_readable_crs(file.string(), *wkt);
 }
 
 void refuse_unprojected_crs(const std::string& crs_wkt, const std::string& need) {

@@ -121,6 +121,14 @@ SurfelAttributes estimate_analysis_surfels(const CloudSite& cs, const SurfelOpti
 /// their CRS comes with their points. Throws io::FormatError / io::IndexError for a bad header.
 std::optional<std::string> header_crs(const std::filesystem::path& file);
 
+/// Refuses, before any point is read, a CRS that a GeoTIFF output would carry and GDAL cannot
+/// read: io::require_readable_crs (std::invalid_argument, one line, exit 2) naming the input,
+/// `file`, or `memory_label` when `memory` is non-null, for the CRS of the points in memory or of
+/// the file's header (header_crs). Nothing for a format whose CRS comes only with its points: the
+/// job checks that once they are read. Throws io::FormatError / io::IndexError for a bad header.
+void require_readable_header_crs(const std::filesystem::path& file, const PointCloud* memory,
+                                 std::string_view memory_label);
+
 /// Throws OptionError (one line, exit 2) with analysis::refuse_unprojected_crs's text when
 /// `crs_wkt` is geographic or geocentric: x and y in degrees, or from the Earth's centre, are no
 /// frame for `need` (what the job measures, plural: "sun directions"). Nothing for any other CRS,

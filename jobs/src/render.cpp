@@ -15,6 +15,7 @@
 #include "rayscan/image/image_file.hpp"
 #include "rayscan/jobs/info.hpp"
 #include "rayscan/jobs/memory_source.hpp"
+#include "rayscan/io/crs.hpp"
 #include "rayscan/io/point_reader.hpp"
 #include "rayscan/render/material.hpp"
 #include "rayscan/render/surfel_setup.hpp"
@@ -196,6 +197,7 @@ void prepare_copc(Prepared& P, const RenderJobOptions& o, RenderJobResult& r) {
   io::CopcIndex& copc = *P.site->copc();
   char buf[512];
   r.crs_wkt = io::open_point_reader(scene.cloud, io::AttributeSet::none())->crs_wkt();
+  if (o.crs_read) o.crs_read(r.crs_wkt);
   AABB bounds;  // first: bounds_read's checks come before the statistics and the radius
   if (o.bounds_read || o.camera_for_cloud) {
     copc.scan(0, [&](const io::CopcIndex::NodeBlock& k) {
@@ -332,6 +334,7 @@ std::unique_ptr<Prepared> prepare(const RenderJobOptions& o, RenderJobResult& r)
                   r.read_seconds);
   if (!o.cloud || o.cloud_read_from_scene) ctl.info(buf);
   r.crs_wkt = mapped ? mapped->crs_wkt() : cloud->crs_wkt;
+  if (o.crs_read) o.crs_read(r.crs_wkt);
   AABB bounds;  // once, for both hooks
   if (o.bounds_read || o.camera_for_cloud) {
     bounds = cloud ? bounds_of(cloud->positions) : mapped->bounds();  // an index file stores them: no pass
@@ -530,6 +533,8 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
     throw std::invalid_argument("ortho map: render.camera_for_cloud is set; the job sets it to the map's camera");
   if (o.render.bounds_read)
     throw std::invalid_argument("ortho map: render.bounds_read is set; the job sets it to check the map's grid");
+  if (o.render.crs_read)
+    throw std::invalid_argument("ortho map: render.crs_read is set; the job sets it to check the GeoTIFFs' CRS");
   RenderJobOptions job = o.render;
   // The map's camera looks straight down -z in the cloud's frame, so the sky gradient, the
   // elevation ramp and surfels oriented "up" run along +z whatever the scene's up: a quick look's
@@ -552,6 +557,13 @@ OrthoMapJobResult run_ortho_map(const OrthoMapJobOptions& o) {
     if (!o.dsm.empty()) outs.push_back(o.dsm);
     const std::filesystem::path ins[] = {job.scene.cloud, job.scene.file};
     require_outputs(outs, ins);
+    // The GeoTIFFs carry the cloud's CRS: one GDAL cannot read is refused naming the input, from
+    // the header before any point is read where the format has one, else as soon as the points
+    // are (crs_read), rather than by the writer after the render.
+    const bool from_file = !job.scene.cloud.empty() && (!job.cloud || job.cloud_read_from_scene);
+    const std::string source = from_file ? job.scene.cloud.string() : std::string(kMemorySource);
+    if (job.cloud || from_file) detail::require_readable_header_crs(job.scene.cloud, job.cloud, source);
+    job.crs_read = [source](const std::string& wkt) { io::require_readable_crs(source, wkt); };
   }
   job.write = false;
   const bool albedo = o.ortho_colour == analysis::OrthoColour::albedo;

@@ -16,6 +16,7 @@
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/image/image_file.hpp"
+#include "rayscan/io/crs.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -468,8 +469,11 @@ struct SolarRun {
 
   /// The CRS checked before the points are read, indexed and their normals estimated: from the
   /// file's header (header_crs) or the cloud in memory. A format whose CRS comes only with its
-  /// points is checked in open_site(), before its normals.
+  /// points is checked in open_site(), before its normals. A GeoTIFF (--raster) carries the
+  /// cloud's CRS, so one GDAL cannot read is refused first, naming the input, rather than by the
+  /// writer after the trace.
   void check_header_crs() const {
+    if (!o.raster.empty()) detail::require_readable_header_crs(o.cloud_file, o.cloud, o.source_label);
     if (o.cloud) check_crs(o.cloud->crs_wkt);
     else if (const std::optional<std::string> wkt = detail::header_crs(o.cloud_file)) check_crs(*wkt);
   }
@@ -477,6 +481,7 @@ struct SolarRun {
   void open_site() {
     detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.source_label, o.index, o.radius, o.radius_factor, ctl,
                             {o.copc_in_place, o.cache_bytes});
+    if (!o.raster.empty()) io::require_readable_crs(cs.source, cloud.crs_wkt);
     check_crs(cloud.crs_wkt);
     r.info = cs.info;
     r.source = cs.source;

@@ -16,6 +16,7 @@
 #include "rayscan/image/image_file.hpp"
 #include "rayscan/camera/camera_file.hpp"
 #include "rayscan/site/index_file.hpp"
+#include "rayscan/io/crs.hpp"
 #include "rayscan/io/point_io.hpp"
 #include "rayscan/jobs/info.hpp"
 #include "rayscan/jobs/render.hpp"
@@ -166,8 +167,10 @@ struct VisibilityRun {
   /// Refuses a geographic or geocentric CRS (refuse_unprojected_crs, as `rayscan solar` does)
   /// when needs_projected_crs() names a need: the cloud's in memory, or the file's from its header
   /// before the points are read and indexed (header_crs). A format whose CRS comes only with its
-  /// points is checked in open_site().
+  /// points is checked in open_site(). A GeoTIFF (--raster) carries the cloud's CRS, so one GDAL
+  /// cannot read is refused here, naming the input, rather than by the writer after the run.
   void check_header_crs() const {
+    if (!o.raster.empty()) detail::require_readable_header_crs(o.cloud_file, o.cloud, o.source_label);
     const std::string need = needs_projected_crs();
     if (need.empty()) return;
     if (o.cloud) detail::refuse_unprojected_crs(o.cloud->crs_wkt, need);
@@ -199,6 +202,7 @@ struct VisibilityRun {
   void open_site() {
     detail::open_cloud_site(cs, o.cloud_file, o.cloud, o.source_label, o.index, o.radius, o.radius_factor, ctl,
                             {o.copc_in_place, o.cache_bytes});
+    if (!o.raster.empty()) io::require_readable_crs(cs.source, cloud.crs_wkt);
     if (const std::string need = needs_projected_crs(); !need.empty())
       detail::refuse_unprojected_crs(cloud.crs_wkt, need);
     r.info = cs.info;

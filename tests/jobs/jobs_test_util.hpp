@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -30,6 +32,29 @@ inline std::filesystem::path temp_dir() { return process_temp_dir("rayscan_jobs_
 inline std::string file_bytes(const std::filesystem::path& p) {
   std::ifstream in(p, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/// The bytes of tests/data/las/file_with_both_wkt_and_geotiff_vlrs.las (a WKT VLR and GeoKeys of
+/// the same CRS, EPSG:32104 in US survey foot) with its WKT VLR made text GDAL cannot read
+/// ("XROJCS[..."), and, unless `keep_geokeys`, its GeoKeyDirectory VLR renamed away (record 0):
+/// a LAS file whose CRS records are, respectively, an unreadable WKT beside readable GeoKeys, or
+/// an unreadable WKT alone. The VLRs are walked by their header fields (ASPRS LAS 1.4 R15 table 3:
+/// header size at byte 94, VLR count at 100; each VLR a 54-byte header, user id at 2, record id at
+/// 18, length at 20).
+inline std::string las_with_unreadable_wkt(bool keep_geokeys) {
+  std::string b = file_bytes(data_file("las/file_with_both_wkt_and_geotiff_vlrs.las"));
+  std::uint16_t header = 0, len = 0, record = 0;
+  std::uint32_t n = 0;
+  std::memcpy(&header, b.data() + 94, 2);
+  std::memcpy(&n, b.data() + 100, 4);
+  for (std::size_t pos = header, i = 0; i < n; ++i, pos += 54 + len) {
+    std::memcpy(&record, b.data() + pos + 18, 2);
+    std::memcpy(&len, b.data() + pos + 20, 2);
+    if (std::string(b.c_str() + pos + 2) != "LASF_Projection") continue;
+    if (record == 2112) b[pos + 54] = 'X';                     // "XROJCS[...": not a CRS GDAL reads
+    if (record == 34735 && !keep_geokeys) b[pos + 18] = 0;  // no GeoKeyDirectory left
+  }
+  return b;
 }
 
 /// The options fields an OptionError names, in order.

@@ -239,5 +239,32 @@ TEST(OutputsCli, OutputThatIsAnInputIsRefused) {
   fs::remove_all(dir);
 }
 
+// A GeoTIFF carries the cloud's CRS: a LAS whose WKT VLR GDAL cannot read and that has no GeoKeys
+// to fall back on is refused before any work by each command that writes one (an ortho map, a
+// visibility raster, a solar raster), one line naming the input and exit 2, where the GeoTIFF
+// writer refused it after the whole run naming no file. Nothing is written, no temporary left.
+TEST(OutputsCli, GeoTiffOfAnUnreadableCrsIsRefusedNamingTheInput) {
+  const fs::path dir = temp_dir() / "unreadable_crs";
+  fs::create_directories(dir);
+  const fs::path las = dir / "bad_crs.las";
+  std::ofstream(las, std::ios::binary) << las_with_unreadable_wkt(false);
+  const std::string in = quoted(las), why = "the CRS is WKT that GDAL cannot read ('XROJCS[";
+  const std::string commands[] = {
+      "render " + in + " --ortho-map 1 --dsm " + quoted(dir / "dsm.tif") + " -o " + quoted(dir / "map.tif"),
+      "visibility " + in + " --sky-rays 4 --raster " + quoted(dir / "sky.tif") + " --cell 1 --out " + quoted(dir / "sky.las"),
+      "solar " + in + " --at 2026-06-21T12:00 --latitude 41 --longitude -96 --raster " + quoted(dir / "sun.tif") +
+          " --cell 1",
+      "solar " + in + " --at 2026-06-21T12:00 --raster " + quoted(dir / "sun.tif") + " --cell 1",
+  };
+  for (const std::string& c : commands) {
+    SCOPED_TRACE(c);
+    expect_one_line_error(run_command(kBin + " " + c), las.string() + ": " + why, "expected a CRS GDAL reads, or none");
+    std::vector<std::string> left;
+    for (const auto& e : fs::directory_iterator(dir)) left.push_back(e.path().filename().string());
+    EXPECT_EQ(left, std::vector<std::string>{"bad_crs.las"});
+  }
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace rayscan::test

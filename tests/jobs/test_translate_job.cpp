@@ -871,22 +871,9 @@ TEST(TranslateJob, AnUnreadableWktVlrIsCopiedAloneAndWarnedOnce) {
 // are written without a CRS, with a warning, rather than refused naming the output. Oracle: OGR's
 // EPSG:32104 in US survey foot (the file's GeoKeys, its README), and each output's own bytes.
 TEST(TranslateJob, AnUnreadableWktVlrGivesWayToGeoKeysOrToNoCrs) {
-  const fs::path src = data_file("las/file_with_both_wkt_and_geotiff_vlrs.las"), dir = temp_dir() / "bad_wkt_crs";
+  const fs::path dir = temp_dir() / "bad_wkt_crs";
   fs::create_directories(dir);
-  std::string good = file_bytes(src), neither;
-  std::uint16_t header = 0, len = 0, record = 0;
-  std::uint32_t n = 0;
-  std::memcpy(&header, good.data() + 94, 2);
-  std::memcpy(&n, good.data() + 100, 4);
-  std::string bad = good;
-  neither = good;
-  for (std::size_t pos = header, i = 0; i < n; ++i, pos += 54 + len) {
-    std::memcpy(&record, good.data() + pos + 18, 2);
-    std::memcpy(&len, good.data() + pos + 20, 2);
-    if (std::string(good.c_str() + pos + 2) != "LASF_Projection") continue;
-    if (record == 2112) bad[pos + 54] = neither[pos + 54] = 'X';  // "XROJCS[...": not a CRS GDAL reads
-    if (record == 34735) neither[pos + 18] = 0;                     // no GeoKeyDirectory left
-  }
+  const std::string bad = test::las_with_unreadable_wkt(true), neither = test::las_with_unreadable_wkt(false);
   const fs::path with_keys = dir / "keys.las", without = dir / "none.las";
   std::ofstream(with_keys, std::ios::binary) << bad;
   std::ofstream(without, std::ios::binary) << neither;

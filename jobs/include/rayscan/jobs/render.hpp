@@ -55,6 +55,11 @@ struct RenderJobOptions {
   /// memory, so that the error comes in seconds rather than after that work. Exceptions it throws
   /// propagate unchanged.
   std::function<void(const AABB& bounds)> bounds_read;
+  /// When set, called once with the cloud's CRS (WKT, "" for none) as soon as it is known: a
+  /// COPC file's header, else right after the read (or the index file's mapping), before
+  /// bounds_read. A job that writes the CRS (run_ortho_map's GeoTIFFs) refuses there one it
+  /// cannot write. Exceptions it throws propagate unchanged.
+  std::function<void(const std::string& crs_wkt)> crs_read;
   /// When set, called once the cloud is read and the points' primitives are set up, with its exact
   /// bounds (the AABB of its points) and the reach of the primitives (as after_trace has it); the
   /// camera it returns replaces scene.camera (the scene then needs no camera; surfels oriented
