@@ -25,6 +25,20 @@ namespace rayscan::io::copc {
 
 namespace {
 
+// Maps the hidden temporary `file` (`what`: "records", "LAS") that the COPC writer wrote for its
+// output. A failure to open or map it is named as that output (output_error: the registered
+// temporary's output, and its folder when that is another), since the hidden name means nothing
+// to the user: "<out.copc.laz>: the temporary records file: cannot memory-map file: <cause>".
+std::unique_ptr<detail::MappedFile> map_temporary(const std::filesystem::path& file, const char* what) {
+  try {
+    return std::make_unique<detail::MappedFile>(file);
+  } catch (const FormatError& e) {
+    std::string rest = e.what();
+    if (const std::string prefix = file.string() + ": "; rest.rfind(prefix, 0) == 0) rest.erase(0, prefix.size());
+    throw output_error(file, std::string("the temporary ") + what + " file: " + rest, 0);
+  }
+}
+
 using detail::load_le;
 
 /// Human-readable bytes for the memory message ("5.2 GiB").
@@ -210,7 +224,7 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
       }
       w.commit();
     }
-    out->map = std::make_unique<detail::MappedFile>(records);
+    out->map = map_temporary(records, "records");
     // Named as the COPC output (output_error: the registered records file's output, and its folder
     // when that is another), since the hidden records name means nothing to the user.
     if (const std::uint64_t size = out->map->bytes().size(); size != h.count * out_len)
@@ -268,7 +282,7 @@ Records read_records(const std::filesystem::path& in, const std::filesystem::pat
   require_readable_crs(in.string(), cloud.crs_wkt);  // named as the input, not the intermediate
   const std::filesystem::path& las = file->temp.emplace(temp_path(opt, in.string(), "input.las"), out).path();
   write_las(las, cloud);
-  file->map = std::make_unique<detail::MappedFile>(las);
+  file->map = map_temporary(las, "LAS");
   Records r = read_las_family(file, las, in.string(), opt, out);
   r.in_bytes = in_bytes;
   r.creation_day = r.creation_year = 0;  // write_las's date is today's: not a property of the input
