@@ -14,6 +14,7 @@
 
 #include <signal.h>
 
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
@@ -21,6 +22,7 @@
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace rayscan::cli {
 
@@ -36,6 +38,10 @@ struct Interrupted : std::runtime_error {
                            ": temporary files removed, no index written"),
         signal(s) {}
 };
+
+/// The octree layouts of the external-memory build, in the order --help and messages list them
+/// (not layered, which that build lacks).
+constexpr std::array kIndexFileLayouts = {OctreeLayout::adaptive, OctreeLayout::fixed};
 
 }  // namespace
 
@@ -60,11 +66,10 @@ Runner add_index_command(CLI::App& app) {
       ->capture_default_str();
   sub->add_option("--memory", o->memory, "memory budget of the external sort (e.g. 4G, 512M); for .copc.laz of the "
                                          "build (12 bytes per point plus 256 MiB)")->capture_default_str();
-  // The layouts of the external-memory build (not layered: check_applicable's words below).
+  std::vector<std::string> layouts;
+  for (OctreeLayout l : kIndexFileLayouts) layouts.emplace_back(to_string(l));
   CLI::Option* layout_opt =
-      sub->add_option("--layout", o->layout, "octree layout")
-          ->check(CLI::IsMember({std::string(to_string(OctreeLayout::adaptive)), std::string(to_string(OctreeLayout::fixed))}))
-          ->capture_default_str();
+      sub->add_option("--layout", o->layout, "octree layout")->check(one_of(layouts))->capture_default_str();
   CLI::Option* capacity = sub->add_option("--capacity", o->capacity, "adaptive: points per leaf before a split (fixed: an error)")
                               ->capture_default_str()
                               ->transform(integer_in(1, 0xFFFFFFFF));
@@ -77,7 +82,7 @@ Runner add_index_command(CLI::App& app) {
   CLI::Option* positions = sub->add_option("--positions", o->positions,
                   "compact: the LAS int32 grid (LAS/LAZ inputs on one scale/offset) or float32 when exact, "
                   "else float64 | float64: always 24 bytes per point (docs/index-format.md)")
-      ->check(CLI::IsMember({"compact", "float64"}))
+      ->check(one_of({"compact", "float64"}))
       ->capture_default_str();
   sub->add_option("--temp-dir", o->temp_dir, "existing folder for the sort runs, or of a .copc.laz output's temporary records file (default: the output's folder)");
   sub->add_flag("-q,--quiet", o->quiet, "no progress or notes on stderr");
@@ -100,7 +105,7 @@ Runner add_index_command(CLI::App& app) {
       IndexChoiceWords words;
       words.option = "--layout ";
       words.layouts = true;
-      words.types = {octree_index_type(OctreeLayout::adaptive), octree_index_type(OctreeLayout::fixed)};
+      for (OctreeLayout l : kIndexFileLayouts) words.types.push_back(octree_index_type(l));
       check_applicable(octree_index_type(job.config.layout), given, words);
     }
     job.config.capacity = o->capacity;
@@ -135,13 +140,13 @@ Runner add_index_command(CLI::App& app) {
     const double s = secs();
     progress.finish();
     if (r.copc) {
-      print_copc_summary(o->output, *r.copc, o->quiet);
+      print_copc_summary("rayscan index", o->output, *r.copc, o->quiet);
       std::printf("%.2f s (%.2f M points/s)\n", s, s > 0 ? static_cast<double>(r.copc->points) / s / 1e6 : 0.0);
       return 0;
     }
     const io::IndexBuildStats& st = r.stats;
     if (!o->quiet)
-      for (const std::string& n : st.notes) std::cerr << "note: " << n << "\n";
+      for (const std::string& n : st.notes) std::cerr << "rayscan index: note: " << n << "\n";
     std::printf("%s: %llu points, %llu nodes, depth %u, %s, %s, positions %s; %.2f bytes/point; %.2f s (%.2f M points/s)\n",
                 o->output.c_str(), static_cast<unsigned long long>(st.points),
                 static_cast<unsigned long long>(st.nodes), st.depth, count_text(st.runs, "sort run").c_str(),

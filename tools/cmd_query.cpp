@@ -11,13 +11,17 @@
 #include "rayscan/jobs/query.hpp"
 #include "atomic_file.hpp"
 
+#include <array>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 namespace rayscan::cli {
 
@@ -35,11 +39,15 @@ struct QueryOptions {
   unsigned threads = 0;
 };
 
+/// The names --order takes and the ray order each names, in the order --help lists them.
+constexpr std::array<std::pair<std::string_view, RayOrder>, 3> kOrders = {
+    {{"ray", RayOrder::ray}, {"time", RayOrder::time}, {"sphere_hit", RayOrder::sphere_hit}}};
+
+/// The ray order named `s`, one of kOrders (one_of refused any other when the options were parsed).
 RayOrder parse_order(const std::string& s) {
-  if (s == "ray") return RayOrder::ray;
-  if (s == "time") return RayOrder::time;
-  if (s == "sphere_hit") return RayOrder::sphere_hit;
-  throw UsageError("--order '" + s + "': expected ray, time or sphere_hit");
+  for (const auto& [name, order] : kOrders)
+    if (name == s) return order;
+  throw std::logic_error("--order '" + s + "' passed its check");
 }
 
 int run_query(const QueryOptions& o) {
@@ -145,6 +153,11 @@ Runner add_query_command(CLI::App& app) {
   c->add_option("--order", o->order,
                 "Ordering: ray (distance to line, eq. 1), time (t along the ray, eq. 2) or "
                 "sphere_hit (entry into the sphere of --radius)")
+      ->check(one_of([] {
+        std::vector<std::string_view> names;
+        for (const auto& e : kOrders) names.push_back(e.first);
+        return names;
+      }()))
       ->capture_default_str();
   add_index_option(*c, o->index.type);
   c->add_option("--capacity", o->capacity,

@@ -4,17 +4,28 @@
 #include "commands.hpp"
 #include "processes.hpp"
 
+#include "rayscan/analysis/ortho_map.hpp"
 #include "rayscan/base/byte_size.hpp"
+#include "rayscan/image/aov.hpp"
 #include "rayscan/jobs/quick_look.hpp"
 #include "rayscan/jobs/render.hpp"
 
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <string>
+#include <vector>
 
 namespace rayscan::cli {
 
 namespace {
+
+/// The names --aov takes: every AOV's (to_string) in the canonical order (all_aovs).
+std::vector<std::string> aov_names() {
+  std::vector<std::string> names;
+  for (Aov a : all_aovs()) names.emplace_back(to_string(a));
+  return names;
+}
 
 struct RenderCliOptions {
   std::string scene, camera, out;
@@ -155,8 +166,7 @@ Runner add_render_command(CLI::App& app) {
                 "plus the nodes of the blocks in flight; e.g. 2G, 512M). A COPC file is traced in place, decoding only the "
                 "nodes the rays reach")
       ->capture_default_str();
-  c->add_option("--aov", o->aovs, "Extra output: depth, normal, position, index, albedo, cost (repeatable, each "
-                "name once)");
+  c->add_option("--aov", o->aovs, "Extra output (repeatable, each name once)")->check(one_of(aov_names()));
   c->add_option("--exposure", o->exposure, "Exposure in stops, in [-30, 30]: pixel values x 2^EV before PNG/JPEG/TIFF "
                 "clip them to [0, 1] (EXR keeps linear values); replaces /output/exposure (default: the scene's "
                 "value, 0 if unset)")
@@ -164,7 +174,7 @@ Runner add_render_command(CLI::App& app) {
   c->add_option("--primitive", o->primitive, "Geometry of each point: sphere (the paper's model, one "
                 "radius) or surfel (oriented disc with a PCA normal and a radius from the local "
                 "spacing); replaces /primitive (default: the scene's value, sphere if unset; a cloud's quick look: surfel)")
-      ->check(CLI::IsMember({"sphere", "surfel"}));
+      ->check(one_of(kPrimitiveNames));
   c->add_option("--colmap", o->colmap_dir, "COLMAP text model folder (cameras.txt, images.txt): render the "
                 "view of the photo given with --image (PINHOLE, SIMPLE_PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV); replaces the scene's camera, not with --camera");
   c->add_option("--image", o->colmap_image, "Image NAME in the COLMAP model's images.txt (with --colmap)");
@@ -177,7 +187,8 @@ Runner add_render_command(CLI::App& app) {
                     "stratified rays, over those that hit; --spp 1: the point under the cell centre; a point's RGB as "
                     "stored in 8-bit sRGB, else the scene's material, for a quick look the elevation ramp; --exposure "
                     "does not apply) or shaded (the path-traced render: sky light and shading, --spp samples per cell)")
-          ->check(CLI::IsMember({"albedo", "shaded"}))
+          ->check(one_of({analysis::to_string(analysis::OrthoColour::albedo),
+                          analysis::to_string(analysis::OrthoColour::shaded)}))
           ->capture_default_str();
   c->add_option("--dsm", o->dsm, "With --ortho-map: also write the digital surface model (elevation of the "
                 "first surface per cell, NoData where the ray missed) as a Float32 GeoTIFF");

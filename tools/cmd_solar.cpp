@@ -154,7 +154,7 @@ Runner add_solar_command(CLI::App& app) {
                 "Geometry that casts shadows: sphere (the paper's model: light passes through gaps, crown "
                 "tops are lit) or surfel (the height field a DSM samples: solid below)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"sphere", "surfel"}));
+      ->check(one_of(kPrimitiveNames));
   c->add_option("--radius", o->radius, "Sphere radius (world units) or auto")->capture_default_str();
   c->add_option("--tolerance", o->job.tolerance,
                 "A blocker at most this far before the point along the sun ray is its own surface, world units "

@@ -62,7 +62,7 @@ Runner add_translate_command(CLI::App& app) {
   sub->add_option("--format", *format,
                   "the output's compression: auto (by OUT's extension), las or laz; an OUT whose extension names "
                   "the other format is refused")
-      ->check(CLI::IsMember({"auto", "las", "laz"}))
+      ->check(one_of({"auto", "las", "laz"}))
       ->capture_default_str();
   auto* chunk_option =
       sub->add_option("--chunk-size", *chunk,
@@ -128,7 +128,7 @@ Runner add_translate_command(CLI::App& app) {
                           : ext == ".las" || ext == ".laz"                     ? (r.compressed ? "LAZ" : "LAS")
                                                                                : "text";
     if (r.copc) {
-      print_copc_summary(*out, *r.copc, *quiet);
+      print_copc_summary("rayscan translate", *out, *r.copc, *quiet);
       return 0;
     }
     std::cout << *out << ": " << r.points << " points, " << written << ", " << r.out_bytes

@@ -41,9 +41,7 @@ int run_visibility(VisibilityCli& o) {
     throw UsageError("--elevation: expected MIN,MAX in degrees above the horizontal");
   if (!o.azimuth.empty()) job.azimuth = an::AngleRange{o.azimuth[0], o.azimuth[1]};
   if (!o.elevation.empty()) job.elevation = an::AngleRange{o.elevation[0], o.elevation[1]};
-  if (o.sky_weighting != "uniform" && o.sky_weighting != "cosine")
-    throw UsageError("--sky-weighting '" + o.sky_weighting + "': expected uniform or cosine");
-  job.sky_weighting = o.sky_weighting == "cosine" ? an::SkyWeighting::cosine : an::SkyWeighting::uniform;
+  job.sky_weighting = o.sky_weighting == "cosine" ? an::SkyWeighting::cosine : an::SkyWeighting::uniform;  // (one_of checked the name)
   for (const std::string& s : o.observer_args) job.observers.push_back(an::parse_observer(s, "--observer '" + s + "'"));
   job.cloud_file = o.cloud;
   job.observers_file = o.observers_file;
@@ -126,7 +124,7 @@ Runner add_visibility_command(CLI::App& app) {
                 "gdal_viewshed computes on a DSM) or sphere (the paper's model, one radius: the true 3-D "
                 "answer, which sees under tree crowns); sky view and camera marks use spheres")
       ->capture_default_str()
-      ->check(CLI::IsMember({"sphere", "surfel"}));
+      ->check(one_of(kPrimitiveNames));
   c->add_option("--tolerance", o->job.tolerance,
                 "A point counts as seen when the first sphere the ray meets lies at most this far before "
                 "it along the ray, world units (default 2 x radius; surfels: 0)")
@@ -152,6 +150,7 @@ Runner add_visibility_command(CLI::App& app) {
                 "Sky view factor with N rays per point (field sky_view; default: off)")
       ->transform(integer_in(1, 1 << 20));
   c->add_option("--sky-weighting", o->sky_weighting, "uniform (solid angle) or cosine (irradiance)")
+      ->check(one_of({"uniform", "cosine"}))
       ->capture_default_str();
   c->add_option("--sky-lift", o->job.sky_lift, "Sky rays start this far above the point, world units (default 2 x radius)")
       ->check(non_negative());

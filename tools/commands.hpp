@@ -2,6 +2,7 @@
 // lives in its own cmd_<name>.cpp and registers itself on the CLI11 app here.
 #pragma once
 
+#include "rayscan/base/list_text.hpp"
 #include "rayscan/base/number_text.hpp"
 #include "rayscan/base/option_error.hpp"
 #include "rayscan/octree/any_index.hpp"
@@ -9,16 +10,19 @@
 
 #include <CLI/CLI.hpp>
 
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <functional>
+#include <initializer_list>
 #include <limits>
 #include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace rayscan::cli {
@@ -79,6 +83,33 @@ CLI::Validator decimal_integer(T lo, T hi, const std::string& want, const std::s
 
 }  // namespace detail
 
+/// A CLI11 validator for a name from a list, the one check of every option that takes one
+/// (--layout, --index, --primitive, --format, --aov, ...): the value must be one of `names`
+/// (std::string, std::string_view or const char*), exactly as listed. Refuses with one line in the
+/// words of the project's other lists (join_alternatives): "expected adaptive or fixed, got
+/// 'layered'", where CLI::IsMember's is "layered not in {adaptive,fixed}". --help shows the names
+/// as IsMember does ("TEXT:{adaptive,fixed}"), in the order given.
+template <class Names = std::initializer_list<std::string_view>>
+CLI::Validator one_of(const Names& names) {
+  std::vector<std::string> list;
+  for (const auto& n : names) list.emplace_back(n);
+  std::string set = "{";
+  for (const std::string& n : list) set += (set.size() > 1 ? "," : "") + n;
+  set += "}";
+  const std::string want = "expected " + join_alternatives(list);
+  return CLI::Validator(
+      [list, want](const std::string& s) {
+        for (const std::string& n : list)
+          if (s == n) return std::string();
+        return want + ", got '" + s + "'";
+      },
+      set, "ONE_OF");
+}
+
+/// The names --primitive takes (render, visibility, solar), in the order --help lists them: the
+/// geometry each point stands for (render::Primitive, the jobs' `primitive`).
+inline constexpr std::array<std::string_view, 2> kPrimitiveNames = {"sphere", "surfel"};
+
 /// A CLI11 validator for a whole number in [lo, hi], read in decimal: "expected an integer >= 1,
 /// got '1.5'" (the range in full when `hi` is below the largest long long), where CLI11's own line
 /// is "Could not convert". Give it with ->transform(), not ->check(): it rewrites the text in
@@ -115,7 +146,7 @@ inline CLI::Option* add_index_option(CLI::App& c, std::string& type) {
       .add_option("--index", type,
                   "Index built over a cloud read into memory (ignored for an index file, .rsi, and a COPC file "
                   "queried in place: their own octree)")
-      ->check(CLI::IsMember(std::vector<std::string>(kIndexTypes.begin(), kIndexTypes.end())))
+      ->check(one_of(kIndexTypes))
       ->capture_default_str();
 }
 /// finite_number(-max, max): any finite number.

@@ -6,9 +6,9 @@
 
 namespace rayscan::cli {
 
-void print_copc_summary(const std::string& out, const io::CopcWriteResult& r, bool quiet) {
+void print_copc_summary(const std::string& command, const std::string& out, const io::CopcWriteResult& r, bool quiet) {
   if (!quiet)
-    for (const std::string& n : r.notes) std::cerr << "note: " << n << "\n";
+    for (const std::string& n : r.notes) std::cerr << command << ": note: " << n << "\n";
   std::printf("%s: %llu points, COPC 1.0 (PDRF %d, %u bytes/record), %llu nodes, depth %d, %llu hierarchy pages, "
               "%llu bytes (input %llu bytes)\n",
               out.c_str(), static_cast<unsigned long long>(r.points), r.pdrf, static_cast<unsigned>(r.record_length),

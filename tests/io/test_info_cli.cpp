@@ -462,7 +462,9 @@ TEST(InfoCli, IndexFileBoundsAreExactAndInfoAndIndexJudgeTheLasHeaderAlike) {
   ASSERT_EQ(run("info --json '" + off.string() + "'", out, err), 0) << text_of(err);
   EXPECT_TRUE(nlohmann::json::parse(text_of(out))["header_bounds"]["differs"].get<bool>());
   ASSERT_EQ(run("index '" + off.string() + "' -o '" + rsi.string() + "' --memory 1M", out, err), 0) << text_of(err);
-  EXPECT_NE(text_of(err).find("note: the LAS headers' bounds differ from the points' bounds"), std::string::npos)
+  // The note is a line of its own, prefixed as every other line of the command.
+  EXPECT_NE(("\n" + text_of(err)).find("\nrayscan index: note: the LAS headers' bounds differ from the points' bounds"),
+            std::string::npos)
       << text_of(err);
   // -q: no progress and no note.
   ASSERT_EQ(run("index -q '" + off.string() + "' -o '" + rsi.string() + "' --memory 1M", out, err), 0) << text_of(err);

@@ -12,6 +12,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <regex>
+#include <set>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -114,13 +116,13 @@ TEST(CliOptions, SeedsAreUnsigned64BitDecimalsInEveryCommand) {
 TEST(CliOptions, UnknownIndexIsRefusedBeforeTheCloudIsRead) {
   const auto dir = fresh("index_type");
   const std::string las = quoted(data_file("las/autzen_trim.las"));
-  const std::string list = " not in {octree-adaptive,octree-layered,octree-fixed,kdtree,brute} (see --help)\n";
+  const std::string list = "--index: expected octree-adaptive, octree-layered, octree-fixed, kdtree or brute, got '";
   auto r = rayscan_cli("query " + las + " --rays " + quoted(two_rays(dir)) + " --k 1 --index rtree");
   EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.out, "rayscan query: --index: rtree" + list);
+  EXPECT_EQ(r.out, "rayscan query: " + list + "rtree' (see --help)\n");
   r = rayscan_cli("visibility " + las + " --sky-view 4 -o " + quoted(dir / "v.las") + " --index foo");
   EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.out, "rayscan visibility: --index: foo" + list);
+  EXPECT_EQ(r.out, "rayscan visibility: " + list + "foo' (see --help)\n");
   EXPECT_FALSE(std::filesystem::exists(dir / "v.las"));
   std::filesystem::remove_all(dir);
 }
@@ -139,8 +141,8 @@ TEST(CliOptions, IndexAndDbImportErrorsNameTheirOption) {
   const std::pair<std::string, std::string> cases[] = {
       {"-o " + rsi + " --memory 1Q", memory},
       {"-o " + copc + " --memory 1Q", memory},
-      {"-o " + rsi + " --layout foo", "--layout: foo not in {adaptive,fixed} (see --help)"},
-      {"-o " + rsi + " --layout layered", "--layout: layered not in {adaptive,fixed} (see --help)"},
+      {"-o " + rsi + " --layout foo", "--layout: expected adaptive or fixed, got 'foo' (see --help)"},
+      {"-o " + rsi + " --layout layered", "--layout: expected adaptive or fixed, got 'layered' (see --help)"},
       {"-o " + rsi + " --attributes id,colour",
        "--attributes 'colour': expected rgb, intensity, classification, gps_time, id, all or none"},
       {"-o " + rsi + " --attributes normals",
@@ -255,8 +257,8 @@ TEST(CliOptions, NamesFromAListAreWrittenInLowerCase) {
   EXPECT_NE(help.out.find("id,rgb,intensity,classification,gps_time | all | none"), std::string::npos) << help.out;
   const std::string attributes = "': expected rgb, intensity, classification, gps_time, id, all or none\n";
   const std::pair<std::string, std::string> cases[] = {
-      {" --layout FIXED", "rayscan index: --layout: FIXED not in {adaptive,fixed} (see --help)\n"},
-      {" --positions Float64", "rayscan index: --positions: Float64 not in {compact,float64} (see --help)\n"},
+      {" --layout FIXED", "rayscan index: --layout: expected adaptive or fixed, got 'FIXED' (see --help)\n"},
+      {" --positions Float64", "rayscan index: --positions: expected compact or float64, got 'Float64' (see --help)\n"},
       {" --attributes ALL", "rayscan index: --attributes 'ALL" + attributes},
       {" --attributes id,RGB", "rayscan index: --attributes 'RGB" + attributes},
       {" --attributes NONE", "rayscan index: --attributes 'NONE" + attributes},
@@ -267,6 +269,97 @@ TEST(CliOptions, NamesFromAListAreWrittenInLowerCase) {
     EXPECT_EQ(r.out, message) << args;
   }
   EXPECT_TRUE(std::filesystem::is_empty(dir));
+  std::filesystem::remove_all(dir);
+}
+
+namespace {
+
+/// The command names of the "Subcommands:" block of a --help text, in order.
+std::vector<std::string> subcommands_in(const std::string& help) {
+  std::vector<std::string> names;
+  const std::string head = "\nSubcommands:\n";
+  const std::size_t at = help.find(head);
+  if (at == std::string::npos) return names;
+  for (const std::string& l : lines_of(help.substr(at + head.size()))) {
+    if (l.empty()) break;
+    if (l.size() > 2 && l.compare(0, 2, "  ") == 0 && l[2] != ' ') names.push_back(l.substr(2, l.find(' ', 2) - 2));
+  }
+  return names;
+}
+
+}  // namespace
+
+// Every option that takes a name from a list is refused, when the options are parsed, with one
+// line naming the option and listing the names ("rayscan index: --layout: expected adaptive or
+// fixed, got 'nope' (see --help)"), not CLI11's "nope not in {adaptive,fixed}". Oracle: each
+// command's --help (every command and subcommand that rayscan --help leads to): the options it
+// shows with a set of names ("--layout TEXT:{adaptive,fixed}"), that set joined here as a
+// sentence's list; and the options found are every list option the commands have.
+TEST(CliOptions, EveryNameFromAListIsRefusedWithTheList) {
+  std::vector<std::string> commands;
+  for (const std::string& c : subcommands_in(rayscan_cli("--help").out)) {
+    commands.push_back(c);
+    for (const std::string& sub : subcommands_in(rayscan_cli(c + " --help").out)) commands.push_back(c + " " + sub);
+  }
+  ASSERT_GE(commands.size(), 10u);
+  const std::regex with_set(R"(^  ((?:-[^ ,]+,)*(-[^ ,]+)) +[A-Z]+:\{([^}]*)\})");
+  std::set<std::string> found;
+  for (const std::string& command : commands) {
+    for (const std::string& line : lines_of(rayscan_cli(command + " --help").out)) {
+      std::smatch m;
+      if (!std::regex_search(line, m, with_set)) continue;
+      const std::string option = m[2];
+      std::vector<std::string> names;
+      std::istringstream set(m[3].str());
+      for (std::string n; std::getline(set, n, ',');) names.push_back(n);
+      std::string list;  // "a, b or c"
+      for (std::size_t k = 0; k < names.size(); ++k)
+        list += (k == 0 ? "" : k + 1 == names.size() ? " or " : ", ") + names[k];
+      found.insert(command + " " + option);
+      const auto r = rayscan_cli(command + " " + option + " nope");
+      EXPECT_EQ(r.code, 2) << command << " " << option;
+      const std::string top = command.substr(0, command.find(' '));  // (the line names the first command)
+      EXPECT_EQ(r.out, "rayscan " + top + ": " + option + ": expected " + list + ", got 'nope' (see --help)\n");
+    }
+  }
+  const std::set<std::string> want = {"render --aov",         "render --primitive",
+                                      "render --ortho-colour", "visibility --primitive",
+                                      "visibility --index",    "visibility --sky-weighting",
+                                      "solar --primitive",     "solar --index",
+                                      "query --index",         "query --order",
+                                      "index --layout",        "index --positions",
+                                      "translate --format"};
+  EXPECT_EQ(found, want);
+}
+
+// A note is a line prefixed as every other line of its command, "rayscan translate: note: ...",
+// from translate and index writing COPC and index writing an index file; -q leaves none. Oracle:
+// the input's point data record format (byte 104 of its LAS header), which COPC writes as 7, and
+// the attribute the input lacks (point-color.las has no GPS time: PDRF 2).
+TEST(CliOptions, NotesArePrefixedWithTheirCommand) {
+  const auto dir = fresh("notes");
+  const std::filesystem::path las = data_file("las/point-color.las");
+  const int pdrf = static_cast<unsigned char>(file_bytes(las).at(104));
+  ASSERT_EQ(pdrf, 2);  // RGB, no GPS time
+  const std::string copc_note = "note: point data record format " + std::to_string(pdrf) +
+                                " written as 7 (COPC allows 6, 7 and 8)";
+  const std::pair<std::string, std::string> runs[] = {
+      {"translate " + quoted(las) + " " + quoted(dir / "t.copc.laz"), "rayscan translate: " + copc_note},
+      {"index " + quoted(las) + " -o " + quoted(dir / "i.copc.laz"), "rayscan index: " + copc_note},
+      {"index " + quoted(las) + " -o " + quoted(dir / "i.rsi") + " --attributes rgb,gps_time",
+       "rayscan index: note: " + las.string() + " has no gps_time: not stored"},
+  };
+  for (const auto& [args, note] : runs) {
+    auto r = rayscan_cli(args);
+    ASSERT_EQ(r.code, 0) << args << ": " << r.out;
+    std::vector<std::string> notes;
+    for (const std::string& line : lines_of(r.out))
+      if (line.find("note:") != std::string::npos) notes.push_back(line);
+    EXPECT_EQ(notes, std::vector<std::string>{note}) << args << ":\n" << r.out;
+    r = rayscan_cli(args + " -q");
+    ASSERT_EQ(r.code, 0) << args << ": " << r.out;
+    EXPECT_EQ(r.out.find("note:"), std::string::npos) << r.out;
+  }
   std::filesystem::remove_all(dir);
 }
 

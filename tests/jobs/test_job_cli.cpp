@@ -38,7 +38,7 @@ TEST(JobCli, IndexErrorsAsBefore) {
             "rayscan index: --attributes 'colour': expected rgb, intensity, classification, gps_time, id, all or none\n");
   r = rayscan_cli("index -q " + las + " -o '" + rsi + "' --layout layered");
   EXPECT_EQ(r.code, 2);
-  EXPECT_EQ(r.out, "rayscan index: --layout: layered not in {adaptive,fixed} (see --help)\n");
+  EXPECT_EQ(r.out, "rayscan index: --layout: expected adaptive or fixed, got 'layered' (see --help)\n");
 }
 
 // Options the chosen layout does not use are refused, not ignored (as query refuses --depth
