@@ -81,15 +81,7 @@ extern "C" void on_interrupt(int sig) {
   // Another thread got a signal too and is removing the marks: it ends the process.
   if (g_cleaning.exchange(true))
     for (;;) ::pause();
-  for (Slot& s : g_slots) {
-    int state = s.state.load();
-    if ((state == kFile || state == kFolder) && s.state.compare_exchange_strong(state, kTaken)) {
-      if (state == kFolder)
-        remove_folder(s.path);
-      else
-        ::unlink(s.path);
-    }
-  }
+  remove_marked_paths();
   // End by the signal itself, so that the parent sees how the process ended.
   struct sigaction dfl {};
   dfl.sa_handler = SIG_DFL;
@@ -157,6 +149,20 @@ void reset_in_child() {
 void register_fork_handlers() { ::pthread_atfork(lock_for_fork, unlock_after_fork, reset_in_child); }
 
 }  // namespace
+
+void remove_marked_paths() noexcept {
+  // Each slot is taken once (published -> taken), so a signal arriving meanwhile, or a second
+  // caller, removes only what this one has not.
+  for (Slot& s : g_slots) {
+    int state = s.state.load();
+    if ((state == kFile || state == kFolder) && s.state.compare_exchange_strong(state, kTaken)) {
+      if (state == kFolder)
+        remove_folder(s.path);
+      else
+        ::unlink(s.path);
+    }
+  }
+}
 
 RemoveOnInterrupt::RemoveOnInterrupt(const std::filesystem::path& path, Kind kind) noexcept {
   if (!g_marking.load()) return;

@@ -1,6 +1,8 @@
 // The MPI work queue (rayscan/mpi/work_queue.hpp).
 #include "rayscan/mpi/work_queue.hpp"
 
+#include "rayscan/base/interrupt.hpp"
+
 #include <mpi.h>
 
 #include <algorithm>
@@ -57,6 +59,9 @@ QueueDistributor::QueueDistributor(int rank, int size, double timeout_seconds, b
 void QueueDistributor::abort_with(const std::string& line) const {
   std::fprintf(stderr, "%s\n", line.c_str());
   std::fflush(stderr);
+  // MPI_Abort ends the process without unwinding, so no owner removes its temporary (rank 0's
+  // output, opened before the stages): remove every marked one now.
+  remove_marked_paths();
   MPI_Abort(MPI_COMM_WORLD, 2);
   std::abort();  // MPI_Abort does not return; keep the compiler and a broken MPI honest
 }

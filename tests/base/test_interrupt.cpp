@@ -119,6 +119,35 @@ TEST(Interrupt, SignalRemovesIntermediateFilesAndFolders) {
   fs::remove_all(dir);
 }
 
+// A process about to end without unwinding (MPI_Abort) removes the marked paths by an ordinary
+// call; their owners, should they still run, find nothing to remove and end without an error.
+TEST(Interrupt, RemoveMarkedPathsRemovesTheMarkedPathsOnly) {
+  const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_interrupt_remove_marked");
+  const int status = in_child([&] {
+    rayscan::install_interrupt_handler();
+    touch(dir / "unmarked");
+    {
+      RemoveOnInterrupt released(dir / "released");  // its mark ends before the call: kept
+      touch(dir / "released");
+    }
+    RemoveOnInterrupt file(dir / "file");
+    touch(dir / "file");
+    const rayscan::IntermediateFile runs(dir / ".x.rsi.runs.1", dir / "x.rsi", RemoveOnInterrupt::Kind::folder);
+    for (int i = 0; i < 3; ++i) touch(runs.path() / ("run" + std::to_string(i)));
+    rayscan::AtomicFile out(dir / "out.txt");
+    const unsigned char bytes[] = {'x'};
+    out.write_all(bytes);
+    if (rayscan::test::entry_names(dir).size() != 5) ::_exit(3);  // the files exist before the call
+    rayscan::remove_marked_paths();
+    if (rayscan::test::entry_names(dir) != std::set<std::string>{"released", "unmarked"}) ::_exit(4);
+    rayscan::remove_marked_paths();  // nothing left to remove
+  });
+  ASSERT_TRUE(WIFEXITED(status)) << "status " << status;
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  EXPECT_EQ(rayscan::test::entry_names(dir), (std::set<std::string>{"released", "unmarked"}));
+  fs::remove_all(dir);
+}
+
 TEST(Interrupt, SignalIgnoredAtInstallStaysIgnored) {
   // `nohup rayscan ...` ignores SIGHUP: the handler must not take it over.
   const fs::path dir = rayscan::test::fresh_temp_dir("rayscan_interrupt_ignored");

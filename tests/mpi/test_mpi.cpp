@@ -357,6 +357,32 @@ TEST_F(Mpi, ARankThatCannotOpenTheIndexEndsTheJobWithOneLineAndNoOutput) {
   for (const auto& e : fs::directory_iterator(dir_)) EXPECT_EQ(e.path().filename().string().find(".never"), std::string::npos);
 }
 
+TEST_F(Mpi, AnAbortedJobLeavesNoFileInTheOutputFolder) {
+  // Two "nodes" again, rank 1's folder without the cloud. Rank 0 opens the query's CSV output (its
+  // temporary, ".hits.csv.tmp.<pid>") before the rays are shared out; rank 1's fail message then
+  // ends the job by MPI_Abort, which skips the unwinding that removes the temporary, so the abort
+  // path itself must remove it. The oracle: the output folder, empty before, is empty after.
+  fs::create_directories(dir_ / "a");
+  fs::create_directories(dir_ / "b");
+  fs::create_directories(dir_ / "out");
+  fs::rename(dir_ / "autzen.las", dir_ / "a" / "autzen.las");
+  for (const char* d : {"a", "b"}) {
+    std::ofstream rays(dir_ / d / "rays.csv");
+    rays << "ox,oy,oz,dx,dy,dz\n";
+    for (int i = 0; i < 300; ++i) rays << 636010 + (i % 20) * 50 << ',' << 848940 + (i / 20) * 40 << ",600,0,0,-1\n";
+  }
+  const fs::path out = dir_ / "out" / "hits.csv";
+  const std::string args = " query -q --cloud autzen.las --rays rays.csv --k 1 --radius 1.5 --out " + out.string();
+  const std::string cmd = mpirun(1) + "-wdir " + (dir_ / "a").string() + " " + kBin + args + " : -n 1 -wdir " +
+                          (dir_ / "b").string() + " " + kBin + args;
+  const CommandResult r = run(cmd);
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_EQ(lines_equal(r.out, "rayscan query: autzen.las: cannot open file: No such file or directory (rank 1 of 2)"), 1)
+      << r.out;
+  EXPECT_EQ(r.out.find("rayscan query:"), r.out.rfind("rayscan query:")) << r.out;  // one line of ours
+  for (const auto& e : fs::directory_iterator(dir_ / "out")) ADD_FAILURE() << "left behind: " << e.path();
+}
+
 TEST_F(Mpi, ARankThatDiesEndsTheJobWithoutOutputAndWithoutHanging) {
   const fs::path out = dir_ / "never.png";
   const CommandResult r = run(mpirun(1) + kBin + " render -q scene.json --out " + out.string() + " : -n 1 sh -c 'kill -9 $$'");

@@ -7,7 +7,8 @@
 // async-signal-safe, so the handler may run on any thread at any moment. A library loaded into
 // another program (the Python module) installs no handler of its own for good: around a write it
 // holds an InterruptCleanup, which takes only the signals whose action is still the default one.
-// Without either, nothing is marked and signals keep their own disposition.
+// Without either, nothing is marked and signals keep their own disposition. A process that ends
+// without unwinding (MPI_Abort) removes the marked paths first (remove_marked_paths).
 #pragma once
 
 #include <filesystem>
@@ -64,6 +65,13 @@ class InterruptCleanup {
   InterruptCleanup& operator=(const InterruptCleanup&) = delete;
   ~InterruptCleanup();
 };
+
+/// Removes every path marked now (RemoveOnInterrupt), as the signal handler does, for a process
+/// about to end without unwinding, where no destructor removes its temporaries (MPI_Abort, which
+/// rayscan::mpi calls when a job under mpirun fails). The marks removed stay taken: their owners'
+/// later removal or rename finds no file, and their destruction frees nothing. Only
+/// async-signal-safe calls, like the handler. Does nothing when nothing is marked. Never throws.
+void remove_marked_paths() noexcept;
 
 /// For a job that stops itself and unwinds (`rayscan index`, whose progress callback checks
 /// pending_interrupt()): from now on the first of the three signals is only recorded; a second

@@ -59,7 +59,8 @@ class QueueDistributor final : public WorkDistributor {
   // Used by Session.
   /// Root: wait for every worker's bye (or failure). Workers: send the bye.
   void finish();
-  /// Root: print `line` and MPI_Abort(2). Never returns.
+  /// Root: print `line`, remove the temporaries marked for removal (remove_marked_paths) and
+  /// MPI_Abort(2). Never returns.
   [[noreturn]] void abort_with(const std::string& line) const;
   /// Root: a pending fail message from any worker -> abort_with; returns otherwise.
   void check_failures();
