@@ -32,18 +32,22 @@ namespace rayscan::jobs {
 
 using namespace rayscan::io;  // the io library's types, which this job speaks in
 
+namespace detail {
+
+std::uint64_t query_run_rays(std::uint64_t typical_results, std::uint64_t bound) {
+  const std::uint64_t typical =
+      std::clamp<std::uint64_t>(kQueryHitsPerRun / std::max<std::uint64_t>(typical_results, 1), 1, kQueryRaysPerBlock);
+  return std::min(typical, std::max<std::uint64_t>(1, kQueryMaxMessageResultBytes / query_reply_bytes(1, bound)));
+}
+
+}  // namespace detail
+
 namespace {
 
-constexpr std::uint64_t kRaysPerBlock = 256;  // rays per block: the unit of the progress bar
-// The most results the rays answered together in one run may hold by their bound (--k, the
-// points): a run is a whole block when its rays return few results each, down to one ray when
-// each may return tens of thousands, so that the runs in flight, not the whole answer, are held.
-// The run is also the MPI queue's item, so one reply carries about this many results per run
-// (512 KiB of RayHits), whatever the cloud's size.
-constexpr std::uint64_t kHitsPerRun = std::uint64_t{1} << 14;
-// The most bytes of results one MPI message carries: MPI counts a message's bytes in an int, and
-// the work queue's head (docs/mpi.md) is to fit beside them.
-constexpr std::uint64_t kMaxMessageResultBytes = std::uint64_t(std::numeric_limits<int>::max()) - 4096;
+using detail::query_reply_bytes;
+constexpr std::uint64_t kRaysPerBlock = detail::kQueryRaysPerBlock;
+constexpr std::uint64_t kHitsPerRun = detail::kQueryHitsPerRun;
+constexpr std::uint64_t kMaxMessageResultBytes = detail::kQueryMaxMessageResultBytes;
 
 /// What becomes of the answers of a run of consecutive rays.
 struct RunSink {
@@ -55,16 +59,15 @@ struct RunSink {
   std::function<void(const std::string&)> write;
 };
 
-/// The runs of `n` rays: each block of kRaysPerBlock rays is cut into runs of `rays` rays (a
-/// block when each ray returns few results, down to one ray: kHitsPerRun results by the bound
-/// `max_hits_per_ray`), the block's last run shorter. Run i is the (i % per_block)-th of block
+/// The runs of `n` rays: each block of kRaysPerBlock rays is cut into runs of `rays` rays
+/// (detail::query_run_rays), the block's last run shorter. Run i is the (i % per_block)-th of block
 /// i / per_block, so consecutive runs are consecutive rays and no run straddles two blocks (the
 /// progress bar counts blocks). The pipeline's unit in one process and the queue's item in several.
 struct Runs {
   std::uint64_t n, rays, per_block;
-  Runs(std::uint64_t n_rays, std::uint64_t max_hits_per_ray)
+  Runs(std::uint64_t n_rays, std::uint64_t typical_hits_per_ray, std::uint64_t max_hits_per_ray)
       : n(n_rays),
-        rays(std::clamp<std::uint64_t>(kHitsPerRun / std::max<std::uint64_t>(max_hits_per_ray, 1), 1, kRaysPerBlock)),
+        rays(detail::query_run_rays(typical_hits_per_ray, max_hits_per_ray)),
         per_block((kRaysPerBlock + rays - 1) / rays) {}
   /// Blocks of kRaysPerBlock rays (the last may be short).
   [[nodiscard]] std::uint64_t blocks() const { return (n + kRaysPerBlock - 1) / kRaysPerBlock; }
@@ -95,8 +98,9 @@ constexpr std::uint64_t kBoundSampleRays = 64, kBoundSampleStride = 256;
 /// them (at least 1, at most `bound`), answered here on `arena`, one ray at a time per thread. A
 /// radius query on a large cloud thus gets runs of about kHitsPerRun results, as a --k query does,
 /// instead of a run (and under MPI a reply) per ray; a ray past the sample's most makes its run
-/// longer, not its answer different. The same on every rank: the rays, the index and the answers
-/// are.
+/// longer, not its answer different, and Runs caps the rays of a run by `bound` so that even then
+/// it fits one MPI message (detail::query_run_rays). The same on every rank: the rays, the index
+/// and the answers are.
 template <class I>
 std::uint64_t results_per_ray(const I& idx, std::span<const Ray> rays, const RayQuery& q, tbb::task_arena& arena,
                               std::uint64_t bound) {
@@ -118,8 +122,9 @@ std::uint64_t results_per_ray(const I& idx, std::span<const Ray> rays, const Ray
 /// `sink` as soon as it and the runs before it are answered, so that only the runs in flight are
 /// held: a TBB pipeline of up to 2 x threads runs (Runs: each at most a block, kHitsPerRun
 /// results by `max_hits_per_ray` or, for a radius or t interval, by results_per_ray's sample, at
-/// least one ray), answered by ray_query_each (bit for bit the single ray_query calls, so the hits
-/// do not depend on the split) and written in order. With a
+/// least one ray, at most the rays whose `max_hits_per_ray` each fit one MPI message), answered
+/// by ray_query_each (bit for bit the single ray_query calls, so the hits do not depend on the
+/// split) and written in order. With a
 /// distributor of several processes, the same runs are its items: handed out in batches of
 /// `threads` runs and gathered to the root (hit lists serialised as count + RayHits), where each
 /// run is rendered and written once the runs before it are (those ahead of it wait, as text).
@@ -134,7 +139,7 @@ std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQ
   q.validate();
   const std::uint64_t n = rays.size();
   tbb::task_arena arena(static_cast<int>(threads));
-  const Runs runs(n, results_per_ray(idx, std::span<const Ray>(rays), q, arena, max_hits_per_ray));
+  const Runs runs(n, results_per_ray(idx, std::span<const Ray>(rays), q, arena, max_hits_per_ray), max_hits_per_ray);
   // "ray blocks", not "blocks of 256 rays": the bar must fit the 90 columns Progress::finish clears.
   Progress progress(runs.blocks(), show_progress, ProgressUnits{"ray blocks", "rays/s", 1.0, 0});
   // After run i is written: the bar's block when the run was its last.
@@ -237,11 +242,11 @@ std::uint64_t answer_rays(const I& idx, const std::vector<Ray>& rays, const RayQ
     if (a != batch_first || b - a != batch.size())
       throw std::logic_error("query: packing rays [" + std::to_string(a) + ", " + std::to_string(b) +
                              ") that are not the batch computed");
-    // Each run holds about kHitsPerRun results by the bound, but a ray may return more (one ray
-    // per run, the cloud's points): measured before a byte is copied.
+    // Each run holds about kHitsPerRun results and fits one message by the bound, but a batch is
+    // `threads` runs and one ray may return the cloud's points: measured before a byte is copied.
     std::uint64_t results = 0;
     for (const std::vector<RayHit>& h : batch) results += h.size();
-    const std::uint64_t size = batch.size() * sizeof(std::uint64_t) + results * sizeof(RayHit);
+    const std::uint64_t size = query_reply_bytes(batch.size(), results);
     if (size > kMaxMessageResultBytes)
       throw OptionError({"rays [" + std::to_string(a) + ", " + std::to_string(b) + "), one rank's batch of ",
                          option("threads"), " runs, return " + count_text(results, "result") + " (" +

@@ -185,6 +185,32 @@ std::vector<Ray> rays_down_through(const PointCloud& cloud) {
 
 }  // namespace
 
+// The rays of a run: kQueryHitsPerRun (16,384) results by the typical count, within [1, 256], and
+// never more rays than fit one MPI message (2^31 - 1 - 4096 bytes, 8 + 32 B a ray) were each to
+// return the bound, so that a ray outside the sample cannot make a run's reply pass 2 GiB.
+TEST(QueryJob, RunsAreCappedSoThatTheirBoundFitsOneMpiMessage) {
+  using rayscan::jobs::detail::query_run_rays;
+  EXPECT_EQ(query_run_rays(1, 1), 256u);
+  EXPECT_EQ(query_run_rays(64, 64), 256u);
+  EXPECT_EQ(query_run_rays(100, 100), 163u);       // 16,384 / 100
+  EXPECT_EQ(query_run_rays(20000, 20000), 1u);
+  EXPECT_EQ(query_run_rays(1, 1000000), 67u);      // 2,147,479,551 / 32,000,008 = 67.1
+  EXPECT_EQ(query_run_rays(1000, 1000000), 16u);   // the typical count binds first
+  EXPECT_EQ(query_run_rays(1, 10000000), 6u);      // / 320,000,008 = 6.7
+  EXPECT_EQ(query_run_rays(1, 100000000), 1u);     // one ray past 2 GiB: still one ray
+  EXPECT_EQ(query_run_rays(0, 0), 256u);
+  // Against a search over every run length: the longest whose worst case fits.
+  const std::uint64_t max_bytes = 2147483647u - 4096u;
+  for (std::uint64_t bound : {std::uint64_t{65}, std::uint64_t{70000}, std::uint64_t{262144}, std::uint64_t{5000000},
+                              std::uint64_t{33554367}, std::uint64_t{33554368}, std::uint64_t{67108735},
+                              std::uint64_t{67108736}}) {
+    std::uint64_t want = 1;
+    for (std::uint64_t rays = 1; rays <= 256; ++rays)
+      if (rays * (8 + 32 * bound) <= max_bytes) want = rays;
+    EXPECT_EQ(query_run_rays(1, bound), want) << "bound " << bound;
+  }
+}
+
 // A radius query without k: a ray's bound is every point, so the job cuts its runs by the most
 // results of a sample of the rays; rays 1 to 3 (outside the sample) run along a dense line and
 // return far more than that, so their run is longer. Every ray's answer is brute force's all the

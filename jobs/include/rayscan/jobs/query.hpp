@@ -12,11 +12,40 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <ostream>
 #include <string_view>
 #include <vector>
 
 namespace rayscan::jobs {
+
+namespace detail {
+
+/// Rays per block: the unit of the progress bar; a run of rays is at most a block.
+inline constexpr std::uint64_t kQueryRaysPerBlock = 256;
+/// The results the rays of one run hold by their typical count (--k, else a sample's most): a run
+/// is a whole block when its rays return few results each, down to one ray when each returns tens
+/// of thousands, so that the runs in flight, not the whole answer, are held. The run is also the
+/// MPI queue's item, so one reply carries about this many results per run (512 KiB of RayHits).
+inline constexpr std::uint64_t kQueryHitsPerRun = std::uint64_t{1} << 14;
+/// The most bytes of results one MPI message carries: MPI counts a message's bytes in an int, and
+/// the work queue's head (docs/mpi.md) is to fit beside them.
+inline constexpr std::uint64_t kQueryMaxMessageResultBytes = std::uint64_t(std::numeric_limits<int>::max()) - 4096;
+
+/// The bytes `rays` rays returning `results` results in all take in an MPI reply: per ray its
+/// count (8 B), then its RayHits (32 B each).
+inline constexpr std::uint64_t query_reply_bytes(std::uint64_t rays, std::uint64_t results) {
+  return rays * sizeof(std::uint64_t) + results * sizeof(RayHit);
+}
+
+/// The rays of one run (the query job's unit of work and of an MPI reply): kQueryHitsPerRun /
+/// `typical_results` (the results a ray returns typically: the bound, or the most of a sample of
+/// the rays) within [1, kQueryRaysPerBlock], capped so that the run fits one MPI message
+/// (kQueryMaxMessageResultBytes) even when each of its rays returns `bound` results (min(--k,
+/// the points)); one ray at least, whose reply may then still be refused.
+[[nodiscard]] std::uint64_t query_run_rays(std::uint64_t typical_results, std::uint64_t bound);
+
+}  // namespace detail
 
 /// Inputs of run_query().
 struct QueryJobOptions {
@@ -41,7 +70,8 @@ struct QueryJobOptions {
   /// runs before it are answered, one call at a time, in ray order. Only the runs in flight are
   /// held: at most 2 x threads runs, each up to 256 rays and about 16,384 results by the bound of
   /// `query` (--k, the points; with a finite radius or t interval the most results of a sample of
-  /// the rays), one ray at least. With a distributor, only the root writes. An exception it throws
+  /// the rays), one ray at least, and never so many rays that their bound passes 2 GiB
+  /// (detail::query_run_rays). With a distributor, only the root writes. An exception it throws
   /// (a failed write) ends the job.
   std::function<void(std::string_view)> csv;
   /// threads; progress: a bar over the blocks of 256 rays answered; log: the read and the index
