@@ -140,6 +140,7 @@ Runner add_index_command(CLI::App& app) {
     const double s = secs();
     progress.finish();
     if (r.copc) {
+      for (const std::string& w : r.copc->warnings) std::cerr << "rayscan index: warning: " << w << "\n";  // also with -q
       print_copc_summary("rayscan index", o->output, *r.copc, o->quiet);
       std::printf("%.2f s (%.2f M points/s)\n", s, s > 0 ? static_cast<double>(r.copc->points) / s / 1e6 : 0.0);
       return 0;

@@ -575,10 +575,13 @@ bool crs_wkt_readable(const std::string& wkt) { return detail::wkt_readable(wkt)
 
 std::string crs_excerpt(const std::string& wkt) { return one_line(wkt.substr(0, 40) + (wkt.size() > 40 ? "..." : "")); }
 
+std::string unreadable_crs(const std::string& name, const std::string& wkt) {
+  return name + ": the CRS is WKT that GDAL cannot read ('" + crs_excerpt(wkt) + "')";
+}
+
 void require_readable_crs(const std::string& name, const std::string& wkt) {
   if (wkt.empty() || crs_wkt_readable(wkt)) return;
-  throw std::invalid_argument(name + ": the CRS is WKT that GDAL cannot read ('" + crs_excerpt(wkt) +
-                              "'); expected a CRS GDAL reads, or none");
+  throw std::invalid_argument(unreadable_crs(name, wkt) + "; expected a CRS GDAL reads, or none");
 }
 
 namespace {

@@ -1,6 +1,7 @@
 // The translate job (rayscan/jobs/translate.hpp): LAS <-> LAZ through io::translate_las, any other
 // pair through the readers (or an index file's MappedIndex::to_point_cloud) and io::write_point_cloud.
 #include "rayscan/jobs/translate.hpp"
+#include "cloud_site.hpp"
 #include "copc_output.hpp"
 
 #include "rayscan/base/atomic_file.hpp"
@@ -180,6 +181,7 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
     r.points = c.points;
     r.chunks = c.nodes;
     r.compressed = true;
+    r.warnings = c.warnings;
     r.in_bytes = c.in_bytes;
     r.out_bytes = c.out_bytes;
     return r;
@@ -204,6 +206,9 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
   io::LasWriteOptions grid;
   PointCloud cloud;
   std::vector<std::string> warnings;
+  // COPC stores its CRS: one GDAL cannot read in a LAS header is refused before the points are
+  // read (the other formats' CRS comes with their points, checked below).
+  if (copc) detail::require_readable_header_crs(options.in, nullptr, {});
   if (index_in) {
     cloud = read_index_points(options.in, grid);
   } else {
@@ -218,8 +223,8 @@ TranslateJobResult run_translate(const TranslateJobOptions& options) {
   // formats need none and are written without it, with a warning, rather than refused.
   if (copc) io::require_readable_crs(options.in.string(), cloud.crs_wkt);
   if (!cloud.crs_wkt.empty() && !io::crs_wkt_readable(cloud.crs_wkt)) {
-    warnings.push_back(options.in.string() + ": the CRS is WKT that GDAL cannot read ('" + io::crs_excerpt(cloud.crs_wkt) +
-                       "'): " + options.out.string() + " is written without a CRS");
+    warnings.push_back(io::unreadable_crs(options.in.string(), cloud.crs_wkt) + ": " + options.out.string() +
+                       " is written without a CRS");
     cloud.crs_wkt.clear();
   }
   // LAZ output is compressed by the job itself, so that it takes the chunk size and reports

@@ -7,13 +7,14 @@
 #include "rayscan/jobs/index.hpp"
 #include "rayscan/jobs/translate.hpp"
 
-#include <gdal/cpl_conv.h>
-#include <gdal/ogr_spatialref.h>
+#include <cpl_conv.h>
 #include <gtest/gtest.h>
+#include <ogr_spatialref.h>
 
 #include "jobs_test_util.hpp"
 #include "../common/extra_bytes_descriptors.hpp"
 #include "../common/file_size_limit.hpp"
+#include "../common/las_patch.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -909,4 +910,87 @@ TEST(TranslateJob, AnUnreadableWktVlrGivesWayToGeoKeysOrToNoCrs) {
     EXPECT_TRUE(io::read_point_cloud(o.out).crs_wkt.empty());
     EXPECT_EQ(file_bytes(o.out).find("crs"), std::string::npos);
   }
+}
+
+// COPC output of a LAS whose WKT VLR GDAL cannot read but whose GeoKeys it reads stores the
+// GeoKeys' CRS as its WKT and says so once, naming the input, as the point formats do: without a
+// grid (the records copied, the CRS taken by the COPC reader of the input), with one (--scale,
+// through the points read whole), and from `translate` and `index` on the command line, also with
+// -q. Oracle: OGR's EPSG:32104 in US survey foot (the file's GeoKeys, its README) against the
+// CRS read back from each COPC file.
+TEST(TranslateJob, CopcOfAnUnreadableWktVlrWarnsOnceThatItsCrsIsTheGeoKeys) {
+  const fs::path dir = temp_dir() / "bad_wkt_copc";
+  fs::create_directories(dir);
+  const fs::path keys = dir / "keys.las";
+  std::ofstream(keys, std::ios::binary) << test::las_with_unreadable_wkt(true);
+  OGRSpatialReference expect;
+  ASSERT_EQ(expect.SetFromUserInput("EPSG:32104"), OGRERR_NONE);
+  expect.SetLinearUnitsAndUpdateParameters(SRS_UL_US_FOOT, CPLAtof(SRS_UL_US_FOOT_CONV));
+  const auto expect_crs = [&](const fs::path& copc) {
+    const PointCloud back = io::read_point_cloud(copc);
+    OGRSpatialReference got;
+    ASSERT_EQ(got.importFromWkt(back.crs_wkt.c_str()), OGRERR_NONE) << back.crs_wkt;
+    const char* unit = nullptr;
+    EXPECT_DOUBLE_EQ(got.GetLinearUnits(&unit), expect.GetLinearUnits());
+    EXPECT_NEAR(got.GetProjParm(SRS_PP_FALSE_EASTING), expect.GetProjParm(SRS_PP_FALSE_EASTING), 1e-6);
+    EXPECT_NEAR(got.GetProjParm(SRS_PP_STANDARD_PARALLEL_1), expect.GetProjParm(SRS_PP_STANDARD_PARALLEL_1), 1e-9);
+  };
+  const std::string prefix = keys.string() + ": the OGC WKT VLR holds no CRS that GDAL reads ('XROJCS[";
+  const std::string suffix = "'): the CRS is taken from its GeoKeys";
+  for (const bool grid : {false, true}) {
+    SCOPED_TRACE(grid ? "with --scale" : "without a grid");
+    jobs::TranslateJobOptions o;
+    o.in = keys;
+    o.out = dir / (grid ? "grid.copc.laz" : "keys.copc.laz");
+    if (grid) o.scale = {0.001};
+    const jobs::TranslateJobResult r = jobs::run_translate(o);
+    ASSERT_TRUE(r.copc);
+    ASSERT_EQ(r.warnings.size(), 1u);
+    EXPECT_EQ(r.warnings[0].rfind(prefix, 0), 0u) << r.warnings[0];
+    EXPECT_EQ(r.warnings[0].substr(r.warnings[0].size() - suffix.size()), suffix) << r.warnings[0];
+    expect_crs(o.out);
+  }
+  for (const std::string& command : {"translate -q " + test::quoted(keys) + " " + test::quoted(dir / "cli.copc.laz"),
+                                    "index -q " + test::quoted(keys) + " -o " + test::quoted(dir / "index.copc.laz")}) {
+    SCOPED_TRACE(command);
+    const auto cli = test::rayscan_cli(command);
+    ASSERT_EQ(cli.code, 0) << cli.out;
+    const std::string name = command.substr(0, command.find(' '));
+    const std::size_t at = cli.out.find("rayscan " + name + ": warning: " + prefix);
+    EXPECT_NE(at, std::string::npos) << cli.out;
+    EXPECT_EQ(cli.out.find("warning"), cli.out.rfind("warning")) << cli.out;  // once
+  }
+  expect_crs(dir / "index.copc.laz");
+}
+
+// COPC output with a grid of its own refuses a LAS WKT VLR GDAL cannot read (no GeoKeys beside
+// it) from the file's header, before the points are read: the crafted file's first record holds
+// an X beyond the coordinate bound (X scale 1, patch_las_x_scale; X = 2^31 - 1), which reading the points refuses,
+// so the CRS refusal can only come first if no point was read. Oracle: the header fields of ASPRS
+// LAS 1.4 R15 table 3 (offset to point data at byte 96).
+TEST(TranslateJob, CopcWithAGridRefusesAnUnreadableCrsBeforeReadingThePoints) {
+  const fs::path dir = temp_dir() / "bad_wkt_copc_grid";
+  fs::create_directories(dir);
+  std::string b = test::las_with_unreadable_wkt(false);
+  const std::int32_t far = 2147483647;
+  std::uint32_t point_offset = 0;
+  std::memcpy(&point_offset, b.data() + 96, 4);
+  std::memcpy(b.data() + point_offset, &far, 4);
+  const fs::path in = dir / "far.las";
+  std::ofstream(in, std::ios::binary) << b;
+  test::patch_las_x_scale(in, 1.0);
+  // The crafted record is refused when the points are read (the file is otherwise readable).
+  EXPECT_NE(test::reader_error(in), "");
+  jobs::TranslateJobOptions o;
+  o.in = in;
+  o.out = dir / "far.copc.laz";
+  o.scale = {0.001};
+  try {
+    (void)jobs::run_translate(o);
+    ADD_FAILURE() << "expected a refusal";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()), in.string() + ": the CRS is WKT that GDAL cannot read ('XROJCS[\"NAD83_2011_Nebraska_ft\",GEOGCS[\"...'); "
+                                                   "expected a CRS GDAL reads, or none");
+  }
+  EXPECT_FALSE(fs::exists(o.out));
 }

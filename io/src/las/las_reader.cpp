@@ -552,7 +552,7 @@ void LasReader::parse(const Input& in, const ReadOptions& opt) {
     if (wkt.find('[') != std::string::npos)
       wkt_vlr = std::move(wkt);
     else
-      info.notes.push_back("OGC WKT VLR holds no WKT ('" + wkt.substr(0, 40) + "'): ignored");
+      info.notes.push_back("OGC WKT VLR holds no WKT ('" + crs_excerpt(wkt) + "'): ignored");
   }
   std::string geokeys_wkt;
   if (h.geokeys.present) {

@@ -56,6 +56,7 @@ struct Records {
   std::vector<CarriedVlr> evlrs;    ///< input EVLRs kept (not COPC or CRS ones)
   std::uint64_t in_bytes = 0;
   std::vector<std::string> notes;
+  std::vector<std::string> warnings;  ///< CopcWriteResult::warnings
 };
 
 /// Opens `in` as Records (see write_copc() for the conversions): an uncompressed PDRF 6-8 LAS is

@@ -165,7 +165,10 @@ Records read_las_family(const std::shared_ptr<RecordFile>& file, const std::file
   ReadOptions ro;
   ro.scalars = false;
   ro.stored_colour = true;
-  r.crs_wkt = open_point_reader(path, AttributeSet::none(), ro)->crs_wkt();
+  const std::unique_ptr<PointReader> crs_reader = open_point_reader(path, AttributeSet::none(), ro);
+  r.crs_wkt = crs_reader->crs_wkt();
+  // A WKT VLR GDAL cannot read that gave way to GeoKeys: the CRS written is not the one of record.
+  if (const std::string& w = crs_reader->info().crs_warning; !w.empty()) r.warnings.push_back(w);
   require_readable_crs(name, r.crs_wkt);
   if (!h.laszip.present && !convert) {
     r.bytes = d + h.point_offset;  // the input's own records, mapped

@@ -331,6 +331,7 @@ CopcWriteResult write_copc(const std::filesystem::path& in, const std::filesyste
   res.in_bytes = r.in_bytes;
   res.out_bytes = pos;
   res.notes = r.notes;
+  res.warnings = r.warnings;
   return res;
 }
 

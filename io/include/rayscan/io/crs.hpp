@@ -61,11 +61,15 @@ struct LengthUnit {
 /// line: how a message quotes a CRS that GDAL cannot read. Never throws but std::bad_alloc.
 [[nodiscard]] std::string crs_excerpt(const std::string& wkt);
 
-/// Throws std::invalid_argument "<name>: the CRS is WKT that GDAL cannot read ('<crs_excerpt>');
-/// expected a CRS GDAL reads, or none" unless `wkt` is empty or GDAL reads it (crs_wkt_readable):
-/// the one rule of every writer that stores a CRS (LAS, LAZ, PLY, COPC, GeoTIFF), since GDAL, PDAL
-/// and QGIS reject a file whose WKT they cannot parse. `name` is the file to blame: the output a
-/// point writer was given, or the input whose CRS an output that needs one would carry.
+/// "<name>: the CRS is WKT that GDAL cannot read ('<crs_excerpt>')": how a message names the file
+/// `name` whose CRS `wkt` GDAL cannot read (require_readable_crs, a writer that drops it).
+[[nodiscard]] std::string unreadable_crs(const std::string& name, const std::string& wkt);
+
+/// Throws std::invalid_argument "<unreadable_crs>; expected a CRS GDAL reads, or none" unless
+/// `wkt` is empty or GDAL reads it (crs_wkt_readable): the one rule of every writer that stores a
+/// CRS (LAS, LAZ, PLY, COPC, GeoTIFF), since GDAL, PDAL and QGIS reject a file whose WKT they
+/// cannot parse. `name` is the file to blame: the output a point writer was given, or the input
+/// whose CRS an output that needs one would carry.
 void require_readable_crs(const std::string& name, const std::string& wkt);
 
 }  // namespace rayscan::io

@@ -65,6 +65,9 @@ struct CopcWriteResult {
   double center[3] = {0, 0, 0}, halfsize = 0, spacing = 0;  ///< root cube and spacing, file units
   std::uint64_t in_bytes = 0, out_bytes = 0;                ///< file sizes
   std::vector<std::string> notes;  ///< conversions made (e.g. PDRF 3 records written as PDRF 7)
+  /// What the user is told even when notes are not: the input's CRS taken from its GeoKeys, its
+  /// WKT VLR unreadable (FileInfo::crs_warning, naming the input).
+  std::vector<std::string> warnings;
 };
 
 /// Writes the point file `in` (any format read_point_cloud() reads) to `out` as COPC 1.0:
