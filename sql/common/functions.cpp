@@ -81,7 +81,11 @@ extern "C" size_t rs_count_dist_ray_within(const double o_[3], const double d_[3
                                            size_t n) {
   const Vec3 o(o_[0], o_[1], o_[2]), d(d_[0], d_[1], d_[2]);
   size_t count = 0;
-  for (size_t i = 0; i < n; ++i) count += rayscan::dist_ray(o, d, Vec3(p[3 * i], p[3 * i + 1], p[3 * i + 2])) <= r;
+  for (size_t i = 0; i < n; ++i) {
+    // A distance that overflows is rs_eval's error, not a value within r, even when r is +inf.
+    const double v = rayscan::dist_ray(o, d, Vec3(p[3 * i], p[3 * i + 1], p[3 * i + 2]));
+    count += std::isfinite(v) && v <= r;
+  }
   return count;
 }
 

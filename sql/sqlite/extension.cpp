@@ -468,8 +468,11 @@ struct Args {
 /// argument order so that the first bad argument is the one reported; k becomes the smaller of k
 /// and the query's LIMIT + OFFSET when the plan passed them. Returns SQLITE_OK, or
 /// SQLITE_ERROR with the vtab's error message set: a missing ray argument, a non-number, k not an
-/// integer >= 0, ord not 'ray'/'time', or a ray rs_check_ray rejects.
-int parse_ray_query_args(VTab* vt, int mask, int argc, sqlite3_value** argv, Args& out) {
+/// integer >= 0, ord not 'ray'/'time', or a ray rs_check_ray rejects. Each argument read is also
+/// copied into keep[i] (sqlite3_value_dup; the hidden columns' values), SQLITE_NOMEM when a copy
+/// cannot be made; reading stops at an error or a NULL ray argument, which give no row.
+int parse_ray_query_args(VTab* vt, int mask, int argc, sqlite3_value** argv, Args& out,
+                         sqlite3_value* (&keep)[kNumArgs]) {
   double* a = out.a;
   long long kval = -1;  // -1: k not set (all points)
   int ai = 0;
@@ -483,6 +486,7 @@ int parse_ray_query_args(VTab* vt, int mask, int argc, sqlite3_value** argv, Arg
   for (int i = 0; i < kNumArgs && ai < argc; ++i) {
     if (!(mask & (1 << i))) continue;
     sqlite3_value* v = argv[ai++];
+    if (!(keep[i] = sqlite3_value_dup(v))) return SQLITE_NOMEM;
     const int t = sqlite3_value_type(v);
     if (t == SQLITE_NULL) {
       if (i < 6) {
@@ -709,12 +713,9 @@ int vt_filter(sqlite3_vtab_cursor* cur, int mask, const char*, int argc, sqlite3
   c->hits.clear();
   c->pos = 0;
   c->clear_args();
-  // xFilter's arguments come in argument order (vt_best_index), the LIMIT and OFFSET after them.
-  for (int i = 0, ai = 0; i < kNumArgs && ai < argc; ++i)
-    if (mask & (1 << i))
-      if (!(c->args[i] = sqlite3_value_dup(argv[ai++]))) return SQLITE_NOMEM;
   Args args;
-  if (const int rc = parse_ray_query_args(vt, mask, argc, argv, args); rc != SQLITE_OK || args.null_ray) return rc;
+  if (const int rc = parse_ray_query_args(vt, mask, argc, argv, args, c->args); rc != SQLITE_OK || args.null_ray)
+    return rc;
   if (const int rc = prepare(vt); rc != SQLITE_OK) return rc;
   RayQuery q(vt, args, c->hits);
   std::vector<Cand> cands;

@@ -58,8 +58,9 @@ const char* rs_eval_bounds(const char* fn, rs_function f, const double a[12], do
                            rs_error_kind* kind, char err[RS_ERRBUF]);
 
 /** The number of the n points p[3i..3i+2] with dist_ray(o, d, p) <= r, each by the core function
- * rs_eval returns (an overflowing one is not counted), for a ray checked once (rs_check_ray)
- * instead of at every point: a planner's estimate over a sample of points. */
+ * rs_eval returns; only finite distances are counted (one that overflows is rs_eval's error, also
+ * for r = +inf, which rs_check_ray accepts). For a ray checked once (rs_check_ray) instead of at
+ * every point: a planner's estimate over a sample of points. */
 size_t rs_count_dist_ray_within(const double o[3], const double d[3], double r, const double* p, size_t n);
 
 /** Outcome of testing a chunk box against a ray predicate (SQLite's R*Tree eWithin values). */
