@@ -806,15 +806,8 @@ TEST(TranslateJob, AnUnreadableWktVlrIsCopiedAloneAndWarnedOnce) {
   /// The payload offset and length of each VLR "LASF_Projection" record `id` of the LAS bytes `b`.
   const auto crs_vlrs = [](const std::string& b, std::uint16_t id) {
     std::vector<std::pair<std::size_t, std::size_t>> found;
-    std::uint16_t header = 0, len = 0, record = 0;
-    std::uint32_t n = 0;
-    std::memcpy(&header, b.data() + 94, 2);
-    std::memcpy(&n, b.data() + 100, 4);
-    for (std::size_t pos = header, i = 0; i < n; ++i, pos += 54 + len) {
-      std::memcpy(&record, b.data() + pos + 18, 2);
-      std::memcpy(&len, b.data() + pos + 20, 2);
-      if (std::string(b.c_str() + pos + 2) == "LASF_Projection" && record == id) found.emplace_back(pos + 54, len);
-    }
+    for (const test::LasVlr& v : test::las_vlrs(b))
+      if (v.user_id == "LASF_Projection" && v.record == id) found.emplace_back(v.payload, v.length);
     return found;
   };
   const auto wkt = crs_vlrs(good, 2112);
